@@ -1,0 +1,120 @@
+"""The algorithm contract.
+
+An algorithm is a small class: a declarative spec (id ``group:name``, display name, group, help,
+typed parameters, outputs) and a thin :meth:`Algorithm.process` that reads inputs, calls numeric
+kernels and writes outputs. The runner validates parameters before ``process`` is called, and
+hands over *staged* paths for output files (renamed into place only on success).
+
+Example
+-------
+>>> from toolbox.algorithm import Algorithm
+>>> from toolbox.parameters import Number, OutputRaster
+>>> from toolbox.registry import register
+>>> @register  # doctest: +SKIP
+... class Example(Algorithm):
+...     "Long help text: what it does, the method, the formula's source."
+...     id = "example:constant"
+...     display_name = "Constant raster"
+...     group = "Examples"
+...     short_help = "Writes a raster of one value."
+...     parameters = [Number("VALUE", "the value", default=1.0),
+...                   OutputRaster("OUTPUT", "the raster")]
+...     def process(self, params, feedback):
+...         ...
+...         return {"OUTPUT": params["OUTPUT"]}
+"""
+
+from __future__ import annotations
+
+import inspect
+import re
+from typing import Any, ClassVar
+
+from toolbox.errors import ParameterError
+from toolbox.feedback import Feedback
+from toolbox.parameters import Destination, Field, Output, Parameter
+
+ID_RE = re.compile(r"^[a-z][a-z0-9_]*:[a-z][a-z0-9_]*$")
+
+
+class Algorithm:
+    """Base class of every algorithm. Subclass, fill the spec, implement :meth:`process`."""
+
+    id: ClassVar[str] = ""
+    display_name: ClassVar[str] = ""
+    group: ClassVar[str] = ""
+    short_help: ClassVar[str] = ""
+    parameters: ClassVar[list[Parameter]] = []
+    outputs: ClassVar[list[Output]] = []
+
+    # -- spec --------------------------------------------------------------------------------------
+    @classmethod
+    def group_id(cls) -> str:
+        return cls.id.split(":", 1)[0]
+
+    @classmethod
+    def help_text(cls) -> str:
+        """The long help: the class docstring."""
+        return inspect.cleandoc(cls.__doc__ or cls.short_help)
+
+    @classmethod
+    def parameter(cls, name: str) -> Parameter:
+        for p in cls.parameters:
+            if p.name == name:
+                return p
+        raise KeyError(name)
+
+    @classmethod
+    def destinations(cls) -> list[Destination]:
+        return [p for p in cls.parameters if isinstance(p, Destination)]
+
+    @classmethod
+    def spec(cls) -> dict[str, Any]:
+        """Machine-readable description (``toolbox help ID --json``)."""
+        return {
+            "id": cls.id, "display_name": cls.display_name, "group": cls.group,
+            "group_id": cls.group_id(), "short_help": cls.short_help, "help": cls.help_text(),
+            "parameters": [p.describe() for p in cls.parameters],
+            "outputs": [{"name": p.name, "type": p.type_name, "description": p.description}
+                        for p in cls.destinations()] + [o.describe() for o in cls.outputs],
+        }
+
+    @classmethod
+    def check_spec(cls) -> None:
+        """Raise ``TypeError`` when the declaration is inconsistent (called at registration)."""
+        if not ID_RE.match(cls.id or ""):
+            raise TypeError(f"{cls.__name__}: id {cls.id!r} must be 'group:name' in lowercase")
+        if not (cls.display_name and cls.group and cls.short_help):
+            raise TypeError(f"{cls.id}: display_name, group and short_help are required")
+        seen: set[str] = set()
+        for p in cls.parameters:
+            if p.name in seen:
+                raise TypeError(f"{cls.id}: parameter {p.name} declared twice")
+            if isinstance(p, Field) and p.parent not in seen:
+                raise TypeError(f"{cls.id}: field {p.name} must come after its layer {p.parent}")
+            seen.add(p.name)
+        for o in cls.outputs:
+            if o.name in seen:
+                raise TypeError(f"{cls.id}: output {o.name} clashes with a parameter")
+            seen.add(o.name)
+
+    # -- behaviour ---------------------------------------------------------------------------------
+    def check(self, params: dict[str, Any]) -> None:
+        """Cross-parameter checks after each parameter validated; raise :class:`ParameterError`.
+
+        Runs before any work (no file is written yet). The default accepts everything.
+        """
+
+    def process(self, params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
+        """Do the work. ``params`` holds validated values; output destinations are staged paths.
+
+        Return a dict of outputs: destination names map to the path written (omit an optional
+        destination that was not written); value outputs (statistics) map to JSON-serialisable
+        values.
+        """
+        raise NotImplementedError
+
+    @staticmethod
+    def fail(name: str, message: str) -> ParameterError:
+        """Shorthand for ``ParameterError(name, message)`` in :meth:`check`."""
+        return ParameterError(name, message)

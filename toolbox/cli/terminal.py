@@ -1,0 +1,71 @@
+"""Terminal side of feedback: a progress bar on stderr (only on a terminal) and log output."""
+
+from __future__ import annotations
+
+import logging
+import sys
+import time
+
+from toolbox.feedback import Feedback
+
+
+class TerminalFeedback(Feedback):
+    """Draws ``label [#####-----]  45% message`` on stderr when it is a terminal and not quiet."""
+
+    def __init__(self, label: str = "", quiet: bool = False, stream=None):
+        super().__init__()
+        self.stream = stream or sys.stderr
+        self.label = label
+        self.show_bar = not quiet and self.stream.isatty()
+        self._last_draw = 0.0
+        self._drawn = False
+
+    def set_progress(self, percent: float, message: str = "") -> None:
+        super().set_progress(percent, message)
+        if not self.show_bar:
+            return
+        now = time.monotonic()
+        if self.progress < 100 and now - self._last_draw < 0.1:
+            return
+        self._last_draw = now
+        filled = int(self.progress / 100 * 30)
+        bar = "#" * filled + "-" * (30 - filled)
+        self.stream.write(f"\r{self.label} [{bar}] {self.progress:5.1f}% {message[:40]:<40}")
+        self.stream.flush()
+        self._drawn = True
+
+    def clear_line(self) -> None:
+        if self._drawn:
+            self.stream.write("\r" + " " * 100 + "\r")
+            self.stream.flush()
+            self._drawn = False
+
+    def finish(self) -> None:
+        self.clear_line()
+
+
+class BarAwareHandler(logging.StreamHandler):
+    """Logging handler that clears the progress bar before printing a line."""
+
+    def __init__(self, feedback_ref: list[TerminalFeedback | None]):
+        super().__init__(sys.stderr)
+        self.feedback_ref = feedback_ref
+        self.setFormatter(logging.Formatter("%(levelname)s: %(message)s"))
+
+    def emit(self, record: logging.LogRecord) -> None:
+        feedback = self.feedback_ref[0]
+        if feedback is not None:
+            feedback.clear_line()
+        super().emit(record)
+
+
+ACTIVE: list[TerminalFeedback | None] = [None]
+
+
+def setup_logging(verbose: int, quiet: bool) -> None:
+    level = logging.ERROR if quiet else (logging.WARNING, logging.INFO, logging.DEBUG)[
+        min(verbose, 2)]
+    logger = logging.getLogger("toolbox")
+    logger.handlers[:] = [BarAwareHandler(ACTIVE)]
+    logger.setLevel(level)
+    logger.propagate = False

@@ -1,0 +1,138 @@
+"""Feedback: progress (0-100), log messages, timings and cancellation for a running algorithm.
+
+Kernels never print: an algorithm reports through the feedback object it is given. The default
+:class:`Feedback` is silent apart from the Python ``logging`` module; the CLI subclasses it to draw a
+progress bar, and scripts can pass a ``progress_callback``.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+
+from toolbox.errors import CanceledError
+
+log = logging.getLogger("toolbox")
+
+
+class Feedback:
+    """Progress, messages, timings and cancellation for one run.
+
+    Parameters
+    ----------
+    progress_callback : callable, optional
+        Called as ``progress_callback(percent: float, message: str)`` whenever progress changes.
+    """
+
+    def __init__(self, progress_callback: Callable[[float, str], None] | None = None):
+        self._callback = progress_callback
+        self._canceled = threading.Event()
+        self.progress = 0.0
+        self.messages: list[tuple[str, str]] = []  # (level, text)
+        self.timings: dict[str, float] = {}
+
+    # -- progress -------------------------------------------------------------------------------
+    def set_progress(self, percent: float, message: str = "") -> None:
+        """Report overall progress in percent (clamped to 0-100)."""
+        self.progress = min(100.0, max(0.0, float(percent)))
+        if self._callback is not None:
+            self._callback(self.progress, message)
+
+    def step(self, start: float, end: float) -> SubFeedback:
+        """A child feedback whose 0-100 maps onto ``start``-``end`` of this one (multi-step work)."""
+        return SubFeedback(self, start, end)
+
+    def iterate(self, items, total: int | None = None, start: float = 0.0, end: float = 100.0,
+                message: str = "") -> Iterator:
+        """Yield ``items``, advancing progress from ``start`` to ``end`` and honouring cancellation."""
+        total = len(items) if total is None else total
+        for i, item in enumerate(items):
+            self.check_canceled()
+            yield item
+            self.set_progress(start + (end - start) * (i + 1) / max(total, 1), message)
+
+    # -- messages -------------------------------------------------------------------------------
+    def push_info(self, text: str) -> None:
+        self.messages.append(("info", text))
+        log.info(text)
+
+    def push_warning(self, text: str) -> None:
+        self.messages.append(("warning", text))
+        log.warning(text)
+
+    def push_debug(self, text: str) -> None:
+        log.debug(text)
+
+    @property
+    def warnings(self) -> list[str]:
+        return [text for level, text in self.messages if level == "warning"]
+
+    # -- timings --------------------------------------------------------------------------------
+    @contextmanager
+    def timed(self, name: str):
+        """Measure the wall time of a block; it appears under ``timings`` in the run report."""
+        t0 = time.perf_counter()
+        try:
+            yield
+        finally:
+            self.timings[name] = self.timings.get(name, 0.0) + time.perf_counter() - t0
+
+    # -- cancellation ---------------------------------------------------------------------------
+    def cancel(self) -> None:
+        """Ask the running algorithm to stop (thread-safe)."""
+        self._canceled.set()
+
+    def is_canceled(self) -> bool:
+        return self._canceled.is_set()
+
+    def check_canceled(self) -> None:
+        """Raise :class:`CanceledError` if cancellation was requested."""
+        if self.is_canceled():
+            raise CanceledError("run canceled by the user; no output was written")
+
+
+class SubFeedback(Feedback):
+    """A view on a parent feedback covering the ``start``-``end`` slice of its progress.
+
+    It keeps its own messages and timings (for a per-run report) and forwards them to the parent;
+    cancellation is shared with the parent.
+    """
+
+    def __init__(self, parent: Feedback, start: float, end: float):
+        super().__init__()
+        self._parent = parent
+        self._start, self._end = float(start), float(end)
+
+    def set_progress(self, percent: float, message: str = "") -> None:
+        self.progress = min(100.0, max(0.0, float(percent)))
+        self._parent.set_progress(self._start + (self._end - self._start) * self.progress / 100.0,
+                                  message)
+
+    def push_info(self, text: str) -> None:
+        self.messages.append(("info", text))
+        self._parent.push_info(text)
+
+    def push_warning(self, text: str) -> None:
+        self.messages.append(("warning", text))
+        self._parent.push_warning(text)
+
+    def push_debug(self, text: str) -> None:
+        self._parent.push_debug(text)
+
+    @contextmanager
+    def timed(self, name: str):
+        t0 = time.perf_counter()
+        try:
+            with self._parent.timed(name):
+                yield
+        finally:
+            self.timings[name] = self.timings.get(name, 0.0) + time.perf_counter() - t0
+
+    def cancel(self) -> None:
+        self._parent.cancel()
+
+    def is_canceled(self) -> bool:
+        return self._parent.is_canceled()

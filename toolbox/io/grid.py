@@ -1,0 +1,89 @@
+"""Output grid definition: extent + cell size (snapped) or a template raster, with a size guard.
+
+Cells are square, north-up: ``transform = (cell, 0, xmin, 0, -cell, ymax)``. A cell's value belongs
+to its centre (thesis par. 2.5.2): column ``j`` has centre ``xmin + (j + 0.5) * cell``.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from toolbox.errors import ParameterError
+
+DEFAULT_MAX_CELLS = 1_000_000_000  # overridable with the TOOLBOX_MAX_CELLS environment variable
+
+
+def max_cells_default() -> int:
+    return int(os.environ.get("TOOLBOX_MAX_CELLS", DEFAULT_MAX_CELLS))
+
+
+@dataclass(frozen=True)
+class GridSpec:
+    """A north-up raster grid: affine ``transform``, ``width`` x ``height`` cells, ``crs``."""
+
+    transform: Any
+    width: int
+    height: int
+    crs: Any = None
+
+    @classmethod
+    def from_bounds(cls, bounds: tuple[float, float, float, float], cell_size: float,
+                    crs: Any = None, snap: bool = True, max_cells: int | None = None,
+                    name: str = "CELL_SIZE") -> GridSpec:
+        """Grid covering ``bounds`` (xmin, ymin, xmax, ymax); with ``snap`` the edges are moved
+        outwards to multiples of ``cell_size`` (so grids from different runs align)."""
+        from affine import Affine
+
+        if not cell_size > 0:
+            raise ParameterError(name, f"must be > 0, got {cell_size}")
+        xmin, ymin, xmax, ymax = map(float, bounds)
+        if snap:
+            xmin, ymin = math.floor(xmin / cell_size) * cell_size, math.floor(ymin / cell_size) * cell_size
+            xmax, ymax = math.ceil(xmax / cell_size) * cell_size, math.ceil(ymax / cell_size) * cell_size
+        width = max(1, int(round((xmax - xmin) / cell_size)))
+        height = max(1, int(round((ymax - ymin) / cell_size)))
+        limit = max_cells_default() if max_cells is None else max_cells
+        if width * height > limit:
+            raise ParameterError(name, f"{cell_size:g} gives a {width} x {height} grid "
+                                 f"({width * height:,} cells), over the limit of {limit:,} cells; "
+                                 "use a larger cell size or a smaller extent (or raise "
+                                 "TOOLBOX_MAX_CELLS)")
+        return cls(Affine(cell_size, 0.0, xmin, 0.0, -cell_size, ymin + height * cell_size),
+                   width, height, crs)
+
+    @classmethod
+    def from_raster(cls, info: Any) -> GridSpec:
+        """Grid of an existing raster (a :class:`~toolbox.io.raster.RasterInfo`)."""
+        return cls(info.transform, info.width, info.height, info.crs)
+
+    @property
+    def cell_size(self) -> tuple[float, float]:
+        return (abs(self.transform.a), abs(self.transform.e))
+
+    @property
+    def bounds(self) -> tuple[float, float, float, float]:
+        t = self.transform
+        return (t.c, t.f + t.e * self.height, t.c + t.a * self.width, t.f)
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return (self.height, self.width)
+
+    def cell_centers(self, window: Any = None) -> tuple[np.ndarray, np.ndarray]:
+        """1-D x of column centres and y of row centres, for the whole grid or a window."""
+        col0, row0, w, h = (0, 0, self.width, self.height) if window is None else (
+            int(window.col_off), int(window.row_off), int(window.width), int(window.height))
+        t = self.transform
+        x = t.c + (np.arange(col0, col0 + w) + 0.5) * t.a
+        y = t.f + (np.arange(row0, row0 + h) + 0.5) * t.e
+        return x, y
+
+    def window_transform(self, window: Any):
+        from rasterio.windows import transform as win_transform
+
+        return win_transform(window, self.transform)

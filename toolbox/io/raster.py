@@ -1,0 +1,174 @@
+"""Raster I/O with rasterio: validated input references, GeoTIFF writing (tiled, DEFLATE with a
+predictor, CRS, nodata, optional overviews) and window iteration with a halo for tiled work.
+
+Conventions: arrays are ``(bands, rows, cols)`` or ``(rows, cols)``; windows are rasterio
+``Window(col_off, row_off, width, height)``; row 0 is the top (north) edge.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from toolbox.errors import ParameterError
+
+DEFAULT_BLOCK = 512
+
+
+@dataclass
+class RasterInfo:
+    """A validated reference to a raster: path and the metadata read without loading pixels."""
+
+    path: Path
+    width: int
+    height: int
+    count: int
+    dtypes: tuple[str, ...]
+    crs: Any  # pyproj.CRS or None
+    transform: Any  # affine.Affine
+    nodata: float | None
+    georeferenced: bool
+
+    def __str__(self) -> str:
+        return f"'{self.path}'"
+
+    def as_text(self) -> str:
+        return str(self.path)
+
+    @property
+    def bounds(self) -> tuple[float, float, float, float]:
+        t = self.transform
+        xs = [t.c, t.c + t.a * self.width]
+        ys = [t.f, t.f + t.e * self.height]
+        return (min(xs), min(ys), max(xs), max(ys))
+
+    @property
+    def res(self) -> tuple[float, float]:
+        return (abs(self.transform.a), abs(self.transform.e))
+
+
+def open_raster_info(value: Any, name: str = "INPUT") -> RasterInfo:
+    """Open a raster's metadata; :class:`ParameterError` naming ``name`` when it is unreadable."""
+    import rasterio
+    from pyproj import CRS
+
+    if isinstance(value, RasterInfo):
+        return value
+    if not isinstance(value, (str, Path)):
+        raise ParameterError(name, f"must be a raster path, got {value!r}")
+    path = Path(value).expanduser()
+    if not path.exists():
+        raise ParameterError(name, f"file '{value}' does not exist")
+    try:
+        with rasterio.open(path) as src:
+            crs = CRS.from_wkt(src.crs.to_wkt()) if src.crs else None
+            georef = src.transform != rasterio.Affine.identity() or src.crs is not None
+            return RasterInfo(path, src.width, src.height, src.count, tuple(src.dtypes), crs,
+                              src.transform, src.nodata, georef)
+    except rasterio.errors.RasterioIOError as exc:
+        raise ParameterError(name, f"cannot read '{value}' as a raster: "
+                             f"{str(exc).splitlines()[0]}") from None
+
+
+def geotiff_profile(width: int, height: int, count: int, dtype: Any, crs: Any, transform: Any,
+                    nodata: float | None = None, block: int = DEFAULT_BLOCK, **extra: Any) -> dict:
+    """A rasterio profile for a tiled, DEFLATE-compressed GeoTIFF.
+
+    The predictor is 2 (horizontal differencing) for integers and 3 (floating point) for floats;
+    BIGTIFF is used when the file may exceed 4 GB. ``extra`` overrides any creation option.
+    """
+    dtype = np.dtype(dtype)
+    tiled = width >= block and height >= block
+    profile = {
+        "driver": "GTiff", "width": int(width), "height": int(height), "count": int(count),
+        "dtype": dtype.name, "crs": None if crs is None else _rio_crs(crs),
+        "transform": transform, "nodata": nodata, "compress": "deflate",
+        "predictor": 3 if dtype.kind == "f" else 2, "zlevel": 6, "bigtiff": "if_safer",
+        "interleave": "pixel" if count > 1 else "band",
+    }
+    if tiled:
+        profile.update(tiled=True, blockxsize=block, blockysize=block)
+    profile.update(extra)
+    return profile
+
+
+def _rio_crs(crs: Any):
+    from rasterio.crs import CRS as RioCRS
+
+    if isinstance(crs, RioCRS):
+        return crs
+    return RioCRS.from_wkt(crs.to_wkt()) if hasattr(crs, "to_wkt") else RioCRS.from_user_input(crs)
+
+
+def overview_factors(width: int, height: int, min_size: int = 256) -> list[int]:
+    """Power-of-two overview factors until the smaller side drops below ``min_size``."""
+    factors, f = [], 2
+    while min(width, height) / f >= min_size:
+        factors.append(f)
+        f *= 2
+    return factors
+
+
+def build_overviews(dst, resampling: str = "average") -> None:
+    """Add internal overviews to an open, writable dataset (DEFLATE compressed)."""
+    from rasterio.enums import Resampling
+
+    factors = overview_factors(dst.width, dst.height)
+    if factors:
+        dst.build_overviews(factors, Resampling[resampling])
+        dst.update_tags(ns="rio_overview", resampling=resampling)
+
+
+def write_raster(path: str | Path, array: np.ndarray, transform: Any, crs: Any,
+                 nodata: float | None = None, overviews: bool = False,
+                 overview_resampling: str = "average", **creation_options: Any) -> Path:
+    """Write a whole array as a GeoTIFF (see :func:`geotiff_profile`). 2-D arrays are one band."""
+    import rasterio
+
+    data = array[np.newaxis] if array.ndim == 2 else array
+    profile = geotiff_profile(data.shape[2], data.shape[1], data.shape[0], data.dtype, crs,
+                              transform, nodata, **creation_options)
+    with rasterio.Env(COMPRESS_OVERVIEW="DEFLATE", PREDICTOR_OVERVIEW=profile["predictor"]):
+        with rasterio.open(path, "w", **profile) as dst:
+            dst.write(data)
+            if overviews:
+                build_overviews(dst, overview_resampling)
+    return Path(path)
+
+
+@dataclass(frozen=True)
+class TileWindow:
+    """One tile of a tiled computation.
+
+    ``core`` is the part of the output this tile writes; ``padded`` is ``core`` grown by the halo
+    and clipped to the raster; ``inner`` is the slice pair that cuts ``core`` out of an array read
+    over ``padded``.
+    """
+
+    core: Any  # rasterio.windows.Window
+    padded: Any
+    inner: tuple[slice, slice]
+
+
+def iter_windows(width: int, height: int, tile: int = DEFAULT_BLOCK,
+                 halo: int = 0) -> Iterator[TileWindow]:
+    """Yield :class:`TileWindow` s covering a ``width`` x ``height`` raster, row by row.
+
+    ``tile`` is the core size in pixels (use the output block size so writes align with blocks);
+    ``halo`` pixels are added on each side for neighbourhood operations.
+    """
+    from rasterio.windows import Window
+
+    if tile <= 0 or halo < 0:
+        raise ValueError("tile must be > 0 and halo >= 0")
+    for row0 in range(0, height, tile):
+        for col0 in range(0, width, tile):
+            w, h = min(tile, width - col0), min(tile, height - row0)
+            c0, r0 = max(col0 - halo, 0), max(row0 - halo, 0)
+            c1, r1 = min(col0 + w + halo, width), min(row0 + h + halo, height)
+            inner = (slice(row0 - r0, row0 - r0 + h), slice(col0 - c0, col0 - c0 + w))
+            yield TileWindow(Window(col0, row0, w, h), Window(c0, r0, c1 - c0, r1 - r0), inner)

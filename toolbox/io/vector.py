@@ -1,0 +1,240 @@
+"""Vector I/O: read any layer OGR reads into a GeoDataFrame, write named layers to one GeoPackage.
+
+Formats: GeoPackage, Shapefile, GeoJSON, DXF, GML, ... (whatever the GDAL in pyogrio reads) and
+CSV, read as points from columns named (case-insensitively) ``x``/``east``/``easting``/``lon``,
+``y``/``north``/``northing``/``lat`` and optionally ``z``/``elev``/``elevation``/``height``.
+A layer inside a multi-layer file is addressed as ``path|layername=name`` (the QGIS syntax).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from toolbox.errors import InputDataError, ParameterError
+
+CSV_OPEN_OPTIONS = {
+    "X_POSSIBLE_NAMES": "x,east,easting,e,lon,longitude",
+    "Y_POSSIBLE_NAMES": "y,north,northing,n,lat,latitude",
+    "Z_POSSIBLE_NAMES": "z,elev,elevation,height,h,quota",
+    "KEEP_GEOM_COLUMNS": "NO",
+    "AUTODETECT_TYPE": "YES",
+}
+_NUMERIC_KINDS = "iuf"
+
+
+def _geometry_kind(geometry_type: str | None) -> str | None:
+    if not geometry_type:
+        return None
+    text = geometry_type.lower()
+    for kind, words in (("point", ("point",)), ("line", ("line", "curve")),
+                        ("polygon", ("polygon", "surface"))):
+        if any(w in text for w in words):
+            return kind
+    return None  # "Unknown" / "Geometry": mixed, decided per feature
+
+
+@dataclass
+class VectorLayerRef:
+    """A validated reference to a vector layer (a file layer or an in-memory GeoDataFrame)."""
+
+    path: Path | None
+    layer: str | None
+    info: dict[str, Any]
+    open_options: dict[str, str] = field(default_factory=dict)
+    frame: Any = None  # GeoDataFrame given directly in Python
+
+    def __str__(self) -> str:
+        if self.path is None:
+            return "<GeoDataFrame>"
+        return f"'{self.path}|layername={self.layer}'" if self.layer else f"'{self.path}'"
+
+    @property
+    def crs(self):
+        from pyproj import CRS
+
+        crs = self.info.get("crs")
+        return None if crs is None else CRS.from_user_input(crs)
+
+    @property
+    def geometry_type(self) -> str | None:
+        return self.info.get("geometry_type")
+
+    @property
+    def geometry_kind(self) -> str | None:
+        return _geometry_kind(self.geometry_type)
+
+    @property
+    def fields(self) -> list[str]:
+        return list(self.info.get("fields", []))
+
+    @property
+    def field_types(self) -> dict[str, str]:
+        return dict(zip(self.info.get("fields", []), self.info.get("dtypes", []), strict=True))
+
+    @property
+    def count(self) -> int:
+        return int(self.info.get("features", -1))
+
+    def is_numeric(self, name: str) -> bool:
+        return np.dtype(self.field_types[name]).kind in _NUMERIC_KINDS
+
+    def as_text(self) -> str:
+        """The reference as the user would type it (for reports and pipelines)."""
+        return str(self).strip("'")
+
+
+def _frame_info(frame) -> dict[str, Any]:
+    geom_types = sorted(set(frame.geom_type.dropna())) if len(frame) else []
+    has_z = bool(len(frame)) and bool(frame.geometry.has_z.any())
+    gtype = geom_types[0] if len(geom_types) == 1 else ("Unknown" if geom_types else None)
+    if gtype and has_z and gtype != "Unknown":
+        gtype += " Z"
+    cols = [c for c in frame.columns if c != frame.geometry.name]
+    return {"crs": None if frame.crs is None else frame.crs.to_wkt(), "fields": cols,
+            "dtypes": [str(frame[c].dtype) for c in cols], "geometry_type": gtype,
+            "features": len(frame)}
+
+
+def open_layer(value: Any, name: str = "INPUT") -> VectorLayerRef:
+    """Validate a vector layer reference and read its metadata (not its features).
+
+    Raises :class:`ParameterError` naming ``name`` for a missing file, an unknown layer name or
+    a file OGR cannot read.
+    """
+    import pyogrio
+
+    if isinstance(value, VectorLayerRef):
+        return value
+    if hasattr(value, "geometry") and hasattr(value, "crs"):  # GeoDataFrame
+        return VectorLayerRef(None, None, _frame_info(value), frame=value)
+    if not isinstance(value, (str, Path)):
+        raise ParameterError(name, f"must be a vector layer path, got {value!r}")
+    text, layer = str(value), None
+    if "|" in text:
+        text, _, option = text.partition("|")
+        key, _, layer = option.partition("=")
+        if key.strip().lower() != "layername" or not layer:
+            raise ParameterError(name, f"{value!r}: expected 'path|layername=name'")
+    path = Path(text).expanduser()
+    if not path.exists():
+        raise ParameterError(name, f"file '{text}' does not exist")
+    options = dict(CSV_OPEN_OPTIONS) if path.suffix.lower() == ".csv" else {}
+    try:
+        layers = [str(row[0]) for row in pyogrio.list_layers(path)]
+    except Exception as exc:  # pyogrio raises DataSourceError and friends
+        raise ParameterError(name, f"cannot read '{text}' as a vector layer: "
+                             f"{str(exc).splitlines()[0]}") from None
+    if layer is not None and layer not in layers:
+        raise ParameterError(name, f"layer '{layer}' is not in '{text}'; layers are: "
+                             f"{', '.join(layers)}")
+    try:
+        info = pyogrio.read_info(path, layer=layer, **options)
+    except Exception as exc:
+        raise ParameterError(name, f"cannot read '{text}' as a vector layer: "
+                             f"{str(exc).splitlines()[0]}") from None
+    if layer is None and len(layers) > 1:
+        layer = info.get("layer_name")
+    return VectorLayerRef(path, layer, info, options)
+
+
+def read_vector(source: Any, crs: Any = None, columns: list[str] | None = None,
+                bbox: tuple[float, float, float, float] | None = None, name: str = "INPUT"):
+    """Read a layer (path, ``path|layername=x``, :class:`VectorLayerRef` or GeoDataFrame).
+
+    ``crs`` is assigned when the layer has none (CSV, DXF); it does not reproject.
+    """
+    import pyogrio
+
+    ref = open_layer(source, name)
+    if ref.frame is not None:
+        frame = ref.frame.copy()
+    else:
+        try:
+            frame = pyogrio.read_dataframe(ref.path, layer=ref.layer, columns=columns, bbox=bbox,
+                                           **ref.open_options)
+        except Exception as exc:
+            raise InputDataError(f"{name}: cannot read {ref}: {str(exc).splitlines()[0]}") from None
+    if crs is not None and frame.crs is None:
+        frame = frame.set_crs(crs)
+    return frame
+
+
+def _check_finite(values: np.ndarray, what: str) -> None:
+    bad = ~np.isfinite(values)
+    if bad.any():
+        rows = np.flatnonzero(bad.any(axis=1) if values.ndim > 1 else bad)
+        raise InputDataError(f"{what}: {len(rows)} feature(s) have NaN/inf coordinates or Z "
+                             f"(first rows: {', '.join(map(str, rows[:5]))})")
+
+
+def points_xyz(frame, z_field: str | None = None, name: str = "INPUT") -> np.ndarray:
+    """(N, 3) float64 X, Y, Z of every point (multipoints exploded).
+
+    Z comes from ``z_field`` when given, else from the geometry; a layer without Z and without a
+    field is an :class:`InputDataError`. NaN/inf coordinates are refused.
+    """
+    import shapely
+
+    geoms = frame.geometry.values
+    if len(geoms) == 0:
+        raise InputDataError(f"{name} has no features")
+    kinds = set(shapely.get_type_id(geoms).tolist())
+    if not kinds <= {0, 4}:  # Point, MultiPoint
+        raise InputDataError(f"{name} must contain points, found other geometry types")
+    if z_field is not None:
+        z_values = np.asarray(frame[z_field], dtype="float64")
+        counts = shapely.get_num_geometries(geoms)
+        xy = shapely.get_coordinates(geoms)
+        xyz = np.column_stack([xy, np.repeat(z_values, np.maximum(counts, 1))[: len(xy)]])
+    else:
+        if not frame.geometry.has_z.all():
+            raise InputDataError(f"{name} has no Z in its geometry: give a Z field (Z_FIELD) or "
+                                 "use 3D points")
+        xyz = shapely.get_coordinates(geoms, include_z=True)
+    _check_finite(xyz, name)
+    return xyz
+
+
+def vertices_xyz(frame, z_field: str | None = None, name: str = "INPUT"):
+    """Vertices of every feature: ``(xyz (N, 3), feature_index (N,))``.
+
+    Z from ``z_field`` (same value for every vertex of a feature, e.g. a contour's elevation) or
+    from the geometry.
+    """
+    import shapely
+
+    geoms = frame.geometry.values
+    if z_field is None and len(geoms) and not frame.geometry.has_z.all():
+        raise InputDataError(f"{name} has features without Z: give a Z field or use 3D geometries")
+    coords, index = shapely.get_coordinates(geoms, include_z=z_field is None, return_index=True)
+    if z_field is not None:
+        z_values = np.asarray(frame[z_field], dtype="float64")
+        coords = np.column_stack([coords, z_values[index]])
+    _check_finite(coords, name)
+    return coords, index
+
+
+def write_layers(path: str | Path, layers: dict[str, Any], crs: Any = None,
+                 geometry_types: dict[str, str] | None = None) -> Path:
+    """Write GeoDataFrames as named layers of one GeoPackage (created or extended).
+
+    ``geometry_types`` gives the OGR type (e.g. ``"PolygonZ"``... ``"Point"``) for layers that may
+    be empty. Inside an algorithm, ``path`` is the staged output path the runner handed over.
+    """
+    import pyogrio
+
+    path = Path(path)
+    for layer_name, frame in layers.items():
+        if crs is not None and frame.crs is None:
+            frame = frame.set_crs(crs)
+        kwargs: dict[str, Any] = {}
+        if geometry_types and layer_name in geometry_types:
+            kwargs["geometry_type"] = geometry_types[layer_name]
+        elif len(frame) and len(set(frame.geom_type)) > 1:
+            kwargs["promote_to_multi"] = True
+        pyogrio.write_dataframe(frame, path, layer=layer_name, driver="GPKG", **kwargs)
+    return path

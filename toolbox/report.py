@@ -1,0 +1,87 @@
+"""JSON run report: the surveyor's proof of quality (parameters, versions, timings, statistics)."""
+
+from __future__ import annotations
+
+import datetime as dt
+import json
+import math
+import platform
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+
+def versions() -> dict[str, str]:
+    """Versions of the toolbox and of the libraries that decide the numbers (GDAL, PROJ, GEOS)."""
+    import pyproj
+    import rasterio
+    import shapely
+
+    import toolbox
+
+    out = {"toolbox": toolbox.__version__, "python": platform.python_version(),
+           "numpy": np.__version__, "gdal": rasterio.__gdal_version__,
+           "proj": pyproj.proj_version_str, "geos": shapely.geos_version_string,
+           "rasterio": rasterio.__version__, "pyproj": pyproj.__version__,
+           "shapely": shapely.__version__}
+    try:
+        import pyogrio
+
+        out["pyogrio"] = pyogrio.__version__
+    except ImportError:  # pragma: no cover
+        pass
+    return out
+
+
+def to_jsonable(value: Any) -> Any:
+    """Convert parameter values and statistics into JSON types (paths, CRSs, numpy, extents)."""
+    if value is None or isinstance(value, (bool, str)):
+        return value
+    if isinstance(value, (int, np.integer)):
+        return int(value)
+    if isinstance(value, (float, np.floating)):
+        f = float(value)
+        return f if math.isfinite(f) else None
+    if isinstance(value, Path):
+        return str(value)
+    if isinstance(value, np.ndarray):
+        return to_jsonable(value.tolist())
+    if isinstance(value, dict):
+        return {str(k): to_jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple, set)):
+        return [to_jsonable(v) for v in value]
+    if hasattr(value, "as_text"):  # layer references
+        return value.as_text()
+    if hasattr(value, "to_authority"):  # pyproj CRS
+        from toolbox.io.crs import crs_label
+
+        return crs_label(value)
+    if hasattr(value, "bounds") and hasattr(value, "crs"):  # Extent
+        return {"bounds": list(value.bounds), "crs": to_jsonable(value.crs)}
+    return str(value)
+
+
+def build_report(alg_cls, params: dict[str, Any], outputs: dict[str, Any], feedback,
+                 started: float, elapsed: float) -> dict[str, Any]:
+    return {
+        "algorithm": alg_cls.id,
+        "display_name": alg_cls.display_name,
+        "started": dt.datetime.fromtimestamp(started, dt.UTC).isoformat(),
+        "elapsed_s": round(elapsed, 4),
+        "parameters": to_jsonable(params),
+        "outputs": to_jsonable(outputs),
+        "timings_s": {k: round(v, 4) for k, v in feedback.timings.items()},
+        "warnings": feedback.warnings,
+        "messages": [text for level, text in feedback.messages if level == "info"],
+        "versions": versions(),
+    }
+
+
+def write_report(path: str | Path, alg_cls, params, outputs, feedback, started, elapsed) -> Path:
+    from toolbox.io.staging import atomic_path
+
+    report = build_report(alg_cls, params, outputs, feedback, started, elapsed)
+    with atomic_path(path) as staged:
+        staged.write_text(json.dumps(report, indent=2) + "\n")
+    return Path(path)
