@@ -39,8 +39,9 @@ class Hillshade(Algorithm):
 
     Slope is computed with Horn's 3x3 weights and illuminated by a distant sun
     (Lambert's cosine law): ``shade = cos(zenith)·cos(slope) + sin(zenith)·sin(slope)·cos(azimuth -
-    aspect)``. Output: Byte GeoTIFF, 1 (dark) to 255 (lit), 0 = nodata; raster edges use the
-    nearest cells (as ``gdaldem -compute_edges``), cells next to nodata are nodata. The DEM is
+    aspect)``. Output: Byte GeoTIFF, 1 (dark) to 255 (lit), 0 = nodata; beyond the raster
+    edges the surface is extrapolated linearly (as ``gdaldem -compute_edges``); cells next to
+    nodata are nodata. The DEM is
     read and written in tiles with a one-cell halo, so any size works in bounded memory.
     """
 
@@ -98,4 +99,7 @@ def _pad_to_halo(z: np.ndarray, tile) -> np.ndarray:
     left = 1 - (core.col_off - padded.col_off)
     bottom = 1 - ((padded.row_off + padded.height) - (core.row_off + core.height))
     right = 1 - ((padded.col_off + padded.width) - (core.col_off + core.width))
-    return np.pad(z, ((top, bottom), (left, right)), mode="edge")
+    if min(z.shape) < 2:
+        return np.pad(z, ((top, bottom), (left, right)), mode="edge")
+    # linear extrapolation (2·edge - inner): exact on planes, like gdaldem -compute_edges
+    return np.pad(z, ((top, bottom), (left, right)), mode="reflect", reflect_type="odd")

@@ -16,12 +16,10 @@ import numpy as np
 
 from toolbox.errors import InputDataError, ParameterError
 
-CSV_OPEN_OPTIONS = {
-    "X_POSSIBLE_NAMES": "x,east,easting,e,lon,longitude",
-    "Y_POSSIBLE_NAMES": "y,north,northing,n,lat,latitude",
-    "Z_POSSIBLE_NAMES": "z,elev,elevation,height,h,quota",
-    "KEEP_GEOM_COLUMNS": "NO",
-    "AUTODETECT_TYPE": "YES",
+CSV_COORDINATE_NAMES = {  # in order of preference, matched case-insensitively
+    "X_POSSIBLE_NAMES": ("x", "east", "easting", "e", "lon", "longitude"),
+    "Y_POSSIBLE_NAMES": ("y", "north", "northing", "n", "lat", "latitude"),
+    "Z_POSSIBLE_NAMES": ("z", "elev", "elevation", "height", "h", "quota"),
 }
 _NUMERIC_KINDS = "iuf"
 
@@ -122,8 +120,8 @@ def open_layer(value: Any, name: str = "INPUT") -> VectorLayerRef:
     path = Path(text).expanduser()
     if not path.exists():
         raise ParameterError(name, f"file '{text}' does not exist")
-    options = dict(CSV_OPEN_OPTIONS) if path.suffix.lower() == ".csv" else {}
     try:
+        options = _csv_open_options(path) if path.suffix.lower() == ".csv" else {}
         layers = [str(row[0]) for row in pyogrio.list_layers(path)]
     except Exception as exc:  # pyogrio raises DataSourceError and friends
         raise ParameterError(name, f"cannot read '{text}' as a vector layer: "
@@ -139,6 +137,28 @@ def open_layer(value: Any, name: str = "INPUT") -> VectorLayerRef:
     if layer is None and len(layers) > 1:
         layer = info.get("layer_name")
     return VectorLayerRef(path, layer, info, options)
+
+
+def _csv_open_options(path: Path) -> dict[str, str]:
+    """GDAL CSV open options naming exactly one X, Y and (if present) Z column.
+
+    One name per axis: GDAL (3.10) with several candidate columns and KEEP_GEOM_COLUMNS=NO
+    crashes, so the header is inspected here and the first preferred name is chosen.
+    """
+    import pyogrio
+
+    fields = [str(f) for f in pyogrio.read_info(path)["fields"]]
+    lower = {f.lower(): f for f in fields}
+    options = {"AUTODETECT_TYPE": "YES"}
+    for key, names in CSV_COORDINATE_NAMES.items():
+        found = next((lower[n] for n in names if n in lower), None)
+        if found is not None:
+            options[key] = found
+    if "X_POSSIBLE_NAMES" in options and "Y_POSSIBLE_NAMES" in options:
+        options["KEEP_GEOM_COLUMNS"] = "NO"
+    else:  # no coordinates: a plain table
+        options = {"AUTODETECT_TYPE": "YES"}
+    return options
 
 
 def read_vector(source: Any, crs: Any = None, columns: list[str] | None = None,

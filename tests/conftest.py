@@ -1,0 +1,56 @@
+"""Shared fixtures: tiny synthetic datasets with a known truth."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+SIENA = ROOT / "toolbox" / "demo" / "data" / "siena"
+
+
+@pytest.fixture
+def plane_dem(tmp_path):
+    """A 60 x 50 DEM of the plane z = 100 + 0.2·x' - 0.1·y' (x', y' from the grid corner),
+    2 m cells, EPSG:3003, origin at the Siena block. Returns (path, slope_x, slope_y)."""
+    from affine import Affine
+
+    from toolbox.io.raster import write_raster
+
+    cell, x0, y0 = 2.0, 1688000.0, 4800000.0
+    rows, cols = 50, 60
+    xc = (np.arange(cols) + 0.5) * cell
+    yc = y0 - (np.arange(rows) + 0.5) * cell
+    z = 100 + 0.2 * xc[None, :] - 0.1 * (yc[:, None] - y0)
+    path = tmp_path / "plane.tif"
+    write_raster(path, z.astype("float32"), Affine(cell, 0, x0, 0, -cell, y0), "EPSG:3003",
+                 nodata=-9999.0)
+    return path, 0.2, -0.1
+
+
+@pytest.fixture
+def points_gpkg(tmp_path):
+    """10 PointZ in EPSG:3003 with a 'height' field equal to Z + 1, layer 'pts'."""
+    import geopandas as gpd
+    import shapely
+
+    rng = np.random.default_rng(0)
+    x = 1688000 + rng.uniform(0, 100, 10)
+    y = 4800000 + rng.uniform(0, 100, 10)
+    z = rng.uniform(280, 340, 10)
+    frame = gpd.GeoDataFrame({"name": [f"p{i}" for i in range(10)], "height": z + 1},
+                             geometry=shapely.points(x, y, z), crs="EPSG:3003")
+    path = tmp_path / "points.gpkg"
+    frame.to_file(path, layer="pts", driver="GPKG")
+    return path
+
+
+def run_cli(*args, cwd=None):
+    """Run the toolbox CLI in a subprocess; returns the CompletedProcess (text)."""
+    import subprocess
+
+    return subprocess.run([sys.executable, "-m", "toolbox.cli", *map(str, args)],
+                          capture_output=True, text=True, cwd=cwd, timeout=300)

@@ -1,0 +1,129 @@
+"""I/O helpers: formats in, GeoPackage layers out, GeoTIFF options, windows, grids, staging, CRS."""
+
+from __future__ import annotations
+
+import geopandas as gpd
+import numpy as np
+import pyogrio
+import pytest
+import rasterio
+import shapely
+from affine import Affine
+
+from toolbox.errors import InputDataError, ParameterError
+from toolbox.io.crs import common_crs, parse_crs
+from toolbox.io.grid import GridSpec
+from toolbox.io.raster import geotiff_profile, iter_windows, write_raster
+from toolbox.io.staging import OutputStaging, atomic_path
+from toolbox.io.vector import points_xyz, read_vector, vertices_xyz, write_layers
+
+
+def test_several_named_layers_in_one_geopackage(tmp_path):
+    path = tmp_path / "out.gpkg"
+    pts = gpd.GeoDataFrame({"id": [1]}, geometry=[shapely.Point(0, 0, 5)], crs=3003)
+    polys = gpd.GeoDataFrame({"id": [1, 2]}, geometry=[shapely.box(0, 0, 1, 1),
+                                                       shapely.MultiPolygon([shapely.box(2, 2, 3, 3)])])
+    empty = gpd.GeoDataFrame({"id": []}, geometry=[], crs=3003)
+    write_layers(path, {"nodes": pts, "areas": polys, "errors": empty}, crs="EPSG:3003",
+                 geometry_types={"errors": "Point"})
+    layers = dict(pyogrio.list_layers(path))
+    assert layers == {"nodes": "Point Z", "areas": "MultiPolygon", "errors": "Point"}
+    assert read_vector(f"{path}|layername=areas").crs.to_epsg() == 3003
+
+
+def test_points_from_csv_geometry_z_and_field(tmp_path):
+    csv = tmp_path / "p.csv"
+    csv.write_text("name,x,y,z,h\na,1,2,3,30\nb,4,5,6,60\n")
+    frame = read_vector(csv, crs="EPSG:3003")
+    assert frame.crs.to_epsg() == 3003
+    np.testing.assert_array_equal(points_xyz(frame), [[1, 2, 3], [4, 5, 6]])
+    np.testing.assert_array_equal(points_xyz(frame, "h")[:, 2], [30, 60])
+
+
+def test_points_without_z_or_with_nan_refused():
+    flat = gpd.GeoDataFrame(geometry=[shapely.Point(0, 0)])
+    with pytest.raises(InputDataError, match="no Z"):
+        points_xyz(flat)
+    nan = gpd.GeoDataFrame({"z": [np.nan]}, geometry=[shapely.Point(0, 0)])
+    with pytest.raises(InputDataError, match="NaN"):
+        points_xyz(nan, "z")
+    lines = gpd.GeoDataFrame(geometry=[shapely.LineString([(0, 0, 1), (1, 1, 2)])])
+    with pytest.raises(InputDataError, match="must contain points"):
+        points_xyz(lines)
+
+
+def test_line_vertices_with_contour_field():
+    lines = gpd.GeoDataFrame({"elev": [100.0, 105.0]},
+                             geometry=[shapely.LineString([(0, 0), (1, 0)]),
+                                       shapely.LineString([(0, 1), (1, 1), (2, 1)])])
+    xyz, index = vertices_xyz(lines, "elev")
+    assert xyz.shape == (5, 3) and list(index) == [0, 0, 1, 1, 1]
+    assert list(xyz[:, 2]) == [100, 100, 105, 105, 105]
+
+
+@pytest.mark.filterwarnings("ignore:.crs. was not provided")
+def test_dxf_and_geojson_are_read(tmp_path):
+    frame = gpd.GeoDataFrame({"Layer": ["a"]}, geometry=[shapely.LineString([(0, 0, 1), (5, 5, 2)])])
+    frame.to_file(tmp_path / "l.dxf", driver="DXF")
+    frame.set_crs(3003).to_file(tmp_path / "l.geojson", driver="GeoJSON")
+    dxf = read_vector(tmp_path / "l.dxf", crs="EPSG:3003")
+    assert dxf.geometry.iloc[0].has_z and dxf.crs.to_epsg() == 3003
+    assert len(read_vector(tmp_path / "l.geojson")) == 1
+
+
+def test_geotiff_profile_is_tiled_compressed(tmp_path):
+    path = tmp_path / "big.tif"
+    data = np.arange(1024 * 600, dtype="float32").reshape(600, 1024)
+    write_raster(path, data, Affine(1, 0, 0, 0, -1, 600), "EPSG:3003", nodata=-1, overviews=True)
+    with rasterio.open(path) as ds:
+        assert ds.profile["tiled"] and ds.profile["compress"] == "deflate"
+        assert ds.tags(ns="IMAGE_STRUCTURE").get("PREDICTOR") == "3"
+        assert ds.overviews(1) == [2] and ds.nodata == -1
+        np.testing.assert_array_equal(ds.read(1), data)
+    assert geotiff_profile(10, 10, 1, "uint8", None, Affine.identity())["predictor"] == 2
+
+
+def test_windows_with_halo_cover_exactly_once():
+    cover = np.zeros((130, 170), dtype=int)
+    for tile in iter_windows(170, 130, tile=64, halo=3):
+        core, padded = tile.core, tile.padded
+        cover[core.row_off:core.row_off + core.height, core.col_off:core.col_off + core.width] += 1
+        assert padded.col_off <= core.col_off and padded.row_off <= core.row_off
+        block = np.zeros((padded.height, padded.width))
+        assert block[tile.inner].shape == (core.height, core.width)
+        assert padded.col_off >= 0 and padded.col_off + padded.width <= 170
+    assert np.all(cover == 1)
+
+
+def test_grid_snapping_centres_and_guard():
+    grid = GridSpec.from_bounds((1688001.3, 4799000.2, 1688010.1, 4799005.0), 2.0, "EPSG:3003")
+    assert grid.bounds == (1688000.0, 4799000.0, 1688012.0, 4799006.0)
+    assert (grid.width, grid.height) == (6, 3)
+    x, y = grid.cell_centers()
+    assert x[0] == 1688001.0 and y[0] == 4799005.0
+    with pytest.raises(ParameterError, match="over the limit"):
+        GridSpec.from_bounds((0, 0, 1e6, 1e6), 0.01, max_cells=10**9)
+
+
+def test_staging_commit_and_rollback(tmp_path):
+    staging = OutputStaging()
+    staged = staging.stage(tmp_path / "sub" / "a.txt")
+    staged.write_text("ok")
+    (staged.parent / "a.txt.aux.xml").write_text("<x/>")
+    assert not (tmp_path / "sub" / "a.txt").exists()
+    staging.commit()
+    assert (tmp_path / "sub" / "a.txt").read_text() == "ok"
+    assert (tmp_path / "sub" / "a.txt.aux.xml").exists()
+    assert sorted(p.name for p in (tmp_path / "sub").iterdir()) == ["a.txt", "a.txt.aux.xml"]
+    with pytest.raises(RuntimeError), atomic_path(tmp_path / "b.txt") as p:
+        p.write_text("half")
+        raise RuntimeError
+    assert not (tmp_path / "b.txt").exists()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["sub"]
+
+
+def test_mixed_crs_refused():
+    a, b = parse_crs("EPSG:3003"), parse_crs("EPSG:32632")
+    assert common_crs({"INPUT": a, "LINES": None}) == a
+    with pytest.raises(InputDataError, match="LINES is in EPSG:32632 but INPUT is in EPSG:3003"):
+        common_crs({"INPUT": a, "LINES": b})

@@ -1,0 +1,184 @@
+"""Runner and registry: discovery, validation before work, atomic outputs, reports, cancellation."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+import rasterio
+
+import toolbox
+from toolbox.algorithm import Algorithm
+from toolbox.errors import (
+    AlgorithmNotFoundError,
+    CanceledError,
+    InputDataError,
+    OutputExistsError,
+    ParameterError,
+    ToolboxError,
+)
+from toolbox.feedback import Feedback
+from toolbox.parameters import Number, Output, OutputRaster, OutputVector
+from toolbox.registry import get, register
+
+
+@register
+class _HalfWriteThenFail(Algorithm):
+    """Writes part of its outputs, then fails (as a real run may, mid-way)."""
+
+    id = "testing:half_write"
+    display_name = "Half write"
+    group = "Testing"
+    short_help = "writes one output then raises"
+    parameters = [Number("AT", default=1), OutputRaster("OUTPUT"), OutputVector("SECOND")]
+
+    def process(self, params, feedback):
+        params["OUTPUT"].write_bytes(b"partial")
+        raise InputDataError("boom after writing")
+
+
+@register
+class _Cancelable(Algorithm):
+    """Cancels itself mid-way through its loop."""
+
+    id = "testing:cancelable"
+    display_name = "Cancelable"
+    group = "Testing"
+    short_help = "cancels itself"
+    parameters = [OutputRaster("OUTPUT")]
+    outputs = [Output("STEPS", "steps done", "number")]
+
+    def process(self, params, feedback):
+        params["OUTPUT"].write_bytes(b"partial")
+        for i in feedback.iterate(range(10)):
+            if i == 3:
+                feedback.cancel()
+        return {"OUTPUT": params["OUTPUT"], "STEPS": 10}
+
+
+def test_registry_discovers_builtin_algorithms():
+    ids = {a.id for a in toolbox.algorithms()}
+    assert {"raster:hillshade", "vector:info"} <= ids
+    for alg in toolbox.algorithms():
+        alg.check_spec()  # every registered spec is consistent
+
+
+def test_unknown_algorithm_suggests():
+    with pytest.raises(AlgorithmNotFoundError, match="did you mean raster:hillshade"):
+        get("raster:hilshade")
+
+
+def test_alias_resolves(monkeypatch):
+    from toolbox import registry
+
+    monkeypatch.setitem(registry.ALIASES, "raster:shade", "raster:hillshade")
+    assert get("raster:shade").id == "raster:hillshade"
+
+
+def test_bad_spec_refused():
+    class Bad(Algorithm):
+        id = "Bad-Id"
+        display_name = group = short_help = "x"
+
+    with pytest.raises(TypeError, match="group:name"):
+        register(Bad)
+
+
+def test_unknown_and_missing_parameters(plane_dem, tmp_path):
+    with pytest.raises(ParameterError, match="CELLSIZE is not a parameter of raster:hillshade"):
+        toolbox.run("raster:hillshade", {"INPUT": plane_dem[0], "CELLSIZE": 2,
+                                         "OUTPUT": tmp_path / "o.tif"})
+    with pytest.raises(ParameterError, match="OUTPUT is required"):
+        toolbox.run("raster:hillshade", {"INPUT": plane_dem[0]})
+
+
+def test_check_runs_before_work(plane_dem, tmp_path):
+    with pytest.raises(ParameterError, match="BAND must be <= 1"):
+        toolbox.run("raster:hillshade", {"INPUT": plane_dem[0], "BAND": 3,
+                                         "OUTPUT": tmp_path / "o.tif"})
+    assert [p.name for p in tmp_path.iterdir()] == ["plane.tif"]
+
+
+def test_failed_run_leaves_no_partial_output(tmp_path):
+    with pytest.raises(InputDataError, match="boom"):
+        toolbox.run("testing:half_write", {"OUTPUT": tmp_path / "a.tif",
+                                           "SECOND": tmp_path / "b.gpkg"})
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_failed_run_keeps_previous_output(tmp_path):
+    target = tmp_path / "a.tif"
+    target.write_bytes(b"previous good result")
+    with pytest.raises(InputDataError):
+        toolbox.run("testing:half_write", {"OUTPUT": target, "SECOND": tmp_path / "b.gpkg",
+                                           "OVERWRITE": True})
+    assert target.read_bytes() == b"previous good result"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.tif"]
+
+
+def test_canceled_run_leaves_nothing(tmp_path):
+    with pytest.raises(CanceledError):
+        toolbox.run("testing:cancelable", {"OUTPUT": tmp_path / "a.tif"})
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_toolbox_errors_are_also_builtin_errors():
+    assert issubclass(ParameterError, ValueError) and issubclass(ParameterError, ToolboxError)
+
+
+def test_hillshade_of_a_plane_matches_lambert(plane_dem, tmp_path):
+    path, sx, sy = plane_dem
+    out = tmp_path / "hs.tif"
+    progress = []
+    result = toolbox.run("raster:hillshade", {"INPUT": str(path), "OUTPUT": str(out)},
+                         feedback=Feedback(lambda p, m: progress.append(p)))
+    assert result == {"OUTPUT": str(out.absolute())}
+    # plane: z = 100 + 0.2 x' - 0.1 (y - y0) -> dz/dx = 0.2, dz/dy(north) = -0.1
+    dzdx, dzdy = sx, sy
+    az, alt = np.radians(315), np.radians(45)
+    expected = (np.sin(alt) - np.cos(alt) * (dzdx * np.sin(az) + dzdy * np.cos(az))) / np.sqrt(
+        1 + dzdx**2 + dzdy**2)
+    with rasterio.open(out) as ds:
+        band = ds.read(1)
+        assert ds.crs.to_epsg() == 3003 and ds.nodata == 0
+        assert ds.profile["compress"] == "deflate"
+    assert np.all(band == 1 + np.round(expected * 254))
+    assert progress[0] == 0 and progress[-1] == 100 and progress == sorted(progress)
+
+
+def test_existing_output_needs_overwrite(plane_dem, tmp_path):
+    out = tmp_path / "hs.tif"
+    toolbox.run("raster:hillshade", {"INPUT": plane_dem[0], "OUTPUT": out})
+    with pytest.raises(OutputExistsError):
+        toolbox.run("raster:hillshade", {"INPUT": plane_dem[0], "OUTPUT": out})
+    toolbox.run("raster:hillshade", {"INPUT": plane_dem[0], "OUTPUT": out}, overwrite=True)
+
+
+def test_output_equal_to_input_refused(plane_dem):
+    with pytest.raises(ParameterError, match="also the input INPUT"):
+        toolbox.run("raster:hillshade", {"INPUT": plane_dem[0], "OUTPUT": plane_dem[0]},
+                    overwrite=True)
+
+
+def test_json_report_content(plane_dem, tmp_path):
+    report = tmp_path / "run.json"
+    toolbox.run("raster:hillshade", {"INPUT": plane_dem[0], "AZIMUTH": 90,
+                                     "OUTPUT": tmp_path / "hs.tif"}, report=report)
+    data = json.loads(report.read_text())
+    assert data["algorithm"] == "raster:hillshade"
+    assert data["parameters"]["AZIMUTH"] == 90.0
+    assert data["parameters"]["INPUT"] == str(plane_dem[0])
+    assert data["outputs"]["OUTPUT"].endswith("hs.tif")
+    assert data["versions"]["toolbox"] == toolbox.__version__
+    assert data["versions"]["gdal"] and data["versions"]["proj"] and data["versions"]["geos"]
+    assert data["elapsed_s"] >= 0
+
+
+def test_vector_info_describes_layers(points_gpkg, tmp_path):
+    out = tmp_path / "info.json"
+    result = toolbox.run("vector:info", {"INPUT": points_gpkg, "OUTPUT": out})
+    layer = result["INFO"]["layers"][0]
+    assert layer["name"] == "pts" and layer["features"] == 10 and layer["crs"] == "EPSG:3003"
+    assert layer["has_z"] and 280 <= layer["z_range"][0] <= layer["z_range"][1] <= 340
+    assert json.loads(out.read_text()) == result["INFO"]
