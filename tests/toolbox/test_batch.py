@@ -49,7 +49,8 @@ def test_validate_catches_bad_references(tmp_path):
         "steps: []": "non-empty 'steps'",
         "steps:\n  - algorithm: raster:nope": "no algorithm",
         "steps:\n  - algorithm: raster:hillshade\n    params: {INPUTT: a}": "INPUTT is not a parameter",
-        "steps:\n  - algorithm: raster:hillshade\n    params: {INPUT: '${a.OUTPUT}'}": "does not come earlier",
+        "steps:\n  - algorithm: raster:hillshade\n    params: {INPUT: '${a.OUTPUT}'}":
+            "does not come earlier",
         "steps:\n  - algorithm: raster:hillshade\n    params: {INPUT: '${x}'}": "no such variable",
         ("steps:\n  - name: a\n    algorithm: raster:hillshade\n"
          "  - algorithm: raster:hillshade\n    params: {INPUT: '${a.RESULT}'}"): "outputs are: OUTPUT",
