@@ -1,0 +1,58 @@
+"""topology:check - the checks of area building, reported without changing any geometry."""
+
+from __future__ import annotations
+
+from algorithms.topology.build import build_topology
+from algorithms.topology.common_parameters import linework_parameters, read_linework
+from algorithms.topology.layers import tolerances_from, write_topology
+from toolbox.algorithm import Algorithm
+from toolbox.feedback import Feedback
+from toolbox.parameters import Output, OutputVector
+from toolbox.registry import register
+
+
+@register
+class CheckTopology(Algorithm):
+    """Check restitution linework before area generation (thesis S002 §2.4): closure of the
+    polylines that should form an area, lines crossing without an intersection node, near-misses
+    between lines that should meet, duplicates, dangles and overshoots, slivers, self-
+    intersections, and, with LABELS, areas without a label, areas with conflicting labels and
+    labels outside every area.
+
+    Runs the same steps and tolerances as ``topology:build_areas`` in memory and writes only the
+    ``errors`` layer (points and lines with type, severity, detail and input line numbers); the
+    input is not changed and no area is written. Severity ``fixable`` marks what build_areas
+    would correct by itself (snap, close, node, dedupe, trim, merge), ``error`` what it would
+    leave for the operator (dangles kept, unclosed lines, label problems, invalid features). When
+    a check reports no ``error``, build_areas gives a clean result.
+    """
+
+    id = "topology:check"
+    display_name = "Check linework topology"
+    group = "Topology"
+    short_help = ("Report near-misses, crossings without node, duplicates, unclosed lines, "
+                  "dangles, slivers and label problems as an errors layer; no geometry changed.")
+    parameters = [
+        *linework_parameters(),
+        OutputVector("OUTPUT", "GeoPackage with the errors layer"),
+    ]
+    outputs = [Output("STATISTICS", "counts of every check, tolerances and their source",
+                      "dict")]
+
+    def check(self, params):
+        tolerances_from(params)
+
+    def process(self, params, feedback: Feedback):
+        data = read_linework(params, feedback)
+        tol, sources, _ = tolerances_from(params, feedback, data["crs"])
+        output = build_topology(data["line_geoms"], data["line_codes"], data["label_geoms"],
+                                data["label_codes"], data["label_attributes"], tol,
+                                feedback.step(0, 95), mode="check")
+        with feedback.timed("write"):
+            write_topology(params["OUTPUT"], output, data["crs"], layers=("errors",))
+        stats = dict(output.statistics)
+        for key in ("areas", "arcs", "nodes"):
+            stats["output"].pop(key, None)
+        stats["tolerance_sources"] = sources
+        stats["crs"] = data["crs_label"]
+        return {"OUTPUT": params["OUTPUT"], "STATISTICS": stats}
