@@ -1,0 +1,163 @@
+"""orientation:footprints - photo footprints on a DEM, nadir and principal points, overlaps."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from algorithms.orientation._tables import load_project_parameter
+from algorithms.orientation.coverage import Footprint, overlaps, photo_footprint
+from algorithms.orientation.surface import dem_height_range, surface_for_photo
+from toolbox.algorithm import Algorithm
+from toolbox.errors import InputDataError
+from toolbox.feedback import Feedback
+from toolbox.io.crs import common_crs
+from toolbox.parameters import File, Integer, Number, Output, OutputVector, RasterLayer
+from toolbox.registry import register
+
+
+@register
+class Footprints(Algorithm):
+    """Ground footprints of oriented photos, with nadir points, principal points and overlaps.
+
+    Each photo's image format (the camera's ``frame_size_mm``, else the image's pixel corners
+    through its interior orientation) is densified to POINTS_PER_SIDE points per side and
+    projected on the terrain by monoplotting on the DEM (rays marched down from the DEM's top and
+    refined to 1e-10 m; collinearity, domain brief section 4), or on the plane Z = MEAN_HEIGHT
+    without a DEM. Rays that miss the DEM fall back to the plane (MEAN_HEIGHT, default the DEM's
+    mean height) and are counted in ``vertices_off_dem``; such a footprint is ``partial``.
+    The DEM is read only in the window each photo can see.
+
+    Output GeoPackage layers: ``footprints`` (PolygonZ: photo, camera, strip, status,
+    vertices_off_dem, area_m2, mean_height_m, flying_height_m = Z0 - mean height, photo_scale =
+    flying height / c, ground_pixel_m, forward_overlap_pct with the next photo of its strip),
+    ``nadir_points`` and ``principal_points`` (PointZ, with on_dem), ``projection_centres``
+    (PointZ, X0/Y0/Z0 and the angles in radians) and ``overlaps`` (Polygon: photo_a, photo_b,
+    kind forward/side/other, pct_of_a, pct_of_b = intersection area / footprint area). Forward
+    pairs are consecutive photos of a strip in project order (brief section 10: ~60% forward,
+    ~20% side overlap).
+    """
+
+    id = "orientation:footprints"
+    display_name = "Photo footprints"
+    group = "Orientation"
+    short_help = "Footprints of oriented photos on a DEM, nadir/principal points, overlap %."
+    parameters = [
+        File("PROJECT", "orientation project (YAML)", extensions=[".yaml", ".yml"]),
+        RasterLayer("DEM", "terrain heights (same CRS as the project)", optional=True),
+        Integer("BAND", "DEM band", default=1, min_value=1),
+        Number("MEAN_HEIGHT", "plane height without a DEM; fallback plane with one (default: the "
+               "DEM's mean), CRS units", optional=True),
+        Integer("POINTS_PER_SIDE", "footprint vertices per side of the image format", default=8,
+                min_value=1, max_value=1000),
+        OutputVector("OUTPUT", "GeoPackage of footprints, points and overlaps"),
+    ]
+    outputs = [Output("STATISTICS", "photos, partial footprints, forward/side overlap ranges",
+                      "dict")]
+
+    def check(self, params: dict[str, Any]) -> None:
+        if params["DEM"] is None and params["MEAN_HEIGHT"] is None:
+            raise self.fail("MEAN_HEIGHT", "is required when no DEM is given (the plane the "
+                            "footprints are projected on), got nothing")
+        if params["DEM"] is not None and params["BAND"] > params["DEM"].count:
+            raise self.fail("BAND", f"must be <= {params['DEM'].count} (bands of "
+                            f"{params['DEM']}), got {params['BAND']}")
+
+    def process(self, params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
+        project = load_project_parameter(params["PROJECT"])
+        dem = params["DEM"]
+        crs = common_crs({"PROJECT": project.crs, "DEM": None if dem is None else dem.crs})
+        photos = project.oriented()
+        for pid in (p for p in project.photos if project.photos[p].exterior is None):
+            feedback.push_warning(f"photo {pid} has no exterior orientation: skipped")
+        if not photos:
+            raise InputDataError(f"PROJECT {params['PROJECT']} has no photo with an exterior "
+                                 "orientation")
+        z_range = None if dem is None else dem_height_range(dem, params["BAND"])
+        footprints: list[Footprint] = []
+        for photo in feedback.iterate(photos, start=0, end=90):
+            surface = None
+            if dem is not None:
+                try:
+                    surface = surface_for_photo(dem, photo, params["BAND"], z_range)
+                except InputDataError as exc:
+                    feedback.push_warning(f"photo {photo.id}: {exc}; footprint on the plane")
+            plane = params["MEAN_HEIGHT"]
+            if plane is None:
+                plane = float(np.nanmean(surface.z)) if surface is not None else \
+                    0.5 * (z_range[0] + z_range[1])
+            with feedback.timed("footprints"):
+                footprints.append(photo_footprint(photo, surface, plane,
+                                                  params["POINTS_PER_SIDE"]))
+        consecutive = {(a.id, b.id) for a, b in project.consecutive_pairs()}
+        pairs = overlaps(footprints, consecutive)
+        layers, stats = self._layers(footprints, pairs, consecutive, dem is not None, crs)
+        from toolbox.io.vector import write_layers
+
+        write_layers(params["OUTPUT"], layers, crs=crs,
+                     geometry_types={"footprints": "Polygon Z", "nadir_points": "Point Z",
+                                     "principal_points": "Point Z",
+                                     "projection_centres": "Point Z", "overlaps": "Polygon"})
+        for fp in footprints:
+            if fp.vertices_off_dem:
+                feedback.push_warning(f"photo {fp.photo.id}: {fp.vertices_off_dem} footprint "
+                                      f"vertices miss the DEM; placed on the plane Z = "
+                                      f"{fp.plane_height:.2f}")
+        return {"OUTPUT": params["OUTPUT"], "STATISTICS": stats}
+
+    @staticmethod
+    def _layers(footprints, pairs, consecutive, with_dem: bool, crs):
+        import geopandas as gpd
+        import shapely
+
+        forward = {}
+        for ov in pairs:
+            if ov.kind == "forward":
+                a, b = (ov.a, ov.b) if (ov.a, ov.b) in consecutive else (ov.b, ov.a)
+                pct = ov.percent_of_a if a == ov.a else ov.percent_of_b
+                forward[a] = pct
+        rows, nadirs, pps, centres = [], [], [], []
+        for fp in footprints:
+            photo, eo = fp.photo, fp.photo.require_exterior()
+            height = eo.z0 - fp.mean_height
+            scale = height * 1000.0 / photo.camera.c
+            transform = photo.pixel_transform
+            pixel = transform.pixel_size_mm if transform is not None else photo.camera.pixel_size_mm
+            status = "plane" if not with_dem else ("partial" if fp.vertices_off_dem else "complete")
+            rows.append({"photo": photo.id, "camera": photo.camera.name, "strip": photo.strip,
+                         "status": status, "vertices_off_dem": fp.vertices_off_dem,
+                         "area_m2": fp.polygon.area, "mean_height_m": fp.mean_height,
+                         "flying_height_m": height, "photo_scale": scale,
+                         "ground_pixel_m": None if pixel is None else scale * pixel / 1000.0,
+                         "forward_overlap_pct": forward.get(photo.id),
+                         "geometry": shapely.Polygon(fp.vertices)})
+            for target, point in ((nadirs, fp.nadir), (pps, fp.principal_point)):
+                target.append({"photo": photo.id, "on_dem": point.on_dem, "status": point.status,
+                               "geometry": shapely.Point(point.xyz)})
+            centres.append({"photo": photo.id, "X0": eo.x0, "Y0": eo.y0, "Z0": eo.z0,
+                            "omega_rad": eo.omega, "phi_rad": eo.phi, "kappa_rad": eo.kappa,
+                            "geometry": shapely.Point(eo.centre)})
+        overlap_rows = [{"photo_a": ov.a, "photo_b": ov.b, "kind": ov.kind,
+                         "pct_of_a": ov.percent_of_a, "pct_of_b": ov.percent_of_b,
+                         "geometry": shapely.force_2d(ov.geometry)} for ov in pairs]
+
+        def frame(records, columns):
+            if records:
+                return gpd.GeoDataFrame(records, geometry="geometry", crs=crs)
+            return gpd.GeoDataFrame({c: [] for c in columns}, geometry=[], crs=crs)
+
+        layers = {"footprints": frame(rows, []), "nadir_points": frame(nadirs, []),
+                  "principal_points": frame(pps, []), "projection_centres": frame(centres, []),
+                  "overlaps": frame(overlap_rows, ["photo_a", "photo_b", "kind", "pct_of_a",
+                                                   "pct_of_b"])}
+        fwd = [ov.percent_of_a for ov in pairs if ov.kind == "forward"] + \
+            [ov.percent_of_b for ov in pairs if ov.kind == "forward"]
+        side = [ov.percent_of_a for ov in pairs if ov.kind == "side"] + \
+            [ov.percent_of_b for ov in pairs if ov.kind == "side"]
+        stats = {"photos": len(footprints),
+                 "partial_footprints": sum(1 for fp in footprints if fp.vertices_off_dem),
+                 "forward_overlap_pct": [min(fwd), max(fwd)] if fwd else None,
+                 "side_overlap_pct": [min(side), max(side)] if side else None,
+                 "overlapping_pairs": len(pairs)}
+        return layers, stats

@@ -1,0 +1,160 @@
+"""orientation:intersect - 3D points from homologous image points on two or more oriented photos."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from algorithms.orientation._tables import image_measurements, load_project_parameter, write_json
+from algorithms.orientation.forward_intersection import (
+    STATUS_NAMES,
+    camera_observations,
+    intersect,
+)
+from toolbox.algorithm import Algorithm
+from toolbox.errors import InputDataError
+from toolbox.feedback import Feedback
+from toolbox.parameters import Enum, File, Output, OutputFile, OutputVector, String
+from toolbox.registry import register
+
+
+@register
+class SpaceIntersection(Algorithm):
+    """Space (forward) intersection of homologous image points by least squares.
+
+    INPUT lists image measurements, one row per point per photo: ``point_id``, ``photo`` (an id
+    of PROJECT) and either ``col_px``/``row_px`` (pixels: columns right, rows down, pixel centres
+    at +0.5; converted by each photo's interior orientation) or ``x_mm``/``y_mm`` (image mm in the
+    fiducial system). CSV/TXT (comma, semicolon or tab) or a GeoPackage table (LAYER).
+
+    Each point seen on two or more photos is solved from all its collinearity equations (domain
+    brief sections 4 and 8, with the Impl. note: least squares instead of the thesis' X-only
+    eq. [29]): closest point to the rays, then Gauss-Newton on the image residuals, coordinates
+    shifted to a local origin. Radial distortion and the principal point are removed from the
+    measurements first.
+
+    OUTPUT layers: ``points`` (PointZ; point_id, status, n_photos, sigma0_mm = sqrt(Σv²/(2n-3)),
+    std_x/y/z_m from the normal matrix, max_ray_distance_m, max_residual_px when pixels were
+    given) and ``rays`` (LineStringZ from each projection centre to its point, with the
+    observation's residuals in mm and pixels, observed minus computed). Points that cannot be
+    intersected (one photo only, parallel rays, behind a camera) are flagged rows with status
+    ``single_ray`` / ``parallel_rays`` / ``behind_camera`` and no geometry, never dropped silently.
+    """
+
+    id = "orientation:intersect"
+    display_name = "Space intersection"
+    group = "Orientation"
+    short_help = "3D points (PointZ) from image points measured on >= 2 oriented photos, with residuals."
+    parameters = [
+        File("PROJECT", "orientation project (YAML)", extensions=[".yaml", ".yml"]),
+        File("INPUT", "image measurements (CSV or GeoPackage table)",
+             extensions=[".csv", ".txt", ".gpkg"]),
+        String("LAYER", "GeoPackage layer of INPUT (default: the first)", optional=True),
+        Enum("COORDINATES", "measurement columns: auto (pixels when col_px/row_px exist), pixel, "
+             "image (x_mm/y_mm)", options=("auto", "pixel", "image"), default="auto"),
+        OutputVector("OUTPUT", "GeoPackage with layers points and rays"),
+        OutputFile("REPORT", "JSON summary", extensions=[".json"], optional=True),
+    ]
+    outputs = [Output("STATISTICS", "points per status, RMS image residual", "dict")]
+
+    def process(self, params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
+        import geopandas as gpd
+        import shapely
+
+        from toolbox.io.vector import write_layers
+
+        project = load_project_parameter(params["PROJECT"])
+        ids, photo_ids, xy, kind = image_measurements(params["INPUT"], params["LAYER"],
+                                                      params["COORDINATES"])
+        unknown = sorted({p for p in photo_ids if p not in project.photos})
+        if unknown:
+            raise InputDataError(f"INPUT names photo(s) {', '.join(map(repr, unknown[:5]))} that "
+                                 f"PROJECT does not have (photos: {', '.join(project.photos)})")
+        photos = [project.photos[p] for p in photo_ids]
+        for p in {p.id: p for p in photos}.values():
+            p.require_exterior()
+        order = list(dict.fromkeys(ids))
+        index = {pid: k for k, pid in enumerate(order)}
+        point_index = np.array([index[i] for i in ids], dtype=np.int64)
+        seen = set()
+        for i, p in zip(ids, photo_ids, strict=True):
+            if (i, p) in seen:
+                raise InputDataError(f"INPUT measures point {i!r} twice on photo {p!r}")
+            seen.add((i, p))
+        with feedback.timed("intersection"):
+            camera_xy = camera_observations(photos, xy, kind)
+            centres = np.array([p.exterior.centre for p in photos])
+            rotations = np.array([p.exterior.rotation for p in photos])
+            cs = np.array([p.camera.c for p in photos])
+            result = intersect(point_index, camera_xy, centres, rotations, cs, len(order))
+        feedback.set_progress(80)
+        # residuals in the measurement's own units, through the full model (distortion, IO)
+        computed = np.full_like(xy, np.nan)
+        for pid in dict.fromkeys(photo_ids):
+            rows = [k for k, p in enumerate(photo_ids) if p == pid]
+            ok_rows = [k for k in rows if result.ok[point_index[k]]]
+            if not ok_rows:
+                continue
+            photo = project.photos[pid]
+            pts = result.xyz[point_index[ok_rows]]
+            computed[ok_rows] = photo.ground_to_pixel(pts) if kind == "pixel" else \
+                photo.ground_to_image(pts)
+        residual_units = xy - computed
+        res_norm = np.hypot(residual_units[:, 0], residual_units[:, 1])
+        max_res = np.full(len(order), np.nan)
+        finite = np.isfinite(res_norm)
+        np.fmax.at(max_res, point_index[finite], res_norm[finite])
+        unit = "px" if kind == "pixel" else "mm"
+        points = []
+        for k, pid in enumerate(order):
+            ok = bool(result.ok[k])
+            points.append({
+                "point_id": pid, "status": STATUS_NAMES[int(result.status[k])],
+                "n_photos": int(result.n_rays[k]),
+                "x": float(result.xyz[k, 0]) if ok else None,
+                "y": float(result.xyz[k, 1]) if ok else None,
+                "z": float(result.xyz[k, 2]) if ok else None,
+                "sigma0_mm": _num(result.sigma0_mm[k]),
+                "std_x_m": _num(result.std_xyz[k, 0]), "std_y_m": _num(result.std_xyz[k, 1]),
+                "std_z_m": _num(result.std_xyz[k, 2]),
+                "max_ray_distance_m": _num(result.max_ray_distance[k]),
+                f"max_residual_{unit}": _num(max_res[k]),
+                "geometry": shapely.Point(result.xyz[k]) if ok else None})
+        rays = []
+        for k, (pid, photo) in enumerate(zip(ids, photos, strict=True)):
+            pk = point_index[k]
+            if not result.ok[pk]:
+                continue
+            rays.append({"point_id": pid, "photo": photo.id,
+                         "res_x_mm": _num(result.residuals_mm[k, 0]),
+                         "res_y_mm": _num(result.residuals_mm[k, 1]),
+                         f"res_u_{unit}": _num(residual_units[k, 0]),
+                         f"res_v_{unit}": _num(residual_units[k, 1]),
+                         "geometry": shapely.LineString([photo.exterior.centre, result.xyz[pk]])})
+        crs = project.crs
+        layers = {"points": gpd.GeoDataFrame(points, geometry="geometry", crs=crs),
+                  "rays": gpd.GeoDataFrame(rays, geometry="geometry", crs=crs) if rays else
+                  gpd.GeoDataFrame({"point_id": []}, geometry=[], crs=crs)}
+        write_layers(params["OUTPUT"], layers, crs=crs,
+                     geometry_types={"points": "Point Z", "rays": "LineString Z"})
+        ok = result.ok
+        stats = {"points": len(order), "status": result.counts(),
+                 "observations": len(ids), "coordinates": kind,
+                 "rms_residual_mm": _num(np.sqrt(np.nanmean(result.residuals_mm[ok[point_index]]
+                                                            ** 2)) if ok.any() else np.nan),
+                 f"max_residual_{unit}": _num(np.nanmax(max_res) if ok.any() else np.nan)}
+        failed = len(order) - int(ok.sum())
+        if failed:
+            feedback.push_warning(f"{failed} of {len(order)} points not intersected: "
+                                  f"{result.counts()}")
+        if params["REPORT"] is not None:
+            write_json(params["REPORT"], {"algorithm": self.id, "statistics": stats,
+                                          "points": [{k: v for k, v in p.items() if k != "geometry"}
+                                                     for p in points]})
+        return {"OUTPUT": params["OUTPUT"], "REPORT": params["REPORT"], "STATISTICS": stats}
+
+
+def _num(value: float) -> float | None:
+    value = float(value)
+    return value if np.isfinite(value) else None

@@ -1,0 +1,134 @@
+"""orientation:monoplot - ground points from image points of one photo, on a DEM or a height."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from algorithms.orientation._tables import image_measurements, load_project_parameter, write_json
+from algorithms.orientation.collinearity import NO_INTERSECTION, OK, STATUS_NAMES
+from algorithms.orientation.surface import dem_height_range, surface_for_photo
+from toolbox.algorithm import Algorithm
+from toolbox.errors import InputDataError
+from toolbox.feedback import Feedback
+from toolbox.io.crs import common_crs
+from toolbox.parameters import (
+    Boolean,
+    Enum,
+    File,
+    Integer,
+    Number,
+    Output,
+    OutputFile,
+    OutputVector,
+    RasterLayer,
+    String,
+)
+from toolbox.registry import register
+
+
+@register
+class Monoplot(Algorithm):
+    """Monoplotting: intersect the rays of image points with the terrain.
+
+    INPUT lists image points (``photo``, optional ``point_id``, ``col_px``/``row_px`` or
+    ``x_mm``/``y_mm``; see orientation:intersect). Each ray (collinearity, domain brief section 4,
+    after the interior orientation, the principal point and radial distortion) is intersected with
+    the DEM, bilinear between cell centres: METHOD ``march`` walks down the ray from the DEM's top
+    in half-cell steps and refines the first crossing (Illinois regula falsi) to TOLERANCE; it
+    finds the first visible surface point and converges on steep terrain. ``fixed_point`` is the
+    classical iteration Z <- DEM(X(Z), Y(Z)), which fails where the terrain is steeper than the
+    ray (reported as not_converged). Without a DEM the rays meet the plane Z = HEIGHT.
+
+    OUTPUT layer ``points`` (PointZ): point_id, photo, status (ok, outside_dem, dem_nodata,
+    not_converged, ray_not_descending, no_intersection), iterations. Rays that do not meet the DEM
+    are flagged rows without geometry, never silent NaNs; FAIL_ON_MISS=true makes them an error.
+    """
+
+    id = "orientation:monoplot"
+    display_name = "Monoplotting (image to ground on a DEM)"
+    group = "Orientation"
+    short_help = "Ground points (PointZ) of image points of oriented photos, on a DEM or a height."
+    parameters = [
+        File("PROJECT", "orientation project (YAML)", extensions=[".yaml", ".yml"]),
+        File("INPUT", "image points (CSV or GeoPackage table)", extensions=[".csv", ".txt", ".gpkg"]),
+        String("LAYER", "GeoPackage layer of INPUT (default: the first)", optional=True),
+        Enum("COORDINATES", "measurement columns: auto, pixel (col_px/row_px), image (x_mm/y_mm)",
+             options=("auto", "pixel", "image"), default="auto"),
+        RasterLayer("DEM", "terrain heights (same CRS as the project)", optional=True),
+        Integer("BAND", "DEM band", default=1, min_value=1),
+        Number("HEIGHT", "plane height when no DEM is given, CRS units", optional=True),
+        Enum("METHOD", "ray/DEM intersection", options=("march", "fixed_point"), default="march"),
+        Number("TOLERANCE", "accepted height misclosure |Z_ray - Z_dem|, CRS units", default=1e-6,
+               min_value=0, min_exclusive=True),
+        Integer("MAX_ITERATIONS", "refinement or fixed-point iterations", default=100,
+                min_value=1),
+        Boolean("FAIL_ON_MISS", "a ray that misses the terrain is an error", default=False),
+        OutputVector("OUTPUT", "GeoPackage with the layer points"),
+        OutputFile("REPORT", "JSON summary", extensions=[".json"], optional=True),
+    ]
+    outputs = [Output("STATISTICS", "points per status", "dict")]
+
+    def check(self, params: dict[str, Any]) -> None:
+        if params["DEM"] is None and params["HEIGHT"] is None:
+            raise self.fail("HEIGHT", "is required when no DEM is given, got nothing")
+
+    def process(self, params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
+        import geopandas as gpd
+        import shapely
+
+        from toolbox.io.vector import write_layers
+
+        project = load_project_parameter(params["PROJECT"])
+        dem = params["DEM"]
+        crs = common_crs({"PROJECT": project.crs, "DEM": None if dem is None else dem.crs})
+        ids, photo_ids, xy, kind = image_measurements(params["INPUT"], params["LAYER"],
+                                                      params["COORDINATES"])
+        unknown = sorted({p for p in photo_ids if p not in project.photos})
+        if unknown:
+            raise InputDataError(f"INPUT names photo(s) {', '.join(map(repr, unknown[:5]))} that "
+                                 f"PROJECT does not have (photos: {', '.join(project.photos)})")
+        xyz = np.full((len(ids), 3), np.nan)
+        status = np.full(len(ids), OK, dtype=np.int8)
+        iterations = np.zeros(len(ids), dtype=np.int32)
+        z_range = None if dem is None else dem_height_range(dem, params["BAND"])
+        groups = list(dict.fromkeys(photo_ids))
+        for pid in feedback.iterate(groups, start=0, end=90):
+            photo = project.photos[pid]
+            rows = np.array([k for k, p in enumerate(photo_ids) if p == pid])
+            pts = xy[rows]
+            if dem is None:
+                xyz[rows] = photo.pixel_to_ground(pts, params["HEIGHT"], invalid="nan") \
+                    if kind == "pixel" else photo.image_to_ground(pts, params["HEIGHT"],
+                                                                  invalid="nan")
+                status[rows] = np.where(np.isfinite(xyz[rows, 0]), OK, NO_INTERSECTION)
+                continue
+            surface = surface_for_photo(dem, photo, params["BAND"], z_range)
+            options = {"method": params["METHOD"], "tolerance": params["TOLERANCE"],
+                       "max_iterations": params["MAX_ITERATIONS"]}
+            result = photo.monoplot_pixels(pts, surface, **options) if kind == "pixel" else \
+                photo.monoplot_image(pts, surface, **options)
+            xyz[rows], status[rows], iterations[rows] = result.xyz, result.status, \
+                result.iterations
+        values, counts = np.unique(status, return_counts=True)
+        by_status = {STATUS_NAMES[int(v)]: int(n) for v, n in zip(values, counts, strict=True)}
+        failed = int(np.count_nonzero(status != OK))
+        if failed:
+            message = f"{failed} of {len(ids)} rays did not meet the terrain: {by_status}"
+            if params["FAIL_ON_MISS"]:
+                first = int(np.flatnonzero(status != OK)[0])
+                raise InputDataError(f"{message} (first: point {ids[first]!r} on photo "
+                                     f"{photo_ids[first]!r}, {STATUS_NAMES[int(status[first])]})")
+            feedback.push_warning(message)
+        records = [{"point_id": i, "photo": p, "status": STATUS_NAMES[int(s)],
+                    "iterations": int(it), "geometry": shapely.Point(v) if s == OK else None}
+                   for i, p, s, it, v in zip(ids, photo_ids, status, iterations, xyz, strict=True)]
+        write_layers(params["OUTPUT"],
+                     {"points": gpd.GeoDataFrame(records, geometry="geometry", crs=crs)},
+                     crs=crs, geometry_types={"points": "Point Z"})
+        stats = {"points": len(ids), "status": by_status, "method": params["METHOD"]
+                 if dem is not None else "plane"}
+        if params["REPORT"] is not None:
+            write_json(params["REPORT"], {"algorithm": self.id, "statistics": stats})
+        return {"OUTPUT": params["OUTPUT"], "REPORT": params["REPORT"], "STATISTICS": stats}

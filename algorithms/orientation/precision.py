@@ -1,0 +1,159 @@
+"""orientation:precision - normal-case precision estimate (sigma X, Y, Z) of stereo pairs."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from algorithms.orientation._tables import load_project_parameter, write_csv, write_json
+from algorithms.orientation.normal_case import normal_case_precision
+from toolbox.algorithm import Algorithm
+from toolbox.errors import InputDataError
+from toolbox.feedback import Feedback
+from toolbox.io.crs import common_crs
+from toolbox.parameters import File, Integer, Number, Output, OutputFile, RasterLayer
+from toolbox.registry import register
+
+COLUMNS = ["photo_a", "photo_b", "terrain_height_m", "principal_distance_mm", "base_m",
+           "distance_m", "photo_scale", "base_ratio", "sigma_parallax_um", "sigma_image_um",
+           "sigma_x_centre_m", "sigma_y_centre_m", "sigma_x_edge_m", "sigma_y_edge_m",
+           "sigma_z_m", "xi_edge_mm", "eta_edge_mm"]
+
+
+def pair_precision(c_mm: float, base_m: float, distance_m: float, sigma_parallax_um: float,
+                   sigma_image_um: float | None, xi_edge_mm: float, eta_edge_mm: float
+                   ) -> dict[str, Any]:
+    """Precision at the image centre and at the format's edge (ξ, η) of the left photo."""
+    centre = normal_case_precision(c_mm, base_m, distance_m, sigma_parallax_um, sigma_image_um)
+    edge = normal_case_precision(c_mm, base_m, distance_m, sigma_parallax_um, sigma_image_um,
+                                 xi_edge_mm, eta_edge_mm)
+    return {"principal_distance_mm": c_mm, "base_m": base_m, "distance_m": distance_m,
+            "photo_scale": centre["photo_scale"], "base_ratio": centre["base_ratio"],
+            "sigma_parallax_um": sigma_parallax_um, "sigma_image_um": centre["sigma_image_um"],
+            "sigma_x_centre_m": centre["sigma_x_m"], "sigma_y_centre_m": centre["sigma_y_m"],
+            "sigma_x_edge_m": edge["sigma_x_m"], "sigma_y_edge_m": edge["sigma_y_m"],
+            "sigma_z_m": centre["sigma_z_m"], "xi_edge_mm": xi_edge_mm, "eta_edge_mm": eta_edge_mm}
+
+
+@register
+class NormalCasePrecision(Algorithm):
+    """Precision of stereo restitution estimated with the normal case (domain brief section 7).
+
+    ``σZ = m_b·(Z/B)·σp`` and ``σX = m_b·sqrt((ξ·Z/(c·B))²·σp² + σξ²)`` (σY likewise with η), with
+    m_b = Z/c the photo scale, B the base, Z the distance from the projection centres to the
+    terrain, σp the x-parallax precision and σξ the image-coordinate precision (S000 l.605-649,
+    S002 eq. [35]-[40]). The defaults, SIGMA_PARALLAX = 5 µm and SIGMA_IMAGE = σp/√2, reproduce
+    the σZ column of S000's rules table. σX and σY are given at the image centre and at the edge
+    of the format (ξ, η = half the format, or XI/ETA).
+
+    With PROJECT, every stereo pair (consecutive photos of a strip) is evaluated: B is the distance
+    between the projection centres, Z the mean Z0 minus the terrain height (MEAN_HEIGHT, or the
+    DEM at the two nadir points and their midpoint), c the camera's principal distance.
+    Without PROJECT, give PRINCIPAL_DISTANCE, BASE and DISTANCE for one configuration.
+    Outputs: a JSON report and optionally a CSV table; PRECISION returns the rows.
+    """
+
+    id = "orientation:precision"
+    display_name = "Normal-case precision"
+    group = "Orientation"
+    short_help = "Estimated sigma X, Y, Z of stereo pairs from scale, base and parallax accuracy."
+    parameters = [
+        File("PROJECT", "orientation project (YAML); its stereo pairs are evaluated",
+             extensions=[".yaml", ".yml"], optional=True),
+        RasterLayer("DEM", "terrain heights, for the distance to the terrain", optional=True),
+        Integer("BAND", "DEM band", default=1, min_value=1),
+        Number("MEAN_HEIGHT", "terrain height (CRS units), instead of a DEM", optional=True),
+        Number("PRINCIPAL_DISTANCE", "c, mm (without PROJECT)", optional=True, min_value=0,
+               min_exclusive=True),
+        Number("BASE", "base B, m (without PROJECT)", optional=True, min_value=0,
+               min_exclusive=True),
+        Number("DISTANCE", "distance Z from the projection centres to the terrain, m (without "
+               "PROJECT)", optional=True, min_value=0, min_exclusive=True),
+        Number("SIGMA_PARALLAX", "x-parallax precision σp, µm", default=5.0, min_value=0,
+               min_exclusive=True),
+        Number("SIGMA_IMAGE", "image-coordinate precision σξ = ση, µm (default σp/√2)",
+               optional=True, min_value=0),
+        Number("XI", "image x (mm) for the edge estimate (default: half the format width)",
+               optional=True),
+        Number("ETA", "image y (mm) for the edge estimate (default: half the format height)",
+               optional=True),
+        OutputFile("OUTPUT", "JSON report", extensions=[".json"]),
+        OutputFile("TABLE", "CSV table, one row per pair", extensions=[".csv"], optional=True),
+    ]
+    outputs = [Output("PRECISION", "one dict per stereo pair (or the single configuration)",
+                      "list")]
+
+    def check(self, params: dict[str, Any]) -> None:
+        if params["PROJECT"] is None:
+            for name in ("PRINCIPAL_DISTANCE", "BASE", "DISTANCE"):
+                if params[name] is None:
+                    raise self.fail(name, "is required when no PROJECT is given (a number > 0)")
+        elif params["DEM"] is None and params["MEAN_HEIGHT"] is None:
+            raise self.fail("MEAN_HEIGHT", "is required with PROJECT when no DEM is given (the "
+                            "terrain height the distance is measured to)")
+
+    def process(self, params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
+        sp, si = params["SIGMA_PARALLAX"], params["SIGMA_IMAGE"]
+        rows: list[dict[str, Any]] = []
+        if params["PROJECT"] is None:
+            xi = params["XI"] if params["XI"] is not None else 0.0
+            eta = params["ETA"] if params["ETA"] is not None else 0.0
+            rows.append({"photo_a": None, "photo_b": None} | pair_precision(
+                params["PRINCIPAL_DISTANCE"], params["BASE"], params["DISTANCE"], sp, si, xi, eta))
+        else:
+            rows = self._project_rows(params, feedback)
+        write_json(params["OUTPUT"], {
+            "algorithm": self.id, "method": "normal case, S000 l.605-649 (brief section 7)",
+            "units": {"sigma": "m", "base": "m", "distance": "m", "image": "mm",
+                      "sigma_parallax": "um"}, "pairs": rows})
+        if params["TABLE"] is not None:
+            write_csv(params["TABLE"], COLUMNS, [[r.get(c) for c in COLUMNS] for r in rows])
+        return {"OUTPUT": params["OUTPUT"], "TABLE": params["TABLE"], "PRECISION": rows}
+
+    @staticmethod
+    def _project_rows(params: dict[str, Any], feedback: Feedback) -> list[dict[str, Any]]:
+        project = load_project_parameter(params["PROJECT"])
+        dem = params["DEM"]
+        common_crs({"PROJECT": project.crs, "DEM": None if dem is None else dem.crs})
+        pairs = project.consecutive_pairs()
+        if not pairs:
+            raise InputDataError(f"PROJECT {params['PROJECT']} has no stereo pair (two oriented "
+                                 "photos in one strip)")
+        surface = None
+        if dem is not None and params["MEAN_HEIGHT"] is None:
+            from algorithms.orientation.surface import read_dem_window
+
+            centres = np.array([p.require_exterior().centre for pair in pairs for p in pair])
+            bounds = (centres[:, 0].min(), centres[:, 1].min(), centres[:, 0].max(),
+                      centres[:, 1].max())
+            surface = read_dem_window(dem, bounds, params["BAND"])
+        rows = []
+        for a, b in feedback.iterate(pairs):
+            ca, cb = a.require_exterior().centre, b.require_exterior().centre
+            if surface is None:
+                ground = params["MEAN_HEIGHT"]
+            else:
+                xs = np.array([ca[0], cb[0], (ca[0] + cb[0]) / 2])
+                ys = np.array([ca[1], cb[1], (ca[1] + cb[1]) / 2])
+                heights = surface.height(xs, ys)
+                if not np.isfinite(heights).any():
+                    raise InputDataError(f"DEM {dem} has no height below photos {a.id}, {b.id}; "
+                                         "give MEAN_HEIGHT")
+                ground = float(np.nanmean(heights))
+            distance = (ca[2] + cb[2]) / 2 - ground
+            if not distance > 0:
+                raise InputDataError(f"photos {a.id}, {b.id}: the projection centres are not above "
+                                     f"the terrain height {ground:.2f}")
+            c = (a.camera.c + b.camera.c) / 2
+            outline = a.frame_outline_mm(1)
+            xi = params["XI"] if params["XI"] is not None else float(np.abs(outline[:, 0]).max())
+            eta = params["ETA"] if params["ETA"] is not None else float(np.abs(outline[:, 1]).max())
+            base = float(np.linalg.norm(cb - ca))
+            rows.append({"photo_a": a.id, "photo_b": b.id, "terrain_height_m": ground} |
+                        pair_precision(c, base, distance, params["SIGMA_PARALLAX"],
+                                       params["SIGMA_IMAGE"], xi, eta))
+        if not all(math.isfinite(r["sigma_z_m"]) for r in rows):
+            raise InputDataError("a pair gave a non-finite precision (check the orientations)")
+        return rows

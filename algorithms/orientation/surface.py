@@ -1,0 +1,162 @@
+"""Terrain surfaces for image -> ground: a DEM grid (bilinear between cell centres) read in a window.
+
+A :class:`DemSurface` holds a north-up height grid as float64 with NaN for nodata, and the centre
+of its first cell, so monoplotting and footprints never need the whole raster: only the window a
+photo's rays can reach (:func:`read_dem_window`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from toolbox.errors import InputDataError
+
+
+@dataclass(frozen=True, eq=False)
+class DemSurface:
+    """A north-up height grid.
+
+    Attributes
+    ----------
+    z : (rows, cols) float64
+        Heights, NaN for nodata; row 0 is the north edge.
+    x0, y0 : float
+        Ground coordinates of the centre of cell ``[0, 0]``.
+    cell_x, cell_y : float
+        Cell sizes (> 0); columns go east, rows go south.
+    crs : pyproj.CRS or None
+    """
+
+    z: np.ndarray
+    x0: float
+    y0: float
+    cell_x: float
+    cell_y: float
+    crs: Any = None
+
+    def __post_init__(self) -> None:
+        z = np.ascontiguousarray(self.z, dtype="float64")
+        if z.ndim != 2 or min(z.shape) < 2:
+            raise InputDataError(f"a DEM needs at least 2 x 2 cells, got shape {z.shape}")
+        if not (self.cell_x > 0 and self.cell_y > 0):
+            raise InputDataError(f"DEM cell sizes must be > 0, got {self.cell_x}, {self.cell_y}")
+        if not np.isfinite(z).any():
+            raise InputDataError("the DEM window holds no valid height (all nodata)")
+        object.__setattr__(self, "z", z)
+
+    @classmethod
+    def from_transform(cls, z: np.ndarray, transform: Any, crs: Any = None,
+                       nodata: float | None = None) -> DemSurface:
+        """From an array and its affine transform (north-up, ``b = d = 0``); ``nodata`` -> NaN."""
+        if transform.b != 0 or transform.d != 0 or transform.a <= 0 or transform.e >= 0:
+            raise InputDataError("the DEM must be north-up (no rotation, rows going south)")
+        z = np.asarray(z, dtype="float64")
+        if nodata is not None and np.isfinite(nodata):
+            z = np.where(z == nodata, np.nan, z)
+        return cls(z, transform.c + 0.5 * transform.a, transform.f + 0.5 * transform.e,
+                   transform.a, -transform.e, crs)
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return self.z.shape
+
+    @property
+    def bounds(self) -> tuple[float, float, float, float]:
+        """Extent of the cell centres (where heights are defined): xmin, ymin, xmax, ymax."""
+        rows, cols = self.z.shape
+        return (self.x0, self.y0 - (rows - 1) * self.cell_y, self.x0 + (cols - 1) * self.cell_x,
+                self.y0)
+
+    @property
+    def z_range(self) -> tuple[float, float]:
+        return float(np.nanmin(self.z)), float(np.nanmax(self.z))
+
+    def height(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """Bilinear heights at ground points; NaN outside the cell-centre extent or on nodata."""
+        x = np.asarray(x, dtype="float64")
+        y = np.asarray(y, dtype="float64")
+        rows, cols = self.z.shape
+        fx = (x - self.x0) / self.cell_x
+        fy = (self.y0 - y) / self.cell_y
+        inside = (fx >= 0) & (fy >= 0) & (fx <= cols - 1) & (fy <= rows - 1)
+        j = np.clip(np.floor(np.where(inside, fx, 0)).astype(np.int64), 0, cols - 2)
+        i = np.clip(np.floor(np.where(inside, fy, 0)).astype(np.int64), 0, rows - 2)
+        tx, ty = fx - j, fy - i
+        z = self.z
+        h = (z[i, j] * (1 - tx) + z[i, j + 1] * tx) * (1 - ty) + \
+            (z[i + 1, j] * (1 - tx) + z[i + 1, j + 1] * tx) * ty
+        return np.where(inside, h, np.nan)
+
+    def kernel_arguments(self) -> tuple:
+        """``(z, x0, y0, cell_x, cell_y, zmin, zmax)`` as the monoplot kernel takes them."""
+        zmin, zmax = self.z_range
+        return (self.z, float(self.x0), float(self.y0), float(self.cell_x), float(self.cell_y),
+                zmin, zmax)
+
+
+def read_dem_window(info: Any, bounds: tuple[float, float, float, float] | None = None,
+                    band: int = 1, margin_cells: int = 2) -> DemSurface:
+    """Read the part of a DEM raster (a :class:`~toolbox.io.raster.RasterInfo`) covering
+    ``bounds`` (xmin, ymin, xmax, ymax, ground units) plus ``margin_cells``; all of it if None.
+
+    Raises :class:`InputDataError` when the bounds miss the raster or the window is all nodata.
+    """
+    import rasterio
+    from affine import Affine
+    from rasterio.windows import Window
+
+    with rasterio.open(info.path) as src:
+        if bounds is None:
+            window = Window(0, 0, src.width, src.height)
+        else:
+            inverse = ~src.transform
+            corners = [inverse @ (x, y) for x in bounds[0::2] for y in bounds[1::2]]
+            cols, rows = zip(*corners, strict=True)
+            col0 = max(int(np.floor(min(cols))) - margin_cells, 0)
+            row0 = max(int(np.floor(min(rows))) - margin_cells, 0)
+            col1 = min(int(np.ceil(max(cols))) + margin_cells, src.width)
+            row1 = min(int(np.ceil(max(rows))) + margin_cells, src.height)
+            if col1 - col0 < 2 or row1 - row0 < 2:
+                raise InputDataError(f"DEM {info} does not cover the area needed "
+                                     f"({', '.join(f'{v:.1f}' for v in bounds)})")
+            window = Window(col0, row0, col1 - col0, row1 - row0)
+        data = src.read(band, window=window, masked=True).astype("float64").filled(np.nan)
+        transform = src.transform @ Affine.translation(window.col_off, window.row_off)
+    return DemSurface.from_transform(data, transform, info.crs)
+
+
+def dem_height_range(info: Any, band: int = 1) -> tuple[float, float]:
+    """Approximate (overview-based) min and max height of a DEM raster, as GDAL computes them.
+
+    GDAL's PAM is off meanwhile, so no ``.aux.xml`` is written beside the input.
+    """
+    import rasterio
+
+    with rasterio.Env(GDAL_PAM_ENABLED="NO"), rasterio.open(info.path) as src:
+        stats = src.stats(indexes=[band], approx=True)[0]
+    if not (np.isfinite(stats.min) and np.isfinite(stats.max)):
+        raise InputDataError(f"DEM {info} holds no valid height")
+    return float(stats.min), float(stats.max)
+
+
+def photo_ground_bounds(photo: Any, z_low: float, z_high: float
+                        ) -> tuple[float, float, float, float]:
+    """Bounding box (xmin, ymin, xmax, ymax) of the ground a photo's frame can see between the
+    heights ``z_low`` and ``z_high``: the frame corners' rays cut at both heights (the region
+    is a convex frustum slice, so its corners bound it)."""
+    corners = photo.frame_outline_mm(1)
+    pts = np.vstack([photo.image_to_ground(corners, z_low), photo.image_to_ground(corners, z_high)])
+    return (float(pts[:, 0].min()), float(pts[:, 1].min()), float(pts[:, 0].max()),
+            float(pts[:, 1].max()))
+
+
+def surface_for_photo(info: Any, photo: Any, band: int = 1,
+                      z_range: tuple[float, float] | None = None) -> DemSurface:
+    """The DEM window that every ray of ``photo``'s frame can meet (approximate height range
+    widened by 10% and 1 m)."""
+    z_low, z_high = dem_height_range(info, band) if z_range is None else z_range
+    pad = 0.1 * (z_high - z_low) + 1.0
+    return read_dem_window(info, photo_ground_bounds(photo, z_low - pad, z_high + pad), band)

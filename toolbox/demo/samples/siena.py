@@ -1,0 +1,72 @@
+"""Siena case-study sample: the bundled orientation data, plus image measurements with a known truth.
+
+Copies ``toolbox/demo/data/siena`` (thesis data, logs and the orientation project; see the README
+and ``siena_orientation.md`` there) to ``<data>/siena`` and derives two small inputs from the
+project's orientations:
+
+- ``control_image_points.csv``: the 8 block-adjustment control points (l.3199-3206, EPSG:3003)
+  projected into every photo whose frame sees them, in pixels, plus a deterministic measuring
+  noise of 0.3 px (seeded); intersecting them recovers the printed coordinates to a few cm;
+- ``monoplot_points.csv``: a 5 x 5 grid of pixels over photo 1_7150 and one pixel far outside
+  its frame (``outside``), whose ray misses the demo DEM and must come out flagged.
+"""
+
+from __future__ import annotations
+
+import csv
+import shutil
+from pathlib import Path
+
+import numpy as np
+
+BUNDLED = Path(__file__).resolve().parents[1] / "data" / "siena"
+NOISE_PX = 0.3
+
+
+def control_points(folder: Path) -> dict[str, tuple[float, float, float]]:
+    """The block run's recomputed control points ``{id: (X, Y, Z)}`` as printed."""
+    with open(folder / "control_points.csv", newline="") as f:
+        return {r["id"]: (float(r["X"]), float(r["Y"]), float(r["Z"]))
+                for r in csv.DictReader(f) if r["record"] == "coordinates" and r["run"] == "block"}
+
+
+def make(folder: Path, made: dict) -> dict:
+    from algorithms.orientation.project import load_project
+
+    target = Path(folder) / "siena"
+    target.mkdir(parents=True, exist_ok=True)
+    for item in BUNDLED.iterdir():
+        if item.is_file():
+            shutil.copy2(item, target / item.name)
+    project = load_project(target / "siena_project.yaml")
+    rng = np.random.default_rng(20090515)
+    points = control_points(target)
+    rows = []
+    for photo in project.photos.values():
+        width, height = photo.camera.image_size_px
+        xyz = np.array(list(points.values()))
+        px = photo.ground_to_pixel(xyz)
+        inside = (px[:, 0] > 0) & (px[:, 0] < width) & (px[:, 1] > 0) & (px[:, 1] < height)
+        noise = rng.normal(0.0, NOISE_PX, px.shape)
+        for pid, (col, row), dn, keep in zip(points, px, noise, inside, strict=True):
+            if keep:
+                rows.append([pid, photo.id, round(col + dn[0], 3), round(row + dn[1], 3)])
+    control_csv = target / "control_image_points.csv"
+    with open(control_csv, "w", newline="") as f:
+        writer = csv.writer(f)
+        writer.writerow(["point_id", "photo", "col_px", "row_px"])
+        writer.writerows(rows)
+    grid = np.linspace(1500.0, 15100.0, 5)
+    mono_csv = target / "monoplot_points.csv"
+    with open(mono_csv, "w", newline="") as f:
+        writer = csv.writer(f)
+        writer.writerow(["point_id", "photo", "col_px", "row_px"])
+        k = 0
+        for row in grid:
+            for col in grid:
+                k += 1
+                writer.writerow([f"g{k:02d}", "1_7150", col, row])
+        writer.writerow(["outside", "1_7150", -30000.0, 8000.0])
+    return {"siena": target, "siena_project": target / "siena_project.yaml",
+            "siena_fiducials": target / "fiducials.csv", "siena_control_image_points": control_csv,
+            "siena_monoplot_points": mono_csv}
