@@ -274,7 +274,9 @@ class HomographyTransform(Transform2D):
         a = np.empty((2 * n, 9))
         a[0::2], a[1::2] = rows_u, rows_v
         a *= np.sqrt(np.repeat(w, 2))[:, None]
-        _, s, vt = np.linalg.svd(a)
+        # thin SVD (U of a 2N x 2N size is never needed) unless 2N < 9, where the null vector
+        # is only in the full V
+        _, s, vt = np.linalg.svd(a, full_matrices=a.shape[0] < a.shape[1])
         if len(s) >= 8 and s[7] < 1e-10 * s[0]:
             raise InputDataError("the points do not determine a homography (at least 4 points, no 3 "
                                  "of any 4 on one line, are needed)")

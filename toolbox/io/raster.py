@@ -7,6 +7,7 @@ Conventions: arrays are ``(bands, rows, cols)`` or ``(rows, cols)``; windows are
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -64,7 +65,10 @@ def open_raster_info(value: Any, name: str = "INPUT") -> RasterInfo:
     if not path.exists():
         raise ParameterError(name, f"file '{value}' does not exist")
     try:
-        with rasterio.open(path) as src:
+        with warnings.catch_warnings():  # a plain photo is fine: ``georeferenced`` says so
+            warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
+            src = rasterio.open(path)
+        with src:
             crs = CRS.from_wkt(src.crs.to_wkt()) if src.crs else None
             georef = src.transform != rasterio.Affine.identity() or src.crs is not None
             return RasterInfo(path, src.width, src.height, src.count, tuple(src.dtypes), crs,

@@ -129,6 +129,8 @@ def open_layer(value: Any, name: str = "INPUT") -> VectorLayerRef:
     if layer is not None and layer not in layers:
         raise ParameterError(name, f"layer '{layer}' is not in '{text}'; layers are: "
                              f"{', '.join(layers)}")
+    if layer is None and len(layers) > 1:
+        layer = layers[0]  # OGR's default layer, named so that pyogrio does not warn
     try:
         info = pyogrio.read_info(path, layer=layer, **options)
     except Exception as exc:
@@ -242,7 +244,7 @@ def write_layers(path: str | Path, layers: dict[str, Any], crs: Any = None,
                  geometry_types: dict[str, str] | None = None) -> Path:
     """Write GeoDataFrames as named layers of one GeoPackage (created or extended).
 
-    ``geometry_types`` gives the OGR type (e.g. ``"PolygonZ"``... ``"Point"``) for layers that may
+    ``geometry_types`` gives the OGR type (e.g. ``"Polygon Z"``, ``"Point"``) for layers that may
     be empty. Inside an algorithm, ``path`` is the staged output path the runner handed over.
     """
     import pyogrio
