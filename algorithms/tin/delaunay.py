@@ -1,0 +1,209 @@
+"""tin:delaunay - TIN by (constrained) Delaunay triangulation of mass points and breaklines."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from algorithms.tin.build import SOURCES, TinBuildError, build_tin
+from algorithms.tin.store import write_tin
+from toolbox.algorithm import Algorithm
+from toolbox.errors import InputDataError
+from toolbox.feedback import Feedback
+from toolbox.io.crs import common_crs, crs_label
+from toolbox.io.vector import points_xyz, read_vector, vertices_xyz
+from toolbox.parameters import Boolean, Crs, Enum, Field, Number, Output, OutputVector, VectorLayer
+from toolbox.registry import register
+
+DUPLICATE_RULES = ("mean", "first", "min", "max", "error")
+
+
+def read_breaklines(ref, z_field: str | None) -> tuple[np.ndarray, np.ndarray]:
+    """Vertices ``(L, 3)`` and part index ``(L,)`` of a line layer (multi-lines exploded).
+
+    Z comes from the geometry, or from ``z_field`` (one height per line, e.g. contours).
+    Missing Z, NaN Z or non-line features raise :class:`InputDataError` naming BREAKLINES.
+    """
+    import shapely
+
+    frame = read_vector(ref, name="BREAKLINES")
+    frame = frame[frame.geometry.notna() & ~frame.geometry.is_empty]
+    if len(frame) == 0:
+        return np.zeros((0, 3)), np.zeros(0, dtype=np.int64)
+    frame = frame.explode(index_parts=False).reset_index(drop=True)
+    kinds = shapely.get_type_id(frame.geometry.values)
+    if not np.isin(kinds, [1, 2]).all():
+        raise InputDataError(f"BREAKLINES {ref} must contain lines, found "
+                             f"{', '.join(sorted(set(frame.geom_type[~np.isin(kinds, [1, 2])])))}")
+    if z_field is not None and frame[z_field].isna().any():
+        bad = np.flatnonzero(frame[z_field].isna().to_numpy())
+        raise InputDataError(f"BREAKLINES field {z_field!r} is empty for {len(bad)} line(s) "
+                             f"(first row {int(bad[0])}): every breakline needs a height")
+    xyz, index = vertices_xyz(frame, z_field, name="BREAKLINES")
+    return xyz, index
+
+
+def read_boundary(ref):
+    """Union of the polygons of a layer (made valid), or None if it has none."""
+    import shapely
+
+    frame = read_vector(ref, name="BOUNDARY")
+    geoms = frame.geometry.values
+    geoms = geoms[~shapely.is_missing(geoms) & ~shapely.is_empty(geoms)]
+    if len(geoms) == 0:
+        raise InputDataError(f"BOUNDARY {ref} has no polygon")
+    region = shapely.union_all(shapely.make_valid(shapely.force_2d(geoms)))
+    parts = [g for g in shapely.get_parts(region) if shapely.get_type_id(g) == 3]
+    if not parts:
+        raise InputDataError(f"BOUNDARY {ref} has no polygon with an area")
+    return shapely.union_all(parts)
+
+
+@register
+class Delaunay(Algorithm):
+    """Triangulated irregular network (TIN) of mass points and breaklines.
+
+    Method (thesis par. 2.5.1; ../shared/docs/domain.md par. 14): Delaunay triangulation, whose
+    triangles' circumcircles contain no other point, made with Shewchuk's Triangle. With
+    breaklines (ridges, road edges, contour lines: LineStringZ, or lines with a height field)
+    the triangulation is a *constrained* Delaunay triangulation: every breakline vertex becomes
+    a node and every breakline segment a triangle edge, so the surface never cuts across a
+    breakline.
+
+    Quality rules, all reported in STATISTICS (and as warnings):
+
+    - points with the same XY (within DUPLICATE_TOLERANCE) are merged: Z = the DUPLICATES rule
+      (mean, first, min, max; "error" refuses them); breakline vertices count before mass points
+      for "first";
+    - breaklines that cross without a shared vertex are split at the crossing; the new node's Z
+      is interpolated along each breakline (their mean if the two disagree; the largest
+      disagreement is reported);
+    - fewer than 3 distinct points, collinear points, breaklines without Z: clear errors.
+
+    BOUNDARY clips hard: the polygon (inside the points' convex hull) becomes part of the TIN,
+    its vertices nodes with Z from the unclipped TIN, and no triangle lies outside it. HULL =
+    concave erodes long border triangles (longer outer edge than MAX_EDGE, default 3 x the
+    median edge length) without orphaning nodes.
+
+    Output, one GeoPackage: ``triangles`` (PolygonZ: id, node1-3, neighbour ids nbr1-3 across
+    the edge facing each node, edge1-3, area_2d, area_3d, slope_deg, slope_pct, aspect_deg),
+    ``nodes`` (PointZ: id, source, merged, z) and ``edges`` (LineStringZ, each once: node_from,
+    node_to, left_tri, right_tri, breakline flag, lengths; EDGES=false skips this layer).
+    Geometries are encoded with numpy and written through Arrow when pyarrow is installed.
+
+    Licence: Triangle is free for non-commercial use only; commercial use needs a licence from
+    its author (docs/algorithms/tin.md, "Licence").
+    """
+
+    id = "tin:delaunay"
+    display_name = "TIN (Delaunay, with breaklines)"
+    group = "TIN"
+    short_help = ("Constrained Delaunay TIN of 3D points and breaklines, clipped to a boundary; "
+                  "triangles, nodes and edges with topology.")
+    parameters = [
+        VectorLayer("INPUT", "mass points (PointZ, or points with a Z field)",
+                    geometry_types=["point"], optional=True),
+        Field("Z_FIELD", "height field of INPUT (default: geometry Z)", parent="INPUT",
+              numeric=True, optional=True),
+        VectorLayer("BREAKLINES", "breaklines: LineStringZ, or lines with a height field "
+                    "(contours)", geometry_types=["line"], optional=True),
+        Field("BREAKLINE_Z_FIELD", "height field of BREAKLINES (default: geometry Z)",
+              parent="BREAKLINES", numeric=True, optional=True),
+        VectorLayer("BOUNDARY", "polygon(s): hard clip, no triangle outside",
+                    geometry_types=["polygon"], optional=True),
+        Enum("HULL", "outer border: convex hull, or concave (long border triangles removed)",
+             options=["convex", "concave"], default="convex"),
+        Number("MAX_EDGE", "HULL=concave: remove border triangles whose outer edge is longer "
+               "(CRS units; default 3 x the median edge length)", optional=True, min_value=0,
+               min_exclusive=True),
+        Enum("DUPLICATES", "Z of points sharing an XY position", options=list(DUPLICATE_RULES),
+             default="mean"),
+        Number("DUPLICATE_TOLERANCE", "points closer than this in plan are the same position "
+               "(CRS units; 0 = equal XY)", default=0.0, min_value=0),
+        Crs("CRS", "CRS of inputs that have none (e.g. CSV); must match those that do",
+            optional=True),
+        Boolean("EDGES", "write the edges layer (about half the writing time of a large TIN; "
+                "the triangles layer keeps neighbour and edge ids either way)", default=True),
+        Boolean("SPATIAL_INDEX", "write GeoPackage spatial indexes (faster display of large "
+                "TINs in QGIS; adds about a third to the writing time)", default=True),
+        OutputVector("OUTPUT", "TIN GeoPackage (layers triangles, nodes, edges)"),
+    ]
+    outputs = [Output("STATISTICS", "counts, merges, crossings, clipping, areas", "dict")]
+
+    def check(self, params):
+        if params["INPUT"] is None and params["BREAKLINES"] is None:
+            raise self.fail("INPUT", "is required unless BREAKLINES is given: a TIN needs mass "
+                            "points, breaklines or both")
+        if params["MAX_EDGE"] is not None and params["HULL"] != "concave":
+            raise self.fail("MAX_EDGE", f"is only used with HULL=concave, got HULL="
+                            f"{params['HULL']}")
+
+    def process(self, params, feedback: Feedback):
+        named = {k: params[k].crs for k in ("INPUT", "BREAKLINES", "BOUNDARY")
+                 if params[k] is not None}
+        crs = common_crs(named, params["CRS"])
+        if crs is None:
+            feedback.push_warning("the inputs have no CRS: the TIN has none (set CRS to give it)")
+        with feedback.timed("read"):
+            points = np.zeros((0, 3))
+            if params["INPUT"] is not None:
+                frame = read_vector(params["INPUT"], name="INPUT")
+                frame = frame[frame.geometry.notna() & ~frame.geometry.is_empty]
+                if len(frame):
+                    points = points_xyz(frame, params["Z_FIELD"], name="INPUT")
+            line_xyz, line_index = np.zeros((0, 3)), np.zeros(0, dtype=np.int64)
+            if params["BREAKLINES"] is not None:
+                line_xyz, line_index = read_breaklines(params["BREAKLINES"],
+                                                       params["BREAKLINE_Z_FIELD"])
+            boundary = None if params["BOUNDARY"] is None else read_boundary(params["BOUNDARY"])
+        feedback.set_progress(10, "triangulating")
+        feedback.check_canceled()
+        with feedback.timed("triangulate"):
+            try:
+                model = build_tin(points, line_xyz, line_index, boundary=boundary,
+                                  concave=params["HULL"] == "concave",
+                                  concave_max_edge=params["MAX_EDGE"],
+                                  duplicate_rule=params["DUPLICATES"],
+                                  duplicate_tolerance=params["DUPLICATE_TOLERANCE"])
+            except TinBuildError as exc:
+                raise InputDataError(f"cannot build the TIN: {exc}") from None
+        _report_quality(model.report, feedback)
+        feedback.set_progress(35, "writing")
+        counts = write_tin(params["OUTPUT"], model, crs, params["SPATIAL_INDEX"],
+                           feedback.step(35, 100), edges_layer=params["EDGES"])
+        stats = dict(model.report)
+        stats.update(edges=counts["edges"], crs=crs_label(crs),
+                     node_sources={name: int((model.source == i).sum())
+                                   for i, name in enumerate(SOURCES)},
+                     **_surface_summary(model))
+        return {"OUTPUT": params["OUTPUT"], "STATISTICS": stats}
+
+
+def _report_quality(report: dict, feedback: Feedback) -> None:
+    dup = report["duplicates"]
+    if dup["duplicates_removed"]:
+        feedback.push_warning(
+            f"{dup['duplicates_removed']} duplicate point(s) merged into {dup['duplicate_groups']}"
+            f" node(s) (rule: {dup['rule']}; largest Z spread {dup['max_z_spread']:.3f})")
+    cross = report["crossings"]
+    if cross["count"]:
+        feedback.push_warning(
+            f"{cross['count']} breakline crossing(s) without a shared vertex: split there, Z "
+            f"interpolated along the breaklines (largest disagreement "
+            f"{cross['max_z_disagreement']:.3f})")
+    clip = report.get("boundary")
+    if clip and clip["boundary_area_outside_data_hull"] > 0:
+        feedback.push_warning(
+            f"BOUNDARY extends {clip['boundary_area_outside_data_hull']:.1f} square units beyond "
+            "the points' convex hull; the TIN stops at the hull there")
+    if clip and clip["nodes_dropped_outside"]:
+        feedback.push_info(f"{clip['nodes_dropped_outside']} point(s) outside BOUNDARY dropped")
+
+
+def _surface_summary(model) -> dict:
+    from algorithms.tin.topology import triangle_measures
+
+    m = triangle_measures(model.xyz, model.triangles)
+    return {"area_2d": float(m.area_2d.sum()), "area_3d": float(m.area_3d.sum()),
+            "z_min": float(model.xyz[:, 2].min()), "z_max": float(model.xyz[:, 2].max()),
+            "bounds": [float(v) for v in (*model.xyz[:, :2].min(axis=0),
+                                          *model.xyz[:, :2].max(axis=0))]}

@@ -1,0 +1,96 @@
+"""tin:interpolate - height of the TIN surface at points (plane of the containing triangle)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from algorithms.tin.kernels import interpolate_tin
+from algorithms.tin.store import read_tin
+from toolbox.algorithm import Algorithm
+from toolbox.errors import InputDataError
+from toolbox.feedback import Feedback
+from toolbox.io.crs import common_crs
+from toolbox.io.vector import read_vector, write_layers
+from toolbox.parameters import Number, Output, OutputVector, String, VectorLayer
+from toolbox.registry import register
+
+TIN_HELP = ("TIN: the triangles layer of a tin:delaunay GeoPackage (the file path is enough), "
+            "or any layer of 3D triangles")
+
+
+@register
+class Interpolate(Algorithm):
+    """Height of a TIN at points: the plane through the three nodes of the triangle containing
+    each point (thesis eq. [43]-[44]; ../shared/docs/domain.md par. 14), evaluated exactly.
+
+    The output is the input layer with a height field (FIELD) added and PointZ geometries whose
+    Z is that height. Points outside the TIN get NODATA in both and are counted in STATISTICS
+    (and a warning). When the input points already have a Z, a field ``dz`` = input Z - TIN Z is
+    added and its RMSE reported: a check of the TIN against control points. Multipoints are
+    exploded into single points.
+    """
+
+    id = "tin:interpolate"
+    display_name = "Interpolate heights on a TIN"
+    group = "TIN"
+    short_help = "Z of points from the TIN surface (plane of the containing triangle)."
+    parameters = [
+        VectorLayer("INPUT", "points to give a height", geometry_types=["point"]),
+        VectorLayer("TIN", TIN_HELP, geometry_types=["polygon"]),
+        String("FIELD", "name of the height field to add", default="z_tin"),
+        Number("NODATA", "height written for points outside the TIN", default=-9999.0),
+        OutputVector("OUTPUT", "points with the height field and PointZ geometry"),
+    ]
+    outputs = [Output("STATISTICS", "points inside/outside, height range, dz RMSE", "dict")]
+
+    def check(self, params):
+        name = params["FIELD"].strip()
+        if not name or not name.replace("_", "a").isalnum():
+            raise self.fail("FIELD", f"must be a field name (letters, digits, _), got "
+                            f"{params['FIELD']!r}")
+
+    def process(self, params, feedback: Feedback):
+        import shapely
+
+        crs = common_crs({"INPUT": params["INPUT"].crs, "TIN": params["TIN"].crs})
+        with feedback.timed("read"):
+            xyz, triangles, _ = read_tin(params["TIN"])
+            frame = read_vector(params["INPUT"], name="INPUT")
+        frame = frame[frame.geometry.notna() & ~frame.geometry.is_empty]
+        if len(frame) == 0:
+            raise InputDataError(f"INPUT {params['INPUT']} has no points")
+        parts = shapely.get_num_geometries(frame.geometry.values)
+        if np.any(parts > 1):
+            feedback.push_info(f"{int((parts > 1).sum())} multipoint(s) exploded")
+        frame = frame.explode(index_parts=False).reset_index(drop=True)
+        geoms = frame.geometry.values
+        has_z = bool(shapely.has_z(geoms).all())
+        coords = shapely.get_coordinates(geoms, include_z=has_z)
+        feedback.set_progress(30, "interpolating")
+        with feedback.timed("interpolate"):
+            z = interpolate_tin(xyz, triangles, coords[:, 0], coords[:, 1])
+        outside = np.isnan(z)
+        nodata = params["NODATA"]
+        field = params["FIELD"].strip()
+        frame[field] = np.where(outside, nodata, z)
+        stats = {"points": len(frame), "inside": int((~outside).sum()),
+                 "outside": int(outside.sum()), "nodata": nodata}
+        if (~outside).any():
+            stats.update(z_min=float(np.nanmin(z)), z_max=float(np.nanmax(z)))
+        if has_z:
+            dz = coords[:, 2] - z
+            frame["dz"] = np.where(outside, nodata, dz)
+            if (~outside).any():
+                good = dz[~outside]
+                stats.update(dz_mean=float(good.mean()), dz_rmse=float(np.sqrt(np.mean(good**2))),
+                             dz_max_abs=float(np.abs(good).max()))
+        if outside.any():
+            feedback.push_warning(f"{int(outside.sum())} of {len(frame)} point(s) lie outside the "
+                                  f"TIN: height set to NODATA ({nodata:g})")
+        frame = frame.set_geometry(shapely.points(coords[:, 0], coords[:, 1], frame[field]))
+        if crs is not None:
+            frame = frame.set_crs(crs, allow_override=True)
+        layer = params["INPUT"].layer or params["INPUT"].info.get("layer_name") or "points"
+        with feedback.timed("write"):
+            write_layers(params["OUTPUT"], {layer: frame}, geometry_types={layer: "Point Z"})
+        return {"OUTPUT": params["OUTPUT"], "STATISTICS": stats}

@@ -1,0 +1,172 @@
+"""tin:volume - cut and fill between a TIN and a reference plane or a DEM, inside a polygon."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+
+from algorithms.tin.cutfill import CutFill, grid_cut_fill, plane_cut_fill
+from algorithms.tin.interpolate import TIN_HELP
+from algorithms.tin.kernels import rasterize_tin, triangles_by_tile
+from algorithms.tin.store import read_tin
+from toolbox.algorithm import Algorithm
+from toolbox.errors import InputDataError
+from toolbox.feedback import Feedback
+from toolbox.io.crs import common_crs, crs_label
+from toolbox.io.raster import DEFAULT_BLOCK, iter_windows
+from toolbox.parameters import Integer, Number, Output, OutputFile, RasterLayer, VectorLayer
+from toolbox.registry import register
+
+
+def read_mask(ref):
+    """Union of a layer's polygons, made valid (None-safe)."""
+    import shapely
+
+    from toolbox.io.vector import read_vector
+
+    geoms = read_vector(ref, name="MASK").geometry.values
+    geoms = geoms[~shapely.is_missing(geoms) & ~shapely.is_empty(geoms)]
+    region = shapely.union_all(shapely.make_valid(shapely.force_2d(geoms))) if len(geoms) \
+        else shapely.Polygon()
+    parts = [g for g in shapely.get_parts(region) if shapely.get_type_id(g) == 3]
+    if not parts:
+        raise InputDataError(f"MASK {ref} has no polygon with an area")
+    return shapely.union_all(parts)
+
+
+def dem_cut_fill(xyz: np.ndarray, triangles: np.ndarray, info, band: int, mask,
+                 feedback: Feedback) -> tuple[CutFill, dict]:
+    """Cut/fill of the TIN against a DEM on the DEM's own grid, window by window."""
+    import rasterio
+    from affine import Affine
+    from rasterio.features import geometry_mask
+
+    t = info.transform
+    cell_x, cell_y = abs(t.a), abs(t.e)
+    tile = DEFAULT_BLOCK
+    order, start, ntx = triangles_by_tile(xyz[:, :2], triangles, t.c, t.f, cell_x, cell_y,
+                                          info.width, info.height, tile)
+    total = CutFill()
+    no_dem = 0
+    with rasterio.open(info.path) as src:
+        for w in feedback.iterate(list(iter_windows(info.width, info.height, tile)), start=10,
+                                  end=100, message="comparing"):
+            core = w.core
+            k = (int(core.row_off) // tile) * ntx + int(core.col_off) // tile
+            tri = triangles[order[start[k]:start[k + 1]]]
+            if len(tri) == 0:
+                continue
+            x0, y0 = t.c + core.col_off * cell_x, t.f - core.row_off * cell_y
+            tin_z = rasterize_tin(xyz, tri, x0, y0, cell_x, cell_y, int(core.width),
+                                  int(core.height))
+            dem = src.read(band, window=core, masked=True).astype("float64").filled(np.nan)
+            inside = None
+            if mask is not None:
+                window_transform = Affine(t.a, 0.0, x0, 0.0, t.e, y0)
+                inside = ~geometry_mask([mask], (int(core.height), int(core.width)),
+                                        window_transform, all_touched=False)
+            covered = ~np.isnan(tin_z) if inside is None else ~np.isnan(tin_z) & inside
+            no_dem += int((covered & np.isnan(dem)).sum())
+            total += grid_cut_fill(tin_z, dem, cell_x * cell_y, inside)
+    return total, {"cell_size": [cell_x, cell_y], "cells_without_dem": no_dem}
+
+
+@register
+class Volume(Algorithm):
+    """Cut and fill volumes and areas between a TIN and a reference: a horizontal plane
+    (REFERENCE_Z) or a second surface (REFERENCE_DEM), optionally inside MASK polygons.
+
+    Convention: h = TIN - reference; *cut* is where the TIN is above the reference (material to
+    remove), *fill* where it is below; volumes are positive, net = cut - fill.
+
+    - Plane: exact. h is linear in each triangle, so each triangle splits along its zero line;
+      the volume of each part is its area times h at its centroid. Triangles crossed by MASK are
+      clipped exactly.
+    - DEM: the TIN is sampled at the DEM's cell centres (tin:to_raster's kernel) and each cell
+      counts cell area x (TIN - DEM), the midpoint rule at the DEM's resolution; cells count
+      when their centre is inside MASK and both surfaces have a value (cells of the TIN without
+      DEM are reported).
+
+    Result: STATISTICS and, with REPORT, a small JSON or CSV report (volumes, areas, reference,
+    method).
+    """
+
+    id = "tin:volume"
+    display_name = "TIN cut/fill volume"
+    group = "TIN"
+    short_help = "Cut/fill volumes and areas between a TIN and a plane or a DEM, in a polygon."
+    parameters = [
+        VectorLayer("TIN", TIN_HELP, geometry_types=["polygon"]),
+        Number("REFERENCE_Z", "reference plane elevation (height units)", optional=True),
+        RasterLayer("REFERENCE_DEM", "reference surface: a DEM raster", optional=True),
+        Integer("BAND", "band of REFERENCE_DEM", default=1, min_value=1),
+        VectorLayer("MASK", "polygon(s): compute inside them only", geometry_types=["polygon"],
+                    optional=True),
+        OutputFile("REPORT", "report file (.json or .csv)", extensions=[".json", ".csv"],
+                   optional=True),
+    ]
+    outputs = [Output("STATISTICS", "cut, fill and net volumes; cut, fill and total areas",
+                      "dict")]
+
+    def check(self, params):
+        given = [n for n in ("REFERENCE_Z", "REFERENCE_DEM") if params[n] is not None]
+        if len(given) != 1:
+            raise self.fail("REFERENCE_Z", "or REFERENCE_DEM: give exactly one reference, got "
+                            f"{' and '.join(given) if given else 'neither'}")
+        dem = params["REFERENCE_DEM"]
+        if dem is not None:
+            if params["BAND"] > dem.count:
+                raise self.fail("BAND", f"must be <= {dem.count} (bands of {dem}), got "
+                                f"{params['BAND']}")
+            t = dem.transform
+            if t.b != 0 or t.d != 0 or t.a <= 0 or t.e >= 0 or not dem.georeferenced:
+                raise self.fail("REFERENCE_DEM", f"must be a georeferenced north-up raster, got "
+                                f"{dem}")
+
+    def process(self, params, feedback: Feedback):
+        named = {"TIN": params["TIN"].crs}
+        if params["MASK"] is not None:
+            named["MASK"] = params["MASK"].crs
+        if params["REFERENCE_DEM"] is not None:
+            named["REFERENCE_DEM"] = params["REFERENCE_DEM"].crs
+        crs = common_crs(named)
+        with feedback.timed("read"):
+            xyz, triangles, _ = read_tin(params["TIN"])
+            mask = None if params["MASK"] is None else read_mask(params["MASK"])
+        feedback.set_progress(10, "computing volumes")
+        with feedback.timed("volume"):
+            if params["REFERENCE_Z"] is not None:
+                result = plane_cut_fill(xyz, triangles, params["REFERENCE_Z"], mask)
+                extra = {"method": "exact (plane)", "reference": {"z": params["REFERENCE_Z"]}}
+            else:
+                result, extra = dem_cut_fill(xyz, triangles, params["REFERENCE_DEM"],
+                                             params["BAND"], mask, feedback)
+                extra.update(method="grid (DEM cell centres)",
+                             reference={"dem": params["REFERENCE_DEM"].as_text(),
+                                        "band": params["BAND"]})
+                if extra["cells_without_dem"]:
+                    feedback.push_warning(f"{extra['cells_without_dem']} cell(s) of the TIN have "
+                                          "no DEM value and were left out")
+        if result.area == 0:
+            feedback.push_warning("the TIN and the reference do not overlap (inside MASK): "
+                                  "all volumes are 0")
+        stats = result.as_dict() | extra | {"crs": crs_label(crs), "masked": mask is not None}
+        if params["REPORT"] is not None:
+            _write_report(params["REPORT"], stats)
+        return {"STATISTICS": stats, "REPORT": params["REPORT"]}
+
+
+def _write_report(path, stats: dict) -> None:
+    if path.suffix.lower() == ".json":
+        path.write_text(json.dumps(stats, indent=2) + "\n")
+        return
+    rows = ["quantity,value,unit"]
+    units = {"volume": "cubic units", "area": "square units"}
+    for key in ("cut_volume", "fill_volume", "net_volume", "cut_area", "fill_area", "area"):
+        rows.append(f"{key},{stats[key]:.6f},{units[key.rsplit('_', 1)[-1]]}")
+    rows.append(f"method,{stats['method']},")
+    reference = stats["reference"]
+    rows.append("reference," + (f"z={reference['z']:g}" if "z" in reference else
+                                f"{reference['dem']} band {reference['band']}") + ",")
+    path.write_text("\n".join(rows) + "\n")

@@ -1,0 +1,324 @@
+"""TIN benchmark: the toolbox against Shewchuk's Triangle called directly, scipy's Delaunay and
+``gdal_grid -a linear``, side by side on the same 1 million points, in one run.
+
+    .venv/bin/python bench/tin_bench.py            # full size (1,000,000 points, 2000 x 2000)
+    .venv/bin/python bench/tin_bench.py --small    # quick check (100,000 points, 632 x 632)
+
+Every measurement runs in its own subprocess (this script with ``--case``), so its peak memory
+(``ru_maxrss``) is its own; timings exclude interpreter start-up and loading the input arrays.
+Data: uniform random points over 10 km x 10 km at the Siena coordinates (EPSG:3003) on a smooth
+analytic surface, and 500 non-crossing zig-zag breaklines of 100 vertices each.
+Writes the markdown table to bench/results/tin.md.
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime as dt
+import json
+import os
+import platform
+import resource
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+ROOT = HERE.parent
+X0, Y0, SIZE = 1_685_000.0, 4_795_000.0, 10_000.0
+CRS = "EPSG:3003"
+
+
+def surface(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    u, v = (x - X0) / SIZE, (y - Y0) / SIZE
+    return 300.0 + 30.0 * np.sin(6.0 * u) * np.cos(4.0 * v) + 10.0 * u * v
+
+
+def make_data(work: Path, n_points: int, n_lines: int = 500, line_vertices: int = 100) -> None:
+    """Points, breakline vertices and segments as .npy; points as a GeoPackage (PointZ)."""
+    import geopandas as gpd
+    import shapely
+
+    rng = np.random.default_rng(2009)
+    xy = np.column_stack([rng.uniform(X0, X0 + SIZE, n_points), rng.uniform(Y0, Y0 + SIZE, n_points)])
+    xyz = np.column_stack([xy, surface(xy[:, 0], xy[:, 1])])
+    np.save(work / "points.npy", xyz)
+    gap = SIZE / (n_lines + 1)
+    lx = np.linspace(X0 + 10, X0 + SIZE - 10, line_vertices)
+    lines, segments = [], []
+    for k in range(n_lines):
+        ly = Y0 + (k + 1) * gap + np.where(np.arange(line_vertices) % 2 == 0, -gap / 4, gap / 4)
+        start = n_points + k * line_vertices
+        lines.append(np.column_stack([lx, ly, surface(lx, ly)]))
+        idx = np.arange(start, start + line_vertices)
+        segments.append(np.column_stack([idx[:-1], idx[1:]]))
+    np.save(work / "all_points.npy", np.vstack([xyz, *lines]))
+    np.save(work / "segments.npy", np.vstack(segments).astype(np.int32))
+    frame = gpd.GeoDataFrame({"z": xyz[:, 2]}, geometry=shapely.points(xyz), crs=CRS)
+    frame.to_file(work / "points.gpkg", layer="points", engine="pyogrio", use_arrow=True)
+    line_frame = gpd.GeoDataFrame({"k": np.arange(n_lines)},
+                                  geometry=[shapely.linestrings(p) for p in lines], crs=CRS)
+    line_frame.to_file(work / "breaklines.gpkg", layer="breaklines", engine="pyogrio")
+
+
+# -- cases (each runs in a subprocess) -------------------------------------------------------------
+def _grid(n_points: int) -> tuple[int, float]:
+    width = int(round(2000 * np.sqrt(n_points / 1_000_000)))
+    return width, SIZE / width
+
+
+def run_case(name: str, work: Path, n_points: int) -> dict:
+    """Run one measurement in this process; return seconds and extra facts."""
+    sys.path.insert(0, str(ROOT))
+    from algorithms.tin import kernels
+
+    width, cell = _grid(n_points)
+    facts: dict = {}
+    _warm_up(kernels, registry=name.endswith("_cli"))
+    if name in ("triangle", "ours", "scipy"):
+        xyz = np.load(work / "points.npy")
+        xy = np.ascontiguousarray(xyz[:, :2])
+        if name == "scipy":
+            from scipy.spatial import Delaunay
+            xy = xy - [X0 + SIZE / 2, Y0 + SIZE / 2]
+        t0 = time.perf_counter()
+        if name == "triangle":
+            import triangle
+
+            tri = triangle.triangulate({"vertices": xy}, "")["triangles"]
+        elif name == "ours":
+            tri = kernels.triangulate(xy)
+        else:
+            tri = Delaunay(xy).simplices
+        seconds = time.perf_counter() - t0
+        facts["triangles"] = len(tri)
+    elif name in ("triangle_breaklines", "ours_breaklines"):
+        xy = np.ascontiguousarray(np.load(work / "all_points.npy")[:, :2])
+        seg = np.load(work / "segments.npy")
+        t0 = time.perf_counter()
+        if name == "triangle_breaklines":
+            import triangle
+
+            tri = triangle.triangulate({"vertices": xy, "segments": seg}, "pc")["triangles"]
+        else:
+            tri = kernels.triangulate(xy, seg)
+        seconds = time.perf_counter() - t0
+        facts["triangles"] = len(tri)
+    elif name in ("write_gpkg", "write_gpkg_noindex"):
+        from algorithms.tin.build import build_tin
+        from algorithms.tin.store import write_tin
+        from toolbox.io.crs import parse_crs
+
+        model = build_tin(np.load(work / "points.npy"))
+        out = work / f"{name}.gpkg"
+        out.unlink(missing_ok=True)
+        t0 = time.perf_counter()
+        counts = write_tin(out, model, parse_crs(CRS), spatial_index=name == "write_gpkg")
+        seconds = time.perf_counter() - t0
+        facts.update(counts)
+        facts["megabytes"] = round(out.stat().st_size / 2**20, 1)
+    elif name in ("delaunay_cli", "delaunay_breaklines_cli", "delaunay_lean_cli"):
+        import toolbox
+        from toolbox.feedback import Feedback
+
+        params = {"INPUT": work / "points.gpkg", "OUTPUT": work / f"{name}.gpkg"}
+        if name == "delaunay_breaklines_cli":
+            params["BREAKLINES"] = work / "breaklines.gpkg"
+        if name == "delaunay_lean_cli":
+            params.update(EDGES=False, SPATIAL_INDEX=False)
+        feedback = Feedback()
+        t0 = time.perf_counter()
+        toolbox.run("tin:delaunay", params, feedback=feedback, overwrite=True)
+        seconds = time.perf_counter() - t0
+        facts["timings"] = {k: round(v, 2) for k, v in feedback.timings.items()}
+    elif name == "rasterize_kernel":
+        xyz = np.load(work / "points.npy")
+        tri = kernels.triangulate(xyz[:, :2])
+        t0 = time.perf_counter()
+        z = kernels.rasterize_tin(xyz, tri, X0, Y0 + SIZE, cell, cell, width, width)
+        seconds = time.perf_counter() - t0
+        facts["cells"] = int(z.size)
+    elif name == "to_raster_cli":
+        import toolbox
+
+        tin = work / "delaunay_cli.gpkg"
+        t0 = time.perf_counter()
+        toolbox.run("tin:to_raster", {"TIN": tin, "CELL_SIZE": cell, "OVERVIEWS": False,
+                                      "EXTENT": f"{X0},{Y0},{X0 + SIZE},{Y0 + SIZE}",
+                                      "OUTPUT": work / "tin.tif"}, overwrite=True)
+        seconds = time.perf_counter() - t0
+    else:
+        raise ValueError(f"unknown case {name}")
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+    return {"seconds": seconds, "peak_mb": peak, **facts}
+
+
+def _warm_up(kernels, registry: bool) -> None:
+    """Load what every run pays once (numba's compiled kernels; the algorithm registry for runs
+    through toolbox.run, which imports every algorithm module) before the clock starts."""
+    if registry:
+        from toolbox.registry import discover
+
+        discover()
+    tiny = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 1.0], [0.0, 1.0, 2.0]])
+    kernels.rasterize_tin(tiny, np.array([[0, 1, 2]]), 0.0, 1.0, 0.5, 0.5, 2, 2)
+    kernels.interpolate_tin(tiny, np.array([[0, 1, 2]]), np.array([0.2]), np.array([0.2]))
+
+
+def measure(name: str, work: Path, n_points: int) -> dict:
+    """Run one case in a fresh process."""
+    proc = subprocess.run([sys.executable, __file__, "--case", name, "--work", str(work),
+                           "--points", str(n_points)], capture_output=True, text=True, cwd=ROOT)
+    if proc.returncode != 0:
+        raise RuntimeError(f"case {name} failed:\n{proc.stderr[-3000:]}")
+    result = json.loads(proc.stdout.strip().splitlines()[-1])
+    print(f"  {name:<26} {result['seconds']:8.2f} s  {result['peak_mb']:8.0f} MB", flush=True)
+    return result
+
+
+def measure_gdal_grid(work: Path, n_points: int) -> dict | None:
+    exe = shutil.which("gdal_grid")
+    if exe is None:
+        return None
+    width, _ = _grid(n_points)
+    out = work / "gdal_linear.tif"
+    out.unlink(missing_ok=True)
+    cmd = [exe, "-q", "-a", "linear:nodata=-9999", "-txe", str(X0), str(X0 + SIZE),
+           "-tye", str(Y0 + SIZE), str(Y0), "-outsize", str(width), str(width), "-ot", "Float32",
+           "-l", "points", str(work / "points.gpkg"), str(out)]
+    t0 = time.perf_counter()
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    _, status, usage = os.wait4(proc.pid, 0)
+    seconds = time.perf_counter() - t0
+    if status != 0:
+        raise RuntimeError(f"gdal_grid failed: {proc.stderr.read().decode()[-2000:]}")
+    result = {"seconds": seconds, "peak_mb": usage.ru_maxrss / 1024.0}
+    print(f"  {'gdal_grid -a linear':<26} {seconds:8.2f} s  {result['peak_mb']:8.0f} MB",
+          flush=True)
+    return result
+
+
+def agreement(work: Path) -> float | None:
+    """Largest |difference| between tin:to_raster and gdal_grid where both have data."""
+    import rasterio
+
+    try:
+        with rasterio.open(work / "tin.tif") as a, rasterio.open(work / "gdal_linear.tif") as b:
+            za, zb = a.read(1, masked=True), b.read(1, masked=True)
+    except rasterio.errors.RasterioIOError:
+        return None
+    both = ~za.mask & ~zb.mask
+    return float(np.abs(za.data[both].astype("f8") - zb.data[both]).max()) if both.any() else None
+
+
+def machine() -> str:
+    from importlib.metadata import version
+
+    import numba
+    import pyogrio
+    gdal = subprocess.run(["gdal_grid", "--version"], capture_output=True, text=True).stdout.strip() \
+        if shutil.which("gdal_grid") else "gdal_grid not installed"
+    return (f"{dt.date.today().isoformat()}, nproc {os.cpu_count()}, Python "
+            f"{platform.python_version()}, numpy {np.__version__}, numba {numba.__version__}, "
+            f"triangle {version('triangle')}, scipy {version('scipy')}, pyogrio "
+            f"{pyogrio.__version__} (GDAL {pyogrio.__gdal_version_string__}), "
+            f"pyarrow {_version_or_none('pyarrow')}; {gdal}")
+
+
+def _version_or_none(name: str) -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version(name)
+    except PackageNotFoundError:
+        return "not installed"
+
+
+def main(small: bool = False) -> str:
+    n_points = 100_000 if small else 1_000_000
+    work = Path(tempfile.mkdtemp(prefix="tin_bench_"))
+    try:
+        print(f"tin bench: {n_points:,} points in {work}", flush=True)
+        make_data(work, n_points)
+        # the short triangulation cases run 3 rounds, interleaved; the fastest run is kept
+        short = ("triangle", "ours", "triangle_breaklines", "ours_breaklines")
+        rounds = [{name: measure(name, work, n_points) for name in short} for _ in range(3)]
+        r = {name: min((x[name] for x in rounds), key=lambda m: m["seconds"]) for name in short}
+        r.update({name: measure(name, work, n_points) for name in (
+            "scipy", "write_gpkg", "write_gpkg_noindex", "delaunay_cli", "delaunay_lean_cli",
+            "delaunay_breaklines_cli", "rasterize_kernel", "to_raster_cli")})
+        gdal = measure_gdal_grid(work, n_points)
+        max_diff = agreement(work) if gdal else None
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+    width, _ = _grid(n_points)
+    text = table(r, gdal, n_points, width, max_diff)
+    if not small:
+        (HERE / "results").mkdir(exist_ok=True)
+        (HERE / "results" / "tin.md").write_text(text)
+    print(text)
+    return text
+
+
+def table(r: dict, gdal: dict | None, n_points: int, width: int, max_diff: float | None) -> str:
+    def row(step, ours, peer_name, peer):
+        ratio = f"{ours['seconds'] / peer['seconds']:.2f}" if peer else "-"
+        peer_text = f"{peer_name}: {peer['seconds']:.2f} s, {peer['peak_mb']:.0f} MB" if peer \
+            else "-"
+        return (f"| {step} | {ours['seconds']:.2f} s | {ours['peak_mb']:.0f} MB | {peer_text} | "
+                f"{ratio} |")
+
+    seg_vertices = 500 * 100
+    lines = [
+        "## TIN (tin:delaunay, tin:to_raster)", "",
+        f"{n_points:,} random points over 10 km x 10 km (EPSG:3003 coordinates); breaklines: 500 "
+        f"zig-zag lines, {seg_vertices:,} vertices; raster {width} x {width} cells "
+        f"({width * width / 1e6:.0f} M). One run, side by side; each step in its own process "
+        "(Triangle and toolbox triangulation times: fastest of 3 interleaved runs; "
+        "time excludes interpreter start-up, imports, numba's cached-kernel loading and loading "
+        "the arrays; peak = max RSS of that process, which for the `toolbox.run` rows includes "
+        "importing every algorithm of the toolbox).", "",
+        "| step | toolbox | toolbox peak | peer | toolbox / peer |",
+        "|---|---|---|---|---|",
+        row("triangulate (kernels.triangulate)", r["ours"], "Triangle direct", r["triangle"]),
+        row("triangulate (kernels.triangulate)", r["ours"], "scipy Delaunay", r["scipy"]),
+        row("triangulate with breaklines", r["ours_breaklines"], "Triangle `-pc` direct",
+            r["triangle_breaklines"]),
+        row("write TIN GeoPackage (3 layers, spatial index)", r["write_gpkg"], "", None),
+        row("write TIN GeoPackage (no spatial index)", r["write_gpkg_noindex"], "", None),
+        row("tin:delaunay end to end (read GPKG, build, write)", r["delaunay_cli"], "", None),
+        row("tin:delaunay, EDGES=false SPATIAL_INDEX=false", r["delaunay_lean_cli"], "", None),
+        row("tin:delaunay with breaklines, end to end", r["delaunay_breaklines_cli"], "", None),
+        row(f"rasterise TIN to {width}x{width} (kernel)", r["rasterize_kernel"],
+            "gdal_grid -a linear", gdal),
+        row("tin:to_raster end to end (read TIN GPKG, write GeoTIFF)", r["to_raster_cli"],
+            "gdal_grid -a linear", gdal),
+        "",
+        f"GeoPackage: {r['write_gpkg'].get('triangles', 0):,} triangles, "
+        f"{r['write_gpkg'].get('nodes', 0):,} nodes, {r['write_gpkg'].get('edges', 0):,} edges, "
+        f"{r['write_gpkg'].get('megabytes', 0)} MB. tin:delaunay step timings (s): "
+        f"{r['delaunay_cli'].get('timings')}.",
+    ]
+    if max_diff is not None:
+        lines.append(f"tin:to_raster vs gdal_grid -a linear, largest |difference| where both "
+                     f"have data: {max_diff:.3g} (float32 output).")
+    lines += ["", f"Machine: {machine()}.", ""]
+    return "\n".join(lines)
+
+
+if __name__ == "__main__":
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--case")
+    parser.add_argument("--work", type=Path)
+    parser.add_argument("--points", type=int, default=1_000_000)
+    parser.add_argument("--small", action="store_true")
+    args = parser.parse_args()
+    if args.case:
+        print(json.dumps(run_case(args.case, args.work, args.points)))
+    else:
+        main(small=args.small)
