@@ -74,9 +74,13 @@ def merge_duplicate_xy(xyz: np.ndarray, tolerance: float = 0.0,
         pairs = cKDTree(xyz[:, :2] - origin).query_pairs(tolerance, output_type="ndarray")
         graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
         _, labels = connected_components(graph, directed=False)
-    else:
-        _, labels = np.unique(xyz[:, :2], axis=0, return_inverse=True)
-        labels = labels.ravel()
+    else:  # exact XY equality: sort by (x, y) and cut where either changes
+        order_xy = np.lexsort((xyz[:, 1], xyz[:, 0]))
+        sx, sy = xyz[order_xy, 0], xyz[order_xy, 1]
+        new_group = np.ones(n, dtype=bool)
+        new_group[1:] = (sx[1:] != sx[:-1]) | (sy[1:] != sy[:-1])
+        labels = np.empty(n, dtype=np.int64)
+        labels[order_xy] = np.cumsum(new_group) - 1
     # renumber groups by first occurrence so the output keeps the input order
     first_index = np.full(labels.max() + 1, n, dtype=np.int64)
     np.minimum.at(first_index, labels, np.arange(n))
