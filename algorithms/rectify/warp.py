@@ -1,0 +1,701 @@
+"""Windowed indirect warping: output window -> source coordinates -> ``cv2.remap`` -> GeoTIFF.
+
+This is the resampling machinery shared by every output-to-source geometric correction: the
+caller gives a **coordinate map**, a callable that returns, for the pixel centres of one output
+window, the source image coordinates to sample. Rectification uses :class:`HomographyMap`;
+orthorectification can pass a map built from the collinearity equations and a DEM. For each
+output window the driver :func:`warp_to_geotiff`
+
+1. asks the map for the source coordinates (vectorised, float32),
+2. reads only the source window they cover plus the interpolation margin (rasterio windowed
+   read),
+3. resamples with OpenCV ``cv2.remap`` (nearest / bilinear / cubic / lanczos), and
+4. writes the window into a tiled, compressed GeoTIFF, with an alpha band or nodata outside the
+   photo,
+
+so memory is bounded by the window size, whatever the size of the photo or of the output.
+
+**Source pixel convention.** Source coordinates are continuous ``(col, row)``: the origin is the
+top-left *corner* of the top-left pixel, columns grow right, rows grow *down*, pixel
+``(row i, col j)`` covers ``[j, j+1) x [i, i+1)`` and its centre is ``(j + 0.5, i + 0.5)``
+(GDAL's pixel/line convention). OpenCV samples pixel centres at integers, so the map given to
+``cv2.remap`` is ``coordinate - 0.5 - window offset``. An output pixel is *inside* the photo when
+its centre maps into ``[0, width] x [0, height]``.
+
+Output pixel centres follow :mod:`toolbox.io.grid`: column ``j`` of a north-up grid has centre
+``x = xmin + (j + 0.5)·cell``.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
+from typing import Any, Protocol
+
+import numpy as np
+
+RESAMPLING_METHODS = ("nearest", "bilinear", "cubic", "lanczos")
+# source pixels needed beyond the bounding box of the sample points, per method (kernel radius)
+RESAMPLING_MARGIN = {"nearest": 1, "bilinear": 1, "cubic": 2, "lanczos": 4}
+DEFAULT_CHUNK = 2048  # output pixels per side of a processing window (a multiple of the block)
+DEFAULT_MAX_SOURCE_PIXELS = 1 << 24  # larger source windows are split (16 Mpx per band)
+DEFAULT_CACHE_MB = 256  # GDAL block cache while warping (bounded, unlike GDAL's 5 % of RAM)
+_CV2_DTYPES = ("uint8", "uint16", "int16", "float32", "float64")
+
+
+def cv2_interpolation(resampling: str) -> int:
+    """The OpenCV interpolation flag of a resampling name (see :data:`RESAMPLING_METHODS`)."""
+    import cv2
+
+    flags = {"nearest": cv2.INTER_NEAREST, "bilinear": cv2.INTER_LINEAR,
+             "cubic": cv2.INTER_CUBIC, "lanczos": cv2.INTER_LANCZOS4}
+    if resampling not in flags:
+        raise ValueError(f"resampling must be one of {', '.join(RESAMPLING_METHODS)}, "
+                         f"got {resampling!r}")
+    return flags[resampling]
+
+
+class CoordinateMap(Protocol):
+    """Output window -> source coordinates of its pixel centres.
+
+    ``__call__(window)`` returns ``(cols, rows)``: float32 arrays of shape
+    ``(window.height, window.width)`` in the source pixel convention (module docstring), NaN
+    where the output pixel has no source point. An implementation may also define
+    ``source_bounds(window) -> (col_min, row_min, col_max, row_max) | None``: the exact bounding
+    box of the finite coordinates (None when it cannot tell cheaply); the driver then skips
+    scanning the arrays and, when the box lies inside the photo, the inside test. Two more
+    optional methods give a fast path for maps OpenCV can evaluate itself:
+    ``inside(window, width, height) -> bool (h, w)`` (the exact inside test without the
+    coordinate arrays) and ``perspective_matrix(window, col_shift, row_shift) -> (3, 3)`` (the
+    map as a homography for ``cv2.warpPerspective`` with ``WARP_INVERSE_MAP``).
+    """
+
+    def __call__(self, window: Any) -> tuple[np.ndarray, np.ndarray]: ...
+
+
+def _window_parts(window: Any) -> tuple[int, int, int, int]:
+    return int(window.col_off), int(window.row_off), int(window.width), int(window.height)
+
+
+class HomographyMap:
+    """Coordinate map of a plane-to-plane homography onto a north-up output grid.
+
+    Parameters
+    ----------
+    ground_to_pixel : (3, 3) array
+        Homography from output map coordinates (X, Y) to source pixel coordinates (col, row,
+        source pixel convention): ``[col·w, row·w, w]^T = H @ [X, Y, 1]^T``.
+    output_transform : affine.Affine
+        The output grid's transform (pixel corner -> map), as in :class:`toolbox.io.grid.GridSpec`.
+    front : (X, Y), optional
+        A ground point known to be seen by the photo (e.g. the image centre's ground point).
+        Output points on the other side of the plane's vanishing line (``w`` of the opposite
+        sign: behind the camera) get NaN. Default: no such test.
+
+    Notes
+    -----
+    The matrix is composed with the output grid once (output pixel index -> source pixel), so
+    each window costs three broadcast additions and two divisions in float32; coordinates stay
+    small (pixels), so float32 keeps them to about 1e-3 pixel.
+    """
+
+    def __init__(self, ground_to_pixel: np.ndarray, output_transform: Any,
+                 front: tuple[float, float] | None = None):
+        t = output_transform
+        grid = np.array([[t.a, t.b, t.c + 0.5 * (t.a + t.b)],
+                         [t.d, t.e, t.f + 0.5 * (t.d + t.e)], [0.0, 0.0, 1.0]])
+        matrix = np.asarray(ground_to_pixel, dtype="float64") @ grid
+        if front is not None:
+            wf = ground_to_pixel[2, 0] * front[0] + ground_to_pixel[2, 1] * front[1] \
+                + ground_to_pixel[2, 2]
+            if wf < 0:
+                matrix = -matrix
+        self.check_sign = front is not None
+        self.matrix = matrix / np.abs(matrix).max()
+
+    def _terms(self, window: Any):
+        col0, row0, width, height = _window_parts(window)
+        j = np.arange(col0, col0 + width, dtype="float64")
+        i = np.arange(row0, row0 + height, dtype="float64")
+        m = self.matrix
+        return [((m[k, 0] * j).astype("float32")[None, :],
+                 (m[k, 1] * i + m[k, 2]).astype("float32")[:, None]) for k in range(3)]
+
+    def corner_coordinates(self, window: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Source (cols, rows) and ``w`` of the window's four corner pixel centres (float64)."""
+        col0, row0, width, height = _window_parts(window)
+        j = np.array([col0, col0 + width - 1, col0 + width - 1, col0], dtype="float64")
+        i = np.array([row0, row0, row0 + height - 1, row0 + height - 1], dtype="float64")
+        p = self.matrix @ np.vstack([j, i, np.ones(4)])
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return p[0] / p[2], p[1] / p[2], p[2]
+
+    def source_bounds(self, window: Any) -> tuple[float, float, float, float] | None:
+        """Exact bounding box of the window's sample points when ``w > 0`` over the whole window
+        (a homography then maps the window's convex hull onto the convex hull of the corners'
+        images); None when ``w`` changes sign or sign checks are off."""
+        cols, rows, w = self.corner_coordinates(window)
+        if np.all(w > 0) or (not self.check_sign and np.all(w < 0)):
+            return float(cols.min()), float(rows.min()), float(cols.max()), float(rows.max())
+        return None
+
+    def perspective_matrix(self, window: Any, col_shift: float = 0.0,
+                           row_shift: float = 0.0) -> np.ndarray:
+        """The map of ``window`` for ``cv2.warpPerspective(..., WARP_INVERSE_MAP)``: window pixel
+        index (x, y) -> OpenCV source coordinates ``(col - col_shift, row - row_shift)``."""
+        col0, row0, _, _ = _window_parts(window)
+        shift = np.array([[1.0, 0.0, -col_shift], [0.0, 1.0, -row_shift], [0.0, 0.0, 1.0]])
+        offset = np.array([[1.0, 0.0, col0], [0.0, 1.0, row0], [0.0, 0.0, 1.0]])
+        return shift @ self.matrix @ offset
+
+    def inside_intervals(self, window: Any, width: int,
+                         height: int) -> tuple[np.ndarray, np.ndarray]:
+        """Exact inside test of the window's pixel centres as column intervals per row.
+
+        Returns ``(start, stop)`` int arrays (one per window row, window-local columns,
+        half-open ``[start, stop)``; ``start >= stop`` for an empty row). Inside means
+        ``0 <= col <= width`` and ``0 <= row <= height`` (and in front of the camera when
+        ``front`` was given). ``u = col·w``, ``v = row·w`` and ``w`` are affine in the output
+        column, so along a row each condition (``u >= 0``, ``width·w - u >= 0``, ...) holds on an
+        interval of columns; no coordinate array is needed.
+        """
+        col0, row0, out_w, out_h = _window_parts(window)
+        i = np.arange(row0, row0 + out_h, dtype="float64")
+        m = self.matrix
+        u0, v0, w0 = (m[k, 1] * i + m[k, 2] for k in range(3))
+        du, dv, dw = m[0, 0], m[1, 0], m[2, 0]
+        if not self.check_sign:  # no front: the sign of w at the window centre is "in front"
+            centre = m[2, 0] * (col0 + out_w / 2) + m[2, 1] * (row0 + out_h / 2) + m[2, 2]
+            if centre < 0:
+                u0, v0, w0, du, dv, dw = -u0, -v0, -w0, -du, -dv, -dw
+        lo = np.full(out_h, float(col0))
+        hi = np.full(out_h, float(col0 + out_w - 1))
+        conditions = ((w0, dw), (u0, du), (width * w0 - u0, width * dw - du), (v0, dv),
+                      (height * w0 - v0, height * dw - dv))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            for alpha, beta in conditions:  # alpha + beta·j >= 0
+                if beta > 0:
+                    lo = np.maximum(lo, np.ceil(-alpha / beta))
+                elif beta < 0:
+                    hi = np.minimum(hi, np.floor(-alpha / beta))
+                else:
+                    hi = np.where(alpha >= 0, hi, -np.inf)
+        start = np.clip(lo - col0, 0, out_w).astype(np.int64)
+        stop = np.clip(hi - col0 + 1, 0, out_w).astype(np.int64)
+        return start, np.maximum(stop, start)
+
+    def inside(self, window: Any, width: int, height: int) -> np.ndarray:
+        """The :meth:`inside_intervals` test as a bool (h, w) mask."""
+        return mask_from_intervals(*self.inside_intervals(window, width, height),
+                                   int(window.width))
+
+    def __call__(self, window: Any, col_shift: float = 0.0,
+                 row_shift: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+        """Source (cols - col_shift, rows - row_shift), float32 (h, w); NaN behind the camera."""
+        (ua, ub), (va, vb), (wa, wb) = self._terms(window)
+        w = wa + wb
+        u = ua + ub
+        v = va + vb
+        if col_shift:
+            u -= np.float32(col_shift) * w
+        if row_shift:
+            v -= np.float32(row_shift) * w
+        np.divide(u, w, out=u)
+        np.divide(v, w, out=v)
+        if self.check_sign:
+            _, _, wc = self.corner_coordinates(window)
+            if not np.all(wc > 0):
+                behind = w <= 0
+                u[behind] = np.nan
+                v[behind] = np.nan
+        return u, v
+
+
+def source_window(bounds: tuple[float, float, float, float] | None, width: int, height: int,
+                  margin: int) -> Any:
+    """The source window covering ``bounds`` (col_min, row_min, col_max, row_max, source pixel
+    convention) plus ``margin`` pixels, clipped to the ``width`` x ``height`` source; None when
+    it does not overlap the source.
+
+    A sample at coordinate ``c`` uses the pixels around ``c - 0.5``; ``margin`` pixels on each
+    side cover the interpolation kernel.
+    """
+    from rasterio.windows import Window
+
+    if bounds is None:
+        return None
+    cmin, rmin, cmax, rmax = bounds
+    if not all(math.isfinite(v) for v in bounds):
+        return None
+    c0 = max(int(math.floor(cmin - 0.5)) - margin, 0)
+    r0 = max(int(math.floor(rmin - 0.5)) - margin, 0)
+    c1 = min(int(math.ceil(cmax - 0.5)) + margin + 1, width)
+    r1 = min(int(math.ceil(rmax - 0.5)) + margin + 1, height)
+    if c1 <= c0 or r1 <= r0:
+        return None
+    return Window(c0, r0, c1 - c0, r1 - r0)
+
+
+def mask_from_intervals(start: np.ndarray, stop: np.ndarray, width: int) -> np.ndarray:
+    """Bool (len(start), width) mask true on ``[start[r], stop[r])`` of each row ``r``."""
+    mask = np.zeros((len(start), width), dtype=bool)
+    for r, (a, b) in enumerate(zip(start.tolist(), stop.tolist(), strict=True)):
+        if b > a:
+            mask[r, a:b] = True
+    return mask
+
+
+def fill_outside_intervals(out: np.ndarray, start: np.ndarray, stop: np.ndarray,
+                           value: float) -> None:
+    """Set ``out[..., r, c]`` to ``value`` outside ``[start[r], stop[r])`` (in place)."""
+    width = out.shape[-1]
+    for r, (a, b) in enumerate(zip(start.tolist(), stop.tolist(), strict=True)):
+        if a > 0:
+            out[..., r, :a] = value
+        if b < width:
+            out[..., r, max(b, a):] = value
+
+
+def scan_bounds(cols: np.ndarray, rows: np.ndarray) -> tuple[float, float, float, float] | None:
+    """Bounding box of the finite coordinates (None when there are none)."""
+    finite = np.isfinite(cols) & np.isfinite(rows)
+    if not finite.any():
+        return None
+    c, r = cols[finite], rows[finite]
+    return float(c.min()), float(r.min()), float(c.max()), float(r.max())
+
+
+def inside_mask(cols: np.ndarray, rows: np.ndarray, width: int, height: int,
+                col_shift: float = 0.0, row_shift: float = 0.0) -> np.ndarray:
+    """Output pixels whose centre maps into the photo ``[0, width] x [0, height]`` (NaN: no).
+
+    ``cols``/``rows`` may be given shifted (``cols - col_shift``...), as the cv2 maps are.
+    """
+    inside = cols >= np.float32(-col_shift)
+    inside &= cols <= np.float32(width - col_shift)
+    inside &= rows >= np.float32(-row_shift)
+    inside &= rows <= np.float32(height - row_shift)
+    return inside
+
+
+def remap(source: np.ndarray, map_x: np.ndarray, map_y: np.ndarray,
+          resampling: str = "bilinear") -> np.ndarray:
+    """Sample ``source`` at OpenCV map coordinates (pixel centres at integers).
+
+    ``source`` is (rows, cols) or (rows, cols, bands) of any numeric dtype (OpenCV handles
+    uint8, uint16, int16, float32 and float64 directly; other types go through float64 and are
+    rounded back). Any number of bands (OpenCV takes at most 4 at a time). Outside the source
+    the value is 0 (``cv2.BORDER_CONSTANT``, which OpenCV skips quickly); callers that need the
+    photo's edge pixels extended pad the source first (see :func:`pad_at_photo_edges`).
+    """
+    import cv2
+
+    flag = cv2_interpolation(resampling)
+    dtype = source.dtype
+    work = source if dtype.name in _CV2_DTYPES else source.astype("float64")
+    if work.ndim == 2 or work.shape[2] <= 4:
+        out = cv2.remap(work, map_x, map_y, flag, borderMode=cv2.BORDER_CONSTANT)
+        if work.ndim == 3 and out.ndim == 2:  # cv2 drops a trailing axis of length 1
+            out = out[:, :, None]
+    else:
+        parts = [cv2.remap(np.ascontiguousarray(work[:, :, k:k + 4]), map_x, map_y, flag,
+                           borderMode=cv2.BORDER_CONSTANT) for k in range(0, work.shape[2], 4)]
+        out = np.concatenate([p if p.ndim == 3 else p[:, :, None] for p in parts], axis=2)
+    if out.dtype != dtype:
+        if dtype.kind in "iu":
+            info = np.iinfo(dtype)
+            out = np.clip(np.rint(out), info.min, info.max)
+        out = out.astype(dtype)
+    return out
+
+
+# -- streaming driver ----------------------------------------------------------------------------
+@dataclass
+class OutputLayout:
+    """How source bands become output bands.
+
+    data_bands : 1-based source band indexes resampled as data (every band except an alpha band)
+    source_alpha : 1-based index of the source alpha band, or None
+    source_masked : the source has nodata or an internal mask (sampled to find valid pixels)
+    alpha : the output has an alpha band (last band)
+    nodata : the output nodata value (None with an alpha band)
+    dtype : numpy dtype name of the output
+    """
+
+    data_bands: list[int]
+    source_alpha: int | None
+    source_masked: bool
+    alpha: bool
+    nodata: float | None
+    dtype: str
+
+    @property
+    def count(self) -> int:
+        return len(self.data_bands) + (1 if self.alpha else 0)
+
+    @property
+    def fill(self) -> float:
+        return 0 if self.nodata is None else self.nodata
+
+    @property
+    def alpha_max(self) -> float:
+        dt = np.dtype(self.dtype)
+        return float(np.iinfo(dt).max) if dt.kind in "iu" else 1.0
+
+
+def output_layout(src: Any, outside: str = "alpha", nodata: float | None = None) -> OutputLayout:
+    """Decide the output bands of a warp of the open rasterio dataset ``src``.
+
+    ``outside = "alpha"`` adds an alpha band (0 outside the photo, the dtype's maximum inside);
+    ``"nodata"`` fills outside pixels with ``nodata`` (default: the source nodata, else 0 for
+    integers and NaN for floats). A source alpha band is resampled and always kept as alpha.
+    """
+    from rasterio.enums import ColorInterp, MaskFlags
+
+    if outside not in ("alpha", "nodata"):
+        raise ValueError(f"outside must be 'alpha' or 'nodata', got {outside!r}")
+    dtypes = set(src.dtypes)
+    if len(dtypes) != 1:
+        raise ValueError(f"bands of different data types ({', '.join(sorted(dtypes))})")
+    dtype = src.dtypes[0]
+    interp = list(src.colorinterp)
+    alpha_bands = [k + 1 for k, ci in enumerate(interp) if ci == ColorInterp.alpha]
+    source_alpha = alpha_bands[-1] if alpha_bands and src.count > 1 else None
+    data_bands = [b for b in range(1, src.count + 1) if b != source_alpha]
+    flags = src.mask_flag_enums[data_bands[0] - 1] if src.count else []
+    source_masked = source_alpha is None and (
+        src.nodata is not None or MaskFlags.per_dataset in flags)
+    alpha = outside == "alpha" or source_alpha is not None
+    out_nodata = None
+    if outside == "nodata":
+        if nodata is not None:
+            out_nodata = float(nodata)
+        elif src.nodata is not None:
+            out_nodata = float(src.nodata)
+        else:
+            out_nodata = float("nan") if np.dtype(dtype).kind == "f" else 0.0
+        if np.dtype(dtype).kind in "iu" and not math.isnan(out_nodata):
+            info = np.iinfo(np.dtype(dtype))
+            if not (info.min <= out_nodata <= info.max and out_nodata == int(out_nodata)):
+                raise ValueError(f"nodata {out_nodata:g} does not fit the {dtype} data type "
+                                 f"({info.min}..{info.max})")
+        elif np.dtype(dtype).kind in "iu":
+            raise ValueError(f"nodata NaN does not fit the integer data type {dtype}")
+    return OutputLayout(data_bands, source_alpha, source_masked, alpha, out_nodata, dtype)
+
+
+def photometric_options(layout: OutputLayout) -> dict[str, str]:
+    """GeoTIFF creation options declaring RGB photometry and the alpha band."""
+    options: dict[str, str] = {}
+    if len(layout.data_bands) == 3 and np.dtype(layout.dtype).kind in "iu":
+        options["photometric"] = "RGB"
+    if layout.alpha:
+        options["alpha"] = "YES"
+    return options
+
+
+@dataclass
+class WarpStatistics:
+    """Counters of one warp run."""
+
+    windows: int = 0
+    empty_windows: int = 0
+    split_windows: int = 0
+    source_pixels_read: int = 0
+    output_pixels: int = 0
+    timings: dict[str, float] = field(default_factory=dict)
+
+    def as_dict(self) -> dict:
+        return {"windows": self.windows, "empty_windows": self.empty_windows,
+                "split_windows": self.split_windows,
+                "source_pixels_read": self.source_pixels_read,
+                "output_pixels": self.output_pixels}
+
+
+def _split(window: Any) -> list[Any]:
+    from rasterio.windows import Window
+
+    col0, row0, width, height = _window_parts(window)
+    hw, hh = max(width // 2, 1), max(height // 2, 1)
+    parts = []
+    for r0, h in ((row0, hh), (row0 + hh, height - hh)):
+        for c0, w in ((col0, hw), (col0 + hw, width - hw)):
+            if w > 0 and h > 0:
+                parts.append(Window(c0, r0, w, h))
+    return parts
+
+
+def warp_window(read: Callable[[list[int], Any], np.ndarray], source_size: tuple[int, int],
+                coordinate_map: CoordinateMap, window: Any, layout: OutputLayout,
+                resampling: str = "bilinear",
+                read_mask: Callable[[Any], np.ndarray] | None = None,
+                max_source_pixels: int = DEFAULT_MAX_SOURCE_PIXELS,
+                stats: WarpStatistics | None = None,
+                fast: bool = True) -> Iterator[tuple[Any, np.ndarray]]:
+    """Warp one output window; yield ``(window, array (count, h, w))`` parts to write.
+
+    ``read(bands, source_window)`` returns the source pixels (len(bands), h, w); ``read_mask``
+    the source validity (h, w) uint8 0/255 (sources with nodata or an internal mask). Windows
+    whose source window exceeds ``max_source_pixels`` are split in four, recursively. With
+    ``fast`` and a map offering ``perspective_matrix`` and ``inside`` (a homography), OpenCV's
+    ``warpPerspective`` evaluates the map itself (same sampling as ``remap`` with the map's
+    coordinates, without the coordinate arrays); otherwise the coordinates are computed and
+    ``cv2.remap`` samples them.
+    """
+    stats = stats if stats is not None else WarpStatistics()
+    width, height = source_size
+    col0, row0, out_w, out_h = _window_parts(window)
+    margin = RESAMPLING_MARGIN[resampling]
+    bounds_method = getattr(coordinate_map, "source_bounds", None)
+    bounds = bounds_method(window) if bounds_method is not None else None
+    exact_bounds = bounds is not None
+    cols = rows = None
+    if bounds is None:
+        cols, rows = coordinate_map(window)
+        bounds = scan_bounds(cols, rows)
+    src_win = source_window(bounds, width, height, margin)
+    out = np.empty((layout.count, out_h, out_w), dtype=layout.dtype)
+    if src_win is None:
+        stats.empty_windows += 1
+        out[:] = layout.fill
+        if layout.alpha:
+            out[-1] = 0
+        yield window, out
+        return
+    if src_win.width * src_win.height > max_source_pixels and (out_w > 1 or out_h > 1):
+        stats.split_windows += 1
+        for part in _split(window):
+            yield from warp_window(read, source_size, coordinate_map, part, layout, resampling,
+                                   read_mask, max_source_pixels, stats, fast)
+        return
+    stats.windows += 1
+    stats.output_pixels += out_w * out_h
+    stats.source_pixels_read += int(src_win.width * src_win.height)
+    # where the source window touches the photo's edge it is padded by replicating the edge
+    # pixels (the interpolation kernel of a sample just inside the photo needs them); farther
+    # out OpenCV's constant border applies, which it computes quickly
+    pad = RESAMPLING_MARGIN[resampling] + 1
+    pads = (pad if src_win.row_off == 0 else 0,
+            pad if src_win.row_off + src_win.height == height else 0,
+            pad if src_win.col_off == 0 else 0,
+            pad if src_win.col_off + src_win.width == width else 0)
+    shift_c = src_win.col_off - pads[2] + 0.5
+    shift_r = src_win.row_off - pads[0] + 0.5
+    all_inside = (exact_bounds and bounds[0] >= 0 and bounds[1] >= 0 and bounds[2] <= width
+                  and bounds[3] <= height)
+    use_fast = (fast and cols is None and hasattr(coordinate_map, "perspective_matrix")
+                and hasattr(coordinate_map, "inside_intervals"))
+    intervals = None
+    inside = None
+    if use_fast:
+        matrix = coordinate_map.perspective_matrix(window, shift_c, shift_r)
+        if not all_inside:
+            intervals = coordinate_map.inside_intervals(window, width, height)
+
+        def sample(pixels: np.ndarray, method: str) -> np.ndarray:
+            return warp_perspective(pixels, matrix, (out_w, out_h), method)
+    else:
+        if cols is None and isinstance(coordinate_map, HomographyMap):
+            map_x, map_y = coordinate_map(window, shift_c, shift_r)
+        else:
+            if cols is None:
+                cols, rows = coordinate_map(window)
+            map_x = (cols - np.float32(shift_c)).astype("float32", copy=False)
+            map_y = (rows - np.float32(shift_r)).astype("float32", copy=False)
+        if not all_inside:
+            inside = inside_mask(map_x, map_y, width, height, shift_c, shift_r)
+
+        def sample(pixels: np.ndarray, method: str) -> np.ndarray:
+            return remap(pixels, map_x, map_y, method)
+    n_data = len(layout.data_bands)
+    sampled = sample(pad_at_photo_edges(_interleave(read(layout.data_bands, src_win)), pads),
+                     resampling)
+    _deinterleave(sampled, out[:n_data])
+    del sampled
+    # validity from the source itself (alpha band, nodata or internal mask)
+    alpha = None
+    source_valid = None
+    if layout.source_alpha is not None:
+        alpha = sample(pad_at_photo_edges(read([layout.source_alpha], src_win)[0], pads),
+                       resampling)
+        if not layout.alpha:
+            source_valid = alpha >= layout.alpha_max / 2
+    elif layout.source_masked and read_mask is not None:
+        mask = sample(pad_at_photo_edges(read_mask(src_win), pads),
+                      "nearest" if resampling == "nearest" else "bilinear")
+        source_valid = mask >= 255
+    if source_valid is not None and intervals is not None:
+        inside = mask_from_intervals(*intervals, out_w)
+        intervals = None
+    valid = inside if source_valid is None else (
+        source_valid if inside is None else inside & source_valid)
+    if layout.alpha:
+        out[-1] = layout.alpha_max if alpha is None else alpha
+    if intervals is not None:  # homography fast path: fill row by row, no mask needed
+        fill_outside_intervals(out[:n_data], *intervals, layout.fill)
+        if layout.alpha:
+            fill_outside_intervals(out[-1], *intervals, 0)
+    elif valid is not None:
+        invalid = ~valid
+        for k in range(n_data):
+            out[k][invalid] = layout.fill
+        if layout.alpha:
+            out[-1][invalid] = 0
+    yield window, out
+
+
+def pad_at_photo_edges(pixels: np.ndarray, pads: tuple[int, int, int, int]) -> np.ndarray:
+    """Replicate the edge pixels of ``pixels`` ((h, w) or (h, w, bands)) outwards by ``pads`` =
+    (top, bottom, left, right) pixels; unchanged when every pad is 0."""
+    import cv2
+
+    if not any(pads):
+        return pixels
+    top, bottom, left, right = pads
+    if pixels.dtype.name in _CV2_DTYPES + ("int8", "int32"):
+        return cv2.copyMakeBorder(pixels, top, bottom, left, right, cv2.BORDER_REPLICATE)
+    widths = ((top, bottom), (left, right)) + (((0, 0),) if pixels.ndim == 3 else ())
+    return np.pad(pixels, widths, mode="edge")
+
+
+def _interleave(data: np.ndarray) -> np.ndarray:
+    """(bands, h, w) -> (h, w) or pixel-interleaved (h, w, bands) for OpenCV."""
+    import cv2
+
+    if data.shape[0] == 1:
+        return data[0]
+    if data.shape[0] <= 4 and data.dtype.name in _CV2_DTYPES:
+        return cv2.merge(list(data))
+    return np.ascontiguousarray(np.moveaxis(data, 0, -1))
+
+
+def _deinterleave(sampled: np.ndarray, out: np.ndarray) -> None:
+    """Copy (h, w) or (h, w, bands) ``sampled`` into band-sequential ``out`` (bands, h, w)."""
+    import cv2
+
+    if sampled.ndim == 2:
+        out[0] = sampled
+    elif sampled.shape[2] <= 4 and sampled.dtype.name in _CV2_DTYPES and out.flags.c_contiguous:
+        cv2.split(sampled, list(out))
+    else:
+        for k in range(sampled.shape[2]):
+            out[k] = sampled[:, :, k]
+
+
+def warp_perspective(source: np.ndarray, matrix: np.ndarray, size: tuple[int, int],
+                     resampling: str = "bilinear") -> np.ndarray:
+    """``cv2.warpPerspective`` with ``WARP_INVERSE_MAP`` (``matrix``: output pixel index ->
+    OpenCV source coordinates), 0 outside the source, any dtype and band count (as
+    :func:`remap`). ``size`` is (width, height) of the output."""
+    import cv2
+
+    flag = cv2_interpolation(resampling) | cv2.WARP_INVERSE_MAP
+    dtype = source.dtype
+    work = source if dtype.name in _CV2_DTYPES else source.astype("float64")
+
+    def one(part: np.ndarray) -> np.ndarray:
+        res = cv2.warpPerspective(part, matrix, size, flags=flag, borderMode=cv2.BORDER_CONSTANT)
+        return res[:, :, None] if part.ndim == 3 and res.ndim == 2 else res
+
+    if work.ndim == 2 or work.shape[2] <= 4:
+        out = one(work)
+    else:
+        out = np.concatenate([one(np.ascontiguousarray(work[:, :, k:k + 4]))
+                              for k in range(0, work.shape[2], 4)], axis=2)
+    if out.dtype != dtype:
+        if dtype.kind in "iu":
+            info = np.iinfo(dtype)
+            out = np.clip(np.rint(out), info.min, info.max)
+        out = out.astype(dtype)
+    return out
+
+
+def warp_to_geotiff(source: Any, coordinate_map: CoordinateMap, grid: Any, output: Any,
+                    resampling: str = "bilinear", outside: str = "alpha",
+                    nodata: float | None = None, chunk: int = DEFAULT_CHUNK,
+                    max_source_pixels: int = DEFAULT_MAX_SOURCE_PIXELS, overviews: bool = True,
+                    feedback: Any = None, cache_mb: int = DEFAULT_CACHE_MB,
+                    tags: dict[str, str] | None = None,
+                    creation_options: dict[str, Any] | None = None,
+                    fast: bool = True) -> WarpStatistics:
+    """Warp a raster file onto ``grid`` through ``coordinate_map`` and write a GeoTIFF, by windows.
+
+    Parameters
+    ----------
+    source : path
+        Any raster GDAL reads (GeoTIFF, JPEG, PNG...), 1 or more bands of one data type.
+    coordinate_map : CoordinateMap
+        Output window -> source coordinates (e.g. :class:`HomographyMap`).
+    grid : toolbox.io.grid.GridSpec
+        Output grid (transform, width, height, crs; crs None for a local object system).
+    output : path
+        GeoTIFF to write (inside an algorithm: the staged path).
+    resampling : {"nearest", "bilinear", "cubic", "lanczos"}
+    outside : {"alpha", "nodata"}
+        How pixels outside the photo are marked (see :func:`output_layout`).
+    nodata : float, optional
+        Output nodata with ``outside="nodata"``.
+    chunk : int
+        Output window side in pixels (a multiple of the 512-pixel block keeps writes aligned).
+    max_source_pixels : int
+        Largest source window read at once (per band); bigger ones are split.
+    overviews : bool
+        Build internal overviews at the end.
+    feedback : toolbox.feedback.Feedback, optional
+        Progress (0-95 % for the windows) and cancellation between windows.
+    cache_mb : int
+        GDAL block cache size while warping, MB (bounds memory on huge sources).
+    tags : dict, optional
+        Metadata written to the output (e.g. the homography).
+    creation_options : dict, optional
+        GeoTIFF creation options overriding :func:`toolbox.io.raster.geotiff_profile`'s.
+    fast : bool
+        Let maps that offer it use ``cv2.warpPerspective`` (see :func:`warp_window`); False
+        forces the generic coordinate-array + ``cv2.remap`` path.
+    """
+    import rasterio
+
+    from toolbox.feedback import Feedback
+    from toolbox.io.raster import build_overviews, geotiff_profile, iter_windows
+
+    feedback = feedback or Feedback()
+    if resampling not in RESAMPLING_METHODS:
+        raise ValueError(f"resampling must be one of {', '.join(RESAMPLING_METHODS)}, "
+                         f"got {resampling!r}")
+    stats = WarpStatistics()
+    # overviews: aligned 512 blocks, pixel-interleaved like the data, compressed on all cores
+    env = {"GDAL_CACHEMAX": int(cache_mb), "COMPRESS_OVERVIEW": "DEFLATE",
+           "GDAL_TIFF_OVR_BLOCKSIZE": 512, "INTERLEAVE_OVERVIEW": "PIXEL",
+           "GDAL_NUM_THREADS": "ALL_CPUS"}
+    with rasterio.Env(**env), warnings.catch_warnings():
+        warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
+        with rasterio.open(source) as src:
+            layout = output_layout(src, outside, nodata)
+            options = {"num_threads": "ALL_CPUS", **photometric_options(layout),
+                       **(creation_options or {})}
+            profile = geotiff_profile(grid.width, grid.height, layout.count, layout.dtype,
+                                      grid.crs, grid.transform, layout.nodata, **options)
+
+            def read(bands: list[int], window: Any) -> np.ndarray:
+                return src.read(bands, window=window)
+
+            def read_mask(window: Any) -> np.ndarray:
+                return src.dataset_mask(window=window)
+
+            windows = [t.core for t in iter_windows(grid.width, grid.height, chunk)]
+            with rasterio.open(output, "w", **profile) as dst:
+                if tags:
+                    dst.update_tags(**tags)
+                for window in feedback.iterate(windows, start=0, end=95 if overviews else 100):
+                    for part, array in warp_window(read, (src.width, src.height), coordinate_map,
+                                                   window, layout, resampling, read_mask,
+                                                   max_source_pixels, stats, fast):
+                        dst.write(array, window=part)
+                if overviews:
+                    feedback.check_canceled()
+                    with rasterio.Env(PREDICTOR_OVERVIEW=profile["predictor"]), \
+                            feedback.timed("overviews"):
+                        build_overviews(dst)
+    return stats
