@@ -221,6 +221,64 @@ def points_xyz(frame, z_field: str | None = None, name: str = "INPUT") -> np.nda
     return xyz
 
 
+def read_points_xyz(source: Any, z_field: str | None = None, name: str = "INPUT") -> np.ndarray:
+    """(N, 3) float64 X, Y, Z of a point layer (path, ``path|layername=x``, reference or frame).
+
+    The same result and errors as ``points_xyz(read_vector(source), z_field, name)``, but a file
+    layer of single points (Point or Point Z) is decoded straight from the WKB that GDAL hands
+    over through Arrow, without building a GeoDataFrame of shapely objects: about ten times
+    faster for a million points. Other layers (multipoints, CSV, empty points, in-memory frames,
+    no pyarrow) take the general path.
+    """
+    ref = open_layer(source, name)
+    if ref.frame is None and not ref.open_options:
+        xyz = _points_from_arrow(ref, z_field)
+        if xyz is not None:
+            _check_finite(xyz, name)
+            return xyz
+    return points_xyz(read_vector(ref, name=name), z_field, name)
+
+
+def _points_from_arrow(ref: VectorLayerRef, z_field: str | None) -> np.ndarray | None:
+    """Decode fixed-size little-endian WKB points; ``None`` when the layer needs the general path."""
+    try:
+        import pyarrow  # noqa: F401  (pyogrio's Arrow reader needs it)
+        import pyogrio
+    except ImportError:  # pragma: no cover - pyarrow is optional
+        return None
+    try:
+        meta, table = pyogrio.read_arrow(ref.path, layer=ref.layer,
+                                         columns=[z_field] if z_field else [])
+    except Exception:  # let the general path report the problem
+        return None
+    n = table.num_rows
+    column = meta.get("geometry_name") or "wkb_geometry"
+    if n == 0 or column not in table.column_names:
+        return None
+    wkb = table.column(column).combine_chunks()
+    if wkb.null_count or str(wkb.type) not in ("binary", "large_binary"):
+        return None
+    offset_type = np.int32 if str(wkb.type) == "binary" else np.int64
+    offsets = np.frombuffer(wkb.buffers()[1], dtype=offset_type)[wkb.offset:wkb.offset + n + 1]
+    size = int(offsets[1] - offsets[0])
+    if size not in (21, 29) or not np.all(np.diff(offsets) == size):
+        return None
+    raw = np.frombuffer(wkb.buffers()[2], dtype=np.uint8)[offsets[0]:offsets[-1]].reshape(n, size)
+    kinds = raw[:, 1:5].copy().view("<u4").ravel()
+    wanted = (1,) if size == 21 else (1001, 0x80000001)
+    if not (np.all(raw[:, 0] == 1) and np.isin(kinds, wanted).all()):
+        return None
+    coords = raw[:, 5:].copy().view("<f8")
+    if np.isnan(coords).any():  # empty points: the general path skips them
+        return None
+    if z_field is not None:
+        z = np.asarray(table.column(z_field).to_numpy(zero_copy_only=False), dtype="float64")
+        return np.column_stack([coords[:, :2], z])
+    if size == 21:
+        return None  # no Z in the geometry: the general path explains
+    return np.ascontiguousarray(coords)
+
+
 def vertices_xyz(frame, z_field: str | None = None, name: str = "INPUT"):
     """Vertices of every feature: ``(xyz (N, 3), feature_index (N,))``.
 

@@ -1,0 +1,23 @@
+"""dem:cubic - DEM by local 3rd-order surfaces on the k nearest points (thesis eq. [48])."""
+
+from __future__ import annotations
+
+from algorithms.dem.gridding import STATISTICS
+from algorithms.dem.polynomial_base import COMMON_HELP, PolynomialGrid, polynomial_parameters
+from toolbox.registry import register
+
+
+@register
+class CubicGrid(PolynomialGrid):
+    __doc__ = """DEM by local cubic surfaces: each cell takes, at its centre, the surface
+    ``z = a·x³ + b·y³ + c·x²y + d·xy² + e·x² + f·y² + g·xy + h·x + i·y + l`` fitted by least
+    squares to its k nearest data points (S002 par. 2.5.2 eq. [48], at least 10 points;
+    ../shared/docs/domain.md section 14). Default k = 20.
+    """ + COMMON_HELP
+
+    id = "dem:cubic"
+    display_name = "DEM by local cubic surfaces"
+    short_help = "DEM GeoTIFF by least-squares 3rd-order surfaces on the k nearest points (eq. 48)."
+    method = "cubic"
+    parameters = polynomial_parameters(3, 20)
+    outputs = [STATISTICS]

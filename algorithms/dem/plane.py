@@ -1,0 +1,22 @@
+"""dem:plane - DEM by local least-squares planes on the k nearest points (thesis eq. [46])."""
+
+from __future__ import annotations
+
+from algorithms.dem.gridding import STATISTICS
+from algorithms.dem.polynomial_base import COMMON_HELP, PolynomialGrid, polynomial_parameters
+from toolbox.registry import register
+
+
+@register
+class PlaneGrid(PolynomialGrid):
+    __doc__ = """DEM by local planes: each cell takes, at its centre, the plane
+    ``z = a·x + b·y + c`` fitted by least squares to its k nearest data points (S002 par. 2.5.2
+    eq. [46], at least 3 points; ../shared/docs/domain.md section 14). Default k = 8.
+    """ + COMMON_HELP
+
+    id = "dem:plane"
+    display_name = "DEM by local planes"
+    short_help = "DEM GeoTIFF by least-squares planes on the k nearest points (eq. 46)."
+    method = "plane"
+    parameters = polynomial_parameters(1, 8)
+    outputs = [STATISTICS]

@@ -1,0 +1,23 @@
+"""dem:quadratic - DEM by local 2nd-order surfaces on the k nearest points (thesis eq. [47])."""
+
+from __future__ import annotations
+
+from algorithms.dem.gridding import STATISTICS
+from algorithms.dem.polynomial_base import COMMON_HELP, PolynomialGrid, polynomial_parameters
+from toolbox.registry import register
+
+
+@register
+class QuadraticGrid(PolynomialGrid):
+    __doc__ = """DEM by local quadratic surfaces: each cell takes, at its centre, the surface
+    ``z = a·x² + b·y² + c·xy + d·x + e·y + f`` fitted by least squares to its k nearest data
+    points (S002 par. 2.5.2 eq. [47], at least 6 points; ../shared/docs/domain.md section 14).
+    Default k = 12.
+    """ + COMMON_HELP
+
+    id = "dem:quadratic"
+    display_name = "DEM by local quadratic surfaces"
+    short_help = "DEM GeoTIFF by least-squares 2nd-order surfaces on the k nearest points (eq. 47)."
+    method = "quadratic"
+    parameters = polynomial_parameters(2, 12)
+    outputs = [STATISTICS]

@@ -1,0 +1,100 @@
+"""Reading the DEM inputs: the fast point reader agrees with the general one; points, contour
+vertices and crossing breaklines together."""
+
+from __future__ import annotations
+
+import geopandas as gpd
+import numpy as np
+import pytest
+import rasterio
+import shapely
+
+import toolbox
+from algorithms.dem.inputs import has_duplicate_xy
+from algorithms.dem.tin_linear import constrained_tin
+from toolbox.errors import InputDataError
+from toolbox.io.vector import points_xyz, read_points_xyz, read_vector
+
+X0, Y0 = 1_688_000.0, 4_799_500.0
+
+
+@pytest.fixture
+def layers(tmp_path):
+    rng = np.random.default_rng(9)
+    xy = np.column_stack([X0 + rng.uniform(0, 50, 40), Y0 + rng.uniform(0, 50, 40)])
+    z = rng.uniform(280, 340, 40)
+    paths = {}
+    paths["pointz"] = tmp_path / "pz.gpkg"
+    gpd.GeoDataFrame({"h": z + 1}, geometry=shapely.points(xy[:, 0], xy[:, 1], z),
+                     crs="EPSG:3003").to_file(paths["pointz"])
+    paths["point2d"] = tmp_path / "p2.gpkg"
+    gpd.GeoDataFrame({"h": z}, geometry=shapely.points(xy), crs="EPSG:3003").to_file(
+        paths["point2d"])
+    paths["multi"] = tmp_path / "mp.gpkg"
+    gpd.GeoDataFrame({"h": [1.0, 2.0]}, geometry=[shapely.MultiPoint([(X0, Y0, 5), (X0 + 1, Y0, 6)]),
+                                                  shapely.MultiPoint([(X0, Y0 + 1, 7)])],
+                     crs="EPSG:3003").to_file(paths["multi"])
+    paths["csv"] = tmp_path / "p.csv"
+    paths["csv"].write_text("x,y,z\n" + "\n".join(f"{a},{b},{c}" for a, b, c in
+                                                    zip(xy[:, 0], xy[:, 1], z, strict=True)))
+    return paths
+
+
+def test_fast_point_reader_matches_the_general_one(layers):
+    for name, z_field in (("pointz", None), ("pointz", "h"), ("point2d", "h"), ("multi", None),
+                          ("multi", "h"), ("csv", None)):
+        fast = read_points_xyz(layers[name], z_field)
+        slow = points_xyz(read_vector(layers[name]), z_field)
+        assert np.array_equal(fast, slow), (name, z_field)
+    with pytest.raises(InputDataError, match="no Z"):
+        read_points_xyz(layers["point2d"])
+
+
+def test_duplicate_check():
+    xyz = np.array([[0.0, 0.0, 1], [1.0, 0.0, 2], [0.0, 1.0, 3]])
+    assert not has_duplicate_xy(xyz)
+    assert has_duplicate_xy(np.vstack([xyz, [[1.0, 0.0, 9]]]))
+    assert not has_duplicate_xy(np.array([[0.0, 1.0, 1], [1.0, 0.0, 1]]))  # swapped x, y
+
+
+def test_crossing_breaklines_are_split_with_interpolated_heights():
+    xyz = np.array([[0.0, 0.0, 0.0], [10.0, 0.0, 0.0], [10.0, 10.0, 0.0], [0.0, 10.0, 0.0],
+                    [2.0, 5.0, 10.0], [8.0, 5.0, 20.0],    # breakline A along y = 5
+                    [5.0, 2.0, 30.0], [5.0, 8.0, 30.0]])   # breakline B along x = 5
+    nodes, tri, info = constrained_tin(xyz, np.array([[4, 5], [6, 7]]))
+    assert info["crossings"] == 1 and len(nodes) == 9
+    # at (5, 5): A gives 15, B gives 30 -> mean 22.5, disagreement 15
+    assert nodes[8].tolist() == [5.0, 5.0, 22.5] and info["crossing_z_disagreement"] == 15.0
+    assert tri.max() == 8
+
+
+def test_points_contours_and_breaklines_together(tmp_path):
+    # plane z = 300 + 0.2 u: points, contour lines (x = const) and a breakline across them
+    rng = np.random.default_rng(10)
+    uv = rng.uniform(0, 100, (200, 2))
+    xy = uv + [X0, Y0]
+    gpd.GeoDataFrame(geometry=shapely.points(xy[:, 0], xy[:, 1], 300 + 0.2 * uv[:, 0]),
+                     crs="EPSG:3003").to_file(tmp_path / "pts.gpkg")
+    contours = gpd.GeoDataFrame({"elev": [300 + 0.2 * u for u in (0, 50, 100)]},
+                                geometry=[shapely.LineString([(X0 + u, Y0), (X0 + u, Y0 + 100)])
+                                          for u in (0, 50, 100)], crs="EPSG:3003")
+    contours.to_file(tmp_path / "contours.gpkg")
+    ridge = gpd.GeoDataFrame(geometry=[shapely.LineString([(X0 + 5, Y0 + 60, 301.0),
+                                                           (X0 + 95, Y0 + 60, 319.0)])],
+                             crs="EPSG:3003")
+    ridge.to_file(tmp_path / "bl.gpkg")
+    out = toolbox.run("dem:tin_linear", {"INPUT": tmp_path / "pts.gpkg",
+                                         "LINES": tmp_path / "contours.gpkg",
+                                         "LINES_Z_FIELD": "elev",
+                                         "BREAKLINES": tmp_path / "bl.gpkg", "CELL_SIZE": 2,
+                                         "OUTPUT": tmp_path / "dem.tif"})
+    stats = out["STATISTICS"]
+    assert stats["inputs"] == {"points": 200, "lines_vertices": 6, "breaklines_vertices": 2}
+    # LINES give points only: the breakline crossing the middle contour is no constraint crossing
+    assert stats["method"]["crossings"] == 0 and stats["breakline_segments"] == 1
+    with rasterio.open(tmp_path / "dem.tif") as src:
+        z = src.read(1, masked=True)
+        t = src.transform
+    gx = t.c + (np.arange(z.shape[1]) + 0.5) * t.a
+    assert z.count() == 50 * 50
+    assert np.abs(z - (300 + 0.2 * (gx[None, :] - X0))).max() < 1e-3

@@ -1,0 +1,208 @@
+"""Run independent tile tasks on local threads or on a Dask distributed cluster.
+
+Raster algorithms that work window by window (DEM gridding, orthophotos...) build one small,
+picklable task per output window and hand them to :func:`map_tiles` with a module-level
+function. Results come back **in task order**, so the caller writes windows in a fixed order and
+the output file is the same byte for byte whichever executor computed the tiles. At most
+``prefetch`` tasks are in flight, so memory stays bounded however many tiles there are.
+
+Executors
+---------
+- local threads (default): a :class:`concurrent.futures.ThreadPoolExecutor`; kernels should
+  release the GIL (numpy, scipy, numba ``nogil=True``) to use every core;
+- a Dask distributed scheduler, when an address is given (``tcp://host:8786``) or set in the
+  standard Dask configuration (environment variable ``DASK_SCHEDULER_ADDRESS``). The toolbox must
+  be installed on the workers (they import the task function by name).
+
+Example
+-------
+>>> from toolbox.tiles import map_tiles
+>>> list(map_tiles(abs, [-1, -2, 3], workers=2))
+[1, 2, 3]
+"""
+
+from __future__ import annotations
+
+import os
+from collections import deque
+from collections.abc import Callable, Iterable, Iterator
+from dataclasses import dataclass
+from typing import Any, TypeVar
+
+from toolbox.errors import ParameterError
+
+T = TypeVar("T")
+R = TypeVar("R")
+
+SCHEDULER_ENV = "DASK_SCHEDULER_ADDRESS"
+
+
+@dataclass(frozen=True)
+class Executor:
+    """Where tiles run: ``kind`` is ``"local"`` (threads) or ``"dask"`` (scheduler ``address``)."""
+
+    kind: str
+    workers: int
+    address: str | None = None
+
+    def describe(self) -> str:
+        if self.kind == "dask":
+            return f"dask scheduler {self.address}"
+        return f"local threads ({self.workers})"
+
+
+def default_workers() -> int:
+    """Number of local threads: the CPUs this process may use."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # pragma: no cover - not Linux
+        return max(1, os.cpu_count() or 1)
+
+
+def scheduler_address(value: str | None = None) -> str | None:
+    """The Dask scheduler to use: ``value`` when given, else Dask's configured
+    ``scheduler-address`` (environment variable ``DASK_SCHEDULER_ADDRESS``), else ``None``
+    (local threads). ``"local"`` forces local threads even when the variable is set."""
+    if value is not None and str(value).strip():
+        text = str(value).strip()
+        return None if text.lower() in ("local", "threads", "none") else text
+    env = os.environ.get(SCHEDULER_ENV, "").strip()
+    if env:
+        return env
+    try:
+        import dask
+
+        configured = dask.config.get("scheduler-address", default=None)
+    except ImportError:  # pragma: no cover - dask is a dependency
+        configured = None
+    return str(configured) if configured else None
+
+
+def resolve_executor(scheduler: str | None = None, workers: int | None = None,
+                     name: str = "SCHEDULER") -> Executor:
+    """Decide the executor from the user's parameters (see :func:`scheduler_address`).
+
+    Raises :class:`ParameterError` naming ``name`` when the address is not a Dask address.
+    """
+    address = scheduler_address(scheduler)
+    if address is None:
+        return Executor("local", workers or default_workers())
+    if "://" not in address and ":" not in address:
+        raise ParameterError(name, f"must be a Dask scheduler address such as "
+                             f"tcp://host:8786, got {address!r}")
+    return Executor("dask", workers or 0, address)
+
+
+def map_tiles(func: Callable[[T], R], tasks: Iterable[T], *, executor: Executor | None = None,
+              scheduler: str | None = None, workers: int | None = None,
+              prefetch: int | None = None, feedback: Any = None,
+              total: int | None = None, start: float = 0.0, end: float = 100.0) -> Iterator[R]:
+    """Yield ``func(task)`` for every task, in task order.
+
+    Parameters
+    ----------
+    func : callable
+        A module-level function (picklable by reference); pure: same task, same result.
+    tasks : iterable
+        Picklable task objects; consumed lazily, at most ``prefetch`` ahead of the results.
+    executor : Executor, optional
+        From :func:`resolve_executor`; else built from ``scheduler`` and ``workers``.
+    prefetch : int, optional
+        Tasks in flight (default: twice the workers, at least 4).
+    feedback : toolbox.feedback.Feedback, optional
+        Progress goes from ``start`` to ``end`` percent over ``total`` tasks; cancellation is
+        checked before every submission and result (pending tasks are then cancelled).
+    """
+    executor = executor or resolve_executor(scheduler, workers)
+    if executor.kind == "dask":
+        yield from _map_dask(func, tasks, executor, prefetch, feedback, total, start, end)
+    else:
+        yield from _map_local(func, tasks, executor.workers, prefetch, feedback, total, start, end)
+
+
+def _progress(feedback: Any, done: int, total: int | None, start: float, end: float) -> None:
+    if feedback is not None and total:
+        feedback.set_progress(start + (end - start) * done / total)
+
+
+def _check(feedback: Any) -> None:
+    if feedback is not None:
+        feedback.check_canceled()
+
+
+def _map_local(func, tasks, workers, prefetch, feedback, total, start, end) -> Iterator:
+    if workers <= 1:
+        for done, task in enumerate(tasks, start=1):
+            _check(feedback)
+            result = func(task)
+            _progress(feedback, done, total, start, end)
+            yield result
+        return
+    from concurrent.futures import ThreadPoolExecutor
+
+    limit = prefetch or max(4, 2 * workers)
+    pending: deque = deque()
+    done = 0
+    pool = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="tile")
+    try:
+        iterator = iter(tasks)
+        exhausted = False
+        while True:
+            while not exhausted and len(pending) < limit:
+                _check(feedback)
+                try:
+                    task = next(iterator)
+                except StopIteration:
+                    exhausted = True
+                    break
+                pending.append(pool.submit(func, task))
+            if not pending:
+                break
+            result = pending.popleft().result()
+            done += 1
+            _check(feedback)
+            _progress(feedback, done, total, start, end)
+            yield result
+    finally:
+        for future in pending:
+            future.cancel()
+        pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _map_dask(func, tasks, executor, prefetch, feedback, total, start, end) -> Iterator:
+    from distributed import Client
+
+    try:
+        client = Client(executor.address, set_as_default=False)  # Dask's connect timeout
+    except (OSError, TimeoutError) as exc:
+        raise ParameterError("SCHEDULER", f"cannot connect to the Dask scheduler "
+                             f"{executor.address!r}: {exc}") from None
+    pending: deque = deque()
+    try:
+        cores = sum(client.nthreads().values()) or 1
+        limit = prefetch or max(4, 2 * cores)
+        iterator = iter(tasks)
+        exhausted = False
+        done = 0
+        while True:
+            while not exhausted and len(pending) < limit:
+                _check(feedback)
+                try:
+                    task = next(iterator)
+                except StopIteration:
+                    exhausted = True
+                    break
+                pending.append(client.submit(func, task, pure=False))
+            if not pending:
+                break
+            future = pending.popleft()
+            result = future.result()
+            future.release()
+            done += 1
+            _check(feedback)
+            _progress(feedback, done, total, start, end)
+            yield result
+    finally:
+        for future in pending:
+            future.cancel()
+        client.close()
