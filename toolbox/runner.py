@@ -89,9 +89,9 @@ def run(algorithm_id: str, parameters: dict[str, Any] | None = None,
         report_path = Path(report).expanduser()
         for dest_value in values.values():
             if isinstance(dest_value, Path) and dest_value.absolute() == report_path.absolute():
-                raise ParameterError("REPORT", f"'{report}' is also an output path")
+                raise ParameterError("run report", f"'{report}' is also an output path")
         if report_path.exists() and not overwrite:
-            raise ParameterError("REPORT", f"'{report}' exists; pass --overwrite to replace it")
+            raise ParameterError("run report", f"'{report}' exists; pass --overwrite to replace it")
     staged = dict(values)
     for dest in alg_cls.destinations():
         if values[dest.name] is not None:

@@ -28,7 +28,7 @@ def test_help_text_and_json():
 def test_run_prints_outputs_as_json(plane_dem, tmp_path):
     out = tmp_path / "hs.tif"
     proc = run_cli("run", "raster:hillshade", "--INPUT", plane_dem[0], f"--OUTPUT={out}",
-                   "--ALTITUDE", "30", "--report", tmp_path / "r.json")
+                   "--ALTITUDE", "30", "--run-report", tmp_path / "r.json")
     assert proc.returncode == 0, proc.stderr
     assert json.loads(proc.stdout) == {"OUTPUT": str(out)}
     assert json.loads((tmp_path / "r.json").read_text())["parameters"]["ALTITUDE"] == 30

@@ -103,7 +103,7 @@ def format_help(alg) -> str:
     lines += ["", "Outputs:"]
     for o in alg.spec()["outputs"]:
         lines.append(f"  {o['name']} ({o['type']}): {o['description']}")
-    lines += ["", "Common options: --overwrite (replace outputs), --report FILE.json, --quiet"]
+    lines += ["", "Common options: --overwrite (replace outputs), --run-report FILE.json, --quiet"]
     return "\n".join(lines)
 
 
@@ -150,7 +150,8 @@ def parse_parameter_args(tokens: list[str]) -> dict[str, Any]:
                                        "allow_extra_args": True, "help_option_names": []})
 @click.argument("algorithm_id")
 @click.option("--overwrite", is_flag=True, help="Replace existing outputs.")
-@click.option("--report", type=click.Path(dir_okay=False), help="Write a JSON run report.")
+@click.option("--run-report", "report", type=click.Path(dir_okay=False),
+              help="Write a JSON run report (parameters, outputs, statistics, versions, timings).")
 @click.option("--help", "show_help", is_flag=True, help="Show the algorithm's help.")
 @click.argument("args", nargs=-1, type=click.UNPROCESSED)
 @click.pass_context

@@ -273,7 +273,7 @@ def test_cli_run_reports_merged_duplicates(data, tmp_path):
     proc = subprocess.run(
         [sys.executable, "-m", "toolbox.cli", "run", "tin:delaunay", "--INPUT",
          str(tmp_path / "dups.gpkg"), "--DUPLICATES", "max", "--HULL", "concave", "--OUTPUT",
-         str(tmp_path / "dups_tin.gpkg"), "--report", str(report)],
+         str(tmp_path / "dups_tin.gpkg"), "--run-report", str(report)],
         capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr
     run = json.loads(report.read_text())
