@@ -19,11 +19,7 @@ Writes the markdown table to bench/results/dem.md.
 from __future__ import annotations
 
 import argparse
-import datetime as dt
 import json
-import os
-import platform
-import resource
 import shutil
 import subprocess
 import sys
@@ -32,6 +28,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from benchlib import load_note, machine_facts, peak_rss_mb, run_measured
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
@@ -113,7 +110,7 @@ def run_case(name: str, work: Path, n_points: int) -> dict:
         if big:
             facts["megabytes"] = round((work / f"{name}.tif").stat().st_size / 2**20)
             (work / f"{name}.tif").unlink()
-    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+    peak = peak_rss_mb()
     return {"seconds": seconds, "peak_mb": peak, **facts}
 
 
@@ -162,13 +159,10 @@ def measure_gdal_grid(label: str, algorithm: str, work: Path, n_points: int) -> 
            "-txe", str(X0), str(X0 + SIZE), "-tye", str(Y0 + SIZE), str(Y0),
            "-outsize", str(width), str(width), "-ot", "Float32", "-l", "points",
            str(work / "points.gpkg"), str(out)]
-    t0 = time.perf_counter()
-    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
-    _, status, usage = os.wait4(proc.pid, 0)
-    seconds = time.perf_counter() - t0
+    seconds, peak_mb, status, stderr = run_measured(cmd)
     if status != 0:
-        raise RuntimeError(f"gdal_grid failed: {proc.stderr.read().decode()[-2000:]}")
-    result = {"seconds": seconds, "peak_mb": usage.ru_maxrss / 1024.0}
+        raise RuntimeError(f"gdal_grid failed: {stderr[-2000:]}")
+    result = {"seconds": seconds, "peak_mb": peak_mb}
     print(f"  gdal_grid {label:<14} {seconds:8.2f} s  {result['peak_mb']:8.0f} MB", flush=True)
     return result
 
@@ -199,21 +193,14 @@ def machine() -> str:
 
     gdal = subprocess.run(["gdal_grid", "--version"], capture_output=True, text=True).stdout.strip() \
         if shutil.which("gdal_grid") else "gdal_grid not installed"
-    cpu = platform.machine()
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    return (f"{dt.date.today().isoformat()}, nproc {os.cpu_count()} ({cpu}), Python "
-            f"{platform.python_version()}, numpy {np.__version__}, numba {numba.__version__}, "
-            f"scipy {version('scipy')}, dask {version('dask')}, rasterio {rasterio.__version__} "
-            f"(GDAL {rasterio.__gdal_version__}); gdal_grid: {gdal}")
+    return machine_facts(f"numba {numba.__version__}", f"scipy {version('scipy')}",
+                         f"dask {version('dask')}",
+                         f"rasterio {rasterio.__version__} (GDAL {rasterio.__gdal_version__})",
+                         f"gdal_grid: {gdal}")
 
 
 def main(small: bool = False, big: bool = True) -> str:
+    load = load_note()
     n_points = 100_000 if small else 1_000_000
     width, cell = grid_shape(n_points)
     work = Path(tempfile.mkdtemp(prefix="dem_bench_"))
@@ -238,7 +225,7 @@ def main(small: bool = False, big: bool = True) -> str:
         big_result = measure("big_nearest", work, n_points) if big else None
     finally:
         shutil.rmtree(work, ignore_errors=True)
-    text = table(r, gdal, acc, big_result, n_points, width, cell)
+    text = table(r, gdal, acc, big_result, n_points, width, cell, load)
     if not small:
         (HERE / "results").mkdir(exist_ok=True)
         (HERE / "results" / "dem.md").write_text(text)
@@ -247,7 +234,7 @@ def main(small: bool = False, big: bool = True) -> str:
 
 
 def table(r: dict, gdal: dict, acc: dict, big: dict | None, n_points: int, width: int,
-          cell: float) -> str:
+          cell: float, load: str) -> str:
     cells = width * width
 
     def line(what, ours_key, peer_label, peer, peer_acc_key):
@@ -302,8 +289,7 @@ def table(r: dict, gdal: dict, acc: dict, big: dict | None, n_points: int, width
             "memory). The 2000 x 2000 runs peak at the same level: memory does not grow with "
             "the output size (dem:tin_linear's does grow with the number of points, its TIN "
             "being built whole).")
-    lines += ["", f"Machine: {machine()}. The machine was shared with other jobs during this "
-              "run: times are indicative.", ""]
+    lines += ["", f"Machine: {machine()}; {load}.", ""]
     return "\n".join(lines)
 
 

@@ -25,14 +25,12 @@ Results go to bench/results/orientation.md.
 from __future__ import annotations
 
 import argparse
-import datetime as dt
-import os
-import platform
 import sys
 import time
 from pathlib import Path
 
 import numpy as np
+from benchlib import load_note, machine_facts
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))
@@ -119,17 +117,8 @@ def machine() -> str:
     import cv2
     import numba
 
-    cpu = platform.machine()
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    return (f"{dt.date.today().isoformat()}, {os.cpu_count()} cores ({cpu}), Python "
-            f"{platform.python_version()}, numpy {np.__version__}, numba {numba.__version__} "
-            f"(threading layer {numba.threading_layer()}), OpenCV {cv2.__version__}")
+    return machine_facts(f"numba {numba.__version__} (threading layer "
+                         f"{numba.threading_layer()})", f"OpenCV {cv2.__version__}")
 
 
 def main(argv: list[str] | None = None) -> str:
@@ -142,6 +131,7 @@ def main(argv: list[str] | None = None) -> str:
     from algorithms.orientation.surface import DemSurface
     from toolbox.demo.samples.terrain import terrain
 
+    load = load_note()
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--points", type=int, default=8_000_000)
     parser.add_argument("--repeat", type=int, default=3)
@@ -238,7 +228,7 @@ def main(argv: list[str] | None = None) -> str:
 
     # -- report -------------------------------------------------------------------------------------
     lines = ["## Orientation (issue 3): collinearity kernels", "",
-             f"Machine: {machine()}.", "",
+             f"Machine: {machine()}; {load}.", "",
              f"Workload: a Siena-like photo (c = {C} mm, omega/phi/kappa {ANGLES} rad), random "
              f"ground points 287-343 m below it; best of {args.repeat} runs after a warm-up.", "",
              "| kernel | implementation | points | seconds | Mpoints/s | ratio to toolbox |",

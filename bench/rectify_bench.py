@@ -21,9 +21,7 @@ Run standalone: ``.venv/bin/python bench/rectify_bench.py [--no-big] [--keep]``.
 from __future__ import annotations
 
 import argparse
-import datetime as dt
 import os
-import platform
 import shutil
 import subprocess
 import sys
@@ -33,6 +31,7 @@ import warnings
 from pathlib import Path
 
 import numpy as np
+from benchlib import load_note, machine_facts
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
@@ -350,19 +349,17 @@ def bench_big(folder: Path) -> dict:
 
 
 # -- report -------------------------------------------------------------------------------------
-def machine_facts() -> list[str]:
+def machine_lines(load) -> list[str]:
     import cv2
     import rasterio
     import skimage
 
-    return [f"- date: {dt.datetime.now().isoformat(timespec='minutes')}",
-            f"- machine: {platform.machine()}, {os.cpu_count()} CPUs (nproc "
-            f"{len(os.sched_getaffinity(0))}), Python {platform.python_version()}, "
-            f"{platform.platform()}",
-            f"- numpy {np.__version__}, OpenCV {cv2.__version__} ({cv2.getNumThreads()} threads), "
-            f"rasterio {rasterio.__version__} / GDAL {rasterio.__gdal_version__}, "
-            f"scikit-image {skimage.__version__}",
-            "- the machine was shared with other jobs while this ran: timings are noisy"]
+    return [f"- machine: {machine_facts()}",
+            f"- OpenCV {cv2.__version__} ({cv2.getNumThreads()} threads), rasterio "
+            f"{rasterio.__version__} / GDAL {rasterio.__gdal_version__}, scikit-image "
+            f"{skimage.__version__}",
+            f"- {load_note(load)}; OPENBLAS_NUM_THREADS="
+            f"{os.environ.get('OPENBLAS_NUM_THREADS', 'unset')}"]
 
 
 def fmt(seconds: float | None) -> str:
@@ -405,9 +402,7 @@ def main(argv: list[str] | None = None) -> str:
         big = None if args.no_big else bench_big(folder)
     finally:
         shutil.rmtree(folder, ignore_errors=True)
-    lines = ["# Rectification benchmark", "", *machine_facts(),
-             f"- load average at start: {load[0]:.1f} (1 min), {load[1]:.1f} (5 min); "
-             f"OPENBLAS_NUM_THREADS={os.environ.get('OPENBLAS_NUM_THREADS', 'unset')}", "",
+    lines = ["## Rectification (issue 4): estimation and warping", "", *machine_lines(load), "",
              "| case | ours | peer | peer time | ratio (ours / peer) | notes |",
              "|---|---|---|---|---|---|"]
     for r in rows:
@@ -416,7 +411,7 @@ def main(argv: list[str] | None = None) -> str:
                      f"{ratio} | {r['extra']} |")
     lines.append("")
     if big is not None:
-        lines += ["## 16644 x 16644 RGB scan (bounded memory)", "",
+        lines += ["### 16644 x 16644 RGB scan (bounded memory)", "",
                   "| input | output | wall time | peak RSS (VmHWM) | peak RSS (polled, 20 Hz) | "
                   "target |", "|---|---|---|---|---|---|",
                   f"| {16644} x {16644} RGB tiled GeoTIFF, {big['input_mb']:.0f} MB on disk "

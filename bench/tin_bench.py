@@ -5,7 +5,7 @@
     .venv/bin/python bench/tin_bench.py --small    # quick check (100,000 points, 632 x 632)
 
 Every measurement runs in its own subprocess (this script with ``--case``), so its peak memory
-(``ru_maxrss``) is its own; timings exclude interpreter start-up and loading the input arrays.
+(``VmHWM``) is its own; timings exclude interpreter start-up and loading the input arrays.
 Data: uniform random points over 10 km x 10 km at the Siena coordinates (EPSG:3003) on a smooth
 analytic surface, and 500 non-crossing zig-zag breaklines of 100 vertices each.
 Writes the markdown table to bench/results/tin.md.
@@ -14,11 +14,7 @@ Writes the markdown table to bench/results/tin.md.
 from __future__ import annotations
 
 import argparse
-import datetime as dt
 import json
-import os
-import platform
-import resource
 import shutil
 import subprocess
 import sys
@@ -27,6 +23,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from benchlib import load_note, machine_facts, peak_rss_mb, run_measured
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
@@ -154,7 +151,7 @@ def run_case(name: str, work: Path, n_points: int) -> dict:
         seconds = time.perf_counter() - t0
     else:
         raise ValueError(f"unknown case {name}")
-    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+    peak = peak_rss_mb()
     return {"seconds": seconds, "peak_mb": peak, **facts}
 
 
@@ -191,13 +188,10 @@ def measure_gdal_grid(work: Path, n_points: int) -> dict | None:
     cmd = [exe, "-q", "-a", "linear:nodata=-9999", "-txe", str(X0), str(X0 + SIZE),
            "-tye", str(Y0 + SIZE), str(Y0), "-outsize", str(width), str(width), "-ot", "Float32",
            "-l", "points", str(work / "points.gpkg"), str(out)]
-    t0 = time.perf_counter()
-    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
-    _, status, usage = os.wait4(proc.pid, 0)
-    seconds = time.perf_counter() - t0
+    seconds, peak_mb, status, stderr = run_measured(cmd)
     if status != 0:
-        raise RuntimeError(f"gdal_grid failed: {proc.stderr.read().decode()[-2000:]}")
-    result = {"seconds": seconds, "peak_mb": usage.ru_maxrss / 1024.0}
+        raise RuntimeError(f"gdal_grid failed: {stderr[-2000:]}")
+    result = {"seconds": seconds, "peak_mb": peak_mb}
     print(f"  {'gdal_grid -a linear':<26} {seconds:8.2f} s  {result['peak_mb']:8.0f} MB",
           flush=True)
     return result
@@ -221,13 +215,13 @@ def machine() -> str:
 
     import numba
     import pyogrio
+
     gdal = subprocess.run(["gdal_grid", "--version"], capture_output=True, text=True).stdout.strip() \
         if shutil.which("gdal_grid") else "gdal_grid not installed"
-    return (f"{dt.date.today().isoformat()}, nproc {os.cpu_count()}, Python "
-            f"{platform.python_version()}, numpy {np.__version__}, numba {numba.__version__}, "
-            f"triangle {version('triangle')}, scipy {version('scipy')}, pyogrio "
-            f"{pyogrio.__version__} (GDAL {pyogrio.__gdal_version_string__}), "
-            f"pyarrow {_version_or_none('pyarrow')}; {gdal}")
+    return machine_facts(f"numba {numba.__version__}", f"triangle {version('triangle')}",
+                         f"scipy {version('scipy')}",
+                         f"pyogrio {pyogrio.__version__} (GDAL {pyogrio.__gdal_version_string__})",
+                         f"pyarrow {_version_or_none('pyarrow')}", gdal)
 
 
 def _version_or_none(name: str) -> str:
@@ -240,6 +234,7 @@ def _version_or_none(name: str) -> str:
 
 
 def main(small: bool = False) -> str:
+    load = load_note()
     n_points = 100_000 if small else 1_000_000
     work = Path(tempfile.mkdtemp(prefix="tin_bench_"))
     try:
@@ -257,7 +252,7 @@ def main(small: bool = False) -> str:
     finally:
         shutil.rmtree(work, ignore_errors=True)
     width, _ = _grid(n_points)
-    text = table(r, gdal, n_points, width, max_diff)
+    text = table(r, gdal, n_points, width, max_diff, load)
     if not small:
         (HERE / "results").mkdir(exist_ok=True)
         (HERE / "results" / "tin.md").write_text(text)
@@ -265,7 +260,8 @@ def main(small: bool = False) -> str:
     return text
 
 
-def table(r: dict, gdal: dict | None, n_points: int, width: int, max_diff: float | None) -> str:
+def table(r: dict, gdal: dict | None, n_points: int, width: int, max_diff: float | None,
+          load: str) -> str:
     def row(step, ours, peer_name, peer):
         ratio = f"{ours['seconds'] / peer['seconds']:.2f}" if peer else "-"
         peer_text = f"{peer_name}: {peer['seconds']:.2f} s, {peer['peak_mb']:.0f} MB" if peer \
@@ -307,7 +303,7 @@ def table(r: dict, gdal: dict | None, n_points: int, width: int, max_diff: float
     if max_diff is not None:
         lines.append(f"tin:to_raster vs gdal_grid -a linear, largest |difference| where both "
                      f"have data: {max_diff:.3g} (float32 output).")
-    lines += ["", f"Machine: {machine()}.", ""]
+    lines += ["", f"Machine: {machine()}; {load}.", ""]
     return "\n".join(lines)
 
 

@@ -25,9 +25,6 @@ bench/results/topology.md.
 from __future__ import annotations
 
 import argparse
-import datetime as dt
-import os
-import platform
 import shutil
 import subprocess
 import sys
@@ -36,6 +33,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from benchlib import load_note, machine_facts
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))
@@ -203,19 +201,8 @@ def run_grass(lines_path: Path) -> dict | None:
 def machine() -> str:
     import shapely
 
-    cpu = platform.machine()
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    load = ", ".join(f"{v:.1f}" for v in os.getloadavg())
-    return (f"{dt.date.today().isoformat()}, {os.cpu_count()} cores ({cpu}), Python "
-            f"{platform.python_version()}, numpy {np.__version__}, shapely {shapely.__version__} "
-            f"(GEOS {'.'.join(map(str, shapely.geos_version))}); load average at start {load} "
-            "(other work on the machine makes timings noisy)")
+    return machine_facts(f"shapely {shapely.__version__} (GEOS "
+                         f"{'.'.join(map(str, shapely.geos_version))})") + f"; {load_note()}"
 
 
 def main(argv: list[str] | None = None) -> str:

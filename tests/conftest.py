@@ -54,3 +54,19 @@ def run_cli(*args, cwd=None):
 
     return subprocess.run([sys.executable, "-m", "toolbox.cli", *map(str, args)],
                           capture_output=True, text=True, cwd=cwd, timeout=300)
+
+
+def siena_interior_cases() -> list[tuple[tuple[str, str], list[dict], dict]]:
+    """Per (photo, source) of the Siena fiducials.csv (the Figure-42 table left out): the four
+    mark rows and the printed interior-orientation report row (interior_reports.csv)."""
+    import csv
+    from collections import defaultdict
+
+    groups: dict[tuple[str, str], list[dict]] = defaultdict(list)
+    with open(SIENA / "fiducials.csv") as f:
+        for row in csv.DictReader(f):
+            if row["source"] != "fig42_table":
+                groups[(row["photo"], row["source"])].append(row)
+    with open(SIENA / "interior_reports.csv") as f:
+        reports = {(r["photo"], r["source"]): r for r in csv.DictReader(f)}
+    return [(key, rows, reports[key]) for key, rows in sorted(groups.items())]

@@ -41,7 +41,7 @@ def constrained_tin(xyz: np.ndarray, segments: np.ndarray | None
     info : dict
         ``crossings`` (count) and ``crossing_z_disagreement`` (m).
     """
-    from algorithms.tin.kernels import triangulate, triangulate_pslg
+    from algorithms.tin.kernels import crossing_heights, triangulate, triangulate_pslg
 
     seg = segments if segments is not None and len(segments) else None
     try:
@@ -50,26 +50,10 @@ def constrained_tin(xyz: np.ndarray, segments: np.ndarray | None
         if seg is None or "cross" not in str(exc):
             raise
     tri = triangulate_pslg(xyz[:, :2], seg, neighbors=False)
-    n, extra = tri.n_input, tri.steiner_count
-    keep = tri.segment_parents >= 0
-    sub, parent = tri.segments[keep], tri.segment_parents[keep]
-    ends = np.concatenate([sub[:, 0], sub[:, 1]]).astype(np.int64)
-    parents = np.concatenate([parent, parent])
-    added = ends >= n
-    vertex, parents = ends[added] - n, parents[added]
-    a, b = xyz[seg[parents, 0]], xyz[seg[parents, 1]]
-    d = b[:, :2] - a[:, :2]
-    t = np.einsum("ij,ij->i", tri.vertices[n + vertex] - a[:, :2], d) / np.einsum("ij,ij->i", d, d)
-    z = a[:, 2] + np.clip(t, 0.0, 1.0) * (b[:, 2] - a[:, 2])
-    count = np.maximum(np.bincount(vertex, minlength=extra), 1)
-    heights = np.bincount(vertex, weights=z, minlength=extra) / count
-    zmin = np.full(extra, np.inf)
-    zmax = np.full(extra, -np.inf)
-    np.minimum.at(zmin, vertex, z)
-    np.maximum.at(zmax, vertex, z)
-    nodes = np.vstack([xyz, np.column_stack([tri.vertices[n:], heights])])
+    heights, spread = crossing_heights(tri, xyz, seg)
+    nodes = np.vstack([xyz, np.column_stack([tri.vertices[tri.n_input:], heights])])
     return nodes, tri.triangles.astype(np.int64), {
-        "crossings": int(extra), "crossing_z_disagreement": float((zmax - zmin).max())}
+        "crossings": tri.steiner_count, "crossing_z_disagreement": float(spread.max())}
 
 
 def tin_tile(task: TileTask) -> tuple[np.ndarray, None]:

@@ -11,6 +11,7 @@ from pathlib import Path
 from typing import Any
 
 from toolbox.errors import InputDataError
+from toolbox.io.text import read_text
 
 
 def read_csv_table(path: Path, name: str = "INPUT") -> tuple[list[str], list[dict[str, str]]]:
@@ -19,14 +20,7 @@ def read_csv_table(path: Path, name: str = "INPUT") -> tuple[list[str], list[dic
     Lines starting with ``#`` are comments. Header names are kept as written; use
     :func:`column` to find one case-insensitively.
     """
-    try:
-        raw = Path(path).read_bytes()
-    except OSError as exc:
-        raise InputDataError(f"{name}: cannot read {path}: {exc.strerror}") from None
-    try:
-        text = raw.decode("utf-8-sig")
-    except UnicodeDecodeError:
-        text = raw.decode("latin-1")
+    text = read_text(path, name)
     lines = [ln for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
     if not lines:
         raise InputDataError(f"{name}: {path} holds no rows")

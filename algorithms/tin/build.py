@@ -23,7 +23,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from algorithms.common.points import merge_duplicate_xy
-from algorithms.tin.kernels import Triangulation, interpolate_tin, triangulate_pslg
+from algorithms.tin.kernels import (
+    Triangulation,
+    crossing_heights,
+    interpolate_tin,
+    triangulate_pslg,
+)
 from algorithms.tin.topology import erode_concave, median_edge_length
 
 SOURCES = ("point", "breakline", "crossing", "boundary")
@@ -131,42 +136,6 @@ def _group_labels(xyz: np.ndarray, merged: np.ndarray, keep: np.ndarray,
     return order[np.minimum(pos, len(order) - 1)]
 
 
-def _steiner_heights(tri: Triangulation, seg_xyz: np.ndarray, seg_nodes: np.ndarray,
-                     priority: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Z of the vertices Triangle added at segment crossings, interpolated along each parent
-    segment; among parents, those with the highest ``priority`` count (mean of them).
-
-    Returns the heights (one per added vertex) and the disagreement between parents of the same
-    priority (max - min of their heights there).
-    """
-    n, extra = tri.n_input, tri.steiner_count
-    sub = tri.segments[tri.segment_parents >= 0]
-    parent = tri.segment_parents[tri.segment_parents >= 0]
-    ends = np.concatenate([sub[:, 0], sub[:, 1]])
-    parents = np.concatenate([parent, parent])
-    sel = ends >= n
-    vertex, parents = ends[sel] - n, parents[sel]
-    a = seg_xyz[seg_nodes[parents, 0]]
-    b = seg_xyz[seg_nodes[parents, 1]]
-    p = tri.vertices[n + vertex]
-    d = b[:, :2] - a[:, :2]
-    t = np.clip(np.einsum("ij,ij->i", p - a[:, :2], d) / np.einsum("ij,ij->i", d, d), 0.0, 1.0)
-    z = a[:, 2] + t * (b[:, 2] - a[:, 2])
-    prio = priority[parents]
-    best = np.full(extra, -np.inf)
-    np.maximum.at(best, vertex, prio)
-    top = prio == best[vertex]
-    count = np.bincount(vertex[top], minlength=extra)
-    if np.any(count == 0):
-        raise TinBuildError("internal: a crossing vertex lies on no input segment")
-    heights = np.bincount(vertex[top], weights=z[top], minlength=extra) / count
-    zmin = np.full(extra, np.inf)
-    zmax = np.full(extra, -np.inf)
-    np.minimum.at(zmin, vertex[top], z[top])
-    np.maximum.at(zmax, vertex[top], z[top])
-    return heights, zmax - zmin
-
-
 def _triangulate(xyz: np.ndarray, segments: np.ndarray, priority: np.ndarray
                  ) -> tuple[Triangulation, np.ndarray, np.ndarray]:
     """Constrained triangulation; returns it, all node heights (inputs + crossings) and, per
@@ -178,7 +147,7 @@ def _triangulate(xyz: np.ndarray, segments: np.ndarray, priority: np.ndarray
     z = xyz[:, 2]
     spread = np.zeros(len(tri.vertices))
     if tri.steiner_count:
-        extra, spread[tri.n_input:] = _steiner_heights(tri, xyz, segments, priority)
+        extra, spread[tri.n_input:] = crossing_heights(tri, xyz, segments, priority)
         z = np.concatenate([z, extra])
     return tri, z, spread
 

@@ -174,6 +174,43 @@ def triangulate_pslg(xy: np.ndarray, segments: np.ndarray | None = None,
     return Triangulation(vertices, triangles, nb, out_seg, parents, n)
 
 
+def crossing_heights(tri: Triangulation, seg_xyz: np.ndarray, seg_nodes: np.ndarray,
+                     priority: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Z of the vertices Triangle added at segment crossings, interpolated along each parent
+    segment; among parents, those with the highest ``priority`` count (mean of them; all
+    parents when ``priority`` is None).
+
+    Returns the heights (one per added vertex) and the disagreement between parents of the same
+    priority (max - min of their heights there).
+    """
+    n, extra = tri.n_input, tri.steiner_count
+    sub = tri.segments[tri.segment_parents >= 0]
+    parent = tri.segment_parents[tri.segment_parents >= 0]
+    ends = np.concatenate([sub[:, 0], sub[:, 1]])
+    parents = np.concatenate([parent, parent])
+    sel = ends >= n
+    vertex, parents = ends[sel] - n, parents[sel]
+    a = seg_xyz[seg_nodes[parents, 0]]
+    b = seg_xyz[seg_nodes[parents, 1]]
+    p = tri.vertices[n + vertex]
+    d = b[:, :2] - a[:, :2]
+    t = np.clip(np.einsum("ij,ij->i", p - a[:, :2], d) / np.einsum("ij,ij->i", d, d), 0.0, 1.0)
+    z = a[:, 2] + t * (b[:, 2] - a[:, 2])
+    prio = np.zeros(len(parents)) if priority is None else priority[parents]
+    best = np.full(extra, -np.inf)
+    np.maximum.at(best, vertex, prio)
+    top = prio == best[vertex]
+    count = np.bincount(vertex[top], minlength=extra)
+    if np.any(count == 0):
+        raise ValueError("internal: a crossing vertex lies on no input segment")
+    heights = np.bincount(vertex[top], weights=z[top], minlength=extra) / count
+    zmin = np.full(extra, np.inf)
+    zmax = np.full(extra, -np.inf)
+    np.minimum.at(zmin, vertex[top], z[top])
+    np.maximum.at(zmax, vertex[top], z[top])
+    return heights, zmax - zmin
+
+
 def triangulate(xy: np.ndarray, segments: np.ndarray | None = None) -> np.ndarray:
     """Delaunay triangulation of points (constrained Delaunay when ``segments`` is given).
 

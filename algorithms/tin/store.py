@@ -31,6 +31,7 @@ import numpy as np
 from algorithms.tin.build import SOURCES, TinModel
 from algorithms.tin.topology import EdgeTable, edge_table, triangle_measures
 from toolbox.errors import InputDataError
+from toolbox.io.vector import staged_gpkg_writes
 
 _WKB_POINT_Z, _WKB_LINESTRING_Z, _WKB_POLYGON_Z = 1001, 1002, 1003
 BATCH = 1 << 19  # features per Arrow batch
@@ -90,8 +91,10 @@ def _write_layer(path: Path, name: str, columns: dict[str, tuple[np.ndarray, np.
         table = pa.Table.from_batches(batches, schema=schema)
         with warnings.catch_warnings():  # a TIN without CRS is the caller's (reported) choice
             warnings.filterwarnings("ignore", message="'crs' was not provided")
-            pyogrio.write_arrow(table, path, layer=name, driver="GPKG", geometry_name="geometry",
-                                geometry_type=geometry_type, crs=crs_text, layer_options=options)
+            with staged_gpkg_writes():
+                pyogrio.write_arrow(table, path, layer=name, driver="GPKG",
+                                    geometry_name="geometry", geometry_type=geometry_type,
+                                    crs=crs_text, layer_options=options)
         return
     from pyogrio.raw import write
 
@@ -100,9 +103,10 @@ def _write_layer(path: Path, name: str, columns: dict[str, tuple[np.ndarray, np.
     geometry = np.empty(n, dtype=object)
     geometry[:] = [flat[i * size:(i + 1) * size] for i in range(n)]
     names = list(columns)
-    write(path, geometry, [columns[k][0] for k in names], names,
-          field_mask=[columns[k][1] for k in names], layer=name, driver="GPKG",
-          geometry_type=geometry_type, crs=crs_text, layer_options=options)
+    with staged_gpkg_writes():
+        write(path, geometry, [columns[k][0] for k in names], names,
+              field_mask=[columns[k][1] for k in names], layer=name, driver="GPKG",
+              geometry_type=geometry_type, crs=crs_text, layer_options=options)
 
 
 def _ids(index: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:

@@ -44,6 +44,7 @@ from pathlib import Path
 from typing import Any
 
 from toolbox.errors import InputDataError
+from toolbox.io.text import read_text
 
 # canonical key -> (kind, names accepted; the first is the thesis' Italian name)
 KEYS: dict[str, tuple[str, tuple[str, ...]]] = {
@@ -177,14 +178,7 @@ def read_parameter_file(path: str | Path, name: str = "PARAMETERS") -> Parameter
     {'closure_tolerance': 0.5, 'decimals': 3}
     """
     path = Path(path)
-    try:
-        data = path.read_bytes()
-    except OSError as exc:
-        raise InputDataError(f"{name}: cannot read '{path}': {exc.strerror}") from None
-    try:
-        text = data.decode("utf-8-sig")
-    except UnicodeDecodeError:
-        text = data.decode("latin-1")
+    text = read_text(path, name)
     result = ParameterFile(path)
     for number, line in enumerate(text.splitlines(), start=1):
         content = line.split("#", 1)[0].strip()

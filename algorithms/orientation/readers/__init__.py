@@ -22,23 +22,12 @@ from algorithms.orientation.readers.text import (
 )
 from algorithms.orientation.readers.zmap_log import ZMapRun, parse_zmap_log, read_zmap_log
 from toolbox.errors import InputDataError, ParameterError
+from toolbox.io.text import read_text
 
 FORMATS = ("auto", "native", "pix4d", "metashape", "opk", "zmap_log")
 
 __all__ = ["FORMATS", "OrientationTable", "ZMapRun", "parse_zmap_log", "photo_id",
            "read_exterior_orientations", "read_zmap_log", "read_text"]
-
-
-def read_text(path: str | Path) -> str:
-    path = Path(path)
-    try:
-        raw = path.read_bytes()
-    except OSError as exc:
-        raise InputDataError(f"cannot read {path}: {exc.strerror}") from None
-    try:
-        return raw.decode("utf-8-sig")
-    except UnicodeDecodeError:
-        return raw.decode("latin-1")
 
 
 def read_exterior_orientations(path: str | Path, fmt: str = "auto", angle_unit: str | None = None,

@@ -42,6 +42,7 @@ from algorithms.orientation.exterior import ExteriorOrientation
 from algorithms.orientation.fiducials import InteriorOrientation, transformation_name
 from algorithms.orientation.rotation import angle_unit as canonical_unit
 from toolbox.errors import InputDataError
+from toolbox.io.text import read_text
 
 NUM = r"[-+]?\d+(?:\.\d*)?(?:[eE][-+]?\d+)?"
 _RE = {
@@ -328,16 +329,7 @@ def parse_zmap_log(text: str, source: str = "<text>", angle_unit: str = "rad",
 
 def read_zmap_log(path: str | Path, angle_unit: str = "rad", crs: Any = None) -> list[ZMapRun]:
     """Read a Z-Map adjustment log file (UTF-8, or Latin-1 as Windows software writes it)."""
-    path = Path(path)
-    try:
-        raw = path.read_bytes()
-    except OSError as exc:
-        raise InputDataError(f"cannot read {path}: {exc.strerror}") from None
-    try:
-        text = raw.decode("utf-8")
-    except UnicodeDecodeError:
-        text = raw.decode("latin-1")
-    return parse_zmap_log(text, str(path), angle_unit, crs)
+    return parse_zmap_log(read_text(path), str(path), angle_unit, crs)
 
 
 def looks_like_zmap_log(head: str) -> bool:

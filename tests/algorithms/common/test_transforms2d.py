@@ -1,16 +1,11 @@
 """Plane transforms: known matrices recovered, Siena interior orientations reproduced."""
 
-import csv
-from collections import defaultdict
-from pathlib import Path
-
 import numpy as np
 import pytest
+from conftest import siena_interior_cases
 
 from algorithms.common.transforms2d import AffineTransform, HomographyTransform, SimilarityTransform
 from toolbox.errors import InputDataError
-
-SIENA = Path(__file__).resolve().parents[3] / "toolbox" / "demo" / "data" / "siena"
 
 H_TRUE = np.array([[0.9, 0.12, 1500.0], [-0.08, 1.1, -320.0], [2e-5, -1e-5, 1.0]])
 
@@ -80,18 +75,7 @@ def test_three_of_four_collinear_refused():
         HomographyTransform.estimate(src, src * 2)
 
 
-def _siena_rows():
-    groups = defaultdict(list)
-    with open(SIENA / "fiducials.csv") as f:
-        for row in csv.DictReader(f):
-            if row["source"] != "fig42_table":
-                groups[(row["photo"], row["source"])].append(row)
-    with open(SIENA / "interior_reports.csv") as f:
-        reports = {(r["photo"], r["source"]): r for r in csv.DictReader(f)}
-    return [(key, rows, reports[key]) for key, rows in sorted(groups.items())]
-
-
-@pytest.mark.parametrize("key, rows, report", _siena_rows(), ids=lambda v: "_".join(v)
+@pytest.mark.parametrize("key, rows, report", siena_interior_cases(), ids=lambda v: "_".join(v)
                          if isinstance(v, tuple) else "")
 def test_siena_interior_orientation_reproduced(key, rows, report):
     """Every printed Pixel->Fiducial matrix, residual and 'Sigma globale' to print rounding."""

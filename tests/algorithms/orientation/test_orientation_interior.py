@@ -3,11 +3,11 @@ the orientation:interior algorithm end to end."""
 
 import csv
 import json
-from collections import defaultdict
 from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import siena_interior_cases
 
 import toolbox
 from algorithms.orientation.fiducials import InteriorOrientation
@@ -18,18 +18,7 @@ NOMINAL = {"01": (-106.0, 106.0), "02": (106.0, 106.0), "03": (106.0, -106.0),
            "04": (-106.0, -106.0)}
 
 
-def siena_groups():
-    groups = defaultdict(list)
-    with open(SIENA / "fiducials.csv") as f:
-        for row in csv.DictReader(f):
-            if row["source"] != "fig42_table":
-                groups[(row["photo"], row["source"])].append(row)
-    with open(SIENA / "interior_reports.csv") as f:
-        reports = {(r["photo"], r["source"]): r for r in csv.DictReader(f)}
-    return [(key, rows, reports[key]) for key, rows in sorted(groups.items())]
-
-
-@pytest.mark.parametrize("key, rows, report", siena_groups(), ids=lambda v: "_".join(v)
+@pytest.mark.parametrize("key, rows, report", siena_interior_cases(), ids=lambda v: "_".join(v)
                          if isinstance(v, tuple) else "")
 def test_siena_reports_reproduced(key, rows, report):
     calibrated = {r["mark_id"]: (float(r["x_mm"]), float(r["y_mm"])) for r in rows}

@@ -1,0 +1,22 @@
+"""Text files written by other software: UTF-8 (with or without BOM), else Latin-1 (Windows)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from toolbox.errors import InputDataError
+
+
+def read_text(path: str | Path, name: str | None = None) -> str:
+    """The file's text; an unreadable file is an :class:`InputDataError` naming ``name``
+    (the parameter) when given."""
+    path = Path(path)
+    try:
+        raw = path.read_bytes()
+    except OSError as exc:
+        prefix = f"{name}: " if name else ""
+        raise InputDataError(f"{prefix}cannot read '{path}': {exc.strerror}") from None
+    try:
+        return raw.decode("utf-8-sig")
+    except UnicodeDecodeError:
+        return raw.decode("latin-1")
