@@ -7,7 +7,7 @@ import os
 import platform
 from pathlib import Path
 
-QUIET_LOAD = 1.2  # 1-minute load average under which the machine counts as quiet (2 cores)
+QUIET_CPU_PERCENT = 20.0  # CPU use (all cores) under which the machine counts as quiet
 
 
 def cpu_model() -> str:
@@ -29,12 +29,15 @@ def machine_facts(*versions: str) -> str:
     return ", ".join(parts)
 
 
-def load_note(load: tuple[float, float, float] | None = None) -> str:
-    """The load average at the start and whether timings are to be trusted."""
-    one, five, _ = load or os.getloadavg()
-    state = ("quiet machine" if one < QUIET_LOAD else
-             "the machine was busy with other work: timings are noisy")
-    return f"load average at start {one:.1f} (1 min), {five:.1f} (5 min): {state}"
+def load_note() -> str:
+    """How busy the CPUs were in the second before the benchmark (other processes' work makes
+    timings noisy; the load average would still count the previous benchmark)."""
+    import psutil
+
+    busy = psutil.cpu_percent(interval=1.0)
+    state = "quiet machine" if busy < QUIET_CPU_PERCENT else \
+        "the machine was busy with other work: timings are noisy"
+    return f"CPU {busy:.0f}% busy in the second before the start: {state}"
 
 
 def peak_rss_mb() -> float:

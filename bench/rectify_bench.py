@@ -349,7 +349,7 @@ def bench_big(folder: Path) -> dict:
 
 
 # -- report -------------------------------------------------------------------------------------
-def machine_lines(load) -> list[str]:
+def machine_lines(load: str) -> list[str]:
     import cv2
     import rasterio
     import skimage
@@ -358,7 +358,7 @@ def machine_lines(load) -> list[str]:
             f"- OpenCV {cv2.__version__} ({cv2.getNumThreads()} threads), rasterio "
             f"{rasterio.__version__} / GDAL {rasterio.__gdal_version__}, scikit-image "
             f"{skimage.__version__}",
-            f"- {load_note(load)}; OPENBLAS_NUM_THREADS="
+            f"- {load}; OPENBLAS_NUM_THREADS="
             f"{os.environ.get('OPENBLAS_NUM_THREADS', 'unset')}"]
 
 
@@ -392,7 +392,7 @@ def main(argv: list[str] | None = None) -> str:
 
         print(json.dumps(bench_estimation()))
         return ""
-    load = os.getloadavg()
+    load = load_note()
     folder = Path(tempfile.mkdtemp(prefix="rectify_bench_", dir=os.environ.get("BENCH_TMP")))
     try:
         rows = bench_estimation() + estimation_single_thread_blas()

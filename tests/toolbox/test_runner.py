@@ -182,3 +182,45 @@ def test_vector_info_describes_layers(points_gpkg, tmp_path):
     assert layer["name"] == "pts" and layer["features"] == 10 and layer["crs"] == "EPSG:3003"
     assert layer["has_z"] and 280 <= layer["z_range"][0] <= layer["z_range"][1] <= 340
     assert json.loads(out.read_text()) == result["INFO"]
+
+
+def test_plugins_come_from_the_entry_point_group(monkeypatch):
+    """A third-party provider registers through the ``toolbox.algorithms`` entry points."""
+    from toolbox import registry
+
+    class PluginAlgorithm(Algorithm):
+        """A provider's algorithm."""
+
+        id = "plugin:echo"
+        display_name = "Echo"
+        group = "Plugins"
+        short_help = "returns its number"
+        parameters = [Number("VALUE", default=3)]
+        outputs = [Output("VALUE_OUT", "the value", "number")]
+
+        def process(self, params, feedback):
+            return {"VALUE_OUT": params["VALUE"]}
+
+    class FakeEntryPoint:
+        name = "echo"
+
+        def load(self):
+            return PluginAlgorithm
+
+    class BrokenEntryPoint:
+        name = "broken"
+
+        def load(self):
+            raise ImportError("missing dependency of a plugin")
+
+    def fake_entry_points(group):
+        assert group == registry.ENTRY_POINT_GROUP
+        return [FakeEntryPoint(), BrokenEntryPoint()]
+
+    monkeypatch.setattr(registry, "entry_points", fake_entry_points)
+    monkeypatch.delitem(registry._registry, "plugin:echo", raising=False)
+    try:
+        registry._import_plugins()  # the broken plugin is skipped with a warning
+        assert toolbox.run("plugin:echo", {"VALUE": 5}) == {"VALUE_OUT": 5.0}
+    finally:
+        registry._registry.pop("plugin:echo", None)
