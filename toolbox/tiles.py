@@ -130,20 +130,11 @@ def _check(feedback: Any) -> None:
         feedback.check_canceled()
 
 
-def _map_local(func, tasks, workers, prefetch, feedback, total, start, end) -> Iterator:
-    if workers <= 1:
-        for done, task in enumerate(tasks, start=1):
-            _check(feedback)
-            result = func(task)
-            _progress(feedback, done, total, start, end)
-            yield result
-        return
-    from concurrent.futures import ThreadPoolExecutor
-
-    limit = prefetch or max(4, 2 * workers)
+def _in_order(submit, tasks, limit: int, feedback, total, start, end) -> Iterator:
+    """Submit tasks with ``submit(task) -> future`` keeping at most ``limit`` in flight; yield
+    the results in task order. Pending futures are cancelled if the consumer stops early."""
     pending: deque = deque()
     done = 0
-    pool = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="tile")
     try:
         iterator = iter(tasks)
         exhausted = False
@@ -155,10 +146,13 @@ def _map_local(func, tasks, workers, prefetch, feedback, total, start, end) -> I
                 except StopIteration:
                     exhausted = True
                     break
-                pending.append(pool.submit(func, task))
+                pending.append(submit(task))
             if not pending:
                 break
-            result = pending.popleft().result()
+            future = pending.popleft()
+            result = future.result()
+            if hasattr(future, "release"):  # dask: drop the result from the cluster now
+                future.release()
             done += 1
             _check(feedback)
             _progress(feedback, done, total, start, end)
@@ -166,6 +160,23 @@ def _map_local(func, tasks, workers, prefetch, feedback, total, start, end) -> I
     finally:
         for future in pending:
             future.cancel()
+
+
+def _map_local(func, tasks, workers, prefetch, feedback, total, start, end) -> Iterator:
+    if workers <= 1:
+        for done, task in enumerate(tasks, start=1):
+            _check(feedback)
+            result = func(task)
+            _progress(feedback, done, total, start, end)
+            yield result
+        return
+    from concurrent.futures import ThreadPoolExecutor
+
+    pool = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="tile")
+    try:
+        yield from _in_order(lambda task: pool.submit(func, task), tasks,
+                             prefetch or max(4, 2 * workers), feedback, total, start, end)
+    finally:
         pool.shutdown(wait=True, cancel_futures=True)
 
 
@@ -177,32 +188,9 @@ def _map_dask(func, tasks, executor, prefetch, feedback, total, start, end) -> I
     except (OSError, TimeoutError) as exc:
         raise ParameterError("SCHEDULER", f"cannot connect to the Dask scheduler "
                              f"{executor.address!r}: {exc}") from None
-    pending: deque = deque()
     try:
         cores = sum(client.nthreads().values()) or 1
-        limit = prefetch or max(4, 2 * cores)
-        iterator = iter(tasks)
-        exhausted = False
-        done = 0
-        while True:
-            while not exhausted and len(pending) < limit:
-                _check(feedback)
-                try:
-                    task = next(iterator)
-                except StopIteration:
-                    exhausted = True
-                    break
-                pending.append(client.submit(func, task, pure=False))
-            if not pending:
-                break
-            future = pending.popleft()
-            result = future.result()
-            future.release()
-            done += 1
-            _check(feedback)
-            _progress(feedback, done, total, start, end)
-            yield result
+        yield from _in_order(lambda task: client.submit(func, task, pure=False), tasks,
+                             prefetch or max(4, 2 * cores), feedback, total, start, end)
     finally:
-        for future in pending:
-            future.cancel()
         client.close()
