@@ -14,7 +14,7 @@ import math
 import numpy as np
 from numba import njit
 
-from algorithms.dem.neighbours import PointBins, block_knn, block_size, knn_one, sector_one
+from algorithms.dem.neighbours import PointBins, block_knn, block_scratch, block_size, knn_one, sector_one
 
 
 @njit(nogil=True, cache=True, inline="always")
@@ -87,14 +87,7 @@ def _grid(px, py, offsets, x0, y0, size, nbx, nby, pz, xs, ys, mask, k, r2max, p
                 out[r, c] = idw_value(best_d2, best_i, pz, n, power)
         return
     npts = len(px)
-    cand_x = np.empty(npts)
-    cand_y = np.empty(npts)
-    cand_p = np.empty(npts, dtype=np.int64)
-    cand_d = np.empty(npts)
-    bd2 = np.empty((block * block, k))
-    bi = np.empty((block * block, k), dtype=np.int64)
-    bn = np.empty(block * block, dtype=np.int64)
-    bnear = np.empty(block * block)
+    cand_x, cand_y, cand_p, cand_d, bd2, bi, bn, bnear = block_scratch(npts, k, block)
     for r0 in range(0, h, block):
         r1 = min(r0 + block, h)
         for c0 in range(0, w, block):

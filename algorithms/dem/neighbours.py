@@ -191,6 +191,31 @@ def _scan_bin(px, py, offsets, b, qx, qy, r2max, skip, k, best_d2, best_i, count
     return count
 
 
+@njit(nogil=True, cache=True, inline="always")
+def _ring_start(x0, y0, size, nbx, nby, qx, qy):
+    """Bin (ix, iy) of the query (possibly outside the grid), the distance from the query to
+    that bin's border, and the first and last ring of bins worth searching."""
+    fx = (qx - x0) / size
+    fy = (qy - y0) / size
+    ix = int(math.floor(fx))
+    iy = int(math.floor(fy))
+    margin = min(fx - ix, ix + 1 - fx, fy - iy, iy + 1 - fy) * size
+    r0 = max(0, -ix, ix - (nbx - 1), -iy, iy - (nby - 1))
+    rmax = max(abs(ix), abs(ix - (nbx - 1)), abs(iy), abs(iy - (nby - 1)))
+    return ix, iy, margin, r0, rmax
+
+
+@njit(nogil=True, cache=True, inline="always")
+def block_scratch(npts, k, block):
+    """Work arrays of the block k-NN grid kernels: candidate x, y, index and distance (one per
+    point) and, per cell of a block, the k best distances and indices, the count found and
+    the nearest distance."""
+    cells = block * block
+    return (np.empty(npts), np.empty(npts), np.empty(npts, dtype=np.int64), np.empty(npts),
+            np.empty((cells, k)), np.empty((cells, k), dtype=np.int64),
+            np.empty(cells, dtype=np.int64), np.empty(cells))
+
+
 @njit(nogil=True, cache=True)
 def knn_one(px, py, offsets, x0, y0, size, nbx, nby, qx, qy, k, r2max, skip,
             best_d2, best_i):
@@ -201,14 +226,7 @@ def knn_one(px, py, offsets, x0, y0, size, nbx, nby, qx, qy, k, r2max, skip,
     count = 0
     if len(px) == 0 or k <= 0:
         return 0
-    fx = (qx - x0) / size
-    fy = (qy - y0) / size
-    ix = int(math.floor(fx))
-    iy = int(math.floor(fy))
-    # distance from the query to the border of its own (possibly virtual) bin
-    margin = min(fx - ix, ix + 1 - fx, fy - iy, iy + 1 - fy) * size
-    r0 = max(0, -ix, ix - (nbx - 1), -iy, iy - (nby - 1))
-    rmax = max(abs(ix), abs(ix - (nbx - 1)), abs(iy), abs(iy - (nby - 1)))
+    ix, iy, margin, r0, rmax = _ring_start(x0, y0, size, nbx, nby, qx, qy)
     r = r0
     while r <= rmax:
         if r > 0:  # nearest possible point of ring r
@@ -256,13 +274,7 @@ def sector_one(px, py, offsets, x0, y0, size, nbx, nby, qx, qy, sectors, per_sec
     n = len(px)
     if n == 0:
         return 0
-    fx = (qx - x0) / size
-    fy = (qy - y0) / size
-    ix = int(math.floor(fx))
-    iy = int(math.floor(fy))
-    margin = min(fx - ix, ix + 1 - fx, fy - iy, iy + 1 - fy) * size
-    r0 = max(0, -ix, ix - (nbx - 1), -iy, iy - (nby - 1))
-    rmax = max(abs(ix), abs(ix - (nbx - 1)), abs(iy), abs(iy - (nby - 1)))
+    ix, iy, margin, r0, rmax = _ring_start(x0, y0, size, nbx, nby, qx, qy)
     two_pi = 2.0 * math.pi
     r = r0
     while r <= rmax:
@@ -481,14 +493,7 @@ def _grid_knn(px, py, offsets, x0, y0, size, nbx, nby, xs, ys, mask, k, r2max, b
     npts = len(px)
     best_d2 = np.empty(k)
     best_i = np.empty(k, dtype=np.int64)
-    cand_x = np.empty(npts)
-    cand_y = np.empty(npts)
-    cand_p = np.empty(npts, dtype=np.int64)
-    cand_d = np.empty(npts)
-    bd2 = np.empty((block * block, k))
-    bi = np.empty((block * block, k), dtype=np.int64)
-    bn = np.empty(block * block, dtype=np.int64)
-    bnear = np.empty(block * block)
+    cand_x, cand_y, cand_p, cand_d, bd2, bi, bn, bnear = block_scratch(npts, k, block)
     h, w = mask.shape
     for r0 in range(0, h, block):
         r1 = min(r0 + block, h)

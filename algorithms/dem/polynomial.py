@@ -26,7 +26,7 @@ import numpy as np
 from numba import njit
 
 from algorithms.dem.idw_kernel import _cell
-from algorithms.dem.neighbours import PointBins, block_knn, block_size, knn_one
+from algorithms.dem.neighbours import PointBins, block_knn, block_scratch, block_size, knn_one
 
 TERMS = (1, 3, 6, 10)  # coefficients of the polynomial of order 0, 1, 2, 3
 ORDER_NAMES = ("mean", "plane", "quadratic", "cubic")
@@ -362,14 +362,7 @@ def _grid(px, py, offsets, x0, y0, size, nbx, nby, pz, xs, ys, mask, k, r2max, o
     npts = len(px)
     best_d2 = np.empty(k)
     best_i = np.empty(k, dtype=np.int64)
-    cand_x = np.empty(npts)
-    cand_y = np.empty(npts)
-    cand_p = np.empty(npts, dtype=np.int64)
-    cand_d = np.empty(npts)
-    bd2 = np.empty((block * block, k))
-    bi = np.empty((block * block, k), dtype=np.int64)
-    bn = np.empty(block * block, dtype=np.int64)
-    bnear = np.empty(block * block)
+    cand_x, cand_y, cand_p, cand_d, bd2, bi, bn, bnear = block_scratch(npts, k, block)
     dx = np.empty(k)
     dy = np.empty(k)
     zz = np.empty(k)
