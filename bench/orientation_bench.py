@@ -125,11 +125,11 @@ def main(argv: list[str] | None = None) -> str:
     import numba
     from affine import Affine
 
-    from algorithms.orientation import collinearity
-    from algorithms.orientation.camera import RadialDistortion
-    from algorithms.orientation.rotation import rotation_matrix
-    from algorithms.orientation.surface import DemSurface
     from toolbox.demo.samples.terrain import terrain
+    from toolbox.photogrammetry import collinearity
+    from toolbox.photogrammetry.camera import RadialDistortion
+    from toolbox.photogrammetry.rotation import rotation_matrix
+    from toolbox.photogrammetry.surface import DemSurface
 
     load = load_note()
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])

@@ -74,9 +74,9 @@ def bench_estimation() -> list[dict]:
     import cv2
     from skimage.transform import ProjectiveTransform
 
-    from algorithms.common.points import local_origin
-    from algorithms.common.robust2d import data_snooping, ransac
-    from algorithms.common.transforms2d import HomographyTransform
+    from toolbox.terrain.points import local_origin
+    from toolbox.transforms.plane import HomographyTransform
+    from toolbox.transforms.robust import data_snooping, ransac
 
     rng = np.random.default_rng(1)
     g2p = camera_homography(16644, 16644, 0.014, 303.55, 1140.0)
@@ -129,8 +129,8 @@ def synthetic_rgb(width: int, height: int, seed: int = 0) -> np.ndarray:
 
 def scene_12mpx():
     """Photo size, pixel -> ground homography and output grid of the 12 Mpx case."""
-    from algorithms.rectify.image import default_cell_size, footprint
     from toolbox.io.grid import GridSpec
+    from toolbox.transforms.rectification import default_cell_size, footprint
 
     width, height = 4000, 3000
     g2p = camera_homography(width, height, 0.006, 50.0, 600.0, tilts=(0.12, -0.08, 0.3))
@@ -154,8 +154,8 @@ def opencv_matrix(p2g, grid):
 def bench_memory(data: np.ndarray) -> list[dict]:
     import cv2
 
-    from algorithms.rectify.warp import HomographyMap, OutputLayout, warp_window
     from toolbox.io.raster import iter_windows
+    from toolbox.raster.warp import HomographyMap, OutputLayout, warp_window
 
     width, height, p2g, grid = scene_12mpx()
     cmap = HomographyMap(np.linalg.inv(p2g), grid.transform,
@@ -213,8 +213,8 @@ def bench_files(data: np.ndarray, folder: Path) -> list[dict]:
     import rasterio
 
     import toolbox
-    from algorithms.rectify.warp import OutputLayout, photometric_options
     from toolbox.io.raster import geotiff_profile
+    from toolbox.raster.warp import OutputLayout, photometric_options
 
     width, height, p2g, grid = scene_12mpx()
     src_path = folder / "photo12.tif"

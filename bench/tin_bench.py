@@ -72,7 +72,7 @@ def _grid(n_points: int) -> tuple[int, float]:
 def run_case(name: str, work: Path, n_points: int) -> dict:
     """Run one measurement in this process; return seconds and extra facts."""
     sys.path.insert(0, str(ROOT))
-    from algorithms.tin import kernels
+    from toolbox.terrain.tin import kernels
 
     width, cell = _grid(n_points)
     facts: dict = {}
@@ -107,9 +107,9 @@ def run_case(name: str, work: Path, n_points: int) -> dict:
         seconds = time.perf_counter() - t0
         facts["triangles"] = len(tri)
     elif name in ("write_gpkg", "write_gpkg_noindex"):
-        from algorithms.tin.build import build_tin
-        from algorithms.tin.store import write_tin
         from toolbox.io.crs import parse_crs
+        from toolbox.terrain.tin.build import build_tin
+        from toolbox.terrain.tin.store import write_tin
 
         model = build_tin(np.load(work / "points.npy"))
         out = work / f"{name}.gpkg"

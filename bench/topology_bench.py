@@ -136,9 +136,9 @@ def run_toolbox(lines_path: Path, labels_path: Path, out: Path) -> dict:
 
 
 def run_kernel(frame, labels) -> dict:
-    from algorithms.topology.build import build_topology
-    from algorithms.topology.tolerances import Tolerances
     from toolbox.feedback import Feedback
+    from toolbox.topology.build import build_topology
+    from toolbox.topology.tolerances import Tolerances
 
     feedback = Feedback()
     t0 = time.perf_counter()

@@ -6,15 +6,15 @@ from typing import Any
 
 import numpy as np
 
-from algorithms.dem.base import _jsonable_options
-from algorithms.dem.gridding import write_quality
-from algorithms.dem.inputs import check_sources, read_sources, require_points, source_parameters
-from algorithms.dem.methods import METHODS
-from algorithms.dem.polynomial import DEFAULT_MIN_RCOND
 from toolbox.algorithm import Algorithm
 from toolbox.feedback import Feedback
 from toolbox.parameters import Boolean, Integer, Number, Output, OutputFile, OutputVector, String
 from toolbox.registry import register
+from toolbox.terrain.gridding.base import _jsonable_options
+from toolbox.terrain.gridding.gridding import write_quality
+from toolbox.terrain.gridding.inputs import check_sources, read_sources, require_points, source_parameters
+from toolbox.terrain.gridding.methods import METHODS
+from toolbox.terrain.gridding.polynomial import DEFAULT_MIN_RCOND
 
 ALL_METHODS = ("nearest", "idw", "plane", "quadratic", "cubic", "tin_linear")
 
@@ -99,8 +99,8 @@ class CrossValidate(Algorithm):
                             f"points up to a radius), got SECTORS {params['SECTORS']}")
 
     def process(self, params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
-        from algorithms.dem.validation import add_worst_point, error_summary, loo_predict
         from toolbox.io.crs import crs_label
+        from toolbox.terrain.gridding.validation import add_worst_point, error_summary, loo_predict
 
         names = parse_methods(params["METHODS"])
         data = read_sources(params, feedback)

@@ -2,11 +2,11 @@
 
 from __future__ import annotations
 
-from algorithms.dem.base import GriddingAlgorithm, neighbour_parameters
-from algorithms.dem.gridding import STATISTICS, execution_parameters, grid_parameters
-from algorithms.dem.inputs import source_parameters
 from toolbox.parameters import Integer, Number
 from toolbox.registry import register
+from toolbox.terrain.gridding.base import GriddingAlgorithm, neighbour_parameters
+from toolbox.terrain.gridding.gridding import STATISTICS, execution_parameters, grid_parameters
+from toolbox.terrain.gridding.inputs import source_parameters
 
 
 @register

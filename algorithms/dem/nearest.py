@@ -2,10 +2,10 @@
 
 from __future__ import annotations
 
-from algorithms.dem.base import GriddingAlgorithm
-from algorithms.dem.gridding import STATISTICS, execution_parameters, grid_parameters
-from algorithms.dem.inputs import source_parameters
 from toolbox.registry import register
+from toolbox.terrain.gridding.base import GriddingAlgorithm
+from toolbox.terrain.gridding.gridding import STATISTICS, execution_parameters, grid_parameters
+from toolbox.terrain.gridding.inputs import source_parameters
 
 
 @register

@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-from algorithms.dem.gridding import STATISTICS
-from algorithms.dem.polynomial_base import COMMON_HELP, PolynomialGrid, polynomial_parameters
 from toolbox.registry import register
+from toolbox.terrain.gridding.gridding import STATISTICS
+from toolbox.terrain.gridding.polynomial_base import COMMON_HELP, PolynomialGrid, polynomial_parameters
 
 
 @register

@@ -3,20 +3,20 @@
 Every photo-based algorithm builds on these modules (domain brief ``shared/docs/domain.md``
 sections 1-8):
 
-- :mod:`~algorithms.orientation.rotation`: angle units, ``R(omega, phi, kappa)`` exactly as the
+- :mod:`~toolbox.photogrammetry.rotation`: angle units, ``R(omega, phi, kappa)`` exactly as the
   brief's section 3, and the angles back from a matrix;
-- :mod:`~algorithms.orientation.camera`: the camera (principal distance, principal point,
+- :mod:`~toolbox.photogrammetry.camera`: the camera (principal distance, principal point,
   fiducial marks, image size, radial distortion) and image <-> camera coordinates;
-- :mod:`~algorithms.orientation.fiducials`: pixel <-> fiducial (image mm) transforms, i.e. the
+- :mod:`~toolbox.photogrammetry.fiducials`: pixel <-> fiducial (image mm) transforms, i.e. the
   interior orientation fitted on the fiducial marks;
-- :mod:`~algorithms.orientation.exterior`: exterior orientation (X0, Y0, Z0, omega, phi, kappa,
+- :mod:`~toolbox.photogrammetry.exterior`: exterior orientation (X0, Y0, Z0, omega, phi, kappa,
   angle unit, CRS);
-- :mod:`~algorithms.orientation.collinearity`: vectorised (numba) ground -> image and image ->
-  ground kernels, monoplotting on a DEM (:mod:`~algorithms.orientation.surface`);
-- :mod:`~algorithms.orientation.photo`: one oriented photo chaining all of the above
+- :mod:`~toolbox.photogrammetry.collinearity`: vectorised (numba) ground -> image and image ->
+  ground kernels, monoplotting on a DEM (:mod:`~toolbox.photogrammetry.surface`);
+- :mod:`~toolbox.photogrammetry.photo`: one oriented photo chaining all of the above
   (ground <-> pixel);
-- :mod:`~algorithms.orientation.project`: the project file tying cameras, photos, orientations
-  and the CRS together; :mod:`~algorithms.orientation.readers`: the file formats read.
+- :mod:`~toolbox.photogrammetry.project`: the project file tying cameras, photos, orientations
+  and the CRS together; :mod:`~toolbox.photogrammetry.readers`: the file formats read.
 
 Algorithms: ``orientation:interior``, ``orientation:intersect``, ``orientation:footprints``,
 ``orientation:monoplot``, ``orientation:precision``.

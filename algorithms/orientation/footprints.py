@@ -6,14 +6,14 @@ from typing import Any
 
 import numpy as np
 
-from algorithms.orientation._tables import load_project_parameter
-from algorithms.orientation.coverage import Footprint, overlaps, photo_footprint
-from algorithms.orientation.surface import dem_height_range, surface_for_photo
 from toolbox.algorithm import Algorithm
 from toolbox.errors import InputDataError
 from toolbox.feedback import Feedback
 from toolbox.io.crs import common_crs
 from toolbox.parameters import File, Integer, Number, Output, OutputVector, RasterLayer
+from toolbox.photogrammetry.coverage import Footprint, overlaps, photo_footprint
+from toolbox.photogrammetry.surface import dem_height_range, surface_for_photo
+from toolbox.photogrammetry.tables import load_project_parameter
 from toolbox.registry import register
 
 

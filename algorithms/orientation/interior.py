@@ -8,7 +8,12 @@ from typing import Any
 
 import numpy as np
 
-from algorithms.orientation._tables import (
+from toolbox.algorithm import Algorithm
+from toolbox.errors import InputDataError
+from toolbox.feedback import Feedback
+from toolbox.parameters import Enum, File, Output, OutputFile, String
+from toolbox.photogrammetry.fiducials import InteriorOrientation, transformation_name
+from toolbox.photogrammetry.tables import (
     column,
     finite_or_none,
     load_project_parameter,
@@ -17,11 +22,6 @@ from algorithms.orientation._tables import (
     write_csv,
     write_json,
 )
-from algorithms.orientation.fiducials import InteriorOrientation, transformation_name
-from toolbox.algorithm import Algorithm
-from toolbox.errors import InputDataError
-from toolbox.feedback import Feedback
-from toolbox.parameters import Enum, File, Output, OutputFile, String
 from toolbox.registry import register
 
 TRANSFORMATIONS = ("affine", "homography", "similarity", "from_input")

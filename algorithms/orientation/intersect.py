@@ -6,16 +6,16 @@ from typing import Any
 
 import numpy as np
 
-from algorithms.orientation._tables import image_measurements, load_project_parameter, write_json
-from algorithms.orientation.forward_intersection import (
-    STATUS_NAMES,
-    camera_observations,
-    intersect,
-)
 from toolbox.algorithm import Algorithm
 from toolbox.errors import InputDataError
 from toolbox.feedback import Feedback
 from toolbox.parameters import Enum, File, Output, OutputFile, OutputVector, String
+from toolbox.photogrammetry.forward_intersection import (
+    STATUS_NAMES,
+    camera_observations,
+    intersect,
+)
+from toolbox.photogrammetry.tables import image_measurements, load_project_parameter, write_json
 from toolbox.registry import register
 
 

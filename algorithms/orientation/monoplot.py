@@ -6,9 +6,6 @@ from typing import Any
 
 import numpy as np
 
-from algorithms.orientation._tables import image_measurements, load_project_parameter, write_json
-from algorithms.orientation.collinearity import NO_INTERSECTION, OK, STATUS_NAMES
-from algorithms.orientation.surface import dem_height_range, surface_for_photo
 from toolbox.algorithm import Algorithm
 from toolbox.errors import InputDataError
 from toolbox.feedback import Feedback
@@ -25,6 +22,9 @@ from toolbox.parameters import (
     RasterLayer,
     String,
 )
+from toolbox.photogrammetry.collinearity import NO_INTERSECTION, OK, STATUS_NAMES
+from toolbox.photogrammetry.surface import dem_height_range, surface_for_photo
+from toolbox.photogrammetry.tables import image_measurements, load_project_parameter, write_json
 from toolbox.registry import register
 
 

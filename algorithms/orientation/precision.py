@@ -7,13 +7,13 @@ from typing import Any
 
 import numpy as np
 
-from algorithms.orientation._tables import load_project_parameter, write_csv, write_json
-from algorithms.orientation.normal_case import normal_case_precision
 from toolbox.algorithm import Algorithm
 from toolbox.errors import InputDataError
 from toolbox.feedback import Feedback
 from toolbox.io.crs import common_crs
 from toolbox.parameters import File, Integer, Number, Output, OutputFile, RasterLayer
+from toolbox.photogrammetry.normal_case import normal_case_precision
+from toolbox.photogrammetry.tables import load_project_parameter, write_csv, write_json
 from toolbox.registry import register
 
 COLUMNS = ["photo_a", "photo_b", "terrain_height_m", "principal_distance_mm", "base_m",
@@ -123,7 +123,7 @@ class NormalCasePrecision(Algorithm):
                                  "photos in one strip)")
         surface = None
         if dem is not None and params["MEAN_HEIGHT"] is None:
-            from algorithms.orientation.surface import read_dem_window
+            from toolbox.photogrammetry.surface import read_dem_window
 
             centres = np.array([p.require_exterior().centre for pair in pairs for p in pair])
             bounds = (centres[:, 0].min(), centres[:, 1].min(), centres[:, 0].max(),

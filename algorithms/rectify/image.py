@@ -2,22 +2,16 @@
 
 Kernels: :func:`pixel_to_ground_matrix` (compose with the interior orientation),
 :func:`footprint` (ground outline of the photo), :func:`default_cell_size`; the streamed warp is
-:func:`algorithms.rectify.warp.warp_to_geotiff` with a
-:class:`~algorithms.rectify.warp.HomographyMap`.
+:func:`toolbox.raster.warp.warp_to_geotiff` with a
+:class:`~toolbox.raster.warp.HomographyMap`.
 """
 
 from __future__ import annotations
 
 import json
-import math
-import re
-import warnings
-from typing import Any
 
 import numpy as np
 
-from algorithms.rectify.estimate import RectificationModel, load_transform
-from algorithms.rectify.warp import RESAMPLING_METHODS, HomographyMap, warp_to_geotiff
 from toolbox.algorithm import Algorithm
 from toolbox.errors import InputDataError, ParameterError
 from toolbox.feedback import Feedback
@@ -32,116 +26,20 @@ from toolbox.parameters import (
     RasterLayer,
     String,
 )
+from toolbox.raster.warp import RESAMPLING_METHODS, HomographyMap, warp_to_geotiff
 from toolbox.registry import register
-
-MODES = ("warp", "gcps")
-OUTSIDE = ("alpha", "nodata")
-
-
-def parse_pixel_to_image(text: str, name: str = "PIXEL_TO_IMAGE") -> np.ndarray:
-    """The Pixel->Fiducial matrix from 6 (affine) or 8 (homography) numbers, row by row:
-    ``a b c d e f [g h]`` means ``x = (a·col + b·row + c)/(g·col + h·row + 1)``, ``y = (d·col +
-    e·row + f)/(...)`` (the Z-Map interior-orientation reports' ``p2f`` elements)."""
-    parts = [p for p in re.split(r"[,;\s]+", str(text).strip()) if p]
-    try:
-        numbers = [float(p) for p in parts]
-    except ValueError:
-        numbers = []
-    if len(numbers) not in (6, 8) or not all(math.isfinite(v) for v in numbers):
-        raise ParameterError(name, f"must be 6 or 8 numbers (a b c d e f [g h], the Pixel->"
-                             f"Fiducial matrix row by row), got {text!r}")
-    g, h = (numbers[6], numbers[7]) if len(numbers) == 8 else (0.0, 0.0)
-    matrix = np.array([numbers[0:3], numbers[3:6], [g, h, 1.0]])
-    if abs(np.linalg.det(matrix)) < 1e-300:
-        raise ParameterError(name, f"{text!r} is not invertible")
-    return matrix
-
-
-def pixel_to_ground_matrix(model: RectificationModel,
-                           pixel_to_image: np.ndarray | None) -> np.ndarray:
-    """Homography from source pixel coordinates (col, row; centres at +0.5) to ground X, Y."""
-    if model.image_units == "pixels":
-        matrix = model.image_to_ground
-    else:
-        if pixel_to_image is None:
-            raise ParameterError("PIXEL_TO_IMAGE", "is required: the transform maps image mm to "
-                                 "the ground, so the pixel -> mm (interior orientation) matrix is "
-                                 "needed to warp pixels")
-        matrix = model.image_to_ground @ pixel_to_image
-    return matrix / matrix[2, 2]
-
-
-def _apply(matrix: np.ndarray, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    p = np.column_stack([points, np.ones(len(points))]) @ matrix.T
-    return p[:, :2] / p[:, 2:], p[:, 2]
-
-
-def footprint(pixel_to_ground: np.ndarray, width: int, height: int) -> np.ndarray:
-    """Ground (X, Y) of the photo's four corners (top-left, top-right, bottom-right,
-    bottom-left), (4, 2). Raises :class:`InputDataError` when the plane's vanishing line crosses
-    the photo (an oblique view: the footprint is unbounded)."""
-    corners = np.array([[0, 0], [width, 0], [width, height], [0, height]], dtype="float64")
-    ground, w = _apply(pixel_to_ground, corners)
-    if not (np.all(w > 0) or np.all(w < 0)):
-        raise InputDataError("the ground plane's vanishing line crosses the photo (an oblique "
-                             "view): its footprint is unbounded; give EXTENT")
-    return ground
-
-
-def default_cell_size(pixel_to_ground: np.ndarray, width: int, height: int) -> float:
-    """Ground size of a source pixel at the photo centre, ``sqrt(|det J|)``, rounded to 3
-    significant digits."""
-    centre = np.array([width / 2.0, height / 2.0])
-    step = 1.0
-    pts = np.array([centre, centre + [step, 0], centre + [0, step]])
-    g, _ = _apply(pixel_to_ground, pts)
-    jac = np.column_stack([g[1] - g[0], g[2] - g[0]]) / step
-    size = float(np.sqrt(abs(np.linalg.det(jac))))
-    if not size > 0 or not math.isfinite(size):
-        raise InputDataError("the transform gives a zero or undefined pixel size at the photo "
-                             "centre")
-    return float(f"{size:.3g}")
-
-
-def write_gcp_geotiff(source: Any, output: Any, gcps: list[tuple[str, float, float, float,
-                                                               float, float]],
-                      crs: Any, feedback: Feedback, tags: dict[str, str] | None = None,
-                      chunk: int = 2048) -> None:
-    """Copy ``source`` into a tiled GeoTIFF with embedded GCPs, window by window.
-
-    ``gcps``: (id, col, row, X, Y, Z) with col/row in the source pixel convention (pixel centres
-    at +0.5, as GDAL's GCP pixel/line).
-    """
-    import rasterio
-    from rasterio.control import GroundControlPoint
-    from rasterio.enums import ColorInterp
-
-    from toolbox.io.raster import geotiff_profile, iter_windows
-
-    with rasterio.Env(GDAL_CACHEMAX=256), warnings.catch_warnings():
-        warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
-        with rasterio.open(source) as src:
-            dtypes = set(src.dtypes)
-            if len(dtypes) != 1:
-                raise InputDataError(f"INPUT has bands of different types ({', '.join(dtypes)})")
-            options: dict[str, str] = {"num_threads": "ALL_CPUS"}
-            interp = list(src.colorinterp)
-            has_alpha = src.count > 1 and interp[-1] == ColorInterp.alpha
-            if src.count - has_alpha == 3 and np.dtype(src.dtypes[0]).kind in "iu":
-                options["photometric"] = "RGB"
-            if has_alpha:
-                options["alpha"] = "YES"
-            profile = geotiff_profile(src.width, src.height, src.count, src.dtypes[0], crs,
-                                      None, src.nodata, **options)
-            profile.pop("transform")
-            points = [GroundControlPoint(row=r, col=c, x=x, y=y, z=z, id=str(i), info=str(i))
-                      for i, c, r, x, y, z in gcps]
-            with rasterio.open(output, "w", gcps=points, **profile) as dst:
-                if tags:
-                    dst.update_tags(**tags)
-                windows = [t.core for t in iter_windows(src.width, src.height, chunk)]
-                for window in feedback.iterate(windows):
-                    dst.write(src.read(window=window), window=window)
+from toolbox.transforms.rectification import (  # noqa: F401
+    MODES,
+    OUTSIDE,
+    RectificationModel,
+    _apply,
+    default_cell_size,
+    footprint,
+    load_transform,
+    parse_pixel_to_image,
+    pixel_to_ground_matrix,
+    write_gcp_geotiff,
+)
 
 
 @register

@@ -4,8 +4,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from algorithms.tin.build import SOURCES, TinBuildError, build_tin
-from algorithms.tin.store import write_tin
 from toolbox.algorithm import Algorithm
 from toolbox.errors import InputDataError
 from toolbox.feedback import Feedback
@@ -13,6 +11,8 @@ from toolbox.io.crs import common_crs, crs_label
 from toolbox.io.vector import points_xyz, read_vector, vertices_xyz
 from toolbox.parameters import Boolean, Crs, Enum, Field, Number, Output, OutputVector, VectorLayer
 from toolbox.registry import register
+from toolbox.terrain.tin.build import SOURCES, TinBuildError, build_tin
+from toolbox.terrain.tin.store import write_tin
 
 DUPLICATE_RULES = ("mean", "first", "min", "max", "error")
 
@@ -200,7 +200,7 @@ def _report_quality(report: dict, feedback: Feedback) -> None:
 
 
 def _surface_summary(model) -> dict:
-    from algorithms.tin.topology import triangle_measures
+    from toolbox.terrain.tin.topology import triangle_measures
 
     m = triangle_measures(model.xyz, model.triangles)
     return {"area_2d": float(m.area_2d.sum()), "area_3d": float(m.area_3d.sum()),

@@ -4,8 +4,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from algorithms.tin.kernels import interpolate_tin
-from algorithms.tin.store import read_tin
 from toolbox.algorithm import Algorithm
 from toolbox.errors import InputDataError
 from toolbox.feedback import Feedback
@@ -13,9 +11,11 @@ from toolbox.io.crs import common_crs
 from toolbox.io.vector import read_vector, write_layers
 from toolbox.parameters import Number, Output, OutputVector, String, VectorLayer
 from toolbox.registry import register
-
-TIN_HELP = ("TIN: the triangles layer of a tin:delaunay GeoPackage (the file path is enough), "
-            "or any layer of 3D triangles")
+from toolbox.terrain.tin.kernels import interpolate_tin
+from toolbox.terrain.tin.store import (  # noqa: F401
+    TIN_HELP,
+    read_tin,
+)
 
 
 @register

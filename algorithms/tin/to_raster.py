@@ -4,9 +4,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from algorithms.tin.interpolate import TIN_HELP
-from algorithms.tin.kernels import rasterize_tin, triangles_by_tile
-from algorithms.tin.store import read_tin
 from toolbox.algorithm import Algorithm
 from toolbox.errors import InputDataError
 from toolbox.feedback import Feedback
@@ -25,6 +22,8 @@ from toolbox.parameters import (
     VectorLayer,
 )
 from toolbox.registry import register
+from toolbox.terrain.tin.kernels import rasterize_tin, triangles_by_tile
+from toolbox.terrain.tin.store import TIN_HELP, read_tin
 
 
 def tin_grid(xy: np.ndarray, crs, cell_size: float | None, extent=None, template=None

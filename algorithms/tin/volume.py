@@ -6,10 +6,6 @@ import json
 
 import numpy as np
 
-from algorithms.tin.cutfill import CutFill, grid_cut_fill, plane_cut_fill
-from algorithms.tin.interpolate import TIN_HELP
-from algorithms.tin.kernels import rasterize_tin, triangles_by_tile
-from algorithms.tin.store import read_tin
 from toolbox.algorithm import Algorithm
 from toolbox.errors import InputDataError
 from toolbox.feedback import Feedback
@@ -17,6 +13,9 @@ from toolbox.io.crs import common_crs, crs_label
 from toolbox.io.raster import DEFAULT_BLOCK, iter_windows
 from toolbox.parameters import Integer, Number, Output, OutputFile, RasterLayer, VectorLayer
 from toolbox.registry import register
+from toolbox.terrain.tin.cutfill import CutFill, grid_cut_fill, plane_cut_fill
+from toolbox.terrain.tin.kernels import rasterize_tin, triangles_by_tile
+from toolbox.terrain.tin.store import TIN_HELP, read_tin
 
 
 def read_mask(ref):

@@ -2,13 +2,13 @@
 
 from __future__ import annotations
 
-from algorithms.topology.build import build_topology
-from algorithms.topology.common_parameters import linework_parameters, read_linework
-from algorithms.topology.layers import tolerances_from, write_topology
 from toolbox.algorithm import Algorithm
 from toolbox.feedback import Feedback
 from toolbox.parameters import Output, OutputVector
 from toolbox.registry import register
+from toolbox.topology.build import build_topology
+from toolbox.topology.common_parameters import linework_parameters, read_linework
+from toolbox.topology.layers import tolerances_from, write_topology
 
 
 @register

@@ -4,10 +4,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from algorithms.common.points import local_origin
-from algorithms.topology.layers import to_frame
-from algorithms.topology.output import Layer, issues_layer, order_key
-from algorithms.topology.setops import OPERATIONS, clean_polygons, overlay_polygons
 from toolbox.algorithm import Algorithm
 from toolbox.errors import InputDataError
 from toolbox.feedback import Feedback
@@ -15,6 +11,10 @@ from toolbox.io.crs import common_crs, crs_label
 from toolbox.io.vector import read_vector, write_layers
 from toolbox.parameters import Enum, Number, Output, OutputVector, String, VectorLayer
 from toolbox.registry import register
+from toolbox.terrain.points import local_origin
+from toolbox.topology.layers import to_frame
+from toolbox.topology.output import Layer, issues_layer, order_key
+from toolbox.topology.setops import OPERATIONS, clean_polygons, overlay_polygons
 
 RESULT_COLUMNS = ("id", "part", "area", "perimeter")
 

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from algorithms.common.points import local_origin, merge_duplicate_xy
+from toolbox.terrain.points import local_origin, merge_duplicate_xy
 
 XYZ = np.array([[0, 0, 1], [1, 1, 2], [0, 0, 3], [2, 2, 5], [1, 1, 2.0]])
 

@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 from conftest import siena_interior_cases
 
-from algorithms.common.transforms2d import AffineTransform, HomographyTransform, SimilarityTransform
 from toolbox.errors import InputDataError
+from toolbox.transforms.plane import AffineTransform, HomographyTransform, SimilarityTransform
 
 H_TRUE = np.array([[0.9, 0.12, 1500.0], [-0.08, 1.1, -320.0], [2e-5, -1e-5, 1.0]])
 

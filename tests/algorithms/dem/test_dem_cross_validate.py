@@ -12,10 +12,10 @@ import shapely
 from scipy.spatial import cKDTree
 
 import toolbox
-from algorithms.dem.methods import METHODS
-from algorithms.dem.validation import error_summary, loo_predict, tin_loo
-from algorithms.tin.kernels import interpolate_tin, triangulate
 from toolbox.errors import ParameterError
+from toolbox.terrain.gridding.methods import METHODS
+from toolbox.terrain.gridding.validation import error_summary, loo_predict, tin_loo
+from toolbox.terrain.tin.kernels import interpolate_tin, triangulate
 
 X0, Y0 = 1_688_000.0, 4_799_500.0
 

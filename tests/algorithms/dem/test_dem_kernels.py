@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from algorithms.dem.idw_kernel import idw_grid, idw_loo, nearest_grid
-from algorithms.dem.masks import convex_hull, hull_mask
-from algorithms.dem.neighbours import PointBins, grid_knn
-from algorithms.dem.polynomial import polynomial_grid, polynomial_loo
+from toolbox.terrain.gridding.idw_kernel import idw_grid, idw_loo, nearest_grid
+from toolbox.terrain.gridding.masks import convex_hull, hull_mask
+from toolbox.terrain.gridding.neighbours import PointBins, grid_knn
+from toolbox.terrain.gridding.polynomial import polynomial_grid, polynomial_loo
 
 
 def scattered(n=3000, seed=0, span=400.0):

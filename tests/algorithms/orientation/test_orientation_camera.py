@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from algorithms.orientation.camera import Camera, RadialDistortion
 from toolbox.errors import InputDataError
+from toolbox.photogrammetry.camera import Camera, RadialDistortion
 
 SIENA_R = [10, 20, 30, 40, 50, 60, 70, 80, 90, 100, 110, 120, 130, 140, 148]
 SIENA_DR = [0.0, 0.1, -0.1, -0.3, -0.5, -0.9, -1.0, -1.1, -0.3, 0.2, 1.2, 1.3, 0.5, -0.4, -1.4]

@@ -7,14 +7,14 @@ import numpy as np
 import pytest
 from affine import Affine
 
-from algorithms.orientation import collinearity as col
-from algorithms.orientation.camera import Camera, RadialDistortion
-from algorithms.orientation.exterior import ExteriorOrientation
-from algorithms.orientation.fiducials import InteriorOrientation
-from algorithms.orientation.photo import Photo
-from algorithms.orientation.rotation import rotation_matrix
-from algorithms.orientation.surface import DemSurface
 from toolbox.errors import ConvergenceError, InputDataError
+from toolbox.photogrammetry import collinearity as col
+from toolbox.photogrammetry.camera import Camera, RadialDistortion
+from toolbox.photogrammetry.exterior import ExteriorOrientation
+from toolbox.photogrammetry.fiducials import InteriorOrientation
+from toolbox.photogrammetry.photo import Photo
+from toolbox.photogrammetry.rotation import rotation_matrix
+from toolbox.photogrammetry.surface import DemSurface
 
 X0, Y0 = 1688000.0, 4799500.0  # Siena-sized coordinates
 C = 303.55

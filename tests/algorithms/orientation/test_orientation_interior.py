@@ -10,8 +10,8 @@ import pytest
 from conftest import siena_interior_cases
 
 import toolbox
-from algorithms.orientation.fiducials import InteriorOrientation
 from toolbox.errors import InputDataError
+from toolbox.photogrammetry.fiducials import InteriorOrientation
 
 SIENA = Path(__file__).resolve().parents[3] / "toolbox" / "demo" / "data" / "siena"
 NOMINAL = {"01": (-106.0, 106.0), "02": (106.0, 106.0), "03": (106.0, -106.0),

@@ -5,15 +5,15 @@ import numpy as np
 import pytest
 
 import toolbox
-from algorithms.orientation.collinearity import ground_to_image
-from algorithms.orientation.forward_intersection import (
+from toolbox.errors import InputDataError
+from toolbox.photogrammetry.collinearity import ground_to_image
+from toolbox.photogrammetry.forward_intersection import (
     PARALLEL_RAYS,
     SINGLE_RAY,
     intersect,
     normal_case_coordinates,
 )
-from algorithms.orientation.rotation import rotation_matrix
-from toolbox.errors import InputDataError
+from toolbox.photogrammetry.rotation import rotation_matrix
 
 C = 303.55
 PHOTOS = {  # a Siena-like block: two strips, tilts up to 0.02 rad
@@ -115,7 +115,7 @@ def test_algorithm_from_pixels_in_csv_and_gpkg(tmp_path):
     import geopandas as gpd
     import pandas as pd
 
-    from algorithms.orientation.project import load_project
+    from toolbox.photogrammetry.project import load_project
 
     project_path = siena_like_project(tmp_path)
     project = load_project(project_path)

@@ -8,11 +8,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from algorithms.orientation.project import load_project
-from algorithms.orientation.readers import read_exterior_orientations, read_zmap_log
-from algorithms.orientation.readers.text import photo_id, sniff_format
-from algorithms.orientation.rotation import rotation_matrix
 from toolbox.errors import InputDataError, ParameterError
+from toolbox.photogrammetry.project import load_project
+from toolbox.photogrammetry.readers import read_exterior_orientations, read_zmap_log
+from toolbox.photogrammetry.readers.text import photo_id, sniff_format
+from toolbox.photogrammetry.rotation import rotation_matrix
 
 SIENA = Path(__file__).resolve().parents[3] / "toolbox" / "demo" / "data" / "siena"
 RUNS = {"strip1": "zmap_strip1.log", "strip2": "zmap_strip2.log", "block": "zmap_block.log"}
@@ -265,7 +265,7 @@ def test_project_errors_name_the_problem(tmp_path):
 
 
 def test_project_save_and_reload_round_trip(tmp_path):
-    from algorithms.orientation.project import save_project
+    from toolbox.photogrammetry.project import save_project
 
     project = load_project(SIENA / "siena_project.yaml")
     again = load_project(save_project(project, tmp_path / "copy.yaml", angle_unit="gon"))

@@ -6,8 +6,9 @@ import math
 import numpy as np
 import pytest
 
-from algorithms.orientation.exterior import ExteriorOrientation
-from algorithms.orientation.rotation import (
+from toolbox.errors import InputDataError, ParameterError
+from toolbox.photogrammetry.exterior import ExteriorOrientation
+from toolbox.photogrammetry.rotation import (
     angle_unit,
     angles_from_matrix,
     check_rotation,
@@ -15,7 +16,6 @@ from algorithms.orientation.rotation import (
     rotation_matrix,
     to_radians,
 )
-from toolbox.errors import InputDataError, ParameterError
 
 ANGLES = [(0.014, -0.001, 0.050), (0.016, 0.016, 3.122), (-0.3, 0.7, -2.5), (1.2, -1.1, 0.4)]
 

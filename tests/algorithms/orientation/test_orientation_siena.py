@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 from pyproj import Transformer
 
-from algorithms.orientation.exterior import ExteriorOrientation
-from algorithms.orientation.photo import Photo
-from algorithms.orientation.project import load_project
-from algorithms.orientation.readers import read_zmap_log
+from toolbox.photogrammetry.exterior import ExteriorOrientation
+from toolbox.photogrammetry.photo import Photo
+from toolbox.photogrammetry.project import load_project
+from toolbox.photogrammetry.readers import read_zmap_log
 
 SIENA = Path(__file__).resolve().parents[3] / "toolbox" / "demo" / "data" / "siena"
 # thesis l.1278-1280: the area of the case study

@@ -8,12 +8,12 @@ import pytest
 import rectify_scene as scene
 
 import toolbox
-from algorithms.common.robust2d import data_snooping, ransac
-from algorithms.common.transforms2d import AffineTransform, HomographyTransform
-from algorithms.rectify.control_points import ControlPoints, parse_roles
-from algorithms.rectify.estimate import fit_rectification, load_transform
-from algorithms.rectify.relief import max_height_departure, relief_check, relief_displacement
 from toolbox.errors import InputDataError, ParameterError
+from toolbox.transforms.control_points import ControlPoints, parse_roles
+from toolbox.transforms.plane import AffineTransform, HomographyTransform
+from toolbox.transforms.rectification import fit_rectification, load_transform
+from toolbox.transforms.relief import max_height_departure, relief_check, relief_displacement
+from toolbox.transforms.robust import data_snooping, ransac
 
 TRUE = scene.ground_to_pixel()
 

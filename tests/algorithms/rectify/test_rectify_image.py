@@ -12,11 +12,11 @@ from affine import Affine
 from rasterio.windows import Window
 
 import toolbox
-from algorithms.rectify.image import default_cell_size, footprint, parse_pixel_to_image
-from algorithms.rectify.warp import HomographyMap, inside_mask, warp_to_geotiff
 from toolbox.errors import CanceledError, InputDataError, ParameterError
 from toolbox.feedback import Feedback
 from toolbox.io.grid import GridSpec
+from toolbox.raster.warp import HomographyMap, inside_mask, warp_to_geotiff
+from toolbox.transforms.rectification import default_cell_size, footprint, parse_pixel_to_image
 
 pytestmark = pytest.mark.filterwarnings("ignore::rasterio.errors.NotGeoreferencedWarning")
 

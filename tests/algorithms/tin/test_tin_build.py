@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 import shapely
 
-from algorithms.tin.build import BOUNDARY, BREAKLINE, CROSSING, POINT, TinBuildError, build_tin
-from algorithms.tin.kernels import interpolate_tin
-from algorithms.tin.topology import edge_table
+from toolbox.terrain.tin.build import BOUNDARY, BREAKLINE, CROSSING, POINT, TinBuildError, build_tin
+from toolbox.terrain.tin.kernels import interpolate_tin
+from toolbox.terrain.tin.topology import edge_table
 
 ORIGIN = np.array([1_688_000.0, 4_799_500.0, 0.0])
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import shapely
 
-from algorithms.tin.cutfill import grid_cut_fill, plane_cut_fill, positive_part
+from toolbox.terrain.tin.cutfill import grid_cut_fill, plane_cut_fill, positive_part
 
 X0, Y0 = 1_688_000.0, 4_799_500.0
 

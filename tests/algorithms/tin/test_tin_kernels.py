@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from algorithms.tin.kernels import (
+from toolbox.terrain.tin.kernels import (
     interpolate_tin,
     rasterize_tin,
     triangles_by_tile,

@@ -10,9 +10,9 @@ import pytest
 import shapely
 from pyproj import CRS
 
-from algorithms.tin.build import build_tin
-from algorithms.tin.store import points_from_wkb, read_tin, wkb_records, write_tin
 from toolbox.io.vector import open_layer
+from toolbox.terrain.tin.build import build_tin
+from toolbox.terrain.tin.store import points_from_wkb, read_tin, wkb_records, write_tin
 
 ORIGIN = np.array([1_688_000.0, 4_799_500.0, 300.0])
 

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from algorithms.tin.kernels import triangulate, triangulate_pslg
-from algorithms.tin.topology import (
+from toolbox.terrain.tin.kernels import triangulate, triangulate_pslg
+from toolbox.terrain.tin.topology import (
     edge_table,
     hull_edges,
     neighbors_from_triangles,

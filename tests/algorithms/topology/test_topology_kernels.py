@@ -7,14 +7,14 @@ import pytest
 import shapely
 from shapely import LineString as L
 
-from algorithms.topology.arcs import build_arcs, build_nodes
-from algorithms.topology.closure import close_lines
-from algorithms.topology.faces import face_sides, polygonize_edges, sliver_edges
-from algorithms.topology.graph import dangle_chains, edge_graph, remove_short_dangles
-from algorithms.topology.labels import assign_labels, blank_mask
-from algorithms.topology.noding import node_lines
-from algorithms.topology.prepare import prepare_lines
-from algorithms.topology.snap import snap_endpoints
+from toolbox.topology.arcs import build_arcs, build_nodes
+from toolbox.topology.closure import close_lines
+from toolbox.topology.faces import face_sides, polygonize_edges, sliver_edges
+from toolbox.topology.graph import dangle_chains, edge_graph, remove_short_dangles
+from toolbox.topology.labels import assign_labels, blank_mask
+from toolbox.topology.noding import node_lines
+from toolbox.topology.prepare import prepare_lines
+from toolbox.topology.snap import snap_endpoints
 
 P = 0.001
 

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import pytest
 
-from algorithms.topology.parameter_file import KEYS, normalise_name, read_parameter_file
-from algorithms.topology.tolerances import Tolerances, resolve_tolerances
 from toolbox.demo.samples.linework import PARAMETER_FILE_TEXT
 from toolbox.errors import InputDataError, ParameterError
+from toolbox.topology.parameter_file import KEYS, normalise_name, read_parameter_file
+from toolbox.topology.tolerances import Tolerances, resolve_tolerances
 
 
 def write(tmp_path, text, encoding="utf-8"):

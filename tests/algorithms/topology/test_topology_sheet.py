@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 import shapely
 
-from algorithms.topology.build import build_topology
-from algorithms.topology.tolerances import Tolerances
 from toolbox.demo.samples import linework as sample
+from toolbox.topology.build import build_topology
+from toolbox.topology.tolerances import Tolerances
 
 E0, N0 = sample.E0, sample.N0
 TOL = Tolerances(snap=0.2, closure=0.5, min_dangle=1.0, min_area=1.0, precision=0.001)

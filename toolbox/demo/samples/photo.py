@@ -86,8 +86,8 @@ def orthoimage(x: np.ndarray, y: np.ndarray, targets: np.ndarray) -> np.ndarray:
     """RGB (uint8, shape x.shape + (3,)) of the ground truth at map points ``x``, ``y``."""
     import cv2
 
-    from algorithms.raster.hillshade import hillshade
     from toolbox.demo.samples.terrain import CELL, XMIN, YMAX, Z_HIGH, Z_LOW, terrain
+    from toolbox.terrain.shading import hillshade
 
     z, _ = terrain()
     shade = hillshade(np.pad(z.astype("float64"), 1, mode="edge"), CELL, CELL)

@@ -31,7 +31,7 @@ def control_points(folder: Path) -> dict[str, tuple[float, float, float]]:
 
 
 def make(folder: Path, made: dict) -> dict:
-    from algorithms.orientation.project import load_project
+    from toolbox.photogrammetry.project import load_project
 
     target = Path(folder) / "siena"
     target.mkdir(parents=True, exist_ok=True)

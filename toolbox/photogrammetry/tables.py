@@ -1,0 +1,151 @@
+"""Small helpers shared by the orientation algorithms: CSV tables in and out, the project file."""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+from collections.abc import Iterable, Sequence
+from pathlib import Path
+from typing import Any
+
+from toolbox.errors import InputDataError
+from toolbox.io.text import read_text
+
+
+def read_csv_table(path: Path, name: str = "INPUT") -> tuple[list[str], list[dict[str, str]]]:
+    """Header and rows of a delimited text file (delimiter sniffed among , ; tab).
+
+    Lines starting with ``#`` are comments. Header names are kept as written; use
+    :func:`column` to find one case-insensitively.
+    """
+    text = read_text(path, name)
+    lines = [ln for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
+    if not lines:
+        raise InputDataError(f"{name}: {path} holds no rows")
+    try:
+        dialect = csv.Sniffer().sniff(lines[0], delimiters=",;\t")
+    except csv.Error:
+        dialect = csv.excel
+    reader = csv.DictReader(io.StringIO("\n".join(lines)), dialect=dialect)
+    header = [h.strip() for h in (reader.fieldnames or [])]
+    rows = [{(k or "").strip(): (v or "").strip() for k, v in row.items()} for row in reader]
+    return header, rows
+
+
+def column(header: Sequence[str], *aliases: str, required: bool = True, name: str = "INPUT",
+           path: Any = "") -> str | None:
+    """The header entry matching one of ``aliases`` (case-insensitive), else None or an error."""
+    lower = {h.lower(): h for h in header}
+    for alias in aliases:
+        if alias.lower() in lower:
+            return lower[alias.lower()]
+    if required:
+        raise InputDataError(f"{name}: {path} has no {aliases[0]!r} column (also accepted: "
+                             f"{', '.join(aliases[1:]) or '-'}); columns are: {', '.join(header)}")
+    return None
+
+
+def number(value: str, what: str, name: str = "INPUT") -> float:
+    try:
+        result = float(value)
+    except (TypeError, ValueError):
+        result = math.nan
+    if not math.isfinite(result):
+        raise InputDataError(f"{name}: {what} must be a number, got {value!r}")
+    return result
+
+
+def write_csv(path: Path, header: Sequence[str], rows: Iterable[Sequence[Any]]) -> Path:
+    with open(path, "w", newline="", encoding="utf-8") as f:
+        writer = csv.writer(f)
+        writer.writerow(header)
+        for row in rows:
+            writer.writerow(["" if v is None else (repr(float(v)) if isinstance(v, float) else v)
+                             for v in row])
+    return path
+
+
+def write_json(path: Path, document: Any) -> Path:
+    Path(path).write_text(json.dumps(document, indent=2, default=_json_default) + "\n",
+                          encoding="utf-8")
+    return path
+
+
+def _json_default(value: Any) -> Any:
+    import numpy as np
+
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, (np.floating, np.integer)):
+        return value.item()
+    if isinstance(value, Path):
+        return str(value)
+    raise TypeError(f"not JSON serialisable: {type(value).__name__}")
+
+
+def finite_or_none(value: float | None) -> float | None:
+    return None if value is None or not math.isfinite(value) else float(value)
+
+
+def read_table(path: Path, layer: str | None = None, name: str = "INPUT"
+               ) -> tuple[list[str], list[dict[str, str]]]:
+    """Header and rows (values as text) of a CSV/TXT file or of a GeoPackage layer's attributes
+    (``layer``, default the first)."""
+    if Path(path).suffix.lower() not in (".gpkg", ".sqlite"):
+        return read_csv_table(path, name)
+    import pyogrio
+
+    try:
+        frame = pyogrio.read_dataframe(path, layer=layer, read_geometry=False)
+    except Exception as exc:  # pyogrio raises DataSourceError and friends
+        raise InputDataError(f"{name}: cannot read {path}"
+                             f"{'|layername=' + layer if layer else ''}: "
+                             f"{str(exc).splitlines()[0]}") from None
+    header = [str(c) for c in frame.columns]
+    rows = [{h: "" if v is None or (isinstance(v, float) and math.isnan(v)) else str(v)
+             for h, v in zip(header, values, strict=True)}
+            for values in frame.itertuples(index=False, name=None)]
+    if not rows:
+        raise InputDataError(f"{name}: {path} holds no rows")
+    return header, rows
+
+
+def image_measurements(path: Path, layer: str | None, coordinates: str, name: str = "INPUT"):
+    """Measured image points: ``(ids, photos, xy (M, 2), kind)`` from a table with ``photo``,
+    optionally ``point_id``, and ``col_px``/``row_px`` (kind "pixel") or ``x_mm``/``y_mm``
+    (kind "image"). ``coordinates`` is "auto", "pixel" or "image"."""
+    import numpy as np
+
+    header, rows = read_table(path, layer, name)
+    c_photo = column(header, "photo", "photo_id", "image", name=name, path=path)
+    c_id = column(header, "point_id", "point", "id", "name", required=False)
+    pixel = column(header, "col_px", required=False) and column(header, "row_px", required=False)
+    image = column(header, "x_mm", required=False) and column(header, "y_mm", required=False)
+    kind = coordinates
+    if kind == "auto":
+        kind = "pixel" if pixel else "image" if image else ""
+    if kind == "pixel" and not pixel or kind == "image" and not image or not kind:
+        wanted = {"pixel": "col_px and row_px", "image": "x_mm and y_mm"}.get(
+            kind, "col_px/row_px or x_mm/y_mm")
+        raise InputDataError(f"{name}: {path} needs columns {wanted}; columns are: "
+                             f"{', '.join(header)}")
+    cu, cv = (column(header, "col_px"), column(header, "row_px")) if kind == "pixel" else \
+        (column(header, "x_mm"), column(header, "y_mm"))
+    ids = [r[c_id] if c_id else str(k + 1) for k, r in enumerate(rows)]
+    photos = [r[c_photo] for r in rows]
+    xy = np.array([[number(r[cu], f"row {k + 1} {cu}", name), number(r[cv], f"row {k + 1} {cv}",
+                                                                       name)]
+                   for k, r in enumerate(rows)])
+    return ids, photos, xy, kind
+
+
+def load_project_parameter(path: Path, name: str = "PROJECT"):
+    """Load a project file given as an algorithm parameter; errors name the parameter."""
+    from toolbox.photogrammetry.project import load_project
+
+    try:
+        return load_project(path)
+    except InputDataError as exc:
+        raise InputDataError(f"{name}: {exc}") from None

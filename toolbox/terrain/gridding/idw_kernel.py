@@ -1,0 +1,207 @@
+"""Inverse-distance-weighted mean and nearest neighbour (thesis eq. [45]), compiled kernels.
+
+``Q = Σ q_k·w_k / Σ w_k`` with ``w_k = 1 / d_k^p`` over the chosen neighbours of the cell centre
+(S002 par. 2.5.2 eq. [45] uses ``p = 1``; ``p = 2`` is the usual choice of GIS software). A
+neighbour at distance 0 gives its height exactly. Neighbours are the k nearest points, optionally
+only within a search radius, optionally chosen by sectors (the ``ceil(k / sectors)`` nearest in
+each of ``sectors`` equal angular sectors, so one-sided clusters do not dominate).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from toolbox.terrain.gridding.neighbours import (
+    PointBins,
+    block_knn,
+    block_scratch,
+    block_size,
+    knn_one,
+    sector_one,
+)
+
+
+@njit(nogil=True, cache=True, inline="always")
+def idw_value(d2, z_index, pz, n, power):
+    """Weighted mean of ``pz[z_index[:n]]`` with weights ``d^-power`` (``d2`` squared distances);
+    the height of a neighbour at distance 0; never outside the neighbours' height range."""
+    if n == 1:
+        return pz[z_index[0]]
+    for t in range(n):
+        if d2[t] == 0.0:
+            return pz[z_index[t]]
+    num = 0.0
+    den = 0.0
+    lo = math.inf
+    hi = -math.inf
+    half = -0.5 * power
+    for t in range(n):
+        if power == 2.0:
+            w = 1.0 / d2[t]
+        elif power == 1.0:
+            w = 1.0 / math.sqrt(d2[t])
+        else:
+            w = math.pow(d2[t], half)
+        z = pz[z_index[t]]
+        num += w * z
+        den += w
+        lo = min(lo, z)
+        hi = max(hi, z)
+    # a convex combination: clamp the last-bit rounding so the result never leaves the range
+    return min(max(num / den, lo), hi)
+
+
+@njit(nogil=True, cache=True)
+def _neighbours(px, py, offsets, x0, y0, size, nbx, nby, qx, qy, k, r2max, skip,
+                sectors, per_sector, best_d2, best_i, sec_d2, sec_i, sec_count):
+    """Neighbours of one query: k nearest, or by sectors; returns (count, nearest d2)."""
+    if sectors > 1:
+        n = sector_one(px, py, offsets, x0, y0, size, nbx, nby, qx, qy, sectors,
+                       per_sector, r2max, skip, sec_d2, sec_i, sec_count, best_d2, best_i)
+    else:
+        n = knn_one(px, py, offsets, x0, y0, size, nbx, nby, qx, qy, k, r2max, skip,
+                    best_d2, best_i)
+    nearest = math.inf
+    for t in range(n):
+        if best_d2[t] < nearest:
+            nearest = best_d2[t]
+    return n, nearest
+
+
+@njit(nogil=True, cache=True)
+def _grid(px, py, offsets, x0, y0, size, nbx, nby, pz, xs, ys, mask, k, r2max, power,
+          sectors, per_sector, min_neighbours, max_d2, block, out):
+    cap = max(k, sectors * per_sector)
+    best_d2 = np.empty(cap)
+    best_i = np.empty(cap, dtype=np.int64)
+    sec_d2 = np.empty((max(sectors, 1), max(per_sector, 1)))
+    sec_i = np.empty((max(sectors, 1), max(per_sector, 1)), dtype=np.int64)
+    sec_count = np.zeros(max(sectors, 1), dtype=np.int64)
+    h, w = mask.shape
+    if sectors > 1:  # sector search, cell by cell
+        for r in range(h):
+            for c in range(w):
+                if not mask[r, c]:
+                    continue
+                n, nearest = _neighbours(px, py, offsets, x0, y0, size, nbx, nby, xs[c], ys[r],
+                                         k, r2max, -1, sectors, per_sector, best_d2, best_i,
+                                         sec_d2, sec_i, sec_count)
+                if n == 0 or n < min_neighbours or nearest > max_d2:
+                    continue
+                out[r, c] = idw_value(best_d2, best_i, pz, n, power)
+        return
+    npts = len(px)
+    cand_x, cand_y, cand_p, cand_d, bd2, bi, bn, bnear = block_scratch(npts, k, block)
+    for r0 in range(0, h, block):
+        r1 = min(r0 + block, h)
+        for c0 in range(0, w, block):
+            c1 = min(c0 + block, w)
+            block_knn(px, py, offsets, x0, y0, size, nbx, nby, xs, ys, c0, c1, r0, r1, mask, k,
+                      r2max, best_d2, best_i, cand_x, cand_y, cand_p, cand_d, bd2, bi, bn,
+                      bnear)
+            for r in range(r0, r1):
+                for c in range(c0, c1):
+                    t = (r - r0) * (c1 - c0) + (c - c0)
+                    n = bn[t]
+                    if n == 0 or n < min_neighbours or bnear[t] > max_d2:
+                        continue
+                    out[r, c] = idw_value(bd2[t], bi[t], pz, n, power)
+
+
+@njit(nogil=True, cache=True)
+def _loo(px, py, offsets, x0, y0, size, nbx, nby, pz, targets, k, r2max, power, sectors,
+         per_sector, min_neighbours, max_d2, out):
+    cap = max(k, sectors * per_sector)
+    best_d2 = np.empty(cap)
+    best_i = np.empty(cap, dtype=np.int64)
+    sec_d2 = np.empty((max(sectors, 1), max(per_sector, 1)))
+    sec_i = np.empty((max(sectors, 1), max(per_sector, 1)), dtype=np.int64)
+    sec_count = np.zeros(max(sectors, 1), dtype=np.int64)
+    for t in range(len(targets)):
+        i = targets[t]
+        n, nearest = _neighbours(px, py, offsets, x0, y0, size, nbx, nby, px[i], py[i], k,
+                                 r2max, i, sectors, per_sector, best_d2, best_i, sec_d2, sec_i,
+                                 sec_count)
+        if n == 0 or n < min_neighbours or nearest > max_d2:
+            continue
+        out[t] = idw_value(best_d2, best_i, pz, n, power)
+
+
+def _sq(distance: float | None) -> float:
+    if distance is None or not math.isfinite(distance):
+        return math.inf
+    return float(distance) ** 2
+
+
+def _cell(xs: np.ndarray, ys: np.ndarray) -> float:
+    """Cell spacing of a grid given by its column and row centres (1 for a single cell)."""
+    if len(xs) > 1:
+        return abs(float(xs[1] - xs[0]))
+    return abs(float(ys[1] - ys[0])) if len(ys) > 1 else 1.0
+
+
+def _per_sector(neighbours: int, sectors: int) -> int:
+    return max(1, math.ceil(neighbours / sectors)) if sectors > 1 else 0
+
+
+def idw_grid(xyz: np.ndarray, xs: np.ndarray, ys: np.ndarray, mask: np.ndarray,
+             neighbours: int = 12, power: float = 2.0, radius: float = math.inf,
+             sectors: int = 0, min_neighbours: int = 1,
+             max_distance: float = math.inf) -> np.ndarray:
+    """IDW heights (eq. [45]) at the cell centres ``xs`` x ``ys`` (local coordinates).
+
+    Parameters
+    ----------
+    xyz : (n, 3) float64
+        Data points, local origin.
+    xs, ys : (w,), (h,) float64
+        Column and row centres; row 0 is ``ys[0]``.
+    mask : (h, w) bool
+        Cells to compute; the others stay NaN.
+    neighbours : int
+        k nearest points (with ``sectors > 1``: ``ceil(k / sectors)`` per sector).
+    power : float
+        Weight exponent p in ``1 / d^p``.
+    radius : float
+        Search radius (CRS units); required (finite) with sectors.
+    min_neighbours : int
+        Cells with fewer neighbours found stay NaN.
+    max_distance : float
+        Cells whose nearest point is farther stay NaN.
+    """
+    bins = PointBins.build(xyz[:, :2])
+    out = np.full((len(ys), len(xs)), np.nan)
+    xs = np.asarray(xs, "float64")
+    ys = np.asarray(ys, "float64")
+    block = block_size(bins, neighbours, _cell(xs, ys))
+    _grid(*bins.args(), bins.binned(xyz[:, 2]), xs, ys, np.ascontiguousarray(mask, dtype=np.bool_),
+          int(neighbours), _sq(radius), float(power), int(sectors),
+          _per_sector(neighbours, sectors), int(min_neighbours), _sq(max_distance), block, out)
+    return out
+
+
+def idw_loo(bins: PointBins, z: np.ndarray, targets: np.ndarray, neighbours: int = 12,
+            power: float = 2.0, radius: float = math.inf, sectors: int = 0,
+            min_neighbours: int = 1, max_distance: float = math.inf) -> np.ndarray:
+    """Leave-one-out IDW prediction at the data points ``targets`` (NaN where impossible)."""
+    targets = np.asarray(targets, dtype=np.int64)
+    out = np.full(len(targets), np.nan)
+    _loo(*bins.args(), bins.binned(z), bins.positions()[targets], int(neighbours),
+         _sq(radius), float(power), int(sectors), _per_sector(neighbours, sectors),
+         int(min_neighbours), _sq(max_distance), out)
+    return out
+
+
+def nearest_grid(xyz: np.ndarray, xs: np.ndarray, ys: np.ndarray, mask: np.ndarray,
+                 max_distance: float = math.inf) -> np.ndarray:
+    """Height of the nearest data point at each cell centre (thesis par. 2.5.2, method 1)."""
+    return idw_grid(xyz, xs, ys, mask, neighbours=1, max_distance=max_distance)
+
+
+def nearest_loo(bins: PointBins, z: np.ndarray, targets: np.ndarray,
+                max_distance: float = math.inf) -> np.ndarray:
+    """Leave-one-out nearest-neighbour prediction: the height of the nearest other point."""
+    return idw_loo(bins, z, targets, neighbours=1, max_distance=max_distance)

@@ -1,0 +1,216 @@
+"""Input data of the DEM gridding algorithms: points, line vertices and breaklines, read with
+their CRS checked, NaN/inf refused and duplicate XY merged by a stated rule.
+
+Duplicate XY rule (``DUPLICATES``): points at the same plan position (within
+``DUPLICATE_TOLERANCE``, default: identical coordinates) become one point whose height is the
+``mean`` (default), the ``first`` (input order: INPUT, LINES, BREAKLINES), the ``min`` or the
+``max`` of theirs, or the run stops (``error``); see
+:func:`toolbox.terrain.points.merge_duplicate_xy`. What was merged is reported.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from toolbox.algorithm import Algorithm
+from toolbox.errors import InputDataError
+from toolbox.feedback import Feedback
+from toolbox.parameters import Crs, Enum, Field, Number, VectorLayer
+from toolbox.terrain.gridding.neighbours import PointBins
+from toolbox.terrain.points import DUPLICATE_RULES, DuplicateReport, local_origin, merge_duplicate_xy
+
+
+def source_parameters() -> list:
+    """Input data: points, line vertices, breaklines; duplicate rule; CRS."""
+    return [
+        VectorLayer("INPUT", "mass points: PointZ, or points with a height field (Z_FIELD)",
+                    geometry_types=["point"], optional=True),
+        Field("Z_FIELD", "height field of INPUT (default: the geometry's Z)", parent="INPUT",
+              numeric=True, optional=True),
+        VectorLayer("LINES", "lines whose vertices are data points, e.g. contours (LineString Z, "
+                    "or a height field in LINES_Z_FIELD)", geometry_types=["line"], optional=True),
+        Field("LINES_Z_FIELD", "height field of LINES (e.g. the contour's elevation)",
+              parent="LINES", numeric=True, optional=True),
+        VectorLayer("BREAKLINES", "breaklines: their vertices are data points, and their edges "
+                    "are kept as triangle edges by dem:tin_linear", geometry_types=["line"],
+                    optional=True),
+        Field("BREAKLINES_Z_FIELD", "height field of BREAKLINES (default: geometry Z)",
+              parent="BREAKLINES", numeric=True, optional=True),
+        Enum("DUPLICATES", "height of points sharing one XY position: mean, first (input "
+             "order: INPUT, LINES, BREAKLINES), min, max, or error", options=DUPLICATE_RULES,
+             default="mean"),
+        Number("DUPLICATE_TOLERANCE", "points closer than this in plan are one position (CRS "
+               "units; 0 = identical coordinates)", default=0.0, min_value=0),
+        Crs("CRS", "CRS of the data and the output (default: the inputs'); inputs without a CRS "
+            "take it, inputs in another CRS are refused", optional=True),
+    ]
+
+
+
+# -- input data -----------------------------------------------------------------------------------
+@dataclass
+class GriddingData:
+    """The merged data points of a run.
+
+    Attributes
+    ----------
+    xyz : (n, 3) float64
+        Distinct points (map coordinates), INPUT first, then LINES and BREAKLINES vertices.
+    origin : (2,) float64
+        Local origin; kernels get ``xyz - (origin, 0)``.
+    segments : (s, 2) int64
+        Breakline edges as index pairs into ``xyz`` (zero-length edges dropped).
+    crs : pyproj.CRS or None
+    counts : dict
+        Points read per source.
+    duplicates : DuplicateReport
+    """
+
+    xyz: np.ndarray
+    origin: np.ndarray
+    segments: np.ndarray
+    crs: Any
+    counts: dict
+    duplicates: DuplicateReport
+    _local: np.ndarray | None = field(default=None, repr=False)
+    _bins: PointBins | None = field(default=None, repr=False)
+
+    @property
+    def local(self) -> np.ndarray:
+        """``xyz`` shifted to the local origin (computed once; do not modify)."""
+        if self._local is None:
+            self._local = _shift(self.xyz, self.origin)
+        return self._local
+
+    @property
+    def bins(self) -> PointBins:
+        """Neighbour index of the local points (built once)."""
+        if self._bins is None:
+            self._bins = PointBins.build(self.local[:, :2])
+        return self._bins
+
+    @property
+    def bounds(self) -> tuple[float, float, float, float]:
+        lo = self.xyz[:, :2].min(axis=0)
+        hi = self.xyz[:, :2].max(axis=0)
+        return (float(lo[0]), float(lo[1]), float(hi[0]), float(hi[1]))
+
+
+def check_sources(alg: Algorithm, params: dict) -> None:
+    """Cross-parameter checks shared by every gridding algorithm (raise ParameterError)."""
+    if params.get("INPUT") is None and params.get("LINES") is None \
+            and params.get("BREAKLINES") is None:
+        raise alg.fail("INPUT", "is required: give points (INPUT) and/or lines (LINES, "
+                       "BREAKLINES) to grid")
+
+
+def read_sources(params: dict, feedback: Feedback) -> GriddingData:
+    """Read the points and line vertices, check CRSs, merge duplicate XY."""
+    import shapely
+
+    from toolbox.io.crs import common_crs
+    from toolbox.io.vector import read_points_xyz, read_vector, vertices_xyz
+
+    named = {name: params[name].crs for name in ("INPUT", "LINES", "BREAKLINES", "MASK")
+             if params.get(name) is not None}
+    if params.get("TEMPLATE") is not None:
+        named["TEMPLATE"] = params["TEMPLATE"].crs
+    if params.get("EXTENT") is not None and params["EXTENT"].crs is not None:
+        named["EXTENT"] = params["EXTENT"].crs
+    crs = common_crs(named, params.get("CRS"))
+    if crs is None:
+        feedback.push_warning("no input has a CRS and CRS is not given: the DEM has no CRS")
+    parts, counts = [], {}
+    segments: list[np.ndarray] = []
+    offset = 0
+    with feedback.timed("read"):
+        if params.get("INPUT") is not None:
+            xyz = read_points_xyz(params["INPUT"], params.get("Z_FIELD"), "INPUT")
+            parts.append(xyz)
+            counts["points"] = len(xyz)
+            offset += len(xyz)
+        for name in ("LINES", "BREAKLINES"):
+            if params.get(name) is None:
+                continue
+            frame = read_vector(params[name], name=name)
+            frame = frame[~(frame.geometry.isna() | frame.geometry.is_empty)]
+            if len(frame) == 0:
+                raise InputDataError(f"{name} has no features with a geometry")
+            frame = frame.explode(index_parts=False).reset_index(drop=True)
+            if not set(shapely.get_type_id(frame.geometry.values).tolist()) <= {1, 2}:
+                raise InputDataError(f"{name} must contain lines, found other geometry types")
+            xyz, part = vertices_xyz(frame, params.get(f"{name}_Z_FIELD"), name)
+            parts.append(xyz)
+            counts[f"{name.lower()}_vertices"] = len(xyz)
+            if name == "BREAKLINES" and len(xyz) > 1:
+                same = part[1:] == part[:-1]
+                first = np.flatnonzero(same) + offset
+                segments.append(np.column_stack([first, first + 1]))
+            offset += len(xyz)
+    if not parts or offset == 0:
+        raise InputDataError("no data points: the inputs are empty")
+    xyz = np.vstack(parts)
+    rule = params.get("DUPLICATES", "mean")
+    tolerance = float(params.get("DUPLICATE_TOLERANCE") or 0.0)
+    with feedback.timed("duplicates"):
+        origin = local_origin(xyz)
+        local = _shift(xyz, origin)
+        bins = PointBins.build(local[:, :2]) if tolerance == 0 else None
+        if bins is not None and not bins.has_duplicates():  # the common case, O(n)
+            merged, report = xyz, DuplicateReport(0, 0, 0.0, rule)
+        else:
+            local = bins = None
+            try:
+                merged, report, _ = merge_duplicate_xy(xyz, tolerance, rule)
+            except ValueError as exc:
+                raise InputDataError(f"DUPLICATES is 'error' and {exc}") from None
+        seg = np.vstack(segments) if segments else np.zeros((0, 2), dtype=np.int64)
+        if len(seg) and report.removed:
+            seg = _remap(xyz[:, :2], merged[:, :2], seg)
+        seg = seg[seg[:, 0] != seg[:, 1]]
+        if len(seg):
+            seg = np.unique(np.sort(seg, axis=1), axis=0)
+    if report.groups:
+        text = (f"{report.groups} XY positions had several points ({report.removed} removed); "
+                f"rule '{rule}', largest Z spread {report.max_z_spread:.3f}")
+        if report.max_z_spread > 0:
+            feedback.push_warning(text)
+        else:
+            feedback.push_info(text)
+    if local is None:
+        origin = local_origin(merged)
+    return GriddingData(merged, origin, seg.astype(np.int64), crs, counts, report, local, bins)
+
+
+def _shift(xyz: np.ndarray, origin: np.ndarray) -> np.ndarray:
+    out = np.array(xyz, dtype="float64")
+    out[:, :2] -= origin
+    return out
+
+
+def has_duplicate_xy(xyz: np.ndarray) -> bool:
+    """True when two points have exactly the same X and Y (binned, O(n))."""
+    return PointBins.build(np.asarray(xyz, dtype="float64")[:, :2]).has_duplicates()
+
+
+def _remap(xy_all: np.ndarray, xy_merged: np.ndarray, segments: np.ndarray) -> np.ndarray:
+    """Indices into the merged points of the segment ends (the merged point nearest each end)."""
+    from scipy.spatial import cKDTree
+
+    ends = np.unique(segments.ravel())
+    origin = local_origin(xy_merged)
+    _, nearest = cKDTree(xy_merged - origin).query(xy_all[ends] - origin, k=1)
+    lookup = np.full(len(xy_all), -1, dtype=np.int64)
+    lookup[ends] = nearest
+    return lookup[segments]
+
+
+def require_points(data: GriddingData, needed: int, method: str) -> None:
+    """InputDataError when there are fewer distinct points than ``method`` needs."""
+    n = len(data.xyz)
+    if n < needed:
+        raise InputDataError(f"{method} needs at least {needed} distinct data points, got {n} "
+                             f"(after merging duplicate XY)")

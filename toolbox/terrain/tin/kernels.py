@@ -1,0 +1,409 @@
+"""TIN kernels: (constrained) Delaunay triangulation and the plane of each triangle at points and
+at raster cell centres.
+
+Arrays in, arrays out; no files, no CRS. Conventions:
+
+- ``xy`` / ``xyz`` are ``(N, 2)`` / ``(N, 3)`` float64 map coordinates (x east, y north, z up);
+- ``triangles`` are ``(T, 3)`` int vertex indices, counter-clockwise in map coordinates;
+- rasters are north-up: cell ``(r, c)`` has its centre at
+  ``(x0 + (c + 0.5) * cell_x, y0 - (r + 0.5) * cell_y)``, ``(x0, y0)`` being the top-left corner;
+- "outside the TIN" is NaN.
+
+The triangulation is Shewchuk's Triangle (the ``triangle`` package): Delaunay by divide and
+conquer with exact predicates, constrained Delaunay (``-p``) when segments are given. The height
+inside a triangle is the plane through its three nodes, thesis eq. [43]-[44]
+(../shared/docs/domain.md par. 14), evaluated with coordinates relative to the triangle's first
+vertex so large projected coordinates lose no digits.
+
+Point-in-triangle tests evaluate the orientation of each edge in one canonical direction (from its
+lower to its higher vertex index), so the two triangles sharing an edge always agree on which
+side a point is: a point or cell centre inside the TIN is never lost in a crack between triangles.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from toolbox.terrain.points import local_origin
+from toolbox.terrain.tin.planes import PointBuckets, locate, rasterize, snap_to_edges
+
+
+# -- triangulation --------------------------------------------------------------------------------
+@dataclass
+class Triangulation:
+    """Result of :func:`triangulate_pslg`.
+
+    Attributes
+    ----------
+    vertices : (V, 2) float64
+        Map coordinates. The first ``n_input`` rows are the input points unchanged; rows after
+        them are vertices Triangle added where input segments cross (Steiner points).
+    triangles : (T, 3) int32
+        Vertex indices, counter-clockwise.
+    neighbors : (T, 3) int32
+        ``neighbors[t, j]`` is the triangle across the edge opposite corner ``j`` of ``t``
+        (the edge ``triangles[t, j+1]`` - ``triangles[t, j+2]``), -1 on the hull.
+    segments : (S, 2) int32
+        Constrained edges of the result: input segments (split where crossed or touched by a
+        vertex) and, when segments were given, the convex hull edges.
+    segment_parents : (S,) int64
+        Index of the input segment each row of ``segments`` comes from; -1 for hull edges.
+    n_input : int
+        Number of input points.
+    """
+
+    vertices: np.ndarray
+    triangles: np.ndarray
+    neighbors: np.ndarray
+    segments: np.ndarray
+    segment_parents: np.ndarray
+    n_input: int
+
+    @property
+    def steiner_count(self) -> int:
+        """Vertices added by Triangle at segment crossings."""
+        return len(self.vertices) - self.n_input
+
+
+def _check_xy(xy: np.ndarray) -> np.ndarray:
+    xy = np.asarray(xy, dtype="float64")
+    if xy.ndim != 2 or xy.shape[1] < 2:
+        raise ValueError(f"xy must be an (N, 2) array, got shape {xy.shape}")
+    xy = xy[:, :2]
+    if len(xy) < 3:
+        raise ValueError(f"a triangulation needs at least 3 points, got {len(xy)}")
+    if not np.isfinite(xy).all():
+        raise ValueError("xy contains NaN or infinite coordinates")
+    return xy
+
+
+def _origin_of(xy: np.ndarray) -> np.ndarray:
+    """:func:`local_origin` of the points, from their bounding box (two reductions, not four)."""
+    return local_origin(np.vstack([xy.min(axis=0), xy.max(axis=0)]))
+
+
+def _check_segments(segments, n: int) -> np.ndarray:
+    seg = np.asarray(segments)
+    if seg.size == 0:
+        return np.zeros((0, 2), dtype=np.int32)
+    if seg.ndim != 2 or seg.shape[1] != 2 or seg.dtype.kind not in "iu":
+        raise ValueError(f"segments must be an (M, 2) integer array, got shape {seg.shape} "
+                         f"dtype {seg.dtype}")
+    if seg.min() < 0 or seg.max() >= n:
+        raise ValueError(f"segments must index the {n} points (0..{n - 1}), got values "
+                         f"{int(seg.min())}..{int(seg.max())}")
+    return seg.astype(np.int32)
+
+
+def triangulate_pslg(xy: np.ndarray, segments: np.ndarray | None = None,
+                     neighbors: bool = True, parents: bool = True) -> Triangulation:
+    """Delaunay triangulation of points, constrained by segments when given (Triangle ``-pc``).
+
+    Parameters
+    ----------
+    xy : (N, 2) float array
+        Map coordinates; distinct in XY (merge duplicates first with
+        :func:`toolbox.terrain.points.merge_duplicate_xy`). Shifted to a local origin here.
+    segments : (M, 2) int array, optional
+        Vertex-index pairs that must be triangle edges. Crossing segments are split by Triangle
+        at their intersection, which becomes a new vertex (see :attr:`Triangulation.vertices`).
+        Zero-length segments (both ends the same vertex) are ignored.
+    neighbors : bool
+        Also return the triangle neighbours (about 10 % more time); otherwise
+        :attr:`Triangulation.neighbors` is an empty ``(0, 3)`` array.
+    parents : bool
+        Trace each output constrained edge back to its input segment
+        (:attr:`Triangulation.segments`, :attr:`Triangulation.segment_parents`); otherwise both
+        are empty.
+
+    Returns
+    -------
+    Triangulation
+
+    Raises
+    ------
+    ValueError
+        Fewer than 3 points, NaN coordinates, all points collinear, points duplicated in XY,
+        or malformed segments.
+    """
+    import triangle
+
+    xy = _check_xy(xy)
+    n = len(xy)
+    origin = _origin_of(xy)
+    tri_in: dict[str, np.ndarray] = {"vertices": np.ascontiguousarray(xy - origin)}
+    seg = np.zeros((0, 2), dtype=np.int32) if segments is None else _check_segments(segments, n)
+    seg_index = np.flatnonzero(seg[:, 0] != seg[:, 1])
+    if len(seg_index):
+        tri_in["segments"] = np.ascontiguousarray(seg[seg_index])
+        if parents:
+            # markers identify the parent segment of each output subsegment; 0/1 are Triangle's
+            tri_in["segment_markers"] = (np.arange(len(seg_index), dtype=np.int32)
+                                         + 2).reshape(-1, 1)
+        opts = "pc"
+    else:
+        opts = ""
+    if neighbors:
+        opts += "n"
+    out = triangle.triangulate(tri_in, opts)
+    triangles = out.get("triangles")
+    if triangles is None or len(triangles) == 0:
+        raise ValueError(f"the {n} points are collinear (or all coincide): no triangle can be "
+                         "formed")
+    triangles = np.ascontiguousarray(triangles, dtype=np.int32)
+    n_out = len(out["vertices"])
+    used = np.zeros(n_out, dtype=bool)
+    used[triangles.ravel()] = True
+    if not used[:n].all():
+        missing = np.flatnonzero(~used[:n])
+        raise ValueError(f"{len(missing)} points are duplicated in XY and were not triangulated "
+                         f"(first index {int(missing[0])} at x={xy[missing[0], 0]:.4f}, "
+                         f"y={xy[missing[0], 1]:.4f}); merge duplicates first")
+    vertices = xy if n_out == n else np.vstack([xy, out["vertices"][n:] + origin])
+    if len(seg_index) and parents:
+        out_seg = np.asarray(out["segments"], dtype=np.int32).reshape(-1, 2)
+        markers = np.asarray(out["segment_markers"], dtype=np.int64).ravel()
+        parents = np.where(markers >= 2, seg_index[np.maximum(markers - 2, 0)], -1)
+    else:
+        out_seg = np.zeros((0, 2), dtype=np.int32)
+        parents = np.zeros(0, dtype=np.int64)
+    nb = np.ascontiguousarray(out["neighbors"], dtype=np.int32) if neighbors else \
+        np.zeros((0, 3), dtype=np.int32)
+    return Triangulation(vertices, triangles, nb, out_seg, parents, n)
+
+
+def crossing_heights(tri: Triangulation, seg_xyz: np.ndarray, seg_nodes: np.ndarray,
+                     priority: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Z of the vertices Triangle added at segment crossings, interpolated along each parent
+    segment; among parents, those with the highest ``priority`` count (mean of them; all
+    parents when ``priority`` is None).
+
+    Returns the heights (one per added vertex) and the disagreement between parents of the same
+    priority (max - min of their heights there).
+    """
+    n, extra = tri.n_input, tri.steiner_count
+    sub = tri.segments[tri.segment_parents >= 0]
+    parent = tri.segment_parents[tri.segment_parents >= 0]
+    ends = np.concatenate([sub[:, 0], sub[:, 1]])
+    parents = np.concatenate([parent, parent])
+    sel = ends >= n
+    vertex, parents = ends[sel] - n, parents[sel]
+    a = seg_xyz[seg_nodes[parents, 0]]
+    b = seg_xyz[seg_nodes[parents, 1]]
+    p = tri.vertices[n + vertex]
+    d = b[:, :2] - a[:, :2]
+    t = np.clip(np.einsum("ij,ij->i", p - a[:, :2], d) / np.einsum("ij,ij->i", d, d), 0.0, 1.0)
+    z = a[:, 2] + t * (b[:, 2] - a[:, 2])
+    prio = np.zeros(len(parents)) if priority is None else priority[parents]
+    best = np.full(extra, -np.inf)
+    np.maximum.at(best, vertex, prio)
+    top = prio == best[vertex]
+    count = np.bincount(vertex[top], minlength=extra)
+    if np.any(count == 0):
+        raise ValueError("internal: a crossing vertex lies on no input segment")
+    heights = np.bincount(vertex[top], weights=z[top], minlength=extra) / count
+    zmin = np.full(extra, np.inf)
+    zmax = np.full(extra, -np.inf)
+    np.minimum.at(zmin, vertex[top], z[top])
+    np.maximum.at(zmax, vertex[top], z[top])
+    return heights, zmax - zmin
+
+
+def triangulate(xy: np.ndarray, segments: np.ndarray | None = None) -> np.ndarray:
+    """Delaunay triangulation of points (constrained Delaunay when ``segments`` is given).
+
+    Parameters
+    ----------
+    xy : (N, 2) float array
+        Map coordinates, distinct in XY (merge duplicates beforehand with
+        :func:`toolbox.terrain.points.merge_duplicate_xy`); shifted to a local origin here.
+    segments : (M, 2) int array, optional
+        Vertex-index pairs that must be triangle edges (breaklines). They must not cross each
+        other away from their vertices: a crossing would need a new vertex, which this function
+        refuses (:func:`triangulate_pslg` accepts it and returns the new vertices).
+
+    Returns
+    -------
+    (T, 3) int32
+        Vertex indices of each triangle, counter-clockwise. Every input point is a node.
+
+    Raises
+    ------
+    ValueError
+        Fewer than 3 points, collinear points, duplicated XY, malformed or crossing segments.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> tri = triangulate(np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]))
+    >>> tri.shape
+    (2, 3)
+    """
+    result = triangulate_pslg(xy, segments, neighbors=False, parents=False)
+    if result.steiner_count:
+        raise ValueError(f"segments cross each other away from their vertices "
+                         f"({result.steiner_count} crossing points); split them at the crossings "
+                         "first (tin:delaunay does this, interpolating Z)")
+    return result.triangles
+
+
+# -- plane values at cell centres and at points ---------------------------------------------------
+def rasterize_tin(xyz: np.ndarray, triangles: np.ndarray, x0: float, y0: float, cell_x: float,
+                  cell_y: float, width: int, height: int) -> np.ndarray:
+    """Plane value of the containing triangle at every cell centre of a north-up grid.
+
+    Parameters
+    ----------
+    xyz : (N, 3) float array
+        Node coordinates (map units; z in height units).
+    triangles : (T, 3) int array
+        Triangles to draw (indices into ``xyz``); for a tile, pass only the triangles that touch
+        it (see :func:`triangles_by_tile`) so work and memory stay bounded.
+    x0, y0 : float
+        Top-left corner of the grid (or window), map units.
+    cell_x, cell_y : float
+        Cell width and height, > 0. Cell ``(r, c)`` has its centre at
+        ``(x0 + (c + 0.5) * cell_x, y0 - (r + 0.5) * cell_y)``.
+    width, height : int
+        Grid size in columns and rows.
+
+    Returns
+    -------
+    (height, width) float64
+        ``z`` of the plane through the containing triangle (thesis eq. [43]-[44]), exactly, with
+        no smoothing; NaN where the centre lies in no triangle. A centre on an edge or a node gets
+        the (equal) value of either triangle.
+    """
+    if not (cell_x > 0 and cell_y > 0):
+        raise ValueError(f"cell_x and cell_y must be > 0, got {cell_x}, {cell_y}")
+    width, height = int(width), int(height)
+    if width < 0 or height < 0:
+        raise ValueError(f"width and height must be >= 0, got {width}, {height}")
+    out = np.full((height, width), np.nan)
+    tri = np.asarray(triangles)
+    if len(tri) and width and height:
+        rasterize(np.ascontiguousarray(xyz, dtype="float64"),
+                  np.ascontiguousarray(tri, dtype=np.int64), float(x0), float(y0),
+                  float(cell_x), float(cell_y), width, height, out)
+    return out
+
+
+def interpolate_tin(xyz: np.ndarray, triangles: np.ndarray, qx: np.ndarray, qy: np.ndarray,
+                    tolerance: float = 0.0) -> np.ndarray:
+    """Height of the TIN surface at query points: the plane of the containing triangle.
+
+    Parameters
+    ----------
+    xyz : (N, 3) float array
+        Node coordinates.
+    triangles : (T, 3) int array
+        Triangles (indices into ``xyz``).
+    qx, qy : (Q,) float arrays
+        Query coordinates, map units.
+    tolerance : float, optional
+        Points outside every triangle but within this planimetric distance of the TIN's outer
+        edge take the value at the nearest point of that edge (for points that should lie on
+        the border but miss it by rounding). 0 (default): outside is NaN.
+
+    Returns
+    -------
+    (Q,) float64
+        Plane value (thesis eq. [43]-[44]); NaN outside the TIN. A point on an edge or node gets
+        the (equal) value of either triangle.
+    """
+    qx = np.asarray(qx, dtype="float64").ravel()
+    qy = np.asarray(qy, dtype="float64").ravel()
+    if qx.shape != qy.shape:
+        raise ValueError(f"qx and qy must have the same length, got {qx.shape} and {qy.shape}")
+    out = np.full(qx.shape, np.nan)
+    tri = np.ascontiguousarray(triangles, dtype=np.int64)
+    xyz = np.ascontiguousarray(xyz, dtype="float64")
+    finite = np.isfinite(qx) & np.isfinite(qy)
+    if not len(tri) or not finite.any():
+        return out
+    used = np.zeros(len(xyz), dtype=bool)
+    used[tri.ravel()] = True
+    origin = _origin_of(xyz[used, :2])
+    ox, oy = float(origin[0]), float(origin[1])
+    lx, ly = qx - ox, qy - oy
+    vx, vy = xyz[used, 0] - ox, xyz[used, 1] - oy
+    box = (float(vx.min()), float(vy.min()), float(vx.max()), float(vy.max()))
+    span = max(box[2] - box[0], box[3] - box[1], 1e-300)
+    # about one triangle per bucket, and no more buckets than the points need
+    size = span / max(1.0, np.sqrt(min(len(tri), 4 * len(qx) + 16)))
+    sel = np.flatnonzero(finite & (lx >= box[0]) & (lx <= box[2]) & (ly >= box[1])
+                         & (ly <= box[3]))
+    grid = PointBuckets(lx[sel], ly[sel], box[0], box[1], box[2], box[3], size)
+    sub_out = np.full(len(sel), np.nan)
+    locate(xyz, tri, ox, oy, grid.x, grid.y, grid.bu, grid.bv, grid.scale, grid.nx, grid.ny,
+           grid.start, sub_out, np.zeros(len(sel), dtype=bool))
+    out[sel[grid.order]] = sub_out
+    if tolerance > 0:
+        pad = float(tolerance)
+        sel = np.flatnonzero(finite & np.isnan(out) & (lx >= box[0] - pad) & (lx <= box[2] + pad)
+                             & (ly >= box[1] - pad) & (ly <= box[3] + pad))
+        if len(sel):
+            from toolbox.terrain.tin.topology import hull_edges
+
+            grid = PointBuckets(lx[sel], ly[sel], box[0] - pad, box[1] - pad, box[2] + pad,
+                                box[3] + pad, max(size, pad))
+            sub_out = np.full(len(sel), np.nan)
+            snap_to_edges(xyz, np.ascontiguousarray(hull_edges(tri), dtype=np.int64), ox, oy,
+                          grid.x, grid.y, grid.bu, grid.bv, grid.scale, grid.nx, grid.ny,
+                          grid.start, pad, sub_out, np.zeros(len(sel), dtype=bool))
+            out[sel[grid.order]] = sub_out
+    return out
+
+
+# -- tiling ---------------------------------------------------------------------------------------
+def triangles_by_tile(xy: np.ndarray, triangles: np.ndarray, x0: float, y0: float,
+                      cell_x: float, cell_y: float, width: int, height: int,
+                      tile: int) -> tuple[np.ndarray, np.ndarray, int]:
+    """Group triangles by the square output tiles their bounding boxes overlap.
+
+    Tiles are ``tile`` x ``tile`` cells, numbered row by row from the top-left (as
+    :func:`toolbox.io.raster.iter_windows` yields them): tile ``k`` is at tile row ``k // ntx``,
+    tile column ``k % ntx``.
+
+    Returns
+    -------
+    order : (K,) int64
+        Triangle indices grouped by tile (a triangle overlapping several tiles appears in each).
+    start : (ntiles + 1,) int64
+        Tile ``k``'s triangles are ``order[start[k]:start[k + 1]]``.
+    ntx : int
+        Tiles per row.
+    """
+    xy = np.asarray(xy, dtype="float64")
+    tri = np.asarray(triangles, dtype=np.int64)
+    ntx = max(1, -(-int(width) // tile))
+    nty = max(1, -(-int(height) // tile))
+    if len(tri) == 0:
+        return np.zeros(0, dtype=np.int64), np.zeros(ntx * nty + 1, dtype=np.int64), ntx
+    px = xy[tri, 0]
+    py = xy[tri, 1]
+    # cell index range each triangle's box covers (one cell of margin: centres are what count)
+    c_lo = np.floor((px.min(axis=1) - x0) / cell_x - 0.5)
+    c_hi = np.ceil((px.max(axis=1) - x0) / cell_x - 0.5)
+    r_lo = np.floor((y0 - py.max(axis=1)) / cell_y - 0.5)
+    r_hi = np.ceil((y0 - py.min(axis=1)) / cell_y - 0.5)
+    keep = (c_hi >= 0) & (c_lo <= width - 1) & (r_hi >= 0) & (r_lo <= height - 1)
+    idx = np.flatnonzero(keep)
+    tx0 = (np.clip(c_lo[idx], 0, width - 1) // tile).astype(np.int64)
+    tx1 = (np.clip(c_hi[idx], 0, width - 1) // tile).astype(np.int64)
+    ty0 = (np.clip(r_lo[idx], 0, height - 1) // tile).astype(np.int64)
+    ty1 = (np.clip(r_hi[idx], 0, height - 1) // tile).astype(np.int64)
+    nxs = tx1 - tx0 + 1
+    nys = ty1 - ty0 + 1
+    counts = nxs * nys
+    rep = np.repeat(np.arange(len(idx)), counts)
+    offset = np.arange(len(rep)) - np.repeat(np.cumsum(counts) - counts, counts)
+    tile_x = tx0[rep] + offset % nxs[rep]
+    tile_y = ty0[rep] + offset // nxs[rep]
+    key = tile_y * ntx + tile_x
+    sort = np.argsort(key, kind="stable")
+    order = idx[rep[sort]]
+    start = np.searchsorted(key[sort], np.arange(ntx * nty + 1)).astype(np.int64)
+    return order, start, ntx

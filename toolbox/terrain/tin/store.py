@@ -1,0 +1,320 @@
+"""The TIN GeoPackage: write the three layers of a :class:`~toolbox.terrain.tin.build.TinModel`, read
+a TIN back (from those layers, or from any layer of triangle polygons).
+
+Layers (ids are 1-based; a missing neighbour or triangle is NULL):
+
+``triangles`` (PolygonZ)
+    ``id``; ``node1, node2, node3`` (counter-clockwise); ``nbr1, nbr2, nbr3``, the triangle
+    across the edge facing ``node1``/``node2``/``node3``; ``edge1, edge2, edge3``, that edge's id;
+    ``area_2d`` (planimetric), ``area_3d`` (surface); ``slope_deg``, ``slope_pct``;
+    ``aspect_deg`` (the direction the slope faces, clockwise from north; -1 where flat).
+``nodes`` (PointZ)
+    ``id``; ``source`` (point, breakline, crossing, boundary); ``merged`` (input vertices merged
+    into the node: 1 normally, more for duplicates, 0 for added nodes); ``z``.
+``edges`` (LineStringZ, each edge once)
+    ``id``; ``node_from``, ``node_to``; ``left_tri``, ``right_tri`` (looking from ``node_from`` to
+    ``node_to``; ``right_tri`` is NULL on the border); ``breakline`` (true for breakline edges);
+    ``length_2d``, ``length_3d``.
+
+Geometries are encoded to WKB with numpy and written through Arrow (``pyogrio.write_arrow``)
+when pyarrow is installed, else through ``pyogrio.raw.write``: no per-feature Python objects.
+"""
+
+from __future__ import annotations
+
+import warnings
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from toolbox.errors import InputDataError
+from toolbox.io.vector import staged_gpkg_writes
+from toolbox.terrain.tin.build import SOURCES, TinModel
+from toolbox.terrain.tin.topology import EdgeTable, edge_table, triangle_measures
+
+_WKB_POINT_Z, _WKB_LINESTRING_Z, _WKB_POLYGON_Z = 1001, 1002, 1003
+BATCH = 1 << 19  # features per Arrow batch
+
+
+def wkb_records(type_code: int, coords: np.ndarray, ring: bool = False) -> np.ndarray:
+    """ISO WKB of fixed-size geometries, one row of bytes each, ``(n, size)`` uint8.
+
+    ``coords`` is ``(n, k, 3)``: k XYZ vertices per geometry. ``ring`` writes one closed polygon
+    ring (the first vertex repeated at the end) instead of a point or line string.
+    """
+    coords = np.asarray(coords, dtype="<f8")
+    n, k = coords.shape[:2]
+    if ring:
+        coords = np.concatenate([coords, coords[:, :1]], axis=1)
+        k += 1
+        header = np.array([type_code, 1, k], dtype="<u4")
+    elif type_code == _WKB_POINT_Z:
+        header = np.array([type_code], dtype="<u4")
+    else:
+        header = np.array([type_code, k], dtype="<u4")
+    head = 1 + 4 * len(header)
+    out = np.empty((n, head + 24 * k), dtype=np.uint8)
+    out[:, 0] = 1  # little endian
+    out[:, 1:head] = header.view(np.uint8)
+    out[:, head:] = np.ascontiguousarray(coords).reshape(n, -1).view(np.uint8)
+    return out
+
+
+def _write_layer(path: Path, name: str, columns: dict[str, tuple[np.ndarray, np.ndarray | None]],
+                 wkb: np.ndarray, geometry_type: str, crs: Any, spatial_index: bool) -> None:
+    """Write one layer: ``columns`` maps field name -> (values, null mask or None)."""
+    import pyogrio
+
+    crs_text = None if crs is None else crs.to_wkt()
+    options = {"SPATIAL_INDEX": "YES" if spatial_index else "NO"}
+    n = len(wkb)
+    try:
+        import pyarrow as pa
+    except ImportError:  # pragma: no cover - exercised when pyarrow is absent
+        pa = None
+    if pa is not None:
+        size = wkb.shape[1] if n else 0
+        fields = [pa.field(k, pa.from_numpy_dtype(v.dtype) if v.dtype.kind != "O" else pa.string())
+                  for k, (v, _) in columns.items()] + [pa.field("geometry", pa.binary())]
+        schema = pa.schema(fields)
+        batches = []
+        for lo in range(0, max(n, 1), BATCH):
+            hi = min(n, lo + BATCH)
+            arrays = [pa.array(v[lo:hi], mask=None if m is None else m[lo:hi],
+                               type=schema.field(k).type) for k, (v, m) in columns.items()]
+            offsets = np.arange(hi - lo + 1, dtype=np.int32) * size
+            data = pa.py_buffer(np.ascontiguousarray(wkb[lo:hi]).ravel())
+            arrays.append(pa.Array.from_buffers(pa.binary(), hi - lo,
+                                                [None, pa.py_buffer(offsets), data]))
+            batches.append(pa.record_batch(arrays, schema=schema))
+        table = pa.Table.from_batches(batches, schema=schema)
+        with warnings.catch_warnings():  # a TIN without CRS is the caller's (reported) choice
+            warnings.filterwarnings("ignore", message="'crs' was not provided")
+            with staged_gpkg_writes():
+                pyogrio.write_arrow(table, path, layer=name, driver="GPKG",
+                                    geometry_name="geometry", geometry_type=geometry_type,
+                                    crs=crs_text, layer_options=options)
+        return
+    from pyogrio.raw import write
+
+    flat = np.ascontiguousarray(wkb).tobytes()
+    size = wkb.shape[1] if n else 0
+    geometry = np.empty(n, dtype=object)
+    geometry[:] = [flat[i * size:(i + 1) * size] for i in range(n)]
+    names = list(columns)
+    with staged_gpkg_writes():
+        write(path, geometry, [columns[k][0] for k in names], names,
+              field_mask=[columns[k][1] for k in names], layer=name, driver="GPKG",
+              geometry_type=geometry_type, crs=crs_text, layer_options=options)
+
+
+def _ids(index: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+    """0-based index (-1 = none) -> 1-based id column with a null mask."""
+    index = np.asarray(index, dtype=np.int64)
+    missing = index < 0
+    return index + 1, (missing if missing.any() else None)
+
+
+def write_tin(path: str | Path, model: TinModel, crs: Any = None, spatial_index: bool = True,
+              feedback=None, edges_layer: bool = True) -> dict[str, int]:
+    """Write the ``triangles``, ``nodes`` and (unless ``edges_layer`` is False) ``edges`` layers
+    of ``model`` to a GeoPackage.
+
+    Returns the feature count of each layer (edges are counted even when not written).
+    """
+    path = Path(path)
+    xyz, tri, nb = model.xyz, model.triangles, model.neighbors
+    edges = edge_table(tri, nb)
+    measures = triangle_measures(xyz, tri)
+    step = _Steps(feedback, 3 if edges_layer else 2)
+    with step("write triangles"):
+        columns = {"id": _ids(np.arange(len(tri)))}
+        for j in range(3):
+            columns[f"node{j + 1}"] = _ids(tri[:, j])
+        for j in range(3):
+            columns[f"nbr{j + 1}"] = _ids(nb[:, j])
+        for j in range(3):
+            columns[f"edge{j + 1}"] = _ids(edges.triangle_edges[:, j])
+        for name in ("area_2d", "area_3d", "slope_deg", "slope_pct", "aspect_deg"):
+            columns[name] = (getattr(measures, name), None)
+        _write_layer(path, "triangles", columns, wkb_records(_WKB_POLYGON_Z, xyz[tri], ring=True),
+                     "Polygon Z", crs, spatial_index)
+    with step("write nodes"):
+        columns = {"id": _ids(np.arange(len(xyz))),
+                   "source": (np.asarray(SOURCES, dtype=object)[model.source], None),
+                   "merged": (model.merged.astype(np.int64), None),
+                   "z": (xyz[:, 2].copy(), None)}
+        _write_layer(path, "nodes", columns, wkb_records(_WKB_POINT_Z, xyz[:, None, :]),
+                     "Point Z", crs, spatial_index)
+    if edges_layer:
+        with step("write edges"):
+            _write_edges(path, model, edges, crs, spatial_index)
+    return {"triangles": len(tri), "nodes": len(xyz), "edges": len(edges.nodes)}
+
+
+def breakline_flags(edges: EdgeTable, breakline_edges: np.ndarray, n_nodes: int) -> np.ndarray:
+    """True for the edges whose node pair is in ``breakline_edges``."""
+    if len(breakline_edges) == 0:
+        return np.zeros(len(edges.nodes), dtype=bool)
+    key = np.sort(edges.nodes, axis=1) @ np.array([n_nodes, 1], dtype=np.int64)
+    ref = np.sort(breakline_edges, axis=1) @ np.array([n_nodes, 1], dtype=np.int64)
+    return np.isin(key, ref)
+
+
+def _write_edges(path: Path, model: TinModel, edges: EdgeTable, crs: Any,
+                 spatial_index: bool) -> None:
+    xyz = model.xyz
+    a, b = xyz[edges.nodes[:, 0]], xyz[edges.nodes[:, 1]]
+    d = b - a
+    columns = {"id": _ids(np.arange(len(edges.nodes))),
+               "node_from": _ids(edges.nodes[:, 0]), "node_to": _ids(edges.nodes[:, 1]),
+               "left_tri": _ids(edges.left), "right_tri": _ids(edges.right),
+               "breakline": (breakline_flags(edges, model.breakline_edges, len(xyz)), None),
+               "length_2d": (np.hypot(d[:, 0], d[:, 1]), None),
+               "length_3d": (np.linalg.norm(d, axis=1), None)}
+    _write_layer(path, "edges", columns, wkb_records(_WKB_LINESTRING_Z, xyz[edges.nodes]),
+                 "LineString Z", crs, spatial_index)
+
+
+class _Steps:
+    """``with steps("name"):`` times a block in the feedback and advances its progress."""
+
+    def __init__(self, feedback, total: int):
+        self.feedback, self.total, self.done = feedback, total, 0
+
+    def __call__(self, name: str):
+        from contextlib import nullcontext
+
+        if self.feedback is None:
+            return nullcontext()
+        self.feedback.check_canceled()
+        self.done += 1
+        self.feedback.set_progress(100.0 * (self.done - 1) / self.total, name)
+        return self.feedback.timed(name)
+
+
+# -- reading ---------------------------------------------------------------------------------------
+def read_tin(ref) -> tuple[np.ndarray, np.ndarray, Any]:
+    """Nodes ``(N, 3)`` and triangles ``(T, 3)`` (0-based, counter-clockwise) of a TIN layer.
+
+    ``ref`` is a :class:`~toolbox.io.vector.VectorLayerRef` to a layer of triangles: the
+    ``triangles`` layer of a tin:delaunay GeoPackage (nodes taken from its ``nodes`` layer by
+    the ``node1..3`` ids), or any layer of triangular polygons with Z (nodes rebuilt from the
+    shared vertices). Returns ``(xyz, triangles, crs)``.
+    """
+    import pyogrio
+
+    from toolbox.io.vector import read_vector
+
+    if ref.path is not None and {"node1", "node2", "node3"} <= set(ref.fields):
+        layers = [str(row[0]) for row in pyogrio.list_layers(ref.path)]
+        if "nodes" in layers:
+            return _read_tin_tables(ref)
+    frame = read_vector(ref, name="TIN")
+    return (*tin_from_triangle_geometries(frame.geometry.values, "TIN"), ref.crs)
+
+
+def _read_table(path: Path, layer: str, columns: list[str],
+                geometry: bool) -> tuple[list[np.ndarray], Any]:
+    """Columns of a layer as numpy arrays, and its geometries as WKB (an ``(n, size)`` uint8
+    array when every record has the same size, else an object array of bytes). Arrow is used
+    when pyarrow is installed (several times faster on millions of features)."""
+    try:
+        import pyarrow  # noqa: F401
+    except ImportError:  # pragma: no cover - exercised when pyarrow is absent
+        from pyogrio.raw import read
+
+        _, _, wkb, fields = read(path, layer=layer, columns=columns, read_geometry=geometry)
+        return [np.asarray(f) for f in fields], wkb
+    import pyogrio
+
+    meta, table = pyogrio.read_arrow(path, layer=layer, columns=columns,
+                                     read_geometry=geometry)
+    values = [table.column(c).to_numpy() for c in columns]
+    if not geometry:
+        return values, None
+    arr = table.column(meta["geometry_name"] or "wkb_geometry").combine_chunks()
+    offsets = np.frombuffer(arr.buffers()[1], dtype=np.int32)[arr.offset:arr.offset + len(arr) + 1]
+    sizes = np.diff(offsets)
+    data = np.frombuffer(arr.buffers()[2], dtype=np.uint8)
+    if len(sizes) and (sizes == sizes[0]).all() and arr.null_count == 0:
+        return values, data[offsets[0]:offsets[-1]].reshape(len(arr), int(sizes[0]))
+    return values, np.asarray(arr.to_pylist(), dtype=object)
+
+
+def points_from_wkb(wkb) -> np.ndarray:
+    """XYZ of point geometries given as WKB (fixed-size records are decoded with numpy)."""
+    import shapely
+
+    if isinstance(wkb, np.ndarray) and wkb.dtype == np.uint8 and wkb.ndim == 2 \
+            and wkb.shape[1] == 29 and (wkb[:, 0] == 1).all():
+        kind = wkb[:, 1:5].copy().view("<u4").ravel()
+        if np.isin(kind, [_WKB_POINT_Z, 0x80000001]).all():
+            return wkb[:, 5:29].copy().view("<f8").reshape(-1, 3)
+    if isinstance(wkb, np.ndarray) and wkb.dtype == np.uint8:
+        wkb = np.array([row.tobytes() for row in wkb], dtype=object)
+    return shapely.get_coordinates(shapely.from_wkb(wkb), include_z=True)
+
+
+def _read_tin_tables(ref) -> tuple[np.ndarray, np.ndarray, Any]:
+    fields, _ = _read_table(ref.path, ref.layer, ["node1", "node2", "node3"], geometry=False)
+    tri_ids = np.column_stack([np.asarray(f, dtype=np.int64) for f in fields])
+    (node_ids,), wkb = _read_table(ref.path, "nodes", ["id"], geometry=True)
+    node_ids = np.asarray(node_ids, dtype=np.int64)
+    xyz = points_from_wkb(wkb)
+    if len(xyz) != len(node_ids) or not np.isfinite(xyz).all():
+        raise InputDataError(f"TIN {ref}: the nodes layer must hold one PointZ per node, with Z")
+    if np.array_equal(node_ids, np.arange(1, len(node_ids) + 1)):
+        triangles = tri_ids - 1
+    else:
+        order = np.argsort(node_ids)
+        pos = np.searchsorted(node_ids[order], tri_ids)
+        pos = np.minimum(pos, len(order) - 1)
+        if not np.array_equal(node_ids[order][pos], tri_ids):
+            raise InputDataError(f"TIN {ref}: triangles refer to node ids missing from 'nodes'")
+        triangles = order[pos]
+    if len(triangles) and (triangles.min() < 0 or triangles.max() >= len(xyz)):
+        raise InputDataError(f"TIN {ref}: triangles refer to node ids missing from 'nodes'")
+    return xyz, _counter_clockwise(xyz, triangles), ref.crs
+
+
+def tin_from_triangle_geometries(geoms, name: str = "TIN") -> tuple[np.ndarray, np.ndarray]:
+    """Nodes and triangles from triangle polygons (PolygonZ with 3 distinct vertices each)."""
+    import shapely
+
+    geoms = np.asarray(geoms)
+    if len(geoms) == 0:
+        raise InputDataError(f"{name} has no triangles")
+    if not np.all(shapely.get_type_id(geoms) == 3):
+        raise InputDataError(f"{name} must contain single triangles (Polygon Z), found other "
+                             "geometry types")
+    if not np.all(shapely.has_z(geoms)):
+        raise InputDataError(f"{name} triangles have no Z")
+    coords, index = shapely.get_coordinates(shapely.get_exterior_ring(geoms), include_z=True,
+                                            return_index=True)
+    counts = np.bincount(index, minlength=len(geoms))
+    if not np.all(counts == 4):
+        bad = int(np.flatnonzero(counts != 4)[0])
+        raise InputDataError(f"{name} feature {bad} is not a triangle ({counts[bad] - 1} "
+                             "vertices)")
+    corners = coords.reshape(-1, 4, 3)[:, :3].reshape(-1, 3)
+    key = corners[:, 0] + 1j * corners[:, 1]
+    unique_key, first, inverse = np.unique(key, return_index=True, return_inverse=True)
+    xyz = corners[first]
+    triangles = inverse.reshape(-1, 3)
+    return xyz, _counter_clockwise(xyz, triangles)
+
+
+def _counter_clockwise(xyz: np.ndarray, triangles: np.ndarray) -> np.ndarray:
+    p = xyz[triangles]
+    area = (p[:, 1, 0] - p[:, 0, 0]) * (p[:, 2, 1] - p[:, 0, 1]) \
+        - (p[:, 2, 0] - p[:, 0, 0]) * (p[:, 1, 1] - p[:, 0, 1])
+    out = np.array(triangles, dtype=np.int64)
+    cw = area < 0
+    out[cw] = out[cw][:, [0, 2, 1]]
+    return out
+
+
+TIN_HELP = ("TIN: the triangles layer of a tin:delaunay GeoPackage (the file path is enough), "
+            "or any layer of 3D triangles")

@@ -1,0 +1,116 @@
+"""Reading the topology inputs and writing its GeoPackage layers (the algorithms' I/O side)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from toolbox.feedback import Feedback
+from toolbox.topology.output import Layer, TopologyOutput
+from toolbox.topology.parameter_file import ParameterFile, read_parameter_file
+from toolbox.topology.tolerances import TOLERANCE_PARAMETERS, Tolerances, resolve_tolerances
+
+CODE_FIELD_NAMES = ("code", "codice", "cod", "codes")
+#: names the areas layer uses itself; label attributes with these names get a ``label_`` prefix
+AREA_COLUMNS = ("id", "code", "labels", "area", "perimeter")
+GEOMETRY_TYPES = {"areas": "Polygon", "arcs": "LineString", "nodes": "Point", "errors": "Unknown"}
+_METRE = {"m", "metre", "metres", "meter", "meters", "metro", "metri"}
+
+
+def default_code_field(fields: list[str]) -> str | None:
+    """The first field named like a code (code, codice, cod, codes), case-insensitively."""
+    lower = {f.lower(): f for f in fields}
+    for name in CODE_FIELD_NAMES:
+        if name in lower:
+            return lower[name]
+    return None
+
+
+def tolerances_from(params: dict[str, Any], feedback: Feedback | None = None, crs: Any = None
+                    ) -> tuple[Tolerances, dict[str, str], ParameterFile | None]:
+    """Tolerances from the algorithm parameters and the optional ``PARAMETERS`` file; warns about
+    unknown entries of the file and a coordinate unit that does not match the CRS."""
+    file = None
+    if params.get("PARAMETERS") is not None:
+        file = read_parameter_file(params["PARAMETERS"], "PARAMETERS")
+    tol, sources = resolve_tolerances({k: params.get(k) for k in TOLERANCE_PARAMETERS}, file)
+    if feedback is not None and file is not None:
+        if file.unknown:
+            names = ", ".join(f"{name!r} (line {line})" for line, name in file.unknown[:5])
+            feedback.push_warning(f"PARAMETERS: {len(file.unknown)} entries not used by area "
+                                  f"building: {names}")
+        unit = file.get("coordinate_unit")
+        if unit is not None and crs is not None and crs.axis_info:
+            crs_unit = crs.axis_info[0].unit_name.lower()
+            if (unit.lower() in _METRE) != (crs_unit in _METRE):
+                feedback.push_warning(f"PARAMETERS gives coordinates in {unit!r} but the CRS "
+                                      f"unit is {crs_unit!r}: tolerances are used in CRS units")
+    return tol, sources, file
+
+
+def label_inputs(frame, code_field: str | None) -> tuple[np.ndarray, np.ndarray,
+                                                        dict[str, np.ndarray], dict[str, Any]]:
+    """Geometries, codes and attributes of a label layer; attribute dtypes for the output."""
+    geoms = np.asarray(frame.geometry.values, dtype=object)
+    codes = (frame[code_field].to_numpy(dtype=object) if code_field is not None
+             else np.full(len(frame), None, dtype=object))
+    attrs: dict[str, np.ndarray] = {}
+    dtypes: dict[str, Any] = {}
+    for column in frame.columns:
+        if column in (frame.geometry.name, code_field):
+            continue
+        name = f"label_{column}" if column.lower() in AREA_COLUMNS else column
+        attrs[name] = frame[column].to_numpy(dtype=object)
+        dtypes[name] = frame[column].dtype
+    if len(frame) and bool(frame.geometry.has_z.any()) and "label_z" not in attrs:
+        # a spot height plotted as a 3D point: its Z becomes an attribute of the area
+        import shapely
+
+        z = np.full(len(geoms), np.nan)
+        point = (shapely.get_type_id(geoms) == 0) & shapely.has_z(geoms)
+        z[point] = shapely.get_z(geoms[point])
+        attrs["label_z"] = z.astype(object)
+        dtypes["label_z"] = np.dtype("float64")
+    return geoms, codes, attrs, dtypes
+
+
+def _column(values: Any, dtype: Any = None):
+    import pandas as pd
+
+    series = pd.Series(np.asarray(values, dtype=object) if dtype is not None else values)
+    if dtype is None:
+        return series
+    series = series.where(series.notna(), None)
+    if pd.api.types.is_bool_dtype(dtype):
+        return series.astype("boolean")
+    if pd.api.types.is_integer_dtype(dtype):
+        return series.astype("Int64")
+    if pd.api.types.is_float_dtype(dtype):
+        return pd.to_numeric(series, errors="coerce").astype("float64")
+    return series.astype(object)
+
+
+def to_frame(layer: Layer, crs: Any, dtypes: dict[str, Any] | None = None):
+    """GeoDataFrame of a :class:`Layer` (columns in order, label attribute dtypes restored)."""
+    import geopandas as gpd
+
+    dtypes = dtypes or {}
+    data = {name: _column(values, dtypes.get(name)) for name, values in layer.columns.items()}
+    return gpd.GeoDataFrame(data, geometry=gpd.GeoSeries(list(layer.geometry), crs=crs),
+                            crs=crs)
+
+
+def write_topology(path: str | Path, output: TopologyOutput, crs: Any,
+                   label_dtypes: dict[str, Any] | None = None,
+                   layers: tuple[str, ...] = ("areas", "arcs", "nodes", "errors")) -> Path:
+    """Write the chosen layers of a :class:`TopologyOutput` into one GeoPackage."""
+    from toolbox.io.vector import write_layers
+
+    frames = {}
+    for name in layers:
+        frames[name] = to_frame(getattr(output, name), crs, label_dtypes if name == "areas"
+                                else None)
+    return write_layers(path, frames, crs=crs,
+                        geometry_types={k: GEOMETRY_TYPES[k] for k in frames})

@@ -1,0 +1,93 @@
+"""Tolerances of area building: explicit parameters, else the parameter file, else defaults."""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+from typing import Any
+
+from toolbox.errors import ParameterError
+from toolbox.topology.parameter_file import ParameterFile
+
+# parameter name -> (field of Tolerances, key in the parameter file, default)
+TOLERANCE_PARAMETERS: dict[str, tuple[str, str, float]] = {
+    "SNAP_TOLERANCE": ("snap", "snap_tolerance", 0.2),
+    "CLOSURE_TOLERANCE": ("closure", "closure_tolerance", 0.5),
+    "MIN_DANGLE_LENGTH": ("min_dangle", "min_dangle_length", 1.0),
+    "MIN_AREA": ("min_area", "min_area", 1.0),
+    "PRECISION": ("precision", "decimals", 0.001),
+}
+
+
+@dataclass(frozen=True)
+class Tolerances:
+    """Tolerances in CRS units (metres for EPSG:3003).
+
+    Attributes
+    ----------
+    snap : float
+        "Tolleranza di riattacco planimetrico": a line end closer than this to another line's
+        end, vertex or segment is moved onto it. 0 disables snapping.
+    closure : float
+        "Tolleranza di chiusura": a polyline whose two free ends are closer than this is closed.
+    min_dangle : float
+        Dangles (and overshoots) shorter than this are removed; longer ones are kept and
+        reported. 0 keeps every dangle.
+    min_area : float
+        Areas smaller than this (square CRS units) are slivers, merged into the neighbour sharing
+        the longest boundary. 0 keeps every area.
+    precision : float
+        Coordinate grid of the output (10**-decimals of the parameter file): noding is done by
+        snap rounding to this grid, so the result is robust and the same on every run.
+    """
+
+    snap: float = 0.2
+    closure: float = 0.5
+    min_dangle: float = 1.0
+    min_area: float = 1.0
+    precision: float = 0.001
+
+    def as_dict(self) -> dict[str, float]:
+        return asdict(self)
+
+
+def resolve_tolerances(explicit: dict[str, float | None],
+                       parameter_file: ParameterFile | None = None
+                       ) -> tuple[Tolerances, dict[str, str]]:
+    """Combine explicit values, the parameter file and the defaults.
+
+    Parameters
+    ----------
+    explicit : dict
+        ``{"SNAP_TOLERANCE": 0.3, "MIN_AREA": None, ...}``; None means "not given".
+    parameter_file : ParameterFile, optional
+
+    Returns
+    -------
+    tolerances : Tolerances
+    sources : dict
+        Field name -> ``"parameter"``, ``"file"`` or ``"default"`` (for the run report).
+
+    Raises
+    ------
+    ParameterError
+        ``PRECISION`` not > 0, or coarser than a non-zero snap tolerance.
+    """
+    values: dict[str, Any] = {}
+    sources: dict[str, str] = {}
+    for name, (attr, file_key, default) in TOLERANCE_PARAMETERS.items():
+        given = explicit.get(name)
+        if given is not None:
+            values[attr], sources[attr] = float(given), "parameter"
+        elif parameter_file is not None and file_key in parameter_file.values:
+            value = parameter_file.values[file_key]
+            values[attr] = 10.0 ** -value if file_key == "decimals" else float(value)
+            sources[attr] = "file"
+        else:
+            values[attr], sources[attr] = default, "default"
+    tol = Tolerances(**values)
+    if not tol.precision > 0:
+        raise ParameterError("PRECISION", f"must be > 0, got {tol.precision:g}")
+    if tol.snap > 0 and tol.precision > tol.snap:
+        raise ParameterError("PRECISION", f"({tol.precision:g}) must not be coarser than the snap "
+                             f"tolerance ({tol.snap:g}); lower PRECISION or raise SNAP_TOLERANCE")
+    return tol, sources
