@@ -71,6 +71,16 @@ def read_linework(params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
         out.update(label_geoms=geoms, label_codes=label_codes, label_attributes=attrs,
                    label_dtypes=dtypes, label_code_field=label_field)
         crs_of["LABELS"] = labels.crs
+    if params.get("PARAMETERS") is not None:  # the file's coordinate translation, applied
+        from toolbox.io.parameter_file import read_parameter_file
+
+        file = read_parameter_file(params["PARAMETERS"], "PARAMETERS")
+        if file.offset != (0.0, 0.0):
+            out["line_geoms"] = file.translate(out["line_geoms"])
+            if out["label_geoms"] is not None:
+                out["label_geoms"] = file.translate(out["label_geoms"])
+            feedback.push_info(f"PARAMETERS: coordinate translation {file.offset[0]:.10g} "
+                               f"{file.offset[1]:.10g} added to the inputs")
     crs = common_crs(crs_of)
     if crs is None:
         feedback.push_warning("the inputs have no CRS: the output has none either")

@@ -8,15 +8,19 @@ from typing import Any
 import numpy as np
 
 from toolbox.feedback import Feedback
+from toolbox.io.parameter_file import ParameterFile, read_parameter_file
 from toolbox.topology.output import Layer, TopologyOutput
-from toolbox.topology.parameter_file import ParameterFile, read_parameter_file
-from toolbox.topology.tolerances import TOLERANCE_PARAMETERS, Tolerances, resolve_tolerances
+from toolbox.topology.tolerances import (
+    TOLERANCE_PARAMETERS,
+    TOPOLOGY_FILE_KEYS,
+    Tolerances,
+    resolve_tolerances,
+)
 
 CODE_FIELD_NAMES = ("code", "codice", "cod", "codes")
 #: names the areas layer uses itself; label attributes with these names get a ``label_`` prefix
 AREA_COLUMNS = ("id", "code", "labels", "area", "perimeter")
 GEOMETRY_TYPES = {"areas": "Polygon", "arcs": "LineString", "nodes": "Point", "errors": "Unknown"}
-_METRE = {"m", "metre", "metres", "meter", "meters", "metro", "metri"}
 
 
 def default_code_field(fields: list[str]) -> str | None:
@@ -37,16 +41,8 @@ def tolerances_from(params: dict[str, Any], feedback: Feedback | None = None, cr
         file = read_parameter_file(params["PARAMETERS"], "PARAMETERS")
     tol, sources = resolve_tolerances({k: params.get(k) for k in TOLERANCE_PARAMETERS}, file)
     if feedback is not None and file is not None:
-        if file.unknown:
-            names = ", ".join(f"{name!r} (line {line})" for line, name in file.unknown[:5])
-            feedback.push_warning(f"PARAMETERS: {len(file.unknown)} entries not used by area "
-                                  f"building: {names}")
-        unit = file.get("coordinate_unit")
-        if unit is not None and crs is not None and crs.axis_info:
-            crs_unit = crs.axis_info[0].unit_name.lower()
-            if (unit.lower() in _METRE) != (crs_unit in _METRE):
-                feedback.push_warning(f"PARAMETERS gives coordinates in {unit!r} but the CRS "
-                                      f"unit is {crs_unit!r}: tolerances are used in CRS units")
+        file.warn_unused(TOPOLOGY_FILE_KEYS, feedback, "area building")
+        file.check_unit(crs, feedback)
     return tol, sources, file
 
 

@@ -6,7 +6,7 @@ from dataclasses import asdict, dataclass
 from typing import Any
 
 from toolbox.errors import ParameterError
-from toolbox.topology.parameter_file import ParameterFile
+from toolbox.io.parameter_file import ParameterFile
 
 # parameter name -> (field of Tolerances, key in the parameter file, default)
 TOLERANCE_PARAMETERS: dict[str, tuple[str, str, float]] = {
@@ -16,6 +16,12 @@ TOLERANCE_PARAMETERS: dict[str, tuple[str, str, float]] = {
     "MIN_AREA": ("min_area", "min_area", 1.0),
     "PRECISION": ("precision", "decimals", 0.001),
 }
+
+#: parameter-file entries area building uses (the others are named in a warning): the
+#: tolerances above, the unit (checked against the CRS) and the coordinate translation (added to
+#: the input lines and labels)
+TOPOLOGY_FILE_KEYS = frozenset({key for _, key, _ in TOLERANCE_PARAMETERS.values()}
+                               | {"coordinate_unit", "coordinate_offset"})
 
 
 @dataclass(frozen=True)

@@ -6,7 +6,7 @@ import pytest
 
 from toolbox.demo.samples.linework import PARAMETER_FILE_TEXT
 from toolbox.errors import InputDataError, ParameterError
-from toolbox.topology.parameter_file import KEYS, normalise_name, read_parameter_file
+from toolbox.io.parameter_file import KEYS, normalise_name, read_parameter_file
 from toolbox.topology.tolerances import Tolerances, resolve_tolerances
 
 

@@ -85,7 +85,7 @@ ZONES: list[tuple[str, tuple[float, float, float, float]]] = [
 ]
 
 #: the sample parameter file ("file dei parametri", S002 §2.2.1), in the format of
-#: toolbox.topology.parameter_file
+#: toolbox.io.parameter_file
 PARAMETER_FILE_TEXT = """\
 # File dei parametri - foglio di esempio (Siena, EPSG:3003)
 # formato: nome = valore; '#' commento; valori in metri

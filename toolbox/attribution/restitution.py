@@ -1,0 +1,342 @@
+"""Readers of restitution entities: what the stereo plotter delivers (thesis S002 §2.2.2, §2.2.4).
+
+Every reader returns an *entity table*: a GeoDataFrame with one row per plotted entity and the
+columns of :data:`ENTITY_COLUMNS` (``entity`` 1-based number in the file, ``code``, ``colour`` the
+entity's colour index as plotted, ``source`` the provenance code, ``file`` and ``line`` where it
+was read, ``kind`` what the reader saw: point, line, polygon, symbol or label; for symbols
+``block``, ``rotation`` (degrees), ``scale_x``, ``scale_y``; for labels ``text``, ``text_height``,
+``rotation``). Geometries keep Z. An entity with one vertex is a Point, with none a None geometry:
+nothing is dropped here; :mod:`toolbox.attribution.apply` decides what is usable.
+
+Formats
+-------
+*ASCII export* (one file)::
+
+    # restitution export, model 12
+    CODE FAB01002 12 1          <- CODE <code> [colour] [source]
+    1688230.000 4799620.000 331.20
+    1688250.000 4799620.000 331.20
+    ...
+    END
+
+  ``#`` starts a comment (to the end of the line), blank lines are ignored, keywords in any case;
+  ``E N Z`` separated by white space, ``;`` or ``,`` (a decimal comma is not accepted here).
+
+*Two tables* (§2.2.4, as delimited text, separator ``;``, tab, ``,`` or white space, optional
+header line): a *descriptions* file, one record per entity::
+
+    record; code; vertices; colour; source; xmin; ymin; xmax; ymax; first
+
+  and a *coordinates* file, one record per vertex: ``colour; E; N; Z``; ``first`` is the 1-based
+  record of the entity's first vertex in the coordinates file. A bounding box that does not hold
+  the vertices is reported (``bbox_mismatches``), not refused.
+
+*DXF* (ezdxf): the layer is the code; POINT -> point, LINE / LWPOLYLINE / POLYLINE (2D and 3D)
+-> line (closed polylines closed), INSERT -> symbol at its insertion point (block name, rotation,
+scale kept), TEXT / MTEXT -> label point (text, height, rotation). The ACI colour is the entity's
+colour (BYLAYER resolved). Other entity types are counted and named in a warning.
+
+*Any OGR layer* with a code field (``code``/``codice``/``cod`` or given): multi-part features
+are split into one entity per part.
+
+Errors (:class:`InputDataError`) name the file, the line and the problem.
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from toolbox.errors import InputDataError
+from toolbox.io.text import read_text
+
+ENTITY_COLUMNS = ("entity", "code", "colour", "source", "file", "line", "kind", "block",
+                  "rotation", "scale_x", "scale_y", "text", "text_height")
+_NUMBER_SPLIT = re.compile(r"[;,\s]+")
+
+
+def entity_frame(rows: list[dict[str, Any]], geoms: list[Any], crs: Any = None):
+    """The entity table of ``rows`` (dicts with some of :data:`ENTITY_COLUMNS`) and geometries."""
+    import geopandas as gpd
+    import pandas as pd
+
+    data = {}
+    for col in ENTITY_COLUMNS:
+        values = [row.get(col) for row in rows]
+        if col in ("entity", "line"):
+            data[col] = pd.array(values, dtype="Int64") if values else pd.array([], "Int64")
+        elif col in ("rotation", "scale_x", "scale_y", "text_height"):
+            data[col] = np.array([np.nan if v is None else float(v) for v in values], float)
+        else:
+            data[col] = pd.Series(values, dtype=object)
+    return gpd.GeoDataFrame(data, geometry=gpd.GeoSeries(geoms, crs=crs), crs=crs)
+
+
+def vertex_geometry(coords: np.ndarray):
+    """A Point for one vertex, a LineString for more, None for none."""
+    import shapely
+
+    if len(coords) == 0:
+        return None
+    if len(coords) == 1:
+        return shapely.Point(coords[0])
+    return shapely.LineString(coords)
+
+
+def _fail(path: Path, number: int, problem: str, name: str) -> InputDataError:
+    return InputDataError(f"{name}: '{path}' line {number}: {problem}")
+
+
+def _floats(fields: list[str]) -> list[float]:
+    values = [float(f) for f in fields]
+    if not all(np.isfinite(values)):
+        raise ValueError(fields)
+    return values
+
+
+def read_ascii(path: str | Path, name: str = "INPUT", crs: Any = None):
+    """Read the ASCII restitution export (``CODE`` / ``E N Z`` / ``END``)."""
+    path = Path(path)
+    rows: list[dict[str, Any]] = []
+    geoms: list[Any] = []
+    current: dict[str, Any] | None = None
+    coords: list[list[float]] = []
+    for number, raw in enumerate(read_text(path, name).splitlines(), start=1):
+        line = raw.split("#", 1)[0].strip()
+        if not line:
+            continue
+        words = line.split()
+        keyword = words[0].upper()
+        if keyword == "CODE":
+            if current is not None:
+                raise _fail(path, number, f"CODE before the END of the entity started on line "
+                            f"{current['line']}", name)
+            if len(words) < 2:
+                raise _fail(path, number, "CODE without a code", name)
+            current = {"entity": len(rows) + 1, "code": words[1],
+                       "colour": words[2] if len(words) > 2 else None,
+                       "source": " ".join(words[3:]) or None, "file": path.name, "line": number}
+            coords = []
+        elif keyword == "END":
+            if current is None:
+                raise _fail(path, number, "END without a CODE", name)
+            current["kind"] = "point" if len(coords) == 1 else "line"
+            rows.append(current)
+            geoms.append(vertex_geometry(np.array(coords, dtype=float).reshape(-1, 3)))
+            current = None
+        else:
+            if current is None:
+                raise _fail(path, number, f"coordinates outside an entity (expected CODE), got "
+                            f"{line!r}", name)
+            fields = [f for f in _NUMBER_SPLIT.split(line) if f]
+            try:
+                if len(fields) != 3:
+                    raise ValueError(fields)
+                coords.append(_floats(fields))
+            except ValueError:
+                raise _fail(path, number, f"expected 'E N Z' (three numbers), got {line!r}",
+                            name) from None
+    if current is not None:
+        raise InputDataError(f"{name}: '{path}': the entity started on line {current['line']} "
+                             "(CODE " + str(current["code"]) + ") has no END")
+    return entity_frame(rows, geoms, crs)
+
+
+def _table_rows(path: Path, name: str, width: int, what: str) -> list[tuple[int, list[str]]]:
+    rows = []
+    for number, raw in enumerate(read_text(path, name).splitlines(), start=1):
+        line = raw.strip()
+        if not line or line.startswith("#"):
+            continue
+        sep = ";" if ";" in line else "\t" if "\t" in line else "," if "," in line else None
+        fields = [f.strip() for f in (line.split(sep) if sep else line.split())]
+        if not rows and not _is_number(fields[-1]):
+            continue  # header line
+        if len(fields) != width:
+            raise _fail(path, number, f"expected {width} fields ({what}), got {len(fields)}",
+                        name)
+        rows.append((number, fields))
+    return rows
+
+
+def _is_number(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
+DESCRIPTION_FIELDS = "record; code; vertices; colour; source; xmin; ymin; xmax; ymax; first"
+
+
+def read_two_tables(descriptions: str | Path, coordinates: str | Path, name: str = "INPUT",
+                    coordinates_name: str = "COORDINATES", crs: Any = None,
+                    tolerance: float = 1e-6):
+    """Read the two-table form (descriptions + coordinates files). Returns (entities, report)."""
+    descriptions, coordinates = Path(descriptions), Path(coordinates)
+    coords_rows = _table_rows(coordinates, coordinates_name, 4, "colour; E; N; Z")
+    xyz = np.empty((len(coords_rows), 3))
+    for k, (number, fields) in enumerate(coords_rows):
+        try:
+            xyz[k] = _floats(fields[1:])
+        except ValueError:
+            raise _fail(coordinates, number, f"E N Z must be numbers, got {fields[1:]}",
+                        coordinates_name) from None
+    rows, geoms, mismatches = [], [], []
+    for number, fields in _table_rows(descriptions, name, 10, DESCRIPTION_FIELDS):
+        try:
+            record, count, first = int(fields[0]), int(fields[2]), int(fields[9])
+            bbox = _floats(fields[5:9])
+        except ValueError:
+            raise _fail(descriptions, number, "record, vertices and first must be whole numbers "
+                        "and the bounding box four numbers", name) from None
+        if count < 0 or first < 1 or first + count - 1 > len(xyz):
+            raise _fail(descriptions, number, f"vertices {first}..{first + count - 1} are not in "
+                        f"'{coordinates.name}' ({len(xyz)} records)", name)
+        pts = xyz[first - 1:first - 1 + count]
+        if count and (pts[:, 0].min() < bbox[0] - tolerance or pts[:, 1].min() < bbox[1] -
+                      tolerance or pts[:, 0].max() > bbox[2] + tolerance or
+                      pts[:, 1].max() > bbox[3] + tolerance):
+            mismatches.append(record)
+        rows.append({"entity": record, "code": fields[1], "colour": fields[3] or None,
+                     "source": fields[4] or None, "file": descriptions.name, "line": number,
+                     "kind": "point" if count == 1 else "line"})
+        geoms.append(vertex_geometry(pts))
+    return entity_frame(rows, geoms, crs), {"bbox_mismatches": mismatches}
+
+
+def read_dxf(path: str | Path, name: str = "INPUT", crs: Any = None):
+    """Read a DXF drawing (layers as codes). Returns (entities, report)."""
+    import ezdxf
+    import shapely
+    from ezdxf import colors as dxf_colors
+
+    path = Path(path)
+    try:
+        doc = ezdxf.readfile(str(path))
+    except (OSError, ezdxf.DXFStructureError) as exc:
+        raise InputDataError(f"{name}: cannot read '{path}' as DXF: {exc}") from None
+    layer_colour = {layer.dxf.name: abs(layer.color) for layer in doc.layers}
+    rows: list[dict[str, Any]] = []
+    geoms: list[Any] = []
+    skipped: dict[str, int] = {}
+
+    def add(entity, kind: str, geom, **extra) -> None:
+        colour = entity.dxf.get("color", dxf_colors.BYLAYER)
+        if colour in (dxf_colors.BYLAYER, dxf_colors.BYBLOCK):
+            colour = layer_colour.get(entity.dxf.layer)
+        rows.append({"entity": len(rows) + 1, "code": entity.dxf.layer,
+                     "colour": None if colour is None else str(colour), "source": "dxf",
+                     "file": path.name, "line": None, "kind": kind, **extra})
+        geoms.append(geom)
+
+    for entity in doc.modelspace():
+        kind = entity.dxftype()
+        if kind == "POINT":
+            add(entity, "point", shapely.Point(tuple(entity.dxf.location)))
+        elif kind == "LINE":
+            add(entity, "line", shapely.LineString([tuple(entity.dxf.start),
+                                                    tuple(entity.dxf.end)]))
+        elif kind == "LWPOLYLINE":
+            z = float(entity.dxf.get("elevation", 0.0) or 0.0)
+            pts = [(x, y, z) for x, y in entity.get_points("xy")]
+            if entity.closed and pts and pts[0] != pts[-1]:
+                pts.append(pts[0])
+            add(entity, "line", vertex_geometry(np.array(pts, float).reshape(-1, 3)))
+        elif kind == "POLYLINE" and not (entity.is_polygon_mesh or entity.is_poly_face_mesh):
+            pts = [tuple(v) for v in entity.points()]
+            if entity.is_closed and pts and pts[0] != pts[-1]:
+                pts.append(pts[0])
+            add(entity, "line", vertex_geometry(np.array(pts, float).reshape(-1, 3)))
+        elif kind == "INSERT":
+            add(entity, "symbol", shapely.Point(tuple(entity.dxf.insert)),
+                block=entity.dxf.name, rotation=entity.dxf.get("rotation", 0.0),
+                scale_x=entity.dxf.get("xscale", 1.0), scale_y=entity.dxf.get("yscale", 1.0))
+        elif kind in ("TEXT", "MTEXT"):
+            text = entity.dxf.text if kind == "TEXT" else entity.plain_text()
+            height = entity.dxf.get("height" if kind == "TEXT" else "char_height", None)
+            add(entity, "label", shapely.Point(tuple(entity.dxf.insert)), text=text,
+                text_height=height, rotation=entity.dxf.get("rotation", 0.0))
+        else:
+            skipped[kind] = skipped.get(kind, 0) + 1
+    return entity_frame(rows, geoms, crs), {"skipped_dxf_entities": skipped}
+
+
+CODE_FIELD_NAMES = ("code", "codice", "cod", "codes", "layer")
+
+
+def read_ogr(source: Any, code_field: str | None = None, name: str = "INPUT"):
+    """Read any OGR layer with a code field (multi-parts split). Returns (entities, report)."""
+    import shapely
+
+    from toolbox.io.vector import read_vector
+
+    frame = read_vector(source, name=name)
+    fields = [c for c in frame.columns if c != frame.geometry.name]
+    if code_field is None:
+        lower = {f.lower(): f for f in fields}
+        code_field = next((lower[n] for n in CODE_FIELD_NAMES if n in lower), None)
+        if code_field is None:
+            raise InputDataError(f"{name}: {source} has no code field (no field named "
+                                 f"{', '.join(CODE_FIELD_NAMES)}; give CODE_FIELD)")
+    elif code_field not in fields:
+        raise InputDataError(f"{name}: field {code_field!r} is not in {source}; fields are: "
+                             f"{', '.join(fields)}")
+    lower = {f.lower(): f for f in fields}
+    colour_field = next((lower[n] for n in ("colour", "color", "colore") if n in lower), None)
+    source_field = next((lower[n] for n in ("source", "fonte", "provenienza") if n in lower),
+                        None)
+    label = Path(str(getattr(source, "path", source) or "<GeoDataFrame>")).name
+    rows, geoms, split = [], [], 0
+    for i, (geom, code) in enumerate(zip(frame.geometry.values, frame[code_field], strict=True)):
+        parts = [None] if geom is None or geom.is_empty else list(
+            shapely.get_parts(geom)) if shapely.get_type_id(geom) in (4, 5, 6) else [geom]
+        split += len(parts) - 1
+        for part in parts:
+            kind = None if part is None else {0: "point", 1: "line", 2: "line",
+                                              3: "polygon"}.get(shapely.get_type_id(part))
+            blank = code is None or (isinstance(code, float) and np.isnan(code))
+            rows.append({"entity": i + 1, "code": None if blank else str(code).strip(),
+                         "colour": None if colour_field is None or frame[colour_field].iloc[i]
+                         is None else str(frame[colour_field].iloc[i]),
+                         "source": None if source_field is None else frame[source_field].iloc[i],
+                         "file": label, "line": None, "kind": kind})
+            geoms.append(part)
+    return entity_frame(rows, geoms, frame.crs), {"code_field": code_field,
+                                                   "multipart_split": split}
+
+
+def looks_like_ascii_export(path: Path) -> bool:
+    """True when the first non-comment line of ``path`` starts with ``CODE``."""
+    try:
+        with open(path, "rb") as handle:
+            head = handle.read(4096).decode("latin-1")
+    except OSError:
+        return False
+    for line in head.splitlines():
+        line = line.split("#", 1)[0].strip()
+        if line:
+            return line.upper().startswith("CODE")
+    return False
+
+
+def read_restitution(source: Any, code_field: str | None = None, name: str = "INPUT",
+                     crs: Any = None):
+    """Any supported restitution file: ASCII export, DXF, or an OGR layer. Returns
+    (entities, report). ``crs`` is given to formats that carry none (ASCII, DXF)."""
+    text = str(source)
+    path = Path(text.split("|", 1)[0]) if isinstance(source, (str, Path)) else None
+    if path is not None and path.suffix.lower() == ".dxf":
+        return read_dxf(path, name, crs)
+    if path is not None and path.suffix.lower() not in (".gpkg", ".shp", ".geojson", ".json",
+                                                        ".csv", ".gml", ".fgb") \
+            and looks_like_ascii_export(path):
+        return read_ascii(path, name, crs), {}
+    frame, report = read_ogr(source, code_field, name)
+    if frame.crs is None and crs is not None:
+        frame = frame.set_crs(crs)
+    return frame, report

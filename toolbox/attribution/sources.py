@@ -1,0 +1,76 @@
+"""Restitution input parameters and their reading (shared by the ``attribution:*`` algorithms)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from toolbox.errors import InputDataError
+from toolbox.parameters import Parameter, ValidationContext
+
+
+class RestitutionFiles(Parameter):
+    """One or more restitution files (repeat the option: one per stereo model, merged): the
+    ASCII export, a DXF, or any vector file OGR reads (``path`` or ``path|layername=name``)."""
+
+    type_name = "multiple"
+
+    def validate(self, value: Any, ctx: ValidationContext) -> list[str]:
+        items = [value] if isinstance(value, (str, Path)) or hasattr(value, "geometry") \
+            else list(value)
+        if not items:
+            raise self.error("needs at least one restitution file")
+        out = []
+        for item in items:
+            if hasattr(item, "geometry"):  # a GeoDataFrame in Python
+                out.append(item)
+                continue
+            text = str(item)
+            path = Path(text.split("|", 1)[0]).expanduser()
+            if not path.is_file():
+                raise self.error(f"file '{path}' does not exist")
+            ctx.input_paths[path.resolve()] = self.name
+            out.append(text)
+        return out
+
+    def expected(self) -> str:
+        return ("restitution file(s): ASCII export (CODE/E N Z/END), DXF or an OGR layer with a "
+                "code field; repeat for several models")
+
+
+def read_sources(params: dict[str, Any], crs: Any, feedback: Any) -> tuple[list, dict]:
+    """The entity tables of ``INPUT`` (one per model) and the readers' reports. With
+    ``COORDINATES`` given, the single INPUT is the descriptions table of the two-table form."""
+    from toolbox.attribution.restitution import read_restitution, read_two_tables
+
+    inputs = params["INPUT"]
+    reports: dict[str, Any] = {}
+    if params.get("COORDINATES") is not None:
+        if len(inputs) != 1:
+            raise InputDataError("INPUT: with COORDINATES give exactly one descriptions file, "
+                                 f"got {len(inputs)}")
+        frame, report = read_two_tables(inputs[0], params["COORDINATES"], "INPUT",
+                                        "COORDINATES", crs)
+        if report["bbox_mismatches"]:
+            feedback.push_warning(f"INPUT: {len(report['bbox_mismatches'])} records whose "
+                                  "bounding box does not hold their vertices (records "
+                                  f"{report['bbox_mismatches'][:10]})")
+        return [frame], {"two_tables": report}
+    frames = []
+    for k, source in enumerate(inputs, start=1):
+        frame, report = read_restitution(source, params.get("CODE_FIELD"), "INPUT", crs)
+        skipped = report.get("skipped_dxf_entities")
+        if skipped:
+            feedback.push_warning(f"INPUT {k}: DXF entities not read: "
+                                  + ", ".join(f"{n} {t}" for t, n in sorted(skipped.items())))
+        frames.append(frame)
+        reports[f"input_{k}"] = report
+    return frames, reports
+
+
+def translated(frame, file) -> Any:
+    """``frame`` with the parameter file's coordinate translation added (a new frame)."""
+    import geopandas as gpd
+
+    return frame.set_geometry(gpd.GeoSeries(list(file.translate(frame.geometry.values)),
+                                            crs=frame.crs, index=frame.index))

@@ -1,0 +1,102 @@
+"""The renderer-neutral style model: what each code looks like.
+
+Widths and sizes are in millimetres on the map (QGIS "MM" units, SLD pixels at 96 dpi are
+derived from them). A code without a colour is drawn grey (128, 128, 128).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from toolbox.attribution.codes import CodeTable, hex_colour
+
+GREY = (128, 128, 128)
+LINE_WIDTH_MM = 0.35
+OUTLINE_WIDTH_MM = 0.30
+MARKER_SIZE_MM = 2.0
+FILL_ALPHA = 96  # of 255: fills show the photo or DEM below
+
+
+@dataclass(frozen=True)
+class CodeStyle:
+    """How one code is drawn.
+
+    Attributes
+    ----------
+    code, label : the code and its description (the legend text and the label).
+    kind : "point", "line" or "polygon".
+    rgb : (R, G, B) 0-255, the stroke (and marker) colour.
+    line_width : stroke width, mm (outline width for polygons, marker outline for points).
+    fill : (R, G, B, A) 0-255 of polygon fills and point markers, None for lines.
+    size : marker size, mm (points only).
+    """
+
+    code: str
+    kind: str
+    rgb: tuple[int, int, int]
+    line_width: float
+    fill: tuple[int, int, int, int] | None
+    label: str
+    size: float = MARKER_SIZE_MM
+
+    @property
+    def hex(self) -> str:
+        return hex_colour(self.rgb)
+
+
+@dataclass
+class LayerStyle:
+    """The style of one output layer: its kind, its codes' styles (one = single symbol, several
+    = categorised by ``field``), and the field labelled (None: no labels)."""
+
+    name: str
+    kind: str
+    styles: list[CodeStyle]
+    field: str = "code"
+    label_field: str | None = None
+
+    @property
+    def categorised(self) -> bool:
+        return len(self.styles) > 1
+
+
+def code_style(code: str, kind: str, table: CodeTable | None,
+               colours: dict[str, tuple[int, int, int]] | None) -> CodeStyle:
+    """The style of one code drawn as ``kind``."""
+    from toolbox.attribution.apply import code_colour
+
+    rgb = None
+    label = code
+    if table is not None and code in table:
+        rgb, _ = code_colour(code, table, colours)
+        label = table[code].description or code
+    rgb = rgb or GREY
+    if kind == "line":
+        return CodeStyle(code, kind, rgb, LINE_WIDTH_MM, None, label)
+    if kind == "polygon":
+        return CodeStyle(code, kind, rgb, OUTLINE_WIDTH_MM, (*rgb, FILL_ALPHA), label)
+    return CodeStyle(code, "point", rgb, 0.2, (*rgb, 255), label)
+
+
+def style_model(table: CodeTable, colours: dict[str, tuple[int, int, int]] | None,
+                kinds: dict[str, str] | None = None) -> dict[str, CodeStyle]:
+    """Style of every code of the table; ``kinds`` gives the kind of codes the table declares
+    none for (else "line")."""
+    kinds = kinds or {}
+    return {code: code_style(code, entry.kind or kinds.get(code, "line"), table, colours)
+            for code, entry in table.entries.items()}
+
+
+#: layer kinds that get labels from the description
+LABELLED_KINDS = ("point", "polygon")
+
+
+def layer_style(name: str, kind: str, codes: list[str], table: CodeTable | None,
+                colours: dict[str, tuple[int, int, int]] | None,
+                label_field: str | None = "auto") -> LayerStyle:
+    """The style of a layer holding ``codes`` drawn as ``kind``; labels from ``description`` on
+    point and polygon layers unless ``label_field`` says otherwise (None: none)."""
+    if label_field == "auto":
+        label_field = "description" if kind in LABELLED_KINDS else None
+    return LayerStyle(name, kind, [code_style(c, kind, table, colours) for c in codes],
+                      label_field=label_field)
