@@ -1,0 +1,114 @@
+"""attribution:sample - curve sampling by distance and angle ("per vettori"), and densification."""
+
+from __future__ import annotations
+
+from toolbox.algorithm import Algorithm
+from toolbox.attribution.edit_parameters import parameter_file_parameter
+from toolbox.feedback import Feedback
+from toolbox.parameters import Enum, Number, Output, OutputVector, VectorLayer
+from toolbox.registry import register
+
+WANTED = {"DISTANCE": ("distance", "spline_step", 1.0),
+          "ANGLE": ("angle", "-", 10.0),
+          "TOLERANCE": ("tolerance", "-", None),
+          "PRECISION": ("precision", "decimals", 0.001)}
+
+
+@register
+class Sample(Algorithm):
+    """Resample curves (thesis S002 §2.2.2).
+
+    METHOD=vectors is the thesis' "campionamento per vettori": along the plotted vertices a
+    vertex is kept when its distance from the last kept one reaches DISTANCE, or when the
+    direction from the last kept vertex turns by more than ANGLE degrees from the line through
+    the last two kept ones (the ends are always kept). METHOD=distance puts a vertex every
+    DISTANCE along the line (Z interpolated; poor where curvature is high, as the thesis notes).
+    METHOD=densify adds vertices so that no segment is longer than DISTANCE.
+
+    DISTANCE defaults to the parameter file's "passo di spline". With TOLERANCE, a feature
+    whose original vertices would end farther than TOLERANCE from the new line is left
+    unchanged and reported. OUTPUT has the sampled layer and ``moved_vertices`` (removed
+    vertices at their place with their distance from the new line, added vertices with 0).
+    """
+
+    id = "attribution:sample"
+    display_name = "Sample curves"
+    group = "Attribution"
+    short_help = ("Curve sampling by distance and angle deviation ('per vettori'), constant-step "
+                  "resampling, densification; changed vertices reported.")
+    parameters = [
+        VectorLayer("INPUT", "lines (or polygons, by their rings)",
+                    geometry_types=["line", "polygon"]),
+        parameter_file_parameter(),
+        Enum("METHOD", "vectors (distance + angle), distance (constant step) or densify",
+             options=["vectors", "distance", "densify"], default="vectors"),
+        Number("DISTANCE", "largest distance between kept vertices / the step, CRS units "
+               "[default: parameter file's spline step, else 1]", min_value=0,
+               min_exclusive=True, optional=True),
+        Number("ANGLE", "direction change that records a vertex, degrees (METHOD=vectors) "
+               "[default 10]", min_value=0, max_value=180, optional=True),
+        Number("TOLERANCE", "largest distance of an original vertex from the new line; features "
+               "beyond it are left unchanged [default: no limit]", min_value=0, optional=True),
+        OutputVector("OUTPUT", "GeoPackage: sampled layer and moved_vertices"),
+    ]
+    outputs = [Output("STATISTICS", "vertices before/after, largest deviation", "dict")]
+
+    def process(self, params, feedback: Feedback):
+        import numpy as np
+
+        from toolbox.attribution.edit_io import read_parts, write_edited
+        from toolbox.attribution.edit_parameters import file_values
+        from toolbox.attribution.editing import (
+            densify,
+            deviation,
+            sample_by_distance,
+            sample_by_vectors,
+        )
+
+        parts = read_parts(params["INPUT"])
+        v, sources = file_values(params, WANTED, self.id, feedback, parts.frame.crs)
+        method, step = params["METHOD"], v["distance"]
+        out, rows, left = [], [], set()
+        largest = 0.0
+        for r, c in enumerate(parts.coords):
+            feedback.check_canceled()
+            feature = str(int(parts.feature[r]) + 1)
+            if len(c) < 2:
+                out.append(c)
+                continue
+            if method == "densify":
+                new, added = densify(c, step)
+                for i in np.flatnonzero(added):
+                    rows.append({"feature": feature, "vertex": int(i) + 1, "change": "added",
+                                 "dx": 0.0, "dy": 0.0, "displacement": 0.0, "x": new[i, 0],
+                                 "y": new[i, 1]})
+                out.append(new)
+                continue
+            if method == "vectors":
+                keep = sample_by_vectors(c, step, v["angle"])
+                new = c[keep]
+                removed = np.setdiff1d(np.arange(len(c)), keep)
+            else:
+                new = sample_by_distance(c, step)
+                removed = np.arange(1, len(c) - 1)
+            dist = deviation(c, new)
+            if v["tolerance"] is not None and dist.max() > v["tolerance"]:
+                left.add(feature)
+                out.append(c)
+                continue
+            largest = max(largest, float(dist.max()))
+            for i in removed:
+                rows.append({"feature": feature, "vertex": int(i) + 1, "change": "removed",
+                             "dx": 0.0, "dy": 0.0, "displacement": float(dist[i]),
+                             "x": c[i, 0], "y": c[i, 1]})
+            out.append(new)
+        layer = write_edited(params["OUTPUT"], params["INPUT"], parts, out, rows)
+        stats = {"features": len(parts.frame), "method": method,
+                 "vertices_before": int(sum(len(c) for c in parts.coords)),
+                 "vertices_after": int(sum(len(c) for c in out)),
+                 "largest_deviation": largest, "left_unchanged": sorted(left, key=int),
+                 "parameters": v, "sources": sources, "layer": layer}
+        if left:
+            feedback.push_warning(f"{len(left)} features left unchanged: sampling would move "
+                                  f"them more than TOLERANCE ({v['tolerance']:g})")
+        return {"OUTPUT": params["OUTPUT"], "STATISTICS": stats}

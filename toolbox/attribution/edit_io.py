@@ -1,0 +1,153 @@
+"""The I/O side of the editing algorithms (``attribution:square``, ``:align``, ``:sample``):
+read a layer into local-frame vertex arrays, write the edited layer, the ``moved_vertices``
+layer and the input layer's style (when it had one in ``layer_styles``)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import shapely
+
+from toolbox.errors import InputDataError
+
+
+@dataclass
+class Parts:
+    """The rings/lines of a layer: ``coords`` (local frame), ``feature`` and ``closed`` per
+    part, and how to rebuild each feature (``kind``: point, line or polygon per feature)."""
+
+    frame: Any
+    coords: list[np.ndarray]
+    feature: np.ndarray
+    closed: np.ndarray
+    ring_of_feature: list[list[int]]
+    kinds: list[str]
+    origin: np.ndarray
+    has_z: bool
+
+
+def read_parts(ref: Any, name: str = "INPUT") -> Parts:
+    """Read ``ref`` (a VectorLayerRef); explode multi-geometries; lines and rings as arrays
+    shifted to a local origin (the rounded centre of the layer's bounds)."""
+    from toolbox.io.vector import read_vector
+
+    frame = read_vector(ref, name=name)
+    if len(frame) == 0:
+        raise InputDataError(f"{name} {ref} has no features")
+    geoms = np.asarray(frame.geometry.values, dtype=object)
+    has = np.array([g is not None and not g.is_empty for g in geoms])
+    b = shapely.total_bounds(geoms[has]) if has.any() else np.zeros(4)
+    origin = np.round([(b[0] + b[2]) / 2, (b[1] + b[3]) / 2], -2)
+    has_z = bool(shapely.has_z(geoms[has]).any()) if has.any() else False
+    coords, feature, closed, rof, kinds = [], [], [], [], []
+    for f, g in enumerate(geoms):
+        rof.append([])
+        if g is None or g.is_empty:
+            kinds.append("none")
+            continue
+        parts = shapely.get_parts(g)
+        first = shapely.get_type_id(parts[0])
+        kinds.append("polygon" if first == 3 else "line" if first in (1, 2) else "point")
+        for part in parts:
+            t = shapely.get_type_id(part)
+            for ring in ([part.exterior, *part.interiors] if t == 3 else [part]):
+                c = shapely.get_coordinates(ring, include_z=has_z).astype(float)
+                c[:, :2] -= origin
+                rof[-1].append(len(coords))
+                coords.append(c)
+                feature.append(f)
+                closed.append(t in (2, 3) or (t == 1 and len(c) > 2 and
+                                              np.array_equal(c[0, :2], c[-1, :2])))
+    return Parts(frame, coords, np.array(feature, dtype=np.int64), np.array(closed, bool), rof,
+                 kinds, origin, has_z)
+
+
+def rebuild(parts: Parts, coords: list[np.ndarray]) -> list[Any]:
+    """Feature geometries from edited part arrays (same structure as read)."""
+    geoms = []
+    for f, rings in enumerate(parts.ring_of_feature):
+        kind = parts.kinds[f]
+        if not rings:
+            geoms.append(None)
+            continue
+        arrays = []
+        for r in rings:
+            c = coords[r].copy()
+            c[:, :2] += parts.origin
+            arrays.append(c)
+        if kind == "polygon":
+            geoms.append(shapely.Polygon(arrays[0], arrays[1:]))
+        elif kind == "line":
+            lines = [shapely.LineString(a) for a in arrays]
+            geoms.append(lines[0] if len(lines) == 1 else shapely.MultiLineString(lines))
+        else:
+            pts = [shapely.Point(a[0]) for a in arrays]
+            geoms.append(pts[0] if len(pts) == 1 else shapely.MultiPoint(pts))
+    return geoms
+
+
+def moved_frame(rows: list[dict[str, Any]], origin: np.ndarray, crs: Any):
+    """The ``moved_vertices`` layer: one point per changed vertex, at its new position (removed
+    vertices at their old one), with feature, vertex, change, dx, dy, displacement."""
+    import geopandas as gpd
+
+    geoms = [shapely.Point(r["x"] + origin[0], r["y"] + origin[1]) for r in rows]
+    data = {k: [r[k] for r in rows] for k in ("feature", "vertex", "change", "dx", "dy",
+                                             "displacement")}
+    return gpd.GeoDataFrame(data, geometry=gpd.GeoSeries(geoms, crs=crs), crs=crs)
+
+
+def layer_name_of(ref: Any) -> str:
+    """The input layer's name (its layer name, else the file stem)."""
+    if getattr(ref, "layer", None):
+        return str(ref.layer)
+    path = getattr(ref, "path", None)
+    return Path(path).stem if path is not None else "features"
+
+
+def write_edited(path: Path, ref: Any, parts: Parts, coords: list[np.ndarray],
+                 moved_rows: list[dict[str, Any]], extra_columns: dict[str, Any] | None = None
+                 ) -> str:
+    """Write the edited layer (input attributes kept, named as the input layer) and
+    ``moved_vertices``; copy the input layer's default style. Returns the layer name."""
+    import geopandas as gpd
+
+    from toolbox.io.vector import write_layers
+    from toolbox.styles.gpkg import read_layer_styles, write_layer_styles
+    from toolbox.styles.model import CodeStyle, LayerStyle
+    from toolbox.styles.qml import qml_document
+    from toolbox.styles.sld import sld_document
+
+    name = layer_name_of(ref)
+    if name == "moved_vertices":
+        name = "edited"
+    frame = parts.frame.drop(columns=parts.frame.geometry.name).copy()
+    for column, values in (extra_columns or {}).items():
+        frame[column] = values
+    crs = parts.frame.crs
+    geoms = rebuild(parts, coords)
+    edited = gpd.GeoDataFrame(frame, geometry=gpd.GeoSeries(geoms, crs=crs), crs=crs)
+    kinds = {k for k in parts.kinds if k != "none"}
+    types = {}
+    if len(kinds) == 1:
+        kind = kinds.pop()
+        multi = any(g is not None and shapely.get_type_id(g) in (4, 5) for g in geoms)
+        base = {"polygon": "Polygon", "line": "MultiLineString" if multi else "LineString",
+                "point": "MultiPoint" if multi else "Point"}[kind]
+        types[name] = base + (" Z" if parts.has_z else "")
+    moved = moved_frame(moved_rows, parts.origin, crs)
+    types["moved_vertices"] = "Point"
+    write_layers(path, {name: edited, "moved_vertices": moved}, crs=crs, geometry_types=types)
+    source = getattr(ref, "path", None)
+    if source is not None and Path(source).suffix.lower() == ".gpkg":
+        for row in read_layer_styles(source):
+            if row["f_table_name"] == getattr(ref, "layer", None) and row["useAsDefault"]:
+                write_layer_styles(path, name, row["styleQML"], row["styleSLD"], True,
+                                   row["styleName"], row["description"] or "")
+    style = LayerStyle("moved_vertices", "point", [CodeStyle(
+        "moved", "point", (255, 0, 255), 0.2, (255, 0, 255, 255), "moved vertex", 1.5)])
+    write_layer_styles(path, "moved_vertices", qml_document(style), sld_document(style), True)
+    return name
