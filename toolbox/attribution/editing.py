@@ -216,7 +216,7 @@ def square_rings(rings: list[np.ndarray], polygon_of_ring: np.ndarray, tolerance
             reasons.setdefault(p, "shares a vertex with a building that cannot be squared")
     # a building left active with no constrained wall is "not squared" too
     has_constraint = np.zeros(n_poly, dtype=bool)
-    for (a, b, p), cu, cv in zip(walls_arr, along_u, along_v, strict=True):
+    for (_, _, p), cu, cv in zip(walls_arr, along_u, along_v, strict=True):
         has_constraint[p] |= bool(cu or cv)
     for p in np.flatnonzero(active & ~has_constraint):
         reasons.setdefault(int(p), f"no wall within {angle_tolerance:g} degrees of the dominant "
