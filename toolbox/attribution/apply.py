@@ -102,10 +102,10 @@ def resolve_geometry(geom: Any, declared: str | None, read_kind: str | None,
                     else np.vstack([ring, ring[:1]]))
             detail = f"closed: ends {gap:.3f} apart"
         geom = shapely.Polygon(ring)
+    if shapely.area(shapely.convex_hull(geom)) <= 0:  # all vertices on one line
+        return None, None, "degenerate", "polygon of zero area"
     if not shapely.is_valid(geom):
         return None, None, "invalid_polygon", shapely.is_valid_reason(geom)
-    if shapely.area(geom) <= 0:
-        return None, None, "degenerate", "polygon of zero area"
     return "polygon", geom, None, detail
 
 
@@ -219,7 +219,7 @@ def attribute(entities, table: CodeTable, colours: dict[str, tuple[int, int, int
         frame = _attributes(entities, rows, gs, table, colours, kind)
         layers[name] = gpd.GeoDataFrame(frame, geometry=gpd.GeoSeries(gs, crs=crs), crs=crs)
         layer_kinds[name] = kind
-        layer_codes[name] = list(dict.fromkeys(frame["code"]))
+        layer_codes[name] = sorted(set(frame["code"]))
     unres_rows = [u[0] for u in unresolved]
     unres = pd.DataFrame({
         "entity": entities["entity"].to_numpy()[unres_rows] if unres_rows else np.zeros(0, int),

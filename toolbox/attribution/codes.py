@@ -234,9 +234,9 @@ def _fields(fields: list[str], columns: dict[str, int] | None, sep: str | None, 
         return (at(columns["code"]).strip(), at(columns.get("colour")),
                 at(columns.get("description")), kind)
     code = fields[0].strip() if fields else ""
-    if len(fields) >= 3 and _kind(fields[2]) is not None and not (
-            _is_colour(fields[1]) and fields[1].strip()):
-        # ID; description; type; colour (Z-Map)
+    if len(fields) >= 3 and (sep is not None or _kind(fields[2]) is not None) and not \
+            _is_colour(fields[1]):
+        # ID; description; type; colour (Z-Map): the second field is not a colour
         return code, at(3), fields[1], fields[2]
     if sep is None:  # CODE [COLOUR] DESCRIPTION, description quoted or the rest of the line
         rest = re.match(r"\s*\S+\s*(.*)$", line).group(1)  # type: ignore[union-attr]
