@@ -63,7 +63,8 @@ class BuildAreas(Algorithm):
                                 data["label_codes"], data["label_attributes"], tol,
                                 feedback.step(0, 90), mode="build")
         if data["label_geoms"] is None:
-            feedback.push_warning("no LABELS given: areas have no code")
+            feedback.push_warning("no LABELS given: only areas bounded by a closed coded "
+                                  "outline have a code")
         with feedback.timed("write"):
             write_topology(params["OUTPUT"], output, data["crs"], data["label_dtypes"])
         stats = dict(output.statistics)

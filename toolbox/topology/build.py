@@ -41,7 +41,7 @@ from toolbox.topology.graph import (
     remove_short_dangles,
 )
 from toolbox.topology.issues import ERROR, FIXABLE, FIXED, Issue
-from toolbox.topology.labels import assign_labels
+from toolbox.topology.labels import assign_labels, outline_codes
 from toolbox.topology.noding import node_lines, self_intersection_points
 from toolbox.topology.output import (
     Layer,
@@ -177,6 +177,10 @@ def build_topology(line_geoms: np.ndarray, line_codes: np.ndarray | None = None,
                             f"ends miss by {gap:.3f} (closure tolerance {tol.closure:g})",
                             (int(src[i]),)))
     lines = closure.lines
+    # closed coded lines also code the area they bound (a building plotted closed)
+    closed_line = shapely.distance(shapely.get_point(lines, 0), shapely.get_point(lines, -1)) \
+        <= prec / 2 if len(lines) else np.zeros(0, bool)
+    outlines, outline_src = lines[closed_line], src[closed_line]
     stats["close"] = {"closed": len(closure.closed)}
     progress.step(20, f"close: {len(closure.closed)} polylines closed")
 
@@ -301,7 +305,8 @@ def build_topology(line_geoms: np.ndarray, line_codes: np.ndarray | None = None,
     # 7. labels ----------------------------------------------------------------------------------
     label_local = shift(label_geoms, -origin) if len(label_geoms) else label_geoms
     with timed("labels"):
-        labels = assign_labels(faces, label_local, label_codes, label_attributes)
+        by_outline = outline_codes(faces, outlines, codes_of_src[outline_src], prec)
+        labels = assign_labels(faces, label_local, label_codes, label_attributes, by_outline)
     face_order = order_key(faces, prec)
     face_id = np.empty(len(faces), dtype=np.int64)
     face_id[face_order] = np.arange(1, len(faces) + 1)
@@ -310,7 +315,8 @@ def build_topology(line_geoms: np.ndarray, line_codes: np.ndarray | None = None,
         return int(face_id[face]) if face >= 0 and mode == "build" else 0
 
     if check_labels:
-        bare = np.flatnonzero(labels.face_labels == 0)
+        bare = np.flatnonzero((labels.face_labels == 0) & np.array([not o for o in by_outline],
+                                                                    dtype=bool))
         for f, where, size in zip(bare, shapely.point_on_surface(faces[bare]),
                                   shapely.area(faces[bare]), strict=True):
             issues.append(Issue("unlabelled_area", ERROR, where,

@@ -6,6 +6,11 @@ attributes only (e.g. a spot height that is not an area code). When the labels o
 different codes, or different non-null values of one attribute, the area is *conflicting*: it
 takes the values of its first label (input order) and is reported. A point on a boundary or
 outside the linework labels nothing and is reported.
+
+A closed coded outline codes an area too (the thesis' building plotted closed with the building
+code, §2.2.2): a face whose exterior is the outline (within the precision) takes the outline's
+code when no label point gives one. When the outline's code and the label code differ, or two
+outlines of one face disagree, the face is conflicting (the label's code is kept).
 """
 
 from __future__ import annotations
@@ -66,9 +71,38 @@ def _show(value: Any) -> str:
     return f"{value:g}" if isinstance(value, float) else str(value)
 
 
+def outline_codes(faces: np.ndarray, outlines: np.ndarray, codes: np.ndarray,
+                  precision: float) -> list[list[str]]:
+    """Codes of the closed outlines that bound each face: an outline bounds a face when the
+    face's exterior ring lies within ``2 * precision`` of it everywhere (Hausdorff distance), so
+    vertices added by noding do not matter. Blank codes are ignored.
+
+    Parameters
+    ----------
+    faces : (F,) Polygons. outlines : (K,) closed LineStrings (same coordinates).
+    codes : (K,) their codes. precision : the coordinate grid.
+    """
+    found: list[list[str]] = [[] for _ in range(len(faces))]
+    codes = np.asarray(codes, dtype=object)
+    keep = ~blank_mask(codes) if len(codes) else np.zeros(0, bool)
+    outlines, codes = np.asarray(outlines, dtype=object)[keep], codes[keep]
+    if not len(faces) or not len(outlines):
+        return found
+    rings = shapely.get_exterior_ring(faces)
+    oi, fi = shapely.STRtree(rings).query(outlines, predicate="dwithin", distance=2 * precision)
+    for o, f in zip(oi.tolist(), fi.tolist(), strict=True):
+        if shapely.hausdorff_distance(rings[f], outlines[o]) <= 2 * precision:
+            code = str(codes[o]).strip()
+            if code not in found[f]:
+                found[f].append(code)
+    return found
+
+
 def assign_labels(faces: np.ndarray, points: np.ndarray, codes: np.ndarray,
-                  attributes: dict[str, np.ndarray] | None = None) -> LabelAssignment:
-    """Give each face the code and attributes of the label points inside it.
+                  attributes: dict[str, np.ndarray] | None = None,
+                  face_outline_codes: list[list[str]] | None = None) -> LabelAssignment:
+    """Give each face the code and attributes of the label points inside it, else the code of
+    its closed coded outline.
 
     Parameters
     ----------
@@ -76,6 +110,8 @@ def assign_labels(faces: np.ndarray, points: np.ndarray, codes: np.ndarray,
     points : (L,) Points (same coordinates as ``faces``).
     codes : (L,) codes (text; blank = attributes only).
     attributes : dict name -> (L,) values, optional.
+    face_outline_codes : per face, the codes of the closed outlines bounding it (see
+        :func:`outline_codes`), optional.
     """
     attributes = attributes or {}
     nf, nl = len(faces), len(points)
@@ -123,4 +159,16 @@ def assign_labels(faces: np.ndarray, points: np.ndarray, codes: np.ndarray,
                     problems.append(f"{name} " + ", ".join(distinct))
         if problems:
             conflicts[int(f)] = "; ".join(problems)
+    for f, outline in enumerate(face_outline_codes or []):
+        if not outline:
+            continue
+        problems = [conflicts[f]] if f in conflicts else []
+        if len(outline) > 1:
+            problems.append("outline codes " + ", ".join(outline))
+        if face_code[f] is None:
+            face_code[f] = outline[0]
+        elif str(face_code[f]) not in outline:
+            problems.append(f"outline code {', '.join(outline)}, label code {face_code[f]}")
+        if problems:
+            conflicts[f] = "; ".join(problems)
     return LabelAssignment(label_face, face_code, face_attrs, counts, first, conflicts)

@@ -268,7 +268,11 @@ def test_check_mode_reports_without_building(result):
 def test_without_labels_no_label_checks():
     out = run(labels=False)
     assert len(out.areas) == 6
-    assert all(c is None for c in out.areas.columns["code"])
+    # only the buildings plotted closed with their code (B1 closed within the closure tolerance,
+    # B2 plotted twice) are coded: by their outline
+    codes = out.areas.columns["code"]
+    assert {name: codes[area_named(out, name)] for name in EXPECTED} == {
+        name: ("FAB01002" if name in ("B1", "B2") else None) for name in EXPECTED}
     assert not {"unlabelled_area", "conflicting_labels", "label_outside"} & set(
         out.errors.columns["type"])
     assert out.statistics["labels"] == {"checked": False}
