@@ -22,8 +22,9 @@ class Square(Algorithm):
     vertices.
 
     Vertices closer than PRECISION are one node, so buildings sharing a wall are squared
-    together (one dominant direction, theta = atan2(sum L sin 4phi, sum L cos 4phi) / 4 over
-    their walls) and their shared vertices stay shared. A building whose vertices would move
+    together (one dominant direction: the wall direction most wall length lies within
+    ANGLE_TOLERANCE of, refined by theta = atan2(sum L sin 4phi, sum L cos 4phi) / 4 over those
+    walls; oblique walls stay oblique) and their shared vertices stay shared. A building whose vertices would move
     more than TOLERANCE ("tolleranza planimetrica di squadratura"), or whose area would change
     by more than AREA_TOLERANCE percent, is left as it was (with its neighbours on the
     offending vertices) and reported: no vertex ever moves beyond TOLERANCE.
@@ -55,15 +56,15 @@ class Square(Algorithm):
                min_exclusive=True, optional=True),
         OutputVector("OUTPUT", "GeoPackage: squared buildings and moved_vertices"),
     ]
-    outputs = [Output("STATISTICS", "buildings squared / left, largest move, angle errors",
-                      "dict")]
+    outputs = [Output("STATISTICS", "buildings squared / left, largest move, largest deviation "
+                      "from 90 degrees of a corner between squared walls", "dict")]
 
     def process(self, params, feedback: Feedback):
         import numpy as np
 
         from toolbox.attribution.edit_io import read_parts, write_edited
         from toolbox.attribution.edit_parameters import file_values
-        from toolbox.attribution.editing import corner_angles, square_rings
+        from toolbox.attribution.editing import square_rings
 
         parts = read_parts(params["INPUT"])
         v, sources = file_values(params, WANTED, self.id, feedback, parts.frame.crs)
@@ -92,12 +93,10 @@ class Square(Algorithm):
         layer = write_edited(params["OUTPUT"], params["INPUT"], parts, result.rings, rows,
                              {"squared": squared, "squaring_note": note,
                               "orientation": orientation})
-        errors = [float(np.max(np.abs(((corner_angles(r) + 45) % 90) - 45)))
-                  for r, f in zip(result.rings, parts.feature, strict=True) if squared[f]]
         stats = {"buildings": n, "squared": int(squared.sum()), "left": int(n - squared.sum()),
                  "moved_vertices": len(rows),
                  "largest_move": max((r["displacement"] for r in rows), default=0.0),
-                 "largest_corner_error_deg": max(errors, default=0.0),
+                 "largest_corner_error_deg": result.corner_error,
                  "tolerances": v, "tolerance_sources": sources, "layer": layer,
                  "not_squared": {int(p) + 1: r for p, r in result.reasons.items()}}
         return {"OUTPUT": params["OUTPUT"], "STATISTICS": stats}

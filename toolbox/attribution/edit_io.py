@@ -104,8 +104,16 @@ def layer_name_of(ref: Any) -> str:
     """The input layer's name (its layer name, else the file stem)."""
     if getattr(ref, "layer", None):
         return str(ref.layer)
+    name = (getattr(ref, "info", None) or {}).get("layer_name")
+    if name:
+        return str(name)
     path = getattr(ref, "path", None)
-    return Path(path).stem if path is not None else "features"
+    if path is not None:
+        import pyogrio
+
+        layers = pyogrio.list_layers(path)
+        return str(layers[0][0]) if len(layers) == 1 else Path(path).stem
+    return "features"
 
 
 def write_edited(path: Path, ref: Any, parts: Parts, coords: list[np.ndarray],

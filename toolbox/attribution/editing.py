@@ -26,6 +26,8 @@ class SquaringResult:
     squared : (P,) bool, polygon squared (else left as it was, reason in ``reasons``).
     reasons : dict polygon -> why it was not squared.
     orientation : (P,) dominant direction of each polygon's cluster, degrees from the X axis.
+    corner_error : largest deviation from 90 (or 180) degrees of a corner between two squared
+        walls of a squared building, degrees (0 up to rounding).
     """
 
     rings: list[np.ndarray]
@@ -36,6 +38,7 @@ class SquaringResult:
     squared: np.ndarray
     reasons: dict[int, str] = field(default_factory=dict)
     orientation: np.ndarray | None = None
+    corner_error: float = 0.0
 
 
 class _UnionFind:
@@ -91,6 +94,29 @@ def corner_angles(ring: np.ndarray) -> np.ndarray:
     cos = np.einsum("ij,ij->i", prev, nxt) / (np.linalg.norm(prev, axis=1)
                                               * np.linalg.norm(nxt, axis=1))
     return np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
+
+
+def _deviation90(phi: np.ndarray, theta: float) -> np.ndarray:
+    """Angle (radians) between directions ``phi`` and the nearest of theta + k 90 degrees."""
+    rel = (phi - theta) % (np.pi / 2)
+    return np.minimum(rel, np.pi / 2 - rel)
+
+
+def dominant_direction(phi: np.ndarray, length: np.ndarray, angle_tolerance: float) -> float:
+    """Dominant wall direction (radians, modulo 90 degrees) of walls with directions ``phi`` and
+    lengths ``length``: the wall direction that the longest total length of walls lies within
+    ``angle_tolerance`` (degrees) of, refined by the length-weighted mean over those walls,
+    atan2(sum L sin 4phi, sum L cos 4phi) / 4. An oblique wall does not pull it."""
+    if len(phi) == 0:
+        return 0.0
+    tol = np.radians(angle_tolerance)
+    support = [length[_deviation90(phi, t) <= tol].sum() for t in phi]
+    seed = float(phi[int(np.argmax(support))])
+    inliers = _deviation90(phi, seed) <= tol
+    # mean of 4 (phi - seed) around 0, so the wrap-around at 90 degrees does not matter
+    d = 4 * (phi[inliers] - seed)
+    return seed + 0.25 * float(np.arctan2(np.sum(length[inliers] * np.sin(d)),
+                                          np.sum(length[inliers] * np.cos(d))))
 
 
 def square_rings(rings: list[np.ndarray], polygon_of_ring: np.ndarray, tolerance: float,
@@ -151,8 +177,7 @@ def square_rings(rings: list[np.ndarray], polygon_of_ring: np.ndarray, tolerance
     theta_of_cluster = {}
     for c in np.unique(cluster):
         sel = cluster[walls_arr[:, 2]] == c
-        theta_of_cluster[c] = 0.25 * np.arctan2(np.sum(length[sel] * np.sin(4 * phi[sel])),
-                                                np.sum(length[sel] * np.cos(4 * phi[sel])))
+        theta_of_cluster[c] = dominant_direction(phi[sel], length[sel], angle_tolerance)
     theta = np.array([theta_of_cluster[c] for c in cluster[walls_arr[:, 2]]]) if len(walls) \
         else np.zeros(0)
     rel = np.degrees(phi - theta) % 180.0  # 0 = along u, 90 = along v
@@ -230,10 +255,23 @@ def square_rings(rings: list[np.ndarray], polygon_of_ring: np.ndarray, tolerance
         ring[:-1, :2] = new_xy[nodes]
         ring[-1] = ring[0]
         out_rings.append(ring)
+    # corners between two squared walls: how far from 90/180 degrees they ended
+    constrained = (along_u | along_v) & squared[walls_arr[:, 2]] if len(walls) else \
+        np.zeros(0, bool)
+    wall_ok = {(int(a), int(b)) for (a, b, _), ok in zip(walls_arr, constrained, strict=True)
+               if ok}
+    corner_error = 0.0
+    for r, nodes in enumerate(node_of_vertex):
+        prev, nxt = np.roll(nodes, 1), np.roll(nodes, -1)
+        for p_, n_, c_ in zip(prev, nxt, nodes, strict=True):
+            if (int(p_), int(c_)) in wall_ok and (int(c_), int(n_)) in wall_ok:
+                u, w = new_xy[p_] - new_xy[c_], new_xy[n_] - new_xy[c_]
+                angle = np.degrees(np.arctan2(abs(u[0] * w[1] - u[1] * w[0]), u @ w))
+                corner_error = max(corner_error, abs(((angle + 45) % 90) - 45))
     moved = np.flatnonzero(np.hypot(*(new_xy - nodes_xy).T) > 0)
     orientation = np.array([np.degrees(theta_of_cluster[c]) for c in cluster])
     return SquaringResult(out_rings, node_of_vertex, moved, nodes_xy[moved], new_xy[moved],
-                          squared, reasons, orientation)
+                          squared, reasons, orientation, float(corner_error))
 
 
 # -- alignment ---------------------------------------------------------------------------------------
@@ -294,30 +332,32 @@ def align_vertices(coords: np.ndarray, tolerance: float, fixed: np.ndarray,
 
 def sample_by_vectors(coords: np.ndarray, max_distance: float, max_angle: float
                       ) -> np.ndarray:
-    """"Campionamento per vettori" (thesis S002 §2.2.2): indices of the vertices kept. A vertex
-    is recorded when the distance from the last recorded one reaches ``max_distance``, or when
-    the direction from the last recorded vertex deviates by more than ``max_angle`` (degrees)
-    from the line through the last two recorded vertices; the ends are always kept."""
+    """"Campionamento per vettori" (thesis S002 §2.2.2): indices of the vertices kept.
+
+    Walking along the plotted vertices, the previous vertex is recorded as soon as the next one
+    would be farther than ``max_distance`` from the last recorded vertex, or as soon as the
+    direction of travel deviates by more than ``max_angle`` (degrees) from the line through the
+    last two recorded vertices (the first segment's direction until two are recorded). The ends
+    are always kept, so no chord between kept vertices is longer than ``max_distance`` unless a
+    plotted segment already is.
+    """
     n = len(coords)
     if n <= 2:
         return np.arange(n)
     xy = coords[:, :2]
     keep = [0]
     limit = np.radians(max_angle)
-    for i in range(1, n - 1):
-        last = xy[keep[-1]]
-        step = xy[i] - last
-        dist = float(np.hypot(*step))
-        if dist == 0:
+    for i in range(2, n):
+        last = keep[-1]
+        if i - 1 == last:
             continue
-        if dist >= max_distance:
-            keep.append(i)
-            continue
-        if len(keep) >= 2:
-            ref = last - xy[keep[-2]]
-            turn = abs(np.arctan2(ref[0] * step[1] - ref[1] * step[0], ref @ step))
-            if turn > limit:
-                keep.append(i)
+        ref = xy[last] - xy[keep[-2]] if len(keep) >= 2 else xy[1] - xy[0]
+        step = xy[i] - xy[i - 1]
+        far = float(np.hypot(*(xy[i] - xy[last]))) > max_distance
+        turn = abs(np.arctan2(ref[0] * step[1] - ref[1] * step[0], ref @ step)) \
+            if step.any() and ref.any() else 0.0
+        if far or turn > limit:
+            keep.append(i - 1)
     keep.append(n - 1)
     return np.array(keep)
 
