@@ -261,7 +261,7 @@ def square_rings(rings: list[np.ndarray], polygon_of_ring: np.ndarray, tolerance
     wall_ok = {(int(a), int(b)) for (a, b, _), ok in zip(walls_arr, constrained, strict=True)
                if ok}
     corner_error = 0.0
-    for r, nodes in enumerate(node_of_vertex):
+    for nodes in node_of_vertex:
         prev, nxt = np.roll(nodes, 1), np.roll(nodes, -1)
         for p_, n_, c_ in zip(prev, nxt, nodes, strict=True):
             if (int(p_), int(c_)) in wall_ok and (int(c_), int(n_)) in wall_ok:
