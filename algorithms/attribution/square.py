@@ -25,9 +25,9 @@ class Square(Algorithm):
     together (one dominant direction: the wall direction most wall length lies within
     ANGLE_TOLERANCE of, refined by theta = atan2(sum L sin 4phi, sum L cos 4phi) / 4 over those
     walls; oblique walls stay oblique) and their shared vertices stay shared. A building whose
-    vertices would move more than TOLERANCE ("tolleranza planimetrica di squadratura"), or whose area would change
-    by more than AREA_TOLERANCE percent, is left as it was (with its neighbours on the
-    offending vertices) and reported: no vertex ever moves beyond TOLERANCE.
+    vertices would move more than TOLERANCE ("tolleranza planimetrica di squadratura"), or
+    whose area would change by more than AREA_TOLERANCE percent, is left as it was (with its
+    neighbours on the offending vertices) and reported: no vertex ever moves beyond TOLERANCE.
 
     OUTPUT has the squared layer (named as the input layer, attributes kept, plus ``squared``,
     ``squaring_note`` and ``orientation`` in degrees) and ``moved_vertices`` (each moved
