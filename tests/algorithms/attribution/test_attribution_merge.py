@@ -1,0 +1,84 @@
+"""The model merge ("fusione"): lines joined across the model edge, duplicates removed."""
+
+from __future__ import annotations
+
+import geopandas as gpd
+import numpy as np
+import shapely
+
+import toolbox
+from toolbox.attribution.merge import merge_models
+from toolbox.attribution.restitution import entity_frame
+
+E0, N0 = 1688600.0, 4799900.0
+
+
+def _model(entities):
+    rows = [{"entity": k + 1, "code": c, "kind": "line" if len(p) > 1 else "point",
+             "file": "m", "line": None} for k, (c, p) in enumerate(entities)]
+    geoms = [shapely.LineString(p) if len(p) > 1 else shapely.Point(p[0]) for _, p in entities]
+    return entity_frame(rows, geoms, "EPSG:3003")
+
+
+WEST = [
+    ("STR02001", [(0, 0, 320.0), (49.95, 0.05, 320.4)]),      # 1 joins east 1 (gap 0.112)
+    ("STR02001", [(0, 10, 320.0), (50, 10, 320.3)]),          # 2 meets east 2, dz 0.5: refused
+    ("FAB01002", [(45, 20, 330), (55, 20, 330), (55, 30, 330), (45, 30, 330), (45, 20, 330)]),
+    ("MUR01001", [(0, 40, 321), (50, 40, 321)]),              # 4 east 4 is another code
+    ("STR02001", [(10, 50, 320), (20, 50, 320)]),             # 5 and 6: same model, not joined
+    ("STR02001", [(20.05, 50, 320), (30, 50, 320)]),
+    ("QUO01001", [(48, 5, 320.5)]),                           # 7 spot height in both models
+]
+EAST = [
+    ("STR02001", [(100, 0, 320.9), (50.05, 0, 320.45)]),      # plotted the other way round
+    ("STR02001", [(50.02, 10, 320.8), (100, 10, 321)]),
+    ("FAB01002", [(45.03, 20.02, 330.02), (55, 20, 330), (55.04, 30, 330), (45, 30.01, 330),
+                  (45.03, 20.02, 330.02)]),                   # 3 again: duplicate
+    ("SIE01001", [(50.05, 40, 321), (100, 40, 321)]),
+    ("QUO01001", [(48.02, 5.01, 320.55)]),                    # duplicate spot height
+]
+
+
+def test_merge_kernel():
+    result = merge_models([_model(WEST), _model(EAST)], 0.2, 0.1)
+    assert result.statistics == {"models": 2, "entities_in": 12, "duplicates_removed": 2,
+                                 "joins": 1, "joins_refused_height": 1, "entities_out": 9}
+    merged = result.entities
+    joined = merged[(merged["model"] == 1) & (merged["entity"] == 1)].geometry.iloc[0]
+    np.testing.assert_allclose(shapely.get_coordinates(joined, include_z=True), [
+        [0, 0, 320.0], [50.0, 0.025, 320.425], [100, 0, 320.9]], atol=1e-9)
+    kinds = [(e["kind"], e["detail"]) for e in result.events]
+    assert ("duplicate_removed", "model 2 entity 3 duplicates model 1 entity 3") in kinds
+    assert ("duplicate_removed", "model 2 entity 5 duplicates model 1 entity 7") in kinds
+    assert ("joined", "model 2 entity 1 joined to model 1 entity 1 (gap 0.112)") in kinds
+    refused = [d for k, d in kinds if k == "join_refused"]
+    assert refused == ["model 1 entity 2 and model 2 entity 2 meet in plan (0.020) but differ "
+                       "by 0.500 in height (tolerance 0.1)"]
+    # same-model ends and different codes are never joined
+    assert len(merged[merged["code"] == "STR02001"]) == 5 and len(merged) == 9
+
+
+def test_apply_merges_models(files, tmp_path):
+    def export(entities, name):
+        lines = []
+        for code, pts in entities:
+            lines.append(f"CODE {code}")
+            lines += [f"{E0 + x:.3f} {N0 + y:.3f} {z:.3f}" for x, y, z in pts]
+            lines.append("END")
+        path = tmp_path / name
+        path.write_text("\n".join(lines) + "\n")
+        return path
+
+    out = tmp_path / "merged.gpkg"
+    stats = toolbox.run("attribution:apply", {
+        "INPUT": [export(WEST, "ovest.txt"), export(EAST, "est.txt")], "CODES": files["codes"],
+        "SNAP_TOLERANCE": 0.2, "HEIGHT_SNAP_TOLERANCE": 0.1, "CRS": "EPSG:3003",
+        "OUTPUT": out})["STATISTICS"]
+    assert stats["merge"]["joins"] == 1 and stats["merge"]["duplicates_removed"] == 2
+    roads = gpd.read_file(out, layer="STR02001")
+    assert len(roads) == 5 and roads["length"].max() == np.round(
+        np.hypot(50, 0.025) + np.hypot(50, 0.025), 6)
+    report = gpd.read_file(out, layer="merge")
+    assert sorted(report["kind"]) == ["duplicate_removed", "duplicate_removed", "join_refused",
+                                      "joined"]
+    assert stats["unknown_codes"] == ["MUR01001", "SIE01001"]  # not in the code file
