@@ -159,16 +159,18 @@ def write_dxf(path: Path) -> None:
 
 
 def make(folder: Path, made: dict) -> dict:
-    paths = {"codes": folder / "siena_codici.txt", "colours": folder / "siena_colori.txt",
+    paths = {"restitution_codes": folder / "siena_codici.txt",
+             "restitution_colours": folder / "siena_colori.txt",
              "restitution_parameters": folder / "siena_parametri_restituzione.txt",
-             "model_12": folder / "siena_modello_12.txt",
-             "model_13": folder / "siena_modello_13.txt",
+             "restitution_model_12": folder / "siena_modello_12.txt",
+             "restitution_model_13": folder / "siena_modello_13.txt",
              "restitution_dxf": folder / "siena_restituzione.dxf"}
-    paths["codes"].write_bytes(CODE_FILE_TEXT.encode("latin-1"))  # as Windows software writes
-    paths["colours"].write_text(COLOUR_FILE_TEXT, encoding="utf-8")
+    # the code file in Latin-1, as Windows plotting software writes it
+    paths["restitution_codes"].write_bytes(CODE_FILE_TEXT.encode("latin-1"))
+    paths["restitution_colours"].write_text(COLOUR_FILE_TEXT, encoding="utf-8")
     paths["restitution_parameters"].write_text(PARAMETER_FILE_TEXT, encoding="utf-8")
     for model in (12, 13):
-        paths[f"model_{model}"].write_text(ascii_export(MODELS[model], model=model),
+        paths[f"restitution_model_{model}"].write_text(ascii_export(MODELS[model], model=model),
                                            encoding="utf-8")
     write_dxf(paths["restitution_dxf"])
     return paths
