@@ -100,3 +100,20 @@ def layer_style(name: str, kind: str, codes: list[str], table: CodeTable | None,
         label_field = "description" if kind in LABELLED_KINDS else None
     return LayerStyle(name, kind, [code_style(c, kind, table, colours) for c in codes],
                       label_field=label_field)
+
+
+MM_TO_POINTS = 72.0 / 25.4
+
+
+def matplotlib_kwargs(style: CodeStyle) -> dict:
+    """Keyword arguments drawing ``style`` with matplotlib (widths in points, colours as 0-1
+    RGBA): ``plot`` for lines, a patch for polygons, ``scatter`` for points."""
+    stroke = tuple(c / 255 for c in style.rgb) + (1.0,)
+    if style.kind == "line":
+        return {"color": stroke, "linewidth": style.line_width * MM_TO_POINTS}
+    fill = tuple(c / 255 for c in (style.fill or (*style.rgb, 255)))
+    if style.kind == "polygon":
+        return {"facecolor": fill, "edgecolor": stroke,
+                "linewidth": style.line_width * MM_TO_POINTS}
+    return {"color": fill, "edgecolors": (35 / 255, 35 / 255, 35 / 255, 1.0),
+            "s": (style.size * MM_TO_POINTS) ** 2, "linewidths": style.line_width * MM_TO_POINTS}

@@ -1,0 +1,22 @@
+<?xml version="1.0" encoding="UTF-8"?>
+<sld:StyledLayerDescriptor xmlns:sld="http://www.opengis.net/sld" xmlns:xsi="http://www.w3.org/2001/XMLSchema-instance" version="1.0.0" xsi:schemaLocation="http://www.opengis.net/sld http://schemas.opengis.net/sld/1.0.0/StyledLayerDescriptor.xsd">
+  <sld:NamedLayer>
+    <sld:Name>CUR01001</sld:Name>
+    <sld:UserStyle>
+      <sld:Name>CUR01001</sld:Name>
+      <sld:Title>CUR01001</sld:Title>
+      <sld:FeatureTypeStyle>
+        <sld:Rule>
+          <sld:Name>CUR01001</sld:Name>
+          <sld:Title>curva di livello direttrice</sld:Title>
+          <sld:LineSymbolizer>
+            <sld:Stroke>
+              <sld:CssParameter name="stroke">#996633</sld:CssParameter>
+              <sld:CssParameter name="stroke-width">1.25</sld:CssParameter>
+            </sld:Stroke>
+          </sld:LineSymbolizer>
+        </sld:Rule>
+      </sld:FeatureTypeStyle>
+    </sld:UserStyle>
+  </sld:NamedLayer>
+</sld:StyledLayerDescriptor>

@@ -1,0 +1,26 @@
+<!DOCTYPE qgis PUBLIC 'http://mrcc.com/qgis.dtd' 'SYSTEM'>
+<qgis version="3.22.0-Białowieża" styleCategories="Symbology|Labeling" labelsEnabled="0">
+  <renderer-v2 type="singleSymbol" symbollevels="0" enableorderby="0" forceraster="0" referencescale="-1">
+    <symbols>
+      <symbol type="line" name="0" alpha="1" clip_to_extent="1" force_rhr="0">
+        <layer class="SimpleLine" pass="0" locked="0" enabled="1">
+          <Option type="Map">
+            <Option name="line_color" value="26,166,166,255" type="QString" />
+            <Option name="line_style" value="solid" type="QString" />
+            <Option name="line_width" value="0.35" type="QString" />
+            <Option name="line_width_unit" value="MM" type="QString" />
+            <Option name="capstyle" value="round" type="QString" />
+            <Option name="joinstyle" value="round" type="QString" />
+          </Option>
+          <prop k="line_color" v="26,166,166,255" />
+          <prop k="line_style" v="solid" />
+          <prop k="line_width" v="0.35" />
+          <prop k="line_width_unit" v="MM" />
+          <prop k="capstyle" v="round" />
+          <prop k="joinstyle" v="round" />
+        </layer>
+      </symbol>
+    </symbols>
+  </renderer-v2>
+  <layerGeometryType>1</layerGeometryType>
+</qgis>

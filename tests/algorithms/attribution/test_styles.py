@@ -1,0 +1,80 @@
+"""The style model, its QML/SLD writers, the layer_styles table and the example style files."""
+
+from __future__ import annotations
+
+import sqlite3
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import geopandas as gpd
+import pyogrio
+import pytest
+import shapely
+
+from toolbox.attribution.codes import read_code_file, read_colour_file
+from toolbox.demo.samples import restitution
+from toolbox.styles import layer_style, qml_document, read_layer_styles, write_layer_styles
+from toolbox.styles.files import write_code_styles
+from toolbox.styles.model import matplotlib_kwargs, style_model
+
+ROOT = Path(__file__).resolve().parents[3]
+
+
+@pytest.fixture
+def demo_tables(tmp_path):
+    made = restitution.make(tmp_path, {})
+    return (read_code_file(made["restitution_codes"]),
+            read_colour_file(made["restitution_colours"]))
+
+
+def test_style_model_per_code(demo_tables):
+    table, colours = demo_tables
+    model = style_model(table, colours)
+    fab = model["FAB01002"]
+    assert (fab.kind, fab.rgb, fab.fill, fab.label) == (
+        "polygon", (77, 77, 77), (77, 77, 77, 96), "muro perimetrale di fabbricato civile")
+    assert model["STR02001"].kind == "line" and model["STR02001"].rgb == (255, 0, 0)
+    assert model["TOP01001"].label == "toponimo (località)"  # read from Latin-1
+    assert model["MAR01001"].rgb == (26, 166, 166)
+    kwargs = matplotlib_kwargs(model["STR02001"])
+    assert kwargs["color"] == (1.0, 0.0, 0.0, 1.0)
+    assert kwargs["linewidth"] == pytest.approx(0.35 * 72 / 25.4)
+
+
+def test_example_style_files_are_up_to_date(demo_tables, tmp_path):
+    written = write_code_styles(tmp_path / "styles", *demo_tables)
+    assert len(written) == 22
+    for path in written:
+        shipped = ROOT / "styles" / "siena" / path.name
+        assert shipped.read_text(encoding="utf-8") == path.read_text(encoding="utf-8"), (
+            f"{shipped} is stale: run python -m toolbox.styles.files styles/siena")
+    polygons = ET.fromstring((tmp_path / "styles" / "polygons.qml").read_text().split("\n", 1)[1])
+    assert polygons.find("renderer-v2").get("type") == "categorizedSymbol"
+    assert [c.get("value") for c in polygons.find("renderer-v2/categories")] == [
+        "FAB01002", "VEG01001"]
+
+
+def test_layer_styles_table_like_qgis(tmp_path, demo_tables):
+    table, colours = demo_tables
+    path = tmp_path / "x.gpkg"
+    gpd.GeoDataFrame({"code": ["FAB01002"]}, geometry=[shapely.box(0, 0, 1, 1)],
+                     crs="EPSG:3003").to_file(path, layer="FAB01002", driver="GPKG")
+    style = layer_style("FAB01002", "polygon", ["FAB01002"], table, colours)
+    write_layer_styles(path, "FAB01002", qml_document(style), "<sld/>", default=True)
+    write_layer_styles(path, "FAB01002", qml_document(style), None, default=True, name="bis")
+    rows = read_layer_styles(path)
+    assert [(r["styleName"], r["useAsDefault"]) for r in rows] == [("FAB01002", 0), ("bis", 1)]
+    with sqlite3.connect(path) as db:
+        columns = [row[1] for row in db.execute("PRAGMA table_info(layer_styles)")]
+        contents = db.execute("SELECT data_type FROM gpkg_contents WHERE table_name = "
+                              "'layer_styles'").fetchone()
+    assert columns == ["id", "f_table_catalog", "f_table_schema", "f_table_name",
+                       "f_geometry_column", "styleName", "styleQML", "styleSLD", "useAsDefault",
+                       "description", "owner", "ui", "update_time"]
+    assert contents == ("attributes",)
+    # GDAL reads the table as an attribute layer
+    styles = pyogrio.read_dataframe(path, layer="layer_styles")
+    assert styles["f_table_name"].tolist() == ["FAB01002", "FAB01002"]
+    assert styles["useAsDefault"].tolist() == [False, True]
+    with pytest.raises(ValueError, match="not a spatial layer"):
+        write_layer_styles(path, "nope", "<qgis/>")

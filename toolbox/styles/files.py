@@ -1,0 +1,53 @@
+"""Style files of a code table: one QML and one SLD per code, and one categorised pair per
+geometry kind (for a layer holding every code of that kind)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from toolbox.attribution.codes import CodeTable
+from toolbox.styles.model import layer_style
+from toolbox.styles.qml import qml_document
+from toolbox.styles.sld import sld_document
+
+KIND_LAYERS = {"point": "points", "line": "lines", "polygon": "polygons"}
+
+
+def write_code_styles(folder: str | Path, table: CodeTable,
+                      colours: dict[str, tuple[int, int, int]] | None) -> list[Path]:
+    """Write ``<code>.qml``/``.sld`` for every code (drawn as its declared kind, lines when
+    none) and ``points``/``lines``/``polygons`` categorised styles. Returns the files."""
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    written = []
+    by_kind: dict[str, list[str]] = {}
+    for code, entry in table.entries.items():
+        kind = entry.kind or "line"
+        by_kind.setdefault(kind, []).append(code)
+        written += _write(folder, code, layer_style(code, kind, [code], table, colours))
+    for kind, codes in by_kind.items():
+        name = KIND_LAYERS[kind]
+        written += _write(folder, name, layer_style(name, kind, sorted(codes), table, colours))
+    return written
+
+
+def _write(folder: Path, name: str, style) -> list[Path]:
+    qml, sld = folder / f"{name}.qml", folder / f"{name}.sld"
+    qml.write_text(qml_document(style), encoding="utf-8")
+    sld.write_text(sld_document(style), encoding="utf-8")
+    return [qml, sld]
+
+
+if __name__ == "__main__":  # python -m toolbox.styles.files: regenerate styles/siena/
+    import sys
+    import tempfile
+
+    from toolbox.attribution.codes import read_code_file, read_colour_file
+    from toolbox.demo.samples import restitution
+
+    with tempfile.TemporaryDirectory() as tmp:
+        made = restitution.make(Path(tmp), {})
+        files = write_code_styles(sys.argv[1] if len(sys.argv) > 1 else "styles/siena",
+                                  read_code_file(made["restitution_codes"]),
+                                  read_colour_file(made["restitution_colours"]))
+    print(f"{len(files)} style files written")
