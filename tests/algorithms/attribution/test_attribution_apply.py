@@ -13,13 +13,21 @@ import pandas as pd
 import pyogrio
 import pytest
 import shapely
+from restitution_files import make_files  # the test folder's helper module
 
 import toolbox
 from toolbox.attribution.restitution import read_ascii, read_dxf, read_two_tables
 from toolbox.errors import InputDataError
 from toolbox.styles.gpkg import read_layer_styles
 
-E0, N0 = 1688500.0, 4799700.0  # as in conftest.py
+
+@pytest.fixture
+def files(tmp_path):
+    """Code, colour, parameter files and an ASCII export with every defect (see make_files)."""
+    return make_files(tmp_path)
+
+
+E0, N0 = 1688500.0, 4799700.0  # as in restitution_files.py
 
 
 @pytest.fixture

@@ -4,11 +4,19 @@ from __future__ import annotations
 
 import geopandas as gpd
 import numpy as np
+import pytest
 import shapely
+from restitution_files import make_files  # the test folder's helper module
 
 import toolbox
 from toolbox.attribution.merge import merge_models
 from toolbox.attribution.restitution import entity_frame
+
+
+@pytest.fixture
+def files(tmp_path):
+    """Code, colour, parameter files and an ASCII export with every defect (see make_files)."""
+    return make_files(tmp_path)
 
 E0, N0 = 1688600.0, 4799900.0
 

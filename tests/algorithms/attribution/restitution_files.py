@@ -1,9 +1,7 @@
 """Realistic auxiliary and restitution files for the attribution tests, with every defect of
-issue 14 (see each fixture's docstring for the truth)."""
+issue 14 (see :func:`make_files` for the truth)."""
 
 from __future__ import annotations
-
-import pytest
 
 E0, N0 = 1688500.0, 4799700.0
 
@@ -65,8 +63,7 @@ ENTITIES = [
 ]
 
 
-@pytest.fixture
-def files(tmp_path):
+def make_files(tmp_path):
     """Code, colour, parameter files and an ASCII export. Truth: entities 1, 2 (closed, gap
     0.3), 4, 6, 12 resolve; 3 unclosed_polygon; 5 degenerate (one vertex); 7 type_mismatch;
     8 unknown_code; 9 invalid_polygon (bow-tie); 10 degenerate (zero area); 11 no_vertices;
