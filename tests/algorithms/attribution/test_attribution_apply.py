@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 import json
+import re
 import shutil
 import subprocess
 import xml.etree.ElementTree as ET
+from pathlib import Path
 
 import geopandas as gpd
 import numpy as np
@@ -352,3 +354,30 @@ def test_bad_code_file_fails_before_any_output(files):
         toolbox.run("attribution:apply", {"INPUT": files["export"], "CODES": bad,
                                           "OUTPUT": out})
     assert not out.exists()
+
+
+VALIDATOR = "/usr/lib/python3/dist-packages/osgeo_utils/samples/validate_gpkg.py"
+CHECK_SCRIPT = """
+import json, sys
+sys.path.insert(0, sys.argv[1])
+import validate_gpkg
+errors = validate_gpkg.check(sys.argv[2], abort_at_first_error=False)
+print(json.dumps([e[1] for e in errors]))
+"""
+
+
+@pytest.mark.skipif(not Path(VALIDATOR).exists() or _qgis_python() is None,
+                    reason="GDAL's validate_gpkg.py (python3-gdal) is not installed")
+def test_geopackage_passes_gdal_validator(applied, tmp_path):
+    """GDAL's GeoPackage validator (Debian's GDAL 3.6) finds nothing but the R-tree triggers
+    update1/update3, which GDAL >= 3.9 (the one in pyogrio's wheels) replaces by update6/update7
+    (GeoPackage 1.4 errata): the layers, their contents rows and layer_styles are valid."""
+    out, _, _ = applied
+    script = tmp_path / "check.py"
+    script.write_text(CHECK_SCRIPT)
+    run = subprocess.run([_qgis_python(), str(script), str(Path(VALIDATOR).parent), str(out)],
+                         capture_output=True, text=True, timeout=60)
+    assert run.returncode == 0, run.stderr
+    errors = json.loads(run.stdout.strip().splitlines()[-1])
+    assert errors and all(re.fullmatch(r"rtree_\w+_geom_update[13] trigger missing", e)
+                          for e in errors), errors
