@@ -50,8 +50,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from toolbox.errors import InputDataError
 from toolbox.io.text import read_text
 
@@ -146,6 +144,7 @@ class ParameterFile:
     def translate(self, geoms: Any) -> Any:
         """Geometries (array or sequence of shapely objects) with the translation added to X and
         Y (Z unchanged); the input itself when there is no translation."""
+        import numpy as np
         import shapely
 
         de, dn = self.offset

@@ -90,3 +90,32 @@ def test_apply_merges_models(files, tmp_path):
     assert sorted(report["kind"]) == ["duplicate_removed", "duplicate_removed", "join_refused",
                                       "joined"]
     assert stats["unknown_codes"] == ["MUR01001", "SIE01001"]  # not in the code file
+
+
+def test_merge_algorithm(tmp_path):
+    paths = []
+    for name, entities in (("ovest", WEST), ("est", EAST)):
+        lines = []
+        for code, pts in entities:
+            lines.append(f"CODE {code}")
+            lines += [f"{x:.3f} {y:.3f} {z:.3f}" for x, y, z in pts]  # stored: map - translation
+            lines.append("END")
+        paths.append(tmp_path / f"{name}.txt")
+        paths[-1].write_text("\n".join(lines) + "\n")
+    params = tmp_path / "parametri.txt"
+    params.write_text(f"traslazione delle coordinate = {E0:.0f} {N0:.0f}\n"
+                      "tolleranza di riattacco planimetrico = 0.2\n"
+                      "tolleranza di riattacco altimetrico = 0.1\n"
+                      "tolleranza di chiusura = 0.5\n")
+    out = tmp_path / "fusione.gpkg"
+    feedback = toolbox.Feedback()
+    stats = toolbox.run("attribution:merge", {"INPUT": paths, "PARAMETERS": params,
+                                              "CRS": "EPSG:3003", "OUTPUT": out},
+                        feedback=feedback)["STATISTICS"]
+    assert stats["joins"] == 1 and stats["duplicates_removed"] == 2
+    assert stats["layers"] == {"points": 1, "lines": 8, "merge": 4}
+    lines = gpd.read_file(out, layer="lines")
+    assert lines.total_bounds.tolist() == [E0, N0, E0 + 100, N0 + 50]
+    assert any("'tolleranza di chiusura' (line 4)" in w for w in feedback.warnings)
+    with pytest.raises(toolbox.ToolboxError, match="at least two models"):
+        toolbox.run("attribution:merge", {"INPUT": paths[:1], "OUTPUT": tmp_path / "x.gpkg"})
