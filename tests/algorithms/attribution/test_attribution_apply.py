@@ -184,6 +184,9 @@ for name in sys.argv[2:]:
     out[name] = {"valid": layer.isValid(), "renderer": r.type(),
                  "colour": r.symbol().color().name() if r.type() == "singleSymbol" else None,
                  "labels": layer.labelsEnabled()}
+    if r.type() == "categorizedSymbol":
+        out[name]["categories"] = [[r.classAttribute(), c.value(), c.symbol().color().name()]
+                                   for c in r.categories()]
 print(json.dumps(out))
 """
 
@@ -197,7 +200,7 @@ def _qgis_python():
 
 
 @pytest.mark.skipif(_qgis_python() is None, reason="QGIS (python3-qgis) is not installed")
-def test_qgis_opens_every_layer_with_its_default_style(applied, tmp_path):
+def test_qgis_opens_every_layer_with_its_default_style(applied, files, tmp_path):
     out, _, _ = applied
     script = tmp_path / "qgis_check.py"
     script.write_text(QGIS_SCRIPT)
@@ -216,6 +219,19 @@ def test_qgis_opens_every_layer_with_its_default_style(applied, tmp_path):
                      "labels": True},
         "unresolved": {"valid": True, "renderer": "singleSymbol", "colour": "#e41a1c",
                        "labels": True}}
+    # a layer of several codes: categorised on code, each category in its code's colour
+    by_type = tmp_path / "by_type.gpkg"
+    toolbox.run("attribution:apply", {
+        "INPUT": files["export"], "CODES": files["codes"], "COLOURS": files["colours"],
+        "PARAMETERS": files["params"], "CRS": "EPSG:3003", "LAYOUT": "type", "OUTPUT": by_type})
+    run = subprocess.run([_qgis_python(), str(script), str(by_type), "lines"],
+                         capture_output=True, text=True, timeout=60,
+                         env={"QT_QPA_PLATFORM": "offscreen", "PATH": "/usr/bin:/bin",
+                              "HOME": str(tmp_path)})
+    lines = json.loads(run.stdout.strip().splitlines()[-1])["lines"]
+    assert lines["renderer"] == "categorizedSymbol"
+    assert lines["categories"] == [["code", "FER01001", "#808080"],
+                                   ["code", "STR02001", "#ff0000"]]
 
 
 # -- readers ------------------------------------------------------------------------------------
