@@ -24,8 +24,8 @@ class AbsoluteOrientation(Algorithm):
     toolbox (brief section 3); eq. [25] of the thesis writes ``Rᵀ``, so its angles are those of
     the transposed matrix. Solved by a closed-form start (the rotation aligning the centred point
     sets) and least squares on all 3n equations, on coordinates shifted to the centroids.
-    Needs at least 3 control points, not collinear. Residuals are observed minus computed:
-    surveyed minus transformed. sigma0 = sqrt(Σv²/(3n - 7)); standard deviations from the
+    Needs at least 3 control points, not collinear. Residuals are computed minus observed (the
+    toolbox convention): transformed minus surveyed. sigma0 = sqrt(Σv²/(3n - 7)); standard deviations from the
     normal matrix (the translation's at the centroid of the control points).
 
     Outputs: REPORT (JSON: the 7 parameters with standard deviations, sigma0, residuals of every
@@ -68,13 +68,13 @@ class AbsoluteOrientation(Algorithm):
         ground = fit.apply(m_xyz)
         points = []
         for k in common:
-            v = c_xyz[k] - ground[model_index[c_ids[k]]]
+            v = ground[model_index[c_ids[k]]] - c_xyz[k]
             points.append({"point_id": c_ids[k], "role": roles[k], "vx": float(v[0]),
                            "vy": float(v[1]), "vz": float(v[2])})
         checks = np.array([[p["vx"], p["vy"], p["vz"]] for p in points if p["role"] == "check"])
         std = dict(zip(PARAMETER_NAMES, map(float, fit.std), strict=True))
         report = {"algorithm": self.id, "model": "P = scale * R(omega, phi, kappa) * p + T",
-                  "residual_sign": "observed minus computed (surveyed - transformed)",
+                  "residual_sign": "computed minus observed (transformed - surveyed)",
                   "translation": fit.translation.tolist(), "angles_rad": fit.angles.tolist(),
                   "scale": fit.scale, "std": std, "sigma0": fit.sigma0,
                   "redundancy": fit.redundancy, "control_points": len(control),

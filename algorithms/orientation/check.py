@@ -19,8 +19,8 @@ class CheckOrientation(Algorithm):
     (``id``, ``X``, ``Y``, ``Z``, optional ``role`` control/check). For every measurement of a
     known point, the point is projected through the photo's full model (collinearity with the
     exterior orientation, principal point, radial distortion, interior orientation to pixels)
-    and compared with the measurement: image residuals in µm and pixels, **observed minus
-    computed**. Every known point seen on two or more photos is also intersected from its
+    and compared with the measurement: image residuals in µm and pixels, **computed minus
+    observed** (the toolbox convention). Every known point seen on two or more photos is also intersected from its
     measurements (least squares, as orientation:intersect): ground residuals dX, dY, dZ =
     intersected minus surveyed.
 
@@ -92,7 +92,7 @@ class CheckOrientation(Algorithm):
         if block["flagged"]:
             feedback.push_warning(f"{block['flagged']} measurement(s) over "
                                   f"{params['THRESHOLD_PX']:g} px")
-        result["residual_sign"] = "observed minus computed"
+        result["residual_sign"] = "computed minus observed"
         write_json(params["REPORT"], {"algorithm": self.id, **result})
         if params["OUTPUT"] is not None:
             _write_vectors(params["OUTPUT"], result, project.crs)

@@ -32,8 +32,8 @@ class SpaceResection(Algorithm):
     Output: OUTPUT, an orientation project (YAML) equal to PROJECT with the resected exterior
     orientations (angles in radians), readable by every algorithm that takes a PROJECT; REPORT
     (JSON): per photo the six parameters with standard deviations from ``sigma0²·(JᵀJ)⁻¹``,
-    sigma0 (µm, image), redundancy 2n - 6, and the residual of every point (observed minus
-    computed, µm and pixels when measured in pixels) including check points.
+    sigma0 (µm, image), redundancy 2n - 6, and the residual of every point (computed minus
+    observed, µm and pixels when measured in pixels) including check points.
     """
 
     id = "orientation:resection"
@@ -79,7 +79,7 @@ class SpaceResection(Algorithm):
         save_project(project.with_exteriors(exteriors), params["OUTPUT"], relative_images=False)
         if params["REPORT"] is not None:
             write_json(params["REPORT"], {"algorithm": self.id, "residual_sign":
-                                          "observed minus computed", "photos": report})
+                                          "computed minus observed", "photos": report})
         stats = {"photos": len(report),
                  "sigma0_um": {pid: r["sigma0_um"] for pid, r in report.items()}}
         return {"OUTPUT": params["OUTPUT"], "REPORT": params["REPORT"], "STATISTICS": stats}

@@ -73,7 +73,10 @@ class EstimateRectification(Algorithm):
     Accuracy rule (thesis eq. [49], Table 4): with PRINCIPAL_DISTANCE and FLYING_HEIGHT, the
     relief displacement at the image edge ``Δρ = ΔZ·ρ/(c·m_b)`` for half the terrain's height
     range is reported, with a warning to use orthorectification when it exceeds
-    RELIEF_TOLERANCE.
+    RELIEF_TOLERANCE. The tolerance applies at MAP_SCALE, the scale of the product (Table 4 is
+    indexed by the rectification scale m_b: for a 1:5000 map from 1:15,000 photos with c = 150 mm
+    it allows 7.5 m of relief at 100 mm from the centre, not the 22.5 m the photo scale would
+    give); without MAP_SCALE, at the photo scale H / c. Both scales are reported.
 
     The transform is written as JSON for rectify:image; RESIDUALS optionally writes the points
     with their residuals as a GeoPackage.
@@ -117,6 +120,8 @@ class EstimateRectification(Algorithm):
         Number("RELIEF_TOLERANCE", "tolerated relief displacement at the edge, mm at the "
                "rectification scale (Table 4: 1 mm)", default=TABLE4_TOLERANCE_MM, min_value=0,
                min_exclusive=True),
+        Number("MAP_SCALE", "scale number of the product the rule applies at (e.g. 5000 for "
+               "1:5000; default: the photo scale H / c)", optional=True, min_value=1),
         OutputFile("OUTPUT", "transform (JSON, read by rectify:image)", extensions=[".json"]),
         OutputVector("RESIDUALS", "points with residuals (GeoPackage, layer 'residuals')",
                      optional=True),
@@ -203,7 +208,7 @@ class EstimateRectification(Algorithm):
         cell = fit.ground_pixel_size() if points.units == "pixels" else None
         check = relief_check(params["PRINCIPAL_DISTANCE"], params["FLYING_HEIGHT"],
                              height_range, params["IMAGE_RADIUS"], params["RELIEF_TOLERANCE"],
-                             cell)
+                             cell, params.get("MAP_SCALE"))
         (feedback.push_info if check.flat_enough else feedback.push_warning)(check.message())
         return check.as_dict() | {"height_range_source": source, "message": check.message()}
 

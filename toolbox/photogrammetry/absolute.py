@@ -10,7 +10,8 @@ Method: closed-form start (the rotation aligning the centred point sets, by
 squares on all 3n equations (``scipy.optimize.least_squares``) on coordinates shifted to the
 centroids, giving residuals, ``sigma0 = sqrt(Σv²/(3n - 7))`` and the covariance of the 7 parameters.
 Control coordinates are taken as error-free, model coordinates with equal weight (as the thesis
-says). Residuals are **observed minus computed**: ground control minus transformed model point.
+says). Residuals are **computed minus observed** (the toolbox convention): transformed model
+point minus ground control.
 """
 
 from __future__ import annotations
@@ -32,7 +33,7 @@ class SimilarityResult:
     angles: np.ndarray  # (3,) omega, phi, kappa, radians
     scale: float
     covariance: np.ndarray  # (7, 7) in the order of PARAMETER_NAMES
-    residuals: np.ndarray  # (n, 3) ground control - transformed model, ground units
+    residuals: np.ndarray  # (n, 3) transformed model - ground control, ground units
     sigma0: float
     redundancy: int
 
@@ -83,7 +84,7 @@ def fit_similarity(model: np.ndarray, ground: np.ndarray) -> SimilarityResult:
 
     def residuals(x: np.ndarray) -> np.ndarray:
         computed = x[6] * pm @ rotation_matrix(*x[3:6]).T + x[:3]
-        return (pg - computed).ravel()
+        return (computed - pg).ravel()
 
     start = np.concatenate([np.zeros(3), angles0, [scale0]])
     sol = least_squares(residuals, start, method="lm", xtol=1e-15, ftol=1e-15, gtol=1e-15)

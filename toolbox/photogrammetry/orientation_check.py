@@ -1,8 +1,10 @@
 """Checking and completing orientation results: residuals of control/check points through the
 whole chain (pixels -> interior orientation -> collinearity), single-photo resection of a block.
 
-Residual convention of the toolbox: **observed minus computed** (image: measured minus projected;
-ground: intersected from the measurements minus the surveyed coordinates).
+Residual convention of the toolbox: **computed minus observed**, the correction ``v`` of the
+least-squares model ``l + v = f(x)`` (image: projected minus measured; ground: intersected from the
+measurements minus the surveyed coordinates), as the fiducial, plane-transform and intersection
+reports give them.
 """
 
 from __future__ import annotations
@@ -78,7 +80,7 @@ def resect_photos(project, measurements, control, use_project_start: bool = Fals
         computed = fitted.ground_to_image(ground)
         observed = photo.require_pixel_transform().pixel_to_image(xy[rows]) if kind == "pixel" \
             else xy[rows]
-        v_um = (observed - computed) * 1e3
+        v_um = (computed - observed) * 1e3
         px = _pixel_scale_um(photo)
         report[pid] = {
             "parameters": dict(zip(PARAMETER_NAMES, map(float, result.parameters), strict=True)),
@@ -117,7 +119,7 @@ def check_block(project, measurements, control, threshold_px: float = 1.0) -> di
         computed = photo.ground_to_image(ground[n:n + 1])[0]
         observed = photo.require_pixel_transform().pixel_to_image(xy[k:k + 1])[0] \
             if kind == "pixel" else xy[k]
-        v_um = (observed - computed) * 1e3
+        v_um = (computed - observed) * 1e3
         px = _pixel_scale_um(photo)
         res_px = None if px is None else float(math.hypot(*v_um) / px)
         observations.append({

@@ -13,7 +13,7 @@ rotation and the nadir X0, Y0 (the image of the principal point); omega = phi = 
 
 Statistics: redundancy ``r = 2n - 6``; ``sigma0 = sqrt(Σv²/r)`` (mm, image); covariance of the
 six parameters ``sigma0²·(JᵀJ)⁻¹`` (J the Jacobian of the image coordinates at the solution).
-Residuals are **observed minus computed** (the toolbox convention).
+Residuals are **computed minus observed** (the toolbox convention).
 """
 
 from __future__ import annotations
@@ -114,7 +114,7 @@ def resect(camera_xy: np.ndarray, ground: np.ndarray, c: float,
         d = (local - p[:3]) @ rotation_matrix(*p[3:])
         with np.errstate(divide="ignore", invalid="ignore"):
             computed = -c * d[:, :2] / d[:, 2:3]
-        return (camera_xy - computed).ravel()
+        return (computed - camera_xy).ravel()
 
     # scale: angles ~ 1e-3 rad per mm·m_b; let LM use the Jacobian's column norms
     solution = least_squares(residuals, x0, method="lm", x_scale="jac", xtol=1e-15, ftol=1e-15,

@@ -109,23 +109,23 @@ def test_check_recovers_the_measuring_noise(siena_inputs):
     # 0.3 px per coordinate: expected radial RMS 0.42 px (2 degrees of freedom)
     assert 0.25 < rms_px < 0.6
     assert stats["flagged"] == 0
-    assert report["residual_sign"] == "observed minus computed"
+    assert report["residual_sign"] == "computed minus observed"
     # intersected from 2-3 rays of 0.3 px (4 µm, ~1.6 cm on the ground at 1:3800)
     assert stats["check_rmse_xy_m"] < 0.1 and stats["check_rmse_z_m"] < 0.3
     assert report["judgement"]["passes"]
     assert report["judgement"]["tolerance_m"] == pytest.approx(2.5)  # 0.5 mm at 1:5000
 
 
-def test_residual_sign_is_observed_minus_computed(siena_inputs):
+def test_residual_sign_is_computed_minus_observed(siena_inputs):
     _, report = run_check(siena_inputs, siena_inputs["project"], "sign")
     project = load_project(siena_inputs["project"])
     measured = {(r[0], r[1]): np.array(r[2:4], float) for r in siena_inputs["rows"]}
     obs = report["observations"][0]
     photo = project.photos[obs["photo"]]
     computed = photo.ground_to_pixel(np.array([obs["xyz"]]))[0]
-    v_px = measured[(obs["point_id"], obs["photo"])] - computed
-    v_um = photo.pixel_transform.pixel_to_image(computed[None] + v_px)[0] - \
-        photo.pixel_transform.pixel_to_image(computed[None])[0]
+    v_px = computed - measured[(obs["point_id"], obs["photo"])]
+    v_um = photo.pixel_transform.pixel_to_image(computed[None])[0] - \
+        photo.pixel_transform.pixel_to_image(computed[None] - v_px)[0]
     assert np.allclose([obs["res_x_um"], obs["res_y_um"]], v_um * 1e3, atol=1e-3)
 
 
@@ -264,7 +264,7 @@ def test_absolute_orientation_matches_umeyama_and_recovers_truth():
     assert np.allclose(fit.rotation, r_u, atol=1e-6)
     assert np.allclose(fit.translation, t_u, atol=1e-3)
     assert 0.02 < fit.sigma0 < 0.09
-    assert np.allclose(fit.residuals, noisy - fit.apply(model), atol=1e-9)  # observed - computed
+    assert np.allclose(fit.residuals, fit.apply(model) - noisy, atol=1e-9)  # computed - observed
 
 
 def test_absolute_orientation_algorithm_reports_check_points(tmp_path):
@@ -292,3 +292,37 @@ def test_map_scale_rules():
     assert planimetric_tolerance_m(10000) == pytest.approx(3.0)   # 0.3 mm, small scale
     assert judge_photo_scale(15000, 5000)["passes"]               # Table 3: 1:12,000-18,000
     assert not judge_photo_scale(25000, 5000)["passes"]
+
+
+def test_relief_rule_applies_at_the_map_scale():
+    """1:15,000 photos (c = 150 mm, H = 2250 m) for a 1:5000 map: Table 4's 1:5000 column
+    allows 7.5 m at 100 mm from the centre; the photo scale alone would allow 22.5 m."""
+    from toolbox.transforms.relief import relief_check
+
+    at_map = relief_check(150.0, 2250.0, 16.0, edge_radius=100.0, map_scale=5000)
+    assert at_map.allowed_departure_m == pytest.approx(7.5)
+    assert not at_map.flat_enough and at_map.rule_scale_number == 5000
+    assert at_map.displacement_rule_mm == pytest.approx(8.0 * 100 / 150 * 1000 / 5000)
+    assert relief_check(150.0, 2250.0, 14.0, edge_radius=100.0, map_scale=5000).flat_enough
+    at_photo = relief_check(150.0, 2250.0, 16.0, edge_radius=100.0)
+    assert at_photo.allowed_departure_m == pytest.approx(22.5) and at_photo.flat_enough
+
+
+def test_footprints_flag_the_flight_design_rules(tmp_path):
+    """Siena: forward overlaps 70-77 %, side overlaps >= 28 %, photos 1:3,770. They pass the
+    thesis' 60 % / 20 % and Table 3 for 1:5000; raised minimums flag exactly the short pairs."""
+    import pyogrio
+
+    project = SIENA / "siena_project.yaml"
+    ok = toolbox.run("orientation:footprints", {
+        "PROJECT": project, "MEAN_HEIGHT": 320, "MAP_SCALE": 5000,
+        "OUTPUT": tmp_path / "ok.gpkg"})["STATISTICS"]
+    assert ok["design"]["passes"] and ok["partial_footprints"] == 0
+    strict = toolbox.run("orientation:footprints", {
+        "PROJECT": project, "MEAN_HEIGHT": 320, "FORWARD_OVERLAP": 75, "SIDE_OVERLAP": 100,
+        "OUTPUT": tmp_path / "strict.gpkg"})["STATISTICS"]
+    fp = pyogrio.read_dataframe(tmp_path / "strict.gpkg", layer="footprints")
+    short = fp[fp["forward_overlap_pct"] < 75]["photo"].tolist()
+    assert short and sorted(fp[fp["forward_ok"] == False]["photo"]) == sorted(short)  # noqa: E712
+    assert (fp["side_ok"] == False).all()  # noqa: E712 - nothing overlaps 100 %
+    assert len(strict["design"]["failures"]) == len(short) + len(fp)
