@@ -20,7 +20,8 @@ class CheckOrientation(Algorithm):
     known point, the point is projected through the photo's full model (collinearity with the
     exterior orientation, principal point, radial distortion, interior orientation to pixels)
     and compared with the measurement: image residuals in µm and pixels, **computed minus
-    observed** (the toolbox convention). Every known point seen on two or more photos is also intersected from its
+    observed** (the toolbox convention). Every known point seen on two or more photos is also
+    intersected from its
     measurements (least squares, as orientation:intersect): ground residuals dX, dY, dZ =
     intersected minus surveyed.
 

@@ -326,3 +326,27 @@ def test_footprints_flag_the_flight_design_rules(tmp_path):
     assert short and sorted(fp[fp["forward_ok"] == False]["photo"]) == sorted(short)  # noqa: E712
     assert (fp["side_ok"] == False).all()  # noqa: E712 - nothing overlaps 100 %
     assert len(strict["design"]["failures"]) == len(short) + len(fp)
+
+
+# S000 l.653-659: σXY / σZ per base ratio B/Z, in the row's unit (metres per unit)
+RULES_TABLE = {50000: (1.0, [(0.36, 0.25), (0.43, 0.75), (0.90, 2.50), (1.70, 5.00)]),
+               10000: (0.1, [(0.72, 0.50), (0.86, 1.5), (1.81, 5.00), (3.41, 10.00)]),
+               1000: (0.01, [(0.72, 0.50), (0.86, 1.5), (1.81, 5.00), (3.41, 10.00)]),
+               100: (0.001, [(0.72, 0.50), (0.86, 1.5), (1.81, 5.00), (3.41, 10.00)]),
+               25: (0.001, [(0.18, 0.13), (0.22, 0.38), (0.45, 1.25), (0.85, 2.50)])}
+
+
+@pytest.mark.parametrize("scale", list(RULES_TABLE))
+def test_precision_reproduces_both_columns_of_the_rules_table(scale):
+    from algorithms.orientation.precision import pair_precision
+
+    unit, rows = RULES_TABLE[scale]
+    c = 150.0
+    distance = scale * c / 1000.0
+    for ratio, (sxy, sz) in zip((1, 3, 10, 20), rows, strict=True):
+        r = pair_precision(c, distance / ratio, distance, 5.0, None, 115.0, 115.0)
+        # printed to 2 decimals (25: 0.13 is 0.125 rounded up)
+        assert r["sigma_z_m"] / unit == pytest.approx(sz, abs=0.006)
+        assert r["sigma_xy_table_m"] / unit == pytest.approx(sxy, abs=0.011)
+        # the per-axis centre figure is what a reader must not confuse with it (about half)
+        assert r["sigma_x_centre_m"] < 0.6 * r["sigma_xy_table_m"]
