@@ -35,8 +35,15 @@ class Footprints(Algorithm):
     ``nadir_points`` and ``principal_points`` (PointZ, with on_dem), ``projection_centres``
     (PointZ, X0/Y0/Z0 and the angles in radians) and ``overlaps`` (Polygon: photo_a, photo_b,
     kind forward/side/other, pct_of_a, pct_of_b = intersection area / footprint area). Forward
-    pairs are consecutive photos of a strip in project order (brief section 10: ~60% forward,
-    ~20% side overlap).
+    pairs are consecutive photos of a strip in project order.
+
+    Design rules (thesis S002 par. 1.3.5 and Table 3): every forward pair must overlap by at
+    least FORWARD_OVERLAP % (default 60) and every photo must overlap a photo of a neighbouring
+    strip by at least SIDE_OVERLAP % (default 20; only checked when the project has several
+    strips); with MAP_SCALE the photo scale H / c must lie within Table 3's range for that map
+    scale (1:500 ... 1:50,000; a larger photo scale passes). Failures are flagged in the
+    ``footprints`` layer (forward_ok, side_overlap_pct, side_ok, photo_scale_ok) and in the
+    ``overlaps`` layer (meets_rule), listed in STATISTICS ``design`` and given as warnings.
     """
 
     id = "orientation:footprints"
@@ -51,6 +58,12 @@ class Footprints(Algorithm):
                "DEM's mean), CRS units", optional=True),
         Integer("POINTS_PER_SIDE", "footprint vertices per side of the image format", default=8,
                 min_value=1, max_value=1000),
+        Number("FORWARD_OVERLAP", "least forward overlap of consecutive photos, % (thesis: 60)",
+               default=60.0, min_value=0, max_value=100),
+        Number("SIDE_OVERLAP", "least side overlap between strips, % (thesis: 20)", default=20.0,
+               min_value=0, max_value=100),
+        Number("MAP_SCALE", "map scale number to check the photo scale against Table 3 (e.g. "
+               "5000)", optional=True, min_value=1),
         OutputVector("OUTPUT", "GeoPackage of footprints, points and overlaps"),
     ]
     outputs = [Output("STATISTICS", "photos, partial footprints, forward/side overlap ranges",
@@ -93,13 +106,17 @@ class Footprints(Algorithm):
         consecutive = {(a.id, b.id) for a, b in project.consecutive_pairs()}
         pairs = overlaps(footprints, consecutive)
         layers, stats = self._layers(footprints, pairs, consecutive, dem is not None, crs)
+        stats["design"] = design_rules(layers, params["FORWARD_OVERLAP"], params["SIDE_OVERLAP"],
+                                       params["MAP_SCALE"], len(project.strips()) > 1)
+        for problem in stats["design"]["failures"]:
+            feedback.push_warning(problem)
         from toolbox.io.vector import write_layers
 
         write_layers(params["OUTPUT"], layers, crs=crs,
                      geometry_types={"footprints": "Polygon Z", "nadir_points": "Point Z",
                                      "principal_points": "Point Z",
                                      "projection_centres": "Point Z", "overlaps": "Polygon"})
-        for fp in footprints:
+        for fp in footprints if dem is not None else []:
             if fp.vertices_off_dem:
                 feedback.push_warning(f"photo {fp.photo.id}: {fp.vertices_off_dem} footprint "
                                       f"vertices miss the DEM; placed on the plane Z = "
@@ -156,8 +173,61 @@ class Footprints(Algorithm):
         side = [ov.percent_of_a for ov in pairs if ov.kind == "side"] + \
             [ov.percent_of_b for ov in pairs if ov.kind == "side"]
         stats = {"photos": len(footprints),
-                 "partial_footprints": sum(1 for fp in footprints if fp.vertices_off_dem),
+                 "partial_footprints": sum(1 for fp in footprints if fp.vertices_off_dem)
+                 if with_dem else 0,
                  "forward_overlap_pct": [min(fwd), max(fwd)] if fwd else None,
                  "side_overlap_pct": [min(side), max(side)] if side else None,
                  "overlapping_pairs": len(pairs)}
         return layers, stats
+
+
+def design_rules(layers: dict, forward_min: float, side_min: float, map_scale: float | None,
+                 several_strips: bool) -> dict:
+    """Flag the footprints and overlaps that break the flight-design rules (in place)."""
+    import pandas as pd
+
+    from toolbox.photogrammetry.accuracy import judge_photo_scale
+
+    def flags(values):  # nullable booleans, so GeoPackage stores them as booleans, not text
+        return pd.array(values, dtype="boolean")
+
+    fp, ov = layers["footprints"], layers["overlaps"]
+    failures = []
+    side = {}
+    for row in ov.itertuples():
+        if row.kind == "side":
+            side[row.photo_a] = max(side.get(row.photo_a, 0.0), row.pct_of_a)
+            side[row.photo_b] = max(side.get(row.photo_b, 0.0), row.pct_of_b)
+    ov["meets_rule"] = flags([bool(pa >= (forward_min if k == "forward" else side_min) and
+                             pb >= (forward_min if k == "forward" else side_min))
+                        if k in ("forward", "side") else None
+                        for k, pa, pb in zip(ov["kind"], ov["pct_of_a"], ov["pct_of_b"],
+                                             strict=True)])
+    forward_ok, side_pct, side_ok, scale_ok = [], [], [], []
+    for row in fp.itertuples():
+        fwd = row.forward_overlap_pct
+        ok = None if fwd is None or fwd != fwd else bool(fwd >= forward_min)
+        forward_ok.append(ok)
+        if ok is False:
+            failures.append(f"photo {row.photo}: forward overlap {fwd:.1f} % < {forward_min:g} %")
+        pct = side.get(row.photo)
+        side_pct.append(pct)
+        s_ok = None if not several_strips else bool(pct is not None and pct >= side_min)
+        side_ok.append(s_ok)
+        if s_ok is False:
+            failures.append(f"photo {row.photo}: side overlap "
+                            f"{0.0 if pct is None else pct:.1f} % < {side_min:g} %")
+        if map_scale is None:
+            scale_ok.append(None)
+            continue
+        judged = judge_photo_scale(row.photo_scale, map_scale)
+        scale_ok.append(judged["passes"])
+        if judged["passes"] is False:
+            lo, hi = judged["table_range"]
+            failures.append(f"photo {row.photo}: photo scale 1:{row.photo_scale:.0f} is smaller "
+                            f"than Table 3's 1:{lo:,}-1:{hi:,} for a 1:{map_scale:g} map")
+    fp["forward_ok"], fp["side_ok"] = flags(forward_ok), flags(side_ok)
+    fp["side_overlap_pct"] = pd.array(side_pct, dtype="Float64")
+    fp["photo_scale_ok"] = flags(scale_ok)
+    return {"forward_overlap_min_pct": forward_min, "side_overlap_min_pct": side_min,
+            "map_scale": map_scale, "failures": failures, "passes": not failures}

@@ -37,7 +37,7 @@ class SpaceIntersection(Algorithm):
     OUTPUT layers: ``points`` (PointZ; point_id, status, n_photos, sigma0_mm = sqrt(Σv²/(2n-3)),
     std_x/y/z_m from the normal matrix, max_ray_distance_m, max_residual_px when pixels were
     given) and ``rays`` (LineStringZ from each projection centre to its point, with the
-    observation's residuals in mm and pixels, observed minus computed). Points that cannot be
+    observation's residuals in mm and pixels, computed minus observed). Points that cannot be
     intersected (one photo only, parallel rays, behind a camera) are flagged rows with status
     ``single_ray`` / ``parallel_rays`` / ``behind_camera`` and no geometry, never dropped silently.
     """
@@ -100,7 +100,7 @@ class SpaceIntersection(Algorithm):
             pts = result.xyz[point_index[ok_rows]]
             computed[ok_rows] = photo.ground_to_pixel(pts) if kind == "pixel" else \
                 photo.ground_to_image(pts)
-        residual_units = xy - computed
+        residual_units = computed - xy
         res_norm = np.hypot(residual_units[:, 0], residual_units[:, 1])
         max_res = np.full(len(order), np.nan)
         finite = np.isfinite(res_norm)

@@ -12,14 +12,14 @@ from toolbox.errors import InputDataError
 from toolbox.feedback import Feedback
 from toolbox.io.crs import common_crs
 from toolbox.parameters import File, Integer, Number, Output, OutputFile, RasterLayer
-from toolbox.photogrammetry.normal_case import normal_case_precision
+from toolbox.photogrammetry.normal_case import normal_case_precision, rules_table_sigma_xy
 from toolbox.photogrammetry.tables import load_project_parameter, write_csv, write_json
 from toolbox.registry import register
 
 COLUMNS = ["photo_a", "photo_b", "terrain_height_m", "principal_distance_mm", "base_m",
            "distance_m", "photo_scale", "base_ratio", "sigma_parallax_um", "sigma_image_um",
            "sigma_x_centre_m", "sigma_y_centre_m", "sigma_x_edge_m", "sigma_y_edge_m",
-           "sigma_z_m", "xi_edge_mm", "eta_edge_mm"]
+           "sigma_z_m", "sigma_xy_table_m", "xi_edge_mm", "eta_edge_mm"]
 
 
 def pair_precision(c_mm: float, base_m: float, distance_m: float, sigma_parallax_um: float,
@@ -34,7 +34,9 @@ def pair_precision(c_mm: float, base_m: float, distance_m: float, sigma_parallax
             "sigma_parallax_um": sigma_parallax_um, "sigma_image_um": centre["sigma_image_um"],
             "sigma_x_centre_m": centre["sigma_x_m"], "sigma_y_centre_m": centre["sigma_y_m"],
             "sigma_x_edge_m": edge["sigma_x_m"], "sigma_y_edge_m": edge["sigma_y_m"],
-            "sigma_z_m": centre["sigma_z_m"], "xi_edge_mm": xi_edge_mm, "eta_edge_mm": eta_edge_mm}
+            "sigma_z_m": centre["sigma_z_m"],
+            "sigma_xy_table_m": rules_table_sigma_xy(c_mm, base_m, distance_m, sigma_parallax_um),
+            "xi_edge_mm": xi_edge_mm, "eta_edge_mm": eta_edge_mm}
 
 
 @register
@@ -46,7 +48,12 @@ class NormalCasePrecision(Algorithm):
     terrain, σp the x-parallax precision and σξ the image-coordinate precision (S000 l.605-649,
     S002 eq. [35]-[40]). The defaults, SIGMA_PARALLAX = 5 µm and SIGMA_IMAGE = σp/√2, reproduce
     the σZ column of S000's rules table. σX and σY are given at the image centre and at the edge
-    of the format (ξ, η = half the format, or XI/ETA).
+    of the format (ξ, η = half the format, or XI/ETA); these are per-axis figures.
+
+    ``sigma_xy_table_m`` is the quantity S000's rules table prints as σXY: the two-axis figure
+    ``sqrt(σX² + σY²)`` with σξ = ση = σp = SIGMA_PARALLAX at a point c/3 from the principal
+    point, ``m_b·σp·sqrt(2 + (Z/B)²/9)`` (0.072 m at 1:10,000 for B/Z = 1, where the per-axis
+    σX at the centre with the default SIGMA_IMAGE is 0.035 m).
 
     With PROJECT, every stereo pair (consecutive photos of a strip) is evaluated: B is the distance
     between the projection centres, Z the mean Z0 minus the terrain height (MEAN_HEIGHT, or the

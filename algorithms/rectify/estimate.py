@@ -73,7 +73,13 @@ class EstimateRectification(Algorithm):
     Accuracy rule (thesis eq. [49], Table 4): with PRINCIPAL_DISTANCE and FLYING_HEIGHT, the
     relief displacement at the image edge ``Δρ = ΔZ·ρ/(c·m_b)`` for half the terrain's height
     range is reported, with a warning to use orthorectification when it exceeds
-    RELIEF_TOLERANCE.
+    RELIEF_TOLERANCE. The tolerance applies at MAP_SCALE, the scale of the product (Table 4 is
+    indexed by the rectification scale m_b: for a 1:5000 map from 1:15,000 photos with c = 150 mm
+    it allows 7.5 m of relief at 100 mm from the centre, not the 22.5 m the photo scale would
+    give); without MAP_SCALE, at the photo scale H / c. Both scales are reported. With MAP_SCALE
+    and check points, their RMSE is also judged against the orthophoto/rectification accuracy
+    rule (S002 par. 2.6.6: ±0.5 mm at the map scale for 1:5000 and larger, ±0.3 mm for smaller
+    scales; STATISTICS ``accuracy``).
 
     The transform is written as JSON for rectify:image; RESIDUALS optionally writes the points
     with their residuals as a GeoPackage.
@@ -117,6 +123,8 @@ class EstimateRectification(Algorithm):
         Number("RELIEF_TOLERANCE", "tolerated relief displacement at the edge, mm at the "
                "rectification scale (Table 4: 1 mm)", default=TABLE4_TOLERANCE_MM, min_value=0,
                min_exclusive=True),
+        Number("MAP_SCALE", "scale number of the product the rule applies at (e.g. 5000 for "
+               "1:5000; default: the photo scale H / c)", optional=True, min_value=1),
         OutputFile("OUTPUT", "transform (JSON, read by rectify:image)", extensions=[".json"]),
         OutputVector("RESIDUALS", "points with residuals (GeoPackage, layer 'residuals')",
                      optional=True),
@@ -169,6 +177,15 @@ class EstimateRectification(Algorithm):
         relief = self._relief(params, points, fit, feedback)
         if relief is not None:
             stats["relief"] = relief
+        if params.get("MAP_SCALE") is not None and stats["check"]["count"]:
+            from toolbox.photogrammetry.accuracy import judge_planimetry
+
+            stats["accuracy"] = judge_planimetry(stats["check"]["rmse"], params["MAP_SCALE"])
+            if not stats["accuracy"]["passes"]:
+                feedback.push_warning(
+                    f"check-point RMSE {stats['check']['rmse']:.3f} m exceeds "
+                    f"{stats['accuracy']['tolerance_m']:.3f} m, the thesis' accuracy rule at "
+                    f"1:{params['MAP_SCALE']:g} (S002 par. 2.6.6)")
         feedback.set_progress(80)
         doc = transform_document(fit, crs)
         doc["statistics"]["relief"] = relief
@@ -203,7 +220,7 @@ class EstimateRectification(Algorithm):
         cell = fit.ground_pixel_size() if points.units == "pixels" else None
         check = relief_check(params["PRINCIPAL_DISTANCE"], params["FLYING_HEIGHT"],
                              height_range, params["IMAGE_RADIUS"], params["RELIEF_TOLERANCE"],
-                             cell)
+                             cell, params.get("MAP_SCALE"))
         (feedback.push_info if check.flat_enough else feedback.push_warning)(check.message())
         return check.as_dict() | {"height_range_source": source, "message": check.message()}
 

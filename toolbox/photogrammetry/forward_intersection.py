@@ -35,7 +35,8 @@ CONDITION_LIMIT = 1e10
 class IntersectionResult:
     """Per point: ``xyz`` (P, 3; NaN unless status ok), ``status`` (P,), ``n_rays`` (P,),
     ``sigma0_mm`` (P,; NaN when r = 0), ``std_xyz`` (P, 3), ``max_ray_distance`` (P,),
-    ``iterations`` (P,). Per observation: ``residuals_mm`` (M, 2) = observed - computed."""
+    ``iterations`` (P,). Per observation: ``residuals_mm`` (M, 2) = computed - observed (the
+    toolbox convention: the correction v of l + v = f(x))."""
 
     xyz: np.ndarray
     status: np.ndarray
@@ -147,7 +148,7 @@ def intersect(point_index: np.ndarray, camera_xy: np.ndarray, centres: np.ndarra
     ok_obs = (status == OK)[point_index]
     residuals = np.full((m, 2), np.nan)
     xy, u = _project(xyz[point_index], local_c, rotations, c)
-    residuals[ok_obs] = (obs - xy)[ok_obs]
+    residuals[ok_obs] = (xy - obs)[ok_obs]
     behind = np.zeros(p, dtype=bool)
     np.logical_or.at(behind, point_index, ~(u[:, 2] < 0))
     status[(status == OK) & behind] = BEHIND_CAMERA

@@ -10,6 +10,11 @@ scale factor and ``B/Z`` the base ratio (|Z| the distance from the projection ce
 ``σp`` is the standard deviation of the x-parallax ``p = ξ1 - ξ2``; with σ per image coordinate,
 ``σp = √2·σ`` (eq. [35]). S000's rules table assumes ``σp = 5 µm`` (its σZ column is exactly
 ``m_b·(Z/B)·5 µm``). Image quantities are in mm (σ in µm where noted), ground ones in metres.
+
+The table's σXY column is not σX of one axis: it is the two-axis (radial) figure
+``σXY = sqrt(σX² + σY²)`` with ``σξ = ση = σp = 5 µm`` at a point ``ρ = c/3`` from the principal
+point (:func:`rules_table_sigma_xy`), i.e. ``σXY = m_b·σ·sqrt(2 + (Z/B)²/9)``: 0.72 dm at 1:10,000
+for B/Z = 1:1, 3.41 dm for 1:20 (our derivation; it fits all 20 printed values to their rounding).
 """
 
 from __future__ import annotations
@@ -51,3 +56,13 @@ def normal_case_precision(principal_distance_mm: float, base_m: float, distance_
             "photo_scale": m_b, "base_ratio": base_m / distance_m,
             "sigma_parallax_um": sigma_parallax_um, "sigma_image_um": sigma_image_um,
             "xi_mm": xi_mm, "eta_mm": eta_mm, "sigma_x_m": sx, "sigma_y_m": sy, "sigma_z_m": sz}
+
+
+def rules_table_sigma_xy(principal_distance_mm: float, base_m: float, distance_m: float,
+                         sigma_um: float = 5.0) -> float:
+    """The σXY that S000's rules table prints (metres): ``sqrt(σX² + σY²)`` with
+    ``σξ = ση = σp = sigma_um`` at ``ρ = c/3`` from the principal point."""
+    p = normal_case_precision(principal_distance_mm, base_m, distance_m, sigma_um, sigma_um,
+                              principal_distance_mm / 3.0, 0.0)
+    q = normal_case_precision(principal_distance_mm, base_m, distance_m, sigma_um, sigma_um)
+    return math.hypot(p["sigma_x_m"], q["sigma_y_m"])

@@ -107,7 +107,7 @@ class Project:
         for p in self.photos.values():
             entry: dict[str, Any] = {"id": p.id, "camera": p.camera.name}
             if p.image is not None:
-                entry["image"] = str(p.image) if base_dir is None else \
+                entry["image"] = str(Path(p.image).absolute()) if base_dir is None else \
                     os.path.relpath(Path(p.image).absolute(), Path(base_dir).absolute())
             if p.strip is not None:
                 entry["strip"] = p.strip
@@ -306,10 +306,13 @@ def load_project(path: str | Path) -> Project:
     return project_from_dict(doc, path.parent, str(path))
 
 
-def save_project(project: Project, path: str | Path, angle_unit: str = "rad") -> Path:
+def save_project(project: Project, path: str | Path, angle_unit: str = "rad",
+                 relative_images: bool = True) -> Path:
+    """Write ``project`` as YAML; image paths relative to the file's folder, or absolute with
+    ``relative_images=False`` (for staged outputs whose final folder differs)."""
     import yaml
 
     path = Path(path)
-    document = project.as_dict(angle_unit, path.parent)
+    document = project.as_dict(angle_unit, path.parent if relative_images else None)
     path.write_text(yaml.safe_dump(document, sort_keys=False), encoding="utf-8")
     return path

@@ -149,3 +149,35 @@ def load_project_parameter(path: Path, name: str = "PROJECT"):
         return load_project(path)
     except InputDataError as exc:
         raise InputDataError(f"{name}: {exc}") from None
+
+
+ROLES = ("control", "check")
+
+
+def ground_points(path: Path, layer: str | None = None, name: str = "CONTROL"):
+    """Ground points with known coordinates: ``(ids, xyz (n, 3), roles)`` from a table with
+    ``id`` (or point_id/name), ``X``/``Y``/``Z`` (or E/N/H, x/y/z) and an optional ``role``
+    column (``control`` or ``check``; default control). Ids must be unique."""
+    import numpy as np
+
+    header, rows = read_table(path, layer, name)
+    c_id = column(header, "point_id", "id", "point", "name", name=name, path=path)
+    cx = column(header, "X", "E", "easting", "X_m", name=name, path=path)
+    cy = column(header, "Y", "N", "northing", "Y_m", name=name, path=path)
+    cz = column(header, "Z", "H", "height", "Z_m", name=name, path=path)
+    c_role = column(header, "role", "type", required=False)
+    ids, xyz, roles = [], [], []
+    for k, r in enumerate(rows, start=1):
+        pid = r[c_id]
+        if not pid:
+            raise InputDataError(f"{name}: {path} row {k} has an empty {c_id}")
+        if pid in ids:
+            raise InputDataError(f"{name}: {path} lists point {pid!r} twice (duplicate id)")
+        role = (r[c_role].lower() if c_role and r[c_role] else "control")
+        if role not in ROLES:
+            raise InputDataError(f"{name}: {path} row {k}: {c_role} must be control or check, "
+                                 f"got {r[c_role]!r}")
+        ids.append(pid)
+        roles.append(role)
+        xyz.append([number(r[c], f"row {k} {c}", name) for c in (cx, cy, cz)])
+    return ids, np.array(xyz, dtype=float).reshape(-1, 3), roles

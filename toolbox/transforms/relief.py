@@ -62,6 +62,8 @@ class ReliefCheck:
     flat_enough: bool
     pixel_size_m: float | None = None  # ground size of a pixel (to express Δρ in pixels)
     displacement_pixels: float | None = None  # Δρ on the ground / pixel_size_m
+    rule_scale_number: float | None = None  # the scale the tolerance applies at (MAP_SCALE or m_b)
+    displacement_rule_mm: float | None = None  # Δρ on the ground / rule scale, mm
 
     def as_dict(self) -> dict:
         return asdict(self)
@@ -75,11 +77,13 @@ class ReliefCheck:
                    if self.displacement_pixels is not None else "")
                 + f" for a height range of {self.height_range_m:g} m (±{self.max_departure_m:g} m "
                 f"about the mid plane), c = {self.principal_distance_mm:g} mm, "
-                f"H = {self.flying_height_m:g} m, 1:{self.scale_number:.0f}")
+                f"H = {self.flying_height_m:g} m, photo 1:{self.scale_number:.0f}; "
+                f"{self.displacement_rule_mm:.2f} mm at 1:{self.rule_scale_number:.0f}")
         if self.flat_enough:
-            return core + f"; within the {self.tolerance_mm:g} mm tolerance"
+            return core + f", within the {self.tolerance_mm:g} mm tolerance"
         return (f"the terrain is not flat enough for rectification: {core}, over the "
-                f"{self.tolerance_mm:g} mm tolerance (thesis eq. [49] and Table 4 allow "
+                f"{self.tolerance_mm:g} mm tolerance at 1:{self.rule_scale_number:.0f} "
+                f"(thesis eq. [49] and Table 4 allow "
                 f"±{self.allowed_departure_m:.2f} m here); use orthorectification with a DEM "
                 "instead")
 
@@ -87,7 +91,8 @@ class ReliefCheck:
 def relief_check(principal_distance: float, flying_height: float, height_range: float,
                  edge_radius: float = FRAME_HALF_DIAGONAL_MM,
                  tolerance: float = TABLE4_TOLERANCE_MM,
-                 pixel_size: float | None = None) -> ReliefCheck:
+                 pixel_size: float | None = None, map_scale: float | None = None
+                 ) -> ReliefCheck:
     """Apply eq. [49] at the image edge and compare with the tolerance (Table 4 rule).
 
     Parameters
@@ -105,6 +110,11 @@ def relief_check(principal_distance: float, flying_height: float, height_range: 
     pixel_size : float, optional
         Ground size of a pixel (of the photo or of the output), metres, to express the
         displacement in pixels.
+    map_scale : float, optional
+        Scale number of the product (e.g. 5000 for a 1:5000 map). The thesis' ``m_b`` is the scale
+        at which the rectification is made and Table 4 is indexed by it: the tolerance then
+        applies on the map, ``ΔZ_max = tolerance · c · m_map / ρ``. Without it the photo scale
+        ``H / c`` is used (a rectified photo at its own scale).
     """
     for label, value in (("principal_distance", principal_distance),
                          ("flying_height", flying_height), ("edge_radius", edge_radius),
@@ -117,8 +127,12 @@ def relief_check(principal_distance: float, flying_height: float, height_range: 
     departure = height_range / 2.0
     d_image = relief_displacement(departure, edge_radius, principal_distance, scale)
     d_ground = d_image * scale / 1000.0
-    allowed = max_height_departure(tolerance, principal_distance, scale, edge_radius)
+    if map_scale is not None and not map_scale > 0:
+        raise ValueError(f"map_scale must be > 0, got {map_scale}")
+    rule_scale = scale if map_scale is None else float(map_scale)
+    allowed = max_height_departure(tolerance, principal_distance, rule_scale, edge_radius)
     return ReliefCheck(
         principal_distance, flying_height, scale, height_range, departure, edge_radius, d_image,
         d_ground, tolerance, allowed, bool(departure <= allowed), pixel_size,
-        None if pixel_size is None else d_ground / pixel_size)
+        None if pixel_size is None else d_ground / pixel_size, rule_scale,
+        1000.0 * d_ground / rule_scale)

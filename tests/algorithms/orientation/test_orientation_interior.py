@@ -21,6 +21,11 @@ NOMINAL = {"01": (-106.0, 106.0), "02": (106.0, 106.0), "03": (106.0, -106.0),
 @pytest.mark.parametrize("key, rows, report", siena_interior_cases(), ids=lambda v: "_".join(v)
                          if isinstance(v, tuple) else "")
 def test_siena_reports_reproduced(key, rows, report):
+    """What this proves, honestly: the 18 (photo, source) reports hold only 8 distinct mark
+    sets (the logs reprint the same measurements); 6 of the 18 (2 distinct) are homographies
+    fitted on exactly 4 marks, where zero residuals are a tautology of an exact fit (only the
+    matrices are checked there). The affine cases have redundancy 2 and check the residuals and
+    sigma. Over-determined fits with known noise are tested in test_io_overdetermined_recovers_known_noise."""
     calibrated = {r["mark_id"]: (float(r["x_mm"]), float(r["y_mm"])) for r in rows}
     measured = {r["mark_id"]: (float(r["col_px"]), float(r["row_px"])) for r in rows}
     io = InteriorOrientation.fit(calibrated, measured, rows[0]["transformation"], key[0])
@@ -110,3 +115,33 @@ def test_algorithm_takes_marks_from_a_project_and_reports_bad_input(tmp_path):
                                              "PROJECT": SIENA / "siena_project.yaml",
                                              "TRANSFORMATION": "from_input"})
     assert not (tmp_path / "b.json").exists() and not (tmp_path / "c.json").exists()
+
+
+def test_siena_cases_are_what_the_docstring_says():
+    cases = siena_interior_cases()
+    assert len(cases) == 18
+    distinct = {tuple((r["mark_id"], r["x_mm"], r["y_mm"], r["col_px"], r["row_px"]) for r in rows)
+                for _, rows, _ in cases}
+    assert len(distinct) == 8
+    exact = [k for k, rows, rep in cases if rep["p2f_transformation"] != "AFFINE" and len(rows) == 4]
+    assert len(exact) == 6 and len({k[0] for k in exact}) == 2
+
+
+@pytest.mark.parametrize("transformation, redundancy", [("affine", 10), ("homography", 8)])
+def test_io_overdetermined_recovers_known_noise(transformation, redundancy):
+    """8 marks (corners and mid-sides), a known affine scan geometry, 2 µm noise per coordinate:
+    sigma0 estimates the noise and the residuals are computed minus observed."""
+    rng = np.random.default_rng(8)
+    marks = {f"{k:02d}": xy for k, xy in enumerate(
+        [(-106, 106), (106, 106), (106, -106), (-106, -106), (0, 110), (110, 0), (0, -110),
+         (-110, 0)], start=1)}
+    f2p = np.array([[71.43, 0.05, 8322.0], [0.04, -71.42, 8322.0]])  # fiducial mm -> pixel
+    measured = {}
+    for k, (x, y) in marks.items():
+        noisy = np.array([x, y]) + rng.normal(0, 0.002, 2)
+        measured[k] = tuple(f2p @ [noisy[0], noisy[1], 1.0])
+    io = InteriorOrientation.fit(marks, measured, transformation, "synthetic")
+    assert io.redundancy == redundancy
+    assert 0.0008 < io.sigma0_mm < 0.0035
+    fitted = io.pixel_to_image(np.array(list(measured.values())))
+    np.testing.assert_allclose(io.residuals_mm, fitted - np.array(list(marks.values())), atol=1e-9)

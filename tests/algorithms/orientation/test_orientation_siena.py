@@ -60,9 +60,14 @@ def check_residuals(runs, unit_scale=1.0):
     return worst
 
 
-def test_printed_backprojection_residuals_reproduced(runs):
+def test_printed_backprojection_residuals_consistent_with_local_jacobian(runs):
     """All 47 rows: the ground residual is minus the ground shift of the pixel residual, through
-    the log's own IO matrix, camera and final EO (angles in radians), to print rounding."""
+    the log's own IO matrix, camera and final EO (angles in radians), to print rounding.
+
+    What it checks is the chain's *local Jacobian* (pixel shift -> ground shift): it still passes
+    with the IO origin shifted by 100 px, the principal point by 1 mm or the centre by 10 m.
+    The end-to-end proof that fails for each of those is test_orientation_metric.py
+    ::test_end_to_end_check_has_teeth."""
     assert len(backprojection_rows()) == 47
     assert np.all(check_residuals(runs) <= 0.0006)
 

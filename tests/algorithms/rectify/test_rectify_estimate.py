@@ -293,3 +293,27 @@ def test_affine_snooping_on_estimated_sigma():
     dst[2] += (0.5, -0.4)
     fit = data_snooping(AffineTransform, src, dst)
     assert [r.index for r in fit.rejections] == [2] and fit.rejections[0].method == "F-test"
+
+
+def test_map_scale_judges_check_points_and_relief(tmp_path):
+    """MAP_SCALE: the relief rule at the map scale (Table 4's column) and the check points
+    against the ±0.5 mm rule; the same check errors pass at 1:5000 (2.5 m) and fail at 1:500."""
+    ids, image, ground, roles = scene.gcp_table(16, noise=0.3, checks=("G01", "G12"))
+    csv_path = scene.write_gcp_csv(tmp_path / "gcps.csv", ids, image, ground, roles)
+    common = {"INPUT": csv_path, "CRS": "EPSG:3003", "PRINCIPAL_DISTANCE": 150,
+              "FLYING_HEIGHT": 2250, "HEIGHT_RANGE": 16.0, "IMAGE_RADIUS": 100}
+    out = toolbox.run("rectify:estimate", common | {"MAP_SCALE": 5000,
+                                                      "OUTPUT": tmp_path / "a.json"})
+    stats = out["STATISTICS"]
+    assert stats["relief"]["rule_scale_number"] == 5000
+    assert stats["relief"]["allowed_departure_m"] == pytest.approx(7.5)
+    assert stats["relief"]["flat_enough"] is False  # ±8 m > 7.5 m at 1:5000
+    rmse = stats["check"]["rmse"]
+    assert stats["accuracy"]["tolerance_m"] == pytest.approx(2.5)
+    assert stats["accuracy"]["passes"] is (rmse <= 2.5)
+    tight = toolbox.run("rectify:estimate", common | {
+        "MAP_SCALE": rmse / 0.6e-3, "OUTPUT": tmp_path / "b.json"})["STATISTICS"]
+    assert tight["accuracy"]["passes"] is False  # 0.5 mm at a scale where rmse is 0.6 mm
+    photo = toolbox.run("rectify:estimate", common | {"OUTPUT": tmp_path / "c.json"})
+    assert photo["STATISTICS"]["relief"]["flat_enough"] is True  # 22.5 m at the photo scale
+    assert "accuracy" not in photo["STATISTICS"]

@@ -8,7 +8,11 @@ project's orientations:
   projected into every photo whose frame sees them, in pixels, plus a deterministic measuring
   noise of 0.3 px (seeded); intersecting them recovers the printed coordinates to a few cm;
 - ``monoplot_points.csv``: a 5 x 5 grid of pixels over photo 1_7150 and one pixel far outside
-  its frame (``outside``), whose ray misses the demo DEM and must come out flagged.
+  its frame (``outside``), whose ray misses the demo DEM and must come out flagged;
+- ``control_ground.csv``: the 8 control points (id, X, Y, Z, role), two of them as check points,
+  for orientation:check and orientation:resection;
+- ``model_points.csv``: the same 8 points in an arbitrary model system (a known 7-parameter
+  similarity: scale 1/3800, rotated and shifted), for orientation:absolute.
 """
 
 from __future__ import annotations
@@ -21,6 +25,7 @@ import numpy as np
 
 BUNDLED = Path(__file__).resolve().parents[1] / "data" / "siena"
 NOISE_PX = 0.3
+CHECK_POINTS = ("ptc_007-2_7140", "ptc_002-1_7151")
 
 
 def control_points(folder: Path) -> dict[str, tuple[float, float, float]]:
@@ -67,6 +72,24 @@ def make(folder: Path, made: dict) -> dict:
                 k += 1
                 writer.writerow([f"g{k:02d}", "1_7150", col, row])
         writer.writerow(["outside", "1_7150", -30000.0, 8000.0])
+    ground_csv = target / "control_ground.csv"
+    with open(ground_csv, "w", newline="") as f:
+        writer = csv.writer(f)
+        writer.writerow(["id", "X", "Y", "Z", "role"])
+        for pid, xyz in points.items():
+            writer.writerow([pid, *xyz, "check" if pid in CHECK_POINTS else "control"])
+    model_csv = target / "model_points.csv"
+    xyz = np.array(list(points.values()))
+    angle = 0.3
+    rot = np.array([[np.cos(angle), -np.sin(angle), 0], [np.sin(angle), np.cos(angle), 0],
+                    [0, 0, 1]])
+    model = (xyz - xyz.mean(axis=0)) @ rot / 3800.0 + [10.0, 20.0, 0.4]
+    with open(model_csv, "w", newline="") as f:
+        writer = csv.writer(f)
+        writer.writerow(["id", "X", "Y", "Z"])
+        for pid, m in zip(points, model, strict=True):
+            writer.writerow([pid, *(round(float(v), 7) for v in m)])
     return {"siena": target, "siena_project": target / "siena_project.yaml",
+            "siena_control_ground": ground_csv, "siena_model_points": model_csv,
             "siena_fiducials": target / "fiducials.csv", "siena_control_image_points": control_csv,
             "siena_monoplot_points": mono_csv}

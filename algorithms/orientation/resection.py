@@ -1,0 +1,85 @@
+"""orientation:resection - exterior orientation of single photos from >= 4 control points."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from toolbox.algorithm import Algorithm
+from toolbox.feedback import Feedback
+from toolbox.parameters import Enum, File, Output, OutputFile, String
+from toolbox.registry import register
+
+
+@register
+class SpaceResection(Algorithm):
+    """Single-photo space resection: X0, Y0, Z0, omega, phi, kappa of each photo from control
+    points measured on it (collinearity least squares, domain brief section 4).
+
+    PROJECT gives the cameras and interior orientations (its exterior orientations, when present,
+    are not needed: START chooses). INPUT lists image measurements as for orientation:intersect
+    (``point_id``, ``photo``, ``col_px``/``row_px`` or ``x_mm``/``y_mm``); CONTROL the ground
+    coordinates (``id``, ``X``, ``Y``, ``Z``, optional ``role`` control/check: check points are not
+    used in the fit, only reported). Every photo of INPUT with at least 4 control points is
+    resected.
+
+    Method: Levenberg-Marquardt on the 2n collinearity equations with the 6 parameters, on ground
+    coordinates shifted to the centroid of the control points. START ``auto`` needs no
+    approximate values for near-vertical photos: a plane similarity image -> ground gives the
+    scale, hence the flying height, kappa and the nadir; ``project`` starts from PROJECT's
+    exterior orientation instead (oblique photos). Too few points (< 4) or points on one line
+    are refused.
+
+    Output: OUTPUT, an orientation project (YAML) equal to PROJECT with the resected exterior
+    orientations (angles in radians), readable by every algorithm that takes a PROJECT; REPORT
+    (JSON): per photo the six parameters with standard deviations from ``sigma0²·(JᵀJ)⁻¹``,
+    sigma0 (µm, image), redundancy 2n - 6, and the residual of every point (computed minus
+    observed, µm and pixels when measured in pixels) including check points.
+    """
+
+    id = "orientation:resection"
+    display_name = "Space resection"
+    group = "Orientation"
+    short_help = "Exterior orientation of single photos from >= 4 control points (collinearity LSQ)."
+    parameters = [
+        File("PROJECT", "orientation project (YAML) with cameras and interior orientations",
+             extensions=[".yaml", ".yml"]),
+        File("INPUT", "image measurements (CSV or GeoPackage table)",
+             extensions=[".csv", ".txt", ".gpkg"]),
+        String("LAYER", "GeoPackage layer of INPUT (default: the first)", optional=True),
+        Enum("COORDINATES", "measurement columns: auto (pixels when col_px/row_px exist), pixel, "
+             "image (x_mm/y_mm)", options=("auto", "pixel", "image"), default="auto"),
+        File("CONTROL", "ground control points: id, X, Y, Z, optional role (control/check)",
+             extensions=[".csv", ".txt", ".gpkg"]),
+        Enum("START", "start values: auto (near-vertical photos, no approximate values needed) or "
+             "project (PROJECT's exterior orientation)", options=("auto", "project"),
+             default="auto"),
+        OutputFile("OUTPUT", "orientation project (YAML) with the resected orientations",
+                   extensions=[".yaml", ".yml"]),
+        OutputFile("REPORT", "JSON report: parameters, standard deviations, residuals",
+                   extensions=[".json"], optional=True),
+    ]
+    outputs = [Output("STATISTICS", "photos resected, sigma0 per photo (µm)", "dict")]
+
+    def process(self, params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
+        from toolbox.photogrammetry.orientation_check import resect_photos
+        from toolbox.photogrammetry.project import save_project
+        from toolbox.photogrammetry.tables import (
+            ground_points,
+            image_measurements,
+            load_project_parameter,
+            write_json,
+        )
+
+        project = load_project_parameter(params["PROJECT"])
+        measurements = image_measurements(params["INPUT"], params["LAYER"], params["COORDINATES"])
+        control = ground_points(params["CONTROL"])
+        exteriors, report = resect_photos(project, measurements, control,
+                                          use_project_start=params["START"] == "project",
+                                          feedback=feedback)
+        save_project(project.with_exteriors(exteriors), params["OUTPUT"], relative_images=False)
+        if params["REPORT"] is not None:
+            write_json(params["REPORT"], {"algorithm": self.id, "residual_sign":
+                                          "computed minus observed", "photos": report})
+        stats = {"photos": len(report),
+                 "sigma0_um": {pid: r["sigma0_um"] for pid, r in report.items()}}
+        return {"OUTPUT": params["OUTPUT"], "REPORT": params["REPORT"], "STATISTICS": stats}
