@@ -6,7 +6,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 OUT    ?= demo_out
 
-.PHONY: demo test lint bench clean venv
+.PHONY: demo test lint bench clean venv qgis-plugin
 
 venv: $(STAMP)
 
@@ -30,3 +30,8 @@ bench: $(STAMP)  ## benchmarks against peers (see bench/RESULTS.md)
 
 clean:
 	rm -rf $(VENV) $(OUT) .pytest_cache build *.egg-info
+
+qgis-plugin:  ## the QGIS plugin as a zip for "Install from ZIP" (dist/photogrammetry_toolbox.zip)
+	mkdir -p dist
+	$(PYTHON) -c "import pathlib, zipfile; z = zipfile.ZipFile('dist/photogrammetry_toolbox.zip', 'w', zipfile.ZIP_DEFLATED); [z.write(f, f.relative_to('qgis_plugin')) for f in sorted(pathlib.Path('qgis_plugin/photogrammetry_toolbox').rglob('*')) if '__pycache__' not in f.parts]; z.close()"
+	@echo "dist/photogrammetry_toolbox.zip: QGIS > Plugins > Manage and Install Plugins > Install from ZIP"

@@ -1,0 +1,293 @@
+"""One QGIS Processing algorithm per toolbox spec, generated: no algorithm logic lives here.
+
+Parameters are mapped from the spec's types; values are converted to the toolbox's text form
+and the toolbox CLI runs in its own process (``toolbox run ID --progress json``), its progress
+and messages relayed to QGIS's feedback, Cancel ending it (the toolbox then leaves nothing
+behind). Multi-layer GeoPackage outputs have every layer loaded into the project.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import threading
+
+from qgis.core import (
+    QgsProcessing,
+    QgsProcessingAlgorithm,
+    QgsProcessingContext,
+    QgsProcessingException,
+    QgsProcessingOutputNumber,
+    QgsProcessingOutputString,
+    QgsProcessingParameterBoolean,
+    QgsProcessingParameterCrs,
+    QgsProcessingParameterDefinition,
+    QgsProcessingParameterEnum,
+    QgsProcessingParameterExtent,
+    QgsProcessingParameterFeatureSource,
+    QgsProcessingParameterField,
+    QgsProcessingParameterFile,
+    QgsProcessingParameterFileDestination,
+    QgsProcessingParameterMultipleLayers,
+    QgsProcessingParameterNumber,
+    QgsProcessingParameterRasterDestination,
+    QgsProcessingParameterRasterLayer,
+    QgsProcessingParameterString,
+)
+
+from .toolbox_cli import command_line, parse_progress, qgis_id
+
+VECTOR_FORMATS = ["gpkg", "shp", "fgb", "geojson", "parquet", "csv", "dxf", "sqlite"]
+
+
+def _filter(extensions) -> str:
+    exts = [e.lstrip(".") for e in (extensions or [])]
+    if not exts:
+        return "All files (*.*)"
+    return f"Files ({' '.join('*.' + e for e in exts)})"
+
+
+def make_parameter(p: dict):
+    """The QGIS parameter definition of one spec parameter (None for a type not mapped)."""
+    name, desc, kind = p["name"], p.get("description") or p["name"], p["type"]
+    optional = bool(p.get("optional"))
+    default = p.get("default")
+    if kind in ("number", "integer"):
+        number_type = QgsProcessingParameterNumber.Integer if kind == "integer" else \
+            QgsProcessingParameterNumber.Double
+        param = QgsProcessingParameterNumber(name, desc, number_type, default, optional)
+        if p.get("min") is not None:
+            param.setMinimum(p["min"])
+        if p.get("max") is not None:
+            param.setMaximum(p["max"])
+    elif kind == "boolean":
+        param = QgsProcessingParameterBoolean(name, desc, bool(default), optional)
+    elif kind == "enum":
+        options = list(p.get("options") or [])
+        index = options.index(default) if default in options else None
+        param = QgsProcessingParameterEnum(name, desc, options, False, index, optional)
+    elif kind == "crs":
+        param = QgsProcessingParameterCrs(name, desc, default, optional)
+    elif kind == "extent":
+        param = QgsProcessingParameterExtent(name, desc, None, optional)
+    elif kind == "file":
+        param = QgsProcessingParameterFile(name, desc, QgsProcessingParameterFile.File, "",
+                                           default, optional, _filter(p.get("extensions")))
+    elif kind == "vector":
+        # any vector layer or table: the toolbox also reads points from CSV coordinate columns,
+        # which QGIS opens as tables; the toolbox checks the geometry type itself
+        param = QgsProcessingParameterFeatureSource(name, desc, [QgsProcessing.TypeVector], None,
+                                                    optional)
+    elif kind == "raster":
+        param = QgsProcessingParameterRasterLayer(name, desc, None, optional)
+    elif kind == "multiple":
+        layer_type = QgsProcessing.TypeRaster if p.get("layer_type") == "raster" else \
+            QgsProcessing.TypeVectorAnyGeometry
+        param = QgsProcessingParameterMultipleLayers(name, desc, layer_type, None, optional)
+        param.setMinimumNumberInputs(int(p.get("min_count") or 1))
+    elif kind == "field":
+        field_type = QgsProcessingParameterField.Numeric if p.get("numeric") else \
+            QgsProcessingParameterField.Any
+        param = QgsProcessingParameterField(name, desc, None, p.get("parent"), field_type,
+                                            False, optional)
+    elif kind == "output_raster":
+        param = QgsProcessingParameterRasterDestination(name, desc, None, optional)
+    elif kind == "output_vector":
+        param = QgsProcessingParameterFileDestination(name, desc, "GeoPackage (*.gpkg)", None,
+                                                      optional)
+    elif kind == "output_file":
+        param = QgsProcessingParameterFileDestination(name, desc, _filter(p.get("extensions")),
+                                                      None, optional)
+    else:  # string and anything new: free text the toolbox validates
+        param = QgsProcessingParameterString(name, desc, None if default is None else
+                                             str(default), False, optional)
+    flags = param.flags()
+    if p.get("advanced"):
+        flags |= QgsProcessingParameterDefinition.FlagAdvanced
+    if p.get("hidden"):
+        flags |= QgsProcessingParameterDefinition.FlagHidden
+    param.setFlags(flags)
+    if p.get("help") or p.get("expected"):
+        param.setHelp(p.get("help") or p.get("expected"))
+    return param
+
+
+class ToolboxAlgorithm(QgsProcessingAlgorithm):
+    """A toolbox algorithm seen from QGIS."""
+
+    def __init__(self, spec: dict, executable: str):
+        super().__init__()
+        self.spec = spec
+        self.executable = executable
+
+    # -- identity ------------------------------------------------------------------------------
+    def createInstance(self):
+        return ToolboxAlgorithm(self.spec, self.executable)
+
+    def name(self):
+        return qgis_id(self.spec["id"])
+
+    def displayName(self):
+        return self.spec.get("display_name") or self.spec["id"]
+
+    def group(self):
+        return self.spec.get("group") or self.spec["id"].split(":")[0]
+
+    def groupId(self):
+        return self.spec.get("group_id") or self.spec["id"].split(":")[0]
+
+    def shortDescription(self):
+        return self.spec.get("short_help", "")
+
+    def shortHelpString(self):
+        return (self.spec.get("help") or self.spec.get("short_help") or "").replace("\n\n",
+                                                                                   "<br><br>")
+
+    def tags(self):
+        return [self.spec["id"], self.groupId()]
+
+    # -- parameters ----------------------------------------------------------------------------
+    def initAlgorithm(self, config=None):
+        for p in self.spec.get("parameters", []):
+            self.addParameter(make_parameter(p))
+        destinations = {p["name"] for p in self.spec.get("parameters", [])}
+        for out in self.spec.get("outputs", []):
+            if out["name"] in destinations or out["type"].startswith("output_"):
+                continue
+            if out["type"] in ("number", "integer"):
+                self.addOutput(QgsProcessingOutputNumber(out["name"], out.get("description", "")))
+            else:
+                self.addOutput(QgsProcessingOutputString(out["name"], out.get("description", "")))
+
+    def _value(self, p: dict, parameters, context, feedback):
+        """The toolbox text form of one parameter's value (None when not set)."""
+        name, kind = p["name"], p["type"]
+        if parameters.get(name) is None:
+            return None
+        if kind == "number":
+            return repr(self.parameterAsDouble(parameters, name, context))
+        if kind == "integer":
+            return str(self.parameterAsInt(parameters, name, context))
+        if kind == "boolean":
+            return "true" if self.parameterAsBoolean(parameters, name, context) else "false"
+        if kind == "enum":
+            return list(p.get("options") or [])[self.parameterAsEnum(parameters, name, context)]
+        if kind == "crs":
+            crs = self.parameterAsCrs(parameters, name, context)
+            return crs.authid() or crs.toWkt() if crs.isValid() else None
+        if kind == "extent":
+            rect = self.parameterAsExtent(parameters, name, context)
+            if rect.isNull():
+                return None
+            crs = self.parameterAsExtentCrs(parameters, name, context)
+            tail = f" [{crs.authid()}]" if crs.isValid() and crs.authid() else ""
+            return f"{rect.xMinimum()!r},{rect.yMinimum()!r},{rect.xMaximum()!r}," \
+                   f"{rect.yMaximum()!r}{tail}"
+        if kind == "file":
+            return self.parameterAsFile(parameters, name, context) or None
+        if kind == "vector":
+            path, layer = self.parameterAsCompatibleSourceLayerPathAndLayerName(
+                parameters, name, context, VECTOR_FORMATS, "gpkg", feedback)
+            if not path:
+                return None
+            return f"{path}|layername={layer}" if layer and "|" not in path else path
+        if kind == "raster":
+            layer = self.parameterAsRasterLayer(parameters, name, context)
+            return None if layer is None else layer.source()
+        if kind == "multiple":
+            return [layer.source() for layer in self.parameterAsLayerList(parameters, name,
+                                                                           context)]
+        if kind == "field":
+            return self.parameterAsString(parameters, name, context) or None
+        if kind == "output_raster":
+            return self.parameterAsOutputLayer(parameters, name, context)
+        if kind in ("output_vector", "output_file"):
+            return self.parameterAsFileOutput(parameters, name, context)
+        return self.parameterAsString(parameters, name, context) or None
+
+    # -- running -------------------------------------------------------------------------------
+    def processAlgorithm(self, parameters, context, feedback):
+        values = {p["name"]: self._value(p, parameters, context, feedback)
+                  for p in self.spec.get("parameters", [])}
+        args = command_line(self.executable, self.spec["id"], values)
+        feedback.pushCommandInfo(" ".join(args))
+        result, errors = self._run(args, feedback)
+        outputs = dict(result.get("outputs") or {})
+        for p in self.spec.get("parameters", []):
+            if p["type"].startswith("output_") and values.get(p["name"]):
+                outputs.setdefault(p["name"], values[p["name"]])
+                if p["type"] == "output_vector":
+                    self._load_layers(p, outputs[p["name"]], context)
+        for key, value in list(outputs.items()):
+            if isinstance(value, (dict, list)):
+                outputs[key] = json.dumps(value)
+        return outputs
+
+    def _run(self, args, feedback):
+        process = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                   text=True, bufsize=1)
+        state = {"result": {}, "errors": [], "stdout": []}
+
+        def read_stderr():
+            for line in process.stderr:
+                item = parse_progress(line)
+                if item is None:
+                    if line.strip():
+                        state["errors"].append(line.strip())
+                        feedback.pushConsoleInfo(line.rstrip())
+                    continue
+                kind = item.get("type")
+                if kind == "progress" and item.get("percent") is not None:
+                    feedback.setProgress(float(item["percent"]))
+                elif kind == "message":
+                    text, level = str(item.get("text", "")), item.get("level", "info")
+                    if level == "error":
+                        state["errors"].append(text)
+                        feedback.reportError(text)
+                    elif level == "warning":
+                        feedback.pushWarning(text)
+                    else:
+                        feedback.pushInfo(text)
+                elif kind == "result":
+                    state["result"] = item
+
+        reader = threading.Thread(target=read_stderr, daemon=True)
+        reader.start()
+        while True:
+            try:
+                process.wait(timeout=0.2)
+                break
+            except subprocess.TimeoutExpired:
+                if feedback.isCanceled():
+                    process.terminate()  # SIGTERM: the toolbox cancels and removes its outputs
+                    try:
+                        process.wait(timeout=30)
+                    except subprocess.TimeoutExpired:
+                        process.kill()
+                    break
+        reader.join(timeout=5)
+        stdout = process.stdout.read() if process.stdout else ""
+        for line in stdout.splitlines():
+            item = parse_progress(line)
+            if item and item.get("type") == "result":
+                state["result"] = item
+        if feedback.isCanceled():
+            raise QgsProcessingException(f"{self.spec['id']}: canceled")
+        if process.returncode != 0:
+            message = state["errors"][-1] if state["errors"] else f"exit {process.returncode}"
+            raise QgsProcessingException(f"{self.spec['id']}: {message}")
+        return state["result"], state["errors"]
+
+    def _load_layers(self, param: dict, path: str, context) -> None:
+        """Every layer of a GeoPackage output loads into the project on completion."""
+        from osgeo import ogr
+
+        ds = ogr.Open(path)
+        if ds is None:
+            return
+        names = [ds.GetLayer(i).GetName() for i in range(ds.GetLayerCount())]
+        ds = None
+        for layer_name in names:
+            details = QgsProcessingContext.LayerDetails(layer_name, context.project(),
+                                                        param["name"])
+            context.addLayerToLoadOnCompletion(f"{path}|layername={layer_name}", details)
