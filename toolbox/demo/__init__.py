@@ -3,7 +3,9 @@
 Sample data come from :mod:`toolbox.demo.samples` (one module per domain, generated
 deterministically or derived from data shipped with a dependency); the pipeline is the
 concatenation of ``pipeline/*.yaml`` fragments in name order, each a list of batch steps that may
-use the sample variables (``${dem}``, ``${out}``...) and earlier steps' outputs.
+use the sample variables (``${dem}``, ``${out}``...) and earlier steps' outputs. The demo writes
+it as one pipeline file, ``OUT/demo_pipeline.yaml`` (variables included), and runs that file as
+``toolbox batch`` does: ``toolbox batch demo_out/demo_pipeline.yaml --overwrite`` reruns it.
 """
 
 from __future__ import annotations
@@ -29,7 +31,7 @@ def demo_pipeline_doc() -> dict:
 def run_demo(out_dir: Path, feedback: Feedback | None = None) -> str:
     """Generate sample data under ``out_dir/data``, run the pipeline into ``out_dir``; return a
     human summary of what was written where."""
-    from toolbox.batch import parse_pipeline, run_pipeline
+    from toolbox.batch import run_pipeline
     from toolbox.demo.samples import make_samples
 
     feedback = feedback or Feedback()
@@ -37,8 +39,17 @@ def run_demo(out_dir: Path, feedback: Feedback | None = None) -> str:
     out_dir.mkdir(parents=True, exist_ok=True)
     with feedback.timed("samples"):
         variables = make_samples(out_dir / "data")
+    import yaml
+
+    from toolbox.batch import load_pipeline
+
     variables = {k: str(v) for k, v in variables.items()} | {"out": str(out_dir)}
-    pipeline = parse_pipeline(demo_pipeline_doc(), out_dir, variables, "demo pipeline")
+    pipeline_file = out_dir / "demo_pipeline.yaml"
+    doc = {"variables": variables} | demo_pipeline_doc()
+    pipeline_file.write_text("# The demo pipeline (toolbox demo wrote it; rerun with\n"
+                             "#   toolbox batch demo_out/demo_pipeline.yaml --overwrite)\n"
+                             + yaml.safe_dump(doc, sort_keys=False), encoding="utf-8")
+    pipeline = load_pipeline(pipeline_file)
     results = run_pipeline(pipeline, feedback=feedback.step(5, 100), overwrite=True,
                            report_dir=out_dir / "reports")
     lines = [f"Demo finished: {len(results)} steps, outputs in {out_dir}", ""]
@@ -46,6 +57,7 @@ def run_demo(out_dir: Path, feedback: Feedback | None = None) -> str:
         files = [v for v in outputs.values() if isinstance(v, str) and Path(v).exists()]
         for path in files:
             lines.append(f"  {step:<22} {Path(path).relative_to(out_dir)}")
-    lines += ["", f"  sample inputs in       {out_dir / 'data'}",
+    lines += ["", f"  the pipeline           {pipeline_file}",
+              f"  sample inputs in       {out_dir / 'data'}",
               f"  JSON run reports in    {out_dir / 'reports'}"]
     return "\n".join(lines)
