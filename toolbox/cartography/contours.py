@@ -336,9 +336,9 @@ def smooth_in_band(contour: Contour, iterations: int) -> np.ndarray:
 
 
 def smooth_contours(contours: list[Contour], iterations: int) -> tuple[list[Contour], int]:
-    """Smooth DEM contours (grid coordinates) within their cell bands, then undo the smoothing of any two lines
-    that touch or cross each other, until none do. Returns the lines and how many were
-    reverted."""
+    """Smooth DEM contours (grid coordinates) within their cell bands, then undo the smoothing
+    of any two lines that touch or cross each other, until none do. Returns the lines and how
+    many were reverted."""
     import shapely
 
     if iterations <= 0 or not contours:
