@@ -9,6 +9,7 @@ from toolbox.parameters import (
     Enum,
     ExtentParameter,
     Field,
+    Integer,
     MultipleLayers,
     Number,
     Output,
@@ -65,6 +66,8 @@ class Sheet(Algorithm):
         OutputFile("OUTPUT", "sheet PDF (one page per sheet)", extensions=[".pdf"],
                    optional=True),
         OutputFile("PNG", "PNG of the (first) sheet", extensions=[".png"], optional=True),
+        Integer("PNG_DPI", "PNG resolution, dots per inch", default=120, min_value=30,
+                max_value=600),
         String("FOLDER", "folder for one <sheet id>.pdf/.png per sheet", optional=True),
     ]
     outputs = [Output("SHEETS_WRITTEN", "per sheet: paper, frame and scale bar (mm), files",

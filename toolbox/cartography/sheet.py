@@ -352,7 +352,7 @@ class SheetRenderer:
             for pdf in pdfs:
                 self.fig.savefig(pdf, format="pdf", metadata=metadata or {})
             for png in pngs:
-                self.fig.savefig(png, format="png", dpi=dpi)
+                self.fig.savefig(png, format="png", dpi=dpi, pil_kwargs={"compress_level": 3})
             if pdf_pages is not None:
                 pdf_pages.savefig(self.fig)
 

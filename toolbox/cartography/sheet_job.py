@@ -55,7 +55,7 @@ def run_sheets(params: dict, feedback) -> dict:
             common = dict(base=params.get("BASE"), base_name=_name(params["BASE"])
                           if params.get("BASE") is not None else "", styles=styles,
                           contours=contours, grid_style=params["GRID_STYLE"],
-                          map_step_mm=params["MAP_STEP"])
+                          map_step_mm=params["MAP_STEP"], png_dpi=params["PNG_DPI"])
             pngs = [params["PNG"]] if params.get("PNG") and i == 0 else []
             files = []
             if folder is not None:
