@@ -31,14 +31,15 @@ PANEL_MIN_HEIGHT = 170.0  # mm the panel needs
 class LayerStyle:
     """How one vector layer is drawn and listed in the legend (the renderer-neutral style
     model's fields): geometry kind ``point``/``line``/``polygon``, RGB 0-255, line width and
-    point size in mm, optional fill RGB, optional label field."""
+    point size in mm, optional fill RGB or RGBA, optional label field. A layer categorised by
+    code is several LayerStyles, one per code, each with its features and its legend name."""
 
     frame: Any  # GeoDataFrame
     name: str
     kind: str
     rgb: tuple[int, int, int] = (0, 0, 0)
     width_mm: float = 0.25
-    fill: tuple[int, int, int] | None = None
+    fill: tuple[int, ...] | None = None
     label_field: str | None = None
 
 
@@ -165,9 +166,8 @@ class SheetRenderer:
         colour = _hex(style.rgb)
         lw = style.width_mm * PT_PER_MM
         if style.kind == "polygon":
-            face = _hex(style.fill) if style.fill is not None else "none"
-            frame.plot(ax=self.ax, facecolor=face, edgecolor=colour, linewidth=lw, zorder=2,
-                       alpha=0.9)
+            face = tuple(v / 255 for v in style.fill) if style.fill is not None else "none"
+            frame.plot(ax=self.ax, facecolor=face, edgecolor=colour, linewidth=lw, zorder=2)
         elif style.kind == "line":
             frame.plot(ax=self.ax, color=colour, linewidth=lw, zorder=3)
         else:

@@ -140,3 +140,22 @@ def test_profile_needs_a_surface(tmp_path, dem):
     line = write_line(tmp_path, [[1687700, 4799000], [1688300, 4799600]])
     with pytest.raises(ParameterError, match="DEM or TIN"):
         toolbox.run("carto:profile", {"INPUT": line, "OUTPUT": tmp_path / "p.gpkg"})
+
+
+def test_profile_on_a_tin_of_a_plane_is_exact(tmp_path):
+    rng = np.random.default_rng(11)
+    xy = np.vstack([rng.uniform(0, 200, (200, 2)), [[0, 0], [200, 0], [0, 200], [200, 200]]])
+    xy = xy + [1688000.0, 4799000.0]
+    z = 250.0 + 0.02 * (xy[:, 0] - 1688000) - 0.03 * (xy[:, 1] - 4799000)
+    gpd.GeoDataFrame(geometry=shapely.points(xy[:, 0], xy[:, 1], z), crs=CRS).to_file(
+        tmp_path / "pts.gpkg")
+    toolbox.run("tin:delaunay", {"INPUT": tmp_path / "pts.gpkg", "OUTPUT": tmp_path / "t.gpkg"})
+    line = write_line(tmp_path, [[1688010, 4799010], [1688190, 4799150]])
+    out = tmp_path / "p.gpkg"
+    toolbox.run("carto:profile", {"INPUT": line, "TIN": tmp_path / "t.gpkg", "STEP": 7.0,
+                                  "OUTPUT": out})
+    pts = gpd.read_file(out, layer="profile_points")
+    x, y = pts.geometry.x.values, pts.geometry.y.values
+    np.testing.assert_allclose(pts.z, 250 + 0.02 * (x - 1688000) - 0.03 * (y - 4799000),
+                               atol=1e-6)
+    assert len(pts) == int(np.hypot(180, 140) // 7) + 2
