@@ -140,8 +140,9 @@ def stitch_pieces(pieces: list[Piece], tile: int) -> list[Contour]:
 
     On each shared tile edge, the ends of one level's pieces from the two tiles cross the same
     grid edges (one crossing per level and edge), so sorted along the tile edge they pair up one
-    to one. Paired ends get identical coordinates and the pieces are chained head to tail:
-    no break, no duplicated vertex, and near-coincident points elsewhere are never merged.
+    to one (an end whose partner is missing, where no data lies across the edge, stays open).
+    Paired ends get identical coordinates and the pieces are chained head to tail: no break, no
+    duplicated vertex, and near-coincident points elsewhere are never merged.
     """
     tol = 1e-9  # grid units: ends on a tile edge have an exactly integer coordinate
     # ends on tile edges: key (level, axis, grid line, tile along the line) -> [(pos, side, end)]
@@ -168,10 +169,16 @@ def stitch_pieces(pieces: list[Piece], tile: int) -> list[Contour]:
     for group in ends.values():
         before = sorted((e for e in group if e[1] == 0), key=lambda e: e[0])
         after = sorted((e for e in group if e[1] == 1), key=lambda e: e[0])
-        if len(before) != len(after):  # cannot happen on valid input; leave those ends open
-            continue
-        for (_, _, a), (_, _, b) in zip(before, after):
-            link[a], link[b] = b, a
+        i = j = 0  # merge the two sorted lists; an end with no partner (no data across the
+        while i < len(before) and j < len(after):  # tile edge) stays an end
+            (pa, _, a), (pb, _, b) = before[i], after[j]
+            if abs(pa - pb) <= 1e-7:
+                link[a], link[b] = b, a
+                i, j = i + 1, j + 1
+            elif pa < pb:
+                i += 1
+            else:
+                j += 1
     return _chain(pieces, link)
 
 

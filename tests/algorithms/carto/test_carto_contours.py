@@ -136,6 +136,20 @@ def test_tiles_stitch_into_the_untiled_lines():
         assert (c.level, shapely.normalize(shapely.linestrings(c.xy)).wkb) in geoms
 
 
+def test_tiles_stitch_around_nodata_holes():
+    z, t = terrain()
+    z = z.astype("float64")
+    z[100:160, 70:75] = np.nan  # a hole across the tile edge at column 74
+    z[221:223, 30:200] = np.nan  # a strip on the tile edge at row 222
+    args = (np.arange(290.0, 345.0, 5.0), t.c + 2, t.f - 2, 4.0, -4.0)
+    whole = dem_contours(z, *args)
+    tiled = dem_contours(z, *args, tile=37)
+    assert len(tiled) == len(whole)
+    geoms = {(c.level, shapely.normalize(shapely.linestrings(c.xy)).wkb) for c in whole}
+    assert all((c.level, shapely.normalize(shapely.linestrings(c.xy)).wkb) in geoms
+               for c in tiled)
+
+
 @pytest.fixture(scope="module")
 def demo_dem(tmp_path_factory):
     z, transform = terrain()
