@@ -102,3 +102,18 @@ def render_sheet(spec: SheetSpec, base=None, base_name: str = "", styles=(), con
                 "frame_mm": list(page.frame), "scale_bar": bar}
     finally:
         renderer.close()
+
+
+def styles_from_model(frame, layer_style) -> list[LayerStyle]:
+    """Sheet styles of a layer from the shared style model (a ``toolbox.styles.LayerStyle``:
+    ``name``, ``kind``, ``styles`` (per code: ``code``, ``rgb``, ``line_width`` mm, ``fill``
+    RGBA, ``label``), ``field``, ``label_field``); duck-typed, so this module does not depend
+    on it. One :class:`LayerStyle` per code, with that code's features and its label as the
+    legend name; a single-symbol layer gives one."""
+    out = []
+    many = len(layer_style.styles) > 1 and layer_style.field in frame.columns
+    for code in layer_style.styles:
+        part = frame[frame[layer_style.field].astype(str) == str(code.code)] if many else frame
+        out.append(LayerStyle(part, code.label or code.code, code.kind, tuple(code.rgb),
+                              code.line_width, code.fill, layer_style.label_field))
+    return out

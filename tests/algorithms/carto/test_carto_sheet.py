@@ -97,3 +97,35 @@ def test_one_pdf_per_sheet_named_by_id(inputs, tmp_path):
         assert f"sheet: {sheet['sheet']}" in words and "scale: 1:2000" in words
         # 500 x 400 m at 1:2000 = 250 x 200 mm
         assert np.allclose(sheet["frame_mm"][2:], [250, 200])
+
+
+def test_styles_from_the_shared_style_model():
+    from dataclasses import dataclass
+
+    from toolbox.cartography.sheet_io import styles_from_model
+
+    @dataclass
+    class Code:  # the fields of toolbox.styles.CodeStyle the sheet uses
+        code: str
+        kind: str
+        rgb: tuple
+        line_width: float
+        fill: tuple | None
+        label: str
+
+    @dataclass
+    class Layer:  # and of toolbox.styles.LayerStyle
+        name: str
+        kind: str
+        styles: list
+        field: str = "code"
+        label_field: str | None = None
+
+    frame = gpd.GeoDataFrame({"code": ["A", "B", "A"]}, geometry=[
+        shapely.box(0, 0, 1, 1), shapely.box(2, 0, 3, 1), shapely.box(4, 0, 5, 1)], crs=CRS)
+    layer = Layer("areas", "polygon", [Code("A", "polygon", (200, 0, 0), 0.3, (200, 0, 0, 96),
+                                            "buildings"),
+                                       Code("B", "polygon", (0, 120, 0), 0.3, None, "woods")])
+    styles = styles_from_model(frame, layer)
+    assert [(s.name, len(s.frame), s.rgb, s.fill) for s in styles] == [
+        ("buildings", 2, (200, 0, 0), (200, 0, 0, 96)), ("woods", 1, (0, 120, 0), None)]
