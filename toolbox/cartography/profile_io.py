@@ -33,19 +33,12 @@ class Profile:
 
 
 class Surface:
-    """Heights at map points from a DEM (bilinear between cell centres) or a TIN (planes)."""
+    """Heights at map points from a DEM (bilinear between cell centres; only the window around
+    the points is read, so DEM size does not matter) or a TIN (planes)."""
 
     def __init__(self, dem=None, band: int = 1, tin=None):
-        if dem is not None:
-            import rasterio
-
-            from toolbox.cartography.contour_io import GridFrame
-
-            with rasterio.open(dem.path) as src:  # profiles need the whole DEM band in memory
-                self.z = src.read(band, masked=True).astype("float64").filled(np.nan)
-                self.frame = GridFrame.of(src.transform)
-            self.tin = None
-        else:
+        self.dem, self.band, self.tin = dem, band, None
+        if dem is None:
             from toolbox.terrain.tin.store import read_tin
 
             self.tin = read_tin(tin)[:2]
@@ -55,8 +48,25 @@ class Surface:
             from toolbox.terrain.tin.kernels import interpolate_tin
 
             return interpolate_tin(self.tin[0], self.tin[1], xy[:, 0], xy[:, 1])
-        f = self.frame
-        return bilinear(self.z, f.x0, f.y0, f.dx, f.dy, xy)
+        import rasterio
+        from rasterio.windows import Window
+
+        from toolbox.cartography.contour_io import GridFrame
+
+        with rasterio.open(self.dem.path) as src:
+            f = GridFrame.of(src.transform)
+            cols = (xy[:, 0] - f.x0) / f.dx
+            rows = (xy[:, 1] - f.y0) / f.dy
+            c0 = int(np.clip(np.floor(np.nanmin(cols)) - 1, 0, src.width - 1))
+            r0 = int(np.clip(np.floor(np.nanmin(rows)) - 1, 0, src.height - 1))
+            c1 = int(np.clip(np.ceil(np.nanmax(cols)) + 2, c0 + 1, src.width))
+            r1 = int(np.clip(np.ceil(np.nanmax(rows)) + 2, r0 + 1, src.height))
+            z = src.read(self.band, window=Window(c0, r0, c1 - c0, r1 - r0), masked=True)
+            z = z.astype("float64").filled(np.nan)
+        out = bilinear(z, f.x0 + c0 * f.dx, f.y0 + r0 * f.dy, f.dx, f.dy, xy)
+        # points off the raster: NaN (the window was clipped to it)
+        off = (cols < 0) | (cols > src.width - 1) | (rows < 0) | (rows > src.height - 1)
+        return np.where(off, np.nan, out)
 
 
 def line_parts(frame) -> list[np.ndarray]:
