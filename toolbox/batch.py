@@ -12,7 +12,7 @@ Format (YAML)::
           CELL_SIZE: 2
           OUTPUT: out/dem.tif
       - name: shade
-        algorithm: raster:hillshade
+        algorithm: dem:hillshade
         params:
           INPUT: ${dem.OUTPUT}  # an earlier step's output
           OUTPUT: out/hillshade.tif

@@ -19,7 +19,7 @@ from toolbox.errors import AlgorithmNotFoundError
 log = logging.getLogger("toolbox")
 
 ENTRY_POINT_GROUP = "toolbox.algorithms"
-ALIASES: dict[str, str] = {}  # old id -> current id
+ALIASES: dict[str, str] = {"raster:hillshade": "dem:hillshade"}  # old id -> current id
 
 _registry: dict[str, type[Algorithm]] = {}
 _discovered = False

@@ -1,7 +1,7 @@
 """Runner: validate parameters -> execute -> move outputs into place -> optional JSON report.
 
 >>> import toolbox
->>> toolbox.run("raster:hillshade", {"INPUT": "dem.tif", "OUTPUT": "hs.tif"})  # doctest: +SKIP
+>>> toolbox.run("dem:hillshade", {"INPUT": "dem.tif", "OUTPUT": "hs.tif"})  # doctest: +SKIP
 {'OUTPUT': '/abs/path/hs.tif'}
 """
 

@@ -23,12 +23,12 @@ variables:
   dem: {plane_dem[0]}
 steps:
   - name: shade
-    algorithm: raster:hillshade
+    algorithm: dem:hillshade
     params:
       INPUT: ${{dem}}
       OUTPUT: out/shade.tif
   - name: reshade
-    algorithm: raster:hillshade
+    algorithm: dem:hillshade
     params:
       INPUT: ${{shade.OUTPUT}}
       AZIMUTH: 90
@@ -48,12 +48,12 @@ def test_validate_catches_bad_references(tmp_path):
     cases = {
         "steps: []": "non-empty 'steps'",
         "steps:\n  - algorithm: raster:nope": "no algorithm",
-        "steps:\n  - algorithm: raster:hillshade\n    params: {INPUTT: a}": "INPUTT is not a parameter",
-        "steps:\n  - algorithm: raster:hillshade\n    params: {INPUT: '${a.OUTPUT}'}":
+        "steps:\n  - algorithm: dem:hillshade\n    params: {INPUTT: a}": "INPUTT is not a parameter",
+        "steps:\n  - algorithm: dem:hillshade\n    params: {INPUT: '${a.OUTPUT}'}":
             "does not come earlier",
-        "steps:\n  - algorithm: raster:hillshade\n    params: {INPUT: '${x}'}": "no such variable",
-        ("steps:\n  - name: a\n    algorithm: raster:hillshade\n"
-         "  - algorithm: raster:hillshade\n    params: {INPUT: '${a.RESULT}'}"): "outputs are: OUTPUT",
+        "steps:\n  - algorithm: dem:hillshade\n    params: {INPUT: '${x}'}": "no such variable",
+        ("steps:\n  - name: a\n    algorithm: dem:hillshade\n"
+         "  - algorithm: dem:hillshade\n    params: {INPUT: '${a.RESULT}'}"): "outputs are: OUTPUT",
     }
     for text, fragment in cases.items():
         with pytest.raises(PipelineError, match=fragment.replace("$", r"\$")):
@@ -66,12 +66,12 @@ def test_failing_step_is_named(plane_dem, tmp_path):
     pipe = write(tmp_path / "p.yaml", f"""
 steps:
   - name: ok
-    algorithm: raster:hillshade
+    algorithm: dem:hillshade
     params: {{INPUT: {plane_dem[0]}, OUTPUT: a.tif}}
   - name: broken
-    algorithm: raster:hillshade
+    algorithm: dem:hillshade
     params: {{INPUT: {plane_dem[0]}, Z_FACTOR: 0, OUTPUT: b.tif}}
 """)
-    with pytest.raises(PipelineError, match="step 'broken' \\(raster:hillshade\\): Z_FACTOR"):
+    with pytest.raises(PipelineError, match="step 'broken' \\(dem:hillshade\\): Z_FACTOR"):
         run_pipeline(load_pipeline(pipe))
     assert (tmp_path / "a.tif").exists() and not (tmp_path / "b.tif").exists()

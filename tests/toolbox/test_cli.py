@@ -10,16 +10,16 @@ from conftest import run_cli
 def test_list_grouped_and_json():
     text = run_cli("list")
     assert text.returncode == 0
-    assert "Raster\n  raster:hillshade" in text.stdout
+    assert "DEM terrain\n  dem:aspect" in text.stdout
     data = json.loads(run_cli("list", "--json").stdout)
     assert {"id": "vector:info"}.items() <= next(a for a in data if a["id"] == "vector:info").items()
 
 
 def test_help_text_and_json():
-    text = run_cli("help", "raster:hillshade")
+    text = run_cli("help", "dem:hillshade")
     assert text.returncode == 0
     assert "--AZIMUTH <number >= 0 and <= 360>  optional (default: 315.0)" in text.stdout
-    spec = json.loads(run_cli("help", "raster:hillshade", "--json").stdout)
+    spec = json.loads(run_cli("help", "dem:hillshade", "--json").stdout)
     azimuth = next(p for p in spec["parameters"] if p["name"] == "AZIMUTH")
     assert (azimuth["min"], azimuth["max"], azimuth["default"]) == (0, 360, 315.0)
     assert spec["outputs"][0]["name"] == "OUTPUT"
@@ -27,7 +27,7 @@ def test_help_text_and_json():
 
 def test_run_prints_outputs_as_json(plane_dem, tmp_path):
     out = tmp_path / "hs.tif"
-    proc = run_cli("run", "raster:hillshade", "--INPUT", plane_dem[0], f"--OUTPUT={out}",
+    proc = run_cli("run", "dem:hillshade", "--INPUT", plane_dem[0], f"--OUTPUT={out}",
                    "--ALTITUDE", "30", "--run-report", tmp_path / "r.json")
     assert proc.returncode == 0, proc.stderr
     assert json.loads(proc.stdout) == {"OUTPUT": str(out)}
@@ -37,13 +37,13 @@ def test_run_prints_outputs_as_json(plane_dem, tmp_path):
 
 def test_user_errors_are_one_line_exit_2(plane_dem, tmp_path):
     cases = [
-        (("run", "raster:hillshade", "--INPUT", plane_dem[0], "--Z_FACTOR", "-2",
+        (("run", "dem:hillshade", "--INPUT", plane_dem[0], "--Z_FACTOR", "-2",
           "--OUTPUT", tmp_path / "a.tif"), "Z_FACTOR must be > 0, got '-2'"),
-        (("run", "raster:hillshade", "--INPUT", tmp_path / "missing.tif",
+        (("run", "dem:hillshade", "--INPUT", tmp_path / "missing.tif",
           "--OUTPUT", tmp_path / "a.tif"), "INPUT file"),
         (("run", "vector:info", "--INPUT", plane_dem[0]), "INPUT cannot read"),
         (("run", "nope:nothing"), "no algorithm 'nope:nothing'"),
-        (("help", "raster:hilshade"), "did you mean raster:hillshade"),
+        (("help", "dem:hilshade"), "did you mean dem:hillshade"),
     ]
     for args, fragment in cases:
         proc = run_cli(*args)
@@ -55,7 +55,7 @@ def test_user_errors_are_one_line_exit_2(plane_dem, tmp_path):
 
 def test_existing_output_refused_then_overwritten(plane_dem, tmp_path):
     out = tmp_path / "hs.tif"
-    args = ("run", "raster:hillshade", "--INPUT", plane_dem[0], "--OUTPUT", out)
+    args = ("run", "dem:hillshade", "--INPUT", plane_dem[0], "--OUTPUT", out)
     assert run_cli(*args).returncode == 0
     proc = run_cli(*args)
     assert proc.returncode == 2 and "--overwrite" in proc.stderr
@@ -63,6 +63,6 @@ def test_existing_output_refused_then_overwritten(plane_dem, tmp_path):
 
 
 def test_lowercase_parameter_names_accepted(plane_dem, tmp_path):
-    proc = run_cli("run", "raster:hillshade", "--input", plane_dem[0], "--output",
+    proc = run_cli("run", "dem:hillshade", "--input", plane_dem[0], "--output",
                    tmp_path / "x.tif", "--overviews", "false")
     assert proc.returncode == 0, proc.stderr

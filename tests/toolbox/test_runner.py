@@ -59,21 +59,21 @@ class _Cancelable(Algorithm):
 
 def test_registry_discovers_builtin_algorithms():
     ids = {a.id for a in toolbox.algorithms()}
-    assert {"raster:hillshade", "vector:info"} <= ids
+    assert {"dem:hillshade", "vector:info"} <= ids
     for alg in toolbox.algorithms():
         alg.check_spec()  # every registered spec is consistent
 
 
 def test_unknown_algorithm_suggests():
-    with pytest.raises(AlgorithmNotFoundError, match="did you mean raster:hillshade"):
+    with pytest.raises(AlgorithmNotFoundError, match="did you mean dem:hillshade"):
         get("raster:hilshade")
 
 
 def test_alias_resolves(monkeypatch):
     from toolbox import registry
 
-    monkeypatch.setitem(registry.ALIASES, "raster:shade", "raster:hillshade")
-    assert get("raster:shade").id == "raster:hillshade"
+    monkeypatch.setitem(registry.ALIASES, "raster:shade", "dem:hillshade")
+    assert get("raster:shade").id == "dem:hillshade"
 
 
 def test_bad_spec_refused():
@@ -86,16 +86,16 @@ def test_bad_spec_refused():
 
 
 def test_unknown_and_missing_parameters(plane_dem, tmp_path):
-    with pytest.raises(ParameterError, match="CELLSIZE is not a parameter of raster:hillshade"):
-        toolbox.run("raster:hillshade", {"INPUT": plane_dem[0], "CELLSIZE": 2,
+    with pytest.raises(ParameterError, match="CELLSIZE is not a parameter of dem:hillshade"):
+        toolbox.run("dem:hillshade", {"INPUT": plane_dem[0], "CELLSIZE": 2,
                                          "OUTPUT": tmp_path / "o.tif"})
     with pytest.raises(ParameterError, match="OUTPUT is required"):
-        toolbox.run("raster:hillshade", {"INPUT": plane_dem[0]})
+        toolbox.run("dem:hillshade", {"INPUT": plane_dem[0]})
 
 
 def test_check_runs_before_work(plane_dem, tmp_path):
     with pytest.raises(ParameterError, match="BAND must be <= 1"):
-        toolbox.run("raster:hillshade", {"INPUT": plane_dem[0], "BAND": 3,
+        toolbox.run("dem:hillshade", {"INPUT": plane_dem[0], "BAND": 3,
                                          "OUTPUT": tmp_path / "o.tif"})
     assert [p.name for p in tmp_path.iterdir()] == ["plane.tif"]
 
@@ -131,7 +131,7 @@ def test_hillshade_of_a_plane_matches_lambert(plane_dem, tmp_path):
     path, sx, sy = plane_dem
     out = tmp_path / "hs.tif"
     progress = []
-    result = toolbox.run("raster:hillshade", {"INPUT": str(path), "OUTPUT": str(out)},
+    result = toolbox.run("dem:hillshade", {"INPUT": str(path), "OUTPUT": str(out)},
                          feedback=Feedback(lambda p, m: progress.append(p)))
     assert result == {"OUTPUT": str(out.absolute())}
     # plane: z = 100 + 0.2 x' - 0.1 (y - y0) -> dz/dx = 0.2, dz/dy(north) = -0.1
@@ -149,24 +149,24 @@ def test_hillshade_of_a_plane_matches_lambert(plane_dem, tmp_path):
 
 def test_existing_output_needs_overwrite(plane_dem, tmp_path):
     out = tmp_path / "hs.tif"
-    toolbox.run("raster:hillshade", {"INPUT": plane_dem[0], "OUTPUT": out})
+    toolbox.run("dem:hillshade", {"INPUT": plane_dem[0], "OUTPUT": out})
     with pytest.raises(OutputExistsError):
-        toolbox.run("raster:hillshade", {"INPUT": plane_dem[0], "OUTPUT": out})
-    toolbox.run("raster:hillshade", {"INPUT": plane_dem[0], "OUTPUT": out}, overwrite=True)
+        toolbox.run("dem:hillshade", {"INPUT": plane_dem[0], "OUTPUT": out})
+    toolbox.run("dem:hillshade", {"INPUT": plane_dem[0], "OUTPUT": out}, overwrite=True)
 
 
 def test_output_equal_to_input_refused(plane_dem):
     with pytest.raises(ParameterError, match="also the input INPUT"):
-        toolbox.run("raster:hillshade", {"INPUT": plane_dem[0], "OUTPUT": plane_dem[0]},
+        toolbox.run("dem:hillshade", {"INPUT": plane_dem[0], "OUTPUT": plane_dem[0]},
                     overwrite=True)
 
 
 def test_json_report_content(plane_dem, tmp_path):
     report = tmp_path / "run.json"
-    toolbox.run("raster:hillshade", {"INPUT": plane_dem[0], "AZIMUTH": 90,
+    toolbox.run("dem:hillshade", {"INPUT": plane_dem[0], "AZIMUTH": 90,
                                      "OUTPUT": tmp_path / "hs.tif"}, report=report)
     data = json.loads(report.read_text())
-    assert data["algorithm"] == "raster:hillshade"
+    assert data["algorithm"] == "dem:hillshade"
     assert data["parameters"]["AZIMUTH"] == 90.0
     assert data["parameters"]["INPUT"] == str(plane_dem[0])
     assert data["outputs"]["OUTPUT"].endswith("hs.tif")

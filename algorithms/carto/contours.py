@@ -1,0 +1,110 @@
+"""carto:contours - contour lines of a DEM or a TIN, index contours flagged, styled for QGIS."""
+
+from __future__ import annotations
+
+from toolbox.algorithm import Algorithm
+from toolbox.feedback import Feedback
+from toolbox.parameters import (
+    Integer,
+    Number,
+    Output,
+    OutputFile,
+    OutputVector,
+    RasterLayer,
+    VectorLayer,
+)
+from toolbox.registry import register
+
+
+@register
+class Contours(Algorithm):
+    """Contour lines ("curve di livello") at ``BASE + k·INTERVAL`` from a DEM or a TIN.
+
+    DEM: cell values sit at cell centres and the surface between four centres is bilinear (as
+    ``gdal_contour``); lines are traced with contourpy in ``TILE_SIZE`` blocks sharing one row
+    and column, and stitched across block edges, so big DEMs work in bounded memory and a line
+    crossing many blocks comes out whole, with no break and no duplicate. TIN: every triangle's
+    plane is cut at each level and the segments are chained through shared edges.
+
+    Every ``INDEX_EVERY``-th level from ``BASE`` is an index contour (``index`` = 1; 5 m
+    contours with 25 m index contours at 1:5000). ``SMOOTHING`` rounds of Chaikin corner cutting
+    (DEM only) are kept only while a line stays inside its cell band (the grid squares it
+    crosses); any two smoothed lines that would touch fall back to their traced shape, so
+    contours never cross. Lines are oriented with higher ground on their right.
+
+    Output: layer ``contours`` (LineString Z at the level's height) with ``elev``, ``index``,
+    ``closed``, ``length``, styled in the GeoPackage's ``layer_styles`` (index contours heavier,
+    labels along them); ``STYLE`` also writes the QML.
+    """
+
+    id = "carto:contours"
+    display_name = "Contour lines"
+    group = "Cartography"
+    short_help = "Contours of a DEM (tiled, stitched) or a TIN, index contours, styled GeoPackage."
+    parameters = [
+        RasterLayer("INPUT", "DEM raster", optional=True),
+        VectorLayer("TIN", "TIN: the triangles layer of a tin:delaunay GeoPackage, or "
+                    "triangle polygons with Z (instead of INPUT)", geometry_types=["polygon"],
+                    optional=True),
+        Integer("BAND", "band of the DEM", default=1, min_value=1),
+        Number("INTERVAL", "contour interval, height units", default=5.0, min_value=0,
+               min_exclusive=True),
+        Number("BASE", "height of one contour; the others are BASE + k·INTERVAL", default=0.0),
+        Integer("INDEX_EVERY", "every N-th contour is an index contour (0 = none)", default=5,
+                min_value=0),
+        Integer("SMOOTHING", "rounds of band-constrained smoothing (DEM only; 0 = none)",
+                default=0, min_value=0, max_value=5),
+        Integer("TILE_SIZE", "DEM block side in cells", default=1024, min_value=8),
+        OutputVector("OUTPUT", "contours GeoPackage"),
+        OutputFile("STYLE", "QGIS style of the contours (.qml)", extensions=[".qml"],
+                   optional=True),
+    ]
+    outputs = [Output("STATISTICS", "levels, lines, index lines, tiles", "dict")]
+
+    def check(self, params):
+        if (params.get("INPUT") is None) == (params.get("TIN") is None):
+            raise self.fail("INPUT", "or TIN: give exactly one of them (a DEM or a TIN)")
+        if params.get("INPUT") is not None:
+            info = params["INPUT"]
+            if params["BAND"] > info.count:
+                raise self.fail("BAND", f"must be <= {info.count} (bands of {info}), got "
+                                f"{params['BAND']}")
+        elif params["SMOOTHING"]:
+            raise self.fail("SMOOTHING", f"applies to DEM contours only, got "
+                            f"{params['SMOOTHING']} with a TIN")
+
+    def process(self, params, feedback: Feedback):
+        from toolbox.cartography.contour_io import (
+            contour_frame,
+            raster_contours,
+            tin_layer_contours,
+        )
+        from toolbox.cartography.qml import contour_qml, embed_style
+        from toolbox.io.vector import write_layers
+
+        interval, base = params["INTERVAL"], params["BASE"]
+        if params.get("INPUT") is not None:
+            info = params["INPUT"]
+            result = raster_contours(info.path, params["BAND"], interval, base,
+                                     params["TILE_SIZE"], params["SMOOTHING"], feedback)
+            crs = info.crs
+        else:
+            from toolbox.terrain.tin.store import read_tin
+
+            xyz, triangles, crs = read_tin(params["TIN"])
+            result = tin_layer_contours(xyz, triangles, interval, base)
+        feedback.set_progress(90)
+        frame = contour_frame(result.contours, interval, base, params["INDEX_EVERY"], crs)
+        write_layers(params["OUTPUT"], {"contours": frame}, crs=crs,
+                     geometry_types={"contours": "LineString Z"})
+        qml = contour_qml()
+        embed_style(params["OUTPUT"], "contours", qml)
+        if params.get("STYLE"):
+            params["STYLE"].write_text(qml, encoding="utf-8")
+        if not len(frame):
+            feedback.push_warning(f"no contour at interval {interval} from base {base} crosses the "
+                             "surface")
+        stats = {"levels": int(len(result.levels)), "lines": int(len(frame)),
+                 "index_lines": int(frame["index"].sum()) if len(frame) else 0,
+                 "vertices": int(sum(len(c.xy) for c in result.contours))} | result.stats
+        return {"OUTPUT": params["OUTPUT"], "STYLE": params.get("STYLE"), "STATISTICS": stats}

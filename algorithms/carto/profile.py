@@ -1,0 +1,119 @@
+"""carto:profile - elevation profiles and cross sections along polylines."""
+
+from __future__ import annotations
+
+from toolbox.algorithm import Algorithm
+from toolbox.feedback import Feedback
+from toolbox.parameters import (
+    Enum,
+    Field,
+    Integer,
+    Number,
+    Output,
+    OutputFile,
+    OutputVector,
+    RasterLayer,
+    VectorLayer,
+)
+from toolbox.registry import register
+
+
+@register
+class Profile(Algorithm):
+    """Elevation profiles and cross sections ("sezioni e profili", S002 §2.2.3).
+
+    Every line of ``INPUT`` is a polyline P1...Pn. ``MODE``:
+
+    - ``step``: heights every ``STEP`` metres of chainage (and at the end), from the ``DEM``
+      (bilinear between cell centres) or the ``TIN`` (plane of the triangle);
+    - ``contours``: heights where the polyline crosses the ``CONTOURS`` lines, sorted by
+      chainage; the ends P1, Pn have no height and are dropped (the thesis' sections from
+      contour lines, with no stereo model);
+    - ``sections``: the polyline is an axis; sections perpendicular to it every ``SPACING``
+      metres (and at its end), ``2·HALF_WIDTH`` long, sampled every ``STEP`` metres;
+      ``distance`` is the offset across the axis, negative on its left.
+
+    Output: layers ``profile_points`` (PointZ: ``profile``, ``line``, ``section``,
+    ``chainage``, ``distance``, ``z``) and ``profile_lines`` (LineString Z per profile or
+    section); ``PLOT`` draws them (PNG or SVG).
+    """
+
+    id = "carto:profile"
+    display_name = "Profiles and cross sections"
+    group = "Cartography"
+    short_help = "Profiles along polylines (constant step or contour crossings), cross sections."
+    parameters = [
+        VectorLayer("INPUT", "polylines (profile lines or section axes)",
+                    geometry_types=["line"]),
+        RasterLayer("DEM", "DEM raster", optional=True),
+        VectorLayer("TIN", "TIN triangles (instead of DEM)", geometry_types=["polygon"],
+                    optional=True),
+        Integer("BAND", "band of the DEM", default=1, min_value=1),
+        Enum("MODE", "sampling", options=["step", "contours", "sections"], default="step"),
+        Number("STEP", "sampling distance along profiles and sections, m", default=10.0,
+               min_value=0, min_exclusive=True),
+        VectorLayer("CONTOURS", "contour lines (MODE contours)", geometry_types=["line"],
+                    optional=True),
+        Field("ELEV_FIELD", "elevation field of CONTOURS (default: elev)", parent="CONTOURS",
+              numeric=True, optional=True),
+        Number("SPACING", "distance between sections along the axis, m (MODE sections)",
+               default=50.0, min_value=0, min_exclusive=True),
+        Number("HALF_WIDTH", "half width of each section, m (MODE sections)", default=50.0,
+               min_value=0, min_exclusive=True),
+        OutputVector("OUTPUT", "GeoPackage (layers profile_points, profile_lines)"),
+        OutputFile("PLOT", "plot of the profiles (.png or .svg)", extensions=[".png", ".svg"],
+                   optional=True),
+    ]
+    outputs = [Output("STATISTICS", "profiles, points, height range", "dict")]
+
+    def check(self, params):
+        if params["MODE"] == "contours":
+            if params.get("CONTOURS") is None:
+                raise self.fail("CONTOURS", "is required with MODE contours")
+            if not params.get("ELEV_FIELD") and "elev" not in params["CONTOURS"].fields:
+                raise self.fail("ELEV_FIELD", f"is required: {params['CONTOURS']} has no "
+                                "'elev' field")
+        elif (params.get("DEM") is None) == (params.get("TIN") is None):
+            raise self.fail("DEM", f"or TIN: give exactly one of them with MODE "
+                            f"{params['MODE']}")
+
+    def process(self, params, feedback: Feedback):
+        import numpy as np
+
+        from toolbox.cartography.profile_io import (
+            Surface,
+            line_parts,
+            plot_profiles,
+            profile_frames,
+            sample_profiles,
+        )
+        from toolbox.io.vector import read_vector, write_layers
+
+        lines_frame = read_vector(params["INPUT"], name="INPUT")
+        crs = lines_frame.crs
+        lines = line_parts(lines_frame)
+        surface, contours = None, None
+        if params["MODE"] == "contours":
+            cframe = read_vector(params["CONTOURS"], name="CONTOURS")
+            contours = (cframe.geometry.values,
+                        np.asarray(cframe[params.get("ELEV_FIELD") or "elev"], dtype="float64"))
+        else:
+            surface = Surface(params.get("DEM"), params["BAND"], params.get("TIN"))
+        profiles = sample_profiles(lines, params["MODE"], params["STEP"], surface, contours,
+                                   params["SPACING"], params["HALF_WIDTH"])
+        points, line_layer = profile_frames(profiles, crs)
+        write_layers(params["OUTPUT"], {"profile_points": points, "profile_lines": line_layer},
+                     crs=crs, geometry_types={"profile_points": "Point Z",
+                                              "profile_lines": "LineString Z"})
+        if params.get("PLOT"):
+            what = "sections along" if params["MODE"] == "sections" else "profiles of"
+            plot_profiles(profiles, params["PLOT"], f"{what} {params['INPUT']}")
+        z = np.concatenate([p.z for p in profiles]) if profiles else np.empty(0)
+        missing = int(np.isnan(z).sum())
+        if missing:
+            feedback.push_warning(f"{missing} stations fall outside the surface (no height)")
+        good = z[np.isfinite(z)]
+        stats = {"profiles": len(profiles), "points": int(z.size), "no_height": missing,
+                 "z_min": float(good.min()) if good.size else None,
+                 "z_max": float(good.max()) if good.size else None}
+        return {"OUTPUT": params["OUTPUT"], "PLOT": params.get("PLOT"), "STATISTICS": stats}

@@ -1,0 +1,85 @@
+"""carto:sheet - a map sheet (PDF and PNG) at an exact scale, or one per sheet of a sheet grid."""
+
+from __future__ import annotations
+
+from toolbox.algorithm import Algorithm
+from toolbox.feedback import Feedback
+from toolbox.parameters import (
+    Crs,
+    Enum,
+    ExtentParameter,
+    Field,
+    Integer,
+    MultipleLayers,
+    Number,
+    Output,
+    OutputFile,
+    RasterLayer,
+    String,
+    VectorLayer,
+)
+from toolbox.registry import register
+
+
+@register
+class Sheet(Algorithm):
+    """A map sheet of ``EXTENT`` at 1:``SCALE``, or one per feature of ``SHEETS``.
+
+    The map frame measures exactly ground size / scale on paper (print at 100%), on the smallest
+    ISO sheet (A4...A0, portrait or landscape) that holds it and the side panel, unless
+    ``PAPER`` names one. Drawn: the ``BASE`` raster (orthophoto or hillshade), the ``LAYERS``
+    (styled by geometry kind), the ``CONTOURS`` (index contours heavier, labelled along the
+    line), the map grid every ``MAP_STEP`` mm with its coordinates at the frame, a legend, a
+    scale bar, a north arrow (grid north), and a title block with the title, sheet id, scale,
+    CRS, date and sources. The PDF is vector (text as TrueType text, lines as paths), the base
+    raster is embedded at 200 dpi; its metadata keep the scale, CRS and bounds.
+
+    With ``SHEETS``, ``OUTPUT`` holds one page per sheet, and ``FOLDER`` (if given) receives one
+    ``<sheet id>.pdf`` and ``.png`` per sheet.
+    """
+
+    id = "carto:sheet"
+    display_name = "Map sheet"
+    group = "Cartography"
+    short_help = "Map sheet PDF/PNG at an exact scale: base, layers, contours, grid, legend."
+    parameters = [
+        ExtentParameter("EXTENT", "sheet area: xmin,ymin,xmax,ymax [CRS]", optional=True),
+        VectorLayer("SHEETS", "sheet grid polygons instead of EXTENT (one sheet each)",
+                    geometry_types=["polygon"], optional=True),
+        Field("SHEET_ID", "sheet id field of SHEETS (default: feature number)", parent="SHEETS",
+              optional=True),
+        Number("SCALE", "map scale denominator", default=5000.0, min_value=1),
+        RasterLayer("BASE", "base raster: orthophoto (RGB) or hillshade (grey)", optional=True),
+        MultipleLayers("LAYERS", "vector layers to draw", layer_type="vector", min_count=0,
+                       optional=True),
+        VectorLayer("CONTOURS", "contour lines (carto:contours output)", geometry_types=["line"],
+                    optional=True),
+        Enum("GRID_STYLE", "map grid drawing", options=["crosses", "lines"], default="crosses"),
+        Number("MAP_STEP", "map grid step on paper, mm", default=100.0, min_value=0,
+               min_exclusive=True),
+        Enum("PAPER", "paper size", options=["auto", "A4", "A3", "A2", "A1", "A0"],
+             default="auto"),
+        String("TITLE", "title in the title block", default="Map sheet"),
+        String("SOURCES", "sources line (default: the input files)", optional=True),
+        String("DATE", "date in the title block (default: today, ISO)", optional=True),
+        Crs("CRS", "CRS of EXTENT when it names none", optional=True),
+        OutputFile("OUTPUT", "sheet PDF (one page per sheet)", extensions=[".pdf"],
+                   optional=True),
+        OutputFile("PNG", "PNG of the (first) sheet", extensions=[".png"], optional=True),
+        Integer("PNG_DPI", "PNG resolution, dots per inch", default=120, min_value=30,
+                max_value=600),
+        String("FOLDER", "folder for one <sheet id>.pdf/.png per sheet", optional=True),
+    ]
+    outputs = [Output("SHEETS_WRITTEN", "per sheet: paper, frame and scale bar (mm), files",
+                      "list")]
+
+    def check(self, params):
+        if (params.get("EXTENT") is None) == (params.get("SHEETS") is None):
+            raise self.fail("EXTENT", "or SHEETS: give exactly one of them")
+        if not (params.get("OUTPUT") or params.get("FOLDER")):
+            raise self.fail("OUTPUT", "or FOLDER: give at least one")
+
+    def process(self, params, feedback: Feedback):
+        from toolbox.cartography.sheet_job import run_sheets
+
+        return run_sheets(params, feedback)

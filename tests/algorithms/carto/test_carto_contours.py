@@ -1,0 +1,239 @@
+"""carto:contours: vertices exactly on the level of the bilinear DEM surface / the TIN planes
+(plane and cone, checked with scipy interpolators), tiles stitched into the untiled lines, no
+crossing and no leaving the cell band after smoothing on the real demo DEM, agreement with
+gdal_contour, index flags and the embedded style."""
+
+from __future__ import annotations
+
+import shutil
+import sqlite3
+import subprocess
+
+import geopandas as gpd
+import numpy as np
+import pyogrio
+import pytest
+import shapely
+from affine import Affine
+from scipy.interpolate import LinearNDInterpolator, RegularGridInterpolator
+from scipy.spatial import Delaunay
+
+import toolbox
+from toolbox.cartography.contours import dem_contours, smooth_contours, tin_contours
+from toolbox.demo.samples.terrain import CRS, terrain
+from toolbox.io.raster import write_raster
+
+X0, Y0, CELL = 1_688_000.0, 4_800_000.0, 2.0
+
+
+def write_dem(path, z, cell=CELL):
+    write_raster(path, z.astype("float64"), Affine(cell, 0, X0, 0, -cell, Y0), CRS,
+                 nodata=-9999.0)
+    return path
+
+
+def centres(rows, cols, cell=CELL):
+    xc = X0 + (np.arange(cols) + 0.5) * cell
+    yc = Y0 - (np.arange(rows) + 0.5) * cell
+    return np.meshgrid(xc, yc)
+
+
+def bilinear(z, cell=CELL):
+    """Independent oracle: scipy's bilinear interpolator through the cell centres."""
+    rows, cols = z.shape
+    xc = X0 + (np.arange(cols) + 0.5) * cell
+    yc = Y0 - (np.arange(rows) + 0.5) * cell
+    f = RegularGridInterpolator((yc[::-1], xc), z[::-1], bounds_error=False, fill_value=None)
+    return lambda xy: f(np.column_stack([xy[:, 1], xy[:, 0]]))
+
+
+def read_contours(path):
+    return gpd.read_file(path, layer="contours")
+
+
+def test_plane_contours_are_exact_and_straight(tmp_path):
+    x, y = centres(40, 50)
+    z = 300.0 + 0.3 * (x - X0) - 0.2 * (y - Y0)
+    out = tmp_path / "c.gpkg"
+    result = toolbox.run("carto:contours", {"INPUT": write_dem(tmp_path / "p.tif", z),
+                                            "INTERVAL": 2.0, "OUTPUT": out})
+    frame = read_contours(out)
+    levels = np.arange(np.ceil(z.min() / 2) * 2, z.max(), 2.0)
+    assert sorted(frame["elev"]) == list(levels)  # one line per level
+    assert result["STATISTICS"]["lines"] == len(levels)
+    for geom, level in zip(frame.geometry, frame["elev"]):
+        xyz = shapely.get_coordinates(geom, include_z=True)
+        assert np.all(xyz[:, 2] == level)
+        np.testing.assert_allclose(300.0 + 0.3 * (xyz[:, 0] - X0) - 0.2 * (xyz[:, 1] - Y0),
+                                   level, atol=1e-6)
+        # higher ground on the right: the gradient (0.3, -0.2) points right of the direction
+        d = xyz[-1, :2] - xyz[0, :2]
+        assert d[0] * -0.2 - d[1] * 0.3 < 0
+    assert frame.geometry.iloc[0].has_z
+
+
+def test_cone_contours_lie_on_the_bilinear_surface(tmp_path):
+    x, y = centres(60, 60)
+    r = np.hypot(x - (X0 + 60), y - (Y0 - 60))
+    z = 400.0 - 0.5 * r
+    contours = dem_contours(z, [395.0, 390.0, 385.0, 380.0], X0 + 1, Y0 - 1, CELL, -CELL, tile=17)
+    oracle = bilinear(z)
+    for c in contours:
+        np.testing.assert_allclose(oracle(c.xy), c.level, atol=1e-9)
+    rings = [c for c in contours if c.closed]
+    assert sorted(c.level for c in contours) == [380.0, 385.0, 390.0, 395.0]  # one ring each
+    assert len(rings) == 4
+    for c in rings:  # and each near its circle (linear interpolation of r along cell edges)
+        radius = np.hypot(c.xy[:, 0] - (X0 + 60), c.xy[:, 1] - (Y0 - 60))
+        expected = (400.0 - c.level) / 0.5
+        assert np.abs(radius - expected).max() < CELL**2 / (8 * (expected - CELL)) + 1e-9
+
+
+def test_tin_contours_are_exact_and_chained(tmp_path):
+    rng = np.random.default_rng(3)
+    xy = rng.uniform(-50, 50, (400, 2))
+    xy = np.vstack([xy, [[0, 0]]])
+    z = 100.0 - 0.4 * np.hypot(xy[:, 0], xy[:, 1])
+    tri = Delaunay(xy)
+    xyz = np.column_stack([xy + [X0, Y0], z])
+    levels = [95.0, 90.0, 85.0]
+    contours = tin_contours(xyz, tri.simplices, levels)
+    oracle = LinearNDInterpolator(tri, z)  # scipy's own piecewise-linear surface
+    for c in contours:
+        np.testing.assert_allclose(oracle(c.xy - [X0, Y0]), c.level, atol=1e-9)
+    assert [c.level for c in contours if c.closed] == levels  # whole rings around the apex
+    for c in contours:  # higher ground (the apex) on the right of closed rings: clockwise
+        if c.closed:
+            assert shapely.is_ccw(shapely.linearrings(c.xy)) is np.False_
+
+
+def test_contours_from_a_tin_geopackage(tmp_path):
+    rng = np.random.default_rng(5)
+    xy = rng.uniform(0, 100, (300, 2)) + [X0, Y0]
+    z = 300.0 + 0.1 * (xy[:, 0] - X0) + 0.05 * (xy[:, 1] - Y0)
+    points = gpd.GeoDataFrame(geometry=shapely.points(xy[:, 0], xy[:, 1], z), crs=CRS)
+    points.to_file(tmp_path / "pts.gpkg")
+    toolbox.run("tin:delaunay", {"INPUT": tmp_path / "pts.gpkg", "OUTPUT": tmp_path / "t.gpkg"})
+    out = tmp_path / "c.gpkg"
+    toolbox.run("carto:contours", {"TIN": tmp_path / "t.gpkg", "INTERVAL": 1.0, "OUTPUT": out})
+    frame = read_contours(out)
+    assert len(frame) > 5 and frame.crs.to_epsg() == 3003
+    for geom, level in zip(frame.geometry, frame["elev"]):
+        c = shapely.get_coordinates(geom)
+        np.testing.assert_allclose(300 + 0.1 * (c[:, 0] - X0) + 0.05 * (c[:, 1] - Y0), level,
+                                   atol=1e-6)
+
+
+def test_tiles_stitch_into_the_untiled_lines():
+    z, t = terrain()
+    z = z.astype("float64")
+    args = (np.arange(290.0, 345.0, 5.0), t.c + 2, t.f - 2, 4.0, -4.0)
+    whole = dem_contours(z, *args)
+    tiled = dem_contours(z, *args, tile=37)
+    assert len(tiled) == len(whole) > 100
+    geoms = {(c.level, shapely.normalize(shapely.linestrings(c.xy)).wkb) for c in whole}
+    for c in tiled:  # the same lines: nothing broken at tile edges, nothing doubled
+        assert (c.level, shapely.normalize(shapely.linestrings(c.xy)).wkb) in geoms
+
+
+def test_tiles_stitch_around_nodata_holes():
+    z, t = terrain()
+    z = z.astype("float64")
+    z[100:160, 70:75] = np.nan  # a hole across the tile edge at column 74
+    z[221:223, 30:200] = np.nan  # a strip on the tile edge at row 222
+    args = (np.arange(290.0, 345.0, 5.0), t.c + 2, t.f - 2, 4.0, -4.0)
+    whole = dem_contours(z, *args)
+    tiled = dem_contours(z, *args, tile=37)
+    assert len(tiled) == len(whole)
+    geoms = {(c.level, shapely.normalize(shapely.linestrings(c.xy)).wkb) for c in whole}
+    assert all((c.level, shapely.normalize(shapely.linestrings(c.xy)).wkb) in geoms
+               for c in tiled)
+
+
+@pytest.fixture(scope="module")
+def demo_dem(tmp_path_factory):
+    z, transform = terrain()
+    path = tmp_path_factory.mktemp("dem") / "dem.tif"
+    write_raster(path, z, transform, CRS, nodata=-9999.0)
+    return path, z.astype("float64"), transform
+
+
+def test_smoothed_contours_never_cross_nor_leave_their_band(demo_dem, tmp_path):
+    path, z, t = demo_dem
+    out = tmp_path / "smooth.gpkg"
+    res = toolbox.run("carto:contours", {"INPUT": path, "INTERVAL": 2.0, "SMOOTHING": 3,
+                                         "TILE_SIZE": 100, "OUTPUT": out})
+    frame = read_contours(out)
+    geoms = frame.geometry.values
+    left, right = shapely.STRtree(geoms).query(geoms, predicate="intersects")
+    assert (left == right).all(), "two contours touch or cross"
+    # the band: every vertex and segment midpoint lies in a grid square whose four corner
+    # heights bracket the line's level
+    x0, y0 = t.c + 2.0, t.f - 2.0
+    for geom, level in zip(geoms, frame["elev"]):
+        xy = shapely.get_coordinates(geom)
+        pts = np.vstack([xy, 0.5 * (xy[1:] + xy[:-1])])
+        col = np.clip(np.floor((pts[:, 0] - x0) / 4.0).astype(int), 0, z.shape[1] - 2)
+        row = np.clip(np.floor((y0 - pts[:, 1]) / 4.0).astype(int), 0, z.shape[0] - 2)
+        corners = np.stack([z[row, col], z[row + 1, col], z[row, col + 1],
+                            z[row + 1, col + 1]])
+        assert (corners.min(axis=0) <= level + 1e-9).all()
+        assert (corners.max(axis=0) >= level - 1e-9).all()
+    # smoothing did something: more vertices than the traced lines
+    plain = dem_contours(z, sorted(set(frame["elev"])), x0, y0, 4.0, -4.0)
+    assert res["STATISTICS"]["vertices"] > 1.5 * sum(len(c.xy) for c in plain)
+
+
+def test_smoothing_reverts_lines_that_would_touch():
+    # two close parallel zigzags: corner cutting of one would reach the other
+    a = np.array([[0.0, 0.0], [1.0, 0.9], [2.0, 0.0], [3.0, 0.9], [4.0, 0.0]])
+    b = a + [0.0, 0.35]
+    from toolbox.cartography.contours import Contour
+
+    lines, reverted = smooth_contours([Contour(1.0, a), Contour(2.0, b)], 1)
+    assert not shapely.intersects(shapely.linestrings(lines[0].xy),
+                                  shapely.linestrings(lines[1].xy))
+    assert reverted in (0, 2)
+
+
+def test_index_contours_and_embedded_style(demo_dem, tmp_path):
+    out, qml = tmp_path / "c.gpkg", tmp_path / "c.qml"
+    toolbox.run("carto:contours", {"INPUT": demo_dem[0], "INTERVAL": 5.0, "INDEX_EVERY": 5,
+                                   "OUTPUT": out, "STYLE": qml})
+    frame = read_contours(out)
+    assert ((frame["elev"] % 25 == 0) == (frame["index"] == 1)).all()
+    assert frame["index"].sum() > 0 and (frame["index"] == 0).sum() > 0
+    assert pyogrio.read_info(out, layer="contours")["geometry_type"] == "LineString Z"
+    with sqlite3.connect(out) as db:
+        name, style, default = db.execute(
+            "SELECT f_table_name, styleQML, useAsDefault FROM layer_styles").fetchone()
+    assert name == "contours" and default == 1 and 'placement="3"' in style
+    assert qml.read_text() == style
+
+
+def test_needs_exactly_one_surface(demo_dem, tmp_path):
+    from toolbox.errors import ParameterError
+
+    with pytest.raises(ParameterError, match="exactly one"):
+        toolbox.run("carto:contours", {"OUTPUT": tmp_path / "c.gpkg"})
+
+
+@pytest.mark.skipif(shutil.which("gdal_contour") is None,
+                    reason="gdal_contour not found: install gdal-bin to compare with GDAL")
+def test_agrees_with_gdal_contour(demo_dem, tmp_path):
+    path, z, t = demo_dem
+    ref = tmp_path / "gdal.gpkg"
+    subprocess.run(["gdal_contour", "-q", "-i", "5", "-a", "elev", str(path), str(ref)],
+                   check=True)
+    out = tmp_path / "ours.gpkg"
+    toolbox.run("carto:contours", {"INPUT": path, "INTERVAL": 5.0, "TILE_SIZE": 128,
+                                   "OUTPUT": out})
+    from toolbox.cartography.compare import contour_agreement
+
+    gdal = gpd.read_file(ref)
+    # gdal_contour runs its lines on to the raster edge (half a cell past the outer centres)
+    rows, cols = z.shape
+    centre_box = (t.c + 2, t.f - 4 * rows + 2, t.c + 4 * cols - 2, t.f - 2)
+    agree = contour_agreement(read_contours(out), gdal, tolerance=0.001, clip=centre_box)
+    assert agree["ours_matched"] > 0.99 and agree["reference_matched"] > 0.99, agree
+    assert set(agree["levels"]) == set(gdal["elev"])

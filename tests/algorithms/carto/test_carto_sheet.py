@@ -1,0 +1,131 @@
+"""carto:sheet: the PDF's page size is the chosen ISO sheet, and the scale read back from the
+file (grid-label and scale-bar text positions, in PDF points) is the requested one; one PDF per
+sheet of a sheet grid, named by sheet id."""
+
+from __future__ import annotations
+
+import geopandas as gpd
+import numpy as np
+import pytest
+import shapely
+
+import toolbox
+from toolbox.demo.samples.terrain import CRS, terrain
+from toolbox.io.raster import write_raster
+
+pypdf = pytest.importorskip("pypdf", reason="pypdf (dev extra) reads the sheet PDFs back")
+PT_PER_MM = 72 / 25.4
+
+
+@pytest.fixture(scope="module")
+def inputs(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("sheet")
+    z, transform = terrain()
+    dem = folder / "dem.tif"
+    write_raster(dem, z, transform, CRS, nodata=-9999.0)
+    shade = folder / "shade.tif"
+    toolbox.run("dem:hillshade", {"INPUT": dem, "OUTPUT": shade})
+    contours = folder / "contours.gpkg"
+    toolbox.run("carto:contours", {"INPUT": dem, "INTERVAL": 5.0, "OUTPUT": contours})
+    roads = gpd.GeoDataFrame({"code": ["road"]}, geometry=[shapely.linestrings(
+        [[1687600, 4799000], [1688900, 4800200]])], crs=CRS)
+    roads.to_file(folder / "roads.gpkg")
+    return {"base": shade, "contours": contours, "roads": folder / "roads.gpkg"}
+
+
+def texts(page):
+    found = []
+
+    def visit(text, cm, tm, font, size):
+        if text.strip():
+            found.append((text.strip(), cm[4] + tm[4], cm[5] + tm[5]))
+
+    page.extract_text(visitor_text=visit)
+    return found
+
+
+def test_sheet_page_size_and_scale_from_the_pdf(inputs, tmp_path):
+    out, png = tmp_path / "sheet.pdf", tmp_path / "sheet.png"
+    res = toolbox.run("carto:sheet", {
+        "EXTENT": "1687600,4799000,1688600,4799800 [EPSG:3003]", "SCALE": 5000,
+        "BASE": inputs["base"], "CONTOURS": inputs["contours"], "LAYERS": [inputs["roads"]],
+        "TITLE": "Siena demo", "DATE": "2026-12-01", "OUTPUT": out, "PNG": png})
+    reader = pypdf.PdfReader(out)
+    assert len(reader.pages) == 1
+    box = reader.pages[0].mediabox
+    # 1000 x 800 m at 1:5000 = 200 x 160 mm of map + panel: A3 landscape (420 x 297 mm)
+    assert res["SHEETS_WRITTEN"][0]["paper"] == "A3"
+    assert float(box.width) == pytest.approx(420 * PT_PER_MM, abs=0.01)
+    assert float(box.height) == pytest.approx(297 * PT_PER_MM, abs=0.01)
+    found = texts(reader.pages[0])
+    words = {t for t, _, _ in found}
+    assert {"Siena demo", "scale: 1:5000", "CRS: EPSG:3003", "date: 2026-12-01",
+            "Legend", "N"} <= words
+    # grid labels 1688000 and 1688500 at the bottom edge are 500 m apart on the ground
+    bottom_y = min(y for t, x, y in found if t == "1688000")
+    xs = sorted(x for t, x, y in found if t in ("1688000", "1688500") and y == bottom_y)
+    assert len(xs) == 2
+    scale = 500.0 / ((xs[1] - xs[0]) / PT_PER_MM / 1000.0)
+    assert scale == pytest.approx(5000, rel=1e-6)
+    # the scale bar: its end labels start at the bar's ends
+    bar = res["SHEETS_WRITTEN"][0]["scale_bar"]
+    x0 = next(x for t, x, y in found if t == "0")
+    x1 = next(x for t, x, y in found if t == f"{bar['ground_length']:.0f} m")
+    assert bar["ground_length"] / ((x1 - x0) / PT_PER_MM / 1000.0) == pytest.approx(5000,
+                                                                                    rel=1e-6)
+    assert "scale=1:5000" in reader.metadata["/Keywords"]
+    assert png.read_bytes()[:4] == b"\x89PNG"
+    # vector quality: the contours are paths, not only a picture
+    content = reader.pages[0].get_contents().get_data()
+    assert content.count(b" l\n") + content.count(b" l ") > 1000
+
+
+def test_one_pdf_per_sheet_named_by_id(inputs, tmp_path):
+    sheets = gpd.GeoDataFrame({"name": ["NW", "NE"]}, geometry=[
+        shapely.box(1687600, 4799600, 1688100, 4800000),
+        shapely.box(1688100, 4799600, 1688600, 4800000)], crs=CRS)
+    sheets.to_file(tmp_path / "sheets.gpkg")
+    folder = tmp_path / "sheets"
+    res = toolbox.run("carto:sheet", {"SHEETS": tmp_path / "sheets.gpkg", "SHEET_ID": "name",
+                                      "SCALE": 2000, "BASE": inputs["base"],
+                                      "OUTPUT": tmp_path / "atlas.pdf", "FOLDER": str(folder)})
+    assert sorted(p.name for p in folder.iterdir()) == ["NE.pdf", "NE.png", "NW.pdf", "NW.png"]
+    assert len(pypdf.PdfReader(tmp_path / "atlas.pdf").pages) == 2
+    for sheet in res["SHEETS_WRITTEN"]:
+        reader = pypdf.PdfReader(folder / f"{sheet['sheet']}.pdf")
+        words = {t for t, _, _ in texts(reader.pages[0])}
+        assert f"sheet: {sheet['sheet']}" in words and "scale: 1:2000" in words
+        # 500 x 400 m at 1:2000 = 250 x 200 mm
+        assert np.allclose(sheet["frame_mm"][2:], [250, 200])
+
+
+def test_styles_from_the_shared_style_model():
+    from dataclasses import dataclass
+
+    from toolbox.cartography.sheet_io import styles_from_model
+
+    @dataclass
+    class Code:  # the fields of toolbox.styles.CodeStyle the sheet uses
+        code: str
+        kind: str
+        rgb: tuple
+        line_width: float
+        fill: tuple | None
+        label: str
+
+    @dataclass
+    class Layer:  # and of toolbox.styles.LayerStyle
+        name: str
+        kind: str
+        styles: list
+        field: str = "code"
+        label_field: str | None = None
+
+    frame = gpd.GeoDataFrame({"code": ["A", "B", "A"]}, geometry=[
+        shapely.box(0, 0, 1, 1), shapely.box(2, 0, 3, 1), shapely.box(4, 0, 5, 1)], crs=CRS)
+    layer = Layer("areas", "polygon", [Code("A", "polygon", (200, 0, 0), 0.3, (200, 0, 0, 96),
+                                            "buildings"),
+                                       Code("B", "polygon", (0, 120, 0), 0.3, None, "woods")])
+    styles = styles_from_model(frame, layer)
+    assert [(s.name, len(s.frame), s.rgb, s.fill) for s in styles] == [
+        ("buildings", 2, (200, 0, 0), (200, 0, 0, 96)), ("woods", 1, (0, 120, 0), None)]

@@ -1,0 +1,115 @@
+"""dem:slope, dem:aspect, dem:hillshade against gdaldem on the demo's real (jacksboro-derived)
+DEM, computed in tiles smaller than the raster; exact values on a plane; the raster:hillshade
+alias."""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+
+import numpy as np
+import pytest
+import rasterio
+
+import toolbox
+from toolbox.demo.samples.terrain import CRS, terrain
+from toolbox.io.raster import write_raster
+from toolbox.registry import get
+
+GDALDEM = shutil.which("gdaldem")
+needs_gdaldem = pytest.mark.skipif(
+    GDALDEM is None, reason="gdaldem not found: install gdal-bin (apt-get install gdal-bin) to "
+    "compare dem:slope/aspect/hillshade with GDAL")
+TILE = 96  # the 344 x 403 DEM is cut into 20 tiles
+
+
+@pytest.fixture(scope="module")
+def real_dem(tmp_path_factory):
+    z, transform = terrain()
+    path = tmp_path_factory.mktemp("terrain") / "siena_dem.tif"
+    write_raster(path, z, transform, CRS, nodata=-9999.0)
+    assert z.shape[0] > 3 * TILE and z.shape[1] > 3 * TILE
+    return path
+
+
+def gdaldem(tmp_path, mode, dem, *args):
+    out = tmp_path / f"gdal_{mode}.tif"
+    subprocess.run([GDALDEM, mode, str(dem), str(out), "-q", *args], check=True)
+    with rasterio.open(out) as ds:
+        return ds.read(1, masked=True)
+
+
+def ours(tmp_path, algorithm, dem, **params):
+    out = tmp_path / f"{algorithm.replace(':', '_')}.tif"
+    toolbox.run(algorithm, {"INPUT": dem, "OUTPUT": out, "TILE_SIZE": TILE} | params)
+    with rasterio.open(out) as ds:
+        assert ds.crs.to_epsg() == 3003
+        return ds.read(1), ds.nodata
+
+
+def interior(a):
+    return a[1:-1, 1:-1]
+
+
+@needs_gdaldem
+@pytest.mark.parametrize("units,flag,tol", [("degrees", [], 1e-3), ("percent", ["-p"], 1e-3)])
+def test_slope_equals_gdaldem(real_dem, tmp_path, units, flag, tol):
+    mine, nodata = ours(tmp_path, "dem:slope", real_dem, UNITS=units)
+    ref = gdaldem(tmp_path, "slope", real_dem, *flag)
+    assert nodata == -9999.0
+    # gdaldem leaves the border cells nodata (no -compute_edges); everything inside must agree
+    assert not interior(ref.mask).any()
+    diff = np.abs(interior(mine) - interior(ref.data))
+    assert diff.max() < tol, f"max |slope - gdaldem| = {diff.max()} {units}"
+    assert interior(mine).max() > (5 if units == "degrees" else 8)  # a real, sloping terrain
+
+
+@needs_gdaldem
+def test_aspect_equals_gdaldem(real_dem, tmp_path):
+    mine, _ = ours(tmp_path, "dem:aspect", real_dem)
+    ref = gdaldem(tmp_path, "aspect", real_dem)
+    slope_deg, _ = ours(tmp_path, "dem:slope", real_dem)
+    m, r = interior(mine), interior(ref.filled(-9999.0))
+    # the same flat cells, but for rounding: gdaldem works in float32, so a gradient of a few
+    # 1e-5 may be zero for one and not the other
+    differ = (m == -9999.0) != (r == -9999.0)
+    assert (m == -9999.0).sum() > 100 and (interior(slope_deg)[differ] < 1e-3).all()
+    # aspect of near-flat cells is ill-conditioned under gdaldem's float32 rounding
+    steep = interior(slope_deg) > 1.0
+    d = np.abs((m - r + 180.0) % 360.0 - 180.0)[steep]
+    assert steep.sum() > 0.5 * steep.size
+    assert d.max() < 0.05 and np.percentile(d, 99) < 0.005, (d.max(), np.percentile(d, 99))
+
+
+@needs_gdaldem
+@pytest.mark.parametrize("azimuth,altitude", [(315, 45), (120, 30)])
+def test_hillshade_equals_gdaldem(real_dem, tmp_path, azimuth, altitude):
+    mine, nodata = ours(tmp_path, "dem:hillshade", real_dem, AZIMUTH=azimuth,
+                        ALTITUDE=altitude)
+    ref = gdaldem(tmp_path, "hillshade", real_dem, "-az", str(azimuth), "-alt", str(altitude))
+    diff = np.abs(interior(mine).astype(int) - interior(ref.data).astype(int))
+    assert nodata == 0 and diff.max() <= 1, diff.max()  # one grey level (rounding)
+    assert np.unique(interior(mine)).size > 100
+
+
+def test_slope_and_aspect_of_a_plane_are_exact(plane_dem, tmp_path):
+    path, sx, sy = plane_dem  # dz/dx = 0.2 east, dz/dy = -0.1 north: downhill faces west-north
+    out = tmp_path / "slope.tif"
+    toolbox.run("dem:slope", {"INPUT": path, "OUTPUT": out, "TILE_SIZE": 16})
+    pct = tmp_path / "slope_pct.tif"
+    toolbox.run("dem:slope", {"INPUT": path, "OUTPUT": pct, "UNITS": "percent"})
+    asp = tmp_path / "aspect.tif"
+    toolbox.run("dem:aspect", {"INPUT": path, "OUTPUT": asp, "TILE_SIZE": 16})
+    rise = np.hypot(sx, sy)
+    with rasterio.open(out) as a, rasterio.open(pct) as b, rasterio.open(asp) as c:
+        np.testing.assert_allclose(a.read(1), np.degrees(np.arctan(rise)), atol=1e-3)  # float32 DEM
+        np.testing.assert_allclose(b.read(1), 100 * rise, atol=5e-3)
+        # downhill direction (-0.2, +0.1): azimuth atan2(east=-0.2, north=0.1)
+        np.testing.assert_allclose(c.read(1), np.degrees(np.arctan2(-sx, -sy)) % 360, atol=5e-3)
+
+
+def test_raster_hillshade_is_an_alias_of_dem_hillshade(plane_dem, tmp_path):
+    assert get("raster:hillshade") is get("dem:hillshade")
+    out = tmp_path / "hs.tif"
+    toolbox.run("raster:hillshade", {"INPUT": plane_dem[0], "OUTPUT": out})
+    assert out.exists()

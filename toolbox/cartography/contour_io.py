@@ -1,0 +1,112 @@
+"""Contours from files: a DEM GeoTIFF traced tile by tile and stitched, or a TIN layer; written
+as a LineString Z GeoPackage layer with elevation and index flags."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from toolbox.cartography.contours import (
+    Contour,
+    contour_levels,
+    index_flags,
+    smooth_contours,
+    tin_contours,
+    to_map,
+    trace_tiles,
+)
+
+
+@dataclass
+class GridFrame:
+    """Cell-centre frame of a raster: centre of cell (0, 0) and the steps between centres."""
+
+    x0: float
+    y0: float
+    dx: float
+    dy: float
+
+    @classmethod
+    def of(cls, transform) -> GridFrame:
+        if transform.b != 0 or transform.d != 0:
+            raise ValueError("rotated rasters are not supported")
+        return cls(transform.c + 0.5 * transform.a, transform.f + 0.5 * transform.e,
+                   transform.a, transform.e)
+
+
+@dataclass
+class ContourResult:
+    contours: list[Contour]
+    levels: np.ndarray
+    stats: dict[str, Any] = field(default_factory=dict)
+
+
+def raster_range(src, band: int, tile_size: int) -> tuple[float, float]:
+    """Min and max of a band's valid cells, read in tiles."""
+    from toolbox.io.raster import iter_windows
+
+    lo, hi = np.inf, -np.inf
+    for tile in iter_windows(src.width, src.height, tile_size):
+        z = src.read(band, window=tile.core, masked=True).astype("float64").filled(np.nan)
+        if np.isfinite(z).any():
+            lo, hi = min(lo, np.nanmin(z)), max(hi, np.nanmax(z))
+    return float(lo), float(hi)
+
+
+def raster_contours(path: str | Path, band: int, interval: float, base: float,
+                    tile_size: int = 1024, smoothing: int = 0, feedback=None) -> ContourResult:
+    """Contours of a DEM, read in ``tile_size`` blocks that share one row/column with their
+    neighbours (each grid square belongs to one block) and stitched across block edges."""
+    import rasterio
+    from rasterio.windows import Window
+
+    with rasterio.open(path) as src:
+        frame = GridFrame.of(src.transform)
+        zmin, zmax = raster_range(src, band, tile_size)
+        levels = contour_levels(zmin, zmax, interval, base)
+
+        def read_block(r, c, h, w):
+            z = src.read(band, window=Window(c, r, w, h), masked=True)
+            return z.astype("float64").filled(np.nan)
+
+        contours, n_pieces = trace_tiles(read_block, src.height, src.width, tile_size, levels,
+                                         feedback)
+        n_tiles = len(range(0, max(src.height - 1, 1), tile_size)) * \
+            len(range(0, max(src.width - 1, 1), tile_size))
+    contours, reverted = smooth_contours(contours, smoothing)
+    contours = to_map(contours, frame.x0, frame.y0, frame.dx, frame.dy)
+    stats = {"tiles": n_tiles, "pieces_before_stitching": n_pieces,
+             "smoothing_reverted": reverted, "z_min": zmin, "z_max": zmax}
+    return ContourResult(contours, levels, stats)
+
+
+def tin_layer_contours(xyz: np.ndarray, triangles: np.ndarray, interval: float,
+                       base: float) -> ContourResult:
+    """Contours of a TIN (nodes, triangles) at ``base + k·interval``."""
+    z = xyz[:, 2]
+    levels = contour_levels(float(z.min()), float(z.max()), interval, base) if len(z) else \
+        np.empty(0)
+    return ContourResult(tin_contours(xyz, triangles, levels), levels,
+                         {"triangles": int(len(triangles))})
+
+
+def contour_frame(contours: list[Contour], interval: float, base: float, index_every: int,
+                  crs: Any):
+    """GeoDataFrame of LineString Z contours: ``elev`` (m), ``index`` (1 for index contours),
+    ``closed`` (1 for rings), ``length`` (map units)."""
+    import geopandas as gpd
+    import shapely
+
+    levels = np.array([c.level for c in contours], dtype="float64")
+    geoms = [shapely.linestrings(np.column_stack([c.xy, np.full(len(c.xy), c.level)]))
+             for c in contours]
+    frame = gpd.GeoDataFrame({
+        "elev": levels,
+        "index": index_flags(levels, interval, base, index_every).astype("int32"),
+        "closed": np.array([c.closed for c in contours], dtype="int32"),
+        "length": np.array([float(shapely.length(g)) for g in geoms]),
+    }, geometry=geoms, crs=crs)
+    return frame

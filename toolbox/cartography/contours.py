@@ -1,0 +1,367 @@
+"""Contour lines ("curve di livello") from a DEM grid or a TIN, arrays in, arrays out.
+
+Conventions: a DEM grid is ``z[row, col]`` with cell values at cell centres; ``x0, y0`` is the
+centre of cell (0, 0) and ``dx, dy`` the steps between centres (``dy < 0`` for north-up rasters).
+Between centres the surface is bilinear, as for ``gdal_contour``; contours are traced with
+contourpy. A TIN is nodes ``xyz (N, 3)`` and triangles ``(T, 3)``; each triangle is a plane.
+
+Every contour is an ``(n, 2)`` array of x, y (DEM kernels work in grid coordinates, x = column
+and y = row of the cell centres, and :func:`to_map` converts), oriented with higher ground on its right (as
+ArcGIS and QGIS label placement assume); closed contours repeat their first vertex.
+"""
+
+from __future__ import annotations
+
+from collections import defaultdict
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass
+class Contour:
+    """One contour line: its elevation and its vertices ``(n, 2)``."""
+
+    level: float
+    xy: np.ndarray
+
+    @property
+    def closed(self) -> bool:
+        return len(self.xy) > 2 and bool(np.array_equal(self.xy[0], self.xy[-1]))
+
+
+def contour_levels(zmin: float, zmax: float, interval: float, base: float = 0.0) -> np.ndarray:
+    """Levels ``base + k·interval`` within ``[zmin, zmax]`` (the thesis: 5 m at 1:5000)."""
+    if not interval > 0:
+        raise ValueError(f"interval must be > 0, got {interval}")
+    if not (np.isfinite(zmin) and np.isfinite(zmax)) or zmax < zmin:
+        return np.empty(0)
+    k0 = np.ceil((zmin - base) / interval)
+    k1 = np.floor((zmax - base) / interval)
+    return base + np.arange(k0, k1 + 1) * interval
+
+
+def index_flags(levels: np.ndarray, interval: float, base: float = 0.0,
+                every: int = 5) -> np.ndarray:
+    """True for index contours: every ``every``-th level counted from ``base``."""
+    k = np.rint((np.asarray(levels, dtype="float64") - base) / interval).astype(np.int64)
+    return (k % every) == 0 if every > 0 else np.zeros(len(k), dtype=bool)
+
+
+# -- DEM grids ------------------------------------------------------------------------------------
+def grid_contour_pieces(z: np.ndarray, levels: Iterable[float], x0: float, y0: float,
+                        dx: float, dy: float) -> list[Contour]:
+    """Contours of one grid (NaN = no data) with contourpy, oriented higher-on-the-right.
+
+    Lines end where the grid or the data end; :func:`stitch` joins pieces of adjacent tiles.
+    """
+    import contourpy
+
+    z = np.asarray(z, dtype="float64")
+    rows, cols = z.shape
+    if rows < 2 or cols < 2:
+        return []
+    x = x0 + np.arange(cols) * dx
+    y = y0 + np.arange(rows) * dy
+    data = np.ma.masked_invalid(z) if np.isnan(z).any() else z
+    gen = contourpy.contour_generator(x, y, data, name="serial",
+                                      line_type=contourpy.LineType.Separate)
+    # contourpy leaves higher ground on the left in a y-up frame: flip when the frame is y-up
+    # (dx·dy > 0) to keep higher ground on the right
+    flip = (dx * dy) > 0
+    out = []
+    for level in levels:
+        # trace just below the level so a node exactly at it counts as above (as gdal_contour
+        # and tin_contours do); the offset (1024 ulps) moves lines by far less than a micron
+        level = float(level)
+        for line in gen.lines(level - 1024 * np.spacing(abs(level))):
+            line = drop_repeated(line)
+            if len(line) >= 2:  # a node exactly at the level gives a zero-length loop: dropped
+                out.append(Contour(level, line[::-1] if flip else line))
+    return out
+
+
+def drop_repeated(xy: np.ndarray) -> np.ndarray:
+    """``xy`` without vertices equal to their predecessor."""
+    if len(xy) < 2:
+        return xy
+    keep = np.ones(len(xy), dtype=bool)
+    keep[1:] = (xy[1:] != xy[:-1]).any(axis=1)
+    return xy[keep]
+
+
+@dataclass
+class Piece:
+    """A contour piece traced in one tile (tiles are indexed by their first row and column)."""
+
+    level: float
+    xy: np.ndarray
+    tile: tuple[int, int]
+
+
+def trace_tiles(read_block: Callable[[int, int, int, int], np.ndarray], rows: int, cols: int,
+                tile: int, levels: Iterable[float], feedback=None) -> tuple[list[Contour], int]:
+    """Contours of a ``rows`` x ``cols`` grid traced in ``tile``-sized blocks and stitched, in
+    grid coordinates (x = column, y = row of the cell centres; :func:`to_map` converts).
+
+    ``read_block(row, col, height, width)`` returns a block of the grid (NaN = no data). Blocks
+    share their last row/column with the next block, so every grid square is traced once; the
+    pieces are then joined across block edges by :func:`stitch_pieces`. Grid coordinates keep
+    full precision near nodes and make tile edges exact integers. Returns the contours and the
+    number of pieces traced.
+    """
+    levels = list(levels)
+    starts = [(r, c) for r in range(0, max(rows - 1, 1), tile)
+              for c in range(0, max(cols - 1, 1), tile)]
+    pieces: list[Piece] = []
+    for i, (r, c) in enumerate(starts):
+        if feedback is not None:
+            feedback.check_canceled()
+            feedback.set_progress(80.0 * i / len(starts))
+        block = read_block(r, c, min(tile + 1, rows - r), min(tile + 1, cols - c))
+        for p in grid_contour_pieces(block, levels, float(c), float(r), 1.0, 1.0):
+            pieces.append(Piece(p.level, p.xy, (r, c)))
+    return stitch_pieces(pieces, tile), len(pieces)
+
+
+def to_map(contours: list[Contour], x0: float, y0: float, dx: float, dy: float) -> list[Contour]:
+    """Grid-coordinate contours (higher ground on the right) in map coordinates, still with
+    higher ground on the right."""
+    out = []
+    for c in contours:
+        xy = np.column_stack([x0 + c.xy[:, 0] * dx, y0 + c.xy[:, 1] * dy])
+        out.append(Contour(c.level, xy[::-1] if dx * dy < 0 else xy))
+    return out
+
+
+def stitch_pieces(pieces: list[Piece], tile: int) -> list[Contour]:
+    """Join pieces traced in adjacent tiles into whole lines, by topology, not by distance.
+
+    On each shared tile edge, the ends of one level's pieces from the two tiles cross the same
+    grid edges (one crossing per level and edge), so sorted along the tile edge they pair up one
+    to one (an end whose partner is missing, where no data lies across the edge, stays open).
+    Paired ends get identical coordinates and the pieces are chained head to tail: no break, no
+    duplicated vertex, and near-coincident points elsewhere are never merged.
+    """
+    tol = 1e-9  # grid units: ends on a tile edge have an exactly integer coordinate
+    # ends on tile edges: key (level, axis, grid line, tile along the line) -> [(pos, side, end)]
+    ends: dict[tuple, list[tuple[float, int, tuple[int, int]]]] = defaultdict(list)
+    for i, p in enumerate(pieces):
+        if np.array_equal(p.xy[0], p.xy[-1]):
+            continue
+        r0, c0 = p.tile
+        for which, (col, row) in ((0, p.xy[0]), (1, p.xy[-1])):
+            # an end lies on a grid edge: its coordinate across that edge is an exact integer
+            # (a crossing next to a node is off by ~1e-10 along the edge, never across it)
+            axis, pos_line, along, start = min(
+                (("v", col, row, c0), ("h", row, col, r0)),
+                key=lambda a: abs(a[1] - round(a[1])))
+            line = round(pos_line)
+            if abs(pos_line - line) > tol or line % tile or line == 0:
+                continue
+            side = 0 if line == start + tile else 1  # 0: the tile before the line
+            if side == 1 and line != start:
+                continue
+            other = r0 if axis == "v" else c0
+            ends[(p.level, axis, line, other)].append((along, side, (i, which)))
+    link: dict[tuple[int, int], tuple[int, int]] = {}
+    for group in ends.values():
+        before = sorted((e for e in group if e[1] == 0), key=lambda e: e[0])
+        after = sorted((e for e in group if e[1] == 1), key=lambda e: e[0])
+        i = j = 0  # merge the two sorted lists; an end with no partner (no data across the
+        while i < len(before) and j < len(after):  # tile edge) stays an end
+            (pa, _, a), (pb, _, b) = before[i], after[j]
+            if abs(pa - pb) <= 1e-7:
+                link[a], link[b] = b, a
+                i, j = i + 1, j + 1
+            elif pa < pb:
+                i += 1
+            else:
+                j += 1
+    return _chain(pieces, link)
+
+
+def _chain(pieces: list[Piece], link: dict[tuple[int, int], tuple[int, int]]) -> list[Contour]:
+    """Walk linked piece ends into lines (reversing pieces entered by their last vertex)."""
+    seen = [False] * len(pieces)
+    out: list[Contour] = []
+
+    def walk(i: int, entered_at: int) -> tuple[list[np.ndarray], bool]:
+        parts, closed = [], False
+        first = i
+        while True:
+            seen[i] = True
+            xy = pieces[i].xy if entered_at == 0 else pieces[i].xy[::-1]
+            parts.append(xy if not parts else xy[1:])
+            nxt = link.get((i, 1 - entered_at))
+            if nxt is None:
+                break
+            j, end = nxt
+            if j == first:
+                closed = True
+                break
+            if seen[j]:
+                break
+            i, entered_at = j, end
+        return parts, closed
+
+    # open lines start at an unlinked first vertex (keeps the orientation), then any other
+    # unlinked end; what is left are rings
+    for entry in (0, 1):
+        for i, p in enumerate(pieces):
+            if not seen[i] and (i, entry) not in link:
+                parts, _ = walk(i, entry)
+                out.append(Contour(p.level, np.vstack(parts)))
+    for i, p in enumerate(pieces):
+        if not seen[i]:
+            parts, _ = walk(i, 0)
+            xy = np.vstack(parts)
+            xy[-1] = xy[0]  # the last piece ends where the first began
+            out.append(Contour(p.level, xy))
+    return out
+
+
+def dem_contours(z: np.ndarray, levels: Iterable[float], x0: float, y0: float, dx: float,
+                 dy: float, tile: int | None = None, smoothing: int = 0) -> list[Contour]:
+    """Contours of a whole grid in map coordinates, optionally traced in ``tile`` x ``tile``
+    blocks and stitched, and smoothed (files go through
+    :func:`toolbox.cartography.contour_io.raster_contours`)."""
+    rows, cols = z.shape
+    contours, _ = trace_tiles(lambda r, c, h, w: z[r:r + h, c:c + w], rows, cols,
+                              tile or max(rows, cols), levels)
+    contours, _ = smooth_contours(contours, smoothing)
+    return to_map(contours, x0, y0, dx, dy)
+
+
+# -- TINs -----------------------------------------------------------------------------------------
+def tin_contours(xyz: np.ndarray, triangles: np.ndarray, levels: Iterable[float]) -> list[Contour]:
+    """Contours of a TIN: each triangle's plane cut at every level, segments chained.
+
+    A node exactly at a level counts as above it, so a triangle holds at most one segment per
+    level. Crossing points are interpolated from the lower node id to the higher one, so the two
+    triangles sharing an edge produce bit-identical points and chain exactly.
+    """
+    import shapely
+
+    xyz = np.asarray(xyz, dtype="float64")
+    tri = np.asarray(triangles, dtype=np.int64)
+    if not len(tri):
+        return []
+    tz = xyz[tri, 2]
+    zmin, zmax = tz.min(axis=1), tz.max(axis=1)
+    out: list[Contour] = []
+    for level in levels:
+        level = float(level)
+        sel = np.nonzero((zmin < level) & (zmax >= level))[0]
+        if not len(sel):
+            continue
+        t = tri[sel]
+        above = xyz[t, 2] >= level  # (m, 3)
+        points = []
+        for i, j in ((0, 1), (1, 2), (2, 0)):
+            a, b = np.minimum(t[:, i], t[:, j]), np.maximum(t[:, i], t[:, j])
+            za, zb = xyz[a, 2], xyz[b, 2]
+            crosses = above[:, i] != above[:, j]
+            with np.errstate(divide="ignore", invalid="ignore"):
+                f = np.where(crosses, (level - za) / (zb - za), np.nan)
+            p = xyz[a, :2] + f[:, None] * (xyz[b, :2] - xyz[a, :2])
+            points.append((crosses, p))
+        # the two crossed edges of each triangle, in edge order
+        crossed = np.column_stack([c for c, _ in points])
+        pts = np.stack([p for _, p in points], axis=1)  # (m, 3 edges, 2)
+        first = np.argmax(crossed, axis=1)
+        second = 2 - np.argmax(crossed[:, ::-1], axis=1)
+        rows = np.arange(len(sel))
+        p, q = pts[rows, first], pts[rows, second]
+        # the node on its own side of the level: above when the other two are below
+        n_above = above.sum(axis=1)
+        lone = np.where(n_above == 1, np.argmax(above, axis=1), np.argmin(above, axis=1))
+        lone_xy = xyz[t[rows, lone], :2]
+        d, e = q - p, lone_xy - p
+        side = d[:, 0] * e[:, 1] - d[:, 1] * e[:, 0]  # > 0: lone node on the left
+        lone_is_above = n_above == 1
+        # higher ground on the right: an above lone node must be right (side < 0)
+        swap = np.where(lone_is_above, side > 0, side < 0)
+        p2 = np.where(swap[:, None], q, p)
+        q2 = np.where(swap[:, None], p, q)
+        segs = shapely.linestrings(np.stack([p2, q2], axis=1))
+        merged = shapely.line_merge(shapely.multilinestrings(segs), directed=True)
+        for part in shapely.get_parts(merged):
+            out.append(Contour(level, shapely.get_coordinates(part)))
+    return out
+
+
+# -- smoothing ------------------------------------------------------------------------------------
+def _chaikin(xy: np.ndarray, closed: bool) -> np.ndarray:
+    """One round of Chaikin corner cutting (points at 1/4 and 3/4 of every segment); open lines
+    keep their end points."""
+    a, b = xy[:-1], xy[1:]
+    q = 0.75 * a + 0.25 * b
+    r = 0.25 * a + 0.75 * b
+    inner = np.empty((2 * len(a), 2))
+    inner[0::2], inner[1::2] = q, r
+    if closed:
+        return np.vstack([inner, inner[:1]])
+    return np.vstack([xy[:1], inner[1:-1], xy[-1:]])
+
+
+def _cells_of(xy: np.ndarray) -> np.ndarray:
+    """(k, 2) integer (col, row) of the grid square (between four centres) holding each point
+    given in grid coordinates."""
+    return np.floor(xy).astype(np.int64)
+
+
+def _cell_keys(cells: np.ndarray) -> np.ndarray:
+    return cells[:, 0] * (1 << 32) + cells[:, 1]
+
+
+def smooth_in_band(contour: Contour, iterations: int) -> np.ndarray:
+    """Chaikin-smoothed vertices of a DEM contour (grid coordinates) within its cell band.
+
+    The band is the set of grid cells (squares between four centres) the unsmoothed contour
+    crosses: the level lies between those cells' corner heights. A smoothing round is kept only
+    when every new vertex lies in a band cell and consecutive vertices lie in the same or
+    edge-adjacent band cells (two such cells form a rectangle, so the segment between them stays
+    inside the band too); otherwise the last valid round is returned.
+    """
+    xy = contour.xy
+    mid = 0.5 * (xy[:-1] + xy[1:])
+    band = np.unique(_cell_keys(_cells_of(mid)))
+    current = xy
+    for _ in range(iterations):
+        candidate = _chaikin(current, contour.closed)
+        cells = _cells_of(candidate)
+        inner = cells if contour.closed else cells[1:-1]
+        if not np.isin(_cell_keys(inner), band, assume_unique=False).all():
+            break
+        step = np.abs(np.diff(cells[1:-1] if not contour.closed else cells, axis=0)).sum(axis=1)
+        if (step > 1).any():
+            break
+        current = candidate
+    return current
+
+
+def smooth_contours(contours: list[Contour], iterations: int) -> tuple[list[Contour], int]:
+    """Smooth DEM contours (grid coordinates) within their cell bands, then undo the smoothing
+    of any two lines that touch or cross each other, until none do. Returns the lines and how
+    many were reverted."""
+    import shapely
+
+    if iterations <= 0 or not contours:
+        return contours, 0
+    smooth = [Contour(c.level, smooth_in_band(c, iterations)) for c in contours]
+    reverted: set[int] = set()
+    while True:
+        geoms = np.array([shapely.linestrings(c.xy) for c in smooth]) if len(smooth) > 1 else None
+        if geoms is None:
+            break
+        tree = shapely.STRtree(geoms)
+        left, right = tree.query(geoms, predicate="intersects")
+        bad = {int(i) for i, j in zip(left, right) if i != j} - reverted
+        if not bad:
+            break
+        for i in bad:
+            smooth[i] = contours[i]
+        reverted |= bad
+    return smooth, len(reverted)

@@ -1,0 +1,162 @@
+"""Profiles and sections from files: polylines, a DEM or a TIN or contour lines; GeoPackage
+layers and a plot."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from toolbox.cartography.profile import (
+    bilinear,
+    contour_crossings,
+    points_at,
+    sample_stations,
+    section_axes,
+)
+
+
+@dataclass
+class Profile:
+    """One sampled line: ``name`` (line id, or line/section), stations along it (``distance``,
+    from its start), points ``xy`` and heights ``z``; ``chainage`` is the position along the
+    axis (the distance itself for profiles, the section's station for sections)."""
+
+    name: str
+    line: int
+    section: int | None
+    chainage: float
+    distance: np.ndarray
+    xy: np.ndarray
+    z: np.ndarray
+
+
+class Surface:
+    """Heights at map points from a DEM (bilinear between cell centres; only the window around
+    the points is read, so DEM size does not matter) or a TIN (planes)."""
+
+    def __init__(self, dem=None, band: int = 1, tin=None):
+        self.dem, self.band, self.tin = dem, band, None
+        if dem is None:
+            from toolbox.terrain.tin.store import read_tin
+
+            self.tin = read_tin(tin)[:2]
+
+    def heights(self, xy: np.ndarray) -> np.ndarray:
+        if self.tin is not None:
+            from toolbox.terrain.tin.kernels import interpolate_tin
+
+            return interpolate_tin(self.tin[0], self.tin[1], xy[:, 0], xy[:, 1])
+        import rasterio
+        from rasterio.windows import Window
+
+        from toolbox.cartography.contour_io import GridFrame
+
+        with rasterio.open(self.dem.path) as src:
+            f = GridFrame.of(src.transform)
+            cols = (xy[:, 0] - f.x0) / f.dx
+            rows = (xy[:, 1] - f.y0) / f.dy
+            c0 = int(np.clip(np.floor(np.nanmin(cols)) - 1, 0, src.width - 1))
+            r0 = int(np.clip(np.floor(np.nanmin(rows)) - 1, 0, src.height - 1))
+            c1 = int(np.clip(np.ceil(np.nanmax(cols)) + 2, c0 + 1, src.width))
+            r1 = int(np.clip(np.ceil(np.nanmax(rows)) + 2, r0 + 1, src.height))
+            z = src.read(self.band, window=Window(c0, r0, c1 - c0, r1 - r0), masked=True)
+            z = z.astype("float64").filled(np.nan)
+        out = bilinear(z, f.x0 + c0 * f.dx, f.y0 + r0 * f.dy, f.dx, f.dy, xy)
+        # points off the raster: NaN (the window was clipped to it)
+        off = (cols < 0) | (cols > src.width - 1) | (rows < 0) | (rows > src.height - 1)
+        return np.where(off, np.nan, out)
+
+
+def line_parts(frame) -> list[np.ndarray]:
+    """Vertices (x, y) of each line of a layer (multi-lines split into their parts)."""
+    import shapely
+
+    return [shapely.get_coordinates(p) for g in frame.geometry.values
+            for p in shapely.get_parts(g) if not p.is_empty]
+
+
+def sample_profiles(lines: list[np.ndarray], mode: str, step: float, surface: Surface | None,
+                    contours=None, spacing: float = 0.0, half_width: float = 0.0
+                    ) -> list[Profile]:
+    """Profiles of every line (``mode`` step / contours) or sections along every line as an
+    axis (``mode`` sections)."""
+    out = []
+    for i, xy in enumerate(lines, start=1):
+        if mode == "contours":
+            geoms, levels = contours
+            ch, pts, hs = contour_crossings(xy, geoms, levels)
+            out.append(Profile(f"{i}", i, None, 0.0, ch, pts, hs))
+        elif mode == "step":
+            ch = sample_stations(xy, step)
+            pts = points_at(xy, ch)
+            out.append(Profile(f"{i}", i, None, 0.0, ch, pts, surface.heights(pts)))
+        else:
+            for k, (station, ends) in enumerate(section_axes(xy, spacing, half_width), 1):
+                d = sample_stations(ends, step)
+                pts = points_at(ends, d)
+                out.append(Profile(f"{i}/{k}", i, k, station, d - half_width, pts,
+                                   surface.heights(pts)))
+    return out
+
+
+def profile_frames(profiles: list[Profile], crs):
+    """(points, lines) GeoDataFrames: PointZ stations with ``line``, ``section``, ``chainage``,
+    ``distance`` (offset across the axis for sections, negative on the left), ``z``; and one
+    LineString Z per profile with its length and height range."""
+    import geopandas as gpd
+    import shapely
+
+    rows, lines = [], []
+    for p in profiles:
+        good = np.isfinite(p.z)
+        for d, (x, y), z in zip(p.distance, p.xy, p.z):
+            rows.append({"profile": p.name, "line": p.line, "section": p.section,
+                         "chainage": p.chainage if p.section else float(d),
+                         "distance": float(d), "z": float(z) if np.isfinite(z) else None,
+                         "geometry": shapely.points(x, y, z if np.isfinite(z) else np.nan)})
+        if good.sum() >= 2:
+            xyz = np.column_stack([p.xy[good], p.z[good]])
+            lines.append({"profile": p.name, "line": p.line, "section": p.section,
+                          "chainage": p.chainage, "length": float(np.ptp(p.distance[good])),
+                          "z_min": float(p.z[good].min()), "z_max": float(p.z[good].max()),
+                          "geometry": shapely.linestrings(xyz)})
+    cols = ["profile", "line", "section", "chainage", "distance", "z", "geometry"]
+    points = gpd.GeoDataFrame(rows or None, columns=cols, geometry="geometry", crs=crs)
+    lcols = ["profile", "line", "section", "chainage", "length", "z_min", "z_max", "geometry"]
+    line_frame = gpd.GeoDataFrame(lines or None, columns=lcols, geometry="geometry", crs=crs)
+    return points, line_frame
+
+
+def plot_profiles(profiles: list[Profile], path: str | Path, title: str = "",
+                  max_panels: int = 12) -> None:
+    """Plot profiles (height against distance) to PNG or SVG: one panel per line, or small
+    multiples for sections (the first ``max_panels``)."""
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+
+    shown = profiles[:max_panels]
+    n = max(len(shown), 1)
+    cols = 1 if n == 1 else min(3, n)
+    rows = int(np.ceil(n / cols))
+    fig, axes = plt.subplots(rows, cols, figsize=(4.5 * cols if cols > 1 else 9, 2.6 * rows),
+                             squeeze=False)
+    for ax, p in zip(axes.ravel(), shown):
+        ax.plot(p.distance, p.z, "-", color="#8c5a28", lw=1.2)
+        ax.plot(p.distance, p.z, ".", color="#8c5a28", ms=3)
+        ax.set_title(f"profile {p.name}" + (f" at chainage {p.chainage:.1f} m"
+                                             if p.section else ""), fontsize=9)
+        ax.set_xlabel("offset from axis (m)" if p.section else "chainage (m)", fontsize=8)
+        ax.set_ylabel("height (m)", fontsize=8)
+        ax.grid(True, lw=0.3)
+        ax.tick_params(labelsize=7)
+    for ax in axes.ravel()[len(shown):]:
+        ax.set_visible(False)
+    if title:
+        fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)

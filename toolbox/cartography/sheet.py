@@ -1,0 +1,364 @@
+"""Map sheet rendering with matplotlib: a map frame at an exact scale on an ISO paper sheet,
+with a raster base (orthophoto or hillshade), styled vector layers, contours with labels along
+them, the map grid with coordinates, a legend, a scale bar, a north arrow and a title block.
+
+Page geometry is in millimetres from the sheet's lower-left corner; the map frame is
+``ground size / scale`` exactly, so the printed sheet measures true (print at 100%, no "fit to
+page"). PDF output is vector (lines, text as TrueType text); the base raster is embedded at
+``BASE_DPI``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+MM_PER_INCH = 25.4
+PT_PER_MM = 72.0 / MM_PER_INCH
+MARGIN = 10.0  # mm, paper edge to the map frame's labels
+LABEL_BAND = 6.0  # mm outside the frame for grid labels
+PANEL = 78.0  # mm, width of the side panel (legend, scale bar, north arrow, title block)
+GAP = 6.0  # mm between the frame labels and the panel
+BASE_DPI = 200
+ISO_SHEETS = {"A4": (210.0, 297.0), "A3": (297.0, 420.0), "A2": (420.0, 594.0),
+              "A1": (594.0, 841.0), "A0": (841.0, 1189.0)}
+PANEL_MIN_HEIGHT = 170.0  # mm the panel needs
+
+
+@dataclass
+class LayerStyle:
+    """How one vector layer is drawn and listed in the legend (the renderer-neutral style
+    model's fields): geometry kind ``point``/``line``/``polygon``, RGB 0-255, line width and
+    point size in mm, optional fill RGB or RGBA, optional label field. A layer categorised by
+    code is several LayerStyles, one per code, each with its features and its legend name."""
+
+    frame: Any  # GeoDataFrame
+    name: str
+    kind: str
+    rgb: tuple[int, int, int] = (0, 0, 0)
+    width_mm: float = 0.25
+    fill: tuple[int, ...] | None = None
+    label_field: str | None = None
+
+
+@dataclass
+class SheetSpec:
+    """What a sheet shows and says: its ground bounds, scale and title-block text."""
+
+    bounds: tuple[float, float, float, float]
+    scale: float
+    title: str
+    sheet_id: str = ""
+    crs_label: str = ""
+    date: str = ""
+    sources: list[str] = field(default_factory=list)
+    paper: str = "auto"  # an ISO_SHEETS name or "auto"
+    credits: str = ""
+
+
+@dataclass
+class PageLayout:
+    """Paper and map-frame geometry, millimetres."""
+
+    paper: str
+    width: float
+    height: float
+    frame: tuple[float, float, float, float]  # left, bottom, width, height
+
+    @property
+    def panel_left(self) -> float:
+        return self.frame[0] + self.frame[2] + LABEL_BAND + GAP
+
+
+def layout_page(spec: SheetSpec) -> PageLayout:
+    """The smallest ISO sheet (portrait or landscape) holding the map frame at scale plus the
+    side panel; a custom size when even A0 is too small, or the named ``spec.paper``."""
+    xmin, ymin, xmax, ymax = spec.bounds
+    map_w = (xmax - xmin) / spec.scale * 1000.0
+    map_h = (ymax - ymin) / spec.scale * 1000.0
+    need_w = 2 * MARGIN + 2 * LABEL_BAND + map_w + GAP + PANEL
+    need_h = 2 * MARGIN + 2 * LABEL_BAND + max(map_h, PANEL_MIN_HEIGHT)
+    names = [spec.paper] if spec.paper in ISO_SHEETS else list(ISO_SHEETS)
+    choice = None
+    for name in names:
+        short, long_ = ISO_SHEETS[name]
+        for w, h in ((long_, short), (short, long_)):
+            if w >= need_w and h >= need_h:
+                choice = (name, w, h)
+                break
+        if choice:
+            break
+    if choice is None:
+        if spec.paper in ISO_SHEETS:
+            raise ValueError(f"the map ({map_w:.0f} x {map_h:.0f} mm at 1:{spec.scale:g}) does "
+                             f"not fit on {spec.paper}")
+        choice = ("custom", float(np.ceil(need_w)), float(np.ceil(need_h)))
+    name, w, h = choice
+    left = MARGIN + LABEL_BAND
+    bottom = (h - max(map_h, PANEL_MIN_HEIGHT)) / 2.0
+    return PageLayout(name, w, h, (left, bottom, map_w, map_h))
+
+
+def nice_length(max_ground: float) -> float:
+    """The largest 1, 2 or 5 x 10^k not above ``max_ground`` (scale-bar length)."""
+    k = 10 ** np.floor(np.log10(max_ground))
+    for m in (5, 2, 1):
+        if m * k <= max_ground:
+            return float(m * k)
+    return float(k)
+
+
+def _hex(rgb) -> str:
+    r, g, b = (int(v) for v in rgb[:3])
+    return f"#{r:02x}{g:02x}{b:02x}"
+
+
+class SheetRenderer:
+    """Draws one sheet on a matplotlib figure sized to the paper."""
+
+    def __init__(self, spec: SheetSpec):
+        import matplotlib
+
+        matplotlib.use("Agg", force=False)
+        import matplotlib.pyplot as plt
+
+        self.plt = plt
+        self.spec = spec
+        self.page = layout_page(spec)
+        w, h = self.page.width, self.page.height
+        self.fig = plt.figure(figsize=(w / MM_PER_INCH, h / MM_PER_INCH))
+        left, bottom, fw, fh = self.page.frame
+        self.ax = self.fig.add_axes((left / w, bottom / h, fw / w, fh / h))
+        xmin, ymin, xmax, ymax = spec.bounds
+        self.ax.set_xlim(xmin, xmax)
+        self.ax.set_ylim(ymin, ymax)
+        self.ax.set_xticks([])
+        self.ax.set_yticks([])
+        for spine in self.ax.spines.values():
+            spine.set_linewidth(0.5 * PT_PER_MM)
+        self.legend: list[tuple[str, str, str, float, str | None]] = []  # kind, name, ...
+
+    # -- page coordinates (mm) -> figure fraction
+    def _fx(self, x_mm: float) -> float:
+        return x_mm / self.page.width
+
+    def _fy(self, y_mm: float) -> float:
+        return y_mm / self.page.height
+
+    def _mm_to_ground(self, mm: float) -> float:
+        return mm * self.spec.scale / 1000.0
+
+    def base(self, image: np.ndarray, extent: tuple[float, float, float, float],
+             name: str) -> None:
+        """Raster base: ``image`` (rows, cols) grey or (rows, cols, 3) RGB, ``extent`` (xmin,
+        xmax, ymin, ymax) of its outer cell edges."""
+        cmap = "gray" if image.ndim == 2 else None
+        self.ax.imshow(image, extent=extent, cmap=cmap, interpolation="bilinear",
+                       origin="upper", zorder=0, vmin=0, vmax=255)
+        self.ax.set_xlim(self.spec.bounds[0], self.spec.bounds[2])
+        self.ax.set_ylim(self.spec.bounds[1], self.spec.bounds[3])
+        self.legend.append(("raster", name, "#999999", 0.0, None))
+
+    def vector(self, style: LayerStyle) -> None:
+        frame = style.frame
+        colour = _hex(style.rgb)
+        lw = style.width_mm * PT_PER_MM
+        if style.kind == "polygon":
+            face = tuple(v / 255 for v in style.fill) if style.fill is not None else "none"
+            frame.plot(ax=self.ax, facecolor=face, edgecolor=colour, linewidth=lw, zorder=2)
+        elif style.kind == "line":
+            frame.plot(ax=self.ax, color=colour, linewidth=lw, zorder=3)
+        else:
+            frame.plot(ax=self.ax, color=colour, markersize=(style.width_mm * 4 * PT_PER_MM),
+                       zorder=4)
+        if style.label_field and style.label_field in frame.columns:
+            for geom, text in zip(frame.geometry, frame[style.label_field]):
+                p = geom.representative_point()
+                self.ax.text(p.x, p.y, str(text), fontsize=5, color=colour, ha="center",
+                             va="center", zorder=6, clip_on=True)
+        self.legend.append((style.kind, style.name, colour, style.width_mm,
+                            _hex(style.fill) if style.fill is not None else None))
+        self._restore_limits()
+
+    def _restore_limits(self) -> None:
+        self.ax.set_xlim(self.spec.bounds[0], self.spec.bounds[2])
+        self.ax.set_ylim(self.spec.bounds[1], self.spec.bounds[3])
+        self.ax.set_aspect("auto")
+        self.ax.set_xlabel("")
+        self.ax.set_ylabel("")
+
+    def contours(self, frame, rgb=(150, 90, 40), width_mm=0.18, index_width_mm=0.45,
+                 label_every_mm: float = 120.0) -> None:
+        """Contours (LineString with ``elev`` and ``index``); index contours heavier and
+        labelled along the line every ``label_every_mm`` of paper, text upright."""
+        import matplotlib.patheffects as pe
+        import shapely
+        from matplotlib.collections import LineCollection
+
+        colour = _hex(rgb)
+        index = np.asarray(frame["index"] == 1) if "index" in frame else np.zeros(len(frame),
+                                                                                  bool)
+        clip = shapely.box(*self.spec.bounds)
+        for flag, lw in ((False, width_mm), (True, index_width_mm)):
+            segs = [shapely.get_coordinates(p) for g in frame.geometry.values[index == flag]
+                    for p in shapely.get_parts(g)]
+            self.ax.add_collection(LineCollection(segs, colors=colour,
+                                                  linewidths=lw * PT_PER_MM, zorder=2.5))
+        spacing = self._mm_to_ground(label_every_mm)
+        halo = [pe.withStroke(linewidth=2.0, foreground="white")]
+        for geom, elev in zip(frame.geometry.values[index], frame["elev"].values[index]):
+            geom = shapely.intersection(shapely.force_2d(geom), clip)
+            for part in shapely.get_parts(geom):
+                if part.geom_type != "LineString" or part.length < spacing / 3:
+                    continue
+                for d in np.arange(min(spacing / 2, part.length / 2), part.length, spacing):
+                    a = part.interpolate(max(d - 1.0, 0.0))
+                    b = part.interpolate(min(d + 1.0, part.length))
+                    angle = np.degrees(np.arctan2(b.y - a.y, b.x - a.x))
+                    angle = (angle + 90.0) % 180.0 - 90.0  # upright text
+                    p = part.interpolate(d)
+                    self.ax.text(p.x, p.y, f"{elev:.0f}", fontsize=5.5, color=colour,
+                                 rotation=angle, rotation_mode="anchor", ha="center",
+                                 va="center", zorder=5, path_effects=halo, clip_on=True)
+        self.legend.append(("line", "contour", colour, width_mm, None))
+        self.legend.append(("line", "index contour", colour, index_width_mm, None))
+        self._restore_limits()
+
+    def grid(self, grid) -> None:
+        """The map grid (:class:`~toolbox.cartography.grid.MapGrid`) and its labels outside
+        the frame."""
+        import shapely
+        from matplotlib.collections import LineCollection
+
+        segs = [shapely.get_coordinates(p) for g in grid.geometries for p in shapely.get_parts(g)
+                if not p.is_empty]
+        self.ax.add_collection(LineCollection(segs, colors="#000000",
+                                              linewidths=0.25 * PT_PER_MM, zorder=7))
+        xmin, ymin, xmax, ymax = self.spec.bounds
+        off = self._mm_to_ground(1.5)
+        for label in grid.labels:
+            x, y, edge = label["x"], label["y"], label["edge"]
+            kw = dict(fontsize=6, clip_on=False, zorder=8)
+            if edge == "bottom":
+                self.ax.text(x, ymin - off, label["text"], ha="center", va="top", **kw)
+            elif edge == "top":
+                self.ax.text(x, ymax + off, label["text"], ha="center", va="bottom", **kw)
+            elif edge == "left":
+                self.ax.text(xmin - off, y, label["text"], ha="right", va="center",
+                             rotation=90, rotation_mode="anchor", **kw)
+            else:
+                self.ax.text(xmax + off, y, label["text"], ha="left", va="center",
+                             rotation=90, rotation_mode="anchor", **kw)
+        self.legend.append(("cross", f"map grid, {grid.step:g} m", "#000000", 0.25, None))
+        self._restore_limits()
+
+    # -- side panel ------------------------------------------------------------------------------
+    def panel(self) -> dict:
+        """Legend, north arrow, scale bar and title block in the side panel. Returns the scale
+        bar's geometry (ground length, paper length in mm, left end in mm)."""
+        from matplotlib.lines import Line2D
+        from matplotlib.patches import Polygon, Rectangle
+
+        fig = self.fig
+        x0 = self.page.panel_left
+        frame_bottom = self.page.frame[1]
+        top = frame_bottom + max(self.page.frame[3], PANEL_MIN_HEIGHT)
+        text = dict(transform=fig.transFigure, fontsize=7, va="center")
+        # north arrow (grid north: projected CRSs are drawn north-up)
+        cx, cy = x0 + 10.0, top - 12.0
+        fig.patches.append(Polygon([(self._fx(cx), self._fy(cy + 9)),
+                                    (self._fx(cx - 4), self._fy(cy - 6)),
+                                    (self._fx(cx), self._fy(cy - 2)),
+                                    (self._fx(cx + 4), self._fy(cy - 6))], closed=True,
+                                   transform=fig.transFigure, facecolor="black"))
+        fig.text(self._fx(cx), self._fy(cy + 12), "N", ha="center", transform=fig.transFigure,
+                 fontsize=10, fontweight="bold", va="center")
+        # scale bar: a nice ground length no longer than the panel
+        ground = nice_length(self._mm_to_ground(PANEL - 20.0))
+        bar_mm = ground / self.spec.scale * 1000.0
+        bx, by = x0 + 4.0, top - 34.0
+        parts = 4 if ground / 4 >= 1 else 2
+        for k in range(parts):
+            fig.patches.append(Rectangle(
+                (self._fx(bx + k * bar_mm / parts), self._fy(by)),
+                (bar_mm / parts) / self.page.width, 2.0 / self.page.height,
+                transform=fig.transFigure, facecolor="black" if k % 2 == 0 else "white",
+                edgecolor="black", linewidth=0.3 * PT_PER_MM))
+        for k in (0, parts):
+            value = ground * k / parts
+            # labels start at their tick, so the file's text positions measure the bar
+            fig.text(self._fx(bx + k * bar_mm / parts), self._fy(by - 2.5),
+                     f"{value:.0f} m" if k else "0", ha="left", va="top",
+                     transform=fig.transFigure, fontsize=6)
+        fig.text(self._fx(bx), self._fy(by + 6.0), f"Scale 1:{self.spec.scale:,.0f}"
+                 .replace(",", " "), transform=fig.transFigure, fontsize=8, va="center")
+        # legend
+        y = top - 52.0
+        fig.text(self._fx(x0), self._fy(y), "Legend", fontweight="bold", **text)
+        for kind, name, colour, width, fill in self.legend:
+            y -= 5.5
+            if y < frame_bottom + 62.0:
+                break
+            sx = (self._fx(x0 + 1), self._fx(x0 + 9))
+            if kind in ("polygon", "raster"):
+                fig.patches.append(Rectangle((self._fx(x0 + 1), self._fy(y - 1.5)),
+                                             8.0 / self.page.width, 3.0 / self.page.height,
+                                             transform=fig.transFigure,
+                                             facecolor=fill or colour,
+                                             edgecolor=colour, linewidth=0.3 * PT_PER_MM))
+            elif kind == "cross":
+                fig.lines.append(Line2D(sx, (self._fy(y),) * 2, transform=fig.transFigure,
+                                        color=colour, linewidth=width * PT_PER_MM))
+                fig.lines.append(Line2D((self._fx(x0 + 5),) * 2,
+                                        (self._fy(y - 2), self._fy(y + 2)),
+                                        transform=fig.transFigure, color=colour,
+                                        linewidth=width * PT_PER_MM))
+            elif kind == "point":
+                fig.lines.append(Line2D((self._fx(x0 + 5),), (self._fy(y),), marker="o",
+                                        markersize=3, color=colour, transform=fig.transFigure))
+            else:
+                fig.lines.append(Line2D(sx, (self._fy(y),) * 2, transform=fig.transFigure,
+                                        color=colour, linewidth=max(width, 0.1) * PT_PER_MM))
+            fig.text(self._fx(x0 + 12), self._fy(y), name, **text)
+        # title block
+        spec = self.spec
+        rows = [("", spec.title), ("sheet", spec.sheet_id), ("scale", f"1:{spec.scale:g}"),
+                ("CRS", spec.crs_label), ("date", spec.date),
+                ("sources", "; ".join(spec.sources))]
+        if spec.credits:
+            rows.append(("", spec.credits))
+        h = 6.5 * len(rows) + 2
+        fig.patches.append(Rectangle((self._fx(x0), self._fy(frame_bottom)),
+                                     PANEL / self.page.width, h / self.page.height,
+                                     transform=fig.transFigure, facecolor="none",
+                                     edgecolor="black", linewidth=0.4 * PT_PER_MM))
+        y = frame_bottom + h - 4.5
+        for key, value in rows:
+            label = f"{key}: " if key else ""
+            weight = "bold" if not key else "normal"
+            fig.text(self._fx(x0 + 2), self._fy(y), _fit(f"{label}{value}", 60),
+                     transform=fig.transFigure, fontsize=8 if not key else 6.5,
+                     fontweight=weight, va="center")
+            y -= 6.5
+        return {"ground_length": ground, "paper_mm": bar_mm, "left_mm": bx}
+
+    def save(self, pdfs=(), pngs=(), dpi: int = 150, metadata: dict | None = None,
+             pdf_pages=None) -> None:
+        import matplotlib
+
+        with matplotlib.rc_context({"pdf.fonttype": 42}):  # TrueType: real, searchable text
+            for pdf in pdfs:
+                self.fig.savefig(pdf, format="pdf", metadata=metadata or {})
+            for png in pngs:
+                self.fig.savefig(png, format="png", dpi=dpi, pil_kwargs={"compress_level": 3})
+            if pdf_pages is not None:
+                pdf_pages.savefig(self.fig)
+
+    def close(self) -> None:
+        self.plt.close(self.fig)
+
+
+def _fit(text: str, n: int) -> str:
+    return text if len(text) <= n else text[: n - 1] + "…"

@@ -1,0 +1,119 @@
+"""Map sheets from files: the base raster read at print resolution, vector layers with default
+styles, one sheet per extent or per feature of a sheet layer."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from toolbox.cartography.grid import ground_step, map_grid
+from toolbox.cartography.sheet import BASE_DPI, MM_PER_INCH, LayerStyle, SheetRenderer, SheetSpec
+
+# default styles by geometry kind, until the shared style model provides the code file's
+PALETTE = {"polygon": [((120, 120, 120), (230, 220, 200)), ((40, 110, 40), (200, 230, 190)),
+                       ((60, 90, 160), (200, 215, 240))],
+           "line": [((200, 30, 30), None), ((40, 80, 200), None), ((30, 30, 30), None)],
+           "point": [((200, 0, 120), None), ((0, 0, 0), None)]}
+WIDTHS = {"polygon": 0.2, "line": 0.35, "point": 0.6}
+
+
+def default_styles(layers: list[tuple[str, Any]]) -> list[LayerStyle]:
+    """A :class:`LayerStyle` per ``(name, GeoDataFrame)``, colours cycling by geometry kind."""
+    used: dict[str, int] = {}
+    out = []
+    for name, frame in layers:
+        kinds = {t.replace("Multi", "").replace(" Z", "").lower() for t in frame.geom_type
+                 if t}
+        kind = ("polygon" if "polygon" in kinds else "line" if "linestring" in kinds
+                else "point")
+        k = used.get(kind, 0)
+        used[kind] = k + 1
+        rgb, fill = PALETTE[kind][k % len(PALETTE[kind])]
+        out.append(LayerStyle(frame, name, kind, rgb, WIDTHS[kind], fill))
+    return out
+
+
+def read_base(info, bounds: tuple[float, float, float, float], scale: float,
+              dpi: int = BASE_DPI) -> tuple[np.ndarray, tuple[float, float, float, float]] | None:
+    """The base raster over ``bounds`` resampled to ``dpi`` on paper: (grey or RGB uint8 image,
+    extent xmin, xmax, ymin, ymax), or None when it does not overlap. Non-byte grey rasters are
+    stretched between their 2nd and 98th percentiles."""
+    import rasterio
+    from rasterio.enums import Resampling
+    from rasterio.windows import from_bounds
+
+    with rasterio.open(info.path) as src:
+        left, bottom, right, top = src.bounds
+        xmin, ymin = max(bounds[0], left), max(bounds[1], bottom)
+        xmax, ymax = min(bounds[2], right), min(bounds[3], top)
+        if xmin >= xmax or ymin >= ymax:
+            return None
+        win = from_bounds(xmin, ymin, xmax, ymax, src.transform).round_offsets().round_lengths()
+        win = win.intersection(rasterio.windows.Window(0, 0, src.width, src.height))
+        px_w = max(int((xmax - xmin) / scale * 1000 / MM_PER_INCH * dpi), 1)
+        px_h = max(int((ymax - ymin) / scale * 1000 / MM_PER_INCH * dpi), 1)
+        px_w, px_h = min(px_w, int(win.width)), min(px_h, int(win.height))
+        bands = [1, 2, 3] if src.count >= 3 else [1]
+        data = src.read(bands, window=win, out_shape=(len(bands), px_h, px_w),
+                        resampling=Resampling.bilinear, masked=True)
+        wl, wb, wr, wt = rasterio.windows.bounds(win, src.transform)
+        if data.dtype != np.uint8:
+            valid = data.compressed()
+            lo, hi = np.percentile(valid, [2, 98]) if valid.size else (0, 1)
+            data = np.clip((data.astype("float64") - lo) / max(hi - lo, 1e-12) * 255, 0, 255)
+        image = np.ma.filled(data, 255).astype("uint8")
+    image = image[0] if len(bands) == 1 else np.moveaxis(image, 0, -1)
+    return image, (wl, wr, wb, wt)
+
+
+def render_sheet(spec: SheetSpec, base=None, base_name: str = "", styles=(), contours=None,
+                 grid_style: str = "crosses", map_step_mm: float = 100.0,
+                 pdfs: list[str | Path] = (), pngs: list[str | Path] = (), png_dpi: int = 150,
+                 pdf_pages=None) -> dict:
+    """Draw one sheet and save it (PDF files, PNG files, and/or a page of an open
+    ``PdfPages``). Returns the page geometry."""
+    renderer = SheetRenderer(spec)
+    try:
+        if base is not None:
+            image = read_base(base, spec.bounds, spec.scale)
+            if image is not None:
+                renderer.base(*image, base_name or "base")
+        for style in styles:
+            clipped = style.frame.cx[spec.bounds[0]:spec.bounds[2], spec.bounds[1]:spec.bounds[3]]
+            if len(clipped):
+                renderer.vector(LayerStyle(clipped, style.name, style.kind, style.rgb,
+                                           style.width_mm, style.fill, style.label_field))
+        if contours is not None and len(contours):
+            renderer.contours(contours.cx[spec.bounds[0]:spec.bounds[2],
+                                          spec.bounds[1]:spec.bounds[3]])
+        step = ground_step(spec.scale, map_step_mm)
+        renderer.grid(map_grid(spec.bounds, step, grid_style, ground_step(spec.scale, 10) / 2))
+        bar = renderer.panel()
+        metadata = {"Title": f"{spec.title} {spec.sheet_id}".strip(),
+                    "Subject": f"map sheet {spec.sheet_id} at 1:{spec.scale:g}, {spec.crs_label}",
+                    "Keywords": f"scale=1:{spec.scale:g}; crs={spec.crs_label}; "
+                                f"bounds={','.join(f'{v:.3f}' for v in spec.bounds)}",
+                    "Creator": "photogrammetry-toolbox carto:sheet"}
+        renderer.save(pdfs, pngs, png_dpi, metadata, pdf_pages)
+        page = renderer.page
+        return {"sheet": spec.sheet_id, "paper": page.paper, "paper_mm": [page.width, page.height],
+                "frame_mm": list(page.frame), "scale_bar": bar}
+    finally:
+        renderer.close()
+
+
+def styles_from_model(frame, layer_style) -> list[LayerStyle]:
+    """Sheet styles of a layer from the shared style model (a ``toolbox.styles.LayerStyle``:
+    ``name``, ``kind``, ``styles`` (per code: ``code``, ``rgb``, ``line_width`` mm, ``fill``
+    RGBA, ``label``), ``field``, ``label_field``); duck-typed, so this module does not depend
+    on it. One :class:`LayerStyle` per code, with that code's features and its label as the
+    legend name; a single-symbol layer gives one."""
+    out = []
+    many = len(layer_style.styles) > 1 and layer_style.field in frame.columns
+    for code in layer_style.styles:
+        part = frame[frame[layer_style.field].astype(str) == str(code.code)] if many else frame
+        out.append(LayerStyle(part, code.label or code.code, code.kind, tuple(code.rgb),
+                              code.line_width, code.fill, layer_style.label_field))
+    return out

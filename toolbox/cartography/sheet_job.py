@@ -1,0 +1,75 @@
+"""The carto:sheet job: sheets from an extent or a sheet layer, written as PDF pages, PNG and
+per-sheet files."""
+
+from __future__ import annotations
+
+import datetime as _dt
+from pathlib import Path
+
+from toolbox.cartography.grid_io import sheet_polygons
+from toolbox.cartography.sheet import SheetSpec
+from toolbox.cartography.sheet_io import default_styles, render_sheet
+
+
+def _name(ref) -> str:
+    text = str(ref).strip("'")
+    return Path(text.split("|")[0]).name
+
+
+def run_sheets(params: dict, feedback) -> dict:
+    import matplotlib
+    from matplotlib.backends.backend_pdf import PdfPages
+
+    from toolbox.io.crs import crs_label
+    from toolbox.io.staging import atomic_path
+    from toolbox.io.vector import read_vector
+
+    sheets, crs = sheet_polygons(params)
+    layers = [(_name(ref), read_vector(ref, name="LAYERS")) for ref in params.get("LAYERS")
+              or []]
+    styles = default_styles(layers)
+    contours = read_vector(params["CONTOURS"], name="CONTOURS") \
+        if params.get("CONTOURS") is not None else None
+    if crs is None:
+        crs = next((f.crs for _, f in layers if f.crs is not None), None) or \
+            (params["BASE"].crs if params.get("BASE") is not None else None)
+    sources = params.get("SOURCES") or "; ".join(
+        [_name(params["BASE"])] * (params.get("BASE") is not None) + [n for n, _ in layers]
+        + [_name(params["CONTOURS"])] * (params.get("CONTOURS") is not None))
+    date = params.get("DATE") or _dt.date.today().isoformat()
+    folder = Path(params["FOLDER"]).expanduser() if params.get("FOLDER") else None
+    if folder is not None:
+        folder.mkdir(parents=True, exist_ok=True)
+    written = []
+    scale = params["SCALE"]
+    meta = {"Title": params["TITLE"], "Subject": f"{len(sheets)} map sheet(s) at 1:{scale:g}",
+            "Keywords": f"scale=1:{scale:g}; crs={crs_label(crs)}; "
+                        f"sheets={','.join(s for s, _ in sheets)}",
+            "Creator": "photogrammetry-toolbox carto:sheet"}
+    pages = PdfPages(params["OUTPUT"], metadata=meta) if params.get("OUTPUT") else None
+    try:
+        for i, (sheet_id, polygon) in enumerate(feedback.iterate(sheets, start=0, end=100)):
+            feedback.check_canceled()
+            spec = SheetSpec(polygon.bounds, params["SCALE"], params["TITLE"], sheet_id,
+                             crs_label(crs), date, [sources], params["PAPER"])
+            common = dict(base=params.get("BASE"), base_name=_name(params["BASE"])
+                          if params.get("BASE") is not None else "", styles=styles,
+                          contours=contours, grid_style=params["GRID_STYLE"],
+                          map_step_mm=params["MAP_STEP"], png_dpi=params["PNG_DPI"])
+            pngs = [params["PNG"]] if params.get("PNG") and i == 0 else []
+            files = []
+            if folder is not None:
+                files = [folder / f"{sheet_id}.pdf", folder / f"{sheet_id}.png"]
+                with atomic_path(files[0]) as pdf, atomic_path(files[1]) as png:
+                    info = render_sheet(spec, pdfs=[pdf], pngs=pngs + [png], pdf_pages=pages,
+                                        **common)
+            else:
+                info = render_sheet(spec, pngs=pngs, pdf_pages=pages, **common)
+            files = [str(f) for f in files]
+            written.append(info | {"files": files})
+    finally:
+        if pages is not None:
+            with matplotlib.rc_context({"pdf.fonttype": 42}):
+                pages.close()
+    return {"OUTPUT": params.get("OUTPUT"), "PNG": params.get("PNG"),
+            "SHEETS_WRITTEN": written}
