@@ -66,11 +66,19 @@ def _polygonal(geom):
     return shapely.union_all(parts) if parts else shapely.Polygon()
 
 
+def merge_lines(lines: list):
+    """One (Multi)LineString from line parts, joined end to end where they touch."""
+    import shapely
+    from shapely.ops import linemerge
+
+    union = shapely.union_all(lines)
+    return union if union.geom_type == "LineString" else linemerge(union)
+
+
 def seamlines(cells: list) -> list[tuple[int, int, object]]:
     """``(i, j, line)`` for every pair of cut polygons sharing a boundary of non-zero length
     (``line`` a merged (Multi)LineString, i < j)."""
     import shapely
-    from shapely.ops import linemerge
 
     out = []
     for i in range(len(cells)):
@@ -83,7 +91,7 @@ def seamlines(cells: list) -> list[tuple[int, int, object]]:
                      if g.geom_type in ("LineString", "MultiLineString") and g.length > 0]
             if not lines:
                 continue
-            merged = linemerge(shapely.union_all(lines))
+            merged = merge_lines(lines)
             if merged.length > 0:
                 out.append((i, j, merged))
     return out

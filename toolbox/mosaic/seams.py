@@ -236,14 +236,15 @@ def _clean(geom):
 def seam_ends(cell_i, cell_j):
     """The two ends of the longest shared boundary line of two cut polygons, or None."""
     import shapely
-    from shapely.ops import linemerge
+
+    from toolbox.mosaic.partition import merge_lines
 
     shared = shapely.intersection(cell_i.boundary, cell_j.boundary)
     lines = [g for g in getattr(shared, "geoms", [shared])
              if g.geom_type in ("LineString", "MultiLineString")]
     if not lines:
         return None
-    merged = linemerge(shapely.union_all(lines))
+    merged = merge_lines(lines)
     parts = list(getattr(merged, "geoms", [merged]))
     longest = max(parts, key=lambda g: g.length)
     if longest.length == 0 or longest.is_closed:
