@@ -36,8 +36,10 @@ class MosaicSeamlines(Algorithm):
 
     METHOD=least_cost (PPD, paths by dynamic programming): each Voronoi seam is re-routed along
     the minimum-cost path between its two ends inside the overlap of its two orthos, over a cost
-    per unit length ``base + w_d·|a−b|/range + w_g·max(|∇a|,|∇b|)/range`` (radiometric
-    difference and Sobel gradient of the two orthos), plus BUILDING_COST inside BUILDINGS
+    per unit length ``0.1 + w_d·|a−b|/range + w_g·max(|∇a|,|∇b|)/range + w_c·|d_a − d_b|/D``
+    (radiometric difference and Sobel gradient of the two orthos, and a pull towards the
+    bisector of the two centres: d = distance to a centre, D between them; it keeps each cell
+    near its own nadir where the images give no reason to leave), plus BUILDING_COST inside BUILDINGS
     footprints and HEIGHT_COST per metre of HEIGHTS (a DSM − DEM raster) above 0.5 m; FORBIDDEN
     polygons are never crossed. The path is found by scikit-image's MCP_Geometric (Dijkstra on
     8-connected cells of SEAM_CELL_SIZE). Overlaps of more than MAX_CELLS cells are routed on
@@ -69,6 +71,8 @@ class MosaicSeamlines(Algorithm):
         Number("DIFFERENCE_WEIGHT", "weight of the radiometric difference", default=1.0,
                min_value=0),
         Number("GRADIENT_WEIGHT", "weight of the image gradient", default=1.0, min_value=0),
+        Number("CENTRE_WEIGHT", "weight of the pull towards the Voronoi line (the bisector)",
+               default=0.5, min_value=0),
         VectorLayer("BUILDINGS", "building footprints the seams should avoid",
                     geometry_types=["polygon"], optional=True),
         Number("BUILDING_COST", "extra cost inside BUILDINGS", default=10.0, min_value=0),
@@ -116,6 +120,7 @@ class MosaicSeamlines(Algorithm):
         if params["METHOD"] == "least_cost" and len(sources) > 1:
             weights = CostWeights(difference=params["DIFFERENCE_WEIGHT"],
                                   gradient=params["GRADIENT_WEIGHT"],
+                                  centre=params["CENTRE_WEIGHT"],
                                   building=params["BUILDING_COST"], height=params["HEIGHT_COST"])
             buildings = _polygons(params["BUILDINGS"], crs, read_vector)
             forbidden = _polygons(params["FORBIDDEN"], crs, read_vector)
@@ -125,7 +130,7 @@ class MosaicSeamlines(Algorithm):
 
             def cost_for(i, j):
                 return PairCost(sources[i], sources[j], crs, weights, buildings, forbidden,
-                                heights)
+                                heights, (centres[i], centres[j]))
 
             with feedback.timed("least_cost"):
                 cells, seam_report = least_cost_cells(cells, footprints, cost_for, cell,

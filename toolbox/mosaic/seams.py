@@ -37,6 +37,7 @@ class CostWeights:
     base: float = 0.1        # per unit length everywhere: keeps the path from wandering
     difference: float = 1.0  # mean absolute band difference / the images' value range
     gradient: float = 1.0    # largest Sobel gradient of the two images / the value range
+    centre: float = 0.5      # |distance to centre a − distance to centre b| / their distance
     building: float = 10.0   # inside a building footprint
     height: float = 1.0      # per metre of DSM - DEM above HEIGHT_THRESHOLD
     height_threshold: float = 0.5
@@ -45,7 +46,8 @@ class CostWeights:
 def cost_surface(a: np.ndarray, b: np.ndarray, weights: CostWeights,
                  value_range: float | None = None) -> np.ndarray:
     """Cost per unit length from two co-registered images ``(bands, rows, cols)``:
-    ``base + w_d·mean|a−b|/range + w_g·max(|∇a|, |∇b|)/range`` (float64, ``(rows, cols)``).
+    ``base + w_d·mean|a−b|/range + w_g·max(|∇a|, |∇b|)/range`` (float64, ``(rows, cols)``);
+    :class:`PairCost` adds the centre, building and height terms.
 
     ``value_range`` defaults to the 1-99 % percentile spread of both images.
     """
@@ -54,7 +56,9 @@ def cost_surface(a: np.ndarray, b: np.ndarray, weights: CostWeights,
     a = np.asarray(a, dtype="float32")
     b = np.asarray(b, dtype="float32")
     if value_range is None:
-        lo, hi = np.percentile(np.concatenate([a.ravel(), b.ravel()]), [1, 99])
+        step = max(1, int(np.sqrt(a[0].size / 250_000)))  # a sample of ~250,000 cells is plenty
+        sample = np.concatenate([a[:, ::step, ::step].ravel(), b[:, ::step, ::step].ravel()])
+        lo, hi = np.percentile(sample, [1, 99])
         value_range = float(hi - lo)
     scale = 1.0 / max(value_range, 1e-6)
     diff = np.abs(a - b).mean(axis=0) * scale
@@ -77,6 +81,7 @@ class PairCost:
     buildings: list = field(default_factory=list)   # shapely polygons
     forbidden: list = field(default_factory=list)   # shapely polygons
     heights: OrthoSource | None = None              # DSM - DEM raster, metres
+    centres: tuple | None = None                    # ((xa, ya), (xb, yb)) Voronoi centres
     value_range: float | None = None
 
     def __call__(self, transform: Any, shape: tuple[int, int]) -> np.ndarray:
@@ -88,6 +93,8 @@ class PairCost:
         db, vb = read_window(self.b, transform, self.crs, win)
         cost = cost_surface(da, db, self.weights, self.value_range)
         w = self.weights
+        if self.centres is not None and w.centre > 0:
+            cost += w.centre * centre_term(transform, shape, *self.centres)
         if self.buildings:
             inside = rasterize(self.buildings, out_shape=shape, transform=transform,
                                all_touched=True, dtype="uint8") > 0
@@ -102,6 +109,20 @@ class PairCost:
                                all_touched=True, dtype="uint8") > 0
             cost[banned] = IMPASSABLE
         return cost
+
+
+def centre_term(transform: Any, shape: tuple[int, int], a, b) -> np.ndarray:
+    """``|‖p − a‖ − ‖p − b‖| / ‖a − b‖`` at the cell centres: 0 on the bisector of the two
+    centres (the Voronoi seam), growing towards either centre; it keeps a seam near the middle
+    where the images give no reason to leave it (each cell stays near its own nadir, where relief
+    displacement is least)."""
+    rows, cols = shape
+    x = transform.c + (np.arange(cols) + 0.5) * transform.a
+    y = transform.f + (np.arange(rows) + 0.5) * transform.e
+    gx, gy = np.meshgrid(x - a[0], y - a[1])
+    da = np.hypot(gx, gy)
+    db = np.hypot(gx + a[0] - b[0], gy + a[1] - b[1])
+    return np.abs(da - db) / max(float(np.hypot(a[0] - b[0], a[1] - b[1])), 1e-9)
 
 
 def grid_for(bounds, cell: float, origin: tuple[float, float] = (0.0, 0.0)):
