@@ -149,13 +149,14 @@ class MosaicSeamlines(Algorithm):
             geometry=[shapely.Point(c) for c in centres], crs=crs)
         foot_frame = gpd.GeoDataFrame(
             {"source_id": [s.index + 1 for s in sources], "source": [s.name for s in sources]},
-            geometry=footprints, crs=crs)
+            geometry=[f if f.geom_type == "MultiPolygon" else shapely.MultiPolygon([f])
+                      for f in footprints], crs=crs)
         write_layers(params["OUTPUT"], {
             "cut_polygons": cells_frame(sources, cells, crs),
             "seamlines": seams_frame(sources, cells, crs, methods),
             "footprints": foot_frame, "centres": centre_frame},
             geometry_types={"cut_polygons": "MultiPolygon", "seamlines": "MultiLineString",
-                            "footprints": "Unknown", "centres": "Point"})
+                            "footprints": "MultiPolygon", "centres": "Point"})
         return {"OUTPUT": params["OUTPUT"], "STATISTICS": {
             "method": params["METHOD"], "orthos": len(sources),
             "area": float(area.area), "partition_gap_area": gap, "max_overlap_area": overlap,

@@ -97,12 +97,12 @@ def multiband_blend(images: list[np.ndarray], valid: np.ndarray, labels: np.ndar
     masks = [_gaussian_pyramid((labels == k).astype("float32"), levels)
              for k in range(len(images))]
     totals = [sum(m[lv] for m in masks) for lv in range(levels + 1)]
+    used = [k for k in range(len(images)) if (labels == k).any()]
+    filled = {k: fill_invalid(images[k], valid[k]) for k in used}
     for b in range(bands):
         blended = None
-        for k, image in enumerate(images):
-            if not (labels == k).any():
-                continue
-            g = _gaussian_pyramid(fill_invalid(image[b:b + 1], valid[k])[0], levels)
+        for k in used:
+            g = _gaussian_pyramid(np.ascontiguousarray(filled[k][b]), levels)
             lap = [g[lv] - _up(g[lv + 1], g[lv].shape) for lv in range(levels)] + [g[levels]]
             weighted = [lap[lv] * _safe_ratio(masks[k][lv], totals[lv])
                         for lv in range(levels + 1)]
