@@ -168,6 +168,13 @@ def test_inputs_on_another_grid_are_resampled_with_a_warning(pair, tmp_path):
                                        "BLEND": "none", "OUTPUT": str(tmp_path / "m.tif")},
                       feedback=feedback)
     assert any("resampled" in w for w in feedback.warnings)
+    cog = toolbox.run("mosaic:build", {"INPUT": [str(orthos[0].path), str(coarse)],
+                                       "BLEND": "none", "COG": True,
+                                       "OUTPUT": str(tmp_path / "cog.tif")})
+    with rasterio.open(cog["OUTPUT"]) as src:
+        assert src.tags(ns="IMAGE_STRUCTURE").get("LAYOUT") == "COG"
+        assert src.overviews(1) == [2] and src.block_shapes[0] == (512, 512)
+        assert np.array_equal(src.read(), read_mosaic(out["OUTPUT"])[0])
     data, t, _ = read_mosaic(out["OUTPUT"])
     assert t.a == 1.0 and data.shape[1:] == (400, 1000)
     assert (data[3] == 255).sum() == 400 * 1000 - 10 * 400

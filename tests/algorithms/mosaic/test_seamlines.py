@@ -155,3 +155,43 @@ def test_overview_then_corridor_matches_the_full_resolution_seam(pair):
     for result in (full, coarse):
         assert result[0].contains(building) or result[1].contains(building)
     assert full[0].contains(building) == coarse[0].contains(building)
+
+
+def test_heights_raster_steers_the_seam(tmp_path):
+    # a DSM - DEM raster with the building 12 m tall: the only hint of it (no roof offset,
+    # no radiometric terms)
+    import rasterio
+    from affine import Affine
+
+    orthos, building = make_block(tmp_path, pair_specs(), displacement=0.0)
+    ox, oy = ORIGIN
+    heights = np.zeros((400, 1000), "float32")
+    heights[180 - 3:220 + 3, 480 - 3:520 + 3] = 12.0  # rows from the north edge (y = 400 m)
+    with rasterio.open(tmp_path / "h.tif", "w", driver="GTiff", width=1000, height=400, count=1,
+                       dtype="float32", crs="EPSG:3003",
+                       transform=Affine(1, 0, ox, 0, -1, oy + 400)) as dst:
+        dst.write(heights, 1)
+    out = toolbox.run("mosaic:seamlines", {
+        "INPUT": [str(o.path) for o in orthos], "DIFFERENCE_WEIGHT": 0, "GRADIENT_WEIGHT": 0,
+        "HEIGHTS": str(tmp_path / "h.tif"), "OUTPUT": str(tmp_path / "h.gpkg")})
+    seam = shapely.union_all(list(layers(out["OUTPUT"])[1].geometry))
+    assert not seam.intersects(building.buffer(2))
+
+
+def test_nadir_points_layer_sets_the_voronoi_centres(pair, tmp_path):
+    orthos, _ = pair
+    ox, oy = ORIGIN
+    points = gpd.GeoDataFrame({"photo": ["ortho_b", "ortho_a"]},
+                              geometry=shapely.points([(ox + 700, oy + 200), (ox + 300, oy + 200)]),
+                              crs="EPSG:3003")
+    points.to_file(tmp_path / "nadirs.gpkg")
+    out = toolbox.run("mosaic:seamlines", {
+        "INPUT": [str(o.path) for o in orthos], "METHOD": "voronoi",
+        "NADIR_POINTS": str(tmp_path / "nadirs.gpkg"), "NADIR_FIELD": "photo",
+        "OUTPUT": str(tmp_path / "n.gpkg")})
+    seam = shapely.union_all(list(layers(out["OUTPUT"])[1].geometry))
+    inside = seam.intersection(overlap(orthos).buffer(-1e-6))
+    xs = np.array([c[0] for g in getattr(inside, "geoms", [inside]) for c in g.coords])
+    assert np.allclose(xs, ox + 500.0)  # bisector of x = 300 and x = 700
+    centres = gpd.read_file(out["OUTPUT"], layer="centres")
+    assert centres.geometry.x.tolist() == [ox + 300, ox + 700]
