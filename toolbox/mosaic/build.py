@@ -2,7 +2,8 @@
 
 :func:`mosaic_window` is the kernel of one output window (arrays in, arrays out, apart from
 reading the sources' windows); :func:`write_mosaic` streams it over the grid with
-:func:`toolbox.tiles.map_tiles`, so memory is bounded by a few windows whatever the mosaic size.
+:func:`toolbox.tiles.map_tiles`, so memory is bounded by a few windows whatever the mosaic size,
+into :class:`WindowWriter` s (the raster engine's ``RasterWriter`` contract).
 
 Labels: a cell takes the source whose cut polygon holds it; where that source has no valid data
 (the polygons are traced on decimated masks) or no polygon holds the cell, the first valid source
@@ -128,6 +129,63 @@ def _window_task(args):
     return tile, *mosaic_window(plan, tile)
 
 
+class WindowWriter:
+    """A GeoTIFF written window by window: tiled 512, DEFLATE with a predictor, overviews, an
+    optional alpha band (last band) and an optional COG copy at close.
+
+    The same constructor and ``write(window, array)`` as the raster engine's
+    ``toolbox.raster.writer.RasterWriter``, so the engine's writer can replace it one for one.
+    """
+
+    def __init__(self, path: Path, grid: Any, count: int, dtype: Any,
+                 nodata: float | None = None, *, alpha: bool = False, cog: bool = False,
+                 overviews: bool = True, overview_resampling: str = "average"):
+        self.path, self.grid, self.count, self.dtype = Path(path), grid, count, np.dtype(dtype)
+        self.nodata, self.alpha, self.cog = nodata, alpha, cog
+        self.overviews, self.overview_resampling = overviews, overview_resampling
+        self._target = self.path.with_name(f".{self.path.name}.tiled.tif") if cog else self.path
+
+    def __enter__(self) -> WindowWriter:
+        import rasterio
+
+        from toolbox.io.raster import geotiff_profile
+
+        g = self.grid
+        profile = geotiff_profile(g.width, g.height, self.count, self.dtype, g.crs, g.transform,
+                                  None if self.alpha else self.nodata)
+        self._env = rasterio.Env(COMPRESS_OVERVIEW="DEFLATE",
+                                 PREDICTOR_OVERVIEW=profile["predictor"])
+        self._env.__enter__()
+        self.dataset = rasterio.open(self._target, "w", **profile)
+        if self.alpha:
+            from rasterio.enums import ColorInterp
+
+            data = self.count - 1
+            interp = [ColorInterp.red, ColorInterp.green, ColorInterp.blue] if data == 3 else \
+                [ColorInterp.gray] * data
+            self.dataset.colorinterp = [*interp, ColorInterp.alpha]
+        return self
+
+    def write(self, window: Any, array: np.ndarray) -> None:
+        self.dataset.write(array if array.ndim == 3 else array[None], window=window)
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        from toolbox.io.raster import build_overviews
+
+        try:
+            if exc_type is None and (self.overviews or self.cog):
+                build_overviews(self.dataset, self.overview_resampling)
+        finally:
+            self.dataset.close()
+            self._env.__exit__(None, None, None)
+        if exc_type is None and self.cog:
+            from rasterio.shutil import copy
+
+            copy(self._target, self.path, driver="COG", compress="DEFLATE", overviews="AUTO")
+        if self.cog:
+            self._target.unlink(missing_ok=True)
+
+
 def write_mosaic(plan: MosaicPlan, output: Path, index_path: Path | None, *, alpha: bool,
                  nodata: float | None, cog: bool = False, overviews: bool = True,
                  tile_size: int = 512, workers: int | None = None,
@@ -137,60 +195,39 @@ def write_mosaic(plan: MosaicPlan, output: Path, index_path: Path | None, *, alp
     The output has ``plan.bands`` data bands plus an alpha band (``alpha``) or ``nodata`` where
     no source has data; tiled DEFLATE GeoTIFF with overviews, or a COG (``cog``).
     """
-    import rasterio
+    from contextlib import ExitStack
 
-    from toolbox.io.raster import build_overviews, geotiff_profile, iter_windows
+    from toolbox.io.raster import iter_windows
     from toolbox.tiles import map_tiles
 
     grid = plan.grid
-    n_out = plan.bands + (1 if alpha else 0)
-    target = output.with_name(output.stem + ".tmp.tif") if cog else output
-    profile = geotiff_profile(grid.width, grid.height, n_out, plan.dtype, grid.crs,
-                              grid.transform, None if alpha else nodata)
-    index_dtype = "uint8" if len(plan.sources) < 255 else "uint16"
-    index_profile = geotiff_profile(grid.width, grid.height, 1, index_dtype, grid.crs,
-                                    grid.transform, 0)
-    counts = np.zeros(len(plan.sources), dtype="int64")
     dt = np.dtype(plan.dtype)
     alpha_value = np.iinfo(dt).max if dt.kind in "iu" else 1
+    index_dtype = "uint8" if len(plan.sources) < 255 else "uint16"
+    counts = np.zeros(len(plan.sources), dtype="int64")
     empty = 0
     tiles = list(iter_windows(grid.width, grid.height, tile_size, plan.halo()))
-    env = rasterio.Env(COMPRESS_OVERVIEW="DEFLATE", PREDICTOR_OVERVIEW=profile["predictor"])
-    with env, rasterio.open(target, "w", **profile) as dst:
-        if alpha:
-            from rasterio.enums import ColorInterp
-
-            interp = [ColorInterp.gray] * plan.bands if plan.bands != 3 else \
-                [ColorInterp.red, ColorInterp.green, ColorInterp.blue]
-            dst.colorinterp = [*interp, ColorInterp.alpha]
-        idx = rasterio.open(index_path, "w", **index_profile) if index_path else None
-        try:
-            for tile, data, labels in map_tiles(_window_task, ((plan, t) for t in tiles),
-                                                workers=workers, feedback=feedback,
-                                                total=len(tiles), start=0, end=90):
-                nodata_cells = labels < 0
-                empty += int(nodata_cells.sum())
-                counts += np.bincount(labels[~nodata_cells], minlength=len(counts))
-                if alpha:
-                    a = np.where(nodata_cells, 0, alpha_value).astype(plan.dtype)
-                    data = np.concatenate([data, a[None]], axis=0)
-                elif nodata is not None:
-                    data[:, nodata_cells] = nodata
-                dst.write(data, window=tile.core)
-                if idx is not None:
-                    idx.write((labels + 1).astype(index_dtype)[None], window=tile.core)
-            if overviews or cog:
-                build_overviews(dst)
-            if idx is not None and overviews:
-                build_overviews(idx, "nearest")
-        finally:
+    with ExitStack() as stack:
+        dst = stack.enter_context(WindowWriter(
+            output, grid, plan.bands + (1 if alpha else 0), plan.dtype,
+            None if alpha else nodata, alpha=alpha, cog=cog, overviews=overviews))
+        idx = None if index_path is None else stack.enter_context(WindowWriter(
+            index_path, grid, 1, index_dtype, 0, overviews=overviews,
+            overview_resampling="nearest"))
+        for tile, data, labels in map_tiles(_window_task, ((plan, t) for t in tiles),
+                                            workers=workers, feedback=feedback,
+                                            total=len(tiles), start=0, end=90):
+            nodata_cells = labels < 0
+            empty += int(nodata_cells.sum())
+            counts += np.bincount(labels[~nodata_cells], minlength=len(counts))
+            if alpha:
+                a = np.where(nodata_cells, 0, alpha_value).astype(plan.dtype)
+                data = np.concatenate([data, a[None]], axis=0)
+            elif nodata is not None:
+                data[:, nodata_cells] = nodata
+            dst.write(tile.core, data)
             if idx is not None:
-                idx.close()
-    if cog:
-        from rasterio.shutil import copy
-
-        copy(target, output, driver="COG", compress="DEFLATE", overviews="AUTO")
-        target.unlink()
+                idx.write(tile.core, (labels + 1).astype(index_dtype))
     if feedback is not None:
         feedback.set_progress(100)
     return {"cells_per_source": {s.name: int(c) for s, c in zip(plan.sources, counts,
