@@ -235,7 +235,7 @@ def split_between(cells: list, i: int, j: int, path: list, region, tol: float) -
     line = LineString(path).simplify(tol * 0.5)
     pieces = [g for g in getattr(split(region, line), "geoms", []) if g.area > 0]
     if len(pieces) < 2:
-        return cells[i], cells[j]
+        return None
     grow_i, grow_j = rest_i.buffer(tol), rest_j.buffer(tol)
     mine, yours = [rest_i], [rest_j]
     for piece in pieces:
@@ -310,6 +310,10 @@ def least_cost_cells(cells: list, footprints: list, cost_for: Callable[[int, int
         if path is None:
             entry["note"] = "seam ends not connected inside the overlap"
             continue
-        cells[i], cells[j] = split_between(cells, i, j, path, region, cell * 1e-3)
+        new = split_between(cells, i, j, path, region, cell * 1e-3)
+        if new is None:
+            entry["note"] = "the path did not split the overlap"
+            continue
+        cells[i], cells[j] = new
         entry.update(method="least_cost", vertices=len(path), pieces=n_parts)
     return cells, report

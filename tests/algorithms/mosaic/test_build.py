@@ -178,3 +178,23 @@ def test_inputs_on_another_grid_are_resampled_with_a_warning(pair, tmp_path):
     data, t, _ = read_mosaic(out["OUTPUT"])
     assert t.a == 1.0 and data.shape[1:] == (400, 1000)
     assert (data[3] == 255).sum() == 400 * 1000 - 10 * 400
+
+
+def test_block_balancing_chains_through_images_that_do_not_overlap():
+    # three images in a strip: A-B and B-C overlap, A and C do not; image k = g_k·T + o_k
+    from toolbox.mosaic.balance import overlap_stats, solve_gain_offset
+
+    rng = np.random.default_rng(5)
+    truth = [(1.0, 0.0), (1.2, -10.0), (0.9, 12.0)]
+    stats = []
+    for a, b in ((0, 1), (1, 2)):
+        t = rng.uniform(30, 200, (2, 40, 40))
+        da, db = (truth[k][0] * t + truth[k][1] for k in (a, b))
+        stats.append(overlap_stats(a, b, da, db, np.ones((40, 40), bool)))
+    g, o = solve_gain_offset(stats, 3, 2)
+    # corrected images agree everywhere: g_k·(G_k·T + O_k) + o_k is the same for every k
+    corrected = [(g[k] * gk, g[k] * ok + o[k]) for k, (gk, ok) in enumerate(truth)]
+    for gain, offset in corrected[1:]:
+        assert np.allclose(gain, corrected[0][0], rtol=1e-6)
+        assert np.allclose(offset, corrected[0][1], atol=1e-4)
+    assert np.allclose(g.mean(axis=0), 1) and np.allclose(o.mean(axis=0), 0, atol=1e-6)
