@@ -43,7 +43,10 @@ class MosaicSeamlines(Algorithm):
     footprints and HEIGHT_COST per metre of HEIGHTS (a DSM − DEM raster) above 0.5 m; FORBIDDEN
     polygons are never crossed. The path is found by scikit-image's MCP_Geometric (Dijkstra on
     8-connected cells of SEAM_CELL_SIZE). Overlaps of more than MAX_CELLS cells are routed on
-    an overview first, then refined at full resolution in a corridor, chunk by chunk.
+    an overview first, then refined at full resolution in a corridor, chunk by chunk. Where two
+    cut polygons share several separate boundary pieces only the longest is re-routed; a seam
+    whose ends are not connected inside the overlap stays Voronoi (both with a warning or note
+    in STATISTICS).
 
     OUTPUT (GeoPackage): layer cut_polygons (source_id, source = ortho file name, path, area)
     forms an exact partition of the area (no gaps, no overlaps); layer seamlines (a, b, method,
