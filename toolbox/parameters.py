@@ -495,6 +495,34 @@ class OutputFile(Destination):
         self.extensions = tuple(e.lower() for e in extensions)
 
 
+class OutputFolder(Destination):
+    """An output folder the algorithm fills with several files (e.g. one per map sheet). It is
+    written to a staged folder and moved into place on success; with ``--overwrite`` an
+    existing folder is replaced whole."""
+
+    type_name = "output_folder"
+
+    def validate(self, value: Any, ctx: ValidationContext) -> Path:
+        if not isinstance(value, (str, Path)) or str(value).strip() == "":
+            raise self.error(f"must be an output folder path, got {_show(value)}")
+        path = Path(value).expanduser()
+        resolved = path.resolve()
+        inside = [name for p, name in ctx.input_paths.items() if resolved in (p, *p.parents)]
+        if inside:
+            raise self.error(f"{_show(str(value))} holds the input {inside[0]}; an input is "
+                             "never overwritten: choose another output folder")
+        if path.exists() and not path.is_dir():
+            raise self.error(f"{_show(str(value))} is a file, expected a folder path")
+        if path.exists() and any(path.iterdir()) and not ctx.overwrite:
+            raise OutputExistsError(self.name, f"{_show(str(value))} exists and is not empty; "
+                                    "pass --overwrite (OVERWRITE=True in Python) to replace it")
+        ctx.output_paths[resolved] = self.name
+        return path
+
+    def expected(self) -> str:
+        return "output folder path"
+
+
 # -- value outputs (returned, not written) ---------------------------------------------------------
 class Output:
     """A value an algorithm returns besides its files (a number, a text, a dict of statistics)."""

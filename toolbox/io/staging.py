@@ -45,7 +45,10 @@ class OutputStaging:
                 continue
             for item in staged.parent.iterdir():
                 if item.name.startswith(staged.name):
-                    os.replace(item, final.parent / (final.name + item.name[len(staged.name):]))
+                    target = final.parent / (final.name + item.name[len(staged.name):])
+                    if item.is_dir() and target.is_dir():  # a replaced output folder
+                        shutil.rmtree(target)
+                    os.replace(item, target)
             done.append(final)
         self.rollback()
         return done

@@ -1,0 +1,143 @@
+"""mosaic:build - one mosaic GeoTIFF from orthos and cut polygons."""
+
+from __future__ import annotations
+
+from toolbox.algorithm import Algorithm
+from toolbox.feedback import Feedback
+from toolbox.parameters import (
+    Boolean,
+    Enum,
+    Integer,
+    MultipleLayers,
+    Number,
+    Output,
+    OutputRaster,
+    OutputVector,
+    String,
+    VectorLayer,
+)
+from toolbox.registry import register
+
+BLEND_METHODS = ("none", "feather", "multiband")
+RESAMPLING = ("nearest", "bilinear", "cubic", "lanczos")
+
+
+@register
+class MosaicBuild(Algorithm):
+    """Join orthos into one mosaic GeoTIFF along cut polygons.
+
+    Each mosaic cell takes the ortho whose cut polygon (CUTLINES, e.g. from mosaic:seamlines;
+    default: the Voronoi cells of the orthos' nadir points, else footprint centres) holds it;
+    where that ortho has no data, the first input that has data fills it, so the mosaic has no
+    gap where any input has data.
+
+    BLEND: none (hard cut); feather (each ortho's weight ramps linearly across its polygon's
+    edge over FEATHER_WIDTH ground units, weights normalised to sum to 1); multiband (Laplacian
+    pyramid blending over LEVELS levels: low frequencies blend over about 2^LEVELS cells, fine
+    detail over a few). Farther from the seams than the blend width, cells equal their source.
+
+    BALANCE: one gain and offset per ortho and band from the overlap means and standard
+    deviations of every overlapping pair, solved together by least squares with the mean gain
+    held at 1 and the mean offset at 0 (no ortho is the reference).
+
+    The grid has the finest input's cell (or CELL_SIZE) over the cut polygons' area; inputs on
+    other grids are resampled (RESAMPLING) with a warning. The mosaic is written window by window
+    (tiled DEFLATE GeoTIFF with overviews, or COG), with an alpha band if any input has one,
+    else nodata. SOURCE_INDEX gets the 1-based input number of each cell (0 = no data), and
+    SEAMLINES the seams between the cut polygons.
+    """
+
+    id = "mosaic:build"
+    display_name = "Build mosaic"
+    group = "Mosaic"
+    short_help = "Orthos + cut polygons -> mosaic GeoTIFF (blending, balancing, source index)."
+    parameters = [
+        MultipleLayers("INPUT", "the orthophoto GeoTIFFs (north-up, one CRS)",
+                       layer_type="raster", min_count=1),
+        VectorLayer("CUTLINES", "cut polygons (mosaic:seamlines' cut_polygons layer; default: "
+                    "Voronoi cells)", geometry_types=["polygon"], optional=True),
+        String("SOURCE_FIELD", "field of CUTLINES holding the ortho file names (or 1-based "
+               "input numbers)", default="source"),
+        Enum("BLEND", "blending across seams", options=BLEND_METHODS, default="feather"),
+        Number("FEATHER_WIDTH", "feathering width, ground units (default: 8 cells)",
+               optional=True, min_value=0),
+        Integer("LEVELS", "pyramid levels for BLEND=multiband", default=4, min_value=1,
+                max_value=10),
+        Boolean("BALANCE", "balance gains and offsets over the block", default=False),
+        Number("CELL_SIZE", "mosaic cell size (default: the finest input's)", optional=True,
+               min_value=0, min_exclusive=True),
+        Enum("RESAMPLING", "resampling of inputs off the mosaic grid", options=RESAMPLING,
+             default="bilinear"),
+        Boolean("COG", "write a Cloud Optimized GeoTIFF", default=False),
+        Boolean("OVERVIEWS", "build internal overviews", default=True),
+        OutputRaster("OUTPUT", "mosaic GeoTIFF"),
+        OutputRaster("SOURCE_INDEX", "source index raster (1-based input number, 0 = none)",
+                     optional=True),
+        OutputVector("SEAMLINES", "seamlines GeoPackage", optional=True),
+    ]
+    outputs = [Output("STATISTICS", "grid, cells per source, gains and offsets", "dict")]
+
+    def check(self, params):
+        if params["FEATHER_WIDTH"] is not None and params["BLEND"] != "feather":
+            raise self.fail("FEATHER_WIDTH", f"applies to BLEND=feather, got BLEND="
+                            f"{params['BLEND']}")
+
+    def process(self, params, feedback: Feedback):
+        import numpy as np
+        import shapely
+
+        from toolbox.io.crs import crs_label
+        from toolbox.io.vector import write_layers
+        from toolbox.mosaic.balance import block_statistics, solve_gain_offset
+        from toolbox.mosaic.block import (
+            cells_from_layer,
+            centres_of,
+            mosaic_grid,
+            open_block,
+            seams_frame,
+            union_area,
+        )
+        from toolbox.mosaic.build import MosaicPlan, write_mosaic
+        from toolbox.mosaic.partition import voronoi_cells
+
+        sources, crs = open_block([i.path for i in params["INPUT"]], "INPUT", feedback)
+        bands = {len(s.data_bands) for s in sources}
+        dtypes = {s.dtype for s in sources}
+        if len(bands) > 1:
+            raise self.fail("INPUT", f"the orthos have different band counts {sorted(bands)}; "
+                            "mosaic orthos of one kind")
+        if params["CUTLINES"] is not None:
+            cells = cells_from_layer(params["CUTLINES"], params["SOURCE_FIELD"], sources)
+        else:
+            cells = voronoi_cells([s.footprint for s in sources],
+                                  centres_of(sources, "nadir", None, feedback))
+        area = shapely.union_all([c for c in cells if not c.is_empty] or [union_area(sources)])
+        grid = mosaic_grid(sources, crs, params["CELL_SIZE"], area.union(union_area(sources)),
+                           feedback)
+        dtype = np.result_type(*dtypes).name
+        n_bands = bands.pop()
+        gains = offsets = None
+        if params["BALANCE"] and len(sources) > 1:
+            with feedback.timed("balance"):
+                stats = block_statistics(sources, [s.footprint for s in sources], crs)
+                gains, offsets = solve_gain_offset(stats, len(sources), n_bands)
+        feather = params["FEATHER_WIDTH"]
+        feather_cells = 8.0 if feather is None else feather / grid.cell_size[0]
+        plan = MosaicPlan(sources, cells, grid, n_bands, dtype, params["BLEND"], feather_cells,
+                          params["LEVELS"], gains, offsets, params["RESAMPLING"])
+        alpha = any(s.alpha_band is not None for s in sources)
+        nodata = next((s.nodata for s in sources if s.nodata is not None), 0)
+        with feedback.timed("mosaic"):
+            stats = write_mosaic(plan, params["OUTPUT"], params["SOURCE_INDEX"], alpha=alpha,
+                                 nodata=None if alpha else nodata, cog=params["COG"],
+                                 overviews=params["OVERVIEWS"], feedback=feedback.step(5, 95))
+        if params["SEAMLINES"] is not None:
+            write_layers(params["SEAMLINES"], {"seamlines": seams_frame(sources, cells, crs)},
+                         geometry_types={"seamlines": "MultiLineString"})
+        return {"OUTPUT": params["OUTPUT"], "SOURCE_INDEX": params["SOURCE_INDEX"],
+                "SEAMLINES": params["SEAMLINES"], "STATISTICS": {
+                    "crs": crs_label(crs), "width": grid.width, "height": grid.height,
+                    "cell_size": grid.cell_size[0], "bounds": list(grid.bounds),
+                    "blend": params["BLEND"], "alpha": alpha, **stats,
+                    "gains": None if gains is None else gains.round(5).tolist(),
+                    "offsets": None if offsets is None else offsets.round(4).tolist()}}

@@ -1,0 +1,123 @@
+"""mosaic:cut - clip a mosaic (or any raster or vector) to map sheets."""
+
+from __future__ import annotations
+
+from toolbox.algorithm import Algorithm
+from toolbox.feedback import Feedback
+from toolbox.parameters import Field, File, Number, Output, OutputFolder, VectorLayer
+from toolbox.registry import register
+
+
+@register
+class MosaicCut(Algorithm):
+    """Clip a raster or a vector layer to map sheets, one file per sheet named by its id (the
+    thesis' "taglio" of the merged models to the map unit).
+
+    Sheets come from SHEETS (a polygon layer; ids from ID_FIELD, else the feature number) or
+    from a sheet grid: SCALE (the map scale denominator) and the paper SHEET_WIDTH x
+    SHEET_HEIGHT in cm give the ground size of a sheet (e.g. 1:2000, 50 x 40 cm -> 1000 x 800 m);
+    sheet (i, j) spans ORIGIN_X + i·W .. ORIGIN_X + (i+1)·W (and likewise north) and is named
+    "i_j". Rasters are clipped on their own grid over the sheet's bounds (outside the sheet
+    polygon: nodata or alpha 0) as tiled GeoTIFFs <id>.tif; vectors are clipped (GEOS) into
+    <id>.gpkg. Sheets holding no data are skipped. OUTPUT is a folder; it also receives
+    sheets.gpkg, the sheet index (id, file, written).
+    """
+
+    id = "mosaic:cut"
+    display_name = "Cut to map sheets"
+    group = "Mosaic"
+    short_help = "Clip a raster or vector to map sheets (grid or polygons), one file per sheet."
+    parameters = [
+        File("INPUT", "raster (GeoTIFF...) or vector layer (GeoPackage, Shapefile...) to clip"),
+        VectorLayer("SHEETS", "sheet polygons (default: a grid from SCALE and the sheet size)",
+                    geometry_types=["polygon"], optional=True),
+        Field("ID_FIELD", "field of SHEETS with the sheet ids (default: feature number)",
+              parent="SHEETS", optional=True),
+        Number("SCALE", "map scale denominator for the sheet grid (e.g. 2000)", optional=True,
+               min_value=1),
+        Number("SHEET_WIDTH", "paper sheet width, cm", default=50.0, min_value=0,
+               min_exclusive=True),
+        Number("SHEET_HEIGHT", "paper sheet height, cm", default=40.0, min_value=0,
+               min_exclusive=True),
+        Number("ORIGIN_X", "sheet grid origin, easting", default=0.0),
+        Number("ORIGIN_Y", "sheet grid origin, northing", default=0.0),
+        OutputFolder("OUTPUT", "folder for the sheet files"),
+    ]
+    outputs = [Output("STATISTICS", "sheets written and skipped", "dict")]
+
+    def check(self, params):
+        if params["SHEETS"] is None and params["SCALE"] is None:
+            raise self.fail("SCALE", "is required without SHEETS (the sheet grid needs a scale)")
+        if params["SHEETS"] is not None and params["SCALE"] is not None:
+            raise self.fail("SCALE", "does not apply with SHEETS (the sheets are given)")
+
+    def process(self, params, feedback: Feedback):
+        import geopandas as gpd
+
+        from toolbox.errors import InputDataError
+        from toolbox.io.vector import read_vector, write_layers
+        from toolbox.mosaic.sheets import clip_raster, clip_vector, sheet_grid, sheet_ids_unique
+
+        source, kind, crs, bounds = _open_input(params["INPUT"])
+        if params["SHEETS"] is not None:
+            frame = read_vector(params["SHEETS"], crs=crs, name="SHEETS")
+            if crs is not None and frame.crs is not None and not frame.crs.equals(crs):
+                frame = frame.to_crs(crs)
+            field = params["ID_FIELD"]
+            raw = [str(v) for v in frame[field]] if field else \
+                [str(k + 1) for k in range(len(frame))]
+            sheets = list(zip(raw, frame.geometry, strict=True))
+        else:
+            side = params["SCALE"] / 100.0
+            sheets = sheet_grid(bounds, params["SHEET_WIDTH"] * side,
+                                params["SHEET_HEIGHT"] * side,
+                                (params["ORIGIN_X"], params["ORIGIN_Y"]))
+        if not sheets:
+            raise InputDataError("no sheet meets the input's extent")
+        folder = params["OUTPUT"]
+        folder.mkdir(parents=True, exist_ok=True)
+        names = sheet_ids_unique([sid for sid, _ in sheets])
+        rows = []
+        for (sid, geom), name in feedback.iterate(list(zip(sheets, names, strict=True))):
+            feedback.check_canceled()
+            if geom is None or geom.is_empty:
+                continue
+            if kind == "raster":
+                target = folder / f"{name}.tif"
+                written = clip_raster(source, geom, target)
+            else:
+                target = folder / f"{name}.gpkg"
+                written = clip_vector(source, geom, target, "clipped") > 0
+            rows.append({"sheet_id": sid, "file": target.name if written else "",
+                         "written": bool(written), "geometry": geom})
+        write_layers(folder / "sheets.gpkg",
+                     {"sheets": gpd.GeoDataFrame(rows, geometry="geometry", crs=crs)})
+        done = [r["file"] for r in rows if r["written"]]
+        return {"OUTPUT": folder, "STATISTICS": {
+            "kind": kind, "sheets": len(rows), "written": len(done),
+            "skipped_empty": len(rows) - len(done), "files": done}}
+
+
+def _open_input(path):
+    """``(source, "raster"|"vector", crs, bounds)``: a raster path or a GeoDataFrame."""
+    import warnings
+
+    import rasterio
+
+    from toolbox.errors import ParameterError
+    from toolbox.io.vector import read_vector
+
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
+            with rasterio.open(path) as src:
+                if src.count > 0:
+                    return path, "raster", src.crs, tuple(src.bounds)
+    except rasterio.errors.RasterioIOError:
+        pass
+    try:
+        frame = read_vector(str(path), name="INPUT")
+    except Exception as exc:  # neither GDAL nor OGR reads it
+        raise ParameterError("INPUT", f"'{path}' is neither a raster nor a vector layer: "
+                             f"{str(exc).splitlines()[0]}") from None
+    return frame, "vector", frame.crs, tuple(frame.total_bounds)

@@ -1,0 +1,178 @@
+"""mosaic:seamlines - cut polygons and seamlines of a block of orthophotos."""
+
+from __future__ import annotations
+
+from toolbox.algorithm import Algorithm
+from toolbox.feedback import Feedback
+from toolbox.parameters import (
+    Enum,
+    Field,
+    Integer,
+    MultipleLayers,
+    Number,
+    Output,
+    OutputVector,
+    RasterLayer,
+    VectorLayer,
+)
+from toolbox.registry import register
+
+METHODS = ("voronoi", "least_cost")
+CENTRES = ("nadir", "footprint")
+
+
+@register
+class MosaicSeamlines(Algorithm):
+    """Cut the mosaic area into one polygon per ortho (thesis S002 §3.8, "linee di taglio").
+
+    The area is the union of the orthos' valid data (alpha band, nodata or mask, traced on the
+    mask decimated to at most 2048 cells a side).
+
+    METHOD=voronoi (the thesis' LPV, locus of nearest points): each ground point goes to the
+    ortho whose centre is nearest among the orthos that have data there; the seams lie on the
+    perpendicular bisectors of the centres. CENTRES=nadir takes the nadir points from
+    NADIR_POINTS (matched by NADIR_FIELD = the ortho file names, or by order) or from the
+    orthos' tags NADIR_X/NADIR_Y (X0/Y0); CENTRES=footprint uses the footprint centroids.
+
+    METHOD=least_cost (PPD, paths by dynamic programming): each Voronoi seam is re-routed along
+    the minimum-cost path between its two ends inside the overlap of its two orthos, over a cost
+    per unit length ``0.1 + w_d·|a−b|/range + w_g·max(|∇a|,|∇b|)/range + w_c·|d_a − d_b|/D``
+    (radiometric difference and Sobel gradient of the two orthos, and a pull towards the
+    bisector of the two centres: d = distance to a centre, D between them; it keeps each cell
+    near its own nadir where the images give no reason to leave), plus BUILDING_COST inside BUILDINGS
+    footprints and HEIGHT_COST per metre of HEIGHTS (a DSM − DEM raster) above 0.5 m; FORBIDDEN
+    polygons are never crossed. The path is found by scikit-image's MCP_Geometric (Dijkstra on
+    8-connected cells of SEAM_CELL_SIZE). Overlaps of more than MAX_CELLS cells are routed on
+    an overview first, then refined at full resolution in a corridor, chunk by chunk. Where two
+    cut polygons share several separate boundary pieces only the longest is re-routed; a seam
+    whose ends are not connected inside the overlap stays Voronoi (both with a warning or note
+    in STATISTICS).
+
+    OUTPUT (GeoPackage): layer cut_polygons (source_id, source = ortho file name, path, area)
+    forms an exact partition of the area (no gaps, no overlaps); layer seamlines (a, b, method,
+    length); layers footprints and centres. Move a seam in QGIS by editing the cut polygons
+    (keeping them a partition), then run mosaic:build with CUTLINES.
+    """
+
+    id = "mosaic:seamlines"
+    display_name = "Mosaic seamlines"
+    group = "Mosaic"
+    short_help = "Cut polygons and seamlines of a block of orthos (Voronoi or least-cost)."
+    parameters = [
+        MultipleLayers("INPUT", "the orthophoto GeoTIFFs (north-up, one CRS)",
+                       layer_type="raster", min_count=1),
+        Enum("METHOD", "voronoi (nearest centre) or least_cost (minimum-cost paths)",
+             options=METHODS, default="least_cost"),
+        Enum("CENTRES", "Voronoi centres: nadir points or footprint centres", options=CENTRES,
+             default="nadir"),
+        VectorLayer("NADIR_POINTS", "nadir points (default: the orthos' NADIR_X/NADIR_Y tags)",
+                    geometry_types=["point"], optional=True),
+        Field("NADIR_FIELD", "field of NADIR_POINTS holding the ortho file names (default: "
+              "points in input order)", parent="NADIR_POINTS", optional=True),
+        Number("SEAM_CELL_SIZE", "cell of the least-cost grid, CRS units (default: the finest "
+               "ortho's)", optional=True, min_value=0, min_exclusive=True),
+        Number("DIFFERENCE_WEIGHT", "weight of the radiometric difference", default=1.0,
+               min_value=0),
+        Number("GRADIENT_WEIGHT", "weight of the image gradient", default=1.0, min_value=0),
+        Number("CENTRE_WEIGHT", "weight of the pull towards the Voronoi line (the bisector)",
+               default=0.5, min_value=0),
+        VectorLayer("BUILDINGS", "building footprints the seams should avoid",
+                    geometry_types=["polygon"], optional=True),
+        Number("BUILDING_COST", "extra cost inside BUILDINGS", default=10.0, min_value=0),
+        RasterLayer("HEIGHTS", "DSM minus DEM heights, metres (seams avoid what stands up)",
+                    optional=True),
+        Number("HEIGHT_COST", "extra cost per metre of HEIGHTS above 0.5 m", default=1.0,
+               min_value=0),
+        VectorLayer("FORBIDDEN", "areas no seam may cross", geometry_types=["polygon"],
+                    optional=True),
+        Integer("MAX_CELLS", "largest least-cost grid before overview + corridor",
+                default=4_000_000, min_value=10_000),
+        OutputVector("OUTPUT", "GeoPackage: cut_polygons, seamlines, footprints, centres"),
+    ]
+    outputs = [Output("STATISTICS", "areas, partition check and per-seam notes", "dict")]
+
+    def process(self, params, feedback: Feedback):
+        import geopandas as gpd
+        import shapely
+
+        from toolbox.io.vector import read_vector, write_layers
+        from toolbox.mosaic.block import (
+            cells_frame,
+            centres_of,
+            nadir_points_from_layer,
+            open_block,
+            seams_frame,
+            union_area,
+        )
+        from toolbox.mosaic.partition import partition_errors, voronoi_cells
+        from toolbox.mosaic.seams import CostWeights, PairCost, least_cost_cells
+        from toolbox.mosaic.sources import open_source
+
+        with feedback.timed("footprints"):
+            sources, crs = open_block([i.path for i in params["INPUT"]], "INPUT", feedback)
+        points = None
+        if params["NADIR_POINTS"] is not None:
+            points = nadir_points_from_layer(params["NADIR_POINTS"], params["NADIR_FIELD"],
+                                             sources)
+        centres = centres_of(sources, params["CENTRES"], points, feedback)
+        footprints = [s.footprint for s in sources]
+        with feedback.timed("voronoi"):
+            cells = voronoi_cells(footprints, centres)
+        feedback.set_progress(20)
+        seam_report = []
+        if params["METHOD"] == "least_cost" and len(sources) > 1:
+            weights = CostWeights(difference=params["DIFFERENCE_WEIGHT"],
+                                  gradient=params["GRADIENT_WEIGHT"],
+                                  centre=params["CENTRE_WEIGHT"],
+                                  building=params["BUILDING_COST"], height=params["HEIGHT_COST"])
+            buildings = _polygons(params["BUILDINGS"], crs, read_vector)
+            forbidden = _polygons(params["FORBIDDEN"], crs, read_vector)
+            heights = None if params["HEIGHTS"] is None else \
+                open_source(params["HEIGHTS"].path, -1)
+            cell = params["SEAM_CELL_SIZE"] or min(s.res[0] for s in sources)
+
+            def cost_for(i, j):
+                return PairCost(sources[i], sources[j], crs, weights, buildings, forbidden,
+                                heights, (centres[i], centres[j]))
+
+            with feedback.timed("least_cost"):
+                cells, seam_report = least_cost_cells(cells, footprints, cost_for, cell,
+                                                      params["MAX_CELLS"],
+                                                      feedback.step(20, 95))
+            for entry in seam_report:
+                if entry["method"] != "least_cost":
+                    feedback.push_warning(f"seam {sources[entry['a']].name} / "
+                                          f"{sources[entry['b']].name} kept on the Voronoi "
+                                          f"line: {entry.get('note', '')}")
+        area = union_area(sources)
+        gap, overlap = partition_errors(cells, area)
+        methods = {(e["a"], e["b"]): e["method"] for e in seam_report}
+        centre_frame = gpd.GeoDataFrame(
+            {"source_id": [s.index + 1 for s in sources], "source": [s.name for s in sources]},
+            geometry=[shapely.Point(c) for c in centres], crs=crs)
+        foot_frame = gpd.GeoDataFrame(
+            {"source_id": [s.index + 1 for s in sources], "source": [s.name for s in sources]},
+            geometry=[f if f.geom_type == "MultiPolygon" else shapely.MultiPolygon([f])
+                      for f in footprints], crs=crs)
+        write_layers(params["OUTPUT"], {
+            "cut_polygons": cells_frame(sources, cells, crs),
+            "seamlines": seams_frame(sources, cells, crs, methods),
+            "footprints": foot_frame, "centres": centre_frame},
+            geometry_types={"cut_polygons": "MultiPolygon", "seamlines": "MultiLineString",
+                            "footprints": "MultiPolygon", "centres": "Point"})
+        return {"OUTPUT": params["OUTPUT"], "STATISTICS": {
+            "method": params["METHOD"], "orthos": len(sources),
+            "area": float(area.area), "partition_gap_area": gap, "max_overlap_area": overlap,
+            "cut_areas": {s.name: float(c.area) for s, c in zip(sources, cells, strict=True)},
+            "seams": [{**e, "a": sources[e["a"]].name, "b": sources[e["b"]].name}
+                      for e in seam_report]}}
+
+
+def _polygons(layer, crs, read_vector) -> list:
+    """The polygons of an optional layer, in ``crs``."""
+    if layer is None:
+        return []
+    frame = read_vector(layer, crs=crs)
+    if crs is not None and frame.crs is not None and not frame.crs.equals(crs):
+        frame = frame.to_crs(crs)
+    return [g for g in frame.geometry if g is not None and not g.is_empty]

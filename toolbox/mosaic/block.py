@@ -1,0 +1,171 @@
+"""The block of orthos as a whole: open and check the inputs, trace footprints, choose centres,
+the mosaic grid, and the cut polygons / seamlines as GeoDataFrames (read and write)."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+
+from toolbox.errors import InputDataError, ParameterError
+from toolbox.mosaic.sources import OrthoSource, aligned, open_source, valid_footprint
+
+CENTRES = ("nadir", "footprint")
+FOOTPRINT_CELLS = 2048  # footprints are traced on masks decimated to this size
+
+
+def open_block(paths: list, name: str = "INPUT", feedback: Any = None) -> tuple[list, Any]:
+    """Open the orthos, check they share one CRS and trace their valid-data footprints.
+    Returns ``(sources, pyproj CRS or None)``."""
+    from pyproj import CRS
+
+    from toolbox.io.crs import common_crs
+
+    sources = []
+    for k, p in enumerate(paths):
+        src = open_source(Path(p), k)
+        if src.name in {s.name for s in sources}:
+            raise ParameterError(name, f"two inputs are named '{src.name}' (the file name "
+                                 "identifies an ortho in the cut polygons): rename one")
+        src.footprint = valid_footprint(src, FOOTPRINT_CELLS)
+        sources.append(src)
+        if feedback is not None:
+            feedback.check_canceled()
+    crs = common_crs({f"{name}[{s.index}] ({s.name})":
+                      CRS.from_wkt(s.crs.to_wkt()) if s.crs else None for s in sources})
+    return sources, crs
+
+
+def centres_of(sources: list[OrthoSource], how: str, points: dict | None = None,
+               feedback: Any = None) -> list[tuple[float, float]]:
+    """Centre of each ortho's Voronoi cell: its nadir point (``points[name]``, else the ortho's
+    tags) or its footprint centre (``how="footprint"``, and the fallback, with a warning)."""
+    out = []
+    for s in sources:
+        nadir = (points or {}).get(s.name) or s.nadir
+        if how == "nadir" and nadir is None:
+            if feedback is not None:
+                feedback.push_warning(f"{s.name}: no nadir point (tags NADIR_X/NADIR_Y or "
+                                      "NADIR_POINTS): its footprint centre is used")
+        out.append(tuple(nadir) if how == "nadir" and nadir is not None else s.centre)
+    return out
+
+
+def nadir_points_from_layer(layer, field: str | None, sources: list[OrthoSource],
+                            name: str = "NADIR_POINTS") -> dict:
+    """``{ortho name: (x, y)}`` from a point layer: matched by ``field`` (ortho file names)
+    or, without it, by feature order."""
+    from toolbox.io.vector import read_vector
+
+    frame = read_vector(layer)
+    xy = [(float(g.x), float(g.y)) for g in frame.geometry]
+    if field is None:
+        if len(xy) != len(sources):
+            raise ParameterError(name, f"has {len(xy)} points for {len(sources)} orthos; give "
+                                 "one per ortho in input order, or name the matching field")
+        return {s.name: p for s, p in zip(sources, xy, strict=True)}
+    keys = [str(v) for v in frame[field]]
+    found = dict(zip(keys, xy, strict=True))
+    missing = [s.name for s in sources if s.name not in found]
+    if missing:
+        raise ParameterError(name, f"has no point whose {field} is {', '.join(missing)}")
+    return found
+
+
+def mosaic_grid(sources: list[OrthoSource], crs: Any, cell: float | None, area,
+                feedback: Any = None):
+    """The mosaic grid: cells of ``cell`` (default: the finest input's) over ``area``'s bounds,
+    aligned with the first input of that cell size. Warns when inputs must be resampled."""
+    from affine import Affine
+
+    from toolbox.io.grid import GridSpec
+
+    finest = min(sources, key=lambda s: s.res[0])
+    cell = cell or finest.res[0]
+    ref = next((s for s in sources if math.isclose(s.res[0], cell) and
+                math.isclose(s.res[1], cell)), None)
+    ox, oy = (ref.transform.c, ref.transform.f) if ref is not None else (0.0, 0.0)
+    x0, y0, x1, y1 = area.bounds
+    x0 = ox + math.floor((x0 - ox) / cell + 1e-9) * cell
+    y1 = oy + math.ceil((y1 - oy) / cell - 1e-9) * cell
+    cols = max(1, math.ceil((x1 - x0) / cell - 1e-9))
+    rows = max(1, math.ceil((y1 - y0) / cell - 1e-9))
+    from toolbox.io.grid import max_cells_default
+
+    if cols * rows > max_cells_default():
+        raise ParameterError("CELL_SIZE", f"{cell:g} gives a {cols} x {rows} mosaic, over the "
+                             f"limit of {max_cells_default():,} cells (raise TOOLBOX_MAX_CELLS)")
+    grid = GridSpec(Affine(cell, 0, x0, 0, -cell, y1), cols, rows, crs)
+    off = [s.name for s in sources if not aligned(s, grid.transform)]
+    if off and feedback is not None:
+        feedback.push_warning(f"{', '.join(off)} not on the mosaic grid ({cell:g} cells): "
+                              "resampled onto it")
+    return grid
+
+
+def cells_frame(sources: list[OrthoSource], cells: list, crs: Any):
+    """GeoDataFrame of the cut polygons (one row per ortho with a non-empty cell)."""
+    import geopandas as gpd
+    from shapely.geometry import MultiPolygon
+
+    rows = [{"source_id": s.index + 1, "source": s.name, "path": str(s.path),
+             "area": float(c.area), "geometry": c if c.geom_type == "MultiPolygon"
+             else MultiPolygon([c])} for s, c in zip(sources, cells, strict=True)
+            if not c.is_empty]
+    return gpd.GeoDataFrame(rows, geometry="geometry", crs=crs)
+
+
+def seams_frame(sources: list[OrthoSource], cells: list, crs: Any, methods: dict | None = None):
+    """GeoDataFrame of the seamlines between neighbouring cut polygons."""
+    import geopandas as gpd
+    from shapely.geometry import MultiLineString
+
+    from toolbox.mosaic.partition import seamlines
+
+    rows = []
+    for i, j, line in seamlines(cells):
+        parts = list(getattr(line, "geoms", [line]))
+        rows.append({"a_id": i + 1, "b_id": j + 1, "a": sources[i].name, "b": sources[j].name,
+                     "method": (methods or {}).get((i, j), "voronoi"),
+                     "length": float(line.length), "geometry": MultiLineString(parts)})
+    frame = gpd.GeoDataFrame(rows, geometry="geometry", crs=crs) if rows else \
+        gpd.GeoDataFrame({"a_id": [], "b_id": [], "a": [], "b": [], "method": [], "length": []},
+                         geometry=gpd.GeoSeries([], crs=crs), crs=crs)
+    return frame
+
+
+def cells_from_layer(layer, field: str, sources: list[OrthoSource],
+                     name: str = "CUTLINES") -> list:
+    """Cut polygon per source from a polygon layer whose ``field`` holds the ortho names (or
+    1-based source ids); several features of one source are united; sources without a feature
+    get an empty cell."""
+    import shapely
+
+    from toolbox.io.vector import read_vector
+
+    frame = read_vector(layer)
+    if field not in frame.columns:
+        raise ParameterError(name, f"has no field '{field}'; fields are: "
+                             f"{', '.join(c for c in frame.columns if c != 'geometry')}")
+    by_name = {s.name: s.index for s in sources}
+    parts: dict[int, list] = {}
+    for value, geom in zip(frame[field], frame.geometry, strict=True):
+        key = str(value)
+        if key in by_name:
+            k = by_name[key]
+        elif key.isdigit() and 1 <= int(key) <= len(sources):
+            k = int(key) - 1
+        else:
+            raise InputDataError(f"{name}: feature with {field} = {key!r} matches no input "
+                                 f"ortho (names: {', '.join(by_name)})")
+        if geom is not None and not geom.is_empty:
+            parts.setdefault(k, []).append(shapely.make_valid(geom))
+    return [shapely.union_all(parts[k]) if k in parts else shapely.Polygon()
+            for k in range(len(sources))]
+
+
+def union_area(sources: list[OrthoSource]):
+    import shapely
+
+    return shapely.union_all([s.footprint for s in sources])
+

@@ -1,0 +1,111 @@
+"""Cut polygons: the Voronoi ("LPV", locus of nearest points) partition of the mosaic area and
+the seamlines between cut polygons.
+
+Each ground point goes to the ortho whose centre (nadir point or footprint centre) is nearest
+*among the orthos that have valid data there*, so the cells are an exact partition of the union
+of the footprints: ``cell_i = F_i − ∪_j (F_j ∩ H_ij)``, with ``F`` the footprints and ``H_ij`` the
+half plane closer to centre ``j`` than to centre ``i``. The boundary between two cells lies on
+the perpendicular bisector of their centres (inside the overlap) or on a footprint edge.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def half_plane_closer_to(p: tuple[float, float], q: tuple[float, float], bounds) -> object:
+    """The part of the box ``bounds`` closer to ``q`` than to ``p`` (a shapely polygon): the box
+    cut by the perpendicular bisector of ``p`` and ``q``."""
+    import shapely
+
+    p, q = np.asarray(p, float), np.asarray(q, float)
+    xmin, ymin, xmax, ymax = bounds
+    size = 4.0 * max(xmax - xmin, ymax - ymin, float(np.hypot(*(q - p))), 1.0)
+    mid, d = (p + q) / 2.0, q - p
+    norm = float(np.hypot(*d))
+    if norm == 0:
+        return shapely.Polygon()
+    d /= norm
+    n = np.array([-d[1], d[0]])  # along the bisector
+    corners = [mid + n * size, mid + n * size + d * size, mid - n * size + d * size, mid - n * size]
+    return shapely.Polygon(corners).intersection(shapely.box(*bounds))
+
+
+def voronoi_cells(footprints: list, centres: list[tuple[float, float]]) -> list:
+    """Cut polygons, one per ortho (possibly empty), partitioning the union of ``footprints``.
+
+    ``centres[i]`` is ortho i's nadir point or footprint centre. Two orthos with the same centre
+    split their overlap in favour of the lower index.
+    """
+    import shapely
+
+    bounds = shapely.union_all(footprints).bounds
+    cells = []
+    for i, (fi, ci) in enumerate(zip(footprints, centres, strict=True)):
+        taken = []
+        for j, (fj, cj) in enumerate(zip(footprints, centres, strict=True)):
+            if j == i or not fi.intersects(fj):
+                continue
+            if np.allclose(ci, cj):
+                if j < i:
+                    taken.append(fj)
+                continue
+            taken.append(fj.intersection(half_plane_closer_to(ci, cj, bounds)))
+        cell = fi.difference(shapely.union_all(taken)) if taken else fi
+        cells.append(_polygonal(cell))
+    return cells
+
+
+def _polygonal(geom):
+    """Keep only the polygonal parts of a GEOS result (drop slivers' lines and points)."""
+    import shapely
+
+    if geom.is_empty or geom.geom_type in ("Polygon", "MultiPolygon"):
+        return geom
+    parts = [g for g in getattr(geom, "geoms", []) if g.geom_type in ("Polygon", "MultiPolygon")]
+    return shapely.union_all(parts) if parts else shapely.Polygon()
+
+
+def merge_lines(lines: list):
+    """One (Multi)LineString from line parts, joined end to end where they touch."""
+    import shapely
+    from shapely.ops import linemerge
+
+    union = shapely.union_all(lines)
+    return union if union.geom_type == "LineString" else linemerge(union)
+
+
+def seamlines(cells: list) -> list[tuple[int, int, object]]:
+    """``(i, j, line)`` for every pair of cut polygons sharing a boundary of non-zero length
+    (``line`` a merged (Multi)LineString, i < j)."""
+    import shapely
+
+    out = []
+    for i in range(len(cells)):
+        for j in range(i + 1, len(cells)):
+            a, b = cells[i], cells[j]
+            if a.is_empty or b.is_empty or not a.buffer(1e-9).intersects(b):
+                continue
+            shared = shapely.intersection(a.boundary, b.boundary)
+            lines = [g for g in getattr(shared, "geoms", [shared])
+                     if g.geom_type in ("LineString", "MultiLineString") and g.length > 0]
+            if not lines:
+                continue
+            merged = merge_lines(lines)
+            if merged.length > 0:
+                out.append((i, j, merged))
+    return out
+
+
+def partition_errors(cells: list, area) -> tuple[float, float]:
+    """``(gap_or_excess_area, max_pairwise_overlap_area)`` of ``cells`` against ``area``: both
+    are 0 for an exact partition."""
+    import shapely
+
+    union = shapely.union_all([c for c in cells if not c.is_empty])
+    mismatch = union.symmetric_difference(area).area
+    overlap = 0.0
+    for i in range(len(cells)):
+        for j in range(i + 1, len(cells)):
+            overlap = max(overlap, cells[i].intersection(cells[j]).area)
+    return mismatch, overlap

@@ -1,0 +1,319 @@
+"""Least-cost seams ("PPD", paths by dynamic programming) in the overlaps of a cut partition.
+
+For each pair of neighbouring cut polygons ``i``, ``j`` the region ``R = (cell_i ∪ cell_j) ∩ F_i ∩
+F_j`` (their common overlap) is re-split by the minimum-cost path between the two ends of their
+current (Voronoi) seam, over a cost surface (:func:`cost_surface`): where the orthos differ
+radiometrically or have strong edges (buildings, trees, relief-displaced features) the path is
+expensive. The path is found by scikit-image's ``graph.MCP_Geometric`` (Dijkstra on the 8-connected
+grid, a move's cost = length x mean cell cost). Outside ``R`` and in forbidden areas the cost is
+negative, which MCP treats as impassable, so the seam stays inside the overlap.
+
+Bounded memory: a region over ``max_cells`` cells is routed first on an overview (cells ``f``
+times larger), then refined at full resolution chunk by chunk in a corridor around the coarse
+path; each chunk grid has at most about ``max_cells`` cells.
+
+The new cut polygons are ``(cell_i − R) ∪ pieces_i`` and ``(cell_j − R) ∪ pieces_j``, the pieces
+of ``R`` split by the path: the partition stays exact by construction.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from toolbox.mosaic.sources import OrthoSource, read_window
+
+IMPASSABLE = -1.0
+
+
+@dataclass
+class CostWeights:
+    """Weights of the cost surface terms (dimensionless: the terms are scaled to about 0-1)."""
+
+    base: float = 0.1        # per unit length everywhere: keeps the path from wandering
+    difference: float = 1.0  # mean absolute band difference / the images' value range
+    gradient: float = 1.0    # largest Sobel gradient of the two images / the value range
+    centre: float = 0.5      # |distance to centre a − distance to centre b| / their distance
+    building: float = 10.0   # inside a building footprint
+    height: float = 1.0      # per metre of DSM - DEM above HEIGHT_THRESHOLD
+    height_threshold: float = 0.5
+
+
+def cost_surface(a: np.ndarray, b: np.ndarray, weights: CostWeights,
+                 value_range: float | None = None) -> np.ndarray:
+    """Cost per unit length from two co-registered images ``(bands, rows, cols)``:
+    ``base + w_d·mean|a−b|/range + w_g·max(|∇a|, |∇b|)/range`` (float64, ``(rows, cols)``);
+    :class:`PairCost` adds the centre, building and height terms.
+
+    ``value_range`` defaults to the 1-99 % percentile spread of both images.
+    """
+    from scipy import ndimage
+
+    a = np.asarray(a, dtype="float32")
+    b = np.asarray(b, dtype="float32")
+    if value_range is None:
+        step = max(1, int(np.sqrt(a[0].size / 250_000)))  # a sample of ~250,000 cells is plenty
+        sample = np.concatenate([a[:, ::step, ::step].ravel(), b[:, ::step, ::step].ravel()])
+        lo, hi = np.percentile(sample, [1, 99])
+        value_range = float(hi - lo)
+    scale = 1.0 / max(value_range, 1e-6)
+    diff = np.abs(a - b).mean(axis=0) * scale
+    grad = np.zeros(a.shape[1:], dtype="float32")
+    for img in (a.mean(axis=0), b.mean(axis=0)):
+        g = np.hypot(ndimage.sobel(img, axis=0), ndimage.sobel(img, axis=1)) / 8.0
+        np.maximum(grad, g * scale, out=grad)
+    return weights.base + weights.difference * diff.astype("float64") + \
+        weights.gradient * grad.astype("float64")
+
+
+@dataclass
+class PairCost:
+    """The cost of a seam between two orthos, on any north-up grid (``transform``, ``shape``)."""
+
+    a: OrthoSource
+    b: OrthoSource
+    crs: Any
+    weights: CostWeights = field(default_factory=CostWeights)
+    buildings: list = field(default_factory=list)   # shapely polygons
+    forbidden: list = field(default_factory=list)   # shapely polygons
+    heights: OrthoSource | None = None              # DSM - DEM raster, metres
+    centres: tuple | None = None                    # ((xa, ya), (xb, yb)) Voronoi centres
+    value_range: float | None = None
+
+    def __call__(self, transform: Any, shape: tuple[int, int]) -> np.ndarray:
+        from rasterio.features import rasterize
+        from rasterio.windows import Window
+
+        win = Window(0, 0, shape[1], shape[0])
+        da, va = read_window(self.a, transform, self.crs, win)
+        db, vb = read_window(self.b, transform, self.crs, win)
+        cost = cost_surface(da, db, self.weights, self.value_range)
+        w = self.weights
+        if self.centres is not None and w.centre > 0:
+            cost += w.centre * centre_term(transform, shape, *self.centres)
+        if self.buildings:
+            inside = rasterize(self.buildings, out_shape=shape, transform=transform,
+                               all_touched=True, dtype="uint8") > 0
+            cost[inside] += w.building
+        if self.heights is not None:
+            h, vh = read_window(self.heights, transform, self.crs, win)
+            excess = np.where(vh, np.clip(h[0] - w.height_threshold, 0, None), 0)
+            cost += w.height * excess
+        cost[~(va & vb)] = IMPASSABLE
+        if self.forbidden:
+            banned = rasterize(self.forbidden, out_shape=shape, transform=transform,
+                               all_touched=True, dtype="uint8") > 0
+            cost[banned] = IMPASSABLE
+        return cost
+
+
+def centre_term(transform: Any, shape: tuple[int, int], a, b) -> np.ndarray:
+    """``|‖p − a‖ − ‖p − b‖| / ‖a − b‖`` at the cell centres: 0 on the bisector of the two
+    centres (the Voronoi seam), growing towards either centre; it keeps a seam near the middle
+    where the images give no reason to leave it (each cell stays near its own nadir, where relief
+    displacement is least)."""
+    rows, cols = shape
+    x = transform.c + (np.arange(cols) + 0.5) * transform.a
+    y = transform.f + (np.arange(rows) + 0.5) * transform.e
+    gx, gy = np.meshgrid(x - a[0], y - a[1])
+    da = np.hypot(gx, gy)
+    db = np.hypot(gx + a[0] - b[0], gy + a[1] - b[1])
+    return np.abs(da - db) / max(float(np.hypot(a[0] - b[0], a[1] - b[1])), 1e-9)
+
+
+def grid_for(bounds, cell: float, origin: tuple[float, float] = (0.0, 0.0)):
+    """``(transform, (rows, cols))`` of a north-up grid of ``cell`` covering ``bounds``, edges on
+    multiples of ``cell`` from ``origin``."""
+    from affine import Affine
+
+    xmin = origin[0] + math.floor((bounds[0] - origin[0]) / cell) * cell
+    ymin = origin[1] + math.floor((bounds[1] - origin[1]) / cell) * cell
+    xmax = origin[0] + math.ceil((bounds[2] - origin[0]) / cell) * cell
+    ymax = origin[1] + math.ceil((bounds[3] - origin[1]) / cell) * cell
+    cols, rows = max(1, round((xmax - xmin) / cell)), max(1, round((ymax - ymin) / cell))
+    return Affine(cell, 0, xmin, 0, -cell, ymax), (rows, cols)
+
+
+def route(cost: np.ndarray, start: tuple[int, int], end: tuple[int, int]) -> np.ndarray | None:
+    """Minimum-cost 8-connected path ``(n, 2)`` of (row, col) from ``start`` to ``end`` over
+    ``cost`` (negative = impassable), by ``skimage.graph.MCP_Geometric``; None if unreachable."""
+    from skimage.graph import MCP_Geometric
+
+    mcp = MCP_Geometric(cost, fully_connected=True)
+    cumulative, _ = mcp.find_costs([start], [end])
+    if not np.isfinite(cumulative[end]):
+        return None
+    return np.asarray(mcp.traceback(end))
+
+
+def _nearest_passable(cost: np.ndarray, rc: tuple[int, int]) -> tuple[int, int] | None:
+    """The passable cell nearest to ``rc`` (``rc`` itself if passable)."""
+    from scipy import ndimage
+
+    r = min(max(rc[0], 0), cost.shape[0] - 1)
+    c = min(max(rc[1], 0), cost.shape[1] - 1)
+    passable = cost >= 0
+    if passable[r, c]:
+        return (r, c)
+    if not passable.any():
+        return None
+    _, (ri, ci) = ndimage.distance_transform_edt(~passable, return_indices=True)
+    return (int(ri[r, c]), int(ci[r, c]))
+
+
+def route_in_region(pair_cost: Callable, region, start_xy, end_xy, cell: float) -> list | None:
+    """Least-cost path (list of (x, y), from ``start_xy`` to ``end_xy`` exactly) inside the
+    polygon ``region`` on a grid of ``cell``; None when the ends are not connected in it."""
+    from rasterio.features import rasterize
+    from rasterio.transform import rowcol, xy
+
+    transform, shape = grid_for(region.bounds, cell)
+    cost = pair_cost(transform, shape)
+    inside = rasterize([region], out_shape=shape, transform=transform, dtype="uint8") > 0
+    cost[~inside] = IMPASSABLE
+    ends = []
+    for x, y in (start_xy, end_xy):
+        r, c = rowcol(transform, x, y)
+        rc = _nearest_passable(cost, (int(r), int(c)))
+        if rc is None:
+            return None
+        ends.append(rc)
+    path = route(cost, ends[0], ends[1])
+    if path is None:
+        return None
+    xs, ys = xy(transform, path[:, 0], path[:, 1])
+    return [tuple(start_xy), *zip(np.asarray(xs).tolist(), np.asarray(ys).tolist(),
+                                  strict=True), tuple(end_xy)]
+
+
+def seam_path(pair_cost: Callable, region, start_xy, end_xy, cell: float,
+              max_cells: int = 4_000_000, feedback: Any = None) -> list | None:
+    """Least-cost seam from ``start_xy`` to ``end_xy`` inside ``region`` at resolution ``cell``;
+    overview first and a full-resolution corridor when the region exceeds ``max_cells``."""
+    from shapely import LineString
+    from shapely.ops import substring
+
+    x0, y0, x1, y1 = region.bounds
+    cells = (x1 - x0) * (y1 - y0) / (cell * cell)
+    if cells <= max_cells:
+        return route_in_region(pair_cost, region, start_xy, end_xy, cell)
+    factor = math.ceil(math.sqrt(cells / max_cells))
+    coarse = route_in_region(pair_cost, region, start_xy, end_xy, cell * factor)
+    if coarse is None:
+        return None
+    line = LineString(coarse)
+    corridor = 3 * factor * cell
+    chunk = max(0.5 * math.sqrt(max_cells) * cell - 2 * corridor, 4 * factor * cell)
+    n = max(1, math.ceil(line.length / chunk))
+    path: list = [tuple(start_xy)]
+    for k in range(n):
+        if feedback is not None:
+            feedback.check_canceled()
+        piece = substring(line, k * line.length / n, (k + 1) * line.length / n)
+        end = tuple(end_xy) if k == n - 1 else tuple(piece.coords[-1])
+        zone = region.intersection(piece.buffer(corridor))
+        part = route_in_region(pair_cost, zone, path[-1], end, cell)
+        if part is None:  # the corridor pinched off: keep the coarse piece
+            part = [path[-1], *piece.coords[1:-1], end]
+        path.extend(part[1:])
+    return path
+
+
+def split_between(cells: list, i: int, j: int, path: list, region, tol: float) -> tuple:
+    """Split ``region`` (inside ``cells[i] ∪ cells[j]``) by the polyline ``path`` and give each
+    piece to the cell it borders most outside ``region``; returns the new ``(cell_i, cell_j)``."""
+    import shapely
+    from shapely import LineString
+    from shapely.ops import split
+
+    rest_i = cells[i].difference(region)
+    rest_j = cells[j].difference(region)
+    line = LineString(path).simplify(tol * 0.5)
+    pieces = [g for g in getattr(split(region, line), "geoms", []) if g.area > 0]
+    if len(pieces) < 2:
+        return None
+    grow_i, grow_j = rest_i.buffer(tol), rest_j.buffer(tol)
+    mine, yours = [rest_i], [rest_j]
+    for piece in pieces:
+        edge = piece.boundary
+        touch_i, touch_j = edge.intersection(grow_i).length, edge.intersection(grow_j).length
+        if abs(touch_i - touch_j) <= tol:
+            touch_i = piece.intersection(cells[i]).area
+            touch_j = piece.intersection(cells[j]).area
+        (mine if touch_i >= touch_j else yours).append(piece)
+    return _clean(shapely.union_all(mine)), _clean(shapely.union_all(yours))
+
+
+def _clean(geom):
+    from toolbox.mosaic.partition import _polygonal
+
+    return _polygonal(geom)
+
+
+def seam_ends(cell_i, cell_j):
+    """The two ends of the longest shared boundary line of two cut polygons, or None."""
+    import shapely
+
+    from toolbox.mosaic.partition import merge_lines
+
+    shared = shapely.intersection(cell_i.boundary, cell_j.boundary)
+    lines = [g for g in getattr(shared, "geoms", [shared])
+             if g.geom_type in ("LineString", "MultiLineString")]
+    if not lines:
+        return None
+    merged = merge_lines(lines)
+    parts = list(getattr(merged, "geoms", [merged]))
+    longest = max(parts, key=lambda g: g.length)
+    if longest.length == 0 or longest.is_closed:
+        return None
+    return longest.coords[0], longest.coords[-1], len(parts)
+
+
+def least_cost_cells(cells: list, footprints: list, cost_for: Callable[[int, int], Callable],
+                     cell: float, max_cells: int = 4_000_000, feedback: Any = None) -> tuple:
+    """Re-route every seam of the partition ``cells`` along the least-cost path in its overlap.
+
+    ``cost_for(i, j)`` returns the :class:`PairCost` of orthos i and j. Returns ``(cells,
+    report)``: the new cut polygons (still an exact partition) and one dict per seam.
+    """
+    from shapely import Point
+
+    from toolbox.mosaic.partition import seamlines
+
+    cells = list(cells)
+    report = []
+    pairs = [(i, j) for i, j, _ in seamlines(cells)]
+    for k, (i, j) in enumerate(pairs):
+        if feedback is not None:
+            feedback.check_canceled()
+            feedback.set_progress(100.0 * k / max(1, len(pairs)))
+        entry = {"a": i, "b": j, "method": "voronoi"}
+        report.append(entry)
+        ends = seam_ends(cells[i], cells[j])
+        if ends is None:
+            entry["note"] = "no open shared boundary"
+            continue
+        start, end, n_parts = ends
+        region = cells[i].union(cells[j]).intersection(footprints[i]).intersection(footprints[j])
+        region = _clean(region)
+        if region.is_empty or region.area < cell * cell:
+            entry["note"] = "no overlap"
+            continue
+        if region.geom_type == "MultiPolygon":
+            region = min(region.geoms, key=lambda g: g.distance(Point(start)) +
+                         g.distance(Point(end)))
+        path = seam_path(cost_for(i, j), region, start, end, cell, max_cells, feedback)
+        if path is None:
+            entry["note"] = "seam ends not connected inside the overlap"
+            continue
+        new = split_between(cells, i, j, path, region, cell * 1e-3)
+        if new is None:
+            entry["note"] = "the path did not split the overlap"
+            continue
+        cells[i], cells[j] = new
+        entry.update(method="least_cost", vertices=len(path), pieces=n_parts)
+    return cells, report

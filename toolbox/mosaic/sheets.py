@@ -1,0 +1,123 @@
+"""Map sheets ("taglio" to the map unit): a sheet grid from a scale and a paper sheet size, and
+clipping of rasters and vectors to one sheet.
+
+Sheet grid: a sheet covers ``width_cm/100 · scale`` x ``height_cm/100 · scale`` ground metres;
+sheet ``(i, j)`` spans ``x0 + i·W .. x0 + (i+1)·W`` and ``y0 + j·H .. y0 + (j+1)·H`` from the
+grid origin (x0, y0); its id is ``"{i}_{j}"`` (column east, row north; stable whatever is clipped).
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+
+def sheet_grid(bounds, width: float, height: float,
+               origin: tuple[float, float] = (0.0, 0.0)) -> list[tuple[str, Any]]:
+    """``(id, box)`` of every grid sheet meeting ``bounds`` (ground units)."""
+    import shapely
+
+    ox, oy = origin
+    i0 = math.floor((bounds[0] - ox) / width)
+    i1 = math.ceil((bounds[2] - ox) / width)
+    j0 = math.floor((bounds[1] - oy) / height)
+    j1 = math.ceil((bounds[3] - oy) / height)
+    out = []
+    for j in range(j0, max(j1, j0 + 1)):
+        for i in range(i0, max(i1, i0 + 1)):
+            box = shapely.box(ox + i * width, oy + j * height, ox + (i + 1) * width,
+                              oy + (j + 1) * height)
+            if box.intersection(shapely.box(*bounds)).area > 0 or \
+                    (bounds[0] == bounds[2] or bounds[1] == bounds[3]):
+                out.append((f"{i}_{j}", box))
+    return out
+
+
+def safe_name(text: str) -> str:
+    """A file-name-safe sheet id (letters, digits, ``-_.``; others become ``_``)."""
+    name = "".join(c if c.isalnum() or c in "-_." else "_" for c in str(text)).strip(".")
+    return name or "sheet"
+
+
+def clip_raster(path: Path, sheet, output: Path, block: int = 2048) -> bool:
+    """Write the part of raster ``path`` inside polygon ``sheet`` to ``output`` on the raster's
+    own grid, over the sheet's bounds (cells outside the raster or the polygon are nodata, or
+    alpha 0). Returns False (and writes nothing) when the sheet holds no valid data."""
+    import rasterio
+    from rasterio.features import geometry_mask
+    from rasterio.windows import Window, from_bounds
+
+    from toolbox.io.raster import build_overviews, geotiff_profile
+
+    with rasterio.open(path) as src:
+        t = src.transform
+        win = from_bounds(*sheet.bounds, transform=t)
+        col0, row0 = math.floor(win.col_off + 1e-6), math.floor(win.row_off + 1e-6)
+        cols = max(1, math.ceil(win.col_off + win.width - 1e-6) - col0)
+        rows = max(1, math.ceil(win.row_off + win.height - 1e-6) - row0)
+        if col0 >= src.width or row0 >= src.height or col0 + cols <= 0 or row0 + rows <= 0:
+            return False
+        out_t = t @ rasterio.Affine.translation(col0, row0)
+        alpha = any(ci.name == "alpha" for ci in src.colorinterp)
+        nodata = src.nodata if src.nodata is not None or alpha else 0
+        profile = geotiff_profile(cols, rows, src.count, src.dtypes[0], src.crs, out_t,
+                                  None if alpha else nodata)
+        any_valid = False
+        with rasterio.open(output, "w", **profile) as dst:
+            dst.colorinterp = src.colorinterp
+            for r in range(0, rows, block):
+                for c in range(0, cols, block):
+                    w = Window(col0 + c, row0 + r, min(block, cols - c), min(block, rows - r))
+                    data = src.read(window=w, boundless=True, fill_value=nodata or 0)
+                    valid = src.read_masks(1, window=w, boundless=True) > 0
+                    wt = rasterio.windows.transform(w, t)
+                    valid &= ~geometry_mask([sheet], out_shape=valid.shape, transform=wt)
+                    any_valid |= bool(valid.any())
+                    if alpha:
+                        band = [i for i, ci in enumerate(src.colorinterp) if ci.name == "alpha"][0]
+                        data[band][~valid] = 0
+                    else:
+                        data[:, ~valid] = nodata
+                    dst.write(data, window=Window(c, r, w.width, w.height))
+            if any_valid:
+                build_overviews(dst)
+    if not any_valid:
+        Path(output).unlink()
+    return any_valid
+
+
+def clip_vector(frame, sheet, output: Path, layer: str) -> int:
+    """Write the features of ``frame`` clipped to polygon ``sheet`` into GeoPackage ``output``
+    (layer ``layer``). Returns the feature count (0: nothing written)."""
+    import geopandas as gpd
+
+    from toolbox.io.vector import write_layers
+
+    inside = frame[frame.intersects(sheet)]
+    if inside.empty:
+        return 0
+    clipped = gpd.clip(inside, sheet)
+    clipped = clipped[~clipped.geometry.is_empty]
+    if clipped.empty:
+        return 0
+    write_layers(output, {layer: clipped})
+    return len(clipped)
+
+
+def sheet_ids_unique(ids: list[str]) -> list[str]:
+    """Make file-safe ids unique by appending ``-2``, ``-3``... to repeats."""
+    seen: dict[str, int] = {}
+    out = []
+    for raw in ids:
+        name = safe_name(raw)
+        seen[name] = seen.get(name, 0) + 1
+        out.append(name if seen[name] == 1 else f"{name}-{seen[name]}")
+    return out
+
+
+def bounds_union(bounds: list) -> tuple[float, float, float, float]:
+    b = np.asarray(bounds, dtype=float)
+    return (b[:, 0].min(), b[:, 1].min(), b[:, 2].max(), b[:, 3].max())

@@ -1,0 +1,184 @@
+"""Orthophotos as mosaic sources: metadata, valid-data footprints, nadir points and windowed reads
+onto the mosaic grid.
+
+Valid data is GDAL's dataset mask: an alpha band, a nodata value or an internal mask, whichever
+the file has. An alpha band is never mosaicked as data. Nadir points are read from the ortho's
+tags ``NADIR_X``/``NADIR_Y`` (or the projection centre ``X0``/``Y0``) or given by the caller.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from toolbox.errors import InputDataError
+
+NADIR_TAGS = (("NADIR_X", "NADIR_Y"), ("X0", "Y0"), ("PROJECTION_CENTRE_X", "PROJECTION_CENTRE_Y"))
+
+
+@dataclass
+class OrthoSource:
+    """One ortho of the block: ``index`` is its position in the input list (0-based)."""
+
+    index: int
+    path: Path
+    name: str
+    width: int
+    height: int
+    transform: Any  # affine.Affine
+    crs: Any  # rasterio CRS or None
+    dtype: str
+    data_bands: list[int]  # 1-based band indexes mosaicked as data
+    alpha_band: int | None
+    nodata: float | None
+    nadir: tuple[float, float] | None = None
+    footprint: Any = field(default=None, repr=False)  # shapely polygon of valid data
+
+    @property
+    def bounds(self) -> tuple[float, float, float, float]:
+        t = self.transform
+        xs = (t.c, t.c + t.a * self.width)
+        ys = (t.f, t.f + t.e * self.height)
+        return (min(xs), min(ys), max(xs), max(ys))
+
+    @property
+    def res(self) -> tuple[float, float]:
+        return (abs(self.transform.a), abs(self.transform.e))
+
+    @property
+    def centre(self) -> tuple[float, float]:
+        """Footprint centre (centroid of the valid data), else the raster's centre."""
+        if self.footprint is not None and not self.footprint.is_empty:
+            c = self.footprint.centroid
+            return (c.x, c.y)
+        x0, y0, x1, y1 = self.bounds
+        return ((x0 + x1) / 2, (y0 + y1) / 2)
+
+
+def open_source(path: str | Path, index: int) -> OrthoSource:
+    """Read an ortho's metadata (no pixels). Raises :class:`InputDataError` for rotated grids."""
+    import rasterio
+    from rasterio.enums import ColorInterp
+
+    path = Path(path)
+    with rasterio.open(path) as src:
+        t = src.transform
+        if t.b != 0 or t.d != 0:
+            raise InputDataError(f"'{path}' has a rotated geotransform; mosaic inputs must be "
+                                 "north-up (warp it first)")
+        alpha = next((i + 1 for i, ci in enumerate(src.colorinterp) if ci == ColorInterp.alpha),
+                     None)
+        bands = [b for b in range(1, src.count + 1) if b != alpha]
+        if not bands:
+            raise InputDataError(f"'{path}' has no data band besides its alpha band")
+        tags = src.tags()
+        nadir = None
+        for kx, ky in NADIR_TAGS:
+            if kx in tags and ky in tags:
+                try:
+                    nadir = (float(tags[kx]), float(tags[ky]))
+                    break
+                except ValueError:
+                    continue
+        return OrthoSource(index, path, path.stem, src.width, src.height, t, src.crs,
+                           src.dtypes[bands[0] - 1], bands, alpha, src.nodata, nadir)
+
+
+def valid_footprint(source: OrthoSource, max_size: int = 1024, simplify: float | None = None):
+    """Polygon of the ortho's valid data, traced on its mask decimated to at most ``max_size``
+    cells a side (the mask of a decimated read is valid where the nearest full-res cell is).
+
+    The outline follows cell edges at the decimated resolution, simplified by ``simplify`` ground
+    units (default: one decimated cell); holes smaller than 4 decimated cells are dropped.
+    """
+    import rasterio
+    import shapely
+    from affine import Affine
+    from rasterio.features import shapes
+
+    factor = max(1, math.ceil(max(source.width, source.height) / max_size))
+    w, h = math.ceil(source.width / factor), math.ceil(source.height / factor)
+    with rasterio.open(source.path) as src:
+        mask = src.dataset_mask(out_shape=(h, w)) > 0
+    t = source.transform @ Affine.scale(source.width / w, source.height / h)
+    polys = [shapely.geometry.shape(g) for g, v in shapes(mask.astype("uint8"), mask=mask,
+                                                             transform=t, connectivity=8) if v]
+    if not polys:
+        raise InputDataError(f"'{source.path}' has no valid data")
+    cell = max(abs(t.a), abs(t.e))
+    geom = shapely.union_all(polys)
+    geom = _drop_small_holes(geom, 4 * cell * cell)
+    geom = geom.simplify(cell if simplify is None else simplify, preserve_topology=True)
+    return shapely.make_valid(geom).buffer(0)
+
+
+def _drop_small_holes(geom, min_area: float):
+    import shapely
+    from shapely.geometry import MultiPolygon, Polygon
+
+    parts = []
+    for poly in getattr(geom, "geoms", [geom]):
+        if isinstance(poly, Polygon):
+            holes = [r for r in poly.interiors if Polygon(r).area >= min_area]
+            parts.append(Polygon(poly.exterior, holes))
+    return parts[0] if len(parts) == 1 else shapely.union_all(MultiPolygon(parts))
+
+
+def aligned(source: OrthoSource, grid_transform: Any, tol: float = 1e-6) -> bool:
+    """True when the source's cells coincide with the mosaic grid's (same size, offsets whole
+    cells): it is then read without resampling."""
+    t, g = source.transform, grid_transform
+    if abs(t.a - g.a) > tol * abs(g.a) or abs(t.e - g.e) > tol * abs(g.e):
+        return False
+    dx, dy = (t.c - g.c) / g.a, (t.f - g.f) / g.e
+    return abs(dx - round(dx)) < 1e-6 and abs(dy - round(dy)) < 1e-6
+
+
+def read_window(source: OrthoSource, grid_transform: Any, grid_crs: Any, window: Any,
+                resampling: str = "bilinear") -> tuple[np.ndarray, np.ndarray]:
+    """Read ``source`` onto a window of the mosaic grid.
+
+    Returns ``(data, valid)``: float32 ``(bands, rows, cols)`` and a bool mask ``(rows, cols)``
+    (False outside the ortho or where its mask says no data). Aligned sources are read cell for
+    cell; others are resampled through a GDAL warped VRT (``resampling`` for data, nearest for
+    the mask).
+    """
+    import rasterio
+    from rasterio.enums import Resampling
+    from rasterio.windows import Window
+    from rasterio.windows import transform as window_transform
+
+    rows, cols = int(window.height), int(window.width)
+    with rasterio.open(source.path) as src:
+        if aligned(source, grid_transform):
+            off_c = round((grid_transform.c - source.transform.c) / grid_transform.a)
+            off_r = round((grid_transform.f - source.transform.f) / grid_transform.e)
+            src_win = Window(window.col_off + off_c, window.row_off + off_r, cols, rows)
+            data = np.zeros((len(source.data_bands), rows, cols), dtype="float32")
+            valid = np.zeros((rows, cols), dtype=bool)
+            # the part of the window inside the source, read without a boundless VRT
+            c0, r0 = max(0, int(src_win.col_off)), max(0, int(src_win.row_off))
+            c1 = min(source.width, int(src_win.col_off) + cols)
+            r1 = min(source.height, int(src_win.row_off) + rows)
+            if c1 > c0 and r1 > r0:
+                inner = Window(c0, r0, c1 - c0, r1 - r0)
+                sl = (slice(r0 - int(src_win.row_off), r1 - int(src_win.row_off)),
+                      slice(c0 - int(src_win.col_off), c1 - int(src_win.col_off)))
+                data[(slice(None), *sl)] = src.read(source.data_bands, window=inner)
+                valid[sl] = src.dataset_mask(window=inner) > 0
+            return data, valid
+        from rasterio.vrt import WarpedVRT
+
+        t = window_transform(window, grid_transform)
+        method = Resampling[resampling]
+        with WarpedVRT(src, crs=grid_crs or src.crs, transform=t, width=cols, height=rows,
+                       resampling=method, src_nodata=source.nodata, nodata=source.nodata) as vrt:
+            data = vrt.read(source.data_bands).astype("float32")
+        with WarpedVRT(src, crs=grid_crs or src.crs, transform=t, width=cols, height=rows,
+                       resampling=Resampling.nearest) as vrt:
+            valid = vrt.dataset_mask() > 0
+        return data, valid
