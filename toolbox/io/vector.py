@@ -17,7 +17,10 @@ A GeoPackage holds every layer in the one file, written as GeoPackage 1.2 (QGIS 
 read it without "only partially supported" warnings). The other formats hold one layer per file:
 the first layer goes to the path given, each further layer to a file beside it named
 ``<stem>_<layer><ext>`` (``topo.shp``, ``topo_arcs.shp``, ...); reading ``topo.shp|layername=arcs``
-finds that file again.
+finds that file again. FlatGeobuf files get their spatial index, which stores the features in
+spatial (Hilbert) order: rely on the id fields, not on the feature order. GeoParquet is written
+and read through pyarrow/geopandas (the GDAL in pyogrio's wheels has no Parquet driver), so a
+``|subset=`` SQL filter is not available on it.
 """
 
 from __future__ import annotations
@@ -287,10 +290,13 @@ def open_layer(value: Any, name: str = "INPUT") -> VectorLayerRef:
 
 
 def _open_parquet(path: Path, source: LayerSource, name: str) -> VectorLayerRef:
-    """A GeoParquet file, read whole with geopandas (the GDAL in pyogrio's wheels has no
-    Parquet driver). ``|layername=`` finds a sibling ``<stem>_<layer>.parquet``; ``|subset=``
-    (SQL) is not available for GeoParquet."""
-    import geopandas as gpd
+    """A GeoParquet file (metadata only: its schema and GeoParquet ``geo`` key). The GDAL in
+    pyogrio's wheels has no Parquet driver, so :func:`read_vector` reads it with geopandas.
+    ``|layername=`` finds a sibling ``<stem>_<layer>.parquet``; ``|subset=`` (SQL) is not
+    available for GeoParquet."""
+    import json
+
+    import pyarrow.parquet as pq
 
     if source.subset:
         raise ParameterError(name, f"'{path}': |subset= (SQL) is not supported for GeoParquet; "
@@ -304,12 +310,30 @@ def _open_parquet(path: Path, source: LayerSource, name: str) -> VectorLayerRef:
                                  f"file '{sibling.name}' beside it")
         path = sibling
     try:
-        frame = gpd.read_parquet(path)
+        schema = pq.read_schema(path)
+        geo = json.loads((schema.metadata or {})[b"geo"])
+        column = geo["primary_column"]
+        meta = geo["columns"][column]
+        rows = pq.ParquetFile(path).metadata.num_rows
     except Exception as exc:
         raise ParameterError(name, f"cannot read '{path}' as GeoParquet: "
                              f"{str(exc).splitlines()[0]}") from None
-    info = _frame_info(frame) | {"layer_name": path.stem}
-    return VectorLayerRef(path, None, info, frame=frame, geometry_filter=source.geometry_filter)
+    crs = meta.get("crs", "OGC:CRS84")  # GeoParquet: a missing crs means OGC:CRS84
+    if isinstance(crs, dict):
+        from pyproj import CRS
+
+        crs = CRS.from_json_dict(crs).to_wkt()
+    types = meta.get("geometry_types") or []
+    fields = [f for f in schema if f.name != column]
+    info = {"layer_name": path.stem, "crs": crs, "fields": [f.name for f in fields],
+            "dtypes": [np.dtype(f.type.to_pandas_dtype()).name for f in fields],
+            "geometry_type": types[0] if len(types) == 1 else ("Unknown" if types else None),
+            "features": rows, "geometry_name": column}
+    return VectorLayerRef(path, None, info, geometry_filter=source.geometry_filter)
+
+
+def is_parquet(path: Path | None) -> bool:
+    return path is not None and path.suffix.lower() == ".parquet"
 
 
 def _csv_open_options(path: Path) -> dict[str, str]:
@@ -345,6 +369,14 @@ def read_vector(source: Any, crs: Any = None, columns: list[str] | None = None,
     ref = open_layer(source, name)
     if ref.frame is not None:
         frame = ref.frame.copy()
+    elif is_parquet(ref.path):
+        import geopandas as gpd
+
+        try:
+            frame = gpd.read_parquet(ref.path, columns=None if columns is None else
+                                     [*columns, ref.info["geometry_name"]], bbox=bbox)
+        except Exception as exc:
+            raise InputDataError(f"{name}: cannot read {ref}: {str(exc).splitlines()[0]}") from None
     else:
         try:
             frame = pyogrio.read_dataframe(ref.path, layer=ref.layer, columns=columns, bbox=bbox,
@@ -405,7 +437,8 @@ def read_points_xyz(source: Any, z_field: str | None = None, name: str = "INPUT"
     no pyarrow) take the general path.
     """
     ref = open_layer(source, name)
-    if ref.frame is None and not ref.open_options and ref.geometry_filter is None:
+    if ref.frame is None and not ref.open_options and ref.geometry_filter is None \
+            and not is_parquet(ref.path):
         xyz = _points_from_arrow(ref, z_field)
         if xyz is not None:
             _check_finite(xyz, name)
