@@ -244,3 +244,37 @@ def test_mixed_kinds_are_refused_by_the_writer(tmp_path):
     frame = gpd.GeoDataFrame(geometry=[shapely.Point(0, 0), shapely.LineString([(0, 0), (1, 1)])])
     with pytest.raises(ValueError, match="mixes line and point"):
         write_layers(tmp_path / "m.gpkg", {"bad": frame})
+
+
+SYSTEM_VALIDATOR = Path("/usr/lib/python3/dist-packages/osgeo_utils/samples/validate_gpkg.py")
+
+
+@pytest.mark.skipif(not (SYSTEM_VALIDATOR.exists() and Path("/usr/bin/ogrinfo").exists()),
+                    reason="Debian's GDAL (gdal-bin, python3-gdal) is not installed")
+def test_debian_gdal_validator_and_ogrinfo_accept_our_geopackages(tmp_path):
+    """Where Debian's GDAL (3.6 on bookworm) is installed: its own validate_gpkg.py passes our
+    files and its ogrinfo opens them without the "only partially supported" warning, while
+    GDAL's default (1.4) output fails both: the check can fail."""
+    import subprocess
+
+    ours = tmp_path / "ours.gpkg"
+    write_layers(ours, sample_layers(), crs=CRS, geometry_types={"empty": "Point"})
+    default = tmp_path / "default.gpkg"
+    pyogrio.write_dataframe(sample_layers()["points"], default, layer="points")
+
+    def validate(path):
+        return subprocess.run(["/usr/bin/python3", str(SYSTEM_VALIDATOR), str(path)],
+                              capture_output=True, text=True, timeout=120)
+
+    def ogrinfo(path):
+        return subprocess.run(["/usr/bin/ogrinfo", "-ro", "-so", str(path)],
+                              capture_output=True, text=True, timeout=120)
+
+    result = validate(ours)
+    assert result.returncode == 0, result.stdout + result.stderr
+    assert "partially supported" not in ogrinfo(ours).stderr
+    assert validate(default).returncode != 0
+    version = subprocess.run(["/usr/bin/ogrinfo", "--version"], capture_output=True,
+                             text=True).stdout
+    if version.startswith("GDAL 3.6"):
+        assert "partially supported" in ogrinfo(default).stderr
