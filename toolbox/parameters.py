@@ -352,8 +352,7 @@ class VectorLayer(Parameter):
 
     def expected(self) -> str:
         kinds = "/".join(self.geometry_types) if self.geometry_types else "any"
-        return (f"vector layer ({kinds}): path or QGIS source 'path|layername=name' "
-                "(also |layerid=N, |geometrytype=Point, |subset=SQL)")
+        return f"vector layer ({kinds}): path or QGIS source 'path|layername=...|subset=...'"
 
     def describe(self) -> dict[str, Any]:
         return super().describe() | {"geometry_types": self.geometry_types}

@@ -278,3 +278,12 @@ def test_debian_gdal_validator_and_ogrinfo_accept_our_geopackages(tmp_path):
                              text=True).stdout
     if version.startswith("GDAL 3.6"):
         assert "partially supported" in ogrinfo(default).stderr
+
+
+def test_vector_info_reads_geoparquet(tmp_path):
+    path = tmp_path / "pts.parquet"
+    write_layers(path, {"points": sample_layers()["points"]})
+    info = toolbox.run("vector:info", {"INPUT": path})["INFO"]
+    (layer,) = info["layers"]
+    assert layer["name"] == "pts" and layer["crs"] == "EPSG:3003"
+    assert layer["features"] == 6 and layer["has_z"]

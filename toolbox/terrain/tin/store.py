@@ -45,16 +45,10 @@ _WKB_POINT_Z, _WKB_LINESTRING_Z, _WKB_POLYGON_Z = 1001, 1002, 1003
 BATCH = 1 << 19  # features per Arrow batch
 
 
-def wkb_records(type_code: int, coords: np.ndarray, ring: bool = False) -> np.ndarray:
-    """ISO WKB of fixed-size geometries, one row of bytes each, ``(n, size)`` uint8.
-
-    ``coords`` is ``(n, k, 3)``: k XYZ vertices per geometry. ``ring`` writes one closed polygon
-    ring (the first vertex repeated at the end) instead of a point or line string.
-    """
-    coords = np.asarray(coords, dtype="<f8")
-    n, k = coords.shape[:2]
+def _wkb_buffer(type_code: int, n: int, k: int, ring: bool) -> tuple[np.ndarray, np.ndarray]:
+    """The ``(n, size)`` uint8 WKB records with their headers filled, and an ``(n, k', 3)``
+    float64 view of their coordinates to fill (k' = k + 1 for a closed ring)."""
     if ring:
-        coords = np.concatenate([coords, coords[:, :1]], axis=1)
         k += 1
         header = np.array([type_code, 1, k], dtype="<u4")
     elif type_code == _WKB_POINT_Z:
@@ -65,7 +59,35 @@ def wkb_records(type_code: int, coords: np.ndarray, ring: bool = False) -> np.nd
     out = np.empty((n, head + 24 * k), dtype=np.uint8)
     out[:, 0] = 1  # little endian
     out[:, 1:head] = header.view(np.uint8)
-    out[:, head:] = np.ascontiguousarray(coords).reshape(n, -1).view(np.uint8)
+    return out, out[:, head:].view("<f8").reshape(n, k, 3)  # an unaligned view: fine to fill
+
+
+def wkb_records(type_code: int, coords: np.ndarray, ring: bool = False) -> np.ndarray:
+    """ISO WKB of fixed-size geometries, one row of bytes each, ``(n, size)`` uint8.
+
+    ``coords`` is ``(n, k, 3)``: k XYZ vertices per geometry. ``ring`` writes one closed polygon
+    ring (the first vertex repeated at the end) instead of a point or line string.
+    """
+    coords = np.asarray(coords, dtype="<f8")
+    n, k = coords.shape[:2]
+    out, view = _wkb_buffer(type_code, n, k, ring)
+    view[:, :k] = coords
+    if ring:
+        view[:, k] = coords[:, 0]
+    return out
+
+
+def wkb_from_nodes(type_code: int, xyz: np.ndarray, nodes: np.ndarray,
+                   ring: bool = False) -> np.ndarray:
+    """:func:`wkb_records` of the geometries whose vertices are ``xyz[nodes]`` (``nodes`` is
+    ``(n, k)``), filled corner by corner without the ``(n, k, 3)`` temporary."""
+    nodes = np.asarray(nodes)
+    n, k = nodes.shape
+    out, view = _wkb_buffer(type_code, n, k, ring)
+    for j in range(k):
+        view[:, j] = xyz[nodes[:, j]]
+    if ring:
+        view[:, k] = view[:, 0]
     return out
 
 
@@ -184,7 +206,7 @@ def write_tin(path: str | Path, model: TinModel, crs: Any = None, spatial_index:
         for name in ("area_2d", "area_3d", "slope_deg", "slope_pct", "aspect_deg"):
             columns[name] = (getattr(measures, name), None)
         _write_layer(targets["triangles"], "triangles", columns,
-                     wkb_records(_WKB_POLYGON_Z, xyz[tri], ring=True),
+                     wkb_from_nodes(_WKB_POLYGON_Z, xyz, tri, ring=True),
                      "Polygon Z", crs, spatial_index)
     with step("write nodes"):
         columns = {"id": _ids(np.arange(len(xyz))),
@@ -213,13 +235,13 @@ def _write_edges(path: Path, model: TinModel, edges: EdgeTable, crs: Any,
     xyz = model.xyz
     a, b = xyz[edges.nodes[:, 0]], xyz[edges.nodes[:, 1]]
     d = b - a
+    length_2d = np.hypot(d[:, 0], d[:, 1])
     columns = {"id": _ids(np.arange(len(edges.nodes))),
                "node_from": _ids(edges.nodes[:, 0]), "node_to": _ids(edges.nodes[:, 1]),
                "left_tri": _ids(edges.left), "right_tri": _ids(edges.right),
                "breakline": (breakline_flags(edges, model.breakline_edges, len(xyz)), None),
-               "length_2d": (np.hypot(d[:, 0], d[:, 1]), None),
-               "length_3d": (np.linalg.norm(d, axis=1), None)}
-    _write_layer(path, "edges", columns, wkb_records(_WKB_LINESTRING_Z, xyz[edges.nodes]),
+               "length_2d": (length_2d, None), "length_3d": (np.hypot(length_2d, d[:, 2]), None)}
+    _write_layer(path, "edges", columns, wkb_from_nodes(_WKB_LINESTRING_Z, xyz, edges.nodes),
                  "LineString Z", crs, spatial_index)
 
 
