@@ -32,8 +32,9 @@ def machine_facts(*versions: str) -> str:
 def load_note() -> str:
     """How busy the CPUs were in the second before the benchmark (other processes' work makes
     timings noisy; the load average would still count the previous benchmark)."""
-    import psutil
+    from toolbox.extras import require
 
+    psutil = require("psutil", "bench", "the benchmarks")
     busy = psutil.cpu_percent(interval=1.0)
     state = "quiet machine" if busy < QUIET_CPU_PERCENT else \
         "the machine was busy with other work: timings are noisy"

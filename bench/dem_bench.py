@@ -93,8 +93,9 @@ def run_case(name: str, work: Path, n_points: int) -> dict:
         big = name.startswith("big_")
         alg, extra = ALGORITHMS[name.removeprefix("big_")]
         _warm_up(alg, extra, work)
-        import psutil
+        from toolbox.extras import require
 
+        psutil = require("psutil", "bench", "the benchmarks")
         facts["rss_before_mb"] = psutil.Process().memory_info().rss / 2**20
         params = {"INPUT": work / "points.gpkg", "OUTPUT": work / f"{name}.tif",
                   "CELL_SIZE": cell / 10 if big else cell, "OVERVIEWS": False,

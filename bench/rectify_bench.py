@@ -309,8 +309,9 @@ def make_big_scan(path: Path, size: int = 16644) -> float:
 def bench_big(folder: Path) -> dict:
     import json
 
-    import psutil
+    from toolbox.extras import require
 
+    psutil = require("psutil", "bench", "the benchmarks")
     size = 16644
     src = folder / "scan16644.tif"
     t_make = make_big_scan(src, size)

@@ -1,5 +1,6 @@
-"""TIN benchmark: the toolbox against Shewchuk's Triangle called directly, scipy's Delaunay and
-``gdal_grid -a linear``, side by side on the same 1 million points, in one run.
+"""TIN benchmark: the toolbox (CDT by default, Triangle when chosen) against Shewchuk's Triangle
+called directly, scipy's Delaunay and ``gdal_grid -a linear``, side by side on the same 1 million
+points, in one run; and the TIN written as GeoPackage, FlatGeobuf and GeoParquet.
 
     .venv/bin/python bench/tin_bench.py            # full size (1,000,000 points, 2000 x 2000)
     .venv/bin/python bench/tin_bench.py --small    # quick check (100,000 points, 632 x 632)
@@ -77,6 +78,11 @@ def run_case(name: str, work: Path, n_points: int) -> dict:
     width, cell = _grid(n_points)
     facts: dict = {}
     _warm_up(kernels, registry=name.endswith("_cli"))
+    if name.endswith("_triangle"):  # the toolbox's kernels with Triangle behind them
+        import os
+
+        os.environ["TOOLBOX_TRIANGULATOR"] = "triangle"
+        name = name.removesuffix("_triangle")
     if name in ("triangle", "ours", "scipy"):
         xyz = np.load(work / "points.npy")
         xy = np.ascontiguousarray(xyz[:, :2])
@@ -85,8 +91,7 @@ def run_case(name: str, work: Path, n_points: int) -> dict:
             xy = xy - [X0 + SIZE / 2, Y0 + SIZE / 2]
         t0 = time.perf_counter()
         if name == "triangle":
-            import triangle
-
+            triangle = _triangle_module()
             tri = triangle.triangulate({"vertices": xy}, "")["triangles"]
         elif name == "ours":
             tri = kernels.triangulate(xy)
@@ -99,26 +104,27 @@ def run_case(name: str, work: Path, n_points: int) -> dict:
         seg = np.load(work / "segments.npy")
         t0 = time.perf_counter()
         if name == "triangle_breaklines":
-            import triangle
-
+            triangle = _triangle_module()
             tri = triangle.triangulate({"vertices": xy, "segments": seg}, "pc")["triangles"]
         else:
             tri = kernels.triangulate(xy, seg)
         seconds = time.perf_counter() - t0
         facts["triangles"] = len(tri)
-    elif name in ("write_gpkg", "write_gpkg_noindex"):
+    elif name in WRITE_CASES:
         from toolbox.io.crs import parse_crs
         from toolbox.terrain.tin.build import build_tin
         from toolbox.terrain.tin.store import write_tin
 
         model = build_tin(np.load(work / "points.npy"))
-        out = work / f"{name}.gpkg"
-        out.unlink(missing_ok=True)
+        ext = WRITE_CASES[name]
+        out = work / f"{name}{ext}"
+        for old in work.glob(f"{name}*{ext}"):
+            old.unlink()
         t0 = time.perf_counter()
-        counts = write_tin(out, model, parse_crs(CRS), spatial_index=name == "write_gpkg")
+        counts = write_tin(out, model, parse_crs(CRS), spatial_index=not name.endswith("noindex"))
         seconds = time.perf_counter() - t0
         facts.update(counts)
-        facts["megabytes"] = round(out.stat().st_size / 2**20, 1)
+        facts["megabytes"] = round(sum(f.stat().st_size for f in work.glob(f"{name}*")) / 2**20, 1)
     elif name in ("delaunay_cli", "delaunay_breaklines_cli", "delaunay_lean_cli"):
         import toolbox
         from toolbox.feedback import Feedback
@@ -140,10 +146,10 @@ def run_case(name: str, work: Path, n_points: int) -> dict:
         z = kernels.rasterize_tin(xyz, tri, X0, Y0 + SIZE, cell, cell, width, width)
         seconds = time.perf_counter() - t0
         facts["cells"] = int(z.size)
-    elif name == "to_raster_cli":
+    elif name in ("to_raster_cli", "to_raster_parquet_cli"):
         import toolbox
 
-        tin = work / "delaunay_cli.gpkg"
+        tin = work / ("delaunay_cli.gpkg" if name == "to_raster_cli" else "write_parquet.parquet")
         t0 = time.perf_counter()
         toolbox.run("tin:to_raster", {"TIN": tin, "CELL_SIZE": cell, "OVERVIEWS": False,
                                       "EXTENT": f"{X0},{Y0},{X0 + SIZE},{Y0 + SIZE}",
@@ -153,6 +159,16 @@ def run_case(name: str, work: Path, n_points: int) -> dict:
         raise ValueError(f"unknown case {name}")
     peak = peak_rss_mb()
     return {"seconds": seconds, "peak_mb": peak, **facts}
+
+
+WRITE_CASES = {"write_gpkg": ".gpkg", "write_gpkg_noindex": ".gpkg", "write_fgb": ".fgb",
+               "write_fgb_noindex": ".fgb", "write_parquet": ".parquet"}
+
+
+def _triangle_module():
+    from toolbox.extras import require
+
+    return require("triangle", "triangle", "the Triangle rows of the TIN benchmark")
 
 
 def _warm_up(kernels, registry: bool) -> None:
@@ -218,7 +234,9 @@ def machine() -> str:
 
     gdal = subprocess.run(["gdal_grid", "--version"], capture_output=True, text=True).stdout.strip() \
         if shutil.which("gdal_grid") else "gdal_grid not installed"
-    return machine_facts(f"numba {numba.__version__}", f"triangle {version('triangle')}",
+    return machine_facts(f"numba {numba.__version__}",
+                         f"pythoncdt {_version_or_none('pythoncdt')}",
+                         f"triangle {_version_or_none('triangle')}",
                          f"scipy {version('scipy')}",
                          f"pyogrio {pyogrio.__version__} (GDAL {pyogrio.__gdal_version_string__})",
                          f"pyarrow {_version_or_none('pyarrow')}", gdal)
@@ -241,12 +259,14 @@ def main(small: bool = False) -> str:
         print(f"tin bench: {n_points:,} points in {work}", flush=True)
         make_data(work, n_points)
         # the short triangulation cases run 3 rounds, interleaved; the fastest run is kept
-        short = ("triangle", "ours", "triangle_breaklines", "ours_breaklines")
+        short = ("triangle", "ours", "ours_triangle", "triangle_breaklines", "ours_breaklines",
+                 "ours_breaklines_triangle")
         rounds = [{name: measure(name, work, n_points) for name in short} for _ in range(3)]
         r = {name: min((x[name] for x in rounds), key=lambda m: m["seconds"]) for name in short}
         r.update({name: measure(name, work, n_points) for name in (
-            "scipy", "write_gpkg", "write_gpkg_noindex", "delaunay_cli", "delaunay_lean_cli",
-            "delaunay_breaklines_cli", "rasterize_kernel", "to_raster_cli")})
+            "scipy", *WRITE_CASES, "delaunay_cli", "delaunay_lean_cli",
+            "delaunay_breaklines_cli", "rasterize_kernel", "to_raster_cli",
+            "to_raster_parquet_cli")})
         gdal = measure_gdal_grid(work, n_points)
         max_diff = agreement(work) if gdal else None
     finally:
@@ -281,12 +301,20 @@ def table(r: dict, gdal: dict | None, n_points: int, width: int, max_diff: float
         "importing every algorithm of the toolbox).", "",
         "| step | toolbox | toolbox peak | peer | toolbox / peer |",
         "|---|---|---|---|---|",
-        row("triangulate (kernels.triangulate)", r["ours"], "Triangle direct", r["triangle"]),
-        row("triangulate (kernels.triangulate)", r["ours"], "scipy Delaunay", r["scipy"]),
-        row("triangulate with breaklines", r["ours_breaklines"], "Triangle `-pc` direct",
+        row("triangulate (kernels.triangulate, CDT)", r["ours"], "Triangle direct",
+            r["triangle"]),
+        row("triangulate (kernels.triangulate, TOOLBOX_TRIANGULATOR=triangle)",
+            r["ours_triangle"], "Triangle direct", r["triangle"]),
+        row("triangulate (kernels.triangulate, CDT)", r["ours"], "scipy Delaunay", r["scipy"]),
+        row("triangulate with breaklines (CDT)", r["ours_breaklines"], "Triangle `-pc` direct",
             r["triangle_breaklines"]),
-        row("write TIN GeoPackage (3 layers, spatial index)", r["write_gpkg"], "", None),
-        row("write TIN GeoPackage (no spatial index)", r["write_gpkg_noindex"], "", None),
+        row("triangulate with breaklines (TOOLBOX_TRIANGULATOR=triangle)",
+            r["ours_breaklines_triangle"], "Triangle `-pc` direct", r["triangle_breaklines"]),
+        row("write TIN GeoPackage 1.2 (3 layers, spatial index)", r["write_gpkg"], "", None),
+        row("write TIN GeoPackage 1.2 (no spatial index)", r["write_gpkg_noindex"], "", None),
+        row("write TIN FlatGeobuf (3 files, spatial index)", r["write_fgb"], "", None),
+        row("write TIN FlatGeobuf (no spatial index)", r["write_fgb_noindex"], "", None),
+        row("write TIN GeoParquet (3 files)", r["write_parquet"], "", None),
         row("tin:delaunay end to end (read GPKG, build, write)", r["delaunay_cli"], "", None),
         row("tin:delaunay, EDGES=false SPATIAL_INDEX=false", r["delaunay_lean_cli"], "", None),
         row("tin:delaunay with breaklines, end to end", r["delaunay_breaklines_cli"], "", None),
@@ -294,10 +322,14 @@ def table(r: dict, gdal: dict | None, n_points: int, width: int, max_diff: float
             "gdal_grid -a linear", gdal),
         row("tin:to_raster end to end (read TIN GPKG, write GeoTIFF)", r["to_raster_cli"],
             "gdal_grid -a linear", gdal),
+        row("tin:to_raster end to end (read TIN GeoParquet, write GeoTIFF)",
+            r["to_raster_parquet_cli"], "gdal_grid -a linear", gdal),
         "",
         f"GeoPackage: {r['write_gpkg'].get('triangles', 0):,} triangles, "
         f"{r['write_gpkg'].get('nodes', 0):,} nodes, {r['write_gpkg'].get('edges', 0):,} edges, "
-        f"{r['write_gpkg'].get('megabytes', 0)} MB. tin:delaunay step timings (s): "
+        f"{r['write_gpkg'].get('megabytes', 0)} MB (FlatGeobuf "
+        f"{r['write_fgb'].get('megabytes', 0)} MB, GeoParquet "
+        f"{r['write_parquet'].get('megabytes', 0)} MB). tin:delaunay step timings (s): "
         f"{r['delaunay_cli'].get('timings')}.",
     ]
     if max_diff is not None:

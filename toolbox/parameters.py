@@ -321,8 +321,9 @@ class File(Parameter):
 
 
 class VectorLayer(Parameter):
-    """A vector layer OGR can read: ``path`` or ``path|layername=name`` (QGIS syntax), or a
-    GeoDataFrame in Python. ``geometry_types`` restricts the kind: any of point, line, polygon.
+    """A vector layer OGR can read: ``path`` or a QGIS layer source ``path|layername=name``
+    (also ``|layerid=N``, ``|geometrytype=Point``, ``|subset=SQL WHERE``), or a GeoDataFrame in
+    Python. ``geometry_types`` restricts the kind: any of point, line, polygon.
     CSV files are read as points from X/Y(/Z) columns (see :mod:`toolbox.io.vector`).
     """
 
@@ -351,7 +352,7 @@ class VectorLayer(Parameter):
 
     def expected(self) -> str:
         kinds = "/".join(self.geometry_types) if self.geometry_types else "any"
-        return f"vector layer ({kinds}): path or 'path|layername=name'"
+        return f"vector layer ({kinds}): path or QGIS source 'path|layername=...|subset=...'"
 
     def describe(self) -> dict[str, Any]:
         return super().describe() | {"geometry_types": self.geometry_types}
@@ -471,10 +472,27 @@ class Destination(Parameter):
 
 
 class OutputVector(Destination):
-    """An output GeoPackage (one file, one or more named layers)."""
+    """An output vector file; its extension picks the format (see :mod:`toolbox.io.vector`):
+    ``.gpkg`` GeoPackage (the default: every layer in one file), ``.fgb`` FlatGeobuf,
+    ``.parquet`` GeoParquet, ``.shp`` Shapefile, ``.geojson`` GeoJSON (one layer per file: the
+    first layer in the path given, the others in ``<stem>_<layer><ext>`` beside it)."""
 
     type_name = "output_vector"
-    extensions = (".gpkg",)
+    #: the keys of toolbox.io.vector.VECTOR_DRIVERS (not imported here: ``help`` stays light)
+    extensions = (".gpkg", ".fgb", ".parquet", ".shp", ".geojson")
+    formats = "GeoPackage, FlatGeobuf, GeoParquet, Shapefile, GeoJSON"
+
+    def validate(self, value: Any, ctx: ValidationContext) -> Path:
+        if isinstance(value, (str, Path)) and str(value).strip() \
+                and Path(value).suffix.lower() not in self.extensions:
+            suffix = Path(value).suffix or "(no extension)"
+            raise self.error(f"must be a vector file ending with {', '.join(self.extensions)} "
+                             f"({self.formats}), got {_show(str(value))} with extension "
+                             f"{_show(suffix)}")
+        return super().validate(value, ctx)
+
+    def expected(self) -> str:
+        return f"output vector path ({', '.join(self.extensions)}; .gpkg by default)"
 
 
 class OutputRaster(Destination):

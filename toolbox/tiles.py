@@ -73,7 +73,7 @@ def scheduler_address(value: str | None = None) -> str | None:
         import dask
 
         configured = dask.config.get("scheduler-address", default=None)
-    except ImportError:  # pragma: no cover - dask is a dependency
+    except ImportError:  # the [dask] extra is not installed: local threads
         configured = None
     return str(configured) if configured else None
 
@@ -181,8 +181,9 @@ def _map_local(func, tasks, workers, prefetch, feedback, total, start, end) -> I
 
 
 def _map_dask(func, tasks, executor, prefetch, feedback, total, start, end) -> Iterator:
-    from distributed import Client
+    from toolbox.extras import require
 
+    Client = require("distributed", "dask", "SCHEDULER (a Dask cluster)").Client
     try:
         client = Client(executor.address, set_as_default=False)  # Dask's connect timeout
     except (OSError, TimeoutError) as exc:

@@ -35,7 +35,7 @@ class BuildAreas(Algorithm):
     ``arcs`` (each boundary stored ONCE, with left_area/right_area ids, 0 = outside, the original
     line codes and input line numbers it came from: the building/pavement edge of the thesis
     exists once and both areas point to it; kept dangles and unclosed lines are arcs with the same
-    area on both sides); ``nodes`` (id, degree, kind); ``errors`` (points and lines with type,
+    area on both sides); ``nodes`` (id, degree, kind); ``errors_points``/``errors_lines`` (type,
     severity = error for the operator or fixed for what the cleaning changed, detail, input line
     numbers, area and label ids). Heights are dropped from the lines (areas are planimetric).
     The same input gives the same ids (numbered by position).
@@ -48,7 +48,8 @@ class BuildAreas(Algorithm):
                   "labelled areas, shared arcs, nodes and an errors layer.")
     parameters = [
         *linework_parameters(),
-        OutputVector("OUTPUT", "GeoPackage with layers areas, arcs, nodes, errors"),
+        OutputVector("OUTPUT", "GeoPackage with layers areas, arcs, nodes, errors_points, "
+                     "errors_lines"),
     ]
     outputs = [Output("STATISTICS", "counts of every cleaning step, tolerances and their source",
                       "dict")]

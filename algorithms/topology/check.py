@@ -20,7 +20,7 @@ class CheckTopology(Algorithm):
     labels outside every area.
 
     Runs the same steps and tolerances as ``topology:build_areas`` in memory and writes only the
-    ``errors`` layer (points and lines with type, severity, detail and input line numbers); the
+    ``errors_points`` and ``errors_lines`` layers (type, severity, detail and input line numbers); the
     input is not changed and no area is written. Severity ``fixable`` marks what build_areas
     would correct by itself (snap, close, node, dedupe, trim, merge), ``error`` what it would
     leave for the operator (dangles kept, unclosed lines, label problems, invalid features). When
@@ -34,7 +34,7 @@ class CheckTopology(Algorithm):
                   "dangles, slivers and label problems as an errors layer; no geometry changed.")
     parameters = [
         *linework_parameters(),
-        OutputVector("OUTPUT", "GeoPackage with the errors layer"),
+        OutputVector("OUTPUT", "GeoPackage with the errors_points and errors_lines layers"),
     ]
     outputs = [Output("STATISTICS", "counts of every check, tolerances and their source",
                       "dict")]

@@ -12,8 +12,8 @@ from toolbox.io.vector import read_vector, write_layers
 from toolbox.parameters import Enum, Number, Output, OutputVector, String, VectorLayer
 from toolbox.registry import register
 from toolbox.terrain.points import local_origin
-from toolbox.topology.layers import to_frame
-from toolbox.topology.output import Layer, issues_layer, order_key
+from toolbox.topology.layers import error_frames, to_frame
+from toolbox.topology.output import ERROR_LAYERS, Layer, issues_layer, order_key
 from toolbox.topology.setops import OPERATIONS, clean_polygons, overlay_polygons
 
 RESULT_COLUMNS = ("id", "part", "area", "perimeter")
@@ -57,7 +57,7 @@ class Overlay(Algorithm):
     OUTPUT: a GeoPackage with a layer named after the operation (single polygons: id, part =
     ``a``/``b``/``ab`` for pieces from INPUT only, OVERLAY only or both, area, perimeter, then
     INPUT's fields with INPUT_PREFIX and OVERLAY's with OVERLAY_PREFIX, empty where the piece is
-    outside that layer) and an ``errors`` layer (repairs and skipped features).
+    outside that layer) and ``errors_points``/``errors_lines`` (repairs and skipped features).
     """
 
     id = "topology:overlay"
@@ -74,8 +74,8 @@ class Overlay(Algorithm):
         String("OVERLAY_PREFIX", "prefix of OVERLAY's fields in the output", default="b_"),
         Number("PRECISION", "coordinate grid of the result, CRS units", default=0.001,
                min_value=0, min_exclusive=True),
-        OutputVector("OUTPUT", "GeoPackage with the result layer (named after OPERATION) and "
-                     "errors"),
+        OutputVector("OUTPUT", "GeoPackage with the result layer (named after OPERATION), "
+                     "errors_points and errors_lines"),
     ]
     outputs = [Output("STATISTICS", "pieces by origin, repaired and skipped features", "dict")]
 
@@ -145,8 +145,8 @@ class Overlay(Algorithm):
         feedback.set_progress(90, "writing")
         with feedback.timed("write"):
             write_layers(params["OUTPUT"], {operation: to_frame(pieces, crs),
-                                            "errors": to_frame(errors, crs)},
-                         crs=crs, geometry_types={operation: "Polygon", "errors": "Unknown"})
+                                            **error_frames(errors, crs)},
+                         crs=crs, geometry_types={operation: "Polygon", **ERROR_LAYERS})
         stats = {"operation": operation, "crs": crs_label(crs), "input": counts_a,
                  "overlay": counts_b, **result.counts}
         for issue in issues_a + issues_b:

@@ -8,7 +8,7 @@ import numpy as np
 
 from toolbox.algorithm import Algorithm
 from toolbox.io.crs import crs_label
-from toolbox.io.vector import open_layer, read_vector
+from toolbox.io.vector import is_parquet, open_layer, read_vector
 from toolbox.parameters import Output, OutputFile, VectorLayer
 from toolbox.registry import register
 
@@ -54,11 +54,12 @@ class VectorInfo(Algorithm):
         import pyogrio
 
         ref = params["INPUT"]
-        names = [ref.layer] if ref.path is None else [
+        single = ref.path is None or is_parquet(ref.path)  # a frame, or one GeoParquet layer
+        names = [ref.layer or ref.info.get("layer_name")] if single else [
             str(row[0]) for row in pyogrio.list_layers(ref.path)]
         layers = []
         for name in feedback.iterate(names):
-            layer = ref if ref.path is None else open_layer(f"{ref.path}|layername={name}")
+            layer = ref if single else open_layer(f"{ref.path}|layername={name}")
             frame = read_vector(layer)
             layers.append({"name": name, "crs": crs_label(layer.crs),
                            "fields": layer.field_types, **layer_summary(frame)})

@@ -3,10 +3,18 @@
 from __future__ import annotations
 
 import json
+import subprocess
+import sys
+from pathlib import Path
 
 import rasterio
 
 from toolbox.demo import demo_pipeline_doc, run_demo
+
+sys.path.insert(0, str(Path(__file__).parent))
+from gpkg_check import gpkg_problems  # noqa: E402
+
+DEBIAN_VALIDATOR = Path("/usr/lib/python3/dist-packages/osgeo_utils/samples/validate_gpkg.py")
 
 
 def test_demo_runs_end_to_end(tmp_path):
@@ -22,3 +30,14 @@ def test_demo_runs_end_to_end(tmp_path):
                 assert (tmp_path / value).exists(), (name, value)
     with rasterio.open(tmp_path / "hillshade.tif") as ds:
         assert ds.crs.to_epsg() == 3003 and ds.read(1).max() > 200
+    # every GeoPackage the demo writes is a valid GeoPackage 1.2 (tests/toolbox/gpkg_check.py)
+    gpkgs = sorted(tmp_path.rglob("*.gpkg"))
+    assert len(gpkgs) >= 5
+    assert {str(p.relative_to(tmp_path)): gpkg_problems(p) for p in gpkgs} == \
+        {str(p.relative_to(tmp_path)): [] for p in gpkgs}
+    if DEBIAN_VALIDATOR.exists():  # and GDAL's own validator, where Debian's GDAL is installed
+        script = ("import sys\nfrom osgeo_utils.samples.validate_gpkg import check\n"
+                  "for f in sys.argv[1:]:\n    check(f, warning_msg=False)\n")
+        result = subprocess.run(["/usr/bin/python3", "-c", script, *map(str, gpkgs)],
+                                capture_output=True, text=True, timeout=300)
+        assert result.returncode == 0, result.stderr[-2000:]

@@ -37,18 +37,19 @@ class OutputStaging:
         return staged is not None and staged.exists()
 
     def commit(self) -> list[Path]:
-        """Move every staged file that was written (and its sidecars, e.g. ``.aux.xml``) into
-        place. Returns the final paths written."""
+        """Move every staged file that was written and every file beside it in its private
+        staging folder (sidecars: ``.aux.xml``, a Shapefile's ``.shx``/``.dbf``/``.prj``, the
+        ``<stem>_<layer>`` files of a one-layer-per-file vector format) into place. Returns the
+        final paths written."""
         done = []
         for final, staged in self._staged.items():
             if not staged.exists():
                 continue
-            for item in staged.parent.iterdir():
-                if item.name.startswith(staged.name):
-                    target = final.parent / (final.name + item.name[len(staged.name):])
-                    if item.is_dir() and target.is_dir():  # a replaced output folder
-                        shutil.rmtree(target)
-                    os.replace(item, target)
+            for item in staged.parent.iterdir():  # the folder holds this output's files only
+                target = final.parent / item.name
+                if item.is_dir() and target.is_dir():  # a replaced output folder
+                    shutil.rmtree(target)
+                os.replace(item, target)
             done.append(final)
         self.rollback()
         return done

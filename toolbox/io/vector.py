@@ -1,9 +1,26 @@
-"""Vector I/O: read any layer OGR reads into a GeoDataFrame, write named layers to one GeoPackage.
+"""Vector I/O: read any layer OGR reads into a GeoDataFrame, write named layers in the format the
+output's extension names.
 
-Formats: GeoPackage, Shapefile, GeoJSON, DXF, GML, ... (whatever the GDAL in pyogrio reads) and
-CSV, read as points from columns named (case-insensitively) ``x``/``east``/``easting``/``lon``,
-``y``/``north``/``northing``/``lat`` and optionally ``z``/``elev``/``elevation``/``height``.
-A layer inside a multi-layer file is addressed as ``path|layername=name`` (the QGIS syntax).
+Reading: GeoPackage, Shapefile, GeoJSON, FlatGeobuf, GeoParquet, DXF, GML, ... (whatever the GDAL
+in pyogrio reads) and CSV, read as points from columns named (case-insensitively)
+``x``/``east``/``easting``/``lon``, ``y``/``north``/``northing``/``lat`` and optionally
+``z``/``elev``/``elevation``/``height``. A layer is addressed with QGIS's layer-source syntax::
+
+    path[|layername=NAME | |layerid=N][|geometrytype=Point|LineString|Polygon][|subset=SQL]
+
+``layerid`` is the 0-based index of the layer in the file; ``geometrytype`` keeps the features of
+that kind (multi-part included); ``subset`` is an SQL WHERE clause handed to OGR (it comes last and
+may itself contain ``|``).
+
+Writing (:func:`write_layers`): the extension picks the OGR driver (:data:`VECTOR_DRIVERS`).
+A GeoPackage holds every layer in the one file, written as GeoPackage 1.2 (QGIS 3.22 and GDAL 3.6
+read it without "only partially supported" warnings). The other formats hold one layer per file:
+the first layer goes to the path given, each further layer to a file beside it named
+``<stem>_<layer><ext>`` (``topo.shp``, ``topo_arcs.shp``, ...); reading ``topo.shp|layername=arcs``
+finds that file again. FlatGeobuf files get their spatial index, which stores the features in
+spatial (Hilbert) order: rely on the id fields, not on the feature order. GeoParquet is written
+and read through pyarrow/geopandas (the GDAL in pyogrio's wheels has no Parquet driver), so a
+``|subset=`` SQL filter is not available on it.
 """
 
 from __future__ import annotations
@@ -24,6 +41,35 @@ CSV_COORDINATE_NAMES = {  # in order of preference, matched case-insensitively
 }
 _NUMERIC_KINDS = "iuf"
 
+#: output extension -> OGR driver (the formats :func:`write_layers` writes)
+VECTOR_DRIVERS = {".gpkg": "GPKG", ".fgb": "FlatGeobuf", ".parquet": "Parquet",
+                  ".shp": "ESRI Shapefile", ".geojson": "GeoJSON"}
+#: GeoPackage creation options: version 1.2 (GDAL 3.6 / QGIS 3.22 warn on the newer 1.4)
+GPKG_DATASET_OPTIONS = {"VERSION": "1.2"}
+_GEOMETRY_FAMILIES = {"point": ("Point", "MultiPoint"),
+                      "line": ("LineString", "MultiLineString", "LinearRing"),
+                      "polygon": ("Polygon", "MultiPolygon")}
+
+
+def vector_driver(path: str | Path) -> str:
+    """OGR driver of an output path, from its extension (:data:`VECTOR_DRIVERS`)."""
+    suffix = Path(path).suffix.lower()
+    if suffix not in VECTOR_DRIVERS:
+        raise ParameterError("", f"vector output '{path}' must end with "
+                             f"{', '.join(VECTOR_DRIVERS)}, got '{suffix or '(no extension)'}'")
+    return VECTOR_DRIVERS[suffix]
+
+
+def is_multi_layer(path: str | Path) -> bool:
+    """True for formats holding several layers in one file (GeoPackage)."""
+    return Path(path).suffix.lower() in (".gpkg", ".sqlite")
+
+
+def sibling_layer_path(path: str | Path, layer: str) -> Path:
+    """The file holding ``layer`` beside a one-layer-per-file output ``path``."""
+    path = Path(path)
+    return path.with_name(f"{path.stem}_{layer}{path.suffix}")
+
 
 def _geometry_kind(geometry_type: str | None) -> str | None:
     if not geometry_type:
@@ -38,18 +84,30 @@ def _geometry_kind(geometry_type: str | None) -> str | None:
 
 @dataclass
 class VectorLayerRef:
-    """A validated reference to a vector layer (a file layer or an in-memory GeoDataFrame)."""
+    """A validated reference to a vector layer (a file layer or an in-memory GeoDataFrame).
+
+    ``where`` (the ``|subset=`` SQL) and ``geometry_filter`` (the ``|geometrytype=`` kind: point,
+    line or polygon) restrict the features read; readers that bypass :func:`read_vector` must
+    honour them or take the general path.
+    """
 
     path: Path | None
     layer: str | None
     info: dict[str, Any]
     open_options: dict[str, str] = field(default_factory=dict)
     frame: Any = None  # GeoDataFrame given directly in Python
+    where: str | None = None
+    geometry_filter: str | None = None
 
     def __str__(self) -> str:
         if self.path is None:
             return "<GeoDataFrame>"
-        return f"'{self.path}|layername={self.layer}'" if self.layer else f"'{self.path}'"
+        return f"'{self.as_text()}'"
+
+    @property
+    def filtered(self) -> bool:
+        """True when only some features of the layer are read (subset or geometry type)."""
+        return bool(self.where) or self.geometry_filter is not None
 
     @property
     def crs(self):
@@ -60,6 +118,8 @@ class VectorLayerRef:
 
     @property
     def geometry_type(self) -> str | None:
+        if self.geometry_filter is not None:  # the kind the user asked for
+            return _FILTER_NAMES[self.geometry_filter]
         return self.info.get("geometry_type")
 
     @property
@@ -83,7 +143,14 @@ class VectorLayerRef:
 
     def as_text(self) -> str:
         """The reference as the user would type it (for reports and pipelines)."""
-        return str(self).strip("'")
+        if self.path is None:
+            return "<GeoDataFrame>"
+        text = f"{self.path}|layername={self.layer}" if self.layer else str(self.path)
+        if self.geometry_filter:
+            text += f"|geometrytype={_FILTER_NAMES[self.geometry_filter]}"
+        if self.where:
+            text += f"|subset={self.where}"
+        return text
 
 
 def _frame_info(frame) -> dict[str, Any]:
@@ -98,11 +165,74 @@ def _frame_info(frame) -> dict[str, Any]:
             "features": len(frame)}
 
 
+_FILTER_NAMES = {"point": "Point", "line": "LineString", "polygon": "Polygon"}
+
+
+@dataclass
+class LayerSource:
+    """The parts of a QGIS layer-source string ``path|key=value|...``."""
+
+    path: str
+    layername: str | None = None
+    layerid: int | None = None
+    geometry_filter: str | None = None
+    subset: str | None = None
+
+
+def parse_layer_source(text: str, name: str = "INPUT") -> LayerSource:
+    """Split ``path|layername=x|layerid=n|geometrytype=T|subset=SQL`` (QGIS's syntax).
+
+    ``subset`` comes last and keeps any ``|`` it contains. Raises :class:`ParameterError`
+    naming ``name`` for an unknown key or a malformed value.
+    """
+    path, *parts = text.split("|")
+    source = LayerSource(path)
+    for i, part in enumerate(parts):
+        key, eq, value = part.partition("=")
+        key = key.strip().lower()
+        if key == "subset":
+            source.subset = "|".join([value, *parts[i + 1:]]).strip() or None
+            break
+        if not eq or not value.strip():
+            raise ParameterError(name, f"{text!r}: '{part}' must be key=value (layername=, "
+                                 "layerid=, geometrytype=, subset=)")
+        value = value.strip()
+        if key == "layername":
+            source.layername = value
+        elif key == "layerid":
+            if not value.isdigit():
+                raise ParameterError(name, f"{text!r}: layerid must be a layer index 0, 1, ..., "
+                                     f"got {value!r}")
+            source.layerid = int(value)
+        elif key == "geometrytype":
+            kind = _geometry_kind(value)
+            if kind is None:
+                raise ParameterError(name, f"{text!r}: geometrytype must be Point, LineString or "
+                                     f"Polygon (or their Multi/25D forms), got {value!r}")
+            source.geometry_filter = kind
+        else:
+            raise ParameterError(name, f"{text!r}: unknown option '{key}'; expected layername=, "
+                                 "layerid=, geometrytype= or subset=")
+    if source.layername is not None and source.layerid is not None:
+        raise ParameterError(name, f"{text!r}: give layername= or layerid=, not both")
+    return source
+
+
+def _resolve_layer_file(path: Path, layer: str | None, layers: list[str]) -> Path | None:
+    """For one-layer-per-file outputs: the sibling file ``<stem>_<layer><ext>`` holding
+    ``layer`` when ``path`` itself does not (see :func:`write_layers`)."""
+    if layer is None or layer in layers or is_multi_layer(path):
+        return None
+    sibling = sibling_layer_path(path, layer)
+    return sibling if sibling.exists() else None
+
+
 def open_layer(value: Any, name: str = "INPUT") -> VectorLayerRef:
     """Validate a vector layer reference and read its metadata (not its features).
 
-    Raises :class:`ParameterError` naming ``name`` for a missing file, an unknown layer name or
-    a file OGR cannot read.
+    ``value`` is a path, a QGIS layer source (see the module docstring), a
+    :class:`VectorLayerRef` or a GeoDataFrame. Raises :class:`ParameterError` naming ``name``
+    for a missing file, an unknown layer or a file OGR cannot read.
     """
     import pyogrio
 
@@ -112,21 +242,29 @@ def open_layer(value: Any, name: str = "INPUT") -> VectorLayerRef:
         return VectorLayerRef(None, None, _frame_info(value), frame=value)
     if not isinstance(value, (str, Path)):
         raise ParameterError(name, f"must be a vector layer path, got {value!r}")
-    text, layer = str(value), None
-    if "|" in text:
-        text, _, option = text.partition("|")
-        key, _, layer = option.partition("=")
-        if key.strip().lower() != "layername" or not layer:
-            raise ParameterError(name, f"{value!r}: expected 'path|layername=name'")
+    source = parse_layer_source(str(value), name) if "|" in str(value) else \
+        LayerSource(str(value))
+    text, layer = source.path, source.layername
     path = Path(text).expanduser()
     if not path.exists():
         raise ParameterError(name, f"file '{text}' does not exist")
+    if path.suffix.lower() == ".parquet":
+        return _open_parquet(path, source, name)
     try:
         options = _csv_open_options(path) if path.suffix.lower() == ".csv" else {}
         layers = [str(row[0]) for row in pyogrio.list_layers(path)]
     except Exception as exc:  # pyogrio raises DataSourceError and friends
         raise ParameterError(name, f"cannot read '{text}' as a vector layer: "
                              f"{str(exc).splitlines()[0]}") from None
+    sibling = _resolve_layer_file(path, layer, layers)
+    if sibling is not None:
+        path, layer = sibling, None
+        layers = [str(row[0]) for row in pyogrio.list_layers(path)]
+    if source.layerid is not None:
+        if source.layerid >= len(layers):
+            raise ParameterError(name, f"layerid={source.layerid} but '{text}' has "
+                                 f"{len(layers)} layer(s): {', '.join(layers)}")
+        layer = layers[source.layerid]
     if layer is not None and layer not in layers:
         raise ParameterError(name, f"layer '{layer}' is not in '{text}'; layers are: "
                              f"{', '.join(layers)}")
@@ -139,7 +277,63 @@ def open_layer(value: Any, name: str = "INPUT") -> VectorLayerRef:
                              f"{str(exc).splitlines()[0]}") from None
     if layer is None and len(layers) > 1:
         layer = info.get("layer_name")
-    return VectorLayerRef(path, layer, info, options)
+    ref = VectorLayerRef(path, layer, info, options, where=source.subset,
+                         geometry_filter=source.geometry_filter)
+    if ref.where:  # an SQL error is the user's: report it now, naming the parameter
+        try:
+            pyogrio.read_dataframe(path, layer=layer, where=ref.where, max_features=1,
+                                   read_geometry=False, **options)
+        except Exception as exc:
+            raise ParameterError(name, f"subset {ref.where!r} is not a valid filter of "
+                                 f"'{text}': {str(exc).splitlines()[0]}") from None
+    return ref
+
+
+def _open_parquet(path: Path, source: LayerSource, name: str) -> VectorLayerRef:
+    """A GeoParquet file (metadata only: its schema and GeoParquet ``geo`` key). The GDAL in
+    pyogrio's wheels has no Parquet driver, so :func:`read_vector` reads it with geopandas.
+    ``|layername=`` finds a sibling ``<stem>_<layer>.parquet``; ``|subset=`` (SQL) is not
+    available for GeoParquet."""
+    import json
+
+    import pyarrow.parquet as pq
+
+    if source.subset:
+        raise ParameterError(name, f"'{path}': |subset= (SQL) is not supported for GeoParquet; "
+                             "convert the file to GeoPackage or filter it first")
+    if source.layerid not in (None, 0):
+        raise ParameterError(name, f"layerid={source.layerid} but '{path}' has 1 layer")
+    if source.layername and source.layername != path.stem:
+        sibling = sibling_layer_path(path, source.layername)
+        if not sibling.exists():
+            raise ParameterError(name, f"layer '{source.layername}' is neither '{path}' nor a "
+                                 f"file '{sibling.name}' beside it")
+        path = sibling
+    try:
+        schema = pq.read_schema(path)
+        geo = json.loads((schema.metadata or {})[b"geo"])
+        column = geo["primary_column"]
+        meta = geo["columns"][column]
+        rows = pq.ParquetFile(path).metadata.num_rows
+    except Exception as exc:
+        raise ParameterError(name, f"cannot read '{path}' as GeoParquet: "
+                             f"{str(exc).splitlines()[0]}") from None
+    crs = meta.get("crs", "OGC:CRS84")  # GeoParquet: a missing crs means OGC:CRS84
+    if isinstance(crs, dict):
+        from pyproj import CRS
+
+        crs = CRS.from_json_dict(crs).to_wkt()
+    types = meta.get("geometry_types") or []
+    fields = [f for f in schema if f.name != column]
+    info = {"layer_name": path.stem, "crs": crs, "fields": [f.name for f in fields],
+            "dtypes": [np.dtype(f.type.to_pandas_dtype()).name for f in fields],
+            "geometry_type": types[0] if len(types) == 1 else ("Unknown" if types else None),
+            "features": rows, "geometry_name": column}
+    return VectorLayerRef(path, None, info, geometry_filter=source.geometry_filter)
+
+
+def is_parquet(path: Path | None) -> bool:
+    return path is not None and path.suffix.lower() == ".parquet"
 
 
 def _csv_open_options(path: Path) -> dict[str, str]:
@@ -175,12 +369,23 @@ def read_vector(source: Any, crs: Any = None, columns: list[str] | None = None,
     ref = open_layer(source, name)
     if ref.frame is not None:
         frame = ref.frame.copy()
+    elif is_parquet(ref.path):
+        import geopandas as gpd
+
+        try:
+            frame = gpd.read_parquet(ref.path, columns=None if columns is None else
+                                     [*columns, ref.info["geometry_name"]], bbox=bbox)
+        except Exception as exc:
+            raise InputDataError(f"{name}: cannot read {ref}: {str(exc).splitlines()[0]}") from None
     else:
         try:
             frame = pyogrio.read_dataframe(ref.path, layer=ref.layer, columns=columns, bbox=bbox,
-                                           **ref.open_options)
+                                           where=ref.where or None, **ref.open_options)
         except Exception as exc:
             raise InputDataError(f"{name}: cannot read {ref}: {str(exc).splitlines()[0]}") from None
+    if ref.geometry_filter is not None:
+        keep = frame.geom_type.isin(_GEOMETRY_FAMILIES[ref.geometry_filter]).to_numpy()
+        frame = frame[keep].reset_index(drop=True)
     if crs is not None and frame.crs is None:
         frame = frame.set_crs(crs)
     return frame
@@ -232,7 +437,8 @@ def read_points_xyz(source: Any, z_field: str | None = None, name: str = "INPUT"
     no pyarrow) take the general path.
     """
     ref = open_layer(source, name)
-    if ref.frame is None and not ref.open_options:
+    if ref.frame is None and not ref.open_options and ref.geometry_filter is None \
+            and not is_parquet(ref.path):
         xyz = _points_from_arrow(ref, z_field)
         if xyz is not None:
             _check_finite(xyz, name)
@@ -248,7 +454,7 @@ def _points_from_arrow(ref: VectorLayerRef, z_field: str | None) -> np.ndarray |
     except ImportError:  # pragma: no cover - pyarrow is optional
         return None
     try:
-        meta, table = pyogrio.read_arrow(ref.path, layer=ref.layer,
+        meta, table = pyogrio.read_arrow(ref.path, layer=ref.layer, where=ref.where or None,
                                          columns=[z_field] if z_field else [])
     except Exception:  # let the general path report the problem
         return None
@@ -316,24 +522,60 @@ def staged_gpkg_writes():
         pyogrio.set_gdal_config_options({"OGR_SQLITE_SYNCHRONOUS": previous})
 
 
+def geometry_kinds(frame) -> set[str]:
+    """Kinds (point, line, polygon) of the non-empty geometries of a frame."""
+    if not len(frame):
+        return set()
+    types = frame.geom_type.dropna().unique()
+    return {kind for kind, family in _GEOMETRY_FAMILIES.items() if set(types) & set(family)}
+
+
+def layer_paths(path: str | Path, names: list[str]) -> dict[str, Path]:
+    """Where :func:`write_layers` puts each named layer: all in ``path`` for a GeoPackage; else
+    the first in ``path`` and each other one in :func:`sibling_layer_path`."""
+    path = Path(path)
+    if is_multi_layer(path):
+        return {name: path for name in names}
+    return {name: path if i == 0 else sibling_layer_path(path, name)
+            for i, name in enumerate(names)}
+
+
 def write_layers(path: str | Path, layers: dict[str, Any], crs: Any = None,
                  geometry_types: dict[str, str] | None = None) -> Path:
-    """Write GeoDataFrames as named layers of one GeoPackage (created or extended).
+    """Write GeoDataFrames as named layers, in the format of ``path``'s extension.
 
-    ``geometry_types`` gives the OGR type (e.g. ``"Polygon Z"``, ``"Point"``) for layers that may
-    be empty. Inside an algorithm, ``path`` is the staged output path the runner handed over.
+    A GeoPackage (version 1.2) receives every layer (created or extended); a one-layer format
+    (FlatGeobuf, GeoParquet, Shapefile, GeoJSON) gets the first layer in ``path`` and the others
+    beside it (:func:`layer_paths`). ``geometry_types`` gives the OGR type (e.g.
+    ``"Polygon Z"``, ``"Point"``) for layers that may be empty; every layer carries ``crs``
+    (when its frame has none), empty ones too. A layer must hold one kind of geometry (points,
+    lines or polygons: QGIS draws only one kind per layer); single and multi parts of a kind are
+    written as multi. Inside an algorithm, ``path`` is the staged output path the runner handed
+    over.
     """
     import pyogrio
 
     path = Path(path)
+    driver = vector_driver(path)
+    targets = layer_paths(path, list(layers))
     for layer_name, frame in layers.items():
         if crs is not None and frame.crs is None:
             frame = frame.set_crs(crs)
+        kinds = geometry_kinds(frame)
+        if len(kinds) > 1:
+            raise ValueError(f"internal: layer '{layer_name}' mixes {' and '.join(sorted(kinds))}"
+                             "; write one layer per kind (see toolbox.topology.layers)")
         kwargs: dict[str, Any] = {}
         if geometry_types and layer_name in geometry_types:
             kwargs["geometry_type"] = geometry_types[layer_name]
-        elif len(frame) and len(set(frame.geom_type)) > 1:
+        elif len(frame) and len(set(frame.geom_type.dropna())) > 1:
             kwargs["promote_to_multi"] = True
+        target = targets[layer_name]
+        if driver == "Parquet":  # GeoParquet 1.x through pyarrow (no Parquet driver in pyogrio)
+            frame.to_parquet(target, index=False)
+            continue
+        if driver == "GPKG" and not target.exists():
+            kwargs["dataset_options"] = GPKG_DATASET_OPTIONS
         with staged_gpkg_writes():
-            pyogrio.write_dataframe(frame, path, layer=layer_name, driver="GPKG", **kwargs)
+            pyogrio.write_dataframe(frame, target, layer=layer_name, driver=driver, **kwargs)
     return path

@@ -9,7 +9,7 @@ import numpy as np
 
 from toolbox.feedback import Feedback
 from toolbox.io.parameter_file import ParameterFile, read_parameter_file
-from toolbox.topology.output import Layer, TopologyOutput
+from toolbox.topology.output import ERROR_LAYERS, Layer, TopologyOutput, split_errors
 from toolbox.topology.tolerances import (
     TOLERANCE_PARAMETERS,
     TOPOLOGY_FILE_KEYS,
@@ -20,7 +20,8 @@ from toolbox.topology.tolerances import (
 CODE_FIELD_NAMES = ("code", "codice", "cod", "codes")
 #: names the areas layer uses itself; label attributes with these names get a ``label_`` prefix
 AREA_COLUMNS = ("id", "code", "labels", "area", "perimeter")
-GEOMETRY_TYPES = {"areas": "Polygon", "arcs": "LineString", "nodes": "Point", "errors": "Unknown"}
+GEOMETRY_TYPES = {"areas": "Polygon", "arcs": "LineString", "nodes": "Point", **ERROR_LAYERS}
+_METRE = {"m", "metre", "metres", "meter", "meters", "metro", "metri"}
 
 
 def default_code_field(fields: list[str]) -> str | None:
@@ -98,15 +99,24 @@ def to_frame(layer: Layer, crs: Any, dtypes: dict[str, Any] | None = None):
                             crs=crs)
 
 
+def error_frames(errors: Layer, crs: Any) -> dict[str, Any]:
+    """The ``errors_points`` and ``errors_lines`` GeoDataFrames of a mixed errors layer."""
+    return {name: to_frame(layer, crs) for name, layer in split_errors(errors).items()}
+
+
 def write_topology(path: str | Path, output: TopologyOutput, crs: Any,
                    label_dtypes: dict[str, Any] | None = None,
                    layers: tuple[str, ...] = ("areas", "arcs", "nodes", "errors")) -> Path:
-    """Write the chosen layers of a :class:`TopologyOutput` into one GeoPackage."""
+    """Write the chosen layers of a :class:`TopologyOutput` into one GeoPackage (or the format
+    of ``path``); ``"errors"`` becomes the ``errors_points`` and ``errors_lines`` layers."""
     from toolbox.io.vector import write_layers
 
     frames = {}
     for name in layers:
-        frames[name] = to_frame(getattr(output, name), crs, label_dtypes if name == "areas"
-                                else None)
+        if name == "errors":
+            frames |= error_frames(output.errors, crs)
+        else:
+            frames[name] = to_frame(getattr(output, name), crs, label_dtypes if name == "areas"
+                                    else None)
     return write_layers(path, frames, crs=crs,
                         geometry_types={k: GEOMETRY_TYPES[k] for k in frames})

@@ -26,7 +26,11 @@ class Layer:
 
 @dataclass
 class TopologyOutput:
-    """``areas``, ``arcs``, ``nodes``, ``errors`` layers and the per-step ``statistics``."""
+    """``areas``, ``arcs``, ``nodes``, ``errors`` layers and the per-step ``statistics``.
+
+    ``errors`` holds points and lines together (one row per issue); it is written as two layers,
+    ``errors_points`` and ``errors_lines`` (see :func:`split_errors`).
+    """
 
     areas: Layer
     arcs: Layer
@@ -105,3 +109,32 @@ def issues_layer(issues: list[Issue], origin: np.ndarray,
         "label_id": np.array([i.label + 1 for i in issues], dtype=np.int64),
     }
     return Layer(out, cols)
+
+
+#: the layers an errors table is written as: QGIS draws one geometry kind per layer
+ERROR_LAYERS = {"errors_points": "Point", "errors_lines": "LineString"}
+
+
+def split_errors(errors: Layer) -> dict[str, Layer]:
+    """``errors_points`` and ``errors_lines`` from a mixed errors :class:`Layer`.
+
+    Points (and issues without a geometry, kept with a NULL geometry) go to ``errors_points``;
+    lines go to ``errors_lines`` (multi-part lines stay multi-part; an area given as a polygon
+    would be written as its boundary). Rows keep their ``id``, unique over both layers, and
+    their order. Both layers always exist, empty when no issue of their kind was found.
+    """
+    geoms = np.asarray(errors.geometry, dtype=object)
+    has = np.array([g is not None and not g.is_empty for g in geoms], dtype=bool)
+    dims = np.zeros(len(geoms), dtype=int)
+    if has.any():
+        dims[has] = shapely.get_dimensions(np.array(list(geoms[has]), dtype=object))
+    polygons = has & (dims == 2)
+    if polygons.any():
+        geoms = geoms.copy()
+        geoms[polygons] = shapely.boundary(np.array(list(geoms[polygons]), dtype=object))
+    out = {}
+    for name, rows in (("errors_points", ~has | (dims == 0)), ("errors_lines", has & (dims >= 1))):
+        index = np.flatnonzero(rows)
+        out[name] = Layer(geoms[index], {k: np.asarray(v)[index] for k, v in
+                                         errors.columns.items()})
+    return out

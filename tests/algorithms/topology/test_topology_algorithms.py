@@ -19,6 +19,20 @@ from toolbox.errors import InputDataError, ParameterError
 E0, N0 = sample.E0, sample.N0
 
 
+def read_errors(path):
+    """The errors_points and errors_lines layers together (by id); each holds one kind only."""
+    import pandas as pd
+
+    points = gpd.read_file(path, layer="errors_points")
+    lines = gpd.read_file(path, layer="errors_lines")
+    assert set(points.geom_type.dropna()) <= {"Point"}
+    assert set(lines.geom_type) <= {"LineString", "MultiLineString"}
+    assert points.crs == lines.crs and points.crs is not None
+    both = pd.concat([points, lines], ignore_index=True).sort_values("id")
+    assert list(both["id"]) == list(range(1, len(both) + 1))  # ids unique across both
+    return gpd.GeoDataFrame(both.reset_index(drop=True), crs=points.crs)
+
+
 @pytest.fixture(scope="module")
 def data(tmp_path_factory):
     folder = tmp_path_factory.mktemp("linework")
@@ -39,7 +53,7 @@ def test_build_areas_writes_four_layers(built):
     assert result["OUTPUT"] == str(out)
     layers = {str(name): str(kind) for name, kind in pyogrio.list_layers(out)}
     assert layers == {"areas": "Polygon", "arcs": "LineString", "nodes": "Point",
-                      "errors": "Unknown"}
+                      "errors_points": "Point", "errors_lines": "LineString"}
     areas = gpd.read_file(out, layer="areas")
     assert areas.crs.to_epsg() == 3003
     assert list(areas.columns) == ["id", "code", "quota", "labels", "area", "perimeter",
@@ -51,8 +65,8 @@ def test_build_areas_writes_four_layers(built):
     arcs = gpd.read_file(out, layer="arcs")
     assert list(arcs.columns) == ["id", "left_area", "right_area", "codes", "lines", "length",
                                   "geometry"]
-    errors = gpd.read_file(out, layer="errors")
-    assert set(errors.geom_type) == {"Point", "LineString"}
+    errors = read_errors(out)
+    assert set(errors.geom_type) == {"Point", "LineString"}  # both kinds, one per layer
     assert (errors["severity"] == "error").sum() == 5
     stats = result["STATISTICS"]
     assert stats["tolerance_sources"] == {"snap": "file", "closure": "file",
@@ -92,8 +106,8 @@ def sample_labels_path(built):
 def test_check_writes_only_errors(data, tmp_path):
     out = tmp_path / "check.gpkg"
     result = toolbox.run("topology:check", {"INPUT": data["linework"], "OUTPUT": out})
-    assert [str(n) for n, _ in pyogrio.list_layers(out)] == ["errors"]
-    errors = gpd.read_file(out, layer="errors")
+    assert [str(n) for n, _ in pyogrio.list_layers(out)] == ["errors_points", "errors_lines"]
+    errors = read_errors(out)
     assert set(errors["severity"]) == {"fixable", "error"}
     assert not errors["type"].isin(["unlabelled_area", "label_outside"]).any()  # no LABELS
     assert result["STATISTICS"]["output"] == {"errors": 2, "fixable": 15}
@@ -110,7 +124,7 @@ def test_geodataframe_inputs_with_invalid_features(tmp_path):
                              columns=lines.columns, geometry="geometry", crs=lines.crs)
     result = toolbox.run("topology:build_areas", {"INPUT": frame, "OUTPUT": tmp_path / "x.gpkg"})
     assert result["STATISTICS"]["input"]["invalid"] == 2
-    errors = gpd.read_file(tmp_path / "x.gpkg", layer="errors")
+    errors = read_errors(tmp_path / "x.gpkg")
     invalid = errors[errors["type"] == "invalid_geometry"]
     assert sorted(invalid["lines"]) == ["15", "16"]
 
@@ -201,7 +215,7 @@ def test_overlay_known_areas_and_both_sides_attributes(tmp_path, operation, part
             assert (row["b_n"] == 2) == ("b" in row["part"])
     if operation == "difference":
         assert "b_zone" not in frame.columns
-    assert len(gpd.read_file(out, layer="errors")) == 0
+    assert len(read_errors(out)) == 0
 
 
 def test_overlay_repairs_and_reports_invalid_areas(tmp_path):
@@ -213,7 +227,7 @@ def test_overlay_repairs_and_reports_invalid_areas(tmp_path):
     out = tmp_path / "o.gpkg"
     result = toolbox.run("topology:overlay", {"INPUT": a, "OVERLAY": b, "OUTPUT": out,
                                               "OPERATION": "union"})
-    errors = gpd.read_file(out, layer="errors")
+    errors = read_errors(out)
     assert sorted(zip(errors["type"], errors["severity"], errors["lines"], strict=True)) == [
         ("self_intersection", "error", "3"), ("self_intersection", "fixed", "2")]
     fixed = errors[errors["severity"] == "fixed"].geometry.iloc[0]
@@ -247,7 +261,7 @@ def test_3d_spot_heights_become_label_z(data, tmp_path):
     assert "label_z" in areas.columns and areas["label_z"].dtype.kind == "f"
     b1 = areas[areas.contains(shapely.Point(E0 + 30, N0 + 30))].iloc[0]
     assert b1["label_z"] == pytest.approx(301.0)  # label 2
-    errors = gpd.read_file(out, layer="errors")
+    errors = read_errors(out)
     assert sorted(errors.loc[errors["type"] == "label_outside", "label_id"]) == [7, 8]
 
 
@@ -260,7 +274,7 @@ def test_all_invalid_input_writes_empty_layers(tmp_path):
     assert result["STATISTICS"]["output"]["areas"] == 0
     layers = {str(name): str(kind) for name, kind in pyogrio.list_layers(out)}
     assert layers == {"areas": "Polygon", "arcs": "LineString", "nodes": "Point",
-                      "errors": "Unknown"}
-    errors = gpd.read_file(out, layer="errors")
+                      "errors_points": "Point", "errors_lines": "LineString"}
+    errors = read_errors(out)
     assert list(errors["type"]) == ["invalid_geometry"] * 2
     assert sorted(errors["lines"]) == ["1", "2"]

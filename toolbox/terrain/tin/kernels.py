@@ -9,10 +9,22 @@ Arrays in, arrays out; no files, no CRS. Conventions:
   ``(x0 + (c + 0.5) * cell_x, y0 - (r + 0.5) * cell_y)``, ``(x0, y0)`` being the top-left corner;
 - "outside the TIN" is NaN.
 
-The triangulation is Shewchuk's Triangle (the ``triangle`` package): Delaunay by divide and
-conquer with exact predicates, constrained Delaunay (``-p``) when segments are given. The height
+The triangulation is constrained Delaunay with exact predicates, by one of two libraries:
+
+- ``cdt`` (the default): pythoncdt, bindings of Artem Amirkhanov's CDT library (MPL-2.0, a core
+  dependency: redistributable in commercial products);
+- ``triangle``: Shewchuk's Triangle (the ``triangle`` package; its licence forbids commercial
+  redistribution, so it is the optional extra ``pip install photogrammetry-toolbox[triangle]``),
+  about 1.4 times faster on a million points.
+
+The environment variable ``TOOLBOX_TRIANGULATOR`` chooses: ``cdt`` (default), ``triangle``, or
+``auto`` (Triangle when installed, else CDT); the ``triangulator`` argument of
+:func:`triangulate_pslg` overrides it. Both give the same triangles on points in general position
+(the Delaunay triangulation is then unique); with four or more points on one circle each breaks
+the tie its own way. Crossing segments are split at their intersection by both.
+The height
 inside a triangle is the plane through its three nodes, thesis eq. [43]-[44]
-(../shared/docs/domain.md par. 14), evaluated with coordinates relative to the triangle's first
+(domain notes par. 14), evaluated with coordinates relative to the triangle's first
 vertex so large projected coordinates lose no digits.
 
 Point-in-triangle tests evaluate the orientation of each edge in one canonical direction (from its
@@ -22,10 +34,13 @@ side a point is: a point or cell centre inside the TIN is never lost in a crack 
 
 from __future__ import annotations
 
+import os
+import re
 from dataclasses import dataclass
 
 import numpy as np
 
+from toolbox.errors import ToolboxError
 from toolbox.terrain.points import local_origin
 from toolbox.terrain.tin.planes import PointBuckets, locate, rasterize, snap_to_edges
 
@@ -39,15 +54,16 @@ class Triangulation:
     ----------
     vertices : (V, 2) float64
         Map coordinates. The first ``n_input`` rows are the input points unchanged; rows after
-        them are vertices Triangle added where input segments cross (Steiner points).
+        them are vertices the triangulator added where input segments cross (Steiner points).
     triangles : (T, 3) int32
         Vertex indices, counter-clockwise.
     neighbors : (T, 3) int32
         ``neighbors[t, j]`` is the triangle across the edge opposite corner ``j`` of ``t``
         (the edge ``triangles[t, j+1]`` - ``triangles[t, j+2]``), -1 on the hull.
     segments : (S, 2) int32
-        Constrained edges of the result: input segments (split where crossed or touched by a
-        vertex) and, when segments were given, the convex hull edges.
+        Constrained edges of the result: input segments, split where crossed or touched by a
+        vertex. A piece lying on several input segments (overlapping ones) may appear once per
+        parent; with Triangle the convex hull edges are also listed (parent -1).
     segment_parents : (S,) int64
         Index of the input segment each row of ``segments`` comes from; -1 for hull edges.
     n_input : int
@@ -63,7 +79,7 @@ class Triangulation:
 
     @property
     def steiner_count(self) -> int:
-        """Vertices added by Triangle at segment crossings."""
+        """Vertices added at segment crossings."""
         return len(self.vertices) - self.n_input
 
 
@@ -97,9 +113,38 @@ def _check_segments(segments, n: int) -> np.ndarray:
     return seg.astype(np.int32)
 
 
+TRIANGULATOR_ENV = "TOOLBOX_TRIANGULATOR"
+TRIANGULATORS = ("cdt", "triangle", "auto")
+
+
+def triangulator_name(choice: str | None = None) -> str:
+    """The triangulator to use, ``"cdt"`` or ``"triangle"``: ``choice``, else the environment
+    variable ``TOOLBOX_TRIANGULATOR``, else ``"cdt"``; ``"auto"`` is Triangle when installed.
+
+    Raises :class:`~toolbox.errors.ToolboxError` for an unknown name, or Triangle asked for but
+    not installed (naming the extra that installs it).
+    """
+    name = (choice or os.environ.get(TRIANGULATOR_ENV) or "cdt").strip().lower()
+    if name not in TRIANGULATORS:
+        raise ToolboxError(f"{TRIANGULATOR_ENV} must be one of {', '.join(TRIANGULATORS)}, got "
+                           f"{name!r}")
+    if name == "cdt":
+        return name
+    try:
+        import triangle  # noqa: F401
+    except ImportError:
+        if name == "auto":
+            return "cdt"
+        raise ToolboxError("the 'triangle' triangulator is not installed: pip install "
+                           "'photogrammetry-toolbox[triangle]' (non-commercial licence), or use "
+                           f"{TRIANGULATOR_ENV}=cdt (the default)") from None
+    return "triangle"
+
+
 def triangulate_pslg(xy: np.ndarray, segments: np.ndarray | None = None,
-                     neighbors: bool = True, parents: bool = True) -> Triangulation:
-    """Delaunay triangulation of points, constrained by segments when given (Triangle ``-pc``).
+                     neighbors: bool = True, parents: bool = True,
+                     triangulator: str | None = None) -> Triangulation:
+    """Delaunay triangulation of points, constrained by segments when given (convex hull).
 
     Parameters
     ----------
@@ -107,16 +152,18 @@ def triangulate_pslg(xy: np.ndarray, segments: np.ndarray | None = None,
         Map coordinates; distinct in XY (merge duplicates first with
         :func:`toolbox.terrain.points.merge_duplicate_xy`). Shifted to a local origin here.
     segments : (M, 2) int array, optional
-        Vertex-index pairs that must be triangle edges. Crossing segments are split by Triangle
-        at their intersection, which becomes a new vertex (see :attr:`Triangulation.vertices`).
+        Vertex-index pairs that must be triangle edges. Crossing segments are split at their
+        intersection, which becomes a new vertex (see :attr:`Triangulation.vertices`).
         Zero-length segments (both ends the same vertex) are ignored.
     neighbors : bool
-        Also return the triangle neighbours (about 10 % more time); otherwise
-        :attr:`Triangulation.neighbors` is an empty ``(0, 3)`` array.
+        Also return the triangle neighbours; otherwise :attr:`Triangulation.neighbors` is an
+        empty ``(0, 3)`` array.
     parents : bool
         Trace each output constrained edge back to its input segment
         (:attr:`Triangulation.segments`, :attr:`Triangulation.segment_parents`); otherwise both
         are empty.
+    triangulator : {"cdt", "triangle", "auto"}, optional
+        The library (see the module docstring); default from ``TOOLBOX_TRIANGULATOR``, else CDT.
 
     Returns
     -------
@@ -128,55 +175,128 @@ def triangulate_pslg(xy: np.ndarray, segments: np.ndarray | None = None,
         Fewer than 3 points, NaN coordinates, all points collinear, points duplicated in XY,
         or malformed segments.
     """
-    import triangle
-
     xy = _check_xy(xy)
     n = len(xy)
     origin = _origin_of(xy)
-    tri_in: dict[str, np.ndarray] = {"vertices": np.ascontiguousarray(xy - origin)}
+    local = np.ascontiguousarray(xy - origin)
     seg = np.zeros((0, 2), dtype=np.int32) if segments is None else _check_segments(segments, n)
     seg_index = np.flatnonzero(seg[:, 0] != seg[:, 1])
-    if len(seg_index):
-        tri_in["segments"] = np.ascontiguousarray(seg[seg_index])
+    run = _cdt if triangulator_name(triangulator) == "cdt" else _triangle
+    try:
+        added, triangles, nb, out_seg, owners = run(local, seg[seg_index], neighbors, parents)
+    except _DuplicatePoint as dup:
+        _raise_duplicates(xy, np.array([dup.index]))
+    if len(triangles) == 0:
+        raise ValueError(f"the {n} points are collinear (or all coincide): no triangle can be "
+                         "formed")
+    used = np.zeros(n + len(added), dtype=bool)
+    used[triangles.ravel()] = True
+    if not used[:n].all():
+        _raise_duplicates(xy, np.flatnonzero(~used[:n]))
+    vertices = xy if len(added) == 0 else np.vstack([xy, added + origin])
+    out_parents = np.where(owners >= 0, seg_index[np.maximum(owners, 0)], -1) if len(owners) \
+        else np.zeros(0, dtype=np.int64)
+    return Triangulation(vertices, triangles, nb, out_seg, out_parents.astype(np.int64), n)
+
+
+class _DuplicatePoint(Exception):
+    def __init__(self, index: int):
+        super().__init__(index)
+        self.index = index
+
+
+def _raise_duplicates(xy: np.ndarray, missing: np.ndarray) -> None:
+    first = int(missing[0])
+    raise ValueError(f"points are duplicated in XY and cannot all be triangulated ({len(missing)}"
+                     f" found, first index {first} at x={xy[first, 0]:.4f}, "
+                     f"y={xy[first, 1]:.4f}); merge duplicates first")
+
+
+_NO_SEGMENTS = (np.zeros((0, 2), dtype=np.int32), np.zeros(0, dtype=np.int64))
+
+
+def _cdt(local: np.ndarray, seg: np.ndarray, neighbors: bool, parents: bool):
+    """pythoncdt: returns added vertices (local), triangles, neighbours, constrained pieces and
+    the index (into ``seg``) of each piece's input segment."""
+    import pythoncdt as cdt
+
+    t = cdt.Triangulation(cdt.VertexInsertionOrder.AUTO,
+                          cdt.IntersectingConstraintEdges.TRY_RESOLVE, 0.0)
+    try:
+        t.insert_vertices(local)
+        if len(seg):
+            t.insert_edges(np.ascontiguousarray(seg, dtype=np.uintc))
+        t.erase_super_triangle()
+    except RuntimeError as exc:  # CDT reports duplicates as "#i is a duplicate of #j"
+        text = str(exc).splitlines()[0]
+        found = re.search(r"#(\d+) is a duplicate", text)
+        if found:
+            raise _DuplicatePoint(int(found.group(1))) from None
+        raise ValueError(f"triangulation failed: {text}") from None
+    n = len(local)
+    vertices = t.vertices_array(copy=False)
+    added = np.column_stack([vertices["x"][n:], vertices["y"][n:]])
+    tris = t.triangles_array(copy=False)
+    triangles = np.ascontiguousarray(tris["vertices"], dtype=np.int32)
+    if neighbors:  # CDT: neighbour i is across edge (i, i+1); ours: across the edge facing i
+        raw = tris["neighbors"][:, [1, 2, 0]].astype(np.int64)
+        raw[raw == cdt.NO_NEIGHBOR] = -1
+        nb = np.ascontiguousarray(raw, dtype=np.int32)
+    else:
+        nb = np.zeros((0, 3), dtype=np.int32)
+    if not (parents and len(seg)):
+        return added, triangles, nb, *_NO_SEGMENTS
+    key: dict[tuple[int, int], int] = {}  # node pair -> first input segment joining them
+    for i, pair in enumerate(map(tuple, np.sort(seg, axis=1).tolist())):
+        key.setdefault(pair, i)
+    originals = {(e.v1, e.v2): [key[tuple(sorted((o.v1, o.v2)))] for o in origs]
+                 for e, origs in t.piece_to_originals.items()}
+    pieces, owners = [], []
+    for edge in t.fixed_edges:
+        pair = (edge.v1, edge.v2)
+        found = list(originals.get(pair, []))
+        own = key.get(tuple(sorted(pair)))
+        if own is not None and own not in found:
+            found.insert(0, own)
+        pieces += [pair] * len(found)
+        owners += found
+    return (added, triangles, nb, np.array(pieces, dtype=np.int32).reshape(-1, 2),
+            np.array(owners, dtype=np.int64))
+
+
+def _triangle(local: np.ndarray, seg: np.ndarray, neighbors: bool, parents: bool):
+    """Shewchuk's Triangle (``-pc`` with segments): same returns as :func:`_cdt`."""
+    import triangle
+
+    tri_in: dict[str, np.ndarray] = {"vertices": local}
+    opts = ""
+    if len(seg):
+        tri_in["segments"] = np.ascontiguousarray(seg)
         if parents:
             # markers identify the parent segment of each output subsegment; 0/1 are Triangle's
-            tri_in["segment_markers"] = (np.arange(len(seg_index), dtype=np.int32)
-                                         + 2).reshape(-1, 1)
+            tri_in["segment_markers"] = (np.arange(len(seg), dtype=np.int32) + 2).reshape(-1, 1)
         opts = "pc"
-    else:
-        opts = ""
     if neighbors:
         opts += "n"
     out = triangle.triangulate(tri_in, opts)
     triangles = out.get("triangles")
     if triangles is None or len(triangles) == 0:
-        raise ValueError(f"the {n} points are collinear (or all coincide): no triangle can be "
-                         "formed")
+        return np.zeros((0, 2)), np.zeros((0, 3), dtype=np.int32), None, *_NO_SEGMENTS
     triangles = np.ascontiguousarray(triangles, dtype=np.int32)
-    n_out = len(out["vertices"])
-    used = np.zeros(n_out, dtype=bool)
-    used[triangles.ravel()] = True
-    if not used[:n].all():
-        missing = np.flatnonzero(~used[:n])
-        raise ValueError(f"{len(missing)} points are duplicated in XY and were not triangulated "
-                         f"(first index {int(missing[0])} at x={xy[missing[0], 0]:.4f}, "
-                         f"y={xy[missing[0], 1]:.4f}); merge duplicates first")
-    vertices = xy if n_out == n else np.vstack([xy, out["vertices"][n:] + origin])
-    if len(seg_index) and parents:
-        out_seg = np.asarray(out["segments"], dtype=np.int32).reshape(-1, 2)
-        markers = np.asarray(out["segment_markers"], dtype=np.int64).ravel()
-        parents = np.where(markers >= 2, seg_index[np.maximum(markers - 2, 0)], -1)
-    else:
-        out_seg = np.zeros((0, 2), dtype=np.int32)
-        parents = np.zeros(0, dtype=np.int64)
+    added = np.asarray(out["vertices"])[len(local):]
     nb = np.ascontiguousarray(out["neighbors"], dtype=np.int32) if neighbors else \
         np.zeros((0, 3), dtype=np.int32)
-    return Triangulation(vertices, triangles, nb, out_seg, parents, n)
+    if not (parents and len(seg)):
+        return added, triangles, nb, *_NO_SEGMENTS
+    out_seg = np.asarray(out["segments"], dtype=np.int32).reshape(-1, 2)
+    markers = np.asarray(out["segment_markers"], dtype=np.int64).ravel()
+    owners = np.where(markers >= 2, markers - 2, -1)
+    return added, triangles, nb, out_seg, owners
 
 
 def crossing_heights(tri: Triangulation, seg_xyz: np.ndarray, seg_nodes: np.ndarray,
                      priority: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Z of the vertices Triangle added at segment crossings, interpolated along each parent
+    """Z of the vertices the triangulator added at segment crossings, interpolated along each parent
     segment; among parents, those with the highest ``priority`` count (mean of them; all
     parents when ``priority`` is None).
 
@@ -211,7 +331,8 @@ def crossing_heights(tri: Triangulation, seg_xyz: np.ndarray, seg_nodes: np.ndar
     return heights, zmax - zmin
 
 
-def triangulate(xy: np.ndarray, segments: np.ndarray | None = None) -> np.ndarray:
+def triangulate(xy: np.ndarray, segments: np.ndarray | None = None,
+                triangulator: str | None = None) -> np.ndarray:
     """Delaunay triangulation of points (constrained Delaunay when ``segments`` is given).
 
     Parameters
@@ -223,6 +344,8 @@ def triangulate(xy: np.ndarray, segments: np.ndarray | None = None) -> np.ndarra
         Vertex-index pairs that must be triangle edges (breaklines). They must not cross each
         other away from their vertices: a crossing would need a new vertex, which this function
         refuses (:func:`triangulate_pslg` accepts it and returns the new vertices).
+    triangulator : {"cdt", "triangle", "auto"}, optional
+        See :func:`triangulator_name`.
 
     Returns
     -------
@@ -241,7 +364,8 @@ def triangulate(xy: np.ndarray, segments: np.ndarray | None = None) -> np.ndarra
     >>> tri.shape
     (2, 3)
     """
-    result = triangulate_pslg(xy, segments, neighbors=False, parents=False)
+    result = triangulate_pslg(xy, segments, neighbors=False, parents=False,
+                              triangulator=triangulator)
     if result.steiner_count:
         raise ValueError(f"segments cross each other away from their vertices "
                          f"({result.steiner_count} crossing points); split them at the crossings "

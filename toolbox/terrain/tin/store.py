@@ -29,7 +29,15 @@ from typing import Any
 import numpy as np
 
 from toolbox.errors import InputDataError
-from toolbox.io.vector import staged_gpkg_writes
+from toolbox.io.vector import (
+    GPKG_DATASET_OPTIONS,
+    is_multi_layer,
+    is_parquet,
+    layer_paths,
+    sibling_layer_path,
+    staged_gpkg_writes,
+    vector_driver,
+)
 from toolbox.terrain.tin.build import SOURCES, TinModel
 from toolbox.terrain.tin.topology import EdgeTable, edge_table, triangle_measures
 
@@ -37,16 +45,10 @@ _WKB_POINT_Z, _WKB_LINESTRING_Z, _WKB_POLYGON_Z = 1001, 1002, 1003
 BATCH = 1 << 19  # features per Arrow batch
 
 
-def wkb_records(type_code: int, coords: np.ndarray, ring: bool = False) -> np.ndarray:
-    """ISO WKB of fixed-size geometries, one row of bytes each, ``(n, size)`` uint8.
-
-    ``coords`` is ``(n, k, 3)``: k XYZ vertices per geometry. ``ring`` writes one closed polygon
-    ring (the first vertex repeated at the end) instead of a point or line string.
-    """
-    coords = np.asarray(coords, dtype="<f8")
-    n, k = coords.shape[:2]
+def _wkb_buffer(type_code: int, n: int, k: int, ring: bool) -> tuple[np.ndarray, np.ndarray]:
+    """The ``(n, size)`` uint8 WKB records with their headers filled, and an ``(n, k', 3)``
+    float64 view of their coordinates to fill (k' = k + 1 for a closed ring)."""
     if ring:
-        coords = np.concatenate([coords, coords[:, :1]], axis=1)
         k += 1
         header = np.array([type_code, 1, k], dtype="<u4")
     elif type_code == _WKB_POINT_Z:
@@ -57,47 +59,108 @@ def wkb_records(type_code: int, coords: np.ndarray, ring: bool = False) -> np.nd
     out = np.empty((n, head + 24 * k), dtype=np.uint8)
     out[:, 0] = 1  # little endian
     out[:, 1:head] = header.view(np.uint8)
-    out[:, head:] = np.ascontiguousarray(coords).reshape(n, -1).view(np.uint8)
+    return out, out[:, head:].view("<f8").reshape(n, k, 3)  # an unaligned view: fine to fill
+
+
+def wkb_records(type_code: int, coords: np.ndarray, ring: bool = False) -> np.ndarray:
+    """ISO WKB of fixed-size geometries, one row of bytes each, ``(n, size)`` uint8.
+
+    ``coords`` is ``(n, k, 3)``: k XYZ vertices per geometry. ``ring`` writes one closed polygon
+    ring (the first vertex repeated at the end) instead of a point or line string.
+    """
+    coords = np.asarray(coords, dtype="<f8")
+    n, k = coords.shape[:2]
+    out, view = _wkb_buffer(type_code, n, k, ring)
+    view[:, :k] = coords
+    if ring:
+        view[:, k] = coords[:, 0]
     return out
+
+
+def wkb_from_nodes(type_code: int, xyz: np.ndarray, nodes: np.ndarray,
+                   ring: bool = False) -> np.ndarray:
+    """:func:`wkb_records` of the geometries whose vertices are ``xyz[nodes]`` (``nodes`` is
+    ``(n, k)``), filled corner by corner without the ``(n, k, 3)`` temporary."""
+    nodes = np.asarray(nodes)
+    n, k = nodes.shape
+    out, view = _wkb_buffer(type_code, n, k, ring)
+    for j in range(k):
+        view[:, j] = xyz[nodes[:, j]]
+    if ring:
+        view[:, k] = view[:, 0]
+    return out
+
+
+def _arrow_table(columns: dict[str, tuple[np.ndarray, np.ndarray | None]], wkb: np.ndarray):
+    """An Arrow table of the columns and a ``geometry`` WKB column, built from the numpy
+    buffers in batches (no per-feature Python objects)."""
+    import pyarrow as pa
+
+    n = len(wkb)
+    size = wkb.shape[1] if n else 0
+    fields = [pa.field(k, pa.from_numpy_dtype(v.dtype) if v.dtype.kind != "O" else pa.string())
+              for k, (v, _) in columns.items()] + [pa.field("geometry", pa.binary())]
+    schema = pa.schema(fields)
+    batches = []
+    for lo in range(0, max(n, 1), BATCH):
+        hi = min(n, lo + BATCH)
+        arrays = [pa.array(v[lo:hi], mask=None if m is None else m[lo:hi],
+                           type=schema.field(k).type) for k, (v, m) in columns.items()]
+        offsets = np.arange(hi - lo + 1, dtype=np.int32) * size
+        data = pa.py_buffer(np.ascontiguousarray(wkb[lo:hi]).ravel())
+        arrays.append(pa.Array.from_buffers(pa.binary(), hi - lo,
+                                            [None, pa.py_buffer(offsets), data]))
+        batches.append(pa.record_batch(arrays, schema=schema))
+    return pa.Table.from_batches(batches, schema=schema)
+
+
+def _write_geoparquet(path: Path, table, geometry_type: str, crs: Any) -> None:
+    """GeoParquet 1.0: the WKB column plus the ``geo`` schema metadata (CRS as PROJJSON)."""
+    import json
+
+    import pyarrow.parquet as pq
+
+    geo = {"version": "1.0.0", "primary_column": "geometry",
+           "columns": {"geometry": {"encoding": "WKB", "geometry_types": [geometry_type],
+                                    "crs": None if crs is None else crs.to_json_dict()}}}
+    table = table.replace_schema_metadata({b"geo": json.dumps(geo).encode()})
+    # dictionary encoding only pays for the text columns: on ids and coordinates it made the
+    # write 4-5 times slower for no smaller file
+    text = [f.name for f in table.schema if str(f.type) == "string"]
+    pq.write_table(table, path, compression="snappy", use_dictionary=text)
 
 
 def _write_layer(path: Path, name: str, columns: dict[str, tuple[np.ndarray, np.ndarray | None]],
                  wkb: np.ndarray, geometry_type: str, crs: Any, spatial_index: bool) -> None:
-    """Write one layer: ``columns`` maps field name -> (values, null mask or None)."""
+    """Write one layer (``columns`` maps field name -> (values, null mask or None)) in the
+    format of ``path``'s extension; ``path`` is this layer's own file for one-layer formats."""
     import pyogrio
 
+    driver = vector_driver(path)
     crs_text = None if crs is None else crs.to_wkt()
-    options = {"SPATIAL_INDEX": "YES" if spatial_index else "NO"}
-    n = len(wkb)
+    options = {"SPATIAL_INDEX": "YES" if spatial_index else "NO"} \
+        if driver in ("GPKG", "FlatGeobuf", "ESRI Shapefile") else {}
+    dataset_options = GPKG_DATASET_OPTIONS if driver == "GPKG" and not path.exists() else None
     try:
-        import pyarrow as pa
+        import pyarrow  # noqa: F401
     except ImportError:  # pragma: no cover - exercised when pyarrow is absent
-        pa = None
-    if pa is not None:
-        size = wkb.shape[1] if n else 0
-        fields = [pa.field(k, pa.from_numpy_dtype(v.dtype) if v.dtype.kind != "O" else pa.string())
-                  for k, (v, _) in columns.items()] + [pa.field("geometry", pa.binary())]
-        schema = pa.schema(fields)
-        batches = []
-        for lo in range(0, max(n, 1), BATCH):
-            hi = min(n, lo + BATCH)
-            arrays = [pa.array(v[lo:hi], mask=None if m is None else m[lo:hi],
-                               type=schema.field(k).type) for k, (v, m) in columns.items()]
-            offsets = np.arange(hi - lo + 1, dtype=np.int32) * size
-            data = pa.py_buffer(np.ascontiguousarray(wkb[lo:hi]).ravel())
-            arrays.append(pa.Array.from_buffers(pa.binary(), hi - lo,
-                                                [None, pa.py_buffer(offsets), data]))
-            batches.append(pa.record_batch(arrays, schema=schema))
-        table = pa.Table.from_batches(batches, schema=schema)
+        pyarrow = None
+    if driver == "Parquet":
+        _write_geoparquet(path, _arrow_table(columns, wkb), geometry_type, crs)
+        return
+    if pyarrow is not None:
+        table = _arrow_table(columns, wkb)
         with warnings.catch_warnings():  # a TIN without CRS is the caller's (reported) choice
             warnings.filterwarnings("ignore", message="'crs' was not provided")
             with staged_gpkg_writes():
-                pyogrio.write_arrow(table, path, layer=name, driver="GPKG",
+                pyogrio.write_arrow(table, path, layer=name, driver=driver,
                                     geometry_name="geometry", geometry_type=geometry_type,
-                                    crs=crs_text, layer_options=options)
+                                    crs=crs_text, layer_options=options,
+                                    dataset_options=dataset_options)
         return
     from pyogrio.raw import write
 
+    n = len(wkb)
     flat = np.ascontiguousarray(wkb).tobytes()
     size = wkb.shape[1] if n else 0
     geometry = np.empty(n, dtype=object)
@@ -105,8 +168,9 @@ def _write_layer(path: Path, name: str, columns: dict[str, tuple[np.ndarray, np.
     names = list(columns)
     with staged_gpkg_writes():
         write(path, geometry, [columns[k][0] for k in names], names,
-              field_mask=[columns[k][1] for k in names], layer=name, driver="GPKG",
-              geometry_type=geometry_type, crs=crs_text, layer_options=options)
+              field_mask=[columns[k][1] for k in names], layer=name, driver=driver,
+              geometry_type=geometry_type, crs=crs_text, layer_options=options,
+              dataset_options=dataset_options)
 
 
 def _ids(index: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
@@ -119,11 +183,14 @@ def _ids(index: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
 def write_tin(path: str | Path, model: TinModel, crs: Any = None, spatial_index: bool = True,
               feedback=None, edges_layer: bool = True) -> dict[str, int]:
     """Write the ``triangles``, ``nodes`` and (unless ``edges_layer`` is False) ``edges`` layers
-    of ``model`` to a GeoPackage.
+    of ``model`` to a GeoPackage (1.2), or in the format of ``path``'s extension: FlatGeobuf,
+    GeoParquet (several times faster for big TINs), Shapefile or GeoJSON, one file per layer
+    (``tin.fgb`` holds the triangles, ``tin_nodes.fgb`` and ``tin_edges.fgb`` the others).
 
     Returns the feature count of each layer (edges are counted even when not written).
     """
     path = Path(path)
+    targets = layer_paths(path, ["triangles", "nodes", "edges"])
     xyz, tri, nb = model.xyz, model.triangles, model.neighbors
     edges = edge_table(tri, nb)
     measures = triangle_measures(xyz, tri)
@@ -138,18 +205,19 @@ def write_tin(path: str | Path, model: TinModel, crs: Any = None, spatial_index:
             columns[f"edge{j + 1}"] = _ids(edges.triangle_edges[:, j])
         for name in ("area_2d", "area_3d", "slope_deg", "slope_pct", "aspect_deg"):
             columns[name] = (getattr(measures, name), None)
-        _write_layer(path, "triangles", columns, wkb_records(_WKB_POLYGON_Z, xyz[tri], ring=True),
+        _write_layer(targets["triangles"], "triangles", columns,
+                     wkb_from_nodes(_WKB_POLYGON_Z, xyz, tri, ring=True),
                      "Polygon Z", crs, spatial_index)
     with step("write nodes"):
         columns = {"id": _ids(np.arange(len(xyz))),
                    "source": (np.asarray(SOURCES, dtype=object)[model.source], None),
                    "merged": (model.merged.astype(np.int64), None),
                    "z": (xyz[:, 2].copy(), None)}
-        _write_layer(path, "nodes", columns, wkb_records(_WKB_POINT_Z, xyz[:, None, :]),
+        _write_layer(targets["nodes"], "nodes", columns, wkb_records(_WKB_POINT_Z, xyz[:, None, :]),
                      "Point Z", crs, spatial_index)
     if edges_layer:
         with step("write edges"):
-            _write_edges(path, model, edges, crs, spatial_index)
+            _write_edges(targets["edges"], model, edges, crs, spatial_index)
     return {"triangles": len(tri), "nodes": len(xyz), "edges": len(edges.nodes)}
 
 
@@ -167,13 +235,13 @@ def _write_edges(path: Path, model: TinModel, edges: EdgeTable, crs: Any,
     xyz = model.xyz
     a, b = xyz[edges.nodes[:, 0]], xyz[edges.nodes[:, 1]]
     d = b - a
+    length_2d = np.hypot(d[:, 0], d[:, 1])
     columns = {"id": _ids(np.arange(len(edges.nodes))),
                "node_from": _ids(edges.nodes[:, 0]), "node_to": _ids(edges.nodes[:, 1]),
                "left_tri": _ids(edges.left), "right_tri": _ids(edges.right),
                "breakline": (breakline_flags(edges, model.breakline_edges, len(xyz)), None),
-               "length_2d": (np.hypot(d[:, 0], d[:, 1]), None),
-               "length_3d": (np.linalg.norm(d, axis=1), None)}
-    _write_layer(path, "edges", columns, wkb_records(_WKB_LINESTRING_Z, xyz[edges.nodes]),
+               "length_2d": (length_2d, None), "length_3d": (np.hypot(length_2d, d[:, 2]), None)}
+    _write_layer(path, "edges", columns, wkb_from_nodes(_WKB_LINESTRING_Z, xyz, edges.nodes),
                  "LineString Z", crs, spatial_index)
 
 
@@ -203,23 +271,43 @@ def read_tin(ref) -> tuple[np.ndarray, np.ndarray, Any]:
     the ``node1..3`` ids), or any layer of triangular polygons with Z (nodes rebuilt from the
     shared vertices). Returns ``(xyz, triangles, crs)``.
     """
-    import pyogrio
 
     from toolbox.io.vector import read_vector
 
-    if ref.path is not None and {"node1", "node2", "node3"} <= set(ref.fields):
-        layers = [str(row[0]) for row in pyogrio.list_layers(ref.path)]
-        if "nodes" in layers:
-            return _read_tin_tables(ref)
+    if ref.path is not None and not ref.filtered \
+            and {"node1", "node2", "node3"} <= set(ref.fields):
+        nodes = _nodes_layer(ref.path)
+        if nodes is not None:
+            return _read_tin_tables(ref, *nodes)
     frame = read_vector(ref, name="TIN")
     return (*tin_from_triangle_geometries(frame.geometry.values, "TIN"), ref.crs)
 
 
-def _read_table(path: Path, layer: str, columns: list[str],
+def _nodes_layer(path: Path) -> tuple[Path, str | None] | None:
+    """Where the ``nodes`` layer of the TIN whose triangles are in ``path`` is: the ``nodes``
+    layer of the same GeoPackage, or the ``<stem>_nodes`` file beside a one-layer file."""
+    import pyogrio
+
+    if is_multi_layer(path):
+        layers = [str(row[0]) for row in pyogrio.list_layers(path)]
+        return (path, "nodes") if "nodes" in layers else None
+    sibling = sibling_layer_path(path, "nodes")
+    return (sibling, None) if sibling.exists() else None
+
+
+def _read_table(path: Path, layer: str | None, columns: list[str],
                 geometry: bool) -> tuple[list[np.ndarray], Any]:
     """Columns of a layer as numpy arrays, and its geometries as WKB (an ``(n, size)`` uint8
     array when every record has the same size, else an object array of bytes). Arrow is used
-    when pyarrow is installed (several times faster on millions of features)."""
+    when pyarrow is installed (several times faster on millions of features); GeoParquet is
+    read with pyarrow directly."""
+    if is_parquet(path):
+        import pyarrow.parquet as pq
+
+        table = pq.read_table(path, columns=[*columns, "geometry"] if geometry else columns)
+        values = [table.column(c).to_numpy() for c in columns]
+        return values, (_wkb_array(table.column("geometry").combine_chunks())
+                        if geometry else None)
     try:
         import pyarrow  # noqa: F401
     except ImportError:  # pragma: no cover - exercised when pyarrow is absent
@@ -234,13 +322,21 @@ def _read_table(path: Path, layer: str, columns: list[str],
     values = [table.column(c).to_numpy() for c in columns]
     if not geometry:
         return values, None
-    arr = table.column(meta["geometry_name"] or "wkb_geometry").combine_chunks()
-    offsets = np.frombuffer(arr.buffers()[1], dtype=np.int32)[arr.offset:arr.offset + len(arr) + 1]
+    return values, _wkb_array(table.column(meta["geometry_name"] or "wkb_geometry")
+                              .combine_chunks())
+
+
+def _wkb_array(arr) -> Any:
+    """An Arrow binary array of WKB as an ``(n, size)`` uint8 array when every record has the
+    same size, else an object array of bytes."""
+    offset_type = np.int64 if str(arr.type) == "large_binary" else np.int32
+    offsets = np.frombuffer(arr.buffers()[1], dtype=offset_type)[arr.offset:
+                                                                 arr.offset + len(arr) + 1]
     sizes = np.diff(offsets)
     data = np.frombuffer(arr.buffers()[2], dtype=np.uint8)
     if len(sizes) and (sizes == sizes[0]).all() and arr.null_count == 0:
-        return values, data[offsets[0]:offsets[-1]].reshape(len(arr), int(sizes[0]))
-    return values, np.asarray(arr.to_pylist(), dtype=object)
+        return data[offsets[0]:offsets[-1]].reshape(len(arr), int(sizes[0]))
+    return np.asarray(arr.to_pylist(), dtype=object)
 
 
 def points_from_wkb(wkb) -> np.ndarray:
@@ -257,10 +353,11 @@ def points_from_wkb(wkb) -> np.ndarray:
     return shapely.get_coordinates(shapely.from_wkb(wkb), include_z=True)
 
 
-def _read_tin_tables(ref) -> tuple[np.ndarray, np.ndarray, Any]:
+def _read_tin_tables(ref, nodes_path: Path, nodes_layer: str | None
+                     ) -> tuple[np.ndarray, np.ndarray, Any]:
     fields, _ = _read_table(ref.path, ref.layer, ["node1", "node2", "node3"], geometry=False)
     tri_ids = np.column_stack([np.asarray(f, dtype=np.int64) for f in fields])
-    (node_ids,), wkb = _read_table(ref.path, "nodes", ["id"], geometry=True)
+    (node_ids,), wkb = _read_table(nodes_path, nodes_layer, ["id"], geometry=True)
     node_ids = np.asarray(node_ids, dtype=np.int64)
     xyz = points_from_wkb(wkb)
     if len(xyz) != len(node_ids) or not np.isfinite(xyz).all():
@@ -316,5 +413,6 @@ def _counter_clockwise(xyz: np.ndarray, triangles: np.ndarray) -> np.ndarray:
     return out
 
 
-TIN_HELP = ("TIN: the triangles layer of a tin:delaunay GeoPackage (the file path is enough), "
-            "or any layer of 3D triangles")
+TIN_HELP = ("TIN: the triangles layer of a tin:delaunay output (the file path is enough: .gpkg, "
+            "or .fgb/.parquet/.shp/.geojson with its _nodes file beside it), or any layer of "
+            "3D triangles")
