@@ -8,6 +8,7 @@ from toolbox.parameters import Output, OutputVector
 from toolbox.registry import register
 from toolbox.topology.build import build_topology
 from toolbox.topology.common_parameters import linework_parameters, read_linework
+from toolbox.topology.layer_specs import ARCS, AREAS, ERRORS, NODES
 from toolbox.topology.layers import tolerances_from, write_topology
 
 
@@ -48,10 +49,11 @@ class BuildAreas(Algorithm):
                   "labelled areas, shared arcs, nodes and an errors layer.")
     parameters = [
         *linework_parameters(),
-        OutputVector("OUTPUT", "GeoPackage with layers areas, arcs, nodes, errors"),
+        OutputVector("OUTPUT", "GeoPackage with layers areas, arcs, nodes, errors",
+                     layers=[AREAS, ARCS, NODES, ERRORS]),
     ]
     outputs = [Output("STATISTICS", "counts of every cleaning step, tolerances and their source",
-                      "dict")]
+                      "json")]
 
     def check(self, params):
         tolerances_from(params)  # a bad parameter file or PRECISION fails before any work

@@ -8,6 +8,7 @@ from toolbox.parameters import Output, OutputVector
 from toolbox.registry import register
 from toolbox.topology.build import build_topology
 from toolbox.topology.common_parameters import linework_parameters, read_linework
+from toolbox.topology.layer_specs import ERRORS
 from toolbox.topology.layers import tolerances_from, write_topology
 
 
@@ -34,10 +35,10 @@ class CheckTopology(Algorithm):
                   "dangles, slivers and label problems as an errors layer; no geometry changed.")
     parameters = [
         *linework_parameters(),
-        OutputVector("OUTPUT", "GeoPackage with the errors layer"),
+        OutputVector("OUTPUT", "GeoPackage with the errors layer", layers=[ERRORS]),
     ]
     outputs = [Output("STATISTICS", "counts of every check, tolerances and their source",
-                      "dict")]
+                      "json")]
 
     def check(self, params):
         tolerances_from(params)

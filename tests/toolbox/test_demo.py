@@ -6,11 +6,11 @@ import json
 
 import rasterio
 
-from toolbox.demo import demo_pipeline_doc, run_demo
+from toolbox.demo import demo_pipeline_doc
 
 
-def test_demo_runs_end_to_end(tmp_path):
-    summary = run_demo(tmp_path)
+def test_demo_runs_end_to_end(demo_run):
+    tmp_path, summary = demo_run
     assert f"outputs in {tmp_path}" in summary
     steps = [s["name"] for s in demo_pipeline_doc()["steps"]]
     reports = {p.stem for p in (tmp_path / "reports").glob("*.json")}

@@ -62,7 +62,7 @@ def main(ctx: click.Context, verbose: int, quiet: bool) -> None:
     toolbox demo --out demo_out      the main job on bundled sample data
     """
     setup_logging(verbose, quiet)
-    ctx.obj = {"quiet": quiet}
+    ctx.obj = {"quiet": quiet, "verbose": verbose}
 
 
 @main.command("list")
@@ -101,7 +101,7 @@ def format_help(spec: dict[str, Any]) -> str:
         lines.append(title)
         for p in params:
             default = "" if p["default"] is None else f" (default: {p['default']})"
-            need = "optional" if p["optional"] else "required"
+            need = "required" if p.get("required", not p["optional"]) else "optional"
             lines.append(f"  --{p['name']} <{p['expected']}>  {need}{default}")
             text = " ".join(t for t in (p["description"], p.get("help", "")) if t)
             if text:
@@ -177,11 +177,14 @@ def parse_parameter_args(tokens: list[str]) -> dict[str, Any]:
 @click.option("--run-report", "report", type=click.Path(dir_okay=False),
               help="Write a JSON run report (parameters, outputs, statistics, versions, timings).")
 @click.option("--help", "show_help", is_flag=True, help="Show the algorithm's help.")
+@click.option("--progress", type=click.Choice(["bar", "json", "none"]), default="bar",
+              show_default=True, help="Progress on stderr: a bar (on a terminal), JSON lines "
+              "(one object a line, for a GUI; see docs/cli.md) or none.")
 @click.argument("args", nargs=-1, type=click.UNPROCESSED)
 @click.pass_context
 @_handle_errors
 def run_cmd(ctx: click.Context, algorithm_id: str, overwrite: bool, report: str | None,
-            show_help: bool, args: tuple[str, ...]) -> None:
+            show_help: bool, progress: str, args: tuple[str, ...]) -> None:
     """Run an algorithm: toolbox run ID --PARAM value ... (see 'toolbox help ID').
 
     Prints the outputs as JSON on stdout.
@@ -195,6 +198,11 @@ def run_cmd(ctx: click.Context, algorithm_id: str, overwrite: bool, report: str 
 
         click.echo(format_help(get_spec(algorithm_id)))
         return
+    if progress == "json":
+        _run_with_json_progress(ctx, algorithm_id, overwrite, report, args)
+        return
+    if progress == "none":
+        ctx.obj["quiet"] = True
     alg = get(algorithm_id)
     params = parse_parameter_args(list(args))
     feedback = TerminalFeedback(alg.id, quiet=ctx.obj["quiet"])
@@ -205,6 +213,34 @@ def run_cmd(ctx: click.Context, algorithm_id: str, overwrite: bool, report: str 
         feedback.finish()
         ACTIVE[0] = None
     click.echo(json.dumps(to_jsonable(outputs), indent=2))
+
+
+def _run_with_json_progress(ctx: click.Context, algorithm_id: str, overwrite: bool,
+                            report: str | None, args: tuple[str, ...]) -> None:
+    """``run --progress json``: progress, messages, then the result or the error as JSON lines on
+    stderr (:class:`JsonFeedback`); the outputs also on stdout, as without it."""
+    from toolbox.cli.terminal import JsonFeedback, setup_json_logging
+    from toolbox.registry import get
+    from toolbox.report import to_jsonable
+    from toolbox.runner import run
+
+    setup_json_logging(ctx.obj["verbose"])
+    feedback = JsonFeedback()
+    ACTIVE[0] = feedback
+    try:
+        alg = get(algorithm_id)
+        outputs = to_jsonable(run(alg.id, parse_parameter_args(list(args)), feedback=feedback,
+                                  overwrite=overwrite, report=report))
+    except ToolboxError as exc:
+        feedback.error(str(exc))
+        raise
+    except KeyboardInterrupt:
+        feedback.error("canceled; no output was written")
+        raise
+    finally:
+        ACTIVE[0] = None
+    feedback.result(outputs)
+    click.echo(json.dumps(outputs, indent=2))
 
 
 @main.command("batch")
