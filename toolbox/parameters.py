@@ -511,10 +511,19 @@ class Layer:
 
 # -- destinations (outputs the user names) --------------------------------------------------------
 class Destination(Parameter):
-    """An output file the algorithm writes; also a declared output of the algorithm."""
+    """An output file the algorithm writes; also a declared output of the algorithm.
+
+    ``layers`` declares the layers of a vector output (:class:`Layer`: name, geometry type, main
+    fields), for a GUI and the docs; the runner does not enforce them (a test does).
+    """
 
     is_output = True
     extensions: Sequence[str] = ()
+
+    def __init__(self, name: str, description: str = "", default: Any = None,
+                 optional: bool = False, layers: Sequence[Layer] = (), **flags):
+        super().__init__(name, description, default, optional, **flags)
+        self.layers = list(layers)
 
     def validate(self, value: Any, ctx: ValidationContext) -> Path:
         if not isinstance(value, (str, Path)) or str(value).strip() == "":
@@ -542,22 +551,15 @@ class Destination(Parameter):
         return f"output path ({', '.join(self.extensions)})" if self.extensions else "output path"
 
     def describe(self) -> dict[str, Any]:
-        return super().describe() | {"extensions": list(self.extensions)}
+        return super().describe() | {"extensions": list(self.extensions),
+                                     "layers": [layer.describe() for layer in self.layers]}
 
 
 class OutputVector(Destination):
-    """An output GeoPackage (one file, one or more named layers, declared in ``layers``)."""
+    """An output GeoPackage (one file, one or more named layers)."""
 
     type_name = "output_vector"
     extensions = (".gpkg",)
-
-    def __init__(self, name: str, description: str = "", default: Any = None,
-                 optional: bool = False, layers: Sequence[Layer] = (), **flags):
-        super().__init__(name, description, default, optional, **flags)
-        self.layers = list(layers)
-
-    def describe(self) -> dict[str, Any]:
-        return super().describe() | {"layers": [layer.describe() for layer in self.layers]}
 
 
 class OutputRaster(Destination):

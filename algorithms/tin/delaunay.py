@@ -21,8 +21,6 @@ from toolbox.parameters import (
     VectorLayer,
 )
 from toolbox.registry import register
-from toolbox.terrain.tin.build import SOURCES, TinBuildError, build_tin
-from toolbox.terrain.tin.store import write_tin
 
 DUPLICATE_RULES = ("mean", "first", "min", "max", "error")
 
@@ -172,6 +170,9 @@ class Delaunay(Algorithm):
                             f"{params['HULL']}")
 
     def process(self, params, feedback: Feedback):
+        from toolbox.terrain.tin.build import SOURCES, TinBuildError, build_tin
+        from toolbox.terrain.tin.store import write_tin
+
         named = {k: params[k].crs for k in ("INPUT", "BREAKLINES", "BOUNDARY")
                  if params[k] is not None}
         crs = common_crs(named, params["CRS"])

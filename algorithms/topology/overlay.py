@@ -13,8 +13,6 @@ from toolbox.parameters import Enum, Number, Output, OutputVector, String, Vecto
 from toolbox.registry import register
 from toolbox.terrain.points import local_origin
 from toolbox.topology.layer_specs import ERRORS, OVERLAY_RESULT
-from toolbox.topology.layers import to_frame
-from toolbox.topology.output import Layer, issues_layer, order_key
 from toolbox.topology.setops import OPERATIONS, clean_polygons, overlay_polygons
 
 RESULT_COLUMNS = ("id", "part", "area", "perimeter")
@@ -95,6 +93,9 @@ class Overlay(Algorithm):
 
     def process(self, params, feedback: Feedback):
         import shapely
+
+        from toolbox.topology.layers import to_frame
+        from toolbox.topology.output import Layer, issues_layer, order_key
 
         operation, grid = params["OPERATION"], params["PRECISION"]
         with feedback.timed("read"):

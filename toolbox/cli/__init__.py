@@ -87,8 +87,10 @@ def list_cmd(as_json: bool) -> None:
             click.echo(f"  {spec['id']:<{width}}{spec['short_help']}")
 
 
-def format_help(spec: dict[str, Any]) -> str:
-    """Plain-text help of an algorithm, generated from its spec (:meth:`Algorithm.spec`)."""
+def format_help(alg) -> str:
+    """Plain-text help of an algorithm, generated from its spec (an :class:`Algorithm` class or
+    the dict of :meth:`Algorithm.spec`)."""
+    spec = alg if isinstance(alg, dict) else alg.spec()
     lines = [f"{spec['id']}  -  {spec['display_name']}  [{spec['group']}]", ""]
     for par in spec["help"].split("\n\n"):
         keep = par.startswith(("  ", "-", "|")) or "\n-" in par or "\n  " in par
@@ -193,19 +195,15 @@ def run_cmd(ctx: click.Context, algorithm_id: str, overwrite: bool, report: str 
     from toolbox.report import to_jsonable
     from toolbox.runner import run
 
-    if show_help:
-        from toolbox.registry import get_spec
-
-        click.echo(format_help(get_spec(algorithm_id)))
-        return
-    if progress == "json":
+    if progress == "json" and not show_help:
         _run_with_json_progress(ctx, algorithm_id, overwrite, report, args)
         return
-    if progress == "none":
-        ctx.obj["quiet"] = True
     alg = get(algorithm_id)
+    if show_help:
+        click.echo(format_help(alg))
+        return
     params = parse_parameter_args(list(args))
-    feedback = TerminalFeedback(alg.id, quiet=ctx.obj["quiet"])
+    feedback = TerminalFeedback(alg.id, quiet=ctx.obj["quiet"] or progress == "none")
     ACTIVE[0] = feedback
     try:
         outputs = run(alg.id, params, feedback=feedback, overwrite=overwrite, report=report)
@@ -236,6 +234,9 @@ def _run_with_json_progress(ctx: click.Context, algorithm_id: str, overwrite: bo
         raise
     except KeyboardInterrupt:
         feedback.error("canceled; no output was written")
+        raise
+    except Exception as exc:  # a bug: still one JSON line for the reader, then the usual report
+        feedback.error(f"internal error: {type(exc).__name__}: {exc}")
         raise
     finally:
         ACTIVE[0] = None
