@@ -48,7 +48,7 @@ class BuildAreas(Algorithm):
     parameters = [
         *linework_parameters(),
         OutputVector("OUTPUT", "GeoPackage with layers areas, arcs, nodes, errors",
-                     layers=[AREAS, ARCS, NODES, ERRORS]),
+                     layers=[AREAS, ARCS, NODES, *ERRORS]),
     ]
     outputs = [Output("STATISTICS", "counts of every cleaning step, tolerances and their source",
                       "json")]

@@ -33,7 +33,7 @@ class CheckTopology(Algorithm):
                   "dangles, slivers and label problems as an errors layer; no geometry changed.")
     parameters = [
         *linework_parameters(),
-        OutputVector("OUTPUT", "GeoPackage with the errors layer", layers=[ERRORS]),
+        OutputVector("OUTPUT", "GeoPackage with the errors layer", layers=ERRORS),
     ]
     outputs = [Output("STATISTICS", "counts of every check, tolerances and their source",
                       "json")]

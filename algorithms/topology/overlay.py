@@ -74,7 +74,7 @@ class Overlay(Algorithm):
         Number("PRECISION", "coordinate grid of the result, CRS units", default=0.001,
                min_value=0, min_exclusive=True),
         OutputVector("OUTPUT", "GeoPackage with the result layer (named after OPERATION) and "
-                     "errors", layers=[OVERLAY_RESULT, ERRORS]),
+                     "errors", layers=[OVERLAY_RESULT, *ERRORS]),
     ]
     outputs = [Output("STATISTICS", "pieces by origin, repaired and skipped features", "json")]
 

@@ -16,13 +16,15 @@ ARCS = Layer("arcs", "LineString", [
 NODES = Layer("nodes", "Point", [
     ("id", "integer", "node id"), ("degree", "integer", "arcs meeting there"),
     ("kind", "string", "node kind")], "arc end points")
-ERRORS = Layer("errors", "Geometry", [
+ERROR_FIELDS = (
     ("id", "integer", "error id"), ("type", "string", "check that failed"),
     ("severity", "string", "error or warning"), ("detail", "string", "what was found"),
     ("lines", "string", "input line numbers (1-based, ';'-separated)"),
     ("area_id", "integer", "area concerned (0: none)"),
-    ("label_id", "integer", "label point concerned (0: none)")],
-    "points and lines where a check failed (empty when all passed)", style="errors")
+    ("label_id", "integer", "label point concerned (0: none)"))
+#: the error layers (a list: the algorithms declare ``*ERRORS``)
+ERRORS = [Layer("errors", "Geometry", ERROR_FIELDS,
+                "points and lines where a check failed (empty when all passed)", style="errors")]
 OVERLAY_RESULT = Layer("{OPERATION}", "Polygon", [
     ("id", "integer", "piece id"), ("part", "string", "origin: both, a or b"),
     ("area", "real", "area, CRS units²"), ("perimeter", "real", "perimeter, CRS units")],
