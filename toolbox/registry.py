@@ -26,7 +26,7 @@ import tempfile
 from importlib.metadata import EntryPoint, PackageNotFoundError, distribution, entry_points
 from pathlib import Path
 from typing import Any
-from urllib.parse import unquote, urlparse
+from urllib.parse import urlparse
 
 from toolbox.algorithm import Algorithm
 from toolbox.errors import AlgorithmNotFoundError, ToolboxError
@@ -69,7 +69,9 @@ def _editable_root(dist) -> Path | None:
     info = json.loads(text)
     if not info.get("dir_info", {}).get("editable") or not info.get("url", "").startswith("file:"):
         return None
-    return Path(unquote(urlparse(info["url"]).path)).resolve()
+    from urllib.request import url2pathname  # imports http.client: only for editable installs
+
+    return Path(url2pathname(urlparse(info["url"]).path)).resolve()
 
 
 def _record_hash_matches(path: Path, file_hash) -> bool:
