@@ -22,8 +22,9 @@ demo: $(STAMP)  ## run the main job on bundled sample data into $(OUT)/
 test: $(STAMP)  ## run the test suite
 	$(BIN)/python -m pytest -q
 
-lint: $(STAMP)
+lint: $(STAMP)  ## ruff, and the import contract of pyproject.toml [tool.importlinter]
 	$(BIN)/ruff check toolbox algorithms tests bench
+	$(BIN)/lint-imports --no-cache
 
 bench: $(STAMP)  ## benchmarks against peers (see bench/RESULTS.md)
 	$(BIN)/python bench/run_all.py

@@ -48,6 +48,17 @@ def points_gpkg(tmp_path):
     return path
 
 
+@pytest.fixture(scope="session")
+def demo_run(tmp_path_factory):
+    """``toolbox demo`` run once per session: (its output folder, its summary). Read-only: a
+    test that writes there copies it first."""
+    from toolbox.demo import run_demo
+
+    out = tmp_path_factory.mktemp("demo") / "demo_out"
+    summary = run_demo(out)
+    return out, summary
+
+
 def run_cli(*args, cwd=None):
     """Run the toolbox CLI in a subprocess; returns the CompletedProcess (text)."""
     import subprocess

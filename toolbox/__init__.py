@@ -9,7 +9,10 @@ Python API::
 
 from __future__ import annotations
 
-__version__ = "0.1.0"
+from toolbox.cache import configure_numba_cache
+from toolbox.version import __version__
+
+configure_numba_cache()  # before any numba import: compiled kernels go to the per-user cache
 
 from toolbox.errors import (  # noqa: E402
     AlgorithmNotFoundError,

@@ -27,7 +27,9 @@ Example
 from __future__ import annotations
 
 import inspect
+import logging
 import re
+import warnings
 from typing import Any, ClassVar
 
 from toolbox.errors import ParameterError
@@ -35,6 +37,15 @@ from toolbox.feedback import Feedback
 from toolbox.parameters import Destination, Field, Output, Parameter
 
 ID_RE = re.compile(r"^[a-z][a-z0-9_]*:[a-z][a-z0-9_]*$")
+
+
+def _output_spec(dest: Destination) -> dict[str, Any]:
+    """A destination as an output: name, type, description, and its file facts (extensions,
+    declared layers)."""
+    described = dest.describe()
+    return {"name": dest.name, "type": dest.type_name, "description": dest.description,
+            "optional": dest.optional, "extensions": described.get("extensions", []),
+            "layers": described.get("layers", [])}
 
 
 class Algorithm:
@@ -75,9 +86,26 @@ class Algorithm:
             "id": cls.id, "display_name": cls.display_name, "group": cls.group,
             "group_id": cls.group_id(), "short_help": cls.short_help, "help": cls.help_text(),
             "parameters": [p.describe() for p in cls.parameters],
-            "outputs": [{"name": p.name, "type": p.type_name, "description": p.description}
-                        for p in cls.destinations()] + [o.describe() for o in cls.outputs],
+            "outputs": [_output_spec(p) for p in cls.destinations()]
+                       + [o.describe() for o in cls.outputs],
         }
+
+    @classmethod
+    def rename_deprecated(cls, params: dict[str, Any]) -> dict[str, Any]:
+        """``params`` with deprecated parameter names replaced by the current ones (a
+        :class:`DeprecationWarning` and a log warning each); both names given is an error."""
+        renamed = dict(params)
+        for p in cls.parameters:
+            for old in p.deprecated_names:
+                if old not in renamed:
+                    continue
+                if p.name in renamed:
+                    raise ParameterError(old, f"is the old name of {p.name}; give only {p.name}")
+                renamed[p.name] = renamed.pop(old)
+                message = f"{cls.id}: parameter {old} is now called {p.name}; use {p.name}"
+                warnings.warn(message, DeprecationWarning, stacklevel=3)
+                logging.getLogger("toolbox").warning(message)
+        return renamed
 
     @classmethod
     def check_spec(cls) -> None:
@@ -87,8 +115,10 @@ class Algorithm:
         if not (cls.display_name and cls.group and cls.short_help):
             raise TypeError(f"{cls.id}: display_name, group and short_help are required")
         seen: set[str] = set()
+        all_names = [n for p in cls.parameters for n in (p.name, *p.deprecated_names)]
         for p in cls.parameters:
-            if p.name in seen:
+            if all_names.count(p.name) > 1 or any(all_names.count(n) > 1
+                                                   for n in p.deprecated_names):
                 raise TypeError(f"{cls.id}: parameter {p.name} declared twice")
             if isinstance(p, Field) and p.parent not in seen:
                 raise TypeError(f"{cls.id}: field {p.name} must come after its layer {p.parent}")

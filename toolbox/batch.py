@@ -87,7 +87,7 @@ def parse_pipeline(doc: Any, base_dir: Path, variables: dict[str, Any] | None = 
         params = raw.get("params") or {}
         if not isinstance(params, dict):
             raise PipelineError(f"{source}: step {name!r}: 'params' must be a mapping")
-        known = {p.name for p in alg.parameters} | {"OVERWRITE"}
+        known = {n for p in alg.parameters for n in (p.name, *p.deprecated_names)} | {"OVERWRITE"}
         for key, value in params.items():
             if key not in known:
                 raise PipelineError(f"{source}: step {name!r}: {key} is not a parameter of "

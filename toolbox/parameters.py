@@ -38,20 +38,41 @@ class ValidationContext:
     overwrite: bool = False
 
 
+# Execution settings a GUI shows under "Advanced" in every algorithm that has them.
+ADVANCED_NAMES = frozenset({"TILE_SIZE", "WORKERS", "SCHEDULER", "MAX_CELLS"})
+
+
 class Parameter:
-    """Base class: a named, typed, optionally defaulted algorithm parameter."""
+    """Base class: a named, typed algorithm parameter.
+
+    ``description`` is the one-line label, ``help`` an optional longer text (a GUI's tooltip).
+    ``optional`` means the value may be left empty (the algorithm then does without it); it is
+    separate from ``default``, the value used when none is given. ``advanced`` parameters are
+    shown apart (defaults to True for :data:`ADVANCED_NAMES`), ``hidden`` ones not at all.
+    ``deprecated_names`` are older names still accepted, with a warning.
+    """
 
     type_name = "any"
     is_output = False
 
     def __init__(self, name: str, description: str = "", default: Any = None,
-                 optional: bool = False):
+                 optional: bool = False, *, help: str = "", advanced: bool | None = None,
+                 hidden: bool = False, deprecated_names: Sequence[str] = ()):
         if not _NAME_RE.match(name):
             raise ValueError(f"parameter name {name!r} must be UPPERCASE (A-Z, 0-9, _)")
         self.name = name
         self.description = description
+        self.help = help
         self.default = default
-        self.optional = optional or default is not None
+        self.optional = optional
+        self.advanced = name in ADVANCED_NAMES if advanced is None else advanced
+        self.hidden = hidden
+        self.deprecated_names = tuple(deprecated_names)
+
+    @property
+    def required(self) -> bool:
+        """True when the user must give a value (not optional and no default)."""
+        return not self.optional and self.default is None
 
     def error(self, message: str) -> ParameterError:
         return ParameterError(self.name, message)
@@ -80,7 +101,9 @@ class Parameter:
         if default is not None and not isinstance(default, (str, int, float, bool, list)):
             default = str(default)
         return {"name": self.name, "type": self.type_name, "description": self.description,
-                "default": default, "optional": self.optional, "expected": self.expected()}
+                "help": self.help, "default": default, "optional": self.optional,
+                "required": self.required, "advanced": self.advanced, "hidden": self.hidden,
+                "deprecated_names": list(self.deprecated_names), "expected": self.expected()}
 
 
 # -- scalars --------------------------------------------------------------------------------------
@@ -92,8 +115,8 @@ class Number(Parameter):
     def __init__(self, name: str, description: str = "", default: float | None = None,
                  optional: bool = False, min_value: float | None = None,
                  max_value: float | None = None, min_exclusive: bool = False,
-                 max_exclusive: bool = False):
-        super().__init__(name, description, default, optional)
+                 max_exclusive: bool = False, **flags):
+        super().__init__(name, description, default, optional, **flags)
         self.min_value, self.max_value = min_value, max_value
         self.min_exclusive, self.max_exclusive = min_exclusive, max_exclusive
 
@@ -183,8 +206,8 @@ class Enum(Parameter):
     type_name = "enum"
 
     def __init__(self, name: str, description: str = "", options: Sequence[str] = (),
-                 default: str | None = None, optional: bool = False):
-        super().__init__(name, description, default, optional)
+                 default: str | None = None, optional: bool = False, **flags):
+        super().__init__(name, description, default, optional, **flags)
         if not options:
             raise ValueError(f"{name}: an Enum needs options")
         self.options = list(options)
@@ -300,8 +323,8 @@ class File(Parameter):
     type_name = "file"
 
     def __init__(self, name: str, description: str = "", extensions: Sequence[str] = (),
-                 default: Any = None, optional: bool = False):
-        super().__init__(name, description, default, optional)
+                 default: Any = None, optional: bool = False, **flags):
+        super().__init__(name, description, default, optional, **flags)
         self.extensions = [e.lower() for e in extensions]
 
     def validate(self, value: Any, ctx: ValidationContext) -> Path:
@@ -331,8 +354,8 @@ class VectorLayer(Parameter):
 
     def __init__(self, name: str, description: str = "",
                  geometry_types: Sequence[str] | None = None, default: Any = None,
-                 optional: bool = False):
-        super().__init__(name, description, default, optional)
+                 optional: bool = False, **flags):
+        super().__init__(name, description, default, optional, **flags)
         self.geometry_types = list(geometry_types) if geometry_types else None
 
     def validate(self, value: Any, ctx: ValidationContext):
@@ -380,8 +403,8 @@ class MultipleLayers(Parameter):
     type_name = "multiple"
 
     def __init__(self, name: str, description: str = "", layer_type: str = "vector",
-                 min_count: int = 1, default: Any = None, optional: bool = False):
-        super().__init__(name, description, default, optional)
+                 min_count: int = 1, default: Any = None, optional: bool = False, **flags):
+        super().__init__(name, description, default, optional, **flags)
         if layer_type not in ("vector", "raster"):
             raise ValueError("layer_type must be 'vector' or 'raster'")
         self.layer_type, self.min_count = layer_type, min_count
@@ -407,8 +430,8 @@ class Field(Parameter):
     type_name = "field"
 
     def __init__(self, name: str, description: str = "", parent: str = "INPUT",
-                 numeric: bool = False, default: Any = None, optional: bool = False):
-        super().__init__(name, description, default, optional)
+                 numeric: bool = False, default: Any = None, optional: bool = False, **flags):
+        super().__init__(name, description, default, optional, **flags)
         self.parent, self.numeric = parent, numeric
 
     def validate(self, value: Any, ctx: ValidationContext) -> str:
@@ -435,12 +458,73 @@ class Field(Parameter):
         return super().describe() | {"parent": self.parent, "numeric": self.numeric}
 
 
+# -- declared layers of an output GeoPackage ------------------------------------------------------
+GEOMETRY_TYPES = ("Point", "LineString", "Polygon", "MultiPoint", "MultiLineString",
+                  "MultiPolygon", "GeometryCollection", "Geometry")  # OGR names; + " Z" for 3D
+FIELD_TYPES = ("string", "integer", "real", "boolean", "date", "datetime", "json")
+
+
+@dataclass(frozen=True)
+class LayerField:
+    """A main attribute of a declared layer: name, type (one of :data:`FIELD_TYPES`), meaning."""
+
+    name: str
+    type: str = "string"
+    description: str = ""
+
+    def __post_init__(self):
+        if self.type not in FIELD_TYPES:
+            raise ValueError(f"field {self.name}: type {self.type!r} is not one of {FIELD_TYPES}")
+
+
+@dataclass(frozen=True)
+class Layer:
+    """A layer an :class:`OutputVector` writes.
+
+    ``geometry_type`` is an OGR name of :data:`GEOMETRY_TYPES`, with ``" Z"`` when 3D, or None
+    for a table without geometry. ``fields`` are the main attributes, as :class:`LayerField` or
+    ``(name, type[, description])`` tuples. ``name`` may hold a parameter in braces
+    (``"{OPERATION}"``: the layer is named after that parameter's value). ``optional`` layers are
+    written only in some runs (said in ``description``); ``style`` names a default style.
+    """
+
+    name: str
+    geometry_type: str | None
+    fields: Sequence[LayerField | tuple] = ()
+    description: str = ""
+    optional: bool = False
+    style: str | None = None
+
+    def __post_init__(self):
+        if self.geometry_type is not None and \
+                self.geometry_type.removesuffix(" Z") not in GEOMETRY_TYPES:
+            raise ValueError(f"layer {self.name}: geometry type {self.geometry_type!r} is not one "
+                             f"of {GEOMETRY_TYPES} (optionally with ' Z')")
+        object.__setattr__(self, "fields", tuple(
+            f if isinstance(f, LayerField) else LayerField(*f) for f in self.fields))
+
+    def describe(self) -> dict[str, Any]:
+        return {"name": self.name, "geometry_type": self.geometry_type,
+                "fields": [{"name": f.name, "type": f.type, "description": f.description}
+                           for f in self.fields],
+                "description": self.description, "optional": self.optional, "style": self.style}
+
+
 # -- destinations (outputs the user names) --------------------------------------------------------
 class Destination(Parameter):
-    """An output file the algorithm writes; also a declared output of the algorithm."""
+    """An output file the algorithm writes; also a declared output of the algorithm.
+
+    ``layers`` declares the layers of a vector output (:class:`Layer`: name, geometry type, main
+    fields), for a GUI and the docs; the runner does not enforce them (a test does).
+    """
 
     is_output = True
     extensions: Sequence[str] = ()
+
+    def __init__(self, name: str, description: str = "", default: Any = None,
+                 optional: bool = False, layers: Sequence[Layer] = (), **flags):
+        super().__init__(name, description, default, optional, **flags)
+        self.layers = list(layers)
 
     def validate(self, value: Any, ctx: ValidationContext) -> Path:
         if not isinstance(value, (str, Path)) or str(value).strip() == "":
@@ -468,7 +552,8 @@ class Destination(Parameter):
         return f"output path ({', '.join(self.extensions)})" if self.extensions else "output path"
 
     def describe(self) -> dict[str, Any]:
-        return super().describe() | {"extensions": list(self.extensions)}
+        return super().describe() | {"extensions": list(self.extensions),
+                                     "layers": [layer.describe() for layer in self.layers]}
 
 
 class OutputVector(Destination):
@@ -508,8 +593,8 @@ class OutputFile(Destination):
     type_name = "output_file"
 
     def __init__(self, name: str, description: str = "", extensions: Sequence[str] = (),
-                 default: Any = None, optional: bool = False):
-        super().__init__(name, description, default, optional)
+                 default: Any = None, optional: bool = False, **flags):
+        super().__init__(name, description, default, optional, **flags)
         self.extensions = tuple(e.lower() for e in extensions)
 
 
@@ -542,12 +627,19 @@ class OutputFolder(Destination):
 
 
 # -- value outputs (returned, not written) ---------------------------------------------------------
-class Output:
-    """A value an algorithm returns besides its files (a number, a text, a dict of statistics)."""
+VALUE_TYPES = ("number", "integer", "string", "boolean", "json", "file")
 
-    def __init__(self, name: str, description: str = "", type_name: str = "dict"):
+
+class Output:
+    """A value an algorithm returns besides its files: its type is one of :data:`VALUE_TYPES`
+    (``json``: an object or list of statistics; ``file``: a path); ``dict``, ``list`` mean json."""
+
+    def __init__(self, name: str, description: str = "", type_name: str = "json"):
         if not _NAME_RE.match(name):
             raise ValueError(f"output name {name!r} must be UPPERCASE")
+        type_name = "json" if type_name in ("dict", "list") else type_name
+        if type_name not in VALUE_TYPES:
+            raise ValueError(f"output {name}: type {type_name!r} is not one of {VALUE_TYPES}")
         self.name, self.description, self.type_name = name, description, type_name
 
     def describe(self) -> dict[str, Any]:

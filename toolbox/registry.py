@@ -1,28 +1,51 @@
-"""Registry: discovers every algorithm under the ``algorithms`` package and in the
-``toolbox.algorithms`` entry-point group (third-party providers), without a hand-kept list.
+"""Registry: every algorithm, built-in or third-party, comes in through the ``toolbox.algorithms``
+entry-point group (pyproject.toml: ``"dem:idw" = "algorithms.dem.idw:IdwGrid"``, one line per id).
 
-Modules are imported on first use (``toolbox list`` / ``run`` / ``help``), not at ``import toolbox``.
-Renamed ids stay reachable through :data:`ALIASES` (an id is never reused).
+- :func:`get` imports the module of one algorithm only (``toolbox run``);
+- :func:`algorithms` imports every one (Python API);
+- :func:`spec_index` answers ``toolbox list`` / ``help`` from a per-user cached index of the specs,
+  so that they import no algorithm module while the installed sources are unchanged.
+
+The import names ``toolbox`` and ``algorithms`` are also used by unrelated packages: before an
+entry point into either is loaded, the package must be the one of our distribution
+(:func:`check_own_package`), otherwise :class:`ForeignPackageError`. Renamed ids stay reachable
+through :data:`ALIASES` (an id is never reused).
 """
 
 from __future__ import annotations
 
+import base64
 import difflib
-import importlib
+import functools
+import hashlib
+import importlib.util
+import json
 import logging
-import pkgutil
-from importlib.metadata import entry_points
+import os
+import tempfile
+from importlib.metadata import EntryPoint, PackageNotFoundError, distribution, entry_points
+from pathlib import Path
+from typing import Any
+from urllib.parse import urlparse
 
 from toolbox.algorithm import Algorithm
-from toolbox.errors import AlgorithmNotFoundError
+from toolbox.errors import AlgorithmNotFoundError, ToolboxError
+from toolbox.version import __version__
 
 log = logging.getLogger("toolbox")
 
 ENTRY_POINT_GROUP = "toolbox.algorithms"
+DISTRIBUTION = "photogrammetry-toolbox"
+OWN_PACKAGES = ("toolbox", "algorithms")
 ALIASES: dict[str, str] = {"raster:hillshade": "dem:hillshade"}  # old id -> current id
 
 _registry: dict[str, type[Algorithm]] = {}
-_discovered = False
+_from_entry_points: set[str] = set()  # ids loaded through an entry point (the spec index holds those)
+_loaded_all = False
+
+
+class ForeignPackageError(ToolboxError):
+    """An ``algorithms`` or ``toolbox`` package that is not part of photogrammetry-toolbox."""
 
 
 def register(cls: type[Algorithm]) -> type[Algorithm]:
@@ -37,48 +60,222 @@ def register(cls: type[Algorithm]) -> type[Algorithm]:
     return cls
 
 
-def _import_builtin() -> None:
-    import algorithms
+# -- who owns 'toolbox' and 'algorithms' ------------------------------------------------------------
+def _editable_root(dist) -> Path | None:
+    """The project folder of an editable (``pip install -e``) install, else None."""
+    text = dist.read_text("direct_url.json")
+    if not text:
+        return None
+    info = json.loads(text)
+    if not info.get("dir_info", {}).get("editable") or not info.get("url", "").startswith("file:"):
+        return None
+    from urllib.request import url2pathname  # imports http.client: only for editable installs
 
-    for module in pkgutil.walk_packages(algorithms.__path__, "algorithms."):
-        importlib.import_module(module.name)
+    return Path(url2pathname(urlparse(info["url"]).path)).resolve()
 
 
-def _import_plugins() -> None:
+def _record_hash_matches(path: Path, file_hash) -> bool:
+    if file_hash is None or file_hash.mode != "sha256":
+        return True
+    digest = base64.urlsafe_b64encode(hashlib.sha256(path.read_bytes()).digest()).rstrip(b"=")
+    return digest.decode() == file_hash.value
+
+
+def _belongs_to_distribution(name: str, init_file: Path) -> bool:
+    try:
+        dist = distribution(DISTRIBUTION)
+    except PackageNotFoundError:  # a source tree on sys.path: the two packages sit side by side
+        return init_file.parent.parent == Path(__file__).resolve().parent.parent
+    root = _editable_root(dist)
+    if root is not None:
+        return init_file.is_relative_to(root)
+    for record in dist.files or ():
+        if record.as_posix() == f"{name}/__init__.py":
+            return (Path(dist.locate_file(record)).resolve() == init_file
+                    and _record_hash_matches(init_file, record.hash))
+    return False
+
+
+@functools.cache
+def check_own_package(name: str) -> Path:
+    """The folder of package ``name`` (``toolbox`` or ``algorithms``) after checking that it belongs
+    to the photogrammetry-toolbox distribution; :class:`ForeignPackageError` otherwise.
+
+    Found without importing the package, so a foreign one never runs.
+    """
+    spec = importlib.util.find_spec(name)
+    init_file = Path(spec.origin).resolve() if spec is not None and spec.origin else None
+    if init_file is None or not _belongs_to_distribution(name, init_file):
+        where = init_file.parent if init_file is not None else "nowhere (a namespace package)"
+        raise ForeignPackageError(
+            f"the '{name}' package found at {where} is not part of {DISTRIBUTION} (another "
+            f"package uses the name '{name}'); refusing to load algorithms from it: uninstall "
+            "that package or use a separate virtual environment")
+    return init_file.parent
+
+
+# -- entry points -----------------------------------------------------------------------------------
+def _entry_points() -> dict[str, EntryPoint]:
+    found: dict[str, EntryPoint] = {}
     for ep in entry_points(group=ENTRY_POINT_GROUP):
+        found.setdefault(ep.name, ep)
+    return found
+
+
+def _is_own(ep: EntryPoint) -> bool:
+    return _top_package(ep) in OWN_PACKAGES
+
+
+def _top_package(ep: EntryPoint) -> str:
+    return getattr(ep, "value", "").split(":", 1)[0].split(".", 1)[0]
+
+
+def _load(ep: EntryPoint) -> type[Algorithm] | None:
+    """Import one entry point and register its class. A broken third-party plugin is skipped with a
+    warning; a broken built-in is a bug and raises."""
+    if _is_own(ep):
+        check_own_package(_top_package(ep))
+        obj = ep.load()
+    else:
         try:
             obj = ep.load()
         except Exception as exc:  # a broken plugin must not break the toolbox
             log.warning("plugin %s could not be loaded: %s", ep.name, exc)
-            continue
-        if isinstance(obj, type) and issubclass(obj, Algorithm) and obj.id not in _registry:
-            register(obj)
+            return None
+    if not (isinstance(obj, type) and issubclass(obj, Algorithm)):
+        log.warning("entry point %s = %s is not an Algorithm class; skipped", ep.name, ep.value)
+        return None
+    if _is_own(ep) and ep.name != obj.id:
+        raise TypeError(f"entry point {ep.name!r} names {obj.id!r}: the name must be the id")
+    existing = _registry.get(obj.id)
+    if existing is None:
+        register(obj)
+    elif existing is not obj and not _is_own(ep):
+        log.warning("plugin %s: id %s is already taken by %s; skipped", ep.name, obj.id,
+                    existing.__module__)
+        return None
+    _from_entry_points.add(obj.id)
+    return obj
+
+
+def _import_plugins() -> None:
+    for ep in entry_points(group=ENTRY_POINT_GROUP):
+        _load(ep)
 
 
 def discover() -> None:
-    """Import built-in algorithm modules and plugins once."""
-    global _discovered
-    if not _discovered:
-        _import_builtin()
+    """Import every algorithm module once (built-in and plugins)."""
+    global _loaded_all
+    if not _loaded_all:
         _import_plugins()
-        _discovered = True
+        _loaded_all = True
 
 
 def algorithms() -> list[type[Algorithm]]:
-    """Every registered algorithm, sorted by id."""
+    """Every registered algorithm, sorted by id (imports every algorithm module)."""
     discover()
     return [_registry[k] for k in sorted(_registry)]
 
 
+def _not_found(algorithm_id: str, known) -> AlgorithmNotFoundError:
+    close = difflib.get_close_matches(algorithm_id, list(known), n=3)
+    hint = f"; did you mean {', '.join(close)}?" if close else "; run 'toolbox list' to see them"
+    return AlgorithmNotFoundError(f"no algorithm {algorithm_id!r}{hint}")
+
+
 def get(algorithm_id: str) -> type[Algorithm]:
-    """The algorithm class for ``algorithm_id`` (aliases resolved).
+    """The algorithm class for ``algorithm_id`` (aliases resolved), importing only its module.
 
     Raises :class:`AlgorithmNotFoundError` suggesting close ids.
     """
-    discover()
     key = ALIASES.get(algorithm_id, algorithm_id)
     if key in _registry:
         return _registry[key]
-    close = difflib.get_close_matches(algorithm_id, list(_registry), n=3)
-    hint = f"; did you mean {', '.join(close)}?" if close else "; run 'toolbox list' to see them"
-    raise AlgorithmNotFoundError(f"no algorithm {algorithm_id!r}{hint}")
+    ep = _entry_points().get(key)
+    if ep is not None and _load(ep) is not None and key in _registry:
+        return _registry[key]
+    discover()  # a plugin whose entry-point name is not its id
+    if key in _registry:
+        return _registry[key]
+    raise _not_found(algorithm_id, _registry)
+
+
+# -- the spec index (list / help without importing algorithm modules) ------------------------------
+def _sources_stamp(folder: Path) -> list:
+    stamp = []
+    for dirpath, dirnames, filenames in os.walk(folder):
+        dirnames[:] = sorted(d for d in dirnames if d != "__pycache__")
+        for name in sorted(filenames):
+            if name.endswith(".py"):
+                st = os.stat(os.path.join(dirpath, name))
+                stamp.append((os.path.relpath(os.path.join(dirpath, name), folder),
+                              st.st_mtime_ns, st.st_size))
+    return stamp
+
+
+def _index_key(eps: dict[str, EntryPoint]) -> str:
+    """Changes whenever a spec may have changed: version, entry points, plugin versions, the
+    modification times of our sources (an editable install is edited in place)."""
+    parts: list[Any] = [__version__]
+    for name in sorted(eps):
+        ep = eps[name]
+        dist = getattr(ep, "dist", None)
+        parts.append((name, ep.value, getattr(dist, "name", None), getattr(dist, "version", None)))
+    for package in OWN_PACKAGES:
+        parts.append(_sources_stamp(check_own_package(package)))
+    return hashlib.sha256(json.dumps(parts).encode()).hexdigest()
+
+
+def _index_path() -> Path:
+    from toolbox.cache import user_cache_dir
+
+    return user_cache_dir(f"specs-{__version__}.json")
+
+
+def _read_index(path: Path, key: str) -> dict[str, dict] | None:
+    try:
+        data = json.loads(path.read_text())
+    except (OSError, ValueError):
+        return None
+    return data.get("specs") if isinstance(data, dict) and data.get("key") == key else None
+
+
+def _write_index(path: Path, key: str, specs: dict[str, dict]) -> None:
+    """Atomic write; a cache folder that cannot be written only costs speed."""
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.name, suffix=".tmp")
+        with os.fdopen(fd, "w") as fh:
+            json.dump({"key": key, "specs": specs}, fh)
+        os.replace(tmp, path)
+    except OSError as exc:
+        log.debug("spec index not cached in %s: %s", path, exc)
+
+
+def spec_index() -> dict[str, dict]:
+    """Spec (:meth:`Algorithm.spec`) of every algorithm by id, sorted by id.
+
+    Read from the per-user cache when its key still matches, else built by importing every
+    algorithm and cached. Algorithms registered in this process without an entry point (scripts,
+    tests) are added from their classes.
+    """
+    eps = _entry_points()
+    key = _index_key(eps)
+    path = _index_path()
+    specs = _read_index(path, key)
+    if specs is None:
+        discover()
+        specs = {i: _registry[i].spec() for i in sorted(_from_entry_points)}
+        _write_index(path, key, specs)
+    extra = {i: cls.spec() for i, cls in _registry.items() if i not in specs}
+    merged = specs | extra
+    return {i: merged[i] for i in sorted(merged)}
+
+
+def get_spec(algorithm_id: str) -> dict:
+    """The spec of one algorithm (aliases resolved) from :func:`spec_index`."""
+    index = spec_index()
+    key = ALIASES.get(algorithm_id, algorithm_id)
+    if key not in index:
+        raise _not_found(algorithm_id, index)
+    return index[key]

@@ -18,9 +18,9 @@ def versions() -> dict[str, str]:
     import rasterio
     import shapely
 
-    import toolbox
+    from toolbox.version import __version__
 
-    out = {"toolbox": toolbox.__version__, "python": platform.python_version(),
+    out = {"toolbox": __version__, "python": platform.python_version(),
            "numpy": np.__version__, "gdal": rasterio.__gdal_version__,
            "proj": pyproj.proj_version_str, "geos": shapely.geos_version_string,
            "rasterio": rasterio.__version__, "pyproj": pyproj.__version__,

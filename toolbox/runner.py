@@ -36,7 +36,7 @@ def validate(algorithm: type[Algorithm] | str, parameters: dict[str, Any],
     Nothing is written.
     """
     alg = get(algorithm) if isinstance(algorithm, str) else algorithm
-    params, overwrite = _pop_overwrite(parameters, overwrite)
+    params, overwrite = _pop_overwrite(alg.rename_deprecated(parameters), overwrite)
     known = {p.name for p in alg.parameters}
     unknown = sorted(set(params) - known)
     if unknown:

@@ -8,7 +8,16 @@ import numpy as np
 
 from toolbox.algorithm import Algorithm
 from toolbox.feedback import Feedback
-from toolbox.parameters import Boolean, Integer, Number, Output, OutputFile, OutputVector, String
+from toolbox.parameters import (
+    Boolean,
+    Integer,
+    Layer,
+    Number,
+    Output,
+    OutputFile,
+    OutputVector,
+    String,
+)
 from toolbox.registry import register
 from toolbox.terrain.gridding.base import _jsonable_options
 from toolbox.terrain.gridding.gridding import write_quality
@@ -77,9 +86,12 @@ class CrossValidate(Algorithm):
                 min_value=1),
         OutputFile("OUTPUT", "JSON report", extensions=[".json"]),
         OutputVector("RESIDUALS", "points with predicted heights and errors per method "
-                     "(GeoPackage, layer 'residuals')", optional=True),
+                     "(GeoPackage, layer 'residuals')", optional=True, layers=[
+                         Layer("residuals", "Point Z", [("z", "real", "measured height")],
+                               "each data point, with <method>_z (leave-one-out prediction) "
+                               "and <method>_err (prediction - z) per method")]),
     ]
-    outputs = [Output("STATISTICS", "per method: RMSE, mean, max error; ranking", "dict")]
+    outputs = [Output("STATISTICS", "per method: RMSE, mean, max error; ranking", "json")]
 
     def check(self, params: dict[str, Any]) -> None:
         check_sources(self, params)

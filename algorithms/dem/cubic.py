@@ -11,8 +11,7 @@ from toolbox.terrain.gridding.polynomial_base import COMMON_HELP, PolynomialGrid
 class CubicGrid(PolynomialGrid):
     __doc__ = """DEM by local cubic surfaces: each cell takes, at its centre, the surface
     ``z = a·x³ + b·y³ + c·x²y + d·xy² + e·x² + f·y² + g·xy + h·x + i·y + l`` fitted by least
-    squares to its k nearest data points (S002 par. 2.5.2 eq. [48], at least 10 points;
-    ../shared/docs/domain.md section 14). Default k = 20.
+    squares to its k nearest data points (S002 par. 2.5.2 eq. [48], at least 10 points). Default k = 20.
     """ + COMMON_HELP
 
     id = "dem:cubic"

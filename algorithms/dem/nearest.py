@@ -11,7 +11,7 @@ from toolbox.terrain.gridding.inputs import source_parameters
 @register
 class NearestGrid(GriddingAlgorithm):
     """DEM by nearest neighbour: each cell takes the height of the data point nearest to its
-    centre (S002 par. 2.5.2, method 1; ../shared/docs/domain.md section 14).
+    centre (S002 par. 2.5.2, method 1).
 
     Data points are the INPUT points and/or the vertices of LINES (e.g. contours) and
     BREAKLINES; points sharing an XY position are merged first (DUPLICATES rule, reported).

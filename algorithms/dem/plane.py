@@ -11,7 +11,7 @@ from toolbox.terrain.gridding.polynomial_base import COMMON_HELP, PolynomialGrid
 class PlaneGrid(PolynomialGrid):
     __doc__ = """DEM by local planes: each cell takes, at its centre, the plane
     ``z = a·x + b·y + c`` fitted by least squares to its k nearest data points (S002 par. 2.5.2
-    eq. [46], at least 3 points; ../shared/docs/domain.md section 14). Default k = 8.
+    eq. [46], at least 3 points). Default k = 8.
     """ + COMMON_HELP
 
     id = "dem:plane"

@@ -11,7 +11,7 @@ from toolbox.terrain.gridding.polynomial_base import COMMON_HELP, PolynomialGrid
 class QuadraticGrid(PolynomialGrid):
     __doc__ = """DEM by local quadratic surfaces: each cell takes, at its centre, the surface
     ``z = a·x² + b·y² + c·xy + d·x + e·y + f`` fitted by least squares to its k nearest data
-    points (S002 par. 2.5.2 eq. [47], at least 6 points; ../shared/docs/domain.md section 14).
+    points (S002 par. 2.5.2 eq. [47], at least 6 points).
     Default k = 12.
     """ + COMMON_HELP
 

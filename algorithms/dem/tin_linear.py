@@ -33,7 +33,7 @@ class TinLinearGrid(GriddingAlgorithm):
     triangulated by Delaunay (Shewchuk's Triangle, as tin:delaunay), constrained so that every
     BREAKLINES edge is a triangle edge; each cell centre takes the height of the plane through
     the three nodes of its triangle (S002 par. 2.5.1 eq. [43]-[44], linear interpolation of
-    par. 2.5.2; ../shared/docs/domain.md section 14). Planes are reproduced exactly; the
+    par. 2.5.2). Planes are reproduced exactly; the
     surface is continuous, with slope breaks along triangle edges and breaklines.
 
     Cells outside the TIN (the convex hull of the data) are nodata (EXTRAPOLATE does not

@@ -10,7 +10,7 @@ from toolbox.algorithm import Algorithm
 from toolbox.errors import InputDataError
 from toolbox.feedback import Feedback
 from toolbox.io.crs import common_crs
-from toolbox.parameters import File, Integer, Number, Output, OutputVector, RasterLayer
+from toolbox.parameters import File, Integer, Layer, Number, Output, OutputVector, RasterLayer
 from toolbox.photogrammetry.coverage import Footprint, overlaps, photo_footprint
 from toolbox.photogrammetry.surface import dem_height_range, surface_for_photo
 from toolbox.photogrammetry.tables import load_project_parameter
@@ -64,10 +64,38 @@ class Footprints(Algorithm):
                min_value=0, max_value=100),
         Number("MAP_SCALE", "map scale number to check the photo scale against Table 3 (e.g. "
                "5000)", optional=True, min_value=1),
-        OutputVector("OUTPUT", "GeoPackage of footprints, points and overlaps"),
+        OutputVector("OUTPUT", "GeoPackage of footprints, points and overlaps", layers=[
+            Layer("footprints", "Polygon Z", [
+                ("photo", "string", "photo id"), ("camera", "string", "camera id"),
+                ("strip", "string", "strip id"), ("status", "string", "on the DEM or plane"),
+                ("area_m2", "real", "ground area, m²"),
+                ("mean_height_m", "real", "mean terrain height, m"),
+                ("flying_height_m", "real", "flying height above it, m"),
+                ("photo_scale", "real", "scale number 1:n"),
+                ("ground_pixel_m", "real", "ground size of a pixel, m"),
+                ("forward_overlap_pct", "real", "overlap with the next photo of the strip, %"),
+                ("forward_ok", "boolean", "forward overlap >= FORWARD_OVERLAP"),
+                ("side_overlap_pct", "real", "largest overlap with a photo of another strip, %"),
+                ("side_ok", "boolean", "side overlap >= SIDE_OVERLAP (several strips only)"),
+                ("photo_scale_ok", "boolean", "photo scale within Table 3 for MAP_SCALE")],
+                "ground footprint of each photo", style="footprints"),
+            Layer("nadir_points", "Point Z", [("photo", "string", "photo id"),
+                                              ("on_dem", "boolean", "found on the DEM")]),
+            Layer("principal_points", "Point Z", [("photo", "string", "photo id"),
+                                                  ("on_dem", "boolean", "found on the DEM")]),
+            Layer("projection_centres", "Point Z", [
+                ("photo", "string", "photo id"), ("X0", "real"), ("Y0", "real"), ("Z0", "real"),
+                ("omega_rad", "real"), ("phi_rad", "real"), ("kappa_rad", "real")]),
+            Layer("overlaps", "Polygon", [
+                ("photo_a", "string"), ("photo_b", "string"),
+                ("kind", "string", "forward (same strip) or side"),
+                ("pct_of_a", "real", "share of A's footprint, %"),
+                ("pct_of_b", "real", "share of B's footprint, %"),
+                ("meets_rule", "boolean", "forward/side overlap meets its minimum")],
+                "overlaps of photo pairs")]),
     ]
     outputs = [Output("STATISTICS", "photos, partial footprints, forward/side overlap ranges",
-                      "dict")]
+                      "json")]
 
     def check(self, params: dict[str, Any]) -> None:
         if params["DEM"] is None and params["MEAN_HEIGHT"] is None:

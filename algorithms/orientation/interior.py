@@ -86,7 +86,7 @@ class InteriorOrientationAlgorithm(Algorithm):
         OutputFile("OUTPUT", "JSON report", extensions=[".json"]),
         OutputFile("RESIDUALS", "CSV of per-mark residuals", extensions=[".csv"], optional=True),
     ]
-    outputs = [Output("STATISTICS", "photos fitted, largest residual and sigma", "dict")]
+    outputs = [Output("STATISTICS", "photos fitted, largest residual and sigma", "json")]
 
     def process(self, params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
         path = params["INPUT"]

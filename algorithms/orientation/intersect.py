@@ -9,7 +9,7 @@ import numpy as np
 from toolbox.algorithm import Algorithm
 from toolbox.errors import InputDataError
 from toolbox.feedback import Feedback
-from toolbox.parameters import Enum, File, Output, OutputFile, OutputVector, String
+from toolbox.parameters import Enum, File, Layer, Output, OutputFile, OutputVector, String
 from toolbox.photogrammetry.forward_intersection import (
     STATUS_NAMES,
     camera_observations,
@@ -53,10 +53,23 @@ class SpaceIntersection(Algorithm):
         String("LAYER", "GeoPackage layer of INPUT (default: the first)", optional=True),
         Enum("COORDINATES", "measurement columns: auto (pixels when col_px/row_px exist), pixel, "
              "image (x_mm/y_mm)", options=("auto", "pixel", "image"), default="auto"),
-        OutputVector("OUTPUT", "GeoPackage with layers points and rays"),
+        OutputVector("OUTPUT", "GeoPackage with layers points and rays", layers=[
+            Layer("points", "Point Z", [
+                ("point_id", "string"), ("status", "string", "ok or why not intersected"),
+                ("n_photos", "integer", "photos measuring the point"),
+                ("x", "real"), ("y", "real"), ("z", "real"),
+                ("sigma0_mm", "real", "a posteriori sigma of unit weight, mm"),
+                ("std_x_m", "real"), ("std_y_m", "real"), ("std_z_m", "real"),
+                ("max_ray_distance_m", "real", "largest ray-to-point distance, m")],
+                "intersected ground points (a max_residual field in the measurement unit)"),
+            Layer("rays", "LineString Z", [
+                ("point_id", "string"), ("photo", "string"),
+                ("res_x_mm", "real", "image residual x, mm"),
+                ("res_y_mm", "real", "image residual y, mm")],
+                "projection centre to point, per measurement")]),
         OutputFile("REPORT", "JSON summary", extensions=[".json"], optional=True),
     ]
-    outputs = [Output("STATISTICS", "points per status, RMS image residual", "dict")]
+    outputs = [Output("STATISTICS", "points per status, RMS image residual", "json")]
 
     def process(self, params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
         import geopandas as gpd

@@ -15,6 +15,7 @@ from toolbox.parameters import (
     Enum,
     File,
     Integer,
+    Layer,
     Number,
     Output,
     OutputFile,
@@ -65,10 +66,15 @@ class Monoplot(Algorithm):
         Integer("MAX_ITERATIONS", "refinement or fixed-point iterations", default=100,
                 min_value=1),
         Boolean("FAIL_ON_MISS", "a ray that misses the terrain is an error", default=False),
-        OutputVector("OUTPUT", "GeoPackage with the layer points"),
+        OutputVector("OUTPUT", "GeoPackage with the layer points", layers=[
+            Layer("points", "Point Z", [
+                ("point_id", "string"), ("photo", "string"),
+                ("status", "string", "ok, outside_dem, dem_nodata or no_intersection"),
+                ("iterations", "integer", "iterations to converge")],
+                "ground points of the image measurements (empty geometry when not found)")]),
         OutputFile("REPORT", "JSON summary", extensions=[".json"], optional=True),
     ]
-    outputs = [Output("STATISTICS", "points per status", "dict")]
+    outputs = [Output("STATISTICS", "points per status", "json")]
 
     def check(self, params: dict[str, Any]) -> None:
         if params["DEM"] is None and params["HEIGHT"] is None:

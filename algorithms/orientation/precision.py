@@ -90,7 +90,7 @@ class NormalCasePrecision(Algorithm):
         OutputFile("TABLE", "CSV table, one row per pair", extensions=[".csv"], optional=True),
     ]
     outputs = [Output("PRECISION", "one dict per stereo pair (or the single configuration)",
-                      "list")]
+                      "json")]
 
     def check(self, params: dict[str, Any]) -> None:
         if params["PROJECT"] is None:

@@ -19,6 +19,7 @@ from toolbox.parameters import (
     Crs,
     Enum,
     Field,
+    Layer,
     Number,
     Output,
     OutputFile,
@@ -127,10 +128,22 @@ class EstimateRectification(Algorithm):
                "1:5000; default: the photo scale H / c)", optional=True, min_value=1),
         OutputFile("OUTPUT", "transform (JSON, read by rectify:image)", extensions=[".json"]),
         OutputVector("RESIDUALS", "points with residuals (GeoPackage, layer 'residuals')",
-                     optional=True),
+                     optional=True, layers=[
+                         Layer("residuals", "Point", [
+                             ("id", "string", "point id"),
+                             ("role", "string", "control, check or rejected"),
+                             ("image_x", "real"), ("image_y", "real"),
+                             ("res_x", "real", "ground residual x, CRS units"),
+                             ("res_y", "real", "ground residual y, CRS units"),
+                             ("res_norm", "real", "ground residual length, CRS units"),
+                             ("res_image_x", "real"), ("res_image_y", "real"),
+                             ("test_x", "real", "standardised residual x"),
+                             ("test_y", "real", "standardised residual y")],
+                             "control and check points at their ground position",
+                             style="residuals")]),
     ]
     outputs = [Output("STATISTICS", "fit report: sigma0, redundancy, per-point residuals, "
-                      "check points, rejected points, relief rule", "dict")]
+                      "check points, rejected points, relief rule", "json")]
 
     def check(self, params):
         if params["ROBUST"] == "ransac" and params["RANSAC_THRESHOLD"] is None:

@@ -89,7 +89,7 @@ class RectifyImage(Algorithm):
         Boolean("OVERVIEWS", "build internal overviews", default=True),
         OutputRaster("OUTPUT", "rectified GeoTIFF (or GCP GeoTIFF with MODE=gcps)"),
     ]
-    outputs = [Output("STATISTICS", "grid, footprint and warp counters", "dict")]
+    outputs = [Output("STATISTICS", "grid, footprint and warp counters", "json")]
 
     def check(self, params):
         info = params["INPUT"]

@@ -9,10 +9,18 @@ from toolbox.errors import InputDataError
 from toolbox.feedback import Feedback
 from toolbox.io.crs import common_crs, crs_label
 from toolbox.io.vector import points_xyz, read_vector, vertices_xyz
-from toolbox.parameters import Boolean, Crs, Enum, Field, Number, Output, OutputVector, VectorLayer
+from toolbox.parameters import (
+    Boolean,
+    Crs,
+    Enum,
+    Field,
+    Layer,
+    Number,
+    Output,
+    OutputVector,
+    VectorLayer,
+)
 from toolbox.registry import register
-from toolbox.terrain.tin.build import SOURCES, TinBuildError, build_tin
-from toolbox.terrain.tin.store import write_tin
 
 DUPLICATE_RULES = ("mean", "first", "min", "max", "error")
 
@@ -62,7 +70,7 @@ def read_boundary(ref):
 class Delaunay(Algorithm):
     """Triangulated irregular network (TIN) of mass points and breaklines.
 
-    Method (thesis par. 2.5.1; ../shared/docs/domain.md par. 14): Delaunay triangulation, whose
+    Method (thesis S002 par. 2.5.1): Delaunay triangulation, whose
     triangles' circumcircles contain no other point, made with Shewchuk's Triangle. With
     breaklines (ridges, road edges, contour lines: LineStringZ, or lines with a height field)
     the triangulation is a *constrained* Delaunay triangulation: every breakline vertex becomes
@@ -106,8 +114,9 @@ class Delaunay(Algorithm):
               numeric=True, optional=True),
         VectorLayer("BREAKLINES", "breaklines: LineStringZ, or lines with a height field "
                     "(contours)", geometry_types=["line"], optional=True),
-        Field("BREAKLINE_Z_FIELD", "height field of BREAKLINES (default: geometry Z)",
-              parent="BREAKLINES", numeric=True, optional=True),
+        Field("BREAKLINES_Z_FIELD", "height field of BREAKLINES (default: geometry Z)",
+              parent="BREAKLINES", numeric=True, optional=True,
+              deprecated_names=["BREAKLINE_Z_FIELD"]),
         VectorLayer("BOUNDARY", "polygon(s): hard clip, no triangle outside",
                     geometry_types=["polygon"], optional=True),
         Enum("HULL", "outer border: convex hull, or concave (long border triangles removed)",
@@ -126,9 +135,32 @@ class Delaunay(Algorithm):
         Boolean("SPATIAL_INDEX", "write GeoPackage spatial indexes (faster display of large "
                 "TINs in QGIS; adds about a third to the writing time)", default=True),
         OutputVector("OUTPUT", "TIN GeoPackage (layers triangles, nodes, edges); .parquet or "
-                     ".fgb write big TINs several times faster (one file per layer)"),
+                     ".fgb write big TINs several times faster (one file per layer)", layers=[
+            Layer("triangles", "Polygon Z", [
+                ("id", "integer", "triangle id"), ("node1", "integer", "first node id"),
+                ("node2", "integer", "second node id"), ("node3", "integer", "third node id"),
+                ("nbr1", "integer", "neighbour across the edge opposite node1 (0: none)"),
+                ("edge1", "integer", "edge id opposite node1"),
+                ("area_2d", "real", "plan area, CRS units²"),
+                ("area_3d", "real", "surface area, CRS units²"),
+                ("slope_deg", "real", "slope, degrees"), ("slope_pct", "real", "slope, %"),
+                ("aspect_deg", "real", "aspect, degrees clockwise from north")],
+                "triangles with their nodes, neighbours and edges (nbr2/3, edge2/3 likewise)",
+                style="tin_slope"),
+            Layer("nodes", "Point Z", [
+                ("id", "integer", "node id"), ("source", "string", "points, breaklines, ..."),
+                ("merged", "integer", "input points merged into the node"),
+                ("z", "real", "height")], "the TIN's vertices"),
+            Layer("edges", "LineString Z", [
+                ("id", "integer", "edge id"), ("node_from", "integer", "start node id"),
+                ("node_to", "integer", "end node id"),
+                ("left_tri", "integer", "triangle on the left (0: none)"),
+                ("right_tri", "integer", "triangle on the right (0: none)"),
+                ("breakline", "boolean", "the edge lies on a breakline"),
+                ("length_2d", "real", "plan length"), ("length_3d", "real", "3D length")],
+                "triangle edges (not written when EDGES is false)", optional=True)]),
     ]
-    outputs = [Output("STATISTICS", "counts, merges, crossings, clipping, areas", "dict")]
+    outputs = [Output("STATISTICS", "counts, merges, crossings, clipping, areas", "json")]
 
     def check(self, params):
         if params["INPUT"] is None and params["BREAKLINES"] is None:
@@ -139,6 +171,9 @@ class Delaunay(Algorithm):
                             f"{params['HULL']}")
 
     def process(self, params, feedback: Feedback):
+        from toolbox.terrain.tin.build import SOURCES, TinBuildError, build_tin
+        from toolbox.terrain.tin.store import write_tin
+
         named = {k: params[k].crs for k in ("INPUT", "BREAKLINES", "BOUNDARY")
                  if params[k] is not None}
         crs = common_crs(named, params["CRS"])
@@ -154,7 +189,7 @@ class Delaunay(Algorithm):
             line_xyz, line_index = np.zeros((0, 3)), np.zeros(0, dtype=np.int64)
             if params["BREAKLINES"] is not None:
                 line_xyz, line_index = read_breaklines(params["BREAKLINES"],
-                                                       params["BREAKLINE_Z_FIELD"])
+                                                       params["BREAKLINES_Z_FIELD"])
             boundary = None if params["BOUNDARY"] is None else read_boundary(params["BOUNDARY"])
         feedback.set_progress(10, "triangulating")
         feedback.check_canceled()

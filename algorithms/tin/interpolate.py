@@ -9,7 +9,7 @@ from toolbox.errors import InputDataError
 from toolbox.feedback import Feedback
 from toolbox.io.crs import common_crs
 from toolbox.io.vector import read_vector, write_layers
-from toolbox.parameters import Number, Output, OutputVector, String, VectorLayer
+from toolbox.parameters import Layer, Number, Output, OutputVector, String, VectorLayer
 from toolbox.registry import register
 from toolbox.terrain.tin.kernels import interpolate_tin
 from toolbox.terrain.tin.store import (  # noqa: F401
@@ -21,7 +21,7 @@ from toolbox.terrain.tin.store import (  # noqa: F401
 @register
 class Interpolate(Algorithm):
     """Height of a TIN at points: the plane through the three nodes of the triangle containing
-    each point (thesis eq. [43]-[44]; ../shared/docs/domain.md par. 14), evaluated exactly.
+    each point (thesis S002 par. 2.5.1 eq. [43]-[44]), evaluated exactly.
 
     The output is the input layer with a height field (FIELD) added and PointZ geometries whose
     Z is that height. Points outside the TIN get NODATA in both and are counted in STATISTICS
@@ -39,9 +39,12 @@ class Interpolate(Algorithm):
         VectorLayer("TIN", TIN_HELP, geometry_types=["polygon"]),
         String("FIELD", "name of the height field to add", default="z_tin"),
         Number("NODATA", "height written for points outside the TIN", default=-9999.0),
-        OutputVector("OUTPUT", "points with the height field and PointZ geometry"),
+        OutputVector("OUTPUT", "points with the height field and PointZ geometry", layers=[
+            Layer("{INPUT}", "Point Z", [("{FIELD}", "real", "TIN height (NODATA outside)")],
+                  "INPUT's points and fields, named like INPUT's layer; with a field dz = input "
+                  "Z - TIN Z when the points have a Z")]),
     ]
-    outputs = [Output("STATISTICS", "points inside/outside, height range, dz RMSE", "dict")]
+    outputs = [Output("STATISTICS", "points inside/outside, height range, dz RMSE", "json")]
 
     def check(self, params):
         name = params["FIELD"].strip()

@@ -66,7 +66,7 @@ class ToRaster(Algorithm):
         Boolean("OVERVIEWS", "build internal overviews", default=True),
         OutputRaster("OUTPUT", "DEM GeoTIFF"),
     ]
-    outputs = [Output("STATISTICS", "grid size, cells with data, height range", "dict")]
+    outputs = [Output("STATISTICS", "grid size, cells with data, height range", "json")]
 
     def check(self, params):
         if params["TEMPLATE"] is None and params["CELL_SIZE"] is None:

@@ -106,7 +106,7 @@ class Volume(Algorithm):
                    optional=True),
     ]
     outputs = [Output("STATISTICS", "cut, fill and net volumes; cut, fill and total areas",
-                      "dict")]
+                      "json")]
 
     def check(self, params):
         given = [n for n in ("REFERENCE_Z", "REFERENCE_DEM") if params[n] is not None]

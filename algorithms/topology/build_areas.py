@@ -6,9 +6,8 @@ from toolbox.algorithm import Algorithm
 from toolbox.feedback import Feedback
 from toolbox.parameters import Output, OutputVector
 from toolbox.registry import register
-from toolbox.topology.build import build_topology
 from toolbox.topology.common_parameters import linework_parameters, read_linework
-from toolbox.topology.layers import tolerances_from, write_topology
+from toolbox.topology.layer_specs import ARCS, AREAS, ERRORS, NODES
 
 
 @register
@@ -49,15 +48,21 @@ class BuildAreas(Algorithm):
     parameters = [
         *linework_parameters(),
         OutputVector("OUTPUT", "GeoPackage with layers areas, arcs, nodes, errors_points, "
-                     "errors_lines"),
+                     "errors_lines",
+                     layers=[AREAS, ARCS, NODES, *ERRORS]),
     ]
     outputs = [Output("STATISTICS", "counts of every cleaning step, tolerances and their source",
-                      "dict")]
+                      "json")]
 
     def check(self, params):
+        from toolbox.topology.layers import tolerances_from
+
         tolerances_from(params)  # a bad parameter file or PRECISION fails before any work
 
     def process(self, params, feedback: Feedback):
+        from toolbox.topology.build import build_topology
+        from toolbox.topology.layers import tolerances_from, write_topology
+
         data = read_linework(params, feedback)
         tol, sources, _ = tolerances_from(params, feedback, data["crs"])
         output = build_topology(data["line_geoms"], data["line_codes"], data["label_geoms"],

@@ -6,9 +6,8 @@ from toolbox.algorithm import Algorithm
 from toolbox.feedback import Feedback
 from toolbox.parameters import Output, OutputVector
 from toolbox.registry import register
-from toolbox.topology.build import build_topology
 from toolbox.topology.common_parameters import linework_parameters, read_linework
-from toolbox.topology.layers import tolerances_from, write_topology
+from toolbox.topology.layer_specs import ERRORS
 
 
 @register
@@ -34,15 +33,20 @@ class CheckTopology(Algorithm):
                   "dangles, slivers and label problems as an errors layer; no geometry changed.")
     parameters = [
         *linework_parameters(),
-        OutputVector("OUTPUT", "GeoPackage with the errors_points and errors_lines layers"),
+        OutputVector("OUTPUT", "GeoPackage with the errors_points and errors_lines layers", layers=ERRORS),
     ]
     outputs = [Output("STATISTICS", "counts of every check, tolerances and their source",
-                      "dict")]
+                      "json")]
 
     def check(self, params):
+        from toolbox.topology.layers import tolerances_from
+
         tolerances_from(params)
 
     def process(self, params, feedback: Feedback):
+        from toolbox.topology.build import build_topology
+        from toolbox.topology.layers import tolerances_from, write_topology
+
         data = read_linework(params, feedback)
         tol, sources, _ = tolerances_from(params, feedback, data["crs"])
         output = build_topology(data["line_geoms"], data["line_codes"], data["label_geoms"],

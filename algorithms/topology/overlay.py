@@ -12,8 +12,7 @@ from toolbox.io.vector import read_vector, write_layers
 from toolbox.parameters import Enum, Number, Output, OutputVector, String, VectorLayer
 from toolbox.registry import register
 from toolbox.terrain.points import local_origin
-from toolbox.topology.layers import error_frames, to_frame
-from toolbox.topology.output import ERROR_LAYERS, Layer, issues_layer, order_key
+from toolbox.topology.layer_specs import ERRORS, OVERLAY_RESULT
 from toolbox.topology.setops import OPERATIONS, clean_polygons, overlay_polygons
 
 RESULT_COLUMNS = ("id", "part", "area", "perimeter")
@@ -75,9 +74,9 @@ class Overlay(Algorithm):
         Number("PRECISION", "coordinate grid of the result, CRS units", default=0.001,
                min_value=0, min_exclusive=True),
         OutputVector("OUTPUT", "GeoPackage with the result layer (named after OPERATION), "
-                     "errors_points and errors_lines"),
+                     "errors_points and errors_lines", layers=[OVERLAY_RESULT, *ERRORS]),
     ]
-    outputs = [Output("STATISTICS", "pieces by origin, repaired and skipped features", "dict")]
+    outputs = [Output("STATISTICS", "pieces by origin, repaired and skipped features", "json")]
 
     def check(self, params):
         a_fields = [f"{params['INPUT_PREFIX']}{f}" for f in params["INPUT"].fields]
@@ -94,6 +93,9 @@ class Overlay(Algorithm):
 
     def process(self, params, feedback: Feedback):
         import shapely
+
+        from toolbox.topology.layers import error_frames, to_frame
+        from toolbox.topology.output import ERROR_LAYERS, Layer, issues_layer, order_key
 
         operation, grid = params["OPERATION"], params["PRECISION"]
         with feedback.timed("read"):

@@ -48,7 +48,7 @@ class VectorInfo(Algorithm):
         OutputFile("OUTPUT", "JSON file to write the description to", extensions=[".json"],
                    optional=True),
     ]
-    outputs = [Output("INFO", "the description (dict)", "dict")]
+    outputs = [Output("INFO", "the description (layers, counts, CRS, fields, extent)", "json")]
 
     def process(self, params, feedback):
         import pyogrio

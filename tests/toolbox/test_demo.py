@@ -9,7 +9,7 @@ from pathlib import Path
 
 import rasterio
 
-from toolbox.demo import demo_pipeline_doc, run_demo
+from toolbox.demo import demo_pipeline_doc
 
 sys.path.insert(0, str(Path(__file__).parent))
 from gpkg_check import gpkg_problems  # noqa: E402
@@ -17,8 +17,8 @@ from gpkg_check import gpkg_problems  # noqa: E402
 DEBIAN_VALIDATOR = Path("/usr/lib/python3/dist-packages/osgeo_utils/samples/validate_gpkg.py")
 
 
-def test_demo_runs_end_to_end(tmp_path):
-    summary = run_demo(tmp_path)
+def test_demo_runs_end_to_end(demo_run):
+    tmp_path, summary = demo_run
     assert f"outputs in {tmp_path}" in summary
     steps = [s["name"] for s in demo_pipeline_doc()["steps"]]
     reports = {p.stem for p in (tmp_path / "reports").glob("*.json")}

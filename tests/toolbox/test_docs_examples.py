@@ -11,7 +11,6 @@ import pytest
 from click.testing import CliRunner
 
 from toolbox.cli import main
-from toolbox.demo import run_demo
 
 ROOT = Path(__file__).resolve().parents[2]
 DOCS = [ROOT / "README.md", *sorted((ROOT / "docs" / "algorithms").glob("*.md"))]
@@ -41,11 +40,11 @@ def documented_commands() -> list[tuple[str, str]]:
 
 
 @pytest.fixture(scope="module")
-def demo_dir(tmp_path_factory):
+def demo_dir(tmp_path_factory, demo_run):
     import shutil
 
     base = tmp_path_factory.mktemp("docs")
-    run_demo(base / "demo_out")
+    shutil.copytree(demo_run[0], base / "demo_out")  # the commands write there
     shutil.copytree(ROOT / "examples", base / "examples")
     return base
 

@@ -62,7 +62,7 @@ def main(ctx: click.Context, verbose: int, quiet: bool) -> None:
     toolbox demo --out demo_out      the main job on bundled sample data
     """
     setup_logging(verbose, quiet)
-    ctx.obj = {"quiet": quiet}
+    ctx.obj = {"quiet": quiet, "verbose": verbose}
 
 
 @main.command("list")
@@ -70,53 +70,79 @@ def main(ctx: click.Context, verbose: int, quiet: bool) -> None:
 @_handle_errors
 def list_cmd(as_json: bool) -> None:
     """List the algorithms, grouped."""
-    from toolbox.registry import algorithms
+    from toolbox.registry import spec_index
 
-    algs = algorithms()
+    specs = list(spec_index().values())
     if as_json:
-        click.echo(json.dumps([{"id": a.id, "display_name": a.display_name, "group": a.group,
-                                "short_help": a.short_help} for a in algs], indent=2))
+        click.echo(json.dumps([{k: s[k] for k in ("id", "display_name", "group", "short_help")}
+                               for s in specs], indent=2))
         return
     groups: dict[str, list] = {}
-    for alg in algs:
-        groups.setdefault(alg.group, []).append(alg)
-    width = max((len(a.id) for a in algs), default=10) + 2
+    for spec in specs:
+        groups.setdefault(spec["group"], []).append(spec)
+    width = max((len(s["id"]) for s in specs), default=10) + 2
     for group in sorted(groups):
         click.echo(f"{group}")
-        for alg in groups[group]:
-            click.echo(f"  {alg.id:<{width}}{alg.short_help}")
+        for spec in groups[group]:
+            click.echo(f"  {spec['id']:<{width}}{spec['short_help']}")
 
 
 def format_help(alg) -> str:
-    """Plain-text help of an algorithm, generated from its spec."""
-    lines = [f"{alg.id}  -  {alg.display_name}  [{alg.group}]", ""]
-    for par in alg.help_text().split("\n\n"):
+    """Plain-text help of an algorithm, generated from its spec (an :class:`Algorithm` class or
+    the dict of :meth:`Algorithm.spec`)."""
+    spec = alg if isinstance(alg, dict) else alg.spec()
+    lines = [f"{spec['id']}  -  {spec['display_name']}  [{spec['group']}]", ""]
+    for par in spec["help"].split("\n\n"):
         keep = par.startswith(("  ", "-", "|")) or "\n-" in par or "\n  " in par
         lines += [par if keep else textwrap.fill(par, 96), ""]
-    lines += ["Parameters:"]
-    for p in alg.parameters:
-        default = "" if p.default is None else f" (default: {p.describe()['default']})"
-        need = "optional" if p.optional else "required"
-        lines.append(f"  --{p.name} <{p.expected()}>  {need}{default}")
-        if p.description:
-            lines.append(textwrap.indent(textwrap.fill(p.description, 88), "      "))
-    lines += ["", "Outputs:"]
-    for o in alg.spec()["outputs"]:
+    shown = [p for p in spec["parameters"] if not p.get("hidden")]
+    for title, params in (("Parameters:", [p for p in shown if not p.get("advanced")]),
+                          ("Advanced parameters:", [p for p in shown if p.get("advanced")])):
+        if not params:
+            continue
+        lines.append(title)
+        for p in params:
+            default = "" if p["default"] is None else f" (default: {p['default']})"
+            need = "required" if p.get("required", not p["optional"]) else "optional"
+            lines.append(f"  --{p['name']} <{p['expected']}>  {need}{default}")
+            text = " ".join(t for t in (p["description"], p.get("help", "")) if t)
+            if text:
+                lines.append(textwrap.indent(textwrap.fill(text, 88), "      "))
+        lines.append("")
+    lines += ["Outputs:"]
+    for o in spec["outputs"]:
         lines.append(f"  {o['name']} ({o['type']}): {o['description']}")
-    lines += ["", "Common options: --overwrite (replace outputs), --run-report FILE.json, --quiet"]
+        for layer in o.get("layers") or ():
+            fields = ", ".join(f["name"] for f in layer["fields"])
+            lines.append(f"      layer {layer['name']} ({layer['geometry_type'] or 'no geometry'})"
+                         + (f": {fields}" if fields else ""))
+    lines += ["", "Common options: --overwrite (replace outputs), --run-report FILE.json, --quiet,",
+              "  --progress json (machine-readable progress on stderr)"]
     return "\n".join(lines)
 
 
 @main.command("help")
-@click.argument("algorithm_id")
+@click.argument("algorithm_id", required=False)
 @click.option("--json", "as_json", is_flag=True, help="Machine-readable JSON spec.")
+@click.option("--all", "show_all", is_flag=True,
+              help="Every algorithm; with --json one object {toolbox_version, algorithms: [...]}.")
 @_handle_errors
-def help_cmd(algorithm_id: str, as_json: bool) -> None:
-    """Describe one algorithm: method, parameters (types, defaults, ranges) and outputs."""
-    from toolbox.registry import get
+def help_cmd(algorithm_id: str | None, as_json: bool, show_all: bool) -> None:
+    """Describe one algorithm (or --all): method, parameters (types, defaults, ranges), outputs."""
+    from toolbox.registry import get_spec, spec_index
+    from toolbox.version import __version__
 
-    alg = get(algorithm_id)
-    click.echo(json.dumps(alg.spec(), indent=2) if as_json else format_help(alg))
+    if show_all == (algorithm_id is not None):
+        raise click.UsageError("give one algorithm id, or --all")
+    if show_all:
+        specs = list(spec_index().values())
+        if as_json:
+            click.echo(json.dumps({"toolbox_version": __version__, "algorithms": specs}, indent=2))
+        else:
+            click.echo("\n\n".join(format_help(s) for s in specs))
+        return
+    spec = get_spec(algorithm_id)
+    click.echo(json.dumps(spec, indent=2) if as_json else format_help(spec))
 
 
 def parse_parameter_args(tokens: list[str]) -> dict[str, Any]:
@@ -153,11 +179,14 @@ def parse_parameter_args(tokens: list[str]) -> dict[str, Any]:
 @click.option("--run-report", "report", type=click.Path(dir_okay=False),
               help="Write a JSON run report (parameters, outputs, statistics, versions, timings).")
 @click.option("--help", "show_help", is_flag=True, help="Show the algorithm's help.")
+@click.option("--progress", type=click.Choice(["bar", "json", "none"]), default="bar",
+              show_default=True, help="Progress on stderr: a bar (on a terminal), JSON lines "
+              "(one object a line, for a GUI; see docs/cli.md) or none.")
 @click.argument("args", nargs=-1, type=click.UNPROCESSED)
 @click.pass_context
 @_handle_errors
 def run_cmd(ctx: click.Context, algorithm_id: str, overwrite: bool, report: str | None,
-            show_help: bool, args: tuple[str, ...]) -> None:
+            show_help: bool, progress: str, args: tuple[str, ...]) -> None:
     """Run an algorithm: toolbox run ID --PARAM value ... (see 'toolbox help ID').
 
     Prints the outputs as JSON on stdout.
@@ -166,12 +195,15 @@ def run_cmd(ctx: click.Context, algorithm_id: str, overwrite: bool, report: str 
     from toolbox.report import to_jsonable
     from toolbox.runner import run
 
+    if progress == "json" and not show_help:
+        _run_with_json_progress(ctx, algorithm_id, overwrite, report, args)
+        return
     alg = get(algorithm_id)
     if show_help:
         click.echo(format_help(alg))
         return
     params = parse_parameter_args(list(args))
-    feedback = TerminalFeedback(alg.id, quiet=ctx.obj["quiet"])
+    feedback = TerminalFeedback(alg.id, quiet=ctx.obj["quiet"] or progress == "none")
     ACTIVE[0] = feedback
     try:
         outputs = run(alg.id, params, feedback=feedback, overwrite=overwrite, report=report)
@@ -179,6 +211,37 @@ def run_cmd(ctx: click.Context, algorithm_id: str, overwrite: bool, report: str 
         feedback.finish()
         ACTIVE[0] = None
     click.echo(json.dumps(to_jsonable(outputs), indent=2))
+
+
+def _run_with_json_progress(ctx: click.Context, algorithm_id: str, overwrite: bool,
+                            report: str | None, args: tuple[str, ...]) -> None:
+    """``run --progress json``: progress, messages, then the result or the error as JSON lines on
+    stderr (:class:`JsonFeedback`); the outputs also on stdout, as without it."""
+    from toolbox.cli.terminal import JsonFeedback, setup_json_logging
+    from toolbox.registry import get
+    from toolbox.report import to_jsonable
+    from toolbox.runner import run
+
+    setup_json_logging(ctx.obj["verbose"])
+    feedback = JsonFeedback()
+    ACTIVE[0] = feedback
+    try:
+        alg = get(algorithm_id)
+        outputs = to_jsonable(run(alg.id, parse_parameter_args(list(args)), feedback=feedback,
+                                  overwrite=overwrite, report=report))
+    except ToolboxError as exc:
+        feedback.error(str(exc))
+        raise
+    except KeyboardInterrupt:
+        feedback.error("canceled; no output was written")
+        raise
+    except Exception as exc:  # a bug: still one JSON line for the reader, then the usual report
+        feedback.error(f"internal error: {type(exc).__name__}: {exc}")
+        raise
+    finally:
+        ACTIVE[0] = None
+    feedback.result(outputs)
+    click.echo(json.dumps(outputs, indent=2))
 
 
 @main.command("batch")

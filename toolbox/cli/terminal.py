@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import logging
 import sys
 import time
@@ -68,4 +69,64 @@ def setup_logging(verbose: int, quiet: bool) -> None:
     logger = logging.getLogger("toolbox")
     logger.handlers[:] = [BarAwareHandler(ACTIVE)]
     logger.setLevel(level)
+    logger.propagate = False
+
+
+# -- --progress json: machine-readable progress for an out-of-process GUI -----------------------------
+LEVELS = {logging.DEBUG: "debug", logging.INFO: "info", logging.WARNING: "warning"}
+
+
+def json_line(stream, obj: dict) -> None:
+    """Write one JSON object on one line and flush (a reader sees it at once)."""
+    stream.write(json.dumps(obj, separators=(", ", ": ")) + "\n")
+    stream.flush()
+
+
+class JsonFeedback(Feedback):
+    """``{"type": "progress", "percent": 42.0}`` lines on stderr: at most one every 0.05 s and one
+    per 0.1 %, always 0 and 100; messages come through :class:`JsonLogHandler`."""
+
+    def __init__(self, stream=None):
+        super().__init__()
+        self.stream = stream or sys.stderr
+        self._last_draw = 0.0
+        self._last_percent: float | None = None
+
+    def set_progress(self, percent: float, message: str = "") -> None:
+        super().set_progress(percent, message)
+        shown = round(self.progress, 1)
+        now = time.monotonic()
+        if shown == self._last_percent or (now - self._last_draw < 0.05
+                                           and shown not in (0.0, 100.0)):
+            return
+        self._last_draw, self._last_percent = now, shown
+        json_line(self.stream, {"type": "progress", "percent": shown}
+                  | ({"text": message} if message else {}))
+
+    def result(self, outputs: dict) -> None:
+        json_line(self.stream, {"type": "result", "outputs": outputs})
+
+    def error(self, text: str) -> None:
+        json_line(self.stream, {"type": "message", "level": "error", "text": text})
+
+    def clear_line(self) -> None:
+        pass
+
+    def finish(self) -> None:
+        pass
+
+
+class JsonLogHandler(logging.Handler):
+    """Every toolbox log record as ``{"type": "message", "level": ..., "text": ...}`` on stderr."""
+
+    def emit(self, record: logging.LogRecord) -> None:
+        level = LEVELS.get(record.levelno, "error" if record.levelno > logging.WARNING else "debug")
+        json_line(sys.stderr, {"type": "message", "level": level, "text": record.getMessage()})
+
+
+def setup_json_logging(verbose: int) -> None:
+    """Route the toolbox logger to :class:`JsonLogHandler` (info and up; debug with -vv)."""
+    logger = logging.getLogger("toolbox")
+    logger.handlers[:] = [JsonLogHandler()]
+    logger.setLevel(logging.DEBUG if verbose >= 2 else logging.INFO)
     logger.propagate = False

@@ -72,27 +72,35 @@ def _neighbours(px, py, offsets, x0, y0, size, nbx, nby, qx, qy, k, r2max, skip,
 
 
 @njit(nogil=True, cache=True)
-def _grid(px, py, offsets, x0, y0, size, nbx, nby, pz, xs, ys, mask, k, r2max, power,
-          sectors, per_sector, min_neighbours, max_d2, block, out):
+def _grid_sectors(px, py, offsets, x0, y0, size, nbx, nby, pz, xs, ys, mask, k, r2max, power,
+                  sectors, per_sector, min_neighbours, max_d2, out):
+    """Sector search, cell by cell (its own kernel: grids without sectors never compile it)."""
     cap = max(k, sectors * per_sector)
     best_d2 = np.empty(cap)
     best_i = np.empty(cap, dtype=np.int64)
-    sec_d2 = np.empty((max(sectors, 1), max(per_sector, 1)))
-    sec_i = np.empty((max(sectors, 1), max(per_sector, 1)), dtype=np.int64)
-    sec_count = np.zeros(max(sectors, 1), dtype=np.int64)
+    sec_d2 = np.empty((sectors, per_sector))
+    sec_i = np.empty((sectors, per_sector), dtype=np.int64)
+    sec_count = np.zeros(sectors, dtype=np.int64)
     h, w = mask.shape
-    if sectors > 1:  # sector search, cell by cell
-        for r in range(h):
-            for c in range(w):
-                if not mask[r, c]:
-                    continue
-                n, nearest = _neighbours(px, py, offsets, x0, y0, size, nbx, nby, xs[c], ys[r],
-                                         k, r2max, -1, sectors, per_sector, best_d2, best_i,
-                                         sec_d2, sec_i, sec_count)
-                if n == 0 or n < min_neighbours or nearest > max_d2:
-                    continue
-                out[r, c] = idw_value(best_d2, best_i, pz, n, power)
-        return
+    for r in range(h):
+        for c in range(w):
+            if not mask[r, c]:
+                continue
+            n, nearest = _neighbours(px, py, offsets, x0, y0, size, nbx, nby, xs[c], ys[r],
+                                     k, r2max, np.int64(-1), sectors, per_sector, best_d2,
+                                     best_i, sec_d2, sec_i, sec_count)
+            if n == 0 or n < min_neighbours or nearest > max_d2:
+                continue
+            out[r, c] = idw_value(best_d2, best_i, pz, n, power)
+
+
+@njit(nogil=True, cache=True)
+def _grid(px, py, offsets, x0, y0, size, nbx, nby, pz, xs, ys, mask, k, r2max, power,
+          min_neighbours, max_d2, block, out):
+    """k nearest neighbours by blocks of cells (``block_knn``)."""
+    best_d2 = np.empty(k)
+    best_i = np.empty(k, dtype=np.int64)
+    h, w = mask.shape
     npts = len(px)
     cand_x, cand_y, cand_p, cand_d, bd2, bi, bn, bnear = block_scratch(npts, k, block)
     for r0 in range(0, h, block):
@@ -176,10 +184,15 @@ def idw_grid(xyz: np.ndarray, xs: np.ndarray, ys: np.ndarray, mask: np.ndarray,
     out = np.full((len(ys), len(xs)), np.nan)
     xs = np.asarray(xs, "float64")
     ys = np.asarray(ys, "float64")
+    mask = np.ascontiguousarray(mask, dtype=np.bool_)
+    if sectors > 1:
+        _grid_sectors(*bins.args(), bins.binned(xyz[:, 2]), xs, ys, mask, int(neighbours),
+                      _sq(radius), float(power), int(sectors), _per_sector(neighbours, sectors),
+                      int(min_neighbours), _sq(max_distance), out)
+        return out
     block = block_size(bins, neighbours, _cell(xs, ys))
-    _grid(*bins.args(), bins.binned(xyz[:, 2]), xs, ys, np.ascontiguousarray(mask, dtype=np.bool_),
-          int(neighbours), _sq(radius), float(power), int(sectors),
-          _per_sector(neighbours, sectors), int(min_neighbours), _sq(max_distance), block, out)
+    _grid(*bins.args(), bins.binned(xyz[:, 2]), xs, ys, mask, int(neighbours), _sq(radius),
+          float(power), int(min_neighbours), _sq(max_distance), block, out)
     return out
 
 

@@ -393,7 +393,9 @@ def block_knn(px, py, offsets, x0, y0, size, nbx, nby, xs, ys, c0, c1, r0, r1, m
     cx = 0.5 * (xa + xb)
     cy = 0.5 * (ya + yb)
     half_diag = 0.5 * math.sqrt((xb - xa) ** 2 + (yb - ya) ** 2)
-    count = knn_one(px, py, offsets, x0, y0, size, nbx, nby, cx, cy, k, r2max, -1, best_d2, best_i)
+    # np.int64(-1), not -1: a literal argument would compile a second knn_one
+    count = knn_one(px, py, offsets, x0, y0, size, nbx, nby, cx, cy, k, r2max, np.int64(-1),
+                    best_d2, best_i)
     reach = math.inf
     if count == k:  # (slack for the rounding of sqrt and of the squares below)
         reach = (math.sqrt(best_d2[k - 1]) + half_diag) * (1.0 + 1e-9) + 1e-9 * size

@@ -16,7 +16,8 @@ COMMON_HELP = """
     Each cell's neighbours are its NEIGHBOURS nearest data points (within RADIUS when given).
     The least squares are solved with coordinates centred on the cell and scaled by the
     farthest neighbour's distance (numerically stable; the height at the centre is the
-    constant coefficient), by Householder QR of the column-normalised design matrix. Where the
+    constant coefficient), by a Cholesky factorisation of the normal equations of the
+    column-normalised design matrix (AᵀA = RᵀR, R the triangular factor of its QR). Where the
     neighbourhood is ill-conditioned for the order (fewer neighbours than coefficients, or the
     smallest |R_ii| below MIN_RCOND: e.g. all neighbours on one or two contour lines) the fit
     falls back to the next lower order on the same neighbours (cubic -> quadratic -> plane ->

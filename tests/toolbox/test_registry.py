@@ -1,0 +1,172 @@
+"""Registry: built-ins come in through the entry-point group, one module imported per run, list/help
+from the cached spec index, and a foreign ``algorithms`` package is refused before it runs."""
+
+from __future__ import annotations
+
+import ast
+import base64
+import hashlib
+import json
+import os
+import subprocess
+import sys
+import tomllib
+from importlib.metadata import entry_points
+from pathlib import Path
+
+import pytest
+
+from toolbox import registry
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def registered_in_sources() -> dict[str, str]:
+    """id -> "module:Class" of every @register'ed class under algorithms/, read from the source."""
+    found = {}
+    for path in sorted((ROOT / "algorithms").rglob("*.py")):
+        for node in ast.parse(path.read_text()).body:
+            if isinstance(node, ast.ClassDef) and any(
+                    getattr(d, "id", None) == "register" for d in node.decorator_list):
+                ident = next(n.value.value for n in node.body if isinstance(n, ast.Assign)
+                             and getattr(n.targets[0], "id", None) == "id")
+                module = ".".join(path.relative_to(ROOT).with_suffix("").parts)
+                found[ident] = f"{module}:{node.name}"
+    return found
+
+
+def test_every_registered_algorithm_is_an_entry_point():
+    declared = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["entry-points"][
+        registry.ENTRY_POINT_GROUP]
+    in_sources = registered_in_sources()
+    assert len(in_sources) >= 23
+    missing = {k: v for k, v in in_sources.items() if declared.get(k) != v}
+    assert not missing, f"add to pyproject.toml [project.entry-points.\"toolbox.algorithms\"]: {missing}"
+    stale = sorted(set(declared) - set(in_sources))
+    assert not stale, f"entry points without a @register'ed class: {stale}"
+    installed = {ep.name: ep.value for ep in entry_points(group=registry.ENTRY_POINT_GROUP)}
+    assert declared.items() <= installed.items(), "re-run: pip install -e . --no-deps"
+
+
+def test_every_entry_point_loads_its_id():
+    for name, ep in registry._entry_points().items():
+        if registry._is_own(ep):
+            assert registry.get(name).id == name
+
+
+def python(code: str, tmp_path: Path, **env) -> subprocess.CompletedProcess:
+    environ = os.environ | {"XDG_CACHE_HOME": str(tmp_path / "cache")} | env
+    return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          cwd=tmp_path, env=environ, timeout=300)
+
+
+LOADED = ("import sys; print(sorted(m for m in sys.modules if m.startswith('algorithms.') "
+          "or m in ('numba', 'geopandas', 'scipy', 'rasterio', 'pandas')))")
+
+
+def test_get_imports_one_algorithm_module(tmp_path):
+    proc = python("import toolbox; toolbox.get('orientation:intersect');" + LOADED, tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    modules = [m for m in eval(proc.stdout) if m.startswith("algorithms.")]
+    assert modules == ["algorithms.orientation", "algorithms.orientation.intersect"]
+
+
+def test_list_and_help_read_the_cached_index_without_importing_algorithms(tmp_path):
+    first = python("from toolbox.registry import spec_index; n = len(spec_index()); "
+                   "print(n)", tmp_path)
+    assert first.returncode == 0, first.stderr
+    assert int(first.stdout) >= 23
+    cached = list((tmp_path / "cache" / "photogrammetry-toolbox").glob("specs-*.json"))
+    assert len(cached) == 1
+    second = python("from toolbox.registry import spec_index, get_spec; spec_index(); "
+                    "get_spec('dem:idw');" + LOADED, tmp_path)
+    assert second.returncode == 0, second.stderr
+    assert eval(second.stdout) == []  # no algorithm module, no heavy library
+
+
+def test_index_is_rebuilt_when_a_source_changes(tmp_path, monkeypatch):
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    key = registry._index_key(registry._entry_points())
+    registry._write_index(registry._index_path(), key, {"x:y": {"id": "x:y"}})
+    assert registry._read_index(registry._index_path(), key) == {"x:y": {"id": "x:y"}}
+    assert registry._read_index(registry._index_path(), key + "0") is None
+    source = ROOT / "algorithms" / "vector" / "info.py"
+    st = source.stat()
+    try:
+        os.utime(source, ns=(st.st_atime_ns, st.st_mtime_ns + 1_000_000_000))
+        assert registry._index_key(registry._entry_points()) != key
+    finally:
+        os.utime(source, ns=(st.st_atime_ns, st.st_mtime_ns))
+
+
+def test_index_matches_the_classes(tmp_path, monkeypatch):
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    index = registry.spec_index()
+    for alg in registry.algorithms():
+        assert json.loads(json.dumps(alg.spec())) == index[alg.id]
+
+
+def test_foreign_algorithms_package_is_refused_before_it_runs(tmp_path):
+    foreign = tmp_path / "foreign" / "algorithms"
+    foreign.mkdir(parents=True)
+    marker = tmp_path / "foreign_code_ran"
+    (foreign / "__init__.py").write_text(f"open({str(marker)!r}, 'w').close()\n")
+    proc = subprocess.run([sys.executable, "-m", "toolbox.cli", "run", "vector:info"],
+                          capture_output=True, text=True, cwd=tmp_path, timeout=300,
+                          env=os.environ | {"PYTHONPATH": str(tmp_path / "foreign"),
+                                            "XDG_CACHE_HOME": str(tmp_path / "cache")})
+    assert proc.returncode == 2
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and "'algorithms' package found at" in lines[0]
+    assert "is not part of photogrammetry-toolbox" in lines[0] and str(foreign) in lines[0]
+    assert not marker.exists()
+
+
+class FakeDist:
+    """A non-editable install: RECORD lists algorithms/__init__.py with its hash."""
+
+    def __init__(self, site: Path, digest: str):
+        from importlib.metadata import PackagePath
+
+        record = PackagePath("algorithms/__init__.py")
+        record.hash = type("Hash", (), {"mode": "sha256", "value": digest})()
+        self.files, self.site = [record], site
+
+    def read_text(self, name):
+        return None
+
+    def locate_file(self, path):
+        return self.site / path
+
+
+@pytest.mark.parametrize("same_content", [True, False])
+def test_wheel_install_checks_record_hash(tmp_path, monkeypatch, same_content):
+    init = tmp_path / "algorithms" / "__init__.py"
+    init.parent.mkdir()
+    init.write_text("# ours\n")
+    ours = b"# ours\n" if same_content else b"# an overwritten copy\n"
+    digest = base64.urlsafe_b64encode(hashlib.sha256(ours).digest()).rstrip(b"=").decode()
+    monkeypatch.setattr(registry, "distribution", lambda name: FakeDist(tmp_path, digest))
+    assert registry._belongs_to_distribution("algorithms", init.resolve()) is same_content
+    assert registry._belongs_to_distribution("toolbox", init.resolve()) is False
+
+
+HEAVY = ("numba", "geopandas", "pandas", "rasterio", "pyogrio", "cv2", "triangle", "dask", "scipy",
+         "skimage", "matplotlib")
+# Still heavy at import through library modules outside the framework: the DEM wing's parameter
+# declarations (toolbox.terrain.gridding, moving to a light module) and TIN_HELP in
+# toolbox.terrain.tin.store (which imports the kernels). Shrink this set, never grow it.
+KNOWN_HEAVY = {"dem:cross_validate", "dem:cubic", "dem:idw", "dem:nearest", "dem:plane",
+               "dem:quadratic", "dem:tin_linear", "tin:interpolate", "tin:to_raster", "tin:volume"}
+
+
+def test_framework_and_algorithm_modules_import_nothing_heavy(tmp_path):
+    """`toolbox run` pays for the kernels an algorithm uses, inside process(), not at import."""
+    modules = sorted(v.split(":")[0] for k, v in registered_in_sources().items()
+                     if k not in KNOWN_HEAVY)
+    code = ("import sys, importlib, toolbox, toolbox.cli, toolbox.runner, toolbox.report\n"
+            f"for m in {modules!r}: importlib.import_module(m)\n"
+            f"print(sorted(h for h in {HEAVY!r} if h in sys.modules))")
+    proc = python(code, tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    assert eval(proc.stdout) == [], "move these imports into process() or a function"
