@@ -432,7 +432,7 @@ def _read_warped(src, indexes, grid, region, dtype, fill, resampling) -> np.ndar
 
     reproject(rasterio.band(src, indexes), out, src_transform=src.transform, src_crs=src_crs,
               src_nodata=src.nodata, dst_transform=dst_transform, dst_crs=dst_crs,
-              dst_nodata=fill, resampling=method, init_dest_nodata=True)
+              dst_nodata=fill, resampling=method, init_dest_nodata=True, tolerance=0.01)
     return out
 
 
