@@ -503,8 +503,8 @@ def process_raster(grid: GridSpec, inputs: Mapping[str, RasterInput] | None, ker
     tile_size, halo : int
         Tile side and margin in cells.
     executor : toolbox.tiles.Executor, optional
-        Default: :func:`toolbox.tiles.resolve_executor` () (local threads, or the Dask
-        scheduler of ``DASK_SCHEDULER_ADDRESS``).
+        Default: local threads, one per CPU. Algorithms with a SCHEDULER parameter pass
+        :func:`toolbox.tiles.resolve_executor` (SCHEDULER, WORKERS) (a Dask cluster when asked).
     feedback : Feedback, optional
         Progress from ``start`` to ``end`` % over the tiles; cancellation between tiles.
     plan : callable, optional
@@ -517,9 +517,9 @@ def process_raster(grid: GridSpec, inputs: Mapping[str, RasterInput] | None, ker
 
     Returns ``{"tiles": n, "blank_tiles": m, "executor": "..."}``.
     """
-    from toolbox.tiles import map_tiles, resolve_executor
+    from toolbox.tiles import Executor, default_workers, map_tiles
 
-    executor = executor or resolve_executor()
+    executor = executor or Executor("local", default_workers())
     inputs = dict(inputs or {})
     counters = {"tiles": 0, "blank_tiles": 0}
 

@@ -200,11 +200,16 @@ class RasterWriter:
 
     def write(self, window: Any, array: np.ndarray) -> None:
         """Write ``array`` ((bands, h, w), or (h, w) for one band) at ``window`` (a rasterio
-        Window or a :class:`~toolbox.raster.engine.Tile`) of the grid; cast to the dtype."""
+        Window or a :class:`~toolbox.raster.engine.Tile`) of the grid; cast to the dtype. NaN
+        in a float array (the kernels' "no value") is written as ``nodata``."""
         window = getattr(window, "window", window)
         data = array[np.newaxis] if array.ndim == 2 else array
         if data.shape[0] != self.count:
             raise ValueError(f"{data.shape[0]} bands written to a {self.count}-band raster")
+        if data.dtype.kind == "f" and self.nodata is not None and not math.isnan(self.nodata):
+            missing = np.isnan(data)
+            if missing.any():
+                data = np.where(missing, data.dtype.type(self.nodata), data)
         if data.dtype != self.dtype:
             data = data.astype(self.dtype)
         self.dataset.write(data, window=window)
