@@ -4,18 +4,23 @@ from __future__ import annotations
 
 from toolbox.parameters import Integer, Number
 from toolbox.registry import register
-from toolbox.terrain.gridding.base import GriddingAlgorithm, neighbour_parameters
-from toolbox.terrain.gridding.gridding import STATISTICS, execution_parameters, grid_parameters
-from toolbox.terrain.gridding.inputs import source_parameters
+from toolbox.terrain.gridding.algorithm import GriddingAlgorithm
+from toolbox.terrain.gridding.parameters import (
+    STATISTICS,
+    execution_parameters,
+    grid_parameters,
+    neighbour_parameters,
+    source_parameters,
+)
 
 
 @register
 class IdwGrid(GriddingAlgorithm):
     """DEM by inverse distance weighting: each cell takes the weighted mean
     ``Q = Σ q_k / d_k^p  /  Σ 1 / d_k^p`` of the heights ``q_k`` of its neighbours at distances
-    ``d_k`` from the cell centre (S002 par. 2.5.2 eq. [45], which uses p = 1;
-    ../shared/docs/domain.md section 14). A cell centre on a data point takes its height, so
-    the surface is exact at the data and never leaves their height range.
+    ``d_k`` from the cell centre (S002 par. 2.5.2 eq. [45], which uses p = 1). A cell centre on
+    a data point takes its height, so the surface is exact at the data and never leaves their
+    height range.
 
     Neighbours: the NEIGHBOURS nearest points (default 12), only within RADIUS when given;
     with SECTORS > 1 (needs RADIUS) the ceil(NEIGHBOURS / SECTORS) nearest points of each of
