@@ -34,10 +34,15 @@ LOCAL = Executor("local", 2)
 
 
 def write(path, array, transform, crs=CRS, nodata=None, **kw):
+    import warnings
+
     data = array if array.ndim == 3 else array[None]
-    with rasterio.open(path, "w", driver="GTiff", width=data.shape[2], height=data.shape[1],
-                       count=data.shape[0], dtype=data.dtype, crs=crs, transform=transform,
-                       nodata=nodata, **kw) as dst:
+    with warnings.catch_warnings():  # a photo without georeferencing is what we mean
+        warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
+        dst = rasterio.open(path, "w", driver="GTiff", width=data.shape[2],
+                            height=data.shape[1], count=data.shape[0], dtype=data.dtype, crs=crs,
+                            transform=transform, nodata=nodata, **kw)
+    with dst:
         dst.write(data)
     return path
 
@@ -237,7 +242,23 @@ def test_cog_passes_the_layout_checks_and_a_plain_tiff_does_not(tmp_path):
             if cog:
                 assert src.tags(ns="IMAGE_STRUCTURE")["LAYOUT"] == "COG"
         assert (problems == []) == cog, problems
+        valid = gdal_cog_validator(path)  # GDAL's own validator, where its Python is installed
+        assert valid is None or valid == cog
     assert not list(tmp_path.glob(".*"))  # the intermediate tiled file is gone
+
+
+def gdal_cog_validator(path) -> bool | None:
+    """GDAL's validate_cloud_optimized_geotiff.py (from the system's GDAL Python bindings, run
+    by the system Python); None when not installed."""
+    import shutil
+    import subprocess
+
+    python = shutil.which("python3", path="/usr/bin:/usr/local/bin")
+    module = "osgeo_utils.samples.validate_cloud_optimized_geotiff"
+    if python is None or subprocess.run([python, "-c", f"import {module}"],
+                                         capture_output=True).returncode != 0:
+        return None
+    return subprocess.run([python, "-m", module, str(path)], capture_output=True).returncode == 0
 
 
 def test_failed_write_leaves_nothing(tmp_path):
@@ -324,3 +345,20 @@ def test_kernels_may_be_partials_of_module_functions(tmp_path):
 
 def _constant(value, tile, arrays):
     return np.full(tile.shape, value)
+
+
+def _blas_threads(_):
+    from threadpoolctl import threadpool_info
+
+    return [i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"]
+
+
+def test_blas_is_limited_to_one_thread_inside_tile_threads_only():
+    from toolbox.tiles import map_tiles
+
+    before = _blas_threads(0)
+    if not before or max(before) == 1:
+        pytest.skip("no multi-threaded BLAS here")
+    inside = list(map_tiles(_blas_threads, [0, 1, 2], workers=2))
+    assert all(threads == [1] * len(before) for threads in inside)
+    assert _blas_threads(0) == before  # restored afterwards
