@@ -54,7 +54,8 @@ from toolbox.io.grid import GridSpec, max_cells_default
 
 __all__ = [
     "BOUNDARY_RULES", "GridSpec", "RasterInput", "Tile", "check_grid_parameters",
-    "grid_from_parameters", "iter_tiles", "process_raster", "read_window", "warp_raster",
+    "grid_from_parameters", "iter_tiles", "process_raster", "read_window", "tile_count",
+    "warp_raster",
 ]
 
 BOUNDARY_RULES = ("nodata", "edge", "reflect")
