@@ -12,6 +12,7 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
+from numba import njit
 
 
 class TinTiles:
@@ -23,15 +24,14 @@ class TinTiles:
 
     def __init__(self, nodes: np.ndarray, triangles: np.ndarray, grid: Any, tile_size: int,
                  origin: tuple[float, float] = (0.0, 0.0)):
-        from toolbox.terrain.tin.kernels import triangles_by_tile
-
         t = grid.transform
         self.nodes = np.asarray(nodes, dtype="float64")
-        self.triangles = np.asarray(triangles, dtype=np.int64)
+        self.triangles = np.ascontiguousarray(triangles, dtype=np.int64)
         self.origin = origin
-        self.order, self.start, _ = triangles_by_tile(
-            self.nodes[:, :2], self.triangles, t.c - origin[0], t.f - origin[1], t.a, -t.e,
-            grid.width, grid.height, tile_size)
+        self.order, self.start = group_by_tile(
+            np.ascontiguousarray(self.nodes[:, 0]), np.ascontiguousarray(self.nodes[:, 1]),
+            self.triangles, t.c - origin[0], t.f - origin[1], t.a, -t.e, grid.width,
+            grid.height, tile_size)
 
     def plan(self, tile: Any) -> dict[str, np.ndarray] | None:
         """The tile's ``nodes`` and ``triangles`` (renumbered), None when no triangle touches
@@ -52,3 +52,63 @@ def tin_tile(origin: tuple[float, float], tile: Any, arrays: dict) -> np.ndarray
     h, w = tile.shape
     return rasterize_tin(arrays["nodes"], arrays["triangles"], t.c - origin[0], t.f - origin[1],
                          t.a, -t.e, w, h)
+
+
+@njit(cache=True, nogil=True)
+def _tile_range(px, py, tri, k, x0, y0, cell_x, cell_y, width, height, tile):
+    """Tile columns and rows (inclusive) whose cells triangle ``k``'s box may cover (one cell of
+    margin: cell centres are what count); tx1 < tx0 when it covers none."""
+    a, b, c = tri[k, 0], tri[k, 1], tri[k, 2]
+    xmin = min(px[a], px[b], px[c])
+    xmax = max(px[a], px[b], px[c])
+    ymin = min(py[a], py[b], py[c])
+    ymax = max(py[a], py[b], py[c])
+    c_lo = np.floor((xmin - x0) / cell_x - 0.5)
+    c_hi = np.ceil((xmax - x0) / cell_x - 0.5)
+    r_lo = np.floor((y0 - ymax) / cell_y - 0.5)
+    r_hi = np.ceil((y0 - ymin) / cell_y - 0.5)
+    if c_hi < 0 or c_lo > width - 1 or r_hi < 0 or r_lo > height - 1:
+        return 0, -1, 0, -1
+    tx0 = int(max(c_lo, 0.0)) // tile
+    tx1 = int(min(c_hi, width - 1.0)) // tile
+    ty0 = int(max(r_lo, 0.0)) // tile
+    ty1 = int(min(r_hi, height - 1.0)) // tile
+    return tx0, tx1, ty0, ty1
+
+
+@njit(cache=True, nogil=True)
+def _group(px, py, tri, x0, y0, cell_x, cell_y, width, height, tile, ntx, nty):
+    start = np.zeros(ntx * nty + 1, dtype=np.int64)
+    for k in range(tri.shape[0]):  # pass 1: triangles per tile
+        tx0, tx1, ty0, ty1 = _tile_range(px, py, tri, k, x0, y0, cell_x, cell_y, width,
+                                         height, tile)
+        for ty in range(ty0, ty1 + 1):
+            for tx in range(tx0, tx1 + 1):
+                start[ty * ntx + tx + 1] += 1
+    for i in range(ntx * nty):
+        start[i + 1] += start[i]
+    fill = start[:-1].copy()
+    order = np.empty(start[-1], dtype=np.int64)
+    for k in range(tri.shape[0]):  # pass 2: in triangle order within each tile
+        tx0, tx1, ty0, ty1 = _tile_range(px, py, tri, k, x0, y0, cell_x, cell_y, width,
+                                         height, tile)
+        for ty in range(ty0, ty1 + 1):
+            for tx in range(tx0, tx1 + 1):
+                key = ty * ntx + tx
+                order[fill[key]] = k
+                fill[key] += 1
+    return order, start
+
+
+def group_by_tile(px: np.ndarray, py: np.ndarray, triangles: np.ndarray, x0: float, y0: float,
+                  cell_x: float, cell_y: float, width: int, height: int,
+                  tile: int) -> tuple[np.ndarray, np.ndarray]:
+    """Triangles grouped by the ``tile`` x ``tile`` tiles (row by row from the top-left) their
+    bounding boxes overlap, by counting sort in two passes (no temporary per triangle-tile
+    pair): tile ``k``'s triangles are ``order[start[k]:start[k + 1]]``, in increasing index.
+    ``(x0, y0)`` is the grid's top-left corner in the nodes' coordinates. The same grouping as
+    :func:`toolbox.terrain.tin.kernels.triangles_by_tile`."""
+    ntx = max(1, -(-int(width) // tile))
+    nty = max(1, -(-int(height) // tile))
+    return _group(px, py, triangles, float(x0), float(y0), float(cell_x), float(cell_y),
+                  int(width), int(height), int(tile), ntx, nty)
