@@ -8,8 +8,8 @@ Cloud Optimized GeoTIFF.
   3 (floating point) for floats,
 - internal overviews built at close (``average`` by default), halving until the smallest level
   fits in one tile (GDAL's COG rule), compressed like the data,
-- an alpha band (the last band, ``alpha=True``) or a nodata value; RGB photometry for three
-  8/16-bit data bands,
+- an alpha band (the last band, ``alpha=True``) or a nodata value (NaN in a float array, the
+  kernels' "no value", is written as nodata); RGB photometry for three integer data bands,
 - ``cog=True``: a Cloud Optimized GeoTIFF, made by GDAL's COG driver from the tiled file (IFDs
   first, smallest overview's data first, the main image last), which GDAL's COG validator
   accepts; :func:`cog_problems` checks that layout without GDAL's Python bindings.
