@@ -12,7 +12,8 @@ Run standalone: ``.venv/bin/python bench/rectify_bench.py [--no-big] [--keep]``.
      band-sequential arrays (rasterio's layout), OpenCV also without the layout conversion;
    - file to file: ``rectify:image`` vs a script that reads the whole photo with rasterio,
      warps it with ``cv2.warpPerspective`` and writes the same tiled DEFLATE GeoTIFF (RGB +
-     alpha, no overviews in either).
+     alpha, no overviews in either), and vs ``gdalwarp -order 3`` from 25 GCPs of the
+     homography (when GDAL's command line is installed).
 3. A 16644 x 16644 RGB scan (the Siena scans' size), generated window by window as a tiled
    GeoTIFF: ``rectify:image`` in a subprocess, peak RSS measured (the child's ``VmHWM`` and
    psutil polling); the files are deleted afterwards.
@@ -256,7 +257,37 @@ def bench_files(data: np.ndarray, folder: Path) -> list[dict]:
                      "ours": t_ours, "peer": t_peer,
                      "peer_name": "rasterio read + cv2.warpPerspective + rasterio write",
                      "extra": f"output {grid.width} x {grid.height}"})
+        t_gdal = gdalwarp_order3(src_path, p2g, width, height, grid, method, folder)
+        if t_gdal is not None:
+            rows.append({"case": f"12 Mpx RGB GeoTIFF -> GeoTIFF (RGB + alpha, DEFLATE), {method}",
+                         "ours": t_ours, "peer": t_gdal,
+                         "peer_name": "gdalwarp -order 3 (25 GCPs, -multi, ALL_CPUS)",
+                         "extra": "whole command; a cubic polynomial approximates the homography"})
     return rows
+
+
+def gdalwarp_order3(src_path: Path, p2g: np.ndarray, width: int, height: int, grid, method: str,
+                    folder: Path) -> float | None:
+    """Seconds of ``gdalwarp -order 3`` (best of 2) onto the same grid and file layout, from a
+    VRT of the photo with 5 x 5 GCPs of the homography; None without GDAL's command line."""
+    gdal_translate, gdalwarp = shutil.which("gdal_translate"), shutil.which("gdalwarp")
+    if gdal_translate is None or gdalwarp is None:
+        return None
+    cols, rows = np.meshgrid(np.linspace(0, width, 5), np.linspace(0, height, 5))
+    pixels = np.column_stack([cols.ravel(), rows.ravel()])
+    ground = apply(p2g, pixels)
+    gcps = [a for (c, r), (x, y) in zip(pixels, ground, strict=True)
+            for a in ("-gcp", f"{c}", f"{r}", f"{x}", f"{y}")]
+    vrt = folder / "gcps.vrt"
+    subprocess.run([gdal_translate, "-q", "-of", "VRT", *gcps, str(src_path), str(vrt)],
+                   check=True)
+    x0, y0, x1, y1 = grid.bounds
+    cmd = [gdalwarp, "-q", "-overwrite", "-order", "3", "-r", method, "-multi",
+           "-wo", "NUM_THREADS=ALL_CPUS", "-te", *map(str, (x0, y0, x1, y1)),
+           "-ts", str(grid.width), str(grid.height), "-dstalpha", "-co", "TILED=YES",
+           "-co", "COMPRESS=DEFLATE", "-co", "PREDICTOR=2", "-co", "NUM_THREADS=ALL_CPUS",
+           str(vrt), str(folder / "gdal.tif")]
+    return best_of(lambda: subprocess.run(cmd, check=True), 2)
 
 
 # -- 3. the 16644 x 16644 scan ------------------------------------------------------------------

@@ -174,10 +174,25 @@ def _map_local(func, tasks, workers, prefetch, feedback, total, start, end) -> I
 
     pool = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="tile")
     try:
-        yield from _in_order(lambda task: pool.submit(func, task), tasks,
-                             prefetch or max(4, 2 * workers), feedback, total, start, end)
+        with one_blas_thread():
+            yield from _in_order(lambda task: pool.submit(func, task), tasks,
+                                 prefetch or max(4, 2 * workers), feedback, total, start, end)
     finally:
         pool.shutdown(wait=True, cancel_futures=True)
+
+
+def one_blas_thread():
+    """Context limiting BLAS/OpenMP libraries to one thread while our own threads run tiles
+    (each tile's small solves would otherwise spin a BLAS thread pool per core and oversubscribe
+    the machine: 10-100x slower on a busy 2-core host). The previous limits are restored on
+    exit; no environment variable is changed."""
+    from contextlib import nullcontext
+
+    try:
+        from threadpoolctl import threadpool_limits
+    except ImportError:  # pragma: no cover - a dependency
+        return nullcontext()
+    return threadpool_limits(limits=1, user_api="blas")
 
 
 def _map_dask(func, tasks, executor, prefetch, feedback, total, start, end) -> Iterator:

@@ -19,11 +19,9 @@ from toolbox.parameters import (
     String,
 )
 from toolbox.registry import register
-from toolbox.terrain.gridding.base import _jsonable_options
-from toolbox.terrain.gridding.gridding import write_quality
-from toolbox.terrain.gridding.inputs import check_sources, read_sources, require_points, source_parameters
+from toolbox.terrain.gridding.inputs import check_sources
 from toolbox.terrain.gridding.methods import METHODS
-from toolbox.terrain.gridding.polynomial import DEFAULT_MIN_RCOND
+from toolbox.terrain.gridding.parameters import DEFAULT_MIN_RCOND, source_parameters
 
 ALL_METHODS = ("nearest", "idw", "plane", "quadratic", "cubic", "tin_linear")
 
@@ -112,6 +110,8 @@ class CrossValidate(Algorithm):
 
     def process(self, params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
         from toolbox.io.crs import crs_label
+        from toolbox.terrain.gridding.inputs import read_sources, require_points
+        from toolbox.terrain.gridding.run import jsonable_options, write_quality
         from toolbox.terrain.gridding.validation import add_worst_point, error_summary, loo_predict
 
         names = parse_methods(params["METHODS"])
@@ -131,7 +131,7 @@ class CrossValidate(Algorithm):
                     feedback.step(i * step, (i + 1) * step), params.get("WORKERS"))
             summary = error_summary(predicted, local[:, 2]) | details
             add_worst_point(summary, data.xyz, predicted)
-            summary["options"] = _jsonable_options(options)
+            summary["options"] = jsonable_options(options)
             results[name] = summary
             predictions[name] = predicted
         ranking = sorted((n for n in names if results[n]["rmse"] is not None),

@@ -3,16 +3,16 @@
 from __future__ import annotations
 
 from toolbox.registry import register
-from toolbox.terrain.gridding.gridding import STATISTICS
-from toolbox.terrain.gridding.polynomial_base import COMMON_HELP, PolynomialGrid, polynomial_parameters
+from toolbox.terrain.gridding.algorithm import GriddingAlgorithm
+from toolbox.terrain.gridding.parameters import POLYNOMIAL_HELP, STATISTICS, polynomial_parameters
 
 
 @register
-class CubicGrid(PolynomialGrid):
+class CubicGrid(GriddingAlgorithm):
     __doc__ = """DEM by local cubic surfaces: each cell takes, at its centre, the surface
     ``z = a·x³ + b·y³ + c·x²y + d·xy² + e·x² + f·y² + g·xy + h·x + i·y + l`` fitted by least
     squares to its k nearest data points (S002 par. 2.5.2 eq. [48], at least 10 points). Default k = 20.
-    """ + COMMON_HELP
+    """ + POLYNOMIAL_HELP
 
     id = "dem:cubic"
     display_name = "DEM by local cubic surfaces"

@@ -4,9 +4,14 @@ from __future__ import annotations
 
 from toolbox.parameters import Integer, Number
 from toolbox.registry import register
-from toolbox.terrain.gridding.base import GriddingAlgorithm, neighbour_parameters
-from toolbox.terrain.gridding.gridding import STATISTICS, execution_parameters, grid_parameters
-from toolbox.terrain.gridding.inputs import source_parameters
+from toolbox.terrain.gridding.algorithm import GriddingAlgorithm
+from toolbox.terrain.gridding.parameters import (
+    STATISTICS,
+    execution_parameters,
+    grid_parameters,
+    neighbour_parameters,
+    source_parameters,
+)
 
 
 @register

@@ -3,9 +3,13 @@
 from __future__ import annotations
 
 from toolbox.registry import register
-from toolbox.terrain.gridding.base import GriddingAlgorithm
-from toolbox.terrain.gridding.gridding import STATISTICS, execution_parameters, grid_parameters
-from toolbox.terrain.gridding.inputs import source_parameters
+from toolbox.terrain.gridding.algorithm import GriddingAlgorithm
+from toolbox.terrain.gridding.parameters import (
+    STATISTICS,
+    execution_parameters,
+    grid_parameters,
+    source_parameters,
+)
 
 
 @register
@@ -15,13 +19,16 @@ class NearestGrid(GriddingAlgorithm):
 
     Data points are the INPUT points and/or the vertices of LINES (e.g. contours) and
     BREAKLINES; points sharing an XY position are merged first (DUPLICATES rule, reported).
-    The grid is CELL_SIZE over EXTENT (default: the data bounds), snapped outwards to multiples
-    of the cell size, or the grid of a TEMPLATE raster. Cells whose centre is outside the data's
+    The grid is CELL_SIZE over EXTENT taken as given (origin at its xmin/ymax; the east and
+    south edges round up to whole cells), by default over the data bounds snapped outwards to
+    multiples of the cell size; or the grid of a TEMPLATE raster (cut to EXTENT on its lattice
+    when both are given). Cells whose centre is outside the data's
     convex hull (unless EXTRAPOLATE), outside MASK, or farther than MAX_DISTANCE from every
     point are nodata. Among points at exactly the same distance the one met first in the
     search wins.
 
-    The output is written tile by tile (TILE_SIZE cells, each with the points within a halo
+    The output (tiled 512, DEFLATE, overviews; COG: a Cloud Optimized GeoTIFF) is written
+    tile by tile (TILE_SIZE cells, each with the points within a halo
     found with a neighbour index), on local threads or on a Dask cluster (SCHEDULER or
     DASK_SCHEDULER_ADDRESS); the file is identical either way. QUALITY writes a leave-one-out
     cross-validation report (RMSE, mean and max error).

@@ -3,16 +3,16 @@
 from __future__ import annotations
 
 from toolbox.registry import register
-from toolbox.terrain.gridding.gridding import STATISTICS
-from toolbox.terrain.gridding.polynomial_base import COMMON_HELP, PolynomialGrid, polynomial_parameters
+from toolbox.terrain.gridding.algorithm import GriddingAlgorithm
+from toolbox.terrain.gridding.parameters import POLYNOMIAL_HELP, STATISTICS, polynomial_parameters
 
 
 @register
-class PlaneGrid(PolynomialGrid):
+class PlaneGrid(GriddingAlgorithm):
     __doc__ = """DEM by local planes: each cell takes, at its centre, the plane
     ``z = a·x + b·y + c`` fitted by least squares to its k nearest data points (S002 par. 2.5.2
     eq. [46], at least 3 points). Default k = 8.
-    """ + COMMON_HELP
+    """ + POLYNOMIAL_HELP
 
     id = "dem:plane"
     display_name = "DEM by local planes"

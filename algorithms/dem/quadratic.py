@@ -3,17 +3,17 @@
 from __future__ import annotations
 
 from toolbox.registry import register
-from toolbox.terrain.gridding.gridding import STATISTICS
-from toolbox.terrain.gridding.polynomial_base import COMMON_HELP, PolynomialGrid, polynomial_parameters
+from toolbox.terrain.gridding.algorithm import GriddingAlgorithm
+from toolbox.terrain.gridding.parameters import POLYNOMIAL_HELP, STATISTICS, polynomial_parameters
 
 
 @register
-class QuadraticGrid(PolynomialGrid):
+class QuadraticGrid(GriddingAlgorithm):
     __doc__ = """DEM by local quadratic surfaces: each cell takes, at its centre, the surface
     ``z = a·x² + b·y² + c·xy + d·x + e·y + f`` fitted by least squares to its k nearest data
     points (S002 par. 2.5.2 eq. [47], at least 6 points).
     Default k = 12.
-    """ + COMMON_HELP
+    """ + POLYNOMIAL_HELP
 
     id = "dem:quadratic"
     display_name = "DEM by local quadratic surfaces"

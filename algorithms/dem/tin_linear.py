@@ -2,28 +2,13 @@
 
 from __future__ import annotations
 
-import math
-from collections.abc import Iterator
-from typing import Any
-
-import numpy as np
-
-from toolbox.errors import InputDataError
-from toolbox.feedback import Feedback
 from toolbox.registry import register
-from toolbox.terrain.gridding.base import GriddingAlgorithm
-from toolbox.terrain.gridding.gridding import (
+from toolbox.terrain.gridding.algorithm import GriddingAlgorithm
+from toolbox.terrain.gridding.parameters import (
     STATISTICS,
-    GridRun,
-    NeighbourPlanner,
-    TileTask,
     execution_parameters,
     grid_parameters,
-)
-from toolbox.terrain.gridding.inputs import source_parameters
-from toolbox.terrain.gridding.tin_linear import (  # noqa: F401
-    constrained_tin,
-    tin_tile,
+    source_parameters,
 )
 
 
@@ -54,60 +39,8 @@ class TinLinearGrid(GriddingAlgorithm):
     parameters = source_parameters() + grid_parameters() + execution_parameters()
     outputs = [STATISTICS]
 
-    def tasks(self, run: GridRun, options: dict[str, Any],
-              feedback: Feedback) -> Iterator[TileTask]:
-        from toolbox.terrain.tin.kernels import triangles_by_tile
-
-        segments = run.data.segments if len(run.data.segments) else None
-        with feedback.timed("triangulate"):
-            try:
-                local, triangles, info = constrained_tin(run.data.local, segments)
-            except ValueError as exc:
-                raise InputDataError(f"cannot triangulate the data points: {exc}") from None
-        self.tin_info = {"triangles": len(triangles), **info}
-        if info.get("crossing_z_disagreement", 0) > 0:
-            feedback.push_warning(f"{info['crossings']} breakline crossings without a shared "
-                                  "vertex; the crossing breaklines disagree in Z by up to "
-                                  f"{info['crossing_z_disagreement']:.3f} (mean used)")
-        grid = run.grid
-        t = grid.transform
-        ox, oy = run.data.origin
-        x0, y0 = t.c - ox, t.f - oy
-        cell_x, cell_y = t.a, -t.e
-        with feedback.timed("tiles_index"):
-            order, start, _ = triangles_by_tile(local[:, :2], triangles, x0, y0, cell_x, cell_y,
-                                                grid.width, grid.height, run.tile)
-        max_distance = options["max_distance"]
-        near = NeighbourPlanner(run.data.local, 1, max_distance, run.data.bins) \
-            if math.isfinite(max_distance) else None
-        return self._tasks(run, local, triangles, order, start, near, options)
-
-    def _tasks(self, run, local, triangles, order, start, near, options):
-        t = run.grid.transform
-        ox, oy = run.data.origin
-        for index, tw in enumerate(run.windows()):
-            xs, ys = run.centres(tw.core)
-            ids = order[start[index]:start[index + 1]]
-            mask = run.cell_mask(tw.core, xs, ys) if len(ids) else None
-            if mask is None or not mask.any():
-                yield TileTask(index, None, xs, ys, None, None)
-                continue
-            tri = triangles[ids]
-            nodes, inverse = np.unique(tri.ravel(), return_inverse=True)
-            extra: dict[str, Any] = {"triangles": inverse.reshape(-1, 3).astype(np.int64)}
-            if near is not None:
-                extra["near"] = near.payload(xs.min(), ys.min(), xs.max(), ys.max(),
-                                             max(run.grid.cell_size))
-            opts = dict(options) | {
-                "x0": (t.c - ox) + tw.core.col_off * t.a, "y0": (t.f - oy) + tw.core.row_off * t.e,
-                "cell_x": t.a, "cell_y": -t.e}
-            yield TileTask(index, tin_tile, xs, ys, mask, np.ascontiguousarray(local[nodes]),
-                           opts, extra)
-
     def process(self, params, feedback):
         if params.get("EXTRAPOLATE"):
             feedback.push_warning("EXTRAPOLATE does not apply to dem:tin_linear: cells outside "
                                   "the TIN stay nodata")
-        result = super().process(params, feedback)
-        result["STATISTICS"]["method"].update(getattr(self, "tin_info", {}))
-        return result
+        return super().process(params, feedback)

@@ -1,9 +1,9 @@
 """rectify:image - warp a photo onto the ground plane with a rectify:estimate transform.
 
-Kernels: :func:`pixel_to_ground_matrix` (compose with the interior orientation),
-:func:`footprint` (ground outline of the photo), :func:`default_cell_size`; the streamed warp is
-:func:`toolbox.raster.warp.warp_to_geotiff` with a
-:class:`~toolbox.raster.warp.HomographyMap`.
+Library code: :mod:`toolbox.transforms.rectification` (pixel -> ground matrix, footprint,
+default cell size), the raster engine's grid rules, :func:`toolbox.raster.engine.warp_raster`
+with a :class:`~toolbox.raster.warp.HomographyMap`, and
+:class:`~toolbox.raster.writer.RasterWriter`.
 """
 
 from __future__ import annotations
@@ -26,20 +26,10 @@ from toolbox.parameters import (
     RasterLayer,
     String,
 )
-from toolbox.raster.warp import RESAMPLING_METHODS, HomographyMap, warp_to_geotiff
 from toolbox.registry import register
-from toolbox.transforms.rectification import (  # noqa: F401
-    MODES,
-    OUTSIDE,
-    RectificationModel,
-    _apply,
-    default_cell_size,
-    footprint,
-    load_transform,
-    parse_pixel_to_image,
-    pixel_to_ground_matrix,
-    write_gcp_geotiff,
-)
+from toolbox.transforms.rectification import MODES, OUTSIDE, RectificationModel, parse_pixel_to_image
+
+RESAMPLING_METHODS = ("nearest", "bilinear", "cubic", "lanczos")  # toolbox.raster.warp's
 
 
 @register
@@ -51,12 +41,14 @@ class RectifyImage(Algorithm):
     position (pixel convention: origin at the top-left corner of the top-left pixel, rows down,
     pixel centres at +0.5), where the photo is resampled (nearest, bilinear, cubic or lanczos,
     by OpenCV). The output grid is north-up with square cells of CELL_SIZE (default: the ground
-    size of a photo pixel at its centre), covering EXTENT (default: the photo's ground
-    footprint), edges snapped to multiples of the cell. Outside the photo the output has
-    alpha 0 (OUTSIDE=alpha, default) or NODATA. The work is streamed window by window (the
-    source window each output window needs, plus the interpolation margin), so memory stays
-    bounded for any size of photo (e.g. a 16644 x 16644 scan); the output is a tiled, DEFLATE
-    GeoTIFF in the transform's CRS (none for a local object system), with overviews.
+    size of a photo pixel at its centre), covering EXTENT as given (origin at its xmin/ymax;
+    the east and south edges round up to whole cells), by default the photo's ground
+    footprint with edges snapped to multiples of the cell. Outside the photo the output has
+    alpha 0 (OUTSIDE=alpha, default) or NODATA. The work is streamed tile by tile on local
+    threads (the source window each output tile needs, plus the interpolation margin), so
+    memory stays bounded for any size of photo (e.g. a 16644 x 16644 scan); the output is a
+    tiled, DEFLATE GeoTIFF in the transform's CRS (none for a local object system), with
+    overviews; COG writes a Cloud Optimized GeoTIFF.
 
     Any raster GDAL reads is accepted (TIFF, JPEG, PNG...; 1-4 or more bands, 8/16-bit or
     float); its own georeferencing, if any, is ignored. A transform in image mm needs the
@@ -87,6 +79,7 @@ class RectifyImage(Algorithm):
         Number("NODATA", "nodata value with OUTSIDE=nodata (default: the photo's, else 0, NaN "
                "for float)", optional=True),
         Boolean("OVERVIEWS", "build internal overviews", default=True),
+        Boolean("COG", "write a Cloud Optimized GeoTIFF (MODE=warp)", default=False),
         OutputRaster("OUTPUT", "rectified GeoTIFF (or GCP GeoTIFF with MODE=gcps)"),
     ]
     outputs = [Output("STATISTICS", "grid, footprint and warp counters", "json")]
@@ -105,7 +98,16 @@ class RectifyImage(Algorithm):
 
     def process(self, params, feedback: Feedback):
         from toolbox.io.crs import crs_label, same_crs
-        from toolbox.io.grid import GridSpec
+        from toolbox.raster.engine import grid_from_parameters, warp_raster
+        from toolbox.raster.warp import HomographyMap, warp_layout
+        from toolbox.raster.writer import RasterWriter
+        from toolbox.transforms.rectification import (
+            _apply,
+            default_cell_size,
+            footprint,
+            load_transform,
+            pixel_to_ground_matrix,
+        )
 
         info = params["INPUT"]
         model = load_transform(params["TRANSFORM"], "TRANSFORM")
@@ -132,18 +134,28 @@ class RectifyImage(Algorithm):
                 raise
             feedback.push_warning("the ground plane's vanishing line crosses the photo; only "
                                   "the part in front of the camera is rectified")
-        cell = params["CELL_SIZE"] or default_cell_size(matrix, info.width, info.height)
-        bounds = extent.bounds if extent is not None else (
+        bounds = None if corners is None else (
             float(corners[:, 0].min()), float(corners[:, 1].min()),
             float(corners[:, 0].max()), float(corners[:, 1].max()))
-        grid = GridSpec.from_bounds(bounds, cell, model.crs, snap=True, name="CELL_SIZE")
+        grid = grid_from_parameters(
+            params, bounds, model.crs,
+            default_cell_size=lambda: default_cell_size(matrix, info.width, info.height))
+        cell = grid.cell_size[0]
         centre, _ = _apply(matrix, np.array([[info.width / 2.0, info.height / 2.0]]))
         coordinate_map = HomographyMap(np.linalg.inv(matrix), grid.transform,
                                        front=(float(centre[0, 0]), float(centre[0, 1])))
-        with feedback.timed("warp"):
-            stats = warp_to_geotiff(info.path, coordinate_map, grid, params["OUTPUT"],
-                                    params["RESAMPLING"], params["OUTSIDE"], params["NODATA"],
-                                    overviews=params["OVERVIEWS"], feedback=feedback, tags=tags)
+        try:
+            layout = warp_layout(info, params["OUTSIDE"], params["NODATA"])
+        except ValueError as exc:
+            raise ParameterError("NODATA" if params["NODATA"] is not None else "INPUT",
+                                 str(exc)) from None
+        writer = RasterWriter(params["OUTPUT"], grid, layout.count, layout.dtype, layout.nodata,
+                              alpha=layout.alpha, cog=params["COG"],
+                              overviews=params["OVERVIEWS"], tags=tags)
+        with feedback.timed("warp"), writer:
+            stats = warp_raster(info, grid, coordinate_map, writer, layout=layout,
+                                resampling=params["RESAMPLING"], tile_size=2048,
+                                feedback=feedback, end=95 if params["OVERVIEWS"] else 100)
         return {"OUTPUT": params["OUTPUT"], "STATISTICS": {
             "model": model.model, "crs": crs_label(model.crs), "cell_size": cell,
             "width": grid.width, "height": grid.height, "bounds": list(grid.bounds),
@@ -154,6 +166,7 @@ class RectifyImage(Algorithm):
     @staticmethod
     def _gcps(params, model: RectificationModel, p2i, tags, feedback: Feedback):
         from toolbox.io.crs import crs_label
+        from toolbox.transforms.rectification import _apply, write_gcp_geotiff
 
         used = model.control_points()
         if not used:

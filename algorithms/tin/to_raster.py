@@ -7,14 +7,12 @@ import numpy as np
 from toolbox.algorithm import Algorithm
 from toolbox.errors import InputDataError
 from toolbox.feedback import Feedback
-from toolbox.io.crs import common_crs, crs_label, same_crs
-from toolbox.io.grid import GridSpec
-from toolbox.io.raster import DEFAULT_BLOCK, build_overviews, geotiff_profile, iter_windows
 from toolbox.parameters import (
     Boolean,
     Crs,
     Enum,
     ExtentParameter,
+    Integer,
     Number,
     Output,
     OutputRaster,
@@ -22,19 +20,7 @@ from toolbox.parameters import (
     VectorLayer,
 )
 from toolbox.registry import register
-from toolbox.terrain.tin.kernels import rasterize_tin, triangles_by_tile
-from toolbox.terrain.tin.store import TIN_HELP, read_tin
-
-
-def tin_grid(xy: np.ndarray, crs, cell_size: float | None, extent=None, template=None
-             ) -> GridSpec:
-    """Output grid: the template's, or ``extent`` (default: the nodes' bounds) snapped outwards
-    to multiples of ``cell_size``."""
-    if template is not None:
-        return GridSpec.from_raster(template)
-    bounds = extent.bounds if extent is not None else (
-        *xy.min(axis=0), *xy.max(axis=0))
-    return GridSpec.from_bounds(bounds, cell_size, crs)
+from toolbox.terrain.tin.store import TIN_HELP
 
 
 @register
@@ -43,10 +29,14 @@ class ToRaster(Algorithm):
     (thesis eq. [43]-[44]; cell values belong to cell centres, par. 2.5.2), exactly, with no
     smoothing or resampling. Cells whose centre lies outside the TIN are NODATA.
 
-    Grid: TEMPLATE's grid, or EXTENT (default: the TIN's bounds) snapped outwards to multiples of
-    CELL_SIZE. CRS (default: the TIN's) reprojects the TIN's nodes before rasterising (the
-    triangles are kept; a warning says so). The raster is computed and written tile by tile
-    (only the triangles touching each tile are drawn), so memory stays bounded for any size.
+    Grid (the rules of every raster output): TEMPLATE's grid (cut to EXTENT on its lattice when
+    both are given); else CELL_SIZE over EXTENT as given (origin at its xmin/ymax, the east and
+    south edges rounded up to whole cells), by default over the TIN's bounds snapped outwards to
+    multiples of CELL_SIZE; MAX_CELLS guards the size. CRS (default: the TIN's) reprojects the
+    TIN's nodes before rasterising (the triangles are kept; a warning says so). The raster is
+    computed tile by tile on local threads (only the triangles touching each tile are drawn)
+    and written as a tiled, DEFLATE GeoTIFF with overviews (COG: a Cloud Optimized GeoTIFF),
+    so memory stays bounded for any size.
     """
 
     id = "tin:to_raster"
@@ -60,29 +50,30 @@ class ToRaster(Algorithm):
         ExtentParameter("EXTENT", "output extent 'xmin,ymin,xmax,ymax' (default: the TIN's)",
                         optional=True),
         RasterLayer("TEMPLATE", "raster whose grid (extent, cells, CRS) to copy", optional=True),
+        Integer("MAX_CELLS", "refuse outputs with more cells than this (default: "
+                "TOOLBOX_MAX_CELLS or 1e9)", optional=True, min_value=1),
         Crs("CRS", "output CRS (default: the TIN's)", optional=True),
         Number("NODATA", "value of cells outside the TIN", default=-9999.0),
         Enum("DATA_TYPE", "cell type", options=["float32", "float64"], default="float32"),
         Boolean("OVERVIEWS", "build internal overviews", default=True),
+        Boolean("COG", "write a Cloud Optimized GeoTIFF", default=False),
         OutputRaster("OUTPUT", "DEM GeoTIFF"),
     ]
     outputs = [Output("STATISTICS", "grid size, cells with data, height range", "json")]
 
     def check(self, params):
-        if params["TEMPLATE"] is None and params["CELL_SIZE"] is None:
-            raise self.fail("CELL_SIZE", "is required unless TEMPLATE is given")
-        if params["TEMPLATE"] is not None:
-            for name in ("CELL_SIZE", "EXTENT"):
-                if params[name] is not None:
-                    raise self.fail(name, "cannot be combined with TEMPLATE (the template "
-                                    "fixes the grid)")
-            t = params["TEMPLATE"].transform
-            if t.b != 0 or t.d != 0 or t.a <= 0 or t.e >= 0:
-                raise self.fail("TEMPLATE", f"must be a north-up raster, {params['TEMPLATE']} "
-                                "is rotated or flipped")
+        from toolbox.raster.engine import check_grid_parameters
+
+        check_grid_parameters(params)
 
     def process(self, params, feedback: Feedback):
-        import rasterio
+        from functools import partial
+
+        from toolbox.io.crs import common_crs, crs_label, same_crs
+        from toolbox.raster.engine import grid_from_parameters, process_raster
+        from toolbox.raster.writer import RasterWriter
+        from toolbox.terrain.gridding.tin_raster import TinTiles, tin_tile
+        from toolbox.terrain.tin.store import read_tin
 
         tin_crs = params["TIN"].crs
         template = params["TEMPLATE"]
@@ -104,39 +95,36 @@ class ToRaster(Algorithm):
             xyz = np.column_stack([x, y, xyz[:, 2]])
             feedback.push_warning(f"TIN nodes reprojected from {crs_label(tin_crs)} to "
                                   f"{crs_label(out_crs)}; triangles kept as they are")
-        grid = tin_grid(xyz[:, :2], out_crs, params["CELL_SIZE"], extent, template)
-        cell_x, cell_y = grid.cell_size
-        x0, y0 = grid.transform.c, grid.transform.f
-        tile = DEFAULT_BLOCK
+        bounds = (*xyz[:, :2].min(axis=0), *xyz[:, :2].max(axis=0))
+        grid = grid_from_parameters(params, bounds, out_crs)
+        tile_size = 512
+        origin = (float(grid.transform.c), float(grid.transform.f))
+        local = np.column_stack([xyz[:, 0] - origin[0], xyz[:, 1] - origin[1], xyz[:, 2]])
         with feedback.timed("index"):
-            order, start, ntx = triangles_by_tile(xyz[:, :2], triangles, x0, y0, cell_x, cell_y,
-                                                  grid.width, grid.height, tile)
-        dtype = np.dtype(params["DATA_TYPE"])
-        nodata = params["NODATA"]
-        profile = geotiff_profile(grid.width, grid.height, 1, dtype, out_crs, grid.transform,
-                                  nodata=nodata)
-        windows = list(iter_windows(grid.width, grid.height, tile))
-        filled, zmin, zmax = 0, np.inf, -np.inf
-        with rasterio.Env(COMPRESS_OVERVIEW="DEFLATE"), \
-                rasterio.open(params["OUTPUT"], "w", **profile) as dst, feedback.timed("rasterise"):
-            for w in feedback.iterate(windows, start=0, end=90, message="rasterising"):
-                core = w.core
-                k = (int(core.row_off) // tile) * ntx + int(core.col_off) // tile
-                z = rasterize_tin(xyz, triangles[order[start[k]:start[k + 1]]],
-                                  x0 + core.col_off * cell_x, y0 - core.row_off * cell_y,
-                                  cell_x, cell_y, int(core.width), int(core.height))
-                valid = ~np.isnan(z)
-                if valid.any():
-                    filled += int(valid.sum())
-                    zmin, zmax = min(zmin, float(z[valid].min())), max(zmax, float(z[valid].max()))
-                dst.write(np.where(valid, z, nodata).astype(dtype), 1, window=core)
-            if params["OVERVIEWS"]:
-                build_overviews(dst)
+            tiles = TinTiles(local, triangles, grid, tile_size, origin)
+        summary = {"filled": 0, "zmin": np.inf, "zmax": -np.inf}
+
+        def collect(tile, z, info):
+            if z is None:
+                return
+            valid = ~np.isnan(z)
+            if valid.any():
+                summary["filled"] += int(valid.sum())
+                summary["zmin"] = min(summary["zmin"], float(z[valid].min()))
+                summary["zmax"] = max(summary["zmax"], float(z[valid].max()))
+
+        writer = RasterWriter(params["OUTPUT"], grid, 1, params["DATA_TYPE"], params["NODATA"],
+                              cog=params["COG"], overviews=params["OVERVIEWS"])
+        with feedback.timed("rasterise"), writer:
+            process_raster(grid, None, partial(tin_tile, origin), writer, tile_size=tile_size,
+                           plan=tiles.plan, collect=collect, feedback=feedback, end=90)
+        filled = summary["filled"]
+        cell_x, cell_y = grid.cell_size
         if filled == 0:
             feedback.push_warning("no cell centre lies inside the TIN: the raster is all NODATA")
         stats = {"width": grid.width, "height": grid.height, "cell_size": [cell_x, cell_y],
                  "bounds": list(grid.bounds), "crs": crs_label(out_crs), "cells_with_data": filled,
                  "cells_nodata": grid.width * grid.height - filled}
         if filled:
-            stats.update(z_min=zmin, z_max=zmax)
+            stats.update(z_min=summary["zmin"], z_max=summary["zmax"])
         return {"OUTPUT": params["OUTPUT"], "STATISTICS": stats}

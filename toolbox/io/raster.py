@@ -1,5 +1,8 @@
-"""Raster I/O with rasterio: validated input references, GeoTIFF writing (tiled, DEFLATE with a
-predictor, CRS, nodata, optional overviews) and window iteration with a halo for tiled work.
+"""Raster I/O with rasterio: validated input references, whole-array GeoTIFF writing (tiled,
+DEFLATE with a predictor, CRS, nodata, optional overviews) and window iteration with a halo.
+
+Tiled outputs of any size are written with :class:`toolbox.raster.writer.RasterWriter` on the
+raster engine (:mod:`toolbox.raster.engine`); the profile and overview rules here are the same.
 
 Conventions: arrays are ``(bands, rows, cols)`` or ``(rows, cols)``; windows are rasterio
 ``Window(col_off, row_off, width, height)``; row 0 is the top (north) edge.
@@ -80,13 +83,13 @@ def open_raster_info(value: Any, name: str = "INPUT") -> RasterInfo:
 
 def geotiff_profile(width: int, height: int, count: int, dtype: Any, crs: Any, transform: Any,
                     nodata: float | None = None, block: int = DEFAULT_BLOCK, **extra: Any) -> dict:
-    """A rasterio profile for a tiled, DEFLATE-compressed GeoTIFF.
+    """A rasterio profile for a tiled (``block`` pixels, also when the raster is smaller),
+    DEFLATE-compressed GeoTIFF.
 
     The predictor is 2 (horizontal differencing) for integers and 3 (floating point) for floats;
     BIGTIFF is used when the file may exceed 4 GB. ``extra`` overrides any creation option.
     """
     dtype = np.dtype(dtype)
-    tiled = width >= block and height >= block
     profile = {
         "driver": "GTiff", "width": int(width), "height": int(height), "count": int(count),
         "dtype": dtype.name, "crs": None if crs is None else _rio_crs(crs),
@@ -94,8 +97,7 @@ def geotiff_profile(width: int, height: int, count: int, dtype: Any, crs: Any, t
         "predictor": 3 if dtype.kind == "f" else 2, "zlevel": 6, "bigtiff": "if_safer",
         "interleave": "pixel" if count > 1 else "band",
     }
-    if tiled:
-        profile.update(tiled=True, blockxsize=block, blockysize=block)
+    profile.update(tiled=True, blockxsize=block, blockysize=block)
     profile.update(extra)
     return profile
 
@@ -108,13 +110,12 @@ def _rio_crs(crs: Any):
     return RioCRS.from_wkt(crs.to_wkt()) if hasattr(crs, "to_wkt") else RioCRS.from_user_input(crs)
 
 
-def overview_factors(width: int, height: int, min_size: int = 256) -> list[int]:
-    """Power-of-two overview factors until the smaller side drops below ``min_size``."""
-    factors, f = [], 2
-    while min(width, height) / f >= min_size:
-        factors.append(f)
-        f *= 2
-    return factors
+def overview_factors(width: int, height: int, block: int = DEFAULT_BLOCK) -> list[int]:
+    """Power-of-two overview factors until the smallest level fits in one block (GDAL's COG
+    rule; see :func:`toolbox.raster.writer.overview_levels`)."""
+    from toolbox.raster.writer import overview_levels
+
+    return overview_levels(width, height, block)
 
 
 def build_overviews(dst, resampling: str = "average") -> None:

@@ -1,19 +1,20 @@
-"""Windowed indirect warping: output window -> source coordinates -> ``cv2.remap`` -> GeoTIFF.
+"""Indirect warping kernels: output tile -> source coordinates -> ``cv2.remap``.
 
-This is the resampling machinery shared by every output-to-source geometric correction: the
-caller gives a **coordinate map**, a callable that returns, for the pixel centres of one output
-window, the source image coordinates to sample. Rectification uses :class:`HomographyMap`;
-orthorectification can pass a map built from the collinearity equations and a DEM. For each
-output window the driver :func:`warp_to_geotiff`
+This is the resampling machinery of every output-to-source geometric correction, run tile by
+tile by :func:`toolbox.raster.engine.warp_raster`: the caller gives a **coordinate map**, a
+callable ``map(tile, aux_arrays) -> (src_col, src_row)`` returning, for the cell centres of one
+output tile, the source image coordinates to sample (``aux_arrays``: auxiliary rasters read onto
+the tile, e.g. the DEM of an orthophoto). Rectification uses :class:`HomographyMap`. For each
+tile :func:`warp_window`
 
 1. asks the map for the source coordinates (vectorised, float32),
 2. reads only the source window they cover plus the interpolation margin (rasterio windowed
    read),
-3. resamples with OpenCV ``cv2.remap`` (nearest / bilinear / cubic / lanczos), and
-4. writes the window into a tiled, compressed GeoTIFF, with an alpha band or nodata outside the
-   photo,
+3. resamples with OpenCV ``cv2.remap`` (nearest / bilinear / cubic / lanczos), with an alpha
+   band or nodata outside the photo,
 
-so memory is bounded by the window size, whatever the size of the photo or of the output.
+and the engine writes the tile with :class:`toolbox.raster.writer.RasterWriter`, so memory is
+bounded by the tile size, whatever the size of the photo or of the output.
 
 **Source pixel convention.** Source coordinates are continuous ``(col, row)``: the origin is the
 top-left *corner* of the top-left pixel, columns grow right, rows grow *down*, pixel
@@ -58,11 +59,14 @@ def cv2_interpolation(resampling: str) -> int:
 
 
 class CoordinateMap(Protocol):
-    """Output window -> source coordinates of its pixel centres.
+    """Output tile -> source coordinates of its cell centres.
 
-    ``__call__(window)`` returns ``(cols, rows)``: float32 arrays of shape
-    ``(window.height, window.width)`` in the source pixel convention (module docstring), NaN
-    where the output pixel has no source point. An implementation may also define
+    ``__call__(tile, aux)`` returns ``(cols, rows)``: float32 arrays of the tile's shape without
+    halo, ``tile.shape``, in the source pixel convention (module docstring), NaN where the
+    output pixel has no source point. ``tile`` is a :class:`toolbox.raster.engine.Tile`
+    (``tile.window`` on the output grid, ``tile.cell_centres()``); ``aux`` maps names to the
+    auxiliary rasters read onto the tile with its halo, (bands, h + 2·halo, w + 2·halo).
+    An implementation may also define
     ``source_bounds(window) -> (col_min, row_min, col_max, row_max) | None``: the exact bounding
     box of the finite coordinates (None when it cannot tell cheaply); the driver then skips
     scanning the arrays and, when the box lies inside the photo, the inside test. Two more
@@ -72,10 +76,11 @@ class CoordinateMap(Protocol):
     map as a homography for ``cv2.warpPerspective`` with ``WARP_INVERSE_MAP``).
     """
 
-    def __call__(self, window: Any) -> tuple[np.ndarray, np.ndarray]: ...
+    def __call__(self, tile: Any, aux: dict) -> tuple[np.ndarray, np.ndarray]: ...
 
 
 def _window_parts(window: Any) -> tuple[int, int, int, int]:
+    window = getattr(window, "window", window)  # a Tile or a Window
     return int(window.col_off), int(window.row_off), int(window.width), int(window.height)
 
 
@@ -191,9 +196,10 @@ class HomographyMap:
         return mask_from_intervals(*self.inside_intervals(window, width, height),
                                    int(window.width))
 
-    def __call__(self, window: Any, col_shift: float = 0.0,
+    def __call__(self, window: Any, aux: dict | None = None, col_shift: float = 0.0,
                  row_shift: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
-        """Source (cols - col_shift, rows - row_shift), float32 (h, w); NaN behind the camera."""
+        """Source (cols - col_shift, rows - row_shift), float32 (h, w); NaN behind the camera.
+        ``window`` is a Tile or a Window; ``aux`` is not used (a plane needs no DEM)."""
         (ua, ub), (va, vb), (wa, wb) = self._terms(window)
         w = wa + wb
         u = ua + ub
@@ -345,6 +351,16 @@ class OutputLayout:
         return float(np.iinfo(dt).max) if dt.kind in "iu" else 1.0
 
 
+def warp_layout(source: Any, outside: str = "alpha", nodata: float | None = None) -> OutputLayout:
+    """:func:`output_layout` of a raster path (or RasterInfo)."""
+    import rasterio
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
+        with rasterio.open(getattr(source, "path", source)) as src:
+            return output_layout(src, outside, nodata)
+
+
 def output_layout(src: Any, outside: str = "alpha", nodata: float | None = None) -> OutputLayout:
     """Decide the output bands of a warp of the open rasterio dataset ``src``.
 
@@ -407,6 +423,11 @@ class WarpStatistics:
     output_pixels: int = 0
     timings: dict[str, float] = field(default_factory=dict)
 
+    def add(self, other: WarpStatistics) -> None:
+        for name in ("windows", "empty_windows", "split_windows", "source_pixels_read",
+                     "output_pixels"):
+            setattr(self, name, getattr(self, name) + getattr(other, name))
+
     def as_dict(self) -> dict:
         return {"windows": self.windows, "empty_windows": self.empty_windows,
                 "split_windows": self.split_windows,
@@ -428,13 +449,16 @@ def _split(window: Any) -> list[Any]:
 
 
 def warp_window(read: Callable[[list[int], Any], np.ndarray], source_size: tuple[int, int],
-                coordinate_map: CoordinateMap, window: Any, layout: OutputLayout,
+                coordinate_map: CoordinateMap, tile: Any, layout: OutputLayout,
                 resampling: str = "bilinear",
                 read_mask: Callable[[Any], np.ndarray] | None = None,
                 max_source_pixels: int = DEFAULT_MAX_SOURCE_PIXELS,
                 stats: WarpStatistics | None = None,
-                fast: bool = True) -> Iterator[tuple[Any, np.ndarray]]:
-    """Warp one output window; yield ``(window, array (count, h, w))`` parts to write.
+                fast: bool = True, aux: dict | None = None) -> Iterator[tuple[Any, np.ndarray]]:
+    """Warp one output tile; yield ``(window, array (count, h, w))`` parts to write.
+
+    ``tile`` is a :class:`toolbox.raster.engine.Tile` (or a bare Window: a tile without halo);
+    ``aux`` the auxiliary arrays read onto it, handed to ``coordinate_map(tile, aux)``.
 
     ``read(bands, source_window)`` returns the source pixels (len(bands), h, w); ``read_mask``
     the source validity (h, w) uint8 0/255 (sources with nodata or an internal mask). Windows
@@ -444,6 +468,12 @@ def warp_window(read: Callable[[list[int], Any], np.ndarray], source_size: tuple
     coordinates, without the coordinate arrays); otherwise the coordinates are computed and
     ``cv2.remap`` samples them.
     """
+    from toolbox.raster.engine import Tile
+
+    if not isinstance(tile, Tile):
+        tile = Tile(0, tile, 0, None)
+    aux = aux or {}
+    window = tile.window
     stats = stats if stats is not None else WarpStatistics()
     width, height = source_size
     col0, row0, out_w, out_h = _window_parts(window)
@@ -453,7 +483,7 @@ def warp_window(read: Callable[[list[int], Any], np.ndarray], source_size: tuple
     exact_bounds = bounds is not None
     cols = rows = None
     if bounds is None:
-        cols, rows = coordinate_map(window)
+        cols, rows = coordinate_map(tile, aux)
         bounds = scan_bounds(cols, rows)
     src_win = source_window(bounds, width, height, margin)
     out = np.empty((layout.count, out_h, out_w), dtype=layout.dtype)
@@ -467,8 +497,12 @@ def warp_window(read: Callable[[list[int], Any], np.ndarray], source_size: tuple
     if src_win.width * src_win.height > max_source_pixels and (out_w > 1 or out_h > 1):
         stats.split_windows += 1
         for part in _split(window):
-            yield from warp_window(read, source_size, coordinate_map, part, layout, resampling,
-                                   read_mask, max_source_pixels, stats, fast)
+            sub = tile.sub_tile(part)
+            r, c = int(part.row_off) - row0, int(part.col_off) - col0
+            rows_, cols_ = sub.haloed_shape
+            sub_aux = {k: v[..., r:r + rows_, c:c + cols_] for k, v in aux.items()}
+            yield from warp_window(read, source_size, coordinate_map, sub, layout, resampling,
+                                   read_mask, max_source_pixels, stats, fast, sub_aux)
         return
     stats.windows += 1
     stats.output_pixels += out_w * out_h
@@ -498,10 +532,10 @@ def warp_window(read: Callable[[list[int], Any], np.ndarray], source_size: tuple
             return warp_perspective(pixels, matrix, (out_w, out_h), method)
     else:
         if cols is None and isinstance(coordinate_map, HomographyMap):
-            map_x, map_y = coordinate_map(window, shift_c, shift_r)
+            map_x, map_y = coordinate_map(window, None, shift_c, shift_r)
         else:
             if cols is None:
-                cols, rows = coordinate_map(window)
+                cols, rows = coordinate_map(tile, aux)
             map_x = (cols - np.float32(shift_c)).astype("float32", copy=False)
             map_y = (rows - np.float32(shift_r)).astype("float32", copy=False)
         if not all_inside:
@@ -619,15 +653,18 @@ def warp_to_geotiff(source: Any, coordinate_map: CoordinateMap, grid: Any, outpu
                     feedback: Any = None, cache_mb: int = DEFAULT_CACHE_MB,
                     tags: dict[str, str] | None = None,
                     creation_options: dict[str, Any] | None = None,
-                    fast: bool = True) -> WarpStatistics:
-    """Warp a raster file onto ``grid`` through ``coordinate_map`` and write a GeoTIFF, by windows.
+                    fast: bool = True, cog: bool = False, executor: Any = None,
+                    aux: dict | None = None) -> WarpStatistics:
+    """Warp a raster file onto ``grid`` through ``coordinate_map`` into a GeoTIFF: a
+    :class:`~toolbox.raster.writer.RasterWriter` fed by
+    :func:`toolbox.raster.engine.warp_raster`.
 
     Parameters
     ----------
     source : path
         Any raster GDAL reads (GeoTIFF, JPEG, PNG...), 1 or more bands of one data type.
     coordinate_map : CoordinateMap
-        Output window -> source coordinates (e.g. :class:`HomographyMap`).
+        Output tile -> source coordinates (e.g. :class:`HomographyMap`).
     grid : toolbox.io.grid.GridSpec
         Output grid (transform, width, height, crs; crs None for a local object system).
     output : path
@@ -638,64 +675,39 @@ def warp_to_geotiff(source: Any, coordinate_map: CoordinateMap, grid: Any, outpu
     nodata : float, optional
         Output nodata with ``outside="nodata"``.
     chunk : int
-        Output window side in pixels (a multiple of the 512-pixel block keeps writes aligned).
+        Output tile side in pixels (a multiple of the 512-pixel block keeps writes aligned).
     max_source_pixels : int
         Largest source window read at once (per band); bigger ones are split.
-    overviews : bool
-        Build internal overviews at the end.
+    overviews, cog : bool
+        Internal overviews; a Cloud Optimized GeoTIFF.
     feedback : toolbox.feedback.Feedback, optional
-        Progress (0-95 % for the windows) and cancellation between windows.
+        Progress (0-95 % for the tiles) and cancellation between tiles.
     cache_mb : int
         GDAL block cache size while warping, MB (bounds memory on huge sources).
     tags : dict, optional
         Metadata written to the output (e.g. the homography).
     creation_options : dict, optional
-        GeoTIFF creation options overriding :func:`toolbox.io.raster.geotiff_profile`'s.
+        More GeoTIFF creation options.
     fast : bool
         Let maps that offer it use ``cv2.warpPerspective`` (see :func:`warp_window`); False
         forces the generic coordinate-array + ``cv2.remap`` path.
+    executor : toolbox.tiles.Executor, optional
+        Where tiles run (default: local threads).
+    aux : dict name -> RasterInput, optional
+        Auxiliary rasters for the coordinate map.
     """
-    import rasterio
+    from toolbox.raster.engine import warp_raster
+    from toolbox.raster.writer import RasterWriter
 
-    from toolbox.feedback import Feedback
-    from toolbox.io.raster import build_overviews, geotiff_profile, iter_windows
-
-    feedback = feedback or Feedback()
     if resampling not in RESAMPLING_METHODS:
         raise ValueError(f"resampling must be one of {', '.join(RESAMPLING_METHODS)}, "
                          f"got {resampling!r}")
-    stats = WarpStatistics()
-    # overviews: aligned 512 blocks, pixel-interleaved like the data, compressed on all cores
-    env = {"GDAL_CACHEMAX": int(cache_mb), "COMPRESS_OVERVIEW": "DEFLATE",
-           "GDAL_TIFF_OVR_BLOCKSIZE": 512, "INTERLEAVE_OVERVIEW": "PIXEL",
-           "GDAL_NUM_THREADS": "ALL_CPUS"}
-    with rasterio.Env(**env), warnings.catch_warnings():
-        warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
-        with rasterio.open(source) as src:
-            layout = output_layout(src, outside, nodata)
-            options = {"num_threads": "ALL_CPUS", **photometric_options(layout),
-                       **(creation_options or {})}
-            profile = geotiff_profile(grid.width, grid.height, layout.count, layout.dtype,
-                                      grid.crs, grid.transform, layout.nodata, **options)
-
-            def read(bands: list[int], window: Any) -> np.ndarray:
-                return src.read(bands, window=window)
-
-            def read_mask(window: Any) -> np.ndarray:
-                return src.dataset_mask(window=window)
-
-            windows = [t.core for t in iter_windows(grid.width, grid.height, chunk)]
-            with rasterio.open(output, "w", **profile) as dst:
-                if tags:
-                    dst.update_tags(**tags)
-                for window in feedback.iterate(windows, start=0, end=95 if overviews else 100):
-                    for part, array in warp_window(read, (src.width, src.height), coordinate_map,
-                                                   window, layout, resampling, read_mask,
-                                                   max_source_pixels, stats, fast):
-                        dst.write(array, window=part)
-                if overviews:
-                    feedback.check_canceled()
-                    with rasterio.Env(PREDICTOR_OVERVIEW=profile["predictor"]), \
-                            feedback.timed("overviews"):
-                        build_overviews(dst)
-    return stats
+    layout = warp_layout(source, outside, nodata)
+    writer = RasterWriter(output, grid, layout.count, layout.dtype, layout.nodata,
+                          alpha=layout.alpha, cog=cog, overviews=overviews, tags=tags,
+                          creation_options=creation_options, cache_mb=cache_mb)
+    with writer:
+        return warp_raster(source, grid, coordinate_map, writer, layout=layout,
+                           resampling=resampling, aux=aux, tile_size=chunk, executor=executor,
+                           feedback=feedback, max_source_pixels=max_source_pixels, fast=fast,
+                           end=95 if overviews else 100)

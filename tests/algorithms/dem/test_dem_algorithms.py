@@ -74,6 +74,7 @@ def test_every_method_writes_a_georeferenced_float32_dem(alg, data, tmp_path):
     z, transform, profile, crs = read(out["OUTPUT"])
     assert profile["dtype"] == "float32" and profile["nodata"] == -9999.0
     assert crs.to_epsg() == 3003 and profile["compress"] == "deflate"
+    assert profile["tiled"] and profile["blockxsize"] == profile["blockysize"] == 512  # small too
     assert (transform.a, transform.e) == (5.0, -5.0)
     assert transform.c % 5 == 0 and transform.f % 5 == 0  # snapped to the cell size
     assert z.shape == (40, 60) and z.count() > 0.95 * z.size
@@ -136,12 +137,13 @@ def test_output_takes_the_template_grid(data, tmp_path):
     assert np.array_equal(zc, z[row:row + zc.shape[0], col:col + zc.shape[1]])
 
 
-def test_extent_is_snapped_outwards(data, tmp_path):
+def test_extent_is_honoured_as_given(data, tmp_path):
+    # the origin stays at the extent's xmin/ymax; the far edges round up to whole cells
     out = toolbox.run("dem:nearest", {"INPUT": data["plane"], "CELL_SIZE": 10,
                                       "EXTENT": f"{X0 + 3},{Y0 + 7},{X0 + 95},{Y0 + 61}",
                                       "OUTPUT": tmp_path / "e.tif"})
     z, t, _, _ = read(out["OUTPUT"])
-    assert (t.c, t.f) == (X0, Y0 + 70) and z.shape == (7, 10)
+    assert (t.c, t.f) == (X0 + 3, Y0 + 61) and z.shape == (6, 10)
 
 
 def test_cells_outside_the_convex_hull_are_nodata(tmp_path):
@@ -198,6 +200,17 @@ def test_tiles_with_halo_give_the_untiled_result(alg, extra, data, tmp_path):
     za, zb = read(a["OUTPUT"])[0], read(b["OUTPUT"])[0]
     assert a["STATISTICS"]["cells"]["tiles"] == 7 * 5 and b["STATISTICS"]["cells"]["tiles"] == 1
     assert np.array_equal(za.filled(), zb.filled())
+
+
+def test_cog_output_with_overviews(data, tmp_path):
+    from toolbox.raster.writer import cog_problems
+
+    out = toolbox.run("dem:nearest", {"INPUT": data["plane"], "CELL_SIZE": 0.4, "COG": True,
+                                      "OUTPUT": tmp_path / "c.tif"})
+    with rasterio.open(out["OUTPUT"]) as src:
+        assert src.shape == (500, 750) and src.overviews(1) == [2]
+        assert src.tags(ns="IMAGE_STRUCTURE")["PREDICTOR"] == "3"
+    assert cog_problems(out["OUTPUT"]) == []
 
 
 # -- lines, breaklines ----------------------------------------------------------------------

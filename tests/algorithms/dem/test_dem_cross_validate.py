@@ -14,7 +14,8 @@ from scipy.spatial import cKDTree
 import toolbox
 from toolbox.errors import ParameterError
 from toolbox.terrain.gridding.methods import METHODS
-from toolbox.terrain.gridding.validation import error_summary, loo_predict, tin_loo
+from toolbox.terrain.gridding.tin_linear import tin_loo
+from toolbox.terrain.gridding.validation import error_summary, loo_predict
 from toolbox.terrain.tin.kernels import interpolate_tin, triangulate
 
 X0, Y0 = 1_688_000.0, 4_799_500.0

@@ -376,3 +376,21 @@ def test_facade_in_a_local_object_system(tmp_path):
         assert (ds.width, ds.height) == (800, 500)
         assert (ds.read(2) > 0).mean() > 0.5
     assert out["STATISTICS"]["crs"] == "none"
+
+
+def test_extent_is_honoured_and_cog_is_valid(tmp_path, scene_files):
+    """An EXTENT off the cell lattice keeps its origin (xmin/ymax); COG=true writes a valid
+    Cloud Optimized GeoTIFF (data + alpha, with overviews)."""
+    from toolbox.raster.writer import cog_problems
+
+    _, photo, transform = scene_files
+    x0, y0 = 1688000.3, 4799520.7
+    out = toolbox.run("rectify:image", {"INPUT": photo, "TRANSFORM": transform, "CELL_SIZE": 0.2,
+                                        "EXTENT": f"{x0},{y0},{x0 + 150.1},{y0 + 110}",
+                                        "COG": True, "OUTPUT": tmp_path / "cog.tif"})
+    with rasterio.open(out["OUTPUT"]) as ds:
+        assert (ds.transform.c, ds.transform.f) == (x0, y0 + 110)
+        assert (ds.width, ds.height) == (751, 550)  # 150.1 m -> 751 cells: the east edge rounds up
+        assert ds.tags(ns="IMAGE_STRUCTURE")["LAYOUT"] == "COG" and ds.overviews(1) == [2]
+        assert ds.colorinterp[-1].name == "alpha" and (ds.read(ds.count) > 0).any()
+    assert cog_problems(out["OUTPUT"]) == []

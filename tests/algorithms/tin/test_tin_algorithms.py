@@ -283,3 +283,24 @@ def test_cli_run_reports_merged_duplicates(data, tmp_path):
     assert any("3 duplicate point(s) merged" in w for w in run["warnings"])
     nodes = read(tmp_path / "dups_tin.gpkg", "nodes")
     assert (nodes.merged == 2).sum() == 3
+
+
+def test_to_raster_takes_the_extent_as_given_and_writes_a_cog(data, tmp_path):
+    import rasterio
+
+    from toolbox.raster.writer import cog_problems
+
+    extent = f"{X0 + 21.3},{Y0 + 33.1},{X0 + 121.3},{Y0 + 150.6}"
+    out = toolbox.run("tin:to_raster", {"TIN": data["tin"], "CELL_SIZE": 0.25, "EXTENT": extent,
+                                        "COG": True, "OUTPUT": tmp_path / "c.tif"})
+    with rasterio.open(out["OUTPUT"]) as src:
+        t = src.transform
+        assert (t.c, t.f) == (X0 + 21.3, Y0 + 150.6) and src.shape == (470, 400)
+        z = src.read(1)
+    assert cog_problems(out["OUTPUT"]) == []
+    gx, gy = np.meshgrid(t.c + (np.arange(400) + 0.5) * 0.25, t.f - (np.arange(470) + 0.5) * 0.25)
+    inside = shapely.contains_xy(data["boundary"], gx, gy)
+    np.testing.assert_allclose(z[inside], plane(gx, gy)[inside], atol=1e-3)
+    with pytest.raises(ParameterError, match="over the limit of 1,000 cells"):
+        toolbox.run("tin:to_raster", {"TIN": data["tin"], "CELL_SIZE": 0.25, "MAX_CELLS": 1000,
+                                      "OUTPUT": tmp_path / "big.tif"})

@@ -18,36 +18,7 @@ import numpy as np
 from toolbox.algorithm import Algorithm
 from toolbox.errors import InputDataError
 from toolbox.feedback import Feedback
-from toolbox.parameters import Crs, Enum, Field, Number, VectorLayer
-from toolbox.terrain.gridding.neighbours import PointBins
-from toolbox.terrain.points import DUPLICATE_RULES, DuplicateReport, local_origin, merge_duplicate_xy
-
-
-def source_parameters() -> list:
-    """Input data: points, line vertices, breaklines; duplicate rule; CRS."""
-    return [
-        VectorLayer("INPUT", "mass points: PointZ, or points with a height field (Z_FIELD)",
-                    geometry_types=["point"], optional=True),
-        Field("Z_FIELD", "height field of INPUT (default: the geometry's Z)", parent="INPUT",
-              numeric=True, optional=True),
-        VectorLayer("LINES", "lines whose vertices are data points, e.g. contours (LineString Z, "
-                    "or a height field in LINES_Z_FIELD)", geometry_types=["line"], optional=True),
-        Field("LINES_Z_FIELD", "height field of LINES (e.g. the contour's elevation)",
-              parent="LINES", numeric=True, optional=True),
-        VectorLayer("BREAKLINES", "breaklines: their vertices are data points, and their edges "
-                    "are kept as triangle edges by dem:tin_linear", geometry_types=["line"],
-                    optional=True),
-        Field("BREAKLINES_Z_FIELD", "height field of BREAKLINES (default: geometry Z)",
-              parent="BREAKLINES", numeric=True, optional=True),
-        Enum("DUPLICATES", "height of points sharing one XY position: mean, first (input "
-             "order: INPUT, LINES, BREAKLINES), min, max, or error", options=DUPLICATE_RULES,
-             default="mean"),
-        Number("DUPLICATE_TOLERANCE", "points closer than this in plan are one position (CRS "
-               "units; 0 = identical coordinates)", default=0.0, min_value=0),
-        Crs("CRS", "CRS of the data and the output (default: the inputs'); inputs without a CRS "
-            "take it, inputs in another CRS are refused", optional=True),
-    ]
-
+from toolbox.terrain.points import DuplicateReport, local_origin, merge_duplicate_xy
 
 
 # -- input data -----------------------------------------------------------------------------------
@@ -76,7 +47,7 @@ class GriddingData:
     counts: dict
     duplicates: DuplicateReport
     _local: np.ndarray | None = field(default=None, repr=False)
-    _bins: PointBins | None = field(default=None, repr=False)
+    _bins: Any = field(default=None, repr=False)
 
     @property
     def local(self) -> np.ndarray:
@@ -86,8 +57,11 @@ class GriddingData:
         return self._local
 
     @property
-    def bins(self) -> PointBins:
-        """Neighbour index of the local points (built once)."""
+    def bins(self):
+        """Neighbour index (:class:`~toolbox.terrain.gridding.neighbours.PointBins`) of the
+        local points (built once)."""
+        from toolbox.terrain.gridding.neighbours import PointBins
+
         if self._bins is None:
             self._bins = PointBins.build(self.local[:, :2])
         return self._bins
@@ -113,6 +87,7 @@ def read_sources(params: dict, feedback: Feedback) -> GriddingData:
 
     from toolbox.io.crs import common_crs
     from toolbox.io.vector import read_points_xyz, read_vector, vertices_xyz
+    from toolbox.terrain.gridding.neighbours import PointBins
 
     named = {name: params[name].crs for name in ("INPUT", "LINES", "BREAKLINES", "MASK")
              if params.get(name) is not None}
@@ -193,6 +168,8 @@ def _shift(xyz: np.ndarray, origin: np.ndarray) -> np.ndarray:
 
 def has_duplicate_xy(xyz: np.ndarray) -> bool:
     """True when two points have exactly the same X and Y (binned, O(n))."""
+    from toolbox.terrain.gridding.neighbours import PointBins
+
     return PointBins.build(np.asarray(xyz, dtype="float64")[:, :2]).has_duplicates()
 
 

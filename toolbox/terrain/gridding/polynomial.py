@@ -27,10 +27,12 @@ from numba import njit
 
 from toolbox.terrain.gridding.idw_kernel import _cell
 from toolbox.terrain.gridding.neighbours import PointBins, block_knn, block_scratch, block_size, knn_one
+from toolbox.terrain.gridding.parameters import (  # noqa: F401 - part of this module's API
+    DEFAULT_MIN_RCOND,
+    ORDER_NAMES,
+    TERMS,
+)
 
-TERMS = (1, 3, 6, 10)  # coefficients of the polynomial of order 0, 1, 2, 3
-ORDER_NAMES = ("mean", "plane", "quadratic", "cubic")
-DEFAULT_MIN_RCOND = 1e-3
 TERMS_NB = np.array(TERMS, dtype=np.int64)
 
 

@@ -1,16 +1,20 @@
-"""TIN-linear gridding kernels: constrained TIN of the data, plane of the containing triangle per cell."""
+"""TIN-linear kernels: the constrained TIN of the data points, and its leave-one-out
+predictions (each point predicted from the TIN of the others).
+
+Leave-one-out: the points are split into independent sets (no two joined by a TIN edge, by
+greedy colouring), each set is removed at once and the others re-triangulated, which gives
+every point exactly the TIN of the others (removing a vertex changes only its own star).
+Breakline vertices stay in (they are constraints) and are not predicted.
+"""
 
 from __future__ import annotations
 
-import math
 from typing import Any
 
 import numpy as np
+from numba import njit
 
-from toolbox.terrain.gridding.gridding import (
-    TileTask,
-)
-from toolbox.terrain.gridding.idw_kernel import nearest_grid
+from toolbox.feedback import Feedback
 
 
 def constrained_tin(xyz: np.ndarray, segments: np.ndarray | None
@@ -45,18 +49,66 @@ def constrained_tin(xyz: np.ndarray, segments: np.ndarray | None
         "crossings": tri.steiner_count, "crossing_z_disagreement": float(spread.max())}
 
 
-def tin_tile(task: TileTask) -> tuple[np.ndarray, None]:
-    """Tile kernel: plane of the containing triangle at each computed cell centre, NaN outside
-    the TIN, the mask, or MAX_DISTANCE from the nearest data point."""
-    from toolbox.terrain.tin.kernels import rasterize_tin
+@njit(cache=True)
+def _greedy_colours(n, indptr, indices, protected):
+    """Colour the vertices so that no two neighbours share a colour (greedy, vertex order);
+    protected vertices get -1."""
+    colour = np.full(n, -1, dtype=np.int64)
+    seen = np.full(64, -1, dtype=np.int64)
+    for v in range(n):
+        if protected[v]:
+            continue
+        for p in range(indptr[v], indptr[v + 1]):
+            c = colour[indices[p]]
+            if c >= 0:
+                if c >= len(seen):
+                    bigger = np.full(2 * c + 2, -1, dtype=np.int64)
+                    bigger[:len(seen)] = seen
+                    seen = bigger
+                seen[c] = v
+        c = 0
+        while c < len(seen) and seen[c] == v:
+            c += 1
+        colour[v] = c
+    return colour
 
-    o = task.options
-    h, w = task.shape
-    values = rasterize_tin(task.xyz, task.extra["triangles"], o["x0"], o["y0"], o["cell_x"],
-                           o["cell_y"], w, h)
-    values[~task.mask] = np.nan
-    near = task.extra.get("near")
-    if near is not None and math.isfinite(o["max_distance"]):
-        within = nearest_grid(near, task.xs, task.ys, ~np.isnan(values), o["max_distance"])
-        values[np.isnan(within)] = np.nan
-    return values, None
+
+def tin_loo(local_xyz: np.ndarray, segments: np.ndarray | None,
+            feedback: Feedback | None = None) -> np.ndarray:
+    """Leave-one-out TIN-linear predictions (see the module notes). NaN: not predicted."""
+    from scipy.sparse import coo_matrix
+
+    from toolbox.terrain.tin.kernels import interpolate_tin
+
+    n = len(local_xyz)
+    seg = np.zeros((0, 2), dtype=np.int64) if segments is None else np.asarray(segments)
+    _, triangles, _ = constrained_tin(local_xyz, seg)
+    edges = np.vstack([triangles[:, [0, 1]], triangles[:, [1, 2]], triangles[:, [2, 0]]])
+    edges = edges[(edges < n).all(axis=1)]  # between input points (not crossing nodes)
+    adjacency = coo_matrix((np.ones(2 * len(edges)), (np.r_[edges[:, 0], edges[:, 1]],
+                                                      np.r_[edges[:, 1], edges[:, 0]])),
+                           shape=(n, n)).tocsr()
+    protected = np.zeros(n, dtype=np.bool_)
+    if len(seg):
+        protected[seg.ravel()] = True
+    colour = _greedy_colours(n, adjacency.indptr.astype(np.int64),
+                             adjacency.indices.astype(np.int64), protected)
+    predicted = np.full(n, np.nan)
+    colours = int(colour.max()) + 1 if (colour >= 0).any() else 0
+    for c in range(colours):
+        if feedback is not None:
+            feedback.check_canceled()
+            feedback.set_progress(100.0 * c / max(colours, 1))
+        out = np.flatnonzero(colour == c)
+        keep = np.flatnonzero(colour != c)
+        if len(keep) < 3:
+            continue
+        lookup = np.full(n, -1, dtype=np.int64)
+        lookup[keep] = np.arange(len(keep))
+        sub_seg = lookup[seg] if len(seg) else None
+        try:
+            nodes, tri, _ = constrained_tin(local_xyz[keep], sub_seg)
+        except ValueError:  # the others are collinear: nothing to predict from
+            continue
+        predicted[out] = interpolate_tin(nodes, tri, local_xyz[out, 0], local_xyz[out, 1])
+    return predicted

@@ -1,0 +1,675 @@
+"""The tiled raster engine: one output grid, tiles with a halo, inputs read per tile, kernels
+on arrays, one writer.
+
+Every raster-producing algorithm follows the same flow::
+
+    grid = grid_from_parameters(params, data_bounds, crs)          # CELL_SIZE/EXTENT/TEMPLATE/MAX_CELLS
+    with RasterWriter(params["OUTPUT"], grid, 1, "float32", nodata=-9999) as writer:
+        process_raster(grid, {"dem": RasterInput(path)}, kernel, writer, halo=1,
+                       executor=resolve_executor(params["SCHEDULER"]), feedback=feedback)
+
+- :func:`grid_from_parameters` holds the one set of grid rules (below).
+- :func:`iter_tiles` cuts the grid into :class:`Tile` s (row by row, ``tile_size`` cells, a
+  ``halo`` of extra cells on every side, also beyond the grid's edges).
+- :func:`read_window` reads any raster (its own grid, CRS, resolution) onto a tile's haloed
+  window: a direct windowed read when the raster is aligned with the grid, else a GDAL warp.
+- :func:`process_raster` runs ``kernel(tile, arrays) -> array`` per tile on
+  :func:`toolbox.tiles.map_tiles` (local threads by default, a Dask cluster when asked), with
+  bounded memory (a few tiles in flight), progress and cancellation, and writes the results in
+  tile order (the file is the same whichever executor ran the tiles).
+- :func:`warp_raster` is the photo -> ground mode: a coordinate map gives, for the cells of a
+  tile, the source (col, row) to sample; the engine reads the source window they need and
+  resamples it with OpenCV (see :mod:`toolbox.raster.warp`).
+
+Grid rules
+----------
+- ``TEMPLATE``: the template's lattice (origin, cell size); its extent, or the cells of that
+  lattice covering ``EXTENT`` when both are given (the template fixes the alignment). The CRS
+  is the caller's, else the template's. ``CELL_SIZE`` with ``TEMPLATE`` is refused.
+- ``EXTENT`` (no template): honoured as given. The origin is (xmin, ymax); columns and rows are
+  ``ceil((xmax - xmin) / CELL_SIZE)`` and ``ceil((ymax - ymin) / CELL_SIZE)``, so only the far
+  (east and south) edges may move outwards to whole cells.
+- neither: the data bounds, snapped outwards to multiples of ``CELL_SIZE`` (grids of different
+  runs then align); ``snap=False`` keeps the bounds' xmin/ymax as origin.
+- ``MAX_CELLS`` (default ``TOOLBOX_MAX_CELLS`` or 1e9): larger grids are refused with a
+  :class:`~toolbox.errors.ParameterError` before any array is allocated.
+
+Conventions: arrays are ``(bands, rows, cols)`` (or ``(rows, cols)`` for one band), row 0 is
+north; windows are rasterio ``Window(col_off, row_off, width, height)`` on the output grid; a
+cell's value belongs to its centre (:mod:`toolbox.io.grid`).
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from collections.abc import Callable, Iterator, Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from toolbox.errors import ParameterError
+from toolbox.io.grid import GridSpec, max_cells_default
+
+__all__ = [
+    "BOUNDARY_RULES", "GridSpec", "RasterInput", "Tile", "check_grid_parameters",
+    "grid_from_parameters", "iter_tiles", "process_raster", "read_window", "tile_count",
+    "warp_raster",
+]
+
+BOUNDARY_RULES = ("nodata", "edge", "reflect")
+_EPS = 1e-9  # relative tolerance of "a whole number of cells"
+
+
+# -- grid rules ------------------------------------------------------------------------------------
+def check_grid_parameters(params: Mapping[str, Any], *, cell_required: bool = True) -> None:
+    """The checks that need no data: CELL_SIZE xor TEMPLATE, a north-up TEMPLATE, and the size
+    guard when EXTENT or TEMPLATE already fixes the grid. ``cell_required=False`` for
+    algorithms with a default cell size."""
+    cell, template = params.get("CELL_SIZE"), params.get("TEMPLATE")
+    if template is None and cell is None and cell_required:
+        raise ParameterError("CELL_SIZE", "is required unless TEMPLATE is given (a cell size "
+                             "in CRS units, or a raster whose grid to copy)")
+    if template is not None and cell is not None:
+        raise ParameterError("CELL_SIZE", f"must not be given with TEMPLATE (the template's "
+                             f"cells are used), got {cell:g}")
+    if template is not None or (params.get("EXTENT") is not None and cell is not None):
+        grid_from_parameters(params, None, None)
+
+
+def grid_from_parameters(params: Mapping[str, Any], data_bounds: tuple[float, ...] | None,
+                         crs: Any, *, default_cell_size: float | Callable[[], float] | None = None,
+                         snap: bool = True, max_cells: int | None = None) -> GridSpec:
+    """The output grid from ``CELL_SIZE`` / ``EXTENT`` / ``TEMPLATE`` / ``MAX_CELLS`` (module
+    notes).
+
+    Parameters
+    ----------
+    params : mapping
+        Validated parameters; missing keys count as not given. ``EXTENT`` is a
+        :class:`toolbox.parameters.Extent` (or anything with ``.bounds``), ``TEMPLATE`` a
+        :class:`toolbox.io.raster.RasterInfo`.
+    data_bounds : (xmin, ymin, xmax, ymax) or None
+        The data's bounds, used without EXTENT/TEMPLATE (None at check time).
+    crs : CRS or None
+        The output CRS (None: the template's, if any).
+    default_cell_size : float or callable, optional
+        Cell size when CELL_SIZE is not given (a callable is only called then).
+    snap : bool
+        Snap data bounds outwards to multiples of the cell size (never an EXTENT).
+    max_cells : int, optional
+        The size guard when MAX_CELLS is not given (default: ``TOOLBOX_MAX_CELLS`` or 1e9).
+    """
+    from affine import Affine
+
+    limit = params.get("MAX_CELLS") or max_cells or max_cells_default()
+    extent, template = params.get("EXTENT"), params.get("TEMPLATE")
+    if template is not None:
+        t = template.transform
+        if t.b != 0 or t.d != 0 or t.a <= 0 or t.e >= 0:
+            raise ParameterError("TEMPLATE", f"must be a north-up raster without rotation, "
+                                 f"{template} has transform {tuple(t)[:6]}")
+        if params.get("CELL_SIZE") is not None:
+            raise ParameterError("CELL_SIZE", f"must not be given with TEMPLATE (the template's "
+                                 f"cells are used), got {params['CELL_SIZE']:g}")
+        crs = crs if crs is not None else template.crs
+        if extent is None:
+            return _guarded(GridSpec(t, template.width, template.height, crs), limit, "TEMPLATE")
+        cx, cy = t.a, -t.e
+        xmin, ymin, xmax, ymax = map(float, extent.bounds)
+        col0 = math.floor((xmin - t.c) / cx + _EPS)
+        col1 = math.ceil((xmax - t.c) / cx - _EPS)
+        row0 = math.floor((t.f - ymax) / cy + _EPS)
+        row1 = math.ceil((t.f - ymin) / cy - _EPS)
+        grid = GridSpec(Affine(cx, 0.0, t.c + col0 * cx, 0.0, -cy, t.f - row0 * cy),
+                        max(1, col1 - col0), max(1, row1 - row0), crs)
+        return _guarded(grid, limit, "TEMPLATE")
+    cell = params.get("CELL_SIZE")
+    if cell is None:
+        cell = default_cell_size() if callable(default_cell_size) else default_cell_size
+    if cell is None:
+        raise ParameterError("CELL_SIZE", "is required unless TEMPLATE is given")
+    cell = float(cell)
+    if not cell > 0 or not math.isfinite(cell):
+        raise ParameterError("CELL_SIZE", f"must be > 0, got {cell:g}")
+    if extent is not None:
+        xmin, ymin, xmax, ymax = map(float, extent.bounds)
+        if not (xmax > xmin and ymax > ymin):
+            raise ParameterError("EXTENT", f"must have xmax > xmin and ymax > ymin, got "
+                                 f"{xmin:g},{ymin:g},{xmax:g},{ymax:g}")
+        name = "CELL_SIZE"
+    elif data_bounds is not None:
+        xmin, ymin, xmax, ymax = map(float, data_bounds)
+        if snap:
+            xmin, ymin = math.floor(xmin / cell) * cell, math.floor(ymin / cell) * cell
+            xmax, ymax = math.ceil(xmax / cell) * cell, math.ceil(ymax / cell) * cell
+        name = "CELL_SIZE"
+    else:
+        raise ParameterError("EXTENT", "is needed to size the grid before reading the data")
+    width = _cells(xmax - xmin, cell)
+    height = _cells(ymax - ymin, cell)
+    return _guarded(GridSpec(Affine(cell, 0.0, xmin, 0.0, -cell, ymax), width, height, crs),
+                    limit, name)
+
+
+def _cells(length: float, cell: float) -> int:
+    """Whole cells covering ``length`` (a length within 1e-9 cell of a multiple is that one)."""
+    return max(1, int(math.ceil(length / cell - _EPS)))
+
+
+def _guarded(grid: GridSpec, limit: int, name: str) -> GridSpec:
+    n = grid.width * grid.height
+    if n > limit:
+        cell = grid.cell_size[0]
+        raise ParameterError(name, f"{cell:g} gives a {grid.width} x {grid.height} grid "
+                             f"({n:,} cells), over the limit of {limit:,} cells; use a larger "
+                             "cell size or a smaller extent (or raise MAX_CELLS / "
+                             "TOOLBOX_MAX_CELLS)" if name == "CELL_SIZE" else
+                             f"gives a {grid.width} x {grid.height} grid ({n:,} cells), over the "
+                             f"limit of {limit:,} cells (MAX_CELLS or TOOLBOX_MAX_CELLS)")
+    return grid
+
+
+# -- tiles -----------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Tile:
+    """One tile of an output grid (picklable).
+
+    ``window`` is the part of the output this tile writes (no halo); the kernel's input arrays
+    cover :attr:`haloed_window`, ``halo`` cells more on every side (also beyond the grid's
+    edges: see the boundary rules of :func:`read_window`). ``grid_transform`` is the output
+    grid's transform.
+    """
+
+    index: int
+    window: Any  # rasterio.windows.Window
+    halo: int
+    grid_transform: Any  # affine.Affine
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """(rows, cols) of the tile without halo."""
+        return (int(self.window.height), int(self.window.width))
+
+    @property
+    def haloed_shape(self) -> tuple[int, int]:
+        h, w = self.shape
+        return (h + 2 * self.halo, w + 2 * self.halo)
+
+    @property
+    def haloed_window(self) -> Any:
+        from rasterio.windows import Window
+
+        h = self.halo
+        return Window(int(self.window.col_off) - h, int(self.window.row_off) - h,
+                      int(self.window.width) + 2 * h, int(self.window.height) + 2 * h)
+
+    @property
+    def transform(self) -> Any:
+        """Transform of the haloed window (its top-left cell corner -> map)."""
+        return _window_transform(self.grid_transform, self.haloed_window)
+
+    @property
+    def core_transform(self) -> Any:
+        """Transform of the tile without halo."""
+        return _window_transform(self.grid_transform, self.window)
+
+    @property
+    def crop(self) -> tuple[slice, slice]:
+        """Slices cutting the tile out of a haloed array: ``array[..., *tile.crop]``."""
+        h, (rows, cols) = self.halo, self.shape
+        return (slice(h, h + rows), slice(h, h + cols))
+
+    def cell_centres(self, origin: tuple[float, float] = (0.0, 0.0),
+                     halo: bool = True) -> tuple[np.ndarray, np.ndarray]:
+        """1-D float64 x of the column centres and y of the row centres (haloed window by
+        default), minus ``origin`` (a local origin keeps large map coordinates precise)."""
+        w = self.haloed_window if halo else self.window
+        t = self.grid_transform
+        j = np.arange(int(w.col_off), int(w.col_off) + int(w.width)) + 0.5
+        i = np.arange(int(w.row_off), int(w.row_off) + int(w.height)) + 0.5
+        return (t.c - origin[0]) + j * t.a, (t.f - origin[1]) + i * t.e
+
+    def sub_tile(self, window: Any) -> Tile:
+        """The tile of a part ``window`` of this one (same halo)."""
+        return Tile(self.index, window, self.halo, self.grid_transform)
+
+
+def _window_transform(transform: Any, window: Any) -> Any:
+    """Transform of ``window`` (its top-left cell corner -> map); the window may lie partly
+    outside the grid (negative offsets)."""
+    t, col, row = transform, int(window.col_off), int(window.row_off)
+    return t.__class__(t.a, t.b, t.c + col * t.a + row * t.b, t.d, t.e, t.f + col * t.d + row * t.e)
+
+
+def iter_tiles(grid: GridSpec, tile_size: int = 512, halo: int = 0) -> Iterator[Tile]:
+    """The tiles of ``grid``, row by row: ``tile_size`` x ``tile_size`` cells (smaller at the
+    east and south edges), each with ``halo`` cells of margin. Use the writer's block size (or
+    a multiple) so that writes align with the GeoTIFF blocks."""
+    from rasterio.windows import Window
+
+    if tile_size <= 0 or halo < 0:
+        raise ValueError(f"tile_size must be > 0 and halo >= 0, got {tile_size}, {halo}")
+    index = 0
+    for row0 in range(0, grid.height, tile_size):
+        for col0 in range(0, grid.width, tile_size):
+            window = Window(col0, row0, min(tile_size, grid.width - col0),
+                            min(tile_size, grid.height - row0))
+            yield Tile(index, window, int(halo), grid.transform)
+            index += 1
+
+
+def tile_count(grid: GridSpec, tile_size: int = 512) -> int:
+    return math.ceil(grid.width / tile_size) * math.ceil(grid.height / tile_size)
+
+
+# -- reading inputs onto the grid ------------------------------------------------------------------
+@dataclass(frozen=True)
+class RasterInput:
+    """How :func:`process_raster` reads one input raster onto each tile (see
+    :func:`read_window` for the meaning of the fields). ``source`` is a path or a
+    :class:`~toolbox.io.raster.RasterInfo`."""
+
+    source: Any
+    bands: tuple[int, ...] | None = None
+    resampling: str = "bilinear"
+    boundary: str = "nodata"
+    dtype: str | None = None
+    fill: float | None = None
+
+    def read(self, grid: GridSpec, tile: Tile) -> np.ndarray:
+        return read_window(self.source, grid, tile.window, bands=self.bands,
+                           resampling=self.resampling, halo=tile.halo, boundary=self.boundary,
+                           dtype=self.dtype, fill=self.fill)
+
+
+def _source_path(source: Any) -> Any:
+    return getattr(source, "path", source)
+
+
+def read_window(source: Any, grid: GridSpec, window: Any, *, bands: Any = None,
+                resampling: str = "bilinear", halo: int = 0, boundary: str = "nodata",
+                dtype: Any = None, fill: float | None = None) -> np.ndarray:
+    """Read ``source`` onto ``window`` of ``grid`` grown by ``halo`` cells: (bands, h + 2·halo,
+    w + 2·halo).
+
+    Parameters
+    ----------
+    source : path, RasterInfo or open rasterio dataset
+        Any raster GDAL reads, on any grid, CRS or resolution. When its grid is aligned with
+        ``grid`` (same CRS, cell size and a whole-cell offset) the cells are read directly;
+        otherwise they are resampled onto the grid by GDAL's warper (``resampling``); a raster
+        or grid without CRS is taken to be in the other's CRS.
+    bands : int or sequence of int, optional
+        1-based band indexes (default: every band).
+    resampling : str
+        A rasterio resampling name (nearest, bilinear, cubic, lanczos, average...), used only
+        when the grids differ.
+    boundary : {"nodata", "edge", "reflect"}
+        Cells of the haloed window beyond ``grid``'s edges: ``nodata`` reads them like any
+        other cell (from the source if it covers them, else ``fill``); ``edge`` repeats the
+        grid's edge cells; ``reflect`` mirrors the cells inside about the edge cell (numpy's
+        ``reflect``: the edge cell is not repeated).
+    dtype : dtype, optional
+        Result type (default: the source's).
+    fill : float, optional
+        Value of cells without data (outside the source, or the source's nodata). Default: NaN
+        for a float result, else the source's nodata (0 when it has none).
+    """
+    import rasterio
+
+    if boundary not in BOUNDARY_RULES:
+        raise ValueError(f"boundary must be one of {', '.join(BOUNDARY_RULES)}, got {boundary!r}")
+    from rasterio.windows import Window
+
+    col0, row0 = int(window.col_off) - halo, int(window.row_off) - halo
+    width, height = int(window.width) + 2 * halo, int(window.height) + 2 * halo
+    pads = (0, 0, 0, 0)
+    if boundary != "nodata":  # read the part inside the grid, pad it afterwards
+        c0, r0 = max(col0, 0), max(row0, 0)
+        c1, r1 = min(col0 + width, grid.width), min(row0 + height, grid.height)
+        pads = (r0 - row0, row0 + height - r1, c0 - col0, col0 + width - c1)
+        col0, row0, width, height = c0, r0, c1 - c0, r1 - r0
+    region = Window(col0, row0, width, height)
+    own = not hasattr(source, "read")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
+        src = rasterio.open(_source_path(source)) if own else source
+    try:
+        indexes = list(range(1, src.count + 1)) if bands is None else (
+            [int(bands)] if np.isscalar(bands) else [int(b) for b in bands])
+        out_dtype = np.dtype(dtype or src.dtypes[indexes[0] - 1])
+        if fill is None:
+            fill = math.nan if out_dtype.kind == "f" else (
+                src.nodata if src.nodata is not None and not math.isnan(src.nodata) else 0)
+        offset = _aligned_offset(src, grid)
+        if offset is not None:
+            data = _read_aligned(src, indexes, region, offset, out_dtype, fill)
+        else:
+            data = _read_warped(src, indexes, grid, region, out_dtype, fill, resampling)
+    finally:
+        if own:
+            src.close()
+    if any(pads):
+        top, bottom, left, right = pads
+        mode = "edge" if boundary == "edge" else "reflect"
+        if mode == "reflect" and (data.shape[1] < 2 or data.shape[2] < 2):
+            mode = "edge"
+        data = np.pad(data, ((0, 0), (top, bottom), (left, right)), mode=mode)
+    return data
+
+
+def _aligned_offset(src: Any, grid: GridSpec) -> tuple[int, int] | None:
+    """(col, row) of the grid's origin in the source's cells when both grids share CRS, cell
+    size and orientation up to a whole-cell shift; None otherwise."""
+    s, g = src.transform, grid.transform
+    if s.b != 0 or s.d != 0 or g.b != 0 or g.d != 0:
+        return None
+    if abs(s.a - g.a) > _EPS * abs(g.a) or abs(s.e - g.e) > _EPS * abs(g.e):
+        return None
+    if src.crs is not None and grid.crs is not None:
+        from toolbox.io.crs import same_crs
+
+        from_wkt = _pyproj(src.crs)
+        if not same_crs(from_wkt, _pyproj(grid.crs)):
+            return None
+    dc, dr = (g.c - s.c) / s.a, (g.f - s.f) / s.e
+    if abs(dc - round(dc)) > 1e-6 or abs(dr - round(dr)) > 1e-6:
+        return None
+    return int(round(dc)), int(round(dr))
+
+
+def _pyproj(crs: Any) -> Any:
+    from pyproj import CRS
+
+    if isinstance(crs, CRS):
+        return crs
+    return CRS.from_wkt(crs.to_wkt()) if hasattr(crs, "to_wkt") else CRS.from_user_input(crs)
+
+
+def _read_aligned(src, indexes, region, offset, dtype, fill) -> np.ndarray:
+    """Windowed read of an aligned source; cells outside it or at its nodata get ``fill``."""
+    from rasterio.windows import Window
+
+    col0, row0 = int(region.col_off) + offset[0], int(region.row_off) + offset[1]
+    width, height = int(region.width), int(region.height)
+    out = np.full((len(indexes), height, width), fill, dtype=dtype)
+    c0, r0 = max(col0, 0), max(row0, 0)
+    c1, r1 = min(col0 + width, src.width), min(row0 + height, src.height)
+    if c1 <= c0 or r1 <= r0:
+        return out
+    data = src.read(indexes, window=Window(c0, r0, c1 - c0, r1 - r0))
+    target = out[:, r0 - row0:r1 - row0, c0 - col0:c1 - col0]
+    nodata = src.nodata
+    if nodata is None:
+        target[...] = data
+    else:
+        missing = np.isnan(data) if math.isnan(nodata) else data == nodata
+        target[...] = data
+        if missing.any():
+            target[missing] = fill
+    return out
+
+
+def _read_warped(src, indexes, grid, region, dtype, fill, resampling) -> np.ndarray:
+    """GDAL warp of the source onto ``region`` of the grid (bounded reads of the source)."""
+    from rasterio.enums import Resampling
+    from rasterio.warp import reproject
+
+    from toolbox.io.raster import _rio_crs
+
+    dst_transform = _window_transform(grid.transform, region)
+    src_crs = src.crs if src.crs else (_rio_crs(grid.crs) if grid.crs is not None else None)
+    dst_crs = _rio_crs(grid.crs) if grid.crs is not None else src_crs
+    if src_crs is None:  # both local: only the transforms matter; any CRS serves both
+        src_crs = dst_crs = _rio_crs("EPSG:3857")
+    out = np.full((len(indexes), int(region.height), int(region.width)), fill, dtype=dtype)
+    try:
+        method = Resampling[resampling]
+    except KeyError:
+        raise ValueError(f"unknown resampling {resampling!r}") from None
+    import rasterio
+
+    reproject(rasterio.band(src, indexes), out, src_transform=src.transform, src_crs=src_crs,
+              src_nodata=src.nodata, dst_transform=dst_transform, dst_crs=dst_crs,
+              dst_nodata=fill, resampling=method, init_dest_nodata=True, tolerance=0.01)
+    return out
+
+
+# -- running kernels over the tiles ----------------------------------------------------------------
+Kernel = Callable[[Tile, dict], Any]
+
+
+@dataclass
+class _TileJob:
+    """One tile's work (picklable when the kernel and inputs are)."""
+
+    tile: Tile
+    grid: GridSpec
+    inputs: dict
+    kernel: Kernel | None
+    planned: dict | None = None
+
+
+def _run_job(job: _TileJob) -> tuple[np.ndarray | None, Any]:
+    """Read the inputs onto the tile, run the kernel, crop the halo (on a worker)."""
+    if job.kernel is None:
+        return None, None
+    arrays = {name: inp.read(job.grid, job.tile) for name, inp in job.inputs.items()}
+    if job.planned:
+        arrays.update(job.planned)
+    result = job.kernel(job.tile, arrays)
+    info = None
+    if isinstance(result, tuple):
+        result, info = result
+    return _crop(job.tile, result), info
+
+
+def _crop(tile: Tile, array: np.ndarray | None) -> np.ndarray | None:
+    if array is None:
+        return None
+    if array.shape[-2:] == tile.haloed_shape and tile.halo:
+        return array[(...,) + tile.crop]
+    if array.shape[-2:] != tile.shape:
+        raise ValueError(f"kernel returned shape {array.shape} for a tile of {tile.shape} "
+                         f"(haloed {tile.haloed_shape})")
+    return array
+
+
+def process_raster(grid: GridSpec, inputs: Mapping[str, RasterInput] | None, kernel: Kernel,
+                   writer_or_output: Any, *, tile_size: int = 512, halo: int = 0,
+                   executor: Any = None, feedback: Any = None,
+                   plan: Callable[[Tile], dict | None] | None = None,
+                   collect: Callable[[Tile, np.ndarray | None, Any], None] | None = None,
+                   start: float = 0.0, end: float = 100.0) -> dict[str, Any]:
+    """Run ``kernel`` on every tile of ``grid`` and write the results in tile order.
+
+    Parameters
+    ----------
+    grid : GridSpec
+        The output grid.
+    inputs : dict name -> RasterInput
+        Rasters read onto each tile's haloed window (see :func:`read_window`) and handed to the
+        kernel as ``arrays[name]`` (bands, h + 2·halo, w + 2·halo).
+    kernel : callable
+        ``kernel(tile, arrays) -> array`` (or ``(array, info)``): numpy arrays in, a numpy
+        array out, over the tile with or without its halo (the halo is cropped); (h, w) or
+        (bands, h, w). No open files: it may run on a thread or a Dask worker (then it must be
+        a module-level function or a ``functools.partial`` of one). Returning None writes the
+        tile as blank (nodata, alpha 0).
+    writer_or_output : RasterWriter or callable
+        Where results go: ``writer.write(tile.window, array)``, or ``output(tile, array)``
+        (array None for a blank tile).
+    tile_size, halo : int
+        Tile side and margin in cells.
+    executor : toolbox.tiles.Executor, optional
+        Default: local threads, one per CPU. Algorithms with a SCHEDULER parameter pass
+        :func:`toolbox.tiles.resolve_executor` (SCHEDULER, WORKERS) (a Dask cluster when asked).
+    feedback : Feedback, optional
+        Progress from ``start`` to ``end`` % over the tiles; cancellation between tiles.
+    plan : callable, optional
+        ``plan(tile) -> dict | None``, run in this process, lazily as tiles are submitted:
+        extra arrays for the kernel (e.g. the data points a tile needs), merged into
+        ``arrays``; None skips the tile (written blank, the kernel is not called).
+    collect : callable, optional
+        ``collect(tile, array, info)`` in this process, in tile order, before the write
+        (statistics).
+
+    Returns ``{"tiles": n, "blank_tiles": m, "executor": "..."}``.
+    """
+    from toolbox.tiles import Executor, default_workers, map_tiles
+
+    executor = executor or Executor("local", default_workers())
+    inputs = dict(inputs or {})
+    counters = {"tiles": 0, "blank_tiles": 0}
+
+    def jobs() -> Iterator[_TileJob]:
+        for tile in iter_tiles(grid, tile_size, halo):
+            planned = plan(tile) if plan is not None else {}
+            yield _TileJob(tile, grid, inputs, None if planned is None else kernel, planned)
+
+    write = writer_or_output.write if hasattr(writer_or_output, "write") else None
+    tiles = iter_tiles(grid, tile_size, halo)
+    results = map_tiles(_run_job, jobs(), executor=executor, feedback=feedback,
+                        total=tile_count(grid, tile_size), start=start, end=end)
+    for tile, (array, info) in zip(tiles, results, strict=True):
+        counters["tiles"] += 1
+        if array is None:
+            counters["blank_tiles"] += 1
+        if collect is not None:
+            collect(tile, array, info)
+        if write is not None:
+            write(tile.window, writer_or_output.blank(*tile.shape) if array is None else array)
+        else:
+            writer_or_output(tile, array)
+    counters["executor"] = executor.describe()
+    return counters
+
+
+# -- warp mode: photo -> ground --------------------------------------------------------------------
+@dataclass
+class _WarpJob:
+    source: Any
+    source_size: tuple[int, int]
+    coordinate_map: Any
+    layout: Any
+    resampling: str
+    max_source_pixels: int
+    fast: bool
+    aux: dict = field(default_factory=dict)
+
+
+class _Sources:
+    """Per-thread open handles of a raster (rasterio datasets are not thread-safe); pickles
+    as its path."""
+
+    def __init__(self, path: Any):
+        import threading
+
+        self.path = path
+        self._local = threading.local()
+
+    def __getstate__(self):
+        return {"path": self.path}
+
+    def __setstate__(self, state):
+        self.__init__(state["path"])
+
+    def get(self):
+        import rasterio
+
+        src = getattr(self._local, "src", None)
+        if src is None:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
+                src = rasterio.open(self.path)
+            self._local.src = src
+        return src
+
+
+def _warp_kernel(job: _WarpJob, tile: Tile, arrays: dict) -> tuple[np.ndarray, Any]:
+    """Warp one tile: aux arrays -> coordinate map -> source window -> OpenCV resampling."""
+    from toolbox.raster.warp import WarpStatistics, warp_window
+
+    src = job.source.get()
+    stats = WarpStatistics()
+    out = np.empty((job.layout.count, *tile.shape), dtype=job.layout.dtype)
+
+    def read(bands, window):
+        return src.read(bands, window=window)
+
+    def read_mask(window):
+        return src.dataset_mask(window=window)
+
+    c0, r0 = int(tile.window.col_off), int(tile.window.row_off)
+    for part, array in warp_window(read, job.source_size, job.coordinate_map, tile, job.layout,
+                                   job.resampling, read_mask, job.max_source_pixels, stats,
+                                   job.fast, aux=arrays):
+        pc, pr = int(part.col_off) - c0, int(part.row_off) - r0
+        out[:, pr:pr + int(part.height), pc:pc + int(part.width)] = array
+    return out, stats
+
+
+def warp_raster(source: Any, grid: GridSpec, coordinate_map: Any, writer_or_output: Any, *,
+                layout: Any, resampling: str = "bilinear",
+                aux: Mapping[str, RasterInput] | None = None, aux_halo: int = 0,
+                tile_size: int = 2048, executor: Any = None, feedback: Any = None,
+                max_source_pixels: int | None = None, fast: bool = True,
+                start: float = 0.0, end: float = 100.0) -> Any:
+    """Indirect warp of ``source`` (a photo) onto ``grid`` through ``coordinate_map``.
+
+    Parameters
+    ----------
+    source : path or RasterInfo
+        Any raster GDAL reads, any band count and data type (its georeferencing is ignored).
+    coordinate_map : callable
+        ``coordinate_map(tile, aux_arrays) -> (src_col, src_row)``: float32 (h, w) arrays over
+        the tile without halo, source pixel convention (:mod:`toolbox.raster.warp`), NaN
+        where there is no source point. ``aux_arrays`` holds the ``aux`` rasters read onto the
+        tile (with ``aux_halo``), e.g. the DEM of an orthophoto. The fast paths of
+        :class:`~toolbox.raster.warp.HomographyMap` (``source_bounds``, ``inside_intervals``,
+        ``perspective_matrix``) are used when the map offers them.
+    writer_or_output : RasterWriter or callable
+        As in :func:`process_raster`; create the writer with ``layout`` (count, dtype, nodata,
+        alpha: see :func:`toolbox.raster.warp.warp_layout`).
+    layout : toolbox.raster.warp.OutputLayout
+        Output bands, nodata/alpha outside the source.
+    resampling : {"nearest", "bilinear", "cubic", "lanczos"}
+    tile_size : int
+        Output tile side (a multiple of the writer's 512 blocks).
+    max_source_pixels : int, optional
+        Largest source window read at once per band; bigger ones are split.
+
+    Returns the summed :class:`~toolbox.raster.warp.WarpStatistics`.
+    """
+    from functools import partial
+
+    import rasterio
+
+    from toolbox.raster.warp import (
+        DEFAULT_MAX_SOURCE_PIXELS,
+        RESAMPLING_METHODS,
+        WarpStatistics,
+    )
+
+    if resampling not in RESAMPLING_METHODS:
+        raise ValueError(f"resampling must be one of {', '.join(RESAMPLING_METHODS)}, "
+                         f"got {resampling!r}")
+    path = _source_path(source)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
+        with rasterio.open(path) as src:
+            size = (src.width, src.height)
+    job = _WarpJob(_Sources(path), size, coordinate_map, layout, resampling,
+                   max_source_pixels or DEFAULT_MAX_SOURCE_PIXELS, fast)
+    total = WarpStatistics()
+
+    def collect(tile, array, stats):
+        if stats is not None:
+            total.add(stats)
+
+    process_raster(grid, aux, partial(_warp_kernel, job), writer_or_output,
+                   tile_size=tile_size, halo=aux_halo, executor=executor, feedback=feedback,
+                   collect=collect, start=start, end=end)
+    return total

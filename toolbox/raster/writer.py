@@ -1,0 +1,376 @@
+"""The GeoTIFF writer of every raster output: tiled, compressed, with overviews, optionally a
+Cloud Optimized GeoTIFF.
+
+:class:`RasterWriter` writes windows of an output grid into a GeoTIFF with
+
+- square tiles of ``tile`` pixels (512 by default, also for rasters smaller than a tile),
+- DEFLATE (or another GDAL codec) with a predictor: 2 (horizontal differencing) for integers,
+  3 (floating point) for floats,
+- internal overviews built at close (``average`` by default), halving until the smallest level
+  fits in one tile (GDAL's COG rule), compressed like the data,
+- an alpha band (the last band, ``alpha=True``) or a nodata value (NaN in a float array, the
+  kernels' "no value", is written as nodata); RGB photometry for three integer data bands,
+- ``cog=True``: a Cloud Optimized GeoTIFF, made by GDAL's COG driver from the tiled file (IFDs
+  first, smallest overview's data first, the main image last), which GDAL's COG validator
+  accepts; :func:`cog_problems` checks that layout without GDAL's Python bindings.
+
+The file is written at the path given (inside an algorithm: the staged path the runner hands
+over, renamed into place on success); a failed write removes what it wrote.
+"""
+
+from __future__ import annotations
+
+import math
+import struct
+from contextlib import ExitStack
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+DEFAULT_TILE = 512
+DEFAULT_CACHE_MB = 256  # GDAL block cache while writing (bounded, whatever the output size)
+
+
+def overview_levels(width: int, height: int, tile: int = DEFAULT_TILE) -> list[int]:
+    """Overview factors 2, 4, 8... until the smallest level fits in one ``tile`` (as GDAL's COG
+    driver): none for a raster that fits in one tile."""
+    factors, f = [], 1
+    while math.ceil(width / f) > tile or math.ceil(height / f) > tile:
+        f *= 2
+        factors.append(f)
+    return factors
+
+
+def predictor_for(dtype: Any) -> int:
+    """TIFF predictor: 3 (floating point) for floats, 2 (horizontal) for integers."""
+    return 3 if np.dtype(dtype).kind == "f" else 2
+
+
+class RasterWriter:
+    """Context manager writing an output grid window by window.
+
+    Parameters
+    ----------
+    path : path
+        The GeoTIFF to write.
+    grid : toolbox.io.grid.GridSpec
+        Output grid (transform, width, height, crs; crs None for a local system).
+    count : int
+        Bands written by :meth:`write`, the alpha band included when ``alpha``.
+    dtype : dtype
+        Data type of every band.
+    nodata : float, optional
+        Nodata value of the data bands (not with ``alpha``).
+    alpha : bool
+        The last band is an alpha band (0 = transparent, the dtype's maximum = opaque).
+    cog : bool
+        Write a Cloud Optimized GeoTIFF (see the module notes).
+    tile : int
+        Block side in pixels (a multiple of 16).
+    compress : str
+        GDAL codec (DEFLATE, LZW, ZSTD, NONE...).
+    overviews : bool
+        Build internal overviews at close.
+    band_descriptions : sequence of str, optional
+        One description per band.
+    photometric : str, optional
+        TIFF photometric interpretation; default RGB for three integer data bands.
+    tags : dict, optional
+        Dataset metadata.
+    overview_resampling : str
+        Overview resampling (``average``; ``nearest`` for classes).
+    creation_options : dict, optional
+        More GTiff creation options (override the defaults).
+
+    Example
+    -------
+    >>> with RasterWriter(path, grid, 1, "float32", nodata=-9999.0) as w:  # doctest: +SKIP
+    ...     for tile in iter_tiles(grid):
+    ...         w.write(tile.window, values_of(tile))
+    """
+
+    def __init__(self, path: Any, grid: Any, count: int, dtype: Any, nodata: float | None = None,
+                 *, alpha: bool = False, cog: bool = False, tile: int = DEFAULT_TILE,
+                 compress: str = "DEFLATE", overviews: bool = True,
+                 band_descriptions: Any = None, photometric: str | None = None,
+                 tags: dict | None = None, overview_resampling: str = "average",
+                 creation_options: dict | None = None, cache_mb: int = DEFAULT_CACHE_MB):
+        if tile % 16:
+            raise ValueError(f"tile must be a multiple of 16, got {tile}")
+        if alpha and nodata is not None:
+            raise ValueError("an output has either an alpha band or a nodata value, not both")
+        self.path = Path(path)
+        self.grid = grid
+        self.count = int(count)
+        self.dtype = np.dtype(dtype)
+        self.nodata = nodata
+        self.alpha = bool(alpha)
+        self.cog = bool(cog)
+        self.tile = int(tile)
+        self.compress = str(compress).upper()
+        self.overviews = bool(overviews)
+        self.band_descriptions = list(band_descriptions) if band_descriptions else None
+        self.photometric = photometric
+        self.tags = dict(tags or {})
+        self.overview_resampling = overview_resampling
+        self.creation_options = dict(creation_options or {})
+        self.cache_mb = int(cache_mb)
+        self._stack: ExitStack | None = None
+        self.dataset = None
+        # a COG is copied from a plain tiled file written beside it
+        self._tiled_path = self.path.with_name(f".{self.path.name}.tiled.tif") if cog else \
+            self.path
+
+    # -- what is written -------------------------------------------------------------------------
+    @property
+    def predictor(self) -> int:
+        return predictor_for(self.dtype)
+
+    @property
+    def data_count(self) -> int:
+        return self.count - (1 if self.alpha else 0)
+
+    @property
+    def fill(self) -> float:
+        """Value of data cells without data: nodata, else 0."""
+        return 0 if self.nodata is None else self.nodata
+
+    def blank(self, height: int, width: int) -> np.ndarray:
+        """A (count, height, width) block of no data: nodata (or 0) and alpha 0."""
+        out = np.full((self.count, height, width), self.fill, dtype=self.dtype)
+        if self.alpha:
+            out[-1] = 0
+        return out
+
+    def profile(self) -> dict:
+        from toolbox.io.raster import _rio_crs
+
+        g = self.grid
+        profile = {
+            "driver": "GTiff", "width": int(g.width), "height": int(g.height),
+            "count": self.count, "dtype": self.dtype.name,
+            "crs": None if g.crs is None else _rio_crs(g.crs), "transform": g.transform,
+            "nodata": self.nodata, "tiled": True, "blockxsize": self.tile,
+            "blockysize": self.tile, "compress": self.compress.lower(),
+            "bigtiff": "if_safer", "num_threads": "all_cpus",
+            "interleave": "pixel" if self.count > 1 else "band",
+        }
+        if self.compress in ("DEFLATE", "LZW", "ZSTD", "LZMA"):
+            profile["predictor"] = self.predictor
+        if self.compress == "DEFLATE":
+            profile["zlevel"] = 6
+        photometric = self.photometric
+        if photometric is None and self.data_count == 3 and self.dtype.kind in "iu":
+            photometric = "RGB"
+        if photometric:
+            profile["photometric"] = photometric
+        if self.alpha:
+            profile["alpha"] = "YES"
+        profile.update(self.creation_options)
+        return profile
+
+    def _env(self) -> dict:
+        return {"GDAL_CACHEMAX": self.cache_mb, "COMPRESS_OVERVIEW": self.compress,
+                "PREDICTOR_OVERVIEW": self.predictor, "GDAL_TIFF_OVR_BLOCKSIZE": self.tile,
+                "INTERLEAVE_OVERVIEW": "PIXEL" if self.count > 1 else "BAND",
+                "GDAL_NUM_THREADS": "ALL_CPUS"}
+
+    # -- context ---------------------------------------------------------------------------------
+    def __enter__(self) -> RasterWriter:
+        import rasterio
+        from rasterio.enums import ColorInterp
+
+        self._stack = ExitStack()
+        try:
+            self._stack.enter_context(rasterio.Env(**self._env()))
+            self.dataset = self._stack.enter_context(
+                rasterio.open(self._tiled_path, "w", **self.profile()))
+            if self.tags:
+                self.dataset.update_tags(**self.tags)
+            if self.band_descriptions:
+                for k, text in enumerate(self.band_descriptions, start=1):
+                    self.dataset.set_band_description(k, str(text))
+            if self.alpha and self.count > 1 and self.dataset.colorinterp[-1] != ColorInterp.alpha:
+                self.dataset.colorinterp = [*self.dataset.colorinterp[:-1], ColorInterp.alpha]
+        except BaseException:
+            self._abort()
+            raise
+        return self
+
+    def write(self, window: Any, array: np.ndarray) -> None:
+        """Write ``array`` ((bands, h, w), or (h, w) for one band) at ``window`` (a rasterio
+        Window or a :class:`~toolbox.raster.engine.Tile`) of the grid; cast to the dtype. NaN
+        in a float array (the kernels' "no value") is written as ``nodata``."""
+        window = getattr(window, "window", window)
+        data = array[np.newaxis] if array.ndim == 2 else array
+        if data.shape[0] != self.count:
+            raise ValueError(f"{data.shape[0]} bands written to a {self.count}-band raster")
+        if data.dtype.kind == "f" and self.nodata is not None and not math.isnan(self.nodata):
+            missing = np.isnan(data)
+            if missing.any():
+                data = np.where(missing, data.dtype.type(self.nodata), data)
+        if data.dtype != self.dtype:
+            data = data.astype(self.dtype)
+        self.dataset.write(data, window=window)
+
+    def update_tags(self, **tags: Any) -> None:
+        self.dataset.update_tags(**tags)
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        if exc_type is not None:
+            self._abort()
+            return
+        try:
+            if self.overviews and not self.cog:
+                self._build_overviews()
+            self._stack.close()
+            self._stack = None
+            self.dataset = None
+            if self.cog:
+                self._copy_to_cog()
+        except BaseException:
+            self._abort()
+            raise
+
+    def _build_overviews(self) -> None:
+        from rasterio.enums import Resampling
+
+        factors = overview_levels(self.grid.width, self.grid.height, self.tile)
+        if factors:
+            self.dataset.build_overviews(factors, Resampling[self.overview_resampling])
+            self.dataset.update_tags(ns="rio_overview", resampling=self.overview_resampling)
+
+    def _copy_to_cog(self) -> None:
+        import rasterio
+        import rasterio.shutil
+
+        options = {"COMPRESS": self.compress, "BLOCKSIZE": self.tile, "BIGTIFF": "IF_SAFER",
+                   "NUM_THREADS": "ALL_CPUS",
+                   "OVERVIEWS": "AUTO" if self.overviews else "NONE",
+                   "OVERVIEW_RESAMPLING": self.overview_resampling.upper()}
+        if self.compress in ("DEFLATE", "LZW", "ZSTD", "LZMA"):
+            options["PREDICTOR"] = self.predictor
+        if self.compress == "DEFLATE":
+            options["LEVEL"] = 6
+        with rasterio.Env(GDAL_CACHEMAX=self.cache_mb):
+            rasterio.shutil.copy(self._tiled_path, self.path, driver="COG", **options)
+        self._tiled_path.unlink(missing_ok=True)
+
+    def _abort(self) -> None:
+        if self._stack is not None:
+            try:
+                self._stack.close()
+            except Exception:  # noqa: BLE001 - the original error matters, not this one
+                pass
+            self._stack = None
+        self.dataset = None
+        for p in {self._tiled_path, self.path}:
+            p.unlink(missing_ok=True)
+
+
+# -- COG layout check --------------------------------------------------------------------------
+_GHOST = b"GDAL_STRUCTURAL_METADATA_SIZE="
+
+
+def _ifds(data: bytes) -> tuple[list[dict], int, bool]:
+    """Parse the IFD chain of a TIFF: ([{offset, tags}], header size, bigtiff)."""
+    order = {b"II": "<", b"MM": ">"}.get(data[:2])
+    if order is None:
+        raise ValueError("not a TIFF file")
+    magic = struct.unpack(order + "H", data[2:4])[0]
+    big = magic == 43
+    if big:
+        first = struct.unpack(order + "Q", data[8:16])[0]
+    elif magic == 42:
+        first = struct.unpack(order + "I", data[4:8])[0]
+    else:
+        raise ValueError("not a TIFF file")
+    sizes = {1: 1, 2: 1, 3: 2, 4: 4, 5: 8, 6: 1, 7: 1, 8: 2, 9: 4, 10: 8, 11: 4, 12: 8, 16: 8,
+             17: 8, 18: 8}
+    codes = {1: "B", 2: "B", 3: "H", 4: "I", 6: "b", 7: "B", 8: "h", 9: "i", 16: "Q", 17: "q",
+             18: "Q"}
+    ifds, offset = [], first
+    while offset and len(ifds) < 1000:
+        if big:
+            n = struct.unpack(order + "Q", data[offset:offset + 8])[0]
+            entry0, entry_size, inline = offset + 8, 20, 8
+        else:
+            n = struct.unpack(order + "H", data[offset:offset + 2])[0]
+            entry0, entry_size, inline = offset + 2, 12, 4
+        tags = {}
+        for k in range(n):
+            e = entry0 + k * entry_size
+            tag, typ = struct.unpack(order + "HH", data[e:e + 4])
+            count = struct.unpack(order + ("Q" if big else "I"),
+                                  data[e + 4:e + (12 if big else 8)])[0]
+            if typ not in codes:
+                continue
+            size = sizes[typ] * count
+            value_at = e + (12 if big else 8)
+            if size > inline:
+                value_at = struct.unpack(order + ("Q" if big else "I"),
+                                         data[value_at:value_at + inline])[0]
+            count_read = min(count, 4)  # the first values are enough here
+            tags[tag] = struct.unpack(order + codes[typ] * count_read,
+                                      data[value_at:value_at + sizes[typ] * count_read])
+        ifds.append({"offset": offset, "tags": tags})
+        end = entry0 + n * entry_size
+        offset = struct.unpack(order + ("Q" if big else "I"), data[end:end + inline])[0]
+    return ifds, (16 if big else 8), big
+
+
+def cog_problems(path: Any) -> list[str]:
+    """Why ``path`` is not a Cloud Optimized GeoTIFF (an empty list: it is one).
+
+    The checks of GDAL's ``validate_cloud_optimized_geotiff.py``: the main image and every
+    overview tiled; overviews present for an image larger than 512 x 512; the first IFD right
+    after the header (or after GDAL's structural-metadata ghost area); IFDs in the order main
+    image, then overviews from the largest; each overview's first tile stored before the
+    previous level's (the smallest overview first, the main image last); tile data after the
+    IFDs.
+    """
+    data = Path(path).read_bytes()
+    try:
+        ifds, header, _ = _ifds(data)
+    except (ValueError, struct.error) as exc:
+        return [f"cannot parse the TIFF structure: {exc}"]
+    problems: list[str] = []
+    if not ifds:
+        return ["no image in the file"]
+    first = ifds[0]["offset"]
+    if first != header:
+        ghost = data[header:header + len(_GHOST) + 6]
+        size = int(ghost[len(_GHOST):]) if ghost.startswith(_GHOST) and \
+            ghost[len(_GHOST):].isdigit() else None
+        # GDAL's ghost area: "GDAL_STRUCTURAL_METADATA_SIZE=XXXXXX bytes\n" + XXXXXX bytes
+        if size is None or first > header + len(_GHOST) + 13 + size + 8:
+            problems.append(f"the main IFD is at byte {first}, not right after the header "
+                            f"({header}) or GDAL's structural metadata")
+    images = [d for d in ifds if not (d["tags"].get(254, (0,))[0] & 4)]  # masks excluded
+    main, overviews = images[0], images[1:]
+    width, height = main["tags"][256][0], main["tags"][257][0]
+    for k, d in enumerate(images):
+        if 322 not in d["tags"]:
+            problems.append("the main image is not tiled" if k == 0 else
+                            f"overview {k - 1} is not tiled")
+    if (width > 512 or height > 512) and not overviews:
+        problems.append(f"a {width} x {height} image without overviews")
+    previous = None
+    for k, d in enumerate(overviews):
+        w = d["tags"][256][0]
+        if previous is not None and w >= previous:
+            problems.append(f"overview {k} is not smaller than overview {k - 1}")
+        previous = w
+    offsets = [d["offset"] for d in images]
+    if offsets != sorted(offsets):
+        problems.append("the IFDs are not in the order main image, then overviews")
+    data_start = [d["tags"].get(324, d["tags"].get(273, (0,)))[0] for d in images]
+    for k in range(1, len(images)):
+        if data_start[k] and data_start[k - 1] and data_start[k] > data_start[k - 1]:
+            what = "the main image" if k == 1 else f"overview {k - 2}"
+            problems.append(f"the tiles of overview {k - 1} come after those of {what}")
+    last_ifd = max(d["offset"] for d in ifds)
+    if any(0 < s < last_ifd for s in data_start):
+        problems.append("tile data before the last IFD (IFDs are not all at the start)")
+    return problems

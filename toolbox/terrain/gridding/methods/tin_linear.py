@@ -1,0 +1,87 @@
+"""TIN linear: the plane of the containing triangle of the (constrained) Delaunay TIN of the
+data at each cell centre (thesis eq. [43]-[44])."""
+
+from __future__ import annotations
+
+import math
+from functools import partial
+from typing import Any
+
+import numpy as np
+
+from toolbox.terrain.gridding.methods.base import Method, TilePlan
+
+
+def tin_linear_tile(origin, max_distance, tile, arrays):
+    """Kernel of one tile: plane of the containing triangle at each computed cell centre, NaN
+    outside the TIN, the cell mask, or MAX_DISTANCE from the nearest data point."""
+    from toolbox.terrain.gridding.tin_raster import tin_tile
+
+    values = tin_tile(origin, tile, arrays)
+    values[~arrays["mask"]] = np.nan
+    near = arrays.get("near")
+    if near is not None:
+        from toolbox.terrain.gridding.idw_kernel import nearest_grid
+
+        xs, ys = tile.cell_centres(origin, halo=False)
+        within = nearest_grid(near, xs, ys, ~np.isnan(values), max_distance)
+        values[np.isnan(within)] = np.nan
+    return values
+
+
+class TinLinearMethod(Method):
+    name = "tin_linear"
+    min_points = 3
+    limits_to_hull = False  # the TIN is the convex hull
+
+    def plan_tiles(self, run: Any, options: dict[str, Any], feedback: Any) -> TilePlan:
+        from toolbox.errors import InputDataError
+        from toolbox.terrain.gridding.grid import NeighbourPlanner
+        from toolbox.terrain.gridding.tin_linear import constrained_tin
+        from toolbox.terrain.gridding.tin_raster import TinTiles
+
+        segments = run.data.segments if len(run.data.segments) else None
+        with feedback.timed("triangulate"):
+            try:
+                nodes, triangles, info = constrained_tin(run.data.local, segments)
+            except ValueError as exc:
+                raise InputDataError(f"cannot triangulate the data points: {exc}") from None
+        if info.get("crossing_z_disagreement", 0) > 0:
+            feedback.push_warning(f"{info['crossings']} breakline crossings without a shared "
+                                  "vertex; the crossing breaklines disagree in Z by up to "
+                                  f"{info['crossing_z_disagreement']:.3f} (mean used)")
+        origin = run.origin
+        with feedback.timed("tiles_index"):
+            tin_tiles = TinTiles(nodes, triangles, run.grid, run.tile, origin)
+        max_distance = options["max_distance"]
+        near = NeighbourPlanner(run.data.local, 1, max_distance, run.data.bins) \
+            if math.isfinite(max_distance) else None
+        cell = max(run.grid.cell_size)
+
+        def plan(tile) -> dict | None:
+            arrays = tin_tiles.plan(tile)
+            if arrays is None:
+                return None
+            xs, ys = tile.cell_centres(origin, halo=False)
+            arrays["mask"] = run.cell_mask(tile, xs, ys)
+            if not arrays["mask"].any():
+                return None
+            if near is not None:
+                arrays["near"] = near.payload(xs.min(), ys.min(), xs.max(), ys.max(), cell)
+            return arrays
+
+        return TilePlan(plan, partial(tin_linear_tile, origin, max_distance),
+                        {"triangles": len(triangles), **info})
+
+    def loo(self, local_xyz, options, segments, feedback, workers):
+        from toolbox.terrain.gridding.neighbours import PointBins
+        from toolbox.terrain.gridding.tin_linear import tin_loo
+
+        n = len(local_xyz)
+        predicted = tin_loo(local_xyz, segments, feedback)
+        max_distance = options.get("max_distance", math.inf)
+        if math.isfinite(max_distance) and n > 1:  # as in the grid: nearest other point
+            bins = PointBins.build(local_xyz[:, :2])
+            d2, _ = bins.query(local_xyz[:, 0], local_xyz[:, 1], 1, skip=np.arange(n))
+            predicted[d2[:, 0] > max_distance ** 2] = np.nan
+        return predicted, None

@@ -1,0 +1,136 @@
+"""Parameter declarations of the DEM gridding algorithms (light: no kernel imports, so that
+``toolbox list`` and ``toolbox help`` stay fast)."""
+
+from __future__ import annotations
+
+from toolbox.parameters import (
+    Boolean,
+    Crs,
+    Enum,
+    ExtentParameter,
+    Field,
+    Integer,
+    Number,
+    Output,
+    OutputFile,
+    OutputRaster,
+    RasterLayer,
+    String,
+    VectorLayer,
+)
+from toolbox.terrain.points import DUPLICATE_RULES
+
+DEFAULT_NODATA = -9999.0
+DEFAULT_TILE = 512
+TERMS = (1, 3, 6, 10)  # coefficients of the polynomial of order 0, 1, 2, 3
+ORDER_NAMES = ("mean", "plane", "quadratic", "cubic")
+DEFAULT_MIN_RCOND = 1e-3
+
+STATISTICS = Output("STATISTICS", "inputs, duplicates, grid, cells, fallbacks, timings", "dict")
+
+
+def source_parameters() -> list:
+    """Input data: points, line vertices, breaklines; duplicate rule; CRS."""
+    return [
+        VectorLayer("INPUT", "mass points: PointZ, or points with a height field (Z_FIELD)",
+                    geometry_types=["point"], optional=True),
+        Field("Z_FIELD", "height field of INPUT (default: the geometry's Z)", parent="INPUT",
+              numeric=True, optional=True),
+        VectorLayer("LINES", "lines whose vertices are data points, e.g. contours (LineString Z, "
+                    "or a height field in LINES_Z_FIELD)", geometry_types=["line"], optional=True),
+        Field("LINES_Z_FIELD", "height field of LINES (e.g. the contour's elevation)",
+              parent="LINES", numeric=True, optional=True),
+        VectorLayer("BREAKLINES", "breaklines: their vertices are data points, and their edges "
+                    "are kept as triangle edges by dem:tin_linear", geometry_types=["line"],
+                    optional=True),
+        Field("BREAKLINES_Z_FIELD", "height field of BREAKLINES (default: geometry Z)",
+              parent="BREAKLINES", numeric=True, optional=True),
+        Enum("DUPLICATES", "height of points sharing one XY position: mean, first (input "
+             "order: INPUT, LINES, BREAKLINES), min, max, or error", options=DUPLICATE_RULES,
+             default="mean"),
+        Number("DUPLICATE_TOLERANCE", "points closer than this in plan are one position (CRS "
+               "units; 0 = identical coordinates)", default=0.0, min_value=0),
+        Crs("CRS", "CRS of the data and the output (default: the inputs'); inputs without a CRS "
+            "take it, inputs in another CRS are refused", optional=True),
+    ]
+
+
+def grid_parameters() -> list:
+    """The output grid (the engine's grid rules) and which cells get a value."""
+    return [
+        Number("CELL_SIZE", "cell size, CRS units (not with TEMPLATE)", optional=True,
+               min_value=0, min_exclusive=True),
+        ExtentParameter("EXTENT", "output extent 'xmin,ymin,xmax,ymax', taken as given: the "
+                        "origin is its xmin/ymax, the east and south edges round up to whole "
+                        "cells (default: the data's bounds, snapped outwards to the cell size)",
+                        optional=True),
+        RasterLayer("TEMPLATE", "raster whose grid the output takes (origin, cell size, and its "
+                    "extent unless EXTENT is given)", optional=True),
+        Number("NODATA", "value of cells without a height", default=DEFAULT_NODATA),
+        Number("MAX_DISTANCE", "cells whose nearest data point is farther than this stay nodata "
+               "(CRS units; default: no limit)", optional=True, min_value=0, min_exclusive=True),
+        VectorLayer("MASK", "polygons: cells whose centre is outside stay nodata",
+                    geometry_types=["polygon"], optional=True),
+        Boolean("EXTRAPOLATE", "also compute cells outside the data's convex hull (not for "
+                "dem:tin_linear)", default=False),
+        Integer("MAX_CELLS", "refuse outputs with more cells than this (default: "
+                "TOOLBOX_MAX_CELLS or 1e9)", optional=True, min_value=1),
+    ]
+
+
+def neighbour_parameters(default: int, minimum: int, radius_help: str) -> list:
+    """NEIGHBOURS, RADIUS and MIN_NEIGHBOURS of the k-nearest-neighbour methods."""
+    return [
+        Integer("NEIGHBOURS", f"k nearest data points per cell (at least {minimum})",
+                default=default, min_value=minimum, max_value=256),
+        Number("RADIUS", radius_help, optional=True, min_value=0, min_exclusive=True),
+        Integer("MIN_NEIGHBOURS", "cells with fewer neighbours found (within RADIUS) stay "
+                "nodata", default=1, min_value=1),
+    ]
+
+
+def execution_parameters() -> list:
+    """Tiling, executor, outputs."""
+    return [
+        Integer("TILE_SIZE", "tile side in cells (a multiple of 16; also the GeoTIFF block)",
+                default=DEFAULT_TILE, min_value=16, max_value=4096),
+        String("SCHEDULER", "Dask scheduler address (tcp://host:8786) to run the tiles on a "
+               "cluster; default: DASK_SCHEDULER_ADDRESS if set, else local threads ('local' "
+               "forces local threads)", optional=True),
+        Integer("WORKERS", "local threads (default: the CPUs available)", optional=True,
+                min_value=1),
+        Boolean("OVERVIEWS", "build internal overviews", default=True),
+        Boolean("COG", "write a Cloud Optimized GeoTIFF", default=False),
+        OutputRaster("OUTPUT", "DEM GeoTIFF (Float32, tiled 512, DEFLATE)"),
+        OutputFile("QUALITY", "JSON quality report: leave-one-out cross-validation of this "
+                   "method on the input points (RMSE, mean and max error)", extensions=[".json"],
+                   optional=True),
+    ]
+
+
+POLYNOMIAL_HELP = """
+    Each cell's neighbours are its NEIGHBOURS nearest data points (within RADIUS when given).
+    The least squares are solved with coordinates centred on the cell and scaled by the
+    farthest neighbour's distance (numerically stable; the height at the centre is the
+    constant coefficient), from the normal equations by Cholesky (their factor is the R of the
+    QR factorisation of the column-normalised design matrix). Where the neighbourhood is
+    ill-conditioned for the order (fewer neighbours than coefficients, or the smallest |R_ii|
+    below MIN_RCOND: e.g. all neighbours on one or two contour lines) the fit
+    falls back to the next lower order on the same neighbours (cubic -> quadratic -> plane ->
+    mean); STATISTICS counts the cells fitted with each order. Cells outside the data's convex
+    hull are nodata unless EXTRAPOLATE (then the surface is extrapolated, use with care).
+
+    Data (points, line vertices, breakline vertices), grid, masks, duplicate XY, tiles and the
+    Dask executor are as for dem:nearest (see `toolbox help dem:nearest`); QUALITY writes a
+    leave-one-out cross-validation report with the same options.
+"""
+
+
+def polynomial_parameters(order: int, default_k: int) -> list:
+    """The parameters of dem:plane (order 1), dem:quadratic (2) and dem:cubic (3)."""
+    return source_parameters() + grid_parameters() + neighbour_parameters(
+        default_k, TERMS[order], "search radius, CRS units (default: no limit)") + [
+        Number("MIN_RCOND", "conditioning threshold: smallest |R_ii| of the normalised design "
+               "matrix accepted before falling back to a lower order", default=DEFAULT_MIN_RCOND,
+               min_value=0, min_exclusive=True, max_value=1),
+    ] + execution_parameters()

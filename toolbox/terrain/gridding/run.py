@@ -1,0 +1,135 @@
+"""One DEM gridding run, one way through::
+
+    read points      inputs.read_sources      INPUT points + LINES / BREAKLINES vertices, CRS
+                                              checked, duplicate XY merged, local origin
+    prepare the grid grid.prepare_grid        the raster engine's grid rules (CELL_SIZE, EXTENT,
+                                              TEMPLATE, MAX_CELLS), convex hull, MASK
+    plan tiles       method.plan_tiles        per tile: the arrays it needs (its points, its
+                                              triangles, its cell mask) and the kernel
+    one kernel/tile  raster.engine            local threads or a Dask cluster, in tile order
+    write            raster.writer            tiled 512, DEFLATE, overviews (COG on request)
+
+Kernels (the method modules) see only local-coordinate numpy arrays.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from toolbox.feedback import Feedback
+from toolbox.terrain.gridding.grid import GridRun, prepare_grid
+from toolbox.terrain.gridding.inputs import GriddingData, read_sources, require_points
+
+
+def grid_dem(method: Any, params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
+    """Run ``dem:<method>``: returns the algorithm's outputs (OUTPUT, STATISTICS, QUALITY)."""
+    data = read_sources(params, feedback)
+    require_points(data, method.min_points, f"dem:{method.name}")
+    run = prepare_grid(params, data, limit_to_hull=method.limits_to_hull)
+    options = method.options(params)
+    stats = grid_statistics(run, params)
+    feedback.set_progress(5)
+    tiles = method.plan_tiles(run, options, feedback)
+    written = write_dem(run, tiles, params, feedback, start=5,
+                        end=90 if params.get("QUALITY") else 98)
+    counts = written.pop("counts")
+    stats["method"] = {"name": method.name, "options": jsonable_options(options),
+                       **method.summarise(counts), **tiles.info}
+    stats["cells"] = written
+    result: dict[str, Any] = {"OUTPUT": params["OUTPUT"]}
+    if params.get("QUALITY") is not None:
+        with feedback.timed("cross_validation"):
+            report = quality_report(method, data, options, params, feedback.step(90, 99))
+        write_quality(params["QUALITY"], report)
+        stats["cross_validation"] = report["methods"][method.name]
+        result["QUALITY"] = params["QUALITY"]
+    result["STATISTICS"] = stats
+    return result
+
+
+def write_dem(run: GridRun, tiles: Any, params: dict, feedback: Feedback,
+              start: float = 5.0, end: float = 95.0) -> dict:
+    """Compute the tiles (locally or on Dask) and write the Float32 GeoTIFF in tile order.
+
+    Returns statistics: cells with a value, nodata cells, summed method counters, executor.
+    """
+    from toolbox.raster.engine import process_raster, tile_count
+    from toolbox.raster.writer import RasterWriter
+    from toolbox.tiles import resolve_executor
+
+    executor = resolve_executor(params.get("SCHEDULER"), params.get("WORKERS"))
+    grid = run.grid
+    n_tiles = tile_count(grid, run.tile)
+    totals: dict[str, Any] = {"valid": 0, "empty_tiles": 0, "counts": None}
+
+    def collect(tile, values, counts):
+        n_ok = 0 if values is None else int(np.count_nonzero(~np.isnan(values)))
+        totals["valid"] += n_ok
+        totals["empty_tiles"] += n_ok == 0
+        if counts is not None:
+            totals["counts"] = counts.copy() if totals["counts"] is None \
+                else totals["counts"] + counts
+
+    feedback.push_info(f"{grid.width} x {grid.height} cells in {n_tiles} tiles on "
+                       f"{executor.describe()}")
+    writer = RasterWriter(params["OUTPUT"], grid, 1, "float32", run.nodata, tile=run.tile,
+                          cog=bool(params.get("COG")), overviews=params.get("OVERVIEWS", True))
+    with feedback.timed("tiles"), writer:
+        process_raster(grid, None, tiles.kernel, writer, tile_size=run.tile, executor=executor,
+                       feedback=feedback, plan=tiles.plan, collect=collect, start=start, end=end)
+    total = grid.width * grid.height
+    return {"cells": total, "cells_with_value": totals["valid"],
+            "cells_nodata": total - totals["valid"], "tiles": n_tiles,
+            "tiles_without_value": totals["empty_tiles"], "executor": executor.describe(),
+            "counts": totals["counts"]}
+
+
+def grid_statistics(run: GridRun, params: dict) -> dict:
+    """The inputs, duplicates and grid part of STATISTICS."""
+    from toolbox.io.crs import crs_label
+
+    data, grid = run.data, run.grid
+    return {"inputs": dict(data.counts), "points_used": len(data.xyz),
+            "breakline_segments": len(data.segments),
+            "duplicates": data.duplicates.as_dict(),
+            "grid": {"width": grid.width, "height": grid.height,
+                     "cell_size": list(grid.cell_size), "bounds": list(grid.bounds),
+                     "crs": crs_label(grid.crs), "nodata": run.nodata,
+                     "tile_size": run.tile},
+            "limited_to_convex_hull": run.hull is not None,
+            "mask": params.get("MASK") is not None,
+            "max_distance": params.get("MAX_DISTANCE")}
+
+
+def jsonable_options(options: dict[str, Any]) -> dict[str, Any]:
+    return {k: (None if isinstance(v, float) and not math.isfinite(v) else v)
+            for k, v in options.items()}
+
+
+def quality_report(method: Any, data: GriddingData, options: dict[str, Any],
+                   params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
+    """Leave-one-out report of one method (the shape ``dem:cross_validate`` writes)."""
+    from toolbox.io.crs import crs_label
+    from toolbox.terrain.gridding.validation import add_worst_point, error_summary, loo_predict
+
+    local = data.local
+    predicted, details = loo_predict(method, local, options, bool(params.get("EXTRAPOLATE")),
+                                     data.segments, feedback, params.get("WORKERS"))
+    summary = error_summary(predicted, local[:, 2]) | details
+    add_worst_point(summary, data.xyz, predicted)
+    summary["options"] = jsonable_options(options)
+    return {"what": "leave-one-out cross-validation: error = predicted - observed height",
+            "crs": crs_label(data.crs), "points": len(local),
+            "duplicates": data.duplicates.as_dict(), "methods": {method.name: summary}}
+
+
+def write_quality(path, report: dict) -> None:
+    """Write a JSON quality report."""
+    import json
+
+    from toolbox.report import to_jsonable
+
+    path.write_text(json.dumps(to_jsonable(report), indent=2) + "\n")
