@@ -636,7 +636,7 @@ def photo_surface(info: Any, photo: Any, crs: Any, band: int = 1) -> Any:
         raise InputDataError(f"DEM {info} does not cover the photo {photo.id!r}")
     from affine import Affine
 
-    return DemSurface.from_transform(data[r0:r1, c0:c1], t * Affine.translation(c0, r0), crs)
+    return DemSurface.from_transform(data[r0:r1, c0:c1], t @ Affine.translation(c0, r0), crs)
 
 
 def mean_height_inside(surface: Any, polygon: Any) -> float:

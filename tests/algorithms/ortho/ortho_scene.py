@@ -10,8 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from toolbox.photogrammetry.synthetic import frame_photo, hills_dem, render_photo, wave_texture, \
-    write_photo
+from toolbox.photogrammetry.synthetic import frame_photo, hills_dem, render_photo, wave_texture, write_photo
 
 CRS = "EPSG:3003"
 BOUNDS = (1686600.0, 4797600.0, 1689800.0, 4800800.0)
