@@ -122,6 +122,7 @@ class OrthoBatch(Algorithm):
                                                cell=1.0), image))
             except (InputDataError, ParameterError) as exc:
                 failed.append({"photo": photo.id, "error": str(exc)})
+                feedback.push_warning(f"photo {photo.id} failed: {exc}")
         if not plans:
             raise InputDataError("no photo could be orthorectified: " +
                                  "; ".join(f"{f['photo']}: {f['error']}" for f in failed))

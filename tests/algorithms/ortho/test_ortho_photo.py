@@ -209,3 +209,31 @@ def test_parameter_errors_name_the_parameter(block, tmp_path):
                                     "OUTPUT": tmp_path / "o.tif"})
     with pytest.raises(ParameterError, match="OCCLUSION_MASK"):
         run_ortho(block, tmp_path / "o.tif", OCCLUSION_MASK=tmp_path / "m.tif")
+
+
+def test_radial_distortion_is_applied_in_the_right_direction(block, tmp_path):
+    """A photo taken through a lens with k1 = -2e-7 mm^-2 (2.8 px at the corners): the ortho
+    with the camera's distortion recovers the texture, the one without is off."""
+    from toolbox.photogrammetry.camera import RadialDistortion
+    from toolbox.photogrammetry.synthetic import frame_photo, render_photo, write_photo
+
+    distortion = RadialDistortion.from_polynomial(-2e-7)
+    photo = frame_photo(scene.CENTRE, scene.ANGLES, width=scene.SIZE, height=scene.SIZE,
+                        crs=scene.CRS, distortion=distortion)
+    image = render_photo(photo, block.dem, block.transform, block.texture, dtype="uint8")
+    path = write_photo(tmp_path / "p1.tif", image)
+    with_lens = scene.project_yaml(tmp_path / "lens.yaml", "p1.tif",
+                                   distortion={"polynomial": {"k1": -2e-7}})
+    without = scene.project_yaml(tmp_path / "nolens.yaml", "p1.tif")
+    shifts = {}
+    for name, project in (("lens", with_lens), ("none", without)):
+        out = tmp_path / f"{name}.tif"
+        stats = toolbox.run("ortho:photo", {"INPUT": path, "PROJECT": project,
+                                            "DEM": block.dem_path, "CELL_SIZE": 5.0,
+                                            "OUTPUT": out})["STATISTICS"]
+        data, truth, _ = read_with_truth(out, block.texture)
+        shifts[name] = patch_positions(data[0], data[1] == 255, truth)[:, 0]
+        if name == "lens":
+            assert stats["map_blocks"]["projective_exact"] == 0
+    assert shifts["lens"].max() <= 0.1
+    assert shifts["none"].max() > 0.3
