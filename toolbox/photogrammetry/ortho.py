@@ -750,8 +750,8 @@ def expected_accuracy(map_scale: float | None) -> dict[str, float] | None:
     scales) at the map scale, in ground metres."""
     if map_scale is None:
         return None
-    return {"map_scale": float(map_scale), "rms_small_scale_m": 0.3e-3 * map_scale,
-            "rms_large_scale_m": 0.5e-3 * map_scale}
+    return {"map_scale": float(map_scale), "rms_small_scale_m": 0.3 * map_scale / 1000.0,
+            "rms_large_scale_m": 0.5 * map_scale / 1000.0}
 
 
 def orthorectify(photo: Any, image: Any, dem: Any, grid: Any, output: Any,
