@@ -8,8 +8,9 @@ the same photos at 1/32 of that resolution (520 x 520 px of 0.448 mm), so their 
 orientation is the real pixel -> fiducial fit composed with a scale of 32. Exterior
 orientations, cameras and distortion are the block adjustment's (``siena_project.yaml``).
 
-Writes ``siena_ortho/<photo>.tif`` (RGB, not georeferenced, as a scan) and
-``siena_ortho/project.yaml`` (an orientation project naming them). Deterministic.
+Writes ``siena_ortho/<photo>.tif`` (RGB, not georeferenced, as a scan),
+``siena_ortho/project.yaml`` (an orientation project naming them) and
+``siena_ortho/camera_1_7150.yaml`` (that photo's camera alone). Deterministic.
 """
 
 from __future__ import annotations
@@ -66,4 +67,11 @@ def make(folder: Path, made: dict) -> dict:
         image = render_photo(photo, z, transform, paint, dtype="uint8", fill=0)
         write_photo(photo.image, image)
     path = save_project(project, target / "project.yaml")
+    # the first photo's camera alone, for ortho:photo's CAMERA + EXTERIOR form (pixel transform
+    # from the pixel size: image centre = fiducial centre)
+    import yaml
+
+    first = project.photos[PHOTOS[0]].camera.as_dict()
+    first.pop("fiducials_mm", None)
+    (target / f"camera_{PHOTOS[0]}.yaml").write_text(yaml.safe_dump(first, sort_keys=False))
     return {"siena_ortho_project": path, "siena_ortho_photo": target / f"{PHOTOS[0]}.tif"}
