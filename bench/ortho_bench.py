@@ -126,6 +126,7 @@ def memory_case(folder: Path, size: int, distortion: bool) -> list[dict]:
     plan = plan_photo(photo, info, photo.crs)
     grid = plan.grid
     sampler = DemSampler(info, grid.crs)
+    sampler.preload(grid.bounds)
     cmap = CollinearityMap(photo)
     windows = [t.core for t in iter_windows(grid.width, grid.height, 1024)]
     maps = []
@@ -142,13 +143,13 @@ def memory_case(folder: Path, size: int, distortion: bool) -> list[dict]:
                 hidden_cells(xs, ys, z, photo.exterior.centre, s.z, s.x0, s.y0, s.cell_x,
                              s.cell_y, s.z_range[1], 0.01 * s.cell_x, hidden)
                 cols[hidden.astype(bool)] = np.nan
-            finite = np.isfinite(cols)
-            if not finite.any():
+            cmin, rmin, cmax, rmax, missing = cmap.last_box
+            if missing == cols.size:
                 continue
-            c0 = max(int(np.nanmin(cols)) - 2, 0)
-            r0 = max(int(np.nanmin(rowz)) - 2, 0)
-            c1 = min(int(np.nanmax(cols)) + 3, size)
-            r1 = min(int(np.nanmax(rowz)) + 3, size)
+            c0 = max(int(cmin) - 2, 0)
+            r0 = max(int(rmin) - 2, 0)
+            c1 = min(int(cmax) + 3, size)
+            r1 = min(int(rmax) + 3, size)
             if c1 <= c0 or r1 <= r0:
                 continue
             mx = cols - np.float32(c0 + 0.5)

@@ -11,15 +11,16 @@ there (:mod:`toolbox.raster.warp`).
 distortion are a 3 x 4 projective matrix applied to ``(X, Y, Z, 1)``: the kernel evaluates them
 exactly at every cell (a dozen multiply-adds and one division), so relief inside a tile costs no
 accuracy. Only the radial distortion (a Newton solve per point) is done on a coarse grid: per
-block of ``block`` x ``block`` cells it is evaluated exactly at the block's corner cells and
-interpolated bilinearly inside, *only* when the interpolation error is provably below
-``tolerance_px``. The bound is checked per block, not sampled: with ``L`` the Lipschitz constant
-of the distortion field ``δ(p) = measured(p) - p`` (from the camera's table or polynomial) and
-``D`` the diameter of the block's ideal image points, a bilinear blend of corner values differs
-from the exact ``δ`` by at most ``L·D`` mm (the weights are >= 0 and sum to 1), converted to
-pixels with the fiducial -> pixel scale. Blocks over the bound (very strong distortion, cliffs
-that spread a block over many photo pixels) are computed exactly. Default bound
-:data:`DEFAULT_TOLERANCE_PX` = 0.05 px.
+block of ``block`` x ``block`` cells its pixel correction (exact pixel minus distortion-free
+pixel) is evaluated exactly at the block's corner cells and blended bilinearly inside, *only*
+when the blend's error is provably below ``tolerance_px``. The bound is checked per block, not
+sampled: with ``L`` the Lipschitz constant of the distortion field ``δ(p) = measured(p) - p``
+(from the camera's table or polynomial), ``κ`` the condition number of the fiducial -> pixel
+transform and ``D`` the diagonal of the block's distortion-free pixel box, the correction is
+``κ·L``-Lipschitz in pixel space, so a blend of corner values (weights >= 0, sum 1) differs from
+the exact correction by at most ``κ·L·D`` pixels. Blocks over the bound (very strong
+distortion, cliffs that spread a block over many photo pixels) are computed exactly. Default
+bound :data:`DEFAULT_TOLERANCE_PX` = 0.05 px.
 
 Conventions as :mod:`toolbox.photogrammetry`: photo pixels ``(col, row)`` from the top-left corner,
 centres at +0.5; output grids north-up, column ``j`` centre ``x = xmin + (j + 0.5)·cell``.
@@ -55,8 +56,8 @@ class SensorModel:
 
     ``centre`` (3,), ``rot`` R(omega, phi, kappa) (3, 3), ``c`` mm, ``pp`` (2,) mm, the distortion
     arguments of :meth:`RadialDistortion.kernel_arguments`, ``f2p`` the fiducial -> pixel matrix,
-    ``lipschitz`` the bound of ``|dδ/dp|`` of the distortion field and ``px_per_mm`` the largest
-    scale of ``f2p`` (pixels per image mm).
+    ``lipschitz`` the bound of ``|dδ/dp|`` of the distortion field, ``px_per_mm`` the largest
+    scale of ``f2p`` (pixels per image mm) and ``f2p_condition`` its condition number.
     """
 
     centre: np.ndarray
@@ -67,6 +68,7 @@ class SensorModel:
     f2p: np.ndarray
     lipschitz: float
     px_per_mm: float
+    f2p_condition: float
     width: int
     height: int
 
@@ -87,7 +89,7 @@ class SensorModel:
                    np.asarray(cam.principal_point_mm, dtype="float64"),
                    _distortion_args(cam.distortion),
                    f2p, distortion_lipschitz(cam.distortion, _frame_radius(photo, w, h)),
-                   _pixel_scale(f2p, photo, w, h), int(w), int(h))
+                   *_pixel_scale(f2p, photo, w, h), int(w), int(h))
 
 
 def _frame_radius(photo: Any, width: int, height: int) -> float:
@@ -99,11 +101,11 @@ def _frame_radius(photo: Any, width: int, height: int) -> float:
     return 1.5 * float(np.hypot(mm[:, 0], mm[:, 1]).max())
 
 
-def _pixel_scale(f2p: np.ndarray, photo: Any, width: int, height: int) -> float:
+def _pixel_scale(f2p: np.ndarray, photo: Any, width: int, height: int) -> tuple[float, float]:
     """Largest singular value of the fiducial -> pixel Jacobian at the frame's corners and centre
-    (pixels per mm), plus 2 %."""
+    (pixels per mm) and its condition number (largest / smallest singular value), plus 2 %."""
     p2f = np.linalg.inv(f2p)
-    worst = 0.0
+    largest, smallest = 0.0, np.inf
     for col, row in ((0, 0), (width, 0), (width, height), (0, height), (width / 2, height / 2)):
         q = p2f @ np.array([col, row, 1.0])
         x, y = q[0] / q[2], q[1] / q[2]
@@ -111,8 +113,9 @@ def _pixel_scale(f2p: np.ndarray, photo: Any, width: int, height: int) -> float:
         u = (f2p[0, 0] * x + f2p[0, 1] * y + f2p[0, 2]) / w
         v = (f2p[1, 0] * x + f2p[1, 1] * y + f2p[1, 2]) / w
         jac = (f2p[:2, :2] - np.outer([u, v], f2p[2, :2])) / w
-        worst = max(worst, float(np.linalg.svd(jac, compute_uv=False)[0]))
-    return 1.02 * worst
+        sv = np.linalg.svd(jac, compute_uv=False)
+        largest, smallest = max(largest, float(sv[0])), min(smallest, float(sv[-1]))
+    return 1.02 * largest, 1.02 * largest / smallest
 
 
 def distortion_lipschitz(distortion: Any, radius_mm: float) -> float:
@@ -165,10 +168,15 @@ def tile_matrices(model: SensorModel, gx0: float, gy0: float, cx: float, cy: flo
 
 
 @njit(cache=True, nogil=True)
-def project_tile_projective(z, a, m, cols, rows):
+def project_tile_projective(z, a, m, cols, rows, box):
     """Source pixels of a tile without distortion: exactly ``M·(j, i, Z, 1)`` per cell (see
-    :func:`tile_matrices`), NaN where Z is NaN or the point is not in front of the camera."""
+    :func:`tile_matrices`), NaN where Z is NaN or the point is not in front of the camera.
+    ``box`` (5,) gets the bounding box of the finite coordinates (col_min, row_min, col_max,
+    row_max) and the number of NaN cells."""
     h, w = z.shape
+    cmin = rmin = 1e300
+    cmax = rmax = -1e300
+    missing = 0
     for i in range(h):
         ud = m[0, 1] * i + m[0, 3]
         vd = m[1, 1] * i + m[1, 3]
@@ -179,11 +187,19 @@ def project_tile_projective(z, a, m, cols, rows):
             den = dd + a[2, 0] * j + a[2, 2] * zc
             if den < 0.0:
                 q = 1.0 / (wd + m[2, 0] * j + m[2, 2] * zc)
-                cols[i, j] = (ud + m[0, 0] * j + m[0, 2] * zc) * q
-                rows[i, j] = (vd + m[1, 0] * j + m[1, 2] * zc) * q
+                u = (ud + m[0, 0] * j + m[0, 2] * zc) * q
+                v = (vd + m[1, 0] * j + m[1, 2] * zc) * q
+                cols[i, j] = u
+                rows[i, j] = v
+                cmin = min(cmin, u)
+                cmax = max(cmax, u)
+                rmin = min(rmin, v)
+                rmax = max(rmax, v)
             else:  # behind the camera, or NaN height
                 cols[i, j] = np.nan
                 rows[i, j] = np.nan
+                missing += 1
+    box[0], box[1], box[2], box[3], box[4] = cmin, rmin, cmax, rmax, missing
 
 
 @njit(cache=True, inline="always")
@@ -198,21 +214,26 @@ def _ideal(a, j, i, zc, c):
 
 
 @njit(cache=True, nogil=True)
-def project_tile_distorted(z, a, c, pp, dmode, dr, dd, dk, di, f2p, lipschitz, px_per_mm,
-                           block, tolerance_px, cols, rows, modes):
+def project_tile_distorted(z, a, m, c, pp, dmode, dr, dd, dk, di, f2p, lipschitz_px, block,
+                           tolerance_px, cols, rows, modes, box):
     """Source pixels of a tile with radial distortion (see the module docstring).
 
-    Per block of ``block`` x ``block`` cells: the ideal image points exactly (``A`` of
-    :func:`tile_matrices`); the distortion displacement exactly at the block's corner cells and
-    blended bilinearly inside when ``lipschitz·D·px_per_mm <= tolerance_px`` (D the diameter of
-    the block's ideal points, mm), else exactly at every cell. ``modes`` (blocks_y, blocks_x)
-    gets BLOCK_INTERPOLATED or BLOCK_EXACT.
+    Per block of ``block`` x ``block`` cells: the distortion-free pixels exactly at every cell
+    (``M`` of :func:`tile_matrices`); the distortion's pixel correction exactly at the block's
+    four corner cells (ideal point -> distortion -> principal point -> fiducial -> pixel, minus
+    the distortion-free pixel) and blended bilinearly inside when ``lipschitz_px·D <=
+    tolerance_px``, D the diagonal of the block's distortion-free pixel box; otherwise every cell
+    exactly. ``modes`` (blocks_y, blocks_x) gets BLOCK_INTERPOLATED or BLOCK_EXACT; ``box`` as
+    in :func:`project_tile_projective`.
     """
     h, w = z.shape
     nby = (h + block - 1) // block
     nbx = (w + block - 1) // block
-    m = _tuple9(f2p)
+    mt = _tuple9(f2p)
     px, py = pp[0], pp[1]
+    cmin = rmin = 1e300
+    cmax = rmax = -1e300
+    missing = 0
     for b in range(nby * nbx):
         bi = b // nbx
         bj = b - bi * nbx
@@ -220,60 +241,86 @@ def project_tile_distorted(z, a, c, pp, dmode, dr, dd, dk, di, f2p, lipschitz, p
         j0 = bj * block
         i1 = min(i0 + block, h) - 1
         j1 = min(j0 + block, w) - 1
-        xmin = 1e300
-        xmax = -1e300
-        ymin = 1e300
-        ymax = -1e300
+        umin = vmin = 1e300
+        umax = vmax = -1e300
         complete = True
         for i in range(i0, i1 + 1):
+            ud = m[0, 1] * i + m[0, 3]
+            vd = m[1, 1] * i + m[1, 3]
+            wd = m[2, 1] * i + m[2, 3]
+            dd0 = a[2, 1] * i + a[2, 3]
             for j in range(j0, j1 + 1):
-                xi, eta, ok = _ideal(a, j, i, z[i, j], c)
-                if not ok:
+                zc = z[i, j]
+                if not dd0 + a[2, 0] * j + a[2, 2] * zc < 0.0:
                     complete = False
+                    cols[i, j] = np.nan
+                    rows[i, j] = np.nan
                     continue
-                xmin = min(xmin, xi)
-                xmax = max(xmax, xi)
-                ymin = min(ymin, eta)
-                ymax = max(ymax, eta)
-        diameter = math.sqrt((xmax - xmin) ** 2 + (ymax - ymin) ** 2) if xmax >= xmin else 0.0
-        interpolate = complete and lipschitz * diameter * px_per_mm <= tolerance_px
+                q = 1.0 / (wd + m[2, 0] * j + m[2, 2] * zc)
+                u = (ud + m[0, 0] * j + m[0, 2] * zc) * q
+                v = (vd + m[1, 0] * j + m[1, 2] * zc) * q
+                cols[i, j] = u
+                rows[i, j] = v
+                umin = min(umin, u)
+                umax = max(umax, u)
+                vmin = min(vmin, v)
+                vmax = max(vmax, v)
+        diagonal = math.sqrt((umax - umin) ** 2 + (vmax - vmin) ** 2) if umax >= umin else 0.0
+        interpolate = complete and lipschitz_px * diagonal <= tolerance_px
         modes[bi, bj] = BLOCK_INTERPOLATED if interpolate else BLOCK_EXACT
-        d0x = d0y = d1x = d1y = d2x = d2y = d3x = d3y = 0.0
-        if interpolate:  # exact distortion displacement at the four corner cells
+        if interpolate:  # exact pixel correction at the four corner cells, blended inside
+            d0u = d0v = d1u = d1v = d2u = d2v = d3u = d3v = 0.0
             for k in range(4):
                 ci = i0 if k < 2 else i1
                 cj = j0 if k % 2 == 0 else j1
                 xi, eta, ok = _ideal(a, cj, ci, z[ci, cj], c)
                 xd, yd = _distort(xi, eta, dmode, dr, dd, dk, di)
+                u, v = _project2d(mt, xd + px, yd + py)
+                du = u - cols[ci, cj]
+                dv = v - rows[ci, cj]
                 if k == 0:
-                    d0x, d0y = xd - xi, yd - eta
+                    d0u, d0v = du, dv
                 elif k == 1:
-                    d1x, d1y = xd - xi, yd - eta
+                    d1u, d1v = du, dv
                 elif k == 2:
-                    d2x, d2y = xd - xi, yd - eta
+                    d2u, d2v = du, dv
                 else:
-                    d3x, d3y = xd - xi, yd - eta
+                    d3u, d3v = du, dv
+            ri = 1.0 / (i1 - i0) if i1 > i0 else 0.0
+            rj = 1.0 / (j1 - j0) if j1 > j0 else 0.0
+            for i in range(i0, i1 + 1):
+                ti = (i - i0) * ri
+                # corrections along the block's top and bottom rows, blended down the rows
+                lu = d0u + ti * (d2u - d0u)
+                lv = d0v + ti * (d2v - d0v)
+                su = (d1u + ti * (d3u - d1u)) - lu
+                sv = (d1v + ti * (d3v - d1v)) - lv
+                for j in range(j0, j1 + 1):
+                    tj = (j - j0) * rj
+                    u = cols[i, j] + (lu + tj * su)
+                    v = rows[i, j] + (lv + tj * sv)
+                    cols[i, j] = u
+                    rows[i, j] = v
+                    cmin = min(cmin, u)
+                    cmax = max(cmax, u)
+                    rmin = min(rmin, v)
+                    rmax = max(rmax, v)
+            continue
         for i in range(i0, i1 + 1):
-            ti = (i - i0) / (i1 - i0) if i1 > i0 else 0.0
             for j in range(j0, j1 + 1):
                 xi, eta, ok = _ideal(a, j, i, z[i, j], c)
                 if not ok:
-                    cols[i, j] = np.nan
-                    rows[i, j] = np.nan
+                    missing += 1
                     continue
-                if interpolate:
-                    tj = (j - j0) / (j1 - j0) if j1 > j0 else 0.0
-                    w00 = (1.0 - ti) * (1.0 - tj)
-                    w01 = (1.0 - ti) * tj
-                    w10 = ti * (1.0 - tj)
-                    w11 = ti * tj
-                    xd = xi + w00 * d0x + w01 * d1x + w10 * d2x + w11 * d3x
-                    yd = eta + w00 * d0y + w01 * d1y + w10 * d2y + w11 * d3y
-                else:
-                    xd, yd = _distort(xi, eta, dmode, dr, dd, dk, di)
-                u, v = _project2d(m, xd + px, yd + py)
+                xd, yd = _distort(xi, eta, dmode, dr, dd, dk, di)
+                u, v = _project2d(mt, xd + px, yd + py)
                 cols[i, j] = u
                 rows[i, j] = v
+                cmin = min(cmin, u)
+                cmax = max(cmax, u)
+                rmin = min(rmin, v)
+                rmax = max(rmax, v)
+    box[0], box[1], box[2], box[3], box[4] = cmin, rmin, cmax, rmax, missing
 
 
 class CollinearityMap:
@@ -282,7 +329,8 @@ class CollinearityMap:
     ``cmap(transform, z)``: ``transform`` the tile's affine (north-up, pixel corner -> ground),
     ``z`` (h, w) heights of its cell centres (NaN: none). Returns float32 ``(cols, rows)`` in the
     photo's pixel convention (NaN: no image point). ``last_modes`` keeps the block modes of the
-    last call (see :func:`project_tile`).
+    last call (see :func:`project_tile_distorted`), ``last_box`` the bounding box of its finite
+    coordinates and its number of NaN cells (see :func:`project_tile_projective`).
     """
 
     def __init__(self, photo: Any, block: int = DEFAULT_BLOCK,
@@ -292,6 +340,7 @@ class CollinearityMap:
         self.block = int(block)
         self.tolerance_px = float(tolerance_px)
         self.last_modes = np.zeros((0, 0), dtype=np.int8)
+        self.last_box = np.zeros(5)
 
     def __call__(self, transform: Any, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         if transform.b != 0 or transform.d != 0:
@@ -305,12 +354,15 @@ class CollinearityMap:
         s = self.model
         a, m = tile_matrices(s, transform.c + 0.5 * transform.a, transform.f + 0.5 * transform.e,
                              transform.a, -transform.e)
+        box = np.empty(5)
         if s.distortion[0] == 0:
-            project_tile_projective(z, a, m, cols, rows)
+            project_tile_projective(z, a, m, cols, rows, box)
             modes[:] = BLOCK_PROJECTIVE
         else:
-            project_tile_distorted(z, a, s.c, s.pp, *s.distortion, s.f2p, s.lipschitz,
-                                   s.px_per_mm, b, self.tolerance_px, cols, rows, modes)
+            project_tile_distorted(z, a, m, s.c, s.pp, *s.distortion, s.f2p,
+                                   s.lipschitz * s.f2p_condition, b, self.tolerance_px, cols,
+                                   rows, modes, box)
+        self.last_box = box
         self.last_modes = modes
         return cols, rows
 
@@ -755,7 +807,25 @@ class OrthoWindows:
         self.centre = photo.require_exterior().centre
         self.per_window: dict[tuple[int, int, int, int], TileStatistics] = {}
 
+    def _key(self, window: Any) -> tuple[int, int, int, int]:
+        return (int(window.col_off), int(window.row_off), int(window.width), int(window.height))
+
+    def source_bounds(self, window: Any) -> tuple[float, float, float, float] | None:
+        """The exact bounding box of the window's source coordinates when every cell has one
+        (the warp then skips its own scan and, inside the photo, the inside test); None when
+        some cells have none. The coordinates are kept for the call that follows."""
+        self._last = (self._key(window), self._compute(window))
+        return self._last[1][2]
+
     def __call__(self, window: Any) -> tuple[np.ndarray, np.ndarray]:
+        last = getattr(self, "_last", None)
+        if last is not None and last[0] == self._key(window):
+            self._last = None
+            return last[1][0], last[1][1]
+        cols, rows, _ = self._compute(window)
+        return cols, rows
+
+    def _compute(self, window: Any):
         xs, ys = self.grid.cell_centers(window)
         cell_x, cell_y = self.grid.cell_size
         if self.incidence_writer is not None:
@@ -768,35 +838,43 @@ class OrthoWindows:
         else:
             z = self.sampler.heights(xs, ys)
         cols, rows = self.cmap(self.grid.window_transform(window), z)
+        cmin, rmin, cmax, rmax, missing = self.cmap.last_box
         stats = TileStatistics(cells=z.size)
-        finite_z = np.isfinite(z)
-        stats.outside_dem = int(z.size - np.count_nonzero(finite_z))
+        nan_z = np.isnan(z)
+        stats.outside_dem = int(np.count_nonzero(nan_z))
         if self.surface is not None:
             hidden = np.zeros(z.shape, dtype=np.uint8)
             s = self.surface
             hidden_cells(xs, ys, z, self.centre, s.z, s.x0, s.y0, s.cell_x, s.cell_y,
                          s.z_range[1], 0.01 * min(s.cell_x, s.cell_y), hidden)
             if self.mask_writer is not None:
-                out = np.where(finite_z, hidden, 255).astype(np.uint8)
-                self.mask_writer.write(out[None], window=window)
+                self.mask_writer.write(np.where(nan_z, 255, hidden).astype(np.uint8)[None],
+                                       window=window)
             mask = hidden.astype(bool)
             stats.hidden = int(np.count_nonzero(mask))
-            cols[mask] = np.nan
-            rows[mask] = np.nan
+            if stats.hidden:
+                cols[mask] = np.nan
+                rows[mask] = np.nan
+                missing += stats.hidden
         w, h = self.cmap.model.width, self.cmap.model.height
-        inside = (cols >= 0) & (cols <= w) & (rows >= 0) & (rows <= h)
-        stats.outside_photo = int(np.count_nonzero(finite_z) - stats.hidden
-                                  - np.count_nonzero(inside))
+        every_cell = missing == 0
+        box = (float(cmin), float(rmin), float(cmax), float(rmax)) if missing < z.size else None
+        if every_cell and box[0] >= 0 and box[1] >= 0 and box[2] <= w and box[3] <= h:
+            inside = None  # the whole window is in the photo
+            stats.outside_photo = 0
+        else:
+            inside = (cols >= 0) & (cols <= w) & (rows >= 0) & (rows <= h)
+            stats.outside_photo = int(z.size - missing - np.count_nonzero(inside))
         sub = (slice(None, None, 4), slice(None, None, 4))
         disp = relief_displacement(xs[sub[1]], ys[sub[0]], z[sub], self.centre,
                                    self.reference_height)
-        disp = disp[inside[sub]]
+        disp = disp[inside[sub]] if inside is not None else disp.ravel()
+        disp = disp[np.isfinite(disp)]
         stats.max_relief_m = float(disp.max()) if disp.size else 0.0
         modes = np.bincount(self.cmap.last_modes.ravel(), minlength=3)
         stats.blocks = {k: int(modes[k]) for k in range(3)}
-        key = (int(window.col_off), int(window.row_off), int(window.width), int(window.height))
-        self.per_window[key] = stats
-        return cols, rows
+        self.per_window[self._key(window)] = stats
+        return cols, rows, box if every_cell else None
 
     def totals(self) -> TileStatistics:
         """Sums over the windows, without the parents of windows the warp split in four."""
