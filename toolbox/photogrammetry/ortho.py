@@ -509,6 +509,36 @@ class DemSampler:
         gy0 = t.f + (i0 * k + 0.5 * k) * t.e
         return data, gx0, gy0, t.a * k, -t.e * k
 
+    def _to_dem(self, xs: np.ndarray, ys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """DEM-CRS coordinates (flat, contiguous) of the grid ``xs`` x ``ys``: exact with pyproj
+        on a lattice of every :data:`LATTICE`-th cell (and the last), bilinear in between. The
+        interpolation is checked at the centres of the lattice cells against pyproj; where it
+        differs by more than 1/1000 of a DEM cell every point is transformed."""
+        h, w = len(ys), len(xs)
+        rows = np.unique(np.r_[np.arange(0, h, LATTICE), h - 1])
+        cols = np.unique(np.r_[np.arange(0, w, LATTICE), w - 1])
+        exact = len(rows) * len(cols) * 4 >= h * w or len(rows) < 2 or len(cols) < 2
+        if not exact:
+            lx, ly = np.meshgrid(xs[cols], ys[rows])
+            tx, ty = self.transformer.transform(lx.ravel(), ly.ravel())
+            tx = np.asarray(tx).reshape(lx.shape)
+            ty = np.asarray(ty).reshape(lx.shape)
+            dx = _interpolate_lattice(tx, rows, cols, h, w)
+            dy = _interpolate_lattice(ty, rows, cols, h, w)
+            mi = (rows[:-1] + rows[1:]) // 2
+            mj = (cols[:-1] + cols[1:]) // 2
+            cx, cy = np.meshgrid(xs[mj], ys[mi])
+            ex, ey = self.transformer.transform(cx.ravel(), cy.ravel())
+            error = np.hypot(np.asarray(ex) - dx[np.ix_(mi, mj)].ravel(),
+                             np.asarray(ey) - dy[np.ix_(mi, mj)].ravel())
+            exact = not (np.all(np.isfinite(error)) and
+                         error.max() <= 1e-3 * abs(self.transform.a))
+        if exact:
+            xx, yy = np.meshgrid(xs, ys)
+            dx, dy = self.transformer.transform(xx.ravel(), yy.ravel())
+        return (np.ascontiguousarray(np.ravel(dx), dtype="float64"),
+                np.ascontiguousarray(np.ravel(dy), dtype="float64"))
+
     def heights(self, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
         """Heights (h, w) float64 at the grid of cell centres ``xs`` (w,) x ``ys`` (h,) (output
         CRS), NaN where the DEM has none."""
@@ -520,10 +550,7 @@ class DemSampler:
             if part is not None:
                 heights_on_grid(np.ascontiguousarray(part[0]), *part[1:], xs, ys, out)
             return out
-        xx, yy = np.meshgrid(xs, ys)
-        dx, dy = self.transformer.transform(xx.ravel(), yy.ravel())
-        dx = np.ascontiguousarray(dx, dtype="float64")
-        dy = np.ascontiguousarray(dy, dtype="float64")
+        dx, dy = self._to_dem(xs, ys)
         finite = np.isfinite(dx) & np.isfinite(dy)
         if not finite.any():
             return out
@@ -534,6 +561,26 @@ class DemSampler:
             heights_at_points(np.ascontiguousarray(part[0]), *part[1:], dx, dy, flat)
             out = flat.reshape(out.shape)
         return out
+
+
+LATTICE = 16  # cells between exactly transformed points when the DEM is in another CRS
+
+
+def _interpolate_lattice(values: np.ndarray, rows: np.ndarray, cols: np.ndarray, h: int,
+                         w: int) -> np.ndarray:
+    """Bilinear interpolation of lattice values (at grid rows ``rows`` x columns ``cols``) onto
+    every cell of an (h, w) grid."""
+    i = np.arange(h)
+    j = np.arange(w)
+    bi = np.clip(np.searchsorted(rows, i, side="right") - 1, 0, len(rows) - 2)
+    bj = np.clip(np.searchsorted(cols, j, side="right") - 1, 0, len(cols) - 2)
+    ti = ((i - rows[bi]) / (rows[bi + 1] - rows[bi]))[:, None]
+    tj = ((j - cols[bj]) / (cols[bj + 1] - cols[bj]))[None, :]
+    v00 = values[bi][:, bj]
+    v01 = values[bi][:, bj + 1]
+    v10 = values[bi + 1][:, bj]
+    v11 = values[bi + 1][:, bj + 1]
+    return (v00 * (1 - tj) + v01 * tj) * (1 - ti) + (v10 * (1 - tj) + v11 * tj) * ti
 
 
 class _quiet_nanmean:
