@@ -21,7 +21,7 @@ from toolbox.parameters import (
 )
 from toolbox.registry import register
 
-RESAMPLING = ("nearest", "bilinear", "cubic", "lanczos")
+RESAMPLING = ("nearest", "bilinear", "quadratic", "cubic", "lanczos")
 
 
 @register

@@ -24,7 +24,7 @@ from toolbox.parameters import (
 )
 from toolbox.registry import register
 
-RESAMPLING = ("nearest", "bilinear", "cubic", "lanczos")
+RESAMPLING = ("nearest", "bilinear", "quadratic", "cubic", "lanczos")
 
 
 @register
@@ -36,7 +36,8 @@ class OrthoPhoto(Algorithm):
     centres; a DEM in another CRS is reprojected on the fly with pyproj), the collinearity
     equations (brief section 4) project the point into the photo, radial distortion, the
     principal point and the pixel -> fiducial transform of the interior orientation are
-    applied, and the photo is resampled there (OpenCV: nearest, bilinear, cubic, lanczos).
+    applied, and the photo is resampled there (nearest, bilinear, cubic, lanczos by OpenCV;
+    quadratic, the thesis' Z-Map choice, by Dodgson's interpolating quadratic kernel).
     Without distortion the projection is exact at every cell (the collinearity equations are a
     3 x 4 projective matrix on (X, Y, Z, 1)); with distortion it is evaluated exactly at the
     corners of TILE_SIZE x TILE_SIZE cell blocks and blended inside only where the blend is

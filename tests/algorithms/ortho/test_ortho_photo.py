@@ -237,3 +237,12 @@ def test_radial_distortion_is_applied_in_the_right_direction(block, tmp_path):
             assert stats["map_blocks"]["projective_exact"] == 0
     assert shifts["lens"].max() <= 0.1
     assert shifts["none"].max() > 0.3
+
+
+def test_quadratic_resampling_recovers_the_texture(block, tmp_path):
+    run_ortho(block, tmp_path / "q.tif", RESAMPLING="quadratic", CELL_SIZE=5.0,
+              EXTENT="1687400,4798400,1689000,4800000")
+    data, truth, _ = read_with_truth(tmp_path / "q.tif", block.texture)
+    patches = patch_positions(data[0], data[1] == 255, truth)
+    assert len(patches) >= 9
+    assert patches[:, 0].max() <= 0.1 and patches[:, 1].min() > 0.99
