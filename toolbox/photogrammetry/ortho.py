@@ -367,6 +367,23 @@ class CollinearityMap:
         return cols, rows
 
 
+class EngineMap:
+    """A :class:`CollinearityMap` in the form the raster engine's ``warp_raster`` takes
+    (``coordinate_map(tile, aux_arrays) -> (src_col, src_row)``): the heights are the auxiliary
+    raster ``aux`` read onto the tile (its halo, if any, is cropped). Picklable for Dask."""
+
+    def __init__(self, cmap: CollinearityMap, aux: str = "dem"):
+        self.cmap, self.aux = cmap, aux
+
+    def __call__(self, tile: Any, arrays: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+        z = np.asarray(arrays[self.aux], dtype="float64")
+        z = z[0] if z.ndim == 3 else z
+        halo = int(getattr(tile, "halo", 0))
+        if halo:
+            z = z[halo:-halo, halo:-halo]
+        return self.cmap(tile.core_transform, np.ascontiguousarray(z))
+
+
 # -- DEM heights per tile ----------------------------------------------------------------------------
 @njit(cache=True, nogil=True)
 def heights_on_grid(dem, gx0, gy0, cx, cy, xs, ys, out):

@@ -248,3 +248,19 @@ def test_dem_in_another_crs_lattice_transform_matches_pyproj(tmp_path):
     xx, yy = np.meshgrid(xs, ys)
     ex, ey = Transformer.from_crs("EPSG:3003", "EPSG:3004", always_xy=True).transform(xx, yy)
     assert np.abs(dx - ex.ravel()).max() < 0.02 and np.abs(dy - ey.ravel()).max() < 0.02
+
+
+def test_engine_form_of_the_map_crops_the_halo():
+    """The map as the raster engine's warp_raster calls it: (tile, aux arrays) -> source."""
+    from types import SimpleNamespace
+
+    from toolbox.photogrammetry.ortho import EngineMap
+
+    photo = frame_photo(scene.CENTRE, scene.ANGLES, width=800, height=800)
+    cmap = CollinearityMap(photo)
+    core = Affine(2.0, 0.0, 1688000.0, 0.0, -2.0, 4799400.0)
+    z = np.random.default_rng(0).uniform(300, 400, (12, 14))
+    tile = SimpleNamespace(halo=1, core_transform=core)
+    cols, rows = EngineMap(cmap)(tile, {"dem": z[None]})
+    ref_cols, ref_rows = cmap(core, z[1:-1, 1:-1])
+    assert cols.shape == (10, 12) and (cols == ref_cols).all() and (rows == ref_rows).all()
