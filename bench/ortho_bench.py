@@ -367,7 +367,7 @@ def main(argv: list[str] | None = None) -> str:
     lines += ["", "The floor is OpenCV's bilinear remap of the same source windows with the "
               "coordinate maps precomputed: what any orthorectifier pays for resampling alone. "
               "'ours' adds reading the DEM window, bilinear heights on the output cells and the "
-              "collinearity map (exact per cell; distortion blended on 16 x 16 blocks within "
+              "collinearity map (exact per cell; distortion blended on 64 x 64 blocks within "
               "0.05 px). Orthority is given the same pinhole camera (its OPK/PATB convention "
               "matches ours to 1e-8 px, checked), DEM, grid and bilinear interpolation.", ""]
     text = "\n".join(lines)

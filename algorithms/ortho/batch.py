@@ -63,7 +63,7 @@ class OrthoBatch(Algorithm):
         Enum("RESAMPLING", "photo interpolation", options=RESAMPLING, default="bilinear"),
         Integer("DEM_FACTOR", "project on a DEM coarsened by this factor", default=1,
                 min_value=1, max_value=64),
-        Integer("TILE_SIZE", "coarse-grid block of the distortion, cells", default=16,
+        Integer("TILE_SIZE", "coarse-grid block of the distortion, cells", default=64,
                 min_value=2, max_value=256),
         Number("MAP_TOLERANCE", "largest interpolation error of the map, photo pixels",
                default=0.05, min_value=0),
