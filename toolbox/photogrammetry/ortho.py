@@ -993,6 +993,8 @@ def orthorectify(photo: Any, image: Any, dem: Any, grid: Any, output: Any,
     -------
     dict : the per-photo report (JSON-ready).
     """
+    from pathlib import Path
+
     import rasterio
 
     from toolbox.feedback import Feedback
@@ -1022,6 +1024,8 @@ def orthorectify(photo: Any, image: Any, dem: Any, grid: Any, output: Any,
                                  f"{photo.id!r}")
     aux = []
     profile_args = (grid.width, grid.height, 1)
+    output = Path(output)
+    target = output.with_name(f".{output.stem}.gtiff.tif") if options.cog else output
     try:
         mask_writer = incidence_writer = None
         if mask_output is not None:
@@ -1037,9 +1041,6 @@ def orthorectify(photo: Any, image: Any, dem: Any, grid: Any, output: Any,
         windows = OrthoWindows(photo, grid, sampler, cmap, reference_height,
                                surface if options.occlusion else None, mask_writer,
                                incidence_writer)
-        target = output
-        if options.cog:
-            target = output.with_name(f".{output.stem}.gtiff.tif")
         eo = photo.require_exterior()
         tags = {"ORTHO_PHOTO": photo.id, "ORTHO_MAP_TOLERANCE_PX": str(options.tolerance_px),
                 "ORTHO_RESAMPLING": options.resampling, "NADIR_X": repr(eo.x0),
@@ -1056,10 +1057,11 @@ def orthorectify(photo: Any, image: Any, dem: Any, grid: Any, output: Any,
             with feedback.timed("cog"):
                 raster_copy(target, output, driver="COG", COMPRESS="DEFLATE", BLOCKSIZE=512,
                             OVERVIEWS="AUTO", NUM_THREADS="ALL_CPUS")
-            target.unlink()
     finally:
         for dst in aux:
             dst.close()
+        if options.cog and target != output and target.exists():
+            target.unlink()
     totals = windows.totals()
     photo_gsd = ground_sample_distance(photo, reference_height)
     cells = max(totals.cells, 1)

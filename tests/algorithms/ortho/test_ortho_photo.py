@@ -246,3 +246,14 @@ def test_quadratic_resampling_recovers_the_texture(block, tmp_path):
     patches = patch_positions(data[0], data[1] == 255, truth)
     assert len(patches) >= 9
     assert patches[:, 0].max() <= 0.1 and patches[:, 1].min() > 0.99
+
+
+def test_cog_output_and_nodata_outside(block, tmp_path):
+    out = tmp_path / "cog.tif"
+    run_ortho(block, out, CELL_SIZE=4.0, COG=True, OUTSIDE="nodata", NODATA=0)
+    with rasterio.open(out) as src:
+        assert src.tags(ns="IMAGE_STRUCTURE").get("LAYOUT") == "COG"
+        assert src.count == 1 and src.nodata == 0 and src.overviews(1)
+        data = src.read(1)
+    assert (data == 0).any() and (data > 0).mean() > 0.5
+    assert not list(tmp_path.glob(".*"))  # the intermediate GeoTIFF is gone
