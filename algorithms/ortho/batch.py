@@ -115,6 +115,7 @@ class OrthoBatch(Algorithm):
         for photo in feedback.iterate(photos, start=0, end=10):
             try:
                 image = open_raster_info(image_path(photo, params["IMAGES"]), "IMAGES")
+                ortho.check_geometry(photo)
                 warning = ortho.tilt_warning(photo)
                 if warning:
                     feedback.push_warning(warning)

@@ -132,6 +132,7 @@ class OrthoPhoto(Algorithm):
         from toolbox.photogrammetry.tables import write_json
 
         photo, crs = oriented_photo(params)
+        ortho.check_geometry(photo)  # a camera looking away is an error, not a tilt warning
         warning = ortho.tilt_warning(photo)
         if warning:
             feedback.push_warning(warning)

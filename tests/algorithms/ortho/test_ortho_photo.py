@@ -257,3 +257,15 @@ def test_cog_output_and_nodata_outside(block, tmp_path):
         data = src.read(1)
     assert (data == 0).any() and (data > 0).mean() > 0.5
     assert not list(tmp_path.glob(".*"))  # the intermediate GeoTIFF is gone
+
+
+def test_cli_refuses_a_camera_looking_away_in_one_line(block, tmp_path):
+    from conftest import run_cli
+
+    project = scene.project_yaml(tmp_path / "up.yaml", str(block.photo_path),
+                                 angles=(3.1, 0.0, 0.0))
+    result = run_cli("run", "ortho:photo", "--INPUT", block.photo_path, "--PROJECT", project,
+                     "--DEM", block.dem_path, "--OUTPUT", tmp_path / "up.tif")
+    assert result.returncode == 2
+    assert "looks away from the ground" in result.stderr and len(result.stderr.splitlines()) == 1
+    assert not (tmp_path / "up.tif").exists()
