@@ -1,6 +1,8 @@
 """Benchmark: orthorectification (issue 12) against OpenCV's remap floor and Orthority.
 
-Run standalone: ``.venv/bin python bench/ortho_bench.py [--size 3000] [--big] [--no-orthority]``.
+Run standalone: ``.venv/bin/python bench/ortho_bench.py [--size 3000] [--big] [--no-orthority]``
+(Orthority: ``.venv/bin/pip install --no-deps "orthority>=0.7" tqdm threadpoolctl``; its own
+requirement opencv-python would overwrite opencv-python-headless's cv2).
 Writes ``bench/results/ortho.md``.
 
 1. In memory, RGB uint8, bilinear: a ``size`` x ``size`` photo over a DEM with 200 m of
