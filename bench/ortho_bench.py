@@ -118,7 +118,13 @@ def memory_case(folder: Path, size: int, distortion: bool) -> list[dict]:
     import rasterio
 
     from toolbox.io.raster import iter_windows, open_raster_info
-    from toolbox.photogrammetry.ortho import CollinearityMap, DemSampler, hidden_cells, plan_photo
+    from toolbox.photogrammetry.ortho import (
+        CollinearityMap,
+        DemSampler,
+        block_maxima,
+        plan_photo,
+        visibility_mask,
+    )
 
     rows = []
     photo_path, dem, _, photo = write_inputs(folder, size, distortion)
@@ -129,6 +135,7 @@ def memory_case(folder: Path, size: int, distortion: bool) -> list[dict]:
     grid = plan.grid
     sampler = DemSampler(info, grid.crs)
     sampler.preload(grid.bounds)
+    maxima = block_maxima(plan.surface.z)
     cmap = CollinearityMap(photo)
     windows = [t.core for t in iter_windows(grid.width, grid.height, 1024)]
     maps = []
@@ -140,10 +147,8 @@ def memory_case(folder: Path, size: int, distortion: bool) -> list[dict]:
             z = sampler.heights(xs, ys)
             cols, rowz = cmap(grid.window_transform(w), z)
             if occlusion:
-                s = plan.surface
-                hidden = np.zeros(z.shape, dtype=np.uint8)
-                hidden_cells(xs, ys, z, photo.exterior.centre, s.z, s.x0, s.y0, s.cell_x,
-                             s.cell_y, s.z_range[1], 0.01 * s.cell_x, hidden)
+                hidden = visibility_mask(xs, ys, z, photo.exterior.centre, plan.surface,
+                                         maxima)
                 cols[hidden.astype(bool)] = np.nan
             cmin, rmin, cmax, rmax, missing = cmap.last_box
             if missing == cols.size:

@@ -264,3 +264,23 @@ def test_engine_form_of_the_map_crops_the_halo():
     cols, rows = EngineMap(cmap)(tile, {"dem": z[None]})
     ref_cols, ref_rows = cmap(core, z[1:-1, 1:-1])
     assert cols.shape == (10, 12) and (cols == ref_cols).all() and (rows == ref_rows).all()
+
+
+def test_sky_blocks_skip_free_ground_without_changing_the_mask():
+    """Rays that jump over DSM blocks lower than themselves hide exactly the cells a plain
+    half-cell march hides (block maxima at +inf disable the jumps)."""
+    from toolbox.photogrammetry.ortho import hidden_cells, visibility_mask
+    from toolbox.photogrammetry.surface import DemSurface
+
+    z, t = hills_dem((0.0, 0.0, 1000.0, 1000.0), 5.0, relief=200.0, seed=4)
+    z[100:106, 80:90] += 60.0  # a tower
+    surface = DemSurface.from_transform(z.astype("float64"), t)
+    xs = np.arange(50.0, 950.0, 4.0) + 0.5
+    ys = np.arange(950.0, 50.0, -4.0) - 0.5
+    _, _, heights = tile_heights(z, t, Affine(4.0, 0, 50.0, 0, -4.0, 950.0), (225, 225))
+    centre = np.array([450.0, 550.0, 700.0])
+    fast = visibility_mask(xs, ys, heights, centre, surface)
+    plain = np.zeros(heights.shape, dtype=np.uint8)
+    hidden_cells(xs, ys, heights, centre, surface.z, surface.x0, surface.y0, 5.0, 5.0,
+                 surface.z_range[1], 0.05, np.full((1000, 1000), np.inf), 8, plain)
+    assert plain.sum() > 20 and (fast == plain).all()
