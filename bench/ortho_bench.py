@@ -118,13 +118,7 @@ def memory_case(folder: Path, size: int, distortion: bool) -> list[dict]:
     import rasterio
 
     from toolbox.io.raster import iter_windows, open_raster_info
-    from toolbox.photogrammetry.ortho import (
-        CollinearityMap,
-        DemSampler,
-        block_maxima,
-        plan_photo,
-        visibility_mask,
-    )
+    from toolbox.photogrammetry.ortho import CollinearityMap, DemSampler, OrthoWindows, plan_photo
 
     rows = []
     photo_path, dem, _, photo = write_inputs(folder, size, distortion)
@@ -135,36 +129,43 @@ def memory_case(folder: Path, size: int, distortion: bool) -> list[dict]:
     grid = plan.grid
     sampler = DemSampler(info, grid.crs)
     sampler.preload(grid.bounds)
-    maxima = block_maxima(plan.surface.z)
     cmap = CollinearityMap(photo)
     windows = [t.core for t in iter_windows(grid.width, grid.height, 1024)]
     maps = []
+    blocks: dict[int, int] = {}
 
     def ortho_windows(keep: bool, occlusion: bool = False):
+        """The ortho:photo path in memory: OrthoWindows (DEM heights, map, statistics, the next
+        window prefetched on a thread) + the remap of the source window."""
+        job = OrthoWindows(photo, grid, sampler, cmap, plan.mean_height,
+                           plan.surface if occlusion else None)
+        job.prefetch(windows)
         out = []
-        for w in windows:
-            xs, ys = grid.cell_centers(w)
-            z = sampler.heights(xs, ys)
-            cols, rowz = cmap(grid.window_transform(w), z)
-            if occlusion:
-                hidden = visibility_mask(xs, ys, z, photo.exterior.centre, plan.surface,
-                                         maxima)
-                cols[hidden.astype(bool)] = np.nan
-            cmin, rmin, cmax, rmax, missing = cmap.last_box
-            if missing == cols.size:
-                continue
-            c0 = max(int(cmin) - 2, 0)
-            r0 = max(int(rmin) - 2, 0)
-            c1 = min(int(cmax) + 3, size)
-            r1 = min(int(rmax) + 3, size)
-            if c1 <= c0 or r1 <= r0:
-                continue
-            mx = cols - np.float32(c0 + 0.5)
-            my = rowz - np.float32(r0 + 0.5)
-            if keep:
-                maps.append((mx, my, (r0, r1, c0, c1)))
-            out.append(cv2.remap(rgb[r0:r1, c0:c1], mx, my, cv2.INTER_LINEAR,
-                                 borderMode=cv2.BORDER_CONSTANT))
+        try:
+            for w in windows:
+                bounds = job.source_bounds(w)
+                cols, rowz = job(w)
+                if bounds is None:
+                    finite = np.isfinite(cols)
+                    if not finite.any():
+                        continue
+                    bounds = (cols[finite].min(), rowz[finite].min(), cols[finite].max(),
+                              rowz[finite].max())
+                c0 = max(int(bounds[0]) - 2, 0)
+                r0 = max(int(bounds[1]) - 2, 0)
+                c1 = min(int(bounds[2]) + 3, size)
+                r1 = min(int(bounds[3]) + 3, size)
+                if c1 <= c0 or r1 <= r0:
+                    continue
+                mx = cols - np.float32(c0 + 0.5)
+                my = rowz - np.float32(r0 + 0.5)
+                if keep:
+                    maps.append((mx, my, (r0, r1, c0, c1)))
+                out.append(cv2.remap(rgb[r0:r1, c0:c1], mx, my, cv2.INTER_LINEAR,
+                                     borderMode=cv2.BORDER_CONSTANT))
+        finally:
+            job.close()
+        blocks.update(job.totals().blocks)
         return out
 
     ortho_windows(True)
@@ -181,7 +182,7 @@ def memory_case(folder: Path, size: int, distortion: bool) -> list[dict]:
     rows.append({"case": f"{size} x {size} RGB photo -> {grid.width} x {grid.height} "
                          f"({mpx:.1f} Mpx), bilinear, {label}",
                  "ours": t_ours, "floor": t_floor, "mpx": mpx,
-                 "blocks": np.bincount(cmap.last_modes.ravel(), minlength=3).tolist()})
+                 "blocks": [blocks.get(k, 0) for k in range(3)]})
     if not distortion:
         t_occ = best_of(lambda: ortho_windows(False, True), repeat=1)
         rows.append({"case": "  + visibility test (true ortho, DEM 5 m)", "ours": t_occ,

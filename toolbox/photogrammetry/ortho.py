@@ -343,6 +343,11 @@ class CollinearityMap:
         self.last_box = np.zeros(5)
 
     def __call__(self, transform: Any, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        cols, rows, self.last_modes, self.last_box = self.project(transform, z)
+        return cols, rows
+
+    def project(self, transform: Any, z: np.ndarray):
+        """``(cols, rows, block modes, box)`` of a tile (thread-safe: no state kept)."""
         if transform.b != 0 or transform.d != 0:
             raise InputDataError("the output grid must be north-up")
         z = np.ascontiguousarray(z, dtype="float64")
@@ -362,9 +367,7 @@ class CollinearityMap:
             project_tile_distorted(z, a, m, s.c, s.pp, *s.distortion, s.f2p,
                                    s.lipschitz * s.f2p_condition, b, self.tolerance_px, cols,
                                    rows, modes, box)
-        self.last_box = box
-        self.last_modes = modes
-        return cols, rows
+        return cols, rows, modes, box
 
 
 class EngineMap:
@@ -929,15 +932,50 @@ class OrthoWindows:
         self.centre = photo.require_exterior().centre
         self.per_window: dict[tuple[int, int, int, int], TileStatistics] = {}
         self._maxima: np.ndarray | None = None
+        import threading
+
+        self._write_lock = threading.Lock()  # aux writers, if a split window runs alongside
 
     def _key(self, window: Any) -> tuple[int, int, int, int]:
         return (int(window.col_off), int(window.row_off), int(window.width), int(window.height))
+
+    def prefetch(self, windows: list[Any]) -> None:
+        """Compute the windows' coordinates one ahead on a background thread, in this order (the
+        warp's), so that the map of the next window overlaps the resampling and compression of
+        the current one (the kernels release the GIL). Call :meth:`close` at the end."""
+        from concurrent.futures import ThreadPoolExecutor
+
+        self._order = {self._key(w): k for k, w in enumerate(windows)}
+        self._windows = list(windows)
+        self._pool = ThreadPoolExecutor(1, thread_name_prefix="ortho-map")
+        self._futures: dict = {}
+        self._submit(0)
+
+    def _submit(self, index: int) -> None:
+        if index < len(self._windows):
+            window = self._windows[index]
+            self._futures[self._key(window)] = self._pool.submit(self._compute, window)
+
+    def _result(self, window: Any):
+        key = self._key(window)
+        future = getattr(self, "_futures", {}).pop(key, None)
+        if future is None:
+            return self._compute(window)
+        self._submit(self._order[key] + 1)
+        return future.result()
+
+    def close(self) -> None:
+        pool = getattr(self, "_pool", None)
+        if pool is not None:
+            pool.shutdown(wait=True, cancel_futures=True)
+            self._pool = None
+            self._futures = {}
 
     def source_bounds(self, window: Any) -> tuple[float, float, float, float] | None:
         """The exact bounding box of the window's source coordinates when every cell has one
         (the warp then skips its own scan and, inside the photo, the inside test); None when
         some cells have none. The coordinates are kept for the call that follows."""
-        self._last = (self._key(window), self._compute(window))
+        self._last = (self._key(window), self._result(window))
         return self._last[1][2]
 
     def __call__(self, window: Any) -> tuple[np.ndarray, np.ndarray]:
@@ -945,7 +983,7 @@ class OrthoWindows:
         if last is not None and last[0] == self._key(window):
             self._last = None
             return last[1][0], last[1][1]
-        cols, rows, _ = self._compute(window)
+        cols, rows, _ = self._result(window)
         return cols, rows
 
     def _compute(self, window: Any):
@@ -956,12 +994,13 @@ class OrthoWindows:
             yh = np.concatenate([[ys[0] + cell_y], ys, [ys[-1] - cell_y]])
             z_halo = self.sampler.heights(xh, yh)
             z = np.ascontiguousarray(z_halo[1:-1, 1:-1])
-            self.incidence_writer.write(incidence_angle(xs, ys, z_halo, self.centre)[None],
-                                        window=window)
+            angles = incidence_angle(xs, ys, z_halo, self.centre)[None]
+            with self._write_lock:
+                self.incidence_writer.write(angles, window=window)
         else:
             z = self.sampler.heights(xs, ys)
-        cols, rows = self.cmap(self.grid.window_transform(window), z)
-        cmin, rmin, cmax, rmax, missing = self.cmap.last_box
+        cols, rows, modes, box = self.cmap.project(self.grid.window_transform(window), z)
+        cmin, rmin, cmax, rmax, missing = box
         stats = TileStatistics(cells=z.size)
         nan_z = np.isnan(z)
         stats.outside_dem = int(np.count_nonzero(nan_z))
@@ -970,8 +1009,9 @@ class OrthoWindows:
                 self._maxima = block_maxima(self.surface.z)
             hidden = visibility_mask(xs, ys, z, self.centre, self.surface, self._maxima)
             if self.mask_writer is not None:
-                self.mask_writer.write(np.where(nan_z, 255, hidden).astype(np.uint8)[None],
-                                       window=window)
+                with self._write_lock:
+                    self.mask_writer.write(np.where(nan_z, 255, hidden).astype(np.uint8)[None],
+                                           window=window)
             mask = hidden.astype(bool)
             stats.hidden = int(np.count_nonzero(mask))
             if stats.hidden:
@@ -993,8 +1033,8 @@ class OrthoWindows:
         disp = disp[inside[sub]] if inside is not None else disp.ravel()
         disp = disp[np.isfinite(disp)]
         stats.max_relief_m = float(disp.max()) if disp.size else 0.0
-        modes = np.bincount(self.cmap.last_modes.ravel(), minlength=3)
-        stats.blocks = {k: int(modes[k]) for k in range(3)}
+        counts = np.bincount(modes.ravel(), minlength=3)
+        stats.blocks = {k: int(counts[k]) for k in range(3)}
         self.per_window[self._key(window)] = stats
         return cols, rows, box if every_cell else None
 
@@ -1084,6 +1124,7 @@ def orthorectify(photo: Any, image: Any, dem: Any, grid: Any, output: Any,
     profile_args = (grid.width, grid.height, 1)
     output = Path(output)
     target = output.with_name(f".{output.stem}.gtiff.tif") if options.cog else output
+    windows = None
     try:
         mask_writer = incidence_writer = None
         if mask_output is not None:
@@ -1099,6 +1140,9 @@ def orthorectify(photo: Any, image: Any, dem: Any, grid: Any, output: Any,
         windows = OrthoWindows(photo, grid, sampler, cmap, reference_height,
                                surface if options.occlusion else None, mask_writer,
                                incidence_writer)
+        from toolbox.io.raster import iter_windows
+
+        windows.prefetch([t.core for t in iter_windows(grid.width, grid.height, options.chunk)])
         eo = photo.require_exterior()
         tags = {"ORTHO_PHOTO": photo.id, "ORTHO_MAP_TOLERANCE_PX": str(options.tolerance_px),
                 "ORTHO_RESAMPLING": options.resampling, "NADIR_X": repr(eo.x0),
@@ -1116,6 +1160,8 @@ def orthorectify(photo: Any, image: Any, dem: Any, grid: Any, output: Any,
                 raster_copy(target, output, driver="COG", COMPRESS="DEFLATE", BLOCKSIZE=512,
                             OVERVIEWS="AUTO", NUM_THREADS="ALL_CPUS")
     finally:
+        if windows is not None:
+            windows.close()
         for dst in aux:
             dst.close()
         if options.cog and target != output and target.exists():
