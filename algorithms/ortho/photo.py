@@ -42,9 +42,11 @@ class OrthoPhoto(Algorithm):
     3 x 4 projective matrix on (X, Y, Z, 1)); with distortion it is evaluated exactly at the
     corners of TILE_SIZE x TILE_SIZE cell blocks and blended inside only where the blend is
     provably within MAP_TOLERANCE photo pixels (default 0.05 px; bound = Lipschitz constant of
-    the distortion x spread of the block's image points, checked per block; other blocks are
-    computed exactly). The work is streamed by output windows: memory stays bounded for a
-    16644 x 16644 scan.
+    the distortion x condition of the pixel transform x diagonal of the block's pixel box,
+    checked per block; other blocks are computed exactly; TILE_SIZE 64 as the thesis'
+    "tasselli", the fastest measured). The work is streamed by output windows: memory stays
+    bounded for a 16644 x 16644 scan. The ortho is in the orientation's CRS (the DEM may be in
+    any CRS; reprojecting the ortho itself is left to gdalwarp).
 
     The orientation comes from PROJECT (an orientation project; PHOTO names the photo, default
     the one whose image file or id matches INPUT) or from CAMERA (a camera YAML as in a
