@@ -85,6 +85,9 @@ class OrthoPhoto(Algorithm):
         File("CAMERA", "camera YAML (instead of PROJECT)", extensions=[".yaml", ".yml"],
              optional=True),
         String("EXTERIOR", "X0,Y0,Z0,omega,phi,kappa (with CAMERA)", optional=True),
+        String("PIXEL_TO_IMAGE", "with CAMERA: the Pixel->Fiducial matrix, 6 or 8 numbers row "
+               "by row (orientation:interior's); default: from the camera's pixel size",
+               optional=True),
         Enum("ANGLE_UNIT", "unit of omega, phi, kappa in EXTERIOR", options=("rad", "deg", "gon"),
              default="rad"),
         Crs("CRS", "CRS of EXTERIOR and of the ortho (default: the project's)", optional=True),
@@ -124,6 +127,9 @@ class OrthoPhoto(Algorithm):
             raise self.fail("PROJECT", "give either PROJECT (with PHOTO) or CAMERA with EXTERIOR")
         if params["CAMERA"] is not None and params["EXTERIOR"] is None:
             raise self.fail("EXTERIOR", "is required with CAMERA (X0,Y0,Z0,omega,phi,kappa)")
+        if params["PIXEL_TO_IMAGE"] is not None and params["CAMERA"] is None:
+            raise self.fail("PIXEL_TO_IMAGE", "applies with CAMERA only (a project holds its "
+                            "photos' interior orientations)")
         if params["OCCLUSION_MASK"] is not None and not params["OCCLUSION"]:
             raise self.fail("OCCLUSION_MASK", "needs OCCLUSION=true")
         if params["BAND"] > params["DEM"].count:
@@ -252,7 +258,16 @@ def camera_photo(params: dict[str, Any]) -> Any:
     except InputDataError as exc:
         raise ParameterError("CAMERA", str(exc)) from None
     photo = next(iter(project.photos.values()))
+    if params["PIXEL_TO_IMAGE"] is not None:
+        from dataclasses import replace
+
+        from toolbox.photogrammetry.fiducials import InteriorOrientation
+        from toolbox.transforms.rectification import parse_pixel_to_image
+
+        matrix = parse_pixel_to_image(params["PIXEL_TO_IMAGE"])
+        photo = replace(photo, interior=InteriorOrientation(
+            matrix, "homography" if matrix[2, :2].any() else "affine"))
     if photo.pixel_transform is None:
-        raise ParameterError("CAMERA", "needs pixel_size_mm (and image_size_px) to relate the "
-                             "photo's pixels to image mm")
+        raise ParameterError("CAMERA", "needs pixel_size_mm (and image_size_px), or give "
+                             "PIXEL_TO_IMAGE, to relate the photo's pixels to image mm")
     return photo

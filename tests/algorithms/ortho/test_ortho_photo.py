@@ -193,6 +193,15 @@ def test_camera_and_exterior_with_tens_of_degrees_warn(block, tmp_path):
                                         "CELL_SIZE": 5.0, "OUTPUT": tmp_path / "c.tif"},
                         feedback=feedback)["STATISTICS"]
     assert not feedback.warnings and stats["cell_size"] == 5.0
+    # the same pixel -> image transform given as orientation:interior's matrix
+    s = 230.0 / scene.SIZE
+    p2i = f"{s} 0 {-s * scene.SIZE / 2} 0 {-s} {s * scene.SIZE / 2}"
+    toolbox.run("ortho:photo", {"INPUT": block.photo_path, "CAMERA": camera,
+                                "EXTERIOR": exterior, "ANGLE_UNIT": "deg", "PIXEL_TO_IMAGE": p2i,
+                                "CRS": "EPSG:3003", "DEM": block.dem_path, "CELL_SIZE": 5.0,
+                                "OUTPUT": tmp_path / "c2.tif"})
+    with rasterio.open(tmp_path / "c.tif") as a, rasterio.open(tmp_path / "c2.tif") as b:
+        assert np.abs(a.read().astype(int) - b.read().astype(int)).max() <= 1
     tilted = ",".join(map(repr, [*scene.CENTRE, 20.0, 1.0, 20.0]))
     feedback = toolbox.Feedback()
     with pytest.raises(InputDataError):  # so tilted the footprint leaves the DEM's corner
