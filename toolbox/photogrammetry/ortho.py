@@ -914,6 +914,9 @@ class OrthoOptions:
     cog: bool = False
 
 
+PREFETCH = 2  # windows whose maps are computed ahead, on as many threads
+
+
 class OrthoWindows:
     """The coordinate map of a whole ortho for :func:`toolbox.raster.warp.warp_to_geotiff`:
     per output window it reads the DEM heights onto the window (:class:`DemSampler`), projects
@@ -940,16 +943,18 @@ class OrthoWindows:
         return (int(window.col_off), int(window.row_off), int(window.width), int(window.height))
 
     def prefetch(self, windows: list[Any]) -> None:
-        """Compute the windows' coordinates one ahead on a background thread, in this order (the
-        warp's), so that the map of the next window overlaps the resampling and compression of
-        the current one (the kernels release the GIL). Call :meth:`close` at the end."""
+        """Compute the windows' coordinates :data:`PREFETCH` ahead on background threads, in
+        this order (the warp's), so that the maps of the next windows overlap each other and the
+        resampling and compression of the current one (the kernels release the GIL). Call
+        :meth:`close` at the end."""
         from concurrent.futures import ThreadPoolExecutor
 
         self._order = {self._key(w): k for k, w in enumerate(windows)}
         self._windows = list(windows)
-        self._pool = ThreadPoolExecutor(1, thread_name_prefix="ortho-map")
+        self._pool = ThreadPoolExecutor(PREFETCH, thread_name_prefix="ortho-map")
         self._futures: dict = {}
-        self._submit(0)
+        for k in range(PREFETCH):
+            self._submit(k)
 
     def _submit(self, index: int) -> None:
         if index < len(self._windows):
@@ -961,7 +966,7 @@ class OrthoWindows:
         future = getattr(self, "_futures", {}).pop(key, None)
         if future is None:
             return self._compute(window)
-        self._submit(self._order[key] + 1)
+        self._submit(self._order[key] + PREFETCH)
         return future.result()
 
     def close(self) -> None:
