@@ -119,8 +119,7 @@ class OrthoBatch(Algorithm):
                 warning = ortho.tilt_warning(photo)
                 if warning:
                     feedback.push_warning(warning)
-                plans.append((ortho.plan_photo(photo, params["DEM"], crs, params["BAND"],
-                                               cell=1.0), image))
+                plans.append((ortho.plan_photo(photo, params["DEM"], crs, params["BAND"]), image))
             except (InputDataError, ParameterError) as exc:
                 failed.append({"photo": photo.id, "error": str(exc)})
                 feedback.push_warning(f"photo {photo.id} failed: {exc}")
