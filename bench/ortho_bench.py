@@ -118,7 +118,8 @@ def memory_case(folder: Path, size: int, distortion: bool) -> list[dict]:
     import rasterio
 
     from toolbox.io.raster import iter_windows, open_raster_info
-    from toolbox.photogrammetry.ortho import CollinearityMap, DemSampler, OrthoWindows, plan_photo
+    from toolbox.photogrammetry.ortho import CollinearityMap
+    from toolbox.photogrammetry.orthophoto import DemSampler, OrthoWindows, plan_photo
 
     rows = []
     photo_path, dem, _, photo = write_inputs(folder, size, distortion)
@@ -253,7 +254,7 @@ def agreement(ours: Path, theirs: Path) -> dict:
 
 def bench_files(folder: Path, size: int, with_orthority: bool) -> dict:
     from toolbox.io.raster import open_raster_info
-    from toolbox.photogrammetry.ortho import plan_photo
+    from toolbox.photogrammetry.orthophoto import plan_photo
 
     photo_path, dem, project, photo = write_inputs(folder, size)
     plan = plan_photo(photo, open_raster_info(dem), photo.crs)

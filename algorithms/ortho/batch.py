@@ -93,7 +93,7 @@ class OrthoBatch(Algorithm):
     def process(self, params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
         from toolbox.io.crs import crs_label, same_crs
         from toolbox.io.raster import open_raster_info
-        from toolbox.photogrammetry import ortho
+        from toolbox.photogrammetry import ortho, orthophoto
         from toolbox.photogrammetry.tables import load_project_parameter, write_json
         from toolbox.tiles import map_tiles, resolve_executor
 
@@ -119,7 +119,7 @@ class OrthoBatch(Algorithm):
                 warning = ortho.tilt_warning(photo)
                 if warning:
                     feedback.push_warning(warning)
-                plans.append((ortho.plan_photo(photo, params["DEM"], crs, params["BAND"]), image))
+                plans.append((orthophoto.plan_photo(photo, params["DEM"], crs, params["BAND"]), image))
             except (InputDataError, ParameterError) as exc:
                 failed.append({"photo": photo.id, "error": str(exc)})
                 feedback.push_warning(f"photo {photo.id} failed: {exc}")
@@ -128,19 +128,19 @@ class OrthoBatch(Algorithm):
                                  "; ".join(f"{f['photo']}: {f['error']}" for f in failed))
         if cell is None:
             cell = max(ortho.nice_cell_size(plan.gsd) for plan, _ in plans)
-        options = ortho.OrthoOptions(
+        options = orthophoto.OrthoOptions(
             resampling=params["RESAMPLING"], outside=params["OUTSIDE"], nodata=params["NODATA"],
             block=params["TILE_SIZE"], tolerance_px=params["MAP_TOLERANCE"],
             dem_factor=params["DEM_FACTOR"], band=params["BAND"], occlusion=params["OCCLUSION"],
             overviews=params["OVERVIEWS"], cog=params["COG"])
         folder = Path(params["FOLDER"])
         folder.mkdir(parents=True, exist_ok=True)
-        tasks = [ortho.OrthoTask(plan.photo, image, params["DEM"],
-                                 ortho.lattice_grid(plan.footprint.bounds, cell, crs, origin),
+        tasks = [orthophoto.OrthoTask(plan.photo, image, params["DEM"],
+                                 orthophoto.lattice_grid(plan.footprint.bounds, cell, crs, origin),
                                  folder / f"{plan.photo.id}.tif", options, plan.mean_height,
                                  params["MAP_SCALE"]) for plan, image in plans]
         reports = []
-        for result in map_tiles(ortho.run_task, tasks, executor=executor, feedback=feedback,
+        for result in map_tiles(orthophoto.run_task, tasks, executor=executor, feedback=feedback,
                                 total=len(tasks), start=10, end=100):
             if "error" in result:
                 failed.append(result)

@@ -136,7 +136,7 @@ class OrthoPhoto(Algorithm):
             raise self.fail("BAND", f"must be <= {params['DEM'].count}, got {params['BAND']}")
 
     def process(self, params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
-        from toolbox.photogrammetry import ortho
+        from toolbox.photogrammetry import ortho, orthophoto
         from toolbox.photogrammetry.tables import write_json
 
         photo, crs = oriented_photo(params)
@@ -144,14 +144,14 @@ class OrthoPhoto(Algorithm):
         warning = ortho.tilt_warning(photo)
         if warning:
             feedback.push_warning(warning)
-        plan = ortho.plan_photo(photo, params["DEM"], crs, params["BAND"],
+        plan = orthophoto.plan_photo(photo, params["DEM"], crs, params["BAND"],
                                 *grid_choice(params, crs))
-        options = ortho.OrthoOptions(
+        options = orthophoto.OrthoOptions(
             resampling=params["RESAMPLING"], outside=params["OUTSIDE"], nodata=params["NODATA"],
             block=params["TILE_SIZE"], tolerance_px=params["MAP_TOLERANCE"],
             dem_factor=params["DEM_FACTOR"], band=params["BAND"], occlusion=params["OCCLUSION"],
             overviews=params["OVERVIEWS"], cog=params["COG"])
-        report = ortho.orthorectify(photo, params["INPUT"], params["DEM"], plan.grid,
+        report = orthophoto.orthorectify(photo, params["INPUT"], params["DEM"], plan.grid,
                                     params["OUTPUT"], options, plan.surface, plan.mean_height,
                                     params["OCCLUSION_MASK"], params["INCIDENCE"],
                                     params["MAP_SCALE"], feedback)

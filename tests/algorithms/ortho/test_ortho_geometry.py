@@ -19,9 +19,9 @@ from toolbox.photogrammetry.ortho import (
     BLOCK_EXACT,
     BLOCK_INTERPOLATED,
     CollinearityMap,
-    DemSampler,
     heights_on_grid,
 )
+from toolbox.photogrammetry.orthophoto import DemSampler
 from toolbox.photogrammetry.synthetic import (
     box_dsm,
     frame_photo,
