@@ -645,9 +645,11 @@ def plan_photo(photo: Any, dem: Any, crs: Any, band: int = 1, cell: float | None
     = the footprint on the DEM (the frame outline monoplotted, 8 points per side); edges on the
     lattice ``origin + k·cell``.
     """
+    from toolbox.io.crs import parse_crs
     from toolbox.photogrammetry.coverage import photo_footprint
     from toolbox.photogrammetry.surface import dem_height_range
 
+    crs = None if crs is None else parse_crs(crs)
     check_dem_crs(dem)
     check_geometry(photo)
     low, _ = dem_height_range(dem, band)

@@ -63,3 +63,22 @@ def test_block_on_one_lattice_with_a_failing_photo(tmp_path):
         valid = data[1] == 255
         assert np.corrcoef(truth[valid], data[0][valid])[0, 1] > 0.99
     assert not list((tmp_path / "orthos").glob(".*"))  # no partial files left
+
+
+def test_block_tasks_survive_pickling_for_dask_workers(tmp_path):
+    """ortho:batch sends one OrthoTask per photo to run_task; on a Dask cluster they travel
+    pickled, so a round trip must give the same ortho."""
+    import pickle
+
+    from toolbox.io.raster import open_raster_info
+    from toolbox.photogrammetry.orthophoto import OrthoOptions, OrthoTask, plan_photo, run_task
+
+    sc = scene.make_scene(tmp_path)
+    dem = open_raster_info(sc.dem_path)
+    plan = plan_photo(sc.photo, dem, sc.photo.crs, cell=10.0)
+    task = OrthoTask(sc.photo, open_raster_info(sc.photo_path), dem, plan.grid,
+                     tmp_path / "p1_ortho.tif", OrthoOptions(overviews=False), plan.mean_height)
+    report = run_task(pickle.loads(pickle.dumps(task)))
+    assert "error" not in report and Path(report["output"]).exists()
+    with rasterio.open(report["output"]) as src:
+        assert src.transform == plan.grid.transform and src.count == 2
