@@ -7,6 +7,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pytest
 import rasterio
 import yaml
 
@@ -82,3 +83,26 @@ def test_block_tasks_survive_pickling_for_dask_workers(tmp_path):
     assert "error" not in report and Path(report["output"]).exists()
     with rasterio.open(report["output"]) as src:
         assert src.transform == plan.grid.transform and src.count == 2
+
+
+@pytest.mark.distributed
+@pytest.mark.slow
+def test_block_on_a_dask_cluster_equals_the_local_run(tmp_path, monkeypatch):
+    from distributed import LocalCluster
+
+    sc = scene.make_scene(tmp_path)
+    common = {"PROJECT": sc.project_path, "DEM": sc.dem_path, "CELL_SIZE": 10.0,
+              "OVERVIEWS": False}
+    monkeypatch.delenv("DASK_SCHEDULER_ADDRESS", raising=False)
+    local = toolbox.run("ortho:batch", common | {"FOLDER": str(tmp_path / "local"),
+                                                 "OUTPUT": tmp_path / "local.json"})
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
+                      dashboard_address=None) as cluster:
+        remote = toolbox.run("ortho:batch", common | {"SCHEDULER": cluster.scheduler_address,
+                                                      "FOLDER": str(tmp_path / "dask"),
+                                                      "OUTPUT": tmp_path / "dask.json"})
+    assert remote["STATISTICS"]["executor"].startswith("dask scheduler")
+    assert local["STATISTICS"]["done"] == remote["STATISTICS"]["done"] == 1
+    with rasterio.open(tmp_path / "local" / "p1.tif") as a, \
+            rasterio.open(tmp_path / "dask" / "p1.tif") as b:
+        assert (a.read() == b.read()).all()
