@@ -45,8 +45,10 @@ class OrthoPhoto(Algorithm):
     the distortion x condition of the pixel transform x diagonal of the block's pixel box,
     checked per block; other blocks are computed exactly; TILE_SIZE 64 as the thesis'
     "tasselli", the fastest measured). The work is streamed by output windows: memory stays
-    bounded for a 16644 x 16644 scan. The ortho is in the orientation's CRS (the DEM may be in
-    any CRS; reprojecting the ortho itself is left to gdalwarp).
+    bounded for a 16644 x 16644 scan. The ortho is in the orientation's CRS, or in CRS when
+    given with PROJECT: the cell centres then go to the orientation's CRS through a pyproj
+    lattice checked to 1/1000 of a cell and are projected point by point (not with OCCLUSION or
+    INCIDENCE). The DEM may be in any CRS.
 
     The orientation comes from PROJECT (an orientation project; PHOTO names the photo, default
     the one whose image file or id matches INPUT) or from CAMERA (a camera YAML as in a
@@ -90,7 +92,8 @@ class OrthoPhoto(Algorithm):
                optional=True),
         Enum("ANGLE_UNIT", "unit of omega, phi, kappa in EXTERIOR", options=("rad", "deg", "gon"),
              default="rad"),
-        Crs("CRS", "CRS of EXTERIOR and of the ortho (default: the project's)", optional=True),
+        Crs("CRS", "the ortho's CRS (default: the project's); with CAMERA also EXTERIOR's",
+            optional=True),
         RasterLayer("DEM", "terrain heights (or a DSM for true orthos), any CRS"),
         Integer("BAND", "DEM band", default=1, min_value=1),
         Number("CELL_SIZE", "ground cell size, CRS units (default: the photo's GSD)",
@@ -139,13 +142,20 @@ class OrthoPhoto(Algorithm):
         from toolbox.photogrammetry import ortho, orthophoto
         from toolbox.photogrammetry.tables import write_json
 
-        photo, crs = oriented_photo(params)
+        photo, crs, output_crs = oriented_photo(params)
         ortho.check_geometry(photo)  # a camera looking away is an error, not a tilt warning
         warning = ortho.tilt_warning(photo)
         if warning:
             feedback.push_warning(warning)
+        out_crs = output_crs or crs
+        if out_crs is not crs and (params["OCCLUSION"] or params["INCIDENCE"] is not None):
+            from toolbox.io.crs import same_crs
+
+            if not same_crs(out_crs, crs):
+                raise ParameterError("CRS", "differs from the orientation's: OCCLUSION and "
+                                     "INCIDENCE need the ortho in the orientation's CRS")
         plan = orthophoto.plan_photo(photo, params["DEM"], crs, params["BAND"],
-                                *grid_choice(params, crs))
+                                     *grid_choice(params, out_crs), output_crs=out_crs)
         options = orthophoto.OrthoOptions(
             resampling=params["RESAMPLING"], outside=params["OUTSIDE"], nodata=params["NODATA"],
             block=params["TILE_SIZE"], tolerance_px=params["MAP_TOLERANCE"],
@@ -188,21 +198,17 @@ def grid_choice(params: dict[str, Any], crs: Any) -> tuple[Any, Any, tuple[float
     return cell, None if extent is None else extent.bounds, origin
 
 
-def oriented_photo(params: dict[str, Any]) -> tuple[Any, Any]:
-    """The oriented photo and the ortho CRS from PROJECT/PHOTO or CAMERA/EXTERIOR."""
-    from toolbox.io.crs import crs_label, same_crs
+def oriented_photo(params: dict[str, Any]) -> tuple[Any, Any, Any]:
+    """The oriented photo, its orientation's CRS and the ortho's CRS (None: the same) from
+    PROJECT/PHOTO (CRS = the ortho's) or CAMERA/EXTERIOR (CRS = the orientation's)."""
     from toolbox.photogrammetry.tables import load_project_parameter
 
     crs = params["CRS"]
     if params["PROJECT"] is not None:
         project = load_project_parameter(params["PROJECT"])
         photo = pick_photo(project, params["PHOTO"], params["INPUT"].path)
-        if crs is not None and project.crs is not None and not same_crs(crs, project.crs):
-            raise ParameterError("CRS", f"is {crs_label(crs)} but the project is in "
-                                 f"{crs_label(project.crs)}; reprojecting the ortho is not "
-                                 "supported: leave CRS out")
-        return photo, project.crs if project.crs is not None else crs
-    return camera_photo(params), crs
+        return photo, project.crs if project.crs is not None else crs, crs
+    return camera_photo(params), crs, None
 
 
 def pick_photo(project: Any, photo_id: str | None, image: Any) -> Any:

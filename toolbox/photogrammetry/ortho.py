@@ -551,12 +551,13 @@ def incidence_angle(xs: np.ndarray, ys: np.ndarray, z_halo: np.ndarray, centre: 
         return np.degrees(np.arccos(np.clip(dot / norm, -1.0, 1.0))).astype("float32")
 
 
-def relief_displacement(xs: np.ndarray, ys: np.ndarray, z: np.ndarray, centre: np.ndarray,
+def relief_displacement(x: np.ndarray, y: np.ndarray, z: np.ndarray, centre: np.ndarray,
                         reference_height: float) -> np.ndarray:
     """Ground displacement (m) a rectification on the plane ``Z = reference_height`` would leave
     at each cell: ``ρ·|Z - Zref| / (Z0 - Z)`` with ρ the horizontal distance from the nadir
-    point (brief section 15, eq. [49] in ground units)."""
-    rho = np.hypot(xs[None, :] - centre[0], ys[:, None] - centre[1])
+    point (brief section 15, eq. [49] in ground units). ``x``, ``y`` broadcast to ``z`` (e.g.
+    ``xs[None, :]`` and ``ys[:, None]``)."""
+    rho = np.hypot(x - centre[0], y - centre[1])
     with np.errstate(invalid="ignore", divide="ignore"):
         return rho * np.abs(z - reference_height) / (centre[2] - z)
 

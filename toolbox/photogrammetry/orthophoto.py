@@ -141,34 +141,9 @@ class DemSampler:
         return data, gx0, gy0, t.a * k, -t.e * k
 
     def _to_dem(self, xs: np.ndarray, ys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """DEM-CRS coordinates (flat, contiguous) of the grid ``xs`` x ``ys``: exact with pyproj
-        on a lattice of every :data:`LATTICE`-th cell (and the last), bilinear in between. The
-        interpolation is checked at the centres of the lattice cells against pyproj; where it
-        differs by more than 1/1000 of a DEM cell every point is transformed."""
-        h, w = len(ys), len(xs)
-        rows = np.unique(np.r_[np.arange(0, h, LATTICE), h - 1])
-        cols = np.unique(np.r_[np.arange(0, w, LATTICE), w - 1])
-        exact = len(rows) * len(cols) * 4 >= h * w or len(rows) < 2 or len(cols) < 2
-        if not exact:
-            lx, ly = np.meshgrid(xs[cols], ys[rows])
-            tx, ty = self.transformer.transform(lx.ravel(), ly.ravel())
-            tx = np.asarray(tx).reshape(lx.shape)
-            ty = np.asarray(ty).reshape(lx.shape)
-            dx = _interpolate_lattice(tx, rows, cols, h, w)
-            dy = _interpolate_lattice(ty, rows, cols, h, w)
-            mi = (rows[:-1] + rows[1:]) // 2
-            mj = (cols[:-1] + cols[1:]) // 2
-            cx, cy = np.meshgrid(xs[mj], ys[mi])
-            ex, ey = self.transformer.transform(cx.ravel(), cy.ravel())
-            error = np.hypot(np.asarray(ex) - dx[np.ix_(mi, mj)].ravel(),
-                             np.asarray(ey) - dy[np.ix_(mi, mj)].ravel())
-            exact = not (np.all(np.isfinite(error)) and
-                         error.max() <= 1e-3 * abs(self.transform.a))
-        if exact:
-            xx, yy = np.meshgrid(xs, ys)
-            dx, dy = self.transformer.transform(xx.ravel(), yy.ravel())
-        return (np.ascontiguousarray(np.ravel(dx), dtype="float64"),
-                np.ascontiguousarray(np.ravel(dy), dtype="float64"))
+        """DEM-CRS coordinates (flat) of the grid ``xs`` x ``ys`` (:func:`lattice_transform`,
+        within 1/1000 of a DEM cell)."""
+        return lattice_transform(self.transformer, xs, ys, 1e-3 * abs(self.transform.a))
 
     def heights(self, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
         """Heights (h, w) float64 at the grid of cell centres ``xs`` (w,) x ``ys`` (h,) (output
@@ -194,7 +169,36 @@ class DemSampler:
         return out
 
 
-LATTICE = 16  # cells between exactly transformed points when the DEM is in another CRS
+LATTICE = 16  # cells between exactly transformed points when a grid goes to another CRS
+
+
+def lattice_transform(transformer: Any, xs: np.ndarray, ys: np.ndarray, tolerance: float
+                      ) -> tuple[np.ndarray, np.ndarray]:
+    """Coordinates (flat, contiguous float64) of the grid ``xs`` x ``ys`` in another CRS:
+    exact with pyproj on a lattice of every :data:`LATTICE`-th cell (and the last), bilinear in
+    between. The interpolation is checked at the centres of the lattice cells against pyproj;
+    where it is off by more than ``tolerance`` (target CRS units) every point is transformed."""
+    h, w = len(ys), len(xs)
+    rows = np.unique(np.r_[np.arange(0, h, LATTICE), h - 1])
+    cols = np.unique(np.r_[np.arange(0, w, LATTICE), w - 1])
+    exact = len(rows) * len(cols) * 4 >= h * w or len(rows) < 2 or len(cols) < 2
+    if not exact:
+        lx, ly = np.meshgrid(xs[cols], ys[rows])
+        tx, ty = transformer.transform(lx.ravel(), ly.ravel())
+        dx = _interpolate_lattice(np.asarray(tx).reshape(lx.shape), rows, cols, h, w)
+        dy = _interpolate_lattice(np.asarray(ty).reshape(lx.shape), rows, cols, h, w)
+        mi = (rows[:-1] + rows[1:]) // 2
+        mj = (cols[:-1] + cols[1:]) // 2
+        cx, cy = np.meshgrid(xs[mj], ys[mi])
+        ex, ey = transformer.transform(cx.ravel(), cy.ravel())
+        error = np.hypot(np.asarray(ex) - dx[np.ix_(mi, mj)].ravel(),
+                         np.asarray(ey) - dy[np.ix_(mi, mj)].ravel())
+        exact = not (np.all(np.isfinite(error)) and error.max() <= tolerance)
+    if exact:
+        xx, yy = np.meshgrid(xs, ys)
+        dx, dy = transformer.transform(xx.ravel(), yy.ravel())
+    return (np.ascontiguousarray(np.ravel(dx), dtype="float64"),
+            np.ascontiguousarray(np.ravel(dy), dtype="float64"))
 
 
 def _interpolate_lattice(values: np.ndarray, rows: np.ndarray, cols: np.ndarray, h: int,
@@ -347,8 +351,9 @@ class OrthoWindows:
 
     def __init__(self, photo: Any, grid: Any, sampler: DemSampler, cmap: CollinearityMap,
                  reference_height: float, surface: Any = None, mask_writer: Any = None,
-                 incidence_writer: Any = None):
+                 incidence_writer: Any = None, to_orientation: Any = None):
         self.photo, self.grid, self.sampler, self.cmap = photo, grid, sampler, cmap
+        self.to_orientation = to_orientation  # pyproj Transformer grid CRS -> orientation CRS
         self.reference_height = reference_height
         self.surface = surface
         self.mask_writer = mask_writer
@@ -425,7 +430,20 @@ class OrthoWindows:
                 self.incidence_writer.write(angles, window=window)
         else:
             z = self.sampler.heights(xs, ys)
-        cols, rows, modes, box = self.cmap.project(self.grid.window_transform(window), z)
+        if self.to_orientation is None:
+            cols, rows, modes, box = self.cmap.project(self.grid.window_transform(window), z)
+            gx, gy = xs[None, :], ys[:, None]
+        else:  # the ortho in another CRS: cell centres to the orientation's, then per point
+            gx, gy = lattice_transform(self.to_orientation, xs, ys, 1e-3 * cell_x)
+            gx, gy = gx.reshape(z.shape), gy.reshape(z.shape)
+            image = self.photo.ground_to_pixel((gx, gy, z), behind="nan")
+            cols = image[..., 0].astype("float32")
+            rows = image[..., 1].astype("float32")
+            finite = np.isfinite(cols)
+            box = np.array([cols[finite].min(), rows[finite].min(), cols[finite].max(),
+                            rows[finite].max(), z.size - finite.sum()]) if finite.any() else \
+                np.array([np.inf, np.inf, -np.inf, -np.inf, z.size])
+            modes = np.zeros((0, 0), dtype=np.int8)  # no blocks: every point exact
         cmin, rmin, cmax, rmax, missing = box
         stats = TileStatistics(cells=z.size)
         nan_z = np.isnan(z)
@@ -454,8 +472,8 @@ class OrthoWindows:
             inside = (cols >= 0) & (cols <= w) & (rows >= 0) & (rows <= h)
             stats.outside_photo = int(z.size - missing - np.count_nonzero(inside))
         sub = (slice(None, None, 4), slice(None, None, 4))
-        disp = relief_displacement(xs[sub[1]], ys[sub[0]], z[sub], self.centre,
-                                   self.reference_height)
+        gx, gy = np.broadcast_to(gx, z.shape), np.broadcast_to(gy, z.shape)
+        disp = relief_displacement(gx[sub], gy[sub], z[sub], self.centre, self.reference_height)
         disp = disp[inside[sub]] if inside is not None else disp.ravel()
         disp = disp[np.isfinite(disp)]
         stats.max_relief_m = float(disp.max()) if disp.size else 0.0
@@ -477,6 +495,22 @@ class OrthoWindows:
             if not any(contains(k, other) for other in keys):
                 total.add(self.per_window[k])
         return total
+
+
+def orientation_transformer(photo: Any, crs: Any) -> Any:
+    """pyproj Transformer from the ortho's CRS to the orientation's (always_xy), or None when
+    they are the same (or either is unknown)."""
+    from toolbox.io.crs import parse_crs, same_crs
+
+    eo_crs = photo.require_exterior().crs
+    if eo_crs is None or crs is None:
+        return None
+    eo_crs, crs = parse_crs(eo_crs), parse_crs(crs)
+    if same_crs(eo_crs, crs):
+        return None
+    from pyproj import Transformer
+
+    return Transformer.from_crs(crs, eo_crs, always_xy=True)
 
 
 def expected_accuracy(map_scale: float | None) -> dict[str, float] | None:
@@ -535,6 +569,10 @@ def orthorectify(photo: Any, image: Any, dem: Any, grid: Any, output: Any,
                              f"{size[0]} x {size[1]}: wrong image or camera")
     sampler = DemSampler(dem, grid.crs, options.band, options.dem_factor)
     sampler.preload(grid.bounds)
+    to_orientation = orientation_transformer(photo, grid.crs)
+    if to_orientation is not None and (options.occlusion or incidence_output is not None):
+        raise InputDataError("the visibility test and the incidence angles need the ortho in "
+                             "the orientation's CRS")
     cmap = CollinearityMap(photo, options.block, options.tolerance_px, image.width, image.height)
     if options.occlusion and surface is None:
         surface = photo_surface(dem, photo, grid.crs, options.band)
@@ -566,7 +604,7 @@ def orthorectify(photo: Any, image: Any, dem: Any, grid: Any, output: Any,
             aux.append(incidence_writer)
         windows = OrthoWindows(photo, grid, sampler, cmap, reference_height,
                                surface if options.occlusion else None, mask_writer,
-                               incidence_writer)
+                               incidence_writer, to_orientation)
         from toolbox.io.raster import iter_windows
 
         windows.prefetch([t.core for t in iter_windows(grid.width, grid.height, options.chunk)])
@@ -637,19 +675,21 @@ class OrthoPlan:
 
 def plan_photo(photo: Any, dem: Any, crs: Any, band: int = 1, cell: float | None = None,
                bounds: tuple[float, float, float, float] | None = None,
-               origin: tuple[float, float] = (0.0, 0.0)) -> OrthoPlan:
+               origin: tuple[float, float] = (0.0, 0.0), output_crs: Any = None) -> OrthoPlan:
     """Check the geometry and choose the grid of one photo's ortho.
 
-    Defaults (as the thesis' software proposes, S002 par. 3.8): cell = the photo's ground
-    sample distance at the mean terrain height of its footprint (2 significant digits); extent
-    = the footprint on the DEM (the frame outline monoplotted, 8 points per side); edges on the
-    lattice ``origin + k·cell``.
+    ``crs`` is the orientation's; ``output_crs`` the ortho's (default the same; then the
+    footprint is transformed, densified, to bound the grid). Defaults (as the thesis' software
+    proposes, S002 par. 3.8): cell = the photo's ground sample distance at the mean terrain
+    height of its footprint (2 significant digits); extent = the footprint on the DEM (the frame
+    outline monoplotted, 8 points per side); edges on the lattice ``origin + k·cell``.
     """
     from toolbox.io.crs import parse_crs
     from toolbox.photogrammetry.coverage import photo_footprint
     from toolbox.photogrammetry.surface import dem_height_range
 
     crs = None if crs is None else parse_crs(crs)
+    output_crs = crs if output_crs is None else parse_crs(output_crs)
     check_dem_crs(dem)
     check_geometry(photo)
     low, _ = dem_height_range(dem, band)
@@ -663,7 +703,15 @@ def plan_photo(photo: Any, dem: Any, crs: Any, band: int = 1, cell: float | None
     mean_height = mean_height_inside(surface, polygon)
     gsd = ground_sample_distance(photo, mean_height)
     cell = nice_cell_size(gsd) if cell is None else float(cell)
-    grid = lattice_grid(polygon.bounds if bounds is None else bounds, cell, crs, origin)
+    to_orientation = orientation_transformer(photo, output_crs)
+    if to_orientation is not None:
+        import shapely
+        from shapely.ops import transform as shapely_transform
+
+        dense = shapely.segmentize(polygon, max(polygon.length / 400.0, cell))
+        polygon = shapely_transform(
+            lambda x, y, z=None: to_orientation.transform(x, y, direction="INVERSE"), dense)
+    grid = lattice_grid(polygon.bounds if bounds is None else bounds, cell, output_crs, origin)
     return OrthoPlan(photo, surface, polygon, mean_height, gsd, grid)
 
 

@@ -278,3 +278,27 @@ def test_cli_refuses_a_camera_looking_away_in_one_line(block, tmp_path):
     assert result.returncode == 2
     assert "looks away from the ground" in result.stderr and len(result.stderr.splitlines()) == 1
     assert not (tmp_path / "up.tif").exists()
+
+
+def test_ortho_in_another_crs_recovers_the_texture(block, tmp_path):
+    """CRS = Monte Mario zone 2 with a zone-1 orientation: the truth at each cell comes from
+    pyproj's exact transform of its centre back to zone 1."""
+    from pyproj import Transformer
+
+    out = tmp_path / "z2.tif"
+    stats = run_ortho(block, out, CRS="EPSG:3004", CELL_SIZE=5.0)["STATISTICS"]
+    assert stats["crs"] == "EPSG:3004"
+    with rasterio.open(out) as src:
+        data = src.read()
+        t = src.transform
+        assert src.crs.to_epsg() == 3004
+    xs = t.c + (np.arange(data.shape[2]) + 0.5) * t.a
+    ys = t.f + (np.arange(data.shape[1]) + 0.5) * t.e
+    xx, yy = np.meshgrid(xs, ys)
+    x1, y1 = Transformer.from_crs("EPSG:3004", "EPSG:3003", always_xy=True).transform(xx, yy)
+    truth = block.texture(x1, y1)
+    patches = patch_positions(data[0], data[1] == 255, truth)
+    assert len(patches) >= 9
+    assert patches[:, 0].max() <= 0.1 and patches[:, 1].min() > 0.99
+    with pytest.raises(ParameterError, match="OCCLUSION"):
+        run_ortho(block, tmp_path / "z2occ.tif", CRS="EPSG:3004", OCCLUSION=True)
