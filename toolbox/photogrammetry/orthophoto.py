@@ -538,7 +538,7 @@ def orthorectify(photo: Any, image: Any, dem: Any, grid: Any, output: Any,
     dem : RasterInfo
         Terrain (or surface) heights, any CRS.
     grid : GridSpec
-        Output grid in the orientation's CRS.
+        Output grid (the orientation's CRS, or another: see :class:`OrthoWindows`).
     surface : DemSurface, optional
         The DEM around the photo (needed for the visibility test; read when missing).
     reference_height : float, optional
