@@ -706,11 +706,13 @@ def plan_photo(photo: Any, dem: Any, crs: Any, band: int = 1, cell: float | None
     to_orientation = orientation_transformer(photo, output_crs)
     if to_orientation is not None:
         import shapely
-        from shapely.ops import transform as shapely_transform
 
-        dense = shapely.segmentize(polygon, max(polygon.length / 400.0, cell))
-        polygon = shapely_transform(
-            lambda x, y, z=None: to_orientation.transform(x, y, direction="INVERSE"), dense)
+        def to_output(xy: np.ndarray) -> np.ndarray:
+            x, y = to_orientation.transform(xy[:, 0], xy[:, 1], direction="INVERSE")
+            return np.column_stack([x, y])
+
+        dense = shapely.segmentize(shapely.force_2d(polygon), max(polygon.length / 400.0, cell))
+        polygon = shapely.transform(dense, to_output)
     grid = lattice_grid(polygon.bounds if bounds is None else bounds, cell, output_crs, origin)
     return OrthoPlan(photo, surface, polygon, mean_height, gsd, grid)
 
