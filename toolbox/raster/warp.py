@@ -38,8 +38,10 @@ from typing import Any, Protocol
 import numpy as np
 
 RESAMPLING_METHODS = ("nearest", "bilinear", "cubic", "lanczos")
+# not OpenCV's: :mod:`toolbox.raster.quadratic` (the thesis' quadratic, for orthophotos)
+EXTRA_RESAMPLING = ("quadratic",)
 # source pixels needed beyond the bounding box of the sample points, per method (kernel radius)
-RESAMPLING_MARGIN = {"nearest": 1, "bilinear": 1, "cubic": 2, "lanczos": 4}
+RESAMPLING_MARGIN = {"nearest": 1, "bilinear": 1, "cubic": 2, "lanczos": 4, "quadratic": 2}
 DEFAULT_CHUNK = 2048  # output pixels per side of a processing window (a multiple of the block)
 DEFAULT_MAX_SOURCE_PIXELS = 1 << 24  # larger source windows are split (16 Mpx per band)
 DEFAULT_CACHE_MB = 256  # GDAL block cache while warping (bounded, unlike GDAL's 5 % of RAM)
@@ -298,6 +300,10 @@ def remap(source: np.ndarray, map_x: np.ndarray, map_y: np.ndarray,
     """
     import cv2
 
+    if resampling == "quadratic":
+        from toolbox.raster.quadratic import remap_quadratic
+
+        return remap_quadratic(source, map_x, map_y)
     flag = cv2_interpolation(resampling)
     dtype = source.dtype
     work = source if dtype.name in _CV2_DTYPES else source.astype("float64")
@@ -519,7 +525,8 @@ def warp_window(read: Callable[[list[int], Any], np.ndarray], source_size: tuple
     shift_r = src_win.row_off - pads[0] + 0.5
     all_inside = (exact_bounds and bounds[0] >= 0 and bounds[1] >= 0 and bounds[2] <= width
                   and bounds[3] <= height)
-    use_fast = (fast and cols is None and hasattr(coordinate_map, "perspective_matrix")
+    use_fast = (fast and cols is None and resampling in RESAMPLING_METHODS
+                and hasattr(coordinate_map, "perspective_matrix")
                 and hasattr(coordinate_map, "inside_intervals"))
     intervals = None
     inside = None
@@ -669,7 +676,7 @@ def warp_to_geotiff(source: Any, coordinate_map: CoordinateMap, grid: Any, outpu
         Output grid (transform, width, height, crs; crs None for a local object system).
     output : path
         GeoTIFF to write (inside an algorithm: the staged path).
-    resampling : {"nearest", "bilinear", "cubic", "lanczos"}
+    resampling : {"nearest", "bilinear", "cubic", "lanczos", "quadratic"}
     outside : {"alpha", "nodata"}
         How pixels outside the photo are marked (see :func:`output_layout`).
     nodata : float, optional
@@ -699,8 +706,9 @@ def warp_to_geotiff(source: Any, coordinate_map: CoordinateMap, grid: Any, outpu
     from toolbox.raster.engine import warp_raster
     from toolbox.raster.writer import RasterWriter
 
-    if resampling not in RESAMPLING_METHODS:
-        raise ValueError(f"resampling must be one of {', '.join(RESAMPLING_METHODS)}, "
+    if resampling not in RESAMPLING_METHODS + EXTRA_RESAMPLING:
+        raise ValueError(f"resampling must be one of "
+                         f"{', '.join(RESAMPLING_METHODS + EXTRA_RESAMPLING)}, "
                          f"got {resampling!r}")
     layout = warp_layout(source, outside, nodata)
     writer = RasterWriter(output, grid, layout.count, layout.dtype, layout.nodata,

@@ -1,0 +1,178 @@
+"""ortho:batch - orthophotos of every photo of an orientation project on one shared grid."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from toolbox.algorithm import Algorithm
+from toolbox.errors import InputDataError, ParameterError
+from toolbox.feedback import Feedback
+from toolbox.parameters import (
+    Boolean,
+    Enum,
+    File,
+    Integer,
+    Number,
+    Output,
+    OutputFile,
+    RasterLayer,
+    String,
+)
+from toolbox.registry import register
+
+RESAMPLING = ("nearest", "bilinear", "quadratic", "cubic", "lanczos")
+
+
+@register
+class OrthoBatch(Algorithm):
+    """Orthophotos of a whole block: every oriented photo of PROJECT (or those listed in
+    PHOTOS) orthorectified as ortho:photo does, on ONE shared grid lattice, so the orthos
+    mosaic without resampling (mosaic:*).
+
+    The cell is CELL_SIZE, default the LARGEST ground sample distance among the photos (as the
+    thesis' software advises, S002 par. 3.8: uniform resolution over the block), or TEMPLATE's
+    cell and lattice. Each ortho covers its photo's footprint on the DEM, with edges on the
+    shared lattice. The photos' image files are the project's ``image`` paths (relative to the
+    project file); IMAGES gives another folder holding them under the same file names.
+
+    Photos run in parallel on local threads (WORKERS) or on a Dask cluster (SCHEDULER or
+    DASK_SCHEDULER_ADDRESS), with one progress bar. A photo that fails (missing image, camera
+    looking away, no DEM under it...) is reported and the others still finish. The orthos are
+    written into FOLDER as ``<photo id>.tif`` (each in a hidden file renamed when complete;
+    existing orthos of the same names are replaced); OUTPUT (JSON) lists them (``orthos``,
+    ready for mosaic:*), with one report per photo (as ortho:photo's) and the failures.
+    """
+
+    id = "ortho:batch"
+    display_name = "Orthophotos of a block"
+    group = "Orthophoto"
+    short_help = "Orthorectify every photo of an orientation project on one shared grid."
+    parameters = [
+        File("PROJECT", "orientation project (YAML)", extensions=[".yaml", ".yml"]),
+        String("PHOTOS", "photo ids, comma separated (default: every oriented photo)",
+               optional=True),
+        String("IMAGES", "folder of the image files (default: the project's paths)",
+               optional=True),
+        RasterLayer("DEM", "terrain heights, any CRS"),
+        Integer("BAND", "DEM band", default=1, min_value=1),
+        Number("CELL_SIZE", "ground cell size (default: the largest GSD of the photos)",
+               optional=True, min_value=0, min_exclusive=True),
+        RasterLayer("TEMPLATE", "align the grid to this raster's lattice and cell",
+                    optional=True),
+        Enum("RESAMPLING", "photo interpolation", options=RESAMPLING, default="bilinear"),
+        Integer("DEM_FACTOR", "project on a DEM coarsened by this factor", default=1,
+                min_value=1, max_value=64),
+        Integer("TILE_SIZE", "coarse-grid block of the distortion, cells", default=64,
+                min_value=2, max_value=256),
+        Number("MAP_TOLERANCE", "largest interpolation error of the map, photo pixels",
+               default=0.05, min_value=0),
+        Enum("OUTSIDE", "cells outside the photo or the DEM: alpha band or nodata",
+             options=("alpha", "nodata"), default="alpha"),
+        Number("NODATA", "nodata value with OUTSIDE=nodata", optional=True),
+        Boolean("OCCLUSION", "true orthos: leave hidden cells empty", default=False),
+        Boolean("COG", "write Cloud Optimized GeoTIFFs", default=False),
+        Boolean("OVERVIEWS", "build internal overviews", default=True),
+        Number("MAP_SCALE", "map scale denominator for the expected accuracy", optional=True,
+               min_value=1),
+        String("SCHEDULER", "Dask scheduler address (default: local threads)", optional=True),
+        Integer("WORKERS", "photos in parallel on local threads", default=2, min_value=1),
+        String("FOLDER", "folder of the orthos (created if missing)"),
+        OutputFile("OUTPUT", "JSON list of the orthos with the per-photo reports",
+                   extensions=[".json"]),
+    ]
+    outputs = [Output("STATISTICS", "photos done and failed, cell size", "dict")]
+
+    def check(self, params: dict[str, Any]) -> None:
+        if params["BAND"] > params["DEM"].count:
+            raise self.fail("BAND", f"must be <= {params['DEM'].count}, got {params['BAND']}")
+        folder = Path(params["FOLDER"])
+        if folder.exists() and not folder.is_dir():
+            raise self.fail("FOLDER", f"'{folder}' is a file, expected a folder")
+
+    def process(self, params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
+        from toolbox.io.crs import crs_label, same_crs
+        from toolbox.io.raster import open_raster_info
+        from toolbox.photogrammetry import ortho, orthophoto
+        from toolbox.photogrammetry.tables import load_project_parameter, write_json
+        from toolbox.tiles import map_tiles, resolve_executor
+
+        project = load_project_parameter(params["PROJECT"])
+        crs = project.crs
+        executor = resolve_executor(params["SCHEDULER"], params["WORKERS"])
+        photos = select_photos(project, params["PHOTOS"])
+        failed: list[dict[str, Any]] = []
+        plans = []
+        origin = (0.0, 0.0)
+        cell = params["CELL_SIZE"]
+        template = params["TEMPLATE"]
+        if template is not None:
+            if template.crs is not None and not same_crs(template.crs, crs):
+                raise ParameterError("TEMPLATE", f"is in {crs_label(template.crs)}, the project "
+                                     f"in {crs_label(crs)}")
+            cell, origin = abs(template.transform.a), (template.transform.c,
+                                                       template.transform.f)
+        for photo in feedback.iterate(photos, start=0, end=10):
+            try:
+                image = open_raster_info(image_path(photo, params["IMAGES"]), "IMAGES")
+                ortho.check_geometry(photo)
+                warning = ortho.tilt_warning(photo)
+                if warning:
+                    feedback.push_warning(warning)
+                plans.append((orthophoto.plan_photo(photo, params["DEM"], crs, params["BAND"]), image))
+            except (InputDataError, ParameterError) as exc:
+                failed.append({"photo": photo.id, "error": str(exc)})
+                feedback.push_warning(f"photo {photo.id} failed: {exc}")
+        if not plans:
+            raise InputDataError("no photo could be orthorectified: " +
+                                 "; ".join(f"{f['photo']}: {f['error']}" for f in failed))
+        if cell is None:
+            cell = max(ortho.nice_cell_size(plan.gsd) for plan, _ in plans)
+        options = orthophoto.OrthoOptions(
+            resampling=params["RESAMPLING"], outside=params["OUTSIDE"], nodata=params["NODATA"],
+            block=params["TILE_SIZE"], tolerance_px=params["MAP_TOLERANCE"],
+            dem_factor=params["DEM_FACTOR"], band=params["BAND"], occlusion=params["OCCLUSION"],
+            overviews=params["OVERVIEWS"], cog=params["COG"])
+        folder = Path(params["FOLDER"])
+        folder.mkdir(parents=True, exist_ok=True)
+        tasks = [orthophoto.OrthoTask(plan.photo, image, params["DEM"],
+                                 orthophoto.lattice_grid(plan.footprint.bounds, cell, crs, origin),
+                                 folder / f"{plan.photo.id}.tif", options, plan.mean_height,
+                                 params["MAP_SCALE"]) for plan, image in plans]
+        reports = []
+        for result in map_tiles(orthophoto.run_task, tasks, executor=executor, feedback=feedback,
+                                total=len(tasks), start=10, end=100):
+            if "error" in result:
+                failed.append(result)
+                feedback.push_warning(f"photo {result['photo']} failed: {result['error']}")
+            else:
+                reports.append(result)
+                for text in result.pop("warnings", []):
+                    feedback.push_warning(text)
+        stats = {"photos": len(photos), "done": len(reports), "failed": len(failed),
+                 "cell_size": cell, "crs": crs_label(crs), "executor": executor.describe()}
+        write_json(params["OUTPUT"], {"algorithm": self.id, "orthos": [r["output"]
+                                                                      for r in reports],
+                                      "photos": reports, "failed": failed, "statistics": stats})
+        return {"OUTPUT": params["OUTPUT"], "STATISTICS": stats}
+
+
+def select_photos(project: Any, listed: str | None) -> list[Any]:
+    if listed is None:
+        photos = project.oriented()
+        if not photos:
+            raise InputDataError(f"PROJECT {project.source} has no oriented photo")
+        return photos
+    ids = [p.strip() for p in listed.split(",") if p.strip()]
+    unknown = [p for p in ids if p not in project.photos]
+    if unknown or not ids:
+        raise ParameterError("PHOTOS", f"names photos the project does not have: "
+                             f"{', '.join(unknown) or listed!r} (photos: "
+                             f"{', '.join(project.photos)})")
+    return [project.photos[p] for p in ids]
+
+
+def image_path(photo: Any, folder: str | None) -> Path:
+    if photo.image is None:
+        raise InputDataError(f"photo {photo.id!r} has no image file in the project")
+    return Path(photo.image) if folder is None else Path(folder) / Path(photo.image).name

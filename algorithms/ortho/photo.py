@@ -1,0 +1,279 @@
+"""ortho:photo - orthorectify one frame photo on a DEM (differential rectification)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from toolbox.algorithm import Algorithm
+from toolbox.errors import InputDataError, ParameterError
+from toolbox.feedback import Feedback
+from toolbox.parameters import (
+    Boolean,
+    Crs,
+    Enum,
+    ExtentParameter,
+    File,
+    Integer,
+    Number,
+    Output,
+    OutputFile,
+    OutputRaster,
+    RasterLayer,
+    String,
+)
+from toolbox.registry import register
+
+RESAMPLING = ("nearest", "bilinear", "quadratic", "cubic", "lanczos")
+
+
+@register
+class OrthoPhoto(Algorithm):
+    """Orthophoto of one frame photo: differential rectification on a DEM (indirect method,
+    domain brief section 15; thesis par. 2.6.5 and 3.8).
+
+    For every output cell centre the height comes from the DEM (bilinear between DEM cell
+    centres; a DEM in another CRS is reprojected on the fly with pyproj), the collinearity
+    equations (brief section 4) project the point into the photo, radial distortion, the
+    principal point and the pixel -> fiducial transform of the interior orientation are
+    applied, and the photo is resampled there (nearest, bilinear, cubic, lanczos by OpenCV;
+    quadratic, the thesis' Z-Map choice, by Dodgson's interpolating quadratic kernel).
+    Without distortion the projection is exact at every cell (the collinearity equations are a
+    3 x 4 projective matrix on (X, Y, Z, 1)); with distortion it is evaluated exactly at the
+    corners of TILE_SIZE x TILE_SIZE cell blocks and blended inside only where the blend is
+    provably within MAP_TOLERANCE photo pixels (default 0.05 px; bound = Lipschitz constant of
+    the distortion x condition of the pixel transform x diagonal of the block's pixel box,
+    checked per block; other blocks are computed exactly; TILE_SIZE 64 as the thesis'
+    "tasselli", the fastest measured). The work is streamed by output windows: memory stays
+    bounded for a 16644 x 16644 scan. The ortho is in the orientation's CRS, or in CRS when
+    given with PROJECT: the cell centres then go to the orientation's CRS through a pyproj
+    lattice checked to 1/1000 of a cell and are projected point by point (not with OCCLUSION or
+    INCIDENCE). The DEM may be in any CRS.
+
+    The orientation comes from PROJECT (an orientation project; PHOTO names the photo, default
+    the one whose image file or id matches INPUT) or from CAMERA (a camera YAML as in a
+    project's ``cameras`` list; the pixel transform from its pixel and image size) with
+    EXTERIOR = "X0,Y0,Z0,omega,phi,kappa" in ANGLE_UNIT and CRS.
+
+    Defaults as the thesis' software proposes: CELL_SIZE = the photo's ground sample distance
+    at the mean terrain height of its footprint (2 significant digits); EXTENT = the footprint
+    on the DEM; grid edges on multiples of the cell (or on the lattice of TEMPLATE), so orthos
+    of one block share a grid. DEM_FACTOR > 1 projects on a coarser DEM (the mean of
+    factor x factor cells), as Z-Map's resampling factor.
+
+    OCCLUSION=true is the true-ortho step: each cell's line of sight to the projection centre
+    is walked over the DEM/DSM; cells hidden by a higher object are left empty (no "double
+    mapping") and written to OCCLUSION_MASK (1 hidden, 0 seen, 255 no height). INCIDENCE
+    writes the angle (degrees) between the ray and the surface normal (as GRASS
+    i.ortho.rectify): large values show where the ortho is smeared.
+
+    Cells without a DEM height or outside the photo get alpha 0 (OUTSIDE=alpha) or NODATA;
+    they are counted, never invented. The REPORT (JSON) lists GSD, extent, fractions outside
+    the DEM/photo, the hidden fraction, the largest relief displacement corrected (metres and
+    photo pixels; rho·|Z - Zmean|/(Z0 - Z)) and, given MAP_SCALE, the planimetric accuracy the
+    seeds' rule expects (RMS ±0.3 mm to ±0.5 mm at the map scale, par. 2.6.6).
+    """
+
+    id = "ortho:photo"
+    display_name = "Orthophoto of one photo"
+    group = "Orthophoto"
+    short_help = "Orthorectify a frame photo on a DEM (collinearity, optional true-ortho mask)."
+    parameters = [
+        RasterLayer("INPUT", "the photo (any GDAL raster, 1-4 bands, 8/16 bit)"),
+        File("PROJECT", "orientation project (YAML)", extensions=[".yaml", ".yml"],
+             optional=True),
+        String("PHOTO", "photo id in PROJECT (default: the photo whose image or id matches "
+               "INPUT)", optional=True),
+        File("CAMERA", "camera YAML (instead of PROJECT)", extensions=[".yaml", ".yml"],
+             optional=True),
+        String("EXTERIOR", "X0,Y0,Z0,omega,phi,kappa (with CAMERA)", optional=True),
+        String("PIXEL_TO_IMAGE", "with CAMERA: the Pixel->Fiducial matrix, 6 or 8 numbers row "
+               "by row (orientation:interior's); default: from the camera's pixel size",
+               optional=True),
+        Enum("ANGLE_UNIT", "unit of omega, phi, kappa in EXTERIOR", options=("rad", "deg", "gon"),
+             default="rad"),
+        Crs("CRS", "the ortho's CRS (default: the project's); with CAMERA also EXTERIOR's",
+            optional=True),
+        RasterLayer("DEM", "terrain heights (or a DSM for true orthos), any CRS"),
+        Integer("BAND", "DEM band", default=1, min_value=1),
+        Number("CELL_SIZE", "ground cell size, CRS units (default: the photo's GSD)",
+               optional=True, min_value=0, min_exclusive=True),
+        ExtentParameter("EXTENT", "output extent (default: the footprint on the DEM)",
+                        optional=True),
+        RasterLayer("TEMPLATE", "align the grid to this raster's lattice (and cell size)",
+                    optional=True),
+        Enum("RESAMPLING", "photo interpolation", options=RESAMPLING, default="bilinear"),
+        Integer("DEM_FACTOR", "project on a DEM coarsened by this factor (1 = as is)", default=1,
+                min_value=1, max_value=64),
+        Integer("TILE_SIZE", "coarse-grid block of the distortion, cells", default=64,
+                min_value=2, max_value=256),
+        Number("MAP_TOLERANCE", "largest interpolation error of the map, photo pixels",
+               default=0.05, min_value=0),
+        Enum("OUTSIDE", "cells outside the photo or the DEM: alpha band or nodata",
+             options=("alpha", "nodata"), default="alpha"),
+        Number("NODATA", "nodata value with OUTSIDE=nodata", optional=True),
+        Boolean("OCCLUSION", "true ortho: leave cells hidden from the camera empty",
+                default=False),
+        Boolean("COG", "write a Cloud Optimized GeoTIFF", default=False),
+        Boolean("OVERVIEWS", "build internal overviews", default=True),
+        Number("MAP_SCALE", "map scale denominator for the expected accuracy (e.g. 5000)",
+               optional=True, min_value=1),
+        OutputRaster("OUTPUT", "orthophoto GeoTIFF"),
+        OutputRaster("OCCLUSION_MASK", "occlusion mask (needs OCCLUSION)", optional=True),
+        OutputRaster("INCIDENCE", "incidence angle raster, degrees", optional=True),
+        OutputFile("REPORT", "JSON report", extensions=[".json"], optional=True),
+    ]
+    outputs = [Output("STATISTICS", "the per-photo report", "dict")]
+
+    def check(self, params: dict[str, Any]) -> None:
+        if (params["PROJECT"] is None) == (params["CAMERA"] is None):
+            raise self.fail("PROJECT", "give either PROJECT (with PHOTO) or CAMERA with EXTERIOR")
+        if params["CAMERA"] is not None and params["EXTERIOR"] is None:
+            raise self.fail("EXTERIOR", "is required with CAMERA (X0,Y0,Z0,omega,phi,kappa)")
+        if params["PIXEL_TO_IMAGE"] is not None and params["CAMERA"] is None:
+            raise self.fail("PIXEL_TO_IMAGE", "applies with CAMERA only (a project holds its "
+                            "photos' interior orientations)")
+        if params["OCCLUSION_MASK"] is not None and not params["OCCLUSION"]:
+            raise self.fail("OCCLUSION_MASK", "needs OCCLUSION=true")
+        if params["BAND"] > params["DEM"].count:
+            raise self.fail("BAND", f"must be <= {params['DEM'].count}, got {params['BAND']}")
+
+    def process(self, params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
+        from toolbox.photogrammetry import ortho, orthophoto
+        from toolbox.photogrammetry.tables import write_json
+
+        photo, crs, output_crs = oriented_photo(params)
+        ortho.check_geometry(photo)  # a camera looking away is an error, not a tilt warning
+        warning = ortho.tilt_warning(photo)
+        if warning:
+            feedback.push_warning(warning)
+        out_crs = output_crs or crs
+        if out_crs is not crs and (params["OCCLUSION"] or params["INCIDENCE"] is not None):
+            from toolbox.io.crs import same_crs
+
+            if not same_crs(out_crs, crs):
+                raise ParameterError("CRS", "differs from the orientation's: OCCLUSION and "
+                                     "INCIDENCE need the ortho in the orientation's CRS")
+        plan = orthophoto.plan_photo(photo, params["DEM"], crs, params["BAND"],
+                                     *grid_choice(params, out_crs), output_crs=out_crs)
+        options = orthophoto.OrthoOptions(
+            resampling=params["RESAMPLING"], outside=params["OUTSIDE"], nodata=params["NODATA"],
+            block=params["TILE_SIZE"], tolerance_px=params["MAP_TOLERANCE"],
+            dem_factor=params["DEM_FACTOR"], band=params["BAND"], occlusion=params["OCCLUSION"],
+            overviews=params["OVERVIEWS"], cog=params["COG"])
+        report = orthophoto.orthorectify(photo, params["INPUT"], params["DEM"], plan.grid,
+                                    params["OUTPUT"], options, plan.surface, plan.mean_height,
+                                    params["OCCLUSION_MASK"], params["INCIDENCE"],
+                                    params["MAP_SCALE"], feedback)
+        report["footprint"] = [list(p) for p in plan.footprint.exterior.coords]
+        if params["REPORT"] is not None:
+            write_json(params["REPORT"], {"algorithm": self.id, "photos": [report]})
+        return {"OUTPUT": params["OUTPUT"], "OCCLUSION_MASK": params["OCCLUSION_MASK"],
+                "INCIDENCE": params["INCIDENCE"], "REPORT": params["REPORT"],
+                "STATISTICS": report}
+
+
+def grid_choice(params: dict[str, Any], crs: Any) -> tuple[Any, Any, tuple[float, float]]:
+    """(cell, bounds, lattice origin) from CELL_SIZE, EXTENT and TEMPLATE."""
+    from toolbox.io.crs import crs_label, same_crs
+
+    cell = params["CELL_SIZE"]
+    extent = params["EXTENT"]
+    origin = (0.0, 0.0)
+    if extent is not None and extent.crs is not None and not same_crs(extent.crs, crs):
+        raise ParameterError("EXTENT", f"is in {crs_label(extent.crs)}, the ortho in "
+                             f"{crs_label(crs)}")
+    template = params["TEMPLATE"]
+    if template is not None:
+        if template.crs is not None and not same_crs(template.crs, crs):
+            raise ParameterError("TEMPLATE", f"is in {crs_label(template.crs)}, the ortho in "
+                                 f"{crs_label(crs)}")
+        t = template.transform
+        if t.b != 0 or t.d != 0 or abs(abs(t.a) - abs(t.e)) > 1e-9 * abs(t.a):
+            raise ParameterError("TEMPLATE", "must be north-up with square cells")
+        if cell is not None and abs(cell - abs(t.a)) > 1e-9 * cell:
+            raise ParameterError("CELL_SIZE", f"differs from TEMPLATE's cell ({abs(t.a):g}); "
+                                 "leave it out to use the template's")
+        cell, origin = abs(t.a), (t.c, t.f)
+    return cell, None if extent is None else extent.bounds, origin
+
+
+def oriented_photo(params: dict[str, Any]) -> tuple[Any, Any, Any]:
+    """The oriented photo, its orientation's CRS and the ortho's CRS (None: the same) from
+    PROJECT/PHOTO (CRS = the ortho's) or CAMERA/EXTERIOR (CRS = the orientation's)."""
+    from toolbox.photogrammetry.tables import load_project_parameter
+
+    crs = params["CRS"]
+    if params["PROJECT"] is not None:
+        project = load_project_parameter(params["PROJECT"])
+        photo = pick_photo(project, params["PHOTO"], params["INPUT"].path)
+        return photo, project.crs if project.crs is not None else crs, crs
+    return camera_photo(params), crs, None
+
+
+def pick_photo(project: Any, photo_id: str | None, image: Any) -> Any:
+    if photo_id is not None:
+        photo = project.photo(photo_id)
+    else:
+        matches = [p for p in project.photos.values()
+                   if (p.image is not None and Path(p.image).name == Path(image).name)
+                   or p.id == Path(image).stem]
+        if len(matches) != 1:
+            raise ParameterError("PHOTO", f"is needed: {len(matches)} photos of the project "
+                                 f"match the image '{Path(image).name}' (photos: "
+                                 f"{', '.join(project.photos)})")
+        photo = matches[0]
+    if photo.exterior is None:
+        raise InputDataError(f"photo {photo.id!r} has no exterior orientation in the project")
+    return photo
+
+
+def camera_photo(params: dict[str, Any]) -> Any:
+    """A photo from a camera YAML, EXTERIOR, ANGLE_UNIT and the image size of INPUT."""
+    import yaml
+
+    from toolbox.photogrammetry.project import project_from_dict
+
+    path = params["CAMERA"]
+    try:
+        spec = yaml.safe_load(path.read_text(encoding="utf-8"))
+    except (OSError, yaml.YAMLError) as exc:
+        raise ParameterError("CAMERA", f"cannot read '{path}': {exc}") from None
+    if isinstance(spec, dict) and "cameras" in spec and isinstance(spec["cameras"], list) \
+            and len(spec["cameras"]) == 1:
+        spec = spec["cameras"][0]
+    if not isinstance(spec, dict):
+        raise ParameterError("CAMERA", f"'{path}' must hold one camera mapping")
+    spec = dict(spec)
+    info = params["INPUT"]
+    spec.setdefault("image_size_px", [info.width, info.height])
+    try:
+        values = [float(v) for v in params["EXTERIOR"].replace(";", ",").split(",")]
+    except ValueError:
+        values = []
+    if len(values) != 6:
+        raise ParameterError("EXTERIOR", f"must be 6 numbers X0,Y0,Z0,omega,phi,kappa, got "
+                             f"{params['EXTERIOR']!r}")
+    keys = ("X0", "Y0", "Z0", "omega", "phi", "kappa")
+    doc = {"crs": None if params["CRS"] is None else params["CRS"].to_wkt(),
+           "angle_unit": params["ANGLE_UNIT"], "cameras": [spec],
+           "photos": [{"id": Path(info.path).stem, "camera": spec.get("name"),
+                       "exterior": dict(zip(keys, values, strict=True))}]}
+    try:
+        project = project_from_dict(doc, path.parent, str(path))
+    except InputDataError as exc:
+        raise ParameterError("CAMERA", str(exc)) from None
+    photo = next(iter(project.photos.values()))
+    if params["PIXEL_TO_IMAGE"] is not None:
+        from dataclasses import replace
+
+        from toolbox.photogrammetry.fiducials import InteriorOrientation
+        from toolbox.transforms.rectification import parse_pixel_to_image
+
+        matrix = parse_pixel_to_image(params["PIXEL_TO_IMAGE"])
+        photo = replace(photo, interior=InteriorOrientation(
+            matrix, "homography" if matrix[2, :2].any() else "affine"))
+    if photo.pixel_transform is None:
+        raise ParameterError("CAMERA", "needs pixel_size_mm (and image_size_px), or give "
+                             "PIXEL_TO_IMAGE, to relate the photo's pixels to image mm")
+    return photo

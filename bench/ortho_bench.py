@@ -1,0 +1,402 @@
+"""Benchmark: orthorectification (issue 12) against OpenCV's remap floor and Orthority.
+
+Run standalone: ``.venv/bin/python bench/ortho_bench.py [--size 3000] [--big] [--no-orthority]``
+(Orthority: ``.venv/bin/pip install --no-deps "orthority>=0.7" tqdm threadpoolctl``; its own
+requirement opencv-python would overwrite opencv-python-headless's cv2).
+Writes ``bench/results/ortho.md``.
+
+1. In memory, RGB uint8, bilinear: a ``size`` x ``size`` photo over a DEM with 200 m of
+   relief, output at the photo's GSD, 1024 x 1024 windows. *Floor*: ``cv2.remap`` alone on the
+   same coordinate maps and source windows (resampling only). *Ours*: DEM heights per window
+   (``DemSampler``), the collinearity map (``CollinearityMap``) and the same remap; also with
+   the Siena distortion table and with the visibility test (true ortho).
+2. File to file: ``ortho:photo`` (GeoTIFF in, DEFLATE GeoTIFF out, no overviews) against
+   Orthority (PyPI ``orthority``, ``Ortho.process``, pinhole camera, bilinear image and DEM
+   interpolation, pixel-aligned grid, DEFLATE, no overviews) on the same photo, camera,
+   orientation, DEM and grid; the position agreement of the two orthos is measured by phase
+   correlation (scikit-image) on 128 x 128 patches.
+3. ``--big``: a 16644 x 16644 RGB scan (Siena's size) orthorectified at the scan's GSD by
+   ``ortho:photo`` in a subprocess; peak resident memory (VmHWM) and time.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import sys
+import tempfile
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+from benchlib import load_note, machine_facts, run_measured
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+RESULTS = ROOT / "bench" / "results" / "ortho.md"
+CRS = "EPSG:3003"
+BOUNDS = (1686000.0, 4797000.0, 1690400.0, 4801400.0)
+CENTRE = (1688200.0, 4799200.0, 1750.0)
+ANGLES = (0.02, -0.015, 0.4)
+C_MM, FRAME_MM = 153.0, 230.0
+SIENA_TABLE = ([10.0, 20.0, 30.0, 40.0, 50.0, 60.0, 70.0, 80.0, 90.0, 100.0, 110.0, 120.0, 130.0,
+                140.0, 148.0],
+               [0.0, 0.1, -0.1, -0.3, -0.5, -0.9, -1.0, -1.1, -0.3, 0.2, 1.2, 1.3, 0.5, -0.4, -1.4])
+
+warnings.filterwarnings("ignore", message=".*no geotransform.*")
+
+
+def synthetic_rgb(size: int, seed: int = 0) -> np.ndarray:
+    """A smooth random RGB image (rows, cols, 3) uint8: noise blown up bilinearly + fine noise."""
+    import cv2
+
+    rng = np.random.default_rng(seed)
+    small = rng.integers(0, 255, (size // 16 + 2, size // 16 + 2, 3), dtype=np.uint8)
+    big = cv2.resize(small, (small.shape[1] * 16, small.shape[0] * 16),
+                     interpolation=cv2.INTER_CUBIC)[:size, :size]
+    return cv2.add(big, rng.integers(0, 24, big.shape, dtype=np.uint8))
+
+
+def write_inputs(folder: Path, size: int, distortion: bool = False):
+    """Photo GeoTIFF, DEM GeoTIFF and project YAML; returns (photo, dem, project, Photo)."""
+    import rasterio
+    import yaml
+
+    from toolbox.io.raster import write_raster
+    from toolbox.photogrammetry.camera import RadialDistortion
+    from toolbox.photogrammetry.synthetic import frame_photo, hills_dem
+
+    z, transform = hills_dem(BOUNDS, cell=5.0, relief=200.0, base=250.0, seed=3)
+    dem = folder / "dem.tif"
+    write_raster(dem, z, transform, CRS, nodata=-9999.0)
+    photo_path = folder / f"photo{size}.tif"
+    if not photo_path.exists():
+        rgb = synthetic_rgb(size)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
+            with rasterio.open(photo_path, "w", driver="GTiff", width=size, height=size,
+                               count=3, dtype="uint8", tiled=True, blockxsize=512,
+                               blockysize=512, compress="deflate", photometric="RGB") as dst:
+                dst.write(np.moveaxis(rgb, -1, 0))
+    camera = {"name": "c", "principal_distance_mm": C_MM, "image_size_px": [size, size],
+              "pixel_size_mm": FRAME_MM / size}
+    if distortion:
+        camera["distortion"] = {"table": {"r_mm": SIENA_TABLE[0], "dr_um": SIENA_TABLE[1]}}
+    project = folder / f"project{size}{'d' if distortion else ''}.yaml"
+    project.write_text(yaml.safe_dump({
+        "crs": CRS, "cameras": [camera],
+        "photos": [{"id": "photo", "camera": "c", "image": photo_path.name,
+                    "exterior": dict(zip(("X0", "Y0", "Z0", "omega", "phi", "kappa"),
+                                         [*CENTRE, *ANGLES], strict=True))}]}))
+    photo = frame_photo(CENTRE, ANGLES, width=size, height=size, crs=CRS,
+                        principal_distance_mm=C_MM, pixel_size_mm=FRAME_MM / size,
+                        distortion=RadialDistortion.from_table(*SIENA_TABLE) if distortion
+                        else None)
+    return photo_path, dem, project, photo
+
+
+def best_of(func, repeat: int = 3) -> float:
+    func()
+    times = []
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        func()
+        times.append(time.perf_counter() - t0)
+    return min(times)
+
+
+# -- 1. in memory ---------------------------------------------------------------------------------
+def bench_memory(folder: Path, size: int) -> list[dict]:
+    return memory_case(folder, size, False) + memory_case(folder, size, True)
+
+
+def memory_case(folder: Path, size: int, distortion: bool) -> list[dict]:
+    import cv2
+    import rasterio
+
+    from toolbox.io.raster import iter_windows, open_raster_info
+    from toolbox.photogrammetry.ortho import CollinearityMap
+    from toolbox.photogrammetry.orthophoto import DemSampler, OrthoWindows, plan_photo
+
+    rows = []
+    photo_path, dem, _, photo = write_inputs(folder, size, distortion)
+    with rasterio.open(photo_path) as src:
+        rgb = np.ascontiguousarray(np.moveaxis(src.read(), 0, -1))
+    info = open_raster_info(dem)
+    plan = plan_photo(photo, info, photo.crs)
+    grid = plan.grid
+    sampler = DemSampler(info, grid.crs)
+    sampler.preload(grid.bounds)
+    cmap = CollinearityMap(photo)
+    windows = [t.core for t in iter_windows(grid.width, grid.height, 1024)]
+    maps = []
+    blocks: dict[int, int] = {}
+
+    def ortho_windows(keep: bool, occlusion: bool = False):
+        """The ortho:photo path in memory: OrthoWindows (DEM heights, map, statistics, the next
+        window prefetched on a thread) + the remap of the source window."""
+        job = OrthoWindows(photo, grid, sampler, cmap, plan.mean_height,
+                           plan.surface if occlusion else None)
+        job.prefetch(windows)
+        out = []
+        try:
+            for w in windows:
+                bounds = job.source_bounds(w)
+                cols, rowz = job(w)
+                if bounds is None:
+                    finite = np.isfinite(cols)
+                    if not finite.any():
+                        continue
+                    bounds = (cols[finite].min(), rowz[finite].min(), cols[finite].max(),
+                              rowz[finite].max())
+                c0 = max(int(bounds[0]) - 2, 0)
+                r0 = max(int(bounds[1]) - 2, 0)
+                c1 = min(int(bounds[2]) + 3, size)
+                r1 = min(int(bounds[3]) + 3, size)
+                if c1 <= c0 or r1 <= r0:
+                    continue
+                mx = cols - np.float32(c0 + 0.5)
+                my = rowz - np.float32(r0 + 0.5)
+                if keep:
+                    maps.append((mx, my, (r0, r1, c0, c1)))
+                out.append(cv2.remap(rgb[r0:r1, c0:c1], mx, my, cv2.INTER_LINEAR,
+                                     borderMode=cv2.BORDER_CONSTANT))
+        finally:
+            job.close()
+        blocks.update(job.totals().blocks)
+        return out
+
+    ortho_windows(True)
+
+    def floor():
+        for mx, my, (r0, r1, c0, c1) in maps:
+            cv2.remap(rgb[r0:r1, c0:c1], mx, my, cv2.INTER_LINEAR,
+                      borderMode=cv2.BORDER_CONSTANT)
+
+    mpx = grid.width * grid.height / 1e6
+    t_floor = best_of(floor)
+    t_ours = best_of(lambda: ortho_windows(False))
+    label = "Siena distortion table" if distortion else "no distortion"
+    rows.append({"case": f"{size} x {size} RGB photo -> {grid.width} x {grid.height} "
+                         f"({mpx:.1f} Mpx), bilinear, {label}",
+                 "ours": t_ours, "floor": t_floor, "mpx": mpx,
+                 "blocks": [blocks.get(k, 0) for k in range(3)]})
+    if not distortion:
+        t_occ = best_of(lambda: ortho_windows(False, True), repeat=1)
+        rows.append({"case": "  + visibility test (true ortho, DEM 5 m)", "ours": t_occ,
+                     "floor": t_floor, "mpx": mpx, "blocks": None})
+    return rows
+
+
+# -- 2. file to file vs Orthority -------------------------------------------------------------------
+def run_ours(photo_path: Path, dem: Path, project: Path, out: Path, cell: float,
+             bounds) -> float:
+    import toolbox
+
+    t0 = time.perf_counter()
+    toolbox.run("ortho:photo", {"INPUT": photo_path, "PROJECT": project, "DEM": dem,
+                                "CELL_SIZE": cell, "EXTENT": ",".join(map(str, bounds)),
+                                "OVERVIEWS": False, "OUTPUT": out}, overwrite=True)
+    return time.perf_counter() - t0
+
+
+def run_orthority(photo_path: Path, dem: Path, out: Path, cell: float, size: int) -> float:
+    import orthority as oty
+    from orthority.camera import PinholeCamera
+
+    camera = PinholeCamera((size, size), C_MM, sensor_size=(FRAME_MM, FRAME_MM), xyz=CENTRE,
+                           opk=ANGLES)
+    t0 = time.perf_counter()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        ortho = oty.Ortho(photo_path, dem, camera, crs=CRS)
+        ortho.process(out, resolution=(cell, cell), interp="bilinear", dem_interp="bilinear",
+                      compress="deflate", build_ovw=False, overwrite=True, aligned_pixels=True)
+    return time.perf_counter() - t0
+
+
+def agreement(ours: Path, theirs: Path) -> dict:
+    """Phase-correlation shift (ours -> Orthority, output pixels) on 128 x 128 patches of the
+    common grid, and the mean absolute difference of band 1 where both have data."""
+    import rasterio
+    from rasterio.windows import from_bounds
+    from skimage.registration import phase_cross_correlation
+
+    with rasterio.open(ours) as a, rasterio.open(theirs) as b:
+        assert a.res == b.res
+        left = max(a.bounds.left, b.bounds.left)
+        bottom = max(a.bounds.bottom, b.bounds.bottom)
+        right = min(a.bounds.right, b.bounds.right)
+        top = min(a.bounds.top, b.bounds.top)
+        wa = from_bounds(left, bottom, right, top, a.transform).round_offsets().round_lengths()
+        wb = from_bounds(left, bottom, right, top, b.transform).round_offsets().round_lengths()
+        da = a.read(1, window=wa).astype(float)
+        ma = a.read(4, window=wa) > 0
+        db = b.read(1, window=wb).astype(float)
+        mb = b.read_masks(1, window=wb) > 0
+    h, w = min(da.shape[0], db.shape[0]), min(da.shape[1], db.shape[1])
+    da, db, both = da[:h, :w], db[:h, :w], (ma[:h, :w] & mb[:h, :w])
+    shifts = []
+    for i0 in range(0, h - 128, 256):
+        for j0 in range(0, w - 128, 256):
+            p = (slice(i0, i0 + 128), slice(j0, j0 + 128))
+            if both[p].all():
+                s, _, _ = phase_cross_correlation(db[p], da[p], upsample_factor=100,
+                                                  normalization=None)
+                shifts.append(float(np.hypot(*s)))
+    return {"patches": len(shifts), "max_shift_px": max(shifts) if shifts else None,
+            "median_shift_px": float(np.median(shifts)) if shifts else None,
+            "mean_abs_diff": float(np.abs(da - db)[both].mean()) if both.any() else None}
+
+
+def bench_files(folder: Path, size: int, with_orthority: bool) -> dict:
+    from toolbox.io.raster import open_raster_info
+    from toolbox.photogrammetry.orthophoto import plan_photo
+
+    photo_path, dem, project, photo = write_inputs(folder, size)
+    plan = plan_photo(photo, open_raster_info(dem), photo.crs)
+    cell = plan.grid.cell_size[0]
+    ours = folder / "ours.tif"
+    result = {"size": size, "cell": cell, "ours": None, "orthority": None}
+    run_ours(photo_path, dem, project, ours, cell, plan.grid.bounds)  # warm-up (numba cache)
+    result["ours"] = min(run_ours(photo_path, dem, project, ours, cell, plan.grid.bounds)
+                         for _ in range(2))
+    result["output"] = f"{plan.grid.width} x {plan.grid.height}"
+    if with_orthority:
+        try:
+            import orthority
+
+            result["orthority_version"] = getattr(orthority, "__version__", "0.7")
+        except ImportError:
+            return result
+        from orthority.camera import PinholeCamera
+
+        camera = PinholeCamera((size, size), C_MM, sensor_size=(FRAME_MM, FRAME_MM), xyz=CENTRE,
+                               opk=ANGLES)
+        pts = np.array([[CENTRE[0] + dx, CENTRE[1] + dy, 250.0 + dz]
+                        for dx in (-600, 0, 700) for dy in (-500, 300) for dz in (0, 190)])
+        result["convention_px"] = float(np.abs(camera.world_to_pixel(pts.T).T
+                                               - (photo.ground_to_pixel(pts) - 0.5)).max())
+        theirs = folder / "orthority.tif"
+        result["orthority"] = min(run_orthority(photo_path, dem, theirs, cell, size)
+                                  for _ in range(2))
+        result["agreement"] = agreement(ours, theirs)
+    return result
+
+
+# -- 3. the big scan ---------------------------------------------------------------------------------
+def make_big_scan(path: Path, size: int = 16644) -> float:
+    import rasterio
+    from rasterio.windows import Window
+
+    t0 = time.perf_counter()
+    tile = synthetic_rgb(2048, seed=5)
+    with rasterio.open(path, "w", driver="GTiff", width=size, height=size, count=3,
+                       dtype="uint8", tiled=True, blockxsize=512, blockysize=512,
+                       compress="deflate", photometric="RGB", BIGTIFF="IF_SAFER") as dst:
+        for r0 in range(0, size, 2048):
+            for c0 in range(0, size, 2048):
+                h, w = min(2048, size - r0), min(2048, size - c0)
+                dst.write(np.moveaxis(tile[:h, :w], -1, 0), window=Window(c0, r0, w, h))
+    return time.perf_counter() - t0
+
+
+def bench_big(folder: Path) -> dict:
+    import yaml
+
+    size = 16644
+    src = folder / "scan16644.tif"
+    t_make = make_big_scan(src, size)
+    _, dem, _, _ = write_inputs(folder, 1000)
+    project = folder / "big.yaml"
+    project.write_text(yaml.safe_dump({
+        "crs": CRS, "cameras": [{"name": "c", "principal_distance_mm": C_MM,
+                                 "image_size_px": [size, size], "pixel_size_mm": 0.014}],
+        "photos": [{"id": "scan16644", "camera": "c", "image": src.name,
+                    "exterior": dict(zip(("X0", "Y0", "Z0", "omega", "phi", "kappa"),
+                                         [*CENTRE, *ANGLES], strict=True))}]}))
+    out = folder / "scan_ortho.tif"
+    report = folder / "scan_report.json"
+    cmd = [sys.executable, "-m", "toolbox.cli", "run", "ortho:photo", "--INPUT", str(src),
+           "--PROJECT", str(project), "--DEM", str(dem), "--OUTPUT", str(out),
+           "--REPORT", str(report), "--overwrite"]
+    seconds, peak_mb, code, stderr = run_measured(cmd)
+    if code != 0:
+        raise RuntimeError(f"big ortho failed: {stderr[-2000:]}")
+    stats = json.loads(report.read_text())["photos"][0]
+    result = {"make_s": t_make, "seconds": seconds, "peak_mb": peak_mb,
+              "output": f"{stats['width']} x {stats['height']}", "cell": stats["cell_size"],
+              "input_mb": src.stat().st_size / 2**20, "output_mb": out.stat().st_size / 2**20}
+    for path in (src, out):
+        path.unlink(missing_ok=True)
+    return result
+
+
+# -- report ------------------------------------------------------------------------------------------
+def main(argv: list[str] | None = None) -> str:
+    import cv2
+    import rasterio
+
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--size", type=int, default=3000, help="photo side, pixels")
+    parser.add_argument("--big", action="store_true", help="also the 16644 x 16644 scan")
+    parser.add_argument("--no-orthority", action="store_true")
+    args = parser.parse_args([] if argv is None else argv)
+    load = load_note()
+    folder = Path(tempfile.mkdtemp(prefix="ortho_bench_", dir=os.environ.get("BENCH_TMP")))
+    try:
+        memory = bench_memory(folder, args.size)
+        files = bench_files(folder, args.size, not args.no_orthority)
+        big = bench_big(folder) if args.big else None
+    finally:
+        shutil.rmtree(folder, ignore_errors=True)
+    lines = ["## Orthophotos (issue 12): coordinate map + resampling", "",
+             f"- machine: {machine_facts()}",
+             f"- OpenCV {cv2.__version__} ({cv2.getNumThreads()} threads), rasterio "
+             f"{rasterio.__version__} / GDAL {rasterio.__gdal_version__}",
+             f"- {load}", "",
+             "### In memory (DEM heights + collinearity map + cv2.remap, per 1024 x 1024 window)",
+             "", "| case | ours | Mpx/s | floor: cv2.remap alone | Mpx/s | ours / floor | "
+             "map blocks (exact, blended, exact-distorted) |", "|---|---|---|---|---|---|---|"]
+    for r in memory:
+        lines.append(f"| {r['case']} | {r['ours']:.3f} s | {r['mpx'] / r['ours']:.1f} | "
+                     f"{r['floor']:.3f} s | {r['mpx'] / r['floor']:.1f} | "
+                     f"{r['ours'] / r['floor']:.2f} | {r['blocks'] or '-'} |")
+    lines += ["", "### File to file (GeoTIFF in, DEFLATE GeoTIFF out, no overviews)", "",
+              "| case | ortho:photo | Orthority | ratio (ours / Orthority) | position agreement |",
+              "|---|---|---|---|---|"]
+    theirs = files["orthority"]
+    agree = files.get("agreement") or {}
+    ratio = "-" if theirs is None else f"{files['ours'] / theirs:.2f}"
+    if "convention_px" in files:
+        lines.insert(-2, f"- Orthority's pinhole model vs ours on 12 points: largest difference "
+                     f"{files['convention_px']:.1e} px (its pixel centres are at integers)")
+    lines.append(f"| {files['size']} x {files['size']} RGB -> {files['output']} at "
+                 f"{files['cell']:g} m, bilinear | {files['ours']:.2f} s | "
+                 f"{'-' if theirs is None else f'{theirs:.2f} s'} | {ratio} | "
+                 f"{'-' if not agree else json.dumps(agree)} |")
+    if big is not None:
+        lines += ["", "### 16644 x 16644 RGB scan at the scan's GSD", "",
+                  "| input | output | wall time | peak RSS (VmHWM) | target |", "|---|---|---|---|---|",
+                  f"| {big['input_mb']:.0f} MB tiled GeoTIFF (written in {big['make_s']:.0f} s) | "
+                  f"{big['output']} RGBA at {big['cell']:g} m, {big['output_mb']:.0f} MB, with "
+                  f"overviews | {big['seconds']:.0f} s | {big['peak_mb']:.0f} MB | < 1536 MB |"]
+    lines += ["", "The floor is OpenCV's bilinear remap of the same source windows with the "
+              "coordinate maps precomputed: what any orthorectifier pays for resampling alone. "
+              "'ours' adds reading the DEM window, bilinear heights on the output cells and the "
+              "collinearity map (exact per cell; distortion blended on 64 x 64 blocks within "
+              "0.05 px). Orthority is given the same pinhole camera (its OPK/PATB convention "
+              "matches ours, checked above), DEM, grid and bilinear interpolation; the phase "
+              "correlation resolves 0.01 px.", ""]
+    text = "\n".join(lines)
+    RESULTS.parent.mkdir(parents=True, exist_ok=True)
+    RESULTS.write_text(text)
+    print(text)
+    return text
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])

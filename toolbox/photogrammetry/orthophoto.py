@@ -1,0 +1,759 @@
+"""Orthorectification driver: DEM heights per output window, the per-photo plan (footprint, GSD,
+grid), the windowed warp of one photo with its statistics and auxiliary rasters, the per-photo
+task of a block. The numeric kernels are in :mod:`toolbox.photogrammetry.ortho`.
+
+Flow of one photo (``ortho:photo``; ``ortho:batch`` runs :func:`run_task` per photo)::
+
+    plan = plan_photo(photo, dem, crs)                 # checks, footprint, mean height, GSD, grid
+    report = orthorectify(photo, image, dem, plan.grid, output, OrthoOptions(...))
+
+:func:`orthorectify` hands :class:`OrthoWindows` to :func:`toolbox.raster.warp.warp_to_geotiff`:
+per output window it reads the DEM heights onto the window (:class:`DemSampler`, bilinear
+between DEM cell centres, reprojected when the DEM's CRS differs), projects them
+(:class:`~toolbox.photogrammetry.ortho.CollinearityMap`), blanks the cells hidden from the
+camera (optional) and counts what the report needs.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from toolbox.errors import InputDataError
+from toolbox.photogrammetry.ortho import (
+    DEFAULT_BLOCK,
+    DEFAULT_TOLERANCE_PX,
+    CollinearityMap,
+    block_maxima,
+    check_geometry,
+    ground_sample_distance,
+    heights_at_points,
+    heights_on_grid,
+    incidence_angle,
+    nice_cell_size,
+    relief_displacement,
+    visibility_mask,
+)
+
+
+class DemSampler:
+    """Heights of output cells from a DEM raster, one window per call.
+
+    The DEM may be in another CRS than the output (``crs``): the cell centres are then
+    transformed with pyproj (always_xy) and the heights taken bilinearly in the DEM's own grid.
+    ``factor`` > 1 projects on a coarser DEM (the thesis' "fattore di ricampionamento"): the mean
+    of ``factor`` x ``factor`` DEM cells, on a lattice fixed to the DEM's origin (no tile seams).
+    """
+
+    def __init__(self, info: Any, crs: Any = None, band: int = 1, factor: int = 1):
+        from toolbox.io.crs import same_crs
+
+        self.path = info.path
+        self.band = int(band)
+        self.factor = max(1, int(factor))
+        t = info.transform
+        if t.b != 0 or t.d != 0 or t.a <= 0 or t.e >= 0:
+            raise InputDataError(f"DEM {info} must be north-up (no rotation, rows going south)")
+        self.transform = t
+        self.shape = (info.height, info.width)
+        self.nodata = info.nodata
+        self.transformer = None
+        if info.crs is not None and crs is not None and not same_crs(info.crs, crs):
+            from pyproj import Transformer
+
+            self.transformer = Transformer.from_crs(crs, info.crs, always_xy=True)
+        self._cache: tuple | None = None  # (i0, j0, array) of coarse cells held in memory
+
+    def preload(self, bounds: tuple[float, float, float, float],
+                max_cells: int = 1 << 24) -> bool:
+        """Hold the DEM cells under ``bounds`` (output CRS) in memory when they are at most
+        ``max_cells``, so that tiles slice them instead of reading the file; True if done."""
+        if self.transformer is not None:
+            xx, yy = np.meshgrid(np.linspace(bounds[0], bounds[2], 21),
+                                 np.linspace(bounds[1], bounds[3], 21))
+            dx, dy = self.transformer.transform(xx.ravel(), yy.ravel())
+            pad = 2 * max(abs(self.transform.a), abs(self.transform.e)) * self.factor
+            bounds = (min(dx) - pad, min(dy) - pad, max(dx) + pad, max(dy) + pad)
+        span = self._span(bounds)
+        if span is None:
+            return False
+        i0, i1, j0, j1 = span
+        if (i1 - i0) * (j1 - j0) > max_cells:
+            return False
+        self._cache = (i0, j0, self._load(i0, i1, j0, j1))
+        return True
+
+    def _span(self, bounds):
+        """Coarse-cell rows/columns (i0, i1, j0, j1) covering ``bounds`` (DEM CRS) plus one cell
+        for the bilinear interpolation, clipped to the DEM; None outside it."""
+        t, k = self.transform, self.factor
+        rows, cols = self.shape
+        c0 = (bounds[0] - t.c) / t.a
+        c1 = (bounds[2] - t.c) / t.a
+        r0 = (bounds[3] - t.f) / t.e
+        r1 = (bounds[1] - t.f) / t.e
+        if not all(math.isfinite(v) for v in (c0, c1, r0, r1)):
+            return None
+        j0 = max(int(math.floor(c0 / k)) - 1, 0)
+        i0 = max(int(math.floor(r0 / k)) - 1, 0)
+        j1 = min(int(math.ceil(c1 / k)) + 1, cols // k)
+        i1 = min(int(math.ceil(r1 / k)) + 1, rows // k)
+        if j1 - j0 < 2 or i1 - i0 < 2:
+            return None
+        return i0, i1, j0, j1
+
+    def _load(self, i0: int, i1: int, j0: int, j1: int) -> np.ndarray:
+        """Coarse cells [i0:i1, j0:j1] (means of k x k DEM cells), float64, NaN for nodata."""
+        import rasterio
+        from rasterio.windows import Window
+
+        k = self.factor
+        window = Window(j0 * k, i0 * k, (j1 - j0) * k, (i1 - i0) * k)
+        with rasterio.open(self.path) as src:
+            data = src.read(self.band, window=window, masked=True).astype("float64").filled(np.nan)
+        if k > 1:
+            data = data.reshape(i1 - i0, k, j1 - j0, k)
+            with warnings.catch_warnings():  # all-nodata blocks give NaN, as they should
+                warnings.simplefilter("ignore", RuntimeWarning)
+                data = np.nanmean(data, axis=(1, 3))
+        return np.ascontiguousarray(data)
+
+    def _read(self, bounds: tuple[float, float, float, float]):
+        """The (coarsened) DEM array covering ``bounds`` in DEM coordinates, NaN for nodata, and
+        the centre of its cell [0, 0] and cell sizes; None when outside the DEM."""
+        span = self._span(bounds)
+        if span is None:
+            return None
+        i0, i1, j0, j1 = span
+        cache = self._cache
+        if cache is not None and cache[0] <= i0 and cache[1] <= j0 and \
+                i1 <= cache[0] + cache[2].shape[0] and j1 <= cache[1] + cache[2].shape[1]:
+            data = cache[2][i0 - cache[0]:i1 - cache[0], j0 - cache[1]:j1 - cache[1]]
+        else:
+            data = self._load(i0, i1, j0, j1)
+        t, k = self.transform, self.factor
+        gx0 = t.c + (j0 * k + 0.5 * k) * t.a
+        gy0 = t.f + (i0 * k + 0.5 * k) * t.e
+        return data, gx0, gy0, t.a * k, -t.e * k
+
+    def _to_dem(self, xs: np.ndarray, ys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """DEM-CRS coordinates (flat) of the grid ``xs`` x ``ys`` (:func:`lattice_transform`,
+        within 1/1000 of a DEM cell)."""
+        return lattice_transform(self.transformer, xs, ys, 1e-3 * abs(self.transform.a))
+
+    def heights(self, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
+        """Heights (h, w) float64 at the grid of cell centres ``xs`` (w,) x ``ys`` (h,) (output
+        CRS), NaN where the DEM has none."""
+        xs = np.ascontiguousarray(xs, dtype="float64")
+        ys = np.ascontiguousarray(ys, dtype="float64")
+        out = np.full((len(ys), len(xs)), np.nan)
+        if self.transformer is None:
+            part = self._read((xs.min(), ys.min(), xs.max(), ys.max()))
+            if part is not None:
+                heights_on_grid(np.ascontiguousarray(part[0]), *part[1:], xs, ys, out)
+            return out
+        dx, dy = self._to_dem(xs, ys)
+        finite = np.isfinite(dx) & np.isfinite(dy)
+        if not finite.any():
+            return out
+        part = self._read((dx[finite].min(), dy[finite].min(), dx[finite].max(),
+                           dy[finite].max()))
+        if part is not None:
+            flat = out.ravel()
+            heights_at_points(np.ascontiguousarray(part[0]), *part[1:], dx, dy, flat)
+            out = flat.reshape(out.shape)
+        return out
+
+
+LATTICE = 16  # cells between exactly transformed points when a grid goes to another CRS
+
+
+def lattice_transform(transformer: Any, xs: np.ndarray, ys: np.ndarray, tolerance: float
+                      ) -> tuple[np.ndarray, np.ndarray]:
+    """Coordinates (flat, contiguous float64) of the grid ``xs`` x ``ys`` in another CRS:
+    exact with pyproj on a lattice of every :data:`LATTICE`-th cell (and the last), bilinear in
+    between. The interpolation is checked at the centres of the lattice cells against pyproj;
+    where it is off by more than ``tolerance`` (target CRS units) every point is transformed."""
+    h, w = len(ys), len(xs)
+    rows = np.unique(np.r_[np.arange(0, h, LATTICE), h - 1])
+    cols = np.unique(np.r_[np.arange(0, w, LATTICE), w - 1])
+    exact = len(rows) * len(cols) * 4 >= h * w or len(rows) < 2 or len(cols) < 2
+    if not exact:
+        lx, ly = np.meshgrid(xs[cols], ys[rows])
+        tx, ty = transformer.transform(lx.ravel(), ly.ravel())
+        dx = _interpolate_lattice(np.asarray(tx).reshape(lx.shape), rows, cols, h, w)
+        dy = _interpolate_lattice(np.asarray(ty).reshape(lx.shape), rows, cols, h, w)
+        mi = (rows[:-1] + rows[1:]) // 2
+        mj = (cols[:-1] + cols[1:]) // 2
+        cx, cy = np.meshgrid(xs[mj], ys[mi])
+        ex, ey = transformer.transform(cx.ravel(), cy.ravel())
+        error = np.hypot(np.asarray(ex) - dx[np.ix_(mi, mj)].ravel(),
+                         np.asarray(ey) - dy[np.ix_(mi, mj)].ravel())
+        exact = not (np.all(np.isfinite(error)) and error.max() <= tolerance)
+    if exact:
+        xx, yy = np.meshgrid(xs, ys)
+        dx, dy = transformer.transform(xx.ravel(), yy.ravel())
+    return (np.ascontiguousarray(np.ravel(dx), dtype="float64"),
+            np.ascontiguousarray(np.ravel(dy), dtype="float64"))
+
+
+def _interpolate_lattice(values: np.ndarray, rows: np.ndarray, cols: np.ndarray, h: int,
+                         w: int) -> np.ndarray:
+    """Bilinear interpolation of lattice values (at grid rows ``rows`` x columns ``cols``) onto
+    every cell of an (h, w) grid."""
+    i = np.arange(h)
+    j = np.arange(w)
+    bi = np.clip(np.searchsorted(rows, i, side="right") - 1, 0, len(rows) - 2)
+    bj = np.clip(np.searchsorted(cols, j, side="right") - 1, 0, len(cols) - 2)
+    ti = ((i - rows[bi]) / (rows[bi + 1] - rows[bi]))[:, None]
+    tj = ((j - cols[bj]) / (cols[bj + 1] - cols[bj]))[None, :]
+    v00 = values[bi][:, bj]
+    v01 = values[bi][:, bj + 1]
+    v10 = values[bi + 1][:, bj]
+    v11 = values[bi + 1][:, bj + 1]
+    return (v00 * (1 - tj) + v01 * tj) * (1 - ti) + (v10 * (1 - tj) + v11 * tj) * ti
+
+
+@dataclass
+class TileStatistics:
+    """Counters of the cells of the ortho (see :meth:`as_dict`)."""
+
+    cells: int = 0
+    outside_dem: int = 0
+    outside_photo: int = 0
+    hidden: int = 0
+    max_relief_m: float = 0.0
+    blocks: dict[int, int] = field(default_factory=lambda: {0: 0, 1: 0, 2: 0})
+
+    def add(self, other: TileStatistics) -> None:
+        self.cells += other.cells
+        self.outside_dem += other.outside_dem
+        self.outside_photo += other.outside_photo
+        self.hidden += other.hidden
+        self.max_relief_m = max(self.max_relief_m, other.max_relief_m)
+        for k, v in other.blocks.items():
+            self.blocks[k] = self.blocks.get(k, 0) + v
+
+
+# -- grids and surfaces ------------------------------------------------------------------------------
+def lattice_grid(bounds: tuple[float, float, float, float], cell: float, crs: Any,
+                 origin: tuple[float, float] = (0.0, 0.0), name: str = "CELL_SIZE") -> Any:
+    """A north-up grid covering ``bounds`` whose edges lie on the lattice ``origin + k·cell``
+    (default: multiples of the cell), so orthos of one block share one grid and mosaic
+    without resampling."""
+    from affine import Affine
+
+    from toolbox.io.grid import GridSpec
+
+    ox, oy = origin
+    xmin = ox + math.floor((bounds[0] - ox) / cell + 1e-9) * cell
+    ymin = oy + math.floor((bounds[1] - oy) / cell + 1e-9) * cell
+    xmax = ox + math.ceil((bounds[2] - ox) / cell - 1e-9) * cell
+    ymax = oy + math.ceil((bounds[3] - oy) / cell - 1e-9) * cell
+    probe = GridSpec.from_bounds((xmin, ymin, xmax, ymax), cell, crs, snap=False, name=name)
+    return GridSpec(Affine(cell, 0.0, xmin, 0.0, -cell, ymin + probe.height * cell),
+                    probe.width, probe.height, crs)
+
+
+def check_dem_crs(info: Any, name: str = "DEM") -> None:
+    """Refuse a DEM without a CRS whose coordinates look like geographic degrees (heights
+    cannot be placed on a projected ortho grid without knowing the datum)."""
+    if info.crs is not None:
+        return
+    xmin, ymin, xmax, ymax = info.bounds
+    if -180 <= xmin and xmax <= 360 and -90 <= ymin and ymax <= 90 and info.res[0] < 1.0:
+        raise InputDataError(f"{name} {info} has no CRS and its coordinates ({xmin:.4f}.."
+                             f"{xmax:.4f}, {ymin:.4f}..{ymax:.4f}) look like geographic degrees; "
+                             "assign its CRS (e.g. gdal_edit.py -a_srs EPSG:4326) or reproject it")
+
+
+def photo_surface(info: Any, photo: Any, crs: Any, band: int = 1) -> Any:
+    """The DEM window every ray of the photo can meet, as a
+    :class:`~toolbox.photogrammetry.surface.DemSurface` in ``crs`` (reprojected bilinearly at the
+    DEM's resolution when the DEM is in another CRS)."""
+    from toolbox.io.crs import same_crs
+    from toolbox.photogrammetry.surface import surface_for_photo
+
+    if info.crs is None or crs is None or same_crs(info.crs, crs):
+        return surface_for_photo(info, photo, band)
+    import rasterio
+    from rasterio.enums import Resampling
+    from rasterio.vrt import WarpedVRT
+
+    from toolbox.io.raster import RasterInfo
+
+    with rasterio.open(info.path) as src, WarpedVRT(src, crs=crs.to_wkt(),
+                                                    resampling=Resampling.bilinear) as vrt:
+        data = vrt.read(band, masked=True).astype("float64").filled(np.nan)
+        view = RasterInfo(info.path, vrt.width, vrt.height, 1, ("float64",), crs, vrt.transform,
+                          None, True)
+    from toolbox.photogrammetry.surface import DemSurface, photo_ground_bounds
+
+    whole = DemSurface.from_transform(data, view.transform, crs)
+    low, high = whole.z_range
+    pad = 0.1 * (high - low) + 1.0
+    b = photo_ground_bounds(photo, low - pad, high + pad)
+    t = view.transform
+    c0 = max(int((b[0] - t.c) / t.a) - 2, 0)
+    c1 = min(int((b[2] - t.c) / t.a) + 3, view.width)
+    r0 = max(int((b[3] - t.f) / t.e) - 2, 0)
+    r1 = min(int((b[1] - t.f) / t.e) + 3, view.height)
+    if c1 - c0 < 2 or r1 - r0 < 2:
+        raise InputDataError(f"DEM {info} does not cover the photo {photo.id!r}")
+    from affine import Affine
+
+    return DemSurface.from_transform(data[r0:r1, c0:c1], t @ Affine.translation(c0, r0), crs)
+
+
+def mean_height_inside(surface: Any, polygon: Any) -> float:
+    """Mean DEM height of the cell centres inside a footprint polygon (the photo's mean terrain
+    height); the mean of the whole window when no centre falls inside."""
+    import shapely
+
+    rows, cols = surface.shape
+    xx, yy = np.meshgrid(surface.x0 + np.arange(cols) * surface.cell_x,
+                         surface.y0 - np.arange(rows) * surface.cell_y)
+    inside = shapely.contains_xy(polygon, xx, yy) & np.isfinite(surface.z)
+    return float(surface.z[inside].mean() if inside.any() else np.nanmean(surface.z))
+
+
+# -- the driver ---------------------------------------------------------------------------------------
+@dataclass
+class OrthoOptions:
+    """How :func:`orthorectify` works (see ``ortho:photo``'s help)."""
+
+    resampling: str = "bilinear"
+    outside: str = "alpha"
+    nodata: float | None = None
+    block: int = DEFAULT_BLOCK
+    tolerance_px: float = DEFAULT_TOLERANCE_PX
+    dem_factor: int = 1
+    band: int = 1
+    occlusion: bool = False
+    chunk: int = 1024
+    overviews: bool = True
+    cog: bool = False
+
+
+PREFETCH = 2  # windows whose maps are computed ahead, on as many threads
+
+
+class OrthoWindows:
+    """The coordinate map of a whole ortho for :func:`toolbox.raster.warp.warp_to_geotiff`:
+    per output window it reads the DEM heights onto the window (:class:`DemSampler`), projects
+    them (:class:`CollinearityMap`), blanks the hidden cells (optional visibility test) and
+    collects statistics; auxiliary rasters (occlusion mask, incidence angle) are written window
+    by window."""
+
+    def __init__(self, photo: Any, grid: Any, sampler: DemSampler, cmap: CollinearityMap,
+                 reference_height: float, surface: Any = None, mask_writer: Any = None,
+                 incidence_writer: Any = None, to_orientation: Any = None):
+        self.photo, self.grid, self.sampler, self.cmap = photo, grid, sampler, cmap
+        self.to_orientation = to_orientation  # pyproj Transformer grid CRS -> orientation CRS
+        self.reference_height = reference_height
+        self.surface = surface
+        self.mask_writer = mask_writer
+        self.incidence_writer = incidence_writer
+        self.centre = photo.require_exterior().centre
+        self.per_window: dict[tuple[int, int, int, int], TileStatistics] = {}
+        self._maxima: np.ndarray | None = None
+        import threading
+
+        self._write_lock = threading.Lock()  # aux writers, if a split window runs alongside
+
+    def _key(self, window: Any) -> tuple[int, int, int, int]:
+        return (int(window.col_off), int(window.row_off), int(window.width), int(window.height))
+
+    def prefetch(self, windows: list[Any]) -> None:
+        """Compute the windows' coordinates :data:`PREFETCH` ahead on background threads, in
+        this order (the warp's), so that the maps of the next windows overlap each other and the
+        resampling and compression of the current one (the kernels release the GIL). Call
+        :meth:`close` at the end."""
+        from concurrent.futures import ThreadPoolExecutor
+
+        self._order = {self._key(w): k for k, w in enumerate(windows)}
+        self._windows = list(windows)
+        self._pool = ThreadPoolExecutor(PREFETCH, thread_name_prefix="ortho-map")
+        self._futures: dict = {}
+        for k in range(PREFETCH):
+            self._submit(k)
+
+    def _submit(self, index: int) -> None:
+        if index < len(self._windows):
+            window = self._windows[index]
+            self._futures[self._key(window)] = self._pool.submit(self._compute, window)
+
+    def _result(self, window: Any):
+        key = self._key(window)
+        future = getattr(self, "_futures", {}).pop(key, None)
+        if future is None:
+            return self._compute(window)
+        self._submit(self._order[key] + PREFETCH)
+        return future.result()
+
+    def close(self) -> None:
+        pool = getattr(self, "_pool", None)
+        if pool is not None:
+            pool.shutdown(wait=True, cancel_futures=True)
+            self._pool = None
+            self._futures = {}
+
+    def source_bounds(self, window: Any) -> tuple[float, float, float, float] | None:
+        """The exact bounding box of the window's source coordinates when every cell has one
+        (the warp then skips its own scan and, inside the photo, the inside test); None when
+        some cells have none. The coordinates are kept for the call that follows."""
+        self._last = (self._key(window), self._result(window))
+        return self._last[1][2]
+
+    def __call__(self, window: Any) -> tuple[np.ndarray, np.ndarray]:
+        last = getattr(self, "_last", None)
+        if last is not None and last[0] == self._key(window):
+            self._last = None
+            return last[1][0], last[1][1]
+        cols, rows, _ = self._result(window)
+        return cols, rows
+
+    def _compute(self, window: Any):
+        xs, ys = self.grid.cell_centers(window)
+        cell_x, cell_y = self.grid.cell_size
+        if self.incidence_writer is not None:
+            xh = np.concatenate([[xs[0] - cell_x], xs, [xs[-1] + cell_x]])
+            yh = np.concatenate([[ys[0] + cell_y], ys, [ys[-1] - cell_y]])
+            z_halo = self.sampler.heights(xh, yh)
+            z = np.ascontiguousarray(z_halo[1:-1, 1:-1])
+            angles = incidence_angle(xs, ys, z_halo, self.centre)[None]
+            with self._write_lock:
+                self.incidence_writer.write(angles, window=window)
+        else:
+            z = self.sampler.heights(xs, ys)
+        if self.to_orientation is None:
+            cols, rows, modes, box = self.cmap.project(self.grid.window_transform(window), z)
+            gx, gy = xs[None, :], ys[:, None]
+        else:  # the ortho in another CRS: cell centres to the orientation's, then per point
+            gx, gy = lattice_transform(self.to_orientation, xs, ys, 1e-3 * cell_x)
+            gx, gy = gx.reshape(z.shape), gy.reshape(z.shape)
+            image = self.photo.ground_to_pixel((gx, gy, z), behind="nan")
+            cols = image[..., 0].astype("float32")
+            rows = image[..., 1].astype("float32")
+            finite = np.isfinite(cols)
+            box = np.array([cols[finite].min(), rows[finite].min(), cols[finite].max(),
+                            rows[finite].max(), z.size - finite.sum()]) if finite.any() else \
+                np.array([np.inf, np.inf, -np.inf, -np.inf, z.size])
+            modes = np.zeros((0, 0), dtype=np.int8)  # no blocks: every point exact
+        cmin, rmin, cmax, rmax, missing = box
+        stats = TileStatistics(cells=z.size)
+        nan_z = np.isnan(z)
+        stats.outside_dem = int(np.count_nonzero(nan_z))
+        if self.surface is not None:
+            if self._maxima is None:
+                self._maxima = block_maxima(self.surface.z)
+            hidden = visibility_mask(xs, ys, z, self.centre, self.surface, self._maxima)
+            if self.mask_writer is not None:
+                with self._write_lock:
+                    self.mask_writer.write(np.where(nan_z, 255, hidden).astype(np.uint8)[None],
+                                           window=window)
+            mask = hidden.astype(bool)
+            stats.hidden = int(np.count_nonzero(mask))
+            if stats.hidden:
+                cols[mask] = np.nan
+                rows[mask] = np.nan
+                missing += stats.hidden
+        w, h = self.cmap.model.width, self.cmap.model.height
+        every_cell = missing == 0
+        box = (float(cmin), float(rmin), float(cmax), float(rmax)) if missing < z.size else None
+        if every_cell and box[0] >= 0 and box[1] >= 0 and box[2] <= w and box[3] <= h:
+            inside = None  # the whole window is in the photo
+            stats.outside_photo = 0
+        else:
+            inside = (cols >= 0) & (cols <= w) & (rows >= 0) & (rows <= h)
+            stats.outside_photo = int(z.size - missing - np.count_nonzero(inside))
+        sub = (slice(None, None, 4), slice(None, None, 4))
+        gx, gy = np.broadcast_to(gx, z.shape), np.broadcast_to(gy, z.shape)
+        disp = relief_displacement(gx[sub], gy[sub], z[sub], self.centre, self.reference_height)
+        disp = disp[inside[sub]] if inside is not None else disp.ravel()
+        disp = disp[np.isfinite(disp)]
+        stats.max_relief_m = float(disp.max()) if disp.size else 0.0
+        counts = np.bincount(modes.ravel(), minlength=3)
+        stats.blocks = {k: int(counts[k]) for k in range(3)}
+        self.per_window[self._key(window)] = stats
+        return cols, rows, box if every_cell else None
+
+    def totals(self) -> TileStatistics:
+        """Sums over the windows, without the parents of windows the warp split in four."""
+        keys = list(self.per_window)
+
+        def contains(a, b):
+            return (a != b and a[0] <= b[0] and a[1] <= b[1] and b[0] + b[2] <= a[0] + a[2]
+                    and b[1] + b[3] <= a[1] + a[3])
+
+        total = TileStatistics()
+        for k in keys:
+            if not any(contains(k, other) for other in keys):
+                total.add(self.per_window[k])
+        return total
+
+
+def orientation_transformer(photo: Any, crs: Any) -> Any:
+    """pyproj Transformer from the ortho's CRS to the orientation's (always_xy), or None when
+    they are the same (or either is unknown)."""
+    from toolbox.io.crs import parse_crs, same_crs
+
+    eo_crs = photo.require_exterior().crs
+    if eo_crs is None or crs is None:
+        return None
+    eo_crs, crs = parse_crs(eo_crs), parse_crs(crs)
+    if same_crs(eo_crs, crs):
+        return None
+    from pyproj import Transformer
+
+    return Transformer.from_crs(crs, eo_crs, always_xy=True)
+
+
+def expected_accuracy(map_scale: float | None) -> dict[str, float] | None:
+    """The seeds' rule (S002 par. 2.6.6): RMS at most ±0.3 mm (small scales) to ±0.5 mm (large
+    scales) at the map scale, in ground metres."""
+    if map_scale is None:
+        return None
+    return {"map_scale": float(map_scale), "rms_small_scale_m": 0.3 * map_scale / 1000.0,
+            "rms_large_scale_m": 0.5 * map_scale / 1000.0}
+
+
+def orthorectify(photo: Any, image: Any, dem: Any, grid: Any, output: Any,
+                 options: OrthoOptions | None = None, surface: Any = None,
+                 reference_height: float | None = None, mask_output: Any = None,
+                 incidence_output: Any = None, map_scale: float | None = None,
+                 feedback: Any = None) -> dict[str, Any]:
+    """Orthorectify one photo onto ``grid`` and write ``output`` (GeoTIFF, or COG).
+
+    Parameters
+    ----------
+    photo : Photo
+        Oriented, with a pixel transform; its image size must equal the raster's.
+    image : RasterInfo
+        The photo raster (any GDAL format, 1-4 bands, 8/16 bit).
+    dem : RasterInfo
+        Terrain (or surface) heights, any CRS.
+    grid : GridSpec
+        Output grid (the orientation's CRS, or another: see :class:`OrthoWindows`).
+    surface : DemSurface, optional
+        The DEM around the photo (needed for the visibility test; read when missing).
+    reference_height : float, optional
+        Plane of the relief-displacement figure (default: the DEM's mean under the grid).
+    mask_output, incidence_output : path, optional
+        Occlusion mask (uint8: 1 hidden, 0 seen, 255 no height) and incidence angle (float32,
+        degrees) on the same grid.
+
+    Returns
+    -------
+    dict : the per-photo report (JSON-ready).
+    """
+    from pathlib import Path
+
+    import rasterio
+
+    from toolbox.feedback import Feedback
+    from toolbox.io.crs import crs_label
+    from toolbox.io.raster import geotiff_profile
+    from toolbox.raster.warp import warp_to_geotiff
+
+    options = options or OrthoOptions()
+    feedback = feedback or Feedback()
+    size = photo.camera.image_size_px
+    if size is not None and tuple(size) != (image.width, image.height):
+        raise InputDataError(f"photo {photo.id!r}: the raster {image} is {image.width} x "
+                             f"{image.height} px but the camera {photo.camera.name!r} says "
+                             f"{size[0]} x {size[1]}: wrong image or camera")
+    sampler = DemSampler(dem, grid.crs, options.band, options.dem_factor)
+    sampler.preload(grid.bounds)
+    to_orientation = orientation_transformer(photo, grid.crs)
+    if to_orientation is not None and (options.occlusion or incidence_output is not None):
+        raise InputDataError("the visibility test and the incidence angles need the ortho in "
+                             "the orientation's CRS")
+    cmap = CollinearityMap(photo, options.block, options.tolerance_px, image.width, image.height)
+    if options.occlusion and surface is None:
+        surface = photo_surface(dem, photo, grid.crs, options.band)
+    if reference_height is None:
+        step = max(1, int(math.ceil(max(grid.width, grid.height) / 256)))
+        xs, ys = grid.cell_centers(None)
+        with warnings.catch_warnings():  # no height at all is reported just below
+            warnings.simplefilter("ignore", RuntimeWarning)
+            reference_height = float(np.nanmean(sampler.heights(xs[::step], ys[::step])))
+        if not math.isfinite(reference_height):
+            raise InputDataError(f"DEM {dem} has no height under the output grid of photo "
+                                 f"{photo.id!r}")
+    aux = []
+    profile_args = (grid.width, grid.height, 1)
+    output = Path(output)
+    target = output.with_name(f".{output.stem}.gtiff.tif") if options.cog else output
+    windows = None
+    try:
+        mask_writer = incidence_writer = None
+        if mask_output is not None:
+            if not options.occlusion:
+                raise InputDataError("an occlusion mask needs the visibility test (OCCLUSION)")
+            mask_writer = rasterio.open(mask_output, "w", **geotiff_profile(
+                *profile_args, "uint8", grid.crs, grid.transform, 255))
+            aux.append(mask_writer)
+        if incidence_output is not None:
+            incidence_writer = rasterio.open(incidence_output, "w", **geotiff_profile(
+                *profile_args, "float32", grid.crs, grid.transform, float("nan")))
+            aux.append(incidence_writer)
+        windows = OrthoWindows(photo, grid, sampler, cmap, reference_height,
+                               surface if options.occlusion else None, mask_writer,
+                               incidence_writer, to_orientation)
+        from toolbox.io.raster import iter_windows
+
+        windows.prefetch([t.core for t in iter_windows(grid.width, grid.height, options.chunk)])
+        eo = photo.require_exterior()
+        tags = {"ORTHO_PHOTO": photo.id, "ORTHO_MAP_TOLERANCE_PX": str(options.tolerance_px),
+                "ORTHO_RESAMPLING": options.resampling, "NADIR_X": repr(eo.x0),
+                "NADIR_Y": repr(eo.y0), "PROJECTION_CENTRE_Z": repr(eo.z0)}
+        with feedback.timed("orthorectify"):
+            warp = warp_to_geotiff(image.path, windows, grid, target, options.resampling,
+                                   options.outside, options.nodata, chunk=options.chunk,
+                                   overviews=options.overviews and not options.cog,
+                                   feedback=feedback.step(0, 90 if options.cog else 100),
+                                   tags=tags)
+        if options.cog:
+            from rasterio.shutil import copy as raster_copy
+
+            with feedback.timed("cog"):
+                raster_copy(target, output, driver="COG", COMPRESS="DEFLATE", BLOCKSIZE=512,
+                            OVERVIEWS="AUTO", NUM_THREADS="ALL_CPUS")
+    finally:
+        if windows is not None:
+            windows.close()
+        for dst in aux:
+            dst.close()
+        if options.cog and target != output and target.exists():
+            target.unlink()
+    totals = windows.totals()
+    photo_gsd = ground_sample_distance(photo, reference_height)
+    cells = max(totals.cells, 1)
+    report = {
+        "photo": photo.id, "image": str(image.path),
+        "crs": crs_label(grid.crs), "cell_size": grid.cell_size[0],
+        "photo_gsd_m": photo_gsd, "reference_height": reference_height,
+        "width": grid.width, "height": grid.height, "bounds": list(grid.bounds),
+        "cells": totals.cells,
+        "outside_dem_fraction": totals.outside_dem / cells,
+        "outside_photo_fraction": totals.outside_photo / cells,
+        "hidden_fraction": totals.hidden / cells if options.occlusion else None,
+        "max_relief_displacement_m": totals.max_relief_m,
+        "max_relief_displacement_px": totals.max_relief_m / photo_gsd,
+        "map_tolerance_px": options.tolerance_px,
+        "map_blocks": {"projective_exact": totals.blocks.get(0, 0),
+                       "distortion_interpolated": totals.blocks.get(1, 0),
+                       "distortion_exact": totals.blocks.get(2, 0)},
+        "resampling": options.resampling, "dem_factor": options.dem_factor,
+        "expected_accuracy": expected_accuracy(map_scale),
+        "warp": warp.as_dict(),
+    }
+    if totals.outside_dem:
+        feedback.push_warning(f"photo {photo.id}: {totals.outside_dem} of {totals.cells} cells "
+                              f"({100 * totals.outside_dem / cells:.1f} %) have no DEM height "
+                              "and are left empty")
+    return report
+
+
+@dataclass
+class OrthoPlan:
+    """What an ortho of one photo needs before warping: the DEM window the photo sees, its
+    footprint on the DEM, the mean terrain height, the photo's GSD there and the output grid."""
+
+    photo: Any
+    surface: Any
+    footprint: Any  # shapely Polygon
+    mean_height: float
+    gsd: float
+    grid: Any
+
+
+def plan_photo(photo: Any, dem: Any, crs: Any, band: int = 1, cell: float | None = None,
+               bounds: tuple[float, float, float, float] | None = None,
+               origin: tuple[float, float] = (0.0, 0.0), output_crs: Any = None) -> OrthoPlan:
+    """Check the geometry and choose the grid of one photo's ortho.
+
+    ``crs`` is the orientation's; ``output_crs`` the ortho's (default the same; then the
+    footprint is transformed, densified, to bound the grid). Defaults (as the thesis' software
+    proposes, S002 par. 3.8): cell = the photo's ground sample distance at the mean terrain
+    height of its footprint (2 significant digits); extent = the footprint on the DEM (the frame
+    outline monoplotted, 8 points per side); edges on the lattice ``origin + k·cell``.
+    """
+    from toolbox.io.crs import parse_crs
+    from toolbox.photogrammetry.coverage import photo_footprint
+    from toolbox.photogrammetry.surface import dem_height_range
+
+    crs = None if crs is None else parse_crs(crs)
+    output_crs = crs if output_crs is None else parse_crs(output_crs)
+    check_dem_crs(dem)
+    check_geometry(photo)
+    low, _ = dem_height_range(dem, band)
+    check_geometry(photo, low)
+    surface = photo_surface(dem, photo, crs, band)
+    eo = photo.require_exterior()
+    under = float(surface.height(np.array([eo.x0]), np.array([eo.y0]))[0])
+    check_geometry(photo, under if math.isfinite(under) else None)
+    fp = photo_footprint(photo, surface, float(np.nanmean(surface.z)), 8)
+    polygon = fp.polygon
+    mean_height = mean_height_inside(surface, polygon)
+    gsd = ground_sample_distance(photo, mean_height)
+    cell = nice_cell_size(gsd) if cell is None else float(cell)
+    to_orientation = orientation_transformer(photo, output_crs)
+    if to_orientation is not None:
+        import shapely
+
+        def to_output(xy: np.ndarray) -> np.ndarray:
+            x, y = to_orientation.transform(xy[:, 0], xy[:, 1], direction="INVERSE")
+            return np.column_stack([x, y])
+
+        dense = shapely.segmentize(shapely.force_2d(polygon), max(polygon.length / 400.0, cell))
+        polygon = shapely.transform(dense, to_output)
+    grid = lattice_grid(polygon.bounds if bounds is None else bounds, cell, output_crs, origin)
+    return OrthoPlan(photo, surface, polygon, mean_height, gsd, grid)
+
+
+# -- whole blocks ---------------------------------------------------------------------------------------
+@dataclass
+class OrthoTask:
+    """One photo of a block: everything :func:`run_task` needs (picklable, for Dask workers)."""
+
+    photo: Any
+    image: Any  # RasterInfo
+    dem: Any  # RasterInfo
+    grid: Any
+    output: Any  # final path
+    options: OrthoOptions
+    reference_height: float
+    map_scale: float | None = None
+
+
+def run_task(task: OrthoTask) -> dict[str, Any]:
+    """Orthorectify one photo of a block into a hidden file beside ``task.output``, renamed on
+    success; a user error is returned as ``{"photo", "error"}`` (the block goes on)."""
+    import os
+    from pathlib import Path
+
+    from toolbox.errors import ToolboxError
+    from toolbox.feedback import Feedback
+
+    final = Path(task.output)
+    partial = final.with_name(f".{final.stem}.part{final.suffix}")
+    feedback = Feedback()
+    try:
+        report = orthorectify(task.photo, task.image, task.dem, task.grid, partial, task.options,
+                              None, task.reference_height, map_scale=task.map_scale,
+                              feedback=feedback)
+        os.replace(partial, final)
+    except ToolboxError as exc:
+        return {"photo": task.photo.id, "error": str(exc)}
+    finally:
+        if partial.exists():
+            partial.unlink()
+    report["output"] = str(final)
+    report["warnings"] = feedback.warnings
+    return report
