@@ -63,7 +63,7 @@ ACTIVE: list[TerminalFeedback | None] = [None]
 
 
 def setup_logging(verbose: int, quiet: bool) -> None:
-    level = logging.ERROR if quiet else (logging.WARNING, logging.INFO, logging.DEBUG)[
+    level = logging.WARNING if quiet else (logging.WARNING, logging.INFO, logging.DEBUG)[
         min(verbose, 2)]
     logger = logging.getLogger("toolbox")
     logger.handlers[:] = [BarAwareHandler(ACTIVE)]

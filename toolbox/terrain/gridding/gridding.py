@@ -266,6 +266,13 @@ def prepare_run(params: dict, data: GriddingData, feedback: Feedback,
     grid = output_grid(params, data, data.crs)
     hull = None
     if use_hull and not params.get("EXTRAPOLATE", False):
+        from toolbox.terrain.points import check_not_collinear
+
+        try:
+            check_not_collinear(data.local[:, :2])
+        except ValueError as exc:
+            raise InputDataError(f"{exc} (set EXTRAPOLATE to compute cells beyond their "
+                                 "hull)") from None
         hull = convex_hull(data.local[:, :2])
         if hull is None:
             raise InputDataError(f"the {len(data.xyz)} data points are collinear: their convex "
