@@ -31,6 +31,7 @@ from typing import Any
 
 from toolbox.errors import PipelineError, ToolboxError
 from toolbox.feedback import Feedback
+from toolbox.io.text import yaml_error_line
 from toolbox.parameters import Destination, File, MultipleLayers, RasterLayer, VectorLayer
 
 REF_RE = re.compile(r"\$\{([A-Za-z_][A-Za-z0-9_]*)(?:\.([A-Z][A-Z0-9_]*))?\}")
@@ -67,21 +68,6 @@ def load_pipeline(path: str | Path, variables: dict[str, Any] | None = None) -> 
     except yaml.YAMLError as exc:
         raise PipelineError(f"cannot read pipeline {path}: {yaml_error_line(exc)}") from None
     return parse_pipeline(doc, path.parent, variables, str(path))
-
-
-def yaml_error_line(exc: Exception) -> str:
-    """A PyYAML error on one line: ``problem at line L, column C (context)``."""
-    problem = getattr(exc, "problem", None)
-    mark = getattr(exc, "problem_mark", None)
-    if problem is None:
-        return " ".join(str(exc).split())
-    text = str(problem)
-    if mark is not None:
-        text += f" at line {mark.line + 1}, column {mark.column + 1}"
-    context = getattr(exc, "context", None)
-    if context:
-        text += f" ({context})"
-    return text
 
 
 def parse_pipeline(doc: Any, base_dir: Path, variables: dict[str, Any] | None = None,

@@ -17,6 +17,7 @@ from __future__ import annotations
 import errno
 import json
 import logging
+import os
 import time
 from contextlib import contextmanager
 from pathlib import Path
@@ -26,7 +27,7 @@ from toolbox.algorithm import Algorithm
 from toolbox.errors import InputDataError, OutputExistsError, ParameterError, ToolboxError
 from toolbox.feedback import Feedback
 from toolbox.io.staging import OutputStaging, protected_paths, write_error
-from toolbox.parameters import Boolean, OutputRaster, ValidationContext
+from toolbox.parameters import Boolean, Number, OutputRaster, ValidationContext
 from toolbox.registry import get
 
 OVERWRITE = "OVERWRITE"
@@ -65,15 +66,38 @@ def validate(algorithm: type[Algorithm] | str, parameters: dict[str, Any],
     # inputs first (so outputs can be checked against every input path), in declaration order
     ordered = [p for p in alg.parameters if not p.is_output] + alg.destinations()
     for p in ordered:
-        ctx.values[p.name] = p.resolve(params.get(p.name), ctx)
+        try:
+            ctx.values[p.name] = p.resolve(params.get(p.name), ctx)
+        except OSError as exc:  # a path the system refuses (name too long, a file as folder...)
+            raise ParameterError(p.name, f"cannot use {params.get(p.name)!r}: "
+                                 f"{exc.strerror or exc}") from None
         if not p.is_output and alg.projected_crs_only:
             from toolbox.io.crs import check_input_crs
 
             check_input_crs(alg.id, p.name, ctx.values[p.name], warnings)
     values = {p.name: ctx.values[p.name] for p in alg.parameters}
+    _check_magnitudes(alg, values)
     _check_outputs_against_inputs(alg, values)
     alg().check(values)
     return values
+
+
+TINY, HUGE = 1e-300, 1e150  # below (but not 0) / above: no computation with it is sound
+
+
+def _check_magnitudes(alg_cls: type[Algorithm], values: dict[str, Any]) -> None:
+    """Refuse numbers no computation survives: subnormal ones (``1e-320``: a division by it
+    overflows) and ones whose square overflows (``1e308``)."""
+    for p in alg_cls.parameters:
+        value = values.get(p.name)
+        if not isinstance(p, Number) or not isinstance(value, (int, float)) or value == 0:
+            continue
+        if abs(value) < TINY:
+            raise ParameterError(p.name, f"is too small to compute with, got {value:g}; use 0 "
+                                 f"or a value of at least {TINY:g}")
+        if abs(value) > HUGE:
+            raise ParameterError(p.name, f"is too large to compute with, got {value:g} (at most "
+                                 f"{HUGE:g})")
 
 
 # -- what the run reads and writes ----------------------------------------------------------------
@@ -193,7 +217,8 @@ def run(algorithm_id: str, parameters: dict[str, Any] | None = None,
             except (ToolboxError, KeyboardInterrupt):
                 raise
             except Exception as exc:
-                converted = _as_write_error(exc, staging)
+                converted = _as_write_error(exc, staging) or _as_read_error(
+                    exc, gdal_errors, alg_cls, values)
                 if converted is None:
                     raise
                 raise converted from None
@@ -220,33 +245,72 @@ def run(algorithm_id: str, parameters: dict[str, Any] | None = None,
 
 # -- write-error detection -------------------------------------------------------------------------
 def _which_output(text: str, staging: OutputStaging) -> tuple[str, Path] | None:
+    """The output a failure message is about: named in it, the only one, or the one being
+    written (the staged file modified last)."""
     items = staging.items()
     for name, final, staged in items:
         if str(staged.parent) in text or str(final) in text:
             return name, final
     if len(items) == 1:
         return items[0][0], items[0][1]
-    return None
+    started = [(staged.stat().st_mtime, name, final) for name, final, staged in items
+               if staged.exists()]
+    if started:
+        _, name, final = max(started)
+        return name, final
+    return (items[0][0], items[0][1]) if items else None
+
+
+def _disk_full(staging: OutputStaging) -> bool:
+    """Whether a filesystem holding a staged output has (almost) no free space left."""
+    for _, _, staged in staging.items():
+        try:
+            st = os.statvfs(staged.parent)
+        except OSError:
+            continue
+        if st.f_bavail * st.f_frsize < 64 * 1024:
+            return True
+    return False
 
 
 def _as_write_error(exc: Exception, staging: OutputStaging) -> ToolboxError | None:
-    """A one-line :class:`OutputWriteError` when ``exc`` is a failed write of an output."""
+    """A one-line :class:`OutputWriteError` when ``exc`` is a failed write of an output (also
+    when a driver hides ENOSPC behind another message: the free space is checked)."""
     text = " ".join(str(a) for a in (exc, getattr(exc, "filename", None),
                                      exc.__cause__, exc.__context__) if a)
-    is_write = (isinstance(exc, OSError) and exc.errno in WRITE_ERRNOS) or any(
+    full = _disk_full(staging)
+    is_write = full or (isinstance(exc, OSError) and exc.errno in WRITE_ERRNOS) or any(
         word in text.lower() for word in WRITE_ERROR_WORDS)
-    target = _which_output(text, staging)
     in_staging = any(str(staged.parent) in text for _, _, staged in staging.items())
     if not (is_write or (isinstance(exc, OSError) and in_staging)):
         return None
-    name, final = target if target else (", ".join(n for n, _, _ in staging.items()), "")
+    name, final = _which_output(text, staging) or ("OUTPUT", "")
+    if full or "no space left" in text.lower() or "disk is full" in text.lower():
+        return write_error(OSError(errno.ENOSPC, "No space left on device"), name, final)
     if isinstance(exc, OSError) and exc.errno is not None:
         return write_error(exc, name, final)
-    lowered = text.lower()
-    if "no space left" in lowered or "disk is full" in lowered:
-        return write_error(OSError(errno.ENOSPC, "No space left on device"), name, final)
     return write_error(OSError(errno.EIO, str(exc).splitlines()[0] if str(exc) else "I/O error"),
                        name, final)
+
+
+READ_LIBRARIES = ("rasterio", "pyogrio", "fiona", "sqlite3", "PIL", "cv2")
+
+
+def _as_read_error(exc: Exception, gdal_messages: list[str], alg_cls: type[Algorithm],
+                   values: dict[str, Any]) -> ToolboxError | None:
+    """An :class:`InputDataError` naming the input when a reading library failed on it (a
+    truncated or corrupt GeoTIFF/JPEG whose header opens, a damaged GeoPackage)."""
+    module = type(exc).__module__ or ""
+    if not module.startswith(READ_LIBRARIES):
+        return None
+    detail = next((m for m in reversed(gdal_messages) if "failed" in m.lower()), str(exc))
+    detail = " ".join(detail.split())
+    text = " ".join([str(exc), *gdal_messages])
+    for path, name in input_paths(alg_cls, values).items():
+        if path.name in text:
+            return InputDataError(f"{name}: cannot read '{path}': the file is truncated or "
+                                  f"corrupt ({detail[:200]})")
+    return InputDataError(f"cannot read an input: it is truncated or corrupt ({detail[:200]})")
 
 
 class _ErrorLog(logging.Handler):

@@ -60,7 +60,9 @@ def _handle_errors(func: Callable) -> Callable:
             if ACTIVE[0] is not None:
                 ACTIVE[0].clear_line()
             signum = getattr(exc, "signum", signal.SIGINT)
-            click.echo(f"toolbox: {'canceled' if signum == signal.SIGINT else 'terminated by ' + signal.Signals(signum).name}; no output was written", err=True)
+            what = "canceled" if signum == signal.SIGINT else \
+                f"terminated by {signal.Signals(signum).name}"
+            click.echo(f"toolbox: {what}; no output was written", err=True)
             sys.exit(128 + signum)
         except (click.exceptions.ClickException, click.exceptions.Exit, click.exceptions.Abort):
             raise

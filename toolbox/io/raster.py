@@ -86,6 +86,7 @@ def geotiff_profile(width: int, height: int, count: int, dtype: Any, crs: Any, t
     BIGTIFF is used when the file may exceed 4 GB. ``extra`` overrides any creation option.
     """
     dtype = np.dtype(dtype)
+    check_nodata_fits(nodata, dtype)
     tiled = width >= block and height >= block
     profile = {
         "driver": "GTiff", "width": int(width), "height": int(height), "count": int(count),
@@ -98,6 +99,33 @@ def geotiff_profile(width: int, height: int, count: int, dtype: Any, crs: Any, t
         profile.update(tiled=True, blockxsize=block, blockysize=block)
     profile.update(extra)
     return profile
+
+
+def check_nodata_fits(nodata: float | None, dtype: Any, name: str = "NODATA") -> None:
+    """:class:`ParameterError` naming ``name`` when ``nodata`` cannot be stored in ``dtype``
+    (-9999 in a uint8 photo, 1e308 in float32, 2.5 in an integer band)."""
+    if nodata is None:
+        return
+    dtype = np.dtype(dtype)
+    value = float(nodata)
+    if np.isnan(value):
+        if dtype.kind != "f":
+            raise ParameterError(name, f"NaN does not fit the {dtype.name} output (integer cells "
+                                 "have no NaN): give a number")
+        return
+    if dtype.kind == "f":
+        limit = float(np.finfo(dtype).max)
+        ok = np.isinf(value) or abs(value) <= limit
+        expected = f"between {-limit:g} and {limit:g}"
+    elif dtype.kind in "iu":
+        info = np.iinfo(dtype)
+        ok = info.min <= value <= info.max and value == int(value)
+        expected = f"a whole number from {info.min} to {info.max}"
+    else:
+        return
+    if not ok:
+        raise ParameterError(name, f"{value:g} does not fit the {dtype.name} output cells "
+                             f"(expected {expected})")
 
 
 def _rio_crs(crs: Any):
