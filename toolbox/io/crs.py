@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 from typing import Any
 
 import numpy as np
@@ -111,11 +112,17 @@ def check_input_crs(algorithm_id: str, name: str, value: Any,
                 warnings.append(f"{name}: {problem}")
 
 
+@functools.lru_cache(maxsize=32)
+def _to_lonlat(wkt: str):
+    """A cached transformer to WGS 84 lon/lat (creating one costs ~0.1 s)."""
+    from pyproj import Transformer
+
+    return Transformer.from_crs(CRS.from_wkt(wkt), CRS.from_epsg(4326), always_xy=True)
+
+
 def outside_area_of_use(crs: CRS, bounds: tuple) -> tuple[str | None, bool]:
     """``(message, far)``: a message when ``bounds`` (in ``crs``) lie outside the CRS's area of
     use by more than a margin; ``far`` when by more than :data:`AREA_ERROR_DEG` degrees."""
-    from pyproj import Transformer
-
     area = crs.area_of_use
     if area is None or crs.is_geographic:
         return None, False
@@ -124,7 +131,7 @@ def outside_area_of_use(crs: CRS, bounds: tuple) -> tuple[str | None, bool]:
     where = (f"the area of use of {crs_label(crs)} ({area.west:g}..{area.east:g} E, "
              f"{area.south:g}..{area.north:g} N)")
     try:
-        to_lonlat = Transformer.from_crs(crs, CRS.from_epsg(4326), always_xy=True)
+        to_lonlat = _to_lonlat(crs.to_wkt())
         lon0, lat0, lon1, lat1 = to_lonlat.transform_bounds(xmin, ymin, xmax, ymax, densify_pts=5)
     except Exception:  # PROJ cannot place them on the ellipsoid at all
         return f"{shown} cannot be coordinates of {crs_label(crs)}", True
