@@ -327,3 +327,237 @@ def test_read_only_and_full_output_folders(case):
                          words=words, out_dirs=(folder,))
         finally:
             subprocess.run(["umount", str(folder)], check=True)
+
+
+# -- the families of mistakes of issue #11, one by one ---------------------------------------------
+def cli(*args, env: dict | None = None) -> tuple[int, str, str]:
+    result = CliRunner().invoke(main, [str(a) for a in args], env=env)
+    assert "Traceback" not in result.stderr, result.stderr
+    return result.exit_code, result.stdout, result.stderr
+
+
+def one_error(stderr: str) -> str:
+    errors = [line for line in stderr.strip().splitlines() if not line.startswith("WARNING:")]
+    assert len(errors) == 1 and errors[0].startswith("toolbox: error: "), stderr
+    return errors[0]
+
+
+@pytest.fixture(scope="module")
+def points(demo, tmp_path_factory):
+    """Point layers for the degenerate cases, written from the demo mass points."""
+    import geopandas as gpd
+    import numpy as np
+    import shapely
+
+    folder = tmp_path_factory.mktemp("contract_points")
+    mass = gpd.read_file(demo[1]["mass_points"])
+    made = {"mass": Path(demo[1]["mass_points"])}
+    mass.to_crs(4326).to_file(made.setdefault("geographic", folder / "geo.gpkg"))
+    mass.set_crs(32632, allow_override=True).to_file(made.setdefault("utm", folder / "utm.gpkg"))
+    mass.to_crs(4326).set_crs(3003, allow_override=True).to_file(
+        made.setdefault("lonlat_as_3003", folder / "lonlat.gpkg"))
+    t = np.linspace(0, 1000, 200)
+    rng = np.random.default_rng(1)
+    line = gpd.GeoDataFrame({"h": t}, geometry=shapely.points(
+        1688000 + t, 4799000 + 0.5 * t + rng.normal(0, 1e-10, 200), 300 + 0.01 * t), crs=3003)
+    line.to_file(made.setdefault("nearly_collinear", folder / "line.gpkg"))
+    line.iloc[:2].to_file(made.setdefault("two", folder / "two.gpkg"))
+    dup = line.iloc[[0, 0, 0]]
+    dup.to_file(made.setdefault("duplicates", folder / "dup.gpkg"))
+    return made
+
+
+@pytest.mark.parametrize("alg", ["dem:idw", "tin:delaunay"])
+def test_geographic_crs_and_area_of_use(points, alg, tmp_path):
+    extra = ["--CELL_SIZE", "20"] if alg.startswith("dem") else []
+    out = tmp_path / ("o.tif" if alg.startswith("dem") else "o.gpkg")
+    code, _, err = cli("run", alg, "--INPUT", points["geographic"], *extra, "--OUTPUT", out)
+    line = one_error(err)
+    assert code == 2 and "INPUT" in line and "EPSG:4326" in line and "geographic" in line
+    for key, crs in (("utm", "EPSG:32632"), ("lonlat_as_3003", "EPSG:3003")):
+        code, _, err = cli("run", alg, "--INPUT", points[key], *extra, "--OUTPUT", out)
+        line = one_error(err)
+        assert code == 2 and "INPUT" in line and crs in line and "area of use" in line
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("alg", ["dem:idw", "dem:quadratic", "tin:delaunay"])
+def test_degenerate_point_sets(points, alg, tmp_path):
+    extra = ["--CELL_SIZE", "20"] if alg.startswith("dem") else []
+    out = tmp_path / ("o.tif" if alg.startswith("dem") else "o.gpkg")
+    for key, words in (("nearly_collinear", "collinear"),
+                       ("two", r"at least \d+ (distinct data )?points"),
+                       ("duplicates", r"duplicate")):
+        code, _, err = cli("run", alg, "--INPUT", points[key], *extra, "--OUTPUT", out)
+        assert code == 2 and re.search(words, one_error(err)), (key, err)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_raster_output_without_a_valid_cell_is_an_error(points, demo, tmp_path):
+    far = "1600000,4700000,1601000,4701000"
+    cases = [("dem:idw", "--INPUT", points["mass"], "--CELL_SIZE", "5", "--EXTENT", far),
+             ("dem:idw", "--INPUT", points["mass"], "--CELL_SIZE", "5000"),
+             ("tin:to_raster", "--TIN", demo[0] / "tin.gpkg", "--CELL_SIZE", "5", "--EXTENT",
+              far)]
+    for args in cases:
+        code, _, err = cli("run", *args, "--OUTPUT", tmp_path / "o.tif")
+        assert code == 2 and "OUTPUT would have no valid cell" in one_error(err), err
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_interpolate_refuses_an_existing_field(demo, tmp_path):
+    import pyogrio
+
+    check_points = demo[1]["tin_check_points"]
+    before = Path(check_points).read_bytes()
+    args = ["run", "tin:interpolate", "--INPUT", check_points, "--TIN", demo[0] / "tin.gpkg",
+            "--FIELD", "ID", "--OUTPUT", tmp_path / "o.gpkg"]
+    code, _, err = cli(*args)
+    assert code == 2 and "FIELD 'ID' is already a field of INPUT" in one_error(err)
+    code, _, err = cli(*args, "--REPLACE_FIELD")
+    assert code == 0, err
+    frame = pyogrio.read_dataframe(tmp_path / "o.gpkg")
+    assert "id" not in frame.columns and frame["ID"].between(200, 400).all()
+    assert Path(check_points).read_bytes() == before
+
+
+def test_cli_mistakes_are_one_line(demo, tmp_path):
+    dem = demo[1]["dem"]
+    for args, words in ((["run"], "missing the algorithm id"),
+                        (["nope"], "No such command 'nope'"),
+                        (["batch", tmp_path / "none.yaml"], "does not exist"),
+                        (["run", "raster:hillshade", "--INPUT", dem, "--OUTPUT",
+                          tmp_path / "a.tif", "--BAND", "2"], "BAND must be <= 1"),
+                        (["run", "dem:idw", "--INPUT", demo[1]["mass_points"], "--CELL_SIZE",
+                          "1e-320", "--OUTPUT", tmp_path / "a.tif"], "CELL_SIZE is too small"),
+                        (["run", "rectify:image", "--INPUT", demo[1]["photo"], "--TRANSFORM",
+                          demo[0] / "rectify" / "photo_transform.json", "--OUTSIDE", "nodata",
+                          "--NODATA", "-9999", "--OUTPUT", tmp_path / "a.tif"],
+                         "NODATA -9999 does not fit the uint8")):
+        code, _, err = cli(*args)
+        assert code == 2 and words in one_error(err), (args, err)
+    code, _, err = cli("run", "dem:idw", "--INPUT", demo[1]["mass_points"], "--CELL_SIZE", "5",
+                       "--OUTPUT", tmp_path / "a.tif", env={"TOOLBOX_MAX_CELLS": "abc"})
+    assert code == 2 and "TOOLBOX_MAX_CELLS" in one_error(err)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_help_and_quiet_after_the_id(demo, tmp_path):
+    code, out, _ = cli("run", "--help")
+    assert code == 0 and "run [OPTIONS] [ALGORITHM_ID]" in out
+    code, out, _ = cli("run", "raster:hillshade", "--help")
+    assert code == 0 and "--AZIMUTH" in out
+    # --quiet after the id: no information messages, but warnings still show
+    code, out, err = cli("run", "rectify:estimate", "--INPUT", demo[1]["photo_gcps"], "--CRS",
+                         "EPSG:3003", "--MODEL", "homography", "--ROBUST", "snooping",
+                         "--OUTPUT", tmp_path / "t.json", "--quiet")
+    assert code == 0 and "WARNING: gross errors rejected" in err and "INFO" not in err
+
+
+def test_internal_errors_are_one_line_exit_3(tmp_path):
+    from toolbox.algorithm import Algorithm
+    from toolbox.parameters import OutputFile
+    from toolbox.registry import register
+
+    @register
+    class _Bug(Algorithm):
+        """Fails with a bug (not a user mistake)."""
+
+        id = "testing:bug"
+        display_name = group = short_help = "bug"
+        parameters = [OutputFile("OUTPUT", extensions=[".txt"])]
+
+        def process(self, params, feedback):
+            params["OUTPUT"].write_text("half")
+            return {}["missing"]
+
+    code, _, err = cli("run", "testing:bug", "--OUTPUT", tmp_path / "a.txt")
+    lines = err.strip().splitlines()
+    assert code == 3 and len(lines) == 1, err
+    assert lines[0].startswith("toolbox: internal error in testing:bug: KeyError") \
+        and "please report" in lines[0]
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_commit_never_replaces_a_file_that_appeared(tmp_path):
+    """Two runs writing one path: the second to finish fails (without --overwrite) and the
+    first one's file is left as it was."""
+    from toolbox.algorithm import Algorithm
+    from toolbox.errors import OutputExistsError
+    from toolbox.parameters import OutputFile
+    from toolbox.registry import register
+
+    @register
+    class _Racer(Algorithm):
+        """Another run writes the same output while this one works."""
+
+        id = "testing:racer"
+        display_name = group = short_help = "racer"
+        parameters = [OutputFile("OUTPUT", extensions=[".txt"])]
+
+        def process(self, params, feedback):
+            params["OUTPUT"].write_text("mine")
+            (tmp_path / "a.txt").write_text("the other run's")  # appears meanwhile
+            return {"OUTPUT": params["OUTPUT"]}
+
+    with pytest.raises(OutputExistsError, match="appeared during the run"):
+        toolbox.run("testing:racer", {"OUTPUT": tmp_path / "a.txt"})
+    assert (tmp_path / "a.txt").read_text() == "the other run's"
+    assert [p.name for p in tmp_path.iterdir()] == ["a.txt"]
+
+
+def test_batch_validate_checks_values(demo, tmp_path):
+    dem = demo[1]["dem"]
+    head = f"variables: {{dem: {dem}}}\nsteps:\n"
+    shade = "  - name: {name}\n    algorithm: raster:hillshade\n    params: {params}\n"
+    cases = {
+        "bad range": (shade.format(name="a", params="{INPUT: '${dem}', OUTPUT: a.tif}")
+                      + shade.format(name="b", params="{INPUT: '${dem}', Z_FACTOR: -1, "
+                                                      "OUTPUT: b.tif}"),
+                      "step 'b' (raster:hillshade): Z_FACTOR must be > 0"),
+        "bad type": (shade.format(name="a", params="{INPUT: '${dem}', AZIMUTH: east, "
+                                                   "OUTPUT: a.tif}"), "AZIMUTH must be a number"),
+        "two steps, one file": (shade.format(name="a", params="{INPUT: '${dem}', OUTPUT: a.tif}")
+                                + shade.format(name="b", params="{INPUT: '${dem}', "
+                                                                "OUTPUT: a.tif}"),
+                                "is also written by a.OUTPUT"),
+        "own input": (shade.format(name="a", params="{INPUT: '${dem}', OUTPUT: a.tif}")
+                      + shade.format(name="b", params="{INPUT: '${a.OUTPUT}', "
+                                                      "OUTPUT: a.tif}"), "this step's input"),
+        "earlier input": (shade.format(name="a", params="{INPUT: c.tif, OUTPUT: b.tif}")
+                          .replace("c.tif", str(dem))
+                          + shade.format(name="b", params=f"{{INPUT: b.tif, OUTPUT: {dem}}}"),
+                          "input a.INPUT of an earlier step"),
+        "unset optional output": (
+            "  - name: i\n    algorithm: dem:idw\n    params: {INPUT: "
+            f"{demo[1]['mass_points']}, CELL_SIZE: 20, OUTPUT: i.tif}}\n"
+            + shade.format(name="b", params="{INPUT: '${i.QUALITY}', OUTPUT: b.tif}"),
+            "does not set its optional output QUALITY"),
+    }
+    for label, (steps, words) in cases.items():
+        pipe = tmp_path / "p.yaml"
+        pipe.write_text(head + steps)
+        for extra in (["--validate"], []):
+            code, _, err = cli("batch", pipe, *extra)
+            assert code == 2 and words in one_error(err), (label, err)
+        assert sorted(p.name for p in tmp_path.iterdir()) == ["p.yaml"], label
+    for text, words in (("steps: [a, b\n", "at line 2, column 1"), ("variables: [1]\nsteps: [{}]\n",
+                                                       "'variables' must be a mapping")):
+        (tmp_path / "p.yaml").write_text(text)
+        code, _, err = cli("batch", tmp_path / "p.yaml", "--validate")
+        assert code == 2 and words in one_error(err), err
+    (tmp_path / "p.yaml").write_bytes(b"steps:\n  - algorithm: raster:hillshade # \xe8\n")
+    code, _, err = cli("batch", tmp_path / "p.yaml", "--validate")
+    assert code == 2 and "UTF-8" in one_error(err)
+
+
+def test_zmap_line_that_does_not_parse_is_an_error(demo, tmp_path):
+    from toolbox.errors import InputDataError
+    from toolbox.photogrammetry.readers.zmap_log import parse_zmap_log
+
+    text = (Path(demo[1]["siena"]) / "zmap_strip1.log").read_text(encoding="latin-1")
+    lines = text.splitlines()
+    n = next(i for i, line in enumerate(lines) if line.strip().startswith("Omega"))
+    lines[n] = "Omega x.yz, Phi 0.1, Kappa 0.2"
+    with pytest.raises(InputDataError, match=f"line {n + 1}: cannot read 'Omega x.yz"):
+        parse_zmap_log("\n".join(lines), "log")

@@ -269,10 +269,11 @@ def prepare_run(params: dict, data: GriddingData, feedback: Feedback,
         from toolbox.terrain.points import check_not_collinear
 
         try:
-            check_not_collinear(data.local[:, :2])
+            check_not_collinear(data.local[:, :2], "data points (after merging duplicate XY)")
         except ValueError as exc:
-            raise InputDataError(f"{exc} (set EXTRAPOLATE to compute cells beyond their "
-                                 "hull)") from None
+            hint = " (set EXTRAPOLATE to compute cells beyond their hull)" \
+                if "collinear" in str(exc) else ""
+            raise InputDataError(f"{exc}{hint}") from None
         hull = convex_hull(data.local[:, :2])
         if hull is None:
             raise InputDataError(f"the {len(data.xyz)} data points are collinear: their convex "
