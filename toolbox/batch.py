@@ -186,11 +186,13 @@ def run_pipeline(pipeline: Pipeline, feedback: Feedback | None = None, overwrite
 
 
 # -- value validation (``toolbox batch --validate`` and before a CLI batch run) -----------------
-def validate_pipeline(pipeline: Pipeline, overwrite: bool = False) -> None:
+def validate_pipeline(pipeline: Pipeline, overwrite: bool = False,
+                      existing: list[Path] | None = None) -> None:
     """Check every step's values before anything runs: ranges, enums and types, inputs that
     exist (or that an earlier step writes), references to optional outputs left unset, two steps
     writing one file, a step writing its own or an earlier step's input, existing outputs without
-    ``overwrite``. Raises :class:`PipelineError` naming the step."""
+    ``overwrite`` (collected in ``existing`` instead when a list is given). Raises
+    :class:`PipelineError` naming the step."""
     from toolbox.errors import OutputExistsError
     from toolbox.parameters import Field, ValidationContext
     from toolbox.registry import get
@@ -254,7 +256,9 @@ def validate_pipeline(pipeline: Pipeline, overwrite: bool = False) -> None:
                            " an input is never overwritten")
             if path in written:
                 raise fail(f"{dest.name} '{final}' is also written by {written[path]}")
-            if path.exists() and not overwrite:
+            if path.exists() and not overwrite and existing is not None:
+                existing.append(path)
+            elif path.exists() and not overwrite:
                 raise fail(str(OutputExistsError(dest.name, f"'{final}' exists; pass --overwrite "
                                                  "to replace it")))
             written[path] = f"{step.name}.{dest.name}"

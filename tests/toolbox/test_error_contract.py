@@ -561,3 +561,24 @@ def test_zmap_line_that_does_not_parse_is_an_error(demo, tmp_path):
     lines[n] = "Omega x.yz, Phi 0.1, Kappa 0.2"
     with pytest.raises(InputDataError, match=f"line {n + 1}: cannot read 'Omega x.yz"):
         parse_zmap_log("\n".join(lines), "log")
+
+
+@pytest.mark.parametrize("old, new", [
+    ("pixel_size_mm: 0.014", "pixel_size_mm: abc"),
+    ('fiducials_mm:\n      "01": [-106.0, 106.0]', 'fiducials_mm:\n      - [-106.0, 106.0]'),
+    ("principal_point_mm: [0.0, 0.0]", "principal_point_mm: [0.0, 0.0, [1]]"),
+    ("format: orientation-project", "format: orientation-project\n  bad: [indent"),
+])
+def test_malformed_project_values_are_one_line(demo, tmp_path, old, new):
+    siena = Path(demo[1]["siena"])
+    text = (siena / "siena_project.yaml").read_text(encoding="utf-8")
+    assert old in text
+    bad = siena / "bad_project.yaml"  # beside the original: its relative paths work
+    bad.write_text(text.replace(old, new, 1), encoding="utf-8")
+    try:
+        code, _, err = cli("run", "orientation:footprints", "--PROJECT", bad, "--MEAN_HEIGHT",
+                           "300", "--OUTPUT", tmp_path / "f.gpkg")
+    finally:
+        bad.unlink()
+    assert code == 2 and "bad_project.yaml" in one_error(err), err
+    assert list(tmp_path.iterdir()) == []

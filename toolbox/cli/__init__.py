@@ -298,9 +298,13 @@ def batch_cmd(ctx: click.Context, pipeline: str, overwrite: bool, validate_only:
 
     extra = dict(v.split("=", 1) for v in variables if "=" in v)
     pipe = load_pipeline(pipeline, extra)
-    validate_pipeline(pipe, overwrite)  # values too: nothing is written if a later step is wrong
+    existing: list[Path] = []
+    # values too, before anything runs: nothing is written if a later step is wrong
+    validate_pipeline(pipe, overwrite, existing if validate_only else None)
     if validate_only:
-        click.echo(f"{pipeline}: {len(pipe.steps)} steps, valid")
+        note = f" ({len(existing)} outputs exist: pass --overwrite to replace them)" \
+            if existing else ""
+        click.echo(f"{pipeline}: {len(pipe.steps)} steps, valid{note}")
         return
     feedback = TerminalFeedback("batch", quiet=_apply_quiet(ctx, False))
     ACTIVE[0] = feedback
