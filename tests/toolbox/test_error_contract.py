@@ -21,6 +21,7 @@ import subprocess
 from pathlib import Path
 
 import pytest
+import trust_data
 from click.testing import CliRunner
 
 import toolbox
@@ -43,20 +44,15 @@ INPUT_TYPES = (VectorLayer, RasterLayer, File, MultipleLayers)
 
 # -- session data: the demo, run once ---------------------------------------------------------------
 @pytest.fixture(scope="session")
-def demo(tmp_path_factory):
+def demo():
     """(demo folder, {variable: value}, {algorithm: first demo step's params}, {(step, NAME):
     value})."""
-    from toolbox.batch import parse_pipeline, run_pipeline
     from toolbox.demo import demo_pipeline_doc
-    from toolbox.demo.samples import make_samples
 
-    out = tmp_path_factory.mktemp("contract_demo")
-    variables = {k: str(v) for k, v in make_samples(out / "data").items()} | {"out": str(out)}
-    doc = demo_pipeline_doc()
-    run_pipeline(parse_pipeline(doc, out, variables, "demo pipeline"), overwrite=True)
+    out, variables = trust_data.demo()
     steps: dict[str, dict] = {}
     values = {}
-    for raw in doc["steps"]:
+    for raw in demo_pipeline_doc()["steps"]:
         steps.setdefault(raw["algorithm"], raw.get("params") or {})
         for key, value in (raw.get("params") or {}).items():
             values[(raw["name"], key)] = value

@@ -16,6 +16,7 @@ import time
 from pathlib import Path
 
 import pytest
+import trust_data
 
 import toolbox
 from toolbox.errors import ToolboxError
@@ -67,13 +68,10 @@ def _mutate(data: bytes, rng: random.Random) -> bytes:
 
 @pytest.fixture(scope="module")
 def seeds(tmp_path_factory):
-    from toolbox.demo.samples import make_samples
-
+    demo_folder, made = trust_data.demo()
+    made = {k: Path(v) for k, v in made.items()}
     folder = tmp_path_factory.mktemp("fuzz_seeds")
-    made = make_samples(folder / "data")
-    transform = folder / "transform.json"
-    toolbox.run("rectify:estimate", {"INPUT": made["photo_gcps"], "CRS": "EPSG:3003",
-                                     "MODEL": "homography", "OUTPUT": transform})
+    transform = demo_folder / "rectify" / "photo_transform.json"
     pipeline = folder / "pipeline.yaml"
     pipeline.write_text(f"""variables:
   dem: {made['dem']}

@@ -16,6 +16,7 @@ import time
 from pathlib import Path
 
 import pytest
+import trust_data
 
 from toolbox.io.staging import OutputStaging, stale_staging_folders
 
@@ -23,10 +24,8 @@ SIGNALS = [signal.SIGINT, signal.SIGTERM, signal.SIGHUP, signal.SIGKILL]
 
 
 @pytest.fixture(scope="module")
-def mass_points(tmp_path_factory):
-    from toolbox.demo.samples import make_samples
-
-    return make_samples(tmp_path_factory.mktemp("signal_samples"))["mass_points"]
+def mass_points():
+    return Path(trust_data.demo()[1]["mass_points"])
 
 
 def _start(points: Path, output: Path) -> subprocess.Popen:
