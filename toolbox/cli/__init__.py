@@ -8,6 +8,7 @@ User mistakes print one line on stderr and exit with code 2; a canceled run (Ctr
 from __future__ import annotations
 
 import json
+import re
 import signal
 import sys
 import textwrap
@@ -18,7 +19,7 @@ from typing import Any
 
 import click
 
-from toolbox.cli.terminal import ACTIVE, TerminalFeedback, setup_logging
+from toolbox.cli.terminal import ACTIVE, STDERR_IS_TTY, TerminalFeedback, setup_logging
 from toolbox.errors import ParameterError, ToolboxError
 
 EXIT_USER_ERROR = 2
@@ -54,7 +55,7 @@ def _handle_errors(func: Callable) -> Callable:
     def wrapper(*args, **kwargs):
         where = kwargs.get("algorithm_id") or func.__name__.removesuffix("_cmd")
         try:
-            with _signals_as_interrupts():
+            with _signals_as_interrupts(), _native_stderr_filtered():
                 return func(*args, **kwargs)
         except KeyboardInterrupt as exc:
             if ACTIVE[0] is not None:
@@ -100,6 +101,59 @@ def _signals_as_interrupts():
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
+
+
+# what GDAL and libtiff print themselves on file descriptor 2 when a write or read fails; the
+# toolbox turns the failure into its own one-line error
+NATIVE_NOISE = re.compile(rb"^(_tiff\w*Proc|TIFF\w+|ERROR \d+): ")
+
+
+@contextmanager
+def _native_stderr_filtered():
+    """Pass everything written on stderr through, except the lines C libraries print directly
+    (``_tiffWriteProc: No space left on device.`` once per block): a failure is reported once,
+    as the toolbox's one-line error. ``TOOLBOX_DEBUG=1`` keeps them."""
+    import os
+    import threading
+
+    if os.environ.get("TOOLBOX_DEBUG"):
+        yield
+        return
+    try:
+        sys.stderr.flush()
+        saved = os.dup(2)
+    except (OSError, AttributeError, ValueError):  # no real stderr (embedded, closed)
+        yield
+        return
+    STDERR_IS_TTY[0] = os.isatty(saved)
+    read_end, write_end = os.pipe()
+    os.dup2(write_end, 2)
+    os.close(write_end)
+
+    def pump() -> None:
+        pending = b""
+        with os.fdopen(read_end, "rb", buffering=0) as pipe:
+            while chunk := pipe.read(65536):
+                *pieces, pending = re.split(rb"(?<=[\n\r])", pending + chunk)
+                for piece in pieces:
+                    if not NATIVE_NOISE.match(piece):
+                        os.write(saved, piece)
+        if pending and not NATIVE_NOISE.match(pending):
+            os.write(saved, pending)
+
+    thread = threading.Thread(target=pump, name="stderr-filter", daemon=True)
+    thread.start()
+    try:
+        yield
+    finally:
+        try:
+            sys.stderr.flush()
+        except (OSError, ValueError):
+            pass
+        os.dup2(saved, 2)  # closes the pipe's last write end: the pump sees the end
+        thread.join(timeout=10)
+        os.close(saved)
+        STDERR_IS_TTY[0] = None
 
 
 class OneLineErrorsGroup(click.Group):
