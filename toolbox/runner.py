@@ -27,7 +27,14 @@ from toolbox.algorithm import Algorithm
 from toolbox.errors import InputDataError, OutputExistsError, ParameterError, ToolboxError
 from toolbox.feedback import Feedback
 from toolbox.io.staging import OutputStaging, protected_paths, write_error
-from toolbox.parameters import Boolean, Number, OutputRaster, ValidationContext
+from toolbox.parameters import (
+    Boolean,
+    Number,
+    OutputRaster,
+    RasterLayer,
+    ValidationContext,
+    VectorLayer,
+)
 from toolbox.registry import get
 
 OVERWRITE = "OVERWRITE"
@@ -303,13 +310,21 @@ def _as_read_error(exc: Exception, gdal_messages: list[str], alg_cls: type[Algor
     module = type(exc).__module__ or ""
     if not module.startswith(READ_LIBRARIES):
         return None
-    detail = next((m for m in reversed(gdal_messages) if "failed" in m.lower()), str(exc))
-    detail = " ".join(detail.split())
+    detail = next((m for m in reversed(gdal_messages) if "failed" in m.lower()),
+                  gdal_messages[-1] if gdal_messages else str(exc))
+    detail = " ".join(detail.replace("GDAL signalled an error: ", "").split())
     text = " ".join([str(exc), *gdal_messages])
     for path, name in input_paths(alg_cls, values).items():
         if path.name in text:
             return InputDataError(f"{name}: cannot read '{path}': the file is truncated or "
                                   f"corrupt ({detail[:200]})")
+    kind = RasterLayer if module.startswith("rasterio") else VectorLayer
+    candidates = [p for p in alg_cls.parameters
+                  if isinstance(p, kind) and values.get(p.name) is not None]
+    if len(candidates) == 1:  # the only input that library reads
+        value = values[candidates[0].name]
+        return InputDataError(f"{candidates[0].name}: cannot read {value}: the file is truncated "
+                              f"or corrupt ({detail[:200]})")
     return InputDataError(f"cannot read an input: it is truncated or corrupt ({detail[:200]})")
 
 
