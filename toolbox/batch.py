@@ -194,8 +194,10 @@ def validate_pipeline(pipeline: Pipeline, overwrite: bool = False,
     ``overwrite`` (collected in ``existing`` instead when a list is given). Raises
     :class:`PipelineError` naming the step."""
     from toolbox.errors import OutputExistsError
+    from toolbox.io.crs import check_input_crs
     from toolbox.parameters import Field, ValidationContext
     from toolbox.registry import get
+    from toolbox.runner import check_magnitudes
 
     written: dict[Path, str] = {}  # output path -> "step.NAME"
     read: dict[Path, str] = {}  # input path -> "step.NAME"
@@ -236,8 +238,14 @@ def validate_pipeline(pipeline: Pipeline, overwrite: bool = False,
                         step_inputs[_abs(item)] = p.name
                 else:
                     ctx.values[p.name] = p.resolve(value, ctx)
+                    if not p.is_output and alg.projected_crs_only:
+                        check_input_crs(alg.id, p.name, ctx.values[p.name])
             except ToolboxError as exc:
                 raise fail(str(exc)) from None
+        try:
+            check_magnitudes(alg, ctx.values)
+        except ToolboxError as exc:
+            raise fail(str(exc)) from None
         for path, name in ctx.input_paths.items():
             step_inputs[path] = name
         for path, name in step_inputs.items():

@@ -83,7 +83,7 @@ def validate(algorithm: type[Algorithm] | str, parameters: dict[str, Any],
 
             check_input_crs(alg.id, p.name, ctx.values[p.name], warnings)
     values = {p.name: ctx.values[p.name] for p in alg.parameters}
-    _check_magnitudes(alg, values)
+    check_magnitudes(alg, values)
     _check_outputs_against_inputs(alg, values)
     alg().check(values)
     return values
@@ -92,7 +92,7 @@ def validate(algorithm: type[Algorithm] | str, parameters: dict[str, Any],
 TINY, HUGE = 1e-300, 1e150  # below (but not 0) / above: no computation with it is sound
 
 
-def _check_magnitudes(alg_cls: type[Algorithm], values: dict[str, Any]) -> None:
+def check_magnitudes(alg_cls: type[Algorithm], values: dict[str, Any]) -> None:
     """Refuse numbers no computation survives: subnormal ones (``1e-320``: a division by it
     overflows) and ones whose square overflows (``1e308``)."""
     for p in alg_cls.parameters:

@@ -583,3 +583,35 @@ def test_malformed_project_values_are_one_line(demo, tmp_path, old, new):
         bad.unlink()
     assert code == 2 and "bad_project.yaml" in one_error(err), err
     assert list(tmp_path.iterdir()) == []
+
+
+def test_coordinates_a_little_outside_the_area_of_use_warn(tmp_path):
+    """EPSG:3003 is for Italy west of 12°E: points at 13.5°E (1.5° out) are a warning, at 12.5°E
+    (within the margin) nothing, at 25°E an error."""
+    import geopandas as gpd
+    import numpy as np
+    import shapely
+
+    from toolbox.errors import InputDataError
+    from toolbox.feedback import Feedback
+
+    rng = np.random.default_rng(2)
+    warnings = {}
+    for lon in (12.5, 13.5, 25.0):
+        lonlat = gpd.GeoSeries(shapely.points(lon + rng.uniform(0, 0.01, 20),
+                                              43 + rng.uniform(0, 0.01, 20)), crs=4326)
+        xy = shapely.get_coordinates(lonlat.to_crs(3003).values)
+        frame = gpd.GeoDataFrame(geometry=shapely.points(xy[:, 0], xy[:, 1],
+                                                         rng.uniform(0, 9, 20)), crs=3003)
+        path = tmp_path / f"p{lon}.gpkg"
+        frame.to_file(path)
+        feedback = Feedback()
+        params = {"INPUT": path, "CELL_SIZE": 50, "OUTPUT": tmp_path / f"d{lon}.tif"}
+        if lon > 20:
+            with pytest.raises(InputDataError, match="outside the area of use of EPSG:3003"):
+                toolbox.run("dem:idw", params, feedback=feedback)
+            continue
+        toolbox.run("dem:idw", params, feedback=feedback)
+        warnings[lon] = [w for w in feedback.warnings if "area of use" in w]
+    assert warnings[12.5] == []
+    assert len(warnings[13.5]) == 1 and warnings[13.5][0].startswith("INPUT: coordinates")
