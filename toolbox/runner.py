@@ -129,12 +129,41 @@ def input_paths(alg_cls: type[Algorithm], values: dict[str, Any]) -> dict[Path, 
                 continue
             try:
                 candidate = Path(str(path).split("|", 1)[0]).expanduser()
-                if candidate.exists():
-                    for protected in protected_paths(candidate):
-                        out.setdefault(protected, p.name)
+                if candidate.is_file():
+                    for named in [candidate, *_referenced_files(candidate)]:
+                        for protected in protected_paths(named):
+                            out.setdefault(protected, p.name)
             except (OSError, ValueError):  # a string that is no path (too long, NUL...)
                 continue
     return out
+
+
+def _referenced_files(path: Path) -> list[Path]:
+    """Existing files a small YAML/JSON input names (a project's photos and orientation
+    files), relative to its folder: they are inputs too."""
+    if path.suffix.lower() not in (".yaml", ".yml", ".json") or path.stat().st_size > 1 << 20:
+        return []
+    try:
+        import yaml
+
+        doc = yaml.safe_load(path.read_text(encoding="utf-8", errors="replace"))
+    except Exception:  # noqa: BLE001 - unreadable: its reader reports it
+        return []
+    found, stack = [], [doc]
+    while stack:
+        item = stack.pop()
+        if isinstance(item, dict):
+            stack.extend(item.values())
+        elif isinstance(item, list):
+            stack.extend(item)
+        elif isinstance(item, str) and 0 < len(item) < 1024 and "\n" not in item:
+            try:
+                target = path.parent / Path(item).expanduser()
+                if target.is_file():
+                    found.append(target)
+            except (OSError, ValueError):
+                continue
+    return found
 
 
 def _check_outputs_against_inputs(alg_cls: type[Algorithm], values: dict[str, Any]) -> None:

@@ -615,3 +615,20 @@ def test_coordinates_a_little_outside_the_area_of_use_warn(tmp_path):
         warnings[lon] = [w for w in feedback.warnings if "area of use" in w]
     assert warnings[12.5] == []
     assert len(warnings[13.5]) == 1 and warnings[13.5][0].startswith("INPUT: coordinates")
+
+
+def test_files_a_project_names_are_inputs_too(demo, tmp_path):
+    """An output may not replace a file the project YAML refers to (an orientation file)."""
+    siena = tmp_path / "siena"
+    shutil.copytree(demo[1]["siena"], siena)
+    project = siena / "siena_project.yaml"
+    project.write_text(project.read_text(encoding="utf-8").replace(
+        "exterior_orientations:", "exterior_orientations:\n  - path: exterior_orientation.csv\n"
+        "    where: {run: strip1, stage: final}", 1), encoding="utf-8")
+    victim = siena / "exterior_orientation.csv"
+    before = victim.read_bytes()
+    code, _, err = cli("run", "orientation:interior", "--INPUT", siena / "fiducials.csv",
+                       "--PROJECT", project, "--SOURCE", "log_block", "--OUTPUT",
+                       tmp_path / "i.json", "--RESIDUALS", victim, "--overwrite")
+    assert code == 2 and "RESIDUALS" in one_error(err) and "is the input PROJECT" in err
+    assert victim.read_bytes() == before and not (tmp_path / "i.json").exists()
