@@ -141,8 +141,8 @@ class OutputStaging:
         return [(self._names[f], f, s) for f, s in self._staged.items()]
 
     def commit(self, overwrite: bool = True, protected: set[Path] | None = None) -> list[Path]:
-        """Move every staged file that was written (and its sidecars, e.g. ``.aux.xml``) into
-        place; return the final paths written.
+        """Move every staged file that was written and every file beside it in its private
+        staging folder (sidecars) into place; return the final paths written.
 
         Without ``overwrite`` a target that exists now (it appeared during the run) raises
         :class:`OutputExistsError` and nothing is moved. A target in ``protected`` (resolved
@@ -155,10 +155,10 @@ class OutputStaging:
             if not staged.exists():
                 continue
             name = self._names[final]
+            # the private folder holds this output's files only: the file, its sidecars
+            # (.aux.xml, a Shapefile's .shx/.dbf/.prj, per-layer files), all moved beside it
             for item in sorted(staged.parent.iterdir()):
-                if item.name.startswith(staged.name):
-                    target = final.parent / (final.name + item.name[len(staged.name):])
-                    moves.append((name, item, target))
+                moves.append((name, item, final.parent / item.name))
             done.append(final)
         for name, _, target in moves:
             if _is_protected(target, protected):
