@@ -84,6 +84,7 @@ def validate(algorithm: type[Algorithm] | str, parameters: dict[str, Any],
             check_input_crs(alg.id, p.name, ctx.values[p.name], warnings)
     values = {p.name: ctx.values[p.name] for p in alg.parameters}
     check_magnitudes(alg, values)
+    _check_band(alg, values)
     _check_outputs_against_inputs(alg, values)
     alg().check(values)
     return values
@@ -105,6 +106,16 @@ def check_magnitudes(alg_cls: type[Algorithm], values: dict[str, Any]) -> None:
         if abs(value) > HUGE:
             raise ParameterError(p.name, f"is too large to compute with, got {value:g} (at most "
                                  f"{HUGE:g})")
+
+
+def _check_band(alg_cls: type[Algorithm], values: dict[str, Any]) -> None:
+    """``BAND`` exists in the raster it reads (when the run has one raster input)."""
+    band = values.get("BAND")
+    rasters = [values[p.name] for p in alg_cls.parameters
+               if isinstance(p, RasterLayer) and values.get(p.name) is not None]
+    if isinstance(band, int) and len(rasters) == 1 and band > rasters[0].count:
+        raise ParameterError("BAND", f"must be <= {rasters[0].count} (bands of {rasters[0]}), "
+                             f"got {band}")
 
 
 # -- what the run reads and writes ----------------------------------------------------------------
