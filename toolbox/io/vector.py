@@ -181,6 +181,11 @@ def read_vector(source: Any, crs: Any = None, columns: list[str] | None = None,
                                            **ref.open_options)
         except Exception as exc:
             raise InputDataError(f"{name}: cannot read {ref}: {str(exc).splitlines()[0]}") from None
+    if not hasattr(frame, "geometry"):  # a table without geometry (CSV without X/Y columns)
+        import geopandas as gpd
+
+        frame = gpd.GeoDataFrame(frame, geometry=gpd.GeoSeries([None] * len(frame),
+                                                               index=frame.index))
     if crs is not None and frame.crs is None:
         frame = frame.set_crs(crs)
     return frame
