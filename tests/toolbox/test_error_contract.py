@@ -158,7 +158,7 @@ class Case:
         """Run ``toolbox run ID args`` and check the contract; return the error line."""
         before = self.snapshot()
         result = CliRunner().invoke(main, ["run", self.alg.id, *args])
-        stderr = result.stderr
+        stderr = self.last_stderr = result.stderr
         assert "Traceback" not in stderr and "internal error" not in stderr, stderr
         assert result.exit_code in ((0, 2) if may_succeed else (2,)), (args, result.exit_code,
                                                                        stderr, result.exception)
@@ -641,3 +641,38 @@ def test_files_a_project_names_are_inputs_too(demo, tmp_path):
                        tmp_path / "i.json", "--RESIDUALS", victim, "--overwrite")
     assert code == 2 and "RESIDUALS" in one_error(err) and "is the input PROJECT" in err
     assert victim.read_bytes() == before and not (tmp_path / "i.json").exists()
+
+
+@_cases()
+def test_nan_coordinates_no_crs_and_mixed_crs(case):
+    """Per vector input: a feature with NaN coordinates, the layer without a CRS, the layer
+    reprojected to another (valid) CRS. NaN and a missing CRS may be handled (exit 0) or refused
+    (exit 2); a CRS different from the other inputs' must be refused."""
+    import geopandas as gpd
+    import shapely
+
+    vectors = [p for p in case.input_params() if isinstance(p, VectorLayer)]
+    if not vectors:
+        pytest.skip("no vector input")
+    for p in vectors:
+        path = Path(str(case.params[p.name]).split("|")[0])
+        if path.suffix.lower() != ".gpkg":
+            continue
+        frame = gpd.read_file(path)
+        if frame.crs is None or not len(frame):
+            continue
+        coords = shapely.get_coordinates(frame.geometry.values, include_z=True)
+        coords[1] = float("nan")  # the second vertex: a ring stays closed
+        nan = frame.copy()
+        nan.geometry = shapely.set_coordinates(frame.geometry.values.copy(), coords)
+        variants = {"nan": nan, "no_crs": frame.set_crs(None, allow_override=True),
+                    "utm": frame.to_crs(32632)}
+        others = [q for q in case.input_params() if q is not p
+                  and isinstance(q, (VectorLayer, RasterLayer))
+                  and getattr(validate(case.alg, case.params)[q.name], "crs", None) is not None]
+        for label, variant in variants.items():
+            target = case.root / f"{label}_{p.name}.gpkg"
+            variant.to_file(target)
+            line = case.run(case.args(**{p.name: str(target)}), None, may_succeed=True)
+            if label == "utm" and others and not line:  # accepted: only if it said what it did
+                assert "EPSG:32632" in case.last_stderr, (p.name, case.last_stderr)
