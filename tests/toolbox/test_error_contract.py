@@ -676,3 +676,29 @@ def test_nan_coordinates_no_crs_and_mixed_crs(case):
             line = case.run(case.args(**{p.name: str(target)}), None, may_succeed=True)
             if label == "utm" and others and not line:  # accepted: only if it said what it did
                 assert "EPSG:32632" in case.last_stderr, (p.name, case.last_stderr)
+
+
+@_cases()
+def test_raster_without_crs_or_in_degrees(case):
+    """Per GeoTIFF input: without a CRS (may be handled), in EPSG:4326 (refused by every
+    algorithm that works in metres, naming the parameter)."""
+    import rasterio
+
+    rasters = [p for p in case.input_params() if isinstance(p, RasterLayer)
+               and Path(str(case.params[p.name])).suffix.lower() in (".tif", ".tiff")]
+    if not rasters:
+        pytest.skip("no GeoTIFF input")
+    for p in rasters:
+        source = Path(str(case.params[p.name]))
+        for label, crs in (("no_crs", None), ("degrees", "EPSG:4326")):
+            target = case.root / f"{label}_{p.name}.tif"
+            with rasterio.open(source) as src:
+                profile, data = src.profile, src.read()
+            profile.update(crs=crs)
+            if crs:  # degrees near Siena, a 1e-5 degree cell
+                profile.update(transform=rasterio.Affine(1e-5, 0, 11.3, 0, -1e-5, 43.3))
+            with rasterio.open(target, "w", **profile) as dst:
+                dst.write(data)
+            degrees = crs is not None and case.alg.projected_crs_only
+            case.run(case.args(**{p.name: str(target)}), p.name if degrees else None,
+                     may_succeed=not degrees)
