@@ -38,6 +38,11 @@ from toolbox.parameters import (
 )
 from toolbox.runner import validate
 
+pytestmark = [  # what the deliberately broken test data make the libraries say
+    pytest.mark.filterwarnings("ignore:'crs' was not provided:UserWarning"),
+    pytest.mark.filterwarnings("ignore:invalid value encountered in from_wkb:RuntimeWarning"),
+    pytest.mark.filterwarnings("ignore:GeoSeries.notna:UserWarning"),
+]
 ALGORITHMS = sorted(a.id for a in toolbox.algorithms() if not a.id.startswith("testing:"))
 INPUT_TYPES = (VectorLayer, RasterLayer, File, MultipleLayers)
 
