@@ -41,7 +41,9 @@ OVERWRITE = "OVERWRITE"
 REPORT = "--run-report"
 WRITE_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EROFS, errno.ENAMETOOLONG}
 WRITE_ERROR_WORDS = ("no space left", "disk is full", "file too large", "write error",
-                     "write failed", "read-only file system", "disk i/o error", "quota exceeded")
+                     "write failed", "read-only file system", "disk i/o error", "quota exceeded",
+                     "error while writing", "could not add feature", "failed to write",
+                     "cannot write", "error writing")
 
 
 def _pop_overwrite(parameters: dict[str, Any], overwrite: bool) -> tuple[dict[str, Any], bool]:

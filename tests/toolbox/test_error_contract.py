@@ -18,6 +18,7 @@ import random
 import re
 import shutil
 import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -707,3 +708,32 @@ def test_raster_without_crs_or_in_degrees(case):
             degrees = crs is not None and case.alg.projected_crs_only
             case.run(case.args(**{p.name: str(target)}), p.name if degrees else None,
                      may_succeed=not degrees)
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="RLIMIT_FSIZE fault injection")
+@pytest.mark.parametrize("args", [
+    ["raster:hillshade", "--INPUT", "{dem}", "--OUTPUT", "{out}/o.tif"],
+    ["rectify:image", "--INPUT", "{photo}", "--TRANSFORM", "{demo}/rectify/photo_transform.json",
+     "--CELL_SIZE", "1", "--OUTPUT", "{out}/o.tif"],
+    ["tin:delaunay", "--INPUT", "{mass_points}", "--OUTPUT", "{out}/o.gpkg"],
+], ids=lambda a: a[0])
+def test_a_write_that_fails_midway_is_one_line(demo, tmp_path, args):
+    """A file-size limit (works without root, unlike a full tmpfs) makes every write past 20 kB
+    fail, as a full disk does: exit 2, one line naming OUTPUT, nothing left."""
+    import resource
+    import signal
+
+    def limit():
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+        resource.setrlimit(resource.RLIMIT_FSIZE, (20_000, 20_000))
+
+    out = tmp_path / "out"
+    names = {**demo[1], "demo": demo[0], "out": out}
+    proc = subprocess.run([sys.executable, "-m", "toolbox.cli", "run",
+                           *[a.format(**names) for a in args]], preexec_fn=limit,
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 2, proc.stderr
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("toolbox: error: cannot write OUTPUT"), \
+        proc.stderr
+    assert not out.exists() or list(out.iterdir()) == []
