@@ -737,3 +737,29 @@ def test_a_write_that_fails_midway_is_one_line(demo, tmp_path, args):
     assert len(lines) == 1 and lines[0].startswith("toolbox: error: cannot write OUTPUT"), \
         proc.stderr
     assert not out.exists() or list(out.iterdir()) == []
+
+
+def test_commit_main_file_first_and_stale_sidecars_replaced(tmp_path):
+    from toolbox.errors import OutputExistsError
+    from toolbox.io.staging import OutputStaging
+
+    final = tmp_path / "a.tif"
+    (tmp_path / "a.tif.aux.xml").write_text("stale statistics of a deleted a.tif")
+    staging = OutputStaging()
+    staged = staging.stage(final)
+    staged.write_text("new")
+    (staged.parent / "a.tif.aux.xml").write_text("new statistics")
+    assert staging.commit(overwrite=False) == [final]
+    assert (tmp_path / "a.tif.aux.xml").read_text() == "new statistics"
+    # a main file that appeared meanwhile: nothing of this run is moved, not even its sidecar
+    other = tmp_path / "b.tif"
+    staging = OutputStaging()
+    staged = staging.stage(other)
+    staged.write_text("mine")
+    (staged.parent / "b.tif.aux.xml").write_text("mine")
+    other.write_text("theirs")
+    with pytest.raises(OutputExistsError):
+        staging.commit(overwrite=False)
+    staging.rollback()
+    assert other.read_text() == "theirs" and not (tmp_path / "b.tif.aux.xml").exists()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.tif", "a.tif.aux.xml", "b.tif"]

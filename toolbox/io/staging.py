@@ -149,29 +149,29 @@ class OutputStaging:
         input paths) is refused whatever ``overwrite`` says.
         """
         protected = protected or set()
-        moves: list[tuple[str, Path, Path]] = []  # name, source, target
+        moves: list[tuple[str, Path, Path, bool]] = []  # name, source, target, main file?
         done = []
         for final, staged in self._staged.items():
             if not staged.exists():
                 continue
             name = self._names[final]
-            # the private folder holds this output's files only: the file, its sidecars
-            # (.aux.xml, a Shapefile's .shx/.dbf/.prj, per-layer files), all moved beside it
-            for item in sorted(staged.parent.iterdir()):
-                moves.append((name, item, final.parent / item.name))
+            # the private folder holds this output's files only: the file first, then its
+            # sidecars (.aux.xml, a Shapefile's .shx/.dbf/.prj, per-layer files)
+            items = sorted(staged.parent.iterdir(), key=lambda i: (i != staged, i.name))
+            moves += [(name, item, final.parent / item.name, item == staged) for item in items]
             done.append(final)
-        for name, _, target in moves:
+        for name, _, target, main in moves:
             if _is_protected(target, protected):
                 raise ParameterError(name, f"'{target}' is an input (or an input's sidecar); an "
                                      "input is never overwritten: choose another output path")
-            if not overwrite and os.path.lexists(target):
+            if main and not overwrite and os.path.lexists(target):
                 raise OutputExistsError(name, f"'{target}' appeared during the run (another run "
                                         "wrote it?); pass --overwrite to replace it")
         created: list[Path] = []
         try:
-            for name, item, target in moves:
+            for name, item, target, main in moves:
                 try:
-                    if overwrite:
+                    if overwrite or not main:  # a sidecar of a new file: a stale one goes
                         os.replace(item, target)
                     else:
                         _move_no_replace(item, target)
