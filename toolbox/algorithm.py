@@ -57,6 +57,9 @@ class Algorithm:
     short_help: ClassVar[str] = ""
     parameters: ClassVar[list[Parameter]] = []
     outputs: ClassVar[list[Output]] = []
+    # the algorithm works in metres (cell sizes, tolerances, slopes, volumes): the runner refuses
+    # inputs in a geographic CRS and coordinates far outside their CRS's area of use
+    projected_crs_only: ClassVar[bool] = True
 
     # -- spec --------------------------------------------------------------------------------------
     @classmethod

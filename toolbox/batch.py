@@ -31,6 +31,7 @@ from typing import Any
 
 from toolbox.errors import PipelineError, ToolboxError
 from toolbox.feedback import Feedback
+from toolbox.io.text import yaml_error_line
 from toolbox.parameters import Destination, File, MultipleLayers, RasterLayer, VectorLayer
 
 REF_RE = re.compile(r"\$\{([A-Za-z_][A-Za-z0-9_]*)(?:\.([A-Z][A-Z0-9_]*))?\}")
@@ -58,9 +59,14 @@ def load_pipeline(path: str | Path, variables: dict[str, Any] | None = None) -> 
 
     path = Path(path)
     try:
-        doc = yaml.safe_load(path.read_text())
-    except (OSError, yaml.YAMLError) as exc:
-        raise PipelineError(f"cannot read pipeline {path}: {exc}") from None
+        doc = yaml.safe_load(path.read_text(encoding="utf-8"))
+    except OSError as exc:
+        raise PipelineError(f"cannot read pipeline {path}: {exc.strerror or exc}") from None
+    except UnicodeDecodeError as exc:
+        raise PipelineError(f"cannot read pipeline {path}: not UTF-8 text (byte "
+                            f"{exc.start}); save it as UTF-8") from None
+    except yaml.YAMLError as exc:
+        raise PipelineError(f"cannot read pipeline {path}: {yaml_error_line(exc)}") from None
     return parse_pipeline(doc, path.parent, variables, str(path))
 
 
@@ -70,7 +76,11 @@ def parse_pipeline(doc: Any, base_dir: Path, variables: dict[str, Any] | None = 
 
     if not isinstance(doc, dict) or not isinstance(doc.get("steps"), list) or not doc["steps"]:
         raise PipelineError(f"{source}: expected a mapping with a non-empty 'steps' list")
-    values = dict(doc.get("variables") or {})
+    raw_variables = doc.get("variables") or {}
+    if not isinstance(raw_variables, dict):
+        raise PipelineError(f"{source}: 'variables' must be a mapping of NAME: value, got "
+                            f"{type(raw_variables).__name__}")
+    values = {str(k): v for k, v in raw_variables.items()}
     values.update(variables or {})
     steps: list[Step] = []
     available: dict[str, set[str]] = {}
@@ -89,7 +99,7 @@ def parse_pipeline(doc: Any, base_dir: Path, variables: dict[str, Any] | None = 
             raise PipelineError(f"{source}: step {name!r}: 'params' must be a mapping")
         known = {n for p in alg.parameters for n in (p.name, *p.deprecated_names)} | {"OVERWRITE"}
         for key, value in params.items():
-            if key not in known:
+            if not isinstance(key, str) or key not in known:
                 raise PipelineError(f"{source}: step {name!r}: {key} is not a parameter of "
                                     f"{alg.id}; its parameters are: "
                                     f"{', '.join(p.name for p in alg.parameters)}")
@@ -173,3 +183,106 @@ def run_pipeline(pipeline: Pipeline, feedback: Feedback | None = None, overwrite
         scope[step.name] = outputs
         results[step.name] = outputs
     return results
+
+
+# -- value validation (``toolbox batch --validate`` and before a CLI batch run) -----------------
+def validate_pipeline(pipeline: Pipeline, overwrite: bool = False,
+                      existing: list[Path] | None = None) -> None:
+    """Check every step's values before anything runs: ranges, enums and types, inputs that
+    exist (or that an earlier step writes), references to optional outputs left unset, two steps
+    writing one file, a step writing its own or an earlier step's input, existing outputs without
+    ``overwrite`` (collected in ``existing`` instead when a list is given). Raises
+    :class:`PipelineError` naming the step."""
+    from toolbox.errors import OutputExistsError
+    from toolbox.io.crs import check_input_crs
+    from toolbox.parameters import Field, ValidationContext
+    from toolbox.registry import get
+    from toolbox.runner import check_magnitudes
+
+    written: dict[Path, str] = {}  # output path -> "step.NAME"
+    read: dict[Path, str] = {}  # input path -> "step.NAME"
+    outputs_of: dict[str, dict[str, Any]] = {}  # step -> {NAME: final path or True}
+    for step in pipeline.steps:
+        alg = get(step.algorithm)
+
+        def fail(message: str, step=step, alg=alg) -> PipelineError:
+            return PipelineError(f"step {step.name!r} ({alg.id}): {message}")
+
+        ctx = ValidationContext(overwrite=True)
+        resolved_all = True
+        step_inputs: dict[Path, str] = {}
+        for p in [q for q in alg.parameters if not q.is_output] + alg.destinations():
+            raw = step.params.get(p.name)
+            refs = [r for r in _references(raw) if r[1] is not None]
+            for ref_step, ref_out in refs:
+                target = outputs_of.get(ref_step, {}).get(ref_out)
+                if target is None:
+                    raise fail(f"{p.name} uses ${{{ref_step}.{ref_out}}}, but step {ref_step!r} "
+                               f"does not set its optional output {ref_out}")
+                if isinstance(target, Path) and not p.is_output:
+                    step_inputs[target] = p.name
+            if refs:
+                resolved_all = False
+                continue
+            value = _substitute(raw, pipeline.variables) if raw is not None else None
+            if isinstance(p, PATH_TYPES) and value is not None:
+                value = _absolutise(value, pipeline.base_dir)
+            try:
+                if p.is_output:
+                    ctx.values[p.name] = p.resolve(value, ctx)
+                elif isinstance(p, Field) and ctx.values.get(p.parent) is None:
+                    resolved_all = False
+                elif value is not None and _later_file(value, written):
+                    resolved_all = False  # an earlier step writes it: checked when it runs
+                    for item in value if isinstance(value, list) else [value]:
+                        step_inputs[_abs(item)] = p.name
+                else:
+                    ctx.values[p.name] = p.resolve(value, ctx)
+                    if not p.is_output and alg.projected_crs_only:
+                        check_input_crs(alg.id, p.name, ctx.values[p.name])
+            except ToolboxError as exc:
+                raise fail(str(exc)) from None
+        try:
+            check_magnitudes(alg, ctx.values)
+        except ToolboxError as exc:
+            raise fail(str(exc)) from None
+        for path, name in ctx.input_paths.items():
+            step_inputs[path] = name
+        for path, name in step_inputs.items():
+            read.setdefault(path, f"{step.name}.{name}")
+        outputs_of[step.name] = {o.name: True for o in alg.outputs}
+        for dest in alg.destinations():
+            final = ctx.values.get(dest.name)
+            if final is None:
+                continue
+            path = _abs(final)
+            if path in step_inputs:
+                raise fail(f"{dest.name} '{final}' is also this step's input "
+                           f"{step_inputs[path]}")
+            if path in read:
+                raise fail(f"{dest.name} '{final}' is the input {read[path]} of an earlier step;"
+                           " an input is never overwritten")
+            if path in written:
+                raise fail(f"{dest.name} '{final}' is also written by {written[path]}")
+            if path.exists() and not overwrite and existing is not None:
+                existing.append(path)
+            elif path.exists() and not overwrite:
+                raise fail(str(OutputExistsError(dest.name, f"'{final}' exists; pass --overwrite "
+                                                 "to replace it")))
+            written[path] = f"{step.name}.{dest.name}"
+            outputs_of[step.name][dest.name] = path
+        if resolved_all:
+            try:
+                alg().check({p.name: ctx.values.get(p.name) for p in alg.parameters})
+            except ToolboxError as exc:
+                raise fail(str(exc)) from None
+
+
+def _abs(value: Any) -> Path:
+    text = str(getattr(value, "path", value)).split("|", 1)[0]
+    return Path(text).expanduser().resolve()
+
+
+def _later_file(value: Any, written: dict[Path, str]) -> bool:
+    items = value if isinstance(value, list) else [value]
+    return any(isinstance(v, (str, Path)) and _abs(v) in written for v in items)

@@ -48,3 +48,17 @@ class ConvergenceError(ToolboxError, ArithmeticError):
 
 class PipelineError(ToolboxError):
     """A batch pipeline file is malformed or a step reference cannot be resolved."""
+
+
+class OutputWriteError(ToolboxError, OSError):
+    """An output could not be written (no space left, read-only folder, name too long...).
+
+    Nothing was committed: the previous file, if any, is untouched.
+    """
+
+    def __init__(self, message: str):
+        Exception.__init__(self, message)
+
+    def __str__(self) -> str:
+        return str(self.args[0]) if self.args else ""
+

@@ -1,4 +1,11 @@
-"""Runner: validate parameters -> execute -> move outputs into place -> optional JSON report.
+"""Runner: validate parameters -> execute -> check and move outputs into place -> JSON report.
+
+Promises kept here, for every algorithm: an input is never overwritten (every path the run
+writes, report and sidecars included, is compared with every input after resolving symlinks and
+``..``, whatever ``overwrite`` says); a failed, canceled or interrupted run leaves nothing (no
+staged file, no output folder it created); a write error (full disk, read-only folder) is one
+:class:`~toolbox.errors.OutputWriteError`; a raster output without a single valid cell is an
+error, not an all-nodata file.
 
 >>> import toolbox
 >>> toolbox.run("dem:hillshade", {"INPUT": "dem.tif", "OUTPUT": "hs.tif"})  # doctest: +SKIP
@@ -7,18 +14,36 @@
 
 from __future__ import annotations
 
+import errno
+import json
+import logging
+import os
 import time
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
 from toolbox.algorithm import Algorithm
-from toolbox.errors import ParameterError
+from toolbox.errors import InputDataError, OutputExistsError, ParameterError, ToolboxError
 from toolbox.feedback import Feedback
-from toolbox.io.staging import OutputStaging
-from toolbox.parameters import Boolean, ValidationContext
+from toolbox.io.staging import OutputStaging, protected_paths, write_error
+from toolbox.parameters import (
+    Boolean,
+    Number,
+    OutputRaster,
+    RasterLayer,
+    ValidationContext,
+    VectorLayer,
+)
 from toolbox.registry import get
 
 OVERWRITE = "OVERWRITE"
+REPORT = "--run-report"
+WRITE_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EROFS, errno.ENAMETOOLONG}
+WRITE_ERROR_WORDS = ("no space left", "disk is full", "file too large", "write error",
+                     "write failed", "read-only file system", "disk i/o error", "quota exceeded",
+                     "error while writing", "could not add feature", "failed to write",
+                     "cannot write", "error writing")
 
 
 def _pop_overwrite(parameters: dict[str, Any], overwrite: bool) -> tuple[dict[str, Any], bool]:
@@ -29,29 +54,165 @@ def _pop_overwrite(parameters: dict[str, Any], overwrite: bool) -> tuple[dict[st
 
 
 def validate(algorithm: type[Algorithm] | str, parameters: dict[str, Any],
-             overwrite: bool = False) -> dict[str, Any]:
+             overwrite: bool = False, warnings: list[str] | None = None) -> dict[str, Any]:
     """Validate ``parameters`` for an algorithm; return the normalised values.
 
-    Unknown names, missing required values and bad values raise :class:`ParameterError`.
+    Unknown names, missing required values and bad values raise :class:`ParameterError`; so do
+    outputs that would replace an input and, for algorithms working in metres, geographic CRSs.
+    Coordinates a little outside their CRS's area of use add a message to ``warnings``.
     Nothing is written.
     """
     alg = get(algorithm) if isinstance(algorithm, str) else algorithm
-    params, overwrite = _pop_overwrite(alg.rename_deprecated(parameters), overwrite)
+    params, overwrite = _pop_overwrite(parameters, overwrite)
+    if not isinstance(params, dict):
+        raise ParameterError("", f"parameters must be a mapping of NAME: value, got {params!r}")
+    params = alg.rename_deprecated(params)
     known = {p.name for p in alg.parameters}
-    unknown = sorted(set(params) - known)
+    unknown = sorted(set(params) - known, key=str)
     if unknown:
-        raise ParameterError(unknown[0], f"is not a parameter of {alg.id}; its parameters are: "
-                             f"{', '.join(p.name for p in alg.parameters)}")
+        raise ParameterError(str(unknown[0]), f"is not a parameter of {alg.id}; its parameters "
+                             f"are: {', '.join(p.name for p in alg.parameters)}")
     ctx = ValidationContext(overwrite=overwrite)
     # inputs first (so outputs can be checked against every input path), in declaration order
     ordered = [p for p in alg.parameters if not p.is_output] + alg.destinations()
     for p in ordered:
-        ctx.values[p.name] = p.resolve(params.get(p.name), ctx)
+        try:
+            ctx.values[p.name] = p.resolve(params.get(p.name), ctx)
+        except OSError as exc:  # a path the system refuses (name too long, a file as folder...)
+            raise ParameterError(p.name, f"cannot use {params.get(p.name)!r}: "
+                                 f"{exc.strerror or exc}") from None
+        if not p.is_output and alg.projected_crs_only:
+            from toolbox.io.crs import check_input_crs
+
+            check_input_crs(alg.id, p.name, ctx.values[p.name], warnings)
     values = {p.name: ctx.values[p.name] for p in alg.parameters}
+    check_magnitudes(alg, values)
+    _check_band(alg, values)
+    _check_outputs_against_inputs(alg, values)
     alg().check(values)
     return values
 
 
+TINY, HUGE = 1e-300, 1e150  # below (but not 0) / above: no computation with it is sound
+
+
+def check_magnitudes(alg_cls: type[Algorithm], values: dict[str, Any]) -> None:
+    """Refuse numbers no computation survives: subnormal ones (``1e-320``: a division by it
+    overflows) and ones whose square overflows (``1e308``)."""
+    for p in alg_cls.parameters:
+        value = values.get(p.name)
+        if not isinstance(p, Number) or not isinstance(value, (int, float)) or value == 0:
+            continue
+        if abs(value) < TINY:
+            raise ParameterError(p.name, f"is too small to compute with, got {value:g}; use 0 "
+                                 f"or a value of at least {TINY:g}")
+        if abs(value) > HUGE:
+            raise ParameterError(p.name, f"is too large to compute with, got {value:g} (at most "
+                                 f"{HUGE:g})")
+
+
+def _check_band(alg_cls: type[Algorithm], values: dict[str, Any]) -> None:
+    """``BAND`` exists in the raster it reads (when the run has one raster input)."""
+    band = values.get("BAND")
+    rasters = [values[p.name] for p in alg_cls.parameters
+               if isinstance(p, RasterLayer) and values.get(p.name) is not None]
+    if isinstance(band, int) and len(rasters) == 1 and band > rasters[0].count:
+        raise ParameterError("BAND", f"must be <= {rasters[0].count} (bands of {rasters[0]}), "
+                             f"got {band}")
+
+
+# -- what the run reads and writes ----------------------------------------------------------------
+def _flatten(value: Any):
+    if isinstance(value, (list, tuple)):
+        for item in value:
+            yield from _flatten(item)
+    elif value is not None:
+        yield value
+
+
+def input_paths(alg_cls: type[Algorithm], values: dict[str, Any]) -> dict[Path, str]:
+    """Every file the inputs name (whatever the parameter type) and their sidecars, resolved ->
+    parameter name."""
+    out: dict[Path, str] = {}
+    for p in alg_cls.parameters:
+        if p.is_output:
+            continue
+        for item in _flatten(values.get(p.name)):
+            path = getattr(item, "path", item)
+            if not isinstance(path, (str, Path)) or not str(path).strip():
+                continue
+            try:
+                candidate = Path(str(path).split("|", 1)[0]).expanduser()
+                if candidate.is_file():
+                    for named in [candidate, *_referenced_files(candidate)]:
+                        for protected in protected_paths(named):
+                            out.setdefault(protected, p.name)
+            except (OSError, ValueError):  # a string that is no path (too long, NUL...)
+                continue
+    return out
+
+
+def _referenced_files(path: Path) -> list[Path]:
+    """Existing files a small YAML/JSON input names (a project's photos and orientation
+    files), relative to its folder: they are inputs too."""
+    if path.suffix.lower() not in (".yaml", ".yml", ".json") or path.stat().st_size > 1 << 20:
+        return []
+    try:
+        import yaml
+
+        doc = yaml.safe_load(path.read_text(encoding="utf-8", errors="replace"))
+    except Exception:  # noqa: BLE001 - unreadable: its reader reports it
+        return []
+    found, stack = [], [doc]
+    while stack:
+        item = stack.pop()
+        if isinstance(item, dict):
+            stack.extend(item.values())
+        elif isinstance(item, list):
+            stack.extend(item)
+        elif isinstance(item, str) and 0 < len(item) < 1024 and "\n" not in item:
+            try:
+                target = path.parent / Path(item).expanduser()
+                if target.is_file():
+                    found.append(target)
+            except (OSError, ValueError):
+                continue
+    return found
+
+
+def _check_outputs_against_inputs(alg_cls: type[Algorithm], values: dict[str, Any]) -> None:
+    inputs = input_paths(alg_cls, values)
+    for dest in alg_cls.destinations():
+        final = values.get(dest.name)
+        if final is None:
+            continue
+        resolved = Path(final).expanduser().resolve()
+        if resolved in inputs:
+            raise ParameterError(dest.name, f"'{final}' is the input {inputs[resolved]} (or one "
+                                 "of its files); an input is never overwritten: choose another "
+                                 "output path")
+
+
+def _check_report(report: str | Path, alg_cls: type[Algorithm], values: dict[str, Any],
+                  overwrite: bool) -> Path:
+    path = Path(report).expanduser()
+    resolved = path.resolve()
+    inputs = input_paths(alg_cls, values)
+    if resolved in inputs:
+        raise ParameterError(REPORT, f"'{report}' is the input {inputs[resolved]} (or one of its "
+                             "files); an input is never overwritten: choose another report path")
+    for dest in alg_cls.destinations():
+        final = values.get(dest.name)
+        if final is not None and Path(final).expanduser().resolve() == resolved:
+            raise ParameterError(REPORT, f"'{report}' is also the output {dest.name}")
+    if path.is_dir():
+        raise ParameterError(REPORT, f"'{report}' is a folder, expected a file path")
+    if path.exists() and not overwrite:
+        raise OutputExistsError(REPORT, f"'{report}' exists; pass --overwrite to replace it")
+    return path
+
+
+# -- run ------------------------------------------------------------------------------------------
 def run(algorithm_id: str, parameters: dict[str, Any] | None = None,
         feedback: Feedback | None = None, overwrite: bool = False,
         report: str | Path | None = None) -> dict[str, Any]:
@@ -67,50 +228,203 @@ def run(algorithm_id: str, parameters: dict[str, Any] | None = None,
     feedback : Feedback, optional
         Progress, messages and cancellation. A silent one is used by default.
     overwrite : bool
-        Replace existing outputs (otherwise an existing output is an error).
+        Replace existing outputs (otherwise an existing output is an error). Inputs are never
+        replaced.
     report : path, optional
         Write a JSON run report (parameters, versions, timings, outputs, warnings) there.
 
     Raises
     ------
     ToolboxError
-        For every problem the user can fix (bad parameters, unreadable inputs...). No output is
-        left behind when a run fails or is canceled.
+        For every problem the user can fix (bad parameters, unreadable inputs, a full disk...).
+        No output is left behind when a run fails or is canceled.
     """
     feedback = (feedback or Feedback()).step(0, 100)  # run-local messages and timings
     alg_cls = get(algorithm_id)
     started = time.time()
     t0 = time.perf_counter()
     params, overwrite = _pop_overwrite(parameters or {}, overwrite)
-    values = validate(alg_cls, params, overwrite)
+    crs_warnings: list[str] = []
+    values = validate(alg_cls, params, overwrite, crs_warnings)
+    for text in crs_warnings:
+        feedback.push_warning(text)
+    protected = set(input_paths(alg_cls, values))
+    report_path = None if report is None else _check_report(report, alg_cls, values, overwrite)
     staging = OutputStaging()
-    report_path = None
-    if report is not None:
-        report_path = Path(report).expanduser()
-        for dest_value in values.values():
-            if isinstance(dest_value, Path) and dest_value.absolute() == report_path.absolute():
-                raise ParameterError("run report", f"'{report}' is also an output path")
-        if report_path.exists() and not overwrite:
-            raise ParameterError("run report", f"'{report}' exists; pass --overwrite to replace it")
-    staged = dict(values)
-    for dest in alg_cls.destinations():
-        if values[dest.name] is not None:
-            staged[dest.name] = staging.stage(values[dest.name])
     try:
+        staged = dict(values)
+        for dest in alg_cls.destinations():
+            if values[dest.name] is not None:
+                staged[dest.name] = staging.stage(values[dest.name], dest.name)
+        staged_report = None if report_path is None else staging.stage(report_path, REPORT)
+        for folder in staging.removed_stale:
+            feedback.push_warning(f"removed {folder}: the staging folder of an earlier run that "
+                                  "was killed")
         feedback.set_progress(0)
-        result = alg_cls().process(staged, feedback) or {}
+        with _gdal_errors() as gdal_errors:
+            try:
+                result = alg_cls().process(staged, feedback) or {}
+            except (ToolboxError, KeyboardInterrupt):
+                raise
+            except Exception as exc:
+                converted = _as_write_error(exc, staging) or _as_read_error(
+                    exc, gdal_errors, alg_cls, values)
+                if converted is None:
+                    raise
+                raise converted from None
         feedback.check_canceled()
-        written = set(staging.commit())
+        _check_gdal_errors(gdal_errors, staging)
+        _check_raster_outputs(alg_cls, values, staging)
+        written = {final for _, final, staged_file in staging.items() if staged_file.exists()}
+        outputs = _final_outputs(alg_cls, values, result, written)
+        feedback.set_progress(100)
+        if staged_report is not None:
+            from toolbox.report import build_report, to_jsonable
+
+            doc = build_report(alg_cls, values, to_jsonable(outputs), feedback, started,
+                               time.perf_counter() - t0)
+            try:
+                staged_report.write_text(json.dumps(doc, indent=2) + "\n")
+            except OSError as exc:
+                raise write_error(exc, REPORT, report_path) from None
+        staging.commit(overwrite=overwrite, protected=protected)
     finally:
         staging.rollback()
-    outputs = _final_outputs(alg_cls, values, result, written)
-    feedback.set_progress(100)
-    if report_path is not None:
-        from toolbox.report import write_report
-
-        write_report(report_path, alg_cls, values, outputs, feedback, started,
-                     time.perf_counter() - t0)
     return outputs
+
+
+# -- write-error detection -------------------------------------------------------------------------
+def _which_output(text: str, staging: OutputStaging) -> tuple[str, Path] | None:
+    """The output a failure message is about: named in it, the only one, or the one being
+    written (the staged file modified last)."""
+    items = staging.items()
+    for name, final, staged in items:
+        if str(staged.parent) in text or str(final) in text:
+            return name, final
+    if len(items) == 1:
+        return items[0][0], items[0][1]
+    started = [(staged.stat().st_mtime, name, final) for name, final, staged in items
+               if staged.exists()]
+    if started:
+        _, name, final = max(started)
+        return name, final
+    return (items[0][0], items[0][1]) if items else None
+
+
+def _disk_full(staging: OutputStaging) -> bool:
+    """Whether a filesystem holding a staged output has (almost) no free space left."""
+    for _, _, staged in staging.items():
+        try:
+            st = os.statvfs(staged.parent)
+        except OSError:
+            continue
+        if st.f_bavail * st.f_frsize < 64 * 1024:
+            return True
+    return False
+
+
+def _as_write_error(exc: Exception, staging: OutputStaging) -> ToolboxError | None:
+    """A one-line :class:`OutputWriteError` when ``exc`` is a failed write of an output (also
+    when a driver hides ENOSPC behind another message: the free space is checked)."""
+    text = " ".join(str(a) for a in (exc, getattr(exc, "filename", None),
+                                     exc.__cause__, exc.__context__) if a)
+    full = _disk_full(staging)
+    is_write = full or (isinstance(exc, OSError) and exc.errno in WRITE_ERRNOS) or any(
+        word in text.lower() for word in WRITE_ERROR_WORDS)
+    in_staging = any(str(staged.parent) in text for _, _, staged in staging.items())
+    if not (is_write or (isinstance(exc, OSError) and in_staging)):
+        return None
+    name, final = _which_output(text, staging) or ("OUTPUT", "")
+    if full or "no space left" in text.lower() or "disk is full" in text.lower():
+        return write_error(OSError(errno.ENOSPC, "No space left on device"), name, final)
+    if isinstance(exc, OSError) and exc.errno is not None:
+        return write_error(exc, name, final)
+    return write_error(OSError(errno.EIO, str(exc).splitlines()[0] if str(exc) else "I/O error"),
+                       name, final)
+
+
+READ_LIBRARIES = ("rasterio", "pyogrio", "fiona", "sqlite3", "PIL", "cv2")
+
+
+def _as_read_error(exc: Exception, gdal_messages: list[str], alg_cls: type[Algorithm],
+                   values: dict[str, Any]) -> ToolboxError | None:
+    """An :class:`InputDataError` naming the input when a reading library failed on it (a
+    truncated or corrupt GeoTIFF/JPEG whose header opens, a damaged GeoPackage)."""
+    module = type(exc).__module__ or ""
+    if not module.startswith(READ_LIBRARIES):
+        return None
+    detail = next((m for m in reversed(gdal_messages) if "failed" in m.lower()),
+                  gdal_messages[-1] if gdal_messages else str(exc))
+    detail = " ".join(detail.replace("GDAL signalled an error: ", "").split())
+    text = " ".join([str(exc), *gdal_messages])
+    for path, name in input_paths(alg_cls, values).items():
+        if path.name in text:
+            return InputDataError(f"{name}: cannot read '{path}': the file is truncated or "
+                                  f"corrupt ({detail[:200]})")
+    kind = RasterLayer if module.startswith("rasterio") else VectorLayer
+    candidates = [p for p in alg_cls.parameters
+                  if isinstance(p, kind) and values.get(p.name) is not None]
+    if len(candidates) == 1:  # the only input that library reads
+        value = values[candidates[0].name]
+        return InputDataError(f"{candidates[0].name}: cannot read {value}: the file is truncated "
+                              f"or corrupt ({detail[:200]})")
+    return InputDataError(f"cannot read an input: it is truncated or corrupt ({detail[:200]})")
+
+
+class _ErrorLog(logging.Handler):
+    def __init__(self) -> None:
+        super().__init__(logging.INFO)
+        self.messages: list[str] = []
+
+    def emit(self, record: logging.LogRecord) -> None:
+        text = record.getMessage()
+        if record.levelno >= logging.ERROR or "signalled an error" in text:
+            self.messages.append(text)
+
+
+@contextmanager
+def _gdal_errors():
+    """Collect the errors GDAL reports through rasterio's logger while the algorithm runs (some
+    write failures are only logged)."""
+    logger = logging.getLogger("rasterio")
+    handler = _ErrorLog()
+    previous = logger.level
+    logger.addHandler(handler)
+    if logger.getEffectiveLevel() > logging.INFO:
+        logger.setLevel(logging.INFO)
+    try:
+        yield handler.messages
+    finally:
+        logger.removeHandler(handler)
+        logger.setLevel(previous)
+
+
+def _check_gdal_errors(messages: list[str], staging: OutputStaging) -> None:
+    for text in messages:
+        if any(word in text.lower() for word in WRITE_ERROR_WORDS):
+            converted = _as_write_error(OSError(errno.EIO, text), staging)
+            if converted is not None:
+                raise converted
+
+
+def _check_raster_outputs(alg_cls: type[Algorithm], values: dict[str, Any],
+                          staging: OutputStaging) -> None:
+    """Every raster output is complete (its TIFF blocks lie inside the file) and has at least
+    one valid cell."""
+    for dest in alg_cls.destinations():
+        if not isinstance(dest, OutputRaster) or values.get(dest.name) is None:
+            continue
+        staged = staging.staged_path(values[dest.name])
+        if staged is None or not staged.exists():
+            continue
+        from toolbox.io.raster import verify_written_raster
+
+        problem = verify_written_raster(staged)
+        if problem == "empty":
+            raise InputDataError(f"{dest.name} would have no valid cell (every cell is nodata): "
+                                 "check that EXTENT, TEMPLATE, MASK and CELL_SIZE cover the data")
+        if problem:
+            raise write_error(OSError(errno.EIO, problem), dest.name, values[dest.name])
 
 
 def _final_outputs(alg_cls: type[Algorithm], values: dict[str, Any], result: dict[str, Any],

@@ -9,7 +9,7 @@ from toolbox.errors import InputDataError
 from toolbox.feedback import Feedback
 from toolbox.io.crs import common_crs
 from toolbox.io.vector import read_vector, write_layers
-from toolbox.parameters import Layer, Number, Output, OutputVector, String, VectorLayer
+from toolbox.parameters import Boolean, Layer, Number, Output, OutputVector, String, VectorLayer
 from toolbox.registry import register
 from toolbox.terrain.tin.kernels import interpolate_tin
 from toolbox.terrain.tin.store import (  # noqa: F401
@@ -38,6 +38,9 @@ class Interpolate(Algorithm):
         VectorLayer("INPUT", "points to give a height", geometry_types=["point"]),
         VectorLayer("TIN", TIN_HELP, geometry_types=["polygon"]),
         String("FIELD", "name of the height field to add", default="z_tin"),
+        Boolean("REPLACE_FIELD", "replace FIELD (and dz) when INPUT already has a field of that "
+                "name (otherwise an error: an input column is never overwritten silently)",
+                default=False),
         Number("NODATA", "height written for points outside the TIN", default=-9999.0),
         OutputVector("OUTPUT", "points with the height field and PointZ geometry", layers=[
             Layer("{INPUT}", "Point Z", [("{FIELD}", "real", "TIN height (NODATA outside)")],
@@ -51,6 +54,16 @@ class Interpolate(Algorithm):
         if not name or not name.replace("_", "a").isalnum():
             raise self.fail("FIELD", f"must be a field name (letters, digits, _), got "
                             f"{params['FIELD']!r}")
+        if params.get("REPLACE_FIELD"):
+            return
+        existing = {f.lower(): f for f in params["INPUT"].fields}
+        if name.lower() in existing:
+            raise self.fail("FIELD", f"{name!r} is already a field of INPUT "
+                            f"({existing[name.lower()]!r}); choose another name or pass "
+                            "--REPLACE_FIELD to replace it")
+        if "dz" in existing and " Z" in (params["INPUT"].geometry_type or ""):
+            raise self.fail("FIELD", "INPUT has Z and already a field 'dz' (the check difference "
+                            "written here); rename it or pass --REPLACE_FIELD to replace it")
 
     def process(self, params, feedback: Feedback):
         import shapely
@@ -75,6 +88,9 @@ class Interpolate(Algorithm):
         outside = np.isnan(z)
         nodata = params["NODATA"]
         field = params["FIELD"].strip()
+        frame = frame.drop(columns=[c for c in frame.columns  # REPLACE_FIELD: GPKG names ignore case
+                                    if str(c).lower() in (field.lower(), "dz") and
+                                    c != frame.geometry.name and (has_z or str(c).lower() != "dz")])
         frame[field] = np.where(outside, nodata, z)
         stats = {"points": len(frame), "inside": int((~outside).sum()),
                  "outside": int(outside.sum()), "nodata": nodata}

@@ -43,6 +43,7 @@ class VectorInfo(Algorithm):
     display_name = "Vector layer information"
     group = "Vector"
     short_help = "Layers, geometry types, counts, CRS, fields, extent and Z range of a vector file."
+    projected_crs_only = False  # describes any layer, lon/lat included
     parameters = [
         VectorLayer("INPUT", "vector file (all its layers are described)"),
         OutputFile("OUTPUT", "JSON file to write the description to", extensions=[".json"],

@@ -8,47 +8,180 @@ User mistakes print one line on stderr and exit with code 2; a canceled run (Ctr
 from __future__ import annotations
 
 import json
+import re
+import signal
 import sys
 import textwrap
 from collections.abc import Callable
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
 import click
 
-from toolbox.cli.terminal import ACTIVE, TerminalFeedback, setup_logging
+from toolbox.cli.terminal import ACTIVE, STDERR_IS_TTY, TerminalFeedback, setup_logging
 from toolbox.errors import ParameterError, ToolboxError
 
 EXIT_USER_ERROR = 2
+EXIT_INTERNAL_ERROR = 3
 EXIT_CANCELED = 130
 
 
+def _one_line(text: str) -> str:
+    """A message on one line (YAML and GDAL messages span several)."""
+    return "; ".join(line.strip() for line in str(text).splitlines() if line.strip())
+
+
+def _report_error(exc: BaseException, where: str) -> int:
+    """Print ``exc`` as one line on stderr; return the exit code (2 user error, 3 bug)."""
+    if ACTIVE[0] is not None:
+        ACTIVE[0].clear_line()
+    if isinstance(exc, ToolboxError):
+        click.echo(f"toolbox: error: {_one_line(exc)}", err=True)
+        return EXIT_USER_ERROR
+    detail = _one_line(f"{type(exc).__name__}: {exc}")
+    click.echo(f"toolbox: internal error in {where}: {detail}; please report it (rerun with "
+               "TOOLBOX_DEBUG=1 for the traceback)", err=True)
+    return EXIT_INTERNAL_ERROR
+
+
 def _handle_errors(func: Callable) -> Callable:
-    """Turn toolbox errors into one-line messages and exit codes (no traceback)."""
+    """Turn toolbox errors into one-line messages and exit codes (no traceback); an interruption
+    (Ctrl-C, SIGTERM, SIGHUP) exits 128 + signal number after the runner cleaned up."""
     import functools
+    import os
 
     @functools.wraps(func)
     def wrapper(*args, **kwargs):
+        where = kwargs.get("algorithm_id") or func.__name__.removesuffix("_cmd")
         try:
-            return func(*args, **kwargs)
-        except ToolboxError as exc:
+            with _signals_as_interrupts(), _native_stderr_filtered():
+                return func(*args, **kwargs)
+        except KeyboardInterrupt as exc:
             if ACTIVE[0] is not None:
                 ACTIVE[0].clear_line()
-            click.echo(f"toolbox: error: {exc}", err=True)
-            sys.exit(EXIT_USER_ERROR)
-        except KeyboardInterrupt:
-            if ACTIVE[0] is not None:
-                ACTIVE[0].clear_line()
-            click.echo("toolbox: canceled; no output was written", err=True)
-            sys.exit(EXIT_CANCELED)
+            signum = getattr(exc, "signum", signal.SIGINT)
+            what = "canceled" if signum == signal.SIGINT else \
+                f"terminated by {signal.Signals(signum).name}"
+            click.echo(f"toolbox: {what}; no output was written", err=True)
+            sys.exit(128 + signum)
+        except (click.exceptions.ClickException, click.exceptions.Exit, click.exceptions.Abort):
+            raise
+        except Exception as exc:
+            if os.environ.get("TOOLBOX_DEBUG") and not isinstance(exc, ToolboxError):
+                raise
+            sys.exit(_report_error(exc, where))
 
     return wrapper
 
 
-@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+class Interrupted(KeyboardInterrupt):
+    """SIGTERM or SIGHUP, raised like Ctrl-C so that every cleanup runs."""
+
+    def __init__(self, signum: int):
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
+
+
+@contextmanager
+def _signals_as_interrupts():
+    """Handle SIGTERM and SIGHUP (timeout, kill, systemd, Docker, Slurm, a closed terminal) as
+    Ctrl-C while a command runs: staged outputs are removed, the exit code is 128 + signal."""
+    def interrupt(signum, frame):
+        raise Interrupted(signum)
+
+    previous = {}
+    for sig in (signal.SIGTERM, signal.SIGHUP):
+        try:
+            previous[sig] = signal.signal(sig, interrupt)
+        except (ValueError, OSError):  # not the main thread
+            pass
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+
+
+# what GDAL and libtiff print themselves on file descriptor 2 when a write or read fails; the
+# toolbox turns the failure into its own one-line error
+NATIVE_NOISE = re.compile(rb"^(_tiff\w*Proc|TIFF\w+|ERROR \d+): ")
+
+
+@contextmanager
+def _native_stderr_filtered():
+    """Pass everything written on stderr through, except the lines C libraries print directly
+    (``_tiffWriteProc: No space left on device.`` once per block): a failure is reported once,
+    as the toolbox's one-line error. ``TOOLBOX_DEBUG=1`` keeps them."""
+    import os
+    import threading
+
+    if os.environ.get("TOOLBOX_DEBUG"):
+        yield
+        return
+    try:
+        sys.stderr.flush()
+        saved = os.dup(2)
+    except (OSError, AttributeError, ValueError):  # no real stderr (embedded, closed)
+        yield
+        return
+    STDERR_IS_TTY[0] = os.isatty(saved)
+    read_end, write_end = os.pipe()
+    os.dup2(write_end, 2)
+    os.close(write_end)
+
+    def pump() -> None:
+        pending = b""
+        with os.fdopen(read_end, "rb", buffering=0) as pipe:
+            while chunk := pipe.read(65536):
+                *pieces, pending = re.split(rb"(?<=[\n\r])", pending + chunk)
+                for piece in pieces:
+                    if not NATIVE_NOISE.match(piece):
+                        os.write(saved, piece)
+        if pending and not NATIVE_NOISE.match(pending):
+            os.write(saved, pending)
+
+    thread = threading.Thread(target=pump, name="stderr-filter", daemon=True)
+    thread.start()
+    try:
+        yield
+    finally:
+        try:
+            sys.stderr.flush()
+        except (OSError, ValueError):
+            pass
+        os.dup2(saved, 2)  # closes the pipe's last write end: the pump sees the end
+        thread.join(timeout=10)
+        os.close(saved)
+        STDERR_IS_TTY[0] = None
+
+
+class OneLineErrorsGroup(click.Group):
+    """A click group printing usage mistakes as one line (no ``Usage:`` block), exit 2."""
+
+    def main(self, *args, **kwargs):
+        kwargs["standalone_mode"] = False
+        try:
+            result = super().main(*args, **kwargs)
+        except click.exceptions.UsageError as exc:
+            command = exc.ctx.command_path if exc.ctx is not None else "toolbox"
+            click.echo(f"toolbox: error: {_one_line(exc.format_message())} (see '{command} "
+                       "--help')", err=True)
+            sys.exit(EXIT_USER_ERROR)
+        except click.exceptions.ClickException as exc:
+            click.echo(f"toolbox: error: {_one_line(exc.format_message())}", err=True)
+            sys.exit(exc.exit_code)
+        except click.exceptions.Abort:
+            click.echo("toolbox: canceled", err=True)
+            sys.exit(EXIT_CANCELED)
+        sys.exit(result if isinstance(result, int) else 0)
+
+
+@click.group(cls=OneLineErrorsGroup, context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(package_name="photogrammetry-toolbox", prog_name="toolbox")
 @click.option("-v", "--verbose", count=True, help="More messages (-vv for debug).")
-@click.option("-q", "--quiet", is_flag=True, help="No progress bar, errors only.")
+@click.option("-q", "--quiet", is_flag=True,
+              help="No progress bar, no information messages (warnings still show).")
 @click.pass_context
 def main(ctx: click.Context, verbose: int, quiet: bool) -> None:
     """Photogrammetric cartography toolbox: from oriented photos and restitution linework to
@@ -174,19 +307,21 @@ def parse_parameter_args(tokens: list[str]) -> dict[str, Any]:
 
 @main.command("run", context_settings={"ignore_unknown_options": True,
                                        "allow_extra_args": True, "help_option_names": []})
-@click.argument("algorithm_id")
-@click.option("--overwrite", is_flag=True, help="Replace existing outputs.")
+@click.argument("algorithm_id", required=False)
+@click.option("--overwrite", is_flag=True, help="Replace existing outputs (never an input).")
 @click.option("--run-report", "report", type=click.Path(dir_okay=False),
               help="Write a JSON run report (parameters, outputs, statistics, versions, timings).")
-@click.option("--help", "show_help", is_flag=True, help="Show the algorithm's help.")
 @click.option("--progress", type=click.Choice(["bar", "json", "none"]), default="bar",
               show_default=True, help="Progress on stderr: a bar (on a terminal), JSON lines "
               "(one object a line, for a GUI; see docs/cli.md) or none.")
+@click.option("-q", "--quiet", "run_quiet", is_flag=True,
+              help="No progress bar and no information messages (warnings still show).")
+@click.option("-h", "--help", "show_help", is_flag=True, help="Show the algorithm's help.")
 @click.argument("args", nargs=-1, type=click.UNPROCESSED)
 @click.pass_context
 @_handle_errors
-def run_cmd(ctx: click.Context, algorithm_id: str, overwrite: bool, report: str | None,
-            show_help: bool, progress: str, args: tuple[str, ...]) -> None:
+def run_cmd(ctx: click.Context, algorithm_id: str | None, overwrite: bool, report: str | None,
+            progress: str, run_quiet: bool, show_help: bool, args: tuple[str, ...]) -> None:
     """Run an algorithm: toolbox run ID --PARAM value ... (see 'toolbox help ID').
 
     Prints the outputs as JSON on stdout.
@@ -195,6 +330,12 @@ def run_cmd(ctx: click.Context, algorithm_id: str, overwrite: bool, report: str 
     from toolbox.report import to_jsonable
     from toolbox.runner import run
 
+    if algorithm_id is None:
+        if show_help:
+            click.echo(ctx.get_help())
+            return
+        raise click.UsageError("missing the algorithm id: toolbox run ID --PARAM value ... "
+                               "('toolbox list' shows the ids)", ctx)
     if progress == "json" and not show_help:
         _run_with_json_progress(ctx, algorithm_id, overwrite, report, args)
         return
@@ -202,8 +343,9 @@ def run_cmd(ctx: click.Context, algorithm_id: str, overwrite: bool, report: str 
     if show_help:
         click.echo(format_help(alg))
         return
+    quiet = _apply_quiet(ctx, run_quiet)
     params = parse_parameter_args(list(args))
-    feedback = TerminalFeedback(alg.id, quiet=ctx.obj["quiet"] or progress == "none")
+    feedback = TerminalFeedback(alg.id, quiet=quiet or progress == "none")
     ACTIVE[0] = feedback
     try:
         outputs = run(alg.id, params, feedback=feedback, overwrite=overwrite, report=report)
@@ -244,6 +386,15 @@ def _run_with_json_progress(ctx: click.Context, algorithm_id: str, overwrite: bo
     click.echo(json.dumps(outputs, indent=2))
 
 
+def _apply_quiet(ctx: click.Context, quiet_here: bool) -> bool:
+    """``--quiet`` given after the command (``toolbox run ID ... --quiet``) as before it: no
+    progress bar, no information messages; warnings and errors still show."""
+    quiet = bool(ctx.obj and ctx.obj.get("quiet")) or quiet_here
+    if quiet_here:
+        setup_logging(0, True)
+    return quiet
+
+
 @main.command("batch")
 @click.argument("pipeline", type=click.Path(exists=True, dir_okay=False))
 @click.option("--overwrite", is_flag=True, help="Replace existing outputs.")
@@ -259,15 +410,20 @@ def batch_cmd(ctx: click.Context, pipeline: str, overwrite: bool, validate_only:
               report_dir: str | None, variables: tuple[str, ...]) -> None:
     """Run several algorithms in order from a YAML pipeline; a step uses an earlier step's
     output as ${step.OUTPUT}. Prints every step's outputs as JSON."""
-    from toolbox.batch import load_pipeline, run_pipeline
+    from toolbox.batch import load_pipeline, run_pipeline, validate_pipeline
     from toolbox.report import to_jsonable
 
     extra = dict(v.split("=", 1) for v in variables if "=" in v)
     pipe = load_pipeline(pipeline, extra)
+    existing: list[Path] = []
+    # values too, before anything runs: nothing is written if a later step is wrong
+    validate_pipeline(pipe, overwrite, existing if validate_only else None)
     if validate_only:
-        click.echo(f"{pipeline}: {len(pipe.steps)} steps, valid")
+        note = f" ({len(existing)} outputs exist: pass --overwrite to replace them)" \
+            if existing else ""
+        click.echo(f"{pipeline}: {len(pipe.steps)} steps, valid{note}")
         return
-    feedback = TerminalFeedback("batch", quiet=ctx.obj["quiet"])
+    feedback = TerminalFeedback("batch", quiet=_apply_quiet(ctx, False))
     ACTIVE[0] = feedback
     try:
         results = run_pipeline(pipe, feedback=feedback, overwrite=overwrite,

@@ -9,6 +9,10 @@ import time
 
 from toolbox.feedback import Feedback
 
+# whether the process's stderr is a terminal, set while the CLI filters file descriptor 2 (then
+# sys.stderr writes into a pipe and cannot tell)
+STDERR_IS_TTY: list[bool | None] = [None]
+
 
 class TerminalFeedback(Feedback):
     """Draws ``label [#####-----]  45% message`` on stderr when it is a terminal and not quiet."""
@@ -17,7 +21,9 @@ class TerminalFeedback(Feedback):
         super().__init__()
         self.stream = stream or sys.stderr
         self.label = label
-        self.show_bar = not quiet and self.stream.isatty()
+        tty = STDERR_IS_TTY[0] if STDERR_IS_TTY[0] is not None and stream is None \
+            else self.stream.isatty()
+        self.show_bar = not quiet and tty
         self._last_draw = 0.0
         self._drawn = False
 
@@ -64,7 +70,7 @@ ACTIVE: list[TerminalFeedback | None] = [None]
 
 
 def setup_logging(verbose: int, quiet: bool) -> None:
-    level = logging.ERROR if quiet else (logging.WARNING, logging.INFO, logging.DEBUG)[
+    level = logging.WARNING if quiet else (logging.WARNING, logging.INFO, logging.DEBUG)[
         min(verbose, 2)]
     logger = logging.getLogger("toolbox")
     logger.handlers[:] = [BarAwareHandler(ACTIVE)]

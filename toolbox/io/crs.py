@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+import functools
 from typing import Any
 
+import numpy as np
 from pyproj import CRS
 from pyproj.exceptions import CRSError
 
-from toolbox.errors import InputDataError, ParameterError
+from toolbox.errors import InputDataError, ParameterError, ToolboxError
 
 
 def parse_crs(value: Any, name: str = "CRS") -> CRS:
@@ -57,3 +59,92 @@ def common_crs(named: dict[str, CRS | None], override: CRS | None = None) -> CRS
             raise InputDataError(f"{key} is in {crs_label(crs)} but {ref_name} is in "
                                  f"{crs_label(reference)}; reproject the inputs to one CRS first")
     return reference
+
+
+# -- CRS sanity of the inputs (called by the runner for every CRS-bearing input) ---------------
+AREA_MARGIN_DEG = 1.0  # outside the area of use by less than this (or 10 % of it): accepted
+AREA_ERROR_DEG = 5.0  # outside by more than this: certainly the wrong CRS (or lon/lat numbers)
+
+
+def input_crs_and_bounds(value: Any) -> list[tuple[CRS | None, tuple | None]]:
+    """``(crs, bounds)`` pairs of a parameter value: layer references, raster infos, extents,
+    CRSs and lists of them; bounds are ``(xmin, ymin, xmax, ymax)`` or ``None``."""
+    if isinstance(value, (list, tuple)):
+        return [pair for item in value for pair in input_crs_and_bounds(item)]
+    if isinstance(value, CRS):
+        return [(value, None)]
+    if value is None or not hasattr(value, "crs"):
+        return []
+    try:
+        crs = value.crs
+        crs = None if crs is None else parse_crs(crs)
+    except (ToolboxError, CRSError, ValueError, TypeError):
+        return []
+    bounds = None
+    info = getattr(value, "info", None)
+    if isinstance(info, dict) and info.get("total_bounds") is not None:
+        bounds = tuple(float(b) for b in info["total_bounds"])
+    elif getattr(value, "georeferenced", True) and hasattr(value, "bounds"):
+        bounds = tuple(float(b) for b in value.bounds)
+    if bounds is not None and not all(np.isfinite(bounds)):
+        bounds = None
+    return [(crs, bounds)]
+
+
+def check_input_crs(algorithm_id: str, name: str, value: Any,
+                    warnings: list[str] | None = None) -> None:
+    """Refuse a geographic CRS (the algorithm works in metres) and coordinates far outside the
+    CRS's area of use; append a warning to ``warnings`` when they are a little outside."""
+    for crs, bounds in input_crs_and_bounds(value):
+        if crs is None:
+            continue
+        if crs.is_geographic:
+            raise ParameterError(name, f"is in the geographic CRS {crs_label(crs)} ({crs.name}, "
+                                 f"degrees), but {algorithm_id} works in metres (cell sizes, "
+                                 "tolerances, slopes, volumes): reproject it to a projected CRS "
+                                 "(e.g. EPSG:3003 or a UTM zone) first")
+        if bounds is not None:
+            problem, far = outside_area_of_use(crs, bounds)
+            if problem and far:
+                raise InputDataError(f"{name}: {problem}: is the CRS right? Label the data with "
+                                     "its true CRS, then reproject if needed")
+            if problem and warnings is not None:
+                warnings.append(f"{name}: {problem}")
+
+
+@functools.lru_cache(maxsize=32)
+def _to_lonlat(wkt: str):
+    """A cached transformer to WGS 84 lon/lat (creating one costs ~0.1 s)."""
+    from pyproj import Transformer
+
+    return Transformer.from_crs(CRS.from_wkt(wkt), CRS.from_epsg(4326), always_xy=True)
+
+
+def outside_area_of_use(crs: CRS, bounds: tuple) -> tuple[str | None, bool]:
+    """``(message, far)``: a message when ``bounds`` (in ``crs``) lie outside the CRS's area of
+    use by more than a margin; ``far`` when by more than :data:`AREA_ERROR_DEG` degrees."""
+    area = crs.area_of_use
+    if area is None or crs.is_geographic:
+        return None, False
+    xmin, ymin, xmax, ymax = bounds
+    shown = f"coordinates {xmin:.6g}..{xmax:.6g}, {ymin:.6g}..{ymax:.6g}"
+    where = (f"the area of use of {crs_label(crs)} ({area.west:g}..{area.east:g} E, "
+             f"{area.south:g}..{area.north:g} N)")
+    try:
+        to_lonlat = _to_lonlat(crs.to_wkt())
+        lon0, lat0, lon1, lat1 = to_lonlat.transform_bounds(xmin, ymin, xmax, ymax, densify_pts=5)
+    except Exception:  # PROJ cannot place them on the ellipsoid at all
+        return f"{shown} cannot be coordinates of {crs_label(crs)}", True
+    if not all(np.isfinite([lon0, lat0, lon1, lat1])):
+        return f"{shown} cannot be coordinates of {crs_label(crs)}", True
+    west, east = area.west, area.east
+    if east < west:  # crosses the antimeridian: not judged
+        return None, False
+    margin_x = max(AREA_MARGIN_DEG, 0.1 * (east - west))
+    margin_y = max(AREA_MARGIN_DEG, 0.1 * (area.north - area.south))
+    dx = max(west - lon1, lon0 - east, 0.0)
+    dy = max(area.south - lat1, lat0 - area.north, 0.0)
+    if dx <= margin_x and dy <= margin_y:
+        return None, False
+    off = max(dx, dy)
+    return (f"{shown} lie {off:.3g} degrees outside {where}", off > AREA_ERROR_DEG)

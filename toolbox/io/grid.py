@@ -19,7 +19,18 @@ DEFAULT_MAX_CELLS = 1_000_000_000  # overridable with the TOOLBOX_MAX_CELLS envi
 
 
 def max_cells_default() -> int:
-    return int(os.environ.get("TOOLBOX_MAX_CELLS", DEFAULT_MAX_CELLS))
+    """The grid-size limit: ``TOOLBOX_MAX_CELLS`` from the environment, else 1e9."""
+    text = os.environ.get("TOOLBOX_MAX_CELLS")
+    if text is None or not text.strip():
+        return DEFAULT_MAX_CELLS
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not (math.isfinite(value) and value >= 1):
+        raise ParameterError("TOOLBOX_MAX_CELLS", f"(environment variable) must be a number of "
+                             f"cells >= 1, got {text!r}")
+    return int(value)
 
 
 @dataclass(frozen=True)
@@ -42,12 +53,17 @@ class GridSpec:
         if not cell_size > 0:
             raise ParameterError(name, f"must be > 0, got {cell_size}")
         xmin, ymin, xmax, ymax = map(float, bounds)
+        limit = max_cells_default() if max_cells is None else max_cells
+        across, down = (xmax - xmin) / cell_size, (ymax - ymin) / cell_size
+        far = max(abs(xmin), abs(xmax), abs(ymin), abs(ymax)) / cell_size
+        if not (math.isfinite(across) and math.isfinite(down) and math.isfinite(far)):
+            raise ParameterError(name, f"{cell_size:g} is too small for the extent (the grid "
+                                 f"would have more than {limit:,} cells); use a larger cell size")
         if snap:
             xmin, ymin = math.floor(xmin / cell_size) * cell_size, math.floor(ymin / cell_size) * cell_size
             xmax, ymax = math.ceil(xmax / cell_size) * cell_size, math.ceil(ymax / cell_size) * cell_size
         width = max(1, int(round((xmax - xmin) / cell_size)))
         height = max(1, int(round((ymax - ymin) / cell_size)))
-        limit = max_cells_default() if max_cells is None else max_cells
         if width * height > limit:
             raise ParameterError(name, f"{cell_size:g} gives a {width} x {height} grid "
                                  f"({width * height:,} cells), over the limit of {limit:,} cells; "

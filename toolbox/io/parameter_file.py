@@ -247,6 +247,8 @@ def read_parameter_file(path: str | Path, name: str = "PARAMETERS") -> Parameter
     """
     path = Path(path)
     text = read_text(path, name)
+    if "\x00" in text:
+        raise InputDataError(f"{name}: '{path}' is not a text file (binary content)")
     result = ParameterFile(path)
     for number, line in enumerate(text.splitlines(), start=1):
         content = line.split("#", 1)[0].strip()
@@ -273,6 +275,8 @@ def read_parameter_file(path: str | Path, name: str = "PARAMETERS") -> Parameter
         result.values[key] = value
         result.line_numbers[key] = number
         result.names[key] = raw_name
+    if not result.values and not result.unknown:
+        raise InputDataError(f"{name}: '{path}' holds no 'name = value' line (empty file?)")
     return result
 
 

@@ -90,6 +90,7 @@ def geotiff_profile(width: int, height: int, count: int, dtype: Any, crs: Any, t
     BIGTIFF is used when the file may exceed 4 GB. ``extra`` overrides any creation option.
     """
     dtype = np.dtype(dtype)
+    check_nodata_fits(nodata, dtype)
     profile = {
         "driver": "GTiff", "width": int(width), "height": int(height), "count": int(count),
         "dtype": dtype.name, "crs": None if crs is None else _rio_crs(crs),
@@ -100,6 +101,33 @@ def geotiff_profile(width: int, height: int, count: int, dtype: Any, crs: Any, t
     profile.update(tiled=True, blockxsize=block, blockysize=block)
     profile.update(extra)
     return profile
+
+
+def check_nodata_fits(nodata: float | None, dtype: Any, name: str = "NODATA") -> None:
+    """:class:`ParameterError` naming ``name`` when ``nodata`` cannot be stored in ``dtype``
+    (-9999 in a uint8 photo, 1e308 in float32, 2.5 in an integer band)."""
+    if nodata is None:
+        return
+    dtype = np.dtype(dtype)
+    value = float(nodata)
+    if np.isnan(value):
+        if dtype.kind != "f":
+            raise ParameterError(name, f"NaN does not fit the {dtype.name} output (integer cells "
+                                 "have no NaN): give a number")
+        return
+    if dtype.kind == "f":
+        limit = float(np.finfo(dtype).max)
+        ok = np.isinf(value) or abs(value) <= limit
+        expected = f"between {-limit:g} and {limit:g}"
+    elif dtype.kind in "iu":
+        info = np.iinfo(dtype)
+        ok = info.min <= value <= info.max and value == int(value)
+        expected = f"a whole number from {info.min} to {info.max}"
+    else:
+        return
+    if not ok:
+        raise ParameterError(name, f"{value:g} does not fit the {dtype.name} output cells "
+                             f"(expected {expected})")
 
 
 def _rio_crs(crs: Any):
@@ -177,3 +205,41 @@ def iter_windows(width: int, height: int, tile: int = DEFAULT_BLOCK,
             c1, r1 = min(col0 + w + halo, width), min(row0 + h + halo, height)
             inner = (slice(row0 - r0, row0 - r0 + h), slice(col0 - c0, col0 - c0 + w))
             yield TileWindow(Window(col0, row0, w, h), Window(c0, r0, c1 - c0, r1 - r0), inner)
+
+
+def verify_written_raster(path: str | Path) -> str | None:
+    """Check a raster just written: ``None`` when sound, ``"empty"`` when no cell is valid (all
+    nodata or masked), else a description of the damage (a GeoTIFF block beyond the end of the
+    file, as a full disk leaves it; an unreadable block).
+
+    Cheap: block offsets are read from the TIFF directory, and pixels only until the first valid
+    cell is found.
+    """
+    import rasterio
+
+    path = Path(path)
+    size = path.stat().st_size
+    try:
+        with rasterio.open(path) as src:
+            if src.driver == "GTiff":
+                bands = [1] if src.interleaving is None or src.interleaving.name == "PIXEL" \
+                    else list(range(1, src.count + 1))
+                rows, cols = src.block_shapes[0]
+                nby, nbx = -(-src.height // rows), -(-src.width // cols)
+                for band in bands:
+                    for by in range(nby):
+                        for bx in range(nbx):
+                            offset = src.get_tag_item(f"BLOCK_OFFSET_{bx}_{by}", "TIFF", bidx=band)
+                            count = src.get_tag_item(f"BLOCK_SIZE_{bx}_{by}", "TIFF", bidx=band)
+                            if offset is None or count is None:
+                                continue
+                            if int(offset) + int(count) > size or (int(offset) == 0
+                                                                   and int(count) > 0):
+                                return (f"block {bx},{by} of band {band} lies beyond the end of "
+                                        "the file (truncated write)")
+            for _, window in src.block_windows(1):
+                if src.dataset_mask(window=window).any():
+                    return None
+            return "empty"
+    except rasterio.errors.RasterioError as exc:
+        return f"the written raster cannot be read back: {str(exc).splitlines()[0]}"

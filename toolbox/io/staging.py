@@ -1,71 +1,268 @@
-"""Atomic outputs: write into a hidden temporary folder beside the final file, rename on success.
+"""Atomic outputs: write into a hidden temporary folder beside the final file, move on success.
 
-A failed or canceled run leaves nothing behind; a successful one replaces each output in one
-``os.replace`` (atomic on the same filesystem). The staged file keeps the final file name, so
-drivers and layer names that derive from it are unaffected.
+A failed or canceled run leaves nothing behind (also the output folders it created); a
+successful one moves each output into place. Without ``overwrite`` the move is a hard link that
+fails when the target appeared meanwhile (another run wrote it), so a run never replaces a file
+it did not mean to. The staged file keeps the final file name, so drivers and layer names that
+derive from it are unaffected.
+
+Staging folders are named ``.NAME.PID.RANDOM.part``: after a run killed by SIGKILL (which no
+program can catch), the next run to the same path removes the folders of processes that are gone.
 """
 
 from __future__ import annotations
 
+import errno
 import os
+import re
 import shutil
 import tempfile
 from contextlib import contextmanager
 from pathlib import Path
 
+from toolbox.errors import OutputExistsError, OutputWriteError, ParameterError
+
+# files GDAL/OGR keep beside a dataset: an output must never land on an input's sidecar
+SIDECAR_SUFFIXES = (".aux.xml", ".ovr", ".msk", "-wal", "-shm", "-journal")
+SHAPEFILE_PARTS = (".shp", ".shx", ".dbf", ".prj", ".cpg", ".qix", ".sbn", ".sbx", ".qmd")
+WORLD_FILES = (".tfw", ".tifw", ".jgw", ".pgw", ".wld")
+
+
+def _pid_alive(pid: int) -> bool:
+    if pid == os.getpid():
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # someone else's live process
+        return True
+    except OverflowError:
+        return False
+    return True
+
+
+def stale_staging_folders(final: Path) -> list[Path]:
+    """Staging folders beside ``final`` left by runs whose process is gone."""
+    pattern = re.compile(r"^\." + re.escape(final.name) + r"\.(\d+)\.[^.]+\.part$")
+    try:
+        entries = list(final.parent.iterdir())
+    except OSError:
+        return []
+    stale = []
+    for entry in entries:
+        match = pattern.match(entry.name)
+        if match and entry.is_dir() and not _pid_alive(int(match.group(1))):
+            stale.append(entry)
+    return stale
+
+
+def protected_paths(path: Path) -> set[Path]:
+    """``path`` (resolved) and the sidecars GDAL/OGR read with it."""
+    path = Path(path).expanduser().resolve()
+    out = {path} | {path.with_name(path.name + s) for s in SIDECAR_SUFFIXES}
+    if path.suffix.lower() == ".shp":
+        out |= {path.with_suffix(s) for s in SHAPEFILE_PARTS}
+        out |= {path.with_suffix(s.upper()) for s in SHAPEFILE_PARTS}
+    out |= {path.with_suffix(s) for s in WORLD_FILES}
+    return out
+
+
+def write_error(exc: BaseException, name: str, path: Path | str) -> OutputWriteError:
+    """A one-line error for a failed write of output ``name`` at ``path``."""
+    code = getattr(exc, "errno", None)
+    text = str(getattr(exc, "strerror", None) or exc).splitlines()[0] if str(exc) else ""
+    if code in (errno.ENOSPC, errno.EDQUOT) or "no space left" in text.lower() \
+            or "disk is full" in text.lower():
+        return OutputWriteError(f"no space left on device writing {name} '{path}'; nothing was "
+                                "written")
+    if code == errno.ENAMETOOLONG:
+        return OutputWriteError(f"{name}: file name too long: '{path}'")
+    if code in (errno.EACCES, errno.EPERM, errno.EROFS):
+        return OutputWriteError(f"{name}: cannot write '{path}' ({text or 'permission denied'}):"
+                                " choose a folder you can write to")
+    return OutputWriteError(f"cannot write {name} '{path}': {text}; nothing was written")
+
 
 class OutputStaging:
     """Hands out staged paths for final outputs; :meth:`commit` moves them, :meth:`rollback`
-    deletes them."""
+    deletes them (and the folders created for them)."""
 
     def __init__(self) -> None:
         self._staged: dict[Path, Path] = {}  # final -> staged
+        self._names: dict[Path, str] = {}  # final -> parameter name
         self._folders: list[Path] = []
+        self._created_dirs: list[Path] = []  # output folders this run created, deepest last
+        self.removed_stale: list[Path] = []
 
-    def stage(self, final: str | Path) -> Path:
+    def stage(self, final: str | Path, name: str = "OUTPUT") -> Path:
         final = Path(final).expanduser().absolute()
-        final.parent.mkdir(parents=True, exist_ok=True)
-        folder = Path(tempfile.mkdtemp(prefix=f".{final.name}.", suffix=".part",
-                                       dir=final.parent))
+        self._make_parent(final.parent, name)
+        for folder in stale_staging_folders(final):
+            shutil.rmtree(folder, ignore_errors=True)
+            self.removed_stale.append(folder)
+        try:
+            folder = Path(tempfile.mkdtemp(prefix=f".{final.name}.{os.getpid()}.",
+                                           suffix=".part", dir=final.parent))
+        except OSError as exc:
+            raise write_error(exc, name, final) from None
         self._folders.append(folder)
         staged = folder / final.name
         self._staged[final] = staged
+        self._names[final] = name
         return staged
 
+    def _make_parent(self, parent: Path, name: str) -> None:
+        missing = []
+        probe = parent
+        while not probe.exists() and probe != probe.parent:
+            if probe.is_symlink():  # dangling link: mkdir would fail obscurely
+                break
+            missing.append(probe)
+            probe = probe.parent
+        if probe.exists() and not probe.is_dir():
+            raise ParameterError(name, f"'{parent}' is under '{probe}', which is a file, not a "
+                                 "folder")
+        try:
+            parent.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise write_error(exc, name, parent) from None
+        self._created_dirs.extend(reversed(missing))
+
+    def staged_path(self, final: str | Path) -> Path | None:
+        return self._staged.get(Path(final).expanduser().absolute())
+
     def written(self, final: str | Path) -> bool:
-        staged = self._staged.get(Path(final).expanduser().absolute())
+        staged = self.staged_path(final)
         return staged is not None and staged.exists()
 
-    def commit(self) -> list[Path]:
+    def items(self) -> list[tuple[str, Path, Path]]:
+        """``(parameter name, final, staged)`` of every staged output."""
+        return [(self._names[f], f, s) for f, s in self._staged.items()]
+
+    def commit(self, overwrite: bool = True, protected: set[Path] | None = None) -> list[Path]:
         """Move every staged file that was written and every file beside it in its private
-        staging folder (sidecars: ``.aux.xml``, a Shapefile's ``.shx``/``.dbf``/``.prj``, the
-        ``<stem>_<layer>`` files of a one-layer-per-file vector format) into place. Returns the
-        final paths written."""
+        staging folder (sidecars) into place; return the final paths written.
+
+        Without ``overwrite`` a target that exists now (it appeared during the run) raises
+        :class:`OutputExistsError` and nothing is moved. A target in ``protected`` (resolved
+        input paths) is refused whatever ``overwrite`` says.
+        """
+        protected = protected or set()
+        moves: list[tuple[str, Path, Path, bool]] = []  # name, source, target, main file?
         done = []
         for final, staged in self._staged.items():
             if not staged.exists():
                 continue
-            for item in staged.parent.iterdir():  # the folder holds this output's files only
-                target = final.parent / item.name
-                if item.is_dir() and target.is_dir():  # a replaced output folder
-                    shutil.rmtree(target)
-                os.replace(item, target)
+            name = self._names[final]
+            # the private folder holds this output's files only: the file first, then its
+            # sidecars (.aux.xml, a Shapefile's .shx/.dbf/.prj, per-layer files)
+            items = sorted(staged.parent.iterdir(), key=lambda i: (i != staged, i.name))
+            moves += [(name, item, final.parent / item.name, item == staged) for item in items]
             done.append(final)
-        self.rollback()
+        for name, _, target, main in moves:
+            if _is_protected(target, protected):
+                raise ParameterError(name, f"'{target}' is an input (or an input's sidecar); an "
+                                     "input is never overwritten: choose another output path")
+            if main and not overwrite and os.path.lexists(target):
+                raise OutputExistsError(name, f"'{target}' appeared during the run (another run "
+                                        "wrote it?); pass --overwrite to replace it")
+        created: list[Path] = []
+        try:
+            for name, item, target, main in moves:
+                try:
+                    if overwrite or not main:  # a sidecar of a new file: a stale one goes
+                        if item.is_dir() and target.is_dir():  # a replaced output folder
+                            shutil.rmtree(target)
+                        os.replace(item, target)
+                    else:
+                        _move_no_replace(item, target)
+                except FileExistsError:
+                    raise OutputExistsError(name, f"'{target}' appeared during the run (another"
+                                            " run wrote it?); pass --overwrite to replace "
+                                            "it") from None
+                except OSError as exc:
+                    raise write_error(exc, name, target) from None
+                created.append(target)
+        except BaseException:
+            if not overwrite:  # undo the new files: the run fails as a whole
+                for target in created:
+                    _remove(target)
+            raise
+        self.rollback()  # the created folders that now hold results are not empty: kept
         return done
 
     def rollback(self) -> None:
         for folder in self._folders:
             shutil.rmtree(folder, ignore_errors=True)
         self._folders.clear()
+        for folder in reversed(self._created_dirs):  # deepest first; only if still empty
+            try:
+                folder.rmdir()
+            except OSError:
+                pass
+        self._created_dirs.clear()
+
+
+def _is_protected(target: Path, protected: set[Path]) -> bool:
+    if not protected:
+        return False
+    if target.resolve() in protected:
+        return True
+    if target.exists():
+        st = target.stat()
+        for p in protected:
+            try:
+                ps = p.stat()
+            except OSError:
+                continue
+            if (ps.st_dev, ps.st_ino) == (st.st_dev, st.st_ino):
+                return True
+    return False
+
+
+def _move_no_replace(source: Path, target: Path) -> None:
+    """Move ``source`` to ``target``; ``FileExistsError`` if ``target`` exists (atomic check).
+
+    A hard link then unlink of the source: ``link`` never replaces. Folders and filesystems
+    without hard links fall back to a checked rename.
+    """
+    if source.is_dir():
+        if os.path.lexists(target):
+            raise FileExistsError(errno.EEXIST, "exists", str(target))
+        os.rename(source, target)
+        return
+    try:
+        os.link(source, target)
+    except FileExistsError:
+        raise
+    except OSError as exc:
+        if exc.errno not in (errno.EPERM, errno.ENOTSUP, errno.EOPNOTSUPP, errno.EXDEV,
+                             errno.EMLINK, errno.ENOSYS):
+            raise
+        if os.path.lexists(target):
+            raise FileExistsError(errno.EEXIST, "exists", str(target)) from None
+        os.rename(source, target)
+        return
+    os.unlink(source)
+
+
+def _remove(path: Path) -> None:
+    try:
+        if path.is_dir() and not path.is_symlink():
+            shutil.rmtree(path)
+        else:
+            path.unlink()
+    except OSError:
+        pass
 
 
 @contextmanager
-def atomic_path(final: str | Path):
+def atomic_path(final: str | Path, name: str = "OUTPUT", overwrite: bool = True):
     """Context manager yielding a staged path for one file written outside the runner."""
     staging = OutputStaging()
     try:
-        yield staging.stage(final)
-        staging.commit()
+        yield staging.stage(final, name)
+        staging.commit(overwrite=overwrite)
     finally:
         staging.rollback()

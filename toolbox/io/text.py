@@ -20,3 +20,18 @@ def read_text(path: str | Path, name: str | None = None) -> str:
         return raw.decode("utf-8-sig")
     except UnicodeDecodeError:
         return raw.decode("latin-1")
+
+
+def yaml_error_line(exc: Exception) -> str:
+    """A PyYAML error on one line: ``problem at line L, column C (context)``."""
+    problem = getattr(exc, "problem", None)
+    mark = getattr(exc, "problem_mark", None)
+    if problem is None:
+        return " ".join(str(exc).split())
+    text = str(problem)
+    if mark is not None:
+        text += f" at line {mark.line + 1}, column {mark.column + 1}"
+    context = getattr(exc, "context", None)
+    if context:
+        text += f" ({context})"
+    return text

@@ -383,12 +383,36 @@ def read_vector(source: Any, crs: Any = None, columns: list[str] | None = None,
                                            where=ref.where or None, **ref.open_options)
         except Exception as exc:
             raise InputDataError(f"{name}: cannot read {ref}: {str(exc).splitlines()[0]}") from None
+    _check_finite_xy(frame, f"{name} {ref}")
+    if not hasattr(frame, "geometry"):  # a table without geometry (CSV without X/Y columns)
+        import geopandas as gpd
+
+        frame = gpd.GeoDataFrame(frame, geometry=gpd.GeoSeries([None] * len(frame),
+                                                               index=frame.index))
     if ref.geometry_filter is not None:
         keep = frame.geom_type.isin(_GEOMETRY_FAMILIES[ref.geometry_filter]).to_numpy()
         frame = frame[keep].reset_index(drop=True)
     if crs is not None and frame.crs is None:
         frame = frame.set_crs(crs)
     return frame
+
+
+def _check_finite_xy(frame, what: str) -> None:
+    """InputDataError when a geometry has a NaN/inf X or Y (GEOS and every kernel fail on them;
+    a NaN Z is left to the Z readers)."""
+    import shapely
+
+    if not hasattr(frame, "geometry") or not len(frame):
+        return
+    geoms = frame.geometry.values
+    counts = shapely.get_num_coordinates(geoms)
+    xy = shapely.get_coordinates(geoms)
+    bad = ~np.isfinite(xy).all(axis=1)
+    if bad.any():
+        owner = np.repeat(np.arange(len(geoms)), counts)[bad]
+        rows = np.unique(owner)
+        raise InputDataError(f"{what}: {len(rows)} feature(s) have NaN/inf coordinates "
+                             f"(first rows: {', '.join(map(str, rows[:5]))})")
 
 
 def _check_finite(values: np.ndarray, what: str) -> None:

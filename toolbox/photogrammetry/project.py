@@ -296,14 +296,25 @@ def load_project(path: str | Path) -> Project:
     """
     import yaml
 
+    from toolbox.io.text import read_text, yaml_error_line
+
     path = Path(path)
+    text = read_text(path, "project")
+    if "\x00" in text:
+        raise InputDataError(f"project {path} is not a text file (binary content)")
     try:
-        doc = yaml.load(path.read_text(encoding="utf-8"), Loader=_yaml_loader())  # noqa: S506
-    except OSError as exc:
-        raise InputDataError(f"cannot read project {path}: {exc.strerror}") from None
+        doc = yaml.load(text, Loader=_yaml_loader())  # noqa: S506
     except yaml.YAMLError as exc:
-        raise InputDataError(f"project {path} is not valid YAML: {exc}") from None
-    return project_from_dict(doc, path.parent, str(path))
+        raise InputDataError(f"project {path} is not valid YAML: {yaml_error_line(exc)}") from None
+    try:
+        return project_from_dict(doc, path.parent, str(path))
+    except (TypeError, ValueError, KeyError, AttributeError, IndexError) as exc:
+        if isinstance(exc, ToolboxError):
+            raise
+        # a value of the wrong shape deep in the document (a list for a mapping, text for a
+        # number, a ragged matrix): one line naming the file, never a traceback
+        raise InputDataError(f"project {path}: malformed value ({type(exc).__name__}: "
+                             f"{str(exc).splitlines()[0] if str(exc) else 'wrong type'})") from None
 
 
 def save_project(project: Project, path: str | Path, angle_unit: str = "rad",

@@ -21,6 +21,8 @@ def read_csv_table(path: Path, name: str = "INPUT") -> tuple[list[str], list[dic
     :func:`column` to find one case-insensitively.
     """
     text = read_text(path, name)
+    if "\x00" in text:
+        raise InputDataError(f"{name}: {path} is not a text table (binary content)")
     lines = [ln for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
     if not lines:
         raise InputDataError(f"{name}: {path} holds no rows")
@@ -28,9 +30,21 @@ def read_csv_table(path: Path, name: str = "INPUT") -> tuple[list[str], list[dic
         dialect = csv.Sniffer().sniff(lines[0], delimiters=",;\t")
     except csv.Error:
         dialect = csv.excel
-    reader = csv.DictReader(io.StringIO("\n".join(lines)), dialect=dialect)
-    header = [h.strip() for h in (reader.fieldnames or [])]
-    rows = [{(k or "").strip(): (v or "").strip() for k, v in row.items()} for row in reader]
+    try:
+        records = list(csv.reader(io.StringIO("\n".join(lines)), dialect=dialect))
+    except csv.Error as exc:
+        raise InputDataError(f"{name}: {path} is not a readable table: {exc}") from None
+    header = [h.strip() for h in records[0]]
+    if len(records) < 2:
+        raise InputDataError(f"{name}: {path} has a header but no rows (at least one data row "
+                             "is needed)")
+    rows = []
+    for number_, record in enumerate(records[1:], start=2):
+        if len(record) > len(header) and any(v.strip() for v in record[len(header):]):
+            raise InputDataError(f"{name}: {path}, data line {number_ - 1}: {len(record)} fields "
+                                 f"but the header has {len(header)} ({', '.join(header)})")
+        values = [v.strip() for v in record] + [""] * (len(header) - len(record))
+        rows.append(dict(zip(header, values, strict=False)))
     return header, rows
 
 

@@ -37,6 +37,8 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from toolbox.errors import ParameterError
+
 RESAMPLING_METHODS = ("nearest", "bilinear", "cubic", "lanczos")
 # not OpenCV's: :mod:`toolbox.raster.quadratic` (the thesis' quadratic, for orthophotos)
 EXTRA_RESAMPLING = ("quadratic",)
@@ -401,10 +403,10 @@ def output_layout(src: Any, outside: str = "alpha", nodata: float | None = None)
         if np.dtype(dtype).kind in "iu" and not math.isnan(out_nodata):
             info = np.iinfo(np.dtype(dtype))
             if not (info.min <= out_nodata <= info.max and out_nodata == int(out_nodata)):
-                raise ValueError(f"nodata {out_nodata:g} does not fit the {dtype} data type "
-                                 f"({info.min}..{info.max})")
+                raise ParameterError("NODATA", f"{out_nodata:g} does not fit the {dtype} data "
+                                     f"type ({info.min}..{info.max})")
         elif np.dtype(dtype).kind in "iu":
-            raise ValueError(f"nodata NaN does not fit the integer data type {dtype}")
+            raise ParameterError("NODATA", f"NaN does not fit the integer data type {dtype}")
     return OutputLayout(data_bands, source_alpha, source_masked, alpha, out_nodata, dtype)
 
 

@@ -115,3 +115,29 @@ def merge_duplicate_xy(xyz: np.ndarray, tolerance: float = 0.0,
     report = DuplicateReport(int(dup.sum()), int(n - m),
                              float(spread[dup].max()) if dup.any() else 0.0, rule)
     return merged, report, keep
+
+
+COLLINEAR_RELATIVE = 1e-7  # RMS distance from the best line / extent below this: collinear
+
+
+def check_not_collinear(xy: np.ndarray, what: str = "data points") -> None:
+    """Raise ``ValueError`` (callers wrap it) when the points lie on one line up to rounding.
+
+    The test is relative to the data's extent, not exact: the smallest singular value of the
+    centred XY, divided by sqrt(N), is the RMS distance of the points from their best-fit line;
+    below :data:`COLLINEAR_RELATIVE` times the extent, the points are collinear for any
+    surface (200 points on a line to 1e-10 m would give only slivers).
+    """
+    xy = np.asarray(xy, dtype="float64")[:, :2]
+    n = len(xy)
+    if n < 3:
+        raise ValueError(f"the {what} are too few: at least 3 points are needed, got {n}")
+    centred = xy - xy.mean(axis=0)
+    extent = float(np.ptp(xy, axis=0).max())
+    if extent == 0:
+        raise ValueError(f"the {n} {what} all have the same XY (duplicate positions)")
+    spread = float(np.linalg.svd(centred, compute_uv=False)[-1]) / np.sqrt(n)
+    if spread < COLLINEAR_RELATIVE * extent:
+        raise ValueError(f"the {n} {what} are collinear: they lie within {spread:.3g} (RMS) of "
+                         f"one line over an extent of {extent:.6g}; a surface needs points "
+                         "spread in two directions")

@@ -82,6 +82,12 @@ _RE = {
     "point_row": re.compile(rf"^(\S+)\s+({NUM})\s+({NUM})\s+({NUM})$"),
 }
 
+# a line starting with one of these words must match its pattern: a value that does not parse
+# (``Omega x.yz``) is an error with the line number, never a photo silently skipped
+_KEYED = {"Omega": "angles", "Nx": "xyz", "Focale": "focal", "Larghezza in pixel": "width",
+          "Altezza in pixel": "height", "Sigma globale": "sigma",
+          "Rotazione scansione": "scan_rotation"}
+
 
 @dataclass
 class ZMapPhoto:
@@ -219,6 +225,10 @@ def parse_zmap_log(text: str, source: str = "<text>", angle_unit: str = "rad",
             continue
         if run is None:
             continue
+        for word, key in _KEYED.items():
+            if line.startswith(word) and not _RE[key].search(line):
+                raise fail(lineno, f"cannot read {line[:80]!r}: the numbers after {word!r} do "
+                           "not parse")
         if m := _RE["photo"].match(line):
             pid = _photo_id(m.group(1))
             photo = run.photos.setdefault(pid, ZMapPhoto(pid, m.group(1)))

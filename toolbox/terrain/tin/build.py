@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from toolbox.terrain.points import merge_duplicate_xy
+from toolbox.terrain.points import check_not_collinear, merge_duplicate_xy
 from toolbox.terrain.tin.kernels import (
     Triangulation,
     crossing_heights,
@@ -241,6 +241,10 @@ def build_tin(points: np.ndarray, line_xyz: np.ndarray | None = None,
     if len(nodes) < 3:
         raise TinBuildError(f"a TIN needs at least 3 distinct XY positions, got {len(nodes)} "
                             "after merging duplicates")
+    try:
+        check_not_collinear(nodes[:, :2] - nodes[:, :2].mean(axis=0), "TIN nodes")
+    except ValueError as exc:
+        raise TinBuildError(str(exc)) from None
     n_break = len(segments)
     tri, z, spread = _triangulate(nodes, segments, np.ones(n_break))
     inside = None
