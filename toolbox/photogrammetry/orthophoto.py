@@ -409,7 +409,10 @@ class OrthoWindows:
         self._last = (self._key(window), self._result(window))
         return self._last[1][2]
 
-    def __call__(self, window: Any) -> tuple[np.ndarray, np.ndarray]:
+    def __call__(self, tile: Any, aux: Any = None) -> tuple[np.ndarray, np.ndarray]:
+        """The source pixel coordinates of an output tile (the engine's ``coordinate_map(tile,
+        aux)`` form; the DEM is sampled here, window by window, with the prefetch above)."""
+        window = getattr(tile, "window", tile)
         last = getattr(self, "_last", None)
         if last is not None and last[0] == self._key(window):
             self._last = None
