@@ -649,13 +649,14 @@ def warp_raster(source: Any, grid: GridSpec, coordinate_map: Any, writer_or_outp
 
     from toolbox.raster.warp import (
         DEFAULT_MAX_SOURCE_PIXELS,
+        EXTRA_RESAMPLING,
         RESAMPLING_METHODS,
         WarpStatistics,
     )
 
-    if resampling not in RESAMPLING_METHODS:
-        raise ValueError(f"resampling must be one of {', '.join(RESAMPLING_METHODS)}, "
-                         f"got {resampling!r}")
+    methods = RESAMPLING_METHODS + EXTRA_RESAMPLING
+    if resampling not in methods:
+        raise ValueError(f"resampling must be one of {', '.join(methods)}, got {resampling!r}")
     path = _source_path(source)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
