@@ -81,7 +81,7 @@ class ApplyCodes(Algorithm):
                       "dict")]
 
     def check(self, params):
-        from toolbox.attribution.codes import read_code_file, read_colour_file
+        from toolbox.io.code_file import read_code_file, read_colour_file
         from toolbox.io.parameter_file import optional_parameter_file
 
         read_code_file(params["CODES"], "CODES")  # bad auxiliary files fail before any work
@@ -91,10 +91,10 @@ class ApplyCodes(Algorithm):
 
     def process(self, params, feedback: Feedback):
         from toolbox.attribution.apply import attribute
-        from toolbox.attribution.codes import read_code_file, read_colour_file
         from toolbox.attribution.merge import events_frame, merge_models
         from toolbox.attribution.output import MERGE_STYLE, write_attribution
         from toolbox.attribution.sources import read_sources, translated
+        from toolbox.io.code_file import read_code_file, read_colour_file
         from toolbox.io.parameter_file import optional_parameter_file, resolve
 
         table = read_code_file(params["CODES"], "CODES")

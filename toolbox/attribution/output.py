@@ -10,7 +10,7 @@ import numpy as np
 import shapely
 
 from toolbox.attribution.apply import GPKG_TYPES, Attribution
-from toolbox.attribution.codes import CodeTable
+from toolbox.io.code_file import CodeTable
 from toolbox.styles.model import CodeStyle, LayerStyle, layer_style
 from toolbox.styles.qml import qml_document
 from toolbox.styles.sld import sld_document

@@ -7,8 +7,8 @@ import pytest
 import shapely
 
 import toolbox
-from toolbox.attribution.codes import percent_to_byte, read_code_file, read_colour_file
 from toolbox.errors import InputDataError
+from toolbox.io.code_file import percent_to_byte, read_code_file, read_colour_file
 from toolbox.io.parameter_file import read_parameter_file
 
 
