@@ -89,8 +89,11 @@ class Profile(Algorithm):
         )
         from toolbox.io.vector import read_vector, write_layers
 
+        from toolbox.io.crs import common_crs
+
         lines_frame = read_vector(params["INPUT"], name="INPUT")
-        crs = lines_frame.crs
+        crs = common_crs({name: getattr(params.get(name), "crs", None)
+                          for name in ("INPUT", "DEM", "TIN", "CONTOURS")})  # mixed: refused
         lines = line_parts(lines_frame)
         surface, contours = None, None
         if params["MODE"] == "contours":

@@ -54,12 +54,28 @@ def resolve(template: str, parameters: dict) -> str:
 
 
 def check_layers(path: str, declared: list[Layer], parameters: dict) -> list[str]:
+    """Problems of the layers written against the declared ones. ``layer_styles`` (QGIS's styles
+    table) is always allowed; a declared name with ``*`` stands for layers named after the data
+    (one per code: their geometry type varies, only the listed fields are checked)."""
+    import fnmatch
+
     problems = []
-    written = {name: geometry for name, geometry in pyogrio.list_layers(path)}
+    written = {name: geometry for name, geometry in pyogrio.list_layers(path)
+               if name != "layer_styles"}
     expected = {resolve(layer.name, parameters): layer for layer in declared}
+    patterns = {name: layer for name, layer in expected.items() if "*" in name}
     for name in sorted(set(written) - set(expected)):
-        problems.append(f"layer {name} written but not declared")
+        pattern = next((p for p in patterns if fnmatch.fnmatch(name, p)), None)
+        if pattern is None:
+            problems.append(f"layer {name} written but not declared")
+            continue
+        info = pyogrio.read_info(path, layer=name)
+        for field in patterns[pattern].fields:
+            if field.name not in info["fields"]:
+                problems.append(f"layer {name}: declared field {field.name} not written")
     for name, layer in expected.items():
+        if "*" in name:
+            continue
         if name not in written:
             if not layer.optional:
                 problems.append(f"declared layer {name} not written")
