@@ -133,7 +133,8 @@ def test_value_outputs_are_typed():
     for alg in algorithms():
         for out in alg.spec()["outputs"]:
             assert out["type"] in {"number", "integer", "string", "boolean", "json", "file",
-                                   "output_vector", "output_raster", "output_file"}, alg.id
+                                   "output_vector", "output_raster", "output_file",
+                                   "output_folder"}, alg.id
 
 
 def test_optional_is_separate_from_default():
@@ -196,8 +197,9 @@ def test_deprecated_name_is_accepted_with_a_warning(tmp_path):
 
     lines = tmp_path / "lines.gpkg"
     gpd.GeoDataFrame({"h": [300.0, 310.0]}, geometry=[
-        shapely.LineString([(0, 0), (100, 0)]), shapely.LineString([(0, 50), (100, 60)])],
-        crs="EPSG:3003").to_file(lines)
+        shapely.LineString([(1_688_000, 4_799_500), (1_688_100, 4_799_500)]),
+        shapely.LineString([(1_688_000, 4_799_550), (1_688_100, 4_799_560)])],
+        crs="EPSG:3003").to_file(lines)  # inside EPSG:3003's area of use (Siena)
     params = {"BREAKLINES": str(lines), "BREAKLINE_Z_FIELD": "h", "OUTPUT": tmp_path / "t.gpkg"}
     with pytest.warns(DeprecationWarning, match="BREAKLINE_Z_FIELD is now called "
                                                 "BREAKLINES_Z_FIELD"):
