@@ -14,8 +14,7 @@ from toolbox.io.raster import DEFAULT_BLOCK, iter_windows
 from toolbox.parameters import Integer, Number, Output, OutputFile, RasterLayer, VectorLayer
 from toolbox.registry import register
 from toolbox.terrain.tin.cutfill import CutFill, grid_cut_fill, plane_cut_fill
-from toolbox.terrain.tin.kernels import rasterize_tin, triangles_by_tile
-from toolbox.terrain.tin.store import TIN_HELP, read_tin
+from toolbox.terrain.tin.help import TIN_HELP
 
 
 def read_mask(ref):
@@ -40,6 +39,8 @@ def dem_cut_fill(xyz: np.ndarray, triangles: np.ndarray, info, band: int, mask,
     import rasterio
     from affine import Affine
     from rasterio.features import geometry_mask
+
+    from toolbox.terrain.tin.kernels import rasterize_tin, triangles_by_tile
 
     t = info.transform
     cell_x, cell_y = abs(t.a), abs(t.e)
@@ -124,6 +125,8 @@ class Volume(Algorithm):
                                 f"{dem}")
 
     def process(self, params, feedback: Feedback):
+        from toolbox.terrain.tin.store import read_tin
+
         named = {"TIN": params["TIN"].crs}
         if params["MASK"] is not None:
             named["MASK"] = params["MASK"].crs
