@@ -27,6 +27,7 @@ class Aspect(Algorithm):
         Integer("BAND", "band of the DEM", default=1, min_value=1),
         Integer("TILE_SIZE", "tile side in cells", default=512, min_value=16),
         Boolean("OVERVIEWS", "build internal overviews", default=True),
+        Boolean("COG", "write a Cloud Optimized GeoTIFF", default=False),
         OutputRaster("OUTPUT", "aspect GeoTIFF"),
     ]
     outputs = [Output("STATISTICS", "cell counts", "dict")]
@@ -41,5 +42,5 @@ class Aspect(Algorithm):
 
         stats = shade_raster(params["INPUT"], params["BAND"], params["OUTPUT"], aspect,
                              "float32", -9999.0, feedback, params["TILE_SIZE"],
-                             params["OVERVIEWS"])
+                             params["OVERVIEWS"], params["COG"])
         return {"OUTPUT": params["OUTPUT"], "STATISTICS": stats}

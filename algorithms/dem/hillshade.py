@@ -17,7 +17,7 @@ class Hillshade(Algorithm):
     aspect)``. Output: Byte GeoTIFF, 1 (dark) to 255 (lit), 0 = nodata. Beyond the raster edges the
     surface is extrapolated linearly (exact on planes); cells next to nodata are
     nodata. The DEM is read and written in tiles with a one-cell halo, so any size works in
-    bounded memory. Formerly ``raster:hillshade`` (that id still works).
+    bounded memory (the shared raster engine). Formerly ``raster:hillshade`` (that id still works).
     """
 
     id = "dem:hillshade"
@@ -35,6 +35,7 @@ class Hillshade(Algorithm):
                min_value=0, min_exclusive=True),
         Integer("TILE_SIZE", "tile side in cells", default=512, min_value=16),
         Boolean("OVERVIEWS", "build internal overviews", default=True),
+        Boolean("COG", "write a Cloud Optimized GeoTIFF", default=False),
         OutputRaster("OUTPUT", "hillshade GeoTIFF"),
     ]
 
@@ -44,13 +45,13 @@ class Hillshade(Algorithm):
         check_dem_params(params)
 
     def process(self, params, feedback: Feedback):
-        from toolbox.terrain.shading import hillshade, hillshade_byte, shade_raster
+        from functools import partial
 
-        def kernel(z, cell_x, cell_y):
-            return hillshade_byte(hillshade(z, cell_x, cell_y, params["AZIMUTH"],
-                                            params["ALTITUDE"], params["Z_FACTOR"]))
+        from toolbox.terrain.shading import hillshade_bytes, shade_raster
 
+        kernel = partial(hillshade_bytes, azimuth=params["AZIMUTH"],
+                         altitude=params["ALTITUDE"], z_factor=params["Z_FACTOR"])
         shade_raster(params["INPUT"], params["BAND"], params["OUTPUT"], kernel, "uint8", 0,
-                     feedback, params["TILE_SIZE"], params["OVERVIEWS"])
+                     feedback, params["TILE_SIZE"], params["OVERVIEWS"], params["COG"])
         return {"OUTPUT": params["OUTPUT"]}
 

@@ -31,6 +31,7 @@ class Slope(Algorithm):
                min_value=0, min_exclusive=True),
         Integer("TILE_SIZE", "tile side in cells", default=512, min_value=16),
         Boolean("OVERVIEWS", "build internal overviews", default=True),
+        Boolean("COG", "write a Cloud Optimized GeoTIFF", default=False),
         OutputRaster("OUTPUT", "slope GeoTIFF"),
     ]
     outputs = [Output("STATISTICS", "cell counts", "dict")]
@@ -41,12 +42,12 @@ class Slope(Algorithm):
         check_dem_params(params)
 
     def process(self, params, feedback: Feedback):
+        from functools import partial
+
         from toolbox.terrain.shading import shade_raster, slope
 
-        def kernel(z, cell_x, cell_y):
-            return slope(z, cell_x, cell_y, params["Z_FACTOR"], params["UNITS"])
-
+        kernel = partial(slope, z_factor=params["Z_FACTOR"], units=params["UNITS"])
         stats = shade_raster(params["INPUT"], params["BAND"], params["OUTPUT"], kernel,
                              "float32", -9999.0, feedback, params["TILE_SIZE"],
-                             params["OVERVIEWS"])
+                             params["OVERVIEWS"], params["COG"])
         return {"OUTPUT": params["OUTPUT"], "STATISTICS": stats}

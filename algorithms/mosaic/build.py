@@ -42,7 +42,7 @@ class MosaicBuild(Algorithm):
     held at 1 and the mean offset at 0 (no ortho is the reference).
 
     The grid has the finest input's cell (or CELL_SIZE) over the cut polygons' area; inputs on
-    other grids are resampled (RESAMPLING) with a warning. The mosaic is written window by window
+    other grids are resampled (RESAMPLING) with a warning. The mosaic is written tile by tile
     (tiled DEFLATE GeoTIFF with overviews, or COG), with an alpha band if any input has one,
     else nodata. SOURCE_INDEX gets the 1-based input number of each cell (0 = no data), and
     SEAMLINES the seams between the cut polygons.

@@ -11,11 +11,7 @@ from toolbox.io.crs import common_crs
 from toolbox.io.vector import read_vector, write_layers
 from toolbox.parameters import Boolean, Layer, Number, Output, OutputVector, String, VectorLayer
 from toolbox.registry import register
-from toolbox.terrain.tin.kernels import interpolate_tin
-from toolbox.terrain.tin.store import (  # noqa: F401
-    TIN_HELP,
-    read_tin,
-)
+from toolbox.terrain.tin.help import TIN_HELP
 
 
 @register
@@ -67,6 +63,9 @@ class Interpolate(Algorithm):
 
     def process(self, params, feedback: Feedback):
         import shapely
+
+        from toolbox.terrain.tin.kernels import interpolate_tin
+        from toolbox.terrain.tin.store import read_tin
 
         crs = common_crs({"INPUT": params["INPUT"].crs, "TIN": params["TIN"].crs})
         with feedback.timed("read"):

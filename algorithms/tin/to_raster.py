@@ -20,7 +20,7 @@ from toolbox.parameters import (
     VectorLayer,
 )
 from toolbox.registry import register
-from toolbox.terrain.tin.store import TIN_HELP
+from toolbox.terrain.tin.help import TIN_HELP
 
 
 @register

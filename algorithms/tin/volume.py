@@ -10,12 +10,11 @@ from toolbox.algorithm import Algorithm
 from toolbox.errors import InputDataError
 from toolbox.feedback import Feedback
 from toolbox.io.crs import common_crs, crs_label
-from toolbox.io.raster import DEFAULT_BLOCK, iter_windows
+from toolbox.io.raster import DEFAULT_BLOCK
 from toolbox.parameters import Integer, Number, Output, OutputFile, RasterLayer, VectorLayer
 from toolbox.registry import register
 from toolbox.terrain.tin.cutfill import CutFill, grid_cut_fill, plane_cut_fill
-from toolbox.terrain.tin.kernels import rasterize_tin, triangles_by_tile
-from toolbox.terrain.tin.store import TIN_HELP, read_tin
+from toolbox.terrain.tin.help import TIN_HELP
 
 
 def read_mask(ref):
@@ -36,39 +35,55 @@ def read_mask(ref):
 
 def dem_cut_fill(xyz: np.ndarray, triangles: np.ndarray, info, band: int, mask,
                  feedback: Feedback) -> tuple[CutFill, dict]:
-    """Cut/fill of the TIN against a DEM on the DEM's own grid, window by window."""
-    import rasterio
-    from affine import Affine
-    from rasterio.features import geometry_mask
+    """Cut/fill of the TIN against a DEM on the DEM's own grid, tile by tile on the raster
+    engine (tiles without triangles are not read)."""
+    from functools import partial
+
+    from toolbox.io.grid import GridSpec
+    from toolbox.raster.engine import RasterInput, process_raster
+    from toolbox.terrain.tin.kernels import triangles_by_tile
 
     t = info.transform
     cell_x, cell_y = abs(t.a), abs(t.e)
-    tile = DEFAULT_BLOCK
+    tile_size = DEFAULT_BLOCK
     order, start, ntx = triangles_by_tile(xyz[:, :2], triangles, t.c, t.f, cell_x, cell_y,
-                                          info.width, info.height, tile)
+                                          info.width, info.height, tile_size)
+    grid = GridSpec(t, info.width, info.height, info.crs)
     total = CutFill()
     no_dem = 0
-    with rasterio.open(info.path) as src:
-        for w in feedback.iterate(list(iter_windows(info.width, info.height, tile)), start=10,
-                                  end=100, message="comparing"):
-            core = w.core
-            k = (int(core.row_off) // tile) * ntx + int(core.col_off) // tile
-            tri = triangles[order[start[k]:start[k + 1]]]
-            if len(tri) == 0:
-                continue
-            x0, y0 = t.c + core.col_off * cell_x, t.f - core.row_off * cell_y
-            tin_z = rasterize_tin(xyz, tri, x0, y0, cell_x, cell_y, int(core.width),
-                                  int(core.height))
-            dem = src.read(band, window=core, masked=True).astype("float64").filled(np.nan)
-            inside = None
-            if mask is not None:
-                window_transform = Affine(t.a, 0.0, x0, 0.0, t.e, y0)
-                inside = ~geometry_mask([mask], (int(core.height), int(core.width)),
-                                        window_transform, all_touched=False)
-            covered = ~np.isnan(tin_z) if inside is None else ~np.isnan(tin_z) & inside
-            no_dem += int((covered & np.isnan(dem)).sum())
-            total += grid_cut_fill(tin_z, dem, cell_x * cell_y, inside)
+
+    def plan(tile):
+        k = (int(tile.window.row_off) // tile_size) * ntx + int(tile.window.col_off) // tile_size
+        tri = triangles[order[start[k]:start[k + 1]]]
+        return {"triangles": tri} if len(tri) else None
+
+    def collect(tile, _array, part):
+        nonlocal total, no_dem
+        if part is not None:
+            total += part[0]
+            no_dem += part[1]
+
+    process_raster(grid, {"dem": RasterInput(info.path, bands=(band,), dtype="float64")},
+                   partial(_cut_fill_tile, xyz, mask, cell_x * cell_y),
+                   lambda tile, array: None, tile_size=tile_size, plan=plan, collect=collect,
+                   feedback=feedback, start=10, end=100)
     return total, {"cell_size": [cell_x, cell_y], "cells_without_dem": no_dem}
+
+
+def _cut_fill_tile(xyz, mask, cell_area, tile, arrays) -> tuple[None, tuple[CutFill, int]]:
+    """Engine kernel: (no raster, (cut/fill of the tile, TIN cells without DEM))."""
+    from rasterio.features import geometry_mask
+
+    from toolbox.terrain.tin.kernels import rasterize_tin
+
+    t = tile.core_transform
+    rows, cols = tile.shape
+    tin_z = rasterize_tin(xyz, arrays["triangles"], t.c, t.f, t.a, -t.e, cols, rows)
+    dem = arrays["dem"][0]
+    inside = None if mask is None else ~geometry_mask([mask], (rows, cols), t,
+                                                       all_touched=False)
+    covered = ~np.isnan(tin_z) if inside is None else ~np.isnan(tin_z) & inside
+    return None, (grid_cut_fill(tin_z, dem, cell_area, inside), int((covered & np.isnan(dem)).sum()))
 
 
 @register
@@ -124,6 +139,8 @@ class Volume(Algorithm):
                                 f"{dem}")
 
     def process(self, params, feedback: Feedback):
+        from toolbox.terrain.tin.store import read_tin
+
         named = {"TIN": params["TIN"].crs}
         if params["MASK"] is not None:
             named["MASK"] = params["MASK"].crs

@@ -153,11 +153,8 @@ def test_wheel_install_checks_record_hash(tmp_path, monkeypatch, same_content):
 
 HEAVY = ("numba", "geopandas", "pandas", "rasterio", "pyogrio", "cv2", "triangle", "dask", "scipy",
          "skimage", "matplotlib")
-# Still heavy at import through library modules outside the framework: the DEM wing's parameter
-# declarations (toolbox.terrain.gridding, moving to a light module) and TIN_HELP in
-# toolbox.terrain.tin.store (which imports the kernels). Shrink this set, never grow it.
-KNOWN_HEAVY = {"dem:cross_validate", "dem:cubic", "dem:idw", "dem:nearest", "dem:plane",
-               "dem:quadratic", "dem:tin_linear", "tin:interpolate", "tin:to_raster", "tin:volume"}
+# Algorithms still heavy at import through library modules (none left). Never grow this set.
+KNOWN_HEAVY: set[str] = set()
 
 
 def test_framework_and_algorithm_modules_import_nothing_heavy(tmp_path):

@@ -1,9 +1,10 @@
 """The mosaic, window by window: cut polygons -> labels -> (balanced) sources -> blend -> write.
 
-:func:`mosaic_window` is the kernel of one output window (arrays in, arrays out, apart from
-reading the sources' windows); :func:`write_mosaic` streams it over the grid with
-:func:`toolbox.tiles.map_tiles`, so memory is bounded by a few windows whatever the mosaic size,
-into :class:`WindowWriter` s (the raster engine's ``RasterWriter`` contract).
+:func:`mosaic_window` is the kernel of one output tile (arrays in, arrays out, apart from
+reading the sources' windows); :func:`write_mosaic` runs it over the grid on the shared raster
+engine (:func:`toolbox.raster.engine.process_raster`), so memory is bounded by a few tiles
+whatever the mosaic size, into :class:`toolbox.raster.writer.RasterWriter` s (the source-index
+raster is written from the engine's ``collect`` hook).
 
 Labels: a cell takes the source whose cut polygon holds it; where that source has no valid data
 (the polygons are traced on decimated masks) or no polygon holds the cell, the first valid source
@@ -20,7 +21,6 @@ from typing import Any
 
 import numpy as np
 
-from toolbox.io.raster import TileWindow
 from toolbox.mosaic.blend import feather_weights, multiband_blend
 from toolbox.mosaic.sources import OrthoSource, read_window
 
@@ -78,10 +78,25 @@ def window_labels(plan: MosaicPlan, window: Any, valid: np.ndarray) -> np.ndarra
     return np.where(own_valid, labels, first).astype("int16")
 
 
-def mosaic_window(plan: MosaicPlan, tile: TileWindow) -> tuple[np.ndarray, np.ndarray]:
-    """``(data (bands, rows, cols) in plan.dtype, labels (rows, cols) int16)`` of one core
-    window; data is 0 where ``labels == -1``."""
-    padded = tile.padded
+def clipped_window(grid: Any, tile: Any) -> tuple[Any, tuple[slice, slice]]:
+    """The haloed window of an engine :class:`~toolbox.raster.engine.Tile` clipped to the grid,
+    and the slices cutting the tile out of an array over it (the mosaic blends only cells of
+    the grid)."""
+    from rasterio.windows import Window
+
+    w, halo = tile.window, tile.halo
+    col0, row0, cols, rows = int(w.col_off), int(w.row_off), int(w.width), int(w.height)
+    c0, r0 = max(col0 - halo, 0), max(row0 - halo, 0)
+    c1, r1 = min(col0 + cols + halo, grid.width), min(row0 + rows + halo, grid.height)
+    inner = (slice(row0 - r0, row0 - r0 + rows), slice(col0 - c0, col0 - c0 + cols))
+    return Window(c0, r0, c1 - c0, r1 - r0), inner
+
+
+def mosaic_window(plan: MosaicPlan, tile: Any) -> tuple[np.ndarray, np.ndarray]:
+    """``(data (bands, rows, cols) in plan.dtype, labels (rows, cols) int16)`` of one engine
+    :class:`~toolbox.raster.engine.Tile` (its halo, clipped to the grid, is the blending
+    margin); data is 0 where ``labels == -1``."""
+    padded, inner = clipped_window(plan.grid, tile)
     shape = (int(padded.height), int(padded.width))
     bounds = window_bounds(plan.grid, padded)
     n = len(plan.sources)
@@ -111,8 +126,8 @@ def mosaic_window(plan: MosaicPlan, tile: TileWindow) -> tuple[np.ndarray, np.nd
             sel = labels == k
             out[:, sel] = images[k][:, sel]
     out[:, labels < 0] = 0
-    core = (slice(None), *tile.inner)
-    return to_dtype(out[core], plan.dtype), labels[tile.inner]
+    core = (slice(None), *inner)
+    return to_dtype(out[core], plan.dtype), labels[inner]
 
 
 def to_dtype(values: np.ndarray, dtype: str) -> np.ndarray:
@@ -124,112 +139,63 @@ def to_dtype(values: np.ndarray, dtype: str) -> np.ndarray:
     return values.astype(dt)
 
 
-def _window_task(args):
-    plan, tile = args
-    return tile, *mosaic_window(plan, tile)
-
-
-class WindowWriter:
-    """A GeoTIFF written window by window: tiled 512, DEFLATE with a predictor, overviews, an
-    optional alpha band (last band) and an optional COG copy at close.
-
-    The same constructor and ``write(window, array)`` as the raster engine's
-    ``toolbox.raster.writer.RasterWriter``, so the engine's writer can replace it one for one.
-    """
-
-    def __init__(self, path: Path, grid: Any, count: int, dtype: Any,
-                 nodata: float | None = None, *, alpha: bool = False, cog: bool = False,
-                 overviews: bool = True, overview_resampling: str = "average"):
-        self.path, self.grid, self.count, self.dtype = Path(path), grid, count, np.dtype(dtype)
-        self.nodata, self.alpha, self.cog = nodata, alpha, cog
-        self.overviews, self.overview_resampling = overviews, overview_resampling
-        self._target = self.path.with_name(f".{self.path.name}.tiled.tif") if cog else self.path
-
-    def __enter__(self) -> WindowWriter:
-        import rasterio
-
-        from toolbox.io.raster import geotiff_profile
-
-        g = self.grid
-        profile = geotiff_profile(g.width, g.height, self.count, self.dtype, g.crs, g.transform,
-                                  None if self.alpha else self.nodata)
-        self._env = rasterio.Env(COMPRESS_OVERVIEW="DEFLATE",
-                                 PREDICTOR_OVERVIEW=profile["predictor"])
-        self._env.__enter__()
-        self.dataset = rasterio.open(self._target, "w", **profile)
-        if self.alpha:
-            from rasterio.enums import ColorInterp
-
-            data = self.count - 1
-            interp = [ColorInterp.red, ColorInterp.green, ColorInterp.blue] if data == 3 else \
-                [ColorInterp.gray] * data
-            self.dataset.colorinterp = [*interp, ColorInterp.alpha]
-        return self
-
-    def write(self, window: Any, array: np.ndarray) -> None:
-        self.dataset.write(array if array.ndim == 3 else array[None], window=window)
-
-    def __exit__(self, exc_type, exc, tb) -> None:
-        from toolbox.io.raster import build_overviews
-
-        try:
-            if exc_type is None and (self.overviews or self.cog):
-                build_overviews(self.dataset, self.overview_resampling)
-        finally:
-            self.dataset.close()
-            self._env.__exit__(None, None, None)
-        if exc_type is None and self.cog:
-            from rasterio.shutil import copy
-
-            copy(self._target, self.path, driver="COG", compress="DEFLATE", overviews="AUTO")
-        if self.cog:
-            self._target.unlink(missing_ok=True)
+def mosaic_tile(plan: MosaicPlan, alpha: bool, nodata: float | None, tile: Any,
+                arrays: dict) -> tuple[np.ndarray, np.ndarray]:
+    """The engine kernel: :func:`mosaic_window` with the alpha band appended (``alpha``) or
+    ``nodata`` where no source has data; the labels go to ``collect`` as the tile's info."""
+    data, labels = mosaic_window(plan, tile)
+    missing = labels < 0
+    if alpha:
+        dt = np.dtype(plan.dtype)
+        opaque = np.iinfo(dt).max if dt.kind in "iu" else 1
+        data = np.concatenate([data, np.where(missing, 0, opaque).astype(dt)[None]], axis=0)
+    elif nodata is not None:
+        data[:, missing] = nodata
+    return data, labels
 
 
 def write_mosaic(plan: MosaicPlan, output: Path, index_path: Path | None, *, alpha: bool,
                  nodata: float | None, cog: bool = False, overviews: bool = True,
-                 tile_size: int = 512, workers: int | None = None,
+                 tile_size: int = 512, workers: int | None = None, executor: Any = None,
                  feedback: Any = None) -> dict:
     """Stream the mosaic into ``output`` (and the source-index raster into ``index_path``).
 
     The output has ``plan.bands`` data bands plus an alpha band (``alpha``) or ``nodata`` where
-    no source has data; tiled DEFLATE GeoTIFF with overviews, or a COG (``cog``).
+    no source has data; tiled DEFLATE GeoTIFF with overviews, or a COG (``cog``). Tiles run on
+    ``executor`` (default: ``workers`` local threads).
     """
     from contextlib import ExitStack
+    from functools import partial
 
-    from toolbox.io.raster import iter_windows
-    from toolbox.tiles import map_tiles
+    from toolbox.raster.engine import process_raster
+    from toolbox.raster.writer import RasterWriter
+    from toolbox.tiles import Executor, default_workers
 
     grid = plan.grid
-    dt = np.dtype(plan.dtype)
-    alpha_value = np.iinfo(dt).max if dt.kind in "iu" else 1
     index_dtype = "uint8" if len(plan.sources) < 255 else "uint16"
     counts = np.zeros(len(plan.sources), dtype="int64")
-    empty = 0
-    tiles = list(iter_windows(grid.width, grid.height, tile_size, plan.halo()))
+    empty = [0]
+    executor = executor or Executor("local", workers or default_workers())
     with ExitStack() as stack:
-        dst = stack.enter_context(WindowWriter(
+        dst = stack.enter_context(RasterWriter(
             output, grid, plan.bands + (1 if alpha else 0), plan.dtype,
             None if alpha else nodata, alpha=alpha, cog=cog, overviews=overviews))
-        idx = None if index_path is None else stack.enter_context(WindowWriter(
+        idx = None if index_path is None else stack.enter_context(RasterWriter(
             index_path, grid, 1, index_dtype, 0, overviews=overviews,
             overview_resampling="nearest"))
-        for tile, data, labels in map_tiles(_window_task, ((plan, t) for t in tiles),
-                                            workers=workers, feedback=feedback,
-                                            total=len(tiles), start=0, end=90):
-            nodata_cells = labels < 0
-            empty += int(nodata_cells.sum())
-            counts += np.bincount(labels[~nodata_cells], minlength=len(counts))
-            if alpha:
-                a = np.where(nodata_cells, 0, alpha_value).astype(plan.dtype)
-                data = np.concatenate([data, a[None]], axis=0)
-            elif nodata is not None:
-                data[:, nodata_cells] = nodata
-            dst.write(tile.core, data)
+
+        def collect(tile, data, labels):
+            missing = labels < 0
+            empty[0] += int(missing.sum())
+            counts[:] += np.bincount(labels[~missing], minlength=len(counts))
             if idx is not None:
-                idx.write(tile.core, (labels + 1).astype(index_dtype))
+                idx.write(tile.window, (labels + 1).astype(index_dtype))
+
+        result = process_raster(grid, None, partial(mosaic_tile, plan, alpha, nodata), dst,
+                                tile_size=tile_size, halo=plan.halo(), executor=executor,
+                                feedback=feedback, collect=collect, end=90)
     if feedback is not None:
         feedback.set_progress(100)
     return {"cells_per_source": {s.name: int(c) for s, c in zip(plan.sources, counts,
                                                                strict=True)},
-            "empty_cells": empty, "tiles": len(tiles)}
+            "empty_cells": empty[0], "tiles": result["tiles"]}

@@ -7,8 +7,8 @@ NaN cells give NaN. The formulas are those of ``gdaldem`` (Horn 1981):
     dz/dx = ((c + 2f + i) - (a + 2d + g)) / (8 cell_x)      eastward
     dz/dy = ((a + 2b + c) - (g + 2h + i)) / (8 cell_y)      northward
 
-for the window ``a b c / d e f / g h i``. :func:`shade_raster` runs a kernel over a GeoTIFF in
-tiles with that halo, so any size works in bounded memory.
+for the window ``a b c / d e f / g h i``. :func:`shade_raster` runs a kernel over a GeoTIFF on the
+shared raster engine (tiles with that halo), so any size works in bounded memory.
 """
 
 from __future__ import annotations
@@ -76,57 +76,76 @@ def hillshade_byte(shade: np.ndarray) -> np.ndarray:
     return np.where(np.isnan(shade), 0, 1 + np.round(np.nan_to_num(shade) * 254)).astype("uint8")
 
 
-def pad_to_halo(z: np.ndarray, tile) -> np.ndarray:
-    """Give ``z`` (read over ``tile.padded``) a full one-cell halo around ``tile.core``.
+def hillshade_bytes(z: np.ndarray, cell_x: float, cell_y: float, azimuth: float = 315.0,
+                    altitude: float = 45.0, z_factor: float = 1.0) -> np.ndarray:
+    """:func:`hillshade` as Byte (:func:`hillshade_byte`): the kernel of ``dem:hillshade``."""
+    return hillshade_byte(hillshade(z, cell_x, cell_y, azimuth, altitude, z_factor))
 
-    Where the raster ends the surface is extrapolated linearly (``2·edge - inner``), exact on
-    planes; a one-cell-wide raster repeats its edge.
-    """
-    core, padded = tile.core, tile.padded
-    top = 1 - (core.row_off - padded.row_off)
-    left = 1 - (core.col_off - padded.col_off)
-    bottom = 1 - ((padded.row_off + padded.height) - (core.row_off + core.height))
-    right = 1 - ((padded.col_off + padded.width) - (core.col_off + core.width))
-    if min(z.shape) < 2:
-        return np.pad(z, ((top, bottom), (left, right)), mode="edge")
-    return np.pad(z, ((top, bottom), (left, right)), mode="reflect", reflect_type="odd")
+
+def extrapolate_edges(z: np.ndarray, tile, width: int, height: int) -> np.ndarray:
+    """Replace the halo cells of ``z`` (read over ``tile.haloed_window``, one-cell halo) that
+    lie beyond a ``width`` x ``height`` raster by the surface extrapolated linearly
+    (``2·edge - inner``), exact on planes; a one-cell-wide raster repeats its edge."""
+    w, h = tile.window, tile.halo
+    top = max(0, h - int(w.row_off))
+    left = max(0, h - int(w.col_off))
+    bottom = max(0, int(w.row_off + w.height) + h - height)
+    right = max(0, int(w.col_off + w.width) + h - width)
+    if not (top or bottom or left or right):
+        return z
+    inside = z[top:z.shape[0] - bottom, left:z.shape[1] - right]
+    pads = ((top, bottom), (left, right))
+    if min(inside.shape) < 2:
+        return np.pad(inside, pads, mode="edge")
+    return np.pad(inside, pads, mode="reflect", reflect_type="odd")
+
+
+def shade_tile(kernel: Callable[..., np.ndarray], raster_size: tuple[int, int],
+               cell: tuple[float, float], tile, arrays: dict) -> np.ndarray:
+    """The engine kernel: the tile's haloed DEM (nodata as NaN) with its edges extrapolated,
+    through ``kernel(z, cell_x, cell_y)``; (rows, cols) out."""
+    z = extrapolate_edges(arrays["dem"][0], tile, *raster_size)
+    return kernel(z, *cell)
 
 
 def shade_raster(info, band: int, output: str | Path,
                  kernel: Callable[[np.ndarray, float, float], np.ndarray], dtype: str,
-                 nodata: float, feedback, tile_size: int = 512, overviews: bool = True) -> dict:
-    """Run a 3x3 ``kernel(z_padded, cell_x, cell_y) -> values`` over a DEM in tiles.
+                 nodata: float, feedback, tile_size: int = 512, overviews: bool = True,
+                 cog: bool = False, executor=None) -> dict:
+    """Run a 3x3 ``kernel(z_padded, cell_x, cell_y) -> values`` over a DEM on the raster
+    engine (:func:`toolbox.raster.engine.process_raster`, one-cell halo) into a tiled
+    GeoTIFF (:class:`toolbox.raster.writer.RasterWriter`, a COG with ``cog``).
 
     ``info`` is a :class:`~toolbox.io.raster.RasterInfo`; DEM nodata becomes NaN before the
-    kernel (so cells next to nodata are nodata) and NaN results become ``nodata``. Returns
-    counts of valid and nodata cells.
+    kernel (so cells next to nodata are nodata) and NaN results become ``nodata``. The kernel
+    must be picklable (a module-level function or a ``functools.partial`` of one) to run on
+    a Dask cluster. Returns counts of valid and nodata cells and the number of tiles.
     """
-    import rasterio
+    from functools import partial
 
-    from toolbox.io.raster import build_overviews, geotiff_profile, iter_windows
+    from toolbox.io.grid import GridSpec
+    from toolbox.raster.engine import RasterInput, process_raster
+    from toolbox.raster.writer import RasterWriter
 
-    cell_x, cell_y = info.res
-    tiles = list(iter_windows(info.width, info.height, tile_size, halo=1))
-    profile = geotiff_profile(info.width, info.height, 1, dtype, info.crs, info.transform,
-                              nodata=nodata)
-    valid = 0
-    with rasterio.Env(COMPRESS_OVERVIEW="DEFLATE"), rasterio.open(info.path) as src, \
-            rasterio.open(output, "w", **profile) as dst:
-        for tile in feedback.iterate(tiles, start=0, end=95):
-            z = src.read(band, window=tile.padded, masked=True)
-            z = pad_to_halo(z.astype("float64").filled(np.nan), tile)
-            values = kernel(z, cell_x, cell_y)
-            if np.dtype(dtype).kind == "f":
-                good = np.isfinite(values)
-                values = np.where(good, values, nodata).astype(dtype)
-            else:
-                good = values != nodata
-            valid += int(good.sum())
-            dst.write(values, 1, window=tile.core)
-        if overviews:
-            build_overviews(dst)
-    return {"cells": info.width * info.height, "valid_cells": valid,
-            "nodata_cells": info.width * info.height - valid, "tiles": len(tiles)}
+    grid = GridSpec(info.transform, info.width, info.height, info.crs)
+    dem = RasterInput(info.path, bands=(band,), dtype="float64", boundary="nodata")
+    cell = tuple(float(r) for r in info.res)
+    tile_kernel = partial(shade_tile, kernel, (info.width, info.height), cell)
+    floating = np.dtype(dtype).kind == "f"
+    valid = [0]
+
+    def count(tile, values, _info):
+        if values is not None:
+            valid[0] += int((np.isfinite(values) if floating else values != nodata).sum())
+
+    with RasterWriter(output, grid, 1, dtype, nodata=nodata, overviews=overviews,
+                      cog=cog) as writer:
+        result = process_raster(grid, {"dem": dem}, tile_kernel, writer, tile_size=tile_size,
+                                halo=1, executor=executor, feedback=feedback, collect=count,
+                                end=95)
+    cells = info.width * info.height
+    return {"cells": cells, "valid_cells": valid[0], "nodata_cells": cells - valid[0],
+            "tiles": result["tiles"]}
 
 
 def check_dem_params(params: dict) -> None:

@@ -39,6 +39,7 @@ from toolbox.io.vector import (
     vector_driver,
 )
 from toolbox.terrain.tin.build import SOURCES, TinModel
+from toolbox.terrain.tin.help import TIN_HELP  # noqa: F401  (re-exported: its old home)
 from toolbox.terrain.tin.topology import EdgeTable, edge_table, triangle_measures
 
 _WKB_POINT_Z, _WKB_LINESTRING_Z, _WKB_POLYGON_Z = 1001, 1002, 1003
@@ -411,8 +412,3 @@ def _counter_clockwise(xyz: np.ndarray, triangles: np.ndarray) -> np.ndarray:
     cw = area < 0
     out[cw] = out[cw][:, [0, 2, 1]]
     return out
-
-
-TIN_HELP = ("TIN: the triangles layer of a tin:delaunay output (the file path is enough: .gpkg, "
-            "or .fgb/.parquet/.shp/.geojson with its _nodes file beside it), or any layer of "
-            "3D triangles")
