@@ -178,8 +178,10 @@ class SheetRenderer:
                 p = geom.representative_point()
                 self.ax.text(p.x, p.y, str(text), fontsize=5, color=colour, ha="center",
                              va="center", zorder=6, clip_on=True)
-        self.legend.append((style.kind, style.name, colour, style.width_mm,
-                            _hex(style.fill) if style.fill is not None else None))
+        entry = (style.kind, style.name, colour, style.width_mm,
+                 _hex(style.fill) if style.fill is not None else None)
+        if entry not in self.legend:  # one code drawn from two layers: listed once
+            self.legend.append(entry)
         self._restore_limits()
 
     def _restore_limits(self) -> None:
