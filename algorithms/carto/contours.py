@@ -35,7 +35,7 @@ class Contours(Algorithm):
 
     Output: layer ``contours`` (LineString Z at the level's height) with ``elev``, ``index``,
     ``closed``, ``length``, styled in the GeoPackage's ``layer_styles`` (index contours heavier,
-    labels along them); ``STYLE`` also writes the QML.
+    labels along them), as QML and SLD; ``STYLE`` also writes the QML.
     """
 
     id = "carto:contours"
@@ -84,7 +84,7 @@ class Contours(Algorithm):
             raster_contours,
             tin_layer_contours,
         )
-        from toolbox.cartography.qml import contour_qml, embed_style
+        from toolbox.cartography.qml import write_contour_style
         from toolbox.io.vector import write_layers
 
         interval, base = params["INTERVAL"], params["BASE"]
@@ -102,8 +102,7 @@ class Contours(Algorithm):
         frame = contour_frame(result.contours, interval, base, params["INDEX_EVERY"], crs)
         write_layers(params["OUTPUT"], {"contours": frame}, crs=crs,
                      geometry_types={"contours": "LineString Z"})
-        qml = contour_qml()
-        embed_style(params["OUTPUT"], "contours", qml)
+        qml = write_contour_style(params["OUTPUT"], "contours")
         if params.get("STYLE"):
             params["STYLE"].write_text(qml, encoding="utf-8")
         if not len(frame):

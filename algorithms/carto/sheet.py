@@ -9,6 +9,7 @@ from toolbox.parameters import (
     Enum,
     ExtentParameter,
     Field,
+    File,
     Integer,
     MultipleLayers,
     Number,
@@ -27,12 +28,18 @@ class Sheet(Algorithm):
 
     The map frame measures exactly ground size / scale on paper (print at 100%), on the smallest
     ISO sheet (A4...A0, portrait or landscape) that holds it and the side panel, unless
-    ``PAPER`` names one. Drawn: the ``BASE`` raster (orthophoto or hillshade), the ``LAYERS``
-    (styled by geometry kind), the ``CONTOURS`` (index contours heavier, labelled along the
+    ``PAPER`` names one. Drawn: the ``BASE`` raster (orthophoto or hillshade), the ``LAYERS``,
+    the ``CONTOURS`` (index contours heavier, labelled along the
     line), the map grid every ``MAP_STEP`` mm with its coordinates at the frame, a legend, a
     scale bar, a north arrow (grid north), and a title block with the title, sheet id, scale,
     CRS, date and sources. The PDF is vector (text as TrueType text, lines as paths), the base
     raster is embedded at 200 dpi; its metadata keep the scale, CRS and bounds.
+
+    ``LAYERS`` take their symbology from the code file ``CODES`` (and ``COLOURS``) through the
+    shared style model, the one ``attribution:apply`` embeds in its GeoPackage for QGIS: a
+    layer with a ``code`` field is drawn by code, a layer named after a code (one layer per
+    code) in that code's colour, and the legend lists each code with its description. Layers
+    with neither, and every layer without ``CODES``, get default colours by geometry kind.
 
     With ``SHEETS``, ``OUTPUT`` holds one page per sheet, and ``FOLDER`` (if given) receives one
     ``<sheet id>.pdf`` and ``.png`` per sheet.
@@ -52,6 +59,9 @@ class Sheet(Algorithm):
         RasterLayer("BASE", "base raster: orthophoto (RGB) or hillshade (grey)", optional=True),
         MultipleLayers("LAYERS", "vector layers to draw", layer_type="vector", min_count=0,
                        optional=True),
+        File("CODES", "code file ('file dei codici'): LAYERS drawn with its symbology",
+             optional=True),
+        File("COLOURS", "colour file ('file dei colori') of the CODES", optional=True),
         VectorLayer("CONTOURS", "contour lines (carto:contours output)", geometry_types=["line"],
                     optional=True),
         Enum("GRID_STYLE", "map grid drawing", options=["crosses", "lines"], default="crosses"),
@@ -74,6 +84,9 @@ class Sheet(Algorithm):
                       "list")]
 
     def check(self, params):
+        if params.get("COLOURS") is not None and params.get("CODES") is None:
+            raise self.fail("COLOURS", "needs CODES (the colour file gives the RGB of the code "
+                            "file's colour indices)")
         if (params.get("EXTENT") is None) == (params.get("SHEETS") is None):
             raise self.fail("EXTENT", "or SHEETS: give exactly one of them")
         if not (params.get("OUTPUT") or params.get("FOLDER")):

@@ -1,15 +1,20 @@
-"""A QGIS style (QML) for contour layers, and its embedding in a GeoPackage's ``layer_styles``
-table so QGIS opens the layer styled: index contours heavier, elevations labelled along them.
+"""The style of contour layers, for QGIS (QML) and OGC clients (SLD): index contours heavier,
+elevations labelled along them. Embedded in the GeoPackage's ``layer_styles`` table with the
+shared :func:`toolbox.styles.write_layer_styles`, so QGIS opens the layer styled.
 
-A stop-gap until the shared style model (toolbox.styles) provides ``write_layer_styles``.
+The contour style is rule-based (on ``index``), which the per-code style model does not
+express, so its documents are written here; colours and widths are the ones the map sheet
+draws contours with.
 """
 
 from __future__ import annotations
 
-import sqlite3
-from datetime import UTC, datetime
+import xml.etree.ElementTree as ET
 from pathlib import Path
 from xml.sax.saxutils import quoteattr
+
+from toolbox.styles.gpkg import write_layer_styles
+from toolbox.styles.sld import OGC, PIXEL_MM, SLD, _e, _param
 
 CONTOUR_RGB = (150, 90, 40)
 WIDTH_MM = 0.18
@@ -57,24 +62,56 @@ def contour_qml(elev_field: str = "elev", index_field: str = "index",
         '<layerGeometryType>1</layerGeometryType></qgis>\n')
 
 
-def embed_style(gpkg: str | Path, layer: str, qml: str, name: str | None = None) -> None:
-    """Store ``qml`` as the default style of ``layer`` in the GeoPackage's ``layer_styles``
-    table (the table QGIS reads; created and registered in ``gpkg_contents`` if missing)."""
-    with sqlite3.connect(gpkg) as db:
-        db.execute(
-            "CREATE TABLE IF NOT EXISTS layer_styles (id INTEGER PRIMARY KEY AUTOINCREMENT, "
-            "f_table_catalog TEXT(256), f_table_schema TEXT(256), f_table_name TEXT(256), "
-            "f_geometry_column TEXT(256), styleName TEXT(30), styleQML TEXT, styleSLD TEXT, "
-            "useAsDefault BOOLEAN, description TEXT, owner TEXT(30), ui TEXT(30), "
-            "update_time DATETIME DEFAULT CURRENT_TIMESTAMP)")
-        db.execute("INSERT OR IGNORE INTO gpkg_contents (table_name, data_type, identifier, "
-                   "last_change) VALUES ('layer_styles', 'attributes', 'layer_styles', ?)",
-                   (datetime.now(UTC).strftime("%Y-%m-%dT%H:%M:%S.%fZ")[:-4] + "Z",))
-        geom = db.execute("SELECT column_name FROM gpkg_geometry_columns WHERE table_name = ?",
-                          (layer,)).fetchone()
-        db.execute("UPDATE layer_styles SET useAsDefault = 0 WHERE f_table_name = ?", (layer,))
-        db.execute("INSERT INTO layer_styles (f_table_catalog, f_table_schema, f_table_name, "
-                   "f_geometry_column, styleName, styleQML, styleSLD, useAsDefault, description, "
-                   "owner, ui) VALUES ('', '', ?, ?, ?, ?, '', 1, ?, '', '')",
-                   (layer, geom[0] if geom else "geom", name or layer, qml,
-                    "written by the toolbox"))
+def _sld_rule(parent: ET.Element, title: str, is_index: bool, index_field: str,
+              elev_field: str, colour: str, width_mm: float) -> None:
+    rule = _e(parent, "Rule")
+    _e(rule, "Name", "index" if is_index else "normal")
+    _e(rule, "Title", title)
+    eq = _e(_e(rule, "Filter", ns=OGC),
+            "PropertyIsEqualTo" if is_index else "PropertyIsNotEqualTo", ns=OGC)
+    _e(eq, "PropertyName", index_field, ns=OGC)
+    _e(eq, "Literal", "1", ns=OGC)
+    stroke = _e(_e(rule, "LineSymbolizer"), "Stroke")
+    _param(stroke, "CssParameter", "stroke", colour)
+    _param(stroke, "CssParameter", "stroke-width", f"{width_mm / PIXEL_MM:.2f}")
+    _param(stroke, "CssParameter", "stroke-linecap", "round")
+    _param(stroke, "CssParameter", "stroke-linejoin", "round")
+    if is_index:  # elevation labels along the index contours
+        text = _e(rule, "TextSymbolizer")
+        _e(_e(text, "Label"), "PropertyName", elev_field, ns=OGC)
+        font = _e(text, "Font")
+        _param(font, "CssParameter", "font-family", "Sans Serif")
+        _param(font, "CssParameter", "font-size", "10")
+        _e(_e(_e(text, "LabelPlacement"), "LinePlacement"), "PerpendicularOffset", "0")
+        halo = _e(text, "Halo")
+        _e(halo, "Radius", "1")
+        _param(_e(halo, "Fill"), "CssParameter", "fill", "#ffffff")
+        _param(_e(text, "Fill"), "CssParameter", "fill", colour)
+        _param(text, "VendorOption", "followLine", "true")
+
+
+def contour_sld(elev_field: str = "elev", index_field: str = "index",
+                rgb: tuple[int, int, int] = CONTOUR_RGB, name: str = "contours") -> str:
+    """SLD 1.0 of the same style: one rule for index contours (``index_field`` = 1, heavier,
+    labelled along the line with ``elev_field``), one for the others."""
+    colour = "#{:02x}{:02x}{:02x}".format(*rgb)
+    root = ET.Element(f"{{{SLD}}}StyledLayerDescriptor", {"version": "1.0.0"})
+    named = _e(root, "NamedLayer")
+    _e(named, "Name", name)
+    user = _e(named, "UserStyle")
+    _e(user, "Name", name)
+    _e(user, "Title", name)
+    fts = _e(user, "FeatureTypeStyle")
+    _sld_rule(fts, "index contour", True, index_field, elev_field, colour, INDEX_WIDTH_MM)
+    _sld_rule(fts, "contour", False, index_field, elev_field, colour, WIDTH_MM)
+    ET.indent(root)
+    return '<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="unicode") \
+        + "\n"
+
+
+def write_contour_style(gpkg: str | Path, layer: str = "contours") -> str:
+    """Embed the contour QML and SLD as the default style of ``layer``; returns the QML."""
+    qml = contour_qml()
+    write_layer_styles(gpkg, layer, qml, contour_sld(name=layer), default=True,
+                       description="contours: index contours heavier, labelled along them")
+    return qml

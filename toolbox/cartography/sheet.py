@@ -15,6 +15,8 @@ from typing import Any
 
 import numpy as np
 
+from toolbox.cartography.qml import CONTOUR_RGB, INDEX_WIDTH_MM, WIDTH_MM
+
 MM_PER_INCH = 25.4
 PT_PER_MM = 72.0 / MM_PER_INCH
 MARGIN = 10.0  # mm, paper edge to the map frame's labels
@@ -178,8 +180,10 @@ class SheetRenderer:
                 p = geom.representative_point()
                 self.ax.text(p.x, p.y, str(text), fontsize=5, color=colour, ha="center",
                              va="center", zorder=6, clip_on=True)
-        self.legend.append((style.kind, style.name, colour, style.width_mm,
-                            _hex(style.fill) if style.fill is not None else None))
+        entry = (style.kind, style.name, colour, style.width_mm,
+                 _hex(style.fill) if style.fill is not None else None)
+        if entry not in self.legend:  # one code drawn from two layers: listed once
+            self.legend.append(entry)
         self._restore_limits()
 
     def _restore_limits(self) -> None:
@@ -189,10 +193,11 @@ class SheetRenderer:
         self.ax.set_xlabel("")
         self.ax.set_ylabel("")
 
-    def contours(self, frame, rgb=(150, 90, 40), width_mm=0.18, index_width_mm=0.45,
+    def contours(self, frame, rgb=CONTOUR_RGB, width_mm=WIDTH_MM, index_width_mm=INDEX_WIDTH_MM,
                  label_every_mm: float = 120.0) -> None:
         """Contours (LineString with ``elev`` and ``index``); index contours heavier and
-        labelled along the line every ``label_every_mm`` of paper, text upright."""
+        labelled along the line every ``label_every_mm`` of paper, text upright. Colour and
+        widths default to those of the contour layer's QGIS/SLD style (:mod:`.qml`)."""
         import matplotlib.patheffects as pe
         import shapely
         from matplotlib.collections import LineCollection

@@ -1,5 +1,6 @@
-"""Map sheets from files: the base raster read at print resolution, vector layers with default
-styles, one sheet per extent or per feature of a sheet layer."""
+"""Map sheets from files: the base raster read at print resolution, vector layers styled from
+the code file (the shared style model) or with default styles, one sheet per extent or per
+feature of a sheet layer."""
 
 from __future__ import annotations
 
@@ -19,15 +20,18 @@ PALETTE = {"polygon": [((120, 120, 120), (230, 220, 200)), ((40, 110, 40), (200,
 WIDTHS = {"polygon": 0.2, "line": 0.35, "point": 0.6}
 
 
+def geometry_kind(frame) -> str:
+    """"polygon", "line" or "point": the dominant geometry kind of a GeoDataFrame."""
+    kinds = {t.replace("Multi", "").replace(" Z", "").lower() for t in frame.geom_type if t}
+    return "polygon" if "polygon" in kinds else "line" if "linestring" in kinds else "point"
+
+
 def default_styles(layers: list[tuple[str, Any]]) -> list[LayerStyle]:
     """A :class:`LayerStyle` per ``(name, GeoDataFrame)``, colours cycling by geometry kind."""
     used: dict[str, int] = {}
     out = []
     for name, frame in layers:
-        kinds = {t.replace("Multi", "").replace(" Z", "").lower() for t in frame.geom_type
-                 if t}
-        kind = ("polygon" if "polygon" in kinds else "line" if "linestring" in kinds
-                else "point")
+        kind = geometry_kind(frame)
         k = used.get(kind, 0)
         used[kind] = k + 1
         rgb, fill = PALETTE[kind][k % len(PALETTE[kind])]
@@ -104,16 +108,51 @@ def render_sheet(spec: SheetSpec, base=None, base_name: str = "", styles=(), con
         renderer.close()
 
 
-def styles_from_model(frame, layer_style) -> list[LayerStyle]:
+def styles_from_model(frame, layer_style, with_code: bool = False) -> list[LayerStyle]:
     """Sheet styles of a layer from the shared style model (a ``toolbox.styles.LayerStyle``:
     ``name``, ``kind``, ``styles`` (per code: ``code``, ``rgb``, ``line_width`` mm, ``fill``
     RGBA, ``label``), ``field``, ``label_field``); duck-typed, so this module does not depend
     on it. One :class:`LayerStyle` per code, with that code's features and its label as the
-    legend name; a single-symbol layer gives one."""
+    legend name (``"<code> <label>"`` with ``with_code``); a single-symbol layer gives one."""
     out = []
     many = len(layer_style.styles) > 1 and layer_style.field in frame.columns
     for code in layer_style.styles:
         part = frame[frame[layer_style.field].astype(str) == str(code.code)] if many else frame
-        out.append(LayerStyle(part, code.label or code.code, code.kind, tuple(code.rgb),
+        name = code.label or code.code
+        if with_code and name != code.code:
+            name = f"{code.code} {name}"
+        out.append(LayerStyle(part, name, code.kind, tuple(code.rgb),
                               code.line_width, code.fill, layer_style.label_field))
+    return out
+
+
+def coded_styles(layers: list[tuple[str, Any]], table, colours) -> list[LayerStyle]:
+    """Sheet styles of ``(layer name, GeoDataFrame)`` pairs from the code file ``table`` (a
+    :class:`toolbox.io.code_file.CodeTable`) and ``colours``, through the shared style
+    model: a layer with a ``code`` field is categorised by the codes it holds (in the code
+    file's order; unknown codes grey, features without a code in a default style), a layer
+    named after a code (one layer per code, as ``attribution:apply`` writes) gets that code's
+    style, any other layer a default style.
+    Legend entries read ``<code> <description>``; features are not labelled (the legend
+    explains the codes)."""
+    from toolbox.styles.model import layer_style
+
+    order = {code: i for i, code in enumerate(table.entries)}
+    out: list[LayerStyle] = []
+    for name, frame in layers:
+        kind = geometry_kind(frame)
+        if "code" in frame.columns:
+            coded = frame["code"].notna() & (frame["code"].astype(str).str.strip() != "")
+            codes = sorted({str(c) for c in frame["code"][coded]},
+                           key=lambda c: (order.get(c, len(order)), c))
+            if not coded.all():  # features without a code keep a default style
+                out += default_styles([(f"{name}: no code", frame[~coded])])
+            frame = frame[coded]
+        elif name in table:
+            codes = [name]
+        else:
+            out += default_styles([(name, frame)])
+            continue
+        model = layer_style(name, kind, codes, table, colours, label_field=None)
+        out += styles_from_model(frame, model, with_code=True)
     return out

@@ -8,12 +8,39 @@ from pathlib import Path
 
 from toolbox.cartography.grid_io import sheet_polygons
 from toolbox.cartography.sheet import SheetSpec
-from toolbox.cartography.sheet_io import default_styles, render_sheet
+from toolbox.cartography.sheet_io import coded_styles, default_styles, render_sheet
 
 
 def _name(ref) -> str:
     text = str(ref).strip("'")
     return Path(text.split("|")[0]).name
+
+
+def _layer_name(ref) -> str:
+    """The layer a reference names (``file.gpkg|layername=X`` -> X), else the file's stem."""
+    text = str(ref).strip("'")
+    for option in text.split("|")[1:]:
+        key, _, value = option.partition("=")
+        if key.strip().lower() == "layername":
+            return value.strip()
+    return Path(text.split("|")[0]).stem
+
+
+def layer_styles(params: dict) -> tuple[list[tuple[str, object]], list]:
+    """The LAYERS as (name, frame) and their sheet styles: from CODES/COLOURS through the
+    shared style model when CODES is given, else default colours by geometry kind."""
+    from toolbox.io.vector import read_vector
+
+    refs = params.get("LAYERS") or []
+    layers = [(_layer_name(ref), read_vector(ref, name="LAYERS")) for ref in refs]
+    if params.get("CODES") is None:
+        return layers, default_styles(layers)
+    from toolbox.io.code_file import read_code_file, read_colour_file
+
+    table = read_code_file(params["CODES"], "CODES")
+    colours = read_colour_file(params["COLOURS"], "COLOURS") \
+        if params.get("COLOURS") is not None else None
+    return layers, coded_styles(layers, table, colours)
 
 
 def run_sheets(params: dict, feedback) -> dict:
@@ -25,17 +52,16 @@ def run_sheets(params: dict, feedback) -> dict:
     from toolbox.io.vector import read_vector
 
     sheets, crs = sheet_polygons(params)
-    layers = [(_name(ref), read_vector(ref, name="LAYERS")) for ref in params.get("LAYERS")
-              or []]
-    styles = default_styles(layers)
+    layers, styles = layer_styles(params)
     contours = read_vector(params["CONTOURS"], name="CONTOURS") \
         if params.get("CONTOURS") is not None else None
     if crs is None:
         crs = next((f.crs for _, f in layers if f.crs is not None), None) or \
             (params["BASE"].crs if params.get("BASE") is not None else None)
-    sources = params.get("SOURCES") or "; ".join(
-        [_name(params["BASE"])] * (params.get("BASE") is not None) + [n for n, _ in layers]
-        + [_name(params["CONTOURS"])] * (params.get("CONTOURS") is not None))
+    sources = params.get("SOURCES") or "; ".join(dict.fromkeys(
+        [_name(params["BASE"])] * (params.get("BASE") is not None)
+        + [_name(ref) for ref in params.get("LAYERS") or []]
+        + [_name(params["CONTOURS"])] * (params.get("CONTOURS") is not None)))
     date = params.get("DATE") or _dt.date.today().isoformat()
     folder = Path(params["FOLDER"]).expanduser() if params.get("FOLDER") else None
     if folder is not None:

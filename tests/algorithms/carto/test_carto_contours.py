@@ -8,6 +8,7 @@ from __future__ import annotations
 import shutil
 import sqlite3
 import subprocess
+import xml.etree.ElementTree as ET
 
 import geopandas as gpd
 import numpy as np
@@ -205,10 +206,36 @@ def test_index_contours_and_embedded_style(demo_dem, tmp_path):
     assert frame["index"].sum() > 0 and (frame["index"] == 0).sum() > 0
     assert pyogrio.read_info(out, layer="contours")["geometry_type"] == "LineString Z"
     with sqlite3.connect(out) as db:
-        name, style, default = db.execute(
-            "SELECT f_table_name, styleQML, useAsDefault FROM layer_styles").fetchone()
-    assert name == "contours" and default == 1 and 'placement="3"' in style
+        rows = db.execute("SELECT f_table_name, styleQML, styleSLD, useAsDefault, "
+                          "f_geometry_column FROM layer_styles").fetchall()
+    assert len(rows) == 1
+    name, style, sld, default, geom = rows[0]
+    assert name == "contours" and default == 1 and geom == "geom"
     assert qml.read_text() == style
+    # QML: rule-based on index, index contours heavier, curved labels (placement 3) of elev
+    root = ET.fromstring(style.split("\n", 1)[1])
+    rules = {r.get("key"): r for r in root.iter("rule")}
+    assert rules["index"].get("filter") == '"index" = 1' and rules["normal"].get("filter") == \
+        "ELSE"
+    widths = {s.get("name"): float(s.find(".//Option[@name='line_width']").get("value"))
+              for s in root.iter("symbol")}
+    assert widths[rules["index"].get("symbol")] > widths[rules["normal"].get("symbol")]
+    assert root.find("labeling/settings/placement").get("placement") == "3"
+    assert "elev" in root.find("labeling/settings/text-style").get("fieldName")
+    # SLD: the same two rules, the index one heavier and labelled along the line
+    ns = {"sld": "http://www.opengis.net/sld", "ogc": "http://www.opengis.net/ogc"}
+    doc = ET.fromstring(sld.split("\n", 1)[1])
+    sld_rules = {r.find("sld:Name", ns).text: r for r in doc.iterfind(".//sld:Rule", ns)}
+    assert set(sld_rules) == {"index", "normal"}
+    width = {k: float(r.find(".//sld:CssParameter[@name='stroke-width']", ns).text)
+             for k, r in sld_rules.items()}
+    assert width["index"] > width["normal"]
+    index_filter = sld_rules["index"].find("ogc:Filter/ogc:PropertyIsEqualTo", ns)
+    assert index_filter.find("ogc:PropertyName", ns).text == "index"
+    assert sld_rules["index"].find(
+        "sld:TextSymbolizer/sld:Label/ogc:PropertyName", ns).text == "elev"
+    assert sld_rules["index"].find(".//sld:LinePlacement", ns) is not None
+    assert sld_rules["normal"].find("sld:TextSymbolizer", ns) is None
 
 
 def test_needs_exactly_one_surface(demo_dem, tmp_path):
