@@ -55,9 +55,12 @@ def run_sheets(params: dict, feedback) -> dict:
     layers, styles = layer_styles(params)
     contours = read_vector(params["CONTOURS"], name="CONTOURS") \
         if params.get("CONTOURS") is not None else None
-    if crs is None:
-        crs = next((f.crs for _, f in layers if f.crs is not None), None) or \
-            (params["BASE"].crs if params.get("BASE") is not None else None)
+    from toolbox.io.crs import common_crs
+
+    named = {"BASE": params["BASE"].crs if params.get("BASE") is not None else None,
+             "CONTOURS": None if contours is None else contours.crs}
+    named |= {f"LAYERS[{k + 1}]": f.crs for k, (_, f) in enumerate(layers)}
+    crs = common_crs(named, crs)  # the sheet's CRS: every layer in it, or refused (mixed CRSs)
     sources = params.get("SOURCES") or "; ".join(dict.fromkeys(
         [_name(params["BASE"])] * (params.get("BASE") is not None)
         + [_name(ref) for ref in params.get("LAYERS") or []]
