@@ -50,13 +50,14 @@ def points_gpkg(tmp_path):
 
 @pytest.fixture(scope="session")
 def demo_run(tmp_path_factory):
-    """``toolbox demo`` run once per session: (its output folder, its summary). Read-only: a
-    test that writes there copies it first."""
-    from toolbox.demo import run_demo
+    """``toolbox demo`` run once per session (shared with the error-contract, fuzz and signal
+    tests): (its output folder, its summary). Read-only: a test that writes there copies it
+    first."""
+    sys.path.insert(0, str(Path(__file__).parent / "toolbox"))
+    from trust_data import demo, demo_summary
 
-    out = tmp_path_factory.mktemp("demo") / "demo_out"
-    summary = run_demo(out)
-    return out, summary
+    out, _ = demo()
+    return out, demo_summary()
 
 
 def run_cli(*args, cwd=None):

@@ -311,16 +311,17 @@ def _which_output(text: str, staging: OutputStaging) -> tuple[str, Path] | None:
     return (items[0][0], items[0][1]) if items else None
 
 
-def _disk_full(staging: OutputStaging) -> bool:
-    """Whether a filesystem holding a staged output has (almost) no free space left."""
-    for _, _, staged in staging.items():
+def _full_output(staging: OutputStaging) -> tuple[str, Any] | None:
+    """``(parameter name, final path)`` of a staged output whose filesystem has (almost) no free
+    space left, or None."""
+    for name, final, staged in staging.items():
         try:
             st = os.statvfs(staged.parent)
         except OSError:
             continue
         if st.f_bavail * st.f_frsize < 64 * 1024:
-            return True
-    return False
+            return name, final
+    return None
 
 
 def _as_write_error(exc: Exception, staging: OutputStaging) -> ToolboxError | None:
@@ -328,13 +329,14 @@ def _as_write_error(exc: Exception, staging: OutputStaging) -> ToolboxError | No
     when a driver hides ENOSPC behind another message: the free space is checked)."""
     text = " ".join(str(a) for a in (exc, getattr(exc, "filename", None),
                                      exc.__cause__, exc.__context__) if a)
-    full = _disk_full(staging)
+    full_output = _full_output(staging)
+    full = full_output is not None
     is_write = full or (isinstance(exc, OSError) and exc.errno in WRITE_ERRNOS) or any(
         word in text.lower() for word in WRITE_ERROR_WORDS)
     in_staging = any(str(staged.parent) in text for _, _, staged in staging.items())
     if not (is_write or (isinstance(exc, OSError) and in_staging)):
         return None
-    name, final = _which_output(text, staging) or ("OUTPUT", "")
+    name, final = full_output or _which_output(text, staging) or ("OUTPUT", "")
     if full or "no space left" in text.lower() or "disk is full" in text.lower():
         return write_error(OSError(errno.ENOSPC, "No space left on device"), name, final)
     if isinstance(exc, OSError) and exc.errno is not None:

@@ -5,7 +5,7 @@ from __future__ import annotations
 from toolbox.algorithm import Algorithm
 from toolbox.attribution.sources import RestitutionFiles
 from toolbox.feedback import Feedback
-from toolbox.parameters import Boolean, Crs, Enum, File, Number, Output, OutputVector, String
+from toolbox.parameters import Boolean, Crs, Enum, File, Layer, Number, Output, OutputVector, String
 from toolbox.registry import register
 
 #: parameter-file entries this algorithm uses (the others are named in a warning)
@@ -75,13 +75,24 @@ class ApplyCodes(Algorithm):
                "[default: parameter file, else 0.1]", min_value=0, optional=True),
         Boolean("STYLE_FILES", "also write each layer's QML and SLD beside OUTPUT",
                 default=False),
-        OutputVector("OUTPUT", "GeoPackage: coded layers, unresolved, labels, merge; styled"),
+        OutputVector("OUTPUT", "GeoPackage: coded layers, unresolved, labels, merge; styled",
+                     layers=[Layer("*", "Geometry", [("code", "string", "restitution code"),
+                                 ("description", "string", "from the code file"),
+                                 ("colour", "string", "#rrggbb")],
+                  "one layer per code (or per geometry type), named after it; styled"),
+                             Layer("unresolved", "Point Z", [("code", "string"),
+                                                             ("reason", "string", "why")],
+                                   "entities not resolved, with the reason (never dropped)"),
+                             Layer("labels", "Point Z", [("text", "string")],
+                                   "DXF texts as label points", optional=True),
+                             Layer("merge", "Point Z", [("kind", "string"), ("code", "string")],
+                                   "model-merge events", optional=True)]),
     ]
     outputs = [Output("STATISTICS", "counts per code and reason, unused codes, merge report",
                       "dict")]
 
     def check(self, params):
-        from toolbox.attribution.codes import read_code_file, read_colour_file
+        from toolbox.io.code_file import read_code_file, read_colour_file
         from toolbox.io.parameter_file import optional_parameter_file
 
         read_code_file(params["CODES"], "CODES")  # bad auxiliary files fail before any work
@@ -91,10 +102,10 @@ class ApplyCodes(Algorithm):
 
     def process(self, params, feedback: Feedback):
         from toolbox.attribution.apply import attribute
-        from toolbox.attribution.codes import read_code_file, read_colour_file
         from toolbox.attribution.merge import events_frame, merge_models
         from toolbox.attribution.output import MERGE_STYLE, write_attribution
         from toolbox.attribution.sources import read_sources, translated
+        from toolbox.io.code_file import read_code_file, read_colour_file
         from toolbox.io.parameter_file import optional_parameter_file, resolve
 
         table = read_code_file(params["CODES"], "CODES")

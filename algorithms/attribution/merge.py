@@ -5,7 +5,7 @@ from __future__ import annotations
 from toolbox.algorithm import Algorithm
 from toolbox.attribution.sources import RestitutionFiles
 from toolbox.feedback import Feedback
-from toolbox.parameters import Crs, File, Number, Output, OutputVector, String
+from toolbox.parameters import Crs, File, Layer, Number, Output, OutputVector, String
 from toolbox.registry import register
 
 USED_ENTRIES = ("snap_tolerance", "height_snap_tolerance", "coordinate_offset",
@@ -45,7 +45,11 @@ class MergeModels(Algorithm):
                "else 0.2]", min_value=0, optional=True),
         Number("HEIGHT_SNAP_TOLERANCE", "altimetric reattach tolerance [default: parameter "
                "file, else 0.1]", min_value=0, optional=True),
-        OutputVector("OUTPUT", "GeoPackage: points, lines, polygons, merge"),
+        OutputVector("OUTPUT", "GeoPackage: points, lines, polygons, merge", layers=[
+            Layer("*", "Geometry", [("code", "string", "restitution code")],
+                  "merged entities, one layer per geometry kind"),
+            Layer("merge", "Point Z", [("kind", "string"), ("code", "string")],
+                  "joins, duplicates removed, refused joins", optional=True)]),
     ]
     outputs = [Output("STATISTICS", "models, duplicates removed, joins, refused joins", "dict")]
 

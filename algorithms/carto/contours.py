@@ -6,6 +6,7 @@ from toolbox.algorithm import Algorithm
 from toolbox.feedback import Feedback
 from toolbox.parameters import (
     Integer,
+    Layer,
     Number,
     Output,
     OutputFile,
@@ -55,7 +56,11 @@ class Contours(Algorithm):
         Integer("SMOOTHING", "rounds of band-constrained smoothing (DEM only; 0 = none)",
                 default=0, min_value=0, max_value=5),
         Integer("TILE_SIZE", "DEM block side in cells", default=1024, min_value=8),
-        OutputVector("OUTPUT", "contours GeoPackage"),
+        OutputVector("OUTPUT", "contours GeoPackage", layers=[
+            Layer("contours", "LineString Z", [("elev", "real", "height of the line"),
+                                               ("index", "integer", "1 on index contours"),
+                                               ("closed", "integer"), ("length", "real")],
+                  "contour lines, higher ground on their right; styled", style="contours")]),
         OutputFile("STYLE", "QGIS style of the contours (.qml)", extensions=[".qml"],
                    optional=True),
     ]

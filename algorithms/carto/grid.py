@@ -9,6 +9,7 @@ from toolbox.parameters import (
     Enum,
     ExtentParameter,
     Field,
+    Layer,
     Number,
     Output,
     OutputVector,
@@ -47,7 +48,13 @@ class Grid(Algorithm):
         Number("CROSS_SIZE", "cross size on paper, mm (STYLE crosses)", default=10.0,
                min_value=0, min_exclusive=True),
         Crs("CRS", "CRS of EXTENT when it names none", optional=True),
-        OutputVector("OUTPUT", "grid GeoPackage (layers grid, grid_labels)"),
+        OutputVector("OUTPUT", "grid GeoPackage (layers grid, grid_labels)", layers=[
+            Layer("grid", "MultiLineString", [("sheet", "string"), ("kind", "string"),
+                                              ("value", "real", "the coordinate drawn")],
+                  "grid lines or crosses"),
+            Layer("grid_labels", "Point", [("sheet", "string"), ("text", "string"),
+                                           ("axis", "string"), ("value", "real"),
+                                           ("edge", "string")], "coordinate labels")]),
     ]
     outputs = [Output("STATISTICS", "ground step, counts", "dict")]
 

@@ -8,6 +8,7 @@ from toolbox.parameters import (
     Enum,
     Field,
     Integer,
+    Layer,
     Number,
     Output,
     OutputFile,
@@ -60,7 +61,15 @@ class Profile(Algorithm):
                default=50.0, min_value=0, min_exclusive=True),
         Number("HALF_WIDTH", "half width of each section, m (MODE sections)", default=50.0,
                min_value=0, min_exclusive=True),
-        OutputVector("OUTPUT", "GeoPackage (layers profile_points, profile_lines)"),
+        OutputVector("OUTPUT", "GeoPackage (layers profile_points, profile_lines)", layers=[
+            Layer("profile_points", "Point Z", [("profile", "string"), ("line", "integer"),
+                                                ("chainage", "real", "distance along the line"),
+                                                ("z", "real", "height")],
+                  "the sampled stations"),
+            Layer("profile_lines", "LineString Z", [("profile", "string"), ("line", "integer"),
+                                                    ("length", "real"), ("z_min", "real"),
+                                                    ("z_max", "real")],
+                  "each profile or section as a 3D line")]),
         OutputFile("PLOT", "plot of the profiles (.png or .svg)", extensions=[".png", ".svg"],
                    optional=True),
     ]
@@ -87,10 +96,12 @@ class Profile(Algorithm):
             profile_frames,
             sample_profiles,
         )
+        from toolbox.io.crs import common_crs
         from toolbox.io.vector import read_vector, write_layers
 
         lines_frame = read_vector(params["INPUT"], name="INPUT")
-        crs = lines_frame.crs
+        crs = common_crs({name: getattr(params.get(name), "crs", None)
+                          for name in ("INPUT", "DEM", "TIN", "CONTOURS")})  # mixed: refused
         lines = line_parts(lines_frame)
         surface, contours = None, None
         if params["MODE"] == "contours":

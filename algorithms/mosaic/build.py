@@ -8,6 +8,7 @@ from toolbox.parameters import (
     Boolean,
     Enum,
     Integer,
+    Layer,
     MultipleLayers,
     Number,
     Output,
@@ -73,7 +74,10 @@ class MosaicBuild(Algorithm):
         OutputRaster("OUTPUT", "mosaic GeoTIFF"),
         OutputRaster("SOURCE_INDEX", "source index raster (1-based input number, 0 = none)",
                      optional=True),
-        OutputVector("SEAMLINES", "seamlines GeoPackage", optional=True),
+        OutputVector("SEAMLINES", "seamlines GeoPackage", optional=True, layers=[
+            Layer("seamlines", "MultiLineString", [("a", "string"), ("b", "string"),
+                                                   ("length", "real")],
+                  "the seams between the cut polygons used")]),
     ]
     outputs = [Output("STATISTICS", "grid, cells per source, gains and offsets", "dict")]
 

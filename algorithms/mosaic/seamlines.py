@@ -8,6 +8,7 @@ from toolbox.parameters import (
     Enum,
     Field,
     Integer,
+    Layer,
     MultipleLayers,
     Number,
     Output,
@@ -87,7 +88,17 @@ class MosaicSeamlines(Algorithm):
                     optional=True),
         Integer("MAX_CELLS", "largest least-cost grid before overview + corridor",
                 default=4_000_000, min_value=10_000),
-        OutputVector("OUTPUT", "GeoPackage: cut_polygons, seamlines, footprints, centres"),
+        OutputVector("OUTPUT", "GeoPackage: cut_polygons, seamlines, footprints, centres", layers=[
+            Layer("cut_polygons", "MultiPolygon", [("source_id", "integer"), ("source", "string"),
+                                                   ("path", "string"), ("area", "real")],
+                  "one polygon per ortho: an exact partition of the mosaic (editable)"),
+            Layer("seamlines", "MultiLineString", [("a", "string"), ("b", "string"),
+                                                   ("method", "string"), ("length", "real")],
+                  "the seams between neighbouring orthos"),
+            Layer("footprints", "MultiPolygon", [("source_id", "integer"), ("source", "string")],
+                  "valid data of each ortho"),
+            Layer("centres", "Point", [("source_id", "integer"), ("source", "string")],
+                  "the nadir points (or footprint centres) of the Voronoi partition")]),
     ]
     outputs = [Output("STATISTICS", "areas, partition check and per-seam notes", "dict")]
 

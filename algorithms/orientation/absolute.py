@@ -6,7 +6,7 @@ from typing import Any
 
 from toolbox.algorithm import Algorithm
 from toolbox.feedback import Feedback
-from toolbox.parameters import File, Output, OutputFile, OutputVector, String
+from toolbox.parameters import File, Layer, Output, OutputFile, OutputVector, String
 from toolbox.registry import register
 
 
@@ -45,7 +45,10 @@ class AbsoluteOrientation(Algorithm):
              extensions=[".csv", ".txt", ".gpkg"]),
         String("CRS", "CRS of the ground coordinates (e.g. EPSG:3003)", optional=True),
         OutputVector("OUTPUT", "GeoPackage with layer points (model points on the ground)",
-                     optional=True),
+                     optional=True, layers=[Layer("points", "Point Z", [
+                         ("point_id", "string"), ("role", "string"),
+                         ("vx", "real", "computed - observed"), ("vy", "real"), ("vz", "real")],
+                         "every model point transformed to the ground")]),
         OutputFile("REPORT", "JSON report", extensions=[".json"]),
     ]
     outputs = [Output("STATISTICS", "sigma0, scale, check-point RMSE", "dict")]

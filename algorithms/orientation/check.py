@@ -6,7 +6,7 @@ from typing import Any
 
 from toolbox.algorithm import Algorithm
 from toolbox.feedback import Feedback
-from toolbox.parameters import Enum, File, Number, Output, OutputFile, OutputVector, String
+from toolbox.parameters import Enum, File, Layer, Number, Output, OutputFile, OutputVector, String
 from toolbox.registry import register
 
 
@@ -56,7 +56,17 @@ class CheckOrientation(Algorithm):
         Number("MAP_SCALE", "map scale denominator to judge the block against (e.g. 5000)",
                optional=True, min_value=1),
         OutputVector("OUTPUT", "GeoPackage with layers observations and ground_residuals",
-                     optional=True),
+                     optional=True, layers=[
+                         Layer("observations", "Point Z", [
+                             ("point_id", "string"), ("photo", "string"), ("role", "string"),
+                             ("res_x_um", "real", "computed - observed, µm"),
+                             ("res_y_um", "real"), ("res_um", "real"), ("res_px", "real"),
+                             ("flagged", "boolean", "over THRESHOLD_PX")],
+                             "one row per measurement of a known point, at the point"),
+                         Layer("ground_residuals", "LineString Z", [
+                             ("point_id", "string"), ("role", "string"), ("dx_m", "real"),
+                             ("dy_m", "real"), ("dz_m", "real")],
+                             "surveyed -> intersected point")]),
         OutputFile("REPORT", "JSON report", extensions=[".json"]),
     ]
     outputs = [Output("STATISTICS", "block RMSE (µm, m), flagged measurements, judgement",

@@ -28,6 +28,7 @@ from qgis.core import (
     QgsProcessingParameterField,
     QgsProcessingParameterFile,
     QgsProcessingParameterFileDestination,
+    QgsProcessingParameterFolderDestination,
     QgsProcessingParameterMultipleLayers,
     QgsProcessingParameterNumber,
     QgsProcessingParameterRasterDestination,
@@ -95,6 +96,8 @@ def make_parameter(p: dict):
     elif kind == "output_vector":
         param = QgsProcessingParameterFileDestination(name, desc, "GeoPackage (*.gpkg)", None,
                                                       optional)
+    elif kind == "output_folder":
+        param = QgsProcessingParameterFolderDestination(name, desc, None, optional)
     elif kind == "output_file":
         param = QgsProcessingParameterFileDestination(name, desc, _filter(p.get("extensions")),
                                                       None, optional)
@@ -201,7 +204,7 @@ class ToolboxAlgorithm(QgsProcessingAlgorithm):
             return self.parameterAsString(parameters, name, context) or None
         if kind == "output_raster":
             return self.parameterAsOutputLayer(parameters, name, context)
-        if kind in ("output_vector", "output_file"):
+        if kind in ("output_vector", "output_file", "output_folder"):
             return self.parameterAsFileOutput(parameters, name, context)
         return self.parameterAsString(parameters, name, context) or None
 

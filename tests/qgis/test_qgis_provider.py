@@ -33,7 +33,8 @@ QGIS_TYPES = {"number": "number", "integer": "number", "boolean": "boolean", "en
               "crs": "crs", "extent": "extent", "file": "file", "vector": "source",
               "raster": "raster", "multiple": "multilayer", "field": "field",
               "output_raster": "rasterDestination", "output_vector": "fileDestination",
-              "output_file": "fileDestination", "string": "string"}
+              "output_file": "fileDestination", "output_folder": "folderDestination",
+              "string": "string"}
 
 
 def toolbox_executable() -> str:

@@ -54,12 +54,28 @@ def resolve(template: str, parameters: dict) -> str:
 
 
 def check_layers(path: str, declared: list[Layer], parameters: dict) -> list[str]:
+    """Problems of the layers written against the declared ones. ``layer_styles`` (QGIS's styles
+    table) is always allowed; a declared name with ``*`` stands for layers named after the data
+    (one per code: their geometry type varies, only the listed fields are checked)."""
+    import fnmatch
+
     problems = []
-    written = {name: geometry for name, geometry in pyogrio.list_layers(path)}
+    written = {name: geometry for name, geometry in pyogrio.list_layers(path)
+               if name != "layer_styles"}
     expected = {resolve(layer.name, parameters): layer for layer in declared}
+    patterns = {name: layer for name, layer in expected.items() if "*" in name}
     for name in sorted(set(written) - set(expected)):
-        problems.append(f"layer {name} written but not declared")
+        pattern = next((p for p in patterns if fnmatch.fnmatch(name, p)), None)
+        if pattern is None:
+            problems.append(f"layer {name} written but not declared")
+            continue
+        info = pyogrio.read_info(path, layer=name)
+        for field in patterns[pattern].fields:
+            if field.name not in info["fields"]:
+                problems.append(f"layer {name}: declared field {field.name} not written")
     for name, layer in expected.items():
+        if "*" in name:
+            continue
         if name not in written:
             if not layer.optional:
                 problems.append(f"declared layer {name} not written")
@@ -117,7 +133,8 @@ def test_value_outputs_are_typed():
     for alg in algorithms():
         for out in alg.spec()["outputs"]:
             assert out["type"] in {"number", "integer", "string", "boolean", "json", "file",
-                                   "output_vector", "output_raster", "output_file"}, alg.id
+                                   "output_vector", "output_raster", "output_file",
+                                   "output_folder"}, alg.id
 
 
 def test_optional_is_separate_from_default():
@@ -180,8 +197,9 @@ def test_deprecated_name_is_accepted_with_a_warning(tmp_path):
 
     lines = tmp_path / "lines.gpkg"
     gpd.GeoDataFrame({"h": [300.0, 310.0]}, geometry=[
-        shapely.LineString([(0, 0), (100, 0)]), shapely.LineString([(0, 50), (100, 60)])],
-        crs="EPSG:3003").to_file(lines)
+        shapely.LineString([(1_688_000, 4_799_500), (1_688_100, 4_799_500)]),
+        shapely.LineString([(1_688_000, 4_799_550), (1_688_100, 4_799_560)])],
+        crs="EPSG:3003").to_file(lines)  # inside EPSG:3003's area of use (Siena)
     params = {"BREAKLINES": str(lines), "BREAKLINE_Z_FIELD": "h", "OUTPUT": tmp_path / "t.gpkg"}
     with pytest.warns(DeprecationWarning, match="BREAKLINE_Z_FIELD is now called "
                                                 "BREAKLINES_Z_FIELD"):

@@ -15,15 +15,19 @@ def demo() -> tuple[Path, dict[str, str]]:
     """``(folder, variables)``: the demo run into ``folder``; ``variables`` maps the sample
     names (``mass_points``, ``dem``, ``siena_project``...) and ``out`` to paths."""
     if not _DEMO:
-        from toolbox.batch import parse_pipeline, run_pipeline
-        from toolbox.demo import demo_pipeline_doc
-        from toolbox.demo.samples import make_samples
+        import yaml
 
-        folder = Path(tempfile.mkdtemp(prefix="toolbox_trust_demo_"))
-        atexit.register(shutil.rmtree, folder, True)
-        variables = {k: str(v) for k, v in make_samples(folder / "data").items()}
-        variables["out"] = str(folder)
-        run_pipeline(parse_pipeline(demo_pipeline_doc(), folder, variables, "demo pipeline"),
-                     overwrite=True)
-        _DEMO.update(folder=folder, variables=variables)
+        from toolbox.demo import run_demo
+
+        folder = Path(tempfile.mkdtemp(prefix="toolbox_trust_demo_")) / "demo_out"
+        atexit.register(shutil.rmtree, folder.parent, True)
+        summary = run_demo(folder)
+        doc = yaml.safe_load((folder / "demo_pipeline.yaml").read_text(encoding="utf-8"))
+        _DEMO.update(folder=folder, variables=dict(doc["variables"]), summary=summary)
     return _DEMO["folder"], _DEMO["variables"]
+
+
+def demo_summary() -> str:
+    """What ``toolbox demo`` printed for the shared run."""
+    demo()
+    return _DEMO["summary"]

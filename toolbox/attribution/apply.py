@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 import shapely
 
-from toolbox.attribution.codes import CodeTable, hex_colour, parse_hex
+from toolbox.io.code_file import CodeTable, code_colour, hex_colour
 
 #: reason -> meaning (the ``reason`` column of ``unresolved``)
 REASONS: dict[str, str] = {
@@ -121,21 +121,6 @@ def z_statistics(geoms: list[Any]) -> dict[str, np.ndarray]:
     return out
 
 
-def code_colour(code: str, table: CodeTable, colours: dict[str, tuple[int, int, int]] | None,
-                entity_colour: Any = None) -> tuple[tuple[int, int, int] | None, str | None]:
-    """(RGB or None, colour index used): the code's colour, else the entity's own."""
-    entry = table.entries.get(code)
-    index = entry.colour if entry is not None and entry.colour else None
-    if index is None and entity_colour is not None and str(entity_colour).strip():
-        index = str(entity_colour).strip()
-    if index is None:
-        return None, None
-    if index.startswith("#"):
-        return parse_hex(index), index
-    key = str(int(index)) if index.isdigit() else index
-    if colours is not None and key in colours:
-        return colours[key], key
-    return None, key
 
 
 def attribute(entities, table: CodeTable, colours: dict[str, tuple[int, int, int]] | None = None,

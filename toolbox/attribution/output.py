@@ -10,7 +10,7 @@ import numpy as np
 import shapely
 
 from toolbox.attribution.apply import GPKG_TYPES, Attribution
-from toolbox.attribution.codes import CodeTable
+from toolbox.io.code_file import CodeTable
 from toolbox.styles.model import CodeStyle, LayerStyle, layer_style
 from toolbox.styles.qml import qml_document
 from toolbox.styles.sld import sld_document
@@ -39,6 +39,8 @@ def unresolved_points(frame):
                          for g in geoms[plain]]
         wkt[has] = shapely.to_wkt(geoms[has], rounding_precision=-1)
     out = frame.drop(columns=frame.geometry.name).copy()
+    if not len(out):  # an empty layer keeps text columns as text
+        out = out.astype({c: object for c in out.columns if c not in ("entity", "line")})
     out["geometry_wkt"] = wkt
     return gpd.GeoDataFrame(out, geometry=gpd.GeoSeries(list(points), crs=frame.crs),
                             crs=frame.crs)
@@ -76,7 +78,7 @@ def write_attribution(path: str | Path, result: Attribution, table: CodeTable,
     types = {name: _gpkg_type(result.kinds[name], frame) for name, frame in frames.items()}
     unresolved = unresolved_points(result.unresolved)
     frames["unresolved"] = unresolved
-    types["unresolved"] = "Point Z" if bool(unresolved.geometry.has_z.any()) else "Point"
+    types["unresolved"] = "Point Z"  # restitution is 3D: the same type when the layer is empty
     if result.labels is not None:
         frames["labels"] = result.labels
         types["labels"] = _gpkg_type("point", result.labels)

@@ -69,7 +69,7 @@ def embed_style(gpkg: str | Path, layer: str, qml: str, name: str | None = None)
             "update_time DATETIME DEFAULT CURRENT_TIMESTAMP)")
         db.execute("INSERT OR IGNORE INTO gpkg_contents (table_name, data_type, identifier, "
                    "last_change) VALUES ('layer_styles', 'attributes', 'layer_styles', ?)",
-                   (datetime.now(UTC).strftime("%Y-%m-%dT%H:%M:%SZ"),))
+                   (datetime.now(UTC).strftime("%Y-%m-%dT%H:%M:%S.%fZ")[:-4] + "Z",))
         geom = db.execute("SELECT column_name FROM gpkg_geometry_columns WHERE table_name = ?",
                           (layer,)).fetchone()
         db.execute("UPDATE layer_styles SET useAsDefault = 0 WHERE f_table_name = ?", (layer,))

@@ -10,6 +10,7 @@ Conventions: arrays are ``(bands, rows, cols)`` or ``(rows, cols)``; windows are
 
 from __future__ import annotations
 
+import math
 import warnings
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -138,11 +139,19 @@ def _rio_crs(crs: Any):
     return RioCRS.from_wkt(crs.to_wkt()) if hasattr(crs, "to_wkt") else RioCRS.from_user_input(crs)
 
 
+def overview_levels(width: int, height: int, tile: int = DEFAULT_BLOCK) -> list[int]:
+    """Overview factors 2, 4, 8... until the smallest level fits in one ``tile`` (as GDAL's COG
+    driver): none for a raster that fits in one tile."""
+    factors, f = [], 1
+    while math.ceil(width / f) > tile or math.ceil(height / f) > tile:
+        f *= 2
+        factors.append(f)
+    return factors
+
+
 def overview_factors(width: int, height: int, block: int = DEFAULT_BLOCK) -> list[int]:
     """Power-of-two overview factors until the smallest level fits in one block (GDAL's COG
-    rule; see :func:`toolbox.raster.writer.overview_levels`)."""
-    from toolbox.raster.writer import overview_levels
-
+    rule, :func:`overview_levels`)."""
     return overview_levels(width, height, block)
 
 

@@ -7,7 +7,7 @@ Flow of one photo (``ortho:photo``; ``ortho:batch`` runs :func:`run_task` per ph
     plan = plan_photo(photo, dem, crs)                 # checks, footprint, mean height, GSD, grid
     report = orthorectify(photo, image, dem, plan.grid, output, OrthoOptions(...))
 
-:func:`orthorectify` hands :class:`OrthoWindows` to :func:`toolbox.raster.warp.warp_to_geotiff`:
+:func:`orthorectify` hands :class:`OrthoWindows` to :func:`toolbox.raster.engine.warp_to_geotiff`:
 per output window it reads the DEM heights onto the window (:class:`DemSampler`, bilinear
 between DEM cell centres, reprojected when the DEM's CRS differs), projects them
 (:class:`~toolbox.photogrammetry.ortho.CollinearityMap`), blanks the cells hidden from the
@@ -343,7 +343,7 @@ PREFETCH = 2  # windows whose maps are computed ahead, on as many threads
 
 
 class OrthoWindows:
-    """The coordinate map of a whole ortho for :func:`toolbox.raster.warp.warp_to_geotiff`:
+    """The coordinate map of a whole ortho for :func:`toolbox.raster.engine.warp_to_geotiff`:
     per output window it reads the DEM heights onto the window (:class:`DemSampler`), projects
     them (:class:`CollinearityMap`), blanks the hidden cells (optional visibility test) and
     collects statistics; auxiliary rasters (occlusion mask, incidence angle) are written window
@@ -561,7 +561,7 @@ def orthorectify(photo: Any, image: Any, dem: Any, grid: Any, output: Any,
     from toolbox.feedback import Feedback
     from toolbox.io.crs import crs_label
     from toolbox.io.raster import geotiff_profile
-    from toolbox.raster.warp import warp_to_geotiff
+    from toolbox.raster.engine import warp_to_geotiff
 
     options = options or OrthoOptions()
     feedback = feedback or Feedback()

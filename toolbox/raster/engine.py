@@ -51,6 +51,7 @@ import numpy as np
 
 from toolbox.errors import ParameterError
 from toolbox.io.grid import GridSpec, max_cells_default
+from toolbox.raster.warp import DEFAULT_CACHE_MB, DEFAULT_CHUNK, DEFAULT_MAX_SOURCE_PIXELS
 
 __all__ = [
     "BOUNDARY_RULES", "GridSpec", "RasterInput", "Tile", "check_grid_parameters",
@@ -171,97 +172,8 @@ def _guarded(grid: GridSpec, limit: int, name: str) -> GridSpec:
     return grid
 
 
-# -- tiles -----------------------------------------------------------------------------------------
-@dataclass(frozen=True)
-class Tile:
-    """One tile of an output grid (picklable).
-
-    ``window`` is the part of the output this tile writes (no halo); the kernel's input arrays
-    cover :attr:`haloed_window`, ``halo`` cells more on every side (also beyond the grid's
-    edges: see the boundary rules of :func:`read_window`). ``grid_transform`` is the output
-    grid's transform.
-    """
-
-    index: int
-    window: Any  # rasterio.windows.Window
-    halo: int
-    grid_transform: Any  # affine.Affine
-
-    @property
-    def shape(self) -> tuple[int, int]:
-        """(rows, cols) of the tile without halo."""
-        return (int(self.window.height), int(self.window.width))
-
-    @property
-    def haloed_shape(self) -> tuple[int, int]:
-        h, w = self.shape
-        return (h + 2 * self.halo, w + 2 * self.halo)
-
-    @property
-    def haloed_window(self) -> Any:
-        from rasterio.windows import Window
-
-        h = self.halo
-        return Window(int(self.window.col_off) - h, int(self.window.row_off) - h,
-                      int(self.window.width) + 2 * h, int(self.window.height) + 2 * h)
-
-    @property
-    def transform(self) -> Any:
-        """Transform of the haloed window (its top-left cell corner -> map)."""
-        return _window_transform(self.grid_transform, self.haloed_window)
-
-    @property
-    def core_transform(self) -> Any:
-        """Transform of the tile without halo."""
-        return _window_transform(self.grid_transform, self.window)
-
-    @property
-    def crop(self) -> tuple[slice, slice]:
-        """Slices cutting the tile out of a haloed array: ``array[..., *tile.crop]``."""
-        h, (rows, cols) = self.halo, self.shape
-        return (slice(h, h + rows), slice(h, h + cols))
-
-    def cell_centres(self, origin: tuple[float, float] = (0.0, 0.0),
-                     halo: bool = True) -> tuple[np.ndarray, np.ndarray]:
-        """1-D float64 x of the column centres and y of the row centres (haloed window by
-        default), minus ``origin`` (a local origin keeps large map coordinates precise)."""
-        w = self.haloed_window if halo else self.window
-        t = self.grid_transform
-        j = np.arange(int(w.col_off), int(w.col_off) + int(w.width)) + 0.5
-        i = np.arange(int(w.row_off), int(w.row_off) + int(w.height)) + 0.5
-        return (t.c - origin[0]) + j * t.a, (t.f - origin[1]) + i * t.e
-
-    def sub_tile(self, window: Any) -> Tile:
-        """The tile of a part ``window`` of this one (same halo)."""
-        return Tile(self.index, window, self.halo, self.grid_transform)
-
-
-def _window_transform(transform: Any, window: Any) -> Any:
-    """Transform of ``window`` (its top-left cell corner -> map); the window may lie partly
-    outside the grid (negative offsets)."""
-    t, col, row = transform, int(window.col_off), int(window.row_off)
-    return t.__class__(t.a, t.b, t.c + col * t.a + row * t.b, t.d, t.e, t.f + col * t.d + row * t.e)
-
-
-def iter_tiles(grid: GridSpec, tile_size: int = 512, halo: int = 0) -> Iterator[Tile]:
-    """The tiles of ``grid``, row by row: ``tile_size`` x ``tile_size`` cells (smaller at the
-    east and south edges), each with ``halo`` cells of margin. Use the writer's block size (or
-    a multiple) so that writes align with the GeoTIFF blocks."""
-    from rasterio.windows import Window
-
-    if tile_size <= 0 or halo < 0:
-        raise ValueError(f"tile_size must be > 0 and halo >= 0, got {tile_size}, {halo}")
-    index = 0
-    for row0 in range(0, grid.height, tile_size):
-        for col0 in range(0, grid.width, tile_size):
-            window = Window(col0, row0, min(tile_size, grid.width - col0),
-                            min(tile_size, grid.height - row0))
-            yield Tile(index, window, int(halo), grid.transform)
-            index += 1
-
-
-def tile_count(grid: GridSpec, tile_size: int = 512) -> int:
-    return math.ceil(grid.width / tile_size) * math.ceil(grid.height / tile_size)
+# -- tiles: toolbox.raster.tile (re-exported here) -------------------------------------------------
+from toolbox.raster.tile import Tile, _window_transform, iter_tiles, tile_count  # noqa: E402,F401
 
 
 # -- reading inputs onto the grid ------------------------------------------------------------------
@@ -649,13 +561,14 @@ def warp_raster(source: Any, grid: GridSpec, coordinate_map: Any, writer_or_outp
 
     from toolbox.raster.warp import (
         DEFAULT_MAX_SOURCE_PIXELS,
+        EXTRA_RESAMPLING,
         RESAMPLING_METHODS,
         WarpStatistics,
     )
 
-    if resampling not in RESAMPLING_METHODS:
-        raise ValueError(f"resampling must be one of {', '.join(RESAMPLING_METHODS)}, "
-                         f"got {resampling!r}")
+    methods = RESAMPLING_METHODS + EXTRA_RESAMPLING
+    if resampling not in methods:
+        raise ValueError(f"resampling must be one of {', '.join(methods)}, got {resampling!r}")
     path = _source_path(source)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
@@ -673,3 +586,72 @@ def warp_raster(source: Any, grid: GridSpec, coordinate_map: Any, writer_or_outp
                    tile_size=tile_size, halo=aux_halo, executor=executor, feedback=feedback,
                    collect=collect, start=start, end=end)
     return total
+
+
+def warp_to_geotiff(source: Any, coordinate_map: Any, grid: Any, output: Any,
+                    resampling: str = "bilinear", outside: str = "alpha",
+                    nodata: float | None = None, chunk: int = DEFAULT_CHUNK,
+                    max_source_pixels: int = DEFAULT_MAX_SOURCE_PIXELS, overviews: bool = True,
+                    feedback: Any = None, cache_mb: int = DEFAULT_CACHE_MB,
+                    tags: dict[str, str] | None = None,
+                    creation_options: dict[str, Any] | None = None,
+                    fast: bool = True, cog: bool = False, executor: Any = None,
+                    aux: dict | None = None) -> Any:
+    """Warp a raster file onto ``grid`` through ``coordinate_map`` into a GeoTIFF: a
+    :class:`~toolbox.raster.writer.RasterWriter` fed by
+    :func:`toolbox.raster.engine.warp_raster`.
+
+    Parameters
+    ----------
+    source : path
+        Any raster GDAL reads (GeoTIFF, JPEG, PNG...), 1 or more bands of one data type.
+    coordinate_map : CoordinateMap
+        Output tile -> source coordinates (e.g. :class:`HomographyMap`).
+    grid : toolbox.io.grid.GridSpec
+        Output grid (transform, width, height, crs; crs None for a local object system).
+    output : path
+        GeoTIFF to write (inside an algorithm: the staged path).
+    resampling : {"nearest", "bilinear", "cubic", "lanczos", "quadratic"}
+    outside : {"alpha", "nodata"}
+        How pixels outside the photo are marked (see :func:`output_layout`).
+    nodata : float, optional
+        Output nodata with ``outside="nodata"``.
+    chunk : int
+        Output tile side in pixels (a multiple of the 512-pixel block keeps writes aligned).
+    max_source_pixels : int
+        Largest source window read at once (per band); bigger ones are split.
+    overviews, cog : bool
+        Internal overviews; a Cloud Optimized GeoTIFF.
+    feedback : toolbox.feedback.Feedback, optional
+        Progress (0-95 % for the tiles) and cancellation between tiles.
+    cache_mb : int
+        GDAL block cache size while warping, MB (bounds memory on huge sources).
+    tags : dict, optional
+        Metadata written to the output (e.g. the homography).
+    creation_options : dict, optional
+        More GeoTIFF creation options.
+    fast : bool
+        Let maps that offer it use ``cv2.warpPerspective`` (see :func:`warp_window`); False
+        forces the generic coordinate-array + ``cv2.remap`` path.
+    executor : toolbox.tiles.Executor, optional
+        Where tiles run (default: local threads).
+    aux : dict name -> RasterInput, optional
+        Auxiliary rasters for the coordinate map.
+    """
+    from toolbox.raster.warp import EXTRA_RESAMPLING, RESAMPLING_METHODS, warp_layout
+    from toolbox.raster.writer import RasterWriter
+
+    if resampling not in RESAMPLING_METHODS + EXTRA_RESAMPLING:
+        raise ValueError(f"resampling must be one of "
+                         f"{', '.join(RESAMPLING_METHODS + EXTRA_RESAMPLING)}, "
+                         f"got {resampling!r}")
+    layout = warp_layout(source, outside, nodata)
+    writer = RasterWriter(output, grid, layout.count, layout.dtype, layout.nodata,
+                          alpha=layout.alpha, cog=cog, overviews=overviews, tags=tags,
+                          creation_options=creation_options, cache_mb=cache_mb)
+    with writer:
+        return warp_raster(source, grid, coordinate_map, writer, layout=layout,
+                           resampling=resampling, aux=aux, tile_size=chunk, executor=executor,
+                           feedback=feedback, max_source_pixels=max_source_pixels, fast=fast,
+                           end=95 if overviews else 100)
+

@@ -476,7 +476,7 @@ def warp_window(read: Callable[[list[int], Any], np.ndarray], source_size: tuple
     coordinates, without the coordinate arrays); otherwise the coordinates are computed and
     ``cv2.remap`` samples them.
     """
-    from toolbox.raster.engine import Tile
+    from toolbox.raster.tile import Tile
 
     if not isinstance(tile, Tile):
         tile = Tile(0, tile, 0, None)
@@ -653,71 +653,3 @@ def warp_perspective(source: np.ndarray, matrix: np.ndarray, size: tuple[int, in
             out = np.clip(np.rint(out), info.min, info.max)
         out = out.astype(dtype)
     return out
-
-
-def warp_to_geotiff(source: Any, coordinate_map: CoordinateMap, grid: Any, output: Any,
-                    resampling: str = "bilinear", outside: str = "alpha",
-                    nodata: float | None = None, chunk: int = DEFAULT_CHUNK,
-                    max_source_pixels: int = DEFAULT_MAX_SOURCE_PIXELS, overviews: bool = True,
-                    feedback: Any = None, cache_mb: int = DEFAULT_CACHE_MB,
-                    tags: dict[str, str] | None = None,
-                    creation_options: dict[str, Any] | None = None,
-                    fast: bool = True, cog: bool = False, executor: Any = None,
-                    aux: dict | None = None) -> WarpStatistics:
-    """Warp a raster file onto ``grid`` through ``coordinate_map`` into a GeoTIFF: a
-    :class:`~toolbox.raster.writer.RasterWriter` fed by
-    :func:`toolbox.raster.engine.warp_raster`.
-
-    Parameters
-    ----------
-    source : path
-        Any raster GDAL reads (GeoTIFF, JPEG, PNG...), 1 or more bands of one data type.
-    coordinate_map : CoordinateMap
-        Output tile -> source coordinates (e.g. :class:`HomographyMap`).
-    grid : toolbox.io.grid.GridSpec
-        Output grid (transform, width, height, crs; crs None for a local object system).
-    output : path
-        GeoTIFF to write (inside an algorithm: the staged path).
-    resampling : {"nearest", "bilinear", "cubic", "lanczos", "quadratic"}
-    outside : {"alpha", "nodata"}
-        How pixels outside the photo are marked (see :func:`output_layout`).
-    nodata : float, optional
-        Output nodata with ``outside="nodata"``.
-    chunk : int
-        Output tile side in pixels (a multiple of the 512-pixel block keeps writes aligned).
-    max_source_pixels : int
-        Largest source window read at once (per band); bigger ones are split.
-    overviews, cog : bool
-        Internal overviews; a Cloud Optimized GeoTIFF.
-    feedback : toolbox.feedback.Feedback, optional
-        Progress (0-95 % for the tiles) and cancellation between tiles.
-    cache_mb : int
-        GDAL block cache size while warping, MB (bounds memory on huge sources).
-    tags : dict, optional
-        Metadata written to the output (e.g. the homography).
-    creation_options : dict, optional
-        More GeoTIFF creation options.
-    fast : bool
-        Let maps that offer it use ``cv2.warpPerspective`` (see :func:`warp_window`); False
-        forces the generic coordinate-array + ``cv2.remap`` path.
-    executor : toolbox.tiles.Executor, optional
-        Where tiles run (default: local threads).
-    aux : dict name -> RasterInput, optional
-        Auxiliary rasters for the coordinate map.
-    """
-    from toolbox.raster.engine import warp_raster
-    from toolbox.raster.writer import RasterWriter
-
-    if resampling not in RESAMPLING_METHODS + EXTRA_RESAMPLING:
-        raise ValueError(f"resampling must be one of "
-                         f"{', '.join(RESAMPLING_METHODS + EXTRA_RESAMPLING)}, "
-                         f"got {resampling!r}")
-    layout = warp_layout(source, outside, nodata)
-    writer = RasterWriter(output, grid, layout.count, layout.dtype, layout.nodata,
-                          alpha=layout.alpha, cog=cog, overviews=overviews, tags=tags,
-                          creation_options=creation_options, cache_mb=cache_mb)
-    with writer:
-        return warp_raster(source, grid, coordinate_map, writer, layout=layout,
-                           resampling=resampling, aux=aux, tile_size=chunk, executor=executor,
-                           feedback=feedback, max_source_pixels=max_source_pixels, fast=fast,
-                           end=95 if overviews else 100)

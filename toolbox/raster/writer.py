@@ -28,18 +28,12 @@ from typing import Any
 
 import numpy as np
 
+from toolbox.io.raster import overview_levels  # noqa: F401 - re-exported
+
 DEFAULT_TILE = 512
 DEFAULT_CACHE_MB = 256  # GDAL block cache while writing (bounded, whatever the output size)
 
 
-def overview_levels(width: int, height: int, tile: int = DEFAULT_TILE) -> list[int]:
-    """Overview factors 2, 4, 8... until the smallest level fits in one ``tile`` (as GDAL's COG
-    driver): none for a raster that fits in one tile."""
-    factors, f = [], 1
-    while math.ceil(width / f) > tile or math.ceil(height / f) > tile:
-        f *= 2
-        factors.append(f)
-    return factors
 
 
 def predictor_for(dtype: Any) -> int:

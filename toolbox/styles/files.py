@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from toolbox.attribution.codes import CodeTable
+from toolbox.io.code_file import CodeTable
 from toolbox.styles.model import layer_style
 from toolbox.styles.qml import qml_document
 from toolbox.styles.sld import sld_document
@@ -42,8 +42,8 @@ if __name__ == "__main__":  # python -m toolbox.styles.files: regenerate styles/
     import sys
     import tempfile
 
-    from toolbox.attribution.codes import read_code_file, read_colour_file
     from toolbox.demo.samples import restitution
+    from toolbox.io.code_file import read_code_file, read_colour_file
 
     with tempfile.TemporaryDirectory() as tmp:
         made = restitution.make(Path(tmp), {})

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from toolbox.attribution.codes import CodeTable, hex_colour
+from toolbox.io.code_file import CodeTable, hex_colour
 
 GREY = (128, 128, 128)
 LINE_WIDTH_MM = 0.35
@@ -63,7 +63,7 @@ class LayerStyle:
 def code_style(code: str, kind: str, table: CodeTable | None,
                colours: dict[str, tuple[int, int, int]] | None) -> CodeStyle:
     """The style of one code drawn as ``kind``."""
-    from toolbox.attribution.apply import code_colour
+    from toolbox.io.code_file import code_colour
 
     rgb = None
     label = code

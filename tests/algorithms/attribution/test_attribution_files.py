@@ -7,8 +7,8 @@ import pytest
 import shapely
 
 import toolbox
-from toolbox.attribution.codes import percent_to_byte, read_code_file, read_colour_file
 from toolbox.errors import InputDataError
+from toolbox.io.code_file import percent_to_byte, read_code_file, read_colour_file
 from toolbox.io.parameter_file import read_parameter_file
 
 
@@ -181,7 +181,8 @@ def test_topology_applies_the_translation_and_names_unused_entries(tmp_path):
     import geopandas as gpd
 
     square = shapely.LineString([(100, 200), (110, 200), (110, 210), (100, 210), (100, 200)])
-    lines = gpd.GeoDataFrame({"code": ["FAB01002"]}, geometry=[square], crs="EPSG:3003")
+    # stored (false-origin) coordinates carry no CRS: only the translated ones are EPSG:3003
+    lines = gpd.GeoDataFrame({"code": ["FAB01002"]}, geometry=[square])
     src = tmp_path / "stored.gpkg"
     lines.to_file(src, driver="GPKG")
     params = write(tmp_path, "p.txt", FULL_PARAMETERS)

@@ -11,8 +11,8 @@ import pyogrio
 import pytest
 import shapely
 
-from toolbox.attribution.codes import read_code_file, read_colour_file
 from toolbox.demo.samples import restitution
+from toolbox.io.code_file import read_code_file, read_colour_file
 from toolbox.styles import layer_style, qml_document, read_layer_styles, write_layer_styles
 from toolbox.styles.files import write_code_styles
 from toolbox.styles.model import matplotlib_kwargs, style_model

@@ -15,7 +15,8 @@ import toolbox
 from toolbox.errors import CanceledError, InputDataError, ParameterError
 from toolbox.feedback import Feedback
 from toolbox.io.grid import GridSpec
-from toolbox.raster.warp import HomographyMap, inside_mask, warp_to_geotiff
+from toolbox.raster.engine import warp_to_geotiff
+from toolbox.raster.warp import HomographyMap, inside_mask
 from toolbox.transforms.rectification import default_cell_size, footprint, parse_pixel_to_image
 
 pytestmark = pytest.mark.filterwarnings("ignore::rasterio.errors.NotGeoreferencedWarning")

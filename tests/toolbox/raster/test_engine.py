@@ -14,6 +14,7 @@ from scipy import ndimage
 
 from toolbox.errors import ParameterError
 from toolbox.io.grid import GridSpec
+from toolbox.io.raster import overview_levels
 from toolbox.parameters import Extent
 from toolbox.raster.engine import (
     RasterInput,
@@ -25,7 +26,7 @@ from toolbox.raster.engine import (
     warp_raster,
 )
 from toolbox.raster.warp import HomographyMap, warp_layout
-from toolbox.raster.writer import RasterWriter, cog_problems, overview_levels
+from toolbox.raster.writer import RasterWriter, cog_problems
 from toolbox.tiles import Executor
 
 X0, Y0 = 1_688_000.0, 4_799_500.0

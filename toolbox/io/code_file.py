@@ -45,6 +45,7 @@ import re
 import unicodedata
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 from toolbox.errors import InputDataError
 from toolbox.io.text import read_text
@@ -325,3 +326,19 @@ def parse_hex(text: str) -> tuple[int, int, int]:
         raise ValueError(text)
     h = value.group(1)
     return int(h[0:2], 16), int(h[2:4], 16), int(h[4:6], 16)
+
+def code_colour(code: str, table: CodeTable, colours: dict[str, tuple[int, int, int]] | None,
+                entity_colour: Any = None) -> tuple[tuple[int, int, int] | None, str | None]:
+    """(RGB or None, colour index used): the code's colour, else the entity's own."""
+    entry = table.entries.get(code)
+    index = entry.colour if entry is not None and entry.colour else None
+    if index is None and entity_colour is not None and str(entity_colour).strip():
+        index = str(entity_colour).strip()
+    if index is None:
+        return None, None
+    if index.startswith("#"):
+        return parse_hex(index), index
+    key = str(int(index)) if index.isdigit() else index
+    if colours is not None and key in colours:
+        return colours[key], key
+    return None, key
