@@ -204,7 +204,7 @@ def main(small: bool) -> str:
         mosaic = measure("mosaic", blk, n_ortho)
         gdal = gdalwarp_mosaic(blk)
     lines = [
-        "# Mosaic benchmark", "",
+        "## Mosaics (`bench/mosaic_bench.py`)", "",
         machine_facts(f"OpenCV {cv2.__version__}", f"scikit-image {skimage.__version__}",
                       f"GDAL {rasterio.__gdal_version__}"), "",
         note, f"(synthetic data generated in {generate:.1f} s)", "",

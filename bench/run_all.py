@@ -21,7 +21,8 @@ HERE = Path(__file__).resolve().parent
 
 
 def main(selected: list[str]) -> None:
-    for script in sorted(HERE.glob("*_bench.py")):
+    collect_only = selected == ["--collect"]  # rewrite RESULTS.md from bench/results/ only
+    for script in [] if collect_only else sorted(HERE.glob("*_bench.py")):
         domain = script.stem.removesuffix("_bench")
         if selected and domain not in selected:
             continue
@@ -31,7 +32,10 @@ def main(selected: list[str]) -> None:
         subprocess.run([sys.executable, str(script)], check=True, cwd=HERE.parent)
     parts = ["# Benchmark results", "",
              "Written by `bench/run_all.py` (`make bench`); one section per domain, each measured in "
-             "one run side by side with its peers.", "", f"Last full run: {machine_facts()}.", ""]
+             "one run side by side with its peers. Each section names its own date and machine "
+             "load: sections measured while other work ran on both cores say so, and only their "
+             "ratios (toolbox and peer side by side, in one run) are meaningful.", "",
+             f"Collected: {machine_facts()}.", ""]
     for result in sorted((HERE / "results").glob("*.md")):
         parts += [result.read_text().strip(), ""]
     (HERE / "RESULTS.md").write_text("\n".join(parts))

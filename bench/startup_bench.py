@@ -145,7 +145,7 @@ def main() -> None:
         rows.append(("dem:nearest, 4,500 points, whole run", "cold numba cache (compiles)", cold))
         rows.append(("dem:nearest, 4,500 points, whole run", "warm numba cache",
                      median_warm(nearest, env, args.repeat)))
-    lines = [f"Start-up, {machine_facts()}; {note}.", "",
+    lines = ["## Start-up (`bench/startup_bench.py`)", "", f"{machine_facts()}; {note}.", "",
              "| what | case | wall s | CPU s |", "|---|---|---:|---:|"]
     lines += [f"| {what} | {case} | {wall:.3f} | {cpu:.3f} |" for what, case, (wall, cpu) in rows]
     text = "\n".join(lines) + "\n"
