@@ -82,8 +82,10 @@ def make_parameter(p: dict):
     elif kind == "raster":
         param = QgsProcessingParameterRasterLayer(name, desc, None, optional)
     elif kind == "multiple":
+        # rasters: any raster layers; vectors: files (the toolbox's multi-vector inputs also take
+        # text exports QGIS cannot open as layers, e.g. restitution files)
         layer_type = QgsProcessing.TypeRaster if p.get("layer_type") == "raster" else \
-            QgsProcessing.TypeVectorAnyGeometry
+            QgsProcessing.TypeFile
         param = QgsProcessingParameterMultipleLayers(name, desc, layer_type, None, optional)
         param.setMinimumNumberInputs(int(p.get("min_count") or 1))
     elif kind == "field":
@@ -198,6 +200,8 @@ class ToolboxAlgorithm(QgsProcessingAlgorithm):
             layer = self.parameterAsRasterLayer(parameters, name, context)
             return None if layer is None else layer.source()
         if kind == "multiple":
+            if p.get("layer_type") != "raster":
+                return list(self.parameterAsFileList(parameters, name, context))
             return [layer.source() for layer in self.parameterAsLayerList(parameters, name,
                                                                            context)]
         if kind == "field":
