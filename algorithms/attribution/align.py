@@ -4,8 +4,9 @@ from __future__ import annotations
 
 from toolbox.algorithm import Algorithm
 from toolbox.attribution.edit_parameters import parameter_file_parameter
+from toolbox.attribution.layer_specs import edited_output
 from toolbox.feedback import Feedback
-from toolbox.parameters import Layer, Number, Output, OutputVector, VectorLayer
+from toolbox.parameters import Number, Output, VectorLayer
 from toolbox.registry import register
 
 WANTED = {"TOLERANCE": ("tolerance", "alignment_tolerance", 0.1),
@@ -40,15 +41,7 @@ class Align(Algorithm):
         Number("PRECISION", "vertices closer than this are one shared vertex [default: "
                "10^-decimals of the parameter file, else 0.001]", min_value=0,
                min_exclusive=True, optional=True),
-        OutputVector("OUTPUT", "GeoPackage: aligned layer and moved_vertices", layers=[
-            Layer("*", "Geometry", [("code", "string", "restitution code"),
-                                 ("description", "string", "from the code file"),
-                                 ("colour", "string", "#rrggbb")],
-                  "one layer per code (or per geometry type), named after it; styled"),
-            Layer("moved_vertices", "Point", [("feature", "string"), ("vertex", "integer"),
-                                           ("change", "string"), ("dx", "real"), ("dy", "real"),
-                                           ("displacement", "real", "how far it moved")],
-                  "every vertex the tool moved, added or removed")]),
+        edited_output("GeoPackage: aligned layer and moved_vertices"),
     ]
     outputs = [Output("STATISTICS", "vertices moved, largest move", "dict")]
 

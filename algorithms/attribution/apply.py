@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from toolbox.algorithm import Algorithm
+from toolbox.attribution.layer_specs import CODED
 from toolbox.attribution.sources import RestitutionFiles
 from toolbox.feedback import Feedback
 from toolbox.parameters import Boolean, Crs, Enum, File, Layer, Number, Output, OutputVector, String
@@ -76,10 +77,7 @@ class ApplyCodes(Algorithm):
         Boolean("STYLE_FILES", "also write each layer's QML and SLD beside OUTPUT",
                 default=False),
         OutputVector("OUTPUT", "GeoPackage: coded layers, unresolved, labels, merge; styled",
-                     layers=[Layer("*", "Geometry", [("code", "string", "restitution code"),
-                                 ("description", "string", "from the code file"),
-                                 ("colour", "string", "#rrggbb")],
-                  "one layer per code (or per geometry type), named after it; styled"),
+                     layers=[CODED,
                              Layer("unresolved", "Point Z", [("code", "string"),
                                                              ("reason", "string", "why")],
                                    "entities not resolved, with the reason (never dropped)"),

@@ -4,8 +4,9 @@ from __future__ import annotations
 
 from toolbox.algorithm import Algorithm
 from toolbox.attribution.edit_parameters import parameter_file_parameter
+from toolbox.attribution.layer_specs import edited_output
 from toolbox.feedback import Feedback
-from toolbox.parameters import Enum, Layer, Number, Output, OutputVector, VectorLayer
+from toolbox.parameters import Enum, Number, Output, VectorLayer
 from toolbox.registry import register
 
 WANTED = {"DISTANCE": ("distance", "spline_step", 1.0),
@@ -49,15 +50,7 @@ class Sample(Algorithm):
                "[default 10]", min_value=0, max_value=180, optional=True),
         Number("TOLERANCE", "largest distance of an original vertex from the new line; features "
                "beyond it are left unchanged [default: no limit]", min_value=0, optional=True),
-        OutputVector("OUTPUT", "GeoPackage: sampled layer and moved_vertices", layers=[
-            Layer("*", "Geometry", [("code", "string", "restitution code"),
-                                 ("description", "string", "from the code file"),
-                                 ("colour", "string", "#rrggbb")],
-                  "one layer per code (or per geometry type), named after it; styled"),
-            Layer("moved_vertices", "Point", [("feature", "string"), ("vertex", "integer"),
-                                           ("change", "string"), ("dx", "real"), ("dy", "real"),
-                                           ("displacement", "real", "how far it moved")],
-                  "every vertex the tool moved, added or removed")]),
+        edited_output("GeoPackage: sampled layer and moved_vertices"),
     ]
     outputs = [Output("STATISTICS", "vertices before/after, largest deviation", "dict")]
 

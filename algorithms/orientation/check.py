@@ -6,7 +6,8 @@ from typing import Any
 
 from toolbox.algorithm import Algorithm
 from toolbox.feedback import Feedback
-from toolbox.parameters import Enum, File, Layer, Number, Output, OutputFile, OutputVector, String
+from toolbox.parameters import Layer, Number, Output, OutputFile, OutputVector
+from toolbox.photogrammetry.parameters import control_parameter, measurement_parameters
 from toolbox.registry import register
 
 
@@ -43,14 +44,8 @@ class CheckOrientation(Algorithm):
     group = "Orientation"
     short_help = "Image and ground residuals of control/check points, RMSE, map-scale judgement."
     parameters = [
-        File("PROJECT", "orientation project (YAML)", extensions=[".yaml", ".yml"]),
-        File("INPUT", "image measurements (CSV or GeoPackage table)",
-             extensions=[".csv", ".txt", ".gpkg"]),
-        String("LAYER", "GeoPackage layer of INPUT (default: the first)", optional=True),
-        Enum("COORDINATES", "measurement columns: auto (pixels when col_px/row_px exist), pixel, "
-             "image (x_mm/y_mm)", options=("auto", "pixel", "image"), default="auto"),
-        File("CONTROL", "surveyed points: id, X, Y, Z, optional role (control/check)",
-             extensions=[".csv", ".txt", ".gpkg"]),
+        *measurement_parameters(),
+        control_parameter(),
         Number("THRESHOLD_PX", "flag measurements whose residual exceeds this, pixels",
                default=1.0, min_value=0, min_exclusive=True),
         Number("MAP_SCALE", "map scale denominator to judge the block against (e.g. 5000)",

@@ -9,12 +9,13 @@ import numpy as np
 from toolbox.algorithm import Algorithm
 from toolbox.errors import InputDataError
 from toolbox.feedback import Feedback
-from toolbox.parameters import Enum, File, Layer, Output, OutputFile, OutputVector, String
+from toolbox.parameters import Layer, Output, OutputFile, OutputVector
 from toolbox.photogrammetry.forward_intersection import (
     STATUS_NAMES,
     camera_observations,
     intersect,
 )
+from toolbox.photogrammetry.parameters import measurement_parameters
 from toolbox.photogrammetry.tables import image_measurements, load_project_parameter, write_json
 from toolbox.registry import register
 
@@ -47,12 +48,7 @@ class SpaceIntersection(Algorithm):
     group = "Orientation"
     short_help = "3D points (PointZ) from image points measured on >= 2 oriented photos, with residuals."
     parameters = [
-        File("PROJECT", "orientation project (YAML)", extensions=[".yaml", ".yml"]),
-        File("INPUT", "image measurements (CSV or GeoPackage table)",
-             extensions=[".csv", ".txt", ".gpkg"]),
-        String("LAYER", "GeoPackage layer of INPUT (default: the first)", optional=True),
-        Enum("COORDINATES", "measurement columns: auto (pixels when col_px/row_px exist), pixel, "
-             "image (x_mm/y_mm)", options=("auto", "pixel", "image"), default="auto"),
+        *measurement_parameters(),
         OutputVector("OUTPUT", "GeoPackage with layers points and rays", layers=[
             Layer("points", "Point Z", [
                 ("point_id", "string"), ("status", "string", "ok or why not intersected"),

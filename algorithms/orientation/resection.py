@@ -6,7 +6,8 @@ from typing import Any
 
 from toolbox.algorithm import Algorithm
 from toolbox.feedback import Feedback
-from toolbox.parameters import Enum, File, Output, OutputFile, String
+from toolbox.parameters import Enum, Output, OutputFile
+from toolbox.photogrammetry.parameters import control_parameter, measurement_parameters
 from toolbox.registry import register
 
 
@@ -41,15 +42,9 @@ class SpaceResection(Algorithm):
     group = "Orientation"
     short_help = "Exterior orientation of single photos from >= 4 control points (collinearity LSQ)."
     parameters = [
-        File("PROJECT", "orientation project (YAML) with cameras and interior orientations",
-             extensions=[".yaml", ".yml"]),
-        File("INPUT", "image measurements (CSV or GeoPackage table)",
-             extensions=[".csv", ".txt", ".gpkg"]),
-        String("LAYER", "GeoPackage layer of INPUT (default: the first)", optional=True),
-        Enum("COORDINATES", "measurement columns: auto (pixels when col_px/row_px exist), pixel, "
-             "image (x_mm/y_mm)", options=("auto", "pixel", "image"), default="auto"),
-        File("CONTROL", "ground control points: id, X, Y, Z, optional role (control/check)",
-             extensions=[".csv", ".txt", ".gpkg"]),
+        *measurement_parameters("orientation project (YAML) with cameras and interior "
+                                "orientations"),
+        control_parameter(),
         Enum("START", "start values: auto (near-vertical photos, no approximate values needed) or "
              "project (PROJECT's exterior orientation)", options=("auto", "project"),
              default="auto"),
