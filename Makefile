@@ -23,7 +23,7 @@ test: $(STAMP)  ## run the test suite
 	$(BIN)/python -m pytest -q
 
 lint: $(STAMP)  ## ruff, and the import contract of pyproject.toml [tool.importlinter]
-	$(BIN)/ruff check toolbox algorithms tests bench
+	$(BIN)/ruff check toolbox algorithms tests bench qgis_plugin
 	$(BIN)/lint-imports --no-cache
 
 bench: $(STAMP)  ## benchmarks against peers (see bench/RESULTS.md)
