@@ -45,6 +45,7 @@ import math
 import warnings
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -198,6 +199,56 @@ class RasterInput:
 
 def _source_path(source: Any) -> Any:
     return getattr(source, "path", source)
+
+
+class _OpenSources:
+    """Input rasters kept open per thread for the length of one local :func:`process_raster`
+    call (GDAL's block cache then serves the halo reads of neighbouring tiles); closed at the
+    end. Not used on Dask, where inputs travel as paths."""
+
+    def __init__(self) -> None:
+        import threading
+
+        self._local = threading.local()
+        self._all: list[Any] = []
+        self._lock = threading.Lock()
+
+    def get(self, path: Any) -> Any:
+        import rasterio
+
+        opened = getattr(self._local, "datasets", None)
+        if opened is None:
+            opened = self._local.datasets = {}
+        dataset = opened.get(path)
+        if dataset is None:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
+                dataset = opened[path] = rasterio.open(path)
+            with self._lock:
+                self._all.append(dataset)
+        return dataset
+
+    def close(self) -> None:
+        for dataset in self._all:
+            dataset.close()
+        self._all.clear()
+
+
+@dataclass(frozen=True)
+class _HeldInput:
+    """A :class:`RasterInput` read through :class:`_OpenSources` (local threads only)."""
+
+    input: RasterInput
+    sources: _OpenSources
+
+    def read(self, grid: GridSpec, tile: Tile) -> np.ndarray:
+        inp = self.input
+        source = _source_path(inp.source)
+        if isinstance(source, (str, Path)):
+            source = self.sources.get(str(source))
+        return read_window(source, grid, tile.window, bands=inp.bands,
+                           resampling=inp.resampling, halo=tile.halo, boundary=inp.boundary,
+                           dtype=inp.dtype, fill=inp.fill)
 
 
 def read_window(source: Any, grid: GridSpec, window: Any, *, bands: Any = None,
@@ -434,6 +485,10 @@ def process_raster(grid: GridSpec, inputs: Mapping[str, RasterInput] | None, ker
 
     executor = executor or Executor("local", default_workers())
     inputs = dict(inputs or {})
+    held = _OpenSources() if executor.kind == "local" else None
+    if held is not None:
+        inputs = {name: _HeldInput(inp, held) if isinstance(inp, RasterInput) else inp
+                  for name, inp in inputs.items()}
     counters = {"tiles": 0, "blank_tiles": 0}
 
     def jobs() -> Iterator[_TileJob]:
@@ -445,16 +500,22 @@ def process_raster(grid: GridSpec, inputs: Mapping[str, RasterInput] | None, ker
     tiles = iter_tiles(grid, tile_size, halo)
     results = map_tiles(_run_job, jobs(), executor=executor, feedback=feedback,
                         total=tile_count(grid, tile_size), start=start, end=end)
-    for tile, (array, info) in zip(tiles, results, strict=True):
-        counters["tiles"] += 1
-        if array is None:
-            counters["blank_tiles"] += 1
-        if collect is not None:
-            collect(tile, array, info)
-        if write is not None:
-            write(tile.window, writer_or_output.blank(*tile.shape) if array is None else array)
-        else:
-            writer_or_output(tile, array)
+    try:
+        for tile, (array, info) in zip(tiles, results, strict=True):
+            counters["tiles"] += 1
+            if array is None:
+                counters["blank_tiles"] += 1
+            if collect is not None:
+                collect(tile, array, info)
+            if write is not None:
+                write(tile.window, writer_or_output.blank(*tile.shape) if array is None
+                      else array)
+            else:
+                writer_or_output(tile, array)
+    finally:
+        getattr(results, "close", lambda: None)()  # stop and join the tile threads first
+        if held is not None:
+            held.close()
     counters["executor"] = executor.describe()
     return counters
 
