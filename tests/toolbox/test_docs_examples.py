@@ -51,8 +51,8 @@ def demo_dir(tmp_path_factory, demo_run):
 
 def test_docs_have_examples():
     sources = {source for source, _ in documented_commands()}
-    assert {"README.md", "dem.md", "orientation.md", "rectify.md", "tin.md",
-            "topology.md"} <= sources
+    assert {"README.md", "dem.md", "orientation.md", "rectify.md", "tin.md", "topology.md",
+            "ortho.md", "mosaic.md", "attribution.md", "carto.md"} <= sources
 
 
 def test_every_documented_command_runs(demo_dir, monkeypatch):
