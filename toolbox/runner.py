@@ -426,6 +426,9 @@ def _check_raster_outputs(alg_cls: type[Algorithm], values: dict[str, Any],
             raise InputDataError(f"{dest.name} would have no valid cell (every cell is nodata): "
                                  "check that EXTENT, TEMPLATE, MASK and CELL_SIZE cover the data")
         if problem:
+            if _full_output(staging) is not None:  # a truncated file on a full disk: say so
+                raise write_error(OSError(errno.ENOSPC, "No space left on device"), dest.name,
+                                  values[dest.name])
             raise write_error(OSError(errno.EIO, problem), dest.name, values[dest.name])
 
 
