@@ -10,7 +10,6 @@ from toolbox.errors import InputDataError, ParameterError
 from toolbox.feedback import Feedback
 from toolbox.parameters import (
     Boolean,
-    Enum,
     File,
     Integer,
     Number,
@@ -19,9 +18,8 @@ from toolbox.parameters import (
     RasterLayer,
     String,
 )
+from toolbox.photogrammetry.parameters import ortho_method_parameters
 from toolbox.registry import register
-
-RESAMPLING = ("nearest", "bilinear", "quadratic", "cubic", "lanczos")
 
 
 @register
@@ -60,16 +58,7 @@ class OrthoBatch(Algorithm):
                optional=True, min_value=0, min_exclusive=True),
         RasterLayer("TEMPLATE", "align the grid to this raster's lattice and cell",
                     optional=True),
-        Enum("RESAMPLING", "photo interpolation", options=RESAMPLING, default="bilinear"),
-        Integer("DEM_FACTOR", "project on a DEM coarsened by this factor", default=1,
-                min_value=1, max_value=64),
-        Integer("TILE_SIZE", "coarse-grid block of the distortion, cells", default=64,
-                min_value=2, max_value=256),
-        Number("MAP_TOLERANCE", "largest interpolation error of the map, photo pixels",
-               default=0.05, min_value=0),
-        Enum("OUTSIDE", "cells outside the photo or the DEM: alpha band or nodata",
-             options=("alpha", "nodata"), default="alpha"),
-        Number("NODATA", "nodata value with OUTSIDE=nodata", optional=True),
+        *ortho_method_parameters(),
         Boolean("OCCLUSION", "true orthos: leave hidden cells empty", default=False),
         Boolean("COG", "write Cloud Optimized GeoTIFFs", default=False),
         Boolean("OVERVIEWS", "build internal overviews", default=True),

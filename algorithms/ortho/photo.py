@@ -22,9 +22,8 @@ from toolbox.parameters import (
     RasterLayer,
     String,
 )
+from toolbox.photogrammetry.parameters import ortho_method_parameters
 from toolbox.registry import register
-
-RESAMPLING = ("nearest", "bilinear", "quadratic", "cubic", "lanczos")
 
 
 @register
@@ -102,16 +101,7 @@ class OrthoPhoto(Algorithm):
                         optional=True),
         RasterLayer("TEMPLATE", "align the grid to this raster's lattice (and cell size)",
                     optional=True),
-        Enum("RESAMPLING", "photo interpolation", options=RESAMPLING, default="bilinear"),
-        Integer("DEM_FACTOR", "project on a DEM coarsened by this factor (1 = as is)", default=1,
-                min_value=1, max_value=64),
-        Integer("TILE_SIZE", "coarse-grid block of the distortion, cells", default=64,
-                min_value=2, max_value=256),
-        Number("MAP_TOLERANCE", "largest interpolation error of the map, photo pixels",
-               default=0.05, min_value=0),
-        Enum("OUTSIDE", "cells outside the photo or the DEM: alpha band or nodata",
-             options=("alpha", "nodata"), default="alpha"),
-        Number("NODATA", "nodata value with OUTSIDE=nodata", optional=True),
+        *ortho_method_parameters(),
         Boolean("OCCLUSION", "true ortho: leave cells hidden from the camera empty",
                 default=False),
         Boolean("COG", "write a Cloud Optimized GeoTIFF", default=False),

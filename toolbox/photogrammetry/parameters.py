@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from toolbox.parameters import Enum, File, Parameter, String
+from toolbox.parameters import Enum, File, Integer, Number, Parameter, String
 
 TABLE_EXTENSIONS = [".csv", ".txt", ".gpkg"]
 
@@ -22,3 +22,23 @@ def control_parameter() -> File:
     """CONTROL: surveyed points with id, X, Y, Z and an optional role."""
     return File("CONTROL", "surveyed points: id, X, Y, Z, optional role (control/check)",
                 extensions=TABLE_EXTENSIONS)
+
+
+ORTHO_RESAMPLING = ("nearest", "bilinear", "quadratic", "cubic", "lanczos")
+
+
+def ortho_method_parameters() -> list[Parameter]:
+    """How an orthophoto is computed and what its cells outside the photo hold (ortho:photo and
+    ortho:batch): RESAMPLING, DEM_FACTOR, TILE_SIZE, MAP_TOLERANCE, OUTSIDE, NODATA."""
+    return [
+        Enum("RESAMPLING", "photo interpolation", options=ORTHO_RESAMPLING, default="bilinear"),
+        Integer("DEM_FACTOR", "project on a DEM coarsened by this factor (1 = as is)", default=1,
+                min_value=1, max_value=64),
+        Integer("TILE_SIZE", "coarse-grid block of the distortion, cells", default=64,
+                min_value=2, max_value=256),
+        Number("MAP_TOLERANCE", "largest interpolation error of the map, photo pixels",
+               default=0.05, min_value=0),
+        Enum("OUTSIDE", "cells outside the photo or the DEM: alpha band or nodata",
+             options=("alpha", "nodata"), default="alpha"),
+        Number("NODATA", "nodata value with OUTSIDE=nodata", optional=True),
+    ]
