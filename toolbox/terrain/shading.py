@@ -144,9 +144,10 @@ def shade_raster(info, band: int, output: str | Path,
     GeoTIFF (:class:`toolbox.raster.writer.RasterWriter`, a COG with ``cog``).
 
     ``info`` is a :class:`~toolbox.io.raster.RasterInfo`; the DEM is read as float32 when that
-    holds its values exactly, else float64; DEM nodata becomes NaN before the kernel (so cells next to nodata are nodata) and NaN results become ``nodata``. The kernel
-    must be picklable (a module-level function or a ``functools.partial`` of one) to run on
-    a Dask cluster. Returns counts of valid and nodata cells and the number of tiles.
+    holds its values exactly, else float64; DEM nodata becomes NaN before the kernel (so
+    cells next to nodata are nodata) and NaN results become ``nodata``. The kernel must be
+    picklable (a module-level function or a ``functools.partial`` of one) to run on a Dask
+    cluster. Returns counts of valid and nodata cells and the number of tiles.
     """
     from functools import partial
 
