@@ -51,7 +51,9 @@ def slope(z: np.ndarray, cell_x: float, cell_y: float, z_factor: float = 1.0,
     if units not in ("degrees", "percent"):
         raise ValueError(f"units must be 'degrees' or 'percent', got {units!r}")
     dz_dx, dz_dy = horn_gradient(z, cell_x, cell_y, z_factor)
-    rise = np.hypot(dz_dx, dz_dy, out=dz_dx)
+    rise = np.multiply(dz_dx, dz_dx, out=dz_dx)  # |grad z| (np.hypot is ~10x slower)
+    rise += np.square(dz_dy, out=dz_dy)
+    np.sqrt(rise, out=rise)
     out = np.empty(rise.shape, np.float32)
     if units == "percent":
         return np.multiply(rise, 100.0, out=out)
@@ -65,7 +67,8 @@ def aspect(z: np.ndarray, cell_x: float, cell_y: float) -> np.ndarray:
     flat = dz_dx == 0
     flat &= dz_dy == 0
     angle = np.arctan2(np.negative(dz_dx, out=dz_dx), np.negative(dz_dy, out=dz_dy), out=dz_dx)
-    out = np.mod(np.degrees(angle, out=angle), 360.0, out=np.empty(angle.shape, np.float32))
+    out = np.degrees(angle, out=np.empty(angle.shape, np.float32))  # (-180, 180]
+    np.add(out, np.float32(360.0), out=out, where=out < 0)  # [0, 360) (np.mod is ~10x slower)
     out[flat] = ASPECT_FLAT
     return out
 
