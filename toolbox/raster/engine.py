@@ -41,6 +41,7 @@ cell's value belongs to its centre (:mod:`toolbox.io.grid`).
 
 from __future__ import annotations
 
+import itertools
 import math
 import warnings
 from collections.abc import Callable, Iterator, Mapping
@@ -587,7 +588,6 @@ def _warp_kernel(job: _WarpJob, tile: Tile, arrays: dict) -> tuple[np.ndarray, A
 
     src = job.source.get()
     stats = WarpStatistics()
-    out = np.empty((job.layout.count, *tile.shape), dtype=job.layout.dtype)
 
     def read(bands, window):
         return src.read(bands, window=window)
@@ -596,9 +596,14 @@ def _warp_kernel(job: _WarpJob, tile: Tile, arrays: dict) -> tuple[np.ndarray, A
         return src.dataset_mask(window=window)
 
     c0, r0 = int(tile.window.col_off), int(tile.window.row_off)
-    for part, array in warp_window(read, job.source_size, job.coordinate_map, tile, job.layout,
-                                   job.resampling, read_mask, job.max_source_pixels, stats,
-                                   job.fast, aux=arrays):
+    parts = warp_window(read, job.source_size, job.coordinate_map, tile, job.layout,
+                        job.resampling, read_mask, job.max_source_pixels, stats, job.fast,
+                        aux=arrays)
+    first = next(parts)
+    if first[0] == tile.window:  # one part: the tile itself (no copy)
+        return first[1], stats
+    out = np.empty((job.layout.count, *tile.shape), dtype=job.layout.dtype)
+    for part, array in itertools.chain([first], parts):
         pc, pr = int(part.col_off) - c0, int(part.row_off) - r0
         out[:, pr:pr + int(part.height), pc:pc + int(part.width)] = array
     return out, stats
