@@ -24,6 +24,13 @@ from toolbox.errors import ParameterError
 DEFAULT_BLOCK = 512
 
 
+def gdal_cache_max(mb: int) -> int:
+    """``GDAL_CACHEMAX`` for ``rasterio.Env``: bytes. rasterio hands an integer to
+    ``GDALSetCacheMax`` as bytes (``GDAL_CACHEMAX=256`` is a 256-byte cache, which makes every
+    windowed read decompress its blocks again), so megabytes are converted here."""
+    return int(mb) * 2**20
+
+
 @dataclass
 class RasterInfo:
     """A validated reference to a raster: path and the metadata read without loading pixels."""

@@ -41,6 +41,7 @@ cell's value belongs to its centre (:mod:`toolbox.io.grid`).
 
 from __future__ import annotations
 
+import itertools
 import math
 import warnings
 from collections.abc import Callable, Iterator, Mapping
@@ -211,6 +212,7 @@ class _OpenSources:
 
         self._local = threading.local()
         self._all: list[Any] = []
+        self._offsets: dict[tuple, tuple[int, int] | None] = {}
         self._lock = threading.Lock()
 
     def get(self, path: Any) -> Any:
@@ -228,6 +230,14 @@ class _OpenSources:
                 self._all.append(dataset)
         return dataset
 
+    def aligned_offset(self, path: Any, dataset: Any, grid: GridSpec) -> tuple[int, int] | None:
+        """:func:`_aligned_offset` of ``path`` on ``grid``, decided once per call (the CRS
+        comparison costs more than a tile's read); one grid per :func:`process_raster` call."""
+        key = (path, id(grid))
+        if key not in self._offsets:
+            self._offsets[key] = _aligned_offset(dataset, grid)
+        return self._offsets[key]
+
     def close(self) -> None:
         for dataset in self._all:
             dataset.close()
@@ -244,16 +254,23 @@ class _HeldInput:
     def read(self, grid: GridSpec, tile: Tile) -> np.ndarray:
         inp = self.input
         source = _source_path(inp.source)
+        offset = _UNKNOWN
         if isinstance(source, (str, Path)):
-            source = self.sources.get(str(source))
+            path = str(source)
+            source = self.sources.get(path)
+            offset = self.sources.aligned_offset(path, source, grid)
         return read_window(source, grid, tile.window, bands=inp.bands,
                            resampling=inp.resampling, halo=tile.halo, boundary=inp.boundary,
-                           dtype=inp.dtype, fill=inp.fill)
+                           dtype=inp.dtype, fill=inp.fill, _offset=offset)
+
+
+_UNKNOWN = object()  # read_window's alignment not decided yet
 
 
 def read_window(source: Any, grid: GridSpec, window: Any, *, bands: Any = None,
                 resampling: str = "bilinear", halo: int = 0, boundary: str = "nodata",
-                dtype: Any = None, fill: float | None = None) -> np.ndarray:
+                dtype: Any = None, fill: float | None = None,
+                _offset: Any = _UNKNOWN) -> np.ndarray:
     """Read ``source`` onto ``window`` of ``grid`` grown by ``halo`` cells: (bands, h + 2·halo,
     w + 2·halo).
 
@@ -306,7 +323,7 @@ def read_window(source: Any, grid: GridSpec, window: Any, *, bands: Any = None,
         if fill is None:
             fill = math.nan if out_dtype.kind == "f" else (
                 src.nodata if src.nodata is not None and not math.isnan(src.nodata) else 0)
-        offset = _aligned_offset(src, grid)
+        offset = _aligned_offset(src, grid) if _offset is _UNKNOWN else _offset
         if offset is not None:
             data = _read_aligned(src, indexes, region, offset, out_dtype, fill)
         else:
@@ -357,21 +374,25 @@ def _read_aligned(src, indexes, region, offset, dtype, fill) -> np.ndarray:
 
     col0, row0 = int(region.col_off) + offset[0], int(region.row_off) + offset[1]
     width, height = int(region.width), int(region.height)
-    out = np.full((len(indexes), height, width), fill, dtype=dtype)
     c0, r0 = max(col0, 0), max(row0, 0)
     c1, r1 = min(col0 + width, src.width), min(row0 + height, src.height)
     if c1 <= c0 or r1 <= r0:
-        return out
+        return np.full((len(indexes), height, width), fill, dtype=dtype)
     data = src.read(indexes, window=Window(c0, r0, c1 - c0, r1 - r0))
-    target = out[:, r0 - row0:r1 - row0, c0 - col0:c1 - col0]
     nodata = src.nodata
-    if nodata is None:
-        target[...] = data
-    else:
+    missing = None
+    if nodata is not None:  # compared in the source's type, as GDAL stores it
         missing = np.isnan(data) if math.isnan(nodata) else data == nodata
-        target[...] = data
-        if missing.any():
-            target[missing] = fill
+        if not missing.any() or (math.isnan(nodata) and dtype.kind == "f"
+                                 and math.isnan(fill)):
+            missing = None
+    if (c0, r0, c1, r1) == (col0, row0, col0 + width, row0 + height) and data.dtype == dtype:
+        out = data  # the whole window inside the source, no conversion: no copy
+    else:
+        out = np.full((len(indexes), height, width), fill, dtype=dtype)
+        out[:, r0 - row0:r1 - row0, c0 - col0:c1 - col0] = data
+    if missing is not None:
+        out[:, r0 - row0:r1 - row0, c0 - col0:c1 - col0][missing] = fill
     return out
 
 
@@ -567,7 +588,6 @@ def _warp_kernel(job: _WarpJob, tile: Tile, arrays: dict) -> tuple[np.ndarray, A
 
     src = job.source.get()
     stats = WarpStatistics()
-    out = np.empty((job.layout.count, *tile.shape), dtype=job.layout.dtype)
 
     def read(bands, window):
         return src.read(bands, window=window)
@@ -576,9 +596,14 @@ def _warp_kernel(job: _WarpJob, tile: Tile, arrays: dict) -> tuple[np.ndarray, A
         return src.dataset_mask(window=window)
 
     c0, r0 = int(tile.window.col_off), int(tile.window.row_off)
-    for part, array in warp_window(read, job.source_size, job.coordinate_map, tile, job.layout,
-                                   job.resampling, read_mask, job.max_source_pixels, stats,
-                                   job.fast, aux=arrays):
+    parts = warp_window(read, job.source_size, job.coordinate_map, tile, job.layout,
+                        job.resampling, read_mask, job.max_source_pixels, stats, job.fast,
+                        aux=arrays)
+    first = next(parts)
+    if first[0] == tile.window:  # one part: the tile itself (no copy)
+        return first[1], stats
+    out = np.empty((job.layout.count, *tile.shape), dtype=job.layout.dtype)
+    for part, array in itertools.chain([first], parts):
         pc, pr = int(part.col_off) - c0, int(part.row_off) - r0
         out[:, pr:pr + int(part.height), pc:pc + int(part.width)] = array
     return out, stats

@@ -474,7 +474,9 @@ def warp_window(read: Callable[[list[int], Any], np.ndarray], source_size: tuple
     ``fast`` and a map offering ``perspective_matrix`` and ``inside`` (a homography), OpenCV's
     ``warpPerspective`` evaluates the map itself (same sampling as ``remap`` with the map's
     coordinates, without the coordinate arrays); otherwise the coordinates are computed and
-    ``cv2.remap`` samples them.
+    ``cv2.remap`` samples them. On that fast path, for a source without alpha band or mask
+    and 1, 3 or 4 output bands, the bands travel pixel-interleaved from the read to the
+    writer (:func:`_warp_packed`).
     """
     from toolbox.raster.tile import Tile
 
@@ -553,6 +555,13 @@ def warp_window(read: Callable[[list[int], Any], np.ndarray], source_size: tuple
         def sample(pixels: np.ndarray, method: str) -> np.ndarray:
             return remap(pixels, map_x, map_y, method)
     n_data = len(layout.data_bands)
+    if use_fast and layout.source_alpha is None and not layout.source_masked \
+            and layout.count in (1, 3, 4) and np.dtype(layout.dtype).name in _CV2_DTYPES:
+        # (not 2 bands: OpenCV's 2-channel warpPerspective samples differently, up to 6 grey
+        # levels from its 1-, 3- and 4-channel ones)
+        yield window, _warp_packed(read(layout.data_bands, src_win), pads, layout, matrix,
+                                   (out_w, out_h), resampling, intervals)
+        return
     sampled = sample(pad_at_photo_edges(_interleave(read(layout.data_bands, src_win)), pads),
                      resampling)
     _deinterleave(sampled, out[:n_data])
@@ -587,6 +596,50 @@ def warp_window(read: Callable[[list[int], Any], np.ndarray], source_size: tuple
         if layout.alpha:
             out[-1][invalid] = 0
     yield window, out
+
+
+def _warp_packed(data: np.ndarray, pads: tuple[int, int, int, int], layout: OutputLayout,
+                 matrix: np.ndarray, size: tuple[int, int], resampling: str,
+                 intervals) -> np.ndarray:
+    """The homography fast path of :func:`warp_window` for a source without alpha band or
+    mask: the source bands ``data`` (bands, h, w) are merged pixel-interleaved into a buffer
+    that has the edge pads of :func:`pad_at_photo_edges` (filled by replicating the edge rows
+    and columns, without copying the window again) and, for an alpha output, an opaque alpha
+    channel; one ``cv2.warpPerspective`` resamples every band (alpha stays opaque inside the
+    photo); cells outside the photo get ``layout.fill`` and alpha 0, row by row (with an alpha
+    band ``fill`` is 0). Returns a (count, h, w) view of the (h, w, count) result: GDAL writes
+    pixel-interleaved GeoTIFFs from it without a layout conversion."""
+    import cv2
+
+    top, bottom, left, right = pads
+    n, h, w = data.shape
+    buf = np.empty((top + h + bottom, left + w + right, layout.count), dtype=data.dtype)
+    inner = buf[top:top + h, left:left + w]
+    planes = list(data)
+    if layout.alpha:
+        planes.append(np.full((h, w), layout.alpha_max, dtype=data.dtype))
+    if len(planes) == 1:
+        inner[:, :, 0] = planes[0]
+    else:
+        merged = cv2.merge(planes, inner)
+        if not np.shares_memory(merged, buf):  # pragma: no cover - OpenCV made a new array
+            inner[...] = merged
+    if top:
+        buf[:top, left:left + w] = inner[:1]
+    if bottom:
+        buf[top + h:, left:left + w] = inner[-1:]
+    if left:
+        buf[:, :left] = buf[:, left:left + 1]
+    if right:
+        buf[:, left + w:] = buf[:, left + w - 1:left + w]
+    sampled = warp_perspective(buf if layout.count > 1 else buf[:, :, 0], matrix, size,
+                               resampling)
+    if sampled.ndim == 2:
+        sampled = sampled[:, :, None]
+    out = sampled.transpose(2, 0, 1)
+    if intervals is not None:
+        fill_outside_intervals(out, *intervals, layout.fill)
+    return out
 
 
 def pad_at_photo_edges(pixels: np.ndarray, pads: tuple[int, int, int, int]) -> np.ndarray:

@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from toolbox.io.raster import overview_levels  # noqa: F401 - re-exported
+from toolbox.io.raster import gdal_cache_max, overview_levels  # noqa: F401 - re-exported
 
 DEFAULT_TILE = 512
 DEFAULT_CACHE_MB = 256  # GDAL block cache while writing (bounded, whatever the output size)
@@ -165,7 +165,7 @@ class RasterWriter:
         return profile
 
     def _env(self) -> dict:
-        return {"GDAL_CACHEMAX": self.cache_mb, "COMPRESS_OVERVIEW": self.compress,
+        return {"GDAL_CACHEMAX": gdal_cache_max(self.cache_mb), "COMPRESS_OVERVIEW": self.compress,
                 "PREDICTOR_OVERVIEW": self.predictor, "GDAL_TIFF_OVR_BLOCKSIZE": self.tile,
                 "INTERLEAVE_OVERVIEW": "PIXEL" if self.count > 1 else "BAND",
                 "GDAL_NUM_THREADS": "ALL_CPUS"}
@@ -247,7 +247,7 @@ class RasterWriter:
             options["PREDICTOR"] = self.predictor
         if self.compress == "DEFLATE":
             options["LEVEL"] = 6
-        with rasterio.Env(GDAL_CACHEMAX=self.cache_mb):
+        with rasterio.Env(GDAL_CACHEMAX=gdal_cache_max(self.cache_mb)):
             rasterio.shutil.copy(self._tiled_path, self.path, driver="COG", **options)
         self._tiled_path.unlink(missing_ok=True)
 

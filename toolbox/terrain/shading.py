@@ -23,35 +23,53 @@ ASPECT_FLAT = -9999.0  # aspect of a flat cell (no downslope direction), as gdal
 
 def horn_gradient(z: np.ndarray, cell_x: float, cell_y: float,
                   z_factor: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
-    """(dz/dx eastward, dz/dy northward) of the inner cells of a padded array, Horn's weights."""
-    zz = z * z_factor
-    a, b, c = zz[:-2, :-2], zz[:-2, 1:-1], zz[:-2, 2:]
-    d, f = zz[1:-1, :-2], zz[1:-1, 2:]
-    g, h, i = zz[2:, :-2], zz[2:, 1:-1], zz[2:, 2:]
-    dz_dx = ((c + 2 * f + i) - (a + 2 * d + g)) / (8.0 * cell_x)
-    dz_dy = ((a + 2 * b + c) - (g + 2 * h + i)) / (8.0 * cell_y)
+    """(dz/dx eastward, dz/dy northward), float64, of the inner cells of a padded array (any
+    float dtype), Horn's weights.
+
+    Horn's 3x3 weights are separable: a [1 2 1] smoothing across the difference direction,
+    then a central difference, ``(c + 2f + i) - (a + 2d + g)`` = ``v[j+1] - v[j-1]`` with
+    ``v = 2·row + above + below`` (the same sums in the same order as written out; the centre
+    cell ``e`` is not used, so a NaN centre alone does not make its cell NaN).
+    """
+    v = np.multiply(z[1:-1], 2.0, dtype=np.float64)  # (rows, cols + 2): 2d + a + g, ...
+    v += z[:-2]
+    v += z[2:]
+    dz_dx = v[:, 2:] - v[:, :-2]
+    dz_dx *= z_factor / (8.0 * cell_x)
+    u = np.multiply(z[:, 1:-1], 2.0, dtype=np.float64)  # (rows + 2, cols): 2b + a + c, ...
+    u += z[:, :-2]
+    u += z[:, 2:]
+    dz_dy = u[:-2] - u[2:]
+    dz_dy *= z_factor / (8.0 * cell_y)
     return dz_dx, dz_dy
 
 
 def slope(z: np.ndarray, cell_x: float, cell_y: float, z_factor: float = 1.0,
           units: str = "degrees") -> np.ndarray:
-    """Steepest slope of the inner cells: ``atan(|grad z|)`` in degrees, or ``100·|grad z|`` in
-    percent (``units="percent"``)."""
-    dz_dx, dz_dy = horn_gradient(z, cell_x, cell_y, z_factor)
-    rise = np.hypot(dz_dx, dz_dy)
-    if units == "percent":
-        return 100.0 * rise
-    if units != "degrees":
+    """Steepest slope of the inner cells, float32: ``atan(|grad z|)`` in degrees, or
+    ``100·|grad z|`` in percent (``units="percent"``)."""
+    if units not in ("degrees", "percent"):
         raise ValueError(f"units must be 'degrees' or 'percent', got {units!r}")
-    return np.degrees(np.arctan(rise))
+    dz_dx, dz_dy = horn_gradient(z, cell_x, cell_y, z_factor)
+    rise = np.multiply(dz_dx, dz_dx, out=dz_dx)  # |grad z| (np.hypot is ~10x slower)
+    rise += np.square(dz_dy, out=dz_dy)
+    np.sqrt(rise, out=rise)
+    out = np.empty(rise.shape, np.float32)
+    if units == "percent":
+        return np.multiply(rise, 100.0, out=out)
+    return np.degrees(np.arctan(rise, out=rise), out=out)
 
 
 def aspect(z: np.ndarray, cell_x: float, cell_y: float) -> np.ndarray:
-    """Direction the slope faces (downhill), degrees clockwise from north in [0, 360);
-    :data:`ASPECT_FLAT` where the gradient is zero."""
+    """Direction the slope faces (downhill), float32 degrees clockwise from north in
+    [0, 360); :data:`ASPECT_FLAT` where the gradient is zero."""
     dz_dx, dz_dy = horn_gradient(z, cell_x, cell_y)
-    out = np.degrees(np.arctan2(-dz_dx, -dz_dy)) % 360.0
-    out[(dz_dx == 0) & (dz_dy == 0)] = ASPECT_FLAT
+    flat = dz_dx == 0
+    flat &= dz_dy == 0
+    angle = np.arctan2(np.negative(dz_dx, out=dz_dx), np.negative(dz_dy, out=dz_dy), out=dz_dx)
+    out = np.degrees(angle, out=np.empty(angle.shape, np.float32))  # (-180, 180]
+    np.add(out, np.float32(360.0), out=out, where=out < 0)  # [0, 360) (np.mod is ~10x slower)
+    out[flat] = ASPECT_FLAT
     return out
 
 
@@ -65,15 +83,26 @@ def hillshade(z: np.ndarray, cell_x: float, cell_y: float, azimuth: float = 315.
     dz_dx, dz_dy = horn_gradient(z, cell_x, cell_y, z_factor)
     zenith = np.radians(90.0 - altitude)
     az = np.radians(azimuth)
-    # unit normal (-dz/dx, -dz/dy, 1)/n; sun direction (sin az cos alt, cos az cos alt, sin alt)
-    norm = np.sqrt(1.0 + dz_dx**2 + dz_dy**2)
-    shade = (np.cos(zenith) - np.sin(zenith) * (dz_dx * np.sin(az) + dz_dy * np.cos(az))) / norm
-    return np.clip(shade, 0.0, 1.0)
+    # unit normal (-dz/dx, -dz/dy, 1)/n; sun direction (sin az cos alt, cos az cos alt, sin alt):
+    # shade = (cos(zenith) - sin(zenith)·(dz/dx·sin(az) + dz/dy·cos(az))) / n
+    norm = np.multiply(dz_dx, dz_dx)
+    norm += np.square(dz_dy)
+    norm += 1.0
+    np.sqrt(norm, out=norm)
+    shade = np.multiply(dz_dx, np.sin(zenith) * np.sin(az), out=dz_dx)
+    shade += np.multiply(dz_dy, np.sin(zenith) * np.cos(az), out=dz_dy)
+    np.subtract(np.cos(zenith), shade, out=shade)
+    shade /= norm
+    return np.clip(shade, 0.0, 1.0, out=shade)
 
 
 def hillshade_byte(shade: np.ndarray) -> np.ndarray:
     """Illumination [0, 1] as Byte: 1 (dark) to 255 (lit), 0 for NaN (nodata)."""
-    return np.where(np.isnan(shade), 0, 1 + np.round(np.nan_to_num(shade) * 254)).astype("uint8")
+    grey = np.multiply(shade, 254.0)
+    np.rint(grey, out=grey)  # round half to even, as np.round
+    grey += 1.0
+    np.copyto(grey, 0.0, where=np.isnan(grey))
+    return grey.astype("uint8")
 
 
 def hillshade_bytes(z: np.ndarray, cell_x: float, cell_y: float, azimuth: float = 315.0,
@@ -85,7 +114,8 @@ def hillshade_bytes(z: np.ndarray, cell_x: float, cell_y: float, azimuth: float 
 def extrapolate_edges(z: np.ndarray, tile, width: int, height: int) -> np.ndarray:
     """Replace the halo cells of ``z`` (read over ``tile.haloed_window``, one-cell halo) that
     lie beyond a ``width`` x ``height`` raster by the surface extrapolated linearly
-    (``2·edge - inner``), exact on planes; a one-cell-wide raster repeats its edge."""
+    (``2·edge - inner``, in float64), exact on planes; a one-cell-wide raster repeats its
+    edge."""
     w, h = tile.window, tile.halo
     top = max(0, h - int(w.row_off))
     left = max(0, h - int(w.col_off))
@@ -93,7 +123,7 @@ def extrapolate_edges(z: np.ndarray, tile, width: int, height: int) -> np.ndarra
     right = max(0, int(w.col_off + w.width) + h - width)
     if not (top or bottom or left or right):
         return z
-    inside = z[top:z.shape[0] - bottom, left:z.shape[1] - right]
+    inside = z[top:z.shape[0] - bottom, left:z.shape[1] - right].astype(np.float64)
     pads = ((top, bottom), (left, right))
     if min(inside.shape) < 2:
         return np.pad(inside, pads, mode="edge")
@@ -116,10 +146,11 @@ def shade_raster(info, band: int, output: str | Path,
     engine (:func:`toolbox.raster.engine.process_raster`, one-cell halo) into a tiled
     GeoTIFF (:class:`toolbox.raster.writer.RasterWriter`, a COG with ``cog``).
 
-    ``info`` is a :class:`~toolbox.io.raster.RasterInfo`; DEM nodata becomes NaN before the
-    kernel (so cells next to nodata are nodata) and NaN results become ``nodata``. The kernel
-    must be picklable (a module-level function or a ``functools.partial`` of one) to run on
-    a Dask cluster. Returns counts of valid and nodata cells and the number of tiles.
+    ``info`` is a :class:`~toolbox.io.raster.RasterInfo`; the DEM is read as float32 when that
+    holds its values exactly, else float64; DEM nodata becomes NaN before the kernel (so
+    cells next to nodata are nodata) and NaN results become ``nodata``. The kernel must be
+    picklable (a module-level function or a ``functools.partial`` of one) to run on a Dask
+    cluster. Returns counts of valid and nodata cells and the number of tiles.
     """
     from functools import partial
 
@@ -128,7 +159,11 @@ def shade_raster(info, band: int, output: str | Path,
     from toolbox.raster.writer import RasterWriter
 
     grid = GridSpec(info.transform, info.width, info.height, info.crs)
-    dem = RasterInput(info.path, bands=(band,), dtype="float64", boundary="nodata")
+    # float32 holds every value of these types exactly (the kernels compute in float64); the
+    # DEM is then read without a conversion pass
+    exact32 = info.dtypes[band - 1] in ("float32", "uint8", "int8", "uint16", "int16")
+    dem = RasterInput(info.path, bands=(band,), dtype="float32" if exact32 else "float64",
+                      boundary="nodata")
     cell = tuple(float(r) for r in info.res)
     tile_kernel = partial(shade_tile, kernel, (info.width, info.height), cell)
     floating = np.dtype(dtype).kind == "f"

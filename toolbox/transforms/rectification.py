@@ -407,9 +407,9 @@ def write_gcp_geotiff(source: Any, output: Any, gcps: list[tuple[str, float, flo
     from rasterio.control import GroundControlPoint
     from rasterio.enums import ColorInterp
 
-    from toolbox.io.raster import geotiff_profile, iter_windows
+    from toolbox.io.raster import gdal_cache_max, geotiff_profile, iter_windows
 
-    with rasterio.Env(GDAL_CACHEMAX=256), warnings.catch_warnings():
+    with rasterio.Env(GDAL_CACHEMAX=gdal_cache_max(256)), warnings.catch_warnings():
         warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
         with rasterio.open(source) as src:
             dtypes = set(src.dtypes)

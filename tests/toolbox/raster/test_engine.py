@@ -336,6 +336,48 @@ def test_homography_warp_tiled_equals_one_tile_and_generic_path(tmp_path):
     assert (results[0] > 0).mean() > 0.3
 
 
+def _warp_to_array(photo_path, grid, hmap, layout, tile_size):
+    out = np.zeros((layout.count, *grid.shape), layout.dtype)
+
+    def put(tile, array):
+        w = tile.window
+        out[:, w.row_off:w.row_off + w.height, w.col_off:w.col_off + w.width] = array
+
+    warp_raster(photo_path, grid, hmap, put, layout=layout, tile_size=tile_size, executor=LOCAL)
+    return out
+
+
+@pytest.mark.parametrize("resampling", ["bilinear", "cubic"])
+def test_packed_homography_path_equals_the_band_sequential_path(tmp_path, resampling):
+    # an RGB photo takes the packed path (bands pixel-interleaved from the read to the writer,
+    # edge pads built in place); the same photo with an opaque alpha band takes the
+    # band-sequential one (alpha resampled): the same cells, the same alpha
+    rng = np.random.default_rng(5)
+    rgb = rng.integers(0, 255, (3, 200, 300), dtype="uint8")
+    opaque = np.concatenate([rgb, np.full((1, 200, 300), 255, "uint8")])
+    rgb_path = write(tmp_path / "rgb.tif", rgb, Affine.identity(), crs=None)
+    rgba_path = write(tmp_path / "rgba.tif", opaque, Affine.identity(), crs=None,
+                      photometric="RGB", alpha="YES")
+    grid = GridSpec(Affine(0.1, 0, 0, 0, -0.1, 25), 400, 300, None)
+    hmap = HomographyMap(np.array([[9.0, 1.0, 20.0], [0.5, -8.0, 210.0], [0.001, 0.002, 1.0]]),
+                         grid.transform)
+    assert warp_layout(rgba_path).source_alpha == 4 and warp_layout(rgb_path).source_alpha is None
+    for tile_size in (512, 64):  # tiles inside, across and beyond the photo's edges
+        packed = _warp_to_array(rgb_path, grid, hmap, warp_layout(rgb_path), tile_size)
+        sequential = _warp_to_array(rgba_path, grid, hmap, warp_layout(rgba_path), tile_size)
+        np.testing.assert_array_equal(packed, sequential)
+        assert 0.3 < (packed[3] == 255).mean() < 0.95 and set(np.unique(packed[3])) == {0, 255}
+    # outside=nodata (same 64-cell tiles): the same cells, nodata where the alpha output is 0;
+    # one band alone too
+    nodata = _warp_to_array(rgb_path, grid, hmap, warp_layout(rgb_path, "nodata", 7), 64)
+    np.testing.assert_array_equal(nodata, np.where(packed[3] == 0, 7, packed[:3]))
+    grey_path = write(tmp_path / "grey.tif", rgb[1], Affine.identity(), crs=None)
+    grey = _warp_to_array(grey_path, grid, hmap, warp_layout(grey_path), 64)
+    np.testing.assert_array_equal(grey, packed[1::2])  # (2 bands: the band-sequential path)
+    grey_nodata = _warp_to_array(grey_path, grid, hmap, warp_layout(grey_path, "nodata", 7), 64)
+    np.testing.assert_array_equal(grey_nodata[0], nodata[1])  # one band: packed
+
+
 def test_kernels_may_be_partials_of_module_functions(tmp_path):
     grid = GridSpec(Affine(1, 0, 0, 0, -1, 40), 40, 40, None)
     out = []
