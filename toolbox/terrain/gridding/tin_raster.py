@@ -25,9 +25,10 @@ class TinTiles:
     def __init__(self, nodes: np.ndarray, triangles: np.ndarray, grid: Any, tile_size: int,
                  origin: tuple[float, float] = (0.0, 0.0)):
         t = grid.transform
-        self.nodes = np.asarray(nodes, dtype="float64")
+        self.nodes = np.ascontiguousarray(nodes, dtype="float64")
         self.triangles = np.ascontiguousarray(triangles, dtype=np.int64)
         self.origin = origin
+        self._slot: np.ndarray | None = None
         self.order, self.start = group_by_tile(
             np.ascontiguousarray(self.nodes[:, 0]), np.ascontiguousarray(self.nodes[:, 1]),
             self.triangles, t.c - origin[0], t.f - origin[1], t.a, -t.e, grid.width,
@@ -39,9 +40,41 @@ class TinTiles:
         ids = self.order[self.start[tile.index]:self.start[tile.index + 1]]
         if not len(ids):
             return None
-        used, inverse = np.unique(self.triangles[ids].ravel(), return_inverse=True)
-        return {"nodes": np.ascontiguousarray(self.nodes[used]),
-                "triangles": inverse.reshape(-1, 3).astype(np.int64)}
+        if self._slot is None:  # node -> its index in the tile being planned, -1: not in it
+            self._slot = np.full(len(self.nodes), -1, dtype=np.int64)
+        nodes, triangles = _tile_subset(self.nodes, self.triangles, ids, self._slot)
+        return {"nodes": nodes, "triangles": triangles}
+
+
+@njit(cache=True, nogil=True)
+def _tile_subset(nodes, triangles, ids, slot):
+    """The nodes of triangles ``ids`` (ascending node index, so the renumbering keeps the order
+    the edge tests rely on) and the triangles renumbered to them. ``slot`` (one per node, all
+    -1) is scratch, left all -1 again."""
+    used = np.empty(3 * len(ids), dtype=np.int64)
+    m = 0
+    for k in range(len(ids)):
+        for j in range(3):
+            v = triangles[ids[k], j]
+            if slot[v] < 0:
+                slot[v] = 0
+                used[m] = v
+                m += 1
+    used = np.sort(used[:m])
+    out = np.empty((m, 3), dtype=np.float64)
+    for i in range(m):
+        v = used[i]
+        slot[v] = i
+        out[i, 0] = nodes[v, 0]
+        out[i, 1] = nodes[v, 1]
+        out[i, 2] = nodes[v, 2]
+    local = np.empty((len(ids), 3), dtype=np.int64)
+    for k in range(len(ids)):
+        for j in range(3):
+            local[k, j] = slot[triangles[ids[k], j]]
+    for i in range(m):
+        slot[used[i]] = -1
+    return out, local
 
 
 def tin_tile(origin: tuple[float, float], tile: Any, arrays: dict) -> np.ndarray:
