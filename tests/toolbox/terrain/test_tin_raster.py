@@ -23,8 +23,8 @@ def random_tin(n=3000, seed=4):
 def test_grouping_equals_triangles_by_tile():
     nodes, tri = random_tin()
     for cell, tile, (w, h) in ((1.0, 64, (500, 480)), (2.5, 16, (190, 210)), (0.7, 512, (30, 20))):
-        order, start = group_by_tile(nodes[:, 0].copy(), nodes[:, 1].copy(), tri, 3.0, 490.0,
-                                     cell, cell, w, h, tile)
+        order, start = group_by_tile(nodes, tri.astype(np.int32), 3.0, 490.0, cell, cell, w,
+                                     h, tile)
         ref_order, ref_start, _ = triangles_by_tile(nodes[:, :2], tri, 3.0, 490.0, cell, cell,
                                                     w, h, tile)
         assert np.array_equal(start, ref_start) and np.array_equal(order, ref_order)

@@ -30,7 +30,7 @@ def constrained_tin(xyz: np.ndarray, segments: np.ndarray | None
     -------
     nodes : (V, 3) float64
         ``xyz`` followed by the crossing nodes.
-    triangles : (T, 3) int64
+    triangles : (T, 3) int32
     info : dict
         ``crossings`` (count) and ``crossing_z_disagreement`` (m).
     """
@@ -38,14 +38,14 @@ def constrained_tin(xyz: np.ndarray, segments: np.ndarray | None
 
     seg = segments if segments is not None and len(segments) else None
     try:
-        return xyz, triangulate(xyz[:, :2], seg).astype(np.int64), {"crossings": 0}
+        return xyz, triangulate(xyz[:, :2], seg), {"crossings": 0}
     except ValueError as exc:
         if seg is None or "cross" not in str(exc):
             raise
     tri = triangulate_pslg(xyz[:, :2], seg, neighbors=False)
     heights, spread = crossing_heights(tri, xyz, seg)
     nodes = np.vstack([xyz, np.column_stack([tri.vertices[tri.n_input:], heights])])
-    return nodes, tri.triangles.astype(np.int64), {
+    return nodes, tri.triangles, {
         "crossings": tri.steiner_count, "crossing_z_disagreement": float(spread.max())}
 
 

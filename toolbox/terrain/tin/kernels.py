@@ -271,9 +271,9 @@ def _drop_super_triangle(vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     points (int32), and the mask of kept rows. What ``erase_super_triangle`` does (same
     triangles, same order) without its hash sets, which cost a third of the triangulation."""
     kept = (vertices >= SUPER).all(axis=1)
-    triangles = vertices[kept].astype(np.int32)
+    triangles = vertices[kept]  # a copy: CDT's memory goes with its object
     triangles -= SUPER
-    return triangles, kept
+    return triangles.view(np.int32), kept  # indices < 2**31
 
 
 def _kept_neighbours(raw: np.ndarray, kept: np.ndarray, none: int) -> np.ndarray:
