@@ -21,10 +21,10 @@ def constrained_tin(xyz: np.ndarray, segments: np.ndarray | None
                     ) -> tuple[np.ndarray, np.ndarray, dict[str, Any]]:
     """Delaunay TIN of ``xyz`` ((n, 3)), constrained by breakline ``segments`` ((s, 2) indices).
 
-    Uses the TIN kernels of tin:delaunay (Triangle). Where breaklines cross without a shared
-    vertex, Triangle splits them at the crossing; the new node takes the height interpolated
-    linearly along each crossing segment (their mean where they disagree; the largest
-    disagreement is reported).
+    Uses the TIN kernels of tin:delaunay (CDT by default, or Triangle). Where breaklines
+    cross without a shared vertex, they are split at the crossing; the new node takes the height
+    interpolated linearly along each crossing segment (their mean where they disagree; the
+    largest disagreement is reported).
 
     Returns
     -------
