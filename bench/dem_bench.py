@@ -5,6 +5,7 @@ peak memory of a 20000 x 20000 output.
     .venv/bin/python bench/dem_bench.py            # full size
     .venv/bin/python bench/dem_bench.py --small    # quick check (100,000 points, 632 x 632)
     .venv/bin/python bench/dem_bench.py --no-big   # skip the 20000 x 20000 memory run
+    .venv/bin/python bench/dem_bench.py --whole-only   # only the whole-process TIN rows
 
 Data: uniform random points over 2 km x 2 km at the Siena coordinates (EPSG:3003) on a smooth
 analytic surface, whose value at every cell centre is the truth for the RMSE. Every measurement
@@ -13,6 +14,13 @@ its own. Toolbox times are end to end through ``toolbox.run`` (read the GeoPacka
 duplicates, grid by tiles on local threads, write a DEFLATE GeoTIFF without overviews) after a
 warm-up that loads the algorithm registry and numba's cached kernels; gdal_grid times are the
 whole command (it reads the same GeoPackage); griddata's time excludes reading (arrays in memory).
+
+Whole-process rows (what a user waits for at the prompt): ``toolbox run dem:tin_linear`` in a
+fresh process (warm numba cache: the second run of a session), ``gdal_grid -a linear`` and a
+Python process running scipy's griddata (its import, loading the points from .npy, the
+interpolation), on 1,000,000 and on 100,000 points over the same 2 km square, each to the
+2000 x 2000 grid of 1 m and the 100,000 points also to the 632 x 632 grid of ``--small``;
+median of 3 interleaved runs, with CPU time (user + system) and peak RSS.
 Writes the markdown table to bench/results/dem.md.
 """
 
@@ -20,7 +28,9 @@ from __future__ import annotations
 
 import argparse
 import json
+import resource
 import shutil
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -168,6 +178,97 @@ def measure_gdal_grid(label: str, algorithm: str, work: Path, n_points: int) -> 
     return result
 
 
+GRIDDATA_SCRIPT = """
+import sys
+import numpy as np
+from scipy.interpolate import griddata
+xyz = np.load(sys.argv[1])
+x0, y0, size, width = (float(v) for v in sys.argv[2:6])
+cell = size / width
+xs = (np.arange(int(width)) + 0.5) * cell
+gx, gy = np.meshgrid(xs, size - xs)
+z = griddata(xyz[:, :2] - [x0, y0], xyz[:, 2], (gx, gy), method="linear").astype("float32")
+"""
+
+
+def whole_process_commands(work: Path, width: int) -> dict[str, list[str]]:
+    """The three whole-process commands on ``work``'s points to a ``width`` x ``width`` grid."""
+    cell = SIZE / width
+    toolbox_exe = str(Path(sys.executable).with_name("toolbox"))
+    return {
+        "dem:tin_linear": [toolbox_exe, "run", "dem:tin_linear", "--INPUT",
+                           str(work / "points.gpkg"), "--OUTPUT", str(work / "whole.tif"),
+                           "--CELL_SIZE", repr(cell), "--OVERVIEWS", "false", "--EXTENT",
+                           f"{X0},{Y0},{X0 + SIZE},{Y0 + SIZE}", "--overwrite", "-q"],
+        "gdal_grid -a linear": [
+            shutil.which("gdal_grid") or "gdal_grid", "-q", "--config", "GDAL_NUM_THREADS",
+            "ALL_CPUS", "-a", "linear:radius=0:nodata=-9999", "-txe", str(X0), str(X0 + SIZE),
+            "-tye", str(Y0 + SIZE), str(Y0), "-outsize", str(width), str(width), "-ot",
+            "Float32", "-l", "points", str(work / "points.gpkg"), str(work / "whole_gdal.tif")],
+        "scipy griddata (python process)": [sys.executable, "-c", GRIDDATA_SCRIPT,
+                                            str(work / "points.npy"), str(X0), str(Y0),
+                                            str(SIZE), str(width)],
+    }
+
+
+def measure_whole(cmd: list[str], repeat: int = 3) -> list[tuple[float, float, float]]:
+    """(wall s, CPU s of the child, peak MB) of each of ``repeat`` runs of ``cmd``."""
+    runs = []
+    for _ in range(repeat):
+        before = resource.getrusage(resource.RUSAGE_CHILDREN)
+        seconds, peak_mb, status, stderr = run_measured(cmd)
+        after = resource.getrusage(resource.RUSAGE_CHILDREN)
+        if status != 0:
+            raise RuntimeError(f"{cmd[0]} failed: {stderr[-2000:]}")
+        cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+        runs.append((seconds, cpu, peak_mb))
+    return runs
+
+
+def whole_process_rows(work: Path, n_big: int, n_small: int, repeat: int = 3) -> list[dict]:
+    """Whole-process rows: each case's three commands interleaved ``repeat`` times."""
+    small = work / "small"
+    small.mkdir(exist_ok=True)
+    if not (small / "points.gpkg").exists():
+        make_data(small, n_small)
+    cases = [(work, n_big, 2000), (small, n_small, 2000), (small, n_small,
+                                                            grid_shape(n_small)[0])]
+    rows = []
+    for folder, n, width in cases:
+        commands = whole_process_commands(folder, width)
+        if shutil.which("gdal_grid") is None:
+            commands.pop("gdal_grid -a linear")
+        runs: dict[str, list] = {name: [] for name in commands}
+        for _ in range(repeat):  # interleaved: the machine's load hits every command alike
+            for name, cmd in commands.items():
+                runs[name] += measure_whole(cmd, 1)
+        for name, values in runs.items():
+            row = {"points": n, "width": width, "what": name,
+                   "wall": statistics.median(v[0] for v in values),
+                   "cpu": statistics.median(v[1] for v in values),
+                   "peak_mb": max(v[2] for v in values)}
+            rows.append(row)
+            print(f"  whole {name:<32} {n:>9,} pts {width} px {row['wall']:6.2f} s wall "
+                  f"{row['cpu']:6.2f} s CPU {row['peak_mb']:6.0f} MB", flush=True)
+    return rows
+
+
+def whole_process_table(rows: list[dict]) -> list[str]:
+    lines = ["", "### dem:tin_linear, whole process", "",
+             "A fresh process per run, as at the prompt (toolbox: start-up, read the GeoPackage, "
+             "triangulate, rasterise, write the GeoTIFF without overviews; numba's kernel "
+             "cache warm). Median of 3 interleaved runs; CPU = user + system of the process; "
+             "peak = its max RSS.", "",
+             "| points -> cells | command | wall s | CPU s | peak MB | wall / toolbox |",
+             "|---|---|---:|---:|---:|---:|"]
+    ours = {(r["points"], r["width"]): r["wall"] for r in rows if r["what"] == "dem:tin_linear"}
+    for r in rows:
+        ratio = r["wall"] / ours[(r["points"], r["width"])]
+        lines.append(f"| {r['points']:,} -> {r['width']} x {r['width']} | {r['what']} | "
+                     f"{r['wall']:.2f} | {r['cpu']:.2f} | {r['peak_mb']:.0f} | {ratio:.2f} |")
+    return lines
+
+
 def accuracy(values: np.ndarray, n_points: int) -> dict:
     """RMSE and max error against the analytic surface over the cells with a value."""
     width, cell = grid_shape(n_points)
@@ -200,7 +301,7 @@ def machine() -> str:
                          f"gdal_grid: {gdal}")
 
 
-def main(small: bool = False, big: bool = True) -> str:
+def main(small: bool = False, big: bool = True, whole_only: bool = False) -> str:
     load = load_note()
     n_points = 100_000 if small else 1_000_000
     width, cell = grid_shape(n_points)
@@ -208,6 +309,12 @@ def main(small: bool = False, big: bool = True) -> str:
     try:
         print(f"dem bench: {n_points:,} points -> {width} x {width} cells in {work}", flush=True)
         make_data(work, n_points)
+        whole = whole_process_rows(work, n_points, 10_000 if small else 100_000)
+        if whole_only:
+            text = "\n".join(whole_process_table(whole) + ["", f"Machine: {machine()}; {load}.",
+                                                          ""])
+            print(text)
+            return text
         r = {name: measure(name, work, n_points)
              for name in ("idw", "tin_linear", "quadratic", "nearest", "griddata")}
         acc = {name: accuracy(raster_values(work / f"{name}.tif"), n_points)
@@ -226,7 +333,7 @@ def main(small: bool = False, big: bool = True) -> str:
         big_result = measure("big_nearest", work, n_points) if big else None
     finally:
         shutil.rmtree(work, ignore_errors=True)
-    text = table(r, gdal, acc, big_result, n_points, width, cell, load)
+    text = table(r, gdal, acc, big_result, n_points, width, cell, load, whole)
     if not small:
         (HERE / "results").mkdir(exist_ok=True)
         (HERE / "results" / "dem.md").write_text(text)
@@ -235,7 +342,7 @@ def main(small: bool = False, big: bool = True) -> str:
 
 
 def table(r: dict, gdal: dict, acc: dict, big: dict | None, n_points: int, width: int,
-          cell: float, load: str) -> str:
+          cell: float, load: str, whole: list[dict]) -> str:
     cells = width * width
 
     def line(what, ours_key, peer_label, peer, peer_acc_key):
@@ -290,6 +397,7 @@ def table(r: dict, gdal: dict, acc: dict, big: dict | None, n_points: int, width
             "memory). The 2000 x 2000 runs peak at the same level: memory does not grow with "
             "the output size (dem:tin_linear's does grow with the number of points, its TIN "
             "being built whole).")
+    lines += whole_process_table(whole)
     lines += ["", f"Machine: {machine()}; {load}.", ""]
     return "\n".join(lines)
 
@@ -301,8 +409,10 @@ if __name__ == "__main__":
     parser.add_argument("--points", type=int, default=1_000_000)
     parser.add_argument("--small", action="store_true")
     parser.add_argument("--no-big", dest="big", action="store_false")
+    parser.add_argument("--whole-only", action="store_true",
+                        help="only the whole-process dem:tin_linear rows")
     args = parser.parse_args()
     if args.case:
         print(json.dumps(run_case(args.case, args.work, args.points)))
     else:
-        main(small=args.small, big=args.big)
+        main(small=args.small, big=args.big, whole_only=args.whole_only)

@@ -15,10 +15,10 @@ from toolbox.terrain.gridding.parameters import (
 @register
 class TinLinearGrid(GriddingAlgorithm):
     """DEM from a TIN: the data points (INPUT points, vertices of LINES and BREAKLINES) are
-    triangulated by Delaunay (Shewchuk's Triangle, as tin:delaunay), constrained so that every
-    BREAKLINES edge is a triangle edge; each cell centre takes the height of the plane through
-    the three nodes of its triangle (S002 par. 2.5.1 eq. [43]-[44], linear interpolation of
-    par. 2.5.2). Planes are reproduced exactly; the
+    triangulated by Delaunay (as tin:delaunay: CDT, or Triangle when TOOLBOX_TRIANGULATOR
+    chooses it), constrained so that every BREAKLINES edge is a triangle edge; each cell centre
+    takes the height of the plane through the three nodes of its triangle (S002 par. 2.5.1
+    eq. [43]-[44], linear interpolation of par. 2.5.2). Planes are reproduced exactly; the
     surface is continuous, with slope breaks along triangle edges and breaklines.
 
     Cells outside the TIN (the convex hull of the data) are nodata (EXTRAPOLATE does not

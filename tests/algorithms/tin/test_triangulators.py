@@ -195,3 +195,91 @@ def test_tin_delaunay_end_to_end_is_the_same_with_both(tmp_path, monkeypatch):
         results[name]["area"] = round(float(frame.area.sum()), 6)
     assert results["cdt"] == results["triangle"]
     assert results["cdt"]["crossings"]["count"] == 1
+
+
+def test_cdt_super_triangle_dropped_as_cdt_does():
+    """Our removal of CDT's super-triangle (a numpy filter instead of erase_super_triangle's
+    hash sets) gives CDT's own triangles, neighbours and constrained edges, in its order."""
+    import pythoncdt as cdt
+
+    from toolbox.terrain.tin.kernels import _cdt
+
+    rng = np.random.default_rng(3)
+    for _ in range(5):
+        xy = rng.uniform(0, 100, (400, 2))
+        seg = rng.integers(0, 400, (8, 2)).astype(np.int32)  # some cross: new vertices
+        seg = seg[seg[:, 0] != seg[:, 1]]
+        ref = cdt.Triangulation(cdt.VertexInsertionOrder.AUTO,
+                                cdt.IntersectingConstraintEdges.TRY_RESOLVE, 0.0)
+        ref.insert_vertices(xy)
+        ref.insert_edges(np.ascontiguousarray(seg, dtype=np.uintc))
+        ref.erase_super_triangle()
+        tris = ref.triangles_array()
+        ref_nb = tris["neighbors"][:, [1, 2, 0]].astype(np.int64)
+        ref_nb[ref_nb == cdt.NO_NEIGHBOR] = -1
+        vertices = ref.vertices_array()
+        added, triangles, nb, pieces, _ = _cdt(xy, seg, True, True)
+        np.testing.assert_array_equal(triangles, tris["vertices"])
+        np.testing.assert_array_equal(nb, ref_nb)
+        np.testing.assert_array_equal(added, np.column_stack([vertices["x"][400:],
+                                                              vertices["y"][400:]]))
+        assert set(map(tuple, pieces.tolist())) == {(e.v1, e.v2) for e in ref.fixed_edges}
+
+
+def _points_and_crossing_breaklines(tmp_path):
+    import geopandas as gpd
+    import shapely
+
+    xy = random_points(1500, seed=8)
+    z = 300 + 0.05 * (xy[:, 0] - ORIGIN[0]) + 3 * np.sin((xy[:, 1] - ORIGIN[1]) / 9)
+    points = gpd.GeoDataFrame(geometry=shapely.points(np.column_stack([xy, z])), crs=3003)
+    points.to_file(tmp_path / "points.gpkg")
+    lines = gpd.GeoDataFrame({"z": [305.0, 305.0]}, geometry=[
+        shapely.LineString([ORIGIN + (10.3, 10.1), ORIGIN + (89.7, 90.2)]),
+        shapely.LineString([ORIGIN + (10.2, 90.4), ORIGIN + (90.1, 10.6)])], crs=3003)
+    lines.to_file(tmp_path / "lines.gpkg")
+    return xy, z
+
+
+def _dem(path):
+    import rasterio
+
+    with rasterio.open(path) as src:
+        return src.read(1, masked=True).astype("float64").filled(np.nan), src.transform
+
+
+@pytest.mark.parametrize("name", TRIANGULATORS)
+def test_dem_tin_linear_equals_scipy_linear_interpolation(name, tmp_path, monkeypatch):
+    """dem:tin_linear (points triangulated in bin order, tiles of 64 cells) is the linear
+    interpolation on the Delaunay TIN: scipy's griddata (Qhull) is the oracle."""
+    from scipy.interpolate import griddata
+
+    monkeypatch.setenv(TRIANGULATOR_ENV, name)
+    xy, z = _points_and_crossing_breaklines(tmp_path)
+    toolbox.run("dem:tin_linear", {"INPUT": tmp_path / "points.gpkg", "CELL_SIZE": 0.5,
+                                   "TILE_SIZE": 64, "OUTPUT": tmp_path / "dem.tif"})
+    dem, t = _dem(tmp_path / "dem.tif")
+    cx = t.c + (np.arange(dem.shape[1]) + 0.5) * t.a
+    cy = t.f + (np.arange(dem.shape[0]) + 0.5) * t.e
+    gx, gy = np.meshgrid(cx - ORIGIN[0], cy - ORIGIN[1])
+    ref = griddata(xy - ORIGIN, z, (gx, gy), method="linear")
+    inside = ~np.isnan(ref) & ~np.isnan(dem)
+    assert inside.sum() > 0.95 * np.isfinite(ref).sum()
+    np.testing.assert_allclose(dem[inside], ref[inside], atol=1e-4)  # Float32 GeoTIFF
+
+
+@pytest.mark.skipif(not HAS_TRIANGLE, reason="the [triangle] extra is not installed")
+def test_dem_tin_linear_is_the_same_with_both(tmp_path, monkeypatch):
+    _points_and_crossing_breaklines(tmp_path)
+    dems = {}
+    for name in ("cdt", "triangle"):
+        monkeypatch.setenv(TRIANGULATOR_ENV, name)
+        out = tmp_path / f"{name}.tif"
+        toolbox.run("dem:tin_linear", {"INPUT": tmp_path / "points.gpkg",
+                                       "BREAKLINES": tmp_path / "lines.gpkg",
+                                       "BREAKLINES_Z_FIELD": "z", "CELL_SIZE": 0.5,
+                                       "TILE_SIZE": 64, "OUTPUT": out})
+        dems[name] = _dem(out)[0]
+    np.testing.assert_array_equal(np.isnan(dems["cdt"]), np.isnan(dems["triangle"]))
+    ok = ~np.isnan(dems["cdt"])
+    np.testing.assert_allclose(dems["cdt"][ok], dems["triangle"][ok], atol=1e-4)

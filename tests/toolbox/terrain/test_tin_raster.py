@@ -23,8 +23,8 @@ def random_tin(n=3000, seed=4):
 def test_grouping_equals_triangles_by_tile():
     nodes, tri = random_tin()
     for cell, tile, (w, h) in ((1.0, 64, (500, 480)), (2.5, 16, (190, 210)), (0.7, 512, (30, 20))):
-        order, start = group_by_tile(nodes[:, 0].copy(), nodes[:, 1].copy(), tri, 3.0, 490.0,
-                                     cell, cell, w, h, tile)
+        order, start = group_by_tile(nodes, tri.astype(np.int32), 3.0, 490.0, cell, cell, w,
+                                     h, tile)
         ref_order, ref_start, _ = triangles_by_tile(nodes[:, :2], tri, 3.0, 490.0, cell, cell,
                                                     w, h, tile)
         assert np.array_equal(start, ref_start) and np.array_equal(order, ref_order)
@@ -51,3 +51,20 @@ def test_tiled_tin_equals_one_tile_and_the_plane():
     ok = ~np.isnan(full)
     assert ok.mean() > 0.9
     np.testing.assert_allclose(full[ok], plane[ok], atol=1e-9)
+
+
+def test_plan_gives_each_tile_its_triangles_renumbered_in_node_order():
+    """plan() (one compiled pass with a reused scratch array) equals np.unique's renumbering."""
+    nodes, tri = random_tin()
+    grid = GridSpec(Affine(1.0, 0, 0.0, 0, -1.0, 500.0), 500, 500, None)
+    tiles = TinTiles(nodes, tri, grid, 64)
+    for tile in iter_tiles(grid, 64):
+        arrays = tiles.plan(tile)
+        ids = tiles.order[tiles.start[tile.index]:tiles.start[tile.index + 1]]
+        if not len(ids):
+            assert arrays is None
+            continue
+        used, inverse = np.unique(tri[ids].ravel(), return_inverse=True)
+        np.testing.assert_array_equal(arrays["nodes"], nodes[used])
+        np.testing.assert_array_equal(arrays["triangles"], inverse.reshape(-1, 3))
+    assert (tiles._slot == -1).all()  # the scratch is left clean for the next tile

@@ -127,7 +127,7 @@ def read_sources(params: dict, feedback: Feedback) -> GriddingData:
             offset += len(xyz)
     if not parts or offset == 0:
         raise InputDataError("no data points: the inputs are empty")
-    xyz = np.vstack(parts)
+    xyz = parts[0] if len(parts) == 1 else np.vstack(parts)
     rule = params.get("DUPLICATES", "mean")
     tolerance = float(params.get("DUPLICATE_TOLERANCE") or 0.0)
     with feedback.timed("duplicates"):

@@ -21,16 +21,16 @@ def constrained_tin(xyz: np.ndarray, segments: np.ndarray | None
                     ) -> tuple[np.ndarray, np.ndarray, dict[str, Any]]:
     """Delaunay TIN of ``xyz`` ((n, 3)), constrained by breakline ``segments`` ((s, 2) indices).
 
-    Uses the TIN kernels of tin:delaunay (Triangle). Where breaklines cross without a shared
-    vertex, Triangle splits them at the crossing; the new node takes the height interpolated
-    linearly along each crossing segment (their mean where they disagree; the largest
-    disagreement is reported).
+    Uses the TIN kernels of tin:delaunay (CDT by default, or Triangle). Where breaklines
+    cross without a shared vertex, they are split at the crossing; the new node takes the height
+    interpolated linearly along each crossing segment (their mean where they disagree; the
+    largest disagreement is reported).
 
     Returns
     -------
     nodes : (V, 3) float64
         ``xyz`` followed by the crossing nodes.
-    triangles : (T, 3) int64
+    triangles : (T, 3) int32
     info : dict
         ``crossings`` (count) and ``crossing_z_disagreement`` (m).
     """
@@ -38,14 +38,14 @@ def constrained_tin(xyz: np.ndarray, segments: np.ndarray | None
 
     seg = segments if segments is not None and len(segments) else None
     try:
-        return xyz, triangulate(xyz[:, :2], seg).astype(np.int64), {"crossings": 0}
+        return xyz, triangulate(xyz[:, :2], seg), {"crossings": 0}
     except ValueError as exc:
         if seg is None or "cross" not in str(exc):
             raise
     tri = triangulate_pslg(xyz[:, :2], seg, neighbors=False)
     heights, spread = crossing_heights(tri, xyz, seg)
     nodes = np.vstack([xyz, np.column_stack([tri.vertices[tri.n_input:], heights])])
-    return nodes, tri.triangles.astype(np.int64), {
+    return nodes, tri.triangles, {
         "crossings": tri.steiner_count, "crossing_z_disagreement": float(spread.max())}
 
 

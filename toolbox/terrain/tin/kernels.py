@@ -226,7 +226,6 @@ def _cdt(local: np.ndarray, seg: np.ndarray, neighbors: bool, parents: bool):
         t.insert_vertices(local)
         if len(seg):
             t.insert_edges(np.ascontiguousarray(seg, dtype=np.uintc))
-        t.erase_super_triangle()
     except RuntimeError as exc:  # CDT reports duplicates as "#i is a duplicate of #j"
         text = str(exc).splitlines()[0]
         found = re.search(r"#(\d+) is a duplicate", text)
@@ -235,13 +234,11 @@ def _cdt(local: np.ndarray, seg: np.ndarray, neighbors: bool, parents: bool):
         raise ValueError(f"triangulation failed: {text}") from None
     n = len(local)
     vertices = t.vertices_array(copy=False)
-    added = np.column_stack([vertices["x"][n:], vertices["y"][n:]])
+    added = np.column_stack([vertices["x"][SUPER + n:], vertices["y"][SUPER + n:]])
     tris = t.triangles_array(copy=False)
-    triangles = np.ascontiguousarray(tris["vertices"], dtype=np.int32)
+    triangles, kept = _drop_super_triangle(tris["vertices"])
     if neighbors:  # CDT: neighbour i is across edge (i, i+1); ours: across the edge facing i
-        raw = tris["neighbors"][:, [1, 2, 0]].astype(np.int64)
-        raw[raw == cdt.NO_NEIGHBOR] = -1
-        nb = np.ascontiguousarray(raw, dtype=np.int32)
+        nb = _kept_neighbours(tris["neighbors"][:, [1, 2, 0]], kept, cdt.NO_NEIGHBOR)
     else:
         nb = np.zeros((0, 3), dtype=np.int32)
     if not (parents and len(seg)):
@@ -249,11 +246,12 @@ def _cdt(local: np.ndarray, seg: np.ndarray, neighbors: bool, parents: bool):
     key: dict[tuple[int, int], int] = {}  # node pair -> first input segment joining them
     for i, pair in enumerate(map(tuple, np.sort(seg, axis=1).tolist())):
         key.setdefault(pair, i)
-    originals = {(e.v1, e.v2): [key[tuple(sorted((o.v1, o.v2)))] for o in origs]
+    originals = {(e.v1 - SUPER, e.v2 - SUPER):
+                 [key[tuple(sorted((o.v1 - SUPER, o.v2 - SUPER)))] for o in origs]
                  for e, origs in t.piece_to_originals.items()}
     pieces, owners = [], []
     for edge in t.fixed_edges:
-        pair = (edge.v1, edge.v2)
+        pair = (edge.v1 - SUPER, edge.v2 - SUPER)
         found = list(originals.get(pair, []))
         own = key.get(tuple(sorted(pair)))
         if own is not None and own not in found:
@@ -262,6 +260,30 @@ def _cdt(local: np.ndarray, seg: np.ndarray, neighbors: bool, parents: bool):
         owners += found
     return (added, triangles, nb, np.array(pieces, dtype=np.int32).reshape(-1, 2),
             np.array(owners, dtype=np.int64))
+
+
+#: CDT's first vertices are those of its super-triangle (it encloses the points)
+SUPER = 3
+
+
+def _drop_super_triangle(vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """CDT's triangles without those touching the super-triangle, renumbered to the input
+    points (int32), and the mask of kept rows. What ``erase_super_triangle`` does (same
+    triangles, same order) without its hash sets, which cost a third of the triangulation."""
+    kept = (vertices >= SUPER).all(axis=1)
+    triangles = vertices[kept]  # a copy: CDT's memory goes with its object
+    triangles -= SUPER
+    return triangles.view(np.int32), kept  # indices < 2**31
+
+
+def _kept_neighbours(raw: np.ndarray, kept: np.ndarray, none: int) -> np.ndarray:
+    """CDT neighbour indices (``none``: no neighbour) renumbered to the kept triangles; -1
+    across the hull (where the neighbour was a super-triangle one)."""
+    new_index = np.cumsum(kept, dtype=np.int64) - 1
+    raw = raw[kept].astype(np.int64)
+    valid = raw != int(none)
+    valid[valid] = kept[raw[valid]]
+    return np.where(valid, new_index[np.where(valid, raw, 0)], -1).astype(np.int32)
 
 
 def _triangle(local: np.ndarray, seg: np.ndarray, neighbors: bool, parents: bool):

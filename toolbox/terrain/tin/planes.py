@@ -14,7 +14,7 @@ import numba
 import numpy as np
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
+@numba.njit(cache=True, nogil=True)
 def _edge_fn(ia, ib, ua, va, ub, vb, u, v):
     """Orientation of (u, v) against the edge a-b, always evaluated from the lower to the higher
     vertex index, so both triangles sharing the edge get bit-identical values."""
