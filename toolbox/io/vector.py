@@ -25,6 +25,8 @@ and read through pyarrow/geopandas (the GDAL in pyogrio's wheels has no Parquet 
 
 from __future__ import annotations
 
+import sys
+import threading
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -49,6 +51,45 @@ GPKG_DATASET_OPTIONS = {"VERSION": "1.2"}
 _GEOMETRY_FAMILIES = {"point": ("Point", "MultiPoint"),
                       "line": ("LineString", "MultiLineString", "LinearRing"),
                       "polygon": ("Polygon", "MultiPolygon")}
+
+
+_OGR_LOCK = threading.RLock()
+
+
+def _ogr():
+    """``pyogrio.core`` (``list_layers``, ``read_info``) without importing pandas and geopandas.
+
+    ``import pyogrio`` runs the package's ``__init__``, which imports ``pyogrio.geopandas`` and
+    so pandas and geopandas (about 0.45 s) even for metadata. Opening an input (parameter
+    validation) needs only ``pyogrio.core``: the package is registered without running its
+    ``__init__``, ``core`` is loaded, and the ``__init__`` runs on the first use of any other
+    name (``pyogrio.read_dataframe``, ``from pyogrio import ...``; PEP 562 module
+    ``__getattr__``), so every other use of pyogrio is unchanged.
+    """
+    with _OGR_LOCK:
+        if "pyogrio" not in sys.modules:
+            import importlib.util
+
+            import shapely  # noqa: F401  (before GDAL's GEOS, as pyogrio's __init__ does)
+
+            spec = importlib.util.find_spec("pyogrio")
+            package = importlib.util.module_from_spec(spec)
+            state = {"done": False}
+
+            def finish(name: str):
+                with _OGR_LOCK:
+                    if not state["done"]:
+                        state["done"] = True
+                        spec.loader.exec_module(package)
+                if name in package.__dict__:
+                    return package.__dict__[name]
+                raise AttributeError(f"module 'pyogrio' has no attribute {name!r}")
+
+            package.__getattr__ = finish
+            sys.modules["pyogrio"] = package
+        import pyogrio.core
+
+        return pyogrio.core
 
 
 def vector_driver(path: str | Path) -> str:
@@ -234,8 +275,6 @@ def open_layer(value: Any, name: str = "INPUT") -> VectorLayerRef:
     :class:`VectorLayerRef` or a GeoDataFrame. Raises :class:`ParameterError` naming ``name``
     for a missing file, an unknown layer or a file OGR cannot read.
     """
-    import pyogrio
-
     if isinstance(value, VectorLayerRef):
         return value
     if hasattr(value, "geometry") and hasattr(value, "crs"):  # GeoDataFrame
@@ -250,16 +289,17 @@ def open_layer(value: Any, name: str = "INPUT") -> VectorLayerRef:
         raise ParameterError(name, f"file '{text}' does not exist")
     if path.suffix.lower() == ".parquet":
         return _open_parquet(path, source, name)
+    ogr = _ogr()
     try:
         options = _csv_open_options(path) if path.suffix.lower() == ".csv" else {}
-        layers = [str(row[0]) for row in pyogrio.list_layers(path)]
+        layers = [str(row[0]) for row in ogr.list_layers(path)]
     except Exception as exc:  # pyogrio raises DataSourceError and friends
         raise ParameterError(name, f"cannot read '{text}' as a vector layer: "
                              f"{str(exc).splitlines()[0]}") from None
     sibling = _resolve_layer_file(path, layer, layers)
     if sibling is not None:
         path, layer = sibling, None
-        layers = [str(row[0]) for row in pyogrio.list_layers(path)]
+        layers = [str(row[0]) for row in ogr.list_layers(path)]
     if source.layerid is not None:
         if source.layerid >= len(layers):
             raise ParameterError(name, f"layerid={source.layerid} but '{text}' has "
@@ -271,7 +311,7 @@ def open_layer(value: Any, name: str = "INPUT") -> VectorLayerRef:
     if layer is None and len(layers) > 1:
         layer = layers[0]  # OGR's default layer, named so that pyogrio does not warn
     try:
-        info = pyogrio.read_info(path, layer=layer, **options)
+        info = ogr.read_info(path, layer=layer, **options)
     except Exception as exc:
         raise ParameterError(name, f"cannot read '{text}' as a vector layer: "
                              f"{str(exc).splitlines()[0]}") from None
@@ -280,6 +320,8 @@ def open_layer(value: Any, name: str = "INPUT") -> VectorLayerRef:
     ref = VectorLayerRef(path, layer, info, options, where=source.subset,
                          geometry_filter=source.geometry_filter)
     if ref.where:  # an SQL error is the user's: report it now, naming the parameter
+        import pyogrio
+
         try:
             pyogrio.read_dataframe(path, layer=layer, where=ref.where, max_features=1,
                                    read_geometry=False, **options)
@@ -342,9 +384,7 @@ def _csv_open_options(path: Path) -> dict[str, str]:
     One name per axis: GDAL (3.10) with several candidate columns and KEEP_GEOM_COLUMNS=NO
     crashes, so the header is inspected here and the first preferred name is chosen.
     """
-    import pyogrio
-
-    fields = [str(f) for f in pyogrio.read_info(path)["fields"]]
+    fields = [str(f) for f in _ogr().read_info(path)["fields"]]
     lower = {f.lower(): f for f in fields}
     options = {"AUTODETECT_TYPE": "YES"}
     for key, names in CSV_COORDINATE_NAMES.items():
