@@ -132,9 +132,11 @@ def test_mixed_crs_refused():
 OPEN_WITHOUT_PANDAS = """
 import sys
 path = sys.argv[1]
-from toolbox.io.vector import open_layer
+from toolbox.io.vector import open_layer, read_points_xyz
 ref = open_layer(path + "|layername=pts")
 assert (ref.count, ref.fields, ref.geometry_kind) == (2, ["h"], "point"), ref.info
+assert "pandas" not in sys.modules and "geopandas" not in sys.modules, "pandas imported"
+assert read_points_xyz(ref, "h").tolist() == [[0.0, 0.0, 1.0], [1.0, 1.0, 2.0]]
 assert "pandas" not in sys.modules and "geopandas" not in sys.modules, "pandas imported"
 import pyogrio  # the rest of pyogrio still works, loaded on first use
 from pyogrio import read_dataframe
@@ -144,8 +146,9 @@ assert pyogrio.__version__ and "geopandas" in sys.modules
 
 
 def test_opening_a_layer_imports_neither_pandas_nor_geopandas(tmp_path):
-    """Parameter validation opens inputs through pyogrio.core only (start-up < 0.5 s); the rest
-    of pyogrio (read_dataframe, __version__) is loaded on first use."""
+    """Parameter validation opens inputs through pyogrio.core only (start-up < 0.5 s), points
+    are read through Arrow without pandas; the rest of pyogrio (read_dataframe, __version__)
+    is loaded on first use."""
     import subprocess
     import sys
 

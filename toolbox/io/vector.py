@@ -514,12 +514,10 @@ def _points_from_arrow(ref: VectorLayerRef, z_field: str | None) -> np.ndarray |
     """Decode fixed-size little-endian WKB points; ``None`` when the layer needs the general path."""
     try:
         import pyarrow  # noqa: F401  (pyogrio's Arrow reader needs it)
-        import pyogrio
     except ImportError:  # pragma: no cover - pyarrow is optional
         return None
     try:
-        meta, table = pyogrio.read_arrow(ref.path, layer=ref.layer, where=ref.where or None,
-                                         columns=[z_field] if z_field else [])
+        meta, table = _read_arrow(ref, [z_field] if z_field else [])
     except Exception:  # let the general path report the problem
         return None
     n = table.num_rows
@@ -543,11 +541,50 @@ def _points_from_arrow(ref: VectorLayerRef, z_field: str | None) -> np.ndarray |
     if np.isnan(coords).any():  # empty points: the general path skips them
         return None
     if z_field is not None:
-        z = np.asarray(table.column(z_field).to_numpy(zero_copy_only=False), dtype="float64")
-        return np.column_stack([coords[:, :2], z])
+        z = _float_column(table.column(z_field))
+        return None if z is None else np.column_stack([coords[:, :2], z])
     if size == 21:
         return None  # no Z in the geometry: the general path explains
     return np.ascontiguousarray(coords)
+
+
+def _read_arrow(ref: VectorLayerRef, columns: list[str]):
+    """``(meta, pyarrow.Table)`` of a file layer, as ``pyogrio.read_arrow`` returns them, but
+    without importing pandas and geopandas (``pyogrio.raw`` imports both, about 0.45 s of a
+    small run): GDAL's Arrow stream opened through the call ``pyogrio.raw.open_arrow`` makes.
+    That call is not public: with another signature the public reader is used."""
+    _ogr()
+    from pyogrio._io import ogr_open_arrow
+    from pyogrio.util import get_vsi_path_or_buffer
+
+    try:
+        source = ogr_open_arrow(
+            get_vsi_path_or_buffer(str(ref.path)), layer=ref.layer, encoding=None,
+            columns=columns, read_geometry=True, force_2d=False, skip_features=0,
+            max_features=0, where=ref.where or None, bbox=None, mask=None, fids=None, sql=None,
+            sql_dialect=None, return_fids=False, dataset_kwargs={}, batch_size=65_536,
+            use_pyarrow=True, datetime_as_string=False)
+    except TypeError:  # another pyogrio
+        import pyogrio
+
+        return pyogrio.read_arrow(ref.path, layer=ref.layer, where=ref.where or None,
+                                  columns=columns)
+    with source as (meta, reader):
+        return meta, reader.read_all()
+
+
+def _float_column(column) -> np.ndarray | None:
+    """A numeric Arrow column as float64, from its buffer (pyarrow's ``to_numpy`` imports
+    pandas); ``None`` when it has nulls or is not numeric (the general path then decides)."""
+    import pyarrow as pa
+    import pyarrow.compute as pc
+
+    array = column.combine_chunks()
+    if array.null_count or not (pa.types.is_integer(array.type)
+                                or pa.types.is_floating(array.type)):
+        return None
+    array = pc.cast(array, pa.float64())
+    return np.frombuffer(array.buffers()[1], dtype="<f8")[array.offset:array.offset + len(array)]
 
 
 def vertices_xyz(frame, z_field: str | None = None, name: str = "INPUT"):

@@ -149,10 +149,10 @@ class PointBins:
         return np.sort(self.order[out[:m]])
 
 
-# Compile time (a newcomer's first run compiles every kernel it meets): the kernels allocate
-# nothing (the callers pass their output and work arrays), call no builtin min/max (each
-# arity and type compiles its own overload) and no numba-IR inlining (``inline="always"``
-# types a callee again at every call site; LLVM inlines the small callees anyway).
+# Compile time (a newcomer's first run compiles every kernel it meets): the search kernels
+# allocate nothing (the callers pass their output and work arrays), call no builtin min/max
+# (each arity and type compiles an overload of its own) and are not inlined into numba's IR
+# (``inline="always"`` types a callee again at every call site; LLVM inlines small callees).
 
 
 @njit(nogil=True, cache=True)
