@@ -14,6 +14,7 @@ $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
 	$(BIN)/pip install --quiet -e ".[dev]"
+	$(BIN)/toolbox -q warmup || echo "toolbox warmup failed: first runs will compile their kernels"
 	touch $(STAMP)
 
 demo: $(STAMP)  ## run the main job on bundled sample data into $(OUT)/

@@ -13,8 +13,12 @@ folder on the next call):
   up to the parameter check (run without parameters, it stops there with exit code 2);
 - ``toolbox run vector:info`` / ``dem:nearest`` up to the moment ``process()`` would start (the
   runner's ``validate`` returns, inputs opened): a probe replaces ``validate`` and exits there;
-- the first run of ``dem:nearest`` on 4,500 points (2 m cells), whole process, with a cold numba
-  cache (every kernel compiled) and warm (kernels loaded from the cache).
+- the first run of every algorithm with numba kernels on a small input, whole process, with a
+  cold numba cache (every kernel it meets compiled: a newcomer's first run; target < 3 s) and
+  warm (kernels loaded from the cache): ``dem:*`` on the 4,500 points (2 m cells, 150 x 150),
+  the others on the demo's sample data with the demo pipeline's parameters (``toolbox demo``);
+- ``toolbox warmup`` (compiles every kernel into the per-user cache; ``make venv`` runs it) from
+  a cold cache, then ``dem:nearest`` and ``ortho:photo`` after it.
 
 Writes the markdown table to bench/results/startup.md.
 """
@@ -24,6 +28,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import re
 import resource
 import statistics
 import subprocess
@@ -102,6 +107,68 @@ def algorithm_ids() -> list[str]:
     return [a["id"] for a in json.loads(out)]
 
 
+#: the small input of the dem:* first-run rows (the others use the demo's sample data)
+FIRST_RUN_INPUT = {alg: "4,500 points, 150 x 150 cells" for alg in (
+    "dem:nearest", "dem:idw", "dem:plane", "dem:quadratic", "dem:cubic", "dem:tin_linear",
+    "dem:cross_validate")}
+#: algorithms with numba kernels; the others' first runs are their warm runs. The demo steps
+#: give the parameters of those not gridding the bench's points (tin:to_raster reads the TIN
+#: that tin:delaunay wrote before it).
+DEMO_STEPS = {"tin:delaunay": "tin_delaunay", "tin:to_raster": "tin_to_raster",
+              "ortho:photo": "ortho_photo", "orientation:monoplot": "monoplot"}
+
+
+def demo_inputs(work: Path, points: Path) -> dict[str, str]:
+    """The demo's sample data under ``work/demo`` (its variables) and the bench's points."""
+    from toolbox.demo.samples import make_samples
+
+    variables = {k: str(v) for k, v in make_samples(work / "demo" / "data").items()}
+    return variables | {"out": str(work / "demo"), "points": str(points), "work": str(work)}
+
+
+def first_runs(variables: dict[str, str]) -> list[tuple[str, dict]]:
+    """(algorithm id, parameters) of every first-run row, in running order."""
+    from toolbox.demo import demo_pipeline_doc
+
+    grid = {"INPUT": "${points}", "CELL_SIZE": 2}
+    runs = [(f"dem:{m}", grid | {"OUTPUT": f"${{work}}/{m}.tif"})
+            for m in ("nearest", "idw", "plane", "quadratic", "cubic", "tin_linear")]
+    runs.append(("dem:cross_validate", {"INPUT": "${points}",
+                                        "OUTPUT": "${work}/cross_validation.json"}))
+    steps = {step["name"]: step for step in demo_pipeline_doc()["steps"]}
+    outputs: dict[str, str] = {}
+    for alg in ("orientation:monoplot", "tin:delaunay", "tin:to_raster", "ortho:photo"):
+        step = steps[DEMO_STEPS[alg]]
+        assert step["algorithm"] == alg, step
+        runs.append((alg, step["params"]))
+    resolved = []
+    for alg, params in runs:
+        values = {k: substitute(v, variables | outputs) for k, v in params.items()}
+        step = DEMO_STEPS.get(alg)
+        if step and "OUTPUT" in values:
+            outputs[f"{step}.OUTPUT"] = values["OUTPUT"]
+        resolved.append((alg, values))
+    return resolved
+
+
+def substitute(value, variables: dict[str, str]):
+    """``${name}`` / ``${step.OUTPUT}`` replaced (as ``toolbox batch`` does), recursively."""
+    if isinstance(value, list):
+        return [substitute(v, variables) for v in value]
+    if not isinstance(value, str):
+        return value
+    return re.sub(r"\$\{([^}]+)\}", lambda m: variables[m.group(1)], value)
+
+
+def cli_args(params: dict) -> list[str]:
+    """``toolbox run`` options of a parameter dict (a list repeats the option)."""
+    args: list[str] = []
+    for key, value in params.items():
+        for item in value if isinstance(value, list) else [value]:
+            args += [f"--{key}", str(item).lower() if isinstance(item, bool) else str(item)]
+    return args
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--repeat", type=int, default=5)
@@ -135,16 +202,27 @@ def main() -> None:
                                              "--OUTPUT", str(work / "dem.tif")])]:
             rows.append((f"toolbox run {alg}", "start-up to process() (inputs opened)",
                          median_warm(probe + ["run", alg, *params], env, args.repeat)))
-        # numba: the newcomer's first run (cold kernel cache), then the next one (warm)
-        env = cold_env(work / "cache-numba")
-        timed(toolbox + ["list"], env)
-        nearest = toolbox + ["run", "dem:nearest", "--INPUT", str(points), "--CELL_SIZE", "2",
-                             "--OUTPUT", str(work / "n.tif"), "--overwrite"]
-        cold, code, err = timed(nearest, env)
-        assert code == 0, err
-        rows.append(("dem:nearest, 4,500 points, whole run", "cold numba cache (compiles)", cold))
-        rows.append(("dem:nearest, 4,500 points, whole run", "warm numba cache",
-                     median_warm(nearest, env, args.repeat)))
+        # numba: the newcomer's first run of each algorithm (cold kernel cache), then warm
+        variables = demo_inputs(work, points)
+        for alg, params in first_runs(variables):
+            env = cold_env(work / f"cache-{alg.replace(':', '-')}")
+            timed(toolbox + ["list"], env)
+            cmd = toolbox + ["run", alg, *cli_args(params), "--overwrite"]
+            cold, code, err = timed(cmd, env)
+            assert code == 0, f"{alg}: {err[-800:]}"
+            what = f"{alg}, first run ({FIRST_RUN_INPUT.get(alg, 'demo sample data')})"
+            rows.append((what, "cold numba cache (compiles)", cold))
+            rows.append((what, "warm numba cache", median_warm(cmd, env, args.repeat)))
+        env = cold_env(work / "cache-warmup")
+        warm_up, code, err = timed(toolbox + ["warmup"], env)
+        assert code == 0, err[-800:]
+        rows.append(("toolbox warmup", "cold numba cache (compiles every kernel)", warm_up))
+        for alg, params in first_runs(variables):
+            if alg in ("dem:nearest", "ortho:photo"):
+                cmd = toolbox + ["run", alg, *cli_args(params), "--overwrite"]
+                first, code, err = timed(cmd, env)
+                assert code == 0, f"{alg}: {err[-800:]}"
+                rows.append((f"{alg}, first run after toolbox warmup", "whole run", first))
     lines = ["## Start-up (`bench/startup_bench.py`)", "", f"{machine_facts()}; {note}.", "",
              "| what | case | wall s | CPU s |", "|---|---|---:|---:|"]
     lines += [f"| {what} | {case} | {wall:.3f} | {cpu:.3f} |" for what, case, (wall, cpu) in rows]

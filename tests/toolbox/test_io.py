@@ -127,3 +127,34 @@ def test_mixed_crs_refused():
     assert common_crs({"INPUT": a, "LINES": None}) == a
     with pytest.raises(InputDataError, match="LINES is in EPSG:32632 but INPUT is in EPSG:3003"):
         common_crs({"INPUT": a, "LINES": b})
+
+
+OPEN_WITHOUT_PANDAS = """
+import sys
+path = sys.argv[1]
+from toolbox.io.vector import open_layer, read_points_xyz
+ref = open_layer(path + "|layername=pts")
+assert (ref.count, ref.fields, ref.geometry_kind) == (2, ["h"], "point"), ref.info
+assert "pandas" not in sys.modules and "geopandas" not in sys.modules, "pandas imported"
+assert read_points_xyz(ref, "h").tolist() == [[0.0, 0.0, 1.0], [1.0, 1.0, 2.0]]
+assert "pandas" not in sys.modules and "geopandas" not in sys.modules, "pandas imported"
+import pyogrio  # the rest of pyogrio still works, loaded on first use
+from pyogrio import read_dataframe
+assert read_dataframe(path)["h"].tolist() == [1.0, 2.0]
+assert pyogrio.__version__ and "geopandas" in sys.modules
+"""
+
+
+def test_opening_a_layer_imports_neither_pandas_nor_geopandas(tmp_path):
+    """Parameter validation opens inputs through pyogrio.core only (start-up < 0.5 s), points
+    are read through Arrow without pandas; the rest of pyogrio (read_dataframe, __version__)
+    is loaded on first use."""
+    import subprocess
+    import sys
+
+    path = tmp_path / "p.gpkg"
+    gpd.GeoDataFrame({"h": [1.0, 2.0]}, geometry=shapely.points([0, 1], [0, 1]),
+                     crs=3003).to_file(path, layer="pts")
+    proc = subprocess.run([sys.executable, "-c", OPEN_WITHOUT_PANDAS, str(path)],
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr[-2000:]

@@ -193,6 +193,7 @@ def main(ctx: click.Context, verbose: int, quiet: bool) -> None:
     toolbox run dem:idw --INPUT pts.gpkg --CELL_SIZE 2 --OUTPUT dem.tif
     toolbox batch pipeline.yaml      several algorithms chained
     toolbox demo --out demo_out      the main job on bundled sample data
+    toolbox warmup                   compile the numba kernels once (no first-run wait)
     """
     setup_logging(verbose, quiet)
     ctx.obj = {"quiet": quiet, "verbose": verbose}
@@ -451,6 +452,22 @@ def demo_cmd(ctx: click.Context, out_dir: str) -> None:
         feedback.finish()
         ACTIVE[0] = None
     click.echo(summary)
+
+
+@main.command("warmup")
+@click.pass_context
+@_handle_errors
+def warmup_cmd(ctx: click.Context) -> None:
+    """Compile every numba kernel into the per-user cache, so that no first run waits for it
+    (``make venv`` runs it once; about a minute)."""
+    import numba
+
+    from toolbox.warmup import warmup
+
+    if not ctx.obj["quiet"]:
+        click.echo("Compiling the numba kernels (about a minute)...", err=True)
+    steps = warmup()  # the sample runs' own messages are not the user's: not shown
+    click.echo(f"Warm-up finished: {steps} runs; compiled kernels in {numba.config.CACHE_DIR}")
 
 
 if __name__ == "__main__":  # pragma: no cover

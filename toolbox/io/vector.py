@@ -25,6 +25,8 @@ and read through pyarrow/geopandas (the GDAL in pyogrio's wheels has no Parquet 
 
 from __future__ import annotations
 
+import sys
+import threading
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -49,6 +51,45 @@ GPKG_DATASET_OPTIONS = {"VERSION": "1.2"}
 _GEOMETRY_FAMILIES = {"point": ("Point", "MultiPoint"),
                       "line": ("LineString", "MultiLineString", "LinearRing"),
                       "polygon": ("Polygon", "MultiPolygon")}
+
+
+_OGR_LOCK = threading.RLock()
+
+
+def _ogr():
+    """``pyogrio.core`` (``list_layers``, ``read_info``) without importing pandas and geopandas.
+
+    ``import pyogrio`` runs the package's ``__init__``, which imports ``pyogrio.geopandas`` and
+    so pandas and geopandas (about 0.45 s) even for metadata. Opening an input (parameter
+    validation) needs only ``pyogrio.core``: the package is registered without running its
+    ``__init__``, ``core`` is loaded, and the ``__init__`` runs on the first use of any other
+    name (``pyogrio.read_dataframe``, ``from pyogrio import ...``; PEP 562 module
+    ``__getattr__``), so every other use of pyogrio is unchanged.
+    """
+    with _OGR_LOCK:
+        if "pyogrio" not in sys.modules:
+            import importlib.util
+
+            import shapely  # noqa: F401  (before GDAL's GEOS, as pyogrio's __init__ does)
+
+            spec = importlib.util.find_spec("pyogrio")
+            package = importlib.util.module_from_spec(spec)
+            state = {"done": False}
+
+            def finish(name: str):
+                with _OGR_LOCK:
+                    if not state["done"]:
+                        state["done"] = True
+                        spec.loader.exec_module(package)
+                if name in package.__dict__:
+                    return package.__dict__[name]
+                raise AttributeError(f"module 'pyogrio' has no attribute {name!r}")
+
+            package.__getattr__ = finish
+            sys.modules["pyogrio"] = package
+        import pyogrio.core
+
+        return pyogrio.core
 
 
 def vector_driver(path: str | Path) -> str:
@@ -234,8 +275,6 @@ def open_layer(value: Any, name: str = "INPUT") -> VectorLayerRef:
     :class:`VectorLayerRef` or a GeoDataFrame. Raises :class:`ParameterError` naming ``name``
     for a missing file, an unknown layer or a file OGR cannot read.
     """
-    import pyogrio
-
     if isinstance(value, VectorLayerRef):
         return value
     if hasattr(value, "geometry") and hasattr(value, "crs"):  # GeoDataFrame
@@ -250,16 +289,17 @@ def open_layer(value: Any, name: str = "INPUT") -> VectorLayerRef:
         raise ParameterError(name, f"file '{text}' does not exist")
     if path.suffix.lower() == ".parquet":
         return _open_parquet(path, source, name)
+    ogr = _ogr()
     try:
         options = _csv_open_options(path) if path.suffix.lower() == ".csv" else {}
-        layers = [str(row[0]) for row in pyogrio.list_layers(path)]
+        layers = [str(row[0]) for row in ogr.list_layers(path)]
     except Exception as exc:  # pyogrio raises DataSourceError and friends
         raise ParameterError(name, f"cannot read '{text}' as a vector layer: "
                              f"{str(exc).splitlines()[0]}") from None
     sibling = _resolve_layer_file(path, layer, layers)
     if sibling is not None:
         path, layer = sibling, None
-        layers = [str(row[0]) for row in pyogrio.list_layers(path)]
+        layers = [str(row[0]) for row in ogr.list_layers(path)]
     if source.layerid is not None:
         if source.layerid >= len(layers):
             raise ParameterError(name, f"layerid={source.layerid} but '{text}' has "
@@ -271,7 +311,7 @@ def open_layer(value: Any, name: str = "INPUT") -> VectorLayerRef:
     if layer is None and len(layers) > 1:
         layer = layers[0]  # OGR's default layer, named so that pyogrio does not warn
     try:
-        info = pyogrio.read_info(path, layer=layer, **options)
+        info = ogr.read_info(path, layer=layer, **options)
     except Exception as exc:
         raise ParameterError(name, f"cannot read '{text}' as a vector layer: "
                              f"{str(exc).splitlines()[0]}") from None
@@ -280,6 +320,8 @@ def open_layer(value: Any, name: str = "INPUT") -> VectorLayerRef:
     ref = VectorLayerRef(path, layer, info, options, where=source.subset,
                          geometry_filter=source.geometry_filter)
     if ref.where:  # an SQL error is the user's: report it now, naming the parameter
+        import pyogrio
+
         try:
             pyogrio.read_dataframe(path, layer=layer, where=ref.where, max_features=1,
                                    read_geometry=False, **options)
@@ -342,9 +384,7 @@ def _csv_open_options(path: Path) -> dict[str, str]:
     One name per axis: GDAL (3.10) with several candidate columns and KEEP_GEOM_COLUMNS=NO
     crashes, so the header is inspected here and the first preferred name is chosen.
     """
-    import pyogrio
-
-    fields = [str(f) for f in pyogrio.read_info(path)["fields"]]
+    fields = [str(f) for f in _ogr().read_info(path)["fields"]]
     lower = {f.lower(): f for f in fields}
     options = {"AUTODETECT_TYPE": "YES"}
     for key, names in CSV_COORDINATE_NAMES.items():
@@ -474,12 +514,10 @@ def _points_from_arrow(ref: VectorLayerRef, z_field: str | None) -> np.ndarray |
     """Decode fixed-size little-endian WKB points; ``None`` when the layer needs the general path."""
     try:
         import pyarrow  # noqa: F401  (pyogrio's Arrow reader needs it)
-        import pyogrio
     except ImportError:  # pragma: no cover - pyarrow is optional
         return None
     try:
-        meta, table = pyogrio.read_arrow(ref.path, layer=ref.layer, where=ref.where or None,
-                                         columns=[z_field] if z_field else [])
+        meta, table = _read_arrow(ref, [z_field] if z_field else [])
     except Exception:  # let the general path report the problem
         return None
     n = table.num_rows
@@ -503,11 +541,50 @@ def _points_from_arrow(ref: VectorLayerRef, z_field: str | None) -> np.ndarray |
     if np.isnan(coords).any():  # empty points: the general path skips them
         return None
     if z_field is not None:
-        z = np.asarray(table.column(z_field).to_numpy(zero_copy_only=False), dtype="float64")
-        return np.column_stack([coords[:, :2], z])
+        z = _float_column(table.column(z_field))
+        return None if z is None else np.column_stack([coords[:, :2], z])
     if size == 21:
         return None  # no Z in the geometry: the general path explains
     return np.ascontiguousarray(coords)
+
+
+def _read_arrow(ref: VectorLayerRef, columns: list[str]):
+    """``(meta, pyarrow.Table)`` of a file layer, as ``pyogrio.read_arrow`` returns them, but
+    without importing pandas and geopandas (``pyogrio.raw`` imports both, about 0.45 s of a
+    small run): GDAL's Arrow stream opened through the call ``pyogrio.raw.open_arrow`` makes.
+    That call is not public: with another signature the public reader is used."""
+    _ogr()
+    from pyogrio._io import ogr_open_arrow
+    from pyogrio.util import get_vsi_path_or_buffer
+
+    try:
+        source = ogr_open_arrow(
+            get_vsi_path_or_buffer(str(ref.path)), layer=ref.layer, encoding=None,
+            columns=columns, read_geometry=True, force_2d=False, skip_features=0,
+            max_features=0, where=ref.where or None, bbox=None, mask=None, fids=None, sql=None,
+            sql_dialect=None, return_fids=False, dataset_kwargs={}, batch_size=65_536,
+            use_pyarrow=True, datetime_as_string=False)
+    except TypeError:  # another pyogrio
+        import pyogrio
+
+        return pyogrio.read_arrow(ref.path, layer=ref.layer, where=ref.where or None,
+                                  columns=columns)
+    with source as (meta, reader):
+        return meta, reader.read_all()
+
+
+def _float_column(column) -> np.ndarray | None:
+    """A numeric Arrow column as float64, from its buffer (pyarrow's ``to_numpy`` imports
+    pandas); ``None`` when it has nulls or is not numeric (the general path then decides)."""
+    import pyarrow as pa
+    import pyarrow.compute as pc
+
+    array = column.combine_chunks()
+    if array.null_count or not (pa.types.is_integer(array.type)
+                                or pa.types.is_floating(array.type)):
+        return None
+    array = pc.cast(array, pa.float64())
+    return np.frombuffer(array.buffers()[1], dtype="<f8")[array.offset:array.offset + len(array)]
 
 
 def vertices_xyz(frame, z_field: str | None = None, name: str = "INPUT"):

@@ -37,6 +37,13 @@ class GridRun:
     def origin(self) -> tuple[float, float]:
         return (float(self.data.origin[0]), float(self.data.origin[1]))
 
+    @property
+    def single_tile(self) -> bool:
+        """True when the whole grid is one tile."""
+        from toolbox.raster.tile import tile_count
+
+        return tile_count(self.grid, self.tile) == 1
+
     def cell_mask(self, tile: Any, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
         """Cells of ``tile`` (local centres ``xs``, ``ys``) to compute: inside the hull and
         the MASK."""
@@ -90,11 +97,14 @@ class NeighbourPlanner:
     """
 
     def __init__(self, local_xyz: np.ndarray, k: int, radius: float | None,
-                 bins: PointBins | None = None):
+                 bins: PointBins | None = None, single_tile: bool = False):
         self.xyz = local_xyz
         self.bins = bins if bins is not None else PointBins.build(local_xyz[:, :2])
         self.k = max(0, int(k))  # 0: every point within the radius
         self.radius = math.inf if radius is None else float(radius)
+        #: one tile: it gets every point (no search; on a first run, two kernels less to
+        #: compile)
+        self.single_tile = single_tile
 
     def halo(self, x0: float, y0: float, x1: float, y1: float, cell: float) -> float:
         if self.k == 0 or self.k >= len(self.xyz):
@@ -110,6 +120,8 @@ class NeighbourPlanner:
         return min(halo, self.radius)
 
     def payload(self, x0: float, y0: float, x1: float, y1: float, cell: float) -> np.ndarray:
+        if self.single_tile:
+            return self.xyz
         h = self.halo(x0, y0, x1, y1, cell)
         if not math.isfinite(h):
             return self.xyz

@@ -48,65 +48,50 @@ def idw_value(d2, z_index, pz, n, power):
         z = pz[z_index[t]]
         num += w * z
         den += w
-        lo = min(lo, z)
-        hi = max(hi, z)
+        lo = z if z < lo else lo
+        hi = z if z > hi else hi
     # a convex combination: clamp the last-bit rounding so the result never leaves the range
-    return min(max(num / den, lo), hi)
+    value = num / den
+    return lo if value < lo else (hi if value > hi else value)
 
 
 @njit(nogil=True, cache=True)
-def _neighbours(px, py, offsets, x0, y0, size, nbx, nby, qx, qy, k, r2max, skip,
-                sectors, per_sector, best_d2, best_i, sec_d2, sec_i, sec_count):
-    """Neighbours of one query: k nearest, or by sectors; returns (count, nearest d2)."""
-    if sectors > 1:
-        n = sector_one(px, py, offsets, x0, y0, size, nbx, nby, qx, qy, sectors,
-                       per_sector, r2max, skip, sec_d2, sec_i, sec_count, best_d2, best_i)
-    else:
-        n = knn_one(px, py, offsets, x0, y0, size, nbx, nby, qx, qy, k, r2max, skip,
-                    best_d2, best_i)
+def _smallest(d2, n):
     nearest = math.inf
     for t in range(n):
-        if best_d2[t] < nearest:
-            nearest = best_d2[t]
-    return n, nearest
+        if d2[t] < nearest:
+            nearest = d2[t]
+    return nearest
 
 
 @njit(nogil=True, cache=True)
-def _grid_sectors(px, py, offsets, x0, y0, size, nbx, nby, pz, xs, ys, mask, k, r2max, power,
-                  sectors, per_sector, min_neighbours, max_d2, out):
+def _grid_sectors(px, py, offsets, x0, y0, size, nbx, nby, pz, xs, ys, mask, r2max, power,
+                  sectors, per_sector, min_neighbours, max_d2, best_d2, best_i, sec_d2, sec_i,
+                  sec_count, out):
     """Sector search, cell by cell (its own kernel: grids without sectors never compile it)."""
-    cap = max(k, sectors * per_sector)
-    best_d2 = np.empty(cap)
-    best_i = np.empty(cap, dtype=np.int64)
-    sec_d2 = np.empty((sectors, per_sector))
-    sec_i = np.empty((sectors, per_sector), dtype=np.int64)
-    sec_count = np.zeros(sectors, dtype=np.int64)
     h, w = mask.shape
     for r in range(h):
         for c in range(w):
             if not mask[r, c]:
                 continue
-            n, nearest = _neighbours(px, py, offsets, x0, y0, size, nbx, nby, xs[c], ys[r],
-                                     k, r2max, np.int64(-1), sectors, per_sector, best_d2,
-                                     best_i, sec_d2, sec_i, sec_count)
-            if n == 0 or n < min_neighbours or nearest > max_d2:
+            n = sector_one(px, py, offsets, x0, y0, size, nbx, nby, xs[c], ys[r], sectors,
+                           per_sector, r2max, np.int64(-1), sec_d2, sec_i, sec_count, best_d2,
+                           best_i)
+            if n == 0 or n < min_neighbours or _smallest(best_d2, n) > max_d2:
                 continue
             out[r, c] = idw_value(best_d2, best_i, pz, n, power)
 
 
 @njit(nogil=True, cache=True)
 def _grid(px, py, offsets, x0, y0, size, nbx, nby, pz, xs, ys, mask, k, r2max, power,
-          min_neighbours, max_d2, block, out):
-    """k nearest neighbours by blocks of cells (``block_knn``)."""
-    best_d2 = np.empty(k)
-    best_i = np.empty(k, dtype=np.int64)
+          min_neighbours, max_d2, block, best_d2, best_i, cand_x, cand_y, cand_p, cand_d, bd2,
+          bi, bn, bnear, out):
+    """k nearest neighbours by blocks of cells (``block_knn``; work arrays: ``block_scratch``)."""
     h, w = mask.shape
-    npts = len(px)
-    cand_x, cand_y, cand_p, cand_d, bd2, bi, bn, bnear = block_scratch(npts, k, block)
     for r0 in range(0, h, block):
-        r1 = min(r0 + block, h)
+        r1 = r0 + block if r0 + block < h else h
         for c0 in range(0, w, block):
-            c1 = min(c0 + block, w)
+            c1 = c0 + block if c0 + block < w else w
             block_knn(px, py, offsets, x0, y0, size, nbx, nby, xs, ys, c0, c1, r0, r1, mask, k,
                       r2max, best_d2, best_i, cand_x, cand_y, cand_p, cand_d, bd2, bi, bn,
                       bnear)
@@ -120,22 +105,36 @@ def _grid(px, py, offsets, x0, y0, size, nbx, nby, pz, xs, ys, mask, k, r2max, p
 
 
 @njit(nogil=True, cache=True)
-def _loo(px, py, offsets, x0, y0, size, nbx, nby, pz, targets, k, r2max, power, sectors,
-         per_sector, min_neighbours, max_d2, out):
-    cap = max(k, sectors * per_sector)
-    best_d2 = np.empty(cap)
-    best_i = np.empty(cap, dtype=np.int64)
-    sec_d2 = np.empty((max(sectors, 1), max(per_sector, 1)))
-    sec_i = np.empty((max(sectors, 1), max(per_sector, 1)), dtype=np.int64)
-    sec_count = np.zeros(max(sectors, 1), dtype=np.int64)
+def _loo(px, py, offsets, x0, y0, size, nbx, nby, pz, targets, k, r2max, power,
+         min_neighbours, max_d2, best_d2, best_i, out):
     for t in range(len(targets)):
         i = targets[t]
-        n, nearest = _neighbours(px, py, offsets, x0, y0, size, nbx, nby, px[i], py[i], k,
-                                 r2max, i, sectors, per_sector, best_d2, best_i, sec_d2, sec_i,
-                                 sec_count)
-        if n == 0 or n < min_neighbours or nearest > max_d2:
+        n = knn_one(px, py, offsets, x0, y0, size, nbx, nby, px[i], py[i], k, r2max, i,
+                    best_d2, best_i)
+        if n == 0 or n < min_neighbours or best_d2[0] > max_d2:
             continue
         out[t] = idw_value(best_d2, best_i, pz, n, power)
+
+
+@njit(nogil=True, cache=True)
+def _loo_sectors(px, py, offsets, x0, y0, size, nbx, nby, pz, targets, r2max, power, sectors,
+                 per_sector, min_neighbours, max_d2, best_d2, best_i, sec_d2, sec_i, sec_count,
+                 out):
+    for t in range(len(targets)):
+        i = targets[t]
+        n = sector_one(px, py, offsets, x0, y0, size, nbx, nby, px[i], py[i], sectors,
+                       per_sector, r2max, i, sec_d2, sec_i, sec_count, best_d2, best_i)
+        if n == 0 or n < min_neighbours or _smallest(best_d2, n) > max_d2:
+            continue
+        out[t] = idw_value(best_d2, best_i, pz, n, power)
+
+
+def _sector_scratch(sectors: int, per_sector: int) -> tuple:
+    """Work arrays of the sector kernels: the neighbours found and, per sector, the best
+    distances, indices and counts."""
+    cap = sectors * per_sector
+    return (np.empty(cap), np.empty(cap, dtype=np.int64), np.empty((sectors, per_sector)),
+            np.empty((sectors, per_sector), dtype=np.int64), np.zeros(sectors, dtype=np.int64))
 
 
 def _sq(distance: float | None) -> float:
@@ -186,13 +185,15 @@ def idw_grid(xyz: np.ndarray, xs: np.ndarray, ys: np.ndarray, mask: np.ndarray,
     ys = np.asarray(ys, "float64")
     mask = np.ascontiguousarray(mask, dtype=np.bool_)
     if sectors > 1:
-        _grid_sectors(*bins.args(), bins.binned(xyz[:, 2]), xs, ys, mask, int(neighbours),
-                      _sq(radius), float(power), int(sectors), _per_sector(neighbours, sectors),
-                      int(min_neighbours), _sq(max_distance), out)
+        per_sector = _per_sector(neighbours, sectors)
+        _grid_sectors(*bins.args(), bins.binned(xyz[:, 2]), xs, ys, mask, _sq(radius),
+                      float(power), int(sectors), per_sector, int(min_neighbours),
+                      _sq(max_distance), *_sector_scratch(int(sectors), per_sector), out)
         return out
     block = block_size(bins, neighbours, _cell(xs, ys))
     _grid(*bins.args(), bins.binned(xyz[:, 2]), xs, ys, mask, int(neighbours), _sq(radius),
-          float(power), int(min_neighbours), _sq(max_distance), block, out)
+          float(power), int(min_neighbours), _sq(max_distance), block,
+          *block_scratch(len(bins), int(neighbours), block), out)
     return out
 
 
@@ -202,9 +203,16 @@ def idw_loo(bins: PointBins, z: np.ndarray, targets: np.ndarray, neighbours: int
     """Leave-one-out IDW prediction at the data points ``targets`` (NaN where impossible)."""
     targets = np.asarray(targets, dtype=np.int64)
     out = np.full(len(targets), np.nan)
-    _loo(*bins.args(), bins.binned(z), bins.positions()[targets], int(neighbours),
-         _sq(radius), float(power), int(sectors), _per_sector(neighbours, sectors),
-         int(min_neighbours), _sq(max_distance), out)
+    positions = bins.positions()[targets]
+    if sectors > 1:
+        per_sector = _per_sector(neighbours, sectors)
+        _loo_sectors(*bins.args(), bins.binned(z), positions, _sq(radius), float(power),
+                     int(sectors), per_sector, int(min_neighbours), _sq(max_distance),
+                     *_sector_scratch(int(sectors), per_sector), out)
+        return out
+    k = int(neighbours)
+    _loo(*bins.args(), bins.binned(z), positions, k, _sq(radius), float(power),
+         int(min_neighbours), _sq(max_distance), np.empty(k), np.empty(k, dtype=np.int64), out)
     return out
 
 

@@ -80,7 +80,10 @@ class PointBins:
             if nbx * nby <= 4 * n + 16:
                 break
             size *= 1.5
-        order, offsets = _counting_sort(x, y, x0, y0, float(size), nbx, nby)
+        order = np.empty(n, dtype=np.int64)
+        offsets = np.zeros(nbx * nby + 1, dtype=np.int64)
+        _counting_sort(x, y, x0, y0, float(size), nbx, nby, np.empty(n, dtype=np.int64),
+                       np.empty(nbx * nby, dtype=np.int64), offsets, order)
         return cls(x[order], y[order], order, offsets, x0, y0, float(size), nbx, nby)
 
     def binned(self, values: np.ndarray) -> np.ndarray:
@@ -116,7 +119,11 @@ class PointBins:
             given = skip >= 0
             skip_pos[given] = self.positions()[skip[given]]
         r2 = radius * radius if math.isfinite(radius) else math.inf
-        d2, pos = _query_many(*self.args(), qx, qy, int(k), r2, skip_pos)
+        k = int(k)
+        d2 = np.full((len(qx), k), np.inf)
+        pos = np.full((len(qx), k), -1, dtype=np.int64)
+        _query_many(*self.args(), qx, qy, k, r2, skip_pos, np.empty(k),
+                    np.empty(k, dtype=np.int64), d2, pos)
         index = np.where(pos >= 0, self.order[np.maximum(pos, 0)], -1)
         return d2, index
 
@@ -128,29 +135,44 @@ class PointBins:
         """Indices (ascending) of the points with ``xmin <= x <= xmax`` and ``ymin <= y <= ymax``."""
         if len(self.x) == 0:
             return np.zeros(0, dtype=np.int64)
-        pos = _in_rect(*self.args(), float(xmin), float(ymin), float(xmax), float(ymax))
-        return np.sort(self.order[pos])
+        c0 = max(0, math.floor((xmin - self.x0) / self.size))
+        c1 = min(self.nbx - 1, math.floor((xmax - self.x0) / self.size))
+        r0 = max(0, math.floor((ymin - self.y0) / self.size))
+        r1 = min(self.nby - 1, math.floor((ymax - self.y0) / self.size))
+        if c1 < c0 or r1 < r0:
+            return np.zeros(0, dtype=np.int64)
+        rows = np.arange(r0, r1 + 1) * self.nbx
+        out = np.empty(int((self.offsets[rows + c1 + 1] - self.offsets[rows + c0]).sum()),
+                       dtype=np.int64)
+        m = _in_rect(self.x, self.y, self.offsets, self.nbx, c0, c1, r0, r1, float(xmin),
+                     float(ymin), float(xmax), float(ymax), out)
+        return np.sort(self.order[out[:m]])
+
+
+# Compile time (a newcomer's first run compiles every kernel it meets): the search kernels
+# allocate nothing (the callers pass their output and work arrays), call no builtin min/max
+# (each arity and type compiles an overload of its own) and are not inlined into numba's IR
+# (``inline="always"`` types a callee again at every call site; LLVM inlines small callees).
 
 
 @njit(nogil=True, cache=True)
-def _counting_sort(x, y, x0, y0, size, nbx, nby):
-    """Point indices sorted by bin (row-major), input order within a bin; bin offsets. O(n)."""
+def _counting_sort(x, y, x0, y0, size, nbx, nby, key, fill, offsets, order):
+    """Sort the point indices by bin (row-major), input order within a bin, into ``order``;
+    ``offsets`` (zeros on entry) gets the bin offsets; ``key`` (n,) and ``fill`` (bins,) are
+    work arrays. O(n)."""
     n = len(x)
-    key = np.empty(n, dtype=np.int64)
-    offsets = np.zeros(nbx * nby + 1, dtype=np.int64)
     for i in range(n):
-        col = min(int((x[i] - x0) // size), nbx - 1)
-        row = min(int((y[i] - y0) // size), nby - 1)
-        key[i] = row * nbx + col
-        offsets[key[i] + 1] += 1
+        col = int((x[i] - x0) // size)
+        row = int((y[i] - y0) // size)
+        b = (row if row < nby - 1 else nby - 1) * nbx + (col if col < nbx - 1 else nbx - 1)
+        key[i] = b
+        offsets[b + 1] += 1
     for b in range(nbx * nby):
         offsets[b + 1] += offsets[b]
-    fill = offsets[:-1].copy()
-    order = np.empty(n, dtype=np.int64)
+        fill[b] = offsets[b]
     for i in range(n):
         order[fill[key[i]]] = i
         fill[key[i]] += 1
-    return order, offsets
 
 
 @njit(nogil=True, cache=True)
@@ -163,7 +185,7 @@ def _has_duplicates(x, y, offsets):
     return False
 
 
-@njit(nogil=True, cache=True, inline="always")
+@njit(nogil=True, cache=True)
 def _insert(best_d2, best_i, count, k, d2, index):
     """Insert (d2, index) into the sorted best list of capacity k; return the new count."""
     if count == k and d2 >= best_d2[k - 1]:
@@ -178,42 +200,22 @@ def _insert(best_d2, best_i, count, k, d2, index):
     return count + 1 if count < k else count
 
 
-@njit(nogil=True, cache=True, inline="always")
-def _scan_bin(px, py, offsets, b, qx, qy, r2max, skip, k, best_d2, best_i, count):
-    for p in range(offsets[b], offsets[b + 1]):
-        if p == skip:
-            continue
-        dx = px[p] - qx
-        dy = py[p] - qy
-        d2 = dx * dx + dy * dy
-        if d2 <= r2max:
-            count = _insert(best_d2, best_i, count, k, d2, p)
-    return count
-
-
-@njit(nogil=True, cache=True, inline="always")
+@njit(nogil=True, cache=True)
 def _ring_start(x0, y0, size, nbx, nby, qx, qy):
     """Bin (ix, iy) of the query (possibly outside the grid), the distance from the query to
     that bin's border, and the first and last ring of bins worth searching."""
     fx = (qx - x0) / size
     fy = (qy - y0) / size
-    ix = int(math.floor(fx))
-    iy = int(math.floor(fy))
-    margin = min(fx - ix, ix + 1 - fx, fy - iy, iy + 1 - fy) * size
-    r0 = max(0, -ix, ix - (nbx - 1), -iy, iy - (nby - 1))
-    rmax = max(abs(ix), abs(ix - (nbx - 1)), abs(iy), abs(iy - (nby - 1)))
-    return ix, iy, margin, r0, rmax
-
-
-@njit(nogil=True, cache=True, inline="always")
-def block_scratch(npts, k, block):
-    """Work arrays of the block k-NN grid kernels: candidate x, y, index and distance (one per
-    point) and, per cell of a block, the k best distances and indices, the count found and
-    the nearest distance."""
-    cells = block * block
-    return (np.empty(npts), np.empty(npts), np.empty(npts, dtype=np.int64), np.empty(npts),
-            np.empty((cells, k)), np.empty((cells, k), dtype=np.int64),
-            np.empty(cells, dtype=np.int64), np.empty(cells))
+    ix = math.floor(fx)
+    iy = math.floor(fy)
+    mx = fx - ix if fx - ix < ix + 1 - fx else ix + 1 - fx
+    my = fy - iy if fy - iy < iy + 1 - fy else iy + 1 - fy
+    margin = (mx if mx < my else my) * size
+    ox = -ix if ix < 0 else (ix - (nbx - 1) if ix > nbx - 1 else 0)  # rings outside the grid
+    oy = -iy if iy < 0 else (iy - (nby - 1) if iy > nby - 1 else 0)
+    fx_ = ix if ix > nbx - 1 - ix else nbx - 1 - ix  # ring reaching the farthest bin column
+    fy_ = iy if iy > nby - 1 - iy else nby - 1 - iy
+    return ix, iy, margin, (ox if ox > oy else oy), (fx_ if fx_ > fy_ else fy_)
 
 
 @njit(nogil=True, cache=True)
@@ -222,39 +224,63 @@ def knn_one(px, py, offsets, x0, y0, size, nbx, nby, qx, qy, k, r2max, skip,
     """The k nearest points of (qx, qy) within sqrt(r2max), skipping index ``skip``.
 
     Fills ``best_d2[:count]``, ``best_i[:count]`` (nearest first) and returns ``count``.
+    Rings of bins around the query's bin are scanned outwards, each in bin order. (The ring
+    start and the insertion of :func:`_ring_start` and :func:`_insert` are written out here:
+    one function less to compile on a first run.)
     """
     count = 0
     if len(px) == 0 or k <= 0:
-        return 0
-    ix, iy, margin, r0, rmax = _ring_start(x0, y0, size, nbx, nby, qx, qy)
-    r = r0
+        return count
+    fx = (qx - x0) / size
+    fy = (qy - y0) / size
+    ix = math.floor(fx)
+    iy = math.floor(fy)
+    mx = fx - ix if fx - ix < ix + 1 - fx else ix + 1 - fx
+    my = fy - iy if fy - iy < iy + 1 - fy else iy + 1 - fy
+    margin = (mx if mx < my else my) * size
+    ox = -ix if ix < 0 else (ix - (nbx - 1) if ix > nbx - 1 else 0)
+    oy = -iy if iy < 0 else (iy - (nby - 1) if iy > nby - 1 else 0)
+    r = ox if ox > oy else oy
+    fx_ = ix if ix > nbx - 1 - ix else nbx - 1 - ix
+    fy_ = iy if iy > nby - 1 - iy else nby - 1 - iy
+    rmax = fx_ if fx_ > fy_ else fy_
     while r <= rmax:
         if r > 0:  # nearest possible point of ring r
             lower = (r - 1) * size + margin
             lower2 = lower * lower
-            if lower2 > r2max:
+            if lower2 > r2max or (count == k and best_d2[k - 1] <= lower2):
                 break
-            if count == k and best_d2[k - 1] <= lower2:
-                break
-        if r == 0:
-            if 0 <= ix < nbx and 0 <= iy < nby:
-                count = _scan_bin(px, py, offsets, iy * nbx + ix, qx, qy, r2max, skip, k,
-                                  best_d2, best_i, count)
-        else:
-            c0 = max(ix - r, 0)
-            c1 = min(ix + r, nbx - 1)
-            for row in (iy - r, iy + r):
-                if 0 <= row < nby:
-                    for col in range(c0, c1 + 1):
-                        count = _scan_bin(px, py, offsets, row * nbx + col, qx, qy, r2max,
-                                          skip, k, best_d2, best_i, count)
-            r0_ = max(iy - r + 1, 0)
-            r1_ = min(iy + r - 1, nby - 1)
-            for col in (ix - r, ix + r):
-                if 0 <= col < nbx:
-                    for row in range(r0_, r1_ + 1):
-                        count = _scan_bin(px, py, offsets, row * nbx + col, qx, qy, r2max,
-                                          skip, k, best_d2, best_i, count)
+        row = iy - r if iy - r > 0 else 0
+        row_end = iy + r if iy + r < nby - 1 else nby - 1
+        col_start = ix - r if ix - r > 0 else 0
+        col_end = ix + r if ix + r < nbx - 1 else nbx - 1
+        while row <= row_end:
+            edge_row = row == iy - r or row == iy + r
+            col = col_start
+            while col <= col_end:
+                if not edge_row and col != ix - r and col != ix + r:
+                    col = ix + r  # the ring's inside was scanned before
+                    continue
+                b = row * nbx + col
+                for p in range(offsets[b], offsets[b + 1]):
+                    if p == skip:
+                        continue
+                    dx = px[p] - qx
+                    dy = py[p] - qy
+                    d2 = dx * dx + dy * dy
+                    if d2 > r2max or (count == k and d2 >= best_d2[k - 1]):
+                        continue
+                    pos = count if count < k else k - 1
+                    while pos > 0 and best_d2[pos - 1] > d2:
+                        best_d2[pos] = best_d2[pos - 1]
+                        best_i[pos] = best_i[pos - 1]
+                        pos -= 1
+                    best_d2[pos] = d2
+                    best_i[pos] = p
+                    if count < k:
+                        count += 1
+                col += 1
+            row += 1
         r += 1
     return count
 
@@ -328,40 +354,38 @@ def sector_one(px, py, offsets, x0, y0, size, nbx, nby, qx, qy, sectors, per_sec
 
 
 @njit(nogil=True, cache=True)
-def _query_many(px, py, offsets, x0, y0, size, nbx, nby, qx, qy, k, r2max, skip):
-    nq = len(qx)
-    out_d2 = np.full((nq, k), np.inf)
-    out_i = np.full((nq, k), -1, dtype=np.int64)
-    best_d2 = np.empty(k)
-    best_i = np.empty(k, dtype=np.int64)
-    for q in range(nq):
+def _query_many(px, py, offsets, x0, y0, size, nbx, nby, qx, qy, k, r2max, skip, best_d2,
+                best_i, out_d2, out_i):
+    for q in range(len(qx)):
         count = knn_one(px, py, offsets, x0, y0, size, nbx, nby, qx[q], qy[q], k, r2max,
                         skip[q], best_d2, best_i)
         for t in range(count):
             out_d2[q, t] = best_d2[t]
             out_i[q, t] = best_i[t]
-    return out_d2, out_i
 
 
 @njit(nogil=True, cache=True)
-def _in_rect(px, py, offsets, x0, y0, size, nbx, nby, xmin, ymin, xmax, ymax):
-    c0 = max(0, int(math.floor((xmin - x0) / size)))
-    c1 = min(nbx - 1, int(math.floor((xmax - x0) / size)))
-    r0 = max(0, int(math.floor((ymin - y0) / size)))
-    r1 = min(nby - 1, int(math.floor((ymax - y0) / size)))
-    total = 0
-    for row in range(r0, r1 + 1):
-        total += offsets[row * nbx + c1 + 1] - offsets[row * nbx + c0] if c1 >= c0 else 0
-    out = np.empty(max(total, 0), dtype=np.int64)
+def _in_rect(px, py, offsets, nbx, c0, c1, r0, r1, xmin, ymin, xmax, ymax, out):
+    """Binned positions of the points of bins ``rows r0..r1 x cols c0..c1`` inside the
+    rectangle, into ``out[:m]``; returns ``m``."""
     m = 0
     for row in range(r0, r1 + 1):
-        if c1 < c0:
-            break
         for p in range(offsets[row * nbx + c0], offsets[row * nbx + c1 + 1]):
             if xmin <= px[p] <= xmax and ymin <= py[p] <= ymax:
                 out[m] = p
                 m += 1
-    return out[:m]
+    return m
+
+
+def block_scratch(npts: int, k: int, block: int) -> tuple:
+    """Work arrays of :func:`block_knn`, in its argument order: the k best of the ring search,
+    candidate x, y, index and distance (one per point) and, per cell of a block, the k best
+    distances and indices, the count found and the nearest distance."""
+    cells = block * block
+    return (np.empty(k), np.empty(k, dtype=np.int64),
+            np.empty(npts), np.empty(npts), np.empty(npts, dtype=np.int64), np.empty(npts),
+            np.empty((cells, k)), np.empty((cells, k), dtype=np.int64),
+            np.empty(cells, dtype=np.int64), np.empty(cells))
 
 
 @njit(nogil=True, cache=True)
@@ -376,8 +400,9 @@ def block_knn(px, py, offsets, x0, y0, size, nbx, nby, xs, ys, c0, c1, r0, r1, m
     the triangle inequality shows no later candidate can enter. Results go to
     ``out_d2[t, :out_n[t]]``, ``out_i[t, :out_n[t]]`` (binned positions, **in no particular
     order**) and ``out_near[t]`` (the smallest squared distance) for the block's cells in
-    row-major order ``t``; unmasked cells get ``out_n[t] = 0``. ``cand_*`` are work arrays of
-    the number of points. Among equal distances the candidate nearer the block centre wins.
+    row-major order ``t``; unmasked cells get ``out_n[t] = 0``. ``best_*`` and ``cand_*`` are
+    work arrays (see :func:`block_scratch`). Among equal distances the candidate nearer the
+    block centre wins.
     """
     bw = c1 - c0
     any_cell = False
@@ -388,30 +413,38 @@ def block_knn(px, py, offsets, x0, y0, size, nbx, nby, xs, ys, c0, c1, r0, r1, m
                 any_cell = True
     if not any_cell or len(px) == 0:
         return
-    xa, xb = min(xs[c0], xs[c1 - 1]), max(xs[c0], xs[c1 - 1])
-    ya, yb = min(ys[r0], ys[r1 - 1]), max(ys[r0], ys[r1 - 1])
+    xa, xb = xs[c0], xs[c1 - 1]
+    if xb < xa:
+        xa, xb = xb, xa
+    ya, yb = ys[r0], ys[r1 - 1]
+    if yb < ya:
+        ya, yb = yb, ya
     cx = 0.5 * (xa + xb)
     cy = 0.5 * (ya + yb)
-    half_diag = 0.5 * math.sqrt((xb - xa) ** 2 + (yb - ya) ** 2)
+    half_diag = 0.5 * math.sqrt((xb - xa) * (xb - xa) + (yb - ya) * (yb - ya))
     # np.int64(-1), not -1: a literal argument would compile a second knn_one
     count = knn_one(px, py, offsets, x0, y0, size, nbx, nby, cx, cy, k, r2max, np.int64(-1),
                     best_d2, best_i)
-    reach = math.inf
-    if count == k:  # (slack for the rounding of sqrt and of the squares below)
-        reach = (math.sqrt(best_d2[k - 1]) + half_diag) * (1.0 + 1e-9) + 1e-9 * size
     radius = math.sqrt(r2max)
-    reach = min(reach, radius)
+    reach = radius
+    if count == k:  # (slack for the rounding of sqrt and of the squares below)
+        bound = (math.sqrt(best_d2[k - 1]) + half_diag) * (1.0 + 1e-9) + 1e-9 * size
+        if bound < reach:
+            reach = bound
     # gather the candidates within reach of the block, sorted by distance to its centre
     m = 0
-    if reach == math.inf:
-        bc0, bc1, br0, br1 = 0, nbx - 1, 0, nby - 1
-        circle2 = math.inf
-    else:
-        circle2 = (reach + half_diag) ** 2
-        bc0 = max(0, int(math.floor((xa - reach - x0) / size)))
-        bc1 = min(nbx - 1, int(math.floor((xb + reach - x0) / size)))
-        br0 = max(0, int(math.floor((ya - reach - y0) / size)))
-        br1 = min(nby - 1, int(math.floor((yb + reach - y0) / size)))
+    bc0, bc1, br0, br1 = 0, nbx - 1, 0, nby - 1
+    circle2 = math.inf
+    if reach != math.inf:
+        circle2 = (reach + half_diag) * (reach + half_diag)
+        bc0 = math.floor((xa - reach - x0) / size)
+        bc1 = math.floor((xb + reach - x0) / size)
+        br0 = math.floor((ya - reach - y0) / size)
+        br1 = math.floor((yb + reach - y0) / size)
+        bc0 = bc0 if bc0 > 0 else 0
+        bc1 = bc1 if bc1 < nbx - 1 else nbx - 1
+        br0 = br0 if br0 > 0 else 0
+        br1 = br1 if br1 < nby - 1 else nby - 1
     if bc1 >= bc0:
         for row in range(br0, br1 + 1):
             for p in range(offsets[row * nbx + bc0], offsets[row * nbx + bc1 + 1]):
@@ -440,7 +473,7 @@ def block_knn(px, py, offsets, x0, y0, size, nbx, nby, xs, ys, c0, c1, r0, r1, m
                 continue
             t = (r - r0) * bw + (c - c0)
             qx = xs[c]
-            e = math.sqrt((qx - cx) ** 2 + (qy - cy) ** 2)
+            e = math.sqrt((qx - cx) * (qx - cx) + (qy - cy) * (qy - cy))
             n = 0
             worst = -1.0
             wpos = 0
@@ -490,17 +523,14 @@ def block_size(bins: PointBins, k: int, cell: float) -> int:
 
 
 @njit(nogil=True, cache=True)
-def _grid_knn(px, py, offsets, x0, y0, size, nbx, nby, xs, ys, mask, k, r2max, block, out_d2,
+def _grid_knn(px, py, offsets, x0, y0, size, nbx, nby, xs, ys, mask, k, r2max, block,
+              best_d2, best_i, cand_x, cand_y, cand_p, cand_d, bd2, bi, bn, bnear, out_d2,
               out_i):
-    npts = len(px)
-    best_d2 = np.empty(k)
-    best_i = np.empty(k, dtype=np.int64)
-    cand_x, cand_y, cand_p, cand_d, bd2, bi, bn, bnear = block_scratch(npts, k, block)
     h, w = mask.shape
     for r0 in range(0, h, block):
-        r1 = min(r0 + block, h)
+        r1 = r0 + block if r0 + block < h else h
         for c0 in range(0, w, block):
-            c1 = min(c0 + block, w)
+            c1 = c0 + block if c0 + block < w else w
             block_knn(px, py, offsets, x0, y0, size, nbx, nby, xs, ys, c0, c1, r0, r1, mask, k,
                       r2max, best_d2, best_i, cand_x, cand_y, cand_p, cand_d, bd2, bi, bn, bnear)
             for r in range(r0, r1):
@@ -530,7 +560,7 @@ def grid_knn(bins: PointBins, xs: np.ndarray, ys: np.ndarray, k: int, radius: fl
     out_i = np.full((len(ys), len(xs), k), -1, dtype=np.int64)
     r2 = radius * radius if math.isfinite(radius) else math.inf
     _grid_knn(*bins.args(), xs, ys, np.ascontiguousarray(mask, dtype=np.bool_), int(k), r2,
-              int(block), out_d2, out_i)
+              int(block), *block_scratch(len(bins), int(k), int(block)), out_d2, out_i)
     order = np.argsort(out_d2, axis=2, kind="stable")  # the search keeps them unordered
     out_d2 = np.take_along_axis(out_d2, order, axis=2)
     out_i = np.take_along_axis(out_i, order, axis=2)

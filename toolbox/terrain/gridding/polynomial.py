@@ -360,23 +360,14 @@ def fit_at_centre(dx, dy, z, n, order, min_rcond, gram, rhs, diag, coef):
 
 @njit(nogil=True, cache=True)
 def _grid(px, py, offsets, x0, y0, size, nbx, nby, pz, xs, ys, mask, k, r2max, order,
-          min_rcond, min_neighbours, max_d2, block, out, used_counts):
-    npts = len(px)
-    best_d2 = np.empty(k)
-    best_i = np.empty(k, dtype=np.int64)
-    cand_x, cand_y, cand_p, cand_d, bd2, bi, bn, bnear = block_scratch(npts, k, block)
-    dx = np.empty(k)
-    dy = np.empty(k)
-    zz = np.empty(k)
-    gram = np.empty((10, 10))
-    rhs = np.empty(10)
-    diag = np.empty(10)
-    coef = np.empty(10)
+          min_rcond, min_neighbours, max_d2, block, best_d2, best_i, cand_x, cand_y, cand_p,
+          cand_d, bd2, bi, bn, bnear, dx, dy, zz, gram, rhs, diag, coef, out, used_counts):
+    """Work arrays: ``block_scratch``, then :func:`_fit_scratch`."""
     h, w = mask.shape
     for r0 in range(0, h, block):
-        r1 = min(r0 + block, h)
+        r1 = r0 + block if r0 + block < h else h
         for c0 in range(0, w, block):
-            c1 = min(c0 + block, w)
+            c1 = c0 + block if c0 + block < w else w
             block_knn(px, py, offsets, x0, y0, size, nbx, nby, xs, ys, c0, c1, r0, r1, mask, k,
                       r2max, best_d2, best_i, cand_x, cand_y, cand_p, cand_d, bd2, bi, bn,
                       bnear)
@@ -401,16 +392,9 @@ def _grid(px, py, offsets, x0, y0, size, nbx, nby, pz, xs, ys, mask, k, r2max, o
 
 @njit(nogil=True, cache=True)
 def _loo(px, py, offsets, x0, y0, size, nbx, nby, pz, targets, k, r2max, order,
-         min_rcond, min_neighbours, max_d2, out, used):
-    best_d2 = np.empty(k)
-    best_i = np.empty(k, dtype=np.int64)
-    dx = np.empty(k)
-    dy = np.empty(k)
-    zz = np.empty(k)
-    gram = np.empty((10, 10))
-    rhs = np.empty(10)
-    diag = np.empty(10)
-    coef = np.empty(10)
+         min_rcond, min_neighbours, max_d2, best_d2, best_i, dx, dy, zz, gram, rhs, diag, coef,
+         out, used):
+    """Work arrays: the k best of the search, then :func:`_fit_scratch`."""
     for t_ in range(len(targets)):
         i = targets[t_]
         n = knn_one(px, py, offsets, x0, y0, size, nbx, nby, px[i], py[i], k, r2max, i,
@@ -425,6 +409,13 @@ def _loo(px, py, offsets, x0, y0, size, nbx, nby, pz, targets, k, r2max, order,
             zz[t] = pz[j]
         out[t_], used[t_] = fit_at_centre(dx, dy, zz, n, order, min_rcond, gram, rhs, diag,
                                           coef)
+
+
+def _fit_scratch(k: int) -> tuple:
+    """Work arrays of :func:`fit_at_centre` for up to k points: offsets dx, dy and heights,
+    then ``gram``, ``rhs``, ``diag``, ``coef``."""
+    return (np.empty(k), np.empty(k), np.empty(k), np.empty((10, 10)), np.empty(10),
+            np.empty(10), np.empty(10))
 
 
 def polynomial_grid(xyz: np.ndarray, xs: np.ndarray, ys: np.ndarray, mask: np.ndarray,
@@ -461,10 +452,11 @@ def polynomial_grid(xyz: np.ndarray, xs: np.ndarray, ys: np.ndarray, mask: np.nd
     counts = np.zeros(4, dtype=np.int64)
     xs = np.asarray(xs, "float64")
     ys = np.asarray(ys, "float64")
-    block = block_size(bins, neighbours, _cell(xs, ys))
+    k = int(neighbours)
+    block = block_size(bins, k, _cell(xs, ys))
     _grid(*bins.args(), bins.binned(xyz[:, 2]), xs, ys, np.ascontiguousarray(mask, dtype=np.bool_),
-          int(neighbours), _sq(radius), int(order), float(min_rcond), int(min_neighbours),
-          _sq(max_distance), block, out, counts)
+          k, _sq(radius), int(order), float(min_rcond), int(min_neighbours), _sq(max_distance),
+          block, *block_scratch(len(bins), k, block), *_fit_scratch(k), out, counts)
     return out, counts
 
 
@@ -479,9 +471,10 @@ def polynomial_loo(bins: PointBins, z: np.ndarray, targets: np.ndarray, order: i
     targets = np.asarray(targets, dtype=np.int64)
     out = np.full(len(targets), np.nan)
     used = np.full(len(targets), -1, dtype=np.int64)
-    _loo(*bins.args(), bins.binned(z), bins.positions()[targets], int(neighbours),
-         _sq(radius), int(order), float(min_rcond), int(min_neighbours), _sq(max_distance), out,
-         used)
+    k = int(neighbours)
+    _loo(*bins.args(), bins.binned(z), bins.positions()[targets], k, _sq(radius), int(order),
+         float(min_rcond), int(min_neighbours), _sq(max_distance), np.empty(k),
+         np.empty(k, dtype=np.int64), *_fit_scratch(k), out, used)
     return out, used
 
 

@@ -79,7 +79,8 @@ class NeighbourMethod(Method):
         from toolbox.terrain.gridding.grid import NeighbourPlanner
 
         k, radius = self.halo_neighbours(options)
-        planner = NeighbourPlanner(run.data.local, k, radius, run.data.bins)
+        planner = NeighbourPlanner(run.data.local, k, radius, run.data.bins,
+                                   run.single_tile)
         cell = max(run.grid.cell_size)
         origin = run.origin
 

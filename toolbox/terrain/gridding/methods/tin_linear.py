@@ -57,7 +57,8 @@ class TinLinearMethod(Method):
         with feedback.timed("tiles_index"):
             tin_tiles = TinTiles(nodes, triangles, run.grid, run.tile, origin)
         max_distance = options["max_distance"]
-        near = NeighbourPlanner(run.data.local, 1, max_distance, run.data.bins) \
+        near = NeighbourPlanner(run.data.local, 1, max_distance, run.data.bins,
+                                run.single_tile) \
             if math.isfinite(max_distance) else None
         cell = max(run.grid.cell_size)
 
