@@ -183,7 +183,7 @@ def project_tile_projective(z, a, m, cols, rows, box):
     col_max, row_max) and the number of NaN cells."""
     _projective_rows(z, 0, 0, z.shape[0], a, m, cols, rows)
     _start_box(box)
-    _extend_box(cols, rows, 0, z.shape[0], 0, z.shape[1], box)
+    _extend_box(cols, rows, 0, z.shape[0], 0, z.shape[1], np.inf, np.inf, box)
 
 
 @njit(**FAST)
@@ -215,12 +215,17 @@ def _projective_rows(z, zoff, i0, i1, a, m, cols, rows):
 
 
 @njit(**FAST)
-def _extend_box(cols, rows, i0, i1, j0, j1, box):
+def _extend_box(cols, rows, i0, i1, j0, j1, width, height, box):
     """Extend ``box`` (col_min, row_min, col_max, row_max, NaN count) by the float32 cells
-    ``[i0:i1, j0:j1]`` of ``cols``/``rows`` (NaN in both where there is no image point)."""
+    ``[i0:i1, j0:j1]`` of ``cols``/``rows`` (NaN in both where there is no image point); returns
+    how many of those with an image point are outside ``[0, width] x [0, height]``.
+
+    The floats are compared as order-preserving int32 (their bits, the negative ones' magnitude
+    flipped): integer min/max vectorise, float ones (NaN semantics) do not."""
+    limits = np.array([width, height], dtype=np.float32).view(np.int32)
     cmin = rmin = _KEY_MAX
     cmax = rmax = _KEY_MIN
-    missing = 0
+    missing = outside = 0
     ci, ri = cols.view(np.int32), rows.view(np.int32)
     for i in range(i0, i1):
         cr, rr = ci[i, j0:j1], ri[i, j0:j1]  # slices: no negative-index check, it vectorises
@@ -234,15 +239,19 @@ def _extend_box(cols, rows, i0, i1, j0, j1, box):
             rmin = min(rmin, _KEY_MAX if nan else kr)
             rmax = max(rmax, _KEY_MIN if nan else kr)
             missing += 1 if nan else 0
+            # -0.0 has the key -1: ">= -1" is the float ">= 0"
+            inside = (kc >= -1) & (kc <= limits[0]) & (kr >= -1) & (kr <= limits[1])
+            outside += 0 if nan | inside else 1
     box[4] += missing
     if missing == (i1 - i0) * (j1 - j0):
-        return
+        return outside
     keys = np.array([cmin, rmin, cmax, rmax], dtype=np.int32)
     values = (keys ^ ((keys >> 31) & _KEY_MAX)).astype(np.int32).view(np.float32)
     box[0] = min(box[0], values[0])
     box[1] = min(box[1], values[1])
     box[2] = max(box[2], values[2])
     box[3] = max(box[3], values[3])
+    return outside
 
 
 @njit(cache=True, error_model="numpy")
@@ -285,7 +294,7 @@ def project_tile_distorted(z, a, m, c, pp, dmode, dr, dd, dk, di, f2p, lipschitz
         _distorted_block_row(z, 0, bi, a, m, c, pp, dmode, dr, dd, dk, di, f2p, lipschitz_px,
                              block, tolerance_px, cols, rows, modes)
     _start_box(box)
-    _extend_box(cols, rows, 0, z.shape[0], 0, z.shape[1], box)
+    _extend_box(cols, rows, 0, z.shape[0], 0, z.shape[1], np.inf, np.inf, box)
 
 
 @njit(**FAST)
@@ -304,7 +313,7 @@ def _distorted_block_row(z, zoff, bi, a, m, c, pp, dmode, dr, dd, dk, di, f2p, l
         j0 = bj * block
         j1 = min(j0 + block, w) - 1
         _start_box(part)
-        _extend_box(cols, rows, i0, i1 + 1, j0, j1 + 1, part)
+        _extend_box(cols, rows, i0, i1 + 1, j0, j1 + 1, np.inf, np.inf, part)
         complete = part[4] == 0
         diagonal = math.sqrt((part[2] - part[0]) ** 2 + (part[3] - part[1]) ** 2) + 1e-3 \
             if complete else 0.0
@@ -387,29 +396,24 @@ def ortho_window(dem, dgx0, dgy0, dcx, dcy, xs, ys, a, m, c, pp, dmode, dr, dd, 
         i0 = bi * block
         i1 = min(i0 + block, h)
         zoff = 0 if keep else i0
-        _heights_rows(dem, dgy0, dcy, ys, jj, tx, i0, i1, zoff, zs)
+        outside_dem += _heights_rows(dem, dgy0, dcy, ys, jj, tx, i0, i1, zoff, zs)
         if dmode == 0:
             _projective_rows(zs, zoff, i0, i1, a, m, cols, rows)
             modes[bi, :] = BLOCK_PROJECTIVE
         else:
             _distorted_block_row(zs, zoff, bi, a, m, c, pp, dmode, dr, dd, dk, di, f2p,
                                  lipschitz_px, block, tolerance_px, cols, rows, modes)
-        _extend_box(cols, rows, i0, i1, 0, w, stats)
-        for i in range(i0, i1):
+        outside += _extend_box(cols, rows, i0, i1, 0, w, width, height, stats)
+        for i in range(-(-i0 // RELIEF_STEP) * RELIEF_STEP, i1, RELIEF_STEP):
             zr, cr, rr = zs[i - zoff], cols[i], rows[i]
-            for j in range(w):  # branch-free counts (& not and), so that it vectorises
-                u, v = cr[j], rr[j]
-                outside_dem += np.int64(math.isnan(zr[j]))
-                inside = (u >= 0.0) & (u <= width) & (v >= 0.0) & (v <= height)
-                outside += np.int64(~inside & (u == u))
-            if i % RELIEF_STEP == 0:
-                dy = ys[i] - y0
-                for j in range(0, w, RELIEF_STEP):
-                    u, v, zc = cr[j], rr[j], zr[j]
-                    if u >= 0.0 and u <= width and v >= 0.0 and v <= height:
-                        d = math.hypot(xs[j] - x0, dy) * abs(zc - reference_height) / (z0 - zc)
-                        if math.isfinite(d) and d > relief:
-                            relief = d
+            dy = ys[i] - y0
+            for j in range(0, w, RELIEF_STEP):
+                u, v, zc = cr[j], rr[j], zr[j]
+                if u >= 0.0 and u <= width and v >= 0.0 and v <= height:
+                    dx = xs[j] - x0
+                    d = math.sqrt(dx * dx + dy * dy) * abs(zc - reference_height) / (z0 - zc)
+                    if math.isfinite(d) and d > relief:
+                        relief = d
     stats[STAT_OUTSIDE_DEM] = outside_dem
     stats[STAT_OUTSIDE_PHOTO] = outside
     stats[STAT_MAX_RELIEF] = relief
@@ -533,22 +537,45 @@ def _dem_columns(cols, gx0, cx, xs, jj, tx):
 
 @njit(**FAST)
 def _heights_rows(dem, gy0, cy, ys, jj, tx, i0, i1, zoff, out):
-    """Rows ``i0:i1`` of :func:`heights_on_grid` into ``out[i0 - zoff:i1 - zoff]``."""
+    """Rows ``i0:i1`` of :func:`heights_on_grid` into ``out[i0 - zoff:i1 - zoff]``; returns the
+    number of NaN heights. The two DEM rows around a grid row are interpolated along x once
+    (kept while the grid rows stay between them), then every grid row is a blend of the two
+    (vectorised, no gathers)."""
     rows = dem.shape[0]
+    w = jj.shape[0]
+    top = np.empty(w)
+    bottom = np.empty(w)
+    held = -2
+    missing = 0
     for i in range(i0, i1):
         o = out[i - zoff]
         fy = (gy0 - ys[i]) / cy
         if not (fy >= 0.0 and fy <= rows - 1):
             o[:] = np.nan
+            missing += w
             continue
         r = min(int(fy), rows - 2)
         ty = fy - r
-        d0, d1 = dem[r], dem[r + 1]
-        for j in range(o.shape[0]):
-            c = jj[j]
-            t = tx[j]
-            o[j] = (d0[c] * (1.0 - t) + d0[c + 1] * t) * (1.0 - ty) + \
-                (d1[c] * (1.0 - t) + d1[c + 1] * t) * ty
+        if r == held + 1:  # the grid rows go south: the old bottom row is the new top
+            top, bottom = bottom, top
+            _dem_row_along_x(dem[r + 1], jj, tx, bottom)
+        elif r != held:
+            _dem_row_along_x(dem[r], jj, tx, top)
+            _dem_row_along_x(dem[r + 1], jj, tx, bottom)
+        held = r
+        for j in range(w):
+            o[j] = top[j] * (1.0 - ty) + bottom[j] * ty
+            missing += 1 if math.isnan(o[j]) else 0
+    return missing
+
+
+@njit(**FAST)
+def _dem_row_along_x(d, jj, tx, out):
+    """One DEM row interpolated at the grid columns (``jj``, ``tx`` of :func:`_dem_columns`)."""
+    for j in range(jj.shape[0]):
+        c = jj[j]
+        t = tx[j]
+        out[j] = d[c] * (1.0 - t) + d[c + 1] * t
 
 
 @njit(cache=True, nogil=True)
@@ -684,7 +711,8 @@ def relief_displacement(x: np.ndarray, y: np.ndarray, z: np.ndarray, centre: np.
     at each cell: ``ρ·|Z - Zref| / (Z0 - Z)`` with ρ the horizontal distance from the nadir
     point (brief section 15, eq. [49] in ground units). ``x``, ``y`` broadcast to ``z`` (e.g.
     ``xs[None, :]`` and ``ys[:, None]``)."""
-    rho = np.hypot(x - centre[0], y - centre[1])
+    dx, dy = x - centre[0], y - centre[1]
+    rho = np.sqrt(dx * dx + dy * dy)  # not hypot: the same operations as ortho_window
     with np.errstate(invalid="ignore", divide="ignore"):
         return rho * np.abs(z - reference_height) / (centre[2] - z)
 
