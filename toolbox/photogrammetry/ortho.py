@@ -172,37 +172,19 @@ def tile_matrices(model: SensorModel, gx0: float, gy0: float, cx: float, cy: flo
 # exception check): without the check LLVM vectorises the per-cell loops, 8x faster measured.
 # Their divisions are guarded or cannot meet zero; results are the same IEEE operations.
 FAST = {"cache": True, "nogil": True, "error_model": "numpy"}
-_KEY_MIN, _KEY_MAX = np.int32(-2 ** 31), np.int32(2 ** 31 - 1)
 
 
 @njit(**FAST)
-def project_tile_projective(z, a, m, cols, rows, ci, ri, box):
+def project_tile_projective(z, a, m, cols, rows):
     """Source pixels of a tile without distortion: exactly ``M·(j, i, Z, 1)`` per cell (see
-    :func:`tile_matrices`), NaN where Z is NaN or the point is not in front of the camera.
-    ``box`` (5,) gets the bounding box of the finite (float32) coordinates (col_min, row_min,
-    col_max, row_max) and the number of NaN cells; ``ci``, ``ri`` are int32 views of ``cols``
-    and ``rows``."""
-    _projective_rows(z, 0, 0, z.shape[0], a, m, cols, rows)
-    _start_box(box)
-    _extend_box(cols, rows, ci, ri, 0, z.shape[0], 0, z.shape[1], np.inf, np.inf, box)
-
-
-@njit(**FAST)
-def _start_box(box):
-    box[0] = box[1] = 1e300
-    box[2] = box[3] = -1e300
-    box[4] = 0.0
-
-
-@njit(**FAST)
-def _projective_rows(z, zoff, i0, i1, a, m, cols, rows):
-    """:func:`project_tile_projective` on the rows ``i0:i1`` of the tile (without the box),
-    their heights in ``z[i0 - zoff:i1 - zoff]``."""
-    w = z.shape[1]
+    :func:`tile_matrices`), NaN where Z is NaN or the point is not in front of the camera;
+    returns the number of NaN cells (the box: :func:`window_box`)."""
+    h, w = z.shape
     a20, a22 = a[2, 0], a[2, 2]
     m00, m02, m10, m12, m20, m22 = m[0, 0], m[0, 2], m[1, 0], m[1, 2], m[2, 0], m[2, 2]
-    for i in range(i0, i1):
-        zr, cr, rr = z[i - zoff], cols[i], rows[i]
+    missing = 0
+    for i in range(h):
+        zr, cr, rr = z[i], cols[i], rows[i]
         ud = m[0, 1] * i + m[0, 3]
         vd = m[1, 1] * i + m[1, 3]
         wd = m[2, 1] * i + m[2, 3]
@@ -213,58 +195,44 @@ def _projective_rows(z, zoff, i0, i1, a, m, cols, rows):
             q = 1.0 / (wd + m20 * j + m22 * zc)
             cr[j] = (ud + m00 * j + m02 * zc) * q if ahead else np.nan
             rr[j] = (vd + m10 * j + m12 * zc) * q if ahead else np.nan
+            missing += 0 if ahead else 1
+    return missing
 
 
-@njit(**FAST)
-def _extend_box(cols, rows, ci, ri, i0, i1, j0, j1, width, height, box):
-    """Extend ``box`` (col_min, row_min, col_max, row_max, NaN count) by the float32 cells
-    ``[i0:i1, j0:j1]`` of ``cols``/``rows`` (NaN in both where there is no image point; ``ci``,
-    ``ri`` their int32 views); returns how many of those with an image point are outside
-    ``[0, width] x [0, height]``.
-
-    The floats are compared as order-preserving integers (their bits, the negative ones'
-    magnitude flipped; :func:`_key_value` maps back): integer min/max vectorise, float ones
-    (NaN semantics) do not."""
-    cmin = rmin = _KEY_MAX
-    cmax = rmax = _KEY_MIN
-    missing = outside = 0
-    for i in range(i0, i1):
-        # slices: no negative-index check, so the loop vectorises
-        cr, rr, cf, rf = ci[i, j0:j1], ri[i, j0:j1], cols[i, j0:j1], rows[i, j0:j1]
-        for j in range(cr.shape[0]):
-            bc, br = cr[j], rr[j]
-            nan = (bc & _KEY_MAX) > np.int32(0x7F800000)
-            kc = bc ^ ((bc >> 31) & _KEY_MAX)
-            kr = br ^ ((br >> 31) & _KEY_MAX)
-            cmin = min(cmin, _KEY_MAX if nan else kc)
-            cmax = max(cmax, _KEY_MIN if nan else kc)
-            rmin = min(rmin, _KEY_MAX if nan else kr)
-            rmax = max(rmax, _KEY_MIN if nan else kr)
-            missing += 1 if nan else 0
-            u, v = cf[j], rf[j]
-            inside = (u >= 0.0) & (u <= width) & (v >= 0.0) & (v <= height)
-            outside += 0 if nan | inside else 1
-    box[4] += missing
-    if missing < (i1 - i0) * (j1 - j0):
-        box[0] = min(box[0], _key_value(cmin))
-        box[1] = min(box[1], _key_value(rmin))
-        box[2] = max(box[2], _key_value(cmax))
-        box[3] = max(box[3], _key_value(rmax))
-    return outside
+def window_box(cols: np.ndarray, rows: np.ndarray, box: np.ndarray) -> None:
+    """The bounding box of the finite ``cols``, ``rows`` into ``box[:4]`` (col_min, row_min,
+    col_max, row_max; 1e300 / -1e300 when there is none; ``box[4]`` must hold the number of NaN
+    cells). NumPy's fmin/fmax reductions are vectorised and skip NaN: 0.2 ms per Mpx."""
+    if box[4] < cols.size:
+        box[:4] = (np.fmin.reduce(cols, axis=None), np.fmin.reduce(rows, axis=None),
+                   np.fmax.reduce(cols, axis=None), np.fmax.reduce(rows, axis=None))
+    else:
+        box[:4] = (1e300, 1e300, -1e300, -1e300)
 
 
-@njit(**FAST)
-def _key_value(key):
-    """The float32 value (as a float) of an order-preserving key of :func:`_extend_box`."""
-    b = key if key >= 0 else key ^ 0x7FFFFFFF  # the float32 bits, as a signed integer
-    sign = -1.0 if b < 0 else 1.0
-    exponent = (b >> 23) & 0xFF
-    mantissa = b & 0x7FFFFF
-    if exponent == 0xFF:
-        return sign * math.inf
-    if exponent == 0:  # subnormal
-        return sign * math.ldexp(mantissa, -149)
-    return sign * math.ldexp(mantissa + 0x800000, exponent - 150)
+def block_modes(cols: np.ndarray, rows: np.ndarray, block: int, lipschitz_px: float,
+                tolerance_px: float) -> np.ndarray:
+    """Per block of ``block`` x ``block`` cells of a distortion-free map: BLOCK_INTERPOLATED
+    where every cell has an image point and ``lipschitz_px·D <= tolerance_px``, D the diagonal
+    of the block's pixel box (widened by 1e-3 px for the float32 rounding), else BLOCK_EXACT."""
+    h, w = cols.shape
+    nby, nbx = -(-h // block), -(-w // block)
+
+    def per_block(ufunc, values, fill):
+        """``ufunc`` reduced over every block (padded with ``fill``): down the block's rows
+        first (whole rows at a time, vectorised), then along the short result."""
+        if (nby * block, nbx * block) != (h, w):
+            values = np.pad(values, ((0, nby * block - h), (0, nbx * block - w)),
+                            constant_values=fill)
+        down = ufunc.reduce(values.reshape(nby, block, nbx * block), axis=1)
+        return ufunc.reduce(down.reshape(nby, nbx, block), axis=2)
+
+    gap = per_block(np.logical_or, np.isnan(cols), False)
+    size = np.hypot(per_block(np.fmax, cols, np.nan) - per_block(np.fmin, cols, np.nan),
+                    per_block(np.fmax, rows, np.nan) - per_block(np.fmin, rows, np.nan)) + 1e-3
+    with np.errstate(invalid="ignore"):
+        interpolate = ~gap & (lipschitz_px * size <= tolerance_px)
+    return np.where(interpolate, BLOCK_INTERPOLATED, BLOCK_EXACT).astype(np.int8)
 
 
 @njit(cache=True, error_model="numpy")
@@ -291,84 +259,58 @@ def _exact_pixel(a, j, i, zc, c, px, py, mt, dmode, dr, dd, dk, di):
 
 
 @njit(**FAST)
-def project_tile_distorted(z, a, m, c, pp, dmode, dr, dd, dk, di, f2p, lipschitz_px, block,
-                           tolerance_px, cols, rows, ci, ri, modes, box):
-    """Source pixels of a tile with radial distortion (see the module docstring).
+def distort_blocks(z, a, c, pp, dmode, dr, dd, dk, di, f2p, block, modes, cols, rows):
+    """Add the radial distortion to a distortion-free map (:func:`project_tile_projective`),
+    block by block as ``modes`` (:func:`block_modes`) says (see the module docstring).
 
-    Per block of ``block`` x ``block`` cells: the distortion-free pixels exactly at every cell
-    (``M`` of :func:`tile_matrices`); the distortion's pixel correction exactly at the block's
-    four corner cells (ideal point -> distortion -> principal point -> fiducial -> pixel, minus
-    the distortion-free pixel) and blended bilinearly inside when ``lipschitz_px·D <=
-    tolerance_px``, D the diagonal of the block's distortion-free pixel box (widened by 1e-3 px
-    for its float32 rounding); otherwise every cell exactly. ``modes`` (blocks_y, blocks_x)
-    gets BLOCK_INTERPOLATED or BLOCK_EXACT; ``box`` as in :func:`project_tile_projective`.
-    """
-    for bi in range(modes.shape[0]):
-        _distorted_block_row(z, 0, bi, a, m, c, pp, dmode, dr, dd, dk, di, f2p, lipschitz_px,
-                             block, tolerance_px, cols, rows, ci, ri, modes)
-    _start_box(box)
-    _extend_box(cols, rows, ci, ri, 0, z.shape[0], 0, z.shape[1], np.inf, np.inf, box)
-
-
-@njit(**FAST)
-def _distorted_block_row(z, zoff, bi, a, m, c, pp, dmode, dr, dd, dk, di, f2p, lipschitz_px,
-                         block, tolerance_px, cols, rows, ci, ri, modes):
-    """:func:`project_tile_distorted` on the blocks of block row ``bi`` (without the box), the
-    heights of tile row ``i`` in ``z[i - zoff]``."""
+    BLOCK_INTERPOLATED: the distortion's pixel correction exactly at the block's four corner
+    cells (ideal point -> distortion -> principal point -> fiducial -> pixel, minus the
+    distortion-free pixel), blended bilinearly inside; BLOCK_EXACT: every cell exactly."""
     h, w = cols.shape
     mt = _tuple9(f2p)
     px, py = pp[0], pp[1]
-    i0 = bi * block
-    i1 = min(i0 + block, h) - 1
-    _projective_rows(z, zoff, i0, i1 + 1, a, m, cols, rows)
-    part = np.empty(5)
-    for bj in range(modes.shape[1]):
-        j0 = bj * block
-        j1 = min(j0 + block, w) - 1
-        _start_box(part)
-        _extend_box(cols, rows, ci, ri, i0, i1 + 1, j0, j1 + 1, np.inf, np.inf, part)
-        complete = part[4] == 0
-        diagonal = math.sqrt((part[2] - part[0]) ** 2 + (part[3] - part[1]) ** 2) + 1e-3 \
-            if complete else 0.0
-        interpolate = complete and lipschitz_px * diagonal <= tolerance_px
-        modes[bi, bj] = BLOCK_INTERPOLATED if interpolate else BLOCK_EXACT
-        if not interpolate:
+    for bi in range(modes.shape[0]):
+        i0 = bi * block
+        i1 = min(i0 + block, h) - 1
+        for bj in range(modes.shape[1]):
+            j0 = bj * block
+            j1 = min(j0 + block, w) - 1
+            if modes[bi, bj] != BLOCK_INTERPOLATED:
+                for i in range(i0, i1 + 1):
+                    for j in range(j0, j1 + 1):
+                        cols[i, j], rows[i, j], _ = _exact_pixel(a, j, i, z[i, j], c, px, py,
+                                                                 mt, dmode, dr, dd, dk, di)
+                continue
+            d0u = d0v = d1u = d1v = d2u = d2v = d3u = d3v = 0.0
+            for k in range(4):
+                corner_i = i0 if k < 2 else i1
+                corner_j = j0 if k % 2 == 0 else j1
+                u, v, _ = _exact_pixel(a, corner_j, corner_i, z[corner_i, corner_j], c, px, py,
+                                       mt, dmode, dr, dd, dk, di)
+                du = u - cols[corner_i, corner_j]
+                dv = v - rows[corner_i, corner_j]
+                if k == 0:
+                    d0u, d0v = du, dv
+                elif k == 1:
+                    d1u, d1v = du, dv
+                elif k == 2:
+                    d2u, d2v = du, dv
+                else:
+                    d3u, d3v = du, dv
+            step_i = 1.0 / (i1 - i0) if i1 > i0 else 0.0
+            step_j = 1.0 / (j1 - j0) if j1 > j0 else 0.0
             for i in range(i0, i1 + 1):
-                for j in range(j0, j1 + 1):
-                    cols[i, j], rows[i, j], _ = _exact_pixel(a, j, i, z[i - zoff, j], c, px, py,
-                                                             mt, dmode, dr, dd, dk, di)
-            continue
-        # exact pixel correction at the four corner cells, blended inside
-        d0u = d0v = d1u = d1v = d2u = d2v = d3u = d3v = 0.0
-        for k in range(4):
-            corner_i = i0 if k < 2 else i1
-            corner_j = j0 if k % 2 == 0 else j1
-            u, v, _ = _exact_pixel(a, corner_j, corner_i, z[corner_i - zoff, corner_j], c, px,
-                                   py, mt, dmode, dr, dd, dk, di)
-            du = u - cols[corner_i, corner_j]
-            dv = v - rows[corner_i, corner_j]
-            if k == 0:
-                d0u, d0v = du, dv
-            elif k == 1:
-                d1u, d1v = du, dv
-            elif k == 2:
-                d2u, d2v = du, dv
-            else:
-                d3u, d3v = du, dv
-        step_i = 1.0 / (i1 - i0) if i1 > i0 else 0.0
-        step_j = 1.0 / (j1 - j0) if j1 > j0 else 0.0
-        for i in range(i0, i1 + 1):
-            ti = (i - i0) * step_i
-            # corrections along the block's top and bottom rows, blended down the rows
-            lu = d0u + ti * (d2u - d0u)
-            lv = d0v + ti * (d2v - d0v)
-            su = (d1u + ti * (d3u - d1u)) - lu
-            sv = (d1v + ti * (d3v - d1v)) - lv
-            cr, rr = cols[i, j0:j1 + 1], rows[i, j0:j1 + 1]
-            for j in range(cr.shape[0]):
-                tj = j * step_j
-                cr[j] = cr[j] + (lu + tj * su)
-                rr[j] = rr[j] + (lv + tj * sv)
+                ti = (i - i0) * step_i
+                # corrections along the block's top and bottom rows, blended down the rows
+                lu = d0u + ti * (d2u - d0u)
+                lv = d0v + ti * (d2v - d0v)
+                su = (d1u + ti * (d3u - d1u)) - lu
+                sv = (d1v + ti * (d3v - d1v)) - lv
+                cr, rr = cols[i, j0:j1 + 1], rows[i, j0:j1 + 1]  # slices: it vectorises
+                for j in range(cr.shape[0]):
+                    tj = j * step_j
+                    cr[j] = cr[j] + (lu + tj * su)
+                    rr[j] = rr[j] + (lv + tj * sv)
 
 
 #: fields of the ``stats`` array of :func:`ortho_window_projective`
@@ -393,9 +335,9 @@ def ortho_window_projective(dem, dgx0, dgy0, dcx, dcy, xs, ys, a, m, centre, ref
 
     The arithmetic of :func:`heights_on_grid` + :func:`project_tile_projective` (equal results,
     tested), written out in one function rather than calling their helpers, and the box left to
-    NumPy: numba compiles every called function on its own, and a cold start paid 8.5 s for the
-    helpers against 2 s for this (measured on the loaded 2-core machine).
-    """
+    NumPy (:func:`window_box`): numba compiles every called function on its own, and a cold
+    start paid 8.5 s for the helpers against 2 s for this (measured on the loaded 2-core
+    machine)."""
     h, w = ys.shape[0], xs.shape[0]
     nrow, ncol = dem.shape
     jj = np.empty(w, dtype=np.uint64)  # as _dem_columns; unsigned: the loops vectorise
@@ -461,78 +403,13 @@ def ortho_window_projective(dem, dgx0, dgy0, dcx, dcy, xs, ys, a, m, centre, ref
     stats[STAT_MAX_RELIEF] = relief
 
 
-def window_box(cols: np.ndarray, rows: np.ndarray, stats: np.ndarray) -> None:
-    """The bounding box of the finite ``cols``, ``rows`` into ``stats[:4]`` (1e300 / -1e300
-    when there is none; ``stats[STAT_MISSING]`` must hold the number of NaN cells). NumPy's
-    fmin/fmax reductions are vectorised and skip NaN: 0.2 ms per Mpx."""
-    if stats[STAT_MISSING] < cols.size:
-        stats[:4] = (np.fmin.reduce(cols, axis=None), np.fmin.reduce(rows, axis=None),
-                     np.fmax.reduce(cols, axis=None), np.fmax.reduce(rows, axis=None))
-    else:
-        stats[:4] = (1e300, 1e300, -1e300, -1e300)
-
-
-@njit(**FAST)
-def ortho_window_distorted(dem, dgx0, dgy0, dcx, dcy, xs, ys, a, m, c, pp, dmode, dr, dd, dk,
-                           di, f2p, lipschitz_px, block, tolerance_px, centre, reference_height,
-                           width, height, z, cols, rows, ci, ri, modes, stats):
-    """:func:`ortho_window_projective` with radial distortion, strip by strip of ``block`` rows
-    (the strip's heights stay in cache), the map of :func:`project_tile_distorted` (its
-    arguments; ``modes`` gets the block modes)."""
-    zs, jj, tx = _window_start(dem, dgx0, dcx, xs, ys, block, z, stats)
-    for bi in range(modes.shape[0]):
-        i0 = bi * block
-        i1 = min(i0 + block, ys.shape[0])
-        zoff = 0 if zs.shape[0] == ys.shape[0] else i0
-        stats[STAT_OUTSIDE_DEM] += _heights_rows(dem, dgy0, dcy, ys, jj, tx, i0, i1, zoff, zs)
-        _distorted_block_row(zs, zoff, bi, a, m, c, pp, dmode, dr, dd, dk, di, f2p,
-                             lipschitz_px, block, tolerance_px, cols, rows, ci, ri, modes)
-        _strip_statistics(zs, zoff, i0, i1, xs, ys, cols, rows, ci, ri, centre,
-                          reference_height, width, height, stats)
-
-
-@njit(**FAST)
-def _window_start(dem, dgx0, dcx, xs, ys, block, z, stats):
-    """Reset ``stats``; the heights buffer (``z`` when it has the window's shape, else one
-    strip) and the DEM columns of :func:`_dem_columns`."""
-    w = xs.shape[0]
-    zs = z if z.shape[0] == ys.shape[0] else np.empty((min(block, ys.shape[0]), w))
-    jj = np.empty(w, dtype=np.uint64)
-    tx = np.empty(w)
-    _dem_columns(dem.shape[1], dgx0, dcx, xs, jj, tx)
-    _start_box(stats)
-    stats[STAT_OUTSIDE_DEM] = stats[STAT_OUTSIDE_PHOTO] = stats[STAT_MAX_RELIEF] = 0.0
-    return zs, jj, tx
-
-
-@njit(**FAST)
-def _strip_statistics(zs, zoff, i0, i1, xs, ys, cols, rows, ci, ri, centre, reference_height,
-                      width, height, stats):
-    """Box, outside-photo count and relief displacement of rows ``i0:i1`` into ``stats``."""
-    stats[STAT_OUTSIDE_PHOTO] += _extend_box(cols, rows, ci, ri, i0, i1, 0, xs.shape[0], width,
-                                             height, stats)
-    x0, y0, z0 = centre[0], centre[1], centre[2]
-    relief = stats[STAT_MAX_RELIEF]
-    for i in range(-(-i0 // RELIEF_STEP) * RELIEF_STEP, i1, RELIEF_STEP):
-        zr, cr, rr = zs[i - zoff], cols[i], rows[i]
-        dy = ys[i] - y0
-        for j in range(0, xs.shape[0], RELIEF_STEP):
-            u, v, zc = cr[j], rr[j], zr[j]
-            if u >= 0.0 and u <= width and v >= 0.0 and v <= height:
-                dx = xs[j] - x0
-                d = math.sqrt(dx * dx + dy * dy) * abs(zc - reference_height) / (z0 - zc)
-                if math.isfinite(d) and d > relief:
-                    relief = d
-    stats[STAT_MAX_RELIEF] = relief
-
-
 class CollinearityMap:
     """Ground tile + its heights -> photo pixel coordinates (a plain callable).
 
     ``cmap(transform, z)``: ``transform`` the tile's affine (north-up, pixel corner -> ground),
     ``z`` (h, w) heights of its cell centres (NaN: none). Returns float32 ``(cols, rows)`` in the
     photo's pixel convention (NaN: no image point). ``last_modes`` keeps the block modes of the
-    last call (see :func:`project_tile_distorted`), ``last_box`` the bounding box of its finite
+    last call (see :func:`block_modes`), ``last_box`` the bounding box of its finite
     coordinates and its number of NaN cells (see :func:`project_tile_projective`).
     """
 
@@ -550,20 +427,29 @@ class CollinearityMap:
         return cols, rows
 
     def project(self, transform: Any, z: np.ndarray):
-        """``(cols, rows, block modes, box)`` of a tile (thread-safe: no state kept)."""
+        """``(cols, rows, block modes, box)`` of a tile (thread-safe: no state kept); ``box``
+        (col_min, row_min, col_max, row_max, NaN count) of the finite float32 coordinates."""
         z = np.ascontiguousarray(z, dtype="float64")
         cols, rows, modes, a, m = self._setup(transform, *z.shape)
-        s, b = self.model, self.block
         box = np.empty(5)
-        views = cols.view(np.int32), rows.view(np.int32)
-        if s.distortion[0] == 0:
-            project_tile_projective(z, a, m, cols, rows, *views, box)
-            modes[:] = BLOCK_PROJECTIVE
-        else:
-            project_tile_distorted(z, a, m, s.c, s.pp, *s.distortion, s.f2p,
-                                   s.lipschitz * s.f2p_condition, b, self.tolerance_px, cols,
-                                   rows, *views, modes, box)
+        box[4] = project_tile_projective(z, a, m, cols, rows)
+        self._distort(z, a, cols, rows, modes, box)
+        window_box(cols, rows, box)
         return cols, rows, modes, box
+
+    def _distort(self, z: np.ndarray, a: np.ndarray, cols: np.ndarray, rows: np.ndarray,
+                 modes: np.ndarray, box: np.ndarray) -> None:
+        """Add the distortion to a distortion-free map in place (:func:`block_modes`,
+        :func:`distort_blocks`) and recount its NaN cells into ``box[4]``; only the modes
+        without distortion."""
+        s = self.model
+        if s.distortion[0] == 0:
+            modes[:] = BLOCK_PROJECTIVE
+            return
+        modes[:] = block_modes(cols, rows, self.block, s.lipschitz * s.f2p_condition,
+                               self.tolerance_px)
+        distort_blocks(z, a, s.c, s.pp, *s.distortion, s.f2p, self.block, modes, cols, rows)
+        box[4] = np.count_nonzero(np.isnan(cols))
 
     def _setup(self, transform: Any, h: int, w: int):
         """Output arrays (cols, rows, modes) and the matrices of :func:`tile_matrices`."""
@@ -579,29 +465,31 @@ class CollinearityMap:
 
     def project_on_dem(self, transform: Any, xs: np.ndarray, ys: np.ndarray, dem: tuple,
                        centre: np.ndarray, reference_height: float, keep_heights: bool = False):
-        """Heights and map of a tile in one pass (:func:`ortho_window_projective`, or
-        :func:`ortho_window_distorted`): ``dem`` = (array, x
-        and y of the centre of its cell [0, 0], cell sizes) as :meth:`DemSampler.part
+        """Heights and map of a tile in one pass (:func:`ortho_window_projective`, then the
+        distortion as :meth:`project` adds it): ``dem`` = (array, x and y of the centre of its
+        cell [0, 0], cell sizes) as :meth:`DemSampler.part
         <toolbox.photogrammetry.orthophoto.DemSampler.part>` gives it, ``xs``/``ys`` the
-        tile's cell centres. Returns ``(cols, rows, modes, stats, z)``, ``stats`` as
-        :func:`ortho_window_projective` and ``z`` the heights (None unless ``keep_heights``)."""
+        tile's cell centres. Returns ``(cols, rows, modes, stats, z)``: ``stats`` as
+        :func:`ortho_window_projective` with the box in ``stats[:4]``, but only ``stats[:5]``
+        with distortion (then the heights ``z`` are always returned; otherwise None unless
+        ``keep_heights``)."""
         h, w = len(ys), len(xs)
         cols, rows, modes, a, m = self._setup(transform, h, w)
         s = self.model
+        keep_heights = keep_heights or s.distortion[0] != 0
         z = np.empty((h, w) if keep_heights else (0, 0))
-        stats = np.empty(8)
-        part = (dem[0], *(float(v) for v in dem[1:]), np.ascontiguousarray(xs, dtype="float64"),
-                np.ascontiguousarray(ys, dtype="float64"), a, m)
-        tail = (np.asarray(centre, dtype="float64"), float(reference_height), float(s.width),
-                float(s.height), z, cols, rows)
-        if s.distortion[0] == 0:
-            ortho_window_projective(*part, *tail, stats)
-            window_box(cols, rows, stats)
-            modes[:] = BLOCK_PROJECTIVE
+        stats = np.full(8, np.nan)
+        ortho_window_projective(dem[0], *(float(v) for v in dem[1:]),
+                                np.ascontiguousarray(xs, dtype="float64"),
+                                np.ascontiguousarray(ys, dtype="float64"), a, m,
+                                np.asarray(centre, dtype="float64"), float(reference_height),
+                                float(s.width), float(s.height), z, cols, rows, stats)
+        if s.distortion[0] != 0:
+            stats[STAT_OUTSIDE_DEM:] = np.nan  # counted on the distortion-free map
+            self._distort(z, a, cols, rows, modes, stats)
         else:
-            ortho_window_distorted(*part, s.c, s.pp, *s.distortion, s.f2p,
-                                   s.lipschitz * s.f2p_condition, self.block, self.tolerance_px,
-                                   *tail, cols.view(np.int32), rows.view(np.int32), modes, stats)
+            modes[:] = BLOCK_PROJECTIVE
+        window_box(cols, rows, stats)
         return cols, rows, modes, stats, z if keep_heights else None
 
 
