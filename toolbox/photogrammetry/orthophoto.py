@@ -27,6 +27,14 @@ from toolbox.errors import InputDataError
 from toolbox.photogrammetry.ortho import (
     DEFAULT_BLOCK,
     DEFAULT_TOLERANCE_PX,
+    STAT_COL_MAX,
+    STAT_COL_MIN,
+    STAT_MAX_RELIEF,
+    STAT_MISSING,
+    STAT_OUTSIDE_DEM,
+    STAT_OUTSIDE_PHOTO,
+    STAT_ROW_MAX,
+    STAT_ROW_MIN,
     CollinearityMap,
     block_maxima,
     check_geometry,
@@ -145,6 +153,17 @@ class DemSampler:
         within 1/1000 of a DEM cell)."""
         return lattice_transform(self.transformer, xs, ys, 1e-3 * abs(self.transform.a))
 
+    def part(self, xs: np.ndarray, ys: np.ndarray) -> tuple | None:
+        """The DEM cells under the grid ``xs`` x ``ys`` (output CRS = the DEM's) as
+        :func:`~toolbox.photogrammetry.ortho.heights_on_grid` takes them: (contiguous float64
+        array, x and y of the centre of its cell [0, 0], cell width and height); None outside
+        the DEM."""
+        part = self._read((float(np.min(xs)), float(np.min(ys)), float(np.max(xs)),
+                           float(np.max(ys))))
+        if part is None:
+            return None
+        return (np.ascontiguousarray(part[0]), *part[1:])
+
     def heights(self, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
         """Heights (h, w) float64 at the grid of cell centres ``xs`` (w,) x ``ys`` (h,) (output
         CRS), NaN where the DEM has none."""
@@ -152,9 +171,9 @@ class DemSampler:
         ys = np.ascontiguousarray(ys, dtype="float64")
         out = np.full((len(ys), len(xs)), np.nan)
         if self.transformer is None:
-            part = self._read((xs.min(), ys.min(), xs.max(), ys.max()))
+            part = self.part(xs, ys)
             if part is not None:
-                heights_on_grid(np.ascontiguousarray(part[0]), *part[1:], xs, ys, out)
+                heights_on_grid(*part, xs, ys, out)
             return out
         dx, dy = self._to_dem(xs, ys)
         finite = np.isfinite(dx) & np.isfinite(dy)
@@ -423,6 +442,11 @@ class OrthoWindows:
     def _compute(self, window: Any):
         xs, ys = self.grid.cell_centers(window)
         cell_x, cell_y = self.grid.cell_size
+        if (self.incidence_writer is None and self.to_orientation is None
+                and self.sampler.transformer is None):
+            part = self.sampler.part(xs, ys)
+            if part is not None:
+                return self._compute_fused(window, xs, ys, part)
         if self.incidence_writer is not None:
             xh = np.concatenate([[xs[0] - cell_x], xs, [xs[-1] + cell_x]])
             yh = np.concatenate([[ys[0] + cell_y], ys, [ys[-1] - cell_y]])
@@ -447,6 +471,13 @@ class OrthoWindows:
                             rows[finite].max(), z.size - finite.sum()]) if finite.any() else \
                 np.array([np.inf, np.inf, -np.inf, -np.inf, z.size])
             modes = np.zeros((0, 0), dtype=np.int8)  # no blocks: every point exact
+        return self._finish(window, xs, ys, gx, gy, z, cols, rows, modes, box)
+
+    def _finish(self, window: Any, xs: np.ndarray, ys: np.ndarray, gx: np.ndarray,
+                gy: np.ndarray, z: np.ndarray, cols: np.ndarray, rows: np.ndarray,
+                modes: np.ndarray, box: np.ndarray):
+        """Visibility test (optional) and statistics of a window's map; ``(cols, rows, box or
+        None)`` as :meth:`source_bounds` needs them."""
         cmin, rmin, cmax, rmax, missing = box
         stats = TileStatistics(cells=z.size)
         nan_z = np.isnan(z)
@@ -484,6 +515,31 @@ class OrthoWindows:
         stats.blocks = {k: int(counts[k]) for k in range(3)}
         self.per_window[self._key(window)] = stats
         return cols, rows, box if every_cell else None
+
+    def _compute_fused(self, window: Any, xs: np.ndarray, ys: np.ndarray, part: tuple):
+        """:meth:`_compute` with the heights, the map and the statistics in one kernel pass
+        (:meth:`CollinearityMap.project_on_dem`); the visibility test, when asked, follows on
+        the kept heights."""
+        hidden_test = self.surface is not None
+        cols, rows, modes, s, z = self.cmap.project_on_dem(
+            self.grid.window_transform(window), xs, ys, part, self.centre,
+            self.reference_height, keep_heights=hidden_test)
+        if hidden_test or np.isnan(s[STAT_OUTSIDE_PHOTO]):
+            # counts after the visibility test (it blanks cells) or after the distortion
+            return self._finish(window, xs, ys, xs[None, :], ys[:, None], z, cols, rows, modes,
+                                s[:5])
+        stats = TileStatistics(cells=cols.size, outside_dem=int(s[STAT_OUTSIDE_DEM]),
+                               outside_photo=int(s[STAT_OUTSIDE_PHOTO]),
+                               max_relief_m=float(s[STAT_MAX_RELIEF]))
+        counts = np.bincount(modes.ravel(), minlength=3)
+        stats.blocks = {k: int(counts[k]) for k in range(3)}
+        self.per_window[self._key(window)] = stats
+        missing = int(s[STAT_MISSING])
+        if missing == cols.size:
+            return cols, rows, None
+        box = (float(s[STAT_COL_MIN]), float(s[STAT_ROW_MIN]), float(s[STAT_COL_MAX]),
+               float(s[STAT_ROW_MAX]))
+        return cols, rows, box if missing == 0 else None
 
     def totals(self) -> TileStatistics:
         """Sums over the windows, without the parents of windows the warp split in four."""
