@@ -125,11 +125,13 @@ def run_case(name: str, work: Path, n_points: int) -> dict:
         seconds = time.perf_counter() - t0
         facts.update(counts)
         facts["megabytes"] = round(sum(f.stat().st_size for f in work.glob(f"{name}*")) / 2**20, 1)
-    elif name in ("delaunay_cli", "delaunay_breaklines_cli", "delaunay_lean_cli"):
+    elif name in ("delaunay_cli", "delaunay_breaklines_cli", "delaunay_lean_cli",
+                  "delaunay_parquet_cli"):
         import toolbox
         from toolbox.feedback import Feedback
 
-        params = {"INPUT": work / "points.gpkg", "OUTPUT": work / f"{name}.gpkg"}
+        ext = ".parquet" if name == "delaunay_parquet_cli" else ".gpkg"
+        params = {"INPUT": work / "points.gpkg", "OUTPUT": work / f"{name}{ext}"}
         if name == "delaunay_breaklines_cli":
             params["BREAKLINES"] = work / "breaklines.gpkg"
         if name == "delaunay_lean_cli":
@@ -264,7 +266,7 @@ def main(small: bool = False) -> str:
         rounds = [{name: measure(name, work, n_points) for name in short} for _ in range(3)]
         r = {name: min((x[name] for x in rounds), key=lambda m: m["seconds"]) for name in short}
         r.update({name: measure(name, work, n_points) for name in (
-            "scipy", *WRITE_CASES, "delaunay_cli", "delaunay_lean_cli",
+            "scipy", *WRITE_CASES, "delaunay_cli", "delaunay_lean_cli", "delaunay_parquet_cli",
             "delaunay_breaklines_cli", "rasterize_kernel", "to_raster_cli",
             "to_raster_parquet_cli")})
         gdal = measure_gdal_grid(work, n_points)
@@ -317,6 +319,8 @@ def table(r: dict, gdal: dict | None, n_points: int, width: int, max_diff: float
         row("write TIN GeoParquet (3 files)", r["write_parquet"], "", None),
         row("tin:delaunay end to end (read GPKG, build, write)", r["delaunay_cli"], "", None),
         row("tin:delaunay, EDGES=false SPATIAL_INDEX=false", r["delaunay_lean_cli"], "", None),
+        row("tin:delaunay end to end, OUTPUT tin.parquet (GeoParquet, the big-TIN format)",
+            r["delaunay_parquet_cli"], "", None),
         row("tin:delaunay with breaklines, end to end", r["delaunay_breaklines_cli"], "", None),
         row(f"rasterise TIN to {width}x{width} (kernel)", r["rasterize_kernel"],
             "gdal_grid -a linear", gdal),
@@ -330,7 +334,9 @@ def table(r: dict, gdal: dict | None, n_points: int, width: int, max_diff: float
         f"{r['write_gpkg'].get('megabytes', 0)} MB (FlatGeobuf "
         f"{r['write_fgb'].get('megabytes', 0)} MB, GeoParquet "
         f"{r['write_parquet'].get('megabytes', 0)} MB). tin:delaunay step timings (s): "
-        f"{r['delaunay_cli'].get('timings')}.",
+        f"{r['delaunay_cli'].get('timings')}; to GeoParquet: "
+        f"{r['delaunay_parquet_cli'].get('timings')}. Big TINs: write `--OUTPUT tin.parquet` "
+        "(or `.fgb`); a GeoPackage is bound by GDAL's per-feature SQLite inserts and R-tree.",
     ]
     if max_diff is not None:
         lines.append(f"tin:to_raster vs gdal_grid -a linear, largest |difference| where both "
