@@ -108,6 +108,27 @@ def test_slope_and_aspect_of_a_plane_are_exact(plane_dem, tmp_path):
         np.testing.assert_allclose(c.read(1), np.degrees(np.arctan2(-sx, -sy)) % 360, atol=5e-3)
 
 
+@pytest.mark.parametrize("dtype", ["float64", "int16"])
+def test_dems_of_other_types_are_read_without_loss(tmp_path, dtype):
+    # float32 DEMs (and 8/16-bit ones, which float32 holds exactly) are read as float32; a
+    # float64 DEM stays float64: a plane 5,000 km up keeps its slope (float32 would step 0.5 m)
+    from affine import Affine
+
+    rows, cols, cell = 40, 50, 2.0
+    step_x, step_y = (0.4, 0.2) if dtype == "float64" else (2, 1)  # per cell, east and south
+    base = 5e6 if dtype == "float64" else 1000
+    z = base + step_x * np.arange(cols)[None, :] + step_y * np.arange(rows)[:, None]
+    path = tmp_path / f"plane_{dtype}.tif"
+    write_raster(path, z.astype(dtype), Affine(cell, 0, 1688000.0, 0, -cell, 4800000.0), CRS,
+                 nodata=-9999)
+    out = tmp_path / "slope.tif"
+    toolbox.run("dem:slope", {"INPUT": path, "OUTPUT": out, "TILE_SIZE": 16})
+    with rasterio.open(out) as ds:
+        got = ds.read(1)
+    expected = np.degrees(np.arctan(np.hypot(step_x / cell, step_y / cell)))
+    np.testing.assert_allclose(got, expected, atol=1e-3)
+
+
 def test_raster_hillshade_is_an_alias_of_dem_hillshade(plane_dem, tmp_path):
     assert get("raster:hillshade") is get("dem:hillshade")
     out = tmp_path / "hs.tif"
