@@ -190,6 +190,8 @@ def test_mask_polygon_and_max_distance(data, tmp_path):
 
 @pytest.mark.parametrize("alg,extra", [("dem:idw", {}), ("dem:quadratic", {}),
                                        ("dem:tin_linear", {}),
+                                       ("dem:tin_linear", {"MAX_DISTANCE": 4}),
+                                       ("dem:nearest", {"MAX_DISTANCE": 4}),
                                        ("dem:idw", {"SECTORS": 4, "RADIUS": 15}),
                                        ("dem:cubic", {"RADIUS": 8, "MIN_NEIGHBOURS": 4})])
 def test_tiles_with_halo_give_the_untiled_result(alg, extra, data, tmp_path):
