@@ -236,23 +236,16 @@ def block_modes(cols: np.ndarray, rows: np.ndarray, block: int, lipschitz_px: fl
 
 
 @njit(cache=True, error_model="numpy")
-def _ideal(a, j, i, zc, c):
-    """Ideal image mm (relative to the principal point) of cell (j, i) at height zc; ok flag."""
-    den = a[2, 0] * j + a[2, 1] * i + a[2, 2] * zc + a[2, 3]
-    if not den < 0.0:
-        return 0.0, 0.0, False
-    q = -c / den
-    return ((a[0, 0] * j + a[0, 1] * i + a[0, 2] * zc + a[0, 3]) * q,
-            (a[1, 0] * j + a[1, 1] * i + a[1, 2] * zc + a[1, 3]) * q, True)
-
-
-@njit(cache=True, error_model="numpy")
 def _exact_pixel(a, j, i, zc, c, px, py, mt, dmode, dr, dd, dk, di):
     """Photo pixel of cell (j, i) at height zc with the distortion (ideal point -> distortion
-    -> principal point -> fiducial -> pixel); ok flag."""
-    xi, eta, ok = _ideal(a, j, i, zc, c)
-    if not ok:
+    -> principal point -> fiducial -> pixel); ok flag. One function with the ideal point (a
+    function more is a compilation more)."""
+    den = a[2, 0] * j + a[2, 1] * i + a[2, 2] * zc + a[2, 3]
+    if not den < 0.0:  # behind the camera, or NaN height
         return np.nan, np.nan, False
+    q = -c / den
+    xi = (a[0, 0] * j + a[0, 1] * i + a[0, 2] * zc + a[0, 3]) * q
+    eta = (a[1, 0] * j + a[1, 1] * i + a[1, 2] * zc + a[1, 3]) * q
     xd, yd = _distort(xi, eta, dmode, dr, dd, dk, di)
     u, v = _project2d(mt, xd + px, yd + py)
     return u, v, True
