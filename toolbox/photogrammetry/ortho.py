@@ -236,23 +236,16 @@ def block_modes(cols: np.ndarray, rows: np.ndarray, block: int, lipschitz_px: fl
 
 
 @njit(cache=True, error_model="numpy")
-def _ideal(a, j, i, zc, c):
-    """Ideal image mm (relative to the principal point) of cell (j, i) at height zc; ok flag."""
-    den = a[2, 0] * j + a[2, 1] * i + a[2, 2] * zc + a[2, 3]
-    if not den < 0.0:
-        return 0.0, 0.0, False
-    q = -c / den
-    return ((a[0, 0] * j + a[0, 1] * i + a[0, 2] * zc + a[0, 3]) * q,
-            (a[1, 0] * j + a[1, 1] * i + a[1, 2] * zc + a[1, 3]) * q, True)
-
-
-@njit(cache=True, error_model="numpy")
 def _exact_pixel(a, j, i, zc, c, px, py, mt, dmode, dr, dd, dk, di):
     """Photo pixel of cell (j, i) at height zc with the distortion (ideal point -> distortion
-    -> principal point -> fiducial -> pixel); ok flag."""
-    xi, eta, ok = _ideal(a, j, i, zc, c)
-    if not ok:
+    -> principal point -> fiducial -> pixel); ok flag. One function with the ideal point (a
+    function more is a compilation more)."""
+    den = a[2, 0] * j + a[2, 1] * i + a[2, 2] * zc + a[2, 3]
+    if not den < 0.0:  # behind the camera, or NaN height
         return np.nan, np.nan, False
+    q = -c / den
+    xi = (a[0, 0] * j + a[0, 1] * i + a[0, 2] * zc + a[0, 3]) * q
+    eta = (a[1, 0] * j + a[1, 1] * i + a[1, 2] * zc + a[1, 3]) * q
     xd, yd = _distort(xi, eta, dmode, dr, dd, dk, di)
     u, v = _project2d(mt, xd + px, yd + py)
     return u, v, True
@@ -403,6 +396,36 @@ def ortho_window_projective(dem, dgx0, dgy0, dcx, dcy, xs, ys, a, m, centre, ref
     stats[STAT_MAX_RELIEF] = relief
 
 
+@njit(**FAST)
+def count_window(z, xs, ys, cols, rows, centre, reference_height, width, height, stats):
+    """The counts of :func:`ortho_window_projective` (``stats[4:]``) recomputed on a final map
+    (after the distortion), from the window's heights ``z``: the same loops."""
+    missing = outside = no_height = 0
+    relief = 0.0
+    x0, y0, z0 = centre[0], centre[1], centre[2]
+    for i in range(ys.shape[0]):
+        zr, cr, rr = z[i], cols[i], rows[i]
+        for j in range(xs.shape[0]):  # branch-free, so that it vectorises
+            u, v = cr[j], rr[j]
+            no_height += 1 if math.isnan(zr[j]) else 0
+            missing += 1 if math.isnan(u) else 0
+            inside = (u >= 0.0) & (u <= width) & (v >= 0.0) & (v <= height)
+            outside += 0 if inside | math.isnan(u) else 1
+        if i % RELIEF_STEP == 0:
+            dy = ys[i] - y0
+            for j in range(0, xs.shape[0], RELIEF_STEP):
+                u, v, zc = cr[j], rr[j], zr[j]
+                if u >= 0.0 and u <= width and v >= 0.0 and v <= height:
+                    dx = xs[j] - x0
+                    disp = math.sqrt(dx * dx + dy * dy) * abs(zc - reference_height) / (z0 - zc)
+                    if math.isfinite(disp) and disp > relief:
+                        relief = disp
+    stats[STAT_MISSING] = missing
+    stats[STAT_OUTSIDE_DEM] = no_height
+    stats[STAT_OUTSIDE_PHOTO] = outside
+    stats[STAT_MAX_RELIEF] = relief
+
+
 class CollinearityMap:
     """Ground tile + its heights -> photo pixel coordinates (a plain callable).
 
@@ -438,10 +461,10 @@ class CollinearityMap:
         return cols, rows, modes, box
 
     def _distort(self, z: np.ndarray, a: np.ndarray, cols: np.ndarray, rows: np.ndarray,
-                 modes: np.ndarray, box: np.ndarray) -> None:
+                 modes: np.ndarray, box: np.ndarray, recount: bool = True) -> None:
         """Add the distortion to a distortion-free map in place (:func:`block_modes`,
-        :func:`distort_blocks`) and recount its NaN cells into ``box[4]``; only the modes
-        without distortion."""
+        :func:`distort_blocks`) and (``recount``) count its NaN cells into ``box[4]``; only
+        the modes without distortion."""
         s = self.model
         if s.distortion[0] == 0:
             modes[:] = BLOCK_PROJECTIVE
@@ -449,7 +472,8 @@ class CollinearityMap:
         modes[:] = block_modes(cols, rows, self.block, s.lipschitz * s.f2p_condition,
                                self.tolerance_px)
         distort_blocks(z, a, s.c, s.pp, *s.distortion, s.f2p, self.block, modes, cols, rows)
-        box[4] = np.count_nonzero(np.isnan(cols))
+        if recount:
+            box[4] = np.count_nonzero(np.isnan(cols))
 
     def _setup(self, transform: Any, h: int, w: int):
         """Output arrays (cols, rows, modes) and the matrices of :func:`tile_matrices`."""
@@ -470,23 +494,23 @@ class CollinearityMap:
         cell [0, 0], cell sizes) as :meth:`DemSampler.part
         <toolbox.photogrammetry.orthophoto.DemSampler.part>` gives it, ``xs``/``ys`` the
         tile's cell centres. Returns ``(cols, rows, modes, stats, z)``: ``stats`` as
-        :func:`ortho_window_projective` with the box in ``stats[:4]``, but only ``stats[:5]``
-        with distortion (then the heights ``z`` are always returned; otherwise None unless
-        ``keep_heights``)."""
+        :func:`ortho_window_projective` with the box in ``stats[:4]`` (with distortion its
+        counts by :func:`count_window`), ``z`` the heights (None unless ``keep_heights``)."""
         h, w = len(ys), len(xs)
         cols, rows, modes, a, m = self._setup(transform, h, w)
         s = self.model
-        keep_heights = keep_heights or s.distortion[0] != 0
-        z = np.empty((h, w) if keep_heights else (0, 0))
+        keep = keep_heights or s.distortion[0] != 0  # the distortion pass needs them
+        z = np.empty((h, w) if keep else (0, 0))
         stats = np.full(8, np.nan)
+        xs = np.ascontiguousarray(xs, dtype="float64")
+        ys = np.ascontiguousarray(ys, dtype="float64")
+        tail = (np.asarray(centre, dtype="float64"), float(reference_height), float(s.width),
+                float(s.height))
         ortho_window_projective(dem[0], *(float(v) for v in dem[1:]),
-                                np.ascontiguousarray(xs, dtype="float64"),
-                                np.ascontiguousarray(ys, dtype="float64"), a, m,
-                                np.asarray(centre, dtype="float64"), float(reference_height),
-                                float(s.width), float(s.height), z, cols, rows, stats)
+                                xs, ys, a, m, *tail, z, cols, rows, stats)
         if s.distortion[0] != 0:
-            stats[STAT_OUTSIDE_DEM:] = np.nan  # counted on the distortion-free map
-            self._distort(z, a, cols, rows, modes, stats)
+            self._distort(z, a, cols, rows, modes, stats, recount=False)
+            count_window(z, xs, ys, cols, rows, *tail, stats)
         else:
             modes[:] = BLOCK_PROJECTIVE
         window_box(cols, rows, stats)

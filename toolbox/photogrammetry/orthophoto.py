@@ -524,8 +524,7 @@ class OrthoWindows:
         cols, rows, modes, s, z = self.cmap.project_on_dem(
             self.grid.window_transform(window), xs, ys, part, self.centre,
             self.reference_height, keep_heights=hidden_test)
-        if hidden_test or np.isnan(s[STAT_OUTSIDE_PHOTO]):
-            # counts after the visibility test (it blanks cells) or after the distortion
+        if hidden_test:  # the counts after the visibility test (it blanks cells)
             return self._finish(window, xs, ys, xs[None, :], ys[:, None], z, cols, rows, modes,
                                 s[:5])
         stats = TileStatistics(cells=cols.size, outside_dem=int(s[STAT_OUTSIDE_DEM]),
