@@ -8,6 +8,7 @@ User mistakes print one line on stderr and exit with code 2; a canceled run (Ctr
 from __future__ import annotations
 
 import json
+import logging
 import re
 import signal
 import sys
@@ -466,7 +467,13 @@ def warmup_cmd(ctx: click.Context) -> None:
 
     if not ctx.obj["quiet"]:
         click.echo("Compiling the numba kernels (about a minute)...", err=True)
-    steps = warmup()  # the sample runs' own messages are not the user's: not shown
+    toolbox_log = logging.getLogger("toolbox")
+    level = toolbox_log.level
+    toolbox_log.setLevel(logging.ERROR)  # the sample runs' warnings are not the user's
+    try:
+        steps = warmup()
+    finally:
+        toolbox_log.setLevel(level)
     click.echo(f"Warm-up finished: {steps} runs; compiled kernels in {numba.config.CACHE_DIR}")
 
 
