@@ -307,16 +307,26 @@ def remap(source: np.ndarray, map_x: np.ndarray, map_y: np.ndarray,
 
         return remap_quadratic(source, map_x, map_y)
     flag = cv2_interpolation(resampling)
+    return _by_four_bands(source, lambda part: cv2.remap(part, map_x, map_y, flag,
+                                                         borderMode=cv2.BORDER_CONSTANT))
+
+
+def _by_four_bands(source: np.ndarray, warp_one) -> np.ndarray:
+    """``warp_one`` (an OpenCV warp of a (rows, cols[, <= 4 bands]) array) applied to
+    ``source`` of any dtype and band count: types OpenCV lacks go through float64 and are rounded
+    back, bands go 4 at a time, and the trailing band axis OpenCV drops is restored."""
     dtype = source.dtype
     work = source if dtype.name in _CV2_DTYPES else source.astype("float64")
+
+    def one(part: np.ndarray) -> np.ndarray:
+        res = warp_one(part)
+        return res[:, :, None] if part.ndim == 3 and res.ndim == 2 else res
+
     if work.ndim == 2 or work.shape[2] <= 4:
-        out = cv2.remap(work, map_x, map_y, flag, borderMode=cv2.BORDER_CONSTANT)
-        if work.ndim == 3 and out.ndim == 2:  # cv2 drops a trailing axis of length 1
-            out = out[:, :, None]
+        out = one(work)
     else:
-        parts = [cv2.remap(np.ascontiguousarray(work[:, :, k:k + 4]), map_x, map_y, flag,
-                           borderMode=cv2.BORDER_CONSTANT) for k in range(0, work.shape[2], 4)]
-        out = np.concatenate([p if p.ndim == 3 else p[:, :, None] for p in parts], axis=2)
+        out = np.concatenate([one(np.ascontiguousarray(work[:, :, k:k + 4]))
+                              for k in range(0, work.shape[2], 4)], axis=2)
     if out.dtype != dtype:
         if dtype.kind in "iu":
             info = np.iinfo(dtype)
@@ -688,21 +698,5 @@ def warp_perspective(source: np.ndarray, matrix: np.ndarray, size: tuple[int, in
     import cv2
 
     flag = cv2_interpolation(resampling) | cv2.WARP_INVERSE_MAP
-    dtype = source.dtype
-    work = source if dtype.name in _CV2_DTYPES else source.astype("float64")
-
-    def one(part: np.ndarray) -> np.ndarray:
-        res = cv2.warpPerspective(part, matrix, size, flags=flag, borderMode=cv2.BORDER_CONSTANT)
-        return res[:, :, None] if part.ndim == 3 and res.ndim == 2 else res
-
-    if work.ndim == 2 or work.shape[2] <= 4:
-        out = one(work)
-    else:
-        out = np.concatenate([one(np.ascontiguousarray(work[:, :, k:k + 4]))
-                              for k in range(0, work.shape[2], 4)], axis=2)
-    if out.dtype != dtype:
-        if dtype.kind in "iu":
-            info = np.iinfo(dtype)
-            out = np.clip(np.rint(out), info.min, info.max)
-        out = out.astype(dtype)
-    return out
+    return _by_four_bands(source, lambda part: cv2.warpPerspective(
+        part, matrix, size, flags=flag, borderMode=cv2.BORDER_CONSTANT))
