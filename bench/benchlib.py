@@ -1,10 +1,12 @@
-"""What every benchmark shares: machine facts, a load note, the peak memory of this process."""
+"""What every benchmark shares: machine facts, a load note, the peak memory of this process, the
+best of repeated timings."""
 
 from __future__ import annotations
 
 import datetime as dt
 import os
 import platform
+import time
 from pathlib import Path
 
 QUIET_CPU_PERCENT = 20.0  # CPU use (all cores) under which the machine counts as quiet
@@ -79,3 +81,15 @@ def run_measured(cmd: list[str], poll: float = 0.02) -> tuple[float, float, int,
     seconds = time.perf_counter() - t0
     stderr = proc.stderr.read().decode(errors="replace") if proc.stderr else ""
     return seconds, peak_kb / 1024.0, proc.returncode, stderr
+
+
+def best_of(func, repeat: int) -> float:
+    """Best wall time of ``repeat`` calls of ``func``, seconds, after one warm-up call
+    (compilation, caches)."""
+    func()
+    times = []
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        func()
+        times.append(time.perf_counter() - t0)
+    return min(times)

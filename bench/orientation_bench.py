@@ -26,11 +26,10 @@ from __future__ import annotations
 
 import argparse
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
-from benchlib import load_note, machine_facts
+from benchlib import best_of, load_note, machine_facts
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))
@@ -39,16 +38,6 @@ C = 303.55
 CENTRE = np.array([1688134.973, 4799812.289, 1463.236])
 ANGLES = (0.014, -0.001, 0.050)
 TARGET = 20e6
-
-
-def best_time(func, repeat: int) -> float:
-    func()  # warm-up (compilation, caches)
-    times = []
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        func()
-        times.append(time.perf_counter() - t0)
-    return min(times)
 
 
 def numpy_naive(xyz, centre, r, c):
@@ -170,14 +159,14 @@ def main(argv: list[str] | None = None) -> str:
     }
     kernel = "ground -> image (mm)"
     rows.append((kernel, "numpy, brief formula on (N, 3)", n,
-                 best_time(lambda: numpy_naive(xyz, CENTRE, r, C), args.repeat)))
+                 best_of(lambda: numpy_naive(xyz, CENTRE, r, C), args.repeat)))
     rows.append((kernel, "numpy, shaped (components, in place)", n,
-                 best_time(lambda: shaped(x, y, z, CENTRE, r, C), args.repeat)))
+                 best_of(lambda: shaped(x, y, z, CENTRE, r, C), args.repeat)))
     rows.append((kernel, "OpenCV cv2.projectPoints", n,
-                 best_time(lambda: opencv_project(xyz, CENTRE, r, C), args.repeat)))
-    rows.append((kernel, "toolbox numba, 1 thread", n, best_time(serial(toolbox_g2i), args.repeat)))
+                 best_of(lambda: opencv_project(xyz, CENTRE, r, C), args.repeat)))
+    rows.append((kernel, "toolbox numba, 1 thread", n, best_of(serial(toolbox_g2i), args.repeat)))
     rows.append((kernel, f"**toolbox numba, {threads} threads**", n,
-                 best_time(toolbox_g2i, args.repeat)))
+                 best_of(toolbox_g2i, args.repeat)))
 
     # -- ground -> pixel, full chain ----------------------------------------------------------------
     dist = RadialDistortion.from_table(
@@ -191,9 +180,9 @@ def main(argv: list[str] | None = None) -> str:
                                         fiducial_to_pixel=f2p)
     check["numpy full chain"] = np.abs(numpy_full_chain(xyz[:200000], CENTRE, r, C, dist.r_mm,
                                                         dist.dr_mm, f2p) - full[:200000]).max()
-    rows.append((kernel, "numpy", n, best_time(
+    rows.append((kernel, "numpy", n, best_of(
         lambda: numpy_full_chain(xyz, CENTRE, r, C, dist.r_mm, dist.dr_mm, f2p), args.repeat)))
-    rows.append((kernel, f"**toolbox numba, {threads} threads**", n, best_time(
+    rows.append((kernel, f"**toolbox numba, {threads} threads**", n, best_of(
         lambda: collinearity.ground_to_image((x, y, z), CENTRE, r, C, distortion=dist,
                                              fiducial_to_pixel=f2p, out=out), args.repeat)))
 
@@ -202,9 +191,9 @@ def main(argv: list[str] | None = None) -> str:
     img = reference
     xy = collinearity.image_to_ground(img, z, CENTRE, r, C)
     check["image -> ground round trip (m)"] = np.abs(xy[:, :2] - np.column_stack([x, y])).max()
-    rows.append((kernel, "numpy", n, best_time(
+    rows.append((kernel, "numpy", n, best_of(
         lambda: numpy_image_to_ground(img, z, CENTRE, r, C), args.repeat)))
-    rows.append((kernel, f"**toolbox numba, {threads} threads**", n, best_time(
+    rows.append((kernel, f"**toolbox numba, {threads} threads**", n, best_of(
         lambda: collinearity.image_to_ground(img, z, CENTRE, r, C), args.repeat)))
 
     # -- monoplotting on the demo DEM ---------------------------------------------------------------
@@ -218,11 +207,11 @@ def main(argv: list[str] | None = None) -> str:
     result = collinearity.monoplot(img_dem, surface, CENTRE, r, C)
     check["monoplot round trip (m)"] = float(np.abs(result.xyz - truth).max())
     kernel = "monoplot on a 4 m DEM (march + regula falsi)"
-    rows.append((kernel, "toolbox numba, 1 thread", m, best_time(
+    rows.append((kernel, "toolbox numba, 1 thread", m, best_of(
         serial(lambda: collinearity.monoplot(img_dem, surface, CENTRE, r, C)), args.repeat)))
-    rows.append((kernel, f"**toolbox numba, {threads} threads**", m, best_time(
+    rows.append((kernel, f"**toolbox numba, {threads} threads**", m, best_of(
         lambda: collinearity.monoplot(img_dem, surface, CENTRE, r, C), args.repeat)))
-    rows.append((kernel, "toolbox numba, fixed-point iteration", m, best_time(
+    rows.append((kernel, "toolbox numba, fixed-point iteration", m, best_of(
         lambda: collinearity.monoplot(img_dem, surface, CENTRE, r, C, method="fixed_point",
                                       tolerance=1e-10), args.repeat)))
 

@@ -33,7 +33,7 @@ import warnings
 from pathlib import Path
 
 import numpy as np
-from benchlib import load_note, machine_facts, run_measured
+from benchlib import best_of, load_note, machine_facts, run_measured
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
@@ -97,16 +97,6 @@ def write_inputs(folder: Path, size: int, distortion: bool = False):
                         distortion=RadialDistortion.from_table(*SIENA_TABLE) if distortion
                         else None)
     return photo_path, dem, project, photo
-
-
-def best_of(func, repeat: int = 3) -> float:
-    func()
-    times = []
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        func()
-        times.append(time.perf_counter() - t0)
-    return min(times)
 
 
 def interleaved(funcs: dict, repeat: int = 7) -> dict:

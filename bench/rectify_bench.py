@@ -34,24 +34,13 @@ import warnings
 from pathlib import Path
 
 import numpy as np
-from benchlib import load_note, machine_facts
+from benchlib import best_of, load_note, machine_facts
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 RESULTS = ROOT / "bench" / "results" / "rectify.md"
 
 warnings.filterwarnings("ignore", message=".*no geotransform.*")
-
-
-def best_of(func, repeat: int = 5) -> float:
-    """Best wall time of ``repeat`` calls, seconds (after one warm-up call)."""
-    func()
-    times = []
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        func()
-        times.append(time.perf_counter() - t0)
-    return min(times)
 
 
 def camera_homography(width: int, height: int, pixel_mm: float, c_mm: float, flying_m: float,
