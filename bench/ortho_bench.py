@@ -30,6 +30,7 @@ import sys
 import tempfile
 import time
 import warnings
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -128,6 +129,8 @@ def memory_case(folder: Path, size: int, distortion: bool) -> list[dict]:
     from toolbox.io.raster import iter_windows, open_raster_info
     from toolbox.photogrammetry.ortho import CollinearityMap
     from toolbox.photogrammetry.orthophoto import DemSampler, OrthoWindows, plan_photo
+    from toolbox.raster.warp import pad_at_photo_edges, single_threaded_opencv
+    from toolbox.tiles import default_workers
 
     rows = []
     photo_path, dem, _, photo = write_inputs(folder, size, distortion)
@@ -143,21 +146,34 @@ def memory_case(folder: Path, size: int, distortion: bool) -> list[dict]:
     maps = []
     blocks: dict[int, int] = {}
 
-    def ortho_windows(keep: bool, occlusion: bool = False):
-        """The ortho:photo path in memory: OrthoWindows (DEM heights, map, statistics, the next
-        window prefetched on a thread) + the remap of the source window."""
+    workers = default_workers()
+
+    def ortho_windows(keep: bool, occlusion: bool = False) -> None:
+        """The ortho:photo path in memory, as the raster engine runs it: the windows on one
+        thread per core, each computing its map (OrthoWindows: DEM heights, map, statistics;
+        planned: the source window first, the maps written ready for OpenCV with the outside
+        blanked) and resampling its source window (padded by replicating the photo's edge
+        where it touches it) with OpenCV single-threaded. With the visibility test the
+        windows are not planned: the map, its bounds, the shift, then the remap."""
         job = OrthoWindows(photo, grid, sampler, cmap, plan.mean_height,
-                           plan.surface if occlusion else None)
-        job.prefetch(windows)
-        out = []
-        try:
-            for w in windows:
+                           plan.surface if occlusion else None, resampling="bilinear")
+
+        def one(w) -> None:
+            src_plan = job.source_plan(w)
+            if src_plan is not None:
+                if src_plan.window is None:
+                    return
+                r0, c0 = src_plan.window.row_off, src_plan.window.col_off
+                source = pad_at_photo_edges(rgb[r0:r0 + src_plan.window.height,
+                                                c0:c0 + src_plan.window.width], src_plan.pads)
+                mx, my = job(w)
+            else:
                 bounds = job.source_bounds(w)
                 cols, rowz = job(w)
                 if bounds is None:
                     finite = np.isfinite(cols)
                     if not finite.any():
-                        continue
+                        return
                     bounds = (cols[finite].min(), rowz[finite].min(), cols[finite].max(),
                               rowz[finite].max())
                 c0 = max(int(bounds[0]) - 2, 0)
@@ -165,27 +181,35 @@ def memory_case(folder: Path, size: int, distortion: bool) -> list[dict]:
                 c1 = min(int(bounds[2]) + 3, size)
                 r1 = min(int(bounds[3]) + 3, size)
                 if c1 <= c0 or r1 <= r0:
-                    continue
+                    return
                 mx = np.subtract(cols, np.float32(c0 + 0.5), out=cols)  # OpenCV convention
                 my = np.subtract(rowz, np.float32(r0 + 0.5), out=rowz)
-                if keep:
-                    maps.append((mx, my, (r0, r1, c0, c1)))
-                out.append(cv2.remap(rgb[r0:r1, c0:c1], mx, my, cv2.INTER_LINEAR,
-                                     borderMode=cv2.BORDER_CONSTANT))
-        finally:
-            job.close()
+                source = rgb[r0:r1, c0:c1]
+            if keep:
+                maps.append((mx, my, source))
+            cv2.remap(source, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT)
+
+        with single_threaded_opencv(), ThreadPoolExecutor(workers) as pool:
+            list(pool.map(one, windows))
         blocks.update(job.totals().blocks)
-        return out
 
     ortho_windows(True)
 
-    def floor():
-        for mx, my, (r0, r1, c0, c1) in maps:
-            cv2.remap(rgb[r0:r1, c0:c1], mx, my, cv2.INTER_LINEAR,
-                      borderMode=cv2.BORDER_CONSTANT)
+    def floor_sequential():
+        """The floor as OpenCV runs it: one call per window, OpenCV's own threads."""
+        for mx, my, source in maps:
+            cv2.remap(source, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT)
+
+    def floor_tiles():
+        """The floor as the engine would run it: windows on threads, OpenCV single-threaded."""
+        with single_threaded_opencv(), ThreadPoolExecutor(workers) as pool:
+            list(pool.map(lambda m: cv2.remap(m[2], m[0], m[1], cv2.INTER_LINEAR,
+                                              borderMode=cv2.BORDER_CONSTANT), maps))
 
     mpx = grid.width * grid.height / 1e6
-    best = interleaved({"floor": floor, "ours": lambda: ortho_windows(False)})
+    best = interleaved({"floor_sequential": floor_sequential, "floor_tiles": floor_tiles,
+                        "ours": lambda: ortho_windows(False)})
+    best["floor"] = min(best["floor_sequential"], best["floor_tiles"])  # the faster floor
     label = "Siena distortion table" if distortion else "no distortion"
     rows.append({"case": f"{size} x {size} RGB photo -> {grid.width} x {grid.height} "
                          f"({mpx:.1f} Mpx), bilinear, {label}",

@@ -43,6 +43,7 @@ from numba import njit, prange
 
 from toolbox.errors import InputDataError
 from toolbox.photogrammetry.kernels import _dem_height, _distort, _project2d, _tuple9
+from toolbox.raster.warp import OUTSIDE
 
 DEFAULT_BLOCK = 64  # coarse-grid step of the distortion, cells: the thesis' 64, fastest measured
 DEFAULT_TOLERANCE_PX = 0.05  # largest interpolation error accepted, photo pixels
@@ -58,7 +59,8 @@ class SensorModel:
     ``centre`` (3,), ``rot`` R(omega, phi, kappa) (3, 3), ``c`` mm, ``pp`` (2,) mm, the distortion
     arguments of :meth:`RadialDistortion.kernel_arguments`, ``f2p`` the fiducial -> pixel matrix,
     ``lipschitz`` the bound of ``|dδ/dp|`` of the distortion field, ``px_per_mm`` the largest
-    scale of ``f2p`` (pixels per image mm) and ``f2p_condition`` its condition number.
+    scale of ``f2p`` (pixels per image mm), ``f2p_condition`` its condition number and
+    ``max_distortion_px`` a bound of the distortion's shift of a point of the photo, pixels.
     """
 
     centre: np.ndarray
@@ -72,6 +74,7 @@ class SensorModel:
     f2p_condition: float
     width: int
     height: int
+    max_distortion_px: float = 0.0
 
     @classmethod
     def from_photo(cls, photo: Any, width: int | None = None, height: int | None = None
@@ -86,11 +89,13 @@ class SensorModel:
         w, h = (width, height) if width is not None else (size or (None, None))
         if w is None:
             raise InputDataError(f"photo {photo.id!r}: the image size is unknown")
+        radius = _frame_radius(photo, w, h)
+        px_per_mm, condition = _pixel_scale(f2p, photo, w, h)
         return cls(eo.centre, np.ascontiguousarray(eo.rotation), float(cam.c),
                    np.asarray(cam.principal_point_mm, dtype="float64"),
                    _distortion_args(cam.distortion),
-                   f2p, distortion_lipschitz(cam.distortion, _frame_radius(photo, w, h)),
-                   *_pixel_scale(f2p, photo, w, h), int(w), int(h))
+                   f2p, distortion_lipschitz(cam.distortion, radius), px_per_mm, condition,
+                   int(w), int(h), px_per_mm * distortion_magnitude(cam.distortion, radius))
 
 
 def _frame_radius(photo: Any, width: int, height: int) -> float:
@@ -117,6 +122,20 @@ def _pixel_scale(f2p: np.ndarray, photo: Any, width: int, height: int) -> tuple[
         sv = np.linalg.svd(jac, compute_uv=False)
         largest, smallest = max(largest, float(sv[0])), min(smallest, float(sv[-1]))
     return 1.02 * largest, 1.02 * largest / smallest
+
+
+def distortion_magnitude(distortion: Any, radius_mm: float) -> float:
+    """Bound of ``|Δr|`` (mm), the distortion's shift of a point, for measured radii up to
+    ``radius_mm``: a table is piecewise linear with its last value held, so its largest node
+    value; a polynomial is sampled densely on [0, 1.05 radius] and widened by 5 %."""
+    if distortion is None:
+        return 0.0
+    from toolbox.photogrammetry.camera import DISTORTION_TABLE
+
+    if distortion.mode == DISTORTION_TABLE:
+        return float(np.abs(distortion.dr_mm).max())
+    rr = np.linspace(0.0, 1.05 * radius_mm, 4097)
+    return 1.05 * float(np.abs(distortion.k1 * rr ** 3 + distortion.k2 * rr ** 5).max())
 
 
 def distortion_lipschitz(distortion: Any, radius_mm: float) -> float:
@@ -252,9 +271,10 @@ def _exact_pixel(a, j, i, zc, c, px, py, mt, dmode, dr, dd, dk, di):
 
 
 @njit(**FAST)
-def distort_blocks(z, a, c, pp, dmode, dr, dd, dk, di, f2p, block, modes, cols, rows):
+def distort_blocks(z, a, c, pp, dmode, dr, dd, dk, di, f2p, block, modes, shift, cols, rows):
     """Add the radial distortion to a distortion-free map (:func:`project_tile_projective`),
-    block by block as ``modes`` (:func:`block_modes`) says (see the module docstring).
+    block by block as ``modes`` (:func:`block_modes`) says (see the module docstring); the map
+    is in pixels minus ``shift`` (2,) (zeros, or the OpenCV shift of a planned map).
 
     BLOCK_INTERPOLATED: the distortion's pixel correction exactly at the block's four corner
     cells (ideal point -> distortion -> principal point -> fiducial -> pixel, minus the
@@ -262,6 +282,7 @@ def distort_blocks(z, a, c, pp, dmode, dr, dd, dk, di, f2p, block, modes, cols, 
     h, w = cols.shape
     mt = _tuple9(f2p)
     px, py = pp[0], pp[1]
+    sc, sr = shift[0], shift[1]
     for bi in range(modes.shape[0]):
         i0 = bi * block
         i1 = min(i0 + block, h) - 1
@@ -271,8 +292,9 @@ def distort_blocks(z, a, c, pp, dmode, dr, dd, dk, di, f2p, block, modes, cols, 
             if modes[bi, bj] != BLOCK_INTERPOLATED:
                 for i in range(i0, i1 + 1):
                     for j in range(j0, j1 + 1):
-                        cols[i, j], rows[i, j], _ = _exact_pixel(a, j, i, z[i, j], c, px, py,
-                                                                 mt, dmode, dr, dd, dk, di)
+                        u, v, _ = _exact_pixel(a, j, i, z[i, j], c, px, py, mt, dmode, dr, dd,
+                                               dk, di)
+                        cols[i, j], rows[i, j] = u - sc, v - sr
                 continue
             d0u = d0v = d1u = d1v = d2u = d2v = d3u = d3v = 0.0
             for k in range(4):
@@ -280,8 +302,8 @@ def distort_blocks(z, a, c, pp, dmode, dr, dd, dk, di, f2p, block, modes, cols, 
                 corner_j = j0 if k % 2 == 0 else j1
                 u, v, _ = _exact_pixel(a, corner_j, corner_i, z[corner_i, corner_j], c, px, py,
                                        mt, dmode, dr, dd, dk, di)
-                du = u - cols[corner_i, corner_j]
-                dv = v - rows[corner_i, corner_j]
+                du = u - sc - cols[corner_i, corner_j]
+                dv = v - sr - rows[corner_i, corner_j]
                 if k == 0:
                     d0u, d0v = du, dv
                 elif k == 1:
@@ -310,19 +332,30 @@ def distort_blocks(z, a, c, pp, dmode, dr, dd, dk, di, f2p, block, modes, cols, 
 (STAT_COL_MIN, STAT_ROW_MIN, STAT_COL_MAX, STAT_ROW_MAX, STAT_MISSING, STAT_OUTSIDE_DEM,
  STAT_OUTSIDE_PHOTO, STAT_MAX_RELIEF) = range(8)
 RELIEF_STEP = 4  # every 4th row and column enters the largest relief displacement
+CHUNK = 64  # cells of a row settled at once by a planned window (measured: 32-128 alike)
+RUN_SLACK_PX = 0.01  # a run is wholly in or out only this far from the photo's edge (float32)
+RUN_MIXED, RUN_INSIDE, RUN_OUTSIDE = 0, 1, 2
 
 
 @njit(**FAST)
 def ortho_window_projective(dem, dgx0, dgy0, dcx, dcy, xs, ys, a, m, centre, reference_height,
-                            width, height, z, cols, rows, stats):
+                            photo, blank, heights, z, cols, rows, stats):
     """Heights, coordinate map and statistics of one output window in one pass, row by row,
     without distortion.
 
     The DEM part ``dem`` and the cell centres ``xs``, ``ys`` as :func:`heights_on_grid`; ``a``,
     ``m`` of :func:`tile_matrices`; ``z`` (h, w) gets the heights, or is (0, 0) when they are
-    not wanted. ``stats`` (8,) gets (after the box, left to :func:`window_box`) the number of
-    cells without image point, the cells without height, the cells with an image point outside
-    the photo ``[0, width] x [0, height]`` and the largest relief displacement (m,
+    not wanted. ``photo`` (4,) is the photo ``[col0, col1] x [row0, row1]`` in the map's
+    coordinates (``[0, width] x [0, height]``, or shifted with ``m``: see
+    :meth:`CollinearityMap.project_on_dem`); with ``blank`` every cell outside it (or without
+    image point) gets :data:`~toolbox.raster.warp.OUTSIDE` instead of its coordinates (else NaN
+    where there is no image point); then ``heights`` (2,), the range of the window's heights
+    (NaN: unknown), lets it settle runs of :data:`CHUNK` cells of a row at once: their image is
+    inside the convex hull of the images of the run's ends at both heights (all in front of the
+    camera), and a run whose hull misses the photo is blanked without projecting its cells,
+    one inside it is projected without the inside test. ``stats`` (8,) gets (after the box, left to
+    :func:`window_box`) the number of cells without image point, the cells without height, the
+    cells with an image point outside the photo and the largest relief displacement (m,
     :func:`relief_displacement`, on every :data:`RELIEF_STEP`-th row and column, cells inside
     the photo).
 
@@ -347,6 +380,11 @@ def ortho_window_projective(dem, dgx0, dgy0, dcx, dcy, xs, ys, a, m, centre, ref
     missing = outside = no_height = 0
     relief = 0.0
     x0, y0, z0 = centre[0], centre[1], centre[2]
+    c_lo, c_hi, r_lo, r_hi = photo[0], photo[1], photo[2], photo[3]
+    empty = np.float32(OUTSIDE if blank else np.nan)
+    keep_outside = not blank
+    z_lo, z_hi = heights[0], heights[1]
+    runs = blank and z_lo <= z_hi  # False for NaN
     for i in range(h):
         zr = z[i] if z.shape[0] == h else line
         fy = (dgy0 - ys[i]) / dcy
@@ -369,23 +407,71 @@ def ortho_window_projective(dem, dgx0, dgy0, dcx, dcy, xs, ys, a, m, centre, ref
         vd = m[1, 1] * i + m[1, 3]
         wd = m[2, 1] * i + m[2, 3]
         dd = a[2, 1] * i + a[2, 3]
-        for j in range(w):  # the map and the counts, branch-free
-            zc = zr[j]
-            no_height += 1 if math.isnan(zc) else 0
-            ahead = dd + a20 * j + a22 * zc < 0.0  # in front of the camera (False for NaN)
-            q = 1.0 / (wd + m20 * j + m22 * zc)
-            u = np.float32((ud + m00 * j + m02 * zc) * q)
-            v = np.float32((vd + m10 * j + m12 * zc) * q)
-            cr[j] = u if ahead else np.nan
-            rr[j] = v if ahead else np.nan
-            missing += 0 if ahead else 1
-            inside = (u >= 0.0) & (u <= width) & (v >= 0.0) & (v <= height)
-            outside += 1 if ahead & ~inside else 0
+        for j0 in range(0, w, CHUNK):
+            j1 = min(j0 + CHUNK, w)
+            state = RUN_MIXED
+            if runs:  # the hull of the run's image: its ends at both heights
+                front = True
+                u_lo = v_lo = 1e300
+                u_hi = v_hi = -1e300
+                for k in range(4):
+                    jc = j0 if k < 2 else j1 - 1
+                    zc = z_lo if k % 2 == 0 else z_hi
+                    front = front and dd + a20 * jc + a22 * zc < 0.0
+                    q = 1.0 / (wd + m20 * jc + m22 * zc)
+                    uc = (ud + m00 * jc + m02 * zc) * q
+                    vc = (vd + m10 * jc + m12 * zc) * q
+                    u_lo, u_hi = (uc if uc < u_lo else u_lo), (uc if uc > u_hi else u_hi)
+                    v_lo, v_hi = (vc if vc < v_lo else v_lo), (vc if vc > v_hi else v_hi)
+                if front:
+                    if (u_hi < c_lo - RUN_SLACK_PX or u_lo > c_hi + RUN_SLACK_PX
+                            or v_hi < r_lo - RUN_SLACK_PX or v_lo > r_hi + RUN_SLACK_PX):
+                        state = RUN_OUTSIDE
+                    elif (u_lo > c_lo + RUN_SLACK_PX and u_hi < c_hi - RUN_SLACK_PX
+                          and v_lo > r_lo + RUN_SLACK_PX and v_hi < r_hi - RUN_SLACK_PX):
+                        state = RUN_INSIDE
+            # slices indexed from 0: the loops vectorise (no negative-index checks)
+            zs, cs, rs = zr[j0:j1], cr[j0:j1], rr[j0:j1]
+            if state == RUN_OUTSIDE:  # every cell with a height is outside the photo
+                for k in range(zs.shape[0]):
+                    gap = 1 if math.isnan(zs[k]) else 0
+                    cs[k] = empty
+                    rs[k] = empty
+                    no_height += gap
+                    missing += gap
+                    outside += 1 - gap
+            elif state == RUN_INSIDE:  # every cell with a height is inside the photo
+                for k in range(zs.shape[0]):
+                    j = j0 + k
+                    zc = zs[k]
+                    gap = math.isnan(zc)
+                    q = 1.0 / (wd + m20 * j + m22 * zc)
+                    u = np.float32((ud + m00 * j + m02 * zc) * q)
+                    v = np.float32((vd + m10 * j + m12 * zc) * q)
+                    cs[k] = empty if gap else u
+                    rs[k] = empty if gap else v
+                    no_height += 1 if gap else 0
+                    missing += 1 if gap else 0
+            else:
+                for k in range(zs.shape[0]):  # the map and the counts, branch-free
+                    j = j0 + k
+                    zc = zs[k]
+                    no_height += 1 if math.isnan(zc) else 0
+                    ahead = dd + a20 * j + a22 * zc < 0.0  # in front (False for NaN)
+                    q = 1.0 / (wd + m20 * j + m22 * zc)
+                    u = np.float32((ud + m00 * j + m02 * zc) * q)
+                    v = np.float32((vd + m10 * j + m12 * zc) * q)
+                    inside = (u >= c_lo) & (u <= c_hi) & (v >= r_lo) & (v <= r_hi)
+                    keep = ahead & (inside | keep_outside)
+                    cs[k] = u if keep else empty
+                    rs[k] = v if keep else empty
+                    missing += 0 if ahead else 1
+                    outside += 1 if ahead & ~inside else 0
         if i % RELIEF_STEP == 0:
             dy = ys[i] - y0
             for j in range(0, w, RELIEF_STEP):
                 u, v, zc = cr[j], rr[j], zr[j]
-                if u >= 0.0 and u <= width and v >= 0.0 and v <= height:
+                if u >= c_lo and u <= c_hi and v >= r_lo and v <= r_hi:
                     dx = xs[j] - x0
                     disp = math.sqrt(dx * dx + dy * dy) * abs(zc - reference_height) / (z0 - zc)
                     if math.isfinite(disp) and disp > relief:
@@ -397,25 +483,33 @@ def ortho_window_projective(dem, dgx0, dgy0, dcx, dcy, xs, ys, a, m, centre, ref
 
 
 @njit(**FAST)
-def count_window(z, xs, ys, cols, rows, centre, reference_height, width, height, stats):
+def count_window(z, xs, ys, cols, rows, centre, reference_height, photo, blank, stats):
     """The counts of :func:`ortho_window_projective` (``stats[4:]``) recomputed on a final map
-    (after the distortion), from the window's heights ``z``: the same loops."""
+    (after the distortion), from the window's heights ``z``: the same loops; with ``blank`` the
+    cells outside ``photo`` (or without image point) get :data:`~toolbox.raster.warp.OUTSIDE`
+    here."""
     missing = outside = no_height = 0
     relief = 0.0
     x0, y0, z0 = centre[0], centre[1], centre[2]
+    c_lo, c_hi, r_lo, r_hi = photo[0], photo[1], photo[2], photo[3]
+    empty = np.float32(OUTSIDE)
     for i in range(ys.shape[0]):
         zr, cr, rr = z[i], cols[i], rows[i]
         for j in range(xs.shape[0]):  # branch-free, so that it vectorises
             u, v = cr[j], rr[j]
             no_height += 1 if math.isnan(zr[j]) else 0
-            missing += 1 if math.isnan(u) else 0
-            inside = (u >= 0.0) & (u <= width) & (v >= 0.0) & (v <= height)
-            outside += 0 if inside | math.isnan(u) else 1
+            point = ~math.isnan(u)
+            missing += 0 if point else 1
+            inside = (u >= c_lo) & (u <= c_hi) & (v >= r_lo) & (v <= r_hi)
+            outside += 0 if inside | ~point else 1
+            if blank:
+                cr[j] = u if inside else empty
+                rr[j] = v if inside else empty
         if i % RELIEF_STEP == 0:
             dy = ys[i] - y0
             for j in range(0, xs.shape[0], RELIEF_STEP):
                 u, v, zc = cr[j], rr[j], zr[j]
-                if u >= 0.0 and u <= width and v >= 0.0 and v <= height:
+                if u >= c_lo and u <= c_hi and v >= r_lo and v <= r_hi:
                     dx = xs[j] - x0
                     disp = math.sqrt(dx * dx + dy * dy) * abs(zc - reference_height) / (z0 - zc)
                     if math.isfinite(disp) and disp > relief:
@@ -461,17 +555,19 @@ class CollinearityMap:
         return cols, rows, modes, box
 
     def _distort(self, z: np.ndarray, a: np.ndarray, cols: np.ndarray, rows: np.ndarray,
-                 modes: np.ndarray, box: np.ndarray, recount: bool = True) -> None:
-        """Add the distortion to a distortion-free map in place (:func:`block_modes`,
-        :func:`distort_blocks`) and (``recount``) count its NaN cells into ``box[4]``; only
-        the modes without distortion."""
+                 modes: np.ndarray, box: np.ndarray, recount: bool = True,
+                 shift: np.ndarray | None = None) -> None:
+        """Add the distortion to a distortion-free map (in pixels minus ``shift``) in place
+        (:func:`block_modes`, :func:`distort_blocks`) and (``recount``) count its NaN cells
+        into ``box[4]``; only the modes without distortion."""
         s = self.model
         if s.distortion[0] == 0:
             modes[:] = BLOCK_PROJECTIVE
             return
         modes[:] = block_modes(cols, rows, self.block, s.lipschitz * s.f2p_condition,
                                self.tolerance_px)
-        distort_blocks(z, a, s.c, s.pp, *s.distortion, s.f2p, self.block, modes, cols, rows)
+        distort_blocks(z, a, s.c, s.pp, *s.distortion, s.f2p, self.block, modes,
+                       np.zeros(2) if shift is None else shift, cols, rows)
         if recount:
             box[4] = np.count_nonzero(np.isnan(cols))
 
@@ -488,14 +584,20 @@ class CollinearityMap:
         return cols, rows, modes, a, m
 
     def project_on_dem(self, transform: Any, xs: np.ndarray, ys: np.ndarray, dem: tuple,
-                       centre: np.ndarray, reference_height: float, keep_heights: bool = False):
+                       centre: np.ndarray, reference_height: float, keep_heights: bool = False,
+                       shift: tuple[float, float] | None = None):
         """Heights and map of a tile in one pass (:func:`ortho_window_projective`, then the
         distortion as :meth:`project` adds it): ``dem`` = (array, x and y of the centre of its
         cell [0, 0], cell sizes) as :meth:`DemSampler.part
         <toolbox.photogrammetry.orthophoto.DemSampler.part>` gives it, ``xs``/``ys`` the
         tile's cell centres. Returns ``(cols, rows, modes, stats, z)``: ``stats`` as
         :func:`ortho_window_projective` with the box in ``stats[:4]`` (with distortion its
-        counts by :func:`count_window`), ``z`` the heights (None unless ``keep_heights``)."""
+        counts by :func:`count_window`), ``z`` the heights (None unless ``keep_heights``).
+
+        With ``shift`` (col, row) the map is a planned one
+        (:class:`~toolbox.raster.warp.SourcePlan`): ``pixel - shift``, and
+        :data:`~toolbox.raster.warp.OUTSIDE` on the cells outside the photo or without image
+        point, in the same pass (the shift enters the matrix); the box is then not computed."""
         h, w = len(ys), len(xs)
         cols, rows, modes, a, m = self._setup(transform, h, w)
         s = self.model
@@ -504,17 +606,45 @@ class CollinearityMap:
         stats = np.full(8, np.nan)
         xs = np.ascontiguousarray(xs, dtype="float64")
         ys = np.ascontiguousarray(ys, dtype="float64")
-        tail = (np.asarray(centre, dtype="float64"), float(reference_height), float(s.width),
-                float(s.height))
-        ortho_window_projective(dem[0], *(float(v) for v in dem[1:]),
-                                xs, ys, a, m, *tail, z, cols, rows, stats)
-        if s.distortion[0] != 0:
-            self._distort(z, a, cols, rows, modes, stats, recount=False)
-            count_window(z, xs, ys, cols, rows, *tail, stats)
+        offset = np.zeros(2) if shift is None else np.array(shift, dtype="float64")
+        m = m - np.outer(np.append(offset, 0.0), m[2])  # (col - sc)·w = col·w - sc·w
+        photo = np.array([-offset[0], s.width - offset[0], -offset[1], s.height - offset[1]])
+        planned = shift is not None
+        head = (np.asarray(centre, dtype="float64"), float(reference_height), photo)
+        distorted = s.distortion[0] != 0
+        heights = np.array([np.fmin.reduce(dem[0], axis=None), np.fmax.reduce(dem[0], axis=None)]
+                           if planned else [np.nan, np.nan])
+        ortho_window_projective(dem[0], *(float(v) for v in dem[1:]), xs, ys, a, m, *head,
+                                planned and not distorted, heights, z, cols, rows, stats)
+        if distorted:
+            self._distort(z, a, cols, rows, modes, stats, recount=False, shift=offset)
+            count_window(z, xs, ys, cols, rows, *head, planned, stats)
         else:
             modes[:] = BLOCK_PROJECTIVE
-        window_box(cols, rows, stats)
+        if not planned:
+            window_box(cols, rows, stats)
         return cols, rows, modes, stats, z if keep_heights else None
+
+    def source_box(self, transform: Any, h: int, w: int, z_low: float, z_high: float
+                   ) -> tuple[float, float, float, float] | None:
+        """A bound of the photo pixels of every cell of an ``h`` x ``w`` tile whose heights lie
+        in ``[z_low, z_high]``, before computing them: the cells are inside the 3-D box (tile
+        centres x heights), whose image is the convex hull of its 8 corners' images when they
+        are all in front of the camera (a central projection keeps convexity there; ``den`` is
+        affine, so all corners in front means the whole box). The distortion moves a point by
+        at most ``max_distortion_px``; 0.01 px covers the float32 maps. None when a corner is
+        not in front of the camera."""
+        a, m = tile_matrices(self.model, transform.c + 0.5 * transform.a,
+                             transform.f + 0.5 * transform.e, transform.a, -transform.e)
+        q = np.array([[0.0, w - 1.0] * 4, [0.0, 0.0, h - 1.0, h - 1.0] * 2,
+                      [z_low] * 4 + [z_high] * 4, [1.0] * 8])
+        if not (a[2] @ q < 0.0).all():
+            return None
+        hom = m @ q
+        col, row = hom[0] / hom[2], hom[1] / hom[2]
+        slack = self.model.max_distortion_px + 0.01
+        return (float(col.min() - slack), float(row.min() - slack),
+                float(col.max() + slack), float(row.max() + slack))
 
 
 class EngineMap:

@@ -358,20 +358,27 @@ class OrthoOptions:
     cog: bool = False
 
 
-PREFETCH = 2  # windows whose maps are computed ahead, on as many threads
-
-
 class OrthoWindows:
     """The coordinate map of a whole ortho for :func:`toolbox.raster.engine.warp_to_geotiff`:
     per output window it reads the DEM heights onto the window (:class:`DemSampler`), projects
     them (:class:`CollinearityMap`), blanks the hidden cells (optional visibility test) and
     collects statistics; auxiliary rasters (occlusion mask, incidence angle) are written window
-    by window."""
+    by window.
+
+    Given the warp's ``resampling`` (an OpenCV method), the windows of the common case (DEM
+    and ortho in the orientation's CRS, no visibility test or incidence angles) are *planned*
+    (:meth:`source_plan`): the source window comes first, from a bound of the window's image
+    (:meth:`CollinearityMap.source_box` on the DEM heights' range), and the kernel writes the
+    OpenCV maps relative to it, with the cells outside the photo blanked, in its one pass."""
 
     def __init__(self, photo: Any, grid: Any, sampler: DemSampler, cmap: CollinearityMap,
                  reference_height: float, surface: Any = None, mask_writer: Any = None,
-                 incidence_writer: Any = None, to_orientation: Any = None):
+                 incidence_writer: Any = None, to_orientation: Any = None,
+                 resampling: str | None = None):
+        from toolbox.raster.warp import RESAMPLING_METHODS
+
         self.photo, self.grid, self.sampler, self.cmap = photo, grid, sampler, cmap
+        self.resampling = resampling if resampling in RESAMPLING_METHODS else None
         self.to_orientation = to_orientation  # pyproj Transformer grid CRS -> orientation CRS
         self.reference_height = reference_height
         self.surface = surface
@@ -383,61 +390,88 @@ class OrthoWindows:
         import threading
 
         self._write_lock = threading.Lock()  # aux writers, if a split window runs alongside
+        self._local = threading.local()  # per thread: the window it works on (_kept_for)
 
     def _key(self, window: Any) -> tuple[int, int, int, int]:
         return (int(window.col_off), int(window.row_off), int(window.width), int(window.height))
 
-    def prefetch(self, windows: list[Any]) -> None:
-        """Compute the windows' coordinates :data:`PREFETCH` ahead on background threads, in
-        this order (the warp's), so that the maps of the next windows overlap each other and the
-        resampling and compression of the current one (the kernels release the GIL). Call
-        :meth:`close` at the end."""
-        from concurrent.futures import ThreadPoolExecutor
-
-        self._order = {self._key(w): k for k, w in enumerate(windows)}
-        self._windows = list(windows)
-        self._pool = ThreadPoolExecutor(PREFETCH, thread_name_prefix="ortho-map")
-        self._futures: dict = {}
-        for k in range(PREFETCH):
-            self._submit(k)
-
-    def _submit(self, index: int) -> None:
-        if index < len(self._windows):
-            window = self._windows[index]
-            self._futures[self._key(window)] = self._pool.submit(self._compute, window)
-
-    def _result(self, window: Any):
+    def _kept_for(self, window: Any) -> dict:
+        """What this thread keeps of the window it works on (the warp asks for the plan or the
+        bounds, then the map, of one window; tiles run on threads)."""
         key = self._key(window)
-        future = getattr(self, "_futures", {}).pop(key, None)
-        if future is None:
-            return self._compute(window)
-        self._submit(self._order[key] + PREFETCH)
-        return future.result()
+        kept = getattr(self._local, "kept", None)
+        if kept is None or kept["key"] != key:
+            self._local.kept = kept = {"key": key}
+        return kept
 
-    def close(self) -> None:
-        pool = getattr(self, "_pool", None)
-        if pool is not None:
-            pool.shutdown(wait=True, cancel_futures=True)
-            self._pool = None
-            self._futures = {}
+    def _prepared(self, window: Any) -> Any:
+        """The planned window's inputs ``(xs, ys, DEM part, plan)``, None when not planned."""
+        kept = self._kept_for(window)
+        if "prepared" not in kept:
+            kept["prepared"] = self._prepare(window)
+        return kept["prepared"]
+
+    def _keep(self, window: Any):
+        """The unplanned window's :meth:`_compute` result, kept for the calls that follow."""
+        kept = self._kept_for(window)
+        if "result" not in kept:
+            kept["result"] = self._compute(window)
+        return kept["result"]
+
+    def source_plan(self, window: Any) -> Any:
+        """The :class:`~toolbox.raster.warp.SourcePlan` of a planned window (see the class
+        docstring), None when it is not planned. Cheap: no map is computed yet."""
+        prepared = self._prepared(window)
+        return None if prepared is None else prepared[3]
 
     def source_bounds(self, window: Any) -> tuple[float, float, float, float] | None:
         """The exact bounding box of the window's source coordinates when every cell has one
         (the warp then skips its own scan and, inside the photo, the inside test); None when
         some cells have none. The coordinates are kept for the call that follows."""
-        self._last = (self._key(window), self._result(window))
-        return self._last[1][2]
+        return self._keep(window)[2]
 
     def __call__(self, tile: Any, aux: Any = None) -> tuple[np.ndarray, np.ndarray]:
         """The source pixel coordinates of an output tile (the engine's ``coordinate_map(tile,
-        aux)`` form; the DEM is sampled here, window by window, with the prefetch above)."""
+        aux)`` form; the DEM is sampled here, window by window): a planned window's OpenCV
+        maps when :meth:`source_plan` gave one."""
         window = getattr(tile, "window", tile)
-        last = getattr(self, "_last", None)
-        if last is not None and last[0] == self._key(window):
-            self._last = None
-            return last[1][0], last[1][1]
-        cols, rows, _ = self._result(window)
+        prepared = self._prepared(window)
+        if prepared is not None:
+            return self._compute_planned(window, *prepared)
+        result = self._keep(window)
+        self._local.kept = None
+        return result[0], result[1]
+
+    def _prepare(self, window: Any) -> Any:
+        """``(xs, ys, DEM part, plan)`` of a window that can be planned (:meth:`_plan`), else
+        None."""
+        if (self.incidence_writer is not None or self.to_orientation is not None
+                or self.sampler.transformer is not None):
+            return None
+        xs, ys = self.grid.cell_centers(window)
+        part = self.sampler.part(xs, ys)
+        plan = None if part is None else self._plan(window, part)
+        if plan is not None and plan.window is None:  # no map is asked: count its cells here
+            self._compute_planned(window, xs, ys, part, plan)
+        return None if plan is None else (xs, ys, part, plan)
+
+    def _compute_planned(self, window: Any, xs: np.ndarray, ys: np.ndarray, part: tuple,
+                         plan: Any) -> tuple[np.ndarray, np.ndarray]:
+        """The whole planned window's OpenCV maps (and its statistics)."""
+        cols, rows, modes, s, _ = self.cmap.project_on_dem(
+            self.grid.window_transform(window), xs, ys, part, self.centre,
+            self.reference_height, shift=(plan.shift_col, plan.shift_row))
+        self._record(window, cols.size, s, modes)
         return cols, rows
+
+    def _record(self, window: Any, cells: int, s: np.ndarray, modes: np.ndarray) -> None:
+        """The window's statistics from a kernel's ``stats`` array and block modes."""
+        stats = TileStatistics(cells=cells, outside_dem=int(s[STAT_OUTSIDE_DEM]),
+                               outside_photo=int(s[STAT_OUTSIDE_PHOTO]),
+                               max_relief_m=float(s[STAT_MAX_RELIEF]))
+        counts = np.bincount(modes.ravel(), minlength=3)
+        stats.blocks = {k: int(counts[k]) for k in range(3)}
+        self.per_window[self._key(window)] = stats
 
     def _compute(self, window: Any):
         xs, ys = self.grid.cell_centers(window)
@@ -516,6 +550,25 @@ class OrthoWindows:
         self.per_window[self._key(window)] = stats
         return cols, rows, box if every_cell else None
 
+    def _plan(self, window: Any, part: tuple) -> Any:
+        """The :class:`~toolbox.raster.warp.SourcePlan` of a window (EMPTY_PLAN when its image
+        misses the photo), None when it cannot be planned (no resampling given, a visibility
+        test, no DEM height under it, or the bound of :meth:`CollinearityMap.source_box` does
+        not exist)."""
+        from toolbox.raster.warp import EMPTY_PLAN, plan_source
+
+        if self.resampling is None or self.surface is not None:
+            return None
+        low, high = np.fmin.reduce(part[0], axis=None), np.fmax.reduce(part[0], axis=None)
+        if not (math.isfinite(low) and math.isfinite(high)):  # NaN: no height at all
+            return None
+        box = self.cmap.source_box(self.grid.window_transform(window), int(window.height),
+                                   int(window.width), float(low), float(high))
+        if box is None:
+            return None
+        model = self.cmap.model
+        return plan_source(box, model.width, model.height, self.resampling) or EMPTY_PLAN
+
     def _compute_fused(self, window: Any, xs: np.ndarray, ys: np.ndarray, part: tuple):
         """:meth:`_compute` with the heights, the map and the statistics in one kernel pass
         (:meth:`CollinearityMap.project_on_dem`); the visibility test, when asked, follows on
@@ -525,14 +578,9 @@ class OrthoWindows:
             self.grid.window_transform(window), xs, ys, part, self.centre,
             self.reference_height, keep_heights=hidden_test)
         if hidden_test:  # the counts after the visibility test (it blanks cells)
-            return self._finish(window, xs, ys, xs[None, :], ys[:, None], z, cols, rows, modes,
-                                s[:5])
-        stats = TileStatistics(cells=cols.size, outside_dem=int(s[STAT_OUTSIDE_DEM]),
-                               outside_photo=int(s[STAT_OUTSIDE_PHOTO]),
-                               max_relief_m=float(s[STAT_MAX_RELIEF]))
-        counts = np.bincount(modes.ravel(), minlength=3)
-        stats.blocks = {k: int(counts[k]) for k in range(3)}
-        self.per_window[self._key(window)] = stats
+            return self._finish(window, xs, ys, xs[None, :], ys[:, None], z, cols, rows,
+                                modes, s[:5])
+        self._record(window, cols.size, s, modes)
         missing = int(s[STAT_MISSING])
         if missing == cols.size:
             return cols, rows, None
@@ -617,6 +665,7 @@ def orthorectify(photo: Any, image: Any, dem: Any, grid: Any, output: Any,
     from toolbox.io.crs import crs_label
     from toolbox.io.raster import geotiff_profile
     from toolbox.raster.engine import warp_to_geotiff
+    from toolbox.raster.warp import single_threaded_opencv
 
     options = options or OrthoOptions()
     feedback = feedback or Feedback()
@@ -647,7 +696,6 @@ def orthorectify(photo: Any, image: Any, dem: Any, grid: Any, output: Any,
     profile_args = (grid.width, grid.height, 1)
     output = Path(output)
     target = output.with_name(f".{output.stem}.gtiff.tif") if options.cog else output
-    windows = None
     try:
         mask_writer = incidence_writer = None
         if mask_output is not None:
@@ -662,15 +710,13 @@ def orthorectify(photo: Any, image: Any, dem: Any, grid: Any, output: Any,
             aux.append(incidence_writer)
         windows = OrthoWindows(photo, grid, sampler, cmap, reference_height,
                                surface if options.occlusion else None, mask_writer,
-                               incidence_writer, to_orientation)
-        from toolbox.io.raster import iter_windows
-
-        windows.prefetch([t.core for t in iter_windows(grid.width, grid.height, options.chunk)])
+                               incidence_writer, to_orientation, options.resampling)
         eo = photo.require_exterior()
         tags = {"ORTHO_PHOTO": photo.id, "ORTHO_MAP_TOLERANCE_PX": str(options.tolerance_px),
                 "ORTHO_RESAMPLING": options.resampling, "NADIR_X": repr(eo.x0),
                 "NADIR_Y": repr(eo.y0), "PROJECTION_CENTRE_Z": repr(eo.z0)}
-        with feedback.timed("orthorectify"):
+        # the engine runs the windows on one thread per core, each its map then its remap
+        with feedback.timed("orthorectify"), single_threaded_opencv():
             warp = warp_to_geotiff(image.path, windows, grid, target, options.resampling,
                                    options.outside, options.nodata, chunk=options.chunk,
                                    overviews=options.overviews and not options.cog,
@@ -683,8 +729,6 @@ def orthorectify(photo: Any, image: Any, dem: Any, grid: Any, output: Any,
                 raster_copy(target, output, driver="COG", COMPRESS="DEFLATE", BLOCKSIZE=512,
                             OVERVIEWS="AUTO", NUM_THREADS="ALL_CPUS")
     finally:
-        if windows is not None:
-            windows.close()
         for dst in aux:
             dst.close()
         if options.cog and target != output and target.exists():

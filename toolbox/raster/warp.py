@@ -30,8 +30,10 @@ Output pixel centres follow :mod:`toolbox.io.grid`: column ``j`` of a north-up g
 from __future__ import annotations
 
 import math
+import threading
 import warnings
 from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
@@ -48,6 +50,33 @@ DEFAULT_CHUNK = 2048  # output pixels per side of a processing window (a multipl
 DEFAULT_MAX_SOURCE_PIXELS = 1 << 24  # larger source windows are split (16 Mpx per band)
 DEFAULT_CACHE_MB = 256  # GDAL block cache while warping (bounded, unlike GDAL's 5 % of RAM)
 _CV2_DTYPES = ("uint8", "uint16", "int16", "float32", "float64")
+
+
+_OPENCV_LOCK = threading.Lock()
+_OPENCV_USERS = [0, 0]  # blocks inside single_threaded_opencv, OpenCV's setting before them
+
+
+@contextmanager
+def single_threaded_opencv() -> Iterator[None]:
+    """Run OpenCV single-threaded inside the block: warps whose tiles already run on one
+    thread per core (the raster engine's) would otherwise put OpenCV's own pool to work on top
+    of them, more threads than cores. OpenCV's setting is process-wide: blocks may overlap
+    (photos of a block on threads), and the setting before the first comes back after the
+    last."""
+    import cv2
+
+    with _OPENCV_LOCK:
+        if _OPENCV_USERS[0] == 0:
+            _OPENCV_USERS[1] = cv2.getNumThreads()
+            cv2.setNumThreads(1)
+        _OPENCV_USERS[0] += 1
+    try:
+        yield
+    finally:
+        with _OPENCV_LOCK:
+            _OPENCV_USERS[0] -= 1
+            if _OPENCV_USERS[0] == 0:
+                cv2.setNumThreads(_OPENCV_USERS[1])
 
 
 def cv2_interpolation(resampling: str) -> int:
@@ -223,6 +252,48 @@ class HomographyMap:
         return u, v
 
 
+#: map value of the cells a planned map leaves empty (see :class:`SourcePlan`): far outside any
+#: source window, so that ``cv2.remap`` gives its border value there (NaN does not: OpenCV 5's
+#: bilinear path samples pixel 0 for a NaN coordinate)
+OUTSIDE = np.float32(-1e5)
+
+
+@dataclass(frozen=True)
+class SourcePlan:
+    """The source window of an output window decided *before* its coordinates are computed,
+    from a conservative bound of them (a coordinate map offering ``source_plan(window)``, e.g.
+    the orthophoto's). Its maps then come ready for OpenCV: relative to the padded source
+    buffer (``coordinate - shift``) and :data:`OUTSIDE` on every cell whose centre is outside
+    the photo or has no source point, so the warp needs no pass of its own over them."""
+
+    window: Any  # rasterio Window of the source pixels to read
+    pads: tuple[int, int, int, int]  # edge replication (top, bottom, left, right), pixels
+    shift_col: float  # source column of OpenCV map column 0 (window offset - pad + 0.5)
+    shift_row: float
+
+
+#: the plan of a window whose image misses the source: every cell gets the fill
+EMPTY_PLAN = SourcePlan(None, (0, 0, 0, 0), 0.0, 0.0)
+
+
+def plan_source(bounds: tuple[float, float, float, float] | None, width: int, height: int,
+                resampling: str) -> SourcePlan | None:
+    """The :class:`SourcePlan` of sample points inside ``bounds`` (source pixel convention) in a
+    ``width`` x ``height`` source: :func:`source_window` with the method's margin, padded by
+    replicating the photo's edge where the window touches it (the kernel of a sample just
+    inside the photo needs pixels beyond it); None when it does not overlap the source."""
+    window = source_window(bounds, width, height, RESAMPLING_MARGIN[resampling])
+    if window is None:
+        return None
+    pad = RESAMPLING_MARGIN[resampling] + 1
+    pads = (pad if window.row_off == 0 else 0,
+            pad if window.row_off + window.height == height else 0,
+            pad if window.col_off == 0 else 0,
+            pad if window.col_off + window.width == width else 0)
+    return SourcePlan(window, pads, window.col_off - pads[2] + 0.5,
+                      window.row_off - pads[0] + 0.5)
+
+
 def source_window(bounds: tuple[float, float, float, float] | None, width: int, height: int,
                   margin: int) -> Any:
     """The source window covering ``bounds`` (col_min, row_min, col_max, row_max, source pixel
@@ -291,14 +362,15 @@ def inside_mask(cols: np.ndarray, rows: np.ndarray, width: int, height: int,
 
 
 def remap(source: np.ndarray, map_x: np.ndarray, map_y: np.ndarray,
-          resampling: str = "bilinear") -> np.ndarray:
+          resampling: str = "bilinear", border: float = 0) -> np.ndarray:
     """Sample ``source`` at OpenCV map coordinates (pixel centres at integers).
 
     ``source`` is (rows, cols) or (rows, cols, bands) of any numeric dtype (OpenCV handles
     uint8, uint16, int16, float32 and float64 directly; other types go through float64 and are
     rounded back). Any number of bands (OpenCV takes at most 4 at a time). Outside the source
-    the value is 0 (``cv2.BORDER_CONSTANT``, which OpenCV skips quickly); callers that need the
-    photo's edge pixels extended pad the source first (see :func:`pad_at_photo_edges`).
+    the value is ``border`` (``cv2.BORDER_CONSTANT``, which OpenCV skips quickly); callers that
+    need the photo's edge pixels extended pad the source first (see
+    :func:`pad_at_photo_edges`).
     """
     import cv2
 
@@ -307,8 +379,10 @@ def remap(source: np.ndarray, map_x: np.ndarray, map_y: np.ndarray,
 
         return remap_quadratic(source, map_x, map_y)
     flag = cv2_interpolation(resampling)
+    value = (float(border),) * 4
     return _by_four_bands(source, lambda part: cv2.remap(part, map_x, map_y, flag,
-                                                         borderMode=cv2.BORDER_CONSTANT))
+                                                         borderMode=cv2.BORDER_CONSTANT,
+                                                         borderValue=value))
 
 
 def _by_four_bands(source: np.ndarray, warp_one) -> np.ndarray:
@@ -483,10 +557,12 @@ def warp_window(read: Callable[[list[int], Any], np.ndarray], source_size: tuple
     whose source window exceeds ``max_source_pixels`` are split in four, recursively. With
     ``fast`` and a map offering ``perspective_matrix`` and ``inside`` (a homography), OpenCV's
     ``warpPerspective`` evaluates the map itself (same sampling as ``remap`` with the map's
-    coordinates, without the coordinate arrays); otherwise the coordinates are computed and
-    ``cv2.remap`` samples them. On that fast path, for a source without alpha band or mask
-    and 1, 3 or 4 output bands, the bands travel pixel-interleaved from the read to the
-    writer (:func:`_warp_packed`).
+    coordinates, without the coordinate arrays); a map offering ``source_plan(window)`` (the
+    orthophoto's) decides the source window first and hands ready OpenCV maps (see
+    :class:`SourcePlan`); otherwise the coordinates are computed and ``cv2.remap`` samples
+    them. On the first two paths, for a source without alpha band or mask and 1, 3 or 4 output
+    bands, the bands travel pixel-interleaved from the read to the writer
+    (:func:`_warp_packed`), and cells outside the photo are filled by OpenCV's border value.
     """
     from toolbox.raster.tile import Tile
 
@@ -497,23 +573,28 @@ def warp_window(read: Callable[[list[int], Any], np.ndarray], source_size: tuple
     stats = stats if stats is not None else WarpStatistics()
     width, height = source_size
     col0, row0, out_w, out_h = _window_parts(window)
-    margin = RESAMPLING_MARGIN[resampling]
-    bounds_method = getattr(coordinate_map, "source_bounds", None)
-    bounds = bounds_method(window) if bounds_method is not None else None
+    planner = getattr(coordinate_map, "source_plan", None)
+    plan = planner(window) if planner is not None else None
+    planned = plan is not None
+    bounds = cols = rows = None
+    if not planned:
+        bounds_method = getattr(coordinate_map, "source_bounds", None)
+        bounds = bounds_method(window) if bounds_method is not None else None
     exact_bounds = bounds is not None
-    cols = rows = None
-    if bounds is None:
+    if not planned and bounds is None:
         cols, rows = coordinate_map(tile, aux)
         bounds = scan_bounds(cols, rows)
-    src_win = source_window(bounds, width, height, margin)
+    if not planned:
+        plan = plan_source(bounds, width, height, resampling)
     out = np.empty((layout.count, out_h, out_w), dtype=layout.dtype)
-    if src_win is None:
+    if plan is None or planned and plan.window is None:
         stats.empty_windows += 1
         out[:] = layout.fill
         if layout.alpha:
             out[-1] = 0
         yield window, out
         return
+    src_win, pads = plan.window, plan.pads
     if src_win.width * src_win.height > max_source_pixels and (out_w > 1 or out_h > 1):
         stats.split_windows += 1
         for part in _split(window):
@@ -527,19 +608,10 @@ def warp_window(read: Callable[[list[int], Any], np.ndarray], source_size: tuple
     stats.windows += 1
     stats.output_pixels += out_w * out_h
     stats.source_pixels_read += int(src_win.width * src_win.height)
-    # where the source window touches the photo's edge it is padded by replicating the edge
-    # pixels (the interpolation kernel of a sample just inside the photo needs them); farther
-    # out OpenCV's constant border applies, which it computes quickly
-    pad = RESAMPLING_MARGIN[resampling] + 1
-    pads = (pad if src_win.row_off == 0 else 0,
-            pad if src_win.row_off + src_win.height == height else 0,
-            pad if src_win.col_off == 0 else 0,
-            pad if src_win.col_off + src_win.width == width else 0)
-    shift_c = src_win.col_off - pads[2] + 0.5
-    shift_r = src_win.row_off - pads[0] + 0.5
+    shift_c, shift_r = plan.shift_col, plan.shift_row
     all_inside = (exact_bounds and bounds[0] >= 0 and bounds[1] >= 0 and bounds[2] <= width
                   and bounds[3] <= height)
-    use_fast = (fast and cols is None and resampling in RESAMPLING_METHODS
+    use_fast = (fast and not planned and cols is None and resampling in RESAMPLING_METHODS
                 and hasattr(coordinate_map, "perspective_matrix")
                 and hasattr(coordinate_map, "inside_intervals"))
     intervals = None
@@ -549,29 +621,35 @@ def warp_window(read: Callable[[list[int], Any], np.ndarray], source_size: tuple
         if not all_inside:
             intervals = coordinate_map.inside_intervals(window, width, height)
 
-        def sample(pixels: np.ndarray, method: str) -> np.ndarray:
-            return warp_perspective(pixels, matrix, (out_w, out_h), method)
+        def sample(pixels: np.ndarray, method: str, border: float = 0) -> np.ndarray:
+            return warp_perspective(pixels, matrix, (out_w, out_h), method, border)
     else:
-        if cols is None and isinstance(coordinate_map, HomographyMap):
+        if planned:  # ready OpenCV maps, OUTSIDE where the centre is outside the photo
+            map_x, map_y = coordinate_map(tile, aux)
+        elif cols is None and isinstance(coordinate_map, HomographyMap):
             map_x, map_y = coordinate_map(window, None, shift_c, shift_r)
         else:
             if cols is None:
                 cols, rows = coordinate_map(tile, aux)
             map_x = (cols - np.float32(shift_c)).astype("float32", copy=False)
             map_y = (rows - np.float32(shift_r)).astype("float32", copy=False)
-        if not all_inside:
-            inside = inside_mask(map_x, map_y, width, height, shift_c, shift_r)
 
-        def sample(pixels: np.ndarray, method: str) -> np.ndarray:
-            return remap(pixels, map_x, map_y, method)
+        def sample(pixels: np.ndarray, method: str, border: float = 0) -> np.ndarray:
+            return remap(pixels, map_x, map_y, method, border)
     n_data = len(layout.data_bands)
-    if use_fast and layout.source_alpha is None and not layout.source_masked \
-            and layout.count in (1, 3, 4) and np.dtype(layout.dtype).name in _CV2_DTYPES:
-        # (not 2 bands: OpenCV's 2-channel warpPerspective samples differently, up to 6 grey
-        # levels from its 1-, 3- and 4-channel ones)
-        yield window, _warp_packed(read(layout.data_bands, src_win), pads, layout, matrix,
-                                   (out_w, out_h), resampling, intervals)
+    packed = (use_fast or planned) and layout.source_alpha is None \
+        and not layout.source_masked and layout.count in (1, 3, 4) \
+        and np.dtype(layout.dtype).name in _CV2_DTYPES
+    # (not 2 bands: OpenCV's 2-channel warpPerspective samples differently, up to 6 grey
+    # levels from its 1-, 3- and 4-channel ones)
+    if packed:
+        yield window, _warp_packed(read(layout.data_bands, src_win), pads, layout,
+                                   lambda buf: sample(buf, resampling, layout.fill), intervals)
         return
+    if planned:
+        inside = map_x != OUTSIDE
+    elif not all_inside and not use_fast:
+        inside = inside_mask(map_x, map_y, width, height, shift_c, shift_r)
     sampled = sample(pad_at_photo_edges(_interleave(read(layout.data_bands, src_win)), pads),
                      resampling)
     _deinterleave(sampled, out[:n_data])
@@ -609,16 +687,16 @@ def warp_window(read: Callable[[list[int], Any], np.ndarray], source_size: tuple
 
 
 def _warp_packed(data: np.ndarray, pads: tuple[int, int, int, int], layout: OutputLayout,
-                 matrix: np.ndarray, size: tuple[int, int], resampling: str,
-                 intervals) -> np.ndarray:
-    """The homography fast path of :func:`warp_window` for a source without alpha band or
-    mask: the source bands ``data`` (bands, h, w) are merged pixel-interleaved into a buffer
-    that has the edge pads of :func:`pad_at_photo_edges` (filled by replicating the edge rows
-    and columns, without copying the window again) and, for an alpha output, an opaque alpha
-    channel; one ``cv2.warpPerspective`` resamples every band (alpha stays opaque inside the
-    photo); cells outside the photo get ``layout.fill`` and alpha 0, row by row (with an alpha
-    band ``fill`` is 0). Returns a (count, h, w) view of the (h, w, count) result: GDAL writes
-    pixel-interleaved GeoTIFFs from it without a layout conversion."""
+                 sample: Callable[[np.ndarray], np.ndarray], intervals) -> np.ndarray:
+    """The packed path of :func:`warp_window` for a source without alpha band or mask: the
+    source bands ``data`` (bands, h, w) are merged pixel-interleaved into a buffer that has the
+    edge pads of :func:`pad_at_photo_edges` (filled by replicating the edge rows and columns,
+    without copying the window again) and, for an alpha output, an opaque alpha channel; one
+    OpenCV call ``sample(buffer)`` resamples every band (alpha stays opaque inside the photo,
+    and is the border value 0 outside it). Cells outside the photo get ``layout.fill`` and
+    alpha 0: from OpenCV's border (a planned map) or row by row from ``intervals`` (a
+    homography). With an alpha band ``fill`` is 0. Returns a (count, h, w) view of the (h, w,
+    count) result: GDAL writes pixel-interleaved GeoTIFFs from it without a layout conversion."""
     import cv2
 
     top, bottom, left, right = pads
@@ -642,8 +720,7 @@ def _warp_packed(data: np.ndarray, pads: tuple[int, int, int, int], layout: Outp
         buf[:, :left] = buf[:, left:left + 1]
     if right:
         buf[:, left + w:] = buf[:, left + w - 1:left + w]
-    sampled = warp_perspective(buf if layout.count > 1 else buf[:, :, 0], matrix, size,
-                               resampling)
+    sampled = sample(buf if layout.count > 1 else buf[:, :, 0])
     if sampled.ndim == 2:
         sampled = sampled[:, :, None]
     out = sampled.transpose(2, 0, 1)
@@ -691,12 +768,13 @@ def _deinterleave(sampled: np.ndarray, out: np.ndarray) -> None:
 
 
 def warp_perspective(source: np.ndarray, matrix: np.ndarray, size: tuple[int, int],
-                     resampling: str = "bilinear") -> np.ndarray:
+                     resampling: str = "bilinear", border: float = 0) -> np.ndarray:
     """``cv2.warpPerspective`` with ``WARP_INVERSE_MAP`` (``matrix``: output pixel index ->
-    OpenCV source coordinates), 0 outside the source, any dtype and band count (as
+    OpenCV source coordinates), ``border`` outside the source, any dtype and band count (as
     :func:`remap`). ``size`` is (width, height) of the output."""
     import cv2
 
     flag = cv2_interpolation(resampling) | cv2.WARP_INVERSE_MAP
+    value = (float(border),) * 4
     return _by_four_bands(source, lambda part: cv2.warpPerspective(
-        part, matrix, size, flags=flag, borderMode=cv2.BORDER_CONSTANT))
+        part, matrix, size, flags=flag, borderMode=cv2.BORDER_CONSTANT, borderValue=value))

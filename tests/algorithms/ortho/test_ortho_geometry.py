@@ -102,6 +102,7 @@ def test_fused_window_kernel_equals_heights_then_map(distortion, tmp_path):
     seen = []
     for window in windows:
         cols, rows, box = job._compute(window)
+        assert job.source_plan(window) is None  # no resampling given: not planned
         fused = job.per_window[job._key(window)]
         xs, ys = grid.cell_centers(window)
         zz = sampler.heights(xs, ys)
@@ -322,3 +323,57 @@ def test_sky_blocks_skip_free_ground_without_changing_the_mask():
     hidden_cells(xs, ys, heights, centre, surface.z, surface.x0, surface.y0, 5.0, 5.0,
                  surface.z_range[1], 0.05, np.full((1000, 1000), np.inf), 8, plain)
     assert plain.sum() > 20 and (fast == plain).all()
+
+
+@pytest.mark.parametrize("distortion", [
+    None, RadialDistortion.from_table(*SIENA_TABLE),
+    RadialDistortion.from_polynomial(-2e-6)])  # strong: its blocks are computed exactly
+def test_planned_maps_are_the_shifted_maps_blanked_outside_the_photo(distortion, tmp_path):
+    """A planned window (OrthoWindows with a resampling) against the unplanned one: the plan's
+    source window holds every image point inside the photo with the bilinear margin (the
+    bound is conservative, with 200 m of relief and the distortion), its maps are the
+    unplanned coordinates minus the plan's shift (to float32 rounding), OUTSIDE exactly on
+    the cells outside the photo or without image point (but for cells within rounding of the
+    edge), and the statistics are the same."""
+    from toolbox.io.raster import iter_windows, open_raster_info
+    from toolbox.photogrammetry.orthophoto import OrthoWindows, lattice_grid
+    from toolbox.raster.warp import OUTSIDE
+
+    photo = frame_photo(scene.CENTRE, scene.ANGLES, width=2000, height=2000, crs=scene.CRS,
+                        principal_distance_mm=153.0, distortion=distortion)
+    z, transform = hills_dem(scene.BOUNDS, cell=10.0, relief=200.0, base=250.0, seed=3)
+    z[40:60, 100:130] = np.nan
+    info = open_raster_info(scene.write_dem(tmp_path / "d.tif", z.astype("float32"), transform))
+    b = scene.BOUNDS
+    grid = lattice_grid((b[0] - 300.0, b[1] + 500.0, b[2] - 900.0, b[3] + 200.0), 2.5, scene.CRS)
+    sampler = DemSampler(info, grid.crs)
+    cmap = CollinearityMap(photo, block=32)
+    plain = OrthoWindows(photo, grid, sampler, cmap, 300.0)
+    planned = OrthoWindows(photo, grid, sampler, cmap, 300.0, resampling="bilinear")
+    kinds = set()
+    for window in [t.core for t in iter_windows(grid.width, grid.height, 300)]:
+        cols, rows, _ = plain._compute(window)
+        plan = planned.source_plan(window)
+        assert plan is not None
+        mx, my = planned(window)
+        assert planned.per_window[planned._key(window)] == plain.per_window[plain._key(window)]
+        inside = (cols >= 0) & (cols <= 2000) & (rows >= 0) & (rows <= 2000)
+        edge = np.isfinite(cols) & (np.minimum(np.abs(cols - np.round(cols / 2000) * 2000),
+                                               np.abs(rows - np.round(rows / 2000) * 2000))
+                                    < 1e-3)
+        blank = mx == OUTSIDE
+        assert (blank == (my == OUTSIDE)).all() and (blank != inside)[~edge].all()
+        if plan.window is None or blank.all():
+            assert blank.all()
+            kinds.add("empty")
+            continue
+        kinds.add("all inside" if inside.all() else "partly")
+        got_c, got_r = mx[~blank] + plan.shift_col, my[~blank] + plan.shift_row
+        assert np.abs(got_c - cols[~blank]).max() < 2e-3
+        assert np.abs(got_r - rows[~blank]).max() < 2e-3
+        w = plan.window  # every sample and its bilinear neighbours are in the window read
+        assert got_c.min() - 0.5 - 1 >= w.col_off - plan.pads[2]
+        assert got_r.min() - 0.5 - 1 >= w.row_off - plan.pads[0]
+        assert got_c.max() - 0.5 + 1 <= w.col_off + w.width - 1 + plan.pads[3]
+        assert got_r.max() - 0.5 + 1 <= w.row_off + w.height - 1 + plan.pads[1]
+    assert {"all inside", "partly"} <= kinds

@@ -302,3 +302,41 @@ def test_ortho_in_another_crs_recovers_the_texture(block, tmp_path):
     assert patches[:, 0].max() <= 0.1 and patches[:, 1].min() > 0.99
     with pytest.raises(ParameterError, match="OCCLUSION"):
         run_ortho(block, tmp_path / "z2occ.tif", CRS="EPSG:3004", OCCLUSION=True)
+
+
+@pytest.mark.parametrize("extra", [{}, {"OUTSIDE": "nodata", "NODATA": 7},
+                                   {"RESAMPLING": "cubic", "TILE_SIZE": 64}])
+def test_planned_windows_give_the_ortho_of_the_generic_path(block, tmp_path, monkeypatch, extra):
+    """The planned path (the source window decided from a bound of the window's image, the
+    OpenCV maps written by the kernel with the cells outside the photo blanked, OpenCV's border
+    value as the fill) against the generic one (the map, then the warp's own source window,
+    shift, inside test and fill), forced by switching the plans off: the same pixels to 1 grey
+    level (the two maps differ by float32 rounding), the same footprint but for cells within
+    rounding of the photo's edge, the same report."""
+    from toolbox.photogrammetry.orthophoto import OrthoWindows
+
+    planned = []
+    real_plan = OrthoWindows._plan
+
+    def spy(self, window, part):
+        plan = real_plan(self, window, part)
+        planned.append(plan is not None)
+        return plan
+
+    monkeypatch.setattr(OrthoWindows, "_plan", spy)
+    fast = run_ortho(block, tmp_path / "planned.tif", **extra)
+    assert planned and all(planned)
+    monkeypatch.setattr(OrthoWindows, "_plan", lambda self, window, part: None)
+    slow = run_ortho(block, tmp_path / "generic.tif", **extra)
+    with rasterio.open(tmp_path / "planned.tif") as a, rasterio.open(tmp_path / "generic.tif") as b:
+        pa, pb = a.read(), b.read()
+        ma, mb = a.dataset_mask(), b.dataset_mask()
+    assert pa.shape == pb.shape
+    footprint = ma != mb
+    assert 0 < (mb > 0).mean() < 1 and footprint.mean() < 1e-3
+    both = (ma > 0) & (mb > 0)
+    assert np.abs(pa.astype(int) - pb.astype(int))[:, both].max() <= 1
+    assert (pa[:, ~(ma > 0) & ~(mb > 0)] == pb[:, ~(ma > 0) & ~(mb > 0)]).all()  # the fill
+    ra, rb = fast["STATISTICS"], slow["STATISTICS"]
+    for key in ("outside_photo_fraction", "outside_dem_fraction", "max_relief_displacement_m"):
+        assert ra[key] == pytest.approx(rb[key], rel=1e-4, abs=1e-6), key
