@@ -332,14 +332,11 @@ def distort_blocks(z, a, c, pp, dmode, dr, dd, dk, di, f2p, block, modes, shift,
 (STAT_COL_MIN, STAT_ROW_MIN, STAT_COL_MAX, STAT_ROW_MAX, STAT_MISSING, STAT_OUTSIDE_DEM,
  STAT_OUTSIDE_PHOTO, STAT_MAX_RELIEF) = range(8)
 RELIEF_STEP = 4  # every 4th row and column enters the largest relief displacement
-CHUNK = 64  # cells of a row settled at once by a planned window (measured: 32-128 alike)
-RUN_SLACK_PX = 0.01  # a run is wholly in or out only this far from the photo's edge (float32)
-RUN_MIXED, RUN_INSIDE, RUN_OUTSIDE = 0, 1, 2
 
 
 @njit(**FAST)
 def ortho_window_projective(dem, dgx0, dgy0, dcx, dcy, xs, ys, a, m, centre, reference_height,
-                            photo, blank, heights, z, cols, rows, stats):
+                            photo, blank, z, cols, rows, stats):
     """Heights, coordinate map and statistics of one output window in one pass, row by row,
     without distortion.
 
@@ -349,11 +346,7 @@ def ortho_window_projective(dem, dgx0, dgy0, dcx, dcy, xs, ys, a, m, centre, ref
     coordinates (``[0, width] x [0, height]``, or shifted with ``m``: see
     :meth:`CollinearityMap.project_on_dem`); with ``blank`` every cell outside it (or without
     image point) gets :data:`~toolbox.raster.warp.OUTSIDE` instead of its coordinates (else NaN
-    where there is no image point); then ``heights`` (2,), the range of the window's heights
-    (NaN: unknown), lets it settle runs of :data:`CHUNK` cells of a row at once: their image is
-    inside the convex hull of the images of the run's ends at both heights (all in front of the
-    camera), and a run whose hull misses the photo is blanked without projecting its cells,
-    one inside it is projected without the inside test. ``stats`` (8,) gets (after the box, left to
+    where there is no image point). ``stats`` (8,) gets (after the box, left to
     :func:`window_box`) the number of cells without image point, the cells without height, the
     cells with an image point outside the photo and the largest relief displacement (m,
     :func:`relief_displacement`, on every :data:`RELIEF_STEP`-th row and column, cells inside
@@ -383,8 +376,6 @@ def ortho_window_projective(dem, dgx0, dgy0, dcx, dcy, xs, ys, a, m, centre, ref
     c_lo, c_hi, r_lo, r_hi = photo[0], photo[1], photo[2], photo[3]
     empty = np.float32(OUTSIDE if blank else np.nan)
     keep_outside = not blank
-    z_lo, z_hi = heights[0], heights[1]
-    runs = blank and z_lo <= z_hi  # False for NaN
     for i in range(h):
         zr = z[i] if z.shape[0] == h else line
         fy = (dgy0 - ys[i]) / dcy
@@ -407,66 +398,19 @@ def ortho_window_projective(dem, dgx0, dgy0, dcx, dcy, xs, ys, a, m, centre, ref
         vd = m[1, 1] * i + m[1, 3]
         wd = m[2, 1] * i + m[2, 3]
         dd = a[2, 1] * i + a[2, 3]
-        for j0 in range(0, w, CHUNK):
-            j1 = min(j0 + CHUNK, w)
-            state = RUN_MIXED
-            if runs:  # the hull of the run's image: its ends at both heights
-                front = True
-                u_lo = v_lo = 1e300
-                u_hi = v_hi = -1e300
-                for k in range(4):
-                    jc = j0 if k < 2 else j1 - 1
-                    zc = z_lo if k % 2 == 0 else z_hi
-                    front = front and dd + a20 * jc + a22 * zc < 0.0
-                    q = 1.0 / (wd + m20 * jc + m22 * zc)
-                    uc = (ud + m00 * jc + m02 * zc) * q
-                    vc = (vd + m10 * jc + m12 * zc) * q
-                    u_lo, u_hi = (uc if uc < u_lo else u_lo), (uc if uc > u_hi else u_hi)
-                    v_lo, v_hi = (vc if vc < v_lo else v_lo), (vc if vc > v_hi else v_hi)
-                if front:
-                    if (u_hi < c_lo - RUN_SLACK_PX or u_lo > c_hi + RUN_SLACK_PX
-                            or v_hi < r_lo - RUN_SLACK_PX or v_lo > r_hi + RUN_SLACK_PX):
-                        state = RUN_OUTSIDE
-                    elif (u_lo > c_lo + RUN_SLACK_PX and u_hi < c_hi - RUN_SLACK_PX
-                          and v_lo > r_lo + RUN_SLACK_PX and v_hi < r_hi - RUN_SLACK_PX):
-                        state = RUN_INSIDE
-            # slices indexed from 0: the loops vectorise (no negative-index checks)
-            zs, cs, rs = zr[j0:j1], cr[j0:j1], rr[j0:j1]
-            if state == RUN_OUTSIDE:  # every cell with a height is outside the photo
-                for k in range(zs.shape[0]):
-                    gap = 1 if math.isnan(zs[k]) else 0
-                    cs[k] = empty
-                    rs[k] = empty
-                    no_height += gap
-                    missing += gap
-                    outside += 1 - gap
-            elif state == RUN_INSIDE:  # every cell with a height is inside the photo
-                for k in range(zs.shape[0]):
-                    j = j0 + k
-                    zc = zs[k]
-                    gap = math.isnan(zc)
-                    q = 1.0 / (wd + m20 * j + m22 * zc)
-                    u = np.float32((ud + m00 * j + m02 * zc) * q)
-                    v = np.float32((vd + m10 * j + m12 * zc) * q)
-                    cs[k] = empty if gap else u
-                    rs[k] = empty if gap else v
-                    no_height += 1 if gap else 0
-                    missing += 1 if gap else 0
-            else:
-                for k in range(zs.shape[0]):  # the map and the counts, branch-free
-                    j = j0 + k
-                    zc = zs[k]
-                    no_height += 1 if math.isnan(zc) else 0
-                    ahead = dd + a20 * j + a22 * zc < 0.0  # in front (False for NaN)
-                    q = 1.0 / (wd + m20 * j + m22 * zc)
-                    u = np.float32((ud + m00 * j + m02 * zc) * q)
-                    v = np.float32((vd + m10 * j + m12 * zc) * q)
-                    inside = (u >= c_lo) & (u <= c_hi) & (v >= r_lo) & (v <= r_hi)
-                    keep = ahead & (inside | keep_outside)
-                    cs[k] = u if keep else empty
-                    rs[k] = v if keep else empty
-                    missing += 0 if ahead else 1
-                    outside += 1 if ahead & ~inside else 0
+        for j in range(w):  # the map and the counts, branch-free
+            zc = zr[j]
+            no_height += 1 if math.isnan(zc) else 0
+            ahead = dd + a20 * j + a22 * zc < 0.0  # in front of the camera (False for NaN)
+            q = 1.0 / (wd + m20 * j + m22 * zc)
+            u = np.float32((ud + m00 * j + m02 * zc) * q)
+            v = np.float32((vd + m10 * j + m12 * zc) * q)
+            inside = (u >= c_lo) & (u <= c_hi) & (v >= r_lo) & (v <= r_hi)
+            keep = ahead & (inside | keep_outside)
+            cr[j] = u if keep else empty
+            rr[j] = v if keep else empty
+            missing += 0 if ahead else 1
+            outside += 1 if ahead & ~inside else 0
         if i % RELIEF_STEP == 0:
             dy = ys[i] - y0
             for j in range(0, w, RELIEF_STEP):
@@ -612,10 +556,8 @@ class CollinearityMap:
         planned = shift is not None
         head = (np.asarray(centre, dtype="float64"), float(reference_height), photo)
         distorted = s.distortion[0] != 0
-        heights = np.array([np.fmin.reduce(dem[0], axis=None), np.fmax.reduce(dem[0], axis=None)]
-                           if planned else [np.nan, np.nan])
         ortho_window_projective(dem[0], *(float(v) for v in dem[1:]), xs, ys, a, m, *head,
-                                planned and not distorted, heights, z, cols, rows, stats)
+                                planned and not distorted, z, cols, rows, stats)
         if distorted:
             self._distort(z, a, cols, rows, modes, stats, recount=False, shift=offset)
             count_window(z, xs, ys, cols, rows, *head, planned, stats)
