@@ -129,7 +129,11 @@ def memory_case(folder: Path, size: int, distortion: bool) -> list[dict]:
     from toolbox.io.raster import iter_windows, open_raster_info
     from toolbox.photogrammetry.ortho import CollinearityMap
     from toolbox.photogrammetry.orthophoto import DemSampler, OrthoWindows, plan_photo
-    from toolbox.raster.warp import pad_at_photo_edges, single_threaded_opencv
+    from toolbox.raster.warp import (
+        RESAMPLING_MARGIN,
+        pad_at_photo_edges,
+        single_threaded_opencv,
+    )
     from toolbox.tiles import default_workers
 
     rows = []
@@ -147,6 +151,10 @@ def memory_case(folder: Path, size: int, distortion: bool) -> list[dict]:
     blocks: dict[int, int] = {}
 
     workers = default_workers()
+    # the photo in memory, its edge replicated once (what the warp pads a source window with
+    # where it touches the photo's edge): the windows are views of it
+    edge = RESAMPLING_MARGIN["bilinear"] + 1
+    padded = pad_at_photo_edges(rgb, (edge,) * 4)
 
     def ortho_windows(keep: bool, occlusion: bool = False) -> None:
         """The ortho:photo path in memory, as the raster engine runs it: the windows on one
@@ -163,9 +171,10 @@ def memory_case(folder: Path, size: int, distortion: bool) -> list[dict]:
             if src_plan is not None:
                 if src_plan.window is None:
                     return
-                r0, c0 = src_plan.window.row_off, src_plan.window.col_off
-                source = pad_at_photo_edges(rgb[r0:r0 + src_plan.window.height,
-                                                c0:c0 + src_plan.window.width], src_plan.pads)
+                win, (top, bottom, left, right) = src_plan.window, src_plan.pads
+                r0, c0 = edge + win.row_off - top, edge + win.col_off - left
+                source = padded[r0:r0 + top + win.height + bottom,
+                                c0:c0 + left + win.width + right]
                 mx, my = job(w)
             else:
                 bounds = job.source_bounds(w)
@@ -431,8 +440,9 @@ def main(argv: list[str] | None = None) -> str:
               "one-pass kernel (bilinear heights, the exact collinearity map relative to the "
               "source window, cells outside the photo blanked for OpenCV's border value, the "
               "counts of the report), with distortion its pass blending the correction on 64 x 64 "
-              "blocks within 0.05 px, then the edge padding of the source window and its "
-              "remap, OpenCV single-threaded. Floor and ours are run in turns, best of 7 "
+              "blocks within 0.05 px, then the remap of its source window (a view of the photo in "
+              "memory, whose edge is replicated once by 2 px as the warp pads a window "
+              "there), OpenCV single-threaded. Floor and ours are run in turns, best of 7 "
               "each; CPU s counts all threads of the process. "
               "Orthority is given the same pinhole camera (its OPK/PATB convention "
               "matches ours, checked above), DEM, grid and bilinear interpolation; the phase "
