@@ -62,6 +62,11 @@ def test_map_tiles_progress_and_cancel():
 
 
 def test_scheduler_resolution(monkeypatch):
+    # dask reads DASK_* variables into its configuration once, when imported: import it before
+    # the variable is set here, or the address below would stay configured for later tests
+    import dask
+    import distributed  # noqa: F401  (its config defaults must exist before they are overridden)
+
     monkeypatch.delenv("DASK_SCHEDULER_ADDRESS", raising=False)
     assert scheduler_address(None) is None
     assert resolve_executor(None, 3).describe() == "local threads (3)"
@@ -71,9 +76,6 @@ def test_scheduler_resolution(monkeypatch):
     assert resolve_executor("tcp://h:1").kind == "dask"
     with pytest.raises(ParameterError, match="SCHEDULER must be a Dask scheduler address"):
         resolve_executor("nonsense")
-    import dask
-    import distributed  # noqa: F401  (its config defaults must exist before they are overridden)
-
     with dask.config.set({"distributed.comm.timeouts.connect": "1s"}), \
             pytest.raises(ParameterError, match="cannot connect"):
         list(map_tiles(_slow_square, range(2), scheduler="tcp://127.0.0.1:9"))

@@ -42,7 +42,6 @@ import numpy as np
 
 from toolbox.errors import ToolboxError
 from toolbox.terrain.points import local_origin
-from toolbox.terrain.tin.planes import PointBuckets, locate, rasterize, snap_to_edges
 
 
 # -- triangulation --------------------------------------------------------------------------------
@@ -397,7 +396,7 @@ def triangulate(xy: np.ndarray, segments: np.ndarray | None = None,
 
 # -- plane values at cell centres and at points ---------------------------------------------------
 def rasterize_tin(xyz: np.ndarray, triangles: np.ndarray, x0: float, y0: float, cell_x: float,
-                  cell_y: float, width: int, height: int) -> np.ndarray:
+                  cell_y: float, width: int, height: int, compiled: bool = True) -> np.ndarray:
     """Plane value of the containing triangle at every cell centre of a north-up grid.
 
     Parameters
@@ -414,6 +413,9 @@ def rasterize_tin(xyz: np.ndarray, triangles: np.ndarray, x0: float, y0: float, 
         ``(x0 + (c + 0.5) * cell_x, y0 - (r + 0.5) * cell_y)``.
     width, height : int
         Grid size in columns and rows.
+    compiled : bool
+        The numba kernel (default), or its numpy twin (:mod:`toolbox.terrain.tin.planes_numpy`:
+        the same values, no numba import; for small rasters).
 
     Returns
     -------
@@ -430,6 +432,10 @@ def rasterize_tin(xyz: np.ndarray, triangles: np.ndarray, x0: float, y0: float, 
     out = np.full((height, width), np.nan)
     tri = np.asarray(triangles)
     if len(tri) and width and height:
+        if compiled:
+            from toolbox.terrain.tin.planes import rasterize
+        else:
+            from toolbox.terrain.tin.planes_numpy import rasterize
         rasterize(np.ascontiguousarray(xyz, dtype="float64"),
                   np.ascontiguousarray(tri, dtype=np.int64), float(x0), float(y0),
                   float(cell_x), float(cell_y), width, height, out)
@@ -459,6 +465,8 @@ def interpolate_tin(xyz: np.ndarray, triangles: np.ndarray, qx: np.ndarray, qy: 
         Plane value (thesis eq. [43]-[44]); NaN outside the TIN. A point on an edge or node gets
         the (equal) value of either triangle.
     """
+    from toolbox.terrain.tin.planes import PointBuckets, locate, snap_to_edges
+
     qx = np.asarray(qx, dtype="float64").ravel()
     qy = np.asarray(qy, dtype="float64").ravel()
     if qx.shape != qy.shape:
