@@ -99,7 +99,8 @@ class TinLinearMethod(Method):
             return arrays
 
         return TilePlan(plan, partial(tin_linear_tile, origin, max_distance, compiled=compiled),
-                        {"triangles": len(triangles), **info})
+                        {"triangles": len(triangles), **info,
+                         "kernels": "numba" if compiled else "numpy"})
 
     def loo(self, local_xyz, options, segments, feedback, workers):
         from toolbox.terrain.gridding.neighbours import PointBins
