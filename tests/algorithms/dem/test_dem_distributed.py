@@ -4,6 +4,10 @@ processes giving the same file, byte for byte, as the local run."""
 from __future__ import annotations
 
 import hashlib
+import json
+import os
+import subprocess
+import sys
 import threading
 import time
 
@@ -112,3 +116,23 @@ def test_dask_cluster_output_is_byte_identical_to_local(tmp_path, monkeypatch):
         assert env["STATISTICS"]["cells"]["executor"] == f"dask scheduler {cluster.scheduler_address}"
         assert _sha(tmp_path / "env.tif") == _sha(tmp_path / "idw_local.tif")
     assert threading.active_count() < 50
+
+
+def test_dask_is_imported_only_when_something_may_configure_it(tmp_path):
+    """No DASK_* variable and no Dask config folder: local threads without importing dask;
+    a ``scheduler-address`` in ``~/.config/dask/*.yaml`` is still honoured."""
+    script = ("import json, sys\nfrom toolbox.tiles import scheduler_address\n"
+              "print(json.dumps([scheduler_address(None), 'dask' in sys.modules]))")
+    env = {k: v for k, v in os.environ.items() if not k.startswith("DASK_")}
+    env["HOME"] = str(tmp_path)
+
+    def resolve():
+        done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                              env=env, check=True)
+        return json.loads(done.stdout.splitlines()[-1])
+
+    assert resolve() == [None, False]
+    (tmp_path / ".config" / "dask").mkdir(parents=True)
+    (tmp_path / ".config" / "dask" / "cluster.yaml").write_text(
+        "scheduler-address: tcp://10.1.2.3:8786\n")
+    assert resolve() == ["tcp://10.1.2.3:8786", True]
