@@ -531,18 +531,19 @@ def triangles_by_tile(xy: np.ndarray, triangles: np.ndarray, x0: float, y0: floa
         Tiles per row.
     """
     xy = np.asarray(xy, dtype="float64")
-    tri = np.asarray(triangles, dtype=np.int64)
+    tri = np.asarray(triangles)
     ntx = max(1, -(-int(width) // tile))
     nty = max(1, -(-int(height) // tile))
     if len(tri) == 0:
         return np.zeros(0, dtype=np.int64), np.zeros(ntx * nty + 1, dtype=np.int64), ntx
-    px = xy[tri, 0]
-    py = xy[tri, 1]
+    x, y = np.ascontiguousarray(xy[:, 0]), np.ascontiguousarray(xy[:, 1])
+    corners = [np.ascontiguousarray(tri[:, j]) for j in range(3)]
+    (xa, xb, xc), (ya, yb, yc) = [x[i] for i in corners], [y[i] for i in corners]
     # cell index range each triangle's box covers (one cell of margin: centres are what count)
-    c_lo = np.floor((px.min(axis=1) - x0) / cell_x - 0.5)
-    c_hi = np.ceil((px.max(axis=1) - x0) / cell_x - 0.5)
-    r_lo = np.floor((y0 - py.max(axis=1)) / cell_y - 0.5)
-    r_hi = np.ceil((y0 - py.min(axis=1)) / cell_y - 0.5)
+    c_lo = np.floor((np.minimum(np.minimum(xa, xb), xc) - x0) / cell_x - 0.5)
+    c_hi = np.ceil((np.maximum(np.maximum(xa, xb), xc) - x0) / cell_x - 0.5)
+    r_lo = np.floor((y0 - np.maximum(np.maximum(ya, yb), yc)) / cell_y - 0.5)
+    r_hi = np.ceil((y0 - np.minimum(np.minimum(ya, yb), yc)) / cell_y - 0.5)
     keep = (c_hi >= 0) & (c_lo <= width - 1) & (r_hi >= 0) & (r_lo <= height - 1)
     idx = np.flatnonzero(keep)
     tx0 = (np.clip(c_lo[idx], 0, width - 1) // tile).astype(np.int64)
