@@ -17,9 +17,11 @@ import numpy as np
 from toolbox.terrain.gridding.methods.base import Method, TilePlan
 from toolbox.terrain.gridding.neighbours import NUMPY_MAX_POINTS
 
-#: the numpy path up to this many cells (and NUMPY_MAX_POINTS points); measured crossover on 2
-#: cores, whole process against the compiled path: see bench/dem_bench.py ``crossover_rows``
-NUMPY_MAX_CELLS = 1_000_000
+#: the numpy path up to this many cells (and NUMPY_MAX_POINTS points). Measured crossover, whole
+#: process on 2 cores (bench/dem_bench.py --crossover, bench/results/dem_crossover.md): numpy is
+#: faster up to 400,000 points and 2000 x 2000 cells (100,000 points -> 632 x 632: 1.3 s
+#: against 2.3 s), numba from 700,000 points, and from about 2828 x 2828 cells
+NUMPY_MAX_CELLS = 4_000_000
 
 
 def use_compiled(points: int, cells: int) -> bool:
