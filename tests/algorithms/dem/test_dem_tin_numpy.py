@@ -78,6 +78,20 @@ def test_numpy_rasteriser_equals_the_compiled_kernel(cell, corner):
         assert_same_values(vectorised, compiled)
 
 
+def test_small_batches_give_the_same_raster(monkeypatch):
+    """Batches cut by triangles and by (triangle, row) pairs (bounded memory for slivers)."""
+    from toolbox.terrain.tin import planes_numpy
+
+    _, xyz, seg = list(_tins())[2]
+    nodes, tri, _ = constrained_tin(xyz, seg)
+    args = (nodes, tri, -2.0, 101.0, 0.5, 0.5, 210, 208)
+    whole = rasterize_tin(*args, compiled=False)
+    for batch, rows in ((5, 10**9), (10**9, 7), (3, 1)):
+        monkeypatch.setattr(planes_numpy, "BATCH", batch)
+        monkeypatch.setattr(planes_numpy, "BATCH_ROWS", rows)
+        assert_same_values(rasterize_tin(*args, compiled=False), whole, rtol=0.0)
+
+
 def test_centres_on_edges_and_nodes_of_either_orientation():
     """Centres exactly on the edges and nodes of triangles listed clockwise and
     counter-clockwise (the triangulators give counter-clockwise ones; the kernels take both)."""

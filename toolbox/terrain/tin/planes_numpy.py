@@ -19,8 +19,11 @@ import numpy as np
 #: cells tested beyond a row's computed span (cell units): far above the span's rounding error
 #: (about 1e-13), far below a cell, so exactly the centres the edge tests accept are tested
 SPAN_SLACK = 1e-9
-#: triangles per vectorised batch (its arrays stay in the CPU caches: measured fastest)
+#: triangles per vectorised batch (its arrays stay in the CPU caches: measured fastest), and
+#: at most this many (triangle, row) pairs per batch: memory stays bounded for long slivers
+#: (the cells of a batch are at most the raster's plus one per pair: triangles do not overlap)
 BATCH = 8192
+BATCH_ROWS = 1 << 16
 
 
 def rasterize(xyz: np.ndarray, triangles: np.ndarray, x0: float, y0: float, cell_x: float,
@@ -33,8 +36,16 @@ def rasterize(xyz: np.ndarray, triangles: np.ndarray, x0: float, y0: float, cell
     z_node = np.ascontiguousarray(xyz[:, 2])
     flat_out = out.reshape(-1)
     tri = np.asarray(triangles, dtype=np.int64)
-    for first in range(0, len(tri), BATCH):
-        _batch(tri[first:first + BATCH], u_node, v_node, z_node, width, height, flat_out)
+    v = [v_node[tri[:, j]] for j in range(3)]
+    n_rows = np.minimum(np.floor(np.maximum(np.maximum(v[0], v[1]), v[2])), height - 1.0) \
+        - np.maximum(np.ceil(np.minimum(np.minimum(v[0], v[1]), v[2])), 0.0) + 1.0
+    rows_before = np.concatenate([[0.0], np.cumsum(np.maximum(n_rows, 0.0))])
+    first = 0
+    while first < len(tri):
+        last = np.searchsorted(rows_before, rows_before[first] + BATCH_ROWS, side="right") - 1
+        last = min(first + BATCH, max(first + 1, int(last)))
+        _batch(tri[first:last], u_node, v_node, z_node, width, height, flat_out)
+        first = last
 
 
 def _batch(tri, u_node, v_node, z_node, width, height, flat_out):
