@@ -120,6 +120,24 @@ def test_both_paths_agree_with_scipy_linear_griddata():
         assert_same_values(ours, reference, rtol=1e-9)
 
 
+def test_numpy_bins_equal_the_compiled_bins(monkeypatch):
+    from toolbox.terrain.gridding import neighbours
+    from toolbox.warmup import compile_large_input_kernels
+
+    rng = np.random.default_rng(5)
+    xy = np.vstack([rng.uniform(0, 50, (3000, 2)), rng.integers(0, 20, (500, 2)) * 1.0])
+    for points in (xy, np.unique(xy, axis=0), xy[:, ::-1] * [1.0, 0.0]):  # last: on a line
+        built = {}
+        for label, limit in (("numpy", 10**9), ("numba", -1)):
+            monkeypatch.setattr(neighbours, "NUMPY_MAX_POINTS", limit)
+            bins = neighbours.PointBins.build(points)
+            built[label] = (bins.order, bins.offsets, bins.has_duplicates(),
+                            bins.in_rect(10.0, 5.0, 30.5, 41.0), bins.in_rect(-5, -5, 0.0, 0.0))
+        for a, b in zip(built["numpy"], built["numba"], strict=True):
+            assert np.array_equal(a, b)
+    compile_large_input_kernels()  # what `toolbox warmup` adds for large inputs: it runs
+
+
 # -- whole runs ----------------------------------------------------------------------------------
 @pytest.fixture(scope="module")
 def inputs(tmp_path_factory):
