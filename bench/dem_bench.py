@@ -17,7 +17,8 @@ warm-up that loads the algorithm registry and numba's cached kernels; gdal_grid 
 whole command (it reads the same GeoPackage); griddata's time excludes reading (arrays in memory).
 
 Whole-process rows (what a user waits for at the prompt): ``toolbox run dem:tin_linear`` in a
-fresh process (warm numba cache: the second run of a session), ``gdal_grid -a linear`` and a
+fresh process (warm numba cache: the second run of a session; the 100,000-point runs take its
+numpy path and never import numba), ``gdal_grid -a linear`` and a
 Python process running scipy's griddata (its import, loading the points from .npy, the
 interpolation), on 1,000,000 and on 100,000 points over the same 2 km square, each to the
 2000 x 2000 grid of 1 m and the 100,000 points also to the 632 x 632 grid of ``--small``;
