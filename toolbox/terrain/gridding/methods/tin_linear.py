@@ -3,7 +3,8 @@ data at each cell centre (thesis eq. [43]-[44]).
 
 Two paths with the same cell values (the same arithmetic; tested equal): numba kernels, and for
 small runs (:func:`use_compiled`) numpy ones that never import numba, whose import and kernel
-cache load (about 1 s per process) would cost a small run more than its work.
+cache load (about 1 s per process) would cost a small run more than its work. (QUALITY's
+leave-one-out always uses the numba kernels.)
 """
 
 from __future__ import annotations
