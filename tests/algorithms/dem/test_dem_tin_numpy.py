@@ -78,6 +78,13 @@ def test_numpy_rasteriser_equals_the_compiled_kernel(cell, corner):
         assert_same_values(vectorised, compiled)
 
 
+def test_rectangular_cells():
+    for _, xyz, seg in _tins():
+        nodes, tri, _ = constrained_tin(xyz, seg)
+        args = (nodes, tri, -3.0, 104.0, 0.8, 1.3, 135, 83)
+        assert_same_values(rasterize_tin(*args, compiled=False), rasterize_tin(*args))
+
+
 def test_small_batches_give_the_same_raster(monkeypatch):
     """Batches cut by triangles and by (triangle, row) pairs (bounded memory for slivers)."""
     from toolbox.terrain.tin import planes_numpy
@@ -177,6 +184,7 @@ def _run_both(monkeypatch, params, path):
     {"MAX_DISTANCE": 3.0, "TILE_SIZE": 48},
     {"BREAKLINES": "bl.gpkg", "MAX_DISTANCE": 4.0, "MASK": "mask.gpkg", "DUPLICATES": "max"},
     {"EXTENT": f"{X0 - 20},{Y0 - 15},{X0 + 320},{Y0 + 310}", "TILE_SIZE": 64},  # hull inside
+    {"EXTENT": f"{X0 + 50.3},{Y0 + 40.1},{X0 + 170.3},{Y0 + 130.1}", "TILE_SIZE": 32},  # inside
 ])
 def test_numpy_path_equals_the_numba_path(extra, inputs, tmp_path, monkeypatch):
     params = {"INPUT": inputs / "pts.gpkg", "CELL_SIZE": 1.7, "OVERVIEWS": False}
