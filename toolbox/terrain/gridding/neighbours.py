@@ -149,9 +149,10 @@ class PointBins:
         """True when two points have exactly the same x and y (they share a bin): O(n)
         compiled, a sort in numpy."""
         if len(self.x) <= NUMPY_MAX_POINTS:  # sorted by (x, y), duplicates are neighbours
-            by = np.lexsort((self.y, self.x))
-            sx, sy = self.x[by], self.y[by]
-            return bool(np.any((sx[1:] == sx[:-1]) & (sy[1:] == sy[:-1])))
+            xy = np.empty(len(self.x), dtype=np.complex128)  # sorts by real, then imaginary
+            xy.real, xy.imag = self.x, self.y
+            xy.sort()
+            return bool(np.any(xy[1:] == xy[:-1]))
         from toolbox.terrain.gridding.bin_kernels import _has_duplicates
 
         return bool(_has_duplicates(self.x, self.y, self.offsets))
