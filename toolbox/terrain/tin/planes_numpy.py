@@ -34,7 +34,8 @@ def rasterize(xyz: np.ndarray, triangles: np.ndarray, x0: float, y0: float, cell
     u_node = (xyz[:, 0] - x0) / cell_x - 0.5
     v_node = (y0 - xyz[:, 1]) / cell_y - 0.5
     z_node = np.ascontiguousarray(xyz[:, 2])
-    flat_out = out.reshape(-1)
+    target = out if out.flags.c_contiguous else np.ascontiguousarray(out)
+    flat_out = target.reshape(-1)  # a view: cells are written by flat index
     tri = np.asarray(triangles, dtype=np.int64)
     v = [v_node[tri[:, j]] for j in range(3)]
     n_rows = np.minimum(np.floor(np.maximum(np.maximum(v[0], v[1]), v[2])), height - 1.0) \
@@ -46,6 +47,8 @@ def rasterize(xyz: np.ndarray, triangles: np.ndarray, x0: float, y0: float, cell
         last = min(first + BATCH, max(first + 1, int(last)))
         _batch(tri[first:last], u_node, v_node, z_node, width, height, flat_out)
         first = last
+    if target is not out:
+        out[...] = target
 
 
 def _batch(tri, u_node, v_node, z_node, width, height, flat_out):
