@@ -80,8 +80,7 @@ def _batch(tri, u_node, v_node, z_node, width, height, flat_out):
         e = du * (v[opposite] - va) - dv * (u[opposite] - ua)
         inside = (np.where(flip, -e, e) > 0.0) != flip
         # on a row, the edge bounds the span from below where the inside is towards +u
-        with np.errstate(divide="ignore", invalid="ignore"):
-            slope = du / dv
+        slope = du / np.where(dv != 0.0, dv, 1.0)  # level edges (dv = 0) bound no span
         lower = (dv < 0.0) == inside
         edges.append((ua, va, du, dv, inside, slope, dv != 0.0, lower))
     # rows: (triangle, row) pairs, on each the span the edges leave (SPAN_SLACK wider)
