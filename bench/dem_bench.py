@@ -6,6 +6,7 @@ peak memory of a 20000 x 20000 output.
     .venv/bin/python bench/dem_bench.py --small    # quick check (100,000 points, 632 x 632)
     .venv/bin/python bench/dem_bench.py --no-big   # skip the 20000 x 20000 memory run
     .venv/bin/python bench/dem_bench.py --whole-only   # only the whole-process TIN rows
+    .venv/bin/python bench/dem_bench.py --crossover    # dem:tin_linear's numpy vs numba path
 
 Data: uniform random points over 2 km x 2 km at the Siena coordinates (EPSG:3003) on a smooth
 analytic surface, whose value at every cell centre is the truth for the RMSE. Every measurement
@@ -16,7 +17,8 @@ warm-up that loads the algorithm registry and numba's cached kernels; gdal_grid 
 whole command (it reads the same GeoPackage); griddata's time excludes reading (arrays in memory).
 
 Whole-process rows (what a user waits for at the prompt): ``toolbox run dem:tin_linear`` in a
-fresh process (warm numba cache: the second run of a session), ``gdal_grid -a linear`` and a
+fresh process (warm numba cache: the second run of a session; the 100,000-point runs take its
+numpy path and never import numba), ``gdal_grid -a linear`` and a
 Python process running scipy's griddata (its import, loading the points from .npy, the
 interpolation), on 1,000,000 and on 100,000 points over the same 2 km square, each to the
 2000 x 2000 grid of 1 m and the 100,000 points also to the 632 x 632 grid of ``--small``;
@@ -24,6 +26,11 @@ median of 3 interleaved runs, with CPU time (user + system) and peak RSS. First 
 TIN commands on 3,000 points with an empty per-user cache (numba compiles the kernels), then the
 same commands again (kernels loaded from that cache).
 Writes the markdown table to bench/results/dem.md.
+
+Crossover (``--crossover``, bench/results/dem_crossover.md): ``dem:tin_linear`` whole process
+with its numpy kernels (no numba import) and with its numba kernels, forced, interleaved, best of
+3, over points x cells; it sets ``NUMPY_MAX_POINTS`` / ``NUMPY_MAX_CELLS`` in
+toolbox/terrain/gridding/methods/tin_linear.py.
 """
 
 from __future__ import annotations
@@ -226,6 +233,47 @@ def measure_whole(cmd: list[str], repeat: int = 3) -> list[tuple[float, float, f
         cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
         runs.append((seconds, cpu, peak_mb))
     return runs
+
+
+CROSSOVER_SCRIPT = """
+import sys
+import toolbox
+from toolbox.terrain.gridding import neighbours
+from toolbox.terrain.gridding.methods import tin_linear
+folder, cell, path = sys.argv[1], float(sys.argv[2]), sys.argv[3]
+if path == "numpy":  # no limit: the numpy kernels whatever the size
+    neighbours.NUMPY_MAX_POINTS = tin_linear.NUMPY_MAX_POINTS = tin_linear.NUMPY_MAX_CELLS = 1e18
+else:
+    tin_linear.NUMPY_MAX_CELLS = -1
+toolbox.run("dem:tin_linear", {"INPUT": folder + "/points.gpkg", "OUTPUT": folder + "/x.tif",
+            "CELL_SIZE": cell, "OVERVIEWS": False, "EXTENT": sys.argv[4]}, overwrite=True)
+"""
+
+
+def crossover_rows(work: Path, points=(100_000, 250_000, 400_000, 700_000),
+                   widths=(632, 1414, 2000, 2828), repeat: int = 3) -> list[str]:
+    """Whole-process dem:tin_linear, numpy path against numba path (forced), best of
+    ``repeat`` interleaved runs per case; markdown lines."""
+    lines = ["| points | cells | numpy path | numba path | faster |", "|---|---|---|---|---|"]
+    extent = f"{X0},{Y0},{X0 + SIZE},{Y0 + SIZE}"
+    for n in points:
+        folder = work / f"cross_{n}"
+        folder.mkdir(exist_ok=True)
+        make_data(folder, n)
+        for width in widths:
+            best = {}
+            for _ in range(repeat):
+                for path in ("numpy", "numba"):
+                    ((wall, cpu, _),) = measure_whole(
+                        [sys.executable, "-c", CROSSOVER_SCRIPT, str(folder), repr(SIZE / width),
+                         path, extent], 1)
+                    best[path] = min(best.get(path, (np.inf, 0)), (wall, cpu))
+            faster = min(best, key=lambda k: best[k][0])
+            lines.append(f"| {n:,} | {width} x {width} | {best['numpy'][0]:.2f} s "
+                         f"({best['numpy'][1]:.2f} s CPU) | {best['numba'][0]:.2f} s "
+                         f"({best['numba'][1]:.2f} s CPU) | {faster} |")
+            print("  " + lines[-1], flush=True)
+    return lines
 
 
 def whole_process_rows(work: Path, n_big: int, n_small: int, repeat: int = 3) -> list[dict]:
@@ -456,8 +504,19 @@ if __name__ == "__main__":
     parser.add_argument("--no-big", dest="big", action="store_false")
     parser.add_argument("--whole-only", action="store_true",
                         help="only the whole-process dem:tin_linear rows")
+    parser.add_argument("--crossover", action="store_true",
+                        help="dem:tin_linear's numpy path against its numba path")
     args = parser.parse_args()
     if args.case:
         print(json.dumps(run_case(args.case, args.work, args.points)))
+    elif args.crossover:
+        note = load_note()
+        with tempfile.TemporaryDirectory() as tmp:
+            table_lines = crossover_rows(Path(tmp))
+        text = "\n".join(["## dem:tin_linear: numpy path against numba path (whole process)", "",
+                          *table_lines, "", f"Machine: {machine()}; {note}.", ""])
+        (HERE / "results").mkdir(exist_ok=True)
+        (HERE / "results" / "dem_crossover.md").write_text(text)
+        print(text)
     else:
         main(small=args.small, big=args.big, whole_only=args.whole_only)

@@ -6,7 +6,9 @@ Never inside the installed package (which may be read-only): ``$XDG_CACHE_HOME``
 
 from __future__ import annotations
 
+import functools
 import os
+from collections.abc import Callable
 from pathlib import Path
 
 APP_NAME = "photogrammetry-toolbox"
@@ -27,3 +29,24 @@ def configure_numba_cache() -> None:
     """
     if "NUMBA_CACHE_DIR" not in os.environ:
         os.environ["NUMBA_CACHE_DIR"] = str(user_cache_dir("numba"))
+
+
+def njit_on_first_call(**options) -> Callable[[Callable], Callable]:
+    """Decorator: ``numba.njit(**options)`` applied on the function's first call, so that
+    importing its module does not import numba (about 0.4 s). Only for kernels called from
+    Python: a compiled caller needs the numba dispatcher itself."""
+
+    def decorate(func: Callable) -> Callable:
+        compiled: list[Callable] = []
+
+        @functools.wraps(func)
+        def call(*args):
+            if not compiled:
+                from numba import njit
+
+                compiled.append(njit(**options)(func))
+            return compiled[0](*args)
+
+        return call
+
+    return decorate

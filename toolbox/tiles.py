@@ -69,6 +69,8 @@ def scheduler_address(value: str | None = None) -> str | None:
     env = os.environ.get(SCHEDULER_ENV, "").strip()
     if env:
         return env
+    if not _dask_may_be_configured():  # no need to import dask (about 0.1 s) to read nothing
+        return None
     try:
         import dask
 
@@ -76,6 +78,23 @@ def scheduler_address(value: str | None = None) -> str | None:
     except ImportError:  # the [dask] extra is not installed: local threads
         configured = None
     return str(configured) if configured else None
+
+
+def _dask_may_be_configured() -> bool:
+    """False when Dask's configuration cannot hold a ``scheduler-address``: dask is not imported
+    yet (nothing was set in this process), no ``DASK_*`` environment variable exists and none of
+    the places ``dask.config`` reads YAML from exists (``/etc/dask``, ``<prefix>/etc/dask``,
+    ``~/.config/dask``; ``DASK_ROOT_CONFIG`` and ``DASK_CONFIG`` are ``DASK_*`` variables)."""
+    import sys
+
+    if "dask" in sys.modules or any(name.startswith("DASK_") for name in os.environ):
+        return True
+    import site
+
+    prefixes = dict.fromkeys([sys.prefix, *getattr(site, "PREFIXES", [])])
+    paths = ["/etc/dask", os.path.join(os.path.expanduser("~"), ".config", "dask"),
+             *(os.path.join(prefix, "etc", "dask") for prefix in prefixes)]
+    return any(os.path.exists(path) for path in paths)
 
 
 def resolve_executor(scheduler: str | None = None, workers: int | None = None,

@@ -70,4 +70,22 @@ def warmup(feedback: Feedback | None = None) -> int:
         pipeline_file.write_text(yaml.safe_dump(doc, sort_keys=False), encoding="utf-8")
         run_pipeline(load_pipeline(pipeline_file), feedback=feedback.step(10, 100),
                      overwrite=True)
+    compile_large_input_kernels()
     return len(steps)
+
+
+def compile_large_input_kernels() -> None:
+    """The bin kernels that only inputs above the numpy crossover use (the demo's are smaller:
+    :data:`toolbox.terrain.gridding.neighbours.NUMPY_MAX_POINTS`), through the same calls."""
+    import numpy as np
+
+    from toolbox.terrain.gridding import neighbours
+
+    saved = neighbours.NUMPY_MAX_POINTS
+    neighbours.NUMPY_MAX_POINTS = -1
+    try:
+        bins = neighbours.PointBins.build(np.random.default_rng(0).uniform(0, 10, (50, 2)))
+        bins.has_duplicates()
+        bins.in_rect(1.0, 1.0, 5.0, 5.0)
+    finally:
+        neighbours.NUMPY_MAX_POINTS = saved

@@ -4,6 +4,10 @@ processes giving the same file, byte for byte, as the local run."""
 from __future__ import annotations
 
 import hashlib
+import json
+import os
+import subprocess
+import sys
 import threading
 import time
 
@@ -62,6 +66,11 @@ def test_map_tiles_progress_and_cancel():
 
 
 def test_scheduler_resolution(monkeypatch):
+    # dask reads DASK_* variables into its configuration once, when imported: import it before
+    # the variable is set here, or the address below would stay configured for later tests
+    import dask
+    import distributed  # noqa: F401  (its config defaults must exist before they are overridden)
+
     monkeypatch.delenv("DASK_SCHEDULER_ADDRESS", raising=False)
     assert scheduler_address(None) is None
     assert resolve_executor(None, 3).describe() == "local threads (3)"
@@ -71,9 +80,6 @@ def test_scheduler_resolution(monkeypatch):
     assert resolve_executor("tcp://h:1").kind == "dask"
     with pytest.raises(ParameterError, match="SCHEDULER must be a Dask scheduler address"):
         resolve_executor("nonsense")
-    import dask
-    import distributed  # noqa: F401  (its config defaults must exist before they are overridden)
-
     with dask.config.set({"distributed.comm.timeouts.connect": "1s"}), \
             pytest.raises(ParameterError, match="cannot connect"):
         list(map_tiles(_slow_square, range(2), scheduler="tcp://127.0.0.1:9"))
@@ -110,3 +116,25 @@ def test_dask_cluster_output_is_byte_identical_to_local(tmp_path, monkeypatch):
         assert env["STATISTICS"]["cells"]["executor"] == f"dask scheduler {cluster.scheduler_address}"
         assert _sha(tmp_path / "env.tif") == _sha(tmp_path / "idw_local.tif")
     assert threading.active_count() < 50
+
+
+def test_dask_is_imported_only_when_something_may_configure_it(tmp_path):
+    """No DASK_* variable and no Dask config folder: local threads without importing dask;
+    a ``scheduler-address`` in ``~/.config/dask/*.yaml`` is still honoured."""
+    if any(os.path.exists(os.path.join(prefix, "etc", "dask")) for prefix in ("/", sys.prefix)):
+        pytest.skip("this machine has a Dask configuration folder")
+    script = ("import json, sys\nfrom toolbox.tiles import scheduler_address\n"
+              "print(json.dumps([scheduler_address(None), 'dask' in sys.modules]))")
+    env = {k: v for k, v in os.environ.items() if not k.startswith("DASK_")}
+    env["HOME"] = str(tmp_path)
+
+    def resolve():
+        done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                              env=env, check=True)
+        return json.loads(done.stdout.splitlines()[-1])
+
+    assert resolve() == [None, False]
+    (tmp_path / ".config" / "dask").mkdir(parents=True)
+    (tmp_path / ".config" / "dask" / "cluster.yaml").write_text(
+        "scheduler-address: tcp://10.1.2.3:8786\n")
+    assert resolve() == ["tcp://10.1.2.3:8786", True]

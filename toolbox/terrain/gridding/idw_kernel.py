@@ -14,14 +14,8 @@ import math
 import numpy as np
 from numba import njit
 
-from toolbox.terrain.gridding.neighbours import (
-    PointBins,
-    block_knn,
-    block_scratch,
-    block_size,
-    knn_one,
-    sector_one,
-)
+from toolbox.terrain.gridding.bin_kernels import block_knn, knn_one, sector_one
+from toolbox.terrain.gridding.neighbours import PointBins, block_scratch, block_size
 
 
 @njit(nogil=True, cache=True, inline="always")

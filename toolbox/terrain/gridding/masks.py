@@ -10,7 +10,8 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
-from numba import njit
+
+from toolbox.cache import njit_on_first_call
 
 
 def convex_hull(xy: np.ndarray) -> np.ndarray | None:
@@ -47,7 +48,7 @@ def _hull_candidates(xy: np.ndarray) -> np.ndarray:
     return _akl_toussaint(np.ascontiguousarray(xy[:, 0]), np.ascontiguousarray(xy[:, 1]))
 
 
-@njit(nogil=True, cache=True)
+@njit_on_first_call(nogil=True, cache=True)
 def _akl_toussaint(x, y):
     n = len(x)
     best = np.full(8, -np.inf)

@@ -25,8 +25,9 @@ import math
 import numpy as np
 from numba import njit
 
+from toolbox.terrain.gridding.bin_kernels import block_knn, knn_one
 from toolbox.terrain.gridding.idw_kernel import _cell
-from toolbox.terrain.gridding.neighbours import PointBins, block_knn, block_scratch, block_size, knn_one
+from toolbox.terrain.gridding.neighbours import PointBins, block_scratch, block_size
 from toolbox.terrain.gridding.parameters import (  # noqa: F401 - part of this module's API
     DEFAULT_MIN_RCOND,
     ORDER_NAMES,

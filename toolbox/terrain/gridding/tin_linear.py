@@ -12,8 +12,8 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
-from numba import njit
 
+from toolbox.cache import njit_on_first_call
 from toolbox.feedback import Feedback
 
 
@@ -49,7 +49,7 @@ def constrained_tin(xyz: np.ndarray, segments: np.ndarray | None
         "crossings": tri.steiner_count, "crossing_z_disagreement": float(spread.max())}
 
 
-@njit(cache=True)
+@njit_on_first_call(cache=True)
 def _greedy_colours(n, indptr, indices, protected):
     """Colour the vertices so that no two neighbours share a colour (greedy, vertex order);
     protected vertices get -1."""

@@ -42,7 +42,6 @@ import numpy as np
 
 from toolbox.errors import ToolboxError
 from toolbox.terrain.points import local_origin
-from toolbox.terrain.tin.planes import PointBuckets, locate, rasterize, snap_to_edges
 
 
 # -- triangulation --------------------------------------------------------------------------------
@@ -397,7 +396,7 @@ def triangulate(xy: np.ndarray, segments: np.ndarray | None = None,
 
 # -- plane values at cell centres and at points ---------------------------------------------------
 def rasterize_tin(xyz: np.ndarray, triangles: np.ndarray, x0: float, y0: float, cell_x: float,
-                  cell_y: float, width: int, height: int) -> np.ndarray:
+                  cell_y: float, width: int, height: int, compiled: bool = True) -> np.ndarray:
     """Plane value of the containing triangle at every cell centre of a north-up grid.
 
     Parameters
@@ -414,6 +413,9 @@ def rasterize_tin(xyz: np.ndarray, triangles: np.ndarray, x0: float, y0: float, 
         ``(x0 + (c + 0.5) * cell_x, y0 - (r + 0.5) * cell_y)``.
     width, height : int
         Grid size in columns and rows.
+    compiled : bool
+        The numba kernel (default), or its numpy twin (:mod:`toolbox.terrain.tin.planes_numpy`:
+        the same values, no numba import; for small rasters).
 
     Returns
     -------
@@ -430,6 +432,10 @@ def rasterize_tin(xyz: np.ndarray, triangles: np.ndarray, x0: float, y0: float, 
     out = np.full((height, width), np.nan)
     tri = np.asarray(triangles)
     if len(tri) and width and height:
+        if compiled:
+            from toolbox.terrain.tin.planes import rasterize
+        else:
+            from toolbox.terrain.tin.planes_numpy import rasterize
         rasterize(np.ascontiguousarray(xyz, dtype="float64"),
                   np.ascontiguousarray(tri, dtype=np.int64), float(x0), float(y0),
                   float(cell_x), float(cell_y), width, height, out)
@@ -459,6 +465,8 @@ def interpolate_tin(xyz: np.ndarray, triangles: np.ndarray, qx: np.ndarray, qy: 
         Plane value (thesis eq. [43]-[44]); NaN outside the TIN. A point on an edge or node gets
         the (equal) value of either triangle.
     """
+    from toolbox.terrain.tin.planes import PointBuckets, locate, snap_to_edges
+
     qx = np.asarray(qx, dtype="float64").ravel()
     qy = np.asarray(qy, dtype="float64").ravel()
     if qx.shape != qy.shape:
@@ -523,18 +531,19 @@ def triangles_by_tile(xy: np.ndarray, triangles: np.ndarray, x0: float, y0: floa
         Tiles per row.
     """
     xy = np.asarray(xy, dtype="float64")
-    tri = np.asarray(triangles, dtype=np.int64)
+    tri = np.asarray(triangles)
     ntx = max(1, -(-int(width) // tile))
     nty = max(1, -(-int(height) // tile))
     if len(tri) == 0:
         return np.zeros(0, dtype=np.int64), np.zeros(ntx * nty + 1, dtype=np.int64), ntx
-    px = xy[tri, 0]
-    py = xy[tri, 1]
+    x, y = np.ascontiguousarray(xy[:, 0]), np.ascontiguousarray(xy[:, 1])
+    corners = [np.ascontiguousarray(tri[:, j]) for j in range(3)]
+    (xa, xb, xc), (ya, yb, yc) = [x[i] for i in corners], [y[i] for i in corners]
     # cell index range each triangle's box covers (one cell of margin: centres are what count)
-    c_lo = np.floor((px.min(axis=1) - x0) / cell_x - 0.5)
-    c_hi = np.ceil((px.max(axis=1) - x0) / cell_x - 0.5)
-    r_lo = np.floor((y0 - py.max(axis=1)) / cell_y - 0.5)
-    r_hi = np.ceil((y0 - py.min(axis=1)) / cell_y - 0.5)
+    c_lo = np.floor((np.minimum(np.minimum(xa, xb), xc) - x0) / cell_x - 0.5)
+    c_hi = np.ceil((np.maximum(np.maximum(xa, xb), xc) - x0) / cell_x - 0.5)
+    r_lo = np.floor((y0 - np.maximum(np.maximum(ya, yb), yc)) / cell_y - 0.5)
+    r_hi = np.ceil((y0 - np.minimum(np.minimum(ya, yb), yc)) / cell_y - 0.5)
     keep = (c_hi >= 0) & (c_lo <= width - 1) & (r_hi >= 0) & (r_lo <= height - 1)
     idx = np.flatnonzero(keep)
     tx0 = (np.clip(c_lo[idx], 0, width - 1) // tile).astype(np.int64)

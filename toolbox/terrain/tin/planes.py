@@ -262,3 +262,84 @@ class PointBuckets:
         self.y = np.ascontiguousarray(y[self.order])
 
 
+# -- tiles of a raster (toolbox.terrain.gridding.tin_raster) -----------------------------------
+@numba.njit(cache=True, nogil=True)
+def _mark_nodes(triangles, ids, slot):
+    """The nodes of triangles ``ids`` (each once), marked in ``slot`` (scratch, one per node,
+    all -1 before)."""
+    used = np.empty(3 * len(ids), dtype=np.int64)
+    m = 0
+    for k in range(len(ids)):
+        for j in range(3):
+            v = triangles[ids[k], j]
+            if slot[v] < 0:
+                slot[v] = 0
+                used[m] = v
+                m += 1
+    return used[:m]
+
+
+@numba.njit(cache=True, nogil=True)
+def _renumber(nodes, triangles, ids, used, slot):
+    """``nodes[used]`` and triangles ``ids`` renumbered to them; ``slot`` is left all -1."""
+    m = len(used)
+    out = np.empty((m, 3), dtype=np.float64)
+    for i in range(m):
+        v = used[i]
+        slot[v] = i
+        out[i, 0] = nodes[v, 0]
+        out[i, 1] = nodes[v, 1]
+        out[i, 2] = nodes[v, 2]
+    local = np.empty((len(ids), 3), dtype=np.int64)
+    for k in range(len(ids)):
+        for j in range(3):
+            local[k, j] = slot[triangles[ids[k], j]]
+    for i in range(m):
+        slot[used[i]] = -1
+    return out, local
+
+
+@numba.njit(cache=True, nogil=True)
+def _tile_range(xy, tri, k, x0, y0, cell_x, cell_y, width, height, tile):
+    """Tile columns and rows (inclusive) whose cells triangle ``k``'s box may cover (one cell of
+    margin: cell centres are what count); tx1 < tx0 when it covers none."""
+    a, b, c = tri[k, 0], tri[k, 1], tri[k, 2]
+    xmin = min(xy[a, 0], xy[b, 0], xy[c, 0])
+    xmax = max(xy[a, 0], xy[b, 0], xy[c, 0])
+    ymin = min(xy[a, 1], xy[b, 1], xy[c, 1])
+    ymax = max(xy[a, 1], xy[b, 1], xy[c, 1])
+    c_lo = np.floor((xmin - x0) / cell_x - 0.5)
+    c_hi = np.ceil((xmax - x0) / cell_x - 0.5)
+    r_lo = np.floor((y0 - ymax) / cell_y - 0.5)
+    r_hi = np.ceil((y0 - ymin) / cell_y - 0.5)
+    if c_hi < 0 or c_lo > width - 1 or r_hi < 0 or r_lo > height - 1:
+        return 0, -1, 0, -1
+    tx0 = int(max(c_lo, 0.0)) // tile
+    tx1 = int(min(c_hi, width - 1.0)) // tile
+    ty0 = int(max(r_lo, 0.0)) // tile
+    ty1 = int(min(r_hi, height - 1.0)) // tile
+    return tx0, tx1, ty0, ty1
+
+
+@numba.njit(cache=True, nogil=True)
+def _group(xy, tri, x0, y0, cell_x, cell_y, width, height, tile, ntx, nty):
+    start = np.zeros(ntx * nty + 1, dtype=np.int64)
+    for k in range(tri.shape[0]):  # pass 1: triangles per tile
+        tx0, tx1, ty0, ty1 = _tile_range(xy, tri, k, x0, y0, cell_x, cell_y, width, height,
+                                         tile)
+        for ty in range(ty0, ty1 + 1):
+            for tx in range(tx0, tx1 + 1):
+                start[ty * ntx + tx + 1] += 1
+    for i in range(ntx * nty):
+        start[i + 1] += start[i]
+    fill = start[:-1].copy()
+    order = np.empty(start[-1], dtype=np.int32)
+    for k in range(tri.shape[0]):  # pass 2: in triangle order within each tile
+        tx0, tx1, ty0, ty1 = _tile_range(xy, tri, k, x0, y0, cell_x, cell_y, width, height,
+                                         tile)
+        for ty in range(ty0, ty1 + 1):
+            for tx in range(tx0, tx1 + 1):
+                key = ty * ntx + tx
+                order[fill[key]] = k
+                fill[key] += 1
+    return order, start

@@ -1,5 +1,11 @@
 """TIN linear: the plane of the containing triangle of the (constrained) Delaunay TIN of the
-data at each cell centre (thesis eq. [43]-[44])."""
+data at each cell centre (thesis eq. [43]-[44]).
+
+Two paths with the same cell values (the same arithmetic; tested equal): numba kernels, and for
+small runs (:func:`use_compiled`) numpy ones that never import numba, whose import and kernel
+cache load (about 1 s per process) would cost a small run more than its work. (QUALITY's
+leave-one-out always uses the numba kernels.)
+"""
 
 from __future__ import annotations
 
@@ -10,22 +16,40 @@ from typing import Any
 import numpy as np
 
 from toolbox.terrain.gridding.methods.base import Method, TilePlan
+from toolbox.terrain.gridding.neighbours import NUMPY_MAX_POINTS
+
+#: the numpy path up to this many cells (and NUMPY_MAX_POINTS points). Measured crossover, whole
+#: process on 2 cores (bench/dem_bench.py --crossover, bench/results/dem_crossover.md): numpy is
+#: faster up to 400,000 points and 2000 x 2000 cells (100,000 points -> 632 x 632: 1.3 s
+#: against 2.3 s), numba from 700,000 points, and from about 2828 x 2828 cells
+NUMPY_MAX_CELLS = 4_000_000
 
 
-def tin_linear_tile(origin, max_distance, tile, arrays):
+def use_compiled(points: int, cells: int) -> bool:
+    """True: the numba kernels; False (up to NUMPY_MAX_POINTS data points and NUMPY_MAX_CELLS
+    cells): numpy, no numba import."""
+    return points > NUMPY_MAX_POINTS or cells > NUMPY_MAX_CELLS
+
+
+def tin_linear_tile(origin, max_distance, tile, arrays, compiled=True):
     """Kernel of one tile: plane of the containing triangle at each computed cell centre, NaN
     outside the TIN, the cell mask, or MAX_DISTANCE from the nearest data point."""
     from toolbox.terrain.gridding.tin_raster import tin_tile
 
-    values = tin_tile(origin, tile, arrays)
+    values = tin_tile(origin, tile, arrays, compiled)
     values[~arrays["mask"]] = np.nan
     near = arrays.get("near")
     if near is not None:
-        from toolbox.terrain.gridding.idw_kernel import nearest_grid
-
         xs, ys = tile.cell_centres(origin, halo=False)
-        within = nearest_grid(near, xs, ys, ~np.isnan(values), max_distance)
-        values[np.isnan(within)] = np.nan
+        if compiled:
+            from toolbox.terrain.gridding.idw_kernel import nearest_grid
+
+            far = np.isnan(nearest_grid(near, xs, ys, ~np.isnan(values), max_distance))
+        else:
+            from toolbox.terrain.gridding.neighbours import beyond
+
+            far = beyond(near, xs, ys, ~np.isnan(values), max_distance)
+        values[far] = np.nan
     return values
 
 
@@ -54,11 +78,14 @@ class TinLinearMethod(Method):
                                   "vertex; the crossing breaklines disagree in Z by up to "
                                   f"{info['crossing_z_disagreement']:.3f} (mean used)")
         origin = run.origin
+        compiled = use_compiled(len(run.data.local), run.grid.width * run.grid.height)
         with feedback.timed("tiles_index"):
-            tin_tiles = TinTiles(nodes, triangles, run.grid, run.tile, origin)
+            tin_tiles = TinTiles(nodes, triangles, run.grid, run.tile, origin, compiled)
         max_distance = options["max_distance"]
-        near = NeighbourPlanner(run.data.local, 1, max_distance, run.data.bins,
-                                run.single_tile) \
+        # the points a tile's MAX_DISTANCE test needs: k = 0 (all within the distance of the
+        # tile) on the numpy path, whose bins have no nearest-neighbour search
+        near = NeighbourPlanner(run.data.local, 1 if compiled else 0, max_distance,
+                                run.data.bins, run.single_tile) \
             if math.isfinite(max_distance) else None
         cell = max(run.grid.cell_size)
 
@@ -74,8 +101,9 @@ class TinLinearMethod(Method):
                 arrays["near"] = near.payload(xs.min(), ys.min(), xs.max(), ys.max(), cell)
             return arrays
 
-        return TilePlan(plan, partial(tin_linear_tile, origin, max_distance),
-                        {"triangles": len(triangles), **info})
+        return TilePlan(plan, partial(tin_linear_tile, origin, max_distance, compiled=compiled),
+                        {"triangles": len(triangles), **info,
+                         "kernels": "numba" if compiled else "numpy"})
 
     def loo(self, local_xyz, options, segments, feedback, workers):
         from toolbox.terrain.gridding.neighbours import PointBins
