@@ -77,24 +77,31 @@ def test_coordinate_map_matches_the_photo_model_within_the_bound(distortion, mod
         assert np.hypot(plain[0] - ref[..., 0], plain[1] - ref[..., 1]).max() > effect_px
 
 
+def hilly_scene(distortion, folder: Path):
+    """A photo over a DEM with 200 m of relief and a nodata hole, and an output grid reaching
+    off the DEM and off the photo: (photo, grid, DemSampler, CollinearityMap)."""
+    from toolbox.io.raster import open_raster_info
+    from toolbox.photogrammetry.orthophoto import lattice_grid
+
+    photo = frame_photo(scene.CENTRE, scene.ANGLES, width=2000, height=2000, crs=scene.CRS,
+                        principal_distance_mm=153.0, distortion=distortion)
+    z, transform = hills_dem(scene.BOUNDS, cell=10.0, relief=200.0, base=250.0, seed=3)
+    z[40:60, 100:130] = np.nan  # a nodata hole
+    info = open_raster_info(scene.write_dem(folder / "d.tif", z.astype("float32"), transform))
+    b = scene.BOUNDS
+    grid = lattice_grid((b[0] - 300.0, b[1] + 500.0, b[2] - 900.0, b[3] + 200.0), 2.5, scene.CRS)
+    return photo, grid, DemSampler(info, grid.crs), CollinearityMap(photo, block=32)
+
+
 @pytest.mark.parametrize("distortion", [None, RadialDistortion.from_table(*SIENA_TABLE)])
 def test_fused_window_kernel_equals_heights_then_map(distortion, tmp_path):
     """OrthoWindows' one-pass kernel (heights + map + statistics, strip by strip) against the
     separate DemSampler.heights + CollinearityMap + statistics on the same windows of a DEM
     with 200 m of relief: the same coordinates bit for bit, the same counts and box, also on
     windows partly off the DEM (NaN heights) and off the photo."""
-    from toolbox.io.raster import open_raster_info
-    from toolbox.photogrammetry.orthophoto import OrthoWindows, lattice_grid
+    from toolbox.photogrammetry.orthophoto import OrthoWindows
 
-    photo = frame_photo(scene.CENTRE, scene.ANGLES, width=2000, height=2000, crs=scene.CRS,
-                        principal_distance_mm=153.0, distortion=distortion)
-    z, transform = hills_dem(scene.BOUNDS, cell=10.0, relief=200.0, base=250.0, seed=3)
-    z[40:60, 100:130] = np.nan  # a nodata hole
-    info = open_raster_info(scene.write_dem(tmp_path / "d.tif", z.astype("float32"), transform))
-    b = scene.BOUNDS
-    grid = lattice_grid((b[0] - 300.0, b[1] + 500.0, b[2] - 900.0, b[3] + 200.0), 2.5, scene.CRS)
-    sampler = DemSampler(info, grid.crs)
-    cmap = CollinearityMap(photo, block=32)
+    photo, grid, sampler, cmap = hilly_scene(distortion, tmp_path)
     job = OrthoWindows(photo, grid, sampler, cmap, 300.0)
     from toolbox.io.raster import iter_windows
 
@@ -335,19 +342,11 @@ def test_planned_maps_are_the_shifted_maps_blanked_outside_the_photo(distortion,
     unplanned coordinates minus the plan's shift (to float32 rounding), OUTSIDE exactly on
     the cells outside the photo or without image point (but for cells within rounding of the
     edge), and the statistics are the same."""
-    from toolbox.io.raster import iter_windows, open_raster_info
-    from toolbox.photogrammetry.orthophoto import OrthoWindows, lattice_grid
+    from toolbox.io.raster import iter_windows
+    from toolbox.photogrammetry.orthophoto import OrthoWindows
     from toolbox.raster.warp import OUTSIDE
 
-    photo = frame_photo(scene.CENTRE, scene.ANGLES, width=2000, height=2000, crs=scene.CRS,
-                        principal_distance_mm=153.0, distortion=distortion)
-    z, transform = hills_dem(scene.BOUNDS, cell=10.0, relief=200.0, base=250.0, seed=3)
-    z[40:60, 100:130] = np.nan
-    info = open_raster_info(scene.write_dem(tmp_path / "d.tif", z.astype("float32"), transform))
-    b = scene.BOUNDS
-    grid = lattice_grid((b[0] - 300.0, b[1] + 500.0, b[2] - 900.0, b[3] + 200.0), 2.5, scene.CRS)
-    sampler = DemSampler(info, grid.crs)
-    cmap = CollinearityMap(photo, block=32)
+    photo, grid, sampler, cmap = hilly_scene(distortion, tmp_path)
     plain = OrthoWindows(photo, grid, sampler, cmap, 300.0)
     planned = OrthoWindows(photo, grid, sampler, cmap, 300.0, resampling="bilinear")
     kinds = set()
