@@ -304,16 +304,21 @@ def test_ortho_in_another_crs_recovers_the_texture(block, tmp_path):
         run_ortho(block, tmp_path / "z2occ.tif", CRS="EPSG:3004", OCCLUSION=True)
 
 
-@pytest.mark.parametrize("extra", [{}, {"OUTSIDE": "nodata", "NODATA": 7},
-                                   {"RESAMPLING": "cubic", "TILE_SIZE": 64}])
-def test_planned_windows_give_the_ortho_of_the_generic_path(block, tmp_path, monkeypatch, extra):
+@pytest.mark.parametrize("bands, extra", [(1, {}), (1, {"OUTSIDE": "nodata", "NODATA": 7}),
+                                          (1, {"RESAMPLING": "cubic", "TILE_SIZE": 64}),
+                                          (3, {})])
+def test_planned_windows_give_the_ortho_of_the_generic_path(block, tmp_path, monkeypatch, bands,
+                                                            extra):
     """The planned path (the source window decided from a bound of the window's image, the
     OpenCV maps written by the kernel with the cells outside the photo blanked, OpenCV's border
     value as the fill) against the generic one (the map, then the warp's own source window,
     shift, inside test and fill), forced by switching the plans off: the same pixels to 1 grey
     level (the two maps differ by float32 rounding), the same footprint but for cells within
-    rounding of the photo's edge, the same report."""
+    rounding of the photo's edge, the same report. Grey + alpha takes the warp's band by band
+    path, grey with nodata and RGB + alpha its pixel-interleaved one."""
     from toolbox.photogrammetry.orthophoto import OrthoWindows
+
+    sc = block if bands == 1 else scene.make_scene(tmp_path, bands=bands)
 
     planned = []
     real_plan = OrthoWindows._plan
@@ -324,10 +329,10 @@ def test_planned_windows_give_the_ortho_of_the_generic_path(block, tmp_path, mon
         return plan
 
     monkeypatch.setattr(OrthoWindows, "_plan", spy)
-    fast = run_ortho(block, tmp_path / "planned.tif", **extra)
+    fast = run_ortho(sc, tmp_path / "planned.tif", **extra)
     assert planned and all(planned)
     monkeypatch.setattr(OrthoWindows, "_plan", lambda self, window, part: None)
-    slow = run_ortho(block, tmp_path / "generic.tif", **extra)
+    slow = run_ortho(sc, tmp_path / "generic.tif", **extra)
     with rasterio.open(tmp_path / "planned.tif") as a, rasterio.open(tmp_path / "generic.tif") as b:
         pa, pb = a.read(), b.read()
         ma, mb = a.dataset_mask(), b.dataset_mask()
