@@ -158,3 +158,24 @@ def test_opening_a_layer_imports_neither_pandas_nor_geopandas(tmp_path):
     proc = subprocess.run([sys.executable, "-c", OPEN_WITHOUT_PANDAS, str(path)],
                           capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr[-2000:]
+
+
+def test_window_transform_is_rasterios():
+    """GridSpec.window_transform writes rasterio's windows.transform out: the same numbers,
+    bit for bit, on large projected coordinates and any window."""
+    import warnings
+
+    from affine import Affine
+    from rasterio.windows import Window, transform
+
+    from toolbox.io.grid import GridSpec
+
+    rng = np.random.default_rng(4)
+    for _ in range(200):
+        t = Affine(rng.uniform(0.1, 5), 0.0, rng.uniform(1e6, 2e6), 0.0, -rng.uniform(0.1, 5),
+                   rng.uniform(4e6, 5e6))
+        window = Window(int(rng.integers(0, 9000)), int(rng.integers(0, 9000)), 512, 300)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # rasterio's own Affine * deprecation warning
+            expected = transform(window, t)
+        assert tuple(GridSpec(t, 9999, 9999).window_transform(window)) == tuple(expected)

@@ -100,6 +100,9 @@ class GridSpec:
         return x, y
 
     def window_transform(self, window: Any):
-        from rasterio.windows import transform as win_transform
+        """The affine transform of a window of the grid (rasterio's ``windows.transform``,
+        written out: the same arithmetic, without its per-call deprecation warnings)."""
+        from affine import Affine
 
-        return win_transform(window, self.transform)
+        t, col, row = self.transform, window.col_off, window.row_off
+        return Affine(t.a, t.b, t.a * col + t.b * row + t.c, t.d, t.e, t.d * col + t.e * row + t.f)
