@@ -405,7 +405,8 @@ class OrthoWindows:
         return kept
 
     def _prepared(self, window: Any) -> Any:
-        """The planned window's inputs ``(xs, ys, DEM part, plan)``, None when not planned."""
+        """The planned window's inputs ``(transform, xs, ys, DEM part, plan)``, None when not
+        planned."""
         kept = self._kept_for(window)
         if "prepared" not in kept:
             kept["prepared"] = self._prepare(window)
@@ -422,7 +423,7 @@ class OrthoWindows:
         """The :class:`~toolbox.raster.warp.SourcePlan` of a planned window (see the class
         docstring), None when it is not planned. Cheap: no map is computed yet."""
         prepared = self._prepared(window)
-        return None if prepared is None else prepared[3]
+        return None if prepared is None else prepared[4]
 
     def source_bounds(self, window: Any) -> tuple[float, float, float, float] | None:
         """The exact bounding box of the window's source coordinates when every cell has one
@@ -443,24 +444,30 @@ class OrthoWindows:
         return result[0], result[1]
 
     def _prepare(self, window: Any) -> Any:
-        """``(xs, ys, DEM part, plan)`` of a window that can be planned (:meth:`_plan`), else
-        None."""
+        """``(transform, xs, ys, DEM part, plan)`` of a window that can be planned
+        (:meth:`_plan`), else None."""
         if (self.incidence_writer is not None or self.to_orientation is not None
                 or self.sampler.transformer is not None):
             return None
         xs, ys = self.grid.cell_centers(window)
         part = self.sampler.part(xs, ys)
-        plan = None if part is None else self._plan(window, part)
-        if plan is not None and plan.window is None:  # no map is asked: count its cells here
-            self._compute_planned(window, xs, ys, part, plan)
-        return None if plan is None else (xs, ys, part, plan)
+        if part is None:
+            return None
+        transform = self.grid.window_transform(window)
+        plan = self._plan(window, transform, part)
+        if plan is None:
+            return None
+        prepared = (transform, xs, ys, part, plan)
+        if plan.window is None:  # no map is asked: count its cells here
+            self._compute_planned(window, *prepared)
+        return prepared
 
-    def _compute_planned(self, window: Any, xs: np.ndarray, ys: np.ndarray, part: tuple,
-                         plan: Any) -> tuple[np.ndarray, np.ndarray]:
+    def _compute_planned(self, window: Any, transform: Any, xs: np.ndarray, ys: np.ndarray,
+                         part: tuple, plan: Any) -> tuple[np.ndarray, np.ndarray]:
         """The whole planned window's OpenCV maps (and its statistics)."""
         cols, rows, modes, s, _ = self.cmap.project_on_dem(
-            self.grid.window_transform(window), xs, ys, part, self.centre,
-            self.reference_height, shift=(plan.shift_col, plan.shift_row))
+            transform, xs, ys, part, self.centre, self.reference_height,
+            shift=(plan.shift_col, plan.shift_row))
         self._record(window, cols.size, s, modes)
         return cols, rows
 
@@ -550,7 +557,7 @@ class OrthoWindows:
         self.per_window[self._key(window)] = stats
         return cols, rows, box if every_cell else None
 
-    def _plan(self, window: Any, part: tuple) -> Any:
+    def _plan(self, window: Any, transform: Any, part: tuple) -> Any:
         """The :class:`~toolbox.raster.warp.SourcePlan` of a window (EMPTY_PLAN when its image
         misses the photo), None when it cannot be planned (no resampling given, a visibility
         test, no DEM height under it, or the bound of :meth:`CollinearityMap.source_box` does
@@ -562,8 +569,8 @@ class OrthoWindows:
         low, high = np.fmin.reduce(part[0], axis=None), np.fmax.reduce(part[0], axis=None)
         if not (math.isfinite(low) and math.isfinite(high)):  # NaN: no height at all
             return None
-        box = self.cmap.source_box(self.grid.window_transform(window), int(window.height),
-                                   int(window.width), float(low), float(high))
+        box = self.cmap.source_box(transform, int(window.height), int(window.width),
+                                   float(low), float(high))
         if box is None:
             return None
         model = self.cmap.model
