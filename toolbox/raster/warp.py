@@ -577,17 +577,17 @@ def warp_window(read: Callable[[list[int], Any], np.ndarray], source_size: tuple
     plan = planner(window) if planner is not None else None
     planned = plan is not None
     bounds = cols = rows = None
+    exact_bounds = False
     if not planned:
         bounds_method = getattr(coordinate_map, "source_bounds", None)
         bounds = bounds_method(window) if bounds_method is not None else None
-    exact_bounds = bounds is not None
-    if not planned and bounds is None:
-        cols, rows = coordinate_map(tile, aux)
-        bounds = scan_bounds(cols, rows)
-    if not planned:
+        exact_bounds = bounds is not None
+        if bounds is None:
+            cols, rows = coordinate_map(tile, aux)
+            bounds = scan_bounds(cols, rows)
         plan = plan_source(bounds, width, height, resampling)
     out = np.empty((layout.count, out_h, out_w), dtype=layout.dtype)
-    if plan is None or planned and plan.window is None:
+    if plan is None or plan.window is None:  # (a planned map's EMPTY_PLAN)
         stats.empty_windows += 1
         out[:] = layout.fill
         if layout.alpha:
