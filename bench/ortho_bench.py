@@ -195,7 +195,7 @@ def memory_case(folder: Path, size: int, distortion: bool) -> list[dict]:
                 my = np.subtract(rowz, np.float32(r0 + 0.5), out=rowz)
                 source = rgb[r0:r1, c0:c1]
             if keep:
-                maps.append((mx, my, source))
+                maps.append((mx.copy(), my.copy(), source))  # (the maps are reused)
             cv2.remap(source, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT)
 
         with single_threaded_opencv(), ThreadPoolExecutor(workers) as pool:

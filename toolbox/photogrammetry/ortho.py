@@ -352,6 +352,16 @@ def ortho_window_projective(dem, dgx0, dgy0, dcx, dcy, xs, ys, a, m, centre, ref
     :func:`relief_displacement`, on every :data:`RELIEF_STEP`-th row and column, cells inside
     the photo).
 
+    With ``blank``, each row is first split into spans, without touching its cells: the
+    edges' conditions ``col >= col0`` etc. are affine in (column, height) once multiplied by
+    the homogeneous ``w`` (of one sign over the row's cells x heights, checked at the corners),
+    so with the row's heights in the range of its two DEM rows, solving them over that range
+    gives the columns surely outside the photo (blanked at once, counted outside), surely
+    inside (the map alone: no tests, no counts), and the rest, tested cell by cell as without
+    ``blank``; 0.01 px of margin covers the float32 rounding. An edge window spends nothing
+    on its cells outside the photo, an inner one skips the tests (0.65 ms against 1.2 ms per
+    1024 x 1024 window, measured).
+
     The arithmetic of :func:`heights_on_grid` + :func:`project_tile_projective` (equal results,
     tested), written out in one function rather than calling their helpers, and the box left to
     NumPy (:func:`window_box`): numba compiles every called function on its own, and a cold
@@ -361,24 +371,49 @@ def ortho_window_projective(dem, dgx0, dgy0, dcx, dcy, xs, ys, a, m, centre, ref
     nrow, ncol = dem.shape
     jj = np.empty(w, dtype=np.uint64)  # as _dem_columns; unsigned: the loops vectorise
     tx = np.empty(w)
+    spans = blank  # the rows' spans (below) need every column on the DEM
     for j in range(w):
         fx = (xs[j] - dgx0) / dcx
         inside_dem = fx >= 0.0 and fx <= ncol - 1
         jj[j] = min(int(fx), ncol - 2) if inside_dem else 0
         tx[j] = fx - jj[j] if inside_dem else np.nan
+        spans = spans and inside_dem
+    # per DEM row its lowest and highest height (NaN if it has a NaN): a grid row between DEM
+    # rows r and r + 1 has its heights in the range of the two
+    low, high = np.empty(nrow if spans else 0), np.empty(nrow if spans else 0)
+    for dem_row in range(low.shape[0]):  # (own names: c and r are the heights' below)
+        lo = hi = dem[dem_row, 0]
+        for value in dem[dem_row]:
+            lo = min(lo, value)
+            hi = max(hi, value)
+            if math.isnan(value):
+                lo = hi = np.nan
+                break
+        low[dem_row], high[dem_row] = lo, hi
     top, bottom, line = np.empty(w), np.empty(w), np.empty(w)
     held = -2
     a20, a22 = a[2, 0], a[2, 2]
     m00, m02, m10, m12, m20, m22 = m[0, 0], m[0, 2], m[1, 0], m[1, 2], m[2, 0], m[2, 2]
     missing = outside = no_height = 0
-    relief = 0.0
+    relief_bits = 0  # the largest relief displacement, squared, as the bits of a float64
     x0, y0, z0 = centre[0], centre[1], centre[2]
+    xs_step = (xs[::RELIEF_STEP] - x0) ** 2  # the relief's columns, squared from the centre
+    relief_line = np.empty(xs_step.shape[0])
     c_lo, c_hi, r_lo, r_hi = photo[0], photo[1], photo[2], photo[3]
+    # margin of the spans' tests, pixels: beyond the float32 rounding of a coordinate
+    margin = 0.01 + 1e-6 * max(abs(c_lo), abs(c_hi), abs(r_lo), abs(r_hi))
     empty = np.float32(OUTSIDE if blank else np.nan)
     keep_outside = not blank
     for i in range(h):
         zr = z[i] if z.shape[0] == h else line
         fy = (dgy0 - ys[i]) / dcy
+        ud = m[0, 1] * i + m[0, 3]
+        vd = m[1, 1] * i + m[1, 3]
+        wd = m[2, 1] * i + m[2, 3]
+        dd = a[2, 1] * i + a[2, 3]
+        # the row's spans: cells [0, p0) and [p1, w) surely outside the photo, [q0, q1) surely
+        # inside, the rest tested cell by cell (all of it: p0 = 0, q0 = q1 = p1 = w)
+        p0, q0, q1, p1 = 0, w, w, w
         if not (fy >= 0.0 and fy <= nrow - 1):
             zr[:] = np.nan
         else:  # heights: the DEM rows around the grid row along x (kept), blended
@@ -393,37 +428,92 @@ def ortho_window_projective(dem, dgx0, dgy0, dcx, dcy, xs, ys, a, m, centre, ref
                 held = r
             for j in range(w):
                 zr[j] = top[j] * (1.0 - ty) + bottom[j] * ty
+            if spans and not math.isnan(low[r] + low[r + 1]):
+                zlo, zhi = min(low[r], low[r + 1]), max(high[r], high[r + 1])
+                # the row's cells x [zlo, zhi]: den and the homogeneous w are affine in (j, z),
+                # so their extremes are at the corners
+                d_hi = dd + max(0.0, a20 * (w - 1)) + max(a22 * zlo, a22 * zhi)
+                w_lo = wd + min(0.0, m20 * (w - 1)) + min(m22 * zlo, m22 * zhi)
+                w_hi = wd + max(0.0, m20 * (w - 1)) + max(m22 * zlo, m22 * zhi)
+                scale = abs(dd) + abs(a20) * w + abs(a22) * max(abs(zlo), abs(zhi))
+                if d_hi < -1e-12 * scale and (w_lo > 0.0 or w_hi < 0.0):  # ahead, w one sign
+                    sign = 1.0 if w_lo > 0.0 else -1.0
+                    p_lo, p_hi, q_lo, q_hi = 0.0, w - 1.0, 0.0, w - 1.0
+                    for k in range(8):  # 4 edges x (surely inside, possibly inside)
+                        edge, sure = k // 2, k % 2 == 0
+                        upper = edge % 2 == 1
+                        n0, nj, nz = (ud, m00, m02) if edge < 2 else (vd, m10, m12)
+                        bound = photo[edge] + (margin if sure != upper else -margin)
+                        # the edge's condition: s·(N - bound·w) >= 0, s = ±sign, affine in j
+                        s = -sign if upper else sign
+                        alpha = s * (n0 - bound * wd)
+                        beta = s * (nj - bound * m20)
+                        g_lo, g_hi = s * (nz - bound * m22) * zlo, s * (nz - bound * m22) * zhi
+                        alpha += min(g_lo, g_hi) if sure else max(g_lo, g_hi)
+                        lo, hi = (q_lo, q_hi) if sure else (p_lo, p_hi)
+                        if beta > 0.0:
+                            lo = max(lo, -alpha / beta)
+                        elif beta < 0.0:
+                            hi = min(hi, -alpha / beta)
+                        elif alpha < 0.0:
+                            lo = np.inf
+                        if sure:
+                            q_lo, q_hi = lo, hi
+                        else:
+                            p_lo, p_hi = lo, hi
+                    p0 = int(math.ceil(min(max(p_lo, 0.0), w)))
+                    p1 = max(int(math.floor(min(max(p_hi, -1.0), w - 1.0))) + 1, p0)
+                    q0 = min(max(int(math.ceil(min(max(q_lo, 0.0), w))), p0), p1)
+                    q1 = min(max(int(math.floor(min(max(q_hi, -1.0), w - 1.0))) + 1, q0), p1)
+        for span in range(3):  # [p0, q0) and [q1, p1) tested, [q0, q1) surely inside
+            start, stop = (p0, q0) if span == 0 else ((q1, p1) if span == 1 else (q0, q1))
+            # zero-based loops on slices (a start from the spans' arithmetic stops LLVM
+            # vectorising a loop: 2x slower measured)
+            cr, rr, zs = cols[i, start:stop], rows[i, start:stop], zr[start:stop]
+            us, vs, ws = ud + m00 * start, vd + m10 * start, wd + m20 * start
+            ds = dd + a20 * start
+            if span == 2:  # the map alone
+                for j in range(zs.shape[0]):
+                    zc = zs[j]
+                    q = 1.0 / (ws + m20 * j + m22 * zc)
+                    cr[j] = np.float32((us + m00 * j + m02 * zc) * q)
+                    rr[j] = np.float32((vs + m10 * j + m12 * zc) * q)
+                continue
+            for j in range(zs.shape[0]):  # the map and the counts, branch-free
+                zc = zs[j]
+                no_height += 1 if math.isnan(zc) else 0
+                ahead = ds + a20 * j + a22 * zc < 0.0  # in front of the camera (False for NaN)
+                q = 1.0 / (ws + m20 * j + m22 * zc)
+                u = np.float32((us + m00 * j + m02 * zc) * q)
+                v = np.float32((vs + m10 * j + m12 * zc) * q)
+                inside = (u >= c_lo) & (u <= c_hi) & (v >= r_lo) & (v <= r_hi)
+                keep = ahead & (inside | keep_outside)
+                cr[j] = u if keep else empty
+                rr[j] = v if keep else empty
+                missing += 0 if ahead else 1
+                outside += 1 if ahead & ~inside else 0
         cr, rr = cols[i], rows[i]
-        ud = m[0, 1] * i + m[0, 3]
-        vd = m[1, 1] * i + m[1, 3]
-        wd = m[2, 1] * i + m[2, 3]
-        dd = a[2, 1] * i + a[2, 3]
-        for j in range(w):  # the map and the counts, branch-free
-            zc = zr[j]
-            no_height += 1 if math.isnan(zc) else 0
-            ahead = dd + a20 * j + a22 * zc < 0.0  # in front of the camera (False for NaN)
-            q = 1.0 / (wd + m20 * j + m22 * zc)
-            u = np.float32((ud + m00 * j + m02 * zc) * q)
-            v = np.float32((vd + m10 * j + m12 * zc) * q)
-            inside = (u >= c_lo) & (u <= c_hi) & (v >= r_lo) & (v <= r_hi)
-            keep = ahead & (inside | keep_outside)
-            cr[j] = u if keep else empty
-            rr[j] = v if keep else empty
-            missing += 0 if ahead else 1
-            outside += 1 if ahead & ~inside else 0
-        if i % RELIEF_STEP == 0:
-            dy = ys[i] - y0
-            for j in range(0, w, RELIEF_STEP):
-                u, v, zc = cr[j], rr[j], zr[j]
-                if u >= c_lo and u <= c_hi and v >= r_lo and v <= r_hi:
-                    dx = xs[j] - x0
-                    disp = math.sqrt(dx * dx + dy * dy) * abs(zc - reference_height) / (z0 - zc)
-                    if math.isfinite(disp) and disp > relief:
-                        relief = disp
+        cr[:p0] = empty
+        rr[:p0] = empty
+        cr[p1:] = empty
+        rr[p1:] = empty
+        outside += p0 + w - p1
+        if i % RELIEF_STEP == 0:  # squared, branch-free into a line, then its largest value
+            dy2 = (ys[i] - y0) ** 2
+            cs, rs, zs, gx = cr[::RELIEF_STEP], rr[::RELIEF_STEP], zr[::RELIEF_STEP], xs_step
+            for j in range(zs.shape[0]):
+                u, v, zc = cs[j], rs[j], zs[j]
+                inside = (u >= c_lo) & (u <= c_hi) & (v >= r_lo) & (v <= r_hi)
+                ratio = (zc - reference_height) / (z0 - zc)
+                value = (gx[j] + dy2) * ratio * ratio
+                relief_line[j] = value if inside & (value < np.inf) else 0.0  # (not NaN)
+            # the largest by the bits: non-negative doubles order as their int64 patterns,
+            # and an integer maximum vectorises (a float one does not without fastmath)
+            relief_bits = max(relief_bits, relief_line.view(np.int64).max())
     stats[STAT_MISSING] = missing
     stats[STAT_OUTSIDE_DEM] = no_height
     stats[STAT_OUTSIDE_PHOTO] = outside
-    stats[STAT_MAX_RELIEF] = relief
+    stats[STAT_MAX_RELIEF] = math.sqrt(np.array([relief_bits]).view(np.float64)[0])
 
 
 @njit(**FAST)
@@ -515,12 +605,13 @@ class CollinearityMap:
         if recount:
             box[4] = np.count_nonzero(np.isnan(cols))
 
-    def _setup(self, transform: Any, h: int, w: int):
-        """Output arrays (cols, rows, modes) and the matrices of :func:`tile_matrices`."""
+    def _setup(self, transform: Any, h: int, w: int, out: tuple | None = None):
+        """Output arrays (cols, rows, modes) and the matrices of :func:`tile_matrices`;
+        ``out`` two float32 (h, w) arrays for the maps (else new ones)."""
         if transform.b != 0 or transform.d != 0:
             raise InputDataError("the output grid must be north-up")
-        cols = np.empty((h, w), dtype="float32")
-        rows = np.empty((h, w), dtype="float32")
+        cols, rows = out if out is not None else (np.empty((h, w), dtype="float32"),
+                                                  np.empty((h, w), dtype="float32"))
         b = self.block
         modes = np.empty(((h + b - 1) // b, (w + b - 1) // b), dtype=np.int8)
         a, m = tile_matrices(self.model, transform.c + 0.5 * transform.a,
@@ -529,7 +620,7 @@ class CollinearityMap:
 
     def project_on_dem(self, transform: Any, xs: np.ndarray, ys: np.ndarray, dem: tuple,
                        centre: np.ndarray, reference_height: float, keep_heights: bool = False,
-                       shift: tuple[float, float] | None = None):
+                       shift: tuple[float, float] | None = None, out: tuple | None = None):
         """Heights and map of a tile in one pass (:func:`ortho_window_projective`, then the
         distortion as :meth:`project` adds it): ``dem`` = (array, x and y of the centre of its
         cell [0, 0], cell sizes) as :meth:`DemSampler.part
@@ -541,9 +632,10 @@ class CollinearityMap:
         With ``shift`` (col, row) the map is a planned one
         (:class:`~toolbox.raster.warp.SourcePlan`): ``pixel - shift``, and
         :data:`~toolbox.raster.warp.OUTSIDE` on the cells outside the photo or without image
-        point, in the same pass (the shift enters the matrix); the box is then not computed."""
+        point, in the same pass (the shift enters the matrix); the box is then not computed.
+        ``out``: two float32 (h, w) arrays to write the maps into."""
         h, w = len(ys), len(xs)
-        cols, rows, modes, a, m = self._setup(transform, h, w)
+        cols, rows, modes, a, m = self._setup(transform, h, w, out)
         s = self.model
         keep = keep_heights or s.distortion[0] != 0  # the distortion pass needs them
         z = np.empty((h, w) if keep else (0, 0))
