@@ -331,7 +331,25 @@ def distort_blocks(z, a, c, pp, dmode, dr, dd, dk, di, f2p, block, modes, shift,
 #: fields of the ``stats`` array of :func:`ortho_window_projective`
 (STAT_COL_MIN, STAT_ROW_MIN, STAT_COL_MAX, STAT_ROW_MAX, STAT_MISSING, STAT_OUTSIDE_DEM,
  STAT_OUTSIDE_PHOTO, STAT_MAX_RELIEF) = range(8)
-RELIEF_STEP = 4  # every 4th row and column enters the largest relief displacement
+RELIEF_ROWS = 8  # every 8th row (all its columns) enters the largest relief displacement
+
+
+@njit(**FAST)
+def _relief_row_bits(cr, rr, zr, dx2, dy2, photo, reference_height, z0, line):
+    """The largest squared relief displacement (m², :func:`relief_displacement`) of one row's
+    cells inside ``photo`` (4,), as the bits of its float64 (0: none): branch-free into
+    ``line``, then an integer maximum (non-negative doubles order as their int64 patterns,
+    and an integer maximum vectorises where a float one does not without fastmath; the
+    caller takes the square root once). ``dx2`` the squared x offsets of the columns from the
+    projection centre, ``dy2`` the row's."""
+    c_lo, c_hi, r_lo, r_hi = photo[0], photo[1], photo[2], photo[3]
+    for j in range(zr.shape[0]):
+        u, v, zc = cr[j], rr[j], zr[j]
+        inside = (u >= c_lo) & (u <= c_hi) & (v >= r_lo) & (v <= r_hi)
+        ratio = (zc - reference_height) / (z0 - zc)
+        value = (dx2[j] + dy2) * ratio * ratio
+        line[j] = value if inside & (value < np.inf) else 0.0  # (and not NaN)
+    return line.view(np.int64).max()
 
 
 @njit(**FAST)
@@ -349,8 +367,8 @@ def ortho_window_projective(dem, dgx0, dgy0, dcx, dcy, xs, ys, a, m, centre, ref
     where there is no image point). ``stats`` (8,) gets (after the box, left to
     :func:`window_box`) the number of cells without image point, the cells without height, the
     cells with an image point outside the photo and the largest relief displacement (m,
-    :func:`relief_displacement`, on every :data:`RELIEF_STEP`-th row and column, cells inside
-    the photo).
+    :func:`relief_displacement`, on every :data:`RELIEF_ROWS`-th row, cells inside the
+    photo).
 
     With ``blank``, each row is first split into spans, without touching its cells: the
     edges' conditions ``col >= col0`` etc. are affine in (column, height) once multiplied by
@@ -397,8 +415,8 @@ def ortho_window_projective(dem, dgx0, dgy0, dcx, dcy, xs, ys, a, m, centre, ref
     missing = outside = no_height = 0
     relief_bits = 0  # the largest relief displacement, squared, as the bits of a float64
     x0, y0, z0 = centre[0], centre[1], centre[2]
-    xs_step = (xs[::RELIEF_STEP] - x0) ** 2  # the relief's columns, squared from the centre
-    relief_line = np.empty(xs_step.shape[0])
+    dx2 = (xs - x0) ** 2  # the relief's squared x offsets from the projection centre
+    relief_line = np.empty(w)
     c_lo, c_hi, r_lo, r_hi = photo[0], photo[1], photo[2], photo[3]
     # margin of the spans' tests, pixels: beyond the float32 rounding of a coordinate
     margin = 0.01 + 1e-6 * max(abs(c_lo), abs(c_hi), abs(r_lo), abs(r_hi))
@@ -498,18 +516,10 @@ def ortho_window_projective(dem, dgx0, dgy0, dcx, dcy, xs, ys, a, m, centre, ref
         cr[p1:] = empty
         rr[p1:] = empty
         outside += p0 + w - p1
-        if i % RELIEF_STEP == 0:  # squared, branch-free into a line, then its largest value
-            dy2 = (ys[i] - y0) ** 2
-            cs, rs, zs, gx = cr[::RELIEF_STEP], rr[::RELIEF_STEP], zr[::RELIEF_STEP], xs_step
-            for j in range(zs.shape[0]):
-                u, v, zc = cs[j], rs[j], zs[j]
-                inside = (u >= c_lo) & (u <= c_hi) & (v >= r_lo) & (v <= r_hi)
-                ratio = (zc - reference_height) / (z0 - zc)
-                value = (gx[j] + dy2) * ratio * ratio
-                relief_line[j] = value if inside & (value < np.inf) else 0.0  # (not NaN)
-            # the largest by the bits: non-negative doubles order as their int64 patterns,
-            # and an integer maximum vectorises (a float one does not without fastmath)
-            relief_bits = max(relief_bits, relief_line.view(np.int64).max())
+        if i % RELIEF_ROWS == 0:
+            relief_bits = max(relief_bits, _relief_row_bits(
+                cols[i], rows[i], zr, dx2, (ys[i] - y0) ** 2, photo, reference_height, z0,
+                relief_line))
     stats[STAT_MISSING] = missing
     stats[STAT_OUTSIDE_DEM] = no_height
     stats[STAT_OUTSIDE_PHOTO] = outside
@@ -523,8 +533,10 @@ def count_window(z, xs, ys, cols, rows, centre, reference_height, photo, blank, 
     cells outside ``photo`` (or without image point) get :data:`~toolbox.raster.warp.OUTSIDE`
     here."""
     missing = outside = no_height = 0
-    relief = 0.0
+    relief_bits = 0
     x0, y0, z0 = centre[0], centre[1], centre[2]
+    dx2 = (xs - x0) ** 2
+    relief_line = np.empty(xs.shape[0])
     c_lo, c_hi, r_lo, r_hi = photo[0], photo[1], photo[2], photo[3]
     empty = np.float32(OUTSIDE)
     for i in range(ys.shape[0]):
@@ -539,19 +551,13 @@ def count_window(z, xs, ys, cols, rows, centre, reference_height, photo, blank, 
             if blank:
                 cr[j] = u if inside else empty
                 rr[j] = v if inside else empty
-        if i % RELIEF_STEP == 0:
-            dy = ys[i] - y0
-            for j in range(0, xs.shape[0], RELIEF_STEP):
-                u, v, zc = cr[j], rr[j], zr[j]
-                if u >= c_lo and u <= c_hi and v >= r_lo and v <= r_hi:
-                    dx = xs[j] - x0
-                    disp = math.sqrt(dx * dx + dy * dy) * abs(zc - reference_height) / (z0 - zc)
-                    if math.isfinite(disp) and disp > relief:
-                        relief = disp
+        if i % RELIEF_ROWS == 0:
+            relief_bits = max(relief_bits, _relief_row_bits(
+                cr, rr, zr, dx2, (ys[i] - y0) ** 2, photo, reference_height, z0, relief_line))
     stats[STAT_MISSING] = missing
     stats[STAT_OUTSIDE_DEM] = no_height
     stats[STAT_OUTSIDE_PHOTO] = outside
-    stats[STAT_MAX_RELIEF] = relief
+    stats[STAT_MAX_RELIEF] = math.sqrt(np.array([relief_bits]).view(np.float64)[0])
 
 
 class CollinearityMap:

@@ -27,6 +27,7 @@ from toolbox.errors import InputDataError
 from toolbox.photogrammetry.ortho import (
     DEFAULT_BLOCK,
     DEFAULT_TOLERANCE_PX,
+    RELIEF_ROWS,
     STAT_COL_MAX,
     STAT_COL_MIN,
     STAT_MAX_RELIEF,
@@ -557,7 +558,7 @@ class OrthoWindows:
         else:
             inside = (cols >= 0) & (cols <= w) & (rows >= 0) & (rows <= h)
             stats.outside_photo = int(z.size - missing - np.count_nonzero(inside))
-        sub = (slice(None, None, 4), slice(None, None, 4))
+        sub = (slice(None, None, RELIEF_ROWS), slice(None))  # as the kernels sample it
         gx, gy = np.broadcast_to(gx, z.shape), np.broadcast_to(gy, z.shape)
         disp = relief_displacement(gx[sub], gy[sub], z[sub], self.centre, self.reference_height)
         disp = disp[inside[sub]] if inside is not None else disp.ravel()
