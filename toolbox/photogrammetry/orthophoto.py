@@ -158,9 +158,9 @@ class DemSampler:
         """The DEM cells under the grid ``xs`` x ``ys`` (output CRS = the DEM's) as
         :func:`~toolbox.photogrammetry.ortho.heights_on_grid` takes them: (contiguous float64
         array, x and y of the centre of its cell [0, 0], cell width and height); None outside
-        the DEM."""
-        part = self._read((float(np.min(xs)), float(np.min(ys)), float(np.max(xs)),
-                           float(np.max(ys))))
+        the DEM. ``xs`` and ``ys`` are monotonic (cell centres): their ends bound them."""
+        x0, x1, y0, y1 = float(xs[0]), float(xs[-1]), float(ys[0]), float(ys[-1])
+        part = self._read((min(x0, x1), min(y0, y1), max(x0, x1), max(y0, y1)))
         if part is None:
             return None
         return (np.ascontiguousarray(part[0]), *part[1:])
@@ -488,8 +488,11 @@ class OrthoWindows:
         stats = TileStatistics(cells=cells, outside_dem=int(s[STAT_OUTSIDE_DEM]),
                                outside_photo=int(s[STAT_OUTSIDE_PHOTO]),
                                max_relief_m=float(s[STAT_MAX_RELIEF]))
-        counts = np.bincount(modes.ravel(), minlength=3)
-        stats.blocks = {k: int(counts[k]) for k in range(3)}
+        if self.cmap.model.distortion[0] == 0:  # every block projective
+            stats.blocks = {0: modes.size, 1: 0, 2: 0}
+        else:
+            counts = np.bincount(modes.ravel(), minlength=3)
+            stats.blocks = {k: int(counts[k]) for k in range(3)}
         self.per_window[self._key(window)] = stats
 
     def _compute(self, window: Any):
