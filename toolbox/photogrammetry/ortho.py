@@ -20,7 +20,10 @@ transform and ``D`` the diagonal of the block's distortion-free pixel box, the c
 ``κ·L``-Lipschitz in pixel space, so a blend of corner values (weights >= 0, sum 1) differs from
 the exact correction by at most ``κ·L·D`` pixels. Blocks over the bound (very strong
 distortion, cliffs that spread a block over many photo pixels) are computed exactly. Default
-bound :data:`DEFAULT_TOLERANCE_PX` = 0.05 px.
+bound :data:`DEFAULT_TOLERANCE_PX` = 0.05 px. On a DEM window (the orthophoto's one-pass
+path) D is taken from a box known to hold the block's pixels before they are computed: the
+image of the block's cells x the heights of the DEM nodes around them
+(:func:`block_modes_on_dem`).
 
 Conventions as :mod:`toolbox.photogrammetry`: photo pixels ``(col, row)`` from the top-left corner,
 centres at +0.5; output grids north-up, column ``j`` centre ``x = xmin + (j + 0.5)·cell``.
@@ -252,6 +255,62 @@ def block_modes(cols: np.ndarray, rows: np.ndarray, block: int, lipschitz_px: fl
     with np.errstate(invalid="ignore"):
         interpolate = ~gap & (lipschitz_px * size <= tolerance_px)
     return np.where(interpolate, BLOCK_INTERPOLATED, BLOCK_EXACT).astype(np.int8)
+
+
+@njit(**FAST)
+def block_modes_on_dem(dem, dgx0, dgy0, dcx, dcy, xs, ys, a, m, block, lipschitz_px,
+                       tolerance_px, modes):
+    """:func:`block_modes` of a window's map from its DEM part (as
+    :func:`ortho_window_projective` takes it) instead of its cells: per block a box that holds
+    every cell's distortion-free pixel, the image of the block's cells x the heights of the
+    DEM nodes around them (a bilinear height lies in their range; ``den`` is affine, so the 8
+    corners in front of the camera mean the whole box, and a central projection keeps
+    convexity there: the corners' pixels bound it). BLOCK_INTERPOLATED when
+    ``lipschitz_px·D <= tolerance_px`` with D the box's diagonal (+ 1e-3 px), else
+    BLOCK_EXACT, also where a node is NaN, the block leaves the DEM or a corner is not in
+    front. A box at least the cells' own, so the bound holds; no pass over the map (0.05
+    against 0.7 ms per 1024 x 1024 window, measured)."""
+    nrow, ncol = dem.shape
+    h, w = ys.shape[0], xs.shape[0]
+    for bi in range(modes.shape[0]):
+        i0 = bi * block
+        i1 = min(i0 + block, h) - 1
+        fy0, fy1 = (dgy0 - ys[i0]) / dcy, (dgy0 - ys[i1]) / dcy
+        for bj in range(modes.shape[1]):
+            j0 = bj * block
+            j1 = min(j0 + block, w) - 1
+            modes[bi, bj] = BLOCK_EXACT
+            fx0, fx1 = (xs[j0] - dgx0) / dcx, (xs[j1] - dgx0) / dcx
+            if not (min(fx0, fx1) >= 0.0 and max(fx0, fx1) <= ncol - 1
+                    and min(fy0, fy1) >= 0.0 and max(fy0, fy1) <= nrow - 1):
+                continue  # leaves the DEM: no height somewhere
+            r_lo, r_hi = int(min(fy0, fy1)), min(int(max(fy0, fy1)) + 1, nrow - 1)
+            c_lo, c_hi = int(min(fx0, fx1)), min(int(max(fx0, fx1)) + 1, ncol - 1)
+            z_lo, z_hi = np.inf, -np.inf
+            for r in range(r_lo, r_hi + 1):
+                for c in range(c_lo, c_hi + 1):
+                    z_lo = min(z_lo, dem[r, c])
+                    z_hi = max(z_hi, dem[r, c])
+                    if math.isnan(dem[r, c]):
+                        z_hi = np.nan
+            if not z_hi >= z_lo:  # a NaN node
+                continue
+            u_lo = v_lo = np.inf
+            u_hi = v_hi = -np.inf
+            ahead = True
+            for k in range(8):
+                j = j0 if k % 2 == 0 else j1
+                i = i0 if (k // 2) % 2 == 0 else i1
+                zc = z_lo if k < 4 else z_hi
+                ahead = ahead and a[2, 0] * j + a[2, 1] * i + a[2, 2] * zc + a[2, 3] < 0.0
+                q = 1.0 / (m[2, 0] * j + m[2, 1] * i + m[2, 2] * zc + m[2, 3])
+                u = (m[0, 0] * j + m[0, 1] * i + m[0, 2] * zc + m[0, 3]) * q
+                v = (m[1, 0] * j + m[1, 1] * i + m[1, 2] * zc + m[1, 3]) * q
+                u_lo, u_hi = min(u_lo, u), max(u_hi, u)
+                v_lo, v_hi = min(v_lo, v), max(v_hi, v)
+            size = math.sqrt((u_hi - u_lo) ** 2 + (v_hi - v_lo) ** 2) + 1e-3
+            if ahead and lipschitz_px * size <= tolerance_px:
+                modes[bi, bj] = BLOCK_INTERPOLATED
 
 
 @njit(cache=True, error_model="numpy")
@@ -600,16 +659,18 @@ class CollinearityMap:
 
     def _distort(self, z: np.ndarray, a: np.ndarray, cols: np.ndarray, rows: np.ndarray,
                  modes: np.ndarray, box: np.ndarray, recount: bool = True,
-                 shift: np.ndarray | None = None) -> None:
+                 shift: np.ndarray | None = None, modes_given: bool = False) -> None:
         """Add the distortion to a distortion-free map (in pixels minus ``shift``) in place
-        (:func:`block_modes`, :func:`distort_blocks`) and (``recount``) count its NaN cells
-        into ``box[4]``; only the modes without distortion."""
+        (:func:`block_modes` unless ``modes_given``, :func:`distort_blocks`) and
+        (``recount``) count its NaN cells into ``box[4]``; only the modes without
+        distortion."""
         s = self.model
         if s.distortion[0] == 0:
             modes[:] = BLOCK_PROJECTIVE
             return
-        modes[:] = block_modes(cols, rows, self.block, s.lipschitz * s.f2p_condition,
-                               self.tolerance_px)
+        if not modes_given:
+            modes[:] = block_modes(cols, rows, self.block, s.lipschitz * s.f2p_condition,
+                                   self.tolerance_px)
         distort_blocks(z, a, s.c, s.pp, *s.distortion, s.f2p, self.block, modes,
                        np.zeros(2) if shift is None else shift, cols, rows)
         if recount:
@@ -663,7 +724,10 @@ class CollinearityMap:
         ortho_window_projective(dem[0], *(float(v) for v in dem[1:]), xs, ys, a, m, *head,
                                 planned and not distorted, slack, z, cols, rows, stats)
         if distorted:
-            self._distort(z, a, cols, rows, modes, stats, recount=False, shift=offset)
+            block_modes_on_dem(dem[0], *(float(v) for v in dem[1:]), xs, ys, a, m, self.block,
+                               s.lipschitz * s.f2p_condition, self.tolerance_px, modes)
+            self._distort(z, a, cols, rows, modes, stats, recount=False, shift=offset,
+                          modes_given=True)
             count_window(z, xs, ys, cols, rows, *head, planned, stats)
         else:
             modes[:] = BLOCK_PROJECTIVE
