@@ -591,11 +591,14 @@ def ortho_window_projective(dem, dgx0, dgy0, dcx, dcy, xs, ys, a, m, centre, ref
 
 @njit(**FAST)
 def count_window(z, xs, ys, cols, rows, centre, reference_height, photo, blank, stats):
-    """The counts of :func:`ortho_window_projective` (``stats[4:]``) recomputed on a final map
-    (after the distortion), from the window's heights ``z``: the same loops; with ``blank`` the
-    cells outside ``photo`` (or without image point) get :data:`~toolbox.raster.warp.OUTSIDE`
-    here."""
-    missing = outside = no_height = 0
+    """The counts of :func:`ortho_window_projective` that the distortion changes, recomputed on
+    the final map: ``stats[STAT_OUTSIDE_PHOTO]`` and ``stats[STAT_MAX_RELIEF]`` (from the
+    window's heights ``z``, on its relief rows only); with ``blank`` the cells outside
+    ``photo`` (or without image point) get :data:`~toolbox.raster.warp.OUTSIDE` here. The
+    cells without image point or height stay the kernel's counts: the distortion moves a point
+    but never makes or removes one (an exact pixel is NaN exactly where the distortion-free
+    one is, and a blended block has none)."""
+    outside = 0
     relief_bits = 0
     x0, y0, z0 = centre[0], centre[1], centre[2]
     dx2 = (xs - x0) ** 2
@@ -603,22 +606,18 @@ def count_window(z, xs, ys, cols, rows, centre, reference_height, photo, blank, 
     c_lo, c_hi, r_lo, r_hi = photo[0], photo[1], photo[2], photo[3]
     empty = np.float32(OUTSIDE)
     for i in range(ys.shape[0]):
-        zr, cr, rr = z[i], cols[i], rows[i]
+        cr, rr = cols[i], rows[i]
         for j in range(xs.shape[0]):  # branch-free, so that it vectorises
             u, v = cr[j], rr[j]
-            no_height += 1 if math.isnan(zr[j]) else 0
-            point = ~math.isnan(u)
-            missing += 0 if point else 1
             inside = (u >= c_lo) & (u <= c_hi) & (v >= r_lo) & (v <= r_hi)
-            outside += 0 if inside | ~point else 1
+            outside += 0 if inside | math.isnan(u) else 1
             if blank:
                 cr[j] = u if inside else empty
                 rr[j] = v if inside else empty
         if i % RELIEF_ROWS == 0:
             relief_bits = max(relief_bits, _relief_row_bits(
-                cr, rr, zr, dx2, (ys[i] - y0) ** 2, photo, reference_height, z0, relief_line))
-    stats[STAT_MISSING] = missing
-    stats[STAT_OUTSIDE_DEM] = no_height
+                cr, rr, z[i], dx2, (ys[i] - y0) ** 2, photo, reference_height, z0,
+                relief_line))
     stats[STAT_OUTSIDE_PHOTO] = outside
     stats[STAT_MAX_RELIEF] = math.sqrt(np.array([relief_bits]).view(np.float64)[0])
 
