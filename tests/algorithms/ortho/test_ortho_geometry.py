@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import csv
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -118,7 +119,9 @@ def test_fused_window_kernel_equals_heights_then_map(distortion, tmp_path):
                                    box2)
         assert np.array_equal(cols, c2, equal_nan=True)
         assert np.array_equal(rows, r2, equal_nan=True)
-        assert box == box2 and fused == job.per_window[job._key(window)]
+        separate = job.per_window[job._key(window)]
+        assert box == box2 and fused.max_relief_m == pytest.approx(separate.max_relief_m, 1e-12)
+        assert replace(fused, max_relief_m=0.0) == replace(separate, max_relief_m=0.0)
         seen.append((fused.outside_dem > 0, fused.outside_photo > 0, box is not None))
     assert np.any(seen, axis=0).all() and not np.all(seen, axis=0).any()  # every case met
 
@@ -376,3 +379,49 @@ def test_planned_maps_are_the_shifted_maps_blanked_outside_the_photo(distortion,
         assert got_c.max() - 0.5 + 1 <= w.col_off + w.width - 1 + plan.pads[3]
         assert got_r.max() - 0.5 + 1 <= w.row_off + w.height - 1 + plan.pads[1]
     assert {"all inside", "partly"} <= kinds
+
+
+@pytest.mark.parametrize("distortion, blended", [
+    # 2.5 x the Siena table: about half the blocks at the bound, the other half blended
+    (RadialDistortion.from_table(SIENA_TABLE[0], np.array(SIENA_TABLE[1]) * 2.5), True),
+    (RadialDistortion.from_polynomial(-2e-6), False)])  # strong: every block exact
+def test_block_modes_from_the_dem_bound_the_map_within_the_tolerance(distortion, blended,
+                                                                     tmp_path):
+    """The block modes of a window's one-pass map come from its DEM part, not from its cells
+    (block_modes_on_dem): never more permissive than the modes from the cells (block_modes on
+    the distortion-free map), NaN nodes and blocks off the DEM exact; the final map, blended
+    where they allow it, is the photo model's own projection of the same heights within the
+    stated 0.05 px (photo.ground_to_pixel, independent of the kernels)."""
+    from toolbox.io.raster import iter_windows
+    from toolbox.photogrammetry.ortho import block_modes
+    from toolbox.photogrammetry.orthophoto import OrthoWindows
+
+    photo, grid, sampler, cmap = hilly_scene(distortion, tmp_path)
+    cmap = CollinearityMap(photo, block=32, tolerance_px=0.05)
+    plain = CollinearityMap(frame_photo(scene.CENTRE, scene.ANGLES, width=2000, height=2000,
+                                        crs=scene.CRS, principal_distance_mm=153.0), block=32)
+    job = OrthoWindows(photo, grid, sampler, cmap, 300.0)
+    model = cmap.model
+    counts = np.zeros(3, dtype=int)
+    for window in [t.core for t in iter_windows(grid.width, grid.height, 300)]:
+        xs, ys = grid.cell_centers(window)
+        part = sampler.part(xs, ys)
+        if part is None:
+            continue
+        transform = grid.window_transform(window)
+        cols, rows, modes, _, z = cmap.project_on_dem(transform, xs, ys, part, job.centre, 300.0,
+                                                      keep_heights=True)
+        free_c, free_r, _, _, _ = plain.project_on_dem(transform, xs, ys, part, job.centre, 300.0)
+        from_cells = block_modes(free_c, free_r, 32, model.lipschitz * model.f2p_condition, 0.05)
+        assert not ((modes == BLOCK_INTERPOLATED) & (from_cells != BLOCK_INTERPOLATED)).any()
+        counts += np.bincount(modes.ravel(), minlength=3)
+        ref = photo.ground_to_pixel((np.broadcast_to(xs, z.shape),
+                                     np.broadcast_to(ys[:, None], z.shape), z), behind="nan")
+        have = np.isfinite(ref[..., 0])
+        assert (np.isfinite(cols) == have).all()
+        error = np.hypot(cols - ref[..., 0], rows - ref[..., 1])[have]
+        assert error.size == 0 or error.max() <= 0.05
+    if blended:
+        assert counts[BLOCK_INTERPOLATED] > 0.3 * counts.sum() and counts[BLOCK_EXACT] > 0
+    else:
+        assert counts[BLOCK_INTERPOLATED] == 0
