@@ -286,14 +286,13 @@ def block_modes_on_dem(dem, dgx0, dgy0, dcx, dcy, xs, ys, a, m, block, lipschitz
                 continue  # leaves the DEM: no height somewhere
             r_lo, r_hi = int(min(fy0, fy1)), min(int(max(fy0, fy1)) + 1, nrow - 1)
             c_lo, c_hi = int(min(fx0, fx1)), min(int(max(fx0, fx1)) + 1, ncol - 1)
-            z_lo, z_hi = np.inf, -np.inf
+            z_lo, z_hi, nan_node = np.inf, -np.inf, False
             for r in range(r_lo, r_hi + 1):
                 for c in range(c_lo, c_hi + 1):
                     z_lo = min(z_lo, dem[r, c])
                     z_hi = max(z_hi, dem[r, c])
-                    if math.isnan(dem[r, c]):
-                        z_hi = np.nan
-            if not z_hi >= z_lo:  # a NaN node
+                    nan_node = nan_node or math.isnan(dem[r, c])
+            if nan_node:  # a cell without height somewhere
                 continue
             u_lo = v_lo = np.inf
             u_hi = v_hi = -np.inf

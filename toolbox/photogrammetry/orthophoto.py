@@ -25,6 +25,9 @@ import numpy as np
 
 from toolbox.errors import InputDataError
 from toolbox.photogrammetry.ortho import (
+    BLOCK_EXACT,
+    BLOCK_INTERPOLATED,
+    BLOCK_PROJECTIVE,
     DEFAULT_BLOCK,
     DEFAULT_TOLERANCE_PX,
     RELIEF_ROWS,
@@ -361,10 +364,10 @@ class OrthoOptions:
 
 class MapBufferPool:
     """Float32 buffers (2, n) for the maps of planned windows, kept between the orthophotos of
-    one process (a block's photos, repeated runs): a new pair costs its page faults on first
-    write, about 1.3 ms per 1024 x 1024 window (measured), a third of the map kernel's time. At
-    most ``keep`` buffers stay pooled, the latest given back (idle memory: 8 MB each for
-    1024 x 1024 windows)."""
+    one process (a block's photos, repeated runs): a new 1024 x 1024 pair costs about 1.3 ms
+    of page faults on its first write (measured), twice a window's map kernel. At most
+    ``keep`` buffers stay pooled, the latest given back (idle memory: 8 MB each for 1024 x
+    1024 windows)."""
 
     def __init__(self, keep: int = 4):
         import threading
@@ -477,7 +480,7 @@ class OrthoWindows:
     def __call__(self, tile: Any, aux: Any = None) -> tuple[np.ndarray, np.ndarray]:
         """The source pixel coordinates of an output tile (the engine's ``coordinate_map(tile,
         aux)`` form; the DEM is sampled here, window by window): a planned window's OpenCV
-        maps when :meth:`source_plan` gave one."""
+        maps when :meth:`source_plan` gave one, valid until this thread's next window."""
         window = getattr(tile, "window", tile)
         prepared = self._prepared(window)
         if prepared is not None:
@@ -533,7 +536,7 @@ class OrthoWindows:
                                outside_photo=int(s[STAT_OUTSIDE_PHOTO]),
                                max_relief_m=float(s[STAT_MAX_RELIEF]))
         if self.cmap.model.distortion[0] == 0:  # every block projective
-            stats.blocks = {0: modes.size, 1: 0, 2: 0}
+            stats.blocks = {BLOCK_PROJECTIVE: modes.size, BLOCK_INTERPOLATED: 0, BLOCK_EXACT: 0}
         else:
             counts = np.bincount(modes.ravel(), minlength=3)
             stats.blocks = {k: int(counts[k]) for k in range(3)}
