@@ -580,8 +580,7 @@ def ortho_window_projective(dem, dgx0, dgy0, dcx, dcy, xs, ys, a, m, centre, ref
         outside += p0 + w - p1
         if i % RELIEF_ROWS == 0:
             relief_bits = max(relief_bits, _relief_row_bits(
-                cols[i], rows[i], zr, dx2, (ys[i] - y0) ** 2, photo, reference_height, z0,
-                relief_line))
+                cr, rr, zr, dx2, (ys[i] - y0) ** 2, photo, reference_height, z0, relief_line))
     stats[STAT_MISSING] = missing
     stats[STAT_OUTSIDE_DEM] = no_height
     stats[STAT_OUTSIDE_PHOTO] = outside

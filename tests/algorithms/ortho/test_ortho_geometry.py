@@ -396,8 +396,7 @@ def test_block_modes_from_the_dem_bound_the_map_within_the_tolerance(distortion,
     from toolbox.photogrammetry.ortho import block_modes
     from toolbox.photogrammetry.orthophoto import OrthoWindows
 
-    photo, grid, sampler, cmap = hilly_scene(distortion, tmp_path)
-    cmap = CollinearityMap(photo, block=32, tolerance_px=0.05)
+    photo, grid, sampler, cmap = hilly_scene(distortion, tmp_path)  # blocks of 32, 0.05 px
     plain = CollinearityMap(frame_photo(scene.CENTRE, scene.ANGLES, width=2000, height=2000,
                                         crs=scene.CRS, principal_distance_mm=153.0), block=32)
     job = OrthoWindows(photo, grid, sampler, cmap, 300.0)
