@@ -1,5 +1,7 @@
-"""Registry: every algorithm, built-in or third-party, comes in through the ``toolbox.algorithms``
-entry-point group (pyproject.toml: ``"dem:idw" = "algorithms.dem.idw:IdwGrid"``, one line per id).
+"""Registry: a built-in algorithm ``group:name`` is the class decorated with :func:`register` in
+the module ``algorithms/group/name.py`` (one file per id, found by its path: no other list to keep);
+third-party algorithms come in through the ``toolbox.algorithms`` entry-point group
+(``"myplugin:tool" = "mypackage.tool:Tool"``).
 
 - :func:`get` imports the module of one algorithm only (``toolbox run``);
 - :func:`algorithms` imports every one (Python API);
@@ -40,7 +42,7 @@ OWN_PACKAGES = ("toolbox", "algorithms")
 ALIASES: dict[str, str] = {"raster:hillshade": "dem:hillshade"}  # old id -> current id
 
 _registry: dict[str, type[Algorithm]] = {}
-_from_entry_points: set[str] = set()  # ids loaded through an entry point (the spec index holds those)
+_indexed: set[str] = set()  # built-in ids and ids loaded through an entry point (the spec index)
 _loaded_all = False
 
 
@@ -154,20 +156,40 @@ def _load(ep: EntryPoint) -> type[Algorithm] | None:
         log.warning("plugin %s: id %s is already taken by %s; skipped", ep.name, obj.id,
                     existing.__module__)
         return None
-    _from_entry_points.add(obj.id)
+    _indexed.add(obj.id)
     return obj
 
 
-def _import_plugins() -> None:
-    for ep in entry_points(group=ENTRY_POINT_GROUP):
-        _load(ep)
+# -- built-ins: algorithms/<group>/<name>.py ---------------------------------------------------------
+@functools.cache
+def builtin_modules() -> dict[str, str]:
+    """``{"group:name": "algorithms.group.name"}`` for every module file under ``algorithms/``."""
+    root = check_own_package("algorithms")
+    found = {}
+    for group in sorted(p for p in root.iterdir() if p.is_dir() and (p / "__init__.py").exists()):
+        for module in sorted(group.glob("*.py")):
+            if not module.name.startswith("_"):
+                found[f"{group.name}:{module.stem}"] = f"algorithms.{group.name}.{module.stem}"
+    return found
+
+
+def _load_builtin(algorithm_id: str) -> None:
+    """Import the module of a built-in id; it must register exactly that id."""
+    importlib.import_module(builtin_modules()[algorithm_id])
+    if algorithm_id not in _registry:
+        raise TypeError(f"{builtin_modules()[algorithm_id]} registers no algorithm {algorithm_id!r} "
+                        "(a module algorithms/group/name.py holds the algorithm 'group:name')")
+    _indexed.add(algorithm_id)
 
 
 def discover() -> None:
     """Import every algorithm module once (built-in and plugins)."""
     global _loaded_all
     if not _loaded_all:
-        _import_plugins()
+        for algorithm_id in builtin_modules():
+            _load_builtin(algorithm_id)
+        for ep in entry_points(group=ENTRY_POINT_GROUP):
+            _load(ep)
         _loaded_all = True
 
 
@@ -190,6 +212,9 @@ def get(algorithm_id: str) -> type[Algorithm]:
     """
     key = ALIASES.get(algorithm_id, algorithm_id)
     if key in _registry:
+        return _registry[key]
+    if key in builtin_modules():
+        _load_builtin(key)
         return _registry[key]
     ep = _entry_points().get(key)
     if ep is not None and _load(ep) is not None and key in _registry:
@@ -260,12 +285,12 @@ def spec_index() -> dict[str, dict]:
     tests) are added from their classes.
     """
     eps = _entry_points()
-    key = _index_key(eps)
+    key = _index_key(eps)  # the built-ins are in the sources' stamp
     path = _index_path()
     specs = _read_index(path, key)
     if specs is None:
         discover()
-        specs = {i: _registry[i].spec() for i in sorted(_from_entry_points)}
+        specs = {i: _registry[i].spec() for i in sorted(_indexed)}
         _write_index(path, key, specs)
     extra = {i: cls.spec() for i, cls in _registry.items() if i not in specs}
     merged = specs | extra

@@ -1,4 +1,5 @@
-"""Registry: built-ins come in through the entry-point group, one module imported per run, list/help
+"""Registry: a built-in is the module algorithms/<group>/<name>.py, plugins come in through the
+entry-point group, one module imported per run, list/help
 from the cached spec index, and a foreign ``algorithms`` package is refused before it runs."""
 
 from __future__ import annotations
@@ -11,7 +12,6 @@ import os
 import subprocess
 import sys
 import tomllib
-from importlib.metadata import entry_points
 from pathlib import Path
 
 import pytest
@@ -35,23 +35,22 @@ def registered_in_sources() -> dict[str, str]:
     return found
 
 
-def test_every_registered_algorithm_is_an_entry_point():
-    declared = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["entry-points"][
-        registry.ENTRY_POINT_GROUP]
+def test_every_module_registers_the_id_of_its_path():
+    """One registration: algorithms/<group>/<name>.py holds the class of id 'group:name'."""
     in_sources = registered_in_sources()
-    assert len(in_sources) >= 23
-    missing = {k: v for k, v in in_sources.items() if declared.get(k) != v}
-    assert not missing, f"add to pyproject.toml [project.entry-points.\"toolbox.algorithms\"]: {missing}"
-    stale = sorted(set(declared) - set(in_sources))
-    assert not stale, f"entry points without a @register'ed class: {stale}"
-    installed = {ep.name: ep.value for ep in entry_points(group=registry.ENTRY_POINT_GROUP)}
-    assert declared.items() <= installed.items(), "re-run: pip install -e . --no-deps"
+    assert len(in_sources) >= 43
+    by_path = {i: f"{m}:{in_sources[i].split(':')[1]}" for i, m in registry.builtin_modules().items()
+               if i in in_sources}
+    assert by_path == in_sources, "a module algorithms/group/name.py must register 'group:name'"
+    assert set(registry.builtin_modules()) == set(in_sources), "a module without its algorithm"
+    for algorithm_id in in_sources:
+        assert registry.get(algorithm_id).id == algorithm_id
 
 
-def test_every_entry_point_loads_its_id():
-    for name, ep in registry._entry_points().items():
-        if registry._is_own(ep):
-            assert registry.get(name).id == name
+def test_built_ins_are_not_entry_points_too():
+    declared = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"].get(
+        "entry-points", {}).get(registry.ENTRY_POINT_GROUP, {})
+    assert not set(declared) & set(registered_in_sources())
 
 
 def python(code: str, tmp_path: Path, **env) -> subprocess.CompletedProcess:
