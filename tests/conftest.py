@@ -10,6 +10,31 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 SIENA = ROOT / "toolbox" / "demo" / "data" / "siena"
+# Orthority's test data (real NGI aerial frames with a DEM, ODM drone frames with an OpenSfM
+# reconstruction, a QuickBird RPC image): not redistributable here (no licence stated for the data),
+# so read from a checkout: TOOLBOX_ORTHORITY_DATA=<orthority>/tests/data, else the places below.
+ORTHORITY_DATA_PLACES = ("/work/data/orthority/tests/data",)
+
+
+def orthority_data_folder() -> Path | None:
+    """The folder of Orthority's tests/data, or None when it is not on this machine."""
+    import os
+
+    for place in (os.environ.get("TOOLBOX_ORTHORITY_DATA"), *ORTHORITY_DATA_PLACES):
+        if place and (Path(place) / "ngi" / "dem.tif").exists():
+            return Path(place)
+    return None
+
+
+@pytest.fixture(scope="session")
+def orthority_data() -> Path:
+    """Orthority's tests/data folder (real photos with published orientations); the test is
+    skipped, with the reason, where it is not on this machine."""
+    folder = orthority_data_folder()
+    if folder is None:
+        pytest.skip("Orthority's test data not found: set TOOLBOX_ORTHORITY_DATA to the tests/data "
+                    "folder of an Orthority checkout (real NGI and ODM photos)")
+    return folder
 
 
 @pytest.fixture
