@@ -8,7 +8,7 @@ from toolbox.algorithm import Algorithm
 from toolbox.errors import InputDataError
 from toolbox.feedback import Feedback
 from toolbox.io.crs import common_crs, crs_label
-from toolbox.io.vector import points_xyz, read_vector, vertices_xyz
+from toolbox.io.vector import read_points_xyz, read_vector, vertices_xyz
 from toolbox.parameters import (
     Boolean,
     Crs,
@@ -181,11 +181,8 @@ class Delaunay(Algorithm):
             feedback.push_warning("the inputs have no CRS: the TIN has none (set CRS to give it)")
         with feedback.timed("read"):
             points = np.zeros((0, 3))
-            if params["INPUT"] is not None:
-                frame = read_vector(params["INPUT"], name="INPUT")
-                frame = frame[frame.geometry.notna() & ~frame.geometry.is_empty]
-                if len(frame):
-                    points = points_xyz(frame, params["Z_FIELD"], name="INPUT")
+            if params["INPUT"] is not None:  # the gridding algorithms' reader: one for both
+                points = read_points_xyz(params["INPUT"], params["Z_FIELD"], name="INPUT")
             line_xyz, line_index = np.zeros((0, 3)), np.zeros(0, dtype=np.int64)
             if params["BREAKLINES"] is not None:
                 line_xyz, line_index = read_breaklines(params["BREAKLINES"],

@@ -467,23 +467,25 @@ def points_xyz(frame, z_field: str | None = None, name: str = "INPUT") -> np.nda
     """(N, 3) float64 X, Y, Z of every point (multipoints exploded).
 
     Z comes from ``z_field`` when given, else from the geometry; a layer without Z and without a
-    field is an :class:`InputDataError`. NaN/inf coordinates are refused.
+    field is an :class:`InputDataError`. NaN/inf coordinates are refused. Features without a
+    geometry or with an empty one are skipped.
     """
     import shapely
 
     geoms = frame.geometry.values
     if len(geoms) == 0:
         raise InputDataError(f"{name} has no features")
+    present = ~(shapely.is_missing(geoms) | shapely.is_empty(geoms))
+    geoms = geoms[present]
     kinds = set(shapely.get_type_id(geoms).tolist())
     if not kinds <= {0, 4}:  # Point, MultiPoint
         raise InputDataError(f"{name} must contain points, found other geometry types")
     if z_field is not None:
-        z_values = np.asarray(frame[z_field], dtype="float64")
-        counts = shapely.get_num_geometries(geoms)
-        xy = shapely.get_coordinates(geoms)
-        xyz = np.column_stack([xy, np.repeat(z_values, np.maximum(counts, 1))[: len(xy)]])
+        z_values = np.asarray(frame[z_field], dtype="float64")[present]
+        xy, owner = shapely.get_coordinates(geoms, return_index=True)
+        xyz = np.column_stack([xy, z_values[owner]])
     else:
-        if not frame.geometry.has_z.all():
+        if not frame.geometry[present].has_z.all():
             raise InputDataError(f"{name} has no Z in its geometry: give a Z field (Z_FIELD) or "
                                  "use 3D points")
         xyz = shapely.get_coordinates(geoms, include_z=True)

@@ -8,6 +8,7 @@ import sys
 
 import geopandas as gpd
 import numpy as np
+import pandas as pd
 import pyogrio
 import pytest
 import shapely
@@ -304,3 +305,51 @@ def test_to_raster_takes_the_extent_as_given_and_writes_a_cog(data, tmp_path):
     with pytest.raises(ParameterError, match="over the limit of 1,000 cells"):
         toolbox.run("tin:to_raster", {"TIN": data["tin"], "CELL_SIZE": 0.25, "MAX_CELLS": 1000,
                                       "OUTPUT": tmp_path / "big.tif"})
+
+
+def test_delaunay_reads_points_with_the_fast_reader_like_the_general_one(data, tmp_path,
+                                                                        monkeypatch):
+    """One point reader for TIN and gridding: a PointZ GeoPackage (Arrow/WKB fast path) and the
+    same points with a null, an empty and a multipoint feature (general path) give equal values
+    and, with Z_FIELD and breaklines, the same TIN."""
+    import toolbox.io.vector as vector
+
+    folder = data["folder"]
+    points = gpd.read_file(folder / "points.gpkg", layer="points")
+    extra = gpd.GeoDataFrame(
+        {"h": [1e6, 2e6, plane(X0 + 3.5, Y0 + 7.25)]},
+        geometry=[None, shapely.Point(), shapely.MultiPoint([(X0 + 3.5, Y0 + 7.25,
+                                                             plane(X0 + 3.5, Y0 + 7.25))])],
+        crs=CRS)
+    mixed = pd.concat([points, extra], ignore_index=True)
+    mixed.to_file(tmp_path / "mixed.gpkg")
+    present = ~(shapely.is_missing(mixed.geometry.values) | shapely.is_empty(mixed.geometry.values))
+    simple = gpd.GeoDataFrame({"h": mixed.h.to_numpy()[present]},
+                              geometry=shapely.force_3d(shapely.get_parts(mixed.geometry.values[present])),
+                              crs=CRS)
+    simple.to_file(tmp_path / "simple.gpkg")
+    paths = []
+    real = vector._points_from_arrow
+    monkeypatch.setattr(vector, "_points_from_arrow", lambda ref, z: paths.append(
+        (ref.path.name, real(ref, z) is not None)) or real(ref, z))
+    for z_field in (None, "h"):
+        fast = vector.read_points_xyz(tmp_path / "simple.gpkg", z_field)
+        general = vector.read_points_xyz(tmp_path / "mixed.gpkg", z_field)
+        assert np.array_equal(fast, general) and len(fast) == len(points) + 1
+        np.testing.assert_allclose(fast[:, 2], plane(fast[:, 0], fast[:, 1]), atol=1e-9)
+    assert paths == [("simple.gpkg", True), ("mixed.gpkg", False)] * 2
+    tins = {}
+    for name in ("simple", "mixed"):
+        out = tmp_path / f"tin_{name}.gpkg"
+        toolbox.run("tin:delaunay", {"INPUT": tmp_path / f"{name}.gpkg", "Z_FIELD": "h",
+                                     "BREAKLINES": folder / "breaklines.gpkg", "OUTPUT": out})
+        tins[name] = (read(out, "nodes"), read(out, "triangles"), read(out, "edges"))
+    assert paths[-2:] == [("simple.gpkg", True), ("mixed.gpkg", False)]
+    (nodes_a, tri_a, edges_a), (nodes_b, tri_b, edges_b) = tins["simple"], tins["mixed"]
+    assert nodes_a.drop(columns="geometry").equals(nodes_b.drop(columns="geometry"))
+    assert np.array_equal(shapely.get_coordinates(nodes_a.geometry, include_z=True),
+                          shapely.get_coordinates(nodes_b.geometry, include_z=True))
+    assert tri_a[["node1", "node2", "node3"]].equals(tri_b[["node1", "node2", "node3"]])
+    # the breaklines still reach the TIN: crossing nodes and breakline edges
+    assert set(nodes_a.source) == {"point", "breakline", "crossing"}
+    assert edges_a.breakline.sum() == edges_b.breakline.sum() > 0
