@@ -30,37 +30,48 @@ sys.path.insert(0, str(HERE))
 from benchlib import load_note, machine_facts  # noqa: E402
 
 
-def run_once(cmd: list[str], env: dict | None = None) -> float:
-    """Seconds of one run: the in-process figure the command prints, else the wall time."""
+def run_once(cmd: list[str], env: dict | None = None) -> dict[str, float]:
+    """``{"wall": s, ...}``: the whole process's wall time and the figures the command prints as
+    its last stdout line (a JSON object with ``"seconds"`` first, the in-process time)."""
     t0 = time.perf_counter()
     proc = subprocess.run(cmd, capture_output=True, text=True, env=env)
     wall = time.perf_counter() - t0
     if proc.returncode != 0:
         raise RuntimeError(f"{' '.join(cmd)} failed: {proc.stderr.strip()[-2000:]}")
     lines = proc.stdout.strip().splitlines()
+    figures = {"wall": wall}
     if lines and lines[-1].startswith('{"seconds"'):
-        return float(json.loads(lines[-1])["seconds"])
-    return wall
+        figures.update(json.loads(lines[-1]))
+    return figures
 
 
 def interleaved(cases: dict[str, list[str]], runs: int, env: dict | None = None
-                ) -> dict[str, list[float]]:
+                ) -> dict[str, list[dict]]:
     """Every case once per round, ``runs`` rounds (after one untimed warm-up round)."""
-    times: dict[str, list[float]] = {name: [] for name in cases}
+    times: dict[str, list[dict]] = {name: [] for name in cases}
     for round_ in range(runs + 1):
         for name, cmd in cases.items():
-            seconds = run_once(cmd, env)
+            figures = run_once(cmd, env)
             if round_:
-                times[name].append(seconds)
+                times[name].append(figures)
     return times
 
 
-def table(times: dict[str, list[float]], reference: str, header: str) -> str:
-    ref = statistics.median(times[reference])
-    rows = [f"| {header} | median s | min-max s | {reference} / this |", "|---|---:|---:|---:|"]
+def median(values: list[dict], key: str) -> float:
+    return statistics.median(v[key] for v in values)
+
+
+def table(times: dict[str, list[dict]], reference: str, header: str, key: str = "seconds",
+          extra: tuple[str, ...] = ()) -> str:
+    """Medians of ``key`` (and of the ``extra`` keys), range, ratio reference / case."""
+    ref = median(times[reference], key)
+    rows = [f"| {header} | median s | min-max s | {''.join(f'{e} s | ' for e in extra)}"
+            f"{reference} / this |", "|---|---:|---:|" + "---:|" * len(extra) + "---:|"]
     for name, values in times.items():
-        med = statistics.median(values)
-        rows.append(f"| {name} | {med:.3f} | {min(values):.3f}-{max(values):.3f} | "
+        med = median(values, key)
+        spread = [v[key] for v in values]
+        more = "".join(f"{median(values, e):.3f} | " for e in extra)
+        rows.append(f"| {name} | {med:.3f} | {min(spread):.3f}-{max(spread):.3f} | {more}"
                     f"{ref / med:.2f}x |")
     return "\n".join(rows)
 
@@ -111,7 +122,75 @@ def section_read(args) -> str:
             "included)\n\n" + table(times, next(iter(cases)), "reader"))
 
 
-SECTIONS = {"read": section_read}
+IDW_RUN = """
+import json, sys, time
+import toolbox
+from toolbox.feedback import Feedback
+x0, y0, size, width = {x0}, {y0}, {size}, {width}
+params = {{"INPUT": {path!r}, "OUTPUT": {out!r}, "CELL_SIZE": size / width, "OVERVIEWS": False,
+          "EXTENT": f"{{x0}},{{y0}},{{x0 + size}},{{y0 + size}}", **{extra!r}}}
+feedback = Feedback()
+t0 = time.perf_counter()
+toolbox.run("dem:idw", params, feedback=feedback, overwrite=True)
+total = time.perf_counter() - t0
+print(json.dumps({{"seconds": feedback.timings["duplicates"], "total": total,
+                  "tiles": feedback.timings["tiles"]}}))
+"""
+DUPLICATE_CHECK = """
+import json, time
+import numpy as np
+from toolbox.terrain.gridding.neighbours import PointBins
+rng = np.random.default_rng(1)
+xy = rng.uniform(0, 1000, ({n}, 2)) * {scale}  # clustered: {n} points in {share} of the box
+xy[0] = (1000.0, 1000.0)
+PointBins.build(xy[:1000]).has_duplicates()  # numba's import and first call off the clock
+bins = PointBins.build(xy)
+t0 = time.perf_counter()
+found = bins.has_duplicates()
+print(json.dumps({{"seconds": time.perf_counter() - t0}}))
+"""
+
+
+def section_idw(args) -> str:
+    """dem:idw with and without RADIUS (100k and 1M points): the duplicate step; and the bare
+    duplicate check on clustered points, before and after."""
+    import tin_bench
+
+    pythons = {"now": sys.executable}
+    if args.before:
+        pythons = {"before": args.before, **pythons}
+    out = []
+    for n in (100_000, 1_000_000):
+        path = points_file(args.work, n)
+        width = int(round(2000 * (n / 1_000_000) ** 0.5))
+        cases = {}
+        for label, python in pythons.items():
+            for radius in (None, 100.0):
+                extra = {} if radius is None else {"RADIUS": radius}
+                code = IDW_RUN.format(x0=tin_bench.X0, y0=tin_bench.Y0, size=tin_bench.SIZE,
+                                      width=width, path=str(path), extra=extra,
+                                      out=str(args.work / f"idw_{label}_{n}.tif"))
+                cases[f"{label}, {n:,} points, RADIUS {radius or 'none'}"] = [python, "-c",
+                                                                              code]
+        times = interleaved(cases, args.runs)
+        out.append(f"dem:idw, {n:,} uniform points to {width} x {width} cells, in process after "
+                   "the imports: the `duplicates` step (local origin, bins, duplicate check), "
+                   "with the run's total and its `tiles` step\n\n"
+                   + table(times, next(iter(cases)), "run", extra=("total", "tiles")))
+    cases = {}
+    for label, python in pythons.items():
+        for share in ("1", "0.001"):
+            cases[f"{label}, 1,000,000 points in {share} of the box"] = [
+                python, "-c", DUPLICATE_CHECK.format(n=1_000_000, scale=float(share) ** 0.5,
+                                                     share=share)]
+    times = interleaved(cases, args.runs)
+    out.append("`PointBins.has_duplicates` on 1,000,000 points spread over the bounding box or "
+               "clustered in 0.1 % of it (one far point stretches the box), in process\n\n"
+               + table(times, next(iter(cases)), "points"))
+    return "\n\n".join(out)
+
+
+SECTIONS = {"read": section_read, "idw": section_idw}
 
 
 def main(argv: list[str] | None = None) -> None:

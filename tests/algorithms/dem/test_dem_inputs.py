@@ -98,3 +98,27 @@ def test_points_contours_and_breaklines_together(tmp_path):
     gx = t.c + (np.arange(z.shape[1]) + 0.5) * t.a
     assert z.count() == 50 * 50
     assert np.abs(z - (300 + 0.2 * (gx[None, :] - X0))).max() < 1e-3
+
+
+def test_duplicate_check_stays_linear_on_clustered_points(monkeypatch):
+    """The compiled duplicate check compares points pair by pair inside a bin; bins are sized for
+    the bounding box, so clustered points crowd a few bins. Counted, not timed: the comparisons
+    must stay within PAIRWISE_MAX / 2 per point plus one per point sorted (pairwise over every
+    bin made 12.5 million here), and the answer must be the sort's."""
+    from toolbox.terrain.gridding import neighbours
+
+    monkeypatch.setattr(neighbours, "NUMPY_MAX_POINTS", -1)  # the compiled path at any size
+    rng = np.random.default_rng(3)
+    spread = rng.uniform(0, 1000, (3000, 2))
+    cluster = rng.uniform(0, 1.0, (5000, 2))  # 5000 points in about one bin
+    n = 8000
+    bound = n * neighbours.PAIRWISE_MAX // 2 + n
+    for xy, expected in ((np.vstack([spread, cluster]), False),
+                         (np.vstack([spread, cluster, cluster[1234:1235]]), True),  # in the crowd
+                         (np.vstack([spread, cluster, spread[7:8]]), True)):  # in a sparse bin
+        bins = neighbours.PointBins.build(xy)
+        assert np.diff(bins.offsets).max() > 1000  # the crowd is there
+        found, comparisons = bins.duplicate_check()
+        assert found is expected
+        assert found == (len(np.unique(xy, axis=0)) < len(xy))  # independent: numpy's unique
+        assert comparisons <= bound, comparisons

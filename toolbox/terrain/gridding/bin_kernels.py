@@ -40,13 +40,22 @@ def _counting_sort(x, y, x0, y0, size, nbx, nby, key, fill, offsets, order):
 
 
 @njit(nogil=True, cache=True)
-def _has_duplicates(x, y, offsets):
+def _has_duplicates(x, y, offsets, pairwise_max):
+    """``(found, comparisons)``: two points of a bin with at most ``pairwise_max`` points share
+    x and y, and the number of point pairs compared. Bins with more points are skipped (the
+    caller sorts them), so the work is at most ``n * pairwise_max / 2`` comparisons whatever the
+    points' distribution (pairwise over every bin is quadratic in a crowded bin)."""
+    comparisons = 0
     for b in range(len(offsets) - 1):
-        for i in range(offsets[b], offsets[b + 1]):
-            for j in range(i + 1, offsets[b + 1]):
+        start, stop = offsets[b], offsets[b + 1]
+        if stop - start > pairwise_max:
+            continue
+        for i in range(start, stop):
+            for j in range(i + 1, stop):
+                comparisons += 1
                 if x[i] == x[j] and y[i] == y[j]:
-                    return True
-    return False
+                    return True, comparisons
+    return False, comparisons
 
 
 @njit(nogil=True, cache=True)

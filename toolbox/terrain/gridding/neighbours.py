@@ -30,6 +30,9 @@ TARGET_PER_BIN = 2.0
 #: in numpy (a few ms at 100,000 points) instead of the compiled kernels, whose first call in a
 #: process costs numba's import and cache load (about 1 s); the results are the same
 NUMPY_MAX_POINTS = 400_000
+#: above NUMPY_MAX_POINTS, bins of at most this many points are checked for duplicate XY pair by
+#: pair (compiled); the points of more crowded bins are sorted instead
+PAIRWISE_MAX = 32
 
 
 @dataclass(frozen=True)
@@ -146,16 +149,32 @@ class PointBins:
         return d2, index
 
     def has_duplicates(self) -> bool:
-        """True when two points have exactly the same x and y (they share a bin): O(n)
-        compiled, a sort in numpy."""
-        if len(self.x) <= NUMPY_MAX_POINTS:  # sorted by (x, y), duplicates are neighbours
-            xy = np.empty(len(self.x), dtype=np.complex128)  # sorts by real, then imaginary
-            xy.real, xy.imag = self.x, self.y
-            xy.sort()
-            return bool(np.any(xy[1:] == xy[:-1]))
+        """True when two points have exactly the same x and y."""
+        return self.duplicate_check()[0]
+
+    def duplicate_check(self) -> tuple[bool, int]:
+        """``(found, comparisons)``: whether two points have exactly the same x and y, and the
+        number of value comparisons made (pairs compared, plus one per point sorted).
+
+        Duplicates share a bin. Up to :data:`NUMPY_MAX_POINTS` points: one sort of all the points
+        by (x, y), duplicates then neighbours. Above: compiled pairwise comparison inside bins of
+        at most :data:`PAIRWISE_MAX` points, and one sort of the points of the crowded bins
+        (clustered data), so the work stays O(n log n) for any distribution.
+        """
+        n = len(self.x)
+        if n <= NUMPY_MAX_POINTS:
+            return _sorted_duplicates(self.x, self.y), n
         from toolbox.terrain.gridding.bin_kernels import _has_duplicates
 
-        return bool(_has_duplicates(self.x, self.y, self.offsets))
+        found, comparisons = _has_duplicates(self.x, self.y, self.offsets, PAIRWISE_MAX)
+        if found:
+            return True, int(comparisons)
+        counts = np.diff(self.offsets)
+        crowded = np.repeat(counts > PAIRWISE_MAX, counts)
+        m = int(np.count_nonzero(crowded))
+        if m == 0:
+            return False, int(comparisons)
+        return _sorted_duplicates(self.x[crowded], self.y[crowded]), int(comparisons) + m
 
     def in_rect(self, xmin: float, ymin: float, xmax: float, ymax: float) -> np.ndarray:
         """Indices (ascending) of the points with ``xmin <= x <= xmax`` and ``ymin <= y <= ymax``."""
@@ -250,3 +269,11 @@ def grid_knn(bins: PointBins, xs: np.ndarray, ys: np.ndarray, k: int, radius: fl
     out_i = np.take_along_axis(out_i, order, axis=2)
     index = np.where(out_i >= 0, bins.order[np.maximum(out_i, 0)], -1)
     return out_d2, index
+
+
+def _sorted_duplicates(x: np.ndarray, y: np.ndarray) -> bool:
+    """True when two (x, y) are equal: one sort by (x, y), duplicates then neighbours."""
+    xy = np.empty(len(x), dtype=np.complex128)  # sorts by real, then imaginary
+    xy.real, xy.imag = x, y
+    xy.sort()
+    return bool(np.any(xy[1:] == xy[:-1]))
