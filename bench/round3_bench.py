@@ -18,9 +18,11 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import resource
 import statistics
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -31,18 +33,44 @@ from benchlib import load_note, machine_facts  # noqa: E402
 
 
 def run_once(cmd: list[str], env: dict | None = None) -> dict[str, float]:
-    """``{"wall": s, ...}``: the whole process's wall time and the figures the command prints as
-    its last stdout line (a JSON object with ``"seconds"`` first, the in-process time)."""
+    """``{"wall": s, "cpu": s, "peak_mb": MB, ...}``: the whole process's wall time, CPU time
+    (user + system, all its threads) and peak resident memory, and the figures the command
+    prints as its last stdout line (a JSON object with ``"seconds"`` first, in process)."""
     t0 = time.perf_counter()
-    proc = subprocess.run(cmd, capture_output=True, text=True, env=env)
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            env=env)
+    peak = [0]
+    watcher = threading.Thread(target=_watch_peak, args=(proc, peak), daemon=True)
+    watcher.start()
+    stdout, stderr = proc.communicate()
     wall = time.perf_counter() - t0
+    watcher.join()
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = usage.ru_utime + usage.ru_stime - _CHILD_CPU[0]
+    _CHILD_CPU[0] = usage.ru_utime + usage.ru_stime
     if proc.returncode != 0:
-        raise RuntimeError(f"{' '.join(cmd)} failed: {proc.stderr.strip()[-2000:]}")
-    lines = proc.stdout.strip().splitlines()
-    figures = {"wall": wall}
+        raise RuntimeError(f"{' '.join(cmd)} failed: {stderr.strip()[-2000:]}")
+    lines = stdout.strip().splitlines()
+    figures = {"wall": wall, "cpu": cpu, "peak_mb": peak[0] / 1024.0}
     if lines and lines[-1].startswith('{"seconds"'):
         figures.update(json.loads(lines[-1]))
     return figures
+
+
+_CHILD_CPU = [0.0]  # the children's CPU seconds counted so far
+
+
+def _watch_peak(proc: subprocess.Popen, peak: list[int], poll: float = 0.02) -> None:
+    """Keep the child's peak resident memory (``VmHWM``, kB) in ``peak[0]`` while it runs."""
+    status = Path(f"/proc/{proc.pid}/status")
+    while proc.poll() is None:
+        try:
+            for line in status.read_text().splitlines():
+                if line.startswith("VmHWM"):
+                    peak[0] = max(peak[0], int(line.split()[1]))
+        except (OSError, ValueError):
+            pass
+        time.sleep(poll)
 
 
 def interleaved(cases: dict[str, list[str]], runs: int, env: dict | None = None
@@ -190,7 +218,44 @@ def section_idw(args) -> str:
     return "\n\n".join(out)
 
 
-SECTIONS = {"read": section_read, "idw": section_idw}
+TRIANGLE_RUN = """
+import json, time
+import numpy as np
+import triangle
+xy = np.ascontiguousarray(np.load({path!r})[:, :2])
+t0 = time.perf_counter()
+tri = triangle.triangulate({{"vertices": xy}}, "")["triangles"]
+print(json.dumps({{"seconds": time.perf_counter() - t0}}))
+"""
+
+
+def section_tinwrite(args) -> str:
+    """tin:delaunay on 1M points to a GeoPackage with the defaults (edges and spatial index),
+    whole process, before/after; Triangle in memory as the peer."""
+    n = args.points or 1_000_000
+    path = points_file(args.work, n)
+    cases = {"Triangle in memory (no I/O)": [sys.executable, "-c", TRIANGLE_RUN.format(
+        path=str(path.with_name("points.npy")))]}
+    pythons = {"now": sys.executable}
+    if args.before:
+        pythons = {"before": args.before, **pythons}
+    for label, python in pythons.items():
+        exe = str(Path(python).with_name("toolbox"))
+        out = args.work / f"tin_{label}.gpkg"
+        cases[f"tin:delaunay {label} (GeoPackage, edges, index)"] = [
+            exe, "run", "tin:delaunay", "--INPUT", str(path), "--OUTPUT", str(out),
+            "--overwrite", "-q"]
+    times = interleaved(cases, args.runs)
+    for values in times.values():  # the peer's figure is its in-process time
+        for v in values:
+            v.setdefault("seconds", v["wall"])
+    return (f"{n:,} points: `toolbox run tin:delaunay` to a GeoPackage with the defaults "
+            "(edges layer and spatial indexes), whole process (wall, and CPU = user + system), "
+            "against Triangle's triangulation in memory\n\n"
+            + table(times, next(iter(cases)), "run", extra=("cpu", "peak_mb")))
+
+
+SECTIONS = {"read": section_read, "idw": section_idw, "tinwrite": section_tinwrite}
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -199,6 +264,7 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--work", type=Path, default=Path("/tmp/round3_bench"))
     parser.add_argument("--runs", type=int, default=5)
     parser.add_argument("--before", help="python of the previous version (before/after rows)")
+    parser.add_argument("--points", type=int, help="tinwrite: points (default 1,000,000)")
     args = parser.parse_args(argv)
     args.work.mkdir(parents=True, exist_ok=True)
     head = f"{machine_facts()}. {load_note()}; load average {os.getloadavg()[0]:.1f}."

@@ -59,3 +59,37 @@ def test_edges_layer_can_be_skipped(model, tmp_path):
     path = tmp_path / "lean.gpkg"
     write_tin(path, model, None, spatial_index=False, edges_layer=False)
     assert [row[0] for row in pyogrio.list_layers(path)] == ["triangles", "nodes"]
+
+
+@pytest.mark.parametrize("suffix", [".gpkg", ".parquet"])
+def test_batches_stream_the_same_layers(model, tmp_path, monkeypatch, suffix):
+    """Written in batches of 7 features (many batches, a short last one), every layer equals the
+    one-batch write, and its geometries are the model's nodes (read back by GDAL/shapely)."""
+    import geopandas as gpd
+
+    from toolbox.io.vector import layer_paths
+    from toolbox.terrain.tin import store
+
+    frames = {}
+    for batch in (7, 1 << 16):
+        monkeypatch.setattr(store, "BATCH", batch)
+        path = tmp_path / f"tin{batch}{suffix}"
+        write_tin(path, model, CRS.from_epsg(3003))
+        targets = layer_paths(path, ["triangles", "nodes", "edges"])
+        frames[batch] = {name: gpd.read_parquet(target) if suffix == ".parquet" else
+                         gpd.read_file(target, layer=name) for name, target in targets.items()}
+    for name in ("triangles", "nodes", "edges"):
+        small, big = frames[7][name], frames[1 << 16][name]
+        assert len(small) == len(big) > 7
+        assert small.drop(columns="geometry").equals(big.drop(columns="geometry")), name
+        assert small.geometry.geom_equals_exact(big.geometry, 0).all()
+    tri = frames[7]["triangles"]
+    corners = shapely.get_coordinates(tri.geometry.values, include_z=True).reshape(-1, 4, 3)
+    ids = tri[["node1", "node2", "node3"]].to_numpy() - 1
+    np.testing.assert_array_equal(corners[:, :3], model.xyz[ids])
+    np.testing.assert_array_equal(tri.id, np.arange(1, len(tri) + 1))
+    edges = frames[7]["edges"]
+    np.testing.assert_allclose(edges.length_2d, shapely.length(edges.geometry.values), rtol=1e-12)
+    nodes = frames[7]["nodes"]
+    np.testing.assert_array_equal(shapely.get_coordinates(nodes.geometry.values, include_z=True),
+                                  model.xyz)

@@ -16,8 +16,9 @@ Layers (ids are 1-based; a missing neighbour or triangle is NULL):
     ``node_to``; ``right_tri`` is NULL on the border); ``breakline`` (true for breakline edges);
     ``length_2d``, ``length_3d``.
 
-Geometries are encoded to WKB with numpy and written through Arrow (``pyogrio.write_arrow``)
-when pyarrow is installed, else through ``pyogrio.raw.write``: no per-feature Python objects.
+Geometries are encoded to WKB with numpy and streamed in batches through Arrow
+(``pyogrio.write_arrow`` of a record-batch reader) when pyarrow is installed, else written
+through ``pyogrio.raw.write``: no per-feature Python objects.
 """
 
 from __future__ import annotations
@@ -43,7 +44,7 @@ from toolbox.terrain.tin.help import TIN_HELP  # noqa: F401  (re-exported: its o
 from toolbox.terrain.tin.topology import EdgeTable, edge_table, triangle_measures
 
 _WKB_POINT_Z, _WKB_LINESTRING_Z, _WKB_POLYGON_Z = 1001, 1002, 1003
-BATCH = 1 << 19  # features per Arrow batch
+BATCH = 1 << 16  # features per Arrow batch (GDAL's own Arrow batch size)
 
 
 def _wkb_buffer(type_code: int, n: int, k: int, ring: bool) -> tuple[np.ndarray, np.ndarray]:
@@ -92,49 +93,80 @@ def wkb_from_nodes(type_code: int, xyz: np.ndarray, nodes: np.ndarray,
     return out
 
 
-def _arrow_table(columns: dict[str, tuple[np.ndarray, np.ndarray | None]], wkb: np.ndarray):
-    """An Arrow table of the columns and a ``geometry`` WKB column, built from the numpy
-    buffers in batches (no per-feature Python objects)."""
+Columns = dict[str, tuple[np.ndarray, "np.ndarray | None"]]
+
+
+class _Layer:
+    """One layer to write, produced in slices: ``make(lo, hi)`` returns the columns (field name
+    -> (values, null mask or None)) and the ``(hi - lo, size)`` WKB records of features
+    ``lo:hi``, so a writer holds one batch of geometries and Arrow arrays at a time."""
+
+    def __init__(self, name: str, n: int, make, geometry_type: str):
+        self.name, self.n, self.make, self.geometry_type = name, n, make, geometry_type
+
+    def schema(self):
+        import pyarrow as pa
+
+        columns, _ = self.make(0, min(self.n, 1))
+        return pa.schema([pa.field(k, pa.from_numpy_dtype(v.dtype) if v.dtype.kind != "O"
+                                   else pa.string()) for k, (v, _) in columns.items()]
+                         + [pa.field("geometry", pa.binary())])
+
+    def batches(self, schema):
+        """The Arrow record batches of :data:`BATCH` features, built one by one."""
+
+        for lo in range(0, max(self.n, 1), BATCH):
+            hi = min(self.n, lo + BATCH)
+            columns, wkb = self.make(lo, hi)
+            yield _record_batch(schema, columns, wkb)
+
+    def reader(self):
+        """A ``pyarrow.RecordBatchReader`` streaming :meth:`batches`."""
+        import pyarrow as pa
+
+        schema = self.schema()
+        return pa.RecordBatchReader.from_batches(schema, self.batches(schema))
+
+
+def _record_batch(schema, columns: Columns, wkb: np.ndarray):
+    """An Arrow record batch of the columns and a ``geometry`` WKB column, built from the numpy
+    buffers (no per-feature Python objects)."""
     import pyarrow as pa
 
     n = len(wkb)
     size = wkb.shape[1] if n else 0
-    fields = [pa.field(k, pa.from_numpy_dtype(v.dtype) if v.dtype.kind != "O" else pa.string())
-              for k, (v, _) in columns.items()] + [pa.field("geometry", pa.binary())]
-    schema = pa.schema(fields)
-    batches = []
-    for lo in range(0, max(n, 1), BATCH):
-        hi = min(n, lo + BATCH)
-        arrays = [pa.array(v[lo:hi], mask=None if m is None else m[lo:hi],
-                           type=schema.field(k).type) for k, (v, m) in columns.items()]
-        offsets = np.arange(hi - lo + 1, dtype=np.int32) * size
-        data = pa.py_buffer(np.ascontiguousarray(wkb[lo:hi]).ravel())
-        arrays.append(pa.Array.from_buffers(pa.binary(), hi - lo,
-                                            [None, pa.py_buffer(offsets), data]))
-        batches.append(pa.record_batch(arrays, schema=schema))
-    return pa.Table.from_batches(batches, schema=schema)
+    arrays = [pa.array(v, mask=m, type=schema.field(k).type) for k, (v, m) in columns.items()]
+    offsets = np.arange(n + 1, dtype=np.int32) * size
+    data = pa.py_buffer(np.ascontiguousarray(wkb).ravel())
+    arrays.append(pa.Array.from_buffers(pa.binary(), n, [None, pa.py_buffer(offsets), data]))
+    return pa.record_batch(arrays, schema=schema)
 
 
-def _write_geoparquet(path: Path, table, geometry_type: str, crs: Any) -> None:
-    """GeoParquet 1.0: the WKB column plus the ``geo`` schema metadata (CRS as PROJJSON)."""
+def _write_geoparquet(path: Path, layer: _Layer, crs: Any) -> None:
+    """GeoParquet 1.0: the WKB column plus the ``geo`` schema metadata (CRS as PROJJSON),
+    written batch by batch."""
     import json
 
     import pyarrow.parquet as pq
 
     geo = {"version": "1.0.0", "primary_column": "geometry",
-           "columns": {"geometry": {"encoding": "WKB", "geometry_types": [geometry_type],
+           "columns": {"geometry": {"encoding": "WKB",
+                                    "geometry_types": [layer.geometry_type],
                                     "crs": None if crs is None else crs.to_json_dict()}}}
-    table = table.replace_schema_metadata({b"geo": json.dumps(geo).encode()})
+    schema = layer.schema().with_metadata({b"geo": json.dumps(geo).encode()})
     # dictionary encoding only pays for the text columns: on ids and coordinates it made the
     # write 4-5 times slower for no smaller file
-    text = [f.name for f in table.schema if str(f.type) == "string"]
-    pq.write_table(table, path, compression="snappy", use_dictionary=text)
+    text = [f.name for f in schema if str(f.type) == "string"]
+    with pq.ParquetWriter(path, schema, compression="snappy", use_dictionary=text) as writer:
+        for batch in layer.batches(schema):
+            writer.write_batch(batch)
 
 
-def _write_layer(path: Path, name: str, columns: dict[str, tuple[np.ndarray, np.ndarray | None]],
-                 wkb: np.ndarray, geometry_type: str, crs: Any, spatial_index: bool) -> None:
-    """Write one layer (``columns`` maps field name -> (values, null mask or None)) in the
-    format of ``path``'s extension; ``path`` is this layer's own file for one-layer formats."""
+def _write_layer(path: Path, layer: _Layer, crs: Any, spatial_index: bool) -> None:
+    """Write one layer in the format of ``path``'s extension (``path`` is this layer's own file
+    for one-layer formats). Through Arrow, the batches stream into GDAL one at a time; GDAL
+    builds a GeoPackage's spatial index once, after the last feature (in bulk, on a thread of
+    its own), not feature by feature."""
     import pyogrio
 
     driver = vector_driver(path)
@@ -147,20 +179,20 @@ def _write_layer(path: Path, name: str, columns: dict[str, tuple[np.ndarray, np.
     except ImportError:  # pragma: no cover - exercised when pyarrow is absent
         pyarrow = None
     if driver == "Parquet":
-        _write_geoparquet(path, _arrow_table(columns, wkb), geometry_type, crs)
+        _write_geoparquet(path, layer, crs)
         return
     if pyarrow is not None:
-        table = _arrow_table(columns, wkb)
         with warnings.catch_warnings():  # a TIN without CRS is the caller's (reported) choice
             warnings.filterwarnings("ignore", message="'crs' was not provided")
             with staged_gpkg_writes():
-                pyogrio.write_arrow(table, path, layer=name, driver=driver,
-                                    geometry_name="geometry", geometry_type=geometry_type,
-                                    crs=crs_text, layer_options=options,
-                                    dataset_options=dataset_options)
+                pyogrio.write_arrow(layer.reader(), path, layer=layer.name, driver=driver,
+                                    geometry_name="geometry",
+                                    geometry_type=layer.geometry_type, crs=crs_text,
+                                    layer_options=options, dataset_options=dataset_options)
         return
     from pyogrio.raw import write
 
+    columns, wkb = layer.make(0, layer.n)
     n = len(wkb)
     flat = np.ascontiguousarray(wkb).tobytes()
     size = wkb.shape[1] if n else 0
@@ -169,8 +201,8 @@ def _write_layer(path: Path, name: str, columns: dict[str, tuple[np.ndarray, np.
     names = list(columns)
     with staged_gpkg_writes():
         write(path, geometry, [columns[k][0] for k in names], names,
-              field_mask=[columns[k][1] for k in names], layer=name, driver=driver,
-              geometry_type=geometry_type, crs=crs_text, layer_options=options,
+              field_mask=[columns[k][1] for k in names], layer=layer.name, driver=driver,
+              geometry_type=layer.geometry_type, crs=crs_text, layer_options=options,
               dataset_options=dataset_options)
 
 
@@ -181,6 +213,11 @@ def _ids(index: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
     return index + 1, (missing if missing.any() else None)
 
 
+def _serial(lo: int, hi: int) -> tuple[np.ndarray, None]:
+    """The 1-based ids ``lo + 1 .. hi``."""
+    return np.arange(lo + 1, hi + 1, dtype=np.int64), None
+
+
 def write_tin(path: str | Path, model: TinModel, crs: Any = None, spatial_index: bool = True,
               feedback=None, edges_layer: bool = True) -> dict[str, int]:
     """Write the ``triangles``, ``nodes`` and (unless ``edges_layer`` is False) ``edges`` layers
@@ -188,6 +225,8 @@ def write_tin(path: str | Path, model: TinModel, crs: Any = None, spatial_index:
     GeoParquet (several times faster for big TINs), Shapefile or GeoJSON, one file per layer
     (``tin.fgb`` holds the triangles, ``tin_nodes.fgb`` and ``tin_edges.fgb`` the others).
 
+    Features are encoded and written in batches of :data:`BATCH` (geometries, Arrow arrays):
+    memory holds the model and one batch, not a second copy of every layer.
     Returns the feature count of each layer (edges are counted even when not written).
     """
     path = Path(path)
@@ -196,26 +235,30 @@ def write_tin(path: str | Path, model: TinModel, crs: Any = None, spatial_index:
     edges = edge_table(tri, nb)
     measures = triangle_measures(xyz, tri)
     step = _Steps(feedback, 3 if edges_layer else 2)
-    with step("write triangles"):
-        columns = {"id": _ids(np.arange(len(tri)))}
-        for j in range(3):
-            columns[f"node{j + 1}"] = _ids(tri[:, j])
-        for j in range(3):
-            columns[f"nbr{j + 1}"] = _ids(nb[:, j])
-        for j in range(3):
-            columns[f"edge{j + 1}"] = _ids(edges.triangle_edges[:, j])
+
+    def triangles(lo: int, hi: int):
+        columns = {"id": _serial(lo, hi)}
+        for prefix, table in (("node", tri), ("nbr", nb), ("edge", edges.triangle_edges)):
+            for j in range(3):
+                columns[f"{prefix}{j + 1}"] = _ids(table[lo:hi, j])
         for name in ("area_2d", "area_3d", "slope_deg", "slope_pct", "aspect_deg"):
-            columns[name] = (getattr(measures, name), None)
-        _write_layer(targets["triangles"], "triangles", columns,
-                     wkb_from_nodes(_WKB_POLYGON_Z, xyz, tri, ring=True),
-                     "Polygon Z", crs, spatial_index)
+            columns[name] = (getattr(measures, name)[lo:hi], None)
+        return columns, wkb_from_nodes(_WKB_POLYGON_Z, xyz, tri[lo:hi], ring=True)
+
+    sources = np.asarray(SOURCES, dtype=object)
+
+    def nodes(lo: int, hi: int):
+        columns = {"id": _serial(lo, hi), "source": (sources[model.source[lo:hi]], None),
+                   "merged": (model.merged[lo:hi].astype(np.int64), None),
+                   "z": (xyz[lo:hi, 2].copy(), None)}
+        return columns, wkb_records(_WKB_POINT_Z, xyz[lo:hi, None, :])
+
+    with step("write triangles"):
+        _write_layer(targets["triangles"], _Layer("triangles", len(tri), triangles, "Polygon Z"),
+                     crs, spatial_index)
     with step("write nodes"):
-        columns = {"id": _ids(np.arange(len(xyz))),
-                   "source": (np.asarray(SOURCES, dtype=object)[model.source], None),
-                   "merged": (model.merged.astype(np.int64), None),
-                   "z": (xyz[:, 2].copy(), None)}
-        _write_layer(targets["nodes"], "nodes", columns, wkb_records(_WKB_POINT_Z, xyz[:, None, :]),
-                     "Point Z", crs, spatial_index)
+        _write_layer(targets["nodes"], _Layer("nodes", len(xyz), nodes, "Point Z"), crs,
+                     spatial_index)
     if edges_layer:
         with step("write edges"):
             _write_edges(targets["edges"], model, edges, crs, spatial_index)
@@ -234,16 +277,21 @@ def breakline_flags(edges: EdgeTable, breakline_edges: np.ndarray, n_nodes: int)
 def _write_edges(path: Path, model: TinModel, edges: EdgeTable, crs: Any,
                  spatial_index: bool) -> None:
     xyz = model.xyz
-    a, b = xyz[edges.nodes[:, 0]], xyz[edges.nodes[:, 1]]
-    d = b - a
-    length_2d = np.hypot(d[:, 0], d[:, 1])
-    columns = {"id": _ids(np.arange(len(edges.nodes))),
-               "node_from": _ids(edges.nodes[:, 0]), "node_to": _ids(edges.nodes[:, 1]),
-               "left_tri": _ids(edges.left), "right_tri": _ids(edges.right),
-               "breakline": (breakline_flags(edges, model.breakline_edges, len(xyz)), None),
-               "length_2d": (length_2d, None), "length_3d": (np.hypot(length_2d, d[:, 2]), None)}
-    _write_layer(path, "edges", columns, wkb_from_nodes(_WKB_LINESTRING_Z, xyz, edges.nodes),
-                 "LineString Z", crs, spatial_index)
+    breakline = breakline_flags(edges, model.breakline_edges, len(xyz))
+
+    def make(lo: int, hi: int):
+        ends = edges.nodes[lo:hi]
+        d = xyz[ends[:, 1]] - xyz[ends[:, 0]]
+        length_2d = np.hypot(d[:, 0], d[:, 1])
+        columns = {"id": _serial(lo, hi), "node_from": _ids(ends[:, 0]),
+                   "node_to": _ids(ends[:, 1]), "left_tri": _ids(edges.left[lo:hi]),
+                   "right_tri": _ids(edges.right[lo:hi]), "breakline": (breakline[lo:hi], None),
+                   "length_2d": (length_2d, None),
+                   "length_3d": (np.hypot(length_2d, d[:, 2]), None)}
+        return columns, wkb_from_nodes(_WKB_LINESTRING_Z, xyz, ends)
+
+    _write_layer(path, _Layer("edges", len(edges.nodes), make, "LineString Z"), crs,
+                 spatial_index)
 
 
 class _Steps:
