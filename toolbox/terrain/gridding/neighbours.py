@@ -170,10 +170,10 @@ class PointBins:
         if found:
             return True, int(comparisons)
         counts = np.diff(self.offsets)
+        if counts.max() <= PAIRWISE_MAX:  # no crowded bin: all compared pairwise
+            return False, int(comparisons)
         crowded = np.repeat(counts > PAIRWISE_MAX, counts)
         m = int(np.count_nonzero(crowded))
-        if m == 0:
-            return False, int(comparisons)
         return _sorted_duplicates(self.x[crowded], self.y[crowded]), int(comparisons) + m
 
     def in_rect(self, xmin: float, ymin: float, xmax: float, ymax: float) -> np.ndarray:
