@@ -264,7 +264,66 @@ def section_tinwrite(args) -> str:
             + table(times, next(iter(cases)), "run", extra=("cpu", "peak_mb")))
 
 
+def make_dem(path: Path, size: int = 2000) -> None:
+    """The demo relief (matplotlib's jacksboro DEM) resampled to ``size`` x ``size`` cells of
+    1 m (cubic spline)."""
+    from affine import Affine
+    from scipy.ndimage import zoom
+
+    from toolbox.demo.samples.terrain import CRS, XMIN, YMAX, terrain
+    from toolbox.io.raster import write_raster
+
+    z, _ = terrain()
+    z = zoom(z.astype("float64"), (size / z.shape[0], size / z.shape[1]), order=3)
+    write_raster(path, z.astype("float32"), Affine(1.0, 0, XMIN, 0, -1.0, YMAX), CRS,
+                 nodata=-9999.0)
+
+
+def section_contours(args) -> str:
+    """carto:contours against gdal_contour on a 2000 x 2000 DEM, 1 m interval, whole process;
+    and the total length of the two line sets inside the cell-centre box."""
+    import shutil
+
+    import geopandas as gpd
+    import rasterio
+    import shapely
+
+    dem = args.work / "dem2000.tif"
+    if not dem.exists():
+        make_dem(dem)
+    gdal_out = args.work / "gdal_contours.gpkg"
+    cases = {"gdal_contour -i 1": ["sh", "-c", f"rm -f {gdal_out} && "
+                                   f"{shutil.which('gdal_contour')} -q -i 1 -a elev "
+                                   f"{dem} {gdal_out}"]}
+    pythons = {"now": sys.executable}
+    if args.before:
+        pythons = {"before": args.before, **pythons}
+    for label, python in pythons.items():
+        cases[f"carto:contours {label}"] = [
+            str(Path(python).with_name("toolbox")), "run", "carto:contours", "--INPUT", str(dem),
+            "--OUTPUT", str(args.work / f"contours_{label}.gpkg"), "--INTERVAL", "1",
+            "--overwrite", "-q"]
+    times = interleaved(cases, args.runs)
+    for values in times.values():
+        for v in values:
+            v["seconds"] = v["wall"]
+    with rasterio.open(dem) as src:
+        t = src.transform
+        box = shapely.box(t.c + 0.5, t.f - src.height + 0.5, t.c + src.width - 0.5, t.f - 0.5)
+    gdal = gpd.read_file(gdal_out)
+    ours = gpd.read_file(args.work / "contours_now.gpkg", layer="contours")
+    ref_len = float(shapely.length(shapely.intersection(gdal.geometry.values, box)).sum())
+    our_len = float(shapely.length(ours.geometry.values).sum())
+    same = sorted(set(gdal["elev"])) == sorted(set(ours["elev"]))
+    return (f"2000 x 2000 DEM of 1 m (the demo relief resampled), 1 m interval: "
+            f"{len(set(ours['elev']))} levels (gdal_contour's the same: {same}); total length "
+            f"{our_len:.0f} m against gdal_contour's {ref_len:.0f} m inside the cell-centre box "
+            f"({100 * (our_len / ref_len - 1):+.3f} %). Whole process, wall and CPU\n\n"
+            + table(times, next(iter(cases)), "command", extra=("cpu", "peak_mb")))
+
+
 SECTIONS = {"read": section_read, "idw": section_idw, "tinwrite": section_tinwrite,
+            "contours": section_contours,
             "dupcheck": section_dupcheck}
 
 

@@ -101,12 +101,19 @@ def contour_frame(contours: list[Contour], interval: float, base: float, index_e
     import shapely
 
     levels = np.array([c.level for c in contours], dtype="float64")
-    geoms = [shapely.linestrings(np.column_stack([c.xy, np.full(len(c.xy), c.level)]))
-             for c in contours]
+    counts = np.array([len(c.xy) for c in contours], dtype=np.int64)
+    if len(contours):  # every line in one call: no per-line shapely objects built in Python
+        xy = np.concatenate([c.xy for c in contours])
+        owner = np.repeat(np.arange(len(contours)), counts)
+        geoms = shapely.linestrings(np.column_stack([xy, levels[owner]]), indices=owner)
+        first, last = np.cumsum(counts) - counts, np.cumsum(counts) - 1
+        closed = (counts > 2) & (xy[first] == xy[last]).all(axis=1)
+    else:
+        geoms, closed = np.empty(0, dtype=object), np.zeros(0, dtype=bool)
     frame = gpd.GeoDataFrame({
         "elev": levels,
         "index": index_flags(levels, interval, base, index_every).astype("int32"),
-        "closed": np.array([c.closed for c in contours], dtype="int32"),
-        "length": np.array([float(shapely.length(g)) for g in geoms]),
+        "closed": closed.astype("int32"),
+        "length": shapely.length(geoms).astype("float64"),
     }, geometry=geoms, crs=crs)
     return frame

@@ -66,29 +66,36 @@ def grid_contour_pieces(z: np.ndarray, levels: Iterable[float], x0: float, y0: f
     y = y0 + np.arange(rows) * dy
     data = np.ma.masked_invalid(z) if np.isnan(z).any() else z
     gen = contourpy.contour_generator(x, y, data, name="serial",
-                                      line_type=contourpy.LineType.Separate)
+                                      line_type=contourpy.LineType.ChunkCombinedOffset)
     # contourpy leaves higher ground on the left in a y-up frame: flip when the frame is y-up
     # (dx·dy > 0) to keep higher ground on the right
     flip = (dx * dy) > 0
+    levels = np.asarray(list(levels), dtype="float64")
+    # trace just below the level so a node exactly at it counts as above (as gdal_contour and
+    # tin_contours do); the offset (1024 ulps) moves lines by far less than a micron. All levels
+    # in one call, each level's lines as one array of points with offsets.
+    traced = gen.multi_lines(levels - 1024 * np.spacing(np.abs(levels)))
     out = []
-    for level in levels:
-        # trace just below the level so a node exactly at it counts as above (as gdal_contour
-        # and tin_contours do); the offset (1024 ulps) moves lines by far less than a micron
-        level = float(level)
-        for line in gen.lines(level - 1024 * np.spacing(abs(level))):
-            line = drop_repeated(line)
-            if len(line) >= 2:  # a node exactly at the level gives a zero-length loop: dropped
-                out.append(Contour(level, line[::-1] if flip else line))
+    for level, (points, offsets) in zip(levels.tolist(), traced, strict=True):
+        if points[0] is None:
+            continue
+        for line in _split_lines(points[0], offsets[0]):
+            out.append(Contour(level, line[::-1] if flip else line))
     return out
 
 
-def drop_repeated(xy: np.ndarray) -> np.ndarray:
-    """``xy`` without vertices equal to their predecessor."""
-    if len(xy) < 2:
-        return xy
-    keep = np.ones(len(xy), dtype=bool)
-    keep[1:] = (xy[1:] != xy[:-1]).any(axis=1)
-    return xy[keep]
+def _split_lines(points: np.ndarray, offsets: np.ndarray) -> list[np.ndarray]:
+    """The lines of a combined ``(n, 2)`` point array (line ``i`` is ``offsets[i]:offsets[i+1]``)
+    without vertices equal to their predecessor, and without lines left with fewer than 2
+    vertices (a node exactly at the level gives a zero-length loop)."""
+    keep = np.ones(len(points), dtype=bool)
+    keep[1:] = (points[1:] != points[:-1]).any(axis=1)
+    keep[offsets[:-1]] = True  # a line's first vertex follows another line's last
+    kept_before = np.concatenate([[0], np.cumsum(keep)])
+    new_offsets = kept_before[offsets]
+    points = points[keep]
+    return [points[a:b] for a, b in zip(new_offsets[:-1].tolist(), new_offsets[1:].tolist(),
+                                        strict=True) if b - a >= 2]
 
 
 @dataclass

@@ -264,3 +264,13 @@ def test_agrees_with_gdal_contour(demo_dem, tmp_path):
     agree = contour_agreement(read_contours(out), gdal, tolerance=0.001, clip=centre_box)
     assert agree["ours_matched"] > 0.99 and agree["reference_matched"] > 0.99, agree
     assert set(agree["levels"]) == set(gdal["elev"])
+    # the same length as gdal_contour's lines inside the cell-centre box: 0.2 % in all
+    ours = read_contours(out)
+    assert set(ours["elev"]) == set(gdal["elev"])
+    box = shapely.box(*centre_box)
+    ref_length = {level: shapely.length(shapely.intersection(
+        gdal.geometry.values[np.asarray(gdal["elev"] == level)], box)).sum()
+        for level in set(gdal["elev"])}
+    our_length = {level: shapely.length(ours.geometry.values[np.asarray(ours["elev"] == level)]
+                                        ).sum() for level in ref_length}
+    assert sum(our_length.values()) == pytest.approx(sum(ref_length.values()), rel=0.002)
