@@ -24,9 +24,26 @@ from toolbox.errors import (  # noqa: E402
     PipelineError,
     ToolboxError,
 )
-from toolbox.feedback import Feedback  # noqa: E402
-from toolbox.registry import algorithms, get  # noqa: E402
-from toolbox.runner import run, validate  # noqa: E402
+
+# imported on first use (PEP 562): ``toolbox --version`` and ``toolbox help`` need neither the
+# runner nor the registry's imports (importlib.metadata, the parameter types, GDAL staging)
+_LAZY = {"Feedback": "toolbox.feedback", "algorithms": "toolbox.registry",
+         "get": "toolbox.registry", "run": "toolbox.runner", "validate": "toolbox.runner"}
+
+
+def __getattr__(name: str):
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module 'toolbox' has no attribute {name!r}")
+    import importlib
+
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_LAZY))
 
 __all__ = [
     "AlgorithmNotFoundError", "CanceledError", "ConvergenceError", "Feedback", "InputDataError",

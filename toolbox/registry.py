@@ -16,23 +16,22 @@ through :data:`ALIASES` (an id is never reused).
 
 from __future__ import annotations
 
-import base64
-import difflib
 import functools
 import hashlib
 import importlib.util
 import json
 import logging
 import os
-import tempfile
 from importlib.metadata import EntryPoint, PackageNotFoundError, distribution, entry_points
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 from urllib.parse import urlparse
 
-from toolbox.algorithm import Algorithm
 from toolbox.errors import AlgorithmNotFoundError, ToolboxError
 from toolbox.version import __version__
+
+if TYPE_CHECKING:  # imported where used: a cached `toolbox list` / `help` needs no spec classes
+    from toolbox.algorithm import Algorithm
 
 log = logging.getLogger("toolbox")
 
@@ -71,14 +70,26 @@ def _editable_root(dist) -> Path | None:
     info = json.loads(text)
     if not info.get("dir_info", {}).get("editable") or not info.get("url", "").startswith("file:"):
         return None
-    from urllib.request import url2pathname  # imports http.client: only for editable installs
+    return Path(_url2pathname(urlparse(info["url"]).path)).resolve()
 
-    return Path(url2pathname(urlparse(info["url"]).path)).resolve()
+
+def _url2pathname(path: str) -> str:
+    """``urllib.request.url2pathname`` without importing ``urllib.request`` (it pulls in
+    ``http.client``, ``ssl`` and ``email``: about 20 ms of every ``toolbox list`` and ``help``)."""
+    if os.name == "nt":
+        from nturl2path import url2pathname
+
+        return url2pathname(path)
+    from urllib.parse import unquote
+
+    return unquote(path)
 
 
 def _record_hash_matches(path: Path, file_hash) -> bool:
     if file_hash is None or file_hash.mode != "sha256":
         return True
+    import base64
+
     digest = base64.urlsafe_b64encode(hashlib.sha256(path.read_bytes()).digest()).rstrip(b"=")
     return digest.decode() == file_hash.value
 
@@ -144,6 +155,8 @@ def _load(ep: EntryPoint) -> type[Algorithm] | None:
         except Exception as exc:  # a broken plugin must not break the toolbox
             log.warning("plugin %s could not be loaded: %s", ep.name, exc)
             return None
+    from toolbox.algorithm import Algorithm
+
     if not (isinstance(obj, type) and issubclass(obj, Algorithm)):
         log.warning("entry point %s = %s is not an Algorithm class; skipped", ep.name, ep.value)
         return None
@@ -200,6 +213,8 @@ def algorithms() -> list[type[Algorithm]]:
 
 
 def _not_found(algorithm_id: str, known) -> AlgorithmNotFoundError:
+    import difflib
+
     close = difflib.get_close_matches(algorithm_id, list(known), n=3)
     hint = f"; did you mean {', '.join(close)}?" if close else "; run 'toolbox list' to see them"
     return AlgorithmNotFoundError(f"no algorithm {algorithm_id!r}{hint}")
@@ -269,6 +284,8 @@ def _write_index(path: Path, key: str, specs: dict[str, dict]) -> None:
     """Atomic write; a cache folder that cannot be written only costs speed."""
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
+        import tempfile
+
         fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.name, suffix=".tmp")
         with os.fdopen(fd, "w") as fh:
             json.dump({"key": key, "specs": specs}, fh)

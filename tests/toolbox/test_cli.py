@@ -66,3 +66,45 @@ def test_lowercase_parameter_names_accepted(plane_dem, tmp_path):
     proc = run_cli("run", "dem:hillshade", "--input", plane_dem[0], "--output",
                    tmp_path / "x.tif", "--overviews", "false")
     assert proc.returncode == 0, proc.stderr
+
+
+START_UP_PROBE = """
+import contextlib, io, json, sys
+sys.argv = ["toolbox", *json.loads(sys.argv[1])]
+from toolbox.cli import main
+with contextlib.redirect_stdout(io.StringIO()) as out:
+    try:
+        main()
+    except SystemExit:
+        pass
+print(json.dumps({"out": out.getvalue(), "modules": sorted(sys.modules)}))
+"""
+
+
+def test_start_up_commands_import_only_what_they_need(tmp_path):
+    """`--version` needs neither the registry nor the runner; `list` and `help` read the cached
+    spec index without importing the spec classes, the runner or urllib.request (http, ssl).
+    Checked by the modules loaded, not by a timing."""
+    import os
+    import subprocess
+    import sys
+
+    env = {**os.environ, "XDG_CACHE_HOME": str(tmp_path)}
+
+    def probe(*args: str) -> tuple[str, set[str]]:
+        proc = subprocess.run([sys.executable, "-c", START_UP_PROBE, json.dumps(args)],
+                              capture_output=True, text=True, env=env, cwd=tmp_path, check=True)
+        result = json.loads(proc.stdout.strip().splitlines()[-1])
+        return result["out"], set(result["modules"])
+
+    out, modules = probe("--version")
+    assert "0.1" in out or "version" in out
+    assert not modules & {"toolbox.registry", "toolbox.runner", "toolbox.algorithm",
+                          "importlib.metadata", "numpy"}
+    probe("list")  # builds the spec index in this cache folder
+    heavy = {"toolbox.algorithm", "toolbox.parameters", "toolbox.runner", "urllib.request",
+             "numpy", "http.client"}
+    for args in (("list",), ("help", "dem:idw", "--json")):
+        out, modules = probe(*args)
+        assert "dem:idw" in out
+        assert not modules & heavy, (args, modules & heavy)

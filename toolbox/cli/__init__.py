@@ -22,6 +22,7 @@ import click
 
 from toolbox.cli.terminal import ACTIVE, STDERR_IS_TTY, TerminalFeedback, setup_logging
 from toolbox.errors import ParameterError, ToolboxError
+from toolbox.version import __version__
 
 EXIT_USER_ERROR = 2
 EXIT_INTERNAL_ERROR = 3
@@ -179,7 +180,7 @@ class OneLineErrorsGroup(click.Group):
 
 
 @click.group(cls=OneLineErrorsGroup, context_settings={"help_option_names": ["-h", "--help"]})
-@click.version_option(package_name="photogrammetry-toolbox", prog_name="toolbox")
+@click.version_option(__version__, prog_name="toolbox")  # not from the package metadata: faster
 @click.option("-v", "--verbose", count=True, help="More messages (-vv for debug).")
 @click.option("-q", "--quiet", is_flag=True,
               help="No progress bar, no information messages (warnings still show).")
@@ -265,7 +266,6 @@ def format_help(alg) -> str:
 def help_cmd(algorithm_id: str | None, as_json: bool, show_all: bool) -> None:
     """Describe one algorithm (or --all): method, parameters (types, defaults, ranges), outputs."""
     from toolbox.registry import get_spec, spec_index
-    from toolbox.version import __version__
 
     if show_all == (algorithm_id is not None):
         raise click.UsageError("give one algorithm id, or --all")
