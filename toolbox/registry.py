@@ -22,7 +22,6 @@ import importlib.util
 import json
 import logging
 import os
-from importlib.metadata import EntryPoint, PackageNotFoundError, distribution, entry_points
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 from urllib.parse import urlparse
@@ -31,6 +30,8 @@ from toolbox.errors import AlgorithmNotFoundError, ToolboxError
 from toolbox.version import __version__
 
 if TYPE_CHECKING:  # imported where used: a cached `toolbox list` / `help` needs no spec classes
+    from importlib.metadata import EntryPoint  # nor the package metadata
+
     from toolbox.algorithm import Algorithm
 
 log = logging.getLogger("toolbox")
@@ -94,7 +95,24 @@ def _record_hash_matches(path: Path, file_hash) -> bool:
     return digest.decode() == file_hash.value
 
 
+def entry_points(group: str):
+    """``importlib.metadata.entry_points``, imported on first use (with ``email``, about a
+    quarter of a cached ``toolbox help``)."""
+    from importlib import metadata
+
+    return metadata.entry_points(group=group)
+
+
+def distribution(name: str):
+    """``importlib.metadata.distribution``, imported on first use."""
+    from importlib import metadata
+
+    return metadata.distribution(name)
+
+
 def _belongs_to_distribution(name: str, init_file: Path) -> bool:
+    from importlib.metadata import PackageNotFoundError
+
     try:
         dist = distribution(DISTRIBUTION)
     except PackageNotFoundError:  # a source tree on sys.path: the two packages sit side by side
@@ -272,15 +290,45 @@ def _index_path() -> Path:
     return user_cache_dir(f"specs-{__version__}.json")
 
 
-def _read_index(path: Path, key: str) -> dict[str, dict] | None:
+def _quick_key() -> str:
+    """A key computed without ``importlib.metadata`` (whose import alone is about a quarter of a
+    cached ``toolbox help``): the version, the interpreter, the modification times of the
+    ``sys.path`` folders (installing, upgrading or removing a distribution, a plugin among them,
+    adds or removes entries there), where ``toolbox`` and ``algorithms`` are found and their
+    sources' stamp. The working folder is left out (its files come and go; a package found
+    there changes the packages' origins)."""
+    import sys
+
+    cwd = os.getcwd()
+    folders = []
+    for entry in sys.path:
+        folder = os.path.abspath(entry or cwd)
+        if folder == cwd:
+            continue
+        try:
+            folders.append((folder, os.stat(folder).st_mtime_ns))
+        except OSError:
+            folders.append((folder, None))
+    parts: list[Any] = [__version__, sys.prefix, folders]
+    for package in OWN_PACKAGES:
+        spec = importlib.util.find_spec(package)
+        origin = spec.origin if spec is not None else None
+        parts.append(origin)
+        if origin:
+            parts.append(_sources_stamp(Path(origin).parent))
+    return hashlib.sha256(json.dumps(parts).encode()).hexdigest()
+
+
+def _read_index(path: Path, key: str, field: str = "key") -> dict[str, dict] | None:
     try:
         data = json.loads(path.read_text())
     except (OSError, ValueError):
         return None
-    return data.get("specs") if isinstance(data, dict) and data.get("key") == key else None
+    return data.get("specs") if isinstance(data, dict) and data.get(field) == key else None
 
 
-def _write_index(path: Path, key: str, specs: dict[str, dict]) -> None:
+def _write_index(path: Path, key: str, specs: dict[str, dict], quick: str | None = None
+                 ) -> None:
     """Atomic write; a cache folder that cannot be written only costs speed."""
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -288,7 +336,7 @@ def _write_index(path: Path, key: str, specs: dict[str, dict]) -> None:
 
         fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.name, suffix=".tmp")
         with os.fdopen(fd, "w") as fh:
-            json.dump({"key": key, "specs": specs}, fh)
+            json.dump({"key": key, "quick": quick, "specs": specs}, fh)
         os.replace(tmp, path)
     except OSError as exc:
         log.debug("spec index not cached in %s: %s", path, exc)
@@ -297,18 +345,22 @@ def _write_index(path: Path, key: str, specs: dict[str, dict]) -> None:
 def spec_index() -> dict[str, dict]:
     """Spec (:meth:`Algorithm.spec`) of every algorithm by id, sorted by id.
 
-    Read from the per-user cache when its key still matches, else built by importing every
-    algorithm and cached. Algorithms registered in this process without an entry point (scripts,
-    tests) are added from their classes.
+    Read from the per-user cache when its key still matches (first a key that needs no package
+    metadata, :func:`_quick_key`, then one of the entry points and our sources), else built by
+    importing every algorithm and cached. Algorithms registered in this process without an
+    entry point (scripts, tests) are added from their classes.
     """
-    eps = _entry_points()
-    key = _index_key(eps)  # the built-ins are in the sources' stamp
     path = _index_path()
-    specs = _read_index(path, key)
+    quick = _quick_key()
+    specs = _read_index(path, quick, field="quick")  # nothing installed or edited since
     if specs is None:
-        discover()
-        specs = {i: _registry[i].spec() for i in sorted(_indexed)}
-        _write_index(path, key, specs)
+        eps = _entry_points()
+        key = _index_key(eps)  # the built-ins are in the sources' stamp
+        specs = _read_index(path, key)
+        if specs is None:
+            discover()
+            specs = {i: _registry[i].spec() for i in sorted(_indexed)}
+        _write_index(path, key, specs, quick)
     extra = {i: cls.spec() for i, cls in _registry.items() if i not in specs}
     merged = specs | extra
     return {i: merged[i] for i in sorted(merged)}

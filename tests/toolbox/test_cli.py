@@ -83,7 +83,8 @@ print(json.dumps({"out": out.getvalue(), "modules": sorted(sys.modules)}))
 
 def test_start_up_commands_import_only_what_they_need(tmp_path):
     """`--version` needs neither the registry nor the runner; `list` and `help` read the cached
-    spec index without importing the spec classes, the runner or urllib.request (http, ssl).
+    spec index without importing the spec classes, the runner, the package metadata or
+    urllib.request (http, ssl).
     Checked by the modules loaded, not by a timing."""
     import os
     import subprocess
@@ -103,7 +104,7 @@ def test_start_up_commands_import_only_what_they_need(tmp_path):
                           "importlib.metadata", "numpy"}
     probe("list")  # builds the spec index in this cache folder
     heavy = {"toolbox.algorithm", "toolbox.parameters", "toolbox.runner", "urllib.request",
-             "numpy", "http.client"}
+             "numpy", "http.client", "importlib.metadata"}
     for args in (("list",), ("help", "dem:idw", "--json")):
         out, modules = probe(*args)
         assert "dem:idw" in out

@@ -166,3 +166,24 @@ def test_framework_and_algorithm_modules_import_nothing_heavy(tmp_path):
     proc = python(code, tmp_path)
     assert proc.returncode == 0, proc.stderr
     assert eval(proc.stdout) == [], "move these imports into process() or a function"
+
+
+def test_quick_index_key_follows_installs_and_sources(tmp_path, monkeypatch):
+    """The key read before any package metadata changes when a sys.path folder gains an entry
+    (a distribution installed there) and when a source of ours changes."""
+    site = tmp_path / "site"
+    site.mkdir()
+    monkeypatch.syspath_prepend(str(site))
+    key = registry._quick_key()
+    assert registry._quick_key() == key
+    os.utime(site, ns=(1, 1))
+    (site / "plugin-1.0.dist-info").mkdir()
+    assert registry._quick_key() != key
+    key = registry._quick_key()
+    source = ROOT / "algorithms" / "vector" / "info.py"
+    st = source.stat()
+    try:
+        os.utime(source, ns=(st.st_atime_ns, st.st_mtime_ns + 1_000_000_000))
+        assert registry._quick_key() != key
+    finally:
+        os.utime(source, ns=(st.st_atime_ns, st.st_mtime_ns))
