@@ -322,8 +322,33 @@ def section_contours(args) -> str:
             + table(times, next(iter(cases)), "command", extra=("cpu", "peak_mb")))
 
 
+def section_startup(args) -> str:
+    """``toolbox --version`` / ``list`` / ``help dem:idw --json`` against ``gdalinfo --version``,
+    whole process; each interpreter with its own spec-index cache folder (warm)."""
+    import shutil
+
+    pythons = {"now": sys.executable}
+    if args.before:
+        pythons = {"before": args.before, **pythons}
+    cases = {"gdalinfo --version": [shutil.which("gdalinfo") or "gdalinfo", "--version"]}
+    for label, python in pythons.items():
+        cache = args.work / f"cache_{label}"
+        exe = str(Path(python).with_name("toolbox"))
+        for command in (["--version"], ["list"], ["help", "dem:idw", "--json"]):
+            cases[f"toolbox {' '.join(command)} ({label})"] = [
+                "env", f"XDG_CACHE_HOME={cache}", exe, *command]
+    times = interleaved(cases, max(args.runs, 10))
+    for values in times.values():
+        for v in values:
+            v["seconds"] = v["wall"]
+    return ("Whole process, wall and CPU (user + system), medians of the interleaved runs (the "
+            "toolbox from an editable install, as in development)\n\n"
+            + table(times, next(iter(cases)), "command", extra=("cpu",)))
+
+
 SECTIONS = {"read": section_read, "idw": section_idw, "tinwrite": section_tinwrite,
             "contours": section_contours,
+            "startup": section_startup,
             "dupcheck": section_dupcheck}
 
 
