@@ -1,8 +1,10 @@
 """Speed round three (#31): before/after and product/peer timings measured side by side in one
 sitting, interleaved (A B A B ...), medians of ``--runs`` (default 5), each run its own process.
 
+    .venv/bin/python bench/round3_bench.py                            # all, to results/round3.md
     .venv/bin/python bench/round3_bench.py read      --work /tmp/r3   # 1M-point read in tin:delaunay
-    .venv/bin/python bench/round3_bench.py idw       --work /tmp/r3   # dem:idw duplicate check
+    .venv/bin/python bench/round3_bench.py idw       --work /tmp/r3   # dem:idw duplicate step
+    .venv/bin/python bench/round3_bench.py dupcheck  --work /tmp/r3   # the bare duplicate check
     .venv/bin/python bench/round3_bench.py tinwrite  --work /tmp/r3   # tin:delaunay to GeoPackage
     .venv/bin/python bench/round3_bench.py contours  --work /tmp/r3   # carto:contours vs gdal_contour
     .venv/bin/python bench/round3_bench.py startup                    # --version / list / help
@@ -354,16 +356,23 @@ SECTIONS = {"read": section_read, "idw": section_idw, "tinwrite": section_tinwri
 
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("section", choices=sorted(SECTIONS))
-    parser.add_argument("--work", type=Path, default=Path("/tmp/round3_bench"))
+    parser.add_argument("sections", nargs="*", choices=[[], *sorted(SECTIONS)],
+                        help="default: all, written to bench/results/round3.md")
+    parser.add_argument("--work", type=Path, default=Path(tempfile.gettempdir()) / "round3_bench")
     parser.add_argument("--runs", type=int, default=5)
     parser.add_argument("--before", help="python of the previous version (before/after rows)")
     parser.add_argument("--points", type=int, help="tinwrite: points (default 1,000,000)")
     args = parser.parse_args(argv)
     args.work.mkdir(parents=True, exist_ok=True)
-    head = f"{machine_facts()}. {load_note()}; load average {os.getloadavg()[0]:.1f}."
-    body = SECTIONS[args.section](args)
-    print(f"### {args.section}\n\n{head}\n\n{body}\n")
+    chosen = args.sections or list(SECTIONS)
+    parts = ["## Speed round three (`bench/round3_bench.py`)", ""]
+    for name in chosen:
+        head = f"{machine_facts()}. {load_note()}; load average {os.getloadavg()[0]:.1f}."
+        body = SECTIONS[name](args)
+        parts += [f"### {name}", "", head, "", body, ""]
+        print("\n".join(parts[-6:]), flush=True)
+    if not args.sections:
+        (HERE / "results" / "round3.md").write_text("\n".join(parts))
 
 
 if __name__ == "__main__":
