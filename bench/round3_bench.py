@@ -321,7 +321,7 @@ def section_contours(args) -> str:
             f"{len(set(ours['elev']))} levels (gdal_contour's the same: {same}); total length "
             f"{our_len:.0f} m against gdal_contour's {ref_len:.0f} m inside the cell-centre box "
             f"({100 * (our_len / ref_len - 1):+.3f} %). Whole process, wall and CPU\n\n"
-            + table(times, next(iter(cases)), "command", extra=("cpu", "peak_mb")))
+            + table(times, next(iter(cases)), "command", extra=("cpu",)))
 
 
 def section_startup(args) -> str:
