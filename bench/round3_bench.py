@@ -98,7 +98,8 @@ def table(times: dict[str, list[dict]], reference: str, header: str, key: str = 
           extra: tuple[str, ...] = ()) -> str:
     """Medians of ``key`` (and of the ``extra`` keys), range, ratio reference / case."""
     ref = median(times[reference], key)
-    rows = [f"| {header} | median s | min-max s | {''.join(f'{e} s | ' for e in extra)}"
+    labels = "".join("peak MB | " if e == "peak_mb" else f"{e} s | " for e in extra)
+    rows = [f"| {header} | median s | min-max s | {labels}"
             f"{reference} / this |", "|---|---:|---:|" + "---:|" * len(extra) + "---:|"]
     for name, values in times.items():
         med = median(values, key)
