@@ -8,7 +8,6 @@ User mistakes print one line on stderr and exit with code 2; a canceled run (Ctr
 from __future__ import annotations
 
 import json
-import logging
 import re
 import signal
 import sys
@@ -20,13 +19,20 @@ from typing import Any
 
 import click
 
-from toolbox.cli.terminal import ACTIVE, STDERR_IS_TTY, TerminalFeedback, setup_logging
 from toolbox.errors import ParameterError, ToolboxError
 from toolbox.version import __version__
 
 EXIT_USER_ERROR = 2
 EXIT_INTERNAL_ERROR = 3
 EXIT_CANCELED = 130
+
+
+def _terminal():
+    """``toolbox.cli.terminal`` (progress bar, logging set-up), imported on first use:
+    ``toolbox --version`` needs neither it nor ``logging``."""
+    from toolbox.cli import terminal
+
+    return terminal
 
 
 def _one_line(text: str) -> str:
@@ -36,8 +42,8 @@ def _one_line(text: str) -> str:
 
 def _report_error(exc: BaseException, where: str) -> int:
     """Print ``exc`` as one line on stderr; return the exit code (2 user error, 3 bug)."""
-    if ACTIVE[0] is not None:
-        ACTIVE[0].clear_line()
+    if _terminal().ACTIVE[0] is not None:
+        _terminal().ACTIVE[0].clear_line()
     if isinstance(exc, ToolboxError):
         click.echo(f"toolbox: error: {_one_line(exc)}", err=True)
         return EXIT_USER_ERROR
@@ -60,8 +66,8 @@ def _handle_errors(func: Callable) -> Callable:
             with _signals_as_interrupts(), _native_stderr_filtered():
                 return func(*args, **kwargs)
         except KeyboardInterrupt as exc:
-            if ACTIVE[0] is not None:
-                ACTIVE[0].clear_line()
+            if _terminal().ACTIVE[0] is not None:
+                _terminal().ACTIVE[0].clear_line()
             signum = getattr(exc, "signum", signal.SIGINT)
             what = "canceled" if signum == signal.SIGINT else \
                 f"terminated by {signal.Signals(signum).name}"
@@ -127,7 +133,7 @@ def _native_stderr_filtered():
     except (OSError, AttributeError, ValueError):  # no real stderr (embedded, closed)
         yield
         return
-    STDERR_IS_TTY[0] = os.isatty(saved)
+    _terminal().STDERR_IS_TTY[0] = os.isatty(saved)
     read_end, write_end = os.pipe()
     os.dup2(write_end, 2)
     os.close(write_end)
@@ -155,7 +161,7 @@ def _native_stderr_filtered():
         os.dup2(saved, 2)  # closes the pipe's last write end: the pump sees the end
         thread.join(timeout=10)
         os.close(saved)
-        STDERR_IS_TTY[0] = None
+        _terminal().STDERR_IS_TTY[0] = None
 
 
 class OneLineErrorsGroup(click.Group):
@@ -197,7 +203,7 @@ def main(ctx: click.Context, verbose: int, quiet: bool) -> None:
     toolbox demo --out demo_out      the main job on bundled sample data
     toolbox warmup                   compile the numba kernels once (no first-run wait)
     """
-    setup_logging(verbose, quiet)
+    _terminal().setup_logging(verbose, quiet)
     ctx.obj = {"quiet": quiet, "verbose": verbose}
 
 
@@ -347,13 +353,13 @@ def run_cmd(ctx: click.Context, algorithm_id: str | None, overwrite: bool, repor
         return
     quiet = _apply_quiet(ctx, run_quiet)
     params = parse_parameter_args(list(args))
-    feedback = TerminalFeedback(alg.id, quiet=quiet or progress == "none")
-    ACTIVE[0] = feedback
+    feedback = _terminal().TerminalFeedback(alg.id, quiet=quiet or progress == "none")
+    _terminal().ACTIVE[0] = feedback
     try:
         outputs = run(alg.id, params, feedback=feedback, overwrite=overwrite, report=report)
     finally:
         feedback.finish()
-        ACTIVE[0] = None
+        _terminal().ACTIVE[0] = None
     click.echo(json.dumps(to_jsonable(outputs), indent=2))
 
 
@@ -368,7 +374,7 @@ def _run_with_json_progress(ctx: click.Context, algorithm_id: str, overwrite: bo
 
     setup_json_logging(ctx.obj["verbose"])
     feedback = JsonFeedback()
-    ACTIVE[0] = feedback
+    _terminal().ACTIVE[0] = feedback
     try:
         alg = get(algorithm_id)
         outputs = to_jsonable(run(alg.id, parse_parameter_args(list(args)), feedback=feedback,
@@ -383,7 +389,7 @@ def _run_with_json_progress(ctx: click.Context, algorithm_id: str, overwrite: bo
         feedback.error(f"internal error: {type(exc).__name__}: {exc}")
         raise
     finally:
-        ACTIVE[0] = None
+        _terminal().ACTIVE[0] = None
     feedback.result(outputs)
     click.echo(json.dumps(outputs, indent=2))
 
@@ -393,7 +399,7 @@ def _apply_quiet(ctx: click.Context, quiet_here: bool) -> bool:
     progress bar, no information messages; warnings and errors still show."""
     quiet = bool(ctx.obj and ctx.obj.get("quiet")) or quiet_here
     if quiet_here:
-        setup_logging(0, True)
+        _terminal().setup_logging(0, True)
     return quiet
 
 
@@ -425,14 +431,14 @@ def batch_cmd(ctx: click.Context, pipeline: str, overwrite: bool, validate_only:
             if existing else ""
         click.echo(f"{pipeline}: {len(pipe.steps)} steps, valid{note}")
         return
-    feedback = TerminalFeedback("batch", quiet=_apply_quiet(ctx, False))
-    ACTIVE[0] = feedback
+    feedback = _terminal().TerminalFeedback("batch", quiet=_apply_quiet(ctx, False))
+    _terminal().ACTIVE[0] = feedback
     try:
         results = run_pipeline(pipe, feedback=feedback, overwrite=overwrite,
                                report_dir=report_dir)
     finally:
         feedback.finish()
-        ACTIVE[0] = None
+        _terminal().ACTIVE[0] = None
     click.echo(json.dumps(to_jsonable(results), indent=2))
 
 
@@ -445,13 +451,13 @@ def demo_cmd(ctx: click.Context, out_dir: str) -> None:
     """Run the main job on bundled sample data and print where the outputs are."""
     from toolbox.demo import run_demo
 
-    feedback = TerminalFeedback("demo", quiet=ctx.obj["quiet"])
-    ACTIVE[0] = feedback
+    feedback = _terminal().TerminalFeedback("demo", quiet=ctx.obj["quiet"])
+    _terminal().ACTIVE[0] = feedback
     try:
         summary = run_demo(Path(out_dir), feedback=feedback)
     finally:
         feedback.finish()
-        ACTIVE[0] = None
+        _terminal().ACTIVE[0] = None
     click.echo(summary)
 
 
@@ -467,6 +473,8 @@ def warmup_cmd(ctx: click.Context) -> None:
 
     if not ctx.obj["quiet"]:
         click.echo("Compiling the numba kernels (about a minute)...", err=True)
+    import logging
+
     toolbox_log = logging.getLogger("toolbox")
     level = toolbox_log.level
     toolbox_log.setLevel(logging.ERROR)  # the sample runs' warnings are not the user's
