@@ -261,13 +261,14 @@ def get(algorithm_id: str) -> type[Algorithm]:
 # -- the spec index (list / help without importing algorithm modules) ------------------------------
 def _sources_stamp(folder: Path) -> list:
     stamp = []
+    root = os.path.join(str(folder), "")
     for dirpath, dirnames, filenames in os.walk(folder):
         dirnames[:] = sorted(d for d in dirnames if d != "__pycache__")
+        rel = os.path.join(dirpath, "")[len(root):]  # os.walk's paths start with the root
         for name in sorted(filenames):
             if name.endswith(".py"):
                 st = os.stat(os.path.join(dirpath, name))
-                stamp.append((os.path.relpath(os.path.join(dirpath, name), folder),
-                              st.st_mtime_ns, st.st_size))
+                stamp.append((rel + name, st.st_mtime_ns, st.st_size))
     return stamp
 
 
@@ -285,9 +286,14 @@ def _index_key(eps: dict[str, EntryPoint]) -> str:
 
 
 def _index_path() -> Path:
+    import sys
+
     from toolbox.cache import user_cache_dir
 
-    return user_cache_dir(f"specs-{__version__}.json")
+    # one file per environment: two virtual environments sharing the user's cache folder
+    # would otherwise overwrite each other's index at every call
+    env = hashlib.sha256(sys.prefix.encode()).hexdigest()[:12]
+    return user_cache_dir(f"specs-{__version__}-{env}.json")
 
 
 def _quick_key() -> str:
@@ -295,13 +301,14 @@ def _quick_key() -> str:
     cached ``toolbox help``): the version, the interpreter, the modification times of the
     ``sys.path`` folders (installing, upgrading or removing a distribution, a plugin among them,
     adds or removes entries there), where ``toolbox`` and ``algorithms`` are found and their
-    sources' stamp. The working folder is left out (its files come and go; a package found
-    there changes the packages' origins)."""
+    sources' stamp. ``sys.path[0]`` (the script's folder, or the working folder for ``-c`` and
+    ``-m``: it depends on how the toolbox was started) and the working folder are left out (their
+    files come and go; a package found there changes the packages' origins)."""
     import sys
 
     cwd = os.getcwd()
     folders = []
-    for entry in sys.path:
+    for entry in sys.path[1:]:
         folder = os.path.abspath(entry or cwd)
         if folder == cwd:
             continue
