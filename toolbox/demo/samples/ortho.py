@@ -3,7 +3,8 @@
 Three photos of the case study (1_7150 and 1_7151 of strip 1, 2_7139 of strip 2, whose camera
 carries the calibrated distortion table) are rendered through the collinearity equations
 (:func:`toolbox.photogrammetry.synthetic.render_photo`: each pixel's ray marched down to the
-sample DEM of :mod:`.terrain`) from a known RGB texture. The scans are 16644 px; the samples are
+sample DEM of :mod:`.terrain`) from the landscape of :mod:`.landscape` (a town, roads, fields
+and woods, shaded with the DEM), so the orthos, the mosaic and the vectors can be judged by eye. The scans are 16644 px; the samples are
 the same photos at 1/32 of that resolution (520 x 520 px of 0.448 mm), so their interior
 orientation is the real pixel -> fiducial fit composed with a scale of 32. Exterior
 orientations, cameras and distortion are the block adjustment's (``siena_project.yaml``).
@@ -25,9 +26,9 @@ SIZE = 520  # 16644 / 32, rounded down
 
 
 def texture():
-    from toolbox.photogrammetry.synthetic import wave_texture
+    from toolbox.demo.samples.landscape import landscape_texture
 
-    return wave_texture(seed=2009, wavelength=(12.0, 60.0), bands=3)
+    return landscape_texture()
 
 
 def demo_project(target: Path):
