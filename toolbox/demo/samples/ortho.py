@@ -3,11 +3,12 @@
 Three photos of the case study (1_7150 and 1_7151 of strip 1, 2_7139 of strip 2, whose camera
 carries the calibrated distortion table) are rendered through the collinearity equations
 (:func:`toolbox.photogrammetry.synthetic.render_photo`: each pixel's ray marched down to the
-sample DEM of :mod:`.terrain`) from the landscape of :mod:`.landscape` (a town, roads, fields
-and woods, shaded with the DEM), so the orthos, the mosaic and the vectors can be judged by
-eye. The scans are 16644 px; the samples are the same photos at 1/32 of that resolution (520 x 520 px of 0.448 mm), so their interior
-orientation is the real pixel -> fiducial fit composed with a scale of 32. Exterior
-orientations, cameras and distortion are the block adjustment's (``siena_project.yaml``).
+sample DEM of :mod:`.terrain`) from the landscape of :mod:`.landscape` (a town, roads, fields and
+woods, shaded with the DEM), so the orthos, the mosaic and the vectors can be judged by eye. The
+scans are 16644 px; the samples are the same photos at 1/32 of that resolution (520 x 520 px of
+0.448 mm), so their interior orientation is the real pixel -> fiducial fit composed with a scale
+of 32. Exterior orientations, cameras and distortion are the block adjustment's
+(``siena_project.yaml``).
 
 Writes ``siena_ortho/<photo>.tif`` (RGB, not georeferenced, as a scan),
 ``siena_ortho/project.yaml`` (an orientation project naming them) and
