@@ -9,11 +9,29 @@ from pathlib import Path
 from toolbox.cartography.grid_io import sheet_polygons
 from toolbox.cartography.sheet import SheetSpec
 from toolbox.cartography.sheet_io import coded_styles, default_styles, render_sheet
+from toolbox.version import __version__
 
 
 def _name(ref) -> str:
     text = str(ref).strip("'")
     return Path(text.split("|")[0]).name
+
+
+def _dated(ref) -> str:
+    """A source by file name with its file's date: ``contours.gpkg (2026-12-03)``."""
+    path = Path(str(ref).strip("'").split("|")[0])
+    try:
+        day = _dt.date.fromtimestamp(path.stat().st_mtime).isoformat()
+    except OSError:
+        return path.name
+    return f"{path.name} ({day})"
+
+
+def _datum(crs) -> str:
+    try:
+        return crs.datum.name if crs is not None and crs.datum is not None else ""
+    except Exception:  # a CRS without a datum (engineering CRS)
+        return ""
 
 
 def _layer_name(ref) -> str:
@@ -62,9 +80,9 @@ def run_sheets(params: dict, feedback) -> dict:
     named |= {f"LAYERS[{k + 1}]": f.crs for k, (_, f) in enumerate(layers)}
     crs = common_crs(named, crs)  # the sheet's CRS: every layer in it, or refused (mixed CRSs)
     sources = params.get("SOURCES") or "; ".join(dict.fromkeys(
-        [_name(params["BASE"])] * (params.get("BASE") is not None)
-        + [_name(ref) for ref in params.get("LAYERS") or []]
-        + [_name(params["CONTOURS"])] * (params.get("CONTOURS") is not None)))
+        [_dated(params["BASE"])] * (params.get("BASE") is not None)
+        + [_dated(ref) for ref in params.get("LAYERS") or []]
+        + [_dated(params["CONTOURS"])] * (params.get("CONTOURS") is not None)))
     date = params.get("DATE") or _dt.date.today().isoformat()
     folder = Path(params["FOLDER"]).expanduser() if params.get("FOLDER") else None
     if folder is not None:
@@ -80,7 +98,8 @@ def run_sheets(params: dict, feedback) -> dict:
         for i, (sheet_id, polygon) in enumerate(feedback.iterate(sheets, start=0, end=100)):
             feedback.check_canceled()
             spec = SheetSpec(polygon.bounds, params["SCALE"], params["TITLE"], sheet_id,
-                             crs_label(crs), date, [sources], params["PAPER"])
+                             crs_label(crs), date, [sources], params["PAPER"],
+                             datum=_datum(crs), producer=f"photogrammetry-toolbox {__version__}")
             common = dict(base=params.get("BASE"), base_name=_name(params["BASE"])
                           if params.get("BASE") is not None else "", styles=styles,
                           contours=contours, grid_style=params["GRID_STYLE"],

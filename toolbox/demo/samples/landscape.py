@@ -10,8 +10,8 @@ given a fine band-limited grain (:func:`~toolbox.photogrammetry.synthetic.wave_t
 and smoothed at 1.5 m, so a photo rendered from it at the demo's ~1.7 m pixels is free of
 aliasing (the ortho tests compare the orthos with this texture to 0.1 px).
 
-Writes ``siena_landscape.gpkg`` (layers ``buildings``, ``roads``, ``parcels``) for overlaying the
-orthos; :func:`landscape_texture` is the callable the photos are rendered from.
+Writes ``siena_landscape.gpkg`` (coded layers for the map sheet and for overlaying the orthos,
+see :func:`make`); :func:`landscape_texture` is the callable the photos are rendered from.
 """
 
 from __future__ import annotations
@@ -195,19 +195,43 @@ def landscape_texture():
 
 
 def make(folder: Path, made: dict) -> dict:
+    """``siena_landscape.gpkg``: the landscape's vectors coded with the demo's code file (the
+    restitution's ``siena_codici.txt``): buildings FAB01002, road edges STR02001, grass and
+    woods VEG01001, spot heights QUO01001 (PointZ on the DEM at street crossings), and every
+    parcel with its crop."""
     import geopandas as gpd
+    import shapely
 
+    from toolbox.demo.samples.terrain import sample_heights, terrain
     from toolbox.io.vector import write_layers
 
     v = landscape_vectors()
+    edges = [line for road in v["roads"] for line in shapely.get_parts(road.boundary)]
+    green = [p for p, crop, _ in v["parcels"] if crop in ("grass", "wood")]
+    # spot heights: the street crossings' centres inside town, a few hundred metres apart
+    rng = np.random.default_rng(SEED + 1)
+    xmin, ymin, xmax, ymax = _extent()
+    candidates = np.column_stack([rng.uniform(xmin + 50, xmax - 50, 400),
+                                  rng.uniform(ymin + 50, ymax - 50, 400)])
+    keep: list[np.ndarray] = []
+    for xy in candidates:
+        if all(np.hypot(*(xy - k)) > 160.0 for k in keep):
+            keep.append(xy)
+    spots = np.array(keep)
+    z, transform = terrain()
+    heights = np.round(sample_heights(z, transform, spots[:, 0], spots[:, 1]), 1)
     path = Path(folder) / "siena_landscape.gpkg"
     if path.exists():
         path.unlink()
     write_layers(path, {
-        "buildings": gpd.GeoDataFrame({"kind": ["building"] * len(v["buildings"])},
+        "buildings": gpd.GeoDataFrame({"code": ["FAB01002"] * len(v["buildings"])},
                                       geometry=v["buildings"], crs=CRS),
-        "roads": gpd.GeoDataFrame({"kind": ["road"] * len(v["roads"])}, geometry=v["roads"],
-                                  crs=CRS),
+        "road_edges": gpd.GeoDataFrame({"code": ["STR02001"] * len(edges)}, geometry=edges,
+                                       crs=CRS),
+        "green": gpd.GeoDataFrame({"code": ["VEG01001"] * len(green)}, geometry=green, crs=CRS),
+        "spot_heights": gpd.GeoDataFrame(
+            {"code": ["QUO01001"] * len(spots), "quota": heights},
+            geometry=shapely.points(spots[:, 0], spots[:, 1], heights), crs=CRS),
         "parcels": gpd.GeoDataFrame({"crop": [c for _, c, _ in v["parcels"]]},
                                     geometry=[p for p, _, _ in v["parcels"]], crs=CRS)})
     return {"landscape": path}
