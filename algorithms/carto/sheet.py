@@ -29,10 +29,13 @@ class Sheet(Algorithm):
     The map frame measures exactly ground size / scale on paper (print at 100%), on the smallest
     ISO sheet (A4...A0, portrait or landscape) that holds it and the side panel, unless
     ``PAPER`` names one. Drawn: the ``BASE`` raster (orthophoto or hillshade), the ``LAYERS``,
-    the ``CONTOURS`` (index contours heavier, labelled along the
-    line), the map grid every ``MAP_STEP`` mm with its coordinates at the frame, a legend, a
-    scale bar, a north arrow (grid north), and a title block with the title, sheet id, scale,
-    CRS, date and sources. The PDF is vector (text as TrueType text, lines as paths), the base
+    the ``CONTOURS`` (index contours heavier, labelled along the line), the map grid every
+    ``MAP_STEP`` mm with its coordinates at the frame (none at the corners), a legend drawn as
+    the map is, a scale bar, a north arrow (grid north), and a title block with the title,
+    sheet id, scale, CRS and datum, contour interval, date, sources with their dates and the
+    producer. Point layers are spot heights, labelled with their height (Z, else a
+    z/quota/elev/height/h field). The map and panel are centred on the paper; no text is under
+    6 pt. The PDF is vector (text as TrueType text, lines as paths), the base
     raster is embedded at 200 dpi; its metadata keep the scale, CRS and bounds.
 
     ``LAYERS`` take their symbology from the code file ``CODES`` (and ``COLOURS``) through the
