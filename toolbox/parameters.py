@@ -343,6 +343,24 @@ class File(Parameter):
         return super().describe() | {"extensions": self.extensions}
 
 
+class Folder(Parameter):
+    """An existing input folder (QGIS shows a folder picker)."""
+
+    type_name = "folder"
+
+    def validate(self, value: Any, ctx: ValidationContext) -> Path:
+        if not isinstance(value, (str, Path)):
+            raise self.error(f"must be a folder path, got {_show(value)}")
+        path = Path(value).expanduser()
+        if not path.is_dir():
+            what = "is a file, not a folder" if path.exists() else "does not exist"
+            raise self.error(f"folder {_show(str(value))} {what}")
+        return path
+
+    def expected(self) -> str:
+        return "existing folder"
+
+
 class VectorLayer(Parameter):
     """A vector layer OGR can read: ``path`` or a QGIS layer source ``path|layername=name``
     (also ``|layerid=N``, ``|geometrytype=Point``, ``|subset=SQL WHERE``), or a GeoDataFrame in

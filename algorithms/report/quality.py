@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from toolbox.algorithm import Algorithm
 from toolbox.feedback import Feedback
-from toolbox.parameters import Number, Output, OutputFile, String
+from toolbox.parameters import Folder, Number, Output, OutputFile, String
 from toolbox.registry import register
 
 
@@ -37,7 +37,7 @@ class Quality(Algorithm):
     group = "Reports"
     short_help = "Quality report (PDF/HTML) with residual plots, from the JSON run reports."
     parameters = [
-        String("REPORTS", "folder of JSON run reports"),
+        Folder("REPORTS", "folder of JSON run reports"),
         String("TITLE", "report title", default="Quality report"),
         Number("ORTHO_SCALE", "map and orthophoto scale denominator of the specification",
                default=5000.0, min_value=1),
@@ -54,10 +54,7 @@ class Quality(Algorithm):
     def check(self, params):
         from pathlib import Path
 
-        folder = Path(params["REPORTS"]).expanduser()
-        if not folder.is_dir():
-            raise self.fail("REPORTS", f"must be a folder of JSON run reports, got "
-                            f"'{params['REPORTS']}'")
+        folder = Path(params["REPORTS"])
         if not any(folder.glob("*.json")):
             raise self.fail("REPORTS", f"folder '{params['REPORTS']}' holds no .json report")
 
