@@ -49,9 +49,17 @@ class MosaicSeamlines(Algorithm):
     whose ends are not connected inside the overlap stays Voronoi (both with a warning or note
     in STATISTICS).
 
-    OUTPUT (GeoPackage): layer cut_polygons (source_id, source = ortho file name, path, area)
-    forms an exact partition of the area (no gaps, no overlaps); layer seamlines (a, b, method,
-    length); layers footprints and centres. Move a seam in QGIS by editing the cut polygons
+    OUTPUT (GeoPackage): layer cut_polygons (source_id, source = ortho file name, path relative
+    to the output's folder, area) forms an exact partition of the area (no gaps, no overlaps);
+    layer seamlines (a, b, method, length); layers footprints and centres.
+
+    The seamlines are exactly the boundaries between different sources in the source index of
+    the mosaic mosaic:build makes from these cut polygons at its default cell size (each cell
+    takes the ortho whose polygon holds its centre, or the first ortho with data there): cell
+    edges, in steps of one cell where a seam runs diagonally, so a zero-area sliver of a cut
+    polygon gives no seam and every seam of the mosaic is there. ``method`` says how the seam
+    was made: least_cost for a re-routed seam, voronoi for one left on the Voronoi partition
+    (a nadir bisector or a footprint edge). Move a seam in QGIS by editing the cut polygons
     (keeping them a partition), then run mosaic:build with CUTLINES.
     """
 
@@ -110,11 +118,14 @@ class MosaicSeamlines(Algorithm):
         from toolbox.mosaic.block import (
             cells_frame,
             centres_of,
+            mosaic_grid,
             nadir_points_from_layer,
             open_block,
             seams_frame,
             union_area,
         )
+        from toolbox.mosaic.build import MosaicPlan
+        from toolbox.mosaic.index_seams import partition_seams
         from toolbox.mosaic.partition import partition_errors, voronoi_cells
         from toolbox.mosaic.seams import CostWeights, PairCost, least_cost_cells
         from toolbox.mosaic.sources import open_source
@@ -158,6 +169,10 @@ class MosaicSeamlines(Algorithm):
         area = union_area(sources)
         gap, overlap = partition_errors(cells, area)
         methods = {(e["a"], e["b"]): e["method"] for e in seam_report}
+        with feedback.timed("seams"):  # the seams of the mosaic mosaic:build makes of the cells
+            grid = mosaic_grid(sources, crs, None, area)
+            plan = MosaicPlan(sources, cells, grid, len(sources[0].data_bands), sources[0].dtype)
+            seams = partition_seams(plan)
         centre_frame = gpd.GeoDataFrame(
             {"source_id": [s.index + 1 for s in sources], "source": [s.name for s in sources]},
             geometry=[shapely.Point(c) for c in centres], crs=crs)
@@ -166,8 +181,8 @@ class MosaicSeamlines(Algorithm):
             geometry=[f if f.geom_type == "MultiPolygon" else shapely.MultiPolygon([f])
                       for f in footprints], crs=crs)
         write_layers(params["OUTPUT"], {
-            "cut_polygons": cells_frame(sources, cells, crs),
-            "seamlines": seams_frame(sources, cells, crs, methods),
+            "cut_polygons": cells_frame(sources, cells, crs, params["OUTPUT"]),
+            "seamlines": seams_frame(sources, seams, crs, methods),
             "footprints": foot_frame, "centres": centre_frame},
             geometry_types={"cut_polygons": "MultiPolygon", "seamlines": "MultiLineString",
                             "footprints": "MultiPolygon", "centres": "Point"})
@@ -175,6 +190,7 @@ class MosaicSeamlines(Algorithm):
             "method": params["METHOD"], "orthos": len(sources),
             "area": float(area.area), "partition_gap_area": gap, "max_overlap_area": overlap,
             "cut_areas": {s.name: float(c.area) for s, c in zip(sources, cells, strict=True)},
+            "seam_grid_cell": grid.cell_size[0],
             "seams": [{**e, "a": sources[e["a"]].name, "b": sources[e["b"]].name}
                       for e in seam_report]}}
 

@@ -57,6 +57,14 @@ def stale_staging_folders(final: Path) -> list[Path]:
     return stale
 
 
+def final_folder(path: str | Path) -> Path:
+    """The folder an output lands in: the parent of a staged file's staging folder, else the
+    file's own folder (for names written relative to the output)."""
+    path = Path(path).absolute()
+    staging = re.compile(r"^\." + re.escape(path.name) + r"\.\d+\.[^.]+\.part$")
+    return path.parent.parent if staging.match(path.parent.name) else path.parent
+
+
 def protected_paths(path: Path) -> set[Path]:
     """``path`` (resolved) and the sidecars GDAL/OGR read with it."""
     path = Path(path).expanduser().resolve()
