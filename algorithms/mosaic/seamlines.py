@@ -37,12 +37,16 @@ class MosaicSeamlines(Algorithm):
 
     METHOD=least_cost (PPD, paths by dynamic programming): each Voronoi seam is re-routed along
     the minimum-cost path between its two ends inside the overlap of its two orthos, over a cost
-    per unit length ``0.1 + w_d·|a−b|/range + w_g·max(|∇a|,|∇b|)/range + w_c·|d_a − d_b|/D``
-    (radiometric difference and Sobel gradient of the two orthos, and a pull towards the
+    per unit length ``0.1 + w_d·|a−b|/range + w_g·max(|∇a|,|∇b|)/range + w_c·|d_a − d_b|/D +
+    w_s·S`` (radiometric difference and Sobel gradient of the two orthos, and a pull towards the
     bisector of the two centres: d = distance to a centre, D between them; it keeps each cell
-    near its own nadir where the images give no reason to leave), plus BUILDING_COST inside BUILDINGS
-    footprints and HEIGHT_COST per metre of HEIGHTS (a DSM − DEM raster) above 0.5 m; FORBIDDEN
-    polygons are never crossed. The path is found by scikit-image's MCP_Geometric (Dijkstra on
+    near its own nadir where the images give no reason to leave; S = 1 within STRUCTURE_RADIUS
+    of a strong, structured difference: a connected group of cells where the two orthos'
+    gradients differ by over 10 % of the value range, e.g. facades seen differently, so that
+    without a DSM or BUILDINGS the seam still goes round a building rather than through its
+    roof where both orthos happen to agree; w_s = STRUCTURE_WEIGHT), plus BUILDING_COST inside
+    BUILDINGS footprints and HEIGHT_COST per metre of HEIGHTS (a DSM − DEM raster) above 0.5 m;
+    FORBIDDEN polygons are never crossed. The path is found by scikit-image's MCP_Geometric (Dijkstra on
     8-connected cells of SEAM_CELL_SIZE). Overlaps of more than MAX_CELLS cells are routed on
     an overview first, then refined at full resolution in a corridor, chunk by chunk. Where two
     cut polygons share several separate boundary pieces only the longest is re-routed; a seam
@@ -85,6 +89,10 @@ class MosaicSeamlines(Algorithm):
         Number("GRADIENT_WEIGHT", "weight of the image gradient", default=1.0, min_value=0),
         Number("CENTRE_WEIGHT", "weight of the pull towards the Voronoi line (the bisector)",
                default=0.5, min_value=0),
+        Number("STRUCTURE_WEIGHT", "extra cost near strong, structured differences between the "
+               "two orthos (facades, displaced edges)", default=1.0, min_value=0),
+        Number("STRUCTURE_RADIUS", "how far from such a difference its extra cost reaches, CRS "
+               "units (about half the largest building)", default=20.0, min_value=0),
         VectorLayer("BUILDINGS", "building footprints the seams should avoid",
                     geometry_types=["polygon"], optional=True),
         Number("BUILDING_COST", "extra cost inside BUILDINGS", default=10.0, min_value=0),
@@ -146,6 +154,8 @@ class MosaicSeamlines(Algorithm):
             weights = CostWeights(difference=params["DIFFERENCE_WEIGHT"],
                                   gradient=params["GRADIENT_WEIGHT"],
                                   centre=params["CENTRE_WEIGHT"],
+                                  structure=params["STRUCTURE_WEIGHT"],
+                                  structure_radius=params["STRUCTURE_RADIUS"],
                                   building=params["BUILDING_COST"], height=params["HEIGHT_COST"])
             buildings = _polygons(params["BUILDINGS"], crs, read_vector)
             forbidden = _polygons(params["FORBIDDEN"], crs, read_vector)
