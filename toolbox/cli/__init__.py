@@ -7,6 +7,7 @@ User mistakes print one line on stderr and exit with code 2; a canceled run (Ctr
 
 from __future__ import annotations
 
+import io
 import json
 import logging
 import re
@@ -20,7 +21,13 @@ from typing import Any
 
 import click
 
-from toolbox.cli.terminal import ACTIVE, STDERR_IS_TTY, TerminalFeedback, setup_logging
+from toolbox.cli.terminal import (
+    ACTIVE,
+    DIRECT_STDERR,
+    STDERR_IS_TTY,
+    TerminalFeedback,
+    setup_logging,
+)
 from toolbox.errors import ParameterError, ToolboxError
 
 EXIT_USER_ERROR = 2
@@ -127,6 +134,13 @@ def _native_stderr_filtered():
         yield
         return
     STDERR_IS_TTY[0] = os.isatty(saved)
+    try:  # only when sys.stderr is file descriptor 2 (not a test runner's buffer)
+        if sys.stderr.fileno() == 2:
+            DIRECT_STDERR[0] = os.fdopen(os.dup(saved), "w", buffering=1,
+                                         encoding=sys.stderr.encoding or "utf-8",
+                                         errors="replace")
+    except (OSError, ValueError, AttributeError, io.UnsupportedOperation):
+        DIRECT_STDERR[0] = None
     read_end, write_end = os.pipe()
     os.dup2(write_end, 2)
     os.close(write_end)
@@ -155,6 +169,12 @@ def _native_stderr_filtered():
         thread.join(timeout=10)
         os.close(saved)
         STDERR_IS_TTY[0] = None
+        if DIRECT_STDERR[0] is not None:
+            try:
+                DIRECT_STDERR[0].close()
+            except (OSError, ValueError):
+                pass
+            DIRECT_STDERR[0] = None
 
 
 class OneLineErrorsGroup(click.Group):
@@ -318,12 +338,15 @@ def parse_parameter_args(tokens: list[str]) -> dict[str, Any]:
               "(one object a line, for a GUI; see docs/cli.md) or none.")
 @click.option("-q", "--quiet", "run_quiet", is_flag=True,
               help="No progress bar and no information messages (warnings still show).")
+@click.option("-v", "--verbose", "run_verbose", count=True,
+              help="More messages (-vv for debug), as before 'run'.")
 @click.option("-h", "--help", "show_help", is_flag=True, help="Show the algorithm's help.")
 @click.argument("args", nargs=-1, type=click.UNPROCESSED)
 @click.pass_context
 @_handle_errors
 def run_cmd(ctx: click.Context, algorithm_id: str | None, overwrite: bool, report: str | None,
-            progress: str, run_quiet: bool, show_help: bool, args: tuple[str, ...]) -> None:
+            progress: str, run_quiet: bool, run_verbose: int, show_help: bool,
+            args: tuple[str, ...]) -> None:
     """Run an algorithm: toolbox run ID --PARAM value ... (see 'toolbox help ID').
 
     Prints the outputs as JSON on stdout.
@@ -338,6 +361,9 @@ def run_cmd(ctx: click.Context, algorithm_id: str | None, overwrite: bool, repor
             return
         raise click.UsageError("missing the algorithm id: toolbox run ID --PARAM value ... "
                                "('toolbox list' shows the ids)", ctx)
+    if run_verbose:  # -v after 'run' (or after the id) counts as before it
+        ctx.obj["verbose"] = ctx.obj.get("verbose", 0) + run_verbose
+        setup_logging(ctx.obj["verbose"], bool(ctx.obj.get("quiet")))
     if progress == "json" and not show_help:
         _run_with_json_progress(ctx, algorithm_id, overwrite, report, args)
         return
