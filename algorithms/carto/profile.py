@@ -91,6 +91,7 @@ class Profile(Algorithm):
 
         from toolbox.cartography.profile_io import (
             Surface,
+            layer_title,
             line_parts,
             plot_profiles,
             profile_frames,
@@ -116,15 +117,21 @@ class Profile(Algorithm):
         write_layers(params["OUTPUT"], {"profile_points": points, "profile_lines": line_layer},
                      crs=crs, geometry_types={"profile_points": "Point Z",
                                               "profile_lines": "LineString Z"})
+        plotted = 0
         if params.get("PLOT"):
             what = "sections along" if params["MODE"] == "sections" else "profiles of"
-            plot_profiles(profiles, params["PLOT"], f"{what} {params['INPUT']}")
+            plotted = plot_profiles(profiles, params["PLOT"],
+                                    f"{what} {layer_title(params['INPUT'])}")
+            if plotted < len(profiles):
+                feedback.push_info(f"PLOT shows the first {plotted} of {len(profiles)} "
+                                   "profiles/sections (all are in OUTPUT)")
         z = np.concatenate([p.z for p in profiles]) if profiles else np.empty(0)
         missing = int(np.isnan(z).sum())
         if missing:
             feedback.push_warning(f"{missing} stations fall outside the surface (no height)")
         good = z[np.isfinite(z)]
-        stats = {"profiles": len(profiles), "points": int(z.size), "no_height": missing,
+        stats = {"profiles": len(profiles), "plotted": plotted, "points": int(z.size),
+                 "no_height": missing,
                  "z_min": float(good.min()) if good.size else None,
                  "z_max": float(good.max()) if good.size else None}
         return {"OUTPUT": params["OUTPUT"], "PLOT": params.get("PLOT"), "STATISTICS": stats}

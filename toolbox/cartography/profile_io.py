@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -129,16 +130,37 @@ def profile_frames(profiles: list[Profile], crs):
     return points, line_frame
 
 
+def layer_title(layer: Any) -> str:
+    """A layer's name for a title: the file name (and ``layername``), never a machine path."""
+    if layer is None:
+        return ""
+    path, name = getattr(layer, "path", None), getattr(layer, "layer", None)
+    if path is None and getattr(layer, "frame", None) is not None:
+        return "the input layer"
+    text = str(path if path is not None else layer)
+    base, _, options = text.partition("|")
+    title = Path(base).name
+    name = name or next((o.split("=", 1)[1] for o in options.split("|")
+                         if o.startswith("layername=")), None)
+    return f"{title} ({name})" if name and name != Path(base).stem else title
+
+
 def plot_profiles(profiles: list[Profile], path: str | Path, title: str = "",
-                  max_panels: int = 12) -> None:
+                  max_panels: int = 12) -> int:
     """Plot profiles (height against distance) to PNG or SVG: one panel per line, or small
-    multiples for sections (the first ``max_panels``)."""
+    multiples for sections (the first ``max_panels``; the title then says how many of how
+    many, and that all are in the GeoPackage). Returns the number of panels drawn."""
     import matplotlib
 
     matplotlib.use("Agg", force=False)
     import matplotlib.pyplot as plt
 
     shown = profiles[:max_panels]
+    if len(shown) < len(profiles):
+        what = "sections" if any(p.section for p in profiles) else "profiles"
+        note = (f"the first {len(shown)} of {len(profiles)} {what} shown; all are in the "
+                "GeoPackage")
+        title = f"{title}\n({note})" if title else note
     n = max(len(shown), 1)
     cols = 1 if n == 1 else min(3, n)
     rows = int(np.ceil(n / cols))
@@ -160,3 +182,4 @@ def plot_profiles(profiles: list[Profile], path: str | Path, title: str = "",
     fig.tight_layout()
     fig.savefig(path)
     plt.close(fig)
+    return len(shown)

@@ -187,3 +187,18 @@ def test_bad_codes_exit_2_one_line_nothing_written(tmp_path):
     assert res.stderr.strip().count("\n") == 0 and "CODES" in res.stderr
     assert "type 'triangolo' of code 'FAB01002'" in res.stderr
     assert "Traceback" not in res.output and not out.exists()
+
+
+def test_shared_parameter_file_gives_no_warning(tmp_path):
+    """The sample 'file dei parametri' holds every entry of the job: the entries for other steps
+    are an information message, not a warning on every step (issue 30)."""
+    from toolbox.demo.samples import linework
+
+    data = linework.make(tmp_path, {})
+    feedback = toolbox.Feedback()
+    toolbox.run("topology:check", {"INPUT": data["linework"],
+                                   "PARAMETERS": data["linework_parameters"],
+                                   "OUTPUT": tmp_path / "c.gpkg"}, feedback=feedback)
+    assert not [w for w in feedback.warnings if "PARAMETERS" in w]
+    info = [t for lvl, t in feedback.messages if lvl == "info" and "not used by" in t]
+    assert len(info) == 1 and "7 entries for other steps" in info[0]
