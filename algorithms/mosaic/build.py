@@ -43,7 +43,8 @@ class MosaicBuild(Algorithm):
 
     The grid has the finest input's cell (or CELL_SIZE) over the cut polygons' area; inputs on
     other grids are resampled (RESAMPLING) with a warning. The mosaic is written tile by tile
-    (tiled DEFLATE GeoTIFF with overviews, or COG), with an alpha band if any input has one,
+    (a Cloud Optimized GeoTIFF by default, COG=false: a tiled DEFLATE GeoTIFF with overviews;
+    SOURCE_INDEX likewise), with an alpha band if any input has one,
     else nodata. SOURCE_INDEX gets the 1-based input number of each cell (0 = no data), and
     SEAMLINES the seams: exactly the cell edges between different sources in the source index
     (steps of one cell where a seam runs diagonally; edges next to no data are not seams).
@@ -72,7 +73,8 @@ class MosaicBuild(Algorithm):
                min_value=0, min_exclusive=True),
         Enum("RESAMPLING", "resampling of inputs off the mosaic grid", options=RESAMPLING,
              default="bilinear"),
-        Boolean("COG", "write a Cloud Optimized GeoTIFF", default=False),
+        Boolean("COG", "write the mosaic and SOURCE_INDEX as Cloud Optimized GeoTIFFs (false: "
+                "tiled GeoTIFFs with internal overviews)", default=True),
         Boolean("OVERVIEWS", "build internal overviews", default=True),
         OutputRaster("OUTPUT", "mosaic GeoTIFF"),
         OutputRaster("SOURCE_INDEX", "source index raster (1-based input number, 0 = none)",

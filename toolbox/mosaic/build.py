@@ -161,8 +161,9 @@ def write_mosaic(plan: MosaicPlan, output: Path, index_path: Path | None, *, alp
     """Stream the mosaic into ``output`` (and the source-index raster into ``index_path``).
 
     The output has ``plan.bands`` data bands plus an alpha band (``alpha``) or ``nodata`` where
-    no source has data; tiled DEFLATE GeoTIFF with overviews, or a COG (``cog``). Tiles run on
-    ``executor`` (default: the cluster of ``DASK_SCHEDULER_ADDRESS``, else ``workers`` local threads).
+    no source has data; tiled DEFLATE GeoTIFF with overviews, or a COG (``cog``, the source
+    index too). Tiles run on ``executor`` (default: the cluster of ``DASK_SCHEDULER_ADDRESS``,
+    else ``workers`` local threads).
     """
     from contextlib import ExitStack
     from functools import partial
@@ -181,7 +182,7 @@ def write_mosaic(plan: MosaicPlan, output: Path, index_path: Path | None, *, alp
             output, grid, plan.bands + (1 if alpha else 0), plan.dtype,
             None if alpha else nodata, alpha=alpha, cog=cog, overviews=overviews))
         idx = None if index_path is None else stack.enter_context(RasterWriter(
-            index_path, grid, 1, index_dtype, 0, overviews=overviews,
+            index_path, grid, 1, index_dtype, 0, cog=cog, overviews=overviews,
             overview_resampling="nearest"))
 
         def collect(tile, data, labels):
