@@ -36,7 +36,6 @@ def file_values(params: dict[str, Any], wanted: dict[str, tuple[str, str, Any]],
         used = {key for _, key, _ in wanted.values()} | set(COMMON_ENTRIES)
         file.warn_unused(used, feedback, f"{who} (its input is in map coordinates, so a "
                                          "coordinate translation is not applied)"
-                         if "coordinate_offset" in file.values else who,
-                         warn={"coordinate_offset"})
+                         if "coordinate_offset" in file.values else who)
         file.check_unit(crs, feedback)
     return values, sources

@@ -168,34 +168,26 @@ class ParameterFile:
         rows += self.unknown
         return [f"{name!r} (line {line})" for line, name in sorted(rows)]
 
-    def warn_unused(self, used: Iterable[str], feedback: Any, who: str,
-                    warn: Iterable[str] = ()) -> list[str]:
+    def warn_unused(self, used: Iterable[str], feedback: Any, who: str) -> list[str]:
         """Name every entry ``who`` (e.g. "attribution:square") does not use; returns the names
         (empty when all are used).
 
         The file is shared by every step of a job (the plotting software's one "file dei
         parametri"), so known entries other steps use are only an information message; a
-        warning names the entries no step knows (a misspelt name is not silently ignored) and
-        the known entries in ``warn`` that this step leaves out on purpose (e.g. a coordinate
-        translation an editing tool does not apply).
+        warning names the entries no step knows (a misspelt name is not silently ignored).
         """
         names = self.unused(used)
         if not names or feedback is None:
             return names
-        used, warn = set(used), set(warn)
         unknown = [f"{name!r} (line {line})" for line, name in sorted(self.unknown)]
-        loud = [f"{self.names[k]!r} (line {self.line_numbers[k]})" for k in self.values
-                if k in warn and k not in used]
-        quiet = [n for n in names if n not in unknown and n not in loud]
+        known = [n for n in names if n not in unknown]
         where = f"PARAMETERS '{self.path.name}'"
         if unknown:
             feedback.push_warning(f"{where}: {len(unknown)} entries not recognised (not a known "
                                   f"'file dei parametri' entry: misspelt?): {', '.join(unknown)}")
-        if loud:
-            feedback.push_warning(f"{where}: {', '.join(loud)} not used by {who}")
-        if quiet:
-            feedback.push_info(f"{where}: {len(quiet)} entries for other steps, not used by "
-                               f"{who}: {', '.join(quiet)}")
+        if known:
+            feedback.push_info(f"{where}: {len(known)} entries for other steps, not used by "
+                               f"{who}: {', '.join(known)}")
         return names
 
     def check_unit(self, crs: Any, feedback: Any) -> None:
