@@ -9,7 +9,7 @@ from toolbox.feedback import Feedback
 from toolbox.parameters import Boolean, Crs, Enum, File, Layer, Number, Output, OutputVector, String
 from toolbox.registry import register
 
-#: parameter-file entries this algorithm uses (the others are named in a warning)
+#: parameter-file entries this algorithm uses (the others are named in an information message)
 USED_ENTRIES = ("closure_tolerance", "snap_tolerance", "height_snap_tolerance", "decimals",
                 "coordinate_offset", "coordinate_unit")
 
@@ -46,8 +46,9 @@ class ApplyCodes(Algorithm):
 
     PARAMETERS (the "file dei parametri"): closure tolerance, planimetric and altimetric reattach
     tolerances (merge), number of decimals (coordinates rounded), coordinate translation (added
-    to every input coordinate), coordinate unit (checked against CRS); its other entries are
-    named in a warning. Explicit parameters win over the file.
+    to every input coordinate), coordinate unit (checked against CRS); its other entries (for
+    other steps) are named in an information message, unknown names in a warning. Explicit
+    parameters win over the file.
     """
 
     id = "attribution:apply"
