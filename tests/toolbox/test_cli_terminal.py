@@ -75,3 +75,38 @@ def test_progress_bar_fits_the_terminal_and_is_wiped(monkeypatch):
     feedback.finish()
     assert screen_line(term.getvalue()).strip() == ""  # nothing left before the JSON
     assert term.getvalue().endswith("\r")
+
+
+def test_library_warnings_become_one_toolbox_line():
+    from toolbox.cli import warning_message
+
+    where = "/venv/lib/python3.11/site-packages/rasterio/__init__.py"
+    assert warning_message(UserWarning("block size\nnot a multiple"), UserWarning, where) == \
+        "block size; not a multiple (rasterio)"
+    assert warning_message(DeprecationWarning("old"), DeprecationWarning, where) is None
+
+    class NotGeoreferencedWarning(UserWarning):
+        pass
+
+    assert warning_message(NotGeoreferencedWarning("no geotransform"), NotGeoreferencedWarning,
+                           where) is None
+
+
+def test_a_library_warning_during_a_command_is_one_line(tmp_path):
+    import subprocess
+    import sys
+
+    script = (
+        "import sys, warnings, click\n"
+        "from toolbox.cli import _handle_errors, setup_logging\n"
+        "setup_logging(0, False)\n"
+        "@click.command()\n"
+        "@_handle_errors\n"
+        "def cmd():\n"
+        "    warnings.warn_explicit('values clipped', RuntimeWarning,\n"
+        "        '/x/site-packages/rasterio/warp.py', 10)\n"
+        "    warnings.warn('going away', DeprecationWarning)\n"
+        "cmd()\n")
+    proc = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stderr == "WARNING: values clipped (rasterio)\n"

@@ -63,7 +63,7 @@ def _handle_errors(func: Callable) -> Callable:
     def wrapper(*args, **kwargs):
         where = kwargs.get("algorithm_id") or func.__name__.removesuffix("_cmd")
         try:
-            with _signals_as_interrupts(), _native_stderr_filtered():
+            with _signals_as_interrupts(), _native_stderr_filtered(), _python_warnings_as_messages():
                 return func(*args, **kwargs)
         except KeyboardInterrupt as exc:
             if ACTIVE[0] is not None:
@@ -175,6 +175,51 @@ def _native_stderr_filtered():
             except (OSError, ValueError):
                 pass
             DIRECT_STDERR[0] = None
+
+
+# library warnings that say nothing to a user of the toolbox: the toolbox checks georeferencing
+# itself, and deprecations are for the developers
+QUIET_WARNINGS = ("NotGeoreferencedWarning", "DeprecationWarning", "PendingDeprecationWarning",
+                  "FutureWarning", "SetuptoolsDeprecationWarning", "_BetaConfiguration")
+
+
+def warning_message(message: Warning | str, category: type, filename: str) -> str | None:
+    """A Python warning as one toolbox message line, naming the library it came from (None for
+    the :data:`QUIET_WARNINGS`)."""
+    if category.__name__ in QUIET_WARNINGS or issubclass(
+            category, (DeprecationWarning, PendingDeprecationWarning, FutureWarning)):
+        return None
+    parts = Path(filename).parts
+    source = next((parts[i + 1] for i, p in enumerate(parts[:-1])
+                   if p in ("site-packages", "dist-packages")), Path(filename).stem)
+    source = source.removesuffix(".py")
+    return f"{_one_line(message)} ({source})"
+
+
+@contextmanager
+def _python_warnings_as_messages():
+    """Python warnings raised while a command runs (rasterio's, numpy's...) become one-line
+    toolbox warnings naming their library, not the raw ``file:line: Category: text`` plus a
+    source line; the deprecation and georeferencing noise of :data:`QUIET_WARNINGS` is dropped.
+    ``TOOLBOX_DEBUG=1`` shows them raw."""
+    import os
+    import warnings
+
+    if os.environ.get("TOOLBOX_DEBUG"):
+        yield
+        return
+    previous = warnings.showwarning
+
+    def show(message, category, filename, lineno, file=None, line=None):
+        text = warning_message(message, category, filename)
+        if text is not None:
+            logging.getLogger("toolbox").warning(text)
+
+    warnings.showwarning = show
+    try:
+        yield
+    finally:
+        warnings.showwarning = previous
 
 
 class OneLineErrorsGroup(click.Group):
