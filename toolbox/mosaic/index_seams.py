@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 
 STRIP_ROWS = 1024
+STRIP_CELLS = 4_000_000  # cells of a strip at most (a band of float32 is 16 MB)
 
 
 def label_edges(labels: np.ndarray, transform: Any, row_offset: int = 0,
@@ -86,8 +87,10 @@ def seam_lines(edges: dict) -> list[tuple[int, int, Any]]:
     return out
 
 
-def strips(height: int, rows: int = STRIP_ROWS) -> Iterator[tuple[int, int]]:
-    """``(first row, rows owned)`` of the strips covering ``height`` rows."""
+def strips(height: int, width: int) -> Iterator[tuple[int, int]]:
+    """``(first row, rows owned)`` of the strips covering ``height`` rows: at most
+    :data:`STRIP_ROWS` rows and about :data:`STRIP_CELLS` cells each."""
+    rows = max(16, min(STRIP_ROWS, STRIP_CELLS // max(width, 1)))
     for r0 in range(0, height, rows):
         yield r0, min(rows, height - r0)
 
@@ -100,7 +103,7 @@ def index_raster_seams(path: Any) -> tuple[list, float]:
 
     edges: dict = {}
     with rasterio.open(path) as src:
-        for r0, n in strips(src.height):
+        for r0, n in strips(src.height, src.width):
             extra = 1 if r0 + n < src.height else 0
             block = src.read(1, window=Window(0, r0, src.width, n + extra)).astype("int32") - 1
             merge_edges(edges, label_edges(block, src.transform, r0, n))
@@ -119,7 +122,7 @@ def partition_labels(plan: Any) -> Iterator[tuple[int, int, np.ndarray]]:
     from toolbox.mosaic.sources import read_window
 
     grid = plan.grid
-    for r0, n in strips(grid.height):
+    for r0, n in strips(grid.height, grid.width):
         extra = 1 if r0 + n < grid.height else 0
         window = Window(0, r0, grid.width, n + extra)
         bounds = window_bounds(grid, window)

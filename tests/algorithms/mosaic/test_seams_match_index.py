@@ -43,7 +43,8 @@ def test_strips_give_the_same_seams(tmp_path, monkeypatch):
                        transform=Affine(2, 0, 100, 0, -2, 500)) as dst:
         dst.write(labels, 1)
     whole, _ = index_seams.index_raster_seams(path)
-    monkeypatch.setattr(index_seams, "STRIP_ROWS", 5)
+    monkeypatch.setattr(index_seams, "STRIP_ROWS", 16)  # 42 rows in strips of 16, 16 and 10
+    assert list(index_seams.strips(42, 35)) == [(0, 16), (16, 16), (32, 10)]
     strips, _ = index_seams.index_raster_seams(path)
     assert [(i, j) for i, j, _ in whole] == [(i, j) for i, j, _ in strips]
     for (_, _, a), (_, _, b) in zip(whole, strips, strict=True):
