@@ -19,13 +19,11 @@ def lines(tmp_path_factory):
     return linework.make(folder, {})["linework"]
 
 
-@pytest.mark.parametrize("where", ["before run", "after run", "after the id", "at the end"])
-def test_verbose_anywhere(lines, tmp_path, where):
+@pytest.mark.parametrize("where", ["after the id", "at the end"])
+def test_verbose_after_the_id(lines, tmp_path, where):
     out = tmp_path / "check.gpkg"
     params = ["--INPUT", lines, "--OUTPUT", out]
-    args = {"before run": ["-v", "run", "topology:check", *params],
-            "after run": ["run", "-v", "topology:check", *params],
-            "after the id": ["run", "topology:check", "-v", *params],
+    args = {"after the id": ["run", "topology:check", "-v", *params],
             "at the end": ["run", "topology:check", *params, "-v"]}[where]
     proc = run_cli(*args)
     assert proc.returncode == 0, proc.stderr
