@@ -247,8 +247,19 @@ class RasterWriter:
             options["PREDICTOR"] = self.predictor
         if self.compress == "DEFLATE":
             options["LEVEL"] = 6
-        with rasterio.Env(GDAL_CACHEMAX=gdal_cache_max(self.cache_mb)):
-            rasterio.shutil.copy(self._tiled_path, self.path, driver="COG", **options)
+        try:
+            with rasterio.Env(GDAL_CACHEMAX=gdal_cache_max(self.cache_mb)):
+                rasterio.shutil.copy(self._tiled_path, self.path, driver="COG", **options)
+        except Exception as exc:
+            if not type(exc).__module__.startswith("rasterio"):
+                raise
+            # GDAL failing on the tiled file it just wrote (not written whole: a full disk) is a
+            # failed write of the output, not an unreadable input
+            import errno
+
+            first = str(exc).splitlines()[0] if str(exc) else "I/O error"
+            raise OSError(errno.EIO, f"the tiled GeoTIFF could not be made a COG ({first})",
+                          str(self.path)) from exc
         self._tiled_path.unlink(missing_ok=True)
 
     def _abort(self) -> None:
