@@ -30,6 +30,7 @@ from toolbox.io.staging import OutputStaging, protected_paths, write_error
 from toolbox.parameters import (
     Boolean,
     Number,
+    OutputFolder,
     OutputRaster,
     RasterLayer,
     ValidationContext,
@@ -90,6 +91,7 @@ def validate(algorithm: type[Algorithm] | str, parameters: dict[str, Any],
     _check_band(alg, values)
     _check_outputs_against_inputs(alg, values)
     alg().check(values)
+    check_planned_files(alg, values, overwrite)
     return values
 
 
@@ -193,6 +195,80 @@ def _check_outputs_against_inputs(alg_cls: type[Algorithm], values: dict[str, An
                                  "output path")
 
 
+_GLOB = set("*?[")
+
+
+def planned_paths(alg_cls: type[Algorithm], values: dict[str, Any]) -> dict[str, list[Path]]:
+    """Every file the destinations will write besides their own path (see
+    :meth:`Algorithm.planned_files`), as final paths; glob patterns are expanded to the files
+    that exist now. Names leaving their folder (``..``, absolute) are refused."""
+    plan = alg_cls().planned_files(values) or {}
+    out: dict[str, list[Path]] = {}
+    for dest in alg_cls.destinations():
+        final = values.get(dest.name)
+        if final is None:
+            continue
+        if isinstance(dest, OutputFolder) and dest.name not in plan:
+            raise RuntimeError(f"{alg_cls.id} plans no file for its output folder {dest.name}")
+        folder = Path(final).expanduser().absolute()
+        if not isinstance(dest, OutputFolder):
+            folder = folder.parent
+        paths: list[Path] = []
+        for name in plan.get(dest.name, []):
+            relative = Path(str(name))
+            if relative.is_absolute() or ".." in relative.parts or not relative.parts:
+                raise ParameterError(dest.name, f"would write {str(name)!r}, which is not a file "
+                                     f"name inside '{folder}' (check the ids the file names "
+                                     "come from)")
+            if _GLOB & set(str(name)):
+                paths += sorted(folder.glob(str(name)))
+            else:
+                paths.append(folder / relative)
+        out[dest.name] = paths
+    return out
+
+
+def check_planned_files(alg_cls: type[Algorithm], values: dict[str, Any],
+                        overwrite: bool) -> None:
+    """Each planned file is checked as an output path: not an input (by path, sidecars and the
+    files a project names included, or by inode), not another output, not a folder, and not
+    existing without ``overwrite``."""
+    plan = planned_paths(alg_cls, values)
+    if not any(plan.values()):
+        return
+    inputs = input_paths(alg_cls, values)
+    inodes = {}
+    for path, name in inputs.items():
+        try:
+            st = path.stat()
+        except OSError:
+            continue
+        inodes[(st.st_dev, st.st_ino)] = name
+    seen = {Path(values[d.name]).expanduser().resolve(): d.name
+            for d in alg_cls.destinations() if values.get(d.name) is not None}
+    for dest_name, paths in plan.items():
+        for path in paths:
+            resolved = path.resolve()
+            victim = inputs.get(resolved)
+            if victim is None and path.exists():
+                st = path.stat()
+                victim = inodes.get((st.st_dev, st.st_ino))
+            if victim is not None:
+                raise ParameterError(dest_name, f"would write '{path}', which is the input "
+                                     f"{victim} (or one of its files); an input is never "
+                                     "overwritten: choose another output folder")
+            if resolved in seen:
+                raise ParameterError(dest_name, f"would write '{path}' twice (also "
+                                     f"{seen[resolved]}): choose another output folder")
+            seen[resolved] = dest_name
+            if path.is_dir():
+                raise ParameterError(dest_name, f"would write '{path}', which is a folder")
+            if path.exists() and not overwrite:
+                raise OutputExistsError(dest_name, f"would replace '{path}', which exists; "
+                                        "pass --overwrite (OVERWRITE=True in Python) to "
+                                        "replace it")
+
+
 def _check_report(report: str | Path, alg_cls: type[Algorithm], values: dict[str, Any],
                   overwrite: bool) -> Path:
     path = Path(report).expanduser()
@@ -205,6 +281,9 @@ def _check_report(report: str | Path, alg_cls: type[Algorithm], values: dict[str
         final = values.get(dest.name)
         if final is not None and Path(final).expanduser().resolve() == resolved:
             raise ParameterError(REPORT, f"'{report}' is also the output {dest.name}")
+    for name, paths in planned_paths(alg_cls, values).items():
+        if any(p.resolve() == resolved for p in paths):
+            raise ParameterError(REPORT, f"'{report}' is also one of the files of {name}")
     if path.is_dir():
         raise ParameterError(REPORT, f"'{report}' is a folder, expected a file path")
     if path.exists() and not overwrite:
@@ -255,7 +334,9 @@ def run(algorithm_id: str, parameters: dict[str, Any] | None = None,
         staged = dict(values)
         for dest in alg_cls.destinations():
             if values[dest.name] is not None:
-                staged[dest.name] = staging.stage(values[dest.name], dest.name)
+                stage = staging.stage_folder if isinstance(dest, OutputFolder) \
+                    else staging.stage
+                staged[dest.name] = stage(values[dest.name], dest.name)
         staged_report = None if report_path is None else staging.stage(report_path, REPORT)
         for folder in staging.removed_stale:
             feedback.push_warning(f"removed {folder}: the staging folder of an earlier run that "
@@ -430,6 +511,16 @@ def _check_raster_outputs(alg_cls: type[Algorithm], values: dict[str, Any],
                 raise write_error(OSError(errno.ENOSPC, "No space left on device"), dest.name,
                                   values[dest.name])
             raise write_error(OSError(errno.EIO, problem), dest.name, values[dest.name])
+    for name, final, staged in staging.folder_files():  # the rasters an output folder holds
+        if staged.suffix.lower() not in (".tif", ".tiff"):
+            continue
+        from toolbox.io.raster import verify_written_raster
+
+        problem = verify_written_raster(staged)
+        if problem and problem != "empty":
+            if _full_output(staging) is not None:
+                raise write_error(OSError(errno.ENOSPC, "No space left on device"), name, final)
+            raise write_error(OSError(errno.EIO, problem), name, final)
 
 
 def _final_outputs(alg_cls: type[Algorithm], values: dict[str, Any], result: dict[str, Any],

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import glob
+
 from toolbox.algorithm import Algorithm
 from toolbox.attribution.layer_specs import CODED
 from toolbox.attribution.sources import RestitutionFiles
@@ -42,7 +44,8 @@ class ApplyCodes(Algorithm):
 
     Every layer gets a QGIS style (QML) and an SLD from the code and colour files, stored as its
     default style in the GeoPackage's ``layer_styles`` table (QGIS opens it styled); with
-    STYLE_FILES they are also written beside OUTPUT as ``OUTPUT.<layer>.qml`` / ``.sld``.
+    STYLE_FILES they are also written beside OUTPUT as ``OUTPUT.<layer>.qml`` / ``.sld`` (with
+    the GeoPackage, all or none; existing ones are replaced only with --overwrite).
 
     PARAMETERS (the "file dei parametri"): closure tolerance, planimetric and altimetric reattach
     tolerances (merge), number of decimals (coordinates rounded), coordinate translation (added
@@ -97,6 +100,12 @@ class ApplyCodes(Algorithm):
         if params.get("COLOURS") is not None:
             read_colour_file(params["COLOURS"], "COLOURS")
         optional_parameter_file(params)
+
+    def planned_files(self, params):
+        if not params["STYLE_FILES"]:
+            return {}
+        name = glob.escape(params["OUTPUT"].name)  # layers known once read: any sidecar
+        return {"OUTPUT": [f"{name}.*.qml", f"{name}.*.sld"]}
 
     def process(self, params, feedback: Feedback):
         from toolbox.attribution.apply import attribute

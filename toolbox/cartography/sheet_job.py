@@ -43,12 +43,20 @@ def layer_styles(params: dict) -> tuple[list[tuple[str, object]], list]:
     return layers, coded_styles(layers, table, colours)
 
 
+def sheet_file_names(params: dict) -> list[str]:
+    """The file name (without extension) of each sheet in FOLDER: its id made file-safe and
+    unique."""
+    from toolbox.mosaic.sheets import sheet_ids_unique
+
+    return sheet_ids_unique([sheet_id for sheet_id, _ in sheet_polygons(params)[0]])
+
+
 def run_sheets(params: dict, feedback) -> dict:
     import matplotlib
     from matplotlib.backends.backend_pdf import PdfPages
 
     from toolbox.io.crs import crs_label
-    from toolbox.io.staging import atomic_path
+    from toolbox.io.staging import final_path
     from toolbox.io.vector import read_vector
 
     sheets, crs = sheet_polygons(params)
@@ -66,9 +74,8 @@ def run_sheets(params: dict, feedback) -> dict:
         + [_name(ref) for ref in params.get("LAYERS") or []]
         + [_name(params["CONTOURS"])] * (params.get("CONTOURS") is not None)))
     date = params.get("DATE") or _dt.date.today().isoformat()
-    folder = Path(params["FOLDER"]).expanduser() if params.get("FOLDER") else None
-    if folder is not None:
-        folder.mkdir(parents=True, exist_ok=True)
+    folder = Path(params["FOLDER"]) if params.get("FOLDER") else None  # staged by the runner
+    names = sheet_file_names(params)
     written = []
     scale = params["SCALE"]
     meta = {"Title": params["TITLE"], "Subject": f"{len(sheets)} map sheet(s) at 1:{scale:g}",
@@ -88,13 +95,12 @@ def run_sheets(params: dict, feedback) -> dict:
             pngs = [params["PNG"]] if params.get("PNG") and i == 0 else []
             files = []
             if folder is not None:
-                files = [folder / f"{sheet_id}.pdf", folder / f"{sheet_id}.png"]
-                with atomic_path(files[0]) as pdf, atomic_path(files[1]) as png:
-                    info = render_sheet(spec, pdfs=[pdf], pngs=pngs + [png], pdf_pages=pages,
-                                        **common)
+                files = [folder / f"{names[i]}.pdf", folder / f"{names[i]}.png"]
+                info = render_sheet(spec, pdfs=[files[0]], pngs=pngs + [files[1]],
+                                    pdf_pages=pages, **common)
             else:
                 info = render_sheet(spec, pngs=pngs, pdf_pages=pages, **common)
-            files = [str(f) for f in files]
+            files = [str(final_path(f)) for f in files]
             written.append(info | {"files": files})
     finally:
         if pages is not None:
