@@ -10,6 +10,7 @@ import numpy as np
 
 from toolbox.cartography.profile import (
     bilinear,
+    chainage_of_vertices,
     contour_crossings,
     points_at,
     sample_stations,
@@ -82,8 +83,13 @@ def sample_profiles(lines: list[np.ndarray], mode: str, step: float, surface: Su
                     ) -> list[Profile]:
     """Profiles of every line (``mode`` step / contours) or sections along every line as an
     axis (``mode`` sections)."""
+    from toolbox.errors import InputDataError
+
     out = []
     for i, xy in enumerate(lines, start=1):
+        if not chainage_of_vertices(xy)[-1] > 0:
+            raise InputDataError(f"INPUT line {i} has zero length (every vertex at one point, "
+                                 f"{len(xy)} vertices): no profile along it; remove or fix it")
         if mode == "contours":
             geoms, levels = contours
             ch, pts, hs = contour_crossings(xy, geoms, levels)
