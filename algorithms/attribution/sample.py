@@ -70,6 +70,13 @@ class Sample(Algorithm):
         parts = read_parts(params["INPUT"])
         v, sources = file_values(params, WANTED, self.id, feedback, parts.frame.crs)
         method, step = params["METHOD"], v["distance"]
+        if method != "vectors":  # a vertex every DISTANCE: refused before any is made
+            from toolbox.limits import check_size
+
+            length = float(sum(np.hypot(*np.diff(c[:, :2], axis=0).T).sum()
+                               for c in parts.coords))
+            check_size("vertices", length / step + len(parts.coords), "DISTANCE",
+                       f"{step:g} along {length:,.0f} units of lines", "use a larger DISTANCE")
         out, rows, left, collapsed = [], [], set(), set()
         largest = 0.0
         for r, c in enumerate(parts.coords):

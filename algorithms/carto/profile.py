@@ -91,6 +91,7 @@ class Profile(Algorithm):
 
         from toolbox.cartography.profile_io import (
             Surface,
+            guard_profile_size,
             line_parts,
             plot_profiles,
             profile_frames,
@@ -103,6 +104,8 @@ class Profile(Algorithm):
         crs = common_crs({name: getattr(params.get(name), "crs", None)
                           for name in ("INPUT", "DEM", "TIN", "CONTOURS")})  # mixed: refused
         lines = line_parts(lines_frame)
+        guard_profile_size(lines, params["MODE"], params["STEP"], params["SPACING"],
+                           params["HALF_WIDTH"])
         surface, contours = None, None
         if params["MODE"] == "contours":
             cframe = read_vector(params["CONTOURS"], name="CONTOURS")

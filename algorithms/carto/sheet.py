@@ -92,6 +92,9 @@ class Sheet(Algorithm):
             raise self.fail("EXTENT", "or SHEETS: give exactly one of them")
         if not (params.get("OUTPUT") or params.get("FOLDER")):
             raise self.fail("OUTPUT", "or FOLDER: give at least one")
+        from toolbox.cartography.sheet_job import guard_sheets
+
+        guard_sheets(params)
 
     def planned_files(self, params):
         if params.get("FOLDER") is None:

@@ -92,9 +92,13 @@ class MosaicCut(Algorithm):
 
 
 def _sheets(params):
-    """``(source, kind, crs, [(sheet id, polygon)])`` of a run."""
+    """``(source, kind, crs, [(sheet id, polygon)])`` of a run; too many sheets are refused
+    before any is made."""
+    import math
+
     from toolbox.errors import InputDataError
     from toolbox.io.vector import read_vector
+    from toolbox.limits import check_size
     from toolbox.mosaic.sheets import sheet_grid
 
     source, kind, crs, bounds = _open_input(params["INPUT"])
@@ -105,11 +109,22 @@ def _sheets(params):
         field = params["ID_FIELD"]
         raw = [str(v) for v in frame[field]] if field else \
             [str(k + 1) for k in range(len(frame))]
+        check_size("sheets", len(frame), "SHEETS", f"has {len(frame):,} features, which",
+                   "cut to fewer sheets")
         sheets = list(zip(raw, frame.geometry, strict=True))
     else:
         side = params["SCALE"] / 100.0
-        sheets = sheet_grid(bounds, params["SHEET_WIDTH"] * side, params["SHEET_HEIGHT"] * side,
-                            (params["ORIGIN_X"], params["ORIGIN_Y"]))
+        width, height = params["SHEET_WIDTH"] * side, params["SHEET_HEIGHT"] * side
+        count = (math.floor((bounds[2] - params["ORIGIN_X"]) / width)
+                 - math.floor((bounds[0] - params["ORIGIN_X"]) / width) + 1) * \
+            (math.floor((bounds[3] - params["ORIGIN_Y"]) / height)
+             - math.floor((bounds[1] - params["ORIGIN_Y"]) / height) + 1)
+        check_size("sheets", count, "SHEET_WIDTH",
+                   f"x SHEET_HEIGHT {params['SHEET_WIDTH']:g} x {params['SHEET_HEIGHT']:g} cm at "
+                   f"1:{params['SCALE']:g} ({width:g} x {height:g} ground units) over the "
+                   f"input's {bounds[2] - bounds[0]:,.0f} x {bounds[3] - bounds[1]:,.0f}",
+                   "use larger sheets (SHEET_WIDTH, SHEET_HEIGHT) or a larger SCALE")
+        sheets = sheet_grid(bounds, width, height, (params["ORIGIN_X"], params["ORIGIN_Y"]))
     if not sheets:
         raise InputDataError("no sheet meets the input's extent")
     return source, kind, crs, sheets

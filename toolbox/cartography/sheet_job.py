@@ -43,6 +43,35 @@ def layer_styles(params: dict) -> tuple[list[tuple[str, object]], list]:
     return layers, coded_styles(layers, table, colours)
 
 
+def guard_sheets(params: dict) -> None:
+    """Refuse before drawing: too many sheets, a page too large to render at PNG_DPI (a tiny
+    SCALE denominator), or too many map grid crosses."""
+    from toolbox.cartography.grid import ground_step
+    from toolbox.cartography.grid_io import guard_grid
+    from toolbox.cartography.sheet import GAP, LABEL_BAND, MARGIN, PANEL
+    from toolbox.limits import check_size
+
+    sheets, _ = sheet_polygons(params)
+    sheets = [(i, g) for i, g in sheets if g is not None and not g.is_empty]
+    if not sheets:
+        return  # the job says so
+    if params.get("SHEETS") is not None:
+        check_size("sheets", len(sheets), "SHEETS", f"has {len(sheets):,} features, which",
+                   "draw fewer sheets")
+    scale, dpi = params["SCALE"], params["PNG_DPI"]
+    widest = max(sheets, key=lambda s: (s[1].bounds[2] - s[1].bounds[0])
+                 * (s[1].bounds[3] - s[1].bounds[1]))[1].bounds
+    w = (widest[2] - widest[0]) / scale * 1000.0 + 2 * (MARGIN + LABEL_BAND) + GAP + PANEL
+    h = (widest[3] - widest[1]) / scale * 1000.0 + 2 * (MARGIN + LABEL_BAND)
+    check_size("cells", (w / 25.4 * dpi) * (h / 25.4 * dpi), "SCALE",
+               f"1:{scale:g} puts the {widest[2] - widest[0]:,.0f} x "
+               f"{widest[3] - widest[1]:,.0f} sheet on {w / 1000:,.1f} x {h / 1000:,.1f} m of "
+               f"paper, which at PNG_DPI {dpi}", "check SCALE (the denominator: 5000 for "
+               "1:5000) or use smaller sheets", "pixels")
+    guard_grid(sheets, ground_step(scale, params["MAP_STEP"]), params["GRID_STYLE"], scale,
+               params["MAP_STEP"])
+
+
 def sheet_file_names(params: dict) -> list[str]:
     """The file name (without extension) of each sheet in FOLDER: its id made file-safe and
     unique."""
