@@ -111,7 +111,7 @@ class ApplyCodes(Algorithm):
         from toolbox.attribution.apply import attribute
         from toolbox.attribution.merge import events_frame, merge_models
         from toolbox.attribution.output import MERGE_STYLE, write_attribution
-        from toolbox.attribution.sources import read_sources, translated
+        from toolbox.attribution.sources import check_coordinates, read_sources, translated
         from toolbox.io.code_file import read_code_file, read_colour_file
         from toolbox.io.parameter_file import optional_parameter_file, resolve
 
@@ -133,6 +133,7 @@ class ApplyCodes(Algorithm):
                 frames = [translated(f, file) for f in frames]
                 feedback.push_info(f"PARAMETERS: coordinate translation {file.offset[0]:.10g} "
                                    f"{file.offset[1]:.10g} added to every coordinate")
+        check_coordinates(frames, self.id, file is not None and file.offset != (0.0, 0.0))
         merge = None
         if len(frames) > 1:
             merge = merge_models(frames, snap, zsnap)

@@ -96,6 +96,10 @@ class OrthoBatch(Algorithm):
 
         project = load_project_parameter(params["PROJECT"])
         crs = project.crs
+        if crs is None and params["DEM"].crs is not None:  # else the orthos would have no CRS
+            crs = params["DEM"].crs
+            feedback.push_warning(f"PROJECT names no crs: its coordinates are taken to be in "
+                                  f"the DEM's, {crs_label(crs)}, and the orthos are written in it")
         executor = resolve_executor(params["SCHEDULER"], params["WORKERS"])
         photos = select_photos(project, params["PHOTOS"])
         failed: list[dict[str, Any]] = []

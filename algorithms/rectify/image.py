@@ -95,6 +95,12 @@ class RectifyImage(Algorithm):
             raise self.fail("INPUT", f"{info} has no pixels")
         if params["PIXEL_TO_IMAGE"] is not None:
             parse_pixel_to_image(params["PIXEL_TO_IMAGE"])
+        from toolbox.io.crs import check_input_crs
+        from toolbox.transforms.rectification import load_transform
+
+        model = load_transform(params["TRANSFORM"], "TRANSFORM")
+        if model.crs is not None and params["MODE"] != "gcps":  # CELL_SIZE etc. are metres
+            check_input_crs(self.id, "TRANSFORM", model.crs)
 
     def process(self, params, feedback: Feedback):
         from toolbox.io.crs import crs_label, same_crs
