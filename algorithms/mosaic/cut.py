@@ -112,6 +112,15 @@ def _sheets(params):
         check_size("sheets", len(frame), "SHEETS", f"has {len(frame):,} features, which",
                    "cut to fewer sheets")
         sheets = list(zip(raw, frame.geometry, strict=True))
+        import shapely
+
+        box = shapely.box(*bounds)
+        if not any(g is not None and g.intersects(box) for _, g in sheets):
+            sb = frame.total_bounds
+            raise InputDataError(f"no sheet of SHEETS ({sb[0]:.0f}..{sb[2]:.0f}, "
+                                 f"{sb[1]:.0f}..{sb[3]:.0f}) meets INPUT ({bounds[0]:.0f}.."
+                                 f"{bounds[2]:.0f}, {bounds[1]:.0f}..{bounds[3]:.0f}): nothing "
+                                 "to cut; are they of the same area and CRS?")
     else:
         side = params["SCALE"] / 100.0
         width, height = params["SHEET_WIDTH"] * side, params["SHEET_HEIGHT"] * side

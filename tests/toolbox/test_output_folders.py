@@ -221,3 +221,19 @@ def test_mosaic_cut_sheet_equal_to_an_input_is_refused(tmp_path):
     assert sorted(p.name for p in Path(out).iterdir()) == ["0_0.tif", "sheets.gpkg"]
     with pytest.raises(OutputExistsError, match="0_0.tif"):
         toolbox.run("mosaic:cut", {"INPUT": raster, "SCALE": 2000, "OUTPUT": tmp_path / "s"})
+
+
+def test_overwrite_removes_the_stale_aux_xml_of_a_replaced_raster(block, tmp_path):
+    """--overwrite of a GeoTIFF: the old .aux.xml (statistics QGIS would show) goes with the
+    old file; without --overwrite nothing is touched."""
+    _, dem = block
+    out = tmp_path / "hs.tif"
+    toolbox.run("dem:hillshade", {"INPUT": dem, "OUTPUT": out})
+    aux = tmp_path / "hs.tif.aux.xml"
+    aux.write_text("<PAMDataset><Metadata><MDI key='STATISTICS_MAXIMUM'>1e9</MDI></Metadata>"
+                   "</PAMDataset>")
+    with pytest.raises(OutputExistsError):
+        toolbox.run("dem:hillshade", {"INPUT": dem, "OUTPUT": out})
+    assert aux.exists()
+    toolbox.run("dem:hillshade", {"INPUT": dem, "OUTPUT": out}, overwrite=True)
+    assert not aux.exists() and out.exists()

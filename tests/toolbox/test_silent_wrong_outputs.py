@@ -120,3 +120,26 @@ def test_cross_validation_of_collinear_points_leaves_the_ends_out(tmp_path):
             assert list(np.isfinite(residuals[f"{method}_z"].to_numpy()[[0, 1, -1]])) == expected
         if not extrapolate:
             assert out["STATISTICS"]["methods"]["idw"]["hull_vertices_not_predicted"] == 2
+
+
+def test_sheets_20_km_from_the_data_are_refused(tmp_path):
+    """carto:sheet and mosaic:cut on data of another area wrote empty results with exit 0."""
+    import shapely
+    from rasterio.transform import from_origin
+
+    from toolbox.io.raster import write_raster
+
+    write_raster(tmp_path / "dem.tif", np.full((40, 50), 300.0, "float32"),
+                 from_origin(E0, N0 + 400, 10, 10), "EPSG:3003", nodata=-9999.0)
+    far = (E0 + 20000, N0, E0 + 21000, N0 + 1000)
+    gpd.GeoDataFrame({"id": ["a"]}, geometry=[shapely.box(*far)], crs="EPSG:3003"
+                     ).to_file(tmp_path / "sheets.gpkg")
+    with pytest.raises(InputDataError, match="no input .* meets the sheets"):
+        toolbox.run("carto:sheet", {"EXTENT": ",".join(map(str, far)) + " [EPSG:3003]",
+                                    "BASE": tmp_path / "dem.tif",
+                                    "OUTPUT": tmp_path / "s.pdf"})
+    with pytest.raises(InputDataError, match="no sheet of SHEETS .* meets INPUT"):
+        toolbox.run("mosaic:cut", {"INPUT": tmp_path / "dem.tif",
+                                   "SHEETS": tmp_path / "sheets.gpkg",
+                                   "OUTPUT": tmp_path / "cut"})
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["dem.tif", "sheets.gpkg"]

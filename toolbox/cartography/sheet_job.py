@@ -70,6 +70,29 @@ def guard_sheets(params: dict) -> None:
                "1:5000) or use smaller sheets", "pixels")
     guard_grid(sheets, ground_step(scale, params["MAP_STEP"]), params["GRID_STYLE"], scale,
                params["MAP_STEP"])
+    _refuse_empty_sheets(params, sheets)
+
+
+def _refuse_empty_sheets(params: dict, sheets: list) -> None:
+    """Refuse sheets that none of BASE, LAYERS, CONTOURS meets (data of another area or CRS:
+    the sheets would be empty frames)."""
+    import shapely
+
+    from toolbox.errors import InputDataError
+    from toolbox.io.crs import input_crs_and_bounds
+
+    boxes = [shapely.box(*b) for name in ("BASE", "LAYERS", "CONTOURS")
+             for _, b in input_crs_and_bounds(params.get(name)) if b is not None]
+    if not boxes:
+        return  # nothing to draw, or extents unknown: the job draws what it has
+    data = shapely.union_all(boxes)
+    if not any(data.intersects(polygon) for _, polygon in sheets):
+        d = data.bounds
+        s = shapely.union_all([polygon for _, polygon in sheets]).bounds
+        raise InputDataError(f"no input (BASE, LAYERS, CONTOURS: {d[0]:.0f}..{d[2]:.0f}, "
+                             f"{d[1]:.0f}..{d[3]:.0f}) meets the sheets ({s[0]:.0f}..{s[2]:.0f}, "
+                             f"{s[1]:.0f}..{s[3]:.0f}): the sheets would be empty; are they of "
+                             "the same area and CRS?")
 
 
 def sheet_file_names(params: dict) -> list[str]:
