@@ -41,6 +41,12 @@ from toolbox.registry import get
 OVERWRITE = "OVERWRITE"
 REPORT = "--run-report"
 WRITE_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EROFS, errno.ENAMETOOLONG}
+# GDAL error classes (CPLErrorNum: CPLE_FileIO, CPLE_NoWriteAccess) of a failed write, raised
+# by rasterio as CPLE_FileIOError / CPLE_NoWriteAccessError or only logged with err_no
+GDAL_WRITE_ERRNOS = {3, 5}
+GDAL_WRITE_ERROR_TYPES = ("CPLE_FileIOError", "CPLE_NoWriteAccessError")
+# last resort only, for drivers that report a failed write with a generic error class (libtiff's
+# "Write error" comes as CPLE_AppDefined): the decision is by type and by the disk first
 WRITE_ERROR_WORDS = ("no space left", "disk is full", "file too large", "write error",
                      "write failed", "read-only file system", "disk i/o error", "quota exceeded",
                      "error while writing", "could not add feature", "failed to write",
@@ -408,18 +414,26 @@ def _full_output(staging: OutputStaging) -> tuple[str, Any] | None:
 def _as_write_error(exc: Exception, staging: OutputStaging) -> ToolboxError | None:
     """A one-line :class:`OutputWriteError` when ``exc`` is a failed write of an output (also
     when a driver hides ENOSPC behind another message: the free space is checked)."""
+    chain = [e for e in (exc, exc.__cause__, exc.__context__) if e is not None]
     text = " ".join(str(a) for a in (exc, getattr(exc, "filename", None),
                                      exc.__cause__, exc.__context__) if a)
     full_output = _full_output(staging)
     full = full_output is not None
-    is_write = full or (isinstance(exc, OSError) and exc.errno in WRITE_ERRNOS) or any(
-        word in text.lower() for word in WRITE_ERROR_WORDS)
+    os_error = next((e for e in chain if isinstance(e, OSError) and e.errno in WRITE_ERRNOS),
+                    None)
+    typed = os_error is not None or any(
+        type(e).__name__ in GDAL_WRITE_ERROR_TYPES and type(e).__module__.startswith("rasterio")
+        for e in chain)
     in_staging = any(str(staged.parent) in text for _, _, staged in staging.items())
-    if not (is_write or (isinstance(exc, OSError) and in_staging)):
+    worded = any(word in text.lower() for word in WRITE_ERROR_WORDS)  # last resort
+    if not (full or typed or worded or (isinstance(exc, OSError) and in_staging)):
         return None
     name, final = full_output or _which_output(text, staging) or ("OUTPUT", "")
-    if full or "no space left" in text.lower() or "disk is full" in text.lower():
+    if full or (os_error is not None and os_error.errno in (errno.ENOSPC, errno.EDQUOT)) \
+            or "no space left" in text.lower():
         return write_error(OSError(errno.ENOSPC, "No space left on device"), name, final)
+    if os_error is not None:
+        return write_error(os_error, name, final)
     if isinstance(exc, OSError) and exc.errno is not None:
         return write_error(exc, name, final)
     return write_error(OSError(errno.EIO, str(exc).splitlines()[0] if str(exc) else "I/O error"),
@@ -454,6 +468,13 @@ def _as_read_error(exc: Exception, gdal_messages: list[str], alg_cls: type[Algor
     return InputDataError(f"cannot read an input: it is truncated or corrupt ({detail[:200]})")
 
 
+class GdalMessage(str):
+    """A GDAL error message as logged by rasterio, with its GDAL error class (``err_no``: 3
+    CPLE_FileIO, 5 CPLE_NoWriteAccess...; None when unknown)."""
+
+    err_no: int | None = None
+
+
 class _ErrorLog(logging.Handler):
     def __init__(self) -> None:
         super().__init__(logging.INFO)
@@ -462,7 +483,10 @@ class _ErrorLog(logging.Handler):
     def emit(self, record: logging.LogRecord) -> None:
         text = record.getMessage()
         if record.levelno >= logging.ERROR or "signalled an error" in text:
-            self.messages.append(text)
+            message = GdalMessage(text)
+            args = record.args if isinstance(record.args, tuple) else ()
+            message.err_no = args[0] if args and isinstance(args[0], int) else None
+            self.messages.append(message)
 
 
 @contextmanager
@@ -483,8 +507,13 @@ def _gdal_errors():
 
 
 def _check_gdal_errors(messages: list[str], staging: OutputStaging) -> None:
+    """A write failure GDAL only logged: by its error class (CPLE_FileIO, CPLE_NoWriteAccess)
+    when it names a staged output or the output disk is full; by its words as a last resort."""
     for text in messages:
-        if any(word in text.lower() for word in WRITE_ERROR_WORDS):
+        err_no = getattr(text, "err_no", None)
+        about_output = any(str(staged.parent) in text for _, _, staged in staging.items())
+        if (err_no in GDAL_WRITE_ERRNOS and (about_output or _full_output(staging))) or any(
+                word in text.lower() for word in WRITE_ERROR_WORDS):
             converted = _as_write_error(OSError(errno.EIO, text), staging)
             if converted is not None:
                 raise converted

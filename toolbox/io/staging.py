@@ -213,6 +213,8 @@ class OutputStaging:
         """
         protected = protected or set()
         moves = self._moves()
+        written = [final for final, staged in self._staged.items() if staged.exists()
+                   or final in self._is_folder]
         for name, _, target, main in moves:
             if _is_protected(target, protected):
                 raise ParameterError(name, f"'{target}' is an input (or an input's sidecar); an "
@@ -265,8 +267,6 @@ class OutputStaging:
                 elif not existed:
                     _remove(target)
             raise
-        written = [final for final, staged in self._staged.items() if staged.exists()
-                   or final in self._is_folder]
         self.rollback()  # the created folders that now hold results are not empty: kept
         return written
 
