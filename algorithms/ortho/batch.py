@@ -84,6 +84,15 @@ class OrthoBatch(Algorithm):
         from toolbox.photogrammetry.tables import load_project_parameter
 
         photos = select_photos(load_project_parameter(params["PROJECT"]), params["PHOTOS"])
+        folder = Path(params["FOLDER"]).expanduser().resolve()
+        for photo in photos:  # IMAGES' files are inputs the runner cannot see (a folder name)
+            if photo.image is not None and params["IMAGES"] is not None:
+                image = image_path(photo, params["IMAGES"]).expanduser()
+                if image.exists() and image.resolve().parent == folder and \
+                        image.name in {f"{p.id}.tif" for p in photos}:
+                    raise self.fail("FOLDER", f"would write the ortho '{folder / image.name}' "
+                                    f"over the photo IMAGES holds under that name; an input is "
+                                    "never overwritten: choose another folder")
         return {"FOLDER": [f"{photo.id}.tif" for photo in photos]}
 
     def process(self, params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:

@@ -237,3 +237,20 @@ def test_overwrite_removes_the_stale_aux_xml_of_a_replaced_raster(block, tmp_pat
     assert aux.exists()
     toolbox.run("dem:hillshade", {"INPUT": dem, "OUTPUT": out}, overwrite=True)
     assert not aux.exists() and out.exists()
+
+
+def test_folder_holding_the_images_of_images_is_refused(block, tmp_path):
+    """IMAGES names a folder (not files): its photos are inputs too."""
+    import shutil
+
+    x, dem = block
+    images = tmp_path / "scans"
+    images.mkdir()
+    for pid in ("1_7150", "1_7151", "2_7139"):
+        shutil.copy(x / f"{pid}.tif", images / f"{pid}.tif")
+    before = hashes(images)
+    code, err = cli(*batch_args(x / "project.yaml", dem, images, tmp_path / "o.json",
+                                "--IMAGES", images, "--overwrite"))
+    line = one_error(err)
+    assert code == 2 and "FOLDER" in line and "IMAGES" in line
+    assert hashes(images) == before
