@@ -208,9 +208,9 @@ def test_mosaic_cut_sheet_equal_to_an_input_is_refused(tmp_path):
 
     from toolbox.io.raster import write_raster
 
-    raster = tmp_path / "0_0.tif"
-    write_raster(raster, np.ones((10, 10), "float32"), from_origin(0, 10, 1, 1), "EPSG:3003",
-                 nodata=-9999.0)
+    raster = tmp_path / "1688_5998.tif"  # the name of the sheet holding it at 1:2000
+    write_raster(raster, np.ones((10, 10), "float32"), from_origin(1688000, 4799010, 1, 1),
+                 "EPSG:3003", nodata=-9999.0)
     before = raster.read_bytes()
     with pytest.raises(toolbox.ParameterError, match="input"):
         toolbox.run("mosaic:cut", {"INPUT": raster, "SCALE": 2000, "OUTPUT": tmp_path},
@@ -218,8 +218,8 @@ def test_mosaic_cut_sheet_equal_to_an_input_is_refused(tmp_path):
     assert raster.read_bytes() == before
     out = toolbox.run("mosaic:cut", {"INPUT": raster, "SCALE": 2000,
                                      "OUTPUT": tmp_path / "s"})["OUTPUT"]
-    assert sorted(p.name for p in Path(out).iterdir()) == ["0_0.tif", "sheets.gpkg"]
-    with pytest.raises(OutputExistsError, match="0_0.tif"):
+    assert sorted(p.name for p in Path(out).iterdir()) == ["1688_5998.tif", "sheets.gpkg"]
+    with pytest.raises(OutputExistsError, match="1688_5998.tif"):
         toolbox.run("mosaic:cut", {"INPUT": raster, "SCALE": 2000, "OUTPUT": tmp_path / "s"})
 
 

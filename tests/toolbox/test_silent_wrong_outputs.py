@@ -143,3 +143,22 @@ def test_sheets_20_km_from_the_data_are_refused(tmp_path):
                                    "SHEETS": tmp_path / "sheets.gpkg",
                                    "OUTPUT": tmp_path / "cut"})
     assert sorted(p.name for p in tmp_path.iterdir()) == ["dem.tif", "sheets.gpkg"]
+
+
+def test_a_dem_far_outside_its_crs_area_is_refused(tmp_path):
+    """A GeoTIFF's CRS read back as WKT has no area of use: it is taken from the matching EPSG
+    code, so dem:slope refuses local coordinates labelled EPSG:3003 as the DEM methods do."""
+    from rasterio.transform import from_origin
+
+    from toolbox.io.raster import write_raster
+
+    z = np.random.default_rng(0).uniform(100, 200, (20, 20)).astype("float32")
+    write_raster(tmp_path / "local.tif", z, from_origin(300, 500, 10, 10), "EPSG:3003",
+                 nodata=-9999.0)
+    for algorithm in ("dem:slope", "dem:aspect"):
+        with pytest.raises(InputDataError, match="outside the area of use of EPSG:3003"):
+            toolbox.run(algorithm, {"INPUT": tmp_path / "local.tif",
+                                    "OUTPUT": tmp_path / "o.tif"})
+    write_raster(tmp_path / "map.tif", z, from_origin(E0, N0, 10, 10), "EPSG:3003",
+                 nodata=-9999.0)
+    toolbox.run("dem:slope", {"INPUT": tmp_path / "map.tif", "OUTPUT": tmp_path / "o.tif"})

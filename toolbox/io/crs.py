@@ -113,6 +113,17 @@ def check_input_crs(algorithm_id: str, name: str, value: Any,
 
 
 @functools.lru_cache(maxsize=32)
+def _area_of_use_by_code(wkt: str):
+    """The area of use of the EPSG CRS a WKT matches (a GeoTIFF's CRS read back as WKT has
+    lost it), or None."""
+    try:
+        code = CRS.from_wkt(wkt).to_epsg(min_confidence=70)
+        return None if code is None else CRS.from_epsg(code).area_of_use
+    except Exception:  # noqa: BLE001 - no match: not judged
+        return None
+
+
+@functools.lru_cache(maxsize=32)
 def _to_lonlat(wkt: str):
     """A cached transformer to WGS 84 lon/lat (creating one costs ~0.1 s)."""
     from pyproj import Transformer
@@ -123,7 +134,7 @@ def _to_lonlat(wkt: str):
 def outside_area_of_use(crs: CRS, bounds: tuple) -> tuple[str | None, bool]:
     """``(message, far)``: a message when ``bounds`` (in ``crs``) lie outside the CRS's area of
     use by more than a margin; ``far`` when by more than :data:`AREA_ERROR_DEG` degrees."""
-    area = crs.area_of_use
+    area = crs.area_of_use or _area_of_use_by_code(crs.to_wkt())
     if area is None or crs.is_geographic:
         return None, False
     xmin, ymin, xmax, ymax = bounds
