@@ -262,7 +262,7 @@ def check_planned_files(alg_cls: type[Algorithm], values: dict[str, Any],
             if victim is not None:
                 raise ParameterError(dest_name, f"would write '{path}', which is the input "
                                      f"{victim} (or one of its files); an input is never "
-                                     "overwritten: choose another output folder")
+                                     "overwritten: choose another output folder or name")
             if resolved in seen:
                 raise ParameterError(dest_name, f"would write '{path}' twice (also "
                                      f"{seen[resolved]}): choose another output folder")

@@ -183,7 +183,8 @@ def test_style_sidecars_need_overwrite(tmp_path):
     sidecar = tmp_path / "coded.gpkg.FAB01002.qml"
     sidecar.write_text("<qgis>my own style</qgis>")
     args = ["run", "attribution:apply", "--INPUT", files["export"], "--CODES", files["codes"],
-            "--CRS", "EPSG:3003", "--STYLE_FILES", "true", "--OUTPUT", out]
+            "--PARAMETERS", files["params"], "--CRS", "EPSG:3003", "--STYLE_FILES", "true",
+            "--OUTPUT", out]
     code, err = cli(*args)
     line = one_error(err)
     assert code == 2 and "OUTPUT" in line and sidecar.name in line and "--overwrite" in line
@@ -195,9 +196,10 @@ def test_style_sidecars_need_overwrite(tmp_path):
     victim = tmp_path / "x.gpkg.codes.qml"
     victim.write_text("input")
     code, err = cli("run", "attribution:apply", "--INPUT", files["export"], "--CODES", victim,
-                    "--CRS", "EPSG:3003", "--STYLE_FILES", "true", "--OUTPUT",
-                    tmp_path / "x.gpkg", "--overwrite")
-    assert code == 2 and "input" in one_error(err) and victim.read_text() == "input"
+                    "--PARAMETERS", files["params"], "--CRS", "EPSG:3003", "--STYLE_FILES",
+                    "true", "--OUTPUT", tmp_path / "x.gpkg", "--overwrite")
+    assert code == 2 and "would write" in one_error(err) and "input CODES" in one_error(err)
+    assert victim.read_text() == "input"
 
 
 def test_mosaic_cut_sheet_equal_to_an_input_is_refused(tmp_path):

@@ -228,10 +228,13 @@ class OutputStaging:
                 raise OutputExistsError(name, f"'{target}' exists (or appeared during the run:"
                                         " another run wrote it?); pass --overwrite to replace "
                                         "it")
-        backups = Path(tempfile.mkdtemp(prefix=f".backup.{os.getpid()}.", suffix=".part",
-                                        dir=self._folders[0].parent)) if self._folders else None
-        if backups is not None:
+        try:  # hard links to the files a commit replaces, to restore them if it fails
+            first = next(iter(self._staged))  # named like a staging folder: cleaned if killed
+            backups = Path(tempfile.mkdtemp(prefix=f".{first.name}.{os.getpid()}.",
+                                            suffix=".part", dir=self._folders[0].parent))
             self._folders.append(backups)
+        except (OSError, IndexError, StopIteration):
+            backups = None
         done: list[tuple[Path, Path | None, bool]] = []  # target, its backup, existed before
         try:
             for k, (name, item, target, main) in enumerate(moves):
