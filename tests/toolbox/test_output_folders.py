@@ -256,3 +256,31 @@ def test_folder_holding_the_images_of_images_is_refused(block, tmp_path):
     line = one_error(err)
     assert code == 2 and "FOLDER" in line and "IMAGES" in line
     assert hashes(images) == before
+
+
+def test_sigterm_after_the_first_ortho_leaves_the_folder_as_it_was(block, tmp_path):
+    """A real SIGTERM once the first ortho is complete in the staged folder: exit 143, the
+    message says nothing was written, and it is true (FOLDER holds only what it held)."""
+    import signal
+    import subprocess
+    import time
+
+    x, dem = block
+    folder = tmp_path / "orthos"
+    folder.mkdir()
+    (folder / "notes.txt").write_text("mine")
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "toolbox.cli", *map(str, batch_args(
+            x / "project.yaml", dem, folder, tmp_path / "o.json", "--WORKERS", 1))],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline and proc.poll() is None:
+        if list(tmp_path.glob(".orthos.*.part/orthos/1_7150.tif")):
+            break
+        time.sleep(0.05)
+    assert proc.poll() is None, proc.communicate()
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 143 and "no output was written" in err, err
+    assert sorted(p.name for p in folder.iterdir()) == ["notes.txt"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["orthos", "x"]
