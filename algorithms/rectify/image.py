@@ -93,6 +93,10 @@ class RectifyImage(Algorithm):
                                     "not resampled)")
         if info.width < 1 or info.height < 1:
             raise self.fail("INPUT", f"{info} has no pixels")
+        from toolbox.io.raster import has_valid_pixel
+
+        if not has_valid_pixel(info.path):  # all nodata or all NaN: an empty, "valid" output
+            raise self.fail("INPUT", f"{info} has no valid pixel (every pixel is nodata or NaN)")
         if params["PIXEL_TO_IMAGE"] is not None:
             parse_pixel_to_image(params["PIXEL_TO_IMAGE"])
         from toolbox.io.crs import check_input_crs

@@ -162,3 +162,23 @@ def test_a_dem_far_outside_its_crs_area_is_refused(tmp_path):
     write_raster(tmp_path / "map.tif", z, from_origin(E0, N0, 10, 10), "EPSG:3003",
                  nodata=-9999.0)
     toolbox.run("dem:slope", {"INPUT": tmp_path / "map.tif", "OUTPUT": tmp_path / "o.tif"})
+
+
+@pytest.mark.parametrize("pixels, nodata", [(np.zeros((20, 20), "uint8"), 0),
+                                            (np.full((20, 20), np.nan, "float32"), None)])
+def test_rectify_refuses_a_photo_without_a_valid_pixel(tmp_path, pixels, nodata):
+    """All nodata gave a transparent output, all NaN an opaque one of NaN cells."""
+    from rasterio.transform import from_origin
+
+    from toolbox.io.raster import write_raster
+
+    write_raster(tmp_path / "photo.tif", pixels, from_origin(0, 20, 1, 1), None, nodata=nodata)
+    doc = {"format": "toolbox.rectify.transform", "version": 1, "model": "affine",
+           "image_units": "pixels", "crs": "EPSG:3003",
+           "image_to_ground": [[1, 0, E0], [0, -1, N0 + 20], [0, 0, 1]]}
+    (tmp_path / "t.json").write_text(json.dumps(doc))
+    with pytest.raises(ParameterError, match="^INPUT .* has no valid pixel"):
+        toolbox.run("rectify:image", {"INPUT": tmp_path / "photo.tif",
+                                      "TRANSFORM": tmp_path / "t.json",
+                                      "OUTPUT": tmp_path / "r.tif"})
+    assert not (tmp_path / "r.tif").exists()

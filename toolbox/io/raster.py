@@ -92,6 +92,24 @@ def open_raster_info(value: Any, name: str = "INPUT") -> RasterInfo:
                              f"{str(exc).splitlines()[0]}") from None
 
 
+def has_valid_pixel(path: str | Path) -> bool:
+    """True when some pixel of the raster is valid (not nodata or masked, finite for floats).
+    Read block by block until one is found: cheap for a normal raster."""
+    import rasterio
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
+        with rasterio.open(path) as src:
+            for _, window in src.block_windows(1):
+                data = src.read(window=window, masked=True)
+                valid = ~np.ma.getmaskarray(data)
+                if data.dtype.kind == "f":
+                    valid &= np.isfinite(data.filled(0))
+                if valid.any():
+                    return True
+    return False
+
+
 def _last_blocks_missing(src: Any, size: int) -> str | None:
     """For a GeoTIFF, whether the last block of a band lies beyond the end of the file (a copy
     or download cut short: blocks are written in order). Cheap: a few TIFF tags."""
