@@ -182,3 +182,23 @@ def test_rectify_refuses_a_photo_without_a_valid_pixel(tmp_path, pixels, nodata)
                                       "TRANSFORM": tmp_path / "t.json",
                                       "OUTPUT": tmp_path / "r.tif"})
     assert not (tmp_path / "r.tif").exists()
+
+
+def test_resection_refuses_control_points_far_outside_the_project_crs(tmp_path):
+    """Control coordinates in a local system with a project in EPSG:3003 were accepted."""
+    from toolbox.demo.samples import siena
+
+    made = siena.make(tmp_path, {})
+    ground = Path(made["siena_control_ground"])
+    lines = ground.read_text().splitlines()
+    local = [lines[0]]
+    for line in lines[1:]:
+        pid, x, y, *rest = line.split(",")
+        local.append(",".join([pid, f"{float(x) - 1687000:.3f}", f"{float(y) - 4799000:.3f}",
+                               *rest]))
+    (tmp_path / "local.csv").write_text("\n".join(local) + "\n")
+    with pytest.raises(InputDataError, match="^CONTROL: coordinates .* outside the area of use"):
+        toolbox.run("orientation:resection", {
+            "PROJECT": made["siena_project"], "INPUT": made["siena_control_image_points"],
+            "CONTROL": tmp_path / "local.csv", "OUTPUT": tmp_path / "r.yaml"})
+    assert not (tmp_path / "r.yaml").exists()

@@ -112,6 +112,24 @@ def check_input_crs(algorithm_id: str, name: str, value: Any,
                 warnings.append(f"{name}: {problem}")
 
 
+def check_coordinates_in_area(name: str, crs: Any, xy: Any, warn: Any = None) -> None:
+    """Coordinates ``xy`` ((n, 2), in ``crs``) read from a table rather than a layer: far
+    outside the CRS's area of use is an :class:`InputDataError` naming ``name``, a little
+    outside a warning (``warn(text)``), as :func:`check_input_crs` does for layers."""
+    xy = np.asarray(xy, dtype="float64")
+    xy = xy[np.isfinite(xy).all(axis=1)]
+    crs = parse_crs(crs, name)
+    if not len(xy) or crs.is_geographic:
+        return
+    bounds = (xy[:, 0].min(), xy[:, 1].min(), xy[:, 0].max(), xy[:, 1].max())
+    problem, far = outside_area_of_use(crs, bounds)
+    if problem and far:
+        raise InputDataError(f"{name}: {problem}: is the CRS right? Label the data with its "
+                             "true CRS, then reproject if needed")
+    if problem and warn is not None:
+        warn(f"{name}: {problem}")
+
+
 @functools.lru_cache(maxsize=32)
 def _area_of_use_by_code(wkt: str):
     """The area of use of the EPSG CRS a WKT matches (a GeoTIFF's CRS read back as WKT has
