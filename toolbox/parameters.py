@@ -617,9 +617,14 @@ class OutputFile(Destination):
 
 
 class OutputFolder(Destination):
-    """An output folder the algorithm fills with several files (e.g. one per map sheet). It is
-    written to a staged folder and moved into place on success; with ``--overwrite`` an
-    existing folder is replaced whole."""
+    """An output folder and the files it will hold (e.g. one per map sheet or per photo).
+
+    The algorithm names those files in :meth:`~toolbox.algorithm.Algorithm.planned_files`; the
+    runner checks each like an output path before any work (never an input, by path or inode;
+    an existing one only with ``--overwrite``), hands the algorithm an empty staged folder and,
+    on success, moves its files into this folder (other files already there are left alone).
+    A failed or interrupted run leaves none of them.
+    """
 
     type_name = "output_folder"
 
@@ -628,15 +633,11 @@ class OutputFolder(Destination):
             raise self.error(f"must be an output folder path, got {_show(value)}")
         path = Path(value).expanduser()
         resolved = path.resolve()
-        inside = [name for p, name in ctx.input_paths.items() if resolved in (p, *p.parents)]
-        if inside:
-            raise self.error(f"{_show(str(value))} holds the input {inside[0]}; an input is "
-                             "never overwritten: choose another output folder")
+        if resolved in ctx.input_paths:
+            raise self.error(f"{_show(str(value))} is the input {ctx.input_paths[resolved]}; "
+                             "expected a folder path")
         if path.exists() and not path.is_dir():
             raise self.error(f"{_show(str(value))} is a file, expected a folder path")
-        if path.exists() and any(path.iterdir()) and not ctx.overwrite:
-            raise OutputExistsError(self.name, f"{_show(str(value))} exists and is not empty; "
-                                    "pass --overwrite (OVERWRITE=True in Python) to replace it")
         ctx.output_paths[resolved] = self.name
         return path
 

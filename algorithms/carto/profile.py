@@ -91,6 +91,7 @@ class Profile(Algorithm):
 
         from toolbox.cartography.profile_io import (
             Surface,
+            guard_profile_size,
             layer_title,
             line_parts,
             plot_profiles,
@@ -104,6 +105,8 @@ class Profile(Algorithm):
         crs = common_crs({name: getattr(params.get(name), "crs", None)
                           for name in ("INPUT", "DEM", "TIN", "CONTOURS")})  # mixed: refused
         lines = line_parts(lines_frame)
+        guard_profile_size(lines, params["MODE"], params["STEP"], params["SPACING"],
+                           params["HALF_WIDTH"])
         surface, contours = None, None
         if params["MODE"] == "contours":
             cframe = read_vector(params["CONTOURS"], name="CONTOURS")

@@ -15,6 +15,7 @@ from toolbox.parameters import (
     Number,
     Output,
     OutputFile,
+    OutputFolder,
     RasterLayer,
     String,
     VectorLayer,
@@ -81,7 +82,7 @@ class Sheet(Algorithm):
         OutputFile("PNG", "PNG of the (first) sheet", extensions=[".png"], optional=True),
         Integer("PNG_DPI", "PNG resolution, dots per inch", default=120, min_value=30,
                 max_value=600),
-        String("FOLDER", "folder for one <sheet id>.pdf/.png per sheet", optional=True),
+        OutputFolder("FOLDER", "folder for one <sheet id>.pdf/.png per sheet", optional=True),
     ]
     outputs = [Output("SHEETS_WRITTEN", "per sheet: paper, frame and scale bar (mm), files",
                       "list")]
@@ -94,6 +95,17 @@ class Sheet(Algorithm):
             raise self.fail("EXTENT", "or SHEETS: give exactly one of them")
         if not (params.get("OUTPUT") or params.get("FOLDER")):
             raise self.fail("OUTPUT", "or FOLDER: give at least one")
+        from toolbox.cartography.sheet_job import guard_sheets
+
+        guard_sheets(params)
+
+    def planned_files(self, params):
+        if params.get("FOLDER") is None:
+            return {"FOLDER": []}
+        from toolbox.cartography.sheet_job import sheet_file_names
+
+        return {"FOLDER": [f"{name}{ext}" for name in sheet_file_names(params)
+                           for ext in (".pdf", ".png")]}
 
     def process(self, params, feedback: Feedback):
         from toolbox.cartography.sheet_job import run_sheets

@@ -118,6 +118,18 @@ class MosaicSeamlines(Algorithm):
     ]
     outputs = [Output("STATISTICS", "areas, partition check and per-seam notes", "dict")]
 
+    def check(self, params):
+        if params["METHOD"] != "least_cost" or params["SEAM_CELL_SIZE"] is None:
+            return
+        from toolbox.limits import check_size
+
+        cell = params["SEAM_CELL_SIZE"]
+        area = sum((i.bounds[2] - i.bounds[0]) * (i.bounds[3] - i.bounds[1])
+                   for i in params["INPUT"])
+        check_size("cells", area / cell ** 2, "SEAM_CELL_SIZE",
+                   f"{cell:g} over the {area:,.0f} square units of the orthos",
+                   "use a larger SEAM_CELL_SIZE (or leave it empty: the orthos' cell)")
+
     def process(self, params, feedback: Feedback):
         import geopandas as gpd
         import shapely

@@ -133,6 +133,13 @@ class OrthoPhoto(Algorithm):
         from toolbox.photogrammetry.tables import write_json
 
         photo, crs, output_crs = oriented_photo(params)
+        if crs is None and output_crs is None and params["DEM"].crs is not None:
+            from toolbox.io.crs import crs_label
+
+            crs = params["DEM"].crs  # else the ortho would have no CRS at all
+            feedback.push_warning(f"the orientation names no CRS: its coordinates are taken to "
+                                  f"be in the DEM's, {crs_label(crs)}, and the ortho is written "
+                                  "in it (give CRS to say otherwise)")
         ortho.check_geometry(photo)  # a camera looking away is an error, not a tilt warning
         warning = ortho.tilt_warning(photo)
         if warning:

@@ -94,8 +94,18 @@ class RectifyImage(Algorithm):
                                     "not resampled)")
         if info.width < 1 or info.height < 1:
             raise self.fail("INPUT", f"{info} has no pixels")
+        from toolbox.io.raster import has_valid_pixel
+
+        if not has_valid_pixel(info.path):  # all nodata or all NaN: an empty, "valid" output
+            raise self.fail("INPUT", f"{info} has no valid pixel (every pixel is nodata or NaN)")
         if params["PIXEL_TO_IMAGE"] is not None:
             parse_pixel_to_image(params["PIXEL_TO_IMAGE"])
+        from toolbox.io.crs import check_input_crs
+        from toolbox.transforms.rectification import load_transform
+
+        model = load_transform(params["TRANSFORM"], "TRANSFORM")
+        if model.crs is not None and params["MODE"] != "gcps":  # CELL_SIZE etc. are metres
+            check_input_crs(self.id, "TRANSFORM", model.crs)
 
     def process(self, params, feedback: Feedback):
         from toolbox.io.crs import crs_label, same_crs

@@ -11,6 +11,7 @@ import numpy as np
 
 from toolbox.cartography.profile import (
     bilinear,
+    chainage_of_vertices,
     contour_crossings,
     points_at,
     sample_stations,
@@ -78,13 +79,39 @@ def line_parts(frame) -> list[np.ndarray]:
             for p in shapely.get_parts(g) if not p.is_empty]
 
 
+def guard_profile_size(lines: list[np.ndarray], mode: str, step: float, spacing: float,
+                       half_width: float) -> None:
+    """Refuse before sampling when the stations (the lines' length / ``step``, or for sections
+    their number, length / ``spacing``, times 2·``half_width`` / ``step``) are too many."""
+    from toolbox.limits import check_size
+
+    if mode == "contours":
+        return
+    length = float(sum(chainage_of_vertices(xy)[-1] for xy in lines))
+    if mode == "step":
+        check_size("vertices", length / step + len(lines), "STEP",
+                   f"{step:g} along {length:,.0f} units of lines", "use a larger STEP")
+        return
+    sections = length / spacing + len(lines)
+    check_size("features", sections, "SPACING", f"{spacing:g} along {length:,.0f} units of "
+               "lines", "use a larger SPACING", "sections")
+    check_size("vertices", sections * (2 * half_width / step + 2), "STEP",
+               f"{step:g} across {sections:,.0f} sections {2 * half_width:g} wide",
+               "use a larger STEP (or SPACING, or a smaller HALF_WIDTH)")
+
+
 def sample_profiles(lines: list[np.ndarray], mode: str, step: float, surface: Surface | None,
                     contours=None, spacing: float = 0.0, half_width: float = 0.0
                     ) -> list[Profile]:
     """Profiles of every line (``mode`` step / contours) or sections along every line as an
     axis (``mode`` sections)."""
+    from toolbox.errors import InputDataError
+
     out = []
     for i, xy in enumerate(lines, start=1):
+        if not chainage_of_vertices(xy)[-1] > 0:
+            raise InputDataError(f"INPUT line {i} has zero length (every vertex at one point, "
+                                 f"{len(xy)} vertices): no profile along it; remove or fix it")
         if mode == "contours":
             geoms, levels = contours
             ch, pts, hs = contour_crossings(xy, geoms, levels)

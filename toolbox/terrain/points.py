@@ -120,6 +120,10 @@ def merge_duplicate_xy(xyz: np.ndarray, tolerance: float = 0.0,
 COLLINEAR_RELATIVE = 1e-7  # RMS distance from the best line / extent below this: collinear
 
 
+class CollinearError(ValueError):
+    """The points lie on one line (up to rounding): no surface through them."""
+
+
 def check_not_collinear(xy: np.ndarray, what: str = "data points") -> None:
     """Raise ``ValueError`` (callers wrap it) when the points lie on one line up to rounding.
 
@@ -138,6 +142,6 @@ def check_not_collinear(xy: np.ndarray, what: str = "data points") -> None:
         raise ValueError(f"the {n} {what} all have the same XY (duplicate positions)")
     spread = float(np.linalg.svd(centred, compute_uv=False)[-1]) / np.sqrt(n)
     if spread < COLLINEAR_RELATIVE * extent:
-        raise ValueError(f"the {n} {what} are collinear: they lie within {spread:.3g} (RMS) of "
+        raise CollinearError(f"the {n} {what} are collinear: they lie within {spread:.3g} (RMS) of "
                          f"one line over an extent of {extent:.6g}; a surface needs points "
                          "spread in two directions")
