@@ -12,6 +12,12 @@ per output window it reads the DEM heights onto the window (:class:`DemSampler`,
 between DEM cell centres, reprojected when the DEM's CRS differs), projects them
 (:class:`~toolbox.photogrammetry.ortho.CollinearityMap`), blanks the cells hidden from the
 camera (optional) and counts what the report needs.
+
+Two paths compute a window's map. The film camera's is the compiled, planned one above. Every
+other camera (the interior models of :mod:`toolbox.cameras`: pinhole, Brown, OpenCV, fisheye),
+and the film camera when the ortho is in another CRS than its orientation, takes one explicit
+path: the window's cells with their DEM heights go through the camera's ``project``
+(:func:`project_cells`, vectorised numpy), and the warp remaps the photo there (``cv2.remap``).
 """
 
 from __future__ import annotations
@@ -23,6 +29,7 @@ from typing import Any
 
 import numpy as np
 
+from toolbox.cameras import CameraModel
 from toolbox.errors import InputDataError
 from toolbox.photogrammetry.ortho import (
     BLOCK_EXACT,
@@ -405,13 +412,17 @@ class OrthoWindows:
     (:meth:`CollinearityMap.source_box` on the DEM heights' range), and the kernel writes the
     OpenCV maps relative to it, with the cells outside the photo blanked, in its one pass."""
 
-    def __init__(self, photo: Any, grid: Any, sampler: DemSampler, cmap: CollinearityMap,
+    def __init__(self, photo: Any, grid: Any, sampler: DemSampler, cmap: CollinearityMap | None,
                  reference_height: float, surface: Any = None, mask_writer: Any = None,
                  incidence_writer: Any = None, to_orientation: Any = None,
                  resampling: str | None = None):
         from toolbox.raster.warp import RESAMPLING_METHODS
 
         self.photo, self.grid, self.sampler, self.cmap = photo, grid, sampler, cmap
+        # cmap None: the camera's own project() maps every window (project_cells)
+        self.camera: CameraModel = photo.sensor()
+        self.image_size = (cmap.model.width, cmap.model.height) if cmap is not None else \
+            tuple(photo.camera.image_size_px)
         self.resampling = resampling if resampling in RESAMPLING_METHODS else None
         self.to_orientation = to_orientation  # pyproj Transformer grid CRS -> orientation CRS
         self.reference_height = reference_height
@@ -492,8 +503,8 @@ class OrthoWindows:
     def _prepare(self, window: Any) -> Any:
         """``(transform, xs, ys, DEM part, plan)`` of a window that can be planned
         (:meth:`_plan`), else None."""
-        if (self.incidence_writer is not None or self.to_orientation is not None
-                or self.sampler.transformer is not None):
+        if (self.cmap is None or self.incidence_writer is not None
+                or self.to_orientation is not None or self.sampler.transformer is not None):
             return None
         xs, ys = self.grid.cell_centers(window)
         part = self.sampler.part(xs, ys)
@@ -545,8 +556,8 @@ class OrthoWindows:
     def _compute(self, window: Any):
         xs, ys = self.grid.cell_centers(window)
         cell_x, cell_y = self.grid.cell_size
-        if (self.incidence_writer is None and self.to_orientation is None
-                and self.sampler.transformer is None):
+        if (self.cmap is not None and self.incidence_writer is None
+                and self.to_orientation is None and self.sampler.transformer is None):
             part = self.sampler.part(xs, ys)
             if part is not None:
                 return self._compute_fused(window, xs, ys, part)
@@ -560,19 +571,18 @@ class OrthoWindows:
                 self.incidence_writer.write(angles, window=window)
         else:
             z = self.sampler.heights(xs, ys)
-        if self.to_orientation is None:
+        if self.to_orientation is None and self.cmap is not None:
             cols, rows, modes, box = self.cmap.project(self.grid.window_transform(window), z)
             gx, gy = xs[None, :], ys[:, None]
-        else:  # the ortho in another CRS: cell centres to the orientation's, then per point
-            gx, gy = lattice_transform(self.to_orientation, xs, ys, 1e-3 * cell_x)
-            gx, gy = gx.reshape(z.shape), gy.reshape(z.shape)
-            image = self.photo.ground_to_pixel((gx, gy, z), behind="nan")
-            cols = image[..., 0].astype("float32")
-            rows = image[..., 1].astype("float32")
-            finite = np.isfinite(cols)
-            box = np.array([cols[finite].min(), rows[finite].min(), cols[finite].max(),
-                            rows[finite].max(), z.size - finite.sum()]) if finite.any() else \
-                np.array([np.inf, np.inf, -np.inf, -np.inf, z.size])
+        else:  # the camera's project(), point by point (the ortho in another CRS: the cell
+            # centres go to the orientation's CRS first)
+            if self.to_orientation is None:
+                gx, gy = np.broadcast_to(xs[None, :], z.shape), np.broadcast_to(ys[:, None],
+                                                                                z.shape)
+            else:
+                gx, gy = lattice_transform(self.to_orientation, xs, ys, 1e-3 * cell_x)
+                gx, gy = gx.reshape(z.shape), gy.reshape(z.shape)
+            cols, rows, box = project_cells(self.camera, gx, gy, z)
             modes = np.zeros((0, 0), dtype=np.int8)  # no blocks: every point exact
         return self._finish(window, xs, ys, gx, gy, z, cols, rows, modes, box)
 
@@ -599,7 +609,7 @@ class OrthoWindows:
                 cols[mask] = np.nan
                 rows[mask] = np.nan
                 missing += stats.hidden
-        w, h = self.cmap.model.width, self.cmap.model.height
+        w, h = self.image_size
         every_cell = missing == 0
         box = (float(cmin), float(rmin), float(cmax), float(rmax)) if missing < z.size else None
         if every_cell and box[0] >= 0 and box[1] >= 0 and box[2] <= w and box[3] <= h:
@@ -670,6 +680,24 @@ class OrthoWindows:
             if not any(contains(k, other) for other in keys):
                 total.add(self.per_window[k])
         return total
+
+
+def project_cells(camera: CameraModel, gx: np.ndarray, gy: np.ndarray, z: np.ndarray
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The coordinate map of a window through any camera: ground cells ``gx``, ``gy`` (h, w) at
+    heights ``z`` (h, w; NaN: none) -> float32 photo pixels ``(cols, rows)`` (h, w; NaN where
+    the cell has no height or no image) and ``box`` (col_min, row_min, col_max, row_max, NaN
+    count) of the finite ones."""
+    image = camera.project(np.column_stack([gx.ravel(), gy.ravel(), z.ravel()]))
+    cols = image[:, 0].astype("float32").reshape(z.shape)
+    rows = image[:, 1].astype("float32").reshape(z.shape)
+    finite = np.isfinite(cols) & np.isfinite(rows)
+    cols[~finite] = np.nan
+    rows[~finite] = np.nan
+    box = np.array([cols[finite].min(), rows[finite].min(), cols[finite].max(),
+                    rows[finite].max(), z.size - finite.sum()]) if finite.any() else \
+        np.array([np.inf, np.inf, -np.inf, -np.inf, z.size])
+    return cols, rows, box
 
 
 def orientation_transformer(photo: Any, crs: Any) -> Any:
@@ -749,7 +777,10 @@ def orthorectify(photo: Any, image: Any, dem: Any, grid: Any, output: Any,
     if to_orientation is not None and (options.occlusion or incidence_output is not None):
         raise InputDataError("the visibility test and the incidence angles need the ortho in "
                              "the orientation's CRS")
-    cmap = CollinearityMap(photo, options.block, options.tolerance_px, image.width, image.height)
+    # the film camera's compiled, planned map; a camera model's own project() otherwise
+    cmap = None if photo.is_model else CollinearityMap(photo, options.block,
+                                                      options.tolerance_px, image.width,
+                                                      image.height)
     if options.occlusion and surface is None:
         surface = photo_surface(dem, photo, grid.crs, options.band)
     if reference_height is None:
