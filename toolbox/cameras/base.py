@@ -40,3 +40,15 @@ class CameraModel(Protocol):
     def pixel_to_ground(self, pixels: np.ndarray, z) -> np.ndarray:
         """Pixels (N, 2) -> ground points (N, 3) on the height(s) ``z`` (scalar or (N,))."""
         ...
+
+
+@runtime_checkable
+class GridProjector(Protocol):
+    """A camera that maps a grid of cells in one compiled pass (what the ortho's coordinate map
+    uses when the camera offers it)."""
+
+    def project_grid(self, gx: np.ndarray, gy: np.ndarray, z: np.ndarray
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Cells ``(gx, gy, z)`` (broadcastable to (h, w)) -> float32 ``(cols, rows)`` (h, w;
+        NaN: no image) and ``(col_min, row_min, col_max, row_max, NaN count)``."""
+        ...

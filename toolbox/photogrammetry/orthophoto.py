@@ -29,7 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from toolbox.cameras import CameraModel
+from toolbox.cameras import CameraModel, GridProjector
 from toolbox.errors import InputDataError
 from toolbox.photogrammetry.ortho import (
     BLOCK_EXACT,
@@ -687,7 +687,10 @@ def project_cells(camera: CameraModel, gx: np.ndarray, gy: np.ndarray, z: np.nda
     """The coordinate map of a window through any camera: ground cells ``gx``, ``gy`` (h, w) at
     heights ``z`` (h, w; NaN: none) -> float32 photo pixels ``(cols, rows)`` (h, w; NaN where
     the cell has no height or no image) and ``box`` (col_min, row_min, col_max, row_max, NaN
-    count) of the finite ones."""
+    count) of the finite ones. A :class:`~toolbox.cameras.GridProjector` camera does it in
+    one compiled pass."""
+    if isinstance(camera, GridProjector):
+        return camera.project_grid(gx, gy, z)
     image = camera.project(np.column_stack([gx.ravel(), gy.ravel(), z.ravel()]))
     cols = image[:, 0].astype("float32").reshape(z.shape)
     rows = image[:, 1].astype("float32").reshape(z.shape)

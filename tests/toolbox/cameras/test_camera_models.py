@@ -199,3 +199,28 @@ def test_bad_opensfm_camera_and_posing():
         create_camera(ODM_BROWN)
     with pytest.raises(InputDataError, match="film camera"):
         create_camera({"type": "frame", "principal_distance_mm": 153})
+
+
+@pytest.mark.parametrize("spec", [ODM_BROWN, OPENCV_FULL, FISHEYE,
+                                  {"type": "brown", "im_size": [1000, 1000], "focal_len": 1.0,
+                                   "k1": -0.25}], ids=["brown", "opencv", "fisheye", "folding"])
+def test_compiled_grid_map_equals_the_model(spec):
+    """FrameCamera.project_grid (the ortho's compiled map) against project (numpy): the same
+    pixels to float32 rounding and the same cells without image (behind, past the valid
+    field, no height)."""
+    eo = ExteriorOrientation.from_angles("p", 0.0, 0.0, 100.0, 20.0, -15.0, 30.0, unit="deg")
+    camera = create_camera(spec, eo)
+    x = np.linspace(-400.0, 400.0, 160)
+    gx, gy = np.meshgrid(x, x)
+    z = np.random.default_rng(5).uniform(0.0, 30.0, gx.shape)
+    z[10:14] = np.nan
+    cols, rows, box = camera.project_grid(gx, gy[:, :1], z)  # broadcast rows too
+    ref = camera.project(np.column_stack([gx.ravel(), gy.ravel(), z.ravel()]))
+    finite = np.isfinite(ref[:, 0])
+    assert 0.05 < finite.mean() < 0.98  # some cells without image (no height at least)
+    assert np.array_equal(np.isfinite(cols.ravel()), finite)
+    scale = np.abs(ref[finite]).max()
+    assert np.abs(cols.ravel()[finite] - ref[finite, 0]).max() <= 1e-7 * scale
+    assert np.abs(rows.ravel()[finite] - ref[finite, 1]).max() <= 1e-7 * scale
+    assert box[4] == (~finite).sum()
+    assert box[0] == np.float32(ref[finite, 0]).min() and box[3] == np.float32(ref[finite, 1]).max()
