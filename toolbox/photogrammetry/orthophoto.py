@@ -64,13 +64,13 @@ class DemSampler:
 
     The DEM may be in another CRS than the output (``crs``): the cell centres are then
     transformed with pyproj (always_xy) and the heights taken bilinearly in the DEM's own grid.
+    A DEM whose CRS differs only by a vertical part (a compound CRS such as UTM + EGM2008
+    height) is read directly: its heights are taken as they are (:func:`same_horizontal_crs`).
     ``factor`` > 1 projects on a coarser DEM (the thesis' "fattore di ricampionamento"): the mean
     of ``factor`` x ``factor`` DEM cells, on a lattice fixed to the DEM's origin (no tile seams).
     """
 
     def __init__(self, info: Any, crs: Any = None, band: int = 1, factor: int = 1):
-        from toolbox.io.crs import same_crs
-
         self.path = info.path
         self.band = int(band)
         self.factor = max(1, int(factor))
@@ -81,7 +81,7 @@ class DemSampler:
         self.shape = (info.height, info.width)
         self.nodata = info.nodata
         self.transformer = None
-        if info.crs is not None and crs is not None and not same_crs(info.crs, crs):
+        if info.crs is not None and crs is not None and not same_horizontal_crs(info.crs, crs):
             from pyproj import Transformer
 
             self.transformer = Transformer.from_crs(crs, info.crs, always_xy=True)
@@ -199,6 +199,17 @@ class DemSampler:
         return out
 
 
+def same_horizontal_crs(a: Any, b: Any) -> bool:
+    """The same CRS, or the same horizontal CRS where one or both are compound (a vertical
+    datum adds heights, it does not move the cells: no reprojection)."""
+    from toolbox.io.crs import same_crs
+
+    def horizontal(crs: Any) -> Any:
+        return crs.sub_crs_list[0] if getattr(crs, "is_compound", False) else crs
+
+    return same_crs(a, b) or same_crs(horizontal(a), horizontal(b))
+
+
 LATTICE = 16  # cells between exactly transformed points when a grid goes to another CRS
 
 
@@ -305,10 +316,9 @@ def photo_surface(info: Any, photo: Any, crs: Any, band: int = 1) -> Any:
     """The DEM window every ray of the photo can meet, as a
     :class:`~toolbox.photogrammetry.surface.DemSurface` in ``crs`` (reprojected bilinearly at the
     DEM's resolution when the DEM is in another CRS)."""
-    from toolbox.io.crs import same_crs
     from toolbox.photogrammetry.surface import surface_for_photo
 
-    if info.crs is None or crs is None or same_crs(info.crs, crs):
+    if info.crs is None or crs is None or same_horizontal_crs(info.crs, crs):
         return surface_for_photo(info, photo, band)
     import rasterio
     from rasterio.enums import Resampling
@@ -879,6 +889,18 @@ class OrthoPlan:
     grid: Any
 
 
+FOOTPRINT_STEP_PX = 4  # photo pixels between the monoplotted points of the footprint's outline
+
+
+def footprint_points_per_side(photo: Any) -> int:
+    """Points per side of the footprint outline: one every :data:`FOOTPRINT_STEP_PX` pixels of
+    the longer side (at least 8, at most 4096; 256 when the image size is unknown)."""
+    size = photo.camera.image_size_px
+    if size is None:
+        return 256
+    return int(min(4096, max(8, math.ceil(max(size) / FOOTPRINT_STEP_PX))))
+
+
 def plan_photo(photo: Any, dem: Any, crs: Any, band: int = 1, cell: float | None = None,
                bounds: tuple[float, float, float, float] | None = None,
                origin: tuple[float, float] = (0.0, 0.0), output_crs: Any = None) -> OrthoPlan:
@@ -888,7 +910,9 @@ def plan_photo(photo: Any, dem: Any, crs: Any, band: int = 1, cell: float | None
     footprint is transformed, densified, to bound the grid). Defaults (as the thesis' software
     proposes, S002 par. 3.8): cell = the photo's ground sample distance at the mean terrain
     height of its footprint (2 significant digits); extent = the footprint on the DEM (the frame
-    outline monoplotted, 8 points per side); edges on the lattice ``origin + k·cell``.
+    outline monoplotted on the DEM at every :data:`FOOTPRINT_STEP_PX` photo pixels of its
+    sides, so that a valley or a lens' curve between two samples is not cut off: 8 points a
+    side cut up to 87 m of real coverage); edges on the lattice ``origin + k·cell``.
     """
     from toolbox.io.crs import parse_crs
     from toolbox.photogrammetry.coverage import photo_footprint
@@ -904,7 +928,8 @@ def plan_photo(photo: Any, dem: Any, crs: Any, band: int = 1, cell: float | None
     eo = photo.require_exterior()
     under = float(surface.height(np.array([eo.x0]), np.array([eo.y0]))[0])
     check_geometry(photo, under if math.isfinite(under) else None)
-    fp = photo_footprint(photo, surface, float(np.nanmean(surface.z)), 8)
+    fp = photo_footprint(photo, surface, float(np.nanmean(surface.z)),
+                         footprint_points_per_side(photo))
     polygon = fp.polygon
     mean_height = mean_height_inside(surface, polygon)
     gsd = ground_sample_distance(photo, mean_height)
