@@ -119,3 +119,29 @@ def test_ortho_batch_with_a_model_camera(terrain, tmp_path):
     data, truth, _ = read_with_truth(tmp_path / "orthos" / "p1.tif", texture)
     patches = patch_positions(data[0], some_patches(data[1] == 255), truth)
     assert len(patches) >= 9 and patches[:, 0].max() <= 0.1
+
+
+def test_camera_yaml_with_a_model_and_bad_models_on_the_command_line(terrain, tmp_path):
+    """CAMERA + EXTERIOR with a model camera gives the PROJECT's ortho; a model whose
+    distortion folds back inside the image is a one-line error (exit 2) with no output left."""
+    import rasterio
+    from conftest import run_cli
+
+    folder, z, transform, texture, dem = terrain
+    write_photo(tmp_path / "p1.tif", render(BROWN, z, transform, texture))
+    (tmp_path / "cam.yaml").write_text(yaml.safe_dump({"name": "lens", "model": BROWN}))
+    area = {"DEM": dem, "CELL_SIZE": 10.0, "INPUT": tmp_path / "p1.tif"}
+    toolbox.run("ortho:photo", {**area, "CAMERA": tmp_path / "cam.yaml", "CRS": scene.CRS,
+                                "EXTERIOR": ",".join(map(str, [*scene.CENTRE, *scene.ANGLES])),
+                                "OUTPUT": tmp_path / "a.tif"})
+    toolbox.run("ortho:photo", {**area, "PROJECT": model_project(tmp_path / "p.yaml", BROWN),
+                                "OUTPUT": tmp_path / "b.tif"})
+    with rasterio.open(tmp_path / "a.tif") as a, rasterio.open(tmp_path / "b.tif") as b:
+        assert a.bounds == b.bounds and np.array_equal(a.read(), b.read())
+    project = model_project(tmp_path / "bad.yaml", dict(BROWN, k1=-0.6))
+    result = run_cli("run", "ortho:photo", "--INPUT", tmp_path / "p1.tif", "--PROJECT",
+                     project, "--DEM", dem, "--OUTPUT", tmp_path / "bad.tif")
+    assert result.returncode == 2, result.stderr
+    assert "do not fit the image size" in result.stderr
+    assert len(result.stderr.splitlines()) == 1
+    assert not (tmp_path / "bad.tif").exists()
