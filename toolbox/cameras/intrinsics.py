@@ -52,6 +52,10 @@ PERSPECTIVE_TERMS = {
     "opencv": ("k1", "k2", "k3", "k4", "k5", "k6", "p1", "p2", "s1", "s2", "s3", "s4"),
 }
 FISHEYE_TERMS = ("k1", "k2", "k3", "k4")
+#: film-camera attributes a model camera lacks (asking for one is a one-line InputDataError)
+FILM_ONLY = frozenset({"c", "principal_distance_mm", "fiducials_mm", "pixel_size_mm",
+                       "frame_size_mm", "distortion", "image_to_camera", "camera_to_image",
+                       "frame_outline_mm"})
 
 
 @dataclass(frozen=True, eq=False)
@@ -114,6 +118,15 @@ class Intrinsics:
                 f"camera {self.name!r}: its distortion folds back inside the image (the model "
                 f"reaches normalised radius {reach:.4g} at most, the image corners lie at "
                 f"{corner:.4g}): the parameters do not fit the image size {w} x {h} px")
+
+    def __getattr__(self, name: str) -> Any:
+        """The film camera's attributes (principal distance in mm, fiducials...) do not exist
+        here: a step written for film cameras that asks for one stops with a one-line error
+        instead of an internal one."""
+        if name in FILM_ONLY:
+            raise InputDataError(f"camera {self.name!r} is a {self.kind} model without {name}: "
+                                 "this step handles film cameras only")
+        raise AttributeError(name)
 
     # -- plain views ----------------------------------------------------------------------------
     @property

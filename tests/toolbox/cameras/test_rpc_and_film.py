@@ -162,3 +162,19 @@ def test_project_model_errors(tmp_path):
     bad = dict(ODM_BROWN, type="equirectangular")
     with pytest.raises(InputDataError, match="type must be one of"):
         load_project(model_project(tmp_path, bad))
+
+
+def test_film_only_steps_stop_with_a_one_line_error_on_a_model_camera(tmp_path):
+    """A step written for film cameras (fiducials, principal distance in mm) asked to work on
+    a model camera: a one-line InputDataError, never an internal error; the camera still
+    pickles (Dask workers)."""
+    import pickle
+
+    photo = load_project(model_project(tmp_path, ODM_BROWN)).photo("a")
+    with pytest.raises(InputDataError, match="is a brown model without c: this step handles"):
+        _ = photo.camera.c
+    with pytest.raises(InputDataError, match="film cameras only"):
+        photo.require_pixel_transform()
+    again = pickle.loads(pickle.dumps(photo))
+    np.testing.assert_allclose(again.sensor().project(np.array([[292700.0, 2731010.0, 0.0]])),
+                               photo.sensor().project(np.array([[292700.0, 2731010.0, 0.0]])))
