@@ -172,7 +172,12 @@ class Photo:
         if self.is_model:
             w, h = self.camera.image_size_px
             corners_px = np.array([[0.0, 0.0], [0.0, h], [w, h], [w, 0.0]])
-            return self._normalised(outline_points(corners_px, points_per_side))
+            outline = self._normalised(outline_points(corners_px, points_per_side))
+            if np.isnan(outline).any():
+                raise InputDataError(f"photo {self.id!r}: the edge of its image looks 90 "
+                                     "degrees or more off the optical axis (or past the lens "
+                                     "model's field): it has no footprint on the ground")
+            return outline
         outline = self.camera.frame_outline_mm(points_per_side)
         if outline is not None:
             return outline

@@ -178,3 +178,18 @@ def test_film_only_steps_stop_with_a_one_line_error_on_a_model_camera(tmp_path):
     again = pickle.loads(pickle.dumps(photo))
     np.testing.assert_allclose(again.sensor().project(np.array([[292700.0, 2731010.0, 0.0]])),
                                photo.sensor().project(np.array([[292700.0, 2731010.0, 0.0]])))
+
+
+def test_a_fisheye_seeing_past_90_degrees_has_no_footprint_outline():
+    from test_camera_models import FISHEYE
+
+    from toolbox.cameras import create_intrinsics
+    from toolbox.photogrammetry.exterior import ExteriorOrientation
+    from toolbox.photogrammetry.photo import Photo
+
+    eo = ExteriorOrientation.from_angles("f", 0.0, 0.0, 100.0, 0.0, 0.0, 0.0)
+    photo = Photo("f", create_intrinsics(FISHEYE), eo)
+    with pytest.raises(InputDataError, match="90 degrees or more off the optical axis"):
+        photo.frame_outline_mm(4)
+    narrow = Photo("f", create_intrinsics(dict(FISHEYE, focal_len=0.8)), eo)
+    assert np.isfinite(narrow.frame_outline_mm(4)).all()
