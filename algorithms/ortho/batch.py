@@ -125,7 +125,7 @@ class OrthoBatch(Algorithm):
         folder = Path(params["FOLDER"])
         folder.mkdir(parents=True, exist_ok=True)
         tasks = [orthophoto.OrthoTask(plan.photo, image, params["DEM"],
-                                 orthophoto.lattice_grid(plan.footprint.bounds, cell, crs, origin),
+                                 orthophoto.lattice_grid(plan.extent, cell, crs, origin),
                                  folder / f"{plan.photo.id}.tif", options, plan.mean_height,
                                  params["MAP_SCALE"]) for plan, image in plans]
         reports = []

@@ -879,7 +879,9 @@ def orthorectify(photo: Any, image: Any, dem: Any, grid: Any, output: Any,
 @dataclass
 class OrthoPlan:
     """What an ortho of one photo needs before warping: the DEM window the photo sees, its
-    footprint on the DEM, the mean terrain height, the photo's GSD there and the output grid."""
+    footprint on the DEM (8 points a side: for reports), the mean terrain height, the photo's
+    GSD there, the output grid and ``extent``, the bounds of the footprint traced densely
+    (:func:`footprint_points_per_side`): what the default grid covers."""
 
     photo: Any
     surface: Any
@@ -887,6 +889,7 @@ class OrthoPlan:
     mean_height: float
     gsd: float
     grid: Any
+    extent: tuple[float, float, float, float] | None = None
 
 
 FOOTPRINT_STEP_PX = 4  # photo pixels between the monoplotted points of the footprint's outline
@@ -928,9 +931,9 @@ def plan_photo(photo: Any, dem: Any, crs: Any, band: int = 1, cell: float | None
     eo = photo.require_exterior()
     under = float(surface.height(np.array([eo.x0]), np.array([eo.y0]))[0])
     check_geometry(photo, under if math.isfinite(under) else None)
-    fp = photo_footprint(photo, surface, float(np.nanmean(surface.z)),
-                         footprint_points_per_side(photo))
-    polygon = fp.polygon
+    plane = float(np.nanmean(surface.z))
+    polygon = photo_footprint(photo, surface, plane, 8).polygon  # mean height, reports
+    outline = photo_footprint(photo, surface, plane, footprint_points_per_side(photo)).polygon
     mean_height = mean_height_inside(surface, polygon)
     gsd = ground_sample_distance(photo, mean_height)
     cell = nice_cell_size(gsd) if cell is None else float(cell)
@@ -944,8 +947,11 @@ def plan_photo(photo: Any, dem: Any, crs: Any, band: int = 1, cell: float | None
 
         dense = shapely.segmentize(shapely.force_2d(polygon), max(polygon.length / 400.0, cell))
         polygon = shapely.transform(dense, to_output)
-    grid = lattice_grid(polygon.bounds if bounds is None else bounds, cell, output_crs, origin)
-    return OrthoPlan(photo, surface, polygon, mean_height, gsd, grid)
+        outline = shapely.transform(shapely.segmentize(shapely.force_2d(outline), max(
+            outline.length / 400.0, cell)), to_output)
+    extent = tuple(float(v) for v in outline.union(polygon).bounds)
+    grid = lattice_grid(extent if bounds is None else bounds, cell, output_crs, origin)
+    return OrthoPlan(photo, surface, polygon, mean_height, gsd, grid, extent)
 
 
 # -- whole blocks ---------------------------------------------------------------------------------------
