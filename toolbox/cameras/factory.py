@@ -64,8 +64,9 @@ def create_intrinsics(spec: Mapping[str, Any], name: str = "", tolerance_px: flo
         raise InputDataError(f"{where}: the model must be a mapping, got {spec!r}")
     kind = _kind(spec, where)
     if kind in ("frame", "rpc"):
-        raise InputDataError(f"{where}: type {kind} is not an interior model of pixels; use "
-                             "create_camera")
+        raise InputDataError(f"{where}: type {kind} is not a frame model (pinhole, brown, "
+                             "opencv, fisheye); a film camera takes the film fields, an rpc "
+                             "camera comes from create_camera")
     terms = FISHEYE_TERMS if kind == "fisheye" else PERSPECTIVE_TERMS[kind]
     known = {"type", "cam_type", "im_size", "focal_len", "sensor_size", "cx", "cy", *terms}
     unknown = sorted(set(map(str, spec)) - known)
