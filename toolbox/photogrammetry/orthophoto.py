@@ -892,16 +892,16 @@ class OrthoPlan:
     extent: tuple[float, float, float, float] | None = None
 
 
-FOOTPRINT_STEP_PX = 4  # photo pixels between the monoplotted points of the footprint's outline
+FOOTPRINT_STEP_PX = 16  # photo pixels between the monoplotted points of the footprint's outline
 
 
 def footprint_points_per_side(photo: Any) -> int:
     """Points per side of the footprint outline: one every :data:`FOOTPRINT_STEP_PX` pixels of
-    the longer side (at least 8, at most 4096; 256 when the image size is unknown)."""
+    the longer side (at least 8, at most 1024; 256 when the image size is unknown)."""
     size = photo.camera.image_size_px
     if size is None:
         return 256
-    return int(min(4096, max(8, math.ceil(max(size) / FOOTPRINT_STEP_PX))))
+    return int(min(1024, max(8, math.ceil(max(size) / FOOTPRINT_STEP_PX))))
 
 
 def plan_photo(photo: Any, dem: Any, crs: Any, band: int = 1, cell: float | None = None,
