@@ -1,8 +1,9 @@
 """Compiled coordinate map of a grid of ground points through an interior model: the same
 arithmetic as :meth:`toolbox.cameras.intrinsics.Intrinsics.camera_to_pixel` after
 :meth:`toolbox.cameras.frame.FrameCamera.to_camera`, fused in one pass without temporaries
-(numpy's version allocates a dozen (N,) arrays: about 130-280 ms per million cells measured,
-against a few ms here). Single-threaded, releases the GIL: windows run on threads."""
+(numpy's version allocates a dozen (N,) arrays: a 1024 x 1024 window of a Brown camera took
+260 ms against 20 ms here, medians of 7 runs side by side on a loaded machine).
+Single-threaded, releases the GIL: windows run on threads."""
 
 from __future__ import annotations
 

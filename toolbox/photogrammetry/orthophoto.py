@@ -17,7 +17,8 @@ Two paths compute a window's map. The film camera's is the compiled, planned one
 other camera (the interior models of :mod:`toolbox.cameras`: pinhole, Brown, OpenCV, fisheye),
 and the film camera when the ortho is in another CRS than its orientation, takes one explicit
 path: the window's cells with their DEM heights go through the camera's ``project``
-(:func:`project_cells`, vectorised numpy), and the warp remaps the photo there (``cv2.remap``).
+(:func:`project_cells`: one compiled pass for the interior models, the camera's vectorised
+``project`` otherwise), and the warp remaps the photo there (``cv2.remap``).
 """
 
 from __future__ import annotations
