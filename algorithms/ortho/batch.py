@@ -145,7 +145,7 @@ class OrthoBatch(Algorithm):
             overviews=params["OVERVIEWS"], cog=params["COG"])
         folder = Path(params["FOLDER"])  # staged by the runner: moved into place on success
         tasks = [orthophoto.OrthoTask(plan.photo, image, params["DEM"],
-                                 orthophoto.lattice_grid(plan.footprint.bounds, cell, crs, origin),
+                                 orthophoto.lattice_grid(plan.extent, cell, crs, origin),
                                  folder / f"{plan.photo.id}.tif", options, plan.mean_height,
                                  params["MAP_SCALE"]) for plan, image in plans]
         reports = []

@@ -52,7 +52,9 @@ class OrthoPhoto(Algorithm):
     The orientation comes from PROJECT (an orientation project; PHOTO names the photo, default
     the one whose image file or id matches INPUT) or from CAMERA (a camera YAML as in a
     project's ``cameras`` list; the pixel transform from its pixel and image size) with
-    EXTERIOR = "X0,Y0,Z0,omega,phi,kappa" in ANGLE_UNIT and CRS.
+    EXTERIOR = "X0,Y0,Z0,omega,phi,kappa" in ANGLE_UNIT and CRS. A camera may be a model
+    (``model:`` pinhole, Brown, OpenCV or fisheye; README "Camera models"): its cells are
+    mapped through the model's projection, exactly at every cell, and remapped by OpenCV.
 
     Defaults as the thesis' software proposes: CELL_SIZE = the photo's ground sample distance
     at the mean terrain height of its footprint (2 significant digits); EXTENT = the footprint
@@ -243,7 +245,8 @@ def camera_photo(params: dict[str, Any]) -> Any:
         raise ParameterError("CAMERA", f"'{path}' must hold one camera mapping")
     spec = dict(spec)
     info = params["INPUT"]
-    spec.setdefault("image_size_px", [info.width, info.height])
+    if "model" not in spec:  # a camera model carries its im_size
+        spec.setdefault("image_size_px", [info.width, info.height])
     try:
         values = [float(v) for v in params["EXTERIOR"].replace(";", ",").split(",")]
     except ValueError:
@@ -261,6 +264,9 @@ def camera_photo(params: dict[str, Any]) -> Any:
     except InputDataError as exc:
         raise ParameterError("CAMERA", str(exc)) from None
     photo = next(iter(project.photos.values()))
+    if params["PIXEL_TO_IMAGE"] is not None and photo.is_model:
+        raise ParameterError("PIXEL_TO_IMAGE", "applies to film cameras only; the camera model "
+                             "maps its own pixels")
     if params["PIXEL_TO_IMAGE"] is not None:
         from dataclasses import replace
 
@@ -270,7 +276,7 @@ def camera_photo(params: dict[str, Any]) -> Any:
         matrix = parse_pixel_to_image(params["PIXEL_TO_IMAGE"])
         photo = replace(photo, interior=InteriorOrientation(
             matrix, "homography" if matrix[2, :2].any() else "affine"))
-    if photo.pixel_transform is None:
+    if photo.pixel_transform is None and not photo.is_model:
         raise ParameterError("CAMERA", "needs pixel_size_mm (and image_size_px), or give "
                              "PIXEL_TO_IMAGE, to relate the photo's pixels to image mm")
     return photo
