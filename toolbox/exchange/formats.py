@@ -113,10 +113,15 @@ def read_one(path: Path, fmt: str, crs: Any = None, angle_unit: str | None = Non
     if fmt == "patb":
         return patb.read_patb(path, crs, angle_unit)
     if fmt == "project":
+        import yaml
+
         from toolbox.exchange.project import from_project
         from toolbox.photogrammetry.project import load_project
 
-        return from_project(load_project(path))
+        doc = yaml.safe_load(Path(path).read_text(encoding="utf-8")) or {}
+        models = {str(c.get("name")): c["model"] for c in doc.get("cameras") or []
+                  if isinstance(c, dict) and isinstance(c.get("model"), dict)}
+        return from_project(load_project(path), models)
     if fmt == "gcp":
         raise InputDataError(f"INPUT: {path} is an ODM gcp_list (control points, not "
                              "orientations): convert it alone, to an image-measurement CSV")

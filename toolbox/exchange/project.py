@@ -126,18 +126,21 @@ def write_project(oset: OrientationSet, path: str | Path, angle_unit: str = "deg
     return path
 
 
-def from_project(project: Any) -> OrientationSet:
-    """An :class:`OrientationSet` from a loaded product project (film cameras become pinhole
-    specs when they know image and pixel size; fiducial fits and radial tables are noted as not
-    carried over)."""
+def from_project(project: Any, models: dict[str, dict] | None = None) -> OrientationSet:
+    """An :class:`OrientationSet` from a loaded product project and the cameras' ``model:``
+    specs (``models``, by camera name; they win over the classic fields). Film cameras without
+    a model become pinhole specs when they know image and pixel size; fiducial fits and radial
+    tables are noted as not carried over."""
+    from toolbox.exchange.model import check_camera
+
     out = OrientationSet(crs=project.crs, source=str(project.source or ""), format="project")
     for name, cam in project.cameras.items():
+        if name in (models or {}):
+            out.cameras[name] = check_camera(models[name], name, out.source)
+            continue
         if cam.image_size_px is None or cam.pixel_size_mm is None:
             raise InputDataError(f"camera {name!r} has no image_size_px and pixel_size_mm: it "
                                  "cannot be written as a pixel camera model")
-        if isinstance(getattr(cam, "model", None), dict):
-            out.cameras[name] = dict(cam.model)
-            continue
         w, h = cam.image_size_px
         s, m = cam.pixel_size_mm, max(cam.image_size_px)
         out.cameras[name] = {"type": "pinhole", "im_size": [w, h], "focal_len": cam.c,
@@ -185,7 +188,7 @@ def project_from_orientations(oset: OrientationSet, images: str | Path | None = 
     algorithms then report them)."""
     from toolbox.photogrammetry.project import project_from_dict
 
-    source = Path(oset.source) if oset.source else None
+    source = Path(oset.source.split(", ")[0]) if oset.source else None  # merged: the first
     folder = Path(images) if images is not None else \
         (default_image_folder(source) if source is not None else None)
     found = find_images(folder) if folder is not None else {}
