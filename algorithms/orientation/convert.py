@@ -114,6 +114,8 @@ class ConvertOrientations(Algorithm):
             unit = params["ANGLE_UNIT_OUT"]
             written = formats.write_orientations(oset, params["FORMAT_OUT"], output, unit)
             summary = oset.summary()
+            summary["angle_unit_out"] = unit or {"project": "deg", "orthority": "rad",
+                                                 "csv": "deg", "patb": "gon"}[params["FORMAT_OUT"]]
         summary["written"] = [p.name for p in written]
         feedback.push_info(json.dumps(summary, indent=1, ensure_ascii=False))
         return {"OUTPUT": str(output), "SUMMARY": summary}

@@ -186,7 +186,8 @@ def write_csv(oset: OrientationSet, path: str | Path, angle_unit: str = "deg") -
                      f"kappa{suffix}", "camera"])
     for p in photos:
         writer.writerow([p.id, *(f"{v:.4f}" for v in p.xyz),
-                         *(f"{from_radians(a, unit):.10f}" for a in p.opk), p.camera or ""])
+                         *(f"{from_radians(a, unit) + 0.0:.10f}".replace("-0.0000000000", "0.0000000000")
+                           for a in p.opk), p.camera or ""])
     path.write_text(buffer.getvalue(), encoding="utf-8")
     if oset.crs is not None:
         path.with_suffix(".prj").write_text(oset.crs.to_wkt(), encoding="utf-8")

@@ -145,8 +145,8 @@ def from_project(project: Any, models: dict[str, dict] | None = None) -> Orienta
         s, m = cam.pixel_size_mm, max(cam.image_size_px)
         out.cameras[name] = {"type": "pinhole", "im_size": [w, h], "focal_len": cam.c,
                              "sensor_size": [w * s, h * s],
-                             "cx": cam.principal_point_mm[0] / (m * s),
-                             "cy": -cam.principal_point_mm[1] / (m * s)}
+                             "cx": cam.principal_point_mm[0] / (m * s) + 0.0,
+                             "cy": -cam.principal_point_mm[1] / (m * s) + 0.0}  # no -0.0
         if cam.distortion is not None:
             kind = next(iter(cam.distortion.as_dict()))
             out.notes.append(f"camera {name!r}: its radial distortion ({kind}) has no "
