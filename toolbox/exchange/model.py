@@ -50,6 +50,20 @@ class PhotoOrientation:
     xyz: tuple[float, float, float] | None = None
     opk: tuple[float, float, float] | None = None
 
+    def __post_init__(self) -> None:
+        for name in ("xyz", "opk"):
+            value = getattr(self, name)
+            if value is None:
+                continue
+            try:
+                value = tuple(float(v) for v in value)
+            except (TypeError, ValueError):
+                value = ()
+            if len(value) != 3 or not np.isfinite(value).all():
+                raise InputDataError(f"photo {self.id!r}: {name} must be 3 finite numbers, got "
+                                     f"{getattr(self, name)!r}")
+            setattr(self, name, value)
+
     @property
     def oriented(self) -> bool:
         return self.xyz is not None and self.opk is not None

@@ -42,12 +42,13 @@ def _crs_line(text: str):
     return CRS.from_user_input(text)
 
 
+CRS_LINE = re.compile(r"^(\+proj=|epsg:\d|wgs84 utm \d|(projcs|geogcs|projcrs|geogcrs|compd_cs)\[)",
+                      re.I)
+
+
 def looks_like(lines: list[str]) -> bool:
-    if len(lines) < 2:
-        return False
-    try:
-        _crs_line(lines[0])
-    except Exception:  # pyproj raises CRSError for anything else
+    """A CRS line (PROJ, EPSG, ODM's UTM label or WKT) then ``x y z px py image`` rows."""
+    if len(lines) < 2 or not CRS_LINE.match(lines[0]):
         return False
     parts = lines[1].split()
     try:

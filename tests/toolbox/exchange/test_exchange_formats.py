@@ -2,6 +2,7 @@
 product's project object (images matched by file stem)."""
 
 import logging
+import shutil
 
 import cv2
 import numpy as np
@@ -9,7 +10,8 @@ import pytest
 from pyproj import Transformer
 from scipy.spatial.transform import Rotation
 
-from toolbox.errors import InputDataError, ParameterError
+from tests.toolbox.exchange import exchange_synthetic as syn
+from toolbox.errors import InputDataError, ParameterError, ToolboxError
 from toolbox.exchange import formats, metashape, odm_gcp, patb, project_from_file
 from toolbox.exchange.geodesy import require_projected
 from toolbox.exchange.model import OrientationSet, PhotoOrientation
@@ -164,3 +166,40 @@ def test_orientation_file_as_project_with_image_folder(tmp_path, caplog):
     assert project.photo("P0").camera.image_size_px == (400, 300)
     with pytest.raises(InputDataError, match="no image file"):
         project_from_file(tmp_path / "block_ext_param.geojson", images=tmp_path / "none")
+
+
+def test_damaged_files_fail_with_one_line_errors(tmp_path):
+    """Empty, binary, truncated and non-finite versions of each format raise a toolbox error
+    (one line, naming the file), never another exception nor a non-finite orientation."""
+    good = tmp_path / "good"
+    good.mkdir()
+    syn.reconstruction(good / "reconstruction.json")
+    metashape_xml(good / "cams.xml")
+    (good / "gcp_list.txt").write_text("EPSG:4326\n11.30 43.30 300.0 100 200 IMG_1.JPG a\n")
+    (good / "x.ori").write_text("101 1000.0 2000.0 1500.0 0.1 -0.2 100.0\n-99\n")
+    oset = formats.read_orientations([good / "reconstruction.json"])
+    formats.write_orientations(oset, "orthority", good / "b_ext_param.geojson")
+    formats.write_orientations(oset, "csv", good / "b.csv")
+    for src in sorted(good.iterdir()):
+        if src.suffix == ".prj":
+            continue
+        data = src.read_bytes()
+        variants = {"empty": b"", "binary": b"\x89PNG\r\n\x1a\n" + bytes(range(256)) * 4,
+                    "text": b"hello world\n", "nan": data.replace(b"1", b"nan", 3),
+                    **{f"cut{k}": data[:len(data) * k // 10] for k in (1, 3, 5, 8)}}
+        for name, content in variants.items():
+            bad = tmp_path / name / src.name
+            bad.parent.mkdir(exist_ok=True)
+            bad.write_bytes(content)
+            if src.with_suffix(".prj").exists():
+                shutil.copy(src.with_suffix(".prj"), bad.with_suffix(".prj"))
+            try:
+                if formats.detect(bad) == "gcp":
+                    odm_gcp.read_gcp_list(bad)
+                    continue
+                out = formats.read_orientations([bad], crs="EPSG:32632", angle_unit="gon")
+            except ToolboxError as exc:
+                assert "\n" not in str(exc)
+                continue
+            values = [v for p in out.photos.values() for v in (p.xyz or ()) + (p.opk or ())]
+            assert np.isfinite(values).all(), bad
