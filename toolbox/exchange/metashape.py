@@ -12,6 +12,8 @@ XML (Metashape manual, appendix C "Camera models"; the export's layout):
   no place in the schema: refused when it moves a corner pixel by more than 0.01 px.
 - ``<camera label transform>``: the 4x4 camera -> chunk matrix, OpenCV camera axes (x right,
   y down, z forward); cameras without a transform (not aligned) are listed without orientation.
+- a camera's ``component_id`` (Metashape 1.6 and later) puts its component's ``<transform>``
+  between the camera and the chunk;
 - the chunk ``<transform>`` (``rotation``, ``translation``, ``scale``) maps chunk coordinates to
   geocentric WGS84 (ECEF) when the chunk ``<reference>`` is a geographic or projected CRS, or to
   the local frame for ``LOCAL_CS``. Positions and rotations then go to the grid
@@ -118,6 +120,9 @@ def read_xml(path: str | Path, crs: Any = None) -> OrientationSet:
     ref_text = (ref_node.text or "").strip() if ref_node is not None else ""
     ref_crs = None if not ref_text or ref_text.startswith("LOCAL_CS") else CRS.from_wkt(ref_text)
     chunk_matrix = _chunk_transform(chunk)
+    components = {c.get("id"): _chunk_transform(c)
+                  for c in chunk.find("components") if c.tag == "component"} \
+        if chunk.find("components") is not None else {}
     rows = []
     for cam in chunk.find("cameras") or []:
         if cam.tag != "camera":
@@ -129,6 +134,8 @@ def read_xml(path: str | Path, crs: Any = None) -> OrientationSet:
             out.add_photo(PhotoOrientation(photo_id(label), sensor, label), str(path))
             continue
         matrix = np.array([float(v) for v in node.text.split()]).reshape(4, 4)
+        if components.get(cam.get("component_id")) is not None:  # Metashape >= 1.6
+            matrix = components[cam.get("component_id")] @ matrix
         if chunk_matrix is not None:
             matrix = chunk_matrix @ matrix
         r = matrix[:3, :3]

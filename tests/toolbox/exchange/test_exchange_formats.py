@@ -82,6 +82,33 @@ def test_metashape_xml_projects_like_opencv(tmp_path):
         assert np.abs(ours - (cv + 0.5)).max() < 0.02
 
 
+def test_metashape_components_compose(tmp_path):
+    """A component transform between cameras and chunk (Metashape >= 1.6) gives the same
+    orientations as the same cameras written in chunk coordinates."""
+    metashape_xml(tmp_path / "flat.xml")
+    text = (tmp_path / "flat.xml").read_text()
+    comp = Rotation.from_euler("xyz", [10, 20, -30], degrees=True).as_matrix()
+    m = np.eye(4)
+    m[:3, :3], m[:3, 3] = 2.0 * comp, [3.0, -4.0, 5.0]
+    inverse = np.linalg.inv(m)
+    cams = text[text.index("<cameras>"):text.index("</cameras>")]
+    new = cams
+    for k in range(2):
+        block = cams.split("<transform>")[k + 1].split("</transform>")[0]
+        t = inverse @ np.array([float(v) for v in block.split()]).reshape(4, 4)
+        new = new.replace(block, " ".join(f"{v:.17g}" for v in t.ravel()))
+    new = new.replace('sensor_id="0"', 'sensor_id="0" component_id="0"')
+    component = ('<components><component id="0"><transform><rotation>'
+                 + " ".join(f"{v:.17g}" for v in comp.ravel()) + "</rotation><translation>"
+                 "3 -4 5</translation><scale>2</scale></transform></component></components>")
+    (tmp_path / "comp.xml").write_text(text.replace(cams, component + new))
+    flat = metashape.read_xml(tmp_path / "flat.xml", crs=TM)
+    composed = metashape.read_xml(tmp_path / "comp.xml", crs=TM)
+    for pid in ("DSC_0", "DSC_1"):
+        assert np.allclose(flat.photos[pid].xyz, composed.photos[pid].xyz, atol=1e-6, rtol=0)
+        assert np.allclose(flat.photos[pid].opk, composed.photos[pid].opk, atol=1e-9, rtol=0)
+
+
 def test_metashape_tangential_terms_follow_opencv(tmp_path):
     """Metashape's P1/P2 (manual, appendix C) are OpenCV's p2/p1: the manual's formula and
     cv2.projectPoints with the converted spec give the same pixels."""

@@ -104,3 +104,33 @@ def test_rotation_convention_opencv_to_photogrammetric():
     assert np.allclose(opk_from_opencv(syn.NADIR), 0.0, atol=1e-12)
     r = rotation_matrix(*opk_from_opencv(syn.ATTITUDES[1]))
     assert np.allclose(r @ [0, 0, -1.0], syn.ATTITUDES[1] @ [0, 0, 1.0])  # viewing direction
+
+
+def test_odm_leftover_says_utm_offset(tmp_path):
+    """Without GPS positions, ODM's reconstruction.topocentric.json beside the file means the
+    UTM-offset frame: positions are the UTM offset plus the file's coordinates."""
+    path = syn.reconstruction(tmp_path / "reconstruction.json", gps=False)
+    (tmp_path / "reconstruction.topocentric.json").write_text("[]")
+    oset = opensfm.read_reconstruction(path)
+    assert any("frame utm_offset" in n for n in oset.notes)
+    origin = Transformer.from_crs(4979, 32651, always_xy=True).transform(syn.LON, syn.LAT, 0.0)
+    expected = np.add([origin[0], origin[1], syn.ALT], syn.CENTRES[2])
+    assert np.allclose(oset.photos["IMG_2"].xyz, expected, atol=1e-6, rtol=0)
+    assert np.allclose(rotation_matrix(*oset.photos["IMG_2"].opk),
+                       syn.ATTITUDES[2] @ np.diag([1.0, -1.0, -1.0]), atol=1e-12)
+
+
+def test_cameras_json_models(tmp_path):
+    """OpenSfM camera models to the schema: perspective -> brown (focal, k1, k2),
+    fisheye_opencv -> fisheye (k1..k4), principal point offsets kept."""
+    (tmp_path / "cameras.json").write_text(json.dumps({
+        "v2 a": {"projection_type": "perspective", "width": 4000, "height": 3000, "focal": 0.85,
+                 "k1": -0.1, "k2": 0.02},
+        "v2 b": {"projection_type": "fisheye_opencv", "width": 2000, "height": 2000,
+                 "focal_x": 0.3, "focal_y": 0.31, "c_x": 0.01, "c_y": -0.02, "k1": 0.1,
+                 "k2": -0.01, "k3": 0.001, "k4": 0.0001}}))
+    cams = opensfm.read_cameras_json(tmp_path / "cameras.json").cameras
+    assert cams["a"] == {"type": "brown", "im_size": [4000, 3000], "focal_len": 0.85, "cx": 0.0,
+                         "cy": 0.0, "k1": -0.1, "k2": 0.02}
+    assert cams["b"]["type"] == "fisheye" and cams["b"]["focal_len"] == [0.3, 0.31]
+    assert (cams["b"]["cx"], cams["b"]["k4"]) == (0.01, 0.0001)
