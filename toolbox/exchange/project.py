@@ -1,15 +1,16 @@
 """The product's orientation project (:mod:`toolbox.photogrammetry.project`) to and from an
 :class:`~toolbox.exchange.model.OrientationSet`.
 
-Each camera entry written holds both
+Each camera entry written is
 
-- the classic fields the project loader reads today (``principal_distance_mm``,
-  ``principal_point_mm``, ``image_size_px``, ``pixel_size_mm``, ``frame_size_mm``): the
-  distortion-free pinhole part of the model, with a pixel size from ``sensor_size`` or, when the
-  spec gives none, a nominal ``NOMINAL_PIXEL_MM`` (the geometry depends only on focal length in
-  pixels); and
-- ``model:``, the full Orthority interior-parameter spec (type, distortion coefficients),
-  which the camera-model loader (``toolbox.cameras.create_camera``) takes over.
+- ``{name, model: <the Orthority interior-parameter spec>}`` when this toolbox has camera models
+  (the ``toolbox.cameras`` package: the project loader then builds the model, distortion
+  included; it refuses a camera giving both ``model`` and the film fields); or
+- without camera models, the classic film fields of the distortion-free pinhole part
+  (``principal_distance_mm``, ``principal_point_mm``, ``image_size_px``, ``pixel_size_mm``,
+  ``frame_size_mm``), with a pixel size from ``sensor_size`` or, when the spec gives none, a
+  nominal ``NOMINAL_PIXEL_MM`` (the geometry depends only on the focal length in pixels); any
+  distortion is then dropped and the notes say so.
 
 Principal point: Orthority ``cx, cy`` (normalised by ``max(w, h)``, x right, y down) are
 ``(cx·m·s, -cy·m·s)`` mm in the product's image system (origin at the image centre, y up), with
@@ -30,10 +31,19 @@ IMAGE_SUFFIXES = {".tif", ".tiff", ".jpg", ".jpeg", ".png", ".jp2", ".dng"}
 log = logging.getLogger("toolbox.exchange")
 
 
-def classic_camera(name: str, spec: dict[str, Any], notes: list[str]) -> dict[str, Any]:
-    """The project's classic camera fields (pinhole part) plus ``model: spec``."""
+def model_cameras() -> bool:
+    """True when the project loader takes ``model:`` cameras (the toolbox.cameras package)."""
+    import importlib.util
+
+    return importlib.util.find_spec("toolbox.cameras") is not None
+
+
+def camera_entry(name: str, spec: dict[str, Any], notes: list[str]) -> dict[str, Any]:
+    """The project YAML entry of one camera (see the module docstring)."""
     if spec.get("type") == "frame":
         return {"name": name, **{k: v for k, v in spec.items() if k != "type"}}
+    if model_cameras():
+        return {"name": name, "model": dict(spec)}
     w, h = spec["im_size"]
     fx, fy = focal_px(spec)
     if spec.get("sensor_size"):
@@ -52,10 +62,10 @@ def classic_camera(name: str, spec: dict[str, Any], notes: list[str]) -> dict[st
              "principal_point_mm": [spec.get("cx", 0.0) * m * pixel,
                                     -spec.get("cy", 0.0) * m * pixel],
              "image_size_px": [int(w), int(h)], "pixel_size_mm": pixel,
-             "frame_size_mm": [w * pixel, h * pixel], "model": dict(spec)}
+             "frame_size_mm": [w * pixel, h * pixel]}
     if any(spec.get(k) for k in spec if k[0] in "kpst" and k[1:].isdigit() or k in ("tx", "ty")):
-        notes.append(f"camera {name!r}: its distortion is in 'model' only (the classic fields are "
-                     "the distortion-free pinhole part)")
+        notes.append(f"camera {name!r}: its distortion is dropped (this toolbox has no camera "
+                     "models: the classic fields hold the distortion-free pinhole part)")
     return entry
 
 
@@ -102,7 +112,7 @@ def project_document(oset: OrientationSet, base_dir: Path | None, angle_unit: st
                 zip(("omega", "phi", "kappa"), (from_radians(a, unit) for a in p.opk),
                     strict=True))
         photos.append(entry)
-    cameras = [classic_camera(n, s, notes) for n, s in oset.cameras.items()
+    cameras = [camera_entry(n, s, notes) for n, s in oset.cameras.items()
                if n in set(cams.values()) or not photos]
     oset.notes.extend(n for n in notes if n not in oset.notes)
     return {"format": "orientation-project", "version": 1,

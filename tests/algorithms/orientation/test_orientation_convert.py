@@ -37,7 +37,9 @@ def test_reconstruction_to_orthority_and_project(tmp_path):
                                         "OUTPUT": str(tmp_path / "p.yaml")})
     project = load_project(tmp_path / "p.yaml")
     assert set(project.photos) == {"IMG_0", "IMG_1", "IMG_2"}
-    assert "model:" in (tmp_path / "p.yaml").read_text()
+    from toolbox.exchange.project import model_cameras
+
+    assert ("model:" in (tmp_path / "p.yaml").read_text()) == model_cameras()
 
 
 def test_siena_project_to_orthority_csv(tmp_path):

@@ -7,7 +7,8 @@ import pytest
 
 from toolbox.errors import InputDataError, ParameterError
 from toolbox.exchange import csvtable, exif, formats, geodesy, orthority
-from toolbox.exchange.model import OrientationSet, PhotoOrientation, opk_from_matrix
+from toolbox.exchange.model import OrientationSet, PhotoOrientation, focal_px, opk_from_matrix
+from toolbox.exchange.project import model_cameras
 from toolbox.photogrammetry.rotation import rotation_matrix
 
 
@@ -84,10 +85,16 @@ def test_round_trip(tmp_path, small_set, fmt, name):
     back = formats.read_orientations([written[0]], "auto", "EPSG:32632" if fmt == "patb" else None,
                                      "gon" if fmt == "patb" else None)
     _same(small_set, back, 5e-5, 1e-9)
-    if fmt in ("orthority", "project"):
-        if fmt == "orthority":
-            back = formats.merge([back, orthority.read_interior(written[1])])
+    if fmt == "orthority":
+        back = formats.merge([back, orthority.read_interior(written[1])])
+    if fmt == "orthority" or fmt == "project" and model_cameras():
         assert back.cameras == small_set.cameras
+    elif fmt == "project":  # no camera models: the pinhole part survives
+        (name, spec), = back.cameras.items()
+        original = small_set.cameras[name]
+        assert focal_px(spec) == pytest.approx(focal_px(original), rel=1e-12)
+        assert (spec["cx"], spec["cy"]) == pytest.approx((original["cx"], original["cy"]))
+    if fmt in ("orthority", "project"):
         assert back.crs.equals(small_set.crs)
 
 
