@@ -170,3 +170,18 @@ def focal_px(spec: dict[str, Any]) -> tuple[float, float]:
         sw, sh = spec["sensor_size"]
         return fx * w / sw, fy * h / sh
     return fx * max(w, h), fy * max(w, h)
+
+
+def dump_yaml(document: Any) -> str:
+    """YAML text with short lists of numbers in flow style (``im_size: [4000, 3000]``)."""
+    import yaml
+
+    class Dumper(yaml.SafeDumper):
+        pass
+
+    def represent_list(dumper, data):
+        flow = len(data) <= 16 and all(isinstance(v, (int, float)) for v in data)
+        return dumper.represent_sequence("tag:yaml.org,2002:seq", data, flow_style=flow)
+
+    Dumper.add_representer(list, represent_list)
+    return yaml.dump(document, Dumper=Dumper, sort_keys=False, allow_unicode=True)

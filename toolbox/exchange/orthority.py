@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from toolbox.errors import InputDataError
-from toolbox.exchange.model import OrientationSet, PhotoOrientation, check_camera
+from toolbox.exchange.model import OrientationSet, PhotoOrientation, check_camera, dump_yaml
 
 
 def read_interior(path: str | Path) -> OrientationSet:
@@ -41,14 +41,11 @@ def read_interior(path: str | Path) -> OrientationSet:
 
 
 def write_interior(oset: OrientationSet, path: str | Path) -> Path:
-    import yaml
-
     if not oset.cameras:
         raise InputDataError("no camera to write: the input gives no interior parameters "
                              "(add a camera file, e.g. cameras.json or an Orthority YAML)")
     path = Path(path)
-    path.write_text(yaml.safe_dump({k: dict(v) for k, v in oset.cameras.items()},
-                                   sort_keys=False), encoding="utf-8")
+    path.write_text(dump_yaml({k: dict(v) for k, v in oset.cameras.items()}), encoding="utf-8")
     return path
 
 

@@ -24,7 +24,7 @@ from pathlib import Path
 from typing import Any
 
 from toolbox.errors import InputDataError
-from toolbox.exchange.model import OrientationSet, PhotoOrientation, focal_px
+from toolbox.exchange.model import OrientationSet, PhotoOrientation, dump_yaml, focal_px
 
 NOMINAL_PIXEL_MM = 0.001
 IMAGE_SUFFIXES = {".tif", ".tiff", ".jpg", ".jpeg", ".png", ".jp2", ".dng"}
@@ -122,8 +122,6 @@ def project_document(oset: OrientationSet, base_dir: Path | None, angle_unit: st
 
 
 def write_project(oset: OrientationSet, path: str | Path, angle_unit: str = "deg") -> Path:
-    import yaml
-
     path = Path(path)
     source = Path(oset.source.split(", ")[0]) if oset.source else None
     folder = default_image_folder(source) if source is not None and source.exists() else None
@@ -132,7 +130,7 @@ def write_project(oset: OrientationSet, path: str | Path, angle_unit: str = "deg
     if images:
         oset.notes.append(f"image paths (absolute) from {folder}")
     doc = project_document(oset, None, angle_unit, images)
-    path.write_text(yaml.safe_dump(doc, sort_keys=False, allow_unicode=True), encoding="utf-8")
+    path.write_text(dump_yaml(doc), encoding="utf-8")
     return path
 
 
