@@ -81,6 +81,15 @@ class ConvertOrientations(Algorithm):
         out = Path(params["OUTPUT"]).resolve()
         if any(Path(i).resolve() == out for i in inputs):
             raise self.fail("OUTPUT", f"is the input {out}; an input is never overwritten")
+        beside = [out.with_suffix(".prj"), out.with_name(f"{out.stem}_points.csv"),
+                  out.with_name(f"{out.stem.removesuffix('_ext_param')}_int_param.yaml")]
+        for item in inputs:
+            given = Path(item).resolve()
+            files = list(given.iterdir()) if given.is_dir() else [given]
+            hit = next((b for b in beside if b in {f.resolve() for f in files}), None)
+            if hit is not None:
+                raise self.fail("OUTPUT", f"would write {hit.name} beside it, which is an input; "
+                                "an input is never overwritten: choose another name or folder")
         fmt = "gcp" if params["FORMAT"] == "gcp" else params["FORMAT_OUT"]
         if params["FORMAT"] != "gcp" and out.suffix.lower() not in EXTENSIONS[fmt]:
             raise self.fail("OUTPUT", f"must end in {'/'.join(EXTENSIONS[fmt])} for FORMAT_OUT "
@@ -93,7 +102,8 @@ class ConvertOrientations(Algorithm):
 
         inputs = [s.strip() for s in str(params["INPUT"]).split(",") if s.strip()]
         output = Path(params["OUTPUT"])
-        files = formats.expand(inputs)
+        left_out: list[str] = []
+        files = formats.expand(inputs, left_out)
         kinds = [formats.detect(f) if params["FORMAT"] == "auto" else params["FORMAT"]
                  for f in files]
         if "gcp" in kinds:
@@ -113,6 +123,7 @@ class ConvertOrientations(Algorithm):
                                              params["ANGLE_UNIT"], params["FRAME"])
             unit = params["ANGLE_UNIT_OUT"]
             written = formats.write_orientations(oset, params["FORMAT_OUT"], output, unit)
+            oset.notes += left_out
             summary = oset.summary()
             summary["angle_unit_out"] = unit or {"project": "deg", "orthority": "rad",
                                                  "csv": "deg", "patb": "gon"}[params["FORMAT_OUT"]]

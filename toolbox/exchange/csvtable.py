@@ -79,6 +79,27 @@ def _fields(header: list[str], path: Path) -> tuple[dict[str, int], str | None]:
     return found, next(iter(units.values()), None)
 
 
+def looks_like(text: str) -> bool:
+    """A header naming a file and a position and attitude, or a legacy row of
+    ``name`` + 6 numbers."""
+    delimiter, quote = _dialect(text)
+    first = next(csv.reader(io.StringIO(text), delimiter=delimiter, quotechar=quote,
+                            skipinitialspace=delimiter == " "), [])
+    first = [c.strip() for c in first if c.strip()]
+    try:
+        fields, _ = _fields(first, Path("<text>"))
+    except (InputDataError, ParameterError):
+        return True  # angle columns with mixed or unknown units: the reader says which
+    if "filename" in fields and ({"x", "y", "z"} <= set(fields) or
+                                 {"latitude", "longitude", "altitude"} <= set(fields)):
+        return True
+    try:
+        [float(v) for v in first[1:7]]
+    except ValueError:
+        return False
+    return len(first) >= 7
+
+
 def read_csv(path: str | Path, crs: Any = None, angle_unit: str | None = None) -> OrientationSet:
     """Exterior orientations of an Orthority-style CSV (see the module docstring)."""
     from toolbox.io.crs import parse_crs

@@ -66,22 +66,39 @@ def detect(path: Path) -> str:
             return "patb"
         if odm_gcp.looks_like(lines):
             return "gcp"
-        return "csv"
+        from toolbox.exchange.csvtable import looks_like
+
+        if looks_like("\n".join(ln for ln in lines if not ln.startswith("#"))):
+            return "csv"
     raise InputDataError(f"INPUT: cannot tell the format of {path} (give FORMAT; readable: "
                          f"{', '.join(READERS)})")
 
 
-def expand(paths: Sequence[str | Path]) -> list[Path]:
-    """Files of the inputs: a folder stands for its orientation files, or for its images (EXIF)
-    when it holds no orientation file."""
+def _recognised(path: Path) -> bool:
+    try:
+        return detect(path) != "gcp"
+    except InputDataError:
+        return False
+
+
+def expand(paths: Sequence[str | Path], notes: list[str] | None = None) -> list[Path]:
+    """Files of the inputs: a folder stands for the orientation files it holds whose format is
+    recognised (the others listed in ``notes``; OpenDroneMap's ``reconstruction.topocentric.json``
+    left out when ``reconstruction.json`` is there), or for its images (EXIF) when it holds
+    none."""
     out: list[Path] = []
     for raw in paths:
         path = Path(raw)
         if path.is_dir():
             files = sorted(f for f in path.iterdir() if f.is_file() and not f.name.startswith("."))
-            chosen = [f for f in files if f.suffix.lower() in ORIENTATION_SUFFIXES
-                      and f.suffix.lower() != ".prj"] or \
-                [f for f in files if f.suffix.lower() in EXIF_SUFFIXES]
+            candidates = [f for f in files if f.suffix.lower() in ORIENTATION_SUFFIXES]
+            if (path / "reconstruction.json").exists():
+                candidates = [f for f in candidates if f.name != "reconstruction.topocentric.json"]
+            chosen = [f for f in candidates if _recognised(f)]
+            skipped = sorted(f.name for f in set(candidates) - set(chosen))
+            if skipped and notes is not None:
+                notes.append(f"{path}: not orientation files, left out: {', '.join(skipped)}")
+            chosen = chosen or [f for f in files if f.suffix.lower() in EXIF_SUFFIXES]
             if not chosen:
                 raise InputDataError(f"INPUT: folder {path} holds no orientation file nor image")
             out += chosen
@@ -162,7 +179,8 @@ def read_orientations(paths: Sequence[str | Path], fmt: str = "auto", crs: Any =
     """Every input read (format detected per file unless given) and merged."""
     if fmt != "auto" and fmt not in READERS:
         raise ParameterError("FORMAT", f"must be one of auto, {', '.join(READERS)}; got {fmt!r}")
-    files = expand(paths)
+    notes: list[str] = []
+    files = expand(paths, notes)
     formats = [detect(f) if fmt == "auto" else fmt for f in files]
     exif = [f for f, k in zip(files, formats, strict=True) if k == "exif"]
     parts = [read_one(f, k, crs, angle_unit, frame)
@@ -171,7 +189,9 @@ def read_orientations(paths: Sequence[str | Path], fmt: str = "auto", crs: Any =
         from toolbox.exchange import exif as exif_reader
 
         parts.append(exif_reader.read_images(exif, crs))
-    return merge(parts) if len(parts) > 1 else parts[0]
+    out = merge(parts) if len(parts) > 1 else parts[0]
+    out.notes += notes
+    return out
 
 
 def write_orientations(oset: OrientationSet, fmt: str, path: str | Path,

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 import toolbox
+import toolbox.errors
 from tests.toolbox.exchange import exchange_synthetic as syn
 from toolbox.exchange import csvtable, formats, opensfm, orthority
 from toolbox.photogrammetry.project import load_project
@@ -90,3 +91,24 @@ def test_summary_printed(tmp_path):
     assert run.returncode == 0, run.stderr
     summary = json.loads(run.stdout)["SUMMARY"]
     assert summary["written"] == ["x.csv", "x.prj"] and (tmp_path / "x.prj").exists()
+
+
+def test_folder_input_and_inputs_never_overwritten(tmp_path):
+    """A folder reads its recognised orientation files (a stray file is left out and said); an
+    output whose sidecar would land on an input is refused before anything is written."""
+    folder = tmp_path / "ortho"
+    folder.mkdir()
+    source = syn.reconstruction(tmp_path / "reconstruction.json")
+    formats.write_orientations(opensfm.read_reconstruction(source), "orthority",
+                               folder / "b_ext_param.geojson")
+    (folder / "notes.txt").write_text("flown on a windy day\n")
+    out = toolbox.run("orientation:convert", {"INPUT": str(folder), "FORMAT_OUT": "csv",
+                                              "OUTPUT": str(tmp_path / "b.csv")})
+    assert out["SUMMARY"]["oriented"] == 3 and out["SUMMARY"]["cameras"]
+    assert any("notes.txt" in n for n in out["SUMMARY"]["notes"])
+    before = (folder / "b_int_param.yaml").read_bytes()
+    with pytest.raises(toolbox.errors.ParameterError, match="is an input"):
+        toolbox.run("orientation:convert", {"INPUT": str(folder), "FORMAT_OUT": "orthority",
+                                            "OUTPUT": str(folder / "b.geojson")})
+    assert (folder / "b_int_param.yaml").read_bytes() == before
+    assert not (folder / "b.geojson").exists()
