@@ -102,8 +102,8 @@ def write_exterior(oset: OrientationSet, path: str | Path) -> Path:
         raise InputDataError("no photo has an exterior orientation to write")
     lla = grid_to_geographic([p.xyz for p in photos], oset.crs)
     features = [{"type": "Feature",
-                 "properties": {"filename": p.id, "camera": p.camera, "xyz": list(p.xyz),
-                                "opk": list(p.opk)},
+                 "properties": {"filename": p.id, **({"camera": p.camera} if p.camera else {}),
+                                "xyz": list(p.xyz), "opk": list(p.opk)},
                  "geometry": {"type": "Point", "coordinates": lla[k].tolist()}}
                 for k, p in enumerate(photos)]
     doc = {"type": "FeatureCollection", "world_crs": oset.crs.to_wkt(), "features": features}

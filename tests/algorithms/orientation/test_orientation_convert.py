@@ -112,3 +112,29 @@ def test_folder_input_and_inputs_never_overwritten(tmp_path):
                                             "OUTPUT": str(folder / "b.geojson")})
     assert (folder / "b_int_param.yaml").read_bytes() == before
     assert not (folder / "b.geojson").exists()
+
+
+def test_photo_algorithm_takes_an_orientation_file(tmp_path):
+    """orientation:footprints given an Orthority GeoJSON as PROJECT (its interior YAML found
+    beside it): one footprint per photo; the nadir camera's is 150 x 100 m and its centre lies
+    where the principal point offset (12 px right, 24 px up at 120 m / 960 px: 1.5 m east,
+    3 m south in the topocentric frame) turned by the meridian convergence puts it."""
+    import geopandas
+
+    source = syn.reconstruction(tmp_path / "reconstruction.json")
+    formats.write_orientations(opensfm.read_reconstruction(source), "orthority",
+                               tmp_path / "b_ext_param.geojson")
+    toolbox.run("orientation:footprints", {"PROJECT": str(tmp_path / "b_ext_param.geojson"),
+                                           "MEAN_HEIGHT": 30.0,
+                                           "OUTPUT": str(tmp_path / "f.gpkg")})
+    feet = geopandas.read_file(tmp_path / "f.gpkg", layer="footprints")
+    assert sorted(feet["photo"]) == ["IMG_0", "IMG_1", "IMG_2"]
+    nadir = feet[feet["photo"] == "IMG_0"].geometry.iloc[0]
+    centre = opensfm.read_reconstruction(source).photos["IMG_0"].xyz
+    assert nadir.area == pytest.approx(150.0 * 100.0, rel=1e-3)
+    from pyproj import Proj
+
+    gamma = np.radians(Proj("EPSG:32651").get_factors(syn.LON, syn.LAT).meridian_convergence)
+    turn = np.array([[np.cos(gamma), -np.sin(gamma)], [np.sin(gamma), np.cos(gamma)]])
+    offset = np.array([nadir.centroid.x - centre[0], nadir.centroid.y - centre[1]])
+    assert offset == pytest.approx(turn @ [-1.5, -3.0], abs=0.01)
