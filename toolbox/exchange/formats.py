@@ -70,8 +70,8 @@ def detect(path: Path) -> str:
 
         if looks_like("\n".join(ln for ln in lines if not ln.startswith("#"))):
             return "csv"
-    raise InputDataError(f"INPUT: cannot tell the format of {path} (give FORMAT; readable: "
-                         f"{', '.join(READERS)})")
+    raise InputDataError(f"cannot tell the format of {path}: not a readable orientation file "
+                         f"({', '.join(READERS)}; orientation:convert can be given its FORMAT)")
 
 
 def _recognised(path: Path) -> bool:
@@ -100,12 +100,12 @@ def expand(paths: Sequence[str | Path], notes: list[str] | None = None) -> list[
                 notes.append(f"{path}: not orientation files, left out: {', '.join(skipped)}")
             chosen = chosen or [f for f in files if f.suffix.lower() in EXIF_SUFFIXES]
             if not chosen:
-                raise InputDataError(f"INPUT: folder {path} holds no orientation file nor image")
+                raise InputDataError(f"folder {path} holds no orientation file nor image")
             out += chosen
         elif path.exists():
             out.append(path)
         else:
-            raise InputDataError(f"INPUT: {path} does not exist")
+            raise InputDataError(f"{path} does not exist")
     return out
 
 
@@ -140,7 +140,7 @@ def read_one(path: Path, fmt: str, crs: Any = None, angle_unit: str | None = Non
                   if isinstance(c, dict) and isinstance(c.get("model"), dict)}
         return from_project(load_project(path), models)
     if fmt == "gcp":
-        raise InputDataError(f"INPUT: {path} is an ODM gcp_list (control points, not "
+        raise InputDataError(f"{path} is an ODM gcp_list (control points, not "
                              "orientations): convert it alone, to an image-measurement CSV")
     raise ParameterError("FORMAT", f"must be one of auto, {', '.join(READERS)}; got {fmt!r}")
 
@@ -153,19 +153,19 @@ def merge(parts: list[OrientationSet]) -> OrientationSet:
     for part in parts:
         if part.crs is not None:
             if out.crs is not None and not out.crs.equals(part.crs):
-                raise InputDataError(f"INPUT: {part.source} is in {part.crs.name}, an earlier "
+                raise InputDataError(f"{part.source} is in {part.crs.name}, an earlier "
                                      f"input in {out.crs.name}: give inputs in one CRS")
             out.crs = part.crs
         for name, spec in part.cameras.items():
             if name in out.cameras and out.cameras[name] != spec:
-                raise InputDataError(f"INPUT: camera {name!r} is defined differently in "
+                raise InputDataError(f"camera {name!r} is defined differently in "
                                      f"{part.source} and an earlier input")
             out.cameras[name] = spec
         for pid, photo in part.photos.items():
             old = out.photos.get(pid)
             if old is not None and old.oriented and photo.oriented and \
                     (old.xyz, old.opk) != (photo.xyz, photo.opk):
-                raise InputDataError(f"INPUT: photo {pid!r} has two different orientations "
+                raise InputDataError(f"photo {pid!r} has two different orientations "
                                      f"({part.source} and an earlier input)")
             if old is None or photo.oriented:
                 photo.camera = photo.camera or (old.camera if old else None)
