@@ -30,10 +30,11 @@ class ConvertOrientations(Algorithm):
     any column order by header, quoted fields, x/y/z or latitude/longitude/altitude,
     omega/phi/kappa or roll/pitch/yaw, ``.prj`` sidecar), ``project`` (this product's YAML),
     ``metashape`` (camera XML: calibration, camera and chunk transforms), ``metashape_opk``
-    (its Omega Phi Kappa text), ``patb`` (PAT-B style ``id X0 Y0 Z0 omega phi kappa`` lines
-    closed by ``-99``), ``exif`` (drone JPEG/TIFF: GNSS position, gimbal angles, focal length:
-    approximate), ``gcp`` (ODM gcp_list.txt). Several inputs are merged (e.g. a camera YAML and an
-    exterior GeoJSON); a camera or photo defined twice differently, or two CRSs, is an error.
+    (its Omega Phi Kappa text), ``patb`` (PAT-B: per photo ``id X0 Y0 Z0`` and the nine
+    rotation-matrix elements in two records), ``exif`` (drone JPEG/TIFF: GNSS position, gimbal
+    angles, focal length: approximate), ``gcp`` (ODM gcp_list.txt). Several inputs are merged
+    (e.g. a camera YAML and an exterior GeoJSON); a camera or photo defined twice differently,
+    or two CRSs, is an error.
 
     Every orientation is converted to the product's omega-phi-kappa (R = Rx·Ry·Rz, camera x
     right, y up, z backward; OpenCV/OpenSfM/Metashape axes and angle-axis rotations converted,
@@ -46,7 +47,7 @@ class ConvertOrientations(Algorithm):
     FORMAT_OUT: ``project`` (YAML for the photo algorithms: cameras with classic fields and the
     full ``model:``), ``orthority`` (OUTPUT .geojson with ``<stem>_int_param.yaml`` beside it,
     or the interior .yaml alone), ``csv`` (filename,x,y,z,omega,phi,kappa,camera + ``.prj``),
-    ``patb``. ANGLE_UNIT_OUT defaults to deg (project, csv), rad (orthority), gon (patb).
+    ``patb``. ANGLE_UNIT_OUT defaults to deg (project, csv); Orthority holds radians, PAT-B matrices.
     A ``gcp`` input writes the image-measurement CSV (point_id, photo, col_px, row_px) to OUTPUT
     and the ground points (id, X, Y, Z) beside it as ``<stem>_points.csv``.
     """
@@ -126,7 +127,8 @@ class ConvertOrientations(Algorithm):
             oset.notes += left_out
             summary = oset.summary()
             summary["angle_unit_out"] = unit or {"project": "deg", "orthority": "rad",
-                                                 "csv": "deg", "patb": "gon"}[params["FORMAT_OUT"]]
+                                                 "csv": "deg", "patb": "none (matrices)"}[
+                                                     params["FORMAT_OUT"]]
         summary["written"] = [p.name for p in written]
         feedback.push_info(json.dumps(summary, indent=1, ensure_ascii=False))
         return {"OUTPUT": str(output), "SUMMARY": summary}

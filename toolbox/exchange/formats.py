@@ -3,8 +3,8 @@
 Readable (``READERS``): ``opensfm`` (reconstruction.json), ``opensfm_cameras`` (cameras.json),
 ``orthority_interior`` (YAML), ``orthority_exterior`` (GeoJSON), ``csv`` (Orthority-style CSV),
 ``project`` (the product's YAML), ``metashape`` (camera XML), ``metashape_opk`` (OPK text
-export), ``patb`` (PAT-B style text), ``exif`` (drone JPEG/TIFF tags). ODM ``gcp_list.txt`` is
-control, not orientation: :mod:`toolbox.exchange.odm_gcp`.
+export), ``patb`` (PAT-B .ori: centres and rotation matrices), ``exif`` (drone JPEG/TIFF tags).
+ODM ``gcp_list.txt`` is control, not orientation: :mod:`toolbox.exchange.odm_gcp`.
 
 Writable (``WRITERS``): ``project``, ``orthority`` (GeoJSON + interior YAML beside it, or the
 YAML alone), ``csv``, ``patb``.
@@ -218,7 +218,10 @@ def write_orientations(oset: OrientationSet, fmt: str, path: str | Path,
         csvtable.write_csv(oset, path, angle_unit or "deg")
         return [path] + ([path.with_suffix(".prj")] if oset.crs is not None else [])
     if fmt == "patb":
-        return [patb.write_patb(oset, path, angle_unit or "gon")]
+        if angle_unit is not None:
+            raise ParameterError("ANGLE_UNIT_OUT", "does not apply to PAT-B (it holds rotation "
+                                 "matrices, not angles)")
+        return [patb.write_patb(oset, path)]
     raise ParameterError("FORMAT_OUT", f"must be one of {', '.join(WRITERS)}; got {fmt!r}")
 
 

@@ -164,14 +164,28 @@ def test_odm_gcp_list_to_measurements(tmp_path):
     assert xyz[1, :2] == pytest.approx(expected, abs=1e-3) and xyz[1, 2] == 310.0
 
 
-def test_patb_needs_its_angle_unit(tmp_path):
-    (tmp_path / "a.ori").write_text("101 1000.0 2000.0 1500.0 0.1 -0.2 100.0\n-99\n")
-    assert formats.detect(tmp_path / "a.ori") == "patb"
-    with pytest.raises(ParameterError, match="ANGLE_UNIT is required"):
-        patb.read_patb(tmp_path / "a.ori")
-    oset = patb.read_patb(tmp_path / "a.ori", "EPSG:3003", "gon")
-    assert oset.photos["101"].opk[2] == pytest.approx(np.pi / 2)
+def test_patb_records(tmp_path):
+    """PAT-B's three fixed-column records (I16,16x,3F16.5 / 5F16.12 / 4F16.12) read as centre
+    and R (image -> ground); written back in the same columns."""
+    from toolbox.photogrammetry.rotation import rotation_matrix
 
+    angles = (0.012, -0.034, 1.234)
+    a = rotation_matrix(*angles).ravel()
+    text = (f"{101:16d}{'':16}" + "".join(f"{v:16.5f}" for v in (1000.5, 2000.25, 1500.0))
+            + "\n" + "".join(f"{v:16.12f}" for v in a[:5]) + "\n"
+            + "".join(f"{v:16.12f}" for v in a[5:]) + "\n-99\n")
+    (tmp_path / "a.ori").write_text(text)
+    assert formats.detect(tmp_path / "a.ori") == "patb"
+    oset = patb.read_patb(tmp_path / "a.ori", "EPSG:3003")
+    assert oset.photos["101"].xyz == (1000.5, 2000.25, 1500.0)
+    assert oset.photos["101"].opk == pytest.approx(angles, abs=1e-11)
+    patb.write_patb(oset, tmp_path / "b.ori")
+    assert (tmp_path / "b.ori").read_text() == text.removesuffix("-99\n")
+    (tmp_path / "c.ori").write_text(text.replace(f"{a[8]:16.12f}", f"{-a[8]:16.12f}"))
+    with pytest.raises(InputDataError, match="reflection|orthonormal"):
+        patb.read_patb(tmp_path / "c.ori")
+    with pytest.raises(ParameterError, match="does not apply"):
+        formats.write_orientations(oset, "patb", tmp_path / "d.ori", "deg")
 
 def test_orientation_file_as_project_with_image_folder(tmp_path, caplog):
     """An exterior GeoJSON + its interior YAML beside it become a project; images are matched by
@@ -203,7 +217,7 @@ def test_damaged_files_fail_with_one_line_errors(tmp_path):
     syn.reconstruction(good / "reconstruction.json")
     metashape_xml(good / "cams.xml")
     (good / "gcp_list.txt").write_text("EPSG:4326\n11.30 43.30 300.0 100 200 IMG_1.JPG a\n")
-    (good / "x.ori").write_text("101 1000.0 2000.0 1500.0 0.1 -0.2 100.0\n-99\n")
+    (good / "x.ori").write_text("101 1000.0 2000.0 1500.0\n1 0 0 0 1\n0 0 0 1\n")
     oset = formats.read_orientations([good / "reconstruction.json"])
     formats.write_orientations(oset, "orthority", good / "b_ext_param.geojson")
     formats.write_orientations(oset, "csv", good / "b.csv")
