@@ -44,12 +44,13 @@ class ConvertOrientations(Algorithm):
     of inputs that carry none); without it a reconstruction or geographic input goes to the
     UTM zone of its reference, as the summary says.
 
-    FORMAT_OUT: ``project`` (YAML for the photo algorithms: cameras with classic fields and the
-    full ``model:``), ``orthority`` (OUTPUT .geojson with ``<stem>_int_param.yaml`` beside it,
-    or the interior .yaml alone), ``csv`` (filename,x,y,z,omega,phi,kappa,camera + ``.prj``),
-    ``patb``. ANGLE_UNIT_OUT defaults to deg (project, csv); Orthority holds radians, PAT-B matrices.
-    A ``gcp`` input writes the image-measurement CSV (point_id, photo, col_px, row_px) to OUTPUT
-    and the ground points (id, X, Y, Z) beside it as ``<stem>_points.csv``.
+    FORMAT_OUT: ``project`` (YAML for the photo algorithms: cameras as ``model:`` entries, or
+    the film fields of their pinhole part in a toolbox without camera models), ``orthority``
+    (OUTPUT .geojson with ``<stem>_int_param.yaml`` beside it, or the interior .yaml alone),
+    ``csv`` (filename,x,y,z,omega,phi,kappa,camera + ``.prj``), ``patb``. ANGLE_UNIT_OUT
+    defaults to deg (project, csv); Orthority holds radians, PAT-B matrices. A ``gcp`` input
+    writes the image-measurement CSV (point_id, photo, col_px, row_px) to OUTPUT and the ground
+    points (id, X, Y, Z) beside it as ``<stem>_points.csv``.
     """
 
     id = "orientation:convert"
