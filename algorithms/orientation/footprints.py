@@ -13,7 +13,7 @@ from toolbox.io.crs import common_crs
 from toolbox.parameters import File, Integer, Layer, Number, Output, OutputVector, RasterLayer
 from toolbox.photogrammetry.coverage import Footprint, overlaps, photo_footprint
 from toolbox.photogrammetry.surface import dem_height_range, surface_for_photo
-from toolbox.photogrammetry.tables import load_project_parameter
+from toolbox.photogrammetry.tables import PROJECT_EXTENSIONS, load_project_parameter
 from toolbox.registry import register
 
 
@@ -51,7 +51,7 @@ class Footprints(Algorithm):
     group = "Orientation"
     short_help = "Footprints of oriented photos on a DEM, nadir/principal points, overlap %."
     parameters = [
-        File("PROJECT", "orientation project (YAML)", extensions=[".yaml", ".yml"]),
+        File("PROJECT", "orientation project (YAML)", extensions=PROJECT_EXTENSIONS),
         RasterLayer("DEM", "terrain heights (same CRS as the project)", optional=True),
         Integer("BAND", "DEM band", default=1, min_value=1),
         Number("MEAN_HEIGHT", "plane height without a DEM; fallback plane with one (default: the "

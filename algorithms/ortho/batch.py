@@ -20,6 +20,7 @@ from toolbox.parameters import (
     String,
 )
 from toolbox.photogrammetry.parameters import ortho_method_parameters
+from toolbox.photogrammetry.tables import PROJECT_EXTENSIONS
 from toolbox.registry import register
 
 
@@ -51,7 +52,7 @@ class OrthoBatch(Algorithm):
     group = "Orthophoto"
     short_help = "Orthorectify every photo of an orientation project on one shared grid."
     parameters = [
-        File("PROJECT", "orientation project (YAML)", extensions=[".yaml", ".yml"]),
+        File("PROJECT", "orientation project (YAML)", extensions=PROJECT_EXTENSIONS),
         String("PHOTOS", "photo ids, comma separated (default: every oriented photo)",
                optional=True),
         String("IMAGES", "folder of the image files (default: the project's paths)",

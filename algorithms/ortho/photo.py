@@ -23,6 +23,7 @@ from toolbox.parameters import (
     String,
 )
 from toolbox.photogrammetry.parameters import ortho_method_parameters
+from toolbox.photogrammetry.tables import PROJECT_EXTENSIONS
 from toolbox.registry import register
 
 
@@ -81,7 +82,7 @@ class OrthoPhoto(Algorithm):
     short_help = "Orthorectify a frame photo on a DEM (collinearity, optional true-ortho mask)."
     parameters = [
         RasterLayer("INPUT", "the photo (any GDAL raster, 1-4 bands, 8/16 bit)"),
-        File("PROJECT", "orientation project (YAML)", extensions=[".yaml", ".yml"],
+        File("PROJECT", "orientation project (YAML)", extensions=PROJECT_EXTENSIONS,
              optional=True),
         String("PHOTO", "photo id in PROJECT (default: the photo whose image or id matches "
                "INPUT)", optional=True),
