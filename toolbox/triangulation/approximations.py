@@ -1,0 +1,142 @@
+"""Approximate values for the bundle: connectivity, given orientations, or resection and
+intersection chained over the block.
+
+- :func:`components`: photos linked by common points (graph connected components); a block in
+  several pieces cannot be adjusted as one and is reported piece by piece.
+- :func:`from_exteriors`: given orientations (project YAML: flight plan, GNSS/IMU, an earlier
+  adjustment); tie points by forward intersection.
+- :func:`by_resection`: photos with >= 4 control points (full XYZ) measured are resected
+  (:func:`toolbox.photogrammetry.resection.resect`, near-vertical start); then, in turn, points
+  seen on >= 2 oriented photos are intersected and photos seeing >= 4 known points resected, until
+  every photo is oriented or no progress is made (004 sl. 28: resection / DLT start values).
+  When no photo sees 4 known points, the photo seeing the most (>= 2) gets a near-vertical
+  start from a plane similarity (omega = phi = 0; scale, kappa, nadir), and the chain goes on.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from toolbox.errors import InputDataError
+from toolbox.triangulation.block import Block
+from toolbox.triangulation.model import ideal
+
+
+def components(block: Block) -> list[list[str]]:
+    """Photo ids of each connected piece of the block (largest first)."""
+    import scipy.sparse as sp
+    from scipy.sparse.csgraph import connected_components
+
+    n, p = block.n_photos, block.n_points
+    inc = sp.csr_matrix((np.ones(len(block.obs_photo)), (block.obs_photo, block.obs_point)),
+                        shape=(n, p))
+    count, labels = connected_components(inc @ inc.T, directed=False)
+    pieces = [[block.photo_ids[i] for i in np.flatnonzero(labels == k)] for k in range(count)]
+    return sorted(pieces, key=len, reverse=True)
+
+
+def require_connected(block: Block) -> None:
+    pieces = components(block)
+    if len(pieces) > 1:
+        desc = "; ".join(f"component {k + 1}: {', '.join(piece[:8])}"
+                         f"{' ...' if len(piece) > 8 else ''}"
+                         for k, piece in enumerate(pieces[:5]))
+        raise InputDataError(f"the block is not connected by common points: {len(pieces)} "
+                             f"components ({desc}); add tie points between them")
+
+
+def camera_xy(block: Block) -> np.ndarray:
+    """Ideal camera coordinates (mm) of every observation at the start calibration."""
+    return ideal(block.obs_xy, block.calibration[block.photo_camera[block.obs_photo]])[0]
+
+
+def _intersect(block: Block, cam: np.ndarray, exterior: np.ndarray, oriented: np.ndarray,
+               known: np.ndarray, points: np.ndarray) -> None:
+    """Intersect (in place) the points not yet known that >= 2 oriented photos see."""
+    from toolbox.photogrammetry.forward_intersection import intersect
+    from toolbox.photogrammetry.rotation import rotation_matrix
+
+    rows = np.flatnonzero(oriented[block.obs_photo] & ~known[block.obs_point])
+    if not len(rows):
+        return
+    ph = block.obs_photo[rows]
+    ext = exterior[ph]
+    res = intersect(block.obs_point[rows], cam[rows], ext[:, :3],
+                    rotation_matrix(ext[:, 3], ext[:, 4], ext[:, 5]),
+                    block.calibration[block.photo_camera[ph], 0], block.n_points)
+    ok = res.ok & ~known
+    points[ok] = res.xyz[ok]
+    known |= ok
+
+
+def _control(block: Block) -> tuple[np.ndarray, np.ndarray]:
+    """Full-XYZ control coordinates per point and the mask of points that have them."""
+    points = np.full((block.n_points, 3), np.nan)
+    full = np.isfinite(block.ground_xyz).all(axis=1)
+    points[block.ground_point[full]] = block.ground_xyz[full]
+    return points, np.isfinite(points).all(axis=1)
+
+
+def from_exteriors(block: Block, exterior: np.ndarray) -> np.ndarray:
+    """Points (P, 3) from given orientations (n, 6): control where known, else intersected."""
+    points, known = _control(block)
+    _intersect(block, camera_xy(block), exterior, np.ones(block.n_photos, bool), known, points)
+    _check_points(block, known)
+    return points
+
+
+def _check_points(block: Block, known: np.ndarray) -> None:
+    if not known.all():
+        names = ", ".join(repr(block.point_ids[i]) for i in np.flatnonzero(~known)[:5])
+        raise InputDataError(f"{int((~known).sum())} point(s) could not be intersected from the "
+                             f"approximate orientations (rays parallel or behind a camera): "
+                             f"{names}")
+
+
+def by_resection(block: Block) -> tuple[np.ndarray, np.ndarray, list[str]]:
+    """Exterior (n, 6), points (P, 3) and notes, by resection and intersection in turn."""
+    from toolbox.photogrammetry.resection import resect, similarity_start
+
+    require_connected(block)
+    cam = camera_xy(block)
+    points, known = _control(block)
+    exterior = np.full((block.n_photos, 6), np.nan)
+    oriented = np.zeros(block.n_photos, dtype=bool)
+    notes = []
+    for round_ in range(1, 3 * block.n_photos + 2):
+        counts = {}
+        progress = False
+        for j in np.flatnonzero(~oriented):
+            rows = np.flatnonzero((block.obs_photo == j) & known[block.obs_point])
+            counts[j] = rows
+            if len(rows) < 4:
+                continue
+            try:
+                fit = resect(cam[rows], points[block.obs_point[rows]],
+                             float(block.calibration[block.photo_camera[j], 0]))
+            except Exception:  # collinear or diverging: try again once more points are known
+                continue
+            exterior[j] = fit.parameters
+            oriented[j] = progress = True
+            notes.append(f"photo {block.photo_ids[j]}: resected on {len(rows)} points "
+                         f"(round {round_})")
+        if not progress and counts:
+            # near-vertical start from a plane similarity on >= 2 known points (omega = phi = 0)
+            j, rows = max(counts.items(), key=lambda kv: len(kv[1]))
+            if len(rows) >= 2:
+                exterior[j] = similarity_start(cam[rows], points[block.obs_point[rows]],
+                                               float(block.calibration[block.photo_camera[j], 0]))
+                oriented[j] = progress = True
+                notes.append(f"photo {block.photo_ids[j]}: near-vertical similarity start on "
+                             f"{len(rows)} points (round {round_})")
+        _intersect(block, cam, exterior, oriented, known, points)
+        if oriented.all() or not progress:
+            break
+    if not oriented.all():
+        missing = [block.photo_ids[j] for j in np.flatnonzero(~oriented)]
+        raise InputDataError(f"no approximate orientation for photo(s) {', '.join(missing[:8])}: "
+                             "they see fewer than 4 control or already intersected points; "
+                             "give approximate exterior orientations in PROJECT (START=project) "
+                             "or more control/tie points")
+    _check_points(block, known)
+    return exterior, points, notes
