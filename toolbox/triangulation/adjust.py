@@ -19,6 +19,7 @@ import numpy as np
 
 from toolbox.errors import InputDataError
 from toolbox.triangulation.block import WEIGHTED, Block, Options, Rejection, Solution
+from toolbox.triangulation.model import image_residuals
 from toolbox.triangulation.precision import cofactors
 from toolbox.triangulation.solver import (
     KIND_GROUND,
@@ -28,7 +29,6 @@ from toolbox.triangulation.solver import (
     least_squares,
     normal_equations,
 )
-from toolbox.triangulation.model import image_residuals
 
 
 class DatumError(InputDataError):
