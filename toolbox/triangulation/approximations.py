@@ -11,6 +11,10 @@ intersection chained over the block.
   every photo is oriented or no progress is made (004 sl. 28: resection / DLT start values).
   When no photo sees 4 known points, the photo seeing the most (>= 2) gets a near-vertical
   start from a plane similarity (omega = phi = 0; scale, kappa, nadir), and the chain goes on.
+- :func:`by_model_chain`: when control is too sparse for that (block corners seen on one photo
+  each), the same chain runs in a free model frame seeded by one vertical photo, and the model is
+  brought onto the control by a 7-parameter similarity
+  (:func:`toolbox.photogrammetry.absolute.fit_similarity`, >= 3 full control points).
 """
 
 from __future__ import annotations
@@ -94,14 +98,72 @@ def _check_points(block: Block, known: np.ndarray) -> None:
 
 
 def by_resection(block: Block) -> tuple[np.ndarray, np.ndarray, list[str]]:
-    """Exterior (n, 6), points (P, 3) and notes, by resection and intersection in turn."""
-    from toolbox.photogrammetry.resection import resect, similarity_start
-
+    """Exterior (n, 6), points (P, 3) and notes, by resection and intersection in turn; falls
+    back on :func:`by_model_chain` when the control cannot start the chain."""
     require_connected(block)
-    cam = camera_xy(block)
     points, known = _control(block)
     exterior = np.full((block.n_photos, 6), np.nan)
     oriented = np.zeros(block.n_photos, dtype=bool)
+    notes = _chain(block, exterior, oriented, points, known)
+    if not oriented.all():
+        return by_model_chain(block)
+    _check_points(block, known)
+    return exterior, points, notes
+
+
+def by_model_chain(block: Block) -> tuple[np.ndarray, np.ndarray, list[str]]:
+    """Chain in a free model frame, then a spatial similarity onto the full control points."""
+    from toolbox.photogrammetry.absolute import fit_similarity
+    from toolbox.photogrammetry.rotation import angles_from_matrix, rotation_matrix
+
+    require_connected(block)
+    points = np.full((block.n_points, 3), np.nan)
+    known = np.zeros(block.n_points, dtype=bool)
+    exterior = np.full((block.n_photos, 6), np.nan)
+    oriented = np.zeros(block.n_photos, dtype=bool)
+    seed = int(np.argmax(np.bincount(block.obs_photo, minlength=block.n_photos)))
+    exterior[seed] = [0.0, 0.0, 1000.0, 0.0, 0.0, 0.0]
+    oriented[seed] = True
+    notes = [f"photo {block.photo_ids[seed]}: seeds a free model frame (vertical, its points "
+             "on the plane Z = 0 until intersected)"]
+    cam = camera_xy(block)
+    rows = np.flatnonzero(block.obs_photo == seed)
+    c = float(block.calibration[block.photo_camera[seed], 0])
+    points[block.obs_point[rows], :2] = cam[rows] * 1000.0 / c
+    points[block.obs_point[rows], 2] = 0.0
+    known[block.obs_point[rows]] = True
+    notes += _chain(block, exterior, oriented, points, known)
+    # every point again from all the chained photos (the seed's plane points included)
+    known[:] = False
+    _intersect(block, cam, exterior, oriented, known, points)
+    control, full = _control(block)
+    on = full & known
+    if not oriented.all() or on.sum() < 3:
+        missing = [block.photo_ids[j] for j in np.flatnonzero(~oriented)]
+        raise InputDataError(
+            "no approximate orientations: "
+            + (f"photo(s) {', '.join(missing[:8])} could not be chained; " if missing else "")
+            + f"{int(on.sum())} full control point(s) in the chained model (3 needed); give "
+            "approximate exterior orientations in PROJECT (START=project)")
+    fit = fit_similarity(points[on], control[on])
+    rot = rotation_matrix(*fit.angles)
+    points = fit.scale * points @ rot.T + fit.translation
+    for j in range(block.n_photos):
+        exterior[j, :3] = fit.scale * rot @ exterior[j, :3] + fit.translation
+        exterior[j, 3:] = angles_from_matrix(rot @ rotation_matrix(*exterior[j, 3:]))
+    points[full] = control[full]
+    notes.append(f"model -> ground similarity on {int(on.sum())} control points (scale "
+                 f"{fit.scale:.4g})")
+    _check_points(block, known | full)
+    return exterior, points, notes
+
+
+def _chain(block: Block, exterior: np.ndarray, oriented: np.ndarray, points: np.ndarray,
+           known: np.ndarray) -> list[str]:
+    """Resect and intersect in turn (in place) until no progress; the notes."""
+    from toolbox.photogrammetry.resection import resect, similarity_start
+
+    cam = camera_xy(block)
     notes = []
     for round_ in range(1, 3 * block.n_photos + 2):
         counts = {}
@@ -132,11 +194,4 @@ def by_resection(block: Block) -> tuple[np.ndarray, np.ndarray, list[str]]:
         _intersect(block, cam, exterior, oriented, known, points)
         if oriented.all() or not progress:
             break
-    if not oriented.all():
-        missing = [block.photo_ids[j] for j in np.flatnonzero(~oriented)]
-        raise InputDataError(f"no approximate orientation for photo(s) {', '.join(missing[:8])}: "
-                             "they see fewer than 4 control or already intersected points; "
-                             "give approximate exterior orientations in PROJECT (START=project) "
-                             "or more control/tie points")
-    _check_points(block, known)
-    return exterior, points, notes
+    return notes

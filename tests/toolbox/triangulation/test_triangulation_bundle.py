@@ -1,0 +1,156 @@
+"""Bundle adjustment of synthetic 2 x 4 blocks (60/25 % overlap, hilly terrain, film in mm and
+digital in pixels, Gaussian noise of known sigma): truth, predicted precision, an independent
+scipy solver, blunders and self-calibration."""
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+from conftest import angle_diff, build_case
+from scipy.optimize import least_squares
+from scipy.spatial.transform import Rotation
+
+from toolbox.triangulation.adjust import adjust
+from toolbox.triangulation.block import Options
+from toolbox.triangulation.synthetic import SyntheticBlockSpec
+
+
+def _errors(case, sol):
+    d_ext = sol.exterior - case.truth_exterior
+    d_ext[:, 3:] = angle_diff(sol.exterior[:, 3:], case.truth_exterior[:, 3:])
+    return d_ext, sol.points - case.truth_points
+
+
+@pytest.mark.parametrize("which", ["film_case", "digital_case"])
+def test_block_recovers_truth_within_its_predicted_precision(which, request):
+    case = request.getfixturevalue(which)
+    sol = adjust(case.block, case.exterior0, case.points0, Options())
+    # no blunder in the data: at alpha0 = 0.1 % per test, ~1 false alarm in ~1200 tests, and
+    # those only just above the critical value
+    assert len(sol.rejections) <= 3 and all(abs(r.w) < 4.5 for r in sol.rejections)
+    # sigma0 ~ 1 when the a priori sigmas are the noise's: chi-square with r ~ 400 dof
+    assert 0.85 < sol.sigma0 < 1.15, sol.sigma0
+    d_ext, d_pts = _errors(case, sol)
+    z_ext = d_ext / sol.exterior_std
+    assert np.abs(z_ext).max() < 4.0, z_ext
+    # every tie point: Mahalanobis distance of its error with its own 3 x 3 covariance
+    tie = np.ones(case.block.n_points, bool)
+    tie[case.block.ground_point] = False
+    chi = np.einsum("pi,pij,pj->p", d_pts[tie], np.linalg.inv(sol.point_cov[tie]), d_pts[tie])
+    assert 0.5 < chi.mean() / 3 < 2.0
+    assert np.quantile(chi, 0.99) < 25.0
+    # the check point (not in the adjustment) is within 4 sigma of the truth
+    check = case.control.ids[case.control.roles.index("check")]
+    k = case.block.point_ids.index(check)
+    assert check in case.info["checks"]
+    assert (np.abs(d_pts[k]) < 4 * sol.point_std[k]).all()
+    # redundancy numbers sum to the redundancy
+    r = np.nansum(sol.image_r) + np.nansum(sol.ground_r)
+    assert r == pytest.approx(sol.redundancy, rel=1e-6)
+
+
+def _reference_solver(case):
+    """The same weighted least-squares problem written plainly and handed to scipy."""
+    b = case.block
+    origin = np.round(case.points0.mean(axis=0))
+    n, p = b.n_photos, b.n_points
+    c = b.calibration[b.photo_camera, 0]
+    gmask = np.isfinite(b.ground_xyz)
+
+    def unpack(x):
+        return x[:6 * n].reshape(n, 6), x[6 * n:].reshape(p, 3)
+
+    def fun(x):
+        ext, pts = unpack(x)
+        rot = Rotation.from_euler("XYZ", ext[:, 3:]).as_matrix()
+        d = np.einsum("mji,mj->mi", rot[b.obs_photo], pts[b.obs_point] - ext[b.obs_photo, :3])
+        proj = -c[b.obs_photo, None] * d[:, :2] / d[:, 2:3]
+        image = ((proj - b.obs_xy) / b.obs_sigma).ravel()
+        ground = ((pts[b.ground_point] + origin - b.ground_xyz) / b.ground_sigma)[gmask]
+        return np.concatenate([image, ground])
+
+    m = len(b.obs_photo)
+    rows, cols = [], []
+    for i in range(m):
+        for a in range(2):
+            rows += [2 * i + a] * 9
+            cols += list(range(6 * b.obs_photo[i], 6 * b.obs_photo[i] + 6))
+            cols += list(range(6 * n + 3 * b.obs_point[i], 6 * n + 3 * b.obs_point[i] + 3))
+    gi, gc = np.nonzero(gmask)
+    rows += list(2 * m + np.arange(len(gi)))
+    cols += list(6 * n + 3 * b.ground_point[gi] + gc)
+    sparsity = sp.coo_matrix((np.ones(len(rows)), (rows, cols)),
+                             shape=(2 * m + len(gi), 6 * n + 3 * p))
+    ext0 = case.exterior0.copy()
+    ext0[:, :3] -= origin
+    x0 = np.concatenate([ext0.ravel(), (case.points0 - origin).ravel()])
+    res = least_squares(fun, x0, jac_sparsity=sparsity, method="trf", x_scale="jac",
+                        xtol=1e-15, ftol=1e-15, gtol=1e-15, max_nfev=200,
+                        tr_options={"atol": 1e-14, "btol": 1e-14})
+    ext, pts = unpack(res.x)
+    ext = ext.copy()
+    ext[:, :3] += origin
+    return ext, pts + origin, 2 * res.cost
+
+
+def test_same_result_as_scipy_least_squares_on_the_plain_equations(film_case):
+    sol = adjust(film_case.block, film_case.exterior0, film_case.points0,
+                 Options(snooping=False))
+    ext, pts, ssq = _reference_solver(film_case)
+    assert np.abs(sol.exterior[:, :3] - ext[:, :3]).max() < 1e-4  # m
+    assert np.abs(angle_diff(sol.exterior[:, 3:], ext[:, 3:])).max() < 1e-8  # rad
+    assert np.abs(sol.points - pts).max() < 1e-4
+    assert sol.sigma0 ** 2 * sol.redundancy == pytest.approx(ssq, rel=1e-8)
+
+
+def test_two_blunders_are_both_flagged_and_removed():
+    spec = SyntheticBlockSpec(digital=True, seed=1)
+    from toolbox.triangulation.synthetic import make_block
+
+    sb = make_block(spec)
+    counts = {p: sb.obs_point.count(p) for p in set(sb.obs_point)}
+    # points seen on >= 6 photos: a blunder there is separable from the other rays (on a point
+    # with 4 rays, 2 per strip, the w-tests of the y-coordinates are too correlated to tell)
+    targets = [k for k, p in enumerate(sb.obs_point) if counts[p] >= 6]
+    bad = [targets[0], targets[len(targets) // 2]]
+    assert sb.obs_point[bad[0]] != sb.obs_point[bad[1]]
+    xy = sb.xy.copy()
+    xy[bad[0]] += (6.0, 0.0)  # 20 sigma
+    xy[bad[1]] += (-3.0, 4.5)
+    case = build_case(spec, n_control=6, xy=xy)
+    sol = adjust(case.block, case.exterior0, case.points0, Options(robust=True))
+    flagged = {r.index: abs(r.w) for r in sol.rejections if r.kind == "image"}
+    assert set(bad) <= set(flagged)
+    assert min(flagged[i] for i in bad) > 10.0
+    assert all(w < 4.5 for i, w in flagged.items() if i not in bad)  # chance alarms only
+    assert 0.85 < sol.sigma0 < 1.15
+    # without them the orientations are as good as on clean data
+    d_ext, _ = _errors(case, sol)
+    assert np.abs(d_ext / sol.exterior_std).max() < 4.0
+
+
+def test_self_calibration_recovers_principal_distance_and_k1():
+    from dataclasses import replace
+
+    from toolbox.photogrammetry.project import Project
+
+    spec = SyntheticBlockSpec(digital=False, seed=3, distortion_k1=2e-8, relief=250.0,
+                              sigma_mm=0.002)
+    from toolbox.triangulation.synthetic import make_block
+
+    truth = make_block(spec).project
+    cam = truth.cameras["film"]
+    wrong = replace(cam, principal_distance_mm=153.25, distortion=None)  # c off by 250 µm
+    project = Project(truth.crs, {"film": wrong},
+                      {k: replace(p, camera=wrong) for k, p in truth.photos.items()})
+    case = build_case(spec, n_control=7, project=project, self_calibration="c, k1")
+    sol = adjust(case.block, case.exterior0, case.points0, Options(snooping=False))
+    c_hat, k1_hat = sol.calibration[0, 0], sol.calibration[0, 3]
+    c_std, k1_std = sol.calibration_std[0, 0], sol.calibration_std[0, 3]
+    assert abs(c_hat - 153.0) < 4 * c_std and c_std < 0.05, (c_hat, c_std)
+    assert abs(k1_hat - 2e-8) < 4 * k1_std and k1_std < 2e-9, (k1_hat, k1_std)
+    assert 0.85 < sol.sigma0 < 1.15
+    # without self-calibration the same block fits badly
+    case_fixed = build_case(spec, n_control=7, project=project)
+    fixed = adjust(case_fixed.block, case_fixed.exterior0, case_fixed.points0,
+                   Options(snooping=False))
+    assert fixed.sigma0 > 1.5  # chi-square with r ~ 400: far beyond chance
