@@ -137,7 +137,7 @@ class BundleAdjustment(Algorithm):
         from toolbox.photogrammetry.project import save_project
         from toolbox.photogrammetry.tables import load_project_parameter, write_json
         from toolbox.triangulation import approximations, outputs
-        from toolbox.triangulation.adjust import adjust
+        from toolbox.triangulation.adjust import adjust, check_datum, validate
         from toolbox.triangulation.block import Options
         from toolbox.triangulation.inputs import (
             BlockRequest,
@@ -158,17 +158,18 @@ class BundleAdjustment(Algorithm):
                                params["CONTROL_SIGMA_Z"], params["GNSS_SIGMA_XY"],
                                params["GNSS_SIGMA_Z"])
         block, info = build_block(request)
+        validate(block)
         approximations.require_connected(block)
+        check_datum(block)
         notes = list(info.get("notes", []))
         start = params["START"]
         missing = [p for p in block.photo_ids if project.photos[p].exterior is None]
         if start == "project" and missing:
-            self.fail("START", f"project: photo(s) {', '.join(missing[:5])} have no exterior "
+            raise self.fail("START", f"project: photo(s) {', '.join(missing[:5])} have no exterior "
                       "orientation in PROJECT (use START=control)")
         if start == "project" or (start == "auto" and not missing):
-            exterior = np.array([[*project.photos[p].exterior.centre, project.photos[p].exterior.omega,
-                                  project.photos[p].exterior.phi, project.photos[p].exterior.kappa]
-                                 for p in block.photo_ids])
+            eos = [project.photos[p].exterior for p in block.photo_ids]
+            exterior = np.array([[*e.centre, e.omega, e.phi, e.kappa] for e in eos])
             points = approximations.from_exteriors(block, exterior)
             notes.append("approximate values: PROJECT's exterior orientations")
         else:

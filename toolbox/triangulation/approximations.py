@@ -138,22 +138,30 @@ def by_model_chain(block: Block) -> tuple[np.ndarray, np.ndarray, list[str]]:
     _intersect(block, cam, exterior, oriented, known, points)
     control, full = _control(block)
     on = full & known
-    if not oriented.all() or on.sum() < 3:
+    gnss = np.isfinite(block.centre_xyz).all(axis=1)
+    if oriented.all() and on.sum() < 3 and gnss.sum() >= 3:
+        model = exterior[block.centre_photo[gnss], :3]
+        target = block.centre_xyz[gnss]
+        what = f"{int(gnss.sum())} GNSS projection centres"
+    else:
+        model, target = points[on], control[on]
+        what = f"{int(on.sum())} control points"
+    if not oriented.all() or len(model) < 3:
         missing = [block.photo_ids[j] for j in np.flatnonzero(~oriented)]
         raise InputDataError(
             "no approximate orientations: "
             + (f"photo(s) {', '.join(missing[:8])} could not be chained; " if missing else "")
-            + f"{int(on.sum())} full control point(s) in the chained model (3 needed); give "
-            "approximate exterior orientations in PROJECT (START=project)")
-    fit = fit_similarity(points[on], control[on])
+            + f"{int(on.sum())} full control point(s) in the chained model and "
+            f"{int(gnss.sum())} GNSS centres (3 needed); give approximate exterior orientations "
+            "in PROJECT (START=project)")
+    fit = fit_similarity(model, target)
     rot = rotation_matrix(*fit.angles)
     points = fit.scale * points @ rot.T + fit.translation
     for j in range(block.n_photos):
         exterior[j, :3] = fit.scale * rot @ exterior[j, :3] + fit.translation
         exterior[j, 3:] = angles_from_matrix(rot @ rotation_matrix(*exterior[j, 3:]))
     points[full] = control[full]
-    notes.append(f"model -> ground similarity on {int(on.sum())} control points (scale "
-                 f"{fit.scale:.4g})")
+    notes.append(f"model -> ground similarity on {what} (scale {fit.scale:.4g})")
     _check_points(block, known | full)
     return exterior, points, notes
 
