@@ -100,7 +100,7 @@ def ideal(xy: np.ndarray, calib: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def image_residuals(xy: np.ndarray, exterior: np.ndarray, point: np.ndarray, calib: np.ndarray,
-                    jacobians: bool = True):
+                    jacobians: bool = True, rotation: tuple[np.ndarray, np.ndarray] | None = None):
     """Residuals (computed minus observed, mm) of image observations and their Jacobians.
 
     Parameters (one row per observation)
@@ -109,13 +109,15 @@ def image_residuals(xy: np.ndarray, exterior: np.ndarray, point: np.ndarray, cal
     exterior : (m, 6) X0, Y0, Z0 (local ground units), omega, phi, kappa (rad)
     point : (m, 3) ground point (local ground units)
     calib : (m, 8) :data:`CALIBRATION_NAMES`
+    rotation : optional ``(R, dR)`` of each observation's photo, as :func:`rotations` returns
+        (computed once per photo by the caller instead of once per observation)
 
     Returns
     -------
     f (m, 2), depth d₃ (m,; negative in front of the camera) and, with ``jacobians``,
     ``J_ext`` (m, 2, 6), ``J_point`` (m, 2, 3), ``J_calib`` (m, 2, 8).
     """
-    r, dr = rotations(exterior[:, 3:])
+    r, dr = rotations(exterior[:, 3:]) if rotation is None else rotation
     delta = point - exterior[:, :3]
     d = np.einsum("mji,mj->mi", r, delta)  # Rᵀ·(P - C)
     c = calib[:, 0]

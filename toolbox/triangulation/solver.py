@@ -21,9 +21,15 @@ import scipy.sparse as sp
 
 from toolbox.errors import ConvergenceError, InputDataError
 from toolbox.triangulation.block import FIXED, WEIGHTED, Block, Options
-from toolbox.triangulation.model import CALIBRATION_NAMES, EXTERIOR_NAMES, image_residuals
+from toolbox.triangulation.model import (
+    CALIBRATION_NAMES,
+    EXTERIOR_NAMES,
+    image_residuals,
+    rotations,
+)
 
 DENSE_LIMIT = 3000
+EIGEN_LIMIT = 400  # full eigen-analysis of the reduced matrix up to this size, pivots above
 SINGULAR_RATIO = 1e-13  # smallest / largest eigenvalue of the scaled reduced normal matrix
 KIND_IMAGE, KIND_GROUND, KIND_CENTRE, KIND_CALIB = 0, 1, 2, 3
 
@@ -92,8 +98,9 @@ class Problem:
         ph, pt = b.obs_photo[sel], b.obs_point[sel]
         cam = b.photo_camera[ph]
         calib = state.calibration[cam]
+        r_photo, dr_photo = rotations(state.exterior[:, 3:])
         out = image_residuals(b.obs_xy[sel], state.exterior[ph], state.points[pt], calib,
-                              jacobians)
+                              jacobians, (r_photo[ph], dr_photo[ph]))
         f, depth = out[0], out[1]
         wimg = self.obs_factor[sel] / b.obs_sigma[sel]
         m = len(sel)
@@ -251,17 +258,29 @@ def _scaled(s: sp.csr_matrix, problem: Problem) -> tuple[np.ndarray, np.ndarray 
 
 
 def diagnose(s: sp.csr_matrix, problem: Problem) -> None:
-    """Raise :class:`SingularError` naming the parameters of a (nearly) singular direction."""
+    """Raise :class:`SingularError` naming the parameters of a (nearly) singular direction:
+    the smallest eigenvector of the Jacobi-scaled matrix (small systems) or the smallest
+    Cholesky pivots (dense systems up to :data:`DENSE_LIMIT`)."""
+    import scipy.linalg as la
+
     d, ss = _scaled(s, problem)
     if problem.nc > DENSE_LIMIT:
         return
-    vals, vecs = np.linalg.eigh(ss.toarray())
-    if vals[0] < SINGULAR_RATIO * vals[-1]:
-        top = np.argsort(-np.abs(vecs[:, 0]))[:4]
-        names = ", ".join(problem.column_label(int(i)) for i in top)
-        raise SingularError(f"the normal matrix is near-singular (eigenvalue ratio "
-                            f"{vals[0] / vals[-1]:.1e}): weak geometry in {names}; add control, "
-                            "tie points or fix those parameters")
+    dense = ss.toarray()
+    if problem.nc <= EIGEN_LIMIT:
+        vals, vecs = np.linalg.eigh(dense)
+        ratio, weak = vals[0] / vals[-1], np.argsort(-np.abs(vecs[:, 0]))[:4]
+    else:
+        try:
+            pivots = np.diag(la.cholesky(dense, lower=True)) ** 2
+        except la.LinAlgError:
+            pivots = np.zeros(len(dense))
+        ratio, weak = pivots.min() / pivots.max(), np.argsort(pivots)[:4]
+    if ratio < SINGULAR_RATIO:
+        names = ", ".join(problem.column_label(int(i)) for i in weak)
+        raise SingularError(f"the normal matrix is near-singular (ratio {ratio:.1e}): weak "
+                            f"geometry in {names}; add control, tie points or fix those "
+                            "parameters")
 
 
 def solve_reduced(s: sp.csr_matrix, rhs: np.ndarray, problem: Problem) -> np.ndarray:
