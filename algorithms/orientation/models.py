@@ -19,7 +19,8 @@ class IndependentModels(Algorithm):
 
     INPUT: model coordinates, one row per point per model: ``model``, ``point_id``, ``x``, ``y``,
     ``z``. CONTROL: ``id``, ``X``, ``Y``, ``Z`` (blank X/Y: height point, blank Z: planimetric),
-    the known components taken as exact (the slides' control).
+    optional ``role`` control/check; the known components of control points are taken as exact
+    (the slides' control), check points only compared (adjusted minus surveyed, m).
 
     MODE ``planimetric``: a plane conformal transformation per model, ``X = Xu + a·x - b·y``,
     ``Y = Yu + a·y + b·x`` (linear), unknown X, Y per tie point; 2 equations per point per model
@@ -75,20 +76,27 @@ class IndependentModels(Algorithm):
         xyz = np.array([[number(r[c], f"row {k + 1} {c}") for c in cols]
                         for k, r in enumerate(rows)])
         control = read_control(params["CONTROL"])
+        use = [k for k, role in enumerate(control.roles) if role == "control"]
         request = ModelsRequest([r[c_model] for r in rows], [r[c_id] for r in rows], xyz,
-                                control.ids, control.xyz, params["MODE"])
+                                [control.ids[k] for k in use], control.xyz[use], params["MODE"])
         result = adjust_models(request)
         mi = np.array([result.points.index(r[c_id]) for r in rows])
         n_models = np.bincount(mi, minlength=len(result.points))
         res_norm = np.linalg.norm(result.residuals, axis=1)
         worst = np.zeros(len(result.points))
         np.maximum.at(worst, mi, res_norm)
-        known = set(control.ids)
+        known = {control.ids[k] for k in use}
+        checks = {}
+        for k, role in enumerate(control.roles):
+            if role == "check" and control.ids[k] in result.points:
+                g = result.ground[result.points.index(control.ids[k])]
+                checks[control.ids[k]] = (g - control.xyz[k][:len(g)]).tolist()
         features = []
         for k, pid in enumerate(result.points):
             g = result.ground[k]
             pt = [g[0], g[1], g[2] if len(g) > 2 else 0.0]
-            role = "control" if pid in known else ("tie" if n_models[k] > 1 else "isolated")
+            role = "control" if pid in known else "check" if pid in checks else \
+                ("tie" if n_models[k] > 1 else "isolated")
             features.append({"point_id": pid, "role": role, "n_models": int(n_models[k]),
                              "max_residual_m": float(worst[k]), "geometry": shapely.Point(pt)})
         crs = parse_crs(params["CRS"], "CRS") if params["CRS"] else None
@@ -98,7 +106,8 @@ class IndependentModels(Algorithm):
         stats = {"mode": params["MODE"], "models": len(result.models),
                  "points": len(result.points), "unknowns": result.unknowns,
                  "equations": result.equations, "redundancy": result.redundancy,
-                 "sigma0_m": None if np.isnan(result.sigma0_m) else result.sigma0_m}
+                 "sigma0_m": None if np.isnan(result.sigma0_m) else result.sigma0_m,
+                 "check_residuals_m": checks}
         if params["REPORT"] is not None:
             names = ("Xu", "Yu", "a", "b") if params["MODE"] == "planimetric" else \
                 ("TX", "TY", "TZ", "omega", "phi", "kappa", "scale")

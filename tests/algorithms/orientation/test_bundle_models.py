@@ -63,3 +63,22 @@ def test_too_little_control_is_a_one_line_error(tmp_path):
                                            "OUTPUT": tmp_path / "x.gpkg"})
     assert "\n" not in str(info.value)
     assert not (tmp_path / "x.gpkg").exists()
+
+
+def test_spatial_models_of_the_bundle_sample(tmp_path):
+    import json
+
+    from toolbox.demo.samples.bundle_block import make
+
+    sample = make(tmp_path / "data", {})
+    out = toolbox.run("orientation:models", {"INPUT": sample["bundle_models"],
+                                             "CONTROL": sample["bundle_control"],
+                                             "CRS": "EPSG:3003", "OUTPUT": tmp_path / "m.gpkg",
+                                             "REPORT": tmp_path / "m.json"})
+    s = out["STATISTICS"]
+    assert s["models"] == 6 and s["redundancy"] == s["equations"] - s["unknowns"] > 0
+    assert 0.01 < s["sigma0_m"] < 0.04  # 2 cm of noise on the model coordinates
+    assert len(s["check_residuals_m"]) == 2
+    for d in s["check_residuals_m"].values():
+        assert np.abs(d).max() < 0.15
+    assert json.loads((tmp_path / "m.json").read_text())["model_parameters"][0]["scale"] > 100

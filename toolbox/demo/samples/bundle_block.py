@@ -5,7 +5,10 @@ camera chain, seed 7): ``bundle_project.yaml`` (camera c = 153 mm, 0.012 mm pixe
 orientations: the bundle computes its start values), ``bundle_measurements.csv`` (``point_id,
 photo, col_px, row_px``; sigma 0.3 px of noise; one blunder of 15 px inserted on purpose at the
 first measurement of point ``t00184``) and ``bundle_control.csv`` (``id, X, Y, Z, role``: 4 full
-corner points, one height-only point, 2 check points), in EPSG:3003.
+corner points, one height-only point, 2 check points), in EPSG:3003; ``bundle_models.csv``
+(``model, point_id, x, y, z``): the stereo models of consecutive photos of each strip, their
+common points and both projection centres (``O_<photo>``) in an arbitrary model frame each (a
+random 7-parameter similarity of the true coordinates, 2 cm of noise), for orientation:models.
 
 Also ``python -m toolbox.demo.samples.bundle_block OUT_DIR``.
 """
@@ -33,7 +36,8 @@ def make(folder: Path, made: dict) -> dict[str, Path]:
                    {k: replace(p, exterior=None) for k, p in project.photos.items()})
     paths = {"bundle_project": folder / "bundle_project.yaml",
              "bundle_measurements": folder / "bundle_measurements.csv",
-             "bundle_control": folder / "bundle_control.csv"}
+             "bundle_control": folder / "bundle_control.csv",
+             "bundle_models": folder / "bundle_models.csv"}
     save_project(bare, paths["bundle_project"])
     xy = sb.xy.copy()
     first = sb.obs_point.index(BLUNDER_POINT)
@@ -54,7 +58,37 @@ def make(folder: Path, made: dict) -> dict[str, Path]:
                 w.writerow([sb.point_ids[k], "", "", f"{z:.3f}", role])
             else:
                 w.writerow([sb.point_ids[k], f"{x:.3f}", f"{y:.3f}", f"{z:.3f}", role])
+    _models(sb, paths["bundle_models"])
     return paths
+
+
+def _models(sb, path: Path) -> None:
+    import numpy as np
+
+    from toolbox.photogrammetry.rotation import rotation_matrix
+
+    rng = np.random.default_rng(8)
+    truth = dict(zip(sb.point_ids, sb.points, strict=True))
+    on: dict[str, set[str]] = {}
+    for p, ph in zip(sb.obs_point, sb.obs_photo, strict=True):
+        on.setdefault(ph, set()).add(p)
+    strips: dict[str, list[str]] = {}
+    for pid, photo in sb.project.photos.items():
+        strips.setdefault(photo.strip, []).append(pid)
+    with open(path, "w", newline="", encoding="utf-8") as f:
+        w = csv.writer(f)
+        w.writerow(["model", "point_id", "x", "y", "z"])
+        for photos in strips.values():
+            for a, b in zip(photos[:-1], photos[1:], strict=True):
+                scale = rng.uniform(500.0, 2000.0)
+                rot = rotation_matrix(*rng.normal(0.0, [0.01, 0.01, 1.0]))
+                shift = rng.normal(0.0, 1000.0, 3) + [*sb.points[:, :2].mean(axis=0), 0.0]
+                points = {p: truth[p] for p in sorted(on[a] & on[b])}
+                for ph in (a, b):
+                    points[f"O_{ph}"] = np.asarray(sb.project.photos[ph].exterior.centre)
+                for pid, xyz in points.items():
+                    m = rot.T @ (xyz + rng.normal(0.0, 0.02, 3) - shift) / scale
+                    w.writerow([f"{a}-{b}", pid, *(f"{v:.8f}" for v in m)])
 
 
 if __name__ == "__main__":  # pragma: no cover - convenience entry point
