@@ -16,6 +16,22 @@ from toolbox.photogrammetry.project import load_project
 from toolbox.triangulation.synthetic import SyntheticBlockSpec, make_block
 
 
+def declared_layer_problems(alg_id: str, name: str, path, params) -> list[str]:
+    """tests/toolbox/test_specs.py's check of written against declared layers (that test covers
+    only algorithms with a demo step)."""
+    import importlib.util
+    from pathlib import Path
+
+    from toolbox.registry import get
+
+    spec = importlib.util.spec_from_file_location(
+        "_specs", Path(__file__).resolve().parents[2] / "toolbox" / "test_specs.py")
+    specs = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(specs)
+    dest = next(d for d in get(alg_id).destinations() if d.name == name)
+    return specs.check_layers(str(path), dest.layers, {k: str(v) for k, v in params.items()})
+
+
 @pytest.fixture(scope="module")
 def sample(tmp_path_factory):
     return make(tmp_path_factory.mktemp("bundle_sample"), {})
@@ -31,7 +47,9 @@ def _params(sample, tmp_path, **over):
 def test_sample_block_is_oriented_blunder_rejected_outputs_readable(sample, tmp_path):
     import geopandas as gpd
 
-    out = toolbox.run("orientation:bundle", _params(sample, tmp_path))
+    params = _params(sample, tmp_path)
+    out = toolbox.run("orientation:bundle", params)
+    assert not declared_layer_problems("orientation:bundle", "POINTS", out["POINTS"], params)
     stats = out["STATISTICS"]
     assert 0.8 < stats["sigma0"] < 1.2 and stats["photos"] == 8
     report = json.loads((tmp_path / "bundle.json").read_text())

@@ -39,10 +39,12 @@ def test_planimetric_example_of_the_seeds(tmp_path):
     import geopandas as gpd
 
     models, control = _files(tmp_path)
-    out = toolbox.run("orientation:models", {"INPUT": models, "CONTROL": control,
-                                             "MODE": "planimetric", "CRS": "EPSG:3003",
-                                             "OUTPUT": tmp_path / "block.gpkg",
-                                             "REPORT": tmp_path / "block.json"})
+    from test_bundle import declared_layer_problems
+
+    params = {"INPUT": models, "CONTROL": control, "MODE": "planimetric", "CRS": "EPSG:3003",
+              "OUTPUT": tmp_path / "block.gpkg", "REPORT": tmp_path / "block.json"}
+    out = toolbox.run("orientation:models", params)
+    assert not declared_layer_problems("orientation:models", "OUTPUT", out["OUTPUT"], params)
     s = out["STATISTICS"]
     assert (s["unknowns"], s["equations"], s["redundancy"]) == (26, 32, 6)
     pts = gpd.read_file(out["OUTPUT"], layer="points")
