@@ -214,8 +214,10 @@ def normal_equations(problem: Problem, lin: Linearization) -> Normal:
 
 def block_inverse(c: np.ndarray, point_ids: list[str]) -> np.ndarray:
     """Inverse of the 3 x 3 point blocks; a singular one (a point without geometry) raises."""
-    cond = np.linalg.cond(c) if len(c) else np.zeros(0)
-    bad = np.flatnonzero(~(cond < 1e14))
+    eig = np.linalg.eigvalsh(c) if len(c) else np.ones((0, 3))  # symmetric: cheaper than SVD
+    with np.errstate(divide="ignore", invalid="ignore"):
+        cond = eig[:, 2] / eig[:, 0]
+    bad = np.flatnonzero(~((cond > 0) & (cond < 1e14)))
     if len(bad):
         names = ", ".join(repr(point_ids[i]) for i in bad[:5])
         raise InputDataError(f"{len(bad)} point(s) are not determined by their rays (nearly "
