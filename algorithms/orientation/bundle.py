@@ -186,6 +186,9 @@ class BundleAdjustment(Algorithm):
         if unstored:
             feedback.push_warning(f"{', '.join(unstored)}: estimated but not storable in the "
                                   "project file (see REPORT)")
+        for note in solution.notes:
+            if note.startswith("weak geometry"):
+                feedback.push_warning(note)
         for rj in solution.rejections:
             feedback.push_warning(f"rejected {rj.kind} observation (w = {rj.w:.2f})")
         ground = outputs.ground_comparison(block, solution, control, info["checks"])

@@ -210,7 +210,8 @@ def _adjust(block: Block, exterior: np.ndarray, points: np.ndarray, options: Opt
                                f"{rejection.index} (w = {rejection.w:.2f})")
         state, lin, it = least_squares(problem, state, options)
         iterations += it
-    return _solution(problem, state, lin, cof, iterations, rejections, notes)
+    return _solution(problem, state, lin, cof, iterations, rejections,
+                     notes + list(dict.fromkeys(problem.warnings)))
 
 
 def _solution(problem: Problem, state: State, lin, cof, iterations: int,

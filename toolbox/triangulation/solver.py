@@ -31,6 +31,7 @@ from toolbox.triangulation.model import (
 DENSE_LIMIT = 3000
 EIGEN_LIMIT = 400  # full eigen-analysis of the reduced matrix up to this size, pivots above
 SINGULAR_RATIO = 1e-13  # smallest / largest eigenvalue of the scaled reduced normal matrix
+WEAK_RATIO = 1e-7  # below it: a warning (a parameter barely determined)
 KIND_IMAGE, KIND_GROUND, KIND_CENTRE, KIND_CALIB = 0, 1, 2, 3
 
 
@@ -82,6 +83,7 @@ class Problem:
         for k, (cam, par) in enumerate(unknown):
             self.calib_column[cam, par] = 6 * n + k
         self.nc = 6 * n + len(unknown)
+        self.warnings: list[str] = []
 
     # -- labels ----------------------------------------------------------------------------------
     def column_label(self, col: int) -> str:
@@ -278,11 +280,14 @@ def diagnose(s: sp.csr_matrix, problem: Problem) -> None:
         except la.LinAlgError:
             pivots = np.zeros(len(dense))
         ratio, weak = pivots.min() / pivots.max(), np.argsort(pivots)[:4]
+    names = ", ".join(problem.column_label(int(i)) for i in weak)
     if ratio < SINGULAR_RATIO:
-        names = ", ".join(problem.column_label(int(i)) for i in weak)
         raise SingularError(f"the normal matrix is near-singular (ratio {ratio:.1e}): weak "
                             f"geometry in {names}; add control, tie points or fix those "
                             "parameters")
+    if ratio < WEAK_RATIO:
+        problem.warnings.append(f"weak geometry (eigenvalue ratio {ratio:.1e}) in {names}: "
+                                "check their standard deviations and correlations")
 
 
 def solve_reduced(s: sp.csr_matrix, rhs: np.ndarray, problem: Problem) -> np.ndarray:

@@ -154,3 +154,29 @@ def test_self_calibration_recovers_principal_distance_and_k1():
     fixed = adjust(case_fixed.block, case_fixed.exterior0, case_fixed.points0,
                    Options(snooping=False))
     assert fixed.sigma0 > 1.5  # chi-square with r ~ 400: far beyond chance
+
+
+def test_flat_terrain_with_free_principal_distance_is_a_near_singular_error():
+    from toolbox.errors import InputDataError
+
+    # vertical photos of flat ground: c and the flying heights trade exactly, x = -c·X/(Z - Z0)
+    spec = SyntheticBlockSpec(digital=False, seed=2, relief=0.0, attitude_sigma=0.0)
+    case = build_case(spec, n_control=6, self_calibration="c")
+    with pytest.raises(InputDataError, match="near-singular.*weak geometry in photo .* Z0"):
+        adjust(case.block, case.exterior0, case.points0, Options(snooping=False))
+    # slightly tilted photos: determined, barely; a warning names the weak parameters
+    spec = SyntheticBlockSpec(digital=False, seed=2, relief=0.0)
+    case = build_case(spec, n_control=6, self_calibration="c")
+    sol = adjust(case.block, case.exterior0, case.points0, Options(snooping=False))
+    assert any(n.startswith("weak geometry") for n in sol.notes)
+    assert sol.calibration_std[0, 0] > 1.0  # mm: c is not really determined
+
+
+def test_divergence_reports_the_iteration_and_the_worst_observations():
+    from toolbox.errors import ConvergenceError
+
+    case = build_case(SyntheticBlockSpec(digital=False, seed=2), n_control=6)
+    with pytest.raises(ConvergenceError, match=r"did not converge in 1 iterations.*worst "
+                                               r"observations: .*sigma\)"):
+        adjust(case.block, case.exterior0 + [30, -20, 10, 0.01, 0.01, 0.02], case.points0,
+               Options(max_iterations=1))
