@@ -113,7 +113,10 @@ class BundleAdjustment(Algorithm):
                          Layer("points", "Point Z", [
                              ("point_id", "string"), ("role", "string", "tie/control/check"),
                              ("n_photos", "integer"), ("sigma_x_m", "real"),
-                             ("sigma_y_m", "real"), ("sigma_z_m", "real")],
+                             ("sigma_y_m", "real"), ("sigma_z_m", "real"),
+                             ("ellipse_a_m", "real", "standard error ellipse, semi-major axis"),
+                             ("ellipse_b_m", "real", "semi-minor axis"),
+                             ("ellipse_angle_deg", "real", "major axis from east, CCW")],
                              "adjusted ground points with precision"),
                          Layer("image_residuals", "Point Z", [
                              ("point_id", "string"), ("photo", "string"),

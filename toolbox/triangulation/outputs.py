@@ -22,6 +22,17 @@ def _num(value) -> float | None:
     return value if math.isfinite(value) else None
 
 
+def error_ellipse(cov_xy: np.ndarray) -> tuple[float, float, float]:
+    """Standard error ellipse of a 2 x 2 covariance: semi-axes a >= b (m) and the direction of a,
+    degrees counter-clockwise from the X (east) axis, in (-90, 90]."""
+    if not np.isfinite(cov_xy).all():
+        return math.nan, math.nan, math.nan
+    vals, vecs = np.linalg.eigh(cov_xy)
+    angle = math.degrees(math.atan2(vecs[1, 1], vecs[0, 1]))
+    angle = angle - 180.0 if angle > 90.0 else angle + 180.0 if angle <= -90.0 else angle
+    return math.sqrt(max(vals[1], 0.0)), math.sqrt(max(vals[0], 0.0)), angle
+
+
 def adjusted_project(project, block: Block, solution: Solution):
     """``project`` with the adjusted exterior orientations and, for self-calibrated cameras,
     principal distance, principal point and polynomial distortion (k1, k2)."""
@@ -155,9 +166,11 @@ def layers(block: Block, solution: Solution, info: dict, ground: list[dict[str, 
         if not np.isfinite(solution.points[p]).all():
             continue
         std = solution.point_std[p]
+        a, b, angle = error_ellipse(solution.point_cov[p, :2, :2])
         points.append({"point_id": pid, "role": roles.get(pid, "tie"), "n_photos": int(rays[p]),
                        "sigma_x_m": _num(std[0]), "sigma_y_m": _num(std[1]),
-                       "sigma_z_m": _num(std[2]),
+                       "sigma_z_m": _num(std[2]), "ellipse_a_m": _num(a), "ellipse_b_m": _num(b),
+                       "ellipse_angle_deg": _num(angle),
                        "geometry": shapely.Point(solution.points[p])})
     obs = []
     for i in range(len(block.obs_photo)):

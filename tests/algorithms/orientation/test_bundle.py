@@ -76,6 +76,11 @@ def test_sample_block_is_oriented_blunder_rejected_outputs_readable(sample, tmp_
     assert set(layers["points"]["role"]) == {"tie", "control", "check"}
     assert layers["image_residuals"]["rejected"].sum() >= 1
     assert (layers["points"]["sigma_z_m"] > 0).all()
+    pts = layers["points"]
+    # the error ellipse holds the XY variances: a² + b² = σx² + σy², b <= σx, σy <= a
+    assert np.allclose(pts["ellipse_a_m"] ** 2 + pts["ellipse_b_m"] ** 2,
+                       pts["sigma_x_m"] ** 2 + pts["sigma_y_m"] ** 2, rtol=1e-9)
+    assert (pts["ellipse_b_m"] <= pts[["sigma_x_m", "sigma_y_m"]].min(axis=1) + 1e-12).all()
 
 
 def _rows(path):

@@ -52,3 +52,13 @@ def test_jacobians_match_central_differences(which):
         num = (image_residuals(*a1, jacobians=False)[0] -
                image_residuals(*a2, jacobians=False)[0]) / (2 * h)
         assert np.abs(num - jac[:, :, k]).max() <= 1e-6 * np.abs(jac[:, :, k]).max() + 1e-12
+
+
+@pytest.mark.parametrize("angle", [30.0, -60.0, 90.0])
+def test_error_ellipse_of_a_rotated_covariance(angle):
+    from toolbox.triangulation.outputs import error_ellipse
+
+    t = np.radians(angle)
+    r = np.array([[np.cos(t), -np.sin(t)], [np.sin(t), np.cos(t)]])
+    a, b, direction = error_ellipse(r @ np.diag([4.0, 1.0]) @ r.T)
+    assert (a, b) == pytest.approx((2.0, 1.0)) and direction == pytest.approx(angle)
