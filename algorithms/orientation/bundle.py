@@ -161,6 +161,11 @@ class BundleAdjustment(Algorithm):
                                params["CONTROL_SIGMA_Z"], params["GNSS_SIGMA_XY"],
                                params["GNSS_SIGMA_Z"])
         block, info = build_block(request)
+        unmeasured = [i for i in control.ids if i not in set(block.point_ids)]
+        if unmeasured:
+            info["notes"] = [f"{len(unmeasured)} CONTROL point(s) not measured in INPUT, not "
+                             f"used: {', '.join(unmeasured[:10])}"]
+            feedback.push_warning(info["notes"][0])
         validate(block)
         approximations.require_connected(block)
         check_datum(block)

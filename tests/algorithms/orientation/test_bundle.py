@@ -181,3 +181,12 @@ def test_gnss_centres_fix_the_datum_without_control(sample, tmp_path):
     for g in report["control_and_check"]:
         for a in "xyz":
             assert abs(g[f"d{a}_m"]) < 4 * g[f"sigma_{a}_m"]
+
+
+def test_control_points_never_measured_are_listed_not_used(sample, tmp_path):
+    rows = _rows(sample["bundle_control"]) + [["ghost", "1689000.0", "4798000.0", "300.0",
+                                               "control"]]
+    params = _params(sample, tmp_path, CONTROL=_write(tmp_path / "c.csv", rows))
+    toolbox.run("orientation:bundle", params)
+    notes = json.loads((tmp_path / "bundle.json").read_text())["notes"]
+    assert any("not measured in INPUT" in n and "ghost" in n for n in notes)
