@@ -12,9 +12,11 @@ without data snooping and precision (pure solve; precision needs the dense reduc
 6·photos squared). Measured: wall time of the adjustment and the process's peak resident memory
 (``ru_maxrss``), plus the result against the truth.
 
-Not done yet: the comparison with pycolmap's bundle adjustment (Ceres) on the same observations
-(pycolmap 4.2.1 installs from PyPI in a scratch venv; building its reconstruction is the missing
-part).
+``--pycolmap PYTHON``: the same observations and start values handed to pycolmap's bundle
+adjustment (COLMAP, Ceres; ``bench/pycolmap_ba.py``) in an interpreter that has pycolmap (a
+scratch venv: ``python -m venv /tmp/colmap && /tmp/colmap/bin/pip install pycolmap``), with the
+control points held fixed there (COLMAP has no weighted ground observations), fixed intrinsics:
+its adjust time, the time ratio and the largest difference of the projection centres.
 """
 
 from __future__ import annotations
@@ -87,6 +89,35 @@ def control_points(pts: np.ndarray, count: int = 12) -> np.ndarray:
     return np.unique(cKDTree(pts[:, :2]).query(np.array(targets))[1])
 
 
+def _pycolmap(python: str, camera, ext0, pts0, ph, pt, xy, ctrl, pts) -> dict:
+    """Run bench/pycolmap_ba.py in ``python`` on the same observations; adjusted centres."""
+    import subprocess
+    import tempfile
+
+    from toolbox.photogrammetry.rotation import rotation_matrix
+
+    flip = np.diag([1.0, -1.0, -1.0])
+    origin = np.round(pts0.mean(axis=0))
+    rot = rotation_matrix(ext0[:, 3], ext0[:, 4], ext0[:, 5])
+    r_cw = flip @ np.transpose(rot, (0, 2, 1))  # p_cam = F·Rᵀ·(P - C)
+    t_cw = -np.einsum("nij,nj->ni", r_cw, ext0[:, :3] - origin)
+    size = camera.image_size_px
+    ps = camera.pixel_size_mm
+    uv = np.column_stack([xy[:, 0] / ps + size[0] / 2, -xy[:, 1] / ps + size[1] / 2])
+    with tempfile.TemporaryDirectory() as tmp:
+        src, dst = Path(tmp) / "in.npz", Path(tmp) / "out.npz"
+        start = pts0.copy()
+        start[ctrl] = pts[ctrl]  # control held fixed at its surveyed position
+        np.savez(src, f_px=camera.c / ps, cx=size[0] / 2, cy=size[1] / 2, width=size[0],
+                 height=size[1], R_cw=r_cw, t_cw=t_cw, points=start - origin, obs_photo=ph,
+                 obs_point=pt, obs_uv=uv, constant=ctrl)
+        script = Path(__file__).with_name("pycolmap_ba.py")
+        subprocess.run([python, str(script), str(src), str(dst)], check=True)
+        out = np.load(dst)
+        centres = -np.einsum("nji,nj->ni", out["R_cw"], out["t_cw"]) + origin
+        return {"centres": centres, "seconds": float(out["seconds"])}
+
+
 def run(args) -> dict:
     from toolbox.triangulation.adjust import adjust
     from toolbox.triangulation.block import Block, Options
@@ -108,12 +139,23 @@ def run(args) -> dict:
     sol = adjust(block, ext0, pts0, Options(snooping=False, precision=False))
     t_adjust = time.perf_counter() - t1
     d = sol.exterior[:, :3] - truth[:, :3]
+    colmap = None
+    if args.pycolmap:
+        colmap = _pycolmap(args.pycolmap, camera, ext0, pts0, ph, pt, xy, ctrl, pts)
     result = {"photos": n, "points": len(pts), "image_observations": len(xy),
               "control_points": len(ctrl), "generate_s": round(t_make, 2),
               "adjust_s": round(t_adjust, 2), "iterations": sol.iterations,
               "sigma0": round(sol.sigma0, 4),
               "rms_centre_error_m": round(float(np.sqrt((d ** 2).mean())), 4),
               "peak_rss_mb": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1)}
+    if colmap is not None:
+        centres = colmap["centres"]
+        result["pycolmap_adjust_s"] = round(colmap["seconds"], 2)
+        result["time_ratio_ours_to_pycolmap"] = round(t_adjust / colmap["seconds"], 2)
+        result["pycolmap_rms_centre_error_m"] = round(
+            float(np.sqrt(((centres - truth[:, :3]) ** 2).mean())), 4)
+        result["max_centre_difference_m"] = round(
+            float(np.abs(centres - sol.exterior[:, :3]).max()), 4)
     return result
 
 
@@ -123,6 +165,8 @@ def main() -> None:
     parser.add_argument("--photos", type=int, default=50, help="photos per strip")
     parser.add_argument("--points", type=int, default=100_000)
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--pycolmap", default=None,
+                        help="python interpreter with pycolmap: compare with its adjustment")
     parser.add_argument("--json", type=Path, default=None, help="write the result here")
     args = parser.parse_args()
     result = run(args)
