@@ -35,7 +35,8 @@ class BundleAdjustment(Algorithm):
     for digital cameras). CONTROL: ``id``, ``X``, ``Y``, ``Z``, optional ``role`` (control/check),
     ``sigma_xy``, ``sigma_z`` (m): leave X and Y empty for a height point, Z empty for a
     planimetric one. Check points are adjusted as tie points and only compared. GNSS (optional):
-    projection centres ``photo``, ``X``, ``Y``, ``Z`` (optional sigmas).
+    antenna positions ``photo``, ``X``, ``Y``, ``Z`` (optional sigmas), at the projection centre
+    or offset by LEVER_ARM (camera frame, rotated with the photo).
 
     Unknowns: 6 exterior parameters per photo, 3 coordinates per point and, per camera, the
     SELF_CALIBRATION parameters: ``c``, ``x0``, ``y0`` (principal point, mm), ``k1``-``k3``
@@ -78,6 +79,8 @@ class BundleAdjustment(Algorithm):
              extensions=TABLE_EXTENSIONS),
         File("GNSS", "GNSS projection centres: photo, X, Y, Z, optional sigma_xy, sigma_z (m)",
              extensions=TABLE_EXTENSIONS, optional=True),
+        String("LEVER_ARM", "GNSS antenna offset from the projection centre in the camera frame, "
+               "m: 'x, y, z' (x, y along the image axes, z away from the ground)", optional=True),
         Enum("START", "approximate values: auto, project (PROJECT's exteriors) or control "
              "(resection and intersection chained)", options=("auto", "project", "control"),
              default="auto"),
@@ -145,6 +148,7 @@ class BundleAdjustment(Algorithm):
         from toolbox.triangulation.inputs import (
             BlockRequest,
             build_block,
+            parse_lever_arm,
             read_centres,
             read_control,
             read_measurements,
@@ -159,7 +163,7 @@ class BundleAdjustment(Algorithm):
                                params["SELF_CALIBRATION"] or "", params["SIGMA_PX"],
                                params["SIGMA_MM"], params["CONTROL_SIGMA_XY"],
                                params["CONTROL_SIGMA_Z"], params["GNSS_SIGMA_XY"],
-                               params["GNSS_SIGMA_Z"])
+                               params["GNSS_SIGMA_Z"], parse_lever_arm(params["LEVER_ARM"]))
         block, info = build_block(request)
         unmeasured = [i for i in control.ids if i not in set(block.point_ids)]
         if unmeasured:

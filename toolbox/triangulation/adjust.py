@@ -225,7 +225,11 @@ def _solution(problem: Problem, state: State, lin, cof, iterations: int,
     f, _ = image_residuals(b.obs_xy, state.exterior[b.obs_photo], state.points[b.obs_point],
                            state.calibration[b.photo_camera[b.obs_photo]], jacobians=False)
     g_res = state.points[b.ground_point] + problem.origin - b.ground_xyz
-    h_res = state.exterior[b.centre_photo, :3] + problem.origin - b.centre_xyz
+    from toolbox.triangulation.model import rotations
+
+    lever = rotations(state.exterior[:, 3:])[0] @ b.lever_arm
+    h_res = (state.exterior[b.centre_photo, :3] + lever[b.centre_photo] + problem.origin
+             - b.centre_xyz)
     image_w = np.full((len(b.obs_photo), 2), np.nan)
     image_r = np.full_like(image_w, np.nan)
     ground_w = np.full_like(b.ground_xyz, np.nan)

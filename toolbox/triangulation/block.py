@@ -28,7 +28,9 @@ class Block:
     point_ids; obs_photo, obs_point (m,), obs_xy, obs_sigma (m, 2) image mm;
     ground_point (g,), ground_xyz (g, 3) surveyed coordinates (NaN: component not known, e.g.
     a Z-only point has NaN X, Y), ground_sigma (g, 3) metres;
-    centre_photo (h,), centre_xyz, centre_sigma (h, 3): GNSS projection centres.
+    centre_photo (h,), centre_xyz, centre_sigma (h, 3): GNSS antenna positions, observing
+    ``C + R·lever_arm`` (lever_arm (3,): antenna offset in the camera frame, metres: x along the
+    image x, y along the image y, z away from the ground; zero = GNSS at the projection centre).
     """
 
     photo_ids: list[str]
@@ -48,6 +50,7 @@ class Block:
     centre_photo: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     centre_xyz: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     centre_sigma: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    lever_arm: np.ndarray = field(default_factory=lambda: np.zeros(3))
 
     def __post_init__(self) -> None:
         k = len(self.camera_names)
@@ -63,6 +66,7 @@ class Block:
             setattr(self, name, np.asarray(getattr(self, name), dtype=np.int64).ravel())
         for name in ("obs_xy", "obs_sigma"):
             setattr(self, name, np.asarray(getattr(self, name), dtype=float).reshape(-1, 2))
+        self.lever_arm = np.asarray(self.lever_arm, dtype=float).reshape(3)
         for name in ("ground_xyz", "ground_sigma", "centre_xyz", "centre_sigma"):
             setattr(self, name, np.asarray(getattr(self, name), dtype=float).reshape(-1, 3))
 

@@ -75,6 +75,7 @@ class BlockRequest:
     control_sigma_z: float = 0.03
     centre_sigma_xy: float = 0.10
     centre_sigma_z: float = 0.15
+    lever_arm: tuple[float, float, float] = (0.0, 0.0, 0.0)  # GNSS antenna, camera frame, m
 
 
 def read_measurements(path: Path, layer: str | None, coordinates: str,
@@ -163,6 +164,21 @@ def read_centres(path: Path, layer: str | None = None, name: str = "GNSS") -> Ce
         sig.append([sxy, sxy, sz])
     return Centres(photos, np.array(xyz, dtype=float).reshape(-1, 3),
                    np.array(sig, dtype=float).reshape(-1, 3))
+
+
+def parse_lever_arm(text: str | None, name: str = "LEVER_ARM") -> tuple[float, float, float]:
+    """``"0.1, -0.2, 1.5"`` -> (0.1, -0.2, 1.5); empty -> zeros."""
+    if not text or not str(text).strip():
+        return (0.0, 0.0, 0.0)
+    parts = [p for p in str(text).replace(";", ",").replace(" ", ",").split(",") if p]
+    try:
+        values = tuple(float(p) for p in parts)
+    except ValueError:
+        values = ()
+    if len(values) != 3 or not all(np.isfinite(values)):
+        raise ParameterError(name, f"must be three numbers 'x, y, z' (metres, camera frame), got "
+                             f"{text!r}")
+    return values  # type: ignore[return-value]
 
 
 def parse_self_calibration(text: str, name: str = "SELF_CALIBRATION"
@@ -293,7 +309,7 @@ def build_block(request: BlockRequest) -> tuple[Block, dict]:
                   [photo_index[p] for p in ms.photo_ids], [point_index[p] for p in ms.point_ids],
                   xy, sigma2, modes, sig, g_point, np.array(g_xyz).reshape(-1, 3),
                   np.array(g_sig).reshape(-1, 3), h_photo, np.array(h_xyz).reshape(-1, 3),
-                  np.array(h_sig).reshape(-1, 3))
+                  np.array(h_sig).reshape(-1, 3), np.asarray(request.lever_arm, dtype=float))
     return block, {"checks": checks, "kind": ms.kind, "pixel_mm": pixel_mm,
                    "free": sorted(free)}
 

@@ -125,7 +125,8 @@ class Problem:
         hi, hc = np.nonzero(self.centre_active)
         hph = b.centre_photo[hi]
         wh = self.centre_factor[hi, hc] / b.centre_sigma[hi, hc]
-        fh = state.exterior[hph, hc] + self.origin[hc] - b.centre_xyz[hi, hc]
+        lever = r_photo @ b.lever_arm  # (n, 3) antenna offset on the ground axes
+        fh = state.exterior[hph, hc] + lever[hph, hc] + self.origin[hc] - b.centre_xyz[hi, hc]
         r_parts.append(fh * wh)
         rp.append(np.full(len(hi), -1))
         kinds.append(np.full(len(hi), KIND_CENTRE))
@@ -162,6 +163,12 @@ class Problem:
         r_idx.append(base + np.arange(len(hi)))
         c_idx.append(6 * hph + hc)
         vals.append(wh)
+        if b.lever_arm.any():  # d(R·e)/d(angle)
+            d_lever = dr_photo @ b.lever_arm  # (n, 3 angles, 3)
+            for t in range(3):
+                r_idx.append(base + np.arange(len(hi)))
+                c_idx.append(6 * hph + 3 + t)
+                vals.append(wh * d_lever[hph, t, hc])
         base += len(hi)
         r_idx.append(base + np.arange(len(wc_cam)))
         c_idx.append(self.calib_column[wc_cam, wc_par])

@@ -180,3 +180,28 @@ def test_divergence_reports_the_iteration_and_the_worst_observations():
                                                r"observations: .*sigma\)"):
         adjust(case.block, case.exterior0 + [30, -20, 10, 0.01, 0.01, 0.02], case.points0,
                Options(max_iterations=1))
+
+
+def test_gnss_with_lever_arm_fixes_the_datum_and_is_needed():
+    from toolbox.triangulation.model import rotations
+
+    spec = SyntheticBlockSpec(digital=True, seed=1)
+    lever = np.array([0.3, -0.2, 1.8])  # antenna 1.8 m above the camera
+    case = build_case(spec, n_control=6)
+    b = case.block
+    rng = np.random.default_rng(9)
+    r = rotations(case.truth_exterior[:, 3:])[0]
+    b.centre_photo = np.arange(b.n_photos)
+    b.centre_xyz = case.truth_exterior[:, :3] + r @ lever + rng.normal(0, 0.03, (b.n_photos, 3))
+    b.centre_sigma = np.full((b.n_photos, 3), 0.03)
+    b.ground_point, b.ground_xyz, b.ground_sigma = b.ground_point[:1], b.ground_xyz[:1], \
+        b.ground_sigma[:1]  # one control point: GNSS carries the datum
+    b.lever_arm = lever
+    sol = adjust(b, case.exterior0, case.points0, Options(snooping=False))
+    assert 0.85 < sol.sigma0 < 1.15
+    d_ext, _ = _errors(case, sol)
+    assert np.abs(d_ext / sol.exterior_std).max() < 4.0
+    assert np.abs(sol.centre_residuals).max() < 4 * 0.03
+    b.lever_arm = np.zeros(3)  # ignoring it leaves 1.8 m between antenna and camera
+    wrong = adjust(b, case.exterior0, case.points0, Options(snooping=False))
+    assert wrong.sigma0 > 1.5  # chi-square with ~600 degrees of freedom: far beyond chance
