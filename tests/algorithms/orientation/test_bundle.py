@@ -190,3 +190,7 @@ def test_control_points_never_measured_are_listed_not_used(sample, tmp_path):
     toolbox.run("orientation:bundle", params)
     notes = json.loads((tmp_path / "bundle.json").read_text())["notes"]
     assert any("not measured in INPUT" in n and "ghost" in n for n in notes)
+
+
+def test_bad_lever_arm_is_refused(sample, tmp_path):
+    _bad(sample, tmp_path, "LEVER_ARM.*three numbers", LEVER_ARM="0.1, up")
