@@ -173,11 +173,14 @@ def _chain(block: Block, exterior: np.ndarray, oriented: np.ndarray, points: np.
 
     cam = camera_xy(block)
     notes = []
+    order = np.argsort(block.obs_photo, kind="stable")
+    bounds = np.searchsorted(block.obs_photo[order], np.arange(block.n_photos + 1))
+    rows_of = [order[bounds[j]:bounds[j + 1]] for j in range(block.n_photos)]
     for round_ in range(1, 3 * block.n_photos + 2):
         counts = {}
         progress = False
         for j in np.flatnonzero(~oriented):
-            rows = np.flatnonzero((block.obs_photo == j) & known[block.obs_point])
+            rows = rows_of[j][known[block.obs_point[rows_of[j]]]]
             counts[j] = rows
             if len(rows) < 4:
                 continue

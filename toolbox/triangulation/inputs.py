@@ -255,8 +255,11 @@ def build_block(request: BlockRequest) -> tuple[Block, dict]:
     xy = np.array(ms.xy, dtype=float)
     sigma = np.array(ms.sigma, dtype=float)
     pixel_mm = {}
+    rows_of: dict[str, list[int]] = {}
+    for k, p in enumerate(ms.photo_ids):
+        rows_of.setdefault(p, []).append(k)
     for pid in photo_ids:
-        rows = [k for k, p in enumerate(ms.photo_ids) if p == pid]
+        rows = rows_of[pid]
         photo = project.photos[pid]
         if ms.kind == "pixel":
             transform = photo.require_pixel_transform()
