@@ -11,7 +11,9 @@ intersection chained over the block.
   every photo is oriented or no progress is made (004 sl. 28: resection / DLT start values).
   When no photo sees 4 known points, the photo seeing the most (>= 2) gets a near-vertical
   start from a plane similarity (omega = phi = 0; scale, kappa, nadir), and the chain goes on.
-- :func:`by_model_chain`: when control is too sparse for that (block corners seen on one photo
+- :func:`by_plane_block`: when control is too sparse for that, a near-vertical block is solved
+  at once as plane similarities (photo mm -> ground XY, linear; >= 2 XY control points).
+- :func:`by_model_chain`: without planimetric control (block corners seen on one photo
   each), the same chain runs in a free model frame seeded by one vertical photo, and the model is
   brought onto the control by a 7-parameter similarity
   (:func:`toolbox.photogrammetry.absolute.fit_similarity`, >= 3 full control points).
@@ -106,8 +108,48 @@ def by_resection(block: Block) -> tuple[np.ndarray, np.ndarray, list[str]]:
     oriented = np.zeros(block.n_photos, dtype=bool)
     notes = _chain(block, exterior, oriented, points, known)
     if not oriented.all():
+        xy = np.isfinite(block.ground_xyz[:, :2]).all(axis=1)
+        if len(set(block.ground_point[xy].tolist())) >= 2:
+            return by_plane_block(block)
         return by_model_chain(block)
     _check_points(block, known)
+    return exterior, points, notes
+
+
+def by_plane_block(block: Block) -> tuple[np.ndarray, np.ndarray, list[str]]:
+    """Near-vertical block: every photo as a plane similarity camera mm -> ground XY, all at
+    once (the linear planimetric block adjustment of :mod:`toolbox.triangulation.models`, photos
+    as models) on the XY control; then per photo kappa = atan2(b, a), the scale m = hypot(a, b)
+    gives Z0 = mean control height + m·c, omega = phi = 0; points intersected."""
+    from toolbox.triangulation.models import ModelsRequest, planimetric
+
+    require_connected(block)
+    cam = camera_xy(block)
+    known = np.isfinite(block.ground_xyz)
+    xy = known[:, 0] & known[:, 1]
+    request = ModelsRequest([str(j) for j in block.obs_photo],
+                            [block.point_ids[i] for i in block.obs_point],
+                            np.column_stack([cam, np.zeros(len(cam))]),
+                            [block.point_ids[i] for i in block.ground_point[xy]],
+                            block.ground_xyz[xy], "planimetric")
+    plane = planimetric(request)
+    order = [int(m) for m in plane.models]
+    z_mean = float(np.mean(block.ground_xyz[known[:, 2], 2])) if known[:, 2].any() else 0.0
+    exterior = np.zeros((block.n_photos, 6))
+    for row, j in enumerate(order):
+        xu, yu, a, b = plane.parameters[row]
+        scale = float(np.hypot(a, b))
+        c = float(block.calibration[block.photo_camera[j], 0])
+        exterior[j] = [xu, yu, z_mean + scale * c, 0.0, 0.0, float(np.arctan2(b, a))]
+    points, full = _control(block)
+    ok = np.zeros(block.n_points, dtype=bool)
+    _intersect(block, cam, exterior, np.ones(block.n_photos, bool), ok, points)
+    missing = ~(ok | full)
+    where = {p: k for k, p in enumerate(plane.points)}
+    for i in np.flatnonzero(missing):
+        points[i] = [*plane.ground[where[block.point_ids[i]]], z_mean]
+    notes = [f"start values: plane similarity block of {block.n_photos} photos on "
+             f"{int(xy.sum())} XY control points (near-vertical photos), points intersected"]
     return exterior, points, notes
 
 

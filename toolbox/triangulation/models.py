@@ -122,13 +122,26 @@ def planimetric(request: ModelsRequest) -> ModelsResult:
 
 
 def _check_datum(normal, mode: str, redundancy: int) -> None:
+    """Refuse a negative redundancy and a singular normal matrix (eigenvalues of the scaled
+    matrix up to 400 unknowns, a sparse LU factorisation above)."""
+    from scipy.sparse.linalg import splu
+
     if redundancy < 0:
         raise InputDataError(f"the {mode} block has more unknowns than equations (redundancy "
                              f"{redundancy}): add control or tie points")
-    dense = normal.toarray()
-    d = 1.0 / np.sqrt(np.maximum(np.diag(dense), 1e-300))
-    vals = np.linalg.eigvalsh(dense * d[:, None] * d[None, :])
-    if vals[0] < 1e-12 * vals[-1]:
+    d = 1.0 / np.sqrt(np.maximum(normal.diagonal(), 1e-300))
+    scaled = (sp.diags(d) @ normal @ sp.diags(d)).tocsc()
+    if scaled.shape[0] <= 400:
+        vals = np.linalg.eigvalsh(scaled.toarray())
+        singular = vals[0] < 1e-12 * vals[-1]
+    else:
+        try:
+            lu = splu(scaled)
+            pivots = np.abs(lu.U.diagonal())
+            singular = pivots.min() < 1e-12 * pivots.max()
+        except RuntimeError:
+            singular = True
+    if singular:
         raise InputDataError(f"the {mode} block is not determined (datum defect or models not "
                              "connected): add control points (planimetric: >= 2 XY; spatial: "
                              ">= 2 XY and >= 3 Z) or tie points between models")
