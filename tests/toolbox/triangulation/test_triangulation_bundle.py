@@ -205,3 +205,18 @@ def test_gnss_with_lever_arm_fixes_the_datum_and_is_needed():
     b.lever_arm = np.zeros(3)  # ignoring it leaves 1.8 m between antenna and camera
     wrong = adjust(b, case.exterior0, case.points0, Options(snooping=False))
     assert wrong.sigma0 > 1.5  # chi-square with ~600 degrees of freedom: far beyond chance
+
+
+def test_sparse_control_block_starts_from_the_plane_similarity_block():
+    # 3 strips x 6 photos, control only at the corners and the long sides' middles: no photo
+    # sees 4 control points, the chained resections would drift; the plane block does not
+    case = build_case(SyntheticBlockSpec(strips=3, photos_per_strip=6, digital=True, seed=4),
+                      n_control=6)
+    from toolbox.triangulation.approximations import by_resection
+
+    ext0, pts0, notes = by_resection(case.block)
+    assert any("plane similarity block" in n for n in notes)
+    sol = adjust(case.block, ext0, pts0, Options(snooping=False))
+    assert 0.85 < sol.sigma0 < 1.15
+    d_ext, _ = _errors(case, sol)
+    assert np.abs(d_ext / sol.exterior_std).max() < 4.5
