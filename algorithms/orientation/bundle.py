@@ -45,9 +45,10 @@ class BundleAdjustment(Algorithm):
 
     START: ``project`` uses PROJECT's exterior orientations; ``control`` computes them (photos with
     >= 4 control points resected, then tie points intersected and the other photos resected in
-    turn; near-vertical photos with 2-3 known points start from a plane similarity); ``auto``:
-    project when every photo has one, else control. A block that common points do not connect is
-    refused, component by component.
+    turn; when that cannot reach every photo, the near-vertical block is solved at once as plane
+    similarities on the XY control, or, without it, chained in a free frame and put on the GNSS
+    centres); ``auto``: project when every photo has one, else control. A block that common
+    points do not connect is refused, component by component.
 
     Solver: Levenberg-Marquardt on a sparse normal matrix reduced on the points (Schur
     complement), coordinates shifted to the block's centroid. Datum: at least 2 planimetric and
@@ -102,6 +103,8 @@ class BundleAdjustment(Algorithm):
         Boolean("SNOOPING", "Baarda data snooping: reject and repeat", default=True),
         Number("CRITICAL_W", "w-test critical value (3.29: alpha 0.1 %)", default=3.29,
                min_value=1.0),
+        Number("THRESHOLD_PX", "flag image residuals above this, pixels (Z-Map's green/red "
+               "check; pixel measurements)", default=1.0, min_value=0, min_exclusive=True),
         Integer("MAX_ITERATIONS", "Levenberg-Marquardt iterations per adjustment", default=50,
                 min_value=1, max_value=1000),
         OutputFile("OUTPUT", "orientation project (YAML) with the adjusted orientations",
@@ -126,7 +129,9 @@ class BundleAdjustment(Algorithm):
                              ("res_x_um", "real", "computed - observed"), ("res_y_um", "real"),
                              ("res_px", "real"), ("w_x", "real", "w-test"),
                              ("r_x", "real", "redundancy number"),
-                             ("rejected", "boolean")], "one row per measurement, at its point"),
+                             ("rejected", "boolean"),
+                             ("flagged", "boolean", "residual over THRESHOLD_PX")],
+                             "one row per measurement, at its point"),
                          Layer("ground_residuals", "LineString Z", [
                              ("point_id", "string"), ("role", "string"), ("dx_m", "real"),
                              ("dy_m", "real"), ("dz_m", "real")],
@@ -208,13 +213,15 @@ class BundleAdjustment(Algorithm):
                      relative_images=False)
         if params["POINTS"] is not None:
             write_layers(params["POINTS"], outputs.layers(block, solution, info, ground,
-                                                          project.crs),
+                                                          project.crs, params["THRESHOLD_PX"]),
                          crs=project.crs, geometry_types=outputs.GEOMETRY_TYPES)
-        document = outputs.report(block, solution, info, ground, notes + solution.notes)
+        document = outputs.report(block, solution, info, ground, notes + solution.notes,
+                                  params["THRESHOLD_PX"])
         if params["REPORT"] is not None:
             write_json(params["REPORT"], {"algorithm": self.id, **document})
         stats = {k: document["summary"][k] for k in
-                 ("sigma0", "redundancy", "iterations", "photos", "points", "rejected")}
+                 ("sigma0", "redundancy", "iterations", "photos", "points", "rejected",
+                  "flagged")}
         stats.update({k: v for k, v in document["summary"].items() if k.endswith("_rmse_m")})
         return {"OUTPUT": params["OUTPUT"], "POINTS": params["POINTS"],
                 "REPORT": params["REPORT"], "STATISTICS": stats}

@@ -94,16 +94,20 @@ def _rms(values: list[float | None]) -> float | None:
 
 
 def report(block: Block, solution: Solution, info: dict, ground: list[dict[str, Any]],
-           notes: list[str]) -> dict[str, Any]:
-    """The JSON report (plain types)."""
+           notes: list[str], threshold_px: float = 1.0) -> dict[str, Any]:
+    """The JSON report (plain types); ``flagged``: active measurements whose residual exceeds
+    ``threshold_px`` (pixel measurements only)."""
     px = np.array([info["pixel_mm"].get(block.photo_ids[j], np.nan) for j in block.obs_photo])
     res = solution.image_residuals
     active = solution.obs_active
+    with np.errstate(invalid="ignore"):
+        over = active & (np.hypot(res[:, 0], res[:, 1]) / px > threshold_px)
     summary = {
         "sigma0": _num(solution.sigma0), "redundancy": solution.redundancy,
         "iterations": solution.iterations, "photos": block.n_photos,
         "points": block.n_points, "image_observations": int(len(block.obs_photo)),
-        "rejected": len(solution.rejections),
+        "rejected": len(solution.rejections), "flagged": int(over.sum()),
+        "threshold_px": threshold_px,
         "rms_image_residual_um": _num(1e3 * np.sqrt(np.mean(res[active] ** 2))),
         "rms_image_residual_px": _num(np.sqrt(np.nanmean((res[active] / px[active, None]) ** 2)))
         if info["kind"] == "pixel" else None,
@@ -148,7 +152,7 @@ def report(block: Block, solution: Solution, info: dict, ground: list[dict[str, 
 
 
 def layers(block: Block, solution: Solution, info: dict, ground: list[dict[str, Any]],
-           crs) -> dict[str, Any]:
+           crs, threshold_px: float = 1.0) -> dict[str, Any]:
     """GeoDataFrames: projection_centres, points, image_residuals, ground_residuals."""
     import geopandas as gpd
     import shapely
@@ -180,12 +184,15 @@ def layers(block: Block, solution: Solution, info: dict, ground: list[dict[str, 
         pid = block.photo_ids[block.obs_photo[i]]
         v = solution.image_residuals[i]
         size = info["pixel_mm"].get(pid)
+        res_px = math.hypot(*v) / size if size else None
         obs.append({"point_id": block.point_ids[block.obs_point[i]], "photo": pid,
                     "res_x_um": float(1e3 * v[0]), "res_y_um": float(1e3 * v[1]),
-                    "res_px": _num(math.hypot(*v) / size) if size else None,
+                    "res_px": None if res_px is None else _num(res_px),
                     "w_x": _num(solution.image_w[i, 0]), "w_y": _num(solution.image_w[i, 1]),
                     "r_x": _num(solution.image_r[i, 0]), "r_y": _num(solution.image_r[i, 1]),
                     "rejected": not bool(solution.obs_active[i]),
+                    "flagged": bool(solution.obs_active[i]) and res_px is not None
+                    and res_px > threshold_px,
                     "geometry": shapely.Point(pt)})
     lines = []
     for g in ground:

@@ -75,6 +75,9 @@ def test_sample_block_is_oriented_blunder_rejected_outputs_readable(sample, tmp_
     assert len(layers["projection_centres"]) == 8
     assert set(layers["points"]["role"]) == {"tie", "control", "check"}
     assert layers["image_residuals"]["rejected"].sum() >= 1
+    res = layers["image_residuals"]
+    flagged = res[~res["rejected"] & (res["res_px"] > 1.0)]
+    assert res["flagged"].sum() == len(flagged) == report["summary"]["flagged"]
     assert (layers["points"]["sigma_z_m"] > 0).all()
     pts = layers["points"]
     # the error ellipse holds the XY variances: a² + b² = σx² + σy², b <= σx, σy <= a
