@@ -19,7 +19,7 @@ import numpy as np
 
 from toolbox.errors import InputDataError
 from toolbox.triangulation.block import WEIGHTED, Block, Options, Rejection, Solution
-from toolbox.triangulation.model import image_residuals
+from toolbox.triangulation.model import image_residuals, rotations
 from toolbox.triangulation.precision import cofactors
 from toolbox.triangulation.solver import (
     KIND_GROUND,
@@ -225,8 +225,6 @@ def _solution(problem: Problem, state: State, lin, cof, iterations: int,
     f, _ = image_residuals(b.obs_xy, state.exterior[b.obs_photo], state.points[b.obs_point],
                            state.calibration[b.photo_camera[b.obs_photo]], jacobians=False)
     g_res = state.points[b.ground_point] + problem.origin - b.ground_xyz
-    from toolbox.triangulation.model import rotations
-
     lever = rotations(state.exterior[:, 3:])[0] @ b.lever_arm
     h_res = (state.exterior[b.centre_photo, :3] + lever[b.centre_photo] + problem.origin
              - b.centre_xyz)

@@ -22,7 +22,6 @@ import scipy.sparse as sp
 from toolbox.errors import ConvergenceError, InputDataError
 from toolbox.triangulation.block import FIXED, WEIGHTED, Block, Options
 from toolbox.triangulation.model import (
-    CALIBRATION_NAMES,
     EXTERIOR_NAMES,
     image_residuals,
     rotations,
@@ -384,6 +383,3 @@ def least_squares(problem: Problem, state: State, options: Options, check: bool 
     raise ConvergenceError(f"bundle adjustment did not converge in {options.max_iterations} "
                            f"iterations (weighted sum of squares {cost:.6g}); worst "
                            f"observations: {worst_observations(problem, lin)}")
-
-
-__all__ = ["CALIBRATION_NAMES", "Problem", "State", "least_squares"]
