@@ -16,6 +16,8 @@ import numpy as np
 from toolbox.triangulation.block import Block, Solution
 from toolbox.triangulation.model import CALIBRATION_NAMES, EXTERIOR_NAMES
 
+MAX_REPORTED_OBSERVATIONS = 50_000  # per-observation residuals in the JSON up to this many
+
 
 def _num(value) -> float | None:
     value = float(value)
@@ -144,8 +146,19 @@ def report(block: Block, solution: Solution, info: dict, ground: list[dict[str, 
                     "coordinate": "XYZ"[rj.component], "residual_m": rj.residual}
         rejections.append({"observation": rj.kind, **what, "w": rj.w,
                            "redundancy_number": rj.redundancy})
+    observations = None
+    if len(block.obs_photo) <= MAX_REPORTED_OBSERVATIONS:
+        observations = [
+            {"point_id": block.point_ids[block.obs_point[i]],
+             "photo": block.photo_ids[block.obs_photo[i]],
+             "res_x_um": float(1e3 * res[i, 0]), "res_y_um": float(1e3 * res[i, 1]),
+             "w_x": _num(solution.image_w[i, 0]), "w_y": _num(solution.image_w[i, 1]),
+             "r_x": _num(solution.image_r[i, 0]), "r_y": _num(solution.image_r[i, 1]),
+             "rejected": not bool(active[i])} for i in range(len(block.obs_photo))]
     return {"residual_sign": "computed minus observed; ground: adjusted minus surveyed",
             "summary": summary, "photos": photos, "cameras": cameras,
+            "image_observations": observations if observations is not None else
+            f"{len(block.obs_photo)} observations: see the POINTS GeoPackage",
             "control_and_check": [{k: v for k, v in g.items() if k not in ("known", "adjusted")}
                                   for g in ground],
             "rejected_observations": rejections, "notes": notes}

@@ -54,6 +54,9 @@ def test_sample_block_is_oriented_blunder_rejected_outputs_readable(sample, tmp_
     assert 0.8 < stats["sigma0"] < 1.2 and stats["photos"] == 8
     report = json.loads((tmp_path / "bundle.json").read_text())
     rejected = report["rejected_observations"]
+    obs = report["image_observations"]
+    assert len(obs) == report["summary"]["image_observations"]
+    assert sum(o["rejected"] for o in obs) >= 1
     assert any(r["point_id"] == BLUNDER_POINT and r["photo"] == "1_01" and abs(r["w"]) > 10
                for r in rejected)
     # orientations against the truth the sample was made from, within 4 sigma
