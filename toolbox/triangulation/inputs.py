@@ -182,19 +182,22 @@ def parse_lever_arm(text: str | None, name: str = "LEVER_ARM") -> tuple[float, f
 
 
 def parse_self_calibration(text: str, name: str = "SELF_CALIBRATION"
-                           ) -> dict[str, tuple[int, float]]:
-    """``"c, k1:weighted:1e-6"`` -> ``{"c": (FREE, nan), "k1": (WEIGHTED, 1e-6)}``."""
-    result: dict[str, tuple[int, float]] = {}
+                           ) -> dict[tuple[str | None, str], tuple[int, float]]:
+    """``"c, k1:weighted:1e-6, x0@wild 303.55"`` -> ``{(None, "c"): (FREE, nan), (None, "k1"):
+    (WEIGHTED, 1e-6), ("wild 303.55", "x0"): (FREE, nan)}``: ``PARAMETER[@CAMERA][:MODE[:SIGMA]]``,
+    for every camera unless ``@CAMERA`` names one (which then overrides)."""
+    result: dict[tuple[str | None, str], tuple[int, float]] = {}
     for item in (text or "").replace(";", ",").split(","):
         item = item.strip()
         if not item:
             continue
-        parts = [p.strip().lower() for p in item.split(":")]
-        par = parts[0]
+        parts = [p.strip() for p in item.split(":")]
+        par, _, camera = parts[0].partition("@")
+        par = par.strip().lower()
         if par not in CALIBRATION_NAMES:
-            raise ParameterError(name, f"unknown calibration parameter {parts[0]!r}; expected "
-                                 f"one of {', '.join(CALIBRATION_NAMES)}")
-        mode = parts[1] if len(parts) > 1 else "free"
+            raise ParameterError(name, f"unknown calibration parameter {par!r}; expected "
+                                 f"one of {', '.join(CALIBRATION_NAMES)} (optionally @CAMERA)")
+        mode = parts[1].lower() if len(parts) > 1 else "free"
         if mode not in MODE_NAMES or len(parts) > 3:
             raise ParameterError(name, f"{item!r}: mode must be fixed, free or "
                                  "weighted:SIGMA")
@@ -207,11 +210,32 @@ def parse_self_calibration(text: str, name: str = "SELF_CALIBRATION"
             if not sigma > 0:
                 raise ParameterError(name, f"{item!r}: a weighted parameter needs a sigma > 0 "
                                      "(e.g. c:weighted:0.01)")
-        result[par] = (MODE_NAMES[mode], sigma)
+        result[(camera.strip() or None, par)] = (MODE_NAMES[mode], sigma)
     return result
 
 
-def camera_calibration(camera, free: dict[str, tuple[int, float]]) -> np.ndarray:
+def calibration_settings(spec: dict[tuple[str | None, str], tuple[int, float]],
+                         cameras: list[str], all_cameras, name: str = "SELF_CALIBRATION"
+                         ) -> tuple[np.ndarray, np.ndarray]:
+    """Modes and sigmas (k, 8) of ``cameras`` from a parsed specification."""
+    unknown = sorted({c for c, _ in spec if c is not None and c not in all_cameras})
+    if unknown:
+        raise ParameterError(name, f"names camera(s) {', '.join(map(repr, unknown))} that "
+                             f"PROJECT does not have (cameras: {', '.join(all_cameras)})")
+    modes = np.full((len(cameras), 8), FIXED)
+    sig = np.full((len(cameras), 8), np.nan)
+    for general in (True, False):  # camera-specific entries override the general ones
+        for (camera, par), (mode, s) in spec.items():
+            if (camera is None) != general:
+                continue
+            for k, cam in enumerate(cameras):
+                if camera is None or camera == cam:
+                    modes[k, CALIBRATION_NAMES.index(par)] = mode
+                    sig[k, CALIBRATION_NAMES.index(par)] = s
+    return modes, sig
+
+
+def camera_calibration(camera, free: set[str]) -> np.ndarray:
     """Start values (8,) of a project camera; its distortion must be a polynomial (or none)
     when radial terms are estimated, and a table is applied to the measurements instead."""
     from toolbox.photogrammetry.camera import DISTORTION_POLYNOMIAL
@@ -244,13 +268,12 @@ def build_block(request: BlockRequest) -> tuple[Block, dict]:
     photo_camera = np.array([cam_index[project.photos[p].camera.name] for p in photo_ids])
     point_ids = list(dict.fromkeys(ms.point_ids))
     point_index = {p: k for k, p in enumerate(point_ids)}
-    free = parse_self_calibration(request.self_calibration)
-    calibration = np.array([camera_calibration(project.cameras[c], free) for c in camera_names])
-    modes = np.full((len(camera_names), 8), FIXED)
-    sig = np.full((len(camera_names), 8), np.nan)
-    for par, (mode, s) in free.items():
-        modes[:, CALIBRATION_NAMES.index(par)] = mode
-        sig[:, CALIBRATION_NAMES.index(par)] = s
+    spec = parse_self_calibration(request.self_calibration)
+    modes, sig = calibration_settings(spec, camera_names, list(project.cameras))
+    calibration = np.array([
+        camera_calibration(project.cameras[c],
+                           {CALIBRATION_NAMES[i] for i in np.flatnonzero(modes[k] != FIXED)})
+        for k, c in enumerate(camera_names)])
     # image mm and sigmas
     xy = np.array(ms.xy, dtype=float)
     sigma = np.array(ms.sigma, dtype=float)
@@ -314,6 +337,7 @@ def build_block(request: BlockRequest) -> tuple[Block, dict]:
                   np.array(g_sig).reshape(-1, 3), h_photo, np.array(h_xyz).reshape(-1, 3),
                   np.array(h_sig).reshape(-1, 3), np.asarray(request.lever_arm, dtype=float))
     return block, {"checks": checks, "kind": ms.kind, "pixel_mm": pixel_mm,
-                   "free": sorted(free)}
+                   "free": [f"{block.calibration_label(k, i)}" for k, i in
+                            np.argwhere(modes != FIXED)]}
 
 

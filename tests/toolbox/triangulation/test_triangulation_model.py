@@ -62,3 +62,20 @@ def test_error_ellipse_of_a_rotated_covariance(angle):
     r = np.array([[np.cos(t), -np.sin(t)], [np.sin(t), np.cos(t)]])
     a, b, direction = error_ellipse(r @ np.diag([4.0, 1.0]) @ r.T)
     assert (a, b) == pytest.approx((2.0, 1.0)) and direction == pytest.approx(angle)
+
+
+def test_self_calibration_specification_per_camera():
+    from toolbox.errors import ParameterError
+    from toolbox.triangulation.block import FIXED, FREE, WEIGHTED
+    from toolbox.triangulation.inputs import calibration_settings, parse_self_calibration
+
+    spec = parse_self_calibration("c, k1:weighted:1e-6, x0@wild 303.55, c@rc30:fixed")
+    modes, sig = calibration_settings(spec, ["wild 303.55", "rc30"], ["wild 303.55", "rc30"])
+    assert modes[0].tolist() == [FREE, FREE, FIXED, WEIGHTED, FIXED, FIXED, FIXED, FIXED]
+    assert modes[1].tolist() == [FIXED, FIXED, FIXED, WEIGHTED, FIXED, FIXED, FIXED, FIXED]
+    assert sig[1, 3] == 1e-6
+    with pytest.raises(ParameterError, match="SELF_CALIBRATION.*'nope'"):
+        calibration_settings(parse_self_calibration("c@nope"), ["a"], ["a"])
+    for bad in ("f", "c:sometimes", "k1:weighted", "k1:weighted:-1"):
+        with pytest.raises(ParameterError, match="SELF_CALIBRATION"):
+            parse_self_calibration(bad)
