@@ -41,7 +41,8 @@ class BundleAdjustment(Algorithm):
     Unknowns: 6 exterior parameters per photo, 3 coordinates per point and, per camera, the
     SELF_CALIBRATION parameters: ``c``, ``x0``, ``y0`` (principal point, mm), ``k1``-``k3``
     (radial, ``Δr = k1·r³ + k2·r⁵ + k3·r⁷``, mm), ``p1``, ``p2`` (decentring), each ``free`` or
-    ``weighted:SIGMA`` around the project's value (e.g. ``c, k1`` or ``c:weighted:0.01``).
+    ``weighted:SIGMA`` around the project's value (e.g. ``c, k1`` or ``c:weighted:0.01``), for
+    every camera or, with ``@CAMERA``, for one (``x0@wild 303.55``; it overrides).
 
     START: ``project`` uses PROJECT's exterior orientations; ``control`` computes them (photos with
     >= 4 control points resected, then tie points intersected and the other photos resected in
@@ -85,8 +86,9 @@ class BundleAdjustment(Algorithm):
         Enum("START", "approximate values: auto, project (PROJECT's exteriors) or control "
              "(resection and intersection chained)", options=("auto", "project", "control"),
              default="auto"),
-        String("SELF_CALIBRATION", "calibration unknowns for every camera, e.g. 'c, k1' or "
-               "'c:weighted:0.01, x0, y0' (c, x0, y0, k1, k2, k3, p1, p2)", optional=True),
+        String("SELF_CALIBRATION", "calibration unknowns, e.g. 'c, k1' or 'c:weighted:0.01, "
+               "x0@CAMERA' (c, x0, y0, k1, k2, k3, p1, p2; @CAMERA: that camera only)",
+               optional=True),
         Number("SIGMA_PX", "a priori sigma of a pixel measurement without sigma_px, px",
                default=0.5, min_value=0, min_exclusive=True),
         Number("SIGMA_MM", "a priori sigma of an image-mm measurement without sigma_mm, mm",
