@@ -133,6 +133,14 @@ def _reject(problem: Problem, lin, w: np.ndarray, r: np.ndarray, options: Option
             ) -> Rejection | None:
     b = problem.block
     testable = (lin.kind != 3) & (r > 1e-3) & np.isfinite(w)
+    # never reject the control the datum rests on (2 XY + 3 Z points, unless >= 3 GNSS centres)
+    if (problem.centre_active.all(axis=1)).sum() < 3:
+        active = problem.ground_active
+        xy_points = int((active[:, 0] & active[:, 1]).sum())
+        z_points = int(active[:, 2].sum())
+        ground = lin.kind == KIND_GROUND
+        testable &= ~(ground & (lin.component < 2) & (xy_points <= 2))
+        testable &= ~(ground & (lin.component == 2) & (z_points <= 3))
     if not testable.any():
         return None
     row = int(np.argmax(np.where(testable, np.abs(w), -1.0)))

@@ -220,3 +220,19 @@ def test_sparse_control_block_starts_from_the_plane_similarity_block():
     assert 0.85 < sol.sigma0 < 1.15
     d_ext, _ = _errors(case, sol)
     assert np.abs(d_ext / sol.exterior_std).max() < 4.5
+
+
+def test_a_blunder_on_control_is_rejected_but_never_the_datum_itself():
+    case = build_case(SyntheticBlockSpec(digital=True, seed=1), n_control=6)
+    b = case.block
+    b.ground_xyz = b.ground_xyz.copy()
+    b.ground_xyz[5, 2] += 0.5  # 50 sigma on one height
+    sol = adjust(b, case.exterior0, case.points0, Options())
+    assert any(r.kind == "ground" and r.index == 5 and r.component == 2 for r in sol.rejections)
+    assert 0.85 < sol.sigma0 < 1.15
+    # with only the minimum control (2 XY + 3 Z), the same blunder cannot be rejected
+    keep = [0, 1, 5]
+    b.ground_point, b.ground_xyz, b.ground_sigma = (b.ground_point[keep], b.ground_xyz[keep],
+                                                    b.ground_sigma[keep])
+    sol = adjust(b, case.exterior0, case.points0, Options())
+    assert not any(r.kind == "ground" for r in sol.rejections)
