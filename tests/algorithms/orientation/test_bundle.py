@@ -200,3 +200,29 @@ def test_control_points_never_measured_are_listed_not_used(sample, tmp_path):
 
 def test_bad_lever_arm_is_refused(sample, tmp_path):
     _bad(sample, tmp_path, "LEVER_ARM.*three numbers", LEVER_ARM="0.1, up")
+
+
+def test_start_from_the_project_exteriors(sample, tmp_path):
+    from dataclasses import replace
+
+    from toolbox.photogrammetry.exterior import ExteriorOrientation
+    from toolbox.photogrammetry.project import Project, save_project
+
+    truth = make_block(SyntheticBlockSpec(digital=True, seed=7)).project
+    rng = np.random.default_rng(3)
+    photos = {}
+    for pid, p in truth.photos.items():  # a flight plan: 20 m and 20 mrad off
+        e = p.exterior
+        photos[pid] = replace(p, exterior=ExteriorOrientation(
+            pid, e.x0 + rng.normal(0, 20), e.y0 + rng.normal(0, 20), e.z0 + rng.normal(0, 20),
+            e.omega + rng.normal(0, 0.02), e.phi + rng.normal(0, 0.02),
+            e.kappa + rng.normal(0, 0.02), crs=truth.crs))
+    project = save_project(Project(truth.crs, truth.cameras, photos), tmp_path / "plan.yaml")
+    out = toolbox.run("orientation:bundle", _params(sample, tmp_path, PROJECT=project,
+                                                    START="project"))
+    report = json.loads((tmp_path / "bundle.json").read_text())
+    assert any("PROJECT's exterior" in n for n in report["notes"])
+    adjusted = load_project(out["OUTPUT"])
+    for row in report["photos"]:
+        t, e = truth.photos[row["photo"]].exterior, adjusted.photos[row["photo"]].exterior
+        assert abs(e.z0 - t.z0) < 4 * row["std_Z0"]
