@@ -32,7 +32,8 @@ class BundleAdjustment(Algorithm):
     (``point_id``, ``photo``, ``col_px``/``row_px`` or ``x_mm``/``y_mm``, optional ``sigma_px``
     or ``sigma_mm``), as orientation:intersect and the matcher write them. Pixels are converted to
     image mm through each photo's interior orientation (fiducial fit for scanned film, pixel size
-    for digital cameras). CONTROL: ``id``, ``X``, ``Y``, ``Z``, optional ``role`` (control/check),
+    for digital cameras); CONTROL_INPUT (optional) adds the control/check measurements when
+    INPUT holds tie points only. CONTROL: ``id``, ``X``, ``Y``, ``Z``, optional ``role`` (control/check),
     ``sigma_xy``, ``sigma_z`` (m): leave X and Y empty for a height point, Z empty for a
     planimetric one. Check points are adjusted as tie points and only compared. GNSS (optional):
     antenna positions ``photo``, ``X``, ``Y``, ``Z`` (optional sigmas), at the projection centre
@@ -76,6 +77,9 @@ class BundleAdjustment(Algorithm):
     parameters = [
         *measurement_parameters("orientation project (YAML): cameras, interior orientations, "
                                 "optional approximate exterior orientations"),
+        File("CONTROL_INPUT", "image measurements of the control/check points when INPUT holds "
+             "only tie points (e.g. orientation:tiepoints' output); same columns and units",
+             extensions=TABLE_EXTENSIONS, optional=True),
         File("CONTROL", "surveyed points: id, X, Y, Z (blank X/Y: height point, blank Z: "
              "planimetric), optional role control/check, sigma_xy, sigma_z (m)",
              extensions=TABLE_EXTENSIONS),
@@ -164,6 +168,14 @@ class BundleAdjustment(Algorithm):
         project = load_project_parameter(params["PROJECT"])
         measurements = read_measurements(params["INPUT"], params["LAYER"],
                                          params["COORDINATES"])
+        if params["CONTROL_INPUT"] is not None:
+            extra = read_measurements(params["CONTROL_INPUT"], None, params["COORDINATES"],
+                                      "CONTROL_INPUT")
+            if extra.kind != measurements.kind:
+                raise self.fail("CONTROL_INPUT", f"has {extra.kind} coordinates but INPUT has "
+                                f"{measurements.kind} coordinates: give both in pixels or both "
+                                "in image mm")
+            measurements = measurements.concatenate(extra)
         control = read_control(params["CONTROL"])
         centres = read_centres(params["GNSS"]) if params["GNSS"] is not None else None
         request = BlockRequest(project, measurements, control, centres,

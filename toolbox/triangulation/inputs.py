@@ -34,6 +34,12 @@ class Measurements:
     kind: str  # "pixel" or "image"
     sigma: np.ndarray
 
+    def concatenate(self, other: Measurements) -> Measurements:
+        """Both tables' rows (same kind of coordinates)."""
+        return Measurements(self.point_ids + other.point_ids, self.photo_ids + other.photo_ids,
+                            np.vstack([self.xy, other.xy]), self.kind,
+                            np.concatenate([self.sigma, other.sigma]))
+
 
 @dataclass
 class Control:

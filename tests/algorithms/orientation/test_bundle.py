@@ -226,3 +226,19 @@ def test_start_from_the_project_exteriors(sample, tmp_path):
     for row in report["photos"]:
         t, e = truth.photos[row["photo"]].exterior, adjusted.photos[row["photo"]].exterior
         assert abs(e.z0 - t.z0) < 4 * row["std_Z0"]
+
+
+def test_tie_points_and_control_measurements_in_two_files(sample, tmp_path):
+    rows = _rows(sample["bundle_measurements"])
+    control_ids = {r[0] for r in _rows(sample["bundle_control"])[1:]}
+    ties = _write(tmp_path / "ties.csv", [rows[0] + ["sigma_px"]] +
+                  [r + ["0.3"] for r in rows[1:] if r[0] not in control_ids])
+    ctrl = _write(tmp_path / "ctrl.csv", [rows[0]] + [r for r in rows[1:] if r[0] in control_ids])
+    out = toolbox.run("orientation:bundle", _params(sample, tmp_path, INPUT=ties,
+                                                    CONTROL_INPUT=ctrl))
+    assert out["STATISTICS"]["photos"] == 8 and "check_rmse_m" in out["STATISTICS"]
+    mm = _write(tmp_path / "mm.csv", [["point_id", "photo", "x_mm", "y_mm"],
+                                      ["x", "1_01", "1.0", "2.0"]])
+    bad = tmp_path / "bad"
+    bad.mkdir()
+    _bad(sample, bad, "CONTROL_INPUT.*image coordinates", INPUT=ties, CONTROL_INPUT=mm)
