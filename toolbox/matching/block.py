@@ -262,6 +262,10 @@ def _refine_track(k: int, found: list, xy: list, sources: dict[int, ImageSource]
             continue
         reach = opts.half + radius + 2
         extent_other = int(np.ceil(np.abs(affine).sum(axis=1).max() * reach)) + 2
+        if not (_inside(sources[ref], ref_xy, opts.half + 2)
+                and _inside(sources[other], pos[n], extent_other)):
+            ok[n] = False  # a patch off the image would correlate with padding
+            continue
         ro = _window(sources[ref], ref_xy, opts.half + 2)
         oo = _window(sources[other], pos[n], extent_other)
         r = refine.refine_pair(ro[0], ro[1], ref_xy, oo[0], oo[1], pos[n], affine, opts.half,
@@ -285,6 +289,10 @@ def _common(found: list, xy: list, a: int, b: int, cache: dict
                 pb.append(pos[photos.index(b)])
         cache[(a, b)] = (np.array(pa).reshape(-1, 2), np.array(pb).reshape(-1, 2))
     return cache[(a, b)]
+
+
+def _inside(source: ImageSource, centre: np.ndarray, half: int) -> bool:
+    return bool(half <= centre[0] <= source.width - half and half <= centre[1] <= source.height - half)
 
 
 def _window(source: ImageSource, centre: np.ndarray, half: int

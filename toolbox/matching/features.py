@@ -47,7 +47,9 @@ def _create(detector: str, budget: int):
     import cv2
 
     if detector == "sift":
-        return cv2.SIFT_create(nfeatures=budget)
+        # precise upscale: without it the doubled first octave shifts keypoints by about a
+        # quarter pixel, which cancels between photos of one strip but not across strips
+        return cv2.SIFT_create(nfeatures=budget, enable_precise_upscale=True)
     if detector == "akaze":
         return cv2.AKAZE_create(threshold=0.0005)
     if detector == "orb":
