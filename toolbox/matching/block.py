@@ -191,8 +191,7 @@ def tie_points(photos: list[BlockPhoto], opts: TiePointOptions,
     xy = [np.array([feats[p].xy[f] for p, f in t]) for t in found]
     # closure: every pair of a track's photos that has a fundamental matrix must agree with it
     # (a chain a-b-c of pairwise-correct matches can still join two different points)
-    models_ = {(i, j): f for i, j, _, _, f in verified}
-    residual = np.array([_track_residual(t, pos, models_) for t, pos in zip(found, xy, strict=True)])
+    residual = _track_residuals(found, xy, {(i, j): f for i, j, _, _, f in verified})
     bad = residual > 2.0 * opts.f_threshold * max(scales.values())
     found = [t for t, b in zip(found, bad, strict=True) if not b]
     xy = [p for p, b in zip(xy, bad, strict=True) if not b]
@@ -231,16 +230,22 @@ def tie_points(photos: list[BlockPhoto], opts: TiePointOptions,
                           {photos[k].id: len(feats[k]) for k in used}, how)
 
 
-def _track_residual(track: list, pos: np.ndarray, models: dict) -> float:
-    """Largest symmetric epipolar distance (px) of a track's observations over every pair of
-    its photos that has an epipolar model."""
-    worst = 0.0
-    photos = [p for p, _ in track]
-    for a in range(len(photos)):
-        for b in range(a + 1, len(photos)):
-            model = models.get((photos[a], photos[b]))
-            if model is not None:
-                worst = max(worst, float(model.residual(pos[a:a + 1], pos[b:b + 1])[0]))
+def _track_residuals(found: list, xy: list, models: dict) -> np.ndarray:
+    """Per track, the largest symmetric epipolar distance (px) of its observations over every
+    pair of its photos that has an epipolar model."""
+    worst = np.zeros(len(found))
+    members: dict[tuple[int, int], list[tuple[int, int, int]]] = {}
+    for k, t in enumerate(found):
+        photos = [p for p, _ in t]
+        for a in range(len(photos)):
+            for b in range(a + 1, len(photos)):
+                if (photos[a], photos[b]) in models:
+                    members.setdefault((photos[a], photos[b]), []).append((k, a, b))
+    for key, rows in members.items():
+        ks = np.array([r[0] for r in rows])
+        xa = np.array([xy[k][a] for k, a, _ in rows])
+        xb = np.array([xy[k][b] for k, _, b in rows])
+        np.maximum.at(worst, ks, models[key].residual(xa, xb))
     return worst
 
 

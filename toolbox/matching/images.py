@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import warnings
 from contextlib import contextmanager
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -42,6 +42,11 @@ class ImageSource:
     bands: int
     dtype: str
     stretch: tuple[float, float] | None = None
+    _grey_full: np.ndarray | None = field(default=None, repr=False)
+
+    #: photos up to this many pixels are held whole in memory (grey, 1 byte a pixel) once a
+    #: window is asked for; bigger ones are read window by window
+    WHOLE_LIMIT = 16_000_000
 
     @classmethod
     def open(cls, path: str | Path, name: str = "photo") -> ImageSource:
@@ -91,6 +96,15 @@ class ImageSource:
         import rasterio
         from rasterio.windows import Window
 
+        if self.width * self.height <= self.WHOLE_LIMIT:
+            if self._grey_full is None:
+                self._grey_full = self.level(1.0)[0]
+            out = np.zeros((height, width), np.uint8)
+            c0, r0 = max(0, col0), max(0, row0)
+            c1, r1 = min(self.width, col0 + width), min(self.height, row0 + height)
+            if c1 > c0 and r1 > r0:
+                out[r0 - row0:r1 - row0, c0 - col0:c1 - col0] = self._grey_full[r0:r1, c0:c1]
+            return out
         # clipped read and zero padding (rasterio's boundless reads go through a VRT that
         # misplaces windows of images with a rotated geotransform)
         c0, r0 = max(0, col0), max(0, row0)
