@@ -24,8 +24,8 @@ BOUNDS = (X0 - 2200.0, Y0 - 2600.0, X0 + 2200.0 + 2 * BASE, Y0 + 1400.0 + STRIP_
 
 
 def texture(x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """Ground radiometry: band-limited noise (sum of many random plane waves, 25-250 m, longer ones stronger), with no
-    period that a descriptor could confuse."""
+    """Ground radiometry: band-limited noise (sum of many random plane waves, 25-250 m, longer
+    ones stronger), with no period that a descriptor could confuse."""
     rng = np.random.default_rng(11)
     n = 60
     angle = rng.uniform(0, np.pi, n)
