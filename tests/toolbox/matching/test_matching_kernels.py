@@ -33,12 +33,12 @@ def waves(seed=0, n=40, shortest=10.0, longest=50.0):
     return f
 
 
-def render(f, shape, affine=np.eye(2), shift=(0.0, 0.0), centre=(100.0, 100.0)):
+def render(f, shape, affine=None, shift=(0.0, 0.0), centre=(100.0, 100.0)):
     """Pixel centres (toolbox convention: +0.5) of an image ``other`` with
     ``other(A·(x - c) + c + t) = f(x)``, i.e. ``other(y) = f(A⁻¹·(y - c - t) + c)``."""
     rows, cols = shape
     yy, xx = np.mgrid[0:rows, 0:cols] + 0.5
-    inv = np.linalg.inv(affine)
+    inv = np.linalg.inv(np.eye(2) if affine is None else affine)
     u = np.stack([xx - centre[0] - shift[0], yy - centre[1] - shift[1]])
     x = inv[0, 0] * u[0] + inv[0, 1] * u[1] + centre[0]
     y = inv[1, 0] * u[0] + inv[1, 1] * u[1] + centre[1]
