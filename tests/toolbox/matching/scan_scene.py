@@ -31,15 +31,15 @@ class Scan:
 
 
 def mapping(angle_deg: float, scale=(1.0004, 0.9993), shear=0.0008, offset=(12.0, -7.0),
-            orientation=np.eye(2)):
+            orientation=None):
     th = math.radians(angle_deg)
     rot = np.array([[math.cos(th), -math.sin(th)], [math.sin(th), math.cos(th)]])
-    a = orientation @ rot @ np.array([[scale[0], shear], [0.0, scale[1]]]) / PIXEL
+    a = (np.eye(2) if orientation is None else orientation) @ rot @ np.array([[scale[0], shear], [0.0, scale[1]]]) / PIXEL
     c0 = np.array([SIZE / 2.0, SIZE / 2.0]) + offset
     return a, c0
 
 
-def render_scan(path: Path, angle_deg: float = 1.5, orientation=np.eye(2), dtype="uint8",
+def render_scan(path: Path, angle_deg: float = 1.5, orientation=None, dtype="uint8",
                 cover: str | None = None, blur: float = 1.0, noise: float = 4.0, seed: int = 0
                 ) -> Scan:
     import cv2
