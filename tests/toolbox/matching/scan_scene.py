@@ -34,7 +34,8 @@ def mapping(angle_deg: float, scale=(1.0004, 0.9993), shear=0.0008, offset=(12.0
             orientation=None):
     th = math.radians(angle_deg)
     rot = np.array([[math.cos(th), -math.sin(th)], [math.sin(th), math.cos(th)]])
-    a = (np.eye(2) if orientation is None else orientation) @ rot @ np.array([[scale[0], shear], [0.0, scale[1]]]) / PIXEL
+    g = np.eye(2) if orientation is None else orientation
+    a = g @ rot @ np.array([[scale[0], shear], [0.0, scale[1]]]) / PIXEL
     c0 = np.array([SIZE / 2.0, SIZE / 2.0]) + offset
     return a, c0
 
