@@ -103,6 +103,11 @@ def test_block_with_orientations_matches_the_truth(block, tmp_path):
     assert sum(int(r["cells_3x3"]) == 9 for r in pairs.values()) >= 8
     assert stats["multi_ray_points"] > stats["points"] / 3
     # ground positions: on the rendered terrain (the DEM the photos were rendered from)
+    import pyogrio
+
+    info = pyogrio.read_info(tmp_path / "tie.gpkg", layer="tie_points")
+    assert info["geometry_type"] == "Point Z" and info["features"] == stats["points"]
+    assert list(info["fields"]) == ["point_id", "n_photos", "photos", "max_residual_px"]
     points = gpd.read_file(tmp_path / "tie.gpkg", layer="tie_points")
     z, transform = hills_dem(block_scene.BOUNDS, cell=20.0, relief=200.0, base=250.0, seed=4)
     surface = DemSurface.from_transform(z.astype("float64"), transform)
