@@ -67,7 +67,8 @@ class TiePoints(Algorithm):
              extensions=[".yaml", ".yml"], optional=True),
         String("IMAGES", "or a folder of images (no cameras: pairs by thumbnails)",
                optional=True),
-        Enum("DETECTOR", "feature detector", options=("sift", "akaze", "orb"), default="sift"),
+        Enum("DETECTOR", "feature detector (akaze only with an OpenCV that has it: not 5.x)",
+             options=("sift", "orb", "akaze"), default="sift"),
         Integer("MAX_SIZE", "longer side of the detection level, px", default=3000,
                 min_value=200, max_value=20000),
         Number("BORDER", "masked border of every photo (fiducials, data strip), full-res px",
@@ -103,6 +104,7 @@ class TiePoints(Algorithm):
         import numpy as np
 
         from toolbox.matching.block import TiePointOptions, tie_points
+        from toolbox.matching.features import available
         from toolbox.matching.inputs import photos_from_folder, photos_from_project
         from toolbox.matching.outputs import (
             ground_points,
@@ -112,6 +114,11 @@ class TiePoints(Algorithm):
         )
         from toolbox.photogrammetry.tables import load_project_parameter, write_json
 
+        if not available(params["DETECTOR"]):
+            import cv2
+
+            raise self.fail("DETECTOR", f"akaze is not in this OpenCV ({cv2.__version__}: "
+                            "moved to opencv-contrib in OpenCV 5); use sift or orb")
         if (params["PROJECT"] is None) == (params["IMAGES"] is None):
             raise self.fail("PROJECT", "give either PROJECT (an orientation project) or IMAGES "
                             "(a folder of images), not both and not neither")

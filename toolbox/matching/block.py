@@ -16,7 +16,9 @@ Coordinates are full-resolution pixels (col, row; top-left pixel centre at (0.5,
 
 from __future__ import annotations
 
+import os
 from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -35,7 +37,8 @@ class TiePointOptions:
     detector: str = "sift"
     max_size: int = 3000  # longer side of the level the features are detected on, px
     tile: int = 1024  # detection tile on that level, px
-    per_tile: int = 4000  # features per tile
+    per_tile: int = 2500  # features per tile
+    workers: int = 0  # threads for detection and matching (0: one per core)
     ratio: float = 0.8  # Lowe's ratio test
     f_threshold: float = 1.0  # MAGSAC inlier threshold, px of the detection level
     min_matches: int = 15  # fewer verified matches: the pair is not tied
@@ -132,15 +135,14 @@ def select_pairs(photos: list[BlockPhoto], opts: TiePointOptions
     if oriented and opts.terrain_height is not None:
         return pairs.footprint_pairs([bp.photo for bp in photos], opts.terrain_height,
                                      opts.min_overlap), "footprints"
-    thumbs = [_features(bp, TiePointOptions(**{**opts.__dict__, "per_tile": 1000}),
-                        opts.thumbnail_size) for bp in photos]
-    chosen = []
-    for i, j, _ in pairs.all_pairs(len(photos)):
-        m = _match(thumbs[i][0], thumbs[j][0], opts, max(thumbs[i][1], thumbs[j][1]), photos[i],
-                   photos[j])
-        if len(m) >= opts.min_matches:
-            chosen.append((i, j, None))
-    return chosen, "thumbnails"
+    small = TiePointOptions(**{**opts.__dict__, "per_tile": 1000})
+    every = pairs.all_pairs(len(photos))
+    with ThreadPoolExecutor(opts.workers or os.cpu_count() or 1) as pool:
+        thumbs = list(pool.map(lambda bp: _features(bp, small, opts.thumbnail_size), photos))
+        found = list(pool.map(lambda c: len(_match(thumbs[c[0]][0], thumbs[c[1]][0], opts,
+                                                   max(thumbs[c[0]][1], thumbs[c[1]][1]),
+                                                   photos[c[0]], photos[c[1]])), every))
+    return [c for c, n in zip(every, found, strict=True) if n >= opts.min_matches], "thumbnails"
 
 
 def tie_points(photos: list[BlockPhoto], opts: TiePointOptions,
@@ -154,14 +156,19 @@ def tie_points(photos: list[BlockPhoto], opts: TiePointOptions,
     used = sorted({k for i, j, _ in candidates for k in (i, j)})
     feats: dict[int, Features] = {}
     scales: dict[int, float] = {}
-    for n, k in enumerate(used):
-        feats[k], scales[k] = _features(photos[k], opts, opts.max_size)
-        say(10 + 40 * (n + 1) / max(1, len(used)), f"features of {photos[k].id}: {len(feats[k])}")
+    # OpenCV releases the GIL: photos are detected, and pairs matched, on parallel threads
+    with ThreadPoolExecutor(opts.workers or os.cpu_count() or 1) as pool:
+        for n, (k, (f, s)) in enumerate(zip(used, pool.map(
+                lambda k: _features(photos[k], opts, opts.max_size), used), strict=True)):
+            feats[k], scales[k] = f, s
+            say(10 + 40 * (n + 1) / max(1, len(used)), f"features of {photos[k].id}: {len(f)}")
+        matched = list(pool.map(lambda c: _match(feats[c[0]], feats[c[1]], opts,
+                                                 max(scales[c[0]], scales[c[1]]), photos[c[0]],
+                                                 photos[c[1]]), candidates))
     reports: list[PairReport] = []
     verified: list[tuple[int, int, np.ndarray, np.ndarray, np.ndarray]] = []
-    for i, j, overlap in candidates:
+    for (i, j, overlap), m in zip(candidates, matched, strict=True):
         rep = PairReport(photos[i].id, photos[j].id, overlap)
-        m = _match(feats[i], feats[j], opts, max(scales[i], scales[j]), photos[i], photos[j])
         ia, ib, res = m.ia, m.ib, m.f_residual
         rep.candidates, rep.median_f_residual_px = m.candidates, _median(res)
         pa, pb = photos[i].photo, photos[j].photo

@@ -13,7 +13,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-DETECTORS = ("sift", "akaze", "orb")
+#: AKAZE (and KAZE, BRISK) left OpenCV's main modules in OpenCV 5 (now in opencv-contrib):
+#: offered only where the installed OpenCV has it
+DETECTORS = ("sift", "orb", "akaze")
+
+
+def available(detector: str) -> bool:
+    import cv2
+
+    return detector != "akaze" or hasattr(cv2, "AKAZE_create")
 
 
 @dataclass

@@ -62,10 +62,13 @@ def ratio_matches(a: Features, b: Features, ratio: float = 0.8, detector: str = 
 
     if len(a) < 2 or len(b) < 2:
         return np.zeros(0, int), np.zeros(0, int)
-    if binary(detector):
-        matcher = cv2.BFMatcher(cv2.NORM_HAMMING)
-    else:  # kd-trees (FLANN): several times faster than brute force on SIFT's 128 floats
-        matcher = cv2.FlannBasedMatcher({"algorithm": 1, "trees": 4}, {"checks": 64})
+    def make():
+        if binary(detector):
+            return cv2.BFMatcher(cv2.NORM_HAMMING)
+        # kd-trees (FLANN): several times faster than brute force on SIFT's 128 floats
+        return cv2.FlannBasedMatcher({"algorithm": 1, "trees": 4}, {"checks": 64})
+
+    matcher = make()
     knn = matcher.knnMatch(a.descriptors, b.descriptors, k=2)
     ia, ib = [], []
     for pair in knn:
@@ -75,9 +78,8 @@ def ratio_matches(a: Features, b: Features, ratio: float = 0.8, detector: str = 
     if not ia:
         return np.zeros(0, int), np.zeros(0, int)
     ia, ib = np.array(ia), np.array(ib)
-    back = cv2.BFMatcher(cv2.NORM_HAMMING if binary(detector) else cv2.NORM_L2).match(
-        b.descriptors[ib], a.descriptors)
-    mutual = np.array([m.trainIdx for m in back]) == ia  # also makes every ib unique
+    back = make().knnMatch(b.descriptors[ib], a.descriptors, k=1)
+    mutual = np.array([m[0].trainIdx if m else -1 for m in back]) == ia  # every ib unique
     return ia[mutual], ib[mutual]
 
 
