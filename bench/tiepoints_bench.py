@@ -83,32 +83,30 @@ def run_tiepoints(args: list[str], work: Path, tag: str) -> dict:
 
 
 COLMAP_SCRIPT = """
-import sys, time, sqlite3, pycolmap
-db, images = sys.argv[1], sys.argv[2]
+import sys, sqlite3, pycolmap
+db, images, out = sys.argv[1], sys.argv[2], sys.argv[3]
 pycolmap.extract_features(db, images)
 pycolmap.match_exhaustive(db)
 con = sqlite3.connect(db)
 rows = con.execute("select rows from two_view_geometries where rows > 0").fetchall()
-print(sum(r[0] for r in rows), len(rows))
+open(out, "w").write(f"{sum(r[0] for r in rows)} {len(rows)} {pycolmap.__version__}")
 """
 
 
 def run_colmap(python: str, images: Path, work: Path) -> dict:
-    import subprocess
-    import time
-
+    """pycolmap's default SIFT extraction and exhaustive matching (with its own geometric
+    verification) in a child process: time, peak memory, verified matches."""
     script = work / "colmap_run.py"
     script.write_text(COLMAP_SCRIPT)
-    db = work / "colmap.db"
+    db, out = work / "colmap.db", work / "colmap.txt"
     db.unlink(missing_ok=True)
-    t0 = time.perf_counter()
-    proc = subprocess.run([python, str(script), str(db), str(images)], capture_output=True,
-                          text=True)
-    seconds = time.perf_counter() - t0
-    if proc.returncode != 0:
-        return {"error": (proc.stderr.strip().splitlines() or ["failed"])[-1]}
-    verified, pairs = (int(v) for v in proc.stdout.split()[-2:])
-    return {"seconds": seconds, "verified": verified, "pairs": pairs}
+    seconds, peak, code, err = run_measured([python, str(script), str(db), str(images),
+                                             str(out)])
+    if code != 0:
+        return {"error": (err.strip().splitlines() or ["failed"])[-1]}
+    verified, pairs, version = out.read_text().split()
+    return {"seconds": seconds, "peak_mb": peak, "verified": int(verified), "pairs": int(pairs),
+            "version": version}
 
 
 def ngi_project(folder: Path) -> Path | None:
@@ -144,7 +142,14 @@ def main() -> None:
 
     lines = ["## Tie points (issue 27): extraction and matching", "",
              f"Machine: {machine_facts(f'OpenCV {cv2.__version__}')}; {load_note()}.", ""]
+    from toolbox.matching.features import available
+
     detectors = [d.strip() for d in args.detectors.split(",") if d.strip()]
+    missing = [d for d in detectors if not available(d)]
+    detectors = [d for d in detectors if available(d)]
+    if missing:
+        lines += [f"Not run: {', '.join(missing)} (not in OpenCV {cv2.__version__}'s main "
+                  "modules).", ""]
     header = ["| run | seconds | peak MB | verified matches | tie points | pairs tied | "
               "max reprojection px |", "|---|---:|---:|---:|---:|---:|---:|"]
     with tempfile.TemporaryDirectory() as tmp:
@@ -161,7 +166,8 @@ def main() -> None:
             print(lines[-1], flush=True)
         if args.colmap_python:
             r = run_colmap(args.colmap_python, scans, work)
-            lines.append(row("pycolmap SIFT (extract + exhaustive match)", r | {"peak_mb": 0}))
+            lines.append(row(f"pycolmap {r.get('version', '')} SIFT (extract + exhaustive "
+                             "match, its defaults)", r))
             print(lines[-1], flush=True)
         project = ngi_project(work)
         if project is not None:
