@@ -173,3 +173,37 @@ def test_photos_without_overlap_fail_cleanly(block, tmp_path):
                                      "--IMAGES", str(tmp_path), "--OUTPUT", str(out)])
     assert both.exit_code == 2 and "PROJECT" in both.output and "Traceback" not in both.output
     assert not out.exists()
+
+
+def test_control_template_predicts_the_image_positions(block, tmp_path):
+    """orientation:control: the predicted pixels, traced back to the ground by the image ->
+    ground ray marcher (monoplotting on the DEM the photos were rendered from, the other
+    direction of the collinearity chain), give the control points back."""
+    from toolbox.photogrammetry.surface import DemSurface
+    from toolbox.photogrammetry.synthetic import hills_dem
+
+    z, transform = hills_dem(block_scene.BOUNDS, cell=20.0, relief=200.0, base=250.0, seed=4)
+    surface = DemSurface.from_transform(z.astype("float64"), transform)
+    rng = np.random.default_rng(3)
+    xy = np.column_stack([rng.uniform(block_scene.X0 - 600, block_scene.X0 + 2200, 12),
+                          rng.uniform(block_scene.Y0 - 600, block_scene.Y0 + 2000, 12)])
+    xy = np.vstack([xy, [[block_scene.X0 + 30000.0, block_scene.Y0]]])  # on no photo
+    heights = surface.height(xy[:, 0], xy[:, 1])
+    heights[-1] = 300.0
+    control = tmp_path / "control.csv"
+    control.write_text("id,X,Y,Z\n" + "".join(f"c{k},{x},{y},{h}\n" for k, (x, y, h) in
+                                              enumerate(zip(*xy.T, heights, strict=True))))
+    out = toolbox.run("orientation:control", {"PROJECT": block.project, "CONTROL": control,
+                                              "OUTPUT": tmp_path / "template.csv",
+                                              "CHIPS": str(tmp_path / "chips")})
+    assert out["STATISTICS"]["points_on_no_photo"] == ["c12"]
+    rows = read_measurements(tmp_path / "template.csv")
+    assert len(rows) >= 24 and {r["status"] for r in rows} == {"predicted"}
+    photos = {p.id: p for p in block.photos}
+    truth = {f"c{k}": xy[k] for k in range(12)}
+    for r in rows:
+        hit = photos[r["photo"]].monoplot_pixels(
+            np.array([[float(r["col_px"]), float(r["row_px"])]]), surface)
+        assert hit.ok.all()
+        assert np.hypot(*(hit.xyz[0, :2] - truth[r["point_id"]])) < 0.2  # m; pixel ~4.4 m
+        assert (tmp_path / "chips" / r["chip"]).exists()
