@@ -147,3 +147,15 @@ def test_detection_in_tiles_keeps_each_keypoint_once():
     key = {(round(x, 2), round(y, 2), round(a, 1)) for (x, y), a in zip(tiled.xy, tiled.angle,
                                                                        strict=True)}
     assert len(key) == len(tiled) and len(tiled) > 0.8 * len(whole)
+
+
+def test_border_mask_keeps_features_off_the_fiducial_strip():
+    from toolbox.matching.features import border_mask, detect
+
+    image = smooth_noise((300, 400), sigma=1.5, seed=4).clip(0, 255).astype(np.uint8)
+    mask = border_mask(300, 400, 40)
+    feats = detect(image, mask)
+    assert len(feats) > 50
+    x, y = feats.xy.T
+    assert x.min() >= 40 and y.min() >= 40 and x.max() <= 360 and y.max() <= 260
+    assert border_mask(300, 400, 0) is None
