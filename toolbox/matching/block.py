@@ -205,25 +205,34 @@ def tie_points(photos: list[BlockPhoto], opts: TiePointOptions,
     residual = residual[~bad]
     dropped += int(bad.sum())
     n_rays = np.array([len(t) for t in found])
-    models = []
-    for i, j, *_ in verified:
-        members = np.array([k for k, t in enumerate(found)
-                            if any(p == i for p, _ in t) and any(p == j for p, _ in t)], int)
-        pos = np.array([xy[k][[p for p, _ in found[k]].index(i)] for k in members]).reshape(-1, 2)
-        models.append((members, pos))
+    # the tracks of each model (pair), with their positions on its first photo: one pass
+    # (every pair of photos that tracks share, matched directly or through a third photo)
+    per_pair: dict[tuple[int, int], list[tuple[int, int, int]]] = {
+        (i, j): [] for i, j, *_ in verified}
+    for k, t in enumerate(found):
+        photos_k = [p for p, _ in t]
+        for a in range(len(photos_k)):
+            for b in range(a + 1, len(photos_k)):
+                per_pair.setdefault((photos_k[a], photos_k[b]), []).append((k, a, b))
+    models = [(np.array([k for k, _, _ in per_pair[(i, j)]], int),
+               np.array([xy[k][a] for k, a, _ in per_pair[(i, j)]]).reshape(-1, 2))
+              for i, j, *_ in verified]
+    # unrefined positions of every pair's tracks on both photos: the local affines of refinement
+    common = {key: (np.array([xy[k][a] for k, a, _ in rows]).reshape(-1, 2),
+                    np.array([xy[k][b] for k, _, b in rows]).reshape(-1, 2))
+              for key, rows in per_pair.items()}
     keep = thinning.thin(models, n_rays, residual, opts.target_per_model)
     say(70, f"{len(found)} tracks, {int(keep.sum())} kept after thinning")
     result_tracks = []
     kept_idx = np.flatnonzero(keep)
     sources = {k: photos[k].source for k in used}
-    cache: dict = {}
     for n, k in enumerate(kept_idx):
         photo_idx = [p for p, _ in found[k]]
         pos = xy[k].copy()
         sigma = np.full(len(photo_idx), 0.5 * max(scales[p] for p in photo_idx))
         refined = False
         if opts.refine:
-            pos, ok = _refine_track(k, found, xy, sources, opts, scales, cache)
+            pos, ok = _refine_track(k, found, xy, sources, opts, scales, common)
             photo_idx = [p for p, o in zip(photo_idx, ok, strict=True) if o]
             pos = pos[ok]
             sigma = np.full(len(photo_idx), 0.5)
@@ -257,7 +266,7 @@ def _track_residuals(found: list, xy: list, models: dict) -> np.ndarray:
 
 
 def _refine_track(k: int, found: list, xy: list, sources: dict[int, ImageSource],
-                  opts: TiePointOptions, scales: dict[int, float], cache: dict
+                  opts: TiePointOptions, scales: dict[int, float], common: dict
                   ) -> tuple[np.ndarray, np.ndarray]:
     """Refine every observation of track ``k`` against its first one; (positions, ok mask)."""
     photo_idx = [p for p, _ in found[k]]
@@ -267,7 +276,7 @@ def _refine_track(k: int, found: list, xy: list, sources: dict[int, ImageSource]
     ref_xy = pos[0]
     radius = int(np.ceil(2 * max(scales[p] for p in photo_idx))) + 2
     for n, other in enumerate(photo_idx[1:], start=1):
-        a_ref, a_oth = _common(found, xy, ref, other, cache)
+        a_ref, a_oth = common.get((ref, other), (np.zeros((0, 2)), np.zeros((0, 2))))
         affine = refine.local_affine(a_ref, a_oth, ref_xy)
         if affine is None:
             ok[n] = False
@@ -287,20 +296,6 @@ def _refine_track(k: int, found: list, xy: list, sources: dict[int, ImageSource]
     if not ok[1:].any():
         ok[0] = False
     return pos, ok
-
-
-def _common(found: list, xy: list, a: int, b: int, cache: dict
-            ) -> tuple[np.ndarray, np.ndarray]:
-    """Unrefined positions on photos a and b of every track seeing both (cached)."""
-    if (a, b) not in cache:
-        pa, pb = [], []
-        for t, pos in zip(found, xy, strict=True):
-            photos = [p for p, _ in t]
-            if a in photos and b in photos:
-                pa.append(pos[photos.index(a)])
-                pb.append(pos[photos.index(b)])
-        cache[(a, b)] = (np.array(pa).reshape(-1, 2), np.array(pb).reshape(-1, 2))
-    return cache[(a, b)]
 
 
 def _inside(source: ImageSource, centre: np.ndarray, half: int) -> bool:
