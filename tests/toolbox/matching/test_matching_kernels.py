@@ -159,3 +159,32 @@ def test_border_mask_keeps_features_off_the_fiducial_strip():
     x, y = feats.xy.T
     assert x.min() >= 40 and y.min() >= 40 and x.max() <= 360 and y.max() <= 260
     assert border_mask(300, 400, 0) is None
+
+
+@pytest.mark.parametrize("family, area_mm2", [
+    ("dot", np.pi * 0.5 ** 2),  # 1 mm disc
+    ("cross", 2 * 1.0 * 0.1 - 0.1 ** 2),  # two 1 x 0.1 mm bars, their overlap once
+])
+def test_built_in_marks_have_their_analytic_area(family, area_mm2):
+    from toolbox.matching.marks import draw
+
+    pixel = 0.02
+    mark = draw(family, 1.0, 0.1, pixel)
+    assert mark.shape[0] == mark.shape[1] and mark.shape[0] % 2 == 1
+    assert mark.sum() * pixel ** 2 == pytest.approx(area_mm2, rel=0.01)
+    # centred on the central pixel: the centroid is there
+    yy, xx = np.mgrid[:mark.shape[0], :mark.shape[1]]
+    centre = mark.shape[0] // 2
+    assert (xx * mark).sum() / mark.sum() == pytest.approx(centre, abs=1e-6)
+    assert (yy * mark).sum() / mark.sum() == pytest.approx(centre, abs=1e-6)
+
+
+def test_turned_templates_are_numpy_rotations_and_flips():
+    from toolbox.matching.fiducial_search import ORIENTATIONS, turned
+
+    t = np.random.default_rng(5).uniform(0, 1, (9, 9)).astype(np.float32)
+    # G maps an upright offset (col, row) to the scan's; G = rot 90 (clockwise on screen)
+    assert np.allclose(turned(t, ORIENTATIONS["0"]), t, atol=1e-5)
+    assert np.allclose(turned(t, ORIENTATIONS["90"]), np.rot90(t, -1), atol=1e-5)
+    assert np.allclose(turned(t, ORIENTATIONS["180"]), np.rot90(t, 2), atol=1e-5)
+    assert np.allclose(turned(t, ORIENTATIONS["0m"]), t[:, ::-1], atol=1e-5)
