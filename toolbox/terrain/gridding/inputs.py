@@ -79,6 +79,11 @@ def check_sources(alg: Algorithm, params: dict) -> None:
             and params.get("BREAKLINES") is None:
         raise alg.fail("INPUT", "is required: give points (INPUT) and/or lines (LINES, "
                        "BREAKLINES) to grid")
+    if params.get("INPUT") is not None:
+        from toolbox.io.pointcloud import cloud_filter
+
+        cloud_filter(params["INPUT"], params.get("CLASSES"), params.get("RETURNS"),
+                     params.get("CRS"))
 
 
 def read_sources(params: dict, feedback: Feedback) -> GriddingData:
@@ -86,8 +91,9 @@ def read_sources(params: dict, feedback: Feedback) -> GriddingData:
     import shapely
 
     from toolbox.io.crs import common_crs
-    from toolbox.io.vector import read_points_xyz, read_vector, vertices_xyz
+    from toolbox.io.vector import read_vector, vertices_xyz
     from toolbox.terrain.gridding.neighbours import PointBins
+    from toolbox.terrain.points import read_mass_points
 
     named = {name: params[name].crs for name in ("INPUT", "LINES", "BREAKLINES", "MASK")
              if params.get(name) is not None}
@@ -103,9 +109,13 @@ def read_sources(params: dict, feedback: Feedback) -> GriddingData:
     offset = 0
     with feedback.timed("read"):
         if params.get("INPUT") is not None:
-            xyz = read_points_xyz(params["INPUT"], params.get("Z_FIELD"), "INPUT")
+            xyz, cloud = read_mass_points(params["INPUT"], params.get("Z_FIELD"),
+                                          params.get("CLASSES"), params.get("RETURNS"),
+                                          params.get("CRS"))
             parts.append(xyz)
             counts["points"] = len(xyz)
+            if cloud is not None:
+                counts["point_cloud"] = cloud
             offset += len(xyz)
         for name in ("LINES", "BREAKLINES"):
             if params.get(name) is None:
