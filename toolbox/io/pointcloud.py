@@ -253,51 +253,79 @@ def check_cloud_crs(ref: Any, crs: Any, name: str = "INPUT") -> None:
 
 
 # -- writing -----------------------------------------------------------------------------------
+class PointCloudWriter:
+    """Write points to LAS 1.4 (``.las``) or LAZ (``.laz``, needs lazrs) in appended chunks.
+
+    ``origin`` (3,) is the coordinate offset (a point near the data; rounded to 1 km), ``scale``
+    the coordinate resolution (CRS units, default 1 mm), ``rgb`` whether colour is written
+    (point format 7, else 6). The CRS goes in an OGC WKT VLR. Use as a context manager;
+    :meth:`write` takes ``xyz`` (N, 3), optional ``classification`` (N,) ASPRS codes and ``rgb``
+    (N, 3) colour (uint8 values are scaled by 257 to 16 bits).
+    """
+
+    def __init__(self, path: str | Path, origin: np.ndarray, crs: Any = None,
+                 rgb: bool = False, scale: float = 0.001):
+        import laspy
+
+        self.path = Path(path)
+        self.compress = self.path.suffix.lower() == ".laz"
+        if self.compress and not lazrs_available():
+            raise InputDataError(f"cannot write '{self.path}' as LAZ: no LAZ backend is "
+                                 "installed (pip install lazrs), or write .las")
+        header = laspy.LasHeader(point_format=7 if rgb else 6, version="1.4")
+        header.offsets = np.floor(np.asarray(origin, dtype=np.float64) / 1000.0) * 1000.0
+        header.scales = np.array([scale, scale, scale])
+        if crs is not None:
+            from pyproj import CRS
+
+            header.add_crs(CRS.from_user_input(crs))
+        self.header, self.rgb, self.count = header, rgb, 0
+        self._writer = None
+
+    def __enter__(self) -> PointCloudWriter:
+        import laspy
+
+        self._writer = laspy.open(self.path, mode="w", header=self.header,
+                                  do_compress=self.compress)
+        return self
+
+    def write(self, xyz: np.ndarray, classification: np.ndarray | None = None,
+              rgb: np.ndarray | None = None) -> None:
+        import laspy
+
+        xyz = np.asarray(xyz, dtype=np.float64)
+        if len(xyz) == 0:
+            return
+        record = laspy.ScaleAwarePointRecord.zeros(len(xyz), header=self.header)
+        record.x, record.y, record.z = xyz[:, 0], xyz[:, 1], xyz[:, 2]
+        if classification is not None:
+            record.classification = np.asarray(classification, dtype=np.uint8)
+        if self.rgb and rgb is not None:
+            rgb = np.asarray(rgb)
+            if rgb.dtype == np.uint8:
+                rgb = rgb.astype(np.uint16) * 257
+            record.red, record.green, record.blue = rgb[:, 0], rgb[:, 1], rgb[:, 2]
+        record.return_number[:] = 1
+        record.number_of_returns[:] = 1
+        self._writer.write_points(record)
+        self.count += len(xyz)
+
+    def __exit__(self, *exc) -> None:
+        self._writer.close()
+
+
 def write_point_cloud(path: str | Path, xyz: np.ndarray, crs: Any = None,
                       classification: np.ndarray | None = None, rgb: np.ndarray | None = None,
                       scale: float = 0.001, chunk_points: int = CHUNK_POINTS) -> int:
-    """Write points to LAS 1.4 (``.las``) or LAZ (``.laz``, needs lazrs), in chunks.
-
-    ``xyz`` (N, 3) map coordinates; ``scale`` the coordinate resolution (CRS units, default
-    1 mm); ``classification`` (N,) ASPRS codes; ``rgb`` (N, 3) 16-bit colour (0..65535; 8-bit
-    values are scaled by 257). The CRS goes in an OGC WKT VLR. Returns the points written.
-    """
-    import laspy
-
-    path = Path(path)
+    """Write points to LAS 1.4 / LAZ in chunks (see :class:`PointCloudWriter`); returns the
+    points written."""
     xyz = np.asarray(xyz, dtype=np.float64)
-    compress = path.suffix.lower() == ".laz"
-    if compress and not lazrs_available():
-        raise InputDataError(f"cannot write '{path}' as LAZ: no LAZ backend is installed "
-                             "(pip install lazrs), or write .las")
-    header = laspy.LasHeader(point_format=7 if rgb is not None else 6, version="1.4")
-    lo = xyz.min(axis=0) if len(xyz) else np.zeros(3)
-    header.offsets = np.floor(lo / 1000.0) * 1000.0
-    header.scales = np.array([scale, scale, scale])
-    if crs is not None:
-        from pyproj import CRS
-
-        header.add_crs(CRS.from_user_input(crs))
-    if rgb is not None:
-        rgb = np.asarray(rgb)
-        if rgb.dtype == np.uint8:
-            rgb = rgb.astype(np.uint16) * 257
-    with laspy.open(path, mode="w", header=header, do_compress=compress) as writer:
-        for start in range(0, max(len(xyz), 1), chunk_points):
-            stop = min(start + chunk_points, len(xyz))
-            if stop <= start:
-                break
-            record = laspy.ScaleAwarePointRecord.zeros(stop - start, header=header)
-            record.x, record.y, record.z = (xyz[start:stop, 0], xyz[start:stop, 1],
-                                            xyz[start:stop, 2])
-            if classification is not None:
-                record.classification = np.asarray(classification[start:stop], dtype=np.uint8)
-            if rgb is not None:
-                record.red, record.green, record.blue = (rgb[start:stop, 0], rgb[start:stop, 1],
-                                                         rgb[start:stop, 2])
-            record.return_number[:] = 1
-            record.number_of_returns[:] = 1
-            writer.write_points(record)
+    origin = xyz.min(axis=0) if len(xyz) else np.zeros(3)
+    with PointCloudWriter(path, origin, crs, rgb is not None, scale) as writer:
+        for start in range(0, len(xyz), chunk_points):
+            part = slice(start, start + chunk_points)
+            writer.write(xyz[part], None if classification is None else classification[part],
+                         None if rgb is None else rgb[part])
     return len(xyz)
 
 
