@@ -4,13 +4,15 @@ The simple morphological filter SMRF (Pingel, Clarke and McBride 2013, ISPRS J. 
 itself a refinement of Zhang et al.'s progressive morphological filter (2003, IEEE TGRS 41(4)):
 
 1. **minimum surface** ``Zmin``: the lowest point of each ``cell`` x ``cell`` cell; empty cells
-   take the nearest filled cell's value;
+   are inpainted (OpenCV's Navier-Stokes inpainting), as Pingel et al. inpaint them: a
+   nearest-value fill would leave steps that the openings take for objects where points are
+   sparse;
 2. **progressive opening**: for window radius r = 1, 2, ..., ceil(max_window / cell) cells,
    ``Zopen = opening(Zlast, (2r+1) x (2r+1) square)`` (scipy.ndimage grey opening, flat square
    window: separable, fast); a cell whose drop ``Zlast - Zopen`` exceeds
    ``slope * r * cell`` is an object; ``Zlast = Zopen``. Objects wider than ``2 max_window`` stay;
-3. **provisional DTM**: ``Zmin`` without the object cells, the holes filled by linear
-   interpolation from the ground cells around them (nearest value outside their hull);
+3. **provisional DTM**: ``Zmin`` without the object cells, the holes inpainted from the
+   ground cells around them;
 4. **points**: a point is ground when ``|z - DTM(x, y)| <= elevation_threshold +
    elevation_scalar * s(x, y)``, with ``DTM`` bilinear and ``s`` its slope (rise/run).
 
@@ -71,19 +73,6 @@ def minimum_surface(xyz: np.ndarray, cell: float) -> MinimumSurface:
     return MinimumSurface(flat.reshape(height, width), x0, y1, cell)
 
 
-def fill_nearest(z: np.ndarray) -> np.ndarray:
-    """NaN cells take the value of the nearest non-NaN cell (Euclidean, in cells)."""
-    from scipy import ndimage
-
-    empty = np.isnan(z)
-    if not empty.any():
-        return z.copy()
-    if empty.all():
-        raise ValueError("the grid has no value to fill from")
-    _, (ri, ci) = ndimage.distance_transform_edt(empty, return_indices=True)
-    return z[ri, ci]
-
-
 def object_cells(zmin_filled: np.ndarray, flt: GroundFilter) -> np.ndarray:
     """Step 2: boolean grid, True where the progressive opening flags an object."""
     from scipy import ndimage
@@ -97,27 +86,21 @@ def object_cells(zmin_filled: np.ndarray, flt: GroundFilter) -> np.ndarray:
     return objects
 
 
-def fill_linear(z: np.ndarray) -> np.ndarray:
-    """NaN cells filled by linear interpolation (Delaunay of the known cells bordering a hole);
-    cells outside their hull by the nearest value."""
-    from scipy import ndimage
-    from scipy.interpolate import LinearNDInterpolator
+def fill_holes(z: np.ndarray) -> np.ndarray:
+    """NaN cells filled by inpainting from the cells around them (OpenCV's Navier-Stokes
+    inpainting, ``cv2.INPAINT_NS``, on float32 heights relative to their minimum): smooth
+    across holes, exact on the known cells."""
+    import cv2
 
     holes = np.isnan(z)
     if not holes.any():
         return z.copy()
-    # only the known cells touching a hole take part: the rest cannot change the fill
-    border = ~holes & ndimage.binary_dilation(holes, np.ones((3, 3), bool))
-    out = z.copy()
-    rb, cb = np.nonzero(border)
-    rh, ch = np.nonzero(holes)
-    if len(rb) >= 3:
-        try:
-            interp = LinearNDInterpolator(np.column_stack([rb, cb]), z[rb, cb])
-            out[rh, ch] = interp(rh, ch)
-        except Exception:  # collinear border (a one-cell-wide strip): nearest below
-            pass
-    return fill_nearest(out)
+    if holes.all():
+        raise ValueError("the grid has no value to fill from")
+    base = float(np.nanmin(z))
+    src = np.where(holes, 0.0, z - base).astype(np.float32)
+    filled = cv2.inpaint(src, holes.astype(np.uint8), 3, cv2.INPAINT_NS)
+    return np.where(holes, filled.astype(np.float64) + base, z)
 
 
 def provisional_dtm(zmin: np.ndarray, objects: np.ndarray) -> np.ndarray:
@@ -125,7 +108,7 @@ def provisional_dtm(zmin: np.ndarray, objects: np.ndarray) -> np.ndarray:
     ground = np.where(objects, np.nan, zmin)
     if np.isnan(ground).all():
         raise ValueError("every cell is an object: lower SLOPE or MAX_WINDOW")
-    return fill_linear(ground)
+    return fill_holes(ground)
 
 
 def classify_points(xyz: np.ndarray, surface: MinimumSurface, dtm: np.ndarray,
@@ -154,7 +137,7 @@ class GroundResult:
 def smrf(xyz: np.ndarray, flt: GroundFilter) -> GroundResult:
     """Classify ``xyz`` (N, 3, local coordinates) into ground / non-ground (steps 1-4)."""
     surface = minimum_surface(xyz, flt.cell)
-    zmin = fill_nearest(surface.z)
+    zmin = fill_holes(surface.z)
     objects = object_cells(zmin, flt)
     objects |= np.isnan(surface.z)  # empty cells are filled from ground cells, not kept
     dtm = provisional_dtm(zmin, objects)
