@@ -1,6 +1,7 @@
 """Surface benchmark: reading and gridding a LAZ point cloud (beside PDAL's ``writers.gdal`` when
-the ``pdal`` Python package and its library are installed), and the StereoSGBM floor of dense
-matching (OpenCV alone on one synthetic epipolar pair).
+the ``pdal`` Python package and its library are installed: PyPI has no binary wheel), and the
+StereoSGBM floor of dense matching (OpenCV alone on one synthetic epipolar pair, shifted by 32
+pixels) beside the toolbox's matcher (``match_pair``: row strips and validity checks).
 
     .venv/bin/python bench/surface_bench.py --small      # 1 M points, 1000 x 1000 pair (quick)
     .venv/bin/python bench/surface_bench.py --points 10000000 --pair 4000
@@ -64,18 +65,25 @@ def case(name: str, work: Path, pair: int) -> dict:
                  "radius": 1.0, "output_type": "idw"}]
         pdal.Pipeline(json.dumps(spec)).execute()
         extra = {}
-    elif name == "sgbm":
+    elif name in ("sgbm", "match_pair"):
         import cv2
 
         rng = np.random.default_rng(3)
         left = cv2.GaussianBlur((rng.random((pair, pair + 64)) * 255).astype(np.uint8), (3, 3), 0)
         right = left[:, 32:32 + pair].copy()
         left = left[:, :pair].copy()
-        sgbm = cv2.StereoSGBM.create(minDisparity=0, numDisparities=64, blockSize=5,
-                                     P1=8 * 25, P2=32 * 25, mode=cv2.STEREO_SGBM_MODE_SGBM_3WAY)
         t0 = time.perf_counter()
-        disp = sgbm.compute(left, right)
-        extra = {"median_disparity": float(np.median(disp[disp > 0]) / 16.0)}
+        if name == "sgbm":  # the floor: OpenCV alone, whole images
+            sgbm = cv2.StereoSGBM.create(minDisparity=0, numDisparities=64, blockSize=5,
+                                         P1=8 * 25, P2=32 * 25,
+                                         mode=cv2.STEREO_SGBM_MODE_SGBM_3WAY)
+            disp = sgbm.compute(left, right) / 16.0
+        else:  # the toolbox: strips of 1024 rows, left-right check, validity masks
+            from toolbox.stereo.matching import match_pair
+
+            ok = np.ones(left.shape, bool)
+            disp = match_pair(left, right, ok, ok, 0, 64)
+        extra = {"median_disparity": float(np.nanmedian(np.where(disp > 0, disp, np.nan)))}
     else:
         raise SystemExit(f"unknown case {name}")
     return {"seconds": time.perf_counter() - t0, "peak_mb": peak_rss_mb(), **extra}
@@ -101,7 +109,7 @@ def main() -> None:
         t0 = time.perf_counter()
         make_laz(work / "cloud.laz", args.points)
         print(f"wrote {args.points:,} points in {time.perf_counter() - t0:.1f} s", flush=True)
-        for name in ("read", "grid", "pdal", "sgbm"):
+        for name in ("read", "grid", "pdal", "sgbm", "match_pair"):
             cmd = [sys.executable, __file__, "--case", name, "--work", str(work),
                    "--pair", str(args.pair)]
             seconds, peak, code, err = run_measured(cmd)
@@ -111,8 +119,9 @@ def main() -> None:
             else:
                 inner = json.loads((work / f"{name}.json").read_text())
                 note = f"{inner['seconds']:.2f} s inside the process"
-                if name == "sgbm":
-                    note += f" (SGBM {args.pair} x {args.pair}, 64 disparities)"
+                if name in ("sgbm", "match_pair"):
+                    note += f" ({args.pair} x {args.pair}, 64 disparities, median " \
+                            f"{inner['median_disparity']:.2f} of 32)"
                 rows.append(f"| {name} | {seconds:.1f} | {peak:.0f} | {note} |")
             print(rows[-1], flush=True)
     table = "\n".join([f"Points: {args.points:,}; {machine_facts()}", "",
