@@ -45,7 +45,10 @@ class DenseMatchingDsm(Algorithm):
        stay nodata: no
        interpolation, so no cell outside the stereo coverage gets a value.
 
-    POINTS writes the matched points as LAS/LAZ with the left image's grey as colour.
+    The epipolar pixel (PIXEL_SIZE_MM) is by default the left image's, or coarser so that a DSM
+    cell spans two pixels on the ground: finer matching would only add points to each cell's
+    median. (Coarsening a large scan this way resamples it bilinearly, without averaging.)
+    POINTS writes the matched points as LAS/LAZ, coloured from the left photo (RGB, or grey).
     Memory: one pair's epipolar images and disparities, matched in strips of 1024 rows, plus
     the output grid.
     """
@@ -69,8 +72,9 @@ class DenseMatchingDsm(Algorithm):
                min_value=0, min_exclusive=True),
         Number("MAX_ANGLE", "largest angle between a pair's optical axes, degrees",
                default=30.0, min_value=0, max_value=90),
-        Number("PIXEL_SIZE_MM", "pixel of the epipolar images, mm (default: the left image's; "
-               "larger = faster, coarser)", optional=True, min_value=0, min_exclusive=True),
+        Number("PIXEL_SIZE_MM", "pixel of the epipolar images, mm (default: the left image's, "
+               "or coarser so that a DSM cell spans two pixels on the ground)", optional=True,
+               min_value=0, min_exclusive=True),
         Integer("BLOCK_SIZE", "SGBM matching block, pixels (odd)", default=5, min_value=1,
                 max_value=15),
         Integer("UNIQUENESS", "SGBM uniqueness ratio, % (cost threshold)", default=10,
@@ -95,7 +99,7 @@ class DenseMatchingDsm(Algorithm):
         OutputRaster("COUNT", "pairs with a height in the cell (UInt16, 0 = none)"),
         OutputRaster("SPREAD", "height spread in the cell: highest upper quartile - lowest "
                      "lower quartile of the pairs (Float32)"),
-        OutputFile("POINTS", "matched points as LAS/LAZ (grey as colour)",
+        OutputFile("POINTS", "matched points as LAS/LAZ (colour from the left photo)",
                    extensions=[".laz", ".las"], optional=True),
     ]
     outputs = [Output("STATISTICS", "pairs, disparity ranges, matched fractions, cells",

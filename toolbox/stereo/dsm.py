@@ -25,10 +25,19 @@ def read_epipolar(path: Path) -> tuple[np.ndarray, np.ndarray]:
     return data, valid
 
 
+def matching_pixel(left: Any, cell_size: float, distance_m: float) -> float:
+    """Default epipolar pixel (mm): the left image's, or coarser so that a DSM cell spans two
+    pixels on the ground (GSD = pixel x distance / c): matching finer than the grid only adds
+    points to one median."""
+    native = float(left.require_pixel_transform().pixel_size_mm)
+    return max(native, 0.5 * cell_size * left.camera.c / distance_m)
+
+
 def match_one_pair(left: Any, right: Any, images: tuple[Path, Path], low: float, high: float,
-                   options: MatchOptions, pixel_mm: float | None, workdir: Path,
+                   options: MatchOptions, pixel_mm: float, workdir: Path,
                    feedback: Feedback) -> tuple[Any, np.ndarray, np.ndarray, dict]:
-    """Geometry, disparity (NaN invalid), the left 8-bit image and statistics of one pair."""
+    """Geometry, disparity (NaN invalid), the left image's colours (K, 3) uint8 per pixel
+    (grey repeated for one band) and statistics of one pair."""
     from toolbox.stereo.epipolar import epipolar_geometry, resample_image
     from toolbox.stereo.matching import disparity_range, match_pair, to_uint8
 
@@ -47,6 +56,8 @@ def match_one_pair(left: Any, right: Any, images: tuple[Path, Path], low: float,
                        feedback.step(20 * side, 20 * side + 20), overviews=False)
         data, valid = read_epipolar(path)
         arrays.append((to_uint8(data, valid), valid))
+        if side == 0:
+            colours = _colours(data, arrays[0][0])
         path.unlink()
     (lim, lval), (rim, rval) = arrays
     disparity = match_pair(lim, rim, lval, rval, d_min, count, options, feedback.step(40, 100))
@@ -54,7 +65,14 @@ def match_one_pair(left: Any, right: Any, images: tuple[Path, Path], low: float,
     stats = {"pair": name, "min_disparity": d_min, "num_disparities": count,
              "image_size": [lim.shape[1], lim.shape[0]], "matched_pixels": matched,
              "matched_fraction_of_left": matched / max(1, int(lval.sum()))}
-    return geometry, disparity, lim, stats
+    return geometry, disparity, colours, stats
+
+
+def _colours(data: np.ndarray, grey: np.ndarray) -> np.ndarray:
+    """(rows * cols, 3) uint8 colours: the three bands of an 8-bit RGB image, else the grey."""
+    if data.shape[0] == 3 and data.dtype == np.uint8:
+        return data.reshape(3, -1).T
+    return np.repeat(grey.reshape(-1, 1), 3, axis=1)
 
 
 def run_match(params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
@@ -109,17 +127,17 @@ def run_match(params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
                 step = feedback.step(90 * k / len(pairs), 90 * (k + 1) / len(pairs))
                 images = (photo_image(left, None, f"PROJECT image of {left.id}"),
                           photo_image(right, None, f"PROJECT image of {right.id}"))
-                geometry, disparity, image, stats = match_one_pair(
-                    left, right, images, low, high, options, params.get("PIXEL_SIZE_MM"),
-                    Path(tmp), step)
+                pixel = params.get("PIXEL_SIZE_MM") or \
+                    matching_pixel(left, abs(grid.transform.a), report.distance_m)
+                geometry, disparity, colours, stats = match_one_pair(
+                    left, right, images, low, high, options, pixel, Path(tmp), step)
                 xyz, flat = disparity_points(geometry, disparity)
                 keep = (xyz[:, 2] >= low) & (xyz[:, 2] <= high)
                 xyz, flat = xyz[keep], flat[keep]
                 cells.append(pair_cells(xyz, grid.transform, grid.width, grid.height))
                 if writer is not None:
-                    grey = image.ravel()[flat]
-                    writer.write(xyz, rgb=np.repeat(grey[:, None], 3, axis=1))
-                stats.update(points=len(xyz), base_ratio=report.base_ratio,
+                    writer.write(xyz, rgb=colours[flat])
+                stats.update(points=len(xyz), pixel_mm=pixel, base_ratio=report.base_ratio,
                              overlap=report.overlap, sigma_z_m=report.sigma_z_m)
                 pair_stats.append(stats)
                 feedback.push_info(f"pair {stats['pair']}: {len(xyz)} points "

@@ -4,10 +4,11 @@ The simple morphological filter SMRF (Pingel, Clarke and McBride 2013, ISPRS J. 
 itself a refinement of Zhang et al.'s progressive morphological filter (2003, IEEE TGRS 41(4)):
 
 1. **minimum surface** ``Zmin``: the lowest point of each ``cell`` x ``cell`` cell; empty cells
-   are inpainted (OpenCV's Navier-Stokes inpainting), as Pingel et al. inpaint them: a
-   nearest-value fill would leave steps that the openings take for objects where points are
-   sparse;
-2. **progressive opening**: for window radius r = 1, 2, ..., ceil(max_window / cell) cells,
+   are inpainted (harmonic interpolation, exact for planes), as Pingel et al. inpaint them:
+   a nearest-value fill would leave steps that the openings take for objects where points
+   are sparse;
+2. **progressive opening** (the grid padded by odd reflection, so slopes run on past its
+   edges): for window radius r = 1, 2, ..., ceil(max_window / cell) cells,
    ``Zopen = opening(Zlast, (2r+1) x (2r+1) square)`` (scipy.ndimage grey opening, flat square
    window: separable, fast); a cell whose drop ``Zlast - Zopen`` exceeds
    ``slope * r * cell`` is an object; ``Zlast = Zopen``. Objects wider than ``2 max_window`` stay;
@@ -26,6 +27,8 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+
+DIRECT_SOLVE_LIMIT = 400_000  # hole cells solved directly; more by conjugate gradients
 
 
 @dataclass(frozen=True)
@@ -77,30 +80,65 @@ def object_cells(zmin_filled: np.ndarray, flt: GroundFilter) -> np.ndarray:
     """Step 2: boolean grid, True where the progressive opening flags an object."""
     from scipy import ndimage
 
-    objects = np.zeros(zmin_filled.shape, dtype=bool)
-    last = zmin_filled
+    # odd reflection continues the slopes across the edges (a plane stays a plane), so the
+    # openings do not cut the terrain rising towards the grid's border
+    pad = max(flt.radii)
+    last = np.pad(zmin_filled, pad, mode="reflect", reflect_type="odd") \
+        if min(zmin_filled.shape) > pad else np.pad(zmin_filled, pad, mode="edge")
+    objects = np.zeros(last.shape, dtype=bool)
     for r in flt.radii:
         opened = ndimage.grey_opening(last, size=(2 * r + 1, 2 * r + 1), mode="nearest")
         objects |= (last - opened) > flt.slope * r * flt.cell
         last = opened
-    return objects
+    return objects[pad:-pad, pad:-pad]
 
 
 def fill_holes(z: np.ndarray) -> np.ndarray:
-    """NaN cells filled by inpainting from the cells around them (OpenCV's Navier-Stokes
-    inpainting, ``cv2.INPAINT_NS``, on float32 heights relative to their minimum): smooth
-    across holes, exact on the known cells."""
-    import cv2
+    """NaN cells filled by harmonic interpolation (Laplace's equation over the holes, the known
+    cells as boundary values, no flux across the grid's edges): exact on the known cells, smooth
+    across holes, and exact for planes (a linear surface is harmonic). A sparse direct solve
+    (scipy SuperLU) over the hole cells only; conjugate gradients above
+    :data:`DIRECT_SOLVE_LIMIT` hole cells."""
+    from scipy import sparse
+    from scipy.sparse.linalg import spsolve
 
     holes = np.isnan(z)
     if not holes.any():
         return z.copy()
     if holes.all():
         raise ValueError("the grid has no value to fill from")
-    base = float(np.nanmin(z))
-    src = np.where(holes, 0.0, z - base).astype(np.float32)
-    filled = cv2.inpaint(src, holes.astype(np.uint8), 3, cv2.INPAINT_NS)
-    return np.where(holes, filled.astype(np.float64) + base, z)
+    rows, cols = z.shape
+    index = np.full(z.shape, -1, dtype=np.int64)
+    hr, hc = np.nonzero(holes)
+    n = len(hr)
+    index[hr, hc] = np.arange(n)
+    diag = np.zeros(n)
+    rhs = np.zeros(n)
+    i_parts, j_parts = [], []
+    for dr, dc in ((-1, 0), (1, 0), (0, -1), (0, 1)):
+        nr, nc = hr + dr, hc + dc
+        ok = (nr >= 0) & (nr < rows) & (nc >= 0) & (nc < cols)
+        diag += ok
+        unknown = np.zeros(n, bool)
+        unknown[ok] = holes[nr[ok], nc[ok]]
+        known = ok & ~unknown
+        rhs[known] += z[nr[known], nc[known]]
+        i_parts.append(np.flatnonzero(unknown))
+        j_parts.append(index[nr[unknown], nc[unknown]])
+    i, j = np.concatenate(i_parts), np.concatenate(j_parts)
+    matrix = sparse.csr_matrix((np.r_[diag, -np.ones(len(i))],
+                                (np.r_[np.arange(n), i], np.r_[np.arange(n), j])), shape=(n, n))
+    out = z.copy()
+    if n <= DIRECT_SOLVE_LIMIT:
+        out[hr, hc] = spsolve(matrix.tocsc(), rhs)
+    else:  # conjugate gradients from the nearest values (memory stays linear in n)
+        from scipy import ndimage
+        from scipy.sparse.linalg import cg
+
+        _, (ri, ci) = ndimage.distance_transform_edt(holes, return_indices=True)
+        start = z[ri, ci][hr, hc]
+        out[hr, hc], _ = cg(matrix, rhs, x0=start, rtol=1e-8, maxiter=5000)
+    return out
 
 
 def provisional_dtm(zmin: np.ndarray, objects: np.ndarray) -> np.ndarray:
