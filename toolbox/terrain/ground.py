@@ -4,16 +4,17 @@ The simple morphological filter SMRF (Pingel, Clarke and McBride 2013, ISPRS J. 
 itself a refinement of Zhang et al.'s progressive morphological filter (2003, IEEE TGRS 41(4)):
 
 1. **minimum surface** ``Zmin``: the lowest point of each ``cell`` x ``cell`` cell; empty cells
-   are inpainted (harmonic interpolation, exact for planes), as Pingel et al. inpaint them:
-   a nearest-value fill would leave steps that the openings take for objects where points
-   are sparse;
+   are inpainted (OpenCV Navier-Stokes), as Pingel et al. inpaint them: a nearest-value fill
+   would leave steps, a linear or harmonic one kinks and cones at sparse points, which the
+   openings take for objects;
 2. **progressive opening** (the grid padded by odd reflection, so slopes run on past its
    edges): for window radius r = 1, 2, ..., ceil(max_window / cell) cells,
    ``Zopen = opening(Zlast, (2r+1) x (2r+1) square)`` (scipy.ndimage grey opening, flat square
    window: separable, fast); a cell whose drop ``Zlast - Zopen`` exceeds
    ``slope * r * cell`` is an object; ``Zlast = Zopen``. Objects wider than ``2 max_window`` stay;
-3. **provisional DTM**: ``Zmin`` without the object cells, the holes inpainted from the
-   ground cells around them;
+3. **provisional DTM**: ``Zmin`` without the object cells, the holes filled by harmonic
+   interpolation from the ground cells around them (Laplace's equation: smooth, exact for
+   planes; inpainting above 400,000 hole cells);
 4. **points**: a point is ground when ``|z - DTM(x, y)| <= elevation_threshold +
    elevation_scalar * s(x, y)``, with ``DTM`` bilinear and ``s`` its slope (rise/run).
 
@@ -28,7 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-DIRECT_SOLVE_LIMIT = 400_000  # hole cells solved directly; more by conjugate gradients
+DIRECT_SOLVE_LIMIT = 400_000  # hole cells solved directly; more are inpainted
 
 
 @dataclass(frozen=True)
@@ -93,12 +94,12 @@ def object_cells(zmin_filled: np.ndarray, flt: GroundFilter) -> np.ndarray:
     return objects[pad:-pad, pad:-pad]
 
 
-def fill_holes(z: np.ndarray) -> np.ndarray:
+def fill_harmonic(z: np.ndarray) -> np.ndarray:
     """NaN cells filled by harmonic interpolation (Laplace's equation over the holes, the known
     cells as boundary values, no flux across the grid's edges): exact on the known cells, smooth
     across holes, and exact for planes (a linear surface is harmonic). A sparse direct solve
-    (scipy SuperLU) over the hole cells only; conjugate gradients above
-    :data:`DIRECT_SOLVE_LIMIT` hole cells."""
+    (scipy SuperLU) over the hole cells only; above :data:`DIRECT_SOLVE_LIMIT` hole cells,
+    :func:`fill_inpaint`."""
     from scipy import sparse
     from scipy.sparse.linalg import spsolve
 
@@ -107,6 +108,8 @@ def fill_holes(z: np.ndarray) -> np.ndarray:
         return z.copy()
     if holes.all():
         raise ValueError("the grid has no value to fill from")
+    if holes.sum() > DIRECT_SOLVE_LIMIT:  # the direct solve's memory grows faster than n
+        return fill_inpaint(z)
     rows, cols = z.shape
     index = np.full(z.shape, -1, dtype=np.int64)
     hr, hc = np.nonzero(holes)
@@ -129,16 +132,25 @@ def fill_holes(z: np.ndarray) -> np.ndarray:
     matrix = sparse.csr_matrix((np.r_[diag, -np.ones(len(i))],
                                 (np.r_[np.arange(n), i], np.r_[np.arange(n), j])), shape=(n, n))
     out = z.copy()
-    if n <= DIRECT_SOLVE_LIMIT:
-        out[hr, hc] = spsolve(matrix.tocsc(), rhs)
-    else:  # conjugate gradients from the nearest values (memory stays linear in n)
-        from scipy import ndimage
-        from scipy.sparse.linalg import cg
-
-        _, (ri, ci) = ndimage.distance_transform_edt(holes, return_indices=True)
-        start = z[ri, ci][hr, hc]
-        out[hr, hc], _ = cg(matrix, rhs, x0=start, rtol=1e-8, maxiter=5000)
+    out[hr, hc] = spsolve(matrix.tocsc(), rhs)
     return out
+
+
+def fill_inpaint(z: np.ndarray) -> np.ndarray:
+    """NaN cells filled by OpenCV's Navier-Stokes inpainting (``cv2.INPAINT_NS``, radius 3
+    cells, float32 heights relative to their minimum): smooth across scattered or large holes,
+    fast, exact on the known cells (not exact for planes: see :func:`fill_harmonic`)."""
+    import cv2
+
+    holes = np.isnan(z)
+    if not holes.any():
+        return z.copy()
+    if holes.all():
+        raise ValueError("the grid has no value to fill from")
+    base = float(np.nanmin(z))
+    src = np.where(holes, 0.0, z - base).astype(np.float32)
+    filled = cv2.inpaint(src, holes.astype(np.uint8), 3, cv2.INPAINT_NS)
+    return np.where(holes, filled.astype(np.float64) + base, z)
 
 
 def provisional_dtm(zmin: np.ndarray, objects: np.ndarray) -> np.ndarray:
@@ -146,7 +158,7 @@ def provisional_dtm(zmin: np.ndarray, objects: np.ndarray) -> np.ndarray:
     ground = np.where(objects, np.nan, zmin)
     if np.isnan(ground).all():
         raise ValueError("every cell is an object: lower SLOPE or MAX_WINDOW")
-    return fill_holes(ground)
+    return fill_harmonic(ground)
 
 
 def classify_points(xyz: np.ndarray, surface: MinimumSurface, dtm: np.ndarray,
@@ -175,7 +187,7 @@ class GroundResult:
 def smrf(xyz: np.ndarray, flt: GroundFilter) -> GroundResult:
     """Classify ``xyz`` (N, 3, local coordinates) into ground / non-ground (steps 1-4)."""
     surface = minimum_surface(xyz, flt.cell)
-    zmin = fill_holes(surface.z)
+    zmin = fill_inpaint(surface.z)
     objects = object_cells(zmin, flt)
     objects |= np.isnan(surface.z)  # empty cells are filled from ground cells, not kept
     dtm = provisional_dtm(zmin, objects)

@@ -5,7 +5,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from toolbox.terrain.ground import GroundFilter, fill_holes, minimum_surface, object_cells, smrf
+from toolbox.terrain.ground import (
+    GroundFilter,
+    fill_harmonic,
+    minimum_surface,
+    object_cells,
+    smrf,
+)
 
 
 def test_minimum_surface_is_the_lowest_point_per_cell():
@@ -27,26 +33,27 @@ def test_plane_has_no_object_and_a_box_is_one():
     assert objects[20:30, 25:35].all() and objects.sum() == 100
 
 
-def test_fill_holes_keeps_known_cells_and_fills_a_plane():
+def test_fill_harmonic_keeps_known_cells_and_fills_a_plane():
     y, x = np.mgrid[0:40, 0:40].astype(float)
     plane = 50 + 0.2 * x + 0.1 * y
     holed = plane.copy()
     holed[10:20, 12:22] = np.nan
-    filled = fill_holes(holed)
+    filled = fill_harmonic(holed)
     assert np.array_equal(filled[~np.isnan(holed)], plane[~np.isnan(holed)])
     assert np.abs(filled - plane).max() < 1e-9  # a plane is harmonic: filled exactly
 
 
-def test_fill_holes_iterative_path_agrees(monkeypatch):
+def test_fill_harmonic_falls_back_to_inpainting_for_huge_holes(monkeypatch):
     import toolbox.terrain.ground as ground
 
     y, x = np.mgrid[0:50, 0:50].astype(float)
     surface = 20 + np.sin(x / 7.0) * np.cos(y / 9.0)
     holed = surface.copy()
     holed[5:30, 10:40] = np.nan
-    direct = fill_holes(holed)
     monkeypatch.setattr(ground, "DIRECT_SOLVE_LIMIT", 10)
-    assert np.abs(fill_holes(holed) - direct).max() < 1e-5
+    filled = fill_harmonic(holed)
+    assert np.array_equal(filled, ground.fill_inpaint(holed))
+    assert np.abs(filled - surface).max() < 1.0  # heights span 2: a fill, not a guess
 
 
 def test_smrf_points_on_a_plane_are_all_ground():
