@@ -125,8 +125,8 @@ def run_match(params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
             for k, (left, right, report) in enumerate(pairs):
                 feedback.check_canceled()
                 step = feedback.step(90 * k / len(pairs), 90 * (k + 1) / len(pairs))
-                images = (photo_image(left, None, f"PROJECT image of {left.id}"),
-                          photo_image(right, None, f"PROJECT image of {right.id}"))
+                images = (photo_image(left, None, "its image path in PROJECT"),
+                          photo_image(right, None, "its image path in PROJECT"))
                 pixel = params.get("PIXEL_SIZE_MM") or \
                     matching_pixel(left, abs(grid.transform.a), report.distance_m)
                 geometry, disparity, colours, stats = match_one_pair(
@@ -140,6 +140,11 @@ def run_match(params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
                 stats.update(points=len(xyz), pixel_mm=pixel, base_ratio=report.base_ratio,
                              overlap=report.overlap, sigma_z_m=report.sigma_z_m)
                 pair_stats.append(stats)
+                if stats["matched_fraction_of_left"] < 0.2:
+                    feedback.push_warning(
+                        f"pair {stats['pair']}: only {100 * stats['matched_fraction_of_left']:.0f}"
+                        " % of the left image matched: is MIN_HEIGHT..MAX_HEIGHT the terrain's, "
+                        "and is the pair textured?")
                 feedback.push_info(f"pair {stats['pair']}: {len(xyz)} points "
                                    f"({100 * stats['matched_fraction_of_left']:.0f} % of the "
                                    "left image matched)")

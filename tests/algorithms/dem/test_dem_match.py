@@ -107,7 +107,9 @@ def test_match_bad_input_exit_2(scene, tmp_path):
              (["--PHOTOS", "L,R", "--MIN_HEIGHT", "-2000", "--MAX_HEIGHT", "900"],
               "more than MAX_DISPARITIES"),
              (["--PHOTOS", "L,R", "--MIN_HEIGHT", "380", "--MAX_HEIGHT", "370"],
-              "MAX_HEIGHT must be above MIN_HEIGHT")]
+              "MAX_HEIGHT must be above MIN_HEIGHT"),
+             (["--PHOTOS", "L,unoriented", "--MIN_HEIGHT", "280", "--MAX_HEIGHT", "370"],
+              "has no exterior orientation")]
     for args, text in cases:
         res = runner.invoke(main, base + args)
         assert res.exit_code == 2, res.output

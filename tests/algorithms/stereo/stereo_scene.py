@@ -47,6 +47,7 @@ def project_yaml(path: Path, names=("L", "R", "far")) -> Path:
     photos = [{"id": n, "camera": "synthetic", "image": f"{n}.tif",
                "exterior": dict(zip(("X0", "Y0", "Z0", "omega", "phi", "kappa"),
                                     [*CENTRES[n], *ANGLES[n]], strict=True))} for n in names]
+    photos.append({"id": "unoriented", "camera": "synthetic", "image": "L.tif"})
     doc = {"format": "orientation-project", "version": 1, "crs": CRS, "angle_unit": "rad",
            "cameras": [camera], "photos": photos}
     path.write_text(yaml.safe_dump(doc, sort_keys=False))

@@ -103,7 +103,8 @@ def test_refused_pairs(pair, tmp_path):
     cases = [(["--LEFT", "L", "--RIGHT", "far", "--RIGHT_IMAGE", str(pair.folder / "R.tif")],
               "overlap by 0.0 %"),
              (["--LEFT", "L", "--RIGHT", "R", "--SIGMA_Z", "0.01"], "too short for SIGMA_Z"),
-             (["--LEFT", "L", "--RIGHT", "L"], "RIGHT must differ from LEFT")]
+             (["--LEFT", "L", "--RIGHT", "L"], "RIGHT must differ from LEFT"),
+             (["--LEFT", "L", "--RIGHT", "unoriented"], "has no exterior orientation")]
     for args, text in cases:
         res = runner.invoke(main, base + args)
         assert res.exit_code == 2, res.output
