@@ -42,12 +42,12 @@ class DenseMatchingDsm(Algorithm):
        pairs the median of their medians (OUTPUT), their number (COUNT, 0 = none) and SPREAD =
        the highest upper quartile minus the lowest lower quartile (one pair: its
        interquartile range; several: also their disagreement). Cells without matched points
-       stay nodata: no
-       interpolation, so no cell outside the stereo coverage gets a value.
+       stay nodata: no interpolation, so no cell outside the stereo coverage gets a value.
 
-    The epipolar pixel (PIXEL_SIZE_MM) is by default the left image's, or coarser so that a DSM
-    cell spans two pixels on the ground: finer matching would only add points to each cell's
-    median. (Coarsening a large scan this way resamples it bilinearly, without averaging.)
+    The epipolar pixel (PIXEL_SIZE_MM) is by default the left image's, or coarser so that a
+    DSM cell spans four pixels on the ground: much finer matching would only add points to
+    each cell's median. (Coarsening a large scan this way resamples it bilinearly, without
+    averaging.)
     POINTS writes the matched points as LAS/LAZ, coloured from the left photo (RGB, or grey).
     Memory: one pair's epipolar images and disparities, matched in strips of 1024 rows, plus
     the output grid.
@@ -73,7 +73,7 @@ class DenseMatchingDsm(Algorithm):
         Number("MAX_ANGLE", "largest angle between a pair's optical axes, degrees",
                default=30.0, min_value=0, max_value=90),
         Number("PIXEL_SIZE_MM", "pixel of the epipolar images, mm (default: the left image's, "
-               "or coarser so that a DSM cell spans two pixels on the ground)", optional=True,
+               "or coarser so that a DSM cell spans four pixels on the ground)", optional=True,
                min_value=0, min_exclusive=True),
         Integer("BLOCK_SIZE", "SGBM matching block, pixels (odd)", default=5, min_value=1,
                 max_value=15),

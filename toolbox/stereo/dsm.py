@@ -26,11 +26,11 @@ def read_epipolar(path: Path) -> tuple[np.ndarray, np.ndarray]:
 
 
 def matching_pixel(left: Any, cell_size: float, distance_m: float) -> float:
-    """Default epipolar pixel (mm): the left image's, or coarser so that a DSM cell spans two
-    pixels on the ground (GSD = pixel x distance / c): matching finer than the grid only adds
+    """Default epipolar pixel (mm): the left image's, or coarser so that a DSM cell spans four
+    pixels on the ground (GSD = pixel x distance / c): matching much finer than the grid only adds
     points to one median."""
     native = float(left.require_pixel_transform().pixel_size_mm)
-    return max(native, 0.5 * cell_size * left.camera.c / distance_m)
+    return max(native, 0.25 * cell_size * left.camera.c / distance_m)
 
 
 def match_one_pair(left: Any, right: Any, images: tuple[Path, Path], low: float, high: float,
