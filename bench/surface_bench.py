@@ -1,7 +1,9 @@
 """Surface benchmark: reading and gridding a LAZ point cloud (beside PDAL's ``writers.gdal`` when
 the ``pdal`` Python package and its library are installed: PyPI has no binary wheel), and the
 StereoSGBM floor of dense matching (OpenCV alone on one synthetic epipolar pair, shifted by 32
-pixels) beside the toolbox's matcher (``match_pair``: row strips and validity checks).
+pixels) beside the toolbox's matcher (``match_pair``: row strips and validity checks); and the
+epipolar resampling of one noise "scan" of 4 x the pair side (``--pair 4161`` = 16644 px, the
+film scans), by windows.
 
     .venv/bin/python bench/surface_bench.py --small      # 1 M points, 1000 x 1000 pair (quick)
     .venv/bin/python bench/surface_bench.py --points 10000000 --pair 4000
@@ -44,6 +46,20 @@ def make_laz(path: Path, n: int) -> None:
     write_point_cloud(path, xyz, CRS, classification=cls)
 
 
+def scan(path: Path, size: int) -> None:
+    """A noise "scan" of ``size`` x ``size`` uint8 pixels, tiled, written by blocks of rows."""
+    import rasterio
+
+    rng = np.random.default_rng(5)
+    profile = {"driver": "GTiff", "width": size, "height": size, "count": 1, "dtype": "uint8",
+               "tiled": True, "blockxsize": 256, "blockysize": 256}
+    with rasterio.open(path, "w", **profile) as ds:
+        for r0 in range(0, size, 1024):
+            rows = min(1024, size - r0)
+            ds.write(rng.integers(0, 256, (1, rows, size), dtype=np.uint8),
+                     window=rasterio.windows.Window(0, r0, size, rows))
+
+
 def case(name: str, work: Path, pair: int) -> dict:
     t0 = time.perf_counter()
     if name == "read":
@@ -84,6 +100,22 @@ def case(name: str, work: Path, pair: int) -> dict:
             ok = np.ones(left.shape, bool)
             disp = match_pair(left, right, ok, ok, 0, 64)
         extra = {"median_disparity": float(np.nanmedian(np.where(disp > 0, disp, np.nan)))}
+    elif name == "epipolar":  # one normalised image of a scan-sized photo, by windows
+        from toolbox.photogrammetry.camera import RadialDistortion
+        from toolbox.photogrammetry.synthetic import frame_photo
+        from toolbox.stereo.epipolar import epipolar_geometry, resample_image
+
+        size = pair * 4
+        photos = [frame_photo((X0 + dx, Y0, 1500.0), angles, width=size, height=size,
+                              principal_distance_mm=153.0, crs=CRS, photo_id=pid,
+                              distortion=RadialDistortion.from_polynomial(3e-7))
+                  for dx, angles, pid in ((0.0, (0.01, -0.02, 0.03), "a"),
+                                          (500.0, (-0.01, 0.01, -0.02), "b"))]
+        geometry = epipolar_geometry(*photos)
+        t0 = time.perf_counter()
+        resample_image(geometry, photos[0], 0, work / "scan.tif", work / "epi.tif",
+                       overviews=False)
+        extra = {"size": size}
     else:
         raise SystemExit(f"unknown case {name}")
     return {"seconds": time.perf_counter() - t0, "peak_mb": peak_rss_mb(), **extra}
@@ -109,7 +141,8 @@ def main() -> None:
         t0 = time.perf_counter()
         make_laz(work / "cloud.laz", args.points)
         print(f"wrote {args.points:,} points in {time.perf_counter() - t0:.1f} s", flush=True)
-        for name in ("read", "grid", "pdal", "sgbm", "match_pair"):
+        scan(work / "scan.tif", args.pair * 4)
+        for name in ("read", "grid", "pdal", "sgbm", "match_pair", "epipolar"):
             cmd = [sys.executable, __file__, "--case", name, "--work", str(work),
                    "--pair", str(args.pair)]
             seconds, peak, code, err = run_measured(cmd)
@@ -119,6 +152,8 @@ def main() -> None:
             else:
                 inner = json.loads((work / f"{name}.json").read_text())
                 note = f"{inner['seconds']:.2f} s inside the process"
+                if name == "epipolar":
+                    note += f" (a {inner['size']} x {inner['size']} uint8 scan, bilinear)"
                 if name in ("sgbm", "match_pair"):
                     note += f" ({args.pair} x {args.pair}, 64 disparities, median " \
                             f"{inner['median_disparity']:.2f} of 32)"

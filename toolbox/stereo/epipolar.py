@@ -215,15 +215,51 @@ def epipolar_geometry(left: Any, right: Any, pixel_mm: float | None = None,
                             (left.id, right.id), None if crs is None else crs.to_wkt())
 
 
+MAP_STEP = 8  # pixels between exactly computed map nodes; bilinear in between
+
+
+def _lattice(n: int, step: int) -> np.ndarray:
+    """Indices 0, step, 2 step, ..., n - 1 (the last one always included)."""
+    return np.unique(np.r_[np.arange(0, n, step), n - 1])
+
+
+def _upsample(coarse: np.ndarray, rows: np.ndarray, cols: np.ndarray, height: int,
+              width: int) -> np.ndarray:
+    """Bilinear interpolation of ``coarse`` (values at lattice ``rows`` x ``cols``) onto every
+    index of a ``height`` x ``width`` array."""
+    def weights(nodes: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+        if len(nodes) == 1:
+            return np.zeros(n, np.int64), np.zeros(n)
+        k = np.clip(np.searchsorted(nodes, np.arange(n), side="right") - 1, 0, len(nodes) - 2)
+        return k, (np.arange(n) - nodes[k]) / (nodes[k + 1] - nodes[k])
+
+    kc, tc = weights(cols, width)
+    kr, tr = weights(rows, height)
+    across = coarse[:, kc] * (1 - tc) + coarse[:, np.minimum(kc + 1, len(cols) - 1)] * tc
+    return across[kr] * (1 - tr)[:, None] + across[np.minimum(kr + 1, len(rows) - 1)] * tr[:, None]
+
+
 class EpipolarMap:
     """Coordinate map (:class:`toolbox.raster.warp.CoordinateMap`) of normalised image ``side``
-    onto its original photo: normalised pixel -> ray -> original pixel (distortion added)."""
+    onto its original photo: normalised pixel -> ray -> original pixel (distortion added).
 
-    def __init__(self, geometry: EpipolarGeometry, photo: Any, side: int):
-        self.geometry, self.photo, self.side = geometry, photo, side
+    The chain is computed exactly every ``step`` pixels (and on the tile's last row and
+    column) and interpolated bilinearly in between: the map is smooth (a rotation and a
+    radial polynomial), so the interpolation error is far below 0.01 pixel for ``step`` 8,
+    at a 64th of the memory and time (``step`` 1: every pixel exactly)."""
+
+    def __init__(self, geometry: EpipolarGeometry, photo: Any, side: int, step: int = MAP_STEP):
+        self.geometry, self.photo, self.side, self.step = geometry, photo, side, step
 
     def __call__(self, tile: Any, aux: dict) -> tuple[np.ndarray, np.ndarray]:
         x, y = tile.cell_centres(halo=False)  # (xn, yn) of the pixel centres, mm
+        if self.step > 1:
+            rows, cols = _lattice(len(y), self.step), _lattice(len(x), self.step)
+            xn, yn = np.meshgrid(x[cols], y[rows])
+            coarse = self.pixels(xn, yn)
+            if all(np.isfinite(c).all() for c in coarse):
+                return tuple(_upsample(c.astype(np.float64), rows, cols, len(y), len(x))
+                             .astype("float32") for c in coarse)
         xn, yn = np.meshgrid(x, y)
         return self.pixels(xn, yn)
 

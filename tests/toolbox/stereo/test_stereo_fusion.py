@@ -50,3 +50,25 @@ def test_fuse_leaves_cells_without_points_empty():
     dsm, count, spread = fuse([pair_cells(np.array([[0.5, 9.5, 7.0]]), t, 10, 10)], 10, 10)
     assert np.isfinite(dsm).sum() == 1 and dsm[0, 0] == 7.0 and count.sum() == 1
     assert spread[0, 0] == 0.0 and np.isnan(spread).sum() == 99
+
+
+def test_epipolar_map_lattice_agrees_with_the_exact_map():
+    import sys
+    from pathlib import Path
+
+    from rasterio.windows import Window
+
+    from toolbox.raster.tile import Tile
+    from toolbox.stereo.epipolar import EpipolarMap, epipolar_geometry
+
+    sys.path.insert(0, str(Path(__file__).parents[2] / "algorithms" / "stereo"))
+    import stereo_scene as sc
+
+    left, right = sc.photo("L"), sc.photo("R")
+    geometry = epipolar_geometry(left, right)
+    for side, photo in enumerate((left, right)):
+        tile = Tile(0, Window(37, 11, 301, 203), 0, geometry.transform(side))
+        fast = EpipolarMap(geometry, photo, side)(tile, {})
+        exact = EpipolarMap(geometry, photo, side, step=1)(tile, {})
+        for a, b in zip(fast, exact, strict=True):
+            assert a.shape == (203, 301) and np.abs(a - b).max() < 0.01
