@@ -91,6 +91,9 @@ def test_reader_filters_match_numpy_selection(cloud):
         assert report.read == len(cloud["xyz"]) and report.kept == mask.sum(), flt
         assert np.allclose(xyz, cloud["xyz"][mask], atol=6e-4), flt  # 1 mm quantisation
     assert report.classes == {c: int((cloud["cls"] == c).sum()) for c in (2, 5, 6)}
+    # another dimension as the height (Z_FIELD): here the return number
+    xyz, _ = read_xyz(ref, PointFilter((5,)), z_field="return_number")
+    assert np.array_equal(xyz[:, 2], cloud["rnum"][cloud["cls"] == 5])
 
 
 def test_gridding_from_laz_equals_gridding_from_gpkg(cloud, tmp_path):
