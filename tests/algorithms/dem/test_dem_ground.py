@@ -106,6 +106,16 @@ def test_ground_from_point_cloud(scene):
     x, y = t.c + (cols + 0.5) * t.a - X0, t.f + (rows + 0.5) * t.e - Y0
     assert np.mean(mask[in_buildings(x, y, -1.0)] == 1) > 0.98
     assert res["STATISTICS"]["ground_filter"]["ground"] == got.sum()
+    # the DTM is dem:tin_linear of the ground points (the same gridding code, no fork)
+    with rasterio.open(tmp / "dtm.tif") as ds:
+        dtm, bounds = ds.read(1, masked=True), ds.bounds
+    toolbox.run("dem:tin_linear", {"INPUT": str(tmp / "classified.laz"), "CLASSES": "2",
+                                   "CELL_SIZE": 2.0, "EXTENT": ",".join(map(str, bounds)),
+                                   "OUTPUT": str(tmp / "again.tif")})
+    with rasterio.open(tmp / "again.tif") as ds:
+        again = ds.read(1, masked=True)
+    assert np.array_equal(again.mask, dtm.mask)
+    assert np.abs(again - dtm).max() < 2e-3  # the LAZ stores millimetres
 
 
 def test_ground_from_dsm(scene):
