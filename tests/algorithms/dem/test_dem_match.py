@@ -38,8 +38,7 @@ def scene(tmp_path_factory):
     roof = (x > x0) & (x < x1) & (y > y0) & (y < y1)
     z = z + np.where(roof, h, 0.0).astype("float32")
     texture = wave_texture(seed=2, wavelength=(8.0, 40.0), waves=40)
-    pair = sc.make_pair(folder, z, transform, texture)
-    return pair
+    return sc.make_pair(folder, z, transform, texture, names=("L", "R", "M"))
 
 
 def surface_at(pair, x, y):
@@ -116,3 +115,25 @@ def test_match_bad_input_exit_2(scene, tmp_path):
         assert text in res.stderr and "Traceback" not in res.output, res.stderr
         assert len(res.stderr.strip().splitlines()) == 1
         assert not any((tmp_path / n).exists() for n in ("d.tif", "c.tif", "s.tif"))
+
+
+def test_three_photos_three_pairs_fused(scene, tmp_path):
+    res = run_match(scene, tmp_path, PHOTOS="L,R,M")
+    assert sorted(p["pair"] for p in res["STATISTICS"]["pairs"]) == ["L-M", "L-R", "R-M"]
+    with rasterio.open(tmp_path / "dsm.tif") as ds:
+        dsm = ds.read(1, masked=True)
+        t = ds.transform
+    with rasterio.open(tmp_path / "count.tif") as ds:
+        count = ds.read(1)
+    with rasterio.open(tmp_path / "spread.tif") as ds:
+        spread = ds.read(1, masked=True)
+    rows, cols = np.indices(dsm.shape)
+    x, y = t.c + (cols + 0.5) * t.a, t.f + (rows + 0.5) * t.e
+    truth = surface_at(scene, x.ravel(), y.ravel()).reshape(x.shape)
+    x0, y0, x1, y1, _ = BUILDING
+    open_ground = ~dsm.mask & ~((x > x0 - 25) & (x < x1 + 25) & (y > y0 - 25) & (y < y1 + 25))
+    assert (count[~dsm.mask] >= 1).all() and (count == 3).sum() > 0.3 * (~dsm.mask).sum()
+    assert np.array_equal(spread.mask, dsm.mask)
+    three = open_ground & (count == 3)
+    assert np.median(np.abs(dsm.data - truth)[three]) <= 0.5 * GSD * H_OVER_B
+    assert np.median(spread.data[three]) < 2.0  # the pairs agree within their noise

@@ -21,8 +21,9 @@ SIZE = 600  # px; 230 mm frame -> 0.383 mm pixels; ~1.8 m on the ground at 700 m
 C_MM = 153.0
 K1 = 3e-7  # dr = k1 r^3: 0.46 mm = 1.2 px at the frame corner
 CENTRES = {"L": (X0 + 300.0, Y0 + 500.0, 1000.0), "R": (X0 + 720.0, Y0 + 510.0, 1010.0),
-           "far": (X0 + 3000.0, Y0 + 500.0, 1000.0)}
-ANGLES = {"L": (0.02, -0.015, 0.03), "R": (-0.01, 0.02, -0.02), "far": (0.0, 0.0, 0.0)}
+           "M": (X0 + 510.0, Y0 + 490.0, 1005.0), "far": (X0 + 3000.0, Y0 + 500.0, 1000.0)}
+ANGLES = {"L": (0.02, -0.015, 0.03), "R": (-0.01, 0.02, -0.02), "M": (0.01, 0.01, 0.01),
+          "far": (0.0, 0.0, 0.0)}
 
 
 @dataclass
@@ -40,7 +41,7 @@ def photo(name: str):
                        distortion=RadialDistortion.from_polynomial(K1), crs=CRS, photo_id=name)
 
 
-def project_yaml(path: Path, names=("L", "R", "far")) -> Path:
+def project_yaml(path: Path, names=("L", "R", "M", "far")) -> Path:
     camera = {"name": "synthetic", "principal_distance_mm": C_MM,
               "image_size_px": [SIZE, SIZE], "pixel_size_mm": 230.0 / SIZE,
               "frame_size_mm": [230.0, 230.0], "distortion": {"polynomial": {"k1": K1}}}
