@@ -49,8 +49,9 @@ class DenseMatchingDsm(Algorithm):
     each cell's median. (Coarsening a large scan this way resamples it bilinearly, without
     averaging.)
     POINTS writes the matched points as LAS/LAZ, coloured from the left photo (RGB, or grey).
-    Memory: one pair's epipolar images and disparities, matched in strips of 1024 rows, plus
-    the output grid.
+    Memory: one pair's epipolar images and disparities (matched in strips of 1024 rows), its
+    points' cells and heights (16 bytes a point; triangulated 256 rows at a time), the cell
+    statistics of the pairs done, and the output grid.
     """
 
     id = "dem:match"

@@ -14,6 +14,8 @@ from toolbox.errors import InputDataError
 from toolbox.feedback import Feedback
 from toolbox.stereo.matching import MatchOptions
 
+POINT_ROWS = 256  # disparity rows triangulated at a time (the points of one block in memory)
+
 
 def read_epipolar(path: Path) -> tuple[np.ndarray, np.ndarray]:
     """Data bands (bands, rows, cols) and the valid mask (alpha > 0) of an epipolar image."""
@@ -80,7 +82,7 @@ def run_match(params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
     from toolbox.photogrammetry.tables import load_project_parameter
     from toolbox.raster.engine import grid_from_parameters
     from toolbox.stereo.epipolar import photo_image
-    from toolbox.stereo.fusion import fuse, pair_cells
+    from toolbox.stereo.fusion import cell_index, cell_statistics, fuse
     from toolbox.stereo.matching import disparity_points
     from toolbox.stereo.pairs import PairRules, overlap_bounds, select_pairs
 
@@ -131,13 +133,21 @@ def run_match(params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
                     matching_pixel(left, abs(grid.transform.a), report.distance_m)
                 geometry, disparity, colours, stats = match_one_pair(
                     left, right, images, low, high, options, pixel, Path(tmp), step)
-                xyz, flat = disparity_points(geometry, disparity)
-                keep = (xyz[:, 2] >= low) & (xyz[:, 2] <= high)
-                xyz, flat = xyz[keep], flat[keep]
-                cells.append(pair_cells(xyz, grid.transform, grid.width, grid.height))
-                if writer is not None:
-                    writer.write(xyz, rgb=colours[flat])
-                stats.update(points=len(xyz), pixel_mm=pixel, base_ratio=report.base_ratio,
+                keys, heights, n_points = [], [], 0
+                for r0 in range(0, disparity.shape[0], POINT_ROWS):  # points by row blocks
+                    xyz, flat = disparity_points(geometry, disparity[r0:r0 + POINT_ROWS], r0)
+                    keep = (xyz[:, 2] >= low) & (xyz[:, 2] <= high)
+                    xyz, flat = xyz[keep], flat[keep]
+                    cell, inside = cell_index(xyz, grid.transform, grid.width, grid.height)
+                    keys.append(cell[inside])
+                    heights.append(xyz[inside, 2])
+                    n_points += len(xyz)
+                    if writer is not None:
+                        writer.write(xyz, rgb=colours[flat + r0 * disparity.shape[1]])
+                del disparity
+                cells.append(cell_statistics(np.concatenate(keys), np.concatenate(heights)))
+                del keys, heights
+                stats.update(points=n_points, pixel_mm=pixel, base_ratio=report.base_ratio,
                              overlap=report.overlap, sigma_z_m=report.sigma_z_m)
                 pair_stats.append(stats)
                 if stats["matched_fraction_of_left"] < 0.2:

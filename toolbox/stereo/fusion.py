@@ -43,12 +43,19 @@ def group_quantiles(keys: np.ndarray, values: np.ndarray
     return k[starts], quantile(0.5), quantile(0.25), quantile(0.75), counts
 
 
+def cell_statistics(cells: np.ndarray, heights: np.ndarray
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """One pair's cells (flat indices of its points) and the median, lower and upper quartile
+    of its heights in each."""
+    keys, median, q25, q75, _ = group_quantiles(cells, heights)
+    return keys, median, q25, q75
+
+
 def pair_cells(xyz: np.ndarray, transform: Any, width: int, height: int
                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """One pair's cells and the median, lower and upper quartile of its heights in each."""
+    """:func:`cell_statistics` of points (N, 3) on a north-up grid (points outside ignored)."""
     cells, inside = cell_index(xyz, transform, width, height)
-    keys, median, q25, q75, _ = group_quantiles(cells[inside], xyz[inside, 2])
-    return keys, median, q25, q75
+    return cell_statistics(cells[inside], xyz[inside, 2])
 
 
 def fuse(pairs: list[tuple[np.ndarray, ...]], width: int, height: int
