@@ -366,19 +366,29 @@ class VectorLayer(Parameter):
     (also ``|layerid=N``, ``|geometrytype=Point``, ``|subset=SQL WHERE``), or a GeoDataFrame in
     Python. ``geometry_types`` restricts the kind: any of point, line, polygon.
     CSV files are read as points from X/Y(/Z) columns (see :mod:`toolbox.io.vector`).
+    ``point_clouds=True`` also accepts a LAS/LAZ/COPC file (validated to a
+    :class:`toolbox.io.pointcloud.PointCloudRef`; the algorithm must read both kinds).
     """
 
     type_name = "vector"
 
     def __init__(self, name: str, description: str = "",
                  geometry_types: Sequence[str] | None = None, default: Any = None,
-                 optional: bool = False, **flags):
+                 optional: bool = False, point_clouds: bool = False, **flags):
         super().__init__(name, description, default, optional, **flags)
         self.geometry_types = list(geometry_types) if geometry_types else None
+        self.point_clouds = point_clouds
 
     def validate(self, value: Any, ctx: ValidationContext):
         from toolbox.io.vector import open_layer
 
+        if self.point_clouds:
+            from toolbox.io.pointcloud import PointCloudRef, is_point_cloud_path, open_point_cloud
+
+            if isinstance(value, PointCloudRef) or is_point_cloud_path(value):
+                cloud = open_point_cloud(value, self.name)
+                ctx.input_paths[cloud.path.resolve()] = self.name
+                return cloud
         layer = open_layer(value, self.name)
         if layer.path is not None:
             ctx.input_paths[layer.path.resolve()] = self.name
@@ -396,7 +406,8 @@ class VectorLayer(Parameter):
         return f"vector layer ({kinds}): path or QGIS source 'path|layername=...|subset=...'"
 
     def describe(self) -> dict[str, Any]:
-        return super().describe() | {"geometry_types": self.geometry_types}
+        return super().describe() | {"geometry_types": self.geometry_types} | \
+            ({"point_clouds": True} if self.point_clouds else {})
 
 
 class RasterLayer(Parameter):
