@@ -48,6 +48,10 @@ class ControlTemplate(Algorithm):
     ]
     outputs = [Output("STATISTICS", "predictions, points on no photo", "json")]
 
+    def planned_files(self, params):
+        """CHIPS: PNG files whose names come from the data (checked as a pattern)."""
+        return {"CHIPS": ["*.png"]} if params.get("CHIPS") is not None else {}
+
     def process(self, params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
         from toolbox.errors import InputDataError
         from toolbox.matching.chips import predict, write_chip

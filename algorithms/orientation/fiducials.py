@@ -82,6 +82,10 @@ class FiducialMarks(Algorithm):
     outputs = [Output("STATISTICS", "photos fitted and failed, marks missing, largest residual",
                       "json")]
 
+    def planned_files(self, params):
+        """THUMBNAILS: PNG files whose names come from the data (checked as a pattern)."""
+        return {"THUMBNAILS": ["*.png"]} if params.get("THUMBNAILS") is not None else {}
+
     def process(self, params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
         from toolbox.errors import InputDataError
         from toolbox.matching import marks
