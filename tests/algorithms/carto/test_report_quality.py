@@ -8,6 +8,7 @@ from __future__ import annotations
 import json
 import re
 
+import numpy as np
 import pytest
 
 import toolbox
@@ -36,6 +37,9 @@ def reports(tmp_path_factory):
         "topology_check": ("topology:check", {
             "INPUT": s["linework"], "LABELS": s["linework_labels"],
             "PARAMETERS": s["linework_parameters"], "OUTPUT": root / "topo.gpkg"}),
+        "bundle": ("orientation:bundle", {
+            "PROJECT": s["bundle_project"], "INPUT": s["bundle_measurements"],
+            "CONTROL": s["bundle_control"], "SIGMA_PX": 0.3, "OUTPUT": root / "bundle.yaml"}),
     }
     for name, (alg, params) in runs.items():
         toolbox.run(alg, params, report=rep / f"{name}.json")
@@ -51,8 +55,9 @@ def test_first_page_is_the_verdict(reports, tmp_path):
     res = toolbox.run("report:quality", {"REPORTS": str(reports), "OUTPUT": out,
                                          "TITLE": "Siena quality"})
     contents = res["CONTENTS"]
-    assert contents["sections"] == ["interior", "rectification", "dem", "topology"]
-    assert contents["figures"] == {"interior": 1, "rectification": 1, "dem": 2, "topology": 1}
+    assert contents["sections"] == ["interior", "orientation", "rectification", "dem", "topology"]
+    assert contents["figures"] == {"interior": 1, "orientation": 0, "rectification": 1, "dem": 2,
+                                   "topology": 1}
     first = pdf_pages(out)[0]
     assert "Siena quality" in first and "Verdict" in first
     # the rectification check RMSE against 0.3 mm x 5000 = 1.50 m (S002 §2.6.6)
@@ -72,6 +77,14 @@ def test_first_page_is_the_verdict(reports, tmp_path):
     errors = topo["outputs"]["STATISTICS"]["output"]["errors"]
     assert errors > 0 and verdicts["errors left in the linework"]["status"] == "FAIL"
     assert not contents["accepted"] and "NOT ACCEPTED" in first
+    # the bundle's check points against the same rules
+    check = json.loads((reports / "bundle.json").read_text())["outputs"]["STATISTICS"][
+        "check_rmse_m"]
+    at = {v["criterion"]: v for v in contents["verdicts"] if v["product"] == "Aerial triangulation"}
+    planimetric = float(np.hypot(check["x"], check["y"]))
+    assert at["check points, planimetric RMSE"]["measured"] == f"{planimetric:.3f} m"
+    assert at["check points, height RMSE"]["measured"] == f"{check['z']:.3f} m"
+    assert at["check points, height RMSE"]["status"] == ("pass" if check["z"] <= 1.52 else "FAIL")
 
 
 def test_tolerances_come_from_the_parameters(reports, tmp_path):
