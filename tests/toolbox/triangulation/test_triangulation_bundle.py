@@ -5,13 +5,24 @@ scipy solver, blunders and self-calibration."""
 import numpy as np
 import pytest
 import scipy.sparse as sp
-from conftest import angle_diff, build_case
+from block_cases import angle_diff, build_case
 from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
 from toolbox.triangulation.adjust import adjust
 from toolbox.triangulation.block import Options
 from toolbox.triangulation.synthetic import SyntheticBlockSpec
+
+
+@pytest.fixture(scope="session")
+def film_case():
+    return build_case(SyntheticBlockSpec(digital=False, seed=2), n_control=6, checks=(1,))
+
+
+@pytest.fixture(scope="session")
+def digital_case():
+    return build_case(SyntheticBlockSpec(digital=True, seed=1), n_control=6, checks=(1,))
+
 
 
 def _errors(case, sol):

@@ -1,10 +1,10 @@
-"""Synthetic blocks with a known truth for the triangulation tests (collinearity through the
+"""Synthetic blocks with a known truth for the triangulation tests (imported by name: a second
+``conftest`` module would shadow tests/conftest.py's helpers) (collinearity through the
 toolbox's camera chain, Gaussian noise of known sigma)."""
 
 from dataclasses import dataclass
 
 import numpy as np
-import pytest
 
 from toolbox.triangulation.approximations import by_resection
 from toolbox.triangulation.inputs import BlockRequest, Control, Measurements, build_block
@@ -46,13 +46,3 @@ def build_case(spec: SyntheticBlockSpec, n_control: int = 6, checks=(), project=
 
 def angle_diff(a, b):
     return (np.asarray(a) - np.asarray(b) + np.pi) % (2 * np.pi) - np.pi
-
-
-@pytest.fixture(scope="session")
-def film_case():
-    return build_case(SyntheticBlockSpec(digital=False, seed=2), n_control=6, checks=(1,))
-
-
-@pytest.fixture(scope="session")
-def digital_case():
-    return build_case(SyntheticBlockSpec(digital=True, seed=1), n_control=6, checks=(1,))
