@@ -9,7 +9,9 @@ previous one, so each party wall is plotted once), plus a courtyard wall. Street
 are long polylines crossing each other without vertices. Seeded defects that GRASS v.clean also
 repairs: undershooting ends (0.1 m), block rings left open by 0.1 m, overshooting walls (0.5 m),
 duplicated block edges, short wall stubs (0.5 m). Label points: one per building, courtyard and
-street cell.
+street cell. A code file (``CODE_FILE``) says which codes are area codes: the building code is a
+polygon code (its closed first building agrees with its label), the block edge a line code (its
+closed ring around the labelled courtyard is no conflict); ``conflicting_areas`` must be 0.
 
 Peers, on the same GeoPackage in one run:
 
@@ -43,6 +45,17 @@ E0, N0 = 1680000.0, 4790000.0
 CELL_W, CELL_H = 120.0, 100.0
 ROW = 10  # buildings per row
 BW, BD = 9.0, 12.0  # building width and depth
+
+
+CODE_FILE = """\
+codice;descrizione;tipologia
+FAB01002;fabbricato civile;poligono
+MAR01001;cortile o marciapiede;poligono
+STR01001;sede stradale;poligono
+STR02001;limite di isolato;polilinea
+STR05001;limite di strada;polilinea
+MUR01001;muro di cinta;polilinea
+"""
 
 
 def _building_row(x0: float, y0: float, rng, defects: dict, lines: list, codes: list) -> None:
@@ -124,19 +137,22 @@ def segments(frame) -> int:
     return int(np.sum(shapely.get_num_coordinates(frame.geometry.values) - 1))
 
 
-def run_toolbox(lines_path: Path, labels_path: Path, out: Path) -> dict:
+def run_toolbox(lines_path: Path, labels_path: Path, codes_path: Path, out: Path) -> dict:
     import toolbox
 
     t0 = time.perf_counter()
     result = toolbox.run("topology:build_areas", {
-        "INPUT": str(lines_path), "LABELS": str(labels_path), "SNAP_TOLERANCE": 0.2,
+        "INPUT": str(lines_path), "LABELS": str(labels_path), "CODES": str(codes_path),
+        "SNAP_TOLERANCE": 0.2,
         "CLOSURE_TOLERANCE": 0.5, "MIN_DANGLE_LENGTH": 1.0, "MIN_AREA": 1.0,
         "OUTPUT": str(out)}, overwrite=True)
     return {"seconds": time.perf_counter() - t0, "stats": result["STATISTICS"]}
 
 
-def run_kernel(frame, labels) -> dict:
+def run_kernel(frame, labels, codes_path: Path) -> dict:
     from toolbox.feedback import Feedback
+    from toolbox.io.code_file import read_code_file
+    from toolbox.topology.area_codes import AreaCodes
     from toolbox.topology.build import build_topology
     from toolbox.topology.tolerances import Tolerances
 
@@ -145,9 +161,11 @@ def run_kernel(frame, labels) -> dict:
     out = build_topology(frame.geometry.values, frame["code"].to_numpy(object),
                          labels.geometry.values, labels["code"].to_numpy(object),
                          {"quota": labels["quota"].to_numpy(object)},
-                         Tolerances(0.2, 0.5, 1.0, 1.0, 0.001), feedback)
+                         Tolerances(0.2, 0.5, 1.0, 1.0, 0.001), feedback,
+                         area_codes=AreaCodes.from_table(read_code_file(codes_path)))
     return {"seconds": time.perf_counter() - t0, "timings": feedback.timings,
-            "areas": len(out.areas), "arcs": len(out.arcs)}
+            "areas": len(out.areas), "arcs": len(out.arcs),
+            "conflicting_areas": out.statistics["labels"]["conflicting_areas"]}
 
 
 GRASS_SCRIPT = """set -e
@@ -220,11 +238,14 @@ def main(argv: list[str] | None = None) -> str:
         lines_path, labels_path = work / "city_lines.gpkg", work / "city_labels.gpkg"
         write_layers(lines_path, {"lines": frame})
         write_layers(labels_path, {"labels": labels})
+        codes_path = work / "codici.txt"
+        codes_path.write_text(CODE_FILE)
         print(f"{len(frame)} lines, {nseg} segments, {len(labels)} labels, defects {defects}",
               flush=True)
-        kernel = run_kernel(frame, labels)
-        print(f"kernel {kernel['seconds']:.2f} s, {kernel['areas']} areas", flush=True)
-        full = run_toolbox(lines_path, labels_path, work / "areas.gpkg")
+        kernel = run_kernel(frame, labels, codes_path)
+        print(f"kernel {kernel['seconds']:.2f} s, {kernel['areas']} areas, "
+              f"{kernel['conflicting_areas']} conflicting", flush=True)
+        full = run_toolbox(lines_path, labels_path, codes_path, work / "areas.gpkg")
         print(f"toolbox run {full['seconds']:.2f} s", flush=True)
         grass = None if args.no_grass else run_grass(lines_path)
         print(f"grass {grass}", flush=True)

@@ -34,7 +34,7 @@ from typing import Any, ClassVar
 
 from toolbox.errors import ParameterError
 from toolbox.feedback import Feedback
-from toolbox.parameters import Destination, Field, Output, Parameter
+from toolbox.parameters import Destination, Field, Output, OutputFolder, Parameter
 
 ID_RE = re.compile(r"^[a-z][a-z0-9_]*:[a-z][a-z0-9_]*$")
 
@@ -126,6 +126,10 @@ class Algorithm:
             if isinstance(p, Field) and p.parent not in seen:
                 raise TypeError(f"{cls.id}: field {p.name} must come after its layer {p.parent}")
             seen.add(p.name)
+        if any(isinstance(p, OutputFolder) for p in cls.parameters) and \
+                cls.planned_files is Algorithm.planned_files:
+            raise TypeError(f"{cls.id}: an OutputFolder needs planned_files() (the files it "
+                            "will hold)")
         for o in cls.outputs:
             if o.name in seen:
                 raise TypeError(f"{cls.id}: output {o.name} clashes with a parameter")
@@ -137,6 +141,16 @@ class Algorithm:
 
         Runs before any work (no file is written yet). The default accepts everything.
         """
+
+    def planned_files(self, params: dict[str, Any]) -> dict[str, list[str]]:
+        """The files each destination will write besides its own path, by destination name:
+        for an :class:`~toolbox.parameters.OutputFolder` the names of the files it will hold
+        (relative to it), for a file destination the extra files beside it (e.g. style
+        sidecars). A name may be a glob pattern (``out.gpkg.*.qml``) when the exact names are
+        known only while running. The runner checks each before any work, like an output path
+        (never an input; existing only with ``--overwrite``). Called after :meth:`check`.
+        """
+        return {}
 
     def process(self, params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
         """Do the work. ``params`` holds validated values; output destinations are staged paths.

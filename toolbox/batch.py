@@ -82,6 +82,7 @@ def parse_pipeline(doc: Any, base_dir: Path, variables: dict[str, Any] | None = 
                             f"{type(raw_variables).__name__}")
     values = {str(k): v for k, v in raw_variables.items()}
     values.update(variables or {})
+    values = _expand_variables(values, source)
     steps: list[Step] = []
     available: dict[str, set[str]] = {}
     for i, raw in enumerate(doc["steps"], start=1):
@@ -98,6 +99,13 @@ def parse_pipeline(doc: Any, base_dir: Path, variables: dict[str, Any] | None = 
         if not isinstance(params, dict):
             raise PipelineError(f"{source}: step {name!r}: 'params' must be a mapping")
         known = {n for p in alg.parameters for n in (p.name, *p.deprecated_names)} | {"OVERWRITE"}
+        if "OVERWRITE" in params and not any(True for _ in _references(params["OVERWRITE"])):
+            from toolbox.parameters import Boolean, ValidationContext
+
+            try:
+                Boolean("OVERWRITE").validate(params["OVERWRITE"], ValidationContext())
+            except ToolboxError as exc:
+                raise PipelineError(f"{source}: step {name!r}: {exc}") from None
         for key, value in params.items():
             if not isinstance(key, str) or key not in known:
                 raise PipelineError(f"{source}: step {name!r}: {key} is not a parameter of "
@@ -118,6 +126,35 @@ def parse_pipeline(doc: Any, base_dir: Path, variables: dict[str, Any] | None = 
         available[name] = {p.name for p in alg.destinations()} | {o.name for o in alg.outputs}
         steps.append(Step(name, alg.id, dict(params)))
     return Pipeline(steps, base_dir, values)
+
+
+def _expand_variables(values: dict[str, Any], source: str) -> dict[str, Any]:
+    """Variables whose values name other variables (``out: ${run}/out``), expanded until none
+    is left; an unknown name or a cycle is a :class:`PipelineError`."""
+    done: dict[str, Any] = {}
+
+    def expand(name: str, chain: tuple[str, ...]) -> Any:
+        if name in done:
+            return done[name]
+        if name in chain:
+            raise PipelineError(f"{source}: variable {name!r} refers to itself through "
+                                f"{' -> '.join((*chain, name))}")
+        value = values[name]
+        for ref, out in _references(value):
+            if out is not None:
+                raise PipelineError(f"{source}: variable {name!r} uses ${{{ref}.{out}}}; a "
+                                    "variable cannot name a step's output")
+            if ref not in values:
+                raise PipelineError(f"{source}: variable {name!r} uses ${{{ref}}} but no such "
+                                    "variable is set")
+            expand(ref, (*chain, name))
+        done[name] = _substitute(value, done) if any(True for _ in _references(value)) \
+            else value
+        return done[name]
+
+    for name in values:
+        expand(name, ())
+    return done
 
 
 def _references(value: Any):
@@ -195,9 +232,10 @@ def validate_pipeline(pipeline: Pipeline, overwrite: bool = False,
     :class:`PipelineError` naming the step."""
     from toolbox.errors import OutputExistsError
     from toolbox.io.crs import check_input_crs
-    from toolbox.parameters import Field, ValidationContext
+    from toolbox.parameters import Field, OutputFolder, ValidationContext
     from toolbox.registry import get
-    from toolbox.runner import check_magnitudes
+    from toolbox.runner import check_magnitudes, planned_paths
+    from toolbox.runner import validate as runner_validate
 
     written: dict[Path, str] = {}  # output path -> "step.NAME"
     read: dict[Path, str] = {}  # input path -> "step.NAME"
@@ -230,7 +268,8 @@ def validate_pipeline(pipeline: Pipeline, overwrite: bool = False,
             try:
                 if p.is_output:
                     ctx.values[p.name] = p.resolve(value, ctx)
-                elif isinstance(p, Field) and ctx.values.get(p.parent) is None:
+                elif isinstance(p, Field) and ctx.values.get(p.parent) is None \
+                        and value is not None:
                     resolved_all = False
                 elif value is not None and _later_file(value, written):
                     resolved_all = False  # an earlier step writes it: checked when it runs
@@ -264,16 +303,33 @@ def validate_pipeline(pipeline: Pipeline, overwrite: bool = False,
                            " an input is never overwritten")
             if path in written:
                 raise fail(f"{dest.name} '{final}' is also written by {written[path]}")
-            if path.exists() and not overwrite and existing is not None:
+            if isinstance(dest, OutputFolder):
+                pass  # an existing folder is fine: its planned files are checked below
+            elif path.exists() and not overwrite and existing is not None:
                 existing.append(path)
             elif path.exists() and not overwrite:
                 raise fail(str(OutputExistsError(dest.name, f"'{final}' exists; pass --overwrite "
                                                  "to replace it")))
             written[path] = f"{step.name}.{dest.name}"
             outputs_of[step.name][dest.name] = path
-        if resolved_all:
+        if resolved_all:  # every value known now: every check the run makes before it writes
+            values = {k: _absolutise(_substitute(v, pipeline.variables), pipeline.base_dir)
+                      if k != "OVERWRITE" and isinstance(alg.parameter(k), PATH_TYPES)
+                      else _substitute(v, pipeline.variables) for k, v in step.params.items()}
             try:
-                alg().check({p.name: ctx.values.get(p.name) for p in alg.parameters})
+                checked = runner_validate(alg, values, overwrite=True)
+                for paths in planned_paths(alg, checked).values():
+                    for path in paths:
+                        if path.resolve() in read:
+                            raise fail(f"would write '{path}', the input {read[path.resolve()]}"
+                                       " of an earlier step; an input is never overwritten")
+                        if path.exists() and not overwrite and existing is not None:
+                            existing.append(path)
+                        elif path.exists() and not overwrite:
+                            raise fail(f"would replace '{path}', which exists; pass "
+                                       "--overwrite to replace it")
+            except PipelineError:
+                raise
             except ToolboxError as exc:
                 raise fail(str(exc)) from None
 

@@ -343,24 +343,52 @@ class File(Parameter):
         return super().describe() | {"extensions": self.extensions}
 
 
+class Folder(Parameter):
+    """An existing input folder (QGIS shows a folder picker)."""
+
+    type_name = "folder"
+
+    def validate(self, value: Any, ctx: ValidationContext) -> Path:
+        if not isinstance(value, (str, Path)):
+            raise self.error(f"must be a folder path, got {_show(value)}")
+        path = Path(value).expanduser()
+        if not path.is_dir():
+            what = "is a file, not a folder" if path.exists() else "does not exist"
+            raise self.error(f"folder {_show(str(value))} {what}")
+        return path
+
+    def expected(self) -> str:
+        return "existing folder"
+
+
 class VectorLayer(Parameter):
     """A vector layer OGR can read: ``path`` or a QGIS layer source ``path|layername=name``
     (also ``|layerid=N``, ``|geometrytype=Point``, ``|subset=SQL WHERE``), or a GeoDataFrame in
     Python. ``geometry_types`` restricts the kind: any of point, line, polygon.
     CSV files are read as points from X/Y(/Z) columns (see :mod:`toolbox.io.vector`).
+    ``point_clouds=True`` also accepts a LAS/LAZ/COPC file (validated to a
+    :class:`toolbox.io.pointcloud.PointCloudRef`; the algorithm must read both kinds).
     """
 
     type_name = "vector"
 
     def __init__(self, name: str, description: str = "",
                  geometry_types: Sequence[str] | None = None, default: Any = None,
-                 optional: bool = False, **flags):
+                 optional: bool = False, point_clouds: bool = False, **flags):
         super().__init__(name, description, default, optional, **flags)
         self.geometry_types = list(geometry_types) if geometry_types else None
+        self.point_clouds = point_clouds
 
     def validate(self, value: Any, ctx: ValidationContext):
         from toolbox.io.vector import open_layer
 
+        if self.point_clouds:
+            from toolbox.io.pointcloud import PointCloudRef, is_point_cloud_path, open_point_cloud
+
+            if isinstance(value, PointCloudRef) or is_point_cloud_path(value):
+                cloud = open_point_cloud(value, self.name)
+                ctx.input_paths[cloud.path.resolve()] = self.name
+                return cloud
         layer = open_layer(value, self.name)
         if layer.path is not None:
             ctx.input_paths[layer.path.resolve()] = self.name
@@ -378,7 +406,8 @@ class VectorLayer(Parameter):
         return f"vector layer ({kinds}): path or QGIS source 'path|layername=...|subset=...'"
 
     def describe(self) -> dict[str, Any]:
-        return super().describe() | {"geometry_types": self.geometry_types}
+        return super().describe() | {"geometry_types": self.geometry_types} | \
+            ({"point_clouds": True} if self.point_clouds else {})
 
 
 class RasterLayer(Parameter):
@@ -599,9 +628,14 @@ class OutputFile(Destination):
 
 
 class OutputFolder(Destination):
-    """An output folder the algorithm fills with several files (e.g. one per map sheet). It is
-    written to a staged folder and moved into place on success; with ``--overwrite`` an
-    existing folder is replaced whole."""
+    """An output folder and the files it will hold (e.g. one per map sheet or per photo).
+
+    The algorithm names those files in :meth:`~toolbox.algorithm.Algorithm.planned_files`; the
+    runner checks each like an output path before any work (never an input, by path or inode;
+    an existing one only with ``--overwrite``), hands the algorithm an empty staged folder and,
+    on success, moves its files into this folder (other files already there are left alone).
+    A failed or interrupted run leaves none of them.
+    """
 
     type_name = "output_folder"
 
@@ -610,15 +644,11 @@ class OutputFolder(Destination):
             raise self.error(f"must be an output folder path, got {_show(value)}")
         path = Path(value).expanduser()
         resolved = path.resolve()
-        inside = [name for p, name in ctx.input_paths.items() if resolved in (p, *p.parents)]
-        if inside:
-            raise self.error(f"{_show(str(value))} holds the input {inside[0]}; an input is "
-                             "never overwritten: choose another output folder")
+        if resolved in ctx.input_paths:
+            raise self.error(f"{_show(str(value))} is the input {ctx.input_paths[resolved]}; "
+                             "expected a folder path")
         if path.exists() and not path.is_dir():
             raise self.error(f"{_show(str(value))} is a file, expected a folder path")
-        if path.exists() and any(path.iterdir()) and not ctx.overwrite:
-            raise OutputExistsError(self.name, f"{_show(str(value))} exists and is not empty; "
-                                    "pass --overwrite (OVERWRITE=True in Python) to replace it")
         ctx.output_paths[resolved] = self.name
         return path
 

@@ -30,6 +30,7 @@ from toolbox.io.staging import OutputStaging, protected_paths, write_error
 from toolbox.parameters import (
     Boolean,
     Number,
+    OutputFolder,
     OutputRaster,
     RasterLayer,
     ValidationContext,
@@ -40,6 +41,12 @@ from toolbox.registry import get
 OVERWRITE = "OVERWRITE"
 REPORT = "--run-report"
 WRITE_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EROFS, errno.ENAMETOOLONG}
+# GDAL error classes (CPLErrorNum: CPLE_FileIO, CPLE_NoWriteAccess) of a failed write, raised
+# by rasterio as CPLE_FileIOError / CPLE_NoWriteAccessError or only logged with err_no
+GDAL_WRITE_ERRNOS = {3, 5}
+GDAL_WRITE_ERROR_TYPES = ("CPLE_FileIOError", "CPLE_NoWriteAccessError")
+# last resort only, for drivers that report a failed write with a generic error class (libtiff's
+# "Write error" comes as CPLE_AppDefined): the decision is by type and by the disk first
 WRITE_ERROR_WORDS = ("no space left", "disk is full", "file too large", "write error",
                      "write failed", "read-only file system", "disk i/o error", "quota exceeded",
                      "error while writing", "could not add feature", "failed to write",
@@ -90,6 +97,7 @@ def validate(algorithm: type[Algorithm] | str, parameters: dict[str, Any],
     _check_band(alg, values)
     _check_outputs_against_inputs(alg, values)
     alg().check(values)
+    check_planned_files(alg, values, overwrite)
     return values
 
 
@@ -193,6 +201,80 @@ def _check_outputs_against_inputs(alg_cls: type[Algorithm], values: dict[str, An
                                  "output path")
 
 
+_GLOB = set("*?[")
+
+
+def planned_paths(alg_cls: type[Algorithm], values: dict[str, Any]) -> dict[str, list[Path]]:
+    """Every file the destinations will write besides their own path (see
+    :meth:`Algorithm.planned_files`), as final paths; glob patterns are expanded to the files
+    that exist now. Names leaving their folder (``..``, absolute) are refused."""
+    plan = alg_cls().planned_files(values) or {}
+    out: dict[str, list[Path]] = {}
+    for dest in alg_cls.destinations():
+        final = values.get(dest.name)
+        if final is None:
+            continue
+        if isinstance(dest, OutputFolder) and dest.name not in plan:
+            raise RuntimeError(f"{alg_cls.id} plans no file for its output folder {dest.name}")
+        folder = Path(final).expanduser().absolute()
+        if not isinstance(dest, OutputFolder):
+            folder = folder.parent
+        paths: list[Path] = []
+        for name in plan.get(dest.name, []):
+            relative = Path(str(name))
+            if relative.is_absolute() or ".." in relative.parts or not relative.parts:
+                raise ParameterError(dest.name, f"would write {str(name)!r}, which is not a file "
+                                     f"name inside '{folder}' (check the ids the file names "
+                                     "come from)")
+            if _GLOB & set(str(name)):
+                paths += sorted(folder.glob(str(name)))
+            else:
+                paths.append(folder / relative)
+        out[dest.name] = paths
+    return out
+
+
+def check_planned_files(alg_cls: type[Algorithm], values: dict[str, Any],
+                        overwrite: bool) -> None:
+    """Each planned file is checked as an output path: not an input (by path, sidecars and the
+    files a project names included, or by inode), not another output, not a folder, and not
+    existing without ``overwrite``."""
+    plan = planned_paths(alg_cls, values)
+    if not any(plan.values()):
+        return
+    inputs = input_paths(alg_cls, values)
+    inodes = {}
+    for path, name in inputs.items():
+        try:
+            st = path.stat()
+        except OSError:
+            continue
+        inodes[(st.st_dev, st.st_ino)] = name
+    seen = {Path(values[d.name]).expanduser().resolve(): d.name
+            for d in alg_cls.destinations() if values.get(d.name) is not None}
+    for dest_name, paths in plan.items():
+        for path in paths:
+            resolved = path.resolve()
+            victim = inputs.get(resolved)
+            if victim is None and path.exists():
+                st = path.stat()
+                victim = inodes.get((st.st_dev, st.st_ino))
+            if victim is not None:
+                raise ParameterError(dest_name, f"would write '{path}', which is the input "
+                                     f"{victim} (or one of its files); an input is never "
+                                     "overwritten: choose another output folder or name")
+            if resolved in seen:
+                raise ParameterError(dest_name, f"would write '{path}' twice (also "
+                                     f"{seen[resolved]}): choose another output folder")
+            seen[resolved] = dest_name
+            if path.is_dir():
+                raise ParameterError(dest_name, f"would write '{path}', which is a folder")
+            if path.exists() and not overwrite:
+                raise OutputExistsError(dest_name, f"would replace '{path}', which exists; "
+                                        "pass --overwrite (OVERWRITE=True in Python) to "
+                                        "replace it")
+
+
 def _check_report(report: str | Path, alg_cls: type[Algorithm], values: dict[str, Any],
                   overwrite: bool) -> Path:
     path = Path(report).expanduser()
@@ -205,6 +287,9 @@ def _check_report(report: str | Path, alg_cls: type[Algorithm], values: dict[str
         final = values.get(dest.name)
         if final is not None and Path(final).expanduser().resolve() == resolved:
             raise ParameterError(REPORT, f"'{report}' is also the output {dest.name}")
+    for name, paths in planned_paths(alg_cls, values).items():
+        if any(p.resolve() == resolved for p in paths):
+            raise ParameterError(REPORT, f"'{report}' is also one of the files of {name}")
     if path.is_dir():
         raise ParameterError(REPORT, f"'{report}' is a folder, expected a file path")
     if path.exists() and not overwrite:
@@ -255,7 +340,9 @@ def run(algorithm_id: str, parameters: dict[str, Any] | None = None,
         staged = dict(values)
         for dest in alg_cls.destinations():
             if values[dest.name] is not None:
-                staged[dest.name] = staging.stage(values[dest.name], dest.name)
+                stage = staging.stage_folder if isinstance(dest, OutputFolder) \
+                    else staging.stage
+                staged[dest.name] = stage(values[dest.name], dest.name)
         staged_report = None if report_path is None else staging.stage(report_path, REPORT)
         for folder in staging.removed_stale:
             feedback.push_warning(f"removed {folder}: the staging folder of an earlier run that "
@@ -327,18 +414,26 @@ def _full_output(staging: OutputStaging) -> tuple[str, Any] | None:
 def _as_write_error(exc: Exception, staging: OutputStaging) -> ToolboxError | None:
     """A one-line :class:`OutputWriteError` when ``exc`` is a failed write of an output (also
     when a driver hides ENOSPC behind another message: the free space is checked)."""
+    chain = [e for e in (exc, exc.__cause__, exc.__context__) if e is not None]
     text = " ".join(str(a) for a in (exc, getattr(exc, "filename", None),
                                      exc.__cause__, exc.__context__) if a)
     full_output = _full_output(staging)
     full = full_output is not None
-    is_write = full or (isinstance(exc, OSError) and exc.errno in WRITE_ERRNOS) or any(
-        word in text.lower() for word in WRITE_ERROR_WORDS)
+    os_error = next((e for e in chain if isinstance(e, OSError) and e.errno in WRITE_ERRNOS),
+                    None)
+    typed = os_error is not None or any(
+        type(e).__name__ in GDAL_WRITE_ERROR_TYPES and type(e).__module__.startswith("rasterio")
+        for e in chain)
     in_staging = any(str(staged.parent) in text for _, _, staged in staging.items())
-    if not (is_write or (isinstance(exc, OSError) and in_staging)):
+    worded = any(word in text.lower() for word in WRITE_ERROR_WORDS)  # last resort
+    if not (full or typed or worded or (isinstance(exc, OSError) and in_staging)):
         return None
     name, final = full_output or _which_output(text, staging) or ("OUTPUT", "")
-    if full or "no space left" in text.lower() or "disk is full" in text.lower():
+    if full or (os_error is not None and os_error.errno in (errno.ENOSPC, errno.EDQUOT)) \
+            or "no space left" in text.lower():
         return write_error(OSError(errno.ENOSPC, "No space left on device"), name, final)
+    if os_error is not None:
+        return write_error(os_error, name, final)
     if isinstance(exc, OSError) and exc.errno is not None:
         return write_error(exc, name, final)
     return write_error(OSError(errno.EIO, str(exc).splitlines()[0] if str(exc) else "I/O error"),
@@ -373,6 +468,13 @@ def _as_read_error(exc: Exception, gdal_messages: list[str], alg_cls: type[Algor
     return InputDataError(f"cannot read an input: it is truncated or corrupt ({detail[:200]})")
 
 
+class GdalMessage(str):
+    """A GDAL error message as logged by rasterio, with its GDAL error class (``err_no``: 3
+    CPLE_FileIO, 5 CPLE_NoWriteAccess...; None when unknown)."""
+
+    err_no: int | None = None
+
+
 class _ErrorLog(logging.Handler):
     def __init__(self) -> None:
         super().__init__(logging.INFO)
@@ -381,7 +483,10 @@ class _ErrorLog(logging.Handler):
     def emit(self, record: logging.LogRecord) -> None:
         text = record.getMessage()
         if record.levelno >= logging.ERROR or "signalled an error" in text:
-            self.messages.append(text)
+            message = GdalMessage(text)
+            args = record.args if isinstance(record.args, tuple) else ()
+            message.err_no = args[0] if args and isinstance(args[0], int) else None
+            self.messages.append(message)
 
 
 @contextmanager
@@ -402,8 +507,13 @@ def _gdal_errors():
 
 
 def _check_gdal_errors(messages: list[str], staging: OutputStaging) -> None:
+    """A write failure GDAL only logged: by its error class (CPLE_FileIO, CPLE_NoWriteAccess)
+    when it names a staged output or the output disk is full; by its words as a last resort."""
     for text in messages:
-        if any(word in text.lower() for word in WRITE_ERROR_WORDS):
+        err_no = getattr(text, "err_no", None)
+        about_output = any(str(staged.parent) in text for _, _, staged in staging.items())
+        if (err_no in GDAL_WRITE_ERRNOS and (about_output or _full_output(staging))) or any(
+                word in text.lower() for word in WRITE_ERROR_WORDS):
             converted = _as_write_error(OSError(errno.EIO, text), staging)
             if converted is not None:
                 raise converted
@@ -430,6 +540,16 @@ def _check_raster_outputs(alg_cls: type[Algorithm], values: dict[str, Any],
                 raise write_error(OSError(errno.ENOSPC, "No space left on device"), dest.name,
                                   values[dest.name])
             raise write_error(OSError(errno.EIO, problem), dest.name, values[dest.name])
+    for name, final, staged in staging.folder_files():  # the rasters an output folder holds
+        if staged.suffix.lower() not in (".tif", ".tiff"):
+            continue
+        from toolbox.io.raster import verify_written_raster
+
+        problem = verify_written_raster(staged)
+        if problem and problem != "empty":
+            if _full_output(staging) is not None:
+                raise write_error(OSError(errno.ENOSPC, "No space left on device"), name, final)
+            raise write_error(OSError(errno.EIO, problem), name, final)
 
 
 def _final_outputs(alg_cls: type[Algorithm], values: dict[str, Any], result: dict[str, Any],

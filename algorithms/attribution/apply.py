@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import glob
+
 from toolbox.algorithm import Algorithm
 from toolbox.attribution.layer_specs import CODED
 from toolbox.attribution.sources import RestitutionFiles
@@ -9,7 +11,7 @@ from toolbox.feedback import Feedback
 from toolbox.parameters import Boolean, Crs, Enum, File, Layer, Number, Output, OutputVector, String
 from toolbox.registry import register
 
-#: parameter-file entries this algorithm uses (the others are named in a warning)
+#: parameter-file entries this algorithm uses (the others are named in an information message)
 USED_ENTRIES = ("closure_tolerance", "snap_tolerance", "height_snap_tolerance", "decimals",
                 "coordinate_offset", "coordinate_unit")
 
@@ -42,12 +44,14 @@ class ApplyCodes(Algorithm):
 
     Every layer gets a QGIS style (QML) and an SLD from the code and colour files, stored as its
     default style in the GeoPackage's ``layer_styles`` table (QGIS opens it styled); with
-    STYLE_FILES they are also written beside OUTPUT as ``OUTPUT.<layer>.qml`` / ``.sld``.
+    STYLE_FILES they are also written beside OUTPUT as ``OUTPUT.<layer>.qml`` / ``.sld`` (with
+    the GeoPackage, all or none; existing ones are replaced only with --overwrite).
 
     PARAMETERS (the "file dei parametri"): closure tolerance, planimetric and altimetric reattach
     tolerances (merge), number of decimals (coordinates rounded), coordinate translation (added
-    to every input coordinate), coordinate unit (checked against CRS); its other entries are
-    named in a warning. Explicit parameters win over the file.
+    to every input coordinate), coordinate unit (checked against CRS); its other entries (for
+    other steps) are named in an information message, unknown names in a warning. Explicit
+    parameters win over the file.
     """
 
     id = "attribution:apply"
@@ -98,11 +102,17 @@ class ApplyCodes(Algorithm):
             read_colour_file(params["COLOURS"], "COLOURS")
         optional_parameter_file(params)
 
+    def planned_files(self, params):
+        if not params["STYLE_FILES"]:
+            return {}
+        name = glob.escape(params["OUTPUT"].name)  # layers known once read: any sidecar
+        return {"OUTPUT": [f"{name}.*.qml", f"{name}.*.sld"]}
+
     def process(self, params, feedback: Feedback):
         from toolbox.attribution.apply import attribute
         from toolbox.attribution.merge import events_frame, merge_models
         from toolbox.attribution.output import MERGE_STYLE, write_attribution
-        from toolbox.attribution.sources import read_sources, translated
+        from toolbox.attribution.sources import check_coordinates, read_sources, translated
         from toolbox.io.code_file import read_code_file, read_colour_file
         from toolbox.io.parameter_file import optional_parameter_file, resolve
 
@@ -124,6 +134,7 @@ class ApplyCodes(Algorithm):
                 frames = [translated(f, file) for f in frames]
                 feedback.push_info(f"PARAMETERS: coordinate translation {file.offset[0]:.10g} "
                                    f"{file.offset[1]:.10g} added to every coordinate")
+        check_coordinates(frames, self.id, file is not None and file.offset != (0.0, 0.0))
         merge = None
         if len(frames) > 1:
             merge = merge_models(frames, snap, zsnap)

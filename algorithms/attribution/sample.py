@@ -65,11 +65,19 @@ class Sample(Algorithm):
             sample_by_distance,
             sample_by_vectors,
         )
+        from toolbox.errors import InputDataError
 
         parts = read_parts(params["INPUT"])
         v, sources = file_values(params, WANTED, self.id, feedback, parts.frame.crs)
         method, step = params["METHOD"], v["distance"]
-        out, rows, left = [], [], set()
+        if method != "vectors":  # a vertex every DISTANCE: refused before any is made
+            from toolbox.limits import check_size
+
+            length = float(sum(np.hypot(*np.diff(c[:, :2], axis=0).T).sum()
+                               for c in parts.coords))
+            check_size("vertices", length / step + len(parts.coords), "DISTANCE",
+                       f"{step:g} along {length:,.0f} units of lines", "use a larger DISTANCE")
+        out, rows, left, collapsed = [], [], set(), set()
         largest = 0.0
         for r, c in enumerate(parts.coords):
             feedback.check_canceled()
@@ -77,6 +85,10 @@ class Sample(Algorithm):
             if len(c) < 2:
                 out.append(c)
                 continue
+            if not np.hypot(*np.diff(c[:, :2], axis=0).T).sum() > 0:
+                raise InputDataError(f"INPUT feature {feature} has zero length (every vertex "
+                                     f"at one point, {len(c)} vertices): nothing to sample; "
+                                     "remove or fix it")
             if method == "densify":
                 new, added = densify(c, step)
                 for i in np.flatnonzero(added):
@@ -97,6 +109,11 @@ class Sample(Algorithm):
                 left.add(feature)
                 out.append(c)
                 continue
+            if parts.closed[r] and parts.kinds[int(parts.feature[r])] == "polygon" \
+                    and len(new) < 4:  # a ring needs 3 distinct vertices + the closing one
+                collapsed.add(feature)
+                out.append(c)
+                continue
             largest = max(largest, float(dist.max()))
             for i in removed:
                 rows.append({"feature": feature, "vertex": int(i) + 1, "change": "removed",
@@ -107,9 +124,14 @@ class Sample(Algorithm):
         stats = {"features": len(parts.frame), "method": method,
                  "vertices_before": int(sum(len(c) for c in parts.coords)),
                  "vertices_after": int(sum(len(c) for c in out)),
-                 "largest_deviation": largest, "left_unchanged": sorted(left, key=int),
+                 "largest_deviation": largest,
+                 "left_unchanged": sorted(left | collapsed, key=int),
                  "parameters": v, "sources": sources, "layer": layer}
         if left:
             feedback.push_warning(f"{len(left)} features left unchanged: sampling would move "
                                   f"them more than TOLERANCE ({v['tolerance']:g})")
+        if collapsed:
+            feedback.push_warning(f"{len(collapsed)} polygons left unchanged: sampling with "
+                                  f"DISTANCE {step:g} would leave fewer than 3 vertices in a "
+                                  f"ring (features {', '.join(sorted(collapsed, key=int))})")
         return {"OUTPUT": params["OUTPUT"], "STATISTICS": stats}

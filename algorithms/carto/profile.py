@@ -91,6 +91,8 @@ class Profile(Algorithm):
 
         from toolbox.cartography.profile_io import (
             Surface,
+            guard_profile_size,
+            layer_title,
             line_parts,
             plot_profiles,
             profile_frames,
@@ -103,6 +105,8 @@ class Profile(Algorithm):
         crs = common_crs({name: getattr(params.get(name), "crs", None)
                           for name in ("INPUT", "DEM", "TIN", "CONTOURS")})  # mixed: refused
         lines = line_parts(lines_frame)
+        guard_profile_size(lines, params["MODE"], params["STEP"], params["SPACING"],
+                           params["HALF_WIDTH"])
         surface, contours = None, None
         if params["MODE"] == "contours":
             cframe = read_vector(params["CONTOURS"], name="CONTOURS")
@@ -116,15 +120,21 @@ class Profile(Algorithm):
         write_layers(params["OUTPUT"], {"profile_points": points, "profile_lines": line_layer},
                      crs=crs, geometry_types={"profile_points": "Point Z",
                                               "profile_lines": "LineString Z"})
+        plotted = 0
         if params.get("PLOT"):
             what = "sections along" if params["MODE"] == "sections" else "profiles of"
-            plot_profiles(profiles, params["PLOT"], f"{what} {params['INPUT']}")
+            plotted = plot_profiles(profiles, params["PLOT"],
+                                    f"{what} {layer_title(params['INPUT'])}")
+            if plotted < len(profiles):
+                feedback.push_info(f"PLOT shows the first {plotted} of {len(profiles)} "
+                                   "profiles/sections (all are in OUTPUT)")
         z = np.concatenate([p.z for p in profiles]) if profiles else np.empty(0)
         missing = int(np.isnan(z).sum())
         if missing:
             feedback.push_warning(f"{missing} stations fall outside the surface (no height)")
         good = z[np.isfinite(z)]
-        stats = {"profiles": len(profiles), "points": int(z.size), "no_height": missing,
+        stats = {"profiles": len(profiles), "plotted": plotted, "points": int(z.size),
+                 "no_height": missing,
                  "z_min": float(good.min()) if good.size else None,
                  "z_max": float(good.max()) if good.size else None}
         return {"OUTPUT": params["OUTPUT"], "PLOT": params.get("PLOT"), "STATISTICS": stats}

@@ -15,6 +15,7 @@ from toolbox.parameters import (
     Number,
     Output,
     OutputFile,
+    OutputFolder,
     RasterLayer,
     String,
     VectorLayer,
@@ -29,10 +30,13 @@ class Sheet(Algorithm):
     The map frame measures exactly ground size / scale on paper (print at 100%), on the smallest
     ISO sheet (A4...A0, portrait or landscape) that holds it and the side panel, unless
     ``PAPER`` names one. Drawn: the ``BASE`` raster (orthophoto or hillshade), the ``LAYERS``,
-    the ``CONTOURS`` (index contours heavier, labelled along the
-    line), the map grid every ``MAP_STEP`` mm with its coordinates at the frame, a legend, a
-    scale bar, a north arrow (grid north), and a title block with the title, sheet id, scale,
-    CRS, date and sources. The PDF is vector (text as TrueType text, lines as paths), the base
+    the ``CONTOURS`` (index contours heavier, labelled along the line), the map grid every
+    ``MAP_STEP`` mm with its coordinates at the frame (none at the corners), a legend drawn as
+    the map is, a scale bar, a north arrow (grid north), and a title block with the title,
+    sheet id, scale, CRS and datum, contour interval, date, sources with their dates and the
+    producer. Point layers are spot heights, labelled with their height (Z, else a
+    z/quota/elev/height/h field). The map and panel are centred on the paper; no text is under
+    6 pt. The PDF is vector (text as TrueType text, lines as paths), the base
     raster is embedded at 200 dpi; its metadata keep the scale, CRS and bounds.
 
     ``LAYERS`` take their symbology from the code file ``CODES`` (and ``COLOURS``) through the
@@ -78,7 +82,7 @@ class Sheet(Algorithm):
         OutputFile("PNG", "PNG of the (first) sheet", extensions=[".png"], optional=True),
         Integer("PNG_DPI", "PNG resolution, dots per inch", default=120, min_value=30,
                 max_value=600),
-        String("FOLDER", "folder for one <sheet id>.pdf/.png per sheet", optional=True),
+        OutputFolder("FOLDER", "folder for one <sheet id>.pdf/.png per sheet", optional=True),
     ]
     outputs = [Output("SHEETS_WRITTEN", "per sheet: paper, frame and scale bar (mm), files",
                       "list")]
@@ -91,6 +95,17 @@ class Sheet(Algorithm):
             raise self.fail("EXTENT", "or SHEETS: give exactly one of them")
         if not (params.get("OUTPUT") or params.get("FOLDER")):
             raise self.fail("OUTPUT", "or FOLDER: give at least one")
+        from toolbox.cartography.sheet_job import guard_sheets
+
+        guard_sheets(params)
+
+    def planned_files(self, params):
+        if params.get("FOLDER") is None:
+            return {"FOLDER": []}
+        from toolbox.cartography.sheet_job import sheet_file_names
+
+        return {"FOLDER": [f"{name}{ext}" for name in sheet_file_names(params)
+                           for ext in (".pdf", ".png")]}
 
     def process(self, params, feedback: Feedback):
         from toolbox.cartography.sheet_job import run_sheets

@@ -43,9 +43,13 @@ class MosaicBuild(Algorithm):
 
     The grid has the finest input's cell (or CELL_SIZE) over the cut polygons' area; inputs on
     other grids are resampled (RESAMPLING) with a warning. The mosaic is written tile by tile
-    (tiled DEFLATE GeoTIFF with overviews, or COG), with an alpha band if any input has one,
+    (a Cloud Optimized GeoTIFF by default, COG=false: a tiled DEFLATE GeoTIFF with overviews;
+    SOURCE_INDEX likewise), with an alpha band if any input has one,
     else nodata. SOURCE_INDEX gets the 1-based input number of each cell (0 = no data), and
-    SEAMLINES the seams between the cut polygons.
+    SEAMLINES the seams: exactly the cell edges between different sources in the source index
+    (steps of one cell where a seam runs diagonally; edges next to no data are not seams).
+    Their ``method`` is the one mosaic:seamlines recorded for the pair when CUTLINES is its
+    GeoPackage, else "cut polygons" (other CUTLINES) or "voronoi" (no CUTLINES).
     """
 
     id = "mosaic:build"
@@ -69,15 +73,16 @@ class MosaicBuild(Algorithm):
                min_value=0, min_exclusive=True),
         Enum("RESAMPLING", "resampling of inputs off the mosaic grid", options=RESAMPLING,
              default="bilinear"),
-        Boolean("COG", "write a Cloud Optimized GeoTIFF", default=False),
+        Boolean("COG", "write the mosaic and SOURCE_INDEX as Cloud Optimized GeoTIFFs (false: "
+                "tiled GeoTIFFs with internal overviews)", default=True),
         Boolean("OVERVIEWS", "build internal overviews", default=True),
         OutputRaster("OUTPUT", "mosaic GeoTIFF"),
         OutputRaster("SOURCE_INDEX", "source index raster (1-based input number, 0 = none)",
                      optional=True),
         OutputVector("SEAMLINES", "seamlines GeoPackage", optional=True, layers=[
             Layer("seamlines", "MultiLineString", [("a", "string"), ("b", "string"),
-                                                   ("length", "real")],
-                  "the seams between the cut polygons used")]),
+                                                   ("method", "string"), ("length", "real")],
+                  "the boundaries between different sources in the source index")]),
     ]
     outputs = [Output("STATISTICS", "grid, cells per source, gains and offsets", "dict")]
 
@@ -98,10 +103,12 @@ class MosaicBuild(Algorithm):
             centres_of,
             mosaic_grid,
             open_block,
+            seam_methods,
             seams_frame,
             union_area,
         )
         from toolbox.mosaic.build import MosaicPlan, write_mosaic
+        from toolbox.mosaic.index_seams import index_raster_seams
         from toolbox.mosaic.partition import voronoi_cells
 
         sources, crs = open_block([i.path for i in params["INPUT"]], "INPUT", feedback)
@@ -131,13 +138,34 @@ class MosaicBuild(Algorithm):
                           params["LEVELS"], gains, offsets, params["RESAMPLING"])
         alpha = any(s.alpha_band is not None for s in sources)
         nodata = next((s.nodata for s in sources if s.nodata is not None), 0)
-        with feedback.timed("mosaic"):
-            stats = write_mosaic(plan, params["OUTPUT"], params["SOURCE_INDEX"], alpha=alpha,
-                                 nodata=None if alpha else nodata, cog=params["COG"],
-                                 overviews=params["OVERVIEWS"], feedback=feedback.step(5, 95))
-        if params["SEAMLINES"] is not None:
-            write_layers(params["SEAMLINES"], {"seamlines": seams_frame(sources, cells, crs)},
-                         geometry_types={"seamlines": "MultiLineString"})
+        index = params["SOURCE_INDEX"]
+        scratch = None
+        if index is None and params["SEAMLINES"] is not None:  # the seams come from the index
+            import tempfile
+            from pathlib import Path
+
+            scratch = tempfile.TemporaryDirectory(prefix="mosaic_index_")
+            index = Path(scratch.name) / "source_index.tif"
+        try:
+            with feedback.timed("mosaic"):
+                stats = write_mosaic(plan, params["OUTPUT"], index, alpha=alpha,
+                                     nodata=None if alpha else nodata, cog=params["COG"],
+                                     overviews=params["OVERVIEWS"],
+                                     feedback=feedback.step(5, 95))
+            if params["SEAMLINES"] is not None:
+                with feedback.timed("seams"):
+                    seams, _ = index_raster_seams(index)
+                if params["CUTLINES"] is not None:
+                    methods = seam_methods(params["CUTLINES"], sources)
+                    default = "cut polygons"
+                else:
+                    methods, default = {}, "voronoi"
+                write_layers(params["SEAMLINES"], {"seamlines": seams_frame(
+                    sources, seams, crs, methods, default)},
+                    geometry_types={"seamlines": "MultiLineString"})
+        finally:
+            if scratch is not None:
+                scratch.cleanup()
         return {"OUTPUT": params["OUTPUT"], "SOURCE_INDEX": params["SOURCE_INDEX"],
                 "SEAMLINES": params["SEAMLINES"], "STATISTICS": {
                     "crs": crs_label(crs), "width": grid.width, "height": grid.height,

@@ -20,7 +20,9 @@ class MosaicCut(Algorithm):
     "i_j". Rasters are clipped on their own grid over the sheet's bounds (outside the sheet
     polygon: nodata or alpha 0) as tiled GeoTIFFs <id>.tif; vectors are clipped (GEOS) into
     <id>.gpkg. Sheets holding no data are skipped. OUTPUT is a folder; it also receives
-    sheets.gpkg, the sheet index (id, file, written).
+    sheets.gpkg, the sheet index (id, file, written). The sheet files are written all or none
+    (staged, moved into OUTPUT on success); an existing one is replaced only with --overwrite,
+    other files of OUTPUT are left alone.
     """
 
     id = "mosaic:cut"
@@ -51,31 +53,22 @@ class MosaicCut(Algorithm):
         if params["SHEETS"] is not None and params["SCALE"] is not None:
             raise self.fail("SCALE", "does not apply with SHEETS (the sheets are given)")
 
+    def planned_files(self, params):
+        from toolbox.mosaic.sheets import sheet_ids_unique
+
+        _, kind, _, sheets = _sheets(params)
+        suffix = ".tif" if kind == "raster" else ".gpkg"
+        names = sheet_ids_unique([sid for sid, _ in sheets])
+        return {"OUTPUT": [f"{name}{suffix}" for name in names] + ["sheets.gpkg"]}
+
     def process(self, params, feedback: Feedback):
         import geopandas as gpd
 
-        from toolbox.errors import InputDataError
-        from toolbox.io.vector import read_vector, write_layers
-        from toolbox.mosaic.sheets import clip_raster, clip_vector, sheet_grid, sheet_ids_unique
+        from toolbox.io.vector import write_layers
+        from toolbox.mosaic.sheets import clip_raster, clip_vector, sheet_ids_unique
 
-        source, kind, crs, bounds = _open_input(params["INPUT"])
-        if params["SHEETS"] is not None:
-            frame = read_vector(params["SHEETS"], crs=crs, name="SHEETS")
-            if crs is not None and frame.crs is not None and not frame.crs.equals(crs):
-                frame = frame.to_crs(crs)
-            field = params["ID_FIELD"]
-            raw = [str(v) for v in frame[field]] if field else \
-                [str(k + 1) for k in range(len(frame))]
-            sheets = list(zip(raw, frame.geometry, strict=True))
-        else:
-            side = params["SCALE"] / 100.0
-            sheets = sheet_grid(bounds, params["SHEET_WIDTH"] * side,
-                                params["SHEET_HEIGHT"] * side,
-                                (params["ORIGIN_X"], params["ORIGIN_Y"]))
-        if not sheets:
-            raise InputDataError("no sheet meets the input's extent")
+        source, kind, crs, sheets = _sheets(params)
         folder = params["OUTPUT"]
-        folder.mkdir(parents=True, exist_ok=True)
         names = sheet_ids_unique([sid for sid, _ in sheets])
         rows = []
         for (sid, geom), name in feedback.iterate(list(zip(sheets, names, strict=True))):
@@ -96,6 +89,54 @@ class MosaicCut(Algorithm):
         return {"OUTPUT": folder, "STATISTICS": {
             "kind": kind, "sheets": len(rows), "written": len(done),
             "skipped_empty": len(rows) - len(done), "files": done}}
+
+
+def _sheets(params):
+    """``(source, kind, crs, [(sheet id, polygon)])`` of a run; too many sheets are refused
+    before any is made."""
+    import math
+
+    from toolbox.errors import InputDataError
+    from toolbox.io.vector import read_vector
+    from toolbox.limits import check_size
+    from toolbox.mosaic.sheets import sheet_grid
+
+    source, kind, crs, bounds = _open_input(params["INPUT"])
+    if params["SHEETS"] is not None:
+        frame = read_vector(params["SHEETS"], crs=crs, name="SHEETS")
+        if crs is not None and frame.crs is not None and not frame.crs.equals(crs):
+            frame = frame.to_crs(crs)
+        field = params["ID_FIELD"]
+        raw = [str(v) for v in frame[field]] if field else \
+            [str(k + 1) for k in range(len(frame))]
+        check_size("sheets", len(frame), "SHEETS", f"has {len(frame):,} features, which",
+                   "cut to fewer sheets")
+        sheets = list(zip(raw, frame.geometry, strict=True))
+        import shapely
+
+        box = shapely.box(*bounds)
+        if not any(g is not None and g.intersects(box) for _, g in sheets):
+            sb = frame.total_bounds
+            raise InputDataError(f"no sheet of SHEETS ({sb[0]:.0f}..{sb[2]:.0f}, "
+                                 f"{sb[1]:.0f}..{sb[3]:.0f}) meets INPUT ({bounds[0]:.0f}.."
+                                 f"{bounds[2]:.0f}, {bounds[1]:.0f}..{bounds[3]:.0f}): nothing "
+                                 "to cut; are they of the same area and CRS?")
+    else:
+        side = params["SCALE"] / 100.0
+        width, height = params["SHEET_WIDTH"] * side, params["SHEET_HEIGHT"] * side
+        count = (math.floor((bounds[2] - params["ORIGIN_X"]) / width)
+                 - math.floor((bounds[0] - params["ORIGIN_X"]) / width) + 1) * \
+            (math.floor((bounds[3] - params["ORIGIN_Y"]) / height)
+             - math.floor((bounds[1] - params["ORIGIN_Y"]) / height) + 1)
+        check_size("sheets", count, "SHEET_WIDTH",
+                   f"x SHEET_HEIGHT {params['SHEET_WIDTH']:g} x {params['SHEET_HEIGHT']:g} cm at "
+                   f"1:{params['SCALE']:g} ({width:g} x {height:g} ground units) over the "
+                   f"input's {bounds[2] - bounds[0]:,.0f} x {bounds[3] - bounds[1]:,.0f}",
+                   "use larger sheets (SHEET_WIDTH, SHEET_HEIGHT) or a larger SCALE")
+        sheets = sheet_grid(bounds, width, height, (params["ORIGIN_X"], params["ORIGIN_Y"]))
+    if not sheets:
+        raise InputDataError("no sheet meets the input's extent")
+    return source, kind, crs, sheets
 
 
 def _open_input(path):

@@ -37,21 +37,33 @@ class MosaicSeamlines(Algorithm):
 
     METHOD=least_cost (PPD, paths by dynamic programming): each Voronoi seam is re-routed along
     the minimum-cost path between its two ends inside the overlap of its two orthos, over a cost
-    per unit length ``0.1 + w_d·|a−b|/range + w_g·max(|∇a|,|∇b|)/range + w_c·|d_a − d_b|/D``
-    (radiometric difference and Sobel gradient of the two orthos, and a pull towards the
+    per unit length ``0.1 + w_d·|a−b|/range + w_g·max(|∇a|,|∇b|)/range + w_c·|d_a − d_b|/D +
+    w_s·S`` (radiometric difference and Sobel gradient of the two orthos, and a pull towards the
     bisector of the two centres: d = distance to a centre, D between them; it keeps each cell
-    near its own nadir where the images give no reason to leave), plus BUILDING_COST inside BUILDINGS
-    footprints and HEIGHT_COST per metre of HEIGHTS (a DSM − DEM raster) above 0.5 m; FORBIDDEN
-    polygons are never crossed. The path is found by scikit-image's MCP_Geometric (Dijkstra on
+    near its own nadir where the images give no reason to leave; S = 1 within STRUCTURE_RADIUS
+    of a strong, structured difference: a connected group of cells where the two orthos'
+    gradients differ by over 10 % of the value range, e.g. facades seen differently, so that
+    without a DSM or BUILDINGS the seam still goes round a building rather than through its
+    roof where both orthos happen to agree; w_s = STRUCTURE_WEIGHT), plus BUILDING_COST inside
+    BUILDINGS footprints and HEIGHT_COST per metre of HEIGHTS (a DSM − DEM raster) above 0.5 m;
+    FORBIDDEN polygons are never crossed. The path is found by scikit-image's MCP_Geometric (Dijkstra on
     8-connected cells of SEAM_CELL_SIZE). Overlaps of more than MAX_CELLS cells are routed on
     an overview first, then refined at full resolution in a corridor, chunk by chunk. Where two
     cut polygons share several separate boundary pieces only the longest is re-routed; a seam
     whose ends are not connected inside the overlap stays Voronoi (both with a warning or note
     in STATISTICS).
 
-    OUTPUT (GeoPackage): layer cut_polygons (source_id, source = ortho file name, path, area)
-    forms an exact partition of the area (no gaps, no overlaps); layer seamlines (a, b, method,
-    length); layers footprints and centres. Move a seam in QGIS by editing the cut polygons
+    OUTPUT (GeoPackage): layer cut_polygons (source_id, source = ortho file name, path relative
+    to the output's folder, area) forms an exact partition of the area (no gaps, no overlaps);
+    layer seamlines (a, b, method, length); layers footprints and centres.
+
+    The seamlines are exactly the boundaries between different sources in the source index of
+    the mosaic mosaic:build makes from these cut polygons at its default cell size (each cell
+    takes the ortho whose polygon holds its centre, or the first ortho with data there): cell
+    edges, in steps of one cell where a seam runs diagonally, so a zero-area sliver of a cut
+    polygon gives no seam and every seam of the mosaic is there. ``method`` says how the seam
+    was made: least_cost for a re-routed seam, voronoi for one left on the Voronoi partition
+    (a nadir bisector or a footprint edge). Move a seam in QGIS by editing the cut polygons
     (keeping them a partition), then run mosaic:build with CUTLINES.
     """
 
@@ -77,6 +89,10 @@ class MosaicSeamlines(Algorithm):
         Number("GRADIENT_WEIGHT", "weight of the image gradient", default=1.0, min_value=0),
         Number("CENTRE_WEIGHT", "weight of the pull towards the Voronoi line (the bisector)",
                default=0.5, min_value=0),
+        Number("STRUCTURE_WEIGHT", "extra cost near strong, structured differences between the "
+               "two orthos (facades, displaced edges)", default=1.0, min_value=0),
+        Number("STRUCTURE_RADIUS", "how far from such a difference its extra cost reaches, CRS "
+               "units (about half the largest building)", default=20.0, min_value=0),
         VectorLayer("BUILDINGS", "building footprints the seams should avoid",
                     geometry_types=["polygon"], optional=True),
         Number("BUILDING_COST", "extra cost inside BUILDINGS", default=10.0, min_value=0),
@@ -102,6 +118,18 @@ class MosaicSeamlines(Algorithm):
     ]
     outputs = [Output("STATISTICS", "areas, partition check and per-seam notes", "dict")]
 
+    def check(self, params):
+        if params["METHOD"] != "least_cost" or params["SEAM_CELL_SIZE"] is None:
+            return
+        from toolbox.limits import check_size
+
+        cell = params["SEAM_CELL_SIZE"]
+        area = sum((i.bounds[2] - i.bounds[0]) * (i.bounds[3] - i.bounds[1])
+                   for i in params["INPUT"])
+        check_size("cells", area / cell ** 2, "SEAM_CELL_SIZE",
+                   f"{cell:g} over the {area:,.0f} square units of the orthos",
+                   "use a larger SEAM_CELL_SIZE (or leave it empty: the orthos' cell)")
+
     def process(self, params, feedback: Feedback):
         import geopandas as gpd
         import shapely
@@ -110,11 +138,14 @@ class MosaicSeamlines(Algorithm):
         from toolbox.mosaic.block import (
             cells_frame,
             centres_of,
+            mosaic_grid,
             nadir_points_from_layer,
             open_block,
             seams_frame,
             union_area,
         )
+        from toolbox.mosaic.build import MosaicPlan
+        from toolbox.mosaic.index_seams import partition_seams
         from toolbox.mosaic.partition import partition_errors, voronoi_cells
         from toolbox.mosaic.seams import CostWeights, PairCost, least_cost_cells
         from toolbox.mosaic.sources import open_source
@@ -135,6 +166,8 @@ class MosaicSeamlines(Algorithm):
             weights = CostWeights(difference=params["DIFFERENCE_WEIGHT"],
                                   gradient=params["GRADIENT_WEIGHT"],
                                   centre=params["CENTRE_WEIGHT"],
+                                  structure=params["STRUCTURE_WEIGHT"],
+                                  structure_radius=params["STRUCTURE_RADIUS"],
                                   building=params["BUILDING_COST"], height=params["HEIGHT_COST"])
             buildings = _polygons(params["BUILDINGS"], crs, read_vector)
             forbidden = _polygons(params["FORBIDDEN"], crs, read_vector)
@@ -158,6 +191,10 @@ class MosaicSeamlines(Algorithm):
         area = union_area(sources)
         gap, overlap = partition_errors(cells, area)
         methods = {(e["a"], e["b"]): e["method"] for e in seam_report}
+        with feedback.timed("seams"):  # the seams of the mosaic mosaic:build makes of the cells
+            grid = mosaic_grid(sources, crs, None, area)
+            plan = MosaicPlan(sources, cells, grid, len(sources[0].data_bands), sources[0].dtype)
+            seams = partition_seams(plan)
         centre_frame = gpd.GeoDataFrame(
             {"source_id": [s.index + 1 for s in sources], "source": [s.name for s in sources]},
             geometry=[shapely.Point(c) for c in centres], crs=crs)
@@ -166,8 +203,8 @@ class MosaicSeamlines(Algorithm):
             geometry=[f if f.geom_type == "MultiPolygon" else shapely.MultiPolygon([f])
                       for f in footprints], crs=crs)
         write_layers(params["OUTPUT"], {
-            "cut_polygons": cells_frame(sources, cells, crs),
-            "seamlines": seams_frame(sources, cells, crs, methods),
+            "cut_polygons": cells_frame(sources, cells, crs, params["OUTPUT"]),
+            "seamlines": seams_frame(sources, seams, crs, methods),
             "footprints": foot_frame, "centres": centre_frame},
             geometry_types={"cut_polygons": "MultiPolygon", "seamlines": "MultiLineString",
                             "footprints": "MultiPolygon", "centres": "Point"})
@@ -175,6 +212,7 @@ class MosaicSeamlines(Algorithm):
             "method": params["METHOD"], "orthos": len(sources),
             "area": float(area.area), "partition_gap_area": gap, "max_overlap_area": overlap,
             "cut_areas": {s.name: float(c.area) for s, c in zip(sources, cells, strict=True)},
+            "seam_grid_cell": grid.cell_size[0],
             "seams": [{**e, "a": sources[e["a"]].name, "b": sources[e["b"]].name}
                       for e in seam_report]}}
 

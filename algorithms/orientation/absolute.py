@@ -6,7 +6,7 @@ from typing import Any
 
 from toolbox.algorithm import Algorithm
 from toolbox.feedback import Feedback
-from toolbox.parameters import File, Layer, Output, OutputFile, OutputVector, String
+from toolbox.parameters import Crs, File, Layer, Output, OutputFile, OutputVector, String
 from toolbox.registry import register
 
 
@@ -43,7 +43,8 @@ class AbsoluteOrientation(Algorithm):
         String("LAYER", "GeoPackage layer of INPUT (default: the first)", optional=True),
         File("CONTROL", "surveyed points: id, X, Y, Z, optional role (control/check)",
              extensions=[".csv", ".txt", ".gpkg"]),
-        String("CRS", "CRS of the ground coordinates (e.g. EPSG:3003)", optional=True),
+        Crs("CRS", "CRS of the ground coordinates (e.g. EPSG:3003; projected, metres)",
+            optional=True),
         OutputVector("OUTPUT", "GeoPackage with layer points (model points on the ground)",
                      optional=True, layers=[Layer("points", "Point Z", [
                          ("point_id", "string"), ("role", "string"),
@@ -91,10 +92,9 @@ class AbsoluteOrientation(Algorithm):
             import geopandas as gpd
             import shapely
 
-            from toolbox.io.crs import parse_crs
             from toolbox.io.vector import write_layers
 
-            crs = parse_crs(params["CRS"], "CRS") if params["CRS"] else None
+            crs = params["CRS"]  # a pyproj CRS, geographic ones refused by the runner
             by_id = {p["point_id"]: p for p in points}
             rows = [{"point_id": pid, "role": by_id.get(pid, {}).get("role"),
                      "vx": by_id.get(pid, {}).get("vx"), "vy": by_id.get(pid, {}).get("vy"),

@@ -13,7 +13,7 @@ from toolbox.io.crs import common_crs
 from toolbox.parameters import File, Integer, Layer, Number, Output, OutputVector, RasterLayer
 from toolbox.photogrammetry.coverage import Footprint, overlaps, photo_footprint
 from toolbox.photogrammetry.surface import dem_height_range, surface_for_photo
-from toolbox.photogrammetry.tables import load_project_parameter
+from toolbox.photogrammetry.tables import PROJECT_EXTENSIONS, load_project_parameter
 from toolbox.registry import register
 
 
@@ -51,7 +51,7 @@ class Footprints(Algorithm):
     group = "Orientation"
     short_help = "Footprints of oriented photos on a DEM, nadir/principal points, overlap %."
     parameters = [
-        File("PROJECT", "orientation project (YAML)", extensions=[".yaml", ".yml"]),
+        File("PROJECT", "orientation project (YAML)", extensions=PROJECT_EXTENSIONS),
         RasterLayer("DEM", "terrain heights (same CRS as the project)", optional=True),
         Integer("BAND", "DEM band", default=1, min_value=1),
         Number("MEAN_HEIGHT", "plane height without a DEM; fallback plane with one (default: the "
@@ -166,15 +166,21 @@ class Footprints(Algorithm):
         for fp in footprints:
             photo, eo = fp.photo, fp.photo.require_exterior()
             height = eo.z0 - fp.mean_height
-            scale = height * 1000.0 / photo.camera.c
-            transform = photo.pixel_transform
-            pixel = transform.pixel_size_mm if transform is not None else photo.camera.pixel_size_mm
+            focal_px = getattr(photo.camera, "focal_px", None)
+            if focal_px is not None:  # a camera model (px): the ground pixel, no film scale
+                scale, ground_pixel = None, height / (sum(focal_px) / 2.0)
+            else:
+                scale = height * 1000.0 / photo.camera.c
+                transform = photo.pixel_transform
+                pixel = transform.pixel_size_mm if transform is not None else \
+                    photo.camera.pixel_size_mm
+                ground_pixel = None if pixel is None else scale * pixel / 1000.0
             status = "plane" if not with_dem else ("partial" if fp.vertices_off_dem else "complete")
             rows.append({"photo": photo.id, "camera": photo.camera.name, "strip": photo.strip,
                          "status": status, "vertices_off_dem": fp.vertices_off_dem,
                          "area_m2": fp.polygon.area, "mean_height_m": fp.mean_height,
                          "flying_height_m": height, "photo_scale": scale,
-                         "ground_pixel_m": None if pixel is None else scale * pixel / 1000.0,
+                         "ground_pixel_m": ground_pixel,
                          "forward_overlap_pct": forward.get(photo.id),
                          "geometry": shapely.Polygon(fp.vertices)})
             for target, point in ((nadirs, fp.nadir), (pps, fp.principal_point)):

@@ -25,7 +25,12 @@ from toolbox.parameters import (
 )
 from toolbox.photogrammetry.collinearity import NO_INTERSECTION, OK, STATUS_NAMES
 from toolbox.photogrammetry.surface import dem_height_range, surface_for_photo
-from toolbox.photogrammetry.tables import image_measurements, load_project_parameter, write_json
+from toolbox.photogrammetry.tables import (
+    PROJECT_EXTENSIONS,
+    image_measurements,
+    load_project_parameter,
+    write_json,
+)
 from toolbox.registry import register
 
 
@@ -52,7 +57,7 @@ class Monoplot(Algorithm):
     group = "Orientation"
     short_help = "Ground points (PointZ) of image points of oriented photos, on a DEM or a height."
     parameters = [
-        File("PROJECT", "orientation project (YAML)", extensions=[".yaml", ".yml"]),
+        File("PROJECT", "orientation project (YAML)", extensions=PROJECT_EXTENSIONS),
         File("INPUT", "image points (CSV or GeoPackage table)", extensions=[".csv", ".txt", ".gpkg"]),
         String("LAYER", "GeoPackage layer of INPUT (default: the first)", optional=True),
         Enum("COORDINATES", "measurement columns: auto, pixel (col_px/row_px), image (x_mm/y_mm)",

@@ -13,7 +13,12 @@ from toolbox.feedback import Feedback
 from toolbox.io.crs import common_crs
 from toolbox.parameters import File, Integer, Number, Output, OutputFile, RasterLayer
 from toolbox.photogrammetry.normal_case import normal_case_precision, rules_table_sigma_xy
-from toolbox.photogrammetry.tables import load_project_parameter, write_csv, write_json
+from toolbox.photogrammetry.tables import (
+    PROJECT_EXTENSIONS,
+    load_project_parameter,
+    write_csv,
+    write_json,
+)
 from toolbox.registry import register
 
 COLUMNS = ["photo_a", "photo_b", "terrain_height_m", "principal_distance_mm", "base_m",
@@ -68,7 +73,7 @@ class NormalCasePrecision(Algorithm):
     short_help = "Estimated sigma X, Y, Z of stereo pairs from scale, base and parallax accuracy."
     parameters = [
         File("PROJECT", "orientation project (YAML); its stereo pairs are evaluated",
-             extensions=[".yaml", ".yml"], optional=True),
+             extensions=PROJECT_EXTENSIONS, optional=True),
         RasterLayer("DEM", "terrain heights, for the distance to the terrain", optional=True),
         Integer("BAND", "DEM band", default=1, min_value=1),
         Number("MEAN_HEIGHT", "terrain height (CRS units), instead of a DEM", optional=True),

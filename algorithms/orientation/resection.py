@@ -68,6 +68,11 @@ class SpaceResection(Algorithm):
         project = load_project_parameter(params["PROJECT"])
         measurements = image_measurements(params["INPUT"], params["LAYER"], params["COORDINATES"])
         control = ground_points(params["CONTROL"])
+        if project.crs is not None and len(control[1]):  # as for layers: one check everywhere
+            from toolbox.io.crs import check_coordinates_in_area
+
+            check_coordinates_in_area("CONTROL", project.crs, control[1][:, :2],
+                                      feedback.push_warning)
         exteriors, report = resect_photos(project, measurements, control,
                                           use_project_start=params["START"] == "project",
                                           feedback=feedback)

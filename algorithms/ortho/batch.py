@@ -15,10 +15,12 @@ from toolbox.parameters import (
     Number,
     Output,
     OutputFile,
+    OutputFolder,
     RasterLayer,
     String,
 )
 from toolbox.photogrammetry.parameters import ortho_method_parameters
+from toolbox.photogrammetry.tables import PROJECT_EXTENSIONS
 from toolbox.registry import register
 
 
@@ -37,9 +39,12 @@ class OrthoBatch(Algorithm):
     Photos run in parallel on local threads (WORKERS) or on a Dask cluster (SCHEDULER or
     DASK_SCHEDULER_ADDRESS), with one progress bar. A photo that fails (missing image, camera
     looking away, no DEM under it...) is reported and the others still finish. The orthos are
-    written into FOLDER as ``<photo id>.tif`` (each in a hidden file renamed when complete;
-    existing orthos of the same names are replaced); OUTPUT (JSON) lists them (``orthos``,
-    ready for mosaic:*), with one report per photo (as ortho:photo's) and the failures.
+    written into FOLDER as ``<photo id>.tif``: all of them or none (they are written into a
+    hidden staged folder and moved into FOLDER when the run succeeds; a run killed or out of
+    disk space leaves nothing). An ortho may not replace an input (a photo, the DEM, a file of
+    the project) and replaces an existing file only with --overwrite; other files of FOLDER are
+    left alone. OUTPUT (JSON) lists them (``orthos``, ready for mosaic:*), with one report per
+    photo (as ortho:photo's) and the failures.
     """
 
     id = "ortho:batch"
@@ -47,7 +52,7 @@ class OrthoBatch(Algorithm):
     group = "Orthophoto"
     short_help = "Orthorectify every photo of an orientation project on one shared grid."
     parameters = [
-        File("PROJECT", "orientation project (YAML)", extensions=[".yaml", ".yml"]),
+        File("PROJECT", "orientation project (YAML)", extensions=PROJECT_EXTENSIONS),
         String("PHOTOS", "photo ids, comma separated (default: every oriented photo)",
                optional=True),
         String("IMAGES", "folder of the image files (default: the project's paths)",
@@ -66,7 +71,7 @@ class OrthoBatch(Algorithm):
                min_value=1),
         String("SCHEDULER", "Dask scheduler address (default: local threads)", optional=True),
         Integer("WORKERS", "photos in parallel on local threads", default=2, min_value=1),
-        String("FOLDER", "folder of the orthos (created if missing)"),
+        OutputFolder("FOLDER", "folder of the orthos <photo id>.tif (created if missing)"),
         OutputFile("OUTPUT", "JSON list of the orthos with the per-photo reports",
                    extensions=[".json"]),
     ]
@@ -75,19 +80,36 @@ class OrthoBatch(Algorithm):
     def check(self, params: dict[str, Any]) -> None:
         if params["BAND"] > params["DEM"].count:
             raise self.fail("BAND", f"must be <= {params['DEM'].count}, got {params['BAND']}")
-        folder = Path(params["FOLDER"])
-        if folder.exists() and not folder.is_dir():
-            raise self.fail("FOLDER", f"'{folder}' is a file, expected a folder")
+
+    def planned_files(self, params: dict[str, Any]) -> dict[str, list[str]]:
+        from toolbox.photogrammetry.tables import load_project_parameter
+
+        photos = select_photos(load_project_parameter(params["PROJECT"]), params["PHOTOS"])
+        folder = Path(params["FOLDER"]).expanduser().resolve()
+        for photo in photos:  # IMAGES' files are inputs the runner cannot see (a folder name)
+            if photo.image is not None and params["IMAGES"] is not None:
+                image = image_path(photo, params["IMAGES"]).expanduser()
+                if image.exists() and image.resolve().parent == folder and \
+                        image.name in {f"{p.id}.tif" for p in photos}:
+                    raise self.fail("FOLDER", f"would write the ortho '{folder / image.name}' "
+                                    f"over the photo IMAGES holds under that name; an input is "
+                                    "never overwritten: choose another folder")
+        return {"FOLDER": [f"{photo.id}.tif" for photo in photos]}
 
     def process(self, params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
         from toolbox.io.crs import crs_label, same_crs
         from toolbox.io.raster import open_raster_info
+        from toolbox.io.staging import final_path
         from toolbox.photogrammetry import ortho, orthophoto
         from toolbox.photogrammetry.tables import load_project_parameter, write_json
         from toolbox.tiles import map_tiles, resolve_executor
 
         project = load_project_parameter(params["PROJECT"])
         crs = project.crs
+        if crs is None and params["DEM"].crs is not None:  # else the orthos would have no CRS
+            crs = params["DEM"].crs
+            feedback.push_warning(f"PROJECT names no crs: its coordinates are taken to be in "
+                                  f"the DEM's, {crs_label(crs)}, and the orthos are written in it")
         executor = resolve_executor(params["SCHEDULER"], params["WORKERS"])
         photos = select_photos(project, params["PHOTOS"])
         failed: list[dict[str, Any]] = []
@@ -122,10 +144,9 @@ class OrthoBatch(Algorithm):
             block=params["TILE_SIZE"], tolerance_px=params["MAP_TOLERANCE"],
             dem_factor=params["DEM_FACTOR"], band=params["BAND"], occlusion=params["OCCLUSION"],
             overviews=params["OVERVIEWS"], cog=params["COG"])
-        folder = Path(params["FOLDER"])
-        folder.mkdir(parents=True, exist_ok=True)
+        folder = Path(params["FOLDER"])  # staged by the runner: moved into place on success
         tasks = [orthophoto.OrthoTask(plan.photo, image, params["DEM"],
-                                 orthophoto.lattice_grid(plan.footprint.bounds, cell, crs, origin),
+                                 orthophoto.lattice_grid(plan.extent, cell, crs, origin),
                                  folder / f"{plan.photo.id}.tif", options, plan.mean_height,
                                  params["MAP_SCALE"]) for plan, image in plans]
         reports = []
@@ -135,6 +156,7 @@ class OrthoBatch(Algorithm):
                 failed.append(result)
                 feedback.push_warning(f"photo {result['photo']} failed: {result['error']}")
             else:
+                result["output"] = str(final_path(result["output"]))
                 reports.append(result)
                 for text in result.pop("warnings", []):
                     feedback.push_warning(text)

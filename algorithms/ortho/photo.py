@@ -23,6 +23,7 @@ from toolbox.parameters import (
     String,
 )
 from toolbox.photogrammetry.parameters import ortho_method_parameters
+from toolbox.photogrammetry.tables import PROJECT_EXTENSIONS
 from toolbox.registry import register
 
 
@@ -52,7 +53,9 @@ class OrthoPhoto(Algorithm):
     The orientation comes from PROJECT (an orientation project; PHOTO names the photo, default
     the one whose image file or id matches INPUT) or from CAMERA (a camera YAML as in a
     project's ``cameras`` list; the pixel transform from its pixel and image size) with
-    EXTERIOR = "X0,Y0,Z0,omega,phi,kappa" in ANGLE_UNIT and CRS.
+    EXTERIOR = "X0,Y0,Z0,omega,phi,kappa" in ANGLE_UNIT and CRS. A camera may be a model
+    (``model:`` pinhole, Brown, OpenCV or fisheye; README "Camera models"): its cells are
+    mapped through the model's projection, exactly at every cell, and remapped by OpenCV.
 
     Defaults as the thesis' software proposes: CELL_SIZE = the photo's ground sample distance
     at the mean terrain height of its footprint (2 significant digits); EXTENT = the footprint
@@ -79,7 +82,7 @@ class OrthoPhoto(Algorithm):
     short_help = "Orthorectify a frame photo on a DEM (collinearity, optional true-ortho mask)."
     parameters = [
         RasterLayer("INPUT", "the photo (any GDAL raster, 1-4 bands, 8/16 bit)"),
-        File("PROJECT", "orientation project (YAML)", extensions=[".yaml", ".yml"],
+        File("PROJECT", "orientation project (YAML)", extensions=PROJECT_EXTENSIONS,
              optional=True),
         String("PHOTO", "photo id in PROJECT (default: the photo whose image or id matches "
                "INPUT)", optional=True),
@@ -133,6 +136,13 @@ class OrthoPhoto(Algorithm):
         from toolbox.photogrammetry.tables import write_json
 
         photo, crs, output_crs = oriented_photo(params)
+        if crs is None and output_crs is None and params["DEM"].crs is not None:
+            from toolbox.io.crs import crs_label
+
+            crs = params["DEM"].crs  # else the ortho would have no CRS at all
+            feedback.push_warning(f"the orientation names no CRS: its coordinates are taken to "
+                                  f"be in the DEM's, {crs_label(crs)}, and the ortho is written "
+                                  "in it (give CRS to say otherwise)")
         ortho.check_geometry(photo)  # a camera looking away is an error, not a tilt warning
         warning = ortho.tilt_warning(photo)
         if warning:
@@ -236,7 +246,8 @@ def camera_photo(params: dict[str, Any]) -> Any:
         raise ParameterError("CAMERA", f"'{path}' must hold one camera mapping")
     spec = dict(spec)
     info = params["INPUT"]
-    spec.setdefault("image_size_px", [info.width, info.height])
+    if "model" not in spec:  # a camera model carries its im_size
+        spec.setdefault("image_size_px", [info.width, info.height])
     try:
         values = [float(v) for v in params["EXTERIOR"].replace(";", ",").split(",")]
     except ValueError:
@@ -254,6 +265,9 @@ def camera_photo(params: dict[str, Any]) -> Any:
     except InputDataError as exc:
         raise ParameterError("CAMERA", str(exc)) from None
     photo = next(iter(project.photos.values()))
+    if params["PIXEL_TO_IMAGE"] is not None and photo.is_model:
+        raise ParameterError("PIXEL_TO_IMAGE", "applies to film cameras only; the camera model "
+                             "maps its own pixels")
     if params["PIXEL_TO_IMAGE"] is not None:
         from dataclasses import replace
 
@@ -263,7 +277,7 @@ def camera_photo(params: dict[str, Any]) -> Any:
         matrix = parse_pixel_to_image(params["PIXEL_TO_IMAGE"])
         photo = replace(photo, interior=InteriorOrientation(
             matrix, "homography" if matrix[2, :2].any() else "affine"))
-    if photo.pixel_transform is None:
+    if photo.pixel_transform is None and not photo.is_model:
         raise ParameterError("CAMERA", "needs pixel_size_mm (and image_size_px), or give "
                              "PIXEL_TO_IMAGE, to relate the photo's pixels to image mm")
     return photo

@@ -47,8 +47,8 @@ class RectifyImage(Algorithm):
     alpha 0 (OUTSIDE=alpha, default) or NODATA. The work is streamed tile by tile on local
     threads (the source window each output tile needs, plus the interpolation margin), so
     memory stays bounded for any size of photo (e.g. a 16644 x 16644 scan); the output is a
-    tiled, DEFLATE GeoTIFF in the transform's CRS (none for a local object system), with
-    overviews; COG writes a Cloud Optimized GeoTIFF.
+    Cloud Optimized GeoTIFF (DEFLATE, with overviews) in the transform's CRS (none for a local
+    object system); COG=false writes a tiled GeoTIFF with internal overviews instead.
 
     Any raster GDAL reads is accepted (TIFF, JPEG, PNG...; 1-4 or more bands, 8/16-bit or
     float); its own georeferencing, if any, is ignored. A transform in image mm needs the
@@ -79,7 +79,8 @@ class RectifyImage(Algorithm):
         Number("NODATA", "nodata value with OUTSIDE=nodata (default: the photo's, else 0, NaN "
                "for float)", optional=True),
         Boolean("OVERVIEWS", "build internal overviews", default=True),
-        Boolean("COG", "write a Cloud Optimized GeoTIFF (MODE=warp)", default=False),
+        Boolean("COG", "write a Cloud Optimized GeoTIFF (MODE=warp; false: a tiled GeoTIFF "
+                "with internal overviews)", default=True),
         OutputRaster("OUTPUT", "rectified GeoTIFF (or GCP GeoTIFF with MODE=gcps)"),
     ]
     outputs = [Output("STATISTICS", "grid, footprint and warp counters", "json")]
@@ -93,8 +94,18 @@ class RectifyImage(Algorithm):
                                     "not resampled)")
         if info.width < 1 or info.height < 1:
             raise self.fail("INPUT", f"{info} has no pixels")
+        from toolbox.io.raster import has_valid_pixel
+
+        if not has_valid_pixel(info.path):  # all nodata or all NaN: an empty, "valid" output
+            raise self.fail("INPUT", f"{info} has no valid pixel (every pixel is nodata or NaN)")
         if params["PIXEL_TO_IMAGE"] is not None:
             parse_pixel_to_image(params["PIXEL_TO_IMAGE"])
+        from toolbox.io.crs import check_input_crs
+        from toolbox.transforms.rectification import load_transform
+
+        model = load_transform(params["TRANSFORM"], "TRANSFORM")
+        if model.crs is not None and params["MODE"] != "gcps":  # CELL_SIZE etc. are metres
+            check_input_crs(self.id, "TRANSFORM", model.crs)
 
     def process(self, params, feedback: Feedback):
         from toolbox.io.crs import crs_label, same_crs

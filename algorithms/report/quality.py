@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from toolbox.algorithm import Algorithm
 from toolbox.feedback import Feedback
-from toolbox.parameters import Number, Output, OutputFile, String
+from toolbox.parameters import Folder, Number, Output, OutputFile, String
 from toolbox.registry import register
 
 
@@ -14,13 +14,22 @@ class Quality(Algorithm):
     ``reports/`` folder a pipeline or ``toolbox demo`` writes) and the residual files they name;
     nothing is recomputed.
 
-    Sections appear for the runs found: interior orientation (residual vectors at the fiducial
-    marks per photo), rectification (residual vectors of control, check and rejected points;
-    the check-point RMSE against the orthophoto rule RMS <= ``RULE_MM`` mm x ``ORTHO_SCALE``,
-    S002 §2.6.6: 0.3 mm for small scales, 0.5 mm for large ones), DEM cross-validation (RMSE
-    per method, error histograms, a map of the best method's errors) and topology (error and
-    fix counts), after a table of every run. ``OUTPUT`` ``.pdf`` (one page per table and figure)
-    or ``.html`` (one page, figures embedded).
+    The first page is the verdict: every product against the specification's tolerances at the
+    map scale, each criterion with what was measured, the tolerance, pass / FAIL / not checked
+    and its source, and an overall ACCEPTED or NOT ACCEPTED. Tolerances: planimetric RMS <=
+    ``RULE_MM`` mm x ``ORTHO_SCALE`` (S002 §2.6.6: 0.3 mm for small scales, 0.5 mm for large
+    ones) for orthophotos, rectification and orientation check points; height RMSE <=
+    ``CONTOUR_INTERVAL`` / 3.29 (90 % of the points within half the contour interval, the
+    National Map Accuracy Standard's rule; S002 uses 5 m at 1:5000); fiducial residuals <=
+    ``IO_TOLERANCE_UM`` (a producer's threshold: set the tender's).
+
+    Then the sections of the runs found: interior orientation (residuals per photo, vectors at
+    the marks), orientation (resection, absolute orientation, orientation check: control and
+    check points), rectification (residual vectors of control, check and rejected points),
+    orthophotos, DEM cross-validation (RMSE per method, error histograms, a map of the best
+    method's errors), mosaic and seamlines, topology (what the check found and fixed), every
+    warning of every run, and the list of runs. File paths are shown by name only. ``OUTPUT``
+    ``.pdf`` (A4 pages, sections flowed onto them) or ``.html`` (one page, figures embedded).
     """
 
     id = "report:quality"
@@ -28,12 +37,16 @@ class Quality(Algorithm):
     group = "Reports"
     short_help = "Quality report (PDF/HTML) with residual plots, from the JSON run reports."
     parameters = [
-        String("REPORTS", "folder of JSON run reports"),
+        Folder("REPORTS", "folder of JSON run reports"),
         String("TITLE", "report title", default="Quality report"),
-        Number("ORTHO_SCALE", "orthophoto scale denominator for the accuracy rule",
+        Number("ORTHO_SCALE", "map and orthophoto scale denominator of the specification",
                default=5000.0, min_value=1),
-        Number("RULE_MM", "allowed orthophoto RMS on paper, mm (0.3 small, 0.5 large scales)",
+        Number("RULE_MM", "allowed planimetric RMS on paper, mm (0.3 small, 0.5 large scales)",
                default=0.3, min_value=0, min_exclusive=True),
+        Number("CONTOUR_INTERVAL", "contour interval of the map, m (height tolerance: "
+               "interval / 3.29)", default=5.0, min_value=0, min_exclusive=True),
+        Number("IO_TOLERANCE_UM", "largest fiducial residual accepted, µm", default=15.0,
+               min_value=0, min_exclusive=True),
         OutputFile("OUTPUT", "report (.pdf or .html)", extensions=[".pdf", ".html"]),
     ]
     outputs = [Output("CONTENTS", "runs, sections and figure counts", "dict")]
@@ -41,18 +54,16 @@ class Quality(Algorithm):
     def check(self, params):
         from pathlib import Path
 
-        folder = Path(params["REPORTS"]).expanduser()
-        if not folder.is_dir():
-            raise self.fail("REPORTS", f"must be a folder of JSON run reports, got "
-                            f"'{params['REPORTS']}'")
+        folder = Path(params["REPORTS"])
         if not any(folder.glob("*.json")):
             raise self.fail("REPORTS", f"folder '{params['REPORTS']}' holds no .json report")
 
     def process(self, params, feedback: Feedback):
-        from toolbox.cartography.quality import write_report
+        from toolbox.cartography.quality import Specification, write_report
 
-        contents = write_report(params["REPORTS"], params["OUTPUT"], params["TITLE"],
-                                params["ORTHO_SCALE"], params["RULE_MM"])
+        spec = Specification(params["ORTHO_SCALE"], params["RULE_MM"],
+                             params["CONTOUR_INTERVAL"], params["IO_TOLERANCE_UM"])
+        contents = write_report(params["REPORTS"], params["OUTPUT"], params["TITLE"], spec)
         if not contents["sections"]:
             feedback.push_warning("no run report with residuals or counts was found: the "
                                   "report lists the runs only")

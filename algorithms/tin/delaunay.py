@@ -8,7 +8,8 @@ from toolbox.algorithm import Algorithm
 from toolbox.errors import InputDataError
 from toolbox.feedback import Feedback
 from toolbox.io.crs import common_crs, crs_label
-from toolbox.io.vector import read_points_xyz, read_vector, vertices_xyz
+from toolbox.io.pointcloud import cloud_filter
+from toolbox.io.vector import read_vector, vertices_xyz
 from toolbox.parameters import (
     Boolean,
     Crs,
@@ -21,6 +22,8 @@ from toolbox.parameters import (
     VectorLayer,
 )
 from toolbox.registry import register
+from toolbox.terrain.gridding.parameters import point_cloud_parameters
+from toolbox.terrain.points import read_mass_points
 
 DUPLICATE_RULES = ("mean", "first", "min", "max", "error")
 
@@ -108,10 +111,11 @@ class Delaunay(Algorithm):
     short_help = ("Constrained Delaunay TIN of 3D points and breaklines, clipped to a boundary; "
                   "triangles, nodes and edges with topology.")
     parameters = [
-        VectorLayer("INPUT", "mass points (PointZ, or points with a Z field)",
-                    geometry_types=["point"], optional=True),
+        VectorLayer("INPUT", "mass points (PointZ, or points with a Z field, or a LAS/LAZ/COPC "
+                    "point cloud)", geometry_types=["point"], optional=True, point_clouds=True),
         Field("Z_FIELD", "height field of INPUT (default: geometry Z)", parent="INPUT",
               numeric=True, optional=True),
+        *point_cloud_parameters(),
         VectorLayer("BREAKLINES", "breaklines: LineStringZ, or lines with a height field "
                     "(contours)", geometry_types=["line"], optional=True),
         Field("BREAKLINES_Z_FIELD", "height field of BREAKLINES (default: geometry Z)",
@@ -166,6 +170,8 @@ class Delaunay(Algorithm):
         if params["INPUT"] is None and params["BREAKLINES"] is None:
             raise self.fail("INPUT", "is required unless BREAKLINES is given: a TIN needs mass "
                             "points, breaklines or both")
+        if params["INPUT"] is not None:
+            cloud_filter(params["INPUT"], params["CLASSES"], params["RETURNS"], params["CRS"])
         if params["MAX_EDGE"] is not None and params["HULL"] != "concave":
             raise self.fail("MAX_EDGE", f"is only used with HULL=concave, got HULL="
                             f"{params['HULL']}")
@@ -180,9 +186,11 @@ class Delaunay(Algorithm):
         if crs is None:
             feedback.push_warning("the inputs have no CRS: the TIN has none (set CRS to give it)")
         with feedback.timed("read"):
-            points = np.zeros((0, 3))
+            points, cloud = np.zeros((0, 3)), None
             if params["INPUT"] is not None:  # the gridding algorithms' reader: one for both
-                points = read_points_xyz(params["INPUT"], params["Z_FIELD"], name="INPUT")
+                points, cloud = read_mass_points(params["INPUT"], params["Z_FIELD"],
+                                                 params["CLASSES"], params["RETURNS"],
+                                                 params["CRS"])
             line_xyz, line_index = np.zeros((0, 3)), np.zeros(0, dtype=np.int64)
             if params["BREAKLINES"] is not None:
                 line_xyz, line_index = read_breaklines(params["BREAKLINES"],
@@ -204,6 +212,8 @@ class Delaunay(Algorithm):
         counts = write_tin(params["OUTPUT"], model, crs, params["SPATIAL_INDEX"],
                            feedback.step(35, 100), edges_layer=params["EDGES"])
         stats = dict(model.report)
+        if cloud is not None:
+            stats["point_cloud"] = cloud
         stats.update(edges=counts["edges"], crs=crs_label(crs),
                      node_sources={name: int((model.source == i).sum())
                                    for i, name in enumerate(SOURCES)},

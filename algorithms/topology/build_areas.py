@@ -26,6 +26,15 @@ class BuildAreas(Algorithm):
     each area the code and attributes of the LABELS point inside it (a spot height's quota becomes
     the area's height, as the thesis describes).
 
+    Area codes come from the code file CODES (§2.4, the code table declares each code's type): a
+    closed line whose code is of type polygon codes the area it bounds (a building plotted closed
+    with the building code); a line code codes the area it closes only when its ``area`` column
+    names that area code (``FAB01002;muro perimetrale;linea;12;AREA_FAB``); other line codes (a
+    kerb closed around a block) code nothing. Label codes declared point codes give attributes
+    only. Only area codes can conflict: two labels, or a label and a closed line, giving
+    different area codes (a label with the line's own code agrees with it). Without CODES a
+    closed line's code only fills an area that no label codes, and never conflicts.
+
     Tolerances come from the explicit parameters, else from the PARAMETERS file (the plotting
     software's "file dei parametri"), else from the defaults (0.2, 0.5, 1.0, 1.0 m², 0.001).
 
@@ -58,6 +67,10 @@ class BuildAreas(Algorithm):
         from toolbox.topology.layers import tolerances_from
 
         tolerances_from(params)  # a bad parameter file or PRECISION fails before any work
+        if params.get("CODES") is not None:
+            from toolbox.io.code_file import read_code_file
+
+            read_code_file(params["CODES"], "CODES")
 
     def process(self, params, feedback: Feedback):
         from toolbox.topology.build import build_topology
@@ -67,7 +80,8 @@ class BuildAreas(Algorithm):
         tol, sources, _ = tolerances_from(params, feedback, data["crs"])
         output = build_topology(data["line_geoms"], data["line_codes"], data["label_geoms"],
                                 data["label_codes"], data["label_attributes"], tol,
-                                feedback.step(0, 90), mode="build")
+                                feedback.step(0, 90), mode="build",
+                                area_codes=data["area_codes"])
         if data["label_geoms"] is None:
             feedback.push_warning("no LABELS given: only areas bounded by a closed coded "
                                   "outline have a code")
@@ -75,6 +89,8 @@ class BuildAreas(Algorithm):
             write_topology(params["OUTPUT"], output, data["crs"], data["label_dtypes"])
         stats = dict(output.statistics)
         stats["tolerance_sources"] = sources
+        stats["area_codes"] = "CODES" if data["area_codes"] is not None else \
+            "none (no CODES: closed lines only fill uncoded areas)"
         stats["crs"] = data["crs_label"]
         stats["code_field"] = data["code_field"]
         stats["label_code_field"] = data["label_code_field"]

@@ -42,6 +42,10 @@ class CheckTopology(Algorithm):
         from toolbox.topology.layers import tolerances_from
 
         tolerances_from(params)
+        if params.get("CODES") is not None:
+            from toolbox.io.code_file import read_code_file
+
+            read_code_file(params["CODES"], "CODES")
 
     def process(self, params, feedback: Feedback):
         from toolbox.topology.build import build_topology
@@ -51,12 +55,15 @@ class CheckTopology(Algorithm):
         tol, sources, _ = tolerances_from(params, feedback, data["crs"])
         output = build_topology(data["line_geoms"], data["line_codes"], data["label_geoms"],
                                 data["label_codes"], data["label_attributes"], tol,
-                                feedback.step(0, 95), mode="check")
+                                feedback.step(0, 95), mode="check",
+                                area_codes=data["area_codes"])
         with feedback.timed("write"):
             write_topology(params["OUTPUT"], output, data["crs"], layers=("errors",))
         stats = dict(output.statistics)
         for key in ("areas", "arcs", "nodes"):
             stats["output"].pop(key, None)
         stats["tolerance_sources"] = sources
+        stats["area_codes"] = "CODES" if data["area_codes"] is not None else \
+            "none (no CODES: closed lines only fill uncoded areas)"
         stats["crs"] = data["crs_label"]
         return {"OUTPUT": params["OUTPUT"], "STATISTICS": stats}

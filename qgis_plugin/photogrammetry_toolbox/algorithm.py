@@ -36,7 +36,7 @@ from qgis.core import (
     QgsProcessingParameterString,
 )
 
-from .toolbox_cli import command_line, parse_progress, qgis_id
+from .toolbox_cli import EXTENT_HELP, clean_help, command_line, parse_progress, qgis_id, short_label
 
 VECTOR_FORMATS = ["gpkg", "shp", "fgb", "geojson", "parquet", "csv", "dxf", "sqlite"]
 
@@ -50,7 +50,9 @@ def _filter(extensions) -> str:
 
 def make_parameter(p: dict):
     """The QGIS parameter definition of one spec parameter (None for a type not mapped)."""
-    name, desc, kind = p["name"], p.get("description") or p["name"], p["type"]
+    name, kind = p["name"], p["type"]
+    full = p.get("description") or name
+    desc = "Extent [EXTENT]" if kind == "extent" and name == "EXTENT" else short_label(name, full)
     optional = bool(p.get("optional"))
     default = p.get("default")
     if kind in ("number", "integer"):
@@ -74,6 +76,9 @@ def make_parameter(p: dict):
     elif kind == "file":
         param = QgsProcessingParameterFile(name, desc, QgsProcessingParameterFile.File, "",
                                            default, optional, _filter(p.get("extensions")))
+    elif kind == "folder":
+        param = QgsProcessingParameterFile(name, desc, QgsProcessingParameterFile.Folder, "",
+                                           default, optional)
     elif kind == "vector":
         # any vector layer or table: the toolbox also reads points from CSV coordinate columns,
         # which QGIS opens as tables; the toolbox checks the geometry type itself
@@ -112,8 +117,10 @@ def make_parameter(p: dict):
     if p.get("hidden"):
         flags |= QgsProcessingParameterDefinition.FlagHidden
     param.setFlags(flags)
-    if p.get("help") or p.get("expected"):
-        param.setHelp(p.get("help") or p.get("expected"))
+    details = [full] + [t for t in (p.get("help"), p.get("expected")) if t and t != full]
+    if kind == "extent":
+        details = [t.replace("xmin,ymin,xmax,ymax", "extent") for t in details] + [EXTENT_HELP]
+    param.setHelp(clean_help("\n\n".join(details)))
     return param
 
 
@@ -145,8 +152,7 @@ class ToolboxAlgorithm(QgsProcessingAlgorithm):
         return self.spec.get("short_help", "")
 
     def shortHelpString(self):
-        return (self.spec.get("help") or self.spec.get("short_help") or "").replace("\n\n",
-                                                                                   "<br><br>")
+        return clean_help(self.spec.get("help") or self.spec.get("short_help") or "")
 
     def tags(self):
         return [self.spec["id"], self.groupId()]
@@ -188,7 +194,7 @@ class ToolboxAlgorithm(QgsProcessingAlgorithm):
             tail = f" [{crs.authid()}]" if crs.isValid() and crs.authid() else ""
             return f"{rect.xMinimum()!r},{rect.yMinimum()!r},{rect.xMaximum()!r}," \
                    f"{rect.yMaximum()!r}{tail}"
-        if kind == "file":
+        if kind in ("file", "folder"):
             return self.parameterAsFile(parameters, name, context) or None
         if kind == "vector":
             path, layer = self.parameterAsCompatibleSourceLayerPathAndLayerName(
@@ -295,6 +301,8 @@ class ToolboxAlgorithm(QgsProcessingAlgorithm):
         names = [ds.GetLayer(i).GetName() for i in range(ds.GetLayerCount())]
         ds = None
         for layer_name in names:
+            if layer_name == "layer_styles":  # the styles table QGIS reads, not a layer
+                continue
             details = QgsProcessingContext.LayerDetails(layer_name, context.project(),
                                                         param["name"])
             context.addLayerToLoadOnCompletion(f"{path}|layername={layer_name}", details)

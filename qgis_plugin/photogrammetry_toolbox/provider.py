@@ -2,9 +2,20 @@
 
 from __future__ import annotations
 
+import os
+import sys
+
 from qgis.core import Qgis, QgsApplication, QgsMessageLog, QgsProcessingProvider, QgsSettings
 
-from .toolbox_cli import PROVIDER_ID, ToolboxNotFound, find_executable, load_specs
+from .toolbox_cli import (
+    PROVIDER_ID,
+    VERSIONS,
+    ToolboxNotFound,
+    find_executable,
+    load_specs,
+    start_warmup,
+    toolbox_version,
+)
 
 SETTING = "photogrammetry_toolbox/executable"
 LOG_TAG = "Photogrammetry toolbox"
@@ -64,6 +75,19 @@ class ToolboxProvider(QgsProcessingProvider):
         except ImportError:
             pass
 
+    # the toolbox writes GeoTIFF and GeoPackage: offer only those in the output widgets
+    def supportedOutputRasterLayerExtensions(self):
+        return ["tif"]
+
+    def supportedOutputVectorLayerExtensions(self):
+        return ["gpkg"]
+
+    def defaultRasterFileExtension(self):
+        return "tif"
+
+    def defaultVectorFileExtension(self, hasGeometry=True):
+        return "gpkg"
+
     def loadAlgorithms(self):
         from .algorithm import ToolboxAlgorithm
 
@@ -73,7 +97,15 @@ class ToolboxProvider(QgsProcessingProvider):
         except (ToolboxNotFound, ValueError) as exc:
             self.problem = str(exc)
             QgsMessageLog.logMessage(self.problem, LOG_TAG, Qgis.Warning)
+            # qgis_process shows no message log: say it where a command-line user looks
+            print(f"{LOG_TAG}: {self.problem}", file=sys.stderr)
             return
         self.problem = None
         for spec in specs:
             self.addAlgorithm(ToolboxAlgorithm(spec, self.executable))
+        if os.environ.get("PHOTOGRAMMETRY_TOOLBOX_NO_WARMUP") is None:
+            try:
+                version = VERSIONS.get(self.executable) or toolbox_version(self.executable)
+                start_warmup(self.executable, version)
+            except (ToolboxNotFound, OSError):
+                pass  # only costs the first run's compile time

@@ -17,12 +17,17 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import shutil
 import subprocess
+import textwrap
 from pathlib import Path
 
 ENV_VARIABLE = "PHOTOGRAMMETRY_TOOLBOX"
 PROVIDER_ID = "phototoolbox"
+
+
+VERSIONS: dict[str, str] = {}  # executable -> the version load_specs found
 
 
 class ToolboxNotFound(RuntimeError):
@@ -82,6 +87,7 @@ def load_specs(executable: str, use_cache: bool = True) -> list[dict]:
     per algorithm (slow; the cache makes it a one-off).
     """
     version = toolbox_version(executable)
+    VERSIONS[executable] = version
     cache = cache_folder() / f"specs-{version}.json"
     if use_cache and cache.exists():
         try:
@@ -148,6 +154,57 @@ def command_line(executable: str, algorithm_id: str, values: dict[str, object],
         else:
             args += [f"--{name}", str(value)]
     return args
+
+
+_ROLE = re.compile(r":[a-z]+:`~?([^`<]*?)(?:\s*<[^>]*>)?`")
+_LITERAL = re.compile(r"``([^`]+)``")
+_INTERPRETED = re.compile(r"(?<![\w`])`([^`]+)`(?!`)")
+_EMPHASIS = re.compile(r"\*\*([^*]+)\*\*|(?<![\w*])\*([^*\s][^*]*?)\*(?![\w*])")
+
+
+def clean_help(text: str) -> str:
+    """Help text for a QGIS dialog: reStructuredText markup and internal code references
+    removed (``X`` -> X, :func:`a.b.c` -> c, **x** -> x), paragraphs as HTML breaks."""
+    text = _ROLE.sub(lambda m: m.group(1).strip().split(".")[-1], text or "")
+    text = _LITERAL.sub(r"\1", text)
+    text = _INTERPRETED.sub(r"\1", text)
+    text = _EMPHASIS.sub(lambda m: m.group(1) or m.group(2), text)
+    paragraphs = [" ".join(p.split()) for p in textwrap.dedent(text).split("\n\n")]
+    return "<br><br>".join(p for p in paragraphs if p)
+
+
+def short_label(name: str, description: str, limit: int = 48) -> str:
+    """A dialog label: the description's first clause, capitalised, then the parameter name
+    (``cell size, CRS units (...)`` + CELL_SIZE -> ``Cell size [CELL_SIZE]``)."""
+    first = re.split(r" \(|, |; |: | - ", description or "", maxsplit=1)[0].strip() or name
+    if len(first) > limit:
+        first = first[: limit - 1].rsplit(" ", 1)[0] + "…"
+    return f"{first[:1].upper()}{first[1:]} [{name}]"
+
+
+EXTENT_HELP = ("Draw it on the map or type it in QGIS's order: xmin, xmax, ymin, ymax [CRS] "
+               "(the plugin passes it to the toolbox in its own order).")
+
+
+def warmup_stamp(version: str) -> Path:
+    return cache_folder() / f"warmup-{version}.started"
+
+
+def start_warmup(executable: str, version: str) -> bool:
+    """Compile the toolbox's numba kernels once per toolbox version, in the background, the
+    first time the plugin loads it (so no first run waits ~30 s); True when started now."""
+    stamp = warmup_stamp(version)
+    if stamp.exists():
+        return False
+    try:
+        stamp.parent.mkdir(parents=True, exist_ok=True)
+        log = open(stamp.with_suffix(".log"), "w", encoding="utf-8")  # noqa: SIM115
+        subprocess.Popen([executable, "-q", "warmup"], stdout=log, stderr=log,
+                         stdin=subprocess.DEVNULL, start_new_session=True)
+        stamp.write_text(executable, encoding="utf-8")
+    except OSError:
+        return False
+    return True
 
 
 def parse_progress(line: str) -> dict | None:

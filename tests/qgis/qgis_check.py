@@ -35,9 +35,12 @@ for alg in provider.algorithms():
     report["algorithms"][alg.name()] = {
         "group": alg.group(), "group_id": alg.groupId(), "display_name": alg.displayName(),
         "parameters": {p.name(): {"type": p.type(), "optional": bool(p.flags() & p.FlagOptional),
-                                  "advanced": bool(p.flags() & p.FlagAdvanced)}
+                                  "advanced": bool(p.flags() & p.FlagAdvanced),
+                                  "label": p.description(), "help": p.help()}
                        for p in alg.parameterDefinitions()},
-        "help": bool(alg.shortHelpString())}
+        "help": bool(alg.shortHelpString()), "help_text": alg.shortHelpString()}
+report["raster_formats"] = list(provider.supportedOutputRasterLayerExtensions())
+report["vector_formats"] = list(provider.supportedOutputVectorLayerExtensions())
 for case in cases:
     qid = f"{provider.id()}:{case['id'].replace(':', '_')}"
     try:

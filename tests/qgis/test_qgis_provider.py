@@ -34,7 +34,7 @@ QGIS_TYPES = {"number": "number", "integer": "number", "boolean": "boolean", "en
               "raster": "raster", "multiple": "multilayer", "field": "field",
               "output_raster": "rasterDestination", "output_vector": "fileDestination",
               "output_file": "fileDestination", "output_folder": "folderDestination",
-              "string": "string"}
+              "folder": "file", "string": "string"}
 
 
 def toolbox_executable() -> str:
@@ -80,6 +80,38 @@ def test_executable_not_found_is_a_clear_message(monkeypatch, tmp_path):
     monkeypatch.setattr(toolbox_cli, "__file__", str(tmp_path / "x" / "y" / "toolbox_cli.py"))
     with pytest.raises(toolbox_cli.ToolboxNotFound, match="Processing > Options"):
         toolbox_cli.find_executable(str(tmp_path / "nothing"))
+
+
+def test_dialog_help_is_clean_text_and_labels_are_short():
+    raw = ("Grid with ``CELL_SIZE`` cells (see :func:`toolbox.raster.engine.process_raster` and "
+           ":class:`~toolbox.io.grid.GridSpec`); the `TEMPLATE` wins, **never** silently.\n\n"
+           "    Second paragraph,\n    wrapped.")
+    assert toolbox_cli.clean_help(raw) == (
+        "Grid with CELL_SIZE cells (see process_raster and GridSpec); the TEMPLATE wins, never "
+        "silently.<br><br>Second paragraph, wrapped.")
+    assert toolbox_cli.short_label("CELL_SIZE", "cell size, CRS units (not needed with "
+                                   "TEMPLATE)") == "Cell size [CELL_SIZE]"
+    assert toolbox_cli.short_label("POWER", "weight exponent p in 1/d^p (thesis eq. 45: 1)") \
+        == "Weight exponent p in 1/d^p [POWER]"
+    label = toolbox_cli.short_label("X", "a" * 30 + " " + "b" * 30)
+    assert label.endswith("… [X]") and len(label) < 60
+
+
+def test_kernels_are_compiled_once_per_version_in_the_background(monkeypatch, tmp_path):
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    fake = tmp_path / "toolbox"
+    fake.write_text(f"#!/bin/sh\necho \"$@\" >> {tmp_path / 'calls.txt'}\n")
+    fake.chmod(0o755)
+    assert toolbox_cli.start_warmup(str(fake), "9.9") is True
+    assert toolbox_cli.start_warmup(str(fake), "9.9") is False  # once per version
+    import time
+
+    for _ in range(50):
+        if (tmp_path / "calls.txt").exists():
+            break
+        time.sleep(0.1)
+    assert (tmp_path / "calls.txt").read_text().split() == ["-q", "warmup"]
+    assert toolbox_cli.start_warmup(str(fake), "10.0") is True  # a new version compiles again
 
 
 def test_specs_loaded_in_one_call_and_cached(monkeypatch, tmp_path):
@@ -141,7 +173,7 @@ def prepared(spec: dict, tokens: list[str], folder: Path, cwd: Path):
         kind = p["type"]
         if kind.startswith("output_"):
             items = [str(folder / Path(items[0]).name)]
-        elif kind in ("vector", "raster", "file", "multiple") or (
+        elif kind in ("vector", "raster", "file", "folder", "multiple") or (
                 kind == "string" and (cwd / items[0]).exists()):  # a folder given as text
             items = [str(cwd / i) if not os.path.isabs(i.split("|")[0]) else i for i in items]
         cli[name] = items
@@ -212,7 +244,8 @@ def test_provider_in_pyqgis_and_processing_run_equals_cli(demo_out, tmp_path):
         toolbox.run(alg_id, {k: v if len(v) > 1 else v[0] for k, v in cli_args.items()},
                     overwrite=True)
     (tmp_path / "cases.json").write_text(json.dumps(cases))
-    env = dict(os.environ, XDG_CACHE_HOME=str(tmp_path / "cache"), QT_QPA_PLATFORM="offscreen")
+    env = dict(os.environ, XDG_CACHE_HOME=str(tmp_path / "cache"), QT_QPA_PLATFORM="offscreen",
+               PHOTOGRAMMETRY_TOOLBOX_NO_WARMUP="1")
     done = subprocess.run([SYSTEM_PYTHON, str(ROOT / "tests" / "qgis" / "qgis_check.py"),
                            str(PLUGIN), toolbox_executable(), str(tmp_path / "cases.json")],
                           capture_output=True, text=True, timeout=900, env=env, cwd=demo_out)
@@ -225,11 +258,17 @@ def test_provider_in_pyqgis_and_processing_run_equals_cli(demo_out, tmp_path):
     for alg_id, spec in specs.items():
         alg = report["algorithms"][toolbox_cli.qgis_id(alg_id)]
         assert alg["group"] == spec["group"] and alg["help"]
+        assert not any(m in alg["help_text"] for m in ("``", ":func:", ":class:", ":mod:"))
         for p in spec["parameters"]:
             got = alg["parameters"][p["name"]]
+            assert got["label"].endswith(f"[{p['name']}]")
+            assert len(got["label"]) - len(p["name"]) - 3 <= 48  # a short first clause
+            if p["type"] == "extent":
+                assert "xmin, xmax, ymin, ymax" in got["help"]
             assert got["type"] == QGIS_TYPES.get(p["type"], "string"), (alg_id, p["name"])
             assert got["optional"] == bool(p.get("optional")), (alg_id, p["name"])
             assert got["advanced"] == bool(p.get("advanced")), (alg_id, p["name"])
+    assert report["raster_formats"] == ["tif"] and report["vector_formats"] == ["gpkg"]
     failed = {k: v["error"] for k, v in report["runs"].items() if not v["ok"]}
     assert not failed, failed
     assert len(report["runs"]) == len(runs) >= 5
@@ -247,7 +286,7 @@ def test_qgis_process_runs_the_same_algorithm(demo_out, tmp_path):
     assert binary, "qgis_process is missing although PyQGIS is installed"
     env = dict(os.environ, HOME=str(tmp_path / "home"), QT_QPA_PLATFORM="offscreen",
                QGIS_PLUGINPATH=str(PLUGIN), PHOTOGRAMMETRY_TOOLBOX=toolbox_executable(),
-               XDG_CACHE_HOME=str(tmp_path / "cache"))
+               XDG_CACHE_HOME=str(tmp_path / "cache"), PHOTOGRAMMETRY_TOOLBOX_NO_WARMUP="1")
     enable = subprocess.run([binary, "plugins", "enable", "photogrammetry_toolbox"],
                             capture_output=True, text=True, env=env, timeout=300)
     assert enable.returncode == 0, enable.stdout + enable.stderr

@@ -194,6 +194,9 @@ def read_two_tables(descriptions: str | Path, coordinates: str | Path, name: str
         except ValueError:
             raise _fail(descriptions, number, "record, vertices and first must be whole numbers "
                         "and the bounding box four numbers", name) from None
+        if not -2 ** 63 <= record < 2 ** 63:
+            raise _fail(descriptions, number, f"record {fields[0]} is too large for a record "
+                        "number (at most 19 digits)", name)
         if count < 0 or first < 1 or first + count - 1 > len(xyz):
             raise _fail(descriptions, number, f"vertices {first}..{first + count - 1} are not in "
                         f"'{coordinates.name}' ({len(xyz)} records)", name)
@@ -218,9 +221,10 @@ def read_dxf(path: str | Path, name: str = "INPUT", crs: Any = None):
     path = Path(path)
     try:
         doc = ezdxf.readfile(str(path))
-    except (OSError, ezdxf.DXFStructureError) as exc:
-        raise InputDataError(f"{name}: cannot read '{path}' as DXF: {exc}") from None
-    layer_colour = {layer.dxf.name: abs(layer.color) for layer in doc.layers}
+        layer_colour = {layer.dxf.name: abs(layer.color) for layer in doc.layers}
+        entities = list(doc.modelspace())
+    except (ezdxf.DXFError, *DXF_DAMAGE) as exc:  # malformed group codes, values, structure
+        raise InputDataError(f"{name}: cannot read '{path}' as DXF: {_why(exc)}") from None
     rows: list[dict[str, Any]] = []
     geoms: list[Any] = []
     skipped: dict[str, int] = {}
@@ -234,36 +238,69 @@ def read_dxf(path: str | Path, name: str = "INPUT", crs: Any = None):
                      "file": path.name, "line": None, "kind": kind, **extra})
         geoms.append(geom)
 
-    for entity in doc.modelspace():
-        kind = entity.dxftype()
-        if kind == "POINT":
-            add(entity, "point", shapely.Point(tuple(entity.dxf.location)))
-        elif kind == "LINE":
-            add(entity, "line", shapely.LineString([tuple(entity.dxf.start),
-                                                    tuple(entity.dxf.end)]))
-        elif kind == "LWPOLYLINE":
-            z = float(entity.dxf.get("elevation", 0.0) or 0.0)
-            pts = [(x, y, z) for x, y in entity.get_points("xy")]
-            if entity.closed and pts and pts[0] != pts[-1]:
-                pts.append(pts[0])
-            add(entity, "line", vertex_geometry(np.array(pts, float).reshape(-1, 3)))
-        elif kind == "POLYLINE" and not (entity.is_polygon_mesh or entity.is_poly_face_mesh):
-            pts = [tuple(v) for v in entity.points()]
-            if entity.is_closed and pts and pts[0] != pts[-1]:
-                pts.append(pts[0])
-            add(entity, "line", vertex_geometry(np.array(pts, float).reshape(-1, 3)))
-        elif kind == "INSERT":
-            add(entity, "symbol", shapely.Point(tuple(entity.dxf.insert)),
-                block=entity.dxf.name, rotation=entity.dxf.get("rotation", 0.0),
-                scale_x=entity.dxf.get("xscale", 1.0), scale_y=entity.dxf.get("yscale", 1.0))
-        elif kind in ("TEXT", "MTEXT"):
-            text = entity.dxf.text if kind == "TEXT" else entity.plain_text()
-            height = entity.dxf.get("height" if kind == "TEXT" else "char_height", None)
-            add(entity, "label", shapely.Point(tuple(entity.dxf.insert)), text=text,
-                text_height=height, rotation=entity.dxf.get("rotation", 0.0))
-        else:
-            skipped[kind] = skipped.get(kind, 0) + 1
+    for number, entity in enumerate(entities, start=1):
+        try:
+            _add_dxf_entity(entity, add, skipped)
+        except (ezdxf.DXFError, *DXF_DAMAGE) as exc:
+            raise InputDataError(f"{name}: '{path}': DXF entity {number} "
+                                 f"({_entity_label(entity)}) is malformed: {_why(exc)}") from None
+        if geoms and geoms[-1] is not None and not np.isfinite(
+                shapely.get_coordinates(geoms[-1], include_z=True)).all():
+            raise InputDataError(f"{name}: '{path}': DXF entity {number} "
+                                 f"({_entity_label(entity)}) has a coordinate that is not a "
+                                 "finite number (inf or nan)")
     return entity_frame(rows, geoms, crs), {"skipped_dxf_entities": skipped}
+
+
+# what ezdxf raises on damaged files besides its own errors (a value of the wrong type where a
+# number or a handle is expected, a file ending after a group code...)
+DXF_DAMAGE = (OSError, ValueError, TypeError, KeyError, IndexError, AttributeError,
+              StopIteration, OverflowError, LookupError, ArithmeticError)
+
+
+def _why(exc: BaseException) -> str:
+    text = " ".join(str(exc).split())[:160]
+    return f"{type(exc).__name__}: {text}" if text else type(exc).__name__ + " (damaged file)"
+
+
+def _entity_label(entity) -> str:
+    try:
+        return f"{entity.dxftype()} handle {entity.dxf.handle}, layer {entity.dxf.layer!r}"
+    except Exception:  # noqa: BLE001 - a label for a message, from a damaged entity
+        return "unreadable"
+
+
+def _add_dxf_entity(entity, add, skipped: dict[str, int]) -> None:
+    import shapely
+
+    kind = entity.dxftype()
+    if kind == "POINT":
+        add(entity, "point", shapely.Point(tuple(entity.dxf.location)))
+    elif kind == "LINE":
+        add(entity, "line", shapely.LineString([tuple(entity.dxf.start),
+                                                tuple(entity.dxf.end)]))
+    elif kind == "LWPOLYLINE":
+        z = float(entity.dxf.get("elevation", 0.0) or 0.0)
+        pts = [(x, y, z) for x, y in entity.get_points("xy")]
+        if entity.closed and pts and pts[0] != pts[-1]:
+            pts.append(pts[0])
+        add(entity, "line", vertex_geometry(np.array(pts, float).reshape(-1, 3)))
+    elif kind == "POLYLINE" and not (entity.is_polygon_mesh or entity.is_poly_face_mesh):
+        pts = [tuple(v) for v in entity.points()]
+        if entity.is_closed and pts and pts[0] != pts[-1]:
+            pts.append(pts[0])
+        add(entity, "line", vertex_geometry(np.array(pts, float).reshape(-1, 3)))
+    elif kind == "INSERT":
+        add(entity, "symbol", shapely.Point(tuple(entity.dxf.insert)),
+            block=entity.dxf.name, rotation=entity.dxf.get("rotation", 0.0),
+            scale_x=entity.dxf.get("xscale", 1.0), scale_y=entity.dxf.get("yscale", 1.0))
+    elif kind in ("TEXT", "MTEXT"):
+        text = entity.dxf.text if kind == "TEXT" else entity.plain_text()
+        height = entity.dxf.get("height" if kind == "TEXT" else "char_height", None)
+        add(entity, "label", shapely.Point(tuple(entity.dxf.insert)), text=text,
+            text_height=height, rotation=entity.dxf.get("rotation", 0.0))
+    else:
+        skipped[kind] = skipped.get(kind, 0) + 1
 
 
 CODE_FIELD_NAMES = ("code", "codice", "cod", "codes", "layer")

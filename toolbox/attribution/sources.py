@@ -74,3 +74,29 @@ def translated(frame, file) -> Any:
 
     return frame.set_geometry(gpd.GeoSeries(list(file.translate(frame.geometry.values)),
                                             crs=frame.crs, index=frame.index))
+
+
+def check_coordinates(frames: list, algorithm_id: str, translated_by_file: bool) -> None:
+    """Refuse entities the algorithm cannot measure in metres: a geographic CRS, or coordinates
+    far outside their CRS's area of use (model coordinates labelled with a map CRS: the
+    parameter file's coordinate translation is missing)."""
+    import numpy as np
+
+    from toolbox.errors import InputDataError
+    from toolbox.io.crs import check_input_crs, outside_area_of_use, parse_crs
+
+    for frame in frames:
+        if frame.crs is None or not len(frame):
+            continue
+        crs = parse_crs(frame.crs, "INPUT")
+        check_input_crs(algorithm_id, "INPUT", crs)  # geographic: refused
+        bounds = tuple(float(b) for b in frame.total_bounds)
+        if not np.isfinite(bounds).all():
+            continue
+        problem, far = outside_area_of_use(crs, bounds)
+        if problem and far:
+            hint = ("check the coordinate translation of PARAMETERS" if translated_by_file else
+                    "if they are model (local) coordinates, give PARAMETERS with the coordinate "
+                    "translation ('traslazione delle coordinate') to map coordinates")
+            raise InputDataError(f"INPUT: {problem}: {hint}, or label the data with its true "
+                                 "CRS")

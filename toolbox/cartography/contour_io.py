@@ -3,6 +3,7 @@ as a LineString Z GeoPackage layer with elevation and index flags."""
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -56,6 +57,20 @@ def raster_range(src, band: int, tile_size: int) -> tuple[float, float]:
     return float(lo), float(hi)
 
 
+def guard_levels(zmin: float, zmax: float, interval: float, base: float, span: float) -> None:
+    """Refuse before tracing when the levels (``(zmax - zmin) / interval``) or their vertices
+    (about ``span``, the grid's width + height in cells, per level) are too many."""
+    from toolbox.limits import check_size
+
+    if not (math.isfinite(zmin) and math.isfinite(zmax)) or zmax < zmin:
+        return
+    levels = math.floor((zmax - base) / interval) - math.ceil((zmin - base) / interval) + 1
+    what = f"{interval:g} over heights {zmin:g} .. {zmax:g}"
+    hint = "use a larger INTERVAL (or check the heights and nodata of the surface)"
+    check_size("features", levels, "INTERVAL", what, hint, "contour levels")
+    check_size("vertices", levels * span, "INTERVAL", f"{what} ({levels:,} levels)", hint)
+
+
 def raster_contours(path: str | Path, band: int, interval: float, base: float,
                     tile_size: int = 1024, smoothing: int = 0, feedback=None) -> ContourResult:
     """Contours of a DEM, read in ``tile_size`` blocks that share one row/column with their
@@ -66,6 +81,7 @@ def raster_contours(path: str | Path, band: int, interval: float, base: float,
     with rasterio.open(path) as src:
         frame = GridFrame.of(src.transform)
         zmin, zmax = raster_range(src, band, tile_size)
+        guard_levels(zmin, zmax, interval, base, src.width + src.height)
         levels = contour_levels(zmin, zmax, interval, base)
 
         def read_block(r, c, h, w):
@@ -87,6 +103,9 @@ def tin_layer_contours(xyz: np.ndarray, triangles: np.ndarray, interval: float,
                        base: float) -> ContourResult:
     """Contours of a TIN (nodes, triangles) at ``base + k·interval``."""
     z = xyz[:, 2]
+    if len(z):
+        guard_levels(float(z.min()), float(z.max()), interval, base,
+                     2.0 * math.sqrt(len(triangles)))
     levels = contour_levels(float(z.min()), float(z.max()), interval, base) if len(z) else \
         np.empty(0)
     return ContourResult(tin_contours(xyz, triangles, levels), levels,

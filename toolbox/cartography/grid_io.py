@@ -23,6 +23,26 @@ def sheet_polygons(params: dict) -> tuple[list[tuple[str, Any]], Any]:
     return [("1", shapely.box(*extent.bounds))], crs
 
 
+def guard_grid(sheets: list, step: float, style: str, scale: float, map_step: float) -> None:
+    """Refuse before drawing when the grid nodes (crosses) or lines of every sheet together are
+    too many (a huge extent, or a tiny MAP_STEP)."""
+    from toolbox.limits import check_size
+
+    total, width, height = 0.0, 0.0, 0.0
+    for _, polygon in sheets:
+        if polygon is None or polygon.is_empty:
+            continue
+        xmin, ymin, xmax, ymax = polygon.bounds
+        nx, ny = (xmax - xmin) / step + 1, (ymax - ymin) / step + 1
+        total += nx * ny if style == "crosses" else nx + ny
+        width, height = max(width, xmax - xmin), max(height, ymax - ymin)
+    check_size("features", total, "MAP_STEP",
+               f"{map_step:g} mm at 1:{scale:g} ({step:g} ground units) over {len(sheets):,} "
+               f"sheet(s) up to {width:,.0f} x {height:,.0f}",
+               "use a larger MAP_STEP or a smaller EXTENT", "grid " + (
+                   "crosses" if style == "crosses" else "lines"))
+
+
 def grid_frames(params: dict):
     """(grid GeoDataFrame, labels GeoDataFrame, ground step, CRS) for the algorithm's params."""
     import geopandas as gpd
@@ -31,6 +51,7 @@ def grid_frames(params: dict):
     step = ground_step(params["SCALE"], params["MAP_STEP"])
     arm = ground_step(params["SCALE"], params["CROSS_SIZE"]) / 2.0
     sheets, crs = sheet_polygons(params)
+    guard_grid(sheets, step, params["STYLE"], params["SCALE"], params["MAP_STEP"])
     rows, label_rows = [], []
     for sheet_id, polygon in sheets:
         grid = map_grid(polygon.bounds, step, params["STYLE"], arm)

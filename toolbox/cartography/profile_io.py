@@ -5,11 +5,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from toolbox.cartography.profile import (
     bilinear,
+    chainage_of_vertices,
     contour_crossings,
     points_at,
     sample_stations,
@@ -77,13 +79,39 @@ def line_parts(frame) -> list[np.ndarray]:
             for p in shapely.get_parts(g) if not p.is_empty]
 
 
+def guard_profile_size(lines: list[np.ndarray], mode: str, step: float, spacing: float,
+                       half_width: float) -> None:
+    """Refuse before sampling when the stations (the lines' length / ``step``, or for sections
+    their number, length / ``spacing``, times 2·``half_width`` / ``step``) are too many."""
+    from toolbox.limits import check_size
+
+    if mode == "contours":
+        return
+    length = float(sum(chainage_of_vertices(xy)[-1] for xy in lines))
+    if mode == "step":
+        check_size("vertices", length / step + len(lines), "STEP",
+                   f"{step:g} along {length:,.0f} units of lines", "use a larger STEP")
+        return
+    sections = length / spacing + len(lines)
+    check_size("features", sections, "SPACING", f"{spacing:g} along {length:,.0f} units of "
+               "lines", "use a larger SPACING", "sections")
+    check_size("vertices", sections * (2 * half_width / step + 2), "STEP",
+               f"{step:g} across {sections:,.0f} sections {2 * half_width:g} wide",
+               "use a larger STEP (or SPACING, or a smaller HALF_WIDTH)")
+
+
 def sample_profiles(lines: list[np.ndarray], mode: str, step: float, surface: Surface | None,
                     contours=None, spacing: float = 0.0, half_width: float = 0.0
                     ) -> list[Profile]:
     """Profiles of every line (``mode`` step / contours) or sections along every line as an
     axis (``mode`` sections)."""
+    from toolbox.errors import InputDataError
+
     out = []
     for i, xy in enumerate(lines, start=1):
+        if not chainage_of_vertices(xy)[-1] > 0:
+            raise InputDataError(f"INPUT line {i} has zero length (every vertex at one point, "
+                                 f"{len(xy)} vertices): no profile along it; remove or fix it")
         if mode == "contours":
             geoms, levels = contours
             ch, pts, hs = contour_crossings(xy, geoms, levels)
@@ -129,16 +157,37 @@ def profile_frames(profiles: list[Profile], crs):
     return points, line_frame
 
 
+def layer_title(layer: Any) -> str:
+    """A layer's name for a title: the file name (and ``layername``), never a machine path."""
+    if layer is None:
+        return ""
+    path, name = getattr(layer, "path", None), getattr(layer, "layer", None)
+    if path is None and getattr(layer, "frame", None) is not None:
+        return "the input layer"
+    text = str(path if path is not None else layer)
+    base, _, options = text.partition("|")
+    title = Path(base).name
+    name = name or next((o.split("=", 1)[1] for o in options.split("|")
+                         if o.startswith("layername=")), None)
+    return f"{title} ({name})" if name and name != Path(base).stem else title
+
+
 def plot_profiles(profiles: list[Profile], path: str | Path, title: str = "",
-                  max_panels: int = 12) -> None:
+                  max_panels: int = 12) -> int:
     """Plot profiles (height against distance) to PNG or SVG: one panel per line, or small
-    multiples for sections (the first ``max_panels``)."""
+    multiples for sections (the first ``max_panels``; the title then says how many of how
+    many, and that all are in the GeoPackage). Returns the number of panels drawn."""
     import matplotlib
 
     matplotlib.use("Agg", force=False)
     import matplotlib.pyplot as plt
 
     shown = profiles[:max_panels]
+    if len(shown) < len(profiles):
+        what = "sections" if any(p.section for p in profiles) else "profiles"
+        note = (f"the first {len(shown)} of {len(profiles)} {what} shown; all are in the "
+                "GeoPackage")
+        title = f"{title}\n({note})" if title else note
     n = max(len(shown), 1)
     cols = 1 if n == 1 else min(3, n)
     rows = int(np.ceil(n / cols))
@@ -160,3 +209,4 @@ def plot_profiles(profiles: list[Profile], path: str | Path, title: str = "",
     fig.tight_layout()
     fig.savefig(path)
     plt.close(fig)
+    return len(shown)

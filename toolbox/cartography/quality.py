@@ -1,36 +1,101 @@
-"""The project quality report: figures and tables drawn only from the JSON run reports the
-algorithms write (and the residual files those reports name).
+"""The project quality report: a verdict per product against the specification's tolerances,
+then one section per kind of run, drawn only from the JSON run reports the algorithms write (and
+the residual files those reports name); nothing is recomputed.
 
-Sections, each present when its run reports are: interior orientation (residual vectors at the
-fiducial marks, per photo), rectification (residual vectors of control, check and rejected
-points; check-point RMSE against the orthophoto accuracy rule, S002 §2.6.6: RMS <= 0.3 or
-0.5 mm x the scale denominator), DEM cross-validation (RMSE per method, error histograms, a map
-of the best method's errors), topology (error and fix counts).
+The tolerances (:class:`Specification`), with their sources:
+
+- planimetric: the orthophoto rule RMS <= 0.3 mm (small scales) or 0.5 mm (large scales) x the
+  scale denominator (S002 §2.6.6), used for the orthophoto, rectification and orientation check
+  points;
+- heights: the contour interval of the map scale (S002 l.3278: 5 m at 1:5000) read as the
+  National Map Accuracy Standard's vertical rule, 90 % of the tested points within half the
+  interval, i.e. RMSE <= interval / (2 x 1.6449) (1.52 m for 5 m);
+- interior orientation: the largest fiducial residual <= a producer's threshold (default 15 µm,
+  about one scan pixel; no seed states one: set it to the tender's).
+
+Sections appear for the runs found: interior orientation, orientation (resection, absolute
+orientation, orientation check), rectification, orthophotos, DEM cross-validation, mosaic and
+seamlines, topology, then every warning of every run and the list of runs.
 """
 
 from __future__ import annotations
 
-import base64
-import io
+import csv
 import json
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+#: NMAS vertical rule: 90 % within half the contour interval; 1.6449 = the normal 90 % quantile
+NMAS_90 = 1.6449
+
+PASS, FAIL, NOT_CHECKED = "pass", "FAIL", "not checked"
+
+
+@dataclass(frozen=True)
+class Specification:
+    """The tolerances a delivery is judged by (see the module docstring for the sources)."""
+
+    map_scale: float = 5000.0  # scale denominator of the map and the orthophoto
+    ortho_rule_mm: float = 0.3  # S002 §2.6.6: 0.3 (small scales) or 0.5 (large scales) mm
+    contour_interval_m: float = 5.0  # S002 l.3278: 5 m at 1:5000
+    io_tolerance_um: float = 15.0  # producer's threshold for fiducial residuals
+
+    @property
+    def planimetric_m(self) -> float:
+        return self.ortho_rule_mm / 1000.0 * self.map_scale
+
+    @property
+    def height_rmse_m(self) -> float:
+        return self.contour_interval_m / (2.0 * NMAS_90)
+
+    def describe(self) -> str:
+        return (f"map scale 1:{self.map_scale:g}; planimetric RMS <= {self.ortho_rule_mm:g} mm x "
+                f"{self.map_scale:g} = {self.planimetric_m:.2f} m (S002 §2.6.6); height RMSE <= "
+                f"{self.height_rmse_m:.2f} m (contour interval {self.contour_interval_m:g} m, "
+                f"90 % within half of it); fiducial residuals <= {self.io_tolerance_um:g} µm")
+
+
+@dataclass
+class Verdict:
+    """One criterion of one product."""
+
+    product: str
+    criterion: str
+    measured: str
+    tolerance: str
+    status: str  # PASS, FAIL or NOT_CHECKED
+    source: str = ""
+
 
 @dataclass
 class Section:
-    """One part of the report: a title, rows of (label, value) and matplotlib figures."""
+    """A part of the report: blocks in reading order, each ``("table", header, rows)``,
+    ``("text", str)`` or ``("figure", matplotlib figure)``."""
 
     key: str
     title: str
-    rows: list[tuple[str, str]] = field(default_factory=list)
-    figures: list[Any] = field(default_factory=list)
-    notes: list[str] = field(default_factory=list)
+    blocks: list[tuple] = field(default_factory=list)
+
+    def table(self, header: list[str], rows: list[list[str]]) -> None:
+        if rows:
+            self.blocks.append(("table", header, rows))
+
+    def text(self, text: str) -> None:
+        self.blocks.append(("text", text))
+
+    def figure(self, fig: Any) -> None:
+        self.blocks.append(("figure", fig))
+
+    @property
+    def figures(self) -> list:
+        return [b[1] for b in self.blocks if b[0] == "figure"]
 
 
+# -- reading the run reports ---------------------------------------------------------------------
 def load_reports(folder: str | Path) -> dict[str, list[tuple[str, dict]]]:
     """Run reports of a folder by algorithm id: ``{id: [(step name, report), ...]}``."""
     out: dict[str, list[tuple[str, dict]]] = {}
@@ -48,6 +113,24 @@ def _stats(report: dict) -> dict:
     return report.get("outputs", {}).get("STATISTICS") or {}
 
 
+_PATH = re.compile(r"(?:[A-Za-z]:)?(?:[\\/][^\s\\/'\",;:()]+)+[\\/]([^\s\\/'\",;:()]+)")
+
+
+def without_paths(text: str) -> str:
+    """``text`` with absolute file paths reduced to their file names (no machine paths)."""
+    return _PATH.sub(lambda m: m.group(1), str(text))
+
+
+def _fmt(value: Any, unit: str = "", digits: int = 3) -> str:
+    if value is None:
+        return "n/a"
+    return f"{float(value):.{digits}f}{(' ' + unit) if unit else ''}"
+
+
+def _judge(value: float | None, limit: float) -> str:
+    return NOT_CHECKED if value is None else (PASS if value <= limit else FAIL)
+
+
 def _plt():
     import matplotlib
 
@@ -57,86 +140,168 @@ def _plt():
     return plt
 
 
-def _fmt(value: float, unit: str = "", digits: int = 3) -> str:
-    return "n/a" if value is None else f"{value:.{digits}f}{(' ' + unit) if unit else ''}"
-
-
 # -- sections ------------------------------------------------------------------------------------
-def interior_section(runs: list[tuple[str, dict]]) -> Section:
-    import csv
-
+def interior_section(runs, spec: Specification, verdicts: list[Verdict]) -> Section:
     plt = _plt()
     sec = Section("interior", "Interior orientation")
-    for name, report in runs:
+    sec.text("Each scanned photo is tied to its camera's calibrated fiducial marks by a plane "
+             "transformation; the residuals at the marks measure the scan and the measurement.")
+    for _name, report in runs:
         stats = _stats(report)
-        sec.rows += [(f"{name}: photos", str(stats.get("photos"))),
-                     (f"{name}: max residual", _fmt(stats.get("max_residual_mm"), "mm", 4)),
-                     (f"{name}: max sigma0", _fmt(stats.get("max_sigma0_mm"), "mm", 4))]
+        worst_um = None if stats.get("max_residual_mm") is None else \
+            1000.0 * stats["max_residual_mm"]
+        verdicts.append(Verdict("Interior orientation", "largest fiducial residual",
+                                _fmt(worst_um, "µm", 1), f"<= {spec.io_tolerance_um:g} µm",
+                                _judge(worst_um, spec.io_tolerance_um),
+                                "producer's threshold"))
         csv_path = report["outputs"].get("RESIDUALS")
         if not csv_path or not Path(csv_path).exists():
-            sec.notes.append(f"{name}: no residual table, no vector plot")
+            sec.table(["Photos", "Largest residual", "Largest sigma0"],
+                      [[str(stats.get("photos")), _fmt(worst_um, "µm", 1),
+                        _fmt(1000 * (stats.get("max_sigma0_mm") or 0), "µm", 1)]])
+            sec.text("No residual table was written, so no vector plot.")
             continue
         by_photo: dict[str, list[dict]] = {}
         with open(csv_path, newline="", encoding="utf-8") as f:
             for row in csv.DictReader(f):
                 by_photo.setdefault(row["photo"], []).append(row)
+        rows = []
+        for photo, marks in sorted(by_photo.items()):
+            res = np.array([float(r["res_mm"]) for r in marks]) * 1000.0
+            rows.append([photo, marks[0].get("transformation", ""), str(len(marks)),
+                         f"{np.sqrt(np.mean(res ** 2)):.1f} µm", f"{res.max():.1f} µm",
+                         PASS if res.max() <= spec.io_tolerance_um else FAIL])
+        sec.table(["Photo", "Transformation", "Marks", "RMS residual", "Largest", "Verdict"],
+                  rows)
         photos = sorted(by_photo)
         cols = min(3, len(photos))
         nrows = int(np.ceil(len(photos) / cols))
-        fig, axes = plt.subplots(nrows, cols, figsize=(3.3 * cols, 3.3 * nrows),
-                                 squeeze=False)
-        res_max = max(float(r["res_mm"]) for rows in by_photo.values() for r in rows) or 1.0
+        fig, axes = plt.subplots(nrows, cols, figsize=(2.4 * cols, 2.4 * nrows), squeeze=False)
+        res_max = max(float(r["res_mm"]) for rows_ in by_photo.values() for r in rows_) or 1.0
+        k = 1.0
         for ax, photo in zip(axes.ravel(), photos):
-            rows = by_photo[photo]
-            x = np.array([float(r["x_mm"]) for r in rows])
-            y = np.array([float(r["y_mm"]) for r in rows])
-            dx = np.array([float(r["res_x_mm"]) for r in rows])
-            dy = np.array([float(r["res_y_mm"]) for r in rows])
+            marks = by_photo[photo]
+            x = np.array([float(r["x_mm"]) for r in marks])
+            y = np.array([float(r["y_mm"]) for r in marks])
+            dx = np.array([float(r["res_x_mm"]) for r in marks])
+            dy = np.array([float(r["res_y_mm"]) for r in marks])
             span = max(np.ptp(x), np.ptp(y), 1.0)
-            k = 0.15 * span / res_max  # the largest residual drawn 15% of the frame
+            k = 0.15 * span / res_max  # the largest residual drawn 15 % of the frame
             ax.quiver(x, y, dx * k, dy * k, angles="xy", scale_units="xy", scale=1,
                       color="#c0392b", width=0.012)
             ax.plot(x, y, "k+", ms=6)
-            ax.set_title(f"{photo}: max {np.hypot(dx, dy).max() * 1000:.1f} µm", fontsize=8)
+            ax.set_title(f"{photo}: largest {np.hypot(dx, dy).max() * 1000:.1f} µm", fontsize=8)
             ax.set_aspect("equal")
             ax.set_xlim(x.min() - 0.25 * span, x.max() + 0.25 * span)
             ax.set_ylim(y.min() - 0.25 * span, y.max() + 0.25 * span)
             ax.tick_params(labelsize=6)
         for ax in axes.ravel()[len(photos):]:
             ax.set_visible(False)
-        fig.suptitle(f"Residual vectors at the fiducial marks (x{k:.0f}; photo coordinates, "
-                     "mm)", fontsize=9)
+        fig.suptitle(f"Residual vectors at the fiducial marks, enlarged {k:.0f} times "
+                     "(photo coordinates, mm)", fontsize=8)
         fig.tight_layout()
-        sec.figures.append(fig)
+        sec.figure(fig)
     return sec
 
 
-def rectification_section(runs: list[tuple[str, dict]], ortho_scale: float,
-                          rule_mm: float) -> Section:
+_NOT_RESECTED = re.compile(r"photo (\S+): (\d+) control point")
+
+
+def orientation_section(reports, spec: Specification, verdicts: list[Verdict]) -> Section | None:
+    sec = Section("orientation", "Orientation of the photos")
+    for name, report in reports.get("orientation:resection", []):
+        stats = _stats(report)
+        sigma = stats.get("sigma0_um") or {}
+        missing = [m.group(1) for w in report.get("warnings") or [] for m in
+                   [_NOT_RESECTED.search(w)] if m]
+        sec.text(f"Space resection ({name}): {len(sigma)} photo(s) oriented from control "
+                 "points." + (f" Not oriented (fewer than 4 control points): "
+                              f"{', '.join(missing)}." if missing else ""))
+        sec.table(["Photo", "sigma0 a posteriori"],
+                  [[p, f"{s:.1f} µm"] for p, s in sorted(sigma.items())])
+        verdicts.append(Verdict("Orientation", "photos oriented",
+                                f"{len(sigma)} of {len(sigma) + len(missing)}",
+                                "all photos", FAIL if missing else PASS, "completeness"))
+    for name, report in reports.get("orientation:absolute", []):
+        stats = _stats(report)
+        check = stats.get("check_rmse_xyz")
+        rows = [["Control points", str(stats.get("control_points"))],
+                ["Model scale", f"1:{stats['scale']:.0f}" if stats.get("scale") else "n/a"]]
+        if check:
+            xy = float(np.hypot(check[0], check[1]))
+            rows += [["Check points RMSE, planimetric", _fmt(xy, "m")],
+                     ["Check points RMSE, height", _fmt(check[2], "m")]]
+            verdicts.append(Verdict("Absolute orientation", "check points, planimetric RMSE",
+                                    _fmt(xy, "m"), f"<= {spec.planimetric_m:.2f} m",
+                                    _judge(xy, spec.planimetric_m), "S002 §2.6.6"))
+        sec.text(f"Absolute orientation of the stereo model ({name}).")
+        sec.table(["Quantity", "Value"], rows)
+    for name, report in reports.get("orientation:bundle", []):
+        stats = _stats(report)
+        control, check = stats.get("control_rmse_m") or {}, stats.get("check_rmse_m") or {}
+
+        def plan(rmse: dict) -> float | None:
+            return float(np.hypot(rmse["x"], rmse["y"])) if "x" in rmse and "y" in rmse else None
+
+        sec.text(f"Aerial triangulation ({name}): one bundle adjustment of {stats.get('photos')} "
+                 f"photos and {stats.get('points')} tie points; sigma0 a posteriori "
+                 f"{_fmt(stats.get('sigma0'), digits=2)} (1 when the a priori sigmas are right), "
+                 f"redundancy {stats.get('redundancy')}, {stats.get('rejected')} observations "
+                 f"rejected as gross errors, {stats.get('flagged')} flagged.")
+        sec.table(["Quantity", "Control points", "Check points"], [
+            ["RMSE, planimetric", _fmt(plan(control), "m"), _fmt(plan(check), "m")],
+            ["RMSE, height", _fmt(control.get("z"), "m"), _fmt(check.get("z"), "m")]])
+        for label, value, limit in (("planimetric", plan(check), spec.planimetric_m),
+                                    ("height", check.get("z"), spec.height_rmse_m)):
+            verdicts.append(Verdict("Aerial triangulation", f"check points, {label} RMSE",
+                                    _fmt(value, "m"), f"<= {limit:.2f} m", _judge(value, limit),
+                                    "S002 §2.6.6" if label == "planimetric" else "NMAS"))
+    for name, report in reports.get("orientation:check", []):
+        stats = _stats(report)
+        sec.text(f"Orientation check ({name}): control and check points projected into every "
+                 "photo that sees them; the image residuals and the ground misclosure of the "
+                 "intersected points.")
+        sec.table(["Quantity", "Control points", "Check points"], [
+            ["Points", str(stats.get("control_points")), str(stats.get("check_points"))],
+            ["RMSE, planimetric", _fmt(stats.get("control_rmse_xy_m"), "m"),
+             _fmt(stats.get("check_rmse_xy_m"), "m")],
+            ["RMSE, height", _fmt(stats.get("control_rmse_z_m"), "m"),
+             _fmt(stats.get("check_rmse_z_m"), "m")]])
+        sec.table(["Image observations", "RMS residual", "Flagged (over the threshold)"],
+                  [[str(stats.get("observations")), _fmt(stats.get("rmse_um"), "µm", 1),
+                    f"{stats.get('flagged')} (> {stats.get('threshold_px')} px)"]])
+        for label, key, limit in (("planimetric", "check_rmse_xy_m", spec.planimetric_m),
+                                  ("height", "check_rmse_z_m", spec.height_rmse_m)):
+            verdicts.append(Verdict("Orientation", f"check points, {label} RMSE",
+                                    _fmt(stats.get(key), "m"), f"<= {limit:.2f} m",
+                                    _judge(stats.get(key), limit),
+                                    "S002 §2.6.6" if label == "planimetric" else "NMAS"))
+    return sec if sec.blocks else None
+
+
+def rectification_section(runs, spec: Specification, verdicts: list[Verdict]) -> Section:
     plt = _plt()
-    sec = Section("rectification", "Rectification and orthophoto accuracy")
-    tolerance = rule_mm / 1000.0 * ortho_scale
-    for name, report in runs:
+    sec = Section("rectification", "Rectification accuracy")
+    tolerance = spec.planimetric_m
+    for _name, report in runs:
         stats = _stats(report)
         check = stats.get("check") or {}
         rmse_check = check.get("rmse")
-        sec.rows += [(f"{name}: model", str(stats.get("model"))),
-                     (f"{name}: control / check points",
-                      f"{stats.get('used_points')} / {stats.get('check_points')}"),
-                     (f"{name}: rejected", ", ".join(stats.get("rejected_points") or [])
-                      or "none"),
-                     (f"{name}: RMSE control x / y", f"{_fmt(stats.get('rmse_x'), 'm')} / "
-                                                    f"{_fmt(stats.get('rmse_y'), 'm')}"),
-                     (f"{name}: RMSE check points", _fmt(rmse_check, "m"))]
-        if rmse_check is not None:
-            verdict = "meets" if rmse_check <= tolerance else "FAILS"
-            sec.rows.append((f"{name}: accuracy rule",
-                             f"{verdict} RMS <= {rule_mm} mm x {ortho_scale:g} = "
-                             f"{tolerance:.2f} m (S002 §2.6.6)"))
+        sec.table(["Quantity", "Value"], [
+            ["Model", str(stats.get("model"))],
+            ["Control points used / check points",
+             f"{stats.get('used_points')} / {stats.get('check_points')}"],
+            ["Rejected as gross errors", ", ".join(stats.get("rejected_points") or []) or "none"],
+            ["Control RMSE east / north", f"{_fmt(stats.get('rmse_x'), 'm')} / "
+                                          f"{_fmt(stats.get('rmse_y'), 'm')}"],
+            ["Check points RMSE", _fmt(rmse_check, "m")]])
+        verdicts.append(Verdict("Rectified photo", "check points RMSE", _fmt(rmse_check, "m"),
+                                f"<= {tolerance:.2f} m", _judge(rmse_check, tolerance),
+                                "S002 §2.6.6"))
         points = stats.get("points") or []
         if not points:
             continue
-        fig, (ax, bx) = plt.subplots(1, 2, figsize=(10, 4.2),
+        fig, (ax, bx) = plt.subplots(1, 2, figsize=(9, 3.8),
                                      gridspec_kw={"width_ratios": [1.4, 1]})
         colours = {"control": "#2471a3", "check": "#1e8449", "rejected": "#c0392b"}
         good = [p for p in points if p["role"] != "rejected"]
@@ -161,58 +326,96 @@ def rectification_section(runs: list[tuple[str, dict]], ortho_scale: float,
                             textcoords="offset points")
         ax.set_aspect("equal")
         ax.legend(fontsize=7, loc="best")
-        ax.set_title(f"{name}: ground residuals (x{k:.0f}; rejected not to scale)", fontsize=8)
-        ax.set_xlabel(f"E - {origin[0]:.0f} (m)", fontsize=7)
-        ax.set_ylabel(f"N - {origin[1]:.0f} (m)", fontsize=7)
+        ax.set_title(f"Ground residuals, enlarged {k:.0f} times (rejected: direction only)",
+                     fontsize=8)
+        ax.set_xlabel(f"east - {origin[0]:.0f} (m)", fontsize=7)
+        ax.set_ylabel(f"north - {origin[1]:.0f} (m)", fontsize=7)
         ax.tick_params(labelsize=6)
-        ids = [p["id"] for p in good]
-        norms = [p["residual_ground_norm"] for p in good]
-        bx.bar(ids, norms, color=[colours[p["role"]] for p in good])
+        bx.bar([p["id"] for p in good], [p["residual_ground_norm"] for p in good],
+               color=[colours[p["role"]] for p in good])
         bx.axhline(tolerance, color="#c0392b", ls="--", lw=1,
-                   label=f"rule {rule_mm} mm x {ortho_scale:g} = {tolerance:.2f} m")
+                   label=f"tolerance {tolerance:.2f} m")
         if rmse_check is not None:
             bx.axhline(rmse_check, color="#1e8449", ls=":", lw=1,
                        label=f"check RMSE {rmse_check:.3f} m")
         bx.set_ylabel("residual (m)", fontsize=7)
         bx.tick_params(labelsize=6)
         bx.legend(fontsize=6)
-        bx.set_title("residual per point", fontsize=8)
+        bx.set_title("Residual per point", fontsize=8)
         fig.tight_layout()
-        sec.figures.append(fig)
+        sec.figure(fig)
     return sec
 
 
-def dem_section(runs: list[tuple[str, dict]]) -> Section:
+def ortho_section(reports, spec: Specification, verdicts: list[Verdict]) -> Section | None:
+    sec = Section("ortho", "Orthophotos")
+    rows = []
+    failed = []
+    for _name, report in reports.get("ortho:photo", []):
+        s = _stats(report)
+        rows.append([str(s.get("photo")), _fmt(s.get("cell_size"), "m", 2),
+                     _fmt(s.get("photo_gsd_m"), "m", 2),
+                     _fmt(s.get("max_relief_displacement_m"), "m", 1),
+                     f"{100 * (s.get('outside_photo_fraction') or 0):.0f} %"])
+    for name, report in reports.get("ortho:batch", []):
+        s = _stats(report)
+        failed += [f"{name}: {s.get('failed')} of {s.get('photos')} photos failed"] \
+            if s.get("failed") else []
+        rows.append([f"{name} (block)", _fmt(s.get("cell_size"), "m", 2), "", "",
+                     f"{s.get('done')} of {s.get('photos')} photos written"])
+    if not rows:
+        return None
+    sec.text("Orthophotos on the DEM. Their accuracy combines the orientation's and the DEM's: "
+             f"the rule is a planimetric RMS <= {spec.planimetric_m:.2f} m on check points "
+             "measured on the orthophoto.")
+    sec.table(["Photo", "Cell", "Photo GSD", "Largest relief shift", "Outside the photo"], rows)
+    verdicts.append(Verdict("Orthophotos", "all photos orthorectified",
+                            "; ".join(failed) or "all written", "no failure",
+                            FAIL if failed else PASS, "completeness"))
+    verdicts.append(Verdict("Orthophotos", "planimetric RMSE on check points", "not measured",
+                            f"<= {spec.planimetric_m:.2f} m", NOT_CHECKED, "S002 §2.6.6"))
+    return sec
+
+
+def dem_section(runs, spec: Specification, verdicts: list[Verdict]) -> Section:
     plt = _plt()
-    sec = Section("dem", "DEM cross-validation (leave one out: predicted - observed)")
-    for name, report in runs:
+    sec = Section("dem", "DEM cross-validation")
+    sec.text("Leave one out: each height point is predicted from the others; error = predicted "
+             "- observed.")
+    for _name, report in runs:
         methods = _stats(report).get("methods") or {}
         if not methods:
             continue
-        for method, m in methods.items():
-            sec.rows.append((f"{name}: {method}", f"RMSE {_fmt(m.get('rmse'), 'm')}, mean "
-                             f"{_fmt(m.get('mean_error'), 'm')}, max |e| "
-                             f"{_fmt(m.get('max_abs_error'), 'm')}, {m.get('predicted')} pts"))
         best = _stats(report).get("best") or min(methods, key=lambda k: methods[k]["rmse"])
-        sec.rows.append((f"{name}: best", str(best)))
-        fig, ax = plt.subplots(figsize=(6, 2.8))
+        sec.table(["Method", "RMSE", "Mean error", "Largest |error|", "Points predicted"],
+                  [[m + (" (best)" if m == best else ""), _fmt(v.get("rmse"), "m"),
+                    _fmt(v.get("mean_error"), "m"), _fmt(v.get("max_abs_error"), "m"),
+                    str(v.get("predicted"))] for m, v in methods.items()])
+        rmse = methods[best].get("rmse")
+        verdicts.append(Verdict("DEM", f"height RMSE of the best method ({best})",
+                                _fmt(rmse, "m"), f"<= {spec.height_rmse_m:.2f} m",
+                                _judge(rmse, spec.height_rmse_m), "NMAS, contour interval"))
+        fig, ax = plt.subplots(figsize=(6, 2.4))
         names = list(methods)
         ax.bar(names, [methods[k]["rmse"] for k in names],
                color=["#1e8449" if k == best else "#7f8c8d" for k in names])
+        ax.axhline(spec.height_rmse_m, color="#c0392b", ls="--", lw=1,
+                   label=f"tolerance {spec.height_rmse_m:.2f} m")
         ax.set_ylabel("RMSE (m)", fontsize=7)
-        ax.set_title(f"{name}: RMSE by method", fontsize=8)
+        ax.set_title("RMSE by method", fontsize=8)
+        ax.legend(fontsize=6)
         ax.tick_params(labelsize=7)
         fig.tight_layout()
-        sec.figures.append(fig)
+        sec.figure(fig)
         path = report["outputs"].get("RESIDUALS")
         if not path or not Path(path).exists():
-            sec.notes.append(f"{name}: no residual points, no histogram or map")
+            sec.text("No residual points were written, so no histogram or map.")
             continue
         import geopandas as gpd
 
         pts = gpd.read_file(path)
-        cols = [f"{k}_err" for k in names if f"{k}_err" in pts.columns]
-        fig, axes = plt.subplots(1, 2, figsize=(10, 4.0))
+        cols = [f"{k}_err" for k in methods if f"{k}_err" in pts.columns]
+        fig, axes = plt.subplots(1, 2, figsize=(9, 3.6))
         errors = [pts[c].dropna().to_numpy() for c in cols]
         lim = max((np.percentile(np.abs(e), 99.5) for e in errors if e.size), default=1.0)
         bins = np.linspace(-lim, lim, 41)
@@ -222,21 +425,76 @@ def dem_section(runs: list[tuple[str, dict]]) -> Section:
         axes[0].set_xlabel("error (m)", fontsize=7)
         axes[0].set_ylabel("points", fontsize=7)
         axes[0].legend(fontsize=6)
-        axes[0].set_title("error histograms", fontsize=8)
+        axes[0].set_title("Error histograms by method", fontsize=8)
         e = pts[f"{best}_err"]
         ok = e.notna().to_numpy()
         x, y = pts.geometry.x.to_numpy()[ok], pts.geometry.y.to_numpy()[ok]
-        sc = axes[1].scatter(x - x.min(), y - y.min(), c=e[ok], s=3, cmap="RdBu_r",
-                             vmin=-lim, vmax=lim)
-        fig.colorbar(sc, ax=axes[1], label="error (m)")
+        scatter = axes[1].scatter(x - x.min(), y - y.min(), c=e[ok], s=3, cmap="RdBu_r",
+                                  vmin=-lim, vmax=lim)
+        fig.colorbar(scatter, ax=axes[1], label="error (m)")
         axes[1].set_aspect("equal")
         axes[1].set_title(f"{best}: errors on the ground (from E {x.min():.0f}, "
                           f"N {y.min():.0f})", fontsize=8)
         for a in axes:
             a.tick_params(labelsize=6)
         fig.tight_layout()
-        sec.figures.append(fig)
+        sec.figure(fig)
     return sec
+
+
+def mosaic_section(reports, verdicts: list[Verdict]) -> Section | None:
+    sec = Section("mosaic", "Mosaic and seamlines")
+    for name, report in reports.get("mosaic:seamlines", []):
+        s = _stats(report)
+        sec.text(f"Seamlines ({name}): method {s.get('method')}, {s.get('orthos')} orthophotos.")
+        sec.table(["Orthophoto", "Area it supplies"],
+                  [[k, f"{v / 1e4:.2f} ha"] for k, v in (s.get("cut_areas") or {}).items()])
+        sec.table(["Seam between", "Method", "Vertices", "Pieces"],
+                  [[f"{r['a']} / {r['b']}", str(r.get("method")), str(r.get("vertices")),
+                    str(r.get("pieces"))] for r in s.get("seams") or []])
+        gap, overlap = s.get("partition_gap_area"), s.get("max_overlap_area")
+        if gap is not None and overlap is not None:
+            worst = max(gap, overlap)
+            verdicts.append(Verdict("Mosaic", "gaps and overlaps between the orthophotos' parts",
+                                    f"{worst:.3g} m²", "<= 1 m²", _judge(worst, 1.0),
+                                    "a partition of the area"))
+    for name, report in reports.get("mosaic:build", []):
+        s = _stats(report)
+        cells = s.get("cells_per_source") or {}
+        sec.text(f"Mosaic ({name}): {s.get('width')} x {s.get('height')} cells of "
+                 f"{s.get('cell_size')} m, blend {s.get('blend')}, {s.get('empty_cells')} cells "
+                 "without data.")
+        sec.table(["Orthophoto", "Cells it supplies"], [[k, f"{v:,}"] for k, v in cells.items()])
+    return sec if sec.blocks else None
+
+
+#: plain words for the topology check's counters
+TOPOLOGY_LABELS = {
+    "snap.ends_to_node": "line ends snapped to a node",
+    "snap.ends_to_vertex": "line ends snapped to a vertex",
+    "snap.ends_to_segment": "line ends snapped onto a line",
+    "snap.collapsed_lines": "lines collapsed by snapping",
+    "close.closed": "rings closed",
+    "node.edges": "edges after noding",
+    "node.crossings_noded": "crossings split into nodes",
+    "node.self_intersections_noded": "self-intersections split",
+    "duplicates.exact_duplicate_lines": "duplicate lines removed",
+    "duplicates.overlapping_pieces": "overlapping pieces removed",
+    "dangles.overshoots_trimmed": "overshoots trimmed",
+    "dangles.dangles_removed": "dangling lines removed",
+    "dangles.dangles_kept": "dangling lines kept (errors)",
+    "dangles.unclosed_lines": "lines left open (errors)",
+    "polygonize.faces": "areas formed",
+    "slivers.merged": "sliver areas merged",
+    "slivers.dropped": "sliver areas dropped",
+    "labels.labels": "area labels",
+    "labels.labelled_areas": "labelled areas",
+    "labels.unlabelled_areas": "areas without a label",
+    "labels.conflicting_areas": "areas with conflicting labels",
+    "labels.labels_outside": "labels outside every area",
+    "output.errors": "errors left",
+    "output.fixable": "fixed automatically",
+}
 
 
 def _numeric_leaves(stats: dict, prefix: str = "") -> dict[str, float]:
@@ -252,129 +510,110 @@ def _numeric_leaves(stats: dict, prefix: str = "") -> dict[str, float]:
     return out
 
 
-def topology_section(runs: list[tuple[str, dict]]) -> Section:
+def topology_section(runs, verdicts: list[Verdict]) -> Section:
     plt = _plt()
-    sec = Section("topology", "Topology")
+    sec = Section("topology", "Topology of the linework")
     for name, report in runs:
         counts = {k: v for k, v in _numeric_leaves(_stats(report)).items()
                   if not k.startswith("input.") and not k.endswith("_length")}
         if not counts:
             continue
         errors = counts.get("output.errors")
-        sec.rows.append((f"{name}: errors left", "n/a" if errors is None else f"{errors:.0f}"))
-        sec.rows.append((f"{name}: fixed automatically", _fmt(counts.get("output.fixable"),
-                                                              digits=0)))
+        verdicts.append(Verdict("Topology", "errors left in the linework",
+                                "n/a" if errors is None else f"{errors:.0f}", "0",
+                                _judge(errors, 0.0), "a clean area topology"))
+        label = {k: TOPOLOGY_LABELS.get(k, k.split(".")[-1].replace("_", " ")) for k in counts}
         shown = {k: v for k, v in counts.items() if v > 0}
-        fig, ax = plt.subplots(figsize=(7, 0.25 * len(shown) + 1.2))
+        sec.table(["What the check found or did", "Count"],
+                  [[label[k], f"{v:.0f}"] for k, v in shown.items()])
+        fig, ax = plt.subplots(figsize=(7, 0.2 * len(shown) + 1.0))
         keys = list(shown)[::-1]
-        ax.barh(keys, [shown[k] for k in keys], color=["#c0392b" if k == "output.errors"
-                                                       else "#5d6d7e" for k in keys])
+        ax.barh([label[k] for k in keys], [shown[k] for k in keys],
+                color=["#c0392b" if k == "output.errors" else "#5d6d7e" for k in keys])
         ax.set_xlabel("count", fontsize=7)
         ax.tick_params(labelsize=6)
         ax.set_title(f"{name}: what the topology check found and fixed", fontsize=8)
         fig.tight_layout()
-        sec.figures.append(fig)
+        sec.figure(fig)
     return sec
 
 
-def build_sections(reports: dict[str, list[tuple[str, dict]]], ortho_scale: float,
-                   rule_mm: float) -> list[Section]:
-    sections = []
+def warnings_section(reports) -> Section:
+    sec = Section("warnings", "Every warning of every run")
+    rows = [[name, without_paths(w)] for _, runs in sorted(reports.items()) for name, report in
+            runs for w in report.get("warnings") or []]
+    if rows:
+        sec.table(["Run", "Warning"], rows)
+    else:
+        sec.text("No run gave a warning.")
+    return sec
+
+
+def runs_section(reports) -> Section:
+    sec = Section("runs", "Runs in this report")
+    sec.table(["Run", "Algorithm", "Time", "Warnings"],
+              [[name, f"{report.get('display_name') or alg} ({alg})",
+                f"{report.get('elapsed_s', 0):.1f} s", str(len(report.get("warnings") or []))]
+               for alg, runs in sorted(reports.items()) for name, report in runs])
+    return sec
+
+
+def build_sections(reports, spec: Specification) -> tuple[list[Verdict], list[Section]]:
+    """The verdicts and the sections for the runs found (a section only where it has content)."""
+    verdicts: list[Verdict] = []
+    sections: list[Section | None] = []
     if reports.get("orientation:interior"):
-        sections.append(interior_section(reports["orientation:interior"]))
+        sections.append(interior_section(reports["orientation:interior"], spec, verdicts))
+    sections.append(orientation_section(reports, spec, verdicts))
     if reports.get("rectify:estimate"):
-        sections.append(rectification_section(reports["rectify:estimate"], ortho_scale,
-                                              rule_mm))
+        sections.append(rectification_section(reports["rectify:estimate"], spec, verdicts))
+    sections.append(ortho_section(reports, spec, verdicts))
     if reports.get("dem:cross_validate"):
-        sections.append(dem_section(reports["dem:cross_validate"]))
+        sections.append(dem_section(reports["dem:cross_validate"], spec, verdicts))
+    sections.append(mosaic_section(reports, verdicts))
     if reports.get("topology:check"):
-        sections.append(topology_section(reports["topology:check"]))
-    return [s for s in sections if s.rows or s.figures]
+        sections.append(topology_section(reports["topology:check"], verdicts))
+    kept = [s for s in sections if s is not None and any(b[0] != "text" for b in s.blocks)]
+    return verdicts, kept
 
 
-# -- writers -------------------------------------------------------------------------------------
-def _overview(reports: dict[str, list[tuple[str, dict]]]) -> list[tuple[str, str]]:
-    rows = []
-    for alg, runs in sorted(reports.items()):
-        for name, report in runs:
-            warnings = len(report.get("warnings") or [])
-            rows.append((name, f"{alg}, {report.get('elapsed_s', 0):.1f} s"
-                         + (f", {warnings} warning(s)" if warnings else "")))
-    return rows
+def verdict_section(verdicts: list[Verdict], spec: Specification, runs: int) -> Section:
+    failed = [v for v in verdicts if v.status == FAIL]
+    unchecked = [v for v in verdicts if v.status == NOT_CHECKED]
+    overall = ("NOT ACCEPTED: " + f"{len(failed)} criterion(s) failed" if failed else
+               "ACCEPTED" + (f", {len(unchecked)} criterion(s) not checked" if unchecked else ""))
+    sec = Section("verdict", "Verdict")
+    sec.text(f"Overall: {overall} ({len(verdicts)} criteria from {runs} runs).")
+    sec.text("Specification: " + spec.describe() + ".")
+    sec.table(["Product", "Criterion", "Measured", "Tolerance", "Verdict", "Source"],
+              [[v.product, v.criterion, v.measured, v.tolerance, v.status, v.source]
+               for v in verdicts])
+    return sec
 
 
-def write_pdf(path: str | Path, title: str, overview, sections: list[Section]) -> None:
-    from matplotlib.backends.backend_pdf import PdfPages
-
-    plt = _plt()
-    with PdfPages(path, metadata={"Title": title, "Creator": "photogrammetry-toolbox"}) as pdf:
-        for heading, rows, notes in [("Runs", overview, [])] + \
-                [(s.title, s.rows, s.notes) for s in sections]:
-            fig = plt.figure(figsize=(8.27, 11.69))
-            fig.text(0.08, 0.95, title if heading == "Runs" else heading, fontsize=14,
-                     fontweight="bold")
-            y = 0.91
-            if heading == "Runs":
-                fig.text(0.08, y, "Runs in this report", fontsize=10)
-                y -= 0.03
-            for label, value in rows:
-                fig.text(0.08, y, label, fontsize=7)
-                fig.text(0.45, y, value[:95], fontsize=7)
-                y -= 0.018
-                if y < 0.05:
-                    break
-            for note in notes:
-                fig.text(0.08, y, note, fontsize=7, style="italic")
-                y -= 0.018
-            pdf.savefig(fig)
-            plt.close(fig)
-            for s in sections:
-                if s.title == heading:
-                    for f in s.figures:
-                        pdf.savefig(f)
-
-
-def write_html(path: str | Path, title: str, overview, sections: list[Section]) -> None:
-    from html import escape
-
-    def table(rows):
-        return "<table>" + "".join(f"<tr><th>{escape(a)}</th><td>{escape(b)}</td></tr>"
-                                   for a, b in rows) + "</table>"
-
-    parts = [f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{escape(title)}"
-             "</title><style>body{font-family:sans-serif;max-width:1000px;margin:auto}"
-             "th{text-align:left;padding-right:1em;font-weight:normal;color:#555}"
-             "img{max-width:100%}</style></head><body>",
-             f"<h1>{escape(title)}</h1><h2>Runs</h2>", table(overview)]
-    for s in sections:
-        parts.append(f"<h2 id='{s.key}'>{escape(s.title)}</h2>{table(s.rows)}")
-        parts += [f"<p><em>{escape(n)}</em></p>" for n in s.notes]
-        for f in s.figures:
-            buf = io.BytesIO()
-            f.savefig(buf, format="png", dpi=110)
-            data = base64.b64encode(buf.getvalue()).decode("ascii")
-            parts.append(f"<figure class='{s.key}'><img src='data:image/png;base64,{data}'>"
-                         "</figure>")
-    parts.append("</body></html>")
-    Path(path).write_text("\n".join(parts), encoding="utf-8")
-
-
-def write_report(folder: str | Path, output: str | Path, title: str, ortho_scale: float,
-                 rule_mm: float) -> dict:
+def write_report(folder: str | Path, output: str | Path, title: str,
+                 spec: Specification | None = None) -> dict:
     """Build the report from the run reports in ``folder``; PDF or HTML by ``output``'s
     extension. Returns what it contains."""
+    from toolbox.cartography.quality_pages import write_html, write_pdf
+
+    spec = spec or Specification()
     plt = _plt()
     reports = load_reports(folder)
-    sections = build_sections(reports, ortho_scale, rule_mm)
-    overview = _overview(reports)
+    verdicts, sections = build_sections(reports, spec)
+    runs = sum(len(r) for r in reports.values())
+    everything = [verdict_section(verdicts, spec, runs), *sections, warnings_section(reports),
+                  runs_section(reports)]
     try:
         if str(output).lower().endswith(".html"):
-            write_html(output, title, overview, sections)
+            write_html(output, title, everything)
         else:
-            write_pdf(output, title, overview, sections)
+            write_pdf(output, title, everything)
     finally:
-        for s in sections:
+        for s in everything:
             for f in s.figures:
                 plt.close(f)
-    return {"runs": len(overview), "sections": [s.key for s in sections],
-            "figures": {s.key: len(s.figures) for s in sections}}
+    return {"runs": runs, "sections": [s.key for s in sections],
+            "figures": {s.key: len(s.figures) for s in sections},
+            "verdicts": [v.__dict__ for v in verdicts],
+            "accepted": not any(v.status == FAIL for v in verdicts)}

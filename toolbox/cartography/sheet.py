@@ -27,6 +27,11 @@ BASE_DPI = 200
 ISO_SHEETS = {"A4": (210.0, 297.0), "A3": (297.0, 420.0), "A2": (420.0, 594.0),
               "A1": (594.0, 841.0), "A0": (841.0, 1189.0)}
 PANEL_MIN_HEIGHT = 170.0  # mm the panel needs
+PANEL_MAX = 120.0  # mm, the panel's width where the paper leaves room
+MIN_TEXT_PT = 6.0  # no text smaller at print size
+SHADING_STRENGTH = 0.45  # a grey base (hillshade) keeps this share of its darkness
+CORNER_CLEAR = 8.0  # mm along the frame edge kept free of grid labels at each corner
+HEIGHT_FIELDS = ("z", "quota", "elev", "height", "h")  # spot-height value fields, in this order
 
 
 @dataclass
@@ -58,6 +63,9 @@ class SheetSpec:
     sources: list[str] = field(default_factory=list)
     paper: str = "auto"  # an ISO_SHEETS name or "auto"
     credits: str = ""
+    datum: str = ""
+    contour_interval: float | None = None  # m, stated in the title block and the legend
+    producer: str = ""
 
 
 @dataclass
@@ -68,6 +76,9 @@ class PageLayout:
     width: float
     height: float
     frame: tuple[float, float, float, float]  # left, bottom, width, height
+    panel_width: float = 78.0
+    band_bottom: float = 0.0  # the map and the panel share this band of the page
+    band_height: float = 0.0
 
     @property
     def panel_left(self) -> float:
@@ -98,9 +109,13 @@ def layout_page(spec: SheetSpec) -> PageLayout:
                              f"not fit on {spec.paper}")
         choice = ("custom", float(np.ceil(need_w)), float(np.ceil(need_h)))
     name, w, h = choice
-    left = MARGIN + LABEL_BAND
-    bottom = (h - max(map_h, PANEL_MIN_HEIGHT)) / 2.0
-    return PageLayout(name, w, h, (left, bottom, map_w, map_h))
+    panel = min(PANEL_MAX, PANEL + max(0.0, w - need_w) / 2.0)  # free width: half to the panel
+    content_w = need_w - PANEL + panel
+    left = max(0.0, (w - content_w) / 2.0) + MARGIN + LABEL_BAND
+    band = max(map_h, PANEL_MIN_HEIGHT)
+    band_bottom = (h - band) / 2.0
+    bottom = band_bottom + (band - map_h) / 2.0  # a small map sits mid-height, not in a corner
+    return PageLayout(name, w, h, (left, bottom, map_w, map_h), panel, band_bottom, band)
 
 
 def nice_length(max_ground: float) -> float:
@@ -157,11 +172,15 @@ class SheetRenderer:
         """Raster base: ``image`` (rows, cols) grey or (rows, cols, 3) RGB, ``extent`` (xmin,
         xmax, ymin, ymax) of its outer cell edges."""
         cmap = "gray" if image.ndim == 2 else None
+        if image.ndim == 2:  # relief shading is printed light under the linework
+            image = 255 - SHADING_STRENGTH * (255 - image.astype("float32"))
         self.ax.imshow(image, extent=extent, cmap=cmap, interpolation="bilinear",
                        origin="upper", zorder=0, vmin=0, vmax=255)
         self.ax.set_xlim(self.spec.bounds[0], self.spec.bounds[2])
         self.ax.set_ylim(self.spec.bounds[1], self.spec.bounds[3])
-        self.legend.append(("raster", name, "#999999", 0.0, None))
+        what = "relief shading" if image.ndim == 2 else "orthophoto"
+        self.legend.append(("raster", f"{what} ({name})", "#bbbbbb" if image.ndim == 2
+                            else "#7d8c6a", 0.0, None))
 
     def vector(self, style: LayerStyle) -> None:
         frame = style.frame
@@ -178,13 +197,37 @@ class SheetRenderer:
         if style.label_field and style.label_field in frame.columns:
             for geom, text in zip(frame.geometry, frame[style.label_field]):
                 p = geom.representative_point()
-                self.ax.text(p.x, p.y, str(text), fontsize=5, color=colour, ha="center",
-                             va="center", zorder=6, clip_on=True)
+                self.ax.text(p.x, p.y, str(text), fontsize=MIN_TEXT_PT, color=colour,
+                             ha="center", va="center", zorder=6, clip_on=True)
+        elif style.kind == "point":
+            self.spot_heights(frame, colour)
         entry = (style.kind, style.name, colour, style.width_mm,
-                 _hex(style.fill) if style.fill is not None else None)
+                 tuple(v / 255 for v in style.fill) if style.fill is not None else None)
         if entry not in self.legend:  # one code drawn from two layers: listed once
             self.legend.append(entry)
         self._restore_limits()
+
+    def spot_heights(self, frame, colour: str) -> None:
+        """Each point's height beside it (the Z of the geometry, else a height field), one
+        decimal: spot heights carry their value on a map."""
+        import shapely
+
+        lower = {c.lower(): c for c in frame.columns}
+        field = next((lower[f] for f in HEIGHT_FIELDS if f in lower), None)
+        coords = shapely.get_coordinates(frame.geometry.values, include_z=True)
+        use_z = len(coords) > 0 and bool(np.isfinite(coords[:, 2]).all())
+        if not use_z and field is None:
+            return
+        off = self._mm_to_ground(1.0)
+        for k, geom in enumerate(frame.geometry.values):
+            if geom is None or geom.is_empty:
+                continue
+            p = shapely.get_coordinates(geom, include_z=True)[0]
+            value = p[2] if use_z else frame[field].iloc[k]
+            if value is None or not np.isfinite(float(value)):
+                continue
+            self.ax.text(p[0] + off, p[1], f"{float(value):.1f}", fontsize=MIN_TEXT_PT,
+                         color=colour, ha="left", va="center", zorder=6, clip_on=True)
 
     def _restore_limits(self) -> None:
         self.ax.set_xlim(self.spec.bounds[0], self.spec.bounds[2])
@@ -224,11 +267,22 @@ class SheetRenderer:
                     angle = np.degrees(np.arctan2(b.y - a.y, b.x - a.x))
                     angle = (angle + 90.0) % 180.0 - 90.0  # upright text
                     p = part.interpolate(d)
-                    self.ax.text(p.x, p.y, f"{elev:.0f}", fontsize=5.5, color=colour,
+                    self.ax.text(p.x, p.y, f"{elev:.0f}", fontsize=MIN_TEXT_PT, color=colour,
                                  rotation=angle, rotation_mode="anchor", ha="center",
                                  va="center", zorder=5, path_effects=halo, clip_on=True)
-        self.legend.append(("line", "contour", colour, width_mm, None))
-        self.legend.append(("line", "index contour", colour, index_width_mm, None))
+        levels = np.unique(np.round(np.asarray(frame["elev"], dtype="float64"), 6))
+        steps = np.diff(levels)
+        interval = float(steps[steps > 0].min()) if (steps > 0).any() else None
+        if interval is not None and self.spec.contour_interval is None:
+            self.spec.contour_interval = interval
+        every = ""
+        if interval is not None and index.any():
+            index_levels = np.unique(np.asarray(frame["elev"])[index])
+            gaps = np.diff(index_levels)
+            every = f", every {gaps.min():g} m" if len(gaps) else ""
+        self.legend.append(("line", "contour" + (f", interval {interval:g} m"
+                                                  if interval else ""), colour, width_mm, None))
+        self.legend.append(("line", "index contour" + every, colour, index_width_mm, None))
         self._restore_limits()
 
     def grid(self, grid) -> None:
@@ -243,9 +297,14 @@ class SheetRenderer:
                                               linewidths=0.25 * PT_PER_MM, zorder=7))
         xmin, ymin, xmax, ymax = self.spec.bounds
         off = self._mm_to_ground(1.5)
+        clear = self._mm_to_ground(CORNER_CLEAR)
         for label in grid.labels:
             x, y, edge = label["x"], label["y"], label["edge"]
-            kw = dict(fontsize=6, clip_on=False, zorder=8)
+            along = x if edge in ("bottom", "top") else y
+            lo, hi = (xmin, xmax) if edge in ("bottom", "top") else (ymin, ymax)
+            if min(along - lo, hi - along) < clear:  # two edges' labels would collide here
+                continue
+            kw = dict(fontsize=MIN_TEXT_PT, clip_on=False, zorder=8)
             if edge == "bottom":
                 self.ax.text(x, ymin - off, label["text"], ha="center", va="top", **kw)
             elif edge == "top":
@@ -260,16 +319,36 @@ class SheetRenderer:
         self._restore_limits()
 
     # -- side panel ------------------------------------------------------------------------------
+    def title_rows(self) -> list[tuple[str, str]]:
+        """The title block: (key, value) rows; an empty key is the title."""
+        spec = self.spec
+        rows = [("", spec.title), ("sheet", spec.sheet_id), ("scale", f"1:{spec.scale:g}"),
+                ("CRS", spec.crs_label)]
+        if spec.datum:
+            rows.append(("datum", spec.datum))
+        if spec.contour_interval:
+            rows.append(("contour interval", f"{spec.contour_interval:g} m"))
+        rows += [("date", spec.date), ("sources", "; ".join(spec.sources))]
+        if spec.producer:
+            rows.append(("producer", spec.producer))
+        if spec.credits:
+            rows.append(("", spec.credits))
+        return rows
+
     def panel(self) -> dict:
-        """Legend, north arrow, scale bar and title block in the side panel. Returns the scale
-        bar's geometry (ground length, paper length in mm, left end in mm)."""
+        """North arrow, scale bar and legend from the top of the panel, the title block at its
+        foot; the panel spans the map's band. Returns the scale bar's geometry (ground length,
+        paper length in mm, left end in mm)."""
+        import textwrap
+
         from matplotlib.lines import Line2D
         from matplotlib.patches import Polygon, Rectangle
 
         fig = self.fig
         x0 = self.page.panel_left
-        frame_bottom = self.page.frame[1]
-        top = frame_bottom + max(self.page.frame[3], PANEL_MIN_HEIGHT)
+        width = self.page.panel_width
+        bottom = self.page.band_bottom
+        top = bottom + self.page.band_height
         text = dict(transform=fig.transFigure, fontsize=7, va="center")
         # north arrow (grid north: projected CRSs are drawn north-up)
         cx, cy = x0 + 10.0, top - 12.0
@@ -281,7 +360,7 @@ class SheetRenderer:
         fig.text(self._fx(cx), self._fy(cy + 12), "N", ha="center", transform=fig.transFigure,
                  fontsize=10, fontweight="bold", va="center")
         # scale bar: a nice ground length no longer than the panel
-        ground = nice_length(self._mm_to_ground(PANEL - 20.0))
+        ground = nice_length(self._mm_to_ground(min(width, PANEL_MAX) - 20.0))
         bar_mm = ground / self.spec.scale * 1000.0
         bx, by = x0 + 4.0, top - 34.0
         parts = 4 if ground / 4 >= 1 else 2
@@ -296,58 +375,68 @@ class SheetRenderer:
             # labels start at their tick, so the file's text positions measure the bar
             fig.text(self._fx(bx + k * bar_mm / parts), self._fy(by - 2.5),
                      f"{value:.0f} m" if k else "0", ha="left", va="top",
-                     transform=fig.transFigure, fontsize=6)
+                     transform=fig.transFigure, fontsize=MIN_TEXT_PT)
         fig.text(self._fx(bx), self._fy(by + 6.0), f"Scale 1:{self.spec.scale:,.0f}"
                  .replace(",", " "), transform=fig.transFigure, fontsize=8, va="center")
-        # legend
+        # title block, wrapped to the panel (never cut), then the legend above it
+        chars = int((width - 4.0) / (0.55 * 6.5 / PT_PER_MM))
+        lines: list[tuple[str, bool]] = []
+        for key, value in self.title_rows():
+            if not key:
+                lines += [(t, True) for t in textwrap.wrap(str(value), int(chars * 0.8),
+                                                            break_on_hyphens=False) or [""]]
+            else:
+                lines += [(t, False) for t in textwrap.wrap(f"{key}: {value}", chars,
+                                                             subsequent_indent="  ",
+                                                             break_on_hyphens=False)]
+        h = 5.0 * len(lines) + 3
+        fig.patches.append(Rectangle((self._fx(x0), self._fy(bottom)), width / self.page.width,
+                                     h / self.page.height, transform=fig.transFigure,
+                                     facecolor="none", edgecolor="black",
+                                     linewidth=0.4 * PT_PER_MM))
+        y = bottom + h - 4.0
+        for line, bold in lines:
+            fig.text(self._fx(x0 + 2), self._fy(y), line, transform=fig.transFigure,
+                     fontsize=8 if bold else 6.5, fontweight="bold" if bold else "normal",
+                     va="center")
+            y -= 5.0
         y = top - 52.0
         fig.text(self._fx(x0), self._fy(y), "Legend", fontweight="bold", **text)
-        for kind, name, colour, width, fill in self.legend:
+        left_out = 0
+        for kind, name, colour, lw, fill in self.legend:
+            if y - 5.5 < bottom + h + 11.5:  # one line kept for "... more entries"
+                left_out += 1
+                continue
             y -= 5.5
-            if y < frame_bottom + 62.0:
-                break
             sx = (self._fx(x0 + 1), self._fx(x0 + 9))
-            if kind in ("polygon", "raster"):
+            if kind in ("polygon", "raster"):  # the swatch as the map draws it: fill and edge
                 fig.patches.append(Rectangle((self._fx(x0 + 1), self._fy(y - 1.5)),
                                              8.0 / self.page.width, 3.0 / self.page.height,
                                              transform=fig.transFigure,
-                                             facecolor=fill or colour,
-                                             edgecolor=colour, linewidth=0.3 * PT_PER_MM))
+                                             facecolor=fill if fill is not None else (
+                                                 colour if kind == "raster" else "none"),
+                                             edgecolor=colour, linewidth=lw * PT_PER_MM))
             elif kind == "cross":
                 fig.lines.append(Line2D(sx, (self._fy(y),) * 2, transform=fig.transFigure,
-                                        color=colour, linewidth=width * PT_PER_MM))
+                                        color=colour, linewidth=lw * PT_PER_MM))
                 fig.lines.append(Line2D((self._fx(x0 + 5),) * 2,
                                         (self._fy(y - 2), self._fy(y + 2)),
                                         transform=fig.transFigure, color=colour,
-                                        linewidth=width * PT_PER_MM))
+                                        linewidth=lw * PT_PER_MM))
             elif kind == "point":
                 fig.lines.append(Line2D((self._fx(x0 + 5),), (self._fy(y),), marker="o",
-                                        markersize=3, color=colour, transform=fig.transFigure))
+                                        markersize=np.sqrt(lw * 4 * PT_PER_MM),  # as drawn
+                                        color=colour, markeredgewidth=0,
+                                        transform=fig.transFigure))
             else:
                 fig.lines.append(Line2D(sx, (self._fy(y),) * 2, transform=fig.transFigure,
-                                        color=colour, linewidth=max(width, 0.1) * PT_PER_MM))
-            fig.text(self._fx(x0 + 12), self._fy(y), name, **text)
-        # title block
-        spec = self.spec
-        rows = [("", spec.title), ("sheet", spec.sheet_id), ("scale", f"1:{spec.scale:g}"),
-                ("CRS", spec.crs_label), ("date", spec.date),
-                ("sources", "; ".join(spec.sources))]
-        if spec.credits:
-            rows.append(("", spec.credits))
-        h = 6.5 * len(rows) + 2
-        fig.patches.append(Rectangle((self._fx(x0), self._fy(frame_bottom)),
-                                     PANEL / self.page.width, h / self.page.height,
-                                     transform=fig.transFigure, facecolor="none",
-                                     edgecolor="black", linewidth=0.4 * PT_PER_MM))
-        y = frame_bottom + h - 4.5
-        for key, value in rows:
-            label = f"{key}: " if key else ""
-            weight = "bold" if not key else "normal"
-            fig.text(self._fx(x0 + 2), self._fy(y), _fit(f"{label}{value}", 60),
-                     transform=fig.transFigure, fontsize=8 if not key else 6.5,
-                     fontweight=weight, va="center")
-            y -= 6.5
-        return {"ground_length": ground, "paper_mm": bar_mm, "left_mm": bx}
+                                        color=colour, linewidth=max(lw, 0.1) * PT_PER_MM))
+            fig.text(self._fx(x0 + 12), self._fy(y), _fit(name, int(chars * 1.1)), **text)
+        if left_out:  # said, not hidden
+            fig.text(self._fx(x0 + 12), self._fy(y - 5.5), f"... and {left_out} more entries",
+                     **text)
+        return {"ground_length": ground, "paper_mm": bar_mm, "left_mm": bx,
+                "legend_entries": len(self.legend) - left_out}
 
     def save(self, pdfs=(), pngs=(), dpi: int = 150, metadata: dict | None = None,
              pdf_pages=None) -> None:

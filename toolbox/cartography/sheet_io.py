@@ -35,7 +35,7 @@ def default_styles(layers: list[tuple[str, Any]]) -> list[LayerStyle]:
         k = used.get(kind, 0)
         used[kind] = k + 1
         rgb, fill = PALETTE[kind][k % len(PALETTE[kind])]
-        out.append(LayerStyle(frame, name, kind, rgb, WIDTHS[kind], fill))
+        out.append(LayerStyle(frame, name.replace("_", " "), kind, rgb, WIDTHS[kind], fill))
     return out
 
 
@@ -103,7 +103,9 @@ def render_sheet(spec: SheetSpec, base=None, base_name: str = "", styles=(), con
         renderer.save(pdfs, pngs, png_dpi, metadata, pdf_pages)
         page = renderer.page
         return {"sheet": spec.sheet_id, "paper": page.paper, "paper_mm": [page.width, page.height],
-                "frame_mm": list(page.frame), "scale_bar": bar}
+                "frame_mm": list(page.frame), "scale_bar": bar,
+                "panel_mm": [page.panel_left, page.band_bottom, page.panel_width,
+                             page.band_height]}
     finally:
         renderer.close()
 

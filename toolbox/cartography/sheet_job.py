@@ -9,11 +9,29 @@ from pathlib import Path
 from toolbox.cartography.grid_io import sheet_polygons
 from toolbox.cartography.sheet import SheetSpec
 from toolbox.cartography.sheet_io import coded_styles, default_styles, render_sheet
+from toolbox.version import __version__
 
 
 def _name(ref) -> str:
     text = str(ref).strip("'")
     return Path(text.split("|")[0]).name
+
+
+def _dated(ref) -> str:
+    """A source by file name with its file's date: ``contours.gpkg (2026-12-03)``."""
+    path = Path(str(ref).strip("'").split("|")[0])
+    try:
+        day = _dt.date.fromtimestamp(path.stat().st_mtime).isoformat()
+    except OSError:
+        return path.name
+    return f"{path.name} ({day})"
+
+
+def _datum(crs) -> str:
+    try:
+        return crs.datum.name if crs is not None and crs.datum is not None else ""
+    except Exception:  # a CRS without a datum (engineering CRS)
+        return ""
 
 
 def _layer_name(ref) -> str:
@@ -43,12 +61,72 @@ def layer_styles(params: dict) -> tuple[list[tuple[str, object]], list]:
     return layers, coded_styles(layers, table, colours)
 
 
+def guard_sheets(params: dict) -> None:
+    """Refuse before drawing: too many sheets, a page too large to render at PNG_DPI (a tiny
+    SCALE denominator), or too many map grid crosses."""
+    from toolbox.cartography.grid import ground_step
+    from toolbox.cartography.grid_io import guard_grid
+    from toolbox.cartography.sheet import GAP, LABEL_BAND, MARGIN, PANEL
+    from toolbox.limits import check_size
+
+    sheets, _ = sheet_polygons(params)
+    sheets = [(i, g) for i, g in sheets if g is not None and not g.is_empty]
+    if not sheets:
+        return  # the job says so
+    if params.get("SHEETS") is not None:
+        check_size("sheets", len(sheets), "SHEETS", f"has {len(sheets):,} features, which",
+                   "draw fewer sheets")
+    scale, dpi = params["SCALE"], params["PNG_DPI"]
+    widest = max(sheets, key=lambda s: (s[1].bounds[2] - s[1].bounds[0])
+                 * (s[1].bounds[3] - s[1].bounds[1]))[1].bounds
+    w = (widest[2] - widest[0]) / scale * 1000.0 + 2 * (MARGIN + LABEL_BAND) + GAP + PANEL
+    h = (widest[3] - widest[1]) / scale * 1000.0 + 2 * (MARGIN + LABEL_BAND)
+    check_size("cells", (w / 25.4 * dpi) * (h / 25.4 * dpi), "SCALE",
+               f"1:{scale:g} puts the {widest[2] - widest[0]:,.0f} x "
+               f"{widest[3] - widest[1]:,.0f} sheet on {w / 1000:,.1f} x {h / 1000:,.1f} m of "
+               f"paper, which at PNG_DPI {dpi}", "check SCALE (the denominator: 5000 for "
+               "1:5000) or use smaller sheets", "pixels")
+    guard_grid(sheets, ground_step(scale, params["MAP_STEP"]), params["GRID_STYLE"], scale,
+               params["MAP_STEP"])
+    _refuse_empty_sheets(params, sheets)
+
+
+def _refuse_empty_sheets(params: dict, sheets: list) -> None:
+    """Refuse sheets that none of BASE, LAYERS, CONTOURS meets (data of another area or CRS:
+    the sheets would be empty frames)."""
+    import shapely
+
+    from toolbox.errors import InputDataError
+    from toolbox.io.crs import input_crs_and_bounds
+
+    boxes = [shapely.box(*b) for name in ("BASE", "LAYERS", "CONTOURS")
+             for _, b in input_crs_and_bounds(params.get(name)) if b is not None]
+    if not boxes:
+        return  # nothing to draw, or extents unknown: the job draws what it has
+    data = shapely.union_all(boxes)
+    if not any(data.intersects(polygon) for _, polygon in sheets):
+        d = data.bounds
+        s = shapely.union_all([polygon for _, polygon in sheets]).bounds
+        raise InputDataError(f"no input (BASE, LAYERS, CONTOURS: {d[0]:.0f}..{d[2]:.0f}, "
+                             f"{d[1]:.0f}..{d[3]:.0f}) meets the sheets ({s[0]:.0f}..{s[2]:.0f}, "
+                             f"{s[1]:.0f}..{s[3]:.0f}): the sheets would be empty; are they of "
+                             "the same area and CRS?")
+
+
+def sheet_file_names(params: dict) -> list[str]:
+    """The file name (without extension) of each sheet in FOLDER: its id made file-safe and
+    unique."""
+    from toolbox.mosaic.sheets import sheet_ids_unique
+
+    return sheet_ids_unique([sheet_id for sheet_id, _ in sheet_polygons(params)[0]])
+
+
 def run_sheets(params: dict, feedback) -> dict:
     import matplotlib
     from matplotlib.backends.backend_pdf import PdfPages
 
     from toolbox.io.crs import crs_label
-    from toolbox.io.staging import atomic_path
+    from toolbox.io.staging import final_path
     from toolbox.io.vector import read_vector
 
     sheets, crs = sheet_polygons(params)
@@ -62,13 +140,12 @@ def run_sheets(params: dict, feedback) -> dict:
     named |= {f"LAYERS[{k + 1}]": f.crs for k, (_, f) in enumerate(layers)}
     crs = common_crs(named, crs)  # the sheet's CRS: every layer in it, or refused (mixed CRSs)
     sources = params.get("SOURCES") or "; ".join(dict.fromkeys(
-        [_name(params["BASE"])] * (params.get("BASE") is not None)
-        + [_name(ref) for ref in params.get("LAYERS") or []]
-        + [_name(params["CONTOURS"])] * (params.get("CONTOURS") is not None)))
+        [_dated(params["BASE"])] * (params.get("BASE") is not None)
+        + [_dated(ref) for ref in params.get("LAYERS") or []]
+        + [_dated(params["CONTOURS"])] * (params.get("CONTOURS") is not None)))
     date = params.get("DATE") or _dt.date.today().isoformat()
-    folder = Path(params["FOLDER"]).expanduser() if params.get("FOLDER") else None
-    if folder is not None:
-        folder.mkdir(parents=True, exist_ok=True)
+    folder = Path(params["FOLDER"]) if params.get("FOLDER") else None  # staged by the runner
+    names = sheet_file_names(params)
     written = []
     scale = params["SCALE"]
     meta = {"Title": params["TITLE"], "Subject": f"{len(sheets)} map sheet(s) at 1:{scale:g}",
@@ -80,7 +157,8 @@ def run_sheets(params: dict, feedback) -> dict:
         for i, (sheet_id, polygon) in enumerate(feedback.iterate(sheets, start=0, end=100)):
             feedback.check_canceled()
             spec = SheetSpec(polygon.bounds, params["SCALE"], params["TITLE"], sheet_id,
-                             crs_label(crs), date, [sources], params["PAPER"])
+                             crs_label(crs), date, [sources], params["PAPER"],
+                             datum=_datum(crs), producer=f"photogrammetry-toolbox {__version__}")
             common = dict(base=params.get("BASE"), base_name=_name(params["BASE"])
                           if params.get("BASE") is not None else "", styles=styles,
                           contours=contours, grid_style=params["GRID_STYLE"],
@@ -88,13 +166,12 @@ def run_sheets(params: dict, feedback) -> dict:
             pngs = [params["PNG"]] if params.get("PNG") and i == 0 else []
             files = []
             if folder is not None:
-                files = [folder / f"{sheet_id}.pdf", folder / f"{sheet_id}.png"]
-                with atomic_path(files[0]) as pdf, atomic_path(files[1]) as png:
-                    info = render_sheet(spec, pdfs=[pdf], pngs=pngs + [png], pdf_pages=pages,
-                                        **common)
+                files = [folder / f"{names[i]}.pdf", folder / f"{names[i]}.png"]
+                info = render_sheet(spec, pdfs=[files[0]], pngs=pngs + [files[1]],
+                                    pdf_pages=pages, **common)
             else:
                 info = render_sheet(spec, pngs=pngs, pdf_pages=pages, **common)
-            files = [str(f) for f in files]
+            files = [str(final_path(f)) for f in files]
             written.append(info | {"files": files})
     finally:
         if pages is not None:

@@ -7,6 +7,7 @@ User mistakes print one line on stderr and exit with code 2; a canceled run (Ctr
 
 from __future__ import annotations
 
+import io
 import json
 import re
 import signal
@@ -63,7 +64,7 @@ def _handle_errors(func: Callable) -> Callable:
     def wrapper(*args, **kwargs):
         where = kwargs.get("algorithm_id") or func.__name__.removesuffix("_cmd")
         try:
-            with _signals_as_interrupts(), _native_stderr_filtered():
+            with _signals_as_interrupts(), _native_stderr_filtered(), _python_warnings_as_messages():
                 return func(*args, **kwargs)
         except KeyboardInterrupt as exc:
             if _terminal().ACTIVE[0] is not None:
@@ -134,6 +135,13 @@ def _native_stderr_filtered():
         yield
         return
     _terminal().STDERR_IS_TTY[0] = os.isatty(saved)
+    try:  # only when sys.stderr is file descriptor 2 (not a test runner's buffer)
+        if sys.stderr.fileno() == 2:
+            _terminal().DIRECT_STDERR[0] = os.fdopen(os.dup(saved), "w", buffering=1,
+                                         encoding=sys.stderr.encoding or "utf-8",
+                                         errors="replace")
+    except (OSError, ValueError, AttributeError, io.UnsupportedOperation):
+        _terminal().DIRECT_STDERR[0] = None
     read_end, write_end = os.pipe()
     os.dup2(write_end, 2)
     os.close(write_end)
@@ -162,6 +170,59 @@ def _native_stderr_filtered():
         thread.join(timeout=10)
         os.close(saved)
         _terminal().STDERR_IS_TTY[0] = None
+        if _terminal().DIRECT_STDERR[0] is not None:
+            try:
+                _terminal().DIRECT_STDERR[0].close()
+            except (OSError, ValueError):
+                pass
+            _terminal().DIRECT_STDERR[0] = None
+
+
+# library warnings that say nothing to a user of the toolbox: the toolbox checks georeferencing
+# itself, and deprecations are for the developers
+QUIET_WARNINGS = ("NotGeoreferencedWarning", "DeprecationWarning", "PendingDeprecationWarning",
+                  "FutureWarning", "SetuptoolsDeprecationWarning", "_BetaConfiguration")
+
+
+def warning_message(message: Warning | str, category: type, filename: str) -> str | None:
+    """A Python warning as one toolbox message line, naming the library it came from (None for
+    the :data:`QUIET_WARNINGS`)."""
+    if category.__name__ in QUIET_WARNINGS or issubclass(
+            category, (DeprecationWarning, PendingDeprecationWarning, FutureWarning)):
+        return None
+    parts = Path(filename).parts
+    source = next((parts[i + 1] for i, p in enumerate(parts[:-1])
+                   if p in ("site-packages", "dist-packages")), Path(filename).stem)
+    source = source.removesuffix(".py")
+    return f"{_one_line(message)} ({source})"
+
+
+@contextmanager
+def _python_warnings_as_messages():
+    """Python warnings raised while a command runs (rasterio's, numpy's...) become one-line
+    toolbox warnings naming their library, not the raw ``file:line: Category: text`` plus a
+    source line; the deprecation and georeferencing noise of :data:`QUIET_WARNINGS` is dropped.
+    ``TOOLBOX_DEBUG=1`` shows them raw."""
+    import os
+    import warnings
+
+    if os.environ.get("TOOLBOX_DEBUG"):
+        yield
+        return
+    previous = warnings.showwarning
+
+    def show(message, category, filename, lineno, file=None, line=None):
+        text = warning_message(message, category, filename)
+        if text is not None:
+            import logging
+
+            logging.getLogger("toolbox").warning(text)
+
+    warnings.showwarning = show
+    try:
+        yield
+    finally:
+        warnings.showwarning = previous
 
 
 class OneLineErrorsGroup(click.Group):
@@ -324,12 +385,15 @@ def parse_parameter_args(tokens: list[str]) -> dict[str, Any]:
               "(one object a line, for a GUI; see docs/cli.md) or none.")
 @click.option("-q", "--quiet", "run_quiet", is_flag=True,
               help="No progress bar and no information messages (warnings still show).")
+@click.option("-v", "--verbose", "run_verbose", count=True,
+              help="More messages (-vv for debug), as before 'run'.")
 @click.option("-h", "--help", "show_help", is_flag=True, help="Show the algorithm's help.")
 @click.argument("args", nargs=-1, type=click.UNPROCESSED)
 @click.pass_context
 @_handle_errors
 def run_cmd(ctx: click.Context, algorithm_id: str | None, overwrite: bool, report: str | None,
-            progress: str, run_quiet: bool, show_help: bool, args: tuple[str, ...]) -> None:
+            progress: str, run_quiet: bool, run_verbose: int, show_help: bool,
+            args: tuple[str, ...]) -> None:
     """Run an algorithm: toolbox run ID --PARAM value ... (see 'toolbox help ID').
 
     Prints the outputs as JSON on stdout.
@@ -344,6 +408,9 @@ def run_cmd(ctx: click.Context, algorithm_id: str | None, overwrite: bool, repor
             return
         raise click.UsageError("missing the algorithm id: toolbox run ID --PARAM value ... "
                                "('toolbox list' shows the ids)", ctx)
+    if run_verbose:  # -v after 'run' (or after the id) counts as before it
+        ctx.obj["verbose"] = ctx.obj.get("verbose", 0) + run_verbose
+        _terminal().setup_logging(ctx.obj["verbose"], bool(ctx.obj.get("quiet")))
     if progress == "json" and not show_help:
         _run_with_json_progress(ctx, algorithm_id, overwrite, report, args)
         return

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import logging
+import shutil
 import sys
 import time
 
@@ -12,6 +13,15 @@ from toolbox.feedback import Feedback
 # whether the process's stderr is a terminal, set while the CLI filters file descriptor 2 (then
 # sys.stderr writes into a pipe and cannot tell)
 STDERR_IS_TTY: list[bool | None] = [None]
+# the real stderr while the CLI filters file descriptor 2: the bar and the toolbox's messages are
+# written there directly, in order with what goes to stdout (the filter's pipe would deliver them
+# late, over the JSON printed at the end)
+DIRECT_STDERR: list = [None]
+
+
+def err_stream():
+    """Where the toolbox's own terminal output goes: the real stderr."""
+    return DIRECT_STDERR[0] if DIRECT_STDERR[0] is not None else sys.stderr
 
 
 class TerminalFeedback(Feedback):
@@ -19,13 +29,17 @@ class TerminalFeedback(Feedback):
 
     def __init__(self, label: str = "", quiet: bool = False, stream=None):
         super().__init__()
-        self.stream = stream or sys.stderr
+        self._stream = stream
         self.label = label
         tty = STDERR_IS_TTY[0] if STDERR_IS_TTY[0] is not None and stream is None \
             else self.stream.isatty()
         self.show_bar = not quiet and tty
         self._last_draw = 0.0
-        self._drawn = False
+        self._drawn = 0  # characters on the bar's line
+
+    @property
+    def stream(self):
+        return self._stream if self._stream is not None else err_stream()
 
     def set_progress(self, percent: float, message: str = "") -> None:
         super().set_progress(percent, message)
@@ -37,15 +51,18 @@ class TerminalFeedback(Feedback):
         self._last_draw = now
         filled = int(self.progress / 100 * 30)
         bar = "#" * filled + "-" * (30 - filled)
-        self.stream.write(f"\r{self.label} [{bar}] {self.progress:5.1f}% {message[:40]:<40}")
+        line = f"{self.label} [{bar}] {self.progress:5.1f}% {message[:40]}".rstrip()
+        # one terminal line: a wrapped bar cannot be cleared by a carriage return
+        line = line[:max(10, shutil.get_terminal_size((100, 24)).columns - 1)]
+        self.stream.write("\r" + line.ljust(self._drawn))
         self.stream.flush()
-        self._drawn = True
+        self._drawn = max(self._drawn, len(line))
 
     def clear_line(self) -> None:
         if self._drawn:
-            self.stream.write("\r" + " " * 100 + "\r")
+            self.stream.write("\r" + " " * self._drawn + "\r")
             self.stream.flush()
-            self._drawn = False
+            self._drawn = 0
 
     def finish(self) -> None:
         self.clear_line()
@@ -63,6 +80,7 @@ class BarAwareHandler(logging.StreamHandler):
         feedback = self.feedback_ref[0]
         if feedback is not None:
             feedback.clear_line()
+        self.stream = err_stream()
         super().emit(record)
 
 

@@ -14,7 +14,16 @@ code           code, codice, cod, id
 colour         colour, color, colore, colour code, codice colore
 description    description, descrizione, desc, descrizione entita
 type           type, tipologia, tipo, geometry, geometria
+area           area, area code, codice area, bounds, delimita
 =============  ==================================================
+
+The optional ``area`` column says which area code(s) the face closed by a line of this code takes
+(thesis §2.4, "codifica logica" of areas): ``FAB01002; muro perimetrale; linea; 12; AREA_FAB``
+means a building wall plotted closed codes the face inside it ``AREA_FAB``. Several area codes
+(a kerb closing either a pavement or a flower bed) are separated by ``,`` or ``|``; the first is
+the default. A code of type polygon is an area code itself. The column is read only with a
+header; a point code cannot bound an area, and an area code named there cannot be declared as a
+point or line code.
 
 *Without a header*, the two layouts of the thesis:
 
@@ -66,6 +75,8 @@ COLUMN_NAMES: dict[str, tuple[str, ...]] = {
     "description": ("description", "descrizione", "desc", "descrizione entita",
                     "entity description", "nome", "name"),
     "type": ("type", "tipologia", "tipo", "geometry", "geometria", "geometry type", "kind"),
+    "area": ("area", "areas", "area code", "area codes", "codice area", "codici area", "bounds",
+             "delimita", "area delimitata"),
 }
 _COLUMN_LOOKUP = {name: col for col, names in COLUMN_NAMES.items() for name in names}
 _HEX = re.compile(r"^#?([0-9a-fA-F]{6})$")
@@ -83,7 +94,8 @@ class CodeEntry:
     """One code of the code file.
 
     ``kind`` is point/line/polygon or None (any geometry); ``colour`` the colour-file index or
-    ``#rrggbb`` text as written (None when empty); ``line`` the line of the file (1-based).
+    ``#rrggbb`` text as written (None when empty); ``line`` the line of the file (1-based);
+    ``areas`` the area codes of the face a closed line of this code bounds (``area`` column).
     """
 
     code: str
@@ -91,6 +103,7 @@ class CodeEntry:
     kind: str | None = None
     colour: str | None = None
     line: int = 0
+    areas: tuple[str, ...] = ()
 
 
 @dataclass
@@ -195,6 +208,7 @@ def read_code_file(path: str | Path, name: str = "CODES") -> CodeTable:
     for number, line in rows:
         fields = _split(line, sep)
         code, colour, description, kind_word = _fields(fields, columns, sep, line)
+        areas = _area_codes(fields, columns)
         if columns is None and table.layout == "header":
             table.layout = ("id; description; type; colour" if kind_word is not None
                             else "code colour description")
@@ -214,10 +228,28 @@ def read_code_file(path: str | Path, name: str = "CODES") -> CodeTable:
         if code in table.entries:
             raise _fail(path, number, f"code {code!r} given twice (first on line "
                         f"{table.entries[code].line})", name)
-        table.entries[code] = CodeEntry(code, description.strip(), kind, colour, number)
+        if areas and kind == "point":
+            raise _fail(path, number, f"code {code!r} is a point code: it cannot bound area "
+                        f"{', '.join(areas)}", name)
+        table.entries[code] = CodeEntry(code, description.strip(), kind, colour, number, areas)
     if not table.entries:
         raise InputDataError(f"{name}: '{path}' has a header but no codes")
+    for entry in table.entries.values():
+        for area in entry.areas:
+            declared = table.entries.get(area)
+            if declared is not None and declared.kind in ("point", "line"):
+                raise _fail(path, entry.line, f"code {entry.code!r} bounds area {area!r}, but "
+                            f"line {declared.line} declares {area!r} a {declared.kind} code",
+                            name)
     return table
+
+
+def _area_codes(fields: list[str], columns: dict[str, int] | None) -> tuple[str, ...]:
+    """The ``area`` column of one data line: codes split on ``,`` or ``|``."""
+    if columns is None or "area" not in columns or columns["area"] >= len(fields):
+        return ()
+    parts = re.split(r"[,|]", fields[columns["area"]])
+    return tuple(dict.fromkeys(p.strip() for p in parts if p.strip()))
 
 
 def _fields(fields: list[str], columns: dict[str, int] | None, sep: str | None, line: str

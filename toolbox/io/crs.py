@@ -112,6 +112,35 @@ def check_input_crs(algorithm_id: str, name: str, value: Any,
                 warnings.append(f"{name}: {problem}")
 
 
+def check_coordinates_in_area(name: str, crs: Any, xy: Any, warn: Any = None) -> None:
+    """Coordinates ``xy`` ((n, 2), in ``crs``) read from a table rather than a layer: far
+    outside the CRS's area of use is an :class:`InputDataError` naming ``name``, a little
+    outside a warning (``warn(text)``), as :func:`check_input_crs` does for layers."""
+    xy = np.asarray(xy, dtype="float64")
+    xy = xy[np.isfinite(xy).all(axis=1)]
+    crs = parse_crs(crs, name)
+    if not len(xy) or crs.is_geographic:
+        return
+    bounds = (xy[:, 0].min(), xy[:, 1].min(), xy[:, 0].max(), xy[:, 1].max())
+    problem, far = outside_area_of_use(crs, bounds)
+    if problem and far:
+        raise InputDataError(f"{name}: {problem}: is the CRS right? Label the data with its "
+                             "true CRS, then reproject if needed")
+    if problem and warn is not None:
+        warn(f"{name}: {problem}")
+
+
+@functools.lru_cache(maxsize=32)
+def _area_of_use_by_code(wkt: str):
+    """The area of use of the EPSG CRS a WKT matches (a GeoTIFF's CRS read back as WKT has
+    lost it), or None."""
+    try:
+        code = CRS.from_wkt(wkt).to_epsg(min_confidence=70)
+        return None if code is None else CRS.from_epsg(code).area_of_use
+    except Exception:  # noqa: BLE001 - no match: not judged
+        return None
+
+
 @functools.lru_cache(maxsize=32)
 def _to_lonlat(wkt: str):
     """A cached transformer to WGS 84 lon/lat (creating one costs ~0.1 s)."""
@@ -123,7 +152,7 @@ def _to_lonlat(wkt: str):
 def outside_area_of_use(crs: CRS, bounds: tuple) -> tuple[str | None, bool]:
     """``(message, far)``: a message when ``bounds`` (in ``crs``) lie outside the CRS's area of
     use by more than a margin; ``far`` when by more than :data:`AREA_ERROR_DEG` degrees."""
-    area = crs.area_of_use
+    area = crs.area_of_use or _area_of_use_by_code(crs.to_wkt())
     if area is None or crs.is_geographic:
         return None, False
     xmin, ymin, xmax, ymax = bounds

@@ -7,7 +7,6 @@ to its centre (thesis par. 2.5.2): column ``j`` has centre ``xmin + (j + 0.5) * 
 from __future__ import annotations
 
 import math
-import os
 from dataclasses import dataclass
 from typing import Any
 
@@ -19,18 +18,11 @@ DEFAULT_MAX_CELLS = 1_000_000_000  # overridable with the TOOLBOX_MAX_CELLS envi
 
 
 def max_cells_default() -> int:
-    """The grid-size limit: ``TOOLBOX_MAX_CELLS`` from the environment, else 1e9."""
-    text = os.environ.get("TOOLBOX_MAX_CELLS")
-    if text is None or not text.strip():
-        return DEFAULT_MAX_CELLS
-    try:
-        value = float(text)
-    except ValueError:
-        value = math.nan
-    if not (math.isfinite(value) and value >= 1):
-        raise ParameterError("TOOLBOX_MAX_CELLS", f"(environment variable) must be a number of "
-                             f"cells >= 1, got {text!r}")
-    return int(value)
+    """The grid-size limit: ``TOOLBOX_MAX_CELLS`` from the environment, else 1e9 (the "cells"
+    limit of :mod:`toolbox.limits`, shared by every size guard)."""
+    from toolbox.limits import size_limit
+
+    return size_limit("cells")
 
 
 @dataclass(frozen=True)

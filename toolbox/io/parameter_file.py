@@ -38,7 +38,8 @@ UTF-8 (or Latin-1) text, one entry per line::
   are not in the thesis' list: they are this toolbox's extension for area building.
 
 Each algorithm declares which entries it uses; :meth:`ParameterFile.warn_unused` names every
-other entry of the file in one warning, so nothing in the file is silently ignored.
+other entry of the file, so nothing in the file is silently ignored: the entries other steps use
+in an information message (the file is shared by the whole job), unknown names in a warning.
 """
 
 from __future__ import annotations
@@ -168,12 +169,25 @@ class ParameterFile:
         return [f"{name!r} (line {line})" for line, name in sorted(rows)]
 
     def warn_unused(self, used: Iterable[str], feedback: Any, who: str) -> list[str]:
-        """Push one warning naming every entry ``who`` (e.g. "attribution:square") does not use;
-        returns the names (empty when all are used)."""
+        """Name every entry ``who`` (e.g. "attribution:square") does not use; returns the names
+        (empty when all are used).
+
+        The file is shared by every step of a job (the plotting software's one "file dei
+        parametri"), so known entries other steps use are only an information message; a
+        warning names the entries no step knows (a misspelt name is not silently ignored).
+        """
         names = self.unused(used)
-        if names and feedback is not None:
-            feedback.push_warning(f"PARAMETERS '{self.path.name}': {len(names)} entries not used "
-                                  f"by {who}: {', '.join(names)}")
+        if not names or feedback is None:
+            return names
+        unknown = [f"{name!r} (line {line})" for line, name in sorted(self.unknown)]
+        known = [n for n in names if n not in unknown]
+        where = f"PARAMETERS '{self.path.name}'"
+        if unknown:
+            feedback.push_warning(f"{where}: {len(unknown)} entries not recognised (not a known "
+                                  f"'file dei parametri' entry: misspelt?): {', '.join(unknown)}")
+        if known:
+            feedback.push_info(f"{where}: {len(known)} entries for other steps, not used by "
+                               f"{who}: {', '.join(known)}")
         return names
 
     def check_unit(self, crs: Any, feedback: Any) -> None:

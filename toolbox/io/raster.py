@@ -80,6 +80,9 @@ def open_raster_info(value: Any, name: str = "INPUT") -> RasterInfo:
             warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
             src = rasterio.open(path)
         with src:
+            damage = _last_blocks_missing(src, path.stat().st_size)
+            if damage:
+                raise ParameterError(name, f"'{value}' is truncated or damaged: {damage}")
             crs = CRS.from_wkt(src.crs.to_wkt()) if src.crs else None
             georef = src.transform != rasterio.Affine.identity() or src.crs is not None
             return RasterInfo(path, src.width, src.height, src.count, tuple(src.dtypes), crs,
@@ -87,6 +90,42 @@ def open_raster_info(value: Any, name: str = "INPUT") -> RasterInfo:
     except rasterio.errors.RasterioIOError as exc:
         raise ParameterError(name, f"cannot read '{value}' as a raster: "
                              f"{str(exc).splitlines()[0]}") from None
+
+
+def has_valid_pixel(path: str | Path) -> bool:
+    """True when some pixel of the raster is valid (not nodata or masked, finite for floats).
+    Read block by block until one is found: cheap for a normal raster."""
+    import rasterio
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
+        with rasterio.open(path) as src:
+            for _, window in src.block_windows(1):
+                data = src.read(window=window, masked=True)
+                valid = ~np.ma.getmaskarray(data)
+                if data.dtype.kind == "f":
+                    valid &= np.isfinite(data.filled(0))
+                if valid.any():
+                    return True
+    return False
+
+
+def _last_blocks_missing(src: Any, size: int) -> str | None:
+    """For a GeoTIFF, whether the last block of a band lies beyond the end of the file (a copy
+    or download cut short: blocks are written in order). Cheap: a few TIFF tags."""
+    if src.driver != "GTiff":
+        return None
+    rows, cols = src.block_shapes[0]
+    bx, by = -(-src.width // cols) - 1, -(-src.height // rows) - 1
+    for band in range(1, src.count + 1):
+        offset = src.get_tag_item(f"BLOCK_OFFSET_{bx}_{by}", "TIFF", bidx=band)
+        count = src.get_tag_item(f"BLOCK_SIZE_{bx}_{by}", "TIFF", bidx=band)
+        if offset is not None and count is not None and int(offset) + int(count) > size:
+            return (f"block {bx},{by} of band {band} ends at byte {int(offset) + int(count):,}, "
+                    f"the file has {size:,}")
+        if src.interleaving is None or src.interleaving.name == "PIXEL":
+            break
+    return None
 
 
 def geotiff_profile(width: int, height: int, count: int, dtype: Any, crs: Any, transform: Any,

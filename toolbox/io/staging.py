@@ -8,6 +8,12 @@ derive from it are unaffected.
 
 Staging folders are named ``.NAME.PID.RANDOM.part``: after a run killed by SIGKILL (which no
 program can catch), the next run to the same path removes the folders of processes that are gone.
+
+An output *folder* is staged whole (``.FOLDER.PID.RANDOM.part/FOLDER``): on success each file it
+holds is moved into the final folder one by one, with the same checks as a file output (never
+onto an input, an existing file only with ``overwrite``); other files of the final folder are left
+alone. A commit that fails midway undoes the moves done so far (replaced files are restored), so
+a run writes all of its files or none.
 """
 
 from __future__ import annotations
@@ -26,6 +32,19 @@ from toolbox.errors import OutputExistsError, OutputWriteError, ParameterError
 SIDECAR_SUFFIXES = (".aux.xml", ".ovr", ".msk", "-wal", "-shm", "-journal")
 SHAPEFILE_PARTS = (".shp", ".shx", ".dbf", ".prj", ".cpg", ".qix", ".sbn", ".sbx", ".qmd")
 WORLD_FILES = (".tfw", ".tifw", ".jgw", ".pgw", ".wld")
+
+
+_FINAL_OF: dict[Path, Path] = {}  # staged path -> final path, while a run is staged
+
+
+def final_path(path: str | Path) -> Path:
+    """The final path of ``path`` when it is (inside) a staged output, else ``path``: what an
+    algorithm names in a listing it writes (e.g. the files of its output folder)."""
+    path = Path(path).absolute()
+    for staged, final in _FINAL_OF.items():
+        if path == staged or staged in path.parents:
+            return final / path.relative_to(staged)
+    return path
 
 
 def _pid_alive(pid: int) -> bool:
@@ -57,6 +76,14 @@ def stale_staging_folders(final: Path) -> list[Path]:
     return stale
 
 
+def final_folder(path: str | Path) -> Path:
+    """The folder an output lands in: the parent of a staged file's staging folder, else the
+    file's own folder (for names written relative to the output)."""
+    path = Path(path).absolute()
+    staging = re.compile(r"^\." + re.escape(path.name) + r"\.\d+\.[^.]+\.part$")
+    return path.parent.parent if staging.match(path.parent.name) else path.parent
+
+
 def protected_paths(path: Path) -> set[Path]:
     """``path`` (resolved) and the sidecars GDAL/OGR read with it."""
     path = Path(path).expanduser().resolve()
@@ -84,6 +111,10 @@ def write_error(exc: BaseException, name: str, path: Path | str) -> OutputWriteE
     return OutputWriteError(f"cannot write {name} '{path}': {text}; nothing was written")
 
 
+# sidecars GDAL keeps of a raster: stale ones of a replaced file go with it
+REPLACED_SIDECARS = (".aux.xml", ".ovr", ".msk")
+
+
 class OutputStaging:
     """Hands out staged paths for final outputs; :meth:`commit` moves them, :meth:`rollback`
     deletes them (and the folders created for them)."""
@@ -91,6 +122,7 @@ class OutputStaging:
     def __init__(self) -> None:
         self._staged: dict[Path, Path] = {}  # final -> staged
         self._names: dict[Path, str] = {}  # final -> parameter name
+        self._is_folder: set[Path] = set()  # finals that are output folders
         self._folders: list[Path] = []
         self._created_dirs: list[Path] = []  # output folders this run created, deepest last
         self.removed_stale: list[Path] = []
@@ -110,6 +142,17 @@ class OutputStaging:
         staged = folder / final.name
         self._staged[final] = staged
         self._names[final] = name
+        _FINAL_OF[staged] = final
+        return staged
+
+    def stage_folder(self, final: str | Path, name: str = "OUTPUT") -> Path:
+        """A staged, empty folder standing for output folder ``final``."""
+        staged = self.stage(final, name)
+        try:
+            staged.mkdir()
+        except OSError as exc:
+            raise write_error(exc, name, final) from None
+        self._is_folder.add(Path(final).expanduser().absolute())
         return staged
 
     def _make_parent(self, parent: Path, name: str) -> None:
@@ -140,59 +183,112 @@ class OutputStaging:
         """``(parameter name, final, staged)`` of every staged output."""
         return [(self._names[f], f, s) for f, s in self._staged.items()]
 
-    def commit(self, overwrite: bool = True, protected: set[Path] | None = None) -> list[Path]:
-        """Move every staged file that was written and every file beside it in its private
-        staging folder (sidecars) into place; return the final paths written.
+    def folder_files(self) -> list[tuple[str, Path, Path]]:
+        """``(parameter name, final, staged)`` of every file written in a staged output folder."""
+        out = []
+        for final in self._is_folder:
+            staged = self._staged[final]
+            if staged.is_dir():
+                out += [(self._names[final], final / f.relative_to(staged), f)
+                        for f in sorted(staged.rglob("*")) if not f.is_dir()]
+        return out
 
-        Without ``overwrite`` a target that exists now (it appeared during the run) raises
-        :class:`OutputExistsError` and nothing is moved. A target in ``protected`` (resolved
-        input paths) is refused whatever ``overwrite`` says.
-        """
-        protected = protected or set()
-        moves: list[tuple[str, Path, Path, bool]] = []  # name, source, target, main file?
-        done = []
+    def _moves(self) -> list[tuple[str, Path, Path, Path | None]]:
+        """``(name, source, target, main file)`` of every file to move; ``main`` is None for a
+        sidecar (.aux.xml, a Shapefile's .dbf...) of a file output."""
+        moves = []
         for final, staged in self._staged.items():
-            if not staged.exists():
+            if not staged.exists() or final in self._is_folder:
                 continue
-            name = self._names[final]
             # the private folder holds this output's files only: the file first, then its
             # sidecars (.aux.xml, a Shapefile's .shx/.dbf/.prj, per-layer files)
             items = sorted(staged.parent.iterdir(), key=lambda i: (i != staged, i.name))
-            moves += [(name, item, final.parent / item.name, item == staged) for item in items]
-            done.append(final)
+            moves += [(self._names[final], item, final.parent / item.name,
+                       final if item == staged else None) for item in items]
+        moves += [(name, source, target, target) for name, target, source in self.folder_files()]
+        return moves
+
+    def commit(self, overwrite: bool = True, protected: set[Path] | None = None) -> list[Path]:
+        """Move every staged file that was written, every file beside it in its private
+        staging folder (sidecars) and every file of a staged output folder into place; return
+        the final paths written.
+
+        Nothing is moved when a target is in ``protected`` (resolved input paths, compared by
+        path and by inode: refused whatever ``overwrite`` says) or, without ``overwrite``, when
+        a target exists (other than a stale GDAL sidecar of a new file):
+        :class:`OutputExistsError`. A failure midway undoes the moves done (a replaced file is
+        restored), so the run writes all of its files or none.
+        """
+        protected = protected or set()
+        moves = self._moves()
+        written = [final for final, staged in self._staged.items() if staged.exists()
+                   or final in self._is_folder]
         for name, _, target, main in moves:
             if _is_protected(target, protected):
                 raise ParameterError(name, f"'{target}' is an input (or an input's sidecar); an "
                                      "input is never overwritten: choose another output path")
-            if main and not overwrite and os.path.lexists(target):
-                raise OutputExistsError(name, f"'{target}' appeared during the run (another run "
-                                        "wrote it?); pass --overwrite to replace it")
-        created: list[Path] = []
+            if target.is_dir() and not target.is_symlink():
+                raise ParameterError(name, f"'{target}' is a folder; it cannot be replaced by a "
+                                     "file")
+            if not overwrite and os.path.lexists(target) and (main is not None or not any(
+                    target.name.endswith(s) for s in SIDECAR_SUFFIXES + WORLD_FILES
+                    + SHAPEFILE_PARTS)):
+                raise OutputExistsError(name, f"'{target}' exists (or appeared during the run:"
+                                        " another run wrote it?); pass --overwrite to replace "
+                                        "it")
+        try:  # hard links to the files a commit replaces, to restore them if it fails
+            first = next(iter(self._staged))  # named like a staging folder: cleaned if killed
+            backups = Path(tempfile.mkdtemp(prefix=f".{first.name}.{os.getpid()}.",
+                                            suffix=".part", dir=self._folders[0].parent))
+            self._folders.append(backups)
+        except (OSError, IndexError, StopIteration):
+            backups = None
+        done: list[tuple[Path, Path | None, bool]] = []  # target, its backup, existed before
         try:
-            for name, item, target, main in moves:
+            for k, (name, item, target, main) in enumerate(moves):
                 try:
-                    if overwrite or not main:  # a sidecar of a new file: a stale one goes
-                        if item.is_dir() and target.is_dir():  # a replaced output folder
-                            shutil.rmtree(target)
+                    self._make_target_parent(target, name)
+                    existed = os.path.lexists(target)
+                    if existed and (overwrite or main is None):
+                        backup = _backup(target, backups, k)
+                        done.append((target, backup, True))
                         os.replace(item, target)
                     else:
                         _move_no_replace(item, target)
+                        done.append((target, None, False))
+                    if existed and main is not None:  # GDAL's sidecars of the old file
+                        for suffix in REPLACED_SIDECARS:
+                            old = target.with_name(target.name + suffix)
+                            if os.path.lexists(old) and not any(t == old for _, _, t, _ in moves):
+                                done.append((old, _backup(old, backups, f"{k}{suffix}"), True))
+                                _remove(old)
                 except FileExistsError:
                     raise OutputExistsError(name, f"'{target}' appeared during the run (another"
                                             " run wrote it?); pass --overwrite to replace "
                                             "it") from None
                 except OSError as exc:
                     raise write_error(exc, name, target) from None
-                created.append(target)
         except BaseException:
-            if not overwrite:  # undo the new files: the run fails as a whole
-                for target in created:
+            for target, backup, existed in reversed(done):  # undo: the run fails as a whole
+                if backup is not None:
+                    try:
+                        os.replace(backup, target)
+                    except OSError:
+                        pass
+                elif not existed:
                     _remove(target)
             raise
         self.rollback()  # the created folders that now hold results are not empty: kept
-        return done
+        return written
+
+    def _make_target_parent(self, target: Path, name: str) -> None:
+        """Create the (sub)folder of a file of an output folder, remembered for rollback."""
+        if not target.parent.is_dir():
+            self._make_parent(target.parent, name)
 
     def rollback(self) -> None:
+        for staged in list(self._staged.values()):
+            _FINAL_OF.pop(staged, None)
         for folder in self._folders:
             shutil.rmtree(folder, ignore_errors=True)
         self._folders.clear()
@@ -202,6 +298,19 @@ class OutputStaging:
             except OSError:
                 pass
         self._created_dirs.clear()
+
+
+def _backup(target: Path, folder: Path | None, key) -> Path | None:
+    """A hard link to ``target`` in ``folder`` (to restore it if the commit fails), or None
+    where links are impossible."""
+    if folder is None:
+        return None
+    backup = folder / f"{key}"
+    try:
+        os.link(target, backup)
+    except OSError:
+        return None
+    return backup
 
 
 def _is_protected(target: Path, protected: set[Path]) -> bool:

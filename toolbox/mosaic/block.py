@@ -103,35 +103,78 @@ def mosaic_grid(sources: list[OrthoSource], crs: Any, cell: float | None, area,
     return grid
 
 
-def cells_frame(sources: list[OrthoSource], cells: list, crs: Any):
-    """GeoDataFrame of the cut polygons (one row per ortho with a non-empty cell)."""
+def cells_frame(sources: list[OrthoSource], cells: list, crs: Any, output: Any = None):
+    """GeoDataFrame of the cut polygons (one row per ortho with a non-empty cell); ``path`` is
+    the ortho's path relative to the folder of ``output`` (the file written), not a machine
+    path."""
     import geopandas as gpd
     from shapely.geometry import MultiPolygon
 
-    rows = [{"source_id": s.index + 1, "source": s.name, "path": str(s.path),
+    rows = [{"source_id": s.index + 1, "source": s.name, "path": relative_path(s.path, output),
              "area": float(c.area), "geometry": c if c.geom_type == "MultiPolygon"
              else MultiPolygon([c])} for s, c in zip(sources, cells, strict=True)
             if not c.is_empty]
     return gpd.GeoDataFrame(rows, geometry="geometry", crs=crs)
 
 
-def seams_frame(sources: list[OrthoSource], cells: list, crs: Any, methods: dict | None = None):
-    """GeoDataFrame of the seamlines between neighbouring cut polygons."""
+def relative_path(path: Any, output: Any) -> str:
+    """``path`` relative to the folder of ``output`` (``/``-separated); the file name alone when
+    there is no output or no relative path (another drive)."""
+    import os
+
+    from toolbox.io.staging import final_folder
+
+    if output is None:
+        return Path(path).name
+    try:
+        rel = os.path.relpath(Path(path).absolute(), final_folder(output))
+    except ValueError:
+        return Path(path).name
+    return Path(rel).as_posix()
+
+
+def seams_frame(sources: list[OrthoSource], seams: list, crs: Any, methods: dict | None = None,
+                default_method: str = "voronoi"):
+    """GeoDataFrame of seamlines ``(i, j, line)`` (see :mod:`toolbox.mosaic.index_seams`);
+    ``method`` per pair from ``methods``, else ``default_method``."""
     import geopandas as gpd
     from shapely.geometry import MultiLineString
 
-    from toolbox.mosaic.partition import seamlines
-
     rows = []
-    for i, j, line in seamlines(cells):
+    for i, j, line in seams:
         parts = list(getattr(line, "geoms", [line]))
         rows.append({"a_id": i + 1, "b_id": j + 1, "a": sources[i].name, "b": sources[j].name,
-                     "method": (methods or {}).get((i, j), "voronoi"),
+                     "method": (methods or {}).get((i, j), default_method),
                      "length": float(line.length), "geometry": MultiLineString(parts)})
     frame = gpd.GeoDataFrame(rows, geometry="geometry", crs=crs) if rows else \
         gpd.GeoDataFrame({"a_id": [], "b_id": [], "a": [], "b": [], "method": [], "length": []},
                          geometry=gpd.GeoSeries([], crs=crs), crs=crs)
     return frame
+
+
+def seam_methods(layer: Any, sources: list[OrthoSource]) -> dict:
+    """``{(i, j): method}`` from the ``seamlines`` layer next to a cut-polygons layer (the
+    GeoPackage mosaic:seamlines writes); empty when there is none."""
+    import pyogrio
+
+    path = getattr(layer, "path", layer)  # a VectorLayerRef, a path or 'path|layername=...'
+    if not isinstance(path, (str, Path)):
+        return {}
+    path = Path(str(path).split("|", 1)[0])
+    try:
+        if "seamlines" not in {str(n) for n, _ in pyogrio.list_layers(path)}:
+            return {}
+        frame = pyogrio.read_dataframe(path, layer="seamlines", read_geometry=False)
+    except Exception:  # noqa: BLE001 - not a GeoPackage with that layer: no methods known
+        return {}
+    if not {"a", "b", "method"} <= set(frame.columns):
+        return {}
+    index = {s.name: s.index for s in sources}
+    out = {}
+    for a, b, method in zip(frame["a"], frame["b"], frame["method"], strict=True):
+        if a in index and b in index:
+            out[tuple(sorted((index[a], index[b])))] = str(method)
+    return out
 
 
 def cells_from_layer(layer, field: str, sources: list[OrthoSource],

@@ -161,27 +161,28 @@ def write_mosaic(plan: MosaicPlan, output: Path, index_path: Path | None, *, alp
     """Stream the mosaic into ``output`` (and the source-index raster into ``index_path``).
 
     The output has ``plan.bands`` data bands plus an alpha band (``alpha``) or ``nodata`` where
-    no source has data; tiled DEFLATE GeoTIFF with overviews, or a COG (``cog``). Tiles run on
-    ``executor`` (default: ``workers`` local threads).
+    no source has data; tiled DEFLATE GeoTIFF with overviews, or a COG (``cog``, the source
+    index too). Tiles run on ``executor`` (default: the cluster of ``DASK_SCHEDULER_ADDRESS``,
+    else ``workers`` local threads).
     """
     from contextlib import ExitStack
     from functools import partial
 
     from toolbox.raster.engine import process_raster
     from toolbox.raster.writer import RasterWriter
-    from toolbox.tiles import Executor, default_workers
+    from toolbox.tiles import resolve_executor
 
     grid = plan.grid
     index_dtype = "uint8" if len(plan.sources) < 255 else "uint16"
     counts = np.zeros(len(plan.sources), dtype="int64")
     empty = [0]
-    executor = executor or Executor("local", workers or default_workers())
+    executor = executor or resolve_executor(None, workers)
     with ExitStack() as stack:
         dst = stack.enter_context(RasterWriter(
             output, grid, plan.bands + (1 if alpha else 0), plan.dtype,
             None if alpha else nodata, alpha=alpha, cog=cog, overviews=overviews))
         idx = None if index_path is None else stack.enter_context(RasterWriter(
-            index_path, grid, 1, index_dtype, 0, overviews=overviews,
+            index_path, grid, 1, index_dtype, 0, cog=cog, overviews=overviews,
             overview_resampling="nearest"))
 
         def collect(tile, data, labels):

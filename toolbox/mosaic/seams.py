@@ -38,18 +38,25 @@ class CostWeights:
     difference: float = 1.0  # mean absolute band difference / the images' value range
     gradient: float = 1.0    # largest Sobel gradient of the two images / the value range
     centre: float = 0.5      # |distance to centre a − distance to centre b| / their distance
+    structure: float = 1.0   # within structure_radius of a strong, structured difference
+    structure_radius: float = 20.0    # ground units
+    structure_threshold: float = 0.1  # gradient difference / value range that counts as strong
     building: float = 10.0   # inside a building footprint
     height: float = 1.0      # per metre of DSM - DEM above HEIGHT_THRESHOLD
     height_threshold: float = 0.5
 
 
 def cost_surface(a: np.ndarray, b: np.ndarray, weights: CostWeights,
-                 value_range: float | None = None) -> np.ndarray:
+                 value_range: float | None = None, cell_size: float = 1.0) -> np.ndarray:
     """Cost per unit length from two co-registered images ``(bands, rows, cols)``:
-    ``base + w_d·mean|a−b|/range + w_g·max(|∇a|, |∇b|)/range`` (float64, ``(rows, cols)``);
-    :class:`PairCost` adds the centre, building and height terms.
+    ``base + w_d·mean|a−b|/range + w_g·max(|∇a|, |∇b|)/range + w_s·S`` (float64, ``(rows,
+    cols)``); :class:`PairCost` adds the centre, building and height terms.
 
-    ``value_range`` defaults to the 1-99 % percentile spread of both images.
+    ``S`` (:func:`structure_term`) is 1 within ``weights.structure_radius`` ground units
+    (``cell_size`` per cell) of a strong, structured difference between the images, else 0: a
+    building whose facades differ between the orthos is avoided as a whole, roof included,
+    even where both show the same roof. ``value_range`` defaults to the 1-99 % percentile
+    spread of both images.
     """
     from scipy import ndimage
 
@@ -63,11 +70,45 @@ def cost_surface(a: np.ndarray, b: np.ndarray, weights: CostWeights,
     scale = 1.0 / max(value_range, 1e-6)
     diff = np.abs(a - b).mean(axis=0) * scale
     grad = np.zeros(a.shape[1:], dtype="float32")
+    sobel = []
     for img in (a.mean(axis=0), b.mean(axis=0)):
-        g = np.hypot(ndimage.sobel(img, axis=0), ndimage.sobel(img, axis=1)) / 8.0
-        np.maximum(grad, g * scale, out=grad)
-    return weights.base + weights.difference * diff.astype("float64") + \
+        gy, gx = ndimage.sobel(img, axis=0) / 8.0, ndimage.sobel(img, axis=1) / 8.0
+        sobel.append((gy, gx))
+        np.maximum(grad, np.hypot(gy, gx) * scale, out=grad)
+    cost = weights.base + weights.difference * diff.astype("float64") + \
         weights.gradient * grad.astype("float64")
+    if weights.structure > 0 and weights.structure_radius > 0:
+        (ay, ax), (by, bx) = sobel
+        gdiff = np.hypot(ay - by, ax - bx) * scale
+        cost += weights.structure * structure_term(gdiff, weights.structure_threshold,
+                                                   weights.structure_radius / cell_size)
+    return cost
+
+
+def structure_term(gradient_difference: np.ndarray, threshold: float,
+                   radius_cells: float) -> np.ndarray:
+    """1.0 within ``radius_cells`` of a strong, structured difference, else 0.0.
+
+    Strong: the difference of the two images' gradients (vector difference of their Sobel
+    gradients, scaled by the value range) above ``threshold``, i.e. an edge in one ortho that
+    the other does not have at the same place (a facade, a displaced roof edge). Structured:
+    a connected group of such cells at least ``max(3, radius_cells / 2)`` cells large, so noise
+    and single resampling differences do not count. The neighbourhood is a Euclidean distance
+    (``scipy.ndimage.distance_transform_edt``), whatever the radius.
+    """
+    from scipy import ndimage
+
+    strong = gradient_difference > threshold
+    if not strong.any():
+        return np.zeros(strong.shape)
+    groups, n = ndimage.label(strong, structure=np.ones((3, 3), bool))
+    sizes = np.bincount(groups.ravel(), minlength=n + 1)
+    keep = sizes >= max(3.0, radius_cells / 2.0)
+    keep[0] = False
+    structured = keep[groups]
+    if not structured.any():
+        return np.zeros(strong.shape)
+    return (ndimage.distance_transform_edt(~structured) <= radius_cells).astype("float64")
 
 
 @dataclass
@@ -91,7 +132,7 @@ class PairCost:
         win = Window(0, 0, shape[1], shape[0])
         da, va = read_window(self.a, transform, self.crs, win)
         db, vb = read_window(self.b, transform, self.crs, win)
-        cost = cost_surface(da, db, self.weights, self.value_range)
+        cost = cost_surface(da, db, self.weights, self.value_range, abs(transform.a))
         w = self.weights
         if self.centres is not None and w.centre > 0:
             cost += w.centre * centre_term(transform, shape, *self.centres)

@@ -65,6 +65,23 @@ def _project(points: np.ndarray, centres: np.ndarray, rotations: np.ndarray, c: 
     return xy, u
 
 
+def _solve_each(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``x`` with ``a[k] @ x[k] = b[k]`` for a stack of 3x3 systems, and which were solvable
+    (finite and not singular: a singular one gives NaN instead of stopping the others)."""
+    x = np.full(b.shape, np.nan)
+    ok = np.isfinite(a).all(axis=(1, 2)) & np.isfinite(b).all(axis=1)
+    try:
+        x[ok] = np.linalg.solve(a[ok], b[ok][..., None])[..., 0]
+    except np.linalg.LinAlgError:  # one at least is singular: solve them one by one
+        for k in np.flatnonzero(ok):
+            try:
+                x[k] = np.linalg.solve(a[k], b[k])
+            except np.linalg.LinAlgError:
+                ok[k] = False
+    ok &= np.isfinite(x).all(axis=1)
+    return x, ok
+
+
 def intersect(point_index: np.ndarray, camera_xy: np.ndarray, centres: np.ndarray,
               rotations: np.ndarray, principal_distances: np.ndarray, n_points: int | None = None,
               max_iterations: int = 20, tolerance: float = 1e-9) -> IntersectionResult:
@@ -113,7 +130,9 @@ def intersect(point_index: np.ndarray, camera_xy: np.ndarray, centres: np.ndarra
     good = status == OK
     xyz = np.full((p, 3), np.nan)
     if good.any():
-        xyz[good] = np.linalg.solve(a[good], b[good][..., None])[..., 0]
+        xyz[good], solved = _solve_each(a[good], b[good])
+        status[np.flatnonzero(good)[~solved]] = PARALLEL_RAYS
+        good = status == OK
 
     # 2. Gauss-Newton on the image residuals
     iterations = np.zeros(p, dtype=np.int32)
@@ -136,13 +155,19 @@ def intersect(point_index: np.ndarray, camera_xy: np.ndarray, centres: np.ndarra
         np.add.at(n_mat, idx, jx[:, :, None] * jx[:, None, :] + jy[:, :, None] * jy[:, None, :])
         np.add.at(g, idx, jx * v[:, 0:1] + jy * v[:, 1:2])
         act = np.flatnonzero(active)
-        step = np.linalg.solve(n_mat[act], g[act][..., None])[..., 0]
+        step, solved = _solve_each(n_mat[act], g[act])
+        if not solved.all():  # a singular normal matrix: the rays do not fix the point
+            status[act[~solved]] = PARALLEL_RAYS
+            active[act[~solved]] = False
+            xyz[act[~solved]] = np.nan
+            act, step = act[solved], step[solved]
         xyz[act] += step
         normal[act] = n_mat[act]
         iterations[act] += 1
         done = np.abs(step).max(axis=1) < tolerance
         active[act[done]] = False
     status[active] = NOT_CONVERGED
+    status[(status == OK) & ~np.isfinite(xyz).all(axis=1)] = PARALLEL_RAYS
 
     # statistics on the final point
     ok_obs = (status == OK)[point_index]
@@ -160,8 +185,10 @@ def intersect(point_index: np.ndarray, camera_xy: np.ndarray, centres: np.ndarra
     std = np.full((p, 3), np.nan)
     has_std = ok & (redundancy > 0)
     if has_std.any():
-        q = np.linalg.inv(normal[has_std])
-        std[has_std] = sigma0[has_std, None] * np.sqrt(np.diagonal(q, axis1=1, axis2=2))
+        eye = np.broadcast_to(np.eye(3), (int(has_std.sum()), 3, 3))
+        q = np.stack([_solve_each(normal[has_std], eye[:, :, j])[0] for j in range(3)], axis=2)
+        with np.errstate(invalid="ignore"):
+            std[has_std] = sigma0[has_std, None] * np.sqrt(np.diagonal(q, axis1=1, axis2=2))
     offsets = xyz[point_index] - local_c
     dist = np.linalg.norm(np.einsum("mij,mj->mi", proj, offsets), axis=1)
     max_dist = np.full(p, np.nan)

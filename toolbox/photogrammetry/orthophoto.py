@@ -12,6 +12,13 @@ per output window it reads the DEM heights onto the window (:class:`DemSampler`,
 between DEM cell centres, reprojected when the DEM's CRS differs), projects them
 (:class:`~toolbox.photogrammetry.ortho.CollinearityMap`), blanks the cells hidden from the
 camera (optional) and counts what the report needs.
+
+Two paths compute a window's map. The film camera's is the compiled, planned one above. Every
+other camera (the interior models of :mod:`toolbox.cameras`: pinhole, Brown, OpenCV, fisheye),
+and the film camera when the ortho is in another CRS than its orientation, takes one explicit
+path: the window's cells with their DEM heights go through the camera's ``project``
+(:func:`project_cells`: one compiled pass for the interior models, the camera's vectorised
+``project`` otherwise), and the warp remaps the photo there (``cv2.remap``).
 """
 
 from __future__ import annotations
@@ -23,6 +30,7 @@ from typing import Any
 
 import numpy as np
 
+from toolbox.cameras import CameraModel, GridProjector
 from toolbox.errors import InputDataError
 from toolbox.photogrammetry.ortho import (
     BLOCK_EXACT,
@@ -57,13 +65,13 @@ class DemSampler:
 
     The DEM may be in another CRS than the output (``crs``): the cell centres are then
     transformed with pyproj (always_xy) and the heights taken bilinearly in the DEM's own grid.
+    A DEM whose CRS differs only by a vertical part (a compound CRS such as UTM + EGM2008
+    height) is read directly: its heights are taken as they are (:func:`same_horizontal_crs`).
     ``factor`` > 1 projects on a coarser DEM (the thesis' "fattore di ricampionamento"): the mean
     of ``factor`` x ``factor`` DEM cells, on a lattice fixed to the DEM's origin (no tile seams).
     """
 
     def __init__(self, info: Any, crs: Any = None, band: int = 1, factor: int = 1):
-        from toolbox.io.crs import same_crs
-
         self.path = info.path
         self.band = int(band)
         self.factor = max(1, int(factor))
@@ -74,7 +82,7 @@ class DemSampler:
         self.shape = (info.height, info.width)
         self.nodata = info.nodata
         self.transformer = None
-        if info.crs is not None and crs is not None and not same_crs(info.crs, crs):
+        if info.crs is not None and crs is not None and not same_horizontal_crs(info.crs, crs):
             from pyproj import Transformer
 
             self.transformer = Transformer.from_crs(crs, info.crs, always_xy=True)
@@ -192,6 +200,17 @@ class DemSampler:
         return out
 
 
+def same_horizontal_crs(a: Any, b: Any) -> bool:
+    """The same CRS, or the same horizontal CRS where one or both are compound (a vertical
+    datum adds heights, it does not move the cells: no reprojection)."""
+    from toolbox.io.crs import same_crs
+
+    def horizontal(crs: Any) -> Any:
+        return crs.sub_crs_list[0] if getattr(crs, "is_compound", False) else crs
+
+    return same_crs(a, b) or same_crs(horizontal(a), horizontal(b))
+
+
 LATTICE = 16  # cells between exactly transformed points when a grid goes to another CRS
 
 
@@ -298,10 +317,9 @@ def photo_surface(info: Any, photo: Any, crs: Any, band: int = 1) -> Any:
     """The DEM window every ray of the photo can meet, as a
     :class:`~toolbox.photogrammetry.surface.DemSurface` in ``crs`` (reprojected bilinearly at the
     DEM's resolution when the DEM is in another CRS)."""
-    from toolbox.io.crs import same_crs
     from toolbox.photogrammetry.surface import surface_for_photo
 
-    if info.crs is None or crs is None or same_crs(info.crs, crs):
+    if info.crs is None or crs is None or same_horizontal_crs(info.crs, crs):
         return surface_for_photo(info, photo, band)
     import rasterio
     from rasterio.enums import Resampling
@@ -405,13 +423,17 @@ class OrthoWindows:
     (:meth:`CollinearityMap.source_box` on the DEM heights' range), and the kernel writes the
     OpenCV maps relative to it, with the cells outside the photo blanked, in its one pass."""
 
-    def __init__(self, photo: Any, grid: Any, sampler: DemSampler, cmap: CollinearityMap,
+    def __init__(self, photo: Any, grid: Any, sampler: DemSampler, cmap: CollinearityMap | None,
                  reference_height: float, surface: Any = None, mask_writer: Any = None,
                  incidence_writer: Any = None, to_orientation: Any = None,
                  resampling: str | None = None):
         from toolbox.raster.warp import RESAMPLING_METHODS
 
         self.photo, self.grid, self.sampler, self.cmap = photo, grid, sampler, cmap
+        # cmap None: the camera's own project() maps every window (project_cells)
+        self.camera: CameraModel = photo.sensor()
+        self.image_size = (cmap.model.width, cmap.model.height) if cmap is not None else \
+            tuple(photo.camera.image_size_px)
         self.resampling = resampling if resampling in RESAMPLING_METHODS else None
         self.to_orientation = to_orientation  # pyproj Transformer grid CRS -> orientation CRS
         self.reference_height = reference_height
@@ -492,8 +514,8 @@ class OrthoWindows:
     def _prepare(self, window: Any) -> Any:
         """``(transform, xs, ys, DEM part, plan)`` of a window that can be planned
         (:meth:`_plan`), else None."""
-        if (self.incidence_writer is not None or self.to_orientation is not None
-                or self.sampler.transformer is not None):
+        if (self.cmap is None or self.incidence_writer is not None
+                or self.to_orientation is not None or self.sampler.transformer is not None):
             return None
         xs, ys = self.grid.cell_centers(window)
         part = self.sampler.part(xs, ys)
@@ -545,8 +567,8 @@ class OrthoWindows:
     def _compute(self, window: Any):
         xs, ys = self.grid.cell_centers(window)
         cell_x, cell_y = self.grid.cell_size
-        if (self.incidence_writer is None and self.to_orientation is None
-                and self.sampler.transformer is None):
+        if (self.cmap is not None and self.incidence_writer is None
+                and self.to_orientation is None and self.sampler.transformer is None):
             part = self.sampler.part(xs, ys)
             if part is not None:
                 return self._compute_fused(window, xs, ys, part)
@@ -560,19 +582,18 @@ class OrthoWindows:
                 self.incidence_writer.write(angles, window=window)
         else:
             z = self.sampler.heights(xs, ys)
-        if self.to_orientation is None:
+        if self.to_orientation is None and self.cmap is not None:
             cols, rows, modes, box = self.cmap.project(self.grid.window_transform(window), z)
             gx, gy = xs[None, :], ys[:, None]
-        else:  # the ortho in another CRS: cell centres to the orientation's, then per point
-            gx, gy = lattice_transform(self.to_orientation, xs, ys, 1e-3 * cell_x)
-            gx, gy = gx.reshape(z.shape), gy.reshape(z.shape)
-            image = self.photo.ground_to_pixel((gx, gy, z), behind="nan")
-            cols = image[..., 0].astype("float32")
-            rows = image[..., 1].astype("float32")
-            finite = np.isfinite(cols)
-            box = np.array([cols[finite].min(), rows[finite].min(), cols[finite].max(),
-                            rows[finite].max(), z.size - finite.sum()]) if finite.any() else \
-                np.array([np.inf, np.inf, -np.inf, -np.inf, z.size])
+        else:  # the camera's project(), point by point (the ortho in another CRS: the cell
+            # centres go to the orientation's CRS first)
+            if self.to_orientation is None:
+                gx, gy = np.broadcast_to(xs[None, :], z.shape), np.broadcast_to(ys[:, None],
+                                                                                z.shape)
+            else:
+                gx, gy = lattice_transform(self.to_orientation, xs, ys, 1e-3 * cell_x)
+                gx, gy = gx.reshape(z.shape), gy.reshape(z.shape)
+            cols, rows, box = project_cells(self.camera, gx, gy, z)
             modes = np.zeros((0, 0), dtype=np.int8)  # no blocks: every point exact
         return self._finish(window, xs, ys, gx, gy, z, cols, rows, modes, box)
 
@@ -599,7 +620,7 @@ class OrthoWindows:
                 cols[mask] = np.nan
                 rows[mask] = np.nan
                 missing += stats.hidden
-        w, h = self.cmap.model.width, self.cmap.model.height
+        w, h = self.image_size
         every_cell = missing == 0
         box = (float(cmin), float(rmin), float(cmax), float(rmax)) if missing < z.size else None
         if every_cell and box[0] >= 0 and box[1] >= 0 and box[2] <= w and box[3] <= h:
@@ -670,6 +691,27 @@ class OrthoWindows:
             if not any(contains(k, other) for other in keys):
                 total.add(self.per_window[k])
         return total
+
+
+def project_cells(camera: CameraModel, gx: np.ndarray, gy: np.ndarray, z: np.ndarray
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The coordinate map of a window through any camera: ground cells ``gx``, ``gy`` (h, w) at
+    heights ``z`` (h, w; NaN: none) -> float32 photo pixels ``(cols, rows)`` (h, w; NaN where
+    the cell has no height or no image) and ``box`` (col_min, row_min, col_max, row_max, NaN
+    count) of the finite ones. A :class:`~toolbox.cameras.GridProjector` camera does it in
+    one compiled pass."""
+    if isinstance(camera, GridProjector):
+        return camera.project_grid(gx, gy, z)
+    image = camera.project(np.column_stack([gx.ravel(), gy.ravel(), z.ravel()]))
+    cols = image[:, 0].astype("float32").reshape(z.shape)
+    rows = image[:, 1].astype("float32").reshape(z.shape)
+    finite = np.isfinite(cols) & np.isfinite(rows)
+    cols[~finite] = np.nan
+    rows[~finite] = np.nan
+    box = np.array([cols[finite].min(), rows[finite].min(), cols[finite].max(),
+                    rows[finite].max(), z.size - finite.sum()]) if finite.any() else \
+        np.array([np.inf, np.inf, -np.inf, -np.inf, z.size])
+    return cols, rows, box
 
 
 def orientation_transformer(photo: Any, crs: Any) -> Any:
@@ -749,7 +791,10 @@ def orthorectify(photo: Any, image: Any, dem: Any, grid: Any, output: Any,
     if to_orientation is not None and (options.occlusion or incidence_output is not None):
         raise InputDataError("the visibility test and the incidence angles need the ortho in "
                              "the orientation's CRS")
-    cmap = CollinearityMap(photo, options.block, options.tolerance_px, image.width, image.height)
+    # the film camera's compiled, planned map; a camera model's own project() otherwise
+    cmap = None if photo.is_model else CollinearityMap(photo, options.block,
+                                                      options.tolerance_px, image.width,
+                                                      image.height)
     if options.occlusion and surface is None:
         surface = photo_surface(dem, photo, grid.crs, options.band)
     if reference_height is None:
@@ -835,7 +880,9 @@ def orthorectify(photo: Any, image: Any, dem: Any, grid: Any, output: Any,
 @dataclass
 class OrthoPlan:
     """What an ortho of one photo needs before warping: the DEM window the photo sees, its
-    footprint on the DEM, the mean terrain height, the photo's GSD there and the output grid."""
+    footprint on the DEM (8 points a side: for reports), the mean terrain height, the photo's
+    GSD there, the output grid and ``extent``, the bounds of the footprint traced densely
+    (:func:`footprint_points_per_side`): what the default grid covers."""
 
     photo: Any
     surface: Any
@@ -843,6 +890,19 @@ class OrthoPlan:
     mean_height: float
     gsd: float
     grid: Any
+    extent: tuple[float, float, float, float] | None = None
+
+
+FOOTPRINT_STEP_PX = 16  # photo pixels between the monoplotted points of the footprint's outline
+
+
+def footprint_points_per_side(photo: Any) -> int:
+    """Points per side of the footprint outline: one every :data:`FOOTPRINT_STEP_PX` pixels of
+    the longer side (at least 8, at most 1024; 256 when the image size is unknown)."""
+    size = photo.camera.image_size_px
+    if size is None:
+        return 256
+    return int(min(1024, max(8, math.ceil(max(size) / FOOTPRINT_STEP_PX))))
 
 
 def plan_photo(photo: Any, dem: Any, crs: Any, band: int = 1, cell: float | None = None,
@@ -854,7 +914,9 @@ def plan_photo(photo: Any, dem: Any, crs: Any, band: int = 1, cell: float | None
     footprint is transformed, densified, to bound the grid). Defaults (as the thesis' software
     proposes, S002 par. 3.8): cell = the photo's ground sample distance at the mean terrain
     height of its footprint (2 significant digits); extent = the footprint on the DEM (the frame
-    outline monoplotted, 8 points per side); edges on the lattice ``origin + k·cell``.
+    outline monoplotted on the DEM at every :data:`FOOTPRINT_STEP_PX` photo pixels of its
+    sides, so that a valley or a lens' curve between two samples is not cut off: 8 points a
+    side cut up to 87 m of real coverage); edges on the lattice ``origin + k·cell``.
     """
     from toolbox.io.crs import parse_crs
     from toolbox.photogrammetry.coverage import photo_footprint
@@ -870,8 +932,9 @@ def plan_photo(photo: Any, dem: Any, crs: Any, band: int = 1, cell: float | None
     eo = photo.require_exterior()
     under = float(surface.height(np.array([eo.x0]), np.array([eo.y0]))[0])
     check_geometry(photo, under if math.isfinite(under) else None)
-    fp = photo_footprint(photo, surface, float(np.nanmean(surface.z)), 8)
-    polygon = fp.polygon
+    plane = float(np.nanmean(surface.z))
+    polygon = photo_footprint(photo, surface, plane, 8).polygon  # mean height, reports
+    outline = photo_footprint(photo, surface, plane, footprint_points_per_side(photo)).polygon
     mean_height = mean_height_inside(surface, polygon)
     gsd = ground_sample_distance(photo, mean_height)
     cell = nice_cell_size(gsd) if cell is None else float(cell)
@@ -885,8 +948,11 @@ def plan_photo(photo: Any, dem: Any, crs: Any, band: int = 1, cell: float | None
 
         dense = shapely.segmentize(shapely.force_2d(polygon), max(polygon.length / 400.0, cell))
         polygon = shapely.transform(dense, to_output)
-    grid = lattice_grid(polygon.bounds if bounds is None else bounds, cell, output_crs, origin)
-    return OrthoPlan(photo, surface, polygon, mean_height, gsd, grid)
+        outline = shapely.transform(shapely.segmentize(shapely.force_2d(outline), max(
+            outline.length / 400.0, cell)), to_output)
+    extent = tuple(float(v) for v in outline.union(polygon).bounds)
+    grid = lattice_grid(extent if bounds is None else bounds, cell, output_crs, origin)
+    return OrthoPlan(photo, surface, polygon, mean_height, gsd, grid, extent)
 
 
 # -- whole blocks ---------------------------------------------------------------------------------------

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from toolbox.parameters import Enum, File, Integer, Number, Parameter, String
+from toolbox.photogrammetry.tables import PROJECT_EXTENSIONS
 
 TABLE_EXTENSIONS = [".csv", ".txt", ".gpkg"]
 
@@ -10,7 +11,7 @@ TABLE_EXTENSIONS = [".csv", ".txt", ".gpkg"]
 def measurement_parameters(project: str = "orientation project (YAML)") -> list[Parameter]:
     """PROJECT, and the image measurements: INPUT, its LAYER and its COORDINATES columns."""
     return [
-        File("PROJECT", project, extensions=[".yaml", ".yml"]),
+        File("PROJECT", project, extensions=PROJECT_EXTENSIONS),
         File("INPUT", "image measurements (CSV or GeoPackage table)", extensions=TABLE_EXTENSIONS),
         String("LAYER", "GeoPackage layer of INPUT (default: the first)", optional=True),
         Enum("COORDINATES", "measurement columns: auto (pixels when col_px/row_px exist), pixel, "

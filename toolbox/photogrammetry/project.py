@@ -18,6 +18,13 @@ Format (``version: 1``; keys in lowercase; relative paths are relative to the pr
         distortion:                               # optional, one of:
           table: {r_mm: [10, 20, ...], dr_um: [0.0, 0.1, ...]}
           # polynomial: {k1: -1.2e-8, k2: 0.0}    # dr (mm) = k1 r^3 + k2 r^5, r in mm
+      - name: drone                               # or a camera model instead of the film fields
+        model: {type: brown, im_size: [4000, 3000], focal_len: 0.78, cx: 0.0, cy: 0.0,
+                k1: -0.26, k2: 0.10, k3: -0.03, p1: 0.0007, p2: 0.0003}
+        # type: pinhole | brown | opencv | fisheye; the spec of toolbox.cameras.factory
+        # (Orthority's interior schema: focal_len normalised by max(w, h) unless sensor_size
+        # gives its units; cx, cy offsets normalised by max(w, h)). Such a camera's photos have
+        # no 'interior' (no fiducials): pixels go through the model.
     photos:
       - id: 1_7150
         camera: wild 303.55
@@ -47,6 +54,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
+from toolbox.cameras import Intrinsics, create_intrinsics
 from toolbox.errors import InputDataError, ToolboxError
 from toolbox.photogrammetry.camera import Camera, RadialDistortion
 from toolbox.photogrammetry.exterior import ExteriorOrientation
@@ -63,7 +71,7 @@ class Project:
     """Cameras and photos of one block, with their CRS."""
 
     crs: Any
-    cameras: dict[str, Camera]
+    cameras: dict[str, Camera | Intrinsics]
     photos: dict[str, Photo]
     source: Path | None = None
     notes: list[str] = field(default_factory=list)
@@ -133,10 +141,16 @@ def _pair(value: Any, what: str, where: str) -> tuple[float, float]:
     return a, b
 
 
-def _camera(spec: Any, where: str) -> Camera:
+def _camera(spec: Any, where: str) -> Camera | Intrinsics:
+    if isinstance(spec, Mapping) and "name" in spec and "model" in spec:
+        film = sorted(set(spec) - {"name", "model"})
+        if film:
+            raise InputDataError(f"{where} camera {spec['name']!r}: give either 'model' or the "
+                                 f"film camera's fields, not both (also: {', '.join(film)})")
+        return create_intrinsics(spec["model"], str(spec["name"]))
     if not isinstance(spec, Mapping) or "name" not in spec or "principal_distance_mm" not in spec:
         raise InputDataError(f"{where}: a camera needs at least 'name' and "
-                             f"'principal_distance_mm', got {spec!r}")
+                             f"'principal_distance_mm' (or 'model'), got {spec!r}")
     name = str(spec["name"])
     here = f"{where} camera {name!r}"
     try:
@@ -158,7 +172,11 @@ def _camera(spec: Any, where: str) -> Camera:
         None if distortion is None else RadialDistortion.from_dict(distortion, f"{here} distortion"))
 
 
-def _interior(spec: Any, camera: Camera, pid: str, where: str) -> InteriorOrientation:
+def _interior(spec: Any, camera: Camera | Intrinsics, pid: str, where: str
+              ) -> InteriorOrientation:
+    if isinstance(camera, Intrinsics):
+        raise InputDataError(f"{where} photo {pid!r}: its camera {camera.name!r} is a "
+                             f"{camera.kind} model: it has no 'interior' (fiducial) orientation")
     if not isinstance(spec, Mapping):
         raise InputDataError(f"{where} photo {pid!r}: interior must be a mapping, got {spec!r}")
     kind = spec.get("transformation", "affine")
@@ -205,7 +223,7 @@ def project_from_dict(doc: Any, base_dir: Path, source: str = "project") -> Proj
             raise InputDataError(f"{source}: crs {doc['crs']!r} is not a projected CRS; the "
                                  "collinearity equations need Cartesian ground coordinates (metres)")
     unit = canonical_unit(doc.get("angle_unit", "rad"), f"{source} angle_unit")
-    cameras: dict[str, Camera] = {}
+    cameras: dict[str, Camera | Intrinsics] = {}
     for spec in doc.get("cameras") or []:
         cam = _camera(spec, source)
         if cam.name in cameras:

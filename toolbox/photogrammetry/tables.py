@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import importlib
 import io
 import json
 import math
@@ -155,11 +156,21 @@ def image_measurements(path: Path, layer: str | None, coordinates: str, name: st
     return ids, photos, xy, kind
 
 
+#: what a PROJECT parameter accepts: the project YAML and other programs' orientation files,
+#: read by the loaders registered in PROJECT_READERS (toolbox.exchange registers its own)
+PROJECT_EXTENSIONS = [".yaml", ".yml", ".json", ".geojson", ".csv", ".txt", ".xml", ".ori"]
+PROJECT_READERS: dict[str, Any] = {}
+
+
 def load_project_parameter(path: Path, name: str = "PROJECT"):
     """Load a project file given as an algorithm parameter; errors name the parameter."""
     from toolbox.photogrammetry.project import load_project
 
     try:
+        if Path(path).suffix.lower() not in (".yaml", ".yml"):  # another program's file
+            if "exchange" not in PROJECT_READERS:  # a plugin: it imports this module
+                importlib.import_module("toolbox.exchange")
+            return PROJECT_READERS["exchange"](path)
         return load_project(path)
     except InputDataError as exc:
         raise InputDataError(f"{name}: {exc}") from None

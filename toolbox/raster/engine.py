@@ -488,8 +488,9 @@ def process_raster(grid: GridSpec, inputs: Mapping[str, RasterInput] | None, ker
     tile_size, halo : int
         Tile side and margin in cells.
     executor : toolbox.tiles.Executor, optional
-        Default: local threads, one per CPU. Algorithms with a SCHEDULER parameter pass
-        :func:`toolbox.tiles.resolve_executor` (SCHEDULER, WORKERS) (a Dask cluster when asked).
+        Default: the Dask cluster of ``DASK_SCHEDULER_ADDRESS`` when it is set, else local
+        threads, one per CPU (:func:`toolbox.tiles.resolve_executor`); algorithms with a
+        SCHEDULER parameter pass their own.
     feedback : Feedback, optional
         Progress from ``start`` to ``end`` % over the tiles; cancellation between tiles.
     plan : callable, optional
@@ -502,9 +503,9 @@ def process_raster(grid: GridSpec, inputs: Mapping[str, RasterInput] | None, ker
 
     Returns ``{"tiles": n, "blank_tiles": m, "executor": "..."}``.
     """
-    from toolbox.tiles import Executor, default_workers, map_tiles
+    from toolbox.tiles import map_tiles, resolve_executor
 
-    executor = executor or Executor("local", default_workers())
+    executor = executor or resolve_executor(None)
     inputs = dict(inputs or {})
     held = _OpenSources() if executor.kind == "local" else None
     if held is not None:

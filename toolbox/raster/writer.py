@@ -157,10 +157,12 @@ class RasterWriter:
         photometric = self.photometric
         if photometric is None and self.data_count == 3 and self.dtype.kind in "iu":
             photometric = "RGB"
+        if photometric is None and self.alpha:
+            photometric = "MINISBLACK"  # GDAL would read 3-4 byte bands as RGB(A)
         if photometric:
             profile["photometric"] = photometric
-        if self.alpha:
-            profile["alpha"] = "YES"
+        if self.alpha and photometric == "RGB":
+            profile["alpha"] = "YES"  # the first extra sample: band 4 of RGB only
         profile.update(self.creation_options)
         return profile
 
@@ -185,8 +187,12 @@ class RasterWriter:
             if self.band_descriptions:
                 for k, text in enumerate(self.band_descriptions, start=1):
                     self.dataset.set_band_description(k, str(text))
-            if self.alpha and self.count > 1 and self.dataset.colorinterp[-1] != ColorInterp.alpha:
-                self.dataset.colorinterp = [*self.dataset.colorinterp[:-1], ColorInterp.alpha]
+            if self.alpha and self.count > 1:  # the last band alone is alpha
+                interp = list(self.dataset.colorinterp)
+                want = [ColorInterp.undefined if c == ColorInterp.alpha else c
+                        for c in interp[:-1]] + [ColorInterp.alpha]
+                if want != interp:
+                    self.dataset.colorinterp = want
         except BaseException:
             self._abort()
             raise
@@ -247,8 +253,19 @@ class RasterWriter:
             options["PREDICTOR"] = self.predictor
         if self.compress == "DEFLATE":
             options["LEVEL"] = 6
-        with rasterio.Env(GDAL_CACHEMAX=gdal_cache_max(self.cache_mb)):
-            rasterio.shutil.copy(self._tiled_path, self.path, driver="COG", **options)
+        try:
+            with rasterio.Env(GDAL_CACHEMAX=gdal_cache_max(self.cache_mb)):
+                rasterio.shutil.copy(self._tiled_path, self.path, driver="COG", **options)
+        except Exception as exc:
+            if not type(exc).__module__.startswith("rasterio"):
+                raise
+            # GDAL failing on the tiled file it just wrote (not written whole: a full disk) is a
+            # failed write of the output, not an unreadable input
+            import errno
+
+            first = str(exc).splitlines()[0] if str(exc) else "I/O error"
+            raise OSError(errno.EIO, f"the tiled GeoTIFF could not be made a COG ({first})",
+                          str(self.path)) from exc
         self._tiled_path.unlink(missing_ok=True)
 
     def _abort(self) -> None:

@@ -7,6 +7,7 @@ lose digits on them, so kernels work on coordinates shifted to a local origin.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -120,6 +121,10 @@ def merge_duplicate_xy(xyz: np.ndarray, tolerance: float = 0.0,
 COLLINEAR_RELATIVE = 1e-7  # RMS distance from the best line / extent below this: collinear
 
 
+class CollinearError(ValueError):
+    """The points lie on one line (up to rounding): no surface through them."""
+
+
 def check_not_collinear(xy: np.ndarray, what: str = "data points") -> None:
     """Raise ``ValueError`` (callers wrap it) when the points lie on one line up to rounding.
 
@@ -138,6 +143,25 @@ def check_not_collinear(xy: np.ndarray, what: str = "data points") -> None:
         raise ValueError(f"the {n} {what} all have the same XY (duplicate positions)")
     spread = float(np.linalg.svd(centred, compute_uv=False)[-1]) / np.sqrt(n)
     if spread < COLLINEAR_RELATIVE * extent:
-        raise ValueError(f"the {n} {what} are collinear: they lie within {spread:.3g} (RMS) of "
+        raise CollinearError(f"the {n} {what} are collinear: they lie within {spread:.3g} (RMS) of "
                          f"one line over an extent of {extent:.6g}; a surface needs points "
                          "spread in two directions")
+
+
+def read_mass_points(source: Any, z_field: str | None = None, classes: Any = None,
+                     returns: str | None = "all", crs: Any = None,
+                     name: str = "INPUT") -> tuple[np.ndarray, dict | None]:
+    """(N, 3) X, Y, Z of a point layer or a LAS/LAZ point cloud, and the cloud's read report.
+
+    A point cloud (:class:`toolbox.io.pointcloud.PointCloudRef`) is streamed by chunks with
+    the ``classes`` ("2,9") and ``returns`` ("all", "first", "last") filters; the report
+    (points in the file, kept, class histogram) is None for a vector layer.
+    """
+    from toolbox.io.pointcloud import PointCloudRef, cloud_filter, read_xyz
+    from toolbox.io.vector import read_points_xyz
+
+    flt = cloud_filter(source, classes, returns, crs, name)
+    if isinstance(source, PointCloudRef):
+        xyz, report = read_xyz(source, flt, z_field, name)
+        return xyz, report.as_dict()
+    return read_points_xyz(source, z_field, name), None

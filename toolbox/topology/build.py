@@ -31,6 +31,7 @@ import shapely
 from toolbox.feedback import Feedback
 from toolbox.terrain.points import local_origin
 from toolbox.topology.arcs import build_arcs, build_nodes
+from toolbox.topology.area_codes import AreaCodes
 from toolbox.topology.closure import chain_closures, close_lines
 from toolbox.topology.faces import face_sides, polygonize_edges, sliver_edges
 from toolbox.topology.graph import (
@@ -73,7 +74,8 @@ def build_topology(line_geoms: np.ndarray, line_codes: np.ndarray | None = None,
                    label_geoms: np.ndarray | None = None, label_codes: np.ndarray | None = None,
                    label_attributes: dict[str, np.ndarray] | None = None,
                    tolerances: Tolerances | None = None,
-                   feedback: Feedback | None = None, mode: str = "build") -> TopologyOutput:
+                   feedback: Feedback | None = None, mode: str = "build",
+                   area_codes: AreaCodes | None = None) -> TopologyOutput:
     """Clean linework and build coded areas, arcs, nodes and the errors layer.
 
     Parameters
@@ -88,6 +90,9 @@ def build_topology(line_geoms: np.ndarray, line_codes: np.ndarray | None = None,
         ``"check"`` diagnoses only: what the cleaning changes is reported with severity
         ``fixable`` instead of ``fixed``, and the areas, arcs and nodes layers are left empty.
         Without label points (``label_geoms`` None) no label check is made.
+    area_codes : which codes are area codes (from the code file, see
+        :mod:`toolbox.topology.area_codes`); None: a closed line's code fills an uncoded face
+        and never conflicts with a label.
 
     Returns
     -------
@@ -305,8 +310,9 @@ def build_topology(line_geoms: np.ndarray, line_codes: np.ndarray | None = None,
     # 7. labels ----------------------------------------------------------------------------------
     label_local = shift(label_geoms, -origin) if len(label_geoms) else label_geoms
     with timed("labels"):
-        by_outline = outline_codes(faces, outlines, codes_of_src[outline_src], prec)
-        labels = assign_labels(faces, label_local, label_codes, label_attributes, by_outline)
+        by_outline = outline_codes(faces, outlines, codes_of_src[outline_src], prec, area_codes)
+        labels = assign_labels(faces, label_local, label_codes, label_attributes, by_outline,
+                               area_codes)
     face_order = order_key(faces, prec)
     face_id = np.empty(len(faces), dtype=np.int64)
     face_id[face_order] = np.arange(1, len(faces) + 1)
@@ -323,8 +329,7 @@ def build_topology(line_geoms: np.ndarray, line_codes: np.ndarray | None = None,
                                 f"area of {size:.3f} has no label point", area=int(f)))
         for f, text in labels.conflicts.items():
             issues.append(Issue("conflicting_labels", ERROR, shapely.point_on_surface(faces[f]),
-                                f"{labels.face_labels[f]} labels disagree: {text}; the first "
-                                "one is used", area=f, label=int(labels.face_first_label[f])))
+                                text, area=f, label=int(labels.face_first_label[f])))
         for i in np.flatnonzero(labels.label_face < 0):
             geom = label_local[i]
             if geom is None or shapely.is_empty(geom):

@@ -12,7 +12,7 @@ from toolbox.parameters import Field, File, Number, VectorLayer
 
 
 def linework_parameters() -> list:
-    """INPUT, CODE_FIELD, LABELS, LABEL_CODE_FIELD, PARAMETERS and the tolerances."""
+    """INPUT, CODE_FIELD, LABELS, LABEL_CODE_FIELD, CODES, PARAMETERS and the tolerances."""
     return [
         VectorLayer("INPUT", "restitution lines with a code field (polygons are used by their "
                     "rings)", geometry_types=["line", "polygon"]),
@@ -22,6 +22,10 @@ def linework_parameters() -> list:
                     "they fall in", geometry_types=["point"], optional=True),
         Field("LABEL_CODE_FIELD", "field with the area code of the label points (default: a "
               "field named code or codice)", parent="LABELS", optional=True),
+        File("CODES", "code file ('file dei codici'): which codes are area codes (type polygon) "
+             "and which area code a closed line of a line code gives (its area column); only "
+             "area codes can conflict. Without it a closed line's code only fills an area no "
+             "label codes", optional=True),
         File("PARAMETERS", "parameter file ('file dei parametri': tolleranza di riattacco, "
              "tolleranza di chiusura, ...); explicit tolerances override it", optional=True),
         Number("SNAP_TOLERANCE", "snap (riattacco) distance for line ends, CRS units "
@@ -81,9 +85,30 @@ def read_linework(params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
                 out["label_geoms"] = file.translate(out["label_geoms"])
             feedback.push_info(f"PARAMETERS: coordinate translation {file.offset[0]:.10g} "
                                f"{file.offset[1]:.10g} added to the inputs")
+    out["area_codes"] = None
+    if params.get("CODES") is not None:
+        out["area_codes"] = read_area_codes(params["CODES"], out["label_codes"], feedback)
     crs = common_crs(crs_of)
     if crs is None:
         feedback.push_warning("the inputs have no CRS: the output has none either")
     out["crs"] = crs
     out["crs_label"] = crs_label(crs)
     return out
+
+
+def read_area_codes(path: Any, label_codes: Any, feedback: Feedback | None = None) -> Any:
+    """The area codes of the code file CODES; a warning lists label codes it does not know."""
+    from toolbox.io.code_file import read_code_file
+    from toolbox.topology.area_codes import AreaCodes
+    from toolbox.topology.labels import blank_mask
+
+    codes = AreaCodes.from_table(read_code_file(path, "CODES"))
+    if feedback is not None and label_codes is not None and len(label_codes):
+        present = [str(c).strip() for c, b in zip(label_codes, blank_mask(label_codes),
+                                                  strict=True) if not b]
+        unknown = sorted(set(present) - codes.known)
+        if unknown:
+            feedback.push_warning(f"{len(unknown)} label codes not in CODES, taken as area "
+                                  f"codes: {', '.join(unknown[:10])}"
+                                  + (" ..." if len(unknown) > 10 else ""))
+    return codes

@@ -24,7 +24,8 @@ ISSUE_TYPES: dict[str, str] = {
               "length, otherwise kept)",
     "sliver": "area smaller than the minimum area (merged into its neighbour)",
     "unlabelled_area": "area without a label point",
-    "conflicting_labels": "area whose label points give different codes or attribute values",
+    "conflicting_labels": "area whose labels (or closed coded lines) give different area codes, "
+                          "or whose labels give different attribute values",
     "label_outside": "label point inside no area (outside the linework or on a boundary)",
 }
 

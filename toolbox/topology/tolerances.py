@@ -17,7 +17,7 @@ TOLERANCE_PARAMETERS: dict[str, tuple[str, str, float]] = {
     "PRECISION": ("precision", "decimals", 0.001),
 }
 
-#: parameter-file entries area building uses (the others are named in a warning): the
+#: parameter-file entries area building uses (the others are named in an information message): the
 #: tolerances above, the unit (checked against the CRS) and the coordinate translation (added to
 #: the input lines and labels)
 TOPOLOGY_FILE_KEYS = frozenset({key for _, key, _ in TOLERANCE_PARAMETERS.values()}

@@ -130,8 +130,13 @@ def test_square_algorithm_with_parameter_file(tmp_path):
     assert stats["squared"] == 5 and stats["largest_corner_error_deg"] < 1e-6
     assert stats["tolerance_sources"] == {"tolerance": "file", "angle_tolerance": "file",
                                           "area_tolerance": "default", "precision": "file"}
-    warning = next(w for w in feedback.warnings if "not used by attribution:square" in w)
-    assert "'traslazione delle coordinate' (line 4)" in warning and "'passo di spline'" in warning
+    # entries for other steps (the translation the importer applied, the spline step): one
+    # information message, no warning on every step sharing the file
+    info = next(t for lvl, t in feedback.messages
+                if lvl == "info" and "not used by attribution:square" in t)
+    assert "'traslazione delle coordinate' (line 4)" in info and "'passo di spline'" in info
+    assert "coordinate translation is not applied" in info
+    assert not [w for w in feedback.warnings if "PARAMETERS" in w]
     squared = gpd.read_file(out, layer="FAB01002")
     assert squared["name"].tolist() == list("ABCDE") and squared["squared"].all()
     moved = gpd.read_file(out, layer="moved_vertices")

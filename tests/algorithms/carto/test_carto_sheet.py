@@ -129,3 +129,83 @@ def test_styles_from_the_shared_style_model():
     styles = styles_from_model(frame, layer)
     assert [(s.name, len(s.frame), s.rgb, s.fill) for s in styles] == [
         ("buildings", 2, (200, 0, 0), (200, 0, 0, 96)), ("woods", 1, (0, 120, 0), None)]
+
+
+def sized_texts(page) -> list[tuple[str, float, float, float]]:
+    """(text, x, y, size in pt at print size) of every text run."""
+    found = []
+
+    def visit(text, cm, tm, font, size):
+        if text.strip():
+            found.append((text.strip(), cm[4] + tm[4], cm[5] + tm[5],
+                          size * float(np.hypot(tm[0], tm[1]))))
+
+    page.extract_text(visitor_text=visit)
+    return found
+
+
+@pytest.fixture(scope="module")
+def map_sheet(inputs, tmp_path_factory):
+    """A sheet with spot heights (PointZ), a long sources line and the contours."""
+    folder = tmp_path_factory.mktemp("sheet_map")
+    spots = gpd.GeoDataFrame({"code": ["QUO01001"] * 2}, geometry=shapely.points(
+        [1688000.0, 1688300.0], [4799300.0, 4799500.0], [312.46, 301.04]), crs=CRS)
+    spots.to_file(folder / "spots.gpkg")
+    sources = "; ".join(f"survey block {k} of 2009-03-31 by a long-named company" for k in
+                        range(4))
+    out = folder / "sheet.pdf"
+    res = toolbox.run("carto:sheet", {
+        "EXTENT": "1687600,4799000,1688600,4799800 [EPSG:3003]", "SCALE": 5000,
+        "BASE": inputs["base"], "CONTOURS": inputs["contours"],
+        "LAYERS": [folder / "spots.gpkg"], "SOURCES": sources, "TITLE": "Siena demo",
+        "OUTPUT": out})
+    return res["SHEETS_WRITTEN"][0], sized_texts(pypdf.PdfReader(out).pages[0]), sources
+
+
+def test_spot_heights_carry_their_height_beside_the_point(map_sheet):
+    sheet, found, _ = map_sheet
+    left, bottom = sheet["frame_mm"][:2]
+    for (x, y), label in (((1688000.0, 4799300.0), "312.5"), ((1688300.0, 4799500.0), "301.0")):
+        px = (left + (x - 1687600.0) / 5.0) * PT_PER_MM  # 1:5000: 5 m per paper mm
+        py = (bottom + (y - 4799000.0) / 5.0) * PT_PER_MM
+        at = [(tx, ty) for t, tx, ty, _ in found if t == label]
+        assert at, label
+        tx, ty = at[0]
+        assert 0 < tx - px < 3 * PT_PER_MM and abs(ty - py) < 2 * PT_PER_MM  # just right of it
+
+
+def test_contour_interval_stated_and_text_readable(map_sheet):
+    _, found, sources = map_sheet
+    words = [t for t, _, _, _ in found]
+    assert "contour interval: 5 m" in words and "contour, interval 5 m" in words
+    assert any(w.startswith("index contour, every 25 m") for w in words)
+    assert min(size for _, _, _, size in found) >= 6.0 - 1e-9  # >= 6 pt at print size
+    # the sources are wrapped over lines, never cut
+    joined = " ".join(" ".join(words).split())
+    assert " ".join(f"sources: {sources}".split()) in joined.replace("  ", " ")
+
+
+def test_grid_labels_keep_clear_of_the_corners(map_sheet):
+    sheet, found, _ = map_sheet
+    left, bottom, width, height = (v * PT_PER_MM for v in sheet["frame_mm"])
+    labels = [(x, y) for t, x, y, _ in found if t.isdigit() and len(t) == 7]
+    assert len(labels) >= 6
+    for x, y in labels:  # within 8 mm of a corner along both edges would collide
+        near_x = min(abs(x - left), abs(x - left - width)) < 8 * PT_PER_MM
+        near_y = min(abs(y - bottom), abs(y - bottom - height)) < 8 * PT_PER_MM
+        assert not (near_x and near_y), (x, y)
+
+
+def test_a_small_sheet_is_centred_not_in_a_corner(tmp_path):
+    res = toolbox.run("carto:sheet", {
+        "EXTENT": "1688000,4799000,1688100,4799060 [EPSG:3003]", "SCALE": 1000,
+        "OUTPUT": tmp_path / "small.pdf"})
+    sheet = res["SHEETS_WRITTEN"][0]
+    paper_w, paper_h = sheet["paper_mm"]
+    left, bottom, width, height = sheet["frame_mm"]
+    assert (width, height) == pytest.approx((100, 60))
+    assert abs((bottom + height / 2) - paper_h / 2) < 1.0  # mid-height of the page
+    panel_left, _, panel_width, _ = sheet["panel_mm"]
+    # the map and its panel as one block, centred: equal margins left (beyond the grid labels'
+    # 6 mm band) and right
+    assert abs((left - 6.0) - (paper_w - panel_left - panel_width)) < 1.0

@@ -131,6 +131,12 @@ def test_dems_of_other_types_are_read_without_loss(tmp_path, dtype):
 
 def test_raster_hillshade_is_an_alias_of_dem_hillshade(plane_dem, tmp_path):
     assert get("raster:hillshade") is get("dem:hillshade")
-    out = tmp_path / "hs.tif"
-    toolbox.run("raster:hillshade", {"INPUT": plane_dem[0], "OUTPUT": out})
-    assert out.exists()
+    old, new = tmp_path / "old.tif", tmp_path / "new.tif"
+    toolbox.run("raster:hillshade", {"INPUT": plane_dem[0], "OUTPUT": old})
+    toolbox.run("dem:hillshade", {"INPUT": plane_dem[0], "OUTPUT": new})
+    with rasterio.open(old) as a, rasterio.open(new) as b:
+        shade = a.read(1, masked=True)
+        assert a.profile == b.profile and np.array_equal(shade, b.read(1, masked=True))
+    # a plane is evenly lit: one grey level inside the halo-free interior, not a blank raster
+    inner = shade[1:-1, 1:-1]
+    assert inner.count() > 0 and 0 < inner.min() == inner.max() < 255

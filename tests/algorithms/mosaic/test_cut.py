@@ -97,9 +97,9 @@ def test_output_folder_needs_overwrite_and_sheet_source(mosaic, tmp_path):
     toolbox.run("mosaic:cut", params)
     with pytest.raises(OutputExistsError):
         toolbox.run("mosaic:cut", params)
-    (tmp_path / "s" / "stale.txt").write_text("old")
+    (tmp_path / "s" / "other.txt").write_text("a file the run does not write")
     toolbox.run("mosaic:cut", params, overwrite=True)
-    assert not (tmp_path / "s" / "stale.txt").exists()
+    assert (tmp_path / "s" / "other.txt").read_text() == "a file the run does not write"
     assert (tmp_path / "s" / "sheets.gpkg").exists()
     with pytest.raises(ParameterError, match="SCALE"):
         toolbox.run("mosaic:cut", {"INPUT": str(mosaic), "OUTPUT": str(tmp_path / "t")})

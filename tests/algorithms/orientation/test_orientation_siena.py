@@ -42,8 +42,9 @@ def runs():
 
 
 def check_residuals(runs, unit_scale=1.0):
-    """Max |printed ground residual + ground shift of the printed pixel residual| (m)."""
-    worst = np.zeros(2)
+    """|printed ground residual + ground shift of the printed pixel residual| (m), one row per
+    backprojection record, x and y; NaN where the log prints no ground residual."""
+    deviations = []
     for row in backprojection_rows():
         record = runs[row["run"]].photos[row["photo"]]
         eo = record.final
@@ -56,8 +57,8 @@ def check_residuals(runs, unit_scale=1.0):
         shift = (photo.pixel_to_ground(pixel, ground[0, 2]) - ground)[0, :2]
         printed = np.array([float(row["dx_ground"]) if row["dx_ground"] else np.nan,
                             float(row["dy_ground"])])
-        worst = np.fmax(worst, np.abs(shift + printed))
-    return worst
+        deviations.append(np.abs(shift + printed))
+    return np.array(deviations)
 
 
 def test_printed_backprojection_residuals_consistent_with_local_jacobian(runs):
@@ -68,14 +69,23 @@ def test_printed_backprojection_residuals_consistent_with_local_jacobian(runs):
     with the IO origin shifted by 100 px, the principal point by 1 mm or the centre by 10 m.
     The end-to-end proof that fails for each of those is test_orientation_metric.py
     ::test_end_to_end_check_has_teeth."""
-    assert len(backprojection_rows()) == 47
-    assert np.all(check_residuals(runs) <= 0.0006)
+    rows = backprojection_rows()
+    assert len(rows) == 47
+    deviations = check_residuals(runs)
+    # the log prints no dx_ground for 4 records of 1_7152 (their dy is still checked)
+    missing = np.isnan(deviations)
+    assert missing.sum() == 4 and not missing[:, 1].any()
+    assert {rows[i]["photo"] for i in np.flatnonzero(missing[:, 0])} == {"1_7152"}
+    # print rounding: 0.5 mm on the ground residual, plus 0.0005 px of pixel residual at the
+    # scan's ~5.5 cm ground pixel (0.014 mm x 1200 m / 303.55 mm)
+    bound = 0.0005 + 0.0005 * 0.014 * 1200 / 303.55
+    assert np.nanmax(deviations) <= bound
 
 
 def test_backprojection_rules_out_degrees_and_gon(runs):
     """Read as degrees (or gon) kappa ~ 0.05 would barely rotate: the relation fails by > 5 cm."""
-    assert check_residuals(runs, np.pi / 180).max() > 0.05
-    assert check_residuals(runs, np.pi / 200).max() > 0.05
+    assert np.nanmax(check_residuals(runs, np.pi / 180)) > 0.05
+    assert np.nanmax(check_residuals(runs, np.pi / 200)) > 0.05
 
 
 def test_siena_geometry_matches_the_derived_figures():

@@ -46,10 +46,13 @@ def test_block_on_one_lattice_with_a_failing_photo(tmp_path):
     assert [Path(p).name for p in listing["orthos"]] == ["p1.tif", "p2.tif"]
     assert listing["failed"][0]["photo"] == "p3" and "missing.tif" in listing["failed"][0]["error"]
     assert any("p3" in w for w in feedback.warnings)
-    # one lattice: the largest GSD of the block (2 significant digits), origins on it
-    gsd = max(r["photo_gsd_m"] for r in listing["photos"])
+    # one lattice: the largest GSD of the block (2 significant digits), origins on it; the GSD
+    # from the scene's own geometry: pixel / c x (Z0 - terrain), terrain between the DEM's extremes
     cell = stats["cell_size"]
-    assert cell == float(f"{gsd:.2g}")
+    scale = 230.0 / scene.SIZE / 153.0
+    highest = max(scene.CENTRE[2], SECOND[2])
+    low, high = (highest - float(sc.dem.max())) * scale, (highest - float(sc.dem.min())) * scale
+    assert cell == float(f"{cell:.2g}") and 0.98 * low <= cell <= 1.02 * high
     for path in listing["orthos"]:
         with rasterio.open(path) as src:
             t = src.transform
@@ -83,6 +86,13 @@ def test_block_tasks_survive_pickling_for_dask_workers(tmp_path):
     assert "error" not in report and Path(report["output"]).exists()
     with rasterio.open(report["output"]) as src:
         assert src.transform == plan.grid.transform and src.count == 2
+        data = src.read()
+        xs = src.transform.c + (np.arange(src.width) + 0.5) * src.transform.a
+        ys = src.transform.f + (np.arange(src.height) + 0.5) * src.transform.e
+    valid = data[1] == 255  # the travelled task still renders the scene's texture, not a blank
+    assert valid.mean() > 0.3
+    truth = sc.texture(*np.meshgrid(xs, ys))
+    assert np.corrcoef(truth[valid], data[0][valid])[0, 1] > 0.99
 
 
 @pytest.mark.distributed

@@ -211,7 +211,8 @@ def test_labels_codes_attributes_conflicts_and_outside():
     assert list(out.face_code) == ["A", "B", None]
     assert list(out.face_attributes["quota"]) == [1.0, None, 7.5]
     assert list(out.face_labels) == [2, 2, 1]
-    assert out.conflicts == {0: "quota 1, 2", 1: "codes B, C"}
+    assert out.conflicts == {0: "2 labels give quota 1, 2: 1 (the first label's) is used",
+                             1: "2 labels give area codes B, C: B (the first label's) is used"}
 
 
 def test_blank_values():

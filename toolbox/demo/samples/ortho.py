@@ -3,12 +3,16 @@
 Three photos of the case study (1_7150 and 1_7151 of strip 1, 2_7139 of strip 2, whose camera
 carries the calibrated distortion table) are rendered through the collinearity equations
 (:func:`toolbox.photogrammetry.synthetic.render_photo`: each pixel's ray marched down to the
-sample DEM of :mod:`.terrain`) from a known RGB texture. The scans are 16644 px; the samples are
-the same photos at 1/32 of that resolution (520 x 520 px of 0.448 mm), so their interior
-orientation is the real pixel -> fiducial fit composed with a scale of 32. Exterior
-orientations, cameras and distortion are the block adjustment's (``siena_project.yaml``).
+sample DEM of :mod:`.terrain`) from the landscape of :mod:`.landscape` (a town, roads, fields and
+woods, shaded with the DEM), so the orthos, the mosaic and the vectors can be judged by eye. The
+scans are 16644 px; the samples are the same photos at 1/32 of that resolution (520 x 520 px of
+0.448 mm), so their interior orientation is the real pixel -> fiducial fit composed with a scale
+of 32. Exterior orientations, cameras and distortion are the block adjustment's
+(``siena_project.yaml``).
 
-Writes ``siena_ortho/<photo>.tif`` (RGB, not georeferenced, as a scan),
+Also renders all six photos of the block into ``siena_block/`` (with its ``project.yaml``), for
+the tie-point and bundle steps. Writes ``siena_ortho/<photo>.tif`` (RGB, not georeferenced, as a
+scan),
 ``siena_ortho/project.yaml`` (an orientation project naming them) and
 ``siena_ortho/camera_1_7150.yaml`` (that photo's camera alone). Deterministic.
 """
@@ -20,18 +24,19 @@ from pathlib import Path
 import numpy as np
 
 PHOTOS = ("1_7150", "1_7151", "2_7139")
+BLOCK = ("1_7150", "1_7151", "1_7152", "2_7138", "2_7139", "2_7140")  # the whole Siena block
 REDUCTION = 32
 SIZE = 520  # 16644 / 32, rounded down
 
 
 def texture():
-    from toolbox.photogrammetry.synthetic import wave_texture
+    from toolbox.demo.samples.landscape import landscape_texture
 
-    return wave_texture(seed=2009, wavelength=(12.0, 60.0), bands=3)
+    return landscape_texture()
 
 
-def demo_project(target: Path):
-    """The Siena project restricted to :data:`PHOTOS`, at 1/32 of the scan resolution."""
+def demo_project(target: Path, photo_ids=PHOTOS):
+    """The Siena project restricted to ``photo_ids``, at 1/32 of the scan resolution."""
     from dataclasses import replace
 
     from toolbox.demo.samples.siena import BUNDLED
@@ -41,7 +46,7 @@ def demo_project(target: Path):
     project = load_project(BUNDLED / "siena_project.yaml")
     scale = np.diag([float(REDUCTION), float(REDUCTION), 1.0])
     cameras, photos = {}, {}
-    for pid in PHOTOS:
+    for pid in photo_ids:
         photo = project.photo(pid)
         cam = photo.camera
         cameras[cam.name] = replace(cam, image_size_px=(SIZE, SIZE),
@@ -58,15 +63,20 @@ def make(folder: Path, made: dict) -> dict:
     from toolbox.photogrammetry.project import save_project
     from toolbox.photogrammetry.synthetic import render_photo, write_photo
 
-    target = Path(folder) / "siena_ortho"
-    target.mkdir(parents=True, exist_ok=True)
     z, transform = terrain()
-    project = demo_project(target)
     paint = texture()
-    for photo in project.photos.values():
-        image = render_photo(photo, z, transform, paint, dtype="uint8", fill=0)
-        write_photo(photo.image, image)
-    path = save_project(project, target / "project.yaml")
+    made_paths = {}
+    for name, ids in (("siena_ortho", PHOTOS), ("siena_block", BLOCK)):
+        target = Path(folder) / name
+        target.mkdir(parents=True, exist_ok=True)
+        project = demo_project(target, ids)
+        for photo in project.photos.values():
+            image = render_photo(photo, z, transform, paint, dtype="uint8", fill=0)
+            write_photo(photo.image, image)
+        made_paths[name] = save_project(project, target / "project.yaml")
+    target = Path(folder) / "siena_ortho"
+    project = demo_project(target)
+    path = made_paths["siena_ortho"]
     # the first photo's camera alone, for ortho:photo's CAMERA + EXTERIOR form (pixel transform
     # from the pixel size: image centre = fiducial centre)
     import yaml
@@ -74,4 +84,5 @@ def make(folder: Path, made: dict) -> dict:
     first = project.photos[PHOTOS[0]].camera.as_dict()
     first.pop("fiducials_mm", None)
     (target / f"camera_{PHOTOS[0]}.yaml").write_text(yaml.safe_dump(first, sort_keys=False))
-    return {"siena_ortho_project": path, "siena_ortho_photo": target / f"{PHOTOS[0]}.tif"}
+    return {"siena_ortho_project": path, "siena_ortho_photo": target / f"{PHOTOS[0]}.tif",
+            "siena_block_project": made_paths["siena_block"]}

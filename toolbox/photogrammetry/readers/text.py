@@ -34,7 +34,6 @@ without a common image extension (``DSC0001.JPG`` -> ``DSC0001``).
 from __future__ import annotations
 
 import csv
-import io
 import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -140,8 +139,7 @@ def read_native_csv(text: str, source: str = "<text>", angle_unit: str | None = 
             if ln.strip() and not ln.lstrip().startswith("#")]
     if not rows:
         raise InputDataError(f"{source} holds no rows")
-    reader = csv.reader(io.StringIO("\n".join(ln for _, ln in rows)))
-    header = [h.strip() for h in next(reader)]
+    header = [h.strip() for h in next(csv.reader([rows[0][1]]), [])]
     cols = _match_columns(header, ("photo", "x0", "y0", "z0", "omega", "phi", "kappa"))
     missing = [k for k in ("photo", "x0", "y0", "z0", "omega", "phi", "kappa") if k not in cols]
     if missing:
@@ -158,8 +156,14 @@ def read_native_csv(text: str, source: str = "<text>", angle_unit: str | None = 
             raise ParameterError("WHERE", f"names column {key!r}, which {source} does not have "
                                  f"(columns: {', '.join(header)})")
     table = OrientationTable(source, "native", {})
+    needed = 1 + max(cols[k] for k in ("photo", "x0", "y0", "z0", "omega", "phi", "kappa"))
     used_units: set[str] = set()
-    for (lineno, _), values in zip(rows[1:], reader, strict=True):
+    for lineno, line in rows[1:]:
+        values = next(csv.reader([line]), [])  # one record per line (no quoted line breaks)
+        if len(values) < needed:
+            raise InputDataError(f"{source} line {lineno}: {len(values)} fields, expected at "
+                                 f"least {needed} (photo, x0 .. kappa; header: "
+                                 f"{', '.join(header)})")
         record = dict(zip(lower, (v.strip() for v in values), strict=False))
         if any(record.get(k, "") != v for k, v in filters.items()):
             continue

@@ -23,6 +23,7 @@ class GriddingAlgorithm(Algorithm):
         check_sources(self, params)
         self.check_method(params)
         check_grid_parameters(params)
+        guard_grid_size(params)
         if params.get("TILE_SIZE", DEFAULT_TILE) % 16:
             raise self.fail("TILE_SIZE", f"must be a multiple of 16 (GeoTIFF blocks), got "
                             f"{params['TILE_SIZE']}")
@@ -37,3 +38,21 @@ class GriddingAlgorithm(Algorithm):
         from toolbox.terrain.gridding.run import grid_dem
 
         return grid_dem(METHODS[self.method], params, feedback)
+
+
+def guard_grid_size(params: dict[str, Any]) -> None:
+    """The grid's size guard (MAX_CELLS / TOOLBOX_MAX_CELLS) from the inputs' declared bounds,
+    before any point is read (also in ``toolbox batch --validate``); the run checks it again on
+    the data's exact bounds."""
+    import numpy as np
+
+    from toolbox.io.crs import input_crs_and_bounds
+    from toolbox.raster.engine import grid_from_parameters
+
+    pairs = [pair for name in ("INPUT", "LINES", "BREAKLINES")
+             for pair in input_crs_and_bounds(params.get(name))]
+    if not pairs or any(b is None for _, b in pairs):
+        return
+    b = np.array([bounds for _, bounds in pairs], dtype=float)
+    bounds = (b[:, 0].min(), b[:, 1].min(), b[:, 2].max(), b[:, 3].max())
+    grid_from_parameters(params, bounds, pairs[0][0])

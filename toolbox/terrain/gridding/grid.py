@@ -63,13 +63,13 @@ def prepare_grid(params: dict, data: GriddingData, limit_to_hull: bool = True) -
     grid = grid_from_parameters(params, data.bounds, data.crs)
     hull = None
     if limit_to_hull and not params.get("EXTRAPOLATE", False):
-        from toolbox.terrain.points import check_not_collinear
+        from toolbox.terrain.points import CollinearError, check_not_collinear
 
         try:
             check_not_collinear(data.local[:, :2], "data points (after merging duplicate XY)")
         except ValueError as exc:
             hint = " (set EXTRAPOLATE to compute cells beyond their hull)" \
-                if "collinear" in str(exc) else ""
+                if isinstance(exc, CollinearError) else ""
             raise InputDataError(f"{exc}{hint}") from None
         hull = convex_hull(data.local[:, :2])
         if hull is None:

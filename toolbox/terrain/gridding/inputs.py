@@ -79,6 +79,11 @@ def check_sources(alg: Algorithm, params: dict) -> None:
             and params.get("BREAKLINES") is None:
         raise alg.fail("INPUT", "is required: give points (INPUT) and/or lines (LINES, "
                        "BREAKLINES) to grid")
+    if params.get("INPUT") is not None:
+        from toolbox.io.pointcloud import cloud_filter
+
+        cloud_filter(params["INPUT"], params.get("CLASSES"), params.get("RETURNS"),
+                     params.get("CRS"))
 
 
 def read_sources(params: dict, feedback: Feedback) -> GriddingData:
@@ -86,8 +91,8 @@ def read_sources(params: dict, feedback: Feedback) -> GriddingData:
     import shapely
 
     from toolbox.io.crs import common_crs
-    from toolbox.io.vector import read_points_xyz, read_vector, vertices_xyz
-    from toolbox.terrain.gridding.neighbours import PointBins
+    from toolbox.io.vector import read_vector, vertices_xyz
+    from toolbox.terrain.points import read_mass_points
 
     named = {name: params[name].crs for name in ("INPUT", "LINES", "BREAKLINES", "MASK")
              if params.get(name) is not None}
@@ -103,9 +108,13 @@ def read_sources(params: dict, feedback: Feedback) -> GriddingData:
     offset = 0
     with feedback.timed("read"):
         if params.get("INPUT") is not None:
-            xyz = read_points_xyz(params["INPUT"], params.get("Z_FIELD"), "INPUT")
+            xyz, cloud = read_mass_points(params["INPUT"], params.get("Z_FIELD"),
+                                          params.get("CLASSES"), params.get("RETURNS"),
+                                          params.get("CRS"))
             parts.append(xyz)
             counts["points"] = len(xyz)
+            if cloud is not None:
+                counts["point_cloud"] = cloud
             offset += len(xyz)
         for name in ("LINES", "BREAKLINES"):
             if params.get(name) is None:
@@ -128,8 +137,17 @@ def read_sources(params: dict, feedback: Feedback) -> GriddingData:
     if not parts or offset == 0:
         raise InputDataError("no data points: the inputs are empty")
     xyz = parts[0] if len(parts) == 1 else np.vstack(parts)
-    rule = params.get("DUPLICATES", "mean")
-    tolerance = float(params.get("DUPLICATE_TOLERANCE") or 0.0)
+    seg = np.vstack(segments) if segments else np.zeros((0, 2), dtype=np.int64)
+    return merge_points(xyz, seg, crs, counts, params.get("DUPLICATES", "mean"),
+                        float(params.get("DUPLICATE_TOLERANCE") or 0.0), feedback)
+
+
+def merge_points(xyz: np.ndarray, seg: np.ndarray, crs: Any, counts: dict, rule: str,
+                 tolerance: float, feedback: Feedback) -> GriddingData:
+    """:class:`GriddingData` of points already read (map coordinates, ``seg`` breakline index
+    pairs): duplicate XY merged by ``rule`` within ``tolerance``, local origin, bins."""
+    from toolbox.terrain.gridding.neighbours import PointBins
+
     with feedback.timed("duplicates"):
         origin = local_origin(xyz)
         local = _shift(xyz, origin)
@@ -142,7 +160,6 @@ def read_sources(params: dict, feedback: Feedback) -> GriddingData:
                 merged, report, _ = merge_duplicate_xy(xyz, tolerance, rule)
             except ValueError as exc:
                 raise InputDataError(f"DUPLICATES is 'error' and {exc}") from None
-        seg = np.vstack(segments) if segments else np.zeros((0, 2), dtype=np.int64)
         if len(seg) and report.removed:
             seg = _remap(xyz[:, :2], merged[:, :2], seg)
         seg = seg[seg[:, 0] != seg[:, 1]]

@@ -94,7 +94,9 @@ def _akl_toussaint(x, y):
 
 
 def hull_vertex_indices(xy: np.ndarray) -> np.ndarray:
-    """Indices of the points that are vertices of the convex hull (empty when collinear)."""
+    """Indices of the points that are vertices of the convex hull: the points outside the hull
+    of the others. Collinear points have a segment as hull: its two ends (every point sitting
+    on one of them)."""
     from scipy.spatial import ConvexHull, QhullError
 
     xy = np.asarray(xy, dtype="float64")[:, :2]
@@ -103,8 +105,11 @@ def hull_vertex_indices(xy: np.ndarray) -> np.ndarray:
     candidates = _hull_candidates(xy)
     try:
         return np.sort(candidates[ConvexHull(xy[candidates]).vertices])
-    except QhullError:
-        return np.zeros(0, dtype=np.int64)
+    except QhullError:  # collinear (or coincident): the ends of the segment
+        centred = xy - xy.mean(axis=0)
+        direction = np.linalg.svd(centred, full_matrices=False)[2][0]
+        t = centred @ direction
+        return np.flatnonzero((t == t.min()) | (t == t.max()))
 
 
 def convex_row_spans(ring: np.ndarray, ys: np.ndarray, tol: float) -> tuple[np.ndarray, np.ndarray]:

@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+from toolbox.io.pointcloud import RETURN_RULES
 from toolbox.parameters import (
     Boolean,
     Crs,
@@ -32,10 +33,12 @@ STATISTICS = Output("STATISTICS", "inputs, duplicates, grid, cells, fallbacks, t
 def source_parameters() -> list:
     """Input data: points, line vertices, breaklines; duplicate rule; CRS."""
     return [
-        VectorLayer("INPUT", "mass points: PointZ, or points with a height field (Z_FIELD)",
-                    geometry_types=["point"], optional=True),
+        VectorLayer("INPUT", "mass points: PointZ, or points with a height field (Z_FIELD), "
+                    "or a LAS/LAZ/COPC point cloud", geometry_types=["point"], optional=True,
+                    point_clouds=True),
         Field("Z_FIELD", "height field of INPUT (default: the geometry's Z)", parent="INPUT",
               numeric=True, optional=True),
+        *point_cloud_parameters(),
         VectorLayer("LINES", "lines whose vertices are data points, e.g. contours (LineString Z, "
                     "or a height field in LINES_Z_FIELD)", geometry_types=["line"], optional=True),
         Field("LINES_Z_FIELD", "height field of LINES (e.g. the contour's elevation)",
@@ -52,6 +55,17 @@ def source_parameters() -> list:
                "units; 0 = identical coordinates)", default=0.0, min_value=0),
         Crs("CRS", "CRS of the data and the output (default: the inputs'); inputs without a CRS "
             "take it, inputs in another CRS are refused", optional=True),
+    ]
+
+
+def point_cloud_parameters() -> list:
+    """CLASSES and RETURNS: which points of a LAS/LAZ INPUT are read."""
+    return [
+        String("CLASSES", "LAS/LAZ INPUT: ASPRS classes to keep, e.g. '2' (ground) or '2,9' "
+               "(ground, water); a class absent from the file is an error (default: all)",
+               optional=True),
+        Enum("RETURNS", "LAS/LAZ INPUT: returns to keep: all, first (return number <= 1) or "
+             "last (return number >= number of returns)", options=RETURN_RULES, default="all"),
     ]
 
 

@@ -24,9 +24,14 @@ from toolbox.terrain.gridding.grid import GridRun, prepare_grid
 from toolbox.terrain.gridding.inputs import GriddingData, read_sources, require_points
 
 
-def grid_dem(method: Any, params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
-    """Run ``dem:<method>``: returns the algorithm's outputs (OUTPUT, STATISTICS, QUALITY)."""
-    data = read_sources(params, feedback)
+def grid_dem(method: Any, params: dict[str, Any], feedback: Feedback,
+             data: GriddingData | None = None) -> dict[str, Any]:
+    """Run ``dem:<method>``: returns the algorithm's outputs (OUTPUT, STATISTICS, QUALITY).
+
+    ``data``: points already read and merged (e.g. the ground points of ``dem:ground``);
+    default: read from the parameters' INPUT, LINES and BREAKLINES.
+    """
+    data = read_sources(params, feedback) if data is None else data
     require_points(data, method.min_points, f"dem:{method.name}")
     run = prepare_grid(params, data, limit_to_hull=method.limits_to_hull)
     options = method.options(params)

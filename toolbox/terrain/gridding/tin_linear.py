@@ -34,13 +34,18 @@ def constrained_tin(xyz: np.ndarray, segments: np.ndarray | None
     info : dict
         ``crossings`` (count) and ``crossing_z_disagreement`` (m).
     """
-    from toolbox.terrain.tin.kernels import crossing_heights, triangulate, triangulate_pslg
+    from toolbox.terrain.tin.kernels import (
+        CrossingSegmentsError,
+        crossing_heights,
+        triangulate,
+        triangulate_pslg,
+    )
 
     seg = segments if segments is not None and len(segments) else None
     try:
         return xyz, triangulate(xyz[:, :2], seg), {"crossings": 0}
-    except ValueError as exc:
-        if seg is None or "cross" not in str(exc):
+    except CrossingSegmentsError:
+        if seg is None:
             raise
     tri = triangulate_pslg(xyz[:, :2], seg, neighbors=False)
     heights, spread = crossing_heights(tri, xyz, seg)

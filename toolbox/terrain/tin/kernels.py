@@ -44,6 +44,10 @@ from toolbox.errors import ToolboxError
 from toolbox.terrain.points import local_origin
 
 
+class CrossingSegmentsError(ValueError):
+    """Constraint segments cross away from their vertices (split them first)."""
+
+
 # -- triangulation --------------------------------------------------------------------------------
 @dataclass
 class Triangulation:
@@ -388,7 +392,7 @@ def triangulate(xy: np.ndarray, segments: np.ndarray | None = None,
     result = triangulate_pslg(xy, segments, neighbors=False, parents=False,
                               triangulator=triangulator)
     if result.steiner_count:
-        raise ValueError(f"segments cross each other away from their vertices "
+        raise CrossingSegmentsError(f"segments cross each other away from their vertices "
                          f"({result.steiner_count} crossing points); split them at the crossings "
                          "first (tin:delaunay does this, interpolating Z)")
     return result.triangles

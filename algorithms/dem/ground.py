@@ -1,0 +1,98 @@
+"""dem:ground - DTM from a DSM or a point cloud: SMRF ground filter, then gridding."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from toolbox.algorithm import Algorithm
+from toolbox.feedback import Feedback
+from toolbox.parameters import Crs, Enum, Field, Number, OutputFile, OutputRaster, RasterLayer, VectorLayer
+from toolbox.registry import register
+from toolbox.terrain.gridding.parameters import (
+    STATISTICS,
+    execution_parameters,
+    grid_parameters,
+    point_cloud_parameters,
+)
+
+GRID_METHODS = ("tin_linear", "idw", "nearest")
+
+
+@register
+class GroundFilterDtm(Algorithm):
+    """DTM (bare earth) from a DSM raster or a point cloud (LAS/LAZ or point layer).
+
+    Ground filter: SMRF, the simple morphological filter (Pingel et al. 2013), a refinement of
+    the progressive morphological filter of Zhang et al. (2003), on a grid of FILTER_CELL:
+
+    1. the lowest point of each cell (a DSM: its own cells, FILTER_CELL not used); empty cells
+       take the nearest value;
+    2. grey openings (scipy.ndimage, square window of 2r+1 cells) for r = 1 ... MAX_WINDOW /
+       FILTER_CELL; a cell that drops by more than SLOPE x r x FILTER_CELL at a step is an
+       object (building, tree). Objects wider than 2 x MAX_WINDOW stay ground: set MAX_WINDOW
+       to half the widest building; SLOPE to the steepest terrain (rise/run);
+    3. a provisional DTM: the ground cells, holes filled by linear interpolation;
+    4. a point (a DSM cell) is ground when its height is within ELEVATION_THRESHOLD +
+       ELEVATION_SCALAR x (local slope of the provisional DTM) of it.
+
+    The ground points are then gridded by METHOD (tin_linear, idw or nearest: the dem:* methods,
+    the same grid rules: CELL_SIZE / EXTENT / TEMPLATE; default: the DSM's grid, or
+    FILTER_CELL over the points' bounds). NONGROUND: UInt8 on the output grid, 1 where a cell
+    holds a non-ground point or DSM cell, 0 where only ground ones, 255 where none.
+    GROUND_POINTS writes the input points classified (2 ground, 1 other) as LAS/LAZ.
+    The filter grid is held in memory (its cells count against MAX_CELLS).
+    """
+
+    id = "dem:ground"
+    display_name = "DTM by ground filtering (SMRF)"
+    group = "DEM gridding"
+    short_help = ("DTM GeoTIFF and non-ground mask from a DSM or a LAS/LAZ point cloud by a "
+                  "morphological ground filter (SMRF), gridded by a dem:* method.")
+    parameters = [
+        VectorLayer("INPUT", "points: a LAS/LAZ/COPC point cloud, or PointZ / points with a "
+                    "height field", geometry_types=["point"], optional=True, point_clouds=True),
+        Field("Z_FIELD", "height field of INPUT (default: the geometry's Z)", parent="INPUT",
+              numeric=True, optional=True),
+        *point_cloud_parameters(),
+        RasterLayer("DSM", "DSM raster (band 1) instead of INPUT", optional=True),
+        Crs("CRS", "CRS of inputs without one (a point cloud without a CRS needs it)",
+            optional=True),
+        Number("FILTER_CELL", "cell of the filter grid, CRS units (points only; default 1)",
+               optional=True, min_value=0, min_exclusive=True),
+        Number("SLOPE", "terrain slope tolerated by the opening (rise/run, e.g. 0.15 = 15 %)",
+               default=0.15, min_value=0),
+        Number("MAX_WINDOW", "largest opening radius, CRS units (half the widest object)",
+               default=18.0, min_value=0, min_exclusive=True),
+        Number("ELEVATION_THRESHOLD", "height above the provisional DTM still ground, CRS units",
+               default=0.5, min_value=0),
+        Number("ELEVATION_SCALAR", "extra threshold per unit of local slope (rise/run)",
+               default=1.25, min_value=0),
+        Enum("METHOD", "gridding of the ground points (as dem:tin_linear / dem:idw / "
+             "dem:nearest, default options)", options=GRID_METHODS, default="tin_linear"),
+        *grid_parameters(),
+        *execution_parameters(),
+        OutputRaster("NONGROUND", "non-ground mask GeoTIFF (UInt8: 1 non-ground, 0 ground, "
+                     "255 no data), on the DTM's grid"),
+        OutputFile("GROUND_POINTS", "the input points classified (2 ground, 1 other) as "
+                   "LAS/LAZ", extensions=[".laz", ".las"], optional=True),
+    ]
+    outputs = [STATISTICS]
+
+    def check(self, params: dict[str, Any]) -> None:
+        from toolbox.io.pointcloud import cloud_filter
+        from toolbox.raster.engine import check_grid_parameters
+
+        if (params.get("INPUT") is None) == (params.get("DSM") is None):
+            raise self.fail("INPUT", "give exactly one of INPUT (points) or DSM (raster)")
+        if params.get("INPUT") is not None:
+            cloud_filter(params["INPUT"], params.get("CLASSES"), params.get("RETURNS"),
+                         params.get("CRS"))
+        elif params.get("FILTER_CELL") is not None:
+            raise self.fail("FILTER_CELL", "is not used with DSM (the filter runs on the DSM's "
+                            "cells)")
+        check_grid_parameters(params, cell_required=False)
+
+    def process(self, params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
+        from toolbox.terrain.ground_run import run_ground
+
+        return run_ground(params, feedback)

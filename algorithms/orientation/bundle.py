@@ -1,0 +1,241 @@
+"""orientation:bundle - bundle block adjustment (aerial triangulation) with self-calibration."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from toolbox.algorithm import Algorithm
+from toolbox.feedback import Feedback
+from toolbox.parameters import (
+    Boolean,
+    Enum,
+    File,
+    Integer,
+    Layer,
+    Number,
+    Output,
+    OutputFile,
+    OutputVector,
+    String,
+)
+from toolbox.photogrammetry.parameters import TABLE_EXTENSIONS, measurement_parameters
+from toolbox.registry import register
+
+
+@register
+class BundleAdjustment(Algorithm):
+    """Bundle block adjustment: the exterior orientation of every photo of a block, the ground
+    coordinates of its tie points and, optionally, the cameras' calibration, in one least-squares
+    adjustment of all collinearity equations (004; 002 par. 1.6).
+
+    INPUT: image measurements of tie, control and check points, one row per point per photo
+    (``point_id``, ``photo``, ``col_px``/``row_px`` or ``x_mm``/``y_mm``, optional ``sigma_px``
+    or ``sigma_mm``), as orientation:intersect and the matcher write them. Pixels are converted to
+    image mm through each photo's interior orientation (fiducial fit for scanned film, pixel size
+    for digital cameras); CONTROL_INPUT (optional) adds the control/check measurements when
+    INPUT holds tie points only. CONTROL: ``id``, ``X``, ``Y``, ``Z``, optional ``role`` (control/check),
+    ``sigma_xy``, ``sigma_z`` (m): leave X and Y empty for a height point, Z empty for a
+    planimetric one. Check points are adjusted as tie points and only compared. GNSS (optional):
+    antenna positions ``photo``, ``X``, ``Y``, ``Z`` (optional sigmas), at the projection centre
+    or offset by LEVER_ARM (camera frame, rotated with the photo).
+
+    Unknowns: 6 exterior parameters per photo, 3 coordinates per point and, per camera, the
+    SELF_CALIBRATION parameters: ``c``, ``x0``, ``y0`` (principal point, mm), ``k1``-``k3``
+    (radial, ``Δr = k1·r³ + k2·r⁵ + k3·r⁷``, mm), ``p1``, ``p2`` (decentring), each ``free`` or
+    ``weighted:SIGMA`` around the project's value (e.g. ``c, k1`` or ``c:weighted:0.01``), for
+    every camera or, with ``@CAMERA``, for one (``x0@wild 303.55``; it overrides).
+
+    START: ``project`` uses PROJECT's exterior orientations; ``control`` computes them (photos with
+    >= 4 control points resected, then tie points intersected and the other photos resected in
+    turn; when that cannot reach every photo, the near-vertical block is solved at once as plane
+    similarities on the XY control, or, without it, chained in a free frame and put on the GNSS
+    centres); ``auto``: project when every photo has one, else control. A block that common
+    points do not connect is refused, component by component.
+
+    Solver: Levenberg-Marquardt on a sparse normal matrix reduced on the points (Schur
+    complement), coordinates shifted to the block's centroid. Datum: at least 2 planimetric and
+    3 height control points (2 full + 1 Z) or GNSS centres on >= 3 photos, else an error naming
+    what is missing; a near-singular normal matrix is an error naming the weak parameters.
+    Blunders: optional Huber stage (ROBUST), then Baarda's data snooping (SNOOPING): the
+    observation of largest |w| > CRITICAL_W is removed and the block adjusted again, until none
+    is left; rejected observations are listed with w and redundancy number.
+
+    Outputs: OUTPUT, the orientation project (YAML) with the adjusted orientations (and
+    calibration: c, principal point, k1, k2; k3/p1/p2 only in the report), which ortho:batch
+    reads; POINTS (GeoPackage): projection_centres (with standard deviations), points (tie,
+    control, check with sigma X/Y/Z), image_residuals (per measurement: µm, px, w-test,
+    redundancy number, rejected) and ground_residuals (surveyed -> adjusted, control and check);
+    REPORT (JSON): sigma0 a posteriori, redundancy, photos and cameras with standard deviations,
+    control/check residuals and RMSE, rejected observations.
+    """
+
+    id = "orientation:bundle"
+    display_name = "Bundle block adjustment"
+    group = "Orientation"
+    short_help = "Aerial triangulation: all photos and tie points in one adjustment, with " \
+                 "self-calibration, GNSS, blunder detection and precision."
+    parameters = [
+        *measurement_parameters("orientation project (YAML): cameras, interior orientations, "
+                                "optional approximate exterior orientations"),
+        File("CONTROL_INPUT", "image measurements of the control/check points when INPUT holds "
+             "only tie points (e.g. orientation:tiepoints' output); same columns and units",
+             extensions=TABLE_EXTENSIONS, optional=True),
+        File("CONTROL", "surveyed points: id, X, Y, Z (blank X/Y: height point, blank Z: "
+             "planimetric), optional role control/check, sigma_xy, sigma_z (m)",
+             extensions=TABLE_EXTENSIONS),
+        File("GNSS", "GNSS projection centres: photo, X, Y, Z, optional sigma_xy, sigma_z (m)",
+             extensions=TABLE_EXTENSIONS, optional=True),
+        String("LEVER_ARM", "GNSS antenna offset from the projection centre in the camera frame, "
+               "m: 'x, y, z' (x, y along the image axes, z away from the ground)", optional=True),
+        Enum("START", "approximate values: auto, project (PROJECT's exteriors) or control "
+             "(resection and intersection chained)", options=("auto", "project", "control"),
+             default="auto"),
+        String("SELF_CALIBRATION", "calibration unknowns, e.g. 'c, k1' or 'c:weighted:0.01, "
+               "x0@CAMERA' (c, x0, y0, k1, k2, k3, p1, p2; @CAMERA: that camera only)",
+               optional=True),
+        Number("SIGMA_PX", "a priori sigma of a pixel measurement without sigma_px, px",
+               default=0.5, min_value=0, min_exclusive=True),
+        Number("SIGMA_MM", "a priori sigma of an image-mm measurement without sigma_mm, mm",
+               default=0.005, min_value=0, min_exclusive=True),
+        Number("CONTROL_SIGMA_XY", "default sigma of control X, Y, m", default=0.02,
+               min_value=0, min_exclusive=True),
+        Number("CONTROL_SIGMA_Z", "default sigma of control Z, m", default=0.03, min_value=0,
+               min_exclusive=True),
+        Number("GNSS_SIGMA_XY", "default sigma of GNSS X0, Y0, m", default=0.10, min_value=0,
+               min_exclusive=True),
+        Number("GNSS_SIGMA_Z", "default sigma of GNSS Z0, m", default=0.15, min_value=0,
+               min_exclusive=True),
+        Boolean("ROBUST", "Huber reweighting stage before the least squares", default=False),
+        Boolean("SNOOPING", "Baarda data snooping: reject and repeat", default=True),
+        Number("CRITICAL_W", "w-test critical value (3.29: alpha 0.1 %)", default=3.29,
+               min_value=1.0),
+        Number("THRESHOLD_PX", "flag image residuals above this, pixels (Z-Map's green/red "
+               "check; pixel measurements)", default=1.0, min_value=0, min_exclusive=True),
+        Integer("MAX_ITERATIONS", "Levenberg-Marquardt iterations per adjustment", default=50,
+                min_value=1, max_value=1000),
+        OutputFile("OUTPUT", "orientation project (YAML) with the adjusted orientations",
+                   extensions=[".yaml", ".yml"]),
+        OutputVector("POINTS", "GeoPackage: projection centres, points, residuals",
+                     optional=True, layers=[
+                         Layer("projection_centres", "Point Z", [
+                             ("photo", "string"), ("X0", "real"), ("Y0", "real"), ("Z0", "real"),
+                             ("omega", "real", "rad"), ("phi", "real"), ("kappa", "real"),
+                             ("std_X0", "real", "m"), ("std_omega", "real", "rad")],
+                             "adjusted projection centres with standard deviations"),
+                         Layer("points", "Point Z", [
+                             ("point_id", "string"), ("role", "string", "tie/control/check"),
+                             ("n_photos", "integer"), ("sigma_x_m", "real"),
+                             ("sigma_y_m", "real"), ("sigma_z_m", "real"),
+                             ("ellipse_a_m", "real", "standard error ellipse, semi-major axis"),
+                             ("ellipse_b_m", "real", "semi-minor axis"),
+                             ("ellipse_angle_deg", "real", "major axis from east, CCW")],
+                             "adjusted ground points with precision"),
+                         Layer("image_residuals", "Point Z", [
+                             ("point_id", "string"), ("photo", "string"),
+                             ("res_x_um", "real", "computed - observed"), ("res_y_um", "real"),
+                             ("res_px", "real"), ("w_x", "real", "w-test"),
+                             ("r_x", "real", "redundancy number"),
+                             ("rejected", "boolean"),
+                             ("flagged", "boolean", "residual over THRESHOLD_PX")],
+                             "one row per measurement, at its point"),
+                         Layer("ground_residuals", "LineString Z", [
+                             ("point_id", "string"), ("role", "string"), ("dx_m", "real"),
+                             ("dy_m", "real"), ("dz_m", "real")],
+                             "surveyed -> adjusted control and check points")]),
+        OutputFile("REPORT", "JSON report", extensions=[".json"], optional=True),
+    ]
+    outputs = [Output("STATISTICS", "sigma0, redundancy, rejected observations, check RMSE",
+                      "dict")]
+
+    def process(self, params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
+        import numpy as np
+
+        from toolbox.io.vector import write_layers
+        from toolbox.photogrammetry.project import save_project
+        from toolbox.photogrammetry.tables import load_project_parameter, write_json
+        from toolbox.triangulation import approximations, outputs
+        from toolbox.triangulation.adjust import adjust, check_datum, validate
+        from toolbox.triangulation.block import Options
+        from toolbox.triangulation.inputs import (
+            BlockRequest,
+            build_block,
+            parse_lever_arm,
+            read_centres,
+            read_control,
+            read_measurements,
+        )
+
+        project = load_project_parameter(params["PROJECT"])
+        measurements = read_measurements(params["INPUT"], params["LAYER"],
+                                         params["COORDINATES"])
+        if params["CONTROL_INPUT"] is not None:
+            extra = read_measurements(params["CONTROL_INPUT"], None, params["COORDINATES"],
+                                      "CONTROL_INPUT")
+            if extra.kind != measurements.kind:
+                raise self.fail("CONTROL_INPUT", f"has {extra.kind} coordinates but INPUT has "
+                                f"{measurements.kind} coordinates: give both in pixels or both "
+                                "in image mm")
+            measurements = measurements.concatenate(extra)
+        control = read_control(params["CONTROL"])
+        centres = read_centres(params["GNSS"]) if params["GNSS"] is not None else None
+        request = BlockRequest(project, measurements, control, centres,
+                               params["SELF_CALIBRATION"] or "", params["SIGMA_PX"],
+                               params["SIGMA_MM"], params["CONTROL_SIGMA_XY"],
+                               params["CONTROL_SIGMA_Z"], params["GNSS_SIGMA_XY"],
+                               params["GNSS_SIGMA_Z"], parse_lever_arm(params["LEVER_ARM"]))
+        block, info = build_block(request)
+        unmeasured = [i for i in control.ids if i not in set(block.point_ids)]
+        if unmeasured:
+            info["notes"] = [f"{len(unmeasured)} CONTROL point(s) not measured in INPUT, not "
+                             f"used: {', '.join(unmeasured[:10])}"]
+            feedback.push_warning(info["notes"][0])
+        validate(block)
+        approximations.require_connected(block)
+        check_datum(block)
+        notes = list(info.get("notes", []))
+        start = params["START"]
+        missing = [p for p in block.photo_ids if project.photos[p].exterior is None]
+        if start == "project" and missing:
+            raise self.fail("START", f"project: photo(s) {', '.join(missing[:5])} have no exterior "
+                      "orientation in PROJECT (use START=control)")
+        if start == "project" or (start == "auto" and not missing):
+            eos = [project.photos[p].exterior for p in block.photo_ids]
+            exterior = np.array([[*e.centre, e.omega, e.phi, e.kappa] for e in eos])
+            points = approximations.from_exteriors(block, exterior)
+            notes.append("approximate values: PROJECT's exterior orientations")
+        else:
+            with feedback.timed("approximate values"):
+                exterior, points, chain = approximations.by_resection(block)
+            notes += chain
+        feedback.set_progress(20)
+        options = Options(max_iterations=params["MAX_ITERATIONS"], robust=params["ROBUST"],
+                          snooping=params["SNOOPING"], critical_w=params["CRITICAL_W"])
+        with feedback.timed("bundle adjustment"):
+            solution = adjust(block, exterior, points, options, feedback)
+        feedback.set_progress(80)
+        unstored = outputs.unstored_calibration(block)
+        if unstored:
+            feedback.push_warning(f"{', '.join(unstored)}: estimated but not storable in the "
+                                  "project file (see REPORT)")
+        for note in solution.notes:
+            if note.startswith("weak geometry"):
+                feedback.push_warning(note)
+        for rj in solution.rejections:
+            feedback.push_warning(f"rejected {rj.kind} observation (w = {rj.w:.2f})")
+        ground = outputs.ground_comparison(block, solution, control, info["checks"])
+        save_project(outputs.adjusted_project(project, block, solution), params["OUTPUT"],
+                     relative_images=False)
+        if params["POINTS"] is not None:
+            write_layers(params["POINTS"], outputs.layers(block, solution, info, ground,
+                                                          project.crs, params["THRESHOLD_PX"]),
+                         crs=project.crs, geometry_types=outputs.GEOMETRY_TYPES)
+        document = outputs.report(block, solution, info, ground, notes + solution.notes,
+                                  params["THRESHOLD_PX"])
+        if params["REPORT"] is not None:
+            write_json(params["REPORT"], {"algorithm": self.id, **document})
+        stats = {k: document["summary"][k] for k in
+                 ("sigma0", "redundancy", "iterations", "photos", "points", "rejected",
+                  "flagged")}
+        stats.update({k: v for k, v in document["summary"].items() if k.endswith("_rmse_m")})
+        return {"OUTPUT": params["OUTPUT"], "POINTS": params["POINTS"],
+                "REPORT": params["REPORT"], "STATISTICS": stats}

@@ -1,0 +1,1 @@
+"""Stereo pairs: epipolar resampling."""

@@ -1,0 +1,105 @@
+"""orientation:fiducials on rendered scans (truth: the pixel centres the marks were drawn at,
+:mod:`scan_scene`), a covered mark, and bad input."""
+
+from __future__ import annotations
+
+import csv
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+import toolbox
+from toolbox.cli import main
+
+sys.path.insert(0, str(Path(__file__).parents[2] / "toolbox" / "matching"))
+import scan_scene as sc  # noqa: E402
+
+# scanned turned by 90 degrees and mirrored (emulsion down): G = Rot90 · Mirror
+TURNED = np.array([[0.0, -1.0], [1.0, 0.0]]) @ np.array([[-1.0, 0.0], [0.0, 1.0]])
+FAMILY = {"MARK_SIZE": sc.MARK, "LINE_WIDTH": sc.LINE}
+
+
+@pytest.fixture(scope="module")
+def scans(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("scans")
+    rendered = {
+        "upright": sc.render_scan(folder / "upright.tif", angle_deg=1.5),
+        "turned16": sc.render_scan(folder / "turned16.tif", angle_deg=-2.0,
+                                   orientation=TURNED, dtype="uint16", seed=1),
+        "covered": sc.render_scan(folder / "covered.tif", angle_deg=0.7, cover="3", seed=2),
+    }
+    project = sc.project_yaml(folder / "scans.yaml", {k: v.path.name
+                                                      for k, v in rendered.items()})
+    return folder, project, rendered
+
+
+def test_marks_found_within_a_third_of_a_pixel(scans, tmp_path):
+    folder, project, rendered = scans
+    feedback = toolbox.Feedback()
+    out = toolbox.run("orientation:fiducials", {
+        "PROJECT": project, **FAMILY, "OUTPUT": tmp_path / "io.json",
+        "MEASUREMENTS": tmp_path / "marks.csv", "THUMBNAILS": str(tmp_path / "thumbs")},
+        feedback=feedback)
+    stats = out["STATISTICS"]
+    assert stats["photos"] == 3 and stats["marks_missing"] == 1
+    doc = json.loads((tmp_path / "io.json").read_text())
+    photos = {e["photo"]: e for e in doc["photos"]}
+    assert photos["upright"]["scan_orientation"] == "0"
+    assert photos["turned16"]["scan_orientation"] == "270m"  # Mirror · Rot270 == Rot90 · Mirror
+    for pid, scan in rendered.items():
+        entry = photos[pid]
+        error = [np.hypot(r["col_px"] - scan.centres[r["mark"]][0],
+                          r["row_px"] - scan.centres[r["mark"]][1]) for r in entry["residuals"]]
+        assert np.sqrt(np.mean(np.square(error))) <= 0.3, (pid, error)
+        # the fitted transform maps the TRUE centres onto the certificate within 0.3 px
+        p2f = np.array(entry["pixel_to_fiducial"])
+        for mark, centre in scan.centres.items():
+            xy = p2f @ [centre[0], centre[1], 1.0]
+            assert np.hypot(*(xy[:2] / xy[2] - sc.MARKS[mark])) <= 0.3 * sc.PIXEL
+    # the covered mark: missing with its scores, never placed
+    missing = photos["covered"]["missing"]
+    assert [m["mark"] for m in missing] == ["3"] and missing[0]["status"] == "covered"
+    assert missing[0]["score"] < 0.6 and missing[0]["runner_up"] is not None
+    assert photos["covered"]["marks"] == 7
+    with open(tmp_path / "marks.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert len(rows) == 23 and ("covered", "3") not in {(r["photo"], r["mark_id"]) for r in rows}
+    assert len(list((tmp_path / "thumbs").glob("*.png"))) == 24
+    assert any("covered" in w for w in feedback.warnings)
+    # orientation:interior reads the measurements and gives the same transforms
+    toolbox.run("orientation:interior", {"INPUT": tmp_path / "marks.csv", "PROJECT": project,
+                                         "OUTPUT": tmp_path / "interior.json"})
+    again = {e["photo"]: e for e in json.loads((tmp_path / "interior.json").read_text())["photos"]}
+    for pid in rendered:
+        assert np.allclose(again[pid]["pixel_to_fiducial"], photos[pid]["pixel_to_fiducial"],
+                           atol=1e-9)
+
+
+def test_template_image_and_bad_templates(scans, tmp_path):
+    from toolbox.matching.marks import draw
+    from toolbox.photogrammetry.synthetic import write_photo
+
+    folder, project, rendered = scans
+    mark = draw("cross", sc.MARK, sc.LINE, sc.PIXEL)
+    write_photo(tmp_path / "mark8.tif", (40 + 150 * mark).astype(np.uint8))
+    out = toolbox.run("orientation:fiducials", {
+        "PROJECT": project, "PHOTOS": "upright", "TEMPLATE": tmp_path / "mark8.tif",
+        "OUTPUT": tmp_path / "io.json"})
+    assert out["STATISTICS"]["photos"] == 1 and out["STATISTICS"]["marks_missing"] == 0
+    # a 16-bit template on an 8-bit scan
+    write_photo(tmp_path / "mark16.tif", (10000 + 40000 * mark).astype(np.uint16))
+    result = CliRunner().invoke(main, [
+        "run", "orientation:fiducials", "--PROJECT", str(project), "--PHOTOS", "upright",
+        "--TEMPLATE", str(tmp_path / "mark16.tif"), "--OUTPUT", str(tmp_path / "bad.json")])
+    assert result.exit_code == 2 and "uint16" in result.output and "uint8" in result.output
+    assert len(result.output.strip().splitlines()) == 1 and not (tmp_path / "bad.json").exists()
+    # a template larger than the search window
+    result = CliRunner().invoke(main, [
+        "run", "orientation:fiducials", "--PROJECT", str(project), "--MARK_SIZE", "2",
+        "--LINE_WIDTH", "0.3", "--SEARCH_MM", "0.5", "--OUTPUT", str(tmp_path / "bad.json")])
+    assert result.exit_code == 2 and "larger than the search window" in result.output
+    assert "Traceback" not in result.output and not (tmp_path / "bad.json").exists()

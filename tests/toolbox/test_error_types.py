@@ -1,0 +1,57 @@
+"""Errors decided by type, not by message text (issue 24 §5): a write failure whose wording no
+list knows is still one line, exit 2, nothing left; typed library errors pick the hints."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from toolbox.cli import main
+
+
+def _register(error):
+    from toolbox.algorithm import Algorithm
+    from toolbox.parameters import OutputFile
+    from toolbox.registry import register
+
+    @register
+    class _Writer(Algorithm):
+        """Writes half of its output, then its library fails."""
+
+        id = "testing:typed_write_failure"
+        display_name = group = short_help = "typed write failure"
+        parameters = [OutputFile("OUTPUT", extensions=[".tif"])]
+
+        def process(self, params, feedback):
+            params["OUTPUT"].write_bytes(b"II*\0half")
+            raise error
+
+    return _Writer
+
+
+@pytest.mark.parametrize("make", [
+    lambda: __import__("rasterio._err", fromlist=["x"]).CPLE_FileIOError(
+        3, 3, "TIFFWriteDirectorySec: something unexpected happened"),
+    lambda: OSError(27, "File too large (reworded by a library)"),  # EFBIG
+])
+def test_a_write_failure_of_any_wording_is_one_line(tmp_path, make):
+    _register(make())
+    result = CliRunner().invoke(main, ["run", "testing:typed_write_failure", "--OUTPUT",
+                                       str(tmp_path / "out.tif")])
+    lines = result.stderr.strip().splitlines()
+    assert result.exit_code == 2 and len(lines) == 1, result.stderr
+    assert lines[0].startswith("toolbox: error: ") and "OUTPUT" in lines[0]
+    assert "nothing was written" in lines[0] or "cannot write" in lines[0]
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_collinear_and_crossing_errors_are_types():
+    from toolbox.terrain.points import CollinearError, check_not_collinear
+    from toolbox.terrain.tin.kernels import CrossingSegmentsError, triangulate
+
+    with pytest.raises(CollinearError):
+        check_not_collinear(np.c_[np.arange(10.0), 2 * np.arange(10.0)])
+    xy = np.array([[0, 0], [10, 0], [10, 10], [0, 10]], float)
+    with pytest.raises(CrossingSegmentsError):
+        triangulate(xy, np.array([[0, 2], [1, 3]]))

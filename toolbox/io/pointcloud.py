@@ -1,0 +1,351 @@
+"""LAS/LAZ/COPC point clouds: a validated reference, a chunked reader with class and return
+filters, and a chunked writer (laspy; LAZ through the lazrs backend).
+
+Reading never holds the whole file's records: chunks of :data:`CHUNK_POINTS` points are
+decoded, filtered and copied into one preallocated ``(N, 3)`` float64 array (N = the header's
+point count), so the peak is that array plus one chunk. COPC files are LAZ 1.4 files and are
+read the same way (whole file; no spatial query).
+
+Return filter (``RETURNS``): ``all``; ``first`` = return number <= 1; ``last`` = return number
+>= number of returns. Points with return number 0 (photogrammetric clouds often leave 0/0)
+count as both first and last. Class filter (``CLASSES``): ASPRS classification codes, e.g.
+``2`` ground, ``9`` water; a requested class absent from the file is an error.
+
+CRS: from the file's OGC WKT VLR or GeoTIFF keys (``laspy.LasHeader.parse_crs``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from toolbox.errors import InputDataError, ParameterError
+
+SUFFIXES = (".las", ".laz")  # COPC is ".copc.laz"
+CHUNK_POINTS = 1_000_000
+RETURN_RULES = ("all", "first", "last")
+
+
+def is_point_cloud_path(value: Any) -> bool:
+    """True for a path (str or Path) ending in .las or .laz (any case)."""
+    return isinstance(value, (str, Path)) and "|" not in str(value) \
+        and Path(str(value)).suffix.lower() in SUFFIXES
+
+
+@dataclass
+class PointCloudRef:
+    """A validated LAS/LAZ file: its header facts, read once (not the points)."""
+
+    path: Path
+    point_count: int
+    compressed: bool
+    version: str
+    point_format: int
+    dimensions: list[str]
+    bounds: tuple[float, float, float, float]  # xmin, ymin, xmax, ymax
+    z_range: tuple[float, float]
+    crs_wkt: str | None
+    info: dict[str, Any] = field(default_factory=dict)
+
+    def __str__(self) -> str:
+        return f"'{self.path}'"
+
+    @property
+    def crs(self):
+        from pyproj import CRS
+
+        return None if self.crs_wkt is None else CRS.from_wkt(self.crs_wkt)
+
+    # the Field parameter's interface: the point dimensions are the "fields"
+    @property
+    def fields(self) -> list[str]:
+        return list(self.dimensions)
+
+    @property
+    def field_types(self) -> dict[str, str]:
+        return {name: "number" for name in self.dimensions}
+
+    def is_numeric(self, name: str) -> bool:
+        return name in self.dimensions
+
+
+def lazrs_available() -> bool:
+    """True when laspy has a LAZ backend (lazrs or laszip)."""
+    import laspy
+
+    return bool(laspy.LazBackend.detect_available())
+
+
+def open_point_cloud(value: Any, name: str = "INPUT") -> PointCloudRef:
+    """Read the header of a LAS/LAZ file; :class:`ParameterError` naming ``name`` if unreadable."""
+    if isinstance(value, PointCloudRef):
+        return value
+    import laspy
+
+    path = Path(str(value)).expanduser()
+    if not path.exists():
+        raise ParameterError(name, f"file '{value}' does not exist")
+    try:
+        with laspy.open(path) as reader:
+            header = reader.header
+            compressed = bool(header.are_points_compressed)
+            try:
+                crs = header.parse_crs()
+            except Exception as exc:  # a malformed VLR: say so, do not guess
+                raise ParameterError(name, f"'{value}': its CRS VLR cannot be parsed: "
+                                     f"{str(exc).splitlines()[0]}") from None
+            mins, maxs = header.mins, header.maxs
+            ref = PointCloudRef(
+                path=path, point_count=int(header.point_count), compressed=compressed,
+                version=str(header.version), point_format=int(header.point_format.id),
+                dimensions=list(header.point_format.dimension_names),
+                bounds=(float(mins[0]), float(mins[1]), float(maxs[0]), float(maxs[1])),
+                z_range=(float(mins[2]), float(maxs[2])),
+                crs_wkt=None if crs is None else crs.to_wkt())
+    except ParameterError:
+        raise
+    except Exception as exc:
+        raise ParameterError(name, f"cannot read '{value}' as a LAS/LAZ point cloud: "
+                             f"{str(exc).splitlines()[0]}") from None
+    if ref.point_count == 0:
+        raise ParameterError(name, f"point cloud '{value}' has no points")
+    ref.info = {"total_bounds": ref.bounds, "point_count": ref.point_count,
+                "compressed": compressed, "version": ref.version,
+                "point_format": ref.point_format}
+    return ref
+
+
+@dataclass(frozen=True)
+class PointFilter:
+    """Which points of a cloud are read: ASPRS classes (None = all) and returns."""
+
+    classes: tuple[int, ...] | None = None
+    returns: str = "all"
+
+    def describe(self) -> str:
+        classes = "all" if self.classes is None else ",".join(map(str, self.classes))
+        return f"classes {classes}, returns {self.returns}"
+
+
+def parse_classes(text: Any, name: str = "CLASSES") -> tuple[int, ...] | None:
+    """``"2,9"`` -> ``(2, 9)``; None or "" -> None. Codes 0..255, else :class:`ParameterError`."""
+    if text is None or str(text).strip() == "":
+        return None
+    items = text if isinstance(text, (list, tuple)) else str(text).replace(";", ",").split(",")
+    codes = []
+    for item in items:
+        item = str(item).strip()
+        if not item:
+            continue
+        try:
+            code = int(item)
+        except ValueError:
+            raise ParameterError(name, f"must be ASPRS class codes separated by commas (e.g. "
+                                 f"'2,9'), got {text!r}") from None
+        if not 0 <= code <= 255:
+            raise ParameterError(name, f"class codes are 0..255, got {code}")
+        codes.append(code)
+    return tuple(sorted(set(codes))) or None
+
+
+@dataclass
+class ReadReport:
+    """What :func:`read_xyz` read: totals and the class histogram of the whole file."""
+
+    read: int
+    kept: int
+    classes: dict[int, int]
+    filter: str
+
+    def as_dict(self) -> dict:
+        return {"points_in_file": self.read, "points_kept": self.kept,
+                "classes_in_file": {str(k): v for k, v in self.classes.items()},
+                "filter": self.filter}
+
+
+def _require_backend(ref: PointCloudRef, name: str) -> None:
+    if ref.compressed and not lazrs_available():
+        raise InputDataError(f"{name} {ref} is compressed (LAZ) but no LAZ backend is "
+                             "installed: pip install lazrs")
+
+
+def _keep(points, flt: PointFilter) -> np.ndarray | None:
+    """Boolean mask of the chunk's points that pass ``flt`` (None = all)."""
+    keep = None
+    if flt.classes is not None:
+        keep = np.isin(np.asarray(points.classification), flt.classes)
+    if flt.returns != "all":
+        rn = np.asarray(points.return_number).astype(np.int16)
+        if flt.returns == "first":
+            ret = rn <= 1
+        else:
+            ret = rn >= np.asarray(points.number_of_returns).astype(np.int16)
+        keep = ret if keep is None else keep & ret
+    return keep
+
+
+def read_xyz(ref: PointCloudRef, flt: PointFilter = PointFilter(), z_field: str | None = None,
+             name: str = "INPUT", chunk_points: int = CHUNK_POINTS
+             ) -> tuple[np.ndarray, ReadReport]:
+    """(K, 3) float64 X, Y, Z (map units) of the points passing ``flt``, read by chunks.
+
+    Z is the point's z, or the dimension ``z_field`` (e.g. a height above ground). Raises
+    :class:`InputDataError` naming ``name`` when LAZ cannot be decoded, a requested class is
+    not in the file, or no point passes the filter.
+    """
+    import laspy
+
+    _require_backend(ref, name)
+    out = np.empty((ref.point_count, 3), dtype=np.float64)
+    hist = np.zeros(256, dtype=np.int64)
+    n_read = n_kept = 0
+    try:
+        with laspy.open(ref.path) as reader:
+            for points in reader.chunk_iterator(chunk_points):
+                n = len(points)
+                if n == 0:
+                    continue
+                hist += np.bincount(np.asarray(points.classification, dtype=np.int64),
+                                    minlength=256)[:256]
+                keep = _keep(points, flt)
+                z = points.z if z_field in (None, "z", "Z") else points[z_field]
+                cols = (points.x, points.y, z)
+                k = n if keep is None else int(keep.sum())
+                end = n_kept + k
+                if end > len(out):  # the header under-counted: grow (rare, broken files)
+                    out = np.resize(out, (end + chunk_points, 3))
+                for j, col in enumerate(cols):
+                    col = np.asarray(col, dtype=np.float64)
+                    out[n_kept:end, j] = col if keep is None else col[keep]
+                n_read += n
+                n_kept = end
+    except InputDataError:
+        raise
+    except Exception as exc:
+        raise InputDataError(f"{name} {ref}: cannot read the points: "
+                             f"{str(exc).splitlines()[0]}") from None
+    classes = {int(c): int(hist[c]) for c in np.flatnonzero(hist)}
+    report = ReadReport(n_read, n_kept, classes, flt.describe())
+    if flt.classes is not None:
+        missing = [c for c in flt.classes if c not in classes]
+        if missing:
+            present = ", ".join(f"{c} ({n} points)" for c, n in classes.items())
+            raise InputDataError(f"CLASSES {','.join(map(str, missing))} not in {name} {ref}; "
+                                 f"the classes present are: {present}")
+    if n_kept == 0:
+        raise InputDataError(f"no point of {name} {ref} passes the filter ({flt.describe()}) "
+                             f"of its {n_read} points")
+    xyz = out[:n_kept]
+    if not np.isfinite(xyz[:, 2]).all():
+        raise InputDataError(f"{name} {ref}: the height {z_field or 'z'} is NaN or infinite "
+                             "for some points")
+    return xyz, report
+
+
+def check_cloud_crs(ref: Any, crs: Any, name: str = "INPUT") -> None:
+    """:class:`ParameterError` when a point cloud has no CRS and the CRS parameter is not given."""
+    if isinstance(ref, PointCloudRef) and ref.crs_wkt is None and crs is None:
+        raise ParameterError(name, f"point cloud {ref} has no CRS (no WKT or GeoTIFF VLR): "
+                             "give its CRS in the CRS parameter (e.g. --CRS EPSG:3003)")
+
+
+# -- writing -----------------------------------------------------------------------------------
+class PointCloudWriter:
+    """Write points to LAS 1.4 (``.las``) or LAZ (``.laz``, needs lazrs) in appended chunks.
+
+    ``origin`` (3,) is the coordinate offset (a point near the data; rounded to 1 km), ``scale``
+    the coordinate resolution (CRS units, default 1 mm), ``rgb`` whether colour is written
+    (point format 7, else 6). The CRS goes in an OGC WKT VLR. Use as a context manager;
+    :meth:`write` takes ``xyz`` (N, 3), optional ``classification`` (N,) ASPRS codes and ``rgb``
+    (N, 3) colour (uint8 values are scaled by 257 to 16 bits).
+    """
+
+    def __init__(self, path: str | Path, origin: np.ndarray, crs: Any = None,
+                 rgb: bool = False, scale: float = 0.001):
+        import laspy
+
+        self.path = Path(path)
+        self.compress = self.path.suffix.lower() == ".laz"
+        if self.compress and not lazrs_available():
+            raise InputDataError(f"cannot write '{self.path}' as LAZ: no LAZ backend is "
+                                 "installed (pip install lazrs), or write .las")
+        header = laspy.LasHeader(point_format=7 if rgb else 6, version="1.4")
+        header.offsets = np.floor(np.asarray(origin, dtype=np.float64) / 1000.0) * 1000.0
+        header.scales = np.array([scale, scale, scale])
+        if crs is not None:
+            from pyproj import CRS
+
+            header.add_crs(CRS.from_user_input(crs))
+        self.header, self.rgb, self.count = header, rgb, 0
+        self._writer = None
+
+    def __enter__(self) -> PointCloudWriter:
+        import laspy
+
+        self._writer = laspy.open(self.path, mode="w", header=self.header,
+                                  do_compress=self.compress)
+        return self
+
+    def write(self, xyz: np.ndarray, classification: np.ndarray | None = None,
+              rgb: np.ndarray | None = None) -> None:
+        import laspy
+
+        xyz = np.asarray(xyz, dtype=np.float64)
+        if len(xyz) == 0:
+            return
+        record = laspy.ScaleAwarePointRecord.zeros(len(xyz), header=self.header)
+        record.x, record.y, record.z = xyz[:, 0], xyz[:, 1], xyz[:, 2]
+        if classification is not None:
+            record.classification = np.asarray(classification, dtype=np.uint8)
+        if self.rgb and rgb is not None:
+            rgb = np.asarray(rgb)
+            if rgb.dtype == np.uint8:
+                rgb = rgb.astype(np.uint16) * 257
+            record.red, record.green, record.blue = rgb[:, 0], rgb[:, 1], rgb[:, 2]
+        record.return_number[:] = 1
+        record.number_of_returns[:] = 1
+        self._writer.write_points(record)
+        self.count += len(xyz)
+
+    def __exit__(self, *exc) -> None:
+        self._writer.close()
+
+
+def write_point_cloud(path: str | Path, xyz: np.ndarray, crs: Any = None,
+                      classification: np.ndarray | None = None, rgb: np.ndarray | None = None,
+                      scale: float = 0.001, chunk_points: int = CHUNK_POINTS) -> int:
+    """Write points to LAS 1.4 / LAZ in chunks (see :class:`PointCloudWriter`); returns the
+    points written."""
+    xyz = np.asarray(xyz, dtype=np.float64)
+    origin = xyz.min(axis=0) if len(xyz) else np.zeros(3)
+    with PointCloudWriter(path, origin, crs, rgb is not None, scale) as writer:
+        for start in range(0, len(xyz), chunk_points):
+            part = slice(start, start + chunk_points)
+            writer.write(xyz[part], None if classification is None else classification[part],
+                         None if rgb is None else rgb[part])
+    return len(xyz)
+
+
+def cloud_filter(source: Any, classes: Any = None, returns: str | None = "all",
+                 crs: Any = None, name: str = "INPUT") -> PointFilter | None:
+    """The :class:`PointFilter` of a point-layer parameter, checked before any work.
+
+    Returns None for a vector ``source``; raises :class:`ParameterError` when CLASSES or
+    RETURNS are given for a vector layer, CLASSES is malformed, or the cloud has no CRS and
+    ``crs`` is None.
+    """
+    returns = returns or "all"
+    if not isinstance(source, PointCloudRef):
+        if classes not in (None, "") or returns != "all":
+            which = "CLASSES" if classes not in (None, "") else "RETURNS"
+            raise ParameterError(which, f"applies only to a LAS/LAZ point cloud {name}, but "
+                                 f"{name} {source} is a vector layer")
+        return None
+    if returns not in RETURN_RULES:
+        raise ParameterError("RETURNS", f"must be one of {', '.join(RETURN_RULES)}, "
+                             f"got {returns!r}")
+    check_cloud_crs(source, crs, name)
+    return PointFilter(parse_classes(classes), returns)

@@ -1,0 +1,325 @@
+"""Tie points across a block of photos: the whole pipeline, from image files to tracks.
+
+1. each photo is read at a reduced level (longer side <= ``max_size``, area average: bounded
+   memory for 16644 x 16644 scans) and its features are detected tile by tile
+   (:mod:`features`), outside a border of ``border_px`` (fiducial marks, data strip);
+2. pairs: footprint overlap when the photos are oriented and a terrain height is known
+   (:mod:`pairs`); otherwise every pair is matched on thumbnails first and kept when it verifies;
+3. each pair: ratio test, USAC/MAGSAC fundamental matrix, and with orientations the epipolar
+   distance (:mod:`matching`);
+4. tracks by union-find, inconsistent ones dropped (:mod:`tracks`);
+5. thinning per model (:mod:`thinning`), then sub-pixel NCC refinement of the kept tracks on
+   full-resolution patches (:mod:`refine`): an observation that does not refine is dropped.
+
+Coordinates are full-resolution pixels (col, row; top-left pixel centre at (0.5, 0.5)).
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from toolbox.errors import InputDataError
+from toolbox.matching import matching, pairs, refine, thinning, tracks
+from toolbox.matching.features import Features, border_mask, detect
+from toolbox.matching.images import ImageSource
+
+
+@dataclass
+class TiePointOptions:
+    """Settings of :func:`tie_points` (pixels are full-resolution unless said otherwise)."""
+
+    detector: str = "sift"
+    max_size: int = 3000  # longer side of the level the features are detected on, px
+    tile: int = 1024  # detection tile on that level, px
+    per_tile: int = 2500  # features per tile
+    workers: int = 0  # threads for detection and matching (0: one per core)
+    ratio: float = 0.8  # Lowe's ratio test
+    f_threshold: float = 1.0  # MAGSAC inlier threshold, px of the detection level
+    min_matches: int = 15  # fewer verified matches: the pair is not tied
+    border_px: float = 0.0  # masked border (fiducials, data strip)
+    target_per_model: int = 64  # Gruber cells per model
+    refine: bool = True
+    half: int = 10  # NCC template half size
+    min_ncc: float = 0.75
+    epipolar_tolerance: float | None = None  # px; with orientations, drop matches farther
+    min_overlap: float = 5.0  # percent, footprint pairs
+    terrain_height: float | None = None  # plane for the footprints
+    thumbnail_size: int = 800
+
+
+@dataclass
+class BlockPhoto:
+    """A photo to match: its id, the image and, when known, the oriented Photo."""
+
+    id: str
+    source: ImageSource
+    photo: Any = None
+
+
+@dataclass
+class PairReport:
+    a: str
+    b: str
+    overlap_percent: float | None
+    candidates: int = 0
+    verified: int = 0
+    kept: int = 0
+    cells_3x3: int = 0
+    median_f_residual_px: float | None = None
+    median_epipolar_px: float | None = None
+    status: str = "ok"
+
+
+@dataclass
+class Track:
+    """One tie point: photo indices, full-resolution positions, a priori sigma (px) each."""
+
+    photos: list[int]
+    xy: np.ndarray
+    sigma: np.ndarray
+    refined: bool
+
+
+@dataclass
+class TiePointResult:
+    photos: list[BlockPhoto]
+    tracks: list[Track]
+    pairs: list[PairReport]
+    untied: list[str]  # photos in no verified pair
+    dropped_inconsistent: int
+    features: dict[str, int] = field(default_factory=dict)
+    pair_selection: str = ""
+
+
+Progress = Callable[[float, str], None]
+
+
+def _median(values: np.ndarray) -> float | None:
+    values = values[np.isfinite(values)]
+    return float(np.median(values)) if len(values) else None
+
+
+def _features(bp: BlockPhoto, opts: TiePointOptions, max_size: int) -> tuple[Features, float]:
+    scale = bp.source.scale_for(max_size)
+    image, (sx, sy) = bp.source.level(scale)
+    mask = border_mask(*image.shape, opts.border_px / min(sx, sy))
+    feats = detect(image, mask, opts.detector, opts.tile, opts.per_tile)
+    return feats.scaled(sx, sy), float(np.sqrt(sx * sy))
+
+
+def _match(fa: Features, fb: Features, opts: TiePointOptions, level_scale: float,
+           pa: BlockPhoto | None = None, pb: BlockPhoto | None = None) -> matching.PairMatches:
+    ia, ib = matching.ratio_matches(fa, fb, opts.ratio, opts.detector)
+    cameras = None
+    if pa is not None and pb is not None and _has_camera(pa) and _has_camera(pb):
+        angle = 0.5 * (matching.pixel_angle(pa.photo) + matching.pixel_angle(pb.photo))
+        cameras = (matching.normaliser(pa.photo), matching.normaliser(pb.photo), angle)
+    return matching.verify(fa, fb, ia, ib, opts.f_threshold * level_scale,
+                           min_matches=opts.min_matches, cameras=cameras)
+
+
+def _has_camera(bp: BlockPhoto) -> bool:
+    return bp.photo is not None and bp.photo.pixel_transform is not None
+
+
+def select_pairs(photos: list[BlockPhoto], opts: TiePointOptions
+                 ) -> tuple[list[tuple[int, int, float | None]], str]:
+    """Candidate pairs and how they were chosen (footprints / thumbnails)."""
+    oriented = all(bp.photo is not None and bp.photo.exterior is not None for bp in photos)
+    if oriented and opts.terrain_height is not None:
+        return pairs.footprint_pairs([bp.photo for bp in photos], opts.terrain_height,
+                                     opts.min_overlap), "footprints"
+    small = TiePointOptions(**{**opts.__dict__, "per_tile": 1000})
+    every = pairs.all_pairs(len(photos))
+    with ThreadPoolExecutor(opts.workers or os.cpu_count() or 1) as pool:
+        thumbs = list(pool.map(lambda bp: _features(bp, small, opts.thumbnail_size), photos))
+        found = list(pool.map(lambda c: len(_match(thumbs[c[0]][0], thumbs[c[1]][0], opts,
+                                                   max(thumbs[c[0]][1], thumbs[c[1]][1]),
+                                                   photos[c[0]], photos[c[1]])), every))
+    return [c for c, n in zip(every, found, strict=True) if n >= opts.min_matches], "thumbnails"
+
+
+def tie_points(photos: list[BlockPhoto], opts: TiePointOptions,
+               progress: Progress | None = None) -> TiePointResult:
+    """Run the pipeline (module docstring) on ``photos``."""
+    say = progress or (lambda p, m: None)
+    if len(photos) < 2:
+        raise InputDataError(f"tie points need at least two photos, got {len(photos)}")
+    candidates, how = select_pairs(photos, opts)
+    say(10, f"{len(candidates)} candidate pairs ({how})")
+    used = sorted({k for i, j, _ in candidates for k in (i, j)})
+    feats: dict[int, Features] = {}
+    scales: dict[int, float] = {}
+    # OpenCV releases the GIL: photos are detected, and pairs matched, on parallel threads
+    with ThreadPoolExecutor(opts.workers or os.cpu_count() or 1) as pool:
+        for n, (k, (f, s)) in enumerate(zip(used, pool.map(
+                lambda k: _features(photos[k], opts, opts.max_size), used), strict=True)):
+            feats[k], scales[k] = f, s
+            say(10 + 40 * (n + 1) / max(1, len(used)), f"features of {photos[k].id}: {len(f)}")
+        matched = list(pool.map(lambda c: _match(feats[c[0]], feats[c[1]], opts,
+                                                 max(scales[c[0]], scales[c[1]]), photos[c[0]],
+                                                 photos[c[1]]), candidates))
+    reports: list[PairReport] = []
+    verified: list[tuple[int, int, np.ndarray, np.ndarray, np.ndarray]] = []
+    for (i, j, overlap), m in zip(candidates, matched, strict=True):
+        rep = PairReport(photos[i].id, photos[j].id, overlap)
+        ia, ib, res = m.ia, m.ib, m.f_residual
+        rep.candidates, rep.median_f_residual_px = m.candidates, _median(res)
+        pa, pb = photos[i].photo, photos[j].photo
+        if len(ia) and pa is not None and pb is not None and pa.exterior is not None \
+                and pb.exterior is not None:
+            epi = matching.orientation_epipolar_distance(pa, pb, feats[i].xy[ia], feats[j].xy[ib])
+            rep.median_epipolar_px = _median(epi)
+            if opts.epipolar_tolerance is not None:
+                ok = epi <= opts.epipolar_tolerance
+                ia, ib, res = ia[ok], ib[ok], res[ok]
+        rep.verified = len(ia)
+        if rep.verified < opts.min_matches:
+            rep.status = "no_matches" if rep.candidates < opts.min_matches else "not_verified"
+            rep.verified = 0
+        else:
+            verified.append((i, j, ia, ib, m.model))
+        reports.append(rep)
+    say(60, f"{len(verified)} of {len(candidates)} pairs verified")
+    tied = {k for i, j, *_ in verified for k in (i, j)}
+    untied = [bp.id for k, bp in enumerate(photos) if k not in tied]
+    if not verified:
+        raise InputDataError(f"no photo pair of {len(photos)} photos could be tied "
+                             f"({len(candidates)} candidate pairs, chosen by {how}): the photos "
+                             "do not overlap or show no common texture")
+    limit = max(len(f) for f in feats.values()) + 1
+    found, dropped = tracks.build_tracks(((i, j, ia, ib) for i, j, ia, ib, _ in verified), limit)
+    xy = [np.array([feats[p].xy[f] for p, f in t]) for t in found]
+    # closure: every pair of a track's photos that has a fundamental matrix must agree with it
+    # (a chain a-b-c of pairwise-correct matches can still join two different points)
+    residual = _track_residuals(found, xy, {(i, j): f for i, j, _, _, f in verified})
+    bad = residual > 2.0 * opts.f_threshold * max(scales.values())
+    found = [t for t, b in zip(found, bad, strict=True) if not b]
+    xy = [p for p, b in zip(xy, bad, strict=True) if not b]
+    residual = residual[~bad]
+    dropped += int(bad.sum())
+    n_rays = np.array([len(t) for t in found])
+    # the tracks of each model (pair), with their positions on its first photo: one pass
+    # (every pair of photos that tracks share, matched directly or through a third photo)
+    per_pair: dict[tuple[int, int], list[tuple[int, int, int]]] = {
+        (i, j): [] for i, j, *_ in verified}
+    for k, t in enumerate(found):
+        photos_k = [p for p, _ in t]
+        for a in range(len(photos_k)):
+            for b in range(a + 1, len(photos_k)):
+                per_pair.setdefault((photos_k[a], photos_k[b]), []).append((k, a, b))
+    models = [(np.array([k for k, _, _ in per_pair[(i, j)]], int),
+               np.array([xy[k][a] for k, a, _ in per_pair[(i, j)]]).reshape(-1, 2))
+              for i, j, *_ in verified]
+    # unrefined positions of every pair's tracks on both photos: the local affines of refinement
+    common = {key: (np.array([xy[k][a] for k, a, _ in rows]).reshape(-1, 2),
+                    np.array([xy[k][b] for k, _, b in rows]).reshape(-1, 2))
+              for key, rows in per_pair.items()}
+    keep = thinning.thin(models, n_rays, residual, opts.target_per_model)
+    say(70, f"{len(found)} tracks, {int(keep.sum())} kept after thinning")
+    result_tracks = []
+    kept_idx = np.flatnonzero(keep)
+    sources = {k: photos[k].source for k in used}
+    for n, k in enumerate(kept_idx):
+        photo_idx = [p for p, _ in found[k]]
+        pos = xy[k].copy()
+        sigma = np.full(len(photo_idx), 0.5 * max(scales[p] for p in photo_idx))
+        refined = False
+        if opts.refine:
+            pos, ok = _refine_track(k, found, xy, sources, opts, scales, common)
+            photo_idx = [p for p, o in zip(photo_idx, ok, strict=True) if o]
+            pos = pos[ok]
+            sigma = np.full(len(photo_idx), 0.5)
+            refined = True
+        if len(photo_idx) >= 2:
+            result_tracks.append(Track(photo_idx, pos, sigma, refined))
+        if n % 50 == 0:
+            say(70 + 25 * n / max(1, len(kept_idx)), "refining")
+    _count_kept(reports, verified, result_tracks, photos, feats)
+    return TiePointResult(photos, result_tracks, reports, untied, dropped,
+                          {photos[k].id: len(feats[k]) for k in used}, how)
+
+
+def _track_residuals(found: list, xy: list, models: dict) -> np.ndarray:
+    """Per track, the largest symmetric epipolar distance (px) of its observations over every
+    pair of its photos that has an epipolar model."""
+    worst = np.zeros(len(found))
+    members: dict[tuple[int, int], list[tuple[int, int, int]]] = {}
+    for k, t in enumerate(found):
+        photos = [p for p, _ in t]
+        for a in range(len(photos)):
+            for b in range(a + 1, len(photos)):
+                if (photos[a], photos[b]) in models:
+                    members.setdefault((photos[a], photos[b]), []).append((k, a, b))
+    for key, rows in members.items():
+        ks = np.array([r[0] for r in rows])
+        xa = np.array([xy[k][a] for k, a, _ in rows])
+        xb = np.array([xy[k][b] for k, _, b in rows])
+        np.maximum.at(worst, ks, models[key].residual(xa, xb))
+    return worst
+
+
+def _refine_track(k: int, found: list, xy: list, sources: dict[int, ImageSource],
+                  opts: TiePointOptions, scales: dict[int, float], common: dict
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """Refine every observation of track ``k`` against its first one; (positions, ok mask)."""
+    photo_idx = [p for p, _ in found[k]]
+    pos = xy[k].copy()
+    ok = np.ones(len(photo_idx), bool)
+    ref = photo_idx[0]
+    ref_xy = pos[0]
+    radius = int(np.ceil(2 * max(scales[p] for p in photo_idx))) + 2
+    for n, other in enumerate(photo_idx[1:], start=1):
+        a_ref, a_oth = common.get((ref, other), (np.zeros((0, 2)), np.zeros((0, 2))))
+        affine = refine.local_affine(a_ref, a_oth, ref_xy)
+        if affine is None:
+            ok[n] = False
+            continue
+        reach = opts.half + radius + 2
+        extent_other = int(np.ceil(np.abs(affine).sum(axis=1).max() * reach)) + 2
+        if not (_inside(sources[ref], ref_xy, opts.half + 2)
+                and _inside(sources[other], pos[n], extent_other)):
+            ok[n] = False  # a patch off the image would correlate with padding
+            continue
+        ro = _window(sources[ref], ref_xy, opts.half + 2)
+        oo = _window(sources[other], pos[n], extent_other)
+        r = refine.refine_pair(ro[0], ro[1], ref_xy, oo[0], oo[1], pos[n], affine, opts.half,
+                               radius, opts.min_ncc)
+        pos[n] = r.xy
+        ok[n] = r.ok
+    if not ok[1:].any():
+        ok[0] = False
+    return pos, ok
+
+
+def _inside(source: ImageSource, centre: np.ndarray, half: int) -> bool:
+    return bool(half <= centre[0] <= source.width - half and half <= centre[1] <= source.height - half)
+
+
+def _window(source: ImageSource, centre: np.ndarray, half: int
+            ) -> tuple[np.ndarray, tuple[int, int]]:
+    c0 = int(np.floor(centre[0])) - half
+    r0 = int(np.floor(centre[1])) - half
+    return source.window(c0, r0, 2 * half + 2, 2 * half + 2), (c0, r0)
+
+
+def _count_kept(reports: list[PairReport], verified: list, result: list[Track],
+                photos: list[BlockPhoto], feats: dict[int, Features]) -> None:
+    """Kept tie points per pair and how many 3 x 3 Gruber cells of the overlap they cover (the
+    overlap's box: the pair's verified matches on its first photo)."""
+    index = {(photos[i].id, photos[j].id): (i, j, ia) for i, j, ia, *_ in verified}
+    for rep in reports:
+        if (rep.a, rep.b) not in index:
+            continue
+        i, j, ia = index[(rep.a, rep.b)]
+        pts = np.array([t.xy[t.photos.index(i)] for t in result
+                        if i in t.photos and j in t.photos]).reshape(-1, 2)
+        rep.kept = len(pts)
+        box = feats[i].xy[ia]
+        rep.cells_3x3 = thinning.coverage_3x3(pts, box.min(axis=0), box.max(axis=0))

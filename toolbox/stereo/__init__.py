@@ -1,0 +1,1 @@
+"""Stereo pairs: epipolar (normalised) resampling and dense matching to surfaces."""

@@ -1,0 +1,190 @@
+"""One ``dem:match`` run: select the pairs, and for each: epipolar images (scratch GeoTIFFs),
+StereoSGBM disparities, triangulated points, per-cell medians; then fusion of all pairs into
+the DSM, COUNT and SPREAD rasters (:mod:`toolbox.stereo.fusion`) and the optional LAZ."""
+
+from __future__ import annotations
+
+import tempfile
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from toolbox.errors import InputDataError
+from toolbox.feedback import Feedback
+from toolbox.stereo.matching import MatchOptions
+
+POINT_ROWS = 256  # disparity rows triangulated at a time (the points of one block in memory)
+
+
+def read_epipolar(path: Path) -> tuple[np.ndarray, np.ndarray]:
+    """Data bands (bands, rows, cols) and the valid mask (alpha > 0) of an epipolar image."""
+    import rasterio
+
+    with rasterio.open(path) as ds:
+        data = ds.read(list(range(1, ds.count)))
+        valid = ds.read(ds.count) > 0
+    return data, valid
+
+
+def matching_pixel(left: Any, cell_size: float, distance_m: float) -> float:
+    """Default epipolar pixel (mm): the left image's, or coarser so that a DSM cell spans four
+    pixels on the ground (GSD = pixel x distance / c): matching much finer than the grid only adds
+    points to one median."""
+    native = float(left.require_pixel_transform().pixel_size_mm)
+    return max(native, 0.25 * cell_size * left.camera.c / distance_m)
+
+
+def match_one_pair(left: Any, right: Any, images: tuple[Path, Path], low: float, high: float,
+                   options: MatchOptions, pixel_mm: float, workdir: Path,
+                   feedback: Feedback) -> tuple[Any, np.ndarray, np.ndarray, dict]:
+    """Geometry, disparity (NaN invalid), the left image's colours (K, 3) uint8 per pixel
+    (grey repeated for one band) and statistics of one pair."""
+    from toolbox.stereo.epipolar import epipolar_geometry, resample_image
+    from toolbox.stereo.matching import disparity_range, match_pair, to_uint8
+
+    geometry = epipolar_geometry(left, right, pixel_mm=pixel_mm)
+    d_min, count = disparity_range(geometry, left, low, high)
+    name = f"{left.id}-{right.id}"
+    if count > options.max_disparities:
+        raise InputDataError(
+            f"MIN_HEIGHT {low:g} .. MAX_HEIGHT {high:g} spans {count} disparities in pair "
+            f"{name}, more than MAX_DISPARITIES {options.max_disparities}: narrow the height "
+            "range to the terrain's (or coarsen PIXEL_SIZE_MM)")
+    arrays = []
+    for side, photo in enumerate((left, right)):
+        path = workdir / f"{name}_{side}.tif"
+        resample_image(geometry, photo, side, images[side], path, "bilinear",
+                       feedback.step(20 * side, 20 * side + 20), overviews=False)
+        data, valid = read_epipolar(path)
+        arrays.append((to_uint8(data, valid), valid))
+        if side == 0:
+            colours = _colours(data, arrays[0][0])
+        path.unlink()
+    (lim, lval), (rim, rval) = arrays
+    disparity = match_pair(lim, rim, lval, rval, d_min, count, options, feedback.step(40, 100))
+    matched = int(np.isfinite(disparity).sum())
+    stats = {"pair": name, "min_disparity": d_min, "num_disparities": count,
+             "image_size": [lim.shape[1], lim.shape[0]], "matched_pixels": matched,
+             "matched_fraction_of_left": matched / max(1, int(lval.sum()))}
+    return geometry, disparity, colours, stats
+
+
+def _colours(data: np.ndarray, grey: np.ndarray) -> np.ndarray:
+    """(rows * cols, 3) uint8 colours: the three bands of an 8-bit RGB image, else the grey."""
+    if data.shape[0] == 3 and data.dtype == np.uint8:
+        return data.reshape(3, -1).T
+    return np.repeat(grey.reshape(-1, 1), 3, axis=1)
+
+
+def run_match(params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
+    from toolbox.io.crs import crs_label
+    from toolbox.photogrammetry.tables import load_project_parameter
+    from toolbox.raster.engine import grid_from_parameters
+    from toolbox.stereo.epipolar import photo_image
+    from toolbox.stereo.fusion import cell_index, cell_statistics, fuse
+    from toolbox.stereo.matching import disparity_points
+    from toolbox.stereo.pairs import PairRules, overlap_bounds, select_pairs
+
+    project = load_project_parameter(params["PROJECT"])
+    if params.get("PHOTOS"):
+        ids = [s.strip() for s in str(params["PHOTOS"]).split(",") if s.strip()]
+        photos = [project.photo(i) for i in ids]
+        for photo in photos:
+            photo.require_exterior()
+    else:
+        photos = project.oriented()
+    if len(photos) < 2:
+        raise InputDataError(f"PROJECT has {len(photos)} oriented photo(s) (of those chosen): "
+                             "dense matching needs at least one oriented pair")
+    low, high = float(params["MIN_HEIGHT"]), float(params["MAX_HEIGHT"])
+    rules = PairRules((low + high) / 2.0, params["MIN_OVERLAP"], params["MIN_BASE_RATIO"],
+                      params["MAX_BASE_RATIO"], params["MAX_ANGLE"])
+    pairs, skipped = select_pairs(photos, rules)
+    for line in skipped:
+        feedback.push_info(f"pair skipped: {line}")
+    if not pairs:
+        raise InputDataError(f"no suitable stereo pair among {len(photos)} photos: "
+                             f"{'; '.join(skipped[:3])}")
+    crs = project.crs
+    bounds = np.array([overlap_bounds(a, b, rules.terrain_height) for a, b, _ in pairs])
+    data_bounds = (bounds[:, 0].min(), bounds[:, 1].min(), bounds[:, 2].max(),
+                   bounds[:, 3].max())
+    grid = grid_from_parameters(params, data_bounds, crs)
+    options = MatchOptions(params["BLOCK_SIZE"], params["UNIQUENESS"],
+                           params["SPECKLE_WINDOW"], params["SPECKLE_RANGE"],
+                           params["LR_MAX_DIFF"], params["MAX_DISPARITIES"])
+    cells, pair_stats = [], []
+    writer = None
+    if params.get("POINTS") is not None:
+        from toolbox.io.pointcloud import PointCloudWriter
+
+        centre = np.array([(data_bounds[0] + data_bounds[2]) / 2,
+                           (data_bounds[1] + data_bounds[3]) / 2, low])
+        writer = PointCloudWriter(params["POINTS"], centre, crs, rgb=True).__enter__()
+    try:
+        with tempfile.TemporaryDirectory(prefix="dem_match_") as tmp:
+            for k, (left, right, report) in enumerate(pairs):
+                feedback.check_canceled()
+                step = feedback.step(90 * k / len(pairs), 90 * (k + 1) / len(pairs))
+                images = (photo_image(left, None, "its image path in PROJECT"),
+                          photo_image(right, None, "its image path in PROJECT"))
+                pixel = params.get("PIXEL_SIZE_MM") or \
+                    matching_pixel(left, abs(grid.transform.a), report.distance_m)
+                geometry, disparity, colours, stats = match_one_pair(
+                    left, right, images, low, high, options, pixel, Path(tmp), step)
+                keys, heights, n_points = [], [], 0
+                for r0 in range(0, disparity.shape[0], POINT_ROWS):  # points by row blocks
+                    xyz, flat = disparity_points(geometry, disparity[r0:r0 + POINT_ROWS], r0)
+                    keep = (xyz[:, 2] >= low) & (xyz[:, 2] <= high)
+                    xyz, flat = xyz[keep], flat[keep]
+                    cell, inside = cell_index(xyz, grid.transform, grid.width, grid.height)
+                    keys.append(cell[inside])
+                    heights.append(xyz[inside, 2])
+                    n_points += len(xyz)
+                    if writer is not None:
+                        writer.write(xyz, rgb=colours[flat + r0 * disparity.shape[1]])
+                del disparity
+                cells.append(cell_statistics(np.concatenate(keys), np.concatenate(heights)))
+                del keys, heights
+                stats.update(points=n_points, pixel_mm=pixel, base_ratio=report.base_ratio,
+                             overlap=report.overlap, sigma_z_m=report.sigma_z_m)
+                pair_stats.append(stats)
+                if stats["matched_fraction_of_left"] < 0.2:
+                    feedback.push_warning(
+                        f"pair {stats['pair']}: only {100 * stats['matched_fraction_of_left']:.0f}"
+                        " % of the left image matched: is MIN_HEIGHT..MAX_HEIGHT the terrain's, "
+                        "and is the pair textured?")
+                feedback.push_info(f"pair {stats['pair']}: {len(xyz)} points "
+                                   f"({100 * stats['matched_fraction_of_left']:.0f} % of the "
+                                   "left image matched)")
+    finally:
+        if writer is not None:
+            writer.__exit__(None, None, None)
+    dsm, count, spread = fuse(cells, grid.width, grid.height)
+    nodata = float(params.get("NODATA", -9999.0))
+    _write(params["OUTPUT"], grid, dsm, "float32", nodata)
+    _write(params["COUNT"], grid, count, "uint16", 0)
+    _write(params["SPREAD"], grid, spread, "float32", nodata)
+    feedback.set_progress(100)
+    valid = int(np.isfinite(dsm).sum())
+    stats = {"pairs": pair_stats, "skipped": skipped, "crs": crs_label(crs),
+             "grid": {"width": grid.width, "height": grid.height,
+                      "cell_size": abs(grid.transform.a), "bounds": list(grid.bounds)},
+             "cells_with_value": valid, "cells": grid.width * grid.height,
+             "max_pairs_per_cell": int(count.max()) if count.size else 0}
+    out = {"OUTPUT": params["OUTPUT"], "COUNT": params["COUNT"], "SPREAD": params["SPREAD"],
+           "STATISTICS": stats}
+    if writer is not None:
+        stats["points_written"] = writer.count
+        out["POINTS"] = params["POINTS"]
+    return out
+
+
+def _write(path: Path, grid: Any, array: np.ndarray, dtype: str, nodata: float) -> None:
+    from rasterio.windows import Window
+
+    from toolbox.raster.writer import RasterWriter
+
+    with RasterWriter(path, grid, 1, dtype, nodata) as writer:
+        writer.write(Window(0, 0, grid.width, grid.height), array)

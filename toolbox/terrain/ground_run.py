@@ -1,0 +1,144 @@
+"""One ``dem:ground`` run: read points (or DSM cells), SMRF ground filter
+(:mod:`toolbox.terrain.ground`), grid the ground points by a dem:* method, write the
+non-ground mask on the DTM's grid and optionally the classified points."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from toolbox.errors import InputDataError
+from toolbox.feedback import Feedback
+from toolbox.terrain.ground import GroundFilter, smrf
+
+MASK_NODATA = 255
+
+
+def read_dsm_points(info: Any) -> tuple[np.ndarray, float]:
+    """(N, 3) cell centres and heights of the valid cells of a DSM (band 1); the cell size."""
+    import rasterio
+
+    t = info.transform
+    if t.b != 0 or t.d != 0 or not np.isclose(abs(t.a), abs(t.e)):
+        raise InputDataError(f"DSM {info.path.name} must be north-up with square cells, got "
+                             f"cell {abs(t.a):g} x {abs(t.e):g}")
+    with rasterio.open(info.path) as ds:
+        band = ds.read(1, masked=True)
+    z = band.filled(np.nan).astype(np.float64)
+    rows, cols = np.nonzero(np.isfinite(z))
+    if len(rows) < 3:
+        raise InputDataError(f"DSM {info.path.name} has fewer than 3 valid cells")
+    x = t.c + (cols + 0.5) * t.a
+    y = t.f + (rows + 0.5) * t.e
+    return np.column_stack([x, y, z[rows, cols]]), abs(t.a)
+
+
+def nonground_mask(xyz: np.ndarray, ground: np.ndarray, transform: Any, width: int,
+                   height: int) -> np.ndarray:
+    """UInt8 (height, width): 1 where a cell holds a non-ground point, 0 only ground, 255 none."""
+    cols = np.floor((xyz[:, 0] - transform.c) / transform.a).astype(np.int64)  # north-up
+    rows = np.floor((xyz[:, 1] - transform.f) / transform.e).astype(np.int64)
+    inside = (cols >= 0) & (cols < width) & (rows >= 0) & (rows < height)
+    flat = rows[inside] * width + cols[inside]
+    seen = np.bincount(flat, minlength=width * height) > 0
+    objects = np.bincount(flat, weights=(~ground[inside]).astype(np.float64),
+                          minlength=width * height) > 0
+    mask = np.full(width * height, MASK_NODATA, dtype=np.uint8)
+    mask[seen] = 0
+    mask[objects] = 1
+    return mask.reshape(height, width)
+
+
+def run_ground(params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
+    import rasterio
+
+    from toolbox.io.crs import common_crs, crs_label
+    from toolbox.raster.writer import RasterWriter
+    from toolbox.terrain.gridding.inputs import merge_points
+    from toolbox.terrain.gridding.methods import METHODS
+    from toolbox.terrain.gridding.run import grid_dem
+    from toolbox.terrain.points import local_origin, read_mass_points
+
+    grid_params = dict(params)
+    cloud = None
+    with feedback.timed("read"):
+        if params.get("DSM") is not None:
+            info = params["DSM"]
+            crs = common_crs({"DSM": info.crs}, params.get("CRS"))
+            xyz, cell = read_dsm_points(info)
+            if grid_params.get("CELL_SIZE") is None and grid_params.get("TEMPLATE") is None:
+                grid_params["TEMPLATE"] = info
+        else:
+            crs = common_crs({"INPUT": params["INPUT"].crs}, params.get("CRS"))
+            xyz, cloud = read_mass_points(params["INPUT"], params.get("Z_FIELD"),
+                                          params.get("CLASSES"), params.get("RETURNS"),
+                                          params.get("CRS"))
+            cell = float(params.get("FILTER_CELL") or 1.0)
+            if grid_params.get("CELL_SIZE") is None and grid_params.get("TEMPLATE") is None:
+                grid_params["CELL_SIZE"] = cell
+    flt = GroundFilter(cell, float(params["SLOPE"]), float(params["MAX_WINDOW"]),
+                       float(params["ELEVATION_THRESHOLD"]), float(params["ELEVATION_SCALAR"]))
+    origin = local_origin(xyz)
+    local = xyz.copy()
+    local[:, :2] -= origin
+    span = np.ptp(local[:, :2], axis=0) / cell
+    limit = int(params.get("MAX_CELLS") or 1e9)
+    if (span[0] + 2) * (span[1] + 2) > limit:
+        raise InputDataError(f"the filter grid would have {(span[0] + 2) * (span[1] + 2):,.0f} "
+                             f"cells (over MAX_CELLS {limit:,}): use a larger FILTER_CELL")
+    feedback.set_progress(5, "ground filter")
+    with feedback.timed("filter"):
+        try:
+            result = smrf(local, flt)
+        except ValueError as exc:
+            raise InputDataError(f"ground filter: {exc}") from None
+    ground = result.ground
+    n_ground = int(ground.sum())
+    if n_ground < 3:
+        raise InputDataError(f"only {n_ground} of {len(xyz)} points are ground: raise "
+                             "ELEVATION_THRESHOLD or SLOPE")
+    feedback.push_info(f"{n_ground} of {len(xyz)} points are ground")
+    feedback.set_progress(30, "gridding the ground points")
+    counts = {"points": len(xyz), "ground_points": n_ground}
+    if cloud is not None:
+        counts["point_cloud"] = cloud
+    data = merge_points(xyz[ground], np.zeros((0, 2), dtype=np.int64), crs, counts, "mean", 0.0,
+                        feedback)
+    out = grid_dem(METHODS[params["METHOD"]], grid_params, feedback.step(30, 90), data)
+    with rasterio.open(params["OUTPUT"]) as ds:
+        transform, width, height = ds.transform, ds.width, ds.height
+        grid = _grid_spec(transform, width, height, crs)
+    mask = nonground_mask(xyz, ground, transform, width, height)
+    with RasterWriter(params["NONGROUND"], grid, 1, "uint8", MASK_NODATA,
+                      tile=int(params.get("TILE_SIZE") or 512),
+                      overviews=params.get("OVERVIEWS", True)) as writer:
+        from rasterio.windows import Window
+
+        writer.write(Window(0, 0, width, height), mask)
+    result_out = {"OUTPUT": params["OUTPUT"], "NONGROUND": params["NONGROUND"]}
+    if params.get("GROUND_POINTS") is not None:
+        from toolbox.io.pointcloud import write_point_cloud
+
+        write_point_cloud(params["GROUND_POINTS"], xyz, crs,
+                          classification=np.where(ground, 2, 1))
+        result_out["GROUND_POINTS"] = params["GROUND_POINTS"]
+    stats = out["STATISTICS"]
+    stats["ground_filter"] = {
+        "method": "SMRF (Pingel et al. 2013), square windows", "filter_cell": cell,
+        "slope": flt.slope, "max_window": flt.max_window, "radii_cells": len(flt.radii),
+        "elevation_threshold": flt.elevation_threshold,
+        "elevation_scalar": flt.elevation_scalar, "points": len(xyz), "ground": n_ground,
+        "nonground": len(xyz) - n_ground,
+        "object_cells_fraction": float(result.objects.mean()), "crs": crs_label(crs),
+        "mask_cells_nonground": int((mask == 1).sum())}
+    result_out["STATISTICS"] = stats
+    if "QUALITY" in out:
+        result_out["QUALITY"] = out["QUALITY"]
+    return result_out
+
+
+def _grid_spec(transform: Any, width: int, height: int, crs: Any):
+    from toolbox.io.grid import GridSpec
+
+    return GridSpec(transform, width, height, crs)

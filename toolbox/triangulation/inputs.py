@@ -1,0 +1,349 @@
+"""From the product's tables and project to a :class:`~toolbox.triangulation.block.Block`.
+
+- image measurements (``point_id``, ``photo``, ``col_px``/``row_px`` or ``x_mm``/``y_mm``,
+  optional ``sigma_px`` / ``sigma_mm``): pixels go to image mm through each photo's interior
+  orientation (fiducial fit or pixel size), their sigma by the transform's pixel size;
+- control (``id``, ``X``, ``Y``, ``Z``, optional ``role`` control/check, optional ``sigma_xy``,
+  ``sigma_z`` in metres): an empty X and Y makes a height (Z-only) point, an empty Z a
+  planimetric (XY-only) one; check points are not observations: they are adjusted as tie points
+  and compared afterwards;
+- GNSS projection centres (``photo``, ``X``, ``Y``, ``Z``, optional ``sigma_xy``, ``sigma_z``);
+- self-calibration: ``c, k1`` or ``c:weighted:0.01, x0, y0`` (parameter[:mode[:sigma]]).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from toolbox.errors import InputDataError, ParameterError
+from toolbox.triangulation.block import FIXED, MODE_NAMES, WEIGHTED, Block
+from toolbox.triangulation.model import CALIBRATION_NAMES
+
+
+@dataclass
+class Measurements:
+    """Image measurements as read: ids, photos, values (M, 2) in ``kind`` units, sigma (M,) or
+    NaN where the table gives none."""
+
+    point_ids: list[str]
+    photo_ids: list[str]
+    xy: np.ndarray
+    kind: str  # "pixel" or "image"
+    sigma: np.ndarray
+
+    def concatenate(self, other: Measurements) -> Measurements:
+        """Both tables' rows (same kind of coordinates)."""
+        return Measurements(self.point_ids + other.point_ids, self.photo_ids + other.photo_ids,
+                            np.vstack([self.xy, other.xy]), self.kind,
+                            np.concatenate([self.sigma, other.sigma]))
+
+
+@dataclass
+class Control:
+    """Surveyed points: ids, xyz (n, 3; NaN = component unknown), roles, sigmas (n, 3; NaN =
+    default)."""
+
+    ids: list[str]
+    xyz: np.ndarray
+    roles: list[str]
+    sigma: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+
+    def __post_init__(self) -> None:
+        self.xyz = np.asarray(self.xyz, dtype=float).reshape(-1, 3)
+        if len(self.sigma) != len(self.ids):
+            self.sigma = np.full((len(self.ids), 3), np.nan)
+
+
+@dataclass
+class Centres:
+    """GNSS projection centres: photo ids, xyz (n, 3), sigmas (n, 3; NaN = default)."""
+
+    photos: list[str]
+    xyz: np.ndarray
+    sigma: np.ndarray
+
+
+@dataclass
+class BlockRequest:
+    """Everything the bundle needs besides the approximations (sigmas: px, mm, m)."""
+
+    project: object
+    measurements: Measurements
+    control: Control
+    centres: Centres | None = None
+    self_calibration: str = ""
+    sigma_px: float = 0.5
+    sigma_mm: float = 0.005
+    control_sigma_xy: float = 0.02
+    control_sigma_z: float = 0.03
+    centre_sigma_xy: float = 0.10
+    centre_sigma_z: float = 0.15
+    lever_arm: tuple[float, float, float] = (0.0, 0.0, 0.0)  # GNSS antenna, camera frame, m
+
+
+def read_measurements(path: Path, layer: str | None, coordinates: str,
+                      name: str = "INPUT") -> Measurements:
+    from toolbox.photogrammetry.tables import column, image_measurements, number, read_table
+
+    ids, photos, xy, kind = image_measurements(path, layer, coordinates, name)
+    header, rows = read_table(path, layer, name)
+    c_sigma = column(header, "sigma_px" if kind == "pixel" else "sigma_mm", "sigma",
+                     required=False)
+    sigma = np.full(len(ids), np.nan)
+    if c_sigma:
+        for k, r in enumerate(rows):
+            if r[c_sigma] != "":
+                sigma[k] = number(r[c_sigma], f"row {k + 1} {c_sigma}", name)
+                if not sigma[k] > 0:
+                    raise InputDataError(f"{name}: {path} row {k + 1}: {c_sigma} must be > 0, "
+                                         f"got {r[c_sigma]!r}")
+    return Measurements(ids, photos, xy, kind, sigma)
+
+
+def _optional(value: str, what: str, name: str) -> float:
+    from toolbox.photogrammetry.tables import number
+
+    return np.nan if value.strip() == "" else number(value, what, name)
+
+
+def read_control(path: Path, layer: str | None = None, name: str = "CONTROL") -> Control:
+    from toolbox.photogrammetry.tables import ROLES, column, read_table
+
+    header, rows = read_table(path, layer, name)
+    c_id = column(header, "point_id", "id", "point", "name", name=name, path=path)
+    cols = [column(header, *a, name=name, path=path) for a in
+            (("X", "E", "easting"), ("Y", "N", "northing"), ("Z", "H", "height"))]
+    c_role = column(header, "role", "type", required=False)
+    c_sxy = column(header, "sigma_xy", required=False)
+    c_sz = column(header, "sigma_z", required=False)
+    ids, xyz, roles, sig = [], [], [], []
+    for k, r in enumerate(rows, start=1):
+        pid = r[c_id]
+        if not pid:
+            raise InputDataError(f"{name}: {path} row {k} has an empty {c_id}")
+        if pid in ids:
+            raise InputDataError(f"{name}: {path} lists point {pid!r} twice (duplicate id)")
+        role = r[c_role].lower() if c_role and r[c_role] else "control"
+        if role not in ROLES:
+            raise InputDataError(f"{name}: {path} row {k}: {c_role} must be control or check, "
+                                 f"got {r[c_role]!r}")
+        vals = [_optional(r[c], f"row {k} {c}", name) for c in cols]
+        if np.isnan(vals[0]) != np.isnan(vals[1]) or all(np.isnan(vals)):
+            raise InputDataError(f"{name}: {path} row {k} (point {pid!r}): give X and Y "
+                                 "together, Z, or all three")
+        sxy = _optional(r[c_sxy], f"row {k} {c_sxy}", name) if c_sxy else np.nan
+        sz = _optional(r[c_sz], f"row {k} {c_sz}", name) if c_sz else np.nan
+        for s, what in ((sxy, c_sxy), (sz, c_sz)):
+            if not np.isnan(s) and not s > 0:
+                raise InputDataError(f"{name}: {path} row {k} (point {pid!r}): {what} must be "
+                                     f"> 0, got {s!r}")
+        ids.append(pid)
+        roles.append(role)
+        xyz.append(vals)
+        sig.append([sxy, sxy, sz])
+    return Control(ids, np.array(xyz), roles, np.array(sig))
+
+
+def read_centres(path: Path, layer: str | None = None, name: str = "GNSS") -> Centres:
+    from toolbox.photogrammetry.tables import column, number, read_table
+
+    header, rows = read_table(path, layer, name)
+    c_photo = column(header, "photo", "photo_id", "image", name=name, path=path)
+    cols = [column(header, *a, name=name, path=path) for a in
+            (("X0", "X", "E"), ("Y0", "Y", "N"), ("Z0", "Z", "H"))]
+    c_sxy = column(header, "sigma_xy", required=False)
+    c_sz = column(header, "sigma_z", required=False)
+    photos, xyz, sig = [], [], []
+    for k, r in enumerate(rows, start=1):
+        if r[c_photo] in photos:
+            raise InputDataError(f"{name}: {path} lists photo {r[c_photo]!r} twice")
+        photos.append(r[c_photo])
+        xyz.append([number(r[c], f"row {k} {c}", name) for c in cols])
+        sxy = _optional(r[c_sxy], f"row {k} {c_sxy}", name) if c_sxy else np.nan
+        sz = _optional(r[c_sz], f"row {k} {c_sz}", name) if c_sz else np.nan
+        for s, what in ((sxy, c_sxy), (sz, c_sz)):
+            if not np.isnan(s) and not s > 0:
+                raise InputDataError(f"{name}: {path} row {k}: {what} must be > 0, got {s!r}")
+        sig.append([sxy, sxy, sz])
+    return Centres(photos, np.array(xyz, dtype=float).reshape(-1, 3),
+                   np.array(sig, dtype=float).reshape(-1, 3))
+
+
+def parse_lever_arm(text: str | None, name: str = "LEVER_ARM") -> tuple[float, float, float]:
+    """``"0.1, -0.2, 1.5"`` -> (0.1, -0.2, 1.5); empty -> zeros."""
+    if not text or not str(text).strip():
+        return (0.0, 0.0, 0.0)
+    parts = [p for p in str(text).replace(";", ",").replace(" ", ",").split(",") if p]
+    try:
+        values = tuple(float(p) for p in parts)
+    except ValueError:
+        values = ()
+    if len(values) != 3 or not all(np.isfinite(values)):
+        raise ParameterError(name, f"must be three numbers 'x, y, z' (metres, camera frame), got "
+                             f"{text!r}")
+    return values  # type: ignore[return-value]
+
+
+def parse_self_calibration(text: str, name: str = "SELF_CALIBRATION"
+                           ) -> dict[tuple[str | None, str], tuple[int, float]]:
+    """``"c, k1:weighted:1e-6, x0@wild 303.55"`` -> ``{(None, "c"): (FREE, nan), (None, "k1"):
+    (WEIGHTED, 1e-6), ("wild 303.55", "x0"): (FREE, nan)}``: ``PARAMETER[@CAMERA][:MODE[:SIGMA]]``,
+    for every camera unless ``@CAMERA`` names one (which then overrides)."""
+    result: dict[tuple[str | None, str], tuple[int, float]] = {}
+    for item in (text or "").replace(";", ",").split(","):
+        item = item.strip()
+        if not item:
+            continue
+        parts = [p.strip() for p in item.split(":")]
+        par, _, camera = parts[0].partition("@")
+        par = par.strip().lower()
+        if par not in CALIBRATION_NAMES:
+            raise ParameterError(name, f"unknown calibration parameter {par!r}; expected "
+                                 f"one of {', '.join(CALIBRATION_NAMES)} (optionally @CAMERA)")
+        mode = parts[1].lower() if len(parts) > 1 else "free"
+        if mode not in MODE_NAMES or len(parts) > 3:
+            raise ParameterError(name, f"{item!r}: mode must be fixed, free or "
+                                 "weighted:SIGMA")
+        sigma = np.nan
+        if MODE_NAMES[mode] == WEIGHTED:
+            try:
+                sigma = float(parts[2])
+            except (IndexError, ValueError):
+                sigma = np.nan
+            if not sigma > 0:
+                raise ParameterError(name, f"{item!r}: a weighted parameter needs a sigma > 0 "
+                                     "(e.g. c:weighted:0.01)")
+        result[(camera.strip() or None, par)] = (MODE_NAMES[mode], sigma)
+    return result
+
+
+def calibration_settings(spec: dict[tuple[str | None, str], tuple[int, float]],
+                         cameras: list[str], all_cameras, name: str = "SELF_CALIBRATION"
+                         ) -> tuple[np.ndarray, np.ndarray]:
+    """Modes and sigmas (k, 8) of ``cameras`` from a parsed specification."""
+    unknown = sorted({c for c, _ in spec if c is not None and c not in all_cameras})
+    if unknown:
+        raise ParameterError(name, f"names camera(s) {', '.join(map(repr, unknown))} that "
+                             f"PROJECT does not have (cameras: {', '.join(all_cameras)})")
+    modes = np.full((len(cameras), 8), FIXED)
+    sig = np.full((len(cameras), 8), np.nan)
+    for general in (True, False):  # camera-specific entries override the general ones
+        for (camera, par), (mode, s) in spec.items():
+            if (camera is None) != general:
+                continue
+            for k, cam in enumerate(cameras):
+                if camera is None or camera == cam:
+                    modes[k, CALIBRATION_NAMES.index(par)] = mode
+                    sig[k, CALIBRATION_NAMES.index(par)] = s
+    return modes, sig
+
+
+def camera_calibration(camera, free: set[str]) -> np.ndarray:
+    """Start values (8,) of a project camera; its distortion must be a polynomial (or none)
+    when radial terms are estimated, and a table is applied to the measurements instead."""
+    from toolbox.photogrammetry.camera import DISTORTION_POLYNOMIAL
+
+    values = np.zeros(8)
+    values[0] = camera.c
+    values[1:3] = camera.principal_point_mm
+    dist = camera.distortion
+    if dist is not None and dist.mode == DISTORTION_POLYNOMIAL:
+        values[3], values[4] = dist.k1, dist.k2
+    elif dist is not None and any(k in free for k in ("k1", "k2", "k3")):
+        raise ParameterError("SELF_CALIBRATION", f"camera {camera.name!r} has a distortion "
+                             "table; k1-k3 can be estimated only for a polynomial distortion "
+                             "or none")
+    return values
+
+
+def build_block(request: BlockRequest) -> tuple[Block, dict]:
+    """The block and a dict of bookkeeping (check point ids, measurement kind, pixel sizes)."""
+    project = request.project
+    ms = request.measurements
+    unknown = sorted({p for p in ms.photo_ids if p not in project.photos})
+    if unknown:
+        raise InputDataError(f"INPUT names photo(s) {', '.join(map(repr, unknown[:5]))} that "
+                             f"PROJECT does not have (photos: {', '.join(project.photos)})")
+    photo_ids = [p for p in project.photos if p in set(ms.photo_ids)]
+    photo_index = {p: k for k, p in enumerate(photo_ids)}
+    camera_names = list(dict.fromkeys(project.photos[p].camera.name for p in photo_ids))
+    cam_index = {c: k for k, c in enumerate(camera_names)}
+    photo_camera = np.array([cam_index[project.photos[p].camera.name] for p in photo_ids])
+    point_ids = list(dict.fromkeys(ms.point_ids))
+    point_index = {p: k for k, p in enumerate(point_ids)}
+    spec = parse_self_calibration(request.self_calibration)
+    modes, sig = calibration_settings(spec, camera_names, list(project.cameras))
+    calibration = np.array([
+        camera_calibration(project.cameras[c],
+                           {CALIBRATION_NAMES[i] for i in np.flatnonzero(modes[k] != FIXED)})
+        for k, c in enumerate(camera_names)])
+    # image mm and sigmas
+    xy = np.array(ms.xy, dtype=float)
+    sigma = np.array(ms.sigma, dtype=float)
+    pixel_mm = {}
+    rows_of: dict[str, list[int]] = {}
+    for k, p in enumerate(ms.photo_ids):
+        rows_of.setdefault(p, []).append(k)
+    for pid in photo_ids:
+        rows = rows_of[pid]
+        photo = project.photos[pid]
+        if ms.kind == "pixel":
+            transform = photo.require_pixel_transform()
+            xy[rows] = transform.pixel_to_image(xy[rows])
+            size = transform.pixel_size_mm
+            pixel_mm[pid] = size
+            sigma[rows] = np.where(np.isnan(sigma[rows]), request.sigma_px, sigma[rows]) * size
+        else:
+            sigma[rows] = np.where(np.isnan(sigma[rows]), request.sigma_mm, sigma[rows])
+        dist = photo.camera.distortion
+        if dist is not None and dist.mode != 2:  # a table: applied once, not estimated
+            pp = np.asarray(photo.camera.principal_point_mm)
+            xy[rows] = dist.correct(xy[rows] - pp) + pp
+    # control (role control) as observations; check points compared afterwards
+    ctrl = request.control
+    where = {pid: k for k, pid in enumerate(ctrl.ids)}
+    g_point, g_xyz, g_sig = [], [], []
+    checks = []
+    for pid in point_ids:
+        if pid not in where:
+            continue
+        k = where[pid]
+        if ctrl.roles[k] == "check":
+            checks.append(pid)
+            continue
+        g_point.append(point_index[pid])
+        g_xyz.append(ctrl.xyz[k])
+        s = ctrl.sigma[k].copy()
+        s[:2] = np.where(np.isnan(s[:2]), request.control_sigma_xy, s[:2])
+        s[2] = request.control_sigma_z if np.isnan(s[2]) else s[2]
+        g_sig.append(s)
+    h_photo, h_xyz, h_sig = [], [], []
+    if request.centres is not None:
+        cen = request.centres
+        bad = [p for p in cen.photos if p not in project.photos]
+        if bad:
+            raise InputDataError(f"GNSS names photo(s) {', '.join(map(repr, bad[:5]))} that "
+                                 "PROJECT does not have")
+        for k, p in enumerate(cen.photos):
+            if p not in photo_index:
+                continue
+            h_photo.append(photo_index[p])
+            h_xyz.append(cen.xyz[k])
+            s = cen.sigma[k].copy()
+            s[:2] = np.where(np.isnan(s[:2]), request.centre_sigma_xy, s[:2])
+            s[2] = request.centre_sigma_z if np.isnan(s[2]) else s[2]
+            h_sig.append(s)
+    sigma2 = np.repeat(sigma[:, None], 2, axis=1)
+    block = Block(photo_ids, photo_camera, camera_names, calibration, point_ids,
+                  [photo_index[p] for p in ms.photo_ids], [point_index[p] for p in ms.point_ids],
+                  xy, sigma2, modes, sig, g_point, np.array(g_xyz).reshape(-1, 3),
+                  np.array(g_sig).reshape(-1, 3), h_photo, np.array(h_xyz).reshape(-1, 3),
+                  np.array(h_sig).reshape(-1, 3), np.asarray(request.lever_arm, dtype=float))
+    return block, {"checks": checks, "kind": ms.kind, "pixel_mm": pixel_mm,
+                   "free": [f"{block.calibration_label(k, i)}" for k, i in
+                            np.argwhere(modes != FIXED)]}
+
+

@@ -1,0 +1,144 @@
+"""Collinearity observation model of the bundle, with self-calibration, and its Jacobians.
+
+Image observation of point ``P`` on photo ``j`` of camera ``k`` (image mm in the fiducial system,
+``x`` right, ``y`` up)::
+
+    u = x - x0,  v = y - y0,  r² = u² + v²,  dr = k1·r² + k2·r⁴ + k3·r⁶
+    x̄ = u - u·dr - [p1·(r² + 2u²) + 2·p2·u·v]           (measured -> ideal camera coordinates)
+    ȳ = v - v·dr - [p2·(r² + 2v²) + 2·p1·u·v]
+    d = Rᵀ·(P - C),  x' = -c·d₁/d₃,  y' = -c·d₂/d₃        (collinearity, domain brief section 4)
+    residual f = (x' - x̄, y' - ȳ)                         (computed minus observed, mm)
+
+The radial term is the project's polynomial distortion (``Δr = k1·r³ + k2·r⁵``, corrected as
+``x̄ = x·(1 - Δr/r)``, :mod:`toolbox.photogrammetry.camera`) extended by ``k3``; p1, p2 are
+Brown's decentring terms in this correction form. ``R = Rx(ω)·Ry(φ)·Rz(κ)``
+(:mod:`toolbox.photogrammetry.rotation`).
+
+Calibration parameter order per camera: :data:`CALIBRATION_NAMES`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+CALIBRATION_NAMES = ("c", "x0", "y0", "k1", "k2", "k3", "p1", "p2")
+EXTERIOR_NAMES = ("X0", "Y0", "Z0", "omega", "phi", "kappa")
+
+
+def _elementary(omega: np.ndarray, phi: np.ndarray, kappa: np.ndarray):
+    """Rx, Ry, Rz and their derivatives, each (n, 3, 3)."""
+    n = len(omega)
+
+    def rx(a, deriv):
+        m = np.zeros((n, 3, 3))
+        s, c = np.sin(a), np.cos(a)
+        if deriv:
+            m[:, 1, 1], m[:, 1, 2], m[:, 2, 1], m[:, 2, 2] = -s, -c, c, -s
+        else:
+            m[:, 0, 0] = 1.0
+            m[:, 1, 1], m[:, 1, 2], m[:, 2, 1], m[:, 2, 2] = c, -s, s, c
+        return m
+
+    def ry(a, deriv):
+        m = np.zeros((n, 3, 3))
+        s, c = np.sin(a), np.cos(a)
+        if deriv:
+            m[:, 0, 0], m[:, 0, 2], m[:, 2, 0], m[:, 2, 2] = -s, c, -c, -s
+        else:
+            m[:, 1, 1] = 1.0
+            m[:, 0, 0], m[:, 0, 2], m[:, 2, 0], m[:, 2, 2] = c, s, -s, c
+        return m
+
+    def rz(a, deriv):
+        m = np.zeros((n, 3, 3))
+        s, c = np.sin(a), np.cos(a)
+        if deriv:
+            m[:, 0, 0], m[:, 0, 1], m[:, 1, 0], m[:, 1, 1] = -s, -c, c, -s
+        else:
+            m[:, 2, 2] = 1.0
+            m[:, 0, 0], m[:, 0, 1], m[:, 1, 0], m[:, 1, 1] = c, -s, s, c
+        return m
+
+    return (rx(omega, False), ry(phi, False), rz(kappa, False),
+            rx(omega, True), ry(phi, True), rz(kappa, True))
+
+
+def rotations(angles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``R`` (n, 3, 3) and ``dR/d(ω, φ, κ)`` (n, 3, 3, 3; last-but-two axis the angle) for
+    ``angles`` (n, 3) radians."""
+    angles = np.asarray(angles, dtype=float).reshape(-1, 3)
+    x, y, z, dx, dy, dz = _elementary(angles[:, 0], angles[:, 1], angles[:, 2])
+    r = x @ y @ z
+    d = np.stack([dx @ y @ z, x @ dy @ z, x @ y @ dz], axis=1)
+    return r, d
+
+
+def ideal(xy: np.ndarray, calib: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Ideal camera coordinates from measured image mm ``xy`` (m, 2) with per-observation
+    calibration ``calib`` (m, 8), and their derivatives ``d(x̄, ȳ)/d(calibration)`` (m, 2, 8)
+    (the ``c`` column is zero: c acts on the projection side)."""
+    u = xy[:, 0] - calib[:, 1]
+    v = xy[:, 1] - calib[:, 2]
+    k1, k2, k3, p1, p2 = (calib[:, i] for i in range(3, 8))
+    r2 = u * u + v * v
+    dr = k1 * r2 + k2 * r2 ** 2 + k3 * r2 ** 3
+    ddr = k1 + 2 * k2 * r2 + 3 * k3 * r2 ** 2  # d(dr)/d(r²)
+    xb = u - u * dr - (p1 * (r2 + 2 * u * u) + 2 * p2 * u * v)
+    yb = v - v * dr - (p2 * (r2 + 2 * v * v) + 2 * p1 * u * v)
+    dxb_du = 1 - dr - u * ddr * 2 * u - (6 * p1 * u + 2 * p2 * v)
+    dxb_dv = -u * ddr * 2 * v - (2 * p1 * v + 2 * p2 * u)
+    dyb_du = -v * ddr * 2 * u - (2 * p2 * u + 2 * p1 * v)
+    dyb_dv = 1 - dr - v * ddr * 2 * v - (6 * p2 * v + 2 * p1 * u)
+    jac = np.zeros((len(u), 2, 8))
+    jac[:, 0, 1], jac[:, 0, 2] = -dxb_du, -dxb_dv
+    jac[:, 1, 1], jac[:, 1, 2] = -dyb_du, -dyb_dv
+    jac[:, 0, 3], jac[:, 0, 4], jac[:, 0, 5] = -u * r2, -u * r2 ** 2, -u * r2 ** 3
+    jac[:, 1, 3], jac[:, 1, 4], jac[:, 1, 5] = -v * r2, -v * r2 ** 2, -v * r2 ** 3
+    jac[:, 0, 6], jac[:, 0, 7] = -(r2 + 2 * u * u), -2 * u * v
+    jac[:, 1, 6], jac[:, 1, 7] = -2 * u * v, -(r2 + 2 * v * v)
+    return np.column_stack([xb, yb]), jac
+
+
+def image_residuals(xy: np.ndarray, exterior: np.ndarray, point: np.ndarray, calib: np.ndarray,
+                    jacobians: bool = True, rotation: tuple[np.ndarray, np.ndarray] | None = None):
+    """Residuals (computed minus observed, mm) of image observations and their Jacobians.
+
+    Parameters (one row per observation)
+    ----------
+    xy : (m, 2) measured image mm
+    exterior : (m, 6) X0, Y0, Z0 (local ground units), omega, phi, kappa (rad)
+    point : (m, 3) ground point (local ground units)
+    calib : (m, 8) :data:`CALIBRATION_NAMES`
+    rotation : optional ``(R, dR)`` of each observation's photo, as :func:`rotations` returns
+        (computed once per photo by the caller instead of once per observation)
+
+    Returns
+    -------
+    f (m, 2), depth d₃ (m,; negative in front of the camera) and, with ``jacobians``,
+    ``J_ext`` (m, 2, 6), ``J_point`` (m, 2, 3), ``J_calib`` (m, 2, 8).
+    """
+    r, dr = rotations(exterior[:, 3:]) if rotation is None else rotation
+    delta = point - exterior[:, :3]
+    d = np.einsum("mji,mj->mi", r, delta)  # Rᵀ·(P - C)
+    c = calib[:, 0]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        proj = -c[:, None] * d[:, :2] / d[:, 2:3]
+    obs, j_obs = ideal(xy, calib)
+    f = proj - obs
+    if not jacobians:
+        return f, d[:, 2]
+    # d(proj)/d(d): rows x', y'
+    inv = 1.0 / d[:, 2]
+    dp = np.zeros((len(c), 2, 3))
+    dp[:, 0, 0] = -c * inv
+    dp[:, 1, 1] = -c * inv
+    dp[:, 0, 2] = c * d[:, 0] * inv ** 2
+    dp[:, 1, 2] = c * d[:, 1] * inv ** 2
+    j_point = np.einsum("mak,mjk->maj", dp, r)  # dp · Rᵀ
+    j_ext = np.empty((len(c), 2, 6))
+    j_ext[:, :, :3] = -j_point
+    dd_angles = np.einsum("mtji,mj->mti", dr, delta)  # (dR/dt)ᵀ·(P - C), (m, 3 angles, 3)
+    j_ext[:, :, 3:] = np.einsum("mak,mtk->mat", dp, dd_angles)
+    j_calib = -j_obs
+    j_calib[:, :, 0] = proj / c[:, None]
+    return f, d[:, 2], j_ext, j_point, j_calib

@@ -1,0 +1,385 @@
+"""Sparse Gauss-Newton / Levenberg-Marquardt for the bundle, with the Schur complement on points.
+
+Unknowns: 6 exterior parameters per photo and the free or weighted calibration parameters (the
+"camera" part, ``nc`` unknowns) and 3 coordinates per point. The normal matrix
+
+    N = [[A, B], [Bᵀ, C]]      (A: nc x nc sparse, B: nc x 3P sparse, C: 3 x 3 blocks per point)
+
+is reduced on the points (each image observation touches one point, so C is block diagonal and
+inverted block by block): ``S = A - B·C⁻¹·Bᵀ``, ``S·Δc = -(g_c - B·C⁻¹·g_p)``, then
+``Δp = -C⁻¹·(g_p + Bᵀ·Δc)``. S is Jacobi-scaled and factorised densely (Cholesky) up to
+:data:`DENSE_LIMIT` unknowns, sparsely (SuperLU) above. Levenberg-Marquardt damping multiplies the
+diagonal of A and C by ``1 + λ``. Ground coordinates are shifted to the block's local origin.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+from toolbox.errors import ConvergenceError, InputDataError
+from toolbox.triangulation.block import FIXED, WEIGHTED, Block, Options
+from toolbox.triangulation.model import (
+    EXTERIOR_NAMES,
+    image_residuals,
+    rotations,
+)
+
+DENSE_LIMIT = 3000
+EIGEN_LIMIT = 400  # full eigen-analysis of the reduced matrix up to this size, pivots above
+SINGULAR_RATIO = 1e-13  # smallest / largest eigenvalue of the scaled reduced normal matrix
+WEAK_RATIO = 1e-7  # below it: a warning (a parameter barely determined)
+KIND_IMAGE, KIND_GROUND, KIND_CENTRE, KIND_CALIB = 0, 1, 2, 3
+
+
+@dataclass
+class State:
+    """Current unknowns: exterior (n, 6) and points (P, 3) in local coordinates, calibration."""
+
+    exterior: np.ndarray
+    points: np.ndarray
+    calibration: np.ndarray
+
+    def copy(self) -> State:
+        return State(self.exterior.copy(), self.points.copy(), self.calibration.copy())
+
+
+@dataclass
+class Linearization:
+    """Weighted residuals and Jacobians (rows = scalar observations)."""
+
+    r: np.ndarray  # (rows,) weighted residuals
+    jc: sp.csr_matrix | None  # (rows, nc)
+    jp_rows: np.ndarray | None  # (rows, 3) point part of each row
+    row_point: np.ndarray  # (rows,) point of the row, -1 for none
+    kind: np.ndarray  # (rows,) KIND_*
+    index: np.ndarray  # (rows,) into the observation arrays of its kind
+    component: np.ndarray  # (rows,)
+    depth_ok: bool = True
+
+    @property
+    def cost(self) -> float:
+        return float(self.r @ self.r) if self.depth_ok else np.inf
+
+
+class Problem:
+    """One block with its active observations and weight factors, linearised on demand."""
+
+    def __init__(self, block: Block, origin: np.ndarray) -> None:
+        self.block = block
+        self.origin = np.asarray(origin, dtype=float)
+        self.obs_active = np.ones(len(block.obs_photo), dtype=bool)
+        self.ground_active = np.isfinite(block.ground_xyz)
+        self.centre_active = np.isfinite(block.centre_xyz)
+        self.obs_factor = np.ones((len(block.obs_photo), 2))  # robust weight factors
+        self.ground_factor = np.ones_like(block.ground_xyz)
+        self.centre_factor = np.ones_like(block.centre_xyz)
+        n = block.n_photos
+        self.calib_column = np.full(block.calibration.shape, -1, dtype=np.int64)
+        unknown = np.argwhere(block.calibration_mode != FIXED)
+        for k, (cam, par) in enumerate(unknown):
+            self.calib_column[cam, par] = 6 * n + k
+        self.nc = 6 * n + len(unknown)
+        self.warnings: list[str] = []
+
+    # -- labels ----------------------------------------------------------------------------------
+    def column_label(self, col: int) -> str:
+        n = self.block.n_photos
+        if col < 6 * n:
+            return f"photo {self.block.photo_ids[col // 6]!r} {EXTERIOR_NAMES[col % 6]}"
+        cam, par = np.argwhere(self.calib_column == col)[0]
+        return self.block.calibration_label(int(cam), int(par))
+
+    # -- linearisation ---------------------------------------------------------------------------
+    def linearize(self, state: State, jacobians: bool = True) -> Linearization:
+        b = self.block
+        sel = np.flatnonzero(self.obs_active)
+        ph, pt = b.obs_photo[sel], b.obs_point[sel]
+        cam = b.photo_camera[ph]
+        calib = state.calibration[cam]
+        r_photo, dr_photo = rotations(state.exterior[:, 3:])
+        out = image_residuals(b.obs_xy[sel], state.exterior[ph], state.points[pt], calib,
+                              jacobians, (r_photo[ph], dr_photo[ph]))
+        f, depth = out[0], out[1]
+        wimg = self.obs_factor[sel] / b.obs_sigma[sel]
+        m = len(sel)
+        r_parts = [(f * wimg).ravel()]
+        rp = [np.repeat(pt, 2)]
+        kinds = [np.full(2 * m, KIND_IMAGE)]
+        idx = [np.repeat(sel, 2)]
+        comp = [np.tile([0, 1], m)]
+        # ground control (pseudo-observations of point coordinates)
+        gi, gc = np.nonzero(self.ground_active)
+        gpt = b.ground_point[gi]
+        wg = self.ground_factor[gi, gc] / b.ground_sigma[gi, gc]
+        fg = state.points[gpt, gc] + self.origin[gc] - b.ground_xyz[gi, gc]
+        r_parts.append(fg * wg)
+        rp.append(gpt)
+        kinds.append(np.full(len(gi), KIND_GROUND))
+        idx.append(gi)
+        comp.append(gc)
+        # GNSS projection centres
+        hi, hc = np.nonzero(self.centre_active)
+        hph = b.centre_photo[hi]
+        wh = self.centre_factor[hi, hc] / b.centre_sigma[hi, hc]
+        lever = r_photo @ b.lever_arm  # (n, 3) antenna offset on the ground axes
+        fh = state.exterior[hph, hc] + lever[hph, hc] + self.origin[hc] - b.centre_xyz[hi, hc]
+        r_parts.append(fh * wh)
+        rp.append(np.full(len(hi), -1))
+        kinds.append(np.full(len(hi), KIND_CENTRE))
+        idx.append(hi)
+        comp.append(hc)
+        # weighted calibration parameters
+        wc_cam, wc_par = np.nonzero(b.calibration_mode == WEIGHTED)
+        wcal = 1.0 / b.calibration_sigma[wc_cam, wc_par]
+        fc = state.calibration[wc_cam, wc_par] - b.calibration[wc_cam, wc_par]
+        r_parts.append(fc * wcal)
+        rp.append(np.full(len(wc_cam), -1))
+        kinds.append(np.full(len(wc_cam), KIND_CALIB))
+        idx.append(wc_cam)
+        comp.append(wc_par)
+        r = np.concatenate(r_parts)
+        lin = Linearization(r, None, None, np.concatenate(rp), np.concatenate(kinds),
+                            np.concatenate(idx), np.concatenate(comp),
+                            bool((depth < 0).all()) and bool(np.isfinite(r).all()))
+        if not jacobians:
+            return lin
+        je, jpt, jcal = out[2], out[3], out[4]
+        rows_all = len(r)
+        # camera part
+        rows_i = np.arange(2 * m).reshape(m, 2)
+        r_idx = [np.repeat(rows_i[:, :, None], 6, axis=2).ravel()]
+        c_idx = [np.broadcast_to((6 * ph)[:, None, None] + np.arange(6), (m, 2, 6)).ravel()]
+        vals = [(je * wimg[:, :, None]).ravel()]
+        for cam_k, par in np.argwhere(self.calib_column >= 0):
+            on = np.flatnonzero(cam == cam_k)
+            r_idx.append(rows_i[on].ravel())
+            c_idx.append(np.full(2 * len(on), self.calib_column[cam_k, par]))
+            vals.append((jcal[on, :, par] * wimg[on]).ravel())
+        base = 2 * m + len(gi)
+        r_idx.append(base + np.arange(len(hi)))
+        c_idx.append(6 * hph + hc)
+        vals.append(wh)
+        if b.lever_arm.any():  # d(R·e)/d(angle)
+            d_lever = dr_photo @ b.lever_arm  # (n, 3 angles, 3)
+            for t in range(3):
+                r_idx.append(base + np.arange(len(hi)))
+                c_idx.append(6 * hph + 3 + t)
+                vals.append(wh * d_lever[hph, t, hc])
+        base += len(hi)
+        r_idx.append(base + np.arange(len(wc_cam)))
+        c_idx.append(self.calib_column[wc_cam, wc_par])
+        vals.append(wcal)
+        lin.jc = sp.csr_matrix((np.concatenate(vals), (np.concatenate(r_idx),
+                                                       np.concatenate(c_idx))),
+                               shape=(rows_all, self.nc))
+        jp_rows = np.zeros((rows_all, 3))
+        jp_rows[:2 * m] = (jpt * wimg[:, :, None]).reshape(2 * m, 3)
+        jp_rows[2 * m + np.arange(len(gi)), gc] = wg
+        lin.jp_rows = jp_rows
+        return lin
+
+    def point_jacobian(self, lin: Linearization) -> sp.csr_matrix:
+        rows = np.flatnonzero(lin.row_point >= 0)
+        p = lin.row_point[rows]
+        return sp.csr_matrix((lin.jp_rows[rows].ravel(),
+                              (np.repeat(rows, 3), (3 * p[:, None] + np.arange(3)).ravel())),
+                             shape=(len(lin.r), 3 * self.block.n_points))
+
+
+@dataclass
+class Normal:
+    """Blocks of the normal equations ``N = JᵀJ``, gradient ``g = Jᵀr``."""
+
+    a: sp.csr_matrix
+    b: sp.csr_matrix
+    c: np.ndarray  # (P, 3, 3)
+    gc: np.ndarray
+    gp: np.ndarray  # (P, 3)
+    jp: sp.csr_matrix
+
+
+def normal_equations(problem: Problem, lin: Linearization) -> Normal:
+    n_pts = problem.block.n_points
+    jp = problem.point_jacobian(lin)
+    jc = lin.jc
+    a = (jc.T @ jc).tocsr()
+    b = (jc.T @ jp).tocsr()
+    rows = lin.row_point >= 0
+    p = lin.row_point[rows]
+    jr = lin.jp_rows[rows]
+    outer = (jr[:, :, None] * jr[:, None, :]).reshape(-1, 9)
+    c = np.stack([np.bincount(p, weights=outer[:, k], minlength=n_pts) for k in range(9)],
+                 axis=1).reshape(n_pts, 3, 3)
+    unobserved = np.bincount(p, minlength=n_pts) == 0
+    c[unobserved] = np.eye(3)  # points whose observations were all rejected: kept as they are
+    gp = np.stack([np.bincount(p, weights=jr[:, k] * lin.r[rows], minlength=n_pts)
+                   for k in range(3)], axis=1)
+    return Normal(a, b, c, jc.T @ lin.r, gp, jp)
+
+
+def block_inverse(c: np.ndarray, point_ids: list[str]) -> np.ndarray:
+    """Inverse of the 3 x 3 point blocks; a singular one (a point without geometry) raises."""
+    eig = np.linalg.eigvalsh(c) if len(c) else np.ones((0, 3))  # symmetric: cheaper than SVD
+    with np.errstate(divide="ignore", invalid="ignore"):
+        cond = eig[:, 2] / eig[:, 0]
+    bad = np.flatnonzero(~((cond > 0) & (cond < 1e14)))
+    if len(bad):
+        names = ", ".join(repr(point_ids[i]) for i in bad[:5])
+        raise InputDataError(f"{len(bad)} point(s) are not determined by their rays (nearly "
+                             f"parallel rays or too few observations): {names}")
+    return np.linalg.inv(c)
+
+
+def block_diagonal(blocks: np.ndarray) -> sp.bsr_matrix:
+    n = len(blocks)
+    return sp.bsr_matrix((blocks, np.arange(n), np.arange(n + 1)), shape=(3 * n, 3 * n))
+
+
+def reduced_system(normal: Normal, damping: float, point_ids: list[str]):
+    """``S`` (sparse), ``rhs`` and ``C⁻¹`` (P, 3, 3) for the damping ``λ``."""
+    a = normal.a
+    c = normal.c
+    if damping:
+        a = a + sp.diags(damping * a.diagonal())
+        c = c + damping * np.einsum("pii->pi", c)[:, :, None] * np.eye(3)
+    cinv = block_inverse(c, point_ids)
+    bc = (normal.b @ block_diagonal(cinv)).tocsr()
+    s = (a - bc @ normal.b.T).tocsr()
+    rhs = -(normal.gc - bc @ normal.gp.ravel())
+    return s, rhs, cinv
+
+
+class SingularError(InputDataError):
+    pass
+
+
+def _scaled(s: sp.csr_matrix, problem: Problem) -> tuple[np.ndarray, np.ndarray | sp.csc_matrix]:
+    diag = s.diagonal()
+    zero = np.flatnonzero(~(diag > 0))
+    if len(zero):
+        names = ", ".join(problem.column_label(int(i)) for i in zero[:5])
+        raise SingularError(f"the normal matrix is singular: no observation determines "
+                            f"{names}")
+    d = 1.0 / np.sqrt(diag)
+    return d, sp.diags(d) @ s @ sp.diags(d)
+
+
+def diagnose(s: sp.csr_matrix, problem: Problem) -> None:
+    """Raise :class:`SingularError` naming the parameters of a (nearly) singular direction:
+    the smallest eigenvector of the Jacobi-scaled matrix (small systems) or the smallest
+    Cholesky pivots (dense systems up to :data:`DENSE_LIMIT`)."""
+    import scipy.linalg as la
+
+    d, ss = _scaled(s, problem)
+    if problem.nc > DENSE_LIMIT:
+        return
+    dense = ss.toarray()
+    if problem.nc <= EIGEN_LIMIT:
+        vals, vecs = np.linalg.eigh(dense)
+        ratio, weak = vals[0] / vals[-1], np.argsort(-np.abs(vecs[:, 0]))[:4]
+    else:
+        try:
+            pivots = np.diag(la.cholesky(dense, lower=True)) ** 2
+        except la.LinAlgError:
+            pivots = np.zeros(len(dense))
+        ratio, weak = pivots.min() / pivots.max(), np.argsort(pivots)[:4]
+    names = ", ".join(problem.column_label(int(i)) for i in weak)
+    if ratio < SINGULAR_RATIO:
+        raise SingularError(f"the normal matrix is near-singular (ratio {ratio:.1e}): weak "
+                            f"geometry in {names}; add control, tie points or fix those "
+                            "parameters")
+    if ratio < WEAK_RATIO:
+        problem.warnings.append(f"weak geometry (eigenvalue ratio {ratio:.1e}) in {names}: "
+                                "check their standard deviations and correlations")
+
+
+def solve_reduced(s: sp.csr_matrix, rhs: np.ndarray, problem: Problem) -> np.ndarray:
+    import scipy.linalg as la
+    from scipy.sparse.linalg import splu
+
+    d, ss = _scaled(s, problem)
+    try:
+        if problem.nc <= DENSE_LIMIT:
+            x = la.cho_solve(la.cho_factor(ss.toarray()), d * rhs)
+        else:
+            x = splu(ss.tocsc(), permc_spec="MMD_AT_PLUS_A").solve(d * rhs)
+    except (np.linalg.LinAlgError, la.LinAlgError, RuntimeError):
+        diagnose(s, problem)
+        raise SingularError("the normal matrix is singular: the block's geometry or datum "
+                            "is too weak") from None
+    if not np.isfinite(x).all():
+        raise SingularError("the normal matrix is singular: the block's geometry or datum "
+                            "is too weak")
+    return d * x
+
+
+def apply_step(problem: Problem, state: State, dc: np.ndarray, dp: np.ndarray) -> State:
+    new = state.copy()
+    n = problem.block.n_photos
+    new.exterior += dc[:6 * n].reshape(n, 6)
+    cols = problem.calib_column
+    on = cols >= 0
+    new.calibration[on] += dc[cols[on]]
+    new.points += dp.reshape(-1, 3)
+    return new
+
+
+def worst_observations(problem: Problem, lin: Linearization, count: int = 5) -> str:
+    b = problem.block
+    order = np.argsort(-np.abs(np.nan_to_num(lin.r, nan=np.inf)))[:count]
+    parts = []
+    for row in order:
+        k, i = int(lin.kind[row]), int(lin.index[row])
+        if k == KIND_IMAGE:
+            what = f"point {b.point_ids[b.obs_point[i]]!r} on photo {b.photo_ids[b.obs_photo[i]]!r}"
+        elif k == KIND_GROUND:
+            what = f"control {b.point_ids[b.ground_point[i]]!r} {'XYZ'[lin.component[row]]}"
+        elif k == KIND_CENTRE:
+            what = f"GNSS centre of photo {b.photo_ids[b.centre_photo[i]]!r}"
+        else:
+            what = b.calibration_label(i, int(lin.component[row]))
+        parts.append(f"{what} ({lin.r[row]:+.3g} sigma)")
+    return "; ".join(parts)
+
+
+def least_squares(problem: Problem, state: State, options: Options, check: bool = True
+                  ) -> tuple[State, Linearization, int]:
+    """Levenberg-Marquardt to convergence; returns the state, its linearisation, iterations."""
+    lin = problem.linearize(state)
+    if not lin.depth_ok:
+        raise ConvergenceError("the start values put points behind their cameras; check the "
+                               "approximate orientations (worst: "
+                               f"{worst_observations(problem, lin)})")
+    damping = 1e-6
+    cost = lin.cost
+    for iteration in range(1, options.max_iterations + 1):
+        normal = normal_equations(problem, lin)
+        if check and iteration == 1:
+            diagnose(reduced_system(normal, 0.0, problem.block.point_ids)[0], problem)
+        while True:
+            s, rhs, cinv = reduced_system(normal, damping, problem.block.point_ids)
+            dc = solve_reduced(s, rhs, problem)
+            dp = -np.einsum("pij,pj->pi", cinv, normal.gp + (normal.b.T @ dc).reshape(-1, 3))
+            trial = apply_step(problem, state, dc, dp)
+            trial_lin = problem.linearize(trial, jacobians=False)
+            if trial_lin.cost <= cost:
+                break
+            damping *= 10.0
+            if damping > 1e12:
+                raise ConvergenceError(
+                    f"bundle adjustment diverged at iteration {iteration} (weighted sum of "
+                    f"squares {cost:.6g} cannot be decreased); worst observations: "
+                    f"{worst_observations(problem, lin)}")
+        decrease = cost - trial_lin.cost
+        state, cost = trial, trial_lin.cost
+        lin = problem.linearize(state)
+        damping = max(damping / 10.0, 1e-12)
+        small_step = np.abs(dp).max(initial=0.0) < 1e-9 and np.abs(dc).max(initial=0.0) < 1e-9
+        if decrease <= options.tolerance * max(cost, 1e-30) or small_step:
+            return state, lin, iteration
+    raise ConvergenceError(f"bundle adjustment did not converge in {options.max_iterations} "
+                           f"iterations (weighted sum of squares {cost:.6g}); worst "
+                           f"observations: {worst_observations(problem, lin)}")
