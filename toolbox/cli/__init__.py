@@ -36,6 +36,14 @@ def _terminal():
     return terminal
 
 
+def __getattr__(name: str):
+    """The terminal module's names (``setup_logging``, ``ACTIVE``...), importable from here as
+    before it became lazy (PEP 562)."""
+    if name in ("ACTIVE", "DIRECT_STDERR", "STDERR_IS_TTY", "TerminalFeedback", "setup_logging"):
+        return getattr(_terminal(), name)
+    raise AttributeError(f"module 'toolbox.cli' has no attribute {name!r}")
+
+
 def _one_line(text: str) -> str:
     """A message on one line (YAML and GDAL messages span several)."""
     return "; ".join(line.strip() for line in str(text).splitlines() if line.strip())
