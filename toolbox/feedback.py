@@ -136,3 +136,14 @@ class SubFeedback(Feedback):
 
     def is_canceled(self) -> bool:
         return self._parent.is_canceled()
+
+
+class CollectingFeedback(Feedback):
+    """Messages kept for the caller to report, not logged: for work run on a thread or a
+    worker whose caller pushes the messages to the user itself (once)."""
+
+    def push_info(self, text: str) -> None:
+        self.messages.append(("info", text))
+
+    def push_warning(self, text: str) -> None:
+        self.messages.append(("warning", text))

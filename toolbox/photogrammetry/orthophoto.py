@@ -977,11 +977,11 @@ def run_task(task: OrthoTask) -> dict[str, Any]:
     from pathlib import Path
 
     from toolbox.errors import ToolboxError
-    from toolbox.feedback import Feedback
+    from toolbox.feedback import CollectingFeedback
 
     final = Path(task.output)
     partial = final.with_name(f".{final.stem}.part{final.suffix}")
-    feedback = Feedback()
+    feedback = CollectingFeedback()  # its caller reports the warnings, once
     try:
         report = orthorectify(task.photo, task.image, task.dem, task.grid, partial, task.options,
                               None, task.reference_height, map_scale=task.map_scale,

@@ -116,3 +116,21 @@ def test_block_on_a_dask_cluster_equals_the_local_run(tmp_path, monkeypatch):
     with rasterio.open(tmp_path / "local" / "p1.tif") as a, \
             rasterio.open(tmp_path / "dask" / "p1.tif") as b:
         assert (a.read() == b.read()).all()
+
+
+def test_a_photo_task_reports_its_warnings_to_its_caller_once(tmp_path, caplog):
+    """A block task runs on a thread or a worker: its warnings travel in its report for
+    ortho:batch to push once; the task itself logs nothing (they were printed twice)."""
+    from toolbox.io.raster import open_raster_info
+    from toolbox.photogrammetry.orthophoto import OrthoOptions, OrthoTask, plan_photo, run_task
+
+    sc = scene.make_scene(tmp_path)
+    half = scene.write_dem(tmp_path / "half.tif", sc.dem[:, : sc.dem.shape[1] // 2], sc.transform)
+    dem = open_raster_info(half)
+    plan = plan_photo(sc.photo, open_raster_info(sc.dem_path), sc.photo.crs, cell=10.0)
+    task = OrthoTask(sc.photo, open_raster_info(sc.photo_path), dem, plan.grid,
+                     tmp_path / "p1_ortho.tif", OrthoOptions(overviews=False), plan.mean_height)
+    with caplog.at_level("INFO", logger="toolbox"):
+        report = run_task(task)
+    assert any("have no DEM height" in w for w in report["warnings"])
+    assert not any("have no DEM height" in r.getMessage() for r in caplog.records)
