@@ -109,3 +109,15 @@ def test_start_up_commands_import_only_what_they_need(tmp_path):
         out, modules = probe(*args)
         assert "dem:idw" in out
         assert not modules & heavy, (args, modules & heavy)
+
+
+def test_a_reader_that_leaves_early_is_no_error(tmp_path):
+    """``toolbox list | head -1``: the pipe closes under the listing; no 'internal error'."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    toolbox_exe = Path(sys.executable).with_name("toolbox")
+    done = subprocess.run(f"'{toolbox_exe}' list | head -1", shell=True, capture_output=True,
+                          text=True, timeout=120, cwd=tmp_path)
+    assert done.stdout.strip() and done.stderr == ""

@@ -84,6 +84,10 @@ def _handle_errors(func: Callable) -> Callable:
             sys.exit(128 + signum)
         except (click.exceptions.ClickException, click.exceptions.Exit, click.exceptions.Abort):
             raise
+        except BrokenPipeError:  # `toolbox list | head`: the reader left; nothing to report
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, sys.stdout.fileno())  # no second error while flushing at exit
+            sys.exit(1)
         except Exception as exc:
             if os.environ.get("TOOLBOX_DEBUG") and not isinstance(exc, ToolboxError):
                 raise
