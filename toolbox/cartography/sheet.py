@@ -435,8 +435,7 @@ class SheetRenderer:
         if left_out:  # said, not hidden
             fig.text(self._fx(x0 + 12), self._fy(y - 5.5), f"... and {left_out} more entries",
                      **text)
-        return {"ground_length": ground, "paper_mm": bar_mm, "left_mm": bx,
-                "legend_entries": len(self.legend) - left_out}
+        return {"ground_length": ground, "paper_mm": bar_mm, "left_mm": bx}
 
     def save(self, pdfs=(), pngs=(), dpi: int = 150, metadata: dict | None = None,
              pdf_pages=None) -> None:
