@@ -5,8 +5,6 @@ from __future__ import annotations
 
 import csv
 import json
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -14,9 +12,7 @@ from click.testing import CliRunner
 
 import toolbox
 from toolbox.cli import main
-
-sys.path.insert(0, str(Path(__file__).parents[2] / "toolbox" / "matching"))
-import scan_scene as sc  # noqa: E402
+from toolbox.demo.samples import scans as sc
 
 # scanned turned by 90 degrees and mirrored (emulsion down): G = Rot90 · Mirror
 TURNED = np.array([[0.0, -1.0], [1.0, 0.0]]) @ np.array([[-1.0, 0.0], [0.0, 1.0]])

@@ -1,4 +1,4 @@
-"""Rendered scans of a frame with fiducial marks, for the orientation:fiducials tests.
+"""Rendered scans of a frame with fiducial marks, for the orientation:fiducials demo and tests.
 
 The truth: mark ``(x, y)`` mm sits at pixel ``c0 + G·A·(x, -y)/s`` (``s`` the scan pixel, ``A``
 a small rotation + affinity, ``G`` the scan orientation, ``c0`` the scan centre plus an
@@ -94,3 +94,16 @@ def project_yaml(path: Path, scans: dict[str, str]) -> Path:
                       for pid, image in scans.items()]}
     path.write_text(yaml.safe_dump(doc, sort_keys=False))
     return path
+
+
+def make(folder: Path, made: dict) -> dict:
+    """Two scans of 2400 x 2400 px (0.1 mm): one upright, one turned by 90 degrees and mirrored
+    (emulsion down), with ``scans/project.yaml`` naming them and the certificate's marks."""
+    target = Path(folder) / "scans"
+    target.mkdir(parents=True, exist_ok=True)
+    turned = np.array([[0.0, -1.0], [1.0, 0.0]]) @ np.array([[-1.0, 0.0], [0.0, 1.0]])
+    render_scan(target / "scan_upright.tif", angle_deg=1.5)
+    render_scan(target / "scan_turned.tif", angle_deg=-0.8, orientation=turned, seed=3)
+    project = project_yaml(target / "project.yaml", {"scan_upright": "scan_upright.tif",
+                                                      "scan_turned": "scan_turned.tif"})
+    return {"fiducial_scans_project": project}
