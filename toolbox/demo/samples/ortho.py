@@ -65,18 +65,19 @@ def make(folder: Path, made: dict) -> dict:
 
     z, transform = terrain()
     paint = texture()
-    made_paths = {}
+    projects, images = {}, {}
     for name, ids in (("siena_ortho", PHOTOS), ("siena_block", BLOCK)):
         target = Path(folder) / name
         target.mkdir(parents=True, exist_ok=True)
-        project = demo_project(target, ids)
-        for photo in project.photos.values():
-            image = render_photo(photo, z, transform, paint, dtype="uint8", fill=0)
-            write_photo(photo.image, image)
-        made_paths[name] = save_project(project, target / "project.yaml")
+        projects[name] = demo_project(target, ids)
+        for photo in projects[name].photos.values():
+            if photo.id not in images:  # a photo of both sets is rendered once
+                images[photo.id] = render_photo(photo, z, transform, paint, dtype="uint8", fill=0)
+            write_photo(photo.image, images[photo.id])
+    paths = {name: save_project(project, Path(folder) / name / "project.yaml")
+             for name, project in projects.items()}
     target = Path(folder) / "siena_ortho"
-    project = demo_project(target)
-    path = made_paths["siena_ortho"]
+    project, path = projects["siena_ortho"], paths["siena_ortho"]
     # the first photo's camera alone, for ortho:photo's CAMERA + EXTERIOR form (pixel transform
     # from the pixel size: image centre = fiducial centre)
     import yaml
@@ -85,4 +86,4 @@ def make(folder: Path, made: dict) -> dict:
     first.pop("fiducials_mm", None)
     (target / f"camera_{PHOTOS[0]}.yaml").write_text(yaml.safe_dump(first, sort_keys=False))
     return {"siena_ortho_project": path, "siena_ortho_photo": target / f"{PHOTOS[0]}.tif",
-            "siena_block_project": made_paths["siena_block"]}
+            "siena_block_project": paths["siena_block"]}
