@@ -214,15 +214,15 @@ class SheetRenderer:
 
         lower = {c.lower(): c for c in frame.columns}
         field = next((lower[f] for f in HEIGHT_FIELDS if f in lower), None)
-        coords = shapely.get_coordinates(frame.geometry.values, include_z=True)
+        coords, owner = shapely.get_coordinates(frame.geometry.values, include_z=True,
+                                                return_index=True)
         use_z = len(coords) > 0 and bool(np.isfinite(coords[:, 2]).all())
         if not use_z and field is None:
             return
         off = self._mm_to_ground(1.0)
-        for k, geom in enumerate(frame.geometry.values):
-            if geom is None or geom.is_empty:
-                continue
-            p = shapely.get_coordinates(geom, include_z=True)[0]
+        first = np.unique(owner, return_index=True)  # each geometry's first point
+        for k, i in zip(*first, strict=True):
+            p = coords[i]
             value = p[2] if use_z else frame[field].iloc[k]
             if value is None or not np.isfinite(float(value)):
                 continue
