@@ -127,6 +127,11 @@ def _fmt(value: Any, unit: str = "", digits: int = 3) -> str:
     return f"{float(value):.{digits}f}{(' ' + unit) if unit else ''}"
 
 
+def _planimetric(rmse: dict) -> float | None:
+    """sqrt(RMSE_x² + RMSE_y²) of a ``{"x", "y", ...}`` report entry, None without both."""
+    return float(np.hypot(rmse["x"], rmse["y"])) if "x" in rmse and "y" in rmse else None
+
+
 def _judge(value: float | None, limit: float) -> str:
     return NOT_CHECKED if value is None else (PASS if value <= limit else FAIL)
 
@@ -239,19 +244,15 @@ def orientation_section(reports, spec: Specification, verdicts: list[Verdict]) -
     for name, report in reports.get("orientation:bundle", []):
         stats = _stats(report)
         control, check = stats.get("control_rmse_m") or {}, stats.get("check_rmse_m") or {}
-
-        def plan(rmse: dict) -> float | None:
-            return float(np.hypot(rmse["x"], rmse["y"])) if "x" in rmse and "y" in rmse else None
-
         sec.text(f"Aerial triangulation ({name}): one bundle adjustment of {stats.get('photos')} "
                  f"photos and {stats.get('points')} tie points; sigma0 a posteriori "
                  f"{_fmt(stats.get('sigma0'), digits=2)} (1 when the a priori sigmas are right), "
                  f"redundancy {stats.get('redundancy')}, {stats.get('rejected')} observations "
                  f"rejected as gross errors, {stats.get('flagged')} flagged.")
         sec.table(["Quantity", "Control points", "Check points"], [
-            ["RMSE, planimetric", _fmt(plan(control), "m"), _fmt(plan(check), "m")],
+            ["RMSE, planimetric", _fmt(_planimetric(control), "m"), _fmt(_planimetric(check), "m")],
             ["RMSE, height", _fmt(control.get("z"), "m"), _fmt(check.get("z"), "m")]])
-        for label, value, limit in (("planimetric", plan(check), spec.planimetric_m),
+        for label, value, limit in (("planimetric", _planimetric(check), spec.planimetric_m),
                                     ("height", check.get("z"), spec.height_rmse_m)):
             verdicts.append(Verdict("Aerial triangulation", f"check points, {label} RMSE",
                                     _fmt(value, "m"), f"<= {limit:.2f} m", _judge(value, limit),
