@@ -113,6 +113,24 @@ def _refuse_empty_sheets(params: dict, sheets: list) -> None:
                              "the same area and CRS?")
 
 
+def _second_grid(crs, second):
+    """(transformer sheet CRS -> ``second``, label) for the frame's second grid, or None."""
+    if second is None:
+        return None
+    from pyproj import Transformer
+
+    from toolbox.errors import ParameterError
+    from toolbox.io.crs import crs_label
+
+    if crs is None:
+        raise ParameterError("GRID_CRS: the sheet's data have no CRS to transform from")
+    if not second.is_projected:
+        raise ParameterError(f"GRID_CRS: {crs_label(second)} is not a projected CRS (grid "
+                             "ticks are in metres)")
+    return Transformer.from_crs(crs, second, always_xy=True), f"{crs_label(second)} " \
+        f"({second.name})"
+
+
 def sheet_file_names(params: dict) -> list[str]:
     """The file name (without extension) of each sheet in FOLDER: its id made file-safe and
     unique."""
@@ -163,6 +181,7 @@ def run_sheets(params: dict, feedback) -> dict:
                           if params.get("BASE") is not None else "", styles=styles,
                           contours=contours, grid_style=params["GRID_STYLE"],
                           map_step_mm=params["MAP_STEP"], png_dpi=params["PNG_DPI"])
+            common["second_grid"] = _second_grid(crs, params.get("GRID_CRS"))
             pngs = [params["PNG"]] if params.get("PNG") and i == 0 else []
             files = []
             if folder is not None:
