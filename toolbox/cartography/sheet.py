@@ -67,6 +67,7 @@ class SheetSpec:
     datum: str = ""
     contour_interval: float | None = None  # m, stated in the title block and the legend
     producer: str = ""
+    second_crs: str = ""  # the CRS ticked outside the frame (GRID_CRS), stated in the block
 
 
 @dataclass
@@ -398,6 +399,8 @@ class SheetRenderer:
                 ("CRS", spec.crs_label)]
         if spec.datum:
             rows.append(("datum", spec.datum))
+        if spec.second_crs:
+            rows.append(("outer ticks", spec.second_crs))
         if spec.contour_interval:
             rows.append(("contour interval", f"{spec.contour_interval:g} m"))
         rows += [("date", spec.date), ("sources", "; ".join(spec.sources))]

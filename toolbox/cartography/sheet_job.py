@@ -182,6 +182,8 @@ def run_sheets(params: dict, feedback) -> dict:
                           contours=contours, grid_style=params["GRID_STYLE"],
                           map_step_mm=params["MAP_STEP"], png_dpi=params["PNG_DPI"])
             common["second_grid"] = _second_grid(crs, params.get("GRID_CRS"))
+            if common["second_grid"] is not None:
+                spec.second_crs = common["second_grid"][1]
             pngs = [params["PNG"]] if params.get("PNG") and i == 0 else []
             files = []
             if folder is not None:
