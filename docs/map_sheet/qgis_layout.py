@@ -9,7 +9,8 @@ Run with the Python that has QGIS (not the toolbox's venv), from a folder made b
 It writes ``qgis_sheet.pdf`` and ``qgis_sheet.png``: the same extent, scale (1:5000), data
 (relief shading, contours in the toolbox's own ``contours.qml``, the landscape's and the
 restitution's coded layers, the DXF's text) and symbology (colours, widths, line types and
-hatching of the demo's code and colour files, read here with a few lines rather than the toolbox, which this Python does not have),
+hatching of the demo's code and colour files, read here with a few lines rather than the
+toolbox, which this Python does not have),
 with QGIS's own map grid (EPSG:3003, plus EPSG:6707 ticks), legend, scale bar, north arrow
 and a title label. Nothing here is tuned to look like the toolbox's sheet beyond that.
 """
