@@ -364,18 +364,53 @@ def ortho_section(reports, spec: Specification, verdicts: list[Verdict]) -> Sect
             if s.get("failed") else []
         rows.append([f"{name} (block)", _fmt(s.get("cell_size"), "m", 2), "", "",
                      f"{s.get('done')} of {s.get('photos')} photos written"])
-    if not rows:
+    checks = reports.get("report:ortho_check", [])
+    if not rows and not checks:
         return None
     sec.text("Orthophotos on the DEM. Their accuracy combines the orientation's and the DEM's: "
              f"the rule is a planimetric RMS <= {spec.planimetric_m:.2f} m on check points "
              "measured on the orthophoto.")
     sec.table(["Photo", "Cell", "Photo GSD", "Largest relief shift", "Outside the photo"], rows)
-    verdicts.append(Verdict("Orthophotos", "all photos orthorectified",
-                            "; ".join(failed) or "all written", "no failure",
-                            FAIL if failed else PASS, "completeness"))
-    verdicts.append(Verdict("Orthophotos", "planimetric RMSE on check points", "not measured",
-                            f"<= {spec.planimetric_m:.2f} m", NOT_CHECKED, "S002 §2.6.6"))
+    if rows:
+        verdicts.append(Verdict("Orthophotos", "all photos orthorectified",
+                                "; ".join(failed) or "all written", "no failure",
+                                FAIL if failed else PASS, "completeness"))
+    if not checks:
+        verdicts.append(Verdict("Orthophotos", "planimetric RMSE on check points",
+                                "not measured", f"<= {spec.planimetric_m:.2f} m", NOT_CHECKED,
+                                "S002 §2.6.6"))
+    ortho_check_rows(sec, checks, spec, verdicts)
     return sec
+
+
+def ortho_check_rows(sec: Section, checks, spec: Specification, verdicts: list[Verdict]
+                     ) -> None:
+    """The check points measured on each orthophoto (report:ortho_check runs): method, RMSE,
+    a verdict per orthophoto."""
+    if not checks:
+        return
+    sec.text("Check points measured on the orthophoto: around each point a chip of the photo, "
+             "centred on the target as the operator measured it there, is found on the "
+             "orthophoto by normalised cross-correlation; the offset is where the orthophoto "
+             "shows the target minus where it was surveyed.")
+    table = []
+    for _name, report in checks:
+        s = _stats(report)
+        rms = s.get("rmse_planimetric_m")
+        table.append([without_paths(s.get("ortho", _name)), f"{s.get('matched')} of "
+                      f"{s.get('points')}", _fmt(s.get("rmse_x_m"), "m", 2),
+                      _fmt(s.get("rmse_y_m"), "m", 2), _fmt(rms, "m", 2),
+                      _fmt(s.get("largest_m"), "m", 2) if s.get("largest_m") is not None
+                      else "n/a"])
+        verdicts.append(Verdict("Orthophotos", "planimetric RMSE on check points (measured "
+                                f"on {without_paths(s.get('ortho', _name))})",
+                                f"{_fmt(rms, 'm', 2)} ({s.get('matched')} points)"
+                                if rms is not None else "no point found",
+                                f"<= {spec.planimetric_m:.2f} m", _judge(rms,
+                                                                         spec.planimetric_m),
+                                "S002 §2.6.6"))
+    sec.table(["Orthophoto", "Points found", "RMSE east", "RMSE north", "RMSE planimetric",
+               "Largest"], table)
 
 
 def dem_section(runs, spec: Specification, verdicts: list[Verdict]) -> Section:
