@@ -31,6 +31,7 @@ PANEL_MAX = 120.0  # mm, the panel's width where the paper leaves room
 MIN_TEXT_PT = 6.0  # no text smaller at print size
 SHADING_STRENGTH = 0.45  # a grey base (hillshade) keeps this share of its darkness
 CORNER_CLEAR = 8.0  # mm along the frame edge kept free of grid labels at each corner
+LABEL_PAD_MM = 0.3  # spot-height labels keep this far from other texts
 HEIGHT_FIELDS = ("z", "quota", "elev", "height", "h")  # spot-height value fields, in this order
 
 
@@ -158,6 +159,9 @@ class SheetRenderer:
         for spine in self.ax.spines.values():
             spine.set_linewidth(0.5 * PT_PER_MM)
         self.legend: list[tuple[str, str, str, float, str | None]] = []  # kind, name, ...
+        self.obstacles: list = []  # text artists already placed (texts, contour labels)
+        self.pending: list[tuple[float, float, str, str]] = []  # spot heights: x, y, text, colour
+        self.labels_left_out = 0
 
     # -- page coordinates (mm) -> figure fraction
     def _fx(self, x_mm: float) -> float:
@@ -191,7 +195,9 @@ class SheetRenderer:
         if "text" in frame.columns:  # the restitution's texts (toponyms), as plotted
             from toolbox.cartography.symbols_draw import draw_texts
 
-            if draw_texts(self.ax, frame, style.rgb, self.spec.scale):
+            placed = draw_texts(self.ax, frame, style.rgb, self.spec.scale)
+            self.obstacles += placed
+            if placed:
                 entry = ("text", style.name, colour, 0.0, None)
                 if entry not in self.legend:
                     self.legend.append(entry)
@@ -242,15 +248,39 @@ class SheetRenderer:
         use_z = len(coords) > 0 and bool(np.isfinite(coords[:, 2]).all())
         if not use_z and field is None:
             return
-        off = self._mm_to_ground(1.0)
         first = np.unique(owner, return_index=True)  # each geometry's first point
         for k, i in zip(*first, strict=True):
             p = coords[i]
             value = p[2] if use_z else frame[field].iloc[k]
             if value is None or not np.isfinite(float(value)):
                 continue
-            self.ax.text(p[0] + off, p[1], f"{float(value):.1f}", fontsize=MIN_TEXT_PT,
-                         color=colour, ha="left", va="center", zorder=6, clip_on=True)
+            self.pending.append((float(p[0]), float(p[1]), f"{float(value):.1f}", colour))
+
+    def place_labels(self) -> int:
+        """Spot-height labels where they come no nearer than 0.3 mm to a text already on the
+        map: right of the point, else left, above, below (1 mm off); a label with no free place is left out
+        (counted, never printed over another). Returns the number left out."""
+        renderer = self.fig.canvas.get_renderer()
+        pad = LABEL_PAD_MM / MM_PER_INCH * self.fig.dpi  # display units
+        boxes = [a.get_window_extent(renderer).padded(pad) for a in self.obstacles]
+        off = self._mm_to_ground(1.0)
+        xmin, ymin, xmax, ymax = self.spec.bounds
+        for x, y, text, colour in self.pending:
+            if not (xmin <= x <= xmax and ymin <= y <= ymax):
+                continue
+            for dx, dy, ha, va in ((off, 0, "left", "center"), (-off, 0, "right", "center"),
+                                   (0, off, "center", "bottom"), (0, -off, "center", "top")):
+                artist = self.ax.text(x + dx, y + dy, text, fontsize=MIN_TEXT_PT, color=colour,
+                                      ha=ha, va=va, zorder=6, clip_on=True)
+                box = artist.get_window_extent(renderer).padded(pad)
+                if not any(box.overlaps(b) for b in boxes):
+                    boxes.append(box)
+                    break
+                artist.remove()
+            else:
+                self.labels_left_out += 1
+        self.pending = []
+        return self.labels_left_out
 
     def _restore_limits(self) -> None:
         self.ax.set_xlim(self.spec.bounds[0], self.spec.bounds[2])
@@ -290,9 +320,10 @@ class SheetRenderer:
                     angle = np.degrees(np.arctan2(b.y - a.y, b.x - a.x))
                     angle = (angle + 90.0) % 180.0 - 90.0  # upright text
                     p = part.interpolate(d)
-                    self.ax.text(p.x, p.y, f"{elev:.0f}", fontsize=MIN_TEXT_PT, color=colour,
-                                 rotation=angle, rotation_mode="anchor", ha="center",
-                                 va="center", zorder=5, path_effects=halo, clip_on=True)
+                    self.obstacles.append(self.ax.text(
+                        p.x, p.y, f"{elev:.0f}", fontsize=MIN_TEXT_PT, color=colour,
+                        rotation=angle, rotation_mode="anchor", ha="center", va="center",
+                        zorder=5, path_effects=halo, clip_on=True))
         levels = np.unique(np.round(np.asarray(frame["elev"], dtype="float64"), 6))
         steps = np.diff(levels)
         interval = float(steps[steps > 0].min()) if (steps > 0).any() else None

@@ -94,6 +94,7 @@ def render_sheet(spec: SheetSpec, base=None, base_name: str = "", styles=(), con
         if contours is not None and len(contours):
             renderer.contours(contours.cx[spec.bounds[0]:spec.bounds[2],
                                           spec.bounds[1]:spec.bounds[3]])
+        left_out = renderer.place_labels()
         step = ground_step(spec.scale, map_step_mm)
         renderer.grid(map_grid(spec.bounds, step, grid_style, ground_step(spec.scale, 10) / 2))
         if second_grid is not None:
@@ -107,7 +108,7 @@ def render_sheet(spec: SheetSpec, base=None, base_name: str = "", styles=(), con
         renderer.save(pdfs, pngs, png_dpi, metadata, pdf_pages)
         page = renderer.page
         return {"sheet": spec.sheet_id, "paper": page.paper, "paper_mm": [page.width, page.height],
-                "frame_mm": list(page.frame), "scale_bar": bar,
+                "frame_mm": list(page.frame), "scale_bar": bar, "labels_left_out": left_out,
                 "panel_mm": [page.panel_left, page.band_bottom, page.panel_width,
                              page.band_height]}
     finally:

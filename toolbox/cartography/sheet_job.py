@@ -99,7 +99,9 @@ def _refuse_empty_sheets(params: dict, sheets: list) -> None:
     from toolbox.errors import InputDataError
     from toolbox.io.crs import input_crs_and_bounds
 
-    boxes = [shapely.box(*b) for name in ("BASE", "LAYERS", "CONTOURS")
+    # envelopes, not boxes: one point, or points in a row, have a flat extent (an empty box)
+    boxes = [shapely.envelope(shapely.MultiPoint([b[:2], b[2:]]))
+             for name in ("BASE", "LAYERS", "CONTOURS")
              for _, b in input_crs_and_bounds(params.get(name)) if b is not None]
     if not boxes:
         return  # nothing to draw, or extents unknown: the job draws what it has
@@ -192,6 +194,10 @@ def run_sheets(params: dict, feedback) -> dict:
                                     pdf_pages=pages, **common)
             else:
                 info = render_sheet(spec, pngs=pngs, pdf_pages=pages, **common)
+            if info["labels_left_out"]:
+                feedback.push_warning(f"sheet {sheet_id}: {info['labels_left_out']} spot-height "
+                                      "label(s) left out: no free place beside the point at "
+                                      f"1:{scale:g}")
             files = [str(final_path(f)) for f in files]
             written.append(info | {"files": files})
     finally:

@@ -108,11 +108,12 @@ def draw_symbol(ax, geoms, kind: str, rgb: tuple[int, int, int], symbol: Symbol,
                                              zorder=zorder, gid="scarp"))
 
 
-def draw_texts(ax, frame, rgb: tuple[int, int, int], scale: float, clip: bool = True) -> int:
+def draw_texts(ax, frame, rgb: tuple[int, int, int], scale: float, clip: bool = True) -> list:
     """The restitution's texts (a ``text`` field; ``text_height`` in ground metres and
-    ``rotation`` in degrees if given) at their points, never under 6 pt; returns the count."""
+    ``rotation`` in degrees if given) at their points, never under 6 pt; returns the text
+    artists."""
     colour = tuple(v / 255 for v in rgb)
-    count = 0
+    placed = []
     for k, (geom, text) in enumerate(zip(frame.geometry, frame["text"])):
         if geom is None or geom.is_empty or text is None or not str(text).strip():
             continue
@@ -124,11 +125,10 @@ def draw_texts(ax, frame, rgb: tuple[int, int, int], scale: float, clip: bool = 
         rotation = float(rotation) if rotation is not None and np.isfinite(float(rotation)) \
             else 0.0
         p = geom.representative_point()
-        ax.text(p.x, p.y, str(text), fontsize=size, color=colour, rotation=rotation,
-                rotation_mode="anchor", ha="left", va="baseline", fontstyle="italic",
-                zorder=6, clip_on=clip)
-        count += 1
-    return count
+        placed.append(ax.text(p.x, p.y, str(text), fontsize=size, color=colour,
+                              rotation=rotation, rotation_mode="anchor", ha="left",
+                              va="baseline", fontstyle="italic", zorder=6, clip_on=clip))
+    return placed
 
 
 def swatch_geometry(kind: str, width_mm: float, height_mm: float, scale: float):
