@@ -27,7 +27,11 @@ class OrthoCheck(Algorithm):
     normalised cross-correlation with a sub-pixel peak within ``SEARCH`` m. The offset is where
     the orthophoto shows the target minus where it was surveyed. Chips come from ``PHOTO``, or
     per point from the measuring photo where it lies nearest the image centre. A match scoring
-    under ``MIN_SCORE``, or at the edge of the search area, is reported and not counted.
+    under ``MIN_SCORE``, or at the edge of the search area, is reported and not counted. The
+    chip takes the ground around a point at the point's height; with ``DEM`` (the orthophoto's)
+    each point's Z is compared with it and points more than 2 cells off are warned about: the
+    orthophoto shows the DEM's ground, so their offsets include that height difference's
+    relief displacement.
 
     ``OUTPUT``: one CSV row per point (offsets dx, dy and their length in m, score, status);
     ``STATISTICS``: counts, RMSE east, north and planimetric of the matched points (read by
@@ -54,6 +58,8 @@ class OrthoCheck(Algorithm):
                min_value=0.0),
         Number("MIN_SCORE", "smallest correlation accepted (-1..1)", default=0.6,
                min_value=-1.0, max_value=1.0),
+        RasterLayer("DEM", "the orthophoto's DEM: points off it in height are flagged",
+                    optional=True),
         OutputFile("OUTPUT", "per-point offsets (CSV)", extensions=[".csv"]),
     ]
     outputs = [Output("STATISTICS", "points, matched, RMSE east/north/planimetric (m)", "json")]
@@ -71,7 +77,8 @@ class OrthoCheck(Algorithm):
         req = OrthoCheckRequest(Path(params["ORTHO"].path), Path(params["PROJECT"]),
                                 Path(params["CHECK_POINTS"]), Path(params["MEASUREMENTS"]),
                                 params.get("PHOTO"), params["CHIP"], params["SEARCH"],
-                                params["MIN_SCORE"])
+                                params["MIN_SCORE"],
+                                Path(params["DEM"].path) if params.get("DEM") else None)
         results, settings = measure_checks(req, feedback)
         write_results(Path(params["OUTPUT"]), results)
         stats = summary(results) | settings | {"ortho": Path(params["ORTHO"].path).name,

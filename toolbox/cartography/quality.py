@@ -404,7 +404,8 @@ def ortho_check_rows(sec: Section, checks, spec: Specification, verdicts: list[V
                       else "n/a"])
         verdicts.append(Verdict("Orthophotos", "planimetric RMSE on check points (measured "
                                 f"on {without_paths(s.get('ortho', _name))})",
-                                f"{_fmt(rms, 'm', 2)} ({s.get('matched')} points)"
+                                f"{_fmt(rms, 'm', 2)} ({s.get('matched')} point"
+                                f"{'' if s.get('matched') == 1 else 's'})"
                                 if rms is not None else "no point found",
                                 f"<= {spec.planimetric_m:.2f} m", _judge(rms,
                                                                          spec.planimetric_m),

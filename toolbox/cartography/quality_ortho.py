@@ -11,7 +11,10 @@ normalised cross-correlation (:mod:`toolbox.matching.ncc`, sub-pixel parabola pe
 ``search`` metres. The offset found is where the orthophoto shows the target minus where it
 was surveyed: the orthophoto's planimetric error at that point (orientation, DEM and
 resampling errors together). The orientation shapes the chip only (scale and rotation over
-a few metres), so its error hardly affects the offset.
+a few metres), so its error hardly affects the offset. The chip takes the ground around the
+point at the point's height: a point well off the orthophoto's DEM (on a roof, or a DEM of
+another surface) shifts its surroundings by the relief displacement of that difference, and
+the offset measures that too (the job compares each Z with the DEM when given).
 
 Conventions: photo pixels ``(col, row)`` from the top-left corner, centres at +0.5; offsets in
 ground units, east and north positive.
@@ -40,6 +43,7 @@ class CheckResult:
     dy: float = float("nan")
     score: float = float("nan")
     status: str = NO_MATCH
+    dz_dem: float = float("nan")  # the point's Z minus the DEM's height there (if given)
 
     @property
     def distance(self) -> float:

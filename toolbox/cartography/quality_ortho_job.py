@@ -34,6 +34,7 @@ class OrthoCheckRequest:
     chip_m: float = 0.0
     search_m: float = 0.0
     min_score: float = 0.6
+    dem: Path | None = None  # the orthophoto's DEM: each point's Z is compared with it
 
 
 def _grey(data: np.ndarray) -> np.ndarray:
@@ -99,6 +100,7 @@ def measure_checks(req: OrthoCheckRequest, feedback=None) -> tuple[list[CheckRes
     half = max(int(round((req.chip_m or 12 * cell) / cell)), 3)
     reach = max(int(round((req.search_m or 8 * cell) / cell)), 1)
     results = []
+    dz = _dem_differences(req.dem, xyz) if req.dem is not None else np.full(len(ids), np.nan)
     for pid, p in zip(ids, xyz, strict=True):
         seen = [(ph, m_xy[k]) for k, (i, ph) in enumerate(zip(m_ids, m_photos, strict=True))
                 if i == pid and ph in project.photos and (req.photo is None or ph == req.photo)]
@@ -124,11 +126,30 @@ def measure_checks(req: OrthoCheckRequest, feedback=None) -> tuple[list[CheckRes
         if result.status == OUTSIDE:
             result.status = OUTSIDE + " the orthophoto"
         results.append(result)
+    for r, d in zip(results, dz, strict=True):
+        r.dz_dem = float(d)
+    off = [f"{r.point_id} ({r.dz_dem:+.1f} m)" for r in results if abs(r.dz_dem) > 2 * cell]
+    if feedback is not None and off:
+        feedback.push_warning(f"{len(off)} check point(s) lie off the DEM by more than 2 cells "
+                              f"in height: {', '.join(off[:5])}; the orthophoto shows the ground "
+                              "the DEM describes, so their offsets measure the difference too")
     if feedback is not None and not any(r.status == "matched" for r in results):
         feedback.push_warning(f"none of {len(results)} check points was found on the "
                               f"orthophoto ({', '.join(sorted({r.status for r in results}))})")
     return results, {"cell_m": cell, "chip_half_m": half * cell, "search_m": reach * cell,
                      "min_score": req.min_score}
+
+
+def _dem_differences(dem: Path, xyz: np.ndarray) -> np.ndarray:
+    """Point Z minus the DEM's height there (bilinear; NaN off the DEM)."""
+    import rasterio
+
+    from toolbox.photogrammetry.surface import DemSurface
+
+    with rasterio.open(dem) as src:
+        z = src.read(1, masked=True).astype("float64").filled(np.nan)
+        surface = DemSurface.from_transform(z, src.transform)
+    return xyz[:, 2] - surface.height(xyz[:, 0], xyz[:, 1])
 
 
 def _off_centre(photo, px) -> float:
@@ -146,6 +167,6 @@ def write_results(path: Path, results: list[CheckResult]) -> None:
         return "" if not np.isfinite(v) else f"{v:.{d}f}"
 
     write_csv(path, ["point_id", "photo", "X", "Y", "Z", "dx_m", "dy_m", "d_m", "score",
-                     "status"],
+                     "status", "z_minus_dem_m"],
               [[r.point_id, r.photo, f(r.x, 3), f(r.y, 3), f(r.z, 3), f(r.dx, 3), f(r.dy, 3),
-                f(r.distance, 3), f(r.score, 3), r.status] for r in results])
+                f(r.distance, 3), f(r.score, 3), r.status, f(r.dz_dem, 2)] for r in results])

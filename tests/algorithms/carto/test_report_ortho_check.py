@@ -83,7 +83,10 @@ def run(case, ortho, out, **extra):
 
 
 def test_the_orthophoto_as_written_measures_about_zero(case, tmp_path):
-    stats = run(case, case[2], tmp_path / "zero.csv")["STATISTICS"]
+    out = tmp_path / "zero.csv"
+    stats = run(case, case[2], out, DEM=case[0] / "dem.tif")["STATISTICS"]
+    # the check points were made on the DEM: their Z is the DEM's (bilinear, as rendered)
+    assert all(abs(float(r["z_minus_dem_m"])) < 0.01 for r in csv.DictReader(open(out)))
     assert stats["points"] == len(PIXELS) and stats["matched"] == len(PIXELS)  # c0 left out
     assert stats["rmse_planimetric_m"] < 0.15 * CELL  # a sub-cell measurement
 
@@ -110,6 +113,22 @@ def test_a_known_shift_is_measured(case, tmp_path):
     for r in rows:
         assert r["status"] == "matched" and float(r["score"]) > 0.8
         assert float(r["dx_m"]) == pytest.approx(SHIFT[0], abs=0.4)
+
+
+def test_a_point_off_the_dem_is_flagged(case, tmp_path):
+    folder = case[0]
+    rows = list(csv.reader(open(folder / "check.csv")))
+    rows[2][3] = str(float(rows[2][3]) + 20.0)  # k0 20 m above the ground
+    lifted = tmp_path / "lifted.csv"
+    csv.writer(open(lifted, "w", newline="")).writerows(rows)
+    from toolbox.feedback import Feedback
+
+    feedback = Feedback()
+    toolbox.run("report:ortho_check", {
+        "ORTHO": case[2], "PROJECT": case[1], "CHECK_POINTS": lifted,
+        "MEASUREMENTS": folder / "image.csv", "DEM": folder / "dem.tif",
+        "OUTPUT": tmp_path / "lifted_out.csv"}, feedback=feedback)
+    assert any("k0 (+20.0 m)" in w for w in feedback.warnings)
 
 
 def test_a_shift_beyond_the_search_is_not_counted(case, tmp_path):
