@@ -130,7 +130,9 @@ def summary(results: list[CheckResult]) -> dict:
                 "rmse_y_m": float(np.sqrt(np.mean(dy ** 2))),
                 "rmse_planimetric_m": float(np.sqrt(np.mean(dx ** 2 + dy ** 2))),
                 "mean_x_m": float(dx.mean()), "mean_y_m": float(dy.mean()),
-                "largest_m": float(np.hypot(dx, dy).max())}
+                "largest_m": float(np.hypot(dx, dy).max()),
+                "offsets": [{"id": r.point_id, "photo": r.photo, "x": r.x, "y": r.y,
+                             "dx": r.dx, "dy": r.dy, "score": r.score} for r in ok[:2000]]}
     else:
         out |= {"rmse_x_m": None, "rmse_y_m": None, "rmse_planimetric_m": None}
     return out

@@ -147,7 +147,9 @@ def test_quality_report_states_the_measured_accuracy(case, tmp_path):
     from toolbox.cartography.quality import Specification, build_sections, load_reports
 
     spec = Specification(5000.0, 0.3, 5.0, 15.0)  # 1.5 m allowed
-    verdicts, _ = build_sections(load_reports(reports), spec)
+    verdicts, sections = build_sections(load_reports(reports), spec)
+    ortho = [s for s in sections if s.key == "ortho"]
+    assert len(ortho) == 1 and len(ortho[0].figures) == 1  # the offsets plotted
     v = [v for v in verdicts if v.criterion.startswith("planimetric RMSE on check points")]
     assert len(v) == 1 and v[0].status == "FAIL"  # 3.7 m > 1.5 m
     assert v[0].measured.startswith(f"{np.hypot(*SHIFT):.1f}"[:2])
