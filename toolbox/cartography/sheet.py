@@ -258,11 +258,13 @@ class SheetRenderer:
 
     def place_labels(self) -> int:
         """Spot-height labels where they come no nearer than 0.3 mm to a text already on the
-        map: right of the point, else left, above, below (1 mm off); a label with no free place is left out
-        (counted, never printed over another). Returns the number left out."""
+        map: right of the point, else left, above, below (1 mm off); a label with no free
+        place is left out (counted, never printed over another). Returns the number left out."""
         renderer = self.fig.canvas.get_renderer()
         pad = LABEL_PAD_MM / MM_PER_INCH * self.fig.dpi  # display units
-        boxes = [a.get_window_extent(renderer).padded(pad) for a in self.obstacles]
+        boxes = _BoxIndex(20.0 / MM_PER_INCH * self.fig.dpi)
+        for a in self.obstacles:
+            boxes.add(a.get_window_extent(renderer).padded(pad))
         off = self._mm_to_ground(1.0)
         xmin, ymin, xmax, ymax = self.spec.bounds
         for x, y, text, colour in self.pending:
@@ -273,8 +275,8 @@ class SheetRenderer:
                 artist = self.ax.text(x + dx, y + dy, text, fontsize=MIN_TEXT_PT, color=colour,
                                       ha=ha, va=va, zorder=6, clip_on=True)
                 box = artist.get_window_extent(renderer).padded(pad)
-                if not any(box.overlaps(b) for b in boxes):
-                    boxes.append(box)
+                if not boxes.hits(box):
+                    boxes.add(box)
                     break
                 artist.remove()
             else:
@@ -583,6 +585,28 @@ class SheetRenderer:
 
     def close(self) -> None:
         self.plt.close(self.fig)
+
+
+class _BoxIndex:
+    """Boxes (matplotlib Bbox, display units) bucketed on a square grid of ``size``: overlap
+    queries look at the buckets a box covers only."""
+
+    def __init__(self, size: float):
+        self.size = size
+        self.cells: dict[tuple[int, int], list] = {}
+
+    def _keys(self, box):
+        s = self.size
+        for i in range(int(box.x0 // s), int(box.x1 // s) + 1):
+            for j in range(int(box.y0 // s), int(box.y1 // s) + 1):
+                yield i, j
+
+    def add(self, box) -> None:
+        for key in self._keys(box):
+            self.cells.setdefault(key, []).append(box)
+
+    def hits(self, box) -> bool:
+        return any(box.overlaps(b) for key in self._keys(box) for b in self.cells.get(key, ()))
 
 
 def _fit(text: str, n: int) -> str:

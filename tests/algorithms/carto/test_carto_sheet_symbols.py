@@ -157,7 +157,7 @@ def test_grid_labels_in_two_crss_do_not_overlap(sheet):
 
 
 def test_bad_hatch_is_one_line_exit_2(sheet, tmp_path):
-    from tests.conftest import run_cli
+    from conftest import run_cli
 
     bad = tmp_path / "codes.txt"
     bad.write_text("codice;descrizione;tipologia;colore;campitura\n"
@@ -204,3 +204,16 @@ def test_crowded_spot_heights_never_overlap_each_other_or_a_text(tmp_path):
             overlap = min(a[2], b[2]) - max(a[0], b[0]) > 0.1 and min(a[3], b[3]) - max(
                 a[1], b[1]) > 0.1
             assert not overlap, (a, b)
+
+
+def test_a_geographic_grid_crs_is_refused_in_one_line(sheet, tmp_path):
+    from conftest import run_cli
+
+    out = tmp_path / "geo.pdf"
+    proc = run_cli("run", "carto:sheet", "--EXTENT", "1688290,4799595,1688410,4799665 "
+                   "[EPSG:3003]", "--LAYERS", f"{sheet[3]}|layername=FAB01002",
+                   "--GRID_CRS", "EPSG:4326", "--OUTPUT", out)
+    assert proc.returncode == 2, proc.stderr
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and "GRID_CRS" in lines[0] and "projected" in lines[0]
+    assert not out.exists()
