@@ -17,8 +17,9 @@ class OrthoCheck(Algorithm):
 
     ``CHECK_POINTS``: surveyed points (``id``, ``X``, ``Y``, ``Z``; with a ``role`` column only
     the ``check`` rows). ``MEASUREMENTS``: their image measurements (``point_id``, ``photo``,
-    ``col_px``, ``row_px``, pixel centres at +0.5), the operator's pointing of each target on
-    the photos of ``PROJECT``.
+    ``col_px``, ``row_px``, pixel centres at +0.5, or ``x_mm``, ``y_mm`` in the fiducial
+    system, read through the photo's interior orientation), the operator's pointing of each
+    target on the photos of ``PROJECT``.
 
     Method (an actual measurement on the orthophoto, not a prediction): around each point a
     reference chip is resampled from the photo onto a north-up ground grid at the orthophoto's
@@ -48,7 +49,8 @@ class OrthoCheck(Algorithm):
              extensions=PROJECT_EXTENSIONS),
         File("CHECK_POINTS", "surveyed check points: id, X, Y, Z (role=check rows if a role "
              "column)", extensions=TABLE_EXTENSIONS),
-        File("MEASUREMENTS", "their image measurements: point_id, photo, col_px, row_px",
+        File("MEASUREMENTS", "their image measurements: point_id, photo, col_px, row_px (or "
+             "x_mm, y_mm)",
              extensions=TABLE_EXTENSIONS),
         String("PHOTO", "photo to take the chips from (default: per point, the most central "
                "measuring photo)", optional=True),

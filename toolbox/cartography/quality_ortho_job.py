@@ -87,9 +87,9 @@ def measure_checks(req: OrthoCheckRequest, feedback=None) -> tuple[list[CheckRes
     ids, xyz = _check_points(req)
     m_ids, m_photos, m_xy, kind = image_measurements(req.measurements, None, "auto",
                                                      "MEASUREMENTS")
-    if kind != "pixel":
-        raise InputDataError("MEASUREMENTS: the check points' image measurements must be in "
-                             "pixels (col_px, row_px); x_mm/y_mm are not read here")
+    if kind == "image":  # x_mm, y_mm in the fiducial system: to pixels by each photo's IO
+        m_xy = np.array([_mm_to_pixel(project, ph, xy) for ph, xy in zip(m_photos, m_xy,
+                                                                         strict=True)])
     if req.photo is not None and req.photo not in project.photos:
         raise InputDataError(f"PHOTO: {req.photo!r} is not in the project (photos: "
                              f"{', '.join(project.photos)})")
@@ -138,6 +138,18 @@ def measure_checks(req: OrthoCheckRequest, feedback=None) -> tuple[list[CheckRes
                               f"orthophoto ({', '.join(sorted({r.status for r in results}))})")
     return results, {"cell_m": cell, "chip_half_m": half * cell, "search_m": reach * cell,
                      "min_score": req.min_score}
+
+
+def _mm_to_pixel(project, photo_id: str, xy_mm) -> np.ndarray:
+    """One image measurement in mm (fiducial system) as a pixel (centres at +0.5); NaN for a
+    photo the project lacks."""
+    if photo_id not in project.photos:
+        return np.full(2, np.nan)
+    photo = project.photo(photo_id)
+    if photo.pixel_transform is None:
+        raise InputDataError(f"MEASUREMENTS: photo {photo_id!r} is measured in mm but has no "
+                             "interior orientation (fiducial system -> pixels) in PROJECT")
+    return np.asarray(photo.pixel_transform.image_to_pixel(np.asarray(xy_mm, float)[None]))[0]
 
 
 def _dem_differences(dem: Path, xyz: np.ndarray) -> np.ndarray:

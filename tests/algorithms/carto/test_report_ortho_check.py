@@ -155,17 +155,36 @@ def test_quality_report_states_the_measured_accuracy(case, tmp_path):
     assert v[0].measured.startswith(f"{np.hypot(*SHIFT):.1f}"[:2])
 
 
-def test_image_measurements_in_mm_are_refused_in_one_line(case, tmp_path):
+def test_image_measurements_in_mm_give_the_same_offsets(case, tmp_path):
+    """x_mm, y_mm (fiducial system) read through the photo's interior orientation."""
+    from toolbox.photogrammetry.project import load_project
+
+    folder = case[0]
+    photo = load_project(case[1]).photo("p1")
+    rows = list(csv.DictReader(open(folder / "image.csv")))
+    px = np.array([[float(r["col_px"]), float(r["row_px"])] for r in rows])
+    mm = photo.pixel_transform.pixel_to_image(px)
+    assert np.allclose(photo.pixel_transform.image_to_pixel(mm), px)
+    table = tmp_path / "mm.csv"
+    with open(table, "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["point_id", "photo", "x_mm", "y_mm"])
+        w.writerows([[r["point_id"], "p1", *xy] for r, xy in zip(rows, mm)])
+    a = run(case, case[3], tmp_path / "a.csv")["STATISTICS"]
+    b = run(case, case[3], tmp_path / "b.csv", MEASUREMENTS=table)["STATISTICS"]
+    assert b["matched"] == len(PIXELS)
+    assert b["rmse_planimetric_m"] == pytest.approx(a["rmse_planimetric_m"], abs=1e-3)
+
+
+def test_a_photo_not_in_the_project_is_one_line_exit_2(case, tmp_path):
     from conftest import run_cli
 
     folder = case[0]
-    mm = tmp_path / "mm.csv"
-    mm.write_text("point_id,photo,x_mm,y_mm\nk0,p1,1.0,2.0\n")
-    out = tmp_path / "mm_out.csv"
+    out = tmp_path / "bad_out.csv"
     proc = run_cli("run", "report:ortho_check", "--ORTHO", case[2], "--PROJECT", case[1],
-                   "--CHECK_POINTS", folder / "check.csv", "--MEASUREMENTS", mm,
-                   "--OUTPUT", out)
+                   "--CHECK_POINTS", folder / "check.csv", "--MEASUREMENTS",
+                   folder / "image.csv", "--PHOTO", "p9", "--OUTPUT", out)
     assert proc.returncode == 2, proc.stderr
     lines = proc.stderr.strip().splitlines()
-    assert len(lines) == 1 and "MEASUREMENTS" in lines[0] and "col_px" in lines[0]
-    assert not out.exists()
+    assert len(lines) == 1 and "PHOTO" in lines[0] and "'p9'" in lines[0]
+    assert "Traceback" not in proc.stderr and not out.exists()
