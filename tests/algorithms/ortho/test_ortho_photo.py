@@ -316,22 +316,22 @@ def test_planned_windows_give_the_ortho_of_the_generic_path(block, tmp_path, mon
     level (the two maps differ by float32 rounding), the same footprint but for cells within
     rounding of the photo's edge, the same report. Grey + alpha takes the warp's band by band
     path, grey with nodata and RGB + alpha its pixel-interleaved one."""
-    from toolbox.photogrammetry.orthophoto import OrthoWindows
+    from toolbox.ortho.windows import OrthoWindows
 
     sc = block if bands == 1 else scene.make_scene(tmp_path, bands=bands)
 
     planned = []
-    real_plan = OrthoWindows._plan
+    real_plan = OrthoWindows.plan
 
     def spy(self, *args):
         plan = real_plan(self, *args)
         planned.append(plan is not None)
         return plan
 
-    monkeypatch.setattr(OrthoWindows, "_plan", spy)
+    monkeypatch.setattr(OrthoWindows, "plan", spy)
     fast = run_ortho(sc, tmp_path / "planned.tif", **extra)
     assert planned and all(planned)
-    monkeypatch.setattr(OrthoWindows, "_plan", lambda self, *args: None)
+    monkeypatch.setattr(OrthoWindows, "plan", lambda self, *args: None)
     slow = run_ortho(sc, tmp_path / "generic.tif", **extra)
     with rasterio.open(tmp_path / "planned.tif") as a, rasterio.open(tmp_path / "generic.tif") as b:
         pa, pb = a.read(), b.read()
