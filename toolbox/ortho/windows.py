@@ -93,6 +93,11 @@ class OrthoWindows:
             tuple(photo.camera.image_size_px)
         self.resampling = resampling if resampling in RESAMPLING_METHODS else None
         self.to_orientation = to_orientation  # pyproj Transformer grid CRS -> orientation CRS
+        # the one-pass kernel on the DEM's own cells (planned or measured): the film camera,
+        # the DEM and the ortho in the orientation's CRS, no incidence angles (they need the
+        # heights of a haloed window); else heights, then the camera's map
+        self.one_pass = (cmap is not None and incidence_writer is None
+                         and to_orientation is None and sampler.transformer is None)
         self.reference_height = reference_height
         self.surface = surface
         self.mask_writer = mask_writer
@@ -147,8 +152,7 @@ class OrthoWindows:
     def _prepare(self, window: Any) -> Any:
         """The plan of a window that can be planned (:meth:`_plan`), its ``inputs``
         ``(window, transform, xs, ys, DEM part)``; else None."""
-        if (self.cmap is None or self.incidence_writer is not None
-                or self.to_orientation is not None or self.sampler.transformer is not None):
+        if not self.one_pass:
             return None
         xs, ys = self.grid.cell_centers(window)
         part = self.sampler.part(xs, ys)
@@ -198,10 +202,11 @@ class OrthoWindows:
         self.per_window[window_key(window)] = stats
 
     def _compute(self, window: Any):
+        """The map of an unplanned window with its statistics: the one-pass kernel where it
+        applies (:meth:`_compute_fused`), else the heights then the camera's map."""
         xs, ys = self.grid.cell_centers(window)
         cell_x, cell_y = self.grid.cell_size
-        if (self.cmap is not None and self.incidence_writer is None
-                and self.to_orientation is None and self.sampler.transformer is None):
+        if self.one_pass:
             part = self.sampler.part(xs, ys)
             if part is not None:
                 return self._compute_fused(window, xs, ys, part)
