@@ -26,6 +26,7 @@ from toolbox.ortho.kernels import (
 from toolbox.ortho.metrics import TileStatistics, incidence_angle, relief_displacement
 from toolbox.ortho.sensor import CollinearityMap
 from toolbox.ortho.visibility import block_maxima, visibility_mask
+from toolbox.raster.maps import window_parts
 
 
 class MapBufferPool:
@@ -56,12 +57,6 @@ class MapBufferPool:
 
 
 MAP_BUFFERS = MapBufferPool()
-
-
-def window_key(window: Any) -> tuple[int, int, int, int]:
-    """``(col_off, row_off, width, height)`` of a Window or a Tile."""
-    window = getattr(window, "window", window)
-    return (int(window.col_off), int(window.row_off), int(window.width), int(window.height))
 
 
 class OrthoWindows:
@@ -124,7 +119,7 @@ class OrthoWindows:
 
     def statistics(self, window: Any) -> TileStatistics:
         """The counts of a window the warp has mapped (planned or measured)."""
-        return self.per_window[window_key(window)]
+        return self.per_window[window_parts(window)]
 
     def plan(self, tile: Any, aux: Any = None) -> Any:
         """The :class:`~toolbox.raster.maps.SourcePlan` of a planned window (see the class
@@ -199,7 +194,7 @@ class OrthoWindows:
         else:
             counts = np.bincount(modes.ravel(), minlength=3)
             stats.blocks = {k: int(counts[k]) for k in range(3)}
-        self.per_window[window_key(window)] = stats
+        self.per_window[window_parts(window)] = stats
 
     def _compute(self, window: Any):
         """The map of an unplanned window with its statistics: the one-pass kernel where it
@@ -275,7 +270,7 @@ class OrthoWindows:
         stats.max_relief_m = float(disp.max()) if disp.size else 0.0
         counts = np.bincount(modes.ravel(), minlength=3)
         stats.blocks = {k: int(counts[k]) for k in range(3)}
-        self.per_window[window_key(window)] = stats
+        self.per_window[window_parts(window)] = stats
         return cols, rows, box if every_cell else None
 
     def _plan(self, window: Any, transform: Any, part: tuple) -> Any:
