@@ -89,10 +89,9 @@ class OrthoWindows:
         self.resampling = resampling if resampling in RESAMPLING_METHODS else None
         self.to_orientation = to_orientation  # pyproj Transformer grid CRS -> orientation CRS
         # the one-pass kernel on the DEM's own cells (planned or measured): the film camera,
-        # the DEM and the ortho in the orientation's CRS, no incidence angles (they need the
-        # heights of a haloed window); else heights, then the camera's map
-        self.one_pass = (cmap is not None and incidence_writer is None
-                         and to_orientation is None and sampler.transformer is None)
+        # the DEM and the ortho in the orientation's CRS; else heights, then the camera's map
+        self.one_pass = (cmap is not None and to_orientation is None
+                         and sampler.transformer is None)
         self.reference_height = reference_height
         self.surface = surface
         self.mask_writer = mask_writer
@@ -147,7 +146,7 @@ class OrthoWindows:
     def _prepare(self, window: Any) -> Any:
         """The plan of a window that can be planned (:meth:`_plan`), its ``inputs``
         ``(window, transform, xs, ys, DEM part)``; else None."""
-        if not self.one_pass:
+        if not self.one_pass or self.incidence_writer is not None:  # (angles: measured)
             return None
         xs, ys = self.grid.cell_centers(window)
         part = self.sampler.part(xs, ys)
@@ -200,19 +199,15 @@ class OrthoWindows:
         """The map of an unplanned window with its statistics: the one-pass kernel where it
         applies (:meth:`_compute_fused`), else the heights then the camera's map."""
         xs, ys = self.grid.cell_centers(window)
-        cell_x, cell_y = self.grid.cell_size
+        cell_x = self.grid.cell_size[0]
         if self.one_pass:
             part = self.sampler.part(xs, ys)
             if part is not None:
+                if self.incidence_writer is not None:
+                    self._write_incidence(window, xs, ys)
                 return self._compute_fused(window, xs, ys, part)
         if self.incidence_writer is not None:
-            xh = np.concatenate([[xs[0] - cell_x], xs, [xs[-1] + cell_x]])
-            yh = np.concatenate([[ys[0] + cell_y], ys, [ys[-1] - cell_y]])
-            z_halo = self.sampler.heights(xh, yh)
-            z = np.ascontiguousarray(z_halo[1:-1, 1:-1])
-            angles = incidence_angle(xs, ys, z_halo, self.centre)[None]
-            with self._write_lock:
-                self.incidence_writer.write(angles, window=window)
+            z = self._write_incidence(window, xs, ys)
         else:
             z = self.sampler.heights(xs, ys)
         if self.to_orientation is None and self.cmap is not None:
@@ -229,6 +224,18 @@ class OrthoWindows:
             cols, rows, box = project_cells(self.camera, gx, gy, z)
             modes = np.zeros((0, 0), dtype=np.int8)  # no blocks: every point exact
         return self._finish(window, xs, ys, gx, gy, z, cols, rows, modes, box)
+
+    def _write_incidence(self, window: Any, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
+        """Write the window's incidence angles (normals from the heights of the window and
+        one cell around it); returns the window's heights."""
+        cell_x, cell_y = self.grid.cell_size
+        xh = np.concatenate([[xs[0] - cell_x], xs, [xs[-1] + cell_x]])
+        yh = np.concatenate([[ys[0] + cell_y], ys, [ys[-1] - cell_y]])
+        z_halo = self.sampler.heights(xh, yh)
+        angles = incidence_angle(xs, ys, z_halo, self.centre)[None]
+        with self._write_lock:
+            self.incidence_writer.write(angles, window=window)
+        return np.ascontiguousarray(z_halo[1:-1, 1:-1])
 
     def _finish(self, window: Any, xs: np.ndarray, ys: np.ndarray, gx: np.ndarray,
                 gy: np.ndarray, z: np.ndarray, cols: np.ndarray, rows: np.ndarray,

@@ -345,3 +345,24 @@ def test_planned_windows_give_the_ortho_of_the_generic_path(block, tmp_path, mon
     ra, rb = fast["STATISTICS"], slow["STATISTICS"]
     for key in ("outside_photo_fraction", "outside_dem_fraction", "max_relief_displacement_m"):
         assert ra[key] == pytest.approx(rb[key], rel=1e-4, abs=1e-6), key
+
+
+def test_incidence_angles_do_not_change_the_ortho(block, tmp_path):
+    """Asking for INCIDENCE takes the windows off the planned path (their angles need the
+    heights of a haloed window): the ortho is the planned one to 1 grey level and within
+    rounding of the photo's edge, the report's counts the same, and the angles cover exactly
+    the cells with a DEM height."""
+    plain = run_ortho(block, tmp_path / "plain.tif")
+    angled = run_ortho(block, tmp_path / "angled.tif", INCIDENCE=tmp_path / "inc.tif")
+    with rasterio.open(tmp_path / "plain.tif") as a, rasterio.open(tmp_path / "angled.tif") as b:
+        pa, pb, ma, mb = a.read(), b.read(), a.dataset_mask(), b.dataset_mask()
+    with rasterio.open(tmp_path / "inc.tif") as src:
+        angles = src.read(1)
+    assert (ma != mb).mean() < 1e-3 and 0 < (ma > 0).mean() < 1
+    both = (ma > 0) & (mb > 0)
+    assert np.abs(pa.astype(int) - pb.astype(int))[:, both].max() <= 1
+    ra, rb = plain["STATISTICS"], angled["STATISTICS"]
+    for key in ("outside_photo_fraction", "outside_dem_fraction", "max_relief_displacement_m"):
+        assert ra[key] == pytest.approx(rb[key], rel=1e-4, abs=1e-6), key
+    assert np.isfinite(angles).mean() == pytest.approx(1 - ra["outside_dem_fraction"], abs=1e-9)
+    assert 0 <= np.nanmin(angles) and np.nanmax(angles) < 90
