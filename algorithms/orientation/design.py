@@ -35,10 +35,11 @@ class BlockDesign(Algorithm):
     stereo cover of the area with one photo more at each strip end; the report also gives the
     minimum count of 002 eq. [3], ``S / ((1 - R1)(1 - R2)·L²)``.
 
-    Control (004 sl. 19-24): full XYZ points along the long edges every EDGE_INTERVAL models and
-    at both ends of every strip, height (Z) points on lines across the block every
+    Control (004 sl. 19-24): planimetric (XY, ids PCP...) points along the long edges every
+    EDGE_INTERVAL models, full (XYZ, GCP...) points at both ends of every strip and where a
+    height line meets an edge point, height (Z, HCP...) points on lines across the block every
     HEIGHT_INTERVAL models (one per side-overlap line); each location as a pair of points
-    (PAIRS, sl. 22: blunders then show).
+    (PAIRS, sl. 22: blunders then show), ids ending a/b.
 
     Predicted precision: a covariance analysis of the planned block adjusted by independent
     models (planimetric with 4 parameters per model for X, Y; spatial with 7 and the projection
@@ -50,7 +51,7 @@ class BlockDesign(Algorithm):
 
     OUTPUT layers: ``photo_centres`` (Point Z at the flying altitude TERRAIN_HEIGHT + H: photo,
     strip, number), ``footprints`` (ground cover of each photo on flat terrain), ``control``
-    (Point: id, kind XYZ/Z, reason, pair). REPORT (JSON): the plan's figures, the control and the
+    (Point: id, kind XYZ/XY/Z, reason, pair). REPORT (JSON): the plan's figures, the control and the
     prediction.
     """
 
@@ -168,7 +169,7 @@ class BlockDesign(Algorithm):
                                       geometry=prints, crs=crs)
         cxy = plan.control_xy
         pair = 2 if spec.pairs else 1
-        ids = [("GCP" if k == "XYZ" else "HCP") + f"{i // pair + 1:03d}"
+        ids = [{"XYZ": "GCP", "XY": "PCP", "Z": "HCP"}[k] + f"{i // pair + 1:03d}"
                + ("ab"[i % 2] if spec.pairs else "") for i, k in enumerate(plan.control_kind)]
         control = gpd.GeoDataFrame(
             {"point_id": ids, "kind": plan.control_kind, "reason": plan.control_reason,
@@ -186,8 +187,7 @@ class BlockDesign(Algorithm):
             "strip_spacing_m": plan.spacing, "area_m2": plan.area_m2,
             "strips": plan.n_strips, "photos": len(plan.photo_uv), "models": len(plan.models),
             "minimum_photos_eq3": plan.minimum_photos,
-            "control_points": {"XYZ": plan.control_kind.count("XYZ"),
-                               "Z": plan.control_kind.count("Z")},
+            "control_points": {k: plan.control_kind.count(k) for k in ("XYZ", "XY", "Z")},
             "prediction": stats, **check}
         if params["REPORT"] is not None:
             write_json(params["REPORT"], {

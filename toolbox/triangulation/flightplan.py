@@ -15,10 +15,11 @@ Rules (002 par. 1.3.5 and domain.md section 10; 004 sl. 19-24):
 - strips cover the area's width with spacing A, centred on it; in each strip the photos (base B,
   centred on the strip's share of the area) are enough for stereo cover of it: n photos cover
   ``(n - 3)·B + L_along`` of ground in stereo, one more photo than the bare count at each end;
-- control: full (XYZ) points along the block's long edges every ``edge_interval`` models and at
-  both ends of every strip (edge control, 004 sl. 19), Z-only points on height-control lines
-  across the block every ``height_interval`` models, one per side-overlap line (sl. 23-24); each
-  control location as a pair of points (sl. 22), a tenth of the base apart along the strip.
+- control: planimetric (XY) points along the block's long edges every ``edge_interval`` models
+  (edge control, 004 sl. 19), full (XYZ) points at both ends of every strip, height (Z) points on
+  lines across the block every ``height_interval`` models, one per side-overlap line
+  (sl. 23-24; XYZ where a line meets an edge point); each control location as a pair of points
+  (sl. 22), a tenth of the base apart along the strip.
 """
 
 from __future__ import annotations
@@ -89,8 +90,9 @@ class FlightPlan:
     photo_strip: np.ndarray  # (n,) strip index
     photo_index: np.ndarray  # (n,) index within the strip
     photo_uv: np.ndarray  # (n, 2)
+    area_uv: object = None  # the area (shapely) in the flight frame
     control_uv: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
-    control_kind: list[str] = field(default_factory=list)  # "XYZ" or "Z"
+    control_kind: list[str] = field(default_factory=list)  # "XYZ", "XY" or "Z"
     control_reason: list[str] = field(default_factory=list)
 
     @property
@@ -174,6 +176,7 @@ def plan_flight(area, spec: FlightSpec) -> FlightPlan:
         index += list(range(n))
         uvs.append(np.column_stack([us, np.full(n, v)]))
     plan.strip_v = np.array(kept)
+    plan.area_uv = local
     plan.photo_strip = np.array(strips, dtype=int)
     plan.photo_index = np.array(index, dtype=int)
     plan.photo_uv = np.vstack(uvs)
@@ -182,40 +185,42 @@ def plan_flight(area, spec: FlightSpec) -> FlightPlan:
 
 
 def _control(plan: FlightPlan) -> None:
-    """Fill plan.control_* by the rules of the module docstring."""
+    """Fill plan.control_* by the rules of the module docstring (kinds XYZ, XY, Z; a location
+    that two rules ask for gets the union of their components)."""
     spec, base, a = plan.spec, plan.base, plan.spacing
-    locations: dict[tuple[float, float], tuple[str, str]] = {}
+    locations: dict[tuple[float, float], tuple[set[str], list[str]]] = {}
 
-    def add(u: float, v: float, kind: str, reason: str) -> None:
-        key = (round(u, 3), round(v, 3))
-        if key in locations and locations[key][0] == "XYZ":
-            return
-        locations[key] = (kind, reason)
+    def add(u: float, v: float, comps: str, reason: str) -> None:
+        kind, reasons = locations.setdefault((round(u, 3), round(v, 3)), (set(), []))
+        kind.update(comps)
+        if reason not in reasons:
+            reasons.append(reason)
 
     last = plan.n_strips - 1
     for s in range(plan.n_strips):
         uv = plan.photo_uv[plan.photo_strip == s]
         v = plan.strip_v[s]
-        # edge control at both strip ends, on the strip's two side-overlap lines
-        for u in (uv[0, 0] + base / 2, uv[-1, 0] - base / 2) if len(uv) > 2 else (uv[0, 0],):
+        # the short edges: full control at both strip ends, on the strip's side-overlap lines
+        ends = (uv[0, 0] + base / 2, uv[-1, 0] - base / 2) if len(uv) > 2 else (uv[0, 0],)
+        for u in ends:
             for dv in (-a / 2, a / 2):
                 add(u, v + dv, "XYZ", "strip end")
-        # along the long edges (the outer side of the first and last strips) and on the
-        # height-control lines: at inner photo positions 1, 1 + i, ... and the last inner one
+        # planimetric control along the long edges (outer side of the first and last strips)
         for side, dv in ((0, -a / 2), (last, a / 2)):
             if s == side:
                 for k in _stations(len(uv), spec.edge_interval):
-                    add(uv[k, 0], v + dv, "XYZ", "long edge")
+                    add(uv[k, 0], v + dv, "XY", "long edge")
+        # height-control lines across the block, one point per side-overlap line
         for k in _stations(len(uv), spec.height_interval):
             for dv in (-a / 2, a / 2):
                 add(uv[k, 0], v + dv, "Z", "height line")
     uv, kinds, reasons = [], [], []
-    for (u, v), (kind, reason) in sorted(locations.items()):
+    for (u, v), (kind, why) in sorted(locations.items()):
         offsets = (-0.05 * base, 0.05 * base) if spec.pairs else (0.0,)
         for du in offsets:
             uv.append((u + du, v))
-            kinds.append(kind)
-            reasons.append(reason)
+            kinds.append("".join(c for c in "XYZ" if c in kind))
+            reasons.append(", ".join(why))
     plan.control_uv = np.array(uv, dtype=float).reshape(-1, 2)
     plan.control_kind = kinds
     plan.control_reason = reasons
@@ -224,5 +229,5 @@ def _control(plan: FlightPlan) -> None:
 def _stations(n_photos: int, interval: int) -> list[int]:
     """Inner photo positions 1, 1 + interval, ... and the last inner one (n - 2)."""
     if n_photos < 3:
-        return [0, n_photos - 1]
+        return [0, n_photos - 1][:n_photos]
     return sorted({*range(1, n_photos - 1, interval), n_photos - 2})

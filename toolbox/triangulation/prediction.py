@@ -27,8 +27,7 @@ from toolbox.triangulation.flightplan import FlightPlan
 
 ISOLATED_FACTOR = 4.0 / 3.0  # 004 sl. 22: "inferiore di circa il 33 %"
 BUNDLE_FACTOR = 0.5  # 004 sl. 29: "si dimezzano i valori di sM"
-MAX_UNKNOWNS = 60_000  # analysis refused above (sparse LU of the normal matrix)
-CHUNK = 512
+MAX_MODEL_UNKNOWNS = 5000  # 7 per model: the reduced matrix is inverted densely
 
 
 @dataclass
@@ -36,7 +35,7 @@ class BlockPoints:
     """Points of the analysis (flight frame u, v; z above the terrain) and their models."""
 
     uvz: np.ndarray  # (P, 3)
-    kind: np.ndarray  # (P,) 0 tie, 1 projection centre, 2 control
+    kind: np.ndarray  # (P,) 0 tie, 1 projection centre, 2 control, 3 tie outside the area
     known: np.ndarray  # (P, 3) bool: component fixed (control)
     obs_point: np.ndarray  # (m,)
     obs_model: np.ndarray  # (m,)
@@ -79,9 +78,16 @@ def block_points(plan: FlightPlan) -> BlockPoints:
         for dv in (-a / 2 - band / 4, -a / 2 + band / 4, 0.0, a / 2 - band / 4, a / 2 + band / 4):
             add(u, v + dv, 0.0, 0)
     for (u, v), ck in zip(plan.control_uv, plan.control_kind, strict=True):
-        add(u, v, 0.0, 2, (ck == "XYZ", ck == "XYZ", True))
+        add(u, v, 0.0, 2, ("X" in ck, "Y" in ck, "Z" in ck))
     centre = [add(u, v, plan.flying_height, 1) for u, v in uv]
     keys = np.array(list(pts.keys()))
+    kind = np.array(kind)
+    if plan.area_uv is not None:  # tie points beyond the area are adjusted, not reported
+        import shapely
+
+        outside = ~shapely.contains_xy(plan.area_uv.buffer(1e-6 * plan.base), keys[:, 0],
+                                       keys[:, 1])
+        kind[(kind == 0) & outside] = 3
     obs_p, obs_m = [], []
     for m, (i, j) in enumerate(plan.models):
         lo, hi = sorted((uv[i, 0], uv[j, 0]))
@@ -93,7 +99,7 @@ def block_points(plan: FlightPlan) -> BlockPoints:
         inside = [p for p in ground] + [centre[i], centre[j]]
         obs_p += inside
         obs_m += [m] * len(inside)
-    return BlockPoints(keys, np.array(kind), np.array(known, dtype=bool), np.array(obs_p),
+    return BlockPoints(keys, kind, np.array(known, dtype=bool), np.array(obs_p),
                        np.array(obs_m))
 
 
@@ -109,7 +115,7 @@ def predict(plan: FlightPlan, points: BlockPoints | None = None) -> Prediction:
     uv = plan.photo_uv
     centres = np.array([[(uv[i, 0] + uv[j, 0]) / 2, uv[i, 1], 0.0] for i, j in plan.models])
     sigma = np.zeros(pts.known.shape)
-    ground = np.flatnonzero(np.isin(pts.obs_point, np.flatnonzero(pts.kind != 1)))
+    ground = np.flatnonzero(pts.kind[pts.obs_point] != 1)
     plane = _covariance(pts.obs_point[ground], pts.obs_model[ground],
                         pts.uvz[pts.obs_point[ground]] - centres[pts.obs_model[ground]],
                         pts.known[:, :2] | (pts.kind == 1)[:, None], len(plan.models), "plane",
@@ -125,16 +131,14 @@ def predict(plan: FlightPlan, points: BlockPoints | None = None) -> Prediction:
 def _covariance(obs_point: np.ndarray, obs_model: np.ndarray, x: np.ndarray, known: np.ndarray,
                 n_models: int, mode: str, sig: tuple[float, ...]) -> tuple[np.ndarray, int, int]:
     """Sigmas (P, dims) of the points, unknowns, equations; ``x`` (m, 3) model coordinates."""
-    from scipy.sparse.linalg import splu
-
     npar = 4 if mode == "plane" else 7
     free = ~known
     col = np.full(known.shape, -1)
     col[free] = npar * n_models + np.arange(int(free.sum()))
     nu = npar * n_models + int(free.sum())
-    if nu > MAX_UNKNOWNS:
-        raise InputDataError(f"the precision analysis has {nu} unknowns (> {MAX_UNKNOWNS}): "
-                             "plan and check the block in parts")
+    if npar * n_models > MAX_MODEL_UNKNOWNS:
+        raise InputDataError(f"the precision analysis of {n_models} models is too large (at "
+                             f"most {MAX_MODEL_UNKNOWNS // 7} models): plan the block in parts")
     m = len(x)
     zero, one = np.zeros(m), np.ones(m)
     if mode == "plane":  # Tu Tv a b: X = Tu + a·x - b·y, Y = Tv + a·y + b·x
@@ -159,29 +163,64 @@ def _covariance(obs_point: np.ndarray, obs_model: np.ndarray, x: np.ndarray, kno
         vals.append(np.full(int(on.sum()), -w))
     a = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
                       shape=(dims * m, nu))
-    normal = (a.T @ a).tocsc()
-    d = 1.0 / np.sqrt(np.maximum(normal.diagonal(), 1e-300))
-    scaled = (sp.diags(d) @ normal @ sp.diags(d)).tocsc()
+    normal = (a.T @ a).tocsr()
+    return _point_sigmas(normal, npar * n_models, col, free, mode), nu, dims * m
+
+
+def _point_sigmas(normal: sp.csr_matrix, nc: int, col: np.ndarray, free: np.ndarray,
+                  mode: str) -> np.ndarray:
+    """Sigmas (P, dims) of the points from ``N⁻¹``: points eliminated block by block (each point
+    touches only its own columns), ``S = A - B·C⁻¹·Bᵀ`` inverted densely, then
+    ``Q_pp = C_p⁻¹ + H_p·S⁻¹·H_pᵀ`` with ``H = C⁻¹·Bᵀ`` (diagonals only)."""
+    import scipy.linalg as la
+
+    n_pts, dims = free.shape
+    need = "2 planimetric" if mode == "plane" else "3 height"
+    error = InputDataError(f"the planned block is not determined ({mode}: too little control "
+                           f"or tie points; it needs at least {need} control points)")
+    blocks = np.tile(np.eye(dims), (n_pts, 1, 1))
+    cn = normal[nc:, nc:].tocoo()
+    owner = np.full(normal.shape[0] - nc, -1)
+    comp = np.full(normal.shape[0] - nc, -1)
+    owner[col[free] - nc], comp[col[free] - nc] = np.nonzero(free)
+    if (owner[cn.row] != owner[cn.col]).any():
+        raise AssertionError("points must not share normal-matrix entries")
+    blocks[owner[cn.row], comp[cn.row], comp[cn.col]] = cn.data
+    for k in range(dims):  # fixed components: an identity row and column (never used)
+        blocks[~free[:, k], k, :] = 0.0
+        blocks[~free[:, k], :, k] = 0.0
+        blocks[~free[:, k], k, k] = 1.0
+    eig = np.linalg.eigvalsh(blocks)
+    if not (eig[:, 0] > 1e-12 * eig[:, -1]).all():
+        raise error
+    cinv = np.linalg.inv(blocks)
+    # H = C⁻¹·Bᵀ as a sparse matrix over the point columns
+    r_idx, c_idx, vals = [], [], []
+    for i in range(dims):
+        for j in range(dims):
+            on = free[:, i] & free[:, j]
+            r_idx.append(col[on, i] - nc)
+            c_idx.append(col[on, j] - nc)
+            vals.append(cinv[on, i, j])
+    cinv_sp = sp.csr_matrix((np.concatenate(vals), (np.concatenate(r_idx),
+                                                    np.concatenate(c_idx))),
+                            shape=(normal.shape[0] - nc,) * 2)
+    b = normal[:nc, nc:]
+    h = (cinv_sp @ b.T).tocsr()
+    s = normal[:nc, :nc].toarray() - (b @ h).toarray()
+    d = 1.0 / np.sqrt(np.maximum(np.diag(s), 1e-300))
     try:
-        lu = splu(scaled)
-        pivots = np.abs(lu.U.diagonal())
-        singular = pivots.min() < 1e-13 * pivots.max()
-    except RuntimeError:
-        singular = True
-    if singular:
-        need = "2 planimetric" if mode == "plane" else "3 height"
-        raise InputDataError(f"the planned block is not determined ({mode}: too little control "
-                             f"or tie points; it needs at least {need} control points)")
-    var = np.zeros(known.shape)
-    wanted = np.flatnonzero(free.ravel())
-    flat_cols = col.ravel()[wanted]
-    for start in range(0, len(wanted), CHUNK):
-        cc = flat_cols[start:start + CHUNK]
-        e = np.zeros((nu, len(cc)))
-        e[cc, np.arange(len(cc))] = 1.0
-        sol = lu.solve(e)
-        var.ravel()[wanted[start:start + CHUNK]] = sol[cc, np.arange(len(cc))] * d[cc] ** 2
-    return np.sqrt(var), nu, dims * m
+        factor = la.cho_factor(s * d[:, None] * d[None, :])
+    except la.LinAlgError:
+        raise error from None
+    if np.abs(np.diag(factor[0])).min() ** 2 < 1e-13:
+        raise error
+    e = la.cho_solve(factor, np.eye(nc)) * d[:, None] * d[None, :]
+    he = np.asarray(h @ e)
+    diag = cinv_sp.diagonal() + np.asarray(h.multiply(he).sum(axis=1)).ravel()
+    var = np.zeros(free.shape)
+    var[free] = diag[col[free] - nc]
+    return np.sqrt(np.maximum(var, 0.0))
 
 
 def summary(pred: Prediction, sigma_mm: float, method: str = "bundle") -> dict:
