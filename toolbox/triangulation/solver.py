@@ -16,7 +16,7 @@ diagonal of A and C by ``1 + λ``. Ground coordinates are shifted to the block's
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
@@ -34,7 +34,8 @@ BAND_LIMIT = 50_000_000  # values of a banded factor (400 MB) before sparse LU i
 EIGEN_LIMIT = 400  # full eigen-analysis of the reduced matrix up to this size, pivots above
 SINGULAR_RATIO = 1e-13  # smallest / largest eigenvalue of the scaled reduced normal matrix
 WEAK_RATIO = 1e-7  # below it: a warning (a parameter barely determined)
-KIND_IMAGE, KIND_GROUND, KIND_CENTRE, KIND_CALIB = 0, 1, 2, 3
+KIND_IMAGE, KIND_GROUND, KIND_CENTRE, KIND_CALIB, KIND_ATTITUDE = 0, 1, 2, 3, 4
+ANGLE_STEP = 1e-7  # rad: central differences of the attitude observations
 
 
 @dataclass
@@ -44,9 +45,11 @@ class State:
     exterior: np.ndarray
     points: np.ndarray
     calibration: np.ndarray
+    extra: np.ndarray = field(default_factory=lambda: np.zeros(0))  # GNSS shift/drift, boresight
 
     def copy(self) -> State:
-        return State(self.exterior.copy(), self.points.copy(), self.calibration.copy())
+        return State(self.exterior.copy(), self.points.copy(), self.calibration.copy(),
+                     self.extra.copy())
 
 
 @dataclass
@@ -84,14 +87,45 @@ class Problem:
         unknown = np.argwhere(block.calibration_mode != FIXED)
         for k, (cam, par) in enumerate(unknown):
             self.calib_column[cam, par] = 6 * n + k
-        self.nc = 6 * n + len(unknown)
+        # extra unknowns after the calibration: GNSS shift and drift per strip, boresight
+        self.extra_start = nc = 6 * n + len(unknown)
+        g = block.n_groups
+        self.shift_column = np.full((g, 3), -1, dtype=np.int64)
+        self.drift_column = np.full((g, 3), -1, dtype=np.int64)
+        self.boresight_column = np.full(3, -1, dtype=np.int64)
+        for on, cols in ((block.gnss_shift, self.shift_column),
+                         (block.gnss_drift, self.drift_column)):
+            if on:
+                cols[:] = nc + np.arange(3 * g).reshape(g, 3)
+                nc += 3 * g
+        if block.boresight:
+            self.boresight_column[:] = nc + np.arange(3)
+            nc += 3
+        self.nc = nc
         self.warnings: list[str] = []
+
+    def extras(self, state: State) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """GNSS shift (G, 3), drift (G, 3) and boresight (3,) of ``state`` (zeros when not
+        estimated)."""
+        out = []
+        for cols in (self.shift_column, self.drift_column, self.boresight_column):
+            vals = np.zeros(cols.shape)
+            on = cols >= 0
+            vals[on] = state.extra[cols[on] - self.extra_start]
+            out.append(vals)
+        return out[0], out[1], out[2]
 
     # -- labels ----------------------------------------------------------------------------------
     def column_label(self, col: int) -> str:
         n = self.block.n_photos
         if col < 6 * n:
             return f"photo {self.block.photo_ids[col // 6]!r} {EXTERIOR_NAMES[col % 6]}"
+        for what, cols in (("GNSS shift", self.shift_column), ("GNSS drift", self.drift_column)):
+            if (cols == col).any():
+                g, k = np.argwhere(cols == col)[0]
+                return f"{what} of strip {g + 1} {'XYZ'[k]}"
+        if (self.boresight_column == col).any():
+            return f"boresight {EXTERIOR_NAMES[3 + int(np.flatnonzero(self.boresight_column == col)[0])]}"
         cam, par = np.argwhere(self.calib_column == col)[0]
         return self.block.calibration_label(int(cam), int(par))
 
@@ -128,12 +162,21 @@ class Problem:
         hph = b.centre_photo[hi]
         wh = self.centre_factor[hi, hc] / b.centre_sigma[hi, hc]
         lever = r_photo @ b.lever_arm  # (n, 3) antenna offset on the ground axes
-        fh = state.exterior[hph, hc] + lever[hph, hc] + self.origin[hc] - b.centre_xyz[hi, hc]
+        shift, drift, bore = self.extras(state)
+        hg, ht = b.centre_group[hi], b.centre_time[hi]
+        fh = state.exterior[hph, hc] + lever[hph, hc] + self.origin[hc] - b.centre_xyz[hi, hc] \
+            + shift[hg, hc] + drift[hg, hc] * ht
         r_parts.append(fh * wh)
         rp.append(np.full(len(hi), -1))
         kinds.append(np.full(len(hi), KIND_CENTRE))
         idx.append(hi)
         comp.append(hc)
+        # IMU attitudes: angles of R·R(boresight)
+        ai = np.repeat(np.arange(len(b.attitude_photo)), 3)
+        ac = np.tile(np.arange(3), len(b.attitude_photo))
+        wa = 1.0 / b.attitude_sigma[ai, ac]
+        fa = attitude_residuals(state.exterior[b.attitude_photo, 3:], bore,
+                                b.attitude_obs).ravel()
         # weighted calibration parameters
         wc_cam, wc_par = np.nonzero(b.calibration_mode == WEIGHTED)
         wcal = 1.0 / b.calibration_sigma[wc_cam, wc_par]
@@ -143,6 +186,11 @@ class Problem:
         kinds.append(np.full(len(wc_cam), KIND_CALIB))
         idx.append(wc_cam)
         comp.append(wc_par)
+        r_parts.append(fa * wa)
+        rp.append(np.full(len(ai), -1))
+        kinds.append(np.full(len(ai), KIND_ATTITUDE))
+        idx.append(ai)
+        comp.append(ac)
         r = np.concatenate(r_parts)
         lin = Linearization(r, None, None, np.concatenate(rp), np.concatenate(kinds),
                             np.concatenate(idx), np.concatenate(comp),
@@ -171,10 +219,35 @@ class Problem:
                 r_idx.append(base + np.arange(len(hi)))
                 c_idx.append(6 * hph + 3 + t)
                 vals.append(wh * d_lever[hph, t, hc])
+        for cols, factor in ((self.shift_column, 1.0), (self.drift_column, ht)):
+            if (cols >= 0).any():
+                r_idx.append(base + np.arange(len(hi)))
+                c_idx.append(cols[hg, hc])
+                vals.append(wh * factor)
         base += len(hi)
         r_idx.append(base + np.arange(len(wc_cam)))
         c_idx.append(self.calib_column[wc_cam, wc_par])
         vals.append(wcal)
+        base += len(wc_cam)
+        if len(ai):  # attitude rows: central differences in the photo's angles and boresight
+            a_ph = b.attitude_photo
+            angles = state.exterior[a_ph, 3:]
+            for t in range(6):
+                step = np.zeros(3)
+                step[t % 3] = ANGLE_STEP
+                if t < 3:
+                    hi_, lo_ = (attitude_residuals(angles + sgn * step, bore, b.attitude_obs)
+                                for sgn in (1, -1))
+                    cols = np.repeat(6 * a_ph + 3 + t, 3)
+                elif self.boresight_column[t - 3] >= 0:
+                    hi_, lo_ = (attitude_residuals(angles, bore + sgn * step, b.attitude_obs)
+                                for sgn in (1, -1))
+                    cols = np.full(3 * len(a_ph), self.boresight_column[t - 3])
+                else:
+                    continue
+                r_idx.append(base + np.arange(len(ai)))
+                c_idx.append(cols)
+                vals.append(wa * ((hi_ - lo_) / (2 * ANGLE_STEP)).ravel())
         lin.jc = sp.csr_matrix((np.concatenate(vals), (np.concatenate(r_idx),
                                                        np.concatenate(c_idx))),
                                shape=(rows_all, self.nc))
@@ -352,6 +425,7 @@ def apply_step(problem: Problem, state: State, dc: np.ndarray, dp: np.ndarray) -
     cols = problem.calib_column
     on = cols >= 0
     new.calibration[on] += dc[cols[on]]
+    new.extra = new.extra + dc[problem.extra_start:]
     new.points += dp.reshape(-1, 3)
     return new
 
@@ -368,6 +442,9 @@ def worst_observations(problem: Problem, lin: Linearization, count: int = 5) -> 
             what = f"control {b.point_ids[b.ground_point[i]]!r} {'XYZ'[lin.component[row]]}"
         elif k == KIND_CENTRE:
             what = f"GNSS centre of photo {b.photo_ids[b.centre_photo[i]]!r}"
+        elif k == KIND_ATTITUDE:
+            what = f"IMU {EXTERIOR_NAMES[3 + int(lin.component[row])]} of photo " \
+                   f"{b.photo_ids[b.attitude_photo[i]]!r}"
         else:
             what = b.calibration_label(i, int(lin.component[row]))
         parts.append(f"{what} ({lin.r[row]:+.3g} sigma)")
@@ -412,3 +489,15 @@ def least_squares(problem: Problem, state: State, options: Options, check: bool 
     raise ConvergenceError(f"bundle adjustment did not converge in {options.max_iterations} "
                            f"iterations (weighted sum of squares {cost:.6g}); worst "
                            f"observations: {worst_observations(problem, lin)}")
+
+
+def attitude_residuals(angles: np.ndarray, boresight: np.ndarray, observed: np.ndarray
+                       ) -> np.ndarray:
+    """Angles (omega, phi, kappa) of ``R(angles)·R(boresight)`` minus ``observed`` (a, 3), rad,
+    wrapped to (-π, π]; ``R = Rx(ω)·Ry(φ)·Rz(κ)`` as :func:`~toolbox.triangulation.model.rotations`."""
+    r = rotations(angles)[0] @ rotations(np.asarray(boresight).reshape(1, 3))[0][0]
+    omega = np.arctan2(-r[:, 1, 2], r[:, 2, 2])
+    phi = np.arcsin(np.clip(r[:, 0, 2], -1.0, 1.0))
+    kappa = np.arctan2(-r[:, 0, 1], r[:, 0, 0])
+    diff = np.column_stack([omega, phi, kappa]) - observed
+    return (diff + np.pi) % (2 * np.pi) - np.pi
