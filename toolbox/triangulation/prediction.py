@@ -28,6 +28,7 @@ from toolbox.triangulation.flightplan import FlightPlan
 ISOLATED_FACTOR = 4.0 / 3.0  # 004 sl. 22: "inferiore di circa il 33 %"
 BUNDLE_FACTOR = 0.5  # 004 sl. 29: "si dimezzano i valori di sM"
 MAX_MODEL_UNKNOWNS = 5000  # 7 per model: the reduced matrix is inverted densely
+CHUNK = 2048  # point rows per product with the dense inverse
 
 
 @dataclass
@@ -216,8 +217,10 @@ def _point_sigmas(normal: sp.csr_matrix, nc: int, col: np.ndarray, free: np.ndar
     if np.abs(np.diag(factor[0])).min() ** 2 < 1e-13:
         raise error
     e = la.cho_solve(factor, np.eye(nc)) * d[:, None] * d[None, :]
-    he = np.asarray(h @ e)
-    diag = cinv_sp.diagonal() + np.asarray(h.multiply(he).sum(axis=1)).ravel()
+    diag = cinv_sp.diagonal()
+    for start in range(0, h.shape[0], CHUNK):  # diag(H·E·Hᵀ), a block of rows at a time
+        hc = h[start:start + CHUNK]
+        diag[start:start + CHUNK] += np.asarray(hc.multiply(hc @ e).sum(axis=1)).ravel()
     var = np.zeros(free.shape)
     var[free] = diag[col[free] - nc]
     return np.sqrt(np.maximum(var, 0.0))
