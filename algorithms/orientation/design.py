@@ -81,7 +81,7 @@ class BlockDesign(Algorithm):
         Number("TERRAIN_HEIGHT", "mean ground height, m", default=0.0),
         Number("AZIMUTH", "flight direction, degrees clockwise from grid north (default: along "
                "the area's long side)", optional=True),
-        Integer("EDGE_INTERVAL", "models between full control points along the long edges",
+        Integer("EDGE_INTERVAL", "models between planimetric control points along the long edges",
                 default=4, min_value=1),
         Integer("HEIGHT_INTERVAL", "models between height-control lines", default=4,
                 min_value=1),
