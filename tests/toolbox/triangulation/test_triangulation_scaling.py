@@ -14,7 +14,7 @@ from toolbox.triangulation.synthetic import SyntheticBlockSpec
 
 def test_banded_solve_equals_sparse_lu_on_a_shuffled_banded_matrix():
     rng = np.random.default_rng(4)
-    n, width = 600, 25
+    n, width = 300, 20
     rows, cols = [], []
     for k in range(1, width + 1):  # a band, then the unknowns shuffled: RCM must find it again
         keep = rng.random(n - k) < 0.4
