@@ -3,8 +3,7 @@
 from __future__ import annotations
 
 from toolbox.registry import register
-from toolbox.terrain.gridding.algorithm import GriddingAlgorithm
-from toolbox.terrain.gridding.parameters import POLYNOMIAL_HELP, STATISTICS, polynomial_parameters
+from toolbox.ui.gridding import POLYNOMIAL_HELP, STATISTICS, GriddingAlgorithm, polynomial_parameters
 
 
 @register

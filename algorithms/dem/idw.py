@@ -4,9 +4,9 @@ from __future__ import annotations
 
 from toolbox.parameters import Integer, Number
 from toolbox.registry import register
-from toolbox.terrain.gridding.algorithm import GriddingAlgorithm
-from toolbox.terrain.gridding.parameters import (
+from toolbox.ui.gridding import (
     STATISTICS,
+    GriddingAlgorithm,
     execution_parameters,
     grid_parameters,
     neighbour_parameters,

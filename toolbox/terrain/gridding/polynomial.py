@@ -28,7 +28,7 @@ from numba import njit
 from toolbox.terrain.gridding.bin_kernels import block_knn, knn_one
 from toolbox.terrain.gridding.idw_kernel import _cell
 from toolbox.terrain.gridding.neighbours import PointBins, block_scratch, block_size
-from toolbox.terrain.gridding.parameters import (  # noqa: F401 - part of this module's API
+from toolbox.terrain.gridding.request import (  # noqa: F401 - part of this module's API
     DEFAULT_MIN_RCOND,
     ORDER_NAMES,
     TERMS,

@@ -65,7 +65,7 @@ def loo_predict(method: Any, local_xyz: np.ndarray, options: dict[str, Any],
         predicted[outside] = np.nan
         details["hull_vertices_not_predicted"] = int(len(outside))
     if used is not None:
-        from toolbox.terrain.gridding.parameters import ORDER_NAMES
+        from toolbox.terrain.gridding.request import ORDER_NAMES
 
         used[np.isnan(predicted)] = -1
         details["orders_used"] = {ORDER_NAMES[o]: int(np.sum(used == o)) for o in range(4)}

@@ -7,6 +7,7 @@ from typing import Any
 
 from toolbox.terrain.gridding.methods.base import Method, NeighbourMethod
 from toolbox.terrain.gridding.methods.idw import IdwMethod, idw_tile
+from toolbox.terrain.gridding.request import MethodOptions
 
 
 class NearestMethod(NeighbourMethod):
@@ -16,8 +17,8 @@ class NearestMethod(NeighbourMethod):
     min_neighbours = 1
     tile_kernel = staticmethod(idw_tile)
 
-    def options(self, params: dict[str, Any]) -> dict[str, Any]:
-        return Method.options(self, params) | {"neighbours": 1}
+    def options(self, request: MethodOptions) -> dict[str, Any]:
+        return Method.options(self, request) | {"neighbours": 1}
 
     def loo_chunk(self, bins, z, targets, options):
         return IdwMethod.loo_chunk(self, bins, z, targets, options)
