@@ -3,14 +3,14 @@
 from __future__ import annotations
 
 from toolbox.algorithm import Algorithm
-from toolbox.attribution.edit_parameters import parameter_file_parameter
-from toolbox.attribution.layer_specs import edited_output
 from toolbox.feedback import Feedback
 from toolbox.parameters import Number, Output, VectorLayer
 from toolbox.registry import register
+from toolbox.ui.attribution import edited_output, parameter_file_parameter
 
-WANTED = {"TOLERANCE": ("tolerance", "alignment_tolerance", 0.1),
-          "PRECISION": ("precision", "decimals", 0.001)}
+# parameter -> (value name, parameter-file key, default; None: the file's DEFAULTS table)
+WANTED = {"TOLERANCE": ("tolerance", "alignment_tolerance", None),
+          "PRECISION": ("precision", "decimals", None)}
 
 
 @register
@@ -49,8 +49,8 @@ class Align(Algorithm):
         import numpy as np
 
         from toolbox.attribution.edit_io import read_parts, write_edited
-        from toolbox.attribution.edit_parameters import file_values
         from toolbox.attribution.editing import align_vertices
+        from toolbox.ui.attribution import file_values
 
         parts = read_parts(params["INPUT"])
         v, sources = file_values(params, WANTED, self.id, feedback, parts.frame.crs)

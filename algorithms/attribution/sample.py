@@ -3,16 +3,16 @@
 from __future__ import annotations
 
 from toolbox.algorithm import Algorithm
-from toolbox.attribution.edit_parameters import parameter_file_parameter
-from toolbox.attribution.layer_specs import edited_output
 from toolbox.feedback import Feedback
 from toolbox.parameters import Enum, Number, Output, VectorLayer
 from toolbox.registry import register
+from toolbox.ui.attribution import edited_output, parameter_file_parameter
 
-WANTED = {"DISTANCE": ("distance", "spline_step", 1.0),
+# parameter -> (value name, parameter-file key, default; None: the file's DEFAULTS table)
+WANTED = {"DISTANCE": ("distance", "spline_step", None),
           "ANGLE": ("angle", "-", 10.0),
           "TOLERANCE": ("tolerance", "-", None),
-          "PRECISION": ("precision", "decimals", 0.001)}
+          "PRECISION": ("precision", "decimals", None)}
 
 
 @register
@@ -58,7 +58,6 @@ class Sample(Algorithm):
         import numpy as np
 
         from toolbox.attribution.edit_io import read_parts, write_edited
-        from toolbox.attribution.edit_parameters import file_values
         from toolbox.attribution.editing import (
             densify,
             deviation,
@@ -66,6 +65,7 @@ class Sample(Algorithm):
             sample_by_vectors,
         )
         from toolbox.errors import InputDataError
+        from toolbox.ui.attribution import file_values
 
         parts = read_parts(params["INPUT"])
         v, sources = file_values(params, WANTED, self.id, feedback, parts.frame.crs)

@@ -3,16 +3,16 @@
 from __future__ import annotations
 
 from toolbox.algorithm import Algorithm
-from toolbox.attribution.edit_parameters import parameter_file_parameter
-from toolbox.attribution.layer_specs import edited_output
 from toolbox.feedback import Feedback
 from toolbox.parameters import Number, Output, VectorLayer
 from toolbox.registry import register
+from toolbox.ui.attribution import edited_output, parameter_file_parameter
 
-WANTED = {"TOLERANCE": ("tolerance", "squaring_tolerance", 0.2),
-          "ANGLE_TOLERANCE": ("angle_tolerance", "squaring_angle_tolerance", 3.0),
+# parameter -> (value name, parameter-file key, default; None: the file's DEFAULTS table)
+WANTED = {"TOLERANCE": ("tolerance", "squaring_tolerance", None),
+          "ANGLE_TOLERANCE": ("angle_tolerance", "squaring_angle_tolerance", None),
           "AREA_TOLERANCE": ("area_tolerance", "-", 1.0),
-          "PRECISION": ("precision", "decimals", 0.001)}
+          "PRECISION": ("precision", "decimals", None)}
 
 
 @register
@@ -64,8 +64,8 @@ class Square(Algorithm):
         import numpy as np
 
         from toolbox.attribution.edit_io import read_parts, write_edited
-        from toolbox.attribution.edit_parameters import file_values
         from toolbox.attribution.editing import square_rings
+        from toolbox.ui.attribution import file_values
 
         parts = read_parts(params["INPUT"])
         v, sources = file_values(params, WANTED, self.id, feedback, parts.frame.crs)

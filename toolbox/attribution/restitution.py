@@ -6,7 +6,7 @@ entity's colour index as plotted, ``source`` the provenance code, ``file`` and `
 was read, ``kind`` what the reader saw: point, line, polygon, symbol or label; for symbols
 ``block``, ``rotation`` (degrees), ``scale_x``, ``scale_y``; for labels ``text``, ``text_height``,
 ``rotation``). Geometries keep Z. An entity with one vertex is a Point, with none a None geometry:
-nothing is dropped here; :mod:`toolbox.attribution.apply` decides what is usable.
+nothing is dropped here; :mod:`toolbox.attribution.coding` decides what is usable.
 
 Formats
 -------

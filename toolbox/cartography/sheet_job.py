@@ -6,7 +6,7 @@ from __future__ import annotations
 import datetime as _dt
 from pathlib import Path
 
-from toolbox.cartography.grid_io import sheet_polygons
+from toolbox.cartography.grid_io import SheetSource, sheet_polygons
 from toolbox.cartography.sheet import SheetSpec
 from toolbox.cartography.sheet_io import coded_styles, default_styles, render_sheet
 from toolbox.version import __version__
@@ -44,6 +44,11 @@ def _layer_name(ref) -> str:
     return Path(text.split("|")[0]).stem
 
 
+def _sheet_source(params: dict) -> SheetSource:
+    return SheetSource(extent=params.get("EXTENT"), sheets=params.get("SHEETS"),
+                       sheet_id=params.get("SHEET_ID"), crs=params.get("CRS"))
+
+
 def layer_styles(params: dict) -> tuple[list[tuple[str, object]], list]:
     """The LAYERS as (name, frame) and their sheet styles: from CODES/COLOURS through the
     shared style model when CODES is given, else default colours by geometry kind."""
@@ -69,7 +74,7 @@ def guard_sheets(params: dict) -> None:
     from toolbox.cartography.sheet import GAP, LABEL_BAND, MARGIN, PANEL
     from toolbox.limits import check_size
 
-    sheets, _ = sheet_polygons(params)
+    sheets, _ = sheet_polygons(_sheet_source(params))
     sheets = [(i, g) for i, g in sheets if g is not None and not g.is_empty]
     if not sheets:
         return  # the job says so
@@ -118,7 +123,7 @@ def sheet_file_names(params: dict) -> list[str]:
     unique."""
     from toolbox.mosaic.sheets import sheet_ids_unique
 
-    return sheet_ids_unique([sheet_id for sheet_id, _ in sheet_polygons(params)[0]])
+    return sheet_ids_unique([sheet_id for sheet_id, _ in sheet_polygons(_sheet_source(params))[0]])
 
 
 def run_sheets(params: dict, feedback) -> dict:
@@ -129,7 +134,7 @@ def run_sheets(params: dict, feedback) -> dict:
     from toolbox.io.staging import final_path
     from toolbox.io.vector import read_vector
 
-    sheets, crs = sheet_polygons(params)
+    sheets, crs = sheet_polygons(_sheet_source(params))
     layers, styles = layer_styles(params)
     contours = read_vector(params["CONTOURS"], name="CONTOURS") \
         if params.get("CONTOURS") is not None else None

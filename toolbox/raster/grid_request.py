@@ -1,8 +1,10 @@
 """The typed request for an output grid: cell size, extent, template, size guard.
 
 One set of rules answers it (:func:`toolbox.raster.engine.grid_from_parameters`, module notes
-of :mod:`toolbox.raster.engine`): ``cell_size`` with ``template`` is an error, ``extent`` is
-honoured as given, else the data's bounds snapped outwards to whole cells.
+of :mod:`toolbox.raster.engine`): ``extent`` is honoured as given, else the data's bounds
+snapped outwards to whole cells; a template fixes the lattice. ``cell_size`` with a template:
+one rule for every raster output, :func:`template_lattice` (the same cell is accepted, another
+one is an error).
 """
 
 from __future__ import annotations
@@ -32,7 +34,11 @@ class GridRequest:
 
     def _rules(self) -> dict[str, Any]:
         """The request in the engine's rule names (its one implementation reads them)."""
-        return {"CELL_SIZE": self.cell_size, "EXTENT": self.extent, "TEMPLATE": self.template,
+        cell = self.cell_size
+        if self.template is not None and cell is not None:
+            template_lattice(self.template, cell)  # another cell than the template's: refused
+            cell = None  # the template's own
+        return {"CELL_SIZE": cell, "EXTENT": self.extent, "TEMPLATE": self.template,
                 "MAX_CELLS": self.max_cells}
 
     def check(self, *, cell_required: bool = True) -> None:
@@ -49,3 +55,26 @@ class GridRequest:
 
         return grid_from_parameters(self._rules(), data_bounds, crs,
                                     default_cell_size=default_cell_size, snap=snap)
+
+
+def template_lattice(template: Any, cell_size: float | None = None, crs: Any = None,
+                     what: str = "the output") -> tuple[float, tuple[float, float]]:
+    """(cell, lattice origin (x, y)) of a north-up template raster with square cells.
+
+    ``cell_size`` (CELL_SIZE) may repeat the template's cell (within 1e-9 relative) but not
+    differ from it; ``crs``: the output's CRS, which a template with a CRS must share.
+    """
+    from toolbox.errors import ParameterError
+    from toolbox.io.crs import crs_label, same_crs
+
+    if crs is not None and template.crs is not None and not same_crs(template.crs, crs):
+        raise ParameterError("TEMPLATE", f"is in {crs_label(template.crs)}, {what} in "
+                             f"{crs_label(crs)}")
+    t = template.transform
+    if t.b != 0 or t.d != 0 or t.a <= 0 or t.e >= 0 or abs(t.a + t.e) > 1e-9 * t.a:
+        raise ParameterError("TEMPLATE", f"must be a north-up raster with square cells, "
+                             f"{template} has transform {tuple(t)[:6]}")
+    if cell_size is not None and abs(cell_size - t.a) > 1e-9 * t.a:
+        raise ParameterError("CELL_SIZE", f"differs from TEMPLATE's cell ({t.a:g}), got "
+                             f"{cell_size:g}; leave it out to use the template's")
+    return float(t.a), (float(t.c), float(t.f))

@@ -23,8 +23,6 @@ import numpy as np
 
 from toolbox.errors import ConvergenceError, InputDataError
 
-COLLINEAR_TOLERANCE = 1e-9
-
 
 @dataclass
 class FitStatistics:
@@ -90,12 +88,15 @@ def _apply(matrix: np.ndarray, points: np.ndarray) -> np.ndarray:
 
 
 def check_not_collinear(points: np.ndarray, name: str) -> None:
-    """Raise :class:`InputDataError` when the points lie (numerically) on one line."""
-    centred = points - points.mean(axis=0)
-    s = np.linalg.svd(centred, compute_uv=False)
-    if s[0] == 0 or s[-1] / s[0] < COLLINEAR_TOLERANCE:
+    """Raise :class:`InputDataError` when the points lie (numerically) on one line (the shared
+    test of :func:`toolbox.terrain.points.check_not_collinear`)."""
+    from toolbox.terrain.points import check_not_collinear as check
+
+    try:
+        check(points, f"{name} points")
+    except ValueError:  # on one line, or all at one position
         raise InputDataError(f"the {name} points are collinear (or coincident): a plane transform "
-                             "needs points spread in two directions")
+                             "needs points spread in two directions") from None
 
 
 class Transform2D:

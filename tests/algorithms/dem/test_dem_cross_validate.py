@@ -15,7 +15,7 @@ import toolbox
 from toolbox.errors import ParameterError
 from toolbox.terrain.gridding.methods import METHODS
 from toolbox.terrain.gridding.request import MethodOptions
-from toolbox.terrain.gridding.tin_linear import tin_loo
+from toolbox.terrain.gridding.tin_constrained import tin_loo
 from toolbox.terrain.gridding.validation import error_summary, loo_predict
 from toolbox.terrain.tin.kernels import interpolate_tin, triangulate
 

@@ -7,7 +7,7 @@ maximum absolute error per method let a surveyor choose the method with evidence
 Rules (the same as the gridding): with EXTRAPOLATE off, a point that is a vertex of the convex
 hull lies outside the hull of the others and is not predicted; MAX_DISTANCE and MIN_NEIGHBOURS
 apply as in the grid. Each method predicts in its own way (``Method.loo``); ``tin_linear`` uses
-the TIN of the other points (see :func:`toolbox.terrain.gridding.tin_linear.tin_loo`).
+the TIN of the other points (see :func:`toolbox.terrain.gridding.tin_constrained.tin_loo`).
 """
 
 from __future__ import annotations
