@@ -6,9 +6,10 @@ import glob
 
 from toolbox.algorithm import Algorithm
 from toolbox.feedback import Feedback
-from toolbox.parameters import Boolean, Crs, Enum, File, Layer, Number, Output, OutputVector, String
+from toolbox.parameters import Boolean, Crs, Enum, File, Layer, Output, OutputVector, String
 from toolbox.registry import register
 from toolbox.ui.attribution import CODED, RestitutionFiles
+from toolbox.ui.parameter_file import file_backed
 
 #: parameter-file entries this algorithm uses (the others are named in an information message)
 USED_ENTRIES = ("closure_tolerance", "snap_tolerance", "height_snap_tolerance", "decimals",
@@ -71,12 +72,12 @@ class ApplyCodes(Algorithm):
         Crs("CRS", "CRS of inputs that carry none (ASCII, two tables, DXF)", optional=True),
         Enum("LAYOUT", "one layer per code, or one per geometry type with a code field",
              options=["code", "type"], default="code"),
-        Number("CLOSURE_TOLERANCE", "largest gap closed in a polygon outline, CRS units "
-               "[default: parameter file, else 0.5]", min_value=0, optional=True),
-        Number("SNAP_TOLERANCE", "planimetric reattach tolerance of the model merge "
-               "[default: parameter file, else 0.2]", min_value=0, optional=True),
-        Number("HEIGHT_SNAP_TOLERANCE", "altimetric reattach tolerance of the model merge "
-               "[default: parameter file, else 0.1]", min_value=0, optional=True),
+        file_backed("CLOSURE_TOLERANCE", "largest gap closed in a polygon outline, CRS units",
+                    "closure_tolerance"),
+        file_backed("SNAP_TOLERANCE", "planimetric reattach tolerance of the model merge",
+                    "snap_tolerance"),
+        file_backed("HEIGHT_SNAP_TOLERANCE", "altimetric reattach tolerance of the model merge",
+                    "height_snap_tolerance"),
         Boolean("STYLE_FILES", "also write each layer's QML and SLD beside OUTPUT",
                 default=False),
         OutputVector("OUTPUT", "GeoPackage: coded layers, unresolved, labels, merge; styled",

@@ -4,9 +4,10 @@ from __future__ import annotations
 
 from toolbox.algorithm import Algorithm
 from toolbox.feedback import Feedback
-from toolbox.parameters import Crs, File, Layer, Number, Output, OutputVector, String
+from toolbox.parameters import Crs, File, Layer, Output, OutputVector, String
 from toolbox.registry import register
 from toolbox.ui.attribution import RestitutionFiles
+from toolbox.ui.parameter_file import file_backed
 
 USED_ENTRIES = ("snap_tolerance", "height_snap_tolerance", "coordinate_offset",
                 "coordinate_unit")
@@ -41,10 +42,9 @@ class MergeModels(Algorithm):
         String("CODE_FIELD", "code field of OGR inputs", optional=True),
         File("PARAMETERS", "parameter file ('file dei parametri')", optional=True),
         Crs("CRS", "CRS of inputs that carry none (ASCII, DXF)", optional=True),
-        Number("SNAP_TOLERANCE", "planimetric reattach tolerance [default: parameter file, "
-               "else 0.2]", min_value=0, optional=True),
-        Number("HEIGHT_SNAP_TOLERANCE", "altimetric reattach tolerance [default: parameter "
-               "file, else 0.1]", min_value=0, optional=True),
+        file_backed("SNAP_TOLERANCE", "planimetric reattach tolerance", "snap_tolerance"),
+        file_backed("HEIGHT_SNAP_TOLERANCE", "altimetric reattach tolerance",
+                    "height_snap_tolerance"),
         OutputVector("OUTPUT", "GeoPackage: points, lines, polygons, merge", layers=[
             Layer("*", "Geometry", [("code", "string", "restitution code")],
                   "merged entities, one layer per geometry kind"),

@@ -7,6 +7,7 @@ from toolbox.feedback import Feedback
 from toolbox.parameters import Enum, Number, Output, VectorLayer
 from toolbox.registry import register
 from toolbox.ui.attribution import edited_output, parameter_file_parameter
+from toolbox.ui.parameter_file import file_backed
 
 # parameter -> (value name, parameter-file key, default; None: the file's DEFAULTS table)
 WANTED = {"DISTANCE": ("distance", "spline_step", None),
@@ -43,9 +44,8 @@ class Sample(Algorithm):
         parameter_file_parameter(),
         Enum("METHOD", "vectors (distance + angle), distance (constant step) or densify",
              options=["vectors", "distance", "densify"], default="vectors"),
-        Number("DISTANCE", "largest distance between kept vertices / the step, CRS units "
-               "[default: parameter file's spline step, else 1]", min_value=0,
-               min_exclusive=True, optional=True),
+        file_backed("DISTANCE", "largest distance between kept vertices / the step, CRS units",
+                    "spline_step", min_exclusive=True),
         Number("ANGLE", "direction change that records a vertex, degrees (METHOD=vectors) "
                "[default 10]", min_value=0, max_value=180, optional=True),
         Number("TOLERANCE", "largest distance of an original vertex from the new line; features "

@@ -7,6 +7,7 @@ from toolbox.feedback import Feedback
 from toolbox.parameters import Number, Output, VectorLayer
 from toolbox.registry import register
 from toolbox.ui.attribution import edited_output, parameter_file_parameter
+from toolbox.ui.parameter_file import file_backed
 
 # parameter -> (value name, parameter-file key, default; None: the file's DEFAULTS table)
 WANTED = {"TOLERANCE": ("tolerance", "squaring_tolerance", None),
@@ -45,16 +46,12 @@ class Square(Algorithm):
     parameters = [
         VectorLayer("INPUT", "buildings (polygons)", geometry_types=["polygon"]),
         parameter_file_parameter(),
-        Number("TOLERANCE", "largest vertex move, CRS units [default: parameter file, else 0.2]",
-               min_value=0, optional=True),
-        Number("ANGLE_TOLERANCE", "walls within this many degrees of the dominant direction are "
-               "squared [default: parameter file, else 3]", min_value=0, max_value=44.9,
-               optional=True),
+        file_backed("TOLERANCE", "largest vertex move, CRS units", "squaring_tolerance"),
+        file_backed("ANGLE_TOLERANCE", "walls within this many degrees of the dominant "
+                    "direction are squared", "squaring_angle_tolerance", max_value=44.9),
         Number("AREA_TOLERANCE", "largest area change, percent [default 1]", min_value=0,
                optional=True),
-        Number("PRECISION", "vertices closer than this are one shared vertex [default: "
-               "10^-decimals of the parameter file, else 0.001]", min_value=0,
-               min_exclusive=True, optional=True),
+        file_backed("PRECISION", "vertices closer than this are one shared vertex", "decimals"),
         edited_output("GeoPackage: squared buildings and moved_vertices"),
     ]
     outputs = [Output("STATISTICS", "buildings squared / left, largest move, largest deviation "

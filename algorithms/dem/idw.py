@@ -5,7 +5,6 @@ from __future__ import annotations
 from toolbox.parameters import Integer, Number
 from toolbox.registry import register
 from toolbox.ui.gridding import (
-    STATISTICS,
     GriddingAlgorithm,
     execution_parameters,
     grid_parameters,
@@ -46,7 +45,6 @@ class IdwGrid(GriddingAlgorithm):
         Integer("SECTORS", "angular sectors for the neighbour search (1 = none; e.g. 4 or 8)",
                 default=1, min_value=1, max_value=16),
     ] + execution_parameters()
-    outputs = [STATISTICS]
 
     def check_method(self, params):
         super().check_method(params)

@@ -134,6 +134,11 @@ def execution_parameters() -> list:
     ]
 
 
+def method_free_parameters() -> list:
+    """The parameters of a method without options of its own (dem:nearest, dem:tin_linear)."""
+    return source_parameters() + grid_parameters() + execution_parameters()
+
+
 POLYNOMIAL_HELP = """
     Each cell's neighbours are its NEIGHBOURS nearest data points (within RADIUS when given).
     The least squares are solved with coordinates centred on the cell and scaled by the
@@ -220,6 +225,7 @@ class GriddingAlgorithm(Algorithm):
 
     group = "DEM gridding"
     method: ClassVar[str] = ""
+    outputs = [STATISTICS]
 
     def check(self, params: dict[str, Any]) -> None:
         check_sources(self, params)

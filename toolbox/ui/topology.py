@@ -6,9 +6,10 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
-from toolbox.parameters import Field, File, Layer, Number, VectorLayer
+from toolbox.parameters import Field, File, Layer, VectorLayer
 from toolbox.topology.inputs import LineworkSources
 from toolbox.topology.tolerances import TOLERANCE_PARAMETERS
+from toolbox.ui.parameter_file import file_backed
 
 AREAS = Layer("areas", "Polygon", [
     ("id", "integer", "area id"), ("labels", "integer", "label points inside"),
@@ -57,17 +58,15 @@ def linework_parameters() -> list:
              "label codes", optional=True),
         File("PARAMETERS", "parameter file ('file dei parametri': tolleranza di riattacco, "
              "tolleranza di chiusura, ...); explicit tolerances override it", optional=True),
-        Number("SNAP_TOLERANCE", "snap (riattacco) distance for line ends, CRS units "
-               "[default: parameter file, else 0.2]", min_value=0, optional=True),
-        Number("CLOSURE_TOLERANCE", "largest gap closed between the two ends of a polyline "
-               "[default: parameter file, else 0.5]", min_value=0, optional=True),
-        Number("MIN_DANGLE_LENGTH", "shorter dangles and overshoots are removed, longer ones "
-               "reported [default: parameter file, else 1.0]", min_value=0, optional=True),
-        Number("MIN_AREA", "smaller areas are slivers, merged into a neighbour, square CRS units "
-               "[default: parameter file, else 1.0]", min_value=0, optional=True),
-        Number("PRECISION", "coordinate grid of the result, CRS units [default: 10^-decimals "
-               "of the parameter file, else 0.001]", min_value=0, min_exclusive=True,
-               optional=True),
+        file_backed("SNAP_TOLERANCE", "snap (riattacco) distance for line ends, CRS units",
+                    "snap_tolerance"),
+        file_backed("CLOSURE_TOLERANCE", "largest gap closed between the two ends of a "
+                    "polyline", "closure_tolerance"),
+        file_backed("MIN_DANGLE_LENGTH", "shorter dangles and overshoots are removed, longer "
+                    "ones reported", "min_dangle_length"),
+        file_backed("MIN_AREA", "smaller areas are slivers, merged into a neighbour, square CRS "
+                    "units", "min_area"),
+        file_backed("PRECISION", "coordinate grid of the result, CRS units", "decimals"),
     ]
 
 
