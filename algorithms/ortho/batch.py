@@ -32,7 +32,7 @@ class OrthoBatch(Algorithm):
 
     The cell is CELL_SIZE, default the LARGEST ground sample distance among the photos (as the
     thesis' software advises, S002 par. 3.8: uniform resolution over the block), or TEMPLATE's
-    cell and lattice (a CELL_SIZE other than TEMPLATE's cell is refused). Each ortho covers its
+    cell and lattice (CELL_SIZE is then not given: the rule of every raster output). Each ortho covers its
     photo's footprint on the DEM, with edges on the shared lattice. The photos' image files are
     the project's ``image`` paths (relative to the project file); IMAGES gives another folder
     holding them under the same file names.

@@ -2,9 +2,9 @@
 
 One set of rules answers it (:func:`toolbox.raster.engine.grid_from_parameters`, module notes
 of :mod:`toolbox.raster.engine`): ``extent`` is honoured as given, else the data's bounds
-snapped outwards to whole cells; a template fixes the lattice. ``cell_size`` with a template:
-one rule for every raster output, :func:`template_lattice` (the same cell is accepted, another
-one is an error).
+snapped outwards to whole cells; a template fixes the lattice and the cell, so ``cell_size``
+with a template is an error: one rule for every raster output (the ortho lattice of
+:func:`template_lattice` too).
 """
 
 from __future__ import annotations
@@ -34,11 +34,7 @@ class GridRequest:
 
     def _rules(self) -> dict[str, Any]:
         """The request in the engine's rule names (its one implementation reads them)."""
-        cell = self.cell_size
-        if self.template is not None and cell is not None:
-            template_lattice(self.template, cell)  # another cell than the template's: refused
-            cell = None  # the template's own
-        return {"CELL_SIZE": cell, "EXTENT": self.extent, "TEMPLATE": self.template,
+        return {"CELL_SIZE": self.cell_size, "EXTENT": self.extent, "TEMPLATE": self.template,
                 "MAX_CELLS": self.max_cells}
 
     def check(self, *, cell_required: bool = True) -> None:
@@ -61,8 +57,8 @@ def template_lattice(template: Any, cell_size: float | None = None, crs: Any = N
                      what: str = "the output") -> tuple[float, tuple[float, float]]:
     """(cell, lattice origin (x, y)) of a north-up template raster with square cells.
 
-    ``cell_size`` (CELL_SIZE) may repeat the template's cell (within 1e-9 relative) but not
-    differ from it; ``crs``: the output's CRS, which a template with a CRS must share.
+    ``cell_size`` (CELL_SIZE) must not be given (the template's cell is used: the engine's
+    rule, same message); ``crs``: the output's CRS, which a template with a CRS must share.
     """
     from toolbox.errors import ParameterError
     from toolbox.io.crs import crs_label, same_crs
@@ -74,7 +70,7 @@ def template_lattice(template: Any, cell_size: float | None = None, crs: Any = N
     if t.b != 0 or t.d != 0 or t.a <= 0 or t.e >= 0 or abs(t.a + t.e) > 1e-9 * t.a:
         raise ParameterError("TEMPLATE", f"must be a north-up raster with square cells, "
                              f"{template} has transform {tuple(t)[:6]}")
-    if cell_size is not None and abs(cell_size - t.a) > 1e-9 * t.a:
-        raise ParameterError("CELL_SIZE", f"differs from TEMPLATE's cell ({t.a:g}), got "
-                             f"{cell_size:g}; leave it out to use the template's")
+    if cell_size is not None:
+        raise ParameterError("CELL_SIZE", f"must not be given with TEMPLATE (the template's "
+                             f"cells are used), got {cell_size:g}")
     return float(t.a), (float(t.c), float(t.f))

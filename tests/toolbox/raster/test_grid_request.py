@@ -1,5 +1,5 @@
-"""The typed grid request: one rule for CELL_SIZE with TEMPLATE (the same cell is accepted,
-another is refused), in the engine's grids and in the ortho lattice."""
+"""The typed grid request: one rule for CELL_SIZE with TEMPLATE (refused: the template's cells
+are used), in the engine's grids and in the ortho lattice, with one message."""
 
 from __future__ import annotations
 
@@ -25,22 +25,19 @@ def template(tmp_path, transform, crs="EPSG:3003"):
     return open_raster_info(path)
 
 
-def test_the_template_cell_repeated_is_the_template_grid_another_is_refused(tmp_path):
+def test_cell_size_with_a_template_is_refused_alike_by_grid_and_lattice(tmp_path):
     t = Affine(2.5, 0, X0 + 13.3, 0, -2.5, Y0 + 181.7)
     info = template(tmp_path, t)
-    alone = GridRequest(template=info).grid(None, None)
-    assert alone == GridSpec(t, 90, 60, info.crs)
-    assert GridRequest(cell_size=2.5, template=info).grid(None, None) == alone
-    GridRequest(cell_size=2.5, template=info).check()
-    for request in (GridRequest(cell_size=2.0, template=info),):
-        with pytest.raises(ParameterError, match=r"CELL_SIZE differs from TEMPLATE's cell \(2.5\)"):
-            request.grid(None, None)
-        with pytest.raises(ParameterError, match="CELL_SIZE differs"):
-            request.check()
+    assert GridRequest(template=info).grid(None, None) == GridSpec(t, 90, 60, info.crs)
     assert template_lattice(info) == (2.5, (X0 + 13.3, Y0 + 181.7))
-    assert template_lattice(info, 2.5) == template_lattice(info)
-    with pytest.raises(ParameterError, match="CELL_SIZE differs"):
-        template_lattice(info, 2.4)
+    message = "CELL_SIZE must not be given with TEMPLATE"
+    for cell in (2.5, 2.0):  # even the template's own cell: one rule, no tolerance to argue
+        with pytest.raises(ParameterError, match=message):
+            GridRequest(cell_size=cell, template=info).grid(None, None)
+        with pytest.raises(ParameterError, match=message):
+            GridRequest(cell_size=cell, template=info).check()
+        with pytest.raises(ParameterError, match=message):
+            template_lattice(info, cell)
 
 
 def test_a_template_in_another_crs_or_rotated_is_refused(tmp_path):
