@@ -76,17 +76,12 @@ class BuildAreas(Algorithm):
     def process(self, params, feedback: Feedback):
         from toolbox.topology.layers import write_topology
 
-        output, data, sources = build_linework(params, feedback, "build", 90)
+        output, data, stats = build_linework(params, feedback, "build", 90)
         if data["label_geoms"] is None:
             feedback.push_warning("no LABELS given: only areas bounded by a closed coded "
                                   "outline have a code")
         with feedback.timed("write"):
             write_topology(params["OUTPUT"], output, data["crs"], data["label_dtypes"])
-        stats = dict(output.statistics)
-        stats["tolerance_sources"] = sources
-        stats["area_codes"] = "CODES" if data["area_codes"] is not None else \
-            "none (no CODES: closed lines only fill uncoded areas)"
-        stats["crs"] = data["crs_label"]
         stats["code_field"] = data["code_field"]
         stats["label_code_field"] = data["label_code_field"]
         return {"OUTPUT": params["OUTPUT"], "STATISTICS": stats}

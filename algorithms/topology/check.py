@@ -43,14 +43,9 @@ class CheckTopology(Algorithm):
     def process(self, params, feedback: Feedback):
         from toolbox.topology.layers import write_topology
 
-        output, data, sources = build_linework(params, feedback, "check", 95)
+        output, data, stats = build_linework(params, feedback, "check", 95)
         with feedback.timed("write"):
             write_topology(params["OUTPUT"], output, data["crs"], layers=("errors",))
-        stats = dict(output.statistics)
         for key in ("areas", "arcs", "nodes"):
             stats["output"].pop(key, None)
-        stats["tolerance_sources"] = sources
-        stats["area_codes"] = "CODES" if data["area_codes"] is not None else \
-            "none (no CODES: closed lines only fill uncoded areas)"
-        stats["crs"] = data["crs_label"]
         return {"OUTPUT": params["OUTPUT"], "STATISTICS": stats}

@@ -95,9 +95,10 @@ def check_linework(params: Mapping[str, Any]) -> None:
 
 
 def build_linework(params: Mapping[str, Any], feedback: Any, mode: str, end: float
-                   ) -> tuple[Any, dict[str, Any], dict[str, str]]:
+                   ) -> tuple[Any, dict[str, Any], dict[str, Any]]:
     """Read the linework and run area building in ``mode`` ("build" or "check") up to
-    ``end`` % of the progress: (TopologyOutput, the inputs read, the tolerances' sources)."""
+    ``end`` % of the progress: (TopologyOutput, the inputs read, STATISTICS: the output's
+    counts, the tolerances' sources, the area codes' source, the CRS)."""
     from toolbox.topology.build import build_topology
     from toolbox.topology.inputs import read_linework
     from toolbox.topology.layers import tolerances_from
@@ -108,4 +109,9 @@ def build_linework(params: Mapping[str, Any], feedback: Any, mode: str, end: flo
     output = build_topology(data["line_geoms"], data["line_codes"], data["label_geoms"],
                             data["label_codes"], data["label_attributes"], tol,
                             feedback.step(0, end), mode=mode, area_codes=data["area_codes"])
-    return output, data, sources
+    stats = dict(output.statistics)
+    stats["tolerance_sources"] = sources
+    stats["area_codes"] = "CODES" if data["area_codes"] is not None else \
+        "none (no CODES: closed lines only fill uncoded areas)"
+    stats["crs"] = data["crs_label"]
+    return output, data, stats
