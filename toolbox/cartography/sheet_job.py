@@ -52,8 +52,9 @@ class SheetJob:
     ``map_step`` mm (``grid_style`` crosses or lines) on ``paper`` (auto, A4...A0); the
     ``base`` raster, vector ``layers`` (symbology from the ``codes``/``colours`` files),
     ``contours``; the title block's ``title``, ``sources`` (None: the input files, dated) and
-    ``date`` (None: today); written to the PDF ``output`` (one page per sheet), the ``png`` of
-    the first sheet at ``png_dpi``, and/or one PDF + PNG per sheet in ``folder``."""
+    ``date`` (None: today); ``grid_crs``: a second projected CRS ticked along the frame;
+    written to the PDF ``output`` (one page per sheet), the ``png`` of the first sheet at
+    ``png_dpi``, and/or one PDF + PNG per sheet in ``folder``."""
 
     sheets: SheetSource
     scale: float = 5000.0
@@ -69,6 +70,7 @@ class SheetJob:
     colours: Any = None
     sources: str | None = None
     date: str | None = None
+    grid_crs: Any = None
     output: Path | None = None
     png: Path | None = None
     folder: Path | None = None
@@ -129,7 +131,9 @@ def _refuse_empty_sheets(job: SheetJob, sheets: list) -> None:
     from toolbox.errors import InputDataError
     from toolbox.io.crs import input_crs_and_bounds
 
-    boxes = [shapely.box(*b) for value in (job.base, job.layers, job.contours)
+    # envelopes, not boxes: one point, or points in a row, have a flat extent (an empty box)
+    boxes = [shapely.envelope(shapely.MultiPoint([b[:2], b[2:]]))
+             for value in (job.base, job.layers, job.contours)
              for _, b in input_crs_and_bounds(value) if b is not None]
     if not boxes:
         return  # nothing to draw, or extents unknown: the job draws what it has
@@ -141,6 +145,24 @@ def _refuse_empty_sheets(job: SheetJob, sheets: list) -> None:
                              f"{d[1]:.0f}..{d[3]:.0f}) meets the sheets ({s[0]:.0f}..{s[2]:.0f}, "
                              f"{s[1]:.0f}..{s[3]:.0f}): the sheets would be empty; are they of "
                              "the same area and CRS?")
+
+
+def _second_grid(crs, second):
+    """(transformer sheet CRS -> ``second``, label) for the frame's second grid, or None."""
+    if second is None:
+        return None
+    from pyproj import Transformer
+
+    from toolbox.errors import ParameterError
+    from toolbox.io.crs import crs_label
+
+    if crs is None:
+        raise ParameterError("GRID_CRS: the sheet's data have no CRS to transform from")
+    if not second.is_projected:
+        raise ParameterError(f"GRID_CRS: {crs_label(second)} is not a projected CRS (grid "
+                             "ticks are in metres)")
+    return Transformer.from_crs(crs, second, always_xy=True), f"{crs_label(second)} " \
+        f"({second.name})"
 
 
 def sheet_file_names(job: SheetJob) -> list[str]:
@@ -193,6 +215,9 @@ def run_sheets(job: SheetJob, feedback) -> dict:
                           if job.base is not None else "", styles=styles,
                           contours=contours, grid_style=job.grid_style,
                           map_step_mm=job.map_step, png_dpi=job.png_dpi)
+            common["second_grid"] = _second_grid(crs, job.grid_crs)
+            if common["second_grid"] is not None:
+                spec.second_crs = common["second_grid"][1]
             pngs = [job.png] if job.png and i == 0 else []
             files = []
             if folder is not None:
@@ -201,6 +226,10 @@ def run_sheets(job: SheetJob, feedback) -> dict:
                                     pdf_pages=pages, **common)
             else:
                 info = render_sheet(spec, pngs=pngs, pdf_pages=pages, **common)
+            if info["labels_left_out"]:
+                feedback.push_warning(f"sheet {sheet_id}: {info['labels_left_out']} spot-height "
+                                      "label(s) left out: no free place beside the point at "
+                                      f"1:{scale:g}")
             files = [str(final_path(f)) for f in files]
             written.append(info | {"files": files})
     finally:
