@@ -109,17 +109,34 @@ class Sheet(Algorithm):
             raise self.fail("OUTPUT", "or FOLDER: give at least one")
         from toolbox.cartography.sheet_job import guard_sheets
 
-        guard_sheets(params)
+        guard_sheets(sheet_job(params))
 
     def planned_files(self, params):
         if params.get("FOLDER") is None:
             return {"FOLDER": []}
         from toolbox.cartography.sheet_job import sheet_file_names
 
-        return {"FOLDER": [f"{name}{ext}" for name in sheet_file_names(params)
+        return {"FOLDER": [f"{name}{ext}" for name in sheet_file_names(sheet_job(params))
                            for ext in (".pdf", ".png")]}
 
     def process(self, params, feedback: Feedback):
         from toolbox.cartography.sheet_job import run_sheets
 
-        return run_sheets(params, feedback)
+        return run_sheets(sheet_job(params), feedback)
+
+
+def sheet_job(params: dict):
+    """The typed request of a run (:class:`toolbox.cartography.sheet_job.SheetJob`)."""
+    from toolbox.cartography.grid_io import SheetSource
+    from toolbox.cartography.sheet_job import SheetJob
+
+    return SheetJob(
+        sheets=SheetSource(extent=params.get("EXTENT"), sheets=params.get("SHEETS"),
+                           sheet_id=params.get("SHEET_ID"), crs=params.get("CRS")),
+        scale=params["SCALE"], title=params["TITLE"], paper=params["PAPER"],
+        grid_style=params["GRID_STYLE"], map_step=params["MAP_STEP"],
+        png_dpi=params["PNG_DPI"], base=params.get("BASE"), layers=params.get("LAYERS") or [],
+        contours=params.get("CONTOURS"), codes=params.get("CODES"),
+        colours=params.get("COLOURS"), sources=params.get("SOURCES"), date=params.get("DATE"),
+        grid_crs=params.get("GRID_CRS"), output=params.get("OUTPUT"), png=params.get("PNG"),
+        folder=params.get("FOLDER"))

@@ -8,10 +8,12 @@ from toolbox.algorithm import Algorithm
 from toolbox.feedback import Feedback
 from toolbox.parameters import Crs, Enum, Field, Number, OutputFile, OutputRaster, RasterLayer, VectorLayer
 from toolbox.registry import register
-from toolbox.terrain.gridding.parameters import (
+from toolbox.ui.grid import grid_request
+from toolbox.ui.gridding import (
     STATISTICS,
     execution_parameters,
     grid_parameters,
+    gridding_request,
     point_cloud_parameters,
 )
 
@@ -80,7 +82,6 @@ class GroundFilterDtm(Algorithm):
 
     def check(self, params: dict[str, Any]) -> None:
         from toolbox.io.pointcloud import cloud_filter
-        from toolbox.raster.engine import check_grid_parameters
 
         if (params.get("INPUT") is None) == (params.get("DSM") is None):
             raise self.fail("INPUT", "give exactly one of INPUT (points) or DSM (raster)")
@@ -90,9 +91,20 @@ class GroundFilterDtm(Algorithm):
         elif params.get("FILTER_CELL") is not None:
             raise self.fail("FILTER_CELL", "is not used with DSM (the filter runs on the DSM's "
                             "cells)")
-        check_grid_parameters(params, cell_required=False)
+        grid_request(params).check(cell_required=False)
 
     def process(self, params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
-        from toolbox.terrain.ground_run import run_ground
+        from toolbox.terrain.ground import GroundFilter
+        from toolbox.terrain.ground_run import GroundRequest, run_ground
 
-        return run_ground(params, feedback)
+        request = GroundRequest(
+            gridding=gridding_request(params),
+            filter=GroundFilter(float(params.get("FILTER_CELL") or 1.0), float(params["SLOPE"]),
+                                float(params["MAX_WINDOW"]), float(params["ELEVATION_THRESHOLD"]),
+                                float(params["ELEVATION_SCALAR"])),
+            nonground=params["NONGROUND"], method=params["METHOD"], dsm=params.get("DSM"),
+            ground_points=params.get("GROUND_POINTS"))
+        stats = run_ground(request, feedback)
+        out = {name: params[name] for name in ("OUTPUT", "NONGROUND", "GROUND_POINTS", "QUALITY")
+               if params.get(name) is not None}
+        return out | {"STATISTICS": stats}

@@ -18,8 +18,8 @@ from toolbox.parameters import (
     OutputVector,
     String,
 )
-from toolbox.photogrammetry.parameters import TABLE_EXTENSIONS, measurement_parameters
 from toolbox.registry import register
+from toolbox.ui.photogrammetry import TABLE_EXTENSIONS, measurement_parameters
 
 
 @register

@@ -19,9 +19,9 @@ from toolbox.parameters import (
     RasterLayer,
     String,
 )
-from toolbox.photogrammetry.parameters import ortho_method_parameters
 from toolbox.photogrammetry.tables import PROJECT_EXTENSIONS
 from toolbox.registry import register
+from toolbox.ui.photogrammetry import ortho_method_parameters
 
 
 @register
@@ -32,9 +32,10 @@ class OrthoBatch(Algorithm):
 
     The cell is CELL_SIZE, default the LARGEST ground sample distance among the photos (as the
     thesis' software advises, S002 par. 3.8: uniform resolution over the block), or TEMPLATE's
-    cell and lattice. Each ortho covers its photo's footprint on the DEM, with edges on the
-    shared lattice. The photos' image files are the project's ``image`` paths (relative to the
-    project file); IMAGES gives another folder holding them under the same file names.
+    cell and lattice (CELL_SIZE is then not given: the rule of every raster output). Each ortho covers its
+    photo's footprint on the DEM, with edges on the shared lattice. The photos' image files are
+    the project's ``image`` paths (relative to the project file); IMAGES gives another folder
+    holding them under the same file names.
 
     Photos run in parallel on local threads (WORKERS) or on a Dask cluster (SCHEDULER or
     DASK_SCHEDULER_ADDRESS), with one progress bar. A photo that fails (missing image, camera
@@ -97,7 +98,7 @@ class OrthoBatch(Algorithm):
         return {"FOLDER": [f"{photo.id}.tif" for photo in photos]}
 
     def process(self, params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
-        from toolbox.io.crs import crs_label, same_crs
+        from toolbox.io.crs import crs_label
         from toolbox.io.raster import open_raster_info
         from toolbox.io.staging import final_path
         from toolbox.ortho.block import OrthoTask, run_task
@@ -105,6 +106,7 @@ class OrthoBatch(Algorithm):
         from toolbox.ortho.plan import check_geometry, lattice_grid, plan_photo, tilt_warning
         from toolbox.ortho.run import OrthoOptions
         from toolbox.photogrammetry.tables import load_project_parameter, write_json
+        from toolbox.raster.grid_request import template_lattice
         from toolbox.tiles import map_tiles, resolve_executor
 
         project = load_project_parameter(params["PROJECT"])
@@ -121,11 +123,7 @@ class OrthoBatch(Algorithm):
         cell = params["CELL_SIZE"]
         template = params["TEMPLATE"]
         if template is not None:
-            if template.crs is not None and not same_crs(template.crs, crs):
-                raise ParameterError("TEMPLATE", f"is in {crs_label(template.crs)}, the project "
-                                     f"in {crs_label(crs)}")
-            cell, origin = abs(template.transform.a), (template.transform.c,
-                                                       template.transform.f)
+            cell, origin = template_lattice(template, cell, crs, "the project")
         for photo in feedback.iterate(photos, start=0, end=10):
             try:
                 image = open_raster_info(image_path(photo, params["IMAGES"]), "IMAGES")
@@ -144,7 +142,7 @@ class OrthoBatch(Algorithm):
             cell = max(nice_cell_size(plan.gsd) for plan, _ in plans)
         options = OrthoOptions(
             resampling=params["RESAMPLING"], outside=params["OUTSIDE"], nodata=params["NODATA"],
-            block=params["TILE_SIZE"], tolerance_px=params["MAP_TOLERANCE"],
+            block=params["MAP_BLOCK"], tolerance_px=params["MAP_TOLERANCE"],
             dem_factor=params["DEM_FACTOR"], band=params["BAND"], occlusion=params["OCCLUSION"],
             overviews=params["OVERVIEWS"], cog=params["COG"])
         folder = Path(params["FOLDER"])  # staged by the runner: moved into place on success

@@ -113,8 +113,8 @@ class RectifyImage(Algorithm):
         from toolbox.raster.homography import HomographyMap
         from toolbox.raster.warp import warp_layout, warp_raster
         from toolbox.raster.writer import RasterWriter
+        from toolbox.transforms.plane import apply_homography
         from toolbox.transforms.rectification import (
-            _apply,
             default_cell_size,
             footprint,
             load_transform,
@@ -153,7 +153,8 @@ class RectifyImage(Algorithm):
             params, bounds, model.crs,
             default_cell_size=lambda: default_cell_size(matrix, info.width, info.height))
         cell = grid.cell_size[0]
-        centre, _ = _apply(matrix, np.array([[info.width / 2.0, info.height / 2.0]]))
+        centre, _ = apply_homography(matrix, np.array([[info.width / 2.0, info.height / 2.0]]),
+                                     return_w=True)
         coordinate_map = HomographyMap(np.linalg.inv(matrix), grid.transform,
                                        front=(float(centre[0, 0]), float(centre[0, 1])))
         try:
@@ -178,7 +179,8 @@ class RectifyImage(Algorithm):
     @staticmethod
     def _gcps(params, model: RectificationModel, p2i, tags, feedback: Feedback):
         from toolbox.io.crs import crs_label
-        from toolbox.transforms.rectification import _apply, write_gcp_geotiff
+        from toolbox.transforms.plane import apply_homography
+        from toolbox.transforms.rectification import write_gcp_geotiff
 
         used = model.control_points()
         if not used:
@@ -188,7 +190,7 @@ class RectifyImage(Algorithm):
             if p2i is None:
                 raise ParameterError("PIXEL_TO_IMAGE", "is required to convert the control "
                                      "points' image mm to pixels for the GCPs")
-            image, _ = _apply(np.linalg.inv(p2i), image)
+            image = apply_homography(np.linalg.inv(p2i), image)
         gcps = [(p["id"], float(c), float(r), float(p["ground"][0]), float(p["ground"][1]),
                  float(p.get("z") or 0.0)) for p, (c, r) in zip(used, image, strict=True)]
         write_gcp_geotiff(params["INPUT"].path, params["OUTPUT"], gcps, model.crs, feedback, tags)

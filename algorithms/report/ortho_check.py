@@ -5,9 +5,9 @@ from __future__ import annotations
 from toolbox.algorithm import Algorithm
 from toolbox.feedback import Feedback
 from toolbox.parameters import File, Number, Output, OutputFile, RasterLayer, String
-from toolbox.photogrammetry.parameters import TABLE_EXTENSIONS
 from toolbox.photogrammetry.tables import PROJECT_EXTENSIONS
 from toolbox.registry import register
+from toolbox.ui.photogrammetry import TABLE_EXTENSIONS
 
 
 @register

@@ -305,7 +305,7 @@ def test_ortho_in_another_crs_recovers_the_texture(block, tmp_path):
 
 
 @pytest.mark.parametrize("bands, extra", [(1, {}), (1, {"OUTSIDE": "nodata", "NODATA": 7}),
-                                          (1, {"RESAMPLING": "cubic", "TILE_SIZE": 64}),
+                                          (1, {"RESAMPLING": "cubic", "MAP_BLOCK": 64}),
                                           (3, {})])
 def test_planned_windows_give_the_ortho_of_the_generic_path(block, tmp_path, monkeypatch, bands,
                                                             extra):
