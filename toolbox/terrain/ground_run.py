@@ -13,6 +13,7 @@ from toolbox.feedback import Feedback
 from toolbox.terrain.ground import GroundFilter, smrf
 
 MASK_NODATA = 255
+HEIGHTS_NODATA = -9999.0
 
 
 def read_dsm_points(info: Any) -> tuple[np.ndarray, float]:
@@ -48,6 +49,19 @@ def nonground_mask(xyz: np.ndarray, ground: np.ndarray, transform: Any, width: i
     mask[seen] = 0
     mask[objects] = 1
     return mask.reshape(height, width)
+
+
+def heights_above(xyz: np.ndarray, dtm: np.ndarray, transform: Any) -> np.ndarray:
+    """(rows, cols) float32: the highest point of each cell of a north-up grid minus the DTM
+    there; NaN where no point fell or the DTM has no value."""
+    rows_n, cols_n = dtm.shape
+    cols = np.floor((xyz[:, 0] - transform.c) / transform.a).astype(np.int64)
+    rows = np.floor((xyz[:, 1] - transform.f) / transform.e).astype(np.int64)
+    inside = (cols >= 0) & (cols < cols_n) & (rows >= 0) & (rows < rows_n)
+    top = np.full(rows_n * cols_n, -np.inf)
+    np.maximum.at(top, rows[inside] * cols_n + cols[inside], xyz[inside, 2])
+    top[~np.isfinite(top)] = np.nan
+    return (top.reshape(rows_n, cols_n) - dtm).astype(np.float32)
 
 
 def run_ground(params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
@@ -117,6 +131,18 @@ def run_ground(params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
 
         writer.write(Window(0, 0, width, height), mask)
     result_out = {"OUTPUT": params["OUTPUT"], "NONGROUND": params["NONGROUND"]}
+    if params.get("HEIGHTS") is not None:
+        with rasterio.open(params["OUTPUT"]) as ds:
+            dtm = ds.read(1, masked=True).filled(np.nan).astype(np.float64)
+        heights = heights_above(xyz, dtm, transform)
+        with RasterWriter(params["HEIGHTS"], grid, 1, "float32", HEIGHTS_NODATA,
+                          tile=int(params.get("TILE_SIZE") or 512),
+                          overviews=params.get("OVERVIEWS", True)) as writer:
+            from rasterio.windows import Window
+
+            writer.write(Window(0, 0, width, height),
+                         np.where(np.isfinite(heights), heights, HEIGHTS_NODATA))
+        result_out["HEIGHTS"] = params["HEIGHTS"]
     if params.get("GROUND_POINTS") is not None:
         from toolbox.io.pointcloud import write_point_cloud
 

@@ -121,10 +121,23 @@ def test_ground_from_point_cloud(scene):
 def test_ground_from_dsm(scene):
     tmp = scene["tmp"]
     toolbox.run("dem:ground", {"DSM": str(scene["dsm"]), "OUTPUT": str(tmp / "dtm_dsm.tif"),
-                               "NONGROUND": str(tmp / "ng_dsm.tif")})
+                               "NONGROUND": str(tmp / "ng_dsm.tif"),
+                               "HEIGHTS": str(tmp / "heights.tif")})
     with rasterio.open(tmp / "dtm_dsm.tif") as ds, rasterio.open(scene["dsm"]) as ref:
         assert ds.transform == ref.transform and ds.shape == ref.shape
     _check_dtm(tmp / "dtm_dsm.tif", "dsm")
+    # HEIGHTS: the DSM above the DTM, against the rendered objects' heights at the cell centres
+    with rasterio.open(tmp / "heights.tif") as ds:
+        heights = ds.read(1, masked=True)
+        t = ds.transform
+    rows, cols = np.indices(heights.shape)
+    x, y = t.c + (cols + 0.5) * t.a - X0, t.f + (rows + 0.5) * t.e - Y0
+    truth = objects(x, y)
+    inner = (x > 3) & (x < SIZE - 3) & (y > 3) & (y < SIZE - 3) & ~heights.mask
+    err = np.abs(heights.data - truth)[inner]
+    assert np.percentile(err, 95) < 0.5, np.percentile(err, 95)
+    roofs = inner & in_buildings(x, y, -1.0)
+    assert np.abs(heights.data - truth)[roofs].max() < 1.0  # 8-15 m roofs stand up
 
 
 def test_ground_bad_input_exit_2(scene, tmp_path):
