@@ -1,19 +1,24 @@
-"""Surface benchmark: reading and gridding a LAZ point cloud (beside PDAL's ``writers.gdal`` when
-the ``pdal`` Python package and its library are installed: PyPI has no binary wheel), and the
-StereoSGBM floor of dense matching (OpenCV alone on one synthetic epipolar pair, shifted by 32
-pixels) beside the toolbox's matcher (``match_pair``: row strips and validity checks); and the
-epipolar resampling of one noise "scan" of 4 x the pair side (``--pair 4161`` = 16644 px, the
-film scans), by windows.
+"""Surface benchmark: two 16644 x 16644 film scans to a 1 m DSM (dem:match) beside OpenCV's
+StereoSGBM alone on the same epipolar images (the floor); reading and gridding a LAZ point
+cloud beside the peers available here (laspy + numpy binning, cell by cell; PDAL's
+``writers.gdal`` only where the ``pdal`` package and its library are installed: PyPI has no
+binary wheel and Debian no package); the SGBM floor on a noise pair beside the toolbox's
+matcher (``match_pair``: row strips and validity checks) and the epipolar resampling of one
+noise "scan" of 4 x the pair side, by windows.
 
-    .venv/bin/python bench/surface_bench.py --small      # 1 M points, 1000 x 1000 pair (quick)
-    .venv/bin/python bench/surface_bench.py --points 10000000 --pair 4000
+    .venv/bin/python bench/surface_bench.py --sections scans               # the scan pair
+    .venv/bin/python bench/surface_bench.py --sections points --points 100000000 --grid-max 10000000
+    .venv/bin/python bench/surface_bench.py --small                         # quick, all sections
 
 Every measurement runs in its own subprocess (this script with ``--case``), so its peak memory
-(``VmHWM``) is its own. Data: uniform random points over 2 km x 2 km at the Siena coordinates
-(EPSG:3003) on a smooth analytic surface, written as LAZ by the toolbox's writer; classes 2
-(ground, 70 %) and 5. The toolbox grids the class-2 points by dem:nearest at 1 m; PDAL grids
-the same class with ``filters.range`` + ``writers.gdal`` (output_type=idw, radius 1 m).
-Writes the markdown table to bench/results/surface.md.
+(``VmHWM``) is its own. Scans: the Siena pair 1_7150-1_7151 with its real orientations,
+rendered at 1/8 on the demo's landscape (buildings standing) and upsampled to 16644 px (see
+:func:`siena_scans`); the DSM is checked against that surface. Points: uniform random points
+over 2 km x 2 km at the Siena coordinates (EPSG:3003) on a smooth analytic surface, written as
+LAZ by chunks by the toolbox's writer; classes 2 (ground, 70 %) and 5. The toolbox grids the
+class-2 points by dem:nearest at 1 m (skipped above ``--grid-max`` points: it holds about
+190 bytes a kept point); the binning peer averages the same class per 1 m cell. Prints the
+markdown tables (bench/results/surface.md keeps them with notes).
 """
 
 from __future__ import annotations
@@ -304,7 +309,7 @@ def measured_row(name: str, work: Path, pair: int) -> tuple[str, dict | None]:
         note += (f"; epipolar images {inner['image_size'][0]} x {inner['image_size'][1]}, "
                  f"{inner['disparities']} disparities, {100 * inner['matched']:.0f} % of the left "
                  f"image matched; DSM {inner['grid']['width']} x {inner['grid']['height']} cells "
-                 f"of 1 m, {100 * e['valid']:.0f} % valid; |DSM - surface| away from walls: "
+                 f"of 1 m, {100 * e['valid']:.0f} % valid; abs(DSM - surface) away from walls: "
                  f"median {e['median']:.2f} m, 90 % {e['p90']:.2f} m")
     if name == "scan_sgbm":
         note += (f" (StereoSGBM 3-way alone, whole {inner['image_size'][0]} x "
@@ -334,7 +339,7 @@ def compare_grids(tif: Path, binned: np.ndarray, laz: Path) -> str:
     diff = np.abs(grid - other)[both]
     return (f"Same cells: dem:nearest {int(np.isfinite(grid).sum()):,} cells with a value, the "
             f"binning {int(np.isfinite(binned).sum()):,}; on the {int(both.sum()):,} they share, "
-            f"|nearest - cell mean| median {np.median(diff):.3f} m, max {diff.max():.3f} m "
+            f"abs(nearest - cell mean) median {np.median(diff):.3f} m, max {diff.max():.3f} m "
             "(nearest point vs mean of the cell's points on a smooth surface).")
 
 
