@@ -380,13 +380,17 @@ def main() -> None:
             out.append("")
         if "points" in sections or "stereo" in sections:
             t0 = time.perf_counter()
-            make_laz(work / "cloud.laz", args.points)
+            make_laz(work / "cloud.laz", args.points if "points" in sections else 1000)
             print(f"wrote {args.points:,} points in {time.perf_counter() - t0:.1f} s", flush=True)
             scan(work / "scan.tif", args.pair * 4)
-            out += [f"Points: {args.points:,}", "", "| case | seconds | peak MB | note |",
+            title = f"Points: {args.points:,}" if "points" in sections else \
+                f"Stereo floor: a {args.pair} px noise pair"
+            out += [title, "", "| case | seconds | peak MB | note |",
                     "|---|---|---|---|"]
             for name in ("read", "grid", "numpy_bin", "pdal", "sgbm", "match_pair", "epipolar"):
-                if name in ("sgbm", "match_pair", "epipolar") and "stereo" not in sections:
+                stereo_case = name in ("sgbm", "match_pair", "epipolar")
+                if (stereo_case and "stereo" not in sections) or \
+                        (not stereo_case and "points" not in sections):
                     continue
                 if name == "grid" and args.points > args.grid_max:
                     out.append(f"| grid | - | - | not run: {args.points:,} points is over "
