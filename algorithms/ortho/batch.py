@@ -100,7 +100,10 @@ class OrthoBatch(Algorithm):
         from toolbox.io.crs import crs_label, same_crs
         from toolbox.io.raster import open_raster_info
         from toolbox.io.staging import final_path
-        from toolbox.photogrammetry import ortho, orthophoto
+        from toolbox.ortho.block import OrthoTask, run_task
+        from toolbox.ortho.metrics import nice_cell_size
+        from toolbox.ortho.plan import check_geometry, lattice_grid, plan_photo, tilt_warning
+        from toolbox.ortho.run import OrthoOptions
         from toolbox.photogrammetry.tables import load_project_parameter, write_json
         from toolbox.tiles import map_tiles, resolve_executor
 
@@ -126,11 +129,11 @@ class OrthoBatch(Algorithm):
         for photo in feedback.iterate(photos, start=0, end=10):
             try:
                 image = open_raster_info(image_path(photo, params["IMAGES"]), "IMAGES")
-                ortho.check_geometry(photo)
-                warning = ortho.tilt_warning(photo)
+                check_geometry(photo)
+                warning = tilt_warning(photo)
                 if warning:
                     feedback.push_warning(warning)
-                plans.append((orthophoto.plan_photo(photo, params["DEM"], crs, params["BAND"]), image))
+                plans.append((plan_photo(photo, params["DEM"], crs, params["BAND"]), image))
             except (InputDataError, ParameterError) as exc:
                 failed.append({"photo": photo.id, "error": str(exc)})
                 feedback.push_warning(f"photo {photo.id} failed: {exc}")
@@ -138,19 +141,19 @@ class OrthoBatch(Algorithm):
             raise InputDataError("no photo could be orthorectified: " +
                                  "; ".join(f"{f['photo']}: {f['error']}" for f in failed))
         if cell is None:
-            cell = max(ortho.nice_cell_size(plan.gsd) for plan, _ in plans)
-        options = orthophoto.OrthoOptions(
+            cell = max(nice_cell_size(plan.gsd) for plan, _ in plans)
+        options = OrthoOptions(
             resampling=params["RESAMPLING"], outside=params["OUTSIDE"], nodata=params["NODATA"],
             block=params["TILE_SIZE"], tolerance_px=params["MAP_TOLERANCE"],
             dem_factor=params["DEM_FACTOR"], band=params["BAND"], occlusion=params["OCCLUSION"],
             overviews=params["OVERVIEWS"], cog=params["COG"])
         folder = Path(params["FOLDER"])  # staged by the runner: moved into place on success
-        tasks = [orthophoto.OrthoTask(plan.photo, image, params["DEM"],
-                                 orthophoto.lattice_grid(plan.extent, cell, crs, origin),
-                                 folder / f"{plan.photo.id}.tif", options, plan.mean_height,
-                                 params["MAP_SCALE"]) for plan, image in plans]
+        tasks = [OrthoTask(plan.photo, image, params["DEM"],
+                           lattice_grid(plan.extent, cell, crs, origin),
+                           folder / f"{plan.photo.id}.tif", options, plan.mean_height,
+                           params["MAP_SCALE"]) for plan, image in plans]
         reports = []
-        for result in map_tiles(orthophoto.run_task, tasks, executor=executor, feedback=feedback,
+        for result in map_tiles(run_task, tasks, executor=executor, feedback=feedback,
                                 total=len(tasks), start=10, end=100):
             if "error" in result:
                 failed.append(result)

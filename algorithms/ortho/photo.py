@@ -132,7 +132,8 @@ class OrthoPhoto(Algorithm):
             raise self.fail("BAND", f"must be <= {params['DEM'].count}, got {params['BAND']}")
 
     def process(self, params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
-        from toolbox.photogrammetry import ortho, orthophoto
+        from toolbox.ortho.plan import check_geometry, plan_photo, tilt_warning
+        from toolbox.ortho.run import OrthoOptions, orthorectify
         from toolbox.photogrammetry.tables import write_json
 
         photo, crs, output_crs = oriented_photo(params)
@@ -143,8 +144,8 @@ class OrthoPhoto(Algorithm):
             feedback.push_warning(f"the orientation names no CRS: its coordinates are taken to "
                                   f"be in the DEM's, {crs_label(crs)}, and the ortho is written "
                                   "in it (give CRS to say otherwise)")
-        ortho.check_geometry(photo)  # a camera looking away is an error, not a tilt warning
-        warning = ortho.tilt_warning(photo)
+        check_geometry(photo)  # a camera looking away is an error, not a tilt warning
+        warning = tilt_warning(photo)
         if warning:
             feedback.push_warning(warning)
         out_crs = output_crs or crs
@@ -154,17 +155,17 @@ class OrthoPhoto(Algorithm):
             if not same_crs(out_crs, crs):
                 raise ParameterError("CRS", "differs from the orientation's: OCCLUSION and "
                                      "INCIDENCE need the ortho in the orientation's CRS")
-        plan = orthophoto.plan_photo(photo, params["DEM"], crs, params["BAND"],
-                                     *grid_choice(params, out_crs), output_crs=out_crs)
-        options = orthophoto.OrthoOptions(
+        plan = plan_photo(photo, params["DEM"], crs, params["BAND"],
+                          *grid_choice(params, out_crs), output_crs=out_crs)
+        options = OrthoOptions(
             resampling=params["RESAMPLING"], outside=params["OUTSIDE"], nodata=params["NODATA"],
             block=params["TILE_SIZE"], tolerance_px=params["MAP_TOLERANCE"],
             dem_factor=params["DEM_FACTOR"], band=params["BAND"], occlusion=params["OCCLUSION"],
             overviews=params["OVERVIEWS"], cog=params["COG"])
-        report = orthophoto.orthorectify(photo, params["INPUT"], params["DEM"], plan.grid,
-                                    params["OUTPUT"], options, plan.surface, plan.mean_height,
-                                    params["OCCLUSION_MASK"], params["INCIDENCE"],
-                                    params["MAP_SCALE"], feedback)
+        report = orthorectify(photo, params["INPUT"], params["DEM"], plan.grid,
+                              params["OUTPUT"], options, plan.surface, plan.mean_height,
+                              params["OCCLUSION_MASK"], params["INCIDENCE"],
+                              params["MAP_SCALE"], feedback)
         report["footprint"] = [list(p) for p in plan.footprint.exterior.coords]
         if params["REPORT"] is not None:
             write_json(params["REPORT"], {"algorithm": self.id, "photos": [report]})

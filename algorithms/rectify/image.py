@@ -1,8 +1,8 @@
 """rectify:image - warp a photo onto the ground plane with a rectify:estimate transform.
 
 Library code: :mod:`toolbox.transforms.rectification` (pixel -> ground matrix, footprint,
-default cell size), the raster engine's grid rules, :func:`toolbox.raster.engine.warp_raster`
-with a :class:`~toolbox.raster.warp.HomographyMap`, and
+default cell size), the raster engine's grid rules, :func:`toolbox.raster.warp.warp_raster`
+with a :class:`~toolbox.raster.homography.HomographyMap`, and
 :class:`~toolbox.raster.writer.RasterWriter`.
 """
 
@@ -29,7 +29,7 @@ from toolbox.parameters import (
 from toolbox.registry import register
 from toolbox.transforms.rectification import MODES, OUTSIDE, RectificationModel, parse_pixel_to_image
 
-RESAMPLING_METHODS = ("nearest", "bilinear", "cubic", "lanczos")  # toolbox.raster.warp's
+RESAMPLING_METHODS = ("nearest", "bilinear", "cubic", "lanczos")  # toolbox.raster.resample's
 
 
 @register
@@ -109,8 +109,9 @@ class RectifyImage(Algorithm):
 
     def process(self, params, feedback: Feedback):
         from toolbox.io.crs import crs_label, same_crs
-        from toolbox.raster.engine import grid_from_parameters, warp_raster
-        from toolbox.raster.warp import HomographyMap, warp_layout
+        from toolbox.raster.engine import grid_from_parameters
+        from toolbox.raster.homography import HomographyMap
+        from toolbox.raster.warp import warp_layout, warp_raster
         from toolbox.raster.writer import RasterWriter
         from toolbox.transforms.rectification import (
             _apply,

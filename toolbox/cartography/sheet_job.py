@@ -99,7 +99,9 @@ def _refuse_empty_sheets(params: dict, sheets: list) -> None:
     from toolbox.errors import InputDataError
     from toolbox.io.crs import input_crs_and_bounds
 
-    boxes = [shapely.box(*b) for name in ("BASE", "LAYERS", "CONTOURS")
+    # envelopes, not boxes: one point, or points in a row, have a flat extent (an empty box)
+    boxes = [shapely.envelope(shapely.MultiPoint([b[:2], b[2:]]))
+             for name in ("BASE", "LAYERS", "CONTOURS")
              for _, b in input_crs_and_bounds(params.get(name)) if b is not None]
     if not boxes:
         return  # nothing to draw, or extents unknown: the job draws what it has
@@ -111,6 +113,24 @@ def _refuse_empty_sheets(params: dict, sheets: list) -> None:
                              f"{d[1]:.0f}..{d[3]:.0f}) meets the sheets ({s[0]:.0f}..{s[2]:.0f}, "
                              f"{s[1]:.0f}..{s[3]:.0f}): the sheets would be empty; are they of "
                              "the same area and CRS?")
+
+
+def _second_grid(crs, second):
+    """(transformer sheet CRS -> ``second``, label) for the frame's second grid, or None."""
+    if second is None:
+        return None
+    from pyproj import Transformer
+
+    from toolbox.errors import ParameterError
+    from toolbox.io.crs import crs_label
+
+    if crs is None:
+        raise ParameterError("GRID_CRS: the sheet's data have no CRS to transform from")
+    if not second.is_projected:
+        raise ParameterError(f"GRID_CRS: {crs_label(second)} is not a projected CRS (grid "
+                             "ticks are in metres)")
+    return Transformer.from_crs(crs, second, always_xy=True), f"{crs_label(second)} " \
+        f"({second.name})"
 
 
 def sheet_file_names(params: dict) -> list[str]:
@@ -163,6 +183,9 @@ def run_sheets(params: dict, feedback) -> dict:
                           if params.get("BASE") is not None else "", styles=styles,
                           contours=contours, grid_style=params["GRID_STYLE"],
                           map_step_mm=params["MAP_STEP"], png_dpi=params["PNG_DPI"])
+            common["second_grid"] = _second_grid(crs, params.get("GRID_CRS"))
+            if common["second_grid"] is not None:
+                spec.second_crs = common["second_grid"][1]
             pngs = [params["PNG"]] if params.get("PNG") and i == 0 else []
             files = []
             if folder is not None:
@@ -171,6 +194,10 @@ def run_sheets(params: dict, feedback) -> dict:
                                     pdf_pages=pages, **common)
             else:
                 info = render_sheet(spec, pngs=pngs, pdf_pages=pages, **common)
+            if info["labels_left_out"]:
+                feedback.push_warning(f"sheet {sheet_id}: {info['labels_left_out']} spot-height "
+                                      "label(s) left out: no free place beside the point at "
+                                      f"1:{scale:g}")
             files = [str(final_path(f)) for f in files]
             written.append(info | {"files": files})
     finally:
