@@ -41,6 +41,9 @@ class GroundFilterDtm(Algorithm):
     the same grid rules: CELL_SIZE / EXTENT / TEMPLATE; default: the DSM's grid, or
     FILTER_CELL over the points' bounds). NONGROUND: UInt8 on the output grid, 1 where a cell
     holds a non-ground point or DSM cell, 0 where only ground ones, 255 where none.
+    HEIGHTS (optional): on the same grid, the highest point (or DSM cell) of each cell minus
+    the DTM there (a normalised DSM: buildings and trees stand up, open ground is about 0;
+    no data where no point fell), the HEIGHTS mosaic:seamlines routes seams around.
     GROUND_POINTS writes the input points classified (2 ground, 1 other) as LAS/LAZ.
     The filter grid is held in memory (its cells count against MAX_CELLS).
     """
@@ -75,6 +78,8 @@ class GroundFilterDtm(Algorithm):
         *execution_parameters(),
         OutputRaster("NONGROUND", "non-ground mask GeoTIFF (UInt8: 1 non-ground, 0 ground, "
                      "255 no data), on the DTM's grid"),
+        OutputRaster("HEIGHTS", "height above the DTM of the highest point (or DSM cell) of "
+                     "each cell, Float32 (for mosaic:seamlines HEIGHTS)", optional=True),
         OutputFile("GROUND_POINTS", "the input points classified (2 ground, 1 other) as "
                    "LAS/LAZ", extensions=[".laz", ".las"], optional=True),
     ]
@@ -103,8 +108,8 @@ class GroundFilterDtm(Algorithm):
                                 float(params["MAX_WINDOW"]), float(params["ELEVATION_THRESHOLD"]),
                                 float(params["ELEVATION_SCALAR"])),
             nonground=params["NONGROUND"], method=params["METHOD"], dsm=params.get("DSM"),
-            ground_points=params.get("GROUND_POINTS"))
+            ground_points=params.get("GROUND_POINTS"), heights=params.get("HEIGHTS"))
         stats = run_ground(request, feedback)
-        out = {name: params[name] for name in ("OUTPUT", "NONGROUND", "GROUND_POINTS", "QUALITY")
-               if params.get(name) is not None}
+        names = ("OUTPUT", "NONGROUND", "HEIGHTS", "GROUND_POINTS", "QUALITY")
+        out = {name: params[name] for name in names if params.get(name) is not None}
         return out | {"STATISTICS": stats}

@@ -16,6 +16,7 @@ from toolbox.terrain.gridding.request import GriddingRequest
 from toolbox.terrain.ground import GroundFilter, smrf
 
 MASK_NODATA = 255
+HEIGHTS_NODATA = -9999.0
 
 
 @dataclass(frozen=True)
@@ -27,7 +28,7 @@ class GroundRequest:
     and the DTM ``output``; ``method``: tin_linear, idw or nearest; ``dsm``: a raster
     (:class:`toolbox.io.raster.RasterInfo`) read instead of points, whose cells set
     ``filter.cell``; ``nonground``: the mask GeoTIFF; ``ground_points``: LAS/LAZ of the
-    classified points (optional).
+    classified points (optional); ``heights``: GeoTIFF of the height above the DTM (optional).
     """
 
     gridding: GriddingRequest
@@ -36,6 +37,7 @@ class GroundRequest:
     method: str = "tin_linear"
     dsm: Any = None
     ground_points: Path | None = None
+    heights: Path | None = None
 
 
 def read_dsm_points(info: Any) -> tuple[np.ndarray, float]:
@@ -73,8 +75,22 @@ def nonground_mask(xyz: np.ndarray, ground: np.ndarray, transform: Any, width: i
     return mask.reshape(height, width)
 
 
+def heights_above(xyz: np.ndarray, dtm: np.ndarray, transform: Any) -> np.ndarray:
+    """(rows, cols) float32: the highest point of each cell of a north-up grid minus the DTM
+    there; NaN where no point fell or the DTM has no value."""
+    rows_n, cols_n = dtm.shape
+    cols = np.floor((xyz[:, 0] - transform.c) / transform.a).astype(np.int64)
+    rows = np.floor((xyz[:, 1] - transform.f) / transform.e).astype(np.int64)
+    inside = (cols >= 0) & (cols < cols_n) & (rows >= 0) & (rows < rows_n)
+    top = np.full(rows_n * cols_n, -np.inf)
+    np.maximum.at(top, rows[inside] * cols_n + cols[inside], xyz[inside, 2])
+    top[~np.isfinite(top)] = np.nan
+    return (top.reshape(rows_n, cols_n) - dtm).astype(np.float32)
+
+
 def run_ground(request: GroundRequest, feedback: Feedback) -> dict[str, Any]:
-    """Filter, grid, write the DTM, the mask (and the classified points); returns STATISTICS."""
+    """Filter, grid, write the DTM, the mask, the heights above it (and the classified points);
+    returns STATISTICS."""
     import rasterio
 
     from toolbox.io.crs import common_crs, crs_label
@@ -140,6 +156,17 @@ def run_ground(request: GroundRequest, feedback: Feedback) -> dict[str, Any]:
         from rasterio.windows import Window
 
         writer.write(Window(0, 0, width, height), mask)
+    if request.heights is not None:
+        with rasterio.open(gridding.output) as ds:
+            dtm = ds.read(1, masked=True).filled(np.nan).astype(np.float64)
+        heights = heights_above(xyz, dtm, transform)
+        with RasterWriter(request.heights, grid, 1, "float32", HEIGHTS_NODATA,
+                          tile=int(gridding.execution.tile_size),
+                          overviews=gridding.execution.overviews) as writer:
+            from rasterio.windows import Window
+
+            writer.write(Window(0, 0, width, height),
+                         np.where(np.isfinite(heights), heights, HEIGHTS_NODATA))
     if request.ground_points is not None:
         from toolbox.io.pointcloud import write_point_cloud
 
