@@ -82,9 +82,7 @@ class OrthoBatch(Algorithm):
             raise self.fail("BAND", f"must be <= {params['DEM'].count}, got {params['BAND']}")
 
     def planned_files(self, params: dict[str, Any]) -> dict[str, list[str]]:
-        from toolbox.photogrammetry.tables import load_project_parameter
-
-        photos = select_photos(load_project_parameter(params["PROJECT"]), params["PHOTOS"])
+        photos = select_photos(load_batch_project(params), params["PHOTOS"])
         folder = Path(params["FOLDER"]).expanduser().resolve()
         for photo in photos:  # IMAGES' files are inputs the runner cannot see (a folder name)
             if photo.image is not None and params["IMAGES"] is not None:
@@ -101,10 +99,10 @@ class OrthoBatch(Algorithm):
         from toolbox.io.raster import open_raster_info
         from toolbox.io.staging import final_path
         from toolbox.photogrammetry import ortho, orthophoto
-        from toolbox.photogrammetry.tables import load_project_parameter, write_json
+        from toolbox.photogrammetry.tables import write_json
         from toolbox.tiles import map_tiles, resolve_executor
 
-        project = load_project_parameter(params["PROJECT"])
+        project = load_batch_project(params, last=True)
         crs = project.crs
         if crs is None and params["DEM"].crs is not None:  # else the orthos would have no CRS
             crs = params["DEM"].crs
@@ -166,6 +164,43 @@ class OrthoBatch(Algorithm):
                                                                       for r in reports],
                                       "photos": reports, "failed": failed, "statistics": stats})
         return {"OUTPUT": params["OUTPUT"], "STATISTICS": stats}
+
+
+_LOADED: dict[tuple, Any] = {}  # the last project loaded: planned_files, then process
+
+
+def load_batch_project(params: dict[str, Any], last: bool = False) -> Any:
+    """PROJECT loaded (once per run: planned_files keeps it for process, which takes it,
+    ``last``; the key holds the files' modification times); another
+    program's orientation file (GeoJSON, CSV, reconstruction.json...) gets its images matched
+    by file stem in IMAGES when given."""
+    path, images = Path(params["PROJECT"]), params["IMAGES"]
+    try:
+        key = (str(path.resolve()), path.stat().st_mtime_ns, images,
+               Path(images).stat().st_mtime_ns if images is not None else None)
+    except OSError:
+        return _load_batch_project(path, images)
+    project = _LOADED.pop(key, None)
+    _LOADED.clear()
+    if project is None:
+        project = _load_batch_project(path, images)
+    if not last:
+        _LOADED[key] = project
+    return project
+
+
+def _load_batch_project(path: Path, images: str | None) -> Any:
+    from toolbox.photogrammetry.tables import load_project_parameter
+
+    if images is None or path.suffix.lower() in (".yaml", ".yml"):
+        return load_project_parameter(path)
+    from toolbox.exchange import project_from_file
+
+    try:
+        return project_from_file(path, images)
+    except InputDataError as exc:
+        text = str(exc)
+        raise InputDataError(text if text.startswith("IMAGES") else f"PROJECT: {text}") from None
 
 
 def select_photos(project: Any, listed: str | None) -> list[Any]:
