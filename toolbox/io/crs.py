@@ -30,19 +30,26 @@ def parse_crs(value: Any, name: str = "CRS") -> CRS:
 
 
 @functools.lru_cache(maxsize=64)
-def _authority_matches(srs: str) -> tuple[tuple[str, str, int], ...]:
-    """PROJ's identification of the CRS made from ``srs`` (its user input: a WKT round trip
-    changes the confidences), ``(authority, code, confidence)`` with confidence >= 70, best
-    first; cached (for a CRS without a code PROJ searches its database: 0.1-0.3 s)."""
-    return tuple((m.auth_name, m.code, m.confidence)
-                 for m in CRS.from_user_input(srs).list_authority(min_confidence=70))
+def _authority_matches(wkt: str, auth_name: str | None) -> tuple[tuple[str, str, int], ...]:
+    """PROJ's identification of the CRS of ``wkt`` in ``auth_name``'s codes (None: every
+    authority, slower), ``(authority, code, confidence)`` with confidence >= 70, best first;
+    cached by the normalised WKT, so the same CRS read from different files (a GeoJSON's WKT,
+    a GeoTIFF's) is identified once (for a CRS without a code PROJ searches its database:
+    0.1-0.3 s)."""
+    return tuple((m.auth_name, m.code, m.confidence) for m in CRS.from_wkt(wkt)
+                 .list_authority(auth_name=auth_name, min_confidence=70))
 
 
 def crs_authority(crs: CRS, min_confidence: int = 90, auth_name: str | None = None
                   ) -> tuple[str, str] | None:
-    """As ``crs.to_authority`` (``("EPSG", "3003")`` or None), identified once per CRS."""
-    for name, code, confidence in _authority_matches(crs.srs):
-        if confidence >= min_confidence and auth_name in (None, name):
+    """As ``crs.to_authority`` (``("EPSG", "3003")`` or None), identified once per CRS (as
+    its WKT: a CRS made from a PROJ string matches its EPSG code with more confidence so)."""
+    if crs.srs.upper().startswith(f"{auth_name or 'EPSG'}:"):  # made from its code
+        auth = crs.to_authority(auth_name, min_confidence)
+        if auth is not None:
+            return auth
+    for name, code, confidence in _authority_matches(crs.to_wkt(), auth_name):
+        if confidence >= min_confidence:
             return name, code
     return None
 
@@ -174,7 +181,8 @@ def _to_lonlat(wkt: str):
 def outside_area_of_use(crs: CRS, bounds: tuple) -> tuple[str | None, bool]:
     """``(message, far)``: a message when ``bounds`` (in ``crs``) lie outside the CRS's area of
     use by more than a margin; ``far`` when by more than :data:`AREA_ERROR_DEG` degrees."""
-    area = crs.area_of_use or _area_of_use_by_code(crs)
+    horizontal = crs.sub_crs_list[0] if crs.is_compound and crs.sub_crs_list else crs
+    area = crs.area_of_use or horizontal.area_of_use or _area_of_use_by_code(horizontal)
     if area is None or crs.is_geographic:
         return None, False
     xmin, ymin, xmax, ymax = bounds
