@@ -8,6 +8,7 @@ Conventions: shifts are in ortho cells, (dx, dy) = (columns right, rows down) to
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -16,6 +17,7 @@ import numpy as np
 PATCH = 64  # phase-correlation patch, cells
 UPSAMPLE = 200  # phase correlation refined to 1/UPSAMPLE cell
 MARGIN = 4  # cells around a patch for the second estimate
+MAX_PATCHES = 800  # patches tried per ortho at most (every k-th row and column of them)
 
 
 @dataclass(frozen=True)
@@ -64,8 +66,11 @@ def patch_shifts(a: np.ndarray, b: np.ndarray, valid: np.ndarray,
 
     out = []
     m = MARGIN
-    for r in range(m, a.shape[0] - patch - m + 1, patch):
-        for c in range(m, a.shape[1] - patch - m + 1, patch):
+    rows = range(m, a.shape[0] - patch - m + 1, patch)
+    cols = range(m, a.shape[1] - patch - m + 1, patch)
+    every = max(1, math.ceil(math.sqrt(len(rows) * len(cols) / MAX_PATCHES)))
+    for r in rows[::every]:  # spread evenly over the ortho when there are too many
+        for c in cols[::every]:
             sl = np.s_[r:r + patch, c:c + patch]
             pa = a[sl]
             if not valid[r - m:r + patch + m, c - m:c + patch + m].all() or pa.std() < 1.0:

@@ -189,7 +189,7 @@ def markdown(sitting: dict) -> str:
              " issue 25)",
              "",
              f"Written by `bench/orthority_bench.py`, {sitting['date']}. {sitting['machine']}. "
-             f"{sitting['orthority']}. {sitting['load']}.",
+             f"{sitting['orthority']}.",
              "",
              "Whole process (start-up, reading, planning, orthorectifying, DEFLATE GeoTIFF with "
              "internal overviews), each run a fresh process, the tools in turns after a warm-up "
@@ -214,8 +214,9 @@ def markdown(sitting: dict) -> str:
                      f"{r['agreement']['mean_abs_dn']:.3f} |")
     lines += ["", "Goal (issue 25): toolbox >= 1.3x faster on every case, peak memory no "
               "higher, shift <= 0.05 cell, mean |ΔDN| <= 0.2.", "",
-              f"Load: {sitting['load']} at the start, {sitting.get('load_at_end', '?')} at the "
-              "end; 1-minute load averages during the runs "
+              f"Load at the start: {sitting['load']}. At the end: "
+              f"{sitting.get('load_at_end', '?').replace(' before the start', '')}. "
+              "1-minute load averages during the runs: "
               + ", ".join(f"{r['case']} {min(r['load_average_1min']):.1f}-"
                           f"{max(r['load_average_1min']):.1f}" for r in sitting["cases"])
               + " (2 cores). CPU seconds (user + system of all threads) depend less on the "
