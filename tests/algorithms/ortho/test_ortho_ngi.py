@@ -109,3 +109,23 @@ def test_ngi_orthos_match_an_independent_projection(ngi_orthos):
         assert np.percentile(diff, 99) <= 1.0
         # the check resolves a tenth of a pixel: 0.1 px off makes about 1.2 DN (measured)
         assert np.abs(ours - sampled(photo, uv[inside], 0.1)).mean() > 3 * diff.mean()
+
+
+def test_images_folder_without_the_photos_is_one_line_error(orthority_data, tmp_path):
+    """A foreign orientation file with IMAGES naming a folder without image files: exit 2, one
+    line naming IMAGES, nothing written."""
+    import subprocess
+    import sys
+
+    (tmp_path / "empty").mkdir()
+    out = tmp_path / "out"
+    proc = subprocess.run(
+        [sys.executable, "-m", "toolbox.cli", "run", "ortho:batch",
+         "--PROJECT", str(orthority_data / "io" / "ngi_ext_param.geojson"),
+         "--IMAGES", str(tmp_path / "empty"), "--DEM", str(orthority_data / "ngi" / "dem.tif"),
+         "--FOLDER", str(out), "--OUTPUT", str(tmp_path / "o.json")],
+        capture_output=True, text=True)
+    assert proc.returncode == 2, proc.stderr
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and "IMAGES" in lines[0] and "Traceback" not in proc.stderr
+    assert not out.exists() and not (tmp_path / "o.json").exists()
