@@ -83,9 +83,7 @@ class OrthoBatch(Algorithm):
             raise self.fail("BAND", f"must be <= {params['DEM'].count}, got {params['BAND']}")
 
     def planned_files(self, params: dict[str, Any]) -> dict[str, list[str]]:
-        from toolbox.photogrammetry.tables import load_project_parameter
-
-        photos = select_photos(load_project_parameter(params["PROJECT"]), params["PHOTOS"])
+        photos = select_photos(load_batch_project(params), params["PHOTOS"])
         folder = Path(params["FOLDER"]).expanduser().resolve()
         for photo in photos:  # IMAGES' files are inputs the runner cannot see (a folder name)
             if photo.image is not None and params["IMAGES"] is not None:
@@ -105,11 +103,11 @@ class OrthoBatch(Algorithm):
         from toolbox.ortho.metrics import nice_cell_size
         from toolbox.ortho.plan import check_geometry, lattice_grid, plan_photo, tilt_warning
         from toolbox.ortho.run import OrthoOptions
-        from toolbox.photogrammetry.tables import load_project_parameter, write_json
+        from toolbox.photogrammetry.tables import write_json
         from toolbox.raster.grid_request import template_lattice
         from toolbox.tiles import map_tiles, resolve_executor
 
-        project = load_project_parameter(params["PROJECT"])
+        project = load_batch_project(params, last=True)
         crs = project.crs
         if crs is None and params["DEM"].crs is not None:  # else the orthos would have no CRS
             crs = params["DEM"].crs
@@ -147,7 +145,7 @@ class OrthoBatch(Algorithm):
             overviews=params["OVERVIEWS"], cog=params["COG"])
         folder = Path(params["FOLDER"])  # staged by the runner: moved into place on success
         tasks = [OrthoTask(plan.photo, image, params["DEM"],
-                           lattice_grid(plan.extent, cell, crs, origin),
+                           lattice_grid(on_heights(plan.extent, plan.surface), cell, crs, origin),
                            folder / f"{plan.photo.id}.tif", options, plan.mean_height,
                            params["MAP_SCALE"]) for plan, image in plans]
         reports = []
@@ -167,6 +165,59 @@ class OrthoBatch(Algorithm):
                                                                       for r in reports],
                                       "photos": reports, "failed": failed, "statistics": stats})
         return {"OUTPUT": params["OUTPUT"], "STATISTICS": stats}
+
+
+def on_heights(extent: tuple[float, float, float, float], surface: Any
+               ) -> tuple[float, float, float, float]:
+    """``extent`` cut to the box of the DEM cell centres that hold a height (``surface``, in the
+    orthos' CRS): a cell outside it has no height, so it would only be written empty (ODM's DSM
+    leaves 20-30 % of its drone photos' footprints without heights)."""
+    import numpy as np
+
+    ok = np.isfinite(surface.z)
+    rows, cols = np.flatnonzero(ok.any(axis=1)), np.flatnonzero(ok.any(axis=0))
+    xmin, xmax = surface.x0 + cols[0] * surface.cell_x, surface.x0 + cols[-1] * surface.cell_x
+    ymin, ymax = surface.y0 - rows[-1] * surface.cell_y, surface.y0 - rows[0] * surface.cell_y
+    cut = (max(extent[0], xmin), max(extent[1], ymin), min(extent[2], xmax),
+           min(extent[3], ymax))
+    return cut if cut[0] < cut[2] and cut[1] < cut[3] else extent
+
+
+_LOADED: dict[tuple, Any] = {}  # the last project loaded: planned_files, then process
+
+
+def load_batch_project(params: dict[str, Any], last: bool = False) -> Any:
+    """PROJECT loaded (once per run: planned_files keeps it for process, which takes it,
+    ``last``; the key holds the files' modification times); another
+    program's orientation file (GeoJSON, CSV, reconstruction.json...) gets its images matched
+    by file stem in IMAGES when given."""
+    path, images = Path(params["PROJECT"]), params["IMAGES"]
+    try:
+        key = (str(path.resolve()), path.stat().st_mtime_ns, images,
+               Path(images).stat().st_mtime_ns if images is not None else None)
+    except OSError:
+        return _load_batch_project(path, images)
+    project = _LOADED.pop(key, None)
+    _LOADED.clear()
+    if project is None:
+        project = _load_batch_project(path, images)
+    if not last:
+        _LOADED[key] = project
+    return project
+
+
+def _load_batch_project(path: Path, images: str | None) -> Any:
+    from toolbox.photogrammetry.tables import load_project_parameter
+
+    if images is None or path.suffix.lower() in (".yaml", ".yml"):
+        return load_project_parameter(path)
+    from toolbox.exchange import project_from_file
+
+    try:
+        return project_from_file(path, images)
+    except InputDataError as exc:
+        text = str(exc)
+        raise InputDataError(text if text.startswith("IMAGES") else f"PROJECT: {text}") from None
 
 
 def select_photos(project: Any, listed: str | None) -> list[Any]:

@@ -12,6 +12,7 @@ datum, which pyproj then applies).
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 from typing import Any
 
@@ -23,8 +24,10 @@ STEP_M = 1.0
 WGS84_3D = "EPSG:4979"
 
 
+@functools.lru_cache(maxsize=16)
 def utm_crs(lon: float, lat: float):
-    """The WGS 84 / UTM zone CRS holding ``(lon, lat)`` (degrees)."""
+    """The WGS 84 / UTM zone CRS holding ``(lon, lat)`` (degrees); cached (PROJ's database query
+    takes 0.1-0.3 s, and a reconstruction asks once per shot)."""
     from pyproj import CRS
     from pyproj.aoi import AreaOfInterest
     from pyproj.database import query_utm_crs_info

@@ -91,7 +91,7 @@ def project_document(oset: OrientationSet, base_dir: Path | None, angle_unit: st
     """The project YAML document (see :mod:`toolbox.photogrammetry.project`)."""
     import os
 
-    from toolbox.io.crs import crs_label
+    from toolbox.io.crs import crs_authority, crs_label
     from toolbox.photogrammetry.rotation import angle_unit as canonical_unit
     from toolbox.photogrammetry.rotation import from_radians
 
@@ -117,7 +117,7 @@ def project_document(oset: OrientationSet, base_dir: Path | None, angle_unit: st
     oset.notes.extend(n for n in notes if n not in oset.notes)
     return {"format": "orientation-project", "version": 1,
             "crs": None if oset.crs is None else crs_label(oset.crs)
-            if oset.crs.to_authority(min_confidence=90) else oset.crs.to_wkt(),
+            if crs_authority(oset.crs) else oset.crs.to_wkt(),
             "angle_unit": unit, "cameras": cameras, "photos": photos}
 
 

@@ -5,7 +5,7 @@ Cloud Optimized GeoTIFF.
 
 - square tiles of ``tile`` pixels (512 by default, also for rasters smaller than a tile),
 - DEFLATE (or another GDAL codec) with a predictor: 2 (horizontal differencing) for integers,
-  3 (floating point) for floats,
+  3 (floating point) for floats; DEFLATE level 1 for 8-bit rasters, 6 otherwise,
 - internal overviews built at close (``average`` by default), halving until the smallest level
   fits in one tile (GDAL's COG rule), compressed like the data,
 - an alpha band (the last band, ``alpha=True``) or a nodata value (NaN in a float array, the
@@ -34,6 +34,12 @@ DEFAULT_TILE = 512
 DEFAULT_CACHE_MB = 256  # GDAL block cache while writing (bounded, whatever the output size)
 
 
+
+
+def deflate_level(dtype: Any) -> int:
+    """DEFLATE level: 1 for 8-bit rasters (photos, orthos: level 6 saved 3 % of an NGI ortho's
+    size for twice the CPU time of writing it), 6 (GDAL's default) for the others."""
+    return 1 if np.dtype(dtype).itemsize == 1 else 6
 
 
 def predictor_for(dtype: Any) -> int:
@@ -153,7 +159,7 @@ class RasterWriter:
         if self.compress in ("DEFLATE", "LZW", "ZSTD", "LZMA"):
             profile["predictor"] = self.predictor
         if self.compress == "DEFLATE":
-            profile["zlevel"] = 6
+            profile["zlevel"] = deflate_level(self.dtype)
         photometric = self.photometric
         if photometric is None and self.data_count == 3 and self.dtype.kind in "iu":
             photometric = "RGB"
@@ -170,6 +176,7 @@ class RasterWriter:
         return {"GDAL_CACHEMAX": gdal_cache_max(self.cache_mb), "COMPRESS_OVERVIEW": self.compress,
                 "PREDICTOR_OVERVIEW": self.predictor, "GDAL_TIFF_OVR_BLOCKSIZE": self.tile,
                 "INTERLEAVE_OVERVIEW": "PIXEL" if self.count > 1 else "BAND",
+                "ZLEVEL_OVERVIEW": deflate_level(self.dtype),
                 "GDAL_NUM_THREADS": "ALL_CPUS"}
 
     # -- context ---------------------------------------------------------------------------------
@@ -252,7 +259,7 @@ class RasterWriter:
         if self.compress in ("DEFLATE", "LZW", "ZSTD", "LZMA"):
             options["PREDICTOR"] = self.predictor
         if self.compress == "DEFLATE":
-            options["LEVEL"] = 6
+            options["LEVEL"] = deflate_level(self.dtype)
         try:
             with rasterio.Env(GDAL_CACHEMAX=gdal_cache_max(self.cache_mb)):
                 rasterio.shutil.copy(self._tiled_path, self.path, driver="COG", **options)
