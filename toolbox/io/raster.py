@@ -220,7 +220,10 @@ def write_raster(path: str | Path, array: np.ndarray, transform: Any, crs: Any,
     data = array[np.newaxis] if array.ndim == 2 else array
     profile = geotiff_profile(data.shape[2], data.shape[1], data.shape[0], data.dtype, crs,
                               transform, nodata, **creation_options)
-    with rasterio.Env(COMPRESS_OVERVIEW="DEFLATE", PREDICTOR_OVERVIEW=profile["predictor"]):
+    from toolbox.io.write_failures import writing
+
+    with writing(path), rasterio.Env(COMPRESS_OVERVIEW="DEFLATE",
+                                     PREDICTOR_OVERVIEW=profile["predictor"]):
         with rasterio.open(path, "w", **profile) as dst:
             dst.write(data)
             if overviews:
