@@ -367,6 +367,25 @@ def _apply(matrix: np.ndarray, points: np.ndarray) -> tuple[np.ndarray, np.ndarr
     return p[:, :2] / p[:, 2:], p[:, 2]
 
 
+def photo_cells(pixel_to_ground: np.ndarray, transform: Any, window: Any, width: int,
+                height: int) -> np.ndarray:
+    """(h, w) bool: the cells of ``window`` (of the output grid ``transform``) whose centre
+    maps inside the ``width`` x ``height`` photo, in front of the camera."""
+    c0, r0 = int(window.col_off), int(window.row_off)
+    cols, rows = np.meshgrid(np.arange(c0, c0 + int(window.width)) + 0.5,
+                             np.arange(r0, r0 + int(window.height)) + 0.5)
+    t = transform
+    ground = np.column_stack([(t.c + t.a * cols + t.b * rows).ravel(),
+                              (t.f + t.d * cols + t.e * rows).ravel()])
+    inverse = np.linalg.inv(pixel_to_ground)
+    centre, _ = _apply(pixel_to_ground, np.array([[width / 2.0, height / 2.0]]))
+    _, front = _apply(inverse, centre)
+    pixel, w = _apply(inverse, ground)
+    inside = (w * front[0] > 0) & (pixel[:, 0] >= 0) & (pixel[:, 0] < width) \
+        & (pixel[:, 1] >= 0) & (pixel[:, 1] < height)
+    return inside.reshape(cols.shape)
+
+
 def footprint(pixel_to_ground: np.ndarray, width: int, height: int) -> np.ndarray:
     """Ground (X, Y) of the photo's four corners (top-left, top-right, bottom-right,
     bottom-left), (4, 2). Raises :class:`InputDataError` when the plane's vanishing line crosses
