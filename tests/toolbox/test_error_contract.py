@@ -914,27 +914,33 @@ def _swept_parameters(case: Case) -> list:
     return [p for p in case.alg.parameters if not p.is_output]
 
 
-_SWEEP_STARTED: dict[tuple[str, str], float] = {}
+_SWEEP_STARTED: dict[tuple[str, str], float | None] = {}
 
 
 def _sweep(case: Case, data, tier: str, budget_s: float) -> None:
     """One example; once an algorithm has used ``budget_s`` of its tier (examples that pass
-    validation run the whole algorithm: report:quality takes seconds) the rest are no-ops."""
+    validation run the whole algorithm: report:quality takes seconds) the rest are no-ops,
+    unless one failed (hypothesis replays it to shrink it: it must run again)."""
     import time
 
     params = _swept_parameters(case)
     if not params:
         pytest.skip("no input parameter")
-    started = _SWEEP_STARTED.setdefault((tier, case.alg.id), time.monotonic())
+    key = (tier, case.alg.id)
+    started = _SWEEP_STARTED.setdefault(key, time.monotonic())
     p = data.draw(st.sampled_from(params), label="parameter")
     value = data.draw(_bad_value(p), label=p.name)
-    if time.monotonic() - started > budget_s:  # drawn all the same: hypothesis replays draws
-        return
+    if started is not None and time.monotonic() - started > budget_s:
+        return  # drawn all the same: hypothesis replays draws
     if isinstance(value, tuple):
         value = _damaged_path(case, p, value[1], value[2])
         if isinstance(p, MultipleLayers) and isinstance(case.params.get(p.name), list):
             value = [value, *case.params[p.name][1:]]
-    _contract_run(case, case.args(**{p.name: value}))
+    try:
+        _contract_run(case, case.args(**{p.name: value}))
+    except BaseException:
+        _SWEEP_STARTED[key] = None  # no budget any more: the failure's replays must run
+        raise
 
 
 @_cases()

@@ -32,7 +32,7 @@ import toolbox
 from toolbox.errors import ToolboxError
 
 MUTATIONS_PER_READER = 100
-BUDGET_S = 2.0  # per reader
+BUDGET_S = 1.0  # per reader (the slow tier runs thousands)
 SLOW_MUTATIONS_PER_READER = int(os.environ.get("TOOLBOX_FUZZ_MUTATIONS", 400))
 SLOW_BUDGET_S = 20.0
 CASE_LIMIT_S = 10  # one mutated file read longer than this is a hang
