@@ -999,3 +999,14 @@ def test_every_output_at_every_input(case):
 @_cases()
 def test_every_output_at_every_file_the_inputs_name(case):
     _outputs_at_inputs(case, every=True)
+
+
+def test_a_mark_larger_than_the_scan_is_refused(demo, tmp_path):
+    """Found by the sweep: MARK_SIZE 1.76e43 mm made orientation:fiducials allocate a template
+    of that many pixels (ValueError: Maximum allowed size exceeded)."""
+    code, _, err = cli("run", "orientation:fiducials", "--PROJECT",
+                       demo[1]["fiducial_scans_project"], "--MARK_SIZE", "1.76e43", "--OUTPUT",
+                       tmp_path / "f.json")
+    line = one_error(err)
+    assert code == 2 and line.startswith("toolbox: error: MARK_SIZE 1.76e+43 mm is ")
+    assert "more than the whole scan" in line and list(tmp_path.iterdir()) == []
