@@ -16,7 +16,7 @@ from toolbox.errors import InputDataError, ParameterError
 from toolbox.feedback import Feedback
 from toolbox.terrain.points import local_origin
 from toolbox.transforms.control_points import IMAGE_UNITS, ControlPoints
-from toolbox.transforms.plane import TRANSFORMS, FitStatistics, Transform2D
+from toolbox.transforms.plane import TRANSFORMS, FitStatistics, Transform2D, apply_homography
 from toolbox.transforms.robust import (
     ROBUST_METHODS,
     Rejection,
@@ -362,11 +362,6 @@ def pixel_to_ground_matrix(model: RectificationModel,
     return matrix / matrix[2, 2]
 
 
-def _apply(matrix: np.ndarray, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    p = np.column_stack([points, np.ones(len(points))]) @ matrix.T
-    return p[:, :2] / p[:, 2:], p[:, 2]
-
-
 def photo_cells(pixel_to_ground: np.ndarray, transform: Any, window: Any, width: int,
                 height: int) -> np.ndarray:
     """(h, w) bool: the cells of ``window`` (of the output grid ``transform``) whose centre
@@ -378,9 +373,9 @@ def photo_cells(pixel_to_ground: np.ndarray, transform: Any, window: Any, width:
     ground = np.column_stack([(t.c + t.a * cols + t.b * rows).ravel(),
                               (t.f + t.d * cols + t.e * rows).ravel()])
     inverse = np.linalg.inv(pixel_to_ground)
-    centre, _ = _apply(pixel_to_ground, np.array([[width / 2.0, height / 2.0]]))
-    _, front = _apply(inverse, centre)
-    pixel, w = _apply(inverse, ground)
+    centre = apply_homography(pixel_to_ground, np.array([[width / 2.0, height / 2.0]]))
+    _, front = apply_homography(inverse, centre, return_w=True)
+    pixel, w = apply_homography(inverse, ground, return_w=True)
     inside = (w * front[0] > 0) & (pixel[:, 0] >= 0) & (pixel[:, 0] < width) \
         & (pixel[:, 1] >= 0) & (pixel[:, 1] < height)
     return inside.reshape(cols.shape)
@@ -391,7 +386,7 @@ def footprint(pixel_to_ground: np.ndarray, width: int, height: int) -> np.ndarra
     bottom-left), (4, 2). Raises :class:`InputDataError` when the plane's vanishing line crosses
     the photo (an oblique view: the footprint is unbounded)."""
     corners = np.array([[0, 0], [width, 0], [width, height], [0, height]], dtype="float64")
-    ground, w = _apply(pixel_to_ground, corners)
+    ground, w = apply_homography(pixel_to_ground, corners, return_w=True)
     if not (np.all(w > 0) or np.all(w < 0)):
         raise InputDataError("the ground plane's vanishing line crosses the photo (an oblique "
                              "view): its footprint is unbounded; give EXTENT")
@@ -404,7 +399,7 @@ def default_cell_size(pixel_to_ground: np.ndarray, width: int, height: int) -> f
     centre = np.array([width / 2.0, height / 2.0])
     step = 1.0
     pts = np.array([centre, centre + [step, 0], centre + [0, step]])
-    g, _ = _apply(pixel_to_ground, pts)
+    g, _ = apply_homography(pixel_to_ground, pts, return_w=True)
     jac = np.column_stack([g[1] - g[0], g[2] - g[0]]) / step
     size = float(np.sqrt(abs(np.linalg.det(jac))))
     if not size > 0 or not math.isfinite(size):
