@@ -229,6 +229,10 @@ def _map_dask(func, tasks, executor, prefetch, feedback, total, start, end) -> I
         except (OSError, TimeoutError) as exc:
             raise ServiceError(f"cannot connect to {where}: {_first_line(exc)}; nothing was "
                                "written (start the cluster, or use SCHEDULER=local)") from None
+        except (ValueError, TypeError) as exc:  # Dask cannot parse it (':', 'tcp://:x'...)
+            raise ParameterError(executor.source, f"must be a Dask scheduler address such as "
+                                 f"tcp://host:8786, got {executor.address!r} "
+                                 f"({_first_line(exc)})") from None
         try:
             cores = sum(client.nthreads().values()) or 1
             yield from _in_order(lambda task: client.submit(func, task, pure=False), tasks,
