@@ -144,8 +144,8 @@ def _sheets(params):
         name = "SHEETS" if params["SHEETS"] is not None else "SHEET_WIDTH"
         largest = max(((b[2] - b[0]) / cell_w) * ((b[3] - b[1]) / cell_h)
                       for b in (g.bounds for _, g in sheets if g is not None))
-        check_size("cells", largest, name, f"(sheets over the input's {cell_w:g} x {cell_h:g} "
-                   "cells)", "use smaller sheets")
+        check_size("cells", largest * len(sheets), name, f"({len(sheets):,} sheets over the "
+                   f"input's {cell_w:g} x {cell_h:g} cells)", "use smaller or fewer sheets")
     return source, kind, crs, sheets
 
 

@@ -121,7 +121,7 @@ def test_cut_huge_sheets(dem, tmp_path, monkeypatch):
     monkeypatch.setattr(sheets, "clip_raster", never)
     refused("mosaic:cut", {"INPUT": dem, "SCALE": 5000, "SHEET_WIDTH": 4.3e16,
                            "SHEET_HEIGHT": 10, "OUTPUT": tmp_path / "cut"},
-            "SHEET_WIDTH", "cells", "10 x 10 cells", "use smaller sheets")
+            "SHEET_WIDTH", "cells", "10 x 10 cells", "use smaller or fewer sheets")
     assert not (tmp_path / "cut").exists()
 
 
