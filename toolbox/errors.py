@@ -53,12 +53,23 @@ class PipelineError(ToolboxError):
 class OutputWriteError(ToolboxError, OSError):
     """An output could not be written (no space left, read-only folder, name too long...).
 
-    Nothing was committed: the previous file, if any, is untouched.
+    Nothing was committed: the previous file, if any, is untouched. ``errno`` is the cause
+    (``errno.ENOSPC``...) when known and ``filename`` the file being written: a writer raises it
+    with the staged path, the runner names the output parameter and its final path.
     """
 
-    def __init__(self, message: str):
+    def __init__(self, message: str, errno: int | None = None, filename: str | None = None):
         Exception.__init__(self, message)
+        self.errno, self.filename = errno, filename
 
     def __str__(self) -> str:
         return str(self.args[0]) if self.args else ""
 
+
+
+class ServiceError(ToolboxError):
+    """A service the run depends on failed (a Dask scheduler that does not answer or is lost
+    mid-run): not the user's input, not a bug in the toolbox. The CLI prints one line and exits
+    with code 3 (:attr:`exit_code`); nothing was written."""
+
+    exit_code = 3

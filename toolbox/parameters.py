@@ -167,6 +167,9 @@ class Integer(Number):
         number = self._convert(value)
         if number != int(number):
             raise self.error(f"must be an integer, got {_show(value)}")
+        if not abs(number) < 2.0 ** 63:  # what numpy and C code can hold (as a float)
+            raise self.error(f"is too large for an integer (at most {2 ** 63 - 1:.3g} in size), "
+                             f"got {_show(value)}")
         return int(super().validate(value, ctx))
 
 

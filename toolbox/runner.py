@@ -17,16 +17,28 @@ from __future__ import annotations
 import errno
 import json
 import logging
-import os
 import time
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
 from toolbox.algorithm import Algorithm
-from toolbox.errors import InputDataError, OutputExistsError, ParameterError, ToolboxError
+from toolbox.errors import (
+    InputDataError,
+    OutputExistsError,
+    OutputWriteError,
+    ParameterError,
+    ToolboxError,
+)
 from toolbox.feedback import Feedback
 from toolbox.io.staging import OutputStaging, protected_paths, write_error
+from toolbox.io.write_failures import (
+    GDAL_WRITE_ERRNOS,
+    disk_errno,
+    first_line,
+    is_io_error,
+    typed_errno,
+)
 from toolbox.parameters import (
     Boolean,
     Number,
@@ -40,17 +52,9 @@ from toolbox.registry import get
 
 OVERWRITE = "OVERWRITE"
 REPORT = "--run-report"
-WRITE_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EROFS, errno.ENAMETOOLONG}
-# GDAL error classes (CPLErrorNum: CPLE_FileIO, CPLE_NoWriteAccess) of a failed write, raised
-# by rasterio as CPLE_FileIOError / CPLE_NoWriteAccessError or only logged with err_no
-GDAL_WRITE_ERRNOS = {3, 5}
-GDAL_WRITE_ERROR_TYPES = ("CPLE_FileIOError", "CPLE_NoWriteAccessError")
-# last resort only, for drivers that report a failed write with a generic error class (libtiff's
-# "Write error" comes as CPLE_AppDefined): the decision is by type and by the disk first
-WRITE_ERROR_WORDS = ("no space left", "disk is full", "file too large", "write error",
-                     "write failed", "read-only file system", "disk i/o error", "quota exceeded",
-                     "error while writing", "could not add feature", "failed to write",
-                     "cannot write", "error writing")
+# errno values that can only come from a write (EACCES or EIO may be an input's)
+UNAMBIGUOUS_WRITE_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EROFS,
+                            errno.ENAMETOOLONG}
 
 
 def _pop_overwrite(parameters: dict[str, Any], overwrite: bool) -> tuple[dict[str, Any], bool]:
@@ -351,6 +355,8 @@ def run(algorithm_id: str, parameters: dict[str, Any] | None = None,
         with _gdal_errors() as gdal_errors:
             try:
                 result = alg_cls().process(staged, feedback) or {}
+            except OutputWriteError as exc:  # a writer's: name the output, its final path
+                raise _named(exc, staging) from None
             except (ToolboxError, KeyboardInterrupt):
                 raise
             except Exception as exc:
@@ -380,14 +386,22 @@ def run(algorithm_id: str, parameters: dict[str, Any] | None = None,
     return outputs
 
 
-# -- write-error detection -------------------------------------------------------------------------
-def _which_output(text: str, staging: OutputStaging) -> tuple[str, Path] | None:
-    """The output a failure message is about: named in it, the only one, or the one being
+# -- write-error detection (by type and by the disk, never by message text) ---------------------
+def _output_of(filename: str | None, staging: OutputStaging) -> tuple[str, Path] | None:
+    """``(parameter name, final path)`` of the staged output ``filename`` lies in."""
+    if not filename:
+        return None
+    path = Path(filename).absolute()
+    for name, final, staged in staging.items():
+        if path == staged or staged.parent in path.parents:
+            return name, final
+    return None
+
+
+def _which_output(staging: OutputStaging) -> tuple[str, Path] | None:
+    """The output a failure is about when nothing names it: the only one, or the one being
     written (the staged file modified last)."""
     items = staging.items()
-    for name, final, staged in items:
-        if str(staged.parent) in text or str(final) in text:
-            return name, final
     if len(items) == 1:
         return items[0][0], items[0][1]
     started = [(staged.stat().st_mtime, name, final) for name, final, staged in items
@@ -398,46 +412,52 @@ def _which_output(text: str, staging: OutputStaging) -> tuple[str, Path] | None:
     return (items[0][0], items[0][1]) if items else None
 
 
-def _full_output(staging: OutputStaging) -> tuple[str, Any] | None:
-    """``(parameter name, final path)`` of a staged output whose filesystem has (almost) no free
-    space left, or None."""
+def _disk_state(staging: OutputStaging) -> tuple[int, str, Path] | None:
+    """``(errno, parameter name, final path)`` of a staged output whose disk shows why writes
+    fail (full, read-only, at the file-size limit), or None."""
     for name, final, staged in staging.items():
-        try:
-            st = os.statvfs(staged.parent)
-        except OSError:
-            continue
-        if st.f_bavail * st.f_frsize < 64 * 1024:
-            return name, final
+        code = disk_errno(staged if staged.exists() else staged.parent)
+        if code is not None:
+            return code, name, final
     return None
 
 
+def _named(exc: OutputWriteError, staging: OutputStaging) -> OutputWriteError:
+    """A writer's :class:`OutputWriteError` (about a staged file) naming the output parameter
+    and its final path."""
+    where = _output_of(exc.filename, staging)
+    if where is None:
+        return exc  # not about a staged output (already named by whoever raised it)
+    return write_error(OSError(exc.errno or errno.EIO, exc.strerror or str(exc)), *where)
+
+
 def _as_write_error(exc: Exception, staging: OutputStaging) -> ToolboxError | None:
-    """A one-line :class:`OutputWriteError` when ``exc`` is a failed write of an output (also
-    when a driver hides ENOSPC behind another message: the free space is checked)."""
+    """A one-line :class:`OutputWriteError` when ``exc`` is a failed write of an output, decided
+    by type: an ``OSError`` with a write-only errno (ENOSPC, EDQUOT, EFBIG, EROFS, ENAMETOOLONG)
+    or about a staged file; GDAL's CPLE_FileIO / CPLE_NoWriteAccess; or any I/O error of a
+    library while an output's disk is full, read-only or at the file-size limit."""
     chain = [e for e in (exc, exc.__cause__, exc.__context__) if e is not None]
-    text = " ".join(str(a) for a in (exc, getattr(exc, "filename", None),
-                                     exc.__cause__, exc.__context__) if a)
-    full_output = _full_output(staging)
-    full = full_output is not None
-    os_error = next((e for e in chain if isinstance(e, OSError) and e.errno in WRITE_ERRNOS),
-                    None)
-    typed = os_error is not None or any(
-        type(e).__name__ in GDAL_WRITE_ERROR_TYPES and type(e).__module__.startswith("rasterio")
-        for e in chain)
-    in_staging = any(str(staged.parent) in text for _, _, staged in staging.items())
-    worded = any(word in text.lower() for word in WRITE_ERROR_WORDS)  # last resort
-    if not (full or typed or worded or (isinstance(exc, OSError) and in_staging)):
+    os_error = next((e for e in chain if isinstance(e, OSError) and (
+        e.errno in UNAMBIGUOUS_WRITE_ERRNOS or _output_of(e.filename, staging)
+        or _output_of(e.filename2, staging))), None)
+    gdal_code = next((typed_errno(e) for e in chain
+                      if not isinstance(e, OSError) and typed_errno(e)), None)
+    state = _disk_state(staging) if any(is_io_error(e) for e in chain) else None
+    if state is not None:  # the disk tells why, whatever the library said
+        code, name, final = state
+        if os_error is not None and os_error.errno not in (None, errno.EIO):
+            code = os_error.errno
+    elif os_error is not None:
+        code = os_error.errno or errno.EIO
+        name, final = (_output_of(os_error.filename, staging)
+                       or _output_of(os_error.filename2, staging)
+                       or _which_output(staging) or ("OUTPUT", ""))
+    elif gdal_code is not None:
+        code = gdal_code
+        name, final = _which_output(staging) or ("OUTPUT", "")
+    else:
         return None
-    name, final = full_output or _which_output(text, staging) or ("OUTPUT", "")
-    if full or (os_error is not None and os_error.errno in (errno.ENOSPC, errno.EDQUOT)) \
-            or "no space left" in text.lower():
-        return write_error(OSError(errno.ENOSPC, "No space left on device"), name, final)
-    if os_error is not None:
-        return write_error(os_error, name, final)
-    if isinstance(exc, OSError) and exc.errno is not None:
-        return write_error(exc, name, final)
-    return write_error(OSError(errno.EIO, str(exc).splitlines()[0] if str(exc) else "I/O error"),
-                       name, final)
+    return write_error(OSError(code, first_line(os_error or exc)), name, final)
 
 
 READ_LIBRARIES = ("rasterio", "pyogrio", "fiona", "sqlite3", "PIL", "cv2")
@@ -508,15 +528,21 @@ def _gdal_errors():
 
 def _check_gdal_errors(messages: list[str], staging: OutputStaging) -> None:
     """A write failure GDAL only logged: by its error class (CPLE_FileIO, CPLE_NoWriteAccess)
-    when it names a staged output or the output disk is full; by its words as a last resort."""
+    when it names a staged output, or any error while an output's disk is full, read-only or at
+    the file-size limit (libtiff's "Write error" has no class of its own)."""
     for text in messages:
         err_no = getattr(text, "err_no", None)
-        about_output = any(str(staged.parent) in text for _, _, staged in staging.items())
-        if (err_no in GDAL_WRITE_ERRNOS and (about_output or _full_output(staging))) or any(
-                word in text.lower() for word in WRITE_ERROR_WORDS):
-            converted = _as_write_error(OSError(errno.EIO, text), staging)
-            if converted is not None:
-                raise converted
+        about = next((item for item in staging.items() if str(item[2].parent) in text), None)
+        state = _disk_state(staging)
+        if state is not None:
+            code, name, final = state
+        elif err_no in GDAL_WRITE_ERRNOS and about is not None:
+            code, name, final = GDAL_WRITE_ERRNOS[err_no], about[0], about[1]
+        else:
+            continue
+        detail = " ".join(str(text).replace("GDAL signalled an error: ", "").split())
+        raise write_error(OSError(code, detail.replace(str(about[2].parent), str(final.parent))
+                                  if about else detail), name, final)
 
 
 def _check_raster_outputs(alg_cls: type[Algorithm], values: dict[str, Any],
@@ -536,10 +562,9 @@ def _check_raster_outputs(alg_cls: type[Algorithm], values: dict[str, Any],
             raise InputDataError(f"{dest.name} would have no valid cell (every cell is nodata): "
                                  "check that EXTENT, TEMPLATE, MASK and CELL_SIZE cover the data")
         if problem:
-            if _full_output(staging) is not None:  # a truncated file on a full disk: say so
-                raise write_error(OSError(errno.ENOSPC, "No space left on device"), dest.name,
-                                  values[dest.name])
-            raise write_error(OSError(errno.EIO, problem), dest.name, values[dest.name])
+            state = _disk_state(staging)  # a truncated file on a full disk: say so
+            raise write_error(OSError(state[0] if state else errno.EIO, problem), dest.name,
+                              values[dest.name])
     for name, final, staged in staging.folder_files():  # the rasters an output folder holds
         if staged.suffix.lower() not in (".tif", ".tiff"):
             continue
@@ -547,9 +572,8 @@ def _check_raster_outputs(alg_cls: type[Algorithm], values: dict[str, Any],
 
         problem = verify_written_raster(staged)
         if problem and problem != "empty":
-            if _full_output(staging) is not None:
-                raise write_error(OSError(errno.ENOSPC, "No space left on device"), name, final)
-            raise write_error(OSError(errno.EIO, problem), name, final)
+            state = _disk_state(staging)
+            raise write_error(OSError(state[0] if state else errno.EIO, problem), name, final)
 
 
 def _final_outputs(alg_cls: type[Algorithm], values: dict[str, Any], result: dict[str, Any],

@@ -29,7 +29,7 @@ from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
 from typing import Any, TypeVar
 
-from toolbox.errors import ParameterError
+from toolbox.errors import ParameterError, ServiceError
 
 T = TypeVar("T")
 R = TypeVar("R")
@@ -44,6 +44,7 @@ class Executor:
     kind: str
     workers: int
     address: str | None = None
+    source: str = "SCHEDULER"  # what named the address: the parameter or DASK_SCHEDULER_ADDRESS
 
     def describe(self) -> str:
         if self.kind == "dask":
@@ -106,10 +107,13 @@ def resolve_executor(scheduler: str | None = None, workers: int | None = None,
     address = scheduler_address(scheduler)
     if address is None:
         return Executor("local", workers or default_workers())
+    given = scheduler is not None and str(scheduler).strip()
+    source = name if given else (SCHEDULER_ENV if os.environ.get(SCHEDULER_ENV, "").strip()
+                                 else "Dask's scheduler-address setting")
     if "://" not in address and ":" not in address:
-        raise ParameterError(name, f"must be a Dask scheduler address such as "
+        raise ParameterError(source, f"must be a Dask scheduler address such as "
                              f"tcp://host:8786, got {address!r}")
-    return Executor("dask", workers or 0, address)
+    return Executor("dask", workers or 0, address, source)
 
 
 def map_tiles(func: Callable[[T], R], tasks: Iterable[T], *, executor: Executor | None = None,
@@ -218,14 +222,73 @@ def _map_dask(func, tasks, executor, prefetch, feedback, total, start, end) -> I
     from toolbox.extras import require
 
     Client = require("distributed", "dask", "SCHEDULER (a Dask cluster)").Client
-    try:
-        client = Client(executor.address, set_as_default=False)  # Dask's connect timeout
-    except (OSError, TimeoutError) as exc:
-        raise ParameterError("SCHEDULER", f"cannot connect to the Dask scheduler "
-                             f"{executor.address!r}: {exc}") from None
-    try:
-        cores = sum(client.nthreads().values()) or 1
-        yield from _in_order(lambda task: client.submit(func, task, pure=False), tasks,
-                             prefetch or max(4, 2 * cores), feedback, total, start, end)
-    finally:
-        client.close()
+    where = f"the Dask scheduler {executor.address!r} ({executor.source})"
+    with _quiet_dask_client():
+        try:
+            client = Client(executor.address, set_as_default=False)  # Dask's connect timeout
+        except (OSError, TimeoutError) as exc:
+            raise ServiceError(f"cannot connect to {where}: {_first_line(exc)}; nothing was "
+                               "written (start the cluster, or use SCHEDULER=local)") from None
+        except (ValueError, TypeError) as exc:  # Dask cannot parse it (':', 'tcp://:x'...)
+            raise ParameterError(executor.source, f"must be a Dask scheduler address such as "
+                                 f"tcp://host:8786, got {executor.address!r} "
+                                 f"({_first_line(exc)})") from None
+        try:
+            cores = sum(client.nthreads().values()) or 1
+            yield from _in_order(lambda task: client.submit(func, task, pure=False), tasks,
+                                 prefetch or max(4, 2 * cores), feedback, total, start, end)
+        except Exception as exc:
+            if not _connection_lost(client, exc):
+                raise  # the task's own error, re-raised by Dask with its type
+            raise ServiceError(f"lost the connection to {where} while tiles were computed "
+                               f"({type(exc).__name__}); nothing was written: rerun when the "
+                               "cluster is back, or with SCHEDULER=local") from None
+        finally:
+            client.close()
+
+
+def _first_line(exc: BaseException) -> str:
+    text = str(exc).strip()
+    return text.splitlines()[0] if text else type(exc).__name__
+
+
+def _connection_lost(client: Any, exc: BaseException) -> bool:
+    """The client lost its scheduler (decided by the exception's type and the client's state,
+    not its message): a future cancelled under us, a closed comm, a timeout, or a client no
+    longer running."""
+    from concurrent.futures import CancelledError
+
+    from distributed.comm.core import CommClosedError
+
+    if isinstance(exc, (CancelledError, CommClosedError)):
+        return True
+    if getattr(client, "status", "running") != "running":
+        return True
+    return isinstance(exc, (OSError, TimeoutError)) and getattr(
+        getattr(client, "scheduler_comm", None), "comm", None) is None
+
+
+def _quiet_dask_client():
+    """Silence the client-side loggers of ``distributed`` while the client lives: a lost
+    scheduler is reported once, as the toolbox's one-line error, not as their tracebacks."""
+    import logging
+    from contextlib import contextmanager
+
+    names = ("distributed", "distributed.client", "distributed.core", "distributed.comm",
+             "distributed.batched", "distributed.utils", "distributed.worker",
+             "distributed.worker.state_machine", "distributed.scheduler", "tornado",
+             "asyncio")
+
+    @contextmanager
+    def quiet():
+        loggers = [logging.getLogger(n) for n in names]
+        levels = [lg.level for lg in loggers]
+        for lg in loggers:
+            lg.setLevel(logging.CRITICAL + 1)
+        try:
+            yield
+        finally:
+            for lg, level in zip(loggers, levels, strict=True):
+                lg.setLevel(level)
+
+    return quiet()

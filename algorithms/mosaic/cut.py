@@ -136,6 +136,16 @@ def _sheets(params):
         sheets = sheet_grid(bounds, width, height, (params["ORIGIN_X"], params["ORIGIN_Y"]))
     if not sheets:
         raise InputDataError("no sheet meets the input's extent")
+    if kind == "raster":  # each sheet is written over its whole bounds, on the input's cells
+        import rasterio
+
+        with rasterio.open(source) as src:
+            cell_w, cell_h = abs(src.transform.a), abs(src.transform.e)
+        name = "SHEETS" if params["SHEETS"] is not None else "SHEET_WIDTH"
+        largest = max(((b[2] - b[0]) / cell_w) * ((b[3] - b[1]) / cell_h)
+                      for b in (g.bounds for _, g in sheets if g is not None))
+        check_size("cells", largest * len(sheets), name, f"({len(sheets):,} sheets over the "
+                   f"input's {cell_w:g} x {cell_h:g} cells)", "use smaller or fewer sheets")
     return source, kind, crs, sheets
 
 

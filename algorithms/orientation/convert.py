@@ -78,7 +78,11 @@ class ConvertOrientations(Algorithm):
         if not inputs:
             raise self.fail("INPUT", "needs at least one file or folder")
         for item in inputs:
-            if not Path(item).exists():
+            try:
+                exists = Path(item).exists()
+            except OSError as exc:  # a name too long for the system...
+                raise self.fail("INPUT", f"cannot use {item[:60]!r}: {exc.strerror}") from None
+            if not exists:
                 raise self.fail("INPUT", f"{item!r} does not exist")
         out = Path(params["OUTPUT"]).resolve()
         if any(Path(i).resolve() == out for i in inputs):

@@ -128,6 +128,12 @@ class FiducialMarks(Algorithm):
                 raise InputDataError(f"PROJECT: the scan {photo.image} of photo {photo.id!r} "
                                      "does not exist")
             reader = ScanReader(photo.image, f"photo {photo.id!r}")
+            side = max(reader.width, reader.height)
+            if template_file is None and not params["MARK_SIZE"] / pixel < side:  # NaN too
+                raise self.fail("MARK_SIZE", f"{params['MARK_SIZE']:g} mm is "
+                                f"{params['MARK_SIZE'] / pixel:.3g} pixels of {pixel:g} mm, "
+                                f"more than the whole scan of photo {photo.id!r} ({side} px): "
+                                "give the mark's size in mm")
             if template_file is not None:
                 grey, dtype = template_file
                 if marks.bit_depth(dtype) > marks.bit_depth(reader.dtype):

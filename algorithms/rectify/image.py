@@ -111,6 +111,7 @@ class RectifyImage(Algorithm):
         from toolbox.io.crs import crs_label, same_crs
         from toolbox.raster.engine import grid_from_parameters
         from toolbox.raster.homography import HomographyMap
+        from toolbox.raster.nan_cells import NanCells
         from toolbox.raster.warp import warp_layout, warp_raster
         from toolbox.raster.writer import RasterWriter
         from toolbox.transforms.plane import apply_homography
@@ -118,6 +119,7 @@ class RectifyImage(Algorithm):
             default_cell_size,
             footprint,
             load_transform,
+            photo_cells,
             pixel_to_ground_matrix,
         )
 
@@ -165,16 +167,22 @@ class RectifyImage(Algorithm):
         writer = RasterWriter(params["OUTPUT"], grid, layout.count, layout.dtype, layout.nodata,
                               alpha=layout.alpha, cog=params["COG"],
                               overviews=params["OVERVIEWS"], tags=tags)
+        nan_cells = NanCells(writer, layout.alpha, lambda window: photo_cells(
+            matrix, grid.transform, window, info.width, info.height))  # NaN pixels: no data
         with feedback.timed("warp"), writer:
-            stats = warp_raster(info, grid, coordinate_map, writer, layout=layout,
+            stats = warp_raster(info, grid, coordinate_map, nan_cells, layout=layout,
                                 resampling=params["RESAMPLING"], tile_size=2048,
                                 feedback=feedback, end=95 if params["OVERVIEWS"] else 100)
+        if nan_cells.count:
+            feedback.push_warning(f"INPUT: {nan_cells.count} output cells fall on NaN pixels of "
+                                  f"{info} and are no data ({'alpha 0' if layout.alpha else 'nodata'})")
         return {"OUTPUT": params["OUTPUT"], "STATISTICS": {
             "model": model.model, "crs": crs_label(model.crs), "cell_size": cell,
             "width": grid.width, "height": grid.height, "bounds": list(grid.bounds),
             "footprint": None if corners is None else corners.tolist(),
             "resampling": params["RESAMPLING"], "outside": params["OUTSIDE"],
-            "pixel_to_ground": matrix.tolist(), **stats.as_dict()}}
+            "pixel_to_ground": matrix.tolist(), "nan_cells": nan_cells.count,
+            **stats.as_dict()}}
 
     @staticmethod
     def _gcps(params, model: RectificationModel, p2i, tags, feedback: Feedback):

@@ -203,3 +203,39 @@ def test_native_eo_csv_short_row_names_the_line():
     table = read_native_csv("photo,x0,y0,z0,omega,phi,kappa,note\np1,1,2,3,0,0,0\n", "eo.csv",
                             "rad")
     assert list(table.orientations) == ["p1"]
+
+
+def test_crashes_the_sweep_found_are_one_line_errors(tmp_path, plane_dem):
+    """Found by the hypothesis sweep of the error contract (slow tier): an integer beyond 64
+    bits (OverflowError in numpy), a raster whose header opens but whose blocks are cut
+    (rasterio's 'Read failed' during validation), an input name too long for the system
+    (OSError from Path.exists)."""
+    import toolbox
+    from toolbox.errors import InputDataError, ParameterError
+    from toolbox.io.raster import has_valid_pixel
+    from toolbox.parameters import Integer, ValidationContext
+
+    with pytest.raises(ParameterError, match=r"INDEX_EVERY is too large for an integer .*'1e30'"):
+        Integer("INDEX_EVERY").validate("1e30", ValidationContext())
+    assert Integer("N").validate(str(2 ** 62), ValidationContext()) == 2 ** 62
+
+    path, _, _ = plane_dem
+    import rasterio
+
+    with rasterio.open(path) as src:  # the DEM's grid, tiled and uncompressed, cut in half:
+        profile, data = src.profile, src.read()  # nodata but the last cell, which is lost
+    data[:] = profile["nodata"]
+    data[0, -1, -1] = 300.0
+    profile.update(tiled=True, blockxsize=16, blockysize=16, compress=None)
+    whole = tmp_path / "whole.tif"
+    with rasterio.open(whole, "w", **profile) as dst:
+        dst.write(data)
+    cut = tmp_path / "cut.tif"
+    cut.write_bytes(whole.read_bytes()[: whole.stat().st_size // 2])
+    with pytest.raises(InputDataError, match="cut.tif': the file is truncated or corrupt"):
+        has_valid_pixel(cut)
+
+    with pytest.raises(ParameterError, match="INPUT cannot use 'aaa.*File name too long"):
+        toolbox.run("orientation:convert", {"INPUT": "a" * 5000, "FORMAT_OUT": "orthority",
+                                            "OUTPUT": tmp_path / "c.geojson"})
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["cut.tif", "plane.tif", "whole.tif"]

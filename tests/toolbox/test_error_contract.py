@@ -763,3 +763,250 @@ def test_commit_main_file_first_and_stale_sidecars_replaced(tmp_path):
     staging.rollback()
     assert other.read_text() == "theirs" and not (tmp_path / "b.tif.aux.xml").exists()
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.tif", "a.tif.aux.xml", "b.tif"]
+
+
+# -- the property-based sweep (hypothesis): generated bad values for every parameter -------------
+# Every registered algorithm, every parameter, values drawn by parameter type: numbers out of
+# range, NaN, infinite, huge, subnormal or not numbers; junk text; enums outside their list; CRS
+# junk; inverted, empty and non-finite extents; input paths that do not exist, are folders, are
+# empty, are garbage or truncated copies of the real input. Each example runs in-process through
+# the CLI (click's runner) and must keep the contract: exit 0 or 2, one line, no traceback, every
+# input byte-identical, nothing staged or half-written left. Examples per algorithm: a few in the
+# default tier, many more in the slow tier (TOOLBOX_SWEEP_EXAMPLES overrides both).
+from hypothesis import HealthCheck, given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+
+from toolbox.parameters import (  # noqa: E402
+    Boolean,
+    Crs,
+    Enum,
+    ExtentParameter,
+    Folder,
+    OutputFolder,
+    String,
+)
+
+
+def _sweep_settings(examples: int) -> settings:
+    return settings(max_examples=int(os.environ.get("TOOLBOX_SWEEP_EXAMPLES", examples)),
+                    deadline=None, database=None, derandomize=True, print_blob=True,
+                    suppress_health_check=list(HealthCheck))
+
+
+JUNK = st.text(st.characters(blacklist_categories=("Cs",)), max_size=30)
+NUMBER_WORDS = ["nan", "inf", "-inf", "1e308", "-1e308", "1e-320", "-0", "0", "-1", "1e30",
+                "-1e30", "1e-30", "abc", "", " ", "1,5", "0x10", "1e999", "++1", "1_000"]
+CRS_JUNK = ["EPSG:0", "EPSG:99999999", "abc", "+proj=junk", "EPSG:4326", "EPSG:32632",
+            "EPSG:3857", "EPSG:4978", "ESRI:1", "urn:ogc:def:crs:EPSG::4979", "EPSG:", "",
+            "+proj=longlat +datum=WGS84", 'GEOGCS["x"', "EPSG:3003 EPSG:3004"]
+EXTENT_JUNK = ["1,2,3", "4,3,2,1", "nan,0,1,1", "0,0,0,0", "1e308,1e308,-1e308,-1e308",
+               "0,0,1e15,1e15", "abc", "", "0,0,1,inf", "1688000,4799000,1688001,4799000",
+               "0,0,1,1 [EPSG:4326]", "0,0,1,1 [junk]", "0 0 1 1 1", "1,1,0,0 [EPSG:3003]"]
+PATH_DAMAGE = ["missing", "folder", "empty", "garbage", "truncated", "other_input"]
+
+
+def _number_values(p: Number):
+    edges = []
+    for bound in (p.min_value, p.max_value):
+        if bound is not None:
+            edges += [repr(bound), repr(bound - 1), repr(bound + 1), repr(bound - 1e-9),
+                      repr(bound + 1e-9)]
+    return st.one_of(st.sampled_from(NUMBER_WORDS + edges),
+                     st.floats(allow_nan=True, allow_infinity=True).map(repr),
+                     st.integers(-2 ** 70, 2 ** 70).map(str), JUNK)
+
+
+def _bad_value(p):
+    """A strategy of bad values for parameter ``p``: text as on the command line, or a
+    ``("path", damage, fraction)`` tuple that :func:`_damaged_path` turns into a file."""
+    if isinstance(p, Number):
+        return _number_values(p)
+    if isinstance(p, Boolean):
+        return st.one_of(st.sampled_from(["maybe", "2", "", "-1", "yes please", "nan"]), JUNK)
+    if isinstance(p, Enum):
+        return JUNK.filter(lambda t: t.strip().lower() not in p.options)
+    if isinstance(p, Crs):
+        return st.one_of(st.sampled_from(CRS_JUNK), JUNK)
+    if isinstance(p, ExtentParameter):
+        floats = st.floats(allow_nan=True, allow_infinity=True)
+        return st.one_of(st.sampled_from(EXTENT_JUNK), JUNK,
+                         st.tuples(floats, floats, floats, floats).map(
+                             lambda t: ",".join(repr(v) for v in t)))
+    if isinstance(p, (*INPUT_TYPES, Folder)):
+        return st.tuples(st.just("path"), st.sampled_from(PATH_DAMAGE), st.floats(0, 1))
+    if isinstance(p, String):
+        return st.one_of(st.sampled_from(["", " ", "\x00", ";;;", "1e999", "../../x", "a" * 5000,
+                                          "${undefined}", "1,2,3,4,5,6,7,8,9", "nan,nan"]), JUNK)
+    return JUNK  # Field and any type added later: junk names
+
+
+def _damaged_path(case: Case, p, damage: str, fraction: float) -> str:
+    """A path for input ``p``: missing, a folder, empty, garbage, a truncated copy of the real
+    input, or another input of the case (of another type)."""
+    value = case.params.get(p.name)
+    first = value[0] if isinstance(value, list) else value
+    real = Path(str(first).split("|")[0]) if first is not None else None
+    suffix = real.suffix if real is not None else ".dat"
+    bad = case.root / "bad"
+    bad.mkdir(exist_ok=True)
+    target = bad / f"{damage}_{p.name}{suffix}"
+    if target.is_dir():
+        shutil.rmtree(target)
+    elif target.exists():
+        target.unlink()
+    if damage == "folder":
+        target.mkdir()
+    elif damage == "empty":
+        target.write_bytes(b"")
+    elif damage == "garbage":
+        target.write_bytes(random.Random(fraction).randbytes(1 + int(fraction * 4000)))
+    elif damage == "truncated" and real is not None and real.is_file():
+        data = real.read_bytes()
+        target.write_bytes(data[: int(len(data) * fraction)])
+    elif damage == "other_input":
+        others = [Path(str(v).split("|")[0]) for q in case.input_params() if q is not p
+                  for v in _flatten_values(case.params[q.name])]
+        if others:
+            return str(others[int(fraction * (len(others) - 1))])
+    return str(target)
+
+
+def _flatten_values(value) -> list:
+    return list(value) if isinstance(value, list) else [value]
+
+
+def _input_files(case: Case) -> dict[str, str]:
+    """sha256 of every file under the case's inputs (the copied demo data)."""
+    return {str(p): hashlib.sha256(p.read_bytes()).hexdigest()
+            for p in sorted(case.inputs_dir.rglob("*")) if p.is_file()}
+
+
+def _contract_run(case: Case, args: list[str]) -> int:
+    """Run ``toolbox run ID args`` in-process and check the contract; return the exit code.
+    A success may write new files (even beside the inputs, for an output folder): those are
+    removed afterwards, every file that existed must be byte-identical."""
+    before = _input_files(case)
+    result = CliRunner().invoke(main, ["run", case.alg.id, *args])
+    stderr = result.stderr
+    assert "Traceback" not in stderr and "internal error" not in stderr, (args, stderr)
+    assert result.exit_code in (0, 2), (args, result.exit_code, stderr, result.exception)
+    after = _input_files(case)
+    changed = [p for p, digest in before.items() if after.get(p) != digest]
+    assert not changed, f"{args} modified or removed inputs {changed}"
+    parts = [str(p) for p in case.root.rglob("*.part")]
+    assert not parts, f"{args} left staging folders {parts}"
+    created = [Path(p) for p in after if p not in before]
+    if result.exit_code == 2:
+        lines = [line for line in stderr.strip().splitlines() if line.startswith("toolbox:")]
+        errors = [line for line in lines if line.startswith("toolbox: error:")]
+        assert len(errors) == 1 and len(lines) == 1, (args, stderr)
+        assert not created, f"{args} failed but wrote {created}"
+        left = [str(p) for p in case.out.rglob("*")]
+        assert not left, f"{args} failed but left {left}"
+    for path in created:
+        path.unlink()
+    for item in case.out.iterdir():
+        shutil.rmtree(item) if item.is_dir() else item.unlink()
+    return result.exit_code
+
+
+def _swept_parameters(case: Case) -> list:
+    return [p for p in case.alg.parameters if not p.is_output]
+
+
+_SWEEP_STARTED: dict[tuple[str, str], float | None] = {}
+
+
+def _sweep(case: Case, data, tier: str, budget_s: float) -> None:
+    """One example; once an algorithm has used ``budget_s`` of its tier (examples that pass
+    validation run the whole algorithm: report:quality takes seconds) the rest are no-ops,
+    unless one failed (hypothesis replays it to shrink it: it must run again)."""
+    import time
+
+    params = _swept_parameters(case)
+    if not params:
+        pytest.skip("no input parameter")
+    key = (tier, case.alg.id)
+    started = _SWEEP_STARTED.setdefault(key, time.monotonic())
+    p = data.draw(st.sampled_from(params), label="parameter")
+    value = data.draw(_bad_value(p), label=p.name)
+    if started is not None and time.monotonic() - started > budget_s:
+        return  # drawn all the same: hypothesis replays draws
+    if isinstance(value, tuple):
+        value = _damaged_path(case, p, value[1], value[2])
+        if isinstance(p, MultipleLayers) and isinstance(case.params.get(p.name), list):
+            value = [value, *case.params[p.name][1:]]
+    try:
+        _contract_run(case, case.args(**{p.name: value}))
+    except BaseException:
+        _SWEEP_STARTED[key] = None  # no budget any more: the failure's replays must run
+        raise
+
+
+@_cases()
+@_sweep_settings(4)
+@given(data=st.data())
+def test_generated_bad_values(case, data):
+    _sweep(case, data, "default", budget_s=1.5)
+
+
+@pytest.mark.slow
+@_cases()
+@_sweep_settings(60)
+@given(data=st.data())
+def test_generated_bad_values_slow(case, data):
+    _sweep(case, data, "slow", budget_s=20.0)
+
+
+def _victims(case: Case, every: bool) -> list[Path]:
+    """The input files an output is pointed at: each input parameter's files (and, with
+    ``every``, every file the inputs name, a project's photos included)."""
+    from toolbox.runner import input_paths
+
+    files = [Path(str(v).split("|")[0]) for p in case.input_params()
+             for v in _flatten_values(case.params[p.name])]
+    if every:
+        files += [p for p in input_paths(case.alg, validate(case.alg, case.params))
+                  if p.is_file()]
+    return list(dict.fromkeys(p.resolve() for p in files))
+
+
+def _outputs_at_inputs(case: Case, every: bool) -> None:
+    dests = case.destinations()
+    victims = _victims(case, every)
+    if not dests or not victims:
+        pytest.skip("no output or no file input")
+    for dest in dests:
+        for victim in victims:
+            targets = [victim]
+            if isinstance(dest, OutputFolder):  # the folder holding the input, and the input
+                targets.insert(0, victim.parent)
+            for target in targets:
+                for extra in ([], ["--overwrite"]):
+                    code = _contract_run(case, case.args(**{dest.name: str(target)}) + extra)
+                    assert code == 2 or target.is_dir(), (dest.name, target, extra)
+
+
+@_cases()
+def test_every_output_at_every_input(case):
+    """Every destination (file or folder) pointed at every input parameter's file, with and
+    without --overwrite: refused, the input intact (an output folder may be the inputs' folder
+    when none of its files is an input)."""
+    _outputs_at_inputs(case, every=False)
+
+
+@pytest.mark.slow
+@_cases()
+def test_every_output_at_every_file_the_inputs_name(case):
+    _outputs_at_inputs(case, every=True)
+
+
+def test_a_mark_larger_than_the_scan_is_refused(demo, tmp_path):
+    """Found by the sweep: MARK_SIZE 1.76e43 mm made orientation:fiducials allocate a template
+    of that many pixels (ValueError: Maximum allowed size exceeded)."""
+    code, _, err = cli("run", "orientation:fiducials", "--PROJECT",
+                       demo[1]["fiducial_scans_project"], "--MARK_SIZE", "1.76e43", "--OUTPUT",
+                       tmp_path / "f.json")
+    line = one_error(err)
+    assert code == 2 and line.startswith("toolbox: error: MARK_SIZE 1.76e+43 mm is ")
+    assert "more than the whole scan" in line and list(tmp_path.iterdir()) == []

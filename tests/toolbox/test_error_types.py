@@ -55,3 +55,56 @@ def test_collinear_and_crossing_errors_are_types():
     xy = np.array([[0, 0], [10, 0], [10, 10], [0, 10]], float)
     with pytest.raises(CrossingSegmentsError):
         triangulate(xy, np.array([[0, 2], [1, 3]]))
+
+
+def test_writers_turn_library_io_errors_into_write_errors_by_class(tmp_path):
+    """Inside io.write_failures.writing(), an I/O error class of a library (whatever its words)
+    is an OutputWriteError with an errno; a programming error passes unchanged."""
+    import errno
+
+    from pyogrio.errors import DataSourceError
+    from rasterio._err import CPLE_AppDefinedError, CPLE_NoWriteAccessError
+
+    from toolbox.errors import OutputWriteError
+    from toolbox.io.write_failures import writing
+
+    target = tmp_path / "o.gpkg"
+    for exc, code in ((DataSourceError("sqlite3_exec(COMMIT) failed: whatever"), errno.EIO),
+                      (CPLE_AppDefinedError(1, 1, "TIFFAppendToStrip: oops"), errno.EIO),
+                      (CPLE_NoWriteAccessError(5, 5, "reworded"), errno.EACCES),
+                      (OSError(errno.EFBIG, "File too large"), errno.EFBIG)):
+        with pytest.raises(OutputWriteError) as info, writing(target):
+            raise exc
+        assert info.value.errno == code and info.value.filename == str(target)
+    with pytest.raises(TypeError), writing(target):
+        raise TypeError("a bug stays a bug")
+
+
+def test_a_writers_error_names_the_output_and_its_final_path(tmp_path):
+    """A writer raises about the staged file; the user reads the parameter and the final path."""
+    import errno
+
+    from toolbox.algorithm import Algorithm
+    from toolbox.errors import OutputWriteError
+    from toolbox.parameters import OutputFile
+    from toolbox.registry import register
+
+    @register
+    class _StagedWriter(Algorithm):
+        """Its writer fails on the staged file."""
+
+        id = "testing:staged_writer"
+        display_name = group = short_help = "staged writer"
+        parameters = [OutputFile("REPORT", extensions=[".txt"])]
+
+        def process(self, params, feedback):
+            params["REPORT"].write_text("half")
+            raise OutputWriteError("cannot write the staged file", errno.EFBIG,
+                                   str(params["REPORT"]))
+
+    result = CliRunner().invoke(main, ["run", "testing:staged_writer", "--REPORT",
+                                       str(tmp_path / "r.txt")])
+    lines = result.stderr.strip().splitlines()
+    assert result.exit_code == 2 and len(lines) == 1, result.stderr
+    assert lines[0].startswith(f"toolbox: error: cannot write REPORT '{tmp_path / 'r.txt'}'")
+    assert ".part" not in lines[0] and list(tmp_path.iterdir()) == []

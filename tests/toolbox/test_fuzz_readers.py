@@ -5,13 +5,23 @@ fiducial and image-point CSVs, the project YAML, the topology parameter file, a 
 written by rectify:estimate, a pipeline). Each mutation is the kind of damage files really
 suffer: a truncation, a deleted or doubled line, a line with one field more, a number turned into
 text, a non-UTF-8 byte, a NUL, swapped lines, a YAML/JSON structure broken. Deterministic (seeded)
-and bounded: a fixed number of mutations per reader and a time budget.
+and bounded: a fixed number of mutations per reader and a time budget, and each case under a
+time limit (a hang fails). The slow tier runs a few thousand mutations over all readers.
+
+Readers: the orientation file (native CSV, OPK text), the Z-Map log, fiducial and image-point
+CSVs, the project YAML, the camera YAML, the topology parameter file, the transform JSON, the
+pipeline YAML, the restitution's code, colour and parameter files, ASCII, DXF and two-table
+forms, and the exchange formats (OpenSfM reconstruction.json and cameras.json, Orthority
+interior YAML / exterior GeoJSON / CSV, Metashape XML and OPK text, PAT-B, ODM gcp_list.txt,
+EXIF/XMP of a drone JPEG).
 """
 
 from __future__ import annotations
 
+import os
 import random
 import re
+import signal
 import time
 from pathlib import Path
 
@@ -22,7 +32,10 @@ import toolbox
 from toolbox.errors import ToolboxError
 
 MUTATIONS_PER_READER = 100
-BUDGET_S = 2.0  # per reader
+BUDGET_S = 1.0  # per reader (the slow tier runs thousands)
+SLOW_MUTATIONS_PER_READER = int(os.environ.get("TOOLBOX_FUZZ_MUTATIONS", 400))
+SLOW_BUDGET_S = 20.0
+CASE_LIMIT_S = 10  # one mutated file read longer than this is a hang
 
 
 def _mutate(data: bytes, rng: random.Random) -> bytes:
@@ -87,7 +100,14 @@ steps:
       OUTPUT: out/again.tif
 """)
     siena = made["siena"]
-    return folder, {"orientation_csv": siena / "exterior_orientation.csv",
+    exchange = _exchange_seeds(demo_folder, folder)
+    return folder, {**exchange,
+                    "code_file": made["restitution_codes"],
+                    "colour_file": made["restitution_colours"],
+                    "restitution_parameters": made["restitution_parameters"],
+                    "restitution_ascii": made["restitution_model_12"],
+                    "restitution_dxf": made["restitution_dxf"],
+                    "orientation_csv": siena / "exterior_orientation.csv",
                     "zmap_log": siena / "zmap_strip1.log",
                     "fiducials_csv": made["siena_fiducials"],
                     "image_points_csv": made["siena_control_image_points"],
@@ -96,6 +116,72 @@ steps:
                     "parameter_file": made["linework_parameters"],
                     "transform_json": transform,
                     "pipeline_yaml": pipeline}
+
+
+def _exchange_seeds(demo_folder: Path, folder: Path) -> dict[str, Path]:
+    """Files of every exchange format: the demo's Orthority export of the Siena bundle, the
+    other formats written from it, a synthetic OpenSfM reconstruction and Metashape XML (the
+    exchange tests' generators), a gcp_list, a two-table restitution, an OPK text and a drone
+    JPEG with GNSS/gimbal tags."""
+    import json
+
+    import numpy as np
+    import rasterio
+
+    from tests.toolbox.exchange import exchange_synthetic as syn
+    from tests.toolbox.exchange.test_exchange_formats import metashape_xml
+    from toolbox.exchange import formats
+
+    orientation = demo_folder / "orientation"
+    exterior = orientation / "siena_bundle_ext_param.geojson"
+    oset = formats.read_orientations([exterior])
+    seeds = {"orthority_exterior": exterior,
+             "orthority_interior": orientation / "siena_bundle_int_param.yaml",
+             "orthority_csv": folder / "block.csv", "patb": folder / "block.ori",
+             "opensfm": syn.reconstruction(folder / "reconstruction.json"),
+             "metashape_xml": folder / "cameras.xml", "gcp_list": folder / "gcp_list.txt",
+             "opensfm_cameras": folder / "cameras.json", "metashape_opk": folder / "opk.txt",
+             "two_table_descriptions": folder / "descriptions.txt",
+             "two_table_coordinates": folder / "coordinates.txt", "exif": folder / "drone.jpg"}
+    formats.write_orientations(oset, "csv", seeds["orthority_csv"])
+    formats.write_orientations(oset, "patb", seeds["patb"])
+    metashape_xml(seeds["metashape_xml"])
+    camera = json.loads(seeds["opensfm"].read_text())[0]["cameras"]
+    seeds["opensfm_cameras"].write_text(json.dumps(camera, indent=1))
+    seeds["gcp_list"].write_text("EPSG:4326\n11.30 43.30 300.0 100 200 IMG_1.JPG gcp_a\n"
+                                 "11.30\t43.30\t300.0\t150.5\t220.5\tIMG_2.JPG\tgcp_a\n"
+                                 "11.31 43.31 310.0 500 400 IMG_1.JPG\n")
+    seeds["metashape_opk"].write_text(
+        "# Cameras (2)\n# PhotoID, X, Y, Z, Omega, Phi, Kappa\n"
+        "DSC_1.JPG\t500000.5\t4800000.25\t450.0\t1.5\t-2.0\t90.0\n"
+        "DSC_2.JPG\t500100.5\t4800000.25\t451.0\t0.5\t-1.0\t91.0\n")
+    seeds["two_table_coordinates"].write_text(
+        "colour;E;N;Z\n1;1688000;4799000;10\n1;1688010;4799010;11\n2;1688020;4799000;12\n")
+    seeds["two_table_descriptions"].write_text(
+        "record;code;vertices;colour;source;xmin;ymin;xmax;ymax;first\n"
+        "1;STR02001;2;3;m;1688000;4799000;1688010;4799010;1\n"
+        "2;QUO01001;1;3;m;1688020;4799000;1688020;4799000;3\n")
+    xmp = ('<x:xmpmeta xmlns:x="adobe:ns:meta/"><rdf:RDF xmlns:rdf="http://www.w3.org/1999/02/'
+           '22-rdf-syntax-ns#"><rdf:Description xmlns:drone-dji="http://www.dji.com/drone-dji/1.0/"'
+           ' drone-dji:GpsLatitude="43.30" drone-dji:GpsLongtitude="11.30" '
+           'drone-dji:AbsoluteAltitude="420.5" drone-dji:GimbalRollDegree="0.0" '
+           'drone-dji:GimbalPitchDegree="-90.0" drone-dji:GimbalYawDegree="45.0"/></rdf:RDF>'
+           '</x:xmpmeta>')
+    tags = {"EXIF_Make": "DJI", "EXIF_Model": "FC6310", "EXIF_FocalLengthIn35mmFilm": "24",
+            "EXIF_PixelXDimension": "64", "EXIF_PixelYDimension": "48",
+            "EXIF_GPSLatitude": "(43) (18) (0)", "EXIF_GPSLatitudeRef": "N",
+            "EXIF_GPSLongitude": "(11) (18) (0)", "EXIF_GPSLongitudeRef": "E",
+            "EXIF_GPSAltitude": "(420.5)"}
+    mem = folder / "drone_src.tif"
+    with rasterio.open(mem, "w", driver="GTiff", width=64, height=48, count=3,
+                       dtype="uint8") as dst:
+        dst.write(np.random.default_rng(0).integers(0, 255, (3, 48, 64), dtype="uint8"))
+        dst.update_tags(**tags)
+        dst.update_tags(ns="xml:XMP", **{"xml:XMP": xmp})
+    import rasterio.shutil
+
+    rasterio.shutil.copy(mem, seeds["exif"], driver="JPEG")
+    return seeds
 
 
 def _readers(folder: Path):
@@ -117,7 +203,43 @@ def _readers(folder: Path):
     def pipeline(path):
         validate_pipeline(load_pipeline(path), overwrite=True)
 
+    from toolbox.attribution.restitution import read_ascii, read_dxf, read_two_tables
+    from toolbox.exchange import exif, formats, odm_gcp
+    from toolbox.io.code_file import read_code_file, read_colour_file
+    from toolbox.io.parameter_file import read_parameter_file as read_restitution_parameters
+
+    def exchange(fmt, crs=None):
+        return lambda p: formats.read_orientations([p], fmt=fmt, crs=crs)
+
+    def two_tables(which):
+        def read(p):
+            other = folder / ("coordinates.txt" if which == "descriptions" else "descriptions.txt")
+            pair = (p, other) if which == "descriptions" else (other, p)
+            read_two_tables(*pair, crs="EPSG:3003")
+        return read
+
     return {
+        "code file": ("code_file", read_code_file),
+        "colour file": ("colour_file", read_colour_file),
+        "restitution parameter file": ("restitution_parameters", read_restitution_parameters),
+        "restitution ASCII": ("restitution_ascii", lambda p: read_ascii(p, crs="EPSG:3003")),
+        "restitution DXF": ("restitution_dxf", lambda p: read_dxf(p, crs="EPSG:3003")),
+        "two-table descriptions": ("two_table_descriptions", two_tables("descriptions")),
+        "two-table coordinates": ("two_table_coordinates", two_tables("coordinates")),
+        "OPK text": ("metashape_opk", lambda p: read_exterior_orientations(
+            p, fmt="opk", angle_unit="deg")),
+        "OpenSfM reconstruction.json": ("opensfm", exchange("opensfm")),
+        "OpenSfM cameras.json": ("opensfm_cameras", exchange("opensfm_cameras")),
+        "Orthority interior YAML": ("orthority_interior", exchange("orthority_interior")),
+        "Orthority exterior GeoJSON": ("orthority_exterior", exchange("orthority_exterior")),
+        "Orthority CSV": ("orthority_csv", exchange("csv", "EPSG:3003")),
+        "Metashape XML": ("metashape_xml", exchange(
+            "metashape", "+proj=tmerc +lon_0=11 +x_0=500000 +ellps=WGS84 +units=m")),
+        "Metashape OPK text": ("metashape_opk", exchange("metashape_opk", "EPSG:32632")),
+        "PAT-B": ("patb", exchange("patb", "EPSG:3003")),
+        "ODM gcp_list.txt": ("gcp_list", lambda p: odm_gcp.read_gcp_list(p, "EPSG:32632")),
+        "EXIF/XMP (drone JPEG)": ("exif", lambda p: exif.read_images([p])),
+        "format detection": ("orthority_exterior", lambda p: formats.read_orientations([p])),
         "orientation file (auto)": ("orientation_csv", lambda p: read_exterior_orientations(
             p, where={"run": "strip1", "stage": "final"})),
         "Z-Map log": ("zmap_log", read_zmap_log),
@@ -134,11 +256,25 @@ def _readers(folder: Path):
 
 READERS = ["orientation file (auto)", "Z-Map log", "Z-Map log (auto)", "fiducial CSV",
            "image-point CSV", "project YAML", "parameter file", "transform JSON",
-           "pipeline YAML"]
+           "pipeline YAML", "code file", "colour file", "restitution parameter file",
+           "restitution ASCII", "restitution DXF", "two-table descriptions",
+           "two-table coordinates", "OPK text", "OpenSfM reconstruction.json",
+           "OpenSfM cameras.json", "Orthority interior YAML", "Orthority exterior GeoJSON",
+           "Orthority CSV", "Metashape XML", "Metashape OPK text", "PAT-B", "ODM gcp_list.txt",
+           "EXIF/XMP (drone JPEG)", "format detection"]
 
 
-@pytest.mark.parametrize("reader", READERS)
-def test_only_toolbox_errors_escape(seeds, reader, tmp_path):
+class Hang(Exception):
+    """A read that outlived :data:`CASE_LIMIT_S`."""
+
+
+def _alarm(signum, frame):
+    raise Hang()
+
+
+def _fuzz(seeds, reader: str, tmp_path: Path, mutations: int, budget_s: float) -> int:
+    """Read ``mutations`` mutated copies of the reader's seed (within ``budget_s``); fail on
+    any exception but a one-line ToolboxError, and on a read longer than CASE_LIMIT_S."""
     folder, files = seeds
     key, read = _readers(folder)[reader]
     seed = Path(files[key])
@@ -147,20 +283,43 @@ def test_only_toolbox_errors_escape(seeds, reader, tmp_path):
     rng = random.Random(reader)
     crashes = []
     started = time.monotonic()
-    for n in range(MUTATIONS_PER_READER):
-        if time.monotonic() - started > BUDGET_S:
-            break
-        mutated = _mutate(data, rng)
-        path = seed.parent / f"fuzz_{n}{seed.suffix}"  # beside the seed: relative paths work
-        path.write_bytes(mutated)
-        try:
-            read(path)
-        except ToolboxError as exc:
-            assert "\n" not in str(exc).strip() or reader.startswith("pipeline"), str(exc)
-        except Exception as exc:  # noqa: BLE001 - the point of the test
-            crashes.append(f"mutation {n}: {type(exc).__name__}: {str(exc)[:160]}")
-            (tmp_path / f"crash_{n}{seed.suffix}").write_bytes(mutated)
-        finally:
-            path.unlink()
+    previous = signal.signal(signal.SIGALRM, _alarm)
+    n = 0
+    try:
+        for n in range(mutations):
+            if time.monotonic() - started > budget_s:
+                break
+            mutated = _mutate(data, rng)
+            path = seed.parent / f"fuzz_{n}{seed.suffix}"  # beside the seed: relative paths work
+            path.write_bytes(mutated)
+            signal.setitimer(signal.ITIMER_REAL, CASE_LIMIT_S)
+            try:
+                read(path)
+            except ToolboxError as exc:
+                assert "\n" not in str(exc).strip() or reader.startswith("pipeline"), str(exc)
+            except Hang:
+                crashes.append(f"mutation {n}: hang (over {CASE_LIMIT_S} s)")
+                (tmp_path / f"hang_{n}{seed.suffix}").write_bytes(mutated)
+            except Exception as exc:  # noqa: BLE001 - the point of the test
+                crashes.append(f"mutation {n}: {type(exc).__name__}: {str(exc)[:160]}")
+                (tmp_path / f"crash_{n}{seed.suffix}").write_bytes(mutated)
+            finally:
+                signal.setitimer(signal.ITIMER_REAL, 0)
+                path.unlink()
+    finally:
+        signal.signal(signal.SIGALRM, previous)
     assert not crashes, f"{reader}: {len(crashes)} crashes (inputs kept in {tmp_path}):\n" + \
         "\n".join(crashes[:10])
+    return n + 1
+
+
+@pytest.mark.parametrize("reader", READERS)
+def test_only_toolbox_errors_escape(seeds, reader, tmp_path):
+    _fuzz(seeds, reader, tmp_path, MUTATIONS_PER_READER, BUDGET_S)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("reader", READERS)
+def test_only_toolbox_errors_escape_slow(seeds, reader, tmp_path):
+    """A few thousand mutations over all readers (TOOLBOX_FUZZ_MUTATIONS per reader)."""
+    _fuzz(seeds, reader, tmp_path, SLOW_MUTATIONS_PER_READER, SLOW_BUDGET_S)

@@ -113,6 +113,18 @@ def test_cut_tiny_sheets(dem, tmp_path, monkeypatch):
     assert not (tmp_path / "cut").exists()
 
 
+def test_cut_huge_sheets(dem, tmp_path, monkeypatch):
+    """One sheet 4.3e16 cm wide over a 10 m raster: each sheet is written over its bounds, so
+    its cells are refused (the hypothesis sweep found an OverflowError here)."""
+    from toolbox.mosaic import sheets
+
+    monkeypatch.setattr(sheets, "clip_raster", never)
+    refused("mosaic:cut", {"INPUT": dem, "SCALE": 5000, "SHEET_WIDTH": 4.3e16,
+                           "SHEET_HEIGHT": 10, "OUTPUT": tmp_path / "cut"},
+            "SHEET_WIDTH", "cells", "10 x 10 cells", "use smaller or fewer sheets")
+    assert not (tmp_path / "cut").exists()
+
+
 def test_seamlines_tiny_seam_cell(dem, tmp_path, monkeypatch):
     from toolbox.mosaic import seams
 

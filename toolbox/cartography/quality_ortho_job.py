@@ -16,7 +16,7 @@ from toolbox.cartography.quality_ortho import (
     ortho_window,
     photo_chip,
 )
-from toolbox.errors import InputDataError
+from toolbox.errors import InputDataError, ParameterError
 
 
 @dataclass
@@ -99,6 +99,11 @@ def measure_checks(req: OrthoCheckRequest, feedback=None) -> tuple[list[CheckRes
     cell = abs(transform.a)
     half = max(int(round((req.chip_m or 12 * cell) / cell)), 3)
     reach = max(int(round((req.search_m or 8 * cell) / cell)), 1)
+    for name, cells in (("CHIP", half), ("SEARCH", reach)):  # a chip beyond the ortho: no sense
+        if cells > max(ortho.shape):
+            raise ParameterError(name, f"{cells * cell:g} m is {cells:,} cells of {cell:g} m, "
+                                 f"more than the whole orthophoto ({ortho.shape[1]} x "
+                                 f"{ortho.shape[0]} cells)")
     results = []
     dz = _dem_differences(req.dem, xyz) if req.dem is not None else np.full(len(ids), np.nan)
     for pid, p in zip(ids, xyz, strict=True):

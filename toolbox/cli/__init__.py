@@ -50,12 +50,13 @@ def _one_line(text: str) -> str:
 
 
 def _report_error(exc: BaseException, where: str) -> int:
-    """Print ``exc`` as one line on stderr; return the exit code (2 user error, 3 bug)."""
+    """Print ``exc`` as one line on stderr; return the exit code (2 user error, 3 bug or a lost
+    service: a :class:`~toolbox.errors.ToolboxError` may carry its own ``exit_code``)."""
     if _terminal().ACTIVE[0] is not None:
         _terminal().ACTIVE[0].clear_line()
     if isinstance(exc, ToolboxError):
         click.echo(f"toolbox: error: {_one_line(exc)}", err=True)
-        return EXIT_USER_ERROR
+        return getattr(exc, "exit_code", EXIT_USER_ERROR)
     detail = _one_line(f"{type(exc).__name__}: {exc}")
     click.echo(f"toolbox: internal error in {where}: {detail}; please report it (rerun with "
                "TOOLBOX_DEBUG=1 for the traceback)", err=True)

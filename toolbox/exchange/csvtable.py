@@ -104,6 +104,7 @@ def read_csv(path: str | Path, crs: Any = None, angle_unit: str | None = None) -
     """Exterior orientations of an Orthority-style CSV (see the module docstring)."""
     from toolbox.io.crs import parse_crs
     from toolbox.photogrammetry.readers.text import photo_id
+    from toolbox.photogrammetry.tables import listed
 
     path = Path(path)
     try:
@@ -129,7 +130,7 @@ def read_csv(path: str | Path, crs: Any = None, angle_unit: str | None = None) -
     if "filename" not in fields or position is None or attitude is None:
         raise InputDataError(f"{path}: the header needs filename, x/y/z or latitude/longitude/"
                              "altitude, and omega/phi/kappa or roll/pitch/yaw; found: "
-                             f"{', '.join(rows[0])}")
+                             f"{listed(rows[0])}")
     if angle_unit is not None:
         given = canonical_unit(angle_unit, "ANGLE_UNIT")
         if header_unit is not None and given != header_unit:
@@ -153,6 +154,8 @@ def read_csv(path: str | Path, crs: Any = None, angle_unit: str | None = None) -
         ids.append(row[fields["filename"]])
         cams.append(row[fields["camera"]] if "camera" in fields and
                     len(row) > fields["camera"] else None)
+    if not values:
+        raise InputDataError(f"{path} holds a header but no orientation row")
     values = np.array(values)
     if not np.isfinite(values).all():
         raise InputDataError(f"{path}: a position or angle is NaN or infinite")

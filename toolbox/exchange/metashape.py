@@ -31,7 +31,7 @@ from typing import Any
 
 import numpy as np
 
-from toolbox.errors import InputDataError
+from toolbox.errors import InputDataError, ToolboxError
 from toolbox.exchange import geodesy
 from toolbox.exchange.model import OrientationSet, PhotoOrientation, check_camera, opk_from_opencv
 
@@ -97,15 +97,29 @@ def _chunk_transform(chunk) -> np.ndarray | None:
 
 
 def read_xml(path: str | Path, crs: Any = None) -> OrientationSet:
-    """Sensors and aligned cameras of a Metashape camera XML (first chunk)."""
+    """Sensors and aligned cameras of a Metashape camera XML (first chunk). A value that is
+    missing or not a number where the schema has one is an :class:`InputDataError`."""
+    from pyproj.exceptions import CRSError
+
+    try:
+        return _read_xml(Path(path), crs)
+    except (ValueError, TypeError, AttributeError, IndexError, CRSError,
+            np.linalg.LinAlgError) as exc:
+        if isinstance(exc, ToolboxError):  # ParameterError, InputDataError: already one line
+            raise
+        text = " ".join(str(exc).split())[:160]
+        raise InputDataError(f"{path}: malformed Metashape camera XML ({type(exc).__name__}: "
+                             f"{text})") from None
+
+
+def _read_xml(path: Path, crs: Any) -> OrientationSet:
     from pyproj import CRS
 
     from toolbox.photogrammetry.readers.text import photo_id
 
-    path = Path(path)
     try:
         root = ET.parse(path).getroot()
-    except (OSError, ET.ParseError) as exc:
+    except (OSError, ET.ParseError, LookupError) as exc:  # LookupError: an unknown encoding
         raise InputDataError(f"cannot read {path} as XML: {exc}") from None
     chunk = root.find("chunk") if root.tag == "document" else root
     if chunk is None or chunk.find("sensors") is None:

@@ -64,11 +64,11 @@ def read_gcp_list(path: str | Path, crs: Any = None) -> ControlSet:
     from pyproj import Transformer
 
     from toolbox.exchange import geodesy
+    from toolbox.io.text import read_text
     from toolbox.photogrammetry.readers.text import photo_id
 
     path = Path(path)
-    lines = [(k, ln.strip()) for k, ln in enumerate(path.read_text(encoding="utf-8-sig")
-                                                    .splitlines(), start=1)
+    lines = [(k, ln.strip()) for k, ln in enumerate(read_text(path).splitlines(), start=1)
              if ln.strip() and not ln.lstrip().startswith("#")]
     if len(lines) < 2:
         raise InputDataError(f"{path}: a gcp_list needs a CRS line and at least one point line")

@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from toolbox.errors import ParameterError
+from toolbox.errors import InputDataError, ParameterError
 
 DEFAULT_BLOCK = 512
 
@@ -99,14 +99,18 @@ def has_valid_pixel(path: str | Path) -> bool:
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
-        with rasterio.open(path) as src:
-            for _, window in src.block_windows(1):
-                data = src.read(window=window, masked=True)
-                valid = ~np.ma.getmaskarray(data)
-                if data.dtype.kind == "f":
-                    valid &= np.isfinite(data.filled(0))
-                if valid.any():
-                    return True
+        try:
+            with rasterio.open(path) as src:
+                for _, window in src.block_windows(1):
+                    data = src.read(window=window, masked=True)
+                    valid = ~np.ma.getmaskarray(data)
+                    if data.dtype.kind == "f":
+                        valid &= np.isfinite(data.filled(0))
+                    if valid.any():
+                        return True
+        except rasterio.errors.RasterioError as exc:  # a header that opens, blocks that do not
+            raise InputDataError(f"cannot read '{path}': the file is truncated or corrupt "
+                                 f"({str(exc).splitlines()[0]})") from None
     return False
 
 
@@ -220,7 +224,10 @@ def write_raster(path: str | Path, array: np.ndarray, transform: Any, crs: Any,
     data = array[np.newaxis] if array.ndim == 2 else array
     profile = geotiff_profile(data.shape[2], data.shape[1], data.shape[0], data.dtype, crs,
                               transform, nodata, **creation_options)
-    with rasterio.Env(COMPRESS_OVERVIEW="DEFLATE", PREDICTOR_OVERVIEW=profile["predictor"]):
+    from toolbox.io.write_failures import writing
+
+    with writing(path), rasterio.Env(COMPRESS_OVERVIEW="DEFLATE",
+                                     PREDICTOR_OVERVIEW=profile["predictor"]):
         with rasterio.open(path, "w", **profile) as dst:
             dst.write(data)
             if overviews:

@@ -99,16 +99,17 @@ def write_error(exc: BaseException, name: str, path: Path | str) -> OutputWriteE
     """A one-line error for a failed write of output ``name`` at ``path``."""
     code = getattr(exc, "errno", None)
     text = str(getattr(exc, "strerror", None) or exc).splitlines()[0] if str(exc) else ""
-    if code in (errno.ENOSPC, errno.EDQUOT) or "no space left" in text.lower() \
-            or "disk is full" in text.lower():
-        return OutputWriteError(f"no space left on device writing {name} '{path}'; nothing was "
-                                "written")
-    if code == errno.ENAMETOOLONG:
-        return OutputWriteError(f"{name}: file name too long: '{path}'")
-    if code in (errno.EACCES, errno.EPERM, errno.EROFS):
-        return OutputWriteError(f"{name}: cannot write '{path}' ({text or 'permission denied'}):"
-                                " choose a folder you can write to")
-    return OutputWriteError(f"cannot write {name} '{path}': {text}; nothing was written")
+    if code in (errno.ENOSPC, errno.EDQUOT):
+        what = "no space left on device" if code == errno.ENOSPC else "disk quota exceeded"
+        message = f"{what} writing {name} '{path}'; nothing was written"
+    elif code == errno.ENAMETOOLONG:
+        message = f"{name}: file name too long: '{path}'"
+    elif code in (errno.EACCES, errno.EPERM, errno.EROFS):
+        message = (f"{name}: cannot write '{path}' ({text or 'permission denied'}): choose a "
+                   "folder you can write to")
+    else:
+        message = f"cannot write {name} '{path}': {text}; nothing was written"
+    return OutputWriteError(message, code, str(path))
 
 
 # sidecars GDAL keeps of a raster: stale ones of a replaced file go with it

@@ -658,6 +658,8 @@ def write_layers(path: str | Path, layers: dict[str, Any], crs: Any = None,
     """
     import pyogrio
 
+    from toolbox.io.write_failures import writing
+
     path = Path(path)
     driver = vector_driver(path)
     targets = layer_paths(path, list(layers))
@@ -675,10 +677,11 @@ def write_layers(path: str | Path, layers: dict[str, Any], crs: Any = None,
             kwargs["promote_to_multi"] = True
         target = targets[layer_name]
         if driver == "Parquet":  # GeoParquet 1.x through pyarrow (no Parquet driver in pyogrio)
-            frame.to_parquet(target, index=False)
+            with writing(target):
+                frame.to_parquet(target, index=False)
             continue
         if driver == "GPKG" and not target.exists():
             kwargs["dataset_options"] = GPKG_DATASET_OPTIONS
-        with staged_gpkg_writes():
+        with staged_gpkg_writes(), writing(target):
             pyogrio.write_dataframe(frame, target, layer=layer_name, driver=driver, **kwargs)
     return path

@@ -43,10 +43,17 @@ def read_csv_table(path: Path, name: str = "INPUT") -> tuple[list[str], list[dic
     for number_, record in enumerate(records[1:], start=2):
         if len(record) > len(header) and any(v.strip() for v in record[len(header):]):
             raise InputDataError(f"{name}: {path}, data line {number_ - 1}: {len(record)} fields "
-                                 f"but the header has {len(header)} ({', '.join(header)})")
+                                 f"but the header has {len(header)} ({listed(header)})")
         values = [v.strip() for v in record] + [""] * (len(header) - len(record))
         rows.append(dict(zip(header, values, strict=False)))
     return header, rows
+
+
+def listed(items: Sequence[Any], limit: int = 200) -> str:
+    """``items`` as ``a, b, c`` on one line (a damaged header may hold line breaks and junk),
+    cut after ``limit`` characters."""
+    text = ", ".join(" ".join(str(item).split()) for item in items)
+    return text if len(text) <= limit else text[:limit] + "..."
 
 
 def column(header: Sequence[str], *aliases: str, required: bool = True, name: str = "INPUT",
@@ -58,7 +65,7 @@ def column(header: Sequence[str], *aliases: str, required: bool = True, name: st
             return lower[alias.lower()]
     if required:
         raise InputDataError(f"{name}: {path} has no {aliases[0]!r} column (also accepted: "
-                             f"{', '.join(aliases[1:]) or '-'}); columns are: {', '.join(header)}")
+                             f"{', '.join(aliases[1:]) or '-'}); columns are: {listed(header)}")
     return None
 
 
@@ -145,7 +152,7 @@ def image_measurements(path: Path, layer: str | None, coordinates: str, name: st
         wanted = {"pixel": "col_px and row_px", "image": "x_mm and y_mm"}.get(
             kind, "col_px/row_px or x_mm/y_mm")
         raise InputDataError(f"{name}: {path} needs columns {wanted}; columns are: "
-                             f"{', '.join(header)}")
+                             f"{listed(header)}")
     cu, cv = (column(header, "col_px"), column(header, "row_px")) if kind == "pixel" else \
         (column(header, "x_mm"), column(header, "y_mm"))
     ids = [r[c_id] if c_id else str(k + 1) for k, r in enumerate(rows)]

@@ -29,6 +29,7 @@ from typing import Any
 import numpy as np
 
 from toolbox.io.raster import gdal_cache_max, overview_levels  # noqa: F401 - re-exported
+from toolbox.io.write_failures import writing
 
 DEFAULT_TILE = 512
 DEFAULT_CACHE_MB = 256  # GDAL block cache while writing (bounded, whatever the output size)
@@ -186,20 +187,21 @@ class RasterWriter:
 
         self._stack = ExitStack()
         try:
-            self._stack.enter_context(rasterio.Env(**self._env()))
-            self.dataset = self._stack.enter_context(
-                rasterio.open(self._tiled_path, "w", **self.profile()))
-            if self.tags:
-                self.dataset.update_tags(**self.tags)
-            if self.band_descriptions:
-                for k, text in enumerate(self.band_descriptions, start=1):
-                    self.dataset.set_band_description(k, str(text))
-            if self.alpha and self.count > 1:  # the last band alone is alpha
-                interp = list(self.dataset.colorinterp)
-                want = [ColorInterp.undefined if c == ColorInterp.alpha else c
-                        for c in interp[:-1]] + [ColorInterp.alpha]
-                if want != interp:
-                    self.dataset.colorinterp = want
+            with writing(self.path):  # GDAL's failures: OutputWriteError
+                self._stack.enter_context(rasterio.Env(**self._env()))
+                self.dataset = self._stack.enter_context(
+                    rasterio.open(self._tiled_path, "w", **self.profile()))
+                if self.tags:
+                    self.dataset.update_tags(**self.tags)
+                if self.band_descriptions:
+                    for k, text in enumerate(self.band_descriptions, start=1):
+                        self.dataset.set_band_description(k, str(text))
+                if self.alpha and self.count > 1:  # the last band alone is alpha
+                    interp = list(self.dataset.colorinterp)
+                    want = [ColorInterp.undefined if c == ColorInterp.alpha else c
+                            for c in interp[:-1]] + [ColorInterp.alpha]
+                    if want != interp:
+                        self.dataset.colorinterp = want
         except BaseException:
             self._abort()
             raise
@@ -219,7 +221,8 @@ class RasterWriter:
                 data = np.where(missing, data.dtype.type(self.nodata), data)
         if data.dtype != self.dtype:
             data = data.astype(self.dtype)
-        self.dataset.write(data, window=window)
+        with writing(self.path):
+            self.dataset.write(data, window=window)
 
     def update_tags(self, **tags: Any) -> None:
         self.dataset.update_tags(**tags)
@@ -229,13 +232,14 @@ class RasterWriter:
             self._abort()
             return
         try:
-            if self.overviews and not self.cog:
-                self._build_overviews()
-            self._stack.close()
-            self._stack = None
-            self.dataset = None
-            if self.cog:
-                self._copy_to_cog()
+            with writing(self.path):  # GDAL's failures (flush, overviews): OutputWriteError
+                if self.overviews and not self.cog:
+                    self._build_overviews()
+                self._stack.close()
+                self._stack = None
+                self.dataset = None
+                if self.cog:
+                    self._copy_to_cog()
         except BaseException:
             self._abort()
             raise

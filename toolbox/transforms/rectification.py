@@ -362,6 +362,25 @@ def pixel_to_ground_matrix(model: RectificationModel,
     return matrix / matrix[2, 2]
 
 
+def photo_cells(pixel_to_ground: np.ndarray, transform: Any, window: Any, width: int,
+                height: int) -> np.ndarray:
+    """(h, w) bool: the cells of ``window`` (of the output grid ``transform``) whose centre
+    maps inside the ``width`` x ``height`` photo, in front of the camera."""
+    c0, r0 = int(window.col_off), int(window.row_off)
+    cols, rows = np.meshgrid(np.arange(c0, c0 + int(window.width)) + 0.5,
+                             np.arange(r0, r0 + int(window.height)) + 0.5)
+    t = transform
+    ground = np.column_stack([(t.c + t.a * cols + t.b * rows).ravel(),
+                              (t.f + t.d * cols + t.e * rows).ravel()])
+    inverse = np.linalg.inv(pixel_to_ground)
+    centre = apply_homography(pixel_to_ground, np.array([[width / 2.0, height / 2.0]]))
+    _, front = apply_homography(inverse, centre, return_w=True)
+    pixel, w = apply_homography(inverse, ground, return_w=True)
+    inside = (w * front[0] > 0) & (pixel[:, 0] >= 0) & (pixel[:, 0] < width) \
+        & (pixel[:, 1] >= 0) & (pixel[:, 1] < height)
+    return inside.reshape(cols.shape)
+
+
 def footprint(pixel_to_ground: np.ndarray, width: int, height: int) -> np.ndarray:
     """Ground (X, Y) of the photo's four corners (top-left, top-right, bottom-right,
     bottom-left), (4, 2). Raises :class:`InputDataError` when the plane's vanishing line crosses

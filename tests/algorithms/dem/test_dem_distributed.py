@@ -17,7 +17,7 @@ import pytest
 import shapely
 
 import toolbox
-from toolbox.errors import CanceledError, ParameterError
+from toolbox.errors import CanceledError, ParameterError, ServiceError
 from toolbox.feedback import Feedback
 from toolbox.tiles import map_tiles, resolve_executor, scheduler_address
 
@@ -81,7 +81,7 @@ def test_scheduler_resolution(monkeypatch):
     with pytest.raises(ParameterError, match="SCHEDULER must be a Dask scheduler address"):
         resolve_executor("nonsense")
     with dask.config.set({"distributed.comm.timeouts.connect": "1s"}), \
-            pytest.raises(ParameterError, match="cannot connect"):
+            pytest.raises(ServiceError, match="cannot connect"):  # exit 3: not the user's input
         list(map_tiles(_slow_square, range(2), scheduler="tcp://127.0.0.1:9"))
 
 
