@@ -125,7 +125,7 @@ def _match(fa: Features, fb: Features, opts: TiePointOptions, level_scale: float
 
 
 def _has_camera(bp: BlockPhoto) -> bool:
-    return bp.photo is not None and bp.photo.pixel_transform is not None
+    return matching.has_camera(bp.photo)
 
 
 def select_pairs(photos: list[BlockPhoto], opts: TiePointOptions
@@ -198,7 +198,8 @@ def tie_points(photos: list[BlockPhoto], opts: TiePointOptions,
     xy = [np.array([feats[p].xy[f] for p, f in t]) for t in found]
     # closure: every pair of a track's photos that has a fundamental matrix must agree with it
     # (a chain a-b-c of pairwise-correct matches can still join two different points)
-    residual = _track_residuals(found, xy, {(i, j): f for i, j, _, _, f in verified})
+    epipolar = {(i, j): f for i, j, _, _, f in verified}
+    residual = _track_residuals(found, xy, epipolar)
     bad = residual > 2.0 * opts.f_threshold * max(scales.values())
     found = [t for t, b in zip(found, bad, strict=True) if not b]
     xy = [p for p, b in zip(xy, bad, strict=True) if not b]
@@ -232,7 +233,7 @@ def tie_points(photos: list[BlockPhoto], opts: TiePointOptions,
         sigma = np.full(len(photo_idx), 0.5 * max(scales[p] for p in photo_idx))
         refined = False
         if opts.refine:
-            pos, ok = _refine_track(k, found, xy, sources, opts, scales, common)
+            pos, ok = _refine_track(k, found, xy, sources, opts, scales, common, epipolar)
             photo_idx = [p for p, o in zip(photo_idx, ok, strict=True) if o]
             pos = pos[ok]
             sigma = np.full(len(photo_idx), 0.5)
@@ -266,9 +267,13 @@ def _track_residuals(found: list, xy: list, models: dict) -> np.ndarray:
 
 
 def _refine_track(k: int, found: list, xy: list, sources: dict[int, ImageSource],
-                  opts: TiePointOptions, scales: dict[int, float], common: dict
-                  ) -> tuple[np.ndarray, np.ndarray]:
-    """Refine every observation of track ``k`` against its first one; (positions, ok mask)."""
+                  opts: TiePointOptions, scales: dict[int, float], common: dict,
+                  epipolar: dict) -> tuple[np.ndarray, np.ndarray]:
+    """Refine every observation of track ``k`` against its first one; (positions, ok mask).
+
+    A refined observation farther than the MAGSAC threshold from the epipolar line of the
+    pair's estimated model (``epipolar``, when the pair has one) is dropped: on oblique views
+    the correlation can lock onto a neighbouring structure (the detection-level match held)."""
     photo_idx = [p for p, _ in found[k]]
     pos = xy[k].copy()
     ok = np.ones(len(photo_idx), bool)
@@ -293,6 +298,11 @@ def _refine_track(k: int, found: list, xy: list, sources: dict[int, ImageSource]
                                radius, opts.min_ncc)
         pos[n] = r.xy
         ok[n] = r.ok
+        model = epipolar.get((ref, other)) if ref < other else epipolar.get((other, ref))
+        if ok[n] and model is not None:
+            pair = (pos[:1], pos[n:n + 1]) if ref < other else (pos[n:n + 1], pos[:1])
+            limit = opts.f_threshold * max(scales[ref], scales[other])
+            ok[n] = bool(model.residual(*pair)[0] <= limit)
     if not ok[1:].any():
         ok[0] = False
     return pos, ok
