@@ -1,10 +1,15 @@
 """Benchmark: tie-point extraction and matching (orientation:tiepoints), time and peak memory.
 
-    .venv/bin/python bench/tiepoints_bench.py [--scans 3] [--size 3000] [--detectors sift,akaze,orb]
-        [--colmap-python /path/to/venv/bin/python]
+    .venv/bin/python bench/tiepoints_bench.py [--scans 3] [--size 3000] [--block-size 16644]
+        [--detectors sift,akaze,orb] [--colmap-python /path/to/venv/bin/python] [--no-real]
 
 Workloads, each run as ``toolbox run orientation:tiepoints --IMAGES folder`` in a child process
 (wall time and the child's peak resident memory, :func:`benchlib.run_measured`):
+
+- ``--block-size``: a block of 6 scans of that size (16644: the issue's target), rendered window
+  by window from a deterministic multi-scale ground (:func:`ground_window`) into a temporary
+  folder under /tmp, deleted afterwards; the tie points are checked against the TRUE scan
+  geometry (:func:`ground_disagreement`);
 
 - ``--scans`` synthetic scans of ``--size`` x ``--size`` px (8-bit, tiled GeoTIFF): crops of one
   multi-scale noise "terrain", 60 % forward overlap, each turned by up to 1 degree and noised;
@@ -62,6 +67,123 @@ def make_scans(folder: Path, n: int, size: int, seed: int = 0) -> list[Path]:
         paths.append(write_photo(folder / f"scan{k + 1:02d}.tif", crop))
         del crop
     return paths
+
+
+def _uniform(i: np.ndarray, j: np.ndarray, salt: int) -> np.ndarray:
+    """Deterministic uniform noise in [-1, 1) of integer lattice coordinates (a 64-bit hash):
+    the same ground cell gets the same value whichever window asks for it."""
+    with np.errstate(over="ignore"):
+        h = (i.astype(np.uint64) * np.uint64(0x9E3779B97F4A7C15)) ^ \
+            (j.astype(np.uint64) * np.uint64(0xC2B2AE3D27D4EB4F)) ^ np.uint64(salt * 7919 + 1)
+        h ^= h >> np.uint64(29)
+        h *= np.uint64(0xBF58476D1CE4E5B9)
+        h ^= h >> np.uint64(32)
+    return (h >> np.uint64(40)).astype(np.float32) * np.float32(2.0 / 2 ** 24) - np.float32(1.0)
+
+
+#: (lattice spacing in ground pixels, weight) of the multi-scale ground texture
+GROUND_SCALES = ((1, 0.35), (3, 0.6), (8, 1.0), (24, 1.2), (80, 1.0))
+
+
+def ground_window(x0: int, y0: int, w: int, h: int) -> np.ndarray:
+    """Grey ground (float32, about 128 ± 30) of ground pixels [x0, x0 + w) x [y0, y0 + h):
+    lattice noise at several scales, each upsampled by a cubic (deterministic per cell, so
+    overlapping scans see the same ground)."""
+    import cv2
+
+    out = np.zeros((h, w), np.float32)
+    for s, weight in GROUND_SCALES:
+        if s == 1:
+            out += weight * _uniform(np.arange(x0, x0 + w)[None, :], np.arange(y0, y0 + h)[:, None],
+                                     s)
+            continue
+        i0, j0 = x0 // s - 2, y0 // s - 2
+        ni, nj = (x0 + w) // s + 3 - i0, (y0 + h) // s + 3 - j0
+        lattice = _uniform(np.arange(i0, i0 + ni)[None, :], np.arange(j0, j0 + nj)[:, None], s)
+        up = cv2.resize(lattice, (ni * s, nj * s), interpolation=cv2.INTER_CUBIC)
+        ox, oy = x0 - i0 * s, y0 - j0 * s
+        out += weight * up[oy:oy + h, ox:ox + w]
+    return 128.0 + 30.0 * out
+
+
+def write_big_scan(path: Path, size: int, origin: tuple[float, float], angle_deg: float,
+                   seed: int, rows_per_window: int = 512) -> Path:
+    """A ``size`` x ``size`` 8-bit scan (tiled, uncompressed GeoTIFF without georeferencing)
+    of the ground, turned by ``angle_deg`` about its centre, whose centre sees ground pixel
+    ``origin + size / 2``; rendered window by window (bounded memory), with sensor noise."""
+    import warnings
+
+    import cv2
+    import rasterio
+    from rasterio.windows import Window
+
+    rng = np.random.default_rng(seed)
+    a = np.radians(angle_deg)
+    rot = np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
+    centre = np.array(origin, dtype="float64") + size / 2.0
+    profile = {"driver": "GTiff", "width": size, "height": size, "count": 1, "dtype": "uint8",
+               "tiled": True, "blockxsize": 512, "blockysize": 512, "BIGTIFF": "IF_SAFER"}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
+        with rasterio.open(path, "w", **profile) as dst:
+            for r0 in range(0, size, rows_per_window):
+                rows = min(rows_per_window, size - r0)
+                # scan pixel (c, r) (OpenCV centres) -> ground: rot·((c, r) - size/2) + centre
+                corners = np.array([[0, r0], [size, r0], [0, r0 + rows], [size, r0 + rows]],
+                                   dtype="float64") - size / 2.0
+                ground = corners @ rot.T + centre
+                gx0, gy0 = np.floor(ground.min(axis=0)).astype(int) - 3
+                gx1, gy1 = np.ceil(ground.max(axis=0)).astype(int) + 3
+                patch = ground_window(gx0, gy0, gx1 - gx0, gy1 - gy0)
+                t = centre - rot @ np.array([size / 2.0, size / 2.0 - r0]) - [gx0, gy0]
+                m = np.column_stack([rot, t])
+                out = cv2.warpAffine(patch, m, (size, rows),
+                                     flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP)
+                out += rng.normal(0.0, 3.0, out.shape).astype(np.float32)
+                dst.write(np.clip(out, 0, 255).astype(np.uint8)[None],
+                          window=Window(0, r0, size, rows))
+    return path
+
+
+def block_layout(size: int, strips: int = 2, per_strip: int = 3, seed: int = 0
+                 ) -> dict[str, tuple[tuple[float, float], float]]:
+    """Scan name -> (ground origin, angle in degrees) of a block: 60 % forward and 30 % side
+    overlap, the second strip flown back (turned 180 degrees), each turned by up to 1 degree."""
+    rng = np.random.default_rng(seed)
+    layout = {}
+    for s in range(strips):
+        for k in range(per_strip):
+            x = (k if s % 2 == 0 else per_strip - 1 - k) * 0.4 * size
+            angle = (180.0 if s % 2 else 0.0) + rng.uniform(-1.0, 1.0)
+            layout[f"scan_{s + 1}_{k + 1}"] = ((x, s * 0.7 * size), angle)
+    return layout
+
+
+def make_block_scans(folder: Path, size: int, seed: int = 0) -> list[Path]:
+    """The scans of :func:`block_layout`, written to ``folder``."""
+    return [write_big_scan(folder / f"{name}.tif", size, origin, angle, seed + k)
+            for k, (name, (origin, angle)) in enumerate(block_layout(size, seed=seed).items())]
+
+
+def ground_disagreement(measurements: Path, size: int, seed: int = 0) -> np.ndarray:
+    """Per tie point, the largest distance (ground = scan pixels) of its observations, mapped
+    to the ground through the TRUE scan geometry, from their mean: 0 for a perfect point."""
+    layout = block_layout(size, seed=seed)
+    with open(measurements, newline="") as f:
+        rows = list(csv.DictReader(f))
+    by_point: dict[str, list[np.ndarray]] = {}
+    for r in rows:
+        origin, angle = layout[r["photo"]]
+        a = np.radians(angle)
+        rot = np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
+        scan = np.array([float(r["col_px"]), float(r["row_px"])]) - 0.5 - size / 2.0
+        by_point.setdefault(r["point_id"], []).append(
+            rot @ scan + np.array(origin) + size / 2.0)
+    worst = []
+    for g in by_point.values():
+        g = np.array(g)
+        worst.append(np.hypot(*(g - g.mean(axis=0)).T).max())
+    return np.array(worst)
 
 
 def run_tiepoints(args: list[str], work: Path, tag: str) -> dict:
@@ -130,15 +252,59 @@ def row(name: str, r: dict) -> str:
             f"{r['verified']:,} | {r.get('points', '')} | {r.get('pairs', '')} | {max_px} |")
 
 
+HEADER = ["| run | seconds | peak MB | verified matches | tie points | pairs tied | "
+          "max error px |", "|---|---:|---:|---:|---:|---:|---:|"]
+
+
+def block_section(size: int, detectors: list[str], colmap: str | None, say) -> list[str]:
+    """6 scans of ``size`` px rendered to a temporary folder under /tmp (deleted after)."""
+    import time
+
+    lines = [f"Block of 6 synthetic scans, {size} x {size} px each (8-bit, tiled uncompressed "
+             f"GeoTIFF, {6 * size * size / 1e9:.2f} GB on disk; 2 strips x 3, 60 % forward / 30 % "
+             "side overlap, second strip flown back, each turned up to 1 degree), folder mode "
+             "(no cameras: all 15 pairs tried on thumbnails first); detection level 3000 px. "
+             "Max error = largest distance of a tie point's observations, mapped to the ground "
+             "through the TRUE scan geometry, from their mean (scan pixels).", ""]
+    with tempfile.TemporaryDirectory(dir="/tmp") as tmp:
+        work = Path(tmp)
+        scans = work / "scans"
+        scans.mkdir()
+        t0 = time.perf_counter()
+        make_block_scans(scans, size)
+        lines += [f"(rendering the scans, not timed below: {time.perf_counter() - t0:.0f} s)", "",
+                  *HEADER]
+        say(lines[-3])
+        for d in detectors:
+            r = run_tiepoints(["--IMAGES", str(scans), "--DETECTOR", d], work, f"block_{d}")
+            if "error" not in r:
+                r["max_px"] = float(ground_disagreement(work / f"block_{d}.csv", size).max())
+            lines.append(row(f"toolbox {d}", r))
+            say(lines[-1])
+        if colmap:
+            r = run_colmap(colmap, scans, work)
+            lines.append(row(f"pycolmap {r.get('version', '')} SIFT (extract + exhaustive "
+                             "match, its defaults: images downscaled to 3200 px, 8192 features)",
+                             r))
+            say(lines[-1])
+    return lines
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--scans", type=int, default=3)
+    parser.add_argument("--scans", type=int, default=3, help="small synthetic scans (0: none)")
     parser.add_argument("--size", type=int, default=3000)
+    parser.add_argument("--block-size", type=int, default=0,
+                        help="also a block of 6 scans of this size (16644: the issue's target)")
     parser.add_argument("--detectors", default="sift,akaze,orb")
     parser.add_argument("--colmap-python", default=None)
+    parser.add_argument("--no-real", action="store_true", help="skip the NGI frames")
     parser.add_argument("--output", default=str(HERE / "results" / "tiepoints.md"))
     args = parser.parse_args()
     import cv2
+
+    def say(line: str) -> None:
+        print(line, flush=True)
 
     lines = ["## Tie points (issue 27): extraction and matching", "",
              f"Machine: {machine_facts(f'OpenCV {cv2.__version__}')}; {load_note()}.", ""]
@@ -150,39 +316,40 @@ def main() -> None:
     if missing:
         lines += [f"Not run: {', '.join(missing)} (not in OpenCV {cv2.__version__}'s main "
                   "modules).", ""]
-    header = ["| run | seconds | peak MB | verified matches | tie points | pairs tied | "
-              "max reprojection px |", "|---|---:|---:|---:|---:|---:|---:|"]
+    if args.block_size:
+        lines += block_section(args.block_size, detectors, args.colmap_python, say) + [""]
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(tmp)
-        scans = work / "scans"
-        scans.mkdir()
-        make_scans(scans, args.scans, args.size)
-        lines += [f"Synthetic scans: {args.scans} x {args.size} x {args.size} px (8-bit), "
-                  "folder mode (no cameras: all pairs on thumbnails first), detection level "
-                  "3000 px.", "", *header]
-        for d in detectors:
-            r = run_tiepoints(["--IMAGES", str(scans), "--DETECTOR", d], work, f"scan_{d}")
-            lines.append(row(f"toolbox {d}", r))
-            print(lines[-1], flush=True)
-        if args.colmap_python:
-            r = run_colmap(args.colmap_python, scans, work)
-            lines.append(row(f"pycolmap {r.get('version', '')} SIFT (extract + exhaustive "
-                             "match, its defaults)", r))
-            print(lines[-1], flush=True)
-        project = ngi_project(work)
+        if args.scans:
+            scans = work / "scans"
+            scans.mkdir()
+            make_scans(scans, args.scans, args.size)
+            lines += [f"Synthetic scans: {args.scans} x {args.size} x {args.size} px (8-bit), "
+                      "folder mode (no cameras: all pairs on thumbnails first), detection level "
+                      "3000 px.", "", *HEADER]
+            for d in detectors:
+                r = run_tiepoints(["--IMAGES", str(scans), "--DETECTOR", d], work, f"scan_{d}")
+                lines.append(row(f"toolbox {d}", r))
+                say(lines[-1])
+            if args.colmap_python:
+                r = run_colmap(args.colmap_python, scans, work)
+                lines.append(row(f"pycolmap {r.get('version', '')} SIFT (extract + exhaustive "
+                                 "match, its defaults)", r))
+                say(lines[-1])
+        project = None if args.no_real else ngi_project(work)
         if project is not None:
             lines += ["", "NGI aerial frames (Orthority test data, 4 x 640 x 1152 px, published "
-                      "orientations; max reprojection = largest residual of a tie point "
-                      "intersected with them).", "", *header]
+                      "orientations; max error = largest reprojection residual of a tie point "
+                      "intersected with them).", "", *HEADER]
             for d in detectors:
-                r = run_tiepoints(["--PROJECT", str(project), "--TERRAIN_HEIGHT", "300",
+                r = run_tiepoints(["--PROJECT", str(project), "--TERRAIN_HEIGHT", "430",
                                    "--DETECTOR", d], work, f"ngi_{d}")
                 lines.append(row(f"toolbox {d}", r))
-                print(lines[-1], flush=True)
-                r = run_tiepoints(["--PROJECT", str(project), "--TERRAIN_HEIGHT", "300",
+                say(lines[-1])
+                r = run_tiepoints(["--PROJECT", str(project), "--TERRAIN_HEIGHT", "430",
                                    "--DETECTOR", d, "--REFINE", "false"], work, f"ngi_{d}_raw")
                 lines.append(row(f"toolbox {d}, no refinement", r))
-                print(lines[-1], flush=True)
+                say(lines[-1])
     Path(args.output).write_text("\n".join(lines) + "\n")
     print(f"written {args.output}")
 
