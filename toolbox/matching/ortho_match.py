@@ -65,7 +65,8 @@ class OrthoReference:
         return info
 
     def sample(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
-        """Grey values (float32, bilinear) at ground ``x``, ``y`` (same shape); NaN outside."""
+        """Grey values (float32, bilinear) at ground ``x``, ``y`` (same shape); NaN outside and
+        next to nodata."""
         import cv2
         import rasterio
         from rasterio.windows import Window
@@ -82,8 +83,9 @@ class OrthoReference:
         r1 = min(self.height, int(np.ceil(row[inside].max())) + 2)
         with rasterio.open(self.path) as src:
             data = src.read(indexes=list(range(1, min(3, self.bands) + 1)),
-                            window=Window(c0, r0, c1 - c0, r1 - r0)).astype("float32")
-        grey = np.ascontiguousarray(data.mean(axis=0))
+                            window=Window(c0, r0, c1 - c0, r1 - r0), masked=True)
+        grey = np.ascontiguousarray(data.data.astype("float32").mean(axis=0))
+        grey[np.ma.getmaskarray(data).any(axis=0)] = np.nan  # nodata: NaN spreads to the chip
         values = cv2.remap(grey, (col - c0).astype(np.float32).reshape(1, -1),
                            (row - r0).astype(np.float32).reshape(1, -1), cv2.INTER_LINEAR,
                            borderMode=cv2.BORDER_REPLICATE).reshape(out.shape)
