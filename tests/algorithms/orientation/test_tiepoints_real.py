@@ -16,7 +16,9 @@ its datum from a few CONTROL points derived from the published orientations (tie
 over the block, intersected with the published orientations: no surveyed points come with the
 data); it must come back to the published orientations within a ground pixel and a pixel's angle
 (1.5 of them for NGI, whose derived control is itself that coarse), and within 3 of its own
-standard deviations. The bundle takes film/digital
+standard deviations. A second datum, the published centres as GNSS observations (no control),
+is run too (angles from the tie points alone: looser bounds, see its test). The bundle takes
+film/digital
 cameras only (no Brown model): the ODM measurements are undistorted through the published Brown
 model into an equivalent pinhole camera (image mm) first.
 """
@@ -228,3 +230,43 @@ def test_bundle_on_real_tie_points_reproduces_the_published_orientations(
         assert (np.abs(d_pos) < 3 * std_pos).all() and (np.abs(d_ang) < 3 * std_ang).all(), \
             "\n".join(lines)
     print("\n".join(lines))
+
+
+@pytest.mark.parametrize("name", ["ngi", "odm"])
+def test_bundle_with_the_published_centres_as_gnss(name, request, tmp_path):
+    """The other datum: the published projection centres as GNSS observations (the bundle's
+    defaults, 0.10 m / 0.15 m), no control (the derived points only as CHECK points). The centres
+    then come back trivially; the angles come from the tie points alone, which on four photos
+    with 60-80 points determine them to about 0.05-0.2 degrees (the bundle's own standard
+    deviations): measured 0.10-0.17 degrees off the published ones (NGI), 0.11-0.14 (ODM),
+    i.e. 1.5-2.5 pixel angles; asserted: within 3 standard deviations and 3 pixel angles."""
+    case = request.getfixturevalue(name)
+    start, measurements, control = bundle_inputs(case, tmp_path, 20.0 if name == "ngi" else 1.0,
+                                                 0.3, 8)
+    rows = control.read_text().splitlines()
+    checks = tmp_path / "checks.csv"
+    checks.write_text("id,X,Y,Z,role\n" + "".join(f"{r},check\n" for r in rows[1:]))
+    gnss = tmp_path / "gnss.csv"
+    gnss.write_text("photo,X,Y,Z\n" + "".join(
+        f"{pid},{p.exterior.centre[0]},{p.exterior.centre[1]},{p.exterior.centre[2]}\n"
+        for pid, p in case.photos.items()))
+    toolbox.run("orientation:bundle", {
+        "PROJECT": start, "INPUT": measurements, "CONTROL": checks, "GNSS": gnss,
+        "START": "project", "OUTPUT": tmp_path / "adjusted.yaml",
+        "REPORT": tmp_path / "report.json"})
+    from toolbox.photogrammetry.project import load_project
+
+    adjusted = load_project(tmp_path / "adjusted.yaml").photos
+    report = {p["photo"]: p for p in json.loads((tmp_path / "report.json").read_text())["photos"]}
+    for pid, published in case.photos.items():
+        a, e = adjusted[pid].exterior, published.exterior
+        pixel = 1.0 / published.camera.focal_px[0] if published.is_model else \
+            published.camera.pixel_size_mm / published.camera.c
+        assert np.linalg.norm(a.centre - e.centre) < 0.5
+        d_ang = np.array([a.omega - e.omega, a.phi - e.phi, a.kappa - e.kappa])
+        d_ang = (d_ang + np.pi) % (2 * np.pi) - np.pi
+        std_ang = np.array([report[pid][k] for k in ("std_omega", "std_phi", "std_kappa")])
+        turn = np.arccos(np.clip((np.trace(a.rotation.T @ e.rotation) - 1) / 2, -1, 1))
+        assert (np.abs(d_ang) < 3 * std_ang).all(), (pid, np.degrees(d_ang), np.degrees(std_ang))
+        assert turn < 3 * pixel, (pid, np.degrees(turn), np.degrees(pixel))
+
