@@ -18,9 +18,8 @@ data); it must come back to the published orientations within a ground pixel and
 (1.5 of them for NGI, whose derived control is itself that coarse), and within 3 of its own
 standard deviations. A second datum, the published centres as GNSS observations (no control),
 is run too (angles from the tie points alone: looser bounds, see its test). The bundle takes
-film/digital
-cameras only (no Brown model): the ODM measurements are undistorted through the published Brown
-model into an equivalent pinhole camera (image mm) first.
+film/digital cameras only (no Brown model): the ODM measurements are undistorted through the
+published Brown model into an equivalent pinhole camera (image mm) first.
 """
 
 from __future__ import annotations
