@@ -107,42 +107,80 @@ def ground_window(x0: int, y0: int, w: int, h: int) -> np.ndarray:
 
 
 def write_big_scan(path: Path, size: int, origin: tuple[float, float], angle_deg: float,
-                   seed: int, rows_per_window: int = 512) -> Path:
-    """A ``size`` x ``size`` 8-bit scan (tiled, uncompressed GeoTIFF without georeferencing)
-    of the ground, turned by ``angle_deg`` about its centre, whose centre sees ground pixel
-    ``origin + size / 2``; rendered window by window (bounded memory), with sensor noise."""
+                   seed: int, rows_per_window: int = 512, height: int | None = None) -> Path:
+    """A ``size`` (wide) x ``height`` (default ``size``) 8-bit scan (tiled, uncompressed GeoTIFF
+    without georeferencing) of the ground, turned by ``angle_deg`` about its centre, whose
+    centre sees ground pixel ``origin + (size, height) / 2``; rendered window by window (bounded
+    memory), with sensor noise."""
     import warnings
 
     import cv2
     import rasterio
     from rasterio.windows import Window
 
+    width, height = size, height or size
+    half = np.array([width / 2.0, height / 2.0])
     rng = np.random.default_rng(seed)
     a = np.radians(angle_deg)
     rot = np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
-    centre = np.array(origin, dtype="float64") + size / 2.0
-    profile = {"driver": "GTiff", "width": size, "height": size, "count": 1, "dtype": "uint8",
-               "tiled": True, "blockxsize": 512, "blockysize": 512, "BIGTIFF": "IF_SAFER"}
+    centre = np.array(origin, dtype="float64") + half
+    profile = {"driver": "GTiff", "width": width, "height": height, "count": 1,
+               "dtype": "uint8", "tiled": True, "blockxsize": 512, "blockysize": 512,
+               "BIGTIFF": "IF_SAFER"}
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
         with rasterio.open(path, "w", **profile) as dst:
-            for r0 in range(0, size, rows_per_window):
-                rows = min(rows_per_window, size - r0)
-                # scan pixel (c, r) (OpenCV centres) -> ground: rot·((c, r) - size/2) + centre
-                corners = np.array([[0, r0], [size, r0], [0, r0 + rows], [size, r0 + rows]],
-                                   dtype="float64") - size / 2.0
+            for r0 in range(0, height, rows_per_window):
+                rows = min(rows_per_window, height - r0)
+                # scan pixel (c, r) (OpenCV centres) -> ground: rot·((c, r) - half) + centre
+                corners = np.array([[0, r0], [width, r0], [0, r0 + rows], [width, r0 + rows]],
+                                   dtype="float64") - half
                 ground = corners @ rot.T + centre
                 gx0, gy0 = np.floor(ground.min(axis=0)).astype(int) - 3
                 gx1, gy1 = np.ceil(ground.max(axis=0)).astype(int) + 3
                 patch = ground_window(gx0, gy0, gx1 - gx0, gy1 - gy0)
-                t = centre - rot @ np.array([size / 2.0, size / 2.0 - r0]) - [gx0, gy0]
+                t = centre - rot @ (half - [0.0, r0]) - [gx0, gy0]
                 m = np.column_stack([rot, t])
-                out = cv2.warpAffine(patch, m, (size, rows),
+                out = cv2.warpAffine(patch, m, (width, rows),
                                      flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP)
                 out += rng.normal(0.0, 3.0, out.shape).astype(np.float32)
                 dst.write(np.clip(out, 0, 255).astype(np.uint8)[None],
-                          window=Window(0, r0, size, rows))
+                          window=Window(0, r0, width, rows))
     return path
+
+
+def drone_layout(n: int = 100, width: int = 5472, height: int = 3648, seed: int = 0
+                 ) -> dict[str, tuple[tuple[float, float], float]]:
+    """Photo name -> (ground origin, angle) of ``n`` nadir drone photos in a serpentine grid:
+    80 % forward overlap along the columns, 60 % side overlap, every other line flown back."""
+    rng = np.random.default_rng(seed)
+    lines = int(np.ceil(np.sqrt(n)))
+    layout = {}
+    for k in range(n):
+        line, pos = divmod(k, lines)
+        if line % 2:
+            pos = lines - 1 - pos
+        angle = (180.0 if line % 2 else 0.0) + rng.uniform(-3.0, 3.0)
+        layout[f"drone_{k + 1:03d}"] = ((line * 0.4 * width, pos * 0.2 * height), angle)
+    return layout
+
+
+def drone_disagreement(measurements: Path, width: int = 5472, height: int = 3648,
+                       n: int = 100) -> np.ndarray:
+    """As :func:`ground_disagreement`, for the photos of :func:`drone_layout`."""
+    layout = drone_layout(n, width, height)
+    with open(measurements, newline="") as f:
+        rows = list(csv.DictReader(f))
+    half = np.array([width / 2.0, height / 2.0])
+    by_point: dict[str, list[np.ndarray]] = {}
+    for r in rows:
+        origin, angle = layout[r["photo"]]
+        a = np.radians(angle)
+        rot = np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
+        pix = np.array([float(r["col_px"]), float(r["row_px"])]) - 0.5 - half
+        by_point.setdefault(r["point_id"], []).append(rot @ pix + np.array(origin) + half)
+    return np.array([np.hypot(*(np.array(g) - np.mean(g, axis=0)).T).max()
+                     for g in by_point.values()])
 
 
 def block_layout(size: int, strips: int = 2, per_strip: int = 3, seed: int = 0
@@ -186,13 +224,43 @@ def ground_disagreement(measurements: Path, size: int, seed: int = 0) -> np.ndar
     return np.array(worst)
 
 
-def run_tiepoints(args: list[str], work: Path, tag: str) -> dict:
+def run_with_deadline(cmd: list[str], timeout: float) -> tuple[float, float, int, str]:
+    """:func:`benchlib.run_measured` with a deadline: the child is killed after ``timeout``
+    seconds (exit code -9, stderr says so)."""
+    import subprocess
+    import time
+
+    t0 = time.perf_counter()
+    log = tempfile.TemporaryFile()  # not a pipe: a long run's messages cannot block the child
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=log)
+    status = Path(f"/proc/{proc.pid}/status")
+    peak_kb = 0
+    while proc.poll() is None:
+        try:
+            for line in status.read_text().splitlines():
+                if line.startswith("VmHWM"):
+                    peak_kb = max(peak_kb, int(line.split()[1]))
+        except (OSError, ValueError):
+            pass
+        if time.perf_counter() - t0 > timeout:
+            proc.kill()
+            proc.wait()
+            return time.perf_counter() - t0, peak_kb / 1024.0, -9, \
+                f"killed after {timeout:.0f} s (deadline)"
+        time.sleep(0.05)
+    log.seek(0)
+    stderr = log.read().decode(errors="replace")
+    return time.perf_counter() - t0, peak_kb / 1024.0, proc.returncode, stderr
+
+
+def run_tiepoints(args: list[str], work: Path, tag: str, timeout: float | None = None) -> dict:
     out = work / f"{tag}.csv"
     pairs = work / f"{tag}_pairs.csv"
     report = work / f"{tag}.json"
     cmd = [sys.executable, "-m", "toolbox", "run", "orientation:tiepoints", *args, "--OUTPUT",
            str(out), "--PAIRS", str(pairs), "--REPORT", str(report), "--overwrite"]
-    seconds, peak, code, err = run_measured(cmd)
+    seconds, peak, code, err = run_measured(cmd) if timeout is None else \
+        run_with_deadline(cmd, timeout)
     if code != 0:
         return {"error": err.strip().splitlines()[-1] if err.strip() else f"exit {code}",
                 "seconds": seconds, "peak_mb": peak}
@@ -290,12 +358,43 @@ def block_section(size: int, detectors: list[str], colmap: str | None, say) -> l
     return lines
 
 
+def drone_section(n: int, detectors: list[str], say, timeout: float = 1800.0) -> list[str]:
+    """``n`` synthetic nadir drone photos of 5472 x 3648 px (20 Mpx) rendered to a temporary
+    folder under /tmp (deleted after), matched in folder mode (no cameras)."""
+    import time
+
+    lines = [f"{n} synthetic drone photos, 5472 x 3648 px (20 Mpx, 8-bit grey, tiled "
+             "uncompressed GeoTIFF): a serpentine grid, 80 % forward / 60 % side overlap, every "
+             "other line flown back, each turned up to 3 degrees; folder mode (no cameras: all "
+             f"{n * (n - 1) // 2} pairs tried on thumbnails first). Max error as above (photo "
+             "pixels).", ""]
+    with tempfile.TemporaryDirectory(dir="/tmp") as tmp:
+        work = Path(tmp)
+        photos = work / "photos"
+        photos.mkdir()
+        t0 = time.perf_counter()
+        for k, (name, (origin, angle)) in enumerate(drone_layout(n).items()):
+            write_big_scan(photos / f"{name}.tif", 5472, origin, angle, k, height=3648)
+        lines += [f"(rendering the photos, not timed below: {time.perf_counter() - t0:.0f} s)",
+                  "", *HEADER]
+        for d in detectors:
+            r = run_tiepoints(["--IMAGES", str(photos), "--DETECTOR", d], work, f"drone_{d}",
+                              timeout)
+            if "error" not in r:
+                r["max_px"] = float(drone_disagreement(work / f"drone_{d}.csv", n=n).max())
+            lines.append(row(f"toolbox {d}", r))
+            say(lines[-1])
+    return lines
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--scans", type=int, default=3, help="small synthetic scans (0: none)")
     parser.add_argument("--size", type=int, default=3000)
     parser.add_argument("--block-size", type=int, default=0,
                         help="also a block of 6 scans of this size (16644: the issue's target)")
+    parser.add_argument("--drones", type=int, default=0,
+                        help="also this many 20 Mpx drone photos (100: the issue's target)")
     parser.add_argument("--detectors", default="sift,akaze,orb")
     parser.add_argument("--colmap-python", default=None)
     parser.add_argument("--no-real", action="store_true", help="skip the NGI frames")
@@ -318,6 +417,8 @@ def main() -> None:
                   "modules).", ""]
     if args.block_size:
         lines += block_section(args.block_size, detectors, args.colmap_python, say) + [""]
+    if args.drones:
+        lines += drone_section(args.drones, detectors, say) + [""]
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(tmp)
         if args.scans:
