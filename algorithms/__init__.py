@@ -1,5 +1,8 @@
 """Built-in algorithms, one folder per domain, one module per algorithm.
 
-Every module here is imported by :func:`toolbox.registry.discover`; an algorithm class decorated
-with :func:`toolbox.registry.register` becomes available as ``toolbox run group:name``.
+The module ``algorithms/<group>/<name>.py`` holds the algorithm of id ``group:name``, a class
+decorated with :func:`toolbox.registry.register`. The registry finds it by its path
+(:func:`toolbox.registry.builtin_modules`) and imports it when the id is run, asked for help or
+listed: there is no other list to edit. Shared parameter presets and the translation of
+parameters to the libraries' typed requests live in :mod:`toolbox.ui`.
 """

@@ -140,9 +140,11 @@ def memory_case(folder: Path, size: int, distortion: bool, occlusion: bool = Tru
     import rasterio
 
     from toolbox.io.raster import iter_windows, open_raster_info
-    from toolbox.photogrammetry.ortho import CollinearityMap
-    from toolbox.photogrammetry.orthophoto import DemSampler, OrthoWindows, plan_photo
-    from toolbox.raster.warp import (
+    from toolbox.ortho.dem import DemSampler
+    from toolbox.ortho.plan import plan_photo
+    from toolbox.ortho.sensor import CollinearityMap
+    from toolbox.ortho.windows import OrthoWindows
+    from toolbox.raster.resample import (
         RESAMPLING_MARGIN,
         pad_at_photo_edges,
         single_threaded_opencv,
@@ -180,7 +182,7 @@ def memory_case(folder: Path, size: int, distortion: bool, occlusion: bool = Tru
                            plan.surface if occlusion else None, resampling="bilinear")
 
         def one(w) -> None:
-            src_plan = job.source_plan(w)
+            src_plan = job.plan(w)
             if src_plan is not None:
                 if src_plan.window is None:
                     return
@@ -188,10 +190,9 @@ def memory_case(folder: Path, size: int, distortion: bool, occlusion: bool = Tru
                 r0, c0 = edge + win.row_off - top, edge + win.col_off - left
                 source = padded[r0:r0 + top + win.height + bottom,
                                 c0:c0 + left + win.width + right]
-                mx, my = job(w)
+                mx, my = job.planned_maps(src_plan)
             else:
-                bounds = job.source_bounds(w)
-                cols, rowz = job(w)
+                cols, rowz, bounds = job.measured(w)
                 if bounds is None:
                     finite = np.isfinite(cols)
                     if not finite.any():
@@ -308,7 +309,7 @@ def agreement(ours: Path, theirs: Path) -> dict:
 
 def bench_files(folder: Path, size: int, with_orthority: bool) -> dict:
     from toolbox.io.raster import open_raster_info
-    from toolbox.photogrammetry.orthophoto import plan_photo
+    from toolbox.ortho.plan import plan_photo
 
     photo_path, dem, project, photo = write_inputs(folder, size)
     plan = plan_photo(photo, open_raster_info(dem), photo.crs)

@@ -147,7 +147,8 @@ def bench_memory(data: np.ndarray) -> list[dict]:
     import cv2
 
     from toolbox.io.raster import iter_windows
-    from toolbox.raster.warp import HomographyMap, OutputLayout, warp_window
+    from toolbox.raster.homography import HomographyMap
+    from toolbox.raster.warp import OutputLayout, warp_window
 
     width, height, p2g, grid = scene_12mpx()
     cmap = HomographyMap(np.linalg.inv(p2g), grid.transform,

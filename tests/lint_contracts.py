@@ -64,3 +64,31 @@ class AcyclicModulesContract(Contract):
     def render_broken_contract(self, check: ContractCheck) -> None:
         for cycle in check.metadata["cycles"]:
             output.print_error("import cycle: " + " <-> ".join(cycle))
+
+
+class ParameterLayerContract(Contract):
+    """``type = "parameter_layer"``: no module of ``packages`` imports a module of ``layer``
+    (directly, function-level imports included) unless it is one of ``allowed`` (or inside
+    one of them). Keeps the domain libraries callable with typed requests: the UI's
+    parameter types, algorithm base classes and parameter translations stay at the edge."""
+
+    packages = fields.ListField(subfield=fields.StringField())
+    layer = fields.ListField(subfield=fields.StringField())
+    allowed = fields.ListField(subfield=fields.StringField())
+
+    def check(self, graph: grimp.ImportGraph, verbose: bool) -> ContractCheck:
+        def inside(module: str, names) -> bool:
+            return any(module == n or module.startswith(n + ".") for n in names)
+
+        bad = []
+        for module in sorted(graph.modules):
+            if not inside(module, self.packages) or inside(module, self.allowed):
+                continue
+            for imported in sorted(graph.find_modules_directly_imported_by(module)):
+                if inside(imported, self.layer):
+                    bad.append((module, imported))
+        return ContractCheck(kept=not bad, metadata={"imports": bad})
+
+    def render_broken_contract(self, check: ContractCheck) -> None:
+        for module, imported in check.metadata["imports"]:
+            output.print_error(f"{module} imports the parameter layer ({imported})")

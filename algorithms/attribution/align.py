@@ -3,14 +3,15 @@
 from __future__ import annotations
 
 from toolbox.algorithm import Algorithm
-from toolbox.attribution.edit_parameters import parameter_file_parameter
-from toolbox.attribution.layer_specs import edited_output
 from toolbox.feedback import Feedback
-from toolbox.parameters import Number, Output, VectorLayer
+from toolbox.parameters import Output, VectorLayer
 from toolbox.registry import register
+from toolbox.ui.attribution import edited_output, parameter_file_parameter
+from toolbox.ui.parameter_file import file_backed
 
-WANTED = {"TOLERANCE": ("tolerance", "alignment_tolerance", 0.1),
-          "PRECISION": ("precision", "decimals", 0.001)}
+# parameter -> (value name, parameter-file key, default; None: the file's DEFAULTS table)
+WANTED = {"TOLERANCE": ("tolerance", "alignment_tolerance", None),
+          "PRECISION": ("precision", "decimals", None)}
 
 
 @register
@@ -36,11 +37,9 @@ class Align(Algorithm):
     parameters = [
         VectorLayer("INPUT", "lines or polygons", geometry_types=["line", "polygon"]),
         parameter_file_parameter(),
-        Number("TOLERANCE", "largest distance of a vertex from the chord it is moved onto, CRS "
-               "units [default: parameter file, else 0.1]", min_value=0, optional=True),
-        Number("PRECISION", "vertices closer than this are one shared vertex [default: "
-               "10^-decimals of the parameter file, else 0.001]", min_value=0,
-               min_exclusive=True, optional=True),
+        file_backed("TOLERANCE", "largest distance of a vertex from the chord it is moved onto, "
+                    "CRS units", "alignment_tolerance"),
+        file_backed("PRECISION", "vertices closer than this are one shared vertex", "decimals"),
         edited_output("GeoPackage: aligned layer and moved_vertices"),
     ]
     outputs = [Output("STATISTICS", "vertices moved, largest move", "dict")]
@@ -49,8 +48,8 @@ class Align(Algorithm):
         import numpy as np
 
         from toolbox.attribution.edit_io import read_parts, write_edited
-        from toolbox.attribution.edit_parameters import file_values
         from toolbox.attribution.editing import align_vertices
+        from toolbox.ui.attribution import file_values
 
         parts = read_parts(params["INPUT"])
         v, sources = file_values(params, WANTED, self.id, feedback, parts.frame.crs)

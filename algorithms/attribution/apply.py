@@ -5,11 +5,11 @@ from __future__ import annotations
 import glob
 
 from toolbox.algorithm import Algorithm
-from toolbox.attribution.layer_specs import CODED
-from toolbox.attribution.sources import RestitutionFiles
 from toolbox.feedback import Feedback
-from toolbox.parameters import Boolean, Crs, Enum, File, Layer, Number, Output, OutputVector, String
+from toolbox.parameters import Boolean, Crs, Enum, File, Layer, Output, OutputVector, String
 from toolbox.registry import register
+from toolbox.ui.attribution import CODED, RestitutionFiles
+from toolbox.ui.parameter_file import file_backed
 
 #: parameter-file entries this algorithm uses (the others are named in an information message)
 USED_ENTRIES = ("closure_tolerance", "snap_tolerance", "height_snap_tolerance", "decimals",
@@ -72,12 +72,12 @@ class ApplyCodes(Algorithm):
         Crs("CRS", "CRS of inputs that carry none (ASCII, two tables, DXF)", optional=True),
         Enum("LAYOUT", "one layer per code, or one per geometry type with a code field",
              options=["code", "type"], default="code"),
-        Number("CLOSURE_TOLERANCE", "largest gap closed in a polygon outline, CRS units "
-               "[default: parameter file, else 0.5]", min_value=0, optional=True),
-        Number("SNAP_TOLERANCE", "planimetric reattach tolerance of the model merge "
-               "[default: parameter file, else 0.2]", min_value=0, optional=True),
-        Number("HEIGHT_SNAP_TOLERANCE", "altimetric reattach tolerance of the model merge "
-               "[default: parameter file, else 0.1]", min_value=0, optional=True),
+        file_backed("CLOSURE_TOLERANCE", "largest gap closed in a polygon outline, CRS units",
+                    "closure_tolerance"),
+        file_backed("SNAP_TOLERANCE", "planimetric reattach tolerance of the model merge",
+                    "snap_tolerance"),
+        file_backed("HEIGHT_SNAP_TOLERANCE", "altimetric reattach tolerance of the model merge",
+                    "height_snap_tolerance"),
         Boolean("STYLE_FILES", "also write each layer's QML and SLD beside OUTPUT",
                 default=False),
         OutputVector("OUTPUT", "GeoPackage: coded layers, unresolved, labels, merge; styled",
@@ -100,7 +100,7 @@ class ApplyCodes(Algorithm):
         read_code_file(params["CODES"], "CODES")  # bad auxiliary files fail before any work
         if params.get("COLOURS") is not None:
             read_colour_file(params["COLOURS"], "COLOURS")
-        optional_parameter_file(params)
+        optional_parameter_file(params.get("PARAMETERS"))
 
     def planned_files(self, params):
         if not params["STYLE_FILES"]:
@@ -109,8 +109,8 @@ class ApplyCodes(Algorithm):
         return {"OUTPUT": [f"{name}.*.qml", f"{name}.*.sld"]}
 
     def process(self, params, feedback: Feedback):
-        from toolbox.attribution.apply import attribute
-        from toolbox.attribution.merge import events_frame, merge_models
+        from toolbox.attribution.coding import attribute
+        from toolbox.attribution.model_merge import events_frame, merge_models
         from toolbox.attribution.output import MERGE_STYLE, write_attribution
         from toolbox.attribution.sources import check_coordinates, read_sources, translated
         from toolbox.io.code_file import read_code_file, read_colour_file
@@ -119,13 +119,14 @@ class ApplyCodes(Algorithm):
         table = read_code_file(params["CODES"], "CODES")
         colours = (read_colour_file(params["COLOURS"], "COLOURS")
                    if params.get("COLOURS") is not None else None)
-        file = optional_parameter_file(params)
-        closure, _ = resolve(params.get("CLOSURE_TOLERANCE"), file, "closure_tolerance", 0.5)
-        snap, _ = resolve(params.get("SNAP_TOLERANCE"), file, "snap_tolerance", 0.2)
-        zsnap, _ = resolve(params.get("HEIGHT_SNAP_TOLERANCE"), file, "height_snap_tolerance",
-                           0.1)
-        decimals, _ = resolve(None, file, "decimals", None)
-        frames, reports = read_sources(params, params.get("CRS"), feedback)
+        file = optional_parameter_file(params.get("PARAMETERS"))
+        closure, _ = resolve(params.get("CLOSURE_TOLERANCE"), file, "closure_tolerance")
+        snap, _ = resolve(params.get("SNAP_TOLERANCE"), file, "snap_tolerance")
+        zsnap, _ = resolve(params.get("HEIGHT_SNAP_TOLERANCE"), file, "height_snap_tolerance")
+        decimals = None if file is None else file.values.get("decimals")  # None: not rounded
+        frames, reports = read_sources(
+            params["INPUT"], params.get("CRS"), feedback,
+            coordinates=params.get("COORDINATES"), code_field=params.get("CODE_FIELD"))
         feedback.set_progress(20, f"read {sum(len(f) for f in frames)} entities")
         if file is not None:
             file.warn_unused(USED_ENTRIES, feedback, self.id)

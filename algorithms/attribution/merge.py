@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 from toolbox.algorithm import Algorithm
-from toolbox.attribution.sources import RestitutionFiles
 from toolbox.feedback import Feedback
-from toolbox.parameters import Crs, File, Layer, Number, Output, OutputVector, String
+from toolbox.parameters import Crs, File, Layer, Output, OutputVector, String
 from toolbox.registry import register
+from toolbox.ui.attribution import RestitutionFiles
+from toolbox.ui.parameter_file import file_backed
 
 USED_ENTRIES = ("snap_tolerance", "height_snap_tolerance", "coordinate_offset",
                 "coordinate_unit")
@@ -41,10 +42,9 @@ class MergeModels(Algorithm):
         String("CODE_FIELD", "code field of OGR inputs", optional=True),
         File("PARAMETERS", "parameter file ('file dei parametri')", optional=True),
         Crs("CRS", "CRS of inputs that carry none (ASCII, DXF)", optional=True),
-        Number("SNAP_TOLERANCE", "planimetric reattach tolerance [default: parameter file, "
-               "else 0.2]", min_value=0, optional=True),
-        Number("HEIGHT_SNAP_TOLERANCE", "altimetric reattach tolerance [default: parameter "
-               "file, else 0.1]", min_value=0, optional=True),
+        file_backed("SNAP_TOLERANCE", "planimetric reattach tolerance", "snap_tolerance"),
+        file_backed("HEIGHT_SNAP_TOLERANCE", "altimetric reattach tolerance",
+                    "height_snap_tolerance"),
         OutputVector("OUTPUT", "GeoPackage: points, lines, polygons, merge", layers=[
             Layer("*", "Geometry", [("code", "string", "restitution code")],
                   "merged entities, one layer per geometry kind"),
@@ -64,17 +64,18 @@ class MergeModels(Algorithm):
         import geopandas as gpd
         import shapely
 
-        from toolbox.attribution.merge import events_frame, merge_models
+        from toolbox.attribution.model_merge import events_frame, merge_models
         from toolbox.attribution.sources import read_sources, translated
         from toolbox.io.parameter_file import optional_parameter_file, resolve
         from toolbox.io.vector import write_layers
         from toolbox.styles.gpkg import write_layer_styles
 
-        file = optional_parameter_file(params)
-        snap, _ = resolve(params.get("SNAP_TOLERANCE"), file, "snap_tolerance", 0.2)
-        zsnap, _ = resolve(params.get("HEIGHT_SNAP_TOLERANCE"), file, "height_snap_tolerance",
-                           0.1)
-        frames, _ = read_sources(params, params.get("CRS"), feedback)
+        file = optional_parameter_file(params.get("PARAMETERS"))
+        snap, _ = resolve(params.get("SNAP_TOLERANCE"), file, "snap_tolerance")
+        zsnap, _ = resolve(params.get("HEIGHT_SNAP_TOLERANCE"), file, "height_snap_tolerance")
+        frames, _ = read_sources(
+            params["INPUT"], params.get("CRS"), feedback,
+            coordinates=params.get("COORDINATES"), code_field=params.get("CODE_FIELD"))
         if file is not None:
             file.warn_unused(USED_ENTRIES, feedback, self.id)
             file.check_unit(frames[0].crs, feedback)

@@ -3,16 +3,17 @@
 from __future__ import annotations
 
 from toolbox.algorithm import Algorithm
-from toolbox.attribution.edit_parameters import parameter_file_parameter
-from toolbox.attribution.layer_specs import edited_output
 from toolbox.feedback import Feedback
 from toolbox.parameters import Enum, Number, Output, VectorLayer
 from toolbox.registry import register
+from toolbox.ui.attribution import edited_output, parameter_file_parameter
+from toolbox.ui.parameter_file import file_backed
 
-WANTED = {"DISTANCE": ("distance", "spline_step", 1.0),
+# parameter -> (value name, parameter-file key, default; None: the file's DEFAULTS table)
+WANTED = {"DISTANCE": ("distance", "spline_step", None),
           "ANGLE": ("angle", "-", 10.0),
           "TOLERANCE": ("tolerance", "-", None),
-          "PRECISION": ("precision", "decimals", 0.001)}
+          "PRECISION": ("precision", "decimals", None)}
 
 
 @register
@@ -43,9 +44,8 @@ class Sample(Algorithm):
         parameter_file_parameter(),
         Enum("METHOD", "vectors (distance + angle), distance (constant step) or densify",
              options=["vectors", "distance", "densify"], default="vectors"),
-        Number("DISTANCE", "largest distance between kept vertices / the step, CRS units "
-               "[default: parameter file's spline step, else 1]", min_value=0,
-               min_exclusive=True, optional=True),
+        file_backed("DISTANCE", "largest distance between kept vertices / the step, CRS units",
+                    "spline_step", min_exclusive=True),
         Number("ANGLE", "direction change that records a vertex, degrees (METHOD=vectors) "
                "[default 10]", min_value=0, max_value=180, optional=True),
         Number("TOLERANCE", "largest distance of an original vertex from the new line; features "
@@ -58,7 +58,6 @@ class Sample(Algorithm):
         import numpy as np
 
         from toolbox.attribution.edit_io import read_parts, write_edited
-        from toolbox.attribution.edit_parameters import file_values
         from toolbox.attribution.editing import (
             densify,
             deviation,
@@ -66,6 +65,7 @@ class Sample(Algorithm):
             sample_by_vectors,
         )
         from toolbox.errors import InputDataError
+        from toolbox.ui.attribution import file_values
 
         parts = read_parts(params["INPUT"])
         v, sources = file_values(params, WANTED, self.id, feedback, parts.frame.crs)

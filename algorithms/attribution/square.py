@@ -3,16 +3,17 @@
 from __future__ import annotations
 
 from toolbox.algorithm import Algorithm
-from toolbox.attribution.edit_parameters import parameter_file_parameter
-from toolbox.attribution.layer_specs import edited_output
 from toolbox.feedback import Feedback
 from toolbox.parameters import Number, Output, VectorLayer
 from toolbox.registry import register
+from toolbox.ui.attribution import edited_output, parameter_file_parameter
+from toolbox.ui.parameter_file import file_backed
 
-WANTED = {"TOLERANCE": ("tolerance", "squaring_tolerance", 0.2),
-          "ANGLE_TOLERANCE": ("angle_tolerance", "squaring_angle_tolerance", 3.0),
+# parameter -> (value name, parameter-file key, default; None: the file's DEFAULTS table)
+WANTED = {"TOLERANCE": ("tolerance", "squaring_tolerance", None),
+          "ANGLE_TOLERANCE": ("angle_tolerance", "squaring_angle_tolerance", None),
           "AREA_TOLERANCE": ("area_tolerance", "-", 1.0),
-          "PRECISION": ("precision", "decimals", 0.001)}
+          "PRECISION": ("precision", "decimals", None)}
 
 
 @register
@@ -45,16 +46,12 @@ class Square(Algorithm):
     parameters = [
         VectorLayer("INPUT", "buildings (polygons)", geometry_types=["polygon"]),
         parameter_file_parameter(),
-        Number("TOLERANCE", "largest vertex move, CRS units [default: parameter file, else 0.2]",
-               min_value=0, optional=True),
-        Number("ANGLE_TOLERANCE", "walls within this many degrees of the dominant direction are "
-               "squared [default: parameter file, else 3]", min_value=0, max_value=44.9,
-               optional=True),
+        file_backed("TOLERANCE", "largest vertex move, CRS units", "squaring_tolerance"),
+        file_backed("ANGLE_TOLERANCE", "walls within this many degrees of the dominant "
+                    "direction are squared", "squaring_angle_tolerance", max_value=44.9),
         Number("AREA_TOLERANCE", "largest area change, percent [default 1]", min_value=0,
                optional=True),
-        Number("PRECISION", "vertices closer than this are one shared vertex [default: "
-               "10^-decimals of the parameter file, else 0.001]", min_value=0,
-               min_exclusive=True, optional=True),
+        file_backed("PRECISION", "vertices closer than this are one shared vertex", "decimals"),
         edited_output("GeoPackage: squared buildings and moved_vertices"),
     ]
     outputs = [Output("STATISTICS", "buildings squared / left, largest move, largest deviation "
@@ -64,8 +61,8 @@ class Square(Algorithm):
         import numpy as np
 
         from toolbox.attribution.edit_io import read_parts, write_edited
-        from toolbox.attribution.edit_parameters import file_values
         from toolbox.attribution.editing import square_rings
+        from toolbox.ui.attribution import file_values
 
         parts = read_parts(params["INPUT"])
         v, sources = file_values(params, WANTED, self.id, feedback, parts.frame.crs)

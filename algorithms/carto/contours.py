@@ -55,7 +55,8 @@ class Contours(Algorithm):
                 min_value=0),
         Integer("SMOOTHING", "rounds of band-constrained smoothing (DEM only; 0 = none)",
                 default=0, min_value=0, max_value=5),
-        Integer("TILE_SIZE", "DEM block side in cells", default=1024, min_value=8),
+        Integer("TILE_SIZE", "DEM block side in cells (a block traces only the levels it spans)",
+                default=512, min_value=8),
         OutputVector("OUTPUT", "contours GeoPackage", layers=[
             Layer("contours", "LineString Z", [("elev", "real", "height of the line"),
                                                ("index", "integer", "1 on index contours"),

@@ -63,10 +63,13 @@ class Grid(Algorithm):
             raise self.fail("EXTENT", "or SHEETS: give exactly one of them")
 
     def process(self, params, feedback: Feedback):
-        from toolbox.cartography.grid_io import grid_frames
+        from toolbox.cartography.grid_io import MapGridRequest, SheetSource, grid_frames
         from toolbox.io.vector import write_layers
 
-        grid, labels, step, crs = grid_frames(params)
+        sheets = SheetSource(extent=params.get("EXTENT"), sheets=params.get("SHEETS"),
+                             sheet_id=params.get("SHEET_ID"), crs=params.get("CRS"))
+        grid, labels, step, crs = grid_frames(MapGridRequest(
+            sheets, params["SCALE"], params["MAP_STEP"], params["STYLE"], params["CROSS_SIZE"]))
         kind = "LineString" if params["STYLE"] == "lines" else "MultiLineString"
         write_layers(params["OUTPUT"], {"grid": grid, "grid_labels": labels}, crs=crs,
                      geometry_types={"grid": kind, "grid_labels": "Point"})

@@ -31,13 +31,23 @@ class Sheet(Algorithm):
     ISO sheet (A4...A0, portrait or landscape) that holds it and the side panel, unless
     ``PAPER`` names one. Drawn: the ``BASE`` raster (orthophoto or hillshade), the ``LAYERS``,
     the ``CONTOURS`` (index contours heavier, labelled along the line), the map grid every
-    ``MAP_STEP`` mm with its coordinates at the frame (none at the corners), a legend drawn as
+    ``MAP_STEP`` mm with its coordinates at the frame (none at the corners), ticks and outer
+    labels of a second CRS's grid (``GRID_CRS``, e.g. ETRS89 / UTM 32N beside Gauss-Boaga),
+    a legend drawn as
     the map is, a scale bar, a north arrow (grid north), and a title block with the title,
     sheet id, scale, CRS and datum, contour interval, date, sources with their dates and the
     producer. Point layers are spot heights, labelled with their height (Z, else a
     z/quota/elev/height/h field). The map and panel are centred on the paper; no text is under
     6 pt. The PDF is vector (text as TrueType text, lines as paths), the base
     raster is embedded at 200 dpi; its metadata keep the scale, CRS and bounds.
+
+    With symbology columns in ``CODES`` (``spessore``/width mm, ``tipo linea``/linetype:
+    continuous, dashed, dotted, dashdot, scarp; ``simbolo``/symbol: dot (a spot height,
+    labelled), circle, cross, triangle, square, tree; ``campitura``/hatch: solid or
+    ANGLE/SPACING in degrees/mm; ``codice consegna``/delivered code) each code is drawn so, the
+    legend lists the delivered codes once each with swatches drawn by the map's own routine,
+    and texts of the restitution (a layer with a ``text`` field, as ``attribution:apply`` writes
+    DXF texts) are placed at their size (at least 6 pt) and rotation.
 
     ``LAYERS`` take their symbology from the code file ``CODES`` (and ``COLOURS``) through the
     shared style model, the one ``attribution:apply`` embeds in its GeoPackage for QGIS: a
@@ -77,6 +87,8 @@ class Sheet(Algorithm):
         String("SOURCES", "sources line (default: the input files)", optional=True),
         String("DATE", "date in the title block (default: today, ISO)", optional=True),
         Crs("CRS", "CRS of EXTENT when it names none", optional=True),
+        Crs("GRID_CRS", "second CRS ticked along the frame (e.g. EPSG:6707 beside EPSG:3003)",
+            optional=True),
         OutputFile("OUTPUT", "sheet PDF (one page per sheet)", extensions=[".pdf"],
                    optional=True),
         OutputFile("PNG", "PNG of the (first) sheet", extensions=[".png"], optional=True),
@@ -97,17 +109,34 @@ class Sheet(Algorithm):
             raise self.fail("OUTPUT", "or FOLDER: give at least one")
         from toolbox.cartography.sheet_job import guard_sheets
 
-        guard_sheets(params)
+        guard_sheets(sheet_job(params))
 
     def planned_files(self, params):
         if params.get("FOLDER") is None:
             return {"FOLDER": []}
         from toolbox.cartography.sheet_job import sheet_file_names
 
-        return {"FOLDER": [f"{name}{ext}" for name in sheet_file_names(params)
+        return {"FOLDER": [f"{name}{ext}" for name in sheet_file_names(sheet_job(params))
                            for ext in (".pdf", ".png")]}
 
     def process(self, params, feedback: Feedback):
         from toolbox.cartography.sheet_job import run_sheets
 
-        return run_sheets(params, feedback)
+        return run_sheets(sheet_job(params), feedback)
+
+
+def sheet_job(params: dict):
+    """The typed request of a run (:class:`toolbox.cartography.sheet_job.SheetJob`)."""
+    from toolbox.cartography.grid_io import SheetSource
+    from toolbox.cartography.sheet_job import SheetJob
+
+    return SheetJob(
+        sheets=SheetSource(extent=params.get("EXTENT"), sheets=params.get("SHEETS"),
+                           sheet_id=params.get("SHEET_ID"), crs=params.get("CRS")),
+        scale=params["SCALE"], title=params["TITLE"], paper=params["PAPER"],
+        grid_style=params["GRID_STYLE"], map_step=params["MAP_STEP"],
+        png_dpi=params["PNG_DPI"], base=params.get("BASE"), layers=params.get("LAYERS") or [],
+        contours=params.get("CONTOURS"), codes=params.get("CODES"),
+        colours=params.get("COLOURS"), sources=params.get("SOURCES"), date=params.get("DATE"),
+        grid_crs=params.get("GRID_CRS"), output=params.get("OUTPUT"), png=params.get("PNG"),
+        folder=params.get("FOLDER"))

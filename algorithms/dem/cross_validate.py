@@ -19,9 +19,14 @@ from toolbox.parameters import (
     String,
 )
 from toolbox.registry import register
-from toolbox.terrain.gridding.inputs import check_sources
 from toolbox.terrain.gridding.methods import METHODS
-from toolbox.terrain.gridding.parameters import DEFAULT_MIN_RCOND, source_parameters
+from toolbox.ui.gridding import (
+    DEFAULT_MIN_RCOND,
+    check_sources,
+    method_options,
+    point_sources,
+    source_parameters,
+)
 
 ALL_METHODS = ("nearest", "idw", "plane", "quadratic", "cubic", "tin_linear")
 
@@ -115,7 +120,8 @@ class CrossValidate(Algorithm):
         from toolbox.terrain.gridding.validation import add_worst_point, error_summary, loo_predict
 
         names = parse_methods(params["METHODS"])
-        data = read_sources(params, feedback)
+        data = read_sources(point_sources(params), feedback)
+        requested = method_options(params)
         for name in names:
             require_points(data, METHODS[name].min_points + 1, f"cross-validation of {name}")
         local = data.local
@@ -124,7 +130,7 @@ class CrossValidate(Algorithm):
         step = 90.0 / len(names)
         for i, name in enumerate(names):
             method = METHODS[name]
-            options = method.options(params)
+            options = method.options(requested)
             with feedback.timed(f"loo_{name}"):
                 predicted, details = loo_predict(
                     method, local, options, bool(params.get("EXTRAPOLATE")), data.segments,

@@ -3,8 +3,7 @@
 from __future__ import annotations
 
 from toolbox.registry import register
-from toolbox.terrain.gridding.algorithm import GriddingAlgorithm
-from toolbox.terrain.gridding.parameters import POLYNOMIAL_HELP, STATISTICS, polynomial_parameters
+from toolbox.ui.gridding import POLYNOMIAL_HELP, GriddingAlgorithm, polynomial_parameters
 
 
 @register
@@ -19,4 +18,3 @@ class CubicGrid(GriddingAlgorithm):
     short_help = "DEM GeoTIFF by least-squares 3rd-order surfaces on the k nearest points (eq. 48)."
     method = "cubic"
     parameters = polynomial_parameters(3, 20)
-    outputs = [STATISTICS]

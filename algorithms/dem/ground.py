@@ -8,10 +8,12 @@ from toolbox.algorithm import Algorithm
 from toolbox.feedback import Feedback
 from toolbox.parameters import Crs, Enum, Field, Number, OutputFile, OutputRaster, RasterLayer, VectorLayer
 from toolbox.registry import register
-from toolbox.terrain.gridding.parameters import (
+from toolbox.ui.grid import grid_request
+from toolbox.ui.gridding import (
     STATISTICS,
     execution_parameters,
     grid_parameters,
+    gridding_request,
     point_cloud_parameters,
 )
 
@@ -39,6 +41,9 @@ class GroundFilterDtm(Algorithm):
     the same grid rules: CELL_SIZE / EXTENT / TEMPLATE; default: the DSM's grid, or
     FILTER_CELL over the points' bounds). NONGROUND: UInt8 on the output grid, 1 where a cell
     holds a non-ground point or DSM cell, 0 where only ground ones, 255 where none.
+    HEIGHTS (optional): on the same grid, the highest point (or DSM cell) of each cell minus
+    the DTM there (a normalised DSM: buildings and trees stand up, open ground is about 0;
+    no data where no point fell), the HEIGHTS mosaic:seamlines routes seams around.
     GROUND_POINTS writes the input points classified (2 ground, 1 other) as LAS/LAZ.
     The filter grid is held in memory (its cells count against MAX_CELLS).
     """
@@ -73,6 +78,8 @@ class GroundFilterDtm(Algorithm):
         *execution_parameters(),
         OutputRaster("NONGROUND", "non-ground mask GeoTIFF (UInt8: 1 non-ground, 0 ground, "
                      "255 no data), on the DTM's grid"),
+        OutputRaster("HEIGHTS", "height above the DTM of the highest point (or DSM cell) of "
+                     "each cell, Float32 (for mosaic:seamlines HEIGHTS)", optional=True),
         OutputFile("GROUND_POINTS", "the input points classified (2 ground, 1 other) as "
                    "LAS/LAZ", extensions=[".laz", ".las"], optional=True),
     ]
@@ -80,7 +87,6 @@ class GroundFilterDtm(Algorithm):
 
     def check(self, params: dict[str, Any]) -> None:
         from toolbox.io.pointcloud import cloud_filter
-        from toolbox.raster.engine import check_grid_parameters
 
         if (params.get("INPUT") is None) == (params.get("DSM") is None):
             raise self.fail("INPUT", "give exactly one of INPUT (points) or DSM (raster)")
@@ -90,9 +96,20 @@ class GroundFilterDtm(Algorithm):
         elif params.get("FILTER_CELL") is not None:
             raise self.fail("FILTER_CELL", "is not used with DSM (the filter runs on the DSM's "
                             "cells)")
-        check_grid_parameters(params, cell_required=False)
+        grid_request(params).check(cell_required=False)
 
     def process(self, params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
-        from toolbox.terrain.ground_run import run_ground
+        from toolbox.terrain.ground import GroundFilter
+        from toolbox.terrain.ground_run import GroundRequest, run_ground
 
-        return run_ground(params, feedback)
+        request = GroundRequest(
+            gridding=gridding_request(params),
+            filter=GroundFilter(float(params.get("FILTER_CELL") or 1.0), float(params["SLOPE"]),
+                                float(params["MAX_WINDOW"]), float(params["ELEVATION_THRESHOLD"]),
+                                float(params["ELEVATION_SCALAR"])),
+            nonground=params["NONGROUND"], method=params["METHOD"], dsm=params.get("DSM"),
+            ground_points=params.get("GROUND_POINTS"), heights=params.get("HEIGHTS"))
+        stats = run_ground(request, feedback)
+        names = ("OUTPUT", "NONGROUND", "HEIGHTS", "GROUND_POINTS", "QUALITY")
+        out = {name: params[name] for name in names if params.get(name) is not None}
+        return out | {"STATISTICS": stats}

@@ -2,14 +2,13 @@
 
 from __future__ import annotations
 
-from toolbox.algorithm import Algorithm
-from toolbox.feedback import Feedback
-from toolbox.parameters import Boolean, Integer, Number, OutputRaster, RasterLayer
+from toolbox.parameters import Number
 from toolbox.registry import register
+from toolbox.ui.shading import ShadingAlgorithm, shading_parameters
 
 
 @register
-class Hillshade(Algorithm):
+class Hillshade(ShadingAlgorithm):
     """Shaded relief of a DEM, as ``gdaldem hillshade``.
 
     Slope and aspect come from Horn's 3x3 weights; a distant sun lights the surface by
@@ -22,36 +21,19 @@ class Hillshade(Algorithm):
 
     id = "dem:hillshade"
     display_name = "Hillshade"
-    group = "DEM terrain"
     short_help = "Shaded relief (Horn slope, sun azimuth/altitude) of a DEM, as a Byte GeoTIFF."
-    parameters = [
-        RasterLayer("INPUT", "DEM (band 1; elevations in the CRS's horizontal unit)"),
-        Integer("BAND", "band of the DEM", default=1, min_value=1),
-        Number("AZIMUTH", "sun azimuth, degrees clockwise from north", default=315.0,
-               min_value=0, max_value=360),
-        Number("ALTITUDE", "sun altitude above the horizon, degrees", default=45.0,
-               min_value=0, max_value=90),
-        Number("Z_FACTOR", "vertical exaggeration (and unit conversion)", default=1.0,
-               min_value=0, min_exclusive=True),
-        Integer("TILE_SIZE", "tile side in cells", default=512, min_value=16),
-        Boolean("OVERVIEWS", "build internal overviews", default=True),
-        Boolean("COG", "write a Cloud Optimized GeoTIFF", default=False),
-        OutputRaster("OUTPUT", "hillshade GeoTIFF"),
-    ]
+    parameters = shading_parameters(
+        "DEM (band 1; elevations in the CRS's horizontal unit)", "hillshade GeoTIFF", [
+            Number("AZIMUTH", "sun azimuth, degrees clockwise from north", default=315.0,
+                   min_value=0, max_value=360),
+            Number("ALTITUDE", "sun altitude above the horizon, degrees", default=45.0,
+                   min_value=0, max_value=90),
+            Number("Z_FACTOR", "vertical exaggeration (and unit conversion)", default=1.0,
+                   min_value=0, min_exclusive=True)])
 
-    def check(self, params):
-        from toolbox.terrain.shading import check_dem_params
+    kernel_name = "hillshade_bytes"
+    dtype, nodata = "uint8", 0
 
-        check_dem_params(params)
-
-    def process(self, params, feedback: Feedback):
-        from functools import partial
-
-        from toolbox.terrain.shading import hillshade_bytes, shade_raster
-
-        kernel = partial(hillshade_bytes, azimuth=params["AZIMUTH"],
-                         altitude=params["ALTITUDE"], z_factor=params["Z_FACTOR"])
-        shade_raster(params["INPUT"], params["BAND"], params["OUTPUT"], kernel, "uint8", 0,
-                     feedback, params["TILE_SIZE"], params["OVERVIEWS"], params["COG"])
-        return {"OUTPUT": params["OUTPUT"]}
-
+    def kernel_options(self, params):
+        return {"azimuth": params["AZIMUTH"], "altitude": params["ALTITUDE"],
+                "z_factor": params["Z_FACTOR"]}

@@ -4,9 +4,8 @@ from __future__ import annotations
 
 from toolbox.parameters import Integer, Number
 from toolbox.registry import register
-from toolbox.terrain.gridding.algorithm import GriddingAlgorithm
-from toolbox.terrain.gridding.parameters import (
-    STATISTICS,
+from toolbox.ui.gridding import (
+    GriddingAlgorithm,
     execution_parameters,
     grid_parameters,
     neighbour_parameters,
@@ -46,7 +45,6 @@ class IdwGrid(GriddingAlgorithm):
         Integer("SECTORS", "angular sectors for the neighbour search (1 = none; e.g. 4 or 8)",
                 default=1, min_value=1, max_value=16),
     ] + execution_parameters()
-    outputs = [STATISTICS]
 
     def check_method(self, params):
         super().check_method(params)

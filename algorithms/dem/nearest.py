@@ -3,13 +3,7 @@
 from __future__ import annotations
 
 from toolbox.registry import register
-from toolbox.terrain.gridding.algorithm import GriddingAlgorithm
-from toolbox.terrain.gridding.parameters import (
-    STATISTICS,
-    execution_parameters,
-    grid_parameters,
-    source_parameters,
-)
+from toolbox.ui.gridding import GriddingAlgorithm, method_free_parameters
 
 
 @register
@@ -38,5 +32,4 @@ class NearestGrid(GriddingAlgorithm):
     display_name = "DEM by nearest neighbour"
     short_help = "DEM GeoTIFF: each cell takes the height of the nearest data point."
     method = "nearest"
-    parameters = source_parameters() + grid_parameters() + execution_parameters()
-    outputs = [STATISTICS]
+    parameters = method_free_parameters()

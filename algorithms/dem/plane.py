@@ -3,8 +3,7 @@
 from __future__ import annotations
 
 from toolbox.registry import register
-from toolbox.terrain.gridding.algorithm import GriddingAlgorithm
-from toolbox.terrain.gridding.parameters import POLYNOMIAL_HELP, STATISTICS, polynomial_parameters
+from toolbox.ui.gridding import POLYNOMIAL_HELP, GriddingAlgorithm, polynomial_parameters
 
 
 @register
@@ -19,4 +18,3 @@ class PlaneGrid(GriddingAlgorithm):
     short_help = "DEM GeoTIFF by least-squares planes on the k nearest points (eq. 46)."
     method = "plane"
     parameters = polynomial_parameters(1, 8)
-    outputs = [STATISTICS]

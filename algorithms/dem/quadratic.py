@@ -3,8 +3,7 @@
 from __future__ import annotations
 
 from toolbox.registry import register
-from toolbox.terrain.gridding.algorithm import GriddingAlgorithm
-from toolbox.terrain.gridding.parameters import POLYNOMIAL_HELP, STATISTICS, polynomial_parameters
+from toolbox.ui.gridding import POLYNOMIAL_HELP, GriddingAlgorithm, polynomial_parameters
 
 
 @register
@@ -20,4 +19,3 @@ class QuadraticGrid(GriddingAlgorithm):
     short_help = "DEM GeoTIFF by least-squares 2nd-order surfaces on the k nearest points (eq. 47)."
     method = "quadratic"
     parameters = polynomial_parameters(2, 12)
-    outputs = [STATISTICS]

@@ -2,14 +2,13 @@
 
 from __future__ import annotations
 
-from toolbox.algorithm import Algorithm
-from toolbox.feedback import Feedback
-from toolbox.parameters import Boolean, Enum, Integer, Number, Output, OutputRaster, RasterLayer
+from toolbox.parameters import Enum, Number, Output
 from toolbox.registry import register
+from toolbox.ui.shading import ShadingAlgorithm, shading_parameters
 
 
 @register
-class Slope(Algorithm):
+class Slope(ShadingAlgorithm):
     """Steepest slope of every DEM cell, as ``gdaldem slope`` (Horn 1981).
 
     The gradient comes from Horn's 3x3 weights, ``dz/dx = ((c+2f+i) - (a+2d+g)) / (8·cell_x)``
@@ -21,33 +20,15 @@ class Slope(Algorithm):
 
     id = "dem:slope"
     display_name = "Slope"
-    group = "DEM terrain"
     short_help = "Slope of a DEM in degrees or percent (Horn's 3x3 method), Float32 GeoTIFF."
-    parameters = [
-        RasterLayer("INPUT", "DEM (band 1; elevations in the CRS's horizontal unit)"),
-        Integer("BAND", "band of the DEM", default=1, min_value=1),
-        Enum("UNITS", "slope units", options=["degrees", "percent"], default="degrees"),
-        Number("Z_FACTOR", "vertical exaggeration (and unit conversion)", default=1.0,
-               min_value=0, min_exclusive=True),
-        Integer("TILE_SIZE", "tile side in cells", default=512, min_value=16),
-        Boolean("OVERVIEWS", "build internal overviews", default=True),
-        Boolean("COG", "write a Cloud Optimized GeoTIFF", default=False),
-        OutputRaster("OUTPUT", "slope GeoTIFF"),
-    ]
+    parameters = shading_parameters(
+        "DEM (band 1; elevations in the CRS's horizontal unit)", "slope GeoTIFF", [
+            Enum("UNITS", "slope units", options=["degrees", "percent"], default="degrees"),
+            Number("Z_FACTOR", "vertical exaggeration (and unit conversion)", default=1.0,
+                   min_value=0, min_exclusive=True)])
     outputs = [Output("STATISTICS", "cell counts", "dict")]
 
-    def check(self, params):
-        from toolbox.terrain.shading import check_dem_params
+    kernel_name = "slope"
 
-        check_dem_params(params)
-
-    def process(self, params, feedback: Feedback):
-        from functools import partial
-
-        from toolbox.terrain.shading import shade_raster, slope
-
-        kernel = partial(slope, z_factor=params["Z_FACTOR"], units=params["UNITS"])
-        stats = shade_raster(params["INPUT"], params["BAND"], params["OUTPUT"], kernel,
-                             "float32", -9999.0, feedback, params["TILE_SIZE"],
-                             params["OVERVIEWS"], params["COG"])
-        return {"OUTPUT": params["OUTPUT"], "STATISTICS": stats}
+    def kernel_options(self, params):
+        return {"z_factor": params["Z_FACTOR"], "units": params["UNITS"]}

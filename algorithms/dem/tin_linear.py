@@ -3,13 +3,7 @@
 from __future__ import annotations
 
 from toolbox.registry import register
-from toolbox.terrain.gridding.algorithm import GriddingAlgorithm
-from toolbox.terrain.gridding.parameters import (
-    STATISTICS,
-    execution_parameters,
-    grid_parameters,
-    source_parameters,
-)
+from toolbox.ui.gridding import GriddingAlgorithm, method_free_parameters
 
 
 @register
@@ -36,8 +30,7 @@ class TinLinearGrid(GriddingAlgorithm):
     display_name = "DEM by TIN linear interpolation"
     short_help = "DEM GeoTIFF from the planes of the Delaunay TIN, breaklines kept (eq. 43-44)."
     method = "tin_linear"
-    parameters = source_parameters() + grid_parameters() + execution_parameters()
-    outputs = [STATISTICS]
+    parameters = method_free_parameters()
 
     def process(self, params, feedback):
         if params.get("EXTRAPOLATE"):

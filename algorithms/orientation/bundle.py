@@ -18,8 +18,8 @@ from toolbox.parameters import (
     OutputVector,
     String,
 )
-from toolbox.photogrammetry.parameters import TABLE_EXTENSIONS, measurement_parameters
 from toolbox.registry import register
+from toolbox.ui.photogrammetry import TABLE_EXTENSIONS, measurement_parameters
 
 
 @register
@@ -36,8 +36,14 @@ class BundleAdjustment(Algorithm):
     INPUT holds tie points only. CONTROL: ``id``, ``X``, ``Y``, ``Z``, optional ``role`` (control/check),
     ``sigma_xy``, ``sigma_z`` (m): leave X and Y empty for a height point, Z empty for a
     planimetric one. Check points are adjusted as tie points and only compared. GNSS (optional):
-    antenna positions ``photo``, ``X``, ``Y``, ``Z`` (optional sigmas), at the projection centre
-    or offset by LEVER_ARM (camera frame, rotated with the photo).
+    antenna positions ``photo``, ``X``, ``Y``, ``Z`` (optional sigmas, ``strip``, ``time``), at
+    the projection centre or offset by LEVER_ARM (camera frame, rotated with the photo);
+    GNSS_SHIFT / GNSS_DRIFT add an unknown offset ``s`` / drift ``d·t`` per strip (the ``strip``
+    column, else the project's strips; ``time``, else the photo's place in its strip, centred):
+    the datum then needs a full and a second height control point. IMU (optional): attitudes
+    ``photo``, ``omega``, ``phi``, ``kappa`` (photogrammetric convention, IMU_ANGLE_UNIT,
+    optional ``sigma``) observing the angles of ``R·R(b)``; BORESIGHT estimates the 3 boresight
+    angles ``b`` (else zero). IMU observations are not data-snooped.
 
     Unknowns: 6 exterior parameters per photo, 3 coordinates per point and, per camera, the
     SELF_CALIBRATION parameters: ``c``, ``x0``, ``y0`` (principal point, mm), ``k1``-``k3``
@@ -87,6 +93,18 @@ class BundleAdjustment(Algorithm):
              extensions=TABLE_EXTENSIONS, optional=True),
         String("LEVER_ARM", "GNSS antenna offset from the projection centre in the camera frame, "
                "m: 'x, y, z' (x, y along the image axes, z away from the ground)", optional=True),
+        Boolean("GNSS_SHIFT", "estimate a GNSS shift per strip (3 unknowns each)",
+                default=False),
+        Boolean("GNSS_DRIFT", "estimate a GNSS drift per strip (3 unknowns each, per time "
+                "unit)", default=False),
+        File("IMU", "IMU attitudes: photo, omega, phi, kappa, optional sigma (IMU_ANGLE_UNIT)",
+             extensions=TABLE_EXTENSIONS, optional=True),
+        Enum("IMU_ANGLE_UNIT", "angle unit of IMU", options=("deg", "rad", "gon"),
+             default="deg"),
+        Number("IMU_SIGMA", "default sigma of an IMU angle, in IMU_ANGLE_UNIT", default=0.005,
+               min_value=0, min_exclusive=True),
+        Boolean("BORESIGHT", "estimate the boresight angles between camera and IMU",
+                default=False),
         Enum("START", "approximate values: auto, project (PROJECT's exteriors) or control "
              "(resection and intersection chained)", options=("auto", "project", "control"),
              default="auto"),
@@ -152,6 +170,7 @@ class BundleAdjustment(Algorithm):
 
         from toolbox.io.vector import write_layers
         from toolbox.photogrammetry.project import save_project
+        from toolbox.photogrammetry.rotation import to_radians
         from toolbox.photogrammetry.tables import load_project_parameter, write_json
         from toolbox.triangulation import approximations, outputs
         from toolbox.triangulation.adjust import adjust, check_datum, validate
@@ -160,6 +179,7 @@ class BundleAdjustment(Algorithm):
             BlockRequest,
             build_block,
             parse_lever_arm,
+            read_attitudes,
             read_centres,
             read_control,
             read_measurements,
@@ -178,11 +198,21 @@ class BundleAdjustment(Algorithm):
             measurements = measurements.concatenate(extra)
         control = read_control(params["CONTROL"])
         centres = read_centres(params["GNSS"]) if params["GNSS"] is not None else None
+        if (params["GNSS_SHIFT"] or params["GNSS_DRIFT"]) and centres is None:
+            raise self.fail("GNSS_SHIFT" if params["GNSS_SHIFT"] else "GNSS_DRIFT",
+                            "needs GNSS projection centres (GNSS)")
+        if params["BORESIGHT"] and params["IMU"] is None:
+            raise self.fail("BORESIGHT", "needs IMU attitudes (IMU)")
+        attitudes = read_attitudes(params["IMU"], params["IMU_ANGLE_UNIT"]) \
+            if params["IMU"] is not None else None
         request = BlockRequest(project, measurements, control, centres,
                                params["SELF_CALIBRATION"] or "", params["SIGMA_PX"],
                                params["SIGMA_MM"], params["CONTROL_SIGMA_XY"],
                                params["CONTROL_SIGMA_Z"], params["GNSS_SIGMA_XY"],
-                               params["GNSS_SIGMA_Z"], parse_lever_arm(params["LEVER_ARM"]))
+                               params["GNSS_SIGMA_Z"], parse_lever_arm(params["LEVER_ARM"]),
+                               params["GNSS_SHIFT"], params["GNSS_DRIFT"], attitudes,
+                               to_radians(params["IMU_SIGMA"], params["IMU_ANGLE_UNIT"]),
+                               params["BORESIGHT"])
         block, info = build_block(request)
         unmeasured = [i for i in control.ids if i not in set(block.point_ids)]
         if unmeasured:

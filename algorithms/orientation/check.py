@@ -7,8 +7,8 @@ from typing import Any
 from toolbox.algorithm import Algorithm
 from toolbox.feedback import Feedback
 from toolbox.parameters import Layer, Number, Output, OutputFile, OutputVector
-from toolbox.photogrammetry.parameters import control_parameter, measurement_parameters
 from toolbox.registry import register
+from toolbox.ui.photogrammetry import control_parameter, measurement_parameters
 
 
 @register

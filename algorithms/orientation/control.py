@@ -17,8 +17,8 @@ from toolbox.parameters import (
     RasterLayer,
     String,
 )
-from toolbox.photogrammetry.parameters import TABLE_EXTENSIONS
 from toolbox.registry import register
+from toolbox.ui.photogrammetry import TABLE_EXTENSIONS
 
 
 @register

@@ -15,9 +15,9 @@ from toolbox.photogrammetry.forward_intersection import (
     camera_observations,
     intersect,
 )
-from toolbox.photogrammetry.parameters import measurement_parameters
 from toolbox.photogrammetry.tables import image_measurements, load_project_parameter, write_json
 from toolbox.registry import register
+from toolbox.ui.photogrammetry import measurement_parameters
 
 
 @register

@@ -7,8 +7,8 @@ from typing import Any
 from toolbox.algorithm import Algorithm
 from toolbox.feedback import Feedback
 from toolbox.parameters import Enum, File, Layer, Output, OutputFile, OutputVector, String
-from toolbox.photogrammetry.parameters import TABLE_EXTENSIONS
 from toolbox.registry import register
+from toolbox.ui.photogrammetry import TABLE_EXTENSIONS
 
 
 @register

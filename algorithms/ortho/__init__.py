@@ -1,2 +1,2 @@
 """Orthophotos: differential rectification of frame photos on a DEM (``ortho:photo``) and of
-whole blocks on one shared grid (``ortho:batch``). Kernels: :mod:`toolbox.photogrammetry.ortho`."""
+whole blocks on one shared grid (``ortho:batch``). Library: :mod:`toolbox.ortho`."""

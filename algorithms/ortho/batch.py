@@ -19,9 +19,9 @@ from toolbox.parameters import (
     RasterLayer,
     String,
 )
-from toolbox.photogrammetry.parameters import ortho_method_parameters
 from toolbox.photogrammetry.tables import PROJECT_EXTENSIONS
 from toolbox.registry import register
+from toolbox.ui.photogrammetry import ortho_method_parameters
 
 
 @register
@@ -32,9 +32,10 @@ class OrthoBatch(Algorithm):
 
     The cell is CELL_SIZE, default the LARGEST ground sample distance among the photos (as the
     thesis' software advises, S002 par. 3.8: uniform resolution over the block), or TEMPLATE's
-    cell and lattice. Each ortho covers its photo's footprint on the DEM, with edges on the
-    shared lattice. The photos' image files are the project's ``image`` paths (relative to the
-    project file); IMAGES gives another folder holding them under the same file names.
+    cell and lattice (CELL_SIZE is then not given: the rule of every raster output). Each ortho covers its
+    photo's footprint on the DEM, with edges on the shared lattice. The photos' image files are
+    the project's ``image`` paths (relative to the project file); IMAGES gives another folder
+    holding them under the same file names.
 
     Photos run in parallel on local threads (WORKERS) or on a Dask cluster (SCHEDULER or
     DASK_SCHEDULER_ADDRESS), with one progress bar. A photo that fails (missing image, camera
@@ -97,11 +98,15 @@ class OrthoBatch(Algorithm):
         return {"FOLDER": [f"{photo.id}.tif" for photo in photos]}
 
     def process(self, params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
-        from toolbox.io.crs import crs_label, same_crs
+        from toolbox.io.crs import crs_label
         from toolbox.io.raster import open_raster_info
         from toolbox.io.staging import final_path
-        from toolbox.photogrammetry import ortho, orthophoto
+        from toolbox.ortho.block import OrthoTask, run_task
+        from toolbox.ortho.metrics import nice_cell_size
+        from toolbox.ortho.plan import check_geometry, lattice_grid, plan_photo, tilt_warning
+        from toolbox.ortho.run import OrthoOptions
         from toolbox.photogrammetry.tables import load_project_parameter, write_json
+        from toolbox.raster.grid_request import template_lattice
         from toolbox.tiles import map_tiles, resolve_executor
 
         project = load_project_parameter(params["PROJECT"])
@@ -118,19 +123,15 @@ class OrthoBatch(Algorithm):
         cell = params["CELL_SIZE"]
         template = params["TEMPLATE"]
         if template is not None:
-            if template.crs is not None and not same_crs(template.crs, crs):
-                raise ParameterError("TEMPLATE", f"is in {crs_label(template.crs)}, the project "
-                                     f"in {crs_label(crs)}")
-            cell, origin = abs(template.transform.a), (template.transform.c,
-                                                       template.transform.f)
+            cell, origin = template_lattice(template, cell, crs, "the project")
         for photo in feedback.iterate(photos, start=0, end=10):
             try:
                 image = open_raster_info(image_path(photo, params["IMAGES"]), "IMAGES")
-                ortho.check_geometry(photo)
-                warning = ortho.tilt_warning(photo)
+                check_geometry(photo)
+                warning = tilt_warning(photo)
                 if warning:
                     feedback.push_warning(warning)
-                plans.append((orthophoto.plan_photo(photo, params["DEM"], crs, params["BAND"]), image))
+                plans.append((plan_photo(photo, params["DEM"], crs, params["BAND"]), image))
             except (InputDataError, ParameterError) as exc:
                 failed.append({"photo": photo.id, "error": str(exc)})
                 feedback.push_warning(f"photo {photo.id} failed: {exc}")
@@ -138,19 +139,19 @@ class OrthoBatch(Algorithm):
             raise InputDataError("no photo could be orthorectified: " +
                                  "; ".join(f"{f['photo']}: {f['error']}" for f in failed))
         if cell is None:
-            cell = max(ortho.nice_cell_size(plan.gsd) for plan, _ in plans)
-        options = orthophoto.OrthoOptions(
+            cell = max(nice_cell_size(plan.gsd) for plan, _ in plans)
+        options = OrthoOptions(
             resampling=params["RESAMPLING"], outside=params["OUTSIDE"], nodata=params["NODATA"],
-            block=params["TILE_SIZE"], tolerance_px=params["MAP_TOLERANCE"],
+            block=params["MAP_BLOCK"], tolerance_px=params["MAP_TOLERANCE"],
             dem_factor=params["DEM_FACTOR"], band=params["BAND"], occlusion=params["OCCLUSION"],
             overviews=params["OVERVIEWS"], cog=params["COG"])
         folder = Path(params["FOLDER"])  # staged by the runner: moved into place on success
-        tasks = [orthophoto.OrthoTask(plan.photo, image, params["DEM"],
-                                 orthophoto.lattice_grid(plan.extent, cell, crs, origin),
-                                 folder / f"{plan.photo.id}.tif", options, plan.mean_height,
-                                 params["MAP_SCALE"]) for plan, image in plans]
+        tasks = [OrthoTask(plan.photo, image, params["DEM"],
+                           lattice_grid(plan.extent, cell, crs, origin),
+                           folder / f"{plan.photo.id}.tif", options, plan.mean_height,
+                           params["MAP_SCALE"]) for plan, image in plans]
         reports = []
-        for result in map_tiles(orthophoto.run_task, tasks, executor=executor, feedback=feedback,
+        for result in map_tiles(run_task, tasks, executor=executor, feedback=feedback,
                                 total=len(tasks), start=10, end=100):
             if "error" in result:
                 failed.append(result)

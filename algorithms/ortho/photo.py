@@ -22,9 +22,9 @@ from toolbox.parameters import (
     RasterLayer,
     String,
 )
-from toolbox.photogrammetry.parameters import ortho_method_parameters
 from toolbox.photogrammetry.tables import PROJECT_EXTENSIONS
 from toolbox.registry import register
+from toolbox.ui.photogrammetry import ortho_method_parameters
 
 
 @register
@@ -40,10 +40,10 @@ class OrthoPhoto(Algorithm):
     quadratic, the thesis' Z-Map choice, by Dodgson's interpolating quadratic kernel).
     Without distortion the projection is exact at every cell (the collinearity equations are a
     3 x 4 projective matrix on (X, Y, Z, 1)); with distortion it is evaluated exactly at the
-    corners of TILE_SIZE x TILE_SIZE cell blocks and blended inside only where the blend is
+    corners of MAP_BLOCK x MAP_BLOCK cell blocks and blended inside only where the blend is
     provably within MAP_TOLERANCE photo pixels (default 0.05 px; bound = Lipschitz constant of
     the distortion x condition of the pixel transform x diagonal of the block's pixel box,
-    checked per block; other blocks are computed exactly; TILE_SIZE 64 as the thesis'
+    checked per block; other blocks are computed exactly; MAP_BLOCK 64 as the thesis'
     "tasselli", the fastest measured). The work is streamed by output windows: memory stays
     bounded for a 16644 x 16644 scan. The ortho is in the orientation's CRS, or in CRS when
     given with PROJECT: the cell centres then go to the orientation's CRS through a pyproj
@@ -132,7 +132,8 @@ class OrthoPhoto(Algorithm):
             raise self.fail("BAND", f"must be <= {params['DEM'].count}, got {params['BAND']}")
 
     def process(self, params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
-        from toolbox.photogrammetry import ortho, orthophoto
+        from toolbox.ortho.plan import check_geometry, plan_photo, tilt_warning
+        from toolbox.ortho.run import OrthoOptions, orthorectify
         from toolbox.photogrammetry.tables import write_json
 
         photo, crs, output_crs = oriented_photo(params)
@@ -143,8 +144,8 @@ class OrthoPhoto(Algorithm):
             feedback.push_warning(f"the orientation names no CRS: its coordinates are taken to "
                                   f"be in the DEM's, {crs_label(crs)}, and the ortho is written "
                                   "in it (give CRS to say otherwise)")
-        ortho.check_geometry(photo)  # a camera looking away is an error, not a tilt warning
-        warning = ortho.tilt_warning(photo)
+        check_geometry(photo)  # a camera looking away is an error, not a tilt warning
+        warning = tilt_warning(photo)
         if warning:
             feedback.push_warning(warning)
         out_crs = output_crs or crs
@@ -154,17 +155,17 @@ class OrthoPhoto(Algorithm):
             if not same_crs(out_crs, crs):
                 raise ParameterError("CRS", "differs from the orientation's: OCCLUSION and "
                                      "INCIDENCE need the ortho in the orientation's CRS")
-        plan = orthophoto.plan_photo(photo, params["DEM"], crs, params["BAND"],
-                                     *grid_choice(params, out_crs), output_crs=out_crs)
-        options = orthophoto.OrthoOptions(
+        plan = plan_photo(photo, params["DEM"], crs, params["BAND"],
+                          *grid_choice(params, out_crs), output_crs=out_crs)
+        options = OrthoOptions(
             resampling=params["RESAMPLING"], outside=params["OUTSIDE"], nodata=params["NODATA"],
-            block=params["TILE_SIZE"], tolerance_px=params["MAP_TOLERANCE"],
+            block=params["MAP_BLOCK"], tolerance_px=params["MAP_TOLERANCE"],
             dem_factor=params["DEM_FACTOR"], band=params["BAND"], occlusion=params["OCCLUSION"],
             overviews=params["OVERVIEWS"], cog=params["COG"])
-        report = orthophoto.orthorectify(photo, params["INPUT"], params["DEM"], plan.grid,
-                                    params["OUTPUT"], options, plan.surface, plan.mean_height,
-                                    params["OCCLUSION_MASK"], params["INCIDENCE"],
-                                    params["MAP_SCALE"], feedback)
+        report = orthorectify(photo, params["INPUT"], params["DEM"], plan.grid,
+                              params["OUTPUT"], options, plan.surface, plan.mean_height,
+                              params["OCCLUSION_MASK"], params["INCIDENCE"],
+                              params["MAP_SCALE"], feedback)
         report["footprint"] = [list(p) for p in plan.footprint.exterior.coords]
         if params["REPORT"] is not None:
             write_json(params["REPORT"], {"algorithm": self.id, "photos": [report]})
@@ -176,6 +177,7 @@ class OrthoPhoto(Algorithm):
 def grid_choice(params: dict[str, Any], crs: Any) -> tuple[Any, Any, tuple[float, float]]:
     """(cell, bounds, lattice origin) from CELL_SIZE, EXTENT and TEMPLATE."""
     from toolbox.io.crs import crs_label, same_crs
+    from toolbox.raster.grid_request import template_lattice
 
     cell = params["CELL_SIZE"]
     extent = params["EXTENT"]
@@ -183,18 +185,8 @@ def grid_choice(params: dict[str, Any], crs: Any) -> tuple[Any, Any, tuple[float
     if extent is not None and extent.crs is not None and not same_crs(extent.crs, crs):
         raise ParameterError("EXTENT", f"is in {crs_label(extent.crs)}, the ortho in "
                              f"{crs_label(crs)}")
-    template = params["TEMPLATE"]
-    if template is not None:
-        if template.crs is not None and not same_crs(template.crs, crs):
-            raise ParameterError("TEMPLATE", f"is in {crs_label(template.crs)}, the ortho in "
-                                 f"{crs_label(crs)}")
-        t = template.transform
-        if t.b != 0 or t.d != 0 or abs(abs(t.a) - abs(t.e)) > 1e-9 * abs(t.a):
-            raise ParameterError("TEMPLATE", "must be north-up with square cells")
-        if cell is not None and abs(cell - abs(t.a)) > 1e-9 * cell:
-            raise ParameterError("CELL_SIZE", f"differs from TEMPLATE's cell ({abs(t.a):g}); "
-                                 "leave it out to use the template's")
-        cell, origin = abs(t.a), (t.c, t.f)
+    if params["TEMPLATE"] is not None:
+        cell, origin = template_lattice(params["TEMPLATE"], cell, crs, "the ortho")
     return cell, None if extent is None else extent.bounds, origin
 
 

@@ -1,8 +1,8 @@
 """rectify:image - warp a photo onto the ground plane with a rectify:estimate transform.
 
 Library code: :mod:`toolbox.transforms.rectification` (pixel -> ground matrix, footprint,
-default cell size), the raster engine's grid rules, :func:`toolbox.raster.engine.warp_raster`
-with a :class:`~toolbox.raster.warp.HomographyMap`, and
+default cell size), the raster engine's grid rules, :func:`toolbox.raster.warp.warp_raster`
+with a :class:`~toolbox.raster.homography.HomographyMap`, and
 :class:`~toolbox.raster.writer.RasterWriter`.
 """
 
@@ -29,7 +29,7 @@ from toolbox.parameters import (
 from toolbox.registry import register
 from toolbox.transforms.rectification import MODES, OUTSIDE, RectificationModel, parse_pixel_to_image
 
-RESAMPLING_METHODS = ("nearest", "bilinear", "cubic", "lanczos")  # toolbox.raster.warp's
+RESAMPLING_METHODS = ("nearest", "bilinear", "cubic", "lanczos")  # toolbox.raster.resample's
 
 
 @register
@@ -109,11 +109,12 @@ class RectifyImage(Algorithm):
 
     def process(self, params, feedback: Feedback):
         from toolbox.io.crs import crs_label, same_crs
-        from toolbox.raster.engine import grid_from_parameters, warp_raster
-        from toolbox.raster.warp import HomographyMap, warp_layout
+        from toolbox.raster.engine import grid_from_parameters
+        from toolbox.raster.homography import HomographyMap
+        from toolbox.raster.warp import warp_layout, warp_raster
         from toolbox.raster.writer import RasterWriter
+        from toolbox.transforms.plane import apply_homography
         from toolbox.transforms.rectification import (
-            _apply,
             default_cell_size,
             footprint,
             load_transform,
@@ -152,7 +153,8 @@ class RectifyImage(Algorithm):
             params, bounds, model.crs,
             default_cell_size=lambda: default_cell_size(matrix, info.width, info.height))
         cell = grid.cell_size[0]
-        centre, _ = _apply(matrix, np.array([[info.width / 2.0, info.height / 2.0]]))
+        centre, _ = apply_homography(matrix, np.array([[info.width / 2.0, info.height / 2.0]]),
+                                     return_w=True)
         coordinate_map = HomographyMap(np.linalg.inv(matrix), grid.transform,
                                        front=(float(centre[0, 0]), float(centre[0, 1])))
         try:
@@ -177,7 +179,8 @@ class RectifyImage(Algorithm):
     @staticmethod
     def _gcps(params, model: RectificationModel, p2i, tags, feedback: Feedback):
         from toolbox.io.crs import crs_label
-        from toolbox.transforms.rectification import _apply, write_gcp_geotiff
+        from toolbox.transforms.plane import apply_homography
+        from toolbox.transforms.rectification import write_gcp_geotiff
 
         used = model.control_points()
         if not used:
@@ -187,7 +190,7 @@ class RectifyImage(Algorithm):
             if p2i is None:
                 raise ParameterError("PIXEL_TO_IMAGE", "is required to convert the control "
                                      "points' image mm to pixels for the GCPs")
-            image, _ = _apply(np.linalg.inv(p2i), image)
+            image = apply_homography(np.linalg.inv(p2i), image)
         gcps = [(p["id"], float(c), float(r), float(p["ground"][0]), float(p["ground"][1]),
                  float(p.get("z") or 0.0)) for p, (c, r) in zip(used, image, strict=True)]
         write_gcp_geotiff(params["INPUT"].path, params["OUTPUT"], gcps, model.crs, feedback, tags)

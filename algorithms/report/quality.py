@@ -26,10 +26,12 @@ class Quality(Algorithm):
     Then the sections of the runs found: interior orientation (residuals per photo, vectors at
     the marks), orientation (resection, absolute orientation, orientation check: control and
     check points), rectification (residual vectors of control, check and rejected points),
-    orthophotos, DEM cross-validation (RMSE per method, error histograms, a map of the best
-    method's errors), mosaic and seamlines, topology (what the check found and fixed), every
-    warning of every run, and the list of runs. File paths are shown by name only. ``OUTPUT``
-    ``.pdf`` (A4 pages, sections flowed onto them) or ``.html`` (one page, figures embedded).
+    orthophotos (with the check points measured on them by ``report:ortho_check`` runs: RMSE
+    and a verdict per orthophoto; "not checked" without such a run), DEM cross-validation
+    (RMSE per method, error histograms, a map of the best method's errors), mosaic and
+    seamlines, topology (what the check found and fixed), every warning of every run, and the
+    list of runs. File paths are shown by name only. ``OUTPUT`` ``.pdf`` (A4 pages, sections
+    flowed onto them) or ``.html`` (one page, figures embedded).
     """
 
     id = "report:quality"

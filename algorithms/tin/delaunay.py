@@ -22,8 +22,8 @@ from toolbox.parameters import (
     VectorLayer,
 )
 from toolbox.registry import register
-from toolbox.terrain.gridding.parameters import point_cloud_parameters
 from toolbox.terrain.points import read_mass_points
+from toolbox.ui.gridding import point_cloud_parameters
 
 DUPLICATE_RULES = ("mean", "first", "min", "max", "error")
 

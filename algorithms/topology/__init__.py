@@ -1,12 +1,5 @@
-"""Area topology from restitution linework (thesis S002 §2.2.2, §2.4).
-
-Algorithms: ``topology:build_areas`` (clean coded lines, build labelled areas, shared arcs, nodes
-and an errors layer), ``topology:check`` (the same checks, errors layer only) and
-``topology:overlay`` (intersection, union, difference, symmetric difference of two area layers).
-
-Kernels (shapely geometries in, geometries and counts out; no files): :mod:`.prepare`,
-:mod:`.snap`, :mod:`.closure`, :mod:`.noding`, :mod:`.graph`, :mod:`.faces`, :mod:`.labels`,
-:mod:`.arcs`, :mod:`.setops`, chained by :func:`.build.build_topology` into the tables of
-:mod:`.output`. The parameter file reader is :mod:`toolbox.io.parameter_file`, shared with
-the attribution tools (:mod:`.parameter_file` re-exports it).
+"""Area topology from restitution linework (thesis S002 §2.2.2, §2.4): ``topology:build_areas``,
+``topology:check`` and ``topology:overlay``. The kernels, the input readers and the writers are
+the library :mod:`toolbox.topology` (its docstring lists them); the shared parameters and their
+translation to typed requests are :mod:`toolbox.ui.topology`.
 """

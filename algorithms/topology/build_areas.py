@@ -6,8 +6,15 @@ from toolbox.algorithm import Algorithm
 from toolbox.feedback import Feedback
 from toolbox.parameters import Output, OutputVector
 from toolbox.registry import register
-from toolbox.topology.common_parameters import linework_parameters, read_linework
-from toolbox.topology.layer_specs import ARCS, AREAS, ERRORS, NODES
+from toolbox.ui.topology import (
+    ARCS,
+    AREAS,
+    ERRORS,
+    NODES,
+    build_linework,
+    check_linework,
+    linework_parameters,
+)
 
 
 @register
@@ -64,34 +71,17 @@ class BuildAreas(Algorithm):
                       "json")]
 
     def check(self, params):
-        from toolbox.topology.layers import tolerances_from
-
-        tolerances_from(params)  # a bad parameter file or PRECISION fails before any work
-        if params.get("CODES") is not None:
-            from toolbox.io.code_file import read_code_file
-
-            read_code_file(params["CODES"], "CODES")
+        check_linework(params)
 
     def process(self, params, feedback: Feedback):
-        from toolbox.topology.build import build_topology
-        from toolbox.topology.layers import tolerances_from, write_topology
+        from toolbox.topology.layers import write_topology
 
-        data = read_linework(params, feedback)
-        tol, sources, _ = tolerances_from(params, feedback, data["crs"])
-        output = build_topology(data["line_geoms"], data["line_codes"], data["label_geoms"],
-                                data["label_codes"], data["label_attributes"], tol,
-                                feedback.step(0, 90), mode="build",
-                                area_codes=data["area_codes"])
+        output, data, stats = build_linework(params, feedback, "build", 90)
         if data["label_geoms"] is None:
             feedback.push_warning("no LABELS given: only areas bounded by a closed coded "
                                   "outline have a code")
         with feedback.timed("write"):
             write_topology(params["OUTPUT"], output, data["crs"], data["label_dtypes"])
-        stats = dict(output.statistics)
-        stats["tolerance_sources"] = sources
-        stats["area_codes"] = "CODES" if data["area_codes"] is not None else \
-            "none (no CODES: closed lines only fill uncoded areas)"
-        stats["crs"] = data["crs_label"]
         stats["code_field"] = data["code_field"]
         stats["label_code_field"] = data["label_code_field"]
         return {"OUTPUT": params["OUTPUT"], "STATISTICS": stats}

@@ -6,8 +6,7 @@ from toolbox.algorithm import Algorithm
 from toolbox.feedback import Feedback
 from toolbox.parameters import Output, OutputVector
 from toolbox.registry import register
-from toolbox.topology.common_parameters import linework_parameters, read_linework
-from toolbox.topology.layer_specs import ERRORS
+from toolbox.ui.topology import ERRORS, build_linework, check_linework, linework_parameters
 
 
 @register
@@ -39,31 +38,14 @@ class CheckTopology(Algorithm):
                       "json")]
 
     def check(self, params):
-        from toolbox.topology.layers import tolerances_from
-
-        tolerances_from(params)
-        if params.get("CODES") is not None:
-            from toolbox.io.code_file import read_code_file
-
-            read_code_file(params["CODES"], "CODES")
+        check_linework(params)
 
     def process(self, params, feedback: Feedback):
-        from toolbox.topology.build import build_topology
-        from toolbox.topology.layers import tolerances_from, write_topology
+        from toolbox.topology.layers import write_topology
 
-        data = read_linework(params, feedback)
-        tol, sources, _ = tolerances_from(params, feedback, data["crs"])
-        output = build_topology(data["line_geoms"], data["line_codes"], data["label_geoms"],
-                                data["label_codes"], data["label_attributes"], tol,
-                                feedback.step(0, 95), mode="check",
-                                area_codes=data["area_codes"])
+        output, data, stats = build_linework(params, feedback, "check", 95)
         with feedback.timed("write"):
             write_topology(params["OUTPUT"], output, data["crs"], layers=("errors",))
-        stats = dict(output.statistics)
         for key in ("areas", "arcs", "nodes"):
             stats["output"].pop(key, None)
-        stats["tolerance_sources"] = sources
-        stats["area_codes"] = "CODES" if data["area_codes"] is not None else \
-            "none (no CODES: closed lines only fill uncoded areas)"
-        stats["crs"] = data["crs_label"]
         return {"OUTPUT": params["OUTPUT"], "STATISTICS": stats}

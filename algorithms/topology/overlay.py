@@ -12,8 +12,8 @@ from toolbox.io.vector import read_vector, write_layers
 from toolbox.parameters import Enum, Number, Output, OutputVector, String, VectorLayer
 from toolbox.registry import register
 from toolbox.terrain.points import local_origin
-from toolbox.topology.layer_specs import ERRORS, OVERLAY_RESULT
 from toolbox.topology.setops import OPERATIONS, clean_polygons, overlay_polygons
+from toolbox.ui.topology import ERRORS, OVERLAY_RESULT
 
 RESULT_COLUMNS = ("id", "part", "area", "perimeter")
 

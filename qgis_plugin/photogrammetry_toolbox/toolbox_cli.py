@@ -111,28 +111,29 @@ def load_specs(executable: str, use_cache: bool = True) -> list[dict]:
     return specs
 
 
-def qgis_extent_to_toolbox(text: str) -> str:
-    """QGIS's ``xmin,xmax,ymin,ymax [CRS]`` -> the toolbox's ``xmin,ymin,xmax,ymax [CRS]``."""
+def _extent_parts(text: str, bare_crs: bool = False) -> tuple[list[str], str]:
+    """The four numbers of an extent text and its `` [CRS]`` suffix ("" without one);
+    ``bare_crs``: a CRS after a space without brackets is one too."""
     text = text.strip()
     crs = ""
     if "[" in text:
         text, crs = text.split("[", 1)
         crs = " [" + crs.rstrip("]").strip() + "]"
-    xmin, xmax, ymin, ymax = (v.strip() for v in text.split(","))
+    elif bare_crs and " " in text:
+        text, crs = text.split(" ", 1)
+        crs = f" [{crs.strip()}]"
+    return [v.strip() for v in text.split(",")], crs
+
+
+def qgis_extent_to_toolbox(text: str) -> str:
+    """QGIS's ``xmin,xmax,ymin,ymax [CRS]`` -> the toolbox's ``xmin,ymin,xmax,ymax [CRS]``."""
+    (xmin, xmax, ymin, ymax), crs = _extent_parts(text)
     return f"{xmin},{ymin},{xmax},{ymax}{crs}"
 
 
 def toolbox_extent_to_qgis(text: str) -> str:
     """The toolbox's ``xmin,ymin,xmax,ymax [CRS]`` -> QGIS's ``xmin,xmax,ymin,ymax [CRS]``."""
-    text = text.strip()
-    crs = ""
-    if "[" in text:
-        text, crs = text.split("[", 1)
-        crs = " [" + crs.rstrip("]").strip() + "]"
-    elif " " in text:
-        text, crs = text.split(" ", 1)
-        crs = f" [{crs.strip()}]"
-    xmin, ymin, xmax, ymax = (v.strip() for v in text.split(","))
+    (xmin, ymin, xmax, ymax), crs = _extent_parts(text, bare_crs=True)
     return f"{xmin},{xmax},{ymin},{ymax}{crs}"
 
 

@@ -70,3 +70,22 @@ def test_every_documented_command_runs(demo_dir, monkeypatch):
             failures.append(f"{source}: {command}\n    -> exit {result.exit_code}: "
                             f"{(result.output or repr(result.exception))[-400:]}")
     assert not failures, "\n".join(failures)
+
+
+def test_readme_typed_request_example_runs(tmp_path, monkeypatch):
+    """The README's library example (typed requests, no runner) runs as pasted, and its DEM of
+    the plane z = 200 + 0.1 x holds that plane (IDW of 8 near points of a plane)."""
+    import numpy as np
+    import rasterio
+
+    text = (ROOT / "README.md").read_text()
+    section = text.split("### The libraries, with typed requests", 1)[1]
+    code = section.split("```python\n", 1)[1].split("```", 1)[0]
+    monkeypatch.chdir(tmp_path)
+    exec(compile(code, "README.md", "exec"), {})
+    with rasterio.open(tmp_path / "dem_idw.tif") as ds:
+        z = ds.read(1, masked=True)
+        x = ds.transform.c + (np.arange(ds.width) + 0.5) * ds.transform.a - 1688000
+    assert z.count() > 0.8 * z.size
+    # the neighbours lie within a few metres: their heights, so the IDW mean, within 1 m
+    assert np.abs(z - (200 + 0.1 * x[None, :])).max() < 1.0

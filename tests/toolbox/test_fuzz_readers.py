@@ -101,11 +101,11 @@ steps:
 def _readers(folder: Path):
     """name -> (seed key, function of the mutated file path)."""
     from toolbox.batch import load_pipeline, validate_pipeline
+    from toolbox.io.parameter_file import read_parameter_file
     from toolbox.photogrammetry.project import load_project
     from toolbox.photogrammetry.readers import read_exterior_orientations
     from toolbox.photogrammetry.readers.zmap_log import read_zmap_log
     from toolbox.photogrammetry.tables import image_measurements
-    from toolbox.topology.parameter_file import read_parameter_file
     from toolbox.transforms.rectification import load_transform
 
     def fiducials(path):  # the CSV through orientation:interior (its parsing is there)

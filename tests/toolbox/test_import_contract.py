@@ -36,3 +36,23 @@ def test_cycle_finder_finds_a_cycle_through_a_package_init():
     assert import_cycles(graph, set(graph.modules)) == [["pkg", "pkg.report", "pkg.runner"]]
     graph.remove_import(importer="pkg.report", imported="pkg")
     assert import_cycles(graph, set(graph.modules)) == []
+
+
+def test_parameter_layer_contract_names_a_library_importing_parameters():
+    from tests.lint_contracts import ParameterLayerContract
+
+    graph = grimp.ImportGraph()
+    for module in ("pkg", "pkg.parameters", "pkg.runner", "pkg.ui", "pkg.ui.grid", "pkg.io",
+                   "pkg.terrain.run"):
+        graph.add_module(module)
+    graph.add_import(importer="pkg.runner", imported="pkg.parameters")
+    graph.add_import(importer="pkg.ui.grid", imported="pkg.parameters")
+    graph.add_import(importer="pkg.ui.grid", imported="pkg.terrain.run")
+    contract = ParameterLayerContract(
+        name="t", session_options={},
+        contract_options={"packages": ["pkg"], "layer": ["pkg.parameters", "pkg.ui"],
+                          "allowed": ["pkg.runner", "pkg.parameters", "pkg.ui"]})
+    assert contract.check(graph, verbose=False).kept
+    graph.add_import(importer="pkg.terrain.run", imported="pkg.ui.grid")  # a library -> the UI
+    check = contract.check(graph, verbose=False)
+    assert not check.kept and check.metadata["imports"] == [("pkg.terrain.run", "pkg.ui.grid")]

@@ -126,10 +126,10 @@ def test_existing_files_need_overwrite_and_others_are_left_alone(block, tmp_path
 def test_failure_midway_leaves_nothing(block, tmp_path, monkeypatch):
     """A full disk at the second photo: no ortho in FOLDER (the first was complete), no
     staging folder, and the message says nothing was written."""
-    from toolbox.photogrammetry import orthophoto
+    from toolbox.ortho import block as ortho_block
 
     x, dem = block
-    real, calls = orthophoto.run_task, []
+    real, calls = ortho_block.run_task, []
 
     def failing(task):
         calls.append(task)
@@ -137,7 +137,7 @@ def test_failure_midway_leaves_nothing(block, tmp_path, monkeypatch):
             raise OSError(errno.ENOSPC, "No space left on device")
         return real(task)
 
-    monkeypatch.setattr(orthophoto, "run_task", failing)
+    monkeypatch.setattr(ortho_block, "run_task", failing)
     folder = tmp_path / "orthos"
     params = {"PROJECT": x / "project.yaml", "DEM": dem, "CELL_SIZE": 8, "WORKERS": 1,
               "FOLDER": folder, "OUTPUT": tmp_path / "o.json"}

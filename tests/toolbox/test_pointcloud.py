@@ -4,6 +4,8 @@ GeoPackage; filters, CRS rules and the clear errors."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import geopandas as gpd
 import laspy
 import numpy as np
@@ -172,3 +174,45 @@ def test_writer_roundtrip_with_laspy(tmp_path):
     assert np.array_equal(np.asarray(las.classification), cls)
     assert np.array_equal(np.asarray(las.red), rgb[:, 0].astype(np.uint16) * 257)
     assert las.header.parse_crs().to_epsg() == 3003
+
+
+# -- COPC ---------------------------------------------------------------------------------------
+COPC_SAMPLE = Path(__file__).resolve().parents[1] / "data" / "pointclouds" / "simple.copc.laz"
+
+
+def test_copc_read_with_filters_and_crs(tmp_path):
+    """laspy's public COPC sample (tests/data/pointclouds/README.md; laspy cannot write COPC):
+    the chunked LAZ reading of it equals laspy's CopcReader (the octree's nodes) point for point,
+    the filters equal numpy selections, the CRS comes from its WKT VLR, and dem:nearest grids its
+    ground class."""
+    from laspy import CopcReader
+
+    ref = open_point_cloud(COPC_SAMPLE)
+    assert ref.info["copc"] is True and ref.point_count == 1065
+    assert ref.crs.name == "NAD83 / Oregon LCC (m) + NAVD88 height (ftUS)"
+    with CopcReader.open(str(COPC_SAMPLE)) as reader:  # the independent reference: by nodes
+        nodes = reader.query()
+    truth = np.column_stack([np.asarray(nodes.x), np.asarray(nodes.y), np.asarray(nodes.z)])
+    cls, rn = np.asarray(nodes.classification), np.asarray(nodes.return_number)
+    nr = np.asarray(nodes.number_of_returns)
+
+    def same(a, b):
+        key = lambda p: p[np.lexsort(p.T[::-1])]  # noqa: E731
+        np.testing.assert_allclose(key(a), key(b), atol=1e-6)
+
+    xyz, report = read_xyz(ref)
+    same(xyz, truth)
+    assert report.classes == {1: int((cls == 1).sum()), 2: int((cls == 2).sum())}
+    xyz, _ = read_xyz(ref, PointFilter((2,)))
+    same(xyz, truth[cls == 2])
+    xyz, _ = read_xyz(ref, PointFilter(None, "first"))
+    same(xyz, truth[rn <= 1])
+    xyz, _ = read_xyz(ref, PointFilter((1,), "last"))
+    same(xyz, truth[(cls == 1) & (rn >= nr)])
+    with pytest.raises(InputDataError, match="CLASSES 6 not in"):
+        read_xyz(ref, PointFilter((6,)))
+    out = toolbox.run("dem:nearest", {"INPUT": str(COPC_SAMPLE), "CLASSES": "2",
+                                      "CELL_SIZE": 50.0, "OUTPUT": str(tmp_path / "g.tif")})
+    assert out["STATISTICS"]["points_used"] == int((cls == 2).sum())
+    with rasterio.open(tmp_path / "g.tif") as ds:
+        assert "Oregon" in ds.crs.to_wkt()

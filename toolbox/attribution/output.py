@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 import shapely
 
-from toolbox.attribution.apply import GPKG_TYPES, Attribution
+from toolbox.attribution.coding import GPKG_TYPES, Attribution
 from toolbox.io.code_file import CodeTable
 from toolbox.styles.model import CodeStyle, LayerStyle, layer_style
 from toolbox.styles.qml import qml_document

@@ -6,7 +6,7 @@ entity's colour index as plotted, ``source`` the provenance code, ``file`` and `
 was read, ``kind`` what the reader saw: point, line, polygon, symbol or label; for symbols
 ``block``, ``rotation`` (degrees), ``scale_x``, ``scale_y``; for labels ``text``, ``text_height``,
 ``rotation``). Geometries keep Z. An entity with one vertex is a Point, with none a None geometry:
-nothing is dropped here; :mod:`toolbox.attribution.apply` decides what is usable.
+nothing is dropped here; :mod:`toolbox.attribution.coding` decides what is usable.
 
 Formats
 -------
@@ -51,7 +51,7 @@ from typing import Any
 import numpy as np
 
 from toolbox.errors import InputDataError
-from toolbox.io.text import read_text
+from toolbox.io.text import is_number, read_text
 
 ENTITY_COLUMNS = ("entity", "code", "colour", "source", "file", "line", "kind", "block",
                   "rotation", "scale_x", "scale_y", "text", "text_height")
@@ -153,21 +153,13 @@ def _table_rows(path: Path, name: str, width: int, what: str) -> list[tuple[int,
             continue
         sep = ";" if ";" in line else "\t" if "\t" in line else "," if "," in line else None
         fields = [f.strip() for f in (line.split(sep) if sep else line.split())]
-        if not rows and not _is_number(fields[-1]):
+        if not rows and not is_number(fields[-1]):
             continue  # header line
         if len(fields) != width:
             raise _fail(path, number, f"expected {width} fields ({what}), got {len(fields)}",
                         name)
         rows.append((number, fields))
     return rows
-
-
-def _is_number(text: str) -> bool:
-    try:
-        float(text)
-    except ValueError:
-        return False
-    return True
 
 
 DESCRIPTION_FIELDS = "record; code; vertices; colour; source; xmin; ymin; xmax; ymax; first"

@@ -1,55 +1,26 @@
-"""Restitution input parameters and their reading (shared by the ``attribution:*`` algorithms)."""
+"""Reading the restitution inputs (shared by the ``attribution:*`` algorithms)."""
 
 from __future__ import annotations
 
-from pathlib import Path
 from typing import Any
 
 from toolbox.errors import InputDataError
-from toolbox.parameters import Parameter, ValidationContext
 
 
-class RestitutionFiles(Parameter):
-    """One or more restitution files (repeat the option: one per stereo model, merged): the
-    ASCII export, a DXF, or any vector file OGR reads (``path`` or ``path|layername=name``)."""
-
-    type_name = "multiple"
-
-    def validate(self, value: Any, ctx: ValidationContext) -> list[str]:
-        items = [value] if isinstance(value, (str, Path)) or hasattr(value, "geometry") \
-            else list(value)
-        if not items:
-            raise self.error("needs at least one restitution file")
-        out = []
-        for item in items:
-            if hasattr(item, "geometry"):  # a GeoDataFrame in Python
-                out.append(item)
-                continue
-            text = str(item)
-            path = Path(text.split("|", 1)[0]).expanduser()
-            if not path.is_file():
-                raise self.error(f"file '{path}' does not exist")
-            ctx.input_paths[path.resolve()] = self.name
-            out.append(text)
-        return out
-
-    def expected(self) -> str:
-        return ("restitution file(s): ASCII export (CODE/E N Z/END), DXF or an OGR layer with a "
-                "code field; repeat for several models")
-
-
-def read_sources(params: dict[str, Any], crs: Any, feedback: Any) -> tuple[list, dict]:
-    """The entity tables of ``INPUT`` (one per model) and the readers' reports. With
-    ``COORDINATES`` given, the single INPUT is the descriptions table of the two-table form."""
+def read_sources(inputs: list, crs: Any, feedback: Any, *, coordinates: Any = None,
+                 code_field: str | None = None) -> tuple[list, dict]:
+    """The entity tables of the restitution files ``inputs`` (one per model; messages call
+    them INPUT) and the readers' reports. With ``coordinates`` (COORDINATES) given, the single
+    input is the descriptions table of the two-table form. ``code_field``: the code field of
+    an OGR layer (None: found by name)."""
     from toolbox.attribution.restitution import read_restitution, read_two_tables
 
-    inputs = params["INPUT"]
     reports: dict[str, Any] = {}
-    if params.get("COORDINATES") is not None:
+    if coordinates is not None:
         if len(inputs) != 1:
             raise InputDataError("INPUT: with COORDINATES give exactly one descriptions file, "
                                  f"got {len(inputs)}")
-        frame, report = read_two_tables(inputs[0], params["COORDINATES"], "INPUT",
+        frame, report = read_two_tables(inputs[0], coordinates, "INPUT",
                                         "COORDINATES", crs)
         if report["bbox_mismatches"]:
             feedback.push_warning(f"INPUT: {len(report['bbox_mismatches'])} records whose "
@@ -58,7 +29,7 @@ def read_sources(params: dict[str, Any], crs: Any, feedback: Any) -> tuple[list,
         return [frame], {"two_tables": report}
     frames = []
     for k, source in enumerate(inputs, start=1):
-        frame, report = read_restitution(source, params.get("CODE_FIELD"), "INPUT", crs)
+        frame, report = read_restitution(source, code_field, "INPUT", crs)
         skipped = report.get("skipped_dxf_entities")
         if skipped:
             feedback.push_warning(f"INPUT {k}: DXF entities not read: "

@@ -71,6 +71,16 @@ def grid_contour_pieces(z: np.ndarray, levels: Iterable[float], x0: float, y0: f
     # (dx·dy > 0) to keep higher ground on the right
     flip = (dx * dy) > 0
     levels = np.asarray(list(levels), dtype="float64")
+    # only the levels this grid spans: contourpy scans every cell once per level, so a small
+    # block spanning few levels is traced much faster (a level equal to the lowest node gives
+    # no line: nodes at a level count as above it)
+    with np.errstate(invalid="ignore"):
+        if np.isnan(z).all():
+            return []
+        lo, hi = np.nanmin(z), np.nanmax(z)
+    levels = levels[(levels > lo) & (levels <= hi)]
+    if not len(levels):
+        return []
     # trace just below the level so a node exactly at it counts as above (as gdal_contour and
     # tin_contours do); the offset (1024 ulps) moves lines by far less than a micron. All levels
     # in one call, each level's lines as one array of points with offsets.

@@ -2,24 +2,49 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any
 
 from toolbox.cartography.grid import ground_step, map_grid
 
 
-def sheet_polygons(params: dict) -> tuple[list[tuple[str, Any]], Any]:
-    """``[(sheet id, polygon)]`` and the CRS from ``EXTENT`` or ``SHEETS`` (+ ``SHEET_ID``)."""
+@dataclass(frozen=True)
+class SheetSource:
+    """The sheets: every polygon of ``sheets`` (a vector layer; ids from its ``sheet_id``
+    field, else 1, 2, ...), or one sheet on ``extent`` (``.bounds``, ``.crs``; without a CRS
+    it takes ``crs``)."""
+
+    extent: Any = None
+    sheets: Any = None
+    sheet_id: str | None = None
+    crs: Any = None
+
+
+@dataclass(frozen=True)
+class MapGridRequest:
+    """A map grid at ``scale`` (1:scale): a node every ``map_step`` mm on paper, ``style``
+    crosses (arms ``cross_size`` mm) or lines, over ``sheets``."""
+
+    sheets: SheetSource
+    scale: float
+    map_step: float
+    style: str = "crosses"
+    cross_size: float = 4.0
+
+
+def sheet_polygons(source: SheetSource) -> tuple[list[tuple[str, Any]], Any]:
+    """``[(sheet id, polygon)]`` and the CRS of the sheets."""
     import shapely
 
     from toolbox.io.vector import read_vector
 
-    if params.get("SHEETS") is not None:
-        frame = read_vector(params["SHEETS"], name="SHEETS")
-        field = params.get("SHEET_ID")
+    if source.sheets is not None:
+        frame = read_vector(source.sheets, name="SHEETS")
+        field = source.sheet_id
         ids = [str(v) for v in frame[field]] if field else [str(i + 1) for i in range(len(frame))]
         return list(zip(ids, frame.geometry.values)), frame.crs
-    extent = params["EXTENT"]
-    crs = extent.crs if extent.crs is not None else params.get("CRS")
+    extent = source.extent
+    crs = extent.crs if extent.crs is not None else source.crs
     return [("1", shapely.box(*extent.bounds))], crs
 
 
@@ -43,18 +68,18 @@ def guard_grid(sheets: list, step: float, style: str, scale: float, map_step: fl
                    "crosses" if style == "crosses" else "lines"))
 
 
-def grid_frames(params: dict):
-    """(grid GeoDataFrame, labels GeoDataFrame, ground step, CRS) for the algorithm's params."""
+def grid_frames(request: MapGridRequest):
+    """(grid GeoDataFrame, labels GeoDataFrame, ground step, CRS) of a map grid."""
     import geopandas as gpd
     import shapely
 
-    step = ground_step(params["SCALE"], params["MAP_STEP"])
-    arm = ground_step(params["SCALE"], params["CROSS_SIZE"]) / 2.0
-    sheets, crs = sheet_polygons(params)
-    guard_grid(sheets, step, params["STYLE"], params["SCALE"], params["MAP_STEP"])
+    step = ground_step(request.scale, request.map_step)
+    arm = ground_step(request.scale, request.cross_size) / 2.0
+    sheets, crs = sheet_polygons(request.sheets)
+    guard_grid(sheets, step, request.style, request.scale, request.map_step)
     rows, label_rows = [], []
     for sheet_id, polygon in sheets:
-        grid = map_grid(polygon.bounds, step, params["STYLE"], arm)
+        grid = map_grid(polygon.bounds, step, request.style, arm)
         for geom, kind, value in zip(grid.geometries, grid.kinds, grid.values):
             clipped = shapely.intersection(geom, polygon)
             if not clipped.is_empty:
@@ -68,7 +93,7 @@ def grid_frames(params: dict):
     label_columns = ["sheet", "text", "axis", "value", "edge", "geometry"]
     labels = gpd.GeoDataFrame([{k: r[k] for k in label_columns} for r in label_rows] or None,
                               columns=label_columns, geometry="geometry", crs=crs)
-    if params["STYLE"] == "crosses" and len(grid_frame):  # one MultiLineString per node
+    if request.style == "crosses" and len(grid_frame):  # one MultiLineString per node
         grid_frame["geometry"] = [g if g.geom_type == "MultiLineString" else
                                   shapely.multilinestrings([g]) for g in grid_frame.geometry]
     return grid_frame, labels, step, crs

@@ -29,24 +29,6 @@ def sample_stations(xy: np.ndarray, step: float) -> np.ndarray:
         else stations
 
 
-def bilinear(z: np.ndarray, x0: float, y0: float, dx: float, dy: float,
-             xy: np.ndarray) -> np.ndarray:
-    """Bilinear heights of a grid at map points; ``x0, y0`` is the centre of cell (0, 0) and
-    ``dx, dy`` the steps between centres. NaN outside the centres' hull or next to NaN cells."""
-    col = (xy[:, 0] - x0) / dx
-    row = (xy[:, 1] - y0) / dy
-    rows, cols = z.shape
-    inside = (col >= 0) & (col <= cols - 1) & (row >= 0) & (row <= rows - 1)
-    c0 = np.clip(np.floor(col).astype(np.int64), 0, max(cols - 2, 0))
-    r0 = np.clip(np.floor(row).astype(np.int64), 0, max(rows - 2, 0))
-    fc, fr = col - c0, row - r0
-    c1, r1 = np.minimum(c0 + 1, cols - 1), np.minimum(r0 + 1, rows - 1)
-    top = z[r0, c0] * (1 - fc) + z[r0, c1] * fc
-    bottom = z[r1, c0] * (1 - fc) + z[r1, c1] * fc
-    out = top * (1 - fr) + bottom * fr
-    return np.where(inside, out, np.nan)
-
-
 def contour_crossings(xy: np.ndarray, contour_geoms, levels: np.ndarray
                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Crossings of a polyline with contour lines: (chainage, points (k, 2), heights), sorted by

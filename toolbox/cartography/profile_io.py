@@ -10,13 +10,13 @@ from typing import Any
 import numpy as np
 
 from toolbox.cartography.profile import (
-    bilinear,
     chainage_of_vertices,
     contour_crossings,
     points_at,
     sample_stations,
     section_axes,
 )
+from toolbox.raster.bilinear import bilinear
 
 
 @dataclass

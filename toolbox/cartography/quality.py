@@ -364,18 +364,93 @@ def ortho_section(reports, spec: Specification, verdicts: list[Verdict]) -> Sect
             if s.get("failed") else []
         rows.append([f"{name} (block)", _fmt(s.get("cell_size"), "m", 2), "", "",
                      f"{s.get('done')} of {s.get('photos')} photos written"])
-    if not rows:
+    checks = reports.get("report:ortho_check", [])
+    if not rows and not checks:
         return None
     sec.text("Orthophotos on the DEM. Their accuracy combines the orientation's and the DEM's: "
              f"the rule is a planimetric RMS <= {spec.planimetric_m:.2f} m on check points "
              "measured on the orthophoto.")
     sec.table(["Photo", "Cell", "Photo GSD", "Largest relief shift", "Outside the photo"], rows)
-    verdicts.append(Verdict("Orthophotos", "all photos orthorectified",
-                            "; ".join(failed) or "all written", "no failure",
-                            FAIL if failed else PASS, "completeness"))
-    verdicts.append(Verdict("Orthophotos", "planimetric RMSE on check points", "not measured",
-                            f"<= {spec.planimetric_m:.2f} m", NOT_CHECKED, "S002 §2.6.6"))
+    if rows:
+        verdicts.append(Verdict("Orthophotos", "all photos orthorectified",
+                                "; ".join(failed) or "all written", "no failure",
+                                FAIL if failed else PASS, "completeness"))
+    if not checks:
+        verdicts.append(Verdict("Orthophotos", "planimetric RMSE on check points",
+                                "not measured", f"<= {spec.planimetric_m:.2f} m", NOT_CHECKED,
+                                "S002 §2.6.6"))
+    ortho_check_rows(sec, checks, spec, verdicts)
     return sec
+
+
+def ortho_check_rows(sec: Section, checks, spec: Specification, verdicts: list[Verdict]
+                     ) -> None:
+    """The check points measured on each orthophoto (report:ortho_check runs): method, RMSE,
+    a verdict per orthophoto."""
+    if not checks:
+        return
+    sec.text("Check points measured on the orthophoto: around each point a chip of the photo, "
+             "centred on the target as the operator measured it there, is found on the "
+             "orthophoto by normalised cross-correlation; the offset is where the orthophoto "
+             "shows the target minus where it was surveyed.")
+    table = []
+    for _name, report in checks:
+        s = _stats(report)
+        rms = s.get("rmse_planimetric_m")
+        table.append([without_paths(s.get("ortho", _name)), f"{s.get('matched')} of "
+                      f"{s.get('points')}", _fmt(s.get("rmse_x_m"), "m", 2),
+                      _fmt(s.get("rmse_y_m"), "m", 2), _fmt(rms, "m", 2),
+                      _fmt(s.get("largest_m"), "m", 2) if s.get("largest_m") is not None
+                      else "n/a"])
+        verdicts.append(Verdict("Orthophotos", "planimetric RMSE on check points (measured "
+                                f"on {without_paths(s.get('ortho', _name))})",
+                                f"{_fmt(rms, 'm', 2)} ({s.get('matched')} point"
+                                f"{'' if s.get('matched') == 1 else 's'})"
+                                if rms is not None else "no point found",
+                                f"<= {spec.planimetric_m:.2f} m", _judge(rms,
+                                                                         spec.planimetric_m),
+                                "S002 §2.6.6"))
+    sec.table(["Orthophoto", "Points found", "RMSE east", "RMSE north", "RMSE planimetric",
+               "Largest"], table)
+    for name, report in checks:
+        offsets = _stats(report).get("offsets") or []
+        if offsets:
+            sec.figure(_offsets_figure(offsets, without_paths(_stats(report).get("ortho", name)),
+                                       spec.planimetric_m))
+
+
+def _offsets_figure(offsets: list[dict], ortho: str, tolerance: float):
+    """Offset vectors at the check points (enlarged) and their lengths against the tolerance."""
+    plt = _plt()
+    xy = np.array([[o["x"], o["y"]] for o in offsets], dtype="float64")
+    d = np.array([[o["dx"], o["dy"]] for o in offsets], dtype="float64")
+    length = np.hypot(d[:, 0], d[:, 1])
+    origin = xy.mean(axis=0)
+    span = max(np.ptp(xy[:, 0]), np.ptp(xy[:, 1]), 1.0)
+    k = 0.12 * span / max(float(length.max()), 1e-9)
+    fig, (ax, bx) = plt.subplots(1, 2, figsize=(9, 3.6), gridspec_kw={"width_ratios": [1.4, 1]})
+    g = xy - origin
+    ax.quiver(g[:, 0], g[:, 1], d[:, 0] * k, d[:, 1] * k, angles="xy", scale_units="xy",
+              scale=1, color="#1e8449", width=0.006)
+    ax.plot(g[:, 0], g[:, 1], "o", color="#1e8449", ms=3)
+    for o, (gx, gy) in zip(offsets, g, strict=True):
+        ax.annotate(str(o["id"]), (gx, gy), fontsize=6, xytext=(3, 3), textcoords="offset points")
+    ax.set_aspect("equal")
+    ax.margins(0.15)
+    ax.set_title(f"{ortho}: where the orthophoto shows each check point, enlarged {k:.0f} "
+                 "times", fontsize=8)
+    ax.set_xlabel(f"east - {origin[0]:.0f} (m)", fontsize=7)
+    ax.set_ylabel(f"north - {origin[1]:.0f} (m)", fontsize=7)
+    ax.tick_params(labelsize=6)
+    bx.bar([str(o["id"]) for o in offsets], length, color="#1e8449")
+    bx.axhline(tolerance, color="#c0392b", ls="--", lw=1, label=f"tolerance {tolerance:.2f} m")
+    bx.set_ylabel("offset (m)", fontsize=7)
+    bx.tick_params(labelsize=6)
+    bx.tick_params(axis="x", rotation=90)
+    bx.legend(fontsize=6)
+    bx.set_title("Offset per check point", fontsize=8)
+    fig.tight_layout()
+    return fig
 
 
 def dem_section(runs, spec: Specification, verdicts: list[Verdict]) -> Section:

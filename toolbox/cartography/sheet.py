@@ -31,6 +31,7 @@ PANEL_MAX = 120.0  # mm, the panel's width where the paper leaves room
 MIN_TEXT_PT = 6.0  # no text smaller at print size
 SHADING_STRENGTH = 0.45  # a grey base (hillshade) keeps this share of its darkness
 CORNER_CLEAR = 8.0  # mm along the frame edge kept free of grid labels at each corner
+LABEL_PAD_MM = 0.3  # spot-height labels keep this far from other texts
 HEIGHT_FIELDS = ("z", "quota", "elev", "height", "h")  # spot-height value fields, in this order
 
 
@@ -48,6 +49,7 @@ class LayerStyle:
     width_mm: float = 0.25
     fill: tuple[int, ...] | None = None
     label_field: str | None = None
+    symbol: Any = None  # a toolbox.cartography.symbols.Symbol: the code file's symbology
 
 
 @dataclass
@@ -66,6 +68,7 @@ class SheetSpec:
     datum: str = ""
     contour_interval: float | None = None  # m, stated in the title block and the legend
     producer: str = ""
+    second_crs: str = ""  # the CRS ticked outside the frame (GRID_CRS), stated in the block
 
 
 @dataclass
@@ -156,6 +159,9 @@ class SheetRenderer:
         for spine in self.ax.spines.values():
             spine.set_linewidth(0.5 * PT_PER_MM)
         self.legend: list[tuple[str, str, str, float, str | None]] = []  # kind, name, ...
+        self.obstacles: list = []  # text artists already placed (texts, contour labels)
+        self.pending: list[tuple[float, float, str, str]] = []  # spot heights: x, y, text, colour
+        self.labels_left_out = 0
 
     # -- page coordinates (mm) -> figure fraction
     def _fx(self, x_mm: float) -> float:
@@ -186,7 +192,23 @@ class SheetRenderer:
         frame = style.frame
         colour = _hex(style.rgb)
         lw = style.width_mm * PT_PER_MM
-        if style.kind == "polygon":
+        if "text" in frame.columns:  # the restitution's texts (toponyms), as plotted
+            from toolbox.cartography.symbols_draw import draw_texts
+
+            placed = draw_texts(self.ax, frame, style.rgb, self.spec.scale)
+            self.obstacles += placed
+            if placed:
+                entry = ("text", style.name, colour, 0.0, None)
+                if entry not in self.legend:
+                    self.legend.append(entry)
+            self._restore_limits()
+            return
+        if style.symbol is not None:  # the code file's symbology (toolbox.cartography.symbols)
+            from toolbox.cartography.symbols_draw import draw_symbol
+
+            draw_symbol(self.ax, frame.geometry.values, style.kind, style.rgb, style.symbol,
+                        self.spec.scale, zorder={"polygon": 2, "line": 3}.get(style.kind, 4))
+        elif style.kind == "polygon":
             face = tuple(v / 255 for v in style.fill) if style.fill is not None else "none"
             frame.plot(ax=self.ax, facecolor=face, edgecolor=colour, linewidth=lw, zorder=2)
         elif style.kind == "line":
@@ -199,10 +221,17 @@ class SheetRenderer:
                 p = geom.representative_point()
                 self.ax.text(p.x, p.y, str(text), fontsize=MIN_TEXT_PT, color=colour,
                              ha="center", va="center", zorder=6, clip_on=True)
-        elif style.kind == "point":
-            self.spot_heights(frame, colour)
-        entry = (style.kind, style.name, colour, style.width_mm,
-                 tuple(v / 255 for v in style.fill) if style.fill is not None else None)
+        elif style.kind == "point" and (style.symbol is None or style.symbol.symbol == "dot"):
+            self.spot_heights(frame, colour)  # a dot is a spot height: its value beside it
+        if style.symbol is not None:
+            from dataclasses import replace
+
+            # one legend entry per delivered code and look, whichever working code drew it
+            entry = ("symbol", style.name, colour, style.width_mm,
+                     (style.kind, replace(style.symbol, code=style.symbol.delivered)))
+        else:
+            entry = (style.kind, style.name, colour, style.width_mm,
+                     tuple(v / 255 for v in style.fill) if style.fill is not None else None)
         if entry not in self.legend:  # one code drawn from two layers: listed once
             self.legend.append(entry)
         self._restore_limits()
@@ -219,15 +248,41 @@ class SheetRenderer:
         use_z = len(coords) > 0 and bool(np.isfinite(coords[:, 2]).all())
         if not use_z and field is None:
             return
-        off = self._mm_to_ground(1.0)
         first = np.unique(owner, return_index=True)  # each geometry's first point
         for k, i in zip(*first, strict=True):
             p = coords[i]
             value = p[2] if use_z else frame[field].iloc[k]
             if value is None or not np.isfinite(float(value)):
                 continue
-            self.ax.text(p[0] + off, p[1], f"{float(value):.1f}", fontsize=MIN_TEXT_PT,
-                         color=colour, ha="left", va="center", zorder=6, clip_on=True)
+            self.pending.append((float(p[0]), float(p[1]), f"{float(value):.1f}", colour))
+
+    def place_labels(self) -> int:
+        """Spot-height labels where they come no nearer than 0.3 mm to a text already on the
+        map: right of the point, else left, above, below (1 mm off); a label with no free
+        place is left out (counted, never printed over another). Returns the number left out."""
+        renderer = self.fig.canvas.get_renderer()
+        pad = LABEL_PAD_MM / MM_PER_INCH * self.fig.dpi  # display units
+        boxes = _BoxIndex(20.0 / MM_PER_INCH * self.fig.dpi)
+        for a in self.obstacles:
+            boxes.add(a.get_window_extent(renderer).padded(pad))
+        off = self._mm_to_ground(1.0)
+        xmin, ymin, xmax, ymax = self.spec.bounds
+        for x, y, text, colour in self.pending:
+            if not (xmin <= x <= xmax and ymin <= y <= ymax):
+                continue
+            for dx, dy, ha, va in ((off, 0, "left", "center"), (-off, 0, "right", "center"),
+                                   (0, off, "center", "bottom"), (0, -off, "center", "top")):
+                artist = self.ax.text(x + dx, y + dy, text, fontsize=MIN_TEXT_PT, color=colour,
+                                      ha=ha, va=va, zorder=6, clip_on=True)
+                box = artist.get_window_extent(renderer).padded(pad)
+                if not boxes.hits(box):
+                    boxes.add(box)
+                    break
+                artist.remove()
+            else:
+                self.labels_left_out += 1
+        self.pending = []
+        return self.labels_left_out
 
     def _restore_limits(self) -> None:
         self.ax.set_xlim(self.spec.bounds[0], self.spec.bounds[2])
@@ -267,9 +322,10 @@ class SheetRenderer:
                     angle = np.degrees(np.arctan2(b.y - a.y, b.x - a.x))
                     angle = (angle + 90.0) % 180.0 - 90.0  # upright text
                     p = part.interpolate(d)
-                    self.ax.text(p.x, p.y, f"{elev:.0f}", fontsize=MIN_TEXT_PT, color=colour,
-                                 rotation=angle, rotation_mode="anchor", ha="center",
-                                 va="center", zorder=5, path_effects=halo, clip_on=True)
+                    self.obstacles.append(self.ax.text(
+                        p.x, p.y, f"{elev:.0f}", fontsize=MIN_TEXT_PT, color=colour,
+                        rotation=angle, rotation_mode="anchor", ha="center", va="center",
+                        zorder=5, path_effects=halo, clip_on=True))
         levels = np.unique(np.round(np.asarray(frame["elev"], dtype="float64"), 6))
         steps = np.diff(levels)
         interval = float(steps[steps > 0].min()) if (steps > 0).any() else None
@@ -318,6 +374,56 @@ class SheetRenderer:
         self.legend.append(("cross", f"map grid, {grid.step:g} m", "#000000", 0.25, None))
         self._restore_limits()
 
+    def second_grid(self, transformer, label: str, step: float, colour: str = "#1f4fbf"
+                    ) -> int:
+        """Ticks and labels of a second CRS's grid every ``step`` (its units) along the frame,
+        outside the first CRS's labels (``transformer``: sheet CRS -> second CRS, pyproj,
+        always_xy). A tick marks where the second CRS's line x = k * step (bottom, top edges)
+        or y = k * step (left, right edges) crosses the frame. Returns the ticks drawn."""
+        from matplotlib.collections import LineCollection
+
+        xmin, ymin, xmax, ymax = self.spec.bounds
+        clear = self._mm_to_ground(CORNER_CLEAR)
+        tick, off = self._mm_to_ground(3.9), self._mm_to_ground(4.2)
+        t = np.linspace(0.0, 1.0, 2001)
+        edges = {"bottom": (xmin + t * (xmax - xmin), np.full_like(t, ymin), 0),
+                 "top": (xmin + t * (xmax - xmin), np.full_like(t, ymax), 0),
+                 "left": (np.full_like(t, xmin), ymin + t * (ymax - ymin), 1),
+                 "right": (np.full_like(t, xmax), ymin + t * (ymax - ymin), 1)}
+        segs = []
+        kw = dict(fontsize=MIN_TEXT_PT, clip_on=False, zorder=8, color=colour)
+        for edge, (ex, ey, axis) in edges.items():
+            values = np.asarray(transformer.transform(ex, ey)[axis])
+            along = ex if axis == 0 else ey
+            for v in np.arange(np.ceil(values.min() / step), np.floor(values.max() / step) + 1):
+                if not (np.all(np.diff(values) > 0) or np.all(np.diff(values) < 0)):
+                    break  # not monotonic along the edge: no single crossing
+                order = np.argsort(values)
+                a = float(np.interp(v * step, values[order], along[order]))
+                if min(a - along[0], along[-1] - a) < clear:
+                    continue
+                text = f"{v * step:.0f}"
+                if edge == "bottom":
+                    segs.append([(a, ymin), (a, ymin - tick)])
+                    self.ax.text(a, ymin - off, text, ha="center", va="top", **kw)
+                elif edge == "top":
+                    segs.append([(a, ymax), (a, ymax + tick)])
+                    self.ax.text(a, ymax + off, text, ha="center", va="bottom", **kw)
+                elif edge == "left":
+                    segs.append([(xmin, a), (xmin - tick, a)])
+                    self.ax.text(xmin - off, a, text, ha="right", va="center", rotation=90,
+                                 rotation_mode="anchor", **kw)
+                else:
+                    segs.append([(xmax, a), (xmax + tick, a)])
+                    self.ax.text(xmax + off, a, text, ha="left", va="center", rotation=90,
+                                 rotation_mode="anchor", **kw)
+        self.ax.add_collection(LineCollection(segs, colors=colour, clip_on=False, zorder=8,
+                                              linewidths=0.2 * PT_PER_MM))
+        self.legend.append(("tick", f"{label} grid ticks, {step:g} m (outer labels)", colour,
+                            0.2, None))
+        self._restore_limits()
+        return len(segs)
+
     # -- side panel ------------------------------------------------------------------------------
     def title_rows(self) -> list[tuple[str, str]]:
         """The title block: (key, value) rows; an empty key is the title."""
@@ -326,6 +432,8 @@ class SheetRenderer:
                 ("CRS", spec.crs_label)]
         if spec.datum:
             rows.append(("datum", spec.datum))
+        if spec.second_crs:
+            rows.append(("outer ticks", spec.second_crs))
         if spec.contour_interval:
             rows.append(("contour interval", f"{spec.contour_interval:g} m"))
         rows += [("date", spec.date), ("sources", "; ".join(spec.sources))]
@@ -423,6 +531,16 @@ class SheetRenderer:
                                         (self._fy(y - 2), self._fy(y + 2)),
                                         transform=fig.transFigure, color=colour,
                                         linewidth=lw * PT_PER_MM))
+            elif kind == "symbol":  # drawn by the map's own routine, at the map's scale
+                self._symbol_swatch(x0 + 1.0, y - 2.0, colour, *fill)
+            elif kind == "tick":
+                fig.lines.append(Line2D((self._fx(x0 + 5),) * 2, (self._fy(y - 2),
+                                                                   self._fy(y + 2)),
+                                        transform=fig.transFigure, color=colour,
+                                        linewidth=lw * PT_PER_MM))
+            elif kind == "text":
+                fig.text(self._fx(x0 + 1), self._fy(y), "Aa", transform=fig.transFigure,
+                         fontsize=7, fontstyle="italic", color=colour, va="center")
             elif kind == "point":
                 fig.lines.append(Line2D((self._fx(x0 + 5),), (self._fy(y),), marker="o",
                                         markersize=np.sqrt(lw * 4 * PT_PER_MM),  # as drawn
@@ -436,6 +554,22 @@ class SheetRenderer:
             fig.text(self._fx(x0 + 12), self._fy(y - 5.5), f"... and {left_out} more entries",
                      **text)
         return {"ground_length": ground, "paper_mm": bar_mm, "left_mm": bx}
+
+    def _symbol_swatch(self, left_mm: float, bottom_mm: float, colour: str, kind: str,
+                       symbol) -> None:
+        """A legend swatch 8 x 4 mm drawn by the map's routine at the map's scale."""
+        from toolbox.cartography.symbols_draw import draw_symbol, swatch_geometry
+
+        w_mm, h_mm = 8.0, 4.0
+        ax = self.fig.add_axes((self._fx(left_mm), self._fy(bottom_mm), w_mm / self.page.width,
+                                h_mm / self.page.height))
+        g = self.spec.scale / 1000.0
+        ax.set_xlim(0, w_mm * g)
+        ax.set_ylim(0, h_mm * g)
+        ax.set_axis_off()
+        rgb = tuple(int(colour[i:i + 2], 16) for i in (1, 3, 5))
+        draw_symbol(ax, [swatch_geometry(kind, w_mm, h_mm, self.spec.scale)], kind, rgb, symbol,
+                    self.spec.scale)
 
     def save(self, pdfs=(), pngs=(), dpi: int = 150, metadata: dict | None = None,
              pdf_pages=None) -> None:
@@ -451,6 +585,28 @@ class SheetRenderer:
 
     def close(self) -> None:
         self.plt.close(self.fig)
+
+
+class _BoxIndex:
+    """Boxes (matplotlib Bbox, display units) bucketed on a square grid of ``size``: overlap
+    queries look at the buckets a box covers only."""
+
+    def __init__(self, size: float):
+        self.size = size
+        self.cells: dict[tuple[int, int], list] = {}
+
+    def _keys(self, box):
+        s = self.size
+        for i in range(int(box.x0 // s), int(box.x1 // s) + 1):
+            for j in range(int(box.y0 // s), int(box.y1 // s) + 1):
+                yield i, j
+
+    def add(self, box) -> None:
+        for key in self._keys(box):
+            self.cells.setdefault(key, []).append(box)
+
+    def hits(self, box) -> bool:
+        return any(box.overlaps(b) for key in self._keys(box) for b in self.cells.get(key, ()))
 
 
 def _fit(text: str, n: int) -> str:

@@ -75,9 +75,10 @@ def read_base(info, bounds: tuple[float, float, float, float], scale: float,
 def render_sheet(spec: SheetSpec, base=None, base_name: str = "", styles=(), contours=None,
                  grid_style: str = "crosses", map_step_mm: float = 100.0,
                  pdfs: list[str | Path] = (), pngs: list[str | Path] = (), png_dpi: int = 150,
-                 pdf_pages=None) -> dict:
+                 pdf_pages=None, second_grid=None) -> dict:
     """Draw one sheet and save it (PDF files, PNG files, and/or a page of an open
-    ``PdfPages``). Returns the page geometry."""
+    ``PdfPages``). ``second_grid``: (pyproj Transformer sheet CRS -> second CRS, its label)
+    whose grid is ticked along the frame. Returns the page geometry."""
     renderer = SheetRenderer(spec)
     try:
         if base is not None:
@@ -88,12 +89,16 @@ def render_sheet(spec: SheetSpec, base=None, base_name: str = "", styles=(), con
             clipped = style.frame.cx[spec.bounds[0]:spec.bounds[2], spec.bounds[1]:spec.bounds[3]]
             if len(clipped):
                 renderer.vector(LayerStyle(clipped, style.name, style.kind, style.rgb,
-                                           style.width_mm, style.fill, style.label_field))
+                                           style.width_mm, style.fill, style.label_field,
+                                           style.symbol))
         if contours is not None and len(contours):
             renderer.contours(contours.cx[spec.bounds[0]:spec.bounds[2],
                                           spec.bounds[1]:spec.bounds[3]])
+        left_out = renderer.place_labels()
         step = ground_step(spec.scale, map_step_mm)
         renderer.grid(map_grid(spec.bounds, step, grid_style, ground_step(spec.scale, 10) / 2))
+        if second_grid is not None:
+            renderer.second_grid(second_grid[0], second_grid[1], step)
         bar = renderer.panel()
         metadata = {"Title": f"{spec.title} {spec.sheet_id}".strip(),
                     "Subject": f"map sheet {spec.sheet_id} at 1:{spec.scale:g}, {spec.crs_label}",
@@ -103,7 +108,7 @@ def render_sheet(spec: SheetSpec, base=None, base_name: str = "", styles=(), con
         renderer.save(pdfs, pngs, png_dpi, metadata, pdf_pages)
         page = renderer.page
         return {"sheet": spec.sheet_id, "paper": page.paper, "paper_mm": [page.width, page.height],
-                "frame_mm": list(page.frame), "scale_bar": bar,
+                "frame_mm": list(page.frame), "scale_bar": bar, "labels_left_out": left_out,
                 "panel_mm": [page.panel_left, page.band_bottom, page.panel_width,
                              page.band_height]}
     finally:
@@ -156,5 +161,41 @@ def coded_styles(layers: list[tuple[str, Any]], table, colours) -> list[LayerSty
             out += default_styles([(name, frame)])
             continue
         model = layer_style(name, kind, codes, table, colours, label_field=None)
-        out += styles_from_model(frame, model, with_code=True)
+        out += _with_symbology(styles_from_model(frame, model, with_code=True), codes, table,
+                               colours)
     return out
+
+
+def _with_symbology(styles: list[LayerStyle], codes: list[str], table, colours
+                    ) -> list[LayerStyle]:
+    """The code file's symbology (line type, width, point symbol, hatching; see
+    :mod:`.symbols`) on each code's style, and its legend name under the delivered code, when
+    the code file has symbology columns; else the styles as they are."""
+    from dataclasses import replace
+
+    from toolbox.cartography.symbols import parse_symbol
+
+    if not any(e.symbology for e in table.entries.values()):
+        return styles
+    # a delivered code has one look: that of its first working code (name, colour, symbol)
+    first: dict[str, tuple[str, str]] = {}  # delivered code -> (legend name, working code)
+    for entry in table.entries.values():
+        symbol = parse_symbol(entry, entry.kind or "line")
+        first.setdefault(symbol.delivered, (f"{symbol.delivered} {entry.description}".strip(),
+                                            entry.code))
+    out = []
+    for style, code in zip(styles, codes, strict=True):
+        if code not in table:
+            out.append(style)
+            continue
+        name, lead = first[parse_symbol(table[code], style.kind).delivered]
+        symbol = replace(parse_symbol(table[lead], style.kind), code=code)
+        out.append(replace(style, symbol=symbol, width_mm=symbol.width, name=name,
+                           rgb=_code_rgb(lead, table, colours) or style.rgb))
+    return out
+
+
+def _code_rgb(code: str, table, colours):
+    from toolbox.io.code_file import code_colour
+
+    return code_colour(code, table, colours)[0]

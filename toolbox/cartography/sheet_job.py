@@ -4,9 +4,11 @@ per-sheet files."""
 from __future__ import annotations
 
 import datetime as _dt
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
-from toolbox.cartography.grid_io import sheet_polygons
+from toolbox.cartography.grid_io import SheetSource, sheet_polygons
 from toolbox.cartography.sheet import SheetSpec
 from toolbox.cartography.sheet_io import coded_styles, default_styles, render_sheet
 from toolbox.version import __version__
@@ -44,24 +46,54 @@ def _layer_name(ref) -> str:
     return Path(text.split("|")[0]).stem
 
 
-def layer_styles(params: dict) -> tuple[list[tuple[str, object]], list]:
+@dataclass(frozen=True)
+class SheetJob:
+    """One carto:sheet run: the ``sheets``, drawn at 1:``scale`` with a map grid every
+    ``map_step`` mm (``grid_style`` crosses or lines) on ``paper`` (auto, A4...A0); the
+    ``base`` raster, vector ``layers`` (symbology from the ``codes``/``colours`` files),
+    ``contours``; the title block's ``title``, ``sources`` (None: the input files, dated) and
+    ``date`` (None: today); ``grid_crs``: a second projected CRS ticked along the frame;
+    written to the PDF ``output`` (one page per sheet), the ``png`` of the first sheet at
+    ``png_dpi``, and/or one PDF + PNG per sheet in ``folder``."""
+
+    sheets: SheetSource
+    scale: float = 5000.0
+    title: str = "Map sheet"
+    paper: str = "auto"
+    grid_style: str = "crosses"
+    map_step: float = 100.0
+    png_dpi: int = 120
+    base: Any = None
+    layers: list = field(default_factory=list)
+    contours: Any = None
+    codes: Any = None
+    colours: Any = None
+    sources: str | None = None
+    date: str | None = None
+    grid_crs: Any = None
+    output: Path | None = None
+    png: Path | None = None
+    folder: Path | None = None
+
+
+def layer_styles(job: SheetJob) -> tuple[list[tuple[str, object]], list]:
     """The LAYERS as (name, frame) and their sheet styles: from CODES/COLOURS through the
     shared style model when CODES is given, else default colours by geometry kind."""
     from toolbox.io.vector import read_vector
 
-    refs = params.get("LAYERS") or []
+    refs = job.layers or []
     layers = [(_layer_name(ref), read_vector(ref, name="LAYERS")) for ref in refs]
-    if params.get("CODES") is None:
+    if job.codes is None:
         return layers, default_styles(layers)
     from toolbox.io.code_file import read_code_file, read_colour_file
 
-    table = read_code_file(params["CODES"], "CODES")
-    colours = read_colour_file(params["COLOURS"], "COLOURS") \
-        if params.get("COLOURS") is not None else None
+    table = read_code_file(job.codes, "CODES")
+    colours = read_colour_file(job.colours, "COLOURS") \
+        if job.colours is not None else None
     return layers, coded_styles(layers, table, colours)
 
 
-def guard_sheets(params: dict) -> None:
+def guard_sheets(job: SheetJob) -> None:
     """Refuse before drawing: too many sheets, a page too large to render at PNG_DPI (a tiny
     SCALE denominator), or too many map grid crosses."""
     from toolbox.cartography.grid import ground_step
@@ -69,14 +101,14 @@ def guard_sheets(params: dict) -> None:
     from toolbox.cartography.sheet import GAP, LABEL_BAND, MARGIN, PANEL
     from toolbox.limits import check_size
 
-    sheets, _ = sheet_polygons(params)
+    sheets, _ = sheet_polygons(job.sheets)
     sheets = [(i, g) for i, g in sheets if g is not None and not g.is_empty]
     if not sheets:
         return  # the job says so
-    if params.get("SHEETS") is not None:
+    if job.sheets.sheets is not None:
         check_size("sheets", len(sheets), "SHEETS", f"has {len(sheets):,} features, which",
                    "draw fewer sheets")
-    scale, dpi = params["SCALE"], params["PNG_DPI"]
+    scale, dpi = job.scale, job.png_dpi
     widest = max(sheets, key=lambda s: (s[1].bounds[2] - s[1].bounds[0])
                  * (s[1].bounds[3] - s[1].bounds[1]))[1].bounds
     w = (widest[2] - widest[0]) / scale * 1000.0 + 2 * (MARGIN + LABEL_BAND) + GAP + PANEL
@@ -86,12 +118,12 @@ def guard_sheets(params: dict) -> None:
                f"{widest[3] - widest[1]:,.0f} sheet on {w / 1000:,.1f} x {h / 1000:,.1f} m of "
                f"paper, which at PNG_DPI {dpi}", "check SCALE (the denominator: 5000 for "
                "1:5000) or use smaller sheets", "pixels")
-    guard_grid(sheets, ground_step(scale, params["MAP_STEP"]), params["GRID_STYLE"], scale,
-               params["MAP_STEP"])
-    _refuse_empty_sheets(params, sheets)
+    guard_grid(sheets, ground_step(scale, job.map_step), job.grid_style, scale,
+               job.map_step)
+    _refuse_empty_sheets(job, sheets)
 
 
-def _refuse_empty_sheets(params: dict, sheets: list) -> None:
+def _refuse_empty_sheets(job: SheetJob, sheets: list) -> None:
     """Refuse sheets that none of BASE, LAYERS, CONTOURS meets (data of another area or CRS:
     the sheets would be empty frames)."""
     import shapely
@@ -99,8 +131,10 @@ def _refuse_empty_sheets(params: dict, sheets: list) -> None:
     from toolbox.errors import InputDataError
     from toolbox.io.crs import input_crs_and_bounds
 
-    boxes = [shapely.box(*b) for name in ("BASE", "LAYERS", "CONTOURS")
-             for _, b in input_crs_and_bounds(params.get(name)) if b is not None]
+    # envelopes, not boxes: one point, or points in a row, have a flat extent (an empty box)
+    boxes = [shapely.envelope(shapely.MultiPoint([b[:2], b[2:]]))
+             for value in (job.base, job.layers, job.contours)
+             for _, b in input_crs_and_bounds(value) if b is not None]
     if not boxes:
         return  # nothing to draw, or extents unknown: the job draws what it has
     data = shapely.union_all(boxes)
@@ -113,15 +147,33 @@ def _refuse_empty_sheets(params: dict, sheets: list) -> None:
                              "the same area and CRS?")
 
 
-def sheet_file_names(params: dict) -> list[str]:
+def _second_grid(crs, second):
+    """(transformer sheet CRS -> ``second``, label) for the frame's second grid, or None."""
+    if second is None:
+        return None
+    from pyproj import Transformer
+
+    from toolbox.errors import ParameterError
+    from toolbox.io.crs import crs_label
+
+    if crs is None:
+        raise ParameterError("GRID_CRS: the sheet's data have no CRS to transform from")
+    if not second.is_projected:
+        raise ParameterError(f"GRID_CRS: {crs_label(second)} is not a projected CRS (grid "
+                             "ticks are in metres)")
+    return Transformer.from_crs(crs, second, always_xy=True), f"{crs_label(second)} " \
+        f"({second.name})"
+
+
+def sheet_file_names(job: SheetJob) -> list[str]:
     """The file name (without extension) of each sheet in FOLDER: its id made file-safe and
     unique."""
     from toolbox.mosaic.sheets import sheet_ids_unique
 
-    return sheet_ids_unique([sheet_id for sheet_id, _ in sheet_polygons(params)[0]])
+    return sheet_ids_unique([sheet_id for sheet_id, _ in sheet_polygons(job.sheets)[0]])
 
 
-def run_sheets(params: dict, feedback) -> dict:
+def run_sheets(job: SheetJob, feedback) -> dict:
     import matplotlib
     from matplotlib.backends.backend_pdf import PdfPages
 
@@ -129,41 +181,44 @@ def run_sheets(params: dict, feedback) -> dict:
     from toolbox.io.staging import final_path
     from toolbox.io.vector import read_vector
 
-    sheets, crs = sheet_polygons(params)
-    layers, styles = layer_styles(params)
-    contours = read_vector(params["CONTOURS"], name="CONTOURS") \
-        if params.get("CONTOURS") is not None else None
+    sheets, crs = sheet_polygons(job.sheets)
+    layers, styles = layer_styles(job)
+    contours = read_vector(job.contours, name="CONTOURS") \
+        if job.contours is not None else None
     from toolbox.io.crs import common_crs
 
-    named = {"BASE": params["BASE"].crs if params.get("BASE") is not None else None,
+    named = {"BASE": job.base.crs if job.base is not None else None,
              "CONTOURS": None if contours is None else contours.crs}
     named |= {f"LAYERS[{k + 1}]": f.crs for k, (_, f) in enumerate(layers)}
     crs = common_crs(named, crs)  # the sheet's CRS: every layer in it, or refused (mixed CRSs)
-    sources = params.get("SOURCES") or "; ".join(dict.fromkeys(
-        [_dated(params["BASE"])] * (params.get("BASE") is not None)
-        + [_dated(ref) for ref in params.get("LAYERS") or []]
-        + [_dated(params["CONTOURS"])] * (params.get("CONTOURS") is not None)))
-    date = params.get("DATE") or _dt.date.today().isoformat()
-    folder = Path(params["FOLDER"]) if params.get("FOLDER") else None  # staged by the runner
-    names = sheet_file_names(params)
+    sources = job.sources or "; ".join(dict.fromkeys(
+        [_dated(job.base)] * (job.base is not None)
+        + [_dated(ref) for ref in job.layers or []]
+        + [_dated(job.contours)] * (job.contours is not None)))
+    date = job.date or _dt.date.today().isoformat()
+    folder = Path(job.folder) if job.folder else None  # staged by the runner
+    names = sheet_file_names(job)
     written = []
-    scale = params["SCALE"]
-    meta = {"Title": params["TITLE"], "Subject": f"{len(sheets)} map sheet(s) at 1:{scale:g}",
+    scale = job.scale
+    meta = {"Title": job.title, "Subject": f"{len(sheets)} map sheet(s) at 1:{scale:g}",
             "Keywords": f"scale=1:{scale:g}; crs={crs_label(crs)}; "
                         f"sheets={','.join(s for s, _ in sheets)}",
             "Creator": "photogrammetry-toolbox carto:sheet"}
-    pages = PdfPages(params["OUTPUT"], metadata=meta) if params.get("OUTPUT") else None
+    pages = PdfPages(job.output, metadata=meta) if job.output else None
     try:
         for i, (sheet_id, polygon) in enumerate(feedback.iterate(sheets, start=0, end=100)):
             feedback.check_canceled()
-            spec = SheetSpec(polygon.bounds, params["SCALE"], params["TITLE"], sheet_id,
-                             crs_label(crs), date, [sources], params["PAPER"],
+            spec = SheetSpec(polygon.bounds, job.scale, job.title, sheet_id,
+                             crs_label(crs), date, [sources], job.paper,
                              datum=_datum(crs), producer=f"photogrammetry-toolbox {__version__}")
-            common = dict(base=params.get("BASE"), base_name=_name(params["BASE"])
-                          if params.get("BASE") is not None else "", styles=styles,
-                          contours=contours, grid_style=params["GRID_STYLE"],
-                          map_step_mm=params["MAP_STEP"], png_dpi=params["PNG_DPI"])
-            pngs = [params["PNG"]] if params.get("PNG") and i == 0 else []
+            common = dict(base=job.base, base_name=_name(job.base)
+                          if job.base is not None else "", styles=styles,
+                          contours=contours, grid_style=job.grid_style,
+                          map_step_mm=job.map_step, png_dpi=job.png_dpi)
+            common["second_grid"] = _second_grid(crs, job.grid_crs)
+            if common["second_grid"] is not None:
+                spec.second_crs = common["second_grid"][1]
+            pngs = [job.png] if job.png and i == 0 else []
             files = []
             if folder is not None:
                 files = [folder / f"{names[i]}.pdf", folder / f"{names[i]}.png"]
@@ -171,11 +226,15 @@ def run_sheets(params: dict, feedback) -> dict:
                                     pdf_pages=pages, **common)
             else:
                 info = render_sheet(spec, pngs=pngs, pdf_pages=pages, **common)
+            if info["labels_left_out"]:
+                feedback.push_warning(f"sheet {sheet_id}: {info['labels_left_out']} spot-height "
+                                      "label(s) left out: no free place beside the point at "
+                                      f"1:{scale:g}")
             files = [str(final_path(f)) for f in files]
             written.append(info | {"files": files})
     finally:
         if pages is not None:
             with matplotlib.rc_context({"pdf.fonttype": 42}):
                 pages.close()
-    return {"OUTPUT": params.get("OUTPUT"), "PNG": params.get("PNG"),
+    return {"OUTPUT": job.output, "PNG": job.png,
             "SHEETS_WRITTEN": written}

@@ -15,7 +15,16 @@ colour         colour, color, colore, colour code, codice colore
 description    description, descrizione, desc, descrizione entita
 type           type, tipologia, tipo, geometry, geometria
 area           area, area code, codice area, bounds, delimita
+linetype       linetype, line type, tipo linea, tratto
+width          width, line width, spessore
+symbol         symbol, point symbol, simbolo
+hatch          hatch, hatching, campitura, retino
+delivered      delivered, delivery code, codice consegna, consegna
 =============  ==================================================
+
+The last five are the symbology of the map sheet and the delivered code (the working code file
+is not delivered, so its codes may differ from the final file's, S002 §2.2.1 l.695): kept as
+text in ``CodeEntry.symbology`` and read by :mod:`toolbox.cartography.symbols`.
 
 The optional ``area`` column says which area code(s) the face closed by a line of this code takes
 (thesis §2.4, "codifica logica" of areas): ``FAB01002; muro perimetrale; linea; 12; AREA_FAB``
@@ -77,7 +86,15 @@ COLUMN_NAMES: dict[str, tuple[str, ...]] = {
     "type": ("type", "tipologia", "tipo", "geometry", "geometria", "geometry type", "kind"),
     "area": ("area", "areas", "area code", "area codes", "codice area", "codici area", "bounds",
              "delimita", "area delimitata"),
+    # symbology and delivery (read by toolbox.cartography.symbols; kept as text here)
+    "linetype": ("linetype", "line type", "line style", "tipo linea", "stile linea", "tratto"),
+    "width": ("width", "line width", "spessore", "spessore linea"),
+    "symbol": ("symbol", "point symbol", "simbolo", "stile punto"),
+    "hatch": ("hatch", "hatching", "campitura", "retino"),
+    "delivered": ("delivered", "delivery code", "delivered code", "final code",
+                  "codice consegna", "consegna", "codice finale"),
 }
+SYMBOLOGY_COLUMNS = ("linetype", "width", "symbol", "hatch", "delivered")
 _COLUMN_LOOKUP = {name: col for col, names in COLUMN_NAMES.items() for name in names}
 _HEX = re.compile(r"^#?([0-9a-fA-F]{6})$")
 
@@ -104,6 +121,7 @@ class CodeEntry:
     colour: str | None = None
     line: int = 0
     areas: tuple[str, ...] = ()
+    symbology: tuple[tuple[str, str], ...] = ()  # (column, text) of SYMBOLOGY_COLUMNS given
 
 
 @dataclass
@@ -231,7 +249,11 @@ def read_code_file(path: str | Path, name: str = "CODES") -> CodeTable:
         if areas and kind == "point":
             raise _fail(path, number, f"code {code!r} is a point code: it cannot bound area "
                         f"{', '.join(areas)}", name)
-        table.entries[code] = CodeEntry(code, description.strip(), kind, colour, number, areas)
+        symbology = tuple((c, fields[columns[c]].strip()) for c in SYMBOLOGY_COLUMNS
+                          if columns is not None and c in columns and columns[c] < len(fields)
+                          and fields[columns[c]].strip())
+        table.entries[code] = CodeEntry(code, description.strip(), kind, colour, number, areas,
+                                        symbology)
     if not table.entries:
         raise InputDataError(f"{name}: '{path}' has a header but no codes")
     for entry in table.entries.values():

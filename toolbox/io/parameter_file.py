@@ -93,6 +93,14 @@ KEYS: dict[str, tuple[str, tuple[str, ...]]] = {
     "min_area": ("length", ("area minima", "minimum area", "min area")),
 }
 
+#: the value of an entry when neither a parameter nor the file gives it (the one table of the
+#: file-backed defaults: topology, attribution and the editing tools read it through resolve())
+DEFAULTS: dict[str, float] = {
+    "snap_tolerance": 0.2, "height_snap_tolerance": 0.1, "closure_tolerance": 0.5,
+    "min_dangle_length": 1.0, "min_area": 1.0, "decimals": 3, "alignment_tolerance": 0.1,
+    "squaring_tolerance": 0.2, "squaring_angle_tolerance": 3.0, "spline_step": 1.0,
+}
+
 _SPLIT_RE = re.compile(r"^(?P<name>[^=:\t]+?)\s*(?:=|:|\t)\s*(?P<value>.*)$")
 _UNIT_RE = re.compile(r"\s*[\[(][^\])]*[\])]\s*$")
 _METRE = {"m", "metre", "metres", "meter", "meters", "metro", "metri"}
@@ -294,19 +302,25 @@ def read_parameter_file(path: str | Path, name: str = "PARAMETERS") -> Parameter
     return result
 
 
-def optional_parameter_file(params: dict[str, Any], name: str = "PARAMETERS"
-                            ) -> ParameterFile | None:
-    """The parsed ``params[name]`` file, or None when not given."""
-    value = params.get(name)
-    return None if value is None else read_parameter_file(value, name)
+def optional_parameter_file(path: Any, name: str = "PARAMETERS") -> ParameterFile | None:
+    """The parsed parameter file at ``path`` (messages call it ``name``), or None when not
+    given."""
+    return None if path is None else read_parameter_file(path, name)
 
 
-def resolve(explicit: Any, file: ParameterFile | None, key: str, default: Any
+def resolve(explicit: Any, file: ParameterFile | None, key: str, default: Any = None
             ) -> tuple[Any, str]:
-    """An explicit value, else the file's entry, else the default; with its source
-    (``"parameter"``, ``"file"``, ``"default"``)."""
+    """An explicit value, else the file's entry ``key``, else ``default`` (None: the table
+    :data:`DEFAULTS`); with its source (``"parameter"``, ``"file"``, ``"default"``).
+
+    ``key = "decimals"`` resolves a precision (CRS units): an explicit value is one, the
+    file's number of decimals d gives 10^-d, and so does the default."""
     if explicit is not None:
         return explicit, "parameter"
     if file is not None and key in file.values:
-        return file.values[key], "file"
-    return default, "default"
+        value = file.values[key]
+        return (10.0 ** -value if key == "decimals" else value), "file"
+    value = DEFAULTS.get(key) if default is None else default
+    if key == "decimals" and default is None:
+        value = 10.0 ** -value
+    return value, "default"

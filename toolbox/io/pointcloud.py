@@ -3,8 +3,9 @@ filters, and a chunked writer (laspy; LAZ through the lazrs backend).
 
 Reading never holds the whole file's records: chunks of :data:`CHUNK_POINTS` points are
 decoded, filtered and copied into one preallocated ``(N, 3)`` float64 array (N = the header's
-point count), so the peak is that array plus one chunk. COPC files are LAZ 1.4 files and are
-read the same way (whole file; no spatial query).
+point count), so the peak is that array plus one chunk. COPC files (``.copc.laz``, told by
+their ``copc`` info VLR: ``info["copc"]``) are LAZ 1.4 files and are read the same way, all
+their points in file order (no spatial query of the octree).
 
 Return filter (``RETURNS``): ``all``; ``first`` = return number <= 1; ``last`` = return number
 >= number of returns. Points with return number 0 (photogrammetric clouds often leave 0/0)
@@ -105,6 +106,7 @@ def open_point_cloud(value: Any, name: str = "INPUT") -> PointCloudRef:
                 bounds=(float(mins[0]), float(mins[1]), float(maxs[0]), float(maxs[1])),
                 z_range=(float(mins[2]), float(maxs[2])),
                 crs_wkt=None if crs is None else crs.to_wkt())
+            copc = any(getattr(v, "user_id", "") == "copc" for v in header.vlrs)
     except ParameterError:
         raise
     except Exception as exc:
@@ -114,7 +116,7 @@ def open_point_cloud(value: Any, name: str = "INPUT") -> PointCloudRef:
         raise ParameterError(name, f"point cloud '{value}' has no points")
     ref.info = {"total_bounds": ref.bounds, "point_count": ref.point_count,
                 "compressed": compressed, "version": ref.version,
-                "point_format": ref.point_format}
+                "point_format": ref.point_format, "copc": copc}
     return ref
 
 

@@ -35,3 +35,12 @@ def yaml_error_line(exc: Exception) -> str:
     if context:
         text += f" ({context})"
     return text
+
+
+def is_number(text: str) -> bool:
+    """True when ``text`` is a number Python's ``float`` reads (a header line's test)."""
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True

@@ -266,14 +266,15 @@ def seam_path(pair_cost: Callable, region, start_xy, end_xy, cell: float,
 
 def split_between(cells: list, i: int, j: int, path: list, region, tol: float) -> tuple:
     """Split ``region`` (inside ``cells[i] ∪ cells[j]``) by the polyline ``path`` and give each
-    piece to the cell it borders most outside ``region``; returns the new ``(cell_i, cell_j)``."""
+    piece to the cell it borders most outside ``region`` (to the one it held most of, when it
+    borders both or neither); returns the new ``(cell_i, cell_j)``."""
     import shapely
     from shapely import LineString
     from shapely.ops import split
 
     rest_i = cells[i].difference(region)
     rest_j = cells[j].difference(region)
-    line = LineString(path).simplify(tol * 0.5)
+    line = _extended(LineString(path).simplify(tol * 0.5), 4 * tol)
     pieces = [g for g in getattr(split(region, line), "geoms", []) if g.area > 0]
     if len(pieces) < 2:
         return None
@@ -281,12 +282,31 @@ def split_between(cells: list, i: int, j: int, path: list, region, tol: float) -
     mine, yours = [rest_i], [rest_j]
     for piece in pieces:
         edge = piece.boundary
-        touch_i, touch_j = edge.intersection(grow_i).length, edge.intersection(grow_j).length
-        if abs(touch_i - touch_j) <= tol:
+        # contacts shorter than a seam cell (1000 tol) are rounding, not borders
+        touch_i, touch_j = (length if length > 1000 * tol else 0.0 for length in
+                            (edge.intersection(grow_i).length, edge.intersection(grow_j).length))
+        # a piece bordering both rests (the two cells also meet elsewhere) goes by its area
+        if abs(touch_i - touch_j) <= tol or min(touch_i, touch_j) > 0:
             touch_i = piece.intersection(cells[i]).area
             touch_j = piece.intersection(cells[j]).area
         (mine if touch_i >= touch_j else yours).append(piece)
     return _clean(shapely.union_all(mine)), _clean(shapely.union_all(yours))
+
+
+def _extended(line, length: float):
+    """``line`` with both end segments prolonged by ``length``: ends that lie on the region's
+    boundary only to rounding still cross it, so that the split cuts."""
+    from shapely import LineString
+
+    xy = np.asarray(line.coords, dtype="float64")
+    if len(xy) < 2:
+        return line
+    for end, inner in ((0, 1), (-1, -2)):
+        step = xy[end] - xy[inner]
+        norm = float(np.hypot(*step))
+        if norm > 0:
+            xy[end] = xy[end] + step / norm * length
+    return LineString(xy)
 
 
 def _clean(geom):
@@ -297,13 +317,9 @@ def _clean(geom):
 
 def seam_ends(cell_i, cell_j):
     """The two ends of the longest shared boundary line of two cut polygons, or None."""
-    import shapely
+    from toolbox.mosaic.partition import merge_lines, shared_lines
 
-    from toolbox.mosaic.partition import merge_lines
-
-    shared = shapely.intersection(cell_i.boundary, cell_j.boundary)
-    lines = [g for g in getattr(shared, "geoms", [shared])
-             if g.geom_type in ("LineString", "MultiLineString")]
+    lines = shared_lines(cell_i, cell_j)
     if not lines:
         return None
     merged = merge_lines(lines)
@@ -327,7 +343,9 @@ def least_cost_cells(cells: list, footprints: list, cost_for: Callable[[int, int
 
     cells = list(cells)
     report = []
-    pairs = [(i, j) for i, j, _ in seamlines(cells)]
+    # the longest seams first: a short one (a corner where two non-neighbours touch) re-routed
+    # early can take a neighbour's whole side and leave the main seams nothing to route
+    pairs = [(i, j) for i, j, _ in sorted(seamlines(cells), key=lambda s: -s[2].length)]
     for k, (i, j) in enumerate(pairs):
         if feedback is not None:
             feedback.check_canceled()

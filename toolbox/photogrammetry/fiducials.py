@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from toolbox.errors import InputDataError
-from toolbox.transforms.plane import TRANSFORMS, Transform2D
+from toolbox.transforms.plane import TRANSFORMS, Transform2D, apply_homography
 
 #: transformation names accepted (lowercase) -> canonical; OMOGRAFICA is Z-Map's (Italian) name
 TRANSFORMATION_NAMES = {
@@ -37,14 +37,6 @@ def transformation_name(value: Any, where: str = "transformation") -> str:
         raise InputDataError(f"{where} must be affine, homography (omografica) or similarity, "
                              f"got {value!r}")
     return TRANSFORMATION_NAMES[key]
-
-
-def _apply(matrix: np.ndarray, points: np.ndarray) -> np.ndarray:
-    pts = np.asarray(points, dtype="float64")
-    w = matrix[2, 0] * pts[..., 0] + matrix[2, 1] * pts[..., 1] + matrix[2, 2]
-    x = (matrix[0, 0] * pts[..., 0] + matrix[0, 1] * pts[..., 1] + matrix[0, 2]) / w
-    y = (matrix[1, 0] * pts[..., 0] + matrix[1, 1] * pts[..., 1] + matrix[1, 2]) / w
-    return np.stack([x, y], axis=-1)
 
 
 @dataclass(frozen=True, eq=False)
@@ -135,11 +127,11 @@ class InteriorOrientation:
     # -- use ---------------------------------------------------------------------------------------
     def pixel_to_image(self, colrow: np.ndarray) -> np.ndarray:
         """(…, 2) pixel ``(col, row)`` -> image ``(x, y)`` mm."""
-        return _apply(self.pixel_to_fiducial, colrow)
+        return apply_homography(self.pixel_to_fiducial, colrow)
 
     def image_to_pixel(self, xy_mm: np.ndarray) -> np.ndarray:
         """(…, 2) image ``(x, y)`` mm -> pixel ``(col, row)``."""
-        return _apply(self.fiducial_to_pixel, xy_mm)
+        return apply_homography(self.fiducial_to_pixel, xy_mm)
 
     @property
     def pixel_size_mm(self) -> float:

@@ -70,19 +70,23 @@ def similarity_start(camera_xy: np.ndarray, ground: np.ndarray, c: float) -> np.
     return np.array([tx, ty, float(ground[:, 2].mean()) + height, 0.0, 0.0, math.atan2(b, a)])
 
 
+RESECTION_SPREAD = 5e-4  # relative to the extent (the shared collinearity test)
+
+
 def check_geometry(camera_xy: np.ndarray, ground: np.ndarray) -> None:
     """Refuse too few points and points (nearly) on one line, relative to their spread."""
     n = len(ground)
     if n < MIN_POINTS:
         raise InputDataError(f"space resection needs at least {MIN_POINTS} control points measured "
                              f"on the photo, got {n}")
+    from toolbox.terrain.points import check_not_collinear
+
     for what, pts in (("image", camera_xy), ("ground", ground[:, :2])):
-        centred = pts - pts.mean(axis=0)
-        sv = np.linalg.svd(centred, compute_uv=False)
-        if sv[0] == 0 or sv[1] / sv[0] < 1e-3:
-            raise InputDataError(f"the {n} control points are collinear in {what} coordinates "
-                                 f"(spread ratio {sv[1] / sv[0] if sv[0] else 0:.2g}): space "
-                                 "resection needs points spread over the photo")
+        try:  # resection needs a well-spread geometry: RMS off-line spread >= 1/2000 of extent
+            check_not_collinear(pts, f"control points in {what} coordinates", RESECTION_SPREAD)
+        except ValueError as exc:
+            raise InputDataError(f"{exc}: space resection needs points spread over the photo "
+                                 f"(collinear in {what} coordinates)") from None
 
 
 def resect(camera_xy: np.ndarray, ground: np.ndarray, c: float,

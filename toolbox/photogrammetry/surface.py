@@ -76,19 +76,11 @@ class DemSurface:
 
     def height(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
         """Bilinear heights at ground points; NaN outside the cell-centre extent or on nodata."""
-        x = np.asarray(x, dtype="float64")
-        y = np.asarray(y, dtype="float64")
-        rows, cols = self.z.shape
-        fx = (x - self.x0) / self.cell_x
-        fy = (self.y0 - y) / self.cell_y
-        inside = (fx >= 0) & (fy >= 0) & (fx <= cols - 1) & (fy <= rows - 1)
-        j = np.clip(np.floor(np.where(inside, fx, 0)).astype(np.int64), 0, cols - 2)
-        i = np.clip(np.floor(np.where(inside, fy, 0)).astype(np.int64), 0, rows - 2)
-        tx, ty = fx - j, fy - i
-        z = self.z
-        h = (z[i, j] * (1 - tx) + z[i, j + 1] * tx) * (1 - ty) + \
-            (z[i + 1, j] * (1 - tx) + z[i + 1, j + 1] * tx) * ty
-        return np.where(inside, h, np.nan)
+        from toolbox.raster.bilinear import bilinear
+
+        x, y = np.broadcast_arrays(np.asarray(x, dtype="float64"), np.asarray(y, dtype="float64"))
+        xy = np.column_stack([x.ravel(), y.ravel()])
+        return bilinear(self.z, self.x0, self.y0, self.cell_x, -self.cell_y, xy).reshape(x.shape)
 
     def kernel_arguments(self) -> tuple:
         """``(z, x0, y0, cell_x, cell_y, zmin, zmax)`` as the monoplot kernel takes them."""

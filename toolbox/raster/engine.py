@@ -17,9 +17,9 @@ Every raster-producing algorithm follows the same flow::
   :func:`toolbox.tiles.map_tiles` (local threads by default, a Dask cluster when asked), with
   bounded memory (a few tiles in flight), progress and cancellation, and writes the results in
   tile order (the file is the same whichever executor ran the tiles).
-- :func:`warp_raster` is the photo -> ground mode: a coordinate map gives, for the cells of a
-  tile, the source (col, row) to sample; the engine reads the source window they need and
-  resamples it with OpenCV (see :mod:`toolbox.raster.warp`).
+- the photo -> ground mode (:func:`toolbox.raster.warp.warp_raster`) runs on
+  :func:`process_raster`: a coordinate map gives, for the cells of a tile, the source (col, row)
+  to sample; the warp reads the source window they need and resamples it with OpenCV.
 
 Grid rules
 ----------
@@ -41,11 +41,10 @@ cell's value belongs to its centre (:mod:`toolbox.io.grid`).
 
 from __future__ import annotations
 
-import itertools
 import math
 import warnings
 from collections.abc import Callable, Iterator, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -53,12 +52,10 @@ import numpy as np
 
 from toolbox.errors import ParameterError
 from toolbox.io.grid import GridSpec, max_cells_default
-from toolbox.raster.warp import DEFAULT_CACHE_MB, DEFAULT_CHUNK, DEFAULT_MAX_SOURCE_PIXELS
 
 __all__ = [
     "BOUNDARY_RULES", "GridSpec", "RasterInput", "Tile", "check_grid_parameters",
     "grid_from_parameters", "iter_tiles", "process_raster", "read_window", "tile_count",
-    "warp_raster",
 ]
 
 BOUNDARY_RULES = ("nodata", "edge", "reflect")
@@ -540,205 +537,3 @@ def process_raster(grid: GridSpec, inputs: Mapping[str, RasterInput] | None, ker
             held.close()
     counters["executor"] = executor.describe()
     return counters
-
-
-# -- warp mode: photo -> ground --------------------------------------------------------------------
-@dataclass
-class _WarpJob:
-    source: Any
-    source_size: tuple[int, int]
-    coordinate_map: Any
-    layout: Any
-    resampling: str
-    max_source_pixels: int
-    fast: bool
-    aux: dict = field(default_factory=dict)
-
-
-class _Sources:
-    """Per-thread open handles of a raster (rasterio datasets are not thread-safe); pickles
-    as its path."""
-
-    def __init__(self, path: Any):
-        import threading
-
-        self.path = path
-        self._local = threading.local()
-
-    def __getstate__(self):
-        return {"path": self.path}
-
-    def __setstate__(self, state):
-        self.__init__(state["path"])
-
-    def get(self):
-        import rasterio
-
-        src = getattr(self._local, "src", None)
-        if src is None:
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
-                src = rasterio.open(self.path)
-            self._local.src = src
-        return src
-
-
-def _warp_kernel(job: _WarpJob, tile: Tile, arrays: dict) -> tuple[np.ndarray, Any]:
-    """Warp one tile: aux arrays -> coordinate map -> source window -> OpenCV resampling."""
-    from toolbox.raster.warp import WarpStatistics, warp_window
-
-    src = job.source.get()
-    stats = WarpStatistics()
-
-    def read(bands, window):
-        return src.read(bands, window=window)
-
-    def read_mask(window):
-        return src.dataset_mask(window=window)
-
-    c0, r0 = int(tile.window.col_off), int(tile.window.row_off)
-    parts = warp_window(read, job.source_size, job.coordinate_map, tile, job.layout,
-                        job.resampling, read_mask, job.max_source_pixels, stats, job.fast,
-                        aux=arrays)
-    first = next(parts)
-    if first[0] == tile.window:  # one part: the tile itself (no copy)
-        return first[1], stats
-    out = np.empty((job.layout.count, *tile.shape), dtype=job.layout.dtype)
-    for part, array in itertools.chain([first], parts):
-        pc, pr = int(part.col_off) - c0, int(part.row_off) - r0
-        out[:, pr:pr + int(part.height), pc:pc + int(part.width)] = array
-    return out, stats
-
-
-def warp_raster(source: Any, grid: GridSpec, coordinate_map: Any, writer_or_output: Any, *,
-                layout: Any, resampling: str = "bilinear",
-                aux: Mapping[str, RasterInput] | None = None, aux_halo: int = 0,
-                tile_size: int = 2048, executor: Any = None, feedback: Any = None,
-                max_source_pixels: int | None = None, fast: bool = True,
-                start: float = 0.0, end: float = 100.0) -> Any:
-    """Indirect warp of ``source`` (a photo) onto ``grid`` through ``coordinate_map``.
-
-    Parameters
-    ----------
-    source : path or RasterInfo
-        Any raster GDAL reads, any band count and data type (its georeferencing is ignored).
-    coordinate_map : callable
-        ``coordinate_map(tile, aux_arrays) -> (src_col, src_row)``: float32 (h, w) arrays over
-        the tile without halo, source pixel convention (:mod:`toolbox.raster.warp`), NaN
-        where there is no source point. ``aux_arrays`` holds the ``aux`` rasters read onto the
-        tile (with ``aux_halo``), e.g. the DEM of an orthophoto. The fast paths of
-        :class:`~toolbox.raster.warp.HomographyMap` (``source_bounds``, ``inside_intervals``,
-        ``perspective_matrix``) are used when the map offers them.
-    writer_or_output : RasterWriter or callable
-        As in :func:`process_raster`; create the writer with ``layout`` (count, dtype, nodata,
-        alpha: see :func:`toolbox.raster.warp.warp_layout`).
-    layout : toolbox.raster.warp.OutputLayout
-        Output bands, nodata/alpha outside the source.
-    resampling : {"nearest", "bilinear", "cubic", "lanczos"}
-    tile_size : int
-        Output tile side (a multiple of the writer's 512 blocks).
-    max_source_pixels : int, optional
-        Largest source window read at once per band; bigger ones are split.
-
-    Returns the summed :class:`~toolbox.raster.warp.WarpStatistics`.
-    """
-    from functools import partial
-
-    import rasterio
-
-    from toolbox.raster.warp import (
-        DEFAULT_MAX_SOURCE_PIXELS,
-        EXTRA_RESAMPLING,
-        RESAMPLING_METHODS,
-        WarpStatistics,
-    )
-
-    methods = RESAMPLING_METHODS + EXTRA_RESAMPLING
-    if resampling not in methods:
-        raise ValueError(f"resampling must be one of {', '.join(methods)}, got {resampling!r}")
-    path = _source_path(source)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
-        with rasterio.open(path) as src:
-            size = (src.width, src.height)
-    job = _WarpJob(_Sources(path), size, coordinate_map, layout, resampling,
-                   max_source_pixels or DEFAULT_MAX_SOURCE_PIXELS, fast)
-    total = WarpStatistics()
-
-    def collect(tile, array, stats):
-        if stats is not None:
-            total.add(stats)
-
-    process_raster(grid, aux, partial(_warp_kernel, job), writer_or_output,
-                   tile_size=tile_size, halo=aux_halo, executor=executor, feedback=feedback,
-                   collect=collect, start=start, end=end)
-    return total
-
-
-def warp_to_geotiff(source: Any, coordinate_map: Any, grid: Any, output: Any,
-                    resampling: str = "bilinear", outside: str = "alpha",
-                    nodata: float | None = None, chunk: int = DEFAULT_CHUNK,
-                    max_source_pixels: int = DEFAULT_MAX_SOURCE_PIXELS, overviews: bool = True,
-                    feedback: Any = None, cache_mb: int = DEFAULT_CACHE_MB,
-                    tags: dict[str, str] | None = None,
-                    creation_options: dict[str, Any] | None = None,
-                    fast: bool = True, cog: bool = False, executor: Any = None,
-                    aux: dict | None = None) -> Any:
-    """Warp a raster file onto ``grid`` through ``coordinate_map`` into a GeoTIFF: a
-    :class:`~toolbox.raster.writer.RasterWriter` fed by
-    :func:`toolbox.raster.engine.warp_raster`.
-
-    Parameters
-    ----------
-    source : path
-        Any raster GDAL reads (GeoTIFF, JPEG, PNG...), 1 or more bands of one data type.
-    coordinate_map : CoordinateMap
-        Output tile -> source coordinates (e.g. :class:`HomographyMap`).
-    grid : toolbox.io.grid.GridSpec
-        Output grid (transform, width, height, crs; crs None for a local object system).
-    output : path
-        GeoTIFF to write (inside an algorithm: the staged path).
-    resampling : {"nearest", "bilinear", "cubic", "lanczos", "quadratic"}
-    outside : {"alpha", "nodata"}
-        How pixels outside the photo are marked (see :func:`output_layout`).
-    nodata : float, optional
-        Output nodata with ``outside="nodata"``.
-    chunk : int
-        Output tile side in pixels (a multiple of the 512-pixel block keeps writes aligned).
-    max_source_pixels : int
-        Largest source window read at once (per band); bigger ones are split.
-    overviews, cog : bool
-        Internal overviews; a Cloud Optimized GeoTIFF.
-    feedback : toolbox.feedback.Feedback, optional
-        Progress (0-95 % for the tiles) and cancellation between tiles.
-    cache_mb : int
-        GDAL block cache size while warping, MB (bounds memory on huge sources).
-    tags : dict, optional
-        Metadata written to the output (e.g. the homography).
-    creation_options : dict, optional
-        More GeoTIFF creation options.
-    fast : bool
-        Let maps that offer it use ``cv2.warpPerspective`` (see :func:`warp_window`); False
-        forces the generic coordinate-array + ``cv2.remap`` path.
-    executor : toolbox.tiles.Executor, optional
-        Where tiles run (default: local threads).
-    aux : dict name -> RasterInput, optional
-        Auxiliary rasters for the coordinate map.
-    """
-    from toolbox.raster.warp import EXTRA_RESAMPLING, RESAMPLING_METHODS, warp_layout
-    from toolbox.raster.writer import RasterWriter
-
-    if resampling not in RESAMPLING_METHODS + EXTRA_RESAMPLING:
-        raise ValueError(f"resampling must be one of "
-                         f"{', '.join(RESAMPLING_METHODS + EXTRA_RESAMPLING)}, "
-                         f"got {resampling!r}")
-    layout = warp_layout(source, outside, nodata)
-    writer = RasterWriter(output, grid, layout.count, layout.dtype, layout.nodata,
-                          alpha=layout.alpha, cog=cog, overviews=overviews, tags=tags,
-                          creation_options=creation_options, cache_mb=cache_mb)
-    with writer:
-        return warp_raster(source, grid, coordinate_map, writer, layout=layout,
-                           resampling=resampling, aux=aux, tile_size=chunk, executor=executor,
-                           feedback=feedback, max_source_pixels=max_source_pixels, fast=fast,
-                           end=95 if overviews else 100)
-

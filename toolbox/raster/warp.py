@@ -1,412 +1,69 @@
-"""Indirect warping kernels: output tile -> source coordinates -> ``cv2.remap``.
+"""Indirect warping: output tile -> source coordinates -> OpenCV resampling, and the warp mode
+of the raster engine (:func:`warp_raster`, :func:`warp_to_geotiff`).
 
-This is the resampling machinery of every output-to-source geometric correction, run tile by
-tile by :func:`toolbox.raster.engine.warp_raster`: the caller gives a **coordinate map**, a
-callable ``map(tile, aux_arrays) -> (src_col, src_row)`` returning, for the cell centres of one
-output tile, the source image coordinates to sample (``aux_arrays``: auxiliary rasters read onto
-the tile, e.g. the DEM of an orthophoto). Rectification uses :class:`HomographyMap`. For each
+This is the resampling machinery of every output-to-source geometric correction (rectify,
+ortho, true ortho, epipolar resampling): the caller gives a coordinate map
+(:class:`~toolbox.raster.maps.CoordinateMap` and the capabilities it declares), and for each
 tile :func:`warp_window`
 
-1. asks the map for the source coordinates (vectorised, float32),
-2. reads only the source window they cover plus the interpolation margin (rasterio windowed
-   read),
-3. resamples with OpenCV ``cv2.remap`` (nearest / bilinear / cubic / lanczos), with an alpha
-   band or nodata outside the photo,
+1. gets the source window the tile needs: from the map's plan (a
+   :class:`~toolbox.raster.maps.PlannedMap`), its exact bounds
+   (:class:`~toolbox.raster.maps.BoundedMap`), its measured points
+   (:class:`~toolbox.raster.maps.MeasuredMap`) or a scan of its coordinates,
+2. reads only that window plus the interpolation margin (rasterio windowed read),
+3. resamples with OpenCV (:mod:`toolbox.raster.resample`: ``cv2.remap``, or
+   ``cv2.warpPerspective`` for a :class:`~toolbox.raster.maps.PerspectiveMap`), with an alpha
+   band or nodata outside the source,
 
-and the engine writes the tile with :class:`toolbox.raster.writer.RasterWriter`, so memory is
-bounded by the tile size, whatever the size of the photo or of the output.
-
-**Source pixel convention.** Source coordinates are continuous ``(col, row)``: the origin is the
-top-left *corner* of the top-left pixel, columns grow right, rows grow *down*, pixel
-``(row i, col j)`` covers ``[j, j+1) x [i, i+1)`` and its centre is ``(j + 0.5, i + 0.5)``
-(GDAL's pixel/line convention). OpenCV samples pixel centres at integers, so the map given to
-``cv2.remap`` is ``coordinate - 0.5 - window offset``. An output pixel is *inside* the photo when
-its centre maps into ``[0, width] x [0, height]``.
-
-Output pixel centres follow :mod:`toolbox.io.grid`: column ``j`` of a north-up grid has centre
-``x = xmin + (j + 0.5)·cell``.
+and the engine (:func:`toolbox.raster.engine.process_raster`) writes the tile with
+:class:`toolbox.raster.writer.RasterWriter`, so memory is bounded by the tile size, whatever the
+size of the photo or of the output. Pixel conventions: :mod:`toolbox.raster.maps`; output pixel
+centres follow :mod:`toolbox.io.grid`.
 """
 
 from __future__ import annotations
 
+import itertools
 import math
-import threading
 import warnings
-from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
-from typing import Any, Protocol
+from typing import Any
 
 import numpy as np
 
 from toolbox.errors import ParameterError
+from toolbox.io.grid import GridSpec
+from toolbox.raster.engine import RasterInput, process_raster
+from toolbox.raster.maps import (
+    OUTSIDE,
+    BoundedMap,
+    CoordinateMap,
+    MeasuredMap,
+    PerspectiveMap,
+    PlannedMap,
+    fill_outside_intervals,
+    mask_from_intervals,
+    plan_source,
+    scan_bounds,
+    window_parts,
+)
+from toolbox.raster.resample import (
+    CV2_DTYPES,
+    EXTRA_RESAMPLING,
+    RESAMPLING_METHODS,
+    deinterleave,
+    inside_mask,
+    interleave,
+    pad_at_photo_edges,
+    remap,
+    warp_perspective,
+)
+from toolbox.raster.tile import Tile
 
-RESAMPLING_METHODS = ("nearest", "bilinear", "cubic", "lanczos")
-# not OpenCV's: :mod:`toolbox.raster.quadratic` (the thesis' quadratic, for orthophotos)
-EXTRA_RESAMPLING = ("quadratic",)
-# source pixels needed beyond the bounding box of the sample points, per method (kernel radius)
-RESAMPLING_MARGIN = {"nearest": 1, "bilinear": 1, "cubic": 2, "lanczos": 4, "quadratic": 2}
 DEFAULT_CHUNK = 2048  # output pixels per side of a processing window (a multiple of the block)
 DEFAULT_MAX_SOURCE_PIXELS = 1 << 24  # larger source windows are split (16 Mpx per band)
 DEFAULT_CACHE_MB = 256  # GDAL block cache while warping (bounded, unlike GDAL's 5 % of RAM)
-_CV2_DTYPES = ("uint8", "uint16", "int16", "float32", "float64")
-
-
-_OPENCV_LOCK = threading.Lock()
-_OPENCV_USERS = [0, 0]  # blocks inside single_threaded_opencv, OpenCV's setting before them
-
-
-@contextmanager
-def single_threaded_opencv() -> Iterator[None]:
-    """Run OpenCV single-threaded inside the block: warps whose tiles already run on one
-    thread per core (the raster engine's) would otherwise put OpenCV's own pool to work on top
-    of them, more threads than cores. OpenCV's setting is process-wide: blocks may overlap
-    (photos of a block on threads), and the setting before the first comes back after the
-    last."""
-    import cv2
-
-    with _OPENCV_LOCK:
-        if _OPENCV_USERS[0] == 0:
-            _OPENCV_USERS[1] = cv2.getNumThreads()
-            cv2.setNumThreads(1)
-        _OPENCV_USERS[0] += 1
-    try:
-        yield
-    finally:
-        with _OPENCV_LOCK:
-            _OPENCV_USERS[0] -= 1
-            if _OPENCV_USERS[0] == 0:
-                cv2.setNumThreads(_OPENCV_USERS[1])
-
-
-def cv2_interpolation(resampling: str) -> int:
-    """The OpenCV interpolation flag of a resampling name (see :data:`RESAMPLING_METHODS`)."""
-    import cv2
-
-    flags = {"nearest": cv2.INTER_NEAREST, "bilinear": cv2.INTER_LINEAR,
-             "cubic": cv2.INTER_CUBIC, "lanczos": cv2.INTER_LANCZOS4}
-    if resampling not in flags:
-        raise ValueError(f"resampling must be one of {', '.join(RESAMPLING_METHODS)}, "
-                         f"got {resampling!r}")
-    return flags[resampling]
-
-
-class CoordinateMap(Protocol):
-    """Output tile -> source coordinates of its cell centres.
-
-    ``__call__(tile, aux)`` returns ``(cols, rows)``: float32 arrays of the tile's shape without
-    halo, ``tile.shape``, in the source pixel convention (module docstring), NaN where the
-    output pixel has no source point. ``tile`` is a :class:`toolbox.raster.engine.Tile`
-    (``tile.window`` on the output grid, ``tile.cell_centres()``); ``aux`` maps names to the
-    auxiliary rasters read onto the tile with its halo, (bands, h + 2·halo, w + 2·halo).
-    An implementation may also define
-    ``source_bounds(window) -> (col_min, row_min, col_max, row_max) | None``: the exact bounding
-    box of the finite coordinates (None when it cannot tell cheaply); the driver then skips
-    scanning the arrays and, when the box lies inside the photo, the inside test. Two more
-    optional methods give a fast path for maps OpenCV can evaluate itself:
-    ``inside(window, width, height) -> bool (h, w)`` (the exact inside test without the
-    coordinate arrays) and ``perspective_matrix(window, col_shift, row_shift) -> (3, 3)`` (the
-    map as a homography for ``cv2.warpPerspective`` with ``WARP_INVERSE_MAP``).
-    """
-
-    def __call__(self, tile: Any, aux: dict) -> tuple[np.ndarray, np.ndarray]: ...
-
-
-def _window_parts(window: Any) -> tuple[int, int, int, int]:
-    window = getattr(window, "window", window)  # a Tile or a Window
-    return int(window.col_off), int(window.row_off), int(window.width), int(window.height)
-
-
-class HomographyMap:
-    """Coordinate map of a plane-to-plane homography onto a north-up output grid.
-
-    Parameters
-    ----------
-    ground_to_pixel : (3, 3) array
-        Homography from output map coordinates (X, Y) to source pixel coordinates (col, row,
-        source pixel convention): ``[col·w, row·w, w]^T = H @ [X, Y, 1]^T``.
-    output_transform : affine.Affine
-        The output grid's transform (pixel corner -> map), as in :class:`toolbox.io.grid.GridSpec`.
-    front : (X, Y), optional
-        A ground point known to be seen by the photo (e.g. the image centre's ground point).
-        Output points on the other side of the plane's vanishing line (``w`` of the opposite
-        sign: behind the camera) get NaN. Default: no such test.
-
-    Notes
-    -----
-    The matrix is composed with the output grid once (output pixel index -> source pixel), so
-    each window costs three broadcast additions and two divisions in float32; coordinates stay
-    small (pixels), so float32 keeps them to about 1e-3 pixel.
-    """
-
-    def __init__(self, ground_to_pixel: np.ndarray, output_transform: Any,
-                 front: tuple[float, float] | None = None):
-        t = output_transform
-        grid = np.array([[t.a, t.b, t.c + 0.5 * (t.a + t.b)],
-                         [t.d, t.e, t.f + 0.5 * (t.d + t.e)], [0.0, 0.0, 1.0]])
-        matrix = np.asarray(ground_to_pixel, dtype="float64") @ grid
-        if front is not None:
-            wf = ground_to_pixel[2, 0] * front[0] + ground_to_pixel[2, 1] * front[1] \
-                + ground_to_pixel[2, 2]
-            if wf < 0:
-                matrix = -matrix
-        self.check_sign = front is not None
-        self.matrix = matrix / np.abs(matrix).max()
-
-    def _terms(self, window: Any):
-        col0, row0, width, height = _window_parts(window)
-        j = np.arange(col0, col0 + width, dtype="float64")
-        i = np.arange(row0, row0 + height, dtype="float64")
-        m = self.matrix
-        return [((m[k, 0] * j).astype("float32")[None, :],
-                 (m[k, 1] * i + m[k, 2]).astype("float32")[:, None]) for k in range(3)]
-
-    def corner_coordinates(self, window: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Source (cols, rows) and ``w`` of the window's four corner pixel centres (float64)."""
-        col0, row0, width, height = _window_parts(window)
-        j = np.array([col0, col0 + width - 1, col0 + width - 1, col0], dtype="float64")
-        i = np.array([row0, row0, row0 + height - 1, row0 + height - 1], dtype="float64")
-        p = self.matrix @ np.vstack([j, i, np.ones(4)])
-        with np.errstate(divide="ignore", invalid="ignore"):
-            return p[0] / p[2], p[1] / p[2], p[2]
-
-    def source_bounds(self, window: Any) -> tuple[float, float, float, float] | None:
-        """Exact bounding box of the window's sample points when ``w > 0`` over the whole window
-        (a homography then maps the window's convex hull onto the convex hull of the corners'
-        images); None when ``w`` changes sign or sign checks are off."""
-        cols, rows, w = self.corner_coordinates(window)
-        if np.all(w > 0) or (not self.check_sign and np.all(w < 0)):
-            return float(cols.min()), float(rows.min()), float(cols.max()), float(rows.max())
-        return None
-
-    def perspective_matrix(self, window: Any, col_shift: float = 0.0,
-                           row_shift: float = 0.0) -> np.ndarray:
-        """The map of ``window`` for ``cv2.warpPerspective(..., WARP_INVERSE_MAP)``: window pixel
-        index (x, y) -> OpenCV source coordinates ``(col - col_shift, row - row_shift)``."""
-        col0, row0, _, _ = _window_parts(window)
-        shift = np.array([[1.0, 0.0, -col_shift], [0.0, 1.0, -row_shift], [0.0, 0.0, 1.0]])
-        offset = np.array([[1.0, 0.0, col0], [0.0, 1.0, row0], [0.0, 0.0, 1.0]])
-        return shift @ self.matrix @ offset
-
-    def inside_intervals(self, window: Any, width: int,
-                         height: int) -> tuple[np.ndarray, np.ndarray]:
-        """Exact inside test of the window's pixel centres as column intervals per row.
-
-        Returns ``(start, stop)`` int arrays (one per window row, window-local columns,
-        half-open ``[start, stop)``; ``start >= stop`` for an empty row). Inside means
-        ``0 <= col <= width`` and ``0 <= row <= height`` (and in front of the camera when
-        ``front`` was given). ``u = col·w``, ``v = row·w`` and ``w`` are affine in the output
-        column, so along a row each condition (``u >= 0``, ``width·w - u >= 0``, ...) holds on an
-        interval of columns; no coordinate array is needed.
-        """
-        col0, row0, out_w, out_h = _window_parts(window)
-        i = np.arange(row0, row0 + out_h, dtype="float64")
-        m = self.matrix
-        u0, v0, w0 = (m[k, 1] * i + m[k, 2] for k in range(3))
-        du, dv, dw = m[0, 0], m[1, 0], m[2, 0]
-        if not self.check_sign:  # no front: the sign of w at the window centre is "in front"
-            centre = m[2, 0] * (col0 + out_w / 2) + m[2, 1] * (row0 + out_h / 2) + m[2, 2]
-            if centre < 0:
-                u0, v0, w0, du, dv, dw = -u0, -v0, -w0, -du, -dv, -dw
-        lo = np.full(out_h, float(col0))
-        hi = np.full(out_h, float(col0 + out_w - 1))
-        conditions = ((w0, dw), (u0, du), (width * w0 - u0, width * dw - du), (v0, dv),
-                      (height * w0 - v0, height * dw - dv))
-        with np.errstate(divide="ignore", invalid="ignore"):
-            for alpha, beta in conditions:  # alpha + beta·j >= 0
-                if beta > 0:
-                    lo = np.maximum(lo, np.ceil(-alpha / beta))
-                elif beta < 0:
-                    hi = np.minimum(hi, np.floor(-alpha / beta))
-                else:
-                    hi = np.where(alpha >= 0, hi, -np.inf)
-        start = np.clip(lo - col0, 0, out_w).astype(np.int64)
-        stop = np.clip(hi - col0 + 1, 0, out_w).astype(np.int64)
-        return start, np.maximum(stop, start)
-
-    def inside(self, window: Any, width: int, height: int) -> np.ndarray:
-        """The :meth:`inside_intervals` test as a bool (h, w) mask."""
-        return mask_from_intervals(*self.inside_intervals(window, width, height),
-                                   int(window.width))
-
-    def __call__(self, window: Any, aux: dict | None = None, col_shift: float = 0.0,
-                 row_shift: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
-        """Source (cols - col_shift, rows - row_shift), float32 (h, w); NaN behind the camera.
-        ``window`` is a Tile or a Window; ``aux`` is not used (a plane needs no DEM)."""
-        (ua, ub), (va, vb), (wa, wb) = self._terms(window)
-        w = wa + wb
-        u = ua + ub
-        v = va + vb
-        if col_shift:
-            u -= np.float32(col_shift) * w
-        if row_shift:
-            v -= np.float32(row_shift) * w
-        np.divide(u, w, out=u)
-        np.divide(v, w, out=v)
-        if self.check_sign:
-            _, _, wc = self.corner_coordinates(window)
-            if not np.all(wc > 0):
-                behind = w <= 0
-                u[behind] = np.nan
-                v[behind] = np.nan
-        return u, v
-
-
-#: map value of the cells a planned map leaves empty (see :class:`SourcePlan`): far outside any
-#: source window, so that ``cv2.remap`` gives its border value there (NaN does not: OpenCV 5's
-#: bilinear path samples pixel 0 for a NaN coordinate)
-OUTSIDE = np.float32(-1e5)
-
-
-@dataclass(frozen=True)
-class SourcePlan:
-    """The source window of an output window decided *before* its coordinates are computed,
-    from a conservative bound of them (a coordinate map offering ``source_plan(window)``, e.g.
-    the orthophoto's). Its maps then come ready for OpenCV: relative to the padded source
-    buffer (``coordinate - shift``) and :data:`OUTSIDE` on every cell whose centre is outside
-    the photo or has no source point, so the warp needs no pass of its own over them."""
-
-    window: Any  # rasterio Window of the source pixels to read
-    pads: tuple[int, int, int, int]  # edge replication (top, bottom, left, right), pixels
-    shift_col: float  # source column of OpenCV map column 0 (window offset - pad + 0.5)
-    shift_row: float
-
-
-#: the plan of a window whose image misses the source: every cell gets the fill
-EMPTY_PLAN = SourcePlan(None, (0, 0, 0, 0), 0.0, 0.0)
-
-
-def plan_source(bounds: tuple[float, float, float, float] | None, width: int, height: int,
-                resampling: str) -> SourcePlan | None:
-    """The :class:`SourcePlan` of sample points inside ``bounds`` (source pixel convention) in a
-    ``width`` x ``height`` source: :func:`source_window` with the method's margin, padded by
-    replicating the photo's edge where the window touches it (the kernel of a sample just
-    inside the photo needs pixels beyond it); None when it does not overlap the source."""
-    window = source_window(bounds, width, height, RESAMPLING_MARGIN[resampling])
-    if window is None:
-        return None
-    pad = RESAMPLING_MARGIN[resampling] + 1
-    pads = (pad if window.row_off == 0 else 0,
-            pad if window.row_off + window.height == height else 0,
-            pad if window.col_off == 0 else 0,
-            pad if window.col_off + window.width == width else 0)
-    return SourcePlan(window, pads, window.col_off - pads[2] + 0.5,
-                      window.row_off - pads[0] + 0.5)
-
-
-def source_window(bounds: tuple[float, float, float, float] | None, width: int, height: int,
-                  margin: int) -> Any:
-    """The source window covering ``bounds`` (col_min, row_min, col_max, row_max, source pixel
-    convention) plus ``margin`` pixels, clipped to the ``width`` x ``height`` source; None when
-    it does not overlap the source.
-
-    A sample at coordinate ``c`` uses the pixels around ``c - 0.5``; ``margin`` pixels on each
-    side cover the interpolation kernel.
-    """
-    from rasterio.windows import Window
-
-    if bounds is None:
-        return None
-    cmin, rmin, cmax, rmax = bounds
-    if not all(math.isfinite(v) for v in bounds):
-        return None
-    c0 = max(int(math.floor(cmin - 0.5)) - margin, 0)
-    r0 = max(int(math.floor(rmin - 0.5)) - margin, 0)
-    c1 = min(int(math.ceil(cmax - 0.5)) + margin + 1, width)
-    r1 = min(int(math.ceil(rmax - 0.5)) + margin + 1, height)
-    if c1 <= c0 or r1 <= r0:
-        return None
-    return Window(c0, r0, c1 - c0, r1 - r0)
-
-
-def mask_from_intervals(start: np.ndarray, stop: np.ndarray, width: int) -> np.ndarray:
-    """Bool (len(start), width) mask true on ``[start[r], stop[r])`` of each row ``r``."""
-    mask = np.zeros((len(start), width), dtype=bool)
-    for r, (a, b) in enumerate(zip(start.tolist(), stop.tolist(), strict=True)):
-        if b > a:
-            mask[r, a:b] = True
-    return mask
-
-
-def fill_outside_intervals(out: np.ndarray, start: np.ndarray, stop: np.ndarray,
-                           value: float) -> None:
-    """Set ``out[..., r, c]`` to ``value`` outside ``[start[r], stop[r])`` (in place)."""
-    width = out.shape[-1]
-    for r, (a, b) in enumerate(zip(start.tolist(), stop.tolist(), strict=True)):
-        if a > 0:
-            out[..., r, :a] = value
-        if b < width:
-            out[..., r, max(b, a):] = value
-
-
-def scan_bounds(cols: np.ndarray, rows: np.ndarray) -> tuple[float, float, float, float] | None:
-    """Bounding box of the finite coordinates (None when there are none)."""
-    finite = np.isfinite(cols) & np.isfinite(rows)
-    if not finite.any():
-        return None
-    c, r = cols[finite], rows[finite]
-    return float(c.min()), float(r.min()), float(c.max()), float(r.max())
-
-
-def inside_mask(cols: np.ndarray, rows: np.ndarray, width: int, height: int,
-                col_shift: float = 0.0, row_shift: float = 0.0) -> np.ndarray:
-    """Output pixels whose centre maps into the photo ``[0, width] x [0, height]`` (NaN: no).
-
-    ``cols``/``rows`` may be given shifted (``cols - col_shift``...), as the cv2 maps are.
-    """
-    inside = cols >= np.float32(-col_shift)
-    inside &= cols <= np.float32(width - col_shift)
-    inside &= rows >= np.float32(-row_shift)
-    inside &= rows <= np.float32(height - row_shift)
-    return inside
-
-
-def remap(source: np.ndarray, map_x: np.ndarray, map_y: np.ndarray,
-          resampling: str = "bilinear", border: float = 0) -> np.ndarray:
-    """Sample ``source`` at OpenCV map coordinates (pixel centres at integers).
-
-    ``source`` is (rows, cols) or (rows, cols, bands) of any numeric dtype (OpenCV handles
-    uint8, uint16, int16, float32 and float64 directly; other types go through float64 and are
-    rounded back). Any number of bands (OpenCV takes at most 4 at a time). Outside the source
-    the value is ``border`` (``cv2.BORDER_CONSTANT``, which OpenCV skips quickly); callers that
-    need the photo's edge pixels extended pad the source first (see
-    :func:`pad_at_photo_edges`).
-    """
-    import cv2
-
-    if resampling == "quadratic":
-        from toolbox.raster.quadratic import remap_quadratic
-
-        return remap_quadratic(source, map_x, map_y)
-    flag = cv2_interpolation(resampling)
-    value = (float(border),) * 4
-    return _by_four_bands(source, lambda part: cv2.remap(part, map_x, map_y, flag,
-                                                         borderMode=cv2.BORDER_CONSTANT,
-                                                         borderValue=value))
-
-
-def _by_four_bands(source: np.ndarray, warp_one) -> np.ndarray:
-    """``warp_one`` (an OpenCV warp of a (rows, cols[, <= 4 bands]) array) applied to
-    ``source`` of any dtype and band count: types OpenCV lacks go through float64 and are rounded
-    back, bands go 4 at a time, and the trailing band axis OpenCV drops is restored."""
-    dtype = source.dtype
-    work = source if dtype.name in _CV2_DTYPES else source.astype("float64")
-
-    def one(part: np.ndarray) -> np.ndarray:
-        res = warp_one(part)
-        return res[:, :, None] if part.ndim == 3 and res.ndim == 2 else res
-
-    if work.ndim == 2 or work.shape[2] <= 4:
-        out = one(work)
-    else:
-        out = np.concatenate([one(np.ascontiguousarray(work[:, :, k:k + 4]))
-                              for k in range(0, work.shape[2], 4)], axis=2)
-    if out.dtype != dtype:
-        if dtype.kind in "iu":
-            info = np.iinfo(dtype)
-            out = np.clip(np.rint(out), info.min, info.max)
-        out = out.astype(dtype)
-    return out
 
 
 # -- streaming driver ----------------------------------------------------------------------------
@@ -530,7 +187,7 @@ class WarpStatistics:
 def _split(window: Any) -> list[Any]:
     from rasterio.windows import Window
 
-    col0, row0, width, height = _window_parts(window)
+    col0, row0, width, height = window_parts(window)
     hw, hh = max(width // 2, 1), max(height // 2, 1)
     parts = []
     for r0, h in ((row0, hh), (row0 + hh, height - hh)):
@@ -549,41 +206,44 @@ def warp_window(read: Callable[[list[int], Any], np.ndarray], source_size: tuple
                 fast: bool = True, aux: dict | None = None) -> Iterator[tuple[Any, np.ndarray]]:
     """Warp one output tile; yield ``(window, array (count, h, w))`` parts to write.
 
-    ``tile`` is a :class:`toolbox.raster.engine.Tile` (or a bare Window: a tile without halo);
+    ``tile`` is a :class:`toolbox.raster.tile.Tile` (or a bare Window: a tile without halo);
     ``aux`` the auxiliary arrays read onto it, handed to ``coordinate_map(tile, aux)``.
 
     ``read(bands, source_window)`` returns the source pixels (len(bands), h, w); ``read_mask``
     the source validity (h, w) uint8 0/255 (sources with nodata or an internal mask). Windows
-    whose source window exceeds ``max_source_pixels`` are split in four, recursively. With
-    ``fast`` and a map offering ``perspective_matrix`` and ``inside`` (a homography), OpenCV's
-    ``warpPerspective`` evaluates the map itself (same sampling as ``remap`` with the map's
-    coordinates, without the coordinate arrays); a map offering ``source_plan(window)`` (the
-    orthophoto's) decides the source window first and hands ready OpenCV maps (see
-    :class:`SourcePlan`); otherwise the coordinates are computed and ``cv2.remap`` samples
-    them. On the first two paths, for a source without alpha band or mask and 1, 3 or 4 output
-    bands, the bands travel pixel-interleaved from the read to the writer
-    (:func:`_warp_packed`), and cells outside the photo are filled by OpenCV's border value.
+    whose source window exceeds ``max_source_pixels`` are split in four, recursively. The
+    map's declared capabilities (:mod:`toolbox.raster.maps`) choose the path: a
+    :class:`~toolbox.raster.maps.PlannedMap` (the orthophoto's) decides the source window first
+    and hands ready OpenCV maps; with ``fast`` a :class:`~toolbox.raster.maps.PerspectiveMap`
+    (a homography) is evaluated by OpenCV's ``warpPerspective`` itself (same sampling as
+    ``remap`` with the map's coordinates, without the coordinate arrays); otherwise the
+    coordinates are computed (with their bounds, for a
+    :class:`~toolbox.raster.maps.MeasuredMap`) and ``cv2.remap`` samples them. On the first two
+    paths, for a source without alpha band or mask and 1, 3 or 4 output bands, the bands travel
+    pixel-interleaved from the read to the writer (:func:`_warp_packed`), and cells outside
+    the photo are filled by OpenCV's border value.
     """
-    from toolbox.raster.tile import Tile
-
     if not isinstance(tile, Tile):
         tile = Tile(0, tile, 0, None)
     aux = aux or {}
     window = tile.window
     stats = stats if stats is not None else WarpStatistics()
     width, height = source_size
-    col0, row0, out_w, out_h = _window_parts(window)
-    planner = getattr(coordinate_map, "source_plan", None)
-    plan = planner(window) if planner is not None else None
+    col0, row0, out_w, out_h = window_parts(window)
+    plan = coordinate_map.plan(tile, aux) if isinstance(coordinate_map, PlannedMap) else None
     planned = plan is not None
     bounds = cols = rows = None
     exact_bounds = False
     if not planned:
-        bounds_method = getattr(coordinate_map, "source_bounds", None)
-        bounds = bounds_method(window) if bounds_method is not None else None
+        if isinstance(coordinate_map, BoundedMap):
+            bounds = coordinate_map.source_bounds(window)
+        if bounds is None:
+            if isinstance(coordinate_map, MeasuredMap):
+                cols, rows, bounds = coordinate_map.measured(tile, aux)
+            else:
+                cols, rows = coordinate_map(tile, aux)
         exact_bounds = bounds is not None
         if bounds is None:
-            cols, rows = coordinate_map(tile, aux)
             bounds = scan_bounds(cols, rows)
         plan = plan_source(bounds, width, height, resampling)
     out = np.empty((layout.count, out_h, out_w), dtype=layout.dtype)
@@ -611,9 +271,8 @@ def warp_window(read: Callable[[list[int], Any], np.ndarray], source_size: tuple
     shift_c, shift_r = plan.shift_col, plan.shift_row
     all_inside = (exact_bounds and bounds[0] >= 0 and bounds[1] >= 0 and bounds[2] <= width
                   and bounds[3] <= height)
-    use_fast = (fast and not planned and cols is None and resampling in RESAMPLING_METHODS
-                and hasattr(coordinate_map, "perspective_matrix")
-                and hasattr(coordinate_map, "inside_intervals"))
+    perspective = cols is None and isinstance(coordinate_map, PerspectiveMap)
+    use_fast = fast and not planned and perspective and resampling in RESAMPLING_METHODS
     intervals = None
     inside = None
     if use_fast:
@@ -625,8 +284,8 @@ def warp_window(read: Callable[[list[int], Any], np.ndarray], source_size: tuple
             return warp_perspective(pixels, matrix, (out_w, out_h), method, border)
     else:
         if planned:  # ready OpenCV maps, OUTSIDE where the centre is outside the photo
-            map_x, map_y = coordinate_map(tile, aux)
-        elif cols is None and isinstance(coordinate_map, HomographyMap):
+            map_x, map_y = coordinate_map.planned_maps(plan)
+        elif perspective:
             map_x, map_y = coordinate_map(window, None, shift_c, shift_r)
         else:
             if cols is None:
@@ -639,7 +298,7 @@ def warp_window(read: Callable[[list[int], Any], np.ndarray], source_size: tuple
     n_data = len(layout.data_bands)
     packed = (use_fast or planned) and layout.source_alpha is None \
         and not layout.source_masked and layout.count in (1, 3, 4) \
-        and np.dtype(layout.dtype).name in _CV2_DTYPES
+        and np.dtype(layout.dtype).name in CV2_DTYPES
     # (not 2 bands: OpenCV's 2-channel warpPerspective samples differently, up to 6 grey
     # levels from its 1-, 3- and 4-channel ones)
     if packed:
@@ -650,9 +309,9 @@ def warp_window(read: Callable[[list[int], Any], np.ndarray], source_size: tuple
         inside = map_x != OUTSIDE
     elif not all_inside and not use_fast:
         inside = inside_mask(map_x, map_y, width, height, shift_c, shift_r)
-    sampled = sample(pad_at_photo_edges(_interleave(read(layout.data_bands, src_win)), pads),
+    sampled = sample(pad_at_photo_edges(interleave(read(layout.data_bands, src_win)), pads),
                      resampling)
-    _deinterleave(sampled, out[:n_data])
+    deinterleave(sampled, out[:n_data])
     del sampled
     # validity from the source itself (alpha band, nodata or internal mask)
     alpha = None
@@ -729,52 +388,192 @@ def _warp_packed(data: np.ndarray, pads: tuple[int, int, int, int], layout: Outp
     return out
 
 
-def pad_at_photo_edges(pixels: np.ndarray, pads: tuple[int, int, int, int]) -> np.ndarray:
-    """Replicate the edge pixels of ``pixels`` ((h, w) or (h, w, bands)) outwards by ``pads`` =
-    (top, bottom, left, right) pixels; unchanged when every pad is 0."""
-    import cv2
-
-    if not any(pads):
-        return pixels
-    top, bottom, left, right = pads
-    if pixels.dtype.name in _CV2_DTYPES + ("int8", "int32"):
-        return cv2.copyMakeBorder(pixels, top, bottom, left, right, cv2.BORDER_REPLICATE)
-    widths = ((top, bottom), (left, right)) + (((0, 0),) if pixels.ndim == 3 else ())
-    return np.pad(pixels, widths, mode="edge")
-
-
-def _interleave(data: np.ndarray) -> np.ndarray:
-    """(bands, h, w) -> (h, w) or pixel-interleaved (h, w, bands) for OpenCV."""
-    import cv2
-
-    if data.shape[0] == 1:
-        return data[0]
-    if data.shape[0] <= 4 and data.dtype.name in _CV2_DTYPES:
-        return cv2.merge(list(data))
-    return np.ascontiguousarray(np.moveaxis(data, 0, -1))
+# -- warp mode: photo -> ground --------------------------------------------------------------------
+@dataclass
+class _WarpJob:
+    source: Any
+    source_size: tuple[int, int]
+    coordinate_map: Any
+    layout: Any
+    resampling: str
+    max_source_pixels: int
+    fast: bool
+    aux: dict = field(default_factory=dict)
 
 
-def _deinterleave(sampled: np.ndarray, out: np.ndarray) -> None:
-    """Copy (h, w) or (h, w, bands) ``sampled`` into band-sequential ``out`` (bands, h, w)."""
-    import cv2
+class _Sources:
+    """Per-thread open handles of a raster (rasterio datasets are not thread-safe); pickles
+    as its path."""
 
-    if sampled.ndim == 2:
-        out[0] = sampled
-    elif sampled.shape[2] <= 4 and sampled.dtype.name in _CV2_DTYPES and out.flags.c_contiguous:
-        cv2.split(sampled, list(out))
-    else:
-        for k in range(sampled.shape[2]):
-            out[k] = sampled[:, :, k]
+    def __init__(self, path: Any):
+        import threading
+
+        self.path = path
+        self._local = threading.local()
+
+    def __getstate__(self):
+        return {"path": self.path}
+
+    def __setstate__(self, state):
+        self.__init__(state["path"])
+
+    def get(self):
+        import rasterio
+
+        src = getattr(self._local, "src", None)
+        if src is None:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
+                src = rasterio.open(self.path)
+            self._local.src = src
+        return src
 
 
-def warp_perspective(source: np.ndarray, matrix: np.ndarray, size: tuple[int, int],
-                     resampling: str = "bilinear", border: float = 0) -> np.ndarray:
-    """``cv2.warpPerspective`` with ``WARP_INVERSE_MAP`` (``matrix``: output pixel index ->
-    OpenCV source coordinates), ``border`` outside the source, any dtype and band count (as
-    :func:`remap`). ``size`` is (width, height) of the output."""
-    import cv2
+def _warp_kernel(job: _WarpJob, tile: Tile, arrays: dict) -> tuple[np.ndarray, Any]:
+    """Warp one tile: aux arrays -> coordinate map -> source window -> OpenCV resampling."""
+    src = job.source.get()
+    stats = WarpStatistics()
 
-    flag = cv2_interpolation(resampling) | cv2.WARP_INVERSE_MAP
-    value = (float(border),) * 4
-    return _by_four_bands(source, lambda part: cv2.warpPerspective(
-        part, matrix, size, flags=flag, borderMode=cv2.BORDER_CONSTANT, borderValue=value))
+    def read(bands, window):
+        return src.read(bands, window=window)
+
+    def read_mask(window):
+        return src.dataset_mask(window=window)
+
+    c0, r0 = int(tile.window.col_off), int(tile.window.row_off)
+    parts = warp_window(read, job.source_size, job.coordinate_map, tile, job.layout,
+                        job.resampling, read_mask, job.max_source_pixels, stats, job.fast,
+                        aux=arrays)
+    first = next(parts)
+    if first[0] == tile.window:  # one part: the tile itself (no copy)
+        return first[1], stats
+    out = np.empty((job.layout.count, *tile.shape), dtype=job.layout.dtype)
+    for part, array in itertools.chain([first], parts):
+        pc, pr = int(part.col_off) - c0, int(part.row_off) - r0
+        out[:, pr:pr + int(part.height), pc:pc + int(part.width)] = array
+    return out, stats
+
+
+def warp_raster(source: Any, grid: GridSpec, coordinate_map: Any, writer_or_output: Any, *,
+                layout: Any, resampling: str = "bilinear",
+                aux: Mapping[str, RasterInput] | None = None, aux_halo: int = 0,
+                tile_size: int = 2048, executor: Any = None, feedback: Any = None,
+                max_source_pixels: int | None = None, fast: bool = True,
+                start: float = 0.0, end: float = 100.0) -> Any:
+    """Indirect warp of ``source`` (a photo) onto ``grid`` through ``coordinate_map``.
+
+    Parameters
+    ----------
+    source : path or RasterInfo
+        Any raster GDAL reads, any band count and data type (its georeferencing is ignored).
+    coordinate_map : callable
+        ``coordinate_map(tile, aux_arrays) -> (src_col, src_row)``: float32 (h, w) arrays over
+        the tile without halo, source pixel convention (:mod:`toolbox.raster.maps`), NaN
+        where there is no source point. ``aux_arrays`` holds the ``aux`` rasters read onto the
+        tile (with ``aux_halo``). The capabilities it declares (:mod:`toolbox.raster.maps`:
+        bounded, perspective, measured, planned) choose the path of :func:`warp_window`.
+    writer_or_output : RasterWriter or callable
+        As in :func:`process_raster`; create the writer with ``layout`` (count, dtype, nodata,
+        alpha: see :func:`toolbox.raster.warp.warp_layout`).
+    layout : toolbox.raster.warp.OutputLayout
+        Output bands, nodata/alpha outside the source.
+    resampling : {"nearest", "bilinear", "cubic", "lanczos"}
+    tile_size : int
+        Output tile side (a multiple of the writer's 512 blocks).
+    max_source_pixels : int, optional
+        Largest source window read at once per band; bigger ones are split.
+
+    Returns the summed :class:`~toolbox.raster.warp.WarpStatistics`.
+    """
+    from functools import partial
+
+    import rasterio
+
+
+    methods = RESAMPLING_METHODS + EXTRA_RESAMPLING
+    if resampling not in methods:
+        raise ValueError(f"resampling must be one of {', '.join(methods)}, got {resampling!r}")
+    path = getattr(source, "path", source)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
+        with rasterio.open(path) as src:
+            size = (src.width, src.height)
+    job = _WarpJob(_Sources(path), size, coordinate_map, layout, resampling,
+                   max_source_pixels or DEFAULT_MAX_SOURCE_PIXELS, fast)
+    total = WarpStatistics()
+
+    def collect(tile, array, stats):
+        if stats is not None:
+            total.add(stats)
+
+    process_raster(grid, aux, partial(_warp_kernel, job), writer_or_output,
+                   tile_size=tile_size, halo=aux_halo, executor=executor, feedback=feedback,
+                   collect=collect, start=start, end=end)
+    return total
+
+
+def warp_to_geotiff(source: Any, coordinate_map: Any, grid: Any, output: Any,
+                    resampling: str = "bilinear", outside: str = "alpha",
+                    nodata: float | None = None, chunk: int = DEFAULT_CHUNK,
+                    max_source_pixels: int = DEFAULT_MAX_SOURCE_PIXELS, overviews: bool = True,
+                    feedback: Any = None, cache_mb: int = DEFAULT_CACHE_MB,
+                    tags: dict[str, str] | None = None,
+                    creation_options: dict[str, Any] | None = None,
+                    fast: bool = True, cog: bool = False, executor: Any = None,
+                    aux: dict | None = None) -> Any:
+    """Warp a raster file onto ``grid`` through ``coordinate_map`` into a GeoTIFF: a
+    :class:`~toolbox.raster.writer.RasterWriter` fed by
+    :func:`warp_raster`.
+
+    Parameters
+    ----------
+    source : path
+        Any raster GDAL reads (GeoTIFF, JPEG, PNG...), 1 or more bands of one data type.
+    coordinate_map : CoordinateMap
+        Output tile -> source coordinates (e.g. :class:`~toolbox.raster.homography.HomographyMap`).
+    grid : toolbox.io.grid.GridSpec
+        Output grid (transform, width, height, crs; crs None for a local object system).
+    output : path
+        GeoTIFF to write (inside an algorithm: the staged path).
+    resampling : {"nearest", "bilinear", "cubic", "lanczos", "quadratic"}
+    outside : {"alpha", "nodata"}
+        How pixels outside the photo are marked (see :func:`output_layout`).
+    nodata : float, optional
+        Output nodata with ``outside="nodata"``.
+    chunk : int
+        Output tile side in pixels (a multiple of the 512-pixel block keeps writes aligned).
+    max_source_pixels : int
+        Largest source window read at once (per band); bigger ones are split.
+    overviews, cog : bool
+        Internal overviews; a Cloud Optimized GeoTIFF.
+    feedback : toolbox.feedback.Feedback, optional
+        Progress (0-95 % for the tiles) and cancellation between tiles.
+    cache_mb : int
+        GDAL block cache size while warping, MB (bounds memory on huge sources).
+    tags : dict, optional
+        Metadata written to the output (e.g. the homography).
+    creation_options : dict, optional
+        More GeoTIFF creation options.
+    fast : bool
+        Let maps that offer it use ``cv2.warpPerspective`` (see :func:`warp_window`); False
+        forces the generic coordinate-array + ``cv2.remap`` path.
+    executor : toolbox.tiles.Executor, optional
+        Where tiles run (default: local threads).
+    aux : dict name -> RasterInput, optional
+        Auxiliary rasters for the coordinate map.
+    """
+    from toolbox.raster.writer import RasterWriter
+
+    if resampling not in RESAMPLING_METHODS + EXTRA_RESAMPLING:
+        raise ValueError(f"resampling must be one of "
+                         f"{', '.join(RESAMPLING_METHODS + EXTRA_RESAMPLING)}, "
+                         f"got {resampling!r}")
+    layout = warp_layout(source, outside, nodata)
+    writer = RasterWriter(output, grid, layout.count, layout.dtype, layout.nodata,
+                          alpha=layout.alpha, cog=cog, overviews=overviews, tags=tags,
+                          creation_options=creation_options, cache_mb=cache_mb)
+    with writer:
+        return warp_raster(source, grid, coordinate_map, writer, layout=layout,
+                           resampling=resampling, aux=aux, tile_size=chunk, executor=executor,
+                           feedback=feedback, max_source_pixels=max_source_pixels, fast=fast,
+                           end=95 if overviews else 100)

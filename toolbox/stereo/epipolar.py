@@ -240,7 +240,7 @@ def _upsample(coarse: np.ndarray, rows: np.ndarray, cols: np.ndarray, height: in
 
 
 class EpipolarMap:
-    """Coordinate map (:class:`toolbox.raster.warp.CoordinateMap`) of normalised image ``side``
+    """Coordinate map (:class:`toolbox.raster.maps.CoordinateMap`) of normalised image ``side``
     onto its original photo: normalised pixel -> ray -> original pixel (distortion added).
 
     The chain is computed exactly every ``step`` pixels (and on the tile's last row and
@@ -350,7 +350,7 @@ def resample_image(geometry: EpipolarGeometry, photo: Any, side: int, image: Pat
     """Write normalised image ``side`` of ``photo``'s ``image`` to ``output`` (GeoTIFF whose
     transform is the normalised mm frame, no CRS; an alpha band marks pixels outside the
     photo). Windows of 2048 pixels on the raster engine: memory bounded by the window."""
-    from toolbox.raster.engine import warp_to_geotiff
+    from toolbox.raster.warp import warp_to_geotiff
 
     tags = {"EPIPOLAR_PHOTO": photo.id, "EPIPOLAR_SIDE": ("left", "right")[side]}
     return warp_to_geotiff(image, EpipolarMap(geometry, photo, side), geometry.grid(side),

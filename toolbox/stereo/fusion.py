@@ -28,7 +28,7 @@ def group_quantiles(keys: np.ndarray, values: np.ndarray
     if len(keys) == 0:
         empty = np.zeros(0)
         return keys, empty, empty, empty, np.zeros(0, dtype=np.int64)
-    order = np.lexsort((values, keys))
+    order = _group_order(keys, values)
     k, v = keys[order], values[order].astype(np.float64)
     starts = np.flatnonzero(np.r_[True, k[1:] != k[:-1]])
     counts = np.diff(np.r_[starts, len(k)])
@@ -41,6 +41,21 @@ def group_quantiles(keys: np.ndarray, values: np.ndarray
         return v[starts + below] * (1 - frac) + v[starts + above] * frac
 
     return k[starts], quantile(0.5), quantile(0.25), quantile(0.75), counts
+
+
+def _group_order(keys: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """The order of ``np.lexsort((values, keys))`` (by key, then value) from ONE argsort of a
+    combined float64 key ``key + 0.5 (value - min) / range``: two to three times faster than
+    lexsort for millions of points. Keys are cell indices (< 2^31), so the value is resolved
+    to 2^-20 of its range (0.1 mm over 100 m): heights closer than that may come in either
+    order, which changes no quantile by more than that."""
+    v = values.astype(np.float64)
+    lo = float(v.min())
+    span = float(v.max()) - lo
+    combined = keys.astype(np.float64)
+    if span > 0:
+        combined += (v - lo) * (0.5 / span)
+    return np.argsort(combined)
 
 
 def cell_statistics(cells: np.ndarray, heights: np.ndarray

@@ -4,15 +4,40 @@ non-ground mask on the DTM's grid and optionally the classified points."""
 
 from __future__ import annotations
 
+from dataclasses import dataclass, replace
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from toolbox.errors import InputDataError
 from toolbox.feedback import Feedback
+from toolbox.terrain.gridding.request import GriddingRequest
 from toolbox.terrain.ground import GroundFilter, smrf
 
 MASK_NODATA = 255
+HEIGHTS_NODATA = -9999.0
+
+
+@dataclass(frozen=True)
+class GroundRequest:
+    """One ``dem:ground`` run.
+
+    ``gridding``: the points (``sources.points``; unused with ``dsm``), the DTM's grid (none
+    asked: the DSM's grid, or ``filter.cell`` over the points' bounds), the gridding options
+    and the DTM ``output``; ``method``: tin_linear, idw or nearest; ``dsm``: a raster
+    (:class:`toolbox.io.raster.RasterInfo`) read instead of points, whose cells set
+    ``filter.cell``; ``nonground``: the mask GeoTIFF; ``ground_points``: LAS/LAZ of the
+    classified points (optional); ``heights``: GeoTIFF of the height above the DTM (optional).
+    """
+
+    gridding: GriddingRequest
+    filter: GroundFilter
+    nonground: Path
+    method: str = "tin_linear"
+    dsm: Any = None
+    ground_points: Path | None = None
+    heights: Path | None = None
 
 
 def read_dsm_points(info: Any) -> tuple[np.ndarray, float]:
@@ -50,7 +75,22 @@ def nonground_mask(xyz: np.ndarray, ground: np.ndarray, transform: Any, width: i
     return mask.reshape(height, width)
 
 
-def run_ground(params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
+def heights_above(xyz: np.ndarray, dtm: np.ndarray, transform: Any) -> np.ndarray:
+    """(rows, cols) float32: the highest point of each cell of a north-up grid minus the DTM
+    there; NaN where no point fell or the DTM has no value."""
+    rows_n, cols_n = dtm.shape
+    cols = np.floor((xyz[:, 0] - transform.c) / transform.a).astype(np.int64)
+    rows = np.floor((xyz[:, 1] - transform.f) / transform.e).astype(np.int64)
+    inside = (cols >= 0) & (cols < cols_n) & (rows >= 0) & (rows < rows_n)
+    top = np.full(rows_n * cols_n, -np.inf)
+    np.maximum.at(top, rows[inside] * cols_n + cols[inside], xyz[inside, 2])
+    top[~np.isfinite(top)] = np.nan
+    return (top.reshape(rows_n, cols_n) - dtm).astype(np.float32)
+
+
+def run_ground(request: GroundRequest, feedback: Feedback) -> dict[str, Any]:
+    """Filter, grid, write the DTM, the mask, the heights above it (and the classified points);
+    returns STATISTICS."""
     import rasterio
 
     from toolbox.io.crs import common_crs, crs_label
@@ -60,30 +100,30 @@ def run_ground(params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
     from toolbox.terrain.gridding.run import grid_dem
     from toolbox.terrain.points import local_origin, read_mass_points
 
-    grid_params = dict(params)
+    gridding, sources = request.gridding, request.gridding.sources
+    grid = gridding.grid
     cloud = None
     with feedback.timed("read"):
-        if params.get("DSM") is not None:
-            info = params["DSM"]
-            crs = common_crs({"DSM": info.crs}, params.get("CRS"))
+        if request.dsm is not None:
+            info = request.dsm
+            crs = common_crs({"DSM": info.crs}, sources.crs)
             xyz, cell = read_dsm_points(info)
-            if grid_params.get("CELL_SIZE") is None and grid_params.get("TEMPLATE") is None:
-                grid_params["TEMPLATE"] = info
+            if grid.cell_size is None and grid.template is None:
+                grid = replace(grid, template=info)
         else:
-            crs = common_crs({"INPUT": params["INPUT"].crs}, params.get("CRS"))
-            xyz, cloud = read_mass_points(params["INPUT"], params.get("Z_FIELD"),
-                                          params.get("CLASSES"), params.get("RETURNS"),
-                                          params.get("CRS"))
-            cell = float(params.get("FILTER_CELL") or 1.0)
-            if grid_params.get("CELL_SIZE") is None and grid_params.get("TEMPLATE") is None:
-                grid_params["CELL_SIZE"] = cell
-    flt = GroundFilter(cell, float(params["SLOPE"]), float(params["MAX_WINDOW"]),
-                       float(params["ELEVATION_THRESHOLD"]), float(params["ELEVATION_SCALAR"]))
+            crs = common_crs({"INPUT": sources.points.crs}, sources.crs)
+            xyz, cloud = read_mass_points(sources.points, sources.z_field, sources.classes,
+                                          sources.returns, sources.crs)
+            cell = float(request.filter.cell)
+            if grid.cell_size is None and grid.template is None:
+                grid = replace(grid, cell_size=cell)
+    gridding = replace(gridding, grid=grid)
+    flt = replace(request.filter, cell=cell)
     origin = local_origin(xyz)
     local = xyz.copy()
     local[:, :2] -= origin
     span = np.ptp(local[:, :2], axis=0) / cell
-    limit = int(params.get("MAX_CELLS") or 1e9)
+    limit = int(grid.max_cells or 1e9)
     if (span[0] + 2) * (span[1] + 2) > limit:
         raise InputDataError(f"the filter grid would have {(span[0] + 2) * (span[1] + 2):,.0f} "
                              f"cells (over MAX_CELLS {limit:,}): use a larger FILTER_CELL")
@@ -105,25 +145,33 @@ def run_ground(params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
         counts["point_cloud"] = cloud
     data = merge_points(xyz[ground], np.zeros((0, 2), dtype=np.int64), crs, counts, "mean", 0.0,
                         feedback)
-    out = grid_dem(METHODS[params["METHOD"]], grid_params, feedback.step(30, 90), data)
-    with rasterio.open(params["OUTPUT"]) as ds:
+    stats = grid_dem(METHODS[request.method], gridding, feedback.step(30, 90), data)
+    with rasterio.open(gridding.output) as ds:
         transform, width, height = ds.transform, ds.width, ds.height
         grid = _grid_spec(transform, width, height, crs)
     mask = nonground_mask(xyz, ground, transform, width, height)
-    with RasterWriter(params["NONGROUND"], grid, 1, "uint8", MASK_NODATA,
-                      tile=int(params.get("TILE_SIZE") or 512),
-                      overviews=params.get("OVERVIEWS", True)) as writer:
+    with RasterWriter(request.nonground, grid, 1, "uint8", MASK_NODATA,
+                      tile=int(gridding.execution.tile_size),
+                      overviews=gridding.execution.overviews) as writer:
         from rasterio.windows import Window
 
         writer.write(Window(0, 0, width, height), mask)
-    result_out = {"OUTPUT": params["OUTPUT"], "NONGROUND": params["NONGROUND"]}
-    if params.get("GROUND_POINTS") is not None:
+    if request.heights is not None:
+        with rasterio.open(gridding.output) as ds:
+            dtm = ds.read(1, masked=True).filled(np.nan).astype(np.float64)
+        heights = heights_above(xyz, dtm, transform)
+        with RasterWriter(request.heights, grid, 1, "float32", HEIGHTS_NODATA,
+                          tile=int(gridding.execution.tile_size),
+                          overviews=gridding.execution.overviews) as writer:
+            from rasterio.windows import Window
+
+            writer.write(Window(0, 0, width, height),
+                         np.where(np.isfinite(heights), heights, HEIGHTS_NODATA))
+    if request.ground_points is not None:
         from toolbox.io.pointcloud import write_point_cloud
 
-        write_point_cloud(params["GROUND_POINTS"], xyz, crs,
+        write_point_cloud(request.ground_points, xyz, crs,
                           classification=np.where(ground, 2, 1))
-        result_out["GROUND_POINTS"] = params["GROUND_POINTS"]
-    stats = out["STATISTICS"]
     stats["ground_filter"] = {
         "method": "SMRF (Pingel et al. 2013), square windows", "filter_cell": cell,
         "slope": flt.slope, "max_window": flt.max_window, "radii_cells": len(flt.radii),
@@ -132,10 +180,7 @@ def run_ground(params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
         "nonground": len(xyz) - n_ground,
         "object_cells_fraction": float(result.objects.mean()), "crs": crs_label(crs),
         "mask_cells_nonground": int((mask == 1).sum())}
-    result_out["STATISTICS"] = stats
-    if "QUALITY" in out:
-        result_out["QUALITY"] = out["QUALITY"]
-    return result_out
+    return stats
 
 
 def _grid_spec(transform: Any, width: int, height: int, crs: Any):

@@ -125,13 +125,16 @@ class CollinearError(ValueError):
     """The points lie on one line (up to rounding): no surface through them."""
 
 
-def check_not_collinear(xy: np.ndarray, what: str = "data points") -> None:
-    """Raise ``ValueError`` (callers wrap it) when the points lie on one line up to rounding.
+def check_not_collinear(xy: np.ndarray, what: str = "data points",
+                        relative: float = COLLINEAR_RELATIVE) -> None:
+    """Raise ``ValueError`` (callers wrap it) when the points lie on one line up to rounding:
+    the one degeneracy test of point sets (surfaces, plane transforms, resection).
 
     The test is relative to the data's extent, not exact: the smallest singular value of the
     centred XY, divided by sqrt(N), is the RMS distance of the points from their best-fit line;
-    below :data:`COLLINEAR_RELATIVE` times the extent, the points are collinear for any
-    surface (200 points on a line to 1e-10 m would give only slivers).
+    below ``relative`` (default :data:`COLLINEAR_RELATIVE`) times the extent, the points are
+    collinear for any surface (200 points on a line to 1e-10 m would give only slivers). A
+    fit that needs a well-spread geometry passes a larger ``relative``.
     """
     xy = np.asarray(xy, dtype="float64")[:, :2]
     n = len(xy)
@@ -142,10 +145,10 @@ def check_not_collinear(xy: np.ndarray, what: str = "data points") -> None:
     if extent == 0:
         raise ValueError(f"the {n} {what} all have the same XY (duplicate positions)")
     spread = float(np.linalg.svd(centred, compute_uv=False)[-1]) / np.sqrt(n)
-    if spread < COLLINEAR_RELATIVE * extent:
-        raise CollinearError(f"the {n} {what} are collinear: they lie within {spread:.3g} (RMS) of "
-                         f"one line over an extent of {extent:.6g}; a surface needs points "
-                         "spread in two directions")
+    if spread < relative * extent:
+        raise CollinearError(f"the {n} {what} are collinear: they lie within {spread:.3g} (RMS) "
+                             f"of one line over an extent of {extent:.6g}; a surface needs "
+                             "points spread in two directions")
 
 
 def read_mass_points(source: Any, z_field: str | None = None, classes: Any = None,

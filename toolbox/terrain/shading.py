@@ -191,14 +191,10 @@ def shade_raster(info, band: int, output: str | Path,
             "tiles": result["tiles"], "executor": result["executor"]}
 
 
-def check_dem_params(params: dict) -> None:
-    """``BAND`` within the bands of the DEM ``INPUT``, and the DEM georeferenced (the kernels
-    need its cell size)."""
-    from toolbox.errors import InputDataError, ParameterError
+def check_georeferenced(info) -> None:
+    """The DEM ``info`` (a :class:`~toolbox.io.raster.RasterInfo`) is georeferenced: the kernels
+    need its cell size. (BAND within its bands: checked by the runner for every algorithm.)"""
+    from toolbox.errors import InputDataError
 
-    info = params["INPUT"]
-    if params["BAND"] > info.count:
-        raise ParameterError("BAND", f"must be <= {info.count} (bands of {info}), got "
-                             f"{params['BAND']}")
     if not info.georeferenced:
         raise InputDataError(f"INPUT {info} has no georeferencing: cell size unknown")

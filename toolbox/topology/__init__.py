@@ -7,6 +7,7 @@ and an errors layer), ``topology:check`` (the same checks, errors layer only) an
 Kernels (shapely geometries in, geometries and counts out; no files): :mod:`.prepare`,
 :mod:`.snap`, :mod:`.closure`, :mod:`.noding`, :mod:`.graph`, :mod:`.faces`, :mod:`.labels`,
 :mod:`.arcs`, :mod:`.setops`, chained by :func:`.build.build_topology` into the tables of
-:mod:`.output`. The parameter file reader is :mod:`toolbox.io.parameter_file`, shared with
-the attribution tools (:mod:`.parameter_file` re-exports it).
+:mod:`.output`; the inputs are read by :mod:`.inputs` (typed :class:`.inputs.LineworkSources`).
+The parameter file reader is :mod:`toolbox.io.parameter_file`, shared with the attribution
+tools.
 """

@@ -11,7 +11,6 @@ from toolbox.feedback import Feedback
 from toolbox.io.parameter_file import ParameterFile, read_parameter_file
 from toolbox.topology.output import ERROR_LAYERS, Layer, TopologyOutput, split_errors
 from toolbox.topology.tolerances import (
-    TOLERANCE_PARAMETERS,
     TOPOLOGY_FILE_KEYS,
     Tolerances,
     resolve_tolerances,
@@ -33,14 +32,14 @@ def default_code_field(fields: list[str]) -> str | None:
     return None
 
 
-def tolerances_from(params: dict[str, Any], feedback: Feedback | None = None, crs: Any = None
+def tolerances_from(explicit: dict[str, float | None], parameters: Path | None = None,
+                    feedback: Feedback | None = None, crs: Any = None
                     ) -> tuple[Tolerances, dict[str, str], ParameterFile | None]:
-    """Tolerances from the algorithm parameters and the optional ``PARAMETERS`` file; warns about
-    unknown entries of the file and a coordinate unit that does not match the CRS."""
-    file = None
-    if params.get("PARAMETERS") is not None:
-        file = read_parameter_file(params["PARAMETERS"], "PARAMETERS")
-    tol, sources = resolve_tolerances({k: params.get(k) for k in TOLERANCE_PARAMETERS}, file)
+    """Tolerances from the explicit values (by parameter name, None: not given) and the
+    optional parameter file; warns about unknown entries of the file and a coordinate unit
+    that does not match the CRS."""
+    file = None if parameters is None else read_parameter_file(parameters, "PARAMETERS")
+    tol, sources = resolve_tolerances(explicit, file)
     if feedback is not None and file is not None:
         file.warn_unused(TOPOLOGY_FILE_KEYS, feedback, "area building")
         file.check_unit(crs, feedback)

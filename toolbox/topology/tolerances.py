@@ -6,21 +6,21 @@ from dataclasses import asdict, dataclass
 from typing import Any
 
 from toolbox.errors import ParameterError
-from toolbox.io.parameter_file import ParameterFile
+from toolbox.io.parameter_file import DEFAULTS, ParameterFile, resolve
 
-# parameter name -> (field of Tolerances, key in the parameter file, default)
-TOLERANCE_PARAMETERS: dict[str, tuple[str, str, float]] = {
-    "SNAP_TOLERANCE": ("snap", "snap_tolerance", 0.2),
-    "CLOSURE_TOLERANCE": ("closure", "closure_tolerance", 0.5),
-    "MIN_DANGLE_LENGTH": ("min_dangle", "min_dangle_length", 1.0),
-    "MIN_AREA": ("min_area", "min_area", 1.0),
-    "PRECISION": ("precision", "decimals", 0.001),
+# parameter name -> (field of Tolerances, key in the parameter file; its default there)
+TOLERANCE_PARAMETERS: dict[str, tuple[str, str]] = {
+    "SNAP_TOLERANCE": ("snap", "snap_tolerance"),
+    "CLOSURE_TOLERANCE": ("closure", "closure_tolerance"),
+    "MIN_DANGLE_LENGTH": ("min_dangle", "min_dangle_length"),
+    "MIN_AREA": ("min_area", "min_area"),
+    "PRECISION": ("precision", "decimals"),
 }
 
 #: parameter-file entries area building uses (the others are named in an information message): the
 #: tolerances above, the unit (checked against the CRS) and the coordinate translation (added to
 #: the input lines and labels)
-TOPOLOGY_FILE_KEYS = frozenset({key for _, key, _ in TOLERANCE_PARAMETERS.values()}
+TOPOLOGY_FILE_KEYS = frozenset({key for _, key in TOLERANCE_PARAMETERS.values()}
                                | {"coordinate_unit", "coordinate_offset"})
 
 
@@ -46,11 +46,11 @@ class Tolerances:
         snap rounding to this grid, so the result is robust and the same on every run.
     """
 
-    snap: float = 0.2
-    closure: float = 0.5
-    min_dangle: float = 1.0
-    min_area: float = 1.0
-    precision: float = 0.001
+    snap: float = DEFAULTS["snap_tolerance"]
+    closure: float = DEFAULTS["closure_tolerance"]
+    min_dangle: float = DEFAULTS["min_dangle_length"]
+    min_area: float = DEFAULTS["min_area"]
+    precision: float = 10.0 ** -DEFAULTS["decimals"]
 
     def as_dict(self) -> dict[str, float]:
         return asdict(self)
@@ -80,16 +80,9 @@ def resolve_tolerances(explicit: dict[str, float | None],
     """
     values: dict[str, Any] = {}
     sources: dict[str, str] = {}
-    for name, (attr, file_key, default) in TOLERANCE_PARAMETERS.items():
-        given = explicit.get(name)
-        if given is not None:
-            values[attr], sources[attr] = float(given), "parameter"
-        elif parameter_file is not None and file_key in parameter_file.values:
-            value = parameter_file.values[file_key]
-            values[attr] = 10.0 ** -value if file_key == "decimals" else float(value)
-            sources[attr] = "file"
-        else:
-            values[attr], sources[attr] = default, "default"
+    for name, (attr, file_key) in TOLERANCE_PARAMETERS.items():
+        value, sources[attr] = resolve(explicit.get(name), parameter_file, file_key)
+        values[attr] = float(value)
     tol = Tolerances(**values)
     if not tol.precision > 0:
         raise ParameterError("PRECISION", f"must be > 0, got {tol.precision:g}")

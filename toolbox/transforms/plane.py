@@ -23,8 +23,6 @@ import numpy as np
 
 from toolbox.errors import ConvergenceError, InputDataError
 
-COLLINEAR_TOLERANCE = 1e-9
-
 
 @dataclass
 class FitStatistics:
@@ -82,20 +80,28 @@ def normalization(points: np.ndarray) -> np.ndarray:
     return np.array([[scale, 0, -scale * centre[0]], [0, scale, -scale * centre[1]], [0, 0, 1]])
 
 
-def _apply(matrix: np.ndarray, points: np.ndarray) -> np.ndarray:
-    w = matrix[2, 0] * points[:, 0] + matrix[2, 1] * points[:, 1] + matrix[2, 2]
-    x = (matrix[0, 0] * points[:, 0] + matrix[0, 1] * points[:, 1] + matrix[0, 2]) / w
-    y = (matrix[1, 0] * points[:, 0] + matrix[1, 1] * points[:, 1] + matrix[1, 2]) / w
-    return np.column_stack([x, y])
+def apply_homography(matrix: np.ndarray, points: np.ndarray, return_w: bool = False):
+    """Points ``(..., 2)`` through a 3 x 3 projective matrix: ``(x', y') = (M·[x, y, 1])[:2] / w``
+    with ``w = (M·[x, y, 1])[2]`` (the one implementation; ``return_w`` also gives ``w``, whose
+    sign tells which side of the vanishing line a point is)."""
+    pts = np.asarray(points, dtype="float64")
+    w = matrix[2, 0] * pts[..., 0] + matrix[2, 1] * pts[..., 1] + matrix[2, 2]
+    x = (matrix[0, 0] * pts[..., 0] + matrix[0, 1] * pts[..., 1] + matrix[0, 2]) / w
+    y = (matrix[1, 0] * pts[..., 0] + matrix[1, 1] * pts[..., 1] + matrix[1, 2]) / w
+    out = np.stack([x, y], axis=-1)
+    return (out, w) if return_w else out
 
 
 def check_not_collinear(points: np.ndarray, name: str) -> None:
-    """Raise :class:`InputDataError` when the points lie (numerically) on one line."""
-    centred = points - points.mean(axis=0)
-    s = np.linalg.svd(centred, compute_uv=False)
-    if s[0] == 0 or s[-1] / s[0] < COLLINEAR_TOLERANCE:
+    """Raise :class:`InputDataError` when the points lie (numerically) on one line (the shared
+    test of :func:`toolbox.terrain.points.check_not_collinear`)."""
+    from toolbox.terrain.points import check_not_collinear as check
+
+    try:
+        check(points, f"{name} points")
+    except ValueError:  # on one line, or all at one position
         raise InputDataError(f"the {name} points are collinear (or coincident): a plane transform "
-                             "needs points spread in two directions")
+                             "needs points spread in two directions") from None
 
 
 class Transform2D:
@@ -115,10 +121,10 @@ class Transform2D:
         return (self.n_params + 1) // 2
 
     def __call__(self, points: np.ndarray) -> np.ndarray:
-        return _apply(self.params, np.asarray(points, dtype="float64"))
+        return apply_homography(self.params, np.asarray(points, dtype="float64"))
 
     def inverse(self, points: np.ndarray) -> np.ndarray:
-        return _apply(np.linalg.inv(self.params), np.asarray(points, dtype="float64"))
+        return apply_homography(np.linalg.inv(self.params), np.asarray(points, dtype="float64"))
 
     def inverse_transform(self) -> Transform2D:
         """The inverse as a transform of the same kind (matrix normalised to ``[2, 2] = 1``)."""
@@ -150,7 +156,7 @@ class Transform2D:
         if w.shape != (len(src),) or not np.all(w > 0):
             raise InputDataError("weights must be one positive number per point")
         ns, nd = normalization(src), normalization(dst)
-        src_n, dst_n = _apply(ns, src), _apply(nd, dst)
+        src_n, dst_n = apply_homography(ns, src), apply_homography(nd, dst)
         matrix_n, iterations = cls._estimate_normalised(src_n, dst_n, w, max_iterations, tolerance)
         matrix = np.linalg.inv(nd) @ matrix_n @ ns
         transform = cls(matrix / matrix[2, 2])
@@ -249,7 +255,7 @@ class HomographyTransform(Transform2D):
         for iterations in range(1, max_iterations + 1):  # noqa: B007 (reported)
             h = matrix.ravel()[:8]
             a = cls._jacobian_of(h, src)
-            d = (dst - _apply(matrix, src)).ravel()
+            d = (dst - apply_homography(matrix, src)).ravel()
             sw = np.sqrt(np.repeat(w, 2))
             step = np.linalg.lstsq(a * sw[:, None], d * sw, rcond=None)[0]
             matrix = np.append(h + step, 1.0).reshape(3, 3)

@@ -16,7 +16,7 @@ from toolbox.errors import InputDataError, ParameterError
 from toolbox.feedback import Feedback
 from toolbox.terrain.points import local_origin
 from toolbox.transforms.control_points import IMAGE_UNITS, ControlPoints
-from toolbox.transforms.plane import TRANSFORMS, FitStatistics, Transform2D
+from toolbox.transforms.plane import TRANSFORMS, FitStatistics, Transform2D, apply_homography
 from toolbox.transforms.robust import (
     ROBUST_METHODS,
     Rejection,
@@ -362,17 +362,12 @@ def pixel_to_ground_matrix(model: RectificationModel,
     return matrix / matrix[2, 2]
 
 
-def _apply(matrix: np.ndarray, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    p = np.column_stack([points, np.ones(len(points))]) @ matrix.T
-    return p[:, :2] / p[:, 2:], p[:, 2]
-
-
 def footprint(pixel_to_ground: np.ndarray, width: int, height: int) -> np.ndarray:
     """Ground (X, Y) of the photo's four corners (top-left, top-right, bottom-right,
     bottom-left), (4, 2). Raises :class:`InputDataError` when the plane's vanishing line crosses
     the photo (an oblique view: the footprint is unbounded)."""
     corners = np.array([[0, 0], [width, 0], [width, height], [0, height]], dtype="float64")
-    ground, w = _apply(pixel_to_ground, corners)
+    ground, w = apply_homography(pixel_to_ground, corners, return_w=True)
     if not (np.all(w > 0) or np.all(w < 0)):
         raise InputDataError("the ground plane's vanishing line crosses the photo (an oblique "
                              "view): its footprint is unbounded; give EXTENT")
@@ -385,7 +380,7 @@ def default_cell_size(pixel_to_ground: np.ndarray, width: int, height: int) -> f
     centre = np.array([width / 2.0, height / 2.0])
     step = 1.0
     pts = np.array([centre, centre + [step, 0], centre + [0, step]])
-    g, _ = _apply(pixel_to_ground, pts)
+    g, _ = apply_homography(pixel_to_ground, pts, return_w=True)
     jac = np.column_stack([g[1] - g[0], g[2] - g[0]]) / step
     size = float(np.sqrt(abs(np.linalg.det(jac))))
     if not size > 0 or not math.isfinite(size):

@@ -6,5 +6,7 @@ the Schur complement on the points), :mod:`.precision` (cofactors, redundancy nu
 :mod:`.adjust` (robust stage, Baarda data snooping, the whole adjustment),
 :mod:`.approximations` (start values: resection and intersection chained over the block),
 :mod:`.relative` (relative orientation of a stereo pair), :mod:`.io` (tables in, layers out),
-:mod:`.synthetic` (blocks with a known truth for tests, demos and benchmarks).
+:mod:`.synthetic` (blocks with a known truth for tests, demos and benchmarks),
+:mod:`.flightplan` (block design: photo scale, strips, photo centres, control layout) and
+:mod:`.prediction` (predicted precision of a planned block, tender verdict).
 """

@@ -22,10 +22,12 @@ from toolbox.triangulation.block import WEIGHTED, Block, Options, Rejection, Sol
 from toolbox.triangulation.model import image_residuals, rotations
 from toolbox.triangulation.precision import cofactors
 from toolbox.triangulation.solver import (
+    KIND_ATTITUDE,
     KIND_GROUND,
     KIND_IMAGE,
     Problem,
     State,
+    attitude_residuals,
     least_squares,
     normal_equations,
 )
@@ -63,6 +65,23 @@ def validate(block: Block) -> None:
             i, k = np.argwhere(wrong)[0]
             raise InputDataError(f"{what} {ids[i]!r}: sigma {'XYZ'[k]} must be > 0, got "
                                  f"{sig[i, k]!r}")
+    if len(b.centre_photo) and not len(b.centre_group) and not len(b.centre_time):
+        # centres set after construction: one strip, time zero (as Block's defaults)
+        b.centre_group = np.zeros(len(b.centre_photo), dtype=np.int64)
+        b.centre_time = np.zeros(len(b.centre_photo))
+    if len(b.centre_group) != len(b.centre_photo) or len(b.centre_time) != len(b.centre_photo) \
+            or (len(b.centre_group) and b.centre_group.min() < 0):
+        raise InputDataError("every GNSS centre needs a strip (>= 0) and a time")
+    if len(b.attitude_photo) and (b.attitude_photo.min() < 0 or b.attitude_photo.max() >= n):
+        raise InputDataError(f"an IMU photo index is outside 0..{n - 1}")
+    if len(b.attitude_photo) and not (np.isfinite(b.attitude_obs).all()
+                                      and (b.attitude_sigma > 0).all()):
+        i = int(np.argwhere(~(np.isfinite(b.attitude_obs) & (b.attitude_sigma > 0)))[0, 0])
+        raise InputDataError(f"IMU attitude of photo {b.photo_ids[b.attitude_photo[i]]!r}: "
+                             f"angles must be finite and sigmas > 0, got "
+                             f"{b.attitude_obs[i].tolist()} / {b.attitude_sigma[i].tolist()}")
+    if b.boresight and not len(b.attitude_photo):
+        raise InputDataError("boresight angles can be estimated only with IMU attitudes")
     weighted = (b.calibration_mode == WEIGHTED) & ~(b.calibration_sigma > 0)
     if weighted.any():
         cam, par = np.argwhere(weighted)[0]
@@ -97,8 +116,19 @@ def check_datum(block: Block) -> None:
     xy = sorted({b.point_ids[i] for i in b.ground_point[known[:, 0] & known[:, 1]]})
     z = sorted({b.point_ids[i] for i in b.ground_point[known[:, 2]]})
     centres = {int(i) for i in b.centre_photo[np.isfinite(b.centre_xyz).all(axis=1)]}
-    if len(centres) >= 3 or (len(xy) >= 2 and len(z) >= 3):
+    full = len(set(xy) & set(z))
+    if len(xy) >= 2 and len(z) >= 3:
         return
+    # GNSS with an unknown shift per strip gives the scale, the azimuth and the pitch of the
+    # block but neither its position nor its roll about the strips (each strip's centres move
+    # freely along their own line): a full control point and a second height point besides
+    if len(centres) >= 3 and (not (b.gnss_shift or b.gnss_drift) or (full >= 1 and len(z) >= 2)):
+        return
+    if len(centres) >= 3:
+        raise DatumError("datum defect: GNSS centres with an unknown shift or drift per strip "
+                         "fix neither the block's position nor its roll; add at least 1 full "
+                         f"(XYZ) and 1 more height control point (it has {full} full, {len(z)} "
+                         "height)")
     missing = []
     if len(xy) < 2:
         missing.append(f"{2 - len(xy)} more planimetric (X, Y) control point(s)")
@@ -132,7 +162,7 @@ def _huber(problem: Problem, state: State, options: Options) -> State:
 def _reject(problem: Problem, lin, w: np.ndarray, r: np.ndarray, options: Options
             ) -> Rejection | None:
     b = problem.block
-    testable = (lin.kind != 3) & (r > 1e-3) & np.isfinite(w)
+    testable = (lin.kind != 3) & (lin.kind != KIND_ATTITUDE) & (r > 1e-3) & np.isfinite(w)
     # never reject the control the datum rests on (2 XY + 3 Z points, unless >= 3 GNSS centres)
     if (problem.centre_active.all(axis=1)).sum() < 3:
         active = problem.ground_active
@@ -193,7 +223,8 @@ def _adjust(block: Block, exterior: np.ndarray, points: np.ndarray, options: Opt
     problem = Problem(block, origin)
     ext = exterior.copy()
     ext[:, :3] -= origin
-    state = State(ext, points - origin, block.calibration.copy())
+    state = State(ext, points - origin, block.calibration.copy(),
+                  np.zeros(problem.nc - problem.extra_start))
     notes = []
     if options.robust:
         state = _huber(problem, state, options)
@@ -234,8 +265,13 @@ def _solution(problem: Problem, state: State, lin, cof, iterations: int,
                            state.calibration[b.photo_camera[b.obs_photo]], jacobians=False)
     g_res = state.points[b.ground_point] + problem.origin - b.ground_xyz
     lever = rotations(state.exterior[:, 3:])[0] @ b.lever_arm
+    shift, drift, bore = problem.extras(state)
     h_res = (state.exterior[b.centre_photo, :3] + lever[b.centre_photo] + problem.origin
-             - b.centre_xyz)
+             - b.centre_xyz + shift[b.centre_group] + drift[b.centre_group]
+             * b.centre_time[:, None])
+    a_res = attitude_residuals(state.exterior[b.attitude_photo, 3:], bore, b.attitude_obs)
+    extra_std = [np.full(c.shape, np.nan) for c in (problem.shift_column, problem.drift_column,
+                                                     problem.boresight_column)]
     image_w = np.full((len(b.obs_photo), 2), np.nan)
     image_r = np.full_like(image_w, np.nan)
     ground_w = np.full_like(b.ground_xyz, np.nan)
@@ -255,6 +291,9 @@ def _solution(problem: Problem, state: State, lin, cof, iterations: int,
         ext_std = np.sqrt(var[:6 * n]).reshape(n, 6)
         on = problem.calib_column >= 0
         cal_std[on] = np.sqrt(var[problem.calib_column[on]])
+        for std, cols in zip(extra_std, (problem.shift_column, problem.drift_column,
+                                         problem.boresight_column), strict=True):
+            std[cols >= 0] = np.sqrt(var[cols[cols >= 0]])
         pt_cov = cof.points * sigma0 ** 2
         pt_cov[~observed] = np.nan
     ext = state.exterior.copy()
@@ -266,4 +305,4 @@ def _solution(problem: Problem, state: State, lin, cof, iterations: int,
                     g_res, h_res, problem.obs_active.copy(), problem.ground_active.copy(),
                     problem.centre_active.copy(), image_w, image_r, ground_w, ground_r, ext_std,
                     np.sqrt(np.einsum("pii->pi", pt_cov)), pt_cov, cal_std, rejections,
-                    problem.origin.copy(), notes)
+                    problem.origin.copy(), notes, shift, drift, bore, *extra_std, a_res)

@@ -51,6 +51,14 @@ class Block:
     centre_xyz: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     centre_sigma: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     lever_arm: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    centre_group: np.ndarray | None = None
+    centre_time: np.ndarray | None = None
+    gnss_shift: bool = False
+    gnss_drift: bool = False
+    attitude_photo: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    attitude_obs: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    attitude_sigma: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    boresight: bool = False
 
     def __post_init__(self) -> None:
         k = len(self.camera_names)
@@ -62,12 +70,20 @@ class Block:
             self.calibration_sigma = np.full((k, 8), np.nan)
         self.calibration_mode = np.asarray(self.calibration_mode, dtype=np.int64).reshape(k, 8)
         self.calibration_sigma = np.asarray(self.calibration_sigma, dtype=float).reshape(k, 8)
-        for name in ("obs_photo", "obs_point", "ground_point", "centre_photo"):
+        h = len(np.asarray(self.centre_photo).ravel())
+        if self.centre_group is None:
+            self.centre_group = np.zeros(h, dtype=np.int64)
+        if self.centre_time is None:
+            self.centre_time = np.zeros(h)
+        self.centre_time = np.asarray(self.centre_time, dtype=float).ravel()
+        for name in ("obs_photo", "obs_point", "ground_point", "centre_photo", "centre_group",
+                     "attitude_photo"):
             setattr(self, name, np.asarray(getattr(self, name), dtype=np.int64).ravel())
         for name in ("obs_xy", "obs_sigma"):
             setattr(self, name, np.asarray(getattr(self, name), dtype=float).reshape(-1, 2))
         self.lever_arm = np.asarray(self.lever_arm, dtype=float).reshape(3)
-        for name in ("ground_xyz", "ground_sigma", "centre_xyz", "centre_sigma"):
+        for name in ("ground_xyz", "ground_sigma", "centre_xyz", "centre_sigma", "attitude_obs",
+                     "attitude_sigma"):
             setattr(self, name, np.asarray(getattr(self, name), dtype=float).reshape(-1, 3))
 
     @property
@@ -77,6 +93,11 @@ class Block:
     @property
     def n_points(self) -> int:
         return len(self.point_ids)
+
+    @property
+    def n_groups(self) -> int:
+        """GNSS strips (groups of shift/drift unknowns)."""
+        return int(self.centre_group.max()) + 1 if len(self.centre_group) else 0
 
     def calibration_label(self, camera: int, parameter: int) -> str:
         return f"camera {self.camera_names[camera]!r} {CALIBRATION_NAMES[parameter]}"
@@ -142,3 +163,10 @@ class Solution:
     rejections: list[Rejection] = field(default_factory=list)
     origin: np.ndarray = field(default_factory=lambda: np.zeros(3))
     notes: list[str] = field(default_factory=list)
+    gnss_shift: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))  # (G, 3) m
+    gnss_drift: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))  # (G, 3) m/unit
+    boresight: np.ndarray = field(default_factory=lambda: np.zeros(3))  # rad
+    gnss_shift_std: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    gnss_drift_std: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    boresight_std: np.ndarray = field(default_factory=lambda: np.full(3, np.nan))
+    attitude_residuals: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))  # rad

@@ -7,7 +7,11 @@
   ``sigma_z`` in metres): an empty X and Y makes a height (Z-only) point, an empty Z a
   planimetric (XY-only) one; check points are not observations: they are adjusted as tie points
   and compared afterwards;
-- GNSS projection centres (``photo``, ``X``, ``Y``, ``Z``, optional ``sigma_xy``, ``sigma_z``);
+- GNSS projection centres (``photo``, ``X``, ``Y``, ``Z``, optional ``sigma_xy``, ``sigma_z``,
+  ``strip`` (default: the project's strip of the photo) and ``time`` (default: the photo's place
+  in its strip, centred), used by the per-strip shift and drift unknowns);
+- IMU attitudes (``photo``, ``omega``, ``phi``, ``kappa`` in the photogrammetric convention,
+  optional ``sigma``, all in one angle unit);
 - self-calibration: ``c, k1`` or ``c:weighted:0.01, x0, y0`` (parameter[:mode[:sigma]]).
 """
 
@@ -64,6 +68,17 @@ class Centres:
     photos: list[str]
     xyz: np.ndarray
     sigma: np.ndarray
+    strips: list[str] | None = None  # per row; None or "" = the project's strip of the photo
+    times: np.ndarray | None = None  # per row; NaN = the photo's place in its strip
+
+
+@dataclass
+class Attitudes:
+    """IMU attitudes: photo ids, angles (n, 3) rad, sigmas (n, 3) rad (NaN = default)."""
+
+    photos: list[str]
+    angles: np.ndarray
+    sigma: np.ndarray
 
 
 @dataclass
@@ -82,6 +97,11 @@ class BlockRequest:
     centre_sigma_xy: float = 0.10
     centre_sigma_z: float = 0.15
     lever_arm: tuple[float, float, float] = (0.0, 0.0, 0.0)  # GNSS antenna, camera frame, m
+    gnss_shift: bool = False  # unknown GNSS shift per strip
+    gnss_drift: bool = False  # unknown GNSS drift per strip (m per time unit)
+    attitudes: Attitudes | None = None
+    attitude_sigma: float = 8.7e-5  # rad (0.005°)
+    boresight: bool = False
 
 
 def read_measurements(path: Path, layer: str | None, coordinates: str,
@@ -156,8 +176,12 @@ def read_centres(path: Path, layer: str | None = None, name: str = "GNSS") -> Ce
             (("X0", "X", "E"), ("Y0", "Y", "N"), ("Z0", "Z", "H"))]
     c_sxy = column(header, "sigma_xy", required=False)
     c_sz = column(header, "sigma_z", required=False)
-    photos, xyz, sig = [], [], []
+    c_strip = column(header, "strip", required=False)
+    c_time = column(header, "time", "t", required=False)
+    photos, xyz, sig, strips, times = [], [], [], [], []
     for k, r in enumerate(rows, start=1):
+        strips.append(r[c_strip].strip() if c_strip else "")
+        times.append(_optional(r[c_time], f"row {k} {c_time}", name) if c_time else np.nan)
         if r[c_photo] in photos:
             raise InputDataError(f"{name}: {path} lists photo {r[c_photo]!r} twice")
         photos.append(r[c_photo])
@@ -169,7 +193,33 @@ def read_centres(path: Path, layer: str | None = None, name: str = "GNSS") -> Ce
                 raise InputDataError(f"{name}: {path} row {k}: {what} must be > 0, got {s!r}")
         sig.append([sxy, sxy, sz])
     return Centres(photos, np.array(xyz, dtype=float).reshape(-1, 3),
-                   np.array(sig, dtype=float).reshape(-1, 3))
+                   np.array(sig, dtype=float).reshape(-1, 3), strips, np.array(times, dtype=float))
+
+
+def read_attitudes(path: Path, unit: str, layer: str | None = None, name: str = "IMU"
+                   ) -> Attitudes:
+    """IMU attitudes (``photo``, ``omega``, ``phi``, ``kappa``, optional ``sigma``) in
+    ``unit`` (rad, deg, gon), returned in radians."""
+    from toolbox.photogrammetry.rotation import to_radians
+    from toolbox.photogrammetry.tables import column, number, read_table
+
+    header, rows = read_table(path, layer, name)
+    c_photo = column(header, "photo", "photo_id", "image", name=name, path=path)
+    cols = [column(header, *a, name=name, path=path) for a in
+            (("omega", "roll"), ("phi", "pitch"), ("kappa", "yaw", "heading"))]
+    c_sig = column(header, "sigma", required=False)
+    photos, angles, sig = [], [], []
+    for k, r in enumerate(rows, start=1):
+        if r[c_photo] in photos:
+            raise InputDataError(f"{name}: {path} lists photo {r[c_photo]!r} twice")
+        photos.append(r[c_photo])
+        angles.append([number(r[c], f"row {k} {c}", name) for c in cols])
+        s = _optional(r[c_sig], f"row {k} {c_sig}", name) if c_sig else np.nan
+        if not np.isnan(s) and not s > 0:
+            raise InputDataError(f"{name}: {path} row {k}: {c_sig} must be > 0, got {s!r}")
+        sig.append([s] * 3)
+    return Attitudes(photos, to_radians(np.array(angles, dtype=float).reshape(-1, 3), unit),
+                     to_radians(np.array(sig, dtype=float).reshape(-1, 3), unit))
 
 
 def parse_lever_arm(text: str | None, name: str = "LEVER_ARM") -> tuple[float, float, float]:
@@ -320,7 +370,7 @@ def build_block(request: BlockRequest) -> tuple[Block, dict]:
         s[:2] = np.where(np.isnan(s[:2]), request.control_sigma_xy, s[:2])
         s[2] = request.control_sigma_z if np.isnan(s[2]) else s[2]
         g_sig.append(s)
-    h_photo, h_xyz, h_sig = [], [], []
+    h_photo, h_xyz, h_sig, h_strip, h_time = [], [], [], [], []
     if request.centres is not None:
         cen = request.centres
         bad = [p for p in cen.photos if p not in project.photos]
@@ -332,18 +382,55 @@ def build_block(request: BlockRequest) -> tuple[Block, dict]:
                 continue
             h_photo.append(photo_index[p])
             h_xyz.append(cen.xyz[k])
+            h_strip.append((cen.strips[k] if cen.strips else "") or
+                           str(getattr(project.photos[p], "strip", None) or ""))
+            h_time.append(cen.times[k] if cen.times is not None else np.nan)
             s = cen.sigma[k].copy()
             s[:2] = np.where(np.isnan(s[:2]), request.centre_sigma_xy, s[:2])
             s[2] = request.centre_sigma_z if np.isnan(s[2]) else s[2]
             h_sig.append(s)
+    groups, times = _strips_and_times(h_photo, h_strip, np.array(h_time, dtype=float),
+                                      photo_ids)
+    a_photo, a_obs, a_sig = [], [], []
+    if request.attitudes is not None:
+        att = request.attitudes
+        bad = [p for p in att.photos if p not in project.photos]
+        if bad:
+            raise InputDataError(f"IMU names photo(s) {', '.join(map(repr, bad[:5]))} that "
+                                 "PROJECT does not have")
+        for k, p in enumerate(att.photos):
+            if p in photo_index:
+                a_photo.append(photo_index[p])
+                a_obs.append(att.angles[k])
+                a_sig.append(np.where(np.isnan(att.sigma[k]), request.attitude_sigma,
+                                      att.sigma[k]))
     sigma2 = np.repeat(sigma[:, None], 2, axis=1)
     block = Block(photo_ids, photo_camera, camera_names, calibration, point_ids,
                   [photo_index[p] for p in ms.photo_ids], [point_index[p] for p in ms.point_ids],
                   xy, sigma2, modes, sig, g_point, np.array(g_xyz).reshape(-1, 3),
                   np.array(g_sig).reshape(-1, 3), h_photo, np.array(h_xyz).reshape(-1, 3),
-                  np.array(h_sig).reshape(-1, 3), np.asarray(request.lever_arm, dtype=float))
+                  np.array(h_sig).reshape(-1, 3), np.asarray(request.lever_arm, dtype=float),
+                  groups, times, request.gnss_shift, request.gnss_drift, a_photo,
+                  np.array(a_obs, dtype=float).reshape(-1, 3),
+                  np.array(a_sig, dtype=float).reshape(-1, 3), request.boresight)
+    info_strips = sorted(set(h_strip), key=lambda v: (len(v), v))
     return block, {"checks": checks, "kind": ms.kind, "pixel_mm": pixel_mm,
-                   "free": [f"{block.calibration_label(k, i)}" for k, i in
+                   "gnss_strips": info_strips, "free": [f"{block.calibration_label(k, i)}" for k, i in
                             np.argwhere(modes != FIXED)]}
 
 
+
+
+def _strips_and_times(photos: list[int], strips: list[str], times: np.ndarray,
+                      photo_ids: list[str]) -> tuple[np.ndarray, np.ndarray]:
+    """Group index (0..G-1, in order of the strip names) of each GNSS row, and its time: the
+    given one, or the photo's place in its strip (block order), centred on the strip."""
+    names = sorted(set(strips), key=lambda v: (len(v), v))
+    groups = np.array([names.index(s) for s in strips], dtype=np.int64)
+    times = times.copy()
+    for g in range(len(names)):
+        rows = np.flatnonzero((groups == g) & np.isnan(times))
+        if len(rows):
+            order = np.argsort(np.argsort([photos[i] for i in rows]))
+            times[rows] = order - (len(rows) - 1) / 2
+    return groups, times

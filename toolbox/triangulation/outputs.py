@@ -155,6 +155,30 @@ def report(block: Block, solution: Solution, info: dict, ground: list[dict[str, 
              "w_x": _num(solution.image_w[i, 0]), "w_y": _num(solution.image_w[i, 1]),
              "r_x": _num(solution.image_r[i, 0]), "r_y": _num(solution.image_r[i, 1]),
              "rejected": not bool(active[i])} for i in range(len(block.obs_photo))]
+    gnss_imu = {}
+    strips = info.get("gnss_strips") or [str(g + 1) for g in range(block.n_groups)]
+    for key, on, est, std, unit in (
+            ("gnss_shift", block.gnss_shift, solution.gnss_shift, solution.gnss_shift_std, "m"),
+            ("gnss_drift", block.gnss_drift, solution.gnss_drift, solution.gnss_drift_std,
+             "m per time unit")):
+        if on:
+            gnss_imu[key] = {"unit": unit, "strips": [
+                {"strip": strips[g], **{a: float(est[g, k]) for k, a in enumerate("XYZ")},
+                 **{f"std_{a}": _num(std[g, k]) for k, a in enumerate("XYZ")}}
+                for g in range(len(est))]}
+    if len(block.attitude_photo):
+        gnss_imu["imu"] = {
+            "angle_unit": "rad", "observations": int(len(block.attitude_photo)),
+            "rms_residual": {n: _num(np.sqrt(np.mean(solution.attitude_residuals[:, k] ** 2)))
+                             for k, n in enumerate(EXTERIOR_NAMES[3:])}}
+        if block.boresight:
+            gnss_imu["imu"]["boresight"] = {
+                **{n: float(solution.boresight[k]) for k, n in enumerate(EXTERIOR_NAMES[3:])},
+                **{f"std_{n}": _num(solution.boresight_std[k])
+                   for k, n in enumerate(EXTERIOR_NAMES[3:])},
+                "convention": "IMU attitude = angles of R(photo)·R(boresight)"}
+    if gnss_imu:
+        summary["gnss_imu"] = gnss_imu
     return {"residual_sign": "computed minus observed; ground: adjusted minus surveyed",
             "summary": summary, "photos": photos, "cameras": cameras,
             "image_observations": observations if observations is not None else

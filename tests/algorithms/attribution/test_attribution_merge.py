@@ -9,7 +9,7 @@ import shapely
 from restitution_files import make_files  # the test folder's helper module
 
 import toolbox
-from toolbox.attribution.merge import merge_models
+from toolbox.attribution.model_merge import merge_models
 from toolbox.attribution.restitution import entity_frame
 
 

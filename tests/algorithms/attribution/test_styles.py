@@ -41,7 +41,9 @@ def test_style_model_per_code(demo_tables):
     assert kwargs["linewidth"] == pytest.approx(0.35 * 72 / 25.4)
 
 
-def test_example_style_files_are_up_to_date(demo_tables, tmp_path):
+def test_shipped_style_files_are_not_stale(demo_tables, tmp_path):
+    """A staleness check (the generator against its own earlier output), not a correctness
+    check: test_generated_qml_is_the_hand_written_qgis_style checks the content."""
     written = write_code_styles(tmp_path / "styles", *demo_tables)
     assert len(written) == 22
     for path in written:
@@ -78,3 +80,67 @@ def test_layer_styles_table_like_qgis(tmp_path, demo_tables):
     assert styles["useAsDefault"].tolist() == [False, True]
     with pytest.raises(ValueError, match="not a spatial layer"):
         write_layer_styles(path, "nope", "<qgis/>")
+
+
+# Written by hand from QGIS's QML format (the props QGIS 3 writes for a simple line, fill and
+# marker layer) and the demo's code and colour files: STR02001 colour 3 = 100 0 0 % -> red,
+# 0.35 mm line; FAB01002 colour 12 = 30 30 30 % -> 77,77,77 outline, fill at alpha 96;
+# QUO01001 colour 5 = 0 0 100 % -> blue circle, 2 mm. Areas and points are labelled with the
+# description field, lines are not.
+HAND_WRITTEN = {
+    "STR02001": """<qgis styleCategories="Symbology|Labeling" labelsEnabled="0">
+  <renderer-v2 type="singleSymbol"><symbols><symbol type="line" name="0" alpha="1">
+    <layer class="SimpleLine" enabled="1">
+      <prop k="line_color" v="255,0,0,255"/><prop k="line_style" v="solid"/>
+      <prop k="line_width" v="0.35"/><prop k="line_width_unit" v="MM"/>
+    </layer></symbol></symbols></renderer-v2>
+  <layerGeometryType>1</layerGeometryType>
+</qgis>""",
+    "FAB01002": """<qgis styleCategories="Symbology|Labeling" labelsEnabled="1">
+  <renderer-v2 type="singleSymbol"><symbols><symbol type="fill" name="0" alpha="1">
+    <layer class="SimpleFill" enabled="1">
+      <prop k="color" v="77,77,77,96"/><prop k="style" v="solid"/>
+      <prop k="outline_color" v="77,77,77,255"/><prop k="outline_style" v="solid"/>
+      <prop k="outline_width_unit" v="MM"/>
+    </layer></symbol></symbols></renderer-v2>
+  <labeling type="simple"><settings><text-style fieldName="description"/></settings></labeling>
+  <layerGeometryType>2</layerGeometryType>
+</qgis>""",
+    "QUO01001": """<qgis styleCategories="Symbology|Labeling" labelsEnabled="1">
+  <renderer-v2 type="singleSymbol"><symbols><symbol type="marker" name="0" alpha="1">
+    <layer class="SimpleMarker" enabled="1">
+      <prop k="color" v="0,0,255,255"/><prop k="name" v="circle"/>
+      <prop k="size" v="2"/><prop k="size_unit" v="MM"/>
+    </layer></symbol></symbols></renderer-v2>
+  <labeling type="simple"><settings><text-style fieldName="description"/></settings></labeling>
+  <layerGeometryType>0</layerGeometryType>
+</qgis>""",
+}
+
+
+def _essentials(root: ET.Element) -> dict:
+    """What QGIS draws from a QML: renderer, symbol and layer types, every prop, label field,
+    geometry type (attributes QGIS fills with defaults are left out)."""
+    symbol = root.find("renderer-v2/symbols/symbol")
+    layer = symbol.find("layer")
+    text = root.find("labeling/settings/text-style")
+    return {"renderer": root.find("renderer-v2").get("type"), "symbol": symbol.get("type"),
+            "alpha": symbol.get("alpha"), "class": layer.get("class"),
+            "props": {p.get("k"): p.get("v") for p in layer.findall("prop")},
+            "label": None if text is None else text.get("fieldName"),
+            "labels_enabled": root.get("labelsEnabled"),
+            "geometry": root.findtext("layerGeometryType")}
+
+
+@pytest.mark.parametrize("code", sorted(HAND_WRITTEN))
+def test_generated_qml_is_the_hand_written_qgis_style(demo_tables, tmp_path, code):
+    written = {p.name: p for p in write_code_styles(tmp_path / "styles", *demo_tables)}
+    text = written[f"{code}.qml"].read_text(encoding="utf-8")
+    got = _essentials(ET.fromstring(text.split("\n", 1)[1]))  # after the DOCTYPE line
+    want = _essentials(ET.fromstring(HAND_WRITTEN[code]))
+    extra = set(got["props"]) - set(want["props"])
+    got["props"] = {k: v for k, v in got["props"].items() if k in want["props"]}
+    assert got == want
+    # the generator's other props are ones QGIS knows for that layer class
+    assert extra <= {"capstyle", "joinstyle", "outline_width", "angle", "outline_color",
+                     "outline_style", "outline_width_unit"}, extra

@@ -137,6 +137,24 @@ def test_tiles_stitch_into_the_untiled_lines():
         assert (c.level, shapely.normalize(shapely.linestrings(c.xy)).wkb) in geoms
 
 
+def test_blocks_trace_only_their_levels_even_at_node_heights():
+    """Each block traces only the levels its heights span; levels exactly at node heights (a
+    block's lowest or highest node) must still give every line contourpy gives on the whole
+    grid (traced just below the level, as the kernel does)."""
+    import contourpy
+
+    rng = np.random.default_rng(7)
+    z = rng.integers(0, 6, size=(23, 31)).astype("float64")  # heights on the levels themselves
+    levels = np.arange(0.0, 6.0)
+    tiled = dem_contours(z, levels, 0.0, 0.0, 1.0, 1.0, tile=4)
+    gen = contourpy.contour_generator(np.arange(31.0), np.arange(23.0), z)
+    for level in levels:
+        expected = sum(shapely.length(shapely.linestrings(line)) for line in
+                       gen.lines(level - 1024 * np.spacing(max(abs(level), 1e-300))))
+        got = sum(shapely.length(shapely.linestrings(c.xy)) for c in tiled if c.level == level)
+        assert got == pytest.approx(expected, rel=1e-9, abs=1e-9), level
+
+
 def test_tiles_stitch_around_nodata_holes():
     z, t = terrain()
     z = z.astype("float64")

@@ -30,6 +30,12 @@ DPI = 150
 def coded(tmp_path_factory):
     folder = tmp_path_factory.mktemp("sheet_codes")
     files = restitution.make(folder, {})
+    # the code file without its symbology columns: the shared style model's look, as QGIS's
+    # (the columns' own drawing is tested in test_carto_sheet_symbols.py)
+    lines = files["restitution_codes"].read_text(encoding="latin-1").splitlines()
+    files["restitution_codes"].write_bytes("\n".join(
+        line if line.startswith("#") else ";".join(line.split(";")[:4])
+        for line in lines).encode("latin-1"))
     out = folder / "coded.gpkg"
     toolbox.run("attribution:apply", {
         "INPUT": [files["restitution_model_12"], files["restitution_model_13"]],

@@ -14,7 +14,8 @@ from scipy.spatial import cKDTree
 import toolbox
 from toolbox.errors import ParameterError
 from toolbox.terrain.gridding.methods import METHODS
-from toolbox.terrain.gridding.tin_linear import tin_loo
+from toolbox.terrain.gridding.request import MethodOptions
+from toolbox.terrain.gridding.tin_constrained import tin_loo
 from toolbox.terrain.gridding.validation import error_summary, loo_predict
 from toolbox.terrain.tin.kernels import interpolate_tin, triangulate
 
@@ -53,12 +54,12 @@ def test_knn_loo_matches_brute_force():
     xy = rng.uniform(0, 200, (500, 2))
     z = 300 + 5 * np.sin(xy[:, 0] / 30) + rng.normal(0, 0.2, 500)
     xyz = np.column_stack([xy, z])
-    options = METHODS["idw"].options({"NEIGHBOURS": 8, "POWER": 1.0})
+    options = METHODS["idw"].options(MethodOptions(neighbours=8, power=1.0))
     predicted, details = loo_predict(METHODS["idw"], xyz, options, extrapolate=True)
     dd, ii = cKDTree(xy).query(xy, 9)
     want = np.sum(z[ii[:, 1:]] / dd[:, 1:], axis=1) / np.sum(1 / dd[:, 1:], axis=1)
     np.testing.assert_allclose(predicted, want, rtol=1e-12)
-    predicted, details = loo_predict(METHODS["nearest"], xyz, METHODS["nearest"].options({}),
+    predicted, details = loo_predict(METHODS["nearest"], xyz, METHODS["nearest"].options(MethodOptions()),
                                      extrapolate=False)
     assert details["hull_vertices_not_predicted"] == np.isnan(predicted).sum() > 0
     ok = np.isfinite(predicted)

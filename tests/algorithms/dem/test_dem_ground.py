@@ -87,8 +87,26 @@ def test_ground_from_point_cloud(scene):
     res = toolbox.run("dem:ground", {"INPUT": str(scene["laz"]), "CELL_SIZE": 2.0,
                                      "OUTPUT": str(tmp / "dtm.tif"),
                                      "NONGROUND": str(tmp / "ng.tif"),
+                                     "HEIGHTS": str(tmp / "heights.tif"),
                                      "GROUND_POINTS": str(tmp / "classified.laz")})
     _check_dtm(tmp / "dtm.tif", "points")
+    # HEIGHTS: the highest point of each 2 m cell above the DTM: roofs at their rendered height,
+    # open ground (5 m from any object) near 0
+    with rasterio.open(tmp / "heights.tif") as ds:
+        heights = ds.read(1, masked=True)
+        t = ds.transform
+    rows, cols = np.indices(heights.shape)
+    x, y = t.c + (cols + 0.5) * t.a - X0, t.f + (rows + 0.5) * t.e - Y0
+    for x1, y1, x2, y2, height in BUILDINGS:
+        roof = (x > x1 + 1) & (x < x2 - 1) & (y > y1 + 1) & (y < y2 - 1) & ~heights.mask
+        # the DTM under a roof is interpolated (within 1 m, _check_dtm), a cell spans 2 m of slope
+        assert np.abs(heights.data[roof] - height).max() < 1.0, height
+    gx, gy = np.meshgrid(np.linspace(-5, 5, 5), np.linspace(-5, 5, 5))
+    near = np.zeros(x.shape, bool)
+    for dx, dy in zip(gx.ravel(), gy.ravel(), strict=True):
+        near |= objects(x + dx, y + dy) > 0.05
+    open_ground = ~near & ~heights.mask
+    assert open_ground.sum() > 1000 and np.percentile(heights.data[open_ground], 99) < 0.3
     # per-point classification against the rendering's truth
     import laspy
 
@@ -121,10 +139,23 @@ def test_ground_from_point_cloud(scene):
 def test_ground_from_dsm(scene):
     tmp = scene["tmp"]
     toolbox.run("dem:ground", {"DSM": str(scene["dsm"]), "OUTPUT": str(tmp / "dtm_dsm.tif"),
-                               "NONGROUND": str(tmp / "ng_dsm.tif")})
+                               "NONGROUND": str(tmp / "ng_dsm.tif"),
+                               "HEIGHTS": str(tmp / "heights_dsm.tif")})
     with rasterio.open(tmp / "dtm_dsm.tif") as ds, rasterio.open(scene["dsm"]) as ref:
         assert ds.transform == ref.transform and ds.shape == ref.shape
     _check_dtm(tmp / "dtm_dsm.tif", "dsm")
+    # HEIGHTS: the DSM above the DTM, against the rendered objects' heights at the cell centres
+    with rasterio.open(tmp / "heights_dsm.tif") as ds:
+        heights = ds.read(1, masked=True)
+        t = ds.transform
+    rows, cols = np.indices(heights.shape)
+    x, y = t.c + (cols + 0.5) * t.a - X0, t.f + (rows + 0.5) * t.e - Y0
+    truth = objects(x, y)
+    inner = (x > 3) & (x < SIZE - 3) & (y > 3) & (y < SIZE - 3) & ~heights.mask
+    err = np.abs(heights.data - truth)[inner]
+    assert np.percentile(err, 95) < 0.5, np.percentile(err, 95)
+    roofs = inner & in_buildings(x, y, -1.0)
+    assert np.abs(heights.data - truth)[roofs].max() < 1.0  # 8-15 m roofs stand up
 
 
 def test_ground_bad_input_exit_2(scene, tmp_path):

@@ -13,7 +13,7 @@ import toolbox
 from toolbox.errors import InputDataError
 from toolbox.io.vector import points_xyz, read_points_xyz, read_vector
 from toolbox.terrain.gridding.inputs import has_duplicate_xy
-from toolbox.terrain.gridding.tin_linear import constrained_tin
+from toolbox.terrain.gridding.tin_constrained import constrained_tin
 
 X0, Y0 = 1_688_000.0, 4_799_500.0
 

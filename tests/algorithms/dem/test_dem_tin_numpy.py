@@ -19,7 +19,7 @@ from scipy.interpolate import griddata
 
 import toolbox
 from toolbox.terrain.gridding.methods import tin_linear as method
-from toolbox.terrain.gridding.tin_linear import constrained_tin
+from toolbox.terrain.gridding.tin_constrained import constrained_tin
 from toolbox.terrain.tin.kernels import rasterize_tin
 
 CRS = "EPSG:3003"

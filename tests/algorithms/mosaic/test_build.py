@@ -3,7 +3,6 @@ source cell (none, feather, multiband), feathering weights sum to 1 and ramp lin
 seam, block balancing removes a known gain/offset, inputs off the grid are resampled."""
 
 import geopandas as gpd
-import mosaic_scene
 import numpy as np
 import pytest
 import rasterio
@@ -13,16 +12,6 @@ import toolbox
 from toolbox.demo.samples.mosaic import make_block, pair_specs, texture
 from toolbox.feedback import Feedback
 from toolbox.mosaic.blend import feather_weights, multiband_blend
-
-
-@pytest.fixture(scope="module")
-def pair(tmp_path_factory):
-    return mosaic_scene.standard_pair(tmp_path_factory)
-
-
-@pytest.fixture(scope="module")
-def seams(tmp_path_factory):
-    return mosaic_scene.standard_seams(tmp_path_factory)
 
 
 def read_mosaic(path):

@@ -6,7 +6,6 @@ from __future__ import annotations
 
 from functools import partial
 
-import mosaic_scene
 import numpy as np
 import pytest
 import rasterio
@@ -14,11 +13,6 @@ import rasterio
 import toolbox
 import toolbox.mosaic.build as mosaic_build
 from toolbox.raster.writer import cog_problems
-
-
-@pytest.fixture(scope="module")
-def pair(tmp_path_factory):
-    return mosaic_scene.standard_pair(tmp_path_factory)
 
 
 def _build(pair, folder, blend, **params):

@@ -5,7 +5,6 @@ clipping (areas add up); the output folder is staged and replaced only with --ov
 from pathlib import Path
 
 import geopandas as gpd
-import mosaic_scene
 import numpy as np
 import pytest
 import rasterio
@@ -14,16 +13,6 @@ import shapely
 import toolbox
 from toolbox.demo.samples.mosaic import ORIGIN
 from toolbox.errors import OutputExistsError, ParameterError
-
-
-@pytest.fixture(scope="module")
-def pair(tmp_path_factory):
-    return mosaic_scene.standard_pair(tmp_path_factory)
-
-
-@pytest.fixture(scope="module")
-def seams(tmp_path_factory):
-    return mosaic_scene.standard_seams(tmp_path_factory)
 
 
 @pytest.fixture(scope="module")

@@ -3,25 +3,13 @@ nadir points, the least-cost seam stays inside the overlap and out of the buildi
 forbidden areas), the cut polygons partition the area exactly; overview + corridor routing."""
 
 import geopandas as gpd
-import mosaic_scene
 import numpy as np
-import pytest
 import shapely
 
 import toolbox
 from toolbox.demo.samples.mosaic import ORIGIN, make_block, pair_specs
 from toolbox.feedback import Feedback
 from toolbox.mosaic.partition import seamlines
-
-
-@pytest.fixture(scope="module")
-def pair(tmp_path_factory):
-    return mosaic_scene.standard_pair(tmp_path_factory)
-
-
-@pytest.fixture(scope="module")
-def seams(tmp_path_factory):
-    return mosaic_scene.standard_seams(tmp_path_factory)
 
 
 def layers(path):

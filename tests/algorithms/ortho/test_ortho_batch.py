@@ -75,7 +75,9 @@ def test_block_tasks_survive_pickling_for_dask_workers(tmp_path):
     import pickle
 
     from toolbox.io.raster import open_raster_info
-    from toolbox.photogrammetry.orthophoto import OrthoOptions, OrthoTask, plan_photo, run_task
+    from toolbox.ortho.block import OrthoTask, run_task
+    from toolbox.ortho.plan import plan_photo
+    from toolbox.ortho.run import OrthoOptions
 
     sc = scene.make_scene(tmp_path)
     dem = open_raster_info(sc.dem_path)
@@ -122,7 +124,9 @@ def test_a_photo_task_reports_its_warnings_to_its_caller_once(tmp_path, caplog):
     """A block task runs on a thread or a worker: its warnings travel in its report for
     ortho:batch to push once; the task itself logs nothing (they were printed twice)."""
     from toolbox.io.raster import open_raster_info
-    from toolbox.photogrammetry.orthophoto import OrthoOptions, OrthoTask, plan_photo, run_task
+    from toolbox.ortho.block import OrthoTask, run_task
+    from toolbox.ortho.plan import plan_photo
+    from toolbox.ortho.run import OrthoOptions
 
     sc = scene.make_scene(tmp_path)
     half = scene.write_dem(tmp_path / "half.tif", sc.dem[:, : sc.dem.shape[1] // 2], sc.transform)

@@ -61,8 +61,8 @@ def test_default_extent_reaches_into_a_valley_between_outline_samples(tmp_path):
     from affine import Affine
 
     from toolbox.io.raster import open_raster_info
+    from toolbox.ortho.plan import plan_photo
     from toolbox.photogrammetry.coverage import photo_footprint
-    from toolbox.photogrammetry.orthophoto import plan_photo
     from toolbox.photogrammetry.synthetic import frame_photo
 
     x0, y0, z0 = 1688200.0, 4799200.0, 1700.0
@@ -86,7 +86,7 @@ def test_dem_with_a_vertical_crs_stays_on_the_direct_path(grey, tmp_path):
     """A DEM in EPSG:3003 + EGM2008 height (compound) is the project's horizontal CRS: read
     directly (no reprojection of the cells), the same ortho as with the plain DEM."""
     from toolbox.io.raster import open_raster_info
-    from toolbox.photogrammetry.orthophoto import DemSampler
+    from toolbox.ortho.dem import DemSampler
 
     with rasterio.open(grey.dem_path) as src:
         z = src.read(1)

@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import csv
 import sys
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -15,14 +14,11 @@ import rasterio
 from affine import Affine
 
 import toolbox
+from toolbox.ortho.dem import DemSampler
+from toolbox.ortho.distortion import BLOCK_EXACT, BLOCK_INTERPOLATED
+from toolbox.ortho.heights import heights_on_grid
+from toolbox.ortho.sensor import CollinearityMap
 from toolbox.photogrammetry.camera import RadialDistortion
-from toolbox.photogrammetry.ortho import (
-    BLOCK_EXACT,
-    BLOCK_INTERPOLATED,
-    CollinearityMap,
-    heights_on_grid,
-)
-from toolbox.photogrammetry.orthophoto import DemSampler
 from toolbox.photogrammetry.synthetic import (
     box_dsm,
     frame_photo,
@@ -82,7 +78,7 @@ def hilly_scene(distortion, folder: Path):
     """A photo over a DEM with 200 m of relief and a nodata hole, and an output grid reaching
     off the DEM and off the photo: (photo, grid, DemSampler, CollinearityMap)."""
     from toolbox.io.raster import open_raster_info
-    from toolbox.photogrammetry.orthophoto import lattice_grid
+    from toolbox.ortho.plan import lattice_grid
 
     photo = frame_photo(scene.CENTRE, scene.ANGLES, width=2000, height=2000, crs=scene.CRS,
                         principal_distance_mm=153.0, distortion=distortion)
@@ -97,10 +93,13 @@ def hilly_scene(distortion, folder: Path):
 @pytest.mark.parametrize("distortion", [None, RadialDistortion.from_table(*SIENA_TABLE)])
 def test_fused_window_kernel_equals_heights_then_map(distortion, tmp_path):
     """OrthoWindows' one-pass kernel (heights + map + statistics, strip by strip) against the
-    separate DemSampler.heights + CollinearityMap + statistics on the same windows of a DEM
-    with 200 m of relief: the same coordinates bit for bit, the same counts and box, also on
-    windows partly off the DEM (NaN heights) and off the photo."""
-    from toolbox.photogrammetry.orthophoto import OrthoWindows
+    separate DemSampler.heights + CollinearityMap.project on the same windows of a DEM with
+    200 m of relief: the same coordinates bit for bit; the counts, box and largest relief
+    displacement of the report against the test's own count of those arrays, also on windows
+    partly off the DEM (NaN heights) and off the photo."""
+    from toolbox.ortho.kernels import RELIEF_ROWS
+    from toolbox.ortho.metrics import relief_displacement
+    from toolbox.ortho.windows import OrthoWindows
 
     photo, grid, sampler, cmap = hilly_scene(distortion, tmp_path)
     job = OrthoWindows(photo, grid, sampler, cmap, 300.0)
@@ -109,19 +108,27 @@ def test_fused_window_kernel_equals_heights_then_map(distortion, tmp_path):
     windows = [t.core for t in iter_windows(grid.width, grid.height, 300)]
     seen = []
     for window in windows:
-        cols, rows, box = job._compute(window)
-        assert job.source_plan(window) is None  # no resampling given: not planned
-        fused = job.per_window[job._key(window)]
+        assert job.plan(window) is None  # no resampling given: not planned
+        cols, rows, box = job.measured(window)
+        fused = job.statistics(window)
         xs, ys = grid.cell_centers(window)
         zz = sampler.heights(xs, ys)
-        c2, r2, modes, box2 = cmap.project(grid.window_transform(window), zz)
-        c2, r2, box2 = job._finish(window, xs, ys, xs[None, :], ys[:, None], zz, c2, r2, modes,
-                                   box2)
+        c2, r2, modes, _ = cmap.project(grid.window_transform(window), zz)
         assert np.array_equal(cols, c2, equal_nan=True)
         assert np.array_equal(rows, r2, equal_nan=True)
-        separate = job.per_window[job._key(window)]
-        assert box == box2 and fused.max_relief_m == pytest.approx(separate.max_relief_m, 1e-12)
-        assert replace(fused, max_relief_m=0.0) == replace(separate, max_relief_m=0.0)
+        have = np.isfinite(c2)
+        inside = have & (c2 >= 0) & (c2 <= 2000) & (r2 >= 0) & (r2 <= 2000)
+        assert box == ((float(c2.min()), float(r2.min()), float(c2.max()), float(r2.max()))
+                       if have.all() else None)
+        assert (fused.cells, fused.outside_dem, fused.outside_photo, fused.hidden) == (
+            zz.size, np.isnan(zz).sum(), (have & ~inside).sum(), 0)
+        every = slice(None, None, RELIEF_ROWS)
+        relief = relief_displacement(xs[None, :], ys[every, None], zz[every], job.centre,
+                                     300.0)[inside[every]]
+        relief = relief[np.isfinite(relief)]
+        assert fused.max_relief_m == pytest.approx(relief.max() if relief.size else 0.0,
+                                                   rel=1e-12)
+        assert fused.blocks == dict(enumerate(np.bincount(modes.ravel(), minlength=3).tolist()))
         seen.append((fused.outside_dem > 0, fused.outside_photo > 0, box is not None))
     assert np.any(seen, axis=0).all() and not np.all(seen, axis=0).any()  # every case met
 
@@ -287,43 +294,38 @@ def test_occlusion_mask_is_the_hidden_ground_of_a_building(tmp_path):
 
 
 def test_dem_in_another_crs_lattice_transform_matches_pyproj(tmp_path):
-    """Cell centres go to the DEM's CRS through a pyproj lattice + bilinear interpolation,
-    checked against pyproj on every cell here."""
+    """Cell centres go to the DEM's CRS through a pyproj lattice + bilinear interpolation: the
+    heights DemSampler gives equal scipy's bilinear interpolation of the DEM at the cell
+    centres transformed by pyproj on every cell (within the slope x 0.02 m the lattice may
+    move a point)."""
     from pyproj import Transformer
+    from scipy.interpolate import RegularGridInterpolator
 
     from toolbox.io.raster import open_raster_info
 
     z, transform = hills_dem((2268000.0, 4798000.0, 2272000.0, 4802000.0), 20.0, seed=1)
     info = open_raster_info(scene.write_dem(tmp_path / "d3004.tif", z, transform, "EPSG:3004"))
     sampler = DemSampler(info, "EPSG:3003")
-    xs = 1688000.0 + np.arange(150) * 3.0
-    ys = 4800000.0 - np.arange(130) * 3.0
-    dx, dy = sampler._to_dem(xs, ys)
+    xs = 1735500.0 + np.arange(150) * 3.0  # (on the DEM: 3003 is about 533 km west of 3004)
+    ys = 4799500.0 - np.arange(130) * 3.0
+    got = sampler.heights(xs, ys)
     xx, yy = np.meshgrid(xs, ys)
     ex, ey = Transformer.from_crs("EPSG:3003", "EPSG:3004", always_xy=True).transform(xx, yy)
-    assert np.abs(dx - ex.ravel()).max() < 0.02 and np.abs(dy - ey.ravel()).max() < 0.02
-
-
-def test_engine_form_of_the_map_crops_the_halo():
-    """The map as the raster engine's warp_raster calls it: (tile, aux arrays) -> source."""
-    from types import SimpleNamespace
-
-    from toolbox.photogrammetry.ortho import EngineMap
-
-    photo = frame_photo(scene.CENTRE, scene.ANGLES, width=800, height=800)
-    cmap = CollinearityMap(photo)
-    core = Affine(2.0, 0.0, 1688000.0, 0.0, -2.0, 4799400.0)
-    z = np.random.default_rng(0).uniform(300, 400, (12, 14))
-    tile = SimpleNamespace(halo=1, core_transform=core)
-    cols, rows = EngineMap(cmap)(tile, {"dem": z[None]})
-    ref_cols, ref_rows = cmap(core, z[1:-1, 1:-1])
-    assert cols.shape == (10, 12) and (cols == ref_cols).all() and (rows == ref_rows).all()
+    cx = transform.c + (np.arange(z.shape[1]) + 0.5) * transform.a
+    cy = transform.f + (np.arange(z.shape[0]) + 0.5) * transform.e
+    bilinear = RegularGridInterpolator((cy[::-1], cx), np.asarray(z, "float64")[::-1],
+                                       bounds_error=False, fill_value=np.nan)
+    expected = bilinear(np.column_stack([ey.ravel(), ex.ravel()])).reshape(got.shape)
+    assert np.isfinite(expected).all() and np.isfinite(got).all()
+    both = np.isfinite(got)
+    slope = max(np.abs(np.gradient(np.asarray(z, "float64"), 20.0)).max(), 1e-3)
+    assert np.abs(got - expected)[both].max() < 0.02 * slope * 1.5 + 1e-6
 
 
 def test_sky_blocks_skip_free_ground_without_changing_the_mask():
     """Rays that jump over DSM blocks lower than themselves hide exactly the cells a plain
     half-cell march hides (block maxima at +inf disable the jumps)."""
-    from toolbox.photogrammetry.ortho import hidden_cells, visibility_mask
+    from toolbox.ortho.visibility import hidden_cells, visibility_mask
     from toolbox.photogrammetry.surface import DemSurface
 
     z, t = hills_dem((0.0, 0.0, 1000.0, 1000.0), 5.0, relief=200.0, seed=4)
@@ -351,19 +353,19 @@ def test_planned_maps_are_the_shifted_maps_blanked_outside_the_photo(distortion,
     the cells outside the photo or without image point (but for cells within rounding of the
     edge), and the statistics are the same."""
     from toolbox.io.raster import iter_windows
-    from toolbox.photogrammetry.orthophoto import OrthoWindows
-    from toolbox.raster.warp import OUTSIDE
+    from toolbox.ortho.windows import OrthoWindows
+    from toolbox.raster.maps import OUTSIDE
 
     photo, grid, sampler, cmap = hilly_scene(distortion, tmp_path)
     plain = OrthoWindows(photo, grid, sampler, cmap, 300.0)
     planned = OrthoWindows(photo, grid, sampler, cmap, 300.0, resampling="bilinear")
     kinds = set()
     for window in [t.core for t in iter_windows(grid.width, grid.height, 300)]:
-        cols, rows, _ = plain._compute(window)
-        plan = planned.source_plan(window)
+        cols, rows, _ = plain.measured(window)
+        plan = planned.plan(window)
         assert plan is not None
-        mx, my = planned(window)
-        assert planned.per_window[planned._key(window)] == plain.per_window[plain._key(window)]
+        mx, my = planned.planned_maps(plan)
+        assert planned.statistics(window) == plain.statistics(window)
         inside = (cols >= 0) & (cols <= 2000) & (rows >= 0) & (rows <= 2000)
         edge = np.isfinite(cols) & (np.minimum(np.abs(cols - np.round(cols / 2000) * 2000),
                                                np.abs(rows - np.round(rows / 2000) * 2000))
@@ -398,8 +400,8 @@ def test_block_modes_from_the_dem_bound_the_map_within_the_tolerance(distortion,
     where they allow it, is the photo model's own projection of the same heights within the
     stated 0.05 px (photo.ground_to_pixel, independent of the kernels)."""
     from toolbox.io.raster import iter_windows
-    from toolbox.photogrammetry.ortho import block_modes
-    from toolbox.photogrammetry.orthophoto import OrthoWindows
+    from toolbox.ortho.distortion import block_modes
+    from toolbox.ortho.windows import OrthoWindows
 
     photo, grid, sampler, cmap = hilly_scene(distortion, tmp_path)  # blocks of 32, 0.05 px
     plain = CollinearityMap(frame_photo(scene.CENTRE, scene.ANGLES, width=2000, height=2000,

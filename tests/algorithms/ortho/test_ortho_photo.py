@@ -305,7 +305,7 @@ def test_ortho_in_another_crs_recovers_the_texture(block, tmp_path):
 
 
 @pytest.mark.parametrize("bands, extra", [(1, {}), (1, {"OUTSIDE": "nodata", "NODATA": 7}),
-                                          (1, {"RESAMPLING": "cubic", "TILE_SIZE": 64}),
+                                          (1, {"RESAMPLING": "cubic", "MAP_BLOCK": 64}),
                                           (3, {})])
 def test_planned_windows_give_the_ortho_of_the_generic_path(block, tmp_path, monkeypatch, bands,
                                                             extra):
@@ -316,22 +316,22 @@ def test_planned_windows_give_the_ortho_of_the_generic_path(block, tmp_path, mon
     level (the two maps differ by float32 rounding), the same footprint but for cells within
     rounding of the photo's edge, the same report. Grey + alpha takes the warp's band by band
     path, grey with nodata and RGB + alpha its pixel-interleaved one."""
-    from toolbox.photogrammetry.orthophoto import OrthoWindows
+    from toolbox.ortho.windows import OrthoWindows
 
     sc = block if bands == 1 else scene.make_scene(tmp_path, bands=bands)
 
     planned = []
-    real_plan = OrthoWindows._plan
+    real_plan = OrthoWindows.plan
 
     def spy(self, *args):
         plan = real_plan(self, *args)
         planned.append(plan is not None)
         return plan
 
-    monkeypatch.setattr(OrthoWindows, "_plan", spy)
+    monkeypatch.setattr(OrthoWindows, "plan", spy)
     fast = run_ortho(sc, tmp_path / "planned.tif", **extra)
     assert planned and all(planned)
-    monkeypatch.setattr(OrthoWindows, "_plan", lambda self, *args: None)
+    monkeypatch.setattr(OrthoWindows, "plan", lambda self, *args: None)
     slow = run_ortho(sc, tmp_path / "generic.tif", **extra)
     with rasterio.open(tmp_path / "planned.tif") as a, rasterio.open(tmp_path / "generic.tif") as b:
         pa, pb = a.read(), b.read()
@@ -345,3 +345,24 @@ def test_planned_windows_give_the_ortho_of_the_generic_path(block, tmp_path, mon
     ra, rb = fast["STATISTICS"], slow["STATISTICS"]
     for key in ("outside_photo_fraction", "outside_dem_fraction", "max_relief_displacement_m"):
         assert ra[key] == pytest.approx(rb[key], rel=1e-4, abs=1e-6), key
+
+
+def test_incidence_angles_do_not_change_the_ortho(block, tmp_path):
+    """Asking for INCIDENCE takes the windows off the planned path (their angles need the
+    heights of a haloed window): the ortho is the planned one to 1 grey level and within
+    rounding of the photo's edge, the report's counts the same, and the angles cover exactly
+    the cells with a DEM height."""
+    plain = run_ortho(block, tmp_path / "plain.tif")
+    angled = run_ortho(block, tmp_path / "angled.tif", INCIDENCE=tmp_path / "inc.tif")
+    with rasterio.open(tmp_path / "plain.tif") as a, rasterio.open(tmp_path / "angled.tif") as b:
+        pa, pb, ma, mb = a.read(), b.read(), a.dataset_mask(), b.dataset_mask()
+    with rasterio.open(tmp_path / "inc.tif") as src:
+        angles = src.read(1)
+    assert (ma != mb).mean() < 1e-3 and 0 < (ma > 0).mean() < 1
+    both = (ma > 0) & (mb > 0)
+    assert np.abs(pa.astype(int) - pb.astype(int))[:, both].max() <= 1
+    ra, rb = plain["STATISTICS"], angled["STATISTICS"]
+    for key in ("outside_photo_fraction", "outside_dem_fraction", "max_relief_displacement_m"):
+        assert ra[key] == pytest.approx(rb[key], rel=1e-4, abs=1e-6), key
+    assert np.isfinite(angles).mean() == pytest.approx(1 - ra["outside_dem_fraction"], abs=1e-9)
+    assert 0 <= np.nanmin(angles) and np.nanmax(angles) < 90

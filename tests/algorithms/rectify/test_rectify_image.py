@@ -15,8 +15,9 @@ import toolbox
 from toolbox.errors import CanceledError, InputDataError, ParameterError
 from toolbox.feedback import Feedback
 from toolbox.io.grid import GridSpec
-from toolbox.raster.engine import warp_to_geotiff
-from toolbox.raster.warp import HomographyMap, inside_mask
+from toolbox.raster.homography import HomographyMap
+from toolbox.raster.resample import inside_mask
+from toolbox.raster.warp import warp_to_geotiff
 from toolbox.transforms.rectification import default_cell_size, footprint, parse_pixel_to_image
 
 pytestmark = pytest.mark.filterwarnings("ignore::rasterio.errors.NotGeoreferencedWarning")

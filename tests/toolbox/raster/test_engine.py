@@ -23,9 +23,9 @@ from toolbox.raster.engine import (
     iter_tiles,
     process_raster,
     read_window,
-    warp_raster,
 )
-from toolbox.raster.warp import HomographyMap, warp_layout
+from toolbox.raster.homography import HomographyMap
+from toolbox.raster.warp import warp_layout, warp_raster
 from toolbox.raster.writer import RasterWriter, cog_problems
 from toolbox.tiles import Executor
 

@@ -21,6 +21,21 @@ def test_group_quantiles_match_numpy():
         assert np.isclose(a, np.quantile(group, 0.25)) and np.isclose(b, np.quantile(group, 0.75))
 
 
+def test_group_quantiles_large_keys_ties_and_a_constant_group():
+    """Cell indices near 2^31 (the combined sort key's worst case), tied heights, heights
+    1 mm apart, one group of equal values: still numpy's quantiles group by group (to 0.1 mm)."""
+    rng = np.random.default_rng(5)
+    keys = rng.choice(np.array([0, 7, 2**31 - 2, 2**31 - 1, 123_456_789]), 4000)
+    values = np.round(rng.normal(300, 20, 4000), 3)  # mm steps: ties and near-ties
+    values[keys == 7] = 312.5
+    cells, median, q25, q75, counts = group_quantiles(keys, values)
+    assert list(cells) == sorted(set(keys.tolist()))
+    for k, m, a, b, n in zip(cells, median, q25, q75, counts, strict=True):
+        group = values[keys == k]
+        assert n == len(group)
+        np.testing.assert_allclose([a, m, b], np.quantile(group, [0.25, 0.5, 0.75]), atol=1e-4)
+
+
 def test_fuse_two_pairs():
     t = Affine(2.0, 0, 1000.0, 0, -2.0, 2000.0)  # 5 x 4 cells of 2 m
     rng = np.random.default_rng(5)

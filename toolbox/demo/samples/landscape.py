@@ -179,6 +179,46 @@ def _landscape_raster() -> tuple[np.ndarray, tuple[float, float]]:
     return np.clip(rgb, 12, 243), (xmin, ymax)
 
 
+BUILDING_HEIGHTS = (7.0, 16.0)  # m, eaves of two to five storeys, drawn per building (seeded)
+SURFACE_CELL = 1.0  # m, the surface the block's photos are rendered on
+
+
+def building_heights() -> np.ndarray:
+    """Height (m) of each building of :func:`landscape_vectors` above its highest ground."""
+    n = len(landscape_vectors()["buildings"])
+    return np.random.default_rng(SEED + 2).uniform(*BUILDING_HEIGHTS, n)
+
+
+@functools.cache
+def landscape_surface() -> tuple[np.ndarray, object]:
+    """The surface the block's photos see (a DSM): the sample terrain, bilinear at 1 m, with
+    every building a flat roof at its highest ground + :func:`building_heights` (vertical
+    walls). (rows, cols) float64 and its transform (the terrain's extent)."""
+    import rasterio.features
+    from affine import Affine
+    from scipy import ndimage
+
+    from toolbox.demo.samples.terrain import terrain
+
+    z, t = terrain()
+    k = round(abs(t.a) / SURFACE_CELL)
+    rows, cols = z.shape[0] * k, z.shape[1] * k
+    transform = Affine(SURFACE_CELL, 0, t.c, 0, -SURFACE_CELL, t.f)
+    # centres of the fine cells in the coarse grid's index space (cell centres at i + 0.5)
+    fine = (np.arange(rows) + 0.5) / k - 0.5, (np.arange(cols) + 0.5) / k - 0.5
+    rr, cc = np.meshgrid(*fine, indexing="ij")
+    ground = ndimage.map_coordinates(z.astype("float64"), [rr, cc], order=1, mode="nearest")
+    houses = landscape_vectors()["buildings"]
+    label = rasterio.features.rasterize(((g, i + 1) for i, g in enumerate(houses)),
+                                        (rows, cols), transform=transform, dtype="int32")
+    base = ndimage.maximum(ground, label, index=np.arange(1, len(houses) + 1))
+    roof = np.asarray(base, dtype="float64") + building_heights()
+    inside = label > 0
+    surface = ground.copy()
+    surface[inside] = roof[label[inside] - 1]
+    return surface, transform
+
+
 def landscape_texture():
     """The texture callable ``(X, Y) -> (3,) + X.shape`` (bilinear in the 1 m raster)."""
     from scipy import ndimage

@@ -11,10 +11,11 @@ of 32. Exterior orientations, cameras and distortion are the block adjustment's
 (``siena_project.yaml``).
 
 Also renders all six photos of the block into ``siena_block/`` (with its ``project.yaml``), for
-the tie-point and bundle steps. Writes ``siena_ortho/<photo>.tif`` (RGB, not georeferenced, as a
-scan),
-``siena_ortho/project.yaml`` (an orientation project naming them) and
-``siena_ortho/camera_1_7150.yaml`` (that photo's camera alone). Deterministic.
+the tie-point, bundle, dense-matching and true-ortho steps: these see the landscape's buildings
+standing (:func:`.landscape.landscape_surface`, flat roofs 7-16 m high on a 1 m surface), so
+the DSM has roofs and the seams have buildings to go round. Writes ``siena_ortho/<photo>.tif``
+(RGB, not georeferenced, as a scan), ``siena_ortho/project.yaml`` (an orientation project
+naming them) and ``siena_ortho/camera_1_7150.yaml`` (that photo's camera alone). Deterministic.
 """
 
 from __future__ import annotations
@@ -59,21 +60,23 @@ def demo_project(target: Path, photo_ids=PHOTOS):
 
 
 def make(folder: Path, made: dict) -> dict:
+    from toolbox.demo.samples.landscape import landscape_surface
     from toolbox.demo.samples.terrain import terrain
     from toolbox.photogrammetry.project import save_project
     from toolbox.photogrammetry.synthetic import render_photo, write_photo
 
-    z, transform = terrain()
     paint = texture()
-    projects, images = {}, {}
-    for name, ids in (("siena_ortho", PHOTOS), ("siena_block", BLOCK)):
+    projects = {}
+    # the three photos on the terrain (the ortho tests compare their orthos with the texture);
+    # the block's six on the landscape's surface, buildings standing (for the DSM, true orthos)
+    for name, ids, (z, transform) in (("siena_ortho", PHOTOS, terrain()),
+                                      ("siena_block", BLOCK, landscape_surface())):
         target = Path(folder) / name
         target.mkdir(parents=True, exist_ok=True)
         projects[name] = demo_project(target, ids)
         for photo in projects[name].photos.values():
-            if photo.id not in images:  # a photo of both sets is rendered once
-                images[photo.id] = render_photo(photo, z, transform, paint, dtype="uint8", fill=0)
-            write_photo(photo.image, images[photo.id])
+            write_photo(photo.image, render_photo(photo, z, transform, paint, dtype="uint8",
+                                                  fill=0))
     paths = {name: save_project(project, Path(folder) / name / "project.yaml")
              for name, project in projects.items()}
     target = Path(folder) / "siena_ortho"

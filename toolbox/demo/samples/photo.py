@@ -24,6 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
+from toolbox.transforms.plane import apply_homography
+
 CRS = "EPSG:3003"
 PRINCIPAL_DISTANCE_MM = 303.55
 FRAME_MM = 230.0
@@ -65,11 +67,6 @@ def ground_to_pixel() -> np.ndarray:
     return matrix / matrix[2, 2]
 
 
-def _apply(matrix: np.ndarray, xy: np.ndarray) -> np.ndarray:
-    p = np.column_stack([xy, np.ones(len(xy))]) @ matrix.T
-    return p[:, :2] / p[:, 2:]
-
-
 def control_points() -> tuple[list[str], np.ndarray]:
     """Ids and exact ground X, Y of the 12 points (a jittered 4 x 3 layout inside the photo)."""
     rng = np.random.default_rng(4)
@@ -78,7 +75,7 @@ def control_points() -> tuple[list[str], np.ndarray]:
     rows = np.array([0.14, 0.5, 0.86]) * SIZE_PX
     pixels = np.array([[c, r] for r in rows for c in cols])
     pixels += rng.uniform(-40, 40, pixels.shape)
-    ground = np.round(_apply(to_ground, pixels), 3)
+    ground = np.round(apply_homography(to_ground, pixels), 3)
     return [f"P{i + 1:02d}" for i in range(len(ground))], ground
 
 
@@ -115,7 +112,7 @@ def render_photo(targets: np.ndarray) -> np.ndarray:
     to_ground = np.linalg.inv(ground_to_pixel())
     c = np.arange(SIZE_PX) + 0.5
     cc, rr = np.meshgrid(c, c)
-    ground = _apply(to_ground, np.column_stack([cc.ravel(), rr.ravel()]))
+    ground = apply_homography(to_ground, np.column_stack([cc.ravel(), rr.ravel()]))
     x = ground[:, 0].reshape(cc.shape)
     y = ground[:, 1].reshape(cc.shape)
     return np.moveaxis(orthoimage(x, y, targets), -1, 0)
@@ -137,7 +134,7 @@ def make(folder: Path, made: dict) -> dict:
                            dtype="uint8", quality=92) as dst:
             dst.write(data)
     rng = np.random.default_rng(20090331)
-    pixels = _apply(ground_to_pixel(), ground) + rng.normal(0.0, NOISE_PX, ground.shape)
+    pixels = apply_homography(ground_to_pixel(), ground) + rng.normal(0.0, NOISE_PX, ground.shape)
     pixels[ids.index(GROSS_ERROR_ID)] += GROSS_ERROR_PX
     z, transform = terrain()
     heights = sample_heights(z, transform, ground[:, 0], ground[:, 1])

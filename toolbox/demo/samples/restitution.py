@@ -27,15 +27,17 @@ FALSE_ORIGIN = (1688000.0, 4799000.0)
 
 CODE_FILE_TEXT = """\
 # file dei codici - carta tecnica 1:500, foglio Siena est
-codice;descrizione;tipologia;colore
-FAB01002;muro perimetrale di fabbricato civile;poligono;12
-STR02001;limite di strada;polilinea;3
-QUO01001;punto quotato;punto;5
-VEG01001;area a verde;poligono;1
-CUR01001;curva di livello direttrice;polilinea;7
-ALB01001;albero isolato;punto;1
-TOP01001;toponimo (località);testo;8
-MAR01001;marciapiede;polilinea;2
+# spessore (mm), tipo linea, simbolo, campitura: the map sheet's symbology; codice consegna: the
+# code of the delivered file (illustrative names; the marciapiede is delivered as a road edge)
+codice;descrizione;tipologia;colore;spessore;tipo linea;simbolo;campitura;codice consegna
+FAB01002;muro perimetrale di fabbricato civile;poligono;12;0.25;continua;;45/1.0;EDIFICIO
+STR02001;limite di strada;polilinea;3;0.18;continua;;;BORDO_STRADA
+QUO01001;punto quotato;punto;5;0.13;;dot 0.7;;PUNTO_QUOTATO
+VEG01001;area a verde;poligono;1;0.13;tratteggiata;;solid;AREA_VERDE
+CUR01001;curva di livello direttrice;polilinea;7;0.25;;;;CURVA_DIRETTRICE
+ALB01001;albero isolato;punto;1;0.13;;tree 2.0;;ALBERO
+TOP01001;toponimo (località);testo;8;;;;;TOPONIMO
+MAR01001;marciapiede;polilinea;2;0.18;continua;;;BORDO_STRADA
 """
 
 COLOUR_FILE_TEXT = """\

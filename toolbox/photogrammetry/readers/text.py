@@ -43,6 +43,7 @@ from typing import Any
 import numpy as np
 
 from toolbox.errors import InputDataError, ParameterError
+from toolbox.io.text import is_number
 from toolbox.photogrammetry.exterior import ExteriorOrientation
 from toolbox.photogrammetry.rotation import angle_unit as canonical_unit
 from toolbox.photogrammetry.rotation import rotation_matrix
@@ -229,7 +230,7 @@ def read_opk_text(text: str, source: str = "<text>", angle_unit: str | None = No
         parts = _split(line)
         if not header_seen:
             header_seen = True
-            if not _is_number(parts[1] if len(parts) > 1 else ""):
+            if not is_number(parts[1] if len(parts) > 1 else ""):
                 cols = _match_columns(parts, ("photo", "x0", "y0", "z0", "omega", "phi", "kappa"))
                 missing = [k for k in ("photo", "x0", "y0", "z0", "omega", "phi", "kappa")
                            if k not in cols]
@@ -257,14 +258,6 @@ def read_opk_text(text: str, source: str = "<text>", angle_unit: str | None = No
     if conventions:
         table.notes.append("rotation matrix columns: " + ", ".join(sorted(conventions)))
     return table
-
-
-def _is_number(text: str) -> bool:
-    try:
-        float(text)
-    except ValueError:
-        return False
-    return True
 
 
 def _matrix_convention(given: np.ndarray, eo: ExteriorOrientation, source: str,

@@ -91,6 +91,8 @@ def _ring_start(x0, y0, size, nbx, nby, qx, qy):
     return ix, iy, margin, (ox if ox > oy else oy), (fx_ if fx_ > fy_ else fy_)
 
 
+# duplicate-ok: knn_one and sector_one inline _insert by hand in their innermost loop,
+# the k-nearest search's hot path (left as written; not re-measured in this change)
 @njit(nogil=True, cache=True)
 def knn_one(px, py, offsets, x0, y0, size, nbx, nby, qx, qy, k, r2max, skip,
             best_d2, best_i):
@@ -375,6 +377,7 @@ def block_knn(px, py, offsets, x0, y0, size, nbx, nby, xs, ys, c0, c1, r0, r1, m
             out_near[t] = near
 
 
+# duplicate-ok: the block-of-cells loop of polynomial._grid (see there)
 @njit(nogil=True, cache=True)
 def _grid_knn(px, py, offsets, x0, y0, size, nbx, nby, xs, ys, mask, k, r2max, block,
               best_d2, best_i, cand_x, cand_y, cand_p, cand_d, bd2, bi, bn, bnear, out_d2,

@@ -15,7 +15,7 @@ from toolbox.io.grid import GridSpec
 from toolbox.terrain.gridding.inputs import GriddingData
 from toolbox.terrain.gridding.masks import convex_hull, hull_mask, polygon_mask
 from toolbox.terrain.gridding.neighbours import PointBins
-from toolbox.terrain.gridding.parameters import DEFAULT_NODATA, DEFAULT_TILE
+from toolbox.terrain.gridding.request import DEFAULT_TILE, GriddingRequest
 
 
 @dataclass
@@ -56,13 +56,13 @@ class GridRun:
         return mask
 
 
-def prepare_grid(params: dict, data: GriddingData, limit_to_hull: bool = True) -> GridRun:
+def prepare_grid(request: GriddingRequest, data: GriddingData,
+                 limit_to_hull: bool = True) -> GridRun:
     """The output grid and the cell selection of a run (after reading the data)."""
-    from toolbox.raster.engine import grid_from_parameters
-
-    grid = grid_from_parameters(params, data.bounds, data.crs)
+    grid = request.grid.grid(data.bounds, data.crs)
+    cells = request.cells
     hull = None
-    if limit_to_hull and not params.get("EXTRAPOLATE", False):
+    if limit_to_hull and not cells.extrapolate:
         from toolbox.terrain.points import CollinearError, check_not_collinear
 
         try:
@@ -77,15 +77,15 @@ def prepare_grid(params: dict, data: GriddingData, limit_to_hull: bool = True) -
                                  "hull has no area and every cell would be nodata (set "
                                  "EXTRAPOLATE to compute cells beyond the hull)")
     mask_geometry = None
-    if params.get("MASK") is not None:
+    if cells.mask is not None:
         from shapely import union_all
 
         from toolbox.io.vector import read_vector
 
-        frame = read_vector(params["MASK"], name="MASK")
+        frame = read_vector(cells.mask, name="MASK")
         mask_geometry = union_all(frame.geometry.values)
-    return GridRun(data, grid, int(params.get("TILE_SIZE") or DEFAULT_TILE), hull, mask_geometry,
-                   float(params.get("NODATA", DEFAULT_NODATA)))
+    return GridRun(data, grid, int(request.execution.tile_size or DEFAULT_TILE), hull,
+                   mask_geometry, float(cells.nodata))
 
 
 class NeighbourPlanner:

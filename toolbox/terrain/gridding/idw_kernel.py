@@ -76,6 +76,7 @@ def _grid_sectors(px, py, offsets, x0, y0, size, nbx, nby, pz, xs, ys, mask, r2m
             out[r, c] = idw_value(best_d2, best_i, pz, n, power)
 
 
+# duplicate-ok: the block-of-cells loop of polynomial._grid (see there)
 @njit(nogil=True, cache=True)
 def _grid(px, py, offsets, x0, y0, size, nbx, nby, pz, xs, ys, mask, k, r2max, power,
           min_neighbours, max_d2, block, best_d2, best_i, cand_x, cand_y, cand_p, cand_d, bd2,

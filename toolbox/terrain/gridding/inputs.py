@@ -1,8 +1,8 @@
 """Input data of the DEM gridding algorithms: points, line vertices and breaklines, read with
 their CRS checked, NaN/inf refused and duplicate XY merged by a stated rule.
 
-Duplicate XY rule (``DUPLICATES``): points at the same plan position (within
-``DUPLICATE_TOLERANCE``, default: identical coordinates) become one point whose height is the
+Duplicate XY rule (``PointSources.duplicates``): points at the same plan position (within
+``duplicate_tolerance``, default: identical coordinates) become one point whose height is the
 ``mean`` (default), the ``first`` (input order: INPUT, LINES, BREAKLINES), the ``min`` or the
 ``max`` of theirs, or the run stops (``error``); see
 :func:`toolbox.terrain.points.merge_duplicate_xy`. What was merged is reported.
@@ -15,10 +15,13 @@ from typing import Any
 
 import numpy as np
 
-from toolbox.algorithm import Algorithm
 from toolbox.errors import InputDataError
 from toolbox.feedback import Feedback
+from toolbox.terrain.gridding.request import PointSources
 from toolbox.terrain.points import DuplicateReport, local_origin, merge_duplicate_xy
+
+#: the inputs' names in messages (the algorithms' parameter names)
+UI_NAMES = {"points": "INPUT", "lines": "LINES", "breaklines": "BREAKLINES"}
 
 
 # -- input data -----------------------------------------------------------------------------------
@@ -73,63 +76,51 @@ class GriddingData:
         return (float(lo[0]), float(lo[1]), float(hi[0]), float(hi[1]))
 
 
-def check_sources(alg: Algorithm, params: dict) -> None:
-    """Cross-parameter checks shared by every gridding algorithm (raise ParameterError)."""
-    if params.get("INPUT") is None and params.get("LINES") is None \
-            and params.get("BREAKLINES") is None:
-        raise alg.fail("INPUT", "is required: give points (INPUT) and/or lines (LINES, "
-                       "BREAKLINES) to grid")
-    if params.get("INPUT") is not None:
-        from toolbox.io.pointcloud import cloud_filter
+def read_sources(sources: PointSources, feedback: Feedback,
+                 other_crs: dict[str, Any] | None = None) -> GriddingData:
+    """Read the points and line vertices, check CRSs, merge duplicate XY.
 
-        cloud_filter(params["INPUT"], params.get("CLASSES"), params.get("RETURNS"),
-                     params.get("CRS"))
-
-
-def read_sources(params: dict, feedback: Feedback) -> GriddingData:
-    """Read the points and line vertices, check CRSs, merge duplicate XY."""
+    ``other_crs``: the CRS of the run's other inputs by name (TEMPLATE, EXTENT, MASK), which
+    must agree with the data's.
+    """
     import shapely
 
     from toolbox.io.crs import common_crs
     from toolbox.io.vector import read_vector, vertices_xyz
     from toolbox.terrain.points import read_mass_points
 
-    named = {name: params[name].crs for name in ("INPUT", "LINES", "BREAKLINES", "MASK")
-             if params.get(name) is not None}
-    if params.get("TEMPLATE") is not None:
-        named["TEMPLATE"] = params["TEMPLATE"].crs
-    if params.get("EXTENT") is not None and params["EXTENT"].crs is not None:
-        named["EXTENT"] = params["EXTENT"].crs
-    crs = common_crs(named, params.get("CRS"))
+    named = {UI_NAMES[role]: layer.crs for role, layer in sources.layers().items()}
+    named |= {name: crs for name, crs in (other_crs or {}).items() if crs is not None}
+    crs = common_crs(named, sources.crs)
     if crs is None:
         feedback.push_warning("no input has a CRS and CRS is not given: the DEM has no CRS")
     parts, counts = [], {}
     segments: list[np.ndarray] = []
     offset = 0
     with feedback.timed("read"):
-        if params.get("INPUT") is not None:
-            xyz, cloud = read_mass_points(params["INPUT"], params.get("Z_FIELD"),
-                                          params.get("CLASSES"), params.get("RETURNS"),
-                                          params.get("CRS"))
+        if sources.points is not None:
+            xyz, cloud = read_mass_points(sources.points, sources.z_field, sources.classes,
+                                          sources.returns, sources.crs)
             parts.append(xyz)
             counts["points"] = len(xyz)
             if cloud is not None:
                 counts["point_cloud"] = cloud
             offset += len(xyz)
-        for name in ("LINES", "BREAKLINES"):
-            if params.get(name) is None:
+        for role in ("lines", "breaklines"):
+            layer, name = getattr(sources, role), UI_NAMES[role]
+            if layer is None:
                 continue
-            frame = read_vector(params[name], name=name)
+            frame = read_vector(layer, name=name)
             frame = frame[~(frame.geometry.isna() | frame.geometry.is_empty)]
             if len(frame) == 0:
                 raise InputDataError(f"{name} has no features with a geometry")
             frame = frame.explode(index_parts=False).reset_index(drop=True)
             if not set(shapely.get_type_id(frame.geometry.values).tolist()) <= {1, 2}:
                 raise InputDataError(f"{name} must contain lines, found other geometry types")
-            xyz, part = vertices_xyz(frame, params.get(f"{name}_Z_FIELD"), name)
+            xyz, part = vertices_xyz(frame, getattr(sources, f"{role}_z_field"), name)
             parts.append(xyz)
-            counts[f"{name.lower()}_vertices"] = len(xyz)
-            if name == "BREAKLINES" and len(xyz) > 1:
+            counts[f"{role}_vertices"] = len(xyz)
+            if role == "breaklines" and len(xyz) > 1:
                 same = part[1:] == part[:-1]
                 first = np.flatnonzero(same) + offset
                 segments.append(np.column_stack([first, first + 1]))
@@ -138,8 +129,8 @@ def read_sources(params: dict, feedback: Feedback) -> GriddingData:
         raise InputDataError("no data points: the inputs are empty")
     xyz = parts[0] if len(parts) == 1 else np.vstack(parts)
     seg = np.vstack(segments) if segments else np.zeros((0, 2), dtype=np.int64)
-    return merge_points(xyz, seg, crs, counts, params.get("DUPLICATES", "mean"),
-                        float(params.get("DUPLICATE_TOLERANCE") or 0.0), feedback)
+    return merge_points(xyz, seg, crs, counts, sources.duplicates or "mean",
+                        float(sources.duplicate_tolerance or 0.0), feedback)
 
 
 def merge_points(xyz: np.ndarray, seg: np.ndarray, crs: Any, counts: dict, rule: str,

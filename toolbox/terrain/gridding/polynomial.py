@@ -28,7 +28,7 @@ from numba import njit
 from toolbox.terrain.gridding.bin_kernels import block_knn, knn_one
 from toolbox.terrain.gridding.idw_kernel import _cell
 from toolbox.terrain.gridding.neighbours import PointBins, block_scratch, block_size
-from toolbox.terrain.gridding.parameters import (  # noqa: F401 - part of this module's API
+from toolbox.terrain.gridding.request import (  # noqa: F401 - part of this module's API
     DEFAULT_MIN_RCOND,
     ORDER_NAMES,
     TERMS,
@@ -73,6 +73,8 @@ def _moments1(dx, dy, z, n, inv, gram, rhs):
     rhs[2] = z01
 
 
+# duplicate-ok: _moments1/2/3 unroll the normal-equation sums of each order by hand, so
+# that numba compiles straight-line code (not re-measured in this change)
 @njit(nogil=True, cache=True, inline="always")
 def _moments2(dx, dy, z, n, inv, gram, rhs):
     s10 = s01 = s20 = s11 = s02 = 0.0
@@ -359,6 +361,8 @@ def fit_at_centre(dx, dy, z, n, order, min_rcond, gram, rhs, diag, coef):
     return coef[0], used
 
 
+# duplicate-ok: the block-of-cells loop of idw_kernel._grid and bin_kernels._grid_knn; numba
+# cached kernels cannot take the per-cell step as an argument without a dispatch per cell
 @njit(nogil=True, cache=True)
 def _grid(px, py, offsets, x0, y0, size, nbx, nby, pz, xs, ys, mask, k, r2max, order,
           min_rcond, min_neighbours, max_d2, block, best_d2, best_i, cand_x, cand_y, cand_p,

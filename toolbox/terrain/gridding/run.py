@@ -2,8 +2,8 @@
 
     read points      inputs.read_sources      INPUT points + LINES / BREAKLINES vertices, CRS
                                               checked, duplicate XY merged, local origin
-    prepare the grid grid.prepare_grid        the raster engine's grid rules (CELL_SIZE, EXTENT,
-                                              TEMPLATE, MAX_CELLS), convex hull, MASK
+    prepare the grid grid.prepare_grid        the raster engine's grid rules (cell size, extent,
+                                              template, size guard), convex hull, mask
     plan tiles       method.plan_tiles        per tile: the arrays it needs (its points, its
                                               triangles, its cell mask) and the kernel
     one kernel/tile  raster.engine            local threads or a Dask cluster, in tile order
@@ -22,40 +22,47 @@ import numpy as np
 from toolbox.feedback import Feedback
 from toolbox.terrain.gridding.grid import GridRun, prepare_grid
 from toolbox.terrain.gridding.inputs import GriddingData, read_sources, require_points
+from toolbox.terrain.gridding.request import GriddingRequest
 
 
-def grid_dem(method: Any, params: dict[str, Any], feedback: Feedback,
+def grid_dem(method: Any, request: GriddingRequest, feedback: Feedback,
              data: GriddingData | None = None) -> dict[str, Any]:
-    """Run ``dem:<method>``: returns the algorithm's outputs (OUTPUT, STATISTICS, QUALITY).
+    """Grid a DEM with ``method`` (a :class:`~toolbox.terrain.gridding.methods.base.Method`):
+    writes ``request.output`` (and ``request.quality``) and returns the STATISTICS.
 
     ``data``: points already read and merged (e.g. the ground points of ``dem:ground``);
-    default: read from the parameters' INPUT, LINES and BREAKLINES.
+    default: read from ``request.sources``.
     """
-    data = read_sources(params, feedback) if data is None else data
+    data = read_sources(request.sources, feedback, other_crs(request)) if data is None else data
     require_points(data, method.min_points, f"dem:{method.name}")
-    run = prepare_grid(params, data, limit_to_hull=method.limits_to_hull)
-    options = method.options(params)
-    stats = grid_statistics(run, params)
+    run = prepare_grid(request, data, limit_to_hull=method.limits_to_hull)
+    options = method.options(request.method)
+    stats = grid_statistics(run, request)
     feedback.set_progress(5)
     tiles = method.plan_tiles(run, options, feedback)
-    written = write_dem(run, tiles, params, feedback, start=5,
-                        end=90 if params.get("QUALITY") else 98)
+    written = write_dem(run, tiles, request, feedback, start=5,
+                        end=90 if request.quality is not None else 98)
     counts = written.pop("counts")
     stats["method"] = {"name": method.name, "options": jsonable_options(options),
                        **method.summarise(counts), **tiles.info}
     stats["cells"] = written
-    result: dict[str, Any] = {"OUTPUT": params["OUTPUT"]}
-    if params.get("QUALITY") is not None:
+    if request.quality is not None:
         with feedback.timed("cross_validation"):
-            report = quality_report(method, data, options, params, feedback.step(90, 99))
-        write_quality(params["QUALITY"], report)
+            report = quality_report(method, data, options, request, feedback.step(90, 99))
+        write_quality(request.quality, report)
         stats["cross_validation"] = report["methods"][method.name]
-        result["QUALITY"] = params["QUALITY"]
-    result["STATISTICS"] = stats
-    return result
+    return stats
 
 
-def write_dem(run: GridRun, tiles: Any, params: dict, feedback: Feedback,
+def other_crs(request: GriddingRequest) -> dict[str, Any]:
+    """The CRS of the run's inputs besides the data (MASK, TEMPLATE, EXTENT), by name."""
+    named = {"MASK": request.cells.mask, "TEMPLATE": request.grid.template,
+             "EXTENT": request.grid.extent}
+    return {name: getattr(value, "crs", None) for name, value in named.items()
+            if value is not None}
+
+
+def write_dem(run: GridRun, tiles: Any, request: GriddingRequest, feedback: Feedback,
               start: float = 5.0, end: float = 95.0) -> dict:
     """Compute the tiles (locally or on Dask) and write the Float32 GeoTIFF in tile order.
 
@@ -65,7 +72,8 @@ def write_dem(run: GridRun, tiles: Any, params: dict, feedback: Feedback,
     from toolbox.raster.writer import RasterWriter
     from toolbox.tiles import resolve_executor
 
-    executor = resolve_executor(params.get("SCHEDULER"), params.get("WORKERS"))
+    execution = request.execution
+    executor = resolve_executor(execution.scheduler, execution.workers)
     grid = run.grid
     n_tiles = tile_count(grid, run.tile)
     totals: dict[str, Any] = {"valid": 0, "empty_tiles": 0, "counts": None}
@@ -80,8 +88,8 @@ def write_dem(run: GridRun, tiles: Any, params: dict, feedback: Feedback,
 
     feedback.push_info(f"{grid.width} x {grid.height} cells in {n_tiles} tiles on "
                        f"{executor.describe()}")
-    writer = RasterWriter(params["OUTPUT"], grid, 1, "float32", run.nodata, tile=run.tile,
-                          cog=bool(params.get("COG")), overviews=params.get("OVERVIEWS", True))
+    writer = RasterWriter(request.output, grid, 1, "float32", run.nodata, tile=run.tile,
+                          cog=bool(execution.cog), overviews=execution.overviews)
     with feedback.timed("tiles"), writer:
         process_raster(grid, None, tiles.kernel, writer, tile_size=run.tile, executor=executor,
                        feedback=feedback, plan=tiles.plan, collect=collect, start=start, end=end)
@@ -92,7 +100,7 @@ def write_dem(run: GridRun, tiles: Any, params: dict, feedback: Feedback,
             "counts": totals["counts"]}
 
 
-def grid_statistics(run: GridRun, params: dict) -> dict:
+def grid_statistics(run: GridRun, request: GriddingRequest) -> dict:
     """The inputs, duplicates and grid part of STATISTICS."""
     from toolbox.io.crs import crs_label
 
@@ -105,8 +113,8 @@ def grid_statistics(run: GridRun, params: dict) -> dict:
                      "crs": crs_label(grid.crs), "nodata": run.nodata,
                      "tile_size": run.tile},
             "limited_to_convex_hull": run.hull is not None,
-            "mask": params.get("MASK") is not None,
-            "max_distance": params.get("MAX_DISTANCE")}
+            "mask": request.cells.mask is not None,
+            "max_distance": request.method.max_distance}
 
 
 def jsonable_options(options: dict[str, Any]) -> dict[str, Any]:
@@ -115,14 +123,14 @@ def jsonable_options(options: dict[str, Any]) -> dict[str, Any]:
 
 
 def quality_report(method: Any, data: GriddingData, options: dict[str, Any],
-                   params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
+                   request: GriddingRequest, feedback: Feedback) -> dict[str, Any]:
     """Leave-one-out report of one method (the shape ``dem:cross_validate`` writes)."""
     from toolbox.io.crs import crs_label
     from toolbox.terrain.gridding.validation import add_worst_point, error_summary, loo_predict
 
     local = data.local
-    predicted, details = loo_predict(method, local, options, bool(params.get("EXTRAPOLATE")),
-                                     data.segments, feedback, params.get("WORKERS"))
+    predicted, details = loo_predict(method, local, options, request.cells.extrapolate,
+                                     data.segments, feedback, request.execution.workers)
     summary = error_summary(predicted, local[:, 2]) | details
     add_worst_point(summary, data.xyz, predicted)
     summary["options"] = jsonable_options(options)

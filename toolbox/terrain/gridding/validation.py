@@ -7,7 +7,7 @@ maximum absolute error per method let a surveyor choose the method with evidence
 Rules (the same as the gridding): with EXTRAPOLATE off, a point that is a vertex of the convex
 hull lies outside the hull of the others and is not predicted; MAX_DISTANCE and MIN_NEIGHBOURS
 apply as in the grid. Each method predicts in its own way (``Method.loo``); ``tin_linear`` uses
-the TIN of the other points (see :func:`toolbox.terrain.gridding.tin_linear.tin_loo`).
+the TIN of the other points (see :func:`toolbox.terrain.gridding.tin_constrained.tin_loo`).
 """
 
 from __future__ import annotations
@@ -65,7 +65,7 @@ def loo_predict(method: Any, local_xyz: np.ndarray, options: dict[str, Any],
         predicted[outside] = np.nan
         details["hull_vertices_not_predicted"] = int(len(outside))
     if used is not None:
-        from toolbox.terrain.gridding.parameters import ORDER_NAMES
+        from toolbox.terrain.gridding.request import ORDER_NAMES
 
         used[np.isnan(predicted)] = -1
         details["orders_used"] = {ORDER_NAMES[o]: int(np.sum(used == o)) for o in range(4)}

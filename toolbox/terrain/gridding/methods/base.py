@@ -10,6 +10,8 @@ from typing import Any
 
 import numpy as np
 
+from toolbox.terrain.gridding.request import MethodOptions
+
 
 @dataclass
 class TilePlan:
@@ -37,9 +39,9 @@ class Method:
     min_neighbours: int = 0
     limits_to_hull: bool = True
 
-    def options(self, params: dict[str, Any]) -> dict[str, Any]:
-        """Kernel keyword arguments from validated parameters (missing ones take defaults)."""
-        max_distance = params.get("MAX_DISTANCE")
+    def options(self, request: MethodOptions) -> dict[str, Any]:
+        """Kernel keyword arguments of this method from the run's options."""
+        max_distance = request.max_distance
         return {"max_distance": math.inf if max_distance is None else float(max_distance)}
 
     def plan_tiles(self, run: Any, options: dict[str, Any], feedback: Any) -> TilePlan:
@@ -59,12 +61,12 @@ class Method:
 class NeighbourMethod(Method):
     """A method on the k nearest data points of each cell (within a radius)."""
 
-    def options(self, params: dict[str, Any]) -> dict[str, Any]:
-        k = params.get("NEIGHBOURS") or self.default_neighbours
-        radius = params.get("RADIUS")
-        return super().options(params) | {
+    def options(self, request: MethodOptions) -> dict[str, Any]:
+        k = request.neighbours or self.default_neighbours
+        radius = request.radius
+        return super().options(request) | {
             "neighbours": int(k), "radius": math.inf if radius is None else float(radius),
-            "min_neighbours": int(params.get("MIN_NEIGHBOURS") or 1)}
+            "min_neighbours": int(request.min_neighbours or 1)}
 
     def halo_neighbours(self, options: dict[str, Any]) -> tuple[int, float | None]:
         """(k, radius) that bound the points a tile needs (see NeighbourPlanner); k = 0: every

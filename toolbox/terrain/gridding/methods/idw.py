@@ -6,6 +6,7 @@ import math
 from typing import Any
 
 from toolbox.terrain.gridding.methods.base import NeighbourMethod
+from toolbox.terrain.gridding.request import MethodOptions
 
 IDW_OPTIONS = ("neighbours", "power", "radius", "sectors", "min_neighbours", "max_distance")
 
@@ -25,9 +26,9 @@ class IdwMethod(NeighbourMethod):
     min_neighbours = 1
     tile_kernel = staticmethod(idw_tile)
 
-    def options(self, params: dict[str, Any]) -> dict[str, Any]:
-        sectors = int(params.get("SECTORS") or 1)
-        return super().options(params) | {"power": float(params.get("POWER") or 2.0),
+    def options(self, request: MethodOptions) -> dict[str, Any]:
+        sectors = int(request.sectors or 1)
+        return super().options(request) | {"power": float(request.power or 2.0),
                                           "sectors": sectors if sectors > 1 else 0}
 
     def halo_neighbours(self, options):

@@ -5,19 +5,16 @@ from __future__ import annotations
 
 from typing import Any
 
-from toolbox.terrain.gridding.methods.base import Method, NeighbourMethod
-from toolbox.terrain.gridding.methods.idw import IdwMethod, idw_tile
+from toolbox.terrain.gridding.methods.base import Method
+from toolbox.terrain.gridding.methods.idw import IdwMethod
+from toolbox.terrain.gridding.request import MethodOptions
 
 
-class NearestMethod(NeighbourMethod):
+class NearestMethod(IdwMethod):
+    """IDW's kernel and leave-one-out on k = 1 (no power, no sectors)."""
+
     name = "nearest"
-    min_points = 1
     default_neighbours = 1
-    min_neighbours = 1
-    tile_kernel = staticmethod(idw_tile)
 
-    def options(self, params: dict[str, Any]) -> dict[str, Any]:
-        return Method.options(self, params) | {"neighbours": 1}
-
-    def loo_chunk(self, bins, z, targets, options):
-        return IdwMethod.loo_chunk(self, bins, z, targets, options)
+    def options(self, request: MethodOptions) -> dict[str, Any]:
+        return Method.options(self, request) | {"neighbours": 1}

@@ -8,7 +8,12 @@ from typing import Any
 import numpy as np
 
 from toolbox.terrain.gridding.methods.base import NeighbourMethod
-from toolbox.terrain.gridding.parameters import DEFAULT_MIN_RCOND, ORDER_NAMES, TERMS
+from toolbox.terrain.gridding.request import (
+    DEFAULT_MIN_RCOND,
+    ORDER_NAMES,
+    TERMS,
+    MethodOptions,
+)
 
 
 def polynomial_tile(origin, options, tile, arrays):
@@ -30,9 +35,9 @@ class PolynomialMethod(NeighbourMethod):
         self.min_points = self.min_neighbours = TERMS[order]
         self.default_neighbours = default_neighbours
 
-    def options(self, params: dict[str, Any]) -> dict[str, Any]:
-        rcond = params.get("MIN_RCOND")
-        return super().options(params) | {
+    def options(self, request: MethodOptions) -> dict[str, Any]:
+        rcond = request.min_rcond
+        return super().options(request) | {
             "order": self.order,
             "min_rcond": DEFAULT_MIN_RCOND if rcond is None else float(rcond)}
 

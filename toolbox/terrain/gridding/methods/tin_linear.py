@@ -61,7 +61,7 @@ class TinLinearMethod(Method):
     def plan_tiles(self, run: Any, options: dict[str, Any], feedback: Any) -> TilePlan:
         from toolbox.errors import InputDataError
         from toolbox.terrain.gridding.grid import NeighbourPlanner
-        from toolbox.terrain.gridding.tin_linear import constrained_tin
+        from toolbox.terrain.gridding.tin_constrained import constrained_tin
         from toolbox.terrain.gridding.tin_raster import TinTiles
 
         # the points in bin order (rows of small square bins): neighbours in the plane are
@@ -107,7 +107,7 @@ class TinLinearMethod(Method):
 
     def loo(self, local_xyz, options, segments, feedback, workers):
         from toolbox.terrain.gridding.neighbours import PointBins
-        from toolbox.terrain.gridding.tin_linear import tin_loo
+        from toolbox.terrain.gridding.tin_constrained import tin_loo
 
         n = len(local_xyz)
         predicted = tin_loo(local_xyz, segments, feedback)

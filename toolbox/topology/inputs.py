@@ -1,57 +1,46 @@
-"""Parameters shared by ``topology:build_areas`` and ``topology:check`` (declared once)."""
+"""The inputs of ``topology:build_areas`` and ``topology:check``: lines, labels, codes."""
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 from toolbox.errors import InputDataError
 from toolbox.feedback import Feedback
 from toolbox.io.crs import common_crs, crs_label
 from toolbox.io.vector import read_vector
-from toolbox.parameters import Field, File, Number, VectorLayer
 
 
-def linework_parameters() -> list:
-    """INPUT, CODE_FIELD, LABELS, LABEL_CODE_FIELD, CODES, PARAMETERS and the tolerances."""
-    return [
-        VectorLayer("INPUT", "restitution lines with a code field (polygons are used by their "
-                    "rings)", geometry_types=["line", "polygon"]),
-        Field("CODE_FIELD", "field with the line code (default: a field named code or codice)",
-              parent="INPUT", optional=True),
-        VectorLayer("LABELS", "label points: a code and attributes (e.g. quota) for the area "
-                    "they fall in", geometry_types=["point"], optional=True),
-        Field("LABEL_CODE_FIELD", "field with the area code of the label points (default: a "
-              "field named code or codice)", parent="LABELS", optional=True),
-        File("CODES", "code file ('file dei codici'): which codes are area codes (type polygon) "
-             "and which area code a closed line of a line code gives (its area column); only "
-             "area codes can conflict. Without it a closed line's code only fills an area no "
-             "label codes", optional=True),
-        File("PARAMETERS", "parameter file ('file dei parametri': tolleranza di riattacco, "
-             "tolleranza di chiusura, ...); explicit tolerances override it", optional=True),
-        Number("SNAP_TOLERANCE", "snap (riattacco) distance for line ends, CRS units "
-               "[default: parameter file, else 0.2]", min_value=0, optional=True),
-        Number("CLOSURE_TOLERANCE", "largest gap closed between the two ends of a polyline "
-               "[default: parameter file, else 0.5]", min_value=0, optional=True),
-        Number("MIN_DANGLE_LENGTH", "shorter dangles and overshoots are removed, longer ones "
-               "reported [default: parameter file, else 1.0]", min_value=0, optional=True),
-        Number("MIN_AREA", "smaller areas are slivers, merged into a neighbour, square CRS units "
-               "[default: parameter file, else 1.0]", min_value=0, optional=True),
-        Number("PRECISION", "coordinate grid of the result, CRS units [default: 10^-decimals "
-               "of the parameter file, else 0.001]", min_value=0, min_exclusive=True,
-               optional=True),
-    ]
+@dataclass(frozen=True)
+class LineworkSources:
+    """The inputs of area building and its checks.
+
+    ``lines``: restitution lines (a vector layer) with a code field ``code_field`` (None: a
+    field named code/codice); ``labels``: label points with ``label_code_field``; ``codes``:
+    the code file (which codes are area codes); ``parameters``: the parameter file, whose
+    coordinate translation is added to lines and labels.
+    """
+
+    lines: Any
+    code_field: str | None = None
+    labels: Any = None
+    label_code_field: str | None = None
+    codes: Path | None = None
+    parameters: Path | None = None
 
 
-def read_linework(params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
-    """Read INPUT and LABELS; pick code fields; check CRSs. Returns what the kernel needs."""
+def read_linework(sources: LineworkSources, feedback: Feedback) -> dict[str, Any]:
+    """Read the lines and labels; pick code fields; check CRSs. Returns what the kernel
+    needs."""
     import numpy as np
 
     from toolbox.topology.layers import default_code_field, label_inputs
 
-    lines = read_vector(params["INPUT"], name="INPUT")
+    lines = read_vector(sources.lines, name="INPUT")
     if len(lines) == 0:
-        raise InputDataError(f"INPUT {params['INPUT']} has no features")
-    code_field = params.get("CODE_FIELD") or default_code_field(
+        raise InputDataError(f"INPUT {sources.lines} has no features")
+    code_field = sources.code_field or default_code_field(
         [c for c in lines.columns if c != lines.geometry.name])
     if code_field is None:
         feedback.push_warning("INPUT has no code field (CODE_FIELD not given, no field named "
@@ -64,9 +53,9 @@ def read_linework(params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
                            "label_geoms": None, "label_codes": None, "label_attributes": None,
                            "label_dtypes": {}, "label_code_field": None}
     crs_of = {"INPUT": lines.crs}
-    if params.get("LABELS") is not None:
-        labels = read_vector(params["LABELS"], name="LABELS")
-        label_field = params.get("LABEL_CODE_FIELD") or default_code_field(
+    if sources.labels is not None:
+        labels = read_vector(sources.labels, name="LABELS")
+        label_field = sources.label_code_field or default_code_field(
             [c for c in labels.columns if c != labels.geometry.name])
         if label_field is None:
             feedback.push_warning("LABELS has no code field (LABEL_CODE_FIELD not given, no field "
@@ -75,10 +64,10 @@ def read_linework(params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
         out.update(label_geoms=geoms, label_codes=label_codes, label_attributes=attrs,
                    label_dtypes=dtypes, label_code_field=label_field)
         crs_of["LABELS"] = labels.crs
-    if params.get("PARAMETERS") is not None:  # the file's coordinate translation, applied
+    if sources.parameters is not None:  # the file's coordinate translation, applied
         from toolbox.io.parameter_file import read_parameter_file
 
-        file = read_parameter_file(params["PARAMETERS"], "PARAMETERS")
+        file = read_parameter_file(sources.parameters, "PARAMETERS")
         if file.offset != (0.0, 0.0):
             out["line_geoms"] = file.translate(out["line_geoms"])
             if out["label_geoms"] is not None:
@@ -86,8 +75,8 @@ def read_linework(params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
             feedback.push_info(f"PARAMETERS: coordinate translation {file.offset[0]:.10g} "
                                f"{file.offset[1]:.10g} added to the inputs")
     out["area_codes"] = None
-    if params.get("CODES") is not None:
-        out["area_codes"] = read_area_codes(params["CODES"], out["label_codes"], feedback)
+    if sources.codes is not None:
+        out["area_codes"] = read_area_codes(sources.codes, out["label_codes"], feedback)
     crs = common_crs(crs_of)
     if crs is None:
         feedback.push_warning("the inputs have no CRS: the output has none either")

@@ -1,8 +1,14 @@
-"""Parameter declarations of the DEM gridding algorithms (light: no kernel imports, so that
-``toolbox list`` and ``toolbox help`` stay fast)."""
+"""The DEM gridding algorithms' parameters, their base class and the translation of their
+parameters to a :class:`~toolbox.terrain.gridding.request.GriddingRequest` (light: no kernel
+imports, so that ``toolbox list`` and ``toolbox help`` stay fast)."""
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from typing import Any, ClassVar
+
+from toolbox.algorithm import Algorithm
+from toolbox.feedback import Feedback
 from toolbox.io.pointcloud import RETURN_RULES
 from toolbox.parameters import (
     Boolean,
@@ -19,13 +25,19 @@ from toolbox.parameters import (
     String,
     VectorLayer,
 )
+from toolbox.terrain.gridding.request import (
+    DEFAULT_MIN_RCOND,
+    DEFAULT_NODATA,
+    DEFAULT_TILE,
+    TERMS,
+    CellOptions,
+    Execution,
+    GriddingRequest,
+    MethodOptions,
+    PointSources,
+)
 from toolbox.terrain.points import DUPLICATE_RULES
-
-DEFAULT_NODATA = -9999.0
-DEFAULT_TILE = 512
-TERMS = (1, 3, 6, 10)  # coefficients of the polynomial of order 0, 1, 2, 3
-ORDER_NAMES = ("mean", "plane", "quadratic", "cubic")
-DEFAULT_MIN_RCOND = 1e-3
+from toolbox.ui.grid import grid_request
 
 STATISTICS = Output("STATISTICS", "inputs, duplicates, grid, cells, fallbacks, timings", "dict")
 
@@ -122,6 +134,11 @@ def execution_parameters() -> list:
     ]
 
 
+def method_free_parameters() -> list:
+    """The parameters of a method without options of its own (dem:nearest, dem:tin_linear)."""
+    return source_parameters() + grid_parameters() + execution_parameters()
+
+
 POLYNOMIAL_HELP = """
     Each cell's neighbours are its NEIGHBOURS nearest data points (within RADIUS when given).
     The least squares are solved with coordinates centred on the cell and scaled by the
@@ -148,3 +165,107 @@ def polynomial_parameters(order: int, default_k: int) -> list:
                "matrix accepted before falling back to a lower order", default=DEFAULT_MIN_RCOND,
                min_value=0, min_exclusive=True, max_value=1),
     ] + execution_parameters()
+
+
+# -- parameters -> request (the one place) --------------------------------------------------------
+def point_sources(params: Mapping[str, Any]) -> PointSources:
+    """INPUT, LINES, BREAKLINES (and their Z fields), CLASSES, RETURNS, DUPLICATES, CRS."""
+    return PointSources(
+        points=params.get("INPUT"), z_field=params.get("Z_FIELD"), lines=params.get("LINES"),
+        lines_z_field=params.get("LINES_Z_FIELD"), breaklines=params.get("BREAKLINES"),
+        breaklines_z_field=params.get("BREAKLINES_Z_FIELD"), classes=params.get("CLASSES"),
+        returns=params.get("RETURNS") or "all", duplicates=params.get("DUPLICATES") or "mean",
+        duplicate_tolerance=float(params.get("DUPLICATE_TOLERANCE") or 0.0),
+        crs=params.get("CRS"))
+
+
+def method_options(params: Mapping[str, Any]) -> MethodOptions:
+    """NEIGHBOURS, RADIUS, MIN_NEIGHBOURS, POWER, SECTORS, MIN_RCOND, MAX_DISTANCE."""
+    rcond = params.get("MIN_RCOND")
+    return MethodOptions(
+        neighbours=params.get("NEIGHBOURS"), radius=params.get("RADIUS"),
+        min_neighbours=int(params.get("MIN_NEIGHBOURS") or 1),
+        power=float(params.get("POWER") or 2.0), sectors=int(params.get("SECTORS") or 1),
+        min_rcond=DEFAULT_MIN_RCOND if rcond is None else float(rcond),
+        max_distance=params.get("MAX_DISTANCE"))
+
+
+def gridding_request(params: Mapping[str, Any]) -> GriddingRequest:
+    """The whole request of a ``dem:<method>`` run."""
+    return GriddingRequest(
+        sources=point_sources(params), output=params["OUTPUT"], grid=grid_request(params),
+        method=method_options(params),
+        cells=CellOptions(nodata=float(params.get("NODATA", DEFAULT_NODATA)),
+                          mask=params.get("MASK"),
+                          extrapolate=bool(params.get("EXTRAPOLATE", False))),
+        execution=Execution(tile_size=int(params.get("TILE_SIZE") or DEFAULT_TILE),
+                            scheduler=params.get("SCHEDULER"), workers=params.get("WORKERS"),
+                            overviews=params.get("OVERVIEWS", True),
+                            cog=bool(params.get("COG"))),
+        quality=params.get("QUALITY"))
+
+
+# -- the algorithms' base class -------------------------------------------------------------------
+def check_sources(alg: Algorithm, params: Mapping[str, Any]) -> None:
+    """Cross-parameter checks shared by every gridding algorithm (raise ParameterError)."""
+    if params.get("INPUT") is None and params.get("LINES") is None \
+            and params.get("BREAKLINES") is None:
+        raise alg.fail("INPUT", "is required: give points (INPUT) and/or lines (LINES, "
+                       "BREAKLINES) to grid")
+    if params.get("INPUT") is not None:
+        from toolbox.io.pointcloud import cloud_filter
+
+        cloud_filter(params["INPUT"], params.get("CLASSES"), params.get("RETURNS"),
+                     params.get("CRS"))
+
+
+class GriddingAlgorithm(Algorithm):
+    """Base of ``dem:<method>``: subclasses set ``method`` (a name in
+    :data:`toolbox.terrain.gridding.methods.METHODS`) and the method's parameters."""
+
+    group = "DEM gridding"
+    method: ClassVar[str] = ""
+    outputs = [STATISTICS]
+
+    def check(self, params: dict[str, Any]) -> None:
+        check_sources(self, params)
+        self.check_method(params)
+        grid = grid_request(params)
+        grid.check()
+        guard_grid_size(params)
+        if params.get("TILE_SIZE", DEFAULT_TILE) % 16:
+            raise self.fail("TILE_SIZE", f"must be a multiple of 16 (GeoTIFF blocks), got "
+                            f"{params['TILE_SIZE']}")
+
+    def check_method(self, params: dict[str, Any]) -> None:
+        k, min_k = params.get("NEIGHBOURS"), params.get("MIN_NEIGHBOURS")
+        if k is not None and min_k is not None and min_k > k:
+            raise self.fail("MIN_NEIGHBOURS", f"must be <= NEIGHBOURS ({k}), got {min_k}")
+
+    def process(self, params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
+        from toolbox.terrain.gridding.methods import METHODS
+        from toolbox.terrain.gridding.run import grid_dem
+
+        request = gridding_request(params)
+        stats = grid_dem(METHODS[self.method], request, feedback)
+        result: dict[str, Any] = {"OUTPUT": request.output}
+        if request.quality is not None:
+            result["QUALITY"] = request.quality
+        return result | {"STATISTICS": stats}
+
+
+def guard_grid_size(params: Mapping[str, Any]) -> None:
+    """The grid's size guard (MAX_CELLS / TOOLBOX_MAX_CELLS) from the inputs' declared bounds,
+    before any point is read (also in ``toolbox batch --validate``); the run checks it again on
+    the data's exact bounds."""
+    import numpy as np
+
+    from toolbox.io.crs import input_crs_and_bounds
+
+    pairs = [pair for name in ("INPUT", "LINES", "BREAKLINES")
+             for pair in input_crs_and_bounds(params.get(name))]
+    if not pairs or any(b is None for _, b in pairs):
+        return
+    b = np.array([bounds for _, bounds in pairs], dtype=float)
+    bounds = (b[:, 0].min(), b[:, 1].min(), b[:, 2].max(), b[:, 3].max())
+    grid_request(params).grid(bounds, pairs[0][0])

@@ -30,13 +30,16 @@ ORTHO_RESAMPLING = ("nearest", "bilinear", "quadratic", "cubic", "lanczos")
 
 def ortho_method_parameters() -> list[Parameter]:
     """How an orthophoto is computed and what its cells outside the photo hold (ortho:photo and
-    ortho:batch): RESAMPLING, DEM_FACTOR, TILE_SIZE, MAP_TOLERANCE, OUTSIDE, NODATA."""
+    ortho:batch): RESAMPLING, DEM_FACTOR, MAP_BLOCK, MAP_TOLERANCE, OUTSIDE, NODATA.
+    (MAP_BLOCK, not TILE_SIZE: a distortion block, not the dem:* tiles of 512 cells.)"""
     return [
         Enum("RESAMPLING", "photo interpolation", options=ORTHO_RESAMPLING, default="bilinear"),
         Integer("DEM_FACTOR", "project on a DEM coarsened by this factor (1 = as is)", default=1,
                 min_value=1, max_value=64),
-        Integer("TILE_SIZE", "coarse-grid block of the distortion, cells", default=64,
-                min_value=2, max_value=256),
+        Integer("MAP_BLOCK", "block of the distortion map, cells: the correction is exact at "
+                "its corners and blended inside where within MAP_TOLERANCE", default=64,
+                min_value=2, max_value=256,
+                advanced=True, deprecated_names=("TILE_SIZE",)),
         Number("MAP_TOLERANCE", "largest interpolation error of the map, photo pixels",
                default=0.05, min_value=0),
         Enum("OUTSIDE", "cells outside the photo or the DEM: alpha band or nodata",

@@ -91,3 +91,19 @@ def test_siena_interior_orientation_reproduced(key, rows, report):
         assert t.fit.variance == pytest.approx(float(report["sigma_globale"]), abs=1e-6)
     else:
         assert t.fit.redundancy == 0 and np.abs(t.fit.residuals).max() < 1e-9
+
+
+def test_apply_homography_equals_opencv_and_keeps_the_shape():
+    import cv2
+
+    from toolbox.transforms.plane import apply_homography
+
+    rng = np.random.default_rng(8)
+    m = np.array([[1.1, 0.05, 3.0], [-0.02, 0.95, -7.0], [2e-4, -1e-4, 1.0]])
+    pts = rng.uniform(0, 2000, (50, 2))
+    want = cv2.perspectiveTransform(pts[None].astype("float64"), m)[0]
+    np.testing.assert_allclose(apply_homography(m, pts), want, rtol=1e-12)
+    grid = pts.reshape(5, 10, 2)
+    out, w = apply_homography(m, grid, return_w=True)
+    assert out.shape == (5, 10, 2) and w.shape == (5, 10)
+    np.testing.assert_allclose(w, m[2, 0] * grid[..., 0] + m[2, 1] * grid[..., 1] + 1.0)

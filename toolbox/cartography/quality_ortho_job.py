@@ -1,0 +1,184 @@
+"""The report:ortho_check job: check points measured on an orthophoto from files (the project,
+the check points' ground coordinates and image measurements, the orthophoto); the measuring
+itself is :mod:`.quality_ortho`."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from toolbox.cartography.quality_ortho import (
+    OUTSIDE,
+    CheckResult,
+    match_offset,
+    ortho_window,
+    photo_chip,
+)
+from toolbox.errors import InputDataError
+
+
+@dataclass
+class OrthoCheckRequest:
+    """What to measure: ``chip_m`` half size of the reference chip and ``search_m`` the largest
+    offset looked for, both in ground units (0: 12 and 8 orthophoto cells); ``photo`` the photo
+    to take the chips from (None: per point, the measuring photo where it is nearest the image
+    centre)."""
+
+    ortho: Path
+    project: Path
+    check_points: Path
+    measurements: Path
+    photo: str | None = None
+    chip_m: float = 0.0
+    search_m: float = 0.0
+    min_score: float = 0.6
+    dem: Path | None = None  # the orthophoto's DEM: each point's Z is compared with it
+
+
+def _grey(data: np.ndarray) -> np.ndarray:
+    data = data.astype("float32")
+    return data[:3].mean(axis=0) if data.shape[0] >= 3 else data[0]
+
+
+def _photo_reader(path: Path):
+    """``read_window(c0, r0, c1, r1)`` of a photo file: grey float window clipped to the image
+    and its origin (col, row)."""
+    import rasterio
+    from rasterio.windows import Window
+
+    def read(c0: int, r0: int, c1: int, r1: int):
+        import warnings
+
+        with warnings.catch_warnings():  # a photo has no georeference: expected
+            warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
+            src = rasterio.open(path)
+        with src:
+            c0c, r0c = max(c0, 0), max(r0, 0)
+            c1c, r1c = min(c1, src.width), min(r1, src.height)
+            if c1c <= c0c or r1c <= r0c:
+                return None, (c0c, r0c)
+            data = src.read(window=Window(c0c, r0c, c1c - c0c, r1c - r0c))
+        return _grey(data), (c0c, r0c)
+
+    return read
+
+
+def _check_points(req: OrthoCheckRequest):
+    from toolbox.photogrammetry.tables import ground_points
+
+    ids, xyz, roles = ground_points(req.check_points, name="CHECK_POINTS")
+    roles = list(roles)
+    if "check" in roles:  # a control table with roles: its check points only
+        keep = [k for k, r in enumerate(roles) if r == "check"]
+        ids, xyz = [ids[k] for k in keep], np.asarray(xyz)[keep]
+    return list(ids), np.asarray(xyz, float)
+
+
+def measure_checks(req: OrthoCheckRequest, feedback=None) -> tuple[list[CheckResult], dict]:
+    """Every check point measured on the orthophoto; returns the results and the settings
+    used (cell, chip and search sizes in ground units)."""
+    import rasterio
+
+    from toolbox.photogrammetry.tables import image_measurements, load_project_parameter
+
+    project = load_project_parameter(req.project)
+    ids, xyz = _check_points(req)
+    m_ids, m_photos, m_xy, kind = image_measurements(req.measurements, None, "auto",
+                                                     "MEASUREMENTS")
+    if kind == "image":  # x_mm, y_mm in the fiducial system: to pixels by each photo's IO
+        m_xy = np.array([_mm_to_pixel(project, ph, xy) for ph, xy in zip(m_photos, m_xy,
+                                                                         strict=True)])
+    if req.photo is not None and req.photo not in project.photos:
+        raise InputDataError(f"PHOTO: {req.photo!r} is not in the project (photos: "
+                             f"{', '.join(project.photos)})")
+    with rasterio.open(req.ortho) as src:
+        ortho = _grey(src.read(masked=True).astype("float32").filled(np.nan))
+        transform = src.transform
+    cell = abs(transform.a)
+    half = max(int(round((req.chip_m or 12 * cell) / cell)), 3)
+    reach = max(int(round((req.search_m or 8 * cell) / cell)), 1)
+    results = []
+    dz = _dem_differences(req.dem, xyz) if req.dem is not None else np.full(len(ids), np.nan)
+    for pid, p in zip(ids, xyz, strict=True):
+        seen = [(ph, m_xy[k]) for k, (i, ph) in enumerate(zip(m_ids, m_photos, strict=True))
+                if i == pid and ph in project.photos and (req.photo is None or ph == req.photo)]
+        result = CheckResult(pid, "", *map(float, p))
+        if not seen:
+            result.status = "not measured on a photo"
+            results.append(result)
+            continue
+        photo_id, measured = min(seen, key=lambda s: _off_centre(project.photo(s[0]), s[1]))
+        photo = project.photo(photo_id)
+        result.photo = photo_id
+        if photo.image is None or not Path(photo.image).exists():
+            raise InputDataError(f"PROJECT: photo {photo_id!r} has no image file to take the "
+                                 f"chip of check point {pid!r} from")
+        chip = photo_chip(photo, _photo_reader(Path(photo.image)), p, measured, cell, half)
+        if chip is None:
+            result.status = OUTSIDE + " the photo"
+            results.append(result)
+            continue
+        search = ortho_window(ortho, transform, p[0], p[1], cell, half + reach)
+        result.dx, result.dy, result.score, result.status = match_offset(
+            chip, search, cell, req.min_score)
+        if result.status == OUTSIDE:
+            result.status = OUTSIDE + " the orthophoto"
+        results.append(result)
+    for r, d in zip(results, dz, strict=True):
+        r.dz_dem = float(d)
+    off = [f"{r.point_id} ({r.dz_dem:+.1f} m)" for r in results if abs(r.dz_dem) > 2 * cell]
+    if feedback is not None and off:
+        feedback.push_warning(f"{len(off)} check point(s) lie off the DEM by more than 2 cells "
+                              f"in height: {', '.join(off[:5])}; the orthophoto shows the ground "
+                              "the DEM describes, so their offsets measure the difference too")
+    if feedback is not None and not any(r.status == "matched" for r in results):
+        feedback.push_warning(f"none of {len(results)} check points was found on the "
+                              f"orthophoto ({', '.join(sorted({r.status for r in results}))})")
+    return results, {"cell_m": cell, "chip_half_m": half * cell, "search_m": reach * cell,
+                     "min_score": req.min_score}
+
+
+def _mm_to_pixel(project, photo_id: str, xy_mm) -> np.ndarray:
+    """One image measurement in mm (fiducial system) as a pixel (centres at +0.5); NaN for a
+    photo the project lacks."""
+    if photo_id not in project.photos:
+        return np.full(2, np.nan)
+    photo = project.photo(photo_id)
+    if photo.pixel_transform is None:
+        raise InputDataError(f"MEASUREMENTS: photo {photo_id!r} is measured in mm but has no "
+                             "interior orientation (fiducial system -> pixels) in PROJECT")
+    return np.asarray(photo.pixel_transform.image_to_pixel(np.asarray(xy_mm, float)[None]))[0]
+
+
+def _dem_differences(dem: Path, xyz: np.ndarray) -> np.ndarray:
+    """Point Z minus the DEM's height there (bilinear; NaN off the DEM)."""
+    import rasterio
+
+    from toolbox.photogrammetry.surface import DemSurface
+
+    with rasterio.open(dem) as src:
+        z = src.read(1, masked=True).astype("float64").filled(np.nan)
+        surface = DemSurface.from_transform(z, src.transform)
+    return xyz[:, 2] - surface.height(xyz[:, 0], xyz[:, 1])
+
+
+def _off_centre(photo, px) -> float:
+    w, h = photo.camera.image_size_px if getattr(photo.camera, "image_size_px", None) \
+        else (0, 0)
+    return float(np.hypot(px[0] - w / 2, px[1] - h / 2))
+
+
+def write_results(path: Path, results: list[CheckResult]) -> None:
+    """The per-point CSV: id, photo, surveyed X Y Z, offsets dx dy and their length (m), NCC
+    score, status."""
+    from toolbox.photogrammetry.tables import write_csv
+
+    def f(v: float, d: int) -> str:
+        return "" if not np.isfinite(v) else f"{v:.{d}f}"
+
+    write_csv(path, ["point_id", "photo", "X", "Y", "Z", "dx_m", "dy_m", "d_m", "score",
+                     "status", "z_minus_dem_m"],
+              [[r.point_id, r.photo, f(r.x, 3), f(r.y, 3), f(r.z, 3), f(r.dx, 3), f(r.dy, 3),
+                f(r.distance, 3), f(r.score, 3), r.status, f(r.dz_dem, 2)] for r in results])

@@ -1,0 +1,50 @@
+"""Whole blocks: one photo of a block as a picklable task (:func:`run_task`, for Dask workers
+or threads)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+from toolbox.ortho.run import OrthoOptions, orthorectify
+
+
+@dataclass
+class OrthoTask:
+    """One photo of a block: everything :func:`run_task` needs (picklable, for Dask workers)."""
+
+    photo: Any
+    image: Any  # RasterInfo
+    dem: Any  # RasterInfo
+    grid: Any
+    output: Any  # final path
+    options: OrthoOptions
+    reference_height: float
+    map_scale: float | None = None
+
+
+def run_task(task: OrthoTask) -> dict[str, Any]:
+    """Orthorectify one photo of a block into a hidden file beside ``task.output``, renamed on
+    success; a user error is returned as ``{"photo", "error"}`` (the block goes on)."""
+    import os
+    from pathlib import Path
+
+    from toolbox.errors import ToolboxError
+    from toolbox.feedback import CollectingFeedback
+
+    final = Path(task.output)
+    partial = final.with_name(f".{final.stem}.part{final.suffix}")
+    feedback = CollectingFeedback()  # its caller reports the warnings, once
+    try:
+        report = orthorectify(task.photo, task.image, task.dem, task.grid, partial, task.options,
+                              None, task.reference_height, map_scale=task.map_scale,
+                              feedback=feedback)
+        os.replace(partial, final)
+    except ToolboxError as exc:
+        return {"photo": task.photo.id, "error": str(exc)}
+    finally:
+        if partial.exists():
+            partial.unlink()
+    report["output"] = str(final)
+    report["warnings"] = feedback.warnings
+    return report

@@ -1,0 +1,217 @@
+"""Before warping one photo: geometry checks, the DEM window it sees, its footprint, mean
+height, GSD and the output grid (:func:`plan_photo`)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from toolbox.errors import InputDataError
+from toolbox.ortho.dem import same_horizontal_crs
+from toolbox.ortho.metrics import ground_sample_distance, nice_cell_size
+
+
+def check_geometry(photo: Any, terrain_height: float | None = None) -> None:
+    """Refuse a camera that cannot see the terrain: an optical axis that does not descend, or
+    (given ``terrain_height``) a projection centre at or below the terrain."""
+    eo = photo.require_exterior()
+    axis = eo.rotation @ np.array([0.0, 0.0, -1.0])
+    if not axis[2] < 0:
+        raise InputDataError(f"photo {photo.id!r}: the camera looks away from the ground (its "
+                             f"optical axis points {'up' if axis[2] > 0 else 'horizontally'}; "
+                             f"omega = {math.degrees(eo.omega):.1f}, phi = "
+                             f"{math.degrees(eo.phi):.1f} degrees): check the angles and their "
+                             "unit")
+    if terrain_height is not None and not eo.z0 > terrain_height:
+        raise InputDataError(f"photo {photo.id!r}: the projection centre (Z0 = {eo.z0:.2f}) is "
+                             f"not above the terrain ({terrain_height:.2f}); check Z0 and the "
+                             "DEM's height datum")
+
+
+def tilt_warning(photo: Any, limit_deg: float = 10.0) -> str | None:
+    """A warning when omega or phi exceed ``limit_deg`` (a vertical photo has a few degrees at
+    most: tens of degrees usually mean angles read in the wrong unit)."""
+    eo = photo.require_exterior()
+    o, p = (math.degrees(a) for a in (eo.omega, eo.phi))
+    if max(abs(o), abs(p)) > limit_deg:
+        return (f"photo {photo.id!r}: omega = {o:.1f} deg, phi = {p:.1f} deg: a vertical aerial "
+                f"photo is tilted by a few degrees at most; if the angles were read in the wrong "
+                f"unit (they were taken as {eo.source_unit}), fix the unit")
+    return None
+
+
+def lattice_grid(bounds: tuple[float, float, float, float], cell: float, crs: Any,
+                 origin: tuple[float, float] = (0.0, 0.0), name: str = "CELL_SIZE") -> Any:
+    """A north-up grid covering ``bounds`` whose edges lie on the lattice ``origin + k·cell``
+    (default: multiples of the cell), so orthos of one block share one grid and mosaic
+    without resampling."""
+    from affine import Affine
+
+    from toolbox.io.grid import GridSpec
+
+    ox, oy = origin
+    xmin = ox + math.floor((bounds[0] - ox) / cell + 1e-9) * cell
+    ymin = oy + math.floor((bounds[1] - oy) / cell + 1e-9) * cell
+    xmax = ox + math.ceil((bounds[2] - ox) / cell - 1e-9) * cell
+    ymax = oy + math.ceil((bounds[3] - oy) / cell - 1e-9) * cell
+    probe = GridSpec.from_bounds((xmin, ymin, xmax, ymax), cell, crs, snap=False, name=name)
+    return GridSpec(Affine(cell, 0.0, xmin, 0.0, -cell, ymin + probe.height * cell),
+                    probe.width, probe.height, crs)
+
+
+def check_dem_crs(info: Any, name: str = "DEM") -> None:
+    """Refuse a DEM without a CRS whose coordinates look like geographic degrees (heights
+    cannot be placed on a projected ortho grid without knowing the datum)."""
+    if info.crs is not None:
+        return
+    xmin, ymin, xmax, ymax = info.bounds
+    if -180 <= xmin and xmax <= 360 and -90 <= ymin and ymax <= 90 and info.res[0] < 1.0:
+        raise InputDataError(f"{name} {info} has no CRS and its coordinates ({xmin:.4f}.."
+                             f"{xmax:.4f}, {ymin:.4f}..{ymax:.4f}) look like geographic degrees; "
+                             "assign its CRS (e.g. gdal_edit.py -a_srs EPSG:4326) or reproject it")
+
+
+def photo_surface(info: Any, photo: Any, crs: Any, band: int = 1) -> Any:
+    """The DEM window every ray of the photo can meet, as a
+    :class:`~toolbox.photogrammetry.surface.DemSurface` in ``crs`` (reprojected bilinearly at the
+    DEM's resolution when the DEM is in another CRS)."""
+    from toolbox.photogrammetry.surface import surface_for_photo
+
+    if info.crs is None or crs is None or same_horizontal_crs(info.crs, crs):
+        return surface_for_photo(info, photo, band)
+    import rasterio
+    from rasterio.enums import Resampling
+    from rasterio.vrt import WarpedVRT
+
+    from toolbox.io.raster import RasterInfo
+
+    with rasterio.open(info.path) as src, WarpedVRT(src, crs=crs.to_wkt(),
+                                                    resampling=Resampling.bilinear) as vrt:
+        data = vrt.read(band, masked=True).astype("float64").filled(np.nan)
+        view = RasterInfo(info.path, vrt.width, vrt.height, 1, ("float64",), crs, vrt.transform,
+                          None, True)
+    from toolbox.photogrammetry.surface import DemSurface, photo_ground_bounds
+
+    whole = DemSurface.from_transform(data, view.transform, crs)
+    low, high = whole.z_range
+    pad = 0.1 * (high - low) + 1.0
+    b = photo_ground_bounds(photo, low - pad, high + pad)
+    t = view.transform
+    c0 = max(int((b[0] - t.c) / t.a) - 2, 0)
+    c1 = min(int((b[2] - t.c) / t.a) + 3, view.width)
+    r0 = max(int((b[3] - t.f) / t.e) - 2, 0)
+    r1 = min(int((b[1] - t.f) / t.e) + 3, view.height)
+    if c1 - c0 < 2 or r1 - r0 < 2:
+        raise InputDataError(f"DEM {info} does not cover the photo {photo.id!r}")
+    from affine import Affine
+
+    return DemSurface.from_transform(data[r0:r1, c0:c1], t @ Affine.translation(c0, r0), crs)
+
+
+def mean_height_inside(surface: Any, polygon: Any) -> float:
+    """Mean DEM height of the cell centres inside a footprint polygon (the photo's mean terrain
+    height); the mean of the whole window when no centre falls inside."""
+    import shapely
+
+    rows, cols = surface.shape
+    xx, yy = np.meshgrid(surface.x0 + np.arange(cols) * surface.cell_x,
+                         surface.y0 - np.arange(rows) * surface.cell_y)
+    inside = shapely.contains_xy(polygon, xx, yy) & np.isfinite(surface.z)
+    return float(surface.z[inside].mean() if inside.any() else np.nanmean(surface.z))
+
+
+def orientation_transformer(photo: Any, crs: Any) -> Any:
+    """pyproj Transformer from the ortho's CRS to the orientation's (always_xy), or None when
+    they are the same (or either is unknown)."""
+    from toolbox.io.crs import parse_crs, same_crs
+
+    eo_crs = photo.require_exterior().crs
+    if eo_crs is None or crs is None:
+        return None
+    eo_crs, crs = parse_crs(eo_crs), parse_crs(crs)
+    if same_crs(eo_crs, crs):
+        return None
+    from pyproj import Transformer
+
+    return Transformer.from_crs(crs, eo_crs, always_xy=True)
+
+
+@dataclass
+class OrthoPlan:
+    """What an ortho of one photo needs before warping: the DEM window the photo sees, its
+    footprint on the DEM (8 points a side: for reports), the mean terrain height, the photo's
+    GSD there, the output grid and ``extent``, the bounds of the footprint traced densely
+    (:func:`footprint_points_per_side`): what the default grid covers."""
+
+    photo: Any
+    surface: Any
+    footprint: Any  # shapely Polygon
+    mean_height: float
+    gsd: float
+    grid: Any
+    extent: tuple[float, float, float, float] | None = None
+
+
+FOOTPRINT_STEP_PX = 16  # photo pixels between the monoplotted points of the footprint's outline
+
+
+def footprint_points_per_side(photo: Any) -> int:
+    """Points per side of the footprint outline: one every :data:`FOOTPRINT_STEP_PX` pixels of
+    the longer side (at least 8, at most 1024; 256 when the image size is unknown)."""
+    size = photo.camera.image_size_px
+    if size is None:
+        return 256
+    return int(min(1024, max(8, math.ceil(max(size) / FOOTPRINT_STEP_PX))))
+
+
+def plan_photo(photo: Any, dem: Any, crs: Any, band: int = 1, cell: float | None = None,
+               bounds: tuple[float, float, float, float] | None = None,
+               origin: tuple[float, float] = (0.0, 0.0), output_crs: Any = None) -> OrthoPlan:
+    """Check the geometry and choose the grid of one photo's ortho.
+
+    ``crs`` is the orientation's; ``output_crs`` the ortho's (default the same; then the
+    footprint is transformed, densified, to bound the grid). Defaults (as the thesis' software
+    proposes, S002 par. 3.8): cell = the photo's ground sample distance at the mean terrain
+    height of its footprint (2 significant digits); extent = the footprint on the DEM (the frame
+    outline monoplotted on the DEM at every :data:`FOOTPRINT_STEP_PX` photo pixels of its
+    sides, so that a valley or a lens' curve between two samples is not cut off: 8 points a
+    side cut up to 87 m of real coverage); edges on the lattice ``origin + k·cell``.
+    """
+    from toolbox.io.crs import parse_crs
+    from toolbox.photogrammetry.coverage import photo_footprint
+    from toolbox.photogrammetry.surface import dem_height_range
+
+    crs = None if crs is None else parse_crs(crs)
+    output_crs = crs if output_crs is None else parse_crs(output_crs)
+    check_dem_crs(dem)
+    check_geometry(photo)
+    low, _ = dem_height_range(dem, band)
+    check_geometry(photo, low)
+    surface = photo_surface(dem, photo, crs, band)
+    eo = photo.require_exterior()
+    under = float(surface.height(np.array([eo.x0]), np.array([eo.y0]))[0])
+    check_geometry(photo, under if math.isfinite(under) else None)
+    plane = float(np.nanmean(surface.z))
+    polygon = photo_footprint(photo, surface, plane, 8).polygon  # mean height, reports
+    outline = photo_footprint(photo, surface, plane, footprint_points_per_side(photo)).polygon
+    mean_height = mean_height_inside(surface, polygon)
+    gsd = ground_sample_distance(photo, mean_height)
+    cell = nice_cell_size(gsd) if cell is None else float(cell)
+    to_orientation = orientation_transformer(photo, output_crs)
+    if to_orientation is not None:
+        import shapely
+
+        def to_output(xy: np.ndarray) -> np.ndarray:
+            x, y = to_orientation.transform(xy[:, 0], xy[:, 1], direction="INVERSE")
+            return np.column_stack([x, y])
+
+        dense = shapely.segmentize(shapely.force_2d(polygon), max(polygon.length / 400.0, cell))
+        polygon = shapely.transform(dense, to_output)
+        outline = shapely.transform(shapely.segmentize(shapely.force_2d(outline), max(
+            outline.length / 400.0, cell)), to_output)
+    extent = tuple(float(v) for v in outline.union(polygon).bounds)
+    grid = lattice_grid(extent if bounds is None else bounds, cell, output_crs, origin)
+    return OrthoPlan(photo, surface, polygon, mean_height, gsd, grid, extent)

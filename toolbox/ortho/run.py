@@ -1,0 +1,174 @@
+"""One photo orthorectified into a GeoTIFF (:func:`orthorectify`): the options, the auxiliary
+rasters, the engine's warp of :class:`~toolbox.ortho.windows.OrthoWindows` and the report."""
+
+from __future__ import annotations
+
+import math
+import warnings
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from toolbox.errors import InputDataError
+from toolbox.ortho.dem import DemSampler
+from toolbox.ortho.distortion import DEFAULT_BLOCK, DEFAULT_TOLERANCE_PX
+from toolbox.ortho.metrics import expected_accuracy, ground_sample_distance
+from toolbox.ortho.plan import orientation_transformer, photo_surface
+from toolbox.ortho.sensor import CollinearityMap
+from toolbox.ortho.windows import OrthoWindows
+
+
+@dataclass
+class OrthoOptions:
+    """How :func:`orthorectify` works (see ``ortho:photo``'s help)."""
+
+    resampling: str = "bilinear"
+    outside: str = "alpha"
+    nodata: float | None = None
+    block: int = DEFAULT_BLOCK
+    tolerance_px: float = DEFAULT_TOLERANCE_PX
+    dem_factor: int = 1
+    band: int = 1
+    occlusion: bool = False
+    chunk: int = 1024
+    overviews: bool = True
+    cog: bool = False
+
+
+def orthorectify(photo: Any, image: Any, dem: Any, grid: Any, output: Any,
+                 options: OrthoOptions | None = None, surface: Any = None,
+                 reference_height: float | None = None, mask_output: Any = None,
+                 incidence_output: Any = None, map_scale: float | None = None,
+                 feedback: Any = None) -> dict[str, Any]:
+    """Orthorectify one photo onto ``grid`` and write ``output`` (GeoTIFF, or COG).
+
+    Parameters
+    ----------
+    photo : Photo
+        Oriented, with a pixel transform; its image size must equal the raster's.
+    image : RasterInfo
+        The photo raster (any GDAL format, 1-4 bands, 8/16 bit).
+    dem : RasterInfo
+        Terrain (or surface) heights, any CRS.
+    grid : GridSpec
+        Output grid (the orientation's CRS, or another: see :class:`OrthoWindows`).
+    surface : DemSurface, optional
+        The DEM around the photo (needed for the visibility test; read when missing).
+    reference_height : float, optional
+        Plane of the relief-displacement figure (default: the DEM's mean under the grid).
+    mask_output, incidence_output : path, optional
+        Occlusion mask (uint8: 1 hidden, 0 seen, 255 no height) and incidence angle (float32,
+        degrees) on the same grid.
+
+    Returns
+    -------
+    dict : the per-photo report (JSON-ready).
+    """
+    from pathlib import Path
+
+    import rasterio
+
+    from toolbox.feedback import Feedback
+    from toolbox.io.crs import crs_label
+    from toolbox.io.raster import geotiff_profile
+    from toolbox.raster.resample import single_threaded_opencv
+    from toolbox.raster.warp import warp_to_geotiff
+
+    options = options or OrthoOptions()
+    feedback = feedback or Feedback()
+    size = photo.camera.image_size_px
+    if size is not None and tuple(size) != (image.width, image.height):
+        raise InputDataError(f"photo {photo.id!r}: the raster {image} is {image.width} x "
+                             f"{image.height} px but the camera {photo.camera.name!r} says "
+                             f"{size[0]} x {size[1]}: wrong image or camera")
+    sampler = DemSampler(dem, grid.crs, options.band, options.dem_factor)
+    sampler.preload(grid.bounds)
+    to_orientation = orientation_transformer(photo, grid.crs)
+    if to_orientation is not None and (options.occlusion or incidence_output is not None):
+        raise InputDataError("the visibility test and the incidence angles need the ortho in "
+                             "the orientation's CRS")
+    # the film camera's compiled, planned map; a camera model's own project() otherwise
+    cmap = None if photo.is_model else CollinearityMap(photo, options.block,
+                                                      options.tolerance_px, image.width,
+                                                      image.height)
+    if options.occlusion and surface is None:
+        surface = photo_surface(dem, photo, grid.crs, options.band)
+    if reference_height is None:
+        step = max(1, int(math.ceil(max(grid.width, grid.height) / 256)))
+        xs, ys = grid.cell_centers(None)
+        with warnings.catch_warnings():  # no height at all is reported just below
+            warnings.simplefilter("ignore", RuntimeWarning)
+            reference_height = float(np.nanmean(sampler.heights(xs[::step], ys[::step])))
+        if not math.isfinite(reference_height):
+            raise InputDataError(f"DEM {dem} has no height under the output grid of photo "
+                                 f"{photo.id!r}")
+    aux = []
+    profile_args = (grid.width, grid.height, 1)
+    output = Path(output)
+    target = output.with_name(f".{output.stem}.gtiff.tif") if options.cog else output
+    try:
+        mask_writer = incidence_writer = None
+        if mask_output is not None:
+            if not options.occlusion:
+                raise InputDataError("an occlusion mask needs the visibility test (OCCLUSION)")
+            mask_writer = rasterio.open(mask_output, "w", **geotiff_profile(
+                *profile_args, "uint8", grid.crs, grid.transform, 255))
+            aux.append(mask_writer)
+        if incidence_output is not None:
+            incidence_writer = rasterio.open(incidence_output, "w", **geotiff_profile(
+                *profile_args, "float32", grid.crs, grid.transform, float("nan")))
+            aux.append(incidence_writer)
+        windows = OrthoWindows(photo, grid, sampler, cmap, reference_height,
+                               surface if options.occlusion else None, mask_writer,
+                               incidence_writer, to_orientation, options.resampling)
+        eo = photo.require_exterior()
+        tags = {"ORTHO_PHOTO": photo.id, "ORTHO_MAP_TOLERANCE_PX": str(options.tolerance_px),
+                "ORTHO_RESAMPLING": options.resampling, "NADIR_X": repr(eo.x0),
+                "NADIR_Y": repr(eo.y0), "PROJECTION_CENTRE_Z": repr(eo.z0)}
+        # the engine runs the windows on one thread per core, each its map then its remap
+        with feedback.timed("orthorectify"), single_threaded_opencv():
+            warp = warp_to_geotiff(image.path, windows, grid, target, options.resampling,
+                                   options.outside, options.nodata, chunk=options.chunk,
+                                   overviews=options.overviews and not options.cog,
+                                   feedback=feedback.step(0, 90 if options.cog else 100),
+                                   tags=tags)
+        if options.cog:
+            from rasterio.shutil import copy as raster_copy
+
+            with feedback.timed("cog"):
+                raster_copy(target, output, driver="COG", COMPRESS="DEFLATE", BLOCKSIZE=512,
+                            OVERVIEWS="AUTO", NUM_THREADS="ALL_CPUS")
+    finally:
+        for dst in aux:
+            dst.close()
+        if options.cog and target != output and target.exists():
+            target.unlink()
+    windows.release()
+    totals = windows.totals()
+    photo_gsd = ground_sample_distance(photo, reference_height)
+    cells = max(totals.cells, 1)
+    report = {
+        "photo": photo.id, "image": str(image.path),
+        "crs": crs_label(grid.crs), "cell_size": grid.cell_size[0],
+        "photo_gsd_m": photo_gsd, "reference_height": reference_height,
+        "width": grid.width, "height": grid.height, "bounds": list(grid.bounds),
+        "cells": totals.cells,
+        "outside_dem_fraction": totals.outside_dem / cells,
+        "outside_photo_fraction": totals.outside_photo / cells,
+        "hidden_fraction": totals.hidden / cells if options.occlusion else None,
+        "max_relief_displacement_m": totals.max_relief_m,
+        "max_relief_displacement_px": totals.max_relief_m / photo_gsd,
+        "map_tolerance_px": options.tolerance_px,
+        "map_blocks": {"projective_exact": totals.blocks.get(0, 0),
+                       "distortion_interpolated": totals.blocks.get(1, 0),
+                       "distortion_exact": totals.blocks.get(2, 0)},
+        "resampling": options.resampling, "dem_factor": options.dem_factor,
+        "expected_accuracy": expected_accuracy(map_scale),
+        "warp": warp.as_dict(),
+    }
+    if totals.outside_dem:
+        feedback.push_warning(f"photo {photo.id}: {totals.outside_dem} of {totals.cells} cells "
+                              f"({100 * totals.outside_dem / cells:.1f} %) have no DEM height "
+                              "and are left empty")
+    return report
