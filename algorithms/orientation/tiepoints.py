@@ -32,8 +32,9 @@ class TiePoints(Algorithm):
 
     Method (OpenCV): each photo is read decimated to MAX_SIZE pixels on its longer side (area
     average; bounded memory whatever the scan size) and DETECTOR features (SIFT by default; see
-    the README for the measured comparison with AKAZE and ORB) are detected in 1024-pixel tiles,
-    outside a border of BORDER pixels (fiducial marks, data strip). Per pair: nearest neighbours
+    the README for the measured comparison with AKAZE and ORB) are detected in 1024-pixel tiles
+    (MAX_FEATURES per photo shared by its tiles, at most 2500 each), outside a border of BORDER
+    pixels (fiducial marks, data strip). Per pair: nearest neighbours
     with Lowe's ratio test (RATIO) and a mutual check, then USAC/MAGSAC++ on the essential
     matrix when both photos have a camera (pixel -> camera mm through the interior orientation,
     principal point, distortion), else on the fundamental matrix; inlier THRESHOLD in pixels of
@@ -71,6 +72,8 @@ class TiePoints(Algorithm):
              options=("sift", "orb", "akaze"), default="sift"),
         Integer("MAX_SIZE", "longer side of the detection level, px", default=3000,
                 min_value=200, max_value=20000),
+        Integer("MAX_FEATURES", "features per photo, at most (spread over its 1024-px tiles, "
+                "2500 per tile at most)", default=10000, min_value=100, max_value=1000000),
         Number("BORDER", "masked border of every photo (fiducials, data strip), full-res px",
                default=0.0, min_value=0.0),
         Number("RATIO", "Lowe's ratio test", default=0.8, min_value=0.3, max_value=0.99),
@@ -140,7 +143,8 @@ class TiePoints(Algorithm):
             raise self.fail("PROJECT" if params["PROJECT"] else "IMAGES",
                             f"needs at least two photos with an image, found {len(photos)}")
         opts = TiePointOptions(
-            detector=params["DETECTOR"], max_size=params["MAX_SIZE"], ratio=params["RATIO"],
+            detector=params["DETECTOR"], max_size=params["MAX_SIZE"],
+            max_features=params["MAX_FEATURES"], ratio=params["RATIO"],
             f_threshold=params["THRESHOLD"], min_matches=params["MIN_MATCHES"],
             border_px=params["BORDER"], target_per_model=params["TARGET"],
             refine=params["REFINE"], min_ncc=params["MIN_NCC"],

@@ -37,7 +37,8 @@ class TiePointOptions:
     detector: str = "sift"
     max_size: int = 3000  # longer side of the level the features are detected on, px
     tile: int = 1024  # detection tile on that level, px
-    per_tile: int = 2500  # features per tile
+    per_tile: int = 2500  # features per tile, at most
+    max_features: int = 10000  # per photo: more tiles share it (a big level: fewer per tile)
     workers: int = 0  # threads for detection and matching (0: one per core)
     ratio: float = 0.8  # Lowe's ratio test
     f_threshold: float = 1.0  # MAGSAC inlier threshold, px of the detection level
@@ -55,11 +56,18 @@ class TiePointOptions:
 
 @dataclass
 class BlockPhoto:
-    """A photo to match: its id, the image and, when known, the oriented Photo."""
+    """A photo to match: its id, the image and, when known, the oriented Photo. ``level``
+    holds the detection level between the thumbnail pass and detection (read once)."""
 
     id: str
     source: ImageSource
     photo: Any = None
+    level: tuple[int, tuple[np.ndarray, tuple[float, float]]] | None = field(default=None,
+                                                                            repr=False)
+
+
+#: detection levels kept between the thumbnail pass and detection, at most (bytes, all photos)
+LEVEL_CACHE_BYTES = 512_000_000
 
 
 @dataclass
@@ -105,11 +113,45 @@ def _median(values: np.ndarray) -> float | None:
     return float(np.median(values)) if len(values) else None
 
 
-def _features(bp: BlockPhoto, opts: TiePointOptions, max_size: int) -> tuple[Features, float]:
-    scale = bp.source.scale_for(max_size)
-    image, (sx, sy) = bp.source.level(scale)
+def _level(bp: BlockPhoto, max_size: int, keep: bool = False
+           ) -> tuple[np.ndarray, tuple[float, float]]:
+    """The photo decimated to ``max_size`` (grey uint8) and its factors; read once when
+    ``keep`` (held in ``bp.level`` until :func:`_features` at that size takes it)."""
+    if bp.level is not None and bp.level[0] == max_size:
+        level = bp.level[1]
+        if not keep:
+            bp.level = None
+        return level
+    level = bp.source.level(bp.source.scale_for(max_size))
+    if keep:
+        bp.level = (max_size, level)
+    return level
+
+
+def _thumbnail(bp: BlockPhoto, opts: TiePointOptions, keep: bool
+               ) -> tuple[np.ndarray, tuple[float, float]]:
+    """The thumbnail (``thumbnail_size``), from the detection level when it is kept (one read
+    of the file instead of two: a big scan's decimated read costs seconds)."""
+    import cv2
+
+    if not keep or bp.source.scale_for(opts.thumbnail_size) <= 1.0:
+        return bp.source.level(bp.source.scale_for(opts.thumbnail_size))
+    image, _ = _level(bp, opts.max_size, keep=True)
+    scale = bp.source.scale_for(opts.thumbnail_size)
+    w = max(1, int(round(bp.source.width / scale)))
+    h = max(1, int(round(bp.source.height / scale)))
+    small = cv2.resize(image, (w, h), interpolation=cv2.INTER_AREA)
+    return small, (bp.source.width / w, bp.source.height / h)
+
+
+def _features(bp: BlockPhoto, opts: TiePointOptions, max_size: int,
+              level: tuple[np.ndarray, tuple[float, float]] | None = None
+              ) -> tuple[Features, float]:
+    image, (sx, sy) = level if level is not None else _level(bp, max_size)
     mask = border_mask(*image.shape, opts.border_px / min(sx, sy))
-    feats = detect(image, mask, opts.detector, opts.tile, opts.per_tile)
+    tiles = int(np.ceil(image.shape[0] / opts.tile) * np.ceil(image.shape[1] / opts.tile))
+    per_tile = max(1, min(opts.per_tile, opts.max_features // tiles))
+    feats = detect(image, mask, opts.detector, opts.tile, per_tile)
     return feats.scaled(sx, sy), float(np.sqrt(sx * sy))
 
 
@@ -125,7 +167,7 @@ def _match(fa: Features, fb: Features, opts: TiePointOptions, level_scale: float
 
 
 def _has_camera(bp: BlockPhoto) -> bool:
-    return bp.photo is not None and bp.photo.pixel_transform is not None
+    return matching.has_camera(bp.photo)
 
 
 def select_pairs(photos: list[BlockPhoto], opts: TiePointOptions
@@ -137,8 +179,13 @@ def select_pairs(photos: list[BlockPhoto], opts: TiePointOptions
                                      opts.min_overlap), "footprints"
     small = TiePointOptions(**{**opts.__dict__, "per_tile": 1000})
     every = pairs.all_pairs(len(photos))
+    # every photo will be detected at max_size: keep that level from this pass when it fits
+    sizes = [bp.source.width * bp.source.height / bp.source.scale_for(opts.max_size) ** 2
+             for bp in photos]
+    keep = sum(sizes) <= LEVEL_CACHE_BYTES
     with ThreadPoolExecutor(opts.workers or os.cpu_count() or 1) as pool:
-        thumbs = list(pool.map(lambda bp: _features(bp, small, opts.thumbnail_size), photos))
+        thumbs = list(pool.map(lambda bp: _features(bp, small, opts.thumbnail_size,
+                                                    _thumbnail(bp, opts, keep)), photos))
         found = list(pool.map(lambda c: len(_match(thumbs[c[0]][0], thumbs[c[1]][0], opts,
                                                    max(thumbs[c[0]][1], thumbs[c[1]][1]),
                                                    photos[c[0]], photos[c[1]])), every))
@@ -165,6 +212,8 @@ def tie_points(photos: list[BlockPhoto], opts: TiePointOptions,
         matched = list(pool.map(lambda c: _match(feats[c[0]], feats[c[1]], opts,
                                                  max(scales[c[0]], scales[c[1]]), photos[c[0]],
                                                  photos[c[1]]), candidates))
+    for bp in photos:
+        bp.level = None  # photos in no candidate pair kept theirs
     reports: list[PairReport] = []
     verified: list[tuple[int, int, np.ndarray, np.ndarray, np.ndarray]] = []
     for (i, j, overlap), m in zip(candidates, matched, strict=True):
@@ -198,7 +247,8 @@ def tie_points(photos: list[BlockPhoto], opts: TiePointOptions,
     xy = [np.array([feats[p].xy[f] for p, f in t]) for t in found]
     # closure: every pair of a track's photos that has a fundamental matrix must agree with it
     # (a chain a-b-c of pairwise-correct matches can still join two different points)
-    residual = _track_residuals(found, xy, {(i, j): f for i, j, _, _, f in verified})
+    epipolar = {(i, j): f for i, j, _, _, f in verified}
+    residual = _track_residuals(found, xy, epipolar)
     bad = residual > 2.0 * opts.f_threshold * max(scales.values())
     found = [t for t, b in zip(found, bad, strict=True) if not b]
     xy = [p for p, b in zip(xy, bad, strict=True) if not b]
@@ -232,7 +282,7 @@ def tie_points(photos: list[BlockPhoto], opts: TiePointOptions,
         sigma = np.full(len(photo_idx), 0.5 * max(scales[p] for p in photo_idx))
         refined = False
         if opts.refine:
-            pos, ok = _refine_track(k, found, xy, sources, opts, scales, common)
+            pos, ok = _refine_track(k, found, xy, sources, opts, scales, common, epipolar)
             photo_idx = [p for p, o in zip(photo_idx, ok, strict=True) if o]
             pos = pos[ok]
             sigma = np.full(len(photo_idx), 0.5)
@@ -266,9 +316,13 @@ def _track_residuals(found: list, xy: list, models: dict) -> np.ndarray:
 
 
 def _refine_track(k: int, found: list, xy: list, sources: dict[int, ImageSource],
-                  opts: TiePointOptions, scales: dict[int, float], common: dict
-                  ) -> tuple[np.ndarray, np.ndarray]:
-    """Refine every observation of track ``k`` against its first one; (positions, ok mask)."""
+                  opts: TiePointOptions, scales: dict[int, float], common: dict,
+                  epipolar: dict) -> tuple[np.ndarray, np.ndarray]:
+    """Refine every observation of track ``k`` against its first one; (positions, ok mask).
+
+    A refined observation farther than the MAGSAC threshold from the epipolar line of the
+    pair's estimated model (``epipolar``, when the pair has one) is dropped: on oblique views
+    the correlation can lock onto a neighbouring structure (the detection-level match held)."""
     photo_idx = [p for p, _ in found[k]]
     pos = xy[k].copy()
     ok = np.ones(len(photo_idx), bool)
@@ -293,6 +347,11 @@ def _refine_track(k: int, found: list, xy: list, sources: dict[int, ImageSource]
                                radius, opts.min_ncc)
         pos[n] = r.xy
         ok[n] = r.ok
+        model = epipolar.get((ref, other)) if ref < other else epipolar.get((other, ref))
+        if ok[n] and model is not None:
+            pair = (pos[:1], pos[n:n + 1]) if ref < other else (pos[n:n + 1], pos[:1])
+            limit = opts.f_threshold * max(scales[ref], scales[other])
+            ok[n] = bool(model.residual(*pair)[0] <= limit)
     if not ok[1:].any():
         ok[0] = False
     return pos, ok

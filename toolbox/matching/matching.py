@@ -121,7 +121,13 @@ def verify(a: Features, b: Features, ia: np.ndarray, ib: np.ndarray, threshold_p
             model = None if m is None else EpipolarModel(m, "F")
         else:
             to_a, to_b, angle = cameras
-            m, inliers = cv2.findEssentialMat(to_a(xa), to_b(xb), np.eye(3), cv2.USAC_MAGSAC,
+            na, nb = to_a(xa), to_b(xb)
+            # a model camera's pixel that does not invert (past its lens field) is no match
+            fin = np.isfinite(na).all(axis=1) & np.isfinite(nb).all(axis=1)
+            if fin.sum() < max(8, min_matches):
+                return empty
+            ia, ib, xa, xb = ia[fin], ib[fin], xa[fin], xb[fin]
+            m, inliers = cv2.findEssentialMat(na[fin], nb[fin], np.eye(3), cv2.USAC_MAGSAC,
                                               confidence, threshold_px * angle)
             model = None if m is None else EpipolarModel(m[:3], "E", to_a, to_b, angle)
     except cv2.error:
@@ -134,9 +140,19 @@ def verify(a: Features, b: Features, ia: np.ndarray, ib: np.ndarray, threshold_p
     return PairMatches(ia[keep], ib[keep], model.residual(xa[keep], xb[keep]), len(ia), model)
 
 
+def has_camera(photo) -> bool:
+    """True when pixels of ``photo`` can be turned into rays: an interior model camera (Brown,
+    OpenCV...) or a film/digital camera with a pixel transform."""
+    return photo is not None and (photo.is_model or photo.pixel_transform is not None)
+
+
 def normaliser(photo) -> Normaliser:
-    """Pixels -> normalised camera coordinates ``(x̄/c, ȳ/c)`` of a photo with a camera and a
-    pixel transform (interior orientation or pixel size)."""
+    """Pixels -> normalised camera coordinates ``(x̄/c, ȳ/c)`` (x right, y up; the ray is
+    ``(x̄/c, ȳ/c, -1)``) of a photo with a camera: an interior model (its distortion inverted;
+    NaN where a pixel does not invert) or a film camera with a pixel transform (interior
+    orientation or pixel size)."""
+    if photo.is_model:
+        return photo.camera.pixel_to_normalised
     transform = photo.require_pixel_transform()
     camera = photo.camera
 
@@ -147,16 +163,19 @@ def normaliser(photo) -> Normaliser:
 
 
 def ground_rays(photo, xy_px: np.ndarray) -> np.ndarray:
-    """Unit ray directions in the ground frame, ``R·(x̄, ȳ, -c)``, of pixels ``(col, row)`` of an
-    oriented photo (interior orientation, principal point and distortion applied)."""
-    xy = photo.camera.image_to_camera(photo.require_pixel_transform().pixel_to_image(xy_px))
-    v = np.column_stack([xy, np.full(len(xy), -photo.camera.c)])
+    """Unit ray directions in the ground frame, ``R·(x̄/c, ȳ/c, -1)``, of pixels ``(col, row)``
+    of an oriented photo (interior orientation, principal point and distortion applied)."""
+    xy = normaliser(photo)(np.asarray(xy_px, dtype="float64").reshape(-1, 2))
+    v = np.column_stack([xy, -np.ones(len(xy))])
     d = v @ photo.require_exterior().rotation.T
     return d / np.linalg.norm(d, axis=1, keepdims=True)
 
 
 def pixel_angle(photo) -> float:
     """Approximate angle subtended by one pixel at the principal point (radians)."""
+    if photo.is_model:
+        fx, fy = photo.camera.focal_px
+        return float(1.0 / np.sqrt(fx * fy))
     p2f = photo.require_pixel_transform().pixel_to_fiducial
     size = np.sqrt(abs(np.linalg.det(p2f[:2, :2])))
     return float(size / photo.camera.c)

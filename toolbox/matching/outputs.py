@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from toolbox.matching.block import TiePointResult
+from toolbox.matching.matching import has_camera, normaliser
 from toolbox.photogrammetry.tables import write_csv
 
 MEASUREMENT_COLUMNS = ["point_id", "photo", "col_px", "row_px", "sigma_px"]
@@ -44,7 +45,7 @@ def write_pairs(path: Path, result: TiePointResult) -> None:
 def ground_points(result: TiePointResult) -> tuple[np.ndarray, np.ndarray]:
     """Intersected ground positions (P, 3; NaN where a track has an unoriented photo or does
     not intersect) and the largest reprojection residual per track (px)."""
-    from toolbox.photogrammetry.forward_intersection import camera_observations, intersect
+    from toolbox.photogrammetry.forward_intersection import intersect
 
     n = len(result.tracks)
     xyz = np.full((n, 3), np.nan)
@@ -52,7 +53,7 @@ def ground_points(result: TiePointResult) -> tuple[np.ndarray, np.ndarray]:
     usable = [k for k, t in enumerate(result.tracks)
               if all(result.photos[p].photo is not None
                      and result.photos[p].photo.exterior is not None
-                     and result.photos[p].photo.pixel_transform is not None for p in t.photos)]
+                     and has_camera(result.photos[p].photo) for p in t.photos)]
     if not usable:
         return xyz, worst
     index, photos, obs = [], [], []
@@ -64,13 +65,16 @@ def ground_points(result: TiePointResult) -> tuple[np.ndarray, np.ndarray]:
             obs.append(xy)
     index = np.array(index)
     obs = np.array(obs)
-    cam = camera_observations(photos, obs, "pixel")
+    # normalised camera coordinates (principal distance 1): film and model cameras alike
+    cam = np.empty_like(obs)
+    ids = np.array([p.id for p in photos])
+    for pid in dict.fromkeys(ids.tolist()):
+        rows = np.flatnonzero(ids == pid)
+        cam[rows] = normaliser(photos[rows[0]])(obs[rows])
     res = intersect(index, cam, np.array([p.exterior.centre for p in photos]),
-                    np.array([p.exterior.rotation for p in photos]),
-                    np.array([p.camera.c for p in photos]), n)
+                    np.array([p.exterior.rotation for p in photos]), np.ones(len(photos)), n)
     ok = res.ok
     xyz[ok] = res.xyz[ok]
-    ids = np.array([p.id for p in photos])
     for pid in dict.fromkeys(ids.tolist()):
         rows = np.flatnonzero((ids == pid) & ok[index])
         if len(rows):

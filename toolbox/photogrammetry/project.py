@@ -128,7 +128,10 @@ class Project:
                                                          "kappa")}
             photos.append(entry)
         return {"format": FORMAT_MARKER, "version": 1,
-                "crs": None if self.crs is None else crs_label(self.crs),
+                # a CRS without an authority code (a PROJ string) is written as WKT: its
+                # name ("unknown") would not read back
+                "crs": None if self.crs is None else crs_label(self.crs)
+                if self.crs.to_authority(min_confidence=90) else self.crs.to_wkt(),
                 "angle_unit": canonical_unit(angle_unit),
                 "cameras": [c.as_dict() for c in self.cameras.values()], "photos": photos}
 
