@@ -107,3 +107,19 @@ def siena_interior_cases() -> list[tuple[tuple[str, str], list[dict], dict]]:
     with open(SIENA / "interior_reports.csv") as f:
         reports = {(r["photo"], r["source"]): r for r in csv.DictReader(f)}
     return [(key, rows, reports[key]) for key, rows in sorted(groups.items())]
+
+
+# -- the mosaic tests' standard scene (tests/algorithms/mosaic/mosaic_scene.py; here rather than
+# in a conftest.py of that folder, which would shadow this module for `from conftest import`)
+@pytest.fixture(scope="module")
+def pair(tmp_path_factory):
+    import mosaic_scene
+
+    return mosaic_scene.standard_pair(tmp_path_factory)
+
+
+@pytest.fixture(scope="module")
+def seams(tmp_path_factory):
+    import mosaic_scene
+
+    return mosaic_scene.standard_seams(tmp_path_factory)
