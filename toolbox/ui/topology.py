@@ -94,6 +94,21 @@ def check_linework(params: Mapping[str, Any]) -> None:
         read_code_file(params["CODES"], "CODES")
 
 
+def check_precision(precision: float, geoms: Any) -> None:
+    """Refuse a coordinate grid finer than the coordinates can hold: below 1e-12 of their
+    largest magnitude (float64 keeps about 1e-16), snap rounding degenerates."""
+    import shapely
+
+    from toolbox.errors import ParameterError
+
+    coords = shapely.get_coordinates(geoms)
+    magnitude = float(abs(coords).max()) if len(coords) else 0.0
+    if precision > 0 and precision < 1e-12 * max(magnitude, 1.0):
+        raise ParameterError("PRECISION", f"{precision:g} is finer than coordinates of "
+                             f"{magnitude:,.0f} can hold; expected >= "
+                             f"{1e-12 * max(magnitude, 1.0):.1g} (CRS units), e.g. 0.001")
+
+
 def build_linework(params: Mapping[str, Any], feedback: Any, mode: str, end: float
                    ) -> tuple[Any, dict[str, Any], dict[str, Any]]:
     """Read the linework and run area building in ``mode`` ("build" or "check") up to
@@ -106,6 +121,7 @@ def build_linework(params: Mapping[str, Any], feedback: Any, mode: str, end: flo
     data = read_linework(linework_sources(params), feedback)
     tol, sources, _ = tolerances_from(explicit_tolerances(params), params.get("PARAMETERS"),
                                       feedback, data["crs"])
+    check_precision(tol.precision, data["line_geoms"])
     output = build_topology(data["line_geoms"], data["line_codes"], data["label_geoms"],
                             data["label_codes"], data["label_attributes"], tol,
                             feedback.step(0, end), mode=mode, area_codes=data["area_codes"])
