@@ -57,29 +57,40 @@ def peak_rss_mb() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
 
-def run_measured(cmd: list[str], poll: float = 0.02) -> tuple[float, float, int, str]:
+def run_measured(cmd: list[str], poll: float = 0.02, timeout: float | None = None
+                 ) -> tuple[float, float, int, str]:
     """Run a command; return (seconds, peak resident MB, exit code, stderr).
 
     The peak is the child's own ``VmHWM``, read while it runs (it only grows, so the last
-    reading before exit is the peak up to the polling interval).
+    reading before exit is the peak up to the polling interval). With ``timeout`` the child is
+    killed after that many seconds (exit code -9, stderr says so). Its stderr goes to a
+    temporary file, not a pipe, so a talkative long run cannot block on a full pipe.
     """
     import subprocess
+    import tempfile
     import time
 
     t0 = time.perf_counter()
-    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
-    status = Path(f"/proc/{proc.pid}/status")
-    peak_kb = 0
-    while proc.poll() is None:
-        try:
-            for line in status.read_text().splitlines():
-                if line.startswith("VmHWM"):
-                    peak_kb = max(peak_kb, int(line.split()[1]))
-        except (OSError, ValueError):
-            pass
-        time.sleep(poll)
-    seconds = time.perf_counter() - t0
-    stderr = proc.stderr.read().decode(errors="replace") if proc.stderr else ""
+    with tempfile.TemporaryFile() as log:
+        proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=log)
+        status = Path(f"/proc/{proc.pid}/status")
+        peak_kb = 0
+        while proc.poll() is None:
+            try:
+                for line in status.read_text().splitlines():
+                    if line.startswith("VmHWM"):
+                        peak_kb = max(peak_kb, int(line.split()[1]))
+            except (OSError, ValueError):
+                pass
+            if timeout is not None and time.perf_counter() - t0 > timeout:
+                proc.kill()
+                proc.wait()
+                return time.perf_counter() - t0, peak_kb / 1024.0, -9, \
+                    f"killed after {timeout:.0f} s (deadline)"
+            time.sleep(poll)
+        seconds = time.perf_counter() - t0
+        log.seek(0)
+        stderr = log.read().decode(errors="replace")
     return seconds, peak_kb / 1024.0, proc.returncode, stderr
 
 

@@ -224,43 +224,13 @@ def ground_disagreement(measurements: Path, size: int, seed: int = 0) -> np.ndar
     return np.array(worst)
 
 
-def run_with_deadline(cmd: list[str], timeout: float) -> tuple[float, float, int, str]:
-    """:func:`benchlib.run_measured` with a deadline: the child is killed after ``timeout``
-    seconds (exit code -9, stderr says so)."""
-    import subprocess
-    import time
-
-    t0 = time.perf_counter()
-    log = tempfile.TemporaryFile()  # not a pipe: a long run's messages cannot block the child
-    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=log)
-    status = Path(f"/proc/{proc.pid}/status")
-    peak_kb = 0
-    while proc.poll() is None:
-        try:
-            for line in status.read_text().splitlines():
-                if line.startswith("VmHWM"):
-                    peak_kb = max(peak_kb, int(line.split()[1]))
-        except (OSError, ValueError):
-            pass
-        if time.perf_counter() - t0 > timeout:
-            proc.kill()
-            proc.wait()
-            return time.perf_counter() - t0, peak_kb / 1024.0, -9, \
-                f"killed after {timeout:.0f} s (deadline)"
-        time.sleep(0.05)
-    log.seek(0)
-    stderr = log.read().decode(errors="replace")
-    return time.perf_counter() - t0, peak_kb / 1024.0, proc.returncode, stderr
-
-
 def run_tiepoints(args: list[str], work: Path, tag: str, timeout: float | None = None) -> dict:
     out = work / f"{tag}.csv"
     pairs = work / f"{tag}_pairs.csv"
     report = work / f"{tag}.json"
     cmd = [sys.executable, "-m", "toolbox", "run", "orientation:tiepoints", *args, "--OUTPUT",
            str(out), "--PAIRS", str(pairs), "--REPORT", str(report), "--overwrite"]
-    seconds, peak, code, err = run_measured(cmd) if timeout is None else \
-        run_with_deadline(cmd, timeout)
+    seconds, peak, code, err = run_measured(cmd, timeout=timeout)
     if code != 0:
         return {"error": err.strip().splitlines()[-1] if err.strip() else f"exit {code}",
                 "seconds": seconds, "peak_mb": peak}
