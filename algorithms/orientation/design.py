@@ -113,17 +113,21 @@ class BlockDesign(Algorithm):
         if (params.get("MAP_SCALE") is None) == (params.get("PHOTO_SCALE") is None):
             raise self.fail("PHOTO_SCALE", "or MAP_SCALE: give exactly one of them")
         _format(params["FORMAT"])
+        self._plan(params)  # the size guard: refused here, before the run (and in --validate)
 
-    def process(self, params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
-        import math
-
-        import geopandas as gpd
+    def _plan(self, params: dict[str, Any]) -> tuple:
+        """``(plan, spec, crs, scale, scale_range)``; a block larger than the precision
+        analysis can take is refused naming the scale parameter, before any photo is laid."""
         import shapely
 
-        from toolbox.io.vector import read_vector, write_layers
-        from toolbox.photogrammetry.tables import write_json
-        from toolbox.triangulation.flightplan import FlightSpec, photo_scale_for_map, plan_flight
-        from toolbox.triangulation.prediction import predict, summary, verdict
+        from toolbox.io.vector import read_vector
+        from toolbox.triangulation.flightplan import (
+            BlockTooLarge,
+            FlightSpec,
+            photo_scale_for_map,
+            plan_flight,
+        )
+        from toolbox.triangulation.prediction import MAX_MODEL_UNKNOWNS
 
         if params["EXTENT"] is not None:
             area = shapely.box(*params["EXTENT"].bounds)
@@ -147,7 +151,28 @@ class BlockDesign(Algorithm):
                           params["FORWARD_OVERLAP"] / 100, params["SIDE_OVERLAP"] / 100,
                           params["TERRAIN_HEIGHT"], params["AZIMUTH"], params["EDGE_INTERVAL"],
                           params["HEIGHT_INTERVAL"], params["PAIRS"])
-        plan = plan_flight(area, spec)
+        try:
+            plan = plan_flight(area, spec, max_models=MAX_MODEL_UNKNOWNS // 7)
+        except BlockTooLarge as exc:
+            name = "PHOTO_SCALE" if params["PHOTO_SCALE"] is not None else "MAP_SCALE"
+            x0, y0, x1, y1 = area.bounds
+            raise self.fail(name, f"{params[name]:g} (photo scale 1:{scale:g}) over the "
+                            f"{x1 - x0:,.0f} x {y1 - y0:,.0f} m area: {exc} the precision "
+                            f"analysis takes; use a larger {name} number or a smaller EXTENT "
+                            "or AREA (plan the block in parts)") from None
+        return plan, spec, crs, scale, scale_range
+
+    def process(self, params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
+        import math
+
+        import geopandas as gpd
+        import shapely
+
+        from toolbox.io.vector import write_layers
+        from toolbox.photogrammetry.tables import write_json
+        from toolbox.triangulation.prediction import predict, summary, verdict
+
+        plan, spec, crs, scale, scale_range = self._plan(params)
         feedback.set_progress(30)
         pred = predict(plan)
         stats = summary(pred, params["IMAGE_SIGMA"] / 1000.0, params["METHOD"])

@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from toolbox.errors import InputDataError
+from toolbox.errors import InputDataError, ParameterError
 from toolbox.feedback import Feedback
 from toolbox.terrain.gridding.request import GriddingRequest
 from toolbox.terrain.ground import GroundFilter, smrf
@@ -123,10 +123,17 @@ def run_ground(request: GroundRequest, feedback: Feedback) -> dict[str, Any]:
     local = xyz.copy()
     local[:, :2] -= origin
     span = np.ptp(local[:, :2], axis=0) / cell
+    radii = flt.max_window / cell  # the openings' largest radius, cells: the grid's padding
+    if radii > span.max() + 2:
+        raise ParameterError("MAX_WINDOW", f"{flt.max_window:g} is {radii:,.0f} filter cells "
+                             f"of {cell:g}, wider than the data ({span[0]:,.0f} x "
+                             f"{span[1]:,.0f} cells): objects cannot be wider than the area; "
+                             "use a MAX_WINDOW of about half the widest building or tree group")
     limit = int(grid.max_cells or 1e9)
-    if (span[0] + 2) * (span[1] + 2) > limit:
-        raise InputDataError(f"the filter grid would have {(span[0] + 2) * (span[1] + 2):,.0f} "
-                             f"cells (over MAX_CELLS {limit:,}): use a larger FILTER_CELL")
+    cells = (span[0] + 2 + 2 * radii) * (span[1] + 2 + 2 * radii)
+    if cells > limit:
+        raise InputDataError(f"the filter grid would have {cells:,.0f} cells with its border "
+                             f"(over MAX_CELLS {limit:,}): use a larger FILTER_CELL")
     feedback.set_progress(5, "ground filter")
     with feedback.timed("filter"):
         try:

@@ -50,6 +50,18 @@ def photo_scale_for_map(map_scale: float) -> tuple[float, tuple[float, float]]:
     return 0.5 * (lo + hi), (lo, hi)
 
 
+class BlockTooLarge(InputDataError):
+    """The planned block has more stereo models than allowed (``models`` is None when the
+    strips alone are absurdly many)."""
+
+    def __init__(self, strips: int, models: int | None, limit: int) -> None:
+        self.strips, self.models, self.limit = strips, models, limit
+        counted = f"more than {limit:,} stereo models" if models is None else \
+            f"at least {models:,} stereo models"
+        super().__init__(f"the block has {strips:,} strips and {counted}, over the limit of "
+                         f"{limit:,}")
+
+
 @dataclass
 class FlightSpec:
     """What to plan (mm, m, fractions, degrees)."""
@@ -131,8 +143,10 @@ class FlightPlan:
         return self.area_m2 / (self.base * self.spacing)
 
 
-def plan_flight(area, spec: FlightSpec) -> FlightPlan:
-    """Strips, photo centres and control for ``area`` (a shapely polygon, projected metres)."""
+def plan_flight(area, spec: FlightSpec, max_models: int | None = None) -> FlightPlan:
+    """Strips, photo centres and control for ``area`` (a shapely polygon, projected metres).
+    With ``max_models``, a block of more stereo models is refused (:class:`BlockTooLarge`)
+    before any strip's photos are allocated."""
     import shapely
 
     if area.is_empty or area.area <= 0:
@@ -156,12 +170,15 @@ def plan_flight(area, spec: FlightSpec) -> FlightPlan:
     uv_all = (coords - centre) @ plan.frame.T
     vmin, vmax = uv_all[:, 1].min(), uv_all[:, 1].max()
     n_strips = max(1, math.ceil((vmax - vmin - across) / spacing - 1e-9) + 1)
+    if max_models is not None and n_strips > 100 * (max_models + 1):
+        raise BlockTooLarge(n_strips, None, max_models)  # absurd: not even counted
     strip_v = 0.5 * (vmin + vmax) + (np.arange(n_strips) - 0.5 * (n_strips - 1)) * spacing
     # the area in the flight frame, to cut each strip's share of it
     inv = plan.frame  # ground = origin + uv @ frame  ->  uv = (ground - origin) @ frame.T
     local = shapely.transform(area, lambda xy: (xy - centre) @ inv.T)
     big = 10.0 * (np.ptp(uv_all, axis=0).max() + across + along)
     strips, index, uvs, kept = [], [], [], []
+    n_models = 0
     for s, v in enumerate(strip_v):
         lo = v - spacing / 2 if s > 0 else -big
         hi = v + spacing / 2 if s < n_strips - 1 else big
@@ -170,6 +187,9 @@ def plan_flight(area, spec: FlightSpec) -> FlightPlan:
             continue  # a concave area may leave a strip with nothing to cover
         u0, _, u1, _ = band.bounds
         n = max(2, math.ceil((u1 - u0 - along) / base - 1e-9) + 3)
+        n_models += n - 1
+        if max_models is not None and n_models > max_models:
+            raise BlockTooLarge(n_strips, n_models, max_models)
         us = 0.5 * (u0 + u1) + (np.arange(n) - 0.5 * (n - 1)) * base
         strips += [len(kept)] * n
         kept.append(v)
