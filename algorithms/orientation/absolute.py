@@ -63,6 +63,11 @@ class AbsoluteOrientation(Algorithm):
 
         m_ids, m_xyz, _ = ground_points(params["INPUT"], params["LAYER"], name="INPUT")
         c_ids, c_xyz, roles = ground_points(params["CONTROL"])
+        if params["CRS"] is not None and len(c_xyz):  # one area-of-use check everywhere
+            from toolbox.io.crs import check_coordinates_in_area
+
+            check_coordinates_in_area("CONTROL", params["CRS"], c_xyz[:, :2],
+                                      feedback.push_warning)
         model_index = {pid: k for k, pid in enumerate(m_ids)}
         common = [k for k, pid in enumerate(c_ids) if pid in model_index]
         control = [k for k in common if roles[k] == "control"]

@@ -198,6 +198,14 @@ class BundleAdjustment(Algorithm):
             measurements = measurements.concatenate(extra)
         control = read_control(params["CONTROL"])
         centres = read_centres(params["GNSS"]) if params["GNSS"] is not None else None
+        if project.crs is not None:  # as for layers: one area-of-use check everywhere
+            from toolbox.io.crs import check_coordinates_in_area
+
+            check_coordinates_in_area("CONTROL", project.crs, control.xyz[:, :2],
+                                      feedback.push_warning)
+            if centres is not None:
+                check_coordinates_in_area("GNSS", project.crs, centres.xyz[:, :2],
+                                          feedback.push_warning)
         if (params["GNSS_SHIFT"] or params["GNSS_DRIFT"]) and centres is None:
             raise self.fail("GNSS_SHIFT" if params["GNSS_SHIFT"] else "GNSS_DRIFT",
                             "needs GNSS projection centres (GNSS)")

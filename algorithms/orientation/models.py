@@ -6,7 +6,7 @@ from typing import Any
 
 from toolbox.algorithm import Algorithm
 from toolbox.feedback import Feedback
-from toolbox.parameters import Enum, File, Layer, Output, OutputFile, OutputVector, String
+from toolbox.parameters import Crs, Enum, File, Layer, Output, OutputFile, OutputVector, String
 from toolbox.registry import register
 from toolbox.ui.photogrammetry import TABLE_EXTENSIONS
 
@@ -45,7 +45,8 @@ class IndependentModels(Algorithm):
         String("LAYER", "GeoPackage layer of INPUT (default: the first)", optional=True),
         File("CONTROL", "control points: id, X, Y, Z (blank X/Y or Z allowed)",
              extensions=TABLE_EXTENSIONS),
-        String("CRS", "CRS of the ground coordinates (e.g. EPSG:3003)", optional=True),
+        Crs("CRS", "CRS of the ground coordinates (e.g. EPSG:3003; projected, metres)",
+            optional=True),
         Enum("MODE", "planimetric (plane conformal) or spatial (7-parameter similarity)",
              options=("spatial", "planimetric"), default="spatial"),
         OutputVector("OUTPUT", "GeoPackage with layer points", layers=[
@@ -62,7 +63,7 @@ class IndependentModels(Algorithm):
         import numpy as np
         import shapely
 
-        from toolbox.io.crs import parse_crs
+        from toolbox.io.crs import check_coordinates_in_area
         from toolbox.io.vector import write_layers
         from toolbox.photogrammetry.tables import column, number, read_table, write_json
         from toolbox.triangulation.inputs import read_control
@@ -76,6 +77,9 @@ class IndependentModels(Algorithm):
         xyz = np.array([[number(r[c], f"row {k + 1} {c}") for c in cols]
                         for k, r in enumerate(rows)])
         control = read_control(params["CONTROL"])
+        if params["CRS"] is not None:  # a pyproj CRS (geographic ones refused by the runner)
+            check_coordinates_in_area("CONTROL", params["CRS"], control.xyz[:, :2],
+                                      feedback.push_warning)
         use = [k for k, role in enumerate(control.roles) if role == "control"]
         request = ModelsRequest([r[c_model] for r in rows], [r[c_id] for r in rows], xyz,
                                 [control.ids[k] for k in use], control.xyz[use], params["MODE"])
@@ -99,7 +103,7 @@ class IndependentModels(Algorithm):
                 ("tie" if n_models[k] > 1 else "isolated")
             features.append({"point_id": pid, "role": role, "n_models": int(n_models[k]),
                              "max_residual_m": float(worst[k]), "geometry": shapely.Point(pt)})
-        crs = parse_crs(params["CRS"], "CRS") if params["CRS"] else None
+        crs = params["CRS"]
         write_layers(params["OUTPUT"], {"points": gpd.GeoDataFrame(features, geometry="geometry",
                                                                    crs=crs)},
                      crs=crs, geometry_types={"points": "Point Z"})

@@ -35,7 +35,7 @@ from typing import Any
 
 import numpy as np
 
-from toolbox.errors import InputDataError
+from toolbox.errors import InputDataError, ParameterError
 
 FORMAT = "epipolar-pair"
 OUTLINE_POINTS = 16  # per side of the image frame, to follow distortion and perspective
@@ -185,6 +185,7 @@ def epipolar_geometry(left: Any, right: Any, pixel_mm: float | None = None,
         photo.require_exterior()
     rotation = common_rotation(left, right)
     cn = float(principal_distance_mm or left.camera.c)
+    given = pixel_mm is not None
     if pixel_mm is None:
         pixel_mm = float(left.require_pixel_transform().pixel_size_mm)
     outlines = [_normalised_outline(p, rotation, cn) for p in (left, right)]
@@ -201,6 +202,11 @@ def epipolar_geometry(left: Any, right: Any, pixel_mm: float | None = None,
         x_min.append(lo)
         widths.append(int(math.ceil((o[:, 0].max() - lo) / pixel_mm)))
     for side, w in enumerate(widths):
+        if w * height > MAX_PIXELS and given:
+            raise ParameterError("PIXEL_SIZE_MM", f"{pixel_mm:g} mm gives a normalised image of "
+                                 f"{(left, right)[side].id!r} of {w:,} x {height:,} pixels, over "
+                                 f"the limit of {MAX_PIXELS:,}: use a larger PIXEL_SIZE_MM (or "
+                                 "leave it empty: the photo's pixel)")
         if w * height > MAX_PIXELS:
             raise InputDataError(f"the normalised image of {(left, right)[side].id!r} would have "
                                  f"{w} x {height} pixels: the photos are too oblique to the base")

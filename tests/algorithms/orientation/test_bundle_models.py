@@ -41,7 +41,7 @@ def test_planimetric_example_of_the_seeds(tmp_path):
     models, control = _files(tmp_path)
     from test_bundle import declared_layer_problems
 
-    params = {"INPUT": models, "CONTROL": control, "MODE": "planimetric", "CRS": "EPSG:3003",
+    params = {"INPUT": models, "CONTROL": control, "MODE": "planimetric",  # local: no CRS
               "OUTPUT": tmp_path / "block.gpkg", "REPORT": tmp_path / "block.json"}
     out = toolbox.run("orientation:models", params)
     assert not declared_layer_problems("orientation:models", "OUTPUT", out["OUTPUT"], params)
