@@ -1,0 +1,215 @@
+"""Issue 24, round four: the gaps the audit of the newer algorithms found, each with the test that
+fails without its guard. Size guards of orientation:design (a block past the precision analysis
+ran for minutes and took 14 GB) and dem:ground (MAX_WINDOW 1e9: MemoryError, exit 3); the CRS of
+orientation:models (a string: EPSG:4326 accepted) and the area-of-use check of control points in
+models / absolute / bundle; PIXEL_SIZE_MM named by stereo:epipolar and dem:match; SIGTERM during
+dem:match (staged LAZ half-written: nothing left, the message says so)."""
+
+from __future__ import annotations
+
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+import toolbox
+from toolbox.cli import main
+from toolbox.errors import InputDataError, ParameterError
+
+sys.path.insert(0, str(Path(__file__).parents[1] / "algorithms" / "stereo"))
+import stereo_scene as sc  # noqa: E402
+
+E0, N0 = 1688000.0, 4799000.0
+
+
+def never(*args, **kwargs):
+    raise AssertionError("the heavy step ran before the size guard")
+
+
+def one_error(stderr: str) -> str:
+    lines = [ln for ln in stderr.strip().splitlines() if not ln.startswith("WARNING:")]
+    assert len(lines) == 1 and lines[0].startswith("toolbox: error: "), stderr
+    assert "Traceback" not in stderr
+    return lines[0]
+
+
+# -- size guards ----------------------------------------------------------------------------------
+@pytest.mark.parametrize("changes, parameter, words", [
+    ({"PHOTO_SCALE": 1}, "PHOTO_SCALE", "14,493 strips"),  # 0.23 m photos over 4 x 2.5 km
+    ({"MAP_SCALE": 1000, "EXTENT": "0,0,1e7,1e7 [EPSG:3003]"}, "MAP_SCALE", "10,540 strips"),
+    ({"PHOTO_SCALE": 1, "EXTENT": "0,0,1e7,1e7 [EPSG:3003]"}, "PHOTO_SCALE",
+     "more than 714 stereo models"),  # 5e7 strips: refused before they are laid out
+])
+def test_design_refuses_a_block_too_large_before_laying_it_out(tmp_path, monkeypatch, changes,
+                                                                parameter, words):
+    from toolbox.triangulation import prediction
+
+    monkeypatch.setattr(prediction, "predict", never)
+    monkeypatch.setattr(prediction, "block_points", never)
+    params = {"EXTENT": f"{E0 - 500},{N0 - 1000},{E0 + 3500},{N0 + 1500} [EPSG:3003]",
+              "TERRAIN_HEIGHT": 300, "OUTPUT": tmp_path / "d.gpkg"} | changes
+    started = time.perf_counter()
+    with pytest.raises(ParameterError) as info:
+        toolbox.run("orientation:design", params)
+    text = str(info.value)
+    assert info.value.name == parameter and text.startswith(parameter + " "), text
+    assert words in text and "over the limit of 714" in text and "plan the block in parts" in text
+    assert time.perf_counter() - started < 10
+    assert list(tmp_path.iterdir()) == []
+    # the same refusal in a pipeline's --validate, before any step runs
+    pipe = tmp_path / "p.yaml"
+    extent = params["EXTENT"]
+    pipe.write_text("steps:\n  - algorithm: orientation:design\n    params: {EXTENT: '"
+                    f"{extent}', {parameter}: {changes[parameter]}, OUTPUT: d.gpkg}}\n")
+    result = CliRunner().invoke(main, ["batch", str(pipe), "--validate"])
+    assert result.exit_code == 2 and parameter in one_error(result.stderr)
+
+
+def test_design_of_an_ordinary_block_is_not_refused(tmp_path):
+    out = toolbox.run("orientation:design", {
+        "EXTENT": f"{E0},{N0},{E0 + 4000},{N0 + 2500} [EPSG:3003]", "MAP_SCALE": 5000,
+        "TERRAIN_HEIGHT": 300, "OUTPUT": tmp_path / "d.gpkg"})
+    assert 0 < out["STATISTICS"]["models"] <= 714
+
+
+def test_ground_refuses_a_window_wider_than_the_data(tmp_path, monkeypatch):
+    from rasterio.transform import from_origin
+
+    from toolbox.io.raster import write_raster
+    from toolbox.terrain import ground_run
+
+    z = 300.0 + np.add.outer(np.arange(30.0), np.arange(40.0)) * 0.1
+    write_raster(tmp_path / "dsm.tif", z.astype("float32"), from_origin(E0, N0 + 120, 4, 4),
+                 "EPSG:3003", nodata=-9999.0)
+    params = {"DSM": tmp_path / "dsm.tif", "MAX_WINDOW": 1e9, "OUTPUT": tmp_path / "g.tif",
+              "NONGROUND": tmp_path / "n.tif"}
+    real = ground_run.smrf
+    monkeypatch.setattr(ground_run, "smrf", never)
+    with pytest.raises(ParameterError) as info:
+        toolbox.run("dem:ground", params)
+    text = str(info.value)
+    assert info.value.name == "MAX_WINDOW" and "250,000,000 filter cells of 4" in text
+    assert "wider than the data (39 x 29 cells)" in text  # cell centres 39 x 29 cells apart
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["dsm.tif"]
+    monkeypatch.setattr(ground_run, "smrf", real)
+    toolbox.run("dem:ground", params | {"MAX_WINDOW": 40})  # 10 cells: filtered
+
+
+def test_epipolar_pixel_size_is_named():
+    """A PIXEL_SIZE_MM of 1 nm makes normalised images of 1e17 pixels: the parameter is named
+    (it read 'the photos are too oblique to the base')."""
+    from toolbox.stereo.epipolar import epipolar_geometry
+
+    left, right = sc.photo("L"), sc.photo("R")
+    with pytest.raises(ParameterError) as info:
+        epipolar_geometry(left, right, pixel_mm=1e-6)
+    assert info.value.name == "PIXEL_SIZE_MM" and "use a larger PIXEL_SIZE_MM" in str(info.value)
+    geometry = epipolar_geometry(left, right, pixel_mm=0.383)
+    assert 400 < geometry.height < 800
+
+
+# -- CRS of the orientation tools ------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def block(tmp_path_factory):
+    from toolbox.demo.samples.bundle_block import make
+
+    return make(tmp_path_factory.mktemp("bundle_block") / "data", {})
+
+
+def test_models_crs_is_a_crs_in_metres_covering_the_control(block, tmp_path):
+    base = {"INPUT": block["bundle_models"], "CONTROL": block["bundle_control"],
+            "OUTPUT": tmp_path / "m.gpkg"}
+    with pytest.raises(ParameterError, match="^CRS .*'abc'"):
+        toolbox.run("orientation:models", base | {"CRS": "abc"})
+    with pytest.raises(ParameterError, match="^CRS is in the geographic CRS EPSG:4326"):
+        toolbox.run("orientation:models", base | {"CRS": "EPSG:4326"})
+    with pytest.raises(InputDataError, match="^CONTROL: coordinates .* outside the area of use "
+                                             "of EPSG:32632"):
+        toolbox.run("orientation:models", base | {"CRS": "EPSG:32632"})
+    assert list(tmp_path.iterdir()) == []
+    toolbox.run("orientation:models", base | {"CRS": "EPSG:3003"})
+    import geopandas as gpd
+
+    assert gpd.read_file(tmp_path / "m.gpkg").crs.to_epsg() == 3003
+
+
+def test_absolute_and_bundle_check_control_against_the_crs_area(block, tmp_path):
+    model = np.array([[0, 0, 0], [10, 0, 1], [0, 10, 2], [10, 10, 0], [5, 5, 3.0]])
+    ground = model * 2 + [E0, N0, 300.0]
+    for name, xyz in (("m.csv", model), ("c.csv", ground)):
+        (tmp_path / name).write_text("id,X,Y,Z\n" + "".join(
+            f"p{k},{x},{y},{z}\n" for k, (x, y, z) in enumerate(xyz)))
+    base = {"INPUT": tmp_path / "m.csv", "CONTROL": tmp_path / "c.csv",
+            "REPORT": tmp_path / "a.json"}
+    with pytest.raises(InputDataError, match="^CONTROL: .* area of use of EPSG:32633"):
+        toolbox.run("orientation:absolute", base | {"CRS": "EPSG:32633"})
+    assert not (tmp_path / "a.json").exists()
+    toolbox.run("orientation:absolute", base | {"CRS": "EPSG:3003"})
+    # the bundle: the project's CRS is EPSG:3003, control moved to local coordinates
+    lines = Path(block["bundle_control"]).read_text().splitlines()
+    header = lines[0].split(",")
+    ix, iy = header.index("X"), header.index("Y")
+    local = [lines[0]]
+    for line in lines[1:]:
+        cells = line.split(",")
+        for i, shift in ((ix, 1687000.0), (iy, 4796000.0)):
+            if cells[i].strip():
+                cells[i] = f"{float(cells[i]) - shift:.3f}"
+        local.append(",".join(cells))
+    (tmp_path / "local.csv").write_text("\n".join(local) + "\n")
+    with pytest.raises(InputDataError, match="^CONTROL: coordinates .* outside the area of use"):
+        toolbox.run("orientation:bundle", {"PROJECT": block["bundle_project"],
+                                           "INPUT": block["bundle_measurements"],
+                                           "CONTROL": tmp_path / "local.csv",
+                                           "OUTPUT": tmp_path / "b.yaml"})
+    assert not (tmp_path / "b.yaml").exists()
+
+
+# -- SIGTERM during dem:match -----------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def pair(tmp_path_factory):
+    from toolbox.photogrammetry.synthetic import hills_dem, wave_texture
+
+    z, transform = hills_dem((sc.X0 - 300, sc.Y0 - 100, sc.X0 + 1300, sc.Y0 + 1100), cell=2.0,
+                             relief=40.0, base=300.0, seed=5)
+    texture = wave_texture(seed=2, wavelength=(8.0, 40.0), waves=40)
+    return sc.make_pair(tmp_path_factory.mktemp("pair"), z, transform, texture,
+                        names=("L", "R"), supersample=1)
+
+
+def test_sigterm_during_dem_match_leaves_nothing(pair, tmp_path):
+    """SIGTERM once the pair is being matched (the staged LAZ begun, the epipolar images in a
+    temporary folder): exit 143, one line saying nothing was written, and nothing is: no
+    output, no staging folder, no temporary folder."""
+    out, tmp = tmp_path / "out", tmp_path / "tmp"
+    out.mkdir()
+    tmp.mkdir()
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "toolbox.cli", "run", "dem:match", "--PROJECT", str(pair.project),
+         "--MIN_HEIGHT", "280", "--MAX_HEIGHT", "370", "--CELL_SIZE", "4", "--OUTPUT",
+         str(out / "dsm.tif"), "--COUNT", str(out / "count.tif"), "--SPREAD",
+         str(out / "spread.tif"), "--POINTS", str(out / "points.laz"), "--progress", "json"],
+        stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, start_new_session=True,
+        env={**__import__("os").environ, "TMPDIR": str(tmp)})
+    lines = []
+    deadline = time.monotonic() + 180
+    for line in proc.stderr:  # the progress lines: signal once the matching has begun
+        lines.append(line)
+        if '"percent": 6' in line or time.monotonic() > deadline:
+            break
+    staged = list(out.glob(".points.laz.*.part/points.laz"))
+    assert staged, lines  # the LAZ begun
+    assert list(tmp.glob("dem_match_*")), lines  # the epipolar images' folder
+    assert proc.poll() is None, lines
+    proc.send_signal(signal.SIGTERM)
+    rest = proc.stderr.read()
+    proc.wait(timeout=60)
+    errors = [ln for ln in rest.splitlines() if not ln.startswith("{")]
+    assert proc.returncode == 143, rest
+    assert len(errors) == 1 and "terminated by SIGTERM; no output was written" in errors[0], rest
+    assert list(out.iterdir()) == [] and list(tmp.iterdir()) == []
