@@ -115,7 +115,27 @@ steps:
                     "camera_yaml": siena / "camera.yaml",
                     "parameter_file": made["linework_parameters"],
                     "transform_json": transform,
-                    "pipeline_yaml": pipeline}
+                    "pipeline_yaml": pipeline, **_orientation_table_seeds(made, folder)}
+
+
+def _orientation_table_seeds(made: dict[str, Path], folder: Path) -> dict[str, Path]:
+    """The tables of the adjustment tools: control, GNSS centres, IMU attitudes, model
+    coordinates, rectification control points (GNSS and IMU written here, two strips)."""
+    import shutil
+
+    gnss, imu = folder / "gnss.csv", folder / "imu.csv"
+    photos = [(f"{s}_{k:02d}", 1688000.0 + 600 * k, 4799000.0 + 1200 * s) for s in (1, 2)
+              for k in range(1, 6)]
+    gnss.write_text("photo,X,Y,Z,sigma_xy,sigma_z,strip,time\n" + "".join(
+        f"{pid},{x:.3f},{y:.3f},1850.25,0.05,0.1,{pid[0]},{k * 2.5}\n"
+        for k, (pid, x, y) in enumerate(photos)))
+    imu.write_text("photo,omega,phi,kappa,sigma\n" + "".join(
+        f"{pid},0.0012,-0.0031,{3.1416 * (int(pid[0]) - 1):.4f},0.001\n"
+        for pid, _, _ in photos))
+    shutil.copy(made["bundle_control"], folder / "control.csv")  # the models' CONTROL
+    return {"control_csv": made["bundle_control"], "gnss_csv": gnss, "imu_csv": imu,
+            "models_csv": made["bundle_models"], "ground_csv": made["siena_control_ground"],
+            "gcps_csv": made["photo_gcps"]}
 
 
 def _exchange_seeds(demo_folder: Path, folder: Path) -> dict[str, Path]:
@@ -207,6 +227,11 @@ def _readers(folder: Path):
     from toolbox.exchange import exif, formats, odm_gcp
     from toolbox.io.code_file import read_code_file, read_colour_file
     from toolbox.io.parameter_file import read_parameter_file as read_restitution_parameters
+    from toolbox.photogrammetry.tables import ground_points
+    from toolbox.triangulation.inputs import read_attitudes, read_centres, read_control
+
+    def run(algorithm, **params):  # a table parsed inside its algorithm
+        return lambda p: toolbox.run(algorithm, {**params, "INPUT": p}, overwrite=True)
 
     def exchange(fmt, crs=None):
         return lambda p: formats.read_orientations([p], fmt=fmt, crs=crs)
@@ -251,6 +276,16 @@ def _readers(folder: Path):
         "parameter file": ("parameter_file", read_parameter_file),
         "transform JSON": ("transform_json", load_transform),
         "pipeline YAML": ("pipeline_yaml", pipeline),
+        "control CSV": ("control_csv", read_control),
+        "GNSS CSV": ("gnss_csv", read_centres),
+        "IMU CSV": ("imu_csv", lambda p: read_attitudes(p, "rad")),
+        "ground-point CSV": ("ground_csv", ground_points),
+        "model coordinates CSV": ("models_csv", run(
+            "orientation:models", CONTROL=folder / "control.csv", MODE="planimetric",
+            OUTPUT=folder / "models.gpkg")),
+        "rectification GCP CSV": ("gcps_csv", run(
+            "rectify:estimate", CRS="EPSG:3003", MODEL="homography",
+            OUTPUT=folder / "transform.json")),
     }
 
 
@@ -261,7 +296,8 @@ READERS = ["orientation file (auto)", "Z-Map log", "Z-Map log (auto)", "fiducial
            "two-table coordinates", "OPK text", "OpenSfM reconstruction.json",
            "OpenSfM cameras.json", "Orthority interior YAML", "Orthority exterior GeoJSON",
            "Orthority CSV", "Metashape XML", "Metashape OPK text", "PAT-B", "ODM gcp_list.txt",
-           "EXIF/XMP (drone JPEG)", "format detection"]
+           "EXIF/XMP (drone JPEG)", "format detection", "control CSV", "GNSS CSV", "IMU CSV",
+           "ground-point CSV", "model coordinates CSV", "rectification GCP CSV"]
 
 
 class Hang(Exception):

@@ -213,3 +213,17 @@ def test_sigterm_during_dem_match_leaves_nothing(pair, tmp_path):
     assert proc.returncode == 143, rest
     assert len(errors) == 1 and "terminated by SIGTERM; no output was written" in errors[0], rest
     assert list(out.iterdir()) == [] and list(tmp.iterdir()) == []
+
+
+# -- batch --validate: a step without its required input ------------------------------------------
+def test_validate_refuses_a_step_without_its_required_input(tmp_path):
+    """The first of the issue's 8 pipelines (the others: test_batch_validate_gaps.py and
+    test_error_contract.py::test_batch_validate_checks_values)."""
+    pipe = tmp_path / "p.yaml"
+    pipe.write_text("steps:\n  - name: shade\n    algorithm: dem:hillshade\n"
+                    "    params: {OUTPUT: a.tif}\n")
+    for extra in (["--validate"], []):
+        result = CliRunner().invoke(main, ["batch", str(pipe), *extra])
+        line = one_error(result.stderr)
+        assert result.exit_code == 2 and "step 'shade' (dem:hillshade): INPUT is required" in line
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["p.yaml"]
