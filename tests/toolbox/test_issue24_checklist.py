@@ -227,3 +227,25 @@ def test_validate_refuses_a_step_without_its_required_input(tmp_path):
         line = one_error(result.stderr)
         assert result.exit_code == 2 and "step 'shade' (dem:hillshade): INPUT is required" in line
     assert sorted(p.name for p in tmp_path.iterdir()) == ["p.yaml"]
+
+
+def test_overwrite_of_an_output_folder_removes_stale_sidecars_of_replaced_files(tmp_path):
+    """--overwrite of mosaic:cut's sheets: a sheet's old .aux.xml (statistics QGIS would show)
+    goes with the replaced sheet; a file the run does not plan is left alone."""
+    from rasterio.transform import from_origin
+
+    from toolbox.io.raster import write_raster
+
+    raster = tmp_path / "r.tif"
+    write_raster(raster, np.ones((10, 10), "float32"), from_origin(E0, N0 + 10, 1, 1),
+                 "EPSG:3003", nodata=-9999.0)
+    folder = tmp_path / "cut"
+    toolbox.run("mosaic:cut", {"INPUT": raster, "SCALE": 2000, "OUTPUT": folder})
+    sheet = next(folder.glob("*.tif"))
+    stale = folder / f"{sheet.name}.aux.xml"
+    stale.write_text("<PAMDataset><Metadata><MDI key='STATISTICS_MAXIMUM'>1e9</MDI></Metadata>"
+                     "</PAMDataset>")
+    (folder / "notes.txt").write_text("mine")
+    toolbox.run("mosaic:cut", {"INPUT": raster, "SCALE": 2000, "OUTPUT": folder}, overwrite=True)
+    assert sheet.exists() and not stale.exists()
+    assert (folder / "notes.txt").read_text() == "mine"
