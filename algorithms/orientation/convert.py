@@ -91,8 +91,11 @@ class ConvertOrientations(Algorithm):
                   out.with_name(f"{out.stem.removesuffix('_ext_param')}_int_param.yaml")]
         for item in inputs:
             given = Path(item).resolve()
-            files = list(given.iterdir()) if given.is_dir() else [given]
-            hit = next((b for b in beside if b in {f.resolve() for f in files}), None)
+            files = {f.resolve() for f in (given.iterdir() if given.is_dir() else [given])}
+            if out in files:  # a file of an INPUT folder is an input too
+                raise self.fail("OUTPUT", f"is the input {out} (in INPUT {item!r}); an input is "
+                                "never overwritten: choose another name or folder")
+            hit = next((b for b in beside if b in files), None)
             if hit is not None:
                 raise self.fail("OUTPUT", f"would write {hit.name} beside it, which is an input; "
                                 "an input is never overwritten: choose another name or folder")

@@ -249,3 +249,27 @@ def test_overwrite_of_an_output_folder_removes_stale_sidecars_of_replaced_files(
     toolbox.run("mosaic:cut", {"INPUT": raster, "SCALE": 2000, "OUTPUT": folder}, overwrite=True)
     assert sheet.exists() and not stale.exists()
     assert (folder / "notes.txt").read_text() == "mine"
+
+
+def test_convert_never_writes_over_a_file_of_an_input_folder(tmp_path):
+    """orientation:convert with INPUT a folder and OUTPUT one of its files, --overwrite: the
+    file was replaced by its conversion (exit 0); now refused, the file intact."""
+    from toolbox.photogrammetry.synthetic import frame_photo
+
+    photo = frame_photo((E0, N0, 1500.0), (0.01, -0.02, 0.3), width=100, height=100,
+                        principal_distance_mm=150.0, crs="EPSG:3003", photo_id="p1")
+    rot = photo.exterior.rotation
+    folder = tmp_path / "orientations"
+    folder.mkdir()
+    patb = folder / "block.ori"
+    values = [f"{v:.12f}" for v in rot.ravel()]  # PAT-B: id X0 Y0 Z0, then R in 5 + 4
+    patb.write_text(f"p1 {E0:.3f} {N0:.3f} 1500.000\n{' '.join(values[:5])}\n"
+                    f"{' '.join(values[5:])}\n")
+    before = patb.read_bytes()
+    params = {"INPUT": str(folder), "FORMAT": "patb", "CRS": "EPSG:3003", "FORMAT_OUT": "patb",
+              "OUTPUT": patb}
+    with pytest.raises(ParameterError, match=r"^OUTPUT is the input .*block\.ori \(in INPUT"):
+        toolbox.run("orientation:convert", params, overwrite=True)
+    assert patb.read_bytes() == before and sorted(folder.iterdir()) == [patb]
+    out = toolbox.run("orientation:convert", params | {"OUTPUT": tmp_path / "copy.ori"})
+    assert out["SUMMARY"]["photos"] == 1
