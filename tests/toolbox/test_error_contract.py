@@ -81,6 +81,18 @@ def _resolve(value, variables: dict, values: dict):
     return REF_RE.sub(repl, value)
 
 
+def _names_a_file(p, value) -> bool:
+    """A text (not path-typed) input parameter whose value is one existing file."""
+    from toolbox.parameters import String
+
+    if not isinstance(p, String) or p.is_output or not isinstance(value, (str, Path)):
+        return False
+    try:
+        return str(value).strip() != "" and Path(str(value)).is_file()
+    except (OSError, ValueError):
+        return False
+
+
 def _borrowed_steps(alg, steps: dict) -> list[dict]:
     """Other algorithms' demo parameters that may fit ``alg`` (dem:nearest takes
     dem:quadratic's), same group first."""
@@ -121,6 +133,8 @@ class Case:
             p = self.alg.parameter(key)
             if isinstance(p, Destination):
                 value = str(self.out / Path(str(value)).name)
+            elif _names_a_file(p, value):  # a text parameter naming files (convert's INPUT)
+                value = self._copy_in(value, demo_out)
             elif isinstance(p, INPUT_TYPES):
                 value = [self._copy_in(v, demo_out) for v in value] if isinstance(value, list) \
                     else self._copy_in(value, demo_out)
@@ -140,7 +154,8 @@ class Case:
 
     def input_params(self) -> list:
         return [p for p in self.alg.parameters
-                if isinstance(p, INPUT_TYPES) and self.params.get(p.name) is not None]
+                if (isinstance(p, INPUT_TYPES) or _names_a_file(p, self.params.get(p.name)))
+                and self.params.get(p.name) is not None]
 
     def destinations(self) -> list:
         return [p for p in self.alg.destinations() if self.params.get(p.name) is not None]
