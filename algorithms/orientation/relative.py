@@ -70,7 +70,11 @@ class RelativeOrientation(Algorithm):
         left = params["PHOTO1"] or (order[0] if order else None)
         right = params["PHOTO2"] or (order[1] if len(order) > 1 else None)
         for name, pid in (("PHOTO1", left), ("PHOTO2", right)):
-            if pid is None or pid not in order:
+            if pid is None:
+                raise self.fail("INPUT", f"measures {len(order)} photo(s) "
+                                f"({', '.join(order) or 'none'}): a relative orientation needs "
+                                "a pair")
+            if pid not in order:
                 raise self.fail(name, f"photo {pid!r} has no measurements in INPUT (photos: "
                                 f"{', '.join(order)})")
             if pid not in project.photos:

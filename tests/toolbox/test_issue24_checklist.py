@@ -273,3 +273,21 @@ def test_convert_never_writes_over_a_file_of_an_input_folder(tmp_path):
     assert patb.read_bytes() == before and sorted(folder.iterdir()) == [patb]
     out = toolbox.run("orientation:convert", params | {"OUTPUT": tmp_path / "copy.ori"})
     assert out["SUMMARY"]["photos"] == 1
+
+
+def test_relative_orientation_of_a_single_photo_names_input(block, tmp_path):
+    """Measurements on one photo only: the message read "PHOTO2 photo None has no
+    measurements"; it names INPUT and what it holds."""
+    lines = Path(block["bundle_measurements"]).read_text().splitlines()
+    header = lines[0].split(",")
+    photo = header.index("photo")
+    first = lines[1].split(",")[photo]
+    (tmp_path / "one.csv").write_text("\n".join(
+        [lines[0]] + [ln for ln in lines[1:] if ln.split(",")[photo] == first]) + "\n")
+    result = CliRunner().invoke(main, ["run", "orientation:relative", "--PROJECT",
+                                       str(block["bundle_project"]), "--INPUT",
+                                       str(tmp_path / "one.csv"), "--OUTPUT",
+                                       str(tmp_path / "r.csv")])
+    line = one_error(result.stderr)
+    assert result.exit_code == 2 and "INPUT measures 1 photo(s)" in line and first in line
+    assert "None" not in line and not (tmp_path / "r.csv").exists()
