@@ -41,6 +41,7 @@ from toolbox.io.write_failures import (
 )
 from toolbox.parameters import (
     Boolean,
+    Folder,
     Number,
     OutputFolder,
     OutputRaster,
@@ -155,7 +156,11 @@ def input_paths(alg_cls: type[Algorithm], values: dict[str, Any]) -> dict[Path, 
                 continue
             try:
                 candidate = Path(str(path).split("|", 1)[0]).expanduser()
-                if candidate.is_file():
+                if isinstance(p, Folder) and candidate.is_dir():  # an input folder's files
+                    for named in (f for f in candidate.iterdir() if f.is_file()):
+                        for protected in protected_paths(named):
+                            out.setdefault(protected, p.name)
+                elif candidate.is_file():
                     for named in [candidate, *_referenced_files(candidate)]:
                         for protected in protected_paths(named):
                             out.setdefault(protected, p.name)

@@ -291,3 +291,21 @@ def test_relative_orientation_of_a_single_photo_names_input(block, tmp_path):
     line = one_error(result.stderr)
     assert result.exit_code == 2 and "INPUT measures 1 photo(s)" in line and first in line
     assert "None" not in line and not (tmp_path / "r.csv").exists()
+
+
+def test_run_report_never_lands_on_a_file_of_an_input_folder(tmp_path):
+    """report:quality reads the JSON run reports of REPORTS (a folder): --run-report pointed at
+    one of them, with --overwrite, replaced it (exit 0); the files of an input folder are
+    inputs too."""
+    reports = tmp_path / "reports"
+    reports.mkdir()
+    victim = reports / "dem.json"
+    victim.write_text('{"algorithm": "dem:idw", "parameters": {}, "outputs": {}}')
+    before = victim.read_bytes()
+    args = ["run", "report:quality", "--REPORTS", str(reports), "--OUTPUT",
+            str(tmp_path / "q.html"), "--run-report", str(victim), "--overwrite"]
+    result = CliRunner().invoke(main, args)
+    line = one_error(result.stderr)
+    assert result.exit_code == 2 and "--run-report" in line and "input REPORTS" in line
+    assert victim.read_bytes() == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["reports"]
