@@ -309,3 +309,21 @@ def test_run_report_never_lands_on_a_file_of_an_input_folder(tmp_path):
     assert result.exit_code == 2 and "--run-report" in line and "input REPORTS" in line
     assert victim.read_bytes() == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["reports"]
+
+
+def test_epipolar_refuses_an_image_of_another_size_than_the_camera(pair, tmp_path):
+    """LEFT_IMAGE of another photo (1200 x 1200 px for a 600 x 600 px camera) was warped
+    without a word (exit 0); ortho:photo already refused it."""
+    from rasterio.transform import from_origin
+
+    from toolbox.io.raster import write_raster
+
+    write_raster(tmp_path / "other.tif", np.full((1200, 1200), 90, "uint8"),
+                 from_origin(0, 1200, 1, 1), None)
+    with pytest.raises(InputDataError, match=r"^photo 'L': the raster .*other\.tif' is 1200 x "
+                                             r"1200 px but the camera .* says 600 x 600"):
+        toolbox.run("stereo:epipolar", {
+            "PROJECT": pair.project, "LEFT": "L", "RIGHT": "R", "LEFT_IMAGE": tmp_path /
+            "other.tif", "TERRAIN_HEIGHT": 320, "OUTPUT_LEFT": tmp_path / "l.tif",
+            "OUTPUT_RIGHT": tmp_path / "r.tif", "TRANSFORM": tmp_path / "t.json"})
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["other.tif"]

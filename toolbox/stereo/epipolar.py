@@ -356,8 +356,22 @@ def resample_image(geometry: EpipolarGeometry, photo: Any, side: int, image: Pat
     """Write normalised image ``side`` of ``photo``'s ``image`` to ``output`` (GeoTIFF whose
     transform is the normalised mm frame, no CRS; an alpha band marks pixels outside the
     photo). Windows of 2048 pixels on the raster engine: memory bounded by the window."""
+    import warnings
+
+    import rasterio
+
     from toolbox.raster.warp import warp_to_geotiff
 
+    size = photo.camera.image_size_px
+    if size is not None:  # another photo's image would be warped without a word
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
+            with rasterio.open(image) as src:
+                actual = (src.width, src.height)
+        if tuple(size) != actual:
+            raise InputDataError(f"photo {photo.id!r}: the raster '{image}' is {actual[0]} x "
+                                 f"{actual[1]} px but the camera {photo.camera.name!r} says "
+                                 f"{size[0]} x {size[1]}: wrong image or camera")
     tags = {"EPIPOLAR_PHOTO": photo.id, "EPIPOLAR_SIDE": ("left", "right")[side]}
     return warp_to_geotiff(image, EpipolarMap(geometry, photo, side), geometry.grid(side),
                            output, resampling=resampling, outside="alpha", feedback=feedback,
