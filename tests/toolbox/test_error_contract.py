@@ -135,6 +135,10 @@ class Case:
                 value = str(self.out / Path(str(value)).name)
             elif _names_a_file(p, value):  # a text parameter naming files (convert's INPUT)
                 value = self._copy_in(value, demo_out)
+            elif isinstance(p, Folder) and not p.is_output and Path(str(value)).is_dir():
+                target = self.inputs_dir / "folders" / p.name  # an input folder: its files too
+                shutil.copytree(str(value), target)
+                value = str(target)
             elif isinstance(p, INPUT_TYPES):
                 value = [self._copy_in(v, demo_out) for v in value] if isinstance(value, list) \
                     else self._copy_in(value, demo_out)
@@ -980,10 +984,18 @@ def _victims(case: Case, every: bool) -> list[Path]:
 
     files = [Path(str(v).split("|")[0]) for p in case.input_params()
              for v in _flatten_values(case.params[p.name])]
+    files += _folder_files(case)
     if every:
         files += [p for p in input_paths(case.alg, validate(case.alg, case.params))
                   if p.is_file()]
     return list(dict.fromkeys(p.resolve() for p in files))
+
+
+def _folder_files(case: Case) -> list[Path]:
+    """The files directly inside the case's input folders (report:quality's REPORTS)."""
+    return [f for p in case.alg.parameters if isinstance(p, Folder) and not p.is_output
+            and case.params.get(p.name) is not None
+            for f in sorted(Path(str(case.params[p.name])).iterdir()) if f.is_file()]
 
 
 def _outputs_at_inputs(case: Case, every: bool) -> None:
@@ -991,6 +1003,9 @@ def _outputs_at_inputs(case: Case, every: bool) -> None:
     victims = _victims(case, every)
     if not dests or not victims:
         pytest.skip("no output or no file input")
+    for victim in _folder_files(case)[:3]:  # --run-report too: the folder's files are inputs
+        code = _contract_run(case, case.args() + ["--overwrite", "--run-report", str(victim)])
+        assert code == 2, ("--run-report", victim)
     for dest in dests:
         for victim in victims:
             targets = [victim]
