@@ -98,6 +98,8 @@ class OrthoPhoto(Algorithm):
             optional=True),
         RasterLayer("DEM", "terrain heights (or a DSM for true orthos), any CRS"),
         Integer("BAND", "DEM band", default=1, min_value=1),
+        String("HEIGHTS", "height datum of the orientation: 'ellipsoidal' or a vertical CRS "
+               "(EPSG:3855...); default the project CRS's vertical part", optional=True),
         Number("CELL_SIZE", "ground cell size, CRS units (default: the photo's GSD)",
                optional=True, min_value=0, min_exclusive=True),
         ExtentParameter("EXTENT", "output extent (default: the footprint on the DEM)",
@@ -155,18 +157,23 @@ class OrthoPhoto(Algorithm):
             if not same_crs(out_crs, crs):
                 raise ParameterError("CRS", "differs from the orientation's: OCCLUSION and "
                                      "INCIDENCE need the ortho in the orientation's CRS")
-        plan = plan_photo(photo, params["DEM"], crs, params["BAND"],
-                          *grid_choice(params, out_crs), output_crs=out_crs)
-        options = OrthoOptions(
-            resampling=params["RESAMPLING"], outside=params["OUTSIDE"], nodata=params["NODATA"],
-            block=params["MAP_BLOCK"], tolerance_px=params["MAP_TOLERANCE"],
-            dem_factor=params["DEM_FACTOR"], band=params["BAND"], occlusion=params["OCCLUSION"],
-            overviews=params["OVERVIEWS"], cog=params["COG"])
-        report = orthorectify(photo, params["INPUT"], params["DEM"], plan.grid,
-                              params["OUTPUT"], options, plan.surface, plan.mean_height,
-                              params["OCCLUSION_MASK"], params["INCIDENCE"],
-                              params["MAP_SCALE"], feedback)
+        from toolbox.ortho.vertical import dem_in_photo_datum
+
+        with dem_in_photo_datum(params["DEM"], params["BAND"], params["HEIGHTS"], crs,
+                                feedback) as (dem, band, heights):
+            plan = plan_photo(photo, dem, crs, band, *grid_choice(params, out_crs),
+                              output_crs=out_crs)
+            options = OrthoOptions(
+                resampling=params["RESAMPLING"], outside=params["OUTSIDE"],
+                nodata=params["NODATA"], block=params["MAP_BLOCK"],
+                tolerance_px=params["MAP_TOLERANCE"], dem_factor=params["DEM_FACTOR"], band=band,
+                occlusion=params["OCCLUSION"], overviews=params["OVERVIEWS"], cog=params["COG"])
+            report = orthorectify(photo, params["INPUT"], dem, plan.grid, params["OUTPUT"],
+                                  options, plan.surface, plan.mean_height,
+                                  params["OCCLUSION_MASK"], params["INCIDENCE"],
+                                  params["MAP_SCALE"], feedback)
         report["footprint"] = [list(p) for p in plan.footprint.exterior.coords]
+        report["heights"] = heights.as_dict()
         if params["REPORT"] is not None:
             write_json(params["REPORT"], {"algorithm": self.id, "photos": [report]})
         return {"OUTPUT": params["OUTPUT"], "OCCLUSION_MASK": params["OCCLUSION_MASK"],
