@@ -151,7 +151,8 @@ def height_transformer(source: Any, target: Any, dem_label: str, photos_label: s
             f"DEM heights are {dem_label}, the photos' {photos_label}: converting them needs "
             f"the PROJ grid {' or '.join(grids)}, not on this machine; install it with "
             f"'projsync --file {grids[0]}' (or download https://cdn.proj.org/{grids[0]} into "
-            f"{pyproj.datadir.get_user_data_dir()}), or give a DEM in the photos' datum")
+            f"{pyproj.datadir.get_user_data_dir()}), or give a DEM in the photos' datum (or "
+            f"HEIGHTS as the DEM's datum to take its heights as they are)")
     raise InputDataError(f"DEM heights are {dem_label}, the photos' {photos_label}: PROJ knows "
                          "no transformation between these height datums; give a DEM in the "
                          "photos' datum")
