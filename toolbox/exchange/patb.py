@@ -15,8 +15,8 @@ Orthority's angles "to rotate from camera (PATB convention) to world", on the NG
 published angles (scipy's Rx·Ry·Rz as the oracle, OpenCV's projectPoints through the file).
 The file states no angle unit (it holds no angles) and no CRS (the caller's applies). Reading
 takes the numbers by whitespace, so hand-edited files with other spacing are read too; a line
-``-99`` is skipped. Writing keeps the fixed columns; PAT-B's photo numbers are integers, so a non-numeric id is
-written as it is and the notes say a strict PAT-B reader may refuse it.
+``-99`` is skipped. Writing keeps the fixed columns; PAT-B's photo numbers are integers, so a
+non-numeric id is written as it is and the notes say a strict PAT-B reader may refuse it.
 """
 
 from __future__ import annotations
