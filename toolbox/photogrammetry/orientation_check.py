@@ -16,7 +16,11 @@ import numpy as np
 
 from toolbox.errors import InputDataError
 from toolbox.photogrammetry.exterior import ExteriorOrientation
-from toolbox.photogrammetry.forward_intersection import camera_observations, intersect
+from toolbox.photogrammetry.forward_intersection import (
+    camera_observations,
+    intersect,
+    principal_distance,
+)
 from toolbox.photogrammetry.resection import PARAMETER_NAMES, resect
 
 
@@ -70,13 +74,20 @@ def resect_photos(project, measurements, control, use_project_start: bool = Fals
             eo = photo.require_exterior()
             start = np.array([*eo.centre, eo.omega, eo.phi, eo.kappa])
         try:
-            result = resect(cam_xy[fit_mask], ground[fit_mask], photo.camera.c, start)
+            result = resect(cam_xy[fit_mask], ground[fit_mask], principal_distance(photo),
+                            start)
         except InputDataError as exc:
             raise InputDataError(f"photo {pid!r}: {exc}") from None
         x0, y0, z0, om, ph, ka = result.parameters
         eo = ExteriorOrientation(pid, *map(float, (x0, y0, z0, om, ph, ka)), crs=project.crs)
         exteriors[pid] = eo
         fitted = project.with_exteriors({pid: eo}).photos[pid]
+        if photo.is_model:  # its camera units are pixel-sized: residuals in pixels
+            report[pid] = _model_resection_report(result, fitted, ground, xy[rows],
+                                                  [ids[k] for k in rows],
+                                                  [c_roles[where[ids[k]]] for k in rows],
+                                                  int(fit_mask.sum()))
+            continue
         computed = fitted.ground_to_image(ground)
         observed = photo.require_pixel_transform().pixel_to_image(xy[rows]) if kind == "pixel" \
             else xy[rows]
@@ -94,6 +105,21 @@ def resect_photos(project, measurements, control, use_project_start: bool = Fals
     if not exteriors:
         raise InputDataError("no photo of INPUT has control points of CONTROL measured on it")
     return exteriors, report
+
+
+def _model_resection_report(result, fitted, ground, pixels, ids, roles, n_control
+                            ) -> dict[str, Any]:
+    """:func:`resect_photos`' report of a camera-model photo: sigma0 and residuals in pixels
+    (through the full model: distortion included), no µm (it has no film plane)."""
+    v = fitted.ground_to_pixel(ground, behind="nan") - pixels
+    return {"parameters": dict(zip(PARAMETER_NAMES, map(float, result.parameters), strict=True)),
+            "std": dict(zip(PARAMETER_NAMES, map(float, result.std), strict=True)),
+            "angle_unit": "rad", "sigma0_um": None, "sigma0_px": float(result.sigma0_mm),
+            "redundancy": result.redundancy, "control_points": n_control,
+            "points": [{"point_id": i, "role": r, "res_x_um": None, "res_y_um": None,
+                        "res_x_px": float(d[0]), "res_y_px": float(d[1]),
+                        "res_px": float(math.hypot(*d))}
+                       for i, r, d in zip(ids, roles, v, strict=True)]}
 
 
 def check_block(project, measurements, control, threshold_px: float = 1.0) -> dict[str, Any]:
