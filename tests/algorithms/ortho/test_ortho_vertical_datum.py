@@ -176,3 +176,24 @@ def test_heights_parameter_errors(scene, tmp_path):
     assert run.returncode == 2
     assert run.stderr.count("\n") == 1 and "HEIGHTS" in run.stderr
     assert "not a vertical CRS" in run.stderr
+
+
+def test_ortho_batch_converts_once_and_states_it(scene, tmp_path):
+    folder, _, _ = scene
+    stats = toolbox.run("ortho:batch", {"PROJECT": folder / "project.yaml",
+                                        "DEM": folder / "dem_egm96.tif", "HEIGHTS": "ellipsoidal",
+                                        "CELL_SIZE": 8.0, "FOLDER": tmp_path / "orthos",
+                                        "OUTPUT": tmp_path / "orthos.json"})["STATISTICS"]
+    assert stats["done"] == 1 and stats["heights"]["converted"] is True
+    reference = toolbox.run("ortho:batch", {"PROJECT": folder / "project.yaml",
+                                            "DEM": folder / "dem_ellipsoidal.tif",
+                                            "CELL_SIZE": 8.0, "FOLDER": tmp_path / "reference",
+                                            "OUTPUT": tmp_path / "reference.json"})["STATISTICS"]
+    assert reference["heights"]["converted"] is False
+    with rasterio.open(tmp_path / "orthos" / "p1.tif") as a, \
+            rasterio.open(tmp_path / "reference" / "p1.tif") as b:
+        assert a.bounds == b.bounds
+        x, y = a.read().astype("float64"), b.read().astype("float64")
+    ok = (x[-1] > 0) & (y[-1] > 0)
+    assert ok.mean() > 0.5 and np.abs(x[0] - y[0])[ok].mean() < 0.2
+    assert sorted(p.name for p in (tmp_path / "orthos").iterdir()) == ["p1.tif"]
