@@ -130,3 +130,23 @@ def test_resection_of_a_brown_camera_photo(block):
     report = json.loads((folder / "resection.json").read_text())["photos"]["a"]
     assert report["sigma0_um"] is None and report["sigma0_px"] < 1e-4
     assert max(p["res_px"] for p in report["points"]) < 1e-4
+
+
+def test_orientation_check_of_camera_model_photos(block):
+    """orientation:check on Brown and fisheye photos: residuals in pixels ~0 (no µm: no film
+    plane), the known points intersected back onto themselves."""
+    folder, ground = block
+    (folder / "control.csv").write_text("id,X,Y,Z,role\n" + "".join(
+        f"p{k},{x:.6f},{y:.6f},{z:.6f},{'check' if k % 2 else 'control'}\n"
+        for k, (x, y, z) in enumerate(ground)))
+    stats = toolbox.run("orientation:check", {
+        "PROJECT": folder / "project.yaml", "INPUT": folder / "pixels.csv",
+        "CONTROL": folder / "control.csv", "REPORT": folder / "check.json",
+        "OUTPUT": folder / "check.gpkg"})["STATISTICS"]
+    assert stats["observations"] > 20 and stats["flagged"] == 0 and stats["rmse_um"] is None
+    assert stats["check_rmse_xy_m"] < 1e-4 and stats["check_rmse_z_m"] < 1e-4
+    import json
+
+    report = json.loads((folder / "check.json").read_text())
+    assert max(o["res_px"] for o in report["observations"]) < 1e-4
+    assert all(p["rmse_px"] < 1e-4 for p in report["photos"].values())
