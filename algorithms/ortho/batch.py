@@ -37,6 +37,9 @@ class OrthoBatch(Algorithm):
     the project's ``image`` paths (relative to the project file); IMAGES gives another folder
     holding them under the same file names.
 
+    HEIGHTS: the orientations' height datum, as in ortho:photo (the DEM converted once when its
+    vertical datum differs; STATISTICS ``heights`` says what was done).
+
     Photos run in parallel on local threads (WORKERS) or on a Dask cluster (SCHEDULER or
     DASK_SCHEDULER_ADDRESS), with one progress bar. A photo that fails (missing image, camera
     looking away, no DEM under it...) is reported and the others still finish. The orthos are

@@ -57,6 +57,21 @@ class OrthoPhoto(Algorithm):
     (``model:`` pinhole, Brown, OpenCV or fisheye; README "Camera models"): its cells are
     mapped through the model's projection, exactly at every cell, and remapped by OpenCV.
 
+    An INPUT with RPCs (a satellite image: GDAL reads them from its tags, ``.RPB`` or
+    ``_RPC.TXT``), given without PROJECT or CAMERA, is orthorectified through its RPC camera:
+    every cell's DEM height and position projected exactly by the RPCs, in CRS (default the
+    DEM's), the default extent the image outline on the DEM's lowest and highest heights, the
+    default cell its GSD. CONTROL (id, X, Y, Z in CRS, heights in the RPCs' datum) with
+    MEASUREMENTS (point_id, photo, col_px, row_px) refine the RPCs by an image-space bias
+    (BIAS: shift from 1 GCP, affine from 3; auto = affine from 4), reported with the RMS before
+    and after.
+
+    HEIGHTS is the height datum of the orientation (``ellipsoidal`` or a vertical CRS such as
+    EPSG:3855; default the project CRS's vertical part; an RPC camera's is ellipsoidal). When the
+    DEM's CRS names another vertical datum, its heights are converted once with pyproj (a
+    missing PROJ grid is an error naming it); same datum or one side unstated: used as they
+    are. The report's ``heights`` says which.
+
     Defaults as the thesis' software proposes: CELL_SIZE = the photo's ground sample distance
     at the mean terrain height of its footprint (2 significant digits); EXTENT = the footprint
     on the DEM; grid edges on multiples of the cell (or on the lattice of TEMPLATE), so orthos
