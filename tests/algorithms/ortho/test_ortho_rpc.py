@@ -222,3 +222,36 @@ def test_rpc_bad_input_is_one_line(synthetic, tmp_path):
     assert run.returncode == 2 and "or an INPUT with RPCs" in run.stderr
     assert run.stderr.count("\n") == 1 and not out.exists()
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]
+
+
+def test_quickbird_ortho_with_its_real_gcps(orthority_data, tmp_path):
+    """Orthority's GCPs of the QuickBird image as CONTROL (in the DEM's CRS) and MEASUREMENTS:
+    the RPCs' 3.6 px bias is taken out (shift), and the ortho moves by it."""
+    from pyproj import Transformer
+
+    from toolbox.io.raster import open_raster_info
+    from toolbox.ortho.vertical import horizontal_part
+
+    qb, dem = orthority_data / "rpc" / "qb2_basic1b.tif", orthority_data / "ngi" / "dem.tif"
+    crs = horizontal_part(open_raster_info(dem).crs)
+    features = json.loads((orthority_data / "rpc" / "gcps.geojson").read_text())["features"]
+    to_crs = Transformer.from_crs("EPSG:4326", crs, always_xy=True)
+    control, measured = ["id,X,Y,Z"], ["point_id,photo,col_px,row_px"]
+    for f in features:
+        (lon, lat, h), (j, i) = f["geometry"]["coordinates"], f["properties"]["ji"]
+        x, y = to_crs.transform(lon, lat)
+        control.append(f"{f['properties']['id']},{x:.4f},{y:.4f},{h:.4f}")
+        measured.append(f"{f['properties']['id']},qb2_basic1b.tif,{j + 0.5:.4f},{i + 0.5:.4f}")
+    (tmp_path / "control.csv").write_text("\n".join(control) + "\n")
+    (tmp_path / "measured.csv").write_text("\n".join(measured) + "\n")
+    common = {"INPUT": qb, "DEM": dem, "HEIGHTS": "EPSG:3855", "CELL_SIZE": 20.0,
+              "EXTENT": "-58000,-3732000,-55000,-3727000", "OVERVIEWS": False}
+    stats = toolbox.run("ortho:photo", {**common, "CONTROL": tmp_path / "control.csv",
+                                        "MEASUREMENTS": tmp_path / "measured.csv",
+                                        "BIAS": "shift", "OUTPUT": tmp_path / "fixed.tif"}
+                        )["STATISTICS"]
+    assert stats["bias"]["gcps"] == len(features) == 5
+    assert stats["bias"]["rms_before_px"] > 3.0 and stats["bias"]["rms_after_px"] < 0.15
+    toolbox.run("ortho:photo", {**common, "OUTPUT": tmp_path / "plain.tif"})
+    with rasterio.open(tmp_path / "fixed.tif") as a, rasterio.open(tmp_path / "plain.tif") as b:
+        assert np.abs(a.read(1).astype(float) - b.read(1).astype(float)).mean() > 1.0
