@@ -99,7 +99,7 @@ def test_conversion_equals_pyproj_at_every_cell(scene, tmp_path):
 
 def ortho(folder: Path, dem: str, out: Path, **extra) -> dict:
     params = {"INPUT": folder / "p1.tif", "PROJECT": folder / "project.yaml",
-              "DEM": folder / dem, "CELL_SIZE": 4.0, "EXTENT": "686800,4795800,688400,4797400",
+              "DEM": folder / dem, "CELL_SIZE": 6.0, "EXTENT": "686800,4795800,688400,4797400",
               "OUTPUT": out, **extra}
     return toolbox.run("ortho:photo", params)["STATISTICS"]
 
@@ -139,7 +139,7 @@ def test_same_datum_is_used_as_is(scene, tmp_path):
     (tmp_path / "project.yaml").write_text(yaml.safe_dump(doc))
     stats = toolbox.run("ortho:photo", {"INPUT": tmp_path / "p1.tif",
                                         "PROJECT": tmp_path / "project.yaml",
-                                        "DEM": folder / "dem_egm96.tif", "CELL_SIZE": 8.0,
+                                        "DEM": folder / "dem_egm96.tif", "CELL_SIZE": 16.0,
                                         "OUTPUT": tmp_path / "o.tif"})["STATISTICS"]
     assert stats["heights"]["converted"] is False
     assert "both in EGM96 height" in stats["heights"]["note"]
@@ -182,12 +182,12 @@ def test_ortho_batch_converts_once_and_states_it(scene, tmp_path):
     folder, _, _ = scene
     stats = toolbox.run("ortho:batch", {"PROJECT": folder / "project.yaml",
                                         "DEM": folder / "dem_egm96.tif", "HEIGHTS": "ellipsoidal",
-                                        "CELL_SIZE": 8.0, "FOLDER": tmp_path / "orthos",
+                                        "CELL_SIZE": 12.0, "FOLDER": tmp_path / "orthos",
                                         "OUTPUT": tmp_path / "orthos.json"})["STATISTICS"]
     assert stats["done"] == 1 and stats["heights"]["converted"] is True
     reference = toolbox.run("ortho:batch", {"PROJECT": folder / "project.yaml",
                                             "DEM": folder / "dem_ellipsoidal.tif",
-                                            "CELL_SIZE": 8.0, "FOLDER": tmp_path / "reference",
+                                            "CELL_SIZE": 12.0, "FOLDER": tmp_path / "reference",
                                             "OUTPUT": tmp_path / "reference.json"})["STATISTICS"]
     assert reference["heights"]["converted"] is False
     with rasterio.open(tmp_path / "orthos" / "p1.tif") as a, \
