@@ -150,3 +150,45 @@ def test_orientation_check_of_camera_model_photos(block):
     report = json.loads((folder / "check.json").read_text())
     assert max(o["res_px"] for o in report["observations"]) < 1e-4
     assert all(p["rmse_px"] < 1e-4 for p in report["photos"].values())
+
+
+def test_bundle_of_camera_model_photos(block):
+    """orientation:bundle of the Brown and fisheye photos (interiors fixed) from half the points
+    as control: the poses come back, the other half (check points) land on themselves; a
+    self-calibration asked of a model camera is a one-line error."""
+    import json
+
+    folder, ground = block
+    (folder / "control.csv").write_text("id,X,Y,Z,role\n" + "".join(
+        f"p{k},{x:.6f},{y:.6f},{z:.6f},{'check' if k % 2 else 'control'}\n"
+        for k, (x, y, z) in enumerate(ground)))
+    bare = yaml.safe_load((folder / "project.yaml").read_text())
+    for photo in bare["photos"]:
+        del photo["exterior"]  # start values computed (START auto), not the truth
+    (folder / "bare.yaml").write_text(yaml.safe_dump(bare))
+    toolbox.run("orientation:bundle", {
+        "PROJECT": folder / "bare.yaml", "INPUT": folder / "pixels.csv",
+        "CONTROL": folder / "control.csv", "SIGMA_PX": 0.5, "OUTPUT": folder / "bundle.yaml",
+        "REPORT": folder / "bundle.json"})
+    doc = yaml.safe_load((folder / "bundle.yaml").read_text())
+    assert {c["name"]: c["model"] for c in doc["cameras"]} == {"brown": BROWN,
+                                                                "fisheye": FISHEYE}
+    unit = doc.get("angle_unit", "rad")
+    for photo in doc["photos"]:
+        _, centre, angles = POSES[photo["id"]]
+        e = photo["exterior"]
+        got = np.array([e["omega"], e["phi"], e["kappa"]], dtype=float)
+        got = np.radians(got) if unit == "deg" else got
+        assert np.allclose([e["X0"], e["Y0"], e["Z0"]], centre, atol=1e-3), photo["id"]
+        assert np.allclose(got, np.radians(angles), atol=1e-6), photo["id"]
+    report = json.loads((folder / "bundle.json").read_text())
+    summary = report["summary"]
+    assert summary["rms_image_residual_um"] is None and summary["rms_image_residual_px"] < 1e-3
+    assert max(abs(v) for v in summary["check_rmse_m"].values()) < 1e-3
+    run = subprocess.run([sys.executable, "-m", "toolbox", "run", "orientation:bundle",
+                          "--PROJECT", str(folder / "project.yaml"), "--INPUT",
+                          str(folder / "pixels.csv"), "--CONTROL", str(folder / "control.csv"),
+                          "--SELF_CALIBRATION", "c", "--OUTPUT", str(folder / "b2.yaml")],
+                         capture_output=True, text=True)
+    assert run.returncode == 2 and run.stderr.count("\n") == 1
+    assert "interior stays fixed" in run.stderr and not (folder / "b2.yaml").exists()
