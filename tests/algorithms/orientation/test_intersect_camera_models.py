@@ -13,6 +13,7 @@ import sys
 import cv2
 import numpy as np
 import pytest
+import rasterio
 import yaml
 from scipy.spatial.transform import Rotation
 
@@ -192,3 +193,38 @@ def test_bundle_of_camera_model_photos(block):
                          capture_output=True, text=True)
     assert run.returncode == 2 and run.stderr.count("\n") == 1
     assert "interior stays fixed" in run.stderr and not (folder / "b2.yaml").exists()
+
+
+def test_monoplot_of_camera_model_photos_on_a_dem(block):
+    """orientation:monoplot of OpenCV-projected pixels of the Brown photos on a sloping DEM (a
+    plane: bilinear interpolation is exact on it): the ground points back. (This fisheye sees
+    past 90 degrees at its corners: it has no footprint to window a DEM with, refused.)"""
+    import geopandas
+
+    from toolbox.io.raster import write_raster
+
+    folder, _ = block
+    rng = np.random.default_rng(5)
+    xy = np.column_stack([rng.uniform(500000, 500040, 15), rng.uniform(3999985, 4000010, 15)])
+    plane = lambda x, y: 5.0 + 0.1 * (x - 499900.0) - 0.05 * (y - 3999900.0)  # noqa: E731
+    ground = np.column_stack([xy, plane(xy[:, 0], xy[:, 1])])
+    cols, rows = np.meshgrid(np.arange(400) + 0.5, np.arange(400) + 0.5)
+    transform = rasterio.Affine(1.0, 0.0, 499900.0, 0.0, -1.0, 4000100.0)
+    gx, gy = transform * (cols, rows)
+    write_raster(folder / "plane.tif", plane(gx, gy).astype("float64"), transform, "EPSG:32632")
+    lines = ["point_id,photo,col_px,row_px"]
+    for pid in ("a", "b"):
+        cam, centre, angles = POSES[pid]
+        px = opencv_pixels(BROWN if cam == "brown" else FISHEYE, centre, angles, ground)
+        lines += [f"m{k},{pid},{c:.9f},{r:.9f}" for k, (c, r) in enumerate(px)]
+    (folder / "mono.csv").write_text("\n".join(lines) + "\n")
+    toolbox.run("orientation:monoplot", {"PROJECT": folder / "project.yaml",
+                                         "INPUT": folder / "mono.csv",
+                                         "DEM": folder / "plane.tif",
+                                         "OUTPUT": folder / "mono.gpkg"})
+    points = geopandas.read_file(folder / "mono.gpkg", layer="points")
+    assert len(points) == 30 and (points["status"] == "ok").all()
+    for _, row in points.iterrows():
+        truth = ground[int(row["point_id"][1:])]
+        got = np.array([row.geometry.x, row.geometry.y, row.geometry.z])
+        assert np.allclose(got, truth, atol=1e-3), (row["point_id"], row["photo"], got - truth)
