@@ -228,3 +228,26 @@ def test_monoplot_of_camera_model_photos_on_a_dem(block):
         truth = ground[int(row["point_id"][1:])]
         got = np.array([row.geometry.x, row.geometry.y, row.geometry.z])
         assert np.allclose(got, truth, atol=1e-3), (row["point_id"], row["photo"], got - truth)
+
+
+def test_relative_orientation_of_two_brown_photos(block):
+    """orientation:relative of the two Brown photos: the model is the ground up to a similarity
+    (fitted independently: scale from the spreads, rotation by scipy's Kabsch), y-parallaxes
+    in pixels ~0."""
+    import csv
+
+    folder, ground = block
+    stats = toolbox.run("orientation:relative", {
+        "PROJECT": folder / "project.yaml", "INPUT": folder / "pixels.csv", "PHOTO1": "a",
+        "PHOTO2": "b", "OUTPUT": folder / "model.csv"})["STATISTICS"]
+    assert stats["sigma0_px"] < 1e-5 and "sigma0_um" not in stats
+    with (folder / "model.csv").open() as f:
+        rows = list(csv.DictReader(f))
+    assert len(rows) >= 8 and max(abs(float(r["py_px"])) for r in rows) < 1e-5
+    model = np.array([[float(r[k]) for k in "XYZ"] for r in rows])
+    truth = ground[[int(r["point_id"][1:]) for r in rows]]
+    m, t = model - model.mean(axis=0), truth - truth.mean(axis=0)
+    scale = np.sqrt((t ** 2).sum() / (m ** 2).sum())
+    rotation, _ = Rotation.align_vectors(t, scale * m)
+    residual = rotation.apply(scale * m) - t
+    assert np.abs(residual).max() < 1e-4  # metres, over a 60 m block
