@@ -14,6 +14,7 @@ from toolbox.photogrammetry.forward_intersection import (
     STATUS_NAMES,
     camera_observations,
     intersect,
+    principal_distance,
 )
 from toolbox.photogrammetry.tables import image_measurements, load_project_parameter, write_json
 from toolbox.registry import register
@@ -95,8 +96,12 @@ class SpaceIntersection(Algorithm):
             camera_xy = camera_observations(photos, xy, kind)
             centres = np.array([p.exterior.centre for p in photos])
             rotations = np.array([p.exterior.rotation for p in photos])
-            cs = np.array([p.camera.c for p in photos])
+            cs = np.array([principal_distance(p) for p in photos])
             result = intersect(point_index, camera_xy, centres, rotations, cs, len(order))
+            model = np.array([p.is_model for p in photos])
+            if model.any():  # their camera units are not mm: residuals in pixels only
+                result.residuals_mm[model] = np.nan
+                result.sigma0_mm[np.unique(point_index[model])] = np.nan
         feedback.set_progress(80)
         # residuals in the measurement's own units, through the full model (distortion, IO)
         computed = np.full_like(xy, np.nan)
@@ -150,8 +155,7 @@ class SpaceIntersection(Algorithm):
         ok = result.ok
         stats = {"points": len(order), "status": result.counts(),
                  "observations": len(ids), "coordinates": kind,
-                 "rms_residual_mm": _num(np.sqrt(np.nanmean(result.residuals_mm[ok[point_index]]
-                                                            ** 2)) if ok.any() else np.nan),
+                 "rms_residual_mm": _num(rms(result.residuals_mm[ok[point_index]])),
                  f"max_residual_{unit}": _num(np.nanmax(max_res) if ok.any() else np.nan)}
         failed = len(order) - int(ok.sum())
         if failed:
@@ -167,3 +171,9 @@ class SpaceIntersection(Algorithm):
 def _num(value: float) -> float | None:
     value = float(value)
     return value if np.isfinite(value) else None
+
+
+def rms(values: np.ndarray) -> float:
+    """RMS of the finite values (NaN when none: camera models' residuals are in pixels only)."""
+    finite = values[np.isfinite(values)]
+    return float(np.sqrt(np.mean(finite ** 2))) if finite.size else float("nan")

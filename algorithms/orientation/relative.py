@@ -30,8 +30,10 @@ class RelativeOrientation(Algorithm):
     warning.
 
     OUTPUT (CSV): per point the model coordinates ``X, Y, Z`` and the residual y-parallax
-    ``py_um`` (µm). REPORT (JSON): the 5 parameters with standard deviations, the rotation
-    matrices and base, sigma0 (µm), redundancy n - 5, condition number and warnings.
+    ``py_um`` (µm; ``py_px``, pixels, when photo 1 is a camera model: pinhole, Brown, OpenCV,
+    fisheye, measured in pixels and undistorted through its model). REPORT (JSON): the 5
+    parameters with standard deviations, the rotation matrices and base, sigma0 (µm, or px),
+    redundancy n - 5, condition number and warnings.
     """
 
     id = "orientation:relative"
@@ -54,7 +56,10 @@ class RelativeOrientation(Algorithm):
     def process(self, params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
         import numpy as np
 
-        from toolbox.photogrammetry.forward_intersection import camera_observations
+        from toolbox.photogrammetry.forward_intersection import (
+            camera_observations,
+            principal_distance,
+        )
         from toolbox.photogrammetry.tables import (
             image_measurements,
             load_project_parameter,
@@ -93,16 +98,20 @@ class RelativeOrientation(Algorithm):
         p1, p2 = project.photos[left], project.photos[right]
         xy1 = camera_observations([p1] * len(rows1), xy[rows1], kind)
         xy2 = camera_observations([p2] * len(rows2), xy[rows2], kind)
-        result = relative_orientation(RelativeRequest(xy1, xy2, p1.camera.c, p2.camera.c,
+        result = relative_orientation(RelativeRequest(xy1, xy2, principal_distance(p1),
+                                                      principal_distance(p2),
                                                       params["PARAMETERS"]))
         for w in result.warnings:
             feedback.push_warning(w)
-        write_csv(params["OUTPUT"], ["point_id", "X", "Y", "Z", "py_um"],
-                  [[i, *map(float, result.model[k]), float(1e3 * result.py_mm[k])]
+        # a camera model's units are pixel-sized: its parallaxes in pixels (photo 1's scale)
+        unit, factor = ("px", 1.0) if p1.is_model else ("um", 1e3)
+        write_csv(params["OUTPUT"], ["point_id", "X", "Y", "Z", f"py_{unit}"],
+                  [[i, *map(float, result.model[k]), float(factor * result.py_mm[k])]
                    for k, i in enumerate(common)])
         stats = {"photos": [left, right], "points": len(common),
                  "parameter_set": params["PARAMETERS"], "parameters": result.parameters,
-                 "sigma0_um": None if np.isnan(result.sigma0_mm) else 1e3 * result.sigma0_mm,
+                 f"sigma0_{unit}": None if np.isnan(result.sigma0_mm) else
+                 factor * result.sigma0_mm,
                  "redundancy": result.redundancy, "warnings": result.warnings}
         if params["REPORT"] is not None:
             write_json(params["REPORT"], {
@@ -110,5 +119,6 @@ class RelativeOrientation(Algorithm):
                 "std": {k: (None if np.isnan(v) else v) for k, v in result.std.items()},
                 "base": result.base, "rotation1": result.rotation1,
                 "rotation2": result.rotation2, "condition_number": result.condition,
-                "residual": "y-parallax, image mm at photo 1's scale"})
+                "residual": f"y-parallax, image {'pixels' if p1.is_model else 'mm'} at "
+                            "photo 1's scale"})
         return {"OUTPUT": params["OUTPUT"], "REPORT": params["REPORT"], "STATISTICS": stats}

@@ -37,6 +37,9 @@ class OrthoBatch(Algorithm):
     the project's ``image`` paths (relative to the project file); IMAGES gives another folder
     holding them under the same file names.
 
+    HEIGHTS: the orientations' height datum, as in ortho:photo (the DEM converted once when its
+    vertical datum differs; STATISTICS ``heights`` says what was done).
+
     Photos run in parallel on local threads (WORKERS) or on a Dask cluster (SCHEDULER or
     DASK_SCHEDULER_ADDRESS), with one progress bar. A photo that fails (missing image, camera
     looking away, no DEM under it...) is reported and the others still finish. The orthos are
@@ -60,6 +63,8 @@ class OrthoBatch(Algorithm):
                optional=True),
         RasterLayer("DEM", "terrain heights, any CRS"),
         Integer("BAND", "DEM band", default=1, min_value=1),
+        String("HEIGHTS", "height datum of the orientations: 'ellipsoidal' or a vertical CRS "
+               "(EPSG:3855...); default the project CRS's vertical part", optional=True),
         Number("CELL_SIZE", "ground cell size (default: the largest GSD of the photos)",
                optional=True, min_value=0, min_exclusive=True),
         RasterLayer("TEMPLATE", "align the grid to this raster's lattice and cell",
@@ -97,6 +102,23 @@ class OrthoBatch(Algorithm):
 
     def process(self, params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
         from toolbox.io.crs import crs_label
+
+        project = load_batch_project(params, last=True)
+        crs = project.crs
+        if crs is None and params["DEM"].crs is not None:  # else the orthos would have no CRS
+            crs = params["DEM"].crs
+            feedback.push_warning(f"PROJECT names no crs: its coordinates are taken to be in "
+                                  f"the DEM's, {crs_label(crs)}, and the orthos are written in it")
+        from toolbox.ortho.vertical import dem_in_photo_datum
+
+        with dem_in_photo_datum(params["DEM"], params["BAND"], params["HEIGHTS"], crs,
+                                feedback) as (dem, band, heights):
+            return self._orthos(params, feedback, project, crs, dem, band, heights)
+
+    def _orthos(self, params: dict[str, Any], feedback: Feedback, project: Any, crs: Any,
+                dem: Any, band: int, heights: Any) -> dict[str, Any]:
+        """The orthos of :meth:`process` on ``dem`` (in the photos' height datum)."""
+        from toolbox.io.crs import crs_label
         from toolbox.io.raster import open_raster_info
         from toolbox.io.staging import final_path
         from toolbox.ortho.block import OrthoTask, run_task
@@ -107,12 +129,6 @@ class OrthoBatch(Algorithm):
         from toolbox.raster.grid_request import template_lattice
         from toolbox.tiles import map_tiles, resolve_executor
 
-        project = load_batch_project(params, last=True)
-        crs = project.crs
-        if crs is None and params["DEM"].crs is not None:  # else the orthos would have no CRS
-            crs = params["DEM"].crs
-            feedback.push_warning(f"PROJECT names no crs: its coordinates are taken to be in "
-                                  f"the DEM's, {crs_label(crs)}, and the orthos are written in it")
         executor = resolve_executor(params["SCHEDULER"], params["WORKERS"])
         photos = select_photos(project, params["PHOTOS"])
         failed: list[dict[str, Any]] = []
@@ -129,7 +145,7 @@ class OrthoBatch(Algorithm):
                 warning = tilt_warning(photo)
                 if warning:
                     feedback.push_warning(warning)
-                plans.append((plan_photo(photo, params["DEM"], crs, params["BAND"]), image))
+                plans.append((plan_photo(photo, dem, crs, band), image))
             except (InputDataError, ParameterError) as exc:
                 failed.append({"photo": photo.id, "error": str(exc)})
                 feedback.push_warning(f"photo {photo.id} failed: {exc}")
@@ -141,10 +157,10 @@ class OrthoBatch(Algorithm):
         options = OrthoOptions(
             resampling=params["RESAMPLING"], outside=params["OUTSIDE"], nodata=params["NODATA"],
             block=params["MAP_BLOCK"], tolerance_px=params["MAP_TOLERANCE"],
-            dem_factor=params["DEM_FACTOR"], band=params["BAND"], occlusion=params["OCCLUSION"],
+            dem_factor=params["DEM_FACTOR"], band=band, occlusion=params["OCCLUSION"],
             overviews=params["OVERVIEWS"], cog=params["COG"])
         folder = Path(params["FOLDER"])  # staged by the runner: moved into place on success
-        tasks = [OrthoTask(plan.photo, image, params["DEM"],
+        tasks = [OrthoTask(plan.photo, image, dem,
                            lattice_grid(on_heights(plan.extent, plan.surface), cell, crs, origin),
                            folder / f"{plan.photo.id}.tif", options, plan.mean_height,
                            params["MAP_SCALE"]) for plan, image in plans]
@@ -160,7 +176,8 @@ class OrthoBatch(Algorithm):
                 for text in result.pop("warnings", []):
                     feedback.push_warning(text)
         stats = {"photos": len(photos), "done": len(reports), "failed": len(failed),
-                 "cell_size": cell, "crs": crs_label(crs), "executor": executor.describe()}
+                 "cell_size": cell, "crs": crs_label(crs), "executor": executor.describe(),
+                 "heights": heights.as_dict()}
         write_json(params["OUTPUT"], {"algorithm": self.id, "orthos": [r["output"]
                                                                       for r in reports],
                                       "photos": reports, "failed": failed, "statistics": stats})

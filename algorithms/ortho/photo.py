@@ -24,7 +24,7 @@ from toolbox.parameters import (
 )
 from toolbox.photogrammetry.tables import PROJECT_EXTENSIONS
 from toolbox.registry import register
-from toolbox.ui.photogrammetry import ortho_method_parameters
+from toolbox.ui.photogrammetry import TABLE_EXTENSIONS, ortho_method_parameters
 
 
 @register
@@ -56,6 +56,21 @@ class OrthoPhoto(Algorithm):
     EXTERIOR = "X0,Y0,Z0,omega,phi,kappa" in ANGLE_UNIT and CRS. A camera may be a model
     (``model:`` pinhole, Brown, OpenCV or fisheye; README "Camera models"): its cells are
     mapped through the model's projection, exactly at every cell, and remapped by OpenCV.
+
+    An INPUT with RPCs (a satellite image: GDAL reads them from its tags, ``.RPB`` or
+    ``_RPC.TXT``), given without PROJECT or CAMERA, is orthorectified through its RPC camera:
+    every cell's DEM height and position projected exactly by the RPCs, in CRS (default the
+    DEM's), the default extent the image outline on the DEM's lowest and highest heights, the
+    default cell its GSD. CONTROL (id, X, Y, Z in CRS, heights in the RPCs' datum) with
+    MEASUREMENTS (point_id, photo, col_px, row_px) refine the RPCs by an image-space bias
+    (BIAS: shift from 1 GCP, affine from 3; auto = affine from 4), reported with the RMS before
+    and after.
+
+    HEIGHTS is the height datum of the orientation (``ellipsoidal`` or a vertical CRS such as
+    EPSG:3855; default the project CRS's vertical part; an RPC camera's is ellipsoidal). When the
+    DEM's CRS names another vertical datum, its heights are converted once with pyproj (a
+    missing PROJ grid is an error naming it); same datum or one side unstated: used as they
+    are. The report's ``heights`` says which.
 
     Defaults as the thesis' software proposes: CELL_SIZE = the photo's ground sample distance
     at the mean terrain height of its footprint (2 significant digits); EXTENT = the footprint
@@ -98,6 +113,8 @@ class OrthoPhoto(Algorithm):
             optional=True),
         RasterLayer("DEM", "terrain heights (or a DSM for true orthos), any CRS"),
         Integer("BAND", "DEM band", default=1, min_value=1),
+        String("HEIGHTS", "height datum of the orientation: 'ellipsoidal' or a vertical CRS "
+               "(EPSG:3855...); default the project CRS's vertical part", optional=True),
         Number("CELL_SIZE", "ground cell size, CRS units (default: the photo's GSD)",
                optional=True, min_value=0, min_exclusive=True),
         ExtentParameter("EXTENT", "output extent (default: the footprint on the DEM)",
@@ -111,6 +128,13 @@ class OrthoPhoto(Algorithm):
         Boolean("OVERVIEWS", "build internal overviews", default=True),
         Number("MAP_SCALE", "map scale denominator for the expected accuracy (e.g. 5000)",
                optional=True, min_value=1),
+        File("CONTROL", "RPC image: ground control points (id, X, Y, Z in CRS, heights in "
+             "the RPCs' datum) for the bias refinement", extensions=TABLE_EXTENSIONS,
+             optional=True),
+        File("MEASUREMENTS", "RPC image: the GCPs measured on it (point_id, photo, col_px, "
+             "row_px)", extensions=TABLE_EXTENSIONS, optional=True),
+        Enum("BIAS", "RPC bias refinement from the GCPs: auto (affine from 4 GCPs, else "
+             "shift), shift, affine", options=("auto", "shift", "affine"), default="auto"),
         OutputRaster("OUTPUT", "orthophoto GeoTIFF"),
         OutputRaster("OCCLUSION_MASK", "occlusion mask (needs OCCLUSION)", optional=True),
         OutputRaster("INCIDENCE", "incidence angle raster, degrees", optional=True),
@@ -119,7 +143,22 @@ class OrthoPhoto(Algorithm):
     outputs = [Output("STATISTICS", "the per-photo report", "dict")]
 
     def check(self, params: dict[str, Any]) -> None:
-        if (params["PROJECT"] is None) == (params["CAMERA"] is None):
+        from toolbox.ortho.rpc import has_rpc
+
+        if (params["CONTROL"] is None) != (params["MEASUREMENTS"] is None):
+            raise self.fail("CONTROL", "and MEASUREMENTS go together (the GCPs of an RPC image)")
+        if params["PROJECT"] is None and params["CAMERA"] is None:
+            if not has_rpc(params["INPUT"].path):
+                raise self.fail("PROJECT", "give either PROJECT (with PHOTO) or CAMERA with "
+                                "EXTERIOR (or an INPUT with RPCs)")
+            for name in ("OCCLUSION", "OCCLUSION_MASK", "INCIDENCE", "EXTERIOR"):
+                if params[name]:
+                    raise self.fail(name, "does not apply to an RPC image")
+            return
+        if params["CONTROL"] is not None:
+            raise self.fail("CONTROL", "applies to an RPC image only (INPUT with RPCs, no "
+                            "PROJECT or CAMERA)")
+        if params["PROJECT"] is not None and params["CAMERA"] is not None:
             raise self.fail("PROJECT", "give either PROJECT (with PHOTO) or CAMERA with EXTERIOR")
         if params["CAMERA"] is not None and params["EXTERIOR"] is None:
             raise self.fail("EXTERIOR", "is required with CAMERA (X0,Y0,Z0,omega,phi,kappa)")
@@ -136,6 +175,12 @@ class OrthoPhoto(Algorithm):
         from toolbox.ortho.run import OrthoOptions, orthorectify
         from toolbox.photogrammetry.tables import write_json
 
+        if params["PROJECT"] is None and params["CAMERA"] is None:
+            report = rpc_ortho(params, feedback)
+            if params["REPORT"] is not None:
+                write_json(params["REPORT"], {"algorithm": self.id, "photos": [report]})
+            return {"OUTPUT": params["OUTPUT"], "OCCLUSION_MASK": None, "INCIDENCE": None,
+                    "REPORT": params["REPORT"], "STATISTICS": report}
         photo, crs, output_crs = oriented_photo(params)
         if crs is None and output_crs is None and params["DEM"].crs is not None:
             from toolbox.io.crs import crs_label
@@ -155,23 +200,64 @@ class OrthoPhoto(Algorithm):
             if not same_crs(out_crs, crs):
                 raise ParameterError("CRS", "differs from the orientation's: OCCLUSION and "
                                      "INCIDENCE need the ortho in the orientation's CRS")
-        plan = plan_photo(photo, params["DEM"], crs, params["BAND"],
-                          *grid_choice(params, out_crs), output_crs=out_crs)
-        options = OrthoOptions(
-            resampling=params["RESAMPLING"], outside=params["OUTSIDE"], nodata=params["NODATA"],
-            block=params["MAP_BLOCK"], tolerance_px=params["MAP_TOLERANCE"],
-            dem_factor=params["DEM_FACTOR"], band=params["BAND"], occlusion=params["OCCLUSION"],
-            overviews=params["OVERVIEWS"], cog=params["COG"])
-        report = orthorectify(photo, params["INPUT"], params["DEM"], plan.grid,
-                              params["OUTPUT"], options, plan.surface, plan.mean_height,
-                              params["OCCLUSION_MASK"], params["INCIDENCE"],
-                              params["MAP_SCALE"], feedback)
+        from toolbox.ortho.vertical import dem_in_photo_datum
+
+        with dem_in_photo_datum(params["DEM"], params["BAND"], params["HEIGHTS"], crs,
+                                feedback) as (dem, band, heights):
+            plan = plan_photo(photo, dem, crs, band, *grid_choice(params, out_crs),
+                              output_crs=out_crs)
+            options = OrthoOptions(
+                resampling=params["RESAMPLING"], outside=params["OUTSIDE"],
+                nodata=params["NODATA"], block=params["MAP_BLOCK"],
+                tolerance_px=params["MAP_TOLERANCE"], dem_factor=params["DEM_FACTOR"], band=band,
+                occlusion=params["OCCLUSION"], overviews=params["OVERVIEWS"], cog=params["COG"])
+            report = orthorectify(photo, params["INPUT"], dem, plan.grid, params["OUTPUT"],
+                                  options, plan.surface, plan.mean_height,
+                                  params["OCCLUSION_MASK"], params["INCIDENCE"],
+                                  params["MAP_SCALE"], feedback)
         report["footprint"] = [list(p) for p in plan.footprint.exterior.coords]
+        report["heights"] = heights.as_dict()
         if params["REPORT"] is not None:
             write_json(params["REPORT"], {"algorithm": self.id, "photos": [report]})
         return {"OUTPUT": params["OUTPUT"], "OCCLUSION_MASK": params["OCCLUSION_MASK"],
                 "INCIDENCE": params["INCIDENCE"], "REPORT": params["REPORT"],
                 "STATISTICS": report}
+
+
+def rpc_ortho(params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
+    """The ortho of an INPUT with RPCs (GDAL's: tags, .RPB, _RPC.TXT): the grid in CRS (default
+    the DEM's), the optional GCP bias refinement, the DEM in the RPCs' ellipsoidal heights
+    (or HEIGHTS)."""
+
+    from toolbox.cameras import read_rpc, refine_bias
+    from toolbox.ortho.rpc import gcp_pairs, rpc_crs, rpc_orthorectify, rpc_plan
+    from toolbox.ortho.run import OrthoOptions
+    from toolbox.ortho.vertical import dem_in_photo_datum
+    from toolbox.photogrammetry.tables import ground_points, image_measurements
+
+    image = params["INPUT"]
+    crs = rpc_crs(params["CRS"], params["DEM"])
+    camera = read_rpc(image.path, crs)
+    bias = None
+    if params["CONTROL"] is not None:
+        ids, ground, pixels = gcp_pairs(Path(image.path).name, image_measurements(
+            params["MEASUREMENTS"], None, "pixel", "MEASUREMENTS"), ground_points(
+            params["CONTROL"]))
+        camera, bias = refine_bias(camera, ground, pixels, params["BIAS"])
+        bias["points"] = ids
+        feedback.push_info(f"RPC {bias['model']} bias from {bias['gcps']} GCPs: RMS "
+                           f"{bias['rms_before_px']:.3f} -> {bias['rms_after_px']:.3f} px")
+    with dem_in_photo_datum(params["DEM"], params["BAND"], params["HEIGHTS"] or "ellipsoidal",
+                            None, feedback) as (dem, band, heights):
+        grid, gsd = rpc_plan(camera, dem, band, *grid_choice(params, crs))
+        options = OrthoOptions(
+            resampling=params["RESAMPLING"], outside=params["OUTSIDE"], nodata=params["NODATA"],
+            dem_factor=params["DEM_FACTOR"], band=band, overviews=params["OVERVIEWS"],
+            cog=params["COG"])
+        report = rpc_orthorectify(camera, image, dem, grid, params["OUTPUT"], options, feedback)
+    report.update(photo=Path(image.path).stem, photo_gsd_m=gsd, heights=heights.as_dict(),
+                  bias=bias)
+    return report
 
 
 def grid_choice(params: dict[str, Any], crs: Any) -> tuple[Any, Any, tuple[float, float]]:

@@ -8,8 +8,8 @@ from toolbox.cameras.base import CameraModel, GridProjector
 from toolbox.cameras.factory import MODEL_TYPES, create_camera, create_intrinsics, from_opensfm
 from toolbox.cameras.frame import FilmFrame, FrameCamera
 from toolbox.cameras.intrinsics import DEFAULT_TOLERANCE_PX, Intrinsics
-from toolbox.cameras.rpc import RpcCamera, RpcCoefficients, read_rpc
+from toolbox.cameras.rpc import RpcCamera, RpcCoefficients, read_rpc, refine_bias
 
 __all__ = ["CameraModel", "GridProjector", "MODEL_TYPES", "create_camera", "create_intrinsics",
            "from_opensfm", "FilmFrame", "FrameCamera", "DEFAULT_TOLERANCE_PX", "Intrinsics", "RpcCamera",
-           "RpcCoefficients", "read_rpc"]
+           "RpcCoefficients", "read_rpc", "refine_bias"]

@@ -12,11 +12,17 @@ practice): the DEM must give the same.
 Ground -> pixel needs heights (an RPC camera is not a central projection): ortho needs a DEM.
 Pixel -> ground is solved at given heights by Newton's method on (lon, lat), to
 ``tolerance_px`` in the image; pixels that do not converge come back NaN.
+
+Bias refinement (:func:`refine_bias`; Grodecki and Dial 2003, "Block adjustment of
+high-resolution satellite images described by rational polynomials", PE&RS 69(1)): the RPCs'
+pixels are corrected by an image-space shift (1+ ground control points) or affinity (3+),
+``pixel' = A·(col, row, 1)``, fitted by least squares to GCPs measured on the image.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import functools
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -78,6 +84,7 @@ class RpcCamera:
     image_size_px: tuple[int, int]
     crs: Any = None
     tolerance_px: float = DEFAULT_TOLERANCE_PX
+    bias: Any = None  # (2, 3) image-space affinity applied to the RPCs' pixels (refine_bias)
 
     @property
     def image_size(self) -> tuple[int, int]:
@@ -90,14 +97,9 @@ class RpcCamera:
     def _transformer(self, inverse: bool = False):
         if self.crs is None:
             return None
-        from pyproj import CRS, Transformer
-
         from toolbox.io.crs import parse_crs
 
-        geo = CRS.from_epsg(4326)
-        crs = parse_crs(self.crs)
-        return Transformer.from_crs(geo, crs, always_xy=True) if inverse else \
-            Transformer.from_crs(crs, geo, always_xy=True)
+        return _lonlat_transformer(parse_crs(self.crs).to_wkt(), inverse)
 
     def lonlat_to_pixel(self, lon: np.ndarray, lat: np.ndarray, h: np.ndarray) -> np.ndarray:
         """Longitude, latitude (degrees), height -> pixels (N, 2)."""
@@ -108,8 +110,13 @@ class RpcCamera:
         with np.errstate(invalid="ignore", divide="ignore"):
             line = t["line_num_coeff"] @ m / (t["line_den_coeff"] @ m)
             samp = t["samp_num_coeff"] @ m / (t["samp_den_coeff"] @ m)
-        return np.column_stack([samp * v["samp_scale"] + v["samp_off"] + 0.5,
-                                line * v["line_scale"] + v["line_off"] + 0.5])
+        col = samp * v["samp_scale"] + v["samp_off"] + 0.5
+        row = line * v["line_scale"] + v["line_off"] + 0.5
+        if self.bias is not None:
+            a = self.bias
+            col, row = (a[0, 0] * col + a[0, 1] * row + a[0, 2],
+                        a[1, 0] * col + a[1, 1] * row + a[1, 2])
+        return np.column_stack([col, row])
 
     def project(self, xyz: Any) -> np.ndarray:
         from toolbox.cameras.frame import ground_points
@@ -164,6 +171,55 @@ class RpcCamera:
         bottom = self.pixel_to_ground(pixels, v["height_off"] - v["height_scale"])
         d = bottom - top
         return d / np.linalg.norm(d, axis=1)[:, None]
+
+
+@functools.lru_cache(maxsize=8)
+def _lonlat_transformer(wkt: str, inverse: bool) -> Any:
+    """pyproj Transformer ``wkt`` -> WGS84 lon/lat (``inverse``: back), always_xy; cached
+    (an ortho asks once per window)."""
+    from pyproj import CRS, Transformer
+
+    geo, crs = CRS.from_epsg(4326), CRS.from_wkt(wkt)
+    return Transformer.from_crs(geo, crs, always_xy=True) if inverse else \
+        Transformer.from_crs(crs, geo, always_xy=True)
+
+
+def refine_bias(camera: RpcCamera, ground: np.ndarray, pixels: np.ndarray,
+                model: str = "auto") -> tuple[RpcCamera, dict[str, Any]]:
+    """The camera with its image-space bias fitted to GCPs (module docstring): ``ground``
+    (n, 3) in the camera's CRS and heights, ``pixels`` (n, 2) measured (product pixels).
+    ``model``: ``shift`` (n >= 1), ``affine`` (n >= 3; better conditioned with more), or
+    ``auto`` (affine from 4 GCPs, else shift). Returns the camera and a report (model, the
+    residuals' RMS before and after, pixels, per GCP after)."""
+    ground = np.asarray(ground, dtype="float64").reshape(-1, 3)
+    pixels = np.asarray(pixels, dtype="float64").reshape(-1, 2)
+    plain = replace(camera, bias=None)
+    predicted = plain.project(ground)
+    ok = np.isfinite(predicted).all(axis=1) & np.isfinite(pixels).all(axis=1)
+    n = int(ok.sum())
+    if model == "auto":
+        model = "affine" if n >= 4 else "shift"
+    need = {"shift": 1, "affine": 3}.get(model)
+    if need is None:
+        raise InputDataError(f"RPC bias model must be shift, affine or auto, got {model!r}")
+    if n < need:
+        raise InputDataError(f"an RPC {model} bias needs at least {need} GCP(s) on the image; "
+                             f"{n} of {len(ground)} project into it")
+    p, m = predicted[ok], pixels[ok]
+    if model == "shift":
+        a = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+        a[:, 2] = (m - p).mean(axis=0)
+    else:
+        design = np.column_stack([p, np.ones(n)])
+        solution, *_ = np.linalg.lstsq(design, m, rcond=None)
+        a = solution.T
+    fitted = replace(camera, bias=a)
+    after = fitted.project(ground[ok]) - m
+    report = {"model": model, "gcps": n, "bias": a.tolist(),
+              "rms_before_px": float(np.sqrt(np.mean(np.sum((p - m) ** 2, axis=1)))),
+              "rms_after_px": float(np.sqrt(np.mean(np.sum(after ** 2, axis=1)))),
+              "residuals_px": after.tolist()}
+    return fitted, report
 
 
 def read_rpc(path: Any, crs: Any = None) -> RpcCamera:

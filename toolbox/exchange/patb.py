@@ -8,11 +8,15 @@ Three records per photo (PCI Geomatics, "Using Pat-B in OrthoEngine")::
 
 The matrix is PAT-B's omega-phi-kappa rotation, which is the product's ``R`` (it maps image
 axes x right, y up, z back onto the ground axes: ``X - X0 = λ·R·x``;
-:mod:`toolbox.photogrammetry.rotation` calls it the PATB convention). The file states no angle
-unit (it holds no angles) and no CRS (the caller's applies). Reading takes the numbers by
-whitespace, so hand-edited files with other spacing are read too; a line ``-99`` is skipped.
-Writing keeps the fixed columns; PAT-B's photo numbers are integers, so a non-numeric id is
-written as it is and the notes say a strict PAT-B reader may refuse it.
+:mod:`toolbox.photogrammetry.rotation` calls it the PATB convention), row by row. Direction
+verified (tests/toolbox/exchange/test_exchange_patb_direction.py) against the documented PATB
+convention: Pix4D's "R ... with angles ω, φ, κ (PATB convention)", ``X' = Rᵀ(X - T)``, and
+Orthority's angles "to rotate from camera (PATB convention) to world", on the NGI block's
+published angles (scipy's Rx·Ry·Rz as the oracle, OpenCV's projectPoints through the file).
+The file states no angle unit (it holds no angles) and no CRS (the caller's applies). Reading
+takes the numbers by whitespace, so hand-edited files with other spacing are read too; a line
+``-99`` is skipped. Writing keeps the fixed columns; PAT-B's photo numbers are integers, so a
+non-numeric id is written as it is and the notes say a strict PAT-B reader may refuse it.
 """
 
 from __future__ import annotations

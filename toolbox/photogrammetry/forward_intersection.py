@@ -25,6 +25,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from toolbox.errors import InputDataError
+
 OK, SINGLE_RAY, PARALLEL_RAYS, BEHIND_CAMERA, NOT_CONVERGED = 0, 1, 2, 3, 4
 STATUS_NAMES = {OK: "ok", SINGLE_RAY: "single_ray", PARALLEL_RAYS: "parallel_rays",
                 BEHIND_CAMERA: "behind_camera", NOT_CONVERGED: "not_converged"}
@@ -201,11 +203,21 @@ def intersect(point_index: np.ndarray, camera_xy: np.ndarray, centres: np.ndarra
                               residuals)
 
 
+def principal_distance(photo) -> float:
+    """``c`` of :func:`camera_observations`: the film camera's, mm; a camera model's mean focal
+    length in pixels (its observations are ideal normalised coordinates times it)."""
+    if photo.is_model:
+        return float(np.mean(photo.camera.focal_px))
+    return photo.camera.c
+
+
 def camera_observations(photos, points, coordinates: str) -> np.ndarray:
-    """Camera coordinates (mm) of measured points.
+    """Camera coordinates of measured points: mm for a film camera; for a camera model (pinhole,
+    Brown, OpenCV, fisheye) its undistorted ideal coordinates scaled by
+    :func:`principal_distance` (pixel-sized units: the same rays).
 
     ``photos`` (M,) :class:`~toolbox.photogrammetry.photo.Photo` objects, ``points`` (M, 2)
-    measured pixels (``coordinates="pixel"``) or image mm (``"image"``).
+    measured pixels (``coordinates="pixel"``) or image mm (``"image"``; film cameras only).
     """
     points = np.asarray(points, dtype="float64")
     out = np.empty_like(points)
@@ -215,6 +227,18 @@ def camera_observations(photos, points, coordinates: str) -> np.ndarray:
     for rows in by_photo.values():
         photo = photos[rows[0]]
         xy = points[rows]
+        if photo.is_model:
+            if coordinates != "pixel":
+                raise InputDataError(f"photo {photo.id!r}: its camera is a {photo.camera.kind} "
+                                     "model: measure it in pixels (col_px, row_px), not image mm")
+            ideal = photo.camera.pixel_to_normalised(xy)
+            bad = int(np.isnan(ideal).any(axis=1).sum())
+            if bad:
+                raise InputDataError(f"photo {photo.id!r}: {bad} measured pixel(s) have no ray "
+                                     "(outside the camera model's valid field, or its "
+                                     "undistortion does not converge)")
+            out[rows] = ideal * principal_distance(photo)
+            continue
         if coordinates == "pixel":
             xy = photo.require_pixel_transform().pixel_to_image(xy)
         out[rows] = photo.camera.image_to_camera(xy)

@@ -16,7 +16,11 @@ import numpy as np
 
 from toolbox.errors import InputDataError
 from toolbox.photogrammetry.exterior import ExteriorOrientation
-from toolbox.photogrammetry.forward_intersection import camera_observations, intersect
+from toolbox.photogrammetry.forward_intersection import (
+    camera_observations,
+    intersect,
+    principal_distance,
+)
 from toolbox.photogrammetry.resection import PARAMETER_NAMES, resect
 
 
@@ -70,13 +74,20 @@ def resect_photos(project, measurements, control, use_project_start: bool = Fals
             eo = photo.require_exterior()
             start = np.array([*eo.centre, eo.omega, eo.phi, eo.kappa])
         try:
-            result = resect(cam_xy[fit_mask], ground[fit_mask], photo.camera.c, start)
+            result = resect(cam_xy[fit_mask], ground[fit_mask], principal_distance(photo),
+                            start)
         except InputDataError as exc:
             raise InputDataError(f"photo {pid!r}: {exc}") from None
         x0, y0, z0, om, ph, ka = result.parameters
         eo = ExteriorOrientation(pid, *map(float, (x0, y0, z0, om, ph, ka)), crs=project.crs)
         exteriors[pid] = eo
         fitted = project.with_exteriors({pid: eo}).photos[pid]
+        if photo.is_model:  # its camera units are pixel-sized: residuals in pixels
+            report[pid] = _model_resection_report(result, fitted, ground, xy[rows],
+                                                  [ids[k] for k in rows],
+                                                  [c_roles[where[ids[k]]] for k in rows],
+                                                  int(fit_mask.sum()))
+            continue
         computed = fitted.ground_to_image(ground)
         observed = photo.require_pixel_transform().pixel_to_image(xy[rows]) if kind == "pixel" \
             else xy[rows]
@@ -94,6 +105,21 @@ def resect_photos(project, measurements, control, use_project_start: bool = Fals
     if not exteriors:
         raise InputDataError("no photo of INPUT has control points of CONTROL measured on it")
     return exteriors, report
+
+
+def _model_resection_report(result, fitted, ground, pixels, ids, roles, n_control
+                            ) -> dict[str, Any]:
+    """:func:`resect_photos`' report of a camera-model photo: sigma0 and residuals in pixels
+    (through the full model: distortion included), no µm (it has no film plane)."""
+    v = fitted.ground_to_pixel(ground, behind="nan") - pixels
+    return {"parameters": dict(zip(PARAMETER_NAMES, map(float, result.parameters), strict=True)),
+            "std": dict(zip(PARAMETER_NAMES, map(float, result.std), strict=True)),
+            "angle_unit": "rad", "sigma0_um": None, "sigma0_px": float(result.sigma0_mm),
+            "redundancy": result.redundancy, "control_points": n_control,
+            "points": [{"point_id": i, "role": r, "res_x_um": None, "res_y_um": None,
+                        "res_x_px": float(d[0]), "res_y_px": float(d[1]),
+                        "res_px": float(math.hypot(*d))}
+                       for i, r, d in zip(ids, roles, v, strict=True)]}
 
 
 def check_block(project, measurements, control, threshold_px: float = 1.0) -> dict[str, Any]:
@@ -116,17 +142,25 @@ def check_block(project, measurements, control, threshold_px: float = 1.0) -> di
     observations = []
     for n, k in enumerate(rows):
         photo = photos[n]
-        computed = photo.ground_to_image(ground[n:n + 1])[0]
-        observed = photo.require_pixel_transform().pixel_to_image(xy[k:k + 1])[0] \
-            if kind == "pixel" else xy[k]
-        v_um = (computed - observed) * 1e3
-        px = _pixel_scale_um(photo)
-        res_px = None if px is None else float(math.hypot(*v_um) / px)
-        observations.append({
-            "point_id": ids[k], "photo": photo.id, "role": c_roles[where[ids[k]]],
-            "res_x_um": float(v_um[0]), "res_y_um": float(v_um[1]),
-            "res_um": float(math.hypot(*v_um)), "res_px": res_px,
-            "flagged": bool(res_px is not None and res_px > threshold_px),
+        entry = {"point_id": ids[k], "photo": photo.id, "role": c_roles[where[ids[k]]]}
+        if photo.is_model:  # no film plane: residuals in pixels through the full model
+            if kind != "pixel":
+                raise InputDataError(f"photo {photo.id!r}: its camera is a {photo.camera.kind} "
+                                     "model: measure it in pixels (col_px, row_px), not image mm")
+            v = photo.ground_to_pixel(ground[n:n + 1], behind="nan")[0] - xy[k]
+            res_px = float(math.hypot(*v))
+            entry |= {"res_x_um": None, "res_y_um": None, "res_um": None}
+        else:
+            computed = photo.ground_to_image(ground[n:n + 1])[0]
+            observed = photo.require_pixel_transform().pixel_to_image(xy[k:k + 1])[0] \
+                if kind == "pixel" else xy[k]
+            v_um = (computed - observed) * 1e3
+            px = _pixel_scale_um(photo)
+            res_px = None if px is None else float(math.hypot(*v_um) / px)
+            entry |= {"res_x_um": float(v_um[0]), "res_y_um": float(v_um[1]),
+                      "res_um": float(math.hypot(*v_um))}
+        observations.append(entry | {
+            "res_px": res_px, "flagged": bool(res_px is not None and res_px > threshold_px),
             "xyz": ground[n].tolist()})
     # ground residuals by multi-ray intersection
     order = list(dict.fromkeys(ids[k] for k in rows))
@@ -135,7 +169,7 @@ def check_block(project, measurements, control, threshold_px: float = 1.0) -> di
     cam_xy = camera_observations(photos, xy[rows], kind)
     result = intersect(point_index, cam_xy, np.array([p.exterior.centre for p in photos]),
                        np.array([p.exterior.rotation for p in photos]),
-                       np.array([p.camera.c for p in photos]), len(order))
+                       np.array([principal_distance(p) for p in photos]), len(order))
     points = []
     for n, pid in enumerate(order):
         known = c_xyz[where[pid]]
@@ -149,15 +183,12 @@ def check_block(project, measurements, control, threshold_px: float = 1.0) -> di
         points.append(entry)
     per_photo = {}
     for pid in dict.fromkeys(o["photo"] for o in observations):
-        res = np.array([[o["res_x_um"], o["res_y_um"]] for o in observations if o["photo"] == pid])
-        pxs = [o["res_px"] for o in observations if o["photo"] == pid and o["res_px"] is not None]
-        per_photo[pid] = {"observations": len(res),
-                          "rmse_um": float(np.sqrt((res ** 2).sum(axis=1).mean())),
+        mine = [o for o in observations if o["photo"] == pid]
+        pxs = [o["res_px"] for o in mine if o["res_px"] is not None]
+        per_photo[pid] = {"observations": len(mine), "rmse_um": _rmse_um(mine),
                           "rmse_px": float(np.sqrt(np.mean(np.square(pxs)))) if pxs else None,
-                          "flagged": sum(o["flagged"] for o in observations if o["photo"] == pid)}
-    all_res = np.array([[o["res_x_um"], o["res_y_um"]] for o in observations])
-    block = {"observations": len(observations),
-             "rmse_um": float(np.sqrt((all_res ** 2).sum(axis=1).mean())),
+                          "flagged": sum(o["flagged"] for o in mine)}
+    block = {"observations": len(observations), "rmse_um": _rmse_um(observations),
              "flagged": sum(o["flagged"] for o in observations), "threshold_px": threshold_px}
     ground_ok = [p for p in points if "dx_m" in p]
     for role in ("control", "check"):
@@ -167,3 +198,10 @@ def check_block(project, measurements, control, threshold_px: float = 1.0) -> di
             block[f"{role}_rmse_z_m"] = float(np.sqrt(np.mean([p["dz_m"] ** 2 for p in sel])))
             block[f"{role}_points"] = len(sel)
     return {"observations": observations, "points": points, "photos": per_photo, "block": block}
+
+
+def _rmse_um(observations: list[dict[str, Any]]) -> float | None:
+    """RMSE (µm) of the observations with image-µm residuals (None: only camera models)."""
+    res = np.array([[o["res_x_um"], o["res_y_um"]] for o in observations
+                    if o["res_x_um"] is not None], dtype=float).reshape(-1, 2)
+    return float(np.sqrt((res ** 2).sum(axis=1).mean())) if len(res) else None

@@ -297,6 +297,14 @@ def camera_calibration(camera, free: set[str]) -> np.ndarray:
     from toolbox.photogrammetry.camera import DISTORTION_POLYNOMIAL
 
     values = np.zeros(8)
+    if getattr(camera, "focal_px", None) is not None:  # a camera model: fixed, pixel units
+        if free:
+            raise ParameterError("SELF_CALIBRATION", f"camera {camera.name!r} is a "
+                                 f"{camera.kind} model: its interior stays fixed in the bundle "
+                                 "(self-calibration estimates a film camera's c, x0, y0, k1-k3, "
+                                 "p1, p2)")
+        values[0] = float(np.mean(camera.focal_px))
+        return values
     values[0] = camera.c
     values[1:3] = camera.principal_point_mm
     dist = camera.distortion
@@ -337,9 +345,18 @@ def build_block(request: BlockRequest) -> tuple[Block, dict]:
     rows_of: dict[str, list[int]] = {}
     for k, p in enumerate(ms.photo_ids):
         rows_of.setdefault(p, []).append(k)
+    model_photos = []
     for pid in photo_ids:
         rows = rows_of[pid]
         photo = project.photos[pid]
+        if photo.is_model:  # ideal coordinates in pixel-sized units (camera_observations)
+            from toolbox.photogrammetry.forward_intersection import camera_observations
+
+            xy[rows] = camera_observations([photo] * len(rows), xy[rows], ms.kind)
+            pixel_mm[pid] = 1.0
+            sigma[rows] = np.where(np.isnan(sigma[rows]), request.sigma_px, sigma[rows])
+            model_photos.append(pid)
+            continue
         if ms.kind == "pixel":
             transform = photo.require_pixel_transform()
             xy[rows] = transform.pixel_to_image(xy[rows])
@@ -415,6 +432,7 @@ def build_block(request: BlockRequest) -> tuple[Block, dict]:
                   np.array(a_sig, dtype=float).reshape(-1, 3), request.boresight)
     info_strips = sorted(set(h_strip), key=lambda v: (len(v), v))
     return block, {"checks": checks, "kind": ms.kind, "pixel_mm": pixel_mm,
+                   "model_photos": model_photos,
                    "gnss_strips": info_strips, "free": [f"{block.calibration_label(k, i)}" for k, i in
                             np.argwhere(modes != FIXED)]}
 

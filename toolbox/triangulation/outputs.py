@@ -102,6 +102,8 @@ def report(block: Block, solution: Solution, info: dict, ground: list[dict[str, 
     px = np.array([info["pixel_mm"].get(block.photo_ids[j], np.nan) for j in block.obs_photo])
     res = solution.image_residuals
     active = solution.obs_active
+    models = set(info.get("model_photos", ()))  # camera models: residuals in pixels only
+    film = np.array([block.photo_ids[j] not in models for j in block.obs_photo], dtype=bool)
     with np.errstate(invalid="ignore"):
         over = active & (np.hypot(res[:, 0], res[:, 1]) / px > threshold_px)
     summary = {
@@ -110,7 +112,8 @@ def report(block: Block, solution: Solution, info: dict, ground: list[dict[str, 
         "points": block.n_points, "image_observations": int(len(block.obs_photo)),
         "rejected": len(solution.rejections), "flagged": int(over.sum()),
         "threshold_px": threshold_px,
-        "rms_image_residual_um": _num(1e3 * np.sqrt(np.mean(res[active] ** 2))),
+        "rms_image_residual_um": _num(1e3 * np.sqrt(np.mean(res[active & film] ** 2)))
+        if (active & film).any() else None,
         "rms_image_residual_px": _num(np.sqrt(np.nanmean((res[active] / px[active, None]) ** 2)))
         if info["kind"] == "pixel" else None,
         "local_origin": solution.origin,
@@ -151,7 +154,8 @@ def report(block: Block, solution: Solution, info: dict, ground: list[dict[str, 
         observations = [
             {"point_id": block.point_ids[block.obs_point[i]],
              "photo": block.photo_ids[block.obs_photo[i]],
-             "res_x_um": float(1e3 * res[i, 0]), "res_y_um": float(1e3 * res[i, 1]),
+             "res_x_um": float(1e3 * res[i, 0]) if film[i] else None,
+             "res_y_um": float(1e3 * res[i, 1]) if film[i] else None,
              "w_x": _num(solution.image_w[i, 0]), "w_y": _num(solution.image_w[i, 1]),
              "r_x": _num(solution.image_r[i, 0]), "r_y": _num(solution.image_r[i, 1]),
              "rejected": not bool(active[i])} for i in range(len(block.obs_photo))]
@@ -222,8 +226,10 @@ def layers(block: Block, solution: Solution, info: dict, ground: list[dict[str, 
         v = solution.image_residuals[i]
         size = info["pixel_mm"].get(pid)
         res_px = math.hypot(*v) / size if size else None
+        film = pid not in set(info.get("model_photos", ()))
         obs.append({"point_id": block.point_ids[block.obs_point[i]], "photo": pid,
-                    "res_x_um": float(1e3 * v[0]), "res_y_um": float(1e3 * v[1]),
+                    "res_x_um": float(1e3 * v[0]) if film else None,
+                    "res_y_um": float(1e3 * v[1]) if film else None,
                     "res_px": None if res_px is None else _num(res_px),
                     "w_x": _num(solution.image_w[i, 0]), "w_y": _num(solution.image_w[i, 1]),
                     "r_x": _num(solution.image_r[i, 0]), "r_y": _num(solution.image_r[i, 1]),

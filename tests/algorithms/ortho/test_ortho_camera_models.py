@@ -30,6 +30,9 @@ BROWN = {"type": "brown", "im_size": [720, 560], "focal_len": 0.75, "cx": 0.012,
          "k1": -0.21, "k2": 0.09, "k3": -0.012, "p1": 0.0012, "p2": -0.0007}
 FISHEYE = {"type": "fisheye", "im_size": [640, 640], "focal_len": 0.66, "cx": -0.01,
            "cy": 0.006, "k1": -0.06, "k2": 0.012, "k3": -0.002, "k4": 0.0002}
+OPENCV = {"type": "opencv", "im_size": [720, 560], "focal_len": 0.75, "cx": -0.01, "cy": 0.01,
+          "k1": -0.18, "k2": 0.07, "k3": -0.01, "k4": 0.02, "k5": 0.003, "k6": 0.001,
+          "p1": 0.001, "p2": -0.0006, "s1": 0.002, "s2": -0.0004, "s3": -0.0012, "s4": 0.0003}
 CRITERIA = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-14)
 
 
@@ -82,7 +85,8 @@ def terrain(tmp_path_factory):
     return folder, z, transform, texture, scene.write_dem(folder / "dem.tif", z, transform)
 
 
-@pytest.mark.parametrize("spec", [BROWN, FISHEYE], ids=["brown", "fisheye"])
+@pytest.mark.parametrize("spec", [BROWN, FISHEYE, OPENCV],
+                         ids=["brown", "fisheye", "opencv-thin-prism"])
 def test_ortho_through_a_camera_model_recovers_the_texture(terrain, spec, tmp_path):
     folder, z, transform, texture, dem = terrain
     write_photo(tmp_path / "p1.tif", render(spec, z, transform, texture))
@@ -98,7 +102,7 @@ def test_ortho_through_a_camera_model_recovers_the_texture(terrain, spec, tmp_pa
     report = out["STATISTICS"]
     assert report["max_relief_displacement_px"] > 10  # the relief mattered
     # negative control: the same photo through the lens without its distortion is wrong
-    flat = {k: v for k, v in spec.items() if not k.startswith(("k", "p"))}
+    flat = {k: v for k, v in spec.items() if not k.startswith(("k", "p", "s"))}
     flat["type"] = "pinhole" if spec["type"] != "fisheye" else "fisheye"
     model_project(tmp_path / "no_lens.yaml", flat)
     toolbox.run("ortho:photo", {"INPUT": tmp_path / "p1.tif", "PROJECT": tmp_path / "no_lens.yaml",

@@ -1,0 +1,254 @@
+"""RPC orthos (ortho:photo on an image with RPCs) against GDAL's own RPC transformer as the
+independent oracle: ``gdalwarp -rpc -to RPC_DEM=dem.tif -et 0`` (exact at every pixel).
+
+The geometry is compared through a *ramp* image carrying the RPCs: its two bands hold each
+pixel centre's column and row (product convention), so a bilinear warp writes at every output
+cell the image position the tool mapped it to (bilinear interpolation of a linear ramp is
+exact): ours minus GDAL's is the geometric disagreement in pixels. Cases: Orthority's real
+QuickBird image on the NGI DEM, a synthetic RPC on a synthetic DEM, and the GCP bias refinement
+(a shift, and a scale + shift, that GDAL's RPCs express through their offsets and scales)."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import rasterio
+from rasterio.rpc import RPC
+
+import toolbox
+from toolbox.cameras import read_rpc, refine_bias
+from toolbox.io.raster import write_raster
+from toolbox.photogrammetry.synthetic import hills_dem
+
+GDALWARP = shutil.which("gdalwarp")
+needs_gdalwarp = pytest.mark.skipif(GDALWARP is None, reason="gdalwarp (GDAL's CLI) not found")
+NODATA = -9999.0
+
+
+def write_ramp(path: Path, rpcs: RPC, width: int, height: int) -> Path:
+    cols, rows = np.meshgrid(np.arange(width) + 0.5, np.arange(height) + 0.5)
+    with rasterio.open(path, "w", driver="GTiff", width=width, height=height, count=2,
+                       dtype="float32", rpcs=rpcs) as dst:
+        dst.write(np.stack([cols, rows]).astype("float32"))
+    return path
+
+
+def gdal_ortho(ramp: Path, dem: Path, like: Path, out: Path) -> np.ndarray:
+    """GDAL's RPC warp of ``ramp`` onto the grid of ``like`` (exact transformer, bilinear, the
+    DEM's heights as they are)."""
+    with rasterio.open(like) as src:
+        b, res, wkt = src.bounds, src.res, src.crs.to_wkt()
+    srs = out.with_suffix(".wkt")
+    srs.write_text(wkt)
+    subprocess.run([GDALWARP, "-q", "-overwrite", "-rpc", "-to", f"RPC_DEM={dem}", "-to",
+                    "RPC_DEM_APPLY_VDATUM_SHIFT=FALSE", "-t_srs", str(srs), "-te",
+                    *map(repr, (b.left, b.bottom, b.right, b.top)), "-tr", *map(repr, res),
+                    "-r", "bilinear", "-et", "0", "-dstnodata", str(NODATA), "-wt", "Float32",
+                    str(ramp), str(out)], check=True, capture_output=True)
+    with rasterio.open(out) as src:
+        return src.read().astype("float64")
+
+
+def ours(ramp: Path, dem: Path, out: Path, **extra) -> tuple[np.ndarray, dict]:
+    stats = toolbox.run("ortho:photo", {"INPUT": ramp, "DEM": dem, "OUTSIDE": "nodata",
+                                        "NODATA": NODATA, "OVERVIEWS": False, "OUTPUT": out,
+                                        **extra})["STATISTICS"]
+    with rasterio.open(out) as src:
+        return src.read().astype("float64"), stats
+
+
+def disagreement(a: np.ndarray, b: np.ndarray, size: tuple[int, int]) -> tuple[float, int, int]:
+    """Largest |ours - GDAL's| (px) over the cells both map inside the image (one pixel in from
+    its edges: the ramp is linear there), the cells compared, and the cells only one maps."""
+    w, h = size
+    seen_a, seen_b = a[0] != NODATA, b[0] != NODATA
+    ok = seen_a & seen_b & (a[0] > 1) & (a[0] < w - 1) & (a[1] > 1) & (a[1] < h - 1)
+    return float(np.abs(a[:2, ok] - b[:2, ok]).max()), int(ok.sum()), int((seen_a != seen_b).sum())
+
+
+@needs_gdalwarp
+def test_quickbird_rpc_ortho_equals_gdalwarp(orthority_data, tmp_path):
+    qb, dem = orthority_data / "rpc" / "qb2_basic1b.tif", orthority_data / "ngi" / "dem.tif"
+    with rasterio.open(qb) as src:
+        rpcs = src.rpcs
+    ramp = write_ramp(tmp_path / "ramp.tif", rpcs, 850, 1450)
+    # the NGI DEM is EGM2008; that grid is not installed: take its heights as they are, as
+    # GDAL does with RPC_DEM_APPLY_VDATUM_SHIFT=FALSE
+    # at the image's GSD (coarser, GDAL widens its bilinear kernel: another filter), over the
+    # image's middle (fast)
+    a, stats = ours(ramp, dem, tmp_path / "ours.tif", HEIGHTS="EPSG:3855", CELL_SIZE=6.5,
+                    EXTENT="-57500,-3731000,-55500,-3728000")
+    assert stats["heights"]["converted"] is False and stats["camera"] == "rpc"
+    assert stats["photo_gsd_m"] == pytest.approx(6.5, abs=0.1)
+    assert stats["outside_dem_fraction"] == 0.0
+    b = gdal_ortho(ramp, dem, tmp_path / "ours.tif", tmp_path / "gdal.tif")
+    worst, compared, only_one = disagreement(a, b, (850, 1450))
+    assert compared > 130_000 and worst < 0.05 and only_one < 0.001 * compared
+    # the real image runs end to end (the command line's runs: test_rpc_bad_input_is_one_line)
+    toolbox.run("ortho:photo", {"INPUT": qb, "DEM": dem, "HEIGHTS": "EPSG:3855",
+                                "CELL_SIZE": 40.0, "OUTPUT": tmp_path / "qb.tif"})
+    with rasterio.open(tmp_path / "qb.tif") as src:
+        assert src.count == 2 and src.res == (40.0, 40.0)  # grey + alpha
+        assert (src.read(2) > 0).mean() > 0.8
+
+
+def synthetic_rpc(dx: float = 0.0, dy: float = 0.0, scale: float = 1.0) -> RPC:
+    """A 1200 x 1000 px RPC near (11 E, 45 N); ``scale``, ``dx``, ``dy``: the image-space
+    affinity col' = scale·col + dx (rows likewise) folded into the offsets and scales."""
+    num_s, num_l = np.zeros(20), np.zeros(20)
+    num_s[[1, 2, 3, 4, 7]] = [1.0, 0.05, 0.02, 0.01, -0.003]
+    num_l[[1, 2, 3, 6, 8]] = [-0.04, -1.0, 0.03, 0.005, 0.002]
+    den = np.zeros(20)
+    den[[0, 1, 2]] = [1.0, 0.001, -0.002]
+    # product pixel = s·(v·S + off + 0.5) + d  =>  off' = s·off + 0.5·s + d - 0.5, S' = s·S
+    return RPC(height_off=500.0, height_scale=400.0, lat_off=45.0, lat_scale=0.05,
+               line_den_coeff=den.tolist(), line_num_coeff=num_l.tolist(),
+               line_off=scale * 500.0 + 0.5 * scale + dy - 0.5, line_scale=scale * 520.0,
+               long_off=11.0, long_scale=0.07, samp_den_coeff=den.tolist(),
+               samp_num_coeff=num_s.tolist(), samp_off=scale * 600.0 + 0.5 * scale + dx - 0.5,
+               samp_scale=scale * 620.0)
+
+
+MIDDLE = "656000,4983300,659200,4986500"  # 3.2 km square in the synthetic image's middle
+
+
+@pytest.fixture(scope="module")
+def synthetic(tmp_path_factory):
+    """A hilly DEM (EPSG:32632, heights ellipsoidal as RPCs expect) under the synthetic RPC."""
+    folder = tmp_path_factory.mktemp("rpc")
+    z, transform = hills_dem((650000.0, 4977000.0, 665000.0, 4993000.0), cell=30.0,
+                             relief=600.0, base=200.0, seed=5)
+    write_raster(folder / "dem.tif", z, transform, "EPSG:32632", nodata=NODATA)
+    return folder
+
+
+@needs_gdalwarp
+def test_synthetic_rpc_ortho_equals_gdalwarp(synthetic, tmp_path):
+    ramp = write_ramp(tmp_path / "ramp.tif", synthetic_rpc(), 1200, 1000)
+    a, stats = ours(ramp, synthetic / "dem.tif", tmp_path / "ours.tif", CELL_SIZE=8.0, EXTENT=MIDDLE)
+    assert stats["heights"]["note"].startswith("heights used as they are")
+    b = gdal_ortho(ramp, synthetic / "dem.tif", tmp_path / "ours.tif", tmp_path / "gdal.tif")
+    worst, compared, only_one = disagreement(a, b, (1200, 1000))
+    assert compared > 150_000 and worst < 0.05 and only_one < 0.001 * compared
+
+
+def write_gcps(folder: Path, camera, image: str, n: int, seed: int) -> tuple[Path, Path]:
+    """``n`` GCPs: ground points on the DEM's area, their pixels through ``camera`` (the truth),
+    as CONTROL (id, X, Y, Z) and MEASUREMENTS (point_id, photo, col_px, row_px) CSVs."""
+    rng = np.random.default_rng(seed)
+    px = np.column_stack([rng.uniform(100, 1100, n), rng.uniform(100, 900, n)])
+    z = rng.uniform(250, 700, n)
+    ground = camera.pixel_to_ground(px, z)
+    control = folder / "control.csv"
+    control.write_text("id,X,Y,Z\n" + "".join(f"g{k},{x:.6f},{y:.6f},{h:.6f}\n"
+                                              for k, (x, y, h) in enumerate(ground)))
+    measured = folder / "measurements.csv"
+    measured.write_text("point_id,photo,col_px,row_px\n" + "".join(
+        f"g{k},{image},{c:.6f},{r:.6f}\n" for k, (c, r) in enumerate(px)))
+    return control, measured
+
+
+@needs_gdalwarp
+@pytest.mark.parametrize("bias, truth", [("shift", dict(dx=3.7, dy=-2.2)),
+                                         ("affine", dict(dx=-1.5, dy=2.5, scale=1.002))])
+def test_gcp_bias_refinement_matches_gdal_on_the_true_rpcs(synthetic, tmp_path, bias, truth):
+    """The image's RPCs are off by an image-space bias; GCPs measured on it (their pixels
+    through the true RPCs) refine them: the ortho equals GDAL's on the true RPCs."""
+    ramp = write_ramp(tmp_path / "ramp.tif", synthetic_rpc(), 1200, 1000)
+    true_ramp = write_ramp(tmp_path / "true.tif", synthetic_rpc(**truth), 1200, 1000)
+    true_camera = read_rpc(true_ramp, "EPSG:32632")
+    control, measured = write_gcps(tmp_path, true_camera, "ramp.tif", 6, seed=8)
+    a, stats = ours(ramp, synthetic / "dem.tif", tmp_path / "ours.tif", CELL_SIZE=8.0, EXTENT=MIDDLE,
+                    CONTROL=control, MEASUREMENTS=measured, BIAS=bias)
+    assert stats["bias"]["model"] == bias and stats["bias"]["gcps"] == 6
+    assert stats["bias"]["rms_before_px"] > 2.0 and stats["bias"]["rms_after_px"] < 1e-3
+    b = gdal_ortho(true_ramp, synthetic / "dem.tif", tmp_path / "ours.tif",
+                   tmp_path / "gdal.tif")
+    worst, compared, _ = disagreement(a, b, (1200, 1000))
+    assert compared > 150_000 and worst < 0.05
+    plain, _ = ours(ramp, synthetic / "dem.tif", tmp_path / "plain.tif", CELL_SIZE=8.0, EXTENT=MIDDLE)
+    assert disagreement(plain, b, (1200, 1000))[0] > 2.0  # without the GCPs: off by the bias
+
+
+def test_quickbird_bias_from_its_real_gcps(orthority_data):
+    """Orthority's GCPs of the QuickBird image (pixel ``ji``, OpenCV convention; WGS84
+    lon/lat/height): its RPCs are off by 3.6 px; a shift brings the fit and every point left
+    out of it under 0.2 px."""
+    features = json.loads((orthority_data / "rpc" / "gcps.geojson").read_text())["features"]
+    ground = np.array([f["geometry"]["coordinates"] for f in features])
+    pixels = np.array([f["properties"]["ji"] for f in features]) + 0.5
+    camera = read_rpc(orthority_data / "rpc" / "qb2_basic1b.tif")
+    fitted, report = refine_bias(camera, ground, pixels, "shift")
+    assert report["rms_before_px"] > 3.0 and report["rms_after_px"] < 0.15
+    for k in range(len(ground)):
+        keep = np.arange(len(ground)) != k
+        loo, _ = refine_bias(camera, ground[keep], pixels[keep], "shift")
+        assert np.hypot(*(loo.project(ground[k:k + 1])[0] - pixels[k])) < 0.25
+
+
+def cli(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "toolbox", "run", "ortho:photo", *args],
+                          capture_output=True, text=True)
+
+
+def test_rpc_bad_input_is_one_line(synthetic, tmp_path):
+    ramp = write_ramp(tmp_path / "ramp.tif", synthetic_rpc(), 1200, 1000)
+    out = tmp_path / "o.tif"
+    control = tmp_path / "control.csv"
+    control.write_text("id,X,Y,Z\ng1,657000,4984000,300\n")
+    cases = [
+        ((), "DEM"),  # RPC without a DEM
+        (("--DEM", str(synthetic / "dem.tif"), "--OCCLUSION"), "OCCLUSION"),
+        (("--DEM", str(synthetic / "dem.tif"), "--CONTROL", str(control)), "MEASUREMENTS"),
+        (("--DEM", str(synthetic / "dem.tif"), "--CRS", "EPSG:4326"), "projected"),
+    ]
+    for extra, word in cases:
+        run = cli("--INPUT", str(ramp), *extra, "--OUTPUT", str(out))
+        assert run.returncode == 2, (extra, run.stderr)
+        assert run.stderr.count("\n") == 1 and word in run.stderr, run.stderr
+        assert not out.exists()
+    plain = tmp_path / "plain.tif"
+    write_raster(plain, np.zeros((10, 10), "float32"), rasterio.Affine.identity(), None)
+    run = cli("--INPUT", str(plain), "--DEM", str(synthetic / "dem.tif"), "--OUTPUT", str(out))
+    assert run.returncode == 2 and "or an INPUT with RPCs" in run.stderr
+    assert run.stderr.count("\n") == 1 and not out.exists()
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]
+
+
+def test_quickbird_ortho_with_its_real_gcps(orthority_data, tmp_path):
+    """Orthority's GCPs of the QuickBird image as CONTROL (in the DEM's CRS) and MEASUREMENTS:
+    the RPCs' 3.6 px bias is taken out (shift), and the ortho moves by it."""
+    from pyproj import Transformer
+
+    from toolbox.io.raster import open_raster_info
+    from toolbox.ortho.vertical import horizontal_part
+
+    qb, dem = orthority_data / "rpc" / "qb2_basic1b.tif", orthority_data / "ngi" / "dem.tif"
+    crs = horizontal_part(open_raster_info(dem).crs)
+    features = json.loads((orthority_data / "rpc" / "gcps.geojson").read_text())["features"]
+    to_crs = Transformer.from_crs("EPSG:4326", crs, always_xy=True)
+    control, measured = ["id,X,Y,Z"], ["point_id,photo,col_px,row_px"]
+    for f in features:
+        (lon, lat, h), (j, i) = f["geometry"]["coordinates"], f["properties"]["ji"]
+        x, y = to_crs.transform(lon, lat)
+        control.append(f"{f['properties']['id']},{x:.4f},{y:.4f},{h:.4f}")
+        measured.append(f"{f['properties']['id']},qb2_basic1b.tif,{j + 0.5:.4f},{i + 0.5:.4f}")
+    (tmp_path / "control.csv").write_text("\n".join(control) + "\n")
+    (tmp_path / "measured.csv").write_text("\n".join(measured) + "\n")
+    common = {"INPUT": qb, "DEM": dem, "HEIGHTS": "EPSG:3855", "CELL_SIZE": 30.0,
+              "EXTENT": "-58000,-3732000,-55000,-3727000", "OVERVIEWS": False}
+    stats = toolbox.run("ortho:photo", {**common, "CONTROL": tmp_path / "control.csv",
+                                        "MEASUREMENTS": tmp_path / "measured.csv",
+                                        "BIAS": "shift", "OUTPUT": tmp_path / "fixed.tif"}
+                        )["STATISTICS"]
+    assert stats["bias"]["gcps"] == len(features) == 5
+    assert stats["bias"]["rms_before_px"] > 3.0 and stats["bias"]["rms_after_px"] < 0.15
+    toolbox.run("ortho:photo", {**common, "OUTPUT": tmp_path / "plain.tif"})
+    with rasterio.open(tmp_path / "fixed.tif") as a, rasterio.open(tmp_path / "plain.tif") as b:
+        assert np.abs(a.read(1).astype(float) - b.read(1).astype(float)).mean() > 1.0

@@ -1,0 +1,269 @@
+"""Vertical datums of the DEM and of the photos' heights (:func:`dem_for_photos`).
+
+A DEM's CRS may carry a vertical datum (a compound CRS: UTM + EGM2008 height), and so may the
+orientation's (a compound project ``crs``, a 3D CRS with ellipsoidal heights, or ``HEIGHTS``
+of the ortho algorithms). Same datum, or one side silent: the DEM is used as it is (the fast
+path: a vertical datum moves no cell, :func:`toolbox.ortho.dem.same_horizontal_crs`), and the
+report says which. Different datums: the DEM's heights are converted ONCE with pyproj into a
+temporary DEM of the photos' datum (the shift ``h' - h`` taken on a lattice of every 16th cell
+and interpolated, checked to 1 mm at the lattice cells' centres, else computed at every cell).
+A conversion that needs a PROJ grid missing here (EGM2008's ``us_nga_egm08_25.tif``...) is
+refused naming the grid and how to install it; a "ballpark" operation (one that ignores the
+geoid) is never used.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from toolbox.errors import InputDataError, ParameterError
+
+ELLIPSOIDAL = "ellipsoidal"
+#: folders holding PROJ grids besides pyproj's own (a system PROJ's data: egm96_15.gtx...)
+SYSTEM_GRID_DIRS = ("/usr/share/proj", "/usr/local/share/proj")
+SHIFT_TOLERANCE_M = 1e-3
+ROWS_PER_BLOCK = 512
+
+
+def vertical_part(crs: Any) -> Any:
+    """The vertical part of a CRS: a vertical pyproj CRS (compound CRS), :data:`ELLIPSOIDAL`
+    (a 3D geographic or projected CRS) or None (a 2D CRS names no height datum)."""
+    if crs is None:
+        return None
+    from toolbox.io.crs import parse_crs
+
+    crs = parse_crs(crs)
+    if crs.is_compound:
+        vertical = [c for c in crs.sub_crs_list if c.is_vertical]
+        return vertical[0] if vertical else None
+    if crs.is_vertical:
+        return crs
+    if len(crs.axis_info) == 3 and "ellipsoidal" in crs.axis_info[2].name.lower():
+        return ELLIPSOIDAL
+    return None
+
+
+def horizontal_part(crs: Any) -> Any:
+    from toolbox.io.crs import parse_crs
+
+    crs = parse_crs(crs)
+    if crs.is_compound:
+        return crs.sub_crs_list[0]
+    if len(crs.axis_info) == 3:
+        return crs.to_2d()
+    return crs
+
+
+def parse_heights(value: Any, name: str = "HEIGHTS") -> Any:
+    """``ellipsoidal`` or a vertical CRS (``EPSG:3855``; a compound CRS gives its vertical
+    part) -> what :func:`vertical_part` returns; ParameterError naming ``name``."""
+    if value is None or str(value).strip() == "":
+        return None
+    if str(value).strip().lower() == ELLIPSOIDAL:
+        return ELLIPSOIDAL
+    from toolbox.io.crs import parse_crs
+
+    vertical = vertical_part(parse_crs(value, name))
+    if vertical is None:
+        raise ParameterError(name, f"{value!r} is not a vertical CRS (expected 'ellipsoidal', "
+                             "a vertical CRS such as EPSG:3855 (EGM2008 height), or a compound "
+                             "CRS)")
+    return vertical
+
+
+def datum_label(vertical: Any) -> str:
+    if vertical is None:
+        return "not stated"
+    if vertical == ELLIPSOIDAL:
+        return "ellipsoidal heights"
+    from toolbox.io.crs import crs_label
+
+    label = crs_label(vertical)
+    return vertical.name if label == vertical.name else f"{vertical.name} ({label})"
+
+
+def same_datum(a: Any, b: Any) -> bool:
+    if isinstance(a, str) or isinstance(b, str):
+        return a == b
+    from toolbox.io.crs import same_crs
+
+    return same_crs(a, b) or (a.datum is not None and b.datum is not None
+                              and a.datum.name == b.datum.name)
+
+
+@dataclass
+class HeightsNote:
+    """What was done with the DEM's heights (the run report's ``heights``)."""
+
+    dem: str
+    photos: str
+    converted: bool
+    text: str
+    operation: str | None = None
+    shift_m: list[float] | None = None  # min, max of the conversion's h' - h
+    extra: dict = field(default_factory=dict)
+
+    def as_dict(self) -> dict[str, Any]:
+        out = {"dem_datum": self.dem, "photos_datum": self.photos, "converted": self.converted,
+               "note": self.text}
+        if self.operation is not None:
+            out.update(operation=self.operation, shift_m=self.shift_m)
+        return out
+
+
+def use_system_grids() -> None:
+    """Let pyproj find the PROJ grids of a system PROJ (its wheel ships none)."""
+    import pyproj.datadir
+
+    known = os.pathsep.join([pyproj.datadir.get_data_dir(), os.environ.get("PROJ_DATA", "")])
+    for folder in SYSTEM_GRID_DIRS:
+        if Path(folder).is_dir() and folder not in known:
+            pyproj.datadir.append_data_dir(folder)
+
+
+def height_transformer(source: Any, target: Any, dem_label: str, photos_label: str) -> Any:
+    """The best *available* pyproj transformer source -> target (always_xy) that really
+    changes the height datum; InputDataError naming the missing PROJ grid(s) otherwise."""
+    import warnings
+
+    from pyproj.transformer import TransformerGroup
+
+    use_system_grids()
+    with warnings.catch_warnings():  # "best transformation is not available": handled below
+        warnings.simplefilter("ignore", UserWarning)
+        group = TransformerGroup(source, target, always_xy=True)
+    for transformer in group.transformers:
+        if "ballpark" not in transformer.description.lower():
+            return transformer
+    grids = sorted({g.short_name for op in group.unavailable_operations for g in op.grids
+                    if not g.available}, key=lambda name: (not name.endswith(".tif"), name))
+    if grids:
+        import pyproj.datadir
+
+        raise InputDataError(
+            f"DEM heights are {dem_label}, the photos' {photos_label}: converting them needs "
+            f"the PROJ grid {' or '.join(grids)}, not on this machine; install it with "
+            f"'projsync --file {grids[0]}' (or download https://cdn.proj.org/{grids[0]} into "
+            f"{pyproj.datadir.get_user_data_dir()}), or give a DEM in the photos' datum (or "
+            f"HEIGHTS as the DEM's datum to take its heights as they are)")
+    raise InputDataError(f"DEM heights are {dem_label}, the photos' {photos_label}: PROJ knows "
+                         "no transformation between these height datums; give a DEM in the "
+                         "photos' datum")
+
+
+class _Shift:
+    """pyproj-like ``transform(x, y) -> (h' - h, 0)`` at height ``z`` (for
+    :func:`toolbox.ortho.dem.lattice_transform`)."""
+
+    def __init__(self, transformer: Any, z: float):
+        self.transformer, self.z = transformer, z
+
+    def transform(self, x: Any, y: Any) -> tuple[np.ndarray, np.ndarray]:
+        x = np.asarray(x, dtype="float64")
+        z = np.full(x.shape, self.z)
+        _, _, h = self.transformer.transform(x, np.asarray(y, dtype="float64"), z)
+        return np.asarray(h) - z, np.zeros(x.shape)
+
+
+def dem_for_photos(info: Any, photos_vertical: Any, folder: Path, band: int = 1
+                   ) -> tuple[Any, HeightsNote]:
+    """The DEM to orthorectify with, in the photos' height datum, and what was done.
+
+    ``photos_vertical``: :func:`vertical_part` of the orientation (None: not stated). When both
+    datums are known and differ, the band ``band`` is converted into ``folder/dem_heights.tif``
+    (float32, the DEM's horizontal CRS + the photos' vertical) and that RasterInfo returned."""
+    dem_vertical = vertical_part(info.crs)
+    dem_label, photos_label = datum_label(dem_vertical), datum_label(photos_vertical)
+    if dem_vertical is None or photos_vertical is None:
+        text = ("no height datum stated by the DEM or the orientation: heights used as they are"
+                if dem_vertical is None and photos_vertical is None else
+                f"heights used as they are: the DEM's are {dem_label}, the orientation states "
+                f"none (give HEIGHTS to have them converted)" if photos_vertical is None else
+                f"heights used as they are: the photos' are {photos_label}, the DEM states no "
+                "datum (tag its CRS with its vertical datum to have them converted)")
+        return info, HeightsNote(dem_label, photos_label, False, text)
+    if same_datum(dem_vertical, photos_vertical):
+        return info, HeightsNote(dem_label, photos_label, False,
+                                 f"DEM and photos both in {dem_label}: no conversion")
+    from pyproj import CRS
+    from pyproj.crs import CompoundCRS
+
+    horizontal = horizontal_part(info.crs)
+
+    def with_datum(vertical: Any) -> Any:
+        if vertical == ELLIPSOIDAL:
+            return horizontal.to_3d()
+        return CompoundCRS(f"{horizontal.name} + {vertical.name}", [horizontal, vertical])
+
+    transformer = height_transformer(with_datum(dem_vertical), with_datum(photos_vertical),
+                                     dem_label, photos_label)
+    out_crs = horizontal if photos_vertical == ELLIPSOIDAL else with_datum(photos_vertical)
+    path = Path(folder) / "dem_heights.tif"
+    low, high = _convert(info, band, transformer, path, CRS.from_user_input(out_crs))
+    from toolbox.io.raster import open_raster_info
+
+    note = HeightsNote(dem_label, photos_label, True,
+                       f"DEM heights converted once from {dem_label} to the photos' "
+                       f"{photos_label} ({transformer.description}; shift {low:+.3f} .. "
+                       f"{high:+.3f} m)", transformer.description, [low, high])
+    return open_raster_info(path, "DEM"), note
+
+
+def _convert(info: Any, band: int, transformer: Any, path: Path, crs: Any
+             ) -> tuple[float, float]:
+    """Write the converted DEM block of rows by block; the shift's (min, max), metres."""
+    import rasterio
+    from rasterio.windows import Window
+
+    from toolbox.io.raster import geotiff_profile
+    from toolbox.ortho.dem import lattice_transform
+
+    t = info.transform
+    if t.b != 0 or t.d != 0:
+        raise InputDataError(f"DEM {info} must be north-up (no rotation) to convert its heights")
+    xs = t.c + (np.arange(info.width) + 0.5) * t.a
+    low, high = np.inf, -np.inf
+    profile = geotiff_profile(info.width, info.height, 1, "float32", crs, t, float("nan"))
+    with rasterio.open(info.path) as src, rasterio.open(path, "w", **profile) as dst:
+        for r0 in range(0, info.height, ROWS_PER_BLOCK):
+            rows = min(ROWS_PER_BLOCK, info.height - r0)
+            window = Window(0, r0, info.width, rows)
+            z = src.read(band, window=window, masked=True).astype("float64").filled(np.nan)
+            if not np.isfinite(z).any():
+                dst.write(z.astype("float32")[None], window=window)
+                continue
+            ys = t.f + (np.arange(r0, r0 + rows) + 0.5) * t.e
+            shift, _ = lattice_transform(_Shift(transformer, float(np.nanmean(z))), xs, ys,
+                                         SHIFT_TOLERANCE_M)
+            shift = shift.reshape(z.shape)
+            if not np.isfinite(shift).all():
+                raise InputDataError(f"DEM {info}: the height datum conversion "
+                                     f"({transformer.description}) has no value over part of "
+                                     "the DEM (outside its grid's area)")
+            finite = np.isfinite(z)
+            low, high = min(low, float(shift[finite].min())), max(high, float(shift[finite].max()))
+            dst.write((z + shift).astype("float32")[None], window=window)
+    return low, high
+
+
+@contextmanager
+def dem_in_photo_datum(dem: Any, band: int, heights: str | None, crs: Any, feedback: Any
+                       ) -> Iterator[tuple[Any, int, HeightsNote]]:
+    """(DEM, band, note) for the ortho algorithms: the DEM in the orientation's height datum
+    (``heights``, the HEIGHTS parameter, else the vertical part of the orientation's ``crs``),
+    converted once into a temporary file removed on exit when the datums differ
+    (:func:`dem_for_photos`); the note is pushed as information."""
+    import tempfile
+
+    photos = parse_heights(heights) or vertical_part(crs)
+    with tempfile.TemporaryDirectory(prefix="toolbox-heights-") as folder:
+        out, note = dem_for_photos(dem, photos, Path(folder), band)
+        feedback.push_info(note.text)
+        yield out, 1 if note.converted else band, note
