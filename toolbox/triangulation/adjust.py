@@ -19,7 +19,7 @@ import numpy as np
 
 from toolbox.errors import InputDataError
 from toolbox.triangulation.block import WEIGHTED, Block, Options, Rejection, Solution
-from toolbox.triangulation.model import image_residuals, rotations
+from toolbox.triangulation.model import observation_residuals, rotations
 from toolbox.triangulation.precision import cofactors
 from toolbox.triangulation.solver import (
     KIND_ATTITUDE,
@@ -145,8 +145,10 @@ def _huber(problem: Problem, state: State, options: Options) -> State:
     b = problem.block
     for _ in range(5):
         state, lin, _ = least_squares(problem, state, options)
-        f, _ = image_residuals(b.obs_xy, state.exterior[b.obs_photo], state.points[b.obs_point],
-                               state.calibration[b.photo_camera[b.obs_photo]], jacobians=False)
+        cam, brown, aspect = b.observation_cameras()
+        f, _ = observation_residuals(b.obs_xy, state.exterior[b.obs_photo],
+                                     state.points[b.obs_point], state.calibration[cam], brown,
+                                     aspect, jacobians=False)
         e = np.abs(f / b.obs_sigma)
         problem.obs_factor = np.sqrt(np.minimum(1.0, options.huber_k / np.maximum(e, 1e-300)))
         eg = np.abs((state.points[b.ground_point] + problem.origin - b.ground_xyz)
@@ -261,8 +263,9 @@ def _solution(problem: Problem, state: State, lin, cof, iterations: int,
     unknowns = problem.nc + 3 * int(observed.sum())
     redundancy = len(lin.r) - unknowns
     sigma0 = math.sqrt(lin.cost / redundancy) if redundancy > 0 else math.nan
-    f, _ = image_residuals(b.obs_xy, state.exterior[b.obs_photo], state.points[b.obs_point],
-                           state.calibration[b.photo_camera[b.obs_photo]], jacobians=False)
+    cam, brown, aspect = b.observation_cameras()
+    f, _ = observation_residuals(b.obs_xy, state.exterior[b.obs_photo], state.points[b.obs_point],
+                                 state.calibration[cam], brown, aspect, jacobians=False)
     g_res = state.points[b.ground_point] + problem.origin - b.ground_xyz
     lever = rotations(state.exterior[:, 3:])[0] @ b.lever_arm
     shift, drift, bore = problem.extras(state)

@@ -25,7 +25,7 @@ import numpy as np
 
 from toolbox.errors import InputDataError
 from toolbox.triangulation.block import Block
-from toolbox.triangulation.model import ideal
+from toolbox.triangulation.model import brown_ideal, ideal
 
 
 def components(block: Block) -> list[list[str]]:
@@ -52,8 +52,14 @@ def require_connected(block: Block) -> None:
 
 
 def camera_xy(block: Block) -> np.ndarray:
-    """Ideal camera coordinates (mm) of every observation at the start calibration."""
-    return ideal(block.obs_xy, block.calibration[block.photo_camera[block.obs_photo]])[0]
+    """Ideal camera coordinates (mm; px for a Brown camera, whose ``c`` is f) of every
+    observation at the start calibration."""
+    cam, brown, aspect = block.observation_cameras()
+    calib = block.calibration[cam]
+    out = ideal(block.obs_xy, calib)[0]
+    if brown.any():
+        out[brown] = brown_ideal(block.obs_xy[brown], calib[brown], aspect[brown])
+    return out
 
 
 def _intersect(block: Block, cam: np.ndarray, exterior: np.ndarray, oriented: np.ndarray,

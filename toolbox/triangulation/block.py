@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from toolbox.triangulation.model import CALIBRATION_NAMES
+from toolbox.triangulation.model import BROWN_NAMES, CALIBRATION_NAMES, KIND_BROWN
 
 FIXED, FREE, WEIGHTED = 0, 1, 2
 MODE_NAMES = {"fixed": FIXED, "free": FREE, "weighted": WEIGHTED}
@@ -23,7 +23,9 @@ class Block:
 
     photo_ids, photo_camera (n,) camera index of each photo; camera_names;
     calibration (k, 8) start (and, for weighted parameters, observed) values of
-    :data:`~toolbox.triangulation.model.CALIBRATION_NAMES` (mm, mm⁻², ...);
+    :data:`~toolbox.triangulation.model.CALIBRATION_NAMES` (mm, mm⁻², ...), or for a Brown
+    camera (``camera_kind`` KIND_BROWN; its observations and sigmas in pixels) of
+    :data:`~toolbox.triangulation.model.BROWN_NAMES` (px, unitless);
     calibration_mode (k, 8) FIXED / FREE / WEIGHTED; calibration_sigma (k, 8);
     point_ids; obs_photo, obs_point (m,), obs_xy, obs_sigma (m, 2) image mm;
     ground_point (g,), ground_xyz (g, 3) surveyed coordinates (NaN: component not known, e.g.
@@ -59,9 +61,15 @@ class Block:
     attitude_obs: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     attitude_sigma: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     boresight: bool = False
+    camera_kind: np.ndarray | None = None  # (k,) KIND_FILM (image mm) or KIND_BROWN (pixels)
+    camera_aspect: np.ndarray | None = None  # (k,) fy/fx of a Brown camera (held fixed)
 
     def __post_init__(self) -> None:
         k = len(self.camera_names)
+        self.camera_kind = np.zeros(k, dtype=np.int64) if self.camera_kind is None else \
+            np.asarray(self.camera_kind, dtype=np.int64).reshape(k)
+        self.camera_aspect = np.ones(k) if self.camera_aspect is None else \
+            np.asarray(self.camera_aspect, dtype=float).reshape(k)
         self.photo_camera = np.asarray(self.photo_camera, dtype=np.int64)
         self.calibration = np.asarray(self.calibration, dtype=float).reshape(k, 8)
         if self.calibration_mode is None:
@@ -100,7 +108,15 @@ class Block:
         return int(self.centre_group.max()) + 1 if len(self.centre_group) else 0
 
     def calibration_label(self, camera: int, parameter: int) -> str:
-        return f"camera {self.camera_names[camera]!r} {CALIBRATION_NAMES[parameter]}"
+        names = BROWN_NAMES if self.camera_kind[camera] == KIND_BROWN else CALIBRATION_NAMES
+        return f"camera {self.camera_names[camera]!r} {names[parameter]}"
+
+    def observation_cameras(self, rows: np.ndarray | None = None
+                            ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Camera index, Brown flag and aspect of the image observations ``rows`` (all)."""
+        ph = self.obs_photo if rows is None else self.obs_photo[rows]
+        cam = self.photo_camera[ph]
+        return cam, self.camera_kind[cam] == KIND_BROWN, self.camera_aspect[cam]
 
 
 @dataclass

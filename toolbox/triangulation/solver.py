@@ -25,7 +25,7 @@ from toolbox.errors import ConvergenceError, InputDataError
 from toolbox.triangulation.block import FIXED, WEIGHTED, Block, Options
 from toolbox.triangulation.model import (
     EXTERIOR_NAMES,
-    image_residuals,
+    observation_residuals,
     rotations,
 )
 
@@ -134,11 +134,11 @@ class Problem:
         b = self.block
         sel = np.flatnonzero(self.obs_active)
         ph, pt = b.obs_photo[sel], b.obs_point[sel]
-        cam = b.photo_camera[ph]
+        cam, brown, aspect = b.observation_cameras(sel)
         calib = state.calibration[cam]
         r_photo, dr_photo = rotations(state.exterior[:, 3:])
-        out = image_residuals(b.obs_xy[sel], state.exterior[ph], state.points[pt], calib,
-                              jacobians, (r_photo[ph], dr_photo[ph]))
+        out = observation_residuals(b.obs_xy[sel], state.exterior[ph], state.points[pt], calib,
+                                    brown, aspect, jacobians, (r_photo[ph], dr_photo[ph]))
         f, depth = out[0], out[1]
         wimg = self.obs_factor[sel] / b.obs_sigma[sel]
         m = len(sel)

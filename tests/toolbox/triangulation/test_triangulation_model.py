@@ -76,6 +76,7 @@ def test_self_calibration_specification_per_camera():
     assert sig[1, 3] == 1e-6
     with pytest.raises(ParameterError, match="SELF_CALIBRATION.*'nope'"):
         calibration_settings(parse_self_calibration("c@nope"), ["a"], ["a"])
-    for bad in ("f", "c:sometimes", "k1:weighted", "k1:weighted:-1"):
+    assert parse_self_calibration("f, cx, cy") == parse_self_calibration("c, x0, y0")  # Brown
+    for bad in ("k4", "c:sometimes", "k1:weighted", "k1:weighted:-1"):
         with pytest.raises(ParameterError, match="SELF_CALIBRATION"):
             parse_self_calibration(bad)
