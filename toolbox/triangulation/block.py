@@ -137,12 +137,12 @@ class Options:
 class Rejection:
     """One observation removed by data snooping."""
 
-    kind: str  # "image", "ground" or "centre"
-    index: int  # into obs_*, ground_* or centre_*
-    component: int  # image: 0 x / 1 y (the worse); ground/centre: 0 X, 1 Y, 2 Z
+    kind: str  # "image", "ground", "centre" or "attitude"
+    index: int  # into obs_*, ground_*, centre_* or attitude_*
+    component: int  # image: 0 x / 1 y; ground/centre: 0 X, 1 Y, 2 Z; attitude: ω, φ, κ
     w: float
     redundancy: float
-    residual: float  # computed minus observed, mm (image) or m
+    residual: float  # computed minus observed, mm (image; px for a Brown camera), m or rad
 
 
 @dataclass
@@ -186,3 +186,5 @@ class Solution:
     gnss_drift_std: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     boresight_std: np.ndarray = field(default_factory=lambda: np.full(3, np.nan))
     attitude_residuals: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))  # rad
+    attitude_active: np.ndarray = field(default_factory=lambda: np.zeros((0, 3), dtype=bool))
+    attitude_w: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))  # w-tests

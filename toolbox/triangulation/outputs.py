@@ -172,6 +172,9 @@ def report(block: Block, solution: Solution, info: dict, ground: list[dict[str, 
         elif rj.kind == "ground":
             what = {"point_id": block.point_ids[block.ground_point[rj.index]],
                     "coordinate": "XYZ"[rj.component], "residual_m": rj.residual}
+        elif rj.kind == "attitude":
+            what = {"photo": block.photo_ids[block.attitude_photo[rj.index]],
+                    "coordinate": EXTERIOR_NAMES[3 + rj.component], "residual_rad": rj.residual}
         else:
             what = {"photo": block.photo_ids[block.centre_photo[rj.index]],
                     "coordinate": "XYZ"[rj.component], "residual_m": rj.residual}
@@ -203,7 +206,9 @@ def report(block: Block, solution: Solution, info: dict, ground: list[dict[str, 
         gnss_imu["imu"] = {
             "angle_unit": "rad", "observations": int(len(block.attitude_photo)),
             "rms_residual": {n: _num(np.sqrt(np.mean(solution.attitude_residuals[:, k] ** 2)))
-                             for k, n in enumerate(EXTERIOR_NAMES[3:])}}
+                             for k, n in enumerate(EXTERIOR_NAMES[3:])},
+            "rejected": int((~solution.attitude_active).sum()),
+            "max_abs_w": _num(np.nanmax(np.abs(solution.attitude_w), initial=0.0))}
         if block.boresight:
             gnss_imu["imu"]["boresight"] = {
                 **{n: float(solution.boresight[k]) for k, n in enumerate(EXTERIOR_NAMES[3:])},

@@ -35,7 +35,6 @@ EIGEN_LIMIT = 400  # full eigen-analysis of the reduced matrix up to this size, 
 SINGULAR_RATIO = 1e-13  # smallest / largest eigenvalue of the scaled reduced normal matrix
 WEAK_RATIO = 1e-7  # below it: a warning (a parameter barely determined)
 KIND_IMAGE, KIND_GROUND, KIND_CENTRE, KIND_CALIB, KIND_ATTITUDE = 0, 1, 2, 3, 4
-ANGLE_STEP = 1e-7  # rad: central differences of the attitude observations
 
 
 @dataclass
@@ -79,6 +78,7 @@ class Problem:
         self.obs_active = np.ones(len(block.obs_photo), dtype=bool)
         self.ground_active = np.isfinite(block.ground_xyz)
         self.centre_active = np.isfinite(block.centre_xyz)
+        self.attitude_active = np.ones(block.attitude_obs.shape, dtype=bool)
         self.obs_factor = np.ones((len(block.obs_photo), 2))  # robust weight factors
         self.ground_factor = np.ones_like(block.ground_xyz)
         self.centre_factor = np.ones_like(block.centre_xyz)
@@ -171,12 +171,12 @@ class Problem:
         kinds.append(np.full(len(hi), KIND_CENTRE))
         idx.append(hi)
         comp.append(hc)
-        # IMU attitudes: angles of R·R(boresight)
-        ai = np.repeat(np.arange(len(b.attitude_photo)), 3)
-        ac = np.tile(np.arange(3), len(b.attitude_photo))
+        # IMU attitudes: angles of R·R(boresight), analytic derivatives
+        ai, ac = np.nonzero(self.attitude_active)
         wa = 1.0 / b.attitude_sigma[ai, ac]
-        fa = attitude_residuals(state.exterior[b.attitude_photo, 3:], bore,
-                                b.attitude_obs).ravel()
+        att = attitude_residuals(state.exterior[b.attitude_photo, 3:], bore, b.attitude_obs,
+                                 jacobians)
+        fa = (att[0] if jacobians else att)[ai, ac]
         # weighted calibration parameters
         wc_cam, wc_par = np.nonzero(b.calibration_mode == WEIGHTED)
         wcal = 1.0 / b.calibration_sigma[wc_cam, wc_par]
@@ -229,25 +229,16 @@ class Problem:
         c_idx.append(self.calib_column[wc_cam, wc_par])
         vals.append(wcal)
         base += len(wc_cam)
-        if len(ai):  # attitude rows: central differences in the photo's angles and boresight
-            a_ph = b.attitude_photo
-            angles = state.exterior[a_ph, 3:]
-            for t in range(6):
-                step = np.zeros(3)
-                step[t % 3] = ANGLE_STEP
-                if t < 3:
-                    hi_, lo_ = (attitude_residuals(angles + sgn * step, bore, b.attitude_obs)
-                                for sgn in (1, -1))
-                    cols = np.repeat(6 * a_ph + 3 + t, 3)
-                elif self.boresight_column[t - 3] >= 0:
-                    hi_, lo_ = (attitude_residuals(angles, bore + sgn * step, b.attitude_obs)
-                                for sgn in (1, -1))
-                    cols = np.full(3 * len(a_ph), self.boresight_column[t - 3])
-                else:
-                    continue
+        if len(ai):  # attitude rows: d(angles)/d(photo angles) and d/d(boresight)
+            a_ph = b.attitude_photo[ai]
+            for t in range(3):
                 r_idx.append(base + np.arange(len(ai)))
-                c_idx.append(cols)
-                vals.append(wa * ((hi_ - lo_) / (2 * ANGLE_STEP)).ravel())
+                c_idx.append(6 * a_ph + 3 + t)
+                vals.append(wa * att[1][ai, ac, t])
+                if self.boresight_column[t] >= 0:
+                    r_idx.append(base + np.arange(len(ai)))
+                    c_idx.append(np.full(len(ai), self.boresight_column[t]))
+                    vals.append(wa * att[2][ai, ac, t])
         lin.jc = sp.csr_matrix((np.concatenate(vals), (np.concatenate(r_idx),
                                                        np.concatenate(c_idx))),
                                shape=(rows_all, self.nc))
@@ -491,13 +482,33 @@ def least_squares(problem: Problem, state: State, options: Options, check: bool 
                            f"observations: {worst_observations(problem, lin)}")
 
 
-def attitude_residuals(angles: np.ndarray, boresight: np.ndarray, observed: np.ndarray
-                       ) -> np.ndarray:
-    """Angles (omega, phi, kappa) of ``R(angles)·R(boresight)`` minus ``observed`` (a, 3), rad,
-    wrapped to (-π, π]; ``R = Rx(ω)·Ry(φ)·Rz(κ)`` as :func:`~toolbox.triangulation.model.rotations`."""
-    r = rotations(angles)[0] @ rotations(np.asarray(boresight).reshape(1, 3))[0][0]
-    omega = np.arctan2(-r[:, 1, 2], r[:, 2, 2])
-    phi = np.arcsin(np.clip(r[:, 0, 2], -1.0, 1.0))
-    kappa = np.arctan2(-r[:, 0, 1], r[:, 0, 0])
+def attitude_residuals(angles: np.ndarray, boresight: np.ndarray, observed: np.ndarray,
+                       jacobians: bool = False):
+    """Angles (omega, phi, kappa) of ``M = R(angles)·R(boresight)`` minus ``observed`` (a, 3),
+    rad, wrapped to (-π, π]; ``R = Rx(ω)·Ry(φ)·Rz(κ)`` as
+    :func:`~toolbox.triangulation.model.rotations`. With ``jacobians`` also their derivatives
+    (a, 3, 3) by the photo's angles and by the boresight angles (analytic: ``ω = atan2(-M₁₂,
+    M₂₂)``, ``φ = asin(M₀₂)``, ``κ = atan2(-M₀₁, M₀₀)`` differentiated through ``dM``)."""
+    r, dr = rotations(angles)
+    rb, drb = rotations(np.asarray(boresight, dtype=float).reshape(1, 3))
+    m = r @ rb[0]
+    omega = np.arctan2(-m[:, 1, 2], m[:, 2, 2])
+    phi = np.arcsin(np.clip(m[:, 0, 2], -1.0, 1.0))
+    kappa = np.arctan2(-m[:, 0, 1], m[:, 0, 0])
     diff = np.column_stack([omega, phi, kappa]) - observed
-    return (diff + np.pi) % (2 * np.pi) - np.pi
+    res = (diff + np.pi) % (2 * np.pi) - np.pi
+    if not jacobians:
+        return res
+
+    def d_angles(dm: np.ndarray) -> np.ndarray:  # dm (a, 3 params, 3, 3) -> (a, 3 angles, 3)
+        out = np.empty((len(m), 3, 3))
+        n_om = m[:, 1, 2] ** 2 + m[:, 2, 2] ** 2
+        n_ka = m[:, 0, 1] ** 2 + m[:, 0, 0] ** 2
+        out[:, 0] = (-m[:, 2, 2, None] * dm[:, :, 1, 2] + m[:, 1, 2, None] * dm[:, :, 2, 2]) \
+            / n_om[:, None]
+        out[:, 1] = dm[:, :, 0, 2] / np.sqrt(np.maximum(1.0 - m[:, 0, 2] ** 2, 1e-300))[:, None]
+        out[:, 2] = (-m[:, 0, 0, None] * dm[:, :, 0, 1] + m[:, 0, 1, None] * dm[:, :, 0, 0]) \
+            / n_ka[:, None]
+        return out
+
+    return res, d_angles(dr @ rb[0]), d_angles(np.einsum("aij,tjk->atik", r, drb[0]))
