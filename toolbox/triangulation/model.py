@@ -103,6 +103,23 @@ def ideal(xy: np.ndarray, calib: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def image_residuals(xy: np.ndarray, exterior: np.ndarray, point: np.ndarray, calib: np.ndarray,
                     jacobians: bool = True, rotation: tuple[np.ndarray, np.ndarray] | None = None):
+    """:func:`image_residuals_numpy`, computed by the compiled kernel
+    :func:`toolbox.triangulation.kernels.film_residuals` (same arithmetic, both cores)."""
+    from toolbox.triangulation.kernels import film_residuals
+
+    r, dr = rotations(exterior[:, 3:]) if rotation is None else rotation
+    m = len(xy)
+    out = [np.empty((m, 2)), np.empty(m)]
+    jac = [np.empty((m, 2, 6)), np.empty((m, 2, 3)), np.empty((m, 2, 8))] if jacobians else \
+        [np.empty((0, 2, 6)), np.empty((0, 2, 3)), np.empty((0, 2, 8))]
+    args = (np.ascontiguousarray(a, dtype=float) for a in (xy, exterior, point, calib, r, dr))
+    film_residuals(*args, jacobians, *out, *jac)
+    return tuple(out + jac) if jacobians else tuple(out)
+
+
+def image_residuals_numpy(xy: np.ndarray, exterior: np.ndarray, point: np.ndarray,
+                          calib: np.ndarray, jacobians: bool = True,
+                          rotation: tuple[np.ndarray, np.ndarray] | None = None):
     """Residuals (computed minus observed, mm) of image observations and their Jacobians.
 
     Parameters (one row per observation)

@@ -28,6 +28,7 @@ from toolbox.triangulation.model import (
     observation_residuals,
     rotations,
 )
+from toolbox.triangulation.schur import pair_structure, photo_schur
 
 DENSE_LIMIT = 3000
 BAND_LIMIT = 50_000_000  # values of a banded factor (400 MB) before sparse LU is used instead
@@ -63,6 +64,9 @@ class Linearization:
     index: np.ndarray  # (rows,) into the observation arrays of its kind
     component: np.ndarray  # (rows,)
     depth_ok: bool = True
+    img_w: np.ndarray | None = None  # (m, 6, 3) Jc_iᵀ·Jp_i of each active image observation
+    img_photo: np.ndarray | None = None  # (m,) its photo
+    img_point: np.ndarray | None = None  # (m,) its point
 
     @property
     def cost(self) -> float:
@@ -246,6 +250,8 @@ class Problem:
         jp_rows[:2 * m] = (jpt * wimg[:, :, None]).reshape(2 * m, 3)
         jp_rows[2 * m + np.arange(len(gi)), gc] = wg
         lin.jp_rows = jp_rows
+        lin.img_w = np.einsum("mai,maj->mij", je * wimg[:, :, None], jpt * wimg[:, :, None])
+        lin.img_photo, lin.img_point = ph, pt
         return lin
 
     def point_jacobian(self, lin: Linearization) -> sp.csr_matrix:
@@ -256,35 +262,80 @@ class Problem:
                              shape=(len(lin.r), 3 * self.block.n_points))
 
 
-@dataclass
 class Normal:
-    """Blocks of the normal equations ``N = JᵀJ``, gradient ``g = Jᵀr``."""
+    """Blocks of the normal equations ``N = JᵀJ = [[A, B], [Bᵀ, C]]``, gradient ``g = Jᵀr``.
 
-    a: sp.csr_matrix
-    b: sp.csr_matrix
-    c: np.ndarray  # (P, 3, 3)
-    gc: np.ndarray
-    gp: np.ndarray  # (P, 3)
-    jp: sp.csr_matrix
+    B is kept by its parts: the photo rows as the per-observation ``W_i`` (6 x 3) of
+    :mod:`toolbox.triangulation.schur`, the other camera-side rows (calibration; GNSS and IMU
+    unknowns touch no point) as a sparse ``b_rest``; the full sparse B (:attr:`b`, for the
+    precision) and the point Jacobian (:attr:`jp`) are made on demand."""
+
+    def __init__(self, problem: Problem, lin: Linearization) -> None:
+        n_pts = problem.block.n_points
+        self.problem, self.lin = problem, lin
+        self.n6 = 6 * problem.block.n_photos
+        jc = lin.jc
+        self.a = (jc.T @ jc).tocsr()
+        rows = lin.row_point >= 0
+        p = lin.row_point[rows]
+        jr = lin.jp_rows[rows]
+        outer = (jr[:, :, None] * jr[:, None, :]).reshape(-1, 9)
+        c = np.stack([np.bincount(p, weights=outer[:, k], minlength=n_pts) for k in range(9)],
+                     axis=1).reshape(n_pts, 3, 3)
+        unobserved = np.bincount(p, minlength=n_pts) == 0
+        c[unobserved] = np.eye(3)  # points whose observations were all rejected: kept as they are
+        self.c = c
+        self.gp = np.stack([np.bincount(p, weights=jr[:, k] * lin.r[rows], minlength=n_pts)
+                            for k in range(3)], axis=1)
+        self.gc = jc.T @ lin.r
+        self.w, self.obs_photo, self.obs_point = lin.img_w, lin.img_photo, lin.img_point
+        self.structure = pair_structure(self.obs_photo, self.obs_point, problem.block.n_photos)
+        self.b_rest = None
+        if problem.nc > self.n6:
+            img = np.flatnonzero(lin.kind == KIND_IMAGE)
+            rest = jc[img][:, self.n6:].tocsc()
+            jp = sp.csr_matrix((lin.jp_rows[img].ravel(), (np.repeat(np.arange(len(img)), 3),
+                                (3 * lin.row_point[img][:, None] + np.arange(3)).ravel())),
+                               shape=(len(img), 3 * n_pts))
+            self.b_rest = (rest.T @ jp).tocsr()
+        self._b = self._jp = None
+
+    @property
+    def jp(self) -> sp.csr_matrix:
+        if self._jp is None:
+            self._jp = self.problem.point_jacobian(self.lin)
+        return self._jp
+
+    @property
+    def b(self) -> sp.csr_matrix:
+        if self._b is None:
+            self._b = (self.lin.jc.T @ self.jp).tocsr()
+        return self._b
+
+    def b_times(self, v: np.ndarray) -> np.ndarray:
+        """``B·v`` for point values ``v`` (P, 3) -> (nc,)."""
+        out = np.zeros(self.problem.nc)
+        wv = np.einsum("mij,mj->mi", self.w, v[self.obs_point])
+        for k in range(6):
+            out[k:self.n6:6] = np.bincount(self.obs_photo, weights=wv[:, k],
+                                           minlength=self.n6 // 6)
+        if self.b_rest is not None:
+            out[self.n6:] = self.b_rest @ v.ravel()
+        return out
+
+    def bt_times(self, dc: np.ndarray) -> np.ndarray:
+        """``Bᵀ·dc`` -> (P, 3)."""
+        n_pts = len(self.c)
+        wt = np.einsum("mij,mi->mj", self.w, dc[:self.n6].reshape(-1, 6)[self.obs_photo])
+        out = np.stack([np.bincount(self.obs_point, weights=wt[:, k], minlength=n_pts)
+                        for k in range(3)], axis=1)
+        if self.b_rest is not None:
+            out += (self.b_rest.T @ dc[self.n6:]).reshape(-1, 3)
+        return out
 
 
 def normal_equations(problem: Problem, lin: Linearization) -> Normal:
-    n_pts = problem.block.n_points
-    jp = problem.point_jacobian(lin)
-    jc = lin.jc
-    a = (jc.T @ jc).tocsr()
-    b = (jc.T @ jp).tocsr()
-    rows = lin.row_point >= 0
-    p = lin.row_point[rows]
-    jr = lin.jp_rows[rows]
-    outer = (jr[:, :, None] * jr[:, None, :]).reshape(-1, 9)
-    c = np.stack([np.bincount(p, weights=outer[:, k], minlength=n_pts) for k in range(9)],
-                 axis=1).reshape(n_pts, 3, 3)
-    unobserved = np.bincount(p, minlength=n_pts) == 0
-    c[unobserved] = np.eye(3)  # points whose observations were all rejected: kept as they are
-    gp = np.stack([np.bincount(p, weights=jr[:, k] * lin.r[rows], minlength=n_pts)
-                   for k in range(3)], axis=1)
-    return Normal(a, b, c, jc.T @ lin.r, gp, jp)
+    return Normal(problem, lin)
 
 
 def block_inverse(c: np.ndarray, point_ids: list[str]) -> np.ndarray:
@@ -313,9 +364,29 @@ def reduced_system(normal: Normal, damping: float, point_ids: list[str]):
         a = a + sp.diags(damping * a.diagonal())
         c = c + damping * np.einsum("pii->pi", c)[:, :, None] * np.eye(3)
     cinv = block_inverse(c, point_ids)
-    bc = (normal.b @ block_diagonal(cinv)).tocsr()
-    s = (a - bc @ normal.b.T).tocsr()
-    rhs = -(normal.gc - bc @ normal.gp.ravel())
+    nc, n6 = normal.problem.nc, normal.n6
+    rows, cols, vals = photo_schur(normal.w, cinv[normal.obs_point], normal.structure, n6 // 6)
+    parts = [(rows, cols, vals)]
+    keep = np.unique(normal.b_rest.nonzero()[0]) if normal.b_rest is not None else []
+    if len(keep):  # calibration rows (GNSS/IMU rows of B are 0): B_r·C⁻¹·Bᵀ, sparse products
+        br = normal.b_rest[keep]
+        d = (br @ block_diagonal(cinv)).tocsr()  # (r, 3P)
+        rr = (d @ br.T).tocoo()
+        parts.append((n6 + keep[rr.row], n6 + keep[rr.col], rr.data))
+        dd = d.toarray().reshape(len(keep), -1, 3)[:, normal.obs_point]  # (r, m, 3)
+        x = np.einsum("rmk,mjk->rmj", dd, normal.w)  # (r, m, 6)
+        cross = np.zeros((len(keep), n6))
+        for j in range(6):
+            cross[:, j::6] = np.stack([np.bincount(normal.obs_photo, weights=x[q, :, j],
+                                                   minlength=n6 // 6)
+                                       for q in range(len(keep))])
+        rr_, cc_ = np.nonzero(cross)
+        parts.append((n6 + keep[rr_], cc_, cross[rr_, cc_]))
+        parts.append((cc_, n6 + keep[rr_], cross[rr_, cc_]))
+    rows, cols, vals = (np.concatenate(v) for v in zip(*parts, strict=True))
+    bcb = sp.csr_matrix((vals, (rows, cols)), shape=(nc, nc))
+    s = (a - bcb).tocsr()
+    rhs = -(normal.gc - normal.b_times(np.einsum("pij,pj->pi", cinv, normal.gp)))
     return s, rhs, cinv
 
 
@@ -459,7 +530,7 @@ def least_squares(problem: Problem, state: State, options: Options, check: bool 
         while True:
             s, rhs, cinv = reduced_system(normal, damping, problem.block.point_ids)
             dc = solve_reduced(s, rhs, problem)
-            dp = -np.einsum("pij,pj->pi", cinv, normal.gp + (normal.b.T @ dc).reshape(-1, 3))
+            dp = -np.einsum("pij,pj->pi", cinv, normal.gp + normal.bt_times(dc))
             trial = apply_step(problem, state, dc, dp)
             trial_lin = problem.linearize(trial, jacobians=False)
             if trial_lin.cost <= cost:

@@ -80,3 +80,23 @@ def test_self_calibration_specification_per_camera():
     for bad in ("k4", "c:sometimes", "k1:weighted", "k1:weighted:-1"):
         with pytest.raises(ParameterError, match="SELF_CALIBRATION"):
             parse_self_calibration(bad)
+
+
+@pytest.mark.parametrize("jacobians", [True, False])
+def test_compiled_collinearity_kernel_is_the_numpy_formula(jacobians):
+    """image_residuals (compiled kernel) against image_residuals_numpy, element by element."""
+    from toolbox.triangulation.model import image_residuals_numpy
+
+    rng = np.random.default_rng(9)
+    m = 500
+    xy = rng.normal(0, 60, (m, 2))
+    ext = np.column_stack([rng.normal(0, 100, (m, 3)) + [0, 0, 1500], rng.normal(0, .05, (m, 3))])
+    pt = rng.normal(0, 300, (m, 3))
+    cal = np.column_stack([np.full(m, 150.0), rng.normal(0, .01, (m, 2)),
+                           rng.normal(0, 1e-6, m), rng.normal(0, 1e-10, m),
+                           rng.normal(0, 1e-14, m), rng.normal(0, 1e-6, (m, 2))])
+    got = image_residuals(xy, ext, pt, cal, jacobians)
+    ref = image_residuals_numpy(xy, ext, pt, cal, jacobians)
+    assert len(got) == len(ref) == (5 if jacobians else 2)
+    for a, b in zip(got, ref, strict=True):
+        assert a.shape == b.shape and np.abs(a - b).max() <= 1e-12 * np.abs(b).max()
