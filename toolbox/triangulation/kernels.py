@@ -6,7 +6,6 @@ linearisation time)."""
 
 from __future__ import annotations
 
-import numpy as np
 from numba import njit, prange
 
 
