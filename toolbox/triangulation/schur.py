@@ -73,11 +73,12 @@ def pair_blocks(y, w, obs_a, obs_b, starts):
     return out
 
 
-def photo_schur(w: np.ndarray, cinv_obs: np.ndarray, structure, n_photos: int):
+def photo_schur(w: np.ndarray, cinv: np.ndarray, point: np.ndarray, structure, n_photos: int):
     """``Σ W·C⁻¹·Wᵀ`` of the photo-photo part (6n x 6n, both triangles) as COO triplets
-    (rows, cols, values), from ``w`` (m, 6, 3) and each observation's ``C_p⁻¹`` (m, 3, 3)."""
+    (rows, cols, values), from ``w`` (m, 6, 3), the point blocks' ``C⁻¹`` (P, 3, 3) and each
+    observation's point."""
     obs_a, obs_b, starts, pa, pb = structure
-    y = np.einsum("mij,mjk->mik", w, cinv_obs)
+    y = times_blocks(w, cinv, point)
     blocks = pair_blocks(y, w, obs_a, obs_b, starts)
     off = pa != pb  # a diagonal group holds only a == b (one measurement per point and photo)
     # off-diagonal photo pairs also give their transpose
@@ -89,3 +90,72 @@ def photo_schur(w: np.ndarray, cinv_obs: np.ndarray, structure, n_photos: int):
     cols = (6 * cols_b[:, None, None] + k[None, None, :]).repeat(6, axis=1)
     return rows.ravel(), cols.ravel(), vals.ravel()
 
+
+
+@njit(cache=True, parallel=True)
+def times_blocks(w, blocks, index):
+    """``w[i]·blocks[index[i]]`` for (m, 6, 3) ``w`` and (P, 3, 3) ``blocks``."""
+    m = w.shape[0]
+    out = np.empty((m, 6, 3))
+    for i in prange(m):
+        b = blocks[index[i]]
+        for r in range(6):
+            for c in range(3):
+                out[i, r, c] = w[i, r, 0] * b[0, c] + w[i, r, 1] * b[1, c] + w[i, r, 2] * b[2, c]
+    return out
+
+
+@njit(cache=True, parallel=True)
+def coupling(je, jp, weight):
+    """``W_i = Σ_a (w·je)[i, a]ᵀ·(w·jp)[i, a]`` (m, 6, 3) from the (m, 2, 6) and (m, 2, 3)
+    Jacobians and the (m, 2) weights of the two rows."""
+    m = je.shape[0]
+    out = np.empty((m, 6, 3))
+    for i in prange(m):
+        w0, w1 = weight[i, 0] * weight[i, 0], weight[i, 1] * weight[i, 1]
+        for r in range(6):
+            for c in range(3):
+                out[i, r, c] = w0 * je[i, 0, r] * jp[i, 0, c] + w1 * je[i, 1, r] * jp[i, 1, c]
+    return out
+
+
+@njit(cache=True, parallel=True)
+def inverse_blocks(c, limit):
+    """Inverses of symmetric 3 x 3 blocks (P, 3, 3) by their adjugates, and a flag per block:
+    positive definite (leading minors > 0) with a Frobenius condition number below ``limit``
+    (an upper bound of the 2-norm one)."""
+    n = c.shape[0]
+    out = np.empty((n, 3, 3))
+    ok = np.empty(n, dtype=np.bool_)
+    for p in prange(n):
+        a = c[p]
+        m00 = a[1, 1] * a[2, 2] - a[1, 2] * a[2, 1]
+        m01 = a[1, 0] * a[2, 2] - a[1, 2] * a[2, 0]
+        m02 = a[1, 0] * a[2, 1] - a[1, 1] * a[2, 0]
+        det = a[0, 0] * m00 - a[0, 1] * m01 + a[0, 2] * m02
+        minor2 = a[0, 0] * a[1, 1] - a[0, 1] * a[1, 0]
+        good = a[0, 0] > 0 and minor2 > 0 and det > 0
+        if good:
+            inv = 1.0 / det
+            out[p, 0, 0] = m00 * inv
+            out[p, 0, 1] = -(a[0, 1] * a[2, 2] - a[0, 2] * a[2, 1]) * inv
+            out[p, 0, 2] = (a[0, 1] * a[1, 2] - a[0, 2] * a[1, 1]) * inv
+            out[p, 1, 0] = -m01 * inv
+            out[p, 1, 1] = (a[0, 0] * a[2, 2] - a[0, 2] * a[2, 0]) * inv
+            out[p, 1, 2] = -(a[0, 0] * a[1, 2] - a[0, 2] * a[1, 0]) * inv
+            out[p, 2, 0] = m02 * inv
+            out[p, 2, 1] = -(a[0, 0] * a[2, 1] - a[0, 1] * a[2, 0]) * inv
+            out[p, 2, 2] = minor2 * inv
+            fa = 0.0
+            fi = 0.0
+            for r in range(3):
+                for s in range(3):
+                    fa += a[r, s] * a[r, s]
+                    fi += out[p, r, s] * out[p, r, s]
+            good = np.sqrt(fa * fi) < limit
+        else:
+            for r in range(3):
+                for s in range(3):
+                    out[p, r, s] = np.nan
+        ok[p] = good
+    return out, ok

@@ -28,7 +28,7 @@ from toolbox.triangulation.model import (
     observation_residuals,
     rotations,
 )
-from toolbox.triangulation.schur import pair_structure, photo_schur
+from toolbox.triangulation.schur import coupling, inverse_blocks, pair_structure, photo_schur
 
 DENSE_LIMIT = 3000
 BAND_LIMIT = 50_000_000  # values of a banded factor (400 MB) before sparse LU is used instead
@@ -250,7 +250,7 @@ class Problem:
         jp_rows[:2 * m] = (jpt * wimg[:, :, None]).reshape(2 * m, 3)
         jp_rows[2 * m + np.arange(len(gi)), gc] = wg
         lin.jp_rows = jp_rows
-        lin.img_w = np.einsum("mai,maj->mij", je * wimg[:, :, None], jpt * wimg[:, :, None])
+        lin.img_w = coupling(je, jpt, wimg)
         lin.img_photo, lin.img_point = ph, pt
         return lin
 
@@ -340,15 +340,13 @@ def normal_equations(problem: Problem, lin: Linearization) -> Normal:
 
 def block_inverse(c: np.ndarray, point_ids: list[str]) -> np.ndarray:
     """Inverse of the 3 x 3 point blocks; a singular one (a point without geometry) raises."""
-    eig = np.linalg.eigvalsh(c) if len(c) else np.ones((0, 3))  # symmetric: cheaper than SVD
-    with np.errstate(divide="ignore", invalid="ignore"):
-        cond = eig[:, 2] / eig[:, 0]
-    bad = np.flatnonzero(~((cond > 0) & (cond < 1e14)))
+    inv, ok = inverse_blocks(np.ascontiguousarray(c), 1e14)  # compiled, both cores
+    bad = np.flatnonzero(~ok)
     if len(bad):
         names = ", ".join(repr(point_ids[i]) for i in bad[:5])
         raise InputDataError(f"{len(bad)} point(s) are not determined by their rays (nearly "
                              f"parallel rays or too few observations): {names}")
-    return np.linalg.inv(c)
+    return inv
 
 
 def block_diagonal(blocks: np.ndarray) -> sp.bsr_matrix:
@@ -365,7 +363,7 @@ def reduced_system(normal: Normal, damping: float, point_ids: list[str]):
         c = c + damping * np.einsum("pii->pi", c)[:, :, None] * np.eye(3)
     cinv = block_inverse(c, point_ids)
     nc, n6 = normal.problem.nc, normal.n6
-    rows, cols, vals = photo_schur(normal.w, cinv[normal.obs_point], normal.structure, n6 // 6)
+    rows, cols, vals = photo_schur(normal.w, cinv, normal.obs_point, normal.structure, n6 // 6)
     parts = [(rows, cols, vals)]
     keep = np.unique(normal.b_rest.nonzero()[0]) if normal.b_rest is not None else []
     if len(keep):  # calibration rows (GNSS/IMU rows of B are 0): B_r·C⁻¹·Bᵀ, sparse products

@@ -100,3 +100,17 @@ def test_compiled_collinearity_kernel_is_the_numpy_formula(jacobians):
     assert len(got) == len(ref) == (5 if jacobians else 2)
     for a, b in zip(got, ref, strict=True):
         assert a.shape == b.shape and np.abs(a - b).max() <= 1e-12 * np.abs(b).max()
+
+
+def test_compiled_point_block_inverses_and_their_singularity_flags():
+    from toolbox.triangulation.schur import inverse_blocks
+
+    rng = np.random.default_rng(4)
+    a = rng.normal(size=(50, 3, 3))
+    c = a @ np.transpose(a, (0, 2, 1)) + 0.1 * np.eye(3)
+    c[3] = np.outer([1.0, 2.0, 3.0], [1.0, 2.0, 3.0])  # rank 1: parallel rays
+    c[7] = np.diag([1.0, 1.0, 1e-16])  # nearly singular
+    c[9] = -np.eye(3)  # not positive definite
+    inv, ok = inverse_blocks(c, 1e14)
+    assert ok.tolist() == [k not in (3, 7, 9) for k in range(50)]
+    assert np.abs(inv[ok] - np.linalg.inv(c[ok])).max() < 1e-9
