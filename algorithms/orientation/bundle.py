@@ -32,7 +32,9 @@ class BundleAdjustment(Algorithm):
     (``point_id``, ``photo``, ``col_px``/``row_px`` or ``x_mm``/``y_mm``, optional ``sigma_px``
     or ``sigma_mm``), as orientation:intersect and the matcher write them. Pixels are converted to
     image mm through each photo's interior orientation (fiducial fit for scanned film, pixel size
-    for digital cameras); CONTROL_INPUT (optional) adds the control/check measurements when
+    for digital cameras); a photo whose camera is a ``model`` (pinhole or brown, e.g. a drone's
+    from orientation:convert) is observed in pixels through the Brown model itself
+    (``col = f·xd + cx``, OpenCV's k1-k3, p1, p2); CONTROL_INPUT (optional) adds the control/check measurements when
     INPUT holds tie points only. CONTROL: ``id``, ``X``, ``Y``, ``Z``, optional ``role`` (control/check),
     ``sigma_xy``, ``sigma_z`` (m): leave X and Y empty for a height point, Z empty for a
     planimetric one. Check points are adjusted as tie points and only compared. GNSS (optional):
@@ -43,13 +45,15 @@ class BundleAdjustment(Algorithm):
     the datum then needs a full and a second height control point. IMU (optional): attitudes
     ``photo``, ``omega``, ``phi``, ``kappa`` (photogrammetric convention, IMU_ANGLE_UNIT,
     optional ``sigma``) observing the angles of ``R·R(b)``; BORESIGHT estimates the 3 boresight
-    angles ``b`` (else zero). IMU observations are not data-snooped.
+    angles ``b`` (else zero). IMU angles are data-snooped like the other observations.
 
     Unknowns: 6 exterior parameters per photo, 3 coordinates per point and, per camera, the
     SELF_CALIBRATION parameters: ``c``, ``x0``, ``y0`` (principal point, mm), ``k1``-``k3``
     (radial, ``Δr = k1·r³ + k2·r⁵ + k3·r⁷``, mm), ``p1``, ``p2`` (decentring), each ``free`` or
     ``weighted:SIGMA`` around the project's value (e.g. ``c, k1`` or ``c:weighted:0.01``), for
-    every camera or, with ``@CAMERA``, for one (``x0@wild 303.55``; it overrides).
+    every camera or, with ``@CAMERA``, for one (``x0@wild 303.55``; it overrides). For a Brown
+    camera ``f``, ``cx``, ``cy`` (px; aliases of c, x0, y0) and OpenCV's ``k1``-``k3``, ``p1``,
+    ``p2``.
 
     START: ``project`` uses PROJECT's exterior orientations; ``control`` computes them (photos with
     >= 4 control points resected, then tie points intersected and the other photos resected in
@@ -67,8 +71,8 @@ class BundleAdjustment(Algorithm):
     is left; rejected observations are listed with w and redundancy number.
 
     Outputs: OUTPUT, the orientation project (YAML) with the adjusted orientations (and
-    calibration: c, principal point, k1, k2; k3/p1/p2 only in the report), which ortho:batch
-    reads; POINTS (GeoPackage): projection_centres (with standard deviations), points (tie,
+    calibration: c, principal point, k1, k2 of a film camera, its k3/p1/p2 only in the report;
+    a Brown camera is written whole, as a brown model), which ortho:batch reads; POINTS (GeoPackage): projection_centres (with standard deviations), points (tie,
     control, check with sigma X/Y/Z), image_residuals (per measurement: µm, px, w-test,
     redundancy number, rejected) and ground_residuals (surveyed -> adjusted, control and check);
     REPORT (JSON): sigma0 a posteriori, redundancy, photos and cameras with standard deviations,
@@ -237,6 +241,8 @@ class BundleAdjustment(Algorithm):
             with feedback.timed("approximate values"):
                 exterior, points, chain = approximations.by_resection(block)
             notes += chain
+        if attitudes is not None:
+            approximations.check_attitude_unit(block, exterior, params["IMU_ANGLE_UNIT"])
         feedback.set_progress(20)
         options = Options(max_iterations=params["MAX_ITERATIONS"], robust=params["ROBUST"],
                           snooping=params["SNOOPING"], critical_w=params["CRITICAL_W"])

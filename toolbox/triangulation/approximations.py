@@ -254,3 +254,29 @@ def _chain(block: Block, exterior: np.ndarray, oriented: np.ndarray, points: np.
         if oriented.all() or not progress:
             break
     return notes
+
+
+def check_attitude_unit(block: Block, exterior: np.ndarray, unit: str,
+                        name: str = "IMU_ANGLE_UNIT") -> None:
+    """IMU attitudes read in ``unit`` that the approximate orientations contradict while the
+    same numbers in another angle unit (deg, rad, gon) agree with them: a ParameterError naming
+    both (a vertical block's omega and phi near 0 betray a wrong unit at once). Misfit: the mean
+    over photos of the largest angle difference; over 0.1 rad for the given unit, under half of
+    it and 0.1 rad for the other."""
+    from toolbox.errors import ParameterError
+    from toolbox.photogrammetry.rotation import to_radians
+    from toolbox.triangulation.solver import attitude_residuals
+
+    if not len(block.attitude_photo):
+        return
+    raw = block.attitude_obs / to_radians(1.0, unit)
+    start = exterior[block.attitude_photo, 3:]
+    misfit = {u: float(np.mean(np.abs(attitude_residuals(start, np.zeros(3),
+                                                         raw * to_radians(1.0, u))).max(axis=1)))
+              for u in ("deg", "rad", "gon")}
+    best = min(misfit, key=misfit.get)
+    if misfit[unit] > 0.1 and best != unit and misfit[best] < min(0.1, misfit[unit] / 2):
+        raise ParameterError(name, f"is {unit} but the IMU angles read so differ from the "
+                             f"approximate orientations by {np.degrees(misfit[unit]):.1f} deg "
+                             f"(mean largest per photo); read as {best} they agree within "
+                             f"{np.degrees(misfit[best]):.2f} deg: give IMU_ANGLE_UNIT {best}")
