@@ -34,8 +34,9 @@ class BundleAdjustment(Algorithm):
     image mm through each photo's interior orientation (fiducial fit for scanned film, pixel size
     for digital cameras); a photo whose camera is a ``model`` (pinhole or brown, e.g. a drone's
     from orientation:convert) is observed in pixels through the Brown model itself
-    (``col = f·xd + cx``, OpenCV's k1-k3, p1, p2); CONTROL_INPUT (optional) adds the control/check measurements when
-    INPUT holds tie points only. CONTROL: ``id``, ``X``, ``Y``, ``Z``, optional ``role`` (control/check),
+    (``col = f·xd + cx``, OpenCV's k1-k3, p1, p2); CONTROL_INPUT (optional) adds the
+    control/check measurements when INPUT holds tie points only. CONTROL: ``id``, ``X``, ``Y``,
+    ``Z``, optional ``role`` (control/check),
     ``sigma_xy``, ``sigma_z`` (m): leave X and Y empty for a height point, Z empty for a
     planimetric one. Check points are adjusted as tie points and only compared. GNSS (optional):
     antenna positions ``photo``, ``X``, ``Y``, ``Z`` (optional sigmas, ``strip``, ``time``), at
@@ -72,7 +73,8 @@ class BundleAdjustment(Algorithm):
 
     Outputs: OUTPUT, the orientation project (YAML) with the adjusted orientations (and
     calibration: c, principal point, k1, k2 of a film camera, its k3/p1/p2 only in the report;
-    a Brown camera is written whole, as a brown model), which ortho:batch reads; POINTS (GeoPackage): projection_centres (with standard deviations), points (tie,
+    a Brown camera is written whole, as a brown model), which ortho:batch reads;
+    POINTS (GeoPackage): projection_centres (with standard deviations), points (tie,
     control, check with sigma X/Y/Z), image_residuals (per measurement: µm, px, w-test,
     redundancy number, rejected) and ground_residuals (surveyed -> adjusted, control and check);
     REPORT (JSON): sigma0 a posteriori, redundancy, photos and cameras with standard deviations,
