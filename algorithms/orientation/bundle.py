@@ -204,6 +204,10 @@ class BundleAdjustment(Algorithm):
             measurements = measurements.concatenate(extra)
         control = read_control(params["CONTROL"])
         centres = read_centres(params["GNSS"]) if params["GNSS"] is not None else None
+        for name, xy in (("CONTROL", control.xyz[:, :2]),
+                         ("GNSS", None if centres is None else centres.xyz[:, :2])):
+            if xy is not None and project.crs is not None:
+                self._check_crs(name, params[name], project.crs, xy, feedback)
         if (params["GNSS_SHIFT"] or params["GNSS_DRIFT"]) and centres is None:
             raise self.fail("GNSS_SHIFT" if params["GNSS_SHIFT"] else "GNSS_DRIFT",
                             "needs GNSS projection centres (GNSS)")
@@ -277,3 +281,30 @@ class BundleAdjustment(Algorithm):
         stats.update({k: v for k, v in document["summary"].items() if k.endswith("_rmse_m")})
         return {"OUTPUT": params["OUTPUT"], "POINTS": params["POINTS"],
                 "REPORT": params["REPORT"], "STATISTICS": stats}
+
+    def _check_crs(self, name: str, path, crs, xy, feedback: Feedback) -> None:
+        """A table whose own CRS (GeoPackage layer, or a CSV's ``.prj`` beside it) is not
+        PROJECT's, or whose coordinates lie far outside PROJECT's CRS area (e.g. lon/lat
+        numbers): a one-line error naming ``name``."""
+        from pathlib import Path
+
+        from toolbox.io.crs import check_coordinates_in_area, crs_label, parse_crs, same_crs
+
+        path = Path(path)
+        own = None
+        try:
+            if path.suffix.lower() in (".gpkg", ".sqlite"):
+                import pyogrio
+
+                own = pyogrio.read_info(path).get("crs")
+            elif path.with_suffix(".prj").exists():
+                own = path.with_suffix(".prj").read_text().strip()
+        except Exception:  # noqa: BLE001 - an unreadable CRS is judged by the coordinates
+            own = None
+        target = parse_crs(crs, "PROJECT")
+        if own:
+            own_crs = parse_crs(own, name)
+            if not same_crs(own_crs, target):
+                raise self.fail(name, f"is in {crs_label(own_crs)} but PROJECT is in "
+                                f"{crs_label(target)}: reproject it to PROJECT's CRS first")
+        check_coordinates_in_area(name, target, xy, feedback.push_warning)
