@@ -241,6 +241,7 @@ class BundleAdjustment(Algorithm):
         if start == "project" or (start == "auto" and not missing):
             eos = [project.photos[p].exterior for p in block.photo_ids]
             exterior = np.array([[*e.centre, e.omega, e.phi, e.kappa] for e in eos])
+            approximations.check_start_angle_unit(block, exterior)
             points = approximations.from_exteriors(block, exterior)
             notes.append("approximate values: PROJECT's exterior orientations")
         else:

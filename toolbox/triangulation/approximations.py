@@ -280,3 +280,41 @@ def check_attitude_unit(block: Block, exterior: np.ndarray, unit: str,
                              f"approximate orientations by {np.degrees(misfit[unit]):.1f} deg "
                              f"(mean largest per photo); read as {best} they agree within "
                              f"{np.degrees(misfit[best]):.2f} deg: give IMU_ANGLE_UNIT {best}")
+
+
+#: angle-unit mix-ups: factor by which the angles were wrongly scaled, and how to name it
+UNIT_MIXUPS = {np.pi / 180: "written in deg, read as rad", 180 / np.pi: "written in rad, read as deg",
+               np.pi / 200: "written in gon, read as rad", 200 / np.pi: "written in rad, read as gon"}
+
+
+def check_start_angle_unit(block: Block, exterior: np.ndarray, name: str = "PROJECT") -> None:
+    """Given start orientations whose control points (full XYZ) fall far off their measurements
+    while the same angles in another unit put them close (a vertical block's start read in the
+    wrong ``angle_unit``): a ParameterError naming the mix-up. Misfit: the median image
+    residual of the control observations (behind a camera: infinite); the given angles are
+    refused when the best mix-up is 20 times closer."""
+    from toolbox.errors import ParameterError
+    from toolbox.triangulation.model import observation_residuals
+
+    points, known = _control(block)
+    sel = np.flatnonzero(known[block.obs_point])
+    if len(sel) < 3:
+        return
+    cam, brown, aspect = block.observation_cameras(sel)
+
+    def misfit(angles_scale: float) -> float:
+        ext = exterior[block.obs_photo[sel]].copy()
+        ext[:, 3:] *= angles_scale
+        f, depth = observation_residuals(block.obs_xy[sel], ext, points[block.obs_point[sel]],
+                                         block.calibration[cam], brown, aspect, jacobians=False)
+        err = np.where(depth < 0, np.hypot(f[:, 0], f[:, 1]), np.inf)
+        return float(np.median(err))
+
+    given = misfit(1.0)
+    scores = {k: misfit(k) for k in UNIT_MIXUPS}
+    best = min(scores, key=scores.get)
+    if np.isfinite(scores[best]) and given > 20 * scores[best]:
+        where = "behind the cameras" if not np.isfinite(given) else "far off their measurements"
+        raise ParameterError(name, f"its exterior angles put the control points {where}, but "
+                             f"scaled as if {UNIT_MIXUPS[best]} they fit (median "
+                             f"residual {scores[best]:.3g} image units): check its angle_unit")

@@ -260,3 +260,21 @@ def test_control_in_another_crs_is_refused(sample, tmp_path):
         if r[ix] != "":
             r[ix], r[iy] = map(str, to_lonlat.transform(float(r[ix]), float(r[iy])))
     _bad(sample, tmp_path, "CONTROL", CONTROL=_write(tmp_path / "control_ll.csv", rows))
+
+
+def test_project_angles_in_the_wrong_unit_are_refused(sample, tmp_path):
+    """A flight plan written in degrees but declared angle_unit rad: the vertical block's
+    control points fall behind the cameras, the same numbers as degrees fit: one line naming
+    PROJECT and the mix-up, nothing written."""
+    import yaml
+
+    from toolbox.photogrammetry.project import Project, save_project
+
+    truth = make_block(SyntheticBlockSpec(digital=True, seed=7)).project
+    path = save_project(Project(truth.crs, truth.cameras, truth.photos), tmp_path / "plan.yaml",
+                        angle_unit="deg")
+    doc = yaml.safe_load(path.read_text())
+    doc["angle_unit"] = "rad"
+    path.write_text(yaml.safe_dump(doc, sort_keys=False))
+    _bad(sample, tmp_path, "PROJECT.*written in deg, read as rad.*angle_unit", PROJECT=path,
+         START="project")
