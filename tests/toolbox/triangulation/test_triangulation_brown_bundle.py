@@ -152,3 +152,27 @@ def test_bundle_writes_the_brown_camera_that_the_project_reads_back(case, tmp_pa
         ref = project(adjusted, np.r_[e.centre, e.omega, e.phi, e.kappa], ground)
         ok = np.isfinite(seen[:, 0])
         assert ok.all() and np.abs(seen - ref).max() < 1e-5
+
+
+def test_a_fisheye_camera_is_refused_in_one_line(case, tmp_path):
+    import toolbox
+    from toolbox.errors import ToolboxError
+
+    b, block, ext0, _ = case
+    spec = {"type": "fisheye", "im_size": list(SIZE), "focal_len": float(NOMINAL[0] / max(SIZE))}
+    doc = {"format": "orientation-project", "version": 1, "crs": "EPSG:3003",
+           "cameras": [{"name": "fish", "model": spec}],
+           "photos": [{"id": pid, "camera": "fish", "exterior": dict(zip(
+               ("X0", "Y0", "Z0", "omega", "phi", "kappa"), map(float, ext0[j]), strict=True))}
+               for j, pid in enumerate(b.photo_ids)]}
+    (tmp_path / "fish.yaml").write_text(yaml.safe_dump(doc, sort_keys=False))
+    _write(tmp_path / "obs.csv", [["point_id", "photo", "col_px", "row_px"]] + [
+        [b.point_ids[k], b.photo_ids[j], x, y]
+        for j, k, (x, y) in zip(b.obs_photo, b.obs_point, b.px, strict=True)])
+    _write(tmp_path / "control.csv", [["id", "X", "Y", "Z"]] + [
+        [b.point_ids[k], *b.points[k]] for k in b.control])
+    with pytest.raises(ToolboxError, match="fisheye model.*pinhole or brown") as info:
+        toolbox.run("orientation:bundle", {
+            "PROJECT": tmp_path / "fish.yaml", "INPUT": tmp_path / "obs.csv",
+            "CONTROL": tmp_path / "control.csv", "OUTPUT": tmp_path / "out.yaml"})
+    assert "\n" not in str(info.value) and not (tmp_path / "out.yaml").exists()
