@@ -146,10 +146,10 @@ def _huber(problem: Problem, state: State, options: Options) -> State:
     b = problem.block
     for _ in range(5):
         state, lin, _ = least_squares(problem, state, options)
-        cam, brown, aspect = b.observation_cameras()
+        cam, kind, aspect = b.observation_cameras()
         f, _ = observation_residuals(b.obs_xy, state.exterior[b.obs_photo],
-                                     state.points[b.obs_point], state.calibration[cam], brown,
-                                     aspect, jacobians=False)
+                                     state.points[b.obs_point], state.calibration[cam], kind,
+                                     aspect, jacobians=False, **b.model_arguments(cam))
         e = np.abs(f / b.obs_sigma)
         problem.obs_factor = np.sqrt(np.minimum(1.0, options.huber_k / np.maximum(e, 1e-300)))
         eg = np.abs((state.points[b.ground_point] + problem.origin - b.ground_xyz)
@@ -268,9 +268,10 @@ def _solution(problem: Problem, state: State, lin, cof, iterations: int,
     unknowns = problem.nc + 3 * int(observed.sum())
     redundancy = len(lin.r) - unknowns
     sigma0 = math.sqrt(lin.cost / redundancy) if redundancy > 0 else math.nan
-    cam, brown, aspect = b.observation_cameras()
+    cam, kind, aspect = b.observation_cameras()
     f, _ = observation_residuals(b.obs_xy, state.exterior[b.obs_photo], state.points[b.obs_point],
-                                 state.calibration[cam], brown, aspect, jacobians=False)
+                                 state.calibration[cam], kind, aspect, jacobians=False,
+                                 **b.model_arguments(cam))
     g_res = state.points[b.ground_point] + problem.origin - b.ground_xyz
     lever = rotations(state.exterior[:, 3:])[0] @ b.lever_arm
     shift, drift, bore = problem.extras(state)

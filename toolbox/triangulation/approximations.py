@@ -25,7 +25,7 @@ import numpy as np
 
 from toolbox.errors import InputDataError
 from toolbox.triangulation.block import Block
-from toolbox.triangulation.model import brown_ideal, ideal
+from toolbox.triangulation.model import KIND_BROWN, KIND_MODEL, brown_ideal, ideal
 
 
 def components(block: Block) -> list[list[str]]:
@@ -54,11 +54,15 @@ def require_connected(block: Block) -> None:
 def camera_xy(block: Block) -> np.ndarray:
     """Ideal camera coordinates (mm; px for a Brown camera, whose ``c`` is f) of every
     observation at the start calibration."""
-    cam, brown, aspect = block.observation_cameras()
+    cam, kind, aspect = block.observation_cameras()
     calib = block.calibration[cam]
     out = ideal(block.obs_xy, calib)[0]
+    brown = kind == KIND_BROWN
     if brown.any():
         out[brown] = brown_ideal(block.obs_xy[brown], calib[brown], aspect[brown])
+    for c in np.unique(cam[kind == KIND_MODEL]):
+        on = (kind == KIND_MODEL) & (cam == c)
+        out[on] = block.camera_models[c].pixel_to_normalised(block.obs_xy[on]) * calib[on, :1]
     return out
 
 
@@ -300,13 +304,14 @@ def check_start_angle_unit(block: Block, exterior: np.ndarray, name: str = "PROJ
     sel = np.flatnonzero(known[block.obs_point])
     if len(sel) < 3:
         return
-    cam, brown, aspect = block.observation_cameras(sel)
+    cam, kind, aspect = block.observation_cameras(sel)
 
     def misfit(angles_scale: float) -> float:
         ext = exterior[block.obs_photo[sel]].copy()
         ext[:, 3:] *= angles_scale
         f, depth = observation_residuals(block.obs_xy[sel], ext, points[block.obs_point[sel]],
-                                         block.calibration[cam], brown, aspect, jacobians=False)
+                                         block.calibration[cam], kind, aspect, jacobians=False,
+                                         **block.model_arguments(cam))
         err = np.where(depth < 0, np.hypot(f[:, 0], f[:, 1]), np.inf)
         return float(np.median(err))
 

@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from toolbox.triangulation.model import BROWN_NAMES, CALIBRATION_NAMES, KIND_BROWN
+from toolbox.triangulation.model import BROWN_NAMES, CALIBRATION_NAMES, KIND_FILM
 
 FIXED, FREE, WEIGHTED = 0, 1, 2
 MODE_NAMES = {"fixed": FIXED, "free": FREE, "weighted": WEIGHTED}
@@ -63,6 +63,7 @@ class Block:
     boresight: bool = False
     camera_kind: np.ndarray | None = None  # (k,) KIND_FILM (image mm) or KIND_BROWN (pixels)
     camera_aspect: np.ndarray | None = None  # (k,) fy/fx of a Brown camera (held fixed)
+    camera_models: list | None = None  # (k,) the Intrinsics of KIND_MODEL cameras (else None)
 
     def __post_init__(self) -> None:
         k = len(self.camera_names)
@@ -108,15 +109,20 @@ class Block:
         return int(self.centre_group.max()) + 1 if len(self.centre_group) else 0
 
     def calibration_label(self, camera: int, parameter: int) -> str:
-        names = BROWN_NAMES if self.camera_kind[camera] == KIND_BROWN else CALIBRATION_NAMES
+        names = BROWN_NAMES if self.camera_kind[camera] != KIND_FILM else CALIBRATION_NAMES
         return f"camera {self.camera_names[camera]!r} {names[parameter]}"
 
     def observation_cameras(self, rows: np.ndarray | None = None
                             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Camera index, Brown flag and aspect of the image observations ``rows`` (all)."""
+        """Camera index, camera kind and aspect of the image observations ``rows`` (all)."""
         ph = self.obs_photo if rows is None else self.obs_photo[rows]
         cam = self.photo_camera[ph]
-        return cam, self.camera_kind[cam] == KIND_BROWN, self.camera_aspect[cam]
+        return cam, self.camera_kind[cam], self.camera_aspect[cam]
+
+    def model_arguments(self, cam: np.ndarray) -> dict:
+        """The ``cameras``/``models`` keywords of
+        :func:`~toolbox.triangulation.model.observation_residuals`."""
+        return {"cameras": cam, "models": self.camera_models}
 
 
 @dataclass

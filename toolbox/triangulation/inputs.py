@@ -24,7 +24,7 @@ import numpy as np
 
 from toolbox.errors import InputDataError, ParameterError
 from toolbox.triangulation.block import FIXED, MODE_NAMES, WEIGHTED, Block
-from toolbox.triangulation.model import CALIBRATION_NAMES, KIND_BROWN, KIND_FILM
+from toolbox.triangulation.model import CALIBRATION_NAMES, KIND_BROWN, KIND_FILM, KIND_MODEL
 
 #: a digital (Brown) camera's f, cx, cy take the film camera's c, x0, y0 places
 BROWN_ALIASES = {"f": "c", "cx": "x0", "cy": "y0"}
@@ -304,9 +304,13 @@ def camera_calibration(camera, free: set[str]) -> np.ndarray:
     from toolbox.photogrammetry.camera import DISTORTION_POLYNOMIAL
 
     if isinstance(camera, Intrinsics):
+        if camera.kind not in ("pinhole", "brown") and free:
+            raise ParameterError("SELF_CALIBRATION", f"camera {camera.name!r} is a "
+                                 f"{camera.kind} model: its interior is held fixed (only film, "
+                                 "pinhole or brown cameras are self-calibrated); drop "
+                                 f"{', '.join(sorted(free))}")
         if camera.kind not in ("pinhole", "brown"):
-            raise InputDataError(f"camera {camera.name!r} is a {camera.kind} model: the bundle "
-                                 "takes film cameras and pinhole or brown models")
+            return np.array([camera.focal_px[0], *camera.principal_point_px, 0, 0, 0, 0, 0])
         c = camera.coefficients
         return np.array([camera.focal_px[0], *camera.principal_point_px,
                          *(c.get(k, 0.0) for k in ("k1", "k2", "k3", "p1", "p2"))])
@@ -435,9 +439,10 @@ def build_block(request: BlockRequest) -> tuple[Block, dict]:
                   groups, times, request.gnss_shift, request.gnss_drift, a_photo,
                   np.array(a_obs, dtype=float).reshape(-1, 3),
                   np.array(a_sig, dtype=float).reshape(-1, 3), request.boresight,
-                  [KIND_BROWN if _is_model(project.cameras[c]) else KIND_FILM
-                   for c in camera_names],
-                  [_aspect(project.cameras[c]) for c in camera_names])
+                  [_kind(project.cameras[c]) for c in camera_names],
+                  [_aspect(project.cameras[c]) for c in camera_names],
+                  [project.cameras[c] if _kind(project.cameras[c]) == KIND_MODEL else None
+                   for c in camera_names])
     info_strips = sorted(set(h_strip), key=lambda v: (len(v), v))
     return block, {"checks": checks, "kind": ms.kind, "pixel_mm": pixel_mm,
                    "model_photos": {p for p in photo_ids if project.photos[p].is_model},
@@ -464,6 +469,13 @@ def _is_model(camera) -> bool:
     from toolbox.cameras import Intrinsics
 
     return isinstance(camera, Intrinsics)
+
+
+def _kind(camera) -> int:
+    """KIND_FILM, KIND_BROWN (pinhole, brown) or KIND_MODEL (opencv, fisheye) of a camera."""
+    if not _is_model(camera):
+        return KIND_FILM
+    return KIND_BROWN if camera.kind in ("pinhole", "brown") else KIND_MODEL
 
 
 def _aspect(camera) -> float:

@@ -21,7 +21,9 @@ from __future__ import annotations
 
 import numpy as np
 
-KIND_FILM, KIND_BROWN = 0, 1  # camera kinds: film (image mm, correction form), Brown (px)
+# camera kinds: film (image mm, correction form), Brown (px, self-calibrable), any other
+# interior model of toolbox.cameras (opencv, fisheye: px through Intrinsics, held fixed)
+KIND_FILM, KIND_BROWN, KIND_MODEL = 0, 1, 2
 CALIBRATION_NAMES = ("c", "x0", "y0", "k1", "k2", "k3", "p1", "p2")
 BROWN_NAMES = ("f", "cx", "cy", "k1", "k2", "k3", "p1", "p2")  # a Brown camera's 8 places
 EXTERIOR_NAMES = ("X0", "Y0", "Z0", "omega", "phi", "kappa")
@@ -223,32 +225,72 @@ def brown_residuals(px: np.ndarray, exterior: np.ndarray, point: np.ndarray, cal
     return res, d[:, 2], j_ext, j_point, j_calib
 
 
+def model_residuals(px: np.ndarray, exterior: np.ndarray, point: np.ndarray, intrinsics,
+                    jacobians: bool = True,
+                    rotation: tuple[np.ndarray, np.ndarray] | None = None):
+    """:func:`image_residuals` for a fixed interior model of :mod:`toolbox.cameras` (opencv,
+    fisheye): pixels through ``intrinsics.camera_to_pixel`` of the OpenCV camera coordinates
+    ``D·Rᵀ·(P - C)`` (``D = diag(1, -1, -1)``); the derivatives by the camera coordinates by
+    central differences (relative step 1e-6 of the depth), the rest by the chain rule; no
+    calibration unknowns (``J_calib`` zero)."""
+    r, dr = rotations(exterior[:, 3:]) if rotation is None else rotation
+    delta = point - exterior[:, :3]
+    d = np.einsum("mji,mj->mi", r, delta)
+    flip = np.array([1.0, -1.0, -1.0])
+    cam = d * flip
+    res = intrinsics.camera_to_pixel(cam) - px
+    if not jacobians:
+        return res, d[:, 2]
+    m = len(px)
+    dcam = np.empty((m, 2, 3))
+    h = 1e-6 * np.maximum(np.abs(cam[:, 2]), 1e-9)
+    for k in range(3):
+        step = np.zeros((m, 3))
+        step[:, k] = h
+        dcam[:, :, k] = (intrinsics.camera_to_pixel(cam + step)
+                         - intrinsics.camera_to_pixel(cam - step)) / (2 * h[:, None])
+    dp = dcam * flip  # d(pixels)/d(d)
+    j_point = np.einsum("mak,mjk->maj", dp, r)
+    j_ext = np.empty((m, 2, 6))
+    j_ext[:, :, :3] = -j_point
+    dd_angles = np.einsum("mtji,mj->mti", dr, delta)
+    j_ext[:, :, 3:] = np.einsum("mak,mtk->mat", dp, dd_angles)
+    return res, d[:, 2], j_ext, j_point, np.zeros((m, 2, 8))
+
+
 def observation_residuals(xy: np.ndarray, exterior: np.ndarray, point: np.ndarray,
-                          calib: np.ndarray, brown: np.ndarray | None = None,
+                          calib: np.ndarray, kind: np.ndarray | None = None,
                           aspect: np.ndarray | None = None, jacobians: bool = True,
-                          rotation: tuple[np.ndarray, np.ndarray] | None = None):
-    """:func:`image_residuals` (film, image mm) or :func:`brown_residuals` (pixels) per
-    observation: ``brown`` (m,) bool selects the second, ``aspect`` (m,) its fy/fx."""
-    if brown is None or not brown.any():
+                          rotation: tuple[np.ndarray, np.ndarray] | None = None,
+                          cameras: np.ndarray | None = None, models: list | None = None):
+    """:func:`image_residuals` (film, image mm), :func:`brown_residuals` or
+    :func:`model_residuals` (pixels) per observation by its camera ``kind`` (m,) (KIND_*),
+    ``aspect`` (m,) fy/fx of a Brown camera, ``cameras`` (m,) camera index and ``models`` the
+    cameras' interior models (KIND_MODEL)."""
+    if kind is None or not kind.any():
         return image_residuals(xy, exterior, point, calib, jacobians, rotation)
-    if brown.all():
+    if (kind == KIND_BROWN).all():
         return brown_residuals(xy, exterior, point, calib, aspect, jacobians, rotation)
-    film = np.flatnonzero(~brown)
-    dig = np.flatnonzero(brown)
-
-    def part(idx):
+    groups = [(np.flatnonzero(kind == KIND_FILM), None), (np.flatnonzero(kind == KIND_BROWN), None)]
+    if (kind == KIND_MODEL).any():
+        groups += [(np.flatnonzero((kind == KIND_MODEL) & (cameras == c)), c)
+                   for c in np.unique(cameras[kind == KIND_MODEL])]
+    merged = None
+    for g, (idx, cam) in enumerate(groups):
+        if not len(idx):
+            continue
         rot = None if rotation is None else (rotation[0][idx], rotation[1][idx])
-        return rot
-
-    out_f = image_residuals(xy[film], exterior[film], point[film], calib[film], jacobians,
-                            part(film))
-    out_b = brown_residuals(xy[dig], exterior[dig], point[dig], calib[dig], aspect[dig],
-                            jacobians, part(dig))
-    merged = []
-    for a, b in zip(out_f, out_b, strict=True):
-        full = np.empty((len(xy),) + a.shape[1:])
-        full[film], full[dig] = a, b
-        merged.append(full)
+        args = (xy[idx], exterior[idx], point[idx])
+        if g == 0:
+            out = image_residuals(*args, calib[idx], jacobians, rot)
+        elif g == 1:
+            out = brown_residuals(*args, calib[idx], aspect[idx], jacobians, rot)
+        else:
+            out = model_residuals(*args, models[cam], jacobians, rot)
+        if merged is None:
+            merged = [np.empty((len(xy),) + a.shape[1:]) for a in out]
+        for full, a in zip(merged, out, strict=True):
+            full[idx] = a
     return tuple(merged)
 
 

@@ -14,7 +14,13 @@ from typing import Any
 import numpy as np
 
 from toolbox.triangulation.block import Block, Solution
-from toolbox.triangulation.model import BROWN_NAMES, CALIBRATION_NAMES, EXTERIOR_NAMES, KIND_BROWN
+from toolbox.triangulation.model import (
+    BROWN_NAMES,
+    CALIBRATION_NAMES,
+    EXTERIOR_NAMES,
+    KIND_BROWN,
+    KIND_FILM,
+)
 
 MAX_REPORTED_OBSERVATIONS = 50_000  # per-observation residuals in the JSON up to this many
 
@@ -157,8 +163,10 @@ def report(block: Block, solution: Solution, info: dict, ground: list[dict[str, 
                           for k, n in enumerate(EXTERIOR_NAMES)}})
     cameras = []
     for k, name in enumerate(block.camera_names):
-        brown = block.camera_kind[k] == KIND_BROWN
-        cameras.append({"camera": name, "model": "brown (px)" if brown else "film (mm)", **{
+        kind = int(block.camera_kind[k])
+        brown = kind != KIND_FILM
+        label = ("film (mm)", "brown (px)", "interior model (px, fixed)")[kind]
+        cameras.append({"camera": name, "model": label, **{
             n: {"value": float(solution.calibration[k, i]),
                 "mode": ("fixed", "free", "weighted")[int(block.calibration_mode[k, i])],
                 "std": _num(solution.calibration_std[k, i])}

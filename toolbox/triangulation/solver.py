@@ -138,11 +138,12 @@ class Problem:
         b = self.block
         sel = np.flatnonzero(self.obs_active)
         ph, pt = b.obs_photo[sel], b.obs_point[sel]
-        cam, brown, aspect = b.observation_cameras(sel)
+        cam, kind, aspect = b.observation_cameras(sel)
         calib = state.calibration[cam]
         r_photo, dr_photo = rotations(state.exterior[:, 3:])
         out = observation_residuals(b.obs_xy[sel], state.exterior[ph], state.points[pt], calib,
-                                    brown, aspect, jacobians, (r_photo[ph], dr_photo[ph]))
+                                    kind, aspect, jacobians, (r_photo[ph], dr_photo[ph]),
+                                    **b.model_arguments(cam))
         f, depth = out[0], out[1]
         wimg = self.obs_factor[sel] / b.obs_sigma[sel]
         m = len(sel)

@@ -154,25 +154,94 @@ def test_bundle_writes_the_brown_camera_that_the_project_reads_back(case, tmp_pa
         assert ok.all() and np.abs(seen - ref).max() < 1e-5
 
 
-def test_a_fisheye_camera_is_refused_in_one_line(case, tmp_path):
+def _model_run(case, tmp_path, spec, **extra):
     import toolbox
-    from toolbox.errors import ToolboxError
 
     b, block, ext0, _ = case
-    spec = {"type": "fisheye", "im_size": list(SIZE), "focal_len": float(NOMINAL[0] / max(SIZE))}
     doc = {"format": "orientation-project", "version": 1, "crs": "EPSG:3003",
-           "cameras": [{"name": "fish", "model": spec}],
-           "photos": [{"id": pid, "camera": "fish", "exterior": dict(zip(
+           "cameras": [{"name": "cam", "model": spec}],
+           "photos": [{"id": pid, "camera": "cam", "exterior": dict(zip(
                ("X0", "Y0", "Z0", "omega", "phi", "kappa"), map(float, ext0[j]), strict=True))}
                for j, pid in enumerate(b.photo_ids)]}
-    (tmp_path / "fish.yaml").write_text(yaml.safe_dump(doc, sort_keys=False))
+    (tmp_path / "p.yaml").write_text(yaml.safe_dump(doc, sort_keys=False))
     _write(tmp_path / "obs.csv", [["point_id", "photo", "col_px", "row_px"]] + [
         [b.point_ids[k], b.photo_ids[j], x, y]
         for j, k, (x, y) in zip(b.obs_photo, b.obs_point, b.px, strict=True)])
     _write(tmp_path / "control.csv", [["id", "X", "Y", "Z"]] + [
         [b.point_ids[k], *b.points[k]] for k in b.control])
-    with pytest.raises(ToolboxError, match="fisheye model.*pinhole or brown") as info:
-        toolbox.run("orientation:bundle", {
-            "PROJECT": tmp_path / "fish.yaml", "INPUT": tmp_path / "obs.csv",
-            "CONTROL": tmp_path / "control.csv", "OUTPUT": tmp_path / "out.yaml"})
-    assert "\n" not in str(info.value) and not (tmp_path / "out.yaml").exists()
+    return toolbox.run("orientation:bundle", {
+        "PROJECT": tmp_path / "p.yaml", "INPUT": tmp_path / "obs.csv", "SIGMA_PX": SIGMA_PX,
+        "CONTROL": tmp_path / "control.csv", "CONTROL_SIGMA_XY": 0.01, "CONTROL_SIGMA_Z": 0.01,
+        "START": "project", "OUTPUT": tmp_path / "out.yaml", "REPORT": tmp_path / "r.json",
+        **extra})
+
+
+def test_an_opencv_model_camera_is_adjusted_with_its_interior_fixed(case, tmp_path):
+    """The block rendered by cv2.projectPoints with the true camera, declared as an opencv
+    model (k4-k6 = 0, the same projection): the bundle through Intrinsics.camera_to_pixel
+    (numerical derivatives) gives sigma0 ~ 1 and the true centres within 4 sigma; asking to
+    self-calibrate it is a one-line error."""
+    import json
+
+    from toolbox.errors import ToolboxError
+    from toolbox.photogrammetry.project import load_project
+
+    b = case[0]
+    f, cx, cy, k1, k2, k3, p1, p2 = map(float, TRUE)
+    s = float(max(SIZE))
+    spec = {"type": "opencv", "im_size": list(SIZE), "focal_len": f / s,
+            "cx": (cx - SIZE[0] / 2) / s, "cy": (cy - SIZE[1] / 2) / s, "k1": k1, "k2": k2,
+            "k3": k3, "p1": p1, "p2": p2}
+    out = _model_run(case, tmp_path, spec)
+    assert 0.85 < out["STATISTICS"]["sigma0"] < 1.15
+    report = {p["photo"]: p for p in json.loads((tmp_path / "r.json").read_text())["photos"]}
+    adjusted = load_project(tmp_path / "out.yaml")
+    assert adjusted.cameras["cam"].kind == "opencv"
+    for j, pid in enumerate(b.photo_ids):
+        d = adjusted.photos[pid].exterior.centre - b.exterior[j, :3]
+        std = np.array([report[pid][k] for k in ("std_X0", "std_Y0", "std_Z0")])
+        assert (np.abs(d) < 4 * std).all() and std.max() < 0.1, (pid, d, std)
+    with pytest.raises(ToolboxError, match="SELF_CALIBRATION.*opencv model.*held fixed") as info:
+        _model_run(case, tmp_path / "x" if (tmp_path / "x").mkdir() is None else None, spec,
+                   SELF_CALIBRATION="f")
+    assert "\n" not in str(info.value)
+
+
+def test_a_fisheye_camera_block_rendered_by_opencv_is_adjusted(case, tmp_path):
+    """The same block's points re-imaged by cv2.fisheye.projectPoints (k1-k4 = 0.03, -0.01,
+    0.002, 0), 0.3 px noise: the bundle through the product's fisheye model (held fixed)
+    gives sigma0 ~ 1 and the true centres within 4 sigma."""
+    import json
+
+    import cv2
+
+    from toolbox.photogrammetry.project import load_project
+    from toolbox.triangulation.model import rotations
+
+    b = case[0]
+    f, cx, cy = map(float, TRUE[:3])
+    dist = np.array([0.03, -0.01, 0.002, 0.0])
+    k = np.array([[f, 0, cx - 0.5], [0, f, cy - 0.5], [0, 0, 1.0]])
+    rng = np.random.default_rng(8)
+    px = np.empty_like(b.px)
+    for j, e in enumerate(b.exterior):
+        on = np.flatnonzero(b.obs_photo == j)
+        r_cv = np.diag([1.0, -1.0, -1.0]) @ rotations(e[None, 3:])[0][0].T
+        rvec, _ = cv2.Rodrigues(r_cv)
+        tvec = -r_cv @ (e[:3] - b.points[0])
+        pts = (b.points[b.obs_point[on]] - b.points[0])[:, None, :]
+        out, _ = cv2.fisheye.projectPoints(pts, rvec, tvec, k, dist)
+        px[on] = out.reshape(-1, 2) + 0.5 + rng.normal(0, SIGMA_PX, (len(on), 2))
+    fisheye_case = (type(b)(**{**b.__dict__, "px": px}),) + tuple(case[1:])
+    s = float(max(SIZE))
+    spec = {"type": "fisheye", "im_size": list(SIZE), "focal_len": f / s,
+            "cx": (cx - SIZE[0] / 2) / s, "cy": (cy - SIZE[1] / 2) / s,
+            **dict(zip(("k1", "k2", "k3", "k4"), map(float, dist), strict=True))}
+    out = _model_run(fisheye_case, tmp_path, spec)
+    assert 0.85 < out["STATISTICS"]["sigma0"] < 1.15
+    report = {p["photo"]: p for p in json.loads((tmp_path / "r.json").read_text())["photos"]}
+    adjusted = load_project(tmp_path / "out.yaml")
+    for j, pid in enumerate(b.photo_ids):
+        d = adjusted.photos[pid].exterior.centre - b.exterior[j, :3]
+        std = np.array([report[pid][k] for k in ("std_X0", "std_Y0", "std_Z0")])
+        assert (np.abs(d) < 4 * std).all() and std.max() < 0.1, (pid, d, std)
