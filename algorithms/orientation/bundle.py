@@ -34,7 +34,8 @@ class BundleAdjustment(Algorithm):
     image mm through each photo's interior orientation (fiducial fit for scanned film, pixel size
     for digital cameras); a photo whose camera is a ``model`` (pinhole or brown, e.g. a drone's
     from orientation:convert) is observed in pixels through the Brown model itself
-    (``col = f·xd + cx``, OpenCV's k1-k3, p1, p2); CONTROL_INPUT (optional) adds the
+    (``col = f·xd + cx``, OpenCV's k1-k3, p1, p2), an opencv or fisheye model through its own
+    projection with its interior held fixed; CONTROL_INPUT (optional) adds the
     control/check measurements when INPUT holds tie points only. CONTROL: ``id``, ``X``, ``Y``,
     ``Z``, optional ``role`` (control/check),
     ``sigma_xy``, ``sigma_z`` (m): leave X and Y empty for a height point, Z empty for a
