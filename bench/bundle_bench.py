@@ -11,8 +11,9 @@ edges. Start values: the truth disturbed by 5 m and 5 mrad, points by 5 m. The a
 without data snooping and precision (pure solve; precision needs the dense reduced inverse,
 6·photos squared). Measured: wall time of the adjustment and the process's peak resident memory
 (``ru_maxrss``), plus the result against the truth. ``*_cpu_s``: the CPU time of the adjustment
-(process time; on a shared machine closer to what a quiet one would take than the wall time,
-our BLAS runs on one thread).
+(process time summed over threads: the compiled kernels of the linearisation and of the Schur
+complement run on both cores, BLAS on one; on a shared machine the CPU time is closer to what a
+quiet one would take than the wall time).
 
 ``--pycolmap PYTHON``: the same observations and start values handed to pycolmap's bundle
 adjustment (COLMAP, Ceres; ``bench/pycolmap_ba.py``) in an interpreter that has pycolmap (a

@@ -32,8 +32,12 @@ class BundleAdjustment(Algorithm):
     (``point_id``, ``photo``, ``col_px``/``row_px`` or ``x_mm``/``y_mm``, optional ``sigma_px``
     or ``sigma_mm``), as orientation:intersect and the matcher write them. Pixels are converted to
     image mm through each photo's interior orientation (fiducial fit for scanned film, pixel size
-    for digital cameras); CONTROL_INPUT (optional) adds the control/check measurements when
-    INPUT holds tie points only. CONTROL: ``id``, ``X``, ``Y``, ``Z``, optional ``role`` (control/check),
+    for digital cameras); a photo whose camera is a ``model`` (pinhole or brown, e.g. a drone's
+    from orientation:convert) is observed in pixels through the Brown model itself
+    (``col = f·xd + cx``, OpenCV's k1-k3, p1, p2), an opencv or fisheye model through its own
+    projection with its interior held fixed; CONTROL_INPUT (optional) adds the
+    control/check measurements when INPUT holds tie points only. CONTROL: ``id``, ``X``, ``Y``,
+    ``Z``, optional ``role`` (control/check),
     ``sigma_xy``, ``sigma_z`` (m): leave X and Y empty for a height point, Z empty for a
     planimetric one. Check points are adjusted as tie points and only compared. GNSS (optional):
     antenna positions ``photo``, ``X``, ``Y``, ``Z`` (optional sigmas, ``strip``, ``time``), at
@@ -43,13 +47,15 @@ class BundleAdjustment(Algorithm):
     the datum then needs a full and a second height control point. IMU (optional): attitudes
     ``photo``, ``omega``, ``phi``, ``kappa`` (photogrammetric convention, IMU_ANGLE_UNIT,
     optional ``sigma``) observing the angles of ``R·R(b)``; BORESIGHT estimates the 3 boresight
-    angles ``b`` (else zero). IMU observations are not data-snooped.
+    angles ``b`` (else zero). IMU angles are data-snooped like the other observations.
 
     Unknowns: 6 exterior parameters per photo, 3 coordinates per point and, per camera, the
     SELF_CALIBRATION parameters: ``c``, ``x0``, ``y0`` (principal point, mm), ``k1``-``k3``
     (radial, ``Δr = k1·r³ + k2·r⁵ + k3·r⁷``, mm), ``p1``, ``p2`` (decentring), each ``free`` or
     ``weighted:SIGMA`` around the project's value (e.g. ``c, k1`` or ``c:weighted:0.01``), for
-    every camera or, with ``@CAMERA``, for one (``x0@wild 303.55``; it overrides).
+    every camera or, with ``@CAMERA``, for one (``x0@wild 303.55``; it overrides). For a Brown
+    camera ``f``, ``cx``, ``cy`` (px; aliases of c, x0, y0) and OpenCV's ``k1``-``k3``, ``p1``,
+    ``p2``.
 
     START: ``project`` uses PROJECT's exterior orientations; ``control`` computes them (photos with
     >= 4 control points resected, then tie points intersected and the other photos resected in
@@ -67,8 +73,9 @@ class BundleAdjustment(Algorithm):
     is left; rejected observations are listed with w and redundancy number.
 
     Outputs: OUTPUT, the orientation project (YAML) with the adjusted orientations (and
-    calibration: c, principal point, k1, k2; k3/p1/p2 only in the report), which ortho:batch
-    reads; POINTS (GeoPackage): projection_centres (with standard deviations), points (tie,
+    calibration: c, principal point, k1, k2 of a film camera, its k3/p1/p2 only in the report;
+    a Brown camera is written whole, as a brown model), which ortho:batch reads;
+    POINTS (GeoPackage): projection_centres (with standard deviations), points (tie,
     control, check with sigma X/Y/Z), image_residuals (per measurement: µm, px, w-test,
     redundancy number, rejected) and ground_residuals (surveyed -> adjusted, control and check);
     REPORT (JSON): sigma0 a posteriori, redundancy, photos and cameras with standard deviations,
@@ -198,14 +205,10 @@ class BundleAdjustment(Algorithm):
             measurements = measurements.concatenate(extra)
         control = read_control(params["CONTROL"])
         centres = read_centres(params["GNSS"]) if params["GNSS"] is not None else None
-        if project.crs is not None:  # as for layers: one area-of-use check everywhere
-            from toolbox.io.crs import check_coordinates_in_area
-
-            check_coordinates_in_area("CONTROL", project.crs, control.xyz[:, :2],
-                                      feedback.push_warning)
-            if centres is not None:
-                check_coordinates_in_area("GNSS", project.crs, centres.xyz[:, :2],
-                                          feedback.push_warning)
+        for name, xy in (("CONTROL", control.xyz[:, :2]),
+                         ("GNSS", None if centres is None else centres.xyz[:, :2])):
+            if xy is not None and project.crs is not None:
+                self._check_crs(name, params[name], project.crs, xy, feedback)
         if (params["GNSS_SHIFT"] or params["GNSS_DRIFT"]) and centres is None:
             raise self.fail("GNSS_SHIFT" if params["GNSS_SHIFT"] else "GNSS_DRIFT",
                             "needs GNSS projection centres (GNSS)")
@@ -239,12 +242,15 @@ class BundleAdjustment(Algorithm):
         if start == "project" or (start == "auto" and not missing):
             eos = [project.photos[p].exterior for p in block.photo_ids]
             exterior = np.array([[*e.centre, e.omega, e.phi, e.kappa] for e in eos])
+            approximations.check_start_angle_unit(block, exterior)
             points = approximations.from_exteriors(block, exterior)
             notes.append("approximate values: PROJECT's exterior orientations")
         else:
             with feedback.timed("approximate values"):
                 exterior, points, chain = approximations.by_resection(block)
             notes += chain
+        if attitudes is not None:
+            approximations.check_attitude_unit(block, exterior, params["IMU_ANGLE_UNIT"])
         feedback.set_progress(20)
         options = Options(max_iterations=params["MAX_ITERATIONS"], robust=params["ROBUST"],
                           snooping=params["SNOOPING"], critical_w=params["CRITICAL_W"])
@@ -277,3 +283,30 @@ class BundleAdjustment(Algorithm):
         stats.update({k: v for k, v in document["summary"].items() if k.endswith("_rmse_m")})
         return {"OUTPUT": params["OUTPUT"], "POINTS": params["POINTS"],
                 "REPORT": params["REPORT"], "STATISTICS": stats}
+
+    def _check_crs(self, name: str, path, crs, xy, feedback: Feedback) -> None:
+        """A table whose own CRS (GeoPackage layer, or a CSV's ``.prj`` beside it) is not
+        PROJECT's, or whose coordinates lie far outside PROJECT's CRS area (e.g. lon/lat
+        numbers): a one-line error naming ``name``."""
+        from pathlib import Path
+
+        from toolbox.io.crs import check_coordinates_in_area, crs_label, parse_crs, same_crs
+
+        path = Path(path)
+        own = None
+        try:
+            if path.suffix.lower() in (".gpkg", ".sqlite"):
+                import pyogrio
+
+                own = pyogrio.read_info(path).get("crs")
+            elif path.with_suffix(".prj").exists():
+                own = path.with_suffix(".prj").read_text().strip()
+        except Exception:  # noqa: BLE001 - an unreadable CRS is judged by the coordinates
+            own = None
+        target = parse_crs(crs, "PROJECT")
+        if own:
+            own_crs = parse_crs(own, name)
+            if not same_crs(own_crs, target):
+                raise self.fail(name, f"is in {crs_label(own_crs)} but PROJECT is in "
+                                f"{crs_label(target)}: reproject it to PROJECT's CRS first")
+        check_coordinates_in_area(name, target, xy, feedback.push_warning)

@@ -5,7 +5,7 @@ Sequence: validate the block (one-line errors), check the datum, optionally a Hu
 (weights ``min(1, k/|e|)`` on the standardised residuals ``e``) to get near the blunder-free
 solution, then plain least squares and data snooping: the w-test ``w_i = v_i / (σ_i·√r_i)``
 (a priori σ0 = 1, redundancy numbers ``r_i`` from :mod:`toolbox.triangulation.precision`) of
-every image, control and GNSS observation; the largest ``|w| > critical_w`` is rejected and the
+every image, control, GNSS and IMU observation; the largest ``|w| > critical_w`` is rejected and the
 adjustment repeated, one observation at a time, until none is left (or ``max_rejections``).
 A tie point with only two rays cannot say which ray is wrong: both go.
 """
@@ -19,10 +19,11 @@ import numpy as np
 
 from toolbox.errors import InputDataError
 from toolbox.triangulation.block import WEIGHTED, Block, Options, Rejection, Solution
-from toolbox.triangulation.model import image_residuals, rotations
+from toolbox.triangulation.model import observation_residuals, rotations
 from toolbox.triangulation.precision import cofactors
 from toolbox.triangulation.solver import (
     KIND_ATTITUDE,
+    KIND_CALIB,
     KIND_GROUND,
     KIND_IMAGE,
     Problem,
@@ -145,8 +146,10 @@ def _huber(problem: Problem, state: State, options: Options) -> State:
     b = problem.block
     for _ in range(5):
         state, lin, _ = least_squares(problem, state, options)
-        f, _ = image_residuals(b.obs_xy, state.exterior[b.obs_photo], state.points[b.obs_point],
-                               state.calibration[b.photo_camera[b.obs_photo]], jacobians=False)
+        cam, kind, aspect = b.observation_cameras()
+        f, _ = observation_residuals(b.obs_xy, state.exterior[b.obs_photo],
+                                     state.points[b.obs_point], state.calibration[cam], kind,
+                                     aspect, jacobians=False, **b.model_arguments(cam))
         e = np.abs(f / b.obs_sigma)
         problem.obs_factor = np.sqrt(np.minimum(1.0, options.huber_k / np.maximum(e, 1e-300)))
         eg = np.abs((state.points[b.ground_point] + problem.origin - b.ground_xyz)
@@ -162,7 +165,7 @@ def _huber(problem: Problem, state: State, options: Options) -> State:
 def _reject(problem: Problem, lin, w: np.ndarray, r: np.ndarray, options: Options
             ) -> Rejection | None:
     b = problem.block
-    testable = (lin.kind != 3) & (lin.kind != KIND_ATTITUDE) & (r > 1e-3) & np.isfinite(w)
+    testable = (lin.kind != KIND_CALIB) & (r > 1e-3) & np.isfinite(w)
     # never reject the control the datum rests on (2 XY + 3 Z points, unless >= 3 GNSS centres)
     if (problem.centre_active.all(axis=1)).sum() < 3:
         active = problem.ground_active
@@ -193,6 +196,10 @@ def _reject(problem: Problem, lin, w: np.ndarray, r: np.ndarray, options: Option
         problem.ground_active[i, comp] = False
         return Rejection("ground", i, comp, float(w[row]), float(r[row]),
                          residual * float(b.ground_sigma[i, comp]))
+    if kind == KIND_ATTITUDE:
+        problem.attitude_active[i, comp] = False
+        return Rejection("attitude", i, comp, float(w[row]), float(r[row]),
+                         residual * float(b.attitude_sigma[i, comp]))
     problem.centre_active[i, comp] = False
     return Rejection("centre", i, comp, float(w[row]), float(r[row]),
                      residual * float(b.centre_sigma[i, comp]))
@@ -261,8 +268,10 @@ def _solution(problem: Problem, state: State, lin, cof, iterations: int,
     unknowns = problem.nc + 3 * int(observed.sum())
     redundancy = len(lin.r) - unknowns
     sigma0 = math.sqrt(lin.cost / redundancy) if redundancy > 0 else math.nan
-    f, _ = image_residuals(b.obs_xy, state.exterior[b.obs_photo], state.points[b.obs_point],
-                           state.calibration[b.photo_camera[b.obs_photo]], jacobians=False)
+    cam, kind, aspect = b.observation_cameras()
+    f, _ = observation_residuals(b.obs_xy, state.exterior[b.obs_photo], state.points[b.obs_point],
+                                 state.calibration[cam], kind, aspect, jacobians=False,
+                                 **b.model_arguments(cam))
     g_res = state.points[b.ground_point] + problem.origin - b.ground_xyz
     lever = rotations(state.exterior[:, 3:])[0] @ b.lever_arm
     shift, drift, bore = problem.extras(state)
@@ -276,6 +285,7 @@ def _solution(problem: Problem, state: State, lin, cof, iterations: int,
     image_r = np.full_like(image_w, np.nan)
     ground_w = np.full_like(b.ground_xyz, np.nan)
     ground_r = np.full_like(b.ground_xyz, np.nan)
+    attitude_w = np.full_like(b.attitude_obs, np.nan)
     ext_std = np.full((n, 6), np.nan)
     cal_std = np.full(b.calibration.shape, np.nan)
     pt_cov = np.full((p, 3, 3), np.nan)
@@ -283,6 +293,8 @@ def _solution(problem: Problem, state: State, lin, cof, iterations: int,
         r = 1.0 - cof.rows
         with np.errstate(invalid="ignore", divide="ignore"):
             w = lin.r / np.sqrt(r)
+        on = lin.kind == KIND_ATTITUDE
+        attitude_w[lin.index[on], lin.component[on]] = w[on]
         for kind, wa, ra in ((KIND_IMAGE, image_w, image_r), (KIND_GROUND, ground_w, ground_r)):
             on = lin.kind == kind
             wa[lin.index[on], lin.component[on]] = w[on]
@@ -305,4 +317,5 @@ def _solution(problem: Problem, state: State, lin, cof, iterations: int,
                     g_res, h_res, problem.obs_active.copy(), problem.ground_active.copy(),
                     problem.centre_active.copy(), image_w, image_r, ground_w, ground_r, ext_std,
                     np.sqrt(np.einsum("pii->pi", pt_cov)), pt_cov, cal_std, rejections,
-                    problem.origin.copy(), notes, shift, drift, bore, *extra_std, a_res)
+                    problem.origin.copy(), notes, shift, drift, bore, *extra_std, a_res,
+                    problem.attitude_active.copy(), attitude_w)

@@ -25,7 +25,7 @@ import numpy as np
 
 from toolbox.errors import InputDataError
 from toolbox.triangulation.block import Block
-from toolbox.triangulation.model import ideal
+from toolbox.triangulation.model import KIND_BROWN, KIND_MODEL, brown_ideal, ideal
 
 
 def components(block: Block) -> list[list[str]]:
@@ -52,8 +52,18 @@ def require_connected(block: Block) -> None:
 
 
 def camera_xy(block: Block) -> np.ndarray:
-    """Ideal camera coordinates (mm) of every observation at the start calibration."""
-    return ideal(block.obs_xy, block.calibration[block.photo_camera[block.obs_photo]])[0]
+    """Ideal camera coordinates (mm; px for a Brown camera, whose ``c`` is f) of every
+    observation at the start calibration."""
+    cam, kind, aspect = block.observation_cameras()
+    calib = block.calibration[cam]
+    out = ideal(block.obs_xy, calib)[0]
+    brown = kind == KIND_BROWN
+    if brown.any():
+        out[brown] = brown_ideal(block.obs_xy[brown], calib[brown], aspect[brown])
+    for c in np.unique(cam[kind == KIND_MODEL]):
+        on = (kind == KIND_MODEL) & (cam == c)
+        out[on] = block.camera_models[c].pixel_to_normalised(block.obs_xy[on]) * calib[on, :1]
+    return out
 
 
 def _intersect(block: Block, cam: np.ndarray, exterior: np.ndarray, oriented: np.ndarray,
@@ -248,3 +258,68 @@ def _chain(block: Block, exterior: np.ndarray, oriented: np.ndarray, points: np.
         if oriented.all() or not progress:
             break
     return notes
+
+
+def check_attitude_unit(block: Block, exterior: np.ndarray, unit: str,
+                        name: str = "IMU_ANGLE_UNIT") -> None:
+    """IMU attitudes read in ``unit`` that the approximate orientations contradict while the
+    same numbers in another angle unit (deg, rad, gon) agree with them: a ParameterError naming
+    both (a vertical block's omega and phi near 0 betray a wrong unit at once). Misfit: the mean
+    over photos of the largest angle difference; over 0.1 rad for the given unit, under half of
+    it and 0.1 rad for the other."""
+    from toolbox.errors import ParameterError
+    from toolbox.photogrammetry.rotation import to_radians
+    from toolbox.triangulation.solver import attitude_residuals
+
+    if not len(block.attitude_photo):
+        return
+    raw = block.attitude_obs / to_radians(1.0, unit)
+    start = exterior[block.attitude_photo, 3:]
+    misfit = {u: float(np.mean(np.abs(attitude_residuals(start, np.zeros(3),
+                                                         raw * to_radians(1.0, u))).max(axis=1)))
+              for u in ("deg", "rad", "gon")}
+    best = min(misfit, key=misfit.get)
+    if misfit[unit] > 0.1 and best != unit and misfit[best] < min(0.1, misfit[unit] / 2):
+        raise ParameterError(name, f"is {unit} but the IMU angles read so differ from the "
+                             f"approximate orientations by {np.degrees(misfit[unit]):.1f} deg "
+                             f"(mean largest per photo); read as {best} they agree within "
+                             f"{np.degrees(misfit[best]):.2f} deg: give IMU_ANGLE_UNIT {best}")
+
+
+#: angle-unit mix-ups: factor by which the angles were wrongly scaled, and how to name it
+UNIT_MIXUPS = {np.pi / 180: "written in deg, read as rad", 180 / np.pi: "written in rad, read as deg",
+               np.pi / 200: "written in gon, read as rad", 200 / np.pi: "written in rad, read as gon"}
+
+
+def check_start_angle_unit(block: Block, exterior: np.ndarray, name: str = "PROJECT") -> None:
+    """Given start orientations whose control points (full XYZ) fall far off their measurements
+    while the same angles in another unit put them close (a vertical block's start read in the
+    wrong ``angle_unit``): a ParameterError naming the mix-up. Misfit: the median image
+    residual of the control observations (behind a camera: infinite); the given angles are
+    refused when the best mix-up is 20 times closer."""
+    from toolbox.errors import ParameterError
+    from toolbox.triangulation.model import observation_residuals
+
+    points, known = _control(block)
+    sel = np.flatnonzero(known[block.obs_point])
+    if len(sel) < 3:
+        return
+    cam, kind, aspect = block.observation_cameras(sel)
+
+    def misfit(angles_scale: float) -> float:
+        ext = exterior[block.obs_photo[sel]].copy()
+        ext[:, 3:] *= angles_scale
+        f, depth = observation_residuals(block.obs_xy[sel], ext, points[block.obs_point[sel]],
+                                         block.calibration[cam], kind, aspect, jacobians=False,
+                                         **block.model_arguments(cam))
+        err = np.where(depth < 0, np.hypot(f[:, 0], f[:, 1]), np.inf)
+        return float(np.median(err))
+
+    given = misfit(1.0)
+    scores = {k: misfit(k) for k in UNIT_MIXUPS}
+    best = min(scores, key=scores.get)
+    if np.isfinite(scores[best]) and given > 20 * scores[best]:
+        where = "behind the cameras" if not np.isfinite(given) else "far off their measurements"
+        raise ParameterError(name, f"its exterior angles put the control points {where}, but "
+                             f"scaled as if {UNIT_MIXUPS[best]} they fit (median "
+                             f"residual {scores[best]:.3g} image units): check its angle_unit")

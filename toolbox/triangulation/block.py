@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from toolbox.triangulation.model import CALIBRATION_NAMES
+from toolbox.triangulation.model import BROWN_NAMES, CALIBRATION_NAMES, KIND_FILM
 
 FIXED, FREE, WEIGHTED = 0, 1, 2
 MODE_NAMES = {"fixed": FIXED, "free": FREE, "weighted": WEIGHTED}
@@ -23,7 +23,9 @@ class Block:
 
     photo_ids, photo_camera (n,) camera index of each photo; camera_names;
     calibration (k, 8) start (and, for weighted parameters, observed) values of
-    :data:`~toolbox.triangulation.model.CALIBRATION_NAMES` (mm, mm⁻², ...);
+    :data:`~toolbox.triangulation.model.CALIBRATION_NAMES` (mm, mm⁻², ...), or for a Brown
+    camera (``camera_kind`` KIND_BROWN; its observations and sigmas in pixels) of
+    :data:`~toolbox.triangulation.model.BROWN_NAMES` (px, unitless);
     calibration_mode (k, 8) FIXED / FREE / WEIGHTED; calibration_sigma (k, 8);
     point_ids; obs_photo, obs_point (m,), obs_xy, obs_sigma (m, 2) image mm;
     ground_point (g,), ground_xyz (g, 3) surveyed coordinates (NaN: component not known, e.g.
@@ -59,9 +61,16 @@ class Block:
     attitude_obs: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     attitude_sigma: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     boresight: bool = False
+    camera_kind: np.ndarray | None = None  # (k,) KIND_FILM (image mm) or KIND_BROWN (pixels)
+    camera_aspect: np.ndarray | None = None  # (k,) fy/fx of a Brown camera (held fixed)
+    camera_models: list | None = None  # (k,) the Intrinsics of KIND_MODEL cameras (else None)
 
     def __post_init__(self) -> None:
         k = len(self.camera_names)
+        self.camera_kind = np.zeros(k, dtype=np.int64) if self.camera_kind is None else \
+            np.asarray(self.camera_kind, dtype=np.int64).reshape(k)
+        self.camera_aspect = np.ones(k) if self.camera_aspect is None else \
+            np.asarray(self.camera_aspect, dtype=float).reshape(k)
         self.photo_camera = np.asarray(self.photo_camera, dtype=np.int64)
         self.calibration = np.asarray(self.calibration, dtype=float).reshape(k, 8)
         if self.calibration_mode is None:
@@ -100,7 +109,20 @@ class Block:
         return int(self.centre_group.max()) + 1 if len(self.centre_group) else 0
 
     def calibration_label(self, camera: int, parameter: int) -> str:
-        return f"camera {self.camera_names[camera]!r} {CALIBRATION_NAMES[parameter]}"
+        names = BROWN_NAMES if self.camera_kind[camera] != KIND_FILM else CALIBRATION_NAMES
+        return f"camera {self.camera_names[camera]!r} {names[parameter]}"
+
+    def observation_cameras(self, rows: np.ndarray | None = None
+                            ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Camera index, camera kind and aspect of the image observations ``rows`` (all)."""
+        ph = self.obs_photo if rows is None else self.obs_photo[rows]
+        cam = self.photo_camera[ph]
+        return cam, self.camera_kind[cam], self.camera_aspect[cam]
+
+    def model_arguments(self, cam: np.ndarray) -> dict:
+        """The ``cameras``/``models`` keywords of
+        :func:`~toolbox.triangulation.model.observation_residuals`."""
+        return {"cameras": cam, "models": self.camera_models}
 
 
 @dataclass
@@ -121,12 +143,12 @@ class Options:
 class Rejection:
     """One observation removed by data snooping."""
 
-    kind: str  # "image", "ground" or "centre"
-    index: int  # into obs_*, ground_* or centre_*
-    component: int  # image: 0 x / 1 y (the worse); ground/centre: 0 X, 1 Y, 2 Z
+    kind: str  # "image", "ground", "centre" or "attitude"
+    index: int  # into obs_*, ground_*, centre_* or attitude_*
+    component: int  # image: 0 x / 1 y; ground/centre: 0 X, 1 Y, 2 Z; attitude: ω, φ, κ
     w: float
     redundancy: float
-    residual: float  # computed minus observed, mm (image) or m
+    residual: float  # computed minus observed, mm (image; px for a Brown camera), m or rad
 
 
 @dataclass
@@ -170,3 +192,5 @@ class Solution:
     gnss_drift_std: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     boresight_std: np.ndarray = field(default_factory=lambda: np.full(3, np.nan))
     attitude_residuals: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))  # rad
+    attitude_active: np.ndarray = field(default_factory=lambda: np.zeros((0, 3), dtype=bool))
+    attitude_w: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))  # w-tests

@@ -24,7 +24,10 @@ import numpy as np
 
 from toolbox.errors import InputDataError, ParameterError
 from toolbox.triangulation.block import FIXED, MODE_NAMES, WEIGHTED, Block
-from toolbox.triangulation.model import CALIBRATION_NAMES
+from toolbox.triangulation.model import CALIBRATION_NAMES, KIND_BROWN, KIND_FILM, KIND_MODEL
+
+#: a digital (Brown) camera's f, cx, cy take the film camera's c, x0, y0 places
+BROWN_ALIASES = {"f": "c", "cx": "x0", "cy": "y0"}
 
 
 @dataclass
@@ -250,9 +253,11 @@ def parse_self_calibration(text: str, name: str = "SELF_CALIBRATION"
         parts = [p.strip() for p in item.split(":")]
         par, _, camera = parts[0].partition("@")
         par = par.strip().lower()
+        par = BROWN_ALIASES.get(par, par)
         if par not in CALIBRATION_NAMES:
             raise ParameterError(name, f"unknown calibration parameter {par!r}; expected "
-                                 f"one of {', '.join(CALIBRATION_NAMES)} (optionally @CAMERA)")
+                                 f"one of {', '.join(CALIBRATION_NAMES)} (f, cx, cy for a "
+                                 "digital Brown camera) (optionally @CAMERA)")
         mode = parts[1].lower() if len(parts) > 1 else "free"
         if mode not in MODE_NAMES or len(parts) > 3:
             raise ParameterError(name, f"{item!r}: mode must be fixed, free or "
@@ -293,18 +298,23 @@ def calibration_settings(spec: dict[tuple[str | None, str], tuple[int, float]],
 
 def camera_calibration(camera, free: set[str]) -> np.ndarray:
     """Start values (8,) of a project camera; its distortion must be a polynomial (or none)
-    when radial terms are estimated, and a table is applied to the measurements instead."""
+    when radial terms are estimated, and a table is applied to the measurements instead.
+    A model camera (pinhole or brown): ``(fx px, cx px, cy px, k1, k2, k3, p1, p2)``."""
+    from toolbox.cameras import Intrinsics
     from toolbox.photogrammetry.camera import DISTORTION_POLYNOMIAL
 
-    values = np.zeros(8)
-    if getattr(camera, "focal_px", None) is not None:  # a camera model: fixed, pixel units
-        if free:
+    if isinstance(camera, Intrinsics):
+        if camera.kind not in ("pinhole", "brown") and free:
             raise ParameterError("SELF_CALIBRATION", f"camera {camera.name!r} is a "
-                                 f"{camera.kind} model: its interior stays fixed in the bundle "
-                                 "(self-calibration estimates a film camera's c, x0, y0, k1-k3, "
-                                 "p1, p2)")
-        values[0] = float(np.mean(camera.focal_px))
-        return values
+                                 f"{camera.kind} model: its interior is held fixed (only film, "
+                                 "pinhole or brown cameras are self-calibrated); drop "
+                                 f"{', '.join(sorted(free))}")
+        if camera.kind not in ("pinhole", "brown"):
+            return np.array([camera.focal_px[0], *camera.principal_point_px, 0, 0, 0, 0, 0])
+        c = camera.coefficients
+        return np.array([camera.focal_px[0], *camera.principal_point_px,
+                         *(c.get(k, 0.0) for k in ("k1", "k2", "k3", "p1", "p2"))])
+    values = np.zeros(8)
     values[0] = camera.c
     values[1:3] = camera.principal_point_mm
     dist = camera.distortion
@@ -345,17 +355,16 @@ def build_block(request: BlockRequest) -> tuple[Block, dict]:
     rows_of: dict[str, list[int]] = {}
     for k, p in enumerate(ms.photo_ids):
         rows_of.setdefault(p, []).append(k)
-    model_photos = []
     for pid in photo_ids:
         rows = rows_of[pid]
         photo = project.photos[pid]
-        if photo.is_model:  # ideal coordinates in pixel-sized units (camera_observations)
-            from toolbox.photogrammetry.forward_intersection import camera_observations
-
-            xy[rows] = camera_observations([photo] * len(rows), xy[rows], ms.kind)
-            pixel_mm[pid] = 1.0
+        if photo.is_model:  # Brown / pinhole: pixels observed as they are (forward model)
+            if ms.kind != "pixel":
+                raise InputDataError(f"photo {pid!r}: its camera {photo.camera.name!r} is a "
+                                     f"{photo.camera.kind} model: give its measurements in "
+                                     "pixels (col_px, row_px), not image mm")
+            pixel_mm[pid] = 1.0  # its image units are pixels
             sigma[rows] = np.where(np.isnan(sigma[rows]), request.sigma_px, sigma[rows])
-            model_photos.append(pid)
             continue
         if ms.kind == "pixel":
             transform = photo.require_pixel_transform()
@@ -429,14 +438,16 @@ def build_block(request: BlockRequest) -> tuple[Block, dict]:
                   np.array(h_sig).reshape(-1, 3), np.asarray(request.lever_arm, dtype=float),
                   groups, times, request.gnss_shift, request.gnss_drift, a_photo,
                   np.array(a_obs, dtype=float).reshape(-1, 3),
-                  np.array(a_sig, dtype=float).reshape(-1, 3), request.boresight)
+                  np.array(a_sig, dtype=float).reshape(-1, 3), request.boresight,
+                  [_kind(project.cameras[c]) for c in camera_names],
+                  [_aspect(project.cameras[c]) for c in camera_names],
+                  [project.cameras[c] if _kind(project.cameras[c]) == KIND_MODEL else None
+                   for c in camera_names])
     info_strips = sorted(set(h_strip), key=lambda v: (len(v), v))
     return block, {"checks": checks, "kind": ms.kind, "pixel_mm": pixel_mm,
-                   "model_photos": model_photos,
+                   "model_photos": {p for p in photo_ids if project.photos[p].is_model},
                    "gnss_strips": info_strips, "free": [f"{block.calibration_label(k, i)}" for k, i in
                             np.argwhere(modes != FIXED)]}
-
-
 
 
 def _strips_and_times(photos: list[int], strips: list[str], times: np.ndarray,
@@ -452,3 +463,21 @@ def _strips_and_times(photos: list[int], strips: list[str], times: np.ndarray,
             order = np.argsort(np.argsort([photos[i] for i in rows]))
             times[rows] = order - (len(rows) - 1) / 2
     return groups, times
+
+
+def _is_model(camera) -> bool:
+    from toolbox.cameras import Intrinsics
+
+    return isinstance(camera, Intrinsics)
+
+
+def _kind(camera) -> int:
+    """KIND_FILM, KIND_BROWN (pinhole, brown) or KIND_MODEL (opencv, fisheye) of a camera."""
+    if not _is_model(camera):
+        return KIND_FILM
+    return KIND_BROWN if camera.kind in ("pinhole", "brown") else KIND_MODEL
+
+
+def _aspect(camera) -> float:
+    """fy/fx of a model camera (1 for film)."""
+    return camera.focal_px[1] / camera.focal_px[0] if _is_model(camera) else 1.0

@@ -14,7 +14,13 @@ from typing import Any
 import numpy as np
 
 from toolbox.triangulation.block import Block, Solution
-from toolbox.triangulation.model import CALIBRATION_NAMES, EXTERIOR_NAMES
+from toolbox.triangulation.model import (
+    BROWN_NAMES,
+    CALIBRATION_NAMES,
+    EXTERIOR_NAMES,
+    KIND_BROWN,
+    KIND_FILM,
+)
 
 MAX_REPORTED_OBSERVATIONS = 50_000  # per-observation residuals in the JSON up to this many
 
@@ -48,6 +54,9 @@ def adjusted_project(project, block: Block, solution: Solution):
             continue
         cal = solution.calibration[k]
         cam = cameras[name]
+        if block.camera_kind[k] == KIND_BROWN:
+            cameras[name] = brown_camera(cam, cal, float(block.camera_aspect[k]))
+            continue
         dist = cam.distortion
         if free[k, 3:5].any() or (dist is not None and dist.mode == 2):
             dist = RadialDistortion.from_polynomial(float(cal[3]), float(cal[4]))
@@ -61,10 +70,29 @@ def adjusted_project(project, block: Block, solution: Solution):
     return updated.with_exteriors(eos)
 
 
+def brown_camera(camera, calibration: np.ndarray, aspect: float):
+    """The adjusted Brown camera (:class:`toolbox.cameras.Intrinsics`) of a model camera from
+    its calibration ``(fx, cx, cy, k1, k2, k3, p1, p2)`` (px): the camera spec written afresh
+    (focal length and principal point offsets normalised by max(w, h), the factory's schema),
+    built through :func:`toolbox.cameras.create_intrinsics` (which checks the distortion does
+    not fold back inside the image)."""
+    from toolbox.cameras import create_intrinsics
+
+    w, h = camera.image_size_px
+    s = float(max(w, h))
+    fx, cx, cy, k1, k2, k3, p1, p2 = map(float, calibration)
+    focal = fx / s if aspect == 1.0 else [fx / s, aspect * fx / s]
+    spec = {"type": "brown", "im_size": [int(w), int(h)], "focal_len": focal,
+            "cx": (cx - w / 2) / s, "cy": (cy - h / 2) / s,
+            "k1": k1, "k2": k2, "k3": k3, "p1": p1, "p2": p2}
+    return create_intrinsics(spec, camera.name)
+
+
 def unstored_calibration(block: Block) -> list[str]:
-    """Free calibration parameters the project format cannot hold (k3, p1, p2)."""
+    """Free calibration parameters the project format cannot hold (a film camera's k3, p1,
+    p2; a Brown camera stores all)."""
     return [block.calibration_label(k, p) for k, p in np.argwhere(block.calibration_mode != 0)
-            if CALIBRATION_NAMES[p] in ("k3", "p1", "p2")]
+            if CALIBRATION_NAMES[p] in ("k3", "p1", "p2") and block.camera_kind[k] != KIND_BROWN]
 
 
 def ground_comparison(block: Block, solution: Solution, control, checks: list[str]
@@ -95,6 +123,12 @@ def _rms(values: list[float | None]) -> float | None:
     return _num(math.sqrt(sum(v * v for v in vals) / len(vals))) if vals else None
 
 
+def model_observations(block: Block, info: dict) -> np.ndarray:
+    """(m,) True for image observations of model (Brown, pixel) cameras."""
+    model = info.get("model_photos", set())
+    return np.array([block.photo_ids[j] in model for j in block.obs_photo], dtype=bool)
+
+
 def report(block: Block, solution: Solution, info: dict, ground: list[dict[str, Any]],
            notes: list[str], threshold_px: float = 1.0) -> dict[str, Any]:
     """The JSON report (plain types); ``flagged``: active measurements whose residual exceeds
@@ -102,8 +136,7 @@ def report(block: Block, solution: Solution, info: dict, ground: list[dict[str, 
     px = np.array([info["pixel_mm"].get(block.photo_ids[j], np.nan) for j in block.obs_photo])
     res = solution.image_residuals
     active = solution.obs_active
-    models = set(info.get("model_photos", ()))  # camera models: residuals in pixels only
-    film = np.array([block.photo_ids[j] not in models for j in block.obs_photo], dtype=bool)
+    film = ~model_observations(block, info)  # image mm; a model camera's are pixels
     with np.errstate(invalid="ignore"):
         over = active & (np.hypot(res[:, 0], res[:, 1]) / px > threshold_px)
     summary = {
@@ -130,11 +163,14 @@ def report(block: Block, solution: Solution, info: dict, ground: list[dict[str, 
                           for k, n in enumerate(EXTERIOR_NAMES)}})
     cameras = []
     for k, name in enumerate(block.camera_names):
-        cameras.append({"camera": name, **{
+        kind = int(block.camera_kind[k])
+        brown = kind != KIND_FILM
+        label = ("film (mm)", "brown (px)", "interior model (px, fixed)")[kind]
+        cameras.append({"camera": name, "model": label, **{
             n: {"value": float(solution.calibration[k, i]),
                 "mode": ("fixed", "free", "weighted")[int(block.calibration_mode[k, i])],
                 "std": _num(solution.calibration_std[k, i])}
-            for i, n in enumerate(CALIBRATION_NAMES)}})
+            for i, n in enumerate(BROWN_NAMES if brown else CALIBRATION_NAMES)}})
     rejections = []
     for rj in solution.rejections:
         if rj.kind == "image":
@@ -144,6 +180,9 @@ def report(block: Block, solution: Solution, info: dict, ground: list[dict[str, 
         elif rj.kind == "ground":
             what = {"point_id": block.point_ids[block.ground_point[rj.index]],
                     "coordinate": "XYZ"[rj.component], "residual_m": rj.residual}
+        elif rj.kind == "attitude":
+            what = {"photo": block.photo_ids[block.attitude_photo[rj.index]],
+                    "coordinate": EXTERIOR_NAMES[3 + rj.component], "residual_rad": rj.residual}
         else:
             what = {"photo": block.photo_ids[block.centre_photo[rj.index]],
                     "coordinate": "XYZ"[rj.component], "residual_m": rj.residual}
@@ -154,8 +193,9 @@ def report(block: Block, solution: Solution, info: dict, ground: list[dict[str, 
         observations = [
             {"point_id": block.point_ids[block.obs_point[i]],
              "photo": block.photo_ids[block.obs_photo[i]],
-             "res_x_um": float(1e3 * res[i, 0]) if film[i] else None,
-             "res_y_um": float(1e3 * res[i, 1]) if film[i] else None,
+             "res_x_um": _num(1e3 * res[i, 0]) if film[i] else None,
+             "res_y_um": _num(1e3 * res[i, 1]) if film[i] else None,
+             "res_x_px": _num(res[i, 0] / px[i]), "res_y_px": _num(res[i, 1] / px[i]),
              "w_x": _num(solution.image_w[i, 0]), "w_y": _num(solution.image_w[i, 1]),
              "r_x": _num(solution.image_r[i, 0]), "r_y": _num(solution.image_r[i, 1]),
              "rejected": not bool(active[i])} for i in range(len(block.obs_photo))]
@@ -174,7 +214,9 @@ def report(block: Block, solution: Solution, info: dict, ground: list[dict[str, 
         gnss_imu["imu"] = {
             "angle_unit": "rad", "observations": int(len(block.attitude_photo)),
             "rms_residual": {n: _num(np.sqrt(np.mean(solution.attitude_residuals[:, k] ** 2)))
-                             for k, n in enumerate(EXTERIOR_NAMES[3:])}}
+                             for k, n in enumerate(EXTERIOR_NAMES[3:])},
+            "rejected": int((~solution.attitude_active).sum()),
+            "max_abs_w": _num(np.nanmax(np.abs(solution.attitude_w), initial=0.0))}
         if block.boresight:
             gnss_imu["imu"]["boresight"] = {
                 **{n: float(solution.boresight[k]) for k, n in enumerate(EXTERIOR_NAMES[3:])},
@@ -218,6 +260,7 @@ def layers(block: Block, solution: Solution, info: dict, ground: list[dict[str, 
                        "ellipse_angle_deg": _num(angle),
                        "geometry": shapely.Point(solution.points[p])})
     obs = []
+    model = info.get("model_photos", set())
     for i in range(len(block.obs_photo)):
         pt = solution.points[block.obs_point[i]]
         if not np.isfinite(pt).all():
@@ -226,10 +269,9 @@ def layers(block: Block, solution: Solution, info: dict, ground: list[dict[str, 
         v = solution.image_residuals[i]
         size = info["pixel_mm"].get(pid)
         res_px = math.hypot(*v) / size if size else None
-        film = pid not in set(info.get("model_photos", ()))
         obs.append({"point_id": block.point_ids[block.obs_point[i]], "photo": pid,
-                    "res_x_um": float(1e3 * v[0]) if film else None,
-                    "res_y_um": float(1e3 * v[1]) if film else None,
+                    "res_x_um": _num(1e3 * v[0]) if pid not in model else None,
+                    "res_y_um": _num(1e3 * v[1]) if pid not in model else None,
                     "res_px": None if res_px is None else _num(res_px),
                     "w_x": _num(solution.image_w[i, 0]), "w_y": _num(solution.image_w[i, 1]),
                     "r_x": _num(solution.image_r[i, 0]), "r_y": _num(solution.image_r[i, 1]),

@@ -25,9 +25,10 @@ from toolbox.errors import ConvergenceError, InputDataError
 from toolbox.triangulation.block import FIXED, WEIGHTED, Block, Options
 from toolbox.triangulation.model import (
     EXTERIOR_NAMES,
-    image_residuals,
+    observation_residuals,
     rotations,
 )
+from toolbox.triangulation.schur import coupling, inverse_blocks, pair_structure, photo_schur
 
 DENSE_LIMIT = 3000
 BAND_LIMIT = 50_000_000  # values of a banded factor (400 MB) before sparse LU is used instead
@@ -35,7 +36,6 @@ EIGEN_LIMIT = 400  # full eigen-analysis of the reduced matrix up to this size, 
 SINGULAR_RATIO = 1e-13  # smallest / largest eigenvalue of the scaled reduced normal matrix
 WEAK_RATIO = 1e-7  # below it: a warning (a parameter barely determined)
 KIND_IMAGE, KIND_GROUND, KIND_CENTRE, KIND_CALIB, KIND_ATTITUDE = 0, 1, 2, 3, 4
-ANGLE_STEP = 1e-7  # rad: central differences of the attitude observations
 
 
 @dataclass
@@ -64,6 +64,9 @@ class Linearization:
     index: np.ndarray  # (rows,) into the observation arrays of its kind
     component: np.ndarray  # (rows,)
     depth_ok: bool = True
+    img_w: np.ndarray | None = None  # (m, 6, 3) Jc_iᵀ·Jp_i of each active image observation
+    img_photo: np.ndarray | None = None  # (m,) its photo
+    img_point: np.ndarray | None = None  # (m,) its point
 
     @property
     def cost(self) -> float:
@@ -79,6 +82,7 @@ class Problem:
         self.obs_active = np.ones(len(block.obs_photo), dtype=bool)
         self.ground_active = np.isfinite(block.ground_xyz)
         self.centre_active = np.isfinite(block.centre_xyz)
+        self.attitude_active = np.ones(block.attitude_obs.shape, dtype=bool)
         self.obs_factor = np.ones((len(block.obs_photo), 2))  # robust weight factors
         self.ground_factor = np.ones_like(block.ground_xyz)
         self.centre_factor = np.ones_like(block.centre_xyz)
@@ -134,11 +138,12 @@ class Problem:
         b = self.block
         sel = np.flatnonzero(self.obs_active)
         ph, pt = b.obs_photo[sel], b.obs_point[sel]
-        cam = b.photo_camera[ph]
+        cam, kind, aspect = b.observation_cameras(sel)
         calib = state.calibration[cam]
         r_photo, dr_photo = rotations(state.exterior[:, 3:])
-        out = image_residuals(b.obs_xy[sel], state.exterior[ph], state.points[pt], calib,
-                              jacobians, (r_photo[ph], dr_photo[ph]))
+        out = observation_residuals(b.obs_xy[sel], state.exterior[ph], state.points[pt], calib,
+                                    kind, aspect, jacobians, (r_photo[ph], dr_photo[ph]),
+                                    **b.model_arguments(cam))
         f, depth = out[0], out[1]
         wimg = self.obs_factor[sel] / b.obs_sigma[sel]
         m = len(sel)
@@ -171,12 +176,12 @@ class Problem:
         kinds.append(np.full(len(hi), KIND_CENTRE))
         idx.append(hi)
         comp.append(hc)
-        # IMU attitudes: angles of R·R(boresight)
-        ai = np.repeat(np.arange(len(b.attitude_photo)), 3)
-        ac = np.tile(np.arange(3), len(b.attitude_photo))
+        # IMU attitudes: angles of R·R(boresight), analytic derivatives
+        ai, ac = np.nonzero(self.attitude_active)
         wa = 1.0 / b.attitude_sigma[ai, ac]
-        fa = attitude_residuals(state.exterior[b.attitude_photo, 3:], bore,
-                                b.attitude_obs).ravel()
+        att = attitude_residuals(state.exterior[b.attitude_photo, 3:], bore, b.attitude_obs,
+                                 jacobians)
+        fa = (att[0] if jacobians else att)[ai, ac]
         # weighted calibration parameters
         wc_cam, wc_par = np.nonzero(b.calibration_mode == WEIGHTED)
         wcal = 1.0 / b.calibration_sigma[wc_cam, wc_par]
@@ -229,25 +234,16 @@ class Problem:
         c_idx.append(self.calib_column[wc_cam, wc_par])
         vals.append(wcal)
         base += len(wc_cam)
-        if len(ai):  # attitude rows: central differences in the photo's angles and boresight
-            a_ph = b.attitude_photo
-            angles = state.exterior[a_ph, 3:]
-            for t in range(6):
-                step = np.zeros(3)
-                step[t % 3] = ANGLE_STEP
-                if t < 3:
-                    hi_, lo_ = (attitude_residuals(angles + sgn * step, bore, b.attitude_obs)
-                                for sgn in (1, -1))
-                    cols = np.repeat(6 * a_ph + 3 + t, 3)
-                elif self.boresight_column[t - 3] >= 0:
-                    hi_, lo_ = (attitude_residuals(angles, bore + sgn * step, b.attitude_obs)
-                                for sgn in (1, -1))
-                    cols = np.full(3 * len(a_ph), self.boresight_column[t - 3])
-                else:
-                    continue
+        if len(ai):  # attitude rows: d(angles)/d(photo angles) and d/d(boresight)
+            a_ph = b.attitude_photo[ai]
+            for t in range(3):
                 r_idx.append(base + np.arange(len(ai)))
-                c_idx.append(cols)
-                vals.append(wa * ((hi_ - lo_) / (2 * ANGLE_STEP)).ravel())
+                c_idx.append(6 * a_ph + 3 + t)
+                vals.append(wa * att[1][ai, ac, t])
+                if self.boresight_column[t] >= 0:
+                    r_idx.append(base + np.arange(len(ai)))
+                    c_idx.append(np.full(len(ai), self.boresight_column[t]))
+                    vals.append(wa * att[2][ai, ac, t])
         lin.jc = sp.csr_matrix((np.concatenate(vals), (np.concatenate(r_idx),
                                                        np.concatenate(c_idx))),
                                shape=(rows_all, self.nc))
@@ -255,6 +251,8 @@ class Problem:
         jp_rows[:2 * m] = (jpt * wimg[:, :, None]).reshape(2 * m, 3)
         jp_rows[2 * m + np.arange(len(gi)), gc] = wg
         lin.jp_rows = jp_rows
+        lin.img_w = coupling(je, jpt, wimg)
+        lin.img_photo, lin.img_point = ph, pt
         return lin
 
     def point_jacobian(self, lin: Linearization) -> sp.csr_matrix:
@@ -265,48 +263,91 @@ class Problem:
                              shape=(len(lin.r), 3 * self.block.n_points))
 
 
-@dataclass
 class Normal:
-    """Blocks of the normal equations ``N = JᵀJ``, gradient ``g = Jᵀr``."""
+    """Blocks of the normal equations ``N = JᵀJ = [[A, B], [Bᵀ, C]]``, gradient ``g = Jᵀr``.
 
-    a: sp.csr_matrix
-    b: sp.csr_matrix
-    c: np.ndarray  # (P, 3, 3)
-    gc: np.ndarray
-    gp: np.ndarray  # (P, 3)
-    jp: sp.csr_matrix
+    B is kept by its parts: the photo rows as the per-observation ``W_i`` (6 x 3) of
+    :mod:`toolbox.triangulation.schur`, the other camera-side rows (calibration; GNSS and IMU
+    unknowns touch no point) as a sparse ``b_rest``; the full sparse B (:attr:`b`, for the
+    precision) and the point Jacobian (:attr:`jp`) are made on demand."""
+
+    def __init__(self, problem: Problem, lin: Linearization) -> None:
+        n_pts = problem.block.n_points
+        self.problem, self.lin = problem, lin
+        self.n6 = 6 * problem.block.n_photos
+        jc = lin.jc
+        self.a = (jc.T @ jc).tocsr()
+        rows = lin.row_point >= 0
+        p = lin.row_point[rows]
+        jr = lin.jp_rows[rows]
+        outer = (jr[:, :, None] * jr[:, None, :]).reshape(-1, 9)
+        c = np.stack([np.bincount(p, weights=outer[:, k], minlength=n_pts) for k in range(9)],
+                     axis=1).reshape(n_pts, 3, 3)
+        unobserved = np.bincount(p, minlength=n_pts) == 0
+        c[unobserved] = np.eye(3)  # points whose observations were all rejected: kept as they are
+        self.c = c
+        self.gp = np.stack([np.bincount(p, weights=jr[:, k] * lin.r[rows], minlength=n_pts)
+                            for k in range(3)], axis=1)
+        self.gc = jc.T @ lin.r
+        self.w, self.obs_photo, self.obs_point = lin.img_w, lin.img_photo, lin.img_point
+        self.structure = pair_structure(self.obs_photo, self.obs_point, problem.block.n_photos)
+        self.b_rest = None
+        if problem.nc > self.n6:
+            img = np.flatnonzero(lin.kind == KIND_IMAGE)
+            rest = jc[img][:, self.n6:].tocsc()
+            jp = sp.csr_matrix((lin.jp_rows[img].ravel(), (np.repeat(np.arange(len(img)), 3),
+                                (3 * lin.row_point[img][:, None] + np.arange(3)).ravel())),
+                               shape=(len(img), 3 * n_pts))
+            self.b_rest = (rest.T @ jp).tocsr()
+        self._b = self._jp = None
+
+    @property
+    def jp(self) -> sp.csr_matrix:
+        if self._jp is None:
+            self._jp = self.problem.point_jacobian(self.lin)
+        return self._jp
+
+    @property
+    def b(self) -> sp.csr_matrix:
+        if self._b is None:
+            self._b = (self.lin.jc.T @ self.jp).tocsr()
+        return self._b
+
+    def b_times(self, v: np.ndarray) -> np.ndarray:
+        """``B·v`` for point values ``v`` (P, 3) -> (nc,)."""
+        out = np.zeros(self.problem.nc)
+        wv = np.einsum("mij,mj->mi", self.w, v[self.obs_point])
+        for k in range(6):
+            out[k:self.n6:6] = np.bincount(self.obs_photo, weights=wv[:, k],
+                                           minlength=self.n6 // 6)
+        if self.b_rest is not None:
+            out[self.n6:] = self.b_rest @ v.ravel()
+        return out
+
+    def bt_times(self, dc: np.ndarray) -> np.ndarray:
+        """``Bᵀ·dc`` -> (P, 3)."""
+        n_pts = len(self.c)
+        wt = np.einsum("mij,mi->mj", self.w, dc[:self.n6].reshape(-1, 6)[self.obs_photo])
+        out = np.stack([np.bincount(self.obs_point, weights=wt[:, k], minlength=n_pts)
+                        for k in range(3)], axis=1)
+        if self.b_rest is not None:
+            out += (self.b_rest.T @ dc[self.n6:]).reshape(-1, 3)
+        return out
 
 
 def normal_equations(problem: Problem, lin: Linearization) -> Normal:
-    n_pts = problem.block.n_points
-    jp = problem.point_jacobian(lin)
-    jc = lin.jc
-    a = (jc.T @ jc).tocsr()
-    b = (jc.T @ jp).tocsr()
-    rows = lin.row_point >= 0
-    p = lin.row_point[rows]
-    jr = lin.jp_rows[rows]
-    outer = (jr[:, :, None] * jr[:, None, :]).reshape(-1, 9)
-    c = np.stack([np.bincount(p, weights=outer[:, k], minlength=n_pts) for k in range(9)],
-                 axis=1).reshape(n_pts, 3, 3)
-    unobserved = np.bincount(p, minlength=n_pts) == 0
-    c[unobserved] = np.eye(3)  # points whose observations were all rejected: kept as they are
-    gp = np.stack([np.bincount(p, weights=jr[:, k] * lin.r[rows], minlength=n_pts)
-                   for k in range(3)], axis=1)
-    return Normal(a, b, c, jc.T @ lin.r, gp, jp)
+    return Normal(problem, lin)
 
 
 def block_inverse(c: np.ndarray, point_ids: list[str]) -> np.ndarray:
     """Inverse of the 3 x 3 point blocks; a singular one (a point without geometry) raises."""
-    eig = np.linalg.eigvalsh(c) if len(c) else np.ones((0, 3))  # symmetric: cheaper than SVD
-    with np.errstate(divide="ignore", invalid="ignore"):
-        cond = eig[:, 2] / eig[:, 0]
-    bad = np.flatnonzero(~((cond > 0) & (cond < 1e14)))
+    inv, ok = inverse_blocks(np.ascontiguousarray(c), 1e14)  # compiled, both cores
+    bad = np.flatnonzero(~ok)
     if len(bad):
         names = ", ".join(repr(point_ids[i]) for i in bad[:5])
         raise InputDataError(f"{len(bad)} point(s) are not determined by their rays (nearly "
                              f"parallel rays or too few observations): {names}")
-    return np.linalg.inv(c)
+    return inv
 
 
 def block_diagonal(blocks: np.ndarray) -> sp.bsr_matrix:
@@ -322,9 +363,29 @@ def reduced_system(normal: Normal, damping: float, point_ids: list[str]):
         a = a + sp.diags(damping * a.diagonal())
         c = c + damping * np.einsum("pii->pi", c)[:, :, None] * np.eye(3)
     cinv = block_inverse(c, point_ids)
-    bc = (normal.b @ block_diagonal(cinv)).tocsr()
-    s = (a - bc @ normal.b.T).tocsr()
-    rhs = -(normal.gc - bc @ normal.gp.ravel())
+    nc, n6 = normal.problem.nc, normal.n6
+    rows, cols, vals = photo_schur(normal.w, cinv, normal.obs_point, normal.structure, n6 // 6)
+    parts = [(rows, cols, vals)]
+    keep = np.unique(normal.b_rest.nonzero()[0]) if normal.b_rest is not None else []
+    if len(keep):  # calibration rows (GNSS/IMU rows of B are 0): B_r·C⁻¹·Bᵀ, sparse products
+        br = normal.b_rest[keep]
+        d = (br @ block_diagonal(cinv)).tocsr()  # (r, 3P)
+        rr = (d @ br.T).tocoo()
+        parts.append((n6 + keep[rr.row], n6 + keep[rr.col], rr.data))
+        dd = d.toarray().reshape(len(keep), -1, 3)[:, normal.obs_point]  # (r, m, 3)
+        x = np.einsum("rmk,mjk->rmj", dd, normal.w)  # (r, m, 6)
+        cross = np.zeros((len(keep), n6))
+        for j in range(6):
+            cross[:, j::6] = np.stack([np.bincount(normal.obs_photo, weights=x[q, :, j],
+                                                   minlength=n6 // 6)
+                                       for q in range(len(keep))])
+        rr_, cc_ = np.nonzero(cross)
+        parts.append((n6 + keep[rr_], cc_, cross[rr_, cc_]))
+        parts.append((cc_, n6 + keep[rr_], cross[rr_, cc_]))
+    rows, cols, vals = (np.concatenate(v) for v in zip(*parts, strict=True))
+    bcb = sp.csr_matrix((vals, (rows, cols)), shape=(nc, nc))
+    s = (a - bcb).tocsr()
+    rhs = -(normal.gc - normal.b_times(np.einsum("pij,pj->pi", cinv, normal.gp)))
     return s, rhs, cinv
 
 
@@ -468,7 +529,7 @@ def least_squares(problem: Problem, state: State, options: Options, check: bool 
         while True:
             s, rhs, cinv = reduced_system(normal, damping, problem.block.point_ids)
             dc = solve_reduced(s, rhs, problem)
-            dp = -np.einsum("pij,pj->pi", cinv, normal.gp + (normal.b.T @ dc).reshape(-1, 3))
+            dp = -np.einsum("pij,pj->pi", cinv, normal.gp + normal.bt_times(dc))
             trial = apply_step(problem, state, dc, dp)
             trial_lin = problem.linearize(trial, jacobians=False)
             if trial_lin.cost <= cost:
@@ -491,13 +552,33 @@ def least_squares(problem: Problem, state: State, options: Options, check: bool 
                            f"observations: {worst_observations(problem, lin)}")
 
 
-def attitude_residuals(angles: np.ndarray, boresight: np.ndarray, observed: np.ndarray
-                       ) -> np.ndarray:
-    """Angles (omega, phi, kappa) of ``R(angles)·R(boresight)`` minus ``observed`` (a, 3), rad,
-    wrapped to (-π, π]; ``R = Rx(ω)·Ry(φ)·Rz(κ)`` as :func:`~toolbox.triangulation.model.rotations`."""
-    r = rotations(angles)[0] @ rotations(np.asarray(boresight).reshape(1, 3))[0][0]
-    omega = np.arctan2(-r[:, 1, 2], r[:, 2, 2])
-    phi = np.arcsin(np.clip(r[:, 0, 2], -1.0, 1.0))
-    kappa = np.arctan2(-r[:, 0, 1], r[:, 0, 0])
+def attitude_residuals(angles: np.ndarray, boresight: np.ndarray, observed: np.ndarray,
+                       jacobians: bool = False):
+    """Angles (omega, phi, kappa) of ``M = R(angles)·R(boresight)`` minus ``observed`` (a, 3),
+    rad, wrapped to (-π, π]; ``R = Rx(ω)·Ry(φ)·Rz(κ)`` as
+    :func:`~toolbox.triangulation.model.rotations`. With ``jacobians`` also their derivatives
+    (a, 3, 3) by the photo's angles and by the boresight angles (analytic: ``ω = atan2(-M₁₂,
+    M₂₂)``, ``φ = asin(M₀₂)``, ``κ = atan2(-M₀₁, M₀₀)`` differentiated through ``dM``)."""
+    r, dr = rotations(angles)
+    rb, drb = rotations(np.asarray(boresight, dtype=float).reshape(1, 3))
+    m = r @ rb[0]
+    omega = np.arctan2(-m[:, 1, 2], m[:, 2, 2])
+    phi = np.arcsin(np.clip(m[:, 0, 2], -1.0, 1.0))
+    kappa = np.arctan2(-m[:, 0, 1], m[:, 0, 0])
     diff = np.column_stack([omega, phi, kappa]) - observed
-    return (diff + np.pi) % (2 * np.pi) - np.pi
+    res = (diff + np.pi) % (2 * np.pi) - np.pi
+    if not jacobians:
+        return res
+
+    def d_angles(dm: np.ndarray) -> np.ndarray:  # dm (a, 3 params, 3, 3) -> (a, 3 angles, 3)
+        out = np.empty((len(m), 3, 3))
+        n_om = m[:, 1, 2] ** 2 + m[:, 2, 2] ** 2
+        n_ka = m[:, 0, 1] ** 2 + m[:, 0, 0] ** 2
+        out[:, 0] = (-m[:, 2, 2, None] * dm[:, :, 1, 2] + m[:, 1, 2, None] * dm[:, :, 2, 2]) \
+            / n_om[:, None]
+        out[:, 1] = dm[:, :, 0, 2] / np.sqrt(np.maximum(1.0 - m[:, 0, 2] ** 2, 1e-300))[:, None]
+        out[:, 2] = (-m[:, 0, 0, None] * dm[:, :, 0, 1] + m[:, 0, 1, None] * dm[:, :, 0, 0]) \
+            / n_ka[:, None]
+        return out
+
+    return res, d_angles(dr @ rb[0]), d_angles(np.einsum("aij,tjk->atik", r, drb[0]))

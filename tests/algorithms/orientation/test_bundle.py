@@ -242,3 +242,39 @@ def test_tie_points_and_control_measurements_in_two_files(sample, tmp_path):
     bad = tmp_path / "bad"
     bad.mkdir()
     _bad(sample, bad, "CONTROL_INPUT.*image coordinates", INPUT=ties, CONTROL_INPUT=mm)
+
+
+def test_control_in_another_crs_is_refused(sample, tmp_path):
+    """Control labelled with another CRS (a .prj beside the CSV), or lon/lat numbers in a
+    CSV for a projected PROJECT: one line naming CONTROL, nothing written."""
+    from pyproj import CRS, Transformer
+
+    rows = _rows(sample["bundle_control"])
+    labelled = _write(tmp_path / "control_utm.csv", rows)
+    labelled.with_suffix(".prj").write_text(CRS.from_epsg(32632).to_wkt())
+    _bad(sample, tmp_path, "CONTROL.*EPSG:32632.*PROJECT.*EPSG:3003", CONTROL=labelled)
+    to_lonlat = Transformer.from_crs("EPSG:3003", "EPSG:4326", always_xy=True)
+    header = rows[0]
+    ix, iy = header.index("X"), header.index("Y")
+    for r in rows[1:]:
+        if r[ix] != "":
+            r[ix], r[iy] = map(str, to_lonlat.transform(float(r[ix]), float(r[iy])))
+    _bad(sample, tmp_path, "CONTROL", CONTROL=_write(tmp_path / "control_ll.csv", rows))
+
+
+def test_project_angles_in_the_wrong_unit_are_refused(sample, tmp_path):
+    """A flight plan written in degrees but declared angle_unit rad: the vertical block's
+    control points fall behind the cameras, the same numbers as degrees fit: one line naming
+    PROJECT and the mix-up, nothing written."""
+    import yaml
+
+    from toolbox.photogrammetry.project import Project, save_project
+
+    truth = make_block(SyntheticBlockSpec(digital=True, seed=7)).project
+    path = save_project(Project(truth.crs, truth.cameras, truth.photos), tmp_path / "plan.yaml",
+                        angle_unit="deg")
+    doc = yaml.safe_load(path.read_text())
+    doc["angle_unit"] = "rad"
+    path.write_text(yaml.safe_dump(doc, sort_keys=False))
+    _bad(sample, tmp_path, "PROJECT.*written in deg, read as rad.*angle_unit", PROJECT=path,
+         START="project")

@@ -68,3 +68,12 @@ def test_imu_sigma_not_positive_is_refused(sample, tmp_path):
     for r in rows[1:]:
         r.append("0")
     _bad(sample, tmp_path, "sigma must be > 0", IMU=_write(tmp_path / "bad.csv", rows))
+
+
+@pytest.mark.parametrize("unit", ["rad", "gon"])
+def test_imu_angles_in_another_unit_than_declared_are_refused(sample, tmp_path, unit):
+    """The IMU file is in degrees; declared rad or gon, the angles contradict the block's
+    approximate orientations while read as degrees they agree: one line naming the unit."""
+    _, imu = _files(tmp_path)
+    _bad(sample, tmp_path, f"IMU_ANGLE_UNIT.*is {unit}.*give IMU_ANGLE_UNIT deg", IMU=imu,
+         IMU_ANGLE_UNIT=unit)

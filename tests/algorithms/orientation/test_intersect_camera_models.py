@@ -192,7 +192,7 @@ def test_bundle_of_camera_model_photos(block):
                           "--SELF_CALIBRATION", "c", "--OUTPUT", str(folder / "b2.yaml")],
                          capture_output=True, text=True)
     assert run.returncode == 2 and run.stderr.count("\n") == 1
-    assert "interior stays fixed" in run.stderr and not (folder / "b2.yaml").exists()
+    assert "interior is held fixed" in run.stderr and not (folder / "b2.yaml").exists()
 
 
 def test_monoplot_of_camera_model_photos_on_a_dem(block):

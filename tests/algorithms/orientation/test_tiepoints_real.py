@@ -17,9 +17,10 @@ over the block, intersected with the published orientations: no surveyed points 
 data); it must come back to the published orientations within a ground pixel and a pixel's angle
 (1.5 of them for NGI, whose derived control is itself that coarse), and within 3 of its own
 standard deviations. A second datum, the published centres as GNSS observations (no control),
-is run too (angles from the tie points alone: looser bounds, see its test). The bundle takes
-film/digital cameras only (no Brown model): the ODM measurements are undistorted through the
-published Brown model into an equivalent pinhole camera (image mm) first.
+is run too (angles from the tie points alone: looser bounds, see its test). The ODM photos are
+adjusted through their published Brown camera (pixels, the bundle's forward Brown model); a
+third ODM run self-calibrates that camera's f, cx, cy, k1, k2 (weighted to OpenSfM's values)
+and must still come back to the published orientations.
 """
 
 from __future__ import annotations
@@ -73,7 +74,7 @@ class Case:
         from toolbox.photogrammetry.forward_intersection import intersect
         from toolbox.photogrammetry.project import load_project
 
-        self.folder, self.name = folder, name
+        self.folder, self.name, self.data = folder, name, data
         self.project = (ngi_project if name == "ngi" else odm_project)(data, folder)
         terrain = NGI_TERRAIN if name == "ngi" else ODM_TERRAIN
         self.out = toolbox.run("orientation:tiepoints", {
@@ -156,21 +157,7 @@ def bundle_inputs(case: Case, folder: Path, shift_m: float, turn_deg: float, n_c
             e[k] += float(rng.normal(0.0, shift_m))
         for k in ("omega", "phi", "kappa"):
             e[k] += float(rng.normal(0.0, turn_deg))
-    measurements = case.folder / "tie.csv"
-    if case.name == "odm":  # an equivalent pinhole camera: the Brown model applied here
-        camera = doc["cameras"][0]
-        width, height = camera["model"]["im_size"]
-        pitch = 13.2 / width  # mm: the FC6310's 13.2 mm sensor width
-        c = camera["model"]["focal_len"] * width * pitch
-        doc["cameras"] = [{"name": camera["name"], "principal_distance_mm": c,
-                           "image_size_px": [width, height], "pixel_size_mm": pitch,
-                           "frame_size_mm": [width * pitch, height * pitch]}]
-        measurements = folder / "tie_mm.csv"
-        with open(measurements, "w", newline="") as f:
-            out = csv.writer(f)
-            out.writerow(["point_id", "photo", "x_mm", "y_mm", "sigma_mm"])
-            for r, (x, y) in zip(case.rows, case.normal, strict=True):
-                out.writerow([r["point_id"], r["photo"], x * c, y * c, 0.5 * pitch])
+    measurements = case.folder / "tie.csv"  # pixels; the ODM camera stays the Brown model
     start = folder / "start.yaml"
     start.write_text(yaml.safe_dump(doc, sort_keys=False))
     rays = np.bincount(case.point)
@@ -269,3 +256,87 @@ def test_bundle_with_the_published_centres_as_gnss(name, request, tmp_path):
         assert (np.abs(d_ang) < 3 * std_ang).all(), (pid, np.degrees(d_ang), np.degrees(std_ang))
         assert turn < 3 * pixel, (pid, np.degrees(turn), np.degrees(pixel))
 
+
+
+def test_bundle_self_calibrates_the_real_brown_camera(odm, tmp_path):
+    """ODM with its Brown camera's f, cx, cy, k1, k2 free, started 1.5 % / 7 px / 0.04 / 0.02 off
+    OpenSfM's values: the written project's adjusted Brown camera agrees with OpenSfM's (an
+    independent calibration of the same photos) within 3 of the bundle's own standard
+    deviations, and the orientations stay within 1.5 ground pixels and pixel angles of the
+    published ones."""
+    from toolbox.photogrammetry.project import load_project
+
+    start, measurements, control = bundle_inputs(odm, tmp_path, 1.0, 0.3, 8)
+    doc = yaml.safe_load(start.read_text())  # a perturbed camera to start from
+    model = doc["cameras"][0]["model"]
+    model.update(focal_len=model["focal_len"] * 0.985, cx=0.0, cy=0.0, k1=-0.22, k2=0.08)
+    start.write_text(yaml.safe_dump(doc, sort_keys=False))
+    out = toolbox.run("orientation:bundle", {
+        "PROJECT": start, "INPUT": measurements, "CONTROL": control, "START": "project",
+        "CONTROL_SIGMA_XY": 0.05, "CONTROL_SIGMA_Z": 0.05,
+        "SELF_CALIBRATION": "f, cx, cy, k1, k2",
+        "OUTPUT": tmp_path / "adjusted.yaml", "REPORT": tmp_path / "report.json"})
+    assert out["STATISTICS"]["sigma0"] < 1.0
+    published = next(iter(odm.photos.values())).camera
+    adjusted = load_project(tmp_path / "adjusted.yaml")
+    cam = next(iter(adjusted.cameras.values()))
+    assert cam.kind == "brown"
+    (cal,) = json.loads((tmp_path / "report.json").read_text())["cameras"]
+    # measured: f 911.17 +- 0.41 px (OpenSfM 911.72), cx 681.82 +- 0.69 (681.89), cy 463.34
+    # +- 0.42 (462.50), k1 -0.26397 +- 0.00051 (-0.26406), k2 0.10200 +- 0.00044 (0.10189)
+    for name, ours, theirs, bound in (
+            ("f", cam.focal_px[0], published.focal_px[0], 1.0),
+            ("cx", cam.principal_point_px[0], published.principal_point_px[0], 1.5),
+            ("cy", cam.principal_point_px[1], published.principal_point_px[1], 1.5),
+            ("k1", cam.coefficients["k1"], published.coefficients["k1"], 0.002),
+            ("k2", cam.coefficients["k2"], published.coefficients["k2"], 0.002)):
+        assert cal[name]["value"] == pytest.approx(ours, rel=1e-9, abs=1e-12)
+        assert abs(ours - theirs) < min(bound, 3 * cal[name]["std"]), (name, ours, theirs)
+    pixel = 1.0 / published.focal_px[0]
+    for pid, p in odm.photos.items():
+        a, e = adjusted.photos[pid].exterior, p.exterior
+        ground = pixel * (e.centre[2] - ODM_TERRAIN)
+        turn = np.arccos(np.clip((np.trace(a.rotation.T @ e.rotation) - 1) / 2, -1, 1))
+        assert np.linalg.norm(a.centre - e.centre) < 1.5 * ground and turn < 1.5 * pixel, pid
+    # ortho:batch reads the written project (Brown camera) directly: each ortho lands within a
+    # 0.3 m cell of the ortho made with the published orientations and camera
+    import rasterio
+    from skimage.registration import phase_cross_correlation
+
+    images = {Path(f).stem: f for f in (odm_data(odm) / "images").glob("*.tif")}
+    shifts = {}
+    for tag, source in (("adjusted", tmp_path / "adjusted.yaml"), ("published", odm.project)):
+        doc = yaml.safe_load(Path(source).read_text())
+        for p in doc["photos"]:
+            p["image"] = str(images[p["id"]])
+        path = tmp_path / f"{tag}_images.yaml"
+        path.write_text(yaml.safe_dump(doc, sort_keys=False))
+        out = toolbox.run("ortho:batch", {
+            "PROJECT": path, "DEM": odm_data(odm) / "odm_dem" / "dsm.tif", "CELL_SIZE": 0.3,
+            "FOLDER": str(tmp_path / tag), "OUTPUT": tmp_path / f"{tag}.json"})
+        assert out["STATISTICS"]["done"] == 4 and out["STATISTICS"]["failed"] == 0
+    for ortho in sorted((tmp_path / "adjusted").glob("*.tif")):
+        with rasterio.open(ortho) as a, rasterio.open(tmp_path / "published" / ortho.name) as b:
+            assert a.transform.a == b.transform.a
+            window = rasterio.windows.from_bounds(
+                max(a.bounds.left, b.bounds.left), max(a.bounds.bottom, b.bounds.bottom),
+                min(a.bounds.right, b.bounds.right), min(a.bounds.top, b.bounds.top),
+                a.transform).round_offsets().round_lengths()
+            da = a.read(window=window).astype(float)
+            db = b.read(window=rasterio.windows.from_bounds(
+                *rasterio.windows.bounds(window, a.transform), b.transform)
+                .round_offsets().round_lengths()).astype(float)
+        h, w = min(da.shape[1], db.shape[1]), min(da.shape[2], db.shape[2])
+        ok = (da[3, :h, :w] == 255) & (db[3, :h, :w] == 255)
+        ga = np.where(ok, da[:3, :h, :w].mean(axis=0), 0.0)
+        gb = np.where(ok, db[:3, :h, :w].mean(axis=0), 0.0)
+        shift, _, _ = phase_cross_correlation(ga, gb, upsample_factor=10, normalization=None)
+        shifts[ortho.stem] = float(np.hypot(*shift))
+        assert np.abs(ga - gb)[ok].mean() > 0.1  # two different orthos (measured: 0.7-1.5)
+    # measured: 0.0 cells for all four (below the 0.1-cell upsampling step)
+    assert len(shifts) == 4 and max(shifts.values()) < 1.0, shifts
+
+
+def odm_data(case: Case) -> Path:
+    """Orthority's odm/ folder (the fixture's data)."""
+    return Path(case.data) / "odm"

@@ -175,3 +175,42 @@ def test_same_result_as_scipy_least_squares_with_gnss_drift_and_boresight(case):
     assert np.abs(sol.gnss_drift - drift).max() < 1e-5
     assert np.abs(sol.boresight - bore).max() < 1e-8
     assert sol.sigma0 ** 2 * sol.redundancy == pytest.approx(ssq, rel=1e-7)
+
+
+def test_attitude_jacobians_match_central_differences():
+    from toolbox.triangulation.solver import attitude_residuals
+
+    rng = np.random.default_rng(2)
+    angles = rng.normal(0, 0.3, (6, 3))
+    angles[::2, 2] += np.pi * 0.9
+    bore = np.array([0.01, -0.02, 0.03])
+    obs = rng.normal(0, 0.3, (6, 3))
+    _, j_ang, j_bore = attitude_residuals(angles, bore, obs, jacobians=True)
+    h = 1e-6
+    for t in range(3):
+        step = np.eye(3)[t] * h
+        num = (attitude_residuals(angles + step, bore, obs)
+               - attitude_residuals(angles - step, bore, obs)) / (2 * h)
+        assert np.abs(num - j_ang[:, :, t]).max() < 1e-7
+        num = (attitude_residuals(angles, bore + step, obs)
+               - attitude_residuals(angles, bore - step, obs)) / (2 * h)
+        assert np.abs(num - j_bore[:, :, t]).max() < 1e-7
+
+
+def test_imu_blunder_is_found_by_data_snooping_and_removed(case):
+    """A 40-sigma error on one photo's IMU kappa (2 mrad at 0.05 mrad): the w-test flags that
+    very observation, the adjustment is repeated without it and the boresight comes back."""
+    block = _block(case, imu=True, control=6)
+    blunder_photo = 3
+    block.attitude_obs[blunder_photo, 2] += 40 * IMU_SIGMA
+    sol = adjust(block, case.exterior0, case.points0, Options())
+    attitude = [rj for rj in sol.rejections if rj.kind == "attitude"]
+    assert [(rj.index, rj.component) for rj in attitude] == [(blunder_photo, 2)]
+    assert abs(attitude[0].w) > 10
+    # the estimated error -v/r (Baarda) is the inserted one
+    assert -attitude[0].residual / attitude[0].redundancy == pytest.approx(40 * IMU_SIGMA,
+                                                                           abs=5 * IMU_SIGMA)
+    assert not sol.attitude_active[blunder_photo, 2] and sol.attitude_active.sum() == \
+        3 * block.n_photos - 1
+    assert (np.abs(sol.boresight - BORESIGHT) < 4 * sol.boresight_std).all()
+    assert np.nanmax(np.abs(sol.attitude_w)) < 3.29  # nothing left over the critical value

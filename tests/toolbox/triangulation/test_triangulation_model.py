@@ -76,6 +76,41 @@ def test_self_calibration_specification_per_camera():
     assert sig[1, 3] == 1e-6
     with pytest.raises(ParameterError, match="SELF_CALIBRATION.*'nope'"):
         calibration_settings(parse_self_calibration("c@nope"), ["a"], ["a"])
-    for bad in ("f", "c:sometimes", "k1:weighted", "k1:weighted:-1"):
+    assert parse_self_calibration("f, cx, cy") == parse_self_calibration("c, x0, y0")  # Brown
+    for bad in ("k4", "c:sometimes", "k1:weighted", "k1:weighted:-1"):
         with pytest.raises(ParameterError, match="SELF_CALIBRATION"):
             parse_self_calibration(bad)
+
+
+@pytest.mark.parametrize("jacobians", [True, False])
+def test_compiled_collinearity_kernel_is_the_numpy_formula(jacobians):
+    """image_residuals (compiled kernel) against image_residuals_numpy, element by element."""
+    from toolbox.triangulation.model import image_residuals_numpy
+
+    rng = np.random.default_rng(9)
+    m = 500
+    xy = rng.normal(0, 60, (m, 2))
+    ext = np.column_stack([rng.normal(0, 100, (m, 3)) + [0, 0, 1500], rng.normal(0, .05, (m, 3))])
+    pt = rng.normal(0, 300, (m, 3))
+    cal = np.column_stack([np.full(m, 150.0), rng.normal(0, .01, (m, 2)),
+                           rng.normal(0, 1e-6, m), rng.normal(0, 1e-10, m),
+                           rng.normal(0, 1e-14, m), rng.normal(0, 1e-6, (m, 2))])
+    got = image_residuals(xy, ext, pt, cal, jacobians)
+    ref = image_residuals_numpy(xy, ext, pt, cal, jacobians)
+    assert len(got) == len(ref) == (5 if jacobians else 2)
+    for a, b in zip(got, ref, strict=True):
+        assert a.shape == b.shape and np.abs(a - b).max() <= 1e-12 * np.abs(b).max()
+
+
+def test_compiled_point_block_inverses_and_their_singularity_flags():
+    from toolbox.triangulation.schur import inverse_blocks
+
+    rng = np.random.default_rng(4)
+    a = rng.normal(size=(50, 3, 3))
+    c = a @ np.transpose(a, (0, 2, 1)) + 0.1 * np.eye(3)
+    c[3] = np.outer([1.0, 2.0, 3.0], [1.0, 2.0, 3.0])  # rank 1: parallel rays
+    c[7] = np.diag([1.0, 1.0, 1e-16])  # nearly singular
+    c[9] = -np.eye(3)  # not positive definite
+    inv, ok = inverse_blocks(c, 1e14)
+    assert ok.tolist() == [k not in (3, 7, 9) for k in range(50)]
+    assert np.abs(inv[ok] - np.linalg.inv(c[ok])).max() < 1e-9
