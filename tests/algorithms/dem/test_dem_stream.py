@@ -147,14 +147,17 @@ def test_streaming_holds_one_chunk_not_the_cloud(cloud, tmp_path):
     assert run_peak < memory_peak / 3
 
 
-def test_bucket_files_hold_every_point_near_their_tile(cloud, tmp_path):
+@pytest.mark.parametrize("cell, tile, k", [(2.0, 32, 8), (0.5, 16, 40)])
+def test_bucket_files_hold_every_point_near_their_tile(cloud, tmp_path, cell, tile, k):
     """Every kept point is in the bucket of every tile whose grown box holds it (numpy check of
-    the spill's neighbour-tile shortcut), in file order."""
+    the spill's neighbour-tile shortcut), in file order; also with reaches over a tile's side."""
     ref = open_point_cloud(cloud)
     flt = PointFilter((2,))
     scan = scan_cloud(ref, flt, None, 777)
-    grid = GridRequest(cell_size=2.0).grid(scan.bounds, ref.crs)
-    boxes = plan_boxes(grid, 32, scan, 8, np.inf)
+    grid = GridRequest(cell_size=cell).grid(scan.bounds, ref.crs)
+    boxes = plan_boxes(grid, tile, scan, k, np.inf)
+    if tile == 16:
+        assert boxes.reach.max() > 16 * cell  # neighbours two tiles away are searched
     spill(ref, flt, None, 777, boxes, tmp_path)
     xyz, _ = pointcloud.read_xyz(ref, flt)
     for t, rect in enumerate(boxes.rects):

@@ -269,8 +269,10 @@ def spill(ref: Any, flt: Any, z_field: str | None, chunk_points: int, boxes: Til
     step = boxes.tiles[0].grid_transform
     width, height = boxes.tile * abs(step.a), boxes.tile * abs(step.e)
     reach = boxes.reach.max()
-    reach_x = ncols if not math.isfinite(reach) else int(math.ceil(reach / width)) + 1
-    reach_y = nrows if not math.isfinite(reach) else int(math.ceil(reach / height)) + 1
+    # home tile i (first cell centres col0[i] <= x < col0[i + 1]) and a tile j whose box grown
+    # by h holds x: |i - j| <= ceil(h / tile width)
+    reach_x = ncols if not math.isfinite(reach) else max(1, int(math.ceil(reach / width)))
+    reach_y = nrows if not math.isfinite(reach) else max(1, int(math.ceil(reach / height)))
     for xyz in iter_xyz(ref, flt, z_field, name, chunk_points):
         home_c = np.clip(np.searchsorted(col0, xyz[:, 0], side="right") - 1, 0, ncols - 1)
         home_r = np.clip(np.searchsorted(-row0, -xyz[:, 1], side="right") - 1, 0, nrows - 1)
