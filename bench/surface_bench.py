@@ -421,7 +421,8 @@ def main() -> None:
             t0 = time.perf_counter()
             make_laz(work / "cloud.laz", args.points if "points" in sections else 1000)
             print(f"wrote {args.points:,} points in {time.perf_counter() - t0:.1f} s", flush=True)
-            scan(work / "scan.tif", args.pair * 4)
+            if "stereo" in sections:
+                scan(work / "scan.tif", args.pair * 4)
             title = f"Points: {args.points:,}" if "points" in sections else \
                 f"Stereo floor: a {args.pair} px noise pair"
             out += [title, "", "| case | seconds | peak MB | note |",

@@ -118,13 +118,19 @@ def test_match_bad_input_exit_2(scene, tmp_path):
     runner = CliRunner()
     base = ["run", "dem:match", "--PROJECT", str(scene.project), "--CELL_SIZE", "4",
             "--OUTPUT", str(tmp_path / "d.tif"), "--COUNT", str(tmp_path / "c.tif"),
-            "--SPREAD", str(tmp_path / "s.tif")]
+            "--SPREAD", str(tmp_path / "s.tif"), "--POINTS", str(tmp_path / "p.laz")]
     cases = [(["--PHOTOS", "L,far", "--MIN_HEIGHT", "280", "--MAX_HEIGHT", "370"],
               "no suitable stereo pair"),
              (["--PHOTOS", "L,R", "--MIN_HEIGHT", "-2000", "--MAX_HEIGHT", "900"],
               "more than MAX_DISPARITIES"),
              (["--PHOTOS", "L,R", "--MIN_HEIGHT", "380", "--MAX_HEIGHT", "370"],
               "MAX_HEIGHT must be above MIN_HEIGHT"),
+             # ranges that miss the terrain (300-355 m, roofs and crowns to 370 m): a coarse
+             # match over a wider range finds it outside (without the check: a DSM of garbage)
+             (["--PHOTOS", "L,R", "--MIN_HEIGHT", "400", "--MAX_HEIGHT", "470"],
+              "100 % of the terrain outside MIN_HEIGHT 400 .. MAX_HEIGHT 470"),
+             (["--PHOTOS", "L,R", "--MIN_HEIGHT", "200", "--MAX_HEIGHT", "290"],
+              "100 % of the terrain outside MIN_HEIGHT 200 .. MAX_HEIGHT 290"),
              (["--PHOTOS", "L,unoriented", "--MIN_HEIGHT", "280", "--MAX_HEIGHT", "370"],
               "has no exterior orientation")]
     for args, text in cases:
@@ -132,7 +138,7 @@ def test_match_bad_input_exit_2(scene, tmp_path):
         assert res.exit_code == 2, res.output
         assert text in res.stderr and "Traceback" not in res.output, res.stderr
         assert len(res.stderr.strip().splitlines()) == 1
-        assert not any((tmp_path / n).exists() for n in ("d.tif", "c.tif", "s.tif"))
+        assert not any((tmp_path / n).exists() for n in ("d.tif", "c.tif", "s.tif", "p.laz"))
 
 
 def test_three_photos_three_pairs_fused(scene, tmp_path):
