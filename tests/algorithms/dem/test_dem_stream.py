@@ -59,7 +59,8 @@ def _run(method, cloud, out, extra=None):
 @pytest.mark.parametrize("method, extra", [
     ("nearest", {}), ("idw", {"NEIGHBOURS": 8}), ("plane", {}),
     ("idw", {"NEIGHBOURS": 6, "SECTORS": 4, "RADIUS": 6.0}),
-    ("nearest", {"MAX_DISTANCE": 1.0, "DUPLICATES": "first"})])
+    ("nearest", {"MAX_DISTANCE": 1.0, "DUPLICATES": "first"}),
+    ("idw", {"EXTRAPOLATE": True, "EXTENT": f"{X0 - 40},{Y0 - 30},{X0 + 230},{Y0 + 170}"})])
 def test_streamed_equals_in_memory(cloud, tmp_path, monkeypatch, method, extra):
     memory = _run(method, cloud, tmp_path / "memory.tif", extra)
     assert "streamed" not in memory

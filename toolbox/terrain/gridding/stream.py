@@ -221,18 +221,22 @@ def tile_boxes(grid: Any, tile: int, scan: CloudScan, reach: np.ndarray,
     return TileBoxes(tile, np.array(boxes), np.array(reaches), np.array(estimate), tiles)
 
 
-def box_reach(box: Any, scan: CloudScan, reach: np.ndarray, radius: float) -> float:
+def box_reach(box: Any, scan: CloudScan, reach: np.ndarray, radius: float,
+              offset: tuple[int, int] = (0, 0)) -> float:
     """A distance within which every point of ``box`` (xmin, ymin, xmax, ymax) has its k
-    nearest points (``reach`` per bucket of ``scan``'s raster, from :func:`knn_reach`), at
-    most ``radius``. 1-Lipschitz: d_k(p) <= d_k(q) + |p - q|, q = p clipped to the raster."""
-    ny, nx = reach.shape
+    nearest points (``reach`` per bucket of ``scan``'s raster, from :func:`knn_reach`; or of
+    a window of it starting at bucket row, column ``offset``), at most ``radius``.
+    1-Lipschitz: d_k(p) <= d_k(q) + |p - q|, q = p clipped to the raster."""
+    ny, nx = scan.counts.shape
     gx1, gy1 = scan.x0 + nx * scan.size, scan.y0 + ny * scan.size
     cx0, cx1 = np.clip([box[0], box[2]], scan.x0, gx1)
     cy0, cy1 = np.clip([box[1], box[3]], scan.y0, gy1)
     outside = math.hypot(max(cx0 - box[0], box[2] - cx1), max(cy0 - box[1], box[3] - cy1))
     i0, i1 = _index(cx0, scan.x0, scan.size, nx), _index(cx1, scan.x0, scan.size, nx)
     j0, j1 = _index(cy0, scan.y0, scan.size, ny), _index(cy1, scan.y0, scan.size, ny)
-    return min(float(reach[j0:j1 + 1, i0:i1 + 1].max()) + outside, radius)
+    r0, c0 = offset
+    block = reach[max(j0 - r0, 0):j1 - r0 + 1, max(i0 - c0, 0):i1 - c0 + 1]
+    return min(float(block.max()) + outside, radius) if block.size else radius
 
 
 def _index(value: float, origin: float, size: float, n: int) -> int:
@@ -427,7 +431,8 @@ def partial_plan(run: Any, boxes: TileBoxes, folder: Path, scan: CloudScan, k: i
             return None
         merged_xyz = _merge(xyz, boxes, tile.index, merged, merge_duplicate_xy)
         if len(merged_xyz) < len(xyz) and k > 0:
-            need = tile_reach(boxes.boxes[tile.index], scan, merged_xyz, k, radius)
+            need = tile_reach(boxes.boxes[tile.index], boxes.rects[tile.index], scan,
+                              merged_xyz, k, radius)
             have = boxes.reach[tile.index]
             if need > have * (1 + 1e-12):
                 raise InputDataError(f"streamed gridding: after merging duplicate XY, tile "
@@ -443,19 +448,18 @@ def partial_plan(run: Any, boxes: TileBoxes, folder: Path, scan: CloudScan, k: i
     return plan
 
 
-def tile_reach(box: np.ndarray, scan: CloudScan, xyz: np.ndarray, k: int,
+def tile_reach(box: np.ndarray, rect: np.ndarray, scan: CloudScan, xyz: np.ndarray, k: int,
                radius: float) -> float:
-    """The reach of a tile's box computed as in pass 1 from the (distinct) points ``xyz`` of
-    its bucket alone, counted on the same buckets."""
+    """The reach of a tile's ``box`` computed as in pass 1, from the (distinct) points ``xyz``
+    of its bucket alone (every point within ``rect``), counted on the same buckets."""
     ny, nx = scan.counts.shape
-    ix = np.floor((xyz[:, 0] - scan.x0) / scan.size).astype(np.int64)
-    iy = np.floor((xyz[:, 1] - scan.y0) / scan.size).astype(np.int64)
-    i0, j0 = int(ix.min()), int(iy.min())
-    w, h = int(ix.max()) - i0 + 1, int(iy.max()) - j0 + 1
-    counts = np.bincount((iy - j0) * w + (ix - i0), minlength=w * h).reshape(h, w)
-    window = CloudScan(len(xyz), scan.bounds, scan.ring, counts, scan.x0 + i0 * scan.size,
-                       scan.y0 + j0 * scan.size, scan.size, None)
-    return box_reach(box, window, knn_reach(counts, k, scan.size), radius)
+    i0, i1 = _index(rect[0], scan.x0, scan.size, nx), _index(rect[2], scan.x0, scan.size, nx)
+    j0, j1 = _index(rect[1], scan.y0, scan.size, ny), _index(rect[3], scan.y0, scan.size, ny)
+    w, h = i1 - i0 + 1, j1 - j0 + 1
+    ix = np.clip(np.floor((xyz[:, 0] - scan.x0) / scan.size).astype(np.int64) - i0, 0, w - 1)
+    iy = np.clip(np.floor((xyz[:, 1] - scan.y0) / scan.size).astype(np.int64) - j0, 0, h - 1)
+    window = np.bincount(iy * w + ix, minlength=w * h).reshape(h, w)
+    return box_reach(box, scan, knn_reach(window, k, scan.size), radius, (j0, i0))
 
 
 def _merge(xyz: np.ndarray, boxes: TileBoxes, index: int, merged: Merged,
