@@ -99,6 +99,9 @@ def run_match(params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
             photo.require_exterior()
     else:
         photos = project.oriented()
+    from toolbox.stereo.frames import as_frame_photo
+
+    photos = [as_frame_photo(photo) for photo in photos]  # distortion-free digital models
     if len(photos) < 2:
         raise InputDataError(f"PROJECT has {len(photos)} oriented photo(s) (of those chosen): "
                              "dense matching needs at least one oriented pair")
