@@ -110,6 +110,17 @@ def test_dsm_of_a_rendered_pair(scene, tmp_path):
     las = laspy.read(tmp_path / "points.laz")
     assert len(las.points) == res["STATISTICS"]["points_written"] > 0.8 * valid.sum()
     assert las.header.parse_crs().to_epsg() == 3003
+    # colour from the photo: each point's RGB (16 bit) is the left photo's value where the
+    # point projects (collinearity, the photo read here), to resampling and matching noise
+    rgb = np.column_stack([np.asarray(las.red), np.asarray(las.green), np.asarray(las.blue)])
+    assert rgb.std() > 1000 and (rgb % 257 == 0).all()
+    xyz = np.column_stack([np.asarray(las.x), np.asarray(las.y), np.asarray(las.z)])[::50]
+    with rasterio.open(scene.folder / "L.tif") as ds:
+        photo = ds.read().astype(float)
+    px = np.floor(scene.photos["L"].ground_to_pixel(xyz)).astype(int)
+    inside = ((px >= 0) & (px < sc.SIZE)).all(axis=1)
+    seen = photo.mean(axis=0)[px[inside, 1], px[inside, 0]]
+    assert np.median(np.abs(rgb[::50][inside].mean(axis=1) / 257 - seen)) < 8.0
 
 
 def test_match_bad_input_exit_2(scene, tmp_path):
