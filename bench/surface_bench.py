@@ -16,8 +16,10 @@ rendered at 1/8 on the demo's landscape (buildings standing) and upsampled to 16
 :func:`siena_scans`); the DSM is checked against that surface. Points: uniform random points
 over 2 km x 2 km at the Siena coordinates (EPSG:3003) on a smooth analytic surface, written as
 LAZ by chunks by the toolbox's writer; classes 2 (ground, 70 %) and 5. The toolbox grids the
-class-2 points by dem:nearest at 1 m (skipped above ``--grid-max`` points: it holds about
-190 bytes a kept point); the binning peer averages the same class per 1 m cell. Prints the
+class-2 points by dem:nearest at 1 m, streamed (``grid``: two chunked passes, per-tile buckets
+on disk) and, up to ``--grid-max`` points, in memory (``grid_memory``: about 190 bytes a kept
+point), and the two grids are compared cell for cell; the binning peer averages the same class
+per 1 m cell. Prints the
 markdown tables (bench/results/surface.md keeps them with notes).
 """
 
@@ -178,12 +180,20 @@ def case(name: str, work: Path, pair: int) -> dict:
 
         xyz, report = read_xyz(open_point_cloud(work / "cloud.laz"), PointFilter((2,)))
         extra = {"points_kept": report.kept}
-    elif name == "grid":
+    elif name in ("grid", "grid_memory"):
+        import os
+
         import toolbox
 
-        toolbox.run("dem:nearest", {"INPUT": str(work / "cloud.laz"), "CLASSES": "2",
-                                    "CELL_SIZE": 1.0, "OUTPUT": str(work / "toolbox.tif")})
-        extra = {}
+        # grid: streamed (two chunked passes, per-tile buckets on disk: any cloud above
+        # 10 M points); grid_memory: the same run with every point held (the oracle)
+        os.environ["TOOLBOX_STREAM_POINTS"] = "0" if name == "grid" else str(10 ** 12)
+        out = "toolbox.tif" if name == "grid" else "memory.tif"
+        stats = toolbox.run("dem:nearest", {"INPUT": str(work / "cloud.laz"), "CLASSES": "2",
+                                            "CELL_SIZE": 1.0, "OUTPUT": str(work / out),
+                                            "OVERVIEWS": False})["STATISTICS"]
+        extra = {"streamed": stats.get("streamed"), "points_used": stats["points_used"],
+                 "cells": stats["cells"]["cells_with_value"]}
     elif name == "numpy_bin":
         grid = bin_mean(work / "cloud.laz")
         np.save(work / "bin.npy", grid.astype(np.float32))
@@ -263,7 +273,10 @@ def case(name: str, work: Path, pair: int) -> dict:
                  "disparities": count}
     else:
         raise SystemExit(f"unknown case {name}")
-    return {"seconds": time.perf_counter() - t0, "peak_mb": peak_rss_mb(), **extra}
+    import os
+
+    return {"seconds": time.perf_counter() - t0, "cpu_seconds": time.process_time(),
+            "load": os.getloadavg()[0], "peak_mb": peak_rss_mb(), **extra}
 
 
 def scan_dsm_error(path: Path) -> dict:
@@ -298,7 +311,16 @@ def measured_row(name: str, work: Path, pair: int) -> tuple[str, dict | None]:
         last = err.strip().splitlines()[-1] if err.strip() else f"exit {code}"
         return f"| {name} | - | - | not run: {last} |", None
     inner = json.loads((work / f"{name}.json").read_text())
-    note = f"{inner['seconds']:.2f} s inside the process"
+    note = f"{inner['seconds']:.2f} s inside the process, {inner['cpu_seconds']:.0f} CPU s " \
+           f"(all threads), load average {inner['load']:.1f} at the end"
+    if name in ("grid", "grid_memory"):
+        note += f"; {inner['points_used']:,} points gridded, {inner['cells']:,} cells"
+        info = inner.get("streamed")
+        if info:
+            note += (f"; streamed: chunks of {info['chunk_points']:,}, {info['tiles']} tiles "
+                     f"of {info['tile_size']} cells, {info['points_spilled']:,} points "
+                     f"spilled to disk ({24 * info['points_spilled'] / 1e9:.2f} GB), largest "
+                     f"bucket {info['bucket_points_max']:,} points")
     if name == "epipolar":
         note += f" (a {inner['size']} x {inner['size']} uint8 scan, bilinear)"
     if name in ("sgbm", "match_pair"):
@@ -337,10 +359,24 @@ def compare_grids(tif: Path, binned: np.ndarray, laz: Path) -> str:
     other[inside] = binned[r[inside], c[inside]]
     both = np.isfinite(grid) & np.isfinite(other)
     diff = np.abs(grid - other)[both]
-    return (f"Same cells: dem:nearest {int(np.isfinite(grid).sum()):,} cells with a value, the "
+    return (f"Same cells as the binning: dem:nearest {int(np.isfinite(grid).sum()):,} cells "
+            f"with a value, the "
             f"binning {int(np.isfinite(binned).sum()):,}; on the {int(both.sum()):,} they share, "
             f"abs(nearest - cell mean) median {np.median(diff):.3f} m, max {diff.max():.3f} m "
             "(nearest point vs mean of the cell's points on a smooth surface).")
+
+
+def compare_memory(streamed: Path, memory: Path) -> str:
+    """The streamed grid against the in-memory one (the oracle): cell for cell."""
+    import rasterio
+
+    with rasterio.open(streamed) as a, rasterio.open(memory) as b:
+        x, y = a.read(1), b.read(1)
+        same = a.transform == b.transform and x.shape == y.shape
+    equal = same and bool(np.array_equal(x, y))
+    return (f"Streamed against in memory: {'identical' if equal else 'DIFFERENT'} grids "
+            f"({x.shape[1]} x {x.shape[0]} cells, {int(np.sum(x != y)) if same else '-'} cells "
+            "differ).")
 
 
 def main() -> None:
@@ -353,7 +389,10 @@ def main() -> None:
                     "epipolar resampling of a scan) and/or scans (two 16644 px scans to a 1 m "
                     "DSM)")
     ap.add_argument("--grid-max", type=int, default=30_000_000,
-                    help="largest cloud dem:nearest is run on (about 180 bytes a kept point)")
+                    help="largest cloud dem:nearest is run on IN MEMORY (grid_memory: about "
+                    "190 bytes a kept point); the streamed grid runs at any size")
+    ap.add_argument("--cases", default=None,
+                    help="comma-separated cases to run (default: all of the sections')")
     ap.add_argument("--case")
     ap.add_argument("--work")
     args = ap.parse_args()
@@ -382,19 +421,23 @@ def main() -> None:
             t0 = time.perf_counter()
             make_laz(work / "cloud.laz", args.points if "points" in sections else 1000)
             print(f"wrote {args.points:,} points in {time.perf_counter() - t0:.1f} s", flush=True)
-            scan(work / "scan.tif", args.pair * 4)
+            if "stereo" in sections:
+                scan(work / "scan.tif", args.pair * 4)
             title = f"Points: {args.points:,}" if "points" in sections else \
                 f"Stereo floor: a {args.pair} px noise pair"
             out += [title, "", "| case | seconds | peak MB | note |",
                     "|---|---|---|---|"]
-            for name in ("read", "grid", "numpy_bin", "pdal", "sgbm", "match_pair", "epipolar"):
+            for name in ("read", "grid", "grid_memory", "numpy_bin", "pdal", "sgbm",
+                         "match_pair", "epipolar"):
                 stereo_case = name in ("sgbm", "match_pair", "epipolar")
                 if (stereo_case and "stereo" not in sections) or \
                         (not stereo_case and "points" not in sections):
                     continue
-                if name == "grid" and args.points > args.grid_max:
-                    out.append(f"| grid | - | - | not run: {args.points:,} points is over "
-                               f"--grid-max {args.grid_max:,} (see the notes) |")
+                if args.cases and name not in args.cases.split(","):
+                    continue
+                if name == "grid_memory" and args.points > args.grid_max:
+                    out.append(f"| grid_memory | - | - | not run: {args.points:,} points is "
+                               f"over --grid-max {args.grid_max:,} (see the notes) |")
                     continue
                 row, _ = measured_row(name, work, args.pair)
                 out.append(row)
@@ -402,6 +445,8 @@ def main() -> None:
             if (work / "toolbox.tif").exists() and (work / "bin.npy").exists():
                 out += ["", compare_grids(work / "toolbox.tif", np.load(work / "bin.npy"),
                                           work / "cloud.laz")]
+            if (work / "toolbox.tif").exists() and (work / "memory.tif").exists():
+                out += ["", compare_memory(work / "toolbox.tif", work / "memory.tif")]
     print("\n".join(out))
 
 

@@ -31,10 +31,12 @@ class DenseMatchingDsm(Algorithm):
     2. Each pair is resampled to epipolar images as stereo:epipolar does (distortion removed),
        in a scratch folder, converted to 8 bits.
     3. OpenCV StereoSGBM (semi-global matching, 3-way) over the disparities of heights
-       MIN_HEIGHT..MAX_HEIGHT (refused when that exceeds MAX_DISPARITIES), with left-right
-       consistency (LR_MAX_DIFF pixels), a uniqueness (cost) threshold UNIQUENESS % and
-       speckle filtering (SPECKLE_WINDOW pixels, SPECKLE_RANGE disparity); pixels outside
-       either photo are invalid.
+       MIN_HEIGHT..MAX_HEIGHT (refused when that exceeds MAX_DISPARITIES, or when a first
+       match at 1/4 resolution over up to three times those disparities finds less than half
+       of the terrain inside the range: the error names the heights found; under 90 %: a
+       warning), with left-right consistency (LR_MAX_DIFF pixels), a uniqueness (cost)
+       threshold UNIQUENESS % and speckle filtering (SPECKLE_WINDOW pixels, SPECKLE_RANGE
+       disparity); pixels outside either photo are invalid.
     4. Disparities (1/16 pixel) are triangulated to points (the normal case; see
        stereo:epipolar); points outside MIN_HEIGHT..MAX_HEIGHT are dropped.
     5. Fusion on the grid (CELL_SIZE / EXTENT / TEMPLATE; default extent: the pairs' shared

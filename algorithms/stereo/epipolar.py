@@ -92,7 +92,10 @@ class EpipolarPair(Algorithm):
         )
 
         project = load_project_parameter(params["PROJECT"])
-        photos = (project.photo(params["LEFT"]), project.photo(params["RIGHT"]))
+        from toolbox.stereo.frames import as_frame_photo
+
+        photos = (as_frame_photo(project.photo(params["LEFT"])),
+                  as_frame_photo(project.photo(params["RIGHT"])))
         for photo in photos:
             photo.require_exterior()
         images = (photo_image(photos[0], params["LEFT_IMAGE"], "LEFT_IMAGE"),

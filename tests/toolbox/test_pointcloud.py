@@ -128,6 +128,28 @@ def test_no_crs_refused_unless_given(cloud, tmp_path):
     assert crs.to_epsg() == 3003 and np.isfinite(dem).any()
 
 
+@pytest.mark.parametrize("version, fmt, vlr", [("1.2", 3, "GeoKeyDirectoryVlr"),
+                                               ("1.4", 6, "WktCoordinateSystemVlr")])
+def test_crs_from_geotiff_keys_or_wkt(tmp_path, version, fmt, vlr):
+    """The CRS of a LAS 1.2 file with GeoTIFF keys only and of a LAS 1.4 file with an OGC WKT
+    VLR only (each written by laspy) reaches the gridded DEM."""
+    from pyproj import CRS
+
+    header = laspy.LasHeader(point_format=fmt, version=version)
+    header.offsets, header.scales = [X0, Y0, 0.0], [0.001] * 3
+    header.add_crs(CRS.from_epsg(3003))
+    kinds = [type(v).__name__ for v in header.vlrs]
+    assert vlr in kinds and ("WktCoordinateSystemVlr" in kinds) == (version == "1.4")
+    las = laspy.LasData(header)
+    rng = np.random.default_rng(3)
+    las.x, las.y = X0 + rng.uniform(0, 50, 100), Y0 + rng.uniform(0, 50, 100)
+    las.z = rng.uniform(0, 5, 100)
+    las.write(tmp_path / "c.laz")
+    assert open_point_cloud(tmp_path / "c.laz").crs == CRS.from_epsg(3003)
+    _, crs, _ = _grid(tmp_path / "c.laz", tmp_path / "c.tif")
+    assert crs.to_epsg() == 3003
+
+
 def test_missing_class_and_bad_filters(cloud, tmp_path):
     with pytest.raises(InputDataError, match=r"CLASSES 9 not in .* 2 \(\d+ points\)"):
         _grid(cloud["laz"], tmp_path / "a.tif", CLASSES="2,9")

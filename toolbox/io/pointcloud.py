@@ -17,6 +17,7 @@ CRS: from the file's OGC WKT VLR or GeoTIFF keys (``laspy.LasHeader.parse_crs``)
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -189,21 +190,23 @@ def _keep(points, flt: PointFilter) -> np.ndarray | None:
     return keep
 
 
-def read_xyz(ref: PointCloudRef, flt: PointFilter = PointFilter(), z_field: str | None = None,
-             name: str = "INPUT", chunk_points: int = CHUNK_POINTS
-             ) -> tuple[np.ndarray, ReadReport]:
-    """(K, 3) float64 X, Y, Z (map units) of the points passing ``flt``, read by chunks.
+def iter_xyz(ref: PointCloudRef, flt: PointFilter = PointFilter(), z_field: str | None = None,
+             name: str = "INPUT", chunk_points: int = CHUNK_POINTS,
+             report: ReadReport | None = None) -> Iterator[np.ndarray]:
+    """The (k, 3) float64 X, Y, Z of the points passing ``flt``, chunk by chunk (file order).
 
-    Z is the point's z, or the dimension ``z_field`` (e.g. a height above ground). Raises
-    :class:`InputDataError` naming ``name`` when LAZ cannot be decoded, a requested class is
-    not in the file, or no point passes the filter.
+    Never holds more than one chunk of ``chunk_points`` records. ``report`` (optional) is
+    filled as the chunks go (points read and kept, the class histogram of the whole file).
+    After the last chunk it raises :class:`InputDataError` naming ``name`` when a requested
+    class is not in the file or no point passed the filter; a NaN or infinite height is
+    refused at its chunk; LAZ without a backend is refused before the first.
     """
     import laspy
 
     _require_backend(ref, name)
-    out = np.empty((ref.point_count, 3), dtype=np.float64)
+    report = report if report is not None else ReadReport(0, 0, {}, flt.describe())
+    report.filter = flt.describe()
     hist = np.zeros(256, dtype=np.int64)
-    n_read = n_kept = 0
     try:
         with laspy.open(ref.path) as reader:
             for points in reader.chunk_iterator(chunk_points):
@@ -214,37 +217,54 @@ def read_xyz(ref: PointCloudRef, flt: PointFilter = PointFilter(), z_field: str 
                                     minlength=256)[:256]
                 keep = _keep(points, flt)
                 z = points.z if z_field in (None, "z", "Z") else points[z_field]
-                cols = (points.x, points.y, z)
-                k = n if keep is None else int(keep.sum())
-                end = n_kept + k
-                if end > len(out):  # the header under-counted: grow (rare, broken files)
-                    out = np.resize(out, (end + chunk_points, 3))
-                for j, col in enumerate(cols):
-                    col = np.asarray(col, dtype=np.float64)
-                    out[n_kept:end, j] = col if keep is None else col[keep]
-                n_read += n
-                n_kept = end
+                cols = [np.asarray(col, dtype=np.float64) for col in (points.x, points.y, z)]
+                xyz = np.column_stack(cols if keep is None else [c[keep] for c in cols])
+                del cols, points
+                report.read += n
+                report.kept += len(xyz)
+                report.classes = {int(c): int(hist[c]) for c in np.flatnonzero(hist)}
+                if not np.isfinite(xyz[:, 2]).all():
+                    raise InputDataError(f"{name} {ref}: the height {z_field or 'z'} is NaN or "
+                                         "infinite for some points")
+                yield xyz
     except InputDataError:
         raise
     except Exception as exc:
         raise InputDataError(f"{name} {ref}: cannot read the points: "
                              f"{str(exc).splitlines()[0]}") from None
-    classes = {int(c): int(hist[c]) for c in np.flatnonzero(hist)}
-    report = ReadReport(n_read, n_kept, classes, flt.describe())
+    classes = report.classes
     if flt.classes is not None:
         missing = [c for c in flt.classes if c not in classes]
         if missing:
             present = ", ".join(f"{c} ({n} points)" for c, n in classes.items())
             raise InputDataError(f"CLASSES {','.join(map(str, missing))} not in {name} {ref}; "
                                  f"the classes present are: {present}")
-    if n_kept == 0:
+    if report.kept == 0:
         raise InputDataError(f"no point of {name} {ref} passes the filter ({flt.describe()}) "
-                             f"of its {n_read} points")
-    xyz = out[:n_kept]
-    if not np.isfinite(xyz[:, 2]).all():
-        raise InputDataError(f"{name} {ref}: the height {z_field or 'z'} is NaN or infinite "
-                             "for some points")
-    return xyz, report
+                             f"of its {report.read} points")
+
+
+def read_xyz(ref: PointCloudRef, flt: PointFilter = PointFilter(), z_field: str | None = None,
+             name: str = "INPUT", chunk_points: int = CHUNK_POINTS
+             ) -> tuple[np.ndarray, ReadReport]:
+    """(K, 3) float64 X, Y, Z (map units) of the points passing ``flt``, read by chunks
+    (:func:`iter_xyz`) into one array allocated for the header's count (pages past the kept
+    points are never touched): 24 bytes a kept point plus one chunk.
+
+    Z is the point's z, or the dimension ``z_field`` (e.g. a height above ground). Raises
+    :class:`InputDataError` naming ``name`` when LAZ cannot be decoded, a requested class is
+    not in the file, or no point passes the filter.
+    """
+    report = ReadReport(0, 0, {}, flt.describe())
+    out = np.empty((ref.point_count, 3), dtype=np.float64)
+    n_kept = 0
+    for xyz in iter_xyz(ref, flt, z_field, name, chunk_points, report):
+        end = n_kept + len(xyz)
+        if end > len(out):  # the header under-counted: grow (rare, broken files)
+            out = np.resize(out, (end + chunk_points, 3))
+        out[n_kept:end] = xyz
+        n_kept = end
+    return out[:n_kept], report
 
 
 def check_cloud_crs(ref: Any, crs: Any, name: str = "INPUT") -> None:

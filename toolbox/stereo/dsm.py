@@ -62,11 +62,16 @@ def match_one_pair(left: Any, right: Any, images: tuple[Path, Path], low: float,
             colours = _colours(data, arrays[0][0])
         path.unlink()
     (lim, lval), (rim, rval) = arrays
+    from toolbox.stereo.range_check import check_terrain_range, coarse_heights
+
+    coarse = coarse_heights(geometry, left, (lim, rim), (lval, rval), low, high, options)
+    check_terrain_range(coarse, low, high, name, feedback)
     disparity = match_pair(lim, rim, lval, rval, d_min, count, options, feedback.step(40, 100))
     matched = int(np.isfinite(disparity).sum())
     stats = {"pair": name, "min_disparity": d_min, "num_disparities": count,
              "image_size": [lim.shape[1], lim.shape[0]], "matched_pixels": matched,
-             "matched_fraction_of_left": matched / max(1, int(lval.sum()))}
+             "matched_fraction_of_left": matched / max(1, int(lval.sum())),
+             "coarse_inside_range": coarse.inside(low, high) if len(coarse.heights) else None}
     return geometry, disparity, colours, stats
 
 
@@ -94,6 +99,9 @@ def run_match(params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
             photo.require_exterior()
     else:
         photos = project.oriented()
+    from toolbox.stereo.frames import as_frame_photo
+
+    photos = [as_frame_photo(photo) for photo in photos]  # distortion-free digital models
     if len(photos) < 2:
         raise InputDataError(f"PROJECT has {len(photos)} oriented photo(s) (of those chosen): "
                              "dense matching needs at least one oriented pair")

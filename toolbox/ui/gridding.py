@@ -245,9 +245,12 @@ class GriddingAlgorithm(Algorithm):
     def process(self, params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
         from toolbox.terrain.gridding.methods import METHODS
         from toolbox.terrain.gridding.run import grid_dem
+        from toolbox.terrain.gridding.stream import grid_dem_streamed, wants_stream
 
         request = gridding_request(params)
-        stats = grid_dem(METHODS[self.method], request, feedback)
+        # a point cloud over TOOLBOX_STREAM_POINTS points is read twice by chunks, never held
+        grid = grid_dem_streamed if wants_stream(request) else grid_dem
+        stats = grid(METHODS[self.method], request, feedback)
         result: dict[str, Any] = {"OUTPUT": request.output}
         if request.quality is not None:
             result["QUALITY"] = request.quality

@@ -1,7 +1,7 @@
 """dem:match on a stereo pair rendered through the collinearity equations (tilted photos, radial
-distortion) over a textured hilly surface with a building: completeness on textured ground,
-median error against the rendered surface, the roof present, and no value outside the stereo
-coverage."""
+distortion) over a textured hilly surface with a building and trees: completeness on textured
+ground, median error against the rendered surface, the roof and the tree crowns present, and no
+value outside the stereo coverage."""
 
 from __future__ import annotations
 
@@ -27,6 +27,16 @@ GSD = 230.0 / sc.SIZE * 705.0 / sc.C_MM  # m: pixel (mm) x distance (m) / c (mm)
 H_OVER_B = 705.0 / 420.0
 
 
+#: trees: crowns 16 m wide and 12 m high (half ellipsoids) in two rows across the coverage
+TREES = np.array([(sc.X0 + 380.0 + 60.0 * i, sc.Y0 + y) for i in range(5) for y in (320.0, 680.0)])
+CROWN, TREE_HEIGHT = 8.0, 12.0
+
+
+def trees(x, y):
+    d2 = (x[..., None] - TREES[:, 0]) ** 2 + (y[..., None] - TREES[:, 1]) ** 2
+    return TREE_HEIGHT * np.sqrt(np.clip(1.0 - d2 / CROWN ** 2, 0.0, None)).max(axis=-1)
+
+
 @pytest.fixture(scope="module")
 def scene(tmp_path_factory):
     folder = tmp_path_factory.mktemp("match")
@@ -36,7 +46,7 @@ def scene(tmp_path_factory):
     x, y = transform.c + (cols + 0.5) * 2.0, transform.f - (rows + 0.5) * 2.0
     x0, y0, x1, y1, h = BUILDING
     roof = (x > x0) & (x < x1) & (y > y0) & (y < y1)
-    z = z + np.where(roof, h, 0.0).astype("float32")
+    z = z + np.where(roof, h, 0.0).astype("float32") + trees(x, y).astype("float32")
     texture = wave_texture(seed=2, wavelength=(8.0, 40.0), waves=40)
     return sc.make_pair(folder, z, transform, texture, names=("L", "R", "M"))
 
@@ -78,7 +88,9 @@ def test_dsm_of_a_rendered_pair(scene, tmp_path):
     covered, outside = inside(8), ~inside(-3)
     x0, y0, x1, y1, _ = BUILDING
     near_building = (x > x0 - 25) & (x < x1 + 25) & (y > y0 - 25) & (y < y1 + 25)
-    open_ground = covered & ~near_building
+    d_tree = np.sqrt(((x[..., None] - TREES[:, 0]) ** 2
+                      + (y[..., None] - TREES[:, 1]) ** 2).min(axis=-1))
+    open_ground = covered & ~near_building & (d_tree > 16)
     valid = ~dsm.mask
     completeness = valid[open_ground].mean()
     error = np.abs(dsm.data - truth)[open_ground & valid]
@@ -88,10 +100,27 @@ def test_dsm_of_a_rendered_pair(scene, tmp_path):
     roof = (x > x0 + 8) & (x < x1 - 8) & (y > y0 + 8) & (y < y1 - 8) & valid
     assert roof.sum() > 0.8 * ((x1 - x0 - 16) * (y1 - y0 - 16)) / CELL ** 2
     assert np.median(np.abs(dsm.data - truth)[roof]) < 1.5  # the roof is there, 15 m up
+    # the trees are there: their crowns (11-12 m up within 3 m of the top) stand out, lowered
+    # by the matching at this GSD (1.8 m: a crown is 9 px wide, 4 px of parallax; the 5 px
+    # window and SGBM's smoothness penalty flatten it): measured 6.2 m up
+    crowns = (d_tree < 3.0) & valid
+    assert crowns.sum() >= len(TREES) and valid[d_tree < 3.0].mean() >= 0.9
+    assert np.median((dsm.data - (truth - trees(x, y)))[crowns]) > 0.4 * TREE_HEIGHT
     assert set(np.unique(count[valid])) == {1} and (count[~valid] == 0).all()
     las = laspy.read(tmp_path / "points.laz")
     assert len(las.points) == res["STATISTICS"]["points_written"] > 0.8 * valid.sum()
     assert las.header.parse_crs().to_epsg() == 3003
+    # colour from the photo: each point's RGB (16 bit) is the left photo's value where the
+    # point projects (collinearity, the photo read here), to resampling and matching noise
+    rgb = np.column_stack([np.asarray(las.red), np.asarray(las.green), np.asarray(las.blue)])
+    assert rgb.std() > 1000 and (rgb % 257 == 0).all()
+    xyz = np.column_stack([np.asarray(las.x), np.asarray(las.y), np.asarray(las.z)])[::50]
+    with rasterio.open(scene.folder / "L.tif") as ds:
+        photo = ds.read().astype(float)
+    px = np.floor(scene.photos["L"].ground_to_pixel(xyz)).astype(int)
+    inside = ((px >= 0) & (px < sc.SIZE)).all(axis=1)
+    seen = photo.mean(axis=0)[px[inside, 1], px[inside, 0]]
+    assert np.median(np.abs(rgb[::50][inside].mean(axis=1) / 257 - seen)) < 8.0
 
 
 def test_match_bad_input_exit_2(scene, tmp_path):
@@ -100,13 +129,19 @@ def test_match_bad_input_exit_2(scene, tmp_path):
     runner = CliRunner()
     base = ["run", "dem:match", "--PROJECT", str(scene.project), "--CELL_SIZE", "4",
             "--OUTPUT", str(tmp_path / "d.tif"), "--COUNT", str(tmp_path / "c.tif"),
-            "--SPREAD", str(tmp_path / "s.tif")]
+            "--SPREAD", str(tmp_path / "s.tif"), "--POINTS", str(tmp_path / "p.laz")]
     cases = [(["--PHOTOS", "L,far", "--MIN_HEIGHT", "280", "--MAX_HEIGHT", "370"],
               "no suitable stereo pair"),
              (["--PHOTOS", "L,R", "--MIN_HEIGHT", "-2000", "--MAX_HEIGHT", "900"],
               "more than MAX_DISPARITIES"),
              (["--PHOTOS", "L,R", "--MIN_HEIGHT", "380", "--MAX_HEIGHT", "370"],
               "MAX_HEIGHT must be above MIN_HEIGHT"),
+             # ranges that miss the terrain (300-355 m, roofs and crowns to 370 m): a coarse
+             # match over a wider range finds it outside (without the check: a DSM of garbage)
+             (["--PHOTOS", "L,R", "--MIN_HEIGHT", "400", "--MAX_HEIGHT", "470"],
+              "100 % of the terrain outside MIN_HEIGHT 400 .. MAX_HEIGHT 470"),
+             (["--PHOTOS", "L,R", "--MIN_HEIGHT", "200", "--MAX_HEIGHT", "290"],
+              "100 % of the terrain outside MIN_HEIGHT 200 .. MAX_HEIGHT 290"),
              (["--PHOTOS", "L,unoriented", "--MIN_HEIGHT", "280", "--MAX_HEIGHT", "370"],
               "has no exterior orientation")]
     for args, text in cases:
@@ -114,7 +149,7 @@ def test_match_bad_input_exit_2(scene, tmp_path):
         assert res.exit_code == 2, res.output
         assert text in res.stderr and "Traceback" not in res.output, res.stderr
         assert len(res.stderr.strip().splitlines()) == 1
-        assert not any((tmp_path / n).exists() for n in ("d.tif", "c.tif", "s.tif"))
+        assert not any((tmp_path / n).exists() for n in ("d.tif", "c.tif", "s.tif", "p.laz"))
 
 
 def test_three_photos_three_pairs_fused(scene, tmp_path):

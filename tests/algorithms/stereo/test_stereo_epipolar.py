@@ -112,3 +112,15 @@ def test_refused_pairs(pair, tmp_path):
         assert text in res.stderr and "Traceback" not in res.output, res.stderr
         assert len(res.stderr.strip().splitlines()) == 1
         assert not any((tmp_path / n).exists() for n in ("l.tif", "r.tif", "p.json"))
+        if "SIGMA_Z" in text:  # the stated precision is the normal case's (S002 eq. [37])
+            import re
+
+            b, z, sz, sp = map(float, re.search(
+                r"B = (\S+) m at Z = (\S+) m .* sigma_Z = (\S+) m with sigma_p = (\S+) um",
+                res.stderr).groups())
+            assert b == pytest.approx(np.linalg.norm(np.subtract(sc.CENTRES["R"],
+                                                                 sc.CENTRES["L"])), abs=0.1)
+            assert 600 < z < 800  # the cameras ~1000 m, the terrain 320 m
+            # (printed to 1 mm)
+            assert sz == pytest.approx(z / b * z / sc.C_MM * sp / 1000.0, abs=6e-4)
+            assert sz > 0.01

@@ -1,0 +1,189 @@
+"""Streamed gridding of a point cloud (toolbox/terrain/gridding/stream.py): the same cells as the
+in-memory path (the oracle), nearest also against scipy's k-d tree, never more than one chunk
+of the cloud held, and the runs that cannot stream refused with one line."""
+
+from __future__ import annotations
+
+import json
+import tracemalloc
+
+import numpy as np
+import pytest
+import rasterio
+from conftest import run_cli
+from scipy.spatial import cKDTree
+
+import toolbox
+import toolbox.io.pointcloud as pointcloud
+from toolbox.errors import ParameterError
+from toolbox.feedback import Feedback
+from toolbox.io.pointcloud import PointFilter, open_point_cloud, write_point_cloud
+from toolbox.raster.grid_request import GridRequest
+from toolbox.terrain.gridding.methods import METHODS
+from toolbox.terrain.gridding.request import Execution, GriddingRequest, PointSources
+from toolbox.terrain.gridding.run import grid_dem
+from toolbox.terrain.gridding.stream import grid_dem_streamed, plan_boxes, scan_cloud, spill
+
+X0, Y0, N = 1_688_000.0, 4_799_500.0, 20_000
+
+
+@pytest.fixture(scope="module")
+def cloud(tmp_path_factory):
+    """20,000 points over 200 x 150 m (classes 2 and 5) with 200 exact XY duplicates of other
+    heights, as LAZ."""
+    rng = np.random.default_rng(29)
+    x, y = X0 + rng.uniform(0, 200, N), Y0 + rng.uniform(0, 150, N)
+    x, y = np.round(x, 3), np.round(y, 3)  # on the LAZ's 1 mm lattice: duplicates stay exact
+    z = 300 + 10 * np.sin(x / 40) * np.cos(y / 30) + rng.normal(0, 0.2, N)
+    dup = rng.choice(N - 200, 200, replace=False)
+    x[-200:], y[-200:] = x[dup], y[dup]
+    cls = np.where(rng.random(N) < 0.8, 2, 5)
+    cls[-200:] = 2
+    cls[dup] = 2
+    path = tmp_path_factory.mktemp("stream") / "cloud.laz"
+    write_point_cloud(path, np.column_stack([x, y, z]), "EPSG:3003", classification=cls)
+    return path
+
+
+def _grid(path):
+    with rasterio.open(path) as ds:
+        return ds.read(1, masked=True).filled(np.nan), ds.transform
+
+
+def _run(method, cloud, out, extra=None):
+    params = {"INPUT": str(cloud), "CLASSES": "2", "CELL_SIZE": 2.0, "TILE_SIZE": 32,
+              "OUTPUT": str(out), "OVERVIEWS": False, **(extra or {})}
+    return toolbox.run(f"dem:{method}", params)["STATISTICS"]
+
+
+@pytest.mark.parametrize("method, extra", [
+    ("nearest", {}), ("idw", {"NEIGHBOURS": 8}), ("plane", {}),
+    ("idw", {"NEIGHBOURS": 6, "SECTORS": 4, "RADIUS": 6.0}),
+    ("nearest", {"MAX_DISTANCE": 1.0, "DUPLICATES": "first"}),
+    ("idw", {"EXTRAPOLATE": True, "EXTENT": f"{X0 - 40},{Y0 - 30},{X0 + 230},{Y0 + 170}"})])
+def test_streamed_equals_in_memory(cloud, tmp_path, monkeypatch, method, extra):
+    memory = _run(method, cloud, tmp_path / "memory.tif", extra)
+    assert "streamed" not in memory
+    monkeypatch.setenv("TOOLBOX_STREAM_POINTS", "1000")
+    monkeypatch.setattr(pointcloud, "CHUNK_POINTS", 1000)
+    streamed = _run(method, cloud, tmp_path / "stream.tif", extra)
+    info = streamed["streamed"]
+    assert info["tiles"] >= 8 and info["chunk_points"] == 1000
+    assert info["bucket_points_max"] < N / 3
+    a, ta = _grid(tmp_path / "memory.tif")
+    b, tb = _grid(tmp_path / "stream.tif")
+    assert ta == tb and a.shape == b.shape
+    assert np.isfinite(a).sum() > 0.5 * a.size
+    np.testing.assert_array_equal(np.isnan(a), np.isnan(b))
+    np.testing.assert_array_equal(a, b)  # the same points, the same kernel: the same cells
+    assert streamed["duplicates"] == memory["duplicates"]
+    assert streamed["duplicates"]["duplicate_groups"] >= 100
+    assert streamed["points_used"] == memory["points_used"]
+    assert streamed["cells"]["cells_with_value"] == memory["cells"]["cells_with_value"]
+
+
+def test_streamed_nearest_against_a_kd_tree(cloud, tmp_path, monkeypatch):
+    """Independent reference: scipy's cKDTree over the class-2 points (duplicates merged by
+    their mean, as DUPLICATES=mean), at the cell centres that have a value."""
+    import laspy
+
+    monkeypatch.setenv("TOOLBOX_STREAM_POINTS", "1000")
+    monkeypatch.setattr(pointcloud, "CHUNK_POINTS", 1000)
+    _run("nearest", cloud, tmp_path / "s.tif")
+    grid, t = _grid(tmp_path / "s.tif")
+    las = laspy.read(cloud)
+    keep = np.asarray(las.classification) == 2
+    xyz = np.column_stack([np.asarray(las.x), np.asarray(las.y), np.asarray(las.z)])[keep]
+    xy, inverse = np.unique(xyz[:, :2], axis=0, return_inverse=True)
+    z = np.bincount(inverse.ravel(), xyz[:, 2]) / np.bincount(inverse.ravel())
+    rows, cols = np.nonzero(np.isfinite(grid))
+    cx, cy = t.c + (cols + 0.5) * t.a, t.f + (rows + 0.5) * t.e
+    _, idx = cKDTree(xy - (X0, Y0)).query(np.column_stack([cx - X0, cy - Y0]))
+    np.testing.assert_array_equal(grid[rows, cols], z[idx].astype(np.float32))
+
+
+def test_streaming_holds_one_chunk_not_the_cloud(cloud, tmp_path):
+    """Chunks of 500 of 20,000 points: the Python heap's peak (numpy arrays included) of both
+    passes stays below a third of the 480 kB of all the points' coordinates (a chunk costs
+    about 250 bytes a record while it is decoded and binned); the whole streamed run's, below
+    a third of the in-memory run's."""
+    ref = open_point_cloud(cloud)
+    flt = PointFilter((2,))
+    request = GriddingRequest(PointSources(points=ref, classes="2"), tmp_path / "o.tif",
+                              GridRequest(cell_size=2.0), execution=Execution(tile_size=32,
+                                                                              overviews=False))
+    all_points = N * 3 * 8
+    # imports and numba kernels first (their allocations are not the streaming's)
+    grid_dem_streamed(METHODS["nearest"], request, Feedback(), chunk_points=500)
+    request.output.unlink()
+    tracemalloc.start()
+    try:
+        scan = scan_cloud(ref, flt, None, 500)
+        _, scan_peak = tracemalloc.get_traced_memory()
+        tracemalloc.reset_peak()
+        grid = request.grid.grid(scan.bounds, ref.crs)
+        boxes = plan_boxes(grid, 32, scan, 1, np.inf)
+        folder = tmp_path / "buckets"
+        folder.mkdir()
+        tracemalloc.reset_peak()
+        written = spill(ref, flt, None, 500, boxes, folder)
+        _, spill_peak = tracemalloc.get_traced_memory()
+        tracemalloc.reset_peak()
+        stats = grid_dem_streamed(METHODS["nearest"], request, Feedback(), chunk_points=500)
+        _, run_peak = tracemalloc.get_traced_memory()
+        request.output.unlink()
+        tracemalloc.reset_peak()
+        grid_dem(METHODS["nearest"], request, Feedback())  # in memory: the same cells
+        _, memory_peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert written.sum() >= scan.kept
+    assert stats["streamed"]["tiles"] >= 8
+    assert scan_peak < all_points / 3
+    assert spill_peak < all_points / 3
+    # the tiles: a few buckets in flight (the engine's prefetch), not the cloud
+    assert run_peak < memory_peak / 3
+
+
+@pytest.mark.parametrize("cell, tile, k", [(2.0, 32, 8), (0.5, 16, 40)])
+def test_bucket_files_hold_every_point_near_their_tile(cloud, tmp_path, cell, tile, k):
+    """Every kept point is in the bucket of every tile whose grown box holds it (numpy check of
+    the spill's neighbour-tile shortcut), in file order; also with reaches over a tile's side."""
+    ref = open_point_cloud(cloud)
+    flt = PointFilter((2,))
+    scan = scan_cloud(ref, flt, None, 777)
+    grid = GridRequest(cell_size=cell).grid(scan.bounds, ref.crs)
+    boxes = plan_boxes(grid, tile, scan, k, np.inf)
+    if tile == 16:
+        assert boxes.reach.max() > 16 * cell  # neighbours two tiles away are searched
+    spill(ref, flt, None, 777, boxes, tmp_path)
+    xyz, _ = pointcloud.read_xyz(ref, flt)
+    for t, rect in enumerate(boxes.rects):
+        inside = (xyz[:, 0] >= rect[0]) & (xyz[:, 0] <= rect[2]) & (xyz[:, 1] >= rect[1]) \
+            & (xyz[:, 1] <= rect[3])
+        path = tmp_path / f"{t}.xyz"
+        got = np.fromfile(path).reshape(-1, 3) if path.exists() else np.zeros((0, 3))
+        np.testing.assert_array_equal(got, xyz[inside])
+
+
+@pytest.mark.parametrize("method, extra, name", [
+    ("tin_linear", {}, "INPUT"),
+    ("nearest", {"DUPLICATE_TOLERANCE": 0.5}, "DUPLICATE_TOLERANCE")])
+def test_runs_that_cannot_stream_are_refused(cloud, tmp_path, monkeypatch, method, extra, name):
+    monkeypatch.setenv("TOOLBOX_STREAM_POINTS", "1000")
+    with pytest.raises(ParameterError, match=f"^{name} .*TOOLBOX_STREAM_POINTS"):
+        _run(method, cloud, tmp_path / "x.tif", extra)
+    assert not (tmp_path / "x.tif").exists()
+
+
+def test_cli_refusal_is_one_line(cloud, tmp_path, monkeypatch):
+    monkeypatch.setenv("TOOLBOX_STREAM_POINTS", "1000")
+    out = tmp_path / "q.tif"
+    res = run_cli("run", "dem:nearest", "--INPUT", cloud, "--CELL_SIZE", 2, "--OUTPUT", out,
+                  "--QUALITY", tmp_path / "q.json")
+    assert res.returncode == 2, res.stderr
+    lines = res.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].count("QUALITY") and "Traceback" not in res.stderr
+    assert "GB in memory" in lines[0]
+    assert not out.exists() and not (tmp_path / "q.json").exists()
+    json.dumps(lines)
