@@ -173,23 +173,16 @@ def _with_symbology(styles: list[LayerStyle], codes: list[str], table, colours
     the code file has symbology columns; else the styles as they are."""
     from dataclasses import replace
 
-    from toolbox.cartography.symbols import parse_symbol
+    from toolbox.styles.symbology import code_symbol, has_symbology
 
-    if not any(e.symbology for e in table.entries.values()):
+    if not has_symbology(table):
         return styles
-    # a delivered code has one look: that of its first working code (name, colour, symbol)
-    first: dict[str, tuple[str, str]] = {}  # delivered code -> (legend name, working code)
-    for entry in table.entries.values():
-        symbol = parse_symbol(entry, entry.kind or "line")
-        first.setdefault(symbol.delivered, (f"{symbol.delivered} {entry.description}".strip(),
-                                            entry.code))
     out = []
     for style, code in zip(styles, codes, strict=True):
         if code not in table:
             out.append(style)
             continue
-        name, lead = first[parse_symbol(table[code], style.kind).delivered]
-        symbol = replace(parse_symbol(table[lead], style.kind), code=code)
+        symbol, name, lead = code_symbol(code, style.kind, table)
         out.append(replace(style, symbol=symbol, width_mm=symbol.width, name=name,
                            rgb=_code_rgb(lead, table, colours) or style.rgb))
     return out
