@@ -71,6 +71,8 @@ class SheetJob:
     sources: str | None = None
     date: str | None = None
     grid_crs: Any = None
+    index: Any = None
+    index_field: str | None = None
     output: Path | None = None
     png: Path | None = None
     folder: Path | None = None
@@ -196,6 +198,7 @@ def run_sheets(job: SheetJob, feedback) -> dict:
         + [_dated(ref) for ref in job.layers or []]
         + [_dated(job.contours)] * (job.contours is not None)))
     date = job.date or _dt.date.today().isoformat()
+    index = read_vector(job.index, name="INDEX").to_crs(crs) if job.index is not None else None
     folder = Path(job.folder) if job.folder else None  # staged by the runner
     names = sheet_file_names(job)
     written = []
@@ -216,6 +219,8 @@ def run_sheets(job: SheetJob, feedback) -> dict:
                           contours=contours, grid_style=job.grid_style,
                           map_step_mm=job.map_step, png_dpi=job.png_dpi)
             common["second_grid"] = _second_grid(crs, job.grid_crs)
+            if index is not None:
+                common["index"] = (index, job.index_field or "number", polygon)
             if common["second_grid"] is not None:
                 spec.second_crs = common["second_grid"][1]
             pngs = [job.png] if job.png and i == 0 else []
