@@ -34,7 +34,7 @@
   </renderer-v2>
   <labeling type="simple">
     <settings calloutType="simple">
-      <text-style fieldName="description" isExpression="0" fontFamily="Sans Serif" fontSize="8" fontSizeUnit="Point" textColor="0,0,0,255" textOpacity="1" namedStyle="Regular" multilineHeight="1" />
+      <text-style fieldName="format_number(z($geometry), 1)" isExpression="1" fontFamily="Sans Serif" fontSize="8" fontSizeUnit="Point" textColor="0,0,0,255" textOpacity="1" namedStyle="Regular" multilineHeight="1" />
       <text-buffer bufferDraw="1" bufferSize="0.8" bufferSizeUnits="MM" bufferColor="255,255,255,255" bufferOpacity="1" />
       <placement placement="6" dist="1" distUnits="MM" centroidInside="1" />
       <rendering scaleVisibility="0" obstacle="1" displayAll="0" fontLimitPixelSize="0" />

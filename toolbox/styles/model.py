@@ -60,6 +60,7 @@ class LayerStyle:
     styles: list[CodeStyle]
     field: str = "code"
     label_field: str | None = None
+    label_expression: str | None = None  # a QGIS expression labelling instead (QML only)
 
     @property
     def categorised(self) -> bool:
@@ -114,8 +115,28 @@ def layer_style(name: str, kind: str, codes: list[str], table: CodeTable | None,
     point and polygon layers unless ``label_field`` says otherwise (None: none)."""
     if label_field == "auto":
         label_field = "description" if kind in LABELLED_KINDS else None
-    return LayerStyle(name, kind, [code_style(c, kind, table, colours) for c in codes],
-                      label_field=label_field)
+    styles = [code_style(c, kind, table, colours) for c in codes]
+    return LayerStyle(name, kind, styles, label_field=label_field,
+                      label_expression=_height_labels(styles, table) if label_field else None)
+
+
+#: a spot height's label: its height (the point's Z), one decimal, as the map sheet prints it
+HEIGHT_EXPRESSION = "format_number(z($geometry), 1)"
+
+
+def _height_labels(styles: list[CodeStyle], table: CodeTable | None) -> str | None:
+    """The QGIS label expression of a point layer whose codes include spot heights (a ``dot``
+    in the code file's symbol column): their height, the description for the other codes;
+    None without."""
+    dots = [s.code for s in styles if s.kind == "point" and s.symbol is not None
+            and s.symbol.symbol == "dot" and table is not None and s.code in table
+            and dict(table[s.code].symbology).get("symbol")]
+    if not dots:
+        return None
+    if len(dots) == len(styles):
+        return HEIGHT_EXPRESSION
+    quoted = ", ".join("'" + code.replace("'", "''") + "'" for code in dots)
+    return f'CASE WHEN "code" IN ({quoted}) THEN {HEIGHT_EXPRESSION} ELSE "description" END'
 
 
 MM_TO_POINTS = 72.0 / 25.4

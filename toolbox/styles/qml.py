@@ -131,11 +131,12 @@ def _symbology_layers(style: CodeStyle) -> list[tuple]:
     return layers
 
 
-def _labeling(root: ET.Element, field: str, kind: str) -> None:
+def _labeling(root: ET.Element, field: str, kind: str, expression: str | None = None) -> None:
     labeling = ET.SubElement(root, "labeling", {"type": "simple"})
     settings = ET.SubElement(labeling, "settings", {"calloutType": "simple"})
     ET.SubElement(settings, "text-style", {
-        "fieldName": field, "isExpression": "0", "fontFamily": "Sans Serif", "fontSize": "8",
+        "fieldName": expression or field, "isExpression": "1" if expression else "0",
+        "fontFamily": "Sans Serif", "fontSize": "8",
         "fontSizeUnit": "Point", "textColor": "0,0,0,255", "textOpacity": "1",
         "namedStyle": "Regular", "multilineHeight": "1"})
     buffer = ET.SubElement(settings, "text-buffer")
@@ -176,7 +177,7 @@ def qml_document(layer: LayerStyle) -> str:
         symbols = ET.SubElement(renderer, "symbols")
         _symbol(symbols, "symbol", "0", layer.styles[0])
     if layer.label_field:
-        _labeling(root, layer.label_field, layer.kind)
+        _labeling(root, layer.label_field, layer.kind, layer.label_expression)
     ET.SubElement(root, "layerGeometryType").text = GEOMETRY_TYPES[layer.kind]
     ET.indent(root)
     body = ET.tostring(root, encoding="unicode")

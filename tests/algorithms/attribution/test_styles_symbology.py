@@ -162,6 +162,22 @@ def test_qml_is_the_hand_written_symbology(styles, code):
         assert options == {p.get("k"): p.get("v") for p in layer.findall("prop")}
 
 
+def test_spot_heights_are_labelled_with_their_height(styles):
+    """A code drawn as a dot (a spot height) is labelled with the point's Z, one decimal, as
+    the sheet does; the other point codes with their description."""
+    def text_style(name):
+        root = ET.fromstring(styles[1][name].read_text(encoding="utf-8").split("\n", 1)[1])
+        return root.find("labeling/settings/text-style").attrib
+
+    quo = text_style("QUO01001.qml")
+    assert (quo["fieldName"], quo["isExpression"]) == ("format_number(z($geometry), 1)", "1")
+    tree = text_style("ALB01001.qml")
+    assert (tree["fieldName"], tree["isExpression"]) == ("description", "0")
+    points = text_style("points.qml")
+    assert points["fieldName"] == ('CASE WHEN "code" IN (\'QUO01001\') THEN '
+                                   'format_number(z($geometry), 1) ELSE "description" END')
+
+
 def test_categorised_legend_names_the_delivered_codes(styles):
     root = ET.fromstring(styles[1]["lines.qml"].read_text(encoding="utf-8").split("\n", 1)[1])
     labels = {c.get("value"): c.get("label") for c in root.find("renderer-v2/categories")}
@@ -205,7 +221,8 @@ def test_sld_carries_dashes_hatching_and_marks(styles):
 QGIS_SCRIPT = r"""
 import json, sys
 from qgis.core import (QgsApplication, QgsVectorLayer, QgsMapSettings, QgsRectangle,
-                       QgsMapRendererSequentialJob)
+                       QgsMapRendererSequentialJob, QgsExpression, QgsExpressionContext,
+                       QgsExpressionContextUtils)
 from qgis.PyQt.QtCore import QSize
 from qgis.PyQt.QtGui import QColor
 app = QgsApplication([], False); app.initQgis()
@@ -229,7 +246,17 @@ for job in jobs:
     symbols = ([renderer.symbol()] if renderer.type() == "singleSymbol"
                else [c.symbol() for c in renderer.categories()])
     report[job["name"]] = {"valid": layer.isValid(), "renderer": renderer.type(),
-                           "symbols": [layers(s) for s in symbols]}
+                           "symbols": [layers(s) for s in symbols], "labels": None}
+    if layer.labelsEnabled():  # each feature's label text, as QGIS evaluates it
+        settings = layer.labeling().settings()
+        expression = QgsExpression(settings.fieldName if settings.isExpression
+                                   else QgsExpression.quotedColumnRef(settings.fieldName))
+        context = QgsExpressionContext(QgsExpressionContextUtils.globalProjectLayerScopes(layer))
+        texts = []
+        for feature in layer.getFeatures():
+            context.setFeature(feature)
+            texts.append(str(expression.evaluate(context)))
+        report[job["name"]]["labels"] = texts
     if job.get("png"):  # rendered at 254 dpi: 10 pixels per mm
         settings = QgsMapSettings()
         settings.setLayers([layer]); settings.setDestinationCrs(layer.crs())
@@ -365,3 +392,8 @@ def test_attribution_apply_embeds_the_symbology_qgis_applies(tmp_path):
     assert fab[1]["props"]["line_width"] == "0.25"
     quo = seen["QUO01001"]["symbols"][0][0]["props"]
     assert (quo["name"], quo["size"], quo["color"]) == ("circle", "0.7", "0,0,255,255")
+    # spot heights are labelled with their height (one decimal), as the sheet prints them;
+    # buildings with their description
+    heights = [f"{g.z:.1f}" for g in gpd.read_file(out, layer="QUO01001").geometry]
+    assert heights and seen["QUO01001"]["labels"] == heights
+    assert set(seen["FAB01002"]["labels"]) == {"muro perimetrale di fabbricato civile"}
