@@ -175,6 +175,14 @@ def sheet_file_names(job: SheetJob) -> list[str]:
     return sheet_ids_unique([sheet_id for sheet_id, _ in sheet_polygons(job.sheets)[0]])
 
 
+def _index_layer(ref, crs):
+    """The INDEX layer in the sheets' CRS (one without a CRS is taken to be in it)."""
+    from toolbox.io.vector import read_vector
+
+    frame = read_vector(ref, name="INDEX")
+    return frame.set_crs(crs) if frame.crs is None else frame.to_crs(crs)
+
+
 def run_sheets(job: SheetJob, feedback) -> dict:
     import matplotlib
     from matplotlib.backends.backend_pdf import PdfPages
@@ -198,7 +206,7 @@ def run_sheets(job: SheetJob, feedback) -> dict:
         + [_dated(ref) for ref in job.layers or []]
         + [_dated(job.contours)] * (job.contours is not None)))
     date = job.date or _dt.date.today().isoformat()
-    index = read_vector(job.index, name="INDEX").to_crs(crs) if job.index is not None else None
+    index = _index_layer(job.index, crs) if job.index is not None else None
     folder = Path(job.folder) if job.folder else None  # staged by the runner
     names = sheet_file_names(job)
     written = []
