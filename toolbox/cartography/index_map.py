@@ -25,6 +25,15 @@ def index_neighbourhood(frame, field: str, sheet_polygon) -> tuple[int | None, l
     return hits[0], around
 
 
+def index_number(frame, field: str, sheet_polygon) -> str:
+    """The sheet's number in the index ("" when the sheet is not in it or has none)."""
+    own, _ = index_neighbourhood(frame, field, sheet_polygon)
+    if own is None or field not in frame:
+        return ""
+    number = str(frame[field].iloc[own])
+    return "" if number in ("None", "nan") else number
+
+
 def draw_index_map(renderer, frame, field: str, sheet_polygon) -> dict:
     """Draw the index map on ``renderer`` (a :class:`~toolbox.cartography.sheet.SheetRenderer`)
     and return what it shows: the sheet's number and its neighbours' (empty when the sheet is

@@ -80,6 +80,10 @@ def render_sheet(spec: SheetSpec, base=None, base_name: str = "", styles=(), con
     ``PdfPages``). ``second_grid``: (pyproj Transformer sheet CRS -> second CRS, its label)
     whose grid is ticked along the frame; ``index``: (sheet index GeoDataFrame, number field,
     this sheet's polygon) drawn as the panel's small index map. Returns the page geometry."""
+    if index is not None:  # the title block names the sheet's number in the index
+        from toolbox.cartography.index_map import index_number
+
+        spec.index_number = index_number(*index)
     renderer = SheetRenderer(spec)
     try:
         if base is not None:

@@ -158,3 +158,15 @@ def test_sheet_draws_the_index_map_of_its_element(tmp_path):
     assert sorted(w for _, _, w in inset) == sorted(["296061", *page["index_map"]
                                                      ["neighbours"]])
     assert all(left * 72 / 25.4 < x < (left + width) * 72 / 25.4 for x, _, _ in inset)
+
+
+@pytest.mark.skipif(shutil.which("pdftotext") is None, reason="poppler's pdftotext")
+def test_an_extent_sheet_names_its_index_number(tmp_path):
+    """A sheet of an EXTENT (its id "1") inside element 296061: the title block says so."""
+    _, _, index = _index(tmp_path, _extent_at(8.2, 4.0), neighbours=True)
+    pdf = tmp_path / "one.pdf"
+    toolbox.run("carto:sheet", {"EXTENT": _extent_at(8.2, 4.0, half=60.0), "SCALE": 2000,
+                                "INDEX": index, "OUTPUT": pdf})
+    text = subprocess.run(["pdftotext", "-layout", str(pdf), "-"], capture_output=True,
+                          text=True, check=True).stdout
+    assert "sheet: 1" in text and "in sheet index: 296061" in text
