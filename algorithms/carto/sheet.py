@@ -57,7 +57,8 @@ class Sheet(Algorithm):
 
     ``INDEX``, a sheet index layer (``carto:sheet_index``: CTR elements or sections with their
     ``number``; another field with ``INDEX_ID``), adds a small index map to the panel's top
-    right: the sheet (shaded) and its neighbours with their numbers. Give the same layer as
+    right: the sheet (shaded) and its neighbours with their numbers; the title block names its
+    number in the index when the sheet's id is another. Give the same layer as
     ``SHEETS`` (``SHEET_ID number``) for one sheet per element of the index.
 
     With ``SHEETS``, ``OUTPUT`` holds one page per sheet, and ``FOLDER`` (if given) receives one
