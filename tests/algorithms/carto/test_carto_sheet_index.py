@@ -117,18 +117,27 @@ def test_sheets_outside_the_50k_sheet_are_unnumbered_and_said(tmp_path):
     assert any("5 sheets fall outside 1:50000 sheet 296" in w for w in feedback.warnings)
 
 
-@pytest.mark.parametrize("origin, word", [("11.1667", "lon,lat"), ("abc,43", "lon,lat"),
-                                          ("200,43", "longitude")])
-def test_bad_origin_is_one_line_exit_2(tmp_path, origin, word):
+def test_bad_origin_is_one_line_exit_2(tmp_path):
     from conftest import run_cli
 
     out = tmp_path / "idx.gpkg"
     proc = run_cli("run", "carto:sheet_index", "--EXTENT", _extent_at(8.2, 4.0),
-                   "--SHEET_50K", "296", "--ORIGIN", origin, "--OUTPUT", out)
+                   "--SHEET_50K", "296", "--ORIGIN", "11.1667", "--OUTPUT", out)
     assert proc.returncode == 2, proc.stderr
     lines = proc.stderr.strip().splitlines()
-    assert len(lines) == 1 and "ORIGIN" in lines[0] and word in lines[0], lines
+    assert len(lines) == 1 and "ORIGIN" in lines[0] and "lon,lat" in lines[0], lines
     assert "Traceback" not in proc.stderr and not out.exists()
+
+
+@pytest.mark.parametrize("origin, word", [("abc,43", "lon,lat"), ("200,43", "longitude")])
+def test_other_bad_origins_are_parameter_errors(tmp_path, origin, word):
+    from toolbox.errors import ParameterError
+
+    out = tmp_path / "idx.gpkg"
+    with pytest.raises(ParameterError, match=f"ORIGIN.*{word}"):
+        toolbox.run("carto:sheet_index", {"EXTENT": _extent_at(8.2, 4.0), "SHEET_50K": 296,
+                                          "ORIGIN": origin, "OUTPUT": out})
+    assert not out.exists()
 
 
 @pytest.mark.skipif(shutil.which("pdftotext") is None, reason="poppler's pdftotext")
