@@ -242,6 +242,8 @@ for job in jobs:
     layer = QgsVectorLayer(job["source"], job["name"], "ogr")
     if job.get("qml"):
         message, ok = layer.loadNamedStyle(job["qml"])
+    if job.get("sld"):
+        message, ok = layer.loadSldStyle(job["sld"])
     renderer = layer.renderer()
     symbols = ([renderer.symbol()] if renderer.type() == "singleSymbol"
                else [c.symbol() for c in renderer.categories()])
@@ -265,7 +267,7 @@ for job in jobs:
         settings.setBackgroundColor(QColor(255, 255, 255))
         render = QgsMapRendererSequentialJob(settings); render.start(); render.waitForFinished()
         render.renderedImage().save(job["png"])
-print("QGIS_STYLES " + json.dumps(report), flush=True)
+print("QGIS_STYLES " + json.dumps(report, default=str), flush=True)
 import os
 os._exit(0)  # exitQgis() with layers and symbols still referenced crashes at exit
 """
@@ -329,7 +331,14 @@ def test_qgis_reads_and_draws_the_symbology(styles):
     for job in jobs[:2]:
         job.update(png=str(folder / f"{job['name']}.png"), size=[400, 400],
                    extent=[0, 0, 100, 100])
+    jobs += [{"name": f"{code} (SLD)", "source": f"{data}|layername={code}",
+              "sld": str(written[f"{code}.sld"])} for code in ("FAB01002", "VEG01001")]
     seen = _run_qgis(folder, jobs)
+    # QGIS reads the SLD too: the hatching as a line pattern fill, the dashes (px, 0.28 mm)
+    fab_sld = [layer["type"] for layer in seen.pop("FAB01002 (SLD)")["symbols"][0]]
+    assert fab_sld == ["LinePatternFill", "SimpleLine"]
+    veg_sld = seen.pop("VEG01001 (SLD)")["symbols"][0]
+    assert veg_sld[-1]["props"]["customdash"] == "7.14;3.57"
     kinds = {name: [(layer["type"], layer.get("sub") and [s["type"] for s in layer["sub"]])
                     for layer in got["symbols"][0]] for name, got in seen.items()}
     assert kinds == {
