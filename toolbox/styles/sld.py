@@ -7,7 +7,8 @@ With the code file's symbology (:mod:`.symbology`): line types as ``stroke-dasha
 as a ``GraphicFill`` of a ``horline`` mark (as QGIS writes a line pattern fill) rotated by minus
 the hatch angle (SLD rotations are clockwise; QGIS 3.22 reads and writes that rotation as its
 own counter-clockwise angle, so in QGIS use the QML, which the GeoPackage embeds), solid
-fills at the sheet's opacity, point symbols as their well-known marks, scarp ticks as a
+fills at the sheet's opacity, point symbols as their well-known marks (a tree as a circle),
+scarp ticks as a
 ``GraphicStroke`` of ``vertline`` marks every 2 mm (SLD 1.0 cannot put them on one side: they
 are centred on the line).
 """
