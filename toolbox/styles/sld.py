@@ -8,9 +8,8 @@ as a ``GraphicFill`` of a ``horline`` mark (as QGIS writes a line pattern fill) 
 the hatch angle (SLD rotations are clockwise; QGIS 3.22 reads and writes that rotation as its
 own counter-clockwise angle, so in QGIS use the QML, which the GeoPackage embeds), solid
 fills at the sheet's opacity, point symbols as their well-known marks (a tree as a circle),
-scarp ticks as a
-``GraphicStroke`` of ``vertline`` marks every 2 mm (SLD 1.0 cannot put them on one side: they
-are centred on the line).
+scarp ticks as a ``GraphicStroke`` of ``vertline`` marks every 2 mm (SLD 1.0 cannot put them on
+one side: they are centred on the line).
 """
 
 from __future__ import annotations
