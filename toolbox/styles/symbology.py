@@ -107,6 +107,12 @@ def has_symbology(table) -> bool:
     return table is not None and any(e.symbology for e in table.entries.values())
 
 
+def check_symbology(table, name: str = "CODES") -> None:
+    """Parse every code's symbology (raises :class:`InputDataError` naming the line)."""
+    for entry in table.entries.values():
+        parse_symbol(entry, entry.kind or "line", name)
+
+
 def delivered_leads(table) -> dict[str, tuple[str, str]]:
     """Delivered code -> (legend name ``"<delivered> <description>"``, lead working code): a
     delivered code has one look, that of its first working code in the file."""

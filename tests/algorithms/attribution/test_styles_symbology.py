@@ -406,3 +406,21 @@ def test_attribution_apply_embeds_the_symbology_qgis_applies(tmp_path):
     heights = [f"{g.z:.1f}" for g in gpd.read_file(out, layer="QUO01001").geometry]
     assert heights and seen["QUO01001"]["labels"] == heights
     assert set(seen["FAB01002"]["labels"]) == {"muro perimetrale di fabbricato civile"}
+
+
+def test_bad_symbology_stops_attribution_apply_before_any_work(tmp_path):
+    """The styles now read the symbology columns: a bad one is a one-line error naming the
+    line, before the restitution is read (no warnings first), and no output is left."""
+    from conftest import run_cli
+
+    files = restitution.make(tmp_path, {})
+    bad = tmp_path / "bad_codes.txt"
+    bad.write_bytes(files["restitution_codes"].read_bytes().replace(b";45/1.0;", b";diagonal;"))
+    out = tmp_path / "coded.gpkg"
+    proc = run_cli("run", "attribution:apply", "--INPUT", files["restitution_model_12"],
+                   "--PARAMETERS", files["restitution_parameters"], "--CODES", bad,
+                   "--CRS", "EPSG:3003", "--OUTPUT", out)
+    assert proc.returncode == 2, proc.stderr
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and "CODES: line 5: hatch 'diagonal'" in lines[0], lines
+    assert not out.exists()
