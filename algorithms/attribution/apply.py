@@ -96,8 +96,10 @@ class ApplyCodes(Algorithm):
     def check(self, params):
         from toolbox.io.code_file import read_code_file, read_colour_file
         from toolbox.io.parameter_file import optional_parameter_file
+        from toolbox.styles.symbology import check_symbology
 
-        read_code_file(params["CODES"], "CODES")  # bad auxiliary files fail before any work
+        # bad auxiliary files (and a code file's bad symbology) fail before any work
+        check_symbology(read_code_file(params["CODES"], "CODES"))
         if params.get("COLOURS") is not None:
             read_colour_file(params["COLOURS"], "COLOURS")
         optional_parameter_file(params.get("PARAMETERS"))

@@ -55,6 +55,12 @@ class Sheet(Algorithm):
     code) in that code's colour, and the legend lists each code with its description. Layers
     with neither, and every layer without ``CODES``, get default colours by geometry kind.
 
+    ``INDEX``, a sheet index layer (``carto:sheet_index``: CTR elements or sections with their
+    ``number``; another field with ``INDEX_ID``), adds a small index map to the panel's top
+    right: the sheet (shaded) and its neighbours with their numbers; the title block names its
+    number in the index when the sheet's id is another. Give the same layer as
+    ``SHEETS`` (``SHEET_ID number``) for one sheet per element of the index.
+
     With ``SHEETS``, ``OUTPUT`` holds one page per sheet, and ``FOLDER`` (if given) receives one
     ``<sheet id>.pdf`` and ``.png`` per sheet.
     """
@@ -89,6 +95,10 @@ class Sheet(Algorithm):
         Crs("CRS", "CRS of EXTENT when it names none", optional=True),
         Crs("GRID_CRS", "second CRS ticked along the frame (e.g. EPSG:6707 beside EPSG:3003)",
             optional=True),
+        VectorLayer("INDEX", "sheet index (carto:sheet_index) drawn as a small index map",
+                    geometry_types=["polygon"], optional=True),
+        Field("INDEX_ID", "sheet number field of INDEX (default: number)", parent="INDEX",
+              optional=True),
         OutputFile("OUTPUT", "sheet PDF (one page per sheet)", extensions=[".pdf"],
                    optional=True),
         OutputFile("PNG", "PNG of the (first) sheet", extensions=[".png"], optional=True),
@@ -138,5 +148,6 @@ def sheet_job(params: dict):
         png_dpi=params["PNG_DPI"], base=params.get("BASE"), layers=params.get("LAYERS") or [],
         contours=params.get("CONTOURS"), codes=params.get("CODES"),
         colours=params.get("COLOURS"), sources=params.get("SOURCES"), date=params.get("DATE"),
-        grid_crs=params.get("GRID_CRS"), output=params.get("OUTPUT"), png=params.get("PNG"),
+        grid_crs=params.get("GRID_CRS"), index=params.get("INDEX"),
+        index_field=params.get("INDEX_ID"), output=params.get("OUTPUT"), png=params.get("PNG"),
         folder=params.get("FOLDER"))

@@ -5,24 +5,54 @@
       <symbol type="marker" name="0" alpha="1" clip_to_extent="1" force_rhr="0">
         <layer class="SimpleMarker" pass="0" locked="0" enabled="1">
           <Option type="Map">
-            <Option name="color" value="51,204,0,255" type="QString" />
             <Option name="name" value="circle" type="QString" />
-            <Option name="size" value="2" type="QString" />
+            <Option name="size" value="1.33333" type="QString" />
             <Option name="size_unit" value="MM" type="QString" />
-            <Option name="outline_color" value="35,35,35,255" type="QString" />
+            <Option name="color" value="0,0,0,0" type="QString" />
+            <Option name="outline_color" value="51,204,0,255" type="QString" />
             <Option name="outline_style" value="solid" type="QString" />
-            <Option name="outline_width" value="0.2" type="QString" />
+            <Option name="outline_width" value="0.13" type="QString" />
             <Option name="outline_width_unit" value="MM" type="QString" />
+            <Option name="offset" value="0,-0.333333" type="QString" />
+            <Option name="offset_unit" value="MM" type="QString" />
             <Option name="angle" value="0" type="QString" />
           </Option>
-          <prop k="color" v="51,204,0,255" />
           <prop k="name" v="circle" />
-          <prop k="size" v="2" />
+          <prop k="size" v="1.33333" />
           <prop k="size_unit" v="MM" />
-          <prop k="outline_color" v="35,35,35,255" />
+          <prop k="color" v="0,0,0,0" />
+          <prop k="outline_color" v="51,204,0,255" />
           <prop k="outline_style" v="solid" />
-          <prop k="outline_width" v="0.2" />
+          <prop k="outline_width" v="0.13" />
           <prop k="outline_width_unit" v="MM" />
+          <prop k="offset" v="0,-0.333333" />
+          <prop k="offset_unit" v="MM" />
+          <prop k="angle" v="0" />
+        </layer>
+        <layer class="SimpleMarker" pass="0" locked="0" enabled="1">
+          <Option type="Map">
+            <Option name="name" value="line" type="QString" />
+            <Option name="size" value="0.666667" type="QString" />
+            <Option name="size_unit" value="MM" type="QString" />
+            <Option name="color" value="0,0,0,0" type="QString" />
+            <Option name="outline_color" value="51,204,0,255" type="QString" />
+            <Option name="outline_style" value="solid" type="QString" />
+            <Option name="outline_width" value="0.13" type="QString" />
+            <Option name="outline_width_unit" value="MM" type="QString" />
+            <Option name="offset" value="0,0.666667" type="QString" />
+            <Option name="offset_unit" value="MM" type="QString" />
+            <Option name="angle" value="0" type="QString" />
+          </Option>
+          <prop k="name" v="line" />
+          <prop k="size" v="0.666667" />
+          <prop k="size_unit" v="MM" />
+          <prop k="color" v="0,0,0,0" />
+          <prop k="outline_color" v="51,204,0,255" />
+          <prop k="outline_style" v="solid" />
+          <prop k="outline_width" v="0.13" />
+          <prop k="outline_width_unit" v="MM" />
+          <prop k="offset" v="0,0.666667" />
+          <prop k="offset_unit" v="MM" />
           <prop k="angle" v="0" />
         </layer>
       </symbol>

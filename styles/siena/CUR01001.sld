@@ -12,7 +12,7 @@
           <sld:LineSymbolizer>
             <sld:Stroke>
               <sld:CssParameter name="stroke">#996633</sld:CssParameter>
-              <sld:CssParameter name="stroke-width">1.25</sld:CssParameter>
+              <sld:CssParameter name="stroke-width">0.89</sld:CssParameter>
             </sld:Stroke>
           </sld:LineSymbolizer>
         </sld:Rule>

@@ -11,14 +11,27 @@
           <sld:Title>muro perimetrale di fabbricato civile</sld:Title>
           <sld:PolygonSymbolizer>
             <sld:Fill>
-              <sld:CssParameter name="fill">#4d4d4d</sld:CssParameter>
-              <sld:CssParameter name="fill-opacity">0.38</sld:CssParameter>
+              <sld:GraphicFill>
+                <sld:Graphic>
+                  <sld:Mark>
+                    <sld:WellKnownName>horline</sld:WellKnownName>
+                    <sld:Stroke>
+                      <sld:CssParameter name="stroke">#4d4d4d</sld:CssParameter>
+                      <sld:CssParameter name="stroke-width">0.36</sld:CssParameter>
+                    </sld:Stroke>
+                  </sld:Mark>
+                  <sld:Size>3.57</sld:Size>
+                  <sld:Rotation>-45</sld:Rotation>
+                </sld:Graphic>
+              </sld:GraphicFill>
             </sld:Fill>
+          </sld:PolygonSymbolizer>
+          <sld:LineSymbolizer>
             <sld:Stroke>
               <sld:CssParameter name="stroke">#4d4d4d</sld:CssParameter>
-              <sld:CssParameter name="stroke-width">1.07</sld:CssParameter>
+              <sld:CssParameter name="stroke-width">0.89</sld:CssParameter>
             </sld:Stroke>
-          </sld:PolygonSymbolizer>
+          </sld:LineSymbolizer>
           <sld:TextSymbolizer>
             <sld:Label>
               <ogc:PropertyName>description</ogc:PropertyName>

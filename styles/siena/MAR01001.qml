@@ -5,19 +5,21 @@
       <symbol type="line" name="0" alpha="1" clip_to_extent="1" force_rhr="0">
         <layer class="SimpleLine" pass="0" locked="0" enabled="1">
           <Option type="Map">
-            <Option name="line_color" value="26,166,166,255" type="QString" />
+            <Option name="line_color" value="255,0,0,255" type="QString" />
             <Option name="line_style" value="solid" type="QString" />
-            <Option name="line_width" value="0.35" type="QString" />
+            <Option name="line_width" value="0.18" type="QString" />
             <Option name="line_width_unit" value="MM" type="QString" />
             <Option name="capstyle" value="round" type="QString" />
             <Option name="joinstyle" value="round" type="QString" />
+            <Option name="use_custom_dash" value="0" type="QString" />
           </Option>
-          <prop k="line_color" v="26,166,166,255" />
+          <prop k="line_color" v="255,0,0,255" />
           <prop k="line_style" v="solid" />
-          <prop k="line_width" v="0.35" />
+          <prop k="line_width" v="0.18" />
           <prop k="line_width_unit" v="MM" />
           <prop k="capstyle" v="round" />
           <prop k="joinstyle" v="round" />
+          <prop k="use_custom_dash" v="0" />
         </layer>
       </symbol>
     </symbols>

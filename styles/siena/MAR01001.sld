@@ -11,8 +11,8 @@
           <sld:Title>marciapiede</sld:Title>
           <sld:LineSymbolizer>
             <sld:Stroke>
-              <sld:CssParameter name="stroke">#1aa6a6</sld:CssParameter>
-              <sld:CssParameter name="stroke-width">1.25</sld:CssParameter>
+              <sld:CssParameter name="stroke">#ff0000</sld:CssParameter>
+              <sld:CssParameter name="stroke-width">0.64</sld:CssParameter>
             </sld:Stroke>
           </sld:LineSymbolizer>
         </sld:Rule>

@@ -12,7 +12,7 @@
           <sld:LineSymbolizer>
             <sld:Stroke>
               <sld:CssParameter name="stroke">#ff0000</sld:CssParameter>
-              <sld:CssParameter name="stroke-width">1.25</sld:CssParameter>
+              <sld:CssParameter name="stroke-width">0.64</sld:CssParameter>
             </sld:Stroke>
           </sld:LineSymbolizer>
         </sld:Rule>

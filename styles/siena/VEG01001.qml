@@ -7,19 +7,33 @@
           <Option type="Map">
             <Option name="color" value="51,204,0,96" type="QString" />
             <Option name="style" value="solid" type="QString" />
-            <Option name="outline_color" value="51,204,0,255" type="QString" />
-            <Option name="outline_style" value="solid" type="QString" />
-            <Option name="outline_width" value="0.3" type="QString" />
-            <Option name="outline_width_unit" value="MM" type="QString" />
-            <Option name="joinstyle" value="miter" type="QString" />
+            <Option name="outline_style" value="no" type="QString" />
           </Option>
           <prop k="color" v="51,204,0,96" />
           <prop k="style" v="solid" />
-          <prop k="outline_color" v="51,204,0,255" />
-          <prop k="outline_style" v="solid" />
-          <prop k="outline_width" v="0.3" />
-          <prop k="outline_width_unit" v="MM" />
-          <prop k="joinstyle" v="miter" />
+          <prop k="outline_style" v="no" />
+        </layer>
+        <layer class="SimpleLine" pass="0" locked="0" enabled="1">
+          <Option type="Map">
+            <Option name="line_color" value="51,204,0,255" type="QString" />
+            <Option name="line_style" value="solid" type="QString" />
+            <Option name="line_width" value="0.13" type="QString" />
+            <Option name="line_width_unit" value="MM" type="QString" />
+            <Option name="capstyle" value="flat" type="QString" />
+            <Option name="joinstyle" value="round" type="QString" />
+            <Option name="use_custom_dash" value="1" type="QString" />
+            <Option name="customdash" value="2;1" type="QString" />
+            <Option name="customdash_unit" value="MM" type="QString" />
+          </Option>
+          <prop k="line_color" v="51,204,0,255" />
+          <prop k="line_style" v="solid" />
+          <prop k="line_width" v="0.13" />
+          <prop k="line_width_unit" v="MM" />
+          <prop k="capstyle" v="flat" />
+          <prop k="joinstyle" v="round" />
+          <prop k="use_custom_dash" v="1" />
+          <prop k="customdash" v="2;1" />
+          <prop k="customdash_unit" v="MM" />
         </layer>
       </symbol>
     </symbols>

@@ -14,11 +14,14 @@
               <sld:CssParameter name="fill">#33cc00</sld:CssParameter>
               <sld:CssParameter name="fill-opacity">0.38</sld:CssParameter>
             </sld:Fill>
+          </sld:PolygonSymbolizer>
+          <sld:LineSymbolizer>
             <sld:Stroke>
               <sld:CssParameter name="stroke">#33cc00</sld:CssParameter>
-              <sld:CssParameter name="stroke-width">1.07</sld:CssParameter>
+              <sld:CssParameter name="stroke-width">0.46</sld:CssParameter>
+              <sld:CssParameter name="stroke-dasharray">7.14 3.57</sld:CssParameter>
             </sld:Stroke>
-          </sld:PolygonSymbolizer>
+          </sld:LineSymbolizer>
           <sld:TextSymbolizer>
             <sld:Label>
               <ogc:PropertyName>description</ogc:PropertyName>

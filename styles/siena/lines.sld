@@ -18,7 +18,7 @@
           <sld:LineSymbolizer>
             <sld:Stroke>
               <sld:CssParameter name="stroke">#996633</sld:CssParameter>
-              <sld:CssParameter name="stroke-width">1.25</sld:CssParameter>
+              <sld:CssParameter name="stroke-width">0.89</sld:CssParameter>
             </sld:Stroke>
           </sld:LineSymbolizer>
         </sld:Rule>
@@ -33,8 +33,8 @@
           </ogc:Filter>
           <sld:LineSymbolizer>
             <sld:Stroke>
-              <sld:CssParameter name="stroke">#1aa6a6</sld:CssParameter>
-              <sld:CssParameter name="stroke-width">1.25</sld:CssParameter>
+              <sld:CssParameter name="stroke">#ff0000</sld:CssParameter>
+              <sld:CssParameter name="stroke-width">0.64</sld:CssParameter>
             </sld:Stroke>
           </sld:LineSymbolizer>
         </sld:Rule>
@@ -50,7 +50,7 @@
           <sld:LineSymbolizer>
             <sld:Stroke>
               <sld:CssParameter name="stroke">#ff0000</sld:CssParameter>
-              <sld:CssParameter name="stroke-width">1.25</sld:CssParameter>
+              <sld:CssParameter name="stroke-width">0.64</sld:CssParameter>
             </sld:Stroke>
           </sld:LineSymbolizer>
         </sld:Rule>

@@ -19,13 +19,9 @@
             <sld:Graphic>
               <sld:Mark>
                 <sld:WellKnownName>circle</sld:WellKnownName>
-                <sld:Fill>
-                  <sld:CssParameter name="fill">#33cc00</sld:CssParameter>
-                  <sld:CssParameter name="fill-opacity">1.00</sld:CssParameter>
-                </sld:Fill>
                 <sld:Stroke>
-                  <sld:CssParameter name="stroke">#232323</sld:CssParameter>
-                  <sld:CssParameter name="stroke-width">0.71</sld:CssParameter>
+                  <sld:CssParameter name="stroke">#33cc00</sld:CssParameter>
+                  <sld:CssParameter name="stroke-width">0.46</sld:CssParameter>
                 </sld:Stroke>
               </sld:Mark>
               <sld:Size>7.14</sld:Size>
@@ -60,14 +56,13 @@
                 <sld:WellKnownName>circle</sld:WellKnownName>
                 <sld:Fill>
                   <sld:CssParameter name="fill">#0000ff</sld:CssParameter>
-                  <sld:CssParameter name="fill-opacity">1.00</sld:CssParameter>
                 </sld:Fill>
                 <sld:Stroke>
-                  <sld:CssParameter name="stroke">#232323</sld:CssParameter>
-                  <sld:CssParameter name="stroke-width">0.71</sld:CssParameter>
+                  <sld:CssParameter name="stroke">#0000ff</sld:CssParameter>
+                  <sld:CssParameter name="stroke-width">0.46</sld:CssParameter>
                 </sld:Stroke>
               </sld:Mark>
-              <sld:Size>7.14</sld:Size>
+              <sld:Size>2.50</sld:Size>
             </sld:Graphic>
           </sld:PointSymbolizer>
           <sld:TextSymbolizer>
@@ -99,14 +94,13 @@
                 <sld:WellKnownName>circle</sld:WellKnownName>
                 <sld:Fill>
                   <sld:CssParameter name="fill">#000000</sld:CssParameter>
-                  <sld:CssParameter name="fill-opacity">1.00</sld:CssParameter>
                 </sld:Fill>
                 <sld:Stroke>
-                  <sld:CssParameter name="stroke">#232323</sld:CssParameter>
-                  <sld:CssParameter name="stroke-width">0.71</sld:CssParameter>
+                  <sld:CssParameter name="stroke">#000000</sld:CssParameter>
+                  <sld:CssParameter name="stroke-width">2.14</sld:CssParameter>
                 </sld:Stroke>
               </sld:Mark>
-              <sld:Size>7.14</sld:Size>
+              <sld:Size>2.14</sld:Size>
             </sld:Graphic>
           </sld:PointSymbolizer>
           <sld:TextSymbolizer>

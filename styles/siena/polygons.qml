@@ -2,28 +2,64 @@
 <qgis version="3.22.0-Białowieża" styleCategories="Symbology|Labeling" labelsEnabled="1">
   <renderer-v2 type="categorizedSymbol" attr="code" symbollevels="0" enableorderby="0" forceraster="0" referencescale="-1">
     <categories>
-      <category value="FAB01002" symbol="0" render="true" label="FAB01002 muro perimetrale di fabbricato civile" />
-      <category value="VEG01001" symbol="1" render="true" label="VEG01001 area a verde" />
+      <category value="FAB01002" symbol="0" render="true" label="EDIFICIO muro perimetrale di fabbricato civile" />
+      <category value="VEG01001" symbol="1" render="true" label="AREA_VERDE area a verde" />
     </categories>
     <symbols>
       <symbol type="fill" name="0" alpha="1" clip_to_extent="1" force_rhr="0">
-        <layer class="SimpleFill" pass="0" locked="0" enabled="1">
+        <layer class="LinePatternFill" pass="0" locked="0" enabled="1">
           <Option type="Map">
-            <Option name="color" value="77,77,77,96" type="QString" />
-            <Option name="style" value="solid" type="QString" />
-            <Option name="outline_color" value="77,77,77,255" type="QString" />
-            <Option name="outline_style" value="solid" type="QString" />
-            <Option name="outline_width" value="0.3" type="QString" />
-            <Option name="outline_width_unit" value="MM" type="QString" />
-            <Option name="joinstyle" value="miter" type="QString" />
+            <Option name="angle" value="45" type="QString" />
+            <Option name="distance" value="1" type="QString" />
+            <Option name="distance_unit" value="MM" type="QString" />
+            <Option name="color" value="77,77,77,255" type="QString" />
+            <Option name="line_width" value="0.1" type="QString" />
+            <Option name="line_width_unit" value="MM" type="QString" />
           </Option>
-          <prop k="color" v="77,77,77,96" />
-          <prop k="style" v="solid" />
-          <prop k="outline_color" v="77,77,77,255" />
-          <prop k="outline_style" v="solid" />
-          <prop k="outline_width" v="0.3" />
-          <prop k="outline_width_unit" v="MM" />
-          <prop k="joinstyle" v="miter" />
+          <prop k="angle" v="45" />
+          <prop k="distance" v="1" />
+          <prop k="distance_unit" v="MM" />
+          <prop k="color" v="77,77,77,255" />
+          <prop k="line_width" v="0.1" />
+          <prop k="line_width_unit" v="MM" />
+          <symbol type="line" name="@0@0" alpha="1" clip_to_extent="1" force_rhr="0">
+            <layer class="SimpleLine" pass="0" locked="0" enabled="1">
+              <Option type="Map">
+                <Option name="line_color" value="77,77,77,255" type="QString" />
+                <Option name="line_style" value="solid" type="QString" />
+                <Option name="line_width" value="0.1" type="QString" />
+                <Option name="line_width_unit" value="MM" type="QString" />
+                <Option name="capstyle" value="round" type="QString" />
+                <Option name="joinstyle" value="round" type="QString" />
+                <Option name="use_custom_dash" value="0" type="QString" />
+              </Option>
+              <prop k="line_color" v="77,77,77,255" />
+              <prop k="line_style" v="solid" />
+              <prop k="line_width" v="0.1" />
+              <prop k="line_width_unit" v="MM" />
+              <prop k="capstyle" v="round" />
+              <prop k="joinstyle" v="round" />
+              <prop k="use_custom_dash" v="0" />
+            </layer>
+          </symbol>
+        </layer>
+        <layer class="SimpleLine" pass="0" locked="0" enabled="1">
+          <Option type="Map">
+            <Option name="line_color" value="77,77,77,255" type="QString" />
+            <Option name="line_style" value="solid" type="QString" />
+            <Option name="line_width" value="0.25" type="QString" />
+            <Option name="line_width_unit" value="MM" type="QString" />
+            <Option name="capstyle" value="round" type="QString" />
+            <Option name="joinstyle" value="round" type="QString" />
+            <Option name="use_custom_dash" value="0" type="QString" />
+          </Option>
+          <prop k="line_color" v="77,77,77,255" />
+          <prop k="line_style" v="solid" />
+          <prop k="line_width" v="0.25" />
+          <prop k="line_width_unit" v="MM" />
+          <prop k="capstyle" v="round" />
+          <prop k="joinstyle" v="round" />
+          <prop k="use_custom_dash" v="0" />
         </layer>
       </symbol>
       <symbol type="fill" name="1" alpha="1" clip_to_extent="1" force_rhr="0">
@@ -31,41 +67,91 @@
           <Option type="Map">
             <Option name="color" value="51,204,0,96" type="QString" />
             <Option name="style" value="solid" type="QString" />
-            <Option name="outline_color" value="51,204,0,255" type="QString" />
-            <Option name="outline_style" value="solid" type="QString" />
-            <Option name="outline_width" value="0.3" type="QString" />
-            <Option name="outline_width_unit" value="MM" type="QString" />
-            <Option name="joinstyle" value="miter" type="QString" />
+            <Option name="outline_style" value="no" type="QString" />
           </Option>
           <prop k="color" v="51,204,0,96" />
           <prop k="style" v="solid" />
-          <prop k="outline_color" v="51,204,0,255" />
-          <prop k="outline_style" v="solid" />
-          <prop k="outline_width" v="0.3" />
-          <prop k="outline_width_unit" v="MM" />
-          <prop k="joinstyle" v="miter" />
+          <prop k="outline_style" v="no" />
+        </layer>
+        <layer class="SimpleLine" pass="0" locked="0" enabled="1">
+          <Option type="Map">
+            <Option name="line_color" value="51,204,0,255" type="QString" />
+            <Option name="line_style" value="solid" type="QString" />
+            <Option name="line_width" value="0.13" type="QString" />
+            <Option name="line_width_unit" value="MM" type="QString" />
+            <Option name="capstyle" value="flat" type="QString" />
+            <Option name="joinstyle" value="round" type="QString" />
+            <Option name="use_custom_dash" value="1" type="QString" />
+            <Option name="customdash" value="2;1" type="QString" />
+            <Option name="customdash_unit" value="MM" type="QString" />
+          </Option>
+          <prop k="line_color" v="51,204,0,255" />
+          <prop k="line_style" v="solid" />
+          <prop k="line_width" v="0.13" />
+          <prop k="line_width_unit" v="MM" />
+          <prop k="capstyle" v="flat" />
+          <prop k="joinstyle" v="round" />
+          <prop k="use_custom_dash" v="1" />
+          <prop k="customdash" v="2;1" />
+          <prop k="customdash_unit" v="MM" />
         </layer>
       </symbol>
     </symbols>
     <source-symbol>
       <symbol type="fill" name="0" alpha="1" clip_to_extent="1" force_rhr="0">
-        <layer class="SimpleFill" pass="0" locked="0" enabled="1">
+        <layer class="LinePatternFill" pass="0" locked="0" enabled="1">
           <Option type="Map">
-            <Option name="color" value="77,77,77,96" type="QString" />
-            <Option name="style" value="solid" type="QString" />
-            <Option name="outline_color" value="77,77,77,255" type="QString" />
-            <Option name="outline_style" value="solid" type="QString" />
-            <Option name="outline_width" value="0.3" type="QString" />
-            <Option name="outline_width_unit" value="MM" type="QString" />
-            <Option name="joinstyle" value="miter" type="QString" />
+            <Option name="angle" value="45" type="QString" />
+            <Option name="distance" value="1" type="QString" />
+            <Option name="distance_unit" value="MM" type="QString" />
+            <Option name="color" value="77,77,77,255" type="QString" />
+            <Option name="line_width" value="0.1" type="QString" />
+            <Option name="line_width_unit" value="MM" type="QString" />
           </Option>
-          <prop k="color" v="77,77,77,96" />
-          <prop k="style" v="solid" />
-          <prop k="outline_color" v="77,77,77,255" />
-          <prop k="outline_style" v="solid" />
-          <prop k="outline_width" v="0.3" />
-          <prop k="outline_width_unit" v="MM" />
-          <prop k="joinstyle" v="miter" />
+          <prop k="angle" v="45" />
+          <prop k="distance" v="1" />
+          <prop k="distance_unit" v="MM" />
+          <prop k="color" v="77,77,77,255" />
+          <prop k="line_width" v="0.1" />
+          <prop k="line_width_unit" v="MM" />
+          <symbol type="line" name="@0@0" alpha="1" clip_to_extent="1" force_rhr="0">
+            <layer class="SimpleLine" pass="0" locked="0" enabled="1">
+              <Option type="Map">
+                <Option name="line_color" value="77,77,77,255" type="QString" />
+                <Option name="line_style" value="solid" type="QString" />
+                <Option name="line_width" value="0.1" type="QString" />
+                <Option name="line_width_unit" value="MM" type="QString" />
+                <Option name="capstyle" value="round" type="QString" />
+                <Option name="joinstyle" value="round" type="QString" />
+                <Option name="use_custom_dash" value="0" type="QString" />
+              </Option>
+              <prop k="line_color" v="77,77,77,255" />
+              <prop k="line_style" v="solid" />
+              <prop k="line_width" v="0.1" />
+              <prop k="line_width_unit" v="MM" />
+              <prop k="capstyle" v="round" />
+              <prop k="joinstyle" v="round" />
+              <prop k="use_custom_dash" v="0" />
+            </layer>
+          </symbol>
+        </layer>
+        <layer class="SimpleLine" pass="0" locked="0" enabled="1">
+          <Option type="Map">
+            <Option name="line_color" value="77,77,77,255" type="QString" />
+            <Option name="line_style" value="solid" type="QString" />
+            <Option name="line_width" value="0.25" type="QString" />
+            <Option name="line_width_unit" value="MM" type="QString" />
+            <Option name="capstyle" value="round" type="QString" />
+            <Option name="joinstyle" value="round" type="QString" />
+            <Option name="use_custom_dash" value="0" type="QString" />
+          </Option>
+          <prop k="line_color" v="77,77,77,255" />
+          <prop k="line_style" v="solid" />
+          <prop k="line_width" v="0.25" />
+          <prop k="line_width_unit" v="MM" />
+          <prop k="capstyle" v="round" />
+          <prop k="joinstyle" v="round" />
+          <prop k="use_custom_dash" v="0" />
         </layer>
       </symbol>
     </source-symbol>

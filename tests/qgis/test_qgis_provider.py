@@ -305,3 +305,49 @@ def test_qgis_process_runs_the_same_algorithm(demo_out, tmp_path):
                               cwd=demo_out)
         assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-2000:]
         same_outputs(cdir, qdir)
+
+
+LOAD_SCRIPT = r"""
+import json, os, sys
+os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
+sys.path.insert(0, sys.argv[1])
+sys.path.insert(0, "/usr/share/qgis/python/plugins")
+from qgis.core import QgsApplication, QgsProcessingContext, QgsProject
+app = QgsApplication([], False); app.initQgis()
+from photogrammetry_toolbox.algorithm import ToolboxAlgorithm
+spec = {"id": "attribution:apply", "display_name": "x", "group": "g", "parameters": [],
+        "outputs": [], "short_help": "", "help": ""}
+alg = ToolboxAlgorithm(spec, "toolbox")
+context = QgsProcessingContext(); context.setProject(QgsProject.instance())
+alg._load_layers({"name": "OUTPUT"}, sys.argv[2], context)
+print("LOADED " + json.dumps(sorted(context.layersToLoadOnCompletion())), flush=True)
+os._exit(0)
+"""
+
+
+@needs_qgis
+def test_layer_styles_table_is_not_loaded_as_a_layer(tmp_path):
+    """A GeoPackage with a ``layer_styles`` table (attribution:apply's): on completion the
+    provider loads its coded layers, not the styles table (QGIS reads it as the styles)."""
+    import toolbox
+    from toolbox.demo.samples import restitution
+
+    files = restitution.make(tmp_path, {})
+    out = tmp_path / "coded.gpkg"
+    toolbox.run("attribution:apply", {
+        "INPUT": [files["restitution_model_12"], files["restitution_model_13"]],
+        "PARAMETERS": files["restitution_parameters"], "CODES": files["restitution_codes"],
+        "COLOURS": files["restitution_colours"], "CRS": "EPSG:3003", "OUTPUT": out})
+    script = tmp_path / "load.py"
+    script.write_text(LOAD_SCRIPT)
+    done = subprocess.run([SYSTEM_PYTHON, str(script), str(PLUGIN), str(out)],
+                          capture_output=True, text=True, timeout=120,
+                          env=dict(os.environ, HOME=str(tmp_path), QT_QPA_PLATFORM="offscreen"))
+    line = [ln for ln in done.stdout.splitlines() if ln.startswith("LOADED ")]
+    assert line, done.stdout[-2000:] + done.stderr[-2000:]
+    loaded = {p.rsplit("layername=", 1)[1] for p in json.loads(line[0][len("LOADED "):])}
+    import pyogrio
+
+    in_file = {name for name, _ in pyogrio.list_layers(out)}
+    assert "layer_styles" in in_file and "FAB01002" in loaded
+    assert loaded == in_file - {"layer_styles"}

@@ -89,3 +89,34 @@ def test_readme_typed_request_example_runs(tmp_path, monkeypatch):
     assert z.count() > 0.8 * z.size
     # the neighbours lie within a few metres: their heights, so the IDW mean, within 1 m
     assert np.abs(z - (200 + 0.1 * x[None, :])).max() < 1.0
+
+
+def _documented_outputs() -> dict[str, list[str]]:
+    """Output path (as written in the docs) -> the documented commands writing it."""
+    from toolbox.registry import get
+
+    outputs: dict[str, list[str]] = {}
+    for source, command in documented_commands():
+        args = shlex.split(COMMAND.sub(r"\1", command))
+        if args[0] != "run":
+            continue
+        params = {p.name: p for p in get(args[1]).parameters}
+        for flag, value in zip(args, args[1:]):
+            param = params.get(flag[2:]) if flag.startswith("--") else None
+            if param is not None and type(param).__name__.startswith("Output"):
+                outputs.setdefault(value, []).append(f"{source}: {args[1]}")
+    return outputs
+
+
+def test_documented_commands_write_new_names(demo_run):
+    """Pasted after `make demo` without --overwrite, no documented command is refused because
+    its output exists: no two commands write the same file, and none writes one the demo
+    wrote (test_every_documented_command_runs passes --overwrite, so it cannot see this)."""
+    outputs = _documented_outputs()
+    assert len(outputs) > 100
+    twice = {path: who for path, who in outputs.items() if len(who) > 1}
+    assert not twice, twice
+    demo_out = demo_run[0]
+    taken = [path for path in outputs if path.startswith("demo_out/")
+             and (demo_out / path.removeprefix("demo_out/")).exists()]
+    assert not taken, taken

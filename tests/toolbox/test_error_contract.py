@@ -680,10 +680,13 @@ def test_nan_coordinates_no_crs_and_mixed_crs(case):
     if not vectors:
         pytest.skip("no vector input")
     for p in vectors:
-        path = Path(str(case.params[p.name]).split("|")[0])
+        path, _, option = str(case.params[p.name]).partition("|")
+        path = Path(path)
         if path.suffix.lower() != ".gpkg":
             continue
-        frame = gpd.read_file(path)
+        # the layer named, else the first (a styled GeoPackage also holds layer_styles)
+        frame = gpd.read_file(path, layer=option.partition("=")[2] if option.startswith(
+            "layername=") else 0)
         if frame.crs is None or not len(frame):
             continue
         coords = shapely.get_coordinates(frame.geometry.values, include_z=True)

@@ -69,6 +69,7 @@ class SheetSpec:
     contour_interval: float | None = None  # m, stated in the title block and the legend
     producer: str = ""
     second_crs: str = ""  # the CRS ticked outside the frame (GRID_CRS), stated in the block
+    index_number: str = ""  # the sheet's number in the sheet index (INDEX), when not its id
 
 
 @dataclass
@@ -430,6 +431,8 @@ class SheetRenderer:
         spec = self.spec
         rows = [("", spec.title), ("sheet", spec.sheet_id), ("scale", f"1:{spec.scale:g}"),
                 ("CRS", spec.crs_label)]
+        if spec.index_number and spec.index_number != spec.sheet_id:
+            rows.insert(2, ("in sheet index", spec.index_number))
         if spec.datum:
             rows.append(("datum", spec.datum))
         if spec.second_crs:

@@ -75,10 +75,15 @@ def read_base(info, bounds: tuple[float, float, float, float], scale: float,
 def render_sheet(spec: SheetSpec, base=None, base_name: str = "", styles=(), contours=None,
                  grid_style: str = "crosses", map_step_mm: float = 100.0,
                  pdfs: list[str | Path] = (), pngs: list[str | Path] = (), png_dpi: int = 150,
-                 pdf_pages=None, second_grid=None) -> dict:
+                 pdf_pages=None, second_grid=None, index=None) -> dict:
     """Draw one sheet and save it (PDF files, PNG files, and/or a page of an open
     ``PdfPages``). ``second_grid``: (pyproj Transformer sheet CRS -> second CRS, its label)
-    whose grid is ticked along the frame. Returns the page geometry."""
+    whose grid is ticked along the frame; ``index``: (sheet index GeoDataFrame, number field,
+    this sheet's polygon) drawn as the panel's small index map. Returns the page geometry."""
+    if index is not None:  # the title block names the sheet's number in the index
+        from toolbox.cartography.index_map import index_number
+
+        spec.index_number = index_number(*index)
     renderer = SheetRenderer(spec)
     try:
         if base is not None:
@@ -100,6 +105,11 @@ def render_sheet(spec: SheetSpec, base=None, base_name: str = "", styles=(), con
         if second_grid is not None:
             renderer.second_grid(second_grid[0], second_grid[1], step)
         bar = renderer.panel()
+        shown = None
+        if index is not None:
+            from toolbox.cartography.index_map import draw_index_map
+
+            shown = draw_index_map(renderer, *index)
         metadata = {"Title": f"{spec.title} {spec.sheet_id}".strip(),
                     "Subject": f"map sheet {spec.sheet_id} at 1:{spec.scale:g}, {spec.crs_label}",
                     "Keywords": f"scale=1:{spec.scale:g}; crs={spec.crs_label}; "
@@ -109,6 +119,7 @@ def render_sheet(spec: SheetSpec, base=None, base_name: str = "", styles=(), con
         page = renderer.page
         return {"sheet": spec.sheet_id, "paper": page.paper, "paper_mm": [page.width, page.height],
                 "frame_mm": list(page.frame), "scale_bar": bar, "labels_left_out": left_out,
+                "index_map": shown,
                 "panel_mm": [page.panel_left, page.band_bottom, page.panel_width,
                              page.band_height]}
     finally:
@@ -173,23 +184,16 @@ def _with_symbology(styles: list[LayerStyle], codes: list[str], table, colours
     the code file has symbology columns; else the styles as they are."""
     from dataclasses import replace
 
-    from toolbox.cartography.symbols import parse_symbol
+    from toolbox.styles.symbology import code_symbol, has_symbology
 
-    if not any(e.symbology for e in table.entries.values()):
+    if not has_symbology(table):
         return styles
-    # a delivered code has one look: that of its first working code (name, colour, symbol)
-    first: dict[str, tuple[str, str]] = {}  # delivered code -> (legend name, working code)
-    for entry in table.entries.values():
-        symbol = parse_symbol(entry, entry.kind or "line")
-        first.setdefault(symbol.delivered, (f"{symbol.delivered} {entry.description}".strip(),
-                                            entry.code))
     out = []
     for style, code in zip(styles, codes, strict=True):
         if code not in table:
             out.append(style)
             continue
-        name, lead = first[parse_symbol(table[code], style.kind).delivered]
-        symbol = replace(parse_symbol(table[lead], style.kind), code=code)
+        symbol, name, lead = code_symbol(code, style.kind, table)
         out.append(replace(style, symbol=symbol, width_mm=symbol.width, name=name,
                            rgb=_code_rgb(lead, table, colours) or style.rgb))
     return out

@@ -71,6 +71,8 @@ class SheetJob:
     sources: str | None = None
     date: str | None = None
     grid_crs: Any = None
+    index: Any = None
+    index_field: str | None = None
     output: Path | None = None
     png: Path | None = None
     folder: Path | None = None
@@ -173,6 +175,14 @@ def sheet_file_names(job: SheetJob) -> list[str]:
     return sheet_ids_unique([sheet_id for sheet_id, _ in sheet_polygons(job.sheets)[0]])
 
 
+def _index_layer(ref, crs):
+    """The INDEX layer in the sheets' CRS (one without a CRS is taken to be in it)."""
+    from toolbox.io.vector import read_vector
+
+    frame = read_vector(ref, name="INDEX")
+    return frame.set_crs(crs) if frame.crs is None else frame.to_crs(crs)
+
+
 def run_sheets(job: SheetJob, feedback) -> dict:
     import matplotlib
     from matplotlib.backends.backend_pdf import PdfPages
@@ -196,6 +206,7 @@ def run_sheets(job: SheetJob, feedback) -> dict:
         + [_dated(ref) for ref in job.layers or []]
         + [_dated(job.contours)] * (job.contours is not None)))
     date = job.date or _dt.date.today().isoformat()
+    index = _index_layer(job.index, crs) if job.index is not None else None
     folder = Path(job.folder) if job.folder else None  # staged by the runner
     names = sheet_file_names(job)
     written = []
@@ -216,6 +227,8 @@ def run_sheets(job: SheetJob, feedback) -> dict:
                           contours=contours, grid_style=job.grid_style,
                           map_step_mm=job.map_step, png_dpi=job.png_dpi)
             common["second_grid"] = _second_grid(crs, job.grid_crs)
+            if index is not None:
+                common["index"] = (index, job.index_field or "number", polygon)
             if common["second_grid"] is not None:
                 spec.second_crs = common["second_grid"][1]
             pngs = [job.png] if job.png and i == 0 else []

@@ -7,9 +7,9 @@ from __future__ import annotations
 import numpy as np
 
 from toolbox.cartography.symbols import DASHES, SCARP_TICK_MM, Symbol, hatch_lines, scarp_ticks
+from toolbox.styles.symbology import HATCH_WIDTH_MM
 
 PT_PER_MM = 72.0 / 25.4
-HATCH_WIDTH_MM = 0.1
 SOLID_ALPHA = 96 / 255  # as the QGIS styles fill areas (toolbox.styles.model.FILL_ALPHA)
 TEXT_MIN_PT = 6.0
 

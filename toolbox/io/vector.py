@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import sys
 import threading
+import warnings
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -682,6 +683,8 @@ def write_layers(path: str | Path, layers: dict[str, Any], crs: Any = None,
             continue
         if driver == "GPKG" and not target.exists():
             kwargs["dataset_options"] = GPKG_DATASET_OPTIONS
-        with staged_gpkg_writes(), writing(target):
+        with staged_gpkg_writes(), writing(target), warnings.catch_warnings():
+            if frame.crs is None:  # a layer without CRS as read (stored coordinates): meant
+                warnings.filterwarnings("ignore", "'crs' was not provided", UserWarning)
             pyogrio.write_dataframe(frame, target, layer=layer_name, driver=driver, **kwargs)
     return path

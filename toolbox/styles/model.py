@@ -7,6 +7,7 @@ derived from them). A code without a colour is drawn grey (128, 128, 128).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 from toolbox.io.code_file import CodeTable, hex_colour
 
@@ -29,6 +30,9 @@ class CodeStyle:
     line_width : stroke width, mm (outline width for polygons, marker outline for points).
     fill : (R, G, B, A) 0-255 of polygon fills and point markers, None for lines.
     size : marker size, mm (points only).
+    symbol : the code file's symbology (a :class:`~toolbox.styles.symbology.Symbol`: line
+        type, hatching, point symbol, as the map sheet draws it) or None (simple style).
+    legend : the legend text ("<delivered code> <description>" with symbology, else "").
     """
 
     code: str
@@ -38,6 +42,8 @@ class CodeStyle:
     fill: tuple[int, int, int, int] | None
     label: str
     size: float = MARKER_SIZE_MM
+    symbol: Any = None
+    legend: str = ""
 
     @property
     def hex(self) -> str:
@@ -54,6 +60,7 @@ class LayerStyle:
     styles: list[CodeStyle]
     field: str = "code"
     label_field: str | None = None
+    label_expression: str | None = None  # a QGIS expression labelling instead (QML only)
 
     @property
     def categorised(self) -> bool:
@@ -62,14 +69,24 @@ class LayerStyle:
 
 def code_style(code: str, kind: str, table: CodeTable | None,
                colours: dict[str, tuple[int, int, int]] | None) -> CodeStyle:
-    """The style of one code drawn as ``kind``."""
+    """The style of one code drawn as ``kind``: the code file's symbology (widths, line
+    types, hatching, point symbols, delivered codes; :mod:`.symbology`) when the file has
+    symbology columns, else a simple style (lines 0.35 mm, areas filled light, dots)."""
     from toolbox.io.code_file import code_colour
+    from toolbox.styles.symbology import code_symbol, has_symbology
 
     rgb = None
     label = code
     if table is not None and code in table:
         rgb, _ = code_colour(code, table, colours)
         label = table[code].description or code
+        if has_symbology(table):
+            symbol, legend, lead = code_symbol(code, kind, table)
+            rgb = code_colour(lead, table, colours)[0] or GREY
+            fill = {"polygon": (*rgb, FILL_ALPHA) if symbol.hatch == "solid" else None,
+                    "point": (*rgb, 255)}.get(kind)
+            return CodeStyle(code, kind, rgb, symbol.width, fill, label, symbol.size, symbol,
+                             legend)
     rgb = rgb or GREY
     if kind == "line":
         return CodeStyle(code, kind, rgb, LINE_WIDTH_MM, None, label)
@@ -98,8 +115,28 @@ def layer_style(name: str, kind: str, codes: list[str], table: CodeTable | None,
     point and polygon layers unless ``label_field`` says otherwise (None: none)."""
     if label_field == "auto":
         label_field = "description" if kind in LABELLED_KINDS else None
-    return LayerStyle(name, kind, [code_style(c, kind, table, colours) for c in codes],
-                      label_field=label_field)
+    styles = [code_style(c, kind, table, colours) for c in codes]
+    return LayerStyle(name, kind, styles, label_field=label_field,
+                      label_expression=_height_labels(styles, table) if label_field else None)
+
+
+#: a spot height's label: its height (the point's Z), one decimal, as the map sheet prints it
+HEIGHT_EXPRESSION = "format_number(z($geometry), 1)"
+
+
+def _height_labels(styles: list[CodeStyle], table: CodeTable | None) -> str | None:
+    """The QGIS label expression of a point layer whose codes include spot heights (a ``dot``
+    in the code file's symbol column): their height, the description for the other codes;
+    None without."""
+    dots = [s.code for s in styles if s.kind == "point" and s.symbol is not None
+            and s.symbol.symbol == "dot" and table is not None and s.code in table
+            and dict(table[s.code].symbology).get("symbol")]
+    if not dots:
+        return None
+    if len(dots) == len(styles):
+        return HEIGHT_EXPRESSION
+    quoted = ", ".join("'" + code.replace("'", "''") + "'" for code in dots)
+    return f'CASE WHEN "code" IN ({quoted}) THEN {HEIGHT_EXPRESSION} ELSE "description" END'
 
 
 MM_TO_POINTS = 72.0 / 25.4

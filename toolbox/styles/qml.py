@@ -42,24 +42,101 @@ def _properties(style: CodeStyle) -> tuple[str, dict[str, str]]:
 
 
 def _symbol(parent: ET.Element, tag: str, name: str, style: CodeStyle) -> None:
-    symbol = ET.SubElement(parent, tag, {"type": SYMBOL_TYPES[style.kind], "name": name,
-                                         "alpha": "1", "clip_to_extent": "1",
-                                         "force_rhr": "0"})
-    layer_class, props = _properties(style)
-    layer = ET.SubElement(symbol, "layer", {"class": layer_class, "pass": "0", "locked": "0",
-                                            "enabled": "1"})
-    option = ET.SubElement(layer, "Option", {"type": "Map"})
-    for key, value in props.items():
-        ET.SubElement(option, "Option", {"name": key, "value": value, "type": "QString"})
-    for key, value in props.items():
-        ET.SubElement(layer, "prop", {"k": key, "v": value})
+    layers = _symbology_layers(style) if style.symbol is not None else [(*_properties(style),
+                                                                         None)]
+    _write_symbol(parent, tag, name, SYMBOL_TYPES[style.kind], layers)
 
 
-def _labeling(root: ET.Element, field: str, kind: str) -> None:
+def _write_symbol(parent: ET.Element, tag: str, name: str, symbol_type: str,
+                  layers: list) -> None:
+    """A ``<symbol>`` of ``layers``: (class, props, sub-symbol layers or None), bottom first."""
+    symbol = ET.SubElement(parent, tag, {"type": symbol_type, "name": name, "alpha": "1",
+                                         "clip_to_extent": "1", "force_rhr": "0"})
+    for k, (layer_class, props, sub) in enumerate(layers):
+        layer = ET.SubElement(symbol, "layer", {"class": layer_class, "pass": "0",
+                                                "locked": "0", "enabled": "1"})
+        option = ET.SubElement(layer, "Option", {"type": "Map"})
+        for key, value in props.items():
+            ET.SubElement(option, "Option", {"name": key, "value": value, "type": "QString"})
+        for key, value in props.items():
+            ET.SubElement(layer, "prop", {"k": key, "v": value})
+        if sub is not None:  # the line a hatching or a hash line draws with
+            _write_symbol(layer, "symbol", f"@{name}@{k}", "line", sub)
+
+
+def _line(rgb: tuple[int, ...], width: float, linetype: str = "continuous") -> tuple:
+    from toolbox.styles.symbology import DASHES
+
+    props = {"line_color": _rgba(rgb), "line_style": "solid", "line_width": f"{width:g}",
+             "line_width_unit": "MM", "capstyle": "round", "joinstyle": "round",
+             "use_custom_dash": "0"}
+    if linetype in DASHES:  # the pattern in mm of paper, flat caps (as the sheet draws it)
+        props.update(use_custom_dash="1", customdash=";".join(f"{v:g}" for v in
+                                                             DASHES[linetype]),
+                     customdash_unit="MM", capstyle="flat")
+    return "SimpleLine", props, None
+
+
+def _ticks(rgb: tuple[int, ...], width: float) -> tuple:
+    """Scarp ticks: perpendicular hashes ``SCARP_TICK_MM`` apart and long, the first half a
+    spacing from the start, offset half their length to the left (negative: QGIS offsets a
+    positive distance to the right of the line's direction)."""
+    from toolbox.styles.symbology import SCARP_TICK_MM
+
+    spacing, length = SCARP_TICK_MM
+    return "HashLine", {
+        "placement": "interval", "interval": f"{spacing:g}", "interval_unit": "MM",
+        "offset_along_line": f"{spacing / 2:g}", "offset_along_line_unit": "MM",
+        "hash_length": f"{length:g}", "hash_length_unit": "MM", "hash_angle": "0",
+        "rotate": "1", "offset": f"{-length / 2:g}", "offset_unit": "MM"}, [
+        _line(rgb, round(width * 0.7, 4))]
+
+
+def _marker(name: str, rgb: tuple[int, ...], size: float, width: float, filled: bool,
+            offset: float = 0.0) -> tuple:
+    return "SimpleMarker", {
+        "name": name, "size": f"{size:g}", "size_unit": "MM",
+        "color": _rgba(rgb) if filled else "0,0,0,0", "outline_color": _rgba(rgb),
+        "outline_style": "no" if filled else "solid", "outline_width": f"{width:g}",
+        "outline_width_unit": "MM", "offset": f"0,{offset:g}", "offset_unit": "MM",
+        "angle": "0"}, None
+
+
+def _symbology_layers(style: CodeStyle) -> list[tuple]:
+    """The symbol layers drawing ``style.symbol`` (see the module docstring)."""
+    symbol, rgb = style.symbol, style.rgb
+    if style.kind == "point":
+        if symbol.symbol == "tree":  # matplotlib's tree marker: crown 2/3, stem 1/3 of size
+            size = symbol.size
+            return [_marker("circle", rgb, size * 2 / 3, symbol.width, False, -size / 6),
+                    _marker("line", rgb, size / 3, symbol.width, False, size / 3)]
+        name = {"dot": "circle"}.get(symbol.symbol, symbol.symbol)
+        return [_marker(name, rgb, symbol.size, symbol.width, symbol.symbol == "dot")]
+    layers = []
+    if style.kind == "polygon":
+        if symbol.hatch == "solid":
+            layers.append(("SimpleFill", {"color": _rgba(style.fill or (*rgb, 96)),
+                                          "style": "solid", "outline_style": "no"}, None))
+        elif isinstance(symbol.hatch, tuple):
+            from toolbox.styles.symbology import HATCH_WIDTH_MM
+
+            angle, spacing = symbol.hatch
+            layers.append(("LinePatternFill", {
+                "angle": f"{angle:g}", "distance": f"{spacing:g}", "distance_unit": "MM",
+                "color": _rgba(rgb), "line_width": f"{HATCH_WIDTH_MM:g}",
+                "line_width_unit": "MM"}, [_line(rgb, HATCH_WIDTH_MM)]))
+    layers.append(_line(rgb, symbol.width, symbol.linetype))
+    if symbol.linetype == "scarp":
+        layers.append(_ticks(rgb, symbol.width))
+    return layers
+
+
+def _labeling(root: ET.Element, field: str, kind: str, expression: str | None = None) -> None:
     labeling = ET.SubElement(root, "labeling", {"type": "simple"})
     settings = ET.SubElement(labeling, "settings", {"calloutType": "simple"})
     ET.SubElement(settings, "text-style", {
-        "fieldName": field, "isExpression": "0", "fontFamily": "Sans Serif", "fontSize": "8",
+        "fieldName": expression or field, "isExpression": "1" if expression else "0",
+        "fontFamily": "Sans Serif", "fontSize": "8",
         "fontSizeUnit": "Point", "textColor": "0,0,0,255", "textOpacity": "1",
         "namedStyle": "Regular", "multilineHeight": "1"})
     buffer = ET.SubElement(settings, "text-buffer")
@@ -86,8 +163,8 @@ def qml_document(layer: LayerStyle) -> str:
         for k, style in enumerate(layer.styles):
             ET.SubElement(categories, "category", {
                 "value": style.code, "symbol": str(k), "render": "true",
-                "label": f"{style.code} {style.label}".strip() if style.label != style.code
-                else style.code})
+                "label": style.legend or (f"{style.code} {style.label}".strip()
+                                          if style.label != style.code else style.code)})
         symbols = ET.SubElement(renderer, "symbols")
         for k, style in enumerate(layer.styles):
             _symbol(symbols, "symbol", str(k), style)
@@ -100,7 +177,7 @@ def qml_document(layer: LayerStyle) -> str:
         symbols = ET.SubElement(renderer, "symbols")
         _symbol(symbols, "symbol", "0", layer.styles[0])
     if layer.label_field:
-        _labeling(root, layer.label_field, layer.kind)
+        _labeling(root, layer.label_field, layer.kind, layer.label_expression)
     ET.SubElement(root, "layerGeometryType").text = GEOMETRY_TYPES[layer.kind]
     ET.indent(root)
     body = ET.tostring(root, encoding="unicode")

@@ -1,7 +1,16 @@
 """OGC Styled Layer Descriptor 1.0 (SLD) of a :class:`~toolbox.styles.model.LayerStyle`: one
 rule per code (filtered on the code field when the layer holds several), Point/Line/Polygon
 symbolizers, a TextSymbolizer for labels. Millimetres become pixels at 0.28 mm per pixel (the
-OGC standard rendering pixel)."""
+OGC standard rendering pixel).
+
+With the code file's symbology (:mod:`.symbology`): line types as ``stroke-dasharray``, hatching
+as a ``GraphicFill`` of a ``horline`` mark (as QGIS writes a line pattern fill) rotated by minus
+the hatch angle (SLD rotations are clockwise; QGIS 3.22 reads and writes that rotation as its
+own counter-clockwise angle, so in QGIS use the QML, which the GeoPackage embeds), solid
+fills at the sheet's opacity, point symbols as their well-known marks (a tree as a circle),
+scarp ticks as a ``GraphicStroke`` of ``vertline`` marks every 2 mm (SLD 1.0 cannot put them on
+one side: they are centred on the line).
+"""
 
 from __future__ import annotations
 
@@ -34,9 +43,56 @@ def _px(mm: float) -> str:
 
 
 def _stroke(parent: ET.Element, style: CodeStyle) -> None:
+    from toolbox.styles.symbology import DASHES
+
     stroke = _e(parent, "Stroke")
     _param(stroke, "CssParameter", "stroke", style.hex)
     _param(stroke, "CssParameter", "stroke-width", _px(style.line_width))
+    if style.symbol is not None and style.symbol.linetype in DASHES:
+        _param(stroke, "CssParameter", "stroke-dasharray",
+               " ".join(_px(v) for v in DASHES[style.symbol.linetype]))
+
+
+def _mark(parent: ET.Element, name: str, colour: str, width_mm: float, size_mm: float,
+          fill: str | None = None, rotation: float | None = None) -> None:
+    graphic = _e(parent, "Graphic")
+    mark = _e(graphic, "Mark")
+    _e(mark, "WellKnownName", name)
+    if fill is not None:
+        _param(_e(mark, "Fill"), "CssParameter", "fill", fill)
+    stroke = _e(mark, "Stroke")
+    _param(stroke, "CssParameter", "stroke", colour)
+    _param(stroke, "CssParameter", "stroke-width", _px(width_mm))
+    _e(graphic, "Size", _px(size_mm))
+    if rotation is not None:
+        _e(graphic, "Rotation", f"{rotation:g}")
+
+
+def _symbology(rule: ET.Element, style: CodeStyle) -> None:
+    """The symbolizers of a code with the code file's symbology (module docstring)."""
+    from toolbox.styles.symbology import HATCH_WIDTH_MM, SCARP_TICK_MM
+
+    symbol = style.symbol
+    if style.kind == "point":
+        name = {"dot": "circle", "tree": "circle"}.get(symbol.symbol, symbol.symbol)
+        _mark(_e(rule, "PointSymbolizer"), name, style.hex, symbol.width, symbol.size,
+              fill=style.hex if symbol.symbol == "dot" else None)
+        return
+    if style.kind == "polygon" and symbol.hatch is not None:
+        sym = _e(rule, "PolygonSymbolizer")
+        if symbol.hatch == "solid":
+            _fill(sym, style.fill or (*style.rgb, 96))
+        else:  # SLD rotation is clockwise, the hatch angle counter-clockwise
+            angle, spacing = symbol.hatch
+            _mark(_e(_e(sym, "Fill"), "GraphicFill"), "horline", style.hex, HATCH_WIDTH_MM,
+                  spacing, rotation=-angle)
+    _stroke(_e(rule, "LineSymbolizer"), style)
+    if symbol.linetype == "scarp":
+        spacing, length = SCARP_TICK_MM
+        stroke = _e(_e(rule, "LineSymbolizer"), "Stroke")
+        _mark(_e(stroke, "GraphicStroke"), "shape://vertline", style.hex,
+              symbol.width * 0.7, length)
+        _param(stroke, "CssParameter", "stroke-dasharray", f"{_px(length)} {_px(spacing - length)}")
 
 
 def _fill(parent: ET.Element, rgba: tuple[int, int, int, int]) -> None:
@@ -54,7 +110,9 @@ def _rule(parent: ET.Element, layer: LayerStyle, style: CodeStyle) -> None:
         eq = _e(flt, "PropertyIsEqualTo", ns=OGC)
         _e(eq, "PropertyName", layer.field, ns=OGC)
         _e(eq, "Literal", style.code, ns=OGC)
-    if style.kind == "polygon":
+    if style.symbol is not None:
+        _symbology(rule, style)
+    elif style.kind == "polygon":
         sym = _e(rule, "PolygonSymbolizer")
         _fill(sym, style.fill or (*style.rgb, 255))
         _stroke(sym, style)

@@ -184,7 +184,8 @@ def test_topology_applies_the_translation_and_names_unused_entries(tmp_path):
     # stored (false-origin) coordinates carry no CRS: only the translated ones are EPSG:3003
     lines = gpd.GeoDataFrame({"code": ["FAB01002"]}, geometry=[square])
     src = tmp_path / "stored.gpkg"
-    lines.to_file(src, driver="GPKG")
+    with pytest.warns(UserWarning, match="'crs' was not provided"):  # meant: no CRS
+        lines.to_file(src, driver="GPKG")
     params = write(tmp_path, "p.txt", FULL_PARAMETERS)
     feedback = toolbox.Feedback()
     out = tmp_path / "areas.gpkg"

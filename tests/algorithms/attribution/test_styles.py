@@ -27,8 +27,20 @@ def demo_tables(tmp_path):
             read_colour_file(made["restitution_colours"]))
 
 
-def test_style_model_per_code(demo_tables):
-    table, colours = demo_tables
+@pytest.fixture
+def plain_tables(tmp_path):
+    """The demo's code file without its symbology columns (code, description, type, colour):
+    the simple style (test_styles_symbology.py checks the symbology)."""
+    made = restitution.make(tmp_path, {})
+    lines = made["restitution_codes"].read_text(encoding="latin-1").splitlines()
+    plain = tmp_path / "plain_codes.txt"
+    plain.write_text("\n".join(";".join(line.split(";")[:4]) for line in lines
+                               if not line.startswith("#")) + "\n", encoding="latin-1")
+    return read_code_file(plain), read_colour_file(made["restitution_colours"])
+
+
+def test_style_model_per_code(plain_tables):
+    table, colours = plain_tables
     model = style_model(table, colours)
     fab = model["FAB01002"]
     assert (fab.kind, fab.rgb, fab.fill, fab.label) == (
@@ -56,8 +68,8 @@ def test_shipped_style_files_are_not_stale(demo_tables, tmp_path):
         "FAB01002", "VEG01001"]
 
 
-def test_layer_styles_table_like_qgis(tmp_path, demo_tables):
-    table, colours = demo_tables
+def test_layer_styles_table_like_qgis(tmp_path, plain_tables):
+    table, colours = plain_tables
     path = tmp_path / "x.gpkg"
     gpd.GeoDataFrame({"code": ["FAB01002"]}, geometry=[shapely.box(0, 0, 1, 1)],
                      crs="EPSG:3003").to_file(path, layer="FAB01002", driver="GPKG")
@@ -133,8 +145,8 @@ def _essentials(root: ET.Element) -> dict:
 
 
 @pytest.mark.parametrize("code", sorted(HAND_WRITTEN))
-def test_generated_qml_is_the_hand_written_qgis_style(demo_tables, tmp_path, code):
-    written = {p.name: p for p in write_code_styles(tmp_path / "styles", *demo_tables)}
+def test_generated_qml_is_the_hand_written_qgis_style(plain_tables, tmp_path, code):
+    written = {p.name: p for p in write_code_styles(tmp_path / "styles", *plain_tables)}
     text = written[f"{code}.qml"].read_text(encoding="utf-8")
     got = _essentials(ET.fromstring(text.split("\n", 1)[1]))  # after the DOCTYPE line
     want = _essentials(ET.fromstring(HAND_WRITTEN[code]))
@@ -143,4 +155,4 @@ def test_generated_qml_is_the_hand_written_qgis_style(demo_tables, tmp_path, cod
     assert got == want
     # the generator's other props are ones QGIS knows for that layer class
     assert extra <= {"capstyle", "joinstyle", "outline_width", "angle", "outline_color",
-                     "outline_style", "outline_width_unit"}, extra
+                     "outline_style", "outline_width_unit", "use_custom_dash"}, extra
