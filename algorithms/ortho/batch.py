@@ -10,7 +10,6 @@ from toolbox.errors import InputDataError, ParameterError
 from toolbox.feedback import Feedback
 from toolbox.parameters import (
     Boolean,
-    File,
     Integer,
     Number,
     Output,
@@ -19,9 +18,8 @@ from toolbox.parameters import (
     RasterLayer,
     String,
 )
-from toolbox.photogrammetry.tables import PROJECT_EXTENSIONS
 from toolbox.registry import register
-from toolbox.ui.photogrammetry import ortho_method_parameters
+from toolbox.ui.photogrammetry import dem_parameters, ortho_method_parameters, project_parameter
 
 
 @register
@@ -53,13 +51,12 @@ class OrthoBatch(Algorithm):
     group = "Orthophoto"
     short_help = "Orthorectify every photo of an orientation project on one shared grid."
     parameters = [
-        File("PROJECT", "orientation project (YAML)", extensions=PROJECT_EXTENSIONS),
+        project_parameter(),
         String("PHOTOS", "photo ids, comma separated (default: every oriented photo)",
                optional=True),
         String("IMAGES", "folder of the image files (default: the project's paths)",
                optional=True),
-        RasterLayer("DEM", "terrain heights, any CRS"),
-        Integer("BAND", "DEM band", default=1, min_value=1),
+        *dem_parameters("terrain heights, any CRS"),
         Number("CELL_SIZE", "ground cell size (default: the largest GSD of the photos)",
                optional=True, min_value=0, min_exclusive=True),
         RasterLayer("TEMPLATE", "align the grid to this raster's lattice and cell",

@@ -2,16 +2,29 @@
 
 from __future__ import annotations
 
-from toolbox.parameters import Enum, File, Integer, Number, Parameter, String
+from toolbox.parameters import Enum, File, Integer, Number, Parameter, RasterLayer, String
 from toolbox.photogrammetry.tables import PROJECT_EXTENSIONS
 
 TABLE_EXTENSIONS = [".csv", ".txt", ".gpkg"]
 
 
+def project_parameter(description: str = "orientation project (YAML)",
+                      optional: bool = False) -> File:
+    """PROJECT: the orientation project YAML."""
+    return File("PROJECT", description, extensions=PROJECT_EXTENSIONS, optional=optional)
+
+
+def dem_parameters(description: str = "terrain heights (same CRS as the project)",
+                   optional: bool = False) -> list[Parameter]:
+    """DEM and its BAND."""
+    return [RasterLayer("DEM", description, optional=optional),
+            Integer("BAND", "DEM band", default=1, min_value=1)]
+
+
 def measurement_parameters(project: str = "orientation project (YAML)") -> list[Parameter]:
     """PROJECT, and the image measurements: INPUT, its LAYER and its COORDINATES columns."""
     return [
-        File("PROJECT", project, extensions=PROJECT_EXTENSIONS),
+        project_parameter(project),
         File("INPUT", "image measurements (CSV or GeoPackage table)", extensions=TABLE_EXTENSIONS),
         String("LAYER", "GeoPackage layer of INPUT (default: the first)", optional=True),
         Enum("COORDINATES", "measurement columns: auto (pixels when col_px/row_px exist), pixel, "
