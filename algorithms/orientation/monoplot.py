@@ -25,12 +25,10 @@ from toolbox.parameters import (
 from toolbox.photogrammetry.collinearity import NO_INTERSECTION, OK, STATUS_NAMES
 from toolbox.photogrammetry.surface import dem_height_range, surface_for_photo
 from toolbox.photogrammetry.tables import (
-    image_measurements,
-    load_project_parameter,
     write_json,
 )
 from toolbox.registry import register
-from toolbox.ui.photogrammetry import dem_parameters, project_parameter
+from toolbox.ui.photogrammetry import dem_parameters, measured_inputs, measured_photos, project_parameter
 
 
 @register
@@ -89,15 +87,10 @@ class Monoplot(Algorithm):
 
         from toolbox.io.vector import write_layers
 
-        project = load_project_parameter(params["PROJECT"])
+        project, (ids, photo_ids, xy, kind), _ = measured_inputs(params)
         dem = params["DEM"]
         crs = common_crs({"PROJECT": project.crs, "DEM": None if dem is None else dem.crs})
-        ids, photo_ids, xy, kind = image_measurements(params["INPUT"], params["LAYER"],
-                                                      params["COORDINATES"])
-        unknown = sorted({p for p in photo_ids if p not in project.photos})
-        if unknown:
-            raise InputDataError(f"INPUT names photo(s) {', '.join(map(repr, unknown[:5]))} that "
-                                 f"PROJECT does not have (photos: {', '.join(project.photos)})")
+        measured_photos(project, photo_ids)
         xyz = np.full((len(ids), 3), np.nan)
         status = np.full(len(ids), OK, dtype=np.int8)
         iterations = np.zeros(len(ids), dtype=np.int32)

@@ -32,6 +32,7 @@ from typing import Any
 
 import numpy as np
 
+from toolbox.counters import Counters
 from toolbox.errors import ParameterError
 from toolbox.io.grid import GridSpec
 from toolbox.raster.engine import RasterInput, process_raster
@@ -162,26 +163,14 @@ def photometric_options(layout: OutputLayout) -> dict[str, str]:
 
 
 @dataclass
-class WarpStatistics:
-    """Counters of one warp run."""
+class WarpStatistics(Counters):
+    """Counters of one warp run, summed over windows by :meth:`add`."""
 
-    windows: int = 0
-    empty_windows: int = 0
-    split_windows: int = 0
-    source_pixels_read: int = 0
-    output_pixels: int = 0
-    timings: dict[str, float] = field(default_factory=dict)
-
-    def add(self, other: WarpStatistics) -> None:
-        for name in ("windows", "empty_windows", "split_windows", "source_pixels_read",
-                     "output_pixels"):
-            setattr(self, name, getattr(self, name) + getattr(other, name))
-
-    def as_dict(self) -> dict:
-        return {"windows": self.windows, "empty_windows": self.empty_windows,
-                "split_windows": self.split_windows,
-                "source_pixels_read": self.source_pixels_read,
-                "output_pixels": self.output_pixels}
+    windows: int = 0  # output windows computed
+    empty_windows: int = 0  # windows that see no source pixel
+    split_windows: int = 0  # windows split because their source footprint was too large
+    source_pixels_read: int = 0  # source pixels read over all windows
+    output_pixels: int = 0  # output pixels written
 
 
 def _split(window: Any) -> list[Any]:

@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+from toolbox.errors import InputDataError
 from toolbox.parameters import Enum, File, Integer, Number, Parameter, RasterLayer, String
 from toolbox.photogrammetry.tables import PROJECT_EXTENSIONS
 
@@ -59,3 +63,25 @@ def ortho_method_parameters() -> list[Parameter]:
              options=("alpha", "nodata"), default="alpha"),
         Number("NODATA", "nodata value with OUTSIDE=nodata", optional=True),
     ]
+
+
+def measured_inputs(params: Mapping[str, Any], control: bool = False) -> tuple:
+    """``(project, measurements, control points)`` read from PROJECT, INPUT (LAYER,
+    COORDINATES) and, with ``control``, CONTROL (else None)."""
+    from toolbox.photogrammetry.tables import (
+        ground_points,
+        image_measurements,
+        load_project_parameter,
+    )
+
+    project = load_project_parameter(params["PROJECT"])
+    measurements = image_measurements(params["INPUT"], params["LAYER"], params["COORDINATES"])
+    return project, measurements, ground_points(params["CONTROL"]) if control else None
+
+
+def measured_photos(project: Any, photo_ids: Sequence[str]) -> None:
+    """Check that every photo INPUT measures is in PROJECT (InputDataError naming them)."""
+    unknown = sorted({p for p in photo_ids if p not in project.photos})
+    if unknown:
+        raise InputDataError(f"INPUT names photo(s) {', '.join(map(repr, unknown[:5]))} that "
+                             f"PROJECT does not have (photos: {', '.join(project.photos)})")
