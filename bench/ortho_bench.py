@@ -35,7 +35,7 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
-from benchlib import best_of, load_note, machine_facts, run_measured
+from benchlib import best_of, load_note, machine_facts, run_measured, write_results
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
@@ -469,11 +469,7 @@ def main(argv: list[str] | None = None) -> str:
               "Orthority is given the same pinhole camera (its OPK/PATB convention "
               "matches ours, checked above), DEM, grid and bilinear interpolation; the phase "
               "correlation resolves 0.01 px.", ""]
-    text = "\n".join(lines)
-    RESULTS.parent.mkdir(parents=True, exist_ok=True)
-    RESULTS.write_text(text)
-    print(text)
-    return text
+    return write_results(RESULTS, lines)
 
 
 if __name__ == "__main__":
