@@ -129,3 +129,19 @@ def case_arguments(description: str, extra=None):
     if extra is not None:
         extra(parser)
     return parser.parse_args()
+
+
+def measure_case(script: str, name: str, work, n_points: int, cwd, width: int = 26) -> dict:
+    """Run ``script --case name`` in a fresh process (see :func:`case_arguments`); its last
+    stdout line is the JSON result (with seconds and peak_mb), printed as one row."""
+    import json
+    import subprocess
+    import sys
+
+    proc = subprocess.run([sys.executable, script, "--case", name, "--work", str(work),
+                           "--points", str(n_points)], capture_output=True, text=True, cwd=cwd)
+    if proc.returncode != 0:
+        raise RuntimeError(f"case {name} failed:\n{proc.stderr[-3000:]}")
+    result = json.loads(proc.stdout.strip().splitlines()[-1])
+    print(f"  {name:<{width}} {result['seconds']:8.2f} s  {result['peak_mb']:8.0f} MB", flush=True)
+    return result

@@ -47,7 +47,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from benchlib import case_arguments, load_note, machine_facts, peak_rss_mb, run_measured
+from benchlib import case_arguments, load_note, machine_facts, measure_case, peak_rss_mb, run_measured
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
@@ -159,13 +159,7 @@ def _centres(width: int, cell: float) -> tuple[np.ndarray, np.ndarray]:
 
 
 def measure(name: str, work: Path, n_points: int) -> dict:
-    proc = subprocess.run([sys.executable, __file__, "--case", name, "--work", str(work),
-                           "--points", str(n_points)], capture_output=True, text=True, cwd=ROOT)
-    if proc.returncode != 0:
-        raise RuntimeError(f"case {name} failed:\n{proc.stderr[-3000:]}")
-    result = json.loads(proc.stdout.strip().splitlines()[-1])
-    print(f"  {name:<24} {result['seconds']:8.2f} s  {result['peak_mb']:8.0f} MB", flush=True)
-    return result
+    return measure_case(__file__, name, work, n_points, ROOT, width=24)
 
 
 def measure_gdal_grid(label: str, algorithm: str, work: Path, n_points: int) -> dict | None:

@@ -139,6 +139,7 @@ def memory_case(folder: Path, size: int, distortion: bool, occlusion: bool = Tru
     import cv2
     import rasterio
 
+    from toolbox.executor import default_workers
     from toolbox.io.raster import iter_windows, open_raster_info
     from toolbox.ortho.dem import DemSampler
     from toolbox.ortho.plan import plan_photo
@@ -149,7 +150,6 @@ def memory_case(folder: Path, size: int, distortion: bool, occlusion: bool = Tru
         pad_at_photo_edges,
         single_threaded_opencv,
     )
-    from toolbox.tiles import default_workers
 
     rows = []
     photo_path, dem, _, photo = write_inputs(folder, size, distortion)

@@ -61,3 +61,11 @@ def assert_cannot_write(proc: subprocess.CompletedProcess, out: Path) -> None:
     assert len(lines) == 1 and lines[0].startswith("toolbox: error: cannot write OUTPUT"), \
         proc.stderr
     assert not out.exists() or list(out.iterdir()) == []
+
+
+def assert_refused(args: list, text: str, absent: tuple[Path, ...] = ()) -> None:
+    """``toolbox *args`` exits 2 with one error line containing ``text``; no ``absent`` file
+    exists afterwards."""
+    code, _, err = cli(*args)
+    assert code == 2 and text in one_error(err), err
+    assert not any(p.exists() for p in absent)

@@ -93,6 +93,7 @@ class OrthoBatch(Algorithm):
         return {"FOLDER": [f"{photo.id}.tif" for photo in photos]}
 
     def process(self, params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
+        from toolbox.executor import map_tiles, resolve_executor
         from toolbox.io.crs import crs_label
         from toolbox.io.raster import open_raster_info
         from toolbox.io.staging import final_path
@@ -102,7 +103,6 @@ class OrthoBatch(Algorithm):
         from toolbox.ortho.run import OrthoOptions
         from toolbox.photogrammetry.tables import write_json
         from toolbox.raster.grid_request import template_lattice
-        from toolbox.tiles import map_tiles, resolve_executor
 
         project = load_batch_project(params, last=True)
         crs = project.crs

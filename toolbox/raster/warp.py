@@ -546,7 +546,7 @@ def warp_to_geotiff(source: Any, coordinate_map: Any, grid: Any, output: Any,
     fast : bool
         Let maps that offer it use ``cv2.warpPerspective`` (see :func:`warp_window`); False
         forces the generic coordinate-array + ``cv2.remap`` path.
-    executor : toolbox.tiles.Executor, optional
+    executor : toolbox.executor.Executor, optional
         Where tiles run (default: local threads).
     aux : dict name -> RasterInput, optional
         Auxiliary rasters for the coordinate map.
