@@ -51,6 +51,7 @@ from typing import Any
 import numpy as np
 
 from toolbox.io.grid import GridSpec
+from toolbox.raster.datasets import ThreadDatasets
 
 __all__ = [
     "BOUNDARY_RULES", "GridSpec", "RasterInput", "Tile", "iter_tiles", "process_raster",
@@ -89,33 +90,14 @@ def _source_path(source: Any) -> Any:
     return getattr(source, "path", source)
 
 
-class _OpenSources:
+class _OpenSources(ThreadDatasets):
     """Input rasters kept open per thread for the length of one local :func:`process_raster`
-    call (GDAL's block cache then serves the halo reads of neighbouring tiles); closed at the
-    end. Not used on Dask, where inputs travel as paths."""
+    call (:class:`~toolbox.raster.datasets.ThreadDatasets`), with their alignment on the grid;
+    closed at the end. Not used on Dask, where inputs travel as paths."""
 
     def __init__(self) -> None:
-        import threading
-
-        self._local = threading.local()
-        self._all: list[Any] = []
+        super().__init__()
         self._offsets: dict[tuple, tuple[int, int] | None] = {}
-        self._lock = threading.Lock()
-
-    def get(self, path: Any) -> Any:
-        import rasterio
-
-        opened = getattr(self._local, "datasets", None)
-        if opened is None:
-            opened = self._local.datasets = {}
-        dataset = opened.get(path)
-        if dataset is None:
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
-                dataset = opened[path] = rasterio.open(path)
-            with self._lock:
-                self._all.append(dataset)
-        return dataset
 
     def aligned_offset(self, path: Any, dataset: Any, grid: GridSpec) -> tuple[int, int] | None:
         """:func:`_aligned_offset` of ``path`` on ``grid``, decided once per call (the CRS
@@ -124,11 +106,6 @@ class _OpenSources:
         if key not in self._offsets:
             self._offsets[key] = _aligned_offset(dataset, grid)
         return self._offsets[key]
-
-    def close(self) -> None:
-        for dataset in self._all:
-            dataset.close()
-        self._all.clear()
 
 
 @dataclass(frozen=True)
