@@ -101,9 +101,6 @@ class Footprints(Algorithm):
         if params["DEM"] is None and params["MEAN_HEIGHT"] is None:
             raise self.fail("MEAN_HEIGHT", "is required when no DEM is given (the plane the "
                             "footprints are projected on), got nothing")
-        if params["DEM"] is not None and params["BAND"] > params["DEM"].count:
-            raise self.fail("BAND", f"must be <= {params['DEM'].count} (bands of "
-                            f"{params['DEM']}), got {params['BAND']}")
 
     def process(self, params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
         project = load_project_parameter(params["PROJECT"])

@@ -75,10 +75,6 @@ class OrthoBatch(Algorithm):
     ]
     outputs = [Output("STATISTICS", "photos done and failed, cell size", "dict")]
 
-    def check(self, params: dict[str, Any]) -> None:
-        if params["BAND"] > params["DEM"].count:
-            raise self.fail("BAND", f"must be <= {params['DEM'].count}, got {params['BAND']}")
-
     def planned_files(self, params: dict[str, Any]) -> dict[str, list[str]]:
         photos = select_photos(load_batch_project(params), params["PHOTOS"])
         folder = Path(params["FOLDER"]).expanduser().resolve()

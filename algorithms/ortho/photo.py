@@ -124,8 +124,6 @@ class OrthoPhoto(Algorithm):
                             "photos' interior orientations)")
         if params["OCCLUSION_MASK"] is not None and not params["OCCLUSION"]:
             raise self.fail("OCCLUSION_MASK", "needs OCCLUSION=true")
-        if params["BAND"] > params["DEM"].count:
-            raise self.fail("BAND", f"must be <= {params['DEM'].count}, got {params['BAND']}")
 
     def process(self, params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
         from toolbox.ortho.plan import check_geometry, plan_photo, tilt_warning
