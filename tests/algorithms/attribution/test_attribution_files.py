@@ -7,7 +7,7 @@ import pytest
 import shapely
 
 import toolbox
-from toolbox.demo.samples.parameter_file import parameter_file_text
+from toolbox.demo.parameter_files import parameter_file_text
 from toolbox.errors import InputDataError
 from toolbox.io.code_file import percent_to_byte, read_code_file, read_colour_file
 from toolbox.io.parameter_file import read_parameter_file

@@ -43,7 +43,7 @@ from pathlib import Path
 
 import numpy as np
 
-from toolbox.demo.samples.parameter_file import parameter_file_text
+from toolbox.demo.parameter_files import parameter_file_text
 
 CRS = "EPSG:3003"
 E0, N0 = 1688200.0, 4799600.0

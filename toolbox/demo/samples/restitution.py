@@ -21,7 +21,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from toolbox.demo.samples.parameter_file import parameter_file_text
+from toolbox.demo.parameter_files import parameter_file_text
 
 CRS = "EPSG:3003"
 E0, N0 = 1688300.0, 4799600.0
