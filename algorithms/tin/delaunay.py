@@ -9,7 +9,8 @@ from toolbox.errors import InputDataError
 from toolbox.feedback import Feedback
 from toolbox.io.crs import common_crs, crs_label
 from toolbox.io.pointcloud import cloud_filter
-from toolbox.io.vector import read_vector, vertices_xyz
+from toolbox.io.vector import read_vector
+from toolbox.io.vector_points import vertices_xyz
 from toolbox.parameters import (
     Boolean,
     Crs,
