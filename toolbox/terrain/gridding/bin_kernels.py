@@ -91,6 +91,7 @@ def _ring_start(x0, y0, size, nbx, nby, qx, qy):
     return ix, iy, margin, (ox if ox > oy else oy), (fx_ if fx_ > fy_ else fy_)
 
 
+# duplicate-ok: sector_one scans the rings of bins the same way (see there)
 @njit(nogil=True, cache=True)
 def knn_one(px, py, offsets, x0, y0, size, nbx, nby, qx, qy, k, r2max, skip,
             best_d2, best_i):
@@ -136,6 +137,7 @@ def knn_one(px, py, offsets, x0, y0, size, nbx, nby, qx, qy, k, r2max, skip,
     return count
 
 
+# duplicate-ok: the ring-of-bins scan of knn_one, with a per-sector best list instead of one
 @njit(nogil=True, cache=True)
 def sector_one(px, py, offsets, x0, y0, size, nbx, nby, qx, qy, sectors, per_sector,
                r2max, skip, sec_d2, sec_i, sec_count, out_d2, out_i):
