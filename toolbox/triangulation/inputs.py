@@ -130,26 +130,13 @@ def _optional(value: str, what: str, name: str) -> float:
 
 
 def read_control(path: Path, layer: str | None = None, name: str = "CONTROL") -> Control:
-    from toolbox.photogrammetry.tables import ROLES, column, read_table
+    from toolbox.photogrammetry.tables import column, known_point_rows
 
-    header, rows = read_table(path, layer, name)
-    c_id = column(header, "point_id", "id", "point", "name", name=name, path=path)
-    cols = [column(header, *a, name=name, path=path) for a in
-            (("X", "E", "easting"), ("Y", "N", "northing"), ("Z", "H", "height"))]
-    c_role = column(header, "role", "type", required=False)
+    header, cols, rows = known_point_rows(path, layer, name)
     c_sxy = column(header, "sigma_xy", required=False)
     c_sz = column(header, "sigma_z", required=False)
     ids, xyz, roles, sig = [], [], [], []
-    for k, r in enumerate(rows, start=1):
-        pid = r[c_id]
-        if not pid:
-            raise InputDataError(f"{name}: {path} row {k} has an empty {c_id}")
-        if pid in ids:
-            raise InputDataError(f"{name}: {path} lists point {pid!r} twice (duplicate id)")
-        role = r[c_role].lower() if c_role and r[c_role] else "control"
-        if role not in ROLES:
-            raise InputDataError(f"{name}: {path} row {k}: {c_role} must be control or check, "
-                                 f"got {r[c_role]!r}")
+    for k, r, pid, role in rows:
         vals = [_optional(r[c], f"row {k} {c}", name) for c in cols]
         if np.isnan(vals[0]) != np.isnan(vals[1]) or all(np.isnan(vals)):
             raise InputDataError(f"{name}: {path} row {k} (point {pid!r}): give X and Y "
