@@ -353,17 +353,11 @@ def build_block(request: BlockRequest) -> tuple[Block, dict]:
             continue
         g_point.append(point_index[pid])
         g_xyz.append(ctrl.xyz[k])
-        s = ctrl.sigma[k].copy()
-        s[:2] = np.where(np.isnan(s[:2]), request.control_sigma_xy, s[:2])
-        s[2] = request.control_sigma_z if np.isnan(s[2]) else s[2]
-        g_sig.append(s)
+        g_sig.append(_sigma_or(ctrl.sigma[k], request.control_sigma_xy, request.control_sigma_z))
     h_photo, h_xyz, h_sig, h_strip, h_time = [], [], [], [], []
     if request.centres is not None:
         cen = request.centres
-        bad = [p for p in cen.photos if p not in project.photos]
-        if bad:
-            raise InputDataError(f"GNSS names photo(s) {', '.join(map(repr, bad[:5]))} that "
-                                 "PROJECT does not have")
+        _require_photos(cen.photos, project, "GNSS")
         for k, p in enumerate(cen.photos):
             if p not in photo_index:
                 continue
@@ -372,19 +366,13 @@ def build_block(request: BlockRequest) -> tuple[Block, dict]:
             h_strip.append((cen.strips[k] if cen.strips else "") or
                            str(getattr(project.photos[p], "strip", None) or ""))
             h_time.append(cen.times[k] if cen.times is not None else np.nan)
-            s = cen.sigma[k].copy()
-            s[:2] = np.where(np.isnan(s[:2]), request.centre_sigma_xy, s[:2])
-            s[2] = request.centre_sigma_z if np.isnan(s[2]) else s[2]
-            h_sig.append(s)
+            h_sig.append(_sigma_or(cen.sigma[k], request.centre_sigma_xy, request.centre_sigma_z))
     groups, times = _strips_and_times(h_photo, h_strip, np.array(h_time, dtype=float),
                                       photo_ids)
     a_photo, a_obs, a_sig = [], [], []
     if request.attitudes is not None:
         att = request.attitudes
-        bad = [p for p in att.photos if p not in project.photos]
-        if bad:
-            raise InputDataError(f"IMU names photo(s) {', '.join(map(repr, bad[:5]))} that "
-                                 "PROJECT does not have")
+        _require_photos(att.photos, project, "IMU")
         for k, p in enumerate(att.photos):
             if p in photo_index:
                 a_photo.append(photo_index[p])
@@ -421,3 +409,18 @@ def _strips_and_times(photos: list[int], strips: list[str], times: np.ndarray,
             order = np.argsort(np.argsort([photos[i] for i in rows]))
             times[rows] = order - (len(rows) - 1) / 2
     return groups, times
+
+
+def _sigma_or(sigma: np.ndarray, sigma_xy: float, sigma_z: float) -> np.ndarray:
+    """(sx, sy, sz) of a point with the defaults where the table left them blank (NaN)."""
+    s = np.array(sigma, dtype=float)
+    s[:2] = np.where(np.isnan(s[:2]), sigma_xy, s[:2])
+    s[2] = sigma_z if np.isnan(s[2]) else s[2]
+    return s
+
+
+def _require_photos(photos: list[str], project: object, name: str) -> None:
+    bad = [p for p in photos if p not in project.photos]
+    if bad:
+        raise InputDataError(f"{name} names photo(s) {', '.join(map(repr, bad[:5]))} that "
+                             "PROJECT does not have")
