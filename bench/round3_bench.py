@@ -129,7 +129,8 @@ def points_file(work: Path, n: int) -> Path:
 READ_GENERAL = """
 import time
 t0 = time.perf_counter()
-from toolbox.io.vector import points_xyz, read_vector
+from toolbox.io.vector import read_vector
+from toolbox.io.vector_points import points_xyz
 frame = read_vector({path!r}, name="INPUT")
 frame = frame[frame.geometry.notna() & ~frame.geometry.is_empty]
 xyz = points_xyz(frame, None, name="INPUT")
@@ -138,7 +139,7 @@ seconds = time.perf_counter() - t0
 READ_FAST = """
 import time
 t0 = time.perf_counter()
-from toolbox.io.vector import read_points_xyz
+from toolbox.io.vector_points import read_points_xyz
 xyz = read_points_xyz({path!r}, None, name="INPUT")
 seconds = time.perf_counter() - t0
 """

@@ -125,10 +125,11 @@ def check_magnitudes(alg_cls: type[Algorithm], values: dict[str, Any]) -> None:
 
 
 def _check_band(alg_cls: type[Algorithm], values: dict[str, Any]) -> None:
-    """``BAND`` exists in the raster it reads (when the run has one raster input)."""
+    """The one BAND check: BAND exists in the DEM when given, else in the one raster input."""
     band = values.get("BAND")
-    rasters = [values[p.name] for p in alg_cls.parameters
-               if isinstance(p, RasterLayer) and values.get(p.name) is not None]
+    given = {p.name: values[p.name] for p in alg_cls.parameters
+             if isinstance(p, RasterLayer) and values.get(p.name) is not None}
+    rasters = [given["DEM"]] if "DEM" in given else list(given.values())
     if isinstance(band, int) and len(rasters) == 1 and band > rasters[0].count:
         raise ParameterError("BAND", f"must be <= {rasters[0].count} (bands of {rasters[0]}), "
                              f"got {band}")

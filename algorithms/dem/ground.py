@@ -6,7 +6,7 @@ from typing import Any
 
 from toolbox.algorithm import Algorithm
 from toolbox.feedback import Feedback
-from toolbox.parameters import Crs, Enum, Field, Number, OutputFile, OutputRaster, RasterLayer, VectorLayer
+from toolbox.parameters import Crs, Enum, Number, OutputFile, OutputRaster, RasterLayer
 from toolbox.registry import register
 from toolbox.ui.grid import grid_request
 from toolbox.ui.gridding import (
@@ -14,7 +14,7 @@ from toolbox.ui.gridding import (
     execution_parameters,
     grid_parameters,
     gridding_request,
-    point_cloud_parameters,
+    point_input_parameters,
 )
 
 GRID_METHODS = ("tin_linear", "idw", "nearest")
@@ -54,11 +54,8 @@ class GroundFilterDtm(Algorithm):
     short_help = ("DTM GeoTIFF and non-ground mask from a DSM or a LAS/LAZ point cloud by a "
                   "morphological ground filter (SMRF), gridded by a dem:* method.")
     parameters = [
-        VectorLayer("INPUT", "points: a LAS/LAZ/COPC point cloud, or PointZ / points with a "
-                    "height field", geometry_types=["point"], optional=True, point_clouds=True),
-        Field("Z_FIELD", "height field of INPUT (default: the geometry's Z)", parent="INPUT",
-              numeric=True, optional=True),
-        *point_cloud_parameters(),
+        *point_input_parameters("points: a LAS/LAZ/COPC point cloud, or PointZ / points with "
+                                "a height field"),
         RasterLayer("DSM", "DSM raster (band 1) instead of INPUT", optional=True),
         Crs("CRS", "CRS of inputs without one (a point cloud without a CRS needs it)",
             optional=True),

@@ -10,7 +10,6 @@ from toolbox.errors import InputDataError, ParameterError
 from toolbox.feedback import Feedback
 from toolbox.parameters import (
     Boolean,
-    File,
     Integer,
     Number,
     Output,
@@ -19,9 +18,8 @@ from toolbox.parameters import (
     RasterLayer,
     String,
 )
-from toolbox.photogrammetry.tables import PROJECT_EXTENSIONS
 from toolbox.registry import register
-from toolbox.ui.photogrammetry import ortho_method_parameters
+from toolbox.ui.photogrammetry import dem_parameters, ortho_method_parameters, project_parameter
 
 
 @register
@@ -56,13 +54,12 @@ class OrthoBatch(Algorithm):
     group = "Orthophoto"
     short_help = "Orthorectify every photo of an orientation project on one shared grid."
     parameters = [
-        File("PROJECT", "orientation project (YAML)", extensions=PROJECT_EXTENSIONS),
+        project_parameter(),
         String("PHOTOS", "photo ids, comma separated (default: every oriented photo)",
                optional=True),
         String("IMAGES", "folder of the image files (default: the project's paths)",
                optional=True),
-        RasterLayer("DEM", "terrain heights, any CRS"),
-        Integer("BAND", "DEM band", default=1, min_value=1),
+        *dem_parameters("terrain heights, any CRS"),
         String("HEIGHTS", "height datum of the orientations: 'ellipsoidal' or a vertical CRS "
                "(EPSG:3855...); default the project CRS's vertical part", optional=True),
         Number("CELL_SIZE", "ground cell size (default: the largest GSD of the photos)",
@@ -82,10 +79,6 @@ class OrthoBatch(Algorithm):
                    extensions=[".json"]),
     ]
     outputs = [Output("STATISTICS", "photos done and failed, cell size", "dict")]
-
-    def check(self, params: dict[str, Any]) -> None:
-        if params["BAND"] > params["DEM"].count:
-            raise self.fail("BAND", f"must be <= {params['DEM'].count}, got {params['BAND']}")
 
     def planned_files(self, params: dict[str, Any]) -> dict[str, list[str]]:
         photos = select_photos(load_batch_project(params), params["PHOTOS"])
@@ -118,6 +111,7 @@ class OrthoBatch(Algorithm):
     def _orthos(self, params: dict[str, Any], feedback: Feedback, project: Any, crs: Any,
                 dem: Any, band: int, heights: Any) -> dict[str, Any]:
         """The orthos of :meth:`process` on ``dem`` (in the photos' height datum)."""
+        from toolbox.executor import map_tiles, resolve_executor
         from toolbox.io.crs import crs_label
         from toolbox.io.raster import open_raster_info
         from toolbox.io.staging import final_path
@@ -127,7 +121,6 @@ class OrthoBatch(Algorithm):
         from toolbox.ortho.run import OrthoOptions
         from toolbox.photogrammetry.tables import write_json
         from toolbox.raster.grid_request import template_lattice
-        from toolbox.tiles import map_tiles, resolve_executor
 
         executor = resolve_executor(params["SCHEDULER"], params["WORKERS"])
         photos = select_photos(project, params["PHOTOS"])

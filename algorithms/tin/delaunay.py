@@ -9,7 +9,8 @@ from toolbox.errors import InputDataError
 from toolbox.feedback import Feedback
 from toolbox.io.crs import common_crs, crs_label
 from toolbox.io.pointcloud import cloud_filter
-from toolbox.io.vector import read_vector, vertices_xyz
+from toolbox.io.vector import read_vector
+from toolbox.io.vector_points import vertices_xyz
 from toolbox.parameters import (
     Boolean,
     Crs,
@@ -23,7 +24,7 @@ from toolbox.parameters import (
 )
 from toolbox.registry import register
 from toolbox.terrain.points import read_mass_points
-from toolbox.ui.gridding import point_cloud_parameters
+from toolbox.ui.gridding import point_input_parameters
 
 DUPLICATE_RULES = ("mean", "first", "min", "max", "error")
 
@@ -111,11 +112,8 @@ class Delaunay(Algorithm):
     short_help = ("Constrained Delaunay TIN of 3D points and breaklines, clipped to a boundary; "
                   "triangles, nodes and edges with topology.")
     parameters = [
-        VectorLayer("INPUT", "mass points (PointZ, or points with a Z field, or a LAS/LAZ/COPC "
-                    "point cloud)", geometry_types=["point"], optional=True, point_clouds=True),
-        Field("Z_FIELD", "height field of INPUT (default: geometry Z)", parent="INPUT",
-              numeric=True, optional=True),
-        *point_cloud_parameters(),
+        *point_input_parameters("mass points (PointZ, or points with a Z field, or a "
+                                "LAS/LAZ/COPC point cloud)"),
         VectorLayer("BREAKLINES", "breaklines: LineStringZ, or lines with a height field "
                     "(contours)", geometry_types=["line"], optional=True),
         Field("BREAKLINES_Z_FIELD", "height field of BREAKLINES (default: geometry Z)",

@@ -15,7 +15,8 @@ from toolbox.io.crs import common_crs, parse_crs
 from toolbox.io.grid import GridSpec
 from toolbox.io.raster import geotiff_profile, iter_windows, write_raster
 from toolbox.io.staging import OutputStaging, atomic_path
-from toolbox.io.vector import points_xyz, read_vector, vertices_xyz, write_layers
+from toolbox.io.vector import read_vector, write_layers
+from toolbox.io.vector_points import points_xyz, vertices_xyz
 
 
 def test_several_named_layers_in_one_geopackage(tmp_path):
@@ -132,7 +133,8 @@ def test_mixed_crs_refused():
 OPEN_WITHOUT_PANDAS = """
 import sys
 path = sys.argv[1]
-from toolbox.io.vector import open_layer, read_points_xyz
+from toolbox.io.vector import open_layer
+from toolbox.io.vector_points import read_points_xyz
 ref = open_layer(path + "|layername=pts")
 assert (ref.count, ref.fields, ref.geometry_kind) == (2, ["h"], "point"), ref.info
 assert "pandas" not in sys.modules and "geopandas" not in sys.modules, "pandas imported"

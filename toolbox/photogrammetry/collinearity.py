@@ -118,9 +118,8 @@ def ground_to_image(points, centre, rotation, principal_distance: float,
     count = _kernels().ground_to_image(x, y, z, centre, rot, c, pp, *_distortion_args(distortion),
                                        _matrix(fiducial_to_pixel), result)
     if count and behind == "raise":
-        first = int(np.flatnonzero(np.isnan(result[:, 0]))[0])
-        raise InputDataError(f"{count} ground point(s) lie on or behind the plane of the "
-                             f"projection centre and have no image (first: index {first})")
+        _refuse(result, f"{count} ground point(s) lie on or behind the plane of the projection "
+                "centre and have no image")
     return result.reshape(shape + (2,))
 
 
@@ -155,10 +154,14 @@ def image_to_ground(points, z, centre, rotation, principal_distance: float,
                                             *_distortion_args(distortion),
                                             _matrix(pixel_to_fiducial), xyz)
     if count and invalid == "raise":
-        first = int(np.flatnonzero(np.isnan(xyz[:, 0]))[0])
-        raise InputDataError(f"{count} image ray(s) do not meet the height plane in front of "
-                             f"the camera (first: index {first})")
+        _refuse(xyz, f"{count} image ray(s) do not meet the height plane in front of the camera")
     return xyz.reshape(shape + (3,))
+
+
+def _refuse(result: np.ndarray, message: str) -> None:
+    """InputDataError ``message`` naming the first NaN row of ``result``."""
+    first = int(np.flatnonzero(np.isnan(result[:, 0]))[0])
+    raise InputDataError(f"{message} (first: index {first})")
 
 
 @dataclass

@@ -186,30 +186,42 @@ def load_project_parameter(path: Path, name: str = "PROJECT"):
 ROLES = ("control", "check")
 
 
+XYZ_COLUMNS = (("X", "E", "easting", "X_m"), ("Y", "N", "northing", "Y_m"),
+               ("Z", "H", "height", "Z_m"))
+
+
+def known_point_rows(path: Path, layer: str | None = None, name: str = "CONTROL"):
+    """The rows of a ground-point table, ids and roles checked: ``(header, (cx, cy, cz),
+    [(row number, row, id, role), ...])``. ``id`` (or point_id/point/name) must be non-empty and
+    unique; ``role`` (or type) is control (default) or check; X/Y/Z (or E/N/H...) columns."""
+    header, rows = read_table(path, layer, name)
+    c_id = column(header, "point_id", "id", "point", "name", name=name, path=path)
+    cols = tuple(column(header, *aliases, name=name, path=path) for aliases in XYZ_COLUMNS)
+    c_role = column(header, "role", "type", required=False)
+    out, seen = [], set()
+    for k, r in enumerate(rows, start=1):
+        pid = r[c_id]
+        if not pid:
+            raise InputDataError(f"{name}: {path} row {k} has an empty {c_id}")
+        if pid in seen:
+            raise InputDataError(f"{name}: {path} lists point {pid!r} twice (duplicate id)")
+        role = (r[c_role].lower() if c_role and r[c_role] else "control")
+        if role not in ROLES:
+            raise InputDataError(f"{name}: {path} row {k}: {c_role} must be control or check, "
+                                 f"got {r[c_role]!r}")
+        seen.add(pid)
+        out.append((k, r, pid, role))
+    return header, cols, out
+
+
 def ground_points(path: Path, layer: str | None = None, name: str = "CONTROL"):
     """Ground points with known coordinates: ``(ids, xyz (n, 3), roles)`` from a table with
     ``id`` (or point_id/name), ``X``/``Y``/``Z`` (or E/N/H, x/y/z) and an optional ``role``
     column (``control`` or ``check``; default control). Ids must be unique."""
     import numpy as np
 
-    header, rows = read_table(path, layer, name)
-    c_id = column(header, "point_id", "id", "point", "name", name=name, path=path)
-    cx = column(header, "X", "E", "easting", "X_m", name=name, path=path)
-    cy = column(header, "Y", "N", "northing", "Y_m", name=name, path=path)
-    cz = column(header, "Z", "H", "height", "Z_m", name=name, path=path)
-    c_role = column(header, "role", "type", required=False)
-    ids, xyz, roles = [], [], []
-    for k, r in enumerate(rows, start=1):
-        pid = r[c_id]
-        if not pid:
-            raise InputDataError(f"{name}: {path} row {k} has an empty {c_id}")
-        if pid in ids:
-            raise InputDataError(f"{name}: {path} lists point {pid!r} twice (duplicate id)")
-        role = (r[c_role].lower() if c_role and r[c_role] else "control")
-        if role not in ROLES:
-            raise InputDataError(f"{name}: {path} row {k}: {c_role} must be control or check, "
-                                 f"got {r[c_role]!r}")
-        ids.append(pid)
-        roles.append(role)
-        xyz.append([number(r[c], f"row {k} {c}", name) for c in (cx, cy, cz)])
+    _, cols, rows = known_point_rows(path, layer, name)
+    ids = [pid for _, _, pid, _ in rows]
+    roles = [role for _, _, _, role in rows]
+    xyz = [[number(r[c], f"row {k} {c}", name) for c in cols] for k, r, _, _ in rows]
     return ids, np.array(xyz, dtype=float).reshape(-1, 3), roles

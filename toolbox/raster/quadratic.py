@@ -29,6 +29,7 @@ def _weights(t):
     return a * a - 2.5 * a + 1.5, 1.0 - 2.0 * t * t, b * b - 2.5 * b + 1.5
 
 
+# duplicate-ok: the row and column loops of the separable 3-tap kernel look alike by nature
 @njit(cache=True, nogil=True)
 def _remap(source, map_x, map_y, out):
     rows, cols, bands = source.shape

@@ -161,7 +161,7 @@ def read_mass_points(source: Any, z_field: str | None = None, classes: Any = Non
     (points in the file, kept, class histogram) is None for a vector layer.
     """
     from toolbox.io.pointcloud import PointCloudRef, cloud_filter, read_xyz
-    from toolbox.io.vector import read_points_xyz
+    from toolbox.io.vector_points import read_points_xyz
 
     flt = cloud_filter(source, classes, returns, crs, name)
     if isinstance(source, PointCloudRef):

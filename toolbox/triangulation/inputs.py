@@ -133,26 +133,13 @@ def _optional(value: str, what: str, name: str) -> float:
 
 
 def read_control(path: Path, layer: str | None = None, name: str = "CONTROL") -> Control:
-    from toolbox.photogrammetry.tables import ROLES, column, read_table
+    from toolbox.photogrammetry.tables import column, known_point_rows
 
-    header, rows = read_table(path, layer, name)
-    c_id = column(header, "point_id", "id", "point", "name", name=name, path=path)
-    cols = [column(header, *a, name=name, path=path) for a in
-            (("X", "E", "easting"), ("Y", "N", "northing"), ("Z", "H", "height"))]
-    c_role = column(header, "role", "type", required=False)
+    header, cols, rows = known_point_rows(path, layer, name)
     c_sxy = column(header, "sigma_xy", required=False)
     c_sz = column(header, "sigma_z", required=False)
     ids, xyz, roles, sig = [], [], [], []
-    for k, r in enumerate(rows, start=1):
-        pid = r[c_id]
-        if not pid:
-            raise InputDataError(f"{name}: {path} row {k} has an empty {c_id}")
-        if pid in ids:
-            raise InputDataError(f"{name}: {path} lists point {pid!r} twice (duplicate id)")
-        role = r[c_role].lower() if c_role and r[c_role] else "control"
-        if role not in ROLES:
-            raise InputDataError(f"{name}: {path} row {k}: {c_role} must be control or check, "
-                                 f"got {r[c_role]!r}")
+    for k, r, pid, role in rows:
         vals = [_optional(r[c], f"row {k} {c}", name) for c in cols]
         if np.isnan(vals[0]) != np.isnan(vals[1]) or all(np.isnan(vals)):
             raise InputDataError(f"{name}: {path} row {k} (point {pid!r}): give X and Y "
@@ -392,17 +379,11 @@ def build_block(request: BlockRequest) -> tuple[Block, dict]:
             continue
         g_point.append(point_index[pid])
         g_xyz.append(ctrl.xyz[k])
-        s = ctrl.sigma[k].copy()
-        s[:2] = np.where(np.isnan(s[:2]), request.control_sigma_xy, s[:2])
-        s[2] = request.control_sigma_z if np.isnan(s[2]) else s[2]
-        g_sig.append(s)
+        g_sig.append(_sigma_or(ctrl.sigma[k], request.control_sigma_xy, request.control_sigma_z))
     h_photo, h_xyz, h_sig, h_strip, h_time = [], [], [], [], []
     if request.centres is not None:
         cen = request.centres
-        bad = [p for p in cen.photos if p not in project.photos]
-        if bad:
-            raise InputDataError(f"GNSS names photo(s) {', '.join(map(repr, bad[:5]))} that "
-                                 "PROJECT does not have")
+        _require_photos(cen.photos, project, "GNSS")
         for k, p in enumerate(cen.photos):
             if p not in photo_index:
                 continue
@@ -411,19 +392,13 @@ def build_block(request: BlockRequest) -> tuple[Block, dict]:
             h_strip.append((cen.strips[k] if cen.strips else "") or
                            str(getattr(project.photos[p], "strip", None) or ""))
             h_time.append(cen.times[k] if cen.times is not None else np.nan)
-            s = cen.sigma[k].copy()
-            s[:2] = np.where(np.isnan(s[:2]), request.centre_sigma_xy, s[:2])
-            s[2] = request.centre_sigma_z if np.isnan(s[2]) else s[2]
-            h_sig.append(s)
+            h_sig.append(_sigma_or(cen.sigma[k], request.centre_sigma_xy, request.centre_sigma_z))
     groups, times = _strips_and_times(h_photo, h_strip, np.array(h_time, dtype=float),
                                       photo_ids)
     a_photo, a_obs, a_sig = [], [], []
     if request.attitudes is not None:
         att = request.attitudes
-        bad = [p for p in att.photos if p not in project.photos]
-        if bad:
-            raise InputDataError(f"IMU names photo(s) {', '.join(map(repr, bad[:5]))} that "
-                                 "PROJECT does not have")
+        _require_photos(att.photos, project, "IMU")
         for k, p in enumerate(att.photos):
             if p in photo_index:
                 a_photo.append(photo_index[p])
@@ -481,3 +456,18 @@ def _kind(camera) -> int:
 def _aspect(camera) -> float:
     """fy/fx of a model camera (1 for film)."""
     return camera.focal_px[1] / camera.focal_px[0] if _is_model(camera) else 1.0
+
+
+def _sigma_or(sigma: np.ndarray, sigma_xy: float, sigma_z: float) -> np.ndarray:
+    """(sx, sy, sz) of a point with the defaults where the table left them blank (NaN)."""
+    s = np.array(sigma, dtype=float)
+    s[:2] = np.where(np.isnan(s[:2]), sigma_xy, s[:2])
+    s[2] = sigma_z if np.isnan(s[2]) else s[2]
+    return s
+
+
+def _require_photos(photos: list[str], project: object, name: str) -> None:
+    bad = [p for p in photos if p not in project.photos]
+    if bad:
+        raise InputDataError(f"{name} names photo(s) {', '.join(map(repr, bad[:5]))} that "
+                             "PROJECT does not have")

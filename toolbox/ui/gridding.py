@@ -42,15 +42,23 @@ from toolbox.ui.grid import grid_request
 STATISTICS = Output("STATISTICS", "inputs, duplicates, grid, cells, fallbacks, timings", "dict")
 
 
-def source_parameters() -> list:
-    """Input data: points, line vertices, breaklines; duplicate rule; CRS."""
+def point_input_parameters(input_help: str) -> list:
+    """INPUT points (PointZ, a height field or a LAS/LAZ/COPC cloud), Z_FIELD, CLASSES,
+    RETURNS."""
     return [
-        VectorLayer("INPUT", "mass points: PointZ, or points with a height field (Z_FIELD), "
-                    "or a LAS/LAZ/COPC point cloud", geometry_types=["point"], optional=True,
+        VectorLayer("INPUT", input_help, geometry_types=["point"], optional=True,
                     point_clouds=True),
         Field("Z_FIELD", "height field of INPUT (default: the geometry's Z)", parent="INPUT",
               numeric=True, optional=True),
         *point_cloud_parameters(),
+    ]
+
+
+def source_parameters() -> list:
+    """Input data: points, line vertices, breaklines; duplicate rule; CRS."""
+    return [
+        *point_input_parameters("mass points: PointZ, or points with a height field (Z_FIELD), "
+                                "or a LAS/LAZ/COPC point cloud"),
         VectorLayer("LINES", "lines whose vertices are data points, e.g. contours (LineString Z, "
                     "or a height field in LINES_Z_FIELD)", geometry_types=["line"], optional=True),
         Field("LINES_Z_FIELD", "height field of LINES (e.g. the contour's elevation)",

@@ -99,6 +99,7 @@ def test_layer_styles_table_like_qgis(tmp_path, plain_tables):
 # 0.35 mm line; FAB01002 colour 12 = 30 30 30 % -> 77,77,77 outline, fill at alpha 96;
 # QUO01001 colour 5 = 0 0 100 % -> blue circle, 2 mm. Areas and points are labelled with the
 # description field, lines are not.
+# duplicate-ok: the expected QML is written out by hand per code on purpose (independent truth)
 HAND_WRITTEN = {
     "STR02001": """<qgis styleCategories="Symbology|Labeling" labelsEnabled="0">
   <renderer-v2 type="singleSymbol"><symbols><symbol type="line" name="0" alpha="1">

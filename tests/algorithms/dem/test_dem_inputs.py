@@ -11,7 +11,8 @@ import shapely
 
 import toolbox
 from toolbox.errors import InputDataError
-from toolbox.io.vector import points_xyz, read_points_xyz, read_vector
+from toolbox.io.vector import read_vector
+from toolbox.io.vector_points import points_xyz, read_points_xyz
 from toolbox.terrain.gridding.inputs import has_duplicate_xy
 from toolbox.terrain.gridding.tin_constrained import constrained_tin
 

@@ -312,7 +312,7 @@ def test_delaunay_reads_points_with_the_fast_reader_like_the_general_one(data, t
     """One point reader for TIN and gridding: a PointZ GeoPackage (Arrow/WKB fast path) and the
     same points with a null, an empty and a multipoint feature (general path) give equal values
     and, with Z_FIELD and breaklines, the same TIN."""
-    import toolbox.io.vector as vector
+    import toolbox.io.vector_points as vector
 
     folder = data["folder"]
     points = gpd.read_file(folder / "points.gpkg", layer="points")

@@ -86,7 +86,8 @@ def read_sources(sources: PointSources, feedback: Feedback,
     import shapely
 
     from toolbox.io.crs import common_crs
-    from toolbox.io.vector import read_vector, vertices_xyz
+    from toolbox.io.vector import read_vector
+    from toolbox.io.vector_points import vertices_xyz
     from toolbox.terrain.points import read_mass_points
 
     named = {UI_NAMES[role]: layer.crs for role, layer in sources.layers().items()}
