@@ -120,3 +120,18 @@ def test_cluster_runs_write_the_local_files(tmp_path, monkeypatch, pair):
         result = toolbox.run("carto:contours", runs["carto:contours"][0] | {"OUTPUT": out})
         assert result["STATISTICS"]["executor"] == f"dask scheduler {cluster.scheduler_address}"
         monkeypatch.delenv("DASK_SCHEDULER_ADDRESS")
+
+
+@pytest.mark.parametrize("address, valid", [
+    ("tcp://127.0.0.1:8786", True), ("head:8786", True), ("tls://h.example:1", True),
+    ("tcp://[::1]:8786", True), ("a:b", False), ("tcp://head", False), ("http://h:1", False),
+    ("h:0", False), ("h:70000", False), ("not an address", False), ("ü:12", False)])
+def test_scheduler_addresses_are_checked_before_any_connection(address, valid):
+    from toolbox.errors import ParameterError
+    from toolbox.tiles import resolve_executor
+
+    if valid:
+        assert resolve_executor(address).address == address
+    else:
+        with pytest.raises(ParameterError, match="SCHEDULER.*tcp://host:8786"):
+            resolve_executor(address)
