@@ -20,7 +20,7 @@ X0, Y0 = 1_688_000.0, 4_799_500.0
 # the algorithms whose work splits into independent tasks (tiles, blocks, photos)
 SPLIT_WORK = ["carto:contours", "dem:aspect", "dem:cubic", "dem:hillshade", "dem:idw",
               "dem:nearest", "dem:plane", "dem:quadratic", "dem:slope", "dem:tin_linear",
-              "mosaic:build", "ortho:batch", "rectify:image", "tin:to_raster"]
+              "mosaic:build", "mosaic:cut", "ortho:batch", "rectify:image", "tin:to_raster"]
 
 
 def _sha(path) -> str:
@@ -99,7 +99,7 @@ def test_cluster_runs_write_the_local_files(tmp_path, monkeypatch, pair):
         toolbox.run(alg, params | {"SCHEDULER": "local", "OUTPUT": out})
         local[alg] = out
     with LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                      dashboard_address=None) as cluster:
+                      dashboard_address=":0") as cluster:
         for alg, (params, ext) in runs.items():
             out = tmp_path / f"{alg.replace(':', '_')}_dask.{ext}"
             result = toolbox.run(alg, params | {"SCHEDULER": cluster.scheduler_address,
@@ -114,6 +114,16 @@ def test_cluster_runs_write_the_local_files(tmp_path, monkeypatch, pair):
                 assert all(x.equals_exact(y, 0) for x, y in zip(a.geometry, b.geometry))
                 assert result["STATISTICS"]["tiles"] > 4
                 assert result["STATISTICS"]["executor"].startswith("dask scheduler")
+        # sheets cut on the workers: the same files
+        cut = {}
+        for where in ("local", cluster.scheduler_address):
+            folder = tmp_path / f"sheets_{len(cut)}"
+            result = toolbox.run("mosaic:cut", {"INPUT": local["mosaic:build"], "SCALE": 500,
+                                                "SHEET_WIDTH": 20, "SHEET_HEIGHT": 20,
+                                                "SCHEDULER": where, "OUTPUT": folder})
+            cut[where] = {f.name: _sha(f) for f in folder.glob("*.tif")}
+            assert result["STATISTICS"]["written"] == len(cut[where]) >= 4
+        assert cut["local"] == cut[cluster.scheduler_address]
         # the standard variable selects the cluster when SCHEDULER is not given
         monkeypatch.setenv("DASK_SCHEDULER_ADDRESS", cluster.scheduler_address)
         out = tmp_path / "contours_env.gpkg"
