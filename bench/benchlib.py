@@ -104,3 +104,44 @@ def best_of(func, repeat: int) -> float:
         func()
         times.append(time.perf_counter() - t0)
     return min(times)
+
+
+def write_results(path, lines: list[str]) -> str:
+    """Join ``lines``, write them to ``path`` (its folder made), print and return the text."""
+    text = "\n".join(lines)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(text)
+    print(text)
+    return text
+
+
+def case_arguments(description: str, extra=None):
+    """The arguments of a bench that runs its cases in child processes: --case, --work,
+    --points (1,000,000) and --small; ``extra(parser)`` adds its own."""
+    import argparse
+    from pathlib import Path
+
+    parser = argparse.ArgumentParser(description=description)
+    parser.add_argument("--case")
+    parser.add_argument("--work", type=Path)
+    parser.add_argument("--points", type=int, default=1_000_000)
+    parser.add_argument("--small", action="store_true")
+    if extra is not None:
+        extra(parser)
+    return parser.parse_args()
+
+
+def measure_case(script: str, name: str, work, n_points: int, cwd, width: int = 26) -> dict:
+    """Run ``script --case name`` in a fresh process (see :func:`case_arguments`); its last
+    stdout line is the JSON result (with seconds and peak_mb), printed as one row."""
+    import json
+    import subprocess
+    import sys
+
+    proc = subprocess.run([sys.executable, script, "--case", name, "--work", str(work),
+                           "--points", str(n_points)], capture_output=True, text=True, cwd=cwd)
+    if proc.returncode != 0:
+        raise RuntimeError(f"case {name} failed:\n{proc.stderr[-3000:]}")
+    result = json.loads(proc.stdout.strip().splitlines()[-1])
+    print(f"  {name:<{width}} {result['seconds']:8.2f} s  {result['peak_mb']:8.0f} MB", flush=True)
+    return result

@@ -35,7 +35,6 @@ toolbox/terrain/gridding/methods/tin_linear.py.
 
 from __future__ import annotations
 
-import argparse
 import json
 import os
 import resource
@@ -48,7 +47,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from benchlib import load_note, machine_facts, peak_rss_mb, run_measured
+from benchlib import case_arguments, load_note, machine_facts, measure_case, peak_rss_mb, run_measured
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
@@ -160,13 +159,7 @@ def _centres(width: int, cell: float) -> tuple[np.ndarray, np.ndarray]:
 
 
 def measure(name: str, work: Path, n_points: int) -> dict:
-    proc = subprocess.run([sys.executable, __file__, "--case", name, "--work", str(work),
-                           "--points", str(n_points)], capture_output=True, text=True, cwd=ROOT)
-    if proc.returncode != 0:
-        raise RuntimeError(f"case {name} failed:\n{proc.stderr[-3000:]}")
-    result = json.loads(proc.stdout.strip().splitlines()[-1])
-    print(f"  {name:<24} {result['seconds']:8.2f} s  {result['peak_mb']:8.0f} MB", flush=True)
-    return result
+    return measure_case(__file__, name, work, n_points, ROOT, width=24)
 
 
 def measure_gdal_grid(label: str, algorithm: str, work: Path, n_points: int) -> dict | None:
@@ -496,17 +489,14 @@ def table(r: dict, gdal: dict, acc: dict, big: dict | None, n_points: int, width
 
 
 if __name__ == "__main__":
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--case")
-    parser.add_argument("--work", type=Path)
-    parser.add_argument("--points", type=int, default=1_000_000)
-    parser.add_argument("--small", action="store_true")
-    parser.add_argument("--no-big", dest="big", action="store_false")
-    parser.add_argument("--whole-only", action="store_true",
-                        help="only the whole-process dem:tin_linear rows")
-    parser.add_argument("--crossover", action="store_true",
-                        help="dem:tin_linear's numpy path against its numba path")
-    args = parser.parse_args()
+    def own(parser):
+        parser.add_argument("--no-big", dest="big", action="store_false")
+        parser.add_argument("--whole-only", action="store_true",
+                            help="only the whole-process dem:tin_linear rows")
+        parser.add_argument("--crossover", action="store_true",
+                            help="dem:tin_linear's numpy path against its numba path")
+
+    args = case_arguments(__doc__.splitlines()[0], own)
     if args.case:
         print(json.dumps(run_case(args.case, args.work, args.points)))
     elif args.crossover:

@@ -29,7 +29,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
-from benchlib import best_of, load_note, machine_facts
+from benchlib import best_of, load_note, machine_facts, write_results
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))
@@ -246,11 +246,7 @@ def main(argv: list[str] | None = None) -> str:
               "(Rodrigues, distortion polynomial) and single-pass numpy is bounded by "
               "temporaries. numexpr was not tried (not installed; numba already exceeds the "
               "target)."]
-    text = "\n".join(lines) + "\n"
-    (HERE / "results").mkdir(exist_ok=True)
-    (HERE / "results" / "orientation.md").write_text(text)
-    print(text)
-    return text
+    return write_results(HERE / "results" / "orientation.md", [*lines, ""])
 
 
 if __name__ == "__main__":

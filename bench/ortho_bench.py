@@ -35,7 +35,7 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
-from benchlib import best_of, load_note, machine_facts, run_measured
+from benchlib import best_of, load_note, machine_facts, run_measured, write_results
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
@@ -139,6 +139,7 @@ def memory_case(folder: Path, size: int, distortion: bool, occlusion: bool = Tru
     import cv2
     import rasterio
 
+    from toolbox.executor import default_workers
     from toolbox.io.raster import iter_windows, open_raster_info
     from toolbox.ortho.dem import DemSampler
     from toolbox.ortho.plan import plan_photo
@@ -149,7 +150,6 @@ def memory_case(folder: Path, size: int, distortion: bool, occlusion: bool = Tru
         pad_at_photo_edges,
         single_threaded_opencv,
     )
-    from toolbox.tiles import default_workers
 
     rows = []
     photo_path, dem, _, photo = write_inputs(folder, size, distortion)
@@ -469,11 +469,7 @@ def main(argv: list[str] | None = None) -> str:
               "Orthority is given the same pinhole camera (its OPK/PATB convention "
               "matches ours, checked above), DEM, grid and bilinear interpolation; the phase "
               "correlation resolves 0.01 px.", ""]
-    text = "\n".join(lines)
-    RESULTS.parent.mkdir(parents=True, exist_ok=True)
-    RESULTS.write_text(text)
-    print(text)
-    return text
+    return write_results(RESULTS, lines)
 
 
 if __name__ == "__main__":

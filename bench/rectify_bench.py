@@ -34,7 +34,7 @@ import warnings
 from pathlib import Path
 
 import numpy as np
-from benchlib import best_of, load_note, machine_facts
+from benchlib import best_of, load_note, machine_facts, write_results
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
@@ -487,11 +487,7 @@ def main(argv: list[str] | None = None) -> str:
               "(RGB + alpha), without overviews on either side. The rows marked [BLAS 1 thread] "
               "ran with OPENBLAS_NUM_THREADS=1: on a busy 2-core machine OpenBLAS threads make "
               "small SVDs and least-squares solves up to ~100x slower.", ""]
-    text = "\n".join(lines)
-    RESULTS.parent.mkdir(parents=True, exist_ok=True)
-    RESULTS.write_text(text)
-    print(text)
-    return text
+    return write_results(RESULTS, lines)
 
 
 if __name__ == "__main__":

@@ -14,7 +14,6 @@ Writes the markdown table to bench/results/tin.md.
 
 from __future__ import annotations
 
-import argparse
 import json
 import shutil
 import subprocess
@@ -24,7 +23,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from benchlib import load_note, machine_facts, peak_rss_mb, run_measured
+from benchlib import case_arguments, load_note, machine_facts, measure_case, peak_rss_mb, run_measured
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
@@ -187,13 +186,7 @@ def _warm_up(kernels, registry: bool) -> None:
 
 def measure(name: str, work: Path, n_points: int) -> dict:
     """Run one case in a fresh process."""
-    proc = subprocess.run([sys.executable, __file__, "--case", name, "--work", str(work),
-                           "--points", str(n_points)], capture_output=True, text=True, cwd=ROOT)
-    if proc.returncode != 0:
-        raise RuntimeError(f"case {name} failed:\n{proc.stderr[-3000:]}")
-    result = json.loads(proc.stdout.strip().splitlines()[-1])
-    print(f"  {name:<26} {result['seconds']:8.2f} s  {result['peak_mb']:8.0f} MB", flush=True)
-    return result
+    return measure_case(__file__, name, work, n_points, ROOT)
 
 
 def measure_gdal_grid(work: Path, n_points: int) -> dict | None:
@@ -346,12 +339,7 @@ def table(r: dict, gdal: dict | None, n_points: int, width: int, max_diff: float
 
 
 if __name__ == "__main__":
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--case")
-    parser.add_argument("--work", type=Path)
-    parser.add_argument("--points", type=int, default=1_000_000)
-    parser.add_argument("--small", action="store_true")
-    args = parser.parse_args()
+    args = case_arguments(__doc__.splitlines()[0])
     if args.case:
         print(json.dumps(run_case(args.case, args.work, args.points)))
     else:

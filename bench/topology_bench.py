@@ -35,7 +35,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from benchlib import load_note, machine_facts
+from benchlib import load_note, machine_facts, write_results
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))
@@ -294,11 +294,7 @@ def main(argv: list[str] | None = None) -> str:
         f"slivers {stats['slivers']}, labels {stats['labels']}.",
         "", f"Issue target (< 30 s for ~100,000 segments): "
         f"{'met' if full['seconds'] < 30 else 'NOT met'} ({full['seconds']:.1f} s).", ""]
-    text = "\n".join(lines_md)
-    (HERE / "results").mkdir(exist_ok=True)
-    (HERE / "results" / "topology.md").write_text(text)
-    print(text)
-    return text
+    return write_results(HERE / "results" / "topology.md", lines_md)
 
 
 if __name__ == "__main__":

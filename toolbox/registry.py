@@ -337,15 +337,14 @@ def _read_index(path: Path, key: str, field: str = "key") -> dict[str, dict] | N
 def _write_index(path: Path, key: str, specs: dict[str, dict], quick: str | None = None
                  ) -> None:
     """Atomic write; a cache folder that cannot be written only costs speed."""
+    from toolbox.errors import OutputWriteError
+    from toolbox.io.staging import atomic_path
+
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        import tempfile
-
-        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.name, suffix=".tmp")
-        with os.fdopen(fd, "w") as fh:
-            json.dump({"key": key, "quick": quick, "specs": specs}, fh)
-        os.replace(tmp, path)
-    except OSError as exc:
+        with atomic_path(path, "spec index") as staged:
+            staged.write_text(json.dumps({"key": key, "quick": quick, "specs": specs}))
+    except (OSError, OutputWriteError) as exc:
         log.debug("spec index not cached in %s: %s", path, exc)
 
 

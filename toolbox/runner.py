@@ -124,10 +124,14 @@ def check_magnitudes(alg_cls: type[Algorithm], values: dict[str, Any]) -> None:
 
 
 def _check_band(alg_cls: type[Algorithm], values: dict[str, Any]) -> None:
-    """``BAND`` exists in the raster it reads (when the run has one raster input)."""
+    """``BAND`` exists in the raster it reads: the ``DEM`` when given, else the run's one
+    raster input (the one BAND check of every algorithm)."""
     band = values.get("BAND")
     rasters = [values[p.name] for p in alg_cls.parameters
                if isinstance(p, RasterLayer) and values.get(p.name) is not None]
+    if any(isinstance(p, RasterLayer) and p.name == "DEM" for p in alg_cls.parameters) \
+            and values.get("DEM") is not None:
+        rasters = [values["DEM"]]
     if isinstance(band, int) and len(rasters) == 1 and band > rasters[0].count:
         raise ParameterError("BAND", f"must be <= {rasters[0].count} (bands of {rasters[0]}), "
                              f"got {band}")

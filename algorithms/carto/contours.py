@@ -72,12 +72,7 @@ class Contours(Algorithm):
     def check(self, params):
         if (params.get("INPUT") is None) == (params.get("TIN") is None):
             raise self.fail("INPUT", "or TIN: give exactly one of them (a DEM or a TIN)")
-        if params.get("INPUT") is not None:
-            info = params["INPUT"]
-            if params["BAND"] > info.count:
-                raise self.fail("BAND", f"must be <= {info.count} (bands of {info}), got "
-                                f"{params['BAND']}")
-        elif params["SMOOTHING"]:
+        if params.get("INPUT") is None and params["SMOOTHING"]:
             raise self.fail("SMOOTHING", f"applies to DEM contours only, got "
                             f"{params['SMOOTHING']} with a TIN")
 

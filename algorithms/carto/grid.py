@@ -7,15 +7,13 @@ from toolbox.feedback import Feedback
 from toolbox.parameters import (
     Crs,
     Enum,
-    ExtentParameter,
-    Field,
     Layer,
     Number,
     Output,
     OutputVector,
-    VectorLayer,
 )
 from toolbox.registry import register
+from toolbox.ui.cartography import sheet_area_parameters, sheet_source
 
 
 @register
@@ -36,11 +34,8 @@ class Grid(Algorithm):
     group = "Cartography"
     short_help = "Map grid every 10 cm on paper (500 m at 1:5000) as lines or crosses, labelled."
     parameters = [
-        ExtentParameter("EXTENT", "area: xmin,ymin,xmax,ymax [CRS]", optional=True),
-        VectorLayer("SHEETS", "map sheets (polygons) instead of EXTENT",
-                    geometry_types=["polygon"], optional=True),
-        Field("SHEET_ID", "sheet id field of SHEETS (default: feature number)", parent="SHEETS",
-              optional=True),
+        *sheet_area_parameters("area: xmin,ymin,xmax,ymax [CRS]",
+                               "map sheets (polygons) instead of EXTENT"),
         Number("SCALE", "map scale denominator (5000 for 1:5000)", default=5000.0, min_value=1),
         Number("MAP_STEP", "grid step on paper, mm", default=100.0, min_value=0,
                min_exclusive=True),
@@ -59,15 +54,13 @@ class Grid(Algorithm):
     outputs = [Output("STATISTICS", "ground step, counts", "dict")]
 
     def check(self, params):
-        if (params.get("EXTENT") is None) == (params.get("SHEETS") is None):
-            raise self.fail("EXTENT", "or SHEETS: give exactly one of them")
+        sheet_source(params)
 
     def process(self, params, feedback: Feedback):
-        from toolbox.cartography.grid_io import MapGridRequest, SheetSource, grid_frames
+        from toolbox.cartography.grid_io import MapGridRequest, grid_frames
         from toolbox.io.vector import write_layers
 
-        sheets = SheetSource(extent=params.get("EXTENT"), sheets=params.get("SHEETS"),
-                             sheet_id=params.get("SHEET_ID"), crs=params.get("CRS"))
+        sheets = sheet_source(params)
         grid, labels, step, crs = grid_frames(MapGridRequest(
             sheets, params["SCALE"], params["MAP_STEP"], params["STYLE"], params["CROSS_SIZE"]))
         kind = "LineString" if params["STYLE"] == "lines" else "MultiLineString"

@@ -7,8 +7,6 @@ from toolbox.feedback import Feedback
 from toolbox.parameters import (
     Crs,
     Enum,
-    ExtentParameter,
-    Field,
     File,
     Integer,
     MultipleLayers,
@@ -21,6 +19,7 @@ from toolbox.parameters import (
     VectorLayer,
 )
 from toolbox.registry import register
+from toolbox.ui.cartography import sheet_area_parameters, sheet_source
 
 
 @register
@@ -64,11 +63,8 @@ class Sheet(Algorithm):
     group = "Cartography"
     short_help = "Map sheet PDF/PNG at an exact scale: base, layers, contours, grid, legend."
     parameters = [
-        ExtentParameter("EXTENT", "sheet area: xmin,ymin,xmax,ymax [CRS]", optional=True),
-        VectorLayer("SHEETS", "sheet grid polygons instead of EXTENT (one sheet each)",
-                    geometry_types=["polygon"], optional=True),
-        Field("SHEET_ID", "sheet id field of SHEETS (default: feature number)", parent="SHEETS",
-              optional=True),
+        *sheet_area_parameters("sheet area: xmin,ymin,xmax,ymax [CRS]",
+                               "sheet grid polygons instead of EXTENT (one sheet each)"),
         Number("SCALE", "map scale denominator", default=5000.0, min_value=1),
         RasterLayer("BASE", "base raster: orthophoto (RGB) or hillshade (grey)", optional=True),
         MultipleLayers("LAYERS", "vector layers to draw", layer_type="vector", min_count=0,
@@ -103,8 +99,7 @@ class Sheet(Algorithm):
         if params.get("COLOURS") is not None and params.get("CODES") is None:
             raise self.fail("COLOURS", "needs CODES (the colour file gives the RGB of the code "
                             "file's colour indices)")
-        if (params.get("EXTENT") is None) == (params.get("SHEETS") is None):
-            raise self.fail("EXTENT", "or SHEETS: give exactly one of them")
+        sheet_source(params)
         if not (params.get("OUTPUT") or params.get("FOLDER")):
             raise self.fail("OUTPUT", "or FOLDER: give at least one")
         from toolbox.cartography.sheet_job import guard_sheets
@@ -127,12 +122,10 @@ class Sheet(Algorithm):
 
 def sheet_job(params: dict):
     """The typed request of a run (:class:`toolbox.cartography.sheet_job.SheetJob`)."""
-    from toolbox.cartography.grid_io import SheetSource
     from toolbox.cartography.sheet_job import SheetJob
 
     return SheetJob(
-        sheets=SheetSource(extent=params.get("EXTENT"), sheets=params.get("SHEETS"),
-                           sheet_id=params.get("SHEET_ID"), crs=params.get("CRS")),
+        sheets=sheet_source(params),
         scale=params["SCALE"], title=params["TITLE"], paper=params["PAPER"],
         grid_style=params["GRID_STYLE"], map_step=params["MAP_STEP"],
         png_dpi=params["PNG_DPI"], base=params.get("BASE"), layers=params.get("LAYERS") or [],

@@ -18,6 +18,7 @@ from toolbox.parameters import (
     String,
 )
 from toolbox.registry import register
+from toolbox.ui.grid import grid_request
 
 
 @register
@@ -107,7 +108,6 @@ class DenseMatchingDsm(Algorithm):
                       "dict")]
 
     def check(self, params: dict[str, Any]) -> None:
-        from toolbox.raster.engine import check_grid_parameters
 
         if params["MIN_HEIGHT"] >= params["MAX_HEIGHT"]:
             raise self.fail("MAX_HEIGHT", f"must be above MIN_HEIGHT ({params['MIN_HEIGHT']:g}),"
@@ -116,9 +116,30 @@ class DenseMatchingDsm(Algorithm):
             raise self.fail("BLOCK_SIZE", f"must be odd, got {params['BLOCK_SIZE']}")
         if params["MIN_BASE_RATIO"] >= params["MAX_BASE_RATIO"]:
             raise self.fail("MAX_BASE_RATIO", "must be above MIN_BASE_RATIO")
-        check_grid_parameters(params)
+        grid_request(params).check()
 
     def process(self, params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
         from toolbox.stereo.dsm import run_match
 
-        return run_match(params, feedback)
+        stats = run_match(match_request(params), feedback)
+        return {"OUTPUT": params["OUTPUT"], "COUNT": params["COUNT"], "SPREAD": params["SPREAD"],
+                "POINTS": params["POINTS"], "STATISTICS": stats}
+
+
+def match_request(params: dict[str, Any]):
+    """The typed request (:class:`toolbox.stereo.dsm.MatchRequest`) of validated parameters."""
+    from toolbox.stereo.dsm import MatchRequest
+    from toolbox.stereo.matching import MatchOptions
+
+    photos = [s.strip() for s in str(params["PHOTOS"]).split(",") if s.strip()] \
+        if params.get("PHOTOS") else None
+    return MatchRequest(
+        project=params["PROJECT"], min_height=params["MIN_HEIGHT"],
+        max_height=params["MAX_HEIGHT"], output=params["OUTPUT"], count=params["COUNT"],
+        spread=params["SPREAD"], photos=photos, min_overlap=params["MIN_OVERLAP"],
+        min_base_ratio=params["MIN_BASE_RATIO"], max_base_ratio=params["MAX_BASE_RATIO"],
+        max_angle=params["MAX_ANGLE"], pixel_size_mm=params.get("PIXEL_SIZE_MM"),
+        options=MatchOptions(params["BLOCK_SIZE"], params["UNIQUENESS"],
+                             params["SPECKLE_WINDOW"], params["SPECKLE_RANGE"],
+                             params["LR_MAX_DIFF"], params["MAX_DISPARITIES"]),
+        grid=grid_request(params), nodata=params["NODATA"], points=params.get("POINTS"))

@@ -68,9 +68,9 @@ class MosaicCut(Algorithm):
     def process(self, params, feedback: Feedback):
         import geopandas as gpd
 
+        from toolbox.executor import map_tiles
         from toolbox.io.vector import write_layers
         from toolbox.mosaic.sheets import RasterSheet, clip_raster_sheet, clip_vector, sheet_ids_unique
-        from toolbox.tiles import map_tiles
 
         source, kind, crs, sheets = _sheets(params)
         folder = params["OUTPUT"]

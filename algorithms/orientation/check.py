@@ -8,7 +8,7 @@ from toolbox.algorithm import Algorithm
 from toolbox.feedback import Feedback
 from toolbox.parameters import Layer, Number, Output, OutputFile, OutputVector
 from toolbox.registry import register
-from toolbox.ui.photogrammetry import control_parameter, measurement_parameters
+from toolbox.ui.photogrammetry import control_parameter, measured_inputs, measurement_parameters
 
 
 @register
@@ -70,16 +70,9 @@ class CheckOrientation(Algorithm):
     def process(self, params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
         from toolbox.photogrammetry.accuracy import judge_planimetry
         from toolbox.photogrammetry.orientation_check import check_block
-        from toolbox.photogrammetry.tables import (
-            ground_points,
-            image_measurements,
-            load_project_parameter,
-            write_json,
-        )
+        from toolbox.photogrammetry.tables import write_json
 
-        project = load_project_parameter(params["PROJECT"])
-        measurements = image_measurements(params["INPUT"], params["LAYER"], params["COORDINATES"])
-        control = ground_points(params["CONTROL"])
+        project, measurements, control = measured_inputs(params, control=True)
         result = check_block(project, measurements, control, params["THRESHOLD_PX"])
         block = result["block"]
         if params["MAP_SCALE"] is not None:

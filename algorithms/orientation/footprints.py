@@ -10,11 +10,12 @@ from toolbox.algorithm import Algorithm
 from toolbox.errors import InputDataError
 from toolbox.feedback import Feedback
 from toolbox.io.crs import common_crs
-from toolbox.parameters import File, Integer, Layer, Number, Output, OutputVector, RasterLayer
+from toolbox.parameters import Integer, Layer, Number, Output, OutputVector
 from toolbox.photogrammetry.coverage import Footprint, overlaps, photo_footprint
 from toolbox.photogrammetry.surface import dem_height_range, surface_for_photo
-from toolbox.photogrammetry.tables import PROJECT_EXTENSIONS, load_project_parameter
+from toolbox.photogrammetry.tables import load_project_parameter
 from toolbox.registry import register
+from toolbox.ui.photogrammetry import dem_parameters, project_parameter
 
 
 @register
@@ -51,9 +52,8 @@ class Footprints(Algorithm):
     group = "Orientation"
     short_help = "Footprints of oriented photos on a DEM, nadir/principal points, overlap %."
     parameters = [
-        File("PROJECT", "orientation project (YAML)", extensions=PROJECT_EXTENSIONS),
-        RasterLayer("DEM", "terrain heights (same CRS as the project)", optional=True),
-        Integer("BAND", "DEM band", default=1, min_value=1),
+        project_parameter(),
+        *dem_parameters(optional=True),
         Number("MEAN_HEIGHT", "plane height without a DEM; fallback plane with one (default: the "
                "DEM's mean), CRS units", optional=True),
         Integer("POINTS_PER_SIDE", "footprint vertices per side of the image format", default=8,
@@ -101,9 +101,6 @@ class Footprints(Algorithm):
         if params["DEM"] is None and params["MEAN_HEIGHT"] is None:
             raise self.fail("MEAN_HEIGHT", "is required when no DEM is given (the plane the "
                             "footprints are projected on), got nothing")
-        if params["DEM"] is not None and params["BAND"] > params["DEM"].count:
-            raise self.fail("BAND", f"must be <= {params['DEM'].count} (bands of "
-                            f"{params['DEM']}), got {params['BAND']}")
 
     def process(self, params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
         project = load_project_parameter(params["PROJECT"])

@@ -15,9 +15,9 @@ from toolbox.photogrammetry.forward_intersection import (
     camera_observations,
     intersect,
 )
-from toolbox.photogrammetry.tables import image_measurements, load_project_parameter, write_json
+from toolbox.photogrammetry.tables import write_json
 from toolbox.registry import register
-from toolbox.ui.photogrammetry import measurement_parameters
+from toolbox.ui.photogrammetry import measured_inputs, measured_photos, measurement_parameters
 
 
 @register
@@ -73,13 +73,8 @@ class SpaceIntersection(Algorithm):
 
         from toolbox.io.vector import write_layers
 
-        project = load_project_parameter(params["PROJECT"])
-        ids, photo_ids, xy, kind = image_measurements(params["INPUT"], params["LAYER"],
-                                                      params["COORDINATES"])
-        unknown = sorted({p for p in photo_ids if p not in project.photos})
-        if unknown:
-            raise InputDataError(f"INPUT names photo(s) {', '.join(map(repr, unknown[:5]))} that "
-                                 f"PROJECT does not have (photos: {', '.join(project.photos)})")
+        project, (ids, photo_ids, xy, kind), _ = measured_inputs(params)
+        measured_photos(project, photo_ids)
         photos = [project.photos[p] for p in photo_ids]
         for p in {p.id: p for p in photos}.values():
             p.require_exterior()

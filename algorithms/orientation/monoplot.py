@@ -20,18 +20,15 @@ from toolbox.parameters import (
     Output,
     OutputFile,
     OutputVector,
-    RasterLayer,
     String,
 )
 from toolbox.photogrammetry.collinearity import NO_INTERSECTION, OK, STATUS_NAMES
 from toolbox.photogrammetry.surface import dem_height_range, surface_for_photo
 from toolbox.photogrammetry.tables import (
-    PROJECT_EXTENSIONS,
-    image_measurements,
-    load_project_parameter,
     write_json,
 )
 from toolbox.registry import register
+from toolbox.ui.photogrammetry import dem_parameters, measured_inputs, measured_photos, project_parameter
 
 
 @register
@@ -57,13 +54,12 @@ class Monoplot(Algorithm):
     group = "Orientation"
     short_help = "Ground points (PointZ) of image points of oriented photos, on a DEM or a height."
     parameters = [
-        File("PROJECT", "orientation project (YAML)", extensions=PROJECT_EXTENSIONS),
+        project_parameter(),
         File("INPUT", "image points (CSV or GeoPackage table)", extensions=[".csv", ".txt", ".gpkg"]),
         String("LAYER", "GeoPackage layer of INPUT (default: the first)", optional=True),
         Enum("COORDINATES", "measurement columns: auto, pixel (col_px/row_px), image (x_mm/y_mm)",
              options=("auto", "pixel", "image"), default="auto"),
-        RasterLayer("DEM", "terrain heights (same CRS as the project)", optional=True),
-        Integer("BAND", "DEM band", default=1, min_value=1),
+        *dem_parameters(optional=True),
         Number("HEIGHT", "plane height when no DEM is given, CRS units", optional=True),
         Enum("METHOD", "ray/DEM intersection", options=("march", "fixed_point"), default="march"),
         Number("TOLERANCE", "accepted height misclosure |Z_ray - Z_dem|, CRS units", default=1e-6,
@@ -91,15 +87,10 @@ class Monoplot(Algorithm):
 
         from toolbox.io.vector import write_layers
 
-        project = load_project_parameter(params["PROJECT"])
+        project, (ids, photo_ids, xy, kind), _ = measured_inputs(params)
         dem = params["DEM"]
         crs = common_crs({"PROJECT": project.crs, "DEM": None if dem is None else dem.crs})
-        ids, photo_ids, xy, kind = image_measurements(params["INPUT"], params["LAYER"],
-                                                      params["COORDINATES"])
-        unknown = sorted({p for p in photo_ids if p not in project.photos})
-        if unknown:
-            raise InputDataError(f"INPUT names photo(s) {', '.join(map(repr, unknown[:5]))} that "
-                                 f"PROJECT does not have (photos: {', '.join(project.photos)})")
+        measured_photos(project, photo_ids)
         xyz = np.full((len(ids), 3), np.nan)
         status = np.full(len(ids), OK, dtype=np.int8)
         iterations = np.zeros(len(ids), dtype=np.int32)

@@ -11,7 +11,7 @@ from toolbox.algorithm import Algorithm
 from toolbox.errors import InputDataError
 from toolbox.feedback import Feedback
 from toolbox.io.crs import common_crs
-from toolbox.parameters import File, Integer, Number, Output, OutputFile, RasterLayer
+from toolbox.parameters import File, Number, Output, OutputFile
 from toolbox.photogrammetry.normal_case import normal_case_precision, rules_table_sigma_xy
 from toolbox.photogrammetry.tables import (
     PROJECT_EXTENSIONS,
@@ -20,6 +20,7 @@ from toolbox.photogrammetry.tables import (
     write_json,
 )
 from toolbox.registry import register
+from toolbox.ui.photogrammetry import dem_parameters
 
 COLUMNS = ["photo_a", "photo_b", "terrain_height_m", "principal_distance_mm", "base_m",
            "distance_m", "photo_scale", "base_ratio", "sigma_parallax_um", "sigma_image_um",
@@ -74,8 +75,7 @@ class NormalCasePrecision(Algorithm):
     parameters = [
         File("PROJECT", "orientation project (YAML); its stereo pairs are evaluated",
              extensions=PROJECT_EXTENSIONS, optional=True),
-        RasterLayer("DEM", "terrain heights, for the distance to the terrain", optional=True),
-        Integer("BAND", "DEM band", default=1, min_value=1),
+        *dem_parameters("terrain heights, for the distance to the terrain", optional=True),
         Number("MEAN_HEIGHT", "terrain height (CRS units), instead of a DEM", optional=True),
         Number("PRINCIPAL_DISTANCE", "c, mm (without PROJECT)", optional=True, min_value=0,
                min_exclusive=True),

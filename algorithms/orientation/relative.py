@@ -8,7 +8,7 @@ from toolbox.algorithm import Algorithm
 from toolbox.feedback import Feedback
 from toolbox.parameters import Enum, Output, OutputFile, String
 from toolbox.registry import register
-from toolbox.ui.photogrammetry import measurement_parameters
+from toolbox.ui.photogrammetry import measured_inputs, measurement_parameters
 
 
 @register
@@ -55,17 +55,10 @@ class RelativeOrientation(Algorithm):
         import numpy as np
 
         from toolbox.photogrammetry.forward_intersection import camera_observations
-        from toolbox.photogrammetry.tables import (
-            image_measurements,
-            load_project_parameter,
-            write_csv,
-            write_json,
-        )
+        from toolbox.photogrammetry.tables import write_csv, write_json
         from toolbox.triangulation.relative import RelativeRequest, relative_orientation
 
-        project = load_project_parameter(params["PROJECT"])
-        ids, photos, xy, kind = image_measurements(params["INPUT"], params["LAYER"],
-                                                   params["COORDINATES"])
+        project, (ids, photos, xy, kind), _ = measured_inputs(params)
         order = list(dict.fromkeys(photos))
         left = params["PHOTO1"] or (order[0] if order else None)
         right = params["PHOTO2"] or (order[1] if len(order) > 1 else None)

@@ -8,7 +8,7 @@ from toolbox.algorithm import Algorithm
 from toolbox.feedback import Feedback
 from toolbox.parameters import Enum, Output, OutputFile
 from toolbox.registry import register
-from toolbox.ui.photogrammetry import control_parameter, measurement_parameters
+from toolbox.ui.photogrammetry import control_parameter, measured_inputs, measurement_parameters
 
 
 @register
@@ -58,16 +58,9 @@ class SpaceResection(Algorithm):
     def process(self, params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
         from toolbox.photogrammetry.orientation_check import resect_photos
         from toolbox.photogrammetry.project import save_project
-        from toolbox.photogrammetry.tables import (
-            ground_points,
-            image_measurements,
-            load_project_parameter,
-            write_json,
-        )
+        from toolbox.photogrammetry.tables import write_json
 
-        project = load_project_parameter(params["PROJECT"])
-        measurements = image_measurements(params["INPUT"], params["LAYER"], params["COORDINATES"])
-        control = ground_points(params["CONTROL"])
+        project, measurements, control = measured_inputs(params, control=True)
         if project.crs is not None and len(control[1]):  # as for layers: one check everywhere
             from toolbox.io.crs import check_coordinates_in_area
 

@@ -10,7 +10,6 @@ from toolbox.errors import InputDataError, ParameterError
 from toolbox.feedback import Feedback
 from toolbox.parameters import (
     Boolean,
-    File,
     Integer,
     Number,
     Output,
@@ -19,10 +18,9 @@ from toolbox.parameters import (
     RasterLayer,
     String,
 )
-from toolbox.photogrammetry.tables import PROJECT_EXTENSIONS
 from toolbox.registry import register
 from toolbox.ui.execution import scheduler_parameter
-from toolbox.ui.photogrammetry import ortho_method_parameters
+from toolbox.ui.photogrammetry import dem_parameters, ortho_method_parameters, project_parameter
 
 
 @register
@@ -54,13 +52,12 @@ class OrthoBatch(Algorithm):
     group = "Orthophoto"
     short_help = "Orthorectify every photo of an orientation project on one shared grid."
     parameters = [
-        File("PROJECT", "orientation project (YAML)", extensions=PROJECT_EXTENSIONS),
+        project_parameter(),
         String("PHOTOS", "photo ids, comma separated (default: every oriented photo)",
                optional=True),
         String("IMAGES", "folder of the image files (default: the project's paths)",
                optional=True),
-        RasterLayer("DEM", "terrain heights, any CRS"),
-        Integer("BAND", "DEM band", default=1, min_value=1),
+        *dem_parameters("terrain heights, any CRS"),
         Number("CELL_SIZE", "ground cell size (default: the largest GSD of the photos)",
                optional=True, min_value=0, min_exclusive=True),
         RasterLayer("TEMPLATE", "align the grid to this raster's lattice and cell",
@@ -79,10 +76,6 @@ class OrthoBatch(Algorithm):
     ]
     outputs = [Output("STATISTICS", "photos done and failed, cell size", "dict")]
 
-    def check(self, params: dict[str, Any]) -> None:
-        if params["BAND"] > params["DEM"].count:
-            raise self.fail("BAND", f"must be <= {params['DEM'].count}, got {params['BAND']}")
-
     def planned_files(self, params: dict[str, Any]) -> dict[str, list[str]]:
         photos = select_photos(load_batch_project(params), params["PHOTOS"])
         folder = Path(params["FOLDER"]).expanduser().resolve()
@@ -97,6 +90,7 @@ class OrthoBatch(Algorithm):
         return {"FOLDER": [f"{photo.id}.tif" for photo in photos]}
 
     def process(self, params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
+        from toolbox.executor import map_tiles, resolve_executor
         from toolbox.io.crs import crs_label
         from toolbox.io.raster import open_raster_info
         from toolbox.io.staging import final_path
@@ -106,7 +100,6 @@ class OrthoBatch(Algorithm):
         from toolbox.ortho.run import OrthoOptions
         from toolbox.photogrammetry.tables import write_json
         from toolbox.raster.grid_request import template_lattice
-        from toolbox.tiles import map_tiles, resolve_executor
 
         project = load_batch_project(params, last=True)
         crs = project.crs

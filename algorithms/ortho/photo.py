@@ -14,7 +14,6 @@ from toolbox.parameters import (
     Enum,
     ExtentParameter,
     File,
-    Integer,
     Number,
     Output,
     OutputFile,
@@ -22,9 +21,8 @@ from toolbox.parameters import (
     RasterLayer,
     String,
 )
-from toolbox.photogrammetry.tables import PROJECT_EXTENSIONS
 from toolbox.registry import register
-from toolbox.ui.photogrammetry import ortho_method_parameters
+from toolbox.ui.photogrammetry import dem_parameters, ortho_method_parameters, project_parameter
 
 
 @register
@@ -82,8 +80,7 @@ class OrthoPhoto(Algorithm):
     short_help = "Orthorectify a frame photo on a DEM (collinearity, optional true-ortho mask)."
     parameters = [
         RasterLayer("INPUT", "the photo (any GDAL raster, 1-4 bands, 8/16 bit)"),
-        File("PROJECT", "orientation project (YAML)", extensions=PROJECT_EXTENSIONS,
-             optional=True),
+        project_parameter(optional=True),
         String("PHOTO", "photo id in PROJECT (default: the photo whose image or id matches "
                "INPUT)", optional=True),
         File("CAMERA", "camera YAML (instead of PROJECT)", extensions=[".yaml", ".yml"],
@@ -96,8 +93,7 @@ class OrthoPhoto(Algorithm):
              default="rad"),
         Crs("CRS", "the ortho's CRS (default: the project's); with CAMERA also EXTERIOR's",
             optional=True),
-        RasterLayer("DEM", "terrain heights (or a DSM for true orthos), any CRS"),
-        Integer("BAND", "DEM band", default=1, min_value=1),
+        *dem_parameters("terrain heights (or a DSM for true orthos), any CRS"),
         Number("CELL_SIZE", "ground cell size, CRS units (default: the photo's GSD)",
                optional=True, min_value=0, min_exclusive=True),
         ExtentParameter("EXTENT", "output extent (default: the footprint on the DEM)",
@@ -128,8 +124,6 @@ class OrthoPhoto(Algorithm):
                             "photos' interior orientations)")
         if params["OCCLUSION_MASK"] is not None and not params["OCCLUSION"]:
             raise self.fail("OCCLUSION_MASK", "needs OCCLUSION=true")
-        if params["BAND"] > params["DEM"].count:
-            raise self.fail("BAND", f"must be <= {params['DEM'].count}, got {params['BAND']}")
 
     def process(self, params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
         from toolbox.ortho.plan import check_geometry, plan_photo, tilt_warning

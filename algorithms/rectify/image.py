@@ -29,6 +29,7 @@ from toolbox.parameters import (
 from toolbox.registry import register
 from toolbox.transforms.rectification import MODES, OUTSIDE, RectificationModel, parse_pixel_to_image
 from toolbox.ui.execution import executor_of, scheduler_parameter
+from toolbox.ui.grid import grid_request
 
 RESAMPLING_METHODS = ("nearest", "bilinear", "cubic", "lanczos")  # toolbox.raster.resample's
 
@@ -111,7 +112,6 @@ class RectifyImage(Algorithm):
 
     def process(self, params, feedback: Feedback):
         from toolbox.io.crs import crs_label, same_crs
-        from toolbox.raster.engine import grid_from_parameters
         from toolbox.raster.homography import HomographyMap
         from toolbox.raster.nan_cells import NanCells
         from toolbox.raster.warp import warp_layout, warp_raster
@@ -153,8 +153,8 @@ class RectifyImage(Algorithm):
         bounds = None if corners is None else (
             float(corners[:, 0].min()), float(corners[:, 1].min()),
             float(corners[:, 0].max()), float(corners[:, 1].max()))
-        grid = grid_from_parameters(
-            params, bounds, model.crs,
+        grid = grid_request(params).grid(
+            bounds, model.crs,
             default_cell_size=lambda: default_cell_size(matrix, info.width, info.height))
         cell = grid.cell_size[0]
         centre, _ = apply_homography(matrix, np.array([[info.width / 2.0, info.height / 2.0]]),

@@ -22,6 +22,7 @@ from toolbox.parameters import (
 from toolbox.registry import register
 from toolbox.terrain.tin.help import TIN_HELP
 from toolbox.ui.execution import executor_of, scheduler_parameter
+from toolbox.ui.grid import grid_request
 
 
 @register
@@ -64,15 +65,14 @@ class ToRaster(Algorithm):
     outputs = [Output("STATISTICS", "grid size, cells with data, height range", "json")]
 
     def check(self, params):
-        from toolbox.raster.engine import check_grid_parameters
 
-        check_grid_parameters(params)
+        grid_request(params).check()
 
     def process(self, params, feedback: Feedback):
         from functools import partial
 
         from toolbox.io.crs import common_crs, crs_label, same_crs
-        from toolbox.raster.engine import grid_from_parameters, process_raster
+        from toolbox.raster.engine import process_raster
         from toolbox.raster.writer import RasterWriter
         from toolbox.terrain.gridding.tin_raster import TinTiles, tin_tile
         from toolbox.terrain.tin.store import read_tin
@@ -98,7 +98,7 @@ class ToRaster(Algorithm):
             feedback.push_warning(f"TIN nodes reprojected from {crs_label(tin_crs)} to "
                                   f"{crs_label(out_crs)}; triangles kept as they are")
         bounds = (*xyz[:, :2].min(axis=0), *xyz[:, :2].max(axis=0))
-        grid = grid_from_parameters(params, bounds, out_crs)
+        grid = grid_request(params).grid(bounds, out_crs)
         tile_size = 512
         origin = (float(grid.transform.c), float(grid.transform.f))
         local = np.column_stack([xyz[:, 0] - origin[0], xyz[:, 1] - origin[1], xyz[:, 2]])

@@ -130,9 +130,6 @@ class Volume(Algorithm):
                             f"{' and '.join(given) if given else 'neither'}")
         dem = params["REFERENCE_DEM"]
         if dem is not None:
-            if params["BAND"] > dem.count:
-                raise self.fail("BAND", f"must be <= {dem.count} (bands of {dem}), got "
-                                f"{params['BAND']}")
             t = dem.transform
             if t.b != 0 or t.d != 0 or t.a <= 0 or t.e >= 0 or not dem.georeferenced:
                 raise self.fail("REFERENCE_DEM", f"must be a georeferenced north-up raster, got "

@@ -13,6 +13,7 @@ import pytest
 from click.testing import CliRunner
 from shapely.geometry import Point
 
+from tests.helpers_cli import one_error
 from toolbox.cli import main
 
 sys.path.insert(0, str(Path(__file__).parents[1] / "algorithms" / "ortho"))
@@ -26,11 +27,6 @@ def batch(pipe: Path, *extra) -> tuple[int, str]:
     assert "Traceback" not in result.stderr, result.stderr
     return result.exit_code, result.stderr
 
-
-def one_error(stderr: str) -> str:
-    lines = [ln for ln in stderr.strip().splitlines() if not ln.startswith("WARNING:")]
-    assert len(lines) == 1 and lines[0].startswith("toolbox: error: "), stderr
-    return lines[0]
 
 
 @pytest.fixture

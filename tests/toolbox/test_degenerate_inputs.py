@@ -9,26 +9,15 @@ import warnings
 import geopandas as gpd
 import numpy as np
 import pytest
-from click.testing import CliRunner
 from shapely.geometry import LineString, Polygon
 
-from toolbox.cli import main
+from tests.helpers_cli import cli, one_error
 from toolbox.errors import InputDataError
 
 E0, N0 = 1688000.0, 4799000.0
 CRS = "EPSG:3003"
 
 
-def cli(*args) -> tuple[int, str, str]:
-    result = CliRunner().invoke(main, [str(a) for a in args])
-    assert "Traceback" not in result.stderr, result.stderr
-    return result.exit_code, result.stdout, result.stderr
-
-
-def one_error(stderr: str) -> str:
-    lines = [ln for ln in stderr.strip().splitlines() if not ln.startswith("WARNING:")]
-    assert len(lines) == 1 and lines[0].startswith("toolbox: error: "), stderr
-    return lines[0]
 
 
 def test_sample_zero_length_building_names_the_feature(tmp_path):

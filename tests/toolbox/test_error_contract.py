@@ -26,6 +26,7 @@ import trust_data
 from click.testing import CliRunner
 
 import toolbox
+from tests.helpers_cli import assert_cannot_write, cli, one_error, register_testing, run_on_full_disk
 from toolbox.batch import REF_RE
 from toolbox.cli import main
 from toolbox.parameters import (
@@ -34,6 +35,7 @@ from toolbox.parameters import (
     Integer,
     MultipleLayers,
     Number,
+    OutputFile,
     RasterLayer,
     VectorLayer,
 )
@@ -343,18 +345,6 @@ def test_read_only_and_full_output_folders(case):
 
 
 # -- the families of mistakes of issue #11, one by one ---------------------------------------------
-def cli(*args, env: dict | None = None) -> tuple[int, str, str]:
-    result = CliRunner().invoke(main, [str(a) for a in args], env=env)
-    assert "Traceback" not in result.stderr, result.stderr
-    return result.exit_code, result.stdout, result.stderr
-
-
-def one_error(stderr: str) -> str:
-    errors = [line for line in stderr.strip().splitlines() if not line.startswith("WARNING:")]
-    assert len(errors) == 1 and errors[0].startswith("toolbox: error: "), stderr
-    return errors[0]
-
-
 @pytest.fixture(scope="module")
 def points(demo, tmp_path_factory):
     """Point layers for the degenerate cases, written from the demo mass points."""
@@ -471,22 +461,12 @@ def test_help_and_quiet_after_the_id(demo, tmp_path):
 
 
 def test_internal_errors_are_one_line_exit_3(tmp_path):
-    from toolbox.algorithm import Algorithm
-    from toolbox.parameters import OutputFile
-    from toolbox.registry import register
+    def process(self, params, feedback):
+        params["OUTPUT"].write_text("half")
+        return {}["missing"]
 
-    @register
-    class _Bug(Algorithm):
-        """Fails with a bug (not a user mistake)."""
-
-        id = "testing:bug"
-        display_name = group = short_help = "bug"
-        parameters = [OutputFile("OUTPUT", extensions=[".txt"])]
-
-        def process(self, params, feedback):
-            params["OUTPUT"].write_text("half")
-            return {}["missing"]
-
+    register_testing("bug", OutputFile("OUTPUT", extensions=[".txt"]), process,
+                     "Fails with a bug (not a user mistake).")
     code, _, err = cli("run", "testing:bug", "--OUTPUT", tmp_path / "a.txt")
     lines = err.strip().splitlines()
     assert code == 3 and len(lines) == 1, err
@@ -498,24 +478,15 @@ def test_internal_errors_are_one_line_exit_3(tmp_path):
 def test_commit_never_replaces_a_file_that_appeared(tmp_path):
     """Two runs writing one path: the second to finish fails (without --overwrite) and the
     first one's file is left as it was."""
-    from toolbox.algorithm import Algorithm
     from toolbox.errors import OutputExistsError
-    from toolbox.parameters import OutputFile
-    from toolbox.registry import register
 
-    @register
-    class _Racer(Algorithm):
-        """Another run writes the same output while this one works."""
+    def process(self, params, feedback):
+        params["OUTPUT"].write_text("mine")
+        (tmp_path / "a.txt").write_text("the other run's")  # appears meanwhile
+        return {"OUTPUT": params["OUTPUT"]}
 
-        id = "testing:racer"
-        display_name = group = short_help = "racer"
-        parameters = [OutputFile("OUTPUT", extensions=[".txt"])]
-
-        def process(self, params, feedback):
-            params["OUTPUT"].write_text("mine")
-            (tmp_path / "a.txt").write_text("the other run's")  # appears meanwhile
-            return {"OUTPUT": params["OUTPUT"]}
-
+    register_testing("racer", OutputFile("OUTPUT", extensions=[".txt"]), process,
+                     "Another run writes the same output while this one works.")
     with pytest.raises(OutputExistsError, match="appeared during the run"):
         toolbox.run("testing:racer", {"OUTPUT": tmp_path / "a.txt"})
     assert (tmp_path / "a.txt").read_text() == "the other run's"
@@ -720,23 +691,9 @@ def test_raster_without_crs_or_in_degrees(case):
 def test_a_write_that_fails_midway_is_one_line(demo, tmp_path, args):
     """A file-size limit (works without root, unlike a full tmpfs) makes every write past 20 kB
     fail, as a full disk does: exit 2, one line naming OUTPUT, nothing left."""
-    import resource
-    import signal
-
-    def limit():
-        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
-        resource.setrlimit(resource.RLIMIT_FSIZE, (20_000, 20_000))
-
     out = tmp_path / "out"
     names = {**demo[1], "demo": demo[0], "out": out}
-    proc = subprocess.run([sys.executable, "-m", "toolbox.cli", "run",
-                           *[a.format(**names) for a in args]], preexec_fn=limit,
-                          capture_output=True, text=True, timeout=300)
-    assert proc.returncode == 2, proc.stderr
-    lines = proc.stderr.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith("toolbox: error: cannot write OUTPUT"), \
-        proc.stderr
-    assert not out.exists() or list(out.iterdir()) == []
+    assert_cannot_write(run_on_full_disk([a.format(**names) for a in args]), out)
 
 
 def test_commit_main_file_first_and_stale_sidecars_replaced(tmp_path):

@@ -5,29 +5,18 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from click.testing import CliRunner
 
-from toolbox.cli import main
+from tests.helpers_cli import cli, one_error, register_testing
+from toolbox.parameters import OutputFile
 
 
 def _register(error):
-    from toolbox.algorithm import Algorithm
-    from toolbox.parameters import OutputFile
-    from toolbox.registry import register
+    def process(self, params, feedback):
+        params["OUTPUT"].write_bytes(b"II*\0half")
+        raise error
 
-    @register
-    class _Writer(Algorithm):
-        """Writes half of its output, then its library fails."""
-
-        id = "testing:typed_write_failure"
-        display_name = group = short_help = "typed write failure"
-        parameters = [OutputFile("OUTPUT", extensions=[".tif"])]
-
-        def process(self, params, feedback):
-            params["OUTPUT"].write_bytes(b"II*\0half")
-            raise error
-
-    return _Writer
+    register_testing("typed_write_failure", OutputFile("OUTPUT", extensions=[".tif"]), process,
+                     "Writes half of its output, then its library fails.")
 
 
 @pytest.mark.parametrize("make", [
@@ -37,12 +26,10 @@ def _register(error):
 ])
 def test_a_write_failure_of_any_wording_is_one_line(tmp_path, make):
     _register(make())
-    result = CliRunner().invoke(main, ["run", "testing:typed_write_failure", "--OUTPUT",
-                                       str(tmp_path / "out.tif")])
-    lines = result.stderr.strip().splitlines()
-    assert result.exit_code == 2 and len(lines) == 1, result.stderr
-    assert lines[0].startswith("toolbox: error: ") and "OUTPUT" in lines[0]
-    assert "nothing was written" in lines[0] or "cannot write" in lines[0]
+    code, _, err = cli("run", "testing:typed_write_failure", "--OUTPUT", tmp_path / "out.tif")
+    line = one_error(err)
+    assert code == 2 and "OUTPUT" in line
+    assert "nothing was written" in line or "cannot write" in line
     assert list(tmp_path.iterdir()) == []
 
 
@@ -84,27 +71,16 @@ def test_a_writers_error_names_the_output_and_its_final_path(tmp_path):
     """A writer raises about the staged file; the user reads the parameter and the final path."""
     import errno
 
-    from toolbox.algorithm import Algorithm
     from toolbox.errors import OutputWriteError
-    from toolbox.parameters import OutputFile
-    from toolbox.registry import register
 
-    @register
-    class _StagedWriter(Algorithm):
-        """Its writer fails on the staged file."""
+    def process(self, params, feedback):
+        params["REPORT"].write_text("half")
+        raise OutputWriteError("cannot write the staged file", errno.EFBIG, str(params["REPORT"]))
 
-        id = "testing:staged_writer"
-        display_name = group = short_help = "staged writer"
-        parameters = [OutputFile("REPORT", extensions=[".txt"])]
+    register_testing("staged_writer", OutputFile("REPORT", extensions=[".txt"]), process,
+                     "Its writer fails on the staged file.")
 
-        def process(self, params, feedback):
-            params["REPORT"].write_text("half")
-            raise OutputWriteError("cannot write the staged file", errno.EFBIG,
-                                   str(params["REPORT"]))
-
-    result = CliRunner().invoke(main, ["run", "testing:staged_writer", "--REPORT",
-                                       str(tmp_path / "r.txt")])
-    lines = result.stderr.strip().splitlines()
-    assert result.exit_code == 2 and len(lines) == 1, result.stderr
-    assert lines[0].startswith(f"toolbox: error: cannot write REPORT '{tmp_path / 'r.txt'}'")
-    assert ".part" not in lines[0] and list(tmp_path.iterdir()) == []
+    code, _, err = cli("run", "testing:staged_writer", "--REPORT", tmp_path / "r.txt")
+    line = one_error(err)
+    assert code == 2 and line.startswith(f"toolbox: error: cannot write REPORT '{tmp_path / 'r.txt'}'")
+    assert ".part" not in line and list(tmp_path.iterdir()) == []

@@ -12,8 +12,8 @@ from pathlib import Path
 import pytest
 
 from toolbox.errors import ToolboxError
+from toolbox.executor import Executor, map_tiles
 from toolbox.extras import require
-from toolbox.tiles import Executor, map_tiles
 
 ROOT = Path(__file__).resolve().parents[2]
 CORE = {"numpy", "scipy", "shapely", "pyproj", "rasterio", "geopandas", "pyogrio", "pyarrow",

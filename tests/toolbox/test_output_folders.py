@@ -12,10 +12,10 @@ import sys
 from pathlib import Path
 
 import pytest
-from click.testing import CliRunner
 
 import toolbox
-from toolbox.cli import main
+from tests import helpers_cli
+from tests.helpers_cli import one_error
 from toolbox.errors import OutputExistsError, OutputWriteError
 
 sys.path.insert(0, str(Path(__file__).parents[1] / "algorithms" / "attribution"))
@@ -23,15 +23,9 @@ from restitution_files import make_files  # noqa: E402
 
 
 def cli(*args) -> tuple[int, str]:
-    result = CliRunner().invoke(main, [str(a) for a in args])
-    assert "Traceback" not in result.stderr, result.stderr
-    return result.exit_code, result.stderr
+    code, _, err = helpers_cli.cli(*args)
+    return code, err
 
-
-def one_error(stderr: str) -> str:
-    lines = [ln for ln in stderr.strip().splitlines() if not ln.startswith("WARNING:")]
-    assert len(lines) == 1 and lines[0].startswith("toolbox: error: "), stderr
-    return lines[0]
 
 
 def hashes(folder: Path) -> dict[str, str]:

@@ -225,3 +225,15 @@ def test_plugins_come_from_the_entry_point_group(monkeypatch):
         assert toolbox.run("plugin:echo", {"VALUE": 5}) == {"VALUE_OUT": 5.0}
     finally:
         registry._registry.pop("plugin:echo", None)
+
+
+def test_band_is_checked_against_the_dem_among_several_rasters(plane_dem, tmp_path):
+    """One BAND check (the runner's) for algorithms with several rasters: BAND names a band of
+    DEM, so a TEMPLATE beside it does not hide the mistake."""
+    project = tmp_path / "p.yaml"
+    project.write_text("photos: {}\n")
+    with pytest.raises(ParameterError, match="BAND must be <= 1"):
+        toolbox.run("ortho:batch", {"PROJECT": project, "DEM": plane_dem[0],
+                                    "TEMPLATE": plane_dem[0], "BAND": 2,
+                                    "FOLDER": tmp_path / "out", "OUTPUT": tmp_path / "o.json"})
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["p.yaml", "plane.tif"]

@@ -138,7 +138,7 @@ def test_cluster_runs_write_the_local_files(tmp_path, monkeypatch, pair):
     ("h:0", False), ("h:70000", False), ("not an address", False), ("ü:12", False)])
 def test_scheduler_addresses_are_checked_before_any_connection(address, valid):
     from toolbox.errors import ParameterError
-    from toolbox.tiles import resolve_executor
+    from toolbox.executor import resolve_executor
 
     if valid:
         assert resolve_executor(address).address == address

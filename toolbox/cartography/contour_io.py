@@ -99,10 +99,10 @@ def trace_raster(path: str | Path, band: int, rows: int, cols: int, tile: int,
                  levels: np.ndarray, executor: Any = None, feedback=None
                  ) -> tuple[list[Contour], int]:
     """Contours of a DEM file traced block by block on ``executor`` (local threads or a Dask
-    cluster: :mod:`toolbox.tiles`; the pieces come back in block order, so the result is the
+    cluster: :mod:`toolbox.executor`; the pieces come back in block order, so the result is the
     same on either) and stitched; grid coordinates. Returns the contours and the pieces'
     count."""
-    from toolbox.tiles import map_tiles
+    from toolbox.executor import map_tiles
 
     windows = block_windows(rows, cols, tile)
     levels_tuple = tuple(float(v) for v in levels)
@@ -128,7 +128,7 @@ def raster_contours(path: str | Path, band: int, interval: float, base: float,
         guard_levels(zmin, zmax, interval, base, src.width + src.height)
         levels = contour_levels(zmin, zmax, interval, base)
         rows, cols = src.height, src.width
-    from toolbox.tiles import resolve_executor
+    from toolbox.executor import resolve_executor
 
     executor = executor or resolve_executor(None)
     contours, n_pieces = trace_raster(path, band, rows, cols, tile_size, levels, executor,

@@ -168,9 +168,9 @@ def write_mosaic(plan: MosaicPlan, output: Path, index_path: Path | None, *, alp
     from contextlib import ExitStack
     from functools import partial
 
+    from toolbox.executor import resolve_executor
     from toolbox.raster.engine import process_raster
     from toolbox.raster.writer import RasterWriter
-    from toolbox.tiles import resolve_executor
 
     grid = plan.grid
     index_dtype = "uint8" if len(plan.sources) < 255 else "uint16"

@@ -24,27 +24,24 @@ class OrthoTask:
 
 
 def run_task(task: OrthoTask) -> dict[str, Any]:
-    """Orthorectify one photo of a block into a hidden file beside ``task.output``, renamed on
-    success; a user error is returned as ``{"photo", "error"}`` (the block goes on)."""
-    import os
+    """Orthorectify one photo of a block into a staged file (:func:`toolbox.io.staging.atomic_path`)
+    moved to ``task.output`` on success; a user error is returned as ``{"photo", "error"}`` (the
+    block goes on)."""
     from pathlib import Path
 
     from toolbox.errors import ToolboxError
     from toolbox.feedback import CollectingFeedback
+    from toolbox.io.staging import atomic_path
 
     final = Path(task.output)
-    partial = final.with_name(f".{final.stem}.part{final.suffix}")
     feedback = CollectingFeedback()  # its caller reports the warnings, once
     try:
-        report = orthorectify(task.photo, task.image, task.dem, task.grid, partial, task.options,
-                              None, task.reference_height, map_scale=task.map_scale,
-                              feedback=feedback)
-        os.replace(partial, final)
+        with atomic_path(final, "FOLDER") as staged:
+            report = orthorectify(task.photo, task.image, task.dem, task.grid, staged,
+                                  task.options, None, task.reference_height,
+                                  map_scale=task.map_scale, feedback=feedback)
     except ToolboxError as exc:
         return {"photo": task.photo.id, "error": str(exc)}
-    finally:
-        if partial.exists():
-            partial.unlink()
     report["output"] = str(final)
     report["warnings"] = feedback.warnings
     return report

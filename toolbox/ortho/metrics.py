@@ -9,28 +9,22 @@ from typing import Any
 
 import numpy as np
 
+from toolbox.counters import Counters
 from toolbox.errors import InputDataError
 
 
 @dataclass
-class TileStatistics:
-    """Counters of the cells of the ortho (see :meth:`as_dict`)."""
+class TileStatistics(Counters):
+    """Counters of the cells of an ortho window, summed over windows by :meth:`add`."""
 
-    cells: int = 0
-    outside_dem: int = 0
-    outside_photo: int = 0
-    hidden: int = 0
-    max_relief_m: float = 0.0
-    blocks: dict[int, int] = field(default_factory=lambda: {0: 0, 1: 0, 2: 0})
+    MAXIMA = ("max_relief_m",)
 
-    def add(self, other: TileStatistics) -> None:
-        self.cells += other.cells
-        self.outside_dem += other.outside_dem
-        self.outside_photo += other.outside_photo
-        self.hidden += other.hidden
-        self.max_relief_m = max(self.max_relief_m, other.max_relief_m)
-        for k, v in other.blocks.items():
-            self.blocks[k] = self.blocks.get(k, 0) + v
+    cells: int = 0  # cells of the window
+    outside_dem: int = 0  # cells without a DEM height
+    outside_photo: int = 0  # cells whose ray falls outside the photo
+    hidden: int = 0  # cells hidden from the camera (true ortho)
+    max_relief_m: float = 0.0  # largest relief displacement, m
+    blocks: dict[int, int] = field(default_factory=lambda: {0: 0, 1: 0, 2: 0})  # map blocks by kind
 
 
 def incidence_angle(xs: np.ndarray, ys: np.ndarray, z_halo: np.ndarray, centre: np.ndarray

@@ -106,7 +106,6 @@ def orthorectify(photo: Any, image: Any, dem: Any, grid: Any, output: Any,
     aux = []
     profile_args = (grid.width, grid.height, 1)
     output = Path(output)
-    target = output.with_name(f".{output.stem}.gtiff.tif") if options.cog else output
     try:
         mask_writer = incidence_writer = None
         if mask_output is not None:
@@ -128,22 +127,13 @@ def orthorectify(photo: Any, image: Any, dem: Any, grid: Any, output: Any,
                 "NADIR_Y": repr(eo.y0), "PROJECTION_CENTRE_Z": repr(eo.z0)}
         # the engine runs the windows on one thread per core, each its map then its remap
         with feedback.timed("orthorectify"), single_threaded_opencv():
-            warp = warp_to_geotiff(image.path, windows, grid, target, options.resampling,
+            warp = warp_to_geotiff(image.path, windows, grid, output, options.resampling,
                                    options.outside, options.nodata, chunk=options.chunk,
-                                   overviews=options.overviews and not options.cog,
-                                   feedback=feedback.step(0, 90 if options.cog else 100),
-                                   tags=tags)
-        if options.cog:
-            from rasterio.shutil import copy as raster_copy
-
-            with feedback.timed("cog"):
-                raster_copy(target, output, driver="COG", COMPRESS="DEFLATE", BLOCKSIZE=512,
-                            OVERVIEWS="AUTO", NUM_THREADS="ALL_CPUS")
+                                   overviews=options.overviews, cog=options.cog,
+                                   feedback=feedback, tags=tags)
     finally:
         for dst in aux:
             dst.close()
-        if options.cog and target != output and target.exists():
-            target.unlink()
     windows.release()
     totals = windows.totals()
     photo_gsd = ground_sample_distance(photo, reference_height)

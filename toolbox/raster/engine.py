@@ -3,18 +3,18 @@ on arrays, one writer.
 
 Every raster-producing algorithm follows the same flow::
 
-    grid = grid_from_parameters(params, data_bounds, crs)          # CELL_SIZE/EXTENT/TEMPLATE/MAX_CELLS
+    grid = GridRequest(cell_size, extent, template).grid(data_bounds, crs)  # grid rules
     with RasterWriter(params["OUTPUT"], grid, 1, "float32", nodata=-9999) as writer:
         process_raster(grid, {"dem": RasterInput(path)}, kernel, writer, halo=1,
                        executor=resolve_executor(params["SCHEDULER"]), feedback=feedback)
 
-- :func:`grid_from_parameters` holds the one set of grid rules (below).
+- :class:`toolbox.raster.grid_request.GridRequest` holds the one set of grid rules (below).
 - :func:`iter_tiles` cuts the grid into :class:`Tile` s (row by row, ``tile_size`` cells, a
   ``halo`` of extra cells on every side, also beyond the grid's edges).
 - :func:`read_window` reads any raster (its own grid, CRS, resolution) onto a tile's haloed
   window: a direct windowed read when the raster is aligned with the grid, else a GDAL warp.
 - :func:`process_raster` runs ``kernel(tile, arrays) -> array`` per tile on
-  :func:`toolbox.tiles.map_tiles` (local threads by default, a Dask cluster when asked), with
+  :func:`toolbox.executor.map_tiles` (local threads by default, a Dask cluster when asked), with
   bounded memory (a few tiles in flight), progress and cancellation, and writes the results in
   tile order (the file is the same whichever executor ran the tiles).
 - the photo -> ground mode (:func:`toolbox.raster.warp.warp_raster`) runs on
@@ -50,125 +50,16 @@ from typing import Any
 
 import numpy as np
 
-from toolbox.errors import ParameterError
-from toolbox.io.grid import GridSpec, max_cells_default
+from toolbox.io.grid import GridSpec
+from toolbox.raster.datasets import ThreadDatasets
 
 __all__ = [
-    "BOUNDARY_RULES", "GridSpec", "RasterInput", "Tile", "check_grid_parameters",
-    "grid_from_parameters", "iter_tiles", "process_raster", "read_window", "tile_count",
+    "BOUNDARY_RULES", "GridSpec", "RasterInput", "Tile", "iter_tiles", "process_raster",
+    "read_window", "tile_count",
 ]
 
 BOUNDARY_RULES = ("nodata", "edge", "reflect")
 _EPS = 1e-9  # relative tolerance of "a whole number of cells"
-
-
-# -- grid rules ------------------------------------------------------------------------------------
-def check_grid_parameters(params: Mapping[str, Any], *, cell_required: bool = True) -> None:
-    """The checks that need no data: CELL_SIZE xor TEMPLATE, a north-up TEMPLATE, and the size
-    guard when EXTENT or TEMPLATE already fixes the grid. ``cell_required=False`` for
-    algorithms with a default cell size."""
-    cell, template = params.get("CELL_SIZE"), params.get("TEMPLATE")
-    if template is None and cell is None and cell_required:
-        raise ParameterError("CELL_SIZE", "is required unless TEMPLATE is given (a cell size "
-                             "in CRS units, or a raster whose grid to copy)")
-    if template is not None and cell is not None:
-        raise ParameterError("CELL_SIZE", f"must not be given with TEMPLATE (the template's "
-                             f"cells are used), got {cell:g}")
-    if template is not None or (params.get("EXTENT") is not None and cell is not None):
-        grid_from_parameters(params, None, None)
-
-
-def grid_from_parameters(params: Mapping[str, Any], data_bounds: tuple[float, ...] | None,
-                         crs: Any, *, default_cell_size: float | Callable[[], float] | None = None,
-                         snap: bool = True, max_cells: int | None = None) -> GridSpec:
-    """The output grid from ``CELL_SIZE`` / ``EXTENT`` / ``TEMPLATE`` / ``MAX_CELLS`` (module
-    notes).
-
-    Parameters
-    ----------
-    params : mapping
-        Validated parameters; missing keys count as not given. ``EXTENT`` is a
-        :class:`toolbox.parameters.Extent` (or anything with ``.bounds``), ``TEMPLATE`` a
-        :class:`toolbox.io.raster.RasterInfo`.
-    data_bounds : (xmin, ymin, xmax, ymax) or None
-        The data's bounds, used without EXTENT/TEMPLATE (None at check time).
-    crs : CRS or None
-        The output CRS (None: the template's, if any).
-    default_cell_size : float or callable, optional
-        Cell size when CELL_SIZE is not given (a callable is only called then).
-    snap : bool
-        Snap data bounds outwards to multiples of the cell size (never an EXTENT).
-    max_cells : int, optional
-        The size guard when MAX_CELLS is not given (default: ``TOOLBOX_MAX_CELLS`` or 1e9).
-    """
-    from affine import Affine
-
-    limit = params.get("MAX_CELLS") or max_cells or max_cells_default()
-    extent, template = params.get("EXTENT"), params.get("TEMPLATE")
-    if template is not None:
-        t = template.transform
-        if t.b != 0 or t.d != 0 or t.a <= 0 or t.e >= 0:
-            raise ParameterError("TEMPLATE", f"must be a north-up raster without rotation, "
-                                 f"{template} has transform {tuple(t)[:6]}")
-        if params.get("CELL_SIZE") is not None:
-            raise ParameterError("CELL_SIZE", f"must not be given with TEMPLATE (the template's "
-                                 f"cells are used), got {params['CELL_SIZE']:g}")
-        crs = crs if crs is not None else template.crs
-        if extent is None:
-            return _guarded(GridSpec(t, template.width, template.height, crs), limit, "TEMPLATE")
-        cx, cy = t.a, -t.e
-        xmin, ymin, xmax, ymax = map(float, extent.bounds)
-        col0 = math.floor((xmin - t.c) / cx + _EPS)
-        col1 = math.ceil((xmax - t.c) / cx - _EPS)
-        row0 = math.floor((t.f - ymax) / cy + _EPS)
-        row1 = math.ceil((t.f - ymin) / cy - _EPS)
-        grid = GridSpec(Affine(cx, 0.0, t.c + col0 * cx, 0.0, -cy, t.f - row0 * cy),
-                        max(1, col1 - col0), max(1, row1 - row0), crs)
-        return _guarded(grid, limit, "TEMPLATE")
-    cell = params.get("CELL_SIZE")
-    if cell is None:
-        cell = default_cell_size() if callable(default_cell_size) else default_cell_size
-    if cell is None:
-        raise ParameterError("CELL_SIZE", "is required unless TEMPLATE is given")
-    cell = float(cell)
-    if not cell > 0 or not math.isfinite(cell):
-        raise ParameterError("CELL_SIZE", f"must be > 0, got {cell:g}")
-    if extent is not None:
-        xmin, ymin, xmax, ymax = map(float, extent.bounds)
-        if not (xmax > xmin and ymax > ymin):
-            raise ParameterError("EXTENT", f"must have xmax > xmin and ymax > ymin, got "
-                                 f"{xmin:g},{ymin:g},{xmax:g},{ymax:g}")
-        name = "CELL_SIZE"
-    elif data_bounds is not None:
-        xmin, ymin, xmax, ymax = map(float, data_bounds)
-        if snap:
-            xmin, ymin = math.floor(xmin / cell) * cell, math.floor(ymin / cell) * cell
-            xmax, ymax = math.ceil(xmax / cell) * cell, math.ceil(ymax / cell) * cell
-        name = "CELL_SIZE"
-    else:
-        raise ParameterError("EXTENT", "is needed to size the grid before reading the data")
-    width = _cells(xmax - xmin, cell)
-    height = _cells(ymax - ymin, cell)
-    return _guarded(GridSpec(Affine(cell, 0.0, xmin, 0.0, -cell, ymax), width, height, crs),
-                    limit, name)
-
-
-def _cells(length: float, cell: float) -> int:
-    """Whole cells covering ``length`` (a length within 1e-9 cell of a multiple is that one)."""
-    return max(1, int(math.ceil(length / cell - _EPS)))
-
-
-def _guarded(grid: GridSpec, limit: int, name: str) -> GridSpec:
-    n = grid.width * grid.height
-    if n > limit:
-        cell = grid.cell_size[0]
-        raise ParameterError(name, f"{cell:g} gives a {grid.width} x {grid.height} grid "
-                             f"({n:,} cells), over the limit of {limit:,} cells; use a larger "
-                             "cell size or a smaller extent (or raise MAX_CELLS / "
-                             "TOOLBOX_MAX_CELLS)" if name == "CELL_SIZE" else
-                             f"gives a {grid.width} x {grid.height} grid ({n:,} cells), over the "
-                             f"limit of {limit:,} cells (MAX_CELLS or TOOLBOX_MAX_CELLS)")
-    return grid
 
 
 # -- tiles: toolbox.raster.tile (re-exported here) -------------------------------------------------
@@ -199,33 +90,14 @@ def _source_path(source: Any) -> Any:
     return getattr(source, "path", source)
 
 
-class _OpenSources:
+class _OpenSources(ThreadDatasets):
     """Input rasters kept open per thread for the length of one local :func:`process_raster`
-    call (GDAL's block cache then serves the halo reads of neighbouring tiles); closed at the
-    end. Not used on Dask, where inputs travel as paths."""
+    call (:class:`~toolbox.raster.datasets.ThreadDatasets`), with their alignment on the grid;
+    closed at the end. Not used on Dask, where inputs travel as paths."""
 
     def __init__(self) -> None:
-        import threading
-
-        self._local = threading.local()
-        self._all: list[Any] = []
+        super().__init__()
         self._offsets: dict[tuple, tuple[int, int] | None] = {}
-        self._lock = threading.Lock()
-
-    def get(self, path: Any) -> Any:
-        import rasterio
-
-        opened = getattr(self._local, "datasets", None)
-        if opened is None:
-            opened = self._local.datasets = {}
-        dataset = opened.get(path)
-        if dataset is None:
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
-                dataset = opened[path] = rasterio.open(path)
-            with self._lock:
-                self._all.append(dataset)
-        return dataset
 
     def aligned_offset(self, path: Any, dataset: Any, grid: GridSpec) -> tuple[int, int] | None:
         """:func:`_aligned_offset` of ``path`` on ``grid``, decided once per call (the CRS
@@ -234,11 +106,6 @@ class _OpenSources:
         if key not in self._offsets:
             self._offsets[key] = _aligned_offset(dataset, grid)
         return self._offsets[key]
-
-    def close(self) -> None:
-        for dataset in self._all:
-            dataset.close()
-        self._all.clear()
 
 
 @dataclass(frozen=True)
@@ -484,9 +351,9 @@ def process_raster(grid: GridSpec, inputs: Mapping[str, RasterInput] | None, ker
         (array None for a blank tile).
     tile_size, halo : int
         Tile side and margin in cells.
-    executor : toolbox.tiles.Executor, optional
+    executor : toolbox.executor.Executor, optional
         Default: the Dask cluster of ``DASK_SCHEDULER_ADDRESS`` when it is set, else local
-        threads, one per CPU (:func:`toolbox.tiles.resolve_executor`); algorithms with a
+        threads, one per CPU (:func:`toolbox.executor.resolve_executor`); algorithms with a
         SCHEDULER parameter pass their own.
     feedback : Feedback, optional
         Progress from ``start`` to ``end`` % over the tiles; cancellation between tiles.
@@ -500,7 +367,7 @@ def process_raster(grid: GridSpec, inputs: Mapping[str, RasterInput] | None, ker
 
     Returns ``{"tiles": n, "blank_tiles": m, "executor": "..."}``.
     """
-    from toolbox.tiles import map_tiles, resolve_executor
+    from toolbox.executor import map_tiles, resolve_executor
 
     executor = executor or resolve_executor(None)
     inputs = dict(inputs or {})

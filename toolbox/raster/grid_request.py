@@ -1,7 +1,7 @@
 """The typed request for an output grid: cell size, extent, template, size guard.
 
-One set of rules answers it (:func:`toolbox.raster.engine.grid_from_parameters`, module notes
-of :mod:`toolbox.raster.engine`): ``extent`` is honoured as given, else the data's bounds
+One set of rules answers it (:meth:`GridRequest.grid`; the grid rules in the notes of
+:mod:`toolbox.raster.engine`): ``extent`` is honoured as given, else the data's bounds
 snapped outwards to whole cells; a template fixes the lattice and the cell, so ``cell_size``
 with a template is an error: one rule for every raster output (the ortho lattice of
 :func:`template_lattice` too).
@@ -9,11 +9,15 @@ with a template is an error: one rule for every raster output (the ortho lattice
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-from toolbox.io.grid import GridSpec
+from toolbox.errors import ParameterError
+from toolbox.io.grid import GridSpec, max_cells_default
+
+_EPS = 1e-9  # relative tolerance of "a whole number of cells"
 
 
 @dataclass(frozen=True)
@@ -32,25 +36,97 @@ class GridRequest:
     template: Any = None
     max_cells: int | None = None
 
-    def _rules(self) -> dict[str, Any]:
-        """The request in the engine's rule names (its one implementation reads them)."""
-        return {"CELL_SIZE": self.cell_size, "EXTENT": self.extent, "TEMPLATE": self.template,
-                "MAX_CELLS": self.max_cells}
-
     def check(self, *, cell_required: bool = True) -> None:
-        """The checks that need no data (ParameterError naming CELL_SIZE/TEMPLATE/EXTENT)."""
-        from toolbox.raster.engine import check_grid_parameters
-
-        check_grid_parameters(self._rules(), cell_required=cell_required)
+        """The checks that need no data: CELL_SIZE xor TEMPLATE, a north-up TEMPLATE, and the
+        size guard when EXTENT or TEMPLATE already fixes the grid (ParameterError naming
+        CELL_SIZE/TEMPLATE/EXTENT). ``cell_required=False`` for callers with a default cell."""
+        cell, template = self.cell_size, self.template
+        if template is None and cell is None and cell_required:
+            raise ParameterError("CELL_SIZE", "is required unless TEMPLATE is given (a cell size "
+                                 "in CRS units, or a raster whose grid to copy)")
+        if template is not None and cell is not None:
+            raise ParameterError("CELL_SIZE", f"must not be given with TEMPLATE (the template's "
+                                 f"cells are used), got {cell:g}")
+        if template is not None or (self.extent is not None and cell is not None):
+            self.grid(None, None)
 
     def grid(self, data_bounds: tuple[float, ...] | None, crs: Any, *,
              default_cell_size: float | Callable[[], float] | None = None,
-             snap: bool = True) -> GridSpec:
-        """The output grid for data within ``data_bounds`` in ``crs`` (see the module notes)."""
-        from toolbox.raster.engine import grid_from_parameters
+             snap: bool = True, max_cells: int | None = None) -> GridSpec:
+        """The output grid for data within ``data_bounds`` (None at check time) in ``crs``
+        (None: the template's, if any), by the grid rules of :mod:`toolbox.raster.engine`.
 
-        return grid_from_parameters(self._rules(), data_bounds, crs,
-                                    default_cell_size=default_cell_size, snap=snap)
+        ``default_cell_size``: the cell when none is asked (a callable is only called then);
+        ``snap``: snap data bounds outwards to multiples of the cell (never an extent);
+        ``max_cells``: the caller's size guard when the request gives none.
+        """
+        from affine import Affine
+
+        limit = self.max_cells or max_cells or max_cells_default()
+        extent, template = self.extent, self.template
+        if template is not None:
+            t = template.transform
+            if t.b != 0 or t.d != 0 or t.a <= 0 or t.e >= 0:
+                raise ParameterError("TEMPLATE", f"must be a north-up raster without rotation, "
+                                     f"{template} has transform {tuple(t)[:6]}")
+            if self.cell_size is not None:
+                raise ParameterError("CELL_SIZE", f"must not be given with TEMPLATE (the "
+                                     f"template's cells are used), got {self.cell_size:g}")
+            crs = crs if crs is not None else template.crs
+            if extent is None:
+                return _guarded(GridSpec(t, template.width, template.height, crs), limit,
+                                "TEMPLATE")
+            cx, cy = t.a, -t.e
+            xmin, ymin, xmax, ymax = map(float, extent.bounds)
+            col0 = math.floor((xmin - t.c) / cx + _EPS)
+            col1 = math.ceil((xmax - t.c) / cx - _EPS)
+            row0 = math.floor((t.f - ymax) / cy + _EPS)
+            row1 = math.ceil((t.f - ymin) / cy - _EPS)
+            grid = GridSpec(Affine(cx, 0.0, t.c + col0 * cx, 0.0, -cy, t.f - row0 * cy),
+                            max(1, col1 - col0), max(1, row1 - row0), crs)
+            return _guarded(grid, limit, "TEMPLATE")
+        cell = self.cell_size
+        if cell is None:
+            cell = default_cell_size() if callable(default_cell_size) else default_cell_size
+        if cell is None:
+            raise ParameterError("CELL_SIZE", "is required unless TEMPLATE is given")
+        cell = float(cell)
+        if not cell > 0 or not math.isfinite(cell):
+            raise ParameterError("CELL_SIZE", f"must be > 0, got {cell:g}")
+        if extent is not None:
+            xmin, ymin, xmax, ymax = map(float, extent.bounds)
+            if not (xmax > xmin and ymax > ymin):
+                raise ParameterError("EXTENT", f"must have xmax > xmin and ymax > ymin, got "
+                                     f"{xmin:g},{ymin:g},{xmax:g},{ymax:g}")
+        elif data_bounds is not None:
+            xmin, ymin, xmax, ymax = map(float, data_bounds)
+            if snap:
+                xmin, ymin = math.floor(xmin / cell) * cell, math.floor(ymin / cell) * cell
+                xmax, ymax = math.ceil(xmax / cell) * cell, math.ceil(ymax / cell) * cell
+        else:
+            raise ParameterError("EXTENT", "is needed to size the grid before reading the data")
+        width = _cells(xmax - xmin, cell)
+        height = _cells(ymax - ymin, cell)
+        return _guarded(GridSpec(Affine(cell, 0.0, xmin, 0.0, -cell, ymax), width, height, crs),
+                        limit, "CELL_SIZE")
+
+
+def _cells(length: float, cell: float) -> int:
+    """Whole cells covering ``length`` (a length within 1e-9 cell of a multiple is that one)."""
+    return max(1, int(math.ceil(length / cell - _EPS)))
+
+
+def _guarded(grid: GridSpec, limit: int, name: str) -> GridSpec:
+    n = grid.width * grid.height
+    if n > limit:
+        cell = grid.cell_size[0]
+        raise ParameterError(name, f"{cell:g} gives a {grid.width} x {grid.height} grid "
+                             f"({n:,} cells), over the limit of {limit:,} cells; use a larger "
+                             "cell size or a smaller extent (or raise MAX_CELLS / "
+                             "TOOLBOX_MAX_CELLS)" if name == "CELL_SIZE" else
+                             f"gives a {grid.width} x {grid.height} grid ({n:,} cells), over the "
+                             f"limit of {limit:,} cells (MAX_CELLS or TOOLBOX_MAX_CELLS)")
+    return grid
 
 
 def template_lattice(template: Any, cell_size: float | None = None, crs: Any = None,
@@ -60,7 +136,6 @@ def template_lattice(template: Any, cell_size: float | None = None, crs: Any = N
     ``cell_size`` (CELL_SIZE) must not be given (the template's cell is used: the engine's
     rule, same message); ``crs``: the output's CRS, which a template with a CRS must share.
     """
-    from toolbox.errors import ParameterError
     from toolbox.io.crs import crs_label, same_crs
 
     if crs is not None and template.crs is not None and not same_crs(template.crs, crs):

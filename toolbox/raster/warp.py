@@ -32,8 +32,10 @@ from typing import Any
 
 import numpy as np
 
+from toolbox.counters import Counters
 from toolbox.errors import ParameterError
 from toolbox.io.grid import GridSpec
+from toolbox.raster.datasets import ThreadDatasets
 from toolbox.raster.engine import RasterInput, process_raster
 from toolbox.raster.maps import (
     OUTSIDE,
@@ -162,26 +164,14 @@ def photometric_options(layout: OutputLayout) -> dict[str, str]:
 
 
 @dataclass
-class WarpStatistics:
-    """Counters of one warp run."""
+class WarpStatistics(Counters):
+    """Counters of one warp run, summed over windows by :meth:`add`."""
 
-    windows: int = 0
-    empty_windows: int = 0
-    split_windows: int = 0
-    source_pixels_read: int = 0
-    output_pixels: int = 0
-    timings: dict[str, float] = field(default_factory=dict)
-
-    def add(self, other: WarpStatistics) -> None:
-        for name in ("windows", "empty_windows", "split_windows", "source_pixels_read",
-                     "output_pixels"):
-            setattr(self, name, getattr(self, name) + getattr(other, name))
-
-    def as_dict(self) -> dict:
-        return {"windows": self.windows, "empty_windows": self.empty_windows,
-                "split_windows": self.split_windows,
-                "source_pixels_read": self.source_pixels_read,
-                "output_pixels": self.output_pixels}
+    windows: int = 0  # output windows computed
+    empty_windows: int = 0  # windows that see no source pixel
+    split_windows: int = 0  # windows split because their source footprint was too large
+    source_pixels_read: int = 0  # source pixels read over all windows
+    output_pixels: int = 0  # output pixels written
 
 
 def _split(window: Any) -> list[Any]:
@@ -391,7 +381,8 @@ def _warp_packed(data: np.ndarray, pads: tuple[int, int, int, int], layout: Outp
 # -- warp mode: photo -> ground --------------------------------------------------------------------
 @dataclass
 class _WarpJob:
-    source: Any
+    path: Any
+    datasets: ThreadDatasets
     source_size: tuple[int, int]
     coordinate_map: Any
     layout: Any
@@ -401,37 +392,11 @@ class _WarpJob:
     aux: dict = field(default_factory=dict)
 
 
-class _Sources:
-    """Per-thread open handles of a raster (rasterio datasets are not thread-safe); pickles
-    as its path."""
-
-    def __init__(self, path: Any):
-        import threading
-
-        self.path = path
-        self._local = threading.local()
-
-    def __getstate__(self):
-        return {"path": self.path}
-
-    def __setstate__(self, state):
-        self.__init__(state["path"])
-
-    def get(self):
-        import rasterio
-
-        src = getattr(self._local, "src", None)
-        if src is None:
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
-                src = rasterio.open(self.path)
-            self._local.src = src
-        return src
 
 
 def _warp_kernel(job: _WarpJob, tile: Tile, arrays: dict) -> tuple[np.ndarray, Any]:
     """Warp one tile: aux arrays -> coordinate map -> source window -> OpenCV resampling."""
-    src = job.source.get()
+    src = job.datasets.get(job.path)
     stats = WarpStatistics()
 
     def read(bands, window):
@@ -498,7 +463,7 @@ def warp_raster(source: Any, grid: GridSpec, coordinate_map: Any, writer_or_outp
         warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
         with rasterio.open(path) as src:
             size = (src.width, src.height)
-    job = _WarpJob(_Sources(path), size, coordinate_map, layout, resampling,
+    job = _WarpJob(path, ThreadDatasets(), size, coordinate_map, layout, resampling,
                    max_source_pixels or DEFAULT_MAX_SOURCE_PIXELS, fast)
     total = WarpStatistics()
 
@@ -506,9 +471,12 @@ def warp_raster(source: Any, grid: GridSpec, coordinate_map: Any, writer_or_outp
         if stats is not None:
             total.add(stats)
 
-    process_raster(grid, aux, partial(_warp_kernel, job), writer_or_output,
-                   tile_size=tile_size, halo=aux_halo, executor=executor, feedback=feedback,
-                   collect=collect, start=start, end=end)
+    try:
+        process_raster(grid, aux, partial(_warp_kernel, job), writer_or_output,
+                       tile_size=tile_size, halo=aux_halo, executor=executor,
+                       feedback=feedback, collect=collect, start=start, end=end)
+    finally:
+        job.datasets.close()
     return total
 
 
@@ -557,7 +525,7 @@ def warp_to_geotiff(source: Any, coordinate_map: Any, grid: Any, output: Any,
     fast : bool
         Let maps that offer it use ``cv2.warpPerspective`` (see :func:`warp_window`); False
         forces the generic coordinate-array + ``cv2.remap`` path.
-    executor : toolbox.tiles.Executor, optional
+    executor : toolbox.executor.Executor, optional
         Where tiles run (default: local threads).
     aux : dict name -> RasterInput, optional
         Auxiliary rasters for the coordinate map.

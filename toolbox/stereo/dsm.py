@@ -5,6 +5,7 @@ the DSM, COUNT and SPREAD rasters (:mod:`toolbox.stereo.fusion`) and the optiona
 from __future__ import annotations
 
 import tempfile
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -12,9 +13,39 @@ import numpy as np
 
 from toolbox.errors import InputDataError
 from toolbox.feedback import Feedback
+from toolbox.raster.grid_request import GridRequest
 from toolbox.stereo.matching import MatchOptions
 
 POINT_ROWS = 256  # disparity rows triangulated at a time (the points of one block in memory)
+
+
+@dataclass
+class MatchRequest:
+    """One dense-matching DSM run (heights and lengths in CRS units, angles in degrees).
+
+    ``project``: orientation project YAML; ``photos``: ids to use (None: every oriented one);
+    ``min_height``..``max_height``: the surface's height range (sets the disparity search);
+    pair rules ``min_overlap`` (fraction of the smaller footprint), ``min_base_ratio``,
+    ``max_base_ratio``, ``max_angle``; ``pixel_size_mm``: the epipolar images' pixel (None:
+    from the grid); ``output``/``count``/``spread``: the three GeoTIFFs; ``points``: optional
+    LAS/LAZ of the matched points."""
+
+    project: Path
+    min_height: float
+    max_height: float
+    output: Path
+    count: Path
+    spread: Path
+    photos: list[str] | None = None
+    min_overlap: float = 0.3
+    min_base_ratio: float = 0.1
+    max_base_ratio: float = 2.0
+    max_angle: float = 30.0
+    pixel_size_mm: float | None = None
+    options: MatchOptions = field(default_factory=MatchOptions)
+    grid: GridRequest = field(default_factory=GridRequest)
+    nodata: float = -9999.0
+    points: Path | None = None
 
 
 def read_epipolar(path: Path) -> tuple[np.ndarray, np.ndarray]:
@@ -77,19 +108,19 @@ def _colours(data: np.ndarray, grey: np.ndarray) -> np.ndarray:
     return np.repeat(grey.reshape(-1, 1), 3, axis=1)
 
 
-def run_match(params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
+def run_match(request: MatchRequest, feedback: Feedback) -> dict[str, Any]:
+    """Match every suitable pair, fuse, write the rasters (and points); returns the
+    statistics."""
     from toolbox.io.crs import crs_label
     from toolbox.photogrammetry.tables import load_project_parameter
-    from toolbox.raster.engine import grid_from_parameters
     from toolbox.stereo.epipolar import photo_image
     from toolbox.stereo.fusion import cell_index, cell_statistics, fuse
     from toolbox.stereo.matching import disparity_points
     from toolbox.stereo.pairs import PairRules, overlap_bounds, select_pairs
 
-    project = load_project_parameter(params["PROJECT"])
-    if params.get("PHOTOS"):
-        ids = [s.strip() for s in str(params["PHOTOS"]).split(",") if s.strip()]
-        photos = [project.photo(i) for i in ids]
+    project = load_project_parameter(request.project)
+    if request.photos:
+        photos = [project.photo(i) for i in request.photos]
         for photo in photos:
             photo.require_exterior()
     else:
@@ -97,9 +128,9 @@ def run_match(params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
     if len(photos) < 2:
         raise InputDataError(f"PROJECT has {len(photos)} oriented photo(s) (of those chosen): "
                              "dense matching needs at least one oriented pair")
-    low, high = float(params["MIN_HEIGHT"]), float(params["MAX_HEIGHT"])
-    rules = PairRules((low + high) / 2.0, params["MIN_OVERLAP"], params["MIN_BASE_RATIO"],
-                      params["MAX_BASE_RATIO"], params["MAX_ANGLE"])
+    low, high = float(request.min_height), float(request.max_height)
+    rules = PairRules((low + high) / 2.0, request.min_overlap, request.min_base_ratio,
+                      request.max_base_ratio, request.max_angle)
     pairs, skipped = select_pairs(photos, rules)
     for line in skipped:
         feedback.push_info(f"pair skipped: {line}")
@@ -110,18 +141,16 @@ def run_match(params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
     bounds = np.array([overlap_bounds(a, b, rules.terrain_height) for a, b, _ in pairs])
     data_bounds = (bounds[:, 0].min(), bounds[:, 1].min(), bounds[:, 2].max(),
                    bounds[:, 3].max())
-    grid = grid_from_parameters(params, data_bounds, crs)
-    options = MatchOptions(params["BLOCK_SIZE"], params["UNIQUENESS"],
-                           params["SPECKLE_WINDOW"], params["SPECKLE_RANGE"],
-                           params["LR_MAX_DIFF"], params["MAX_DISPARITIES"])
+    grid = request.grid.grid(data_bounds, crs)
+    options = request.options
     cells, pair_stats = [], []
     writer = None
-    if params.get("POINTS") is not None:
+    if request.points is not None:
         from toolbox.io.pointcloud import PointCloudWriter
 
         centre = np.array([(data_bounds[0] + data_bounds[2]) / 2,
                            (data_bounds[1] + data_bounds[3]) / 2, low])
-        writer = PointCloudWriter(params["POINTS"], centre, crs, rgb=True).__enter__()
+        writer = PointCloudWriter(request.points, centre, crs, rgb=True).__enter__()
     try:
         with tempfile.TemporaryDirectory(prefix="dem_match_") as tmp:
             for k, (left, right, report) in enumerate(pairs):
@@ -129,7 +158,7 @@ def run_match(params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
                 step = feedback.step(90 * k / len(pairs), 90 * (k + 1) / len(pairs))
                 images = (photo_image(left, None, "its image path in PROJECT"),
                           photo_image(right, None, "its image path in PROJECT"))
-                pixel = params.get("PIXEL_SIZE_MM") or \
+                pixel = request.pixel_size_mm or \
                     matching_pixel(left, abs(grid.transform.a), report.distance_m)
                 geometry, disparity, colours, stats = match_one_pair(
                     left, right, images, low, high, options, pixel, Path(tmp), step)
@@ -162,10 +191,10 @@ def run_match(params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
         if writer is not None:
             writer.__exit__(None, None, None)
     dsm, count, spread = fuse(cells, grid.width, grid.height)
-    nodata = float(params.get("NODATA", -9999.0))
-    _write(params["OUTPUT"], grid, dsm, "float32", nodata)
-    _write(params["COUNT"], grid, count, "uint16", 0)
-    _write(params["SPREAD"], grid, spread, "float32", nodata)
+    nodata = float(request.nodata)
+    _write(request.output, grid, dsm, "float32", nodata)
+    _write(request.count, grid, count, "uint16", 0)
+    _write(request.spread, grid, spread, "float32", nodata)
     feedback.set_progress(100)
     valid = int(np.isfinite(dsm).sum())
     stats = {"pairs": pair_stats, "skipped": skipped, "crs": crs_label(crs),
@@ -173,12 +202,9 @@ def run_match(params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
                       "cell_size": abs(grid.transform.a), "bounds": list(grid.bounds)},
              "cells_with_value": valid, "cells": grid.width * grid.height,
              "max_pairs_per_cell": int(count.max()) if count.size else 0}
-    out = {"OUTPUT": params["OUTPUT"], "COUNT": params["COUNT"], "SPREAD": params["SPREAD"],
-           "STATISTICS": stats}
     if writer is not None:
         stats["points_written"] = writer.count
-        out["POINTS"] = params["POINTS"]
-    return out
+    return stats
 
 
 def _write(path: Path, grid: Any, array: np.ndarray, dtype: str, nodata: float) -> None:

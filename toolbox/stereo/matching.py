@@ -28,12 +28,12 @@ STRIP_HALO = 48
 class MatchOptions:
     """StereoSGBM settings (pixels)."""
 
-    block_size: int = 5
-    uniqueness: int = 10
-    speckle_window: int = 100
-    speckle_range: float = 2.0
-    lr_max_diff: int = 1
-    max_disparities: int = 512
+    block_size: int = 5  # matched block side (odd)
+    uniqueness: int = 10  # % by which the best cost must beat the second
+    speckle_window: int = 100  # largest speckle region removed, pixels²
+    speckle_range: float = 2.0  # disparity variation inside one region
+    lr_max_diff: int = 1  # left-right consistency tolerance
+    max_disparities: int = 512  # cap on the disparity search range
 
 
 def to_uint8(image: np.ndarray, valid: np.ndarray) -> np.ndarray:

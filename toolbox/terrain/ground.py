@@ -36,11 +36,11 @@ DIRECT_SOLVE_LIMIT = 400_000  # hole cells solved directly; more are inpainted
 class GroundFilter:
     """SMRF parameters (lengths in CRS units; slope as rise/run)."""
 
-    cell: float = 1.0
-    slope: float = 0.15
-    max_window: float = 18.0
-    elevation_threshold: float = 0.5
-    elevation_scalar: float = 1.25
+    cell: float = 1.0  # cell of the minimum surface
+    slope: float = 0.15  # terrain slope allowed between openings (rise/run)
+    max_window: float = 18.0  # largest opening window (about the largest building)
+    elevation_threshold: float = 0.5  # height above the surface still called ground
+    elevation_scalar: float = 1.25  # extra threshold per unit of local slope
 
     @property
     def radii(self) -> range:

@@ -160,10 +160,10 @@ def shade_raster(info, band: int, output: str | Path,
     """
     from functools import partial
 
+    from toolbox.executor import resolve_executor
     from toolbox.io.grid import GridSpec
     from toolbox.raster.engine import RasterInput, process_raster
     from toolbox.raster.writer import RasterWriter
-    from toolbox.tiles import resolve_executor
 
     grid = GridSpec(info.transform, info.width, info.height, info.crs)
     # float32 holds every value of these types exactly (the kernels compute in float64); the

@@ -1,5 +1,5 @@
 """Where an algorithm's tiles, photos or blocks run: the SCHEDULER and WORKERS parameters, one
-declaration for every algorithm that splits its work (see :mod:`toolbox.tiles`)."""
+declaration for every algorithm that splits its work (see :mod:`toolbox.executor`)."""
 
 from __future__ import annotations
 
@@ -24,8 +24,8 @@ def workers_parameter(default: int | None = None) -> Integer:
 
 
 def executor_of(params: dict[str, Any], workers: int | None = None):
-    """The :class:`toolbox.tiles.Executor` of an algorithm's SCHEDULER (and WORKERS, when it
+    """The :class:`toolbox.executor.Executor` of an algorithm's SCHEDULER (and WORKERS, when it
     declares one; else ``workers``)."""
-    from toolbox.tiles import resolve_executor
+    from toolbox.executor import resolve_executor
 
     return resolve_executor(params.get("SCHEDULER"), params.get("WORKERS") or workers)

@@ -2,16 +2,33 @@
 
 from __future__ import annotations
 
-from toolbox.parameters import Enum, File, Integer, Number, Parameter, String
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+from toolbox.errors import InputDataError
+from toolbox.parameters import Enum, File, Integer, Number, Parameter, RasterLayer, String
 from toolbox.photogrammetry.tables import PROJECT_EXTENSIONS
 
 TABLE_EXTENSIONS = [".csv", ".txt", ".gpkg"]
 
 
+def project_parameter(description: str = "orientation project (YAML)",
+                      optional: bool = False) -> File:
+    """PROJECT: the orientation project YAML."""
+    return File("PROJECT", description, extensions=PROJECT_EXTENSIONS, optional=optional)
+
+
+def dem_parameters(description: str = "terrain heights (same CRS as the project)",
+                   optional: bool = False) -> list[Parameter]:
+    """DEM and its BAND."""
+    return [RasterLayer("DEM", description, optional=optional),
+            Integer("BAND", "DEM band", default=1, min_value=1)]
+
+
 def measurement_parameters(project: str = "orientation project (YAML)") -> list[Parameter]:
     """PROJECT, and the image measurements: INPUT, its LAYER and its COORDINATES columns."""
     return [
-        File("PROJECT", project, extensions=PROJECT_EXTENSIONS),
+        project_parameter(project),
         File("INPUT", "image measurements (CSV or GeoPackage table)", extensions=TABLE_EXTENSIONS),
         String("LAYER", "GeoPackage layer of INPUT (default: the first)", optional=True),
         Enum("COORDINATES", "measurement columns: auto (pixels when col_px/row_px exist), pixel, "
@@ -46,3 +63,25 @@ def ortho_method_parameters() -> list[Parameter]:
              options=("alpha", "nodata"), default="alpha"),
         Number("NODATA", "nodata value with OUTSIDE=nodata", optional=True),
     ]
+
+
+def measured_inputs(params: Mapping[str, Any], control: bool = False) -> tuple:
+    """``(project, measurements, control points)`` read from PROJECT, INPUT (LAYER,
+    COORDINATES) and, with ``control``, CONTROL (else None)."""
+    from toolbox.photogrammetry.tables import (
+        ground_points,
+        image_measurements,
+        load_project_parameter,
+    )
+
+    project = load_project_parameter(params["PROJECT"])
+    measurements = image_measurements(params["INPUT"], params["LAYER"], params["COORDINATES"])
+    return project, measurements, ground_points(params["CONTROL"]) if control else None
+
+
+def measured_photos(project: Any, photo_ids: Sequence[str]) -> None:
+    """Check that every photo INPUT measures is in PROJECT (InputDataError naming them)."""
+    unknown = sorted({p for p in photo_ids if p not in project.photos})
+    if unknown:
+        raise InputDataError(f"INPUT names photo(s) {', '.join(map(repr, unknown[:5]))} that "
+                             f"PROJECT does not have (photos: {', '.join(project.photos)})")

@@ -7,6 +7,7 @@ import pytest
 import shapely
 
 import toolbox
+from toolbox.demo.samples.parameter_file import parameter_file_text
 from toolbox.errors import InputDataError
 from toolbox.io.code_file import percent_to_byte, read_code_file, read_colour_file
 from toolbox.io.parameter_file import read_parameter_file
@@ -131,21 +132,10 @@ def test_colour_file_errors(tmp_path, text, message):
 
 
 # -- parameter file: one reader, every entry used or named ---------------------------------------
-FULL_PARAMETERS = """\
-tolleranza di identificazione           = 0.50
-tolleranza di riattacco planimetrico    = 0.20
-tolleranza di riattacco altimetrico     = 0.10
-unità di misura delle coordinate        = m
-numero di cifre decimali                = 3
-traslazione delle coordinate            = 1688000 4799000
-tolleranza planimetrica di allineamento = 0.10
-tolleranza planimetrica di squadratura  = 0.20
-tolleranza angolare di squadratura      = 3,0
-passo di spline                         = 2.0
-tolleranza di chiusura                  = 0.50
-tolleranza di fine polilinea            = 0.30
-colore di sfondo                        = 7
-"""
+# the restitution sample's entries without its comment line, a decimal comma, one unknown entry
+FULL_PARAMETERS = parameter_file_text([], ("0.50", "0.20", "0.10", "m", "3", "1688000 4799000",
+                                           "0.10", "0.20", "3,0", "2.0", "0.50", "0.30"),
+                                      {"colore di sfondo": "7"})
 
 
 def test_parameter_file_unused_entries_named(tmp_path):

@@ -1,4 +1,4 @@
-"""Tile execution: toolbox.tiles on threads, and DEM gridding on a Dask LocalCluster of 2 worker
+"""Tile execution: toolbox.executor on threads, and DEM gridding on a Dask LocalCluster of 2 worker
 processes giving the same file, byte for byte, as the local run."""
 
 from __future__ import annotations
@@ -18,8 +18,8 @@ import shapely
 
 import toolbox
 from toolbox.errors import CanceledError, ParameterError, ServiceError
+from toolbox.executor import map_tiles, resolve_executor, scheduler_address
 from toolbox.feedback import Feedback
-from toolbox.tiles import map_tiles, resolve_executor, scheduler_address
 
 X0, Y0 = 1_688_000.0, 4_799_500.0
 
@@ -123,7 +123,7 @@ def test_dask_is_imported_only_when_something_may_configure_it(tmp_path):
     a ``scheduler-address`` in ``~/.config/dask/*.yaml`` is still honoured."""
     if any(os.path.exists(os.path.join(prefix, "etc", "dask")) for prefix in ("/", sys.prefix)):
         pytest.skip("this machine has a Dask configuration folder")
-    script = ("import json, sys\nfrom toolbox.tiles import scheduler_address\n"
+    script = ("import json, sys\nfrom toolbox.executor import scheduler_address\n"
               "print(json.dumps([scheduler_address(None), 'dask' in sys.modules]))")
     env = {k: v for k, v in os.environ.items() if not k.startswith("DASK_")}
     env["HOME"] = str(tmp_path)

@@ -64,13 +64,17 @@ def scene(tmp_path_factory):
             "xyz": np.column_stack([x, y, z])}
 
 
-def _check_dtm(path, label):
+def _read_local(path):
+    """Band 1 (masked), the local x, y of its cell centres and its transform."""
     with rasterio.open(path) as ds:
-        dtm = ds.read(1, masked=True)
+        band = ds.read(1, masked=True)
         t = ds.transform
-        rows, cols = np.indices(dtm.shape)
-    x = t.c + (cols + 0.5) * t.a - X0
-    y = t.f + (rows + 0.5) * t.e - Y0
+    rows, cols = np.indices(band.shape)
+    return band, t.c + (cols + 0.5) * t.a - X0, t.f + (rows + 0.5) * t.e - Y0, t
+
+
+def _check_dtm(path, label):
+    dtm, x, y, t = _read_local(path)
     inner = (x > 3) & (x < SIZE - 3) & (y > 3) & (y < SIZE - 3) & ~dtm.mask
     err = (dtm.data - terrain(x, y))[inner]
     rmse = float(np.sqrt(np.mean(err ** 2)))
@@ -92,11 +96,7 @@ def test_ground_from_point_cloud(scene):
     _check_dtm(tmp / "dtm.tif", "points")
     # HEIGHTS: the highest point of each 2 m cell above the DTM: roofs at their rendered height,
     # open ground (5 m from any object) near 0
-    with rasterio.open(tmp / "heights.tif") as ds:
-        heights = ds.read(1, masked=True)
-        t = ds.transform
-    rows, cols = np.indices(heights.shape)
-    x, y = t.c + (cols + 0.5) * t.a - X0, t.f + (rows + 0.5) * t.e - Y0
+    heights, x, y, _ = _read_local(tmp / "heights.tif")
     for x1, y1, x2, y2, height in BUILDINGS:
         roof = (x > x1 + 1) & (x < x2 - 1) & (y > y1 + 1) & (y < y2 - 1) & ~heights.mask
         # the DTM under a roof is interpolated (within 1 m, _check_dtm), a cell spans 2 m of slope
@@ -145,11 +145,7 @@ def test_ground_from_dsm(scene):
         assert ds.transform == ref.transform and ds.shape == ref.shape
     _check_dtm(tmp / "dtm_dsm.tif", "dsm")
     # HEIGHTS: the DSM above the DTM, against the rendered objects' heights at the cell centres
-    with rasterio.open(tmp / "heights_dsm.tif") as ds:
-        heights = ds.read(1, masked=True)
-        t = ds.transform
-    rows, cols = np.indices(heights.shape)
-    x, y = t.c + (cols + 0.5) * t.a - X0, t.f + (rows + 0.5) * t.e - Y0
+    heights, x, y, _ = _read_local(tmp / "heights_dsm.tif")
     truth = objects(x, y)
     inner = (x > 3) & (x < SIZE - 3) & (y > 3) & (y < SIZE - 3) & ~heights.mask
     err = np.abs(heights.data - truth)[inner]

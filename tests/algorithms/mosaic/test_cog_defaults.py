@@ -33,22 +33,10 @@ def test_mosaic_and_source_index_are_cogs_by_default(tmp_path_factory, tmp_path)
 def test_a_cog_that_cannot_be_written_is_an_output_error(tmp_path_factory, tmp_path):
     """A full disk while the COG is made (a 20 kB file-size limit): exit 2, one line naming
     OUTPUT (not an unreadable input), nothing left."""
-    import resource
-    import signal
-    import subprocess
-
-    def limit():
-        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
-        resource.setrlimit(resource.RLIMIT_FSIZE, (20_000, 20_000))
+    from tests.helpers_cli import assert_cannot_write, run_on_full_disk
 
     orthos, _ = mosaic_scene.standard_pair(tmp_path_factory)
     out = tmp_path / "out"
-    proc = subprocess.run([sys.executable, "-m", "toolbox.cli", "run", "mosaic:build",
-                           "--INPUT", str(orthos[0].path), "--INPUT", str(orthos[1].path),
-                           "--OUTPUT", str(out / "m.tif")], preexec_fn=limit,
-                          capture_output=True, text=True, timeout=300)
-    assert proc.returncode == 2, proc.stderr
-    lines = proc.stderr.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith("toolbox: error: cannot write OUTPUT"), \
-        proc.stderr
-    assert not out.exists() or list(out.iterdir()) == []
+    assert_cannot_write(run_on_full_disk(["mosaic:build", "--INPUT", str(orthos[0].path),
+                                          "--INPUT", str(orthos[1].path),
+                                          "--OUTPUT", str(out / "m.tif")]), out)

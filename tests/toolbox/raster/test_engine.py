@@ -13,21 +13,21 @@ from affine import Affine
 from scipy import ndimage
 
 from toolbox.errors import ParameterError
+from toolbox.executor import Executor
 from toolbox.io.grid import GridSpec
 from toolbox.io.raster import overview_levels
 from toolbox.parameters import Extent
 from toolbox.raster.engine import (
     RasterInput,
     Tile,
-    grid_from_parameters,
     iter_tiles,
     process_raster,
     read_window,
 )
+from toolbox.raster.grid_request import GridRequest
 from toolbox.raster.homography import HomographyMap
 from toolbox.raster.warp import warp_layout, warp_raster
 from toolbox.raster.writer import RasterWriter, cog_problems
-from toolbox.tiles import Executor
 
 X0, Y0 = 1_688_000.0, 4_799_500.0
 CRS = "EPSG:3003"
@@ -56,16 +56,15 @@ def read(path):
 # -- grid rules ------------------------------------------------------------------------------------
 def test_extent_is_honoured_as_given():
     # a QGIS extent at 4 m: the origin stays at xmin/ymax, the far edges round up to whole cells
-    grid = grid_from_parameters({"CELL_SIZE": 4.0, "EXTENT": Extent(X0 + 2, Y0 + 1, X0 + 41,
-                                                                     Y0 + 30)}, None, CRS)
+    grid = GridRequest(cell_size=4.0, extent=Extent(X0 + 2, Y0 + 1, X0 + 41, Y0 + 30)).grid(None, CRS)
     assert (grid.transform.c, grid.transform.f) == (X0 + 2, Y0 + 30)
     assert (grid.width, grid.height) == (10, 8)  # 39 m -> 10 cells, 29 m -> 8 cells
-    exact = grid_from_parameters({"CELL_SIZE": 0.1, "EXTENT": Extent(0, 0, 0.3, 0.7)}, None, None)
+    exact = GridRequest(cell_size=0.1, extent=Extent(0, 0, 0.3, 0.7)).grid(None, None)
     assert (exact.width, exact.height) == (3, 7)  # no extra cell from 0.3 / 0.1 = 2.9999...
 
 
 def test_data_bounds_are_snapped_outwards_without_extent():
-    grid = grid_from_parameters({"CELL_SIZE": 5.0}, (X0 + 3, Y0 + 7, X0 + 96, Y0 + 61), CRS)
+    grid = GridRequest(cell_size=5.0).grid((X0 + 3, Y0 + 7, X0 + 96, Y0 + 61), CRS)
     assert (grid.transform.c, grid.transform.f, grid.width, grid.height) == (X0, Y0 + 65, 20, 12)
 
 
@@ -75,22 +74,22 @@ def test_template_lattice_and_extent_cut(tmp_path):
     from toolbox.io.raster import open_raster_info
 
     info = open_raster_info(path)
-    assert grid_from_parameters({"TEMPLATE": info}, None, None) == GridSpec(t, 90, 60, info.crs)
-    cut = grid_from_parameters({"TEMPLATE": info, "EXTENT": Extent(X0 + 50, Y0 + 50, X0 + 100,
-                                                                   Y0 + 90)}, None, None)
+    assert GridRequest(template=info).grid(None, None) == GridSpec(t, 90, 60, info.crs)
+    cut = GridRequest(template=info, extent=Extent(X0 + 50, Y0 + 50, X0 + 100, Y0 + 90)).grid(
+        None, None)
     col, row = (cut.transform.c - t.c) / 2.5, (t.f - cut.transform.f) / 2.5
     assert abs(col - round(col)) < 1e-9 and abs(row - round(row)) < 1e-9
     assert cut.transform.c <= X0 + 50 < cut.transform.c + 2.5
     with pytest.raises(ParameterError, match="CELL_SIZE must not be given with TEMPLATE"):
-        grid_from_parameters({"TEMPLATE": info, "CELL_SIZE": 1.0}, None, None)
+        GridRequest(template=info, cell_size=1.0).grid(None, None)
 
 
 def test_max_cells_guard():
     with pytest.raises(ParameterError, match="CELL_SIZE 1 gives a 1000 x 1000 grid"):
-        grid_from_parameters({"CELL_SIZE": 1.0, "MAX_CELLS": 10_000}, (0, 0, 1000, 1000), None)
+        GridRequest(cell_size=1.0, max_cells=10_000).grid((0, 0, 1000, 1000), None)
     with pytest.raises(ParameterError, match="CELL_SIZE is required"):
-        grid_from_parameters({}, (0, 0, 1, 1), None)
-    assert grid_from_parameters({}, (0, 0, 10, 10), None, default_cell_size=lambda: 2.0).width == 5
+        GridRequest().grid((0, 0, 1, 1), None)
+    assert GridRequest().grid((0, 0, 10, 10), None, default_cell_size=lambda: 2.0).width == 5
 
 
 # -- tiles and halos -------------------------------------------------------------------------------
@@ -407,7 +406,7 @@ def _blas_threads(_):
 
 
 def test_blas_is_limited_to_one_thread_inside_tile_threads_only():
-    from toolbox.tiles import map_tiles
+    from toolbox.executor import map_tiles
 
     before = _blas_threads(0)
     if not before or max(before) == 1:

@@ -8,6 +8,7 @@ import pytest
 import rasterio
 from affine import Affine
 
+from toolbox.executor import Executor
 from toolbox.io.grid import GridSpec
 from toolbox.raster.homography import HomographyMap
 from toolbox.raster.maps import (
@@ -23,7 +24,6 @@ from toolbox.raster.maps import (
     scan_bounds,
 )
 from toolbox.raster.warp import warp_layout, warp_raster
-from toolbox.tiles import Executor
 
 H, W = 110, 120  # source rows, columns
 GRID = GridSpec(Affine(1.0, 0.0, 500.0, 0.0, -1.0, 800.0), 70, 50, None)

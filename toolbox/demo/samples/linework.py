@@ -43,6 +43,8 @@ from pathlib import Path
 
 import numpy as np
 
+from toolbox.demo.samples.parameter_file import parameter_file_text
+
 CRS = "EPSG:3003"
 E0, N0 = 1688200.0, 4799600.0
 
@@ -86,25 +88,12 @@ ZONES: list[tuple[str, tuple[float, float, float, float]]] = [
 
 #: the sample parameter file ("file dei parametri", S002 §2.2.1), in the format of
 #: toolbox.io.parameter_file
-PARAMETER_FILE_TEXT = """\
-# File dei parametri - foglio di esempio (Siena, EPSG:3003)
-# formato: nome = valore; '#' commento; valori in metri
-tolleranza di identificazione          = 0.50
-tolleranza di riattacco planimetrico   = 0.20
-tolleranza di riattacco altimetrico    = 0.10
-unità di misura delle coordinate       = m
-numero di cifre decimali               = 3
-traslazione delle coordinate           = 0 0
-tolleranza planimetrica di allineamento = 0.05
-tolleranza planimetrica di squadratura = 0.10
-tolleranza angolare di squadratura     = 1.0
-passo di spline                        = 0.50
-tolleranza di chiusura                 = 0.50
-tolleranza di fine polilinea           = 0.30
-# estensioni del toolbox per la generazione delle aree
-lunghezza minima dei pendenti          = 1.00
-area minima                            = 1.00
-"""
+PARAMETER_FILE_TEXT = parameter_file_text(
+    ["File dei parametri - foglio di esempio (Siena, EPSG:3003)",
+     "formato: nome = valore; '#' commento; valori in metri"],
+    ("0.50", "0.20", "0.10", "m", "3", "0 0", "0.05", "0.10", "1.0", "0.50", "0.50", "0.30"),
+    {"lunghezza minima dei pendenti": "1.00", "area minima": "1.00"},
+    "estensioni del toolbox per la generazione delle aree")
 
 
 def sheet_lines():

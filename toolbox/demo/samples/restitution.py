@@ -21,6 +21,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from toolbox.demo.samples.parameter_file import parameter_file_text
+
 CRS = "EPSG:3003"
 E0, N0 = 1688300.0, 4799600.0
 FALSE_ORIGIN = (1688000.0, 4799000.0)
@@ -51,21 +53,10 @@ INDICE\t%ROSSO\t%VERDE\t%BLU
 12\t30\t30\t30
 """
 
-PARAMETER_FILE_TEXT = """\
-# File dei parametri - restituzione foglio Siena est (EPSG:3003)
-tolleranza di identificazione           = 0.50
-tolleranza di riattacco planimetrico    = 0.20
-tolleranza di riattacco altimetrico     = 0.10
-unità di misura delle coordinate        = m
-numero di cifre decimali                = 3
-traslazione delle coordinate            = 1688000 4799000
-tolleranza planimetrica di allineamento = 0.10
-tolleranza planimetrica di squadratura  = 0.20
-tolleranza angolare di squadratura      = 3.0
-passo di spline                         = 2.0
-tolleranza di chiusura                  = 0.50
-tolleranza di fine polilinea            = 0.30
-"""
+PARAMETER_FILE_TEXT = parameter_file_text(
+    ["File dei parametri - restituzione foglio Siena est (EPSG:3003)"],
+    ("0.50", "0.20", "0.10", "m", "3", "1688000 4799000", "0.10", "0.20", "3.0", "2.0", "0.50",
+     "0.30"))
 
 
 def _contour(z: float) -> list[tuple[float, float, float]]:

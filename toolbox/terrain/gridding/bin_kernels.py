@@ -58,7 +58,7 @@ def _has_duplicates(x, y, offsets, pairwise_max):
     return False, comparisons
 
 
-@njit(nogil=True, cache=True)
+@njit(nogil=True, cache=True, inline="always")
 def _insert(best_d2, best_i, count, k, d2, index):
     """Insert (d2, index) into the sorted best list of capacity k; return the new count."""
     if count == k and d2 >= best_d2[k - 1]:
@@ -73,7 +73,7 @@ def _insert(best_d2, best_i, count, k, d2, index):
     return count + 1 if count < k else count
 
 
-@njit(nogil=True, cache=True)
+@njit(nogil=True, cache=True, inline="always")
 def _ring_start(x0, y0, size, nbx, nby, qx, qy):
     """Bin (ix, iy) of the query (possibly outside the grid), the distance from the query to
     that bin's border, and the first and last ring of bins worth searching."""
@@ -91,34 +91,19 @@ def _ring_start(x0, y0, size, nbx, nby, qx, qy):
     return ix, iy, margin, (ox if ox > oy else oy), (fx_ if fx_ > fy_ else fy_)
 
 
-# duplicate-ok: knn_one and sector_one inline _insert by hand in their innermost loop,
-# the k-nearest search's hot path (left as written; not re-measured in this change)
 @njit(nogil=True, cache=True)
 def knn_one(px, py, offsets, x0, y0, size, nbx, nby, qx, qy, k, r2max, skip,
             best_d2, best_i):
     """The k nearest points of (qx, qy) within sqrt(r2max), skipping index ``skip``.
 
     Fills ``best_d2[:count]``, ``best_i[:count]`` (nearest first) and returns ``count``.
-    Rings of bins around the query's bin are scanned outwards, each in bin order. (The ring
-    start and the insertion of :func:`_ring_start` and :func:`_insert` are written out here:
-    one function less to compile on a first run.)
+    Rings of bins around the query's bin are scanned outwards, each in bin order
+    (:func:`_ring_start` and :func:`_insert` are inlined by numba).
     """
     count = 0
     if len(px) == 0 or k <= 0:
         return count
-    fx = (qx - x0) / size
-    fy = (qy - y0) / size
-    ix = math.floor(fx)
-    iy = math.floor(fy)
-    mx = fx - ix if fx - ix < ix + 1 - fx else ix + 1 - fx
-    my = fy - iy if fy - iy < iy + 1 - fy else iy + 1 - fy
-    margin = (mx if mx < my else my) * size
-    ox = -ix if ix < 0 else (ix - (nbx - 1) if ix > nbx - 1 else 0)
-    oy = -iy if iy < 0 else (iy - (nby - 1) if iy > nby - 1 else 0)
-    r = ox if ox > oy else oy
-    fx_ = ix if ix > nbx - 1 - ix else nbx - 1 - ix
-    fy_ = iy if iy > nby - 1 - iy else nby - 1 - iy
-    rmax = fx_ if fx_ > fy_ else fy_
+    ix, iy, margin, r, rmax = _ring_start(x0, y0, size, nbx, nby, qx, qy)
     while r <= rmax:
         if r > 0:  # nearest possible point of ring r
             lower = (r - 1) * size + margin
@@ -143,17 +128,8 @@ def knn_one(px, py, offsets, x0, y0, size, nbx, nby, qx, qy, k, r2max, skip,
                     dx = px[p] - qx
                     dy = py[p] - qy
                     d2 = dx * dx + dy * dy
-                    if d2 > r2max or (count == k and d2 >= best_d2[k - 1]):
-                        continue
-                    pos = count if count < k else k - 1
-                    while pos > 0 and best_d2[pos - 1] > d2:
-                        best_d2[pos] = best_d2[pos - 1]
-                        best_i[pos] = best_i[pos - 1]
-                        pos -= 1
-                    best_d2[pos] = d2
-                    best_i[pos] = p
-                    if count < k:
-                        count += 1
+                    if d2 <= r2max:
+                        count = _insert(best_d2, best_i, count, k, d2, p)
                 col += 1
             row += 1
         r += 1

@@ -68,9 +68,9 @@ def write_dem(run: GridRun, tiles: Any, request: GriddingRequest, feedback: Feed
 
     Returns statistics: cells with a value, nodata cells, summed method counters, executor.
     """
+    from toolbox.executor import resolve_executor
     from toolbox.raster.engine import process_raster, tile_count
     from toolbox.raster.writer import RasterWriter
-    from toolbox.tiles import resolve_executor
 
     execution = request.execution
     executor = resolve_executor(execution.scheduler, execution.workers)

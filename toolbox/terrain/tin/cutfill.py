@@ -17,33 +17,26 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from toolbox.counters import Counters
+
 
 @dataclass
-class CutFill:
-    """Volumes (positive) and planimetric areas of cut (TIN above) and fill (TIN below)."""
+class CutFill(Counters):
+    """Volumes (positive) and planimetric areas of cut (TIN above) and fill (TIN below), summed
+    over triangle chunks with ``+=``."""
 
-    cut_volume: float = 0.0
-    fill_volume: float = 0.0
-    cut_area: float = 0.0
-    fill_area: float = 0.0
+    cut_volume: float = 0.0  # CRS units³
+    fill_volume: float = 0.0  # CRS units³
+    cut_area: float = 0.0  # CRS units²
+    fill_area: float = 0.0  # CRS units²
     area: float = 0.0  # planimetric area compared (cut + fill + where h = 0)
 
     @property
     def net_volume(self) -> float:
         return self.cut_volume - self.fill_volume
 
-    def __iadd__(self, other: CutFill) -> CutFill:
-        self.cut_volume += other.cut_volume
-        self.fill_volume += other.fill_volume
-        self.cut_area += other.cut_area
-        self.fill_area += other.fill_area
-        self.area += other.area
-        return self
-
     def as_dict(self) -> dict:
-        return {"cut_volume": self.cut_volume, "fill_volume": self.fill_volume,
-                "net_volume": self.net_volume, "cut_area": self.cut_area,
-                "fill_area": self.fill_area, "area": self.area}
+        return super().as_dict() | {"net_volume": self.net_volume}
 
 
 def positive_part(h: np.ndarray, area: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -100,8 +100,8 @@ class NeighbourMethod(Method):
         raise NotImplementedError
 
     def loo(self, local_xyz, options, segments, feedback, workers):
+        from toolbox.executor import Executor, default_workers, map_tiles
         from toolbox.terrain.gridding.neighbours import PointBins
-        from toolbox.tiles import Executor, default_workers, map_tiles
 
         n = len(local_xyz)
         bins = PointBins.build(local_xyz[:, :2])

@@ -1,4 +1,4 @@
-"""Run independent tile tasks on local threads or on a Dask distributed cluster.
+"""The executor: run independent tile tasks on local threads or on a Dask distributed cluster.
 
 Raster algorithms that work window by window (DEM gridding, orthophotos...) build one small,
 picklable task per output window and hand them to :func:`map_tiles` with a module-level
@@ -16,7 +16,7 @@ Executors
 
 Example
 -------
->>> from toolbox.tiles import map_tiles
+>>> from toolbox.executor import map_tiles
 >>> list(map_tiles(abs, [-1, -2, 3], workers=2))
 [1, 2, 3]
 """
