@@ -113,13 +113,19 @@ def siena_interior_cases() -> list[tuple[tuple[str, str], list[dict], dict]]:
 # in a conftest.py of that folder, which would shadow this module for `from conftest import`)
 @pytest.fixture(scope="module")
 def pair(tmp_path_factory):
-    import mosaic_scene
-
-    return mosaic_scene.standard_pair(tmp_path_factory)
+    return _mosaic_scene().standard_pair(tmp_path_factory)
 
 
 @pytest.fixture(scope="module")
 def seams(tmp_path_factory):
+    return _mosaic_scene().standard_seams(tmp_path_factory)
+
+
+def _mosaic_scene():
+    """tests/algorithms/mosaic/mosaic_scene.py, importable from any test folder."""
+    folder = str(Path(__file__).parent / "algorithms" / "mosaic")
+    if folder not in sys.path:
+        sys.path.insert(0, folder)
     import mosaic_scene
 
-    return mosaic_scene.standard_seams(tmp_path_factory)
+    return mosaic_scene

@@ -110,10 +110,28 @@ def resolve_executor(scheduler: str | None = None, workers: int | None = None,
     given = scheduler is not None and str(scheduler).strip()
     source = name if given else (SCHEDULER_ENV if os.environ.get(SCHEDULER_ENV, "").strip()
                                  else "Dask's scheduler-address setting")
-    if "://" not in address and ":" not in address:
+    if not is_scheduler_address(address):
         raise ParameterError(source, f"must be a Dask scheduler address such as "
-                             f"tcp://host:8786, got {address!r}")
+                             f"tcp://host:8786, 'local' or empty, got {address!r}")
     return Executor("dask", workers or 0, address, source)
+
+
+DASK_PROTOCOLS = ("tcp", "tls", "ucx", "ws", "wss")
+
+
+def is_scheduler_address(address: str) -> bool:
+    """``[protocol://]host:port`` with a Dask protocol, a host name or IP (IPv6 in brackets)
+    and a port number 1-65535 (Dask's ``inproc://`` addresses are in-process only)."""
+    protocol, sep, rest = address.partition("://")
+    if not sep:
+        protocol, rest = "tcp", address
+    if protocol not in DASK_PROTOCOLS:
+        return protocol == "inproc" and bool(rest)
+    host, colon, port = rest.rpartition(":")
+    if not (colon and port.isdigit() and 0 < int(port) < 65536 and host):
+        return False
+    host = host[1:-1] if host.startswith("[") and host.endswith("]") else host
+    return all(ch.isascii() and (ch.isalnum() or ch in ".-_:") for ch in host)
 
 
 def map_tiles(func: Callable[[T], R], tasks: Iterable[T], *, executor: Executor | None = None,

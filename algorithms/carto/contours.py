@@ -15,6 +15,7 @@ from toolbox.parameters import (
     VectorLayer,
 )
 from toolbox.registry import register
+from toolbox.ui.execution import executor_of, scheduler_parameter
 
 
 @register
@@ -57,6 +58,7 @@ class Contours(Algorithm):
                 default=0, min_value=0, max_value=5),
         Integer("TILE_SIZE", "DEM block side in cells (a block traces only the levels it spans)",
                 default=512, min_value=8),
+        scheduler_parameter("the blocks"),
         OutputVector("OUTPUT", "contours GeoPackage", layers=[
             Layer("contours", "LineString Z", [("elev", "real", "height of the line"),
                                                ("index", "integer", "1 on index contours"),
@@ -87,7 +89,8 @@ class Contours(Algorithm):
         if params.get("INPUT") is not None:
             info = params["INPUT"]
             result = raster_contours(info.path, params["BAND"], interval, base,
-                                     params["TILE_SIZE"], params["SMOOTHING"], feedback)
+                                     params["TILE_SIZE"], params["SMOOTHING"], feedback,
+                                     executor_of(params))
             crs = info.crs
         else:
             from toolbox.terrain.tin.store import read_tin

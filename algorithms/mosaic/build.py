@@ -18,6 +18,7 @@ from toolbox.parameters import (
     VectorLayer,
 )
 from toolbox.registry import register
+from toolbox.ui.execution import executor_of, scheduler_parameter
 
 BLEND_METHODS = ("none", "feather", "multiband")
 RESAMPLING = ("nearest", "bilinear", "cubic", "lanczos")
@@ -76,6 +77,7 @@ class MosaicBuild(Algorithm):
         Boolean("COG", "write the mosaic and SOURCE_INDEX as Cloud Optimized GeoTIFFs (false: "
                 "tiled GeoTIFFs with internal overviews)", default=True),
         Boolean("OVERVIEWS", "build internal overviews", default=True),
+        scheduler_parameter(),
         OutputRaster("OUTPUT", "mosaic GeoTIFF"),
         OutputRaster("SOURCE_INDEX", "source index raster (1-based input number, 0 = none)",
                      optional=True),
@@ -151,6 +153,7 @@ class MosaicBuild(Algorithm):
                 stats = write_mosaic(plan, params["OUTPUT"], index, alpha=alpha,
                                      nodata=None if alpha else nodata, cog=params["COG"],
                                      overviews=params["OVERVIEWS"],
+                                     executor=executor_of(params),
                                      feedback=feedback.step(5, 95))
             if params["SEAMLINES"] is not None:
                 with feedback.timed("seams"):

@@ -6,6 +6,7 @@ from toolbox.algorithm import Algorithm
 from toolbox.feedback import Feedback
 from toolbox.parameters import Field, File, Number, Output, OutputFolder, VectorLayer
 from toolbox.registry import register
+from toolbox.ui.execution import executor_of, scheduler_parameter
 
 
 @register
@@ -22,7 +23,9 @@ class MosaicCut(Algorithm):
     <id>.gpkg. Sheets holding no data are skipped. OUTPUT is a folder; it also receives
     sheets.gpkg, the sheet index (id, file, written). The sheet files are written all or none
     (staged, moved into OUTPUT on success); an existing one is replaced only with --overwrite,
-    other files of OUTPUT are left alone.
+    other files of OUTPUT are left alone. Raster sheets are cut in parallel on local threads or
+    on a Dask cluster (SCHEDULER; the workers write the sheet files, so OUTPUT must be on storage
+    they share).
     """
 
     id = "mosaic:cut"
@@ -43,6 +46,7 @@ class MosaicCut(Algorithm):
                min_exclusive=True),
         Number("ORIGIN_X", "sheet grid origin, easting", default=0.0),
         Number("ORIGIN_Y", "sheet grid origin, northing", default=0.0),
+        scheduler_parameter("the raster sheets"),
         OutputFolder("OUTPUT", "folder for the sheet files"),
     ]
     outputs = [Output("STATISTICS", "sheets written and skipped", "dict")]
@@ -64,25 +68,27 @@ class MosaicCut(Algorithm):
     def process(self, params, feedback: Feedback):
         import geopandas as gpd
 
+        from toolbox.executor import map_tiles
         from toolbox.io.vector import write_layers
-        from toolbox.mosaic.sheets import clip_raster, clip_vector, sheet_ids_unique
+        from toolbox.mosaic.sheets import RasterSheet, clip_raster_sheet, clip_vector, sheet_ids_unique
 
         source, kind, crs, sheets = _sheets(params)
         folder = params["OUTPUT"]
         names = sheet_ids_unique([sid for sid, _ in sheets])
-        rows = []
-        for (sid, geom), name in feedback.iterate(list(zip(sheets, names, strict=True))):
-            feedback.check_canceled()
-            if geom is None or geom.is_empty:
-                continue
-            if kind == "raster":
-                target = folder / f"{name}.tif"
-                written = clip_raster(source, geom, target)
-            else:
-                target = folder / f"{name}.gpkg"
-                written = clip_vector(source, geom, target, "clipped") > 0
-            rows.append({"sheet_id": sid, "file": target.name if written else "",
-                         "written": bool(written), "geometry": geom})
+        todo = [(sid, geom, folder / f"{name}{'.tif' if kind == 'raster' else '.gpkg'}")
+                for (sid, geom), name in zip(sheets, names, strict=True)
+                if geom is not None and not geom.is_empty]
+        if kind == "raster":
+            tasks = (RasterSheet(str(source), geom, str(target)) for _, geom, target in todo)
+            written = list(map_tiles(clip_raster_sheet, tasks, executor=executor_of(params),
+                                     feedback=feedback, total=len(todo)))
+        else:
+            written = []
+            for _, geom, target in feedback.iterate(todo):
+                feedback.check_canceled()
+                written.append(clip_vector(source, geom, target, "clipped") > 0)
+        rows = [{"sheet_id": sid, "file": target.name if done else "", "written": bool(done),
+                 "geometry": geom} for (sid, geom, target), done in zip(todo, written, strict=True)]
         write_layers(folder / "sheets.gpkg",
                      {"sheets": gpd.GeoDataFrame(rows, geometry="geometry", crs=crs)})
         done = [r["file"] for r in rows if r["written"]]

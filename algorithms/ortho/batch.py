@@ -19,6 +19,7 @@ from toolbox.parameters import (
     String,
 )
 from toolbox.registry import register
+from toolbox.ui.execution import scheduler_parameter
 from toolbox.ui.photogrammetry import dem_parameters, ortho_method_parameters, project_parameter
 
 
@@ -72,7 +73,7 @@ class OrthoBatch(Algorithm):
         Boolean("OVERVIEWS", "build internal overviews", default=True),
         Number("MAP_SCALE", "map scale denominator for the expected accuracy", optional=True,
                min_value=1),
-        String("SCHEDULER", "Dask scheduler address (default: local threads)", optional=True),
+        scheduler_parameter("the photos"),
         Integer("WORKERS", "photos in parallel on local threads", default=2, min_value=1),
         OutputFolder("FOLDER", "folder of the orthos <photo id>.tif (created if missing)"),
         OutputFile("OUTPUT", "JSON list of the orthos with the per-photo reports",

@@ -28,6 +28,7 @@ from toolbox.parameters import (
 )
 from toolbox.registry import register
 from toolbox.transforms.rectification import MODES, OUTSIDE, RectificationModel, parse_pixel_to_image
+from toolbox.ui.execution import executor_of, scheduler_parameter
 from toolbox.ui.grid import grid_request
 
 RESAMPLING_METHODS = ("nearest", "bilinear", "cubic", "lanczos")  # toolbox.raster.resample's
@@ -82,6 +83,7 @@ class RectifyImage(Algorithm):
         Boolean("OVERVIEWS", "build internal overviews", default=True),
         Boolean("COG", "write a Cloud Optimized GeoTIFF (MODE=warp; false: a tiled GeoTIFF "
                 "with internal overviews)", default=True),
+        scheduler_parameter(),
         OutputRaster("OUTPUT", "rectified GeoTIFF (or GCP GeoTIFF with MODE=gcps)"),
     ]
     outputs = [Output("STATISTICS", "grid, footprint and warp counters", "json")]
@@ -172,6 +174,7 @@ class RectifyImage(Algorithm):
         with feedback.timed("warp"), writer:
             stats = warp_raster(info, grid, coordinate_map, nan_cells, layout=layout,
                                 resampling=params["RESAMPLING"], tile_size=2048,
+                                executor=executor_of(params),
                                 feedback=feedback, end=95 if params["OVERVIEWS"] else 100)
         if nan_cells.count:
             feedback.push_warning(f"INPUT: {nan_cells.count} output cells fall on NaN pixels of "

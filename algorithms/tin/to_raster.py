@@ -21,6 +21,7 @@ from toolbox.parameters import (
 )
 from toolbox.registry import register
 from toolbox.terrain.tin.help import TIN_HELP
+from toolbox.ui.execution import executor_of, scheduler_parameter
 from toolbox.ui.grid import grid_request
 
 
@@ -58,6 +59,7 @@ class ToRaster(Algorithm):
         Enum("DATA_TYPE", "cell type", options=["float32", "float64"], default="float32"),
         Boolean("OVERVIEWS", "build internal overviews", default=True),
         Boolean("COG", "write a Cloud Optimized GeoTIFF", default=False),
+        scheduler_parameter(),
         OutputRaster("OUTPUT", "DEM GeoTIFF"),
     ]
     outputs = [Output("STATISTICS", "grid size, cells with data, height range", "json")]
@@ -117,7 +119,8 @@ class ToRaster(Algorithm):
                               cog=params["COG"], overviews=params["OVERVIEWS"])
         with feedback.timed("rasterise"), writer:
             process_raster(grid, None, partial(tin_tile, origin), writer, tile_size=tile_size,
-                           plan=tiles.plan, collect=collect, feedback=feedback, end=90)
+                           plan=tiles.plan, collect=collect, feedback=feedback, end=90,
+                           executor=executor_of(params))
         filled = summary["filled"]
         cell_x, cell_y = grid.cell_size
         if filled == 0:

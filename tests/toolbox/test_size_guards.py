@@ -58,7 +58,7 @@ def lines(tmp_path):
 def test_contours_tiny_interval_and_huge_heights(dem, tmp_path, monkeypatch):
     from toolbox.cartography import contour_io
 
-    monkeypatch.setattr(contour_io, "trace_tiles", never)
+    monkeypatch.setattr(contour_io, "trace_raster", never)
     text = refused("carto:contours", {"INPUT": dem, "INTERVAL": 1e-9,
                                       "OUTPUT": tmp_path / "c.gpkg"},
                    "INTERVAL", "300 .. 388", "contour levels", "use a larger INTERVAL")

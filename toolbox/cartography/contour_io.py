@@ -12,12 +12,15 @@ import numpy as np
 
 from toolbox.cartography.contours import (
     Contour,
+    Piece,
+    block_pieces,
+    block_windows,
     contour_levels,
     index_flags,
     smooth_contours,
+    stitch_pieces,
     tin_contours,
     to_map,
-    trace_tiles,
 )
 
 
@@ -71,31 +74,70 @@ def guard_levels(zmin: float, zmax: float, interval: float, base: float, span: f
     check_size("vertices", levels * span, "INTERVAL", f"{what} ({levels:,} levels)", hint)
 
 
-def raster_contours(path: str | Path, band: int, interval: float, base: float,
-                    tile_size: int = 1024, smoothing: int = 0, feedback=None) -> ContourResult:
-    """Contours of a DEM, read in ``tile_size`` blocks that share one row/column with their
-    neighbours (each grid square belongs to one block) and stitched across block edges."""
+@dataclass(frozen=True)
+class BlockTask:
+    """One block of a DEM file to trace (picklable: it runs on a Dask worker as well)."""
+
+    path: str
+    band: int
+    window: tuple[int, int, int, int]  # row, col, height, width
+    levels: tuple[float, ...]
+
+
+def trace_block(task: BlockTask) -> list[Piece]:
+    """Read one block of the DEM (nodata -> NaN) and trace its pieces."""
     import rasterio
     from rasterio.windows import Window
+
+    row, col, height, width = task.window
+    with rasterio.open(task.path) as src:
+        z = src.read(task.band, window=Window(col, row, width, height), masked=True)
+    return block_pieces(z.astype("float64").filled(np.nan), task.levels, row, col)
+
+
+def trace_raster(path: str | Path, band: int, rows: int, cols: int, tile: int,
+                 levels: np.ndarray, executor: Any = None, feedback=None
+                 ) -> tuple[list[Contour], int]:
+    """Contours of a DEM file traced block by block on ``executor`` (local threads or a Dask
+    cluster: :mod:`toolbox.executor`; the pieces come back in block order, so the result is the
+    same on either) and stitched; grid coordinates. Returns the contours and the pieces'
+    count."""
+    from toolbox.executor import map_tiles
+
+    windows = block_windows(rows, cols, tile)
+    levels_tuple = tuple(float(v) for v in levels)
+    tasks = (BlockTask(str(path), band, window, levels_tuple) for window in windows)
+    pieces: list[Piece] = []
+    for found in map_tiles(trace_block, tasks, executor=executor, feedback=feedback,
+                           total=len(windows), end=80):
+        pieces += found
+    return stitch_pieces(pieces, tile), len(pieces)
+
+
+def raster_contours(path: str | Path, band: int, interval: float, base: float,
+                    tile_size: int = 1024, smoothing: int = 0, feedback=None,
+                    executor: Any = None) -> ContourResult:
+    """Contours of a DEM, traced in ``tile_size`` blocks that share one row/column with their
+    neighbours (each grid square belongs to one block) on ``executor`` (default: local threads,
+    or the cluster of DASK_SCHEDULER_ADDRESS) and stitched across block edges."""
+    import rasterio
 
     with rasterio.open(path) as src:
         frame = GridFrame.of(src.transform)
         zmin, zmax = raster_range(src, band, tile_size)
         guard_levels(zmin, zmax, interval, base, src.width + src.height)
         levels = contour_levels(zmin, zmax, interval, base)
+        rows, cols = src.height, src.width
+    from toolbox.executor import resolve_executor
 
-        def read_block(r, c, h, w):
-            z = src.read(band, window=Window(c, r, w, h), masked=True)
-            return z.astype("float64").filled(np.nan)
-
-        contours, n_pieces = trace_tiles(read_block, src.height, src.width, tile_size, levels,
-                                         feedback)
-        n_tiles = len(range(0, max(src.height - 1, 1), tile_size)) * \
-            len(range(0, max(src.width - 1, 1), tile_size))
+    executor = executor or resolve_executor(None)
+    contours, n_pieces = trace_raster(path, band, rows, cols, tile_size, levels, executor,
+                                      feedback)
     contours, reverted = smooth_contours(contours, smoothing)
     contours = to_map(contours, frame.x0, frame.y0, frame.dx, frame.dy)
-    stats = {"tiles": n_tiles, "pieces_before_stitching": n_pieces,
-             "smoothing_reverted": reverted, "z_min": zmin, "z_max": zmax}
+    stats = {"tiles": len(block_windows(rows, cols, tile_size)),
+             "pieces_before_stitching": n_pieces, "smoothing_reverted": reverted,
+             "z_min": zmin, "z_max": zmax, "executor": executor.describe()}
     return ContourResult(contours, levels, stats)
 
 

@@ -117,28 +117,38 @@ class Piece:
     tile: tuple[int, int]
 
 
+def block_windows(rows: int, cols: int, tile: int) -> list[tuple[int, int, int, int]]:
+    """``(row, col, height, width)`` of the ``tile``-sized blocks of a ``rows`` x ``cols`` grid;
+    a block shares its last row and column with the next, so every grid square is in one block."""
+    return [(r, c, min(tile + 1, rows - r), min(tile + 1, cols - c))
+            for r in range(0, max(rows - 1, 1), tile) for c in range(0, max(cols - 1, 1), tile)]
+
+
+def block_pieces(block: np.ndarray, levels: Iterable[float], row: int, col: int) -> list[Piece]:
+    """The contour pieces of one block whose top-left cell is (``row``, ``col``), in grid
+    coordinates (x = column, y = row of the cell centres)."""
+    return [Piece(p.level, p.xy, (row, col))
+            for p in grid_contour_pieces(block, levels, float(col), float(row), 1.0, 1.0)]
+
+
 def trace_tiles(read_block: Callable[[int, int, int, int], np.ndarray], rows: int, cols: int,
                 tile: int, levels: Iterable[float], feedback=None) -> tuple[list[Contour], int]:
-    """Contours of a ``rows`` x ``cols`` grid traced in ``tile``-sized blocks and stitched, in
-    grid coordinates (x = column, y = row of the cell centres; :func:`to_map` converts).
+    """Contours of a ``rows`` x ``cols`` grid traced in ``tile``-sized blocks
+    (:func:`block_windows`) and stitched by :func:`stitch_pieces`, in grid coordinates
+    (:func:`to_map` converts). Grid coordinates keep full precision near nodes and make tile
+    edges exact integers.
 
-    ``read_block(row, col, height, width)`` returns a block of the grid (NaN = no data). Blocks
-    share their last row/column with the next block, so every grid square is traced once; the
-    pieces are then joined across block edges by :func:`stitch_pieces`. Grid coordinates keep
-    full precision near nodes and make tile edges exact integers. Returns the contours and the
-    number of pieces traced.
+    ``read_block(row, col, height, width)`` returns a block of the grid (NaN = no data).
+    Returns the contours and the number of pieces traced.
     """
     levels = list(levels)
-    starts = [(r, c) for r in range(0, max(rows - 1, 1), tile)
-              for c in range(0, max(cols - 1, 1), tile)]
+    windows = block_windows(rows, cols, tile)
     pieces: list[Piece] = []
-    for i, (r, c) in enumerate(starts):
+    for i, (r, c, h, w) in enumerate(windows):
         if feedback is not None:
             feedback.check_canceled()
-            feedback.set_progress(80.0 * i / len(starts))
-        block = read_block(r, c, min(tile + 1, rows - r), min(tile + 1, cols - c))
-        for p in grid_contour_pieces(block, levels, float(c), float(r), 1.0, 1.0):
-            pieces.append(Piece(p.level, p.xy, (r, c)))
+            feedback.set_progress(80.0 * i / len(windows))
+        pieces += block_pieces(read_block(r, c, h, w), levels, r, c)
     return stitch_pieces(pieces, tile), len(pieces)
 
 

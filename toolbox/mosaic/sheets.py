@@ -9,6 +9,7 @@ grid origin (x0, y0); its id is ``"{i}_{j}"`` (column east, row north; stable wh
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -40,6 +41,20 @@ def safe_name(text: str) -> str:
     """A file-name-safe sheet id (letters, digits, ``-_.``; others become ``_``)."""
     name = "".join(c if c.isalnum() or c in "-_." else "_" for c in str(text)).strip(".")
     return name or "sheet"
+
+
+@dataclass(frozen=True)
+class RasterSheet:
+    """One sheet to cut from a raster (picklable: it runs on a Dask worker as well)."""
+
+    source: str
+    sheet: Any  # shapely polygon
+    output: str
+
+
+def clip_raster_sheet(task: RasterSheet) -> bool:
+    """:func:`clip_raster` of one :class:`RasterSheet`."""
+    return clip_raster(Path(task.source), task.sheet, Path(task.output))
 
 
 def clip_raster(path: Path, sheet, output: Path, block: int = 2048) -> bool:

@@ -37,6 +37,7 @@ from toolbox.terrain.gridding.request import (
     PointSources,
 )
 from toolbox.terrain.points import DUPLICATE_RULES
+from toolbox.ui.execution import scheduler_parameter, workers_parameter
 from toolbox.ui.grid import grid_request
 
 STATISTICS = Output("STATISTICS", "inputs, duplicates, grid, cells, fallbacks, timings", "dict")
@@ -128,11 +129,8 @@ def execution_parameters() -> list:
     return [
         Integer("TILE_SIZE", "tile side in cells (a multiple of 16; also the GeoTIFF block)",
                 default=DEFAULT_TILE, min_value=16, max_value=4096),
-        String("SCHEDULER", "Dask scheduler address (tcp://host:8786) to run the tiles on a "
-               "cluster; default: DASK_SCHEDULER_ADDRESS if set, else local threads ('local' "
-               "forces local threads)", optional=True),
-        Integer("WORKERS", "local threads (default: the CPUs available)", optional=True,
-                min_value=1),
+        scheduler_parameter(),
+        workers_parameter(),
         Boolean("OVERVIEWS", "build internal overviews", default=True),
         Boolean("COG", "write a Cloud Optimized GeoTIFF", default=False),
         OutputRaster("OUTPUT", "DEM GeoTIFF (Float32, tiled 512, DEFLATE)"),

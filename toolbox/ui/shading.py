@@ -10,15 +10,18 @@ from typing import Any, ClassVar
 from toolbox.algorithm import Algorithm
 from toolbox.feedback import Feedback
 from toolbox.parameters import Boolean, Integer, OutputRaster, Parameter, RasterLayer
+from toolbox.ui.execution import executor_of, scheduler_parameter
 
 
 def shading_parameters(input_help: str, output_help: str, own: list[Parameter]) -> list:
-    """INPUT, BAND, the algorithm's ``own`` parameters, TILE_SIZE, OVERVIEWS, COG, OUTPUT."""
+    """INPUT, BAND, the algorithm's ``own`` parameters, TILE_SIZE, SCHEDULER, OVERVIEWS, COG,
+    OUTPUT."""
     return [
         RasterLayer("INPUT", input_help),
         Integer("BAND", "band of the DEM", default=1, min_value=1),
         *own,
         Integer("TILE_SIZE", "tile side in cells", default=512, min_value=16),
+        scheduler_parameter(),
         Boolean("OVERVIEWS", "build internal overviews", default=True),
         Boolean("COG", "write a Cloud Optimized GeoTIFF", default=False),
         OutputRaster("OUTPUT", output_help),
@@ -51,7 +54,8 @@ class ShadingAlgorithm(Algorithm):
                                    **self.kernel_options(params))
         stats = shading.shade_raster(params["INPUT"], params["BAND"], params["OUTPUT"], kernel,
                                      self.dtype, self.nodata, feedback, params["TILE_SIZE"],
-                                     params["OVERVIEWS"], params["COG"])
+                                     params["OVERVIEWS"], params["COG"],
+                                     executor=executor_of(params, workers=1))
         declared = {output.name for output in self.outputs}
         return {"OUTPUT": params["OUTPUT"]} | ({"STATISTICS": stats} if "STATISTICS" in declared
                                                else {})

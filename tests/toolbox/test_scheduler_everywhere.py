@@ -1,0 +1,147 @@
+"""Issue 31, scale-out: every algorithm whose work splits by tiles, blocks or photos takes the
+same SCHEDULER parameter (a Dask address, 'local', or DASK_SCHEDULER_ADDRESS when not given),
+and a run on a Dask cluster of two worker processes writes the same file, byte for byte, as
+the local run (the tasks come back in order; the client writes)."""
+
+from __future__ import annotations
+
+import hashlib
+
+import numpy as np
+import pytest
+import rasterio
+from rasterio.transform import from_origin
+
+import toolbox
+from toolbox.registry import spec_index
+
+X0, Y0 = 1_688_000.0, 4_799_500.0
+
+# the algorithms whose work splits into independent tasks (tiles, blocks, photos)
+SPLIT_WORK = ["carto:contours", "dem:aspect", "dem:cubic", "dem:hillshade", "dem:idw",
+              "dem:nearest", "dem:plane", "dem:quadratic", "dem:slope", "dem:tin_linear",
+              "mosaic:build", "mosaic:cut", "ortho:batch", "rectify:image", "tin:to_raster"]
+
+
+def _sha(path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def test_every_split_algorithm_declares_the_same_scheduler_parameter():
+    specs = spec_index()
+    helps = {}
+    for alg in SPLIT_WORK:
+        params = {p["name"]: p for p in specs[alg]["parameters"]}
+        assert "SCHEDULER" in params, alg
+        assert params["SCHEDULER"]["optional"] and params["SCHEDULER"]["advanced"], alg
+        helps[alg] = params["SCHEDULER"]["description"]
+    assert all("DASK_SCHEDULER_ADDRESS" in text for text in helps.values()), helps
+
+
+def test_a_bad_scheduler_address_is_refused_with_one_line(tmp_path):
+    from conftest import run_cli
+
+    dem = tmp_path / "dem.tif"
+    _bumpy_dem(dem)
+    proc = run_cli("run", "dem:slope", "--INPUT", str(dem), "--SCHEDULER", "not an address",
+                   "--OUTPUT", str(tmp_path / "s.tif"))
+    assert proc.returncode == 2
+    assert proc.stderr.count("\n") == 1 and "SCHEDULER" in proc.stderr
+    assert not (tmp_path / "s.tif").exists()
+
+
+def _bumpy_dem(path, size=(90, 70)):
+    rows, cols = np.mgrid[0:size[0], 0:size[1]]
+    z = 300 + 20 * np.sin(cols / 9.0) * np.cos(rows / 7.0) + 0.3 * cols
+    with rasterio.open(path, "w", driver="GTiff", width=size[1], height=size[0], count=1,
+                       dtype="float32", crs="EPSG:3003", transform=from_origin(X0, Y0, 5, 5),
+                       nodata=-9999) as dst:
+        dst.write(z.astype("float32"), 1)
+
+
+def _photo_and_transform(tmp_path):
+    rng = np.random.default_rng(3)
+    photo = tmp_path / "photo.tif"
+    with rasterio.open(photo, "w", driver="GTiff", width=300, height=200, count=3,
+                       dtype="uint8") as dst:
+        dst.write(rng.integers(0, 255, (3, 200, 300), dtype="uint8"))
+    gcps = tmp_path / "gcps.csv"
+    corners = [(0.0, 0.0), (300, 0.0), (300, 200), (0.0, 200), (150, 70)]
+    gcps.write_text("id,col,row,X,Y,Z,role\n" + "".join(
+        f"P{k},{c},{r},{X0 + 0.5 * c + 0.05 * r},{Y0 - 0.5 * r},0,control\n"
+        for k, (c, r) in enumerate(corners)))
+    transform = tmp_path / "t.json"
+    toolbox.run("rectify:estimate", {"INPUT": gcps, "CRS": "EPSG:3003", "MODEL": "homography",
+                                     "OUTPUT": transform})
+    return photo, transform
+
+
+@pytest.mark.distributed
+@pytest.mark.slow
+@pytest.mark.filterwarnings("ignore::rasterio.errors.NotGeoreferencedWarning")
+def test_cluster_runs_write_the_local_files(tmp_path, monkeypatch, pair):
+    from distributed import LocalCluster
+
+    monkeypatch.delenv("DASK_SCHEDULER_ADDRESS", raising=False)
+    dem = tmp_path / "dem.tif"
+    _bumpy_dem(dem)
+    photo, transform = _photo_and_transform(tmp_path)
+    orthos, _ = pair
+    runs = {
+        "carto:contours": ({"INPUT": dem, "INTERVAL": 2, "TILE_SIZE": 16}, "gpkg"),
+        "rectify:image": ({"INPUT": photo, "TRANSFORM": transform, "CELL_SIZE": 0.5}, "tif"),
+        "mosaic:build": ({"INPUT": [str(o.path) for o in orthos], "COG": False}, "tif"),
+        "dem:hillshade": ({"INPUT": dem, "TILE_SIZE": 16}, "tif"),
+    }
+    local = {}
+    for alg, (params, ext) in runs.items():
+        out = tmp_path / f"{alg.replace(':', '_')}_local.{ext}"
+        toolbox.run(alg, params | {"SCHEDULER": "local", "OUTPUT": out})
+        local[alg] = out
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                      dashboard_address=":0") as cluster:
+        for alg, (params, ext) in runs.items():
+            out = tmp_path / f"{alg.replace(':', '_')}_dask.{ext}"
+            result = toolbox.run(alg, params | {"SCHEDULER": cluster.scheduler_address,
+                                                "OUTPUT": out})
+            if ext == "tif":
+                assert _sha(out) == _sha(local[alg]), alg
+            else:  # a GeoPackage holds its creation time: compare the features
+                import geopandas as gpd
+
+                a, b = (gpd.read_file(f, layer="contours") for f in (local[alg], out))
+                assert len(a) == len(b) > 10
+                assert all(x.equals_exact(y, 0) for x, y in zip(a.geometry, b.geometry))
+                assert result["STATISTICS"]["tiles"] > 4
+                assert result["STATISTICS"]["executor"].startswith("dask scheduler")
+        # sheets cut on the workers: the same files
+        cut = {}
+        for where in ("local", cluster.scheduler_address):
+            folder = tmp_path / f"sheets_{len(cut)}"
+            result = toolbox.run("mosaic:cut", {"INPUT": local["mosaic:build"], "SCALE": 500,
+                                                "SHEET_WIDTH": 20, "SHEET_HEIGHT": 20,
+                                                "SCHEDULER": where, "OUTPUT": folder})
+            cut[where] = {f.name: _sha(f) for f in folder.glob("*.tif")}
+            assert result["STATISTICS"]["written"] == len(cut[where]) >= 4
+        assert cut["local"] == cut[cluster.scheduler_address]
+        # the standard variable selects the cluster when SCHEDULER is not given
+        monkeypatch.setenv("DASK_SCHEDULER_ADDRESS", cluster.scheduler_address)
+        out = tmp_path / "contours_env.gpkg"
+        result = toolbox.run("carto:contours", runs["carto:contours"][0] | {"OUTPUT": out})
+        assert result["STATISTICS"]["executor"] == f"dask scheduler {cluster.scheduler_address}"
+        monkeypatch.delenv("DASK_SCHEDULER_ADDRESS")
+
+
+@pytest.mark.parametrize("address, valid", [
+    ("tcp://127.0.0.1:8786", True), ("head:8786", True), ("tls://h.example:1", True),
+    ("tcp://[::1]:8786", True), ("a:b", False), ("tcp://head", False), ("http://h:1", False),
+    ("h:0", False), ("h:70000", False), ("not an address", False), ("ü:12", False)])
+def test_scheduler_addresses_are_checked_before_any_connection(address, valid):
+    from toolbox.errors import ParameterError
+    from toolbox.executor import resolve_executor
+
+    if valid:
+        assert resolve_executor(address).address == address
+    else:
+        with pytest.raises(ParameterError, match="SCHEDULER.*tcp://host:8786"):
+            resolve_executor(address)
