@@ -34,10 +34,61 @@ def _authority_matches(wkt: str, auth_name: str | None) -> tuple[tuple[str, str,
     """PROJ's identification of the CRS of ``wkt`` in ``auth_name``'s codes (None: every
     authority, slower), ``(authority, code, confidence)`` with confidence >= 70, best first;
     cached by the normalised WKT, so the same CRS read from different files (a GeoJSON's WKT,
-    a GeoTIFF's) is identified once (for a CRS without a code PROJ searches its database:
-    0.1-0.3 s)."""
-    return tuple((m.auth_name, m.code, m.confidence) for m in CRS.from_wkt(wkt)
-                 .list_authority(auth_name=auth_name, min_confidence=70))
+    a GeoTIFF's) is identified once, and kept in the user cache (:func:`_stored_matches`):
+    for a CRS without a code PROJ searches its whole database, 0.1-0.7 s every run."""
+    import hashlib
+
+    import pyproj
+
+    key = hashlib.sha1(f"{pyproj.proj_version_str}|{auth_name}|{wkt}".encode()).hexdigest()
+    stored = _stored_matches()
+    if key in stored:
+        return tuple((str(a), str(c), int(n)) for a, c, n in stored[key])
+    matches = tuple((m.auth_name, m.code, m.confidence) for m in CRS.from_wkt(wkt)
+                    .list_authority(auth_name=auth_name, min_confidence=70))
+    _store_matches(key, matches)
+    return matches
+
+
+IDENTIFICATION_CACHE = "crs_identification.json"  # in toolbox.cache.user_cache_dir()
+
+
+@functools.lru_cache(maxsize=1)
+def _stored_matches() -> dict[str, list]:
+    """The identifications kept from earlier runs (empty when none or unreadable)."""
+    import json
+
+    from toolbox.cache import user_cache_dir
+
+    try:
+        stored = json.loads(user_cache_dir(IDENTIFICATION_CACHE).read_text())
+        return stored if isinstance(stored, dict) else {}
+    except (OSError, ValueError):
+        return {}
+
+
+def _store_matches(key: str, matches: tuple, keep: int = 512) -> None:
+    """Add one identification to the user cache (atomically: another process may be reading
+    it; the oldest dropped beyond ``keep``); a cache that cannot be written is left alone."""
+    import json
+    import os
+    import tempfile
+
+    from toolbox.cache import user_cache_dir
+
+    stored = _stored_matches()
+    stored[key] = [list(m) for m in matches]
+    while len(stored) > keep:
+        stored.pop(next(iter(stored)))
+    path = user_cache_dir(IDENTIFICATION_CACHE)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with tempfile.NamedTemporaryFile("w", dir=path.parent, delete=False,
+                                         suffix=".tmp") as tmp:
+            json.dump(stored, tmp)
+        os.replace(tmp.name, path)
+    except OSError:
+        pass
 
 
 def crs_authority(crs: CRS, min_confidence: int = 90, auth_name: str | None = None

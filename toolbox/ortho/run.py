@@ -11,11 +11,10 @@ from typing import Any
 import numpy as np
 
 from toolbox.errors import InputDataError
+from toolbox.ortho.codes import DEFAULT_BLOCK, DEFAULT_TOLERANCE_PX
 from toolbox.ortho.dem import DemSampler
-from toolbox.ortho.distortion import DEFAULT_BLOCK, DEFAULT_TOLERANCE_PX
 from toolbox.ortho.metrics import expected_accuracy, ground_sample_distance
 from toolbox.ortho.plan import orientation_transformer, photo_surface
-from toolbox.ortho.sensor import CollinearityMap
 from toolbox.ortho.windows import OrthoWindows
 
 
@@ -34,6 +33,20 @@ class OrthoOptions:
     chunk: int = 1024
     overviews: bool = True
     cog: bool = False
+    compiled: bool | None = None  # numba's kernels for a camera model; None: by size
+
+
+#: a camera model's ortho of at least this many cells maps with numba's kernels (their start-up,
+#: about 0.8 s CPU and 120 MB once per process, against NumPy's slower passes; measured)
+COMPILED_CELLS = 8_000_000
+
+
+def use_compiled(cells: int) -> bool:
+    """Whether an ortho of ``cells`` cells maps with numba's kernels: when they are loaded in
+    this process already, or the ortho is large enough (:data:`COMPILED_CELLS`)."""
+    import sys
+
+    return cells >= COMPILED_CELLS or "toolbox.ortho.heights" in sys.modules
 
 
 def orthorectify(photo: Any, image: Any, dem: Any, grid: Any, output: Any,
@@ -82,16 +95,22 @@ def orthorectify(photo: Any, image: Any, dem: Any, grid: Any, output: Any,
         raise InputDataError(f"photo {photo.id!r}: the raster {image} is {image.width} x "
                              f"{image.height} px but the camera {photo.camera.name!r} says "
                              f"{size[0]} x {size[1]}: wrong image or camera")
+    compiled = use_compiled(grid.width * grid.height) if options.compiled is None else \
+        options.compiled
     sampler = DemSampler(dem, grid.crs, options.band, options.dem_factor)
+    sampler.compiled = compiled
     sampler.preload(grid.bounds)
     to_orientation = orientation_transformer(photo, grid.crs)
     if to_orientation is not None and (options.occlusion or incidence_output is not None):
         raise InputDataError("the visibility test and the incidence angles need the ortho in "
                              "the orientation's CRS")
     # the film camera's compiled, planned map; a camera model's own project() otherwise
-    cmap = None if photo.is_model else CollinearityMap(photo, options.block,
-                                                      options.tolerance_px, image.width,
-                                                      image.height)
+    cmap = None
+    if not photo.is_model:
+        from toolbox.ortho.sensor import CollinearityMap
+
+        cmap = CollinearityMap(photo, options.block, options.tolerance_px, image.width,
+                               image.height)
     if options.occlusion and surface is None:
         surface = photo_surface(dem, photo, grid.crs, options.band)
     if reference_height is None:
@@ -121,7 +140,8 @@ def orthorectify(photo: Any, image: Any, dem: Any, grid: Any, output: Any,
             aux.append(incidence_writer)
         windows = OrthoWindows(photo, grid, sampler, cmap, reference_height,
                                surface if options.occlusion else None, mask_writer,
-                               incidence_writer, to_orientation, options.resampling)
+                               incidence_writer, to_orientation, options.resampling,
+                               compiled)
         eo = photo.require_exterior()
         tags = {"ORTHO_PHOTO": photo.id, "ORTHO_MAP_TOLERANCE_PX": str(options.tolerance_px),
                 "ORTHO_RESAMPLING": options.resampling, "NADIR_X": repr(eo.x0),

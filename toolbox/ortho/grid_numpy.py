@@ -1,0 +1,148 @@
+"""NumPy versions of the per-window kernels a camera model's ortho uses: bilinear DEM heights
+on a grid or at points (:func:`heights_on_grid`, :func:`heights_at_points`, as
+:mod:`toolbox.ortho.heights`) and the coordinate map of a
+:class:`~toolbox.cameras.frame.FrameCamera` (:func:`frame_grid_to_pixels`, as
+:func:`toolbox.cameras.kernels.grid_to_pixels`).
+
+Same arithmetic in the same order as the compiled kernels (their test oracle), vectorised in
+row chunks of about :data:`CHUNK_CELLS` cells, so that the temporaries stay in the cache and
+the memory small. A job small enough that numba's start-up (about 0.8 s CPU and 120 MB the
+first time a compiled kernel is loaded) outweighs the kernels' speed runs on these
+(:data:`toolbox.ortho.run.OrthoOptions.compiled`).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+CHUNK_CELLS = 1 << 16  # cells per chunk of rows (float64 temporaries of 512 kB)
+
+
+def _axis(coords: np.ndarray, origin: float, step: float, n: int
+          ) -> tuple[np.ndarray, np.ndarray]:
+    """DEM index and weight along one axis of the grid points (``(coords - origin) / step``):
+    index ``min(int(f), n - 2)``, weight ``f - index``; outside ``[0, n - 1]`` index 0 and
+    weight NaN (so that the height is NaN)."""
+    f = (coords - origin) / step
+    inside = (f >= 0.0) & (f <= n - 1)
+    index = np.minimum(np.where(inside, f, 0.0).astype(np.int64), n - 2)
+    return index, np.where(inside, f - index, np.nan)
+
+
+def heights_on_grid(dem: np.ndarray, gx0: float, gy0: float, cx: float, cy: float,
+                    xs: np.ndarray, ys: np.ndarray, out: np.ndarray) -> None:
+    """Bilinear heights at the grid points ``(xs[j], ys[i])`` into ``out`` (h, w): the DEM rows
+    the grid needs interpolated along x once, then each grid row a blend of its two."""
+    rows, cols = dem.shape
+    jj, tx = _axis(xs, gx0, cx, cols)
+    ii, ty = _axis(-ys, -gy0, cy, rows)  # (gy0 - y) / cy
+    inside = np.isfinite(ty)
+    if not inside.any():
+        out[:] = np.nan
+        return
+    r0, r1 = int(ii[inside].min()), int(ii[inside].max()) + 2
+    part = dem[r0:r1]
+    along = part[:, jj] * (1.0 - tx) + part[:, jj + 1] * tx  # (DEM rows, w)
+    top, wy = ii - r0, ty[:, None]
+    step = max(1, CHUNK_CELLS // max(len(xs), 1))
+    for i in range(0, len(ys), step):
+        s = slice(i, i + step)
+        out[s] = along[top[s]] * (1.0 - wy[s]) + along[top[s] + 1] * wy[s]
+    out[~inside] = np.nan
+
+
+def heights_at_points(dem: np.ndarray, gx0: float, gy0: float, cx: float, cy: float,
+                      x: np.ndarray, y: np.ndarray, out: np.ndarray) -> None:
+    """As :func:`heights_on_grid` at scattered points ``(x[k], y[k])`` (1-D arrays)."""
+    from toolbox.photogrammetry.kernels_numpy import _dem_height
+
+    out[:] = _dem_height(x, y, dem, gx0, gy0, cx, cy)[0]
+
+
+def frame_grid_to_pixels(camera: Any, gx: np.ndarray, gy: np.ndarray, z: np.ndarray
+                         ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:meth:`~toolbox.cameras.frame.FrameCamera.project_grid` in NumPy: ground cells
+    ``(gx, gy, z)`` (broadcastable to z's (h, w)) -> float32 maps ``(cols, rows)`` (NaN: no
+    image) and ``box`` (col_min, row_min, col_max, row_max, NaN count)."""
+    m = camera.intrinsics
+    fisheye = m.kind == "fisheye"
+    k = np.zeros(12)
+    k[:4 if fisheye else 12] = m.opencv_coefficients()
+    z = np.asarray(z, dtype="float64")
+    gx = np.broadcast_to(np.asarray(gx, dtype="float64"), z.shape)
+    gy = np.broadcast_to(np.asarray(gy, dtype="float64"), z.shape)
+    cols = np.empty(z.shape, dtype="float32")
+    rows = np.empty(z.shape, dtype="float32")
+    model = (np.asarray(camera.centre, dtype="float64"),
+             np.asarray(camera.exterior.rotation, dtype="float64"),
+             fisheye, k, np.array(m.focal_px, dtype="float64"),
+             np.array(m.principal_point_px, dtype="float64"), min(float(m.valid_radius), 1e300))
+    h, w = z.shape
+    step = max(1, CHUNK_CELLS // max(w, 1))
+    plane = _plane_terms(gx, gy, model[0], model[1])
+    for i in range(0, h, step):
+        s = slice(i, i + step)
+        terms = [t[s] for t in plane]
+        _grid_rows(terms, z[s] - model[0][2], *model[1:], cols[s], rows[s])
+    finite = ~np.isnan(cols)
+    missing = z.size - int(np.count_nonzero(finite))
+    if missing == z.size:
+        box = np.array([np.inf, np.inf, -np.inf, -np.inf, missing])
+    else:
+        box = np.array([np.fmin.reduce(cols, axis=None), np.fmin.reduce(rows, axis=None),
+                        np.fmax.reduce(cols, axis=None), np.fmax.reduce(rows, axis=None),
+                        missing], dtype="float64")
+    return cols, rows, box
+
+
+def _plane_terms(gx: np.ndarray, gy: np.ndarray, centre: np.ndarray, rot: np.ndarray
+                 ) -> list[np.ndarray]:
+    """The camera frame's x, y, z without their height terms, ``Rᵀ·(X - X0, Y - Y0)`` with y
+    and z negated (OpenCV's frame), each as ``a·dx + b·dy`` (broadcastable to (h, w)). A grid of
+    cell centres (``gx`` constant down the columns, ``gy`` along the rows: broadcast views)
+    gets them as a row plus a column, computed once per row and column: the same sums in the
+    same order as per cell (negation is exact, so ``-(a + b) == -a + -b``)."""
+    if gx.strides[0] == 0 and gy.strides[1] == 0:  # the broadcast grid of cell centres
+        dx, dy = gx[:1] - centre[0], gy[:, :1] - centre[1]
+    else:
+        dx, dy = gx - centre[0], gy - centre[1]
+    sign = (1.0, -1.0, -1.0)
+    return [(sign[k] * rot[0, k]) * dx + (sign[k] * rot[1, k]) * dy for k in range(3)]
+
+
+def _grid_rows(terms, dz, rot, fisheye, k, focal, pp, valid, cols, rows) -> None:
+    """A chunk of :func:`frame_grid_to_pixels` (the arithmetic of ``grid_to_pixels``):
+    ``terms`` of :func:`_plane_terms`, ``dz`` the heights minus the centre's."""
+    x = terms[0] + rot[2, 0] * dz
+    y = terms[1] + (-rot[2, 1]) * dz
+    zc = terms[2] + (-rot[2, 2]) * dz
+    with np.errstate(divide="ignore", invalid="ignore"):
+        if fisheye:
+            rho = np.sqrt(x * x + y * y)
+            theta = np.arctan2(rho, zc)
+            ok = theta <= valid
+            t2 = theta * theta
+            td = theta * (1.0 + t2 * (k[0] + t2 * (k[1] + t2 * (k[2] + t2 * k[3]))))
+            s = np.where(rho > 0, td / rho, 1.0)
+            xd, yd = x * s, y * s
+        else:
+            xn, yn = x / zc, y / zc
+            r2 = xn * xn + yn * yn
+            ok = (zc > 0) & (r2 <= valid * valid)
+            if k.any():
+                ratio = (1.0 + r2 * (k[0] + r2 * (k[1] + r2 * k[4]))) / \
+                    (1.0 + r2 * (k[5] + r2 * (k[6] + r2 * k[7])))
+                xy = xn * yn
+                xd = (xn * ratio + 2.0 * k[2] * xy + k[3] * (r2 + 2.0 * xn * xn)
+                      + r2 * (k[8] + r2 * k[9]))
+                yd = (yn * ratio + k[2] * (r2 + 2.0 * yn * yn) + 2.0 * k[3] * xy
+                      + r2 * (k[10] + r2 * k[11]))
+            else:  # no distortion: the same values (ratio 1, every other term 0)
+                xd, yd = xn, yn
+        u = (focal[0] * xd + pp[0]).astype("float32")
+        v = (focal[1] * yd + pp[1]).astype("float32")
+    bad = ~ok | np.isnan(u) | np.isnan(v)
+    cols[...] = np.where(bad, np.float32(np.nan), u)
+    rows[...] = np.where(bad, np.float32(np.nan), v)
