@@ -140,6 +140,7 @@ def mean_height_inside(surface: Any, polygon: Any) -> float:
     rows, cols = surface.shape
     xx, yy = np.meshgrid(surface.x0 + np.arange(cols) * surface.cell_x,
                          surface.y0 - np.arange(rows) * surface.cell_y)
+    shapely.prepare(polygon)  # (an index of its edges: 10-50x faster on many points)
     inside = shapely.contains_xy(polygon, xx, yy) & np.isfinite(surface.z)
     return float(surface.z[inside].mean() if inside.any() else np.nanmean(surface.z))
 

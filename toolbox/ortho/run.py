@@ -30,7 +30,7 @@ class OrthoOptions:
     dem_factor: int = 1
     band: int = 1
     occlusion: bool = False
-    chunk: int = 1024
+    chunk: int | None = None  # output window side; None: 1024, 512 on the NumPy path
     overviews: bool = True
     cog: bool = False
     compiled: bool | None = None  # numba's kernels for a camera model; None: by size
@@ -99,6 +99,10 @@ def orthorectify(photo: Any, image: Any, dem: Any, grid: Any, output: Any,
         options.compiled
     sampler = DemSampler(dem, grid.crs, options.band, options.dem_factor)
     sampler.compiled = compiled
+    # NumPy's map chunks its temporaries: smaller windows bound the memory of the small jobs it
+    # serves (two photos x two windows in flight: 4 x 24 MB at 1024, measured 40-50 MB less peak
+    # at 512 for the same CPU time)
+    chunk = options.chunk or (512 if photo.is_model and not compiled else 1024)
     sampler.preload(grid.bounds)
     to_orientation = orientation_transformer(photo, grid.crs)
     if to_orientation is not None and (options.occlusion or incidence_output is not None):
@@ -149,7 +153,7 @@ def orthorectify(photo: Any, image: Any, dem: Any, grid: Any, output: Any,
         # the engine runs the windows on one thread per core, each its map then its remap
         with feedback.timed("orthorectify"), single_threaded_opencv():
             warp = warp_to_geotiff(image.path, windows, grid, target, options.resampling,
-                                   options.outside, options.nodata, chunk=options.chunk,
+                                   options.outside, options.nodata, chunk=chunk,
                                    overviews=options.overviews and not options.cog,
                                    feedback=feedback.step(0, 90 if options.cog else 100),
                                    tags=tags)

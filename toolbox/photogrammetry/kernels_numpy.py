@@ -14,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 OK, OUTSIDE, NODATA, NOT_CONVERGED, RAY_UPWARD, NO_INTERSECTION = 0, 1, 2, 3, 4, 5
+MARCH_BLOCK = 32  # steps of every ray evaluated together in the march (some past its crossing)
 
 
 def supports(dmode: int, method: int = 0) -> bool:
@@ -102,18 +103,30 @@ def monoplot(u, v, centre, rot, c, pp, dmode, dr, dd, dk, di, m, dem, gx0, gy0, 
     found = np.zeros(u.shape, dtype=bool)
     found[live[fa[live] == 0.0]] = True
     walk = live[(fa[live] != 0.0) & (step[live] > 0.0)]
-    while walk.size:
-        bb = np.minimum(a[walk] + step[walk], s_hi)
-        fbb, code = f(walk, bb)
-        b[walk] = bb
+    while walk.size:  # MARCH_BLOCK steps of every ray at a time
+        # the samples b = a + step, (a + step) + step, ... as the kernel adds them (a cumulative
+        # sum adds in order), then min(., s_hi)
+        sums = np.empty((walk.size, MARCH_BLOCK + 1))
+        sums[:, 0] = a[walk]
+        sums[:, 1:] = step[walk, None]
+        bb = np.minimum(np.cumsum(sums, axis=1)[:, 1:], s_hi)
+        fbb, code = f(walk[:, None], bb)
         failed = code != OK
-        status[walk[failed]] = code[failed]
-        fb[walk] = fbb
         hit = ~failed & (fbb <= 0.0)
-        found[walk[hit]] = True
-        go = ~failed & ~hit & (bb < s_hi)
-        a[walk[go]], fa[walk[go]] = bb[go], fbb[go]
-        walk = walk[go]
+        event = failed | hit | (bb >= s_hi)  # the kernel's loop stops at the first of these
+        first = np.argmax(event, axis=1)
+        rows = np.arange(walk.size)
+        stops = event[rows, first]
+        at = first[stops]
+        done, r = walk[stops], rows[stops]
+        b[done], fb[done] = bb[r, at], fbb[r, at]
+        status[done[failed[r, at]]] = code[r, at][failed[r, at]]
+        found[done[hit[r, at]]] = True
+        later = at > 0  # the sample before the stop becomes a (else a stays)
+        a[done[later]], fa[done[later]] = bb[r[later], at[later] - 1], fbb[r[later], at[later] - 1]
+        go = walk[~stops]
+        a[go], fa[go] = bb[~stops, -1], fbb[~stops, -1]
+        walk = go
     # Illinois regula falsi on [a, b], fa > 0 >= fb
     idx = np.flatnonzero(found)
     root, froot = b.copy(), fb.copy()
