@@ -112,11 +112,16 @@ def _plane_terms(gx: np.ndarray, gy: np.ndarray, centre: np.ndarray, rot: np.nda
 
 
 def _grid_rows(terms, dz, rot, fisheye, k, focal, pp, valid, cols, rows) -> None:
-    """A chunk of :func:`frame_grid_to_pixels` (the arithmetic of ``grid_to_pixels``):
-    ``terms`` of :func:`_plane_terms`, ``dz`` the heights minus the centre's."""
-    x = terms[0] + rot[2, 0] * dz
-    y = terms[1] + (-rot[2, 1]) * dz
-    zc = terms[2] + (-rot[2, 2]) * dz
+    """A chunk of :func:`frame_grid_to_pixels` (the arithmetic of ``grid_to_pixels``, in
+    place where it can be: each product and sum is the kernel's, in its order; IEEE addition
+    and multiplication commute exactly): ``terms`` of :func:`_plane_terms`, ``dz`` the
+    heights minus the centre's."""
+    x = np.multiply(dz, rot[2, 0])
+    x += terms[0]
+    y = np.multiply(dz, -rot[2, 1])
+    y += terms[1]
+    zc = np.multiply(dz, -rot[2, 2])
+    zc += terms[2]
     with np.errstate(divide="ignore", invalid="ignore"):
         if fisheye:
             rho = np.sqrt(x * x + y * y)
@@ -127,26 +132,66 @@ def _grid_rows(terms, dz, rot, fisheye, k, focal, pp, valid, cols, rows) -> None
             s = np.where(rho > 0, td / rho, 1.0)
             xd, yd = x * s, y * s
         else:
-            xn, yn = x / zc, y / zc
-            r2 = xn * xn + yn * yn
-            ok = (zc > 0) & (r2 <= valid * valid)
+            xn, yn = np.divide(x, zc, out=x), np.divide(y, zc, out=y)
+            r2 = xn * xn
+            t = yn * yn
+            r2 += t
+            ok = zc > 0
+            ok &= r2 <= valid * valid
             # terms whose coefficients are all zero are left out: they add exactly 0 (or
             # divide by exactly 1) to finite values, so the results stay the kernel's
-            xd, yd = xn, yn
+            more = k[2] != 0.0 or k[3] != 0.0 or k[8:].any()
             if k[[0, 1, 4]].any():
-                ratio = 1.0 + r2 * (k[0] + r2 * (k[1] + r2 * k[4]))
+                ratio = np.multiply(r2, k[4], out=t)  # 1 + r2·(k1 + r2·(k2 + r2·k3))
+                ratio += k[1]
+                ratio *= r2
+                ratio += k[0]
+                ratio *= r2
+                ratio += 1.0
                 if k[5:8].any():
-                    ratio = ratio / (1.0 + r2 * (k[5] + r2 * (k[6] + r2 * k[7])))
+                    den = r2 * k[7]
+                    den += k[6]
+                    den *= r2
+                    den += k[5]
+                    den *= r2
+                    den += 1.0
+                    ratio /= den
                 xd, yd = xn * ratio, yn * ratio
-            if k[2] != 0.0 or k[3] != 0.0:
+            else:
+                xd, yd = (xn.copy(), yn.copy()) if more else (xn, yn)
+            if k[2] != 0.0 or k[3] != 0.0:  # tangential: xd + 2·p1·xy + p2·(r2 + 2·xn²), ...
                 xy = xn * yn
-                xd = xd + 2.0 * k[2] * xy + k[3] * (r2 + 2.0 * xn * xn)
-                yd = yd + k[2] * (r2 + 2.0 * yn * yn) + 2.0 * k[3] * xy
-            if k[8:].any():
-                xd = xd + r2 * (k[8] + r2 * k[9])
-                yd = yd + r2 * (k[10] + r2 * k[11])
-        u = (focal[0] * xd + pp[0]).astype("float32")
-        v = (focal[1] * yd + pp[1]).astype("float32")
-    bad = ~ok | np.isnan(u) | np.isnan(v)
-    cols[...] = np.where(bad, np.float32(np.nan), u)
-    rows[...] = np.where(bad, np.float32(np.nan), v)
+                t = xy * (2.0 * k[2])
+                xd += t
+                t = xn * 2.0
+                t *= xn
+                t += r2
+                t *= k[3]
+                xd += t
+                t = yn * 2.0
+                t *= yn
+                t += r2
+                t *= k[2]
+                yd += t
+                t = xy * (2.0 * k[3])
+                yd += t
+            if k[8:].any():  # thin prism: + r2·(s1 + r2·s2), + r2·(s3 + r2·s4)
+                t = r2 * k[9]
+                t += k[8]
+                t *= r2
+                xd += t
+                t = r2 * k[11]
+                t += k[10]
+                t *= r2
+                yd += t
+        xd *= focal[0]
+        xd += pp[0]
+        yd *= focal[1]
+        yd += pp[1]
+        cols[...] = xd
+        rows[...] = yd
+    bad = np.isnan(cols)
+    bad |= np.isnan(rows)
+    bad |= ~ok
+    np.copyto(cols, np.float32(np.nan), where=bad)
+    np.copyto(rows, np.float32(np.nan), where=bad)
