@@ -205,7 +205,7 @@ NOTES = [
     "bands at level 6 do: 0.11 against 0.12 s per NGI 5 m photo with the same overview "
     "levels, measured): the map and the resampling, "
     "where the toolbox is faster, are a small share of these runs, so the small cases end "
-    "near 1.1-1.2x in CPU; the 2 photo workers give the wall-time lead when cores are free.",
+    "near 1.2-1.3x in CPU; the 2 photo workers give the wall-time lead when cores are free.",
 ]
 
 
