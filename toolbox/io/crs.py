@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import functools
+import threading
 from typing import Any
 
 import numpy as np
@@ -85,19 +86,23 @@ def remember(question: str, answer: Any, keep: int = 512) -> None:
 
     from toolbox.cache import user_cache_dir
 
-    stored = _stored_lookups()
-    stored[_key(question)] = answer
-    while len(stored) > keep:
-        stored.pop(next(iter(stored)))
-    path = user_cache_dir(LOOKUP_CACHE)
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        with tempfile.NamedTemporaryFile("w", dir=path.parent, delete=False,
-                                         suffix=".tmp") as tmp:
-            json.dump(stored, tmp)
-        os.replace(tmp.name, path)
-    except OSError:
-        pass
+    with _LOOKUP_LOCK:  # (photos planned or reported on threads)
+        stored = _stored_lookups()
+        stored[_key(question)] = answer
+        while len(stored) > keep:
+            stored.pop(next(iter(stored)))
+        path = user_cache_dir(LOOKUP_CACHE)
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            with tempfile.NamedTemporaryFile("w", dir=path.parent, delete=False,
+                                             suffix=".tmp") as tmp:
+                json.dump(stored, tmp)
+            os.replace(tmp.name, path)
+        except OSError:
+            pass
+
+
+_LOOKUP_LOCK = threading.Lock()
 
 
 def crs_authority(crs: CRS, min_confidence: int = 90, auth_name: str | None = None
