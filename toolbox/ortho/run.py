@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import math
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -97,7 +97,8 @@ def orthorectify(photo: Any, image: Any, dem: Any, grid: Any, output: Any,
     sampler.compiled = compiled
     # NumPy's map chunks its temporaries: smaller windows bound the memory (two photos x two
     # windows in flight: 4 x 24 MB at 1024; measured 40-50 MB less peak at 512, same CPU time)
-    chunk = options.chunk or (512 if photo.is_model and not compiled else 1024)
+    if options.chunk is None:
+        options = replace(options, chunk=512 if photo.is_model and not compiled else 1024)
     sampler.preload(grid.bounds)
     to_orientation = orientation_transformer(photo, grid.crs)
     if to_orientation is not None and (options.occlusion or incidence_output is not None):
@@ -148,7 +149,7 @@ def orthorectify(photo: Any, image: Any, dem: Any, grid: Any, output: Any,
         # the engine runs the windows on one thread per core, each its map then its remap
         with feedback.timed("orthorectify"), single_threaded_opencv():
             warp = warp_to_geotiff(image.path, windows, grid, target, options.resampling,
-                                   options.outside, options.nodata, chunk=chunk,
+                                   options.outside, options.nodata, chunk=options.chunk,
                                    overviews=options.overviews and not options.cog,
                                    feedback=feedback.step(0, 90 if options.cog else 100),
                                    tags=tags)
