@@ -32,10 +32,17 @@ def utm_crs(lon: float, lat: float):
     from pyproj.aoi import AreaOfInterest
     from pyproj.database import query_utm_crs_info
 
-    info = query_utm_crs_info("WGS 84", area_of_interest=AreaOfInterest(lon, lat, lon, lat))
-    if not info:
+    from toolbox.io.crs import remember, remembered
+
+    question = f"utm|{lon!r}|{lat!r}"  # (kept between runs: the same answer every time)
+    code = remembered(question)
+    if code is None:
+        info = query_utm_crs_info("WGS 84", area_of_interest=AreaOfInterest(lon, lat, lon, lat))
+        code = [info[0].auth_name, info[0].code] if info else []
+        remember(question, code)
+    if not code:
         raise InputDataError(f"no UTM zone for lon {lon}, lat {lat}")
-    return CRS.from_authority(info[0].auth_name, info[0].code)
+    return CRS.from_authority(*code)
 
 
 def require_projected(crs: Any, where: str):

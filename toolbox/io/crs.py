@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import functools
+import threading
 from typing import Any
 
 import numpy as np
@@ -34,10 +35,74 @@ def _authority_matches(wkt: str, auth_name: str | None) -> tuple[tuple[str, str,
     """PROJ's identification of the CRS of ``wkt`` in ``auth_name``'s codes (None: every
     authority, slower), ``(authority, code, confidence)`` with confidence >= 70, best first;
     cached by the normalised WKT, so the same CRS read from different files (a GeoJSON's WKT,
-    a GeoTIFF's) is identified once (for a CRS without a code PROJ searches its database:
-    0.1-0.3 s)."""
-    return tuple((m.auth_name, m.code, m.confidence) for m in CRS.from_wkt(wkt)
-                 .list_authority(auth_name=auth_name, min_confidence=70))
+    a GeoTIFF's) is identified once, and kept in the user cache (:func:`remembered`): for a
+    CRS without a code PROJ searches its whole database, 0.1-0.7 s every run."""
+    matches = remembered(f"identify|{auth_name}|{wkt}")
+    if matches is None:
+        matches = [(m.auth_name, m.code, m.confidence) for m in CRS.from_wkt(wkt)
+                   .list_authority(auth_name=auth_name, min_confidence=70)]
+        remember(f"identify|{auth_name}|{wkt}", matches)
+    return tuple((str(a), str(c), int(n)) for a, c, n in matches)
+
+
+LOOKUP_CACHE = "proj_lookups.json"  # in toolbox.cache.user_cache_dir()
+
+
+def _key(question: str) -> str:
+    import hashlib
+
+    import pyproj
+
+    return hashlib.sha1(f"{pyproj.proj_version_str}|{question}".encode()).hexdigest()
+
+
+def remembered(question: str) -> Any:
+    """The answer (JSON) PROJ's database gave to ``question`` in an earlier run with this PROJ
+    version (:func:`remember`), or None. Searches of the database (identifying a CRS without a
+    code, finding a UTM zone) cost 0.1-0.7 s each run, the same answer every time."""
+    return _stored_lookups().get(_key(question))
+
+
+@functools.lru_cache(maxsize=1)
+def _stored_lookups() -> dict[str, Any]:
+    import json
+
+    from toolbox.cache import user_cache_dir
+
+    try:
+        stored = json.loads(user_cache_dir(LOOKUP_CACHE).read_text())
+        return stored if isinstance(stored, dict) else {}
+    except (OSError, ValueError):
+        return {}
+
+
+def remember(question: str, answer: Any, keep: int = 512) -> None:
+    """Keep ``answer`` (JSON-able) to ``question`` in the user cache (written atomically:
+    another process may be reading it; the oldest dropped beyond ``keep``); a cache that
+    cannot be written is left alone."""
+    import json
+    import os
+    import tempfile
+
+    from toolbox.cache import user_cache_dir
+
+    with _LOOKUP_LOCK:  # (photos planned or reported on threads)
+        stored = _stored_lookups()
+        stored[_key(question)] = answer
+        while len(stored) > keep:
+            stored.pop(next(iter(stored)))
+        path = user_cache_dir(LOOKUP_CACHE)
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            with tempfile.NamedTemporaryFile("w", dir=path.parent, delete=False,
+                                             suffix=".tmp") as tmp:
+                json.dump(stored, tmp)
+            os.replace(tmp.name, path)
+        except OSError:
+            pass
+
+
+_LOOKUP_LOCK = threading.Lock()
 
 
 def crs_authority(crs: CRS, min_confidence: int = 90, auth_name: str | None = None

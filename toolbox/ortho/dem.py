@@ -10,7 +10,6 @@ from typing import Any
 import numpy as np
 
 from toolbox.errors import InputDataError
-from toolbox.ortho.heights import heights_at_points, heights_on_grid
 
 
 class DemSampler:
@@ -40,6 +39,7 @@ class DemSampler:
 
             self.transformer = Transformer.from_crs(crs, info.crs, always_xy=True)
         self._cache: tuple | None = None  # (i0, j0, array) of coarse cells held in memory
+        self.compiled = True  # numba's kernels (toolbox.ortho.heights), else NumPy's (grid_numpy)
 
     def preload(self, bounds: tuple[float, float, float, float],
                 max_cells: int = 1 << 24) -> bool:
@@ -132,6 +132,10 @@ class DemSampler:
     def heights(self, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
         """Heights (h, w) float64 at the grid of cell centres ``xs`` (w,) x ``ys`` (h,) (output
         CRS), NaN where the DEM has none."""
+        if self.compiled:
+            from toolbox.ortho.heights import heights_at_points, heights_on_grid
+        else:
+            from toolbox.ortho.grid_numpy import heights_at_points, heights_on_grid
         xs = np.ascontiguousarray(xs, dtype="float64")
         ys = np.ascontiguousarray(ys, dtype="float64")
         out = np.full((len(ys), len(xs)), np.nan)

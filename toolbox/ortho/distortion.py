@@ -19,13 +19,16 @@ import math
 import numpy as np
 from numba import njit
 
+from toolbox.ortho.codes import (  # noqa: F401 - (re-exported)
+    BLOCK_EXACT,
+    BLOCK_INTERPOLATED,
+    BLOCK_PROJECTIVE,
+    DEFAULT_BLOCK,
+    DEFAULT_TOLERANCE_PX,
+)
 from toolbox.ortho.jit import FAST
 from toolbox.photogrammetry.kernels import _distort, _project2d, _tuple9
 
-DEFAULT_BLOCK = 64  # coarse-grid step of the distortion, cells: the thesis' 64, fastest measured
-DEFAULT_TOLERANCE_PX = 0.05  # largest interpolation error accepted, photo pixels
-#: block modes written by the kernel
-BLOCK_PROJECTIVE, BLOCK_INTERPOLATED, BLOCK_EXACT = 0, 1, 2
 
 def block_modes(cols: np.ndarray, rows: np.ndarray, block: int, lipschitz_px: float,
                 tolerance_px: float) -> np.ndarray:

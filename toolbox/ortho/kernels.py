@@ -15,6 +15,17 @@ import math
 import numpy as np
 from numba import njit
 
+from toolbox.ortho.codes import (  # noqa: F401 - (fields of ``stats``: re-exported)
+    RELIEF_ROWS,
+    STAT_COL_MAX,
+    STAT_COL_MIN,
+    STAT_MAX_RELIEF,
+    STAT_MISSING,
+    STAT_OUTSIDE_DEM,
+    STAT_OUTSIDE_PHOTO,
+    STAT_ROW_MAX,
+    STAT_ROW_MIN,
+)
 from toolbox.ortho.jit import FAST
 
 
@@ -54,10 +65,6 @@ def window_box(cols: np.ndarray, rows: np.ndarray, box: np.ndarray) -> None:
         box[:4] = (1e300, 1e300, -1e300, -1e300)
 
 
-#: fields of the ``stats`` array of :func:`ortho_window_projective`
-(STAT_COL_MIN, STAT_ROW_MIN, STAT_COL_MAX, STAT_ROW_MAX, STAT_MISSING, STAT_OUTSIDE_DEM,
- STAT_OUTSIDE_PHOTO, STAT_MAX_RELIEF) = range(8)
-RELIEF_ROWS = 8  # every 8th row (all its columns) enters the largest relief displacement
 
 
 @njit(**FAST)

@@ -74,6 +74,27 @@ def check_dem_crs(info: Any, name: str = "DEM") -> None:
                              "assign its CRS (e.g. gdal_edit.py -a_srs EPSG:4326) or reproject it")
 
 
+def dem_range(info: Any, band: int = 1) -> tuple[float, float]:
+    """The DEM's approximate height range (:func:`~toolbox.photogrammetry.surface.
+    dem_height_range`), computed once per file and band in a process (a block's photos ask it
+    twice each: GDAL opens the file and reads its overviews every time)."""
+    from pathlib import Path
+
+    from toolbox.photogrammetry.surface import dem_height_range
+
+    path = Path(info.path)
+    try:
+        key = (str(path.resolve()), path.stat().st_mtime_ns, band)
+    except OSError:
+        return dem_height_range(info, band)
+    if key not in _DEM_RANGES:
+        _DEM_RANGES[key] = dem_height_range(info, band)
+    return _DEM_RANGES[key]
+
+
+_DEM_RANGES: dict[tuple, tuple[float, float]] = {}  # dem_range's, by (path, mtime, band)
+
+
 def photo_surface(info: Any, photo: Any, crs: Any, band: int = 1) -> Any:
     """The DEM window every ray of the photo can meet, as a
     :class:`~toolbox.photogrammetry.surface.DemSurface` in ``crs`` (reprojected bilinearly at the
@@ -81,7 +102,7 @@ def photo_surface(info: Any, photo: Any, crs: Any, band: int = 1) -> Any:
     from toolbox.photogrammetry.surface import surface_for_photo
 
     if info.crs is None or crs is None or same_horizontal_crs(info.crs, crs):
-        return surface_for_photo(info, photo, band)
+        return surface_for_photo(info, photo, band, dem_range(info, band))
     import rasterio
     from rasterio.enums import Resampling
     from rasterio.vrt import WarpedVRT
@@ -119,6 +140,7 @@ def mean_height_inside(surface: Any, polygon: Any) -> float:
     rows, cols = surface.shape
     xx, yy = np.meshgrid(surface.x0 + np.arange(cols) * surface.cell_x,
                          surface.y0 - np.arange(rows) * surface.cell_y)
+    shapely.prepare(polygon)  # (an index of its edges: 10-50x faster on many points)
     inside = shapely.contains_xy(polygon, xx, yy) & np.isfinite(surface.z)
     return float(surface.z[inside].mean() if inside.any() else np.nanmean(surface.z))
 
@@ -182,13 +204,12 @@ def plan_photo(photo: Any, dem: Any, crs: Any, band: int = 1, cell: float | None
     """
     from toolbox.io.crs import parse_crs
     from toolbox.photogrammetry.coverage import photo_footprint
-    from toolbox.photogrammetry.surface import dem_height_range
 
     crs = None if crs is None else parse_crs(crs)
     output_crs = crs if output_crs is None else parse_crs(output_crs)
     check_dem_crs(dem)
     check_geometry(photo)
-    low, _ = dem_height_range(dem, band)
+    low, _ = dem_range(dem, band)
     check_geometry(photo, low)
     surface = photo_surface(dem, photo, crs, band)
     eo = photo.require_exterior()

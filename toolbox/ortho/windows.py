@@ -5,14 +5,15 @@ from __future__ import annotations
 
 import math
 from dataclasses import replace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from toolbox.cameras import CameraModel, GridProjector
-from toolbox.ortho.dem import DemSampler, lattice_transform
-from toolbox.ortho.distortion import BLOCK_EXACT, BLOCK_INTERPOLATED, BLOCK_PROJECTIVE
-from toolbox.ortho.kernels import (
+from toolbox.cameras import CameraModel, FrameCamera, GridProjector
+from toolbox.ortho.codes import (
+    BLOCK_EXACT,
+    BLOCK_INTERPOLATED,
+    BLOCK_PROJECTIVE,
     RELIEF_ROWS,
     STAT_COL_MAX,
     STAT_COL_MIN,
@@ -23,10 +24,12 @@ from toolbox.ortho.kernels import (
     STAT_ROW_MAX,
     STAT_ROW_MIN,
 )
+from toolbox.ortho.dem import DemSampler, lattice_transform
 from toolbox.ortho.metrics import TileStatistics, incidence_angle, relief_displacement
-from toolbox.ortho.sensor import CollinearityMap
-from toolbox.ortho.visibility import block_maxima, visibility_mask
 from toolbox.raster.maps import window_parts
+
+if TYPE_CHECKING:
+    from toolbox.ortho.sensor import CollinearityMap
 
 
 class MapBufferPool:
@@ -78,8 +81,10 @@ class OrthoWindows:
     def __init__(self, photo: Any, grid: Any, sampler: DemSampler, cmap: CollinearityMap | None,
                  reference_height: float, surface: Any = None, mask_writer: Any = None,
                  incidence_writer: Any = None, to_orientation: Any = None,
-                 resampling: str | None = None):
+                 resampling: str | None = None, compiled: bool = True):
         from toolbox.raster.resample import RESAMPLING_METHODS
+
+        self.compiled = compiled  # a camera model's map by numba's kernel, else NumPy's
 
         self.photo, self.grid, self.sampler, self.cmap = photo, grid, sampler, cmap
         # cmap None: the camera's own project() maps every window (project_cells)
@@ -221,7 +226,7 @@ class OrthoWindows:
             else:
                 gx, gy = lattice_transform(self.to_orientation, xs, ys, 1e-3 * cell_x)
                 gx, gy = gx.reshape(z.shape), gy.reshape(z.shape)
-            cols, rows, box = project_cells(self.camera, gx, gy, z)
+            cols, rows, box = project_cells(self.camera, gx, gy, z, self.compiled)
             modes = np.zeros((0, 0), dtype=np.int8)  # no blocks: every point exact
         return self._finish(window, xs, ys, gx, gy, z, cols, rows, modes, box)
 
@@ -247,6 +252,8 @@ class OrthoWindows:
         nan_z = np.isnan(z)
         stats.outside_dem = int(np.count_nonzero(nan_z))
         if self.surface is not None:
+            from toolbox.ortho.visibility import block_maxima, visibility_mask
+
             if self._maxima is None:
                 self._maxima = block_maxima(self.surface.z)
             hidden = visibility_mask(xs, ys, z, self.centre, self.surface, self._maxima)
@@ -333,13 +340,18 @@ class OrthoWindows:
         return total
 
 
-def project_cells(camera: CameraModel, gx: np.ndarray, gy: np.ndarray, z: np.ndarray
-                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def project_cells(camera: CameraModel, gx: np.ndarray, gy: np.ndarray, z: np.ndarray,
+                  compiled: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The coordinate map of a window through any camera: ground cells ``gx``, ``gy`` (h, w) at
     heights ``z`` (h, w; NaN: none) -> float32 photo pixels ``(cols, rows)`` (h, w; NaN where
     the cell has no height or no image) and ``box`` (col_min, row_min, col_max, row_max, NaN
     count) of the finite ones. A :class:`~toolbox.cameras.GridProjector` camera does it in
-    one compiled pass."""
+    one compiled pass; without ``compiled`` a :class:`~toolbox.cameras.FrameCamera` does it in
+    NumPy (:func:`~toolbox.ortho.grid_numpy.frame_grid_to_pixels`, the same arithmetic)."""
+    if not compiled and isinstance(camera, FrameCamera):
+        from toolbox.ortho.grid_numpy import frame_grid_to_pixels
+
+        return frame_grid_to_pixels(camera, gx, gy, z)
     if isinstance(camera, GridProjector):
         return camera.project_grid(gx, gy, z)
     image = camera.project(np.column_stack([gx.ravel(), gy.ravel(), z.ravel()]))

@@ -37,7 +37,16 @@ METHODS = {"march": 0, "fixed_point": 1}
 _IDENTITY = np.eye(3)
 
 
-def _kernels():
+NUMPY_POINTS = 1 << 16  # up to this many distortion-free points: NumPy (no numba start-up)
+
+
+def _kernels(points: int | None = None, dmode: int = 1, method: int = 0):
+    """The compiled kernels; their NumPy versions for a small distortion-free point set (a
+    footprint: a few hundred rays, where numba's start-up would cost far more)."""
+    from toolbox.photogrammetry import kernels_numpy
+
+    if points is not None and points <= NUMPY_POINTS and kernels_numpy.supports(dmode, method):
+        return kernels_numpy
     from toolbox.photogrammetry import kernels
 
     return kernels
@@ -150,9 +159,10 @@ def image_to_ground(points, z, centre, rotation, principal_distance: float,
         np.ascontiguousarray(np.broadcast_to(zz, shape).ravel())
     centre, rot, c, pp = _model(centre, rotation, principal_distance, principal_point)
     xyz = np.empty((len(u), 3))
-    count = _kernels().image_to_ground_at_z(u, v, heights, centre, rot, c, pp,
-                                            *_distortion_args(distortion),
-                                            _matrix(pixel_to_fiducial), xyz)
+    args = _distortion_args(distortion)
+    count = _kernels(len(u), args[0]).image_to_ground_at_z(u, v, heights, centre, rot, c, pp,
+                                                           *args, _matrix(pixel_to_fiducial),
+                                                           xyz)
     if count and invalid == "raise":
         _refuse(xyz, f"{count} image ray(s) do not meet the height plane in front of the camera")
     return xyz.reshape(shape + (3,))
@@ -238,9 +248,10 @@ def monoplot(points, surface, centre, rotation, principal_distance: float,
     xyz = np.empty((n, 3))
     status = np.empty(n, dtype=np.int8)
     iterations = np.empty(n, dtype=np.int32)
-    _kernels().monoplot(u, v, centre, rot, c, pp, *_distortion_args(distortion),
-                        _matrix(pixel_to_fiducial), dem, gx0, gy0, cx, cy, zmin, zmax,
-                        METHODS[method], start, float(tolerance), int(max_iterations), xyz,
-                        status, iterations)
+    args = _distortion_args(distortion)
+    _kernels(n, args[0], METHODS[method]).monoplot(
+        u, v, centre, rot, c, pp, *args, _matrix(pixel_to_fiducial), dem, gx0, gy0, cx, cy,
+        zmin, zmax, METHODS[method], start, float(tolerance), int(max_iterations), xyz, status,
+        iterations)
     return MonoplotResult(xyz.reshape(shape + (3,)), status.reshape(shape),
                           iterations.reshape(shape))
