@@ -135,7 +135,7 @@ def rpc_orthorectify(camera: Any, image: Any, dem: Any, grid: Any, output: Any,
     cmap = RpcOrthoMap(camera, grid, sampler)
     with feedback.timed("orthorectify"):
         warp = warp_to_geotiff(image.path, cmap, grid, output, options.resampling,
-                               options.outside, options.nodata, chunk=options.chunk,
+                               options.outside, options.nodata, chunk=options.chunk or 1024,
                                overviews=options.overviews, cog=options.cog,
                                feedback=feedback.step(0, 100),
                                tags={"ORTHO_CAMERA": "rpc",
