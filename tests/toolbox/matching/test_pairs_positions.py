@@ -117,3 +117,21 @@ def test_real_exif_positions_agree_with_opensfm(orthority_data):
     ours = lonlat_to_local(lonlat[:, 0], lonlat[:, 1])
     theirs = np.array([shots[n]["gps_position"][:2] for n in names])
     np.testing.assert_allclose(ours - ours[0], theirs - theirs[0], atol=0.05)
+
+
+def test_a_folder_of_drone_frames_pairs_by_their_exif(orthority_data):
+    """The ODM folder (no project, no log): pairs come from the frames' EXIF GPS; with one
+    neighbour each, the nearest frame of each is paired (brute force on OpenSfM's positions)."""
+    from toolbox.matching.block import TiePointOptions, select_pairs
+    from toolbox.matching.inputs import photos_from_folder
+
+    odm = orthority_data / "odm"
+    photos = photos_from_folder(odm / "images")
+    pairs, how = select_pairs(photos, TiePointOptions(neighbours=1))
+    assert how == "neighbours (EXIF GPS)"
+    shots = json.loads((odm / "opensfm" / "reconstruction.json").read_text())[0]["shots"]
+    xy = np.array([shots[p.id]["gps_position"][:2] for p in photos])
+    d = np.hypot(*(xy[:, None] - xy[None]).transpose(2, 0, 1))
+    np.fill_diagonal(d, np.inf)
+    nearest = {(min(i, int(j)), max(i, int(j))) for i, j in enumerate(d.argmin(axis=1))}
+    assert nearest <= {(i, j) for i, j, _ in pairs}
