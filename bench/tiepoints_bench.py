@@ -1,7 +1,8 @@
 """Benchmark: tie-point extraction and matching (orientation:tiepoints), time and peak memory.
 
     .venv/bin/python bench/tiepoints_bench.py [--scans 3] [--size 3000] [--block-size 16644]
-        [--detectors sift,akaze,orb] [--colmap-python /path/to/venv/bin/python] [--no-real]
+        [--drones 100 [--drone-photos DIR]] [--detectors sift,akaze,orb]
+        [--colmap-python /path/to/venv/bin/python] [--no-real]
 
 Workloads, each run as ``toolbox run orientation:tiepoints --IMAGES folder`` in a child process
 (wall time and the child's peak resident memory, :func:`benchlib.run_measured`):
@@ -14,6 +15,9 @@ Workloads, each run as ``toolbox run orientation:tiepoints --IMAGES folder`` in 
 - ``--scans`` synthetic scans of ``--size`` x ``--size`` px (8-bit, tiled GeoTIFF): crops of one
   multi-scale noise "terrain", 60 % forward overlap, each turned by up to 1 degree and noised;
   no cameras, so every pair is tried on thumbnails first (the worst case);
+- ``--drones``: that many 20 Mpx nadir drone photos (:func:`drone_layout`), pairs chosen from
+  a GNSS log (``--POSITIONS``), at a reduced detection level and with the defaults; checked
+  against the TRUE geometry (:func:`drone_disagreement`); pycolmap on the same pairs;
 - the four NGI aerial frames of Orthority's test data (when present), with their published
   orientations: the tie points' largest reprojection residual after intersection measures
   quality independently of the matcher.
@@ -230,43 +234,72 @@ def run_tiepoints(args: list[str], work: Path, tag: str, timeout: float | None =
     report = work / f"{tag}.json"
     cmd = [sys.executable, "-m", "toolbox", "run", "orientation:tiepoints", *args, "--OUTPUT",
            str(out), "--PAIRS", str(pairs), "--REPORT", str(report), "--overwrite"]
+    before = child_cpu()
     seconds, peak, code, err = run_measured(cmd, timeout=timeout)
+    cpu = child_cpu() - before
     if code != 0:
         return {"error": err.strip().splitlines()[-1] if err.strip() else f"exit {code}",
-                "seconds": seconds, "peak_mb": peak}
+                "seconds": seconds, "peak_mb": peak, "cpu": cpu}
     stats = json.loads(report.read_text())["statistics"]
     with open(pairs, newline="") as f:
         verified = sum(int(r["verified"]) for r in csv.DictReader(f))
-    return {"seconds": seconds, "peak_mb": peak, "verified": verified,
+    return {"seconds": seconds, "peak_mb": peak, "verified": verified, "cpu": cpu,
             "points": stats["points"], "pairs": stats["pairs_tied"],
-            "max_px": stats["max_reprojection_px"]}
+            "candidates": stats["pairs_candidate"], "max_px": stats["max_reprojection_px"]}
+
+
+def child_cpu() -> float:
+    """CPU seconds (user + system, every thread) of this process's finished children."""
+    import resource
+
+    use = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return use.ru_utime + use.ru_stime
 
 
 COLMAP_SCRIPT = """
 import sys, sqlite3, pycolmap
-db, images, out = sys.argv[1], sys.argv[2], sys.argv[3]
-pycolmap.extract_features(db, images)
-pycolmap.match_exhaustive(db)
+db, images, out, size, features, pairs = sys.argv[1:7]
+opts = pycolmap.FeatureExtractionOptions()
+if int(size) > 0:
+    opts.max_image_size = int(size)
+if int(features) > 0:
+    opts.sift.max_num_features = int(features)
+pycolmap.extract_features(db, images, extraction_options=opts)
+if pairs == "-":
+    pycolmap.match_exhaustive(db)
+else:
+    pycolmap.match_image_pairs(db, pairing_options=pycolmap.ImportedPairingOptions(
+        match_list_path=pairs))
 con = sqlite3.connect(db)
 rows = con.execute("select rows from two_view_geometries where rows > 0").fetchall()
 open(out, "w").write(f"{sum(r[0] for r in rows)} {len(rows)} {pycolmap.__version__}")
 """
 
 
-def run_colmap(python: str, images: Path, work: Path) -> dict:
-    """pycolmap's default SIFT extraction and exhaustive matching (with its own geometric
-    verification) in a child process: time, peak memory, verified matches."""
+def run_colmap(python: str, images: Path, work: Path, max_size: int = 0, features: int = 0,
+               pairs: list[tuple[str, str]] | None = None, timeout: float | None = None) -> dict:
+    """pycolmap's SIFT extraction (its defaults, or ``max_size`` px and ``features`` per
+    image) and matching (exhaustive, or the image ``pairs`` given: file names) with its own
+    geometric verification, in a child process: time, CPU, peak memory, verified matches."""
     script = work / "colmap_run.py"
     script.write_text(COLMAP_SCRIPT)
     db, out = work / "colmap.db", work / "colmap.txt"
     db.unlink(missing_ok=True)
+    listed = "-"
+    if pairs is not None:
+        listed = str(work / "colmap_pairs.txt")
+        Path(listed).write_text("".join(f"{a} {b}\n" for a, b in pairs))
+    before = child_cpu()
     seconds, peak, code, err = run_measured([python, str(script), str(db), str(images),
-                                             str(out)])
+                                             str(out), str(max_size), str(features), listed],
+                                            timeout=timeout)
+    cpu = child_cpu() - before
     if code != 0:
-        return {"error": (err.strip().splitlines() or ["failed"])[-1]}
-    verified, pairs, version = out.read_text().split()
-    return {"seconds": seconds, "peak_mb": peak, "verified": int(verified), "pairs": int(pairs),
-            "version": version}
+        return {"error": (err.strip().splitlines() or ["failed"])[-1], "seconds": seconds,
+                "cpu": cpu}
+    verified, n_pairs, version = out.read_text().split()
+    return {"seconds": seconds, "peak_mb": peak, "verified": int(verified), "pairs": int(n_pairs),
+            "version": version, "cpu": cpu}
 
 
 def ngi_project(folder: Path) -> Path | None:
@@ -283,15 +316,16 @@ def ngi_project(folder: Path) -> Path | None:
 
 
 def row(name: str, r: dict) -> str:
+    cpu = f"{r['cpu']:.0f}" if r.get("cpu") is not None else ""
     if "error" in r:
-        return f"| {name} | failed: {r['error']} | | | | | |"
+        return f"| {name} | failed: {r['error']} ({r.get('seconds', 0):.0f} s) | {cpu} | | | | | |"
     max_px = "" if r.get("max_px") is None else f"{r['max_px']:.2f}"
-    return (f"| {name} | {r['seconds']:.1f} | {r.get('peak_mb', float('nan')):.0f} | "
+    return (f"| {name} | {r['seconds']:.1f} | {cpu} | {r.get('peak_mb', float('nan')):.0f} | "
             f"{r['verified']:,} | {r.get('points', '')} | {r.get('pairs', '')} | {max_px} |")
 
 
-HEADER = ["| run | seconds | peak MB | verified matches | tie points | pairs tied | "
-          "max error px |", "|---|---:|---:|---:|---:|---:|---:|"]
+HEADER = ["| run | seconds | CPU s | peak MB | verified matches | tie points | pairs tied | "
+          "max error px |", "|---|---:|---:|---:|---:|---:|---:|---:|"]
 
 
 def block_section(size: int, detectors: list[str], colmap: str | None, say) -> list[str]:
@@ -328,31 +362,81 @@ def block_section(size: int, detectors: list[str], colmap: str | None, say) -> l
     return lines
 
 
-def drone_section(n: int, detectors: list[str], say, timeout: float = 1800.0) -> list[str]:
-    """``n`` synthetic nadir drone photos of 5472 x 3648 px (20 Mpx) rendered to a temporary
-    folder under /tmp (deleted after), matched in folder mode (no cameras)."""
+def drone_positions(path: Path, n: int, width: int = 5472, height: int = 3648,
+                    noise: float = 150.0, seed: int = 1) -> Path:
+    """A GNSS log of the photos of :func:`drone_layout`: photo, x, y (ground pixels, y up) of
+    each photo's centre with ``noise`` ground pixels of error (a drone's GNSS: a few metres at
+    a few centimetres a pixel)."""
+    rng = np.random.default_rng(seed)
+    lines = ["photo,x,y"]
+    for name, (origin, _) in drone_layout(n, width, height).items():
+        x, y = np.array(origin) + [width / 2.0, height / 2.0] + rng.normal(0.0, noise, 2)
+        lines.append(f"{name},{x:.1f},{-y:.1f}")
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def render_drones(folder: Path, n: int) -> float:
+    """Render the missing photos of :func:`drone_layout` into ``folder``; seconds spent."""
     import time
 
+    t0 = time.perf_counter()
+    for k, (name, (origin, angle)) in enumerate(drone_layout(n).items()):
+        target = folder / f"{name}.tif"
+        if not target.exists():
+            part = folder / f"{name}.part.tif"
+            write_big_scan(part, 5472, origin, angle, k, height=3648)
+            part.rename(target)
+    return time.perf_counter() - t0
+
+
+#: the drone runs: (label, extra tiepoints arguments); the POSITIONS log is always given
+DRONE_RUNS = (
+    ("neighbours from the GNSS log, detection level 2000 px, 4000 features",
+     ["--MAX_SIZE", "2000", "--MAX_FEATURES", "4000"]),
+    ("neighbours from the GNSS log, defaults (3000 px, 10,000 features)", []),
+)
+
+
+def drone_section(n: int, detectors: list[str], say, timeout: float = 1800.0,
+                  photos_dir: Path | None = None, colmap: str | None = None,
+                  colmap_timeout: float = 1200.0) -> list[str]:
+    """``n`` synthetic nadir drone photos of 5472 x 3648 px (20 Mpx), rendered (not timed) into
+    ``photos_dir`` (kept) or a temporary folder under /tmp (deleted after), matched with pairs
+    chosen from a GNSS log (``--POSITIONS``: about 8 neighbours a photo); with ``colmap``,
+    pycolmap on the same photos and the same pairs."""
     lines = [f"{n} synthetic drone photos, 5472 x 3648 px (20 Mpx, 8-bit grey, tiled "
              "uncompressed GeoTIFF): a serpentine grid, 80 % forward / 60 % side overlap, every "
-             "other line flown back, each turned up to 3 degrees; folder mode (no cameras: all "
-             f"{n * (n - 1) // 2} pairs tried on thumbnails first). Max error as above (photo "
-             "pixels).", ""]
+             "other line flown back, each turned up to 3 degrees. Pairs from a GNSS log (photo "
+             "centres with 150 ground px of noise): each photo's 8 nearest plus the Delaunay "
+             f"edges, instead of all {n * (n - 1) // 2} pairs. Max error as above (photo "
+             "pixels); CPU s = user + system seconds of the run's process (every thread).", ""]
     with tempfile.TemporaryDirectory(dir="/tmp") as tmp:
         work = Path(tmp)
-        photos = work / "photos"
-        photos.mkdir()
-        t0 = time.perf_counter()
-        for k, (name, (origin, angle)) in enumerate(drone_layout(n).items()):
-            write_big_scan(photos / f"{name}.tif", 5472, origin, angle, k, height=3648)
-        lines += [f"(rendering the photos, not timed below: {time.perf_counter() - t0:.0f} s)",
-                  "", *HEADER]
+        photos = photos_dir or work / "photos"
+        photos.mkdir(parents=True, exist_ok=True)
+        rendered = render_drones(photos, n)
+        log = drone_positions(work / "gnss.csv", n)
+        lines += [f"(rendering the photos, not timed below: {rendered:.0f} s)", "", *HEADER]
+        say(lines[-3])
+        pair_list = None
         for d in detectors:
-            r = run_tiepoints(["--IMAGES", str(photos), "--DETECTOR", d], work, f"drone_{d}",
-                              timeout)
-            if "error" not in r:
-                r["max_px"] = float(drone_disagreement(work / f"drone_{d}.csv", n=n).max())
-            lines.append(row(f"toolbox {d}", r))
+            for label, extra in DRONE_RUNS:
+                tag = f"drone_{d}_{len(extra)}"
+                r = run_tiepoints(["--IMAGES", str(photos), "--POSITIONS", str(log),
+                                   "--DETECTOR", d, *extra], work, tag, timeout)
+                if "error" not in r:
+                    r["max_px"] = float(drone_disagreement(work / f"{tag}.csv", n=n).max())
+                    if pair_list is None:
+                        with open(work / f"{tag}_pairs.csv", newline="") as f:
+                            pair_list = [(f"{p['photo_a']}.tif", f"{p['photo_b']}.tif")
+                                         for p in csv.DictReader(f)]
+                lines.append(row(f"toolbox {d}, {label} ({r.get('candidates', '?')} pairs)", r))
+                say(lines[-1])
+        if colmap and pair_list is not None:
+            r = run_colmap(colmap, photos, work, 2000, 4000, pair_list, colmap_timeout)
+            lines.append(row(f"pycolmap {r.get('version', '')} SIFT, 2000 px, 4000 features, "
+                             f"the same {len(pair_list)} pairs", r))
             say(lines[-1])
     return lines
 
@@ -365,6 +449,8 @@ def main() -> None:
                         help="also a block of 6 scans of this size (16644: the issue's target)")
     parser.add_argument("--drones", type=int, default=0,
                         help="also this many 20 Mpx drone photos (100: the issue's target)")
+    parser.add_argument("--drone-photos", default=None,
+                        help="folder for the drone photos (rendered where missing, kept)")
     parser.add_argument("--detectors", default="sift,akaze,orb")
     parser.add_argument("--colmap-python", default=None)
     parser.add_argument("--no-real", action="store_true", help="skip the NGI frames")
@@ -388,7 +474,9 @@ def main() -> None:
     if args.block_size:
         lines += block_section(args.block_size, detectors, args.colmap_python, say) + [""]
     if args.drones:
-        lines += drone_section(args.drones, detectors, say) + [""]
+        lines += drone_section(args.drones, detectors, say,
+                               photos_dir=Path(args.drone_photos) if args.drone_photos else None,
+                               colmap=args.colmap_python) + [""]
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(tmp)
         if args.scans:

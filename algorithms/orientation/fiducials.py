@@ -158,6 +158,14 @@ class FiducialMarks(Algorithm):
                                      opts, params["ORIENTATION"])
             except InputDataError as exc:
                 raise InputDataError(f"photo {photo.id!r}: {exc}") from None
+            if all(r.status == "outside" for r in found.marks):
+                reach = max(max(abs(x), abs(y)) for x, y in cam.fiducials_mm.values())
+                raise InputDataError(
+                    f"PROJECT: every calibrated mark of camera {cam.name!r} falls outside the "
+                    f"scan of photo {photo.id!r} ({reader.width} x {reader.height} px of "
+                    f"{pixel:g} mm = {reader.width * pixel:.1f} x {reader.height * pixel:.1f} "
+                    f"mm; marks up to {reach:g} mm from the centre): check fiducials_mm and "
+                    "PIXEL_SIZE / pixel_size_mm")
             io = fit_marks(dict(cam.fiducials_mm), found, params["TRANSFORMATION"],
                            params["MAX_RESIDUAL"])
             missing = [r for r in found.marks if not r.ok]

@@ -26,9 +26,13 @@ class TiePoints(Algorithm):
 
     Photos come from PROJECT (every photo with an ``image``; cameras and, when present,
     exterior orientations) or from the image files of the folder IMAGES (ids = file names
-    without suffix; no camera). Pairs: with oriented photos and TERRAIN_HEIGHT, those whose
-    footprints on the plane at that height overlap by MIN_OVERLAP percent; otherwise every pair
-    is matched on thumbnails (800 px) first and kept when it verifies.
+    without suffix; no camera). Pairs (PAIR_SELECTION auto picks the first that applies):
+    footprints: with oriented photos and TERRAIN_HEIGHT, those whose footprints on the plane at
+    that height overlap by MIN_OVERLAP percent; neighbours: with approximate positions (the
+    POSITIONS GNSS log, PROJECT's orientations, or EXIF GPS tags in every image), each photo
+    with its NEIGHBOURS nearest photos plus the edges of the positions' Delaunay triangulation
+    (about 8-10 pairs a photo instead of all of them); thumbnails: every pair is matched on
+    thumbnails (800 px) first and kept when it verifies.
 
     Method (OpenCV): each photo is read decimated to MAX_SIZE pixels on its longer side (area
     average; bounded memory whatever the scan size) and DETECTOR features (SIFT by default; see
@@ -68,6 +72,14 @@ class TiePoints(Algorithm):
              extensions=[".yaml", ".yml"], optional=True),
         String("IMAGES", "or a folder of images (no cameras: pairs by thumbnails)",
                optional=True),
+        File("POSITIONS", "approximate photo positions (CSV: photo and x, y planar or lon, "
+             "lat degrees; a GNSS log) for choosing pairs", extensions=[".csv", ".txt"],
+             optional=True),
+        Enum("PAIR_SELECTION", "how pairs are chosen (auto: footprints, else neighbours, else "
+             "thumbnails)", options=("auto", "footprints", "neighbours", "thumbnails"),
+             default="auto"),
+        Integer("NEIGHBOURS", "neighbours mode: nearest photos matched with each photo",
+                default=8, min_value=1, max_value=1000),
         Enum("DETECTOR", "feature detector (akaze only with an OpenCV that has it: not 5.x)",
              options=("sift", "orb", "akaze"), default="sift"),
         Integer("MAX_SIZE", "longer side of the detection level, px", default=3000,
@@ -142,6 +154,11 @@ class TiePoints(Algorithm):
         if len(photos) < 2:
             raise self.fail("PROJECT" if params["PROJECT"] else "IMAGES",
                             f"needs at least two photos with an image, found {len(photos)}")
+        positions = None
+        if params["POSITIONS"] is not None:
+            from toolbox.matching.positions import read_positions
+
+            positions = read_positions(params["POSITIONS"], [bp.id for bp in photos])
         opts = TiePointOptions(
             detector=params["DETECTOR"], max_size=params["MAX_SIZE"],
             max_features=params["MAX_FEATURES"], ratio=params["RATIO"],
@@ -149,7 +166,8 @@ class TiePoints(Algorithm):
             border_px=params["BORDER"], target_per_model=params["TARGET"],
             refine=params["REFINE"], min_ncc=params["MIN_NCC"],
             epipolar_tolerance=params["EPIPOLAR_TOLERANCE"], min_overlap=params["MIN_OVERLAP"],
-            terrain_height=params["TERRAIN_HEIGHT"])
+            terrain_height=params["TERRAIN_HEIGHT"], pair_selection=params["PAIR_SELECTION"],
+            neighbours=params["NEIGHBOURS"], positions=positions)
         with feedback.timed("tie points"):
             result = tie_points(photos, opts, lambda p, m: feedback.set_progress(0.95 * p, m))
         if result.untied:

@@ -3,8 +3,10 @@
 1. each photo is read at a reduced level (longer side <= ``max_size``, area average: bounded
    memory for 16644 x 16644 scans) and its features are detected tile by tile
    (:mod:`features`), outside a border of ``border_px`` (fiducial marks, data strip);
-2. pairs: footprint overlap when the photos are oriented and a terrain height is known
-   (:mod:`pairs`); otherwise every pair is matched on thumbnails first and kept when it verifies;
+2. pairs (:mod:`pairs`): footprint overlap when the photos are oriented and a terrain height is
+   known; else, with approximate positions (a GNSS log, the orientations' centres, EXIF GPS),
+   each photo's nearest neighbours; otherwise every pair is matched on thumbnails first and
+   kept when it verifies;
 3. each pair: ratio test, USAC/MAGSAC fundamental matrix, and with orientations the epipolar
    distance (:mod:`matching`);
 4. tracks by union-find, inconsistent ones dropped (:mod:`tracks`);
@@ -52,6 +54,9 @@ class TiePointOptions:
     min_overlap: float = 5.0  # percent, footprint pairs
     terrain_height: float | None = None  # plane for the footprints
     thumbnail_size: int = 800
+    pair_selection: str = "auto"  # auto | footprints | neighbours | thumbnails
+    neighbours: int = 8  # neighbours mode: nearest photos per photo (plus Delaunay edges)
+    positions: np.ndarray | None = None  # (N, 2) planar photo positions (a GNSS log), or None
 
 
 @dataclass
@@ -170,13 +175,49 @@ def _has_camera(bp: BlockPhoto) -> bool:
     return matching.has_camera(bp.photo)
 
 
+def photo_positions(photos: list[BlockPhoto], opts: TiePointOptions
+                    ) -> tuple[np.ndarray, str] | None:
+    """Planar positions of every photo and where they come from (the GNSS log of ``opts``,
+    the orientations' centres, the images' EXIF GPS), or None when not every photo has one."""
+    from toolbox.matching.positions import lonlat_to_local
+
+    if opts.positions is not None:
+        return np.asarray(opts.positions, dtype="float64"), "positions"
+    if all(bp.photo is not None and bp.photo.exterior is not None for bp in photos):
+        return np.array([bp.photo.exterior.centre[:2] for bp in photos]), "orientations"
+    if all(bp.source.lonlat is not None for bp in photos):
+        lonlat = np.array([bp.source.lonlat for bp in photos])
+        return lonlat_to_local(lonlat[:, 0], lonlat[:, 1]), "EXIF GPS"
+    return None
+
+
 def select_pairs(photos: list[BlockPhoto], opts: TiePointOptions
                  ) -> tuple[list[tuple[int, int, float | None]], str]:
-    """Candidate pairs and how they were chosen (footprints / thumbnails)."""
+    """Candidate pairs and how they were chosen (``opts.pair_selection``; "auto": footprints
+    when oriented with a terrain height, else neighbours when positions are known, else
+    thumbnails)."""
+    how = opts.pair_selection
     oriented = all(bp.photo is not None and bp.photo.exterior is not None for bp in photos)
-    if oriented and opts.terrain_height is not None:
+    if how in ("auto", "footprints") and oriented and opts.terrain_height is not None:
         return pairs.footprint_pairs([bp.photo for bp in photos], opts.terrain_height,
                                      opts.min_overlap), "footprints"
+    if how == "footprints":
+        raise InputDataError("PAIR_SELECTION footprints needs every photo oriented (PROJECT "
+                             "with exterior orientations) and TERRAIN_HEIGHT")
+    known = photo_positions(photos, opts) if how in ("auto", "neighbours") else None
+    if known is not None:
+        xy, source = known
+        return pairs.neighbour_pairs(xy, opts.neighbours), f"neighbours ({source})"
+    if how == "neighbours":
+        raise InputDataError("PAIR_SELECTION neighbours needs a position for every photo: "
+                             "POSITIONS (a GNSS log), orientations in PROJECT or EXIF GPS tags "
+                             "in every image")
+    return _thumbnail_pairs(photos, opts), "thumbnails"
+
+
+def _thumbnail_pairs(photos: list[BlockPhoto], opts: TiePointOptions
+                     ) -> list[tuple[int, int, float | None]]:
+    """Every pair matched on thumbnails; those that verify."""
     small = TiePointOptions(**{**opts.__dict__, "per_tile": 1000})
     every = pairs.all_pairs(len(photos))
     # every photo will be detected at max_size: keep that level from this pass when it fits
@@ -189,7 +230,7 @@ def select_pairs(photos: list[BlockPhoto], opts: TiePointOptions
         found = list(pool.map(lambda c: len(_match(thumbs[c[0]][0], thumbs[c[1]][0], opts,
                                                    max(thumbs[c[0]][1], thumbs[c[1]][1]),
                                                    photos[c[0]], photos[c[1]])), every))
-    return [c for c, n in zip(every, found, strict=True) if n >= opts.min_matches], "thumbnails"
+    return [c for c, n in zip(every, found, strict=True) if n >= opts.min_matches]
 
 
 def tie_points(photos: list[BlockPhoto], opts: TiePointOptions,
@@ -276,21 +317,30 @@ def tie_points(photos: list[BlockPhoto], opts: TiePointOptions,
     result_tracks = []
     kept_idx = np.flatnonzero(keep)
     sources = {k: photos[k].source for k in used}
-    for n, k in enumerate(kept_idx):
-        photo_idx = [p for p, _ in found[k]]
-        pos = xy[k].copy()
-        sigma = np.full(len(photo_idx), 0.5 * max(scales[p] for p in photo_idx))
-        refined = False
-        if opts.refine:
-            pos, ok = _refine_track(k, found, xy, sources, opts, scales, common, epipolar)
-            photo_idx = [p for p, o in zip(photo_idx, ok, strict=True) if o]
-            pos = pos[ok]
-            sigma = np.full(len(photo_idx), 0.5)
-            refined = True
-        if len(photo_idx) >= 2:
-            result_tracks.append(Track(photo_idx, pos, sigma, refined))
-        if n % 50 == 0:
-            say(70 + 25 * n / max(1, len(kept_idx)), "refining")
+    def refined_track(k: int) -> tuple[np.ndarray, np.ndarray]:
+        return _refine_track(k, found, xy, sources, opts, scales, common, epipolar)
+
+    # tracks refine independently: threads (OpenCV's remap and LAPACK release the GIL; reads
+    # of one photo are serialised by its source's lock)
+    with ThreadPoolExecutor(opts.workers or os.cpu_count() or 1) as pool:
+        done = pool.map(refined_track, kept_idx) if opts.refine else iter(())
+        for n, k in enumerate(kept_idx):
+            photo_idx = [p for p, _ in found[k]]
+            pos = xy[k].copy()
+            sigma = np.full(len(photo_idx), 0.5 * max(scales[p] for p in photo_idx))
+            refined = False
+            if opts.refine:
+                pos, ok = next(done)
+                photo_idx = [p for p, o in zip(photo_idx, ok, strict=True) if o]
+                pos = pos[ok]
+                sigma = np.full(len(photo_idx), 0.5)
+                refined = True
+            if len(photo_idx) >= 2:
+                result_tracks.append(Track(photo_idx, pos, sigma, refined))
+            if n % 50 == 0:
+                say(70 + 25 * n / max(1, len(kept_idx)), "refining")
+    for source in sources.values():
+        source.close()
     _count_kept(reports, verified, result_tracks, photos, feats)
     return TiePointResult(photos, result_tracks, reports, untied, dropped,
                           {photos[k].id: len(feats[k]) for k in used}, how)

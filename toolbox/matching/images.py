@@ -8,14 +8,17 @@ Pixel convention: (col, row) with the top-left pixel's centre at (0.5, 0.5). A l
 
 from __future__ import annotations
 
+import threading
 import warnings
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from toolbox.errors import InputDataError
+from toolbox.matching.positions import exif_lonlat
 
 
 @contextmanager
@@ -42,7 +45,10 @@ class ImageSource:
     bands: int
     dtype: str
     stretch: tuple[float, float] | None = None
+    lonlat: tuple[float, float] | None = None  # EXIF GPS position (degrees), when tagged
     _grey_full: np.ndarray | None = field(default=None, repr=False)
+    _handle: Any = field(default=None, repr=False)  # the open dataset of window reads
+    _lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
 
     #: photos up to this many pixels are held whole in memory (grey, 1 byte a pixel) once a
     #: window is asked for; bigger ones are read window by window
@@ -58,6 +64,7 @@ class ImageSource:
         try:
             with _quiet(), rasterio.open(path) as src:
                 info = cls(path, src.width, src.height, src.count, src.dtypes[0])
+                info.lonlat = exif_lonlat(src.tags())
         except rasterio.errors.RasterioError as exc:
             raise InputDataError(f"{name}: cannot read image {path}: "
                                  f"{str(exc).splitlines()[0]}") from None
@@ -91,6 +98,14 @@ class ImageSource:
                             resampling=Resampling.average if scale > 1 else Resampling.nearest)
         return self._grey(data), (self.width / w, self.height / h)
 
+    def close(self) -> None:
+        """Release the dataset of window reads and the whole-photo copy (reopened on demand)."""
+        with self._lock:
+            if self._handle is not None:
+                self._handle.close()
+                self._handle = None
+            self._grey_full = None
+
     def window(self, col0: int, row0: int, width: int, height: int) -> np.ndarray:
         """Full-resolution grey window (pixels outside the image are 0), shape (height, width)."""
         import rasterio
@@ -111,8 +126,12 @@ class ImageSource:
         c1, r1 = min(self.width, col0 + width), min(self.height, row0 + height)
         data = np.zeros((self.bands, height, width), dtype=self.dtype)
         if c1 > c0 and r1 > r0:
-            with _quiet(), rasterio.open(self.path) as src:
-                data[:, r0 - row0:r1 - row0, c0 - col0:c1 - col0] = src.read(
+            # one dataset kept open (its block cache serves neighbouring windows): reopening
+            # the file for every window cost more than the reads of a refinement pass
+            with self._lock, _quiet():
+                if self._handle is None:
+                    self._handle = rasterio.open(self.path)
+                data[:, r0 - row0:r1 - row0, c0 - col0:c1 - col0] = self._handle.read(
                     window=Window(c0, r0, c1 - c0, r1 - r0))
         if self.stretch is None:
             self.level(self.scale_for(1024))  # sets the stretch

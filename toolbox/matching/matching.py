@@ -135,9 +135,40 @@ def verify(a: Features, b: Features, ia: np.ndarray, ib: np.ndarray, threshold_p
     if model is None or inliers is None or model.matrix.shape != (3, 3):
         return empty
     keep = inliers.ravel().astype(bool)
+    if model.kind == "F" and keep.sum() >= min_matches:
+        keep &= _planar_check(xa, xb, keep, threshold_px, confidence)
     if keep.sum() < min_matches:
         return empty
     return PairMatches(ia[keep], ib[keep], model.residual(xa[keep], xb[keep]), len(ia), model)
+
+
+#: share of a fundamental matrix's inliers that one homography explains, from which the scene
+#: counts as planar (flat ground seen by nadir photos)
+PLANAR_SHARE = 0.9
+
+
+def _planar_check(xa: np.ndarray, xb: np.ndarray, keep: np.ndarray, threshold_px: float,
+                  confidence: float) -> np.ndarray:
+    """Mask of the matches to keep after a homography check of a fundamental matrix's inliers.
+
+    On a planar scene (flat ground, nadir photos) the fundamental matrix is degenerate: a
+    one-parameter family fits the true matches, and a wrong match anywhere along its (ill-
+    defined) epipolar line passes. When one homography explains ``PLANAR_SHARE`` of the
+    inliers (USAC/MAGSAC, threshold 3 x ``threshold_px``: lens distortion and small relief
+    stay in), the homography decides instead; otherwise every inlier is kept."""
+    import cv2
+
+    idx = np.flatnonzero(keep)
+    try:
+        h, on = cv2.findHomography(xa[idx] - 0.5, xb[idx] - 0.5, cv2.USAC_MAGSAC,
+                                   3.0 * threshold_px, maxIters=10000, confidence=confidence)
+    except cv2.error:
+        return np.ones(len(keep), bool)
+    if h is None or on is None or on.sum() < PLANAR_SHARE * len(idx):
+        return np.ones(len(keep), bool)
+    out = np.ones(len(keep), bool)
+    out[idx[~on.ravel().astype(bool)]] = False
+    return out
 
 
 def has_camera(photo) -> bool:

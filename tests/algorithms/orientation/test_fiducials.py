@@ -99,3 +99,65 @@ def test_template_image_and_bad_templates(scans, tmp_path):
         "--LINE_WIDTH", "0.3", "--SEARCH_MM", "0.5", "--OUTPUT", str(tmp_path / "bad.json")])
     assert result.exit_code == 2 and "larger than the search window" in result.output
     assert "Traceback" not in result.output and not (tmp_path / "bad.json").exists()
+
+
+def test_every_scan_orientation_is_recognised(tmp_path):
+    """Scans turned by 90, 180 and 270 degrees (a few degrees off), and mirrored: the
+    orientation named, each mark within 0.3 px RMS of where it was drawn."""
+    rot = {k: np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]]).round()
+           for k, a in ((90, np.pi / 2), (180, np.pi), (270, 3 * np.pi / 2))}
+    mirror = np.array([[-1.0, 0.0], [0.0, 1.0]])
+    cases = {"r90": rot[90], "r180": rot[180], "r270": rot[270], "m0": mirror,
+             "m180": mirror @ rot[180]}
+    rendered = {pid: sc.render_scan(tmp_path / f"{pid}.tif", angle_deg=2.5 - k, orientation=g,
+                                    seed=10 + k) for k, (pid, g) in enumerate(cases.items())}
+    project = sc.project_yaml(tmp_path / "turned.yaml", {p: s.path.name
+                                                         for p, s in rendered.items()})
+    toolbox.run("orientation:fiducials", {"PROJECT": project, **FAMILY,
+                                          "OUTPUT": tmp_path / "io.json"})
+    photos = {e["photo"]: e for e in json.loads((tmp_path / "io.json").read_text())["photos"]}
+    assert {p: photos[p]["scan_orientation"] for p in cases} == {
+        "r90": "90", "r180": "180", "r270": "270", "m0": "0m", "m180": "180m"}
+    for pid, scan in rendered.items():
+        assert photos[pid]["marks"] == 8 and photos[pid]["missing"] == []
+        error = [np.hypot(r["col_px"] - scan.centres[r["mark"]][0],
+                          r["row_px"] - scan.centres[r["mark"]][1])
+                 for r in photos[pid]["residuals"]]
+        assert np.sqrt(np.mean(np.square(error))) <= 0.3, (pid, error)
+
+
+def test_certificate_marks_outside_the_frame(scans, tmp_path):
+    """A certificate mark that falls off the scan is reported missing ('outside'), counted
+    and warned about; a certificate none of whose marks fall on the scan is a one-line error."""
+    import yaml
+
+    folder, project, rendered = scans
+    doc = yaml.safe_load(project.read_text())
+    doc["cameras"][0]["fiducials_mm"]["9"] = [125.0, -60.0]  # 1250 px right of the centre
+    for p in doc["photos"]:
+        p["image"] = str(folder / p["image"])
+    extra = tmp_path / "extra.yaml"
+    extra.write_text(yaml.safe_dump(doc))
+    feedback = toolbox.Feedback()
+    out = toolbox.run("orientation:fiducials", {"PROJECT": extra, "PHOTOS": "upright", **FAMILY,
+                                                "OUTPUT": tmp_path / "io.json"},
+                      feedback=feedback)
+    entry = json.loads((tmp_path / "io.json").read_text())["photos"][0]
+    assert [(m["mark"], m["status"]) for m in entry["missing"]] == [("9", "outside")]
+    assert entry["marks"] == 8 and out["STATISTICS"]["marks_missing"] == 1
+    assert any("9" in w for w in feedback.warnings)
+    scan = rendered["upright"]
+    error = [np.hypot(r["col_px"] - scan.centres[r["mark"]][0],
+                      r["row_px"] - scan.centres[r["mark"]][1]) for r in entry["residuals"]]
+    assert np.sqrt(np.mean(np.square(error))) <= 0.3
+    # a certificate for a far bigger format: every mark off the scan
+    doc["cameras"][0]["fiducials_mm"] = {k: [3 * x, 3 * y] for k, (x, y) in
+                                         sc.MARKS.items()}
+    (tmp_path / "big.yaml").write_text(yaml.safe_dump(doc))
+    result = CliRunner().invoke(main, [
+        "run", "orientation:fiducials", "--PROJECT", str(tmp_path / "big.yaml"), "--PHOTOS",
+        "upright", "--MARK_SIZE", "2", "--LINE_WIDTH", "0.3", "--OUTPUT",
+        str(tmp_path / "bad.json")])
+    assert result.exit_code == 2, result.output
+    assert len(result.output.strip().splitlines()) == 1 and "Traceback" not in result.output
+    assert not (tmp_path / "bad.json").exists()

@@ -130,6 +130,51 @@ def test_block_from_a_folder_without_cameras(block, tmp_path):
     assert np.mean(res <= 0.5) >= 0.99, np.percentile(res, [50, 99, 100])
 
 
+def test_block_pairs_from_a_gnss_log(block, tmp_path):
+    """Pairs from approximate positions (the true centres with 30 m of noise, a GNSS log):
+    each photo's nearest neighbour plus the Delaunay edges, fewer than every pair, all tied,
+    and the measurements as good as with every pair."""
+    rng = np.random.default_rng(8)
+    log = tmp_path / "gnss.csv"
+    log.write_text("photo,x,y\n" + "".join(
+        f"{p.id},{p.exterior.x0 + rng.normal(0, 30)},{p.exterior.y0 + rng.normal(0, 30)}\n"
+        for p in block.photos))
+    out = toolbox.run("orientation:tiepoints", {
+        "IMAGES": str(block.images[0].parent), "POSITIONS": log, "NEIGHBOURS": 1,
+        "OUTPUT": tmp_path / "tie.csv", "PAIRS": tmp_path / "pairs.csv", "TARGET": 32})
+    stats = out["STATISTICS"]
+    assert stats["pair_selection"] == "neighbours (positions)"
+    # 3 x 2 grid: the triangulation's 9 or 10 edges (4 forward, 3 side, 2 or 3 diagonals as
+    # the noise falls), not all 15
+    assert 9 <= stats["pairs_candidate"] <= 10
+    assert stats["pairs_tied"] == stats["pairs_candidate"]
+    assert stats["untied_photos"] == []
+    rows = read_measurements(tmp_path / "tie.csv")
+    check_tracks(rows)
+    res = truth_residuals(rows, {p.id: p for p in block.photos})
+    assert len(res) > 300
+    assert np.mean(res <= 0.5) >= 0.99, np.percentile(res, [50, 99, 100])
+
+
+@pytest.mark.parametrize("args, words", [
+    (["--POSITIONS", "{log}"], ["POSITIONS", "no position", "s2_3"]),
+    (["--PAIR_SELECTION", "neighbours"], ["PAIR_SELECTION", "neighbours", "POSITIONS"]),
+    (["--PAIR_SELECTION", "footprints"], ["PAIR_SELECTION", "footprints", "TERRAIN_HEIGHT"]),
+])
+def test_pair_selection_bad_input(block, tmp_path, args, words):
+    log = tmp_path / "gnss.csv"
+    log.write_text("photo,x,y\n" + "".join(f"{p.id},{p.exterior.x0},{p.exterior.y0}\n"
+                                             for p in block.photos[:5]))
+    out = tmp_path / "t.csv"
+    result = CliRunner().invoke(main, [
+        "run", "orientation:tiepoints", "--IMAGES", str(block.images[0].parent),
+        *[a.format(log=log) for a in args], "--OUTPUT", str(out)])
+    assert result.exit_code == 2, result.output
+    message = result.output.strip().splitlines()
+    assert len(message) == 1 and all(w in message[0] for w in words), result.output
+    assert not out.exists()
+
+
 def test_textureless_photo_is_listed_with_zero_matches(block, tmp_path):
     from toolbox.photogrammetry.synthetic import write_photo
 

@@ -188,3 +188,56 @@ def test_turned_templates_are_numpy_rotations_and_flips():
     assert np.allclose(turned(t, ORIENTATIONS["90"]), np.rot90(t, -1), atol=1e-5)
     assert np.allclose(turned(t, ORIENTATIONS["180"]), np.rot90(t, 2), atol=1e-5)
     assert np.allclose(turned(t, ORIENTATIONS["0m"]), t[:, ::-1], atol=1e-5)
+
+
+def test_planar_scene_wrong_matches_along_the_epipolar_lines_are_dropped():
+    """Nadir views of flat ground: a fundamental matrix is degenerate there, and matches that
+    are wrong by 40 px ALONG the true epipolar lines satisfy the true F exactly; the homography
+    check drops them and keeps the true matches."""
+    from toolbox.matching.features import Features
+    from toolbox.matching.matching import symmetric_epipolar_distance, verify
+
+    rng = np.random.default_rng(5)
+    k = np.array([[1000.0, 0.0, 500.0], [0.0, 1000.0, 400.0], [0.0, 0.0, 1.0]])
+    nadir = np.diag([1.0, -1.0, -1.0])  # OpenCV camera looking down
+    turn = cv2_rotation(0.03, -0.02, 0.2)
+
+    def camera(rot, centre):
+        return k @ np.hstack([rot, -rot @ np.asarray(centre)[:, None]])
+
+    pa, pb = camera(nadir, [0.0, 0.0, 1000.0]), camera(turn @ nadir, [300.0, 60.0, 1010.0])
+    ground = np.column_stack([rng.uniform(-200, 500, 400), rng.uniform(-300, 300, 400),
+                              np.zeros(400), np.ones(400)])
+
+    def project(p):
+        h = ground @ p.T
+        return h[:, :2] / h[:, 2:]
+
+    xa, xb = project(pa), project(pb)
+    inside = (xa > 0).all(1) & (xa < [1000, 800]).all(1) & (xb > 0).all(1) & \
+        (xb < [1000, 800]).all(1)
+    xa, xb = xa[inside], xb[inside]
+    # the true F (OpenCV frame): [e_b]x P_b P_a^+
+    centre_a = np.array([0.0, 0.0, 1000.0, 1.0])
+    e = pb @ centre_a
+    f_true = np.array([[0, -e[2], e[1]], [e[2], 0, -e[0]], [-e[1], e[0], 0]]) @ pb @ \
+        np.linalg.pinv(pa)
+    wrong = np.arange(0, len(xa), 15)
+    line = np.column_stack([xa[wrong], np.ones(len(wrong))]) @ f_true.T
+    along = np.column_stack([line[:, 1], -line[:, 0]]) / np.hypot(line[:, 0], line[:, 1])[:, None]
+    xb = xb.copy()
+    xb[wrong] += 40.0 * along
+    assert np.abs(symmetric_epipolar_distance(f_true, xa[wrong], xb[wrong])).max() < 1e-6
+    noise = rng.normal(0, 0.15, xa.shape)
+    n = len(xa)
+    fa = Features(xa + 0.5 + noise, np.ones(n), np.zeros(n), np.zeros((n, 128), np.float32))
+    fb = Features(xb + 0.5, np.ones(n), np.zeros(n), np.zeros((n, 128), np.float32))
+    kept = verify(fa, fb, np.arange(n), np.arange(n), 1.0)
+    assert not set(kept.ia.tolist()) & set(wrong.tolist())
+    assert len(kept) >= 0.95 * (n - len(wrong))
+
+
+def cv2_rotation(omega: float, phi: float, kappa: float) -> np.ndarray:
+    import cv2
+
+    return cv2.Rodrigues(np.array([omega, phi, kappa]))[0]
