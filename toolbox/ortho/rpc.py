@@ -19,6 +19,7 @@ import numpy as np
 
 from toolbox.errors import InputDataError
 from toolbox.ortho.metrics import TileStatistics, nice_cell_size
+from toolbox.ortho.windows import leaf_window_totals
 
 OUTLINE_STEP_PX = 16  # image pixels between the projected points of the outline
 
@@ -83,17 +84,7 @@ class RpcOrthoMap:
 
     def totals(self) -> TileStatistics:
         """Sums over the windows, without the parents of windows the warp split in four."""
-        keys = list(self.per_window)
-
-        def contains(a, b):
-            return (a != b and a[0] <= b[0] and a[1] <= b[1] and b[0] + b[2] <= a[0] + a[2]
-                    and b[1] + b[3] <= a[1] + a[3])
-
-        total = TileStatistics()
-        for k in keys:
-            if not any(contains(k, other) for other in keys):
-                total.add(self.per_window[k])
-        return total
+        return leaf_window_totals(self.per_window)
 
 
 def rpc_plan(camera: Any, dem: Any, band: int = 1, cell: float | None = None,

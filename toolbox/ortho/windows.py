@@ -327,17 +327,7 @@ class OrthoWindows:
 
     def totals(self) -> TileStatistics:
         """Sums over the windows, without the parents of windows the warp split in four."""
-        keys = list(self.per_window)
-
-        def contains(a, b):
-            return (a != b and a[0] <= b[0] and a[1] <= b[1] and b[0] + b[2] <= a[0] + a[2]
-                    and b[1] + b[3] <= a[1] + a[3])
-
-        total = TileStatistics()
-        for k in keys:
-            if not any(contains(k, other) for other in keys):
-                total.add(self.per_window[k])
-        return total
+        return leaf_window_totals(self.per_window)
 
 
 def project_cells(camera: CameraModel, gx: np.ndarray, gy: np.ndarray, z: np.ndarray,
@@ -364,3 +354,20 @@ def project_cells(camera: CameraModel, gx: np.ndarray, gy: np.ndarray, z: np.nda
                     rows[finite].max(), z.size - finite.sum()]) if finite.any() else \
         np.array([np.inf, np.inf, -np.inf, -np.inf, z.size])
     return cols, rows, box
+
+
+def leaf_window_totals(per_window: dict) -> TileStatistics:
+    """Sum of the statistics of the windows ``(col, row, width, height) -> stats`` that hold no
+    other window (the warp splits a window in four when its source is too large: the parent's
+    statistics would count its cells twice)."""
+    keys = list(per_window)
+
+    def contains(a, b):
+        return (a != b and a[0] <= b[0] and a[1] <= b[1] and b[0] + b[2] <= a[0] + a[2]
+                and b[1] + b[3] <= a[1] + a[3])
+
+    total = TileStatistics()
+    for k in keys:
+        if not any(contains(k, other) for other in keys):
+            total.add(per_window[k])
+    return total
