@@ -6,6 +6,7 @@ import cv2
 import numpy as np
 import pytest
 
+from tests.toolbox.triangulation.jacobians import assert_central_differences
 from toolbox.triangulation.model import brown_ideal, brown_residuals, rotations
 
 CALIB = np.array([3000.0, 2010.3, 1495.2, -0.11, 0.05, -0.012, 8e-4, -5e-4])
@@ -51,19 +52,13 @@ def test_brown_jacobians_match_central_differences(which):
     m = len(pts)
     px = opencv_pixels(ext, pts) + 0.7
     args = [px, ext, pts, np.tile(CALIB, (m, 1))]
-    jac = brown_residuals(*args, np.full(m, ASPECT))[which]
-    arr = args[which - 1]
     steps = {2: [1e-3] * 3 + [1e-7] * 3, 3: [1e-3] * 3,
              4: [1e-2, 1e-3, 1e-3, 1e-6, 1e-6, 1e-6, 1e-7, 1e-7]}[which]
-    for k, h in enumerate(steps):
-        plus, minus = arr.copy(), arr.copy()
-        plus[:, k] += h
-        minus[:, k] -= h
-        a1, a2 = list(args), list(args)
-        a1[which - 1], a2[which - 1] = plus, minus
-        num = (brown_residuals(*a1, np.full(m, ASPECT), jacobians=False)[0] -
-               brown_residuals(*a2, np.full(m, ASPECT), jacobians=False)[0]) / (2 * h)
-        assert np.abs(num - jac[:, :, k]).max() <= 1e-6 * np.abs(jac[:, :, k]).max() + 1e-9
+
+    def residuals(*a, jacobians=True):
+        return brown_residuals(*a, np.full(m, ASPECT), jacobians=jacobians)
+
+    assert_central_differences(residuals, args, which, steps, atol=1e-9)
 
 
 def test_brown_ideal_inverts_the_distortion_opencv_applies():

@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
+from tests.toolbox.triangulation.jacobians import assert_central_differences
 from toolbox.photogrammetry.synthetic import frame_photo
 from toolbox.triangulation.model import image_residuals, rotations
 
@@ -39,19 +40,9 @@ def test_jacobians_match_central_differences(which):
                            rng.normal(0, 1e-6, m), rng.normal(0, 1e-10, m),
                            rng.normal(0, 1e-14, m), rng.normal(0, 1e-6, (m, 2))])
     args = [xy, ext, pt, cal]
-    jac = image_residuals(*args)[which]
-    arr = args[which - 1]
     steps = {2: [1e-3] * 3 + [1e-7] * 3, 3: [1e-3] * 3,
              4: [1e-4, 1e-5, 1e-5, 1e-9, 1e-13, 1e-17, 1e-8, 1e-8]}[which]
-    for k, h in enumerate(steps):
-        plus, minus = arr.copy(), arr.copy()
-        plus[:, k] += h
-        minus[:, k] -= h
-        a1, a2 = list(args), list(args)
-        a1[which - 1], a2[which - 1] = plus, minus
-        num = (image_residuals(*a1, jacobians=False)[0] -
-               image_residuals(*a2, jacobians=False)[0]) / (2 * h)
-        assert np.abs(num - jac[:, :, k]).max() <= 1e-6 * np.abs(jac[:, :, k]).max() + 1e-12
+    assert_central_differences(image_residuals, args, which, steps, atol=1e-12)
 
 
 @pytest.mark.parametrize("angle", [30.0, -60.0, 90.0])
