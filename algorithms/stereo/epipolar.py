@@ -94,8 +94,8 @@ class EpipolarPair(Algorithm):
         project = load_project_parameter(params["PROJECT"])
         from toolbox.stereo.frames import as_frame_photo
 
-        photos = (as_frame_photo(project.photo(params["LEFT"])),
-                  as_frame_photo(project.photo(params["RIGHT"])))
+        originals = (project.photo(params["LEFT"]), project.photo(params["RIGHT"]))
+        photos = tuple(as_frame_photo(photo) for photo in originals)  # distortion removed
         for photo in photos:
             photo.require_exterior()
         images = (photo_image(photos[0], params["LEFT_IMAGE"], "LEFT_IMAGE"),
@@ -109,7 +109,8 @@ class EpipolarPair(Algorithm):
         for side, name in enumerate(("OUTPUT_LEFT", "OUTPUT_RIGHT")):
             feedback.check_canceled()
             resample_image(geometry, photos[side], side, images[side], params[name],
-                           params["RESAMPLING"], feedback.step(50 * side, 50 * side + 50))
+                           params["RESAMPLING"], feedback.step(50 * side, 50 * side + 50),
+                           pixel_photo=originals[side])
         geometry.write(params["TRANSFORM"])
         stats = {"left": photos[0].id, "right": photos[1].id,
                  "widths": list(geometry.widths), "height": geometry.height,

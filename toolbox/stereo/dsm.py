@@ -68,9 +68,11 @@ def matching_pixel(left: Any, cell_size: float, distance_m: float) -> float:
 
 def match_one_pair(left: Any, right: Any, images: tuple[Path, Path], low: float, high: float,
                    options: MatchOptions, pixel_mm: float, workdir: Path,
-                   feedback: Feedback) -> tuple[Any, np.ndarray, np.ndarray, dict]:
+                   feedback: Feedback, pixel_photos: tuple[Any, Any] | None = None
+                   ) -> tuple[Any, np.ndarray, np.ndarray, dict]:
     """Geometry, disparity (NaN invalid), the left image's colours (K, 3) uint8 per pixel
-    (grey repeated for one band) and statistics of one pair."""
+    (grey repeated for one band) and statistics of one pair. ``pixel_photos``: the photos
+    whose cameras fetch the pixels (see :func:`toolbox.stereo.epipolar.resample_image`)."""
     from toolbox.stereo.epipolar import epipolar_geometry, resample_image
     from toolbox.stereo.matching import disparity_range, match_pair, to_uint8
 
@@ -86,7 +88,8 @@ def match_one_pair(left: Any, right: Any, images: tuple[Path, Path], low: float,
     for side, photo in enumerate((left, right)):
         path = workdir / f"{name}_{side}.tif"
         resample_image(geometry, photo, side, images[side], path, "bilinear",
-                       feedback.step(20 * side, 20 * side + 20), overviews=False)
+                       feedback.step(20 * side, 20 * side + 20), overviews=False,
+                       pixel_photo=None if pixel_photos is None else pixel_photos[side])
         data, valid = read_epipolar(path)
         arrays.append((to_uint8(data, valid), valid))
         if side == 0:
@@ -132,7 +135,8 @@ def run_match(request: MatchRequest, feedback: Feedback) -> dict[str, Any]:
         photos = project.oriented()
     from toolbox.stereo.frames import as_frame_photo
 
-    photos = [as_frame_photo(photo) for photo in photos]  # distortion-free digital models
+    originals = {photo.id: photo for photo in photos}  # model cameras fetch the pixels
+    photos = [as_frame_photo(photo) for photo in photos]  # their distortion-free frames
     if len(photos) < 2:
         raise InputDataError(f"PROJECT has {len(photos)} oriented photo(s) (of those chosen): "
                              "dense matching needs at least one oriented pair")
@@ -169,7 +173,8 @@ def run_match(request: MatchRequest, feedback: Feedback) -> dict[str, Any]:
                 pixel = request.pixel_size_mm or \
                     matching_pixel(left, abs(grid.transform.a), report.distance_m)
                 geometry, disparity, colours, stats = match_one_pair(
-                    left, right, images, low, high, options, pixel, Path(tmp), step)
+                    left, right, images, low, high, options, pixel, Path(tmp), step,
+                    (originals[left.id], originals[right.id]))
                 keys, heights, n_points = [], [], 0
                 for r0 in range(0, disparity.shape[0], POINT_ROWS):  # points by row blocks
                     xyz, flat = disparity_points(geometry, disparity[r0:r0 + POINT_ROWS], r0)

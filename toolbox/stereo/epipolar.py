@@ -352,10 +352,15 @@ def photo_image(photo: Any, override: Any = None, name: str = "LEFT_IMAGE") -> P
 
 def resample_image(geometry: EpipolarGeometry, photo: Any, side: int, image: Path,
                    output: Path, resampling: str = "bilinear", feedback: Any = None,
-                   executor: Any = None, overviews: bool = True) -> Any:
+                   executor: Any = None, overviews: bool = True,
+                   pixel_photo: Any = None) -> Any:
     """Write normalised image ``side`` of ``photo``'s ``image`` to ``output`` (GeoTIFF whose
     transform is the normalised mm frame, no CRS; an alpha band marks pixels outside the
-    photo). Windows of 2048 pixels on the raster engine: memory bounded by the window."""
+    photo). Windows of 2048 pixels on the raster engine: memory bounded by the window.
+
+    ``pixel_photo`` (default ``photo``) maps rays to the image's pixels: the model-camera photo
+    whose distortion-free frame equivalent (:func:`toolbox.stereo.frames.as_frame_photo`) is
+    ``photo``, so that the distortion is removed."""
     import warnings
 
     import rasterio
@@ -373,6 +378,7 @@ def resample_image(geometry: EpipolarGeometry, photo: Any, side: int, image: Pat
                                  f"{actual[1]} px but the camera {photo.camera.name!r} says "
                                  f"{size[0]} x {size[1]}: wrong image or camera")
     tags = {"EPIPOLAR_PHOTO": photo.id, "EPIPOLAR_SIDE": ("left", "right")[side]}
-    return warp_to_geotiff(image, EpipolarMap(geometry, photo, side), geometry.grid(side),
+    return warp_to_geotiff(image, EpipolarMap(geometry, pixel_photo or photo, side),
+                           geometry.grid(side),
                            output, resampling=resampling, outside="alpha", feedback=feedback,
                            tags=tags, executor=executor, overviews=overviews)

@@ -1,6 +1,7 @@
 """Digital frames with an interior model (Orthority's pinhole DMC of the NGI test data): the
 frame camera the stereo steps use projects exactly as the model camera; dem:match on the real
-NGI frames gives a DSM that agrees with NGI's own 24 m DEM; distortion models are refused."""
+NGI frames gives a DSM that agrees with NGI's own 24 m DEM; a distorted (Brown) model is
+resampled through its lens; fisheye models are refused."""
 
 from __future__ import annotations
 
@@ -38,12 +39,73 @@ def test_frame_camera_projects_as_the_model(ngi):
                                atol=1e-6)
 
 
-def test_a_distortion_model_is_refused(ngi):
+BROWN = {"type": "brown", "im_size": [720, 560], "focal_len": 0.75, "cx": 0.012, "cy": -0.008,
+         "k1": -0.21, "k2": 0.09, "k3": -0.012, "p1": 0.0012, "p2": -0.0007}
+
+
+def _brown_pair():
+    """Two nadir-ish photos 300 m apart at 1000 m over flat ground at 300 m, Brown lens."""
+    from toolbox.cameras import create_intrinsics
+    from toolbox.photogrammetry.exterior import ExteriorOrientation
+    from toolbox.photogrammetry.photo import Photo
+
+    model = create_intrinsics(BROWN, name="brown")
+    x0, y0 = 1_688_000.0, 4_799_500.0
+    left = Photo("L", model, ExteriorOrientation.from_angles(
+        "L", x0, y0, 1300.0, 0.4, -0.3, 1.0, crs="EPSG:3003"))
+    right = Photo("R", model, ExteriorOrientation.from_angles(
+        "R", x0 + 300.0, y0 + 10.0, 1290.0, -0.5, 0.2, -0.8, crs="EPSG:3003"))
+    return left, right
+
+
+def test_a_distorted_model_is_resampled_through_its_lens():
+    """The normalised images' pixels are fetched through the Brown lens: for ground points seen
+    by both photos, the map from their normalised position (distortion-free frame geometry)
+    lands on the pixel OpenCV's projectPoints gives with the Brown coefficients (an independent
+    lens model), and the two normalised rows agree (epipolar)."""
+    import cv2
+
+    from toolbox.stereo.epipolar import EpipolarMap, epipolar_geometry
+
+    left, right = _brown_pair()
+    frames = (as_frame_photo(left), as_frame_photo(right))
+    geometry = epipolar_geometry(*frames)
+    rng = np.random.default_rng(5)
+    ground = np.column_stack([1_688_150.0 + rng.uniform(-150, 150, 300),
+                              4_799_505.0 + rng.uniform(-150, 150, 300),
+                              rng.uniform(250, 350, 300)])
+    rows = []
+    for side, photo in enumerate((left, right)):
+        colrow = geometry.ground_to_pixels(ground, side)  # normalised image (col, row)
+        rows.append(colrow[:, 1])
+        transform = geometry.transform(side)
+        xn, yn = transform * (colrow[:, 0], colrow[:, 1])  # normalised mm
+        cols, prow = EpipolarMap(geometry, photo, side).pixels(np.asarray(xn), np.asarray(yn))
+        eo = photo.exterior
+        world_to_cv = np.diag([1.0, -1.0, -1.0]) @ eo.rotation.T  # camera y down, z ahead
+        rvec, _ = cv2.Rodrigues(world_to_cv)
+        tvec = -world_to_cv @ np.asarray(eo.centre)
+        model = photo.camera
+        truth, _ = cv2.projectPoints(ground.reshape(-1, 1, 3), rvec, tvec, model.matrix(),
+                                     model.opencv_coefficients())
+        truth = truth.reshape(-1, 2) + 0.5  # OpenCV's pixel centres at integers
+        inside = (truth[:, 0] > 0) & (truth[:, 0] < 720) & (truth[:, 1] > 0) & (truth[:, 1] < 560)
+        assert inside.sum() > 200
+        err = np.hypot(cols[inside] - truth[inside, 0], prow[inside] - truth[inside, 1])
+        assert err.max() < 0.01, err.max()
+        # without the lens (the frame equivalent) the same rays miss by pixels
+        cols0, rows0 = EpipolarMap(geometry, frames[side], side).pixels(np.asarray(xn),
+                                                                        np.asarray(yn))
+        assert np.hypot(cols0 - cols, rows0 - prow)[inside].max() > 3.0
+    np.testing.assert_allclose(rows[0], rows[1], atol=1e-6)
+
+
+def test_a_fisheye_model_is_refused(ngi):
     _, project = ngi
     photo = project.photo(PHOTO)
-    brown = replace(photo.camera, kind="brown", coefficients={"k1": 0.01})
-    with pytest.raises(InputDataError, match="brown model with distortion"):
-        as_frame_photo(replace(photo, camera=brown))
+    fisheye = replace(photo.camera, kind="fisheye", coefficients={"k1": 0.01})
+    with pytest.raises(InputDataError, match="fisheye model"):
+        as_frame_photo(replace(photo, camera=fisheye))
 
 
 def test_dsm_of_the_real_ngi_frames(ngi, tmp_path):
