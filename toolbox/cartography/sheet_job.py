@@ -175,12 +175,19 @@ def sheet_file_names(job: SheetJob) -> list[str]:
     return sheet_ids_unique([sheet_id for sheet_id, _ in sheet_polygons(job.sheets)[0]])
 
 
-def _index_layer(ref, crs):
-    """The INDEX layer in the sheets' CRS (one without a CRS is taken to be in it)."""
+def _index_layer(ref, crs, feedback):
+    """The INDEX layer in the sheets' CRS (one without a CRS is taken to be in it; one in
+    another CRS is reprojected, with a warning naming both)."""
+    from toolbox.io.crs import crs_label, same_crs
     from toolbox.io.vector import read_vector
 
     frame = read_vector(ref, name="INDEX")
-    return frame.set_crs(crs) if frame.crs is None else frame.to_crs(crs)
+    if frame.crs is None or crs is None:
+        return frame.set_crs(crs, allow_override=True) if crs is not None else frame
+    if not same_crs(frame.crs, crs):
+        feedback.push_warning(f"INDEX is in {crs_label(frame.crs)}: reprojected to the sheets' "
+                              f"{crs_label(crs)}")
+    return frame.to_crs(crs)
 
 
 def run_sheets(job: SheetJob, feedback) -> dict:
@@ -206,7 +213,7 @@ def run_sheets(job: SheetJob, feedback) -> dict:
         + [_dated(ref) for ref in job.layers or []]
         + [_dated(job.contours)] * (job.contours is not None)))
     date = job.date or _dt.date.today().isoformat()
-    index = _index_layer(job.index, crs) if job.index is not None else None
+    index = _index_layer(job.index, crs, feedback) if job.index is not None else None
     folder = Path(job.folder) if job.folder else None  # staged by the runner
     names = sheet_file_names(job)
     written = []
