@@ -934,7 +934,7 @@ def test_generated_bad_values(case, data):
 @_sweep_settings(60)
 @given(data=st.data())
 def test_generated_bad_values_slow(case, data):
-    _sweep(case, data, "slow", budget_s=4.0)
+    _sweep(case, data, "slow", budget_s=2.5)
 
 
 def _victims(case: Case, every: bool) -> list[Path]:
