@@ -188,7 +188,7 @@ def test_tin_delaunay_end_to_end_is_the_same_with_both(tmp_path, monkeypatch):
         monkeypatch.setenv(TRIANGULATOR_ENV, name)
         out = tmp_path / f"{name}.gpkg"
         results[name] = toolbox.run("tin:delaunay", {"INPUT": points, "BREAKLINES": lines,
-                                                      "BREAKLINE_Z_FIELD": "z",
+                                                      "BREAKLINES_Z_FIELD": "z",
                                                       "OUTPUT": out})["STATISTICS"]
         results[name] = {k: results[name][k] for k in ("nodes", "triangles", "crossings")}
         frame = gpd.read_file(out, layer="triangles")
