@@ -65,8 +65,10 @@ class ToRaster(Algorithm):
     outputs = [Output("STATISTICS", "grid size, cells with data, height range", "json")]
 
     def check(self, params):
+        from toolbox.io.raster import check_nodata_fits
 
         grid_request(params).check()
+        check_nodata_fits(params["NODATA"], params["DATA_TYPE"])
 
     def process(self, params, feedback: Feedback):
         from functools import partial

@@ -327,3 +327,20 @@ def test_epipolar_refuses_an_image_of_another_size_than_the_camera(pair, tmp_pat
             "other.tif", "TERRAIN_HEIGHT": 320, "OUTPUT_LEFT": tmp_path / "l.tif",
             "OUTPUT_RIGHT": tmp_path / "r.tif", "TRANSFORM": tmp_path / "t.json"})
     assert sorted(p.name for p in tmp_path.iterdir()) == ["other.tif"]
+
+
+def test_tin_to_raster_nodata_beyond_float32_is_refused(tmp_path, points_gpkg):
+    """The sweep found NODATA 3.4028235677973366e+38 (just past float32's largest) crashing the
+    GeoTIFF writer: refused before any work, naming NODATA and the float32 range; float64
+    cells take it."""
+    from tests.helpers_cli import assert_refused
+
+    tin = tmp_path / "tin.gpkg"
+    toolbox.run("tin:delaunay", {"INPUT": points_gpkg, "OUTPUT": tin})
+    args = ["run", "tin:to_raster", "--TIN", str(tin), "--CELL_SIZE", "5", "--NODATA",
+            "3.4028235677973366e+38", "--OUTPUT", str(tmp_path / "t.tif")]
+    line = assert_refused(args, "NODATA 3.4028235677973366e+38 does not fit the float32",
+                          (tmp_path / "t.tif",))
+    assert "3.4028234663852886e+38" in line
+    toolbox.run("tin:to_raster", {"TIN": tin, "CELL_SIZE": 5, "NODATA": 3.4028235677973366e+38,
+                                  "DATA_TYPE": "float64", "OUTPUT": tmp_path / "t64.tif"})

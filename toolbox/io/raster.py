@@ -169,7 +169,7 @@ def check_nodata_fits(nodata: float | None, dtype: Any, name: str = "NODATA") ->
     if dtype.kind == "f":
         limit = float(np.finfo(dtype).max)
         ok = np.isinf(value) or abs(value) <= limit
-        expected = f"between {-limit:g} and {limit:g}"
+        expected = f"between {-limit:.17g} and {limit:.17g}"
     elif dtype.kind in "iu":
         info = np.iinfo(dtype)
         ok = info.min <= value <= info.max and value == int(value)
@@ -177,7 +177,7 @@ def check_nodata_fits(nodata: float | None, dtype: Any, name: str = "NODATA") ->
     else:
         return
     if not ok:
-        raise ParameterError(name, f"{value:g} does not fit the {dtype.name} output cells "
+        raise ParameterError(name, f"{value:.17g} does not fit the {dtype.name} output cells "
                              f"(expected {expected})")
 
 
