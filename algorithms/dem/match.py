@@ -110,7 +110,9 @@ class DenseMatchingDsm(Algorithm):
                       "dict")]
 
     def check(self, params: dict[str, Any]) -> None:
+        from toolbox.io.raster import check_nodata_fits
 
+        check_nodata_fits(params["NODATA"], "float32")  # before the matching, not after it
         if params["MIN_HEIGHT"] >= params["MAX_HEIGHT"]:
             raise self.fail("MAX_HEIGHT", f"must be above MIN_HEIGHT ({params['MIN_HEIGHT']:g}),"
                             f" got {params['MAX_HEIGHT']:g}")

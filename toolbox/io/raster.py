@@ -169,7 +169,7 @@ def check_nodata_fits(nodata: float | None, dtype: Any, name: str = "NODATA") ->
     if dtype.kind == "f":
         limit = float(np.finfo(dtype).max)
         ok = np.isinf(value) or abs(value) <= limit
-        expected = f"between {-limit:.17g} and {limit:.17g}"
+        expected = f"between {_exact(-limit)} and {_exact(limit)}"
     elif dtype.kind in "iu":
         info = np.iinfo(dtype)
         ok = info.min <= value <= info.max and value == int(value)
@@ -177,8 +177,14 @@ def check_nodata_fits(nodata: float | None, dtype: Any, name: str = "NODATA") ->
     else:
         return
     if not ok:
-        raise ParameterError(name, f"{value:.17g} does not fit the {dtype.name} output cells "
+        raise ParameterError(name, f"{_exact(value)} does not fit the {dtype.name} output cells "
                              f"(expected {expected})")
+
+
+def _exact(value: float) -> str:
+    """``value`` short (``-9999``, ``1e+39``) unless that loses digits (``3.4028235677973366e+38``)."""
+    short = f"{value:g}"
+    return short if float(short) == value else repr(value)
 
 
 def _rio_crs(crs: Any):

@@ -101,6 +101,9 @@ class RasterWriter:
             raise ValueError(f"tile must be a multiple of 16, got {tile}")
         if alpha and nodata is not None:
             raise ValueError("an output has either an alpha band or a nodata value, not both")
+        from toolbox.io.raster import check_nodata_fits
+
+        check_nodata_fits(nodata, dtype)  # a ParameterError naming NODATA, not GDAL's ValueError
         self.path = Path(path)
         self.grid = grid
         self.count = int(count)
