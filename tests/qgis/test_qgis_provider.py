@@ -307,6 +307,28 @@ def test_qgis_process_runs_the_same_algorithm(demo_out, tmp_path):
         same_outputs(cdir, qdir)
 
 
+@needs_qgis
+def test_qgis_process_says_when_the_toolbox_is_not_configured(tmp_path):
+    """The plugin enabled in a fresh profile, copied away from the checkout (whose .venv it would
+    find), no toolbox on PATH and a wrong PHOTOGRAMMETRY_TOOLBOX: ``qgis_process run`` prints
+    the provider's message naming what it tried and where to set the path."""
+    binary = shutil.which("qgis_process.bin") or shutil.which("qgis_process")
+    plugins = tmp_path / "plugins"
+    shutil.copytree(PLUGIN / "photogrammetry_toolbox", plugins / "photogrammetry_toolbox")
+    env = {"HOME": str(tmp_path / "home"), "PATH": "/usr/bin:/bin", "QT_QPA_PLATFORM": "offscreen",
+           "QGIS_PLUGINPATH": str(plugins), "PHOTOGRAMMETRY_TOOLBOX": str(tmp_path / "no" / "tb"),
+           "XDG_CACHE_HOME": str(tmp_path / "cache"), "PHOTOGRAMMETRY_TOOLBOX_NO_WARMUP": "1"}
+    enable = subprocess.run([binary, "plugins", "enable", "photogrammetry_toolbox"],
+                            capture_output=True, text=True, env=env, timeout=300)
+    assert enable.returncode == 0, enable.stdout + enable.stderr
+    done = subprocess.run([binary, "run", f"{toolbox_cli.PROVIDER_ID}:dem_idw"],
+                          capture_output=True, text=True, env=env, timeout=300)
+    said = done.stdout + done.stderr
+    assert done.returncode != 0
+    assert "executable was not found" in said and str(tmp_path / "no" / "tb") in said, said
+    assert "Processing > Options > Providers" in said and "PHOTOGRAMMETRY_TOOLBOX" in said
+
+
 LOAD_SCRIPT = r"""
 import json, os, sys
 os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
