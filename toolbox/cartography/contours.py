@@ -2,8 +2,9 @@
 
 Conventions: a DEM grid is ``z[row, col]`` with cell values at cell centres; ``x0, y0`` is the
 centre of cell (0, 0) and ``dx, dy`` the steps between centres (``dy < 0`` for north-up rasters).
-Between centres the surface is bilinear, as for ``gdal_contour``; contours are traced with
-contourpy. A TIN is nodes ``xyz (N, 3)`` and triangles ``(T, 3)``; each triangle is a plane.
+Between centres the surface is bilinear, as for ``gdal_contour``; contours are traced for all
+levels in one pass by :mod:`toolbox.cartography.contour_kernel` (contourpy's lines). A TIN is
+nodes ``xyz (N, 3)`` and triangles ``(T, 3)``; each triangle is a plane.
 
 Every contour is an ``(n, 2)`` array of x, y (DEM kernels work in grid coordinates, x = column
 and y = row of the cell centres, and :func:`to_map` converts), oriented with higher ground on its right (as
@@ -52,60 +53,43 @@ def index_flags(levels: np.ndarray, interval: float, base: float = 0.0,
 # -- DEM grids ------------------------------------------------------------------------------------
 def grid_contour_pieces(z: np.ndarray, levels: Iterable[float], x0: float, y0: float,
                         dx: float, dy: float) -> list[Contour]:
-    """Contours of one grid (NaN = no data) with contourpy, oriented higher-on-the-right.
+    """Contours of one grid (NaN = no data), oriented higher-on-the-right, traced for every
+    level in one pass (:func:`toolbox.cartography.contour_kernel.grid_lines`: contourpy's
+    surface and lines).
 
     Lines end where the grid or the data end; :func:`stitch` joins pieces of adjacent tiles.
     """
-    import contourpy
+    from toolbox.cartography.contour_kernel import grid_lines
 
     z = np.asarray(z, dtype="float64")
-    rows, cols = z.shape
-    if rows < 2 or cols < 2:
-        return []
-    x = x0 + np.arange(cols) * dx
-    y = y0 + np.arange(rows) * dy
-    data = np.ma.masked_invalid(z) if np.isnan(z).any() else z
-    gen = contourpy.contour_generator(x, y, data, name="serial",
-                                      line_type=contourpy.LineType.ChunkCombinedOffset)
-    # contourpy leaves higher ground on the left in a y-up frame: flip when the frame is y-up
-    # (dx·dy > 0) to keep higher ground on the right
-    flip = (dx * dy) > 0
-    levels = np.asarray(list(levels), dtype="float64")
-    # only the levels this grid spans: contourpy scans every cell once per level, so a small
-    # block spanning few levels is traced much faster (a level equal to the lowest node gives
-    # no line: nodes at a level count as above it)
-    with np.errstate(invalid="ignore"):
-        if np.isnan(z).all():
-            return []
-        lo, hi = np.nanmin(z), np.nanmax(z)
-    levels = levels[(levels > lo) & (levels <= hi)]
-    if not len(levels):
+    levels = np.sort(np.asarray(list(levels), dtype="float64"))
+    if z.shape[0] < 2 or z.shape[1] < 2 or not len(levels):
         return []
     # trace just below the level so a node exactly at it counts as above (as gdal_contour and
-    # tin_contours do); the offset (1024 ulps) moves lines by far less than a micron. All levels
-    # in one call, each level's lines as one array of points with offsets.
-    traced = gen.multi_lines(levels - 1024 * np.spacing(np.abs(levels)))
-    out = []
-    for level, (points, offsets) in zip(levels.tolist(), traced, strict=True):
-        if points[0] is None:
-            continue
-        for line in _split_lines(points[0], offsets[0]):
-            out.append(Contour(level, line[::-1] if flip else line))
-    return out
+    # tin_contours do); the offset (1024 ulps) moves lines by far less than a micron
+    points, offsets, level_of = grid_lines(z, levels - 1024 * np.spacing(np.abs(levels)))
+    # the kernel keeps higher ground on the right in the (column, row) frame: mirrored when
+    # the map frame turns the other way (dx·dy < 0)
+    flip = (dx * dy) < 0
+    xy = np.column_stack([x0 + points[:, 0] * dx, y0 + points[:, 1] * dy])
+    values = levels[level_of].tolist()
+    return [Contour(values[i], line[::-1] if flip else line)
+            for i, line in _split_lines(xy, offsets)]
 
 
-def _split_lines(points: np.ndarray, offsets: np.ndarray) -> list[np.ndarray]:
-    """The lines of a combined ``(n, 2)`` point array (line ``i`` is ``offsets[i]:offsets[i+1]``)
-    without vertices equal to their predecessor, and without lines left with fewer than 2
-    vertices (a node exactly at the level gives a zero-length loop)."""
+def _split_lines(points: np.ndarray, offsets: np.ndarray) -> list[tuple[int, np.ndarray]]:
+    """``(i, line)``: the lines of a combined ``(n, 2)`` point array (line ``i`` is
+    ``offsets[i]:offsets[i+1]``) without vertices equal to their predecessor, and without
+    lines left with fewer than 2 vertices (crossings exactly at a node)."""
     keep = np.ones(len(points), dtype=bool)
     keep[1:] = (points[1:] != points[:-1]).any(axis=1)
     keep[offsets[:-1]] = True  # a line's first vertex follows another line's last
     kept_before = np.concatenate([[0], np.cumsum(keep)])
     new_offsets = kept_before[offsets]
     points = points[keep]
-    return [points[a:b] for a, b in zip(new_offsets[:-1].tolist(), new_offsets[1:].tolist(),
-                                        strict=True) if b - a >= 2]
+    return [(i, points[a:b]) for i, (a, b) in
+            enumerate(zip(new_offsets[:-1].tolist(), new_offsets[1:].tolist(), strict=True))
+            if b - a >= 2]
 
 
 @dataclass
