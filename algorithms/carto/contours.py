@@ -79,12 +79,11 @@ class Contours(Algorithm):
 
     def process(self, params, feedback: Feedback):
         from toolbox.cartography.contour_io import (
-            contour_frame,
             raster_contours,
             tin_layer_contours,
+            write_contours,
         )
         from toolbox.cartography.qml import write_contour_style
-        from toolbox.io.vector import write_layers
 
         interval, base = params["INTERVAL"], params["BASE"]
         if params.get("INPUT") is not None:
@@ -99,16 +98,16 @@ class Contours(Algorithm):
             xyz, triangles, crs = read_tin(params["TIN"])
             result = tin_layer_contours(xyz, triangles, interval, base)
         feedback.set_progress(90)
-        frame = contour_frame(result.contours, interval, base, params["INDEX_EVERY"], crs)
-        write_layers(params["OUTPUT"], {"contours": frame}, crs=crs,
-                     geometry_types={"contours": "LineString Z"})
+        fields = write_contours(params["OUTPUT"], result.contours, interval, base,
+                                params["INDEX_EVERY"], crs)
         qml = write_contour_style(params["OUTPUT"], "contours")
         if params.get("STYLE"):
             params["STYLE"].write_text(qml, encoding="utf-8")
-        if not len(frame):
+        lines = len(fields["elev"])
+        if not lines:
             feedback.push_warning(f"no contour at interval {interval} from base {base} crosses the "
                              "surface")
-        stats = {"levels": int(len(result.levels)), "lines": int(len(frame)),
-                 "index_lines": int(frame["index"].sum()) if len(frame) else 0,
+        stats = {"levels": int(len(result.levels)), "lines": lines,
+                 "index_lines": int(fields["index"].sum()),
                  "vertices": int(sum(len(c.xy) for c in result.contours))} | result.stats
         return {"OUTPUT": params["OUTPUT"], "STYLE": params.get("STYLE"), "STATISTICS": stats}

@@ -154,11 +154,10 @@ def tin_layer_contours(xyz: np.ndarray, triangles: np.ndarray, interval: float,
                          {"triangles": int(len(triangles))})
 
 
-def contour_frame(contours: list[Contour], interval: float, base: float, index_every: int,
-                  crs: Any):
-    """GeoDataFrame of LineString Z contours: ``elev`` (m), ``index`` (1 for index contours),
-    ``closed`` (1 for rings), ``length`` (map units)."""
-    import geopandas as gpd
+def contour_columns(contours: list[Contour], interval: float, base: float,
+                    index_every: int) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """The LineString Z contours as WKB (Z = the level) and their fields: ``elev`` (m),
+    ``index`` (1 for index contours), ``closed`` (1 for rings), ``length`` (map units)."""
     import shapely
 
     levels = np.array([c.level for c in contours], dtype="float64")
@@ -171,10 +170,19 @@ def contour_frame(contours: list[Contour], interval: float, base: float, index_e
         closed = (counts > 2) & (xy[first] == xy[last]).all(axis=1)
     else:
         geoms, closed = np.empty(0, dtype=object), np.zeros(0, dtype=bool)
-    frame = gpd.GeoDataFrame({
-        "elev": levels,
-        "index": index_flags(levels, interval, base, index_every).astype("int32"),
-        "closed": closed.astype("int32"),
-        "length": shapely.length(geoms).astype("float64"),
-    }, geometry=geoms, crs=crs)
-    return frame
+    fields = {"elev": levels,
+              "index": index_flags(levels, interval, base, index_every).astype("int32"),
+              "closed": closed.astype("int32"),
+              "length": shapely.length(geoms).astype("float64")}
+    return shapely.to_wkb(geoms, output_dimension=3), fields
+
+
+def write_contours(path: str | Path, contours: list[Contour], interval: float, base: float,
+                   index_every: int, crs: Any) -> dict[str, np.ndarray]:
+    """Write the ``contours`` layer (LineString Z, :func:`contour_columns`) to ``path``;
+    returns its fields."""
+    from toolbox.io.vector import write_wkb_layer
+
+    wkb, fields = contour_columns(contours, interval, base, index_every)
+    write_wkb_layer(path, "contours", wkb, fields, "LineString Z", crs)
+    return fields

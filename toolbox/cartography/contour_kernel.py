@@ -71,7 +71,7 @@ def _missing_corner(band: np.ndarray, r: int, c: int) -> int:
 
 @njit(cache=True, nogil=True, inline="always")
 def _edge(z: np.ndarray, band: np.ndarray, levels: np.ndarray, e: int, r0: int, c0: int,
-          r1: int, c1: int, first: np.ndarray, k0: np.ndarray, x: np.ndarray, y: np.ndarray,
+          r1: int, c1: int, first: np.ndarray, x: np.ndarray, y: np.ndarray,
           level: np.ndarray, total: int) -> int:
     """Edge ``e`` from node (r0, c0) to (r1, c1): without ``x`` (empty), give it its crossing
     ids and return the new total; with it, fill its crossings (linear along the edge)."""
@@ -79,12 +79,12 @@ def _edge(z: np.ndarray, band: np.ndarray, levels: np.ndarray, e: int, r0: int, 
         first[e] = total
         a, b = band[r0, c0], band[r1, c1]
         if a >= 0 and b >= 0:
-            k0[e] = min(a, b)
             total += abs(a - b)
         return total
     za, zb = z[r0, c0], z[r1, c1]
+    k0 = min(band[r0, c0], band[r1, c1])  # the edge's lowest level
     for i in range(first[e], first[e + 1]):
-        k = k0[e] + i - first[e]
+        k = k0 + i - first[e]
         f = (levels[k] - za) / (zb - za)
         x[i] = c0 + f * (c1 - c0)
         y[i] = r0 + f * (r1 - r0)
@@ -94,19 +94,18 @@ def _edge(z: np.ndarray, band: np.ndarray, levels: np.ndarray, e: int, r0: int, 
 
 @njit(cache=True, nogil=True)
 def _edges(z: np.ndarray, band: np.ndarray, levels: np.ndarray, diag: np.ndarray,
-           first: np.ndarray, k0: np.ndarray, x: np.ndarray, y: np.ndarray,
-           level: np.ndarray) -> int:
+           first: np.ndarray, x: np.ndarray, y: np.ndarray, level: np.ndarray) -> int:
     """:func:`_edge` on every edge in id order (:func:`_edge_id`); returns the crossings'
     total."""
     rows, cols = z.shape
     total, e = 0, 0
     for r in range(rows):
         for c in range(cols - 1):
-            total = _edge(z, band, levels, e, r, c, r, c + 1, first, k0, x, y, level, total)
+            total = _edge(z, band, levels, e, r, c, r, c + 1, first, x, y, level, total)
             e += 1
     for r in range(rows - 1):
         for c in range(cols):
-            total = _edge(z, band, levels, e, r, c, r + 1, c, first, k0, x, y, level, total)
+            total = _edge(z, band, levels, e, r, c, r + 1, c, first, x, y, level, total)
             e += 1
     for r in range(rows - 1):
         for c in range(cols - 1):
@@ -114,7 +113,7 @@ def _edges(z: np.ndarray, band: np.ndarray, levels: np.ndarray, diag: np.ndarray
             if 0 <= m < 4:  # the diagonal between the corners next to the missing one
                 a, b = (m + 1) % 4, (m + 3) % 4
                 total = _edge(z, band, levels, e, r + _DR[a], c + _DC[a], r + _DR[b],
-                              c + _DC[b], first, k0, x, y, level, total)
+                              c + _DC[b], first, x, y, level, total)
             elif len(x) == 0:
                 first[e] = total
             e += 1
@@ -126,28 +125,27 @@ def _edges(z: np.ndarray, band: np.ndarray, levels: np.ndarray, diag: np.ndarray
 @njit(cache=True, nogil=True)
 def _crossings(z: np.ndarray, band: np.ndarray, levels: np.ndarray):
     """Every crossing of a level with an edge (quad edges, and the diagonals of squares with
-    one missing node): ``first[e]`` (crossing ids: ``first[e] + k - k0[e]`` for level ``k``),
-    ``k0[e]``, each square's missing corner (:func:`_missing_corner`), and each crossing's
-    x, y and level index."""
+    one missing node): ``first[e]`` (crossing ids: ``first[e] + k - k0`` for level ``k``, k0
+    the lower band of the edge's two nodes), each square's missing corner
+    (:func:`_missing_corner`), and each crossing's x, y and level index."""
     rows, cols = z.shape
     diag = np.empty((rows - 1) * (cols - 1), dtype=np.int64)
     for r in range(rows - 1):
         for c in range(cols - 1):
             diag[r * (cols - 1) + c] = _missing_corner(band, r, c)
     n_e = rows * (cols - 1) + (rows - 1) * cols + len(diag)
-    first = np.zeros(n_e + 1, dtype=np.int64)
-    k0 = np.zeros(n_e, dtype=np.int64)
+    first = np.empty(n_e + 1, dtype=np.int64)
     none = np.empty(0)
-    total = _edges(z, band, levels, diag, first, k0, none, none, np.empty(0, dtype=np.int32))
+    total = _edges(z, band, levels, diag, first, none, none, np.empty(0, dtype=np.int32))
     x, y, level = np.empty(total), np.empty(total), np.empty(total, dtype=np.int32)
     if total:
-        _edges(z, band, levels, diag, first, k0, x, y, level)
-    return first, k0, diag, x, y, level
+        _edges(z, band, levels, diag, first, x, y, level)
+    return first, diag, x, y, level
 
 
 @njit(cache=True, nogil=True)
 def _link(z: np.ndarray, band: np.ndarray, levels: np.ndarray, first: np.ndarray,
-          k0: np.ndarray, diag: np.ndarray, n_crossings: int) -> np.ndarray:
+          diag: np.ndarray, n_crossings: int) -> np.ndarray:
     """``succ[i]``: the crossing the line goes to from crossing ``i`` (-1: none), each square's
     segments oriented with higher ground on the right."""
     rows, cols = z.shape
@@ -190,7 +188,8 @@ def _link(z: np.ndarray, band: np.ndarray, levels: np.ndarray, first: np.ndarray
                     j = (i + step) % n_corners
                     while not (bc[j] > k and not bc[(j + 1) % n_corners] > k):
                         j = (j + step) % n_corners
-                    succ[first[edge[i]] + k - k0[edge[i]]] = first[edge[j]] + k - k0[edge[j]]
+                    a = first[edge[i]] + k - min(bc[i], bc[(i + 1) % n_corners])
+                    succ[a] = first[edge[j]] + k - min(bc[j], bc[(j + 1) % n_corners])
     return succ
 
 
@@ -243,6 +242,6 @@ def grid_lines(z: np.ndarray, levels: np.ndarray) -> tuple[np.ndarray, np.ndarra
     if z.shape[0] < 2 or z.shape[1] < 2 or not len(levels):
         return np.empty((0, 2)), np.zeros(1, dtype=np.int64), np.empty(0, dtype=np.int32)
     band = _bands(z, levels)
-    first, k0, diag, x, y, level = _crossings(z, band, levels)
-    succ = _link(z, band, levels, first, k0, diag, len(x))
+    first, diag, x, y, level = _crossings(z, band, levels)
+    succ = _link(z, band, levels, first, diag, len(x))
     return _walk(succ, x, y, level)

@@ -535,3 +535,33 @@ def write_layers(path: str | Path, layers: dict[str, Any], crs: Any = None,
                 warnings.filterwarnings("ignore", "'crs' was not provided", UserWarning)
             pyogrio.write_dataframe(frame, target, layer=layer_name, driver=driver, **kwargs)
     return path
+
+
+def write_wkb_layer(path: str | Path, layer: str, wkb: np.ndarray, fields: dict[str, np.ndarray],
+                    geometry_type: str, crs: Any = None) -> Path:
+    """Write one layer from arrays: ``wkb`` (object array of WKB geometries, e.g.
+    ``shapely.to_wkb``) and one numpy array per field, without building a GeoDataFrame.
+
+    A GeoPackage (version 1.2) receives the layer beside its others; GeoParquet goes through
+    :func:`write_layers`. ``crs`` is anything with ``to_wkt()`` (pyproj or rasterio).
+    """
+    from toolbox.io.write_failures import writing
+
+    path = Path(path)
+    driver = vector_driver(path)
+    if driver == "Parquet":
+        import geopandas as gpd
+        import shapely
+
+        frame = gpd.GeoDataFrame(fields, geometry=shapely.from_wkb(wkb), crs=crs)
+        return write_layers(path, {layer: frame}, crs=crs, geometry_types={layer: geometry_type})
+    from pyogrio.raw import write
+
+    options = {"dataset_options": GPKG_DATASET_OPTIONS} if driver == "GPKG" and \
+        not path.exists() else {}
+    names = list(fields)
+    with staged_gpkg_writes(), writing(path):
+        write(path, np.asarray(wkb, dtype=object), [fields[k] for k in names], names,
+              layer=layer, driver=driver, geometry_type=geometry_type,
+              crs=None if crs is None else crs.to_wkt(), **options)
+    return path
