@@ -283,6 +283,39 @@ def make_dem(path: Path, size: int = 2000) -> None:
                  nodata=-9999.0)
 
 
+TRACE_BLOCKS = """
+import json, time
+import numpy as np
+import rasterio
+from toolbox.cartography.contours import block_windows, contour_levels
+with rasterio.open({path!r}) as src:
+    z = src.read(1, masked=True).astype("float64").filled(np.nan)
+levels = contour_levels(np.nanmin(z), np.nanmax(z), 1.0)
+levels = levels - 1024 * np.spacing(np.abs(levels))
+blocks = [np.ascontiguousarray(z[r:r + h, c:c + w])
+          for r, c, h, w in block_windows(*z.shape, 512)]
+if {kernel!r}:
+    from toolbox.cartography.contour_kernel import grid_lines
+    grid_lines(blocks[0][:8, :8], levels)  # numba's cached kernels loaded off the clock
+
+    def trace(b):
+        grid_lines(b, levels)
+else:
+    import contourpy
+
+    def trace(b):  # what carto:contours did before: the block's own levels, one pass each
+        lv = levels[(levels >= np.nanmin(b)) & (levels < np.nanmax(b))]
+        gen = contourpy.contour_generator(np.arange(b.shape[1], dtype=float),
+                                          np.arange(b.shape[0], dtype=float), b,
+                                          line_type=contourpy.LineType.ChunkCombinedOffset)
+        gen.multi_lines(lv)
+t0, c0 = time.perf_counter(), time.process_time()
+for b in blocks:
+    trace(b)
+print(json.dumps({{"seconds": time.perf_counter() - t0, "cpu": time.process_time() - c0}}))
+"""
+
+
 def section_contours(args) -> str:
     """carto:contours against gdal_contour on a 2000 x 2000 DEM, 1 m interval, whole process;
     and the total length of the two line sets inside the cell-centre box."""
@@ -319,11 +352,20 @@ def section_contours(args) -> str:
     ref_len = float(shapely.length(shapely.intersection(gdal.geometry.values, box)).sum())
     our_len = float(shapely.length(ours.geometry.values).sum())
     same = sorted(set(gdal["elev"])) == sorted(set(ours["elev"]))
+    trace = interleaved({
+        "contourpy, each block's levels one pass each (before)":
+            in_process(sys.executable, TRACE_BLOCKS.format(path=str(dem), kernel=False)),
+        "one-pass kernel (now)":
+            in_process(sys.executable, TRACE_BLOCKS.format(path=str(dem), kernel=True))},
+        args.runs)
     return (f"2000 x 2000 DEM of 1 m (the demo relief resampled), 1 m interval: "
             f"{len(set(ours['elev']))} levels (gdal_contour's the same: {same}); total length "
             f"{our_len:.0f} m against gdal_contour's {ref_len:.0f} m inside the cell-centre box "
             f"({100 * (our_len / ref_len - 1):+.3f} %). Whole process, wall and CPU\n\n"
-            + table(times, next(iter(cases)), "command", extra=("cpu",)))
+            + table(times, next(iter(cases)), "command", extra=("cpu",))
+            + "\n\nTracing alone, in process, one thread: the 16 blocks of 513 x 513 cells "
+            "(TILE_SIZE 512), wall and CPU\n\n"
+            + table(trace, next(iter(trace)), "tracer", extra=("cpu",)))
 
 
 def section_startup(args) -> str:
