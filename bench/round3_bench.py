@@ -354,9 +354,9 @@ def section_contours(args) -> str:
     same = sorted(set(gdal["elev"])) == sorted(set(ours["elev"]))
     trace = interleaved({
         "contourpy, each block's levels one pass each (before)":
-            in_process(sys.executable, TRACE_BLOCKS.format(path=str(dem), kernel=False)),
+            [sys.executable, "-c", TRACE_BLOCKS.format(path=str(dem), kernel=False)],
         "one-pass kernel (now)":
-            in_process(sys.executable, TRACE_BLOCKS.format(path=str(dem), kernel=True))},
+            [sys.executable, "-c", TRACE_BLOCKS.format(path=str(dem), kernel=True)]},
         args.runs)
     return (f"2000 x 2000 DEM of 1 m (the demo relief resampled), 1 m interval: "
             f"{len(set(ours['elev']))} levels (gdal_contour's the same: {same}); total length "

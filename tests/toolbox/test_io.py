@@ -181,3 +181,27 @@ def test_window_transform_is_rasterios():
             warnings.simplefilter("ignore")  # rasterio's own Affine * deprecation warning
             expected = transform(window, t)
         assert tuple(GridSpec(t, 9999, 9999).window_transform(window)) == tuple(expected)
+
+
+@pytest.mark.parametrize("name", ["lines.gpkg", "lines.parquet", "lines.fgb"])
+def test_wkb_layer_from_arrays(tmp_path, name):
+    from pyproj import CRS
+
+    from toolbox.io.vector import write_wkb_layer
+
+    lines = [shapely.LineString([(0, 0, 5), (1, 2, 5)]),
+             shapely.LineString([(3, 3, 7), (4, 3, 7), (4, 4, 7), (3, 3, 7)])]
+    fields = {"elev": np.array([5.0, 7.0]), "index": np.array([0, 1], dtype="int32")}
+    path = tmp_path / name
+    write_wkb_layer(path, "contours", shapely.to_wkb(lines, output_dimension=3), fields,
+                    "LineString Z", CRS.from_epsg(3003))
+    read = gpd.read_parquet if name.endswith(".parquet") else gpd.read_file
+    back = read(path).sort_values("elev")  # FlatGeobuf's index orders features in space
+    assert back.crs.to_epsg() == 3003
+    assert list(back["elev"]) == [5.0, 7.0] and list(back["index"]) == [0, 1]
+    assert all(a.equals(b) and b.has_z for a, b in zip(lines, back.geometry))
+    # an empty layer is still created, with its type
+    empty = tmp_path / ("empty_" + name)
+    write_wkb_layer(empty, "contours", np.empty(0, dtype=object),
+                    {"elev": np.empty(0)}, "LineString Z", CRS.from_epsg(3003))
+    assert len(read(empty)) == 0
