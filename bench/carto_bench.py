@@ -16,6 +16,7 @@ extent: it runs them on half a cell to the raster edge). Writes bench/results/ca
 from __future__ import annotations
 
 import argparse
+import os
 import shutil
 import subprocess
 import sys
@@ -63,7 +64,7 @@ def main(argv: list[str] | None = None) -> None:
     import toolbox
     from toolbox.cartography.compare import contour_agreement
 
-    note = load_note()
+    note = f"{load_note()}; load average {os.getloadavg()[0]:.1f}"
     work = Path(tempfile.mkdtemp(prefix="carto_bench_"))
     try:
         dem = work / "dem.tif"
