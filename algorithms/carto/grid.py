@@ -4,14 +4,8 @@ from __future__ import annotations
 
 from toolbox.algorithm import Algorithm
 from toolbox.feedback import Feedback
-from toolbox.parameters import (
-    Crs,
-    Enum,
-    Layer,
-    Number,
-    Output,
-    OutputVector,
-)
+from toolbox.parameters import Crs, Enum, Number
+from toolbox.parameters.outputs import Layer, Output, OutputVector
 from toolbox.registry import register
 from toolbox.ui.cartography import sheet_area_parameters, sheet_source
 

@@ -4,18 +4,8 @@ from __future__ import annotations
 
 from toolbox.algorithm import Algorithm
 from toolbox.feedback import Feedback
-from toolbox.parameters import (
-    Enum,
-    Field,
-    Integer,
-    Layer,
-    Number,
-    Output,
-    OutputFile,
-    OutputVector,
-    RasterLayer,
-    VectorLayer,
-)
+from toolbox.parameters import Enum, Field, Integer, Number, RasterLayer, VectorLayer
+from toolbox.parameters.outputs import Layer, Output, OutputFile, OutputVector
 from toolbox.registry import register
 
 

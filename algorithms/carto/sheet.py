@@ -12,13 +12,11 @@ from toolbox.parameters import (
     Integer,
     MultipleLayers,
     Number,
-    Output,
-    OutputFile,
-    OutputFolder,
     RasterLayer,
     String,
     VectorLayer,
 )
+from toolbox.parameters.outputs import Output, OutputFile, OutputFolder
 from toolbox.registry import register
 from toolbox.ui.cartography import sheet_area_parameters, sheet_source
 

@@ -4,19 +4,8 @@ from __future__ import annotations
 
 from toolbox.algorithm import Algorithm
 from toolbox.feedback import Feedback
-from toolbox.parameters import (
-    Boolean,
-    Enum,
-    Integer,
-    Layer,
-    MultipleLayers,
-    Number,
-    Output,
-    OutputRaster,
-    OutputVector,
-    String,
-    VectorLayer,
-)
+from toolbox.parameters import Boolean, Enum, Integer, MultipleLayers, Number, String, VectorLayer
+from toolbox.parameters.outputs import Layer, Output, OutputRaster, OutputVector
 from toolbox.registry import register
 from toolbox.ui.execution import executor_of, scheduler_parameter
 

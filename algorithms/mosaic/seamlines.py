@@ -4,18 +4,8 @@ from __future__ import annotations
 
 from toolbox.algorithm import Algorithm
 from toolbox.feedback import Feedback
-from toolbox.parameters import (
-    Enum,
-    Field,
-    Integer,
-    Layer,
-    MultipleLayers,
-    Number,
-    Output,
-    OutputVector,
-    RasterLayer,
-    VectorLayer,
-)
+from toolbox.parameters import Enum, Field, Integer, MultipleLayers, Number, RasterLayer, VectorLayer
+from toolbox.parameters.outputs import Layer, Output, OutputVector
 from toolbox.registry import register
 
 METHODS = ("voronoi", "least_cost")

@@ -6,18 +6,8 @@ from typing import Any
 
 from toolbox.algorithm import Algorithm
 from toolbox.feedback import Feedback
-from toolbox.parameters import (
-    Boolean,
-    Enum,
-    File,
-    Integer,
-    Layer,
-    Number,
-    Output,
-    OutputFile,
-    OutputVector,
-    String,
-)
+from toolbox.parameters import Boolean, Enum, File, Integer, Number, String
+from toolbox.parameters.outputs import Layer, Output, OutputFile, OutputVector
 from toolbox.registry import register
 from toolbox.ui.photogrammetry import TABLE_EXTENSIONS, measurement_parameters
 

@@ -6,7 +6,8 @@ from typing import Any
 
 from toolbox.algorithm import Algorithm
 from toolbox.feedback import Feedback
-from toolbox.parameters import Layer, Number, Output, OutputFile, OutputVector
+from toolbox.parameters import Number
+from toolbox.parameters.outputs import Layer, Output, OutputFile, OutputVector
 from toolbox.registry import register
 from toolbox.ui.photogrammetry import control_parameter, measured_inputs, measurement_parameters
 

@@ -7,18 +7,10 @@ from typing import Any
 
 from toolbox.algorithm import Algorithm
 from toolbox.feedback import Feedback
-from toolbox.parameters import (
-    File,
-    Integer,
-    Number,
-    Output,
-    OutputFile,
-    OutputFolder,
-    RasterLayer,
-    String,
-)
+from toolbox.parameters import File, Integer, Number, RasterLayer, String
+from toolbox.parameters.outputs import Output, OutputFile, OutputFolder
 from toolbox.registry import register
-from toolbox.ui.photogrammetry import TABLE_EXTENSIONS
+from toolbox.ui.photogrammetry import TABLE_EXTENSIONS, project_parameter
 
 
 @register
@@ -60,8 +52,7 @@ class ControlTemplate(Algorithm):
     group = "Orientation"
     short_help = "Predict control points' image positions and write a template with chips."
     parameters = [
-        File("PROJECT", "orientation project (YAML) with images and approximate orientations",
-             extensions=[".yaml", ".yml"]),
+        project_parameter("orientation project (YAML) with images and approximate orientations"),
         File("CONTROL", "ground control points: id, X, Y, Z", extensions=TABLE_EXTENSIONS),
         String("LAYER", "GeoPackage layer of CONTROL (default: the first)", optional=True),
         Number("MARGIN", "keep predictions at least this far inside the frame, px", default=0.0,

@@ -6,20 +6,8 @@ from typing import Any
 
 from toolbox.algorithm import Algorithm
 from toolbox.feedback import Feedback
-from toolbox.parameters import (
-    Boolean,
-    Crs,
-    Enum,
-    ExtentParameter,
-    Integer,
-    Layer,
-    Number,
-    Output,
-    OutputFile,
-    OutputVector,
-    String,
-    VectorLayer,
-)
+from toolbox.parameters import Boolean, Crs, Enum, ExtentParameter, Integer, Number, String, VectorLayer
+from toolbox.parameters.outputs import Layer, Output, OutputFile, OutputVector
 from toolbox.registry import register
 
 

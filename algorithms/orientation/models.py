@@ -6,7 +6,8 @@ from typing import Any
 
 from toolbox.algorithm import Algorithm
 from toolbox.feedback import Feedback
-from toolbox.parameters import Crs, Enum, File, Layer, Output, OutputFile, OutputVector, String
+from toolbox.parameters import Crs, Enum, File, String
+from toolbox.parameters.outputs import Layer, Output, OutputFile, OutputVector
 from toolbox.registry import register
 from toolbox.ui.photogrammetry import TABLE_EXTENSIONS
 

@@ -10,23 +10,11 @@ from toolbox.algorithm import Algorithm
 from toolbox.errors import InputDataError
 from toolbox.feedback import Feedback
 from toolbox.io.crs import common_crs
-from toolbox.parameters import (
-    Boolean,
-    Enum,
-    File,
-    Integer,
-    Layer,
-    Number,
-    Output,
-    OutputFile,
-    OutputVector,
-    String,
-)
+from toolbox.parameters import Boolean, Enum, File, Integer, Number, String
+from toolbox.parameters.outputs import Layer, Output, OutputFile, OutputVector
 from toolbox.photogrammetry.collinearity import NO_INTERSECTION, OK, STATUS_NAMES
 from toolbox.photogrammetry.surface import dem_height_range, surface_for_photo
-from toolbox.photogrammetry.tables import (
-    write_json,
-)
+from toolbox.photogrammetry.tables import write_json
 from toolbox.registry import register
 from toolbox.ui.photogrammetry import dem_parameters, measured_inputs, measured_photos, project_parameter
 

@@ -6,7 +6,8 @@ from typing import Any
 
 from toolbox.algorithm import Algorithm
 from toolbox.feedback import Feedback
-from toolbox.parameters import Enum, Output, OutputFile, String
+from toolbox.parameters import Enum, String
+from toolbox.parameters.outputs import Output, OutputFile
 from toolbox.registry import register
 from toolbox.ui.photogrammetry import measured_inputs, measurement_parameters
 
@@ -56,10 +57,7 @@ class RelativeOrientation(Algorithm):
     def process(self, params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
         import numpy as np
 
-        from toolbox.photogrammetry.forward_intersection import (
-            camera_observations,
-            principal_distance,
-        )
+        from toolbox.photogrammetry.forward_intersection import camera_observations, principal_distance
         from toolbox.photogrammetry.tables import write_csv, write_json
         from toolbox.triangulation.relative import RelativeRequest, relative_orientation
 

@@ -6,7 +6,8 @@ from typing import Any
 
 from toolbox.algorithm import Algorithm
 from toolbox.feedback import Feedback
-from toolbox.parameters import Enum, Output, OutputFile
+from toolbox.parameters import Enum
+from toolbox.parameters.outputs import Output, OutputFile
 from toolbox.registry import register
 from toolbox.ui.photogrammetry import control_parameter, measured_inputs, measurement_parameters
 

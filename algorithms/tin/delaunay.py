@@ -11,17 +11,8 @@ from toolbox.io.crs import common_crs, crs_label
 from toolbox.io.pointcloud import cloud_filter
 from toolbox.io.vector import read_vector
 from toolbox.io.vector_points import vertices_xyz
-from toolbox.parameters import (
-    Boolean,
-    Crs,
-    Enum,
-    Field,
-    Layer,
-    Number,
-    Output,
-    OutputVector,
-    VectorLayer,
-)
+from toolbox.parameters import Boolean, Crs, Enum, Field, Number, VectorLayer
+from toolbox.parameters.outputs import Layer, Output, OutputVector
 from toolbox.registry import register
 from toolbox.terrain.points import read_mass_points
 from toolbox.ui.gridding import point_input_parameters

@@ -9,7 +9,8 @@ from toolbox.errors import InputDataError
 from toolbox.feedback import Feedback
 from toolbox.io.crs import common_crs
 from toolbox.io.vector import read_vector, write_layers
-from toolbox.parameters import Boolean, Layer, Number, Output, OutputVector, String, VectorLayer
+from toolbox.parameters import Boolean, Number, String, VectorLayer
+from toolbox.parameters.outputs import Layer, Output, OutputVector
 from toolbox.registry import register
 from toolbox.terrain.tin.help import TIN_HELP
 

@@ -7,18 +7,8 @@ import numpy as np
 from toolbox.algorithm import Algorithm
 from toolbox.errors import InputDataError
 from toolbox.feedback import Feedback
-from toolbox.parameters import (
-    Boolean,
-    Crs,
-    Enum,
-    ExtentParameter,
-    Integer,
-    Number,
-    Output,
-    OutputRaster,
-    RasterLayer,
-    VectorLayer,
-)
+from toolbox.parameters import Boolean, Crs, Enum, ExtentParameter, Integer, Number, RasterLayer, VectorLayer
+from toolbox.parameters.outputs import Output, OutputRaster
 from toolbox.registry import register
 from toolbox.terrain.tin.help import TIN_HELP
 from toolbox.ui.execution import executor_of, scheduler_parameter

@@ -11,7 +11,8 @@ from toolbox.errors import InputDataError
 from toolbox.feedback import Feedback
 from toolbox.io.crs import common_crs, crs_label
 from toolbox.io.raster import DEFAULT_BLOCK
-from toolbox.parameters import Integer, Number, Output, OutputFile, RasterLayer, VectorLayer
+from toolbox.parameters import Integer, Number, RasterLayer, VectorLayer
+from toolbox.parameters.outputs import Output, OutputFile
 from toolbox.registry import register
 from toolbox.terrain.tin.cutfill import CutFill, grid_cut_fill, plane_cut_fill
 from toolbox.terrain.tin.help import TIN_HELP

@@ -68,11 +68,7 @@ def ortho_method_parameters() -> list[Parameter]:
 def measured_inputs(params: Mapping[str, Any], control: bool = False) -> tuple:
     """``(project, measurements, control points)`` read from PROJECT, INPUT (LAYER,
     COORDINATES) and, with ``control``, CONTROL (else None)."""
-    from toolbox.photogrammetry.tables import (
-        ground_points,
-        image_measurements,
-        load_project_parameter,
-    )
+    from toolbox.photogrammetry.tables import ground_points, image_measurements, load_project_parameter
 
     project = load_project_parameter(params["PROJECT"])
     measurements = image_measurements(params["INPUT"], params["LAYER"], params["COORDINATES"])

@@ -6,7 +6,8 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
-from toolbox.parameters import Field, File, Layer, VectorLayer
+from toolbox.parameters import Field, File, VectorLayer
+from toolbox.parameters.outputs import Layer
 from toolbox.topology.inputs import LineworkSources
 from toolbox.topology.tolerances import TOLERANCE_PARAMETERS
 from toolbox.ui.parameter_file import file_backed
