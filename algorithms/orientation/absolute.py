@@ -7,8 +7,9 @@ from typing import Any
 from toolbox.algorithm import Algorithm
 from toolbox.feedback import Feedback
 from toolbox.parameters import Crs, File, String
-from toolbox.parameters.outputs import Layer, Output, OutputFile, OutputVector
+from toolbox.parameters.outputs import Layer, Output, OutputVector
 from toolbox.registry import register
+from toolbox.ui.photogrammetry import report_output
 
 
 @register
@@ -51,7 +52,7 @@ class AbsoluteOrientation(Algorithm):
                          ("point_id", "string"), ("role", "string"),
                          ("vx", "real", "computed - observed"), ("vy", "real"), ("vz", "real")],
                          "every model point transformed to the ground")]),
-        OutputFile("REPORT", "JSON report", extensions=[".json"]),
+        report_output(optional=False),
     ]
     outputs = [Output("STATISTICS", "sigma0, scale, check-point RMSE", "dict")]
 

@@ -7,9 +7,9 @@ from typing import Any
 from toolbox.algorithm import Algorithm
 from toolbox.feedback import Feedback
 from toolbox.parameters import Crs, Enum, File, String
-from toolbox.parameters.outputs import Layer, Output, OutputFile, OutputVector
+from toolbox.parameters.outputs import Layer, Output, OutputVector
 from toolbox.registry import register
-from toolbox.ui.photogrammetry import TABLE_EXTENSIONS
+from toolbox.ui.photogrammetry import TABLE_EXTENSIONS, report_output
 
 
 @register
@@ -55,7 +55,7 @@ class IndependentModels(Algorithm):
                                         ("n_models", "integer"),
                                         ("max_residual_m", "real")],
                   "adjusted ground points")]),
-        OutputFile("REPORT", "JSON report", extensions=[".json"], optional=True),
+        report_output(),
     ]
     outputs = [Output("STATISTICS", "unknowns, equations, redundancy, sigma0 (m)", "dict")]
 

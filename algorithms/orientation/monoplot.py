@@ -11,12 +11,18 @@ from toolbox.errors import InputDataError
 from toolbox.feedback import Feedback
 from toolbox.io.crs import common_crs
 from toolbox.parameters import Boolean, Enum, File, Integer, Number, String
-from toolbox.parameters.outputs import Layer, Output, OutputFile, OutputVector
+from toolbox.parameters.outputs import Layer, Output, OutputVector
 from toolbox.photogrammetry.collinearity import NO_INTERSECTION, OK, STATUS_NAMES
 from toolbox.photogrammetry.surface import dem_height_range, surface_for_photo
 from toolbox.photogrammetry.tables import write_json
 from toolbox.registry import register
-from toolbox.ui.photogrammetry import dem_parameters, measured_inputs, measured_photos, project_parameter
+from toolbox.ui.photogrammetry import (
+    dem_parameters,
+    measured_inputs,
+    measured_photos,
+    project_parameter,
+    report_output,
+)
 
 
 @register
@@ -61,7 +67,7 @@ class Monoplot(Algorithm):
                 ("status", "string", "ok, outside_dem, dem_nodata or no_intersection"),
                 ("iterations", "integer", "iterations to converge")],
                 "ground points of the image measurements (empty geometry when not found)")]),
-        OutputFile("REPORT", "JSON summary", extensions=[".json"], optional=True),
+        report_output("JSON summary"),
     ]
     outputs = [Output("STATISTICS", "points per status", "json")]
 

@@ -9,7 +9,7 @@ from toolbox.feedback import Feedback
 from toolbox.parameters import Enum, String
 from toolbox.parameters.outputs import Output, OutputFile
 from toolbox.registry import register
-from toolbox.ui.photogrammetry import measured_inputs, measurement_parameters
+from toolbox.ui.photogrammetry import measured_inputs, measurement_parameters, report_output
 
 
 @register
@@ -50,7 +50,7 @@ class RelativeOrientation(Algorithm):
              "(φ1, κ1, ω2, φ2, κ2)", options=("dependent", "independent"), default="dependent"),
         OutputFile("OUTPUT", "model points: point_id, X, Y, Z (model units, bx = 1), py_um",
                    extensions=[".csv"]),
-        OutputFile("REPORT", "JSON report", extensions=[".json"], optional=True),
+        report_output(),
     ]
     outputs = [Output("STATISTICS", "parameters, sigma0 (µm), redundancy, warnings", "dict")]
 

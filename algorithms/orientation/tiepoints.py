@@ -10,7 +10,7 @@ from toolbox.feedback import Feedback
 from toolbox.parameters import Boolean, Enum, File, Integer, Number, String
 from toolbox.parameters.outputs import Output, OutputFile
 from toolbox.registry import register
-from toolbox.ui.photogrammetry import project_parameter
+from toolbox.ui.photogrammetry import project_parameter, report_output
 
 
 @register
@@ -104,7 +104,7 @@ class TiePoints(Algorithm):
         OutputFile("POINTS", "tie points (GeoPackage, layer tie_points: PointZ with point_id, "
                    "n_photos, photos, max_residual_px)", extensions=[".gpkg"], optional=True),
         OutputFile("PAIRS", "per-pair table (CSV)", extensions=[".csv"], optional=True),
-        OutputFile("REPORT", "JSON summary", extensions=[".json"], optional=True),
+        report_output("JSON summary"),
     ]
     outputs = [Output("STATISTICS", "points, observations, pairs tied, untied photos", "json")]
 

@@ -7,6 +7,7 @@ from typing import Any
 
 from toolbox.errors import InputDataError
 from toolbox.parameters import Enum, File, Integer, Number, Parameter, RasterLayer, String
+from toolbox.parameters.outputs import Layer, OutputFile
 from toolbox.photogrammetry.tables import PROJECT_EXTENSIONS
 
 TABLE_EXTENSIONS = [".csv", ".txt", ".gpkg"]
@@ -16,6 +17,18 @@ def project_parameter(description: str = "orientation project (YAML)",
                       optional: bool = False) -> File:
     """PROJECT: the orientation project YAML."""
     return File("PROJECT", description, extensions=PROJECT_EXTENSIONS, optional=optional)
+
+
+def report_output(description: str = "JSON report", optional: bool = True) -> OutputFile:
+    """REPORT: the JSON report of an orientation step."""
+    return OutputFile("REPORT", description, extensions=[".json"], optional=optional)
+
+
+def ground_residuals_layer(description: str) -> Layer:
+    """The layer ``ground_residuals``: one line per known point, surveyed -> computed position."""
+    return Layer("ground_residuals", "LineString Z", [
+        ("point_id", "string"), ("role", "string"), ("dx_m", "real"), ("dy_m", "real"),
+        ("dz_m", "real")], description)
 
 
 def dem_parameters(description: str = "terrain heights (same CRS as the project)",
