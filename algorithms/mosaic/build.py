@@ -4,10 +4,11 @@ from __future__ import annotations
 
 from toolbox.algorithm import Algorithm
 from toolbox.feedback import Feedback
-from toolbox.parameters import Boolean, Enum, Integer, MultipleLayers, Number, String, VectorLayer
+from toolbox.parameters import Boolean, Enum, Integer, Number, String, VectorLayer
 from toolbox.parameters.outputs import Layer, Output, OutputRaster, OutputVector
 from toolbox.registry import register
 from toolbox.ui.execution import executor_of, scheduler_parameter
+from toolbox.ui.mosaic import orthos_parameter
 
 BLEND_METHODS = ("none", "feather", "multiband")
 RESAMPLING = ("nearest", "bilinear", "cubic", "lanczos")
@@ -47,8 +48,7 @@ class MosaicBuild(Algorithm):
     group = "Mosaic"
     short_help = "Orthos + cut polygons -> mosaic GeoTIFF (blending, balancing, source index)."
     parameters = [
-        MultipleLayers("INPUT", "the orthophoto GeoTIFFs (north-up, one CRS)",
-                       layer_type="raster", min_count=1),
+        orthos_parameter(),
         VectorLayer("CUTLINES", "cut polygons (mosaic:seamlines' cut_polygons layer; default: "
                     "Voronoi cells)", geometry_types=["polygon"], optional=True),
         String("SOURCE_FIELD", "field of CUTLINES holding the ortho file names (or 1-based "

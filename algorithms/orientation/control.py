@@ -7,10 +7,10 @@ from typing import Any
 
 from toolbox.algorithm import Algorithm
 from toolbox.feedback import Feedback
-from toolbox.parameters import File, Integer, Number, RasterLayer, String
+from toolbox.parameters import Integer, Number, RasterLayer
 from toolbox.parameters.outputs import Output, OutputFile, OutputFolder
 from toolbox.registry import register
-from toolbox.ui.photogrammetry import TABLE_EXTENSIONS, project_parameter
+from toolbox.ui.photogrammetry import project_parameter, table_parameters
 
 
 @register
@@ -53,8 +53,7 @@ class ControlTemplate(Algorithm):
     short_help = "Predict control points' image positions and write a template with chips."
     parameters = [
         project_parameter("orientation project (YAML) with images and approximate orientations"),
-        File("CONTROL", "ground control points: id, X, Y, Z", extensions=TABLE_EXTENSIONS),
-        String("LAYER", "GeoPackage layer of CONTROL (default: the first)", optional=True),
+        *table_parameters("CONTROL", "ground control points: id, X, Y, Z"),
         Number("MARGIN", "keep predictions at least this far inside the frame, px", default=0.0,
                min_value=0.0),
         Integer("CHIP_SIZE", "chip half size, px", default=48, min_value=8, max_value=2048),

@@ -10,7 +10,7 @@ from toolbox.algorithm import Algorithm
 from toolbox.errors import InputDataError
 from toolbox.feedback import Feedback
 from toolbox.io.crs import common_crs
-from toolbox.parameters import Boolean, Enum, File, Integer, Number, String
+from toolbox.parameters import Boolean, Enum, Integer, Number
 from toolbox.parameters.outputs import Layer, Output, OutputVector
 from toolbox.photogrammetry.collinearity import NO_INTERSECTION, OK, STATUS_NAMES
 from toolbox.photogrammetry.surface import dem_height_range, surface_for_photo
@@ -22,6 +22,7 @@ from toolbox.ui.photogrammetry import (
     measured_photos,
     project_parameter,
     report_output,
+    table_parameters,
 )
 
 
@@ -49,8 +50,7 @@ class Monoplot(Algorithm):
     short_help = "Ground points (PointZ) of image points of oriented photos, on a DEM or a height."
     parameters = [
         project_parameter(),
-        File("INPUT", "image points (CSV or GeoPackage table)", extensions=[".csv", ".txt", ".gpkg"]),
-        String("LAYER", "GeoPackage layer of INPUT (default: the first)", optional=True),
+        *table_parameters("INPUT", "image points (CSV or GeoPackage table)"),
         Enum("COORDINATES", "measurement columns: auto, pixel (col_px/row_px), image (x_mm/y_mm)",
              options=("auto", "pixel", "image"), default="auto"),
         *dem_parameters(optional=True),

@@ -13,6 +13,12 @@ from toolbox.photogrammetry.tables import PROJECT_EXTENSIONS
 TABLE_EXTENSIONS = [".csv", ".txt", ".gpkg"]
 
 
+def table_parameters(name: str, description: str) -> list[Parameter]:
+    """A table (CSV, text or GeoPackage) ``name`` and the LAYER to read of a GeoPackage."""
+    return [File(name, description, extensions=TABLE_EXTENSIONS),
+            String("LAYER", f"GeoPackage layer of {name} (default: the first)", optional=True)]
+
+
 def project_parameter(description: str = "orientation project (YAML)",
                       optional: bool = False) -> File:
     """PROJECT: the orientation project YAML."""
@@ -42,8 +48,7 @@ def measurement_parameters(project: str = "orientation project (YAML)") -> list[
     """PROJECT, and the image measurements: INPUT, its LAYER and its COORDINATES columns."""
     return [
         project_parameter(project),
-        File("INPUT", "image measurements (CSV or GeoPackage table)", extensions=TABLE_EXTENSIONS),
-        String("LAYER", "GeoPackage layer of INPUT (default: the first)", optional=True),
+        *table_parameters("INPUT", "image measurements (CSV or GeoPackage table)"),
         Enum("COORDINATES", "measurement columns: auto (pixels when col_px/row_px exist), pixel, "
              "image (x_mm/y_mm)", options=("auto", "pixel", "image"), default="auto"),
     ]
