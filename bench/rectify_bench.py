@@ -467,6 +467,7 @@ def main(argv: list[str] | None = None) -> str:
                   "For comparison, holding that scan and its output in memory (as one "
                   f"`cv2.warpPerspective` call needs) takes {16644 ** 2 * 3 / 2**20:.0f} MB + "
                   f"{big['width'] * big['height'] * 4 / 2**20:.0f} MB.", ""]
+    # duplicate-ok: every bench script closes with its method note and write_results
     lines += ["Ratios below 1 mean ours is faster. The in-memory rows give both sides "
               "band-sequential arrays as rasterio reads and writes them (OpenCV then needs "
               "`cv2.merge`/`cv2.split`); the file rows write the same tiled DEFLATE GeoTIFF "

@@ -76,6 +76,8 @@ class Profile(Algorithm):
             raise self.fail("DEM", f"or TIN: give exactly one of them with MODE "
                             f"{params['MODE']}")
 
+    # duplicate-ok: process() imports its libraries lazily (toolbox list/help stay light); the
+    # lists of lazy imports after a check() look alike across algorithms
     def process(self, params, feedback: Feedback):
         import numpy as np
 

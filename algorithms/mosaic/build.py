@@ -82,6 +82,8 @@ class MosaicBuild(Algorithm):
             raise self.fail("FEATHER_WIDTH", f"applies to BLEND=feather, got BLEND="
                             f"{params['BLEND']}")
 
+    # duplicate-ok: process() imports its libraries lazily (toolbox list/help stay light); the
+    # lists of lazy imports after a check() look alike across algorithms
     def process(self, params, feedback: Feedback):
         import numpy as np
         import shapely

@@ -61,6 +61,7 @@ class Monoplot(Algorithm):
         Integer("MAX_ITERATIONS", "refinement or fixed-point iterations", default=100,
                 min_value=1),
         Boolean("FAIL_ON_MISS", "a ray that misses the terrain is an error", default=False),
+        # duplicate-ok: declared layers and fields (a spec read by the docs and QGIS, not logic)
         OutputVector("OUTPUT", "GeoPackage with the layer points", layers=[
             Layer("points", "Point Z", [
                 ("point_id", "string"), ("photo", "string"),

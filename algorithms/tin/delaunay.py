@@ -127,6 +127,7 @@ class Delaunay(Algorithm):
                 "the triangles layer keeps neighbour and edge ids either way)", default=True),
         Boolean("SPATIAL_INDEX", "write GeoPackage spatial indexes (faster display of large "
                 "TINs in QGIS; adds about a third to the writing time)", default=True),
+        # duplicate-ok: declared layers and fields (a spec read by the docs and QGIS, not logic)
         OutputVector("OUTPUT", "TIN GeoPackage (layers triangles, nodes, edges); .parquet or "
                      ".fgb write big TINs several times faster (one file per layer)", layers=[
             Layer("triangles", "Polygon Z", [
