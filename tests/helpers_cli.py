@@ -1,9 +1,12 @@
 """Shared helpers of the error-contract tests: run the CLI in-process, read its one error line,
-register a throwaway algorithm, run the CLI under a file-size limit (a full disk)."""
+register a throwaway algorithm, run the CLI under a file-size limit (a full disk), find the
+system Python that has QGIS."""
 
 from __future__ import annotations
 
+import functools
 import resource
+import shutil
 import signal
 import subprocess
 import sys
@@ -71,3 +74,13 @@ def assert_refused(args: list, text: str, absent: tuple[Path, ...] = ()) -> str:
     assert code == 2 and text in line, err
     assert not any(p.exists() for p in absent)
     return line
+
+
+@functools.cache
+def qgis_python() -> str | None:
+    """The system ``python3`` that imports ``qgis.core`` (python3-qgis), or None."""
+    python = shutil.which("python3", path="/usr/bin")
+    if python is None:
+        return None
+    check = subprocess.run([python, "-c", "import qgis.core"], capture_output=True)
+    return python if check.returncode == 0 else None

@@ -6,7 +6,8 @@ import glob
 
 from toolbox.algorithm import Algorithm
 from toolbox.feedback import Feedback
-from toolbox.parameters import Boolean, Crs, Enum, File, Layer, Output, OutputVector, String
+from toolbox.parameters import Boolean, Crs, Enum, File, String
+from toolbox.parameters.outputs import Layer, Output, OutputVector
 from toolbox.registry import register
 from toolbox.ui.attribution import CODED, RestitutionFiles
 from toolbox.ui.parameter_file import file_backed

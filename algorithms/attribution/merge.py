@@ -4,7 +4,8 @@ from __future__ import annotations
 
 from toolbox.algorithm import Algorithm
 from toolbox.feedback import Feedback
-from toolbox.parameters import Crs, File, Layer, Output, OutputVector, String
+from toolbox.parameters import Crs, File, String
+from toolbox.parameters.outputs import Layer, Output, OutputVector
 from toolbox.registry import register
 from toolbox.ui.attribution import RestitutionFiles
 from toolbox.ui.parameter_file import file_backed

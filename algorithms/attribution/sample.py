@@ -4,7 +4,8 @@ from __future__ import annotations
 
 from toolbox.algorithm import Algorithm
 from toolbox.feedback import Feedback
-from toolbox.parameters import Enum, Number, Output, VectorLayer
+from toolbox.parameters import Enum, Number, VectorLayer
+from toolbox.parameters.outputs import Output
 from toolbox.registry import register
 from toolbox.ui.attribution import edited_output, parameter_file_parameter
 from toolbox.ui.parameter_file import file_backed
@@ -58,12 +59,7 @@ class Sample(Algorithm):
         import numpy as np
 
         from toolbox.attribution.edit_io import read_parts, write_edited
-        from toolbox.attribution.editing import (
-            densify,
-            deviation,
-            sample_by_distance,
-            sample_by_vectors,
-        )
+        from toolbox.attribution.editing import densify, deviation, sample_by_distance, sample_by_vectors
         from toolbox.errors import InputDataError
         from toolbox.ui.attribution import file_values
 

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 from toolbox.algorithm import Algorithm
 from toolbox.feedback import Feedback
-from toolbox.parameters import Number, Output, VectorLayer
+from toolbox.parameters import Number, VectorLayer
+from toolbox.parameters.outputs import Output
 from toolbox.registry import register
 from toolbox.ui.attribution import edited_output, parameter_file_parameter
 from toolbox.ui.parameter_file import file_backed

@@ -4,16 +4,10 @@ from __future__ import annotations
 
 from toolbox.algorithm import Algorithm
 from toolbox.feedback import Feedback
-from toolbox.parameters import (
-    Crs,
-    Enum,
-    Layer,
-    Number,
-    Output,
-    OutputVector,
-)
+from toolbox.parameters import Crs, Enum, Number
+from toolbox.parameters.outputs import Layer, Output, OutputVector
 from toolbox.registry import register
-from toolbox.ui.cartography import sheet_area_parameters, sheet_source
+from toolbox.ui.cartography import sheet_parameters, sheet_source
 
 
 @register
@@ -34,9 +28,8 @@ class Grid(Algorithm):
     group = "Cartography"
     short_help = "Map grid every 10 cm on paper (500 m at 1:5000) as lines or crosses, labelled."
     parameters = [
-        *sheet_area_parameters("area: xmin,ymin,xmax,ymax [CRS]",
+        *sheet_parameters("area: xmin,ymin,xmax,ymax [CRS]",
                                "map sheets (polygons) instead of EXTENT"),
-        Number("SCALE", "map scale denominator (5000 for 1:5000)", default=5000.0, min_value=1),
         Number("MAP_STEP", "grid step on paper, mm", default=100.0, min_value=0,
                min_exclusive=True),
         Enum("STYLE", "grid drawing", options=["crosses", "lines"], default="crosses"),

@@ -4,19 +4,10 @@ from __future__ import annotations
 
 from toolbox.algorithm import Algorithm
 from toolbox.feedback import Feedback
-from toolbox.parameters import (
-    Enum,
-    Field,
-    Integer,
-    Layer,
-    Number,
-    Output,
-    OutputFile,
-    OutputVector,
-    RasterLayer,
-    VectorLayer,
-)
+from toolbox.parameters import Enum, Field, Integer, Number, RasterLayer, VectorLayer
+from toolbox.parameters.outputs import Layer, Output, OutputFile, OutputVector
 from toolbox.registry import register
+from toolbox.ui.tin import tin_parameter
 
 
 @register
@@ -47,8 +38,7 @@ class Profile(Algorithm):
         VectorLayer("INPUT", "polylines (profile lines or section axes)",
                     geometry_types=["line"]),
         RasterLayer("DEM", "DEM raster", optional=True),
-        VectorLayer("TIN", "TIN triangles (instead of DEM)", geometry_types=["polygon"],
-                    optional=True),
+        tin_parameter("TIN triangles (instead of DEM)", optional=True),
         Integer("BAND", "band of the DEM", default=1, min_value=1),
         Enum("MODE", "sampling", options=["step", "contours", "sections"], default="step"),
         Number("STEP", "sampling distance along profiles and sections, m", default=10.0,
@@ -86,6 +76,8 @@ class Profile(Algorithm):
             raise self.fail("DEM", f"or TIN: give exactly one of them with MODE "
                             f"{params['MODE']}")
 
+    # duplicate-ok: process() imports its libraries lazily (toolbox list/help stay light); the
+    # lists of lazy imports after a check() look alike across algorithms
     def process(self, params, feedback: Feedback):
         import numpy as np
 

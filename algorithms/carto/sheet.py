@@ -12,15 +12,13 @@ from toolbox.parameters import (
     Integer,
     MultipleLayers,
     Number,
-    Output,
-    OutputFile,
-    OutputFolder,
     RasterLayer,
     String,
     VectorLayer,
 )
+from toolbox.parameters.outputs import Output, OutputFile, OutputFolder
 from toolbox.registry import register
-from toolbox.ui.cartography import sheet_area_parameters, sheet_source
+from toolbox.ui.cartography import sheet_parameters, sheet_source
 
 
 @register
@@ -70,9 +68,8 @@ class Sheet(Algorithm):
     group = "Cartography"
     short_help = "Map sheet PDF/PNG at an exact scale: base, layers, contours, grid, legend."
     parameters = [
-        *sheet_area_parameters("sheet area: xmin,ymin,xmax,ymax [CRS]",
+        *sheet_parameters("sheet area: xmin,ymin,xmax,ymax [CRS]",
                                "sheet grid polygons instead of EXTENT (one sheet each)"),
-        Number("SCALE", "map scale denominator", default=5000.0, min_value=1),
         RasterLayer("BASE", "base raster: orthophoto (RGB) or hillshade (grey)", optional=True),
         MultipleLayers("LAYERS", "vector layers to draw", layer_type="vector", min_count=0,
                        optional=True),

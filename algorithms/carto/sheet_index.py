@@ -4,17 +4,8 @@ from __future__ import annotations
 
 from toolbox.algorithm import Algorithm
 from toolbox.feedback import Feedback
-from toolbox.parameters import (
-    Boolean,
-    Crs,
-    Enum,
-    ExtentParameter,
-    Integer,
-    Layer,
-    Output,
-    OutputVector,
-    String,
-)
+from toolbox.parameters import Boolean, Crs, Enum, ExtentParameter, Integer, String
+from toolbox.parameters.outputs import Layer, Output, OutputVector
 from toolbox.registry import register
 
 

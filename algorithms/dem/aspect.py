@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from toolbox.parameters import Output
+from toolbox.parameters.outputs import Output
 from toolbox.registry import register
 from toolbox.ui.shading import ShadingAlgorithm, shading_parameters
 

@@ -8,16 +8,8 @@ import numpy as np
 
 from toolbox.algorithm import Algorithm
 from toolbox.feedback import Feedback
-from toolbox.parameters import (
-    Boolean,
-    Integer,
-    Layer,
-    Number,
-    Output,
-    OutputFile,
-    OutputVector,
-    String,
-)
+from toolbox.parameters import Boolean, Integer, Number, String
+from toolbox.parameters.outputs import Layer, Output, OutputFile, OutputVector
 from toolbox.registry import register
 from toolbox.terrain.gridding.methods import METHODS
 from toolbox.ui.gridding import (

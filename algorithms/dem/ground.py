@@ -6,7 +6,8 @@ from typing import Any
 
 from toolbox.algorithm import Algorithm
 from toolbox.feedback import Feedback
-from toolbox.parameters import Crs, Enum, Number, OutputFile, OutputRaster, RasterLayer
+from toolbox.parameters import Crs, Enum, Number, RasterLayer
+from toolbox.parameters.outputs import OutputFile, OutputRaster
 from toolbox.registry import register
 from toolbox.ui.grid import grid_request
 from toolbox.ui.gridding import (

@@ -6,19 +6,11 @@ from typing import Any
 
 from toolbox.algorithm import Algorithm
 from toolbox.feedback import Feedback
-from toolbox.parameters import (
-    ExtentParameter,
-    File,
-    Integer,
-    Number,
-    Output,
-    OutputFile,
-    OutputRaster,
-    RasterLayer,
-    String,
-)
+from toolbox.parameters import ExtentParameter, Integer, Number, RasterLayer, String
+from toolbox.parameters.outputs import Output, OutputFile, OutputRaster
 from toolbox.registry import register
 from toolbox.ui.grid import grid_request
+from toolbox.ui.photogrammetry import project_parameter
 
 
 @register
@@ -63,8 +55,7 @@ class DenseMatchingDsm(Algorithm):
     short_help = ("DSM GeoTIFF (+ pair count and spread) by semi-global matching of every "
                   "suitable stereo pair of an oriented block.")
     parameters = [
-        File("PROJECT", "orientation project (YAML) with oriented photos and their images",
-             extensions=[".yaml", ".yml"]),
+        project_parameter("orientation project (YAML) with oriented photos and their images"),
         String("PHOTOS", "photo ids to use, comma-separated (default: every oriented photo)",
                optional=True),
         Number("MIN_HEIGHT", "lowest ground height of the area (sets the disparity search)"),

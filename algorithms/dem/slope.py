@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from toolbox.parameters import Enum, Number, Output
+from toolbox.parameters import Enum, Number
+from toolbox.parameters.outputs import Output
 from toolbox.registry import register
 from toolbox.ui.shading import ShadingAlgorithm, shading_parameters
 

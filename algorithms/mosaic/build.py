@@ -4,21 +4,11 @@ from __future__ import annotations
 
 from toolbox.algorithm import Algorithm
 from toolbox.feedback import Feedback
-from toolbox.parameters import (
-    Boolean,
-    Enum,
-    Integer,
-    Layer,
-    MultipleLayers,
-    Number,
-    Output,
-    OutputRaster,
-    OutputVector,
-    String,
-    VectorLayer,
-)
+from toolbox.parameters import Boolean, Enum, Integer, Number, String, VectorLayer
+from toolbox.parameters.outputs import Layer, Output, OutputRaster, OutputVector
 from toolbox.registry import register
 from toolbox.ui.execution import executor_of, scheduler_parameter
+from toolbox.ui.mosaic import orthos_parameter
 
 BLEND_METHODS = ("none", "feather", "multiband")
 RESAMPLING = ("nearest", "bilinear", "cubic", "lanczos")
@@ -58,8 +48,7 @@ class MosaicBuild(Algorithm):
     group = "Mosaic"
     short_help = "Orthos + cut polygons -> mosaic GeoTIFF (blending, balancing, source index)."
     parameters = [
-        MultipleLayers("INPUT", "the orthophoto GeoTIFFs (north-up, one CRS)",
-                       layer_type="raster", min_count=1),
+        orthos_parameter(),
         VectorLayer("CUTLINES", "cut polygons (mosaic:seamlines' cut_polygons layer; default: "
                     "Voronoi cells)", geometry_types=["polygon"], optional=True),
         String("SOURCE_FIELD", "field of CUTLINES holding the ortho file names (or 1-based "
@@ -93,6 +82,8 @@ class MosaicBuild(Algorithm):
             raise self.fail("FEATHER_WIDTH", f"applies to BLEND=feather, got BLEND="
                             f"{params['BLEND']}")
 
+    # duplicate-ok: process() imports its libraries lazily (toolbox list/help stay light); the
+    # lists of lazy imports after a check() look alike across algorithms
     def process(self, params, feedback: Feedback):
         import numpy as np
         import shapely

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 from toolbox.algorithm import Algorithm
 from toolbox.feedback import Feedback
-from toolbox.parameters import Field, File, Number, Output, OutputFolder, VectorLayer
+from toolbox.parameters import Field, File, Number, VectorLayer
+from toolbox.parameters.outputs import Output, OutputFolder
 from toolbox.registry import register
 from toolbox.ui.execution import executor_of, scheduler_parameter
 

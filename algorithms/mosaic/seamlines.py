@@ -4,19 +4,10 @@ from __future__ import annotations
 
 from toolbox.algorithm import Algorithm
 from toolbox.feedback import Feedback
-from toolbox.parameters import (
-    Enum,
-    Field,
-    Integer,
-    Layer,
-    MultipleLayers,
-    Number,
-    Output,
-    OutputVector,
-    RasterLayer,
-    VectorLayer,
-)
+from toolbox.parameters import Enum, Field, Integer, Number, RasterLayer, VectorLayer
+from toolbox.parameters.outputs import Layer, Output, OutputVector
 from toolbox.registry import register
+from toolbox.ui.mosaic import orthos_parameter
 
 METHODS = ("voronoi", "least_cost")
 CENTRES = ("nadir", "footprint")
@@ -72,8 +63,7 @@ class MosaicSeamlines(Algorithm):
     group = "Mosaic"
     short_help = "Cut polygons and seamlines of a block of orthos (Voronoi or least-cost)."
     parameters = [
-        MultipleLayers("INPUT", "the orthophoto GeoTIFFs (north-up, one CRS)",
-                       layer_type="raster", min_count=1),
+        orthos_parameter(),
         Enum("METHOD", "voronoi (nearest centre) or least_cost (minimum-cost paths)",
              options=METHODS, default="least_cost"),
         Enum("CENTRES", "Voronoi centres: nadir points or footprint centres", options=CENTRES,

@@ -6,8 +6,10 @@ from typing import Any
 
 from toolbox.algorithm import Algorithm
 from toolbox.feedback import Feedback
-from toolbox.parameters import Crs, File, Layer, Output, OutputFile, OutputVector, String
+from toolbox.parameters import Crs, File
+from toolbox.parameters.outputs import Layer, Output, OutputVector
 from toolbox.registry import register
+from toolbox.ui.photogrammetry import report_output, table_parameters
 
 
 @register
@@ -38,9 +40,7 @@ class AbsoluteOrientation(Algorithm):
     group = "Orientation"
     short_help = "Scale, rotation, translation of model points onto ground control, with residuals."
     parameters = [
-        File("INPUT", "model points: id, X, Y, Z in the model system",
-             extensions=[".csv", ".txt", ".gpkg"]),
-        String("LAYER", "GeoPackage layer of INPUT (default: the first)", optional=True),
+        *table_parameters("INPUT", "model points: id, X, Y, Z in the model system"),
         File("CONTROL", "surveyed points: id, X, Y, Z, optional role (control/check)",
              extensions=[".csv", ".txt", ".gpkg"]),
         Crs("CRS", "CRS of the ground coordinates (e.g. EPSG:3003; projected, metres)",
@@ -50,7 +50,7 @@ class AbsoluteOrientation(Algorithm):
                          ("point_id", "string"), ("role", "string"),
                          ("vx", "real", "computed - observed"), ("vy", "real"), ("vz", "real")],
                          "every model point transformed to the ground")]),
-        OutputFile("REPORT", "JSON report", extensions=[".json"]),
+        report_output(optional=False),
     ]
     outputs = [Output("STATISTICS", "sigma0, scale, check-point RMSE", "dict")]
 

@@ -6,20 +6,15 @@ from typing import Any
 
 from toolbox.algorithm import Algorithm
 from toolbox.feedback import Feedback
-from toolbox.parameters import (
-    Boolean,
-    Enum,
-    File,
-    Integer,
-    Layer,
-    Number,
-    Output,
-    OutputFile,
-    OutputVector,
-    String,
-)
+from toolbox.parameters import Boolean, Enum, File, Integer, Number, String
+from toolbox.parameters.outputs import Layer, Output, OutputFile, OutputVector
 from toolbox.registry import register
-from toolbox.ui.photogrammetry import TABLE_EXTENSIONS, measurement_parameters
+from toolbox.ui.photogrammetry import (
+    TABLE_EXTENSIONS,
+    ground_residuals_layer,
+    measurement_parameters,
+    report_output,
+)
 
 
 @register
@@ -163,11 +158,8 @@ class BundleAdjustment(Algorithm):
                              ("rejected", "boolean"),
                              ("flagged", "boolean", "residual over THRESHOLD_PX")],
                              "one row per measurement, at its point"),
-                         Layer("ground_residuals", "LineString Z", [
-                             ("point_id", "string"), ("role", "string"), ("dx_m", "real"),
-                             ("dy_m", "real"), ("dz_m", "real")],
-                             "surveyed -> adjusted control and check points")]),
-        OutputFile("REPORT", "JSON report", extensions=[".json"], optional=True),
+                         ground_residuals_layer("surveyed -> adjusted control and check points")]),
+        report_output(),
     ]
     outputs = [Output("STATISTICS", "sigma0, redundancy, rejected observations, check RMSE",
                       "dict")]

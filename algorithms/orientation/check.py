@@ -6,9 +6,16 @@ from typing import Any
 
 from toolbox.algorithm import Algorithm
 from toolbox.feedback import Feedback
-from toolbox.parameters import Layer, Number, Output, OutputFile, OutputVector
+from toolbox.parameters import Number
+from toolbox.parameters.outputs import Layer, Output, OutputVector
 from toolbox.registry import register
-from toolbox.ui.photogrammetry import control_parameter, measured_inputs, measurement_parameters
+from toolbox.ui.photogrammetry import (
+    control_parameter,
+    ground_residuals_layer,
+    measured_inputs,
+    measurement_parameters,
+    report_output,
+)
 
 
 @register
@@ -58,11 +65,8 @@ class CheckOrientation(Algorithm):
                              ("res_y_um", "real"), ("res_um", "real"), ("res_px", "real"),
                              ("flagged", "boolean", "over THRESHOLD_PX")],
                              "one row per measurement of a known point, at the point"),
-                         Layer("ground_residuals", "LineString Z", [
-                             ("point_id", "string"), ("role", "string"), ("dx_m", "real"),
-                             ("dy_m", "real"), ("dz_m", "real")],
-                             "surveyed -> intersected point")]),
-        OutputFile("REPORT", "JSON report", extensions=[".json"]),
+                         ground_residuals_layer("surveyed -> intersected point")]),
+        report_output(optional=False),
     ]
     outputs = [Output("STATISTICS", "block RMSE (µm, m), flagged measurements, judgement",
                       "dict")]

@@ -7,18 +7,10 @@ from typing import Any
 
 from toolbox.algorithm import Algorithm
 from toolbox.feedback import Feedback
-from toolbox.parameters import (
-    File,
-    Integer,
-    Number,
-    Output,
-    OutputFile,
-    OutputFolder,
-    RasterLayer,
-    String,
-)
+from toolbox.parameters import Integer, Number, RasterLayer
+from toolbox.parameters.outputs import Output, OutputFile, OutputFolder
 from toolbox.registry import register
-from toolbox.ui.photogrammetry import TABLE_EXTENSIONS
+from toolbox.ui.photogrammetry import project_parameter, table_parameters
 
 
 @register
@@ -60,10 +52,8 @@ class ControlTemplate(Algorithm):
     group = "Orientation"
     short_help = "Predict control points' image positions and write a template with chips."
     parameters = [
-        File("PROJECT", "orientation project (YAML) with images and approximate orientations",
-             extensions=[".yaml", ".yml"]),
-        File("CONTROL", "ground control points: id, X, Y, Z", extensions=TABLE_EXTENSIONS),
-        String("LAYER", "GeoPackage layer of CONTROL (default: the first)", optional=True),
+        project_parameter("orientation project (YAML) with images and approximate orientations"),
+        *table_parameters("CONTROL", "ground control points: id, X, Y, Z"),
         Number("MARGIN", "keep predictions at least this far inside the frame, px", default=0.0,
                min_value=0.0),
         Integer("CHIP_SIZE", "chip half size, px", default=48, min_value=8, max_value=2048),

@@ -7,7 +7,8 @@ from typing import Any
 
 from toolbox.algorithm import Algorithm
 from toolbox.feedback import Feedback
-from toolbox.parameters import Crs, Enum, Output, OutputFile, String
+from toolbox.parameters import Crs, Enum, String
+from toolbox.parameters.outputs import Output, OutputFile
 from toolbox.registry import register
 
 READ = ("auto", "opensfm", "opensfm_cameras", "orthority_interior", "orthority_exterior", "csv",

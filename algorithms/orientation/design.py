@@ -6,21 +6,10 @@ from typing import Any
 
 from toolbox.algorithm import Algorithm
 from toolbox.feedback import Feedback
-from toolbox.parameters import (
-    Boolean,
-    Crs,
-    Enum,
-    ExtentParameter,
-    Integer,
-    Layer,
-    Number,
-    Output,
-    OutputFile,
-    OutputVector,
-    String,
-    VectorLayer,
-)
+from toolbox.parameters import Boolean, Crs, Enum, ExtentParameter, Integer, Number, String, VectorLayer
+from toolbox.parameters.outputs import Layer, Output, OutputVector
 from toolbox.registry import register
+from toolbox.ui.photogrammetry import report_output
 
 
 @register
@@ -102,7 +91,7 @@ class BlockDesign(Algorithm):
             Layer("control", "Point", [("point_id", "string"), ("kind", "string"),
                                        ("reason", "string"), ("pair", "integer")],
                   "planned control points")]),
-        OutputFile("REPORT", "JSON report", extensions=[".json"], optional=True),
+        report_output(),
     ]
     outputs = [Output("STATISTICS", "strips, photos, models, control, predicted sigmas, "
                       "verdict", "dict")]

@@ -10,7 +10,8 @@ from toolbox.algorithm import Algorithm
 from toolbox.errors import InputDataError
 from toolbox.feedback import Feedback
 from toolbox.io.crs import common_crs
-from toolbox.parameters import Integer, Layer, Number, Output, OutputVector
+from toolbox.parameters import Integer, Number
+from toolbox.parameters.outputs import Layer, Output, OutputVector
 from toolbox.photogrammetry.coverage import Footprint, overlaps, photo_footprint
 from toolbox.photogrammetry.surface import dem_height_range, surface_for_photo
 from toolbox.photogrammetry.tables import load_project_parameter

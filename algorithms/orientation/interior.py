@@ -11,7 +11,8 @@ import numpy as np
 from toolbox.algorithm import Algorithm
 from toolbox.errors import InputDataError
 from toolbox.feedback import Feedback
-from toolbox.parameters import Enum, File, Output, OutputFile, String
+from toolbox.parameters import Enum, File, String
+from toolbox.parameters.outputs import Output, OutputFile
 from toolbox.photogrammetry.fiducials import InteriorOrientation, transformation_name
 from toolbox.photogrammetry.tables import (
     column,
@@ -23,6 +24,7 @@ from toolbox.photogrammetry.tables import (
     write_json,
 )
 from toolbox.registry import register
+from toolbox.ui.photogrammetry import project_parameter
 
 TRANSFORMATIONS = ("affine", "homography", "similarity", "from_input")
 
@@ -78,8 +80,8 @@ class InteriorOrientationAlgorithm(Algorithm):
     parameters = [
         File("INPUT", "measured fiducial marks (CSV: photo, mark_id, col_px, row_px[, x_mm, y_mm])",
              extensions=[".csv", ".txt"]),
-        File("PROJECT", "orientation project (YAML) giving the calibrated marks of each photo's "
-             "camera, when INPUT has no x_mm/y_mm", extensions=[".yaml", ".yml"], optional=True),
+        project_parameter("orientation project (YAML) giving the calibrated marks of each photo's "
+                          "camera, when INPUT has no x_mm/y_mm", optional=True),
         Enum("TRANSFORMATION", "transform fitted; from_input uses INPUT's transformation column",
              options=TRANSFORMATIONS, default="affine"),
         String("SOURCE", "keep only rows whose 'source' column equals this", optional=True),

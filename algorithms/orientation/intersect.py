@@ -9,7 +9,7 @@ import numpy as np
 from toolbox.algorithm import Algorithm
 from toolbox.errors import InputDataError
 from toolbox.feedback import Feedback
-from toolbox.parameters import Layer, Output, OutputFile, OutputVector
+from toolbox.parameters.outputs import Layer, Output, OutputVector
 from toolbox.photogrammetry.forward_intersection import (
     STATUS_NAMES,
     camera_observations,
@@ -18,7 +18,7 @@ from toolbox.photogrammetry.forward_intersection import (
 )
 from toolbox.photogrammetry.tables import write_json
 from toolbox.registry import register
-from toolbox.ui.photogrammetry import measured_inputs, measured_photos, measurement_parameters
+from toolbox.ui.photogrammetry import measured_inputs, measured_photos, measurement_parameters, report_output
 
 
 @register
@@ -64,7 +64,7 @@ class SpaceIntersection(Algorithm):
                 ("res_x_mm", "real", "image residual x, mm"),
                 ("res_y_mm", "real", "image residual y, mm")],
                 "projection centre to point, per measurement")]),
-        OutputFile("REPORT", "JSON summary", extensions=[".json"], optional=True),
+        report_output("JSON summary"),
     ]
     outputs = [Output("STATISTICS", "points per status, RMS image residual", "json")]
 

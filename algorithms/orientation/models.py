@@ -6,9 +6,10 @@ from typing import Any
 
 from toolbox.algorithm import Algorithm
 from toolbox.feedback import Feedback
-from toolbox.parameters import Crs, Enum, File, Layer, Output, OutputFile, OutputVector, String
+from toolbox.parameters import Crs, Enum, File
+from toolbox.parameters.outputs import Layer, Output, OutputVector
 from toolbox.registry import register
-from toolbox.ui.photogrammetry import TABLE_EXTENSIONS
+from toolbox.ui.photogrammetry import TABLE_EXTENSIONS, report_output, table_parameters
 
 
 @register
@@ -41,8 +42,7 @@ class IndependentModels(Algorithm):
     short_help = "Block adjustment by independent models: planimetric (4 parameters per model) " \
                  "or spatial (7), from model coordinates and control."
     parameters = [
-        File("INPUT", "model coordinates: model, point_id, x, y, z", extensions=TABLE_EXTENSIONS),
-        String("LAYER", "GeoPackage layer of INPUT (default: the first)", optional=True),
+        *table_parameters("INPUT", "model coordinates: model, point_id, x, y, z"),
         File("CONTROL", "control points: id, X, Y, Z (blank X/Y or Z allowed)",
              extensions=TABLE_EXTENSIONS),
         Crs("CRS", "CRS of the ground coordinates (e.g. EPSG:3003; projected, metres)",
@@ -54,7 +54,7 @@ class IndependentModels(Algorithm):
                                         ("n_models", "integer"),
                                         ("max_residual_m", "real")],
                   "adjusted ground points")]),
-        OutputFile("REPORT", "JSON report", extensions=[".json"], optional=True),
+        report_output(),
     ]
     outputs = [Output("STATISTICS", "unknowns, equations, redundancy, sigma0 (m)", "dict")]
 

@@ -10,25 +10,20 @@ from toolbox.algorithm import Algorithm
 from toolbox.errors import InputDataError
 from toolbox.feedback import Feedback
 from toolbox.io.crs import common_crs
-from toolbox.parameters import (
-    Boolean,
-    Enum,
-    File,
-    Integer,
-    Layer,
-    Number,
-    Output,
-    OutputFile,
-    OutputVector,
-    String,
-)
+from toolbox.parameters import Boolean, Enum, Integer, Number
+from toolbox.parameters.outputs import Layer, Output, OutputVector
 from toolbox.photogrammetry.collinearity import NO_INTERSECTION, OK, STATUS_NAMES
 from toolbox.photogrammetry.surface import dem_height_range, surface_for_photo
-from toolbox.photogrammetry.tables import (
-    write_json,
-)
+from toolbox.photogrammetry.tables import write_json
 from toolbox.registry import register
-from toolbox.ui.photogrammetry import dem_parameters, measured_inputs, measured_photos, project_parameter
+from toolbox.ui.photogrammetry import (
+    dem_parameters,
+    measured_inputs,
+    measured_photos,
+    project_parameter,
+    report_output,
+    table_parameters,
+)
 
 
 @register
@@ -55,8 +50,7 @@ class Monoplot(Algorithm):
     short_help = "Ground points (PointZ) of image points of oriented photos, on a DEM or a height."
     parameters = [
         project_parameter(),
-        File("INPUT", "image points (CSV or GeoPackage table)", extensions=[".csv", ".txt", ".gpkg"]),
-        String("LAYER", "GeoPackage layer of INPUT (default: the first)", optional=True),
+        *table_parameters("INPUT", "image points (CSV or GeoPackage table)"),
         Enum("COORDINATES", "measurement columns: auto, pixel (col_px/row_px), image (x_mm/y_mm)",
              options=("auto", "pixel", "image"), default="auto"),
         *dem_parameters(optional=True),
@@ -67,13 +61,14 @@ class Monoplot(Algorithm):
         Integer("MAX_ITERATIONS", "refinement or fixed-point iterations", default=100,
                 min_value=1),
         Boolean("FAIL_ON_MISS", "a ray that misses the terrain is an error", default=False),
+        # duplicate-ok: declared layers and fields (a spec read by the docs and QGIS, not logic)
         OutputVector("OUTPUT", "GeoPackage with the layer points", layers=[
             Layer("points", "Point Z", [
                 ("point_id", "string"), ("photo", "string"),
                 ("status", "string", "ok, outside_dem, dem_nodata or no_intersection"),
                 ("iterations", "integer", "iterations to converge")],
                 "ground points of the image measurements (empty geometry when not found)")]),
-        OutputFile("REPORT", "JSON summary", extensions=[".json"], optional=True),
+        report_output("JSON summary"),
     ]
     outputs = [Output("STATISTICS", "points per status", "json")]
 

@@ -6,9 +6,10 @@ from typing import Any
 
 from toolbox.algorithm import Algorithm
 from toolbox.feedback import Feedback
-from toolbox.parameters import Enum, Output, OutputFile, String
+from toolbox.parameters import Enum, String
+from toolbox.parameters.outputs import Output, OutputFile
 from toolbox.registry import register
-from toolbox.ui.photogrammetry import measured_inputs, measurement_parameters
+from toolbox.ui.photogrammetry import measured_inputs, measurement_parameters, report_output
 
 
 @register
@@ -49,17 +50,14 @@ class RelativeOrientation(Algorithm):
              "(φ1, κ1, ω2, φ2, κ2)", options=("dependent", "independent"), default="dependent"),
         OutputFile("OUTPUT", "model points: point_id, X, Y, Z (model units, bx = 1), py_um",
                    extensions=[".csv"]),
-        OutputFile("REPORT", "JSON report", extensions=[".json"], optional=True),
+        report_output(),
     ]
     outputs = [Output("STATISTICS", "parameters, sigma0 (µm), redundancy, warnings", "dict")]
 
     def process(self, params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
         import numpy as np
 
-        from toolbox.photogrammetry.forward_intersection import (
-            camera_observations,
-            principal_distance,
-        )
+        from toolbox.photogrammetry.forward_intersection import camera_observations, principal_distance
         from toolbox.photogrammetry.tables import write_csv, write_json
         from toolbox.triangulation.relative import RelativeRequest, relative_orientation
 

@@ -6,9 +6,15 @@ from typing import Any
 
 from toolbox.algorithm import Algorithm
 from toolbox.feedback import Feedback
-from toolbox.parameters import Enum, Output, OutputFile
+from toolbox.parameters import Enum
+from toolbox.parameters.outputs import Output, OutputFile
 from toolbox.registry import register
-from toolbox.ui.photogrammetry import control_parameter, measured_inputs, measurement_parameters
+from toolbox.ui.photogrammetry import (
+    control_parameter,
+    measured_inputs,
+    measurement_parameters,
+    report_output,
+)
 
 
 @register
@@ -50,8 +56,7 @@ class SpaceResection(Algorithm):
              default="auto"),
         OutputFile("OUTPUT", "orientation project (YAML) with the resected orientations",
                    extensions=[".yaml", ".yml"]),
-        OutputFile("REPORT", "JSON report: parameters, standard deviations, residuals",
-                   extensions=[".json"], optional=True),
+        report_output("JSON report: parameters, standard deviations, residuals"),
     ]
     outputs = [Output("STATISTICS", "photos resected, sigma0 per photo (µm)", "dict")]
 

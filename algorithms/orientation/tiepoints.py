@@ -7,17 +7,10 @@ from typing import Any
 
 from toolbox.algorithm import Algorithm
 from toolbox.feedback import Feedback
-from toolbox.parameters import (
-    Boolean,
-    Enum,
-    File,
-    Integer,
-    Number,
-    Output,
-    OutputFile,
-    String,
-)
+from toolbox.parameters import Boolean, Enum, File, Integer, Number, String
+from toolbox.parameters.outputs import Output, OutputFile
 from toolbox.registry import register
+from toolbox.ui.photogrammetry import project_parameter, report_output
 
 
 @register
@@ -68,8 +61,8 @@ class TiePoints(Algorithm):
     group = "Orientation"
     short_help = "Automatic tie points across a block (SIFT, MAGSAC, tracks, thinning, NCC)."
     parameters = [
-        File("PROJECT", "orientation project (YAML): photos with images, cameras, orientations",
-             extensions=[".yaml", ".yml"], optional=True),
+        project_parameter("orientation project (YAML): photos with images, cameras, orientations",
+                          optional=True),
         String("IMAGES", "or a folder of images (no cameras: pairs by thumbnails)",
                optional=True),
         File("POSITIONS", "approximate photo positions (CSV: photo and x, y planar or lon, "
@@ -111,7 +104,7 @@ class TiePoints(Algorithm):
         OutputFile("POINTS", "tie points (GeoPackage, layer tie_points: PointZ with point_id, "
                    "n_photos, photos, max_residual_px)", extensions=[".gpkg"], optional=True),
         OutputFile("PAIRS", "per-pair table (CSV)", extensions=[".csv"], optional=True),
-        OutputFile("REPORT", "JSON summary", extensions=[".json"], optional=True),
+        report_output("JSON summary"),
     ]
     outputs = [Output("STATISTICS", "points, observations, pairs tied, untied photos", "json")]
 
@@ -121,12 +114,7 @@ class TiePoints(Algorithm):
         from toolbox.matching.block import TiePointOptions, tie_points
         from toolbox.matching.features import available
         from toolbox.matching.inputs import photos_from_folder, photos_from_project
-        from toolbox.matching.outputs import (
-            ground_points,
-            point_ids,
-            write_measurements,
-            write_pairs,
-        )
+        from toolbox.matching.outputs import ground_points, point_ids, write_measurements, write_pairs
         from toolbox.photogrammetry.tables import load_project_parameter, write_json
 
         if not available(params["DETECTOR"]):

@@ -15,17 +15,8 @@ import numpy as np
 from toolbox.algorithm import Algorithm
 from toolbox.errors import ParameterError
 from toolbox.feedback import Feedback
-from toolbox.parameters import (
-    Crs,
-    Enum,
-    Field,
-    Layer,
-    Number,
-    Output,
-    OutputFile,
-    OutputVector,
-    VectorLayer,
-)
+from toolbox.parameters import Crs, Enum, Field, Number, VectorLayer
+from toolbox.parameters.outputs import Layer, Output, OutputFile, OutputVector
 from toolbox.registry import register
 from toolbox.transforms.control_points import IMAGE_UNITS, ControlPoints, control_points_from_frame
 from toolbox.transforms.rectification import (  # noqa: F401
@@ -42,9 +33,7 @@ from toolbox.transforms.rectification import (  # noqa: F401
     transform_document,
 )
 from toolbox.transforms.relief import FRAME_HALF_DIAGONAL_MM, TABLE4_TOLERANCE_MM, relief_check
-from toolbox.transforms.robust import (
-    ROBUST_METHODS,
-)
+from toolbox.transforms.robust import ROBUST_METHODS
 
 
 @register

@@ -15,17 +15,8 @@ import numpy as np
 from toolbox.algorithm import Algorithm
 from toolbox.errors import InputDataError, ParameterError
 from toolbox.feedback import Feedback
-from toolbox.parameters import (
-    Boolean,
-    Enum,
-    ExtentParameter,
-    File,
-    Number,
-    Output,
-    OutputRaster,
-    RasterLayer,
-    String,
-)
+from toolbox.parameters import Boolean, Enum, ExtentParameter, File, Number, RasterLayer, String
+from toolbox.parameters.outputs import Output, OutputRaster
 from toolbox.registry import register
 from toolbox.transforms.rectification import MODES, OUTSIDE, RectificationModel, parse_pixel_to_image
 from toolbox.ui.execution import executor_of, scheduler_parameter

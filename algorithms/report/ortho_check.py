@@ -4,10 +4,10 @@ from __future__ import annotations
 
 from toolbox.algorithm import Algorithm
 from toolbox.feedback import Feedback
-from toolbox.parameters import File, Number, Output, OutputFile, RasterLayer, String
-from toolbox.photogrammetry.tables import PROJECT_EXTENSIONS
+from toolbox.parameters import File, Number, RasterLayer, String
+from toolbox.parameters.outputs import Output, OutputFile
 from toolbox.registry import register
-from toolbox.ui.photogrammetry import TABLE_EXTENSIONS
+from toolbox.ui.photogrammetry import TABLE_EXTENSIONS, project_parameter
 
 
 @register
@@ -45,8 +45,7 @@ class OrthoCheck(Algorithm):
     short_help = "Measure check points on an orthophoto by chip matching: offsets and RMSE."
     parameters = [
         RasterLayer("ORTHO", "orthophoto (or mosaic) to check"),
-        File("PROJECT", "orientation project the check points were measured in",
-             extensions=PROJECT_EXTENSIONS),
+        project_parameter("orientation project the check points were measured in"),
         File("CHECK_POINTS", "surveyed check points: id, X, Y, Z (role=check rows if a role "
              "column)", extensions=TABLE_EXTENSIONS),
         File("MEASUREMENTS", "their image measurements: point_id, photo, col_px, row_px (or "
@@ -70,11 +69,7 @@ class OrthoCheck(Algorithm):
         from pathlib import Path
 
         from toolbox.cartography.quality_ortho import summary
-        from toolbox.cartography.quality_ortho_job import (
-            OrthoCheckRequest,
-            measure_checks,
-            write_results,
-        )
+        from toolbox.cartography.quality_ortho_job import OrthoCheckRequest, measure_checks, write_results
 
         req = OrthoCheckRequest(Path(params["ORTHO"].path), Path(params["PROJECT"]),
                                 Path(params["CHECK_POINTS"]), Path(params["MEASUREMENTS"]),

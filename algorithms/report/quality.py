@@ -4,7 +4,8 @@ from __future__ import annotations
 
 from toolbox.algorithm import Algorithm
 from toolbox.feedback import Feedback
-from toolbox.parameters import Folder, Number, Output, OutputFile, String
+from toolbox.parameters import Folder, Number, String
+from toolbox.parameters.outputs import Output, OutputFile
 from toolbox.registry import register
 
 

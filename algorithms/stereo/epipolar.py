@@ -6,17 +6,10 @@ from typing import Any
 
 from toolbox.algorithm import Algorithm
 from toolbox.feedback import Feedback
-from toolbox.parameters import (
-    Enum,
-    File,
-    Number,
-    Output,
-    OutputFile,
-    OutputRaster,
-    RasterLayer,
-    String,
-)
+from toolbox.parameters import Enum, Number, RasterLayer, String
+from toolbox.parameters.outputs import Output, OutputFile, OutputRaster
 from toolbox.registry import register
+from toolbox.ui.photogrammetry import project_parameter
 
 
 @register
@@ -51,8 +44,7 @@ class EpipolarPair(Algorithm):
     short_help = ("Normalised (epipolar) images of a stereo pair from its orientations, "
                   "distortion removed, with the transform back to object space (JSON).")
     parameters = [
-        File("PROJECT", "orientation project (YAML) with the two photos oriented",
-             extensions=[".yaml", ".yml"]),
+        project_parameter("orientation project (YAML) with the two photos oriented"),
         String("LEFT", "photo id of the left photo (the base runs from it to RIGHT)"),
         String("RIGHT", "photo id of the right photo"),
         RasterLayer("LEFT_IMAGE", "image of LEFT (default: the project's image path)",

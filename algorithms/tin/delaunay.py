@@ -11,17 +11,8 @@ from toolbox.io.crs import common_crs, crs_label
 from toolbox.io.pointcloud import cloud_filter
 from toolbox.io.vector import read_vector
 from toolbox.io.vector_points import vertices_xyz
-from toolbox.parameters import (
-    Boolean,
-    Crs,
-    Enum,
-    Field,
-    Layer,
-    Number,
-    Output,
-    OutputVector,
-    VectorLayer,
-)
+from toolbox.parameters import Boolean, Crs, Enum, Field, Number, VectorLayer
+from toolbox.parameters.outputs import Layer, Output, OutputVector
 from toolbox.registry import register
 from toolbox.terrain.points import read_mass_points
 from toolbox.ui.gridding import point_input_parameters
@@ -136,6 +127,7 @@ class Delaunay(Algorithm):
                 "the triangles layer keeps neighbour and edge ids either way)", default=True),
         Boolean("SPATIAL_INDEX", "write GeoPackage spatial indexes (faster display of large "
                 "TINs in QGIS; adds about a third to the writing time)", default=True),
+        # duplicate-ok: declared layers and fields (a spec read by the docs and QGIS, not logic)
         OutputVector("OUTPUT", "TIN GeoPackage (layers triangles, nodes, edges); .parquet or "
                      ".fgb write big TINs several times faster (one file per layer)", layers=[
             Layer("triangles", "Polygon Z", [

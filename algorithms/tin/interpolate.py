@@ -9,9 +9,10 @@ from toolbox.errors import InputDataError
 from toolbox.feedback import Feedback
 from toolbox.io.crs import common_crs
 from toolbox.io.vector import read_vector, write_layers
-from toolbox.parameters import Boolean, Layer, Number, Output, OutputVector, String, VectorLayer
+from toolbox.parameters import Boolean, Number, String, VectorLayer
+from toolbox.parameters.outputs import Layer, Output, OutputVector
 from toolbox.registry import register
-from toolbox.terrain.tin.help import TIN_HELP
+from toolbox.ui.tin import tin_parameter
 
 
 @register
@@ -32,7 +33,7 @@ class Interpolate(Algorithm):
     short_help = "Z of points from the TIN surface (plane of the containing triangle)."
     parameters = [
         VectorLayer("INPUT", "points to give a height", geometry_types=["point"]),
-        VectorLayer("TIN", TIN_HELP, geometry_types=["polygon"]),
+        tin_parameter(),
         String("FIELD", "name of the height field to add", default="z_tin"),
         Boolean("REPLACE_FIELD", "replace FIELD (and dz) when INPUT already has a field of that "
                 "name (otherwise an error: an input column is never overwritten silently)",

@@ -7,22 +7,12 @@ import numpy as np
 from toolbox.algorithm import Algorithm
 from toolbox.errors import InputDataError
 from toolbox.feedback import Feedback
-from toolbox.parameters import (
-    Boolean,
-    Crs,
-    Enum,
-    ExtentParameter,
-    Integer,
-    Number,
-    Output,
-    OutputRaster,
-    RasterLayer,
-    VectorLayer,
-)
+from toolbox.parameters import Boolean, Crs, Enum, ExtentParameter, Integer, Number, RasterLayer
+from toolbox.parameters.outputs import Output, OutputRaster
 from toolbox.registry import register
-from toolbox.terrain.tin.help import TIN_HELP
 from toolbox.ui.execution import executor_of, scheduler_parameter
 from toolbox.ui.grid import grid_request
+from toolbox.ui.tin import tin_parameter
 
 
 @register
@@ -46,7 +36,7 @@ class ToRaster(Algorithm):
     group = "TIN"
     short_help = "GeoTIFF of the TIN surface at cell centres (plane values, no smoothing)."
     parameters = [
-        VectorLayer("TIN", TIN_HELP, geometry_types=["polygon"]),
+        tin_parameter(),
         Number("CELL_SIZE", "cell size, CRS units (not needed with TEMPLATE)", optional=True,
                min_value=0, min_exclusive=True),
         ExtentParameter("EXTENT", "output extent 'xmin,ymin,xmax,ymax' (default: the TIN's)",

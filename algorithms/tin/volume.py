@@ -11,10 +11,11 @@ from toolbox.errors import InputDataError
 from toolbox.feedback import Feedback
 from toolbox.io.crs import common_crs, crs_label
 from toolbox.io.raster import DEFAULT_BLOCK
-from toolbox.parameters import Integer, Number, Output, OutputFile, RasterLayer, VectorLayer
+from toolbox.parameters import Integer, Number, RasterLayer, VectorLayer
+from toolbox.parameters.outputs import Output, OutputFile
 from toolbox.registry import register
 from toolbox.terrain.tin.cutfill import CutFill, grid_cut_fill, plane_cut_fill
-from toolbox.terrain.tin.help import TIN_HELP
+from toolbox.ui.tin import tin_parameter
 
 
 def read_mask(ref):
@@ -111,7 +112,7 @@ class Volume(Algorithm):
     group = "TIN"
     short_help = "Cut/fill volumes and areas between a TIN and a plane or a DEM, in a polygon."
     parameters = [
-        VectorLayer("TIN", TIN_HELP, geometry_types=["polygon"]),
+        tin_parameter(),
         Number("REFERENCE_Z", "reference plane elevation (height units)", optional=True),
         RasterLayer("REFERENCE_DEM", "reference surface: a DEM raster", optional=True),
         Integer("BAND", "band of REFERENCE_DEM", default=1, min_value=1),

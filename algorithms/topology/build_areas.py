@@ -2,23 +2,22 @@
 
 from __future__ import annotations
 
-from toolbox.algorithm import Algorithm
 from toolbox.feedback import Feedback
-from toolbox.parameters import Output, OutputVector
+from toolbox.parameters.outputs import Output, OutputVector
 from toolbox.registry import register
 from toolbox.ui.topology import (
     ARCS,
     AREAS,
     ERRORS,
     NODES,
+    LineworkAlgorithm,
     build_linework,
-    check_linework,
     linework_parameters,
 )
 
 
 @register
-class BuildAreas(Algorithm):
+class BuildAreas(LineworkAlgorithm):
     """Build closed, coded areas from stereo-plotted linework (thesis S002 §2.2.2 and §2.4).
 
     Restitution delivers lines with a code; GIS deliverables need closed areas. The lines are
@@ -69,9 +68,6 @@ class BuildAreas(Algorithm):
     ]
     outputs = [Output("STATISTICS", "counts of every cleaning step, tolerances and their source",
                       "json")]
-
-    def check(self, params):
-        check_linework(params)
 
     def process(self, params, feedback: Feedback):
         from toolbox.topology.layers import write_topology

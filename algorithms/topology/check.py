@@ -2,15 +2,14 @@
 
 from __future__ import annotations
 
-from toolbox.algorithm import Algorithm
 from toolbox.feedback import Feedback
-from toolbox.parameters import Output, OutputVector
+from toolbox.parameters.outputs import Output, OutputVector
 from toolbox.registry import register
-from toolbox.ui.topology import ERRORS, build_linework, check_linework, linework_parameters
+from toolbox.ui.topology import ERRORS, LineworkAlgorithm, build_linework, linework_parameters
 
 
 @register
-class CheckTopology(Algorithm):
+class CheckTopology(LineworkAlgorithm):
     """Check restitution linework before area generation (thesis S002 §2.4): closure of the
     polylines that should form an area, lines crossing without an intersection node, near-misses
     between lines that should meet, duplicates, dangles and overshoots, slivers, self-
@@ -36,9 +35,6 @@ class CheckTopology(Algorithm):
     ]
     outputs = [Output("STATISTICS", "counts of every check, tolerances and their source",
                       "json")]
-
-    def check(self, params):
-        check_linework(params)
 
     def process(self, params, feedback: Feedback):
         from toolbox.topology.layers import write_topology

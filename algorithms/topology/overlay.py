@@ -9,7 +9,8 @@ from toolbox.errors import InputDataError
 from toolbox.feedback import Feedback
 from toolbox.io.crs import common_crs, crs_label
 from toolbox.io.vector import read_vector, write_layers
-from toolbox.parameters import Enum, Number, Output, OutputVector, String, VectorLayer
+from toolbox.parameters import Enum, Number, String, VectorLayer
+from toolbox.parameters.outputs import Output, OutputVector
 from toolbox.registry import register
 from toolbox.terrain.points import local_origin
 from toolbox.topology.setops import OPERATIONS, clean_polygons, overlay_polygons

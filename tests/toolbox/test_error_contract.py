@@ -239,6 +239,7 @@ def test_missing_empty_and_wrong_type_inputs(case):
             case.run(case.args(**{p.name: str(bad)}), (p.name, bad.name))
 
 
+# duplicate-ok: one parametrised test per kind of bad input, written out on purpose
 @_cases()
 def test_truncated_inputs(case):
     if not case.input_params():

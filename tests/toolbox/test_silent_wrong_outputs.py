@@ -64,6 +64,19 @@ def test_absolute_orientation_crs_is_a_crs(tmp_path):
     assert gpd.read_file(tmp_path / "a.gpkg").crs.to_epsg() == 3003
 
 
+def _rectify_refused(tmp_path, crs: str, image_to_ground: list, message: str) -> None:
+    """rectify:image of tmp_path/photo.tif by an affine TRANSFORM in ``crs`` is refused with a
+    ParameterError matching ``message``, and writes nothing."""
+    doc = {"format": "toolbox.rectify.transform", "version": 1, "model": "affine",
+           "image_units": "pixels", "crs": crs, "image_to_ground": image_to_ground}
+    (tmp_path / "t.json").write_text(json.dumps(doc))
+    with pytest.raises(ParameterError, match=message):
+        toolbox.run("rectify:image", {"INPUT": tmp_path / "photo.tif",
+                                      "TRANSFORM": tmp_path / "t.json",
+                                      "OUTPUT": tmp_path / "r.tif"})
+    assert not (tmp_path / "r.tif").exists()
+
+
 def test_rectify_refuses_a_transform_in_degrees(tmp_path):
     from rasterio.transform import from_origin
 
@@ -71,15 +84,8 @@ def test_rectify_refuses_a_transform_in_degrees(tmp_path):
 
     write_raster(tmp_path / "photo.tif", np.ones((20, 20), "uint8"), from_origin(0, 20, 1, 1),
                  None)
-    doc = {"format": "toolbox.rectify.transform", "version": 1, "model": "affine",
-           "image_units": "pixels", "crs": "EPSG:4326",
-           "image_to_ground": [[1e-4, 0, 11.3], [0, -1e-4, 43.3], [0, 0, 1]]}
-    (tmp_path / "t.json").write_text(json.dumps(doc))
-    with pytest.raises(ParameterError, match="^TRANSFORM is in the geographic CRS EPSG:4326"):
-        toolbox.run("rectify:image", {"INPUT": tmp_path / "photo.tif",
-                                      "TRANSFORM": tmp_path / "t.json",
-                                      "OUTPUT": tmp_path / "r.tif"})
-    assert not (tmp_path / "r.tif").exists()
+    _rectify_refused(tmp_path, "EPSG:4326", [[1e-4, 0, 11.3], [0, -1e-4, 43.3], [0, 0, 1]],
+                     "^TRANSFORM is in the geographic CRS EPSG:4326")
 
 
 def test_orthos_of_a_project_without_crs_take_the_dem_crs(tmp_path):
@@ -173,15 +179,8 @@ def test_rectify_refuses_a_photo_without_a_valid_pixel(tmp_path, pixels, nodata)
     from toolbox.io.raster import write_raster
 
     write_raster(tmp_path / "photo.tif", pixels, from_origin(0, 20, 1, 1), None, nodata=nodata)
-    doc = {"format": "toolbox.rectify.transform", "version": 1, "model": "affine",
-           "image_units": "pixels", "crs": "EPSG:3003",
-           "image_to_ground": [[1, 0, E0], [0, -1, N0 + 20], [0, 0, 1]]}
-    (tmp_path / "t.json").write_text(json.dumps(doc))
-    with pytest.raises(ParameterError, match="^INPUT .* has no valid pixel"):
-        toolbox.run("rectify:image", {"INPUT": tmp_path / "photo.tif",
-                                      "TRANSFORM": tmp_path / "t.json",
-                                      "OUTPUT": tmp_path / "r.tif"})
-    assert not (tmp_path / "r.tif").exists()
+    _rectify_refused(tmp_path, "EPSG:3003", [[1, 0, E0], [0, -1, N0 + 20], [0, 0, 1]],
+                     "^INPUT .* has no valid pixel")
 
 
 def test_resection_refuses_control_points_far_outside_the_project_crs(tmp_path):

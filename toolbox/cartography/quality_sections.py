@@ -334,6 +334,7 @@ def _offsets_figure(offsets: list[dict], ortho: str, tolerance: float):
     return fig
 
 
+# duplicate-ok: every section opens alike (plots, title, what the method measures)
 def dem_section(runs, spec: Specification, verdicts: list[Verdict]) -> Section:
     plt = _plt()
     sec = Section("dem", "DEM cross-validation")

@@ -10,7 +10,8 @@ from typing import Any
 import numpy as np
 
 from toolbox.cartography.grid import ground_step, map_grid
-from toolbox.cartography.sheet import BASE_DPI, MM_PER_INCH, LayerStyle, SheetRenderer, SheetSpec
+from toolbox.cartography.sheet import BASE_DPI, LayerStyle, SheetRenderer
+from toolbox.cartography.sheet_layout import MM_PER_INCH, SheetSpec
 
 # default styles by geometry kind, until the shared style model provides the code file's
 PALETTE = {"polygon": [((120, 120, 120), (230, 220, 200)), ((40, 110, 40), (200, 230, 190)),

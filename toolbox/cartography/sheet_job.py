@@ -9,8 +9,8 @@ from pathlib import Path
 from typing import Any
 
 from toolbox.cartography.grid_io import SheetSource, sheet_polygons
-from toolbox.cartography.sheet import SheetSpec
 from toolbox.cartography.sheet_io import coded_styles, default_styles, render_sheet
+from toolbox.cartography.sheet_layout import SheetSpec
 from toolbox.version import __version__
 
 
@@ -100,7 +100,7 @@ def guard_sheets(job: SheetJob) -> None:
     SCALE denominator), or too many map grid crosses."""
     from toolbox.cartography.grid import ground_step
     from toolbox.cartography.grid_io import guard_grid
-    from toolbox.cartography.sheet import GAP, LABEL_BAND, MARGIN, PANEL
+    from toolbox.cartography.sheet_layout import GAP, LABEL_BAND, MARGIN, PANEL
     from toolbox.limits import check_size
 
     sheets, _ = sheet_polygons(job.sheets)

@@ -22,11 +22,13 @@ set's shape plus a last axis of 2 or 3.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 
 from toolbox.errors import ConvergenceError, InputDataError, ParameterError
 from toolbox.photogrammetry.camera import RadialDistortion
+from toolbox.photogrammetry.status import StatusCodes
 
 #: monoplot status codes (``MonoplotResult.status``)
 OK, OUTSIDE, NODATA, NOT_CONVERGED, RAY_UPWARD, NO_INTERSECTION = 0, 1, 2, 3, 4, 5
@@ -175,25 +177,14 @@ def _refuse(result: np.ndarray, message: str) -> None:
 
 
 @dataclass
-class MonoplotResult:
+class MonoplotResult(StatusCodes):
     """Ray/DEM intersections: ``xyz`` (…, 3; NaN where failed), ``status`` (…; int8 codes of
     :data:`STATUS_NAMES`) and ``iterations`` (…; refinement or fixed-point iterations)."""
 
+    STATUS: ClassVar[dict[int, str]] = STATUS_NAMES
     xyz: np.ndarray
     status: np.ndarray
     iterations: np.ndarray
-
-    @property
-    def ok(self) -> np.ndarray:
-        return self.status == OK
-
-    def status_names(self) -> np.ndarray:
-        return np.vectorize(STATUS_NAMES.get, otypes=[object])(self.status)
-
-    def counts(self) -> dict[str, int]:
-        """Number of rays per status name (only non-zero entries)."""
-        values, counts = np.unique(self.status, return_counts=True)
-        return {STATUS_NAMES[int(v)]: int(n) for v, n in zip(values, counts, strict=True)}
 
     def raise_on_failure(self, what: str = "rays") -> MonoplotResult:
         """Raise (ConvergenceError for non-convergence, InputDataError otherwise) if any failed."""

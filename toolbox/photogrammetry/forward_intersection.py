@@ -22,10 +22,12 @@ Observations are *camera* coordinates (reduced to the principal point, distortio
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 
 from toolbox.errors import InputDataError
+from toolbox.photogrammetry.status import StatusCodes
 
 OK, SINGLE_RAY, PARALLEL_RAYS, BEHIND_CAMERA, NOT_CONVERGED = 0, 1, 2, 3, 4
 STATUS_NAMES = {OK: "ok", SINGLE_RAY: "single_ray", PARALLEL_RAYS: "parallel_rays",
@@ -34,12 +36,13 @@ CONDITION_LIMIT = 1e10
 
 
 @dataclass
-class IntersectionResult:
+class IntersectionResult(StatusCodes):
     """Per point: ``xyz`` (P, 3; NaN unless status ok), ``status`` (P,), ``n_rays`` (P,),
     ``sigma0_mm`` (P,; NaN when r = 0), ``std_xyz`` (P, 3), ``max_ray_distance`` (P,),
     ``iterations`` (P,). Per observation: ``residuals_mm`` (M, 2) = computed - observed (the
     toolbox convention: the correction v of l + v = f(x))."""
 
+    STATUS: ClassVar[dict[int, str]] = STATUS_NAMES
     xyz: np.ndarray
     status: np.ndarray
     n_rays: np.ndarray
@@ -48,14 +51,6 @@ class IntersectionResult:
     max_ray_distance: np.ndarray
     iterations: np.ndarray
     residuals_mm: np.ndarray
-
-    @property
-    def ok(self) -> np.ndarray:
-        return self.status == OK
-
-    def counts(self) -> dict[str, int]:
-        values, counts = np.unique(self.status, return_counts=True)
-        return {STATUS_NAMES[int(v)]: int(n) for v, n in zip(values, counts, strict=True)}
 
 
 def _project(points: np.ndarray, centres: np.ndarray, rotations: np.ndarray, c: np.ndarray):

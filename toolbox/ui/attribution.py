@@ -7,7 +7,8 @@ from pathlib import Path
 from typing import Any
 
 from toolbox.io.parameter_file import ParameterFile, optional_parameter_file, resolve
-from toolbox.parameters import File, Layer, OutputVector, Parameter, ValidationContext
+from toolbox.parameters import File, Parameter, ValidationContext
+from toolbox.parameters.outputs import Layer, OutputVector
 
 CODED = Layer("*", "Geometry", [("code", "string", "restitution code"),
                                 ("description", "string", "from the code file"),

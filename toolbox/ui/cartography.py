@@ -6,16 +6,17 @@ from collections.abc import Mapping
 from typing import Any
 
 from toolbox.errors import ParameterError
-from toolbox.parameters import ExtentParameter, Field, Parameter, VectorLayer
+from toolbox.parameters import ExtentParameter, Field, Number, Parameter, VectorLayer
 
 
-def sheet_area_parameters(extent_help: str, sheets_help: str) -> list[Parameter]:
-    """EXTENT, or SHEETS polygons with their SHEET_ID field."""
+def sheet_parameters(extent_help: str, sheets_help: str) -> list[Parameter]:
+    """EXTENT, or SHEETS polygons with their SHEET_ID field; the map SCALE."""
     return [
         ExtentParameter("EXTENT", extent_help, optional=True),
         VectorLayer("SHEETS", sheets_help, geometry_types=["polygon"], optional=True),
         Field("SHEET_ID", "sheet id field of SHEETS (default: feature number)", parent="SHEETS",
               optional=True),
+        Number("SCALE", "map scale denominator (5000 for 1:5000)", default=5000.0, min_value=1),
     ]
 
 

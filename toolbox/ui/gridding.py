@@ -18,13 +18,11 @@ from toolbox.parameters import (
     Field,
     Integer,
     Number,
-    Output,
-    OutputFile,
-    OutputRaster,
     RasterLayer,
     String,
     VectorLayer,
 )
+from toolbox.parameters.outputs import Output, OutputFile, OutputRaster
 from toolbox.terrain.gridding.request import (
     DEFAULT_MIN_RCOND,
     DEFAULT_NODATA,

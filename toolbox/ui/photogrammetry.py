@@ -7,15 +7,34 @@ from typing import Any
 
 from toolbox.errors import InputDataError
 from toolbox.parameters import Enum, File, Integer, Number, Parameter, RasterLayer, String
+from toolbox.parameters.outputs import Layer, OutputFile
 from toolbox.photogrammetry.tables import PROJECT_EXTENSIONS
 
 TABLE_EXTENSIONS = [".csv", ".txt", ".gpkg"]
+
+
+def table_parameters(name: str, description: str) -> list[Parameter]:
+    """A table (CSV, text or GeoPackage) ``name`` and the LAYER to read of a GeoPackage."""
+    return [File(name, description, extensions=TABLE_EXTENSIONS),
+            String("LAYER", f"GeoPackage layer of {name} (default: the first)", optional=True)]
 
 
 def project_parameter(description: str = "orientation project (YAML)",
                       optional: bool = False) -> File:
     """PROJECT: the orientation project YAML."""
     return File("PROJECT", description, extensions=PROJECT_EXTENSIONS, optional=optional)
+
+
+def report_output(description: str = "JSON report", optional: bool = True) -> OutputFile:
+    """REPORT: the JSON report of an orientation step."""
+    return OutputFile("REPORT", description, extensions=[".json"], optional=optional)
+
+
+def ground_residuals_layer(description: str) -> Layer:
+    """The layer ``ground_residuals``: one line per known point, surveyed -> computed position."""
+    return Layer("ground_residuals", "LineString Z", [
+        ("point_id", "string"), ("role", "string"), ("dx_m", "real"), ("dy_m", "real"),
+        ("dz_m", "real")], description)
 
 
 def dem_parameters(description: str = "terrain heights (same CRS as the project)",
@@ -29,8 +48,7 @@ def measurement_parameters(project: str = "orientation project (YAML)") -> list[
     """PROJECT, and the image measurements: INPUT, its LAYER and its COORDINATES columns."""
     return [
         project_parameter(project),
-        File("INPUT", "image measurements (CSV or GeoPackage table)", extensions=TABLE_EXTENSIONS),
-        String("LAYER", "GeoPackage layer of INPUT (default: the first)", optional=True),
+        *table_parameters("INPUT", "image measurements (CSV or GeoPackage table)"),
         Enum("COORDINATES", "measurement columns: auto (pixels when col_px/row_px exist), pixel, "
              "image (x_mm/y_mm)", options=("auto", "pixel", "image"), default="auto"),
     ]
@@ -68,11 +86,7 @@ def ortho_method_parameters() -> list[Parameter]:
 def measured_inputs(params: Mapping[str, Any], control: bool = False) -> tuple:
     """``(project, measurements, control points)`` read from PROJECT, INPUT (LAYER,
     COORDINATES) and, with ``control``, CONTROL (else None)."""
-    from toolbox.photogrammetry.tables import (
-        ground_points,
-        image_measurements,
-        load_project_parameter,
-    )
+    from toolbox.photogrammetry.tables import ground_points, image_measurements, load_project_parameter
 
     project = load_project_parameter(params["PROJECT"])
     measurements = image_measurements(params["INPUT"], params["LAYER"], params["COORDINATES"])

@@ -9,7 +9,8 @@ from typing import Any, ClassVar
 
 from toolbox.algorithm import Algorithm
 from toolbox.feedback import Feedback
-from toolbox.parameters import Boolean, Integer, OutputRaster, Parameter, RasterLayer
+from toolbox.parameters import Boolean, Integer, Parameter, RasterLayer
+from toolbox.parameters.outputs import OutputRaster
 from toolbox.ui.execution import executor_of, scheduler_parameter
 
 

@@ -6,7 +6,9 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
-from toolbox.parameters import Field, File, Layer, VectorLayer
+from toolbox.algorithm import Algorithm
+from toolbox.parameters import Field, File, VectorLayer
+from toolbox.parameters.outputs import Layer
 from toolbox.topology.inputs import LineworkSources
 from toolbox.topology.tolerances import TOLERANCE_PARAMETERS
 from toolbox.ui.parameter_file import file_backed
@@ -131,3 +133,11 @@ def build_linework(params: Mapping[str, Any], feedback: Any, mode: str, end: flo
         "none (no CODES: closed lines only fill uncoded areas)"
     stats["crs"] = data["crs_label"]
     return output, data, stats
+
+
+class LineworkAlgorithm(Algorithm):
+    """Base of the algorithms on restitution linework (topology:check, topology:build_areas):
+    their parameter file, PRECISION and CODES are checked before any work."""
+
+    def check(self, params):
+        check_linework(params)

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import shutil
 import subprocess
 import xml.etree.ElementTree as ET
 from pathlib import Path
@@ -17,6 +16,7 @@ import shapely
 from restitution_files import make_files  # the test folder's helper module
 
 import toolbox
+from tests.helpers_cli import qgis_python
 from toolbox.attribution.restitution import read_ascii, read_dxf, read_two_tables
 from toolbox.errors import InputDataError
 from toolbox.styles.gpkg import read_layer_styles
@@ -193,20 +193,12 @@ print(json.dumps(out))
 """
 
 
-def _qgis_python():
-    python = shutil.which("python3", path="/usr/bin")
-    if python is None:
-        return None
-    check = subprocess.run([python, "-c", "import qgis.core"], capture_output=True)
-    return python if check.returncode == 0 else None
-
-
-@pytest.mark.skipif(_qgis_python() is None, reason="QGIS (python3-qgis) is not installed")
+@pytest.mark.skipif(qgis_python() is None, reason="QGIS (python3-qgis) is not installed")
 def test_qgis_opens_every_layer_with_its_default_style(applied, files, tmp_path):
     out, _, _ = applied
     script = tmp_path / "qgis_check.py"
     script.write_text(QGIS_SCRIPT)
-    run = subprocess.run([_qgis_python(), str(script), str(out), "FAB01002", "STR02001",
+    run = subprocess.run([qgis_python(), str(script), str(out), "FAB01002", "STR02001",
                           "QUO01001", "unresolved"], capture_output=True, text=True,
                          env={"QT_QPA_PLATFORM": "offscreen", "PATH": "/usr/bin:/bin",
                               "HOME": str(tmp_path)}, timeout=60)
@@ -226,7 +218,7 @@ def test_qgis_opens_every_layer_with_its_default_style(applied, files, tmp_path)
     toolbox.run("attribution:apply", {
         "INPUT": files["export"], "CODES": files["codes"], "COLOURS": files["colours"],
         "PARAMETERS": files["params"], "CRS": "EPSG:3003", "LAYOUT": "type", "OUTPUT": by_type})
-    run = subprocess.run([_qgis_python(), str(script), str(by_type), "lines"],
+    run = subprocess.run([qgis_python(), str(script), str(by_type), "lines"],
                          capture_output=True, text=True, timeout=60,
                          env={"QT_QPA_PLATFORM": "offscreen", "PATH": "/usr/bin:/bin",
                               "HOME": str(tmp_path)})
@@ -385,7 +377,7 @@ print(json.dumps([e[1] for e in errors]))
 """
 
 
-@pytest.mark.skipif(not Path(VALIDATOR).exists() or _qgis_python() is None,
+@pytest.mark.skipif(not Path(VALIDATOR).exists() or qgis_python() is None,
                     reason="GDAL's validate_gpkg.py (python3-gdal) is not installed")
 def test_geopackage_passes_gdal_validator(applied, tmp_path):
     """GDAL's GeoPackage validator (Debian's GDAL 3.6) finds nothing: the toolbox writes
@@ -394,7 +386,7 @@ def test_geopackage_passes_gdal_validator(applied, tmp_path):
     out, _, _ = applied
     script = tmp_path / "check.py"
     script.write_text(CHECK_SCRIPT)
-    run = subprocess.run([_qgis_python(), str(script), str(Path(VALIDATOR).parent), str(out)],
+    run = subprocess.run([qgis_python(), str(script), str(Path(VALIDATOR).parent), str(out)],
                          capture_output=True, text=True, timeout=60)
     assert run.returncode == 0, run.stderr
     errors = json.loads(run.stdout.strip().splitlines()[-1])

@@ -118,6 +118,7 @@ def test_colour_file_without_header(tmp_path):
 
 
 @pytest.mark.parametrize("text, message", [
+    # duplicate-ok: the bad files of each format written out, with their messages
     ("INDICE %R %G %B\n1 20 80\n", "line 2: expected 'INDEX %RED %GREEN %BLUE'"),
     ("1 20 180 0\n", "line 1: colour 1: components must be percentages 0-100"),
     ("1 20 80 0\n1 0 0 0\n", "line 2: colour index 1 given twice (first on line 1)"),

@@ -7,7 +7,6 @@ it renders (hatch spacing, ticks on the left of the line)."""
 from __future__ import annotations
 
 import json
-import shutil
 import subprocess
 import xml.etree.ElementTree as ET
 from pathlib import Path
@@ -18,6 +17,7 @@ import pytest
 import shapely
 
 import toolbox
+from tests.helpers_cli import qgis_python
 from toolbox.demo.samples import restitution
 from toolbox.io.code_file import read_code_file, read_colour_file
 from toolbox.styles.files import write_code_styles
@@ -273,19 +273,11 @@ os._exit(0)  # exitQgis() with layers and symbols still referenced crashes at ex
 """
 
 
-def _qgis_python():
-    python = shutil.which("python3", path="/usr/bin")
-    if python is None:
-        return None
-    check = subprocess.run([python, "-c", "import qgis.core"], capture_output=True)
-    return python if check.returncode == 0 else None
-
-
 def _run_qgis(folder: Path, jobs: list[dict]) -> dict:
     script, spec = folder / "qgis_styles.py", folder / "qgis_jobs.json"
     script.write_text(QGIS_SCRIPT)
     spec.write_text(json.dumps(jobs))
-    run = subprocess.run([_qgis_python(), str(script), str(spec)], capture_output=True,
+    run = subprocess.run([qgis_python(), str(script), str(spec)], capture_output=True,
                          text=True, timeout=120,
                          env={"QT_QPA_PLATFORM": "offscreen", "PATH": "/usr/bin:/bin",
                               "HOME": str(folder)})
@@ -301,7 +293,7 @@ def _period_px(profile: np.ndarray) -> float:
     return len(p) / k
 
 
-@pytest.mark.skipif(_qgis_python() is None, reason="QGIS (python3-qgis) is not installed")
+@pytest.mark.skipif(qgis_python() is None, reason="QGIS (python3-qgis) is not installed")
 def test_qgis_reads_and_draws_the_symbology(styles):
     """QGIS 3.22 loads each QML on a layer of its code: the symbol layers it reads back are the
     sheet's, and what it renders at 10 px/mm has the hatch 1.414 mm apart along a row (1 mm
@@ -378,7 +370,7 @@ def test_qgis_reads_and_draws_the_symbology(styles):
     assert _period_px(above) == pytest.approx(20.0, rel=0.05)
 
 
-@pytest.mark.skipif(_qgis_python() is None, reason="QGIS (python3-qgis) is not installed")
+@pytest.mark.skipif(qgis_python() is None, reason="QGIS (python3-qgis) is not installed")
 def test_attribution_apply_embeds_the_symbology_qgis_applies(tmp_path):
     """attribution:apply on the demo restitution (its code file has symbology columns): the
     default style QGIS applies on opening the GeoPackage hatches the buildings and draws the

@@ -32,14 +32,21 @@ def rotation(omega: float, phi: float, kappa: float) -> np.ndarray:
             @ np.array([[ck, -sk, 0], [sk, ck, 0], [0, 0, 1]]))
 
 
-def ground_to_pixel(tilts=TILTS) -> np.ndarray:
-    """Exact homography: ground (X, Y) -> photo (col, row), from collinearity."""
+def camera_homography(width: int, height: int, pixel_mm: float, c_mm: float, flying_m: float,
+                      tilts=TILTS, origin=ORIGIN) -> np.ndarray:
+    """Exact homography ground (X, Y) -> photo (col, row) of a tilted camera ``flying_m`` above
+    the plane Z = 0 at ``origin``, from collinearity (bench/rectify_bench.py uses it too)."""
     r = rotation(*tilts)
-    shift = np.array([[1, 0, -ORIGIN[0]], [0, 1, -ORIGIN[1]], [0, 0, -FLYING_HEIGHT]])
-    mm = np.diag([-C_MM, -C_MM, 1.0]) @ r.T @ shift
-    k = np.array([[1 / PIXEL_MM, 0, WIDTH / 2], [0, -1 / PIXEL_MM, HEIGHT / 2], [0, 0, 1]])
+    shift = np.array([[1, 0, -origin[0]], [0, 1, -origin[1]], [0, 0, -flying_m]])
+    mm = np.diag([-c_mm, -c_mm, 1.0]) @ r.T @ shift
+    k = np.array([[1 / pixel_mm, 0, width / 2], [0, -1 / pixel_mm, height / 2], [0, 0, 1]])
     m = k @ mm
     return m / m[2, 2]
+
+
+def ground_to_pixel(tilts=TILTS) -> np.ndarray:
+    """Exact homography: ground (X, Y) -> photo (col, row) of this scene's camera."""
+    return camera_homography(WIDTH, HEIGHT, PIXEL_MM, C_MM, FLYING_HEIGHT, tilts)
 
 
 def apply(matrix: np.ndarray, xy: np.ndarray) -> np.ndarray:

@@ -238,6 +238,7 @@ def test_bad_inputs_give_clear_errors(data, tmp_path):
     ok = toolbox.run("tin:delaunay", {"INPUT": folder / "points_2d.gpkg", "Z_FIELD": "h",
                                       "OUTPUT": tmp_path / "ok.gpkg"})
     assert ok["STATISTICS"]["nodes"] == 604
+    # duplicate-ok: each refusal written out (algorithm, inputs, message) on purpose
     with pytest.raises(InputDataError, match="BREAKLINES has features without Z"):
         toolbox.run("tin:delaunay", {"INPUT": folder / "points.gpkg",
                                      "BREAKLINES": folder / "lines_2d.gpkg",

@@ -10,19 +10,9 @@ from affine import Affine
 
 from toolbox.executor import Executor
 from toolbox.io.grid import GridSpec
+from toolbox.raster import maps
 from toolbox.raster.homography import HomographyMap
-from toolbox.raster.maps import (
-    EMPTY_PLAN,
-    OUTSIDE,
-    BoundedMap,
-    CoordinateMap,
-    MeasuredMap,
-    PerspectiveMap,
-    PlannedMap,
-    SourcePlan,
-    plan_source,
-    scan_bounds,
-)
+from toolbox.raster.maps import EMPTY_PLAN, OUTSIDE, SourcePlan, plan_source, scan_bounds
 from toolbox.raster.warp import warp_layout, warp_raster
 
 H, W = 110, 120  # source rows, columns
@@ -82,11 +72,11 @@ class Planned:
 
 def test_maps_declare_their_capabilities():
     homography = HomographyMap(np.eye(3), GRID.transform)
-    assert isinstance(homography, PerspectiveMap) and isinstance(homography, BoundedMap)
-    assert isinstance(Plain(), CoordinateMap)
-    assert not isinstance(Plain(), (BoundedMap, MeasuredMap, PlannedMap))
-    assert isinstance(Measured(), MeasuredMap) and not isinstance(Measured(), PlannedMap)
-    assert isinstance(Planned(), PlannedMap) and not isinstance(Planned(), PerspectiveMap)
+    assert isinstance(homography, maps.PerspectiveMap) and isinstance(homography, maps.BoundedMap)
+    assert isinstance(Plain(), maps.CoordinateMap)
+    assert not isinstance(Plain(), (maps.BoundedMap, maps.MeasuredMap, maps.PlannedMap))
+    assert isinstance(Measured(), maps.MeasuredMap) and not isinstance(Measured(), maps.PlannedMap)
+    assert isinstance(Planned(), maps.PlannedMap) and not isinstance(Planned(), maps.PerspectiveMap)
 
 
 @pytest.mark.parametrize("tile_size", [16, 512])

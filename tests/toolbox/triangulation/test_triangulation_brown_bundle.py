@@ -112,33 +112,16 @@ def _write(path, rows):
 
 
 def test_bundle_writes_the_brown_camera_that_the_project_reads_back(case, tmp_path):
-    import toolbox
     from toolbox.photogrammetry.project import load_project
 
-    b, block, ext0, _ = case
+    b = case[0]
     spec = {"type": "brown", "im_size": list(SIZE), "focal_len": float(NOMINAL[0] / max(SIZE))}
-    doc = {"format": "orientation-project", "version": 1, "crs": "EPSG:3003",
-           "angle_unit": "rad", "cameras": [{"name": "drone", "model": spec}],
-           "photos": [{"id": pid, "camera": "drone", "exterior": dict(zip(
-               ("X0", "Y0", "Z0", "omega", "phi", "kappa"), map(float, ext0[j]), strict=True))}
-               for j, pid in enumerate(b.photo_ids)]}
-    (tmp_path / "start.yaml").write_text(yaml.safe_dump(doc, sort_keys=False))
-    _write(tmp_path / "obs.csv", [["point_id", "photo", "col_px", "row_px"]] + [
-        [b.point_ids[k], b.photo_ids[j], x, y]
-        for j, k, (x, y) in zip(b.obs_photo, b.obs_point, b.px, strict=True)])
-    _write(tmp_path / "control.csv", [["id", "X", "Y", "Z"]] + [
-        [b.point_ids[k], *b.points[k]] for k in b.control])
-    out = toolbox.run("orientation:bundle", {
-        "PROJECT": tmp_path / "start.yaml", "INPUT": tmp_path / "obs.csv",
-        "CONTROL": tmp_path / "control.csv", "CONTROL_SIGMA_XY": 0.01, "CONTROL_SIGMA_Z": 0.01,
-        "SIGMA_PX": SIGMA_PX, "SELF_CALIBRATION": "f, cx, cy, k1, k2, p1, p2",
-        "START": "project", "OUTPUT": tmp_path / "adjusted.yaml",
-        "REPORT": tmp_path / "report.json"})
+    out = _model_run(case, tmp_path, spec, SELF_CALIBRATION="f, cx, cy, k1, k2, p1, p2")
     assert 0.85 < out["STATISTICS"]["sigma0"] < 1.15
-    written = yaml.safe_load((tmp_path / "adjusted.yaml").read_text())["cameras"][0]["model"]
+    written = yaml.safe_load((tmp_path / "out.yaml").read_text())["cameras"][0]["model"]
     assert written["type"] == "brown" and {"k3", "p1", "p2"} <= set(written)
-    loaded = load_project(tmp_path / "adjusted.yaml")
-    cam = loaded.cameras["drone"]
+    loaded = load_project(tmp_path / "out.yaml")
+    cam = loaded.cameras["cam"]
     assert abs(cam.focal_px[0] - TRUE[0]) < 5 and abs(cam.coefficients["k1"] - TRUE[3]) < 3e-3
     # the adjusted photos, as the product reads them, project ground points as OpenCV does with
     # the adjusted values (the reader's conventions agree with the bundle's)

@@ -29,17 +29,21 @@ def test_projection_matches_the_toolbox_camera_chain():
     assert np.abs(f).max() < 1e-9 and (depth < 0).all()
 
 
-@pytest.mark.parametrize("which", [2, 3, 4])
-def test_jacobians_match_central_differences(which):
-    rng = np.random.default_rng(which)
-    m = 7
+def _random_observations(rng: np.random.Generator, m: int) -> tuple[np.ndarray, ...]:
+    """``m`` random image points, exterior orientations (1500 m up, small angles), ground points
+    and film calibrations (c = 150 mm, small distortion): the arguments of image_residuals."""
     xy = rng.normal(0, 60, (m, 2))
     ext = np.column_stack([rng.normal(0, 100, (m, 3)) + [0, 0, 1500], rng.normal(0, .05, (m, 3))])
     pt = rng.normal(0, 300, (m, 3))
     cal = np.column_stack([np.full(m, 150.0), rng.normal(0, .01, (m, 2)),
                            rng.normal(0, 1e-6, m), rng.normal(0, 1e-10, m),
                            rng.normal(0, 1e-14, m), rng.normal(0, 1e-6, (m, 2))])
-    args = [xy, ext, pt, cal]
+    return xy, ext, pt, cal
+
+
+@pytest.mark.parametrize("which", [2, 3, 4])
+def test_jacobians_match_central_differences(which):
+    args = list(_random_observations(np.random.default_rng(which), 7))
     steps = {2: [1e-3] * 3 + [1e-7] * 3, 3: [1e-3] * 3,
              4: [1e-4, 1e-5, 1e-5, 1e-9, 1e-13, 1e-17, 1e-8, 1e-8]}[which]
     assert_central_differences(image_residuals, args, which, steps, atol=1e-12)
@@ -78,14 +82,7 @@ def test_compiled_collinearity_kernel_is_the_numpy_formula(jacobians):
     """image_residuals (compiled kernel) against image_residuals_numpy, element by element."""
     from toolbox.triangulation.model import image_residuals_numpy
 
-    rng = np.random.default_rng(9)
-    m = 500
-    xy = rng.normal(0, 60, (m, 2))
-    ext = np.column_stack([rng.normal(0, 100, (m, 3)) + [0, 0, 1500], rng.normal(0, .05, (m, 3))])
-    pt = rng.normal(0, 300, (m, 3))
-    cal = np.column_stack([np.full(m, 150.0), rng.normal(0, .01, (m, 2)),
-                           rng.normal(0, 1e-6, m), rng.normal(0, 1e-10, m),
-                           rng.normal(0, 1e-14, m), rng.normal(0, 1e-6, (m, 2))])
+    xy, ext, pt, cal = _random_observations(np.random.default_rng(9), 500)
     got = image_residuals(xy, ext, pt, cal, jacobians)
     ref = image_residuals_numpy(xy, ext, pt, cal, jacobians)
     assert len(got) == len(ref) == (5 if jacobians else 2)

@@ -280,6 +280,7 @@ def parse_zmap_log(text: str, source: str = "<text>", angle_unit: str = "rad",
             run.project_file = m.group(1)
         elif m := _RE["date"].match(line):
             run.date = m.group(1)
+        # duplicate-ok: one regular expression per log field, a flat elif ladder on purpose
         elif m := _RE["time"].match(line):
             run.time = m.group(1)
         elif m := _RE["n_images"].search(line):

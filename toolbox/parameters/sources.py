@@ -1,0 +1,189 @@
+"""Input files and layers: files, folders, vector and raster layers, fields."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+from toolbox.parameters.base import Parameter, ValidationContext, _show
+
+
+def _existing_path(param: Parameter, value: Any) -> Path:
+    if not isinstance(value, (str, Path)):
+        raise param.error(f"must be a file path, got {_show(value)}")
+    path = Path(value).expanduser()
+    if not path.exists():
+        raise param.error(f"file {_show(str(value))} does not exist")
+    return path
+
+
+class File(Parameter):
+    """An existing input file, optionally restricted to some extensions (lowercase, with dot)."""
+
+    type_name = "file"
+
+    def __init__(self, name: str, description: str = "", extensions: Sequence[str] = (),
+                 default: Any = None, optional: bool = False, **flags):
+        super().__init__(name, description, default, optional, **flags)
+        self.extensions = [e.lower() for e in extensions]
+
+    def validate(self, value: Any, ctx: ValidationContext) -> Path:
+        path = _existing_path(self, value)
+        if self.extensions and path.suffix.lower() not in self.extensions:
+            raise self.error(f"must be a {'/'.join(self.extensions)} file, got {_show(str(value))}")
+        if path.is_dir():
+            raise self.error(f"must be a file, got the folder {_show(str(value))}")
+        ctx.input_paths[path.resolve()] = self.name
+        return path
+
+    def expected(self) -> str:
+        return "existing file" + (f" ({', '.join(self.extensions)})" if self.extensions else "")
+
+    def describe(self) -> dict[str, Any]:
+        return super().describe() | {"extensions": self.extensions}
+
+
+class Folder(Parameter):
+    """An existing input folder (QGIS shows a folder picker)."""
+
+    type_name = "folder"
+
+    def validate(self, value: Any, ctx: ValidationContext) -> Path:
+        if not isinstance(value, (str, Path)):
+            raise self.error(f"must be a folder path, got {_show(value)}")
+        path = Path(value).expanduser()
+        if not path.is_dir():
+            what = "is a file, not a folder" if path.exists() else "does not exist"
+            raise self.error(f"folder {_show(str(value))} {what}")
+        return path
+
+    def expected(self) -> str:
+        return "existing folder"
+
+
+class VectorLayer(Parameter):
+    """A vector layer OGR can read: ``path`` or a QGIS layer source ``path|layername=name``
+    (also ``|layerid=N``, ``|geometrytype=Point``, ``|subset=SQL WHERE``), or a GeoDataFrame in
+    Python. ``geometry_types`` restricts the kind: any of point, line, polygon.
+    CSV files are read as points from X/Y(/Z) columns (see :mod:`toolbox.io.vector`).
+    ``point_clouds=True`` also accepts a LAS/LAZ/COPC file (validated to a
+    :class:`toolbox.io.pointcloud.PointCloudRef`; the algorithm must read both kinds).
+    """
+
+    type_name = "vector"
+
+    def __init__(self, name: str, description: str = "",
+                 geometry_types: Sequence[str] | None = None, default: Any = None,
+                 optional: bool = False, point_clouds: bool = False, **flags):
+        super().__init__(name, description, default, optional, **flags)
+        self.geometry_types = list(geometry_types) if geometry_types else None
+        self.point_clouds = point_clouds
+
+    def validate(self, value: Any, ctx: ValidationContext):
+        from toolbox.io.vector import open_layer
+
+        if self.point_clouds:
+            from toolbox.io.pointcloud import PointCloudRef, is_point_cloud_path, open_point_cloud
+
+            if isinstance(value, PointCloudRef) or is_point_cloud_path(value):
+                cloud = open_point_cloud(value, self.name)
+                ctx.input_paths[cloud.path.resolve()] = self.name
+                return cloud
+        layer = open_layer(value, self.name)
+        if layer.path is not None:
+            ctx.input_paths[layer.path.resolve()] = self.name
+        if self.geometry_types and layer.geometry_kind is not None \
+                and layer.geometry_kind not in self.geometry_types:
+            raise self.error(f"must be a {'/'.join(self.geometry_types)} layer, got "
+                             f"{layer.geometry_type} features in {layer}")
+        if self.geometry_types and layer.geometry_kind is None and layer.geometry_type is None:
+            raise self.error(f"must be a {'/'.join(self.geometry_types)} layer, but {layer} has "
+                             "no geometry (for CSV, name the columns X, Y and optionally Z)")
+        return layer
+
+    def expected(self) -> str:
+        kinds = "/".join(self.geometry_types) if self.geometry_types else "any"
+        return f"vector layer ({kinds}): path or QGIS source 'path|layername=...|subset=...'"
+
+    def describe(self) -> dict[str, Any]:
+        return super().describe() | {"geometry_types": self.geometry_types} | \
+            ({"point_clouds": True} if self.point_clouds else {})
+
+
+class RasterLayer(Parameter):
+    """A raster GDAL can read (GeoTIFF, JPEG, PNG, ...)."""
+
+    type_name = "raster"
+
+    def validate(self, value: Any, ctx: ValidationContext):
+        from toolbox.io.raster import open_raster_info
+
+        info = open_raster_info(value, self.name)
+        ctx.input_paths[info.path.resolve()] = self.name
+        return info
+
+    def expected(self) -> str:
+        return "raster file GDAL can read"
+
+
+class MultipleLayers(Parameter):
+    """Several layers of one kind: a list in Python/YAML, the option repeated on the command line."""
+
+    type_name = "multiple"
+
+    def __init__(self, name: str, description: str = "", layer_type: str = "vector",
+                 min_count: int = 1, default: Any = None, optional: bool = False, **flags):
+        super().__init__(name, description, default, optional, **flags)
+        if layer_type not in ("vector", "raster"):
+            raise ValueError("layer_type must be 'vector' or 'raster'")
+        self.layer_type, self.min_count = layer_type, min_count
+        self._item = (VectorLayer if layer_type == "vector" else RasterLayer)(name)
+
+    def validate(self, value: Any, ctx: ValidationContext) -> list:
+        items = [value] if isinstance(value, (str, Path)) else list(value)
+        if len(items) < self.min_count:
+            raise self.error(f"needs at least {self.min_count} {self.layer_type} layers, "
+                             f"got {len(items)}")
+        return [self._item.validate(item, ctx) for item in items]
+
+    def expected(self) -> str:
+        return f"{self.min_count}+ {self.layer_type} layers (repeat the option)"
+
+    def describe(self) -> dict[str, Any]:
+        return super().describe() | {"layer_type": self.layer_type, "min_count": self.min_count}
+
+
+class Field(Parameter):
+    """A field (column) of the vector layer given in parameter ``parent``."""
+
+    type_name = "field"
+
+    def __init__(self, name: str, description: str = "", parent: str = "INPUT",
+                 numeric: bool = False, default: Any = None, optional: bool = False, **flags):
+        super().__init__(name, description, default, optional, **flags)
+        self.parent, self.numeric = parent, numeric
+
+    def validate(self, value: Any, ctx: ValidationContext) -> str:
+        layer = ctx.values.get(self.parent)
+        name = str(value)
+        if layer is None:
+            raise self.error(f"names field {_show(name)} but {self.parent} is not given")
+        fields = layer.fields
+        if name not in fields:
+            matches = [f for f in fields if f.lower() == name.lower()]
+            if len(matches) != 1:
+                raise self.error(f"field {_show(name)} is not in {layer}; fields are: "
+                                 f"{', '.join(fields) or '(none)'}")
+            name = matches[0]
+        if self.numeric and not layer.is_numeric(name):
+            raise self.error(f"field {_show(name)} of {layer} must be numeric, it is "
+                             f"{layer.field_types[name]}")
+        return name
+
+    def expected(self) -> str:
+        return f"{'numeric ' if self.numeric else ''}field of {self.parent}"
+
+    def describe(self) -> dict[str, Any]:
+        return super().describe() | {"parent": self.parent, "numeric": self.numeric}
+

@@ -1,0 +1,235 @@
+"""Runner: validate parameters -> execute -> check and move outputs into place -> JSON report.
+
+Promises kept here, for every algorithm: an input is never overwritten (every path the run
+writes, report and sidecars included, is compared with every input after resolving symlinks and
+``..``, whatever ``overwrite`` says); a failed, canceled or interrupted run leaves nothing (no
+staged file, no output folder it created); a write error (full disk, read-only folder) is one
+:class:`~toolbox.errors.OutputWriteError`; a raster output without a single valid cell is an
+error, not an all-nodata file.
+
+>>> import toolbox
+>>> toolbox.run("dem:hillshade", {"INPUT": "dem.tif", "OUTPUT": "hs.tif"})  # doctest: +SKIP
+{'OUTPUT': '/abs/path/hs.tif'}
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+from typing import Any
+
+from toolbox.algorithm import Algorithm
+from toolbox.errors import OutputWriteError, ParameterError, ToolboxError
+from toolbox.feedback import Feedback
+from toolbox.io.staging import OutputStaging, write_error
+from toolbox.parameters import Boolean, Number, OutputFolder, RasterLayer, ValidationContext
+from toolbox.registry import get
+from toolbox.runner.failures import (
+    as_read_error,
+    as_write_error,
+    check_gdal_errors,
+    check_raster_outputs,
+    collect_gdal_errors,
+    named_write_error,
+)
+from toolbox.runner.paths import (  # noqa: F401 - input_paths, planned_paths: public here too
+    REPORT,
+    check_outputs_against_inputs,
+    check_planned_files,
+    check_report,
+    input_paths,
+    planned_paths,
+)
+
+OVERWRITE = "OVERWRITE"
+
+
+def _pop_overwrite(parameters: dict[str, Any], overwrite: bool) -> tuple[dict[str, Any], bool]:
+    params = dict(parameters)
+    if OVERWRITE in params:
+        overwrite = Boolean(OVERWRITE).validate(params.pop(OVERWRITE), ValidationContext())
+    return params, overwrite
+
+
+def validate(algorithm: type[Algorithm] | str, parameters: dict[str, Any],
+             overwrite: bool = False, warnings: list[str] | None = None) -> dict[str, Any]:
+    """Validate ``parameters`` for an algorithm; return the normalised values.
+
+    Unknown names, missing required values and bad values raise :class:`ParameterError`; so do
+    outputs that would replace an input and, for algorithms working in metres, geographic CRSs.
+    Coordinates a little outside their CRS's area of use add a message to ``warnings``.
+    Nothing is written.
+    """
+    alg = get(algorithm) if isinstance(algorithm, str) else algorithm
+    params, overwrite = _pop_overwrite(parameters, overwrite)
+    if not isinstance(params, dict):
+        raise ParameterError("", f"parameters must be a mapping of NAME: value, got {params!r}")
+    params = alg.rename_deprecated(params)
+    known = {p.name for p in alg.parameters}
+    unknown = sorted(set(params) - known, key=str)
+    if unknown:
+        raise ParameterError(str(unknown[0]), f"is not a parameter of {alg.id}; its parameters "
+                             f"are: {', '.join(p.name for p in alg.parameters)}")
+    ctx = ValidationContext(overwrite=overwrite)
+    # inputs first (so outputs can be checked against every input path), in declaration order
+    ordered = [p for p in alg.parameters if not p.is_output] + alg.destinations()
+    for p in ordered:
+        try:
+            ctx.values[p.name] = p.resolve(params.get(p.name), ctx)
+        except OSError as exc:  # a path the system refuses (name too long, a file as folder...)
+            raise ParameterError(p.name, f"cannot use {params.get(p.name)!r}: "
+                                 f"{exc.strerror or exc}") from None
+        if not p.is_output and alg.projected_crs_only:
+            from toolbox.io.crs import check_input_crs
+
+            check_input_crs(alg.id, p.name, ctx.values[p.name], warnings)
+    values = {p.name: ctx.values[p.name] for p in alg.parameters}
+    check_magnitudes(alg, values)
+    _check_band(alg, values)
+    check_outputs_against_inputs(alg, values)
+    alg().check(values)
+    check_planned_files(alg, values, overwrite)
+    return values
+
+
+TINY, HUGE = 1e-300, 1e150  # below (but not 0) / above: no computation with it is sound
+
+
+def check_magnitudes(alg_cls: type[Algorithm], values: dict[str, Any]) -> None:
+    """Refuse numbers no computation survives: subnormal ones (``1e-320``: a division by it
+    overflows) and ones whose square overflows (``1e308``)."""
+    for p in alg_cls.parameters:
+        value = values.get(p.name)
+        if not isinstance(p, Number) or not isinstance(value, (int, float)) or value == 0:
+            continue
+        if abs(value) < TINY:
+            raise ParameterError(p.name, f"is too small to compute with, got {value:g}; use 0 "
+                                 f"or a value of at least {TINY:g}")
+        if abs(value) > HUGE:
+            raise ParameterError(p.name, f"is too large to compute with, got {value:g} (at most "
+                                 f"{HUGE:g})")
+
+
+def _check_band(alg_cls: type[Algorithm], values: dict[str, Any]) -> None:
+    """The one BAND check: BAND exists in the DEM when given, else in the one raster input."""
+    band = values.get("BAND")
+    given = {p.name: values[p.name] for p in alg_cls.parameters
+             if isinstance(p, RasterLayer) and values.get(p.name) is not None}
+    rasters = [given["DEM"]] if "DEM" in given else list(given.values())
+    if isinstance(band, int) and len(rasters) == 1 and band > rasters[0].count:
+        raise ParameterError("BAND", f"must be <= {rasters[0].count} (bands of {rasters[0]}), "
+                             f"got {band}")
+
+
+# -- what the run reads and writes ----------------------------------------------------------------
+
+
+# -- run ------------------------------------------------------------------------------------------
+def run(algorithm_id: str, parameters: dict[str, Any] | None = None,
+        feedback: Feedback | None = None, overwrite: bool = False,
+        report: str | Path | None = None) -> dict[str, Any]:
+    """Run an algorithm and return its outputs (``{name: value}``; files as absolute paths).
+
+    Parameters
+    ----------
+    algorithm_id : str
+        ``group:name``, e.g. ``"dem:idw"``.
+    parameters : dict
+        Parameter values by UPPERCASE name (Python objects or text as on the command line).
+        ``OVERWRITE: True`` may be given here instead of ``overwrite``.
+    feedback : Feedback, optional
+        Progress, messages and cancellation. A silent one is used by default.
+    overwrite : bool
+        Replace existing outputs (otherwise an existing output is an error). Inputs are never
+        replaced.
+    report : path, optional
+        Write a JSON run report (parameters, versions, timings, outputs, warnings) there.
+
+    Raises
+    ------
+    ToolboxError
+        For every problem the user can fix (bad parameters, unreadable inputs, a full disk...).
+        No output is left behind when a run fails or is canceled.
+    """
+    feedback = (feedback or Feedback()).step(0, 100)  # run-local messages and timings
+    alg_cls = get(algorithm_id)
+    started = time.time()
+    t0 = time.perf_counter()
+    params, overwrite = _pop_overwrite(parameters or {}, overwrite)
+    crs_warnings: list[str] = []
+    values = validate(alg_cls, params, overwrite, crs_warnings)
+    for text in crs_warnings:
+        feedback.push_warning(text)
+    protected = set(input_paths(alg_cls, values))
+    report_path = None if report is None else check_report(report, alg_cls, values, overwrite)
+    staging = OutputStaging()
+    try:
+        staged = dict(values)
+        for dest in alg_cls.destinations():
+            if values[dest.name] is not None:
+                stage = staging.stage_folder if isinstance(dest, OutputFolder) \
+                    else staging.stage
+                staged[dest.name] = stage(values[dest.name], dest.name)
+        staged_report = None if report_path is None else staging.stage(report_path, REPORT)
+        for folder in staging.removed_stale:
+            feedback.push_warning(f"removed {folder}: the staging folder of an earlier run that "
+                                  "was killed")
+        feedback.set_progress(0)
+        with collect_gdal_errors() as gdal_errors:
+            try:
+                result = alg_cls().process(staged, feedback) or {}
+            except OutputWriteError as exc:  # a writer's: name the output, its final path
+                raise named_write_error(exc, staging) from None
+            except (ToolboxError, KeyboardInterrupt):
+                raise
+            except Exception as exc:
+                converted = as_write_error(exc, staging) or as_read_error(
+                    exc, gdal_errors, alg_cls, values)
+                if converted is None:
+                    raise
+                raise converted from None
+        feedback.check_canceled()
+        check_gdal_errors(gdal_errors, staging)
+        check_raster_outputs(alg_cls, values, staging)
+        written = {final for _, final, staged_file in staging.items() if staged_file.exists()}
+        outputs = _final_outputs(alg_cls, values, result, written)
+        feedback.set_progress(100)
+        if staged_report is not None:
+            from toolbox.report import build_report, to_jsonable
+
+            doc = build_report(alg_cls, values, to_jsonable(outputs), feedback, started,
+                               time.perf_counter() - t0)
+            try:
+                staged_report.write_text(json.dumps(doc, indent=2) + "\n")
+            except OSError as exc:
+                raise write_error(exc, REPORT, report_path) from None
+        staging.commit(overwrite=overwrite, protected=protected)
+    finally:
+        staging.rollback()
+    return outputs
+
+
+# -- write-error detection (by type and by the disk, never by message text) ---------------------
+
+
+def _final_outputs(alg_cls: type[Algorithm], values: dict[str, Any], result: dict[str, Any],
+                   written: set[Path]) -> dict[str, Any]:
+    outputs: dict[str, Any] = {}
+    for dest in alg_cls.destinations():
+        final = values[dest.name]
+        if final is None:
+            continue
+        final_abs = Path(final).expanduser().absolute()
+        if final_abs in written:
+            outputs[dest.name] = str(final_abs)
+        elif dest.name in result:
+            raise RuntimeError(f"{alg_cls.id} reported {dest.name} but did not write it")
+    declared = {o.name for o in alg_cls.outputs}
+    destinations = {d.name for d in alg_cls.destinations()}
+    for key, value in result.items():
+        if key in declared:
+            outputs[key] = value
+        elif key not in destinations:
+            raise RuntimeError(f"{alg_cls.id} returned undeclared output {key!r}")
+    return outputs

@@ -1,0 +1,191 @@
+"""What a run reads and writes: every input path (sidecars and the files a project names
+included), the files the outputs plan, and the checks that no output replaces an input."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from toolbox.algorithm import Algorithm
+from toolbox.errors import OutputExistsError, ParameterError
+from toolbox.io.staging import protected_paths
+from toolbox.parameters import Folder, OutputFolder
+
+REPORT = "--run-report"  # the run report, as messages name it
+
+def _flatten(value: Any):
+    if isinstance(value, (list, tuple)):
+        for item in value:
+            yield from _flatten(item)
+    elif value is not None:
+        yield value
+
+
+def input_paths(alg_cls: type[Algorithm], values: dict[str, Any]) -> dict[Path, str]:
+    """Every file the inputs name (whatever the parameter type) and their sidecars, resolved ->
+    parameter name."""
+    out: dict[Path, str] = {}
+    for p in alg_cls.parameters:
+        if p.is_output:
+            continue
+        for item in _flatten(values.get(p.name)):
+            path = getattr(item, "path", item)
+            if not isinstance(path, (str, Path)) or not str(path).strip():
+                continue
+            try:
+                candidate = Path(str(path).split("|", 1)[0]).expanduser()
+                if isinstance(p, Folder) and candidate.is_dir():  # an input folder's files
+                    for named in (f for f in candidate.iterdir() if f.is_file()):
+                        for protected in protected_paths(named):
+                            out.setdefault(protected, p.name)
+                elif candidate.is_file():
+                    for named in [candidate, *_referenced_files(candidate)]:
+                        for protected in protected_paths(named):
+                            out.setdefault(protected, p.name)
+            except (OSError, ValueError):  # a string that is no path (too long, NUL...)
+                continue
+    return out
+
+
+def _referenced_files(path: Path) -> list[Path]:
+    """Existing files a small YAML/JSON input names (a project's photos and orientation
+    files), relative to its folder: they are inputs too."""
+    if path.suffix.lower() not in (".yaml", ".yml", ".json") or path.stat().st_size > 1 << 20:
+        return []
+    try:
+        text = path.read_text(encoding="utf-8", errors="replace")
+        if path.suffix.lower() == ".json":  # (YAML holds JSON, but PyYAML reads it 50x slower)
+            import json
+
+            doc = json.loads(text)
+        else:
+            import yaml
+
+            doc = yaml.safe_load(text)
+    except Exception:  # noqa: BLE001 - unreadable: its reader reports it
+        return []
+    found, stack = [], [doc]
+    while stack:
+        item = stack.pop()
+        if isinstance(item, dict):
+            stack.extend(item.values())
+        elif isinstance(item, list):
+            stack.extend(item)
+        elif isinstance(item, str) and 0 < len(item) < 1024 and "\n" not in item:
+            try:
+                target = path.parent / Path(item).expanduser()
+                if target.is_file():
+                    found.append(target)
+            except (OSError, ValueError):
+                continue
+    return found
+
+
+def check_outputs_against_inputs(alg_cls: type[Algorithm], values: dict[str, Any]) -> None:
+    inputs = input_paths(alg_cls, values)
+    for dest in alg_cls.destinations():
+        final = values.get(dest.name)
+        if final is None:
+            continue
+        resolved = Path(final).expanduser().resolve()
+        if resolved in inputs:
+            raise ParameterError(dest.name, f"'{final}' is the input {inputs[resolved]} (or one "
+                                 "of its files); an input is never overwritten: choose another "
+                                 "output path")
+
+
+_GLOB = set("*?[")
+
+
+def planned_paths(alg_cls: type[Algorithm], values: dict[str, Any]) -> dict[str, list[Path]]:
+    """Every file the destinations will write besides their own path (see
+    :meth:`Algorithm.planned_files`), as final paths; glob patterns are expanded to the files
+    that exist now. Names leaving their folder (``..``, absolute) are refused."""
+    plan = alg_cls().planned_files(values) or {}
+    out: dict[str, list[Path]] = {}
+    for dest in alg_cls.destinations():
+        final = values.get(dest.name)
+        if final is None:
+            continue
+        if isinstance(dest, OutputFolder) and dest.name not in plan:
+            raise RuntimeError(f"{alg_cls.id} plans no file for its output folder {dest.name}")
+        folder = Path(final).expanduser().absolute()
+        if not isinstance(dest, OutputFolder):
+            folder = folder.parent
+        paths: list[Path] = []
+        for name in plan.get(dest.name, []):
+            relative = Path(str(name))
+            if relative.is_absolute() or ".." in relative.parts or not relative.parts:
+                raise ParameterError(dest.name, f"would write {str(name)!r}, which is not a file "
+                                     f"name inside '{folder}' (check the ids the file names "
+                                     "come from)")
+            if _GLOB & set(str(name)):
+                paths += sorted(folder.glob(str(name)))
+            else:
+                paths.append(folder / relative)
+        out[dest.name] = paths
+    return out
+
+
+def check_planned_files(alg_cls: type[Algorithm], values: dict[str, Any],
+                        overwrite: bool) -> None:
+    """Each planned file is checked as an output path: not an input (by path, sidecars and the
+    files a project names included, or by inode), not another output, not a folder, and not
+    existing without ``overwrite``."""
+    plan = planned_paths(alg_cls, values)
+    if not any(plan.values()):
+        return
+    inputs = input_paths(alg_cls, values)
+    inodes = {}
+    for path, name in inputs.items():
+        try:
+            st = path.stat()
+        except OSError:
+            continue
+        inodes[(st.st_dev, st.st_ino)] = name
+    seen = {Path(values[d.name]).expanduser().resolve(): d.name
+            for d in alg_cls.destinations() if values.get(d.name) is not None}
+    for dest_name, paths in plan.items():
+        for path in paths:
+            resolved = path.resolve()
+            victim = inputs.get(resolved)
+            if victim is None and path.exists():
+                st = path.stat()
+                victim = inodes.get((st.st_dev, st.st_ino))
+            if victim is not None:
+                raise ParameterError(dest_name, f"would write '{path}', which is the input "
+                                     f"{victim} (or one of its files); an input is never "
+                                     "overwritten: choose another output folder or name")
+            if resolved in seen:
+                raise ParameterError(dest_name, f"would write '{path}' twice (also "
+                                     f"{seen[resolved]}): choose another output folder")
+            seen[resolved] = dest_name
+            if path.is_dir():
+                raise ParameterError(dest_name, f"would write '{path}', which is a folder")
+            if path.exists() and not overwrite:
+                raise OutputExistsError(dest_name, f"would replace '{path}', which exists; "
+                                        "pass --overwrite (OVERWRITE=True in Python) to "
+                                        "replace it")
+
+
+def check_report(report: str | Path, alg_cls: type[Algorithm], values: dict[str, Any],
+                  overwrite: bool) -> Path:
+    path = Path(report).expanduser()
+    resolved = path.resolve()
+    inputs = input_paths(alg_cls, values)
+    if resolved in inputs:
+        raise ParameterError(REPORT, f"'{report}' is the input {inputs[resolved]} (or one of its "
+                             "files); an input is never overwritten: choose another report path")
+    for dest in alg_cls.destinations():
+        final = values.get(dest.name)
+        if final is not None and Path(final).expanduser().resolve() == resolved:
+            raise ParameterError(REPORT, f"'{report}' is also the output {dest.name}")
+    for name, paths in planned_paths(alg_cls, values).items():
+        if any(p.resolve() == resolved for p in paths):
+            raise ParameterError(REPORT, f"'{report}' is also one of the files of {name}")
+    if path.is_dir():
+        raise ParameterError(REPORT, f"'{report}' is a folder, expected a file path")
+    if path.exists() and not overwrite:
+        raise OutputExistsError(REPORT, f"'{report}' exists; pass --overwrite to replace it")
+    return path
+
