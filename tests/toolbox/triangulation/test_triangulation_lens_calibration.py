@@ -115,3 +115,21 @@ def test_adjusted_project_read_back_projects_every_point_to_its_true_image_posit
     plain = replace(start, camera=replace(start.camera, distortion=None))
     mm = plain.ground_to_image(sb.points[index[sb.obs_point[k]]][None])
     assert np.hypot(*(mm[0] - sb.true_xy[k])) > PIXEL_MM
+
+
+def test_decentring_of_a_camera_with_a_distortion_table_is_refused():
+    """A table is applied to the measurements as it is; estimating p1 (or k1-k3) on top of it
+    would write a polynomial the table cannot hold: a one-line parameter error."""
+    from toolbox.errors import ParameterError
+    from toolbox.photogrammetry.camera import RadialDistortion
+
+    spec = SyntheticBlockSpec(digital=False, seed=5)
+    truth = make_block(spec).project
+    table = replace(truth.cameras["film"],
+                    distortion=RadialDistortion.from_table([50.0, 100.0, 150.0], [1.0, 2.0, 0.0]))
+    project = Project(truth.crs, {"film": table},
+                      {k: replace(p, camera=table) for k, p in truth.photos.items()})
+    with pytest.raises(ParameterError, match=r"SELF_CALIBRATION.*'film' has a distortion table; "
+                                             r"k1-k3, p1, p2 can be estimated only for a "
+                                             r"polynomial"):
+        build_case(spec, n_control=5, project=project, self_calibration="c, p1")
