@@ -46,7 +46,8 @@ class BundleAdjustment(Algorithm):
 
     Unknowns: 6 exterior parameters per photo, 3 coordinates per point and, per camera, the
     SELF_CALIBRATION parameters: ``c``, ``x0``, ``y0`` (principal point, mm), ``k1``-``k3``
-    (radial, ``Δr = k1·r³ + k2·r⁵ + k3·r⁷``, mm), ``p1``, ``p2`` (decentring), each ``free`` or
+    (radial, ``Δr = k1·r³ + k2·r⁵ + k3·r⁷``, mm), ``p1``, ``p2`` (Brown's decentring, mm⁻¹;
+    the correction form of :mod:`toolbox.photogrammetry.camera`), each ``free`` or
     ``weighted:SIGMA`` around the project's value (e.g. ``c, k1`` or ``c:weighted:0.01``), for
     every camera or, with ``@CAMERA``, for one (``x0@wild 303.55``; it overrides). For a Brown
     camera ``f``, ``cx``, ``cy`` (px; aliases of c, x0, y0) and OpenCV's ``k1``-``k3``, ``p1``,
@@ -68,7 +69,7 @@ class BundleAdjustment(Algorithm):
     is left; rejected observations are listed with w and redundancy number.
 
     Outputs: OUTPUT, the orientation project (YAML) with the adjusted orientations (and
-    calibration: c, principal point, k1, k2 of a film camera, its k3/p1/p2 only in the report;
+    calibration: c, principal point and the polynomial k1, k2, k3, p1, p2 of a film camera;
     a Brown camera is written whole, as a brown model), which ortho:batch reads;
     POINTS (GeoPackage): projection_centres (with standard deviations), points (tie,
     control, check with sigma X/Y/Z), image_residuals (per measurement: µm, px, w-test,
@@ -249,10 +250,6 @@ class BundleAdjustment(Algorithm):
         with feedback.timed("bundle adjustment"):
             solution = adjust(block, exterior, points, options, feedback)
         feedback.set_progress(80)
-        unstored = outputs.unstored_calibration(block)
-        if unstored:
-            feedback.push_warning(f"{', '.join(unstored)}: estimated but not storable in the "
-                                  "project file (see REPORT)")
         for note in solution.notes:
             if note.startswith("weak geometry"):
                 feedback.push_warning(note)

@@ -134,6 +134,9 @@ class ConvertOrientations(Algorithm):
             unit = params["ANGLE_UNIT_OUT"]
             written = formats.write_orientations(oset, params["FORMAT_OUT"], output, unit)
             oset.notes += left_out
+            for note in oset.notes:  # what the output cannot hold: said loudly
+                if "not carried over" in note:
+                    feedback.push_warning(note)
             summary = oset.summary()
             summary["angle_unit_out"] = unit or {"project": "deg", "orthority": "rad",
                                                  "csv": "deg", "patb": "none (matrices)"}[

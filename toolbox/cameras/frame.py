@@ -105,9 +105,9 @@ class FrameCamera:
 @dataclass(frozen=True, eq=False)
 class FilmFrame:
     """The film (or metric digital) camera of a :class:`~toolbox.photogrammetry.photo.Photo`
-    (fiducial interior orientation, radial table or polynomial) behind the
-    :class:`~toolbox.cameras.base.CameraModel` protocol: its own compiled collinearity kernels
-    do the work."""
+    (fiducial interior orientation; radial table, or polynomial k1-k3 with decentring p1, p2)
+    behind the :class:`~toolbox.cameras.base.CameraModel` protocol: its own compiled
+    collinearity kernels do the work."""
 
     photo: Any
 

@@ -156,9 +156,11 @@ def from_project(project: Any, models: dict[str, dict] | None = None) -> Orienta
                              "cx": cam.principal_point_mm[0] / (m * s) + 0.0,
                              "cy": -cam.principal_point_mm[1] / (m * s) + 0.0}  # no -0.0
         if cam.distortion is not None:
-            kind = next(iter(cam.distortion.as_dict()))
-            out.notes.append(f"camera {name!r}: its radial distortion ({kind}) has no "
-                             "equivalent in the pinhole spec and is not carried over")
+            kind, terms = next(iter(cam.distortion.as_dict().items()))
+            what = kind if kind == "table" else f"polynomial {', '.join(terms)}"
+            out.notes.append(f"camera {name!r}: its lens distortion ({what}; the film camera's "
+                             "correction form) has no equivalent in the pinhole spec and is "
+                             "not carried over")
         if cam.fiducials_mm:
             out.notes.append(f"camera {name!r}: fiducial marks and per-photo interior fits are "
                              "not carried over (the nominal pixel grid is assumed)")

@@ -110,47 +110,15 @@ def _pixel_scale(f2p: np.ndarray, photo: Any, width: int, height: int) -> tuple[
 
 
 def distortion_magnitude(distortion: Any, radius_mm: float) -> float:
-    """Bound of ``|Δr|`` (mm), the distortion's shift of a point, for measured radii up to
-    ``radius_mm``: a table is piecewise linear with its last value held, so its largest node
-    value; a polynomial is sampled densely on [0, 1.05 radius] and widened by 5 %."""
-    if distortion is None:
-        return 0.0
-    from toolbox.photogrammetry.camera import DISTORTION_TABLE
-
-    if distortion.mode == DISTORTION_TABLE:
-        return float(np.abs(distortion.dr_mm).max())
-    rr = np.linspace(0.0, 1.05 * radius_mm, 4097)
-    return 1.05 * float(np.abs(distortion.k1 * rr ** 3 + distortion.k2 * rr ** 5).max())
+    """Bound of the distortion's shift of a point (mm) for measured radii up to ``radius_mm``
+    (:meth:`~toolbox.photogrammetry.camera.RadialDistortion.magnitude_bound`); 0 without."""
+    return 0.0 if distortion is None else distortion.magnitude_bound(radius_mm)
 
 
 def distortion_lipschitz(distortion: Any, radius_mm: float) -> float:
-    """Bound of the Jacobian norm of ``δ(p) = distort(p) - p`` for ideal radii up to ``radius_mm``.
-
-    The field is radial, so its Jacobian has the eigenvalues ``Δr'/(1 - Δr')`` (radial) and
-    ``Δr(r)/r_ideal`` (tangential), with ``r - Δr(r) = r_ideal``. A table is piecewise linear:
-    the first is largest on a segment, the second at a node or at r -> 0. A polynomial is
-    sampled densely on [0, 1.05 radius]. The result is widened by 5 %.
-    """
-    if distortion is None:
-        return 0.0
-    from toolbox.photogrammetry.camera import DISTORTION_TABLE
-
-    if distortion.mode == DISTORTION_TABLE:
-        r, d = distortion.r_mm, distortion.dr_mm
-        slopes = np.diff(d) / np.diff(r)
-        radial = np.abs(slopes) / np.maximum(1.0 - np.abs(slopes), 1e-9)
-        nodes = r > 0
-        tangential = np.abs(d[nodes]) / np.maximum(r[nodes] - np.abs(d[nodes]), 1e-12)
-        bound = max(float(radial.max()), float(tangential.max(initial=0.0)))
-    else:
-        rr = np.linspace(0.0, 1.05 * radius_mm, 4097)[1:]
-        k1, k2 = distortion.k1, distortion.k2
-        value = k1 * rr ** 3 + k2 * rr ** 5
-        slope = 3 * k1 * rr ** 2 + 5 * k2 * rr ** 4
-        radial = np.abs(slope) / np.maximum(1.0 - np.abs(slope), 1e-9)
-        tangential = np.abs(value) / np.maximum(rr - np.abs(value), 1e-12)
-        bound = max(float(radial.max()), float(tangential.max()))
-    return 1.05 * bound
+    """Bound of the Jacobian norm of ``δ(p) = distort(p) - p`` for radii up to ``radius_mm``
+    (:meth:`~toolbox.photogrammetry.camera.RadialDistortion.lipschitz_bound`); 0 without."""
+    return 0.0 if distortion is None else distortion.lipschitz_bound(radius_mm)
 
 
 # -- the coordinate map kernel ----------------------------------------------------------------------

@@ -73,7 +73,8 @@ def _components(points, ncoords: int, name: str) -> tuple[list[np.ndarray], tupl
 
 def _distortion_args(distortion: RadialDistortion | None):
     if distortion is None:
-        return 0, np.zeros(2), np.zeros(2), np.array([0.0, 0.0, 1.0]), np.zeros(1, dtype=np.int64)
+        return (0, np.zeros(2), np.zeros(2), np.array([0.0, 0.0, 1.0, 0.0, 0.0, 0.0]),
+                np.zeros(1, dtype=np.int64))
     return distortion.kernel_arguments()
 
 

@@ -5,8 +5,9 @@ Every kernel takes the sensor model as plain arrays and numbers (no Python objec
 ``centre (3,)``, ``rot (3, 3)`` = R(omega, phi, kappa), ``c`` principal distance (mm),
 ``pp (2,)`` principal point (mm), ``dmode`` distortion mode (0 none, 1 table, 2 polynomial),
 ``dr (K,)`` / ``dd (K,)`` the distortion table (radius mm -> Δr mm, ``dr[0] = 0``),
-``dk (3,)`` k1, k2 and the table's bin width, ``di (B,)`` the table segment at the start of
-each bin (see :meth:`toolbox.photogrammetry.camera.RadialDistortion.kernel_arguments`), and
+``dk (6,)`` k1, k2, the table's bin width, k3, p1, p2, ``di (B,)`` the table segment at the
+start of each bin (see :meth:`toolbox.photogrammetry.camera.RadialDistortion.kernel_arguments`;
+the distortion's correction form: :mod:`toolbox.photogrammetry.camera`), and
 ``m (3, 3)`` a plane projective matrix between image mm and the input/output coordinates
 (fiducial -> pixel for ground -> image, pixel -> fiducial for image -> ground; the identity for
 mm).
@@ -23,13 +24,14 @@ import numpy as np
 from numba import njit, prange
 
 OK, OUTSIDE, NODATA, NOT_CONVERGED, RAY_UPWARD, NO_INTERSECTION = 0, 1, 2, 3, 4, 5
-_DISTORT_ITERATIONS = 8
+_DISTORT_ITERATIONS = 20  # as camera.DISTORT_ITERATIONS, DISTORT_TOLERANCE_MM
+_DISTORT_TOLERANCE = 1e-9
 
 
 @njit(cache=True, inline="always")
 def _delta_r(r, dmode, dr, dd, dk, di):
     """Radial displacement Δr(r) (mm) and its derivative dΔr/dr: linear in the table (last value
-    held), or the polynomial k1·r³ + k2·r⁵.
+    held), or the polynomial k1·r³ + k2·r⁵ + k3·r⁷.
 
     The table segment is found through ``di``: ``di[b]`` is the segment holding radius
     ``b·dk[2]`` (uniform bins), then a short forward scan; exact, without a binary search.
@@ -48,7 +50,8 @@ def _delta_r(r, dmode, dr, dd, dk, di):
         return dd[j] + (r - dr[j]) * slope, slope
     if dmode == 2:
         r2 = r * r
-        return (dk[0] + dk[1] * r2) * r2 * r, (3.0 * dk[0] + 5.0 * dk[1] * r2) * r2
+        return ((dk[0] + r2 * (dk[1] + r2 * dk[3])) * r2 * r,
+                (3.0 * dk[0] + r2 * (5.0 * dk[1] + 7.0 * r2 * dk[3])) * r2)
     return 0.0, 0.0
 
 
@@ -57,31 +60,64 @@ def _undistort(x, y, dmode, dr, dd, dk, di):
     """Measured -> ideal (coordinates relative to the principal point, mm)."""
     if dmode == 0:
         return x, y
-    r = math.sqrt(x * x + y * y)
-    if r == 0.0:
+    r2 = x * x + y * y
+    if r2 == 0.0:
         return x, y
+    p1, p2 = dk[4], dk[5]
+    r = math.sqrt(r2)
     f = 1.0 - _delta_r(r, dmode, dr, dd, dk, di)[0] / r
-    return x * f, y * f
+    if p1 == 0.0 and p2 == 0.0:
+        return x * f, y * f
+    return (x * f - (p1 * (r2 + 2.0 * x * x) + 2.0 * p2 * x * y),
+            y * f - (p2 * (r2 + 2.0 * y * y) + 2.0 * p1 * x * y))
 
 
 @njit(cache=True, inline="always")
 def _distort(x, y, dmode, dr, dd, dk, di):
-    """Ideal -> measured: solve g(r) = r - Δr(r) - r_ideal = 0 by Newton's method from
-    r = r_ideal (|dΔr/dr| << 1, so two or three steps reach 1e-13 mm)."""
+    """Ideal -> measured (NaN when not converged). Radial only: g(r) = r - Δr(r) - r_ideal = 0
+    by Newton's method from r = r_ideal (|dΔr/dr| << 1: two or three steps); with decentring:
+    Newton's method on the 2-D correction ``_undistort(m) = (x, y)`` from m = (x, y). Both stop
+    at a step <= ``_DISTORT_TOLERANCE`` mm."""
     if dmode == 0:
         return x, y
     ri = math.sqrt(x * x + y * y)
-    if ri == 0.0:
-        return x, y
-    r = ri
+    p1, p2 = dk[4], dk[5]
+    if p1 == 0.0 and p2 == 0.0:
+        if ri == 0.0:
+            return x, y
+        r = ri
+        for _ in range(_DISTORT_ITERATIONS):
+            value, slope = _delta_r(r, dmode, dr, dd, dk, di)
+            step = (r - value - ri) / (1.0 - slope)
+            r -= step
+            if abs(step) <= _DISTORT_TOLERANCE:
+                f = r / ri
+                return x * f, y * f
+        return np.nan, np.nan
+    u, v = x, y
     for _ in range(_DISTORT_ITERATIONS):
-        value, slope = _delta_r(r, dmode, dr, dd, dk, di)
-        step = (r - value - ri) / (1.0 - slope)
-        r -= step
-        if abs(step) <= 1e-13:
-            break
-    f = r / ri
-    return x * f, y * f
+        r2 = u * u + v * v
+        r = math.sqrt(r2)
+        g, h = 0.0, 0.0
+        if r > 0.0:
+            value, slope = _delta_r(r, dmode, dr, dd, dk, di)
+            g = value / r
+            h = (slope - g) / r2
+        # residual correct(m) - ideal and its Jacobian (1 - dδ/dm)
+        fx = u - u * g - (p1 * (r2 + 2.0 * u * u) + 2.0 * p2 * u * v) - x
+        fy = v - v * g - (p2 * (r2 + 2.0 * v * v) + 2.0 * p1 * u * v) - y
+        a = 1.0 - (g + u * u * h + 6.0 * p1 * u + 2.0 * p2 * v)
+        b = -(u * v * h + 2.0 * p1 * v + 2.0 * p2 * u)
+        c = -(u * v * h + 2.0 * p2 * u + 2.0 * p1 * v)
+        d = 1.0 - (g + v * v * h + 6.0 * p2 * v + 2.0 * p1 * u)
+        det = a * d - b * c
+        su = (d * fx - b * fy) / det
+        sv = (a * fy - c * fx) / det
+        u -= su
+        v -= sv
+        if math.sqrt(su * su + sv * sv) <= _DISTORT_TOLERANCE:
+            return u, v
+    return np.nan, np.nan
 
 
 @njit(cache=True, inline="always")

@@ -17,7 +17,10 @@ Format (``version: 1``; keys in lowercase; relative paths are relative to the pr
         frame_size_mm: [230, 230]                 # optional (image format, for footprints)
         distortion:                               # optional, one of:
           table: {r_mm: [10, 20, ...], dr_um: [0.0, 0.1, ...]}
-          # polynomial: {k1: -1.2e-8, k2: 0.0}    # dr (mm) = k1 r^3 + k2 r^5, r in mm
+          # polynomial: {k1: -1.2e-8, k2: 0.0, k3: 0.0, p1: 0.0, p2: 0.0}
+          #   correction form on measured u = x - x0, v = y - y0 (mm), r² = u² + v²:
+          #   x̄ = u - u·dr/r - [p1 (r² + 2u²) + 2 p2 u v], dr = k1 r³ + k2 r⁵ + k3 r⁷ (mm);
+          #   ȳ likewise with u <-> v and p1 <-> p2; k2, k3, p1, p2 optional (0)
       - name: drone                               # or a camera model instead of the film fields
         model: {type: brown, im_size: [4000, 3000], focal_len: 0.78, cx: 0.0, cy: 0.0,
                 k1: -0.26, k2: 0.10, k3: -0.03, p1: 0.0007, p2: 0.0003}

@@ -285,7 +285,7 @@ def calibration_settings(spec: dict[tuple[str | None, str], tuple[int, float]],
 
 def camera_calibration(camera, free: set[str]) -> np.ndarray:
     """Start values (8,) of a project camera; its distortion must be a polynomial (or none)
-    when radial terms are estimated, and a table is applied to the measurements instead.
+    when distortion terms are estimated, and a table is applied to the measurements instead.
     A model camera (pinhole or brown): ``(fx px, cx px, cy px, k1, k2, k3, p1, p2)``."""
     from toolbox.cameras import Intrinsics
     from toolbox.photogrammetry.camera import DISTORTION_POLYNOMIAL
@@ -306,11 +306,11 @@ def camera_calibration(camera, free: set[str]) -> np.ndarray:
     values[1:3] = camera.principal_point_mm
     dist = camera.distortion
     if dist is not None and dist.mode == DISTORTION_POLYNOMIAL:
-        values[3], values[4] = dist.k1, dist.k2
-    elif dist is not None and any(k in free for k in ("k1", "k2", "k3")):
+        values[3:] = dist.k1, dist.k2, dist.k3, dist.p1, dist.p2
+    elif dist is not None and any(k in free for k in ("k1", "k2", "k3", "p1", "p2")):
         raise ParameterError("SELF_CALIBRATION", f"camera {camera.name!r} has a distortion "
-                             "table; k1-k3 can be estimated only for a polynomial distortion "
-                             "or none")
+                             "table; k1-k3, p1, p2 can be estimated only for a polynomial "
+                             "distortion or none")
     return values
 
 

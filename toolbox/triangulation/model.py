@@ -9,9 +9,10 @@ Image observation of point ``P`` on photo ``j`` of camera ``k`` (image mm in the
     d = Rᵀ·(P - C),  x' = -c·d₁/d₃,  y' = -c·d₂/d₃        (collinearity, domain brief section 4)
     residual f = (x' - x̄, y' - ȳ)                         (computed minus observed, mm)
 
-The radial term is the project's polynomial distortion (``Δr = k1·r³ + k2·r⁵``, corrected as
-``x̄ = x·(1 - Δr/r)``, :mod:`toolbox.photogrammetry.camera`) extended by ``k3``; p1, p2 are
-Brown's decentring terms in this correction form. ``R = Rx(ω)·Ry(φ)·Rz(κ)``
+This is the film camera's distortion exactly (:mod:`toolbox.photogrammetry.camera`:
+``Δr = k1·r³ + k2·r⁵ + k3·r⁷`` corrected as ``x̄ = u·(1 - Δr/r)``, Brown's decentring p1, p2 in
+this correction form), so the adjusted terms go into the project camera as they are.
+``R = Rx(ω)·Ry(φ)·Rz(κ)``
 (:mod:`toolbox.photogrammetry.rotation`).
 
 Calibration parameter order per camera: :data:`CALIBRATION_NAMES`.

@@ -43,7 +43,7 @@ def error_ellipse(cov_xy: np.ndarray) -> tuple[float, float, float]:
 
 def adjusted_project(project, block: Block, solution: Solution):
     """``project`` with the adjusted exterior orientations and, for self-calibrated cameras,
-    principal distance, principal point and polynomial distortion (k1, k2)."""
+    principal distance, principal point and polynomial distortion (k1, k2, k3, p1, p2)."""
     from toolbox.photogrammetry.camera import RadialDistortion
     from toolbox.photogrammetry.exterior import ExteriorOrientation
 
@@ -58,8 +58,8 @@ def adjusted_project(project, block: Block, solution: Solution):
             cameras[name] = brown_camera(cam, cal, float(block.camera_aspect[k]))
             continue
         dist = cam.distortion
-        if free[k, 3:5].any() or (dist is not None and dist.mode == 2):
-            dist = RadialDistortion.from_polynomial(float(cal[3]), float(cal[4]))
+        if free[k, 3:].any() or (dist is not None and dist.mode == 2):
+            dist = RadialDistortion.from_polynomial(*map(float, cal[3:8]))
         cameras[name] = replace(cam, principal_distance_mm=float(cal[0]),
                                 principal_point_mm=(float(cal[1]), float(cal[2])),
                                 distortion=dist)
@@ -86,13 +86,6 @@ def brown_camera(camera, calibration: np.ndarray, aspect: float):
             "cx": (cx - w / 2) / s, "cy": (cy - h / 2) / s,
             "k1": k1, "k2": k2, "k3": k3, "p1": p1, "p2": p2}
     return create_intrinsics(spec, camera.name)
-
-
-def unstored_calibration(block: Block) -> list[str]:
-    """Free calibration parameters the project format cannot hold (a film camera's k3, p1,
-    p2; a Brown camera stores all)."""
-    return [block.calibration_label(k, p) for k, p in np.argwhere(block.calibration_mode != 0)
-            if CALIBRATION_NAMES[p] in ("k3", "p1", "p2") and block.camera_kind[k] != KIND_BROWN]
 
 
 def ground_comparison(block: Block, solution: Solution, control, checks: list[str]

@@ -4,7 +4,7 @@ A block of ``strips`` x ``photos_per_strip`` vertical photos (forward overlap ``
 overlap ``side``; strips flown in alternate directions, kappa 0 / pi), small random attitudes,
 over hilly terrain ``Z = z0 + relief·(sin·cos hills)``. Tie points on a regular ground grid are
 imaged through the toolbox's own camera chain (:class:`toolbox.photogrammetry.photo.Photo`:
-collinearity, radial distortion, interior orientation), which the bundle does not use, and
+collinearity, lens distortion, interior orientation), which the bundle does not use, and
 Gaussian noise of known sigma is added. Film photos are measured in image mm, digital photos in
 pixels.
 """
@@ -39,6 +39,7 @@ class SyntheticBlockSpec:
     attitude_sigma: float = 0.01  # rad
     origin: tuple[float, float] = (1_688_000.0, 4_799_500.0)
     distortion_k1: float = 0.0  # the camera's true k1 (mm⁻²)
+    distortion_terms: dict[str, float] = field(default_factory=dict)  # true k1-k3, p1, p2 (mm)
     seed: int = 0
     crs: str = "EPSG:3003"
 
@@ -76,8 +77,8 @@ def make_block(spec: SyntheticBlockSpec) -> SyntheticBlock:
     base = (1.0 - spec.forward) * footprint
     spacing = (1.0 - spec.side) * footprint
     height = c * spec.scale / 1000.0 + spec.z0
-    distortion = RadialDistortion.from_polynomial(spec.distortion_k1) if spec.distortion_k1 \
-        else None
+    terms = {"k1": spec.distortion_k1, **spec.distortion_terms}
+    distortion = RadialDistortion.from_polynomial(**terms) if any(terms.values()) else None
     if spec.digital:
         n_px = int(round(FRAME_MM / spec.pixel_size_mm))
         camera = Camera("digital", c, (0.0, 0.0), image_size_px=(n_px, n_px),

@@ -1,7 +1,6 @@
-"""What orientation:bundle writes of a self-calibration, read back: c, the principal point, k1
-and k2 go into the project file (and the adjusted project is read again by the bundle itself);
-k3, p1 and p2 have no place in the project's camera (radial polynomial k1, k2 or a table) and
-are in REPORT only, with a warning naming them."""
+"""What orientation:bundle writes of a self-calibration, read back: c, the principal point and
+the whole distortion polynomial (k1, k2, k3, p1, p2) go into the project file, equal to REPORT's
+values, without a warning; the adjusted project is read again by the bundle itself."""
 
 import json
 
@@ -20,7 +19,7 @@ def sample(tmp_path_factory):
     return make(tmp_path_factory.mktemp("bundle_sample"), {})
 
 
-def test_calibration_written_read_back_and_the_unstorable_terms_reported(sample, tmp_path):
+def test_the_whole_calibration_is_written_and_read_back(sample, tmp_path):
     from toolbox.feedback import Feedback
 
     warnings = []
@@ -40,11 +39,13 @@ def test_calibration_written_read_back_and_the_unstorable_terms_reported(sample,
     assert written.principal_distance_mm == pytest.approx(cam["c"]["value"], abs=1e-12)
     assert written.principal_point_mm == pytest.approx((cam["x0"]["value"], cam["y0"]["value"]),
                                                        abs=1e-12)
-    assert (written.distortion.k1, written.distortion.k2) == pytest.approx(
-        (cam["k1"]["value"], cam["k2"]["value"]), rel=1e-12, abs=1e-30)
-    for term in ("k3", "p1", "p2"):  # adjusted, reported, not storable
+    terms = ("k1", "k2", "k3", "p1", "p2")
+    assert [getattr(written.distortion, t) for t in terms] == pytest.approx(
+        [cam[t]["value"] for t in terms], rel=1e-12, abs=1e-30)
+    for term in terms:  # adjusted, reported and stored
         assert cam[term]["mode"] == "weighted" and cam[term]["std"] is not None
-    assert any("k3" in w and "p1" in w and "p2" in w and "not storable" in w for w in warnings)
+        assert cam[term]["value"] != 0.0
+    assert not any("storable" in w or "k3" in w for w in warnings), warnings
     # the written project is read again by the bundle, its calibration as the fixed start
     again = toolbox.run("orientation:bundle", params | {
         "PROJECT": tmp_path / "adjusted.yaml", "SELF_CALIBRATION": "", "START": "project",

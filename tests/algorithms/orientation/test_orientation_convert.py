@@ -138,3 +138,33 @@ def test_photo_algorithm_takes_an_orientation_file(tmp_path):
     turn = np.array([[np.cos(gamma), -np.sin(gamma)], [np.sin(gamma), np.cos(gamma)]])
     offset = np.array([nadir.centroid.x - centre[0], nadir.centroid.y - centre[1]])
     assert offset == pytest.approx(turn @ [-1.5, -3.0], abs=0.01)
+
+
+def test_a_film_camera_distortion_that_the_output_cannot_hold_is_a_warning(tmp_path):
+    """A project camera with k3 and decentring converts to Orthority as a pinhole spec: the
+    warning names every term left behind."""
+    import yaml
+
+    from toolbox.feedback import Feedback
+
+    warnings = []
+
+    class Collect(Feedback):
+        def push_warning(self, message, *args, **kwargs):
+            warnings.append(message)
+
+    doc = {"version": 1, "crs": "EPSG:3003", "angle_unit": "rad",
+           "cameras": [{"name": "rc", "principal_distance_mm": 153.0,
+                        "image_size_px": [2000, 2000], "pixel_size_mm": 0.1,
+                        "distortion": {"polynomial": {"k1": 2e-8, "k3": 1e-17, "p1": 2e-7,
+                                                      "p2": -1e-7}}}],
+           "photos": [{"id": "a", "camera": "rc", "exterior": {
+               "X0": 1688000.0, "Y0": 4799500.0, "Z0": 1800.0, "omega": 0.01, "phi": 0.0,
+               "kappa": 0.2}}]}
+    (tmp_path / "p.yaml").write_text(yaml.safe_dump(doc))
+    toolbox.run("orientation:convert", {"INPUT": str(tmp_path / "p.yaml"),
+                                        "FORMAT_OUT": "csv", "OUTPUT": str(tmp_path / "o.csv")},
+                feedback=Collect())
+    (warning,) = [w for w in warnings if "distortion" in w]
+    assert "camera 'rc'" in warning and "not carried over" in warning
+    assert all(term in warning for term in ("k1", "k2", "k3", "p1", "p2"))

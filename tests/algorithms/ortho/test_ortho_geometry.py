@@ -50,6 +50,9 @@ def tile_heights(z, transform, tile: Affine, shape):
     (RadialDistortion.from_table(SIENA_TABLE[0], np.array(SIENA_TABLE[1]) * 5),
      BLOCK_INTERPOLATED, 0.03),
     (RadialDistortion.from_polynomial(-2e-6), BLOCK_EXACT, 1.0),
+    # k3 and decentring (its bound reaches far beyond the frame: exact), decentring alone
+    (RadialDistortion.from_polynomial(2e-8, 0.0, 1.5e-17, 2e-7, -1.5e-7), BLOCK_EXACT, 0.1),
+    (RadialDistortion.from_polynomial(0.0, p1=2e-7, p2=-1.5e-7), BLOCK_INTERPOLATED, 0.03),
 ])
 def test_coordinate_map_matches_the_photo_model_within_the_bound(distortion, mode, effect_px):
     """Against Photo.ground_to_pixel (the orientation core's per-point kernel): every cell

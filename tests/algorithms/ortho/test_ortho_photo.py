@@ -220,19 +220,27 @@ def test_parameter_errors_name_the_parameter(block, tmp_path):
         run_ortho(block, tmp_path / "o.tif", OCCLUSION_MASK=tmp_path / "m.tif")
 
 
-def test_radial_distortion_is_applied_in_the_right_direction(block, tmp_path):
-    """A photo taken through a lens with k1 = -2e-7 mm^-2 (2.8 px at the corners): the ortho
-    with the camera's distortion recovers the texture, the one without is off."""
+@pytest.mark.parametrize("terms", [
+    {"k1": -2e-7},
+    {"k1": -1e-7, "k3": -1e-16, "p1": 1e-5, "p2": -8e-6},
+])
+def test_radial_distortion_is_applied_in_the_right_direction(block, tmp_path, terms):
+    """A photo taken through a lens with k1 = -2e-7 mm^-2 (2.8 px at the corners), or with k3
+    and decentring p1, p2 too (about as much): the ortho with the camera's distortion (read
+    from the project YAML) recovers the texture, the one without is off. The photo is
+    rendered by monoplotting (pixel -> ray: the closed-form correction, OpenCV's
+    projectPoints in tests/toolbox/cameras/test_film_lens_distortion.py); the ortho maps
+    ground -> pixel (the iterative inverse)."""
     from toolbox.photogrammetry.camera import RadialDistortion
     from toolbox.photogrammetry.synthetic import frame_photo, render_photo, write_photo
 
-    distortion = RadialDistortion.from_polynomial(-2e-7)
+    distortion = RadialDistortion.from_polynomial(**terms)
     photo = frame_photo(scene.CENTRE, scene.ANGLES, width=scene.SIZE, height=scene.SIZE,
                         crs=scene.CRS, distortion=distortion)
     image = render_photo(photo, block.dem, block.transform, block.texture, dtype="uint8")
     path = write_photo(tmp_path / "p1.tif", image)
     with_lens = scene.project_yaml(tmp_path / "lens.yaml", "p1.tif",
-                                   distortion={"polynomial": {"k1": -2e-7}})
+                                   distortion={"polynomial": terms})
     without = scene.project_yaml(tmp_path / "nolens.yaml", "p1.tif")
     shifts = {}
     for name, project in (("lens", with_lens), ("none", without)):
