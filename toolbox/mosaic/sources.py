@@ -104,6 +104,8 @@ def valid_footprint(source: OrthoSource, max_size: int = 1024, simplify: float |
     w, h = math.ceil(source.width / factor), math.ceil(source.height / factor)
     with rasterio.open(source.path) as src:
         mask = src.dataset_mask(out_shape=(h, w)) > 0
+    if mask.all():  # what tracing gives, without tracing: the raster's outline
+        return shapely.box(*source.bounds)
     t = source.transform @ Affine.scale(source.width / w, source.height / h)
     polys = [shapely.geometry.shape(g) for g, v in shapes(mask.astype("uint8"), mask=mask,
                                                              transform=t, connectivity=8) if v]
