@@ -144,6 +144,15 @@ def astar_kernel(cost, sr, sc, er, ec, cmin):
     return path, dist[end]
 
 
+@njit(cache=True, nogil=True)
+def _least_passable(cost):
+    best = np.inf
+    for v in cost.ravel():
+        if v >= 0.0 and v < best:
+            best = v
+    return best
+
+
 def least_cost_path(cost: np.ndarray, start: tuple[int, int], end: tuple[int, int]
                     ) -> tuple[np.ndarray | None, float]:
     """Minimum-cost 8-connected path ``(n, 2)`` of (row, col) from ``start`` to ``end`` and its
@@ -152,9 +161,8 @@ def least_cost_path(cost: np.ndarray, start: tuple[int, int], end: tuple[int, in
     for r, c in (start, end):
         if not (cost[r, c] >= 0 and np.isfinite(cost[r, c])):
             return None, math.inf
-    passable = cost[(cost >= 0) & np.isfinite(cost)]
     path, total = astar_kernel(cost, int(start[0]), int(start[1]), int(end[0]), int(end[1]),
-                               float(passable.min()))
+                               _least_passable(cost))
     return (path if len(path) else None), float(total)
 
 
@@ -166,20 +174,25 @@ def path_cost(cost: np.ndarray, path: np.ndarray) -> float:
     return float(np.sum(step * 0.5 * (c[:-1] + c[1:])))
 
 
-def overview(cost: np.ndarray, factor: int) -> np.ndarray:
+@njit(cache=True, nogil=True)
+def overview(cost, factor):
     """Block means of the passable costs, ``factor`` cells a side (a block with no passable
     cell is impassable; a partial block at the edges takes its cells' mean)."""
     rows, cols = cost.shape
-    pr, pc = -rows % factor, -cols % factor
-    ok = cost >= 0
-    padded = np.pad(np.where(ok, cost, 0.0), ((0, pr), (0, pc)))
-    count = np.pad(ok, ((0, pr), (0, pc))).astype(np.float64)
-    shape = (padded.shape[0] // factor, factor, padded.shape[1] // factor, factor)
-    total = padded.reshape(shape).sum(axis=(1, 3))
-    n = count.reshape(shape).sum(axis=(1, 3))
-    with np.errstate(invalid="ignore", divide="ignore"):
-        out = np.where(n > 0, total / np.maximum(n, 1), -1.0)
-    return out
+    orows, ocols = -(-rows // factor), -(-cols // factor)
+    total = np.zeros((orows, ocols), np.float64)
+    count = np.zeros((orows, ocols), np.int64)
+    for r in range(rows):
+        rr = r // factor
+        for c in range(cols):
+            v = cost[r, c]
+            if v >= 0.0 and v < np.inf:
+                total[rr, c // factor] += v
+                count[rr, c // factor] += 1
+    for r in range(orows):
+        for c in range(ocols):
+            total[r, c] = total[r, c] / count[r, c] if count[r, c] > 0 else -1.0
+    return total
 
 
 def coarse_to_fine(cost: np.ndarray, start: tuple[int, int], end: tuple[int, int],
@@ -196,7 +209,7 @@ def coarse_to_fine(cost: np.ndarray, start: tuple[int, int], end: tuple[int, int
 
     if factor <= 1:
         return least_cost_path(cost, start, end)[0]
-    small = overview(cost, factor)
+    small = overview(np.ascontiguousarray(cost, dtype=np.float64), factor)
     s = (start[0] // factor, start[1] // factor)
     e = (end[0] // factor, end[1] // factor)
     coarse, _ = least_cost_path(small, s, e)

@@ -107,3 +107,18 @@ def test_within_radius_equals_scipy_edt(density, radius):
     expected = ndimage.distance_transform_edt(~mask) <= radius if mask.any() else \
         np.zeros(mask.shape, bool)
     assert np.array_equal(within_radius(mask, radius), expected)
+
+
+def test_overview_is_the_block_mean_of_passable_cells():
+    from toolbox.mosaic.route import overview
+
+    rng = np.random.default_rng(7)
+    cost = rng.uniform(0.1, 2.0, (10, 7))
+    cost[0:3, 0:3] = -1.0  # a whole block impassable
+    cost[5, 4] = -1.0
+    small = overview(cost, 3)
+    assert small.shape == (4, 3)
+    assert small[0, 0] == -1.0
+    assert small[1, 1] == pytest.approx(np.mean([cost[r, c] for r in range(3, 6)
+                                                 for c in range(3, 6) if (r, c) != (5, 4)]))
+    assert small[3, 2] == pytest.approx(cost[9, 6])  # the partial corner block
