@@ -12,28 +12,20 @@ from numba import njit
 
 
 @njit(cache=True, nogil=True)
-def _means(a, b):
-    """Band means of ``a`` and ``b`` (with one reflected cell round the edges: scipy's
-    ``reflect``, the edge cell repeated) and the mean over bands of ``|a − b|``."""
-    bands, rows, cols = a.shape
-    ma = np.zeros((rows + 2, cols + 2), np.float64)
-    mb = np.zeros((rows + 2, cols + 2), np.float64)
-    diff = np.zeros((rows, cols), np.float64)
-    inv = 1.0 / bands
+def _row_mean(x, r, out):
+    """Band mean of row ``r`` of ``x`` (clamped to the image: scipy's ``reflect`` edge, the
+    edge row repeated) into ``out[1:-1]``, its end cells repeated into ``out[0]``, ``out[-1]``."""
+    bands, rows, cols = x.shape
+    rr = min(max(r, 0), rows - 1)
+    for c in range(cols):
+        out[c + 1] = 0.0
     for k in range(bands):
-        for r in range(rows):
-            for c in range(cols):
-                x = np.float64(a[k, r, c])
-                y = np.float64(b[k, r, c])
-                ma[r + 1, c + 1] += x * inv
-                mb[r + 1, c + 1] += y * inv
-                diff[r, c] += abs(x - y) * inv
-    for m in (ma, mb):
-        m[0, :] = m[1, :]
-        m[rows + 1, :] = m[rows, :]
-        m[:, 0] = m[:, 1]
-        m[:, cols + 1] = m[:, cols]
-    return ma, mb, diff
+        for c in range(cols):
+            out[c + 1] += x[k, rr, c]
+    for c in range(cols):
+        out[c + 1] /= bands
+    out[0] = out[1]
+    out[cols + 1] = out[cols]
 
 
 @njit(cache=True, nogil=True)
@@ -41,23 +33,39 @@ def image_terms(a, b, scale):
     """The image terms of two co-registered images ``(bands, rows, cols)`` float32, each scaled
     by ``scale`` (1 / value range): ``diff`` = mean over bands of ``|a − b|``; ``grad`` = the
     larger Sobel gradient magnitude (derivatives / 8) of the two band means; ``gdiff`` = the
-    magnitude of the difference of their Sobel gradients. Float64 ``(rows, cols)`` each."""
+    magnitude of the difference of their Sobel gradients. Float64 ``(rows, cols)`` each.
+
+    One pass over the rows, with the band means of three rows at a time (row ``r`` in slot
+    ``(r + 3) % 3``)."""
     bands, rows, cols = a.shape
-    ma, mb, diff = _means(a, b)
+    diff = np.zeros((rows, cols), np.float64)
     grad = np.empty((rows, cols), np.float64)
     gdiff = np.empty((rows, cols), np.float64)
+    ma = np.empty((3, cols + 2), np.float64)
+    mb = np.empty((3, cols + 2), np.float64)
+    for r in (-1, 0):
+        _row_mean(a, r, ma[(r + 3) % 3])
+        _row_mean(b, r, mb[(r + 3) % 3])
+    inv = scale / bands
     for r in range(rows):
+        _row_mean(a, r + 1, ma[(r + 1) % 3])
+        _row_mean(b, r + 1, mb[(r + 1) % 3])
+        up_a, mid_a, dn_a = ma[(r + 2) % 3], ma[r % 3], ma[(r + 1) % 3]
+        up_b, mid_b, dn_b = mb[(r + 2) % 3], mb[r % 3], mb[(r + 1) % 3]
+        for k in range(bands):
+            for c in range(cols):
+                diff[r, c] += abs(np.float64(a[k, r, c]) - np.float64(b[k, r, c]))
         for c in range(cols):
-            diff[r, c] *= scale
-            # padded indexes: the cell is (r + 1, c + 1)
-            ay = (ma[r + 2, c] + 2.0 * ma[r + 2, c + 1] + ma[r + 2, c + 2]
-                  - ma[r, c] - 2.0 * ma[r, c + 1] - ma[r, c + 2]) * 0.125
-            ax = (ma[r, c + 2] + 2.0 * ma[r + 1, c + 2] + ma[r + 2, c + 2]
-                  - ma[r, c] - 2.0 * ma[r + 1, c] - ma[r + 2, c]) * 0.125
-            by = (mb[r + 2, c] + 2.0 * mb[r + 2, c + 1] + mb[r + 2, c + 2]
-                  - mb[r, c] - 2.0 * mb[r, c + 1] - mb[r, c + 2]) * 0.125
-            bx = (mb[r, c + 2] + 2.0 * mb[r + 1, c + 2] + mb[r + 2, c + 2]
-                  - mb[r, c] - 2.0 * mb[r + 1, c] - mb[r + 2, c]) * 0.125
+            diff[r, c] *= inv
+            # padded column c + 1 is image column c
+            ay = (dn_a[c] + 2.0 * dn_a[c + 1] + dn_a[c + 2]
+                  - up_a[c] - 2.0 * up_a[c + 1] - up_a[c + 2]) * 0.125
+            ax = (up_a[c + 2] + 2.0 * mid_a[c + 2] + dn_a[c + 2]
+                  - up_a[c] - 2.0 * mid_a[c] - dn_a[c]) * 0.125
+            by = (dn_b[c] + 2.0 * dn_b[c + 1] + dn_b[c + 2]
+                  - up_b[c] - 2.0 * up_b[c + 1] - up_b[c + 2]) * 0.125
+            bx = (up_b[c + 2] + 2.0 * mid_b[c + 2] + dn_b[c + 2]
+                  - up_b[c] - 2.0 * mid_b[c] - dn_b[c]) * 0.125
             ga = ay * ay + ax * ax
             gb = by * by + bx * bx
             grad[r, c] = np.sqrt(max(ga, gb)) * scale
@@ -130,3 +138,21 @@ def within_radius(mask, radius):
         for c in range(cols):
             result[r, c] = out[c] <= r2
     return result
+
+
+@njit(cache=True, nogil=True)
+def add_centre_term(cost, x0, dx, y0, dy, ax, ay, bx, by, weight):
+    """``cost += weight x |‖p − a‖ − ‖p − b‖| / ‖a − b‖`` at the cell centres ``p = (x0 + (col
+    + 0.5) dx, y0 + (row + 0.5) dy)``, in place (the centre term of
+    :func:`toolbox.mosaic.seams.centre_term`, its oracle)."""
+    rows, cols = cost.shape
+    scale = weight / max(np.hypot(ax - bx, ay - by), 1e-9)
+    for r in range(rows):
+        y = y0 + (r + 0.5) * dy
+        ya = (y - ay) * (y - ay)
+        yb = (y - by) * (y - by)
+        for c in range(cols):
+            x = x0 + (c + 0.5) * dx
+            da = np.sqrt((x - ax) * (x - ax) + ya)
+            db = np.sqrt((x - bx) * (x - bx) + yb)
+            cost[r, c] += scale * abs(da - db)

@@ -4,9 +4,10 @@ For each pair of neighbouring cut polygons ``i``, ``j`` the region ``R = (cell_i
 F_j`` (their common overlap) is re-split by the minimum-cost path between the two ends of their
 current (Voronoi) seam, over a cost surface (:func:`cost_surface`): where the orthos differ
 radiometrically or have strong edges (buildings, trees, relief-displaced features) the path is
-expensive. The path is found by scikit-image's ``graph.MCP_Geometric`` (Dijkstra on the 8-connected
-grid, a move's cost = length x mean cell cost). Outside ``R`` and in forbidden areas the cost is
-negative, which MCP treats as impassable, so the seam stays inside the overlap.
+expensive. The path is found by a compiled A* on the 8-connected grid (:mod:`.route`; a move's
+cost = length x mean cell cost, as scikit-image's ``graph.MCP_Geometric``, its test oracle),
+coarse-to-fine in memory over :data:`COARSE_TO_FINE_CELLS` cells. Outside ``R`` and in forbidden
+areas the cost is negative (impassable), so the seam stays inside the overlap.
 
 Bounded memory: a region over ``max_cells`` cells is routed first on an overview (cells ``f``
 times larger), then refined at full resolution chunk by chunk in a corridor around the coarse
@@ -71,16 +72,36 @@ def cost_surface(a: np.ndarray, b: np.ndarray, weights: CostWeights,
         value_range = float(hi - lo)
     scale = 1.0 / max(value_range, 1e-6)
     diff, grad, gdiff = image_terms(a, b, scale)
-    cost = weights.base + weights.difference * diff + weights.gradient * grad
+    cost = diff  # in place: base + w_d·diff + w_g·grad
+    cost *= weights.difference
+    cost += weights.base
+    grad *= weights.gradient
+    cost += grad
     if weights.structure > 0 and weights.structure_radius > 0:
-        cost += weights.structure * structure_term(gdiff, weights.structure_threshold,
-                                                   weights.structure_radius / cell_size)
+        near = structured_near(gdiff, weights.structure_threshold,
+                               weights.structure_radius / cell_size)
+        np.add(cost, weights.structure, out=cost, where=near)
     return cost
+
+
+def add_centre(cost: np.ndarray, transform: Any, a, b, weight: float) -> None:
+    """``cost += weight x`` :func:`centre_term` in place (compiled, one pass)."""
+    from toolbox.mosaic.kernels import add_centre_term
+
+    add_centre_term(cost, transform.c, transform.a, transform.f, transform.e,
+                    float(a[0]), float(a[1]), float(b[0]), float(b[1]), float(weight))
 
 
 def structure_term(gradient_difference: np.ndarray, threshold: float,
                    radius_cells: float) -> np.ndarray:
-    """1.0 within ``radius_cells`` of a strong, structured difference, else 0.0.
+    """1.0 within ``radius_cells`` of a strong, structured difference, else 0.0
+    (:func:`structured_near` as float64)."""
+    return structured_near(gradient_difference, threshold, radius_cells).astype("float64")
+
+
+def structured_near(gradient_difference: np.ndarray, threshold: float,
+                    radius_cells: float) -> np.ndarray:
+    """True within ``radius_cells`` of a strong, structured difference.
 
     Strong: the difference of the two images' gradients (vector difference of their Sobel
     gradients, scaled by the value range) above ``threshold``, i.e. an edge in one ortho that
@@ -95,15 +116,14 @@ def structure_term(gradient_difference: np.ndarray, threshold: float,
 
     strong = gradient_difference > threshold
     if not strong.any():
-        return np.zeros(strong.shape)
+        return strong
     groups, n = ndimage.label(strong, structure=np.ones((3, 3), bool))
     sizes = np.bincount(groups.ravel(), minlength=n + 1)
     keep = sizes >= max(3.0, radius_cells / 2.0)
     keep[0] = False
-    structured = keep[groups]
-    if not structured.any():
-        return np.zeros(strong.shape)
-    return within_radius(structured, float(radius_cells)).astype("float64")
+    if not keep.any():
+        return np.zeros(strong.shape, bool)
+    return within_radius(keep[groups], float(radius_cells))
 
 
 @dataclass
@@ -130,7 +150,7 @@ class PairCost:
         cost = cost_surface(da, db, self.weights, self.value_range, abs(transform.a))
         w = self.weights
         if self.centres is not None and w.centre > 0:
-            cost += w.centre * centre_term(transform, shape, *self.centres)
+            add_centre(cost, transform, *self.centres, w.centre)
         if self.buildings:
             inside = rasterize(self.buildings, out_shape=shape, transform=transform,
                                all_touched=True, dtype="uint8") > 0

@@ -122,3 +122,16 @@ def test_overview_is_the_block_mean_of_passable_cells():
     assert small[1, 1] == pytest.approx(np.mean([cost[r, c] for r in range(3, 6)
                                                  for c in range(3, 6) if (r, c) != (5, 4)]))
     assert small[3, 2] == pytest.approx(cost[9, 6])  # the partial corner block
+
+
+def test_compiled_centre_term_equals_the_numpy_one():
+    from affine import Affine
+
+    from toolbox.mosaic.seams import add_centre, centre_term
+
+    transform = Affine(0.5, 0, 1_688_100.0, 0, -0.5, 4_799_300.0)  # large projected coordinates
+    a, b = (1_688_120.0, 4_799_250.0), (1_688_160.0, 4_799_210.0)
+    cost = np.full((80, 120), 0.1)
+    add_centre(cost, transform, a, b, 0.5)
+    np.testing.assert_allclose(cost, 0.1 + 0.5 * centre_term(transform, (80, 120), a, b),
+                               rtol=0, atol=1e-9)
