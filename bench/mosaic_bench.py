@@ -394,7 +394,7 @@ def seam_section(cv: dict, n: int) -> list[str]:
              "e2e_ours_heights": "ours, end to end, HEIGHTS given"}
     for key, label in names.items():
         r = q[key]
-        lines.append(f"| {label} | {r['edges']} | {r['colour']:.2f} | {r['balanced']:.2f} | "
+        lines.append(f"| {label} | {r['edges']} | {r['colour']:.2f} | {r['balanced']:.3f} | "
                      f"{r['balanced'] * r['edges']:.0f} | {r['cost']:.4f} | "
                      f"{r['on_buildings']} |")
     lines += ["", f"Our route's path cost {cv['path_cost']:.4f} against the exact optimum's "
