@@ -440,7 +440,8 @@ def main(small: bool, seam_only: bool = False) -> str:
         old = target.read_text() if target.exists() else "## Mosaics (`bench/mosaic_bench.py`)\n"
         # the rest of the file, without this section and the one-pair rows of older runs
         head = "\n".join(line for line in old.split(SEAM_HEADING)[0].rstrip("\n").splitlines()
-                         if "seam on one pair" not in line and "OpenCV" not in line)
+                         if not (line.startswith("|") and ("seam on one pair" in line
+                                                           or "OpenCV" in line)))
         text = head + "\n\n" + "\n".join(section)
         (HERE / "results").mkdir(exist_ok=True)
         target.write_text(text)
