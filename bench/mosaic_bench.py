@@ -4,13 +4,20 @@ orthos next to gdalwarp with -cutline and -cblend (the GDAL way), in one run.
 
     .venv/bin/python bench/mosaic_bench.py            # full size: 10000 x 10000 overlap, 6 x 5000²
     .venv/bin/python bench/mosaic_bench.py --small    # quick check: 2000² overlap, 6 x 1000²
+    .venv/bin/python bench/mosaic_bench.py --seam-only  # only the one-seam comparison section
 
 Data: synthetic 3-band orthos of one ground texture (toolbox.demo.samples.mosaic.texture, 1 m
 cells, EPSG:3003), written window by window. Every measurement runs in its own subprocess (this
 script with ``--case``), so its peak memory (VmHWM) is its own; times are end to end through
 ``toolbox.run`` (read, trace footprints, route or mosaic, write). OpenCV's seam finders get the
-two orthos as float32 images in memory, placed at their offsets (reading excluded), at a size
-they handle (overlap at most OPENCV_MAX cells a side; our seam is timed at that size too).
+two orthos as float32 images in memory, placed at their offsets, at a size they handle (overlap
+at most OPENCV_MAX cells a side). The one-seam comparison (:func:`seam_compare_case`) times, in
+one process, interleaved, REPEATS times each: (a) the kernels on the same arrays (ours: cost
+surface + centre term + route over the overlap; DpSeamFinder COLOR: its own cost + route over
+the two placed images), (b) end to end (ours: ``toolbox.run`` of mosaic:seamlines, reading,
+footprints, route, split, seamlines, GeoPackage; OpenCV: reading both GeoTIFFs with their masks
++ DpSeamFinder, nothing written). Seam quality is measured on the overlap for each result (see
+:func:`seam_quality`).
 gdalwarp warps each ortho into one output with its own cut polygon (``-cutline seams.gpkg
 -cwhere source_id=k -cblend W``, alpha compositing), the cut polygons being the toolbox's.
 Writes bench/results/mosaic.md.
@@ -20,6 +27,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import shutil
 import subprocess
 import sys
@@ -34,6 +42,8 @@ HERE = Path(__file__).resolve().parent
 X0, Y0 = 1_688_000.0, 4_799_000.0
 CRS = "EPSG:3003"
 OPENCV_MAX = 1000
+REPEATS = 7
+BUILDING_HEIGHT = 10.0  # metres, of the bench's buildings in the HEIGHTS raster
 FEATHER = 20.0
 
 
@@ -75,6 +85,26 @@ def make_pair(work: Path, n: int) -> list[Path]:
     return paths
 
 
+def buildings_on(x0: float, y0: float, cols: int, rows: int) -> np.ndarray:
+    """The bench's building squares (30 m every 250 m, :func:`write_ortho`) on a 1 m grid whose
+    top-left corner is (x0, y0 + rows) in local coordinates: the truth the seam should avoid."""
+    gx = x0 + np.arange(cols) + 0.5
+    gy = y0 + rows - (np.arange(rows) + 0.5)
+    return ((gy[:, None] % 250) < 30) & ((gx[None, :] % 250) < 30)
+
+
+def write_heights(path: Path, n: int) -> None:
+    """DSM - DEM over the pair: BUILDING_HEIGHT on the buildings, 0 elsewhere (float32)."""
+    import rasterio
+    from affine import Affine
+
+    cols = n + 2 * (n // 4)
+    data = np.where(buildings_on(0, 0, cols, n), BUILDING_HEIGHT, 0.0).astype("float32")
+    with rasterio.open(path, "w", driver="GTiff", width=cols, height=n, count=1,
+                       dtype="float32", crs=CRS, transform=Affine(1, 0, X0, 0, -1, Y0 + n)) as dst:
+        dst.write(data, 1)
+
+
 def make_block(work: Path, n: int) -> list[Path]:
     """Six n x n orthos, 3 columns x 2 rows, overlapping by 30 % across and 20 % along."""
     paths = []
@@ -101,8 +131,8 @@ def run_case(name: str, work: Path, n: int) -> dict:
         seconds = time.perf_counter() - t0
         return {"seconds": seconds, "peak_mb": peak_rss_mb(),
                 "method": out["STATISTICS"]["seams"][0]["method"]}
-    if name == "opencv":
-        return opencv_case(work, n)
+    if name == "seam_compare":
+        return seam_compare_case(work, n)
     if name == "mosaic":
         paths = sorted(work.glob("block_*.tif"))
         seams = toolbox.run("mosaic:seamlines", {"INPUT": [str(p) for p in paths],
@@ -118,36 +148,167 @@ def run_case(name: str, work: Path, n: int) -> dict:
     raise SystemExit(f"unknown case {name}")
 
 
-def opencv_case(work: Path, n: int) -> dict:
-    """Our least-cost seam and OpenCV's two seam finders on the same overlap (n x n)."""
-    import cv2
+def seam_quality(owner_a: np.ndarray, a: np.ndarray, b: np.ndarray, cost: np.ndarray,
+                 buildings: np.ndarray) -> dict:
+    """Quality of a seam given as the cells ``owner_a`` (rows, cols) of the overlap that take
+    ortho a (the others take b): over the seam's cell edges (4-neighbours of different owners),
+    ``colour``: the mean over edges of |a - b| (mean of bands, grey levels, average of the two
+    cells), what a viewer sees as a seam and what DpSeamFinder COLOR minimises; ``cost``: the
+    mean of our cost surface (the two cells' mean); ``edges``: the seam's length in cell edges;
+    ``on_buildings``: edges with a building cell on either side (known from the generator)."""
+    pairs = []
+    d = np.abs(a - b).mean(axis=0)
+    fit = np.abs(a - balanced(a, b)).mean(axis=0)
+    for sl_p, sl_q in (((slice(None), slice(None, -1)), (slice(None), slice(1, None))),
+                       ((slice(None, -1), slice(None)), (slice(1, None), slice(None)))):
+        cut = owner_a[sl_p] != owner_a[sl_q]
+        pairs.append((d[sl_p][cut], d[sl_q][cut], fit[sl_p][cut], fit[sl_q][cut],
+                      cost[sl_p][cut], cost[sl_q][cut], buildings[sl_p][cut] | buildings[sl_q][cut]))
+    dp, dq, fp, fq, cp, cq, on = (np.concatenate(x) for x in zip(*pairs, strict=True))
+    return {"edges": int(dp.size), "colour": float(np.mean(0.5 * (dp + dq))),
+            "balanced": float(np.mean(0.5 * (fp + fq))),
+            "cost": float(np.mean(0.5 * (cp + cq))), "on_buildings": int(on.sum())}
+
+
+def balanced(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``b`` with a least-squares gain and offset per band mapping it onto ``a`` over the
+    overlap (what mosaic:build's balancing removes before anyone sees the seam)."""
+    out = np.empty_like(b)
+    for k in range(len(b)):
+        x, y = b[k].ravel().astype("float64"), a[k].ravel().astype("float64")
+        gain = np.cov(x, y)[0, 1] / np.var(x, ddof=1)
+        out[k] = gain * b[k] + (y.mean() - gain * x.mean())
+    return out
+
+
+def path_owner(path: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    """The cells of ortho a (west of the path, the path itself included) of an 8-connected path
+    from the top row to the bottom one (a barrier for 4-connected regions)."""
+    from scipy import ndimage
+
+    on = np.zeros(shape, bool)
+    on[path[:, 0], path[:, 1]] = True
+    regions, _ = ndimage.label(~on)
+    west = np.setdiff1d(np.unique(regions[:, 0]), [0])
+    return np.isin(regions, west) | on
+
+
+def our_kernel(a: np.ndarray, b: np.ndarray, n: int, heights: np.ndarray | None = None):
+    """Our routing kernel on the n x n overlap arrays: cost surface (+ centre term, + height
+    term with HEIGHTS), route between the Voronoi seam's ends; returns (path, cost)."""
+    from affine import Affine
+
+    from toolbox.mosaic.seams import CostWeights, add_centre, cost_surface, route
+
+    m = n // 4
+    w = CostWeights()
+    cost = cost_surface(a, b, w)
+    centres = ((n + m) / 2, n / 2), (m + (n + m) / 2, n / 2)  # the footprint centres
+    add_centre(cost, Affine(1, 0, m, 0, -1, n), *centres, w.centre)
+    if heights is not None:
+        cost += w.height * np.clip(heights - w.height_threshold, 0, None)
+    return route(cost, (0, n // 2), (n - 1, n // 2)), cost
+
+
+def read_pair(paths: list[Path]) -> tuple[list, list, list]:
+    """What an OpenCV user reads: both orthos as (rows, cols, 3) float32 images, their masks
+    (255 = valid) and their corners."""
     import rasterio
+
+    images, masks, corners = [], [], []
+    for p in paths:
+        with rasterio.open(p) as src:
+            images.append(np.ascontiguousarray(np.transpose(src.read([1, 2, 3]), (1, 2, 0)),
+                                               dtype="float32"))
+            masks.append(src.dataset_mask())
+            corners.append((round(src.bounds.left - X0), 0))
+    return images, masks, corners
+
+
+def seam_compare_case(work: Path, n: int) -> dict:
+    """The one-seam comparison (module docstring): timings interleaved, quality of each seam."""
+    import cv2
+    import geopandas as gpd
+    from rasterio.features import rasterize
 
     import toolbox
 
+    m = n // 4
     paths = sorted(work.glob("pair_*.tif"))
-    out = {}
-    # a warm-up run first (imports of scipy.ndimage, skimage, geopandas), as OpenCV is imported
-    # before its finders are timed
-    for k in range(2):
-        t0 = time.perf_counter()
-        toolbox.run("mosaic:seamlines", {"INPUT": [str(p) for p in paths],
-                                         "OUTPUT": str(work / f"cv_seam{k}.gpkg")},
-                    overwrite=True)
-        out["toolbox_least_cost"] = time.perf_counter() - t0
-    with rasterio.open(paths[0]) as a, rasterio.open(paths[1]) as b:
-        images = [s.read([1, 2, 3]) for s in (a, b)]
-        corners = [(0, 0), (round(b.bounds.left - a.bounds.left), 0)]
-    images = [np.ascontiguousarray(np.transpose(i, (1, 2, 0))).astype("float32") for i in images]
-    # as in OpenCV's stitching pipeline: images placed at their corners, masks 255 where valid
-    for label, finder in (("opencv_dp_color", cv2.detail_DpSeamFinder("COLOR")),
-                          ("opencv_graphcut_color", cv2.detail_GraphCutSeamFinder("COST_COLOR"))):
-        masks = [cv2.UMat(np.full(i.shape[:2], 255, np.uint8)) for i in images]
-        t0 = time.perf_counter()
-        finder.find(images, corners, masks)
-        out[label] = time.perf_counter() - t0
-    out["peak_mb"] = peak_rss_mb()
-    return out
+    write_heights(work / "heights.tif", n)
+    images, masks, corners = read_pair(paths)
+    a = np.ascontiguousarray(np.transpose(images[0][:, m:m + n], (2, 0, 1)))
+    b = np.ascontiguousarray(np.transpose(images[1][:, :n], (2, 0, 1)))
+    buildings = buildings_on(m, 0, n, n)
+    heights = np.where(buildings, BUILDING_HEIGHT, 0.0)
+    params = {"INPUT": [str(p) for p in paths], "OUTPUT": str(work / "e2e.gpkg")}
+
+    def ours():
+        return our_kernel(a, b, n)
+
+    def dp(imgs=images, msks=masks):
+        found = [cv2.UMat(k) for k in msks]
+        cv2.detail_DpSeamFinder("COLOR").find(imgs, corners, found)
+        return found
+
+    def ours_e2e():
+        toolbox.run("mosaic:seamlines", params, overwrite=True)
+
+    def dp_e2e():
+        return dp(*read_pair(paths)[:2])
+
+    tasks = {"kernel_ours": ours, "kernel_dp": dp, "e2e_ours": ours_e2e, "e2e_dp": dp_e2e}
+    for task in tasks.values():  # warm-up: imports, compiled kernels, OpenCV's first call
+        task()
+    times = {k: {"wall": [], "cpu": []} for k in tasks}
+    load = [os.getloadavg()[0]]
+    for _ in range(REPEATS):
+        for name, task in tasks.items():
+            w0, c0 = time.perf_counter(), time.process_time()
+            task()
+            times[name]["wall"].append(time.perf_counter() - w0)
+            times[name]["cpu"].append(time.process_time() - c0)
+    load.append(os.getloadavg()[0])
+    # quality, all measured on the same overlap and cost surface (ours, without heights)
+    path, cost = ours()
+    exact = route_exact(cost, (0, n // 2), (n - 1, n // 2))
+    found = [k.get() for k in dp()]
+    frame = gpd.read_file(work / "e2e.gpkg", layer="cut_polygons")
+    poly_a = frame.geometry[list(frame["source"]).index("pair_a")]
+    from affine import Affine
+
+    grid = Affine(1, 0, X0 + m, 0, -1, Y0 + n)
+    e2e_a = rasterize([poly_a], out_shape=(n, n), transform=grid, dtype="uint8") > 0
+    height_params = {**params, "HEIGHTS": str(work / "heights.tif"),
+                     "OUTPUT": str(work / "e2e_heights.gpkg")}
+    toolbox.run("mosaic:seamlines", height_params, overwrite=True)
+    frame = gpd.read_file(work / "e2e_heights.gpkg", layer="cut_polygons")
+    poly_h = frame.geometry[list(frame["source"]).index("pair_a")]
+    e2e_h = rasterize([poly_h], out_shape=(n, n), transform=grid, dtype="uint8") > 0
+    gc = [cv2.UMat(k) for k in masks]
+    w0, c0 = time.perf_counter(), time.process_time()
+    cv2.detail_GraphCutSeamFinder("COST_COLOR").find(images, corners, gc)
+    graphcut = {"wall": time.perf_counter() - w0, "cpu": time.process_time() - c0}
+    owner = {"kernel_ours": path_owner(path, (n, n)),
+             "kernel_ours_heights": path_owner(our_kernel(a, b, n, heights)[0], (n, n)),
+             "exact_optimum": path_owner(exact, (n, n)),
+             "kernel_dp": found[0][:, m:m + n] > 0,
+             "graphcut": gc[0].get()[:, m:m + n] > 0,
+             "e2e_ours": e2e_a, "e2e_ours_heights": e2e_h}
+    from toolbox.mosaic.route import path_cost
+
+    return {"times": times, "graphcut": graphcut, "load": load, "peak_mb": peak_rss_mb(),
+            "path_cost": path_cost(cost, path), "exact_cost": path_cost(cost, exact),
+            "quality": {k: seam_quality(v, a, b, cost, buildings) for k, v in owner.items()}}
+
+
+def route_exact(cost: np.ndarray, start, end) -> np.ndarray:
+    """The exact optimum by scikit-image's MCP_Geometric (the library our route is tested on)."""
+    from skimage.graph import MCP_Geometric
+
+    mcp = MCP_Geometric(cost, fully_connected=True)
+    mcp.find_costs([start], [end])
+    return np.asarray(mcp.traceback(end))
 
 
 def measure(name: str, work: Path, n: int) -> dict:
@@ -185,7 +346,69 @@ def gdalwarp_mosaic(work: Path) -> dict | None:
     return {"seconds": total, "peak_mb": peak}
 
 
-def main(small: bool) -> str:
+def seam_section(cv: dict, n: int) -> list[str]:
+    """The markdown of the one-seam comparison."""
+    t, q = cv["times"], cv["quality"]
+
+    def med(name, kind):
+        return float(np.median(t[name][kind]))
+
+    def ratio(ours, peer, kind):
+        return med(peer, kind) / med(ours, kind)
+
+    lines = [
+        f"### One seam, {n} x {n} overlap, next to OpenCV (in one process, interleaved, "
+        f"medians of {REPEATS})", "",
+        f"Load average (1 min) {cv['load'][0]:.1f} before, {cv['load'][1]:.1f} after, on "
+        f"{os.cpu_count()} cores: wall times are stretched by other work, CPU times less so.", "",
+        "| what | tool | includes | wall (s) | CPU (s) | ratio peer/ours wall, CPU |",
+        "|---|---|---|---:|---:|---:|",
+        f"| (a) kernel on the same arrays | ours | cost surface + centre term + route "
+        f"(overlap {n} x {n}, coarse-to-fine) | {med('kernel_ours', 'wall'):.3f} | "
+        f"{med('kernel_ours', 'cpu'):.3f} | |",
+        f"| | OpenCV DpSeamFinder COLOR | its cost + route on the two placed images and masks "
+        f"| {med('kernel_dp', 'wall'):.3f} | {med('kernel_dp', 'cpu'):.3f} | "
+        f"{ratio('kernel_ours', 'kernel_dp', 'wall'):.2f}x, "
+        f"{ratio('kernel_ours', 'kernel_dp', 'cpu'):.2f}x |",
+        f"| (b) end to end | ours: `toolbox.run(\"mosaic:seamlines\")` | read, footprints, "
+        f"Voronoi, cost, route, split, seamlines, GeoPackage written | "
+        f"{med('e2e_ours', 'wall'):.3f} | {med('e2e_ours', 'cpu'):.3f} | |",
+        f"| | OpenCV DpSeamFinder COLOR | read both GeoTIFFs and masks (rasterio) + find; "
+        f"nothing written | {med('e2e_dp', 'wall'):.3f} | {med('e2e_dp', 'cpu'):.3f} | "
+        f"{ratio('e2e_ours', 'e2e_dp', 'wall'):.2f}x, {ratio('e2e_ours', 'e2e_dp', 'cpu'):.2f}x |",
+        f"| once | OpenCV GraphCutSeamFinder COST_COLOR | find on the placed images | "
+        f"{cv['graphcut']['wall']:.2f} | {cv['graphcut']['cpu']:.2f} | |", "",
+        "Seam quality on the overlap (each seam as the cells it gives to ortho a; per seam cell "
+        "edge: colour = mean |a - b| of the two cells, grey levels, DpSeamFinder's own "
+        "criterion; balanced = the same after a least-squares gain/offset of b onto a, what "
+        "remains after mosaic:build's balancing; cost = our cost surface; buildings from the "
+        "generator's truth):", "",
+        "| seam | edges | mean colour difference | balanced | balanced, summed along the "
+        "seam | mean cost (ours) | edges on buildings |",
+        "|---|---:|---:|---:|---:|---:|---:|",
+    ]
+    names = {"kernel_ours": "ours, kernel", "exact_optimum": "exact optimum of our cost "
+             "(scikit-image MCP_Geometric)", "e2e_ours": "ours, end to end (cut polygons)",
+             "kernel_dp": "OpenCV DpSeamFinder COLOR", "graphcut": "OpenCV GraphCut COST_COLOR",
+             "kernel_ours_heights": "ours, kernel, with heights (DSM - DEM)",
+             "e2e_ours_heights": "ours, end to end, HEIGHTS given"}
+    for key, label in names.items():
+        r = q[key]
+        lines.append(f"| {label} | {r['edges']} | {r['colour']:.2f} | {r['balanced']:.3f} | "
+                     f"{r['balanced'] * r['edges']:.0f} | {r['cost']:.4f} | "
+                     f"{r['on_buildings']} |")
+    lines += ["", f"Our route's path cost {cv['path_cost']:.4f} against the exact optimum's "
+              f"{cv['exact_cost']:.4f} (x {cv['path_cost'] / cv['exact_cost']:.6f}). Our seams "
+              "must end where the Voronoi seam meets the footprint edges (here inside a building "
+              "square at the overlap's south edge); OpenCV's may end anywhere on the overlap's "
+              "border.", ""]
+    return lines
+
+
+SEAM_HEADING = "### One seam,"
+
+
+def main(small: bool, seam_only: bool = False) -> str:
     import cv2
     import rasterio
     import skimage
@@ -193,34 +416,44 @@ def main(small: bool) -> str:
     n_seam, n_ortho = (2000, 1000) if small else (10000, 5000)
     n_cv = min(OPENCV_MAX, n_seam)
     note = load_note()
+    target = HERE / "results" / ("mosaic_small.md" if small else "mosaic.md")
     with tempfile.TemporaryDirectory(prefix="mosaic_bench_") as tmp:
         work = Path(tmp)
         big, cvw, blk = work / "big", work / "cv", work / "block"
         for d in (big, cvw, blk):
             d.mkdir()
         t0 = time.perf_counter()
-        make_pair(big, n_seam)
         make_pair(cvw, n_cv)
-        make_block(blk, n_ortho)
+        if not seam_only:
+            make_pair(big, n_seam)
+            make_block(blk, n_ortho)
         generate = time.perf_counter() - t0
-        seam = measure("seam", big, n_seam)
-        cv = measure("opencv", cvw, n_cv)
-        mosaic = measure("mosaic", blk, n_ortho)
-        gdal = gdalwarp_mosaic(blk)
+        cv = measure("seam_compare", cvw, n_cv)
+        if not seam_only:
+            seam = measure("seam", big, n_seam)
+            mosaic = measure("mosaic", blk, n_ortho)
+            gdal = gdalwarp_mosaic(blk)
+    facts = machine_facts(f"OpenCV {cv2.__version__}", f"scikit-image {skimage.__version__}",
+                          f"GDAL {rasterio.__gdal_version__}")
+    section = [facts, "", note, "", *seam_section(cv, n_cv)]
+    if seam_only:
+        old = target.read_text() if target.exists() else "## Mosaics (`bench/mosaic_bench.py`)\n"
+        # the rest of the file, without this section and the one-pair rows of older runs
+        head = "\n".join(line for line in old.split(SEAM_HEADING)[0].rstrip("\n").splitlines()
+                         if not (line.startswith("|") and ("seam on one pair" in line
+                                                           or "OpenCV" in line)))
+        text = head + "\n\n" + "\n".join(section)
+        (HERE / "results").mkdir(exist_ok=True)
+        target.write_text(text)
+        return text
     lines = [
         "## Mosaics (`bench/mosaic_bench.py`)", "",
-        machine_facts(f"OpenCV {cv2.__version__}", f"scikit-image {skimage.__version__}",
-                      f"GDAL {rasterio.__gdal_version__}"), "",
+        facts, "",
         note, f"(synthetic data generated in {generate:.1f} s)", "",
         "| task | size | tool | time (s) | peak memory (MB) |",
         "|---|---|---|---:|---:|",
         f"| least-cost seamline (overview + corridor) | {n_seam} x {n_seam} overlap | "
         f"mosaic:seamlines | {seam['seconds']:.1f} | {seam['peak_mb']:.0f} |",
-        f"| seam on one pair | {n_cv} x {n_cv} overlap | mosaic:seamlines least_cost (end to "
-        f"end: read, footprints, route, write; after a warm-up) | {cv['toolbox_least_cost']:.2f} | |",
-        f"| | | OpenCV DpSeamFinder COLOR | {cv['opencv_dp_color']:.2f} | |",
-        f"| | | OpenCV GraphCutSeamFinder COST_COLOR | {cv['opencv_graphcut_color']:.2f} | "
-        f"{cv['peak_mb']:.0f} (whole case) |",
         f"| mosaic, feather {FEATHER:g} m | 6 orthos of {n_ortho} x {n_ortho} | mosaic:build | "
         f"{mosaic['seconds']:.1f} | {mosaic['peak_mb']:.0f} |",
     ]
@@ -231,9 +464,9 @@ def main(small: bool) -> str:
     else:
         lines.append(f"| | | gdalwarp -cutline -cblend (6 runs) | {gdal['seconds']:.1f} | "
                      f"{gdal['peak_mb']:.0f} |")
-    text = "\n".join(lines) + "\n"
+    text = "\n".join(lines + ["", *section[4:]])
     (HERE / "results").mkdir(exist_ok=True)
-    (HERE / "results" / ("mosaic_small.md" if small else "mosaic.md")).write_text(text)
+    target.write_text(text)
     return text
 
 
@@ -243,8 +476,10 @@ if __name__ == "__main__":
     parser.add_argument("--work")
     parser.add_argument("--n", type=int, default=0)
     parser.add_argument("--small", action="store_true")
+    parser.add_argument("--seam-only", action="store_true",
+                        help="only the one-seam comparison (its section of the results file)")
     args = parser.parse_args()
     if args.case:
         print(json.dumps(run_case(args.case, Path(args.work), args.n)))
     else:
-        print(main(args.small))
+        print(main(args.small, args.seam_only))

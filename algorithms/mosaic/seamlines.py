@@ -37,9 +37,12 @@ class MosaicSeamlines(Algorithm):
     without a DSM or BUILDINGS the seam still goes round a building rather than through its
     roof where both orthos happen to agree; w_s = STRUCTURE_WEIGHT), plus BUILDING_COST inside
     BUILDINGS footprints and HEIGHT_COST per metre of HEIGHTS (a DSM − DEM raster) above 0.5 m;
-    FORBIDDEN polygons are never crossed. The path is found by scikit-image's MCP_Geometric (Dijkstra on
-    8-connected cells of SEAM_CELL_SIZE). Overlaps of more than MAX_CELLS cells are routed on
-    an overview first, then refined at full resolution in a corridor, chunk by chunk. Where two
+    FORBIDDEN polygons are never crossed. The path is the least-cost 8-connected path over cells
+    of SEAM_CELL_SIZE (a compiled A*, as scikit-image's MCP_Geometric counts a path's cost);
+    above 250,000 cells it is routed on an overview of block means first, then at full
+    resolution within about 32 cells of that path (the exact optimum in the benchmark and
+    within 0.4 % of it on random surfaces). Overlaps of more than MAX_CELLS cells are read on an
+    overview first, then refined at full resolution in a corridor, chunk by chunk. Where two
     cut polygons share several separate boundary pieces only the longest is re-routed; a seam
     whose ends are not connected inside the overlap stays Voronoi (both with a warning or note
     in STATISTICS).

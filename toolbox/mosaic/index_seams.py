@@ -119,7 +119,7 @@ def partition_labels(plan: Any) -> Iterator[tuple[int, int, np.ndarray]]:
     from rasterio.windows import Window
 
     from toolbox.mosaic.build import _intersects, window_bounds, window_labels
-    from toolbox.mosaic.sources import read_window
+    from toolbox.mosaic.sources import read_valid
 
     grid = plan.grid
     for r0, n in strips(grid.height, grid.width):
@@ -129,7 +129,7 @@ def partition_labels(plan: Any) -> Iterator[tuple[int, int, np.ndarray]]:
         valid = np.zeros((len(plan.sources), n + extra, grid.width), dtype=bool)
         for k, src in enumerate(plan.sources):
             if _intersects(src.bounds, bounds):
-                _, valid[k] = read_window(src, grid.transform, grid.crs, window, plan.resampling)
+                valid[k] = read_valid(src, grid.transform, grid.crs, window)
         yield r0, n, window_labels(plan, window, valid)
 
 

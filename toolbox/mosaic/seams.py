@@ -4,9 +4,10 @@ For each pair of neighbouring cut polygons ``i``, ``j`` the region ``R = (cell_i
 F_j`` (their common overlap) is re-split by the minimum-cost path between the two ends of their
 current (Voronoi) seam, over a cost surface (:func:`cost_surface`): where the orthos differ
 radiometrically or have strong edges (buildings, trees, relief-displaced features) the path is
-expensive. The path is found by scikit-image's ``graph.MCP_Geometric`` (Dijkstra on the 8-connected
-grid, a move's cost = length x mean cell cost). Outside ``R`` and in forbidden areas the cost is
-negative, which MCP treats as impassable, so the seam stays inside the overlap.
+expensive. The path is found by a compiled A* on the 8-connected grid (:mod:`.route`; a move's
+cost = length x mean cell cost, as scikit-image's ``graph.MCP_Geometric``, its test oracle),
+coarse-to-fine in memory over :data:`COARSE_TO_FINE_CELLS` cells. Outside ``R`` and in forbidden
+areas the cost is negative (impassable), so the seam stays inside the overlap.
 
 Bounded memory: a region over ``max_cells`` cells is routed first on an overview (cells ``f``
 times larger), then refined at full resolution chunk by chunk in a corridor around the coarse
@@ -58,57 +59,71 @@ def cost_surface(a: np.ndarray, b: np.ndarray, weights: CostWeights,
     even where both show the same roof. ``value_range`` defaults to the 1-99 % percentile
     spread of both images.
     """
-    from scipy import ndimage
+    from toolbox.mosaic.kernels import image_terms
 
-    a = np.asarray(a, dtype="float32")
-    b = np.asarray(b, dtype="float32")
+    a = np.ascontiguousarray(a, dtype="float32")
+    b = np.ascontiguousarray(b, dtype="float32")
     if value_range is None:
-        step = max(1, int(np.sqrt(a[0].size / 250_000)))  # a sample of ~250,000 cells is plenty
+        # a regular sample of ~40,000 cells of each image (x bands): the 1 and 99 % points of
+        # ~240,000 values of an RGB pair are within a grey level of the whole images' ones
+        step = max(1, int(np.sqrt(a[0].size / 40_000)))
         sample = np.concatenate([a[:, ::step, ::step].ravel(), b[:, ::step, ::step].ravel()])
         lo, hi = np.percentile(sample, [1, 99])
         value_range = float(hi - lo)
     scale = 1.0 / max(value_range, 1e-6)
-    diff = np.abs(a - b).mean(axis=0) * scale
-    grad = np.zeros(a.shape[1:], dtype="float32")
-    sobel = []
-    for img in (a.mean(axis=0), b.mean(axis=0)):
-        gy, gx = ndimage.sobel(img, axis=0) / 8.0, ndimage.sobel(img, axis=1) / 8.0
-        sobel.append((gy, gx))
-        np.maximum(grad, np.hypot(gy, gx) * scale, out=grad)
-    cost = weights.base + weights.difference * diff.astype("float64") + \
-        weights.gradient * grad.astype("float64")
+    diff, grad, gdiff = image_terms(a, b, scale)
+    cost = diff  # in place: base + w_d·diff + w_g·grad
+    cost *= weights.difference
+    cost += weights.base
+    grad *= weights.gradient
+    cost += grad
     if weights.structure > 0 and weights.structure_radius > 0:
-        (ay, ax), (by, bx) = sobel
-        gdiff = np.hypot(ay - by, ax - bx) * scale
-        cost += weights.structure * structure_term(gdiff, weights.structure_threshold,
-                                                   weights.structure_radius / cell_size)
+        near = structured_near(gdiff, weights.structure_threshold,
+                               weights.structure_radius / cell_size)
+        np.add(cost, weights.structure, out=cost, where=near)
     return cost
+
+
+def add_centre(cost: np.ndarray, transform: Any, a, b, weight: float) -> None:
+    """``cost += weight x`` :func:`centre_term` in place (compiled, one pass)."""
+    from toolbox.mosaic.kernels import add_centre_term
+
+    add_centre_term(cost, transform.c, transform.a, transform.f, transform.e,
+                    float(a[0]), float(a[1]), float(b[0]), float(b[1]), float(weight))
 
 
 def structure_term(gradient_difference: np.ndarray, threshold: float,
                    radius_cells: float) -> np.ndarray:
-    """1.0 within ``radius_cells`` of a strong, structured difference, else 0.0.
+    """1.0 within ``radius_cells`` of a strong, structured difference, else 0.0
+    (:func:`structured_near` as float64)."""
+    return structured_near(gradient_difference, threshold, radius_cells).astype("float64")
+
+
+def structured_near(gradient_difference: np.ndarray, threshold: float,
+                    radius_cells: float) -> np.ndarray:
+    """True within ``radius_cells`` of a strong, structured difference.
 
     Strong: the difference of the two images' gradients (vector difference of their Sobel
     gradients, scaled by the value range) above ``threshold``, i.e. an edge in one ortho that
     the other does not have at the same place (a facade, a displaced roof edge). Structured:
     a connected group of such cells at least ``max(3, radius_cells / 2)`` cells large, so noise
     and single resampling differences do not count. The neighbourhood is a Euclidean distance
-    (``scipy.ndimage.distance_transform_edt``), whatever the radius.
+    (:func:`toolbox.mosaic.kernels.within_radius`), whatever the radius.
     """
     from scipy import ndimage
 
+    from toolbox.mosaic.kernels import within_radius
+
     strong = gradient_difference > threshold
     if not strong.any():
-        return np.zeros(strong.shape)
+        return strong
     groups, n = ndimage.label(strong, structure=np.ones((3, 3), bool))
     sizes = np.bincount(groups.ravel(), minlength=n + 1)
     keep = sizes >= max(3.0, radius_cells / 2.0)
     keep[0] = False
-    structured = keep[groups]
-    if not structured.any():
-        return np.zeros(strong.shape)
-    return (ndimage.distance_transform_edt(~structured) <= radius_cells).astype("float64")
+    if not keep.any():
+        return np.zeros(strong.shape, bool)
+    return within_radius(keep[groups], float(radius_cells))
 
 
 @dataclass
@@ -135,7 +150,7 @@ class PairCost:
         cost = cost_surface(da, db, self.weights, self.value_range, abs(transform.a))
         w = self.weights
         if self.centres is not None and w.centre > 0:
-            cost += w.centre * centre_term(transform, shape, *self.centres)
+            add_centre(cost, transform, *self.centres, w.centre)
         if self.buildings:
             inside = rasterize(self.buildings, out_shape=shape, transform=transform,
                                all_touched=True, dtype="uint8") > 0
@@ -158,11 +173,10 @@ def centre_term(transform: Any, shape: tuple[int, int], a, b) -> np.ndarray:
     where the images give no reason to leave it (each cell stays near its own nadir, where relief
     displacement is least)."""
     rows, cols = shape
-    x = transform.c + (np.arange(cols) + 0.5) * transform.a
-    y = transform.f + (np.arange(rows) + 0.5) * transform.e
-    gx, gy = np.meshgrid(x - a[0], y - a[1])
-    da = np.hypot(gx, gy)
-    db = np.hypot(gx + a[0] - b[0], gy + a[1] - b[1])
+    x = (transform.c + (np.arange(cols) + 0.5) * transform.a)[None, :]
+    y = (transform.f + (np.arange(rows) + 0.5) * transform.e)[:, None]
+    da = np.sqrt((x - a[0]) ** 2 + (y - a[1]) ** 2)  # (1, cols) + (rows, 1): one full-size sum
+    db = np.sqrt((x - b[0]) ** 2 + (y - b[1]) ** 2)
     return np.abs(da - db) / max(float(np.hypot(a[0] - b[0], a[1] - b[1])), 1e-9)
 
 
@@ -179,16 +193,24 @@ def grid_for(bounds, cell: float, origin: tuple[float, float] = (0.0, 0.0)):
     return Affine(cell, 0, xmin, 0, -cell, ymax), (rows, cols)
 
 
-def route(cost: np.ndarray, start: tuple[int, int], end: tuple[int, int]) -> np.ndarray | None:
-    """Minimum-cost 8-connected path ``(n, 2)`` of (row, col) from ``start`` to ``end`` over
-    ``cost`` (negative = impassable), by ``skimage.graph.MCP_Geometric``; None if unreachable."""
-    from skimage.graph import MCP_Geometric
+#: regions of more cells than this are routed coarse-to-fine in memory
+#: (:func:`toolbox.mosaic.route.coarse_to_fine`): an overview path first, then full resolution
+#: in a corridor round it
+COARSE_TO_FINE_CELLS = 250_000
+OVERVIEW_CELLS = 62_500  # cells of that overview (about 250 x 250)
 
-    mcp = MCP_Geometric(cost, fully_connected=True)
-    cumulative, _ = mcp.find_costs([start], [end])
-    if not np.isfinite(cumulative[end]):
-        return None
-    return np.asarray(mcp.traceback(end))
+
+def route(cost: np.ndarray, start: tuple[int, int], end: tuple[int, int]) -> np.ndarray | None:
+    """Least-cost 8-connected path ``(n, 2)`` of (row, col) from ``start`` to ``end`` over
+    ``cost`` (negative = impassable), None if unreachable: the exact optimum (A*,
+    :func:`toolbox.mosaic.route.least_cost_path`, the cost of scikit-image's
+    ``MCP_Geometric``) up to :data:`COARSE_TO_FINE_CELLS` cells, coarse-to-fine above."""
+    from toolbox.mosaic.route import coarse_to_fine, least_cost_path
+
+    if cost.size <= COARSE_TO_FINE_CELLS:
+        return least_cost_path(cost, start, end)[0]
+    factor = max(2, round(math.sqrt(cost.size / OVERVIEW_CELLS)))
+    return coarse_to_fine(cost, start, end, factor)
 
 
 def _nearest_passable(cost: np.ndarray, rc: tuple[int, int]) -> tuple[int, int] | None:

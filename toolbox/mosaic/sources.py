@@ -104,6 +104,8 @@ def valid_footprint(source: OrthoSource, max_size: int = 1024, simplify: float |
     w, h = math.ceil(source.width / factor), math.ceil(source.height / factor)
     with rasterio.open(source.path) as src:
         mask = src.dataset_mask(out_shape=(h, w)) > 0
+    if mask.all():  # what tracing gives, without tracing: the raster's outline
+        return shapely.box(*source.bounds)
     t = source.transform @ Affine.scale(source.width / w, source.height / h)
     polys = [shapely.geometry.shape(g) for g, v in shapes(mask.astype("uint8"), mask=mask,
                                                              transform=t, connectivity=8) if v]
@@ -149,25 +151,16 @@ def read_window(source: OrthoSource, grid_transform: Any, grid_crs: Any, window:
     """
     import rasterio
     from rasterio.enums import Resampling
-    from rasterio.windows import Window
     from rasterio.windows import transform as window_transform
 
     rows, cols = int(window.height), int(window.width)
     with rasterio.open(source.path) as src:
         if aligned(source, grid_transform):
-            off_c = round((grid_transform.c - source.transform.c) / grid_transform.a)
-            off_r = round((grid_transform.f - source.transform.f) / grid_transform.e)
-            src_win = Window(window.col_off + off_c, window.row_off + off_r, cols, rows)
             data = np.zeros((len(source.data_bands), rows, cols), dtype="float32")
             valid = np.zeros((rows, cols), dtype=bool)
-            # the part of the window inside the source, read without a boundless VRT
-            c0, r0 = max(0, int(src_win.col_off)), max(0, int(src_win.row_off))
-            c1 = min(source.width, int(src_win.col_off) + cols)
-            r1 = min(source.height, int(src_win.row_off) + rows)
-            if c1 > c0 and r1 > r0:
-                inner = Window(c0, r0, c1 - c0, r1 - r0)
-                sl = (slice(r0 - int(src_win.row_off), r1 - int(src_win.row_off)),
-                      slice(c0 - int(src_win.col_off), c1 - int(src_win.col_off)))
+            part = _inside(source, grid_transform, window)
+            if part is not None:
+                inner, sl = part
                 data[(slice(None), *sl)] = src.read(source.data_bands, window=inner)
                 valid[sl] = src.dataset_mask(window=inner) > 0
             return data, valid
@@ -178,7 +171,49 @@ def read_window(source: OrthoSource, grid_transform: Any, grid_crs: Any, window:
         with WarpedVRT(src, crs=grid_crs or src.crs, transform=t, width=cols, height=rows,
                        resampling=method, src_nodata=source.nodata, nodata=source.nodata) as vrt:
             data = vrt.read(source.data_bands).astype("float32")
-        with WarpedVRT(src, crs=grid_crs or src.crs, transform=t, width=cols, height=rows,
-                       resampling=Resampling.nearest) as vrt:
-            valid = vrt.dataset_mask() > 0
-        return data, valid
+        return data, _warped_valid(src, grid_crs, t, rows, cols)
+
+
+def read_valid(source: OrthoSource, grid_transform: Any, grid_crs: Any, window: Any
+               ) -> np.ndarray:
+    """Only the ``valid`` mask of :func:`read_window` (no data bands read where GDAL's mask
+    does not need them: an alpha band or an internal mask)."""
+    import rasterio
+    from rasterio.windows import transform as window_transform
+
+    rows, cols = int(window.height), int(window.width)
+    with rasterio.open(source.path) as src:
+        if aligned(source, grid_transform):
+            valid = np.zeros((rows, cols), dtype=bool)
+            part = _inside(source, grid_transform, window)
+            if part is not None:
+                valid[part[1]] = src.dataset_mask(window=part[0]) > 0
+            return valid
+        return _warped_valid(src, grid_crs, window_transform(window, grid_transform), rows, cols)
+
+
+def _warped_valid(src: Any, grid_crs: Any, transform: Any, rows: int, cols: int) -> np.ndarray:
+    """The dataset mask of an open source warped onto a grid window (nearest), as bools."""
+    from rasterio.enums import Resampling
+    from rasterio.vrt import WarpedVRT
+
+    with WarpedVRT(src, crs=grid_crs or src.crs, transform=transform, width=cols, height=rows,
+                   resampling=Resampling.nearest) as vrt:
+        return vrt.dataset_mask() > 0
+
+
+def _inside(source: OrthoSource, grid_transform: Any, window: Any) -> tuple | None:
+    """For a source aligned with the grid: the part of ``window`` (grid cells) inside the source,
+    as ``(source Window, (row slice, col slice) of the window's array)``, or None (read without a
+    boundless VRT)."""
+    from rasterio.windows import Window
+
+    off_c = round((grid_transform.c - source.transform.c) / grid_transform.a)
+    off_r = round((grid_transform.f - source.transform.f) / grid_transform.e)
+    col, row = int(window.col_off) + off_c, int(window.row_off) + off_r
+    c0, r0 = max(0, col), max(0, row)
+    c1 = min(source.width, col + int(window.width))
+    r1 = min(source.height, row + int(window.height))
+    if c1 <= c0 or r1 <= r0:
+        return None
+    return Window(c0, r0, c1 - c0, r1 - r0), (slice(r0 - row, r1 - row), slice(c0 - col, c1 - col))

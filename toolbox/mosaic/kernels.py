@@ -1,0 +1,158 @@
+"""Compiled kernels of the seam cost surface (:func:`toolbox.mosaic.seams.cost_surface`): the
+image terms in one pass, and "within a Euclidean radius of a set of cells".
+
+Test oracles: ``scipy.ndimage.sobel`` (mode ``reflect``) for :func:`image_terms` and
+``scipy.ndimage.distance_transform_edt`` for :func:`within_radius`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+
+@njit(cache=True, nogil=True)
+def _row_mean(x, r, out):
+    """Band mean of row ``r`` of ``x`` (clamped to the image: scipy's ``reflect`` edge, the
+    edge row repeated) into ``out[1:-1]``, its end cells repeated into ``out[0]``, ``out[-1]``."""
+    bands, rows, cols = x.shape
+    rr = min(max(r, 0), rows - 1)
+    for c in range(cols):
+        out[c + 1] = 0.0
+    for k in range(bands):
+        for c in range(cols):
+            out[c + 1] += x[k, rr, c]
+    for c in range(cols):
+        out[c + 1] /= bands
+    out[0] = out[1]
+    out[cols + 1] = out[cols]
+
+
+@njit(cache=True, nogil=True)
+def image_terms(a, b, scale):
+    """The image terms of two co-registered images ``(bands, rows, cols)`` float32, each scaled
+    by ``scale`` (1 / value range): ``diff`` = mean over bands of ``|a − b|``; ``grad`` = the
+    larger Sobel gradient magnitude (derivatives / 8) of the two band means; ``gdiff`` = the
+    magnitude of the difference of their Sobel gradients. Float64 ``(rows, cols)`` each.
+
+    One pass over the rows, with the band means of three rows at a time (row ``r`` in slot
+    ``(r + 3) % 3``)."""
+    bands, rows, cols = a.shape
+    diff = np.zeros((rows, cols), np.float64)
+    grad = np.empty((rows, cols), np.float64)
+    gdiff = np.empty((rows, cols), np.float64)
+    ma = np.empty((3, cols + 2), np.float64)
+    mb = np.empty((3, cols + 2), np.float64)
+    for r in (-1, 0):
+        _row_mean(a, r, ma[(r + 3) % 3])
+        _row_mean(b, r, mb[(r + 3) % 3])
+    inv = scale / bands
+    for r in range(rows):
+        _row_mean(a, r + 1, ma[(r + 1) % 3])
+        _row_mean(b, r + 1, mb[(r + 1) % 3])
+        up_a, mid_a, dn_a = ma[(r + 2) % 3], ma[r % 3], ma[(r + 1) % 3]
+        up_b, mid_b, dn_b = mb[(r + 2) % 3], mb[r % 3], mb[(r + 1) % 3]
+        for k in range(bands):
+            for c in range(cols):
+                diff[r, c] += abs(np.float64(a[k, r, c]) - np.float64(b[k, r, c]))
+        for c in range(cols):
+            diff[r, c] *= inv
+            # padded column c + 1 is image column c
+            ay = (dn_a[c] + 2.0 * dn_a[c + 1] + dn_a[c + 2]
+                  - up_a[c] - 2.0 * up_a[c + 1] - up_a[c + 2]) * 0.125
+            ax = (up_a[c + 2] + 2.0 * mid_a[c + 2] + dn_a[c + 2]
+                  - up_a[c] - 2.0 * mid_a[c] - dn_a[c]) * 0.125
+            by = (dn_b[c] + 2.0 * dn_b[c + 1] + dn_b[c + 2]
+                  - up_b[c] - 2.0 * up_b[c + 1] - up_b[c + 2]) * 0.125
+            bx = (up_b[c + 2] + 2.0 * mid_b[c + 2] + dn_b[c + 2]
+                  - up_b[c] - 2.0 * mid_b[c] - dn_b[c]) * 0.125
+            ga = ay * ay + ax * ax
+            gb = by * by + bx * bx
+            grad[r, c] = np.sqrt(max(ga, gb)) * scale
+            gdiff[r, c] = np.sqrt((ay - by) * (ay - by) + (ax - bx) * (ax - bx)) * scale
+    return diff, grad, gdiff
+
+
+@njit(cache=True, nogil=True)
+def _lower_envelope(f, n, out, v, z):
+    """1-D squared Euclidean distance transform of ``f[:n]`` into ``out`` (Felzenszwalb and
+    Huttenlocher 2012, "Distance transforms of sampled functions", algorithm DT(f))."""
+    k = 0
+    first = -1
+    for q in range(n):
+        if f[q] < np.inf:
+            first = q
+            break
+    if first < 0:
+        for q in range(n):
+            out[q] = np.inf
+        return
+    v[0] = first
+    z[0] = -np.inf
+    z[1] = np.inf
+    for q in range(first + 1, n):
+        if f[q] == np.inf:
+            continue
+        while True:
+            p = v[k]
+            s = ((f[q] + q * q) - (f[p] + p * p)) / (2.0 * q - 2.0 * p)
+            if s <= z[k]:
+                k -= 1
+                continue
+            break
+        k += 1
+        v[k] = q
+        z[k] = s
+        z[k + 1] = np.inf
+    k = 0
+    for q in range(n):
+        while z[k + 1] < q:
+            k += 1
+        p = v[k]
+        out[q] = (q - p) * (q - p) + f[p]
+
+
+@njit(cache=True, nogil=True)
+def within_radius(mask, radius):
+    """True where the Euclidean distance (in cells) to the nearest True cell of ``mask`` is at
+    most ``radius``: the exact squared distance transform, columns then rows."""
+    rows, cols = mask.shape
+    n = max(rows, cols)
+    d = np.empty((rows, cols), np.float64)
+    f = np.empty(n, np.float64)
+    out = np.empty(n, np.float64)
+    v = np.empty(n, np.int64)
+    z = np.empty(n + 1, np.float64)
+    for c in range(cols):
+        for r in range(rows):
+            f[r] = 0.0 if mask[r, c] else np.inf
+        _lower_envelope(f, rows, out, v, z)
+        for r in range(rows):
+            d[r, c] = out[r]
+    r2 = radius * radius
+    result = np.empty((rows, cols), np.bool_)
+    for r in range(rows):
+        for c in range(cols):
+            f[c] = d[r, c]
+        _lower_envelope(f, cols, out, v, z)
+        for c in range(cols):
+            result[r, c] = out[c] <= r2
+    return result
+
+
+@njit(cache=True, nogil=True)
+def add_centre_term(cost, x0, dx, y0, dy, ax, ay, bx, by, weight):
+    """``cost += weight x |‖p − a‖ − ‖p − b‖| / ‖a − b‖`` at the cell centres ``p = (x0 + (col
+    + 0.5) dx, y0 + (row + 0.5) dy)``, in place (the centre term of
+    :func:`toolbox.mosaic.seams.centre_term`, its oracle)."""
+    rows, cols = cost.shape
+    scale = weight / max(np.hypot(ax - bx, ay - by), 1e-9)
+    for r in range(rows):
+        y = y0 + (r + 0.5) * dy
+        ya = (y - ay) * (y - ay)
+        yb = (y - by) * (y - by)
+        for c in range(cols):
+            x = x0 + (c + 0.5) * dx
+            da = np.sqrt((x - ax) * (x - ax) + ya)
+            db = np.sqrt((x - bx) * (x - bx) + yb)
+            cost[r, c] += scale * abs(da - db)
