@@ -44,12 +44,12 @@ def child_cpu() -> float:
     return usage.ru_utime + usage.ru_stime
 
 
-def run_case(project: Path, family: str, out: Path) -> dict:
+def run_case(project: Path, family: str, out: Path, *extra: str) -> dict:
     toolbox = str(Path(sys.executable).parent / "toolbox")
     cpu0 = child_cpu()
     seconds, peak, code, err = run_measured([toolbox, "-q", "run", "orientation:fiducials",
                                              "--PROJECT", str(project), "--FAMILY", family,
-                                             "--OUTPUT", str(out), "--overwrite"])
+                                             "--OUTPUT", str(out), "--overwrite", *extra])
     if code != 0:
         raise RuntimeError(f"orientation:fiducials failed: {err[-2000:]}")
     return {"seconds": seconds, "cpu": child_cpu() - cpu0, "peak_mb": peak}
@@ -78,7 +78,7 @@ def main() -> None:
     load = os.getloadavg()
     with tempfile.TemporaryDirectory(prefix="fiducials_bench_", dir="/tmp") as tmp:
         work = Path(tmp)
-        small = sc.render_scan(work / "small.tif")
+        sc.render_scan(work / "small.tif")
         small_project = sc.project_yaml(work / "small.yaml", {"small": "small.tif"})
         cases = {}
         for name, (dtype, family, g) in CASES.items():
@@ -88,8 +88,8 @@ def main() -> None:
             project = sc.project_yaml(work / f"{dtype}.yaml", {"big": path.name}, PIXEL)
             cases[name] = (scan, project, family, path.stat().st_size)
         runs = {name: [] for name in cases}
-        baseline = [run_case(small_project, "cross", work / "small.json")
-                    for _ in range(2)]
+        baseline = [run_case(small_project, "cross", work / "small.json", "--MARK_SIZE",
+                             str(sc.MARK), "--LINE_WIDTH", str(sc.LINE)) for _ in range(2)]
         for _ in range(args.repeat):
             for name, (scan, project, family, _) in cases.items():
                 runs[name].append(run_case(project, family, work / "out.json"))

@@ -245,3 +245,27 @@ def test_family_without_a_published_size_needs_mark_size(scans, tmp_path):
         assert result.exit_code == 2, result.output
         assert len(result.output.strip().splitlines()) == 1 and option in result.output
         assert family in result.output and not (tmp_path / "bad.json").exists()
+
+
+def test_only_windows_around_the_predicted_marks_are_read(scans, tmp_path):
+    """The scan is read in windows around the marks, each once: with the orientation given,
+    at most one window of (2·SEARCH + template) pixels a side per mark; with the eight
+    orientations tried, the windows they share are not read twice (bench/fiducials_bench.py
+    shows the same on 16644 x 16644 px scans, with the run's peak memory)."""
+    import math
+
+    from toolbox.matching.marks import draw
+
+    folder, project, rendered = scans
+    template = draw("cross", sc.MARK, sc.LINE, sc.PIXEL)
+    side = 2 * (math.ceil(8.0 / sc.PIXEL) + template.shape[0] // 2) + 1  # SEARCH_MM = 8
+    fixed = toolbox.run("orientation:fiducials", {
+        "PROJECT": project, "PHOTOS": "upright", **FAMILY, "ORIENTATION": "0",
+        "OUTPUT": tmp_path / "fixed.json"})["STATISTICS"]
+    assert fixed["pixels_in_scans"] == sc.SIZE ** 2
+    assert 0 < fixed["pixels_read"] <= len(sc.MARKS) * side ** 2 < 0.1 * sc.SIZE ** 2
+    auto = toolbox.run("orientation:fiducials", {
+        "PROJECT": project, "PHOTOS": "upright", **FAMILY,
+        "OUTPUT": tmp_path / "auto.json"})["STATISTICS"]
+    # 8 orientations x 8 marks, but the corner and axis positions are shared between them
+    assert fixed["pixels_read"] < auto["pixels_read"] < 3 * fixed["pixels_read"]
