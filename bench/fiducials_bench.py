@@ -95,7 +95,8 @@ def main() -> None:
                 runs[name].append(run_case(project, family, work / "out.json"))
                 runs[name][-1]["check"] = accuracy(work / "out.json", scan.centres)
     base_mb = max(b["peak_mb"] for b in baseline)
-    lines = ["# orientation:fiducials on full-size scans", "",
+    lines = ["## Fiducial marks (issue 27): full-size scans read in windows "
+             "(`bench/fiducials_bench.py`)", "",
              f"{machine_facts()}; load average {load[0]:.1f} / {load[1]:.1f} at the start; "
              f"{note}.", "",
              f"Scans of {args.size} x {args.size} px at {PIXEL * 1000:g} µm, tiled (512 px) "
