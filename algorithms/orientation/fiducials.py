@@ -10,6 +10,8 @@ from toolbox.parameters import Enum, File, Number, Output, OutputFile, OutputFol
 from toolbox.registry import register
 
 ORIENTATION_CHOICES = ("auto", "0", "90", "180", "270", "0m", "90m", "180m", "270m")
+FAMILIES = ("cross", "dot", "cross_in_circle", "wild_rc8", "wild_rc10", "zeiss_rmk_top",
+            "zeiss_rmk_a")
 
 
 @register
@@ -24,8 +26,16 @@ class FiducialMarks(Algorithm):
     between different assignments keeps the scan as it is, with a note). It is then searched
     within SEARCH_MM by normalised cross-correlation (OpenCV TM_CCOEFF_NORMED; coarse on a
     decimated window, then at full resolution with a quadratic sub-pixel peak) with TEMPLATE
-    (an image of one mark as an upright scan shows it) or a built-in FAMILY (cross, dot,
-    cross_in_circle of MARK_SIZE mm with LINE_WIDTH mm lines), bright or dark (POLARITY).
+    (an image of one mark as an upright scan shows it) or a built-in FAMILY, bright or dark
+    (POLARITY): cross, dot, cross_in_circle of MARK_SIZE mm with LINE_WIDTH mm lines (1 and
+    0.06 mm unless given), or the marks of a camera, drawn from their published geometry
+    (toolbox.matching.camera_marks names the sources), a corner mark (near a diagonal of the
+    certificate) and a side mark differing where the camera's do: wild_rc8 (a bright disc with
+    a dark x, 3.2 / 0.06 mm), wild_rc10 (a cross in a ring, x in the corners and + at the
+    sides; its size is not published: give MARK_SIZE = ring diameter and LINE_WIDTH),
+    zeiss_rmk_top (ring, central dot and four spokes, 1.85 / 0.3 mm), zeiss_rmk_a (a disc of
+    MARK_SIZE mm, to be given). The scan is read only in windows around the predicted marks,
+    each once: STATISTICS counts the pixels read.
 
     A mark whose peak is below MIN_SCORE (covered), whose runner-up (best score farther than
     the mark's size) is within MARGIN of the peak (ambiguous), that leaves the scan (cropped,
@@ -51,12 +61,13 @@ class FiducialMarks(Algorithm):
                optional=True),
         File("TEMPLATE", "image of one mark (as an upright scan shows it)",
              extensions=[".tif", ".tiff", ".png", ".jpg"], optional=True),
-        Enum("FAMILY", "built-in mark shape when no TEMPLATE", options=("cross", "dot",
-             "cross_in_circle"), default="cross"),
-        Number("MARK_SIZE", "built-in mark: size (cross length, dot/circle diameter), mm",
-               default=1.0, min_value=0.0, min_exclusive=True),
-        Number("LINE_WIDTH", "built-in mark: line width, mm", default=0.06, min_value=0.0,
-               min_exclusive=True),
+        Enum("FAMILY", "built-in mark shape when no TEMPLATE", options=FAMILIES,
+             default="cross"),
+        Number("MARK_SIZE", "built-in mark: size (cross length, dot/ring diameter), mm "
+               "(default: the family's published size; 1 for cross, dot, cross_in_circle)",
+               optional=True, min_value=0.0, min_exclusive=True),
+        Number("LINE_WIDTH", "built-in mark: line width, mm (default: the family's; 0.06)",
+               optional=True, min_value=0.0, min_exclusive=True),
         Enum("POLARITY", "marks brighter or darker than their background", options=(
              "auto", "bright", "dark"), default="auto"),
         Number("PIXEL_SIZE", "scan pixel size, mm (default: the camera's pixel_size_mm)",
@@ -114,7 +125,9 @@ class FiducialMarks(Algorithm):
         template_file = None
         if params["TEMPLATE"] is not None:
             template_file = marks.read_template(params["TEMPLATE"])
+        size_mm, line_mm = self._mark_size(params, marks)
         entries, failed, rows, missing_total = [], [], [], 0
+        pixels_read = pixels_total = 0
         for photo in feedback.iterate(photos):
             cam = photo.camera
             if len(cam.fiducials_mm) < 2:
@@ -129,9 +142,9 @@ class FiducialMarks(Algorithm):
                                      "does not exist")
             reader = ScanReader(photo.image, f"photo {photo.id!r}")
             side = max(reader.width, reader.height)
-            if template_file is None and not params["MARK_SIZE"] / pixel < side:  # NaN too
-                raise self.fail("MARK_SIZE", f"{params['MARK_SIZE']:g} mm is "
-                                f"{params['MARK_SIZE'] / pixel:.3g} pixels of {pixel:g} mm, "
+            if template_file is None and not size_mm / pixel < side:  # NaN too
+                raise self.fail("MARK_SIZE", f"{size_mm:g} mm is "
+                                f"{size_mm / pixel:.3g} pixels of {pixel:g} mm, "
                                 f"more than the whole scan of photo {photo.id!r} ({side} px): "
                                 "give the mark's size in mm")
             if template_file is not None:
@@ -141,16 +154,11 @@ class FiducialMarks(Algorithm):
                         f"TEMPLATE is {dtype} but the scan of photo {photo.id!r} is "
                         f"{reader.dtype}: give a template cut from a scan of the same depth")
 
-                def template_for(g, grey=grey):
+                def template_for(g, mark, grey=grey):
                     return turned(grey, g)
             else:
-                def template_for(g, pixel=pixel):
-                    # pixel offset p = G·(x, -y)/s  =>  (x, y) = s·D·G⁻¹·p, D = diag(1, -1)
-                    import numpy as np
-
-                    affine = pixel * np.diag([1.0, -1.0]) @ np.linalg.inv(g)
-                    return marks.draw(params["FAMILY"], params["MARK_SIZE"],
-                                      params["LINE_WIDTH"], pixel, affine)
+                template_for = self._drawn_templates(params["FAMILY"], size_mm, line_mm, pixel,
+                                                     dict(cam.fiducials_mm))
             opts = MarkSearch(pixel, params["SEARCH_MM"], params["MIN_SCORE"], params["MARGIN"],
                               params["POLARITY"], max_residual_mm=params["MAX_RESIDUAL"])
             try:
@@ -166,6 +174,8 @@ class FiducialMarks(Algorithm):
                     f"{pixel:g} mm = {reader.width * pixel:.1f} x {reader.height * pixel:.1f} "
                     f"mm; marks up to {reach:g} mm from the centre): check fiducials_mm and "
                     "PIXEL_SIZE / pixel_size_mm")
+            pixels_read += reader.pixels_read
+            pixels_total += reader.width * reader.height
             io = fit_marks(dict(cam.fiducials_mm), found, params["TRANSFORMATION"],
                            params["MAX_RESIDUAL"])
             missing = [r for r in found.marks if not r.ok]
@@ -177,7 +187,7 @@ class FiducialMarks(Algorithm):
                     f"{r.mark} ({r.status}, score {_fmt(r.score)}, runner-up "
                     f"{_fmt(r.runner_up)})" for r in missing))
             if params["THUMBNAILS"] is not None:
-                half = int(max(1.5 * params["MARK_SIZE"] / pixel, 16))
+                half = int(max(1.5 * size_mm / pixel, 16))
                 if template_file is not None:
                     half = max(half, max(template_file[0].shape))
                 write_thumbnails(params["THUMBNAILS"], reader, found, half)
@@ -200,7 +210,8 @@ class FiducialMarks(Algorithm):
                  "marks_missing": missing_total,
                  "max_residual_mm": max(e["max_residual_mm"] for e in entries),
                  "max_sigma0_mm": max((e["sigma0_mm"] for e in entries
-                                       if e["sigma0_mm"] is not None), default=None)}
+                                       if e["sigma0_mm"] is not None), default=None),
+                 "pixels_read": pixels_read, "pixels_in_scans": pixels_total}
         write_json(params["OUTPUT"], {"algorithm": self.id, "input": str(params["PROJECT"]),
                                       "residual_convention": "fitted - calibrated, mm",
                                       "statistics": stats, "photos": entries,
@@ -210,6 +221,40 @@ class FiducialMarks(Algorithm):
                                                "runner_up"], rows)
         return {"OUTPUT": params["OUTPUT"], "MEASUREMENTS": params["MEASUREMENTS"],
                 "THUMBNAILS": params["THUMBNAILS"], "STATISTICS": stats}
+
+    def _mark_size(self, params, marks) -> tuple[float, float]:
+        """MARK_SIZE and LINE_WIDTH, or the family's published ones; refused when neither."""
+        size, line = marks.default_size(params["FAMILY"])
+        size = params["MARK_SIZE"] if params["MARK_SIZE"] is not None else size
+        line = params["LINE_WIDTH"] if params["LINE_WIDTH"] is not None else line
+        if params["TEMPLATE"] is None:
+            for name, value in (("MARK_SIZE", size), ("LINE_WIDTH", line)):
+                if value is None:
+                    raise self.fail(name, f"is needed with FAMILY={params['FAMILY']}: no "
+                                    "published size for its marks (measure one on a scan, mm)")
+        return size or 1.0, line or 0.06
+
+    @staticmethod
+    def _drawn_templates(family, size_mm, line_mm, pixel, marks_mm):
+        """``template_for(g, mark)``: the family's corner or side mark as a scan of orientation
+        ``g`` shows it (drawn once per orientation and kind)."""
+        import numpy as np
+
+        from toolbox.matching import marks
+        from toolbox.matching.camera_marks import mark_kind
+
+        drawn = {}
+
+        def template_for(g, mark):
+            kind = mark_kind(*marks_mm[mark])
+            key = (g.tobytes(), kind)
+            if key not in drawn:
+                # pixel offset p = G·(x, -y)/s  =>  (x, y) = s·D·G⁻¹·p, D = diag(1, -1)
+                affine = pixel * np.diag([1.0, -1.0]) @ np.linalg.inv(g)
+                drawn[key] = marks.draw(family, size_mm, line_mm, pixel, affine, kind=kind)
+            return drawn[key]
+
+        return template_for
 
 
 def _fmt(value: float | None) -> str:

@@ -160,7 +160,9 @@ def _finite(v: float) -> float | None:
 
 
 class ScanReader:
-    """Windows of a scan as float32 grey (mean of the first three bands), clipped to the scan."""
+    """Windows of a scan as float32 grey (mean of the first three bands), clipped to the scan,
+    read from the file one window at a time (nothing else of the scan is ever in memory);
+    ``pixels_read`` counts the scan pixels read so far."""
 
     def __init__(self, path: Path, name: str = "photo") -> None:
         import warnings
@@ -168,6 +170,7 @@ class ScanReader:
         import rasterio
 
         self.path = Path(path)
+        self.pixels_read = 0
         try:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
@@ -177,7 +180,6 @@ class ScanReader:
         except rasterio.errors.RasterioError as exc:
             raise InputDataError(f"{name}: cannot read scan {path}: "
                                  f"{str(exc).splitlines()[0]}") from None
-        self._cache: dict[tuple[int, int, int, int], np.ndarray] = {}
 
     def window(self, col0: int, row0: int, col1: int, row1: int
                ) -> tuple[np.ndarray, tuple[int, int]]:
@@ -190,46 +192,49 @@ class ScanReader:
         c1, r1 = min(self.width, col1), min(self.height, row1)
         if c1 <= c0 or r1 <= r0:
             return np.zeros((0, 0), np.float32), (c0, r0)
-        key = (c0, r0, c1, r1)
-        if key not in self._cache:
-            if len(self._cache) > 16:
-                self._cache.clear()
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
-                with rasterio.open(self.path) as src:
-                    data = src.read(indexes=list(range(1, min(3, self.bands) + 1)),
-                                    window=Window(c0, r0, c1 - c0, r1 - r0))
-            self._cache[key] = data.astype(np.float32).mean(axis=0)
-        return self._cache[key], (c0, r0)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
+            with rasterio.open(self.path) as src:
+                data = src.read(indexes=list(range(1, min(3, self.bands) + 1)),
+                                window=Window(c0, r0, c1 - c0, r1 - r0))
+        self.pixels_read += (c1 - c0) * (r1 - r0)
+        grey = data[0].astype(np.float32) if len(data) == 1 else \
+            data.astype(np.float32).mean(axis=0)
+        return grey, (c0, r0)
 
 
 def search_photo(reader: ScanReader, photo: str, marks_mm: dict[str, tuple[float, float]],
                  template_for: Any, opts: MarkSearch, orientation: str = "auto") -> PhotoMarks:
-    """Every mark of one scan. ``template_for(g)`` gives the template for orientation ``g``."""
+    """Every mark of one scan. ``template_for(g, mark)`` gives the template of ``mark`` for
+    orientation ``g``. Each distinct search window (the eight orientations share most of them)
+    is read once, searched for every (orientation, mark) that needs it, then dropped."""
     names = list(ORIENTATIONS) if orientation == "auto" else [orientation]
     search_px = int(math.ceil(opts.search_mm / opts.pixel_mm))
-    tried: dict[str, list[MarkResult]] = {}
+    found: dict[tuple[str, str], MarkResult] = {}
+    wanted: dict[tuple[int, int, int, int], list] = {}
     for name in names:
         g = ORIENTATIONS[name]
-        template = template_for(g)
-        half_t = max(template.shape) // 2
-        if 2 * search_px < max(template.shape):
-            raise InputDataError(
-                f"the template ({template.shape[1]} x {template.shape[0]} px) is larger than the "
-                f"search window ({2 * search_px} px, SEARCH_MM={opts.search_mm:g} at "
-                f"{opts.pixel_mm:g} mm/px): raise SEARCH_MM or use a smaller template")
-        results = []
         for mark, p in predicted_positions(marks_mm, reader.width, reader.height, opts.pixel_mm,
                                            g).items():
+            template = template_for(g, mark)
+            if 2 * search_px < max(template.shape):
+                raise InputDataError(
+                    f"the template ({template.shape[1]} x {template.shape[0]} px) is larger than "
+                    f"the search window ({2 * search_px} px, SEARCH_MM={opts.search_mm:g} at "
+                    f"{opts.pixel_mm:g} mm/px): raise SEARCH_MM or use a smaller template")
             if not (0 <= p[0] < reader.width and 0 <= p[1] < reader.height):
-                results.append(MarkResult(mark, "outside", None, None, None, None, tuple(p)))
+                found[name, mark] = MarkResult(mark, "outside", None, None, None, None, tuple(p))
                 continue
-            reach = search_px + half_t
-            window, origin = reader.window(int(p[0]) - reach, int(p[1]) - reach,
-                                           int(p[0]) + reach + 1, int(p[1]) + reach + 1)
-            results.append(locate(window, origin, template, opts,
-                                  (reader.width, reader.height), mark, p))
-        tried[name] = results
+            reach = search_px + max(template.shape) // 2
+            key = (int(p[0]) - reach, int(p[1]) - reach, int(p[0]) + reach + 1,
+                   int(p[1]) + reach + 1)
+            wanted.setdefault(key, []).append((name, mark, p, template))
+    for key, jobs in wanted.items():
+        window, origin = reader.window(*key)
+        for name, mark, p, template in jobs:
+            found[name, mark] = locate(window, origin, template, opts,
+                                       (reader.width, reader.height), mark, p)
+    tried = {name: [found[name, mark] for mark in marks_mm] for name in names}
     notes = []
     # an orientation is judged by the marks it finds that one affine transform explains
     # (a near-symmetric layout puts every orientation's windows on marks; only the geometry

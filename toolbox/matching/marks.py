@@ -5,8 +5,11 @@ Built-in families (bright mark on a dark background; the search also tries the i
 
 - ``cross``: two bars of ``line`` mm width and ``size`` mm length;
 - ``dot``: a disc of ``size`` mm diameter;
-- ``cross_in_circle``: a cross of ``size`` mm inside a ring of ``size`` mm diameter
-  (Wild RC / Zeiss RMK style).
+- ``cross_in_circle``: a cross of ``0.8 size`` mm inside a ring of ``size`` mm diameter and
+  ``line`` mm width (a generic shape: the camera families below follow their sources);
+- ``wild_rc8``, ``wild_rc10``, ``zeiss_rmk_top``, ``zeiss_rmk_a``: the marks of those
+  cameras, a different shape at corner and side marks where the camera has one
+  (:mod:`toolbox.matching.camera_marks`, with their sources and default sizes).
 
 Drawn by supersampling (8 x 8 per pixel), so the template is the area-averaged mark, centred
 on the template's central pixel (odd sizes).
@@ -19,13 +22,23 @@ from pathlib import Path
 import numpy as np
 
 from toolbox.errors import InputDataError
+from toolbox.matching.camera_marks import DEFAULTS, camera_mark
 
-FAMILIES = ("cross", "dot", "cross_in_circle")
+FAMILIES = ("cross", "dot", "cross_in_circle", *DEFAULTS)
 
 
-def mark_function(family: str, size_mm: float, line_mm: float):
-    """``f(x, y) -> 0/1`` of the mark, coordinates in mm from its centre."""
+def default_size(family: str) -> tuple[float | None, float | None]:
+    """(size, line width) mm a family is drawn with when none is given; None: no source gives
+    it (the user must)."""
+    return DEFAULTS.get(family, (1.0, 0.06))
+
+
+def mark_function(family: str, size_mm: float, line_mm: float, kind: str = "side"):
+    """``f(x, y) -> 0/1`` of the mark, coordinates in mm from its centre; ``kind`` (corner or
+    side) picks the shape of families whose corner and side marks differ."""
     half, w = size_mm / 2.0, line_mm / 2.0
+    if family in DEFAULTS:
+        return camera_mark(family, size_mm, line_mm, kind)
 
     def cross(x, y):
         return ((np.abs(x) <= w) & (np.abs(y) <= half)) | ((np.abs(y) <= w) & (np.abs(x) <= half))
@@ -47,7 +60,8 @@ def mark_function(family: str, size_mm: float, line_mm: float):
 
 
 def draw(family: str, size_mm: float, line_mm: float, pixel_mm: float,
-         affine: np.ndarray | None = None, supersample: int = 8) -> np.ndarray:
+         affine: np.ndarray | None = None, supersample: int = 8, kind: str = "side"
+         ) -> np.ndarray:
     """Template of a built-in mark, float32 in 0..1, odd size ~1.5 x the mark.
 
     ``affine`` (2 x 2, optional) maps template pixel offsets to mark mm (default: ``pixel_mm``
@@ -56,7 +70,7 @@ def draw(family: str, size_mm: float, line_mm: float, pixel_mm: float,
     if not (size_mm > 0 and line_mm > 0 and pixel_mm > 0):
         raise InputDataError(f"mark size, line width and pixel size must be > 0 mm, got "
                              f"{size_mm}, {line_mm}, {pixel_mm}")
-    f = mark_function(family, size_mm, line_mm)
+    f = mark_function(family, size_mm, line_mm, kind)
     half = int(np.ceil(0.75 * size_mm / pixel_mm)) + 2
     a = np.array([[pixel_mm, 0.0], [0.0, -pixel_mm]]) if affine is None else np.asarray(affine)
     offsets = (np.arange(supersample) + 0.5) / supersample - 0.5
