@@ -171,26 +171,21 @@ class OrthoBatch(Algorithm):
         executor = resolve_executor(params["SCHEDULER"], params["WORKERS"])
         photos = select_photos(project, params["PHOTOS"])
         failed: list[dict[str, Any]] = []
-        plans = []
         origin = (0.0, 0.0)
         cell = params["CELL_SIZE"]
         template = params["TEMPLATE"]
         if template is not None:
             cell, origin = template_lattice(template, cell, crs, "the project")
-        for photo in feedback.iterate(photos, start=0, end=10):
-            try:
-                image = open_raster_info(image_path(photo, params["IMAGES"]), "IMAGES")
-                check_geometry(photo)
-                warning = tilt_warning(photo)
-                if warning:
-                    feedback.push_warning(warning)
-                plans.append((plan_photo(photo, dem, crs, band), image))
-            except (InputDataError, ParameterError) as exc:
-                failed.append({"photo": photo.id, "error": str(exc)})
-                feedback.push_warning(f"photo {photo.id} failed: {exc}")
-        if not plans:
-            raise InputDataError("no photo could be orthorectified: " +
-                                 "; ".join(f"{f['photo']}: {f['error']}" for f in failed))
+
+        def plan(photo: Any) -> tuple[Any, Any]:
+            image = open_raster_info(image_path(photo, params["IMAGES"]), "IMAGES")
+            check_geometry(photo)
+            warning = tilt_warning(photo)
+            if warning:
+                feedback.push_warning(warning)
+            return plan_photo(photo, dem, crs, band), image
+
+        plans = plan_each(photos, plan, failed, feedback)
         if cell is None:
             cell = max(nice_cell_size(plan.gsd) for plan, _ in plans)
         options = OrthoOptions(
@@ -209,6 +204,23 @@ class OrthoBatch(Algorithm):
                  "cell_size": cell, "crs": crs_label(crs), "executor": executor.describe(),
                  "heights": heights.as_dict()}
         return write_listing(self.id, params["OUTPUT"], reports, failed, stats)
+
+
+def plan_each(items: list[Any], plan: Any, failed: list[dict[str, Any]], feedback: Feedback
+              ) -> list[Any]:
+    """``plan(item)`` of every photo or image (progress 0-10 %); one whose plan raises a user
+    error is appended to ``failed`` and reported, the others go on; none planned: an error."""
+    plans = []
+    for item in feedback.iterate(items, start=0, end=10):
+        try:
+            plans.append(plan(item))
+        except (InputDataError, ParameterError) as exc:
+            failed.append({"photo": item.id, "error": str(exc)})
+            feedback.push_warning(f"photo {item.id} failed: {exc}")
+    if not plans:
+        raise InputDataError("no photo could be orthorectified: " +
+                             "; ".join(f"{f['photo']}: {f['error']}" for f in failed))
+    return plans
 
 
 def collect(results: Any, failed: list[dict[str, Any]], feedback: Feedback
@@ -233,7 +245,6 @@ def rpc_batch(algorithm_id: str, params: dict[str, Any], feedback: Feedback) -> 
     """ortho:batch of satellite images with RPCs (IMAGES without PROJECT; the class docstring):
     each image planned (camera in CRS, GCP bias, GSD), the cell the largest GSD (or CELL_SIZE,
     TEMPLATE), every ortho on the shared lattice."""
-    from toolbox.errors import ToolboxError
     from toolbox.executor import map_tiles, resolve_executor
     from toolbox.io.crs import crs_label
     from toolbox.ortho.metrics import nice_cell_size
@@ -261,19 +272,11 @@ def rpc_batch(algorithm_id: str, params: dict[str, Any], feedback: Feedback) -> 
     if params["TEMPLATE"] is not None:
         cell, origin = template_lattice(params["TEMPLATE"], cell, crs, "the orthos")
     failed: list[dict[str, Any]] = []
-    plans = []
     with dem_in_photo_datum(params["DEM"], params["BAND"], params["HEIGHTS"] or "ellipsoidal",
                             None, feedback) as (dem, band, heights):
-        for image in feedback.iterate(images, start=0, end=10):
-            try:
-                plans.append(plan_rpc_image(image, crs, dem, band, gcps, params["BIAS"],
-                                            single=len(everything) == 1))
-            except ToolboxError as exc:
-                failed.append({"photo": image.id, "error": str(exc)})
-                feedback.push_warning(f"photo {image.id} failed: {exc}")
-        if not plans:
-            raise InputDataError("no image could be orthorectified: " +
-                                 "; ".join(f"{f['photo']}: {f['error']}" for f in failed))
+        plans = plan_each(images, lambda image: plan_rpc_image(
+            image, crs, dem, band, gcps, params["BIAS"], single=len(everything) == 1), failed,
+            feedback)
         if cell is None:
             cell = max(nice_cell_size(plan.gsd) for plan in plans)
         options = OrthoOptions(

@@ -17,16 +17,8 @@ from toolbox.cameras import read_rpc
 from toolbox.io.raster import write_raster
 
 sys.path.insert(0, str(Path(__file__).parent))
-from rpc_scene import (  # noqa: E402
-    NODATA,
-    disagreement,
-    gdal_ortho,
-    needs_gdalwarp,
-    synthetic_rpc,
-    write_gcps,
-    write_ramp,
-    write_synthetic_dem,
-)
+import rpc_scene as rs  # noqa: E402
+from ortho_scene import assert_on_lattice  # noqa: E402
 
 SIZE = (1200, 1000)
 
@@ -34,7 +26,7 @@ SIZE = (1200, 1000)
 def batch(tmp_path: Path, images: str, dem: Path, **extra) -> tuple[dict, dict, list]:
     feedback = toolbox.Feedback()
     out = toolbox.run("ortho:batch", {"IMAGES": images, "DEM": dem, "OUTSIDE": "nodata",
-                                      "NODATA": NODATA, "OVERVIEWS": False,
+                                      "NODATA": rs.NODATA, "OVERVIEWS": False,
                                       "FOLDER": str(tmp_path / "orthos"),
                                       "OUTPUT": tmp_path / "block.json", **extra},
                       feedback=feedback)
@@ -47,7 +39,7 @@ def read(path: Path) -> np.ndarray:
         return src.read().astype("float64")
 
 
-@needs_gdalwarp
+@rs.needs_gdalwarp
 def test_folder_of_synthetic_rpc_images_equals_gdalwarp(tmp_path):
     """Two RPC images and a file without RPCs in a folder: the file is skipped with a warning,
     each ortho equals GDAL's RPC warp on its grid (< 0.05 px), and both lie on one lattice of
@@ -55,9 +47,9 @@ def test_folder_of_synthetic_rpc_images_equals_gdalwarp(tmp_path):
     widens on a cell coarser than the image's pixel, another filter)."""
     images = tmp_path / "images"
     images.mkdir()
-    dem = write_synthetic_dem(tmp_path / "dem.tif")
-    write_ramp(images / "a.tif", synthetic_rpc(), *SIZE)
-    write_ramp(images / "b.tif", synthetic_rpc(dx=250.0, dy=-180.0), *SIZE)
+    dem = rs.write_synthetic_dem(tmp_path / "dem.tif")
+    rs.write_ramp(images / "a.tif", rs.synthetic_rpc(), *SIZE)
+    rs.write_ramp(images / "b.tif", rs.synthetic_rpc(dx=250.0, dy=-180.0), *SIZE)
     write_raster(images / "plain.tif", np.zeros((8, 8), "float32"), rasterio.Affine.identity(),
                  None)
     stats, listing, warnings = batch(tmp_path, str(images), dem)
@@ -69,29 +61,25 @@ def test_folder_of_synthetic_rpc_images_equals_gdalwarp(tmp_path):
     cell = stats["cell_size"]
     assert cell == float(f"{max(gsds):.2g}") and gsds[0] != gsds[1]
     for path in listing["orthos"]:
-        with rasterio.open(path) as src:
-            t = src.transform
-            assert (t.a, -t.e) == (cell, cell)
-            assert abs(t.c / cell - round(t.c / cell)) < 1e-6
-            assert abs(t.f / cell - round(t.f / cell)) < 1e-6
+        assert_on_lattice(path, cell)
         ramp = images / Path(path).name
-        worst, compared, only_one = disagreement(
-            read(Path(path)), gdal_ortho(ramp, dem, Path(path), tmp_path / "gdal.tif"), SIZE)
+        worst, compared, only_one = rs.disagreement(
+            read(Path(path)), rs.gdal_ortho(ramp, dem, Path(path), tmp_path / "gdal.tif"), SIZE)
         assert compared > 500_000 and worst < 0.05 and only_one < 0.002 * compared
 
 
-@needs_gdalwarp
+@rs.needs_gdalwarp
 def test_gcp_bias_per_image_and_an_image_without_gcps_fails(tmp_path):
     """GCPs measured on one of two images (its RPCs off by a shift): that image is refined and
     equals GDAL's ortho of the true RPCs; the other has no GCP: it fails alone (the table's
     points are never applied to an image they were not measured on)."""
     images = tmp_path / "images"
     images.mkdir()
-    dem = write_synthetic_dem(tmp_path / "dem.tif")
-    write_ramp(images / "a.tif", synthetic_rpc(), *SIZE)
-    write_ramp(images / "b.tif", synthetic_rpc(dx=250.0), *SIZE)
-    true_ramp = write_ramp(tmp_path / "true.tif", synthetic_rpc(dx=3.7, dy=-2.2), *SIZE)
-    control, measured = write_gcps(tmp_path, read_rpc(true_ramp, "EPSG:32632"), "a.tif", 5,
+    dem = rs.write_synthetic_dem(tmp_path / "dem.tif")
+    rs.write_ramp(images / "a.tif", rs.synthetic_rpc(), *SIZE)
+    rs.write_ramp(images / "b.tif", rs.synthetic_rpc(dx=250.0), *SIZE)
+    true_ramp = rs.write_ramp(tmp_path / "true.tif", rs.synthetic_rpc(dx=3.7, dy=-2.2), *SIZE)
+    control, measured = rs.write_gcps(tmp_path, read_rpc(true_ramp, "EPSG:32632"), "a.tif", 5,
                                    seed=3)
     stats, listing, warnings = batch(tmp_path, f"{images / 'a.tif'},{images / 'b.tif'}", dem,
                                      CONTROL=control, MEASUREMENTS=measured, BIAS="shift")
@@ -103,12 +91,12 @@ def test_gcp_bias_per_image_and_an_image_without_gcps_fails(tmp_path):
     assert report["bias"]["rms_after_px"] < 1e-3
     ortho = Path(listing["orthos"][0])
     assert ortho.name == "a.tif" and not (tmp_path / "orthos" / "b.tif").exists()
-    worst, compared, _ = disagreement(read(ortho), gdal_ortho(true_ramp, dem, ortho,
+    worst, compared, _ = rs.disagreement(read(ortho), rs.gdal_ortho(true_ramp, dem, ortho,
                                                               tmp_path / "gdal.tif"), SIZE)
     assert compared > 200_000 and worst < 0.05
 
 
-@needs_gdalwarp
+@rs.needs_gdalwarp
 def test_quickbird_list_equals_gdalwarp(orthority_data, tmp_path):
     """Orthority's QuickBird image and a ramp carrying its RPCs, listed, on the NGI DEM (its
     EGM2008 heights taken as they are, as GDAL does without the geoid grid): the ramp's ortho
@@ -116,7 +104,7 @@ def test_quickbird_list_equals_gdalwarp(orthority_data, tmp_path):
     qb, dem = orthority_data / "rpc" / "qb2_basic1b.tif", orthority_data / "ngi" / "dem.tif"
     with rasterio.open(qb) as src:
         rpcs, size = src.rpcs, (src.width, src.height)
-    ramp = write_ramp(tmp_path / "qb_ramp.tif", rpcs, *size)
+    ramp = rs.write_ramp(tmp_path / "qb_ramp.tif", rpcs, *size)
     stats, listing, _ = batch(tmp_path, f"{qb},{ramp}", dem, HEIGHTS="EPSG:3855",
                               OUTSIDE="alpha", NODATA=None)
     assert (stats["done"], stats["failed"]) == (2, 0) and stats["cell_size"] == 6.5
@@ -125,8 +113,8 @@ def test_quickbird_list_equals_gdalwarp(orthority_data, tmp_path):
     with rasterio.open(real) as src:
         assert src.count == 2 and (src.read(2) > 0).mean() > 0.5
     ours = read(ramp_ortho)
-    ours[:2, ours[2] == 0] = NODATA  # alpha 0: no value
-    worst, compared, only_one = disagreement(ours, gdal_ortho(ramp, dem, ramp_ortho,
+    ours[:2, ours[2] == 0] = rs.NODATA  # alpha 0: no value
+    worst, compared, only_one = rs.disagreement(ours, rs.gdal_ortho(ramp, dem, ramp_ortho,
                                                               tmp_path / "gdal.tif"), size)
     assert compared > 500_000 and worst < 0.05 and only_one < 0.002 * compared
 
@@ -134,8 +122,8 @@ def test_quickbird_list_equals_gdalwarp(orthority_data, tmp_path):
 def test_rpc_batch_bad_input_is_one_line(tmp_path):
     images = tmp_path / "images"
     images.mkdir()
-    dem = write_synthetic_dem(tmp_path / "dem.tif")
-    ramp = write_ramp(images / "a.tif", synthetic_rpc(), *SIZE)
+    dem = rs.write_synthetic_dem(tmp_path / "dem.tif")
+    ramp = rs.write_ramp(images / "a.tif", rs.synthetic_rpc(), *SIZE)
     plain = tmp_path / "plain" / "p.tif"
     plain.parent.mkdir()
     write_raster(plain, np.zeros((8, 8), "float32"), rasterio.Affine.identity(), None)
@@ -167,7 +155,7 @@ def test_a_project_camera_of_type_rpc_points_to_images(tmp_path):
     """A project YAML camera ``model: {type: rpc}``: one line saying how RPC images are given."""
     project = tmp_path / "p.yaml"
     project.write_text("cameras:\n  - {name: qb, model: {type: rpc}}\nphotos: []\n")
-    dem = write_synthetic_dem(tmp_path / "dem.tif")
+    dem = rs.write_synthetic_dem(tmp_path / "dem.tif")
     line = assert_refused(["run", "ortho:batch", "--PROJECT", project, "--DEM", dem, "--FOLDER",
                            tmp_path / "o", "--OUTPUT", tmp_path / "o.json"], "without PROJECT")
     assert "IMAGES" in line
