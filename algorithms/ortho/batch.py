@@ -68,7 +68,8 @@ class OrthoBatch(Algorithm):
     id = "ortho:batch"
     display_name = "Orthophotos of a block"
     group = "Orthophoto"
-    short_help = "Orthorectify every photo of an orientation project on one shared grid."
+    short_help = ("Orthorectify every photo of an orientation project, or satellite images "
+                  "with RPCs, on one shared grid.")
     parameters = [
         project_parameter("orientation project (YAML or another program's file); none for "
                           "satellite images with RPCs (IMAGES)", optional=True),
