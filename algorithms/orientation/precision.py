@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 
 from toolbox.algorithm import Algorithm
-from toolbox.errors import InputDataError
+from toolbox.errors import InputDataError, ParameterError
 from toolbox.feedback import Feedback
 from toolbox.io.crs import common_crs
 from toolbox.parameters import File, Number, Output, OutputFile
@@ -22,10 +22,13 @@ from toolbox.photogrammetry.tables import (
 from toolbox.registry import register
 from toolbox.ui.photogrammetry import dem_parameters
 
-COLUMNS = ["photo_a", "photo_b", "terrain_height_m", "principal_distance_mm", "base_m",
-           "distance_m", "photo_scale", "base_ratio", "sigma_parallax_um", "sigma_image_um",
-           "sigma_x_centre_m", "sigma_y_centre_m", "sigma_x_edge_m", "sigma_y_edge_m",
-           "sigma_z_m", "sigma_xy_table_m", "xi_edge_mm", "eta_edge_mm"]
+COLUMNS = ["photo_a", "photo_b", "method", "terrain_height_m", "principal_distance_mm",
+           "principal_distance_px", "base_m", "distance_m", "photo_scale", "gsd_m", "base_ratio",
+           "sigma_parallax_um", "sigma_image_um", "sigma_pixel_px", "sigma_x_centre_m",
+           "sigma_y_centre_m", "sigma_x_edge_m", "sigma_y_edge_m", "sigma_z_m", "sigma_z_edge_m",
+           "edge_corners", "sigma_xy_table_m", "xi_edge_mm", "eta_edge_mm"]
+NORMAL_CASE = "normal case"
+MODELS = "intersection through the camera models"
 
 
 def pair_precision(c_mm: float, base_m: float, distance_m: float, sigma_parallax_um: float,
@@ -35,12 +38,12 @@ def pair_precision(c_mm: float, base_m: float, distance_m: float, sigma_parallax
     centre = normal_case_precision(c_mm, base_m, distance_m, sigma_parallax_um, sigma_image_um)
     edge = normal_case_precision(c_mm, base_m, distance_m, sigma_parallax_um, sigma_image_um,
                                  xi_edge_mm, eta_edge_mm)
-    return {"principal_distance_mm": c_mm, "base_m": base_m, "distance_m": distance_m,
+    return {"method": NORMAL_CASE, "principal_distance_mm": c_mm, "base_m": base_m, "distance_m": distance_m,
             "photo_scale": centre["photo_scale"], "base_ratio": centre["base_ratio"],
             "sigma_parallax_um": sigma_parallax_um, "sigma_image_um": centre["sigma_image_um"],
             "sigma_x_centre_m": centre["sigma_x_m"], "sigma_y_centre_m": centre["sigma_y_m"],
             "sigma_x_edge_m": edge["sigma_x_m"], "sigma_y_edge_m": edge["sigma_y_m"],
-            "sigma_z_m": centre["sigma_z_m"],
+            "sigma_z_m": centre["sigma_z_m"], "sigma_z_edge_m": edge["sigma_z_m"],
             "sigma_xy_table_m": rules_table_sigma_xy(c_mm, base_m, distance_m, sigma_parallax_um),
             "xi_edge_mm": xi_edge_mm, "eta_edge_mm": eta_edge_mm}
 
@@ -65,6 +68,19 @@ class NormalCasePrecision(Algorithm):
     between the projection centres, Z the mean Z0 minus the terrain height (MEAN_HEIGHT, or the
     DEM at the two nadir points and their midpoint), c the camera's principal distance.
     Without PROJECT, give PRINCIPAL_DISTANCE, BASE and DISTANCE for one configuration.
+
+    Digital cameras given as camera models (pinhole, Brown, OpenCV, fisheye: ``model:`` in the
+    project) have no film plane: their pairs are computed through the models themselves
+    (``method``: intersection through the camera models), the covariance of the least-squares
+    intersection ``σ²·(JᵀJ)⁻¹`` with J the derivatives of both photos' pixels with respect to
+    X, Y, Z (distortion and tilts included) and σ = SIGMA_PIXEL per measured pixel coordinate
+    (the x-parallax then has √2·σ; in the normal case this is the formula above, in pixels).
+    ``centre``: the ground point below the middle of the base, on the terrain height; ``edge``:
+    the worst of the points seen at the left photo's image corners that both photos see
+    (``edge_corners`` of 4). The µm and mm fields are empty; ``principal_distance_px``,
+    ``gsd_m`` (Z/f) and ``sigma_pixel_px`` are filled. A pair of consecutive photos that does
+    not both see the point below the middle of its base is not a stereo pair: skipped with a
+    warning.
     Outputs: a JSON report and optionally a CSV table; PRECISION returns the rows.
     """
 
@@ -87,10 +103,12 @@ class NormalCasePrecision(Algorithm):
                min_exclusive=True),
         Number("SIGMA_IMAGE", "image-coordinate precision σξ = ση, µm (default σp/√2)",
                optional=True, min_value=0),
-        Number("XI", "image x (mm) for the edge estimate (default: half the format width)",
+        Number("SIGMA_PIXEL", "camera models: precision σ of each measured image coordinate, "
+               "pixels", default=0.5, min_value=0, min_exclusive=True),
+        Number("XI", "film: image x (mm) for the edge estimate (default: half the format width)",
                optional=True),
-        Number("ETA", "image y (mm) for the edge estimate (default: half the format height)",
-               optional=True),
+        Number("ETA", "film: image y (mm) for the edge estimate (default: half the format "
+               "height)", optional=True),
         OutputFile("OUTPUT", "JSON report", extensions=[".json"]),
         OutputFile("TABLE", "CSV table, one row per pair", extensions=[".csv"], optional=True),
     ]
@@ -116,6 +134,7 @@ class NormalCasePrecision(Algorithm):
                 params["PRINCIPAL_DISTANCE"], params["BASE"], params["DISTANCE"], sp, si, xi, eta))
         else:
             rows = self._project_rows(params, feedback)
+        rows = [{c: r.get(c) for c in COLUMNS} for r in rows]  # every field, None if it has none
         write_json(params["OUTPUT"], {
             "algorithm": self.id, "method": "normal case, S000 l.605-649 (brief section 7)",
             "units": {"sigma": "m", "base": "m", "distance": "m", "image": "mm",
@@ -158,14 +177,43 @@ class NormalCasePrecision(Algorithm):
             if not distance > 0:
                 raise InputDataError(f"photos {a.id}, {b.id}: the projection centres are not above "
                                      f"the terrain height {ground:.2f}")
+            row = {"photo_a": a.id, "photo_b": b.id, "terrain_height_m": ground}
+            if a.is_model or b.is_model:
+                check_model_pair(a, b, params)
+                try:
+                    rows.append(row | model_row(a, b, ground, params["SIGMA_PIXEL"]))
+                except InputDataError as exc:
+                    feedback.push_warning(f"photos {a.id}, {b.id} skipped: {exc}")
+                continue
             c = (a.camera.c + b.camera.c) / 2
             outline = a.frame_outline_mm(1)
             xi = params["XI"] if params["XI"] is not None else float(np.abs(outline[:, 0]).max())
             eta = params["ETA"] if params["ETA"] is not None else float(np.abs(outline[:, 1]).max())
             base = float(np.linalg.norm(cb - ca))
-            rows.append({"photo_a": a.id, "photo_b": b.id, "terrain_height_m": ground} |
-                        pair_precision(c, base, distance, params["SIGMA_PARALLAX"],
-                                       params["SIGMA_IMAGE"], xi, eta))
+            rows.append(row | pair_precision(c, base, distance, params["SIGMA_PARALLAX"],
+                                             params["SIGMA_IMAGE"], xi, eta))
+        if not rows:
+            raise InputDataError(f"PROJECT {params['PROJECT']}: no pair of consecutive photos is "
+                                 "a stereo pair (each skipped: see the warnings)")
         if not all(math.isfinite(r["sigma_z_m"]) for r in rows):
             raise InputDataError("a pair gave a non-finite precision (check the orientations)")
         return rows
+
+
+def check_model_pair(a: Any, b: Any, params: dict[str, Any]) -> None:
+    """Refuse a pair of a film and a model camera, and XI/ETA (film mm) with model cameras."""
+    if not (a.is_model and b.is_model):
+        film = b if a.is_model else a
+        raise InputDataError(f"photos {a.id}, {b.id}: photo {film.id} has a film camera, the "
+                             "other a camera model: a pair is evaluated with one kind of camera")
+    for name in ("XI", "ETA"):
+        if params[name] is not None:
+            raise ParameterError(name, f"is in film mm: photos {a.id}, {b.id} have camera "
+                                 "models, whose edge is their image corners")
+
+
+def model_row(a: Any, b: Any, ground: float, sigma_px: float) -> dict[str, Any]:
+    """The precision of a pair of camera-model photos (the class docstring)."""
+    from toolbox.photogrammetry.pair_precision import model_pair_precision
+
+    return {"method": MODELS} | model_pair_precision(a.sensor(), b.sensor(), ground, sigma_px)

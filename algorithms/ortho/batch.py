@@ -10,6 +10,7 @@ from toolbox.errors import InputDataError, ParameterError
 from toolbox.feedback import Feedback
 from toolbox.parameters import (
     Boolean,
+    Crs,
     Integer,
     Number,
     Output,
@@ -20,7 +21,12 @@ from toolbox.parameters import (
 )
 from toolbox.registry import register
 from toolbox.ui.execution import scheduler_parameter
-from toolbox.ui.photogrammetry import dem_parameters, ortho_method_parameters, project_parameter
+from toolbox.ui.photogrammetry import (
+    dem_parameters,
+    ortho_method_parameters,
+    project_parameter,
+    rpc_gcp_parameters,
+)
 
 
 @register
@@ -39,6 +45,15 @@ class OrthoBatch(Algorithm):
     HEIGHTS: the orientations' height datum, as in ortho:photo (the DEM converted once when its
     vertical datum differs; STATISTICS ``heights`` says what was done).
 
+    Satellite images with RPCs (GDAL's: GeoTIFF RPC tags, ``.RPB``, ``_RPC.TXT``): no PROJECT,
+    IMAGES a folder of them (files without RPCs are skipped with a warning) or a comma-separated
+    list (each must carry RPCs). Each image is orthorectified as ortho:photo does an RPC image
+    (every cell projected exactly by the RPCs on the DEM's heights, ellipsoidal unless HEIGHTS
+    says otherwise), its id the file stem, in CRS (default: the DEM's); CONTROL and
+    MEASUREMENTS (``photo`` = the image's file name or stem) refine each image's RPC bias
+    (BIAS), and an image without a GCP measured on it fails (the others still finish). The
+    default cell is the largest GSD among the images.
+
     Photos run in parallel on local threads (WORKERS) or on a Dask cluster (SCHEDULER or
     DASK_SCHEDULER_ADDRESS), with one progress bar. A photo that fails (missing image, camera
     looking away, no DEM under it...) is reported and the others still finish. The orthos are
@@ -53,13 +68,17 @@ class OrthoBatch(Algorithm):
     id = "ortho:batch"
     display_name = "Orthophotos of a block"
     group = "Orthophoto"
-    short_help = "Orthorectify every photo of an orientation project on one shared grid."
+    short_help = ("Orthorectify every photo of an orientation project, or satellite images "
+                  "with RPCs, on one shared grid.")
     parameters = [
-        project_parameter(),
+        project_parameter("orientation project (YAML or another program's file); none for "
+                          "satellite images with RPCs (IMAGES)", optional=True),
         String("PHOTOS", "photo ids, comma separated (default: every oriented photo)",
                optional=True),
-        String("IMAGES", "folder of the image files (default: the project's paths)",
+        String("IMAGES", "folder of the image files (default: the project's paths); without "
+               "PROJECT: satellite images with RPCs, a folder or a comma-separated list",
                optional=True),
+        Crs("CRS", "RPC images: the orthos' CRS (default: the DEM's)", optional=True),
         *dem_parameters("terrain heights, any CRS"),
         String("HEIGHTS", "height datum of the orientations: 'ellipsoidal' or a vertical CRS "
                "(EPSG:3855...); default the project CRS's vertical part", optional=True),
@@ -73,6 +92,7 @@ class OrthoBatch(Algorithm):
         Boolean("OVERVIEWS", "build internal overviews", default=True),
         Number("MAP_SCALE", "map scale denominator for the expected accuracy", optional=True,
                min_value=1),
+        *rpc_gcp_parameters(),
         scheduler_parameter("the photos"),
         Integer("WORKERS", "photos in parallel on local threads", default=2, min_value=1),
         OutputFolder("FOLDER", "folder of the orthos <photo id>.tif (created if missing)"),
@@ -81,22 +101,50 @@ class OrthoBatch(Algorithm):
     ]
     outputs = [Output("STATISTICS", "photos done and failed, cell size", "dict")]
 
+    def check(self, params: dict[str, Any]) -> None:
+        if params["PROJECT"] is None:
+            if params["IMAGES"] is None:
+                raise self.fail("PROJECT", "give PROJECT, or IMAGES with satellite images that "
+                                "carry RPCs (a folder or a comma-separated list)")
+            for name in ("OCCLUSION", "MAP_SCALE"):
+                if params[name]:
+                    raise self.fail(name, "does not apply to RPC images")
+            if (params["CONTROL"] is None) != (params["MEASUREMENTS"] is None):
+                raise self.fail("CONTROL", "and MEASUREMENTS go together (the GCPs of the RPC "
+                                "images)")
+            return
+        for name in ("CRS", "CONTROL", "MEASUREMENTS"):
+            if params[name] is not None:
+                raise self.fail(name, "applies to RPC images only (IMAGES without PROJECT); a "
+                                "project's orthos are in its CRS")
+
     def planned_files(self, params: dict[str, Any]) -> dict[str, list[str]]:
-        photos = select_photos(load_batch_project(params), params["PHOTOS"])
         folder = Path(params["FOLDER"]).expanduser().resolve()
-        for photo in photos:  # IMAGES' files are inputs the runner cannot see (a folder name)
-            if photo.image is not None and params["IMAGES"] is not None:
-                image = image_path(photo, params["IMAGES"]).expanduser()
-                if image.exists() and image.resolve().parent == folder and \
-                        image.name in {f"{p.id}.tif" for p in photos}:
-                    raise self.fail("FOLDER", f"would write the ortho '{folder / image.name}' "
-                                    f"over the photo IMAGES holds under that name; an input is "
-                                    "never overwritten: choose another folder")
-        return {"FOLDER": [f"{photo.id}.tif" for photo in photos]}
+        if params["PROJECT"] is None:
+            from toolbox.ortho.rpc_block import rpc_images, select_rpc_images
+
+            images = select_rpc_images(rpc_images(params["IMAGES"])[0], params["PHOTOS"])
+            pairs = [(i.id, i.path) for i in images]
+        else:  # IMAGES' files are inputs the runner cannot see (a folder name)
+            photos = select_photos(load_batch_project(params), params["PHOTOS"])
+            pairs = [(p.id, image_path(p, params["IMAGES"]) if p.image is not None and
+                      params["IMAGES"] is not None else None) for p in photos]
+        names = {f"{pid}.tif" for pid, _ in pairs}
+        for _, image in pairs:
+            if image is None:
+                continue
+            image = image.expanduser()
+            if image.exists() and image.resolve().parent == folder and image.name in names:
+                raise self.fail("FOLDER", f"would write the ortho '{folder / image.name}' "
+                                f"over the photo IMAGES holds under that name; an input is "
+                                "never overwritten: choose another folder")
+        return {"FOLDER": [f"{pid}.tif" for pid, _ in pairs]}
 
     def process(self, params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
         from toolbox.io.crs import crs_label
 
+        if params["PROJECT"] is None:
+            return rpc_batch(self.id, params, feedback)
         project = load_batch_project(params, last=True)
         crs = project.crs
         if crs is None and params["DEM"].crs is not None:  # else the orthos would have no CRS
@@ -115,37 +163,30 @@ class OrthoBatch(Algorithm):
         from toolbox.executor import map_tiles, resolve_executor
         from toolbox.io.crs import crs_label
         from toolbox.io.raster import open_raster_info
-        from toolbox.io.staging import final_path
         from toolbox.ortho.block import OrthoTask, run_task
         from toolbox.ortho.metrics import nice_cell_size
         from toolbox.ortho.plan import check_geometry, lattice_grid, plan_photo, tilt_warning
         from toolbox.ortho.run import OrthoOptions
-        from toolbox.photogrammetry.tables import write_json
         from toolbox.raster.grid_request import template_lattice
 
         executor = resolve_executor(params["SCHEDULER"], params["WORKERS"])
         photos = select_photos(project, params["PHOTOS"])
         failed: list[dict[str, Any]] = []
-        plans = []
         origin = (0.0, 0.0)
         cell = params["CELL_SIZE"]
         template = params["TEMPLATE"]
         if template is not None:
             cell, origin = template_lattice(template, cell, crs, "the project")
-        for photo in feedback.iterate(photos, start=0, end=10):
-            try:
-                image = open_raster_info(image_path(photo, params["IMAGES"]), "IMAGES")
-                check_geometry(photo)
-                warning = tilt_warning(photo)
-                if warning:
-                    feedback.push_warning(warning)
-                plans.append((plan_photo(photo, dem, crs, band), image))
-            except (InputDataError, ParameterError) as exc:
-                failed.append({"photo": photo.id, "error": str(exc)})
-                feedback.push_warning(f"photo {photo.id} failed: {exc}")
-        if not plans:
-            raise InputDataError("no photo could be orthorectified: " +
-                                 "; ".join(f"{f['photo']}: {f['error']}" for f in failed))
+
+        def plan(photo: Any) -> tuple[Any, Any]:
+            image = open_raster_info(image_path(photo, params["IMAGES"]), "IMAGES")
+            check_geometry(photo)
+            warning = tilt_warning(photo)
+            if warning:
+                feedback.push_warning(warning)
+            return plan_photo(photo, dem, crs, band), image
+
+        plans = plan_each(photos, plan, failed, feedback)
         if cell is None:
             cell = max(nice_cell_size(plan.gsd) for plan, _ in plans)
         options = OrthoOptions(
@@ -158,24 +199,115 @@ class OrthoBatch(Algorithm):
                            lattice_grid(on_heights(plan.extent, plan.surface), cell, crs, origin),
                            folder / f"{plan.photo.id}.tif", options, plan.mean_height,
                            params["MAP_SCALE"]) for plan, image in plans]
-        reports = []
-        for result in map_tiles(run_task, tasks, executor=executor, feedback=feedback,
-                                total=len(tasks), start=10, end=100):
-            if "error" in result:
-                failed.append(result)
-                feedback.push_warning(f"photo {result['photo']} failed: {result['error']}")
-            else:
-                result["output"] = str(final_path(result["output"]))
-                reports.append(result)
-                for text in result.pop("warnings", []):
-                    feedback.push_warning(text)
+        reports = collect(map_tiles(run_task, tasks, executor=executor, feedback=feedback,
+                                    total=len(tasks), start=10, end=100), failed, feedback)
         stats = {"photos": len(photos), "done": len(reports), "failed": len(failed),
                  "cell_size": cell, "crs": crs_label(crs), "executor": executor.describe(),
                  "heights": heights.as_dict()}
-        write_json(params["OUTPUT"], {"algorithm": self.id, "orthos": [r["output"]
-                                                                      for r in reports],
-                                      "photos": reports, "failed": failed, "statistics": stats})
-        return {"OUTPUT": params["OUTPUT"], "STATISTICS": stats}
+        return write_listing(self.id, params["OUTPUT"], reports, failed, stats)
+
+
+def plan_each(items: list[Any], plan: Any, failed: list[dict[str, Any]], feedback: Feedback
+              ) -> list[Any]:
+    """``plan(item)`` of every photo or image (progress 0-10 %); one whose plan raises a user
+    error is appended to ``failed`` and reported, the others go on; none planned: an error."""
+    plans = []
+    for item in feedback.iterate(items, start=0, end=10):
+        try:
+            plans.append(plan(item))
+        except (InputDataError, ParameterError) as exc:
+            failed.append({"photo": item.id, "error": str(exc)})
+            feedback.push_warning(f"photo {item.id} failed: {exc}")
+    if not plans:
+        raise InputDataError("no photo could be orthorectified: " +
+                             "; ".join(f"{f['photo']}: {f['error']}" for f in failed))
+    return plans
+
+
+def collect(results: Any, failed: list[dict[str, Any]], feedback: Feedback
+            ) -> list[dict[str, Any]]:
+    """The reports of the photos done (their warnings pushed); failures appended to ``failed``."""
+    from toolbox.io.staging import final_path
+
+    reports = []
+    for result in results:
+        if "error" in result:
+            failed.append(result)
+            feedback.push_warning(f"photo {result['photo']} failed: {result['error']}")
+        else:
+            result["output"] = str(final_path(result["output"]))
+            reports.append(result)
+            for text in result.pop("warnings", []):
+                feedback.push_warning(text)
+    return reports
+
+
+def rpc_batch(algorithm_id: str, params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
+    """ortho:batch of satellite images with RPCs (IMAGES without PROJECT; the class docstring):
+    each image planned (camera in CRS, GCP bias, GSD), the cell the largest GSD (or CELL_SIZE,
+    TEMPLATE), every ortho on the shared lattice."""
+    from toolbox.executor import map_tiles, resolve_executor
+    from toolbox.io.crs import crs_label
+    from toolbox.ortho.metrics import nice_cell_size
+    from toolbox.ortho.rpc import rpc_crs, rpc_plan
+    from toolbox.ortho.rpc_block import (
+        RpcTask,
+        plan_rpc_image,
+        rpc_images,
+        run_rpc_task,
+        select_rpc_images,
+    )
+    from toolbox.ortho.run import OrthoOptions
+    from toolbox.ortho.vertical import dem_in_photo_datum
+    from toolbox.raster.grid_request import template_lattice
+    from toolbox.ui.photogrammetry import rpc_gcps
+
+    everything, skipped = rpc_images(params["IMAGES"])
+    for name in skipped:
+        feedback.push_warning(f"IMAGES: {name} has no RPCs and is skipped")
+    images = select_rpc_images(everything, params["PHOTOS"])
+    executor = resolve_executor(params["SCHEDULER"], params["WORKERS"])
+    crs = rpc_crs(params["CRS"], params["DEM"])
+    gcps = None if params["CONTROL"] is None else rpc_gcps(params)
+    cell, origin = params["CELL_SIZE"], (0.0, 0.0)
+    if params["TEMPLATE"] is not None:
+        cell, origin = template_lattice(params["TEMPLATE"], cell, crs, "the orthos")
+    failed: list[dict[str, Any]] = []
+    with dem_in_photo_datum(params["DEM"], params["BAND"], params["HEIGHTS"] or "ellipsoidal",
+                            None, feedback) as (dem, band, heights):
+        plans = plan_each(images, lambda image: plan_rpc_image(
+            image, crs, dem, band, gcps, params["BIAS"], single=len(everything) == 1), failed,
+            feedback)
+        if cell is None:
+            cell = max(nice_cell_size(plan.gsd) for plan in plans)
+        options = OrthoOptions(
+            resampling=params["RESAMPLING"], outside=params["OUTSIDE"], nodata=params["NODATA"],
+            dem_factor=params["DEM_FACTOR"], band=band, overviews=params["OVERVIEWS"],
+            cog=params["COG"])
+        folder = Path(params["FOLDER"])  # staged by the runner: moved into place on success
+        tasks = [RpcTask(plan.image.id, plan.camera, plan.info, dem,
+                         rpc_plan(plan.camera, dem, band, cell, None, origin)[0],
+                         folder / f"{plan.image.id}.tif", options) for plan in plans]
+        reports = collect(map_tiles(run_rpc_task, tasks, executor=executor, feedback=feedback,
+                                    total=len(tasks), start=10, end=100), failed, feedback)
+    by_id = {plan.image.id: plan for plan in plans}
+    for report in reports:
+        report.update(photo_gsd_m=by_id[report["photo"]].gsd, bias=by_id[report["photo"]].bias)
+    stats = {"photos": len(images), "done": len(reports), "failed": len(failed),
+             "skipped": skipped, "cell_size": cell, "crs": crs_label(crs), "camera": "rpc",
+             "executor": executor.describe(), "heights": heights.as_dict()}
+    return write_listing(algorithm_id, params["OUTPUT"], reports, failed, stats)
+
+
+def write_listing(algorithm_id: str, output: Any, reports: list[dict[str, Any]],
+                  failed: list[dict[str, Any]], stats: dict[str, Any]) -> dict[str, Any]:
+    """OUTPUT (JSON: the orthos, the per-photo reports, the failures, the statistics) written;
+    the algorithm's outputs."""
+    from toolbox.photogrammetry.tables import write_json
+
+    write_json(output, {"algorithm": algorithm_id, "orthos": [r["output"] for r in reports],
+                        "photos": reports, "failed": failed, "statistics": stats})
+    return {"OUTPUT": output, "STATISTICS": stats}
 
 
 def on_heights(extent: tuple[float, float, float, float], surface: Any

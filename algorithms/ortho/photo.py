@@ -23,10 +23,10 @@ from toolbox.parameters import (
 )
 from toolbox.registry import register
 from toolbox.ui.photogrammetry import (
-    TABLE_EXTENSIONS,
     dem_parameters,
     ortho_method_parameters,
     project_parameter,
+    rpc_gcp_parameters,
 )
 
 
@@ -129,13 +129,7 @@ class OrthoPhoto(Algorithm):
         Boolean("OVERVIEWS", "build internal overviews", default=True),
         Number("MAP_SCALE", "map scale denominator for the expected accuracy (e.g. 5000)",
                optional=True, min_value=1),
-        File("CONTROL", "RPC image: ground control points (id, X, Y, Z in CRS, heights in "
-             "the RPCs' datum) for the bias refinement", extensions=TABLE_EXTENSIONS,
-             optional=True),
-        File("MEASUREMENTS", "RPC image: the GCPs measured on it (point_id, photo, col_px, "
-             "row_px)", extensions=TABLE_EXTENSIONS, optional=True),
-        Enum("BIAS", "RPC bias refinement from the GCPs: auto (affine from 4 GCPs, else "
-             "shift), shift, affine", options=("auto", "shift", "affine"), default="auto"),
+        *rpc_gcp_parameters(),
         OutputRaster("OUTPUT", "orthophoto GeoTIFF"),
         OutputRaster("OCCLUSION_MASK", "occlusion mask (needs OCCLUSION)", optional=True),
         OutputRaster("INCIDENCE", "incidence angle raster, degrees", optional=True),
@@ -228,22 +222,20 @@ def rpc_ortho(params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
     the DEM's), the optional GCP bias refinement, the DEM in the RPCs' ellipsoidal heights
     (or HEIGHTS)."""
 
-    from toolbox.cameras import read_rpc, refine_bias
-    from toolbox.ortho.rpc import gcp_pairs, rpc_crs, rpc_orthorectify, rpc_plan
+    from toolbox.cameras import read_rpc
+    from toolbox.ortho.rpc import rpc_crs, rpc_orthorectify, rpc_plan
+    from toolbox.ortho.rpc_block import refine_from_gcps
     from toolbox.ortho.run import OrthoOptions
     from toolbox.ortho.vertical import dem_in_photo_datum
-    from toolbox.photogrammetry.tables import ground_points, image_measurements
+    from toolbox.ui.photogrammetry import rpc_gcps
 
     image = params["INPUT"]
     crs = rpc_crs(params["CRS"], params["DEM"])
     camera = read_rpc(image.path, crs)
     bias = None
     if params["CONTROL"] is not None:
-        ids, ground, pixels = gcp_pairs(Path(image.path).name, image_measurements(
-            params["MEASUREMENTS"], None, "pixel", "MEASUREMENTS"), ground_points(
-            params["CONTROL"]))
-        camera, bias = refine_bias(camera, ground, pixels, params["BIAS"])
-        bias["points"] = ids
+        camera, bias = refine_from_gcps(camera, Path(image.path).name, *rpc_gcps(params),
+                                        params["BIAS"])
         feedback.push_info(f"RPC {bias['model']} bias from {bias['gcps']} GCPs: RMS "
                            f"{bias['rms_before_px']:.3f} -> {bias['rms_after_px']:.3f} px")
     with dem_in_photo_datum(params["DEM"], params["BAND"], params["HEIGHTS"] or "ellipsoidal",

@@ -120,3 +120,29 @@ def test_documented_commands_write_new_names(demo_run):
     taken = [path for path in outputs if path.startswith("demo_out/")
              and (demo_out / path.removeprefix("demo_out/")).exists()]
     assert not taken, taken
+
+
+def orthority_examples() -> list[str]:
+    """The README's inline commands (in backticks, possibly wrapped) run on Orthority's test
+    data: those naming its ``rpc/``, ``ngi/`` or ``odm/`` folders (or ``--IMAGES rpc``)."""
+    text = re.sub(r"\n\s*", " ", (ROOT / "README.md").read_text())
+    commands = re.findall(r"`(toolbox run [^`]+)`", text)
+    return [c for c in commands if re.search(r"(?:^|\s)(?:rpc|ngi|odm)(?:/|\s|$)", c)]
+
+
+def test_readme_orthority_examples_run(orthority_data, tmp_path, monkeypatch):
+    """Pasted in a folder holding Orthority's ``tests/data`` folders (linked here), the README's
+    commands on that data run and write their outputs."""
+    examples = orthority_examples()
+    assert any("ortho:batch --IMAGES rpc" in c for c in examples)
+    assert any("orientation:precision" in c for c in examples)
+    for name in ("rpc", "ngi", "odm"):
+        (tmp_path / name).symlink_to(orthority_data / name)
+    monkeypatch.chdir(tmp_path)
+    runner = CliRunner()
+    for command in examples:
+        args = shlex.split(COMMAND.sub(r"\1", command))
+        result = runner.invoke(main, args, catch_exceptions=True)
+        assert result.exit_code == 0, (command, result.output[-400:])
+        written = [args[k + 1] for k, a in enumerate(args) if a in ("--OUTPUT", "--FOLDER")]
+        assert written and all((tmp_path / w).exists() for w in written), command

@@ -177,11 +177,12 @@ def rpc_crs(crs: Any, dem: Any) -> Any:
     raise InputDataError("an RPC ortho needs CRS (the DEM's CRS is not projected)")
 
 
-def gcp_pairs(image_id: str, measurements: tuple, control: tuple
+def gcp_pairs(image_id: str, measurements: tuple, control: tuple, single: bool = True
               ) -> tuple[list[str], np.ndarray, np.ndarray]:
     """Ids, ground (n, 3) and pixels (n, 2) of the control points measured on ``image_id``
-    (rows whose ``photo`` is the image's file name or stem; every row when the table names a
-    single photo). ``measurements``: :func:`~toolbox.photogrammetry.tables.image_measurements`
+    (rows whose ``photo`` is the image's file name or stem; with ``single``, every row when the
+    table names a single photo: one image's GCPs). ``measurements``:
+    :func:`~toolbox.photogrammetry.tables.image_measurements`
     in pixels; ``control``: :func:`~toolbox.photogrammetry.tables.ground_points`."""
     ids, photos, xy, kind = measurements
     if kind != "pixel":
@@ -189,7 +190,7 @@ def gcp_pairs(image_id: str, measurements: tuple, control: tuple
                              "(col_px, row_px), not image mm")
     names = {image_id, image_id.rsplit(".", 1)[0]}
     rows = [k for k, p in enumerate(photos) if p in names]
-    if not rows and len(set(photos)) == 1:
+    if not rows and single and len(set(photos)) == 1:
         rows = list(range(len(photos)))
     known = dict(zip(control[0], control[1], strict=True))
     pairs = [(ids[k], known[ids[k]], xy[k]) for k in rows

@@ -153,7 +153,13 @@ def _camera(spec: Any, where: str) -> Camera | Intrinsics:
         if film:
             raise InputDataError(f"{where} camera {spec['name']!r}: give either 'model' or the "
                                  f"film camera's fields, not both (also: {', '.join(film)})")
-        return create_intrinsics(spec["model"], str(spec["name"]))
+        model = spec["model"]
+        if isinstance(model, Mapping) and str(model.get("type", "")).lower() == "rpc":
+            raise InputDataError(f"{where} camera {spec['name']!r}: an rpc camera takes no "
+                                 "project (the RPCs come with each image): give the images to "
+                                 "ortho:batch as IMAGES (a folder or a list) without PROJECT, "
+                                 "or one to ortho:photo as INPUT")
+        return create_intrinsics(model, str(spec["name"]))
     if not isinstance(spec, Mapping) or "name" not in spec or "principal_distance_mm" not in spec:
         raise InputDataError(f"{where}: a camera needs at least 'name' and "
                              f"'principal_distance_mm' (or 'model'), got {spec!r}")

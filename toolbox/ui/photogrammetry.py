@@ -83,6 +83,30 @@ def ortho_method_parameters() -> list[Parameter]:
     ]
 
 
+def rpc_gcp_parameters() -> list[Parameter]:
+    """CONTROL, MEASUREMENTS and BIAS: the GCP bias refinement of RPC images (ortho:photo,
+    ortho:batch)."""
+    return [
+        File("CONTROL", "RPC images: ground control points (id, X, Y, Z in CRS, heights in "
+             "the RPCs' datum) for the bias refinement", extensions=TABLE_EXTENSIONS,
+             optional=True),
+        File("MEASUREMENTS", "RPC images: the GCPs measured on them (point_id, photo = the "
+             "image's file name or stem, col_px, row_px)", extensions=TABLE_EXTENSIONS,
+             optional=True),
+        Enum("BIAS", "RPC bias refinement from the GCPs: auto (affine from 4 GCPs, else "
+             "shift), shift, affine", options=("auto", "shift", "affine"), default="auto"),
+    ]
+
+
+def rpc_gcps(params: Mapping[str, Any]) -> tuple[tuple, tuple]:
+    """MEASUREMENTS (pixels) and CONTROL of :func:`rpc_gcp_parameters`, read for
+    :func:`toolbox.ortho.rpc_block.refine_from_gcps`."""
+    from toolbox.photogrammetry.tables import ground_points, image_measurements
+
+    return (image_measurements(params["MEASUREMENTS"], None, "pixel", "MEASUREMENTS"),
+            ground_points(params["CONTROL"]))
+
+
 def measured_inputs(params: Mapping[str, Any], control: bool = False) -> tuple:
     """``(project, measurements, control points)`` read from PROJECT, INPUT (LAYER,
     COORDINATES) and, with ``control``, CONTROL (else None)."""

@@ -68,3 +68,14 @@ def make_scene(folder: Path, bands: int = 1) -> Scene:
     dem_path = write_dem(folder / "dem.tif", z, transform)
     project = project_yaml(folder / "project.yaml", "p1.tif")
     return Scene(folder, dem_path, photo_path, project, z, transform, photo, texture)
+
+
+def assert_on_lattice(path: Path, cell: float) -> None:
+    """The raster at ``path`` has square ``cell`` cells and edges on multiples of the cell."""
+    import rasterio
+
+    with rasterio.open(path) as src:
+        t = src.transform
+    assert (t.a, -t.e) == (cell, cell)
+    assert abs(t.c / cell - round(t.c / cell)) < 1e-6
+    assert abs(t.f / cell - round(t.f / cell)) < 1e-6
