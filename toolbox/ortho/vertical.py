@@ -50,6 +50,12 @@ def vertical_part(crs: Any) -> Any:
     return None
 
 
+def is_ellipsoidal(vertical: Any) -> bool:
+    """Whether :func:`vertical_part`'s answer is :data:`ELLIPSOIDAL` (a pyproj CRS compared
+    with a string parses it as a CRS: a PROJ database search of 0.2-0.4 s CPU, for False)."""
+    return isinstance(vertical, str) and vertical == ELLIPSOIDAL
+
+
 def horizontal_part(crs: Any) -> Any:
     from toolbox.io.crs import parse_crs
 
@@ -81,7 +87,7 @@ def parse_heights(value: Any, name: str = "HEIGHTS") -> Any:
 def datum_label(vertical: Any) -> str:
     if vertical is None:
         return "not stated"
-    if vertical == ELLIPSOIDAL:
+    if is_ellipsoidal(vertical):
         return "ellipsoidal heights"
     from toolbox.io.crs import crs_label
 
@@ -198,13 +204,13 @@ def dem_for_photos(info: Any, photos_vertical: Any, folder: Path, band: int = 1
     horizontal = horizontal_part(info.crs)
 
     def with_datum(vertical: Any) -> Any:
-        if vertical == ELLIPSOIDAL:
+        if is_ellipsoidal(vertical):
             return horizontal.to_3d()
         return CompoundCRS(f"{horizontal.name} + {vertical.name}", [horizontal, vertical])
 
     transformer = height_transformer(with_datum(dem_vertical), with_datum(photos_vertical),
                                      dem_label, photos_label)
-    out_crs = horizontal if photos_vertical == ELLIPSOIDAL else with_datum(photos_vertical)
+    out_crs = horizontal if is_ellipsoidal(photos_vertical) else with_datum(photos_vertical)
     path = Path(folder) / "dem_heights.tif"
     low, high = _convert(info, band, transformer, path, CRS.from_user_input(out_crs))
     from toolbox.io.raster import open_raster_info
