@@ -14,7 +14,6 @@ from __future__ import annotations
 import marshal
 import os
 import sys
-from pathlib import Path
 
 from toolbox.version import __version__
 
@@ -24,19 +23,19 @@ OWN_PACKAGES = ("toolbox", "algorithms")
 INSTALL_FOLDERS = ("site-packages", "dist-packages")
 
 
-def index_path() -> Path:
+def index_path() -> str:
     """``<user cache>/specs-<version>-<python tag>-<environment>.marshal``: one file per
     environment (two virtual environments sharing the user's cache folder would otherwise
     overwrite each other's index at every call)."""
     import zlib
 
-    from toolbox.cache import user_cache_dir
+    from toolbox.cache import user_cache_path
 
     env = f"{zlib.crc32(sys.prefix.encode()):08x}"
-    return user_cache_dir(f"specs-{__version__}-{sys.implementation.cache_tag}-{env}.marshal")
+    return user_cache_path(f"specs-{__version__}-{sys.implementation.cache_tag}-{env}.marshal")
 
 
-def sources_stamp(folder: str | Path) -> tuple:
+def sources_stamp(folder: str | os.PathLike) -> tuple:
     """``((relative path, mtime ns, size), ...)`` of every ``.py`` file under ``folder``, sorted
     (``__pycache__`` left out)."""
     stamp: list[tuple[str, int, int]] = []
@@ -52,24 +51,26 @@ def sources_stamp(folder: str | Path) -> tuple:
                 st = entry.stat()
                 stamp.append((rel + entry.name, st.st_mtime_ns, st.st_size))
 
-    walk(str(folder), "")
+    walk(os.fspath(folder), "")
     return tuple(stamp)
 
 
 def _origin(package: str) -> str | None:
-    """Where ``package`` would be imported from (its ``__init__.py``), without importing it."""
-    module = sys.modules.get(package)
-    spec = getattr(module, "__spec__", None) if module is not None else None
-    if spec is None:
-        import importlib.util
-
-        spec = importlib.util.find_spec(package)
-    return spec.origin if spec is not None else None
+    """Where ``package`` would be imported from (its ``__init__.py``), without importing it:
+    ``importlib.util.find_spec`` for a top-level name, without importing ``importlib.util``
+    (with ``functools`` and ``collections``, a tenth of a quick ``toolbox help``)."""
+    spec = getattr(sys.modules.get(package), "__spec__", None)
+    for finder in sys.meta_path if spec is None else ():
+        find = getattr(finder, "find_spec", None)
+        spec = find(package, None) if find is not None else None
+        if spec is not None:
+            break
+    return getattr(spec, "origin", None)
 
 
 def _installed(origin: str) -> bool:
     """A package inside ``site-packages`` (a ``pip install .``), not a source tree."""
-    return Path(origin).parent.parent.name in INSTALL_FOLDERS
+    return os.path.basename(os.path.dirname(os.path.dirname(origin))) in INSTALL_FOLDERS
 
 
 def quick_key() -> tuple:
@@ -99,12 +100,12 @@ def quick_key() -> tuple:
     return tuple(parts)
 
 
-def read_index(path: Path, key: object, field: str = "key") -> dict[str, object] | None:
+def read_index(path: str | os.PathLike, key: object, field: str = "key") -> dict[str, object] | None:
     """The cached ``{"specs": {id: spec}, "aliases": {old: new}}`` if the file's ``field``
     (``"key"`` or ``"quick"``) equals ``key``, else None (missing, stale or unreadable)."""
     try:
         with open(path, "rb") as file:
-            data = marshal.load(file)
+            data = marshal.loads(file.read())  # marshal.load(file) reads object by object
     except (OSError, ValueError, EOFError, TypeError):
         return None
     if not isinstance(data, dict) or data.get(field) != key or "specs" not in data:
@@ -117,7 +118,7 @@ def fresh_index() -> dict[str, object] | None:
     return read_index(index_path(), quick_key(), field="quick")
 
 
-def write_index(path: Path, key: object, specs: dict[str, dict], aliases: dict[str, str],
+def write_index(path: str | os.PathLike, key: object, specs: dict[str, dict], aliases: dict[str, str],
                 quick: object = None) -> bool:
     """Write the index atomically; False when the cache folder cannot be written (it only costs
     speed). ``specs`` must hold JSON values only (the index serves ``help --json``)."""
@@ -126,7 +127,7 @@ def write_index(path: Path, key: object, specs: dict[str, dict], aliases: dict[s
 
     data = {"key": key, "quick": quick, "specs": specs, "aliases": aliases}
     try:
-        path.parent.mkdir(parents=True, exist_ok=True)
+        os.makedirs(os.path.dirname(path), exist_ok=True)
         with atomic_path(path, "spec index") as staged:
             staged.write_bytes(marshal.dumps(data))
     except (OSError, OutputWriteError):

@@ -4,10 +4,10 @@
 
 from __future__ import annotations
 
-import json
-import textwrap
-
 from toolbox.version import __version__
+
+# json and textwrap are imported where used: both import ``re``, which ``toolbox list`` does
+# not need
 
 LIST_FIELDS = ("id", "display_name", "group", "short_help")
 
@@ -28,11 +28,15 @@ def format_list(specs: list[dict]) -> str:
 
 def format_list_json(specs: list[dict]) -> str:
     """``toolbox list --json``: id, display name, group and short help of every algorithm."""
+    import json
+
     return json.dumps([{k: s[k] for k in LIST_FIELDS} for s in specs], indent=2)
 
 
 def format_help_json(spec: dict) -> str:
     """``toolbox help ID --json``: the spec as indented JSON."""
+    import json
+
     return json.dumps(spec, indent=2)
 
 
@@ -43,11 +47,16 @@ def format_help_all(specs: list[dict]) -> str:
 
 def format_help_all_json(specs: list[dict]) -> str:
     """``toolbox help --all --json``: ``{toolbox_version, algorithms: [spec, ...]}``."""
+    import json
+
     return json.dumps({"toolbox_version": __version__, "algorithms": specs}, indent=2)
+
 
 def format_help(alg) -> str:
     """Plain-text help of an algorithm, generated from its spec (an :class:`Algorithm` class or
     the dict of :meth:`Algorithm.spec`)."""
+    import textwrap
+
     spec = alg if isinstance(alg, dict) else alg.spec()
     lines = [f"{spec['id']}  -  {spec['display_name']}  [{spec['group']}]", ""]
     for par in spec["help"].split("\n\n"):
