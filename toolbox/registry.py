@@ -29,6 +29,7 @@ from urllib.parse import urlparse
 from toolbox.errors import AlgorithmNotFoundError, ToolboxError
 from toolbox.spec_cache import (
     OWN_PACKAGES,
+    fresh_index,
     index_path,
     quick_key,
     read_index,
@@ -139,11 +140,15 @@ def check_own_package(name: str) -> Path:
     """The folder of package ``name`` (``toolbox`` or ``algorithms``) after checking that it belongs
     to the photogrammetry-toolbox distribution; :class:`ForeignPackageError` otherwise.
 
-    Found without importing the package, so a foreign one never runs.
+    Found without importing the package, so a foreign one never runs. The package metadata is
+    not read again (about a tenth of a small ``toolbox run``) while the spec index is fresh: it
+    was written after this check passed, and its key changes with the packages' origins and
+    whenever a distribution is installed or removed (:func:`toolbox.spec_cache.quick_key`).
     """
     spec = importlib.util.find_spec(name)
     init_file = Path(spec.origin).resolve() if spec is not None and spec.origin else None
-    if init_file is None or not _belongs_to_distribution(name, init_file):
+    if init_file is None or not (fresh_index() is not None
+                                 or _belongs_to_distribution(name, init_file)):
         where = init_file.parent if init_file is not None else "nowhere (a namespace package)"
         raise ForeignPackageError(
             f"the '{name}' package found at {where} is not part of {DISTRIBUTION} (another "

@@ -110,6 +110,9 @@ def test_foreign_algorithms_package_is_refused_before_it_runs(tmp_path):
     foreign.mkdir(parents=True)
     marker = tmp_path / "foreign_code_ran"
     (foreign / "__init__.py").write_text(f"open({str(marker)!r}, 'w').close()\n")
+    subprocess.run([sys.executable, "-m", "toolbox.cli", "list"], capture_output=True, check=True,
+                   cwd=tmp_path, env=os.environ | {"XDG_CACHE_HOME": str(tmp_path / "cache")})
+    # a fresh spec index of the environment without the foreign package: not trusted for it
     proc = subprocess.run([sys.executable, "-m", "toolbox.cli", "run", "vector:info"],
                           capture_output=True, text=True, cwd=tmp_path, timeout=300,
                           env=os.environ | {"PYTHONPATH": str(tmp_path / "foreign"),
