@@ -17,7 +17,6 @@ through :data:`ALIASES` (an id is never reused).
 from __future__ import annotations
 
 import functools
-import hashlib
 import importlib.util
 import json
 import logging
@@ -98,6 +97,7 @@ def _record_hash_matches(path: Path, file_hash) -> bool:
     if file_hash is None or file_hash.mode != "sha256":
         return True
     import base64
+    import hashlib
 
     digest = base64.urlsafe_b64encode(hashlib.sha256(path.read_bytes()).digest()).rstrip(b"=")
     return digest.decode() == file_hash.value
@@ -281,6 +281,8 @@ def _index_key(eps: dict[str, EntryPoint]) -> str:
         parts.append((name, ep.value, getattr(dist, "name", None), getattr(dist, "version", None)))
     for package in OWN_PACKAGES:
         parts.append(sources_stamp(check_own_package(package)))
+    import hashlib
+
     return hashlib.sha256(json.dumps(parts).encode()).hexdigest()
 
 
