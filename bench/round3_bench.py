@@ -8,6 +8,8 @@ sitting, interleaved (A B A B ...), medians of ``--runs`` (default 5), each run 
     .venv/bin/python bench/round3_bench.py tinwrite  --work /tmp/r3   # tin:delaunay to GeoPackage
     .venv/bin/python bench/round3_bench.py contours  --work /tmp/r3   # carto:contours vs gdal_contour
     .venv/bin/python bench/round3_bench.py startup                    # --version / list / help
+    .venv/bin/python bench/round3_bench.py startup --python "now, editable=.venv/bin/python" \\
+        --python "now, pip install .=/tmp/inst/bin/python"               # several installs
 
 ``--before PYTHON`` adds the same cases run by another interpreter (a checkout of the previous
 main with its own venv) to get before/after ratios in the same sitting. A case's time is the
@@ -368,28 +370,54 @@ def section_contours(args) -> str:
             + table(trace, next(iter(trace)), "tracer", extra=("cpu",)))
 
 
+STARTUP_POINTS = 10_000
+
+
+def startup_points(work: Path) -> Path:
+    """10,000 PointZ with a float field, EPSG:3003, one GeoPackage layer (``vector:info``)."""
+    path = work / "startup_points.gpkg"
+    if not path.exists():
+        import geopandas as gpd
+        import numpy as np
+        import shapely
+
+        rng = np.random.default_rng(31)
+        x, y = rng.uniform(0, 300, (2, STARTUP_POINTS)) + [[1_687_000.0], [4_798_500.0]]
+        z = rng.uniform(300, 400, STARTUP_POINTS)
+        gpd.GeoDataFrame({"z": z}, geometry=shapely.points(x, y, z), crs="EPSG:3003").to_file(
+            path, layer="pts")
+    return path
+
+
 def section_startup(args) -> str:
     """``toolbox --version`` / ``list`` / ``help dem:idw --json`` against ``gdalinfo --version``,
-    whole process; each interpreter with its own spec-index cache folder (warm)."""
+    and ``toolbox run vector:info`` on 10,000 points (also against ``ogrinfo -so -al``), whole
+    process, for every interpreter of ``--python`` (an editable install and a ``pip install .``,
+    before and now); each interpreter with its own spec-index cache folder (warm), Python
+    allowed to write its bytecode caches as on a user's machine (``PYTHONDONTWRITEBYTECODE``
+    removed)."""
     import shutil
 
-    pythons = {"now": sys.executable}
-    if args.before:
-        pythons = {"before": args.before, **pythons}
-    cases = {"gdalinfo --version": [shutil.which("gdalinfo") or "gdalinfo", "--version"]}
+    pythons = dict(p.split("=", 1) for p in args.python) or {"now": sys.executable}
+    points = startup_points(args.work)
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
+    cases = {"gdalinfo --version": [shutil.which("gdalinfo") or "gdalinfo", "--version"],
+             "ogrinfo -so -al (10,000 points)": [shutil.which("ogrinfo") or "ogrinfo", "-so",
+                                                 "-al", str(points)]}
     for label, python in pythons.items():
-        cache = args.work / f"cache_{label}"
+        cache = args.work / f"cache_{label.replace(' ', '_').replace('.', '')}"
         exe = str(Path(python).with_name("toolbox"))
-        for command in (["--version"], ["list"], ["help", "dem:idw", "--json"]):
-            cases[f"toolbox {' '.join(command)} ({label})"] = [
-                "env", f"XDG_CACHE_HOME={cache}", exe, *command]
-    times = interleaved(cases, max(args.runs, 10))
-    for values in times.values():
-        for v in values:
-            v["seconds"] = v["wall"]
-    return ("Whole process, wall and CPU (user + system), medians of the interleaved runs (the "
-            "toolbox from an editable install, as in development)\n\n"
-            + table(times, next(iter(cases)), "command", extra=("cpu",)))
+        for command in (["--version"], ["list"], ["help", "dem:idw", "--json"],
+                        ["run", "vector:info", "--INPUT", str(points)]):
+            name = " ".join(command[:3]) if command[0] != "run" else "run vector:info"
+            cases[f"toolbox {name} ({label})"] = ["env", f"XDG_CACHE_HOME={cache}", exe, *command]
+    times = interleaved(cases, max(args.runs, 10), env)
+    labels = ", ".join(f"*{label}* = {python}" for label, python in pythons.items())
+    return (f"Whole process, CPU (user + system: what load on the shared cores changes least) "
+            f"and wall time, medians of the interleaved runs; {labels}; `vector:info` on "
+            f"{STARTUP_POINTS:,} PointZ in a GeoPackage. The ratio is gdalinfo's CPU time over "
+            "the row's (above 1: the row is faster)\n\n"
+            + table(times, next(iter(cases)), "command (CPU s)", key="cpu", extra=("wall",)))
 
 
 SECTIONS = {"read": section_read, "idw": section_idw, "tinwrite": section_tinwrite,
@@ -405,6 +433,8 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--work", type=Path, default=Path(tempfile.gettempdir()) / "round3_bench")
     parser.add_argument("--runs", type=int, default=5)
     parser.add_argument("--before", help="python of the previous version (before/after rows)")
+    parser.add_argument("--python", action="append", default=[], metavar="LABEL=PYTHON",
+                        help="startup: an interpreter to measure, under a label (repeat it)")
     parser.add_argument("--points", type=int, help="tinwrite: points (default 1,000,000)")
     args = parser.parse_args(argv)
     args.work.mkdir(parents=True, exist_ok=True)
@@ -417,6 +447,19 @@ def main(argv: list[str] | None = None) -> None:
         print("\n".join(parts[-6:]), flush=True)
     if not args.sections:
         (HERE / "results" / "round3.md").write_text("\n".join(parts))
+    else:  # the chosen sections replace theirs in results/round3.md; the others are kept
+        replace_sections(HERE / "results" / "round3.md", parts[2:])
+
+
+def replace_sections(path: Path, parts: list[str]) -> None:
+    """Put each ``### name`` block of ``parts`` in place of the same block of ``path``."""
+    text = path.read_text() if path.exists() else "## Speed round three\n"
+    for block in ("\n" + "\n".join(parts)).split("\n### ")[1:]:
+        name = block.split("\n", 1)[0]
+        head, found, rest = text.partition(f"\n### {name}\n")
+        tail = rest[rest.index("\n### "):] if found and "\n### " in rest else ""
+        text = head.rstrip("\n") + f"\n\n### {block.rstrip()}\n" + tail
+    path.write_text(text)
 
 
 if __name__ == "__main__":

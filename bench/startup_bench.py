@@ -84,7 +84,9 @@ def median_warm(cmd: list[str], env: dict[str, str], repeat: int) -> tuple[float
 
 
 def cold_env(folder: Path) -> dict[str, str]:
-    env = dict(os.environ)
+    # Python may write its bytecode caches, as on a user's machine (without them every run
+    # compiles the toolbox's sources again)
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
     env["XDG_CACHE_HOME"] = str(folder)
     env["NUMBA_CACHE_DIR"] = str(folder / "numba")
     return env

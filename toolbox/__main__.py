@@ -1,3 +1,5 @@
-from toolbox.cli import main
+import sys
 
-main(prog_name="toolbox")
+from toolbox.cli import console
+
+sys.exit(console())

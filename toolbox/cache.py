@@ -6,18 +6,31 @@ Never inside the installed package (which may be read-only): ``$XDG_CACHE_HOME``
 
 from __future__ import annotations
 
-import functools
 import os
-from collections.abc import Callable
-from pathlib import Path
+
+# ``import toolbox`` runs this module: no typing, pathlib, functools or collections here (with
+# the ``re`` they bring, about a third of ``toolbox --version``); the type checkers read this as
+# typing.TYPE_CHECKING
+TYPE_CHECKING = False
+if TYPE_CHECKING:
+    from collections.abc import Callable
+    from pathlib import Path
 
 APP_NAME = "photogrammetry-toolbox"
 
 
-def user_cache_dir(*parts: str) -> Path:
-    """``$XDG_CACHE_HOME/photogrammetry-toolbox/<parts>`` (default ``~/.cache/...``); not created."""
+def user_cache_path(*parts: str) -> str:
+    """``$XDG_CACHE_HOME/photogrammetry-toolbox/<parts>`` (default ``~/.cache/...``) as a string;
+    not created."""
     base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
-    return Path(base, APP_NAME, *parts)
+    return os.path.join(base, APP_NAME, *parts)
+
+
+def user_cache_dir(*parts: str) -> Path:
+    """:func:`user_cache_path` as a :class:`~pathlib.Path`."""
+    from pathlib import Path
+
+    return Path(user_cache_path(*parts))
 
 
 def configure_numba_cache() -> None:
@@ -28,13 +41,14 @@ def configure_numba_cache() -> None:
     run when that folder is read-only.
     """
     if "NUMBA_CACHE_DIR" not in os.environ:
-        os.environ["NUMBA_CACHE_DIR"] = str(user_cache_dir("numba"))
+        os.environ["NUMBA_CACHE_DIR"] = user_cache_path("numba")
 
 
 def njit_on_first_call(**options) -> Callable[[Callable], Callable]:
     """Decorator: ``numba.njit(**options)`` applied on the function's first call, so that
     importing its module does not import numba (about 0.4 s). Only for kernels called from
     Python: a compiled caller needs the numba dispatcher itself."""
+    import functools
 
     def decorate(func: Callable) -> Callable:
         compiled: list[Callable] = []

@@ -17,7 +17,6 @@ through :data:`ALIASES` (an id is never reused).
 from __future__ import annotations
 
 import functools
-import hashlib
 import importlib.util
 import json
 import logging
@@ -27,6 +26,15 @@ from typing import TYPE_CHECKING, Any
 from urllib.parse import urlparse
 
 from toolbox.errors import AlgorithmNotFoundError, ToolboxError
+from toolbox.spec_cache import (
+    OWN_PACKAGES,
+    fresh_index,
+    index_path,
+    quick_key,
+    read_index,
+    sources_stamp,
+    write_index,
+)
 from toolbox.version import __version__
 
 if TYPE_CHECKING:  # imported where used: a cached `toolbox list` / `help` needs no spec classes
@@ -38,7 +46,6 @@ log = logging.getLogger("toolbox")
 
 ENTRY_POINT_GROUP = "toolbox.algorithms"
 DISTRIBUTION = "photogrammetry-toolbox"
-OWN_PACKAGES = ("toolbox", "algorithms")
 ALIASES: dict[str, str] = {"raster:hillshade": "dem:hillshade"}  # old id -> current id
 
 _registry: dict[str, type[Algorithm]] = {}
@@ -90,6 +97,7 @@ def _record_hash_matches(path: Path, file_hash) -> bool:
     if file_hash is None or file_hash.mode != "sha256":
         return True
     import base64
+    import hashlib
 
     digest = base64.urlsafe_b64encode(hashlib.sha256(path.read_bytes()).digest()).rstrip(b"=")
     return digest.decode() == file_hash.value
@@ -132,11 +140,15 @@ def check_own_package(name: str) -> Path:
     """The folder of package ``name`` (``toolbox`` or ``algorithms``) after checking that it belongs
     to the photogrammetry-toolbox distribution; :class:`ForeignPackageError` otherwise.
 
-    Found without importing the package, so a foreign one never runs.
+    Found without importing the package, so a foreign one never runs. The package metadata is
+    not read again (about a tenth of a small ``toolbox run``) while the spec index is fresh: it
+    was written after this check passed, and its key changes with the packages' origins and
+    whenever a distribution is installed or removed (:func:`toolbox.spec_cache.quick_key`).
     """
     spec = importlib.util.find_spec(name)
     init_file = Path(spec.origin).resolve() if spec is not None and spec.origin else None
-    if init_file is None or not _belongs_to_distribution(name, init_file):
+    if init_file is None or not (fresh_index() is not None
+                                 or _belongs_to_distribution(name, init_file)):
         where = init_file.parent if init_file is not None else "nowhere (a namespace package)"
         raise ForeignPackageError(
             f"the '{name}' package found at {where} is not part of {DISTRIBUTION} (another "
@@ -259,19 +271,6 @@ def get(algorithm_id: str) -> type[Algorithm]:
 
 
 # -- the spec index (list / help without importing algorithm modules) ------------------------------
-def _sources_stamp(folder: Path) -> list:
-    stamp = []
-    root = os.path.join(str(folder), "")
-    for dirpath, dirnames, filenames in os.walk(folder):
-        dirnames[:] = sorted(d for d in dirnames if d != "__pycache__")
-        rel = os.path.join(dirpath, "")[len(root):]  # os.walk's paths start with the root
-        for name in sorted(filenames):
-            if name.endswith(".py"):
-                st = os.stat(os.path.join(dirpath, name))
-                stamp.append((rel + name, st.st_mtime_ns, st.st_size))
-    return stamp
-
-
 def _index_key(eps: dict[str, EntryPoint]) -> str:
     """Changes whenever a spec may have changed: version, entry points, plugin versions, the
     modification times of our sources (an editable install is edited in place)."""
@@ -281,92 +280,34 @@ def _index_key(eps: dict[str, EntryPoint]) -> str:
         dist = getattr(ep, "dist", None)
         parts.append((name, ep.value, getattr(dist, "name", None), getattr(dist, "version", None)))
     for package in OWN_PACKAGES:
-        parts.append(_sources_stamp(check_own_package(package)))
+        parts.append(sources_stamp(check_own_package(package)))
+    import hashlib
+
     return hashlib.sha256(json.dumps(parts).encode()).hexdigest()
-
-
-def _index_path() -> Path:
-    import sys
-
-    from toolbox.cache import user_cache_dir
-
-    # one file per environment: two virtual environments sharing the user's cache folder
-    # would otherwise overwrite each other's index at every call
-    env = hashlib.sha256(sys.prefix.encode()).hexdigest()[:12]
-    return user_cache_dir(f"specs-{__version__}-{env}.json")
-
-
-def _quick_key() -> str:
-    """A key computed without ``importlib.metadata`` (whose import alone is about a quarter of a
-    cached ``toolbox help``): the version, the interpreter, the modification times of the
-    ``sys.path`` folders (installing, upgrading or removing a distribution, a plugin among them,
-    adds or removes entries there), where ``toolbox`` and ``algorithms`` are found and their
-    sources' stamp. ``sys.path[0]`` (the script's folder, or the working folder for ``-c`` and
-    ``-m``: it depends on how the toolbox was started) and the working folder are left out (their
-    files come and go; a package found there changes the packages' origins)."""
-    import sys
-
-    cwd = os.getcwd()
-    folders = []
-    for entry in sys.path[1:]:
-        folder = os.path.abspath(entry or cwd)
-        if folder == cwd:
-            continue
-        try:
-            folders.append((folder, os.stat(folder).st_mtime_ns))
-        except OSError:
-            folders.append((folder, None))
-    parts: list[Any] = [__version__, sys.prefix, folders]
-    for package in OWN_PACKAGES:
-        spec = importlib.util.find_spec(package)
-        origin = spec.origin if spec is not None else None
-        parts.append(origin)
-        if origin:
-            parts.append(_sources_stamp(Path(origin).parent))
-    return hashlib.sha256(json.dumps(parts).encode()).hexdigest()
-
-
-def _read_index(path: Path, key: str, field: str = "key") -> dict[str, dict] | None:
-    try:
-        data = json.loads(path.read_text())
-    except (OSError, ValueError):
-        return None
-    return data.get("specs") if isinstance(data, dict) and data.get(field) == key else None
-
-
-def _write_index(path: Path, key: str, specs: dict[str, dict], quick: str | None = None
-                 ) -> None:
-    """Atomic write; a cache folder that cannot be written only costs speed."""
-    from toolbox.errors import OutputWriteError
-    from toolbox.io.staging import atomic_path
-
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        with atomic_path(path, "spec index") as staged:
-            staged.write_text(json.dumps({"key": key, "quick": quick, "specs": specs}))
-    except (OSError, OutputWriteError) as exc:
-        log.debug("spec index not cached in %s: %s", path, exc)
 
 
 def spec_index() -> dict[str, dict]:
     """Spec (:meth:`Algorithm.spec`) of every algorithm by id, sorted by id.
 
-    Read from the per-user cache when its key still matches (first a key that needs no package
-    metadata, :func:`_quick_key`, then one of the entry points and our sources), else built by
-    importing every algorithm and cached. Algorithms registered in this process without an
-    entry point (scripts, tests) are added from their classes.
+    Read from the per-user cache (:mod:`toolbox.spec_cache`) when its key still matches (first
+    a key that needs no package metadata, :func:`~toolbox.spec_cache.quick_key`, then one of the
+    entry points and our sources), else built by importing every algorithm and cached. The
+    specs are JSON values (as ``help --json`` prints them). Algorithms registered in this process
+    without an entry point (scripts, tests) are added from their classes.
     """
-    path = _index_path()
-    quick = _quick_key()
-    specs = _read_index(path, quick, field="quick")  # nothing installed or edited since
-    if specs is None:
-        eps = _entry_points()
-        key = _index_key(eps)  # the built-ins are in the sources' stamp
-        specs = _read_index(path, key)
-        if specs is None:
+    path = index_path()
+    quick = quick_key()
+    cached = read_index(path, quick, field="quick")  # nothing installed or edited since
+    if cached is None:
+        key = _index_key(_entry_points())  # the built-ins are in the sources' stamp
+        cached = read_index(path, key)
+        if cached is None:
             discover()
-            specs = {i: _registry[i].spec() for i in sorted(_indexed)}
-        _write_index(path, key, specs, quick)
+            built = {i: _registry[i].spec() for i in sorted(_indexed)}
+            cached = {"specs": json.loads(json.dumps(built))}
+        if not write_index(path, key, cached["specs"], ALIASES, quick):
+            log.debug("spec index not cached in %s", path)
+    specs = cached["specs"]
     extra = {i: cls.spec() for i, cls in _registry.items() if i not in specs}
     merged = specs | extra
     return {i: merged[i] for i in sorted(merged)}

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import pytest
 
-from toolbox import registry
+from toolbox import registry, spec_cache
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -75,7 +75,7 @@ def test_list_and_help_read_the_cached_index_without_importing_algorithms(tmp_pa
                    "print(n)", tmp_path)
     assert first.returncode == 0, first.stderr
     assert int(first.stdout) >= 23
-    cached = list((tmp_path / "cache" / "photogrammetry-toolbox").glob("specs-*.json"))
+    cached = list((tmp_path / "cache" / "photogrammetry-toolbox").glob("specs-*.marshal"))
     assert len(cached) == 1
     second = python("from toolbox.registry import spec_index, get_spec; spec_index(); "
                     "get_spec('dem:idw');" + LOADED, tmp_path)
@@ -86,9 +86,9 @@ def test_list_and_help_read_the_cached_index_without_importing_algorithms(tmp_pa
 def test_index_is_rebuilt_when_a_source_changes(tmp_path, monkeypatch):
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
     key = registry._index_key(registry._entry_points())
-    registry._write_index(registry._index_path(), key, {"x:y": {"id": "x:y"}})
-    assert registry._read_index(registry._index_path(), key) == {"x:y": {"id": "x:y"}}
-    assert registry._read_index(registry._index_path(), key + "0") is None
+    assert spec_cache.write_index(spec_cache.index_path(), key, {"x:y": {"id": "x:y"}}, {})
+    assert spec_cache.read_index(spec_cache.index_path(), key)["specs"] == {"x:y": {"id": "x:y"}}
+    assert spec_cache.read_index(spec_cache.index_path(), key + "0") is None
     source = ROOT / "algorithms" / "vector" / "info.py"
     st = source.stat()
     try:
@@ -110,6 +110,9 @@ def test_foreign_algorithms_package_is_refused_before_it_runs(tmp_path):
     foreign.mkdir(parents=True)
     marker = tmp_path / "foreign_code_ran"
     (foreign / "__init__.py").write_text(f"open({str(marker)!r}, 'w').close()\n")
+    subprocess.run([sys.executable, "-m", "toolbox.cli", "list"], capture_output=True, check=True,
+                   cwd=tmp_path, env=os.environ | {"XDG_CACHE_HOME": str(tmp_path / "cache")})
+    # a fresh spec index of the environment without the foreign package: not trusted for it
     proc = subprocess.run([sys.executable, "-m", "toolbox.cli", "run", "vector:info"],
                           capture_output=True, text=True, cwd=tmp_path, timeout=300,
                           env=os.environ | {"PYTHONPATH": str(tmp_path / "foreign"),
@@ -176,16 +179,37 @@ def test_quick_index_key_follows_installs_and_sources(tmp_path, monkeypatch):
     import sys
 
     monkeypatch.setattr(sys, "path", [sys.path[0], str(site), *sys.path[1:]])  # [0]: the script's
-    key = registry._quick_key()
-    assert registry._quick_key() == key
+    key = spec_cache.quick_key()
+    assert spec_cache.quick_key() == key
     os.utime(site, ns=(1, 1))
     (site / "plugin-1.0.dist-info").mkdir()
-    assert registry._quick_key() != key
-    key = registry._quick_key()
+    assert spec_cache.quick_key() != key
+    key = spec_cache.quick_key()
     source = ROOT / "algorithms" / "vector" / "info.py"
     st = source.stat()
     try:
         os.utime(source, ns=(st.st_atime_ns, st.st_mtime_ns + 1_000_000_000))
-        assert registry._quick_key() != key
+        assert spec_cache.quick_key() != key
     finally:
         os.utime(source, ns=(st.st_atime_ns, st.st_mtime_ns))
+
+
+def test_quick_key_of_an_installed_package_follows_its_folder(tmp_path, monkeypatch):
+    """In site-packages (``pip install .``) our files change only through an install, which adds
+    or removes entries in that folder: the key follows the folder, not every file (no walk over
+    the sources at each `toolbox help`); a source tree is stamped file by file (test above)."""
+    site = tmp_path / "lib" / "site-packages"
+    package = site / "algorithms"
+    package.mkdir(parents=True)
+    (package / "__init__.py").write_text("")
+    (package / "info.py").write_text("")
+    monkeypatch.setattr(sys, "path", [sys.path[0], str(site), *sys.path[1:]])
+    origin = spec_cache._origin
+    monkeypatch.setattr(spec_cache, "_origin", lambda name: str(package / "__init__.py")
+                        if name == "algorithms" else origin(name))
+    key = spec_cache.quick_key()
+    os.utime(package / "info.py", ns=(1, 1))
+    assert spec_cache.quick_key() == key
+    os.utime(site, ns=(1, 1))
+    (site / "photogrammetry_toolbox-0.1.1.dist-info").mkdir()  # an install
+    assert spec_cache.quick_key() != key
