@@ -41,7 +41,51 @@ def configure_numba_cache() -> None:
     run when that folder is read-only.
     """
     if "NUMBA_CACHE_DIR" not in os.environ:
-        os.environ["NUMBA_CACHE_DIR"] = user_cache_path("numba")
+        folder = user_cache_path("numba", kernel_sources_key())
+        if not os.path.isdir(folder):
+            prune_stale_kernel_caches(os.path.dirname(folder))
+        os.environ["NUMBA_CACHE_DIR"] = folder
+
+
+def kernel_sources_key() -> str:
+    """A name for this toolbox's sources, so that compiled kernels are never reused across changes.
+
+    numba's cache checks only the file of each kernel, not the kernels it calls from other
+    modules: after an upgrade (or a checkout) that changes a called kernel, a caller cached before
+    would keep the old callee compiled into it, silently. So the whole kernel cache is keyed by the
+    sources: an installed package by its folder's and ``__init__.py``'s modification times (pip
+    writes both anew), a source tree (editable install) by every ``.py`` file's time and size.
+    """
+    import hashlib
+    import marshal
+
+    package = os.path.dirname(os.path.abspath(__file__))
+    if os.path.basename(os.path.dirname(package)) in ("site-packages", "dist-packages"):
+        stamp: object = (package, os.stat(package).st_mtime_ns,
+                         os.stat(os.path.join(package, "__init__.py")).st_mtime_ns)
+    else:
+        from toolbox.spec_cache import sources_stamp
+
+        stamp = (package, sources_stamp(package))
+    return hashlib.blake2b(marshal.dumps(stamp), digest_size=8).hexdigest()
+
+
+def prune_stale_kernel_caches(folder: str, days: float = 14.0) -> None:
+    """Delete the kernel caches of other sources not used for ``days`` (best effort)."""
+    import shutil
+    import time
+
+    try:
+        entries = list(os.scandir(folder))
+    except OSError:
+        return
+    limit = time.time() - days * 86400.0
+    for entry in entries:
+        try:
+            if entry.is_dir() and entry.stat().st_mtime < limit:
+                shutil.rmtree(entry.path, ignore_errors=True)
+        except OSError:
+            continue
 
 
 def njit_on_first_call(**options) -> Callable[[Callable], Callable]:

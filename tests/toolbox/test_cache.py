@@ -6,6 +6,7 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
+from pathlib import Path
 
 KERNEL = """
 from numba import njit
@@ -29,7 +30,7 @@ def test_numba_kernels_are_cached_per_user(tmp_path):
                "print(numba.config.CACHE_DIR)", tmp_path)
     assert proc.returncode == 0, proc.stderr
     folder = tmp_path / "cache" / "photogrammetry-toolbox" / "numba"
-    assert proc.stdout.strip() == str(folder)
+    assert Path(proc.stdout.strip()).parent == folder  # numba/<key of the toolbox's sources>
     assert list(folder.rglob("*twice*.nbi")), "no compiled kernel in the per-user cache"
     assert not (tmp_path / "__pycache__").exists() or not list(
         (tmp_path / "__pycache__").glob("*.nbi"))  # nothing beside the sources
@@ -40,3 +41,35 @@ def test_the_users_numba_cache_dir_wins(tmp_path):
                NUMBA_CACHE_DIR=str(tmp_path / "mine"))
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.strip() == str(tmp_path / "mine")
+
+
+def test_a_changed_source_gets_a_new_kernel_cache(tmp_path):
+    """numba's own cache checks only a kernel's file, not the kernels it calls from other modules:
+    a caller compiled before a change of its callee keeps the old callee (a wrong result in
+    silence). Shown here with numba alone; the toolbox keys its whole cache by its sources."""
+    (tmp_path / "callee.py").write_text("from numba import njit\n\n@njit(cache=True)\n"
+                                        "def f(x):\n    return x + 1\n")
+    (tmp_path / "caller.py").write_text("from numba import njit\nfrom callee import f\n\n"
+                                        "@njit(cache=True)\ndef g(x):\n    return f(x)\n")
+    code = "import caller; print(caller.g(1))"
+    plain = {"NUMBA_CACHE_DIR": str(tmp_path / "plain")}
+    assert run(code, tmp_path, **plain).stdout.strip() == "2"
+    (tmp_path / "callee.py").write_text((tmp_path / "callee.py").read_text().replace("+ 1", "+ 10"))
+    assert run(code, tmp_path, **plain).stdout.strip() == "2"  # numba alone: stale, 11 expected
+
+    from toolbox.cache import kernel_sources_key
+    from toolbox.spec_cache import sources_stamp
+
+    import toolbox
+    package = Path(toolbox.__file__).parent
+    key = kernel_sources_key()
+    assert key == kernel_sources_key() and len(key) == 16
+    assert sources_stamp(package)  # a source tree: the key follows every file's time and size
+    stamp = package / "version.py"
+    before = stamp.stat()
+    try:
+        os.utime(stamp, ns=(before.st_atime_ns, before.st_mtime_ns + 1_000_000_000))
+        assert kernel_sources_key() != key
+    finally:
+        os.utime(stamp, ns=(before.st_atime_ns, before.st_mtime_ns))
+    assert kernel_sources_key() == key
