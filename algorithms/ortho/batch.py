@@ -21,7 +21,7 @@ from toolbox.parameters import (
 )
 from toolbox.registry import register
 from toolbox.ui.execution import scheduler_parameter
-from toolbox.ui.photogrammetry import (
+from toolbox.ui.photogrammetry import (  # duplicate-ok: the same groups as ortho:photo
     dem_parameters,
     ortho_method_parameters,
     project_parameter,

@@ -22,7 +22,7 @@ from toolbox.parameters import (
     String,
 )
 from toolbox.registry import register
-from toolbox.ui.photogrammetry import (
+from toolbox.ui.photogrammetry import (  # duplicate-ok: the same groups as ortho:batch
     dem_parameters,
     ortho_method_parameters,
     project_parameter,

@@ -57,10 +57,9 @@ def test_a_changed_source_gets_a_new_kernel_cache(tmp_path):
     (tmp_path / "callee.py").write_text((tmp_path / "callee.py").read_text().replace("+ 1", "+ 10"))
     assert run(code, tmp_path, **plain).stdout.strip() == "2"  # numba alone: stale, 11 expected
 
+    import toolbox
     from toolbox.cache import kernel_sources_key
     from toolbox.spec_cache import sources_stamp
-
-    import toolbox
     package = Path(toolbox.__file__).parent
     key = kernel_sources_key()
     assert key == kernel_sources_key() and len(key) == 16

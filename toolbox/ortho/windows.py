@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from toolbox.cameras import CameraModel, FrameCamera, GridProjector
-from toolbox.ortho.codes import (
+from toolbox.ortho.codes import (  # duplicate-ok: the statistics codes, as kernels.py lists them
     BLOCK_EXACT,
     BLOCK_INTERPOLATED,
     BLOCK_PROJECTIVE,

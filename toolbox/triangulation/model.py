@@ -34,6 +34,7 @@ def _elementary(omega: np.ndarray, phi: np.ndarray, kappa: np.ndarray):
     """Rx, Ry, Rz and their derivatives, each (n, 3, 3)."""
     n = len(omega)
 
+    # duplicate-ok: the three elementary rotations written out (which entries and signs differ)
     def rx(a, deriv):
         m = np.zeros((n, 3, 3))
         s, c = np.sin(a), np.cos(a)
