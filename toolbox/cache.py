@@ -64,10 +64,28 @@ def kernel_sources_key() -> str:
         stamp: object = (package, os.stat(package).st_mtime_ns,
                          os.stat(os.path.join(package, "__init__.py")).st_mtime_ns)
     else:
-        from toolbox.spec_cache import sources_stamp
-
         stamp = (package, sources_stamp(package))
     return hashlib.blake2b(marshal.dumps(stamp), digest_size=8).hexdigest()
+
+
+def sources_stamp(folder: str | os.PathLike) -> tuple:
+    """``((relative path, mtime ns, size), ...)`` of every ``.py`` file under ``folder``, sorted
+    (``__pycache__`` left out)."""
+    stamp: list[tuple[str, int, int]] = []
+
+    def walk(path: str, rel: str) -> None:
+        with os.scandir(path) as scan:
+            entries = sorted(scan, key=lambda e: e.name)
+        for entry in entries:
+            if entry.is_dir(follow_symlinks=False):
+                if entry.name != "__pycache__":
+                    walk(entry.path, rel + entry.name + "/")
+            elif entry.name.endswith(".py"):
+                st = entry.stat()
+                stamp.append((rel + entry.name, st.st_mtime_ns, st.st_size))
+
+    walk(os.fspath(folder), "")
+    return tuple(stamp)
 
 
 def prune_stale_kernel_caches(folder: str, days: float = 14.0) -> None:

@@ -15,6 +15,7 @@ import marshal
 import os
 import sys
 
+from toolbox.cache import sources_stamp  # noqa: F401 - (the registry reads it here)
 from toolbox.version import __version__
 
 OWN_PACKAGES = ("toolbox", "algorithms")
@@ -35,24 +36,6 @@ def index_path() -> str:
     return user_cache_path(f"specs-{__version__}-{sys.implementation.cache_tag}-{env}.marshal")
 
 
-def sources_stamp(folder: str | os.PathLike) -> tuple:
-    """``((relative path, mtime ns, size), ...)`` of every ``.py`` file under ``folder``, sorted
-    (``__pycache__`` left out)."""
-    stamp: list[tuple[str, int, int]] = []
-
-    def walk(path: str, rel: str) -> None:
-        with os.scandir(path) as scan:
-            entries = sorted(scan, key=lambda e: e.name)
-        for entry in entries:
-            if entry.is_dir(follow_symlinks=False):
-                if entry.name != "__pycache__":
-                    walk(entry.path, rel + entry.name + "/")
-            elif entry.name.endswith(".py"):
-                st = entry.stat()
-                stamp.append((rel + entry.name, st.st_mtime_ns, st.st_size))
-
-    walk(os.fspath(folder), "")
-    return tuple(stamp)
 
 
 def _origin(package: str) -> str | None:

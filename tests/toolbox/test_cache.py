@@ -58,8 +58,7 @@ def test_a_changed_source_gets_a_new_kernel_cache(tmp_path):
     assert run(code, tmp_path, **plain).stdout.strip() == "2"  # numba alone: stale, 11 expected
 
     import toolbox
-    from toolbox.cache import kernel_sources_key
-    from toolbox.spec_cache import sources_stamp
+    from toolbox.cache import kernel_sources_key, sources_stamp
     package = Path(toolbox.__file__).parent
     key = kernel_sources_key()
     assert key == kernel_sources_key() and len(key) == 16
