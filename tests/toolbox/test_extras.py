@@ -17,7 +17,7 @@ from toolbox.extras import require
 
 ROOT = Path(__file__).resolve().parents[2]
 CORE = {"numpy", "scipy", "shapely", "pyproj", "rasterio", "geopandas", "pyogrio", "pyarrow",
-        "pyyaml", "click", "numba", "opencv-python-headless", "scikit-image", "matplotlib",
+        "pyyaml", "click", "numba", "opencv-python-headless", "matplotlib",
         "threadpoolctl", "pythoncdt"}
 BLOCK_EXTRAS = """
 import importlib.abc, sys
@@ -40,6 +40,8 @@ def test_pyproject_core_and_extras():
     core = {_name(r) for r in project["dependencies"]}
     extras = project["optional-dependencies"]
     assert CORE <= core  # the design card's packages and the redistributable triangulator
+    # scikit-image is the seam route's test oracle only (the route is compiled: bench/mosaic_bench.py)
+    assert "scikit-image" not in core and "scikit-image" in {_name(r) for r in extras["dev"]}
     assert not core & {"triangle", "dask", "distributed", "psutil"}
     assert [_name(r) for r in extras["triangle"]] == ["triangle"]
     assert [_name(r) for r in extras["dask"]] == ["dask"] and "distributed" in extras["dask"][0]
