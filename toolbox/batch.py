@@ -340,5 +340,11 @@ def _abs(value: Any) -> Path:
 
 
 def _later_file(value: Any, written: dict[Path, str]) -> bool:
-    items = value if isinstance(value, list) else [value]
-    return any(isinstance(v, (str, Path)) and _abs(v) in written for v in items)
+    """Whether an earlier step writes ``value`` (a path or a list of paths): the file itself, or
+    a file inside an output folder of an earlier step (the photos of an ortho:batch FOLDER)."""
+    for item in value if isinstance(value, list) else [value]:
+        if isinstance(item, (str, Path)):
+            path = _abs(item)
+            if path in written or any(parent in written for parent in path.parents):
+                return True
+    return False

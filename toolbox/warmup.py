@@ -21,9 +21,7 @@ from toolbox.feedback import Feedback
 KERNEL_ALGORITHMS = frozenset({
     "orientation:footprints", "orientation:monoplot", "tin:delaunay", "tin:to_raster",
     "dem:nearest", "dem:idw", "dem:plane", "dem:quadratic", "dem:cubic", "dem:tin_linear",
-    "dem:cross_validate", "ortho:photo", "ortho:batch", "carto:contours"})
-# mosaic:seamlines is left out: its Siena step reads the orthos an ortho:batch FOLDER writes,
-# which a pipeline cannot check before that step runs (its first least_cost run compiles, ~10 s)
+    "dem:cross_validate", "ortho:photo", "ortho:batch", "carto:contours", "mosaic:seamlines"})
 #: options with kernels of their own that the demo does not use
 EXTRA_STEPS = [
     {"name": "warmup_idw_sectors", "algorithm": "dem:idw",
