@@ -106,6 +106,43 @@ def prune_stale_kernel_caches(folder: str, days: float = 14.0) -> None:
             continue
 
 
+def skip_numba_blas_probe() -> None:
+    """Spare the first compiled call of a process numba's BLAS probe: importing scipy.linalg.
+
+    When numba loads its first kernel (from the cache too) it imports ``numba.np.arraymath``,
+    whose import asks :func:`numba.np.linalg.ensure_blas` whether scipy's BLAS is there, and
+    that imports ``scipy.linalg`` (with scipy's array-API layer: about 0.2 s of CPU, a sixth of a
+    small contour run). The answer only chooses BLAS or a loop for ``np.correlate`` and
+    ``np.convolve`` inside kernels; scipy is a dependency of the toolbox, so this answers it by
+    scipy's presence (no import) for that one import-time call; every other caller (``np.dot``,
+    ``np.linalg`` in a kernel) gets numba's own check, as before. Call it after ``import numba``,
+    before the first kernel call; once numba's array math is loaded it does nothing.
+    """
+    import sys
+
+    if "numba.np.arraymath" in sys.modules:
+        return
+    try:
+        from numba.np import linalg
+    except ImportError:  # pragma: no cover - another numba layout: keep its probe
+        return
+    real = getattr(linalg, "ensure_blas", None)
+    if real is None or getattr(real, "presence_only", False):
+        return
+
+    def ensure_blas() -> None:
+        if sys._getframe(1).f_globals.get("__name__") != "numba.np.arraymath":
+            return real()
+        linalg.ensure_blas = real  # once: arraymath's import-time question
+        import importlib.util
+
+        if importlib.util.find_spec("scipy") is None:
+            raise ImportError("scipy 0.16+ is required for linear algebra")
+
+    ensure_blas.presence_only = True  # type: ignore[attr-defined]
+    linalg.ensure_blas = ensure_blas
+
+
 def njit_on_first_call(**options) -> Callable[[Callable], Callable]:
     """Decorator: ``numba.njit(**options)`` applied on the function's first call, so that
     importing its module does not import numba (about 0.4 s). Only for kernels called from

@@ -25,10 +25,14 @@ def versions() -> dict[str, str]:
            "proj": pyproj.proj_version_str, "geos": shapely.geos_version_string,
            "rasterio": rasterio.__version__, "pyproj": pyproj.__version__,
            "shapely": shapely.__version__}
-    try:
-        import pyogrio
+    try:  # pyogrio's own version module: ``pyogrio.__version__`` would run the package's
+        # __init__, which imports pandas and geopandas (about 0.45 s of a small run)
+        from toolbox.io.vector import _ogr
 
-        out["pyogrio"] = pyogrio.__version__
+        _ogr()
+        from pyogrio._version import get_versions
+
+        out["pyogrio"] = get_versions()["version"]
     except ImportError:  # pragma: no cover
         pass
     return out

@@ -71,3 +71,38 @@ def test_a_changed_source_gets_a_new_kernel_cache(tmp_path):
     finally:
         os.utime(stamp, ns=(before.st_atime_ns, before.st_mtime_ns))
     assert kernel_sources_key() == key
+
+
+BLAS_PROBE = """
+import sys
+import numpy as np
+import numba
+from toolbox.cache import skip_numba_blas_probe
+from kernel_mod import twice
+
+skip_numba_blas_probe()
+assert twice(3) == 6
+assert "scipy.linalg" not in sys.modules, "numba's array math imported scipy.linalg"
+from numba.np import arraymath, linalg
+assert arraymath._HAVE_BLAS is True  # scipy is installed: the answer numba's probe gives
+assert not getattr(linalg.ensure_blas, "presence_only", False)  # numba's own check is back
+
+@numba.njit
+def products(a, b, v, w):
+    return a @ b, np.correlate(v, w)
+
+a, b = np.arange(6.0).reshape(2, 3), np.arange(12.0).reshape(3, 4)
+v, w = np.array([1.0, 2.0, 3.0, 4.0]), np.array([0.5, -1.0])
+ab, corr = products(a, b, v, w)
+assert np.allclose(ab, a @ b) and np.allclose(corr, np.correlate(v, w))  # numpy, the oracle
+assert "scipy.linalg" in sys.modules  # BLAS through numba's own probe, when a kernel needs it
+"""
+
+
+def test_the_first_kernel_load_skips_the_scipy_blas_probe(tmp_path):
+    """Loading a kernel does not import scipy.linalg (numba's import-time BLAS probe answered
+    by scipy's presence); kernels with matrix products and np.correlate still give numpy's
+    results."""
+    (tmp_path / "kernel_mod.py").write_text(KERNEL)
+    proc = run(BLAS_PROBE, tmp_path)
+    assert proc.returncode == 0, proc.stderr[-2000:]

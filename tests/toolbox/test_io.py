@@ -140,17 +140,28 @@ assert (ref.count, ref.fields, ref.geometry_kind) == (2, ["h"], "point"), ref.in
 assert "pandas" not in sys.modules and "geopandas" not in sys.modules, "pandas imported"
 assert read_points_xyz(ref, "h").tolist() == [[0.0, 0.0, 1.0], [1.0, 1.0, 2.0]]
 assert "pandas" not in sys.modules and "geopandas" not in sys.modules, "pandas imported"
+import numpy as np, shapely
+from rasterio.crs import CRS
+from toolbox.io.vector import write_wkb_layer
+out = path.replace("p.gpkg", "lines.gpkg")
+write_wkb_layer(out, "lines", shapely.to_wkb([shapely.LineString([(0, 0, 5), (1, 2, 5)])],
+                output_dimension=3), {"elev": np.array([5.0])}, "LineString Z",
+                CRS.from_epsg(3003))
+assert "pandas" not in sys.modules and "geopandas" not in sys.modules, "pandas imported"
 import pyogrio  # the rest of pyogrio still works, loaded on first use
 from pyogrio import read_dataframe
 assert read_dataframe(path)["h"].tolist() == [1.0, 2.0]
+back = read_dataframe(out, layer="lines")
+assert back["elev"].tolist() == [5.0] and back.crs.to_epsg() == 3003
+assert back.geometry[0].equals(shapely.LineString([(0, 0, 5), (1, 2, 5)]))
 assert pyogrio.__version__ and "geopandas" in sys.modules
 """
 
 
 def test_opening_a_layer_imports_neither_pandas_nor_geopandas(tmp_path):
     """Parameter validation opens inputs through pyogrio.core only (start-up < 0.5 s), points
-    are read through Arrow without pandas; the rest of pyogrio (read_dataframe, __version__)
-    is loaded on first use."""
+    are read through Arrow and a layer written from arrays without pandas; the rest of pyogrio
+    (read_dataframe, __version__) is loaded on first use."""
     import subprocess
     import sys
 

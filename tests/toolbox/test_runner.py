@@ -175,6 +175,29 @@ def test_json_report_content(plane_dem, tmp_path):
     assert data["elapsed_s"] >= 0
 
 
+REPORT_WITHOUT_PANDAS = """
+import json, sys
+from toolbox.report import versions
+found = versions()
+assert "pandas" not in sys.modules and "geopandas" not in sys.modules, "pandas imported"
+import pyogrio
+print(json.dumps([found["pyogrio"], pyogrio.__version__]))
+"""
+
+
+def test_the_reports_versions_do_not_import_pandas():
+    """The run report names pyogrio's version without importing pandas (pyogrio's __init__);
+    the same version as the package's own ``__version__``."""
+    import subprocess
+    import sys
+
+    proc = subprocess.run([sys.executable, "-c", REPORT_WITHOUT_PANDAS], capture_output=True,
+                          text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    ours, theirs = json.loads(proc.stdout)
+    assert ours == theirs
+
+
 def test_vector_info_describes_layers(points_gpkg, tmp_path):
     out = tmp_path / "info.json"
     result = toolbox.run("vector:info", {"INPUT": points_gpkg, "OUTPUT": out})

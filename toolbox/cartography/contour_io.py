@@ -48,16 +48,35 @@ class ContourResult:
     stats: dict[str, Any] = field(default_factory=dict)
 
 
+#: a DEM of at most this many cells traced on local threads is read once, whole (8 bytes a
+#: cell, 64 MB at most), and its blocks traced from memory; a larger one (or one traced on a
+#: cluster) is read twice, by blocks: its range, then each block where it is traced
+IN_MEMORY_CELLS = 8_000_000
+
+
+def _range_of(tiles) -> tuple[float, float]:
+    """Min and max over the tiles (NaN = no data) that hold a finite cell."""
+    lo, hi = np.inf, -np.inf
+    for z in tiles:
+        if np.isfinite(z).any():
+            lo, hi = min(lo, np.nanmin(z)), max(hi, np.nanmax(z))
+    return float(lo), float(hi)
+
+
 def raster_range(src, band: int, tile_size: int) -> tuple[float, float]:
     """Min and max of a band's valid cells, read in tiles."""
     from toolbox.io.raster import iter_windows
 
-    lo, hi = np.inf, -np.inf
-    for tile in iter_windows(src.width, src.height, tile_size):
-        z = src.read(band, window=tile.core, masked=True).astype("float64").filled(np.nan)
-        if np.isfinite(z).any():
-            lo, hi = min(lo, np.nanmin(z)), max(hi, np.nanmax(z))
-    return float(lo), float(hi)
+    return _range_of(src.read(band, window=t.core, masked=True).astype("float64").filled(np.nan)
+                     for t in iter_windows(src.width, src.height, tile_size))
+
+
+def grid_range(z: np.ndarray, tile_size: int) -> tuple[float, float]:
+    """:func:`raster_range` of a band already read (the same tiles, the same answer)."""
+    from toolbox.io.raster import iter_windows
+
+    return _range_of(z[t.core.toslices()] for t in iter_windows(z.shape[1], z.shape[0],
+                                                                 tile_size))
 
 
 def guard_levels(zmin: float, zmax: float, interval: float, base: float, span: float) -> None:
@@ -95,20 +114,42 @@ def trace_block(task: BlockTask) -> list[Piece]:
     return block_pieces(z.astype("float64").filled(np.nan), task.levels, row, col)
 
 
+@dataclass(frozen=True)
+class GridBlock:
+    """One block of a DEM already in memory (local threads only): its cells are a view."""
+
+    z: np.ndarray
+    row: int
+    col: int
+    levels: tuple[float, ...]
+
+
+def trace_grid_block(task: GridBlock) -> list[Piece]:
+    """Trace the pieces of one in-memory block."""
+    return block_pieces(task.z, task.levels, task.row, task.col)
+
+
 def trace_raster(path: str | Path, band: int, rows: int, cols: int, tile: int,
-                 levels: np.ndarray, executor: Any = None, feedback=None
-                 ) -> tuple[list[Contour], int]:
+                 levels: np.ndarray, executor: Any = None, feedback=None,
+                 grid: np.ndarray | None = None) -> tuple[list[Contour], int]:
     """Contours of a DEM file traced block by block on ``executor`` (local threads or a Dask
     cluster: :mod:`toolbox.executor`; the pieces come back in block order, so the result is the
-    same on either) and stitched; grid coordinates. Returns the contours and the pieces'
-    count."""
+    same on either) and stitched; grid coordinates. With ``grid`` (the band already read,
+    NaN = no data; local threads) the blocks are its views, else each task reads its block.
+    Returns the contours and the pieces' count."""
     from toolbox.executor import map_tiles
 
     windows = block_windows(rows, cols, tile)
     levels_tuple = tuple(float(v) for v in levels)
-    tasks = (BlockTask(str(path), band, window, levels_tuple) for window in windows)
+    if grid is not None:
+        func: Any = trace_grid_block
+        tasks: Any = (GridBlock(grid[r:r + h, c:c + w], r, c, levels_tuple)
+                      for r, c, h, w in windows)
+    else:
+        func = trace_block
+        tasks = (BlockTask(str(path), band, window, levels_tuple) for window in windows)
     pieces: list[Piece] = []
-    for found in map_tiles(trace_block, tasks, executor=executor, feedback=feedback,
+    for found in map_tiles(func, tasks, executor=executor, feedback=feedback,
                            total=len(windows), end=80):
         pieces += found
     return stitch_pieces(pieces, tile), len(pieces)
@@ -119,20 +160,26 @@ def raster_contours(path: str | Path, band: int, interval: float, base: float,
                     executor: Any = None) -> ContourResult:
     """Contours of a DEM, traced in ``tile_size`` blocks that share one row/column with their
     neighbours (each grid square belongs to one block) on ``executor`` (default: local threads,
-    or the cluster of DASK_SCHEDULER_ADDRESS) and stitched across block edges."""
+    or the cluster of DASK_SCHEDULER_ADDRESS) and stitched across block edges. A DEM of at most
+    :data:`IN_MEMORY_CELLS` on local threads is read once (the same cells either way)."""
     import rasterio
 
-    with rasterio.open(path) as src:
-        frame = GridFrame.of(src.transform)
-        zmin, zmax = raster_range(src, band, tile_size)
-        guard_levels(zmin, zmax, interval, base, src.width + src.height)
-        levels = contour_levels(zmin, zmax, interval, base)
-        rows, cols = src.height, src.width
     from toolbox.executor import resolve_executor
 
     executor = executor or resolve_executor(None)
+    grid = None
+    with rasterio.open(path) as src:
+        frame = GridFrame.of(src.transform)
+        if executor.kind == "local" and src.width * src.height <= IN_MEMORY_CELLS:
+            grid = src.read(band, masked=True).astype("float64").filled(np.nan)
+            zmin, zmax = grid_range(grid, tile_size)
+        else:
+            zmin, zmax = raster_range(src, band, tile_size)
+        guard_levels(zmin, zmax, interval, base, src.width + src.height)
+        levels = contour_levels(zmin, zmax, interval, base)
+        rows, cols = src.height, src.width
     contours, n_pieces = trace_raster(path, band, rows, cols, tile_size, levels, executor,
-                                      feedback)
+                                      feedback, grid)
     contours, reverted = smooth_contours(contours, smoothing)
     contours = to_map(contours, frame.x0, frame.y0, frame.dx, frame.dy)
     stats = {"tiles": len(block_windows(rows, cols, tile_size)),

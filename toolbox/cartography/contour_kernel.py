@@ -23,6 +23,10 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from toolbox.cache import skip_numba_blas_probe
+
+skip_numba_blas_probe()  # no scipy.linalg import for loading these kernels
+
 # the corners of square (r, c) counter-clockwise in the (x = column, y = row) frame, and the
 # quad edges between consecutive corners: edge i runs from corner i to corner i + 1
 _DR = np.array([0, 0, 1, 1])

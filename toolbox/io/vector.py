@@ -511,14 +511,14 @@ def staged_gpkg_writes():
     Safe for the toolbox's outputs: they are written to a staged file that is renamed into
     place only after a successful run, so a crash mid-write never leaves a damaged output.
     """
-    import pyogrio
+    ogr = _ogr()  # pyogrio.core: no pandas for a config option
 
-    previous = pyogrio.get_gdal_config_option("OGR_SQLITE_SYNCHRONOUS")
-    pyogrio.set_gdal_config_options({"OGR_SQLITE_SYNCHRONOUS": "OFF"})
+    previous = ogr.get_gdal_config_option("OGR_SQLITE_SYNCHRONOUS")
+    ogr.set_gdal_config_options({"OGR_SQLITE_SYNCHRONOUS": "OFF"})
     try:
         yield
     finally:
-        pyogrio.set_gdal_config_options({"OGR_SQLITE_SYNCHRONOUS": previous})
+        ogr.set_gdal_config_options({"OGR_SQLITE_SYNCHRONOUS": previous})
 
 
 def geometry_kinds(frame) -> set[str]:
@@ -603,13 +603,20 @@ def write_wkb_layer(path: str | Path, layer: str, wkb: np.ndarray, fields: dict[
 
         frame = gpd.GeoDataFrame(fields, geometry=shapely.from_wkb(wkb), crs=crs)
         return write_layers(path, {layer: frame}, crs=crs, geometry_types={layer: geometry_type})
-    from pyogrio.raw import write
+    _ogr()  # pyogrio registered without its __init__ (no pandas, geopandas, pyarrow)
+    # what ``pyogrio.raw.write`` does for a plain path, called below it: the module
+    # ``pyogrio.raw`` imports pandas, geopandas and pyarrow (``pyogrio._compat``), about 0.45 s
+    # of a contour run; tests/toolbox/test_io.py checks the layer against OGR's reading
+    from pyogrio._io import ogr_write
 
-    options = {"dataset_options": GPKG_DATASET_OPTIONS} if driver == "GPKG" and \
-        not path.exists() else {}
+    dataset_kwargs = dict(GPKG_DATASET_OPTIONS) if driver == "GPKG" and not path.exists() \
+        else {}
     names = list(fields)
     with staged_gpkg_writes(), writing(path):
-        write(path, np.asarray(wkb, dtype=object), [fields[k] for k in names], names,
-              layer=layer, driver=driver, geometry_type=geometry_type,
-              crs=None if crs is None else crs.to_wkt(), **options)
+        ogr_write(str(path), layer=layer, driver=driver, geometry=np.asarray(wkb, dtype=object),
+                  fields=names, field_data=[fields[k] for k in names], field_mask=None,
+                  crs=None if crs is None else crs.to_wkt(), geometry_type=geometry_type,
+                  encoding=None, dataset_kwargs=dataset_kwargs, layer_kwargs={},
+                  promote_to_multi=geometry_type.startswith("Multi") and driver in (
+                      "GPKG", "FlatGeobuf"))
     return path

@@ -169,6 +169,34 @@ def test_tiles_stitch_around_nodata_holes():
                for c in tiled)
 
 
+def test_a_dem_read_once_gives_the_lines_of_one_read_by_blocks(tmp_path, monkeypatch):
+    """A small DEM on local threads is read whole and its blocks traced from memory; a big one
+    (or one on a cluster) is read by blocks twice: the same range, levels and lines, bit for
+    bit, holes and a block edge strip of nodata included."""
+    from toolbox.cartography import contour_io
+
+    z, t = terrain()
+    z = z.astype("float64")
+    z[100:160, 70:75] = np.nan
+    z[221:223, 30:200] = np.nan
+    path = tmp_path / "holes.tif"
+    write_raster(path, z, t, CRS, nodata=-9999.0)
+    reads = []
+    trace_block = contour_io.trace_block
+    monkeypatch.setattr(contour_io, "trace_block", lambda task: reads.append(task) or
+                        trace_block(task))
+    once = contour_io.raster_contours(path, 1, 2.5, 0.0, tile_size=37)
+    assert not reads  # every block from memory
+    monkeypatch.setattr(contour_io, "IN_MEMORY_CELLS", 0)
+    blocks = contour_io.raster_contours(path, 1, 2.5, 0.0, tile_size=37)
+    assert len(reads) == once.stats["tiles"] > 1
+    assert (once.stats["z_min"], once.stats["z_max"]) == (np.nanmin(z), np.nanmax(z))
+    assert once.stats == blocks.stats and np.array_equal(once.levels, blocks.levels)
+    assert len(once.contours) == len(blocks.contours) > 0
+    assert all(a.level == b.level and np.array_equal(a.xy, b.xy)
+               for a, b in zip(once.contours, blocks.contours, strict=True))
+
+
 @pytest.fixture(scope="module")
 def demo_dem(tmp_path_factory):
     z, transform = terrain()
