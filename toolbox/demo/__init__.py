@@ -59,8 +59,9 @@ def run_demo(out_dir: Path, feedback: Feedback | None = None) -> str:
             lines.append(f"  {step:<22} {Path(path).relative_to(out_dir)}")
     for step, outputs in results.items():  # a bundle compared with a reference solution
         stats = outputs.get("STATISTICS")
-        if isinstance(stats, dict) and isinstance(stats.get("reference"), dict):
-            lines += ["", f"  {step}: {stats['reference']['line']}"]
+        reference = stats.get("reference") if isinstance(stats, dict) else None
+        if isinstance(reference, dict) and isinstance(reference.get("line"), str):
+            lines += ["", f"  {step}: {reference['line']}"]
     lines += ["", f"  the pipeline           {pipeline_file}",
               f"  sample inputs in       {out_dir / 'data'}",
               f"  JSON run reports in    {out_dir / 'reports'}"]
