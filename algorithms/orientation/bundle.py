@@ -10,6 +10,7 @@ from toolbox.parameters import Boolean, Enum, File, Integer, Number, String
 from toolbox.parameters.outputs import Layer, Output, OutputFile, OutputVector
 from toolbox.registry import register
 from toolbox.ui.photogrammetry import (
+    PROJECT_EXTENSIONS,
     TABLE_EXTENSIONS,
     ground_residuals_layer,
     measurement_parameters,
@@ -76,6 +77,14 @@ class BundleAdjustment(Algorithm):
     redundancy number, rejected) and ground_residuals (surveyed -> adjusted, control and check);
     REPORT (JSON): sigma0 a posteriori, redundancy, photos and cameras with standard deviations,
     control/check residuals and RMSE, rejected observations.
+
+    REFERENCE (optional): another solution's exterior orientations (e.g. the Z-Map log's), with
+    this adjustment's cameras, compared in the terms an adjustment log states its residuals in:
+    CONTROL's full points back-projected through both (difference in image µm and px), and
+    intersected through the adjusted orientations from their reference image positions
+    (ground difference, m); centre and angle differences with the centres' standard
+    deviations. With REFERENCE_TOLERANCE (x, y, z m, image µm: e.g. the log's largest control
+    residuals) the report says whether they agree ("reference" in REPORT and STATISTICS).
     """
 
     id = "orientation:bundle"
@@ -134,6 +143,11 @@ class BundleAdjustment(Algorithm):
                "check; pixel measurements)", default=1.0, min_value=0, min_exclusive=True),
         Integer("MAX_ITERATIONS", "Levenberg-Marquardt iterations per adjustment", default=50,
                 min_value=1, max_value=1000),
+        File("REFERENCE", "orientation project whose exterior orientations the adjusted ones are "
+             "compared with (e.g. a previous adjustment's), on CONTROL's points",
+             extensions=PROJECT_EXTENSIONS, optional=True),
+        String("REFERENCE_TOLERANCE", "agreement with REFERENCE: 'x, y, z, image_um' (ground m, "
+               "image µm), e.g. the reference log's stated control residuals", optional=True),
         OutputFile("OUTPUT", "orientation project (YAML) with the adjusted orientations",
                    extensions=[".yaml", ".yml"]),
         OutputVector("POINTS", "GeoPackage: projection centres, points, residuals",
@@ -164,6 +178,14 @@ class BundleAdjustment(Algorithm):
     ]
     outputs = [Output("STATISTICS", "sigma0, redundancy, rejected observations, check RMSE",
                       "dict")]
+
+    def check(self, params: dict[str, Any]) -> None:
+        from toolbox.triangulation.reference import parse_tolerance
+
+        parse_tolerance(params["REFERENCE_TOLERANCE"])
+        if params["REFERENCE_TOLERANCE"] is not None and params["REFERENCE"] is None:
+            raise self.fail("REFERENCE_TOLERANCE", "needs REFERENCE (the orientations to "
+                            "compare with)")
 
     def process(self, params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
         import numpy as np
@@ -256,22 +278,51 @@ class BundleAdjustment(Algorithm):
         for rj in solution.rejections:
             feedback.push_warning(f"rejected {rj.kind} observation (w = {rj.w:.2f})")
         ground = outputs.ground_comparison(block, solution, control, info["checks"])
-        save_project(outputs.adjusted_project(project, block, solution), params["OUTPUT"],
-                     relative_images=False)
+        adjusted = outputs.adjusted_project(project, block, solution)
+        save_project(adjusted, params["OUTPUT"], relative_images=False)
         if params["POINTS"] is not None:
             write_layers(params["POINTS"], outputs.layers(block, solution, info, ground,
                                                           project.crs, params["THRESHOLD_PX"]),
                          crs=project.crs, geometry_types=outputs.GEOMETRY_TYPES)
         document = outputs.report(block, solution, info, ground, notes + solution.notes,
                                   params["THRESHOLD_PX"])
+        if params["REFERENCE"] is not None:
+            document["reference"] = self._reference(params, adjusted, control, document)
+            feedback.push_info(f"REFERENCE: {document['reference']['summary']['line']}")
         if params["REPORT"] is not None:
             write_json(params["REPORT"], {"algorithm": self.id, **document})
         stats = {k: document["summary"][k] for k in
                  ("sigma0", "redundancy", "iterations", "photos", "points", "rejected",
                   "flagged")}
         stats.update({k: v for k, v in document["summary"].items() if k.endswith("_rmse_m")})
+        if "reference" in document:
+            stats["reference"] = document["reference"]["summary"]
         return {"OUTPUT": params["OUTPUT"], "POINTS": params["POINTS"],
                 "REPORT": params["REPORT"], "STATISTICS": stats}
+
+    def _reference(self, params: dict[str, Any], adjusted, control, document: dict) -> dict:
+        """The adjusted orientations against REFERENCE's (with the adjusted cameras) on
+        CONTROL's full points (toolbox.triangulation.reference)."""
+        from dataclasses import replace
+
+        import numpy as np
+
+        from toolbox.photogrammetry.tables import load_project_parameter
+        from toolbox.triangulation.reference import compare, parse_tolerance
+
+        tolerance = parse_tolerance(params["REFERENCE_TOLERANCE"])
+        other = load_project_parameter(params["REFERENCE"], "REFERENCE").photos
+        ours = adjusted.photos
+        common = [p for p in ours if p in other and other[p].exterior is not None]
+        if not common:
+            raise self.fail("REFERENCE", f"has no exterior orientation of the adjusted photos "
+                            f"({', '.join(list(ours)[:5])}), got {params['REFERENCE']}")
+        reference = {p: replace(ours[p], exterior=other[p].exterior) for p in common}
+        points = {i: xyz for i, xyz in zip(control.ids, control.xyz, strict=True)
+                  if np.isfinite(xyz).all()}
+        std = {r["photo"]: [r["std_X0"] or np.nan, r["std_Y0"] or np.nan, r["std_Z0"] or np.nan]
+               for r in document["photos"]}
+        return compare({p: ours[p] for p in common}, reference, points, std, tolerance)
 
     def _check_crs(self, name: str, path, crs, xy, feedback: Feedback) -> None:
         """A table whose own CRS (GeoPackage layer, or a CSV's ``.prj`` beside it) is not

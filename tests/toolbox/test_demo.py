@@ -20,6 +20,13 @@ DEBIAN_VALIDATOR = Path("/usr/lib/python3/dist-packages/osgeo_utils/samples/vali
 def test_demo_runs_end_to_end(demo_run):
     tmp_path, summary = demo_run
     assert f"outputs in {tmp_path}" in summary
+    # the Siena bundle's orientations against Z-Map's, within the block log's stated residuals
+    # (tests/algorithms/orientation/test_tiepoints_siena.py checks the figures independently)
+    line = next(ln for ln in summary.splitlines() if "siena_bundle: against the reference" in ln)
+    assert line.endswith("agrees within the tolerance"), line
+    bundle = json.loads((tmp_path / "orientation" / "siena_bundle.json").read_text())
+    assert bundle["reference"]["summary"]["agrees"] is True
+    assert bundle["reference"]["summary"]["tolerance"] == [0.153, 0.16, 0.346, 65.4]
     steps = [s["name"] for s in demo_pipeline_doc()["steps"]]
     reports = {p.stem for p in (tmp_path / "reports").glob("*.json")}
     assert reports == set(steps)  # every step ran and reported

@@ -57,6 +57,11 @@ def run_demo(out_dir: Path, feedback: Feedback | None = None) -> str:
         files = [v for v in outputs.values() if isinstance(v, str) and Path(v).exists()]
         for path in files:
             lines.append(f"  {step:<22} {Path(path).relative_to(out_dir)}")
+    for step, outputs in results.items():  # a bundle compared with a reference solution
+        stats = outputs.get("STATISTICS")
+        reference = stats.get("reference") if isinstance(stats, dict) else None
+        if isinstance(reference, dict) and isinstance(reference.get("line"), str):
+            lines += ["", f"  {step}: {reference['line']}"]
     lines += ["", f"  the pipeline           {pipeline_file}",
               f"  sample inputs in       {out_dir / 'data'}",
               f"  JSON run reports in    {out_dir / 'reports'}"]

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 import toolbox
+from tests.helpers_cli import assert_refused
 from toolbox.demo.samples.bundle_block import BLUNDER_POINT, make
 from toolbox.errors import ToolboxError
 from toolbox.photogrammetry.project import load_project
@@ -278,3 +279,14 @@ def test_project_angles_in_the_wrong_unit_are_refused(sample, tmp_path):
     path.write_text(yaml.safe_dump(doc, sort_keys=False))
     _bad(sample, tmp_path, "PROJECT.*written in deg, read as rad.*angle_unit", PROJECT=path,
          START="project")
+
+
+@pytest.mark.parametrize(("over", "text"), [
+    ({"REFERENCE_TOLERANCE": "0.1, 0.1, 0.2"}, "REFERENCE_TOLERANCE must be four positive"),
+    ({"REFERENCE_TOLERANCE": "0.1, 0.1, 0.2, 50"}, "REFERENCE_TOLERANCE needs REFERENCE")])
+def test_bad_reference_tolerance_is_one_line_exit_2_nothing_written(sample, tmp_path, over, text):
+    args = ["run", "orientation:bundle"]
+    for key, value in _params(sample, tmp_path, **over).items():
+        args += [f"--{key}", value]
+    assert_refused(args, text, absent=(tmp_path / "adjusted.yaml", tmp_path / "bundle.json"))
+

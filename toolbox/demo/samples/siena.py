@@ -7,8 +7,6 @@ project's orientations:
 - ``control_image_points.csv``: the 8 block-adjustment control points (l.3199-3206, EPSG:3003)
   projected into every photo whose frame sees them, in pixels, plus a deterministic measuring
   noise of 0.3 px (seeded); intersecting them recovers the printed coordinates to a few cm;
-- ``control_image_points_block.csv``: the same points measured (0.3 px noise) on the six
-  photos rendered at 1/32 of the scans (``siena_block/``), for the demo's bundle.
 - ``monoplot_points.csv``: a 5 x 5 grid of pixels over photo 1_7150 and one pixel far outside
   its frame (``outside``), whose ray misses the demo DEM and must come out flagged;
 - ``control_ground.csv``: the 8 control points (id, X, Y, Z, role), two of them as check points,
@@ -50,11 +48,6 @@ def make(folder: Path, made: dict) -> dict:
     points = control_points(target)
     control_csv = target / "control_image_points.csv"
     _write_measurements(control_csv, project, points, rng)
-    block = {}
-    if "siena_block_project" in made:  # the six rendered photos (1/32 scans): their control
-        block_csv = target / "control_image_points_block.csv"
-        _write_measurements(block_csv, load_project(made["siena_block_project"]), points, rng)
-        block = {"siena_block_control_points": block_csv}
     grid = np.linspace(1500.0, 15100.0, 5)
     mono_csv = target / "monoplot_points.csv"
     with open(mono_csv, "w", newline="") as f:
@@ -86,7 +79,7 @@ def make(folder: Path, made: dict) -> dict:
     return {"siena": target, "siena_project": target / "siena_project.yaml",
             "siena_control_ground": ground_csv, "siena_model_points": model_csv,
             "siena_fiducials": target / "fiducials.csv", "siena_control_image_points": control_csv,
-            "siena_monoplot_points": mono_csv} | block
+            "siena_monoplot_points": mono_csv}
 
 
 def _write_measurements(path: Path, project, points: dict, rng) -> None:
