@@ -91,6 +91,36 @@ def test_readme_typed_request_example_runs(tmp_path, monkeypatch):
     assert np.abs(z - (200 + 0.1 * x[None, :])).max() < 1.0
 
 
+def test_readme_python_api_names_exist():
+    """Every ``toolbox.module.Name`` the README's Python API section names can be imported (a
+    rename or a move that leaves the README behind fails here); the check bites: a made-up name
+    is refused the same way."""
+    import importlib
+
+    section = (ROOT / "README.md").read_text().split("## Python API", 1)[1].split("\n## ", 1)[0]
+    names = sorted(set(re.findall(r"`(toolbox(?:\.\w+)+)", section)))
+    assert len(names) >= 15
+
+    def resolves(dotted: str) -> bool:
+        parts = dotted.split(".")
+        for cut in range(len(parts), 0, -1):  # the longest importable module, then attributes
+            try:
+                obj = importlib.import_module(".".join(parts[:cut]))
+            except ImportError:
+                continue
+            try:
+                for attr in parts[cut:]:
+                    obj = getattr(obj, attr)
+            except AttributeError:
+                return False
+            return True
+        return False
+
+    assert [n for n in names if not resolves(n)] == []
+    assert not resolves("toolbox.ortho.run.OrthoOptionz")
+    assert not resolves("toolbox.no_such_module.Request")
+
+
 def _documented_outputs() -> dict[str, list[str]]:
     """Output path (as written in the docs) -> the documented commands writing it."""
     from toolbox.registry import get
