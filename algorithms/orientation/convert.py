@@ -85,17 +85,13 @@ class ConvertOrientations(Algorithm):
                 raise self.fail("INPUT", f"cannot use {item[:60]!r}: {exc.strerror}") from None
             if not exists:
                 raise self.fail("INPUT", f"{item!r} does not exist")
+        # OUTPUT itself against INPUT's files (a list, a folder's files): the runner's check
         out = Path(params["OUTPUT"]).resolve()
-        if any(Path(i).resolve() == out for i in inputs):
-            raise self.fail("OUTPUT", f"is the input {out}; an input is never overwritten")
         beside = [out.with_suffix(".prj"), out.with_name(f"{out.stem}_points.csv"),
                   out.with_name(f"{out.stem.removesuffix('_ext_param')}_int_param.yaml")]
         for item in inputs:
             given = Path(item).resolve()
             files = {f.resolve() for f in (given.iterdir() if given.is_dir() else [given])}
-            if out in files:  # a file of an INPUT folder is an input too
-                raise self.fail("OUTPUT", f"is the input {out} (in INPUT {item!r}); an input is "
-                                "never overwritten: choose another name or folder")
             hit = next((b for b in beside if b in files), None)
             if hit is not None:
                 raise self.fail("OUTPUT", f"would write {hit.name} beside it, which is an input; "

@@ -119,26 +119,16 @@ class OrthoBatch(Algorithm):
                                 "project's orthos are in its CRS")
 
     def planned_files(self, params: dict[str, Any]) -> dict[str, list[str]]:
-        folder = Path(params["FOLDER"]).expanduser().resolve()
+        """One ``<photo id>.tif`` per photo (the runner refuses one that is an input: a file
+        of IMAGES, a list of IMAGES or an image the project names)."""
         if params["PROJECT"] is None:
             from toolbox.ortho.rpc_block import rpc_images, select_rpc_images
 
-            images = select_rpc_images(rpc_images(params["IMAGES"])[0], params["PHOTOS"])
-            pairs = [(i.id, i.path) for i in images]
-        else:  # IMAGES' files are inputs the runner cannot see (a folder name)
-            photos = select_photos(load_batch_project(params), params["PHOTOS"])
-            pairs = [(p.id, image_path(p, params["IMAGES"]) if p.image is not None and
-                      params["IMAGES"] is not None else None) for p in photos]
-        names = {f"{pid}.tif" for pid, _ in pairs}
-        for _, image in pairs:
-            if image is None:
-                continue
-            image = image.expanduser()
-            if image.exists() and image.resolve().parent == folder and image.name in names:
-                raise self.fail("FOLDER", f"would write the ortho '{folder / image.name}' "
-                                f"over the photo IMAGES holds under that name; an input is "
-                                "never overwritten: choose another folder")
-        return {"FOLDER": [f"{pid}.tif" for pid, _ in pairs]}
+            ids = [i.id for i in select_rpc_images(rpc_images(params["IMAGES"])[0],
+                                                   params["PHOTOS"])]
+        else:
+            ids = [p.id for p in select_photos(load_batch_project(params), params["PHOTOS"])]
+        return {"FOLDER": [f"{pid}.tif" for pid in ids]}
 
     def process(self, params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
         from toolbox.io.crs import crs_label

@@ -2,7 +2,10 @@
 
 Algorithms: ``rectify:estimate`` (transform from control points, with residuals, check points,
 gross-error detection and the relief-displacement rule) and ``rectify:image`` (windowed warp to a
-GeoTIFF, or a GCP-referenced copy). Kernels: :mod:`.control_points`, :mod:`.relief`,
-:mod:`.warp` (the output-window -> source-coordinates -> ``cv2.remap`` machinery, reusable by
-orthorectification); robust estimation lives in :mod:`toolbox.transforms.robust`.
+GeoTIFF, or a GCP-referenced copy). Libraries: :mod:`toolbox.transforms.control_points`,
+:mod:`toolbox.transforms.relief`, :mod:`toolbox.transforms.rectification` (the fit, the
+transform document, the photo's footprint and cell size, the GCP copy) and
+:mod:`toolbox.transforms.robust` (robust estimation); the warp is the raster engine's
+(:func:`toolbox.raster.warp.warp_raster`, the one photo -> ground path of rectify, ortho and
+epipolar resampling).
 """

@@ -91,6 +91,74 @@ def test_readme_typed_request_example_runs(tmp_path, monkeypatch):
     assert np.abs(z - (200 + 0.1 * x[None, :])).max() < 1.0
 
 
+def test_readme_python_api_names_exist():
+    """Every ``toolbox.module.Name`` the README's Python API section names can be imported (a
+    rename or a move that leaves the README behind fails here); the check bites: a made-up name
+    is refused the same way."""
+    import importlib
+
+    section = (ROOT / "README.md").read_text().split("## Python API", 1)[1].split("\n## ", 1)[0]
+    names = sorted(set(re.findall(r"`(toolbox(?:\.\w+)+)", section)))
+    assert len(names) >= 15
+
+    def resolves(dotted: str) -> bool:
+        parts = dotted.split(".")
+        for cut in range(len(parts), 0, -1):  # the longest importable module, then attributes
+            try:
+                obj = importlib.import_module(".".join(parts[:cut]))
+            except ImportError:
+                continue
+            try:
+                for attr in parts[cut:]:
+                    obj = getattr(obj, attr)
+            except AttributeError:
+                return False
+            return True
+        return False
+
+    assert [n for n in names if not resolves(n)] == []
+    assert not resolves("toolbox.ortho.run.OrthoOptionz")
+    assert not resolves("toolbox.no_such_module.Request")
+
+
+def _missing_modules(package: str, source: str) -> list[str]:
+    """The ``:mod:`` references of a module's docstring (``source``, a module of ``package``)
+    that name no module: relative (``.x``) or bare names within the package, else absolute."""
+    import ast
+
+    doc = ast.get_docstring(ast.parse(source)) or ""
+    missing = []
+    for ref in re.findall(r":mod:`~?([\w.]+)`", doc):
+        names = [package + ref] if ref.startswith(".") else [f"{package}.{ref}", ref]
+        if not any(_module_exists(name) for name in names):
+            missing.append(f"{package}: {ref}")
+    return missing
+
+
+def _module_exists(name: str) -> bool:
+    import importlib.util
+
+    try:
+        return importlib.util.find_spec(name) is not None
+    except ModuleNotFoundError:
+        return False
+
+
+def test_module_docstrings_name_modules_that_exist():
+    """The ``:mod:`` references of every module docstring (toolbox/, algorithms/) name modules
+    that exist (stale ones named .codes, .merge, .apply, .io and rectify's .warp); a made-up
+    name in one of them is found."""
+    files = sorted([*ROOT.glob("toolbox/**/*.py"), *ROOT.glob("algorithms/**/*.py")])
+    assert len(files) > 300
+    missing = [m for f in files for m in _missing_modules(
+        ".".join(f.parent.relative_to(ROOT).parts), f.read_text())]
+    assert missing == []
+    source = (ROOT / "toolbox" / "ortho" / "__init__.py").read_text()
+    bad = source.replace(":mod:`.sensor`", ":mod:`.no_such_module`", 1)
+    assert bad != source
+    assert _missing_modules("toolbox.ortho", bad) == ["toolbox.ortho: .no_such_module"]
+
+
 def _documented_outputs() -> dict[str, list[str]]:
     """Output path (as written in the docs) -> the documented commands writing it."""
     from toolbox.registry import get

@@ -268,9 +268,15 @@ def test_convert_never_writes_over_a_file_of_an_input_folder(tmp_path):
     before = patb.read_bytes()
     params = {"INPUT": str(folder), "FORMAT": "patb", "CRS": "EPSG:3003", "FORMAT_OUT": "patb",
               "OUTPUT": patb}
-    with pytest.raises(ParameterError, match=r"^OUTPUT is the input .*block\.ori \(in INPUT"):
+    with pytest.raises(ParameterError, match=r"^OUTPUT '.*block\.ori' is the input INPUT"):
         toolbox.run("orientation:convert", params, overwrite=True)
     assert patb.read_bytes() == before and sorted(folder.iterdir()) == [patb]
+    other = tmp_path / "other.ori"  # INPUT a comma-separated list: each of its files too
+    other.write_bytes(before)
+    with pytest.raises(ParameterError, match=r"^OUTPUT '.*other\.ori' is the input INPUT"):
+        toolbox.run("orientation:convert", params | {"INPUT": f"{patb},{other}",
+                                                     "OUTPUT": other}, overwrite=True)
+    assert other.read_bytes() == before and patb.read_bytes() == before
     out = toolbox.run("orientation:convert", params | {"OUTPUT": tmp_path / "copy.ori"})
     assert out["SUMMARY"]["photos"] == 1
 

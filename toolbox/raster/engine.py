@@ -4,9 +4,11 @@ on arrays, one writer.
 Every raster-producing algorithm follows the same flow::
 
     grid = GridRequest(cell_size, extent, template).grid(data_bounds, crs)  # grid rules
-    with RasterWriter(params["OUTPUT"], grid, 1, "float32", nodata=-9999) as writer:
+    with RasterWriter(output, grid, 1, "float32", nodata=-9999) as writer:
         process_raster(grid, {"dem": RasterInput(path)}, kernel, writer, halo=1,
-                       executor=resolve_executor(params["SCHEDULER"]), feedback=feedback)
+                       executor=resolve_executor(scheduler), feedback=feedback)
+
+(typed arguments: an algorithm translates its parameters into them in :mod:`toolbox.ui`).
 
 - :class:`toolbox.raster.grid_request.GridRequest` holds the one set of grid rules (below).
 - :func:`iter_tiles` cuts the grid into :class:`Tile` s (row by row, ``tile_size`` cells, a

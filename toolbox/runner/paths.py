@@ -9,7 +9,7 @@ from typing import Any
 from toolbox.algorithm import Algorithm
 from toolbox.errors import OutputExistsError, ParameterError
 from toolbox.io.staging import protected_paths
-from toolbox.parameters import Folder, OutputFolder
+from toolbox.parameters import Folder, OutputFolder, String
 
 REPORT = "--run-report"  # the run report, as messages name it
 
@@ -21,9 +21,23 @@ def _flatten(value: Any):
         yield value
 
 
+def _named(p: Any, path: Any) -> list[str]:
+    """The paths a value names: itself; for a text parameter that is no existing path, each
+    part of a comma-separated list (``IMAGES``, ``orientation:convert``'s ``INPUT``)."""
+    text = str(path)
+    try:
+        whole = Path(text).expanduser().exists()
+    except (OSError, ValueError):  # a string that is no path (too long, NUL...)
+        return []
+    if isinstance(p, String) and "," in text and not whole:
+        return [part.strip() for part in text.split(",") if part.strip()]
+    return [text]
+
+
 def input_paths(alg_cls: type[Algorithm], values: dict[str, Any]) -> dict[Path, str]:
     """Every file the inputs name (whatever the parameter type) and their sidecars, resolved ->
-    parameter name."""
+    parameter name; the files of an input folder (a :class:`Folder`, or a text parameter naming
+    a folder or a comma-separated list of files and folders) too."""
     out: dict[Path, str] = {}
     for p in alg_cls.parameters:
         if p.is_output:
@@ -32,19 +46,25 @@ def input_paths(alg_cls: type[Algorithm], values: dict[str, Any]) -> dict[Path, 
             path = getattr(item, "path", item)
             if not isinstance(path, (str, Path)) or not str(path).strip():
                 continue
-            try:
-                candidate = Path(str(path).split("|", 1)[0]).expanduser()
-                if isinstance(p, Folder) and candidate.is_dir():  # an input folder's files
-                    for named in (f for f in candidate.iterdir() if f.is_file()):
-                        for protected in protected_paths(named):
-                            out.setdefault(protected, p.name)
-                elif candidate.is_file():
-                    for named in [candidate, *_referenced_files(candidate)]:
-                        for protected in protected_paths(named):
-                            out.setdefault(protected, p.name)
-            except (OSError, ValueError):  # a string that is no path (too long, NUL...)
-                continue
+            for named_path in _named(p, path):
+                _add_input(out, p, named_path)
     return out
+
+
+def _add_input(out: dict[Path, str], p: Any, path: str) -> None:
+    """``path`` (its sidecars, a folder's files, a project's files) into ``out`` as ``p``'s."""
+    try:
+        candidate = Path(path.split("|", 1)[0]).expanduser()
+        if isinstance(p, (Folder, String)) and candidate.is_dir():  # an input folder's files
+            for named in (f for f in candidate.iterdir() if f.is_file()):
+                for protected in protected_paths(named):
+                    out.setdefault(protected, p.name)
+        elif candidate.is_file():
+            for named in [candidate, *_referenced_files(candidate)]:
+                for protected in protected_paths(named):
+                    out.setdefault(protected, p.name)
+    except (OSError, ValueError):  # a string that is no path (too long, NUL...)
+        return
 
 
 def _referenced_files(path: Path) -> list[Path]:

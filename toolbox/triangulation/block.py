@@ -2,7 +2,7 @@
 
 Indices are 0-based into the id lists. Ground coordinates are in the block's CRS (metres);
 image observations are image mm in the fiducial system (pixels are converted through each photo's
-interior orientation before a block is built; :mod:`toolbox.triangulation.io`).
+interior orientation before a block is built; :mod:`toolbox.triangulation.inputs`).
 """
 
 from __future__ import annotations
