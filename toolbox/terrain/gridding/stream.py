@@ -14,9 +14,10 @@ spilled to disk; the same tiles, kernels and cell values as the in-memory path.
 
 Exact: a cell's k nearest points all lie within ``h`` of it, so its bucket holds them, and the
 kernel computes the cell from the same points in the same local origin. Streams: nearest,
-idw (with SECTORS: every point within RADIUS), plane, quadratic, cubic. Not: tin_linear (one
-global Delaunay TIN), QUALITY (leave-one-out on every point), LINES / BREAKLINES,
-DUPLICATE_TOLERANCE > 0.
+idw (with SECTORS: every point within RADIUS), plane, quadratic, cubic; tin_linear by its own
+tiles (:mod:`toolbox.terrain.gridding.stream_tin`: each bucket's Delaunay triangles whose
+circumcircle the bucket holds). Not: QUALITY (leave-one-out on every point), LINES /
+BREAKLINES, DUPLICATE_TOLERANCE > 0.
 
 Memory: one chunk (CHUNK_POINTS records, about 100 MB at 1 M), the count raster (8 bytes a
 bucket, at most about 1 M buckets) and the hull, then per tile in flight its bucket and the
@@ -49,7 +50,7 @@ TILE_POINTS = 3_000_000
 MIN_TILE = 64
 #: the count raster has at most about this many buckets
 MAX_BUCKETS = 1_000_000
-STREAMING_METHODS = ("nearest", "idw", "plane", "quadratic", "cubic")
+STREAMING_METHODS = ("nearest", "idw", "plane", "quadratic", "cubic", "tin_linear")
 #: measured by bench/surface_bench.py: dem:nearest in memory, bytes a kept point
 IN_MEMORY_BYTES = 190
 
@@ -74,8 +75,8 @@ def check_streamable(method: Any, request: GriddingRequest) -> None:
     held = f"{n:,} points of INPUT would need about {n * IN_MEMORY_BYTES / 1e9:.1f} GB in memory"
     limit = f"above TOOLBOX_STREAM_POINTS = {stream_threshold():,} points"
     if method.name not in STREAMING_METHODS:
-        raise ParameterError("INPUT", f"dem:{method.name} holds every point (one TIN over all "
-                             f"of them): the {held}; {limit} only dem:"
+        raise ParameterError("INPUT", f"dem:{method.name} holds every point: the {held}; "
+                             f"{limit} only dem:"
                              f"{', dem:'.join(STREAMING_METHODS)} grid a point cloud by "
                              "streaming (raise TOOLBOX_STREAM_POINTS if the memory is there)")
     for name, value in (("LINES", sources.lines), ("BREAKLINES", sources.breaklines)):
@@ -334,10 +335,11 @@ class StreamData:
 
 
 def grid_dem_streamed(method: Any, request: GriddingRequest, feedback: Feedback,
-                      chunk_points: int | None = None) -> dict[str, Any]:
+                      chunk_points: int | None = None, planner: Any = None) -> dict[str, Any]:
     """Grid ``request`` (a point cloud INPUT) with ``method`` by streaming (see the module);
     writes ``request.output`` and returns the STATISTICS, as
-    :func:`~toolbox.terrain.gridding.run.grid_dem`."""
+    :func:`~toolbox.terrain.gridding.run.grid_dem`. ``planner``: computes the tiles itself
+    (:func:`toolbox.terrain.gridding.stream_tin.plan_tin`; tin_linear needs it)."""
     from toolbox.io.crs import common_crs
     from toolbox.io.pointcloud import CHUNK_POINTS, cloud_filter
     from toolbox.terrain.gridding.grid import prepare_grid
@@ -346,6 +348,9 @@ def grid_dem_streamed(method: Any, request: GriddingRequest, feedback: Feedback,
     from toolbox.terrain.points import local_origin
 
     check_streamable(method, request)
+    if planner is None and not hasattr(method, "halo_neighbours"):
+        raise TypeError(f"dem:{method.name} streams through its own planner: "
+                        "toolbox.terrain.gridding.stream_tin.grid_tin_streamed")
     sources = request.sources
     ref, chunk = sources.points, int(chunk_points or CHUNK_POINTS)
     flt = cloud_filter(ref, sources.classes, sources.returns, sources.crs)
@@ -364,31 +369,37 @@ def grid_dem_streamed(method: Any, request: GriddingRequest, feedback: Feedback,
                       DuplicateReport(0, 0, 0.0, sources.duplicates or "mean"))
     run = prepare_grid(request, data, limit_to_hull=method.limits_to_hull)
     options = method.options(request.method)
-    k, radius = method.halo_neighbours(options)
-    radius = math.inf if radius is None else float(radius)
-    boxes = plan_boxes(run.grid, run.tile, scan, k, radius)
-    run.tile = boxes.tile
     merged = Merged(sources.duplicates or "mean")
     with tempfile.TemporaryDirectory(prefix="toolbox-stream-") as tmp:
         folder = Path(tmp)
-        with feedback.timed("spill"):
-            written = spill(ref, flt, sources.z_field, chunk, boxes, folder)
-        feedback.set_progress(5)
-        plan = partial_plan(run, boxes, folder, scan, k, radius, merged)
-        tiles = TilePlan(plan, _kernel(method, run.origin, options))
-        result = write_dem(run, tiles, request, feedback, start=5, end=98)
+        if planner is not None:  # tin_linear: its own tiles (stream_tin.grid_tin_streamed)
+            tiles, boxes, streamed = planner(run, scan, (ref, flt, sources.z_field, chunk),
+                                             options, folder, merged, feedback)
+            start = 65
+        else:
+            k, radius = method.halo_neighbours(options)
+            radius = math.inf if radius is None else float(radius)
+            boxes = plan_boxes(run.grid, run.tile, scan, k, radius)
+            run.tile = boxes.tile
+            with feedback.timed("spill"):
+                written = spill(ref, flt, sources.z_field, chunk, boxes, folder)
+            streamed = {"tile_size": boxes.tile, "tiles": len(boxes.tiles),
+                        "bucket_points_max": int(written.max()),
+                        "points_spilled": int(written.sum()),
+                        "reach_max": float(boxes.reach.max()),
+                        "count_raster": list(scan.counts.shape), "bucket_size": scan.size}
+            start = 5
+            feedback.set_progress(start)
+            plan = partial_plan(run, boxes, folder, scan, k, radius, merged)
+            tiles = TilePlan(plan, _kernel(method, run.origin, options))
+        result = write_dem(run, tiles, request, feedback, start=start, end=98)
     data.duplicates = merged.report
     stats = grid_statistics(run, request)
     stats["points_used"] = scan.kept - merged.report.removed
     stats["method"] = {"name": method.name, "options": jsonable_options(options),
                        **method.summarise(result.pop("counts"))}
     stats["cells"] = result
-    stats["streamed"] = {"chunk_points": chunk, "tile_size": boxes.tile,
-                         "tiles": len(boxes.tiles), "bucket_points_max": int(written.max()),
-                         "points_spilled": int(written.sum()),
-                         "reach_max": float(boxes.reach.max()),
-                         "count_raster": list(scan.counts.shape),
-                         "bucket_size": scan.size}
+    stats["streamed"] = {"chunk_points": chunk, **streamed}
     return stats
 
 
