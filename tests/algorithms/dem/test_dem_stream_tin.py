@@ -114,3 +114,38 @@ def test_streamed_tin_max_distance_and_extent(even, tmp_path, monkeypatch):
                                {"MAX_DISTANCE": 1.5, "EXTENT": extent, "CELL_SIZE": 0.5})
     assert stats["streamed"]["reach_max"] >= 1.5
     assert np.isnan(grid).sum() > 0.1 * grid.size  # outside the hull, and far from points
+
+
+def test_circumcircle_test_against_analytic_discs():
+    """Circumcircles of right triangles (centre: the hypotenuse's midpoint), and which discs
+    may hold a point of the cloud outside the bucket's rectangle."""
+    from shapely.geometry import Polygon, box
+
+    from toolbox.terrain.gridding.stream_tin import circumcircles, empty_outside
+
+    xy = np.array([[0.0, 0.0], [2.0, 0.0], [0.0, 2.0], [10.0, 0.0], [10.0, 2.0], [8.0, 0.0]])
+    centres, radius = circumcircles(xy, np.array([[0, 1, 2], [3, 4, 5]]))
+    np.testing.assert_allclose(centres, [[1.0, 1.0], [9.0, 1.0]], atol=1e-15)
+    np.testing.assert_allclose(radius, [np.sqrt(2.0)] * 2, atol=1e-15)
+    rect = np.array([-1.0, -1.0, 3.0, 3.0])
+    bounds = (-5.0, -5.0, 20.0, 20.0)
+    hull = Polygon([(-5, -5), (20, -5), (20, 20), (-5, 20)])
+    outer = hull.difference(box(*rect))
+    # the first disc (x in 1 +- 1.414) lies in the rectangle, the second outside it
+    assert empty_outside(centres, radius, rect, bounds, outer).tolist() == [True, False]
+    # a rectangle whose left and bottom sides are beyond the cloud: only the other sides count
+    tight = np.array([0.0, 0.0, 2.5, 2.5])
+    assert not empty_outside(centres[:1], radius[:1], tight, bounds, hull.difference(box(*tight)))
+    assert empty_outside(centres[:1], radius[:1], tight, (0.0, 0.0, 20.0, 20.0),
+                         Polygon([(0, 0), (20, 0), (20, 20), (0, 20)]).difference(box(*tight)))
+    # the disc reaches above the rectangle's top side (y = 1, inside the bounds): the part
+    # of the hull above it holds points there...
+    small = Polygon([(0, 0), (2.5, 0), (0, 2.5)])
+    flat = np.array([0.0, 0.0, 2.5, 1.0])
+    assert not empty_outside(centres[:1], radius[:1], flat, (0.0, 0.0, 2.5, 2.5),
+                             small.difference(box(*flat))).any()
+    # ... unless the hull outside the rectangle lies away from the disc (shapely's distance)
+    assert empty_outside(centres[:1], radius[:1], flat, (0.0, 0.0, 10.0, 3.0),
+                         box(6.0, 1.0, 10.0, 3.0)).all()
+    # a bucket that holds the whole hull: every triangle counts
+    assert empty_outside(centres, radius, rect, bounds, box(*rect).difference(box(*rect))).all()
