@@ -195,7 +195,7 @@ class TileBoxes:
 
 
 def tile_boxes(grid: Any, tile: int, scan: CloudScan, reach: np.ndarray,
-               radius: float) -> TileBoxes:
+               radius: float, floor: float = 0.0) -> TileBoxes:
     """The boxes and reaches of the tiles of ``grid``; ``reach`` from :func:`knn_reach` (None:
     every point within ``radius``)."""
     from toolbox.raster.tile import iter_tiles
@@ -208,7 +208,7 @@ def tile_boxes(grid: Any, tile: int, scan: CloudScan, reach: np.ndarray,
     for t in tiles:
         xs, ys = t.cell_centres(halo=False)
         box = (float(xs.min()), float(ys.min()), float(xs.max()), float(ys.max()))
-        h = radius if reach is None else box_reach(box, scan, reach, radius)
+        h = max(radius if reach is None else box_reach(box, scan, reach, radius), floor)
         boxes.append(box)
         reaches.append(h)
         if math.isfinite(h):
@@ -244,14 +244,16 @@ def _index(value: float, origin: float, size: float, n: int) -> int:
     return int(min(max(math.floor((value - origin) / size), 0), n - 1))
 
 
-def plan_boxes(grid: Any, tile: int, scan: CloudScan, k: int, radius: float) -> TileBoxes:
+def plan_boxes(grid: Any, tile: int, scan: CloudScan, k: int, radius: float,
+               floor: float = 0.0) -> TileBoxes:
     """Tile boxes whose reach counts k + max(1, k // 4) points (the margin keeps the reach
     valid when up to a quarter of the points share their XY with another), the tile side
     halved (multiples of 16, down to :data:`MIN_TILE`) while
-    the densest grown box would hold more than :data:`TILE_POINTS` points."""
+    the densest grown box would hold more than :data:`TILE_POINTS` points. ``floor``: the
+    smallest reach (tin_linear's MAX_DISTANCE)."""
     reach = None if k == 0 else knn_reach(scan.counts, k + max(1, k // 4), scan.size)
     while True:
-        boxes = tile_boxes(grid, tile, scan, reach, radius)
+        boxes = tile_boxes(grid, tile, scan, reach, radius, floor)
         if boxes.estimate.max() <= TILE_POINTS or tile <= MIN_TILE:
             return boxes
         tile = max(MIN_TILE, (tile // 2) // 16 * 16)

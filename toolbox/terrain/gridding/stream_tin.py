@@ -156,9 +156,8 @@ def plan_tin(run: Any, scan: Any, cloud: tuple, options: dict[str, Any], folder:
 
     ref, flt, z_field, chunk = cloud
     max_distance = float(options["max_distance"])
-    boxes = plan_boxes(run.grid, run.tile, scan, TIN_NEIGHBOURS, math.inf)
-    if math.isfinite(max_distance):
-        boxes.reach = np.maximum(boxes.reach, max_distance * (1.0 + MARGIN))
+    floor = max_distance * (1.0 + MARGIN) if math.isfinite(max_distance) else 0.0
+    boxes = plan_boxes(run.grid, run.tile, scan, TIN_NEIGHBOURS, math.inf, floor)
     run.tile = boxes.tile
     hull = Polygon(scan.ring) if len(scan.ring) >= 3 else None
     todo = list(range(len(boxes.tiles)))
