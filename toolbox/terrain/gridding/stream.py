@@ -51,8 +51,9 @@ MIN_TILE = 64
 #: the count raster has at most about this many buckets
 MAX_BUCKETS = 1_000_000
 STREAMING_METHODS = ("nearest", "idw", "plane", "quadratic", "cubic", "tin_linear")
-#: measured by bench/surface_bench.py: dem:nearest in memory, bytes a kept point
+#: measured by bench/surface_bench.py: dem:nearest (dem:tin_linear) in memory, bytes a kept point
 IN_MEMORY_BYTES = 190
+TIN_MEMORY_BYTES = 250
 
 
 def stream_threshold() -> int:
@@ -72,7 +73,8 @@ def wants_stream(request: GriddingRequest) -> bool:
 def check_streamable(method: Any, request: GriddingRequest) -> None:
     """:class:`ParameterError` naming what keeps a run from streaming, with the numbers."""
     sources, n = request.sources, request.sources.points.point_count
-    held = f"{n:,} points of INPUT would need about {n * IN_MEMORY_BYTES / 1e9:.1f} GB in memory"
+    per_point = TIN_MEMORY_BYTES if method.name == "tin_linear" else IN_MEMORY_BYTES
+    held = f"{n:,} points of INPUT would need about {n * per_point / 1e9:.1f} GB in memory"
     limit = f"above TOOLBOX_STREAM_POINTS = {stream_threshold():,} points"
     if method.name not in STREAMING_METHODS:
         raise ParameterError("INPUT", f"dem:{method.name} holds every point: the {held}; "
