@@ -180,16 +180,19 @@ def case(name: str, work: Path, pair: int) -> dict:
 
         xyz, report = read_xyz(open_point_cloud(work / "cloud.laz"), PointFilter((2,)))
         extra = {"points_kept": report.kept}
-    elif name in ("grid", "grid_memory"):
+    elif name in ("grid", "grid_memory", "tin", "tin_memory"):
         import os
 
         import toolbox
 
         # grid: streamed (two chunked passes, per-tile buckets on disk: any cloud above
-        # 10 M points); grid_memory: the same run with every point held (the oracle)
-        os.environ["TOOLBOX_STREAM_POINTS"] = "0" if name == "grid" else str(10 ** 12)
-        out = "toolbox.tif" if name == "grid" else "memory.tif"
-        stats = toolbox.run("dem:nearest", {"INPUT": str(work / "cloud.laz"), "CLASSES": "2",
+        # 10 M points); grid_memory: the same run with every point held (the oracle); tin,
+        # tin_memory: the same for dem:tin_linear
+        streamed = name in ("grid", "tin")
+        os.environ["TOOLBOX_STREAM_POINTS"] = "0" if streamed else str(10 ** 12)
+        out = {"grid": "toolbox.tif", "grid_memory": "memory.tif"}.get(name, f"{name}.tif")
+        method = "tin_linear" if name.startswith("tin") else "nearest"
+        stats = toolbox.run(f"dem:{method}", {"INPUT": str(work / "cloud.laz"), "CLASSES": "2",
                                             "CELL_SIZE": 1.0, "OUTPUT": str(work / out),
                                             "OVERVIEWS": False})["STATISTICS"]
         extra = {"streamed": stats.get("streamed"), "points_used": stats["points_used"],
@@ -313,7 +316,7 @@ def measured_row(name: str, work: Path, pair: int) -> tuple[str, dict | None]:
     inner = json.loads((work / f"{name}.json").read_text())
     note = f"{inner['seconds']:.2f} s inside the process, {inner['cpu_seconds']:.0f} CPU s " \
            f"(all threads), load average {inner['load']:.1f} at the end"
-    if name in ("grid", "grid_memory"):
+    if name in ("grid", "grid_memory", "tin", "tin_memory"):
         note += f"; {inner['points_used']:,} points gridded, {inner['cells']:,} cells"
         info = inner.get("streamed")
         if info:
@@ -321,6 +324,8 @@ def measured_row(name: str, work: Path, pair: int) -> tuple[str, dict | None]:
                      f"of {info['tile_size']} cells, {info['points_spilled']:,} points "
                      f"spilled to disk ({24 * info['points_spilled'] / 1e9:.2f} GB), largest "
                      f"bucket {info['bucket_points_max']:,} points")
+            if "passes" in info:
+                note += f", {info['passes']} passes, {info['tiles_retried']} tiles redone"
     if name == "epipolar":
         note += f" (a {inner['size']} x {inner['size']} uint8 scan, bilinear)"
     if name in ("sgbm", "match_pair"):
@@ -379,6 +384,23 @@ def compare_memory(streamed: Path, memory: Path) -> str:
             "differ).")
 
 
+def compare_tin(streamed: Path, memory: Path) -> str:
+    """The streamed TIN grid against the in-memory one: same nodata, cells within 1e-9."""
+    import rasterio
+
+    with rasterio.open(streamed) as a, rasterio.open(memory) as b:
+        x, y = a.read(1, masked=True).filled(np.nan), b.read(1, masked=True).filled(np.nan)
+        same = a.transform == b.transform and x.shape == y.shape
+    if not same:
+        return "Streamed TIN against in memory: DIFFERENT grids"
+    both = np.isfinite(x) & np.isfinite(y)
+    rel = np.abs(x[both] - y[both]) / np.maximum(np.abs(y[both]), 1e-300)
+    return (f"Streamed TIN against in memory: {x.shape[1]} x {x.shape[0]} cells, "
+            f"{int(np.sum(np.isfinite(x) != np.isfinite(y)))} differ in having a value, "
+            f"{int(both.sum()):,} with a value in both, {int(np.sum(rel > 1e-9))} of them more "
+            f"than 1e-9 apart (largest relative difference {rel.max() if rel.size else 0:.2e}).")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--small", action="store_true", help="1 M points, 1000 x 1000 pair")
@@ -427,7 +449,8 @@ def main() -> None:
                 f"Stereo floor: a {args.pair} px noise pair"
             out += [title, "", "| case | seconds | peak MB | note |",
                     "|---|---|---|---|"]
-            for name in ("read", "grid", "grid_memory", "numpy_bin", "pdal", "sgbm",
+            for name in ("read", "grid", "grid_memory", "tin", "tin_memory", "numpy_bin", "pdal",
+                         "sgbm",
                          "match_pair", "epipolar"):
                 stereo_case = name in ("sgbm", "match_pair", "epipolar")
                 if (stereo_case and "stereo" not in sections) or \
@@ -435,8 +458,8 @@ def main() -> None:
                     continue
                 if args.cases and name not in args.cases.split(","):
                     continue
-                if name == "grid_memory" and args.points > args.grid_max:
-                    out.append(f"| grid_memory | - | - | not run: {args.points:,} points is "
+                if name in ("grid_memory", "tin_memory") and args.points > args.grid_max:
+                    out.append(f"| {name} | - | - | not run: {args.points:,} points is "
                                f"over --grid-max {args.grid_max:,} (see the notes) |")
                     continue
                 row, _ = measured_row(name, work, args.pair)
@@ -447,6 +470,8 @@ def main() -> None:
                                           work / "cloud.laz")]
             if (work / "toolbox.tif").exists() and (work / "memory.tif").exists():
                 out += ["", compare_memory(work / "toolbox.tif", work / "memory.tif")]
+            if (work / "tin.tif").exists() and (work / "tin_memory.tif").exists():
+                out += ["", compare_tin(work / "tin.tif", work / "tin_memory.tif")]
     print("\n".join(out))
 
 

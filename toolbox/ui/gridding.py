@@ -250,10 +250,12 @@ class GriddingAlgorithm(Algorithm):
         from toolbox.terrain.gridding.methods import METHODS
         from toolbox.terrain.gridding.run import grid_dem
         from toolbox.terrain.gridding.stream import grid_dem_streamed, wants_stream
+        from toolbox.terrain.gridding.stream_tin import grid_tin_streamed
 
         request = gridding_request(params)
-        # a point cloud over TOOLBOX_STREAM_POINTS points is read twice by chunks, never held
-        grid = grid_dem_streamed if wants_stream(request) else grid_dem
+        # a point cloud over TOOLBOX_STREAM_POINTS points is read by chunks, never held
+        streamed = grid_tin_streamed if self.method == "tin_linear" else grid_dem_streamed
+        grid = streamed if wants_stream(request) else grid_dem
         stats = grid(METHODS[self.method], request, feedback)
         result: dict[str, Any] = {"OUTPUT": request.output}
         if request.quality is not None:

@@ -167,7 +167,7 @@ def test_bucket_files_hold_every_point_near_their_tile(cloud, tmp_path, cell, ti
 
 
 @pytest.mark.parametrize("method, extra, name", [
-    ("tin_linear", {}, "INPUT"),
+    ("tin_linear", {"DUPLICATE_TOLERANCE": 0.5}, "DUPLICATE_TOLERANCE"),
     ("nearest", {"DUPLICATE_TOLERANCE": 0.5}, "DUPLICATE_TOLERANCE")])
 def test_runs_that_cannot_stream_are_refused(cloud, tmp_path, monkeypatch, method, extra, name):
     monkeypatch.setenv("TOOLBOX_STREAM_POINTS", "1000")

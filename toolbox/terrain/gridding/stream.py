@@ -14,9 +14,10 @@ spilled to disk; the same tiles, kernels and cell values as the in-memory path.
 
 Exact: a cell's k nearest points all lie within ``h`` of it, so its bucket holds them, and the
 kernel computes the cell from the same points in the same local origin. Streams: nearest,
-idw (with SECTORS: every point within RADIUS), plane, quadratic, cubic. Not: tin_linear (one
-global Delaunay TIN), QUALITY (leave-one-out on every point), LINES / BREAKLINES,
-DUPLICATE_TOLERANCE > 0.
+idw (with SECTORS: every point within RADIUS), plane, quadratic, cubic; tin_linear by its own
+tiles (:mod:`toolbox.terrain.gridding.stream_tin`: each bucket's Delaunay triangles whose
+circumcircle the bucket holds). Not: QUALITY (leave-one-out on every point), LINES /
+BREAKLINES, DUPLICATE_TOLERANCE > 0.
 
 Memory: one chunk (CHUNK_POINTS records, about 100 MB at 1 M), the count raster (8 bytes a
 bucket, at most about 1 M buckets) and the hull, then per tile in flight its bucket and the
@@ -49,9 +50,10 @@ TILE_POINTS = 3_000_000
 MIN_TILE = 64
 #: the count raster has at most about this many buckets
 MAX_BUCKETS = 1_000_000
-STREAMING_METHODS = ("nearest", "idw", "plane", "quadratic", "cubic")
-#: measured by bench/surface_bench.py: dem:nearest in memory, bytes a kept point
+STREAMING_METHODS = ("nearest", "idw", "plane", "quadratic", "cubic", "tin_linear")
+#: measured by bench/surface_bench.py: dem:nearest (dem:tin_linear) in memory, bytes a kept point
 IN_MEMORY_BYTES = 190
+TIN_MEMORY_BYTES = 250
 
 
 def stream_threshold() -> int:
@@ -71,11 +73,12 @@ def wants_stream(request: GriddingRequest) -> bool:
 def check_streamable(method: Any, request: GriddingRequest) -> None:
     """:class:`ParameterError` naming what keeps a run from streaming, with the numbers."""
     sources, n = request.sources, request.sources.points.point_count
-    held = f"{n:,} points of INPUT would need about {n * IN_MEMORY_BYTES / 1e9:.1f} GB in memory"
+    per_point = TIN_MEMORY_BYTES if method.name == "tin_linear" else IN_MEMORY_BYTES
+    held = f"{n:,} points of INPUT would need about {n * per_point / 1e9:.1f} GB in memory"
     limit = f"above TOOLBOX_STREAM_POINTS = {stream_threshold():,} points"
     if method.name not in STREAMING_METHODS:
-        raise ParameterError("INPUT", f"dem:{method.name} holds every point (one TIN over all "
-                             f"of them): the {held}; {limit} only dem:"
+        raise ParameterError("INPUT", f"dem:{method.name} holds every point: the {held}; "
+                             f"{limit} only dem:"
                              f"{', dem:'.join(STREAMING_METHODS)} grid a point cloud by "
                              "streaming (raise TOOLBOX_STREAM_POINTS if the memory is there)")
     for name, value in (("LINES", sources.lines), ("BREAKLINES", sources.breaklines)):
@@ -194,7 +197,7 @@ class TileBoxes:
 
 
 def tile_boxes(grid: Any, tile: int, scan: CloudScan, reach: np.ndarray,
-               radius: float) -> TileBoxes:
+               radius: float, floor: float = 0.0) -> TileBoxes:
     """The boxes and reaches of the tiles of ``grid``; ``reach`` from :func:`knn_reach` (None:
     every point within ``radius``)."""
     from toolbox.raster.tile import iter_tiles
@@ -207,7 +210,7 @@ def tile_boxes(grid: Any, tile: int, scan: CloudScan, reach: np.ndarray,
     for t in tiles:
         xs, ys = t.cell_centres(halo=False)
         box = (float(xs.min()), float(ys.min()), float(xs.max()), float(ys.max()))
-        h = radius if reach is None else box_reach(box, scan, reach, radius)
+        h = max(radius if reach is None else box_reach(box, scan, reach, radius), floor)
         boxes.append(box)
         reaches.append(h)
         if math.isfinite(h):
@@ -243,14 +246,16 @@ def _index(value: float, origin: float, size: float, n: int) -> int:
     return int(min(max(math.floor((value - origin) / size), 0), n - 1))
 
 
-def plan_boxes(grid: Any, tile: int, scan: CloudScan, k: int, radius: float) -> TileBoxes:
+def plan_boxes(grid: Any, tile: int, scan: CloudScan, k: int, radius: float,
+               floor: float = 0.0) -> TileBoxes:
     """Tile boxes whose reach counts k + max(1, k // 4) points (the margin keeps the reach
     valid when up to a quarter of the points share their XY with another), the tile side
     halved (multiples of 16, down to :data:`MIN_TILE`) while
-    the densest grown box would hold more than :data:`TILE_POINTS` points."""
+    the densest grown box would hold more than :data:`TILE_POINTS` points. ``floor``: the
+    smallest reach (tin_linear's MAX_DISTANCE)."""
     reach = None if k == 0 else knn_reach(scan.counts, k + max(1, k // 4), scan.size)
     while True:
-        boxes = tile_boxes(grid, tile, scan, reach, radius)
+        boxes = tile_boxes(grid, tile, scan, reach, radius, floor)
         if boxes.estimate.max() <= TILE_POINTS or tile <= MIN_TILE:
             return boxes
         tile = max(MIN_TILE, (tile // 2) // 16 * 16)
@@ -334,10 +339,11 @@ class StreamData:
 
 
 def grid_dem_streamed(method: Any, request: GriddingRequest, feedback: Feedback,
-                      chunk_points: int | None = None) -> dict[str, Any]:
+                      chunk_points: int | None = None, planner: Any = None) -> dict[str, Any]:
     """Grid ``request`` (a point cloud INPUT) with ``method`` by streaming (see the module);
     writes ``request.output`` and returns the STATISTICS, as
-    :func:`~toolbox.terrain.gridding.run.grid_dem`."""
+    :func:`~toolbox.terrain.gridding.run.grid_dem`. ``planner``: computes the tiles itself
+    (:func:`toolbox.terrain.gridding.stream_tin.plan_tin`; tin_linear needs it)."""
     from toolbox.io.crs import common_crs
     from toolbox.io.pointcloud import CHUNK_POINTS, cloud_filter
     from toolbox.terrain.gridding.grid import prepare_grid
@@ -346,6 +352,9 @@ def grid_dem_streamed(method: Any, request: GriddingRequest, feedback: Feedback,
     from toolbox.terrain.points import local_origin
 
     check_streamable(method, request)
+    if planner is None and not hasattr(method, "halo_neighbours"):
+        raise TypeError(f"dem:{method.name} streams through its own planner: "
+                        "toolbox.terrain.gridding.stream_tin.grid_tin_streamed")
     sources = request.sources
     ref, chunk = sources.points, int(chunk_points or CHUNK_POINTS)
     flt = cloud_filter(ref, sources.classes, sources.returns, sources.crs)
@@ -364,31 +373,37 @@ def grid_dem_streamed(method: Any, request: GriddingRequest, feedback: Feedback,
                       DuplicateReport(0, 0, 0.0, sources.duplicates or "mean"))
     run = prepare_grid(request, data, limit_to_hull=method.limits_to_hull)
     options = method.options(request.method)
-    k, radius = method.halo_neighbours(options)
-    radius = math.inf if radius is None else float(radius)
-    boxes = plan_boxes(run.grid, run.tile, scan, k, radius)
-    run.tile = boxes.tile
     merged = Merged(sources.duplicates or "mean")
     with tempfile.TemporaryDirectory(prefix="toolbox-stream-") as tmp:
         folder = Path(tmp)
-        with feedback.timed("spill"):
-            written = spill(ref, flt, sources.z_field, chunk, boxes, folder)
-        feedback.set_progress(5)
-        plan = partial_plan(run, boxes, folder, scan, k, radius, merged)
-        tiles = TilePlan(plan, _kernel(method, run.origin, options))
-        result = write_dem(run, tiles, request, feedback, start=5, end=98)
+        if planner is not None:  # tin_linear: its own tiles (stream_tin.grid_tin_streamed)
+            tiles, boxes, streamed = planner(run, scan, (ref, flt, sources.z_field, chunk),
+                                             options, folder, merged, feedback)
+            start = 65
+        else:
+            k, radius = method.halo_neighbours(options)
+            radius = math.inf if radius is None else float(radius)
+            boxes = plan_boxes(run.grid, run.tile, scan, k, radius)
+            run.tile = boxes.tile
+            with feedback.timed("spill"):
+                written = spill(ref, flt, sources.z_field, chunk, boxes, folder)
+            streamed = {"tile_size": boxes.tile, "tiles": len(boxes.tiles),
+                        "bucket_points_max": int(written.max()),
+                        "points_spilled": int(written.sum()),
+                        "reach_max": float(boxes.reach.max()),
+                        "count_raster": list(scan.counts.shape), "bucket_size": scan.size}
+            start = 5
+            feedback.set_progress(start)
+            plan = partial_plan(run, boxes, folder, scan, k, radius, merged)
+            tiles = TilePlan(plan, _kernel(method, run.origin, options))
+        result = write_dem(run, tiles, request, feedback, start=start, end=98)
     data.duplicates = merged.report
     stats = grid_statistics(run, request)
     stats["points_used"] = scan.kept - merged.report.removed
     stats["method"] = {"name": method.name, "options": jsonable_options(options),
                        **method.summarise(result.pop("counts"))}
     stats["cells"] = result
-    stats["streamed"] = {"chunk_points": chunk, "tile_size": boxes.tile,
-                         "tiles": len(boxes.tiles), "bucket_points_max": int(written.max()),
-                         "points_spilled": int(written.sum()),
-                         "reach_max": float(boxes.reach.max()),
-                         "count_raster": list(scan.counts.shape),
-                         "bucket_size": scan.size}
+    stats["streamed"] = {"chunk_points": chunk, **streamed}
     return stats
 
 
