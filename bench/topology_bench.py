@@ -228,7 +228,7 @@ def main(argv: list[str] | None = None) -> str:
     parser.add_argument("--cells", type=int, default=38, help="cells per side (38: ~100k segments)")
     parser.add_argument("--no-grass", action="store_true")
     args = parser.parse_args(argv if argv is not None else [])
-    from toolbox.io.vector import write_layers
+    from toolbox.io.vector_write import write_layers
 
     facts = machine()
     frame, labels, defects, expected = synthetic_city(args.cells, args.cells)

@@ -68,7 +68,7 @@ class MergeModels(Algorithm):
         from toolbox.attribution.model_merge import events_frame, merge_models
         from toolbox.attribution.sources import read_sources, translated
         from toolbox.io.parameter_file import optional_parameter_file, resolve
-        from toolbox.io.vector import write_layers
+        from toolbox.io.vector_write import write_layers
         from toolbox.styles.gpkg import write_layer_styles
 
         file = optional_parameter_file(params.get("PARAMETERS"))

@@ -51,7 +51,7 @@ class Grid(Algorithm):
 
     def process(self, params, feedback: Feedback):
         from toolbox.cartography.grid_io import MapGridRequest, grid_frames
-        from toolbox.io.vector import write_layers
+        from toolbox.io.vector_write import write_layers
 
         sheets = sheet_source(params)
         grid, labels, step, crs = grid_frames(MapGridRequest(

@@ -91,7 +91,8 @@ class Profile(Algorithm):
             sample_profiles,
         )
         from toolbox.io.crs import common_crs
-        from toolbox.io.vector import read_vector, write_layers
+        from toolbox.io.vector import read_vector
+        from toolbox.io.vector_write import write_layers
 
         lines_frame = read_vector(params["INPUT"], name="INPUT")
         crs = common_crs({name: getattr(params.get(name), "crs", None)

@@ -71,7 +71,7 @@ class SheetIndex(Algorithm):
         import geopandas as gpd
 
         from toolbox.cartography.ctr_index import IndexRequest, index_sheets
-        from toolbox.io.vector import write_layers
+        from toolbox.io.vector_write import write_layers
 
         extent = params["EXTENT"]
         crs = extent.crs if extent.crs is not None else params["CRS"]

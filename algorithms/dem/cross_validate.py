@@ -152,7 +152,7 @@ def _write_residuals(path, data, predictions: dict[str, np.ndarray]) -> None:
     import geopandas as gpd
     import shapely
 
-    from toolbox.io.vector import write_layers
+    from toolbox.io.vector_write import write_layers
 
     xyz = data.xyz
     columns: dict[str, Any] = {"z": xyz[:, 2]}

@@ -89,7 +89,7 @@ class MosaicBuild(Algorithm):
         import shapely
 
         from toolbox.io.crs import crs_label
-        from toolbox.io.vector import write_layers
+        from toolbox.io.vector_write import write_layers
         from toolbox.mosaic.balance import block_statistics, solve_gain_offset
         from toolbox.mosaic.block import (
             cells_from_layer,

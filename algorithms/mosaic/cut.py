@@ -70,7 +70,7 @@ class MosaicCut(Algorithm):
         import geopandas as gpd
 
         from toolbox.executor import map_tiles
-        from toolbox.io.vector import write_layers
+        from toolbox.io.vector_write import write_layers
         from toolbox.mosaic.sheets import RasterSheet, clip_raster_sheet, clip_vector, sheet_ids_unique
 
         source, kind, crs, sheets = _sheets(params)

@@ -127,7 +127,8 @@ class MosaicSeamlines(Algorithm):
         import geopandas as gpd
         import shapely
 
-        from toolbox.io.vector import read_vector, write_layers
+        from toolbox.io.vector import read_vector
+        from toolbox.io.vector_write import write_layers
         from toolbox.mosaic.block import (
             cells_frame,
             centres_of,

@@ -97,7 +97,7 @@ class AbsoluteOrientation(Algorithm):
             import geopandas as gpd
             import shapely
 
-            from toolbox.io.vector import write_layers
+            from toolbox.io.vector_write import write_layers
 
             crs = params["CRS"]  # a pyproj CRS, geographic ones refused by the runner
             by_id = {p["point_id"]: p for p in points}

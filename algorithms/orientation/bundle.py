@@ -190,7 +190,7 @@ class BundleAdjustment(Algorithm):
     def process(self, params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
         import numpy as np
 
-        from toolbox.io.vector import write_layers
+        from toolbox.io.vector_write import write_layers
         from toolbox.photogrammetry.project import save_project
         from toolbox.photogrammetry.rotation import to_radians
         from toolbox.photogrammetry.tables import load_project_parameter, write_json

@@ -108,7 +108,7 @@ def _write_vectors(path, result: dict, crs) -> None:
     import geopandas as gpd
     import shapely
 
-    from toolbox.io.vector import write_layers
+    from toolbox.io.vector_write import write_layers
 
     obs = [{k: v for k, v in o.items() if k != "xyz"} | {"geometry": shapely.Point(o["xyz"])}
            for o in result["observations"]]

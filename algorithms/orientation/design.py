@@ -157,7 +157,7 @@ class BlockDesign(Algorithm):
         import geopandas as gpd
         import shapely
 
-        from toolbox.io.vector import write_layers
+        from toolbox.io.vector_write import write_layers
         from toolbox.photogrammetry.tables import write_json
         from toolbox.triangulation.prediction import predict, summary, verdict
 

@@ -136,7 +136,7 @@ class Footprints(Algorithm):
                                        params["MAP_SCALE"], len(project.strips()) > 1)
         for problem in stats["design"]["failures"]:
             feedback.push_warning(problem)
-        from toolbox.io.vector import write_layers
+        from toolbox.io.vector_write import write_layers
 
         write_layers(params["OUTPUT"], layers, crs=crs,
                      geometry_types={"footprints": "Polygon Z", "nadir_points": "Point Z",

@@ -72,7 +72,7 @@ class SpaceIntersection(Algorithm):
         import geopandas as gpd
         import shapely
 
-        from toolbox.io.vector import write_layers
+        from toolbox.io.vector_write import write_layers
 
         project, (ids, photo_ids, xy, kind), _ = measured_inputs(params)
         measured_photos(project, photo_ids)

@@ -64,7 +64,7 @@ class IndependentModels(Algorithm):
         import shapely
 
         from toolbox.io.crs import check_coordinates_in_area
-        from toolbox.io.vector import write_layers
+        from toolbox.io.vector_write import write_layers
         from toolbox.photogrammetry.tables import column, number, read_table, write_json
         from toolbox.triangulation.inputs import read_control
         from toolbox.triangulation.models import ModelsRequest, adjust_models

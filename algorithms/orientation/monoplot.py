@@ -80,7 +80,7 @@ class Monoplot(Algorithm):
         import geopandas as gpd
         import shapely
 
-        from toolbox.io.vector import write_layers
+        from toolbox.io.vector_write import write_layers
 
         project, (ids, photo_ids, xy, kind), _ = measured_inputs(params)
         dem = params["DEM"]

@@ -193,7 +193,7 @@ class TiePoints(Algorithm):
         import numpy as np
         import shapely
 
-        from toolbox.io.vector import write_layers
+        from toolbox.io.vector_write import write_layers
 
         rows = []
         for k, (pid, track) in enumerate(zip(ids, result.tracks, strict=True)):

@@ -152,7 +152,8 @@ class EstimateRectification(Algorithm):
         import shapely
 
         from toolbox.io.crs import common_crs, crs_label
-        from toolbox.io.vector import read_vector, write_layers
+        from toolbox.io.vector import read_vector
+        from toolbox.io.vector_write import write_layers
 
         layer = params["INPUT"]
         crs = common_crs({"INPUT": layer.crs}, params["CRS"])

@@ -8,7 +8,8 @@ from toolbox.algorithm import Algorithm
 from toolbox.errors import InputDataError
 from toolbox.feedback import Feedback
 from toolbox.io.crs import common_crs
-from toolbox.io.vector import read_vector, write_layers
+from toolbox.io.vector import read_vector
+from toolbox.io.vector_write import write_layers
 from toolbox.parameters import Boolean, Number, String, VectorLayer
 from toolbox.parameters.outputs import Layer, Output, OutputVector
 from toolbox.registry import register

@@ -15,8 +15,9 @@ from toolbox.io.crs import common_crs, parse_crs
 from toolbox.io.grid import GridSpec
 from toolbox.io.raster import geotiff_profile, iter_windows, write_raster
 from toolbox.io.staging import OutputStaging, atomic_path
-from toolbox.io.vector import read_vector, write_layers
+from toolbox.io.vector import read_vector
 from toolbox.io.vector_points import points_xyz, vertices_xyz
+from toolbox.io.vector_write import write_layers
 
 
 def test_several_named_layers_in_one_geopackage(tmp_path):
@@ -142,7 +143,7 @@ assert read_points_xyz(ref, "h").tolist() == [[0.0, 0.0, 1.0], [1.0, 1.0, 2.0]]
 assert "pandas" not in sys.modules and "geopandas" not in sys.modules, "pandas imported"
 import numpy as np, shapely
 from rasterio.crs import CRS
-from toolbox.io.vector import write_wkb_layer
+from toolbox.io.vector_write import write_wkb_layer
 out = path.replace("p.gpkg", "lines.gpkg")
 write_wkb_layer(out, "lines", shapely.to_wkb([shapely.LineString([(0, 0, 5), (1, 2, 5)])],
                 output_dimension=3), {"elev": np.array([5.0])}, "LineString Z",
@@ -198,7 +199,7 @@ def test_window_transform_is_rasterios():
 def test_wkb_layer_from_arrays(tmp_path, name):
     from pyproj import CRS
 
-    from toolbox.io.vector import write_wkb_layer
+    from toolbox.io.vector_write import write_wkb_layer
 
     lines = [shapely.LineString([(0, 0, 5), (1, 2, 5)]),
              shapely.LineString([(3, 3, 7), (4, 3, 7), (4, 4, 7), (3, 3, 7)])]

@@ -15,8 +15,9 @@ import shapely
 
 import toolbox
 from toolbox.errors import ParameterError
-from toolbox.io.vector import VECTOR_DRIVERS, open_layer, read_vector, write_layers
+from toolbox.io.vector import VECTOR_DRIVERS, open_layer, read_vector
 from toolbox.io.vector_points import read_points_xyz
+from toolbox.io.vector_write import write_layers
 from toolbox.parameters import OutputVector, ValidationContext
 
 sys.path.insert(0, str(Path(__file__).parent))

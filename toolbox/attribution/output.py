@@ -71,7 +71,7 @@ def write_attribution(path: str | Path, result: Attribution, table: CodeTable,
     style embedded as the default; with ``sidecar`` also ``<path>.<layer>.qml`` / ``.sld``.
     Returns the styles by layer name."""
     path = Path(path)
-    from toolbox.io.vector import write_layers
+    from toolbox.io.vector_write import write_layers
     from toolbox.styles.gpkg import write_layer_styles
 
     frames: dict[str, Any] = dict(result.layers)

@@ -228,7 +228,7 @@ def write_contours(path: str | Path, contours: list[Contour], interval: float, b
                    index_every: int, crs: Any) -> dict[str, np.ndarray]:
     """Write the ``contours`` layer (LineString Z, :func:`contour_columns`) to ``path``;
     returns its fields."""
-    from toolbox.io.vector import write_wkb_layer
+    from toolbox.io.vector_write import write_wkb_layer
 
     wkb, fields = contour_columns(contours, interval, base, index_every)
     write_wkb_layer(path, "contours", wkb, fields, "LineString Z", crs)

@@ -1,5 +1,4 @@
-"""Vector I/O: read any layer OGR reads into a GeoDataFrame, write named layers in the format the
-output's extension names.
+"""Vector reading: any layer OGR reads, into a GeoDataFrame or plain arrays.
 
 Reading: GeoPackage, Shapefile, GeoJSON, FlatGeobuf, GeoParquet, DXF, GML, ... (whatever the GDAL
 in pyogrio reads) and CSV, read as points from columns named (case-insensitively)
@@ -12,23 +11,16 @@ in pyogrio reads) and CSV, read as points from columns named (case-insensitively
 that kind (multi-part included); ``subset`` is an SQL WHERE clause handed to OGR (it comes last and
 may itself contain ``|``).
 
-Writing (:func:`write_layers`): the extension picks the OGR driver (:data:`VECTOR_DRIVERS`).
-A GeoPackage holds every layer in the one file, written as GeoPackage 1.2 (QGIS 3.22 and GDAL 3.6
-read it without "only partially supported" warnings). The other formats hold one layer per file:
-the first layer goes to the path given, each further layer to a file beside it named
-``<stem>_<layer><ext>`` (``topo.shp``, ``topo_arcs.shp``, ...); reading ``topo.shp|layername=arcs``
-finds that file again. FlatGeobuf files get their spatial index, which stores the features in
-spatial (Hilbert) order: rely on the id fields, not on the feature order. GeoParquet is written
-and read through pyarrow/geopandas (the GDAL in pyogrio's wheels has no Parquet driver), so a
-``|subset=`` SQL filter is not available on it.
+Writing: :mod:`toolbox.io.vector_write` (the extension picks the OGR driver,
+:data:`VECTOR_DRIVERS`); the layers written beside a one-layer format's file are found again by
+``path|layername=NAME``. A ``|subset=`` SQL filter is not available on GeoParquet (read through
+pyarrow/geopandas: the GDAL in pyogrio's wheels has no Parquet driver).
 """
 
 from __future__ import annotations
 
 import sys
 import threading
-import warnings
-from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -502,121 +494,3 @@ def _check_finite_xy(frame, what: str) -> None:
         rows = np.unique(owner)
         raise InputDataError(f"{what}: {len(rows)} feature(s) have NaN/inf coordinates "
                              f"(first rows: {', '.join(map(str, rows[:5]))})")
-
-
-@contextmanager
-def staged_gpkg_writes():
-    """Let SQLite skip fsync while writing a GeoPackage (about 15% faster on big layers).
-
-    Safe for the toolbox's outputs: they are written to a staged file that is renamed into
-    place only after a successful run, so a crash mid-write never leaves a damaged output.
-    """
-    ogr = _ogr()  # pyogrio.core: no pandas for a config option
-
-    previous = ogr.get_gdal_config_option("OGR_SQLITE_SYNCHRONOUS")
-    ogr.set_gdal_config_options({"OGR_SQLITE_SYNCHRONOUS": "OFF"})
-    try:
-        yield
-    finally:
-        ogr.set_gdal_config_options({"OGR_SQLITE_SYNCHRONOUS": previous})
-
-
-def geometry_kinds(frame) -> set[str]:
-    """Kinds (point, line, polygon) of the non-empty geometries of a frame."""
-    if not len(frame):
-        return set()
-    types = frame.geom_type.dropna().unique()
-    return {kind for kind, family in _GEOMETRY_FAMILIES.items() if set(types) & set(family)}
-
-
-def layer_paths(path: str | Path, names: list[str]) -> dict[str, Path]:
-    """Where :func:`write_layers` puts each named layer: all in ``path`` for a GeoPackage; else
-    the first in ``path`` and each other one in :func:`sibling_layer_path`."""
-    path = Path(path)
-    if is_multi_layer(path):
-        return {name: path for name in names}
-    return {name: path if i == 0 else sibling_layer_path(path, name)
-            for i, name in enumerate(names)}
-
-
-def write_layers(path: str | Path, layers: dict[str, Any], crs: Any = None,
-                 geometry_types: dict[str, str] | None = None) -> Path:
-    """Write GeoDataFrames as named layers, in the format of ``path``'s extension.
-
-    A GeoPackage (version 1.2) receives every layer (created or extended); a one-layer format
-    (FlatGeobuf, GeoParquet, Shapefile, GeoJSON) gets the first layer in ``path`` and the others
-    beside it (:func:`layer_paths`). ``geometry_types`` gives the OGR type (e.g.
-    ``"Polygon Z"``, ``"Point"``) for layers that may be empty; every layer carries ``crs``
-    (when its frame has none), empty ones too. A layer must hold one kind of geometry (points,
-    lines or polygons: QGIS draws only one kind per layer); single and multi parts of a kind are
-    written as multi. Inside an algorithm, ``path`` is the staged output path the runner handed
-    over.
-    """
-    import pyogrio
-
-    from toolbox.io.write_failures import writing
-
-    path = Path(path)
-    driver = vector_driver(path)
-    targets = layer_paths(path, list(layers))
-    for layer_name, frame in layers.items():
-        if crs is not None and frame.crs is None:
-            frame = frame.set_crs(crs)
-        kinds = geometry_kinds(frame)
-        if len(kinds) > 1:
-            raise ValueError(f"internal: layer '{layer_name}' mixes {' and '.join(sorted(kinds))}"
-                             "; write one layer per kind (see toolbox.topology.layers)")
-        kwargs: dict[str, Any] = {}
-        if geometry_types and layer_name in geometry_types:
-            kwargs["geometry_type"] = geometry_types[layer_name]
-        elif len(frame) and len(set(frame.geom_type.dropna())) > 1:
-            kwargs["promote_to_multi"] = True
-        target = targets[layer_name]
-        if driver == "Parquet":  # GeoParquet 1.x through pyarrow (no Parquet driver in pyogrio)
-            with writing(target):
-                frame.to_parquet(target, index=False)
-            continue
-        if driver == "GPKG" and not target.exists():
-            kwargs["dataset_options"] = GPKG_DATASET_OPTIONS
-        with staged_gpkg_writes(), writing(target), warnings.catch_warnings():
-            if frame.crs is None:  # a layer without CRS as read (stored coordinates): meant
-                warnings.filterwarnings("ignore", "'crs' was not provided", UserWarning)
-            pyogrio.write_dataframe(frame, target, layer=layer_name, driver=driver, **kwargs)
-    return path
-
-
-def write_wkb_layer(path: str | Path, layer: str, wkb: np.ndarray, fields: dict[str, np.ndarray],
-                    geometry_type: str, crs: Any = None) -> Path:
-    """Write one layer from arrays: ``wkb`` (object array of WKB geometries, e.g.
-    ``shapely.to_wkb``) and one numpy array per field, without building a GeoDataFrame.
-
-    A GeoPackage (version 1.2) receives the layer beside its others; GeoParquet goes through
-    :func:`write_layers`. ``crs`` is anything with ``to_wkt()`` (pyproj or rasterio).
-    """
-    from toolbox.io.write_failures import writing
-
-    path = Path(path)
-    driver = vector_driver(path)
-    if driver == "Parquet":
-        import geopandas as gpd
-        import shapely
-
-        frame = gpd.GeoDataFrame(fields, geometry=shapely.from_wkb(wkb), crs=crs)
-        return write_layers(path, {layer: frame}, crs=crs, geometry_types={layer: geometry_type})
-    _ogr()  # pyogrio registered without its __init__ (no pandas, geopandas, pyarrow)
-    # what ``pyogrio.raw.write`` does for a plain path, called below it: the module
-    # ``pyogrio.raw`` imports pandas, geopandas and pyarrow (``pyogrio._compat``), about 0.45 s
-    # of a contour run; tests/toolbox/test_io.py checks the layer against OGR's reading
-    from pyogrio._io import ogr_write
-
-    dataset_kwargs = dict(GPKG_DATASET_OPTIONS) if driver == "GPKG" and not path.exists() \
-        else {}
-    names = list(fields)
-    with staged_gpkg_writes(), writing(path):
-        ogr_write(str(path), layer=layer, driver=driver, geometry=np.asarray(wkb, dtype=object),
-                  fields=names, field_data=[fields[k] for k in names], field_mask=None,
-                  crs=None if crs is None else crs.to_wkt(), geometry_type=geometry_type,
-                  encoding=None, dataset_kwargs=dataset_kwargs, layer_kwargs={},
-                  promote_to_multi=geometry_type.startswith("Multi") and driver in (
-                      "GPKG", "FlatGeobuf"))
-    return path

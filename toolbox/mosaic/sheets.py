@@ -109,7 +109,7 @@ def clip_vector(frame, sheet, output: Path, layer: str) -> int:
     (layer ``layer``). Returns the feature count (0: nothing written)."""
     import geopandas as gpd
 
-    from toolbox.io.vector import write_layers
+    from toolbox.io.vector_write import write_layers
 
     inside = frame[frame.intersects(sheet)]
     if inside.empty:

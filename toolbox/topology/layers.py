@@ -108,7 +108,7 @@ def write_topology(path: str | Path, output: TopologyOutput, crs: Any,
                    layers: tuple[str, ...] = ("areas", "arcs", "nodes", "errors")) -> Path:
     """Write the chosen layers of a :class:`TopologyOutput` into one GeoPackage (or the format
     of ``path``); ``"errors"`` becomes the ``errors_points`` and ``errors_lines`` layers."""
-    from toolbox.io.vector import write_layers
+    from toolbox.io.vector_write import write_layers
 
     frames = {}
     for name in layers:

@@ -67,7 +67,7 @@ def test_batches_stream_the_same_layers(model, tmp_path, monkeypatch, suffix):
     one-batch write, and its geometries are the model's nodes (read back by GDAL/shapely)."""
     import geopandas as gpd
 
-    from toolbox.io.vector import layer_paths
+    from toolbox.io.vector_write import layer_paths
     from toolbox.terrain.tin import store
 
     frames = {}

@@ -243,7 +243,7 @@ def make(folder: Path, made: dict) -> dict:
     import shapely
 
     from toolbox.demo.samples.terrain import sample_heights, terrain
-    from toolbox.io.vector import write_layers
+    from toolbox.io.vector_write import write_layers
 
     v = landscape_vectors()
     edges = [line for road in v["roads"] for line in shapely.get_parts(road.boundary)]

@@ -128,7 +128,7 @@ def sheet_zones():
 
 
 def make(folder: Path, made: dict) -> dict:
-    from toolbox.io.vector import write_layers
+    from toolbox.io.vector_write import write_layers
 
     paths = {"linework": folder / "siena_linework.gpkg", "linework_labels": folder /
              "siena_labels.gpkg", "linework_zones": folder / "siena_zones.gpkg"}

@@ -45,7 +45,7 @@ def make(folder: Path, made: dict) -> dict:
     import shapely
 
     from toolbox.io.raster import write_raster
-    from toolbox.io.vector import write_layers
+    from toolbox.io.vector_write import write_layers
 
     z, transform = terrain()
     dem = folder / "siena_dem.tif"

@@ -31,7 +31,7 @@ def make(folder: Path, made: dict) -> dict:
     import geopandas as gpd
     import shapely
 
-    from toolbox.io.vector import write_layers
+    from toolbox.io.vector_write import write_layers
 
     z, transform = terrain()
     rows, cols = z.shape

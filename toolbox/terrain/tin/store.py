@@ -34,11 +34,10 @@ from toolbox.io.vector import (
     GPKG_DATASET_OPTIONS,
     is_multi_layer,
     is_parquet,
-    layer_paths,
     sibling_layer_path,
-    staged_gpkg_writes,
     vector_driver,
 )
+from toolbox.io.vector_write import layer_paths, staged_gpkg_writes
 from toolbox.terrain.tin.build import SOURCES, TinModel
 from toolbox.terrain.tin.help import TIN_HELP  # noqa: F401  (re-exported: its old home)
 from toolbox.terrain.tin.topology import EdgeTable, edge_table, triangle_measures
