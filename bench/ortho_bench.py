@@ -140,7 +140,7 @@ def memory_case(folder: Path, size: int, distortion: bool, occlusion: bool = Tru
     import rasterio
 
     from toolbox.executor import default_workers
-    from toolbox.io.raster import iter_windows, open_raster_info
+    from toolbox.io.raster import open_raster_info
     from toolbox.ortho.dem import DemSampler
     from toolbox.ortho.plan import plan_photo
     from toolbox.ortho.sensor import CollinearityMap
@@ -150,6 +150,7 @@ def memory_case(folder: Path, size: int, distortion: bool, occlusion: bool = Tru
         pad_at_photo_edges,
         single_threaded_opencv,
     )
+    from toolbox.raster.tile import iter_tiles
 
     rows = []
     photo_path, dem, _, photo = write_inputs(folder, size, distortion)
@@ -161,7 +162,7 @@ def memory_case(folder: Path, size: int, distortion: bool, occlusion: bool = Tru
     sampler = DemSampler(info, grid.crs)
     sampler.preload(grid.bounds)
     cmap = CollinearityMap(photo)
-    windows = [t.core for t in iter_windows(grid.width, grid.height, 1024)]
+    windows = [t.window for t in iter_tiles(grid, 1024)]
     maps = []
     blocks: dict[int, int] = {}
 

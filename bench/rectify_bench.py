@@ -132,15 +132,15 @@ def opencv_matrix(p2g, grid):
 def bench_memory(data: np.ndarray) -> list[dict]:
     import cv2
 
-    from toolbox.io.raster import iter_windows
     from toolbox.raster.homography import HomographyMap
+    from toolbox.raster.tile import iter_tiles
     from toolbox.raster.warp import OutputLayout, warp_window
 
     width, height, p2g, grid = scene_12mpx()
     cmap = HomographyMap(np.linalg.inv(p2g), grid.transform,
                          front=tuple(apply(p2g, [[width / 2, height / 2]])[0]))
     layout = OutputLayout([1, 2, 3], None, False, True, None, "uint8")
-    windows = [t.core for t in iter_windows(grid.width, grid.height, 2048)]
+    windows = [t.window for t in iter_tiles(grid, 2048)]
     matrix = opencv_matrix(p2g, grid)
     flags = {"nearest": cv2.INTER_NEAREST, "bilinear": cv2.INTER_LINEAR,
              "cubic": cv2.INTER_CUBIC, "lanczos": cv2.INTER_LANCZOS4}
@@ -328,8 +328,11 @@ def make_big_scan(path: Path, size: int = 16644) -> float:
     """Write a size x size RGB tiled GeoTIFF window by window; returns seconds."""
     import cv2
     import rasterio
+    from affine import Affine
 
-    from toolbox.io.raster import geotiff_profile, iter_windows
+    from toolbox.io.grid import GridSpec
+    from toolbox.io.raster import geotiff_profile
+    from toolbox.raster.tile import iter_tiles
 
     t0 = time.perf_counter()
     rng = np.random.default_rng(2)
@@ -337,8 +340,8 @@ def make_big_scan(path: Path, size: int = 16644) -> float:
     profile = geotiff_profile(size, size, 3, "uint8", None, None, photometric="RGB",
                               num_threads="ALL_CPUS", zlevel=1)
     with rasterio.open(path, "w", **profile) as dst:
-        for tile in iter_windows(size, size, 2048):
-            w = tile.core
+        for tile in iter_tiles(GridSpec(Affine.identity(), size, size), 2048):
+            w = tile.window
             c0, r0, cw, ch = int(w.col_off), int(w.row_off), int(w.width), int(w.height)
             small = base[r0 // 64:(r0 + ch) // 64 + 2, c0 // 64:(c0 + cw) // 64 + 2]
             big = cv2.resize(small, (small.shape[1] * 64, small.shape[0] * 64),

@@ -13,7 +13,7 @@ from affine import Affine
 from toolbox.errors import InputDataError, ParameterError
 from toolbox.io.crs import common_crs, parse_crs
 from toolbox.io.grid import GridSpec
-from toolbox.io.raster import geotiff_profile, iter_windows, write_raster
+from toolbox.io.raster import geotiff_profile, write_raster
 from toolbox.io.staging import OutputStaging, atomic_path
 from toolbox.io.vector import read_vector
 from toolbox.io.vector_points import points_xyz, vertices_xyz
@@ -83,18 +83,6 @@ def test_geotiff_profile_is_tiled_compressed(tmp_path):
         assert ds.overviews(1) == [2] and ds.nodata == -1
         np.testing.assert_array_equal(ds.read(1), data)
     assert geotiff_profile(10, 10, 1, "uint8", None, Affine.identity())["predictor"] == 2
-
-
-def test_windows_with_halo_cover_exactly_once():
-    cover = np.zeros((130, 170), dtype=int)
-    for tile in iter_windows(170, 130, tile=64, halo=3):
-        core, padded = tile.core, tile.padded
-        cover[core.row_off:core.row_off + core.height, core.col_off:core.col_off + core.width] += 1
-        assert padded.col_off <= core.col_off and padded.row_off <= core.row_off
-        block = np.zeros((padded.height, padded.width))
-        assert block[tile.inner].shape == (core.height, core.width)
-        assert padded.col_off >= 0 and padded.col_off + padded.width <= 170
-    assert np.all(cover == 1)
 
 
 def test_grid_snapping_centres_and_guard():

@@ -84,18 +84,23 @@ def test_list_and_help_read_the_cached_index_without_importing_algorithms(tmp_pa
 
 
 def test_index_is_rebuilt_when_a_source_changes(tmp_path, monkeypatch):
+    """Through spec_index only: an index marked with a fake spec under the current full key (and
+    no quick key, so that the full key decides) is served; once a source changes it is rebuilt."""
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
-    key = registry._index_key(registry._entry_points())
-    assert spec_cache.write_index(spec_cache.index_path(), key, {"x:y": {"id": "x:y"}}, {})
-    assert spec_cache.read_index(spec_cache.index_path(), key)["specs"] == {"x:y": {"id": "x:y"}}
-    assert spec_cache.read_index(spec_cache.index_path(), key + "0") is None
+    assert "x:y" not in registry.spec_index()  # built and cached
+    path = spec_cache.index_path()
+    key = spec_cache.read_index(path, spec_cache.quick_key(), field="quick")["key"]
+    assert spec_cache.write_index(path, key, {"x:y": {"id": "x:y"}}, {})
+    assert spec_cache.read_index(path, key + "0") is None
+    assert "x:y" in registry.spec_index()  # the marked index is what the key serves
     source = ROOT / "algorithms" / "vector" / "info.py"
     st = source.stat()
     try:
         os.utime(source, ns=(st.st_atime_ns, st.st_mtime_ns + 1_000_000_000))
-        assert registry._index_key(registry._entry_points()) != key
+        rebuilt = registry.spec_index()
     finally:
         os.utime(source, ns=(st.st_atime_ns, st.st_mtime_ns))
+    assert "x:y" not in rebuilt and "vector:info" in rebuilt
 
 
 def test_index_matches_the_classes(tmp_path, monkeypatch):
@@ -149,6 +154,7 @@ def test_wheel_install_checks_record_hash(tmp_path, monkeypatch, same_content):
     ours = b"# ours\n" if same_content else b"# an overwritten copy\n"
     digest = base64.urlsafe_b64encode(hashlib.sha256(ours).digest()).rstrip(b"=").decode()
     monkeypatch.setattr(registry, "distribution", lambda name: FakeDist(tmp_path, digest))
+    # private on purpose: check_own_package reads the real package's origin, not a fake wheel's
     assert registry._belongs_to_distribution("algorithms", init.resolve()) is same_content
     assert registry._belongs_to_distribution("toolbox", init.resolve()) is False
 

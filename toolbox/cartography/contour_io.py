@@ -65,18 +65,23 @@ def _range_of(tiles) -> tuple[float, float]:
 
 def raster_range(src, band: int, tile_size: int) -> tuple[float, float]:
     """Min and max of a band's valid cells, read in tiles."""
-    from toolbox.io.raster import iter_windows
+    from toolbox.io.grid import GridSpec
+    from toolbox.raster.tile import iter_tiles
 
-    return _range_of(src.read(band, window=t.core, masked=True).astype("float64").filled(np.nan)
-                     for t in iter_windows(src.width, src.height, tile_size))
+    grid = GridSpec(src.transform, src.width, src.height)
+    return _range_of(src.read(band, window=t.window, masked=True).astype("float64").filled(np.nan)
+                     for t in iter_tiles(grid, tile_size))
 
 
 def grid_range(z: np.ndarray, tile_size: int) -> tuple[float, float]:
     """:func:`raster_range` of a band already read (the same tiles, the same answer)."""
-    from toolbox.io.raster import iter_windows
+    from affine import Affine
 
-    return _range_of(z[t.core.toslices()] for t in iter_windows(z.shape[1], z.shape[0],
-                                                                 tile_size))
+    from toolbox.io.grid import GridSpec
+    from toolbox.raster.tile import iter_tiles
+
+    grid = GridSpec(Affine.identity(), z.shape[1], z.shape[0])  # cells only: no map position
+    return _range_of(z[t.window.toslices()] for t in iter_tiles(grid, tile_size))
 
 
 def guard_levels(zmin: float, zmax: float, interval: float, base: float, span: float) -> None:

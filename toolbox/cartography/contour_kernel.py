@@ -1,7 +1,7 @@
 """Marching squares over a grid for every contour level in one pass (numba), arrays in and out.
 
 The surface is contourpy's (serial, ``corner_mask=True``, linear interpolation), which
-:mod:`tests <tests.algorithms.carto.test_contour_kernel>` keep as the oracle: a node is above a
+:mod:`tests <tests.toolbox.cartography.test_contour_kernel>` keep as the oracle: a node is above a
 level when ``z > level``; a line crosses a grid edge where its two nodes are on either side,
 at the linear interpolation of the edge's heights; a square with all four nodes valid holds one
 segment per level it spans, or two at a saddle, split as the mean of its four heights says; a

@@ -1,5 +1,6 @@
 """Raster I/O with rasterio: validated input references, whole-array GeoTIFF writing (tiled,
-DEFLATE with a predictor, CRS, nodata, optional overviews) and window iteration with a halo.
+DEFLATE with a predictor, CRS, nodata, optional overviews). The tiles of a grid (windows with
+a halo) are :func:`toolbox.raster.tile.iter_tiles`'s.
 
 Tiled outputs of any size are written with :class:`toolbox.raster.writer.RasterWriter` on the
 raster engine (:mod:`toolbox.raster.engine`); the profile and overview rules here are the same.
@@ -12,7 +13,6 @@ from __future__ import annotations
 
 import math
 import warnings
-from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -239,40 +239,6 @@ def write_raster(path: str | Path, array: np.ndarray, transform: Any, crs: Any,
             if overviews:
                 build_overviews(dst, overview_resampling)
     return Path(path)
-
-
-@dataclass(frozen=True)
-class TileWindow:
-    """One tile of a tiled computation.
-
-    ``core`` is the part of the output this tile writes; ``padded`` is ``core`` grown by the halo
-    and clipped to the raster; ``inner`` is the slice pair that cuts ``core`` out of an array read
-    over ``padded``.
-    """
-
-    core: Any  # rasterio.windows.Window
-    padded: Any
-    inner: tuple[slice, slice]
-
-
-def iter_windows(width: int, height: int, tile: int = DEFAULT_BLOCK,
-                 halo: int = 0) -> Iterator[TileWindow]:
-    """Yield :class:`TileWindow` s covering a ``width`` x ``height`` raster, row by row.
-
-    ``tile`` is the core size in pixels (use the output block size so writes align with blocks);
-    ``halo`` pixels are added on each side for neighbourhood operations.
-    """
-    from rasterio.windows import Window
-
-    if tile <= 0 or halo < 0:
-        raise ValueError("tile must be > 0 and halo >= 0")
-    for row0 in range(0, height, tile):
-        for col0 in range(0, width, tile):
-            w, h = min(tile, width - col0), min(tile, height - row0)
-            c0, r0 = max(col0 - halo, 0), max(row0 - halo, 0)
-            c1, r1 = min(col0 + w + halo, width), min(row0 + h + halo, height)
-            inner = (slice(row0 - r0, row0 - r0 + h), slice(col0 - c0, col0 - c0 + w))
-            yield TileWindow(Window(col0, row0, w, h), Window(c0, r0, c1 - c0, r1 - r0), inner)
 
 
 def verify_written_raster(path: str | Path) -> str | None:

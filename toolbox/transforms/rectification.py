@@ -421,7 +421,9 @@ def write_gcp_geotiff(source: Any, output: Any, gcps: list[tuple[str, float, flo
     from rasterio.control import GroundControlPoint
     from rasterio.enums import ColorInterp
 
-    from toolbox.io.raster import gdal_cache_max, geotiff_profile, iter_windows
+    from toolbox.io.grid import GridSpec
+    from toolbox.io.raster import gdal_cache_max, geotiff_profile
+    from toolbox.raster.tile import iter_tiles
 
     with rasterio.Env(GDAL_CACHEMAX=gdal_cache_max(256)), warnings.catch_warnings():
         warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
@@ -444,6 +446,7 @@ def write_gcp_geotiff(source: Any, output: Any, gcps: list[tuple[str, float, flo
             with rasterio.open(output, "w", gcps=points, **profile) as dst:
                 if tags:
                     dst.update_tags(**tags)
-                windows = [t.core for t in iter_windows(src.width, src.height, chunk)]
+                grid = GridSpec(src.transform, src.width, src.height)
+                windows = [t.window for t in iter_tiles(grid, chunk)]
                 for window in feedback.iterate(windows):
                     dst.write(src.read(window=window), window=window)

@@ -106,9 +106,9 @@ def test_fused_window_kernel_equals_heights_then_map(distortion, tmp_path):
 
     photo, grid, sampler, cmap = hilly_scene(distortion, tmp_path)
     job = OrthoWindows(photo, grid, sampler, cmap, 300.0)
-    from toolbox.io.raster import iter_windows
+    from toolbox.raster.tile import iter_tiles
 
-    windows = [t.core for t in iter_windows(grid.width, grid.height, 300)]
+    windows = [t.window for t in iter_tiles(grid, 300)]
     seen = []
     for window in windows:
         assert job.plan(window) is None  # no resampling given: not planned
@@ -355,15 +355,15 @@ def test_planned_maps_are_the_shifted_maps_blanked_outside_the_photo(distortion,
     unplanned coordinates minus the plan's shift (to float32 rounding), OUTSIDE exactly on
     the cells outside the photo or without image point (but for cells within rounding of the
     edge), and the statistics are the same."""
-    from toolbox.io.raster import iter_windows
     from toolbox.ortho.windows import OrthoWindows
     from toolbox.raster.maps import OUTSIDE
+    from toolbox.raster.tile import iter_tiles
 
     photo, grid, sampler, cmap = hilly_scene(distortion, tmp_path)
     plain = OrthoWindows(photo, grid, sampler, cmap, 300.0)
     planned = OrthoWindows(photo, grid, sampler, cmap, 300.0, resampling="bilinear")
     kinds = set()
-    for window in [t.core for t in iter_windows(grid.width, grid.height, 300)]:
+    for window in [t.window for t in iter_tiles(grid, 300)]:
         cols, rows, _ = plain.measured(window)
         plan = planned.plan(window)
         assert plan is not None
@@ -402,9 +402,9 @@ def test_block_modes_from_the_dem_bound_the_map_within_the_tolerance(distortion,
     the distortion-free map), NaN nodes and blocks off the DEM exact; the final map, blended
     where they allow it, is the photo model's own projection of the same heights within the
     stated 0.05 px (photo.ground_to_pixel, independent of the kernels)."""
-    from toolbox.io.raster import iter_windows
     from toolbox.ortho.distortion import block_modes
     from toolbox.ortho.windows import OrthoWindows
+    from toolbox.raster.tile import iter_tiles
 
     photo, grid, sampler, cmap = hilly_scene(distortion, tmp_path)  # blocks of 32, 0.05 px
     plain = CollinearityMap(frame_photo(scene.CENTRE, scene.ANGLES, width=2000, height=2000,
@@ -412,7 +412,7 @@ def test_block_modes_from_the_dem_bound_the_map_within_the_tolerance(distortion,
     job = OrthoWindows(photo, grid, sampler, cmap, 300.0)
     model = cmap.model
     counts = np.zeros(3, dtype=int)
-    for window in [t.core for t in iter_windows(grid.width, grid.height, 300)]:
+    for window in [t.window for t in iter_tiles(grid, 300)]:
         xs, ys = grid.cell_centers(window)
         part = sampler.part(xs, ys)
         if part is None:

@@ -120,8 +120,10 @@ def test_pixels_outside_a_fisheye_field_are_nan_and_counted():
     px = image_pixels(model, step=23)
     rays, failed = model.pixel_to_camera(px)
     (fx, fy), (cx, cy) = model.focal_px, model.principal_point_px
-    beyond = np.hypot((px[:, 0] - cx) / fx, (px[:, 1] - cy) / fy) > \
-        model._theta_d(np.array(model.valid_radius))
+    # θd at the field's edge θ = valid_radius: OpenCV's fisheye distortion of the ray at that angle
+    reach = cv2.fisheye.distortPoints(np.array([[[math.tan(model.valid_radius), 0.0]]]),
+                                      np.eye(3), model.opencv_coefficients())[0, 0, 0]
+    beyond = np.hypot((px[:, 0] - cx) / fx, (px[:, 1] - cy) / fy) > reach
     assert beyond.sum() > 100
     assert failed == beyond.sum()
     assert np.isnan(rays[beyond]).all() and np.isfinite(rays[~beyond]).all()

@@ -16,8 +16,8 @@ import numpy as np
 import pytest
 
 from toolbox.errors import InputDataError
-from toolbox.photogrammetry import kernels
 from toolbox.photogrammetry.camera import Camera, RadialDistortion
+from toolbox.photogrammetry.collinearity import ground_to_image, image_to_ground
 from toolbox.photogrammetry.project import load_project, save_project
 from toolbox.photogrammetry.synthetic import frame_photo
 
@@ -82,15 +82,26 @@ def test_camera_to_image_is_opencvs_iterative_inverse_and_round_trips(camera):
     np.testing.assert_allclose(back, measured + PP, atol=1e-9, rtol=0)
 
 
+def nadir(points: np.ndarray, distortion: RadialDistortion, to_image: bool) -> np.ndarray:
+    """The compiled collinearity kernels through their public functions, for a camera at the
+    origin looking down (R = I): ground (x, y, -c) has the ideal image (x, y), and the ray of
+    image point m meets the plane Z = -c at (corrected m, -c)."""
+    if to_image:
+        ground = np.column_stack([points, np.full(len(points), -C)])
+        return ground_to_image(ground, (0.0, 0.0, 0.0), np.eye(3), C, distortion=distortion,
+                               behind="nan")
+    return image_to_ground(points, -C, (0.0, 0.0, 0.0), np.eye(3), C,
+                           distortion=distortion)[:, :2]
+
+
 def test_compiled_kernels_equal_opencv_both_ways(camera):
-    args = camera.distortion.kernel_arguments()
     ideal = frame_points(seed=3)
     measured = frame_points(seed=4)
-    fwd = np.array([kernels._distort(x, y, *args) for x, y in ideal])
-    inv = np.array([kernels._undistort(x, y, *args) for x, y in measured])
+    fwd = nadir(ideal, camera.distortion, to_image=True)
+    inv = nadir(measured, camera.distortion, to_image=False)
     np.testing.assert_allclose(fwd, opencv_distort(ideal), atol=1e-6, rtol=0)
     np.testing.assert_allclose(inv, opencv_correct(measured), atol=1e-10, rtol=0)
-    back = np.array([kernels._undistort(x, y, *args) for x, y in fwd])
+    back = nadir(fwd, camera.distortion, to_image=False)
     np.testing.assert_allclose(back, ideal, atol=1e-9, rtol=0)
 
 
@@ -101,7 +112,7 @@ def test_a_distortion_that_folds_gives_nan_not_a_wrong_point():
         d = RadialDistortion.from_polynomial(**terms)
         far, near = np.array([[45.0, 0.0]]), np.array([[10.0, 5.0]])
         assert np.isnan(d.distort(far)).all()
-        assert np.isnan(kernels._distort(45.0, 0.0, *d.kernel_arguments())).all()
+        assert np.isnan(nadir(far, d, to_image=True)).all()  # the compiled kernel too
         np.testing.assert_allclose(d.correct(d.distort(near)), near, atol=1e-9)
 
 

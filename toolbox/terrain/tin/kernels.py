@@ -522,7 +522,7 @@ def triangles_by_tile(xy: np.ndarray, triangles: np.ndarray, x0: float, y0: floa
     """Group triangles by the square output tiles their bounding boxes overlap.
 
     Tiles are ``tile`` x ``tile`` cells, numbered row by row from the top-left (as
-    :func:`toolbox.io.raster.iter_windows` yields them): tile ``k`` is at tile row ``k // ntx``,
+    :func:`toolbox.raster.tile.iter_tiles` yields them): tile ``k`` is at tile row ``k // ntx``,
     tile column ``k % ntx``.
 
     Returns
