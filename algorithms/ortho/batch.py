@@ -211,10 +211,10 @@ class OrthoBatch(Algorithm):
 
 def plan_each(items: list[Any], plan: Any, failed: list[dict[str, Any]], feedback: Feedback,
               workers: int = 1) -> list[Any]:
-    """``plan(item)`` of every photo or image (progress 0-10 %), on ``workers`` threads (the
-    footprints' NumPy, GDAL's reads and PROJ release the GIL: NGI 5 m's 4 plans take 0.2 s
-    CPU), the results and failures in the items' order; one whose plan raises a user error is
-    appended to ``failed`` and reported, the others go on; none planned: an error."""
+    """``plan(item)`` of every photo or image (progress 0-10 %), on ``workers`` threads (a
+    plan is mostly NumPy and GDAL reads, which release the GIL), the results and failures in
+    the items' order; one whose plan raises a user error is appended to ``failed`` and
+    reported, the others go on; none planned: an error."""
 
     def attempt(item: Any) -> tuple[Any, Exception | None]:
         try:
