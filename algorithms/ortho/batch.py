@@ -168,17 +168,19 @@ class OrthoBatch(Algorithm):
         if template is not None:
             cell, origin = template_lattice(template, cell, crs, "the project")
 
-        def plan(photo: Any) -> tuple[Any, Any]:
+        def plan(photo: Any) -> tuple[Any, Any, str | None]:
             image = open_raster_info(image_path(photo, params["IMAGES"]), "IMAGES")
             check_geometry(photo)
             warning = tilt_warning(photo)
+            return plan_photo(photo, dem, crs, band), image, warning
+
+        workers = executor.workers if executor.kind == "local" else 1
+        plans = plan_each(photos, plan, failed, feedback, workers)
+        for _, _, warning in plans:  # in the photos' order, whichever thread planned them
             if warning:
                 feedback.push_warning(warning)
-            return plan_photo(photo, dem, crs, band), image
-
-        plans = plan_each(photos, plan, failed, feedback)
         if cell is None:
-            cell = max(nice_cell_size(plan.gsd) for plan, _ in plans)
+            cell = max(nice_cell_size(plan.gsd) for plan, _, _ in plans)
         options = OrthoOptions(
             resampling=params["RESAMPLING"], outside=params["OUTSIDE"], nodata=params["NODATA"],
             block=params["MAP_BLOCK"], tolerance_px=params["MAP_TOLERANCE"],
@@ -188,7 +190,7 @@ class OrthoBatch(Algorithm):
         tasks = [OrthoTask(plan.photo, image, dem,
                            lattice_grid(on_heights(plan.extent, plan.surface), cell, crs, origin),
                            folder / f"{plan.photo.id}.tif", options, plan.mean_height,
-                           params["MAP_SCALE"]) for plan, image in plans]
+                           params["MAP_SCALE"]) for plan, image, _ in plans]
         reports = collect(map_tiles(run_task, tasks, executor=executor, feedback=feedback,
                                     total=len(tasks), start=10, end=100), failed, feedback)
         stats = {"photos": len(photos), "done": len(reports), "failed": len(failed),
@@ -197,17 +199,36 @@ class OrthoBatch(Algorithm):
         return write_listing(self.id, params["OUTPUT"], reports, failed, stats)
 
 
-def plan_each(items: list[Any], plan: Any, failed: list[dict[str, Any]], feedback: Feedback
-              ) -> list[Any]:
-    """``plan(item)`` of every photo or image (progress 0-10 %); one whose plan raises a user
-    error is appended to ``failed`` and reported, the others go on; none planned: an error."""
-    plans = []
-    for item in feedback.iterate(items, start=0, end=10):
+def plan_each(items: list[Any], plan: Any, failed: list[dict[str, Any]], feedback: Feedback,
+              workers: int = 1) -> list[Any]:
+    """``plan(item)`` of every photo or image (progress 0-10 %), on ``workers`` threads (a
+    plan is mostly NumPy and GDAL reads, which release the GIL), the results and failures in
+    the items' order; one whose plan raises a user error is appended to ``failed`` and
+    reported, the others go on; none planned: an error."""
+
+    def attempt(item: Any) -> tuple[Any, Exception | None]:
         try:
-            plans.append(plan(item))
+            return plan(item), None
         except (InputDataError, ParameterError) as exc:
-            failed.append({"photo": item.id, "error": str(exc)})
-            feedback.push_warning(f"photo {item.id} failed: {exc}")
+            return None, exc
+
+    pool = None
+    if workers > 1 and len(items) > 1:
+        from concurrent.futures import ThreadPoolExecutor
+
+        pool = ThreadPoolExecutor(min(workers, len(items)), thread_name_prefix="plan")
+    plans = []
+    try:
+        results = map(attempt, items) if pool is None else pool.map(attempt, items)
+        for item, (planned, exc) in zip(feedback.iterate(items, start=0, end=10), results):
+            if exc is None:
+                plans.append(planned)
+            else:
+                failed.append({"photo": item.id, "error": str(exc)})
+                feedback.push_warning(f"photo {item.id} failed: {exc}")
+    finally:
+        if pool is not None:
+            pool.shutdown(cancel_futures=True)
     if not plans:
         raise InputDataError("no photo could be orthorectified: " +
                              "; ".join(f"{f['photo']}: {f['error']}" for f in failed))

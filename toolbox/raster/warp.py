@@ -66,6 +66,7 @@ from toolbox.raster.tile import Tile
 DEFAULT_CHUNK = 2048  # output pixels per side of a processing window (a multiple of the block)
 DEFAULT_MAX_SOURCE_PIXELS = 1 << 24  # larger source windows are split (16 Mpx per band)
 DEFAULT_CACHE_MB = 256  # GDAL block cache while warping (bounded, unlike GDAL's 5 % of RAM)
+WARP_MEMORY_MB = 32  # outputs up to this size are written from memory (RasterWriter memory_mb)
 
 
 # -- streaming driver ----------------------------------------------------------------------------
@@ -488,7 +489,7 @@ def warp_to_geotiff(source: Any, coordinate_map: Any, grid: Any, output: Any,
                     tags: dict[str, str] | None = None,
                     creation_options: dict[str, Any] | None = None,
                     fast: bool = True, cog: bool = False, executor: Any = None,
-                    aux: dict | None = None) -> Any:
+                    aux: dict | None = None, memory_mb: float = WARP_MEMORY_MB) -> Any:
     """Warp a raster file onto ``grid`` through ``coordinate_map`` into a GeoTIFF: a
     :class:`~toolbox.raster.writer.RasterWriter` fed by
     :func:`warp_raster`.
@@ -529,6 +530,10 @@ def warp_to_geotiff(source: Any, coordinate_map: Any, grid: Any, output: Any,
         Where tiles run (default: local threads).
     aux : dict name -> RasterInput, optional
         Auxiliary rasters for the coordinate map.
+    memory_mb : float
+        An output up to this size (uncompressed) is gathered in memory, its overviews built
+        there and copied once into the GeoTIFF (:class:`~toolbox.raster.writer.RasterWriter`'s
+        ``memory_mb``); 0: streamed.
     """
     from toolbox.raster.writer import RasterWriter
 
@@ -539,7 +544,8 @@ def warp_to_geotiff(source: Any, coordinate_map: Any, grid: Any, output: Any,
     layout = warp_layout(source, outside, nodata)
     writer = RasterWriter(output, grid, layout.count, layout.dtype, layout.nodata,
                           alpha=layout.alpha, cog=cog, overviews=overviews, tags=tags,
-                          creation_options=creation_options, cache_mb=cache_mb)
+                          creation_options=creation_options, cache_mb=cache_mb,
+                          memory_mb=memory_mb)
     with writer:
         return warp_raster(source, grid, coordinate_map, writer, layout=layout,
                            resampling=resampling, aux=aux, tile_size=chunk, executor=executor,

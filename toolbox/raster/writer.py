@@ -10,6 +10,11 @@ Cloud Optimized GeoTIFF.
   fits in one tile (GDAL's COG rule), compressed like the data,
 - an alpha band (the last band, ``alpha=True``) or a nodata value (NaN in a float array, the
   kernels' "no value", is written as nodata); RGB photometry for three integer data bands,
+- ``memory_mb``: an output of at most that many megabytes is gathered in a GDAL MEM dataset,
+  its overviews built there and the whole copied once into the GeoTIFF (GDAL's
+  ``COPY_SRC_OVERVIEWS``): same pixels, tiles, codec and overviews as the streamed file, a
+  third of its CPU time (building the overviews of a written GTiff went through its tiles
+  again: 0.25 against 0.09 s CPU for a 783 x 1399 RGBA ortho); larger outputs are streamed,
 - ``cog=True``: a Cloud Optimized GeoTIFF, made by GDAL's COG driver from the tiled file (IFDs
   first, smallest overview's data first, the main image last), which GDAL's COG validator
   accepts; :func:`cog_problems` checks that layout without GDAL's Python bindings.
@@ -33,6 +38,8 @@ from toolbox.io.write_failures import writing
 
 DEFAULT_TILE = 512
 DEFAULT_CACHE_MB = 256  # GDAL block cache while writing (bounded, whatever the output size)
+#: the profile's keys of the dataset itself (the others are GTiff creation options)
+MEM_KEYS = ("driver", "width", "height", "count", "dtype", "crs", "transform", "nodata")
 
 
 
@@ -83,6 +90,9 @@ class RasterWriter:
         Overview resampling (``average``; ``nearest`` for classes).
     creation_options : dict, optional
         More GTiff creation options (override the defaults).
+    memory_mb : float
+        Outputs up to this size (all bands, uncompressed) with overviews are gathered in memory
+        and copied once into the GeoTIFF (see the module notes); 0: always streamed.
 
     Example
     -------
@@ -96,7 +106,8 @@ class RasterWriter:
                  compress: str = "DEFLATE", overviews: bool = True,
                  band_descriptions: Any = None, photometric: str | None = None,
                  tags: dict | None = None, overview_resampling: str = "average",
-                 creation_options: dict | None = None, cache_mb: int = DEFAULT_CACHE_MB):
+                 creation_options: dict | None = None, cache_mb: int = DEFAULT_CACHE_MB,
+                 memory_mb: float = 0):
         if tile % 16:
             raise ValueError(f"tile must be a multiple of 16, got {tile}")
         if alpha and nodata is not None:
@@ -125,6 +136,9 @@ class RasterWriter:
         # a COG is copied from a plain tiled file written beside it
         self._tiled_path = self.path.with_name(f".{self.path.name}.tiled.tif") if cog else \
             self.path
+        size_mb = grid.width * grid.height * self.count * self.dtype.itemsize / 2**20
+        self.in_memory = (self.overviews and not self.cog and size_mb <= memory_mb
+                          and bool(overview_levels(grid.width, grid.height, self.tile)))
 
     # -- what is written -------------------------------------------------------------------------
     @property
@@ -192,8 +206,14 @@ class RasterWriter:
         try:
             with writing(self.path):  # GDAL's failures: OutputWriteError
                 self._stack.enter_context(rasterio.Env(**self._env()))
-                self.dataset = self._stack.enter_context(
-                    rasterio.open(self._tiled_path, "w", **self.profile()))
+                profile = self.profile()
+                if self.in_memory:  # the GeoTIFF's options are given to the copy at close
+                    options = profile
+                    profile = {k: profile[k] for k in MEM_KEYS} | {"driver": "MEM"}
+                self.dataset = self._stack.enter_context(rasterio.open(
+                    "MEM" if self.in_memory else self._tiled_path, "w", **profile))
+                if self.in_memory:  # the bands' colours as the GeoTIFF's photometry gives them
+                    self.dataset.colorinterp = self._colours(options.get("photometric"))
                 if self.tags:
                     self.dataset.update_tags(**self.tags)
                 if self.band_descriptions:
@@ -238,6 +258,8 @@ class RasterWriter:
             with writing(self.path):  # GDAL's failures (flush, overviews): OutputWriteError
                 if self.overviews and not self.cog:
                     self._build_overviews()
+                if self.in_memory:
+                    self._copy_from_memory()
                 self._stack.close()
                 self._stack = None
                 self.dataset = None
@@ -254,6 +276,26 @@ class RasterWriter:
         if factors:
             self.dataset.build_overviews(factors, Resampling[self.overview_resampling])
             self.dataset.update_tags(ns="rio_overview", resampling=self.overview_resampling)
+
+    def _colours(self, photometric: str | None) -> list:
+        """The colour interpretation GDAL gives the bands of the GeoTIFF of :meth:`profile`
+        (a MEM dataset's bands are grey/undefined; the alpha band weighs the overviews)."""
+        from rasterio.enums import ColorInterp
+
+        first = [ColorInterp.red, ColorInterp.green, ColorInterp.blue] \
+            if photometric == "RGB" else [ColorInterp.gray]
+        colours = (first + [ColorInterp.undefined] * self.count)[:self.count]
+        if self.alpha and self.count > 1:
+            colours[-1] = ColorInterp.alpha
+        return colours
+
+    def _copy_from_memory(self) -> None:
+        """The MEM dataset and its overviews into the GeoTIFF, tiles and codec of
+        :meth:`profile`, the overviews as they are (GDAL's ``COPY_SRC_OVERVIEWS``)."""
+        import rasterio.shutil
+
+        options = {k: v for k, v in self.profile().items() if k not in MEM_KEYS}
+        rasterio.shutil.copy(self.dataset, self.path, copy_src_overviews=True, **options)
 
     def _copy_to_cog(self) -> None:
         import rasterio

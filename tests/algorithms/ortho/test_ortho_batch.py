@@ -136,3 +136,35 @@ def test_a_photo_task_reports_its_warnings_to_its_caller_once(tmp_path, caplog):
         report = run_task(task)
     assert any("have no DEM height" in w for w in report["warnings"])
     assert not any("have no DEM height" in r.getMessage() for r in caplog.records)
+
+
+def test_plans_on_threads_keep_the_photos_order_and_their_failures():
+    """plan_each on 3 threads: the plans and the failures in the photos' order whichever
+    thread finishes first (the later photos' plans return first here)."""
+    import threading
+    import time
+    from types import SimpleNamespace
+
+    from algorithms.ortho.batch import plan_each
+    from toolbox.errors import InputDataError
+    from toolbox.feedback import Feedback
+
+    threads = set()
+
+    def plan(item):
+        threads.add(threading.get_ident())
+        time.sleep(0.05 * (6 - int(item.id)))
+        if item.id in ("2", "4"):
+            raise InputDataError(f"photo {item.id} cannot be planned")
+        return f"plan {item.id}"
+
+    items = [SimpleNamespace(id=str(k)) for k in range(6)]
+    failed: list = []
+    feedback = Feedback()
+    assert plan_each(items, plan, failed, feedback, workers=3) == \
+        ["plan 0", "plan 1", "plan 3", "plan 5"]
+    assert [f["photo"] for f in failed] == ["2", "4"] and len(threads) == 3
+    assert feedback.warnings == ["photo 2 failed: photo 2 cannot be planned",
+                                 "photo 4 failed: photo 4 cannot be planned"]
+    with pytest.raises(InputDataError, match="no photo could be orthorectified"):
+        plan_each(items[2:5:2], plan, [], Feedback(), workers=2)

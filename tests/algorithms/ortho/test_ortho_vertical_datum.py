@@ -1,6 +1,7 @@
 """A DEM tagged with a vertical CRS (EGM96 height: its PROJ grid egm96_15.gtx is on this machine)
 under photos whose heights are ellipsoidal: the DEM's heights are converted once, against pyproj's
-own Transformer evaluated at every DEM cell (the oracle); the ortho equals the one made on the
+own Transformer evaluated at every DEM cell (the oracle) and the system's gdaltransform at
+49 cells (a second one, with the system's PROJ); the ortho equals the one made on the
 oracle's ellipsoidal DEM, and differs (by ~48 m of heights) from the one that uses the EGM96
 heights as they are. Same datum: no conversion. A grid missing (EGM2008 here): a one-line refusal
 naming the grid, nothing written."""
@@ -95,6 +96,35 @@ def test_conversion_equals_pyproj_at_every_cell(scene, tmp_path):
     shift = truth - z_egm
     assert 40 < shift.min() < shift.max() < 55  # the geoid near Siena: ~48 m
     assert note.shift_m[0] == pytest.approx(shift.min(), abs=2e-3)
+
+
+def test_conversion_equals_the_system_gdaltransform(scene, tmp_path):
+    """A second oracle, independent of the pyproj wheel: the system's GDAL and PROJ
+    (``gdaltransform`` with /usr/share/proj's egm96_15.gtx), EGM96 height -> WGS 84
+    ellipsoidal height (EPSG:4979) at cells spread over the DEM."""
+    import shutil
+
+    if shutil.which("gdaltransform") is None:
+        pytest.skip("GDAL's command-line tools (gdal-bin) are not installed")
+    folder, z_egm, transform = scene
+    dem, _ = dem_for_photos(open_raster_info(folder / "dem_egm96.tif", "DEM"), ELLIPSOIDAL,
+                            tmp_path)
+    with rasterio.open(dem.path) as src:
+        converted = src.read(1).astype("float64")
+    rows, cols = np.meshgrid(np.linspace(0, z_egm.shape[0] - 1, 7).astype(int),
+                             np.linspace(0, z_egm.shape[1] - 1, 7).astype(int), indexing="ij")
+    x, y = transform * (cols.ravel() + 0.5, rows.ravel() + 0.5)
+    z = z_egm[rows.ravel(), cols.ravel()].astype("float64")
+    text = "\n".join(f"{float(a)!r} {float(b)!r} {float(c)!r}"
+                     for a, b, c in zip(x, y, z, strict=True))
+    run = subprocess.run(["gdaltransform", "-s_srs", EGM96, "-t_srs", "EPSG:4979"], input=text,
+                         capture_output=True, text=True, env={"PROJ_NETWORK": "OFF",
+                                                              "PATH": "/usr/bin:/bin"})
+    assert run.returncode == 0, run.stderr
+    h = np.array([float(line.split()[2]) for line in run.stdout.split("\n") if line.strip()])
+    if np.allclose(h, z):
+        pytest.skip("the system PROJ has no EGM96 grid (gdaltransform left the heights)")
+    assert np.abs(converted[rows.ravel(), cols.ravel()] - h).max() < 2e-3
 
 
 def ortho(folder: Path, dem: str, out: Path, **extra) -> dict:

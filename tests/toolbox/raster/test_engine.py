@@ -414,3 +414,69 @@ def test_blas_is_limited_to_one_thread_inside_tile_threads_only():
     inside = list(map_tiles(_blas_threads, [0, 1, 2], workers=2))
     assert all(threads == [1] * len(before) for threads in inside)
     assert _blas_threads(0) == before  # restored afterwards
+
+
+def test_small_output_written_from_memory_equals_the_streamed_one(tmp_path):
+    """``memory_mb``: the whole output gathered in a MEM dataset, its overviews built there and
+    copied once (GDAL's COPY_SRC_OVERVIEWS). Oracles: the arrays written (full resolution), the
+    alpha-weighted 2 x 2 mean of NumPy (the first overview), the streamed file's layout."""
+    grid = GridSpec(Affine(0.5, 0, X0, 0, -0.5, Y0), 1300, 900, CRS)
+    rng = np.random.default_rng(3)
+    data = rng.integers(0, 255, (4, 900, 1300), dtype="uint8")
+    data[3] = 255
+    data[3, :, :200] = 0  # a transparent strip: no weight in the overviews
+    data[:3, :, :200] = 0
+    files = {}
+    for name, memory_mb in (("memory", 32), ("streamed", 0), ("too_large", 4)):
+        path = files[name] = tmp_path / f"{name}.tif"
+        writer = RasterWriter(path, grid, 4, "uint8", alpha=True, memory_mb=memory_mb,
+                              band_descriptions=["r", "g", "b", "alpha"], tags={"k": "v"})
+        assert writer.in_memory == (name == "memory")
+        with writer as w:
+            for tile in iter_tiles(grid, 512):
+                w.write(tile.window, data[(slice(None), *tile.window.toslices())])
+    with rasterio.open(files["memory"]) as m, rasterio.open(files["streamed"]) as s:
+        np.testing.assert_array_equal(m.read(), data)
+        assert m.profile == s.profile and m.overviews(1) == s.overviews(1) == [2, 4]
+        assert m.colorinterp == s.colorinterp and m.colorinterp[-1].name == "alpha"
+        assert m.descriptions == s.descriptions and m.tags()["k"] == "v"
+        assert m.tags(ns="IMAGE_STRUCTURE")["PREDICTOR"] == "2"
+    with rasterio.open(files["memory"], overview_level=0) as m, \
+            rasterio.open(files["streamed"], overview_level=0) as s:
+        level = m.read().astype("float64")
+        np.testing.assert_array_equal(level, s.read())
+    mean = data[:3].astype("float64").reshape(3, 450, 2, 650, 2).mean(axis=(2, 4))
+    assert np.abs(level[:3, :, 100:] - mean[:, :, 100:]).max() <= 1  # GDAL rounds, NumPy not
+    assert (level[3, :, :100] == 0).all() and (level[3, :, 100:] == 255).all()
+    assert cog_problems(files["memory"]) == []  # copied with the overviews first: a COG layout
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["memory.tif", "streamed.tif",
+                                                          "too_large.tif"]
+
+
+def test_small_float_output_from_memory_keeps_nodata_out_of_the_overviews(tmp_path):
+    grid = GridSpec(Affine(1, 0, X0, 0, -1, Y0), 1000, 600, CRS)
+    values = np.arange(600 * 1000, dtype="float32").reshape(600, 1000) / 1000
+    values[:, :2] = np.nan  # the kernels' "no value": written as nodata
+    path = tmp_path / "f.tif"
+    with RasterWriter(path, grid, 1, "float32", nodata=-9999.0, memory_mb=32) as w:
+        w.write(rasterio.windows.Window(0, 0, 1000, 600), values)
+    with rasterio.open(path) as src:
+        assert src.nodata == -9999.0 and src.overviews(1) == [2]
+        assert src.tags(ns="IMAGE_STRUCTURE")["PREDICTOR"] == "3"
+        full = src.read(1)
+    with rasterio.open(path, overview_level=0) as src:
+        level = src.read(1)
+    assert (full[:, :2] == -9999.0).all()
+    np.testing.assert_array_equal(full[:, 2:], values[:, 2:])
+    mean = values.astype("float64").reshape(300, 2, 500, 2).mean(axis=(1, 3))
+    assert (level[:, 0] == -9999.0).all()
+    np.testing.assert_allclose(level[:, 1:], mean[:, 1:], rtol=1e-6)
+
+
+def test_failed_write_from_memory_leaves_nothing(tmp_path):
+    grid = GridSpec(Affine(1, 0, 0, 0, -1, 1000), 1000, 1000, None)
+    with pytest.raises(RuntimeError), RasterWriter(tmp_path / "x.tif", grid, 1, "uint8",
+                                                   memory_mb=32) as w:
+        assert w.in_memory
+        raise RuntimeError("boom")
+    assert list(tmp_path.iterdir()) == []
