@@ -7,6 +7,7 @@ to its centre (thesis par. 2.5.2): column ``j`` has centre ``xmin + (j + 0.5) * 
 from __future__ import annotations
 
 import math
+import sys
 from dataclasses import dataclass
 from typing import Any
 
@@ -23,6 +24,20 @@ def max_cells_default() -> int:
     from toolbox.limits import size_limit
 
     return size_limit("cells")
+
+
+def snap_outwards(bounds: tuple[float, float, float, float],
+                  cell_size: float) -> tuple[float, float, float, float]:
+    """``bounds`` moved outwards to multiples of ``cell_size``; an edge within rounding of a
+    multiple stays on it (1e-9 cell, more for coordinates so large that their last bit is more):
+    a corner computed 1 ulp beyond a multiple, 1688120.0000000002, must not add a whole cell."""
+    xmin, ymin, xmax, ymax = map(float, bounds)
+    far = max(abs(xmin), abs(xmax), abs(ymin), abs(ymax)) / cell_size
+    slack = max(1e-9, 64 * far * sys.float_info.epsilon)  # cells
+    return (math.floor(xmin / cell_size + slack) * cell_size,
+            math.floor(ymin / cell_size + slack) * cell_size,
+            math.ceil(xmax / cell_size - slack) * cell_size,
+            math.ceil(ymax / cell_size - slack) * cell_size)
 
 
 @dataclass(frozen=True)
@@ -52,8 +67,7 @@ class GridSpec:
             raise ParameterError(name, f"{cell_size:g} is too small for the extent (the grid "
                                  f"would have more than {limit:,} cells); use a larger cell size")
         if snap:
-            xmin, ymin = math.floor(xmin / cell_size) * cell_size, math.floor(ymin / cell_size) * cell_size
-            xmax, ymax = math.ceil(xmax / cell_size) * cell_size, math.ceil(ymax / cell_size) * cell_size
+            xmin, ymin, xmax, ymax = snap_outwards((xmin, ymin, xmax, ymax), cell_size)
         width = max(1, int(round((xmax - xmin) / cell_size)))
         height = max(1, int(round((ymax - ymin) / cell_size)))
         if width * height > limit:

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from toolbox.errors import ParameterError
-from toolbox.io.grid import GridSpec, max_cells_default
+from toolbox.io.grid import GridSpec, max_cells_default, snap_outwards
 
 _EPS = 1e-9  # relative tolerance of "a whole number of cells"
 
@@ -101,8 +101,7 @@ class GridRequest:
         elif data_bounds is not None:
             xmin, ymin, xmax, ymax = map(float, data_bounds)
             if snap:
-                xmin, ymin = math.floor(xmin / cell) * cell, math.floor(ymin / cell) * cell
-                xmax, ymax = math.ceil(xmax / cell) * cell, math.ceil(ymax / cell) * cell
+                xmin, ymin, xmax, ymax = snap_outwards((xmin, ymin, xmax, ymax), cell)
         else:
             raise ParameterError("EXTENT", "is needed to size the grid before reading the data")
         width = _cells(xmax - xmin, cell)
