@@ -9,6 +9,7 @@ from toolbox.feedback import Feedback
 from toolbox.parameters import ExtentParameter, Integer, Number, RasterLayer, String
 from toolbox.parameters.outputs import Output, OutputFile, OutputRaster
 from toolbox.registry import register
+from toolbox.ui.execution import executor_of, scheduler_parameter
 from toolbox.ui.grid import grid_request
 from toolbox.ui.photogrammetry import project_parameter
 
@@ -44,8 +45,13 @@ class DenseMatchingDsm(Algorithm):
     each cell's median. (Coarsening a large scan this way resamples it bilinearly, without
     averaging.)
     POINTS writes the matched points as LAS/LAZ, coloured from the left photo (RGB, or grey).
-    Memory: one pair's epipolar images and disparities (matched in strips of 1024 rows), its
-    points' cells and heights (16 bytes a point; triangulated 256 rows at a time), the cell
+    Steps 2-4 run one pair at a time in this process or, with SCHEDULER, on a Dask cluster
+    (as many pairs at a time as its workers take): each worker reads its pair's images from
+    their paths in PROJECT and sends back the pair's cell statistics (and its points when
+    POINTS is given: the client holds those of the pairs in flight); pairs come back in order,
+    so the outputs are the local run's.
+    Memory: per pair in flight, its epipolar images and disparities (matched in strips of 1024
+    rows), its points' cells and heights (16 bytes a point; triangulated 256 rows at a time), the cell
     statistics of the pairs done, and the output grid.
     """
 
@@ -90,6 +96,7 @@ class DenseMatchingDsm(Algorithm):
         Number("NODATA", "value of cells without a height", default=-9999.0),
         Integer("MAX_CELLS", "refuse grids with more cells than this (default: "
                 "TOOLBOX_MAX_CELLS or 1e9)", optional=True, min_value=1),
+        scheduler_parameter("the stereo pairs"),
         OutputRaster("OUTPUT", "DSM GeoTIFF (Float32): median height of the pairs"),
         OutputRaster("COUNT", "pairs with a height in the cell (UInt16, 0 = none)"),
         OutputRaster("SPREAD", "height spread in the cell: highest upper quartile - lowest "
@@ -137,4 +144,5 @@ def match_request(params: dict[str, Any]):
         options=MatchOptions(params["BLOCK_SIZE"], params["UNIQUENESS"],
                              params["SPECKLE_WINDOW"], params["SPECKLE_RANGE"],
                              params["LR_MAX_DIFF"], params["MAX_DISPARITIES"]),
-        grid=grid_request(params), nodata=params["NODATA"], points=params.get("POINTS"))
+        grid=grid_request(params), nodata=params["NODATA"], points=params.get("POINTS"),
+        executor=executor_of(params))

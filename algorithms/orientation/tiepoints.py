@@ -10,6 +10,7 @@ from toolbox.feedback import Feedback
 from toolbox.parameters import Boolean, Enum, File, Integer, Number, String
 from toolbox.parameters.outputs import Output, OutputFile
 from toolbox.registry import register
+from toolbox.ui.execution import executor_of, scheduler_parameter
 from toolbox.ui.photogrammetry import project_parameter, report_output
 
 
@@ -37,7 +38,9 @@ class TiePoints(Algorithm):
     principal point, distortion), else on the fundamental matrix; inlier THRESHOLD in pixels of
     the detection level. With orientations the distance of each match from the epipolar plane
     of the orientations is reported per pair, and matches farther than EPIPOLAR_TOLERANCE px
-    are dropped when it is given. Tracks by union-find; a track with two points on one photo,
+    are dropped when it is given. Pairs are matched on local threads or, with SCHEDULER, on a
+    Dask cluster (only features travel, never images; results in pair order: the same
+    output). Tracks by union-find; a track with two points on one photo,
     or that disagrees with the epipolar geometry of any pair of its photos, is dropped. Thinning:
     about TARGET Gruber-like cells per model (photo pair), each keeping its best track (most
     photos first, then smallest residual). REFINE: each kept observation is refined against the
@@ -97,6 +100,7 @@ class TiePoints(Algorithm):
                min_value=0.0, max_value=100.0),
         Number("EPIPOLAR_TOLERANCE", "with orientations: drop matches farther from the epipolar "
                "plane, px", optional=True, min_value=0.0, min_exclusive=True),
+        scheduler_parameter("the photo pairs' matching"),
         OutputFile("OUTPUT", "image measurements (CSV: point_id, photo, col_px, row_px, "
                    "sigma_px)", extensions=[".csv"]),
         # an OutputFile, not an OutputVector: test_specs requires every OutputVector to be
@@ -155,7 +159,7 @@ class TiePoints(Algorithm):
             refine=params["REFINE"], min_ncc=params["MIN_NCC"],
             epipolar_tolerance=params["EPIPOLAR_TOLERANCE"], min_overlap=params["MIN_OVERLAP"],
             terrain_height=params["TERRAIN_HEIGHT"], pair_selection=params["PAIR_SELECTION"],
-            neighbours=params["NEIGHBOURS"], positions=positions)
+            neighbours=params["NEIGHBOURS"], positions=positions, executor=executor_of(params))
         with feedback.timed("tie points"):
             result = tie_points(photos, opts, lambda p, m: feedback.set_progress(0.95 * p, m))
         if result.untied:
@@ -178,7 +182,7 @@ class TiePoints(Algorithm):
                  "pairs_candidate": len(result.pairs), "pair_selection": result.pair_selection,
                  "untied_photos": result.untied,
                  "inconsistent_tracks_dropped": result.dropped_inconsistent,
-                 "features": result.features,
+                 "features": result.features, "executor": opts.executor.describe(),
                  "max_reprojection_px": float(finite.max()) if len(finite) else None,
                  "median_reprojection_px": float(np.median(finite)) if len(finite) else None}
         if params["REPORT"] is not None:

@@ -17,10 +17,11 @@ from toolbox.registry import spec_index
 
 X0, Y0 = 1_688_000.0, 4_799_500.0
 
-# the algorithms whose work splits into independent tasks (tiles, blocks, photos)
+# the algorithms whose work splits into independent tasks (tiles, blocks, photos, pairs)
 SPLIT_WORK = ["carto:contours", "dem:aspect", "dem:cubic", "dem:hillshade", "dem:idw",
-              "dem:nearest", "dem:plane", "dem:quadratic", "dem:slope", "dem:tin_linear",
-              "mosaic:build", "mosaic:cut", "ortho:batch", "rectify:image", "tin:to_raster"]
+              "dem:match", "dem:nearest", "dem:plane", "dem:quadratic", "dem:slope",
+              "dem:tin_linear", "mosaic:build", "mosaic:cut", "orientation:tiepoints",
+              "ortho:batch", "rectify:image", "tin:to_raster"]
 
 
 def _sha(path) -> str:
@@ -145,3 +146,86 @@ def test_scheduler_addresses_are_checked_before_any_connection(address, valid):
     else:
         with pytest.raises(ParameterError, match="SCHEDULER.*tcp://host:8786"):
             resolve_executor(address)
+
+
+@pytest.mark.distributed
+@pytest.mark.slow
+def test_tie_points_matched_on_a_cluster_are_the_local_ones(tmp_path, monkeypatch):
+    """orientation:tiepoints matches its photo pairs on the workers (features travel, not
+    images): the measurements and the pair table are the local run's, byte for byte, both with
+    cameras (essential matrices, footprint pairs) and without (fundamental matrices,
+    thumbnail pairs)."""
+    from pathlib import Path
+
+    from distributed import LocalCluster
+
+    monkeypatch.delenv("DASK_SCHEDULER_ADDRESS", raising=False)
+    monkeypatch.syspath_prepend(str(Path(__file__).parent / "matching"))
+    import block_scene
+
+    block = block_scene.make_block(tmp_path / "block")
+    cases = {"project": {"PROJECT": block.project, "TERRAIN_HEIGHT": 350.0},
+             "images": {"IMAGES": str(block.images[0].parent), "MAX_SIZE": 400,
+                        "REFINE": False}}
+
+    def run(case, where, tag):
+        outs = {"OUTPUT": tmp_path / f"{case}_{tag}.csv", "PAIRS": tmp_path / f"{case}_{tag}_p.csv"}
+        stats = toolbox.run("orientation:tiepoints",
+                            cases[case] | outs | {"SCHEDULER": where})["STATISTICS"]
+        return stats, {k: p.read_bytes() for k, p in outs.items()}
+
+    local = {case: run(case, "local", "local") for case in cases}
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                      dashboard_address=":0") as cluster:
+        for case in cases:
+            stats, files = run(case, cluster.scheduler_address, "dask")
+            assert stats["executor"] == f"dask scheduler {cluster.scheduler_address}"
+            assert stats["pairs_tied"] >= 10 and stats["points"] > 50, (case, stats)
+            assert files == local[case][1], case
+            assert stats["pairs_candidate"] == local[case][0]["pairs_candidate"]
+
+
+@pytest.mark.distributed
+@pytest.mark.slow
+def test_dense_matching_pairs_on_a_cluster_write_the_local_dsm(tmp_path, monkeypatch):
+    """dem:match matches its stereo pairs on the workers (each reads its pair's images by
+    path) and fuses them on the client: DSM, COUNT and SPREAD are the local run's, byte for
+    byte, and the LAZ holds the same points."""
+    from pathlib import Path
+
+    import laspy
+    from distributed import LocalCluster
+
+    from toolbox.photogrammetry.synthetic import hills_dem, wave_texture
+
+    monkeypatch.delenv("DASK_SCHEDULER_ADDRESS", raising=False)
+    monkeypatch.syspath_prepend(str(Path(__file__).parents[1] / "algorithms" / "stereo"))
+    import stereo_scene as sc
+
+    z, transform = hills_dem((sc.X0 - 300, sc.Y0 - 100, sc.X0 + 1300, sc.Y0 + 1100), cell=4.0,
+                             relief=40.0, base=300.0, seed=5)
+    (tmp_path / "scene").mkdir()
+    scene = sc.make_pair(tmp_path / "scene", z, transform,
+                         wave_texture(seed=2, wavelength=(8.0, 40.0), waves=40),
+                         names=("L", "R", "M"))
+
+    def run(where, tag):
+        outs = {name: tmp_path / f"{name.lower()}_{tag}.{ext}" for name, ext in
+                (("OUTPUT", "tif"), ("COUNT", "tif"), ("SPREAD", "tif"), ("POINTS", "laz"))}
+        stats = toolbox.run("dem:match", {
+            "PROJECT": str(scene.project), "PHOTOS": "L,R,M", "MIN_HEIGHT": 280.0,
+            "MAX_HEIGHT": 350.0, "CELL_SIZE": 8.0, "SCHEDULER": where} | outs)["STATISTICS"]
+        return stats, outs
+
+    local_stats, local = run("local", "local")
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                      dashboard_address=":0") as cluster:
+        stats, outs = run(cluster.scheduler_address, "dask")
+    assert stats["executor"] == f"dask scheduler {cluster.scheduler_address}"
+    assert [p["pair"] for p in stats["pairs"]] == [p["pair"] for p in local_stats["pairs"]]
+    assert len(stats["pairs"]) == 3 and stats["cells_with_value"] > 1000
+    for name in ("OUTPUT", "COUNT", "SPREAD"):
+        assert _sha(outs[name]) == _sha(local[name]), name
+    a, b = (laspy.read(outs["POINTS"]), laspy.read(local["POINTS"]))
+    assert len(a.points) == len(b.points) == stats["points_written"] > 10000
+    assert np.array_equal(a.xyz, b.xyz) and np.array_equal(a.red, b.red)

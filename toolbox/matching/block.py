@@ -57,6 +57,7 @@ class TiePointOptions:
     pair_selection: str = "auto"  # auto | footprints | neighbours | thumbnails
     neighbours: int = 8  # neighbours mode: nearest photos per photo (plus Delaunay edges)
     positions: np.ndarray | None = None  # (N, 2) planar photo positions (a GNSS log), or None
+    executor: Any = None  # where pairs are matched (toolbox.executor.Executor); None: threads
 
 
 @dataclass
@@ -161,18 +162,55 @@ def _features(bp: BlockPhoto, opts: TiePointOptions, max_size: int,
 
 
 def _match(fa: Features, fb: Features, opts: TiePointOptions, level_scale: float,
-           pa: BlockPhoto | None = None, pb: BlockPhoto | None = None) -> matching.PairMatches:
+           pa: Any = None, pb: Any = None) -> matching.PairMatches:
+    """Match two photos' features; ``pa``, ``pb``: their oriented photos (or None)."""
     ia, ib = matching.ratio_matches(fa, fb, opts.ratio, opts.detector)
     cameras = None
-    if pa is not None and pb is not None and _has_camera(pa) and _has_camera(pb):
-        angle = 0.5 * (matching.pixel_angle(pa.photo) + matching.pixel_angle(pb.photo))
-        cameras = (matching.normaliser(pa.photo), matching.normaliser(pb.photo), angle)
+    if matching.has_camera(pa) and matching.has_camera(pb):
+        angle = 0.5 * (matching.pixel_angle(pa) + matching.pixel_angle(pb))
+        cameras = (matching.normaliser(pa), matching.normaliser(pb), angle)
     return matching.verify(fa, fb, ia, ib, opts.f_threshold * level_scale,
                            min_matches=opts.min_matches, cameras=cameras)
 
 
-def _has_camera(bp: BlockPhoto) -> bool:
-    return matching.has_camera(bp.photo)
+@dataclass(frozen=True)
+class PairTask:
+    """One pair to match, picklable for a Dask worker: both photos' features (keypoints and
+    descriptors, never the images), the options, the detection-level scale and the two
+    photos' orientations (cameras turn pixels into rays), or None."""
+
+    fa: Features
+    fb: Features
+    opts: TiePointOptions
+    level_scale: float
+    pa: Any = None
+    pb: Any = None
+
+
+def match_pair(task: PairTask) -> matching.PairMatches:
+    """Match one pair (module level: a Dask worker imports it by name). The model comes back
+    without its normalisers (functions of the cameras, not picklable): :func:`match_pairs`
+    puts them back on the client."""
+    m = _match(task.fa, task.fb, task.opts, task.level_scale, task.pa, task.pb)
+    if m.model is not None:
+        m.model.to_a = m.model.to_b = None
+    return m
+
+
+def match_pairs(tasks: list[PairTask], opts: TiePointOptions) -> list[matching.PairMatches]:
+    """:func:`match_pair` on every task through :func:`toolbox.executor.map_tiles` (local
+    threads, or the Dask cluster of ``opts.executor``), results in task order."""
+    from toolbox.executor import map_tiles, resolve_executor
+
+    executor = opts.executor or resolve_executor("local", opts.workers or None)
+    # the executor is not part of a task: workers need none
+    bare = TiePointOptions(**{**opts.__dict__, "executor": None})
+    found = list(map_tiles(match_pair, [PairTask(t.fa, t.fb, bare, t.level_scale, t.pa, t.pb)
+                                        for t in tasks], executor=executor))
+    for t, m in zip(tasks, found, strict=True):
+        if m.model is not None and m.model.kind == "E":
+            m.model.to_a, m.model.to_b = matching.normaliser(t.pa), matching.normaliser(t.pb)
+    return found
 
 
 def photo_positions(photos: list[BlockPhoto], opts: TiePointOptions
@@ -227,9 +265,9 @@ def _thumbnail_pairs(photos: list[BlockPhoto], opts: TiePointOptions
     with ThreadPoolExecutor(opts.workers or os.cpu_count() or 1) as pool:
         thumbs = list(pool.map(lambda bp: _features(bp, small, opts.thumbnail_size,
                                                     _thumbnail(bp, opts, keep)), photos))
-        found = list(pool.map(lambda c: len(_match(thumbs[c[0]][0], thumbs[c[1]][0], opts,
-                                                   max(thumbs[c[0]][1], thumbs[c[1]][1]),
-                                                   photos[c[0]], photos[c[1]])), every))
+    found = [len(m) for m in match_pairs(
+        [PairTask(thumbs[i][0], thumbs[j][0], opts, max(thumbs[i][1], thumbs[j][1]),
+                  photos[i].photo, photos[j].photo) for i, j, _ in every], opts)]
     return [c for c, n in zip(every, found, strict=True) if n >= opts.min_matches]
 
 
@@ -244,15 +282,16 @@ def tie_points(photos: list[BlockPhoto], opts: TiePointOptions,
     used = sorted({k for i, j, _ in candidates for k in (i, j)})
     feats: dict[int, Features] = {}
     scales: dict[int, float] = {}
-    # OpenCV releases the GIL: photos are detected, and pairs matched, on parallel threads
+    # OpenCV releases the GIL: photos are detected on parallel threads
     with ThreadPoolExecutor(opts.workers or os.cpu_count() or 1) as pool:
         for n, (k, (f, s)) in enumerate(zip(used, pool.map(
                 lambda k: _features(photos[k], opts, opts.max_size), used), strict=True)):
             feats[k], scales[k] = f, s
             say(10 + 40 * (n + 1) / max(1, len(used)), f"features of {photos[k].id}: {len(f)}")
-        matched = list(pool.map(lambda c: _match(feats[c[0]], feats[c[1]], opts,
-                                                 max(scales[c[0]], scales[c[1]]), photos[c[0]],
-                                                 photos[c[1]]), candidates))
+    # pairs are matched through the executor: local threads or a Dask cluster
+    matched = match_pairs([PairTask(feats[i], feats[j], opts, max(scales[i], scales[j]),
+                                    photos[i].photo, photos[j].photo)
+                           for i, j, _ in candidates], opts)
     for bp in photos:
         bp.level = None  # photos in no candidate pair kept theirs
     reports: list[PairReport] = []

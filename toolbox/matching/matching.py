@@ -68,6 +68,9 @@ def ratio_matches(a: Features, b: Features, ratio: float = 0.8, detector: str = 
         # kd-trees (FLANN): several times faster than brute force on SIFT's 128 floats
         return cv2.FlannBasedMatcher({"algorithm": 1, "trees": 4}, {"checks": 64})
 
+    # FLANN's randomised kd-trees draw from OpenCV's RNG (one per thread, in whatever state
+    # earlier calls left it): seeded, a pair's matches are the same on any thread or worker
+    cv2.setRNGSeed(0)
     matcher = make()
     knn = matcher.knnMatch(a.descriptors, b.descriptors, k=2)
     ia, ib = [], []

@@ -46,6 +46,7 @@ class MatchRequest:
     grid: GridRequest = field(default_factory=GridRequest)
     nodata: float = -9999.0
     points: Path | None = None
+    executor: Any = None  # where pairs are matched (toolbox.executor.Executor); None: threads
 
 
 def read_epipolar(path: Path) -> tuple[np.ndarray, np.ndarray]:
@@ -109,6 +110,75 @@ def match_one_pair(left: Any, right: Any, images: tuple[Path, Path], low: float,
     return geometry, disparity, colours, stats
 
 
+@dataclass(frozen=True)
+class PairJob:
+    """One stereo pair to match on a thread or a Dask worker, picklable and small: the frame
+    photos, the image paths (each worker reads its pair itself: the images must be at the same
+    path there), the photos whose cameras fetch the pixels, and the DSM grid's transform and
+    size; ``points``: the matched points come back too (a LAS/LAZ is written); ``feedback``
+    (local runs, never pickled): progress and cancellation within the pair; ``sink`` (local
+    runs): the points go straight to the LAS/LAZ writer instead of coming back."""
+
+    left: Any
+    right: Any
+    images: tuple[Path, Path]
+    pixel_photos: tuple[Any, Any]
+    low: float
+    high: float
+    options: MatchOptions
+    pixel_mm: float
+    transform: Any
+    width: int
+    height: int
+    points: bool = False
+    feedback: Any = None  # local runs only: the pair's share of the run's progress
+    sink: Any = None  # local runs only: the point writer, fed block by block (never held)
+
+
+@dataclass
+class PairDone:
+    """What a pair gives back: its cells' statistics (:func:`cell_statistics`), statistics,
+    messages (level, text) for the client to push, and (xyz, rgb) blocks of points if asked."""
+
+    cells: tuple
+    stats: dict
+    messages: list
+    points: list
+
+
+def match_pair_job(job: PairJob) -> PairDone:
+    """Match one pair (module level: a Dask worker imports it by name), in a scratch folder of
+    its own, and reduce its points to per-cell statistics of the grid."""
+    from toolbox.feedback import CollectingFeedback
+    from toolbox.stereo.fusion import cell_index, cell_statistics
+    from toolbox.stereo.matching import disparity_points
+
+    feedback = job.feedback if job.feedback is not None else CollectingFeedback()
+    with tempfile.TemporaryDirectory(prefix="dem_match_") as tmp:
+        geometry, disparity, colours, stats = match_one_pair(
+            job.left, job.right, job.images, job.low, job.high, job.options, job.pixel_mm,
+            Path(tmp), feedback, job.pixel_photos)
+    keys, heights, blocks, n_points = [], [], [], 0
+    for r0 in range(0, disparity.shape[0], POINT_ROWS):  # points by row blocks
+        xyz, flat = disparity_points(geometry, disparity[r0:r0 + POINT_ROWS], r0)
+        keep = (xyz[:, 2] >= job.low) & (xyz[:, 2] <= job.high)
+        xyz, flat = xyz[keep], flat[keep]
+        cell, inside = cell_index(xyz, job.transform, job.width, job.height)
+        keys.append(cell[inside])
+        heights.append(xyz[inside, 2])
+        n_points += len(xyz)
+        if job.points:
+            rgb = colours[flat + r0 * disparity.shape[1]]
+            if job.sink is not None:
+                job.sink.write(xyz, rgb=rgb)
+            else:
+                blocks.append((xyz, rgb))
+    stats.update(points=n_points)
+    messages = [] if job.feedback is not None else feedback.messages  # else pushed already
+    return PairDone(cell_statistics(np.concatenate(keys), np.concatenate(heights)), stats,
+                    messages, blocks)
+
+
 def _colours(data: np.ndarray, grey: np.ndarray) -> np.ndarray:
     """(rows * cols, 3) uint8 colours: the three bands of an 8-bit RGB image, else the grey."""
     if data.shape[0] == 3 and data.dtype == np.uint8:
@@ -119,11 +189,11 @@ def _colours(data: np.ndarray, grey: np.ndarray) -> np.ndarray:
 def run_match(request: MatchRequest, feedback: Feedback) -> dict[str, Any]:
     """Match every suitable pair, fuse, write the rasters (and points); returns the
     statistics."""
+    from toolbox.executor import map_tiles, resolve_executor
     from toolbox.io.crs import crs_label
     from toolbox.photogrammetry.tables import load_project_parameter
     from toolbox.stereo.epipolar import photo_image
-    from toolbox.stereo.fusion import cell_index, cell_statistics, fuse
-    from toolbox.stereo.matching import disparity_points
+    from toolbox.stereo.fusion import fuse
     from toolbox.stereo.pairs import PairRules, overlap_bounds, select_pairs
 
     project = load_project_parameter(request.project)
@@ -163,43 +233,46 @@ def run_match(request: MatchRequest, feedback: Feedback) -> dict[str, Any]:
         centre = np.array([(data_bounds[0] + data_bounds[2]) / 2,
                            (data_bounds[1] + data_bounds[3]) / 2, low])
         writer = PointCloudWriter(request.points, centre, crs, rgb=True).__enter__()
+    pixels = [request.pixel_size_mm or matching_pixel(left, abs(grid.transform.a),
+                                                      report.distance_m)
+              for left, right, report in pairs]
+    executor = request.executor or resolve_executor("local")
+    local = executor.kind == "local"
+    if local:  # in this thread, one pair at a time: its epipolar images are the run's memory
+        executor = resolve_executor("local", 1)  # peak, and a signal stops it at once
+
+    def jobs():  # lazily: a pair's images are looked for when it is submitted
+        for k, ((left, right, _), pixel) in enumerate(zip(pairs, pixels, strict=True)):
+            step = feedback.step(90 * k / len(pairs), 90 * (k + 1) / len(pairs))
+            yield PairJob(left, right, (photo_image(left, None, "its image path in PROJECT"),
+                                        photo_image(right, None, "its image path in PROJECT")),
+                          (originals[left.id], originals[right.id]), low, high, options, pixel,
+                          grid.transform, grid.width, grid.height, writer is not None,
+                          step if local else None, writer if local else None)
+
     try:
-        with tempfile.TemporaryDirectory(prefix="dem_match_") as tmp:
-            for k, (left, right, report) in enumerate(pairs):
-                feedback.check_canceled()
-                step = feedback.step(90 * k / len(pairs), 90 * (k + 1) / len(pairs))
-                images = (photo_image(left, None, "its image path in PROJECT"),
-                          photo_image(right, None, "its image path in PROJECT"))
-                pixel = request.pixel_size_mm or \
-                    matching_pixel(left, abs(grid.transform.a), report.distance_m)
-                geometry, disparity, colours, stats = match_one_pair(
-                    left, right, images, low, high, options, pixel, Path(tmp), step,
-                    (originals[left.id], originals[right.id]))
-                keys, heights, n_points = [], [], 0
-                for r0 in range(0, disparity.shape[0], POINT_ROWS):  # points by row blocks
-                    xyz, flat = disparity_points(geometry, disparity[r0:r0 + POINT_ROWS], r0)
-                    keep = (xyz[:, 2] >= low) & (xyz[:, 2] <= high)
-                    xyz, flat = xyz[keep], flat[keep]
-                    cell, inside = cell_index(xyz, grid.transform, grid.width, grid.height)
-                    keys.append(cell[inside])
-                    heights.append(xyz[inside, 2])
-                    n_points += len(xyz)
-                    if writer is not None:
-                        writer.write(xyz, rgb=colours[flat + r0 * disparity.shape[1]])
-                del disparity
-                cells.append(cell_statistics(np.concatenate(keys), np.concatenate(heights)))
-                del keys, heights
-                stats.update(points=n_points, pixel_mm=pixel, base_ratio=report.base_ratio,
-                             overlap=report.overlap, sigma_z_m=report.sigma_z_m)
-                pair_stats.append(stats)
-                if stats["matched_fraction_of_left"] < 0.2:
-                    feedback.push_warning(
-                        f"pair {stats['pair']}: only {100 * stats['matched_fraction_of_left']:.0f}"
-                        " % of the left image matched: is MIN_HEIGHT..MAX_HEIGHT the terrain's, "
-                        "and is the pair textured?")
-                feedback.push_info(f"pair {stats['pair']}: {len(xyz)} points "
-                                   f"({100 * stats['matched_fraction_of_left']:.0f} % of the "
-                                   "left image matched)")
+        # on a cluster as many pairs at a time as the workers take
+        for (_, _, report), pixel, done in zip(pairs, pixels, map_tiles(
+                match_pair_job, jobs(), executor=executor,
+                feedback=None if local else feedback, total=len(pairs), end=90), strict=True):
+            for level, text in done.messages:
+                (feedback.push_warning if level == "warning" else feedback.push_info)(text)
+            if writer is not None:
+                for xyz, rgb in done.points:
+                    writer.write(xyz, rgb=rgb)
+            cells.append(done.cells)
+            stats = done.stats
+            stats.update(pixel_mm=pixel, base_ratio=report.base_ratio,
+                         overlap=report.overlap, sigma_z_m=report.sigma_z_m)
+            pair_stats.append(stats)
+            if stats["matched_fraction_of_left"] < 0.2:
+                feedback.push_warning(
+                    f"pair {stats['pair']}: only {100 * stats['matched_fraction_of_left']:.0f}"
+                    " % of the left image matched: is MIN_HEIGHT..MAX_HEIGHT the terrain's, "
+                    "and is the pair textured?")
+            feedback.push_info(f"pair {stats['pair']}: {stats['points']} points "
+                               f"({100 * stats['matched_fraction_of_left']:.0f} % of the "
+                               "left image matched)")
     finally:
         if writer is not None:
             writer.__exit__(None, None, None)
@@ -214,7 +287,8 @@ def run_match(request: MatchRequest, feedback: Feedback) -> dict[str, Any]:
              "grid": {"width": grid.width, "height": grid.height,
                       "cell_size": abs(grid.transform.a), "bounds": list(grid.bounds)},
              "cells_with_value": valid, "cells": grid.width * grid.height,
-             "max_pairs_per_cell": int(count.max()) if count.size else 0}
+             "max_pairs_per_cell": int(count.max()) if count.size else 0,
+             "executor": executor.describe()}
     if writer is not None:
         stats["points_written"] = writer.count
     return stats
