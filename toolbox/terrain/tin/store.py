@@ -233,7 +233,6 @@ def write_tin(path: str | Path, model: TinModel, crs: Any = None, spatial_index:
     targets = layer_paths(path, ["triangles", "nodes", "edges"])
     xyz, tri, nb = model.xyz, model.triangles, model.neighbors
     edges = edge_table(tri, nb)
-    measures = triangle_measures(xyz, tri)
     step = _Steps(feedback, 3 if edges_layer else 2)
 
     def triangles(lo: int, hi: int):
@@ -241,8 +240,9 @@ def write_tin(path: str | Path, model: TinModel, crs: Any = None, spatial_index:
         for prefix, table in (("node", tri), ("nbr", nb), ("edge", edges.triangle_edges)):
             for j in range(3):
                 columns[f"{prefix}{j + 1}"] = _ids(table[lo:hi, j])
+        measures = triangle_measures(xyz, tri[lo:hi])  # per batch: never (T,) x 5 at once
         for name in ("area_2d", "area_3d", "slope_deg", "slope_pct", "aspect_deg"):
-            columns[name] = (getattr(measures, name)[lo:hi], None)
+            columns[name] = (getattr(measures, name), None)
         return columns, wkb_from_nodes(_WKB_POLYGON_Z, xyz, tri[lo:hi], ring=True)
 
     sources = np.asarray(SOURCES, dtype=object)
