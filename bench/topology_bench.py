@@ -1,6 +1,7 @@
 """Benchmark: area topology from ~100,000 line segments of a synthetic city block map.
 
     .venv/bin/python bench/topology_bench.py [--cells 38] [--no-grass]
+    .venv/bin/python bench/topology_bench.py --cells 120 --data-only DIR   # inputs only
 
 The map is a grid of cells (120 m x 100 m, EPSG:3003 near Siena); each cell holds a street cell
 boundary, a block edge (closed ring) and two rows of ten attached buildings plotted as the thesis
@@ -227,21 +228,28 @@ def main(argv: list[str] | None = None) -> str:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--cells", type=int, default=38, help="cells per side (38: ~100k segments)")
     parser.add_argument("--no-grass", action="store_true")
+    parser.add_argument("--data-only", type=Path, metavar="DIR",
+                        help="write the inputs (city_lines.gpkg, city_labels.gpkg, codici.txt) "
+                             "to DIR and stop: for whole-process runs under /usr/bin/time "
+                             "(peak memory at large --cells)")
     args = parser.parse_args(argv if argv is not None else [])
     from toolbox.io.vector_write import write_layers
 
     facts = machine()
     frame, labels, defects, expected = synthetic_city(args.cells, args.cells)
     nseg = segments(frame)
-    work = Path(tempfile.mkdtemp(prefix="topology_bench_"))
+    work = args.data_only or Path(tempfile.mkdtemp(prefix="topology_bench_"))
+    work.mkdir(parents=True, exist_ok=True)
     try:
         lines_path, labels_path = work / "city_lines.gpkg", work / "city_labels.gpkg"
         write_layers(lines_path, {"lines": frame})
         write_layers(labels_path, {"labels": labels})
         codes_path = work / "codici.txt"
         codes_path.write_text(CODE_FILE)
-        print(f"{len(frame)} lines, {nseg} segments, {len(labels)} labels, defects {defects}",
-              flush=True)
+        print(f"{len(frame)} lines, {nseg} segments, {len(labels)} labels, defects {defects}, "
+              f"expected areas {expected}", flush=True)
+        if args.data_only:
+            return str(work)
         kernel = run_kernel(frame, labels, codes_path)
         print(f"kernel {kernel['seconds']:.2f} s, {kernel['areas']} areas, "
               f"{kernel['conflicting_areas']} conflicting", flush=True)
@@ -250,7 +258,8 @@ def main(argv: list[str] | None = None) -> str:
         grass = None if args.no_grass else run_grass(lines_path)
         print(f"grass {grass}", flush=True)
     finally:
-        shutil.rmtree(work, ignore_errors=True)
+        if not args.data_only:
+            shutil.rmtree(work, ignore_errors=True)
     stats = full["stats"]
     lines_md = [
         "## Topology (issue 7): areas from restitution linework", "",

@@ -197,6 +197,7 @@ class Delaunay(Algorithm):
                                   duplicate_tolerance=params["DUPLICATE_TOLERANCE"])
             except TinBuildError as exc:
                 raise InputDataError(f"cannot build the TIN: {exc}") from None
+            points = line_xyz = line_index = None  # the model holds its nodes: free the inputs
         _report_quality(model.report, feedback)
         feedback.set_progress(35, "writing")
         counts = write_tin(params["OUTPUT"], model, crs, params["SPATIAL_INDEX"],
@@ -235,8 +236,11 @@ def _report_quality(report: dict, feedback: Feedback) -> None:
 def _surface_summary(model) -> dict:
     from toolbox.terrain.tin.topology import triangle_measures
 
-    m = triangle_measures(model.xyz, model.triangles)
-    return {"area_2d": float(m.area_2d.sum()), "area_3d": float(m.area_3d.sum()),
+    area_2d = area_3d = 0.0
+    for lo in range(0, len(model.triangles), 1 << 20):  # by chunks: bounded memory
+        m = triangle_measures(model.xyz, model.triangles[lo:lo + (1 << 20)])
+        area_2d, area_3d = area_2d + float(m.area_2d.sum()), area_3d + float(m.area_3d.sum())
+    return {"area_2d": area_2d, "area_3d": area_3d,
             "z_min": float(model.xyz[:, 2].min()), "z_max": float(model.xyz[:, 2].max()),
             "bounds": [float(v) for v in (*model.xyz[:, :2].min(axis=0),
                                           *model.xyz[:, :2].max(axis=0))]}

@@ -66,9 +66,9 @@ def read_points_xyz(source: Any, z_field: str | None = None, name: str = "INPUT"
     no pyarrow) take the general path.
     """
     ref = open_layer(source, name)
-    if ref.frame is None and not ref.open_options and ref.geometry_filter is None \
-            and not is_parquet(ref.path):
-        xyz = _points_from_arrow(ref, z_field)
+    if ref.frame is None and not ref.open_options and ref.geometry_filter is None:
+        xyz = _points_from_parquet(ref, z_field) if is_parquet(ref.path) else \
+            _points_from_arrow(ref, z_field)
         if xyz is not None:
             _check_finite(xyz, name)
             return xyz
@@ -85,8 +85,31 @@ def _points_from_arrow(ref: VectorLayerRef, z_field: str | None) -> np.ndarray |
         meta, table = _read_arrow(ref, [z_field] if z_field else [])
     except Exception:  # let the general path report the problem
         return None
+    return _decode_points(table, meta.get("geometry_name") or "wkb_geometry", z_field)
+
+
+def _points_from_parquet(ref: VectorLayerRef, z_field: str | None) -> np.ndarray | None:
+    """A GeoParquet layer's WKB points read with pyarrow and decoded as :func:`_points_from_arrow`
+    does (the general path builds a GeoDataFrame: 10 M points peaked at 3.6 GB through it)."""
+    try:
+        import pyarrow.parquet as pq
+
+        column = ref.info["geometry_name"]
+        table = pq.read_table(ref.path, columns=[column, *([z_field] if z_field else [])])
+    except Exception:  # let the general path report the problem
+        return None
+    xyz = _decode_points(table, column, z_field)
+    del table
+    import pyarrow as pa
+
+    pa.default_memory_pool().release_unused()  # Arrow's allocator keeps freed pages otherwise
+    return xyz
+
+
+def _decode_points(table, column: str, z_field: str | None) -> np.ndarray | None:
+    """XYZ of an Arrow table's WKB point column (and Z field); None when not fixed-size
+    little-endian points."""
     n = table.num_rows
-    column = meta.get("geometry_name") or "wkb_geometry"
     if n == 0 or column not in table.column_names:
         return None
     wkb = table.column(column).combine_chunks()

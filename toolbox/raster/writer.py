@@ -40,8 +40,10 @@ DEFAULT_TILE = 512
 DEFAULT_CACHE_MB = 256  # GDAL block cache while writing (bounded, whatever the output size)
 #: the profile's keys of the dataset itself (the others are GTiff creation options)
 MEM_KEYS = ("driver", "width", "height", "count", "dtype", "crs", "transform", "nodata")
-
-
+# GDAL block cache while building overviews: each level is read once, block row by block row, so
+# a small cache costs no CPU (20000 x 20000 float32: 18.9 against 18.3 CPU s) and keeps the peak
+# down (overviews alone 177 MB instead of 417 MB; the whole dem:nearest run: see bench/results)
+OVERVIEW_CACHE_MB = 32
 
 
 def deflate_level(dtype: Any) -> int:
@@ -270,11 +272,14 @@ class RasterWriter:
             raise
 
     def _build_overviews(self) -> None:
+        import rasterio
         from rasterio.enums import Resampling
 
         factors = overview_levels(self.grid.width, self.grid.height, self.tile)
         if factors:
-            self.dataset.build_overviews(factors, Resampling[self.overview_resampling])
+            with rasterio.Env(GDAL_CACHEMAX=gdal_cache_max(min(self.cache_mb,
+                                                               OVERVIEW_CACHE_MB))):
+                self.dataset.build_overviews(factors, Resampling[self.overview_resampling])
             self.dataset.update_tags(ns="rio_overview", resampling=self.overview_resampling)
 
     def _colours(self, photometric: str | None) -> list:

@@ -88,6 +88,8 @@ def test_batches_stream_the_same_layers(model, tmp_path, monkeypatch, suffix):
     ids = tri[["node1", "node2", "node3"]].to_numpy() - 1
     np.testing.assert_array_equal(corners[:, :3], model.xyz[ids])
     np.testing.assert_array_equal(tri.id, np.arange(1, len(tri) + 1))
+    # measures computed batch by batch: the plan area is GEOS's area of each written polygon
+    np.testing.assert_allclose(tri.area_2d, shapely.area(tri.geometry.values), rtol=1e-9)
     edges = frames[7]["edges"]
     np.testing.assert_allclose(edges.length_2d, shapely.length(edges.geometry.values), rtol=1e-12)
     nodes = frames[7]["nodes"]

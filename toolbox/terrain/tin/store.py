@@ -231,17 +231,23 @@ def write_tin(path: str | Path, model: TinModel, crs: Any = None, spatial_index:
     path = Path(path)
     targets = layer_paths(path, ["triangles", "nodes", "edges"])
     xyz, tri, nb = model.xyz, model.triangles, model.neighbors
+    # only the triangles' edge ids while the triangles layer is written (GDAL builds its R-tree in
+    # memory then: a 10 M-point TIN peaked there); the edge table is made again for the edges
     edges = edge_table(tri, nb)
-    measures = triangle_measures(xyz, tri)
+    held = {"triangle_edges": edges.triangle_edges}  # dropped after the triangles layer
+    n_edges = len(edges.nodes)
+    del edges
     step = _Steps(feedback, 3 if edges_layer else 2)
 
     def triangles(lo: int, hi: int):
         columns = {"id": _serial(lo, hi)}
-        for prefix, table in (("node", tri), ("nbr", nb), ("edge", edges.triangle_edges)):
+        for prefix, table in (("node", tri), ("nbr", nb),
+                              ("edge", held["triangle_edges"])):
             for j in range(3):
                 columns[f"{prefix}{j + 1}"] = _ids(table[lo:hi, j])
+        measures = triangle_measures(xyz, tri[lo:hi])  # per batch: never (T,) x 5 at once
         for name in ("area_2d", "area_3d", "slope_deg", "slope_pct", "aspect_deg"):
-            columns[name] = (getattr(measures, name)[lo:hi], None)
+            columns[name] = (getattr(measures, name), None)
         return columns, wkb_from_nodes(_WKB_POLYGON_Z, xyz, tri[lo:hi], ring=True)
 
     sources = np.asarray(SOURCES, dtype=object)
@@ -255,13 +261,14 @@ def write_tin(path: str | Path, model: TinModel, crs: Any = None, spatial_index:
     with step("write triangles"):
         _write_layer(targets["triangles"], _Layer("triangles", len(tri), triangles, "Polygon Z"),
                      crs, spatial_index)
+    held.clear()
     with step("write nodes"):
         _write_layer(targets["nodes"], _Layer("nodes", len(xyz), nodes, "Point Z"), crs,
                      spatial_index)
     if edges_layer:
         with step("write edges"):
-            _write_edges(targets["edges"], model, edges, crs, spatial_index)
-    return {"triangles": len(tri), "nodes": len(xyz), "edges": len(edges.nodes)}
+            _write_edges(targets["edges"], model, edge_table(tri, nb), crs, spatial_index)
+    return {"triangles": len(tri), "nodes": len(xyz), "edges": n_edges}
 
 
 def breakline_flags(edges: EdgeTable, breakline_edges: np.ndarray, n_nodes: int) -> np.ndarray:

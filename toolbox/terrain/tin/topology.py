@@ -73,25 +73,30 @@ def edge_table(triangles: np.ndarray, neighbors: np.ndarray) -> EdgeTable:
 
     Each edge is listed once, directed as in the triangle with the lower index (which is then on
     its left, triangles being counter-clockwise). Order: by that triangle, then by corner.
+    Indices are int32 when they fit (a 10 M-point TIN's table takes 0.7 GB instead of 1.4 GB),
+    and no ``(T, 3)`` temporaries are built besides ``triangle_edges``.
     """
-    tri = np.asarray(triangles, dtype=np.int64)
-    nb = np.asarray(neighbors, dtype=np.int64)
+    tri = np.asarray(triangles)
+    nb = np.asarray(neighbors)
     t_count = len(tri)
-    start, end = _half_edges(tri)
-    owner = np.repeat(np.arange(t_count), 3).reshape(t_count, 3)
-    keep = (nb < 0) | (owner < nb)
-    t_idx, corner = np.nonzero(keep)
+    index = np.int32 if 3 * t_count < np.iinfo(np.int32).max \
+        and (t_count == 0 or int(tri.max()) < np.iinfo(np.int32).max) else np.int64
+    keep = (nb < 0) | (np.arange(t_count, dtype=index)[:, None] < nb)
+    t_idx, corner = (a.astype(index) for a in np.nonzero(keep))
+    del keep
     n_edges = len(t_idx)
-    ids = np.arange(n_edges, dtype=np.int64)
-    tri_edges = np.full((t_count, 3), -1, dtype=np.int64)
-    tri_edges[t_idx, corner] = ids
-    right = nb[t_idx, corner]
-    shared = right >= 0
+    tri_edges = np.full((t_count, 3), -1, dtype=index)
+    tri_edges[t_idx, corner] = np.arange(n_edges, dtype=index)
+    right = nb[t_idx, corner].astype(index)
+    shared = np.flatnonzero(right >= 0).astype(index)
     other = right[shared]
     # corner of the neighbour that faces back to this triangle
     back = np.argmax(nb[other] == t_idx[shared, None], axis=1)
-    tri_edges[other, back] = ids[shared]
-    nodes = np.column_stack([start[t_idx, corner], end[t_idx, corner]])
+    tri_edges[other, back] = shared
+    del other, back, shared
+    nodes = np.empty((n_edges, 2), dtype=index)  # half-edge j runs corner j+1 -> corner j+2
+    nodes[:, 0] = tri[t_idx, (corner + 1) % 3]
+    nodes[:, 1] = tri[t_idx, (corner + 2) % 3]
     return EdgeTable(nodes, t_idx, right, tri_edges)
 
 
