@@ -170,10 +170,12 @@ def test_same_result_as_scipy_least_squares_with_gnss_drift_and_boresight(case):
     sol = _adjust(case, block)
     ext, shift, drift, bore, ssq = _reference(case, block)
     assert np.abs(sol.exterior[:, :3] - ext[:, :3]).max() < 1e-4
-    assert np.abs(angle_diff(sol.exterior[:, 3:], ext[:, 3:])).max() < 1e-8
+    # 1e-7 rad moves a ground point 0.1 mm at 1 km, the centres' 1e-4 m (scipy 1.17 stops ~1.4e-8
+    # rad from ours in omega and the boresight omega, correlated; the same sum of squares below)
+    assert np.abs(angle_diff(sol.exterior[:, 3:], ext[:, 3:])).max() < 1e-7
     assert np.abs(sol.gnss_shift - shift).max() < 1e-4
     assert np.abs(sol.gnss_drift - drift).max() < 1e-5
-    assert np.abs(sol.boresight - bore).max() < 1e-8
+    assert np.abs(sol.boresight - bore).max() < 1e-7  # correlated with omega: same bound
     assert sol.sigma0 ** 2 * sol.redundancy == pytest.approx(ssq, rel=1e-7)
 
 
