@@ -54,34 +54,24 @@ class ContourResult:
 IN_MEMORY_CELLS = 8_000_000
 
 
-def _range_of(tiles) -> tuple[float, float]:
-    """Min and max over the tiles (NaN = no data) that hold a finite cell."""
-    lo, hi = np.inf, -np.inf
-    for z in tiles:
-        if np.isfinite(z).any():
-            lo, hi = min(lo, np.nanmin(z)), max(hi, np.nanmax(z))
-    return float(lo), float(hi)
-
-
 def raster_range(src, band: int, tile_size: int) -> tuple[float, float]:
     """Min and max of a band's valid cells, read in tiles."""
     from toolbox.io.grid import GridSpec
     from toolbox.raster.tile import iter_tiles
 
-    grid = GridSpec(src.transform, src.width, src.height)
-    return _range_of(src.read(band, window=t.window, masked=True).astype("float64").filled(np.nan)
-                     for t in iter_tiles(grid, tile_size))
+    lo, hi = np.inf, -np.inf
+    for t in iter_tiles(GridSpec(src.transform, src.width, src.height), tile_size):
+        z = src.read(band, window=t.window, masked=True).astype("float64").filled(np.nan)
+        if np.isfinite(z).any():
+            lo, hi = min(lo, np.nanmin(z)), max(hi, np.nanmax(z))
+    return float(lo), float(hi)
 
 
-def grid_range(z: np.ndarray, tile_size: int) -> tuple[float, float]:
-    """:func:`raster_range` of a band already read (the same tiles, the same answer)."""
-    from affine import Affine
-
-    from toolbox.io.grid import GridSpec
-    from toolbox.raster.tile import iter_tiles
-
-    grid = GridSpec(Affine.identity(), z.shape[1], z.shape[0])  # cells only: no map position
-    return _range_of(z[t.window.toslices()] for t in iter_tiles(grid, tile_size))
+def grid_range(z: np.ndarray) -> tuple[float, float]:
+    """:func:`raster_range` of a band already read (NaN = no data): no tiles needed."""
+    if not np.isfinite(z).any():
+        return float(np.inf), float(-np.inf)
+    return float(np.nanmin(z)), float(np.nanmax(z))
 
 
 def guard_levels(zmin: float, zmax: float, interval: float, base: float, span: float) -> None:
@@ -177,7 +167,7 @@ def raster_contours(path: str | Path, band: int, interval: float, base: float,
         frame = GridFrame.of(src.transform)
         if executor.kind == "local" and src.width * src.height <= IN_MEMORY_CELLS:
             grid = src.read(band, masked=True).astype("float64").filled(np.nan)
-            zmin, zmax = grid_range(grid, tile_size)
+            zmin, zmax = grid_range(grid)
         else:
             zmin, zmax = raster_range(src, band, tile_size)
         guard_levels(zmin, zmax, interval, base, src.width + src.height)

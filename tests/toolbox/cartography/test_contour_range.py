@@ -24,4 +24,4 @@ def test_tiled_range_is_the_whole_bands(tmp_path):
     expected = (np.nanmin(valid), np.nanmax(valid))
     with rasterio.open(path) as src:
         assert raster_range(src, 1, 64) == expected
-    assert grid_range(valid, 64) == expected
+    assert grid_range(valid) == expected

@@ -233,16 +233,13 @@ def write_tin(path: str | Path, model: TinModel, crs: Any = None, spatial_index:
     xyz, tri, nb = model.xyz, model.triangles, model.neighbors
     # only the triangles' edge ids while the triangles layer is written (GDAL builds its R-tree in
     # memory then: a 10 M-point TIN peaked there); the edge table is made again for the edges
-    edges = edge_table(tri, nb)
-    held = {"triangle_edges": edges.triangle_edges}  # dropped after the triangles layer
-    n_edges = len(edges.nodes)
-    del edges
+    triangle_edges = edge_table(tri, nb).triangle_edges  # set to None after that layer
+    n_edges = int(triangle_edges.max()) + 1 if triangle_edges.size else 0  # ids 0..n-1
     step = _Steps(feedback, 3 if edges_layer else 2)
 
     def triangles(lo: int, hi: int):
         columns = {"id": _serial(lo, hi)}
-        for prefix, table in (("node", tri), ("nbr", nb),
-                              ("edge", held["triangle_edges"])):
+        for prefix, table in (("node", tri), ("nbr", nb), ("edge", triangle_edges)):
             for j in range(3):
                 columns[f"{prefix}{j + 1}"] = _ids(table[lo:hi, j])
         measures = triangle_measures(xyz, tri[lo:hi])  # per batch: never (T,) x 5 at once
@@ -261,7 +258,7 @@ def write_tin(path: str | Path, model: TinModel, crs: Any = None, spatial_index:
     with step("write triangles"):
         _write_layer(targets["triangles"], _Layer("triangles", len(tri), triangles, "Polygon Z"),
                      crs, spatial_index)
-    held.clear()
+    triangle_edges = None  # the closure's reference too: freed before the nodes layer
     with step("write nodes"):
         _write_layer(targets["nodes"], _Layer("nodes", len(xyz), nodes, "Point Z"), crs,
                      spatial_index)
