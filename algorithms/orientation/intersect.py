@@ -10,12 +10,7 @@ from toolbox.algorithm import Algorithm
 from toolbox.errors import InputDataError
 from toolbox.feedback import Feedback
 from toolbox.parameters.outputs import Layer, Output, OutputVector
-from toolbox.photogrammetry.forward_intersection import (
-    STATUS_NAMES,
-    camera_observations,
-    intersect,
-    principal_distance,
-)
+from toolbox.photogrammetry.forward_intersection import STATUS_NAMES, intersect_measured
 from toolbox.photogrammetry.tables import write_json
 from toolbox.registry import register
 from toolbox.ui.photogrammetry import measured_inputs, measured_photos, measurement_parameters, report_output
@@ -88,11 +83,7 @@ class SpaceIntersection(Algorithm):
                 raise InputDataError(f"INPUT measures point {i!r} twice on photo {p!r}")
             seen.add((i, p))
         with feedback.timed("intersection"):
-            camera_xy = camera_observations(photos, xy, kind)
-            centres = np.array([p.exterior.centre for p in photos])
-            rotations = np.array([p.exterior.rotation for p in photos])
-            cs = np.array([principal_distance(p) for p in photos])
-            result = intersect(point_index, camera_xy, centres, rotations, cs, len(order))
+            result = intersect_measured(photos, xy, point_index, len(order), kind)
             model = np.array([p.is_model for p in photos])
             if model.any():  # their camera units are not mm: residuals in pixels only
                 result.residuals_mm[model] = np.nan

@@ -206,6 +206,17 @@ def principal_distance(photo) -> float:
     return photo.camera.c
 
 
+def intersect_measured(photos, points, point_index: np.ndarray, n_points: int,
+                       coordinates: str = "pixel") -> IntersectionResult:
+    """:func:`intersect` of points measured on oriented photos: ``photos`` (M,) the photo of each
+    observation, ``points`` (M, 2) its measurement (:func:`camera_observations`), ``point_index``
+    (M,) its point, 0 .. ``n_points`` - 1."""
+    return intersect(point_index, camera_observations(photos, points, coordinates),
+                     np.array([p.exterior.centre for p in photos]),
+                     np.array([p.exterior.rotation for p in photos]),
+                     np.array([principal_distance(p) for p in photos]), n_points)
+
+
 def camera_observations(photos, points, coordinates: str) -> np.ndarray:
     """Camera coordinates of measured points: mm for a film camera; for a camera model (pinhole,
     Brown, OpenCV, fisheye) its undistorted ideal coordinates scaled by

@@ -18,7 +18,7 @@ from toolbox.errors import InputDataError
 from toolbox.photogrammetry.exterior import ExteriorOrientation
 from toolbox.photogrammetry.forward_intersection import (
     camera_observations,
-    intersect,
+    intersect_measured,
     principal_distance,
 )
 from toolbox.photogrammetry.resection import PARAMETER_NAMES, resect
@@ -166,10 +166,7 @@ def check_block(project, measurements, control, threshold_px: float = 1.0) -> di
     order = list(dict.fromkeys(ids[k] for k in rows))
     index = {pid: n for n, pid in enumerate(order)}
     point_index = np.array([index[ids[k]] for k in rows])
-    cam_xy = camera_observations(photos, xy[rows], kind)
-    result = intersect(point_index, cam_xy, np.array([p.exterior.centre for p in photos]),
-                       np.array([p.exterior.rotation for p in photos]),
-                       np.array([principal_distance(p) for p in photos]), len(order))
+    result = intersect_measured(photos, xy[rows], point_index, len(order), kind)
     points = []
     for n, pid in enumerate(order):
         known = c_xyz[where[pid]]

@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 
 from toolbox.errors import ParameterError
+from toolbox.photogrammetry.forward_intersection import intersect_measured
 
 
 def parse_tolerance(text: str | None, name: str = "REFERENCE_TOLERANCE"
@@ -46,18 +47,6 @@ def _inside(photo: Any, pixels: np.ndarray) -> np.ndarray:
     width, height = photo.camera.image_size_px
     return ((pixels[:, 0] > 0) & (pixels[:, 0] < width) & (pixels[:, 1] > 0)
             & (pixels[:, 1] < height))
-
-
-def _intersect(photos: list[Any], pixels: list[np.ndarray], start: np.ndarray) -> np.ndarray:
-    """The ground point whose projections through ``photos`` are nearest ``pixels`` (least
-    squares in pixels, scipy)."""
-    from scipy.optimize import least_squares
-
-    def residuals(xyz: np.ndarray) -> np.ndarray:
-        return np.concatenate([p.ground_to_pixel(xyz[None])[0] - px
-                               for p, px in zip(photos, pixels, strict=True)])
-
-    return least_squares(residuals, start, x_scale=1.0, xtol=1e-12, ftol=1e-12).x
 
 
 def compare(adjusted: dict[str, Any], reference: dict[str, Any], points: dict[str, np.ndarray],
@@ -101,14 +90,16 @@ def compare(adjusted: dict[str, Any], reference: dict[str, Any], points: dict[st
             worst_px = max(worst_px, row["max_image_px"])
         photos.append({k: (float(v) if isinstance(v, np.floating) else v) for k, v in row.items()})
     rows = []
-    for k, name in enumerate(names):
-        rays = seen[name]
-        if len(rays) < 2:
-            continue
-        got = _intersect([adjusted[p] for p, _ in rays], [px for _, px in rays], xyz[k])
-        d = got - xyz[k]
-        rows.append({"id": name, "photos": len(rays), "dX": float(d[0]), "dY": float(d[1]),
-                     "dZ": float(d[2])})
+    multi = [k for k, name in enumerate(names) if len(seen[names[k]]) >= 2]
+    if multi:  # each point intersected through ours from where the reference images it
+        rays = [(n, pid, px) for n, k in enumerate(multi) for pid, px in seen[names[k]]]
+        got = intersect_measured([adjusted[pid] for _, pid, _ in rays],
+                                 np.array([px for _, _, px in rays]),
+                                 np.array([n for n, _, _ in rays]), len(multi)).xyz
+        for n, k in enumerate(multi):
+            d = got[n] - xyz[k]
+            rows.append({"id": names[k], "photos": len(seen[names[k]]), "dX": float(d[0]),
+                         "dY": float(d[1]), "dZ": float(d[2])})
     ground = np.array([[r["dX"], r["dY"], r["dZ"]] for r in rows]).reshape(-1, 3)
     worst = np.abs(ground).max(axis=0) if len(ground) else np.full(3, np.nan)
     centres = max((np.linalg.norm([p["dX0"], p["dY0"], p["dZ0"]]) for p in photos), default=0.0)
