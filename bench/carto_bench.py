@@ -37,7 +37,7 @@ def make_dem(path: Path, factor: int) -> tuple[int, int]:
 
     sys.path.insert(0, str(ROOT))
     from toolbox.demo.samples.terrain import CELL, CRS, XMIN, YMAX, terrain
-    from toolbox.io.raster import write_raster
+    from toolbox.raster.writer import write_raster
 
     z, _ = terrain()
     if factor > 1:

@@ -42,8 +42,9 @@ def prepare(work: Path) -> None:
     import rasterio
     import rectify_bench
 
-    from toolbox.io.raster import geotiff_profile, write_raster
+    from toolbox.io.raster import geotiff_profile
     from toolbox.photogrammetry.synthetic import hills_dem
+    from toolbox.raster.writer import write_raster
 
     work.mkdir(parents=True, exist_ok=True)
     dem_bench.make_data(work, 100_000)

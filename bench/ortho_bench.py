@@ -68,9 +68,9 @@ def write_inputs(folder: Path, size: int, distortion: bool = False):
     import rasterio
     import yaml
 
-    from toolbox.io.raster import write_raster
     from toolbox.photogrammetry.camera import RadialDistortion
     from toolbox.photogrammetry.synthetic import frame_photo, hills_dem
+    from toolbox.raster.writer import write_raster
 
     z, transform = hills_dem(BOUNDS, cell=5.0, relief=200.0, base=250.0, seed=3)
     dem = folder / "dem.tif"

@@ -277,7 +277,7 @@ def make_dem(path: Path, size: int = 2000) -> None:
     from scipy.ndimage import zoom
 
     from toolbox.demo.samples.terrain import CRS, XMIN, YMAX, terrain
-    from toolbox.io.raster import write_raster
+    from toolbox.raster.writer import write_raster
 
     z, _ = terrain()
     z = zoom(z.astype("float64"), (size / z.shape[0], size / z.shape[1]), order=3)

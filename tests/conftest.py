@@ -43,7 +43,7 @@ def plane_dem(tmp_path):
     2 m cells, EPSG:3003, origin at the Siena block. Returns (path, slope_x, slope_y)."""
     from affine import Affine
 
-    from toolbox.io.raster import write_raster
+    from toolbox.raster.writer import write_raster
 
     cell, x0, y0 = 2.0, 1688000.0, 4800000.0
     rows, cols = 50, 60

@@ -33,7 +33,7 @@ def batch(pipe: Path, *extra) -> tuple[int, str]:
 def folder(tmp_path):
     from rasterio.transform import from_origin
 
-    from toolbox.io.raster import write_raster
+    from toolbox.raster.writer import write_raster
 
     z = 300.0 + np.add.outer(np.arange(40.0), np.arange(50.0))
     write_raster(tmp_path / "dem.tif", z.astype("float32"), from_origin(E0, N0 + 400, 10, 10),

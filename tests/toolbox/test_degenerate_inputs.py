@@ -48,7 +48,7 @@ def test_sample_that_would_collapse_a_ring_leaves_it_unchanged(tmp_path):
 def test_profile_zero_length_line_names_the_line(tmp_path):
     from rasterio.transform import from_origin
 
-    from toolbox.io.raster import write_raster
+    from toolbox.raster.writer import write_raster
 
     write_raster(tmp_path / "dem.tif", np.full((20, 20), 100.0, "float32"),
                  from_origin(E0 - 100, N0 + 100, 10, 10), CRS, nodata=-9999.0)

@@ -13,11 +13,12 @@ from affine import Affine
 from toolbox.errors import InputDataError, ParameterError
 from toolbox.io.crs import common_crs, parse_crs
 from toolbox.io.grid import GridSpec
-from toolbox.io.raster import geotiff_profile, write_raster
+from toolbox.io.raster import geotiff_profile
 from toolbox.io.staging import OutputStaging, atomic_path
 from toolbox.io.vector import read_vector
 from toolbox.io.vector_points import points_xyz, vertices_xyz
 from toolbox.io.vector_write import write_layers
+from toolbox.raster.writer import write_raster
 
 
 def test_several_named_layers_in_one_geopackage(tmp_path):

@@ -80,7 +80,7 @@ def test_design_of_an_ordinary_block_is_not_refused(tmp_path):
 def test_ground_refuses_a_window_wider_than_the_data(tmp_path, monkeypatch):
     from rasterio.transform import from_origin
 
-    from toolbox.io.raster import write_raster
+    from toolbox.raster.writer import write_raster
     from toolbox.terrain import ground_run
 
     z = 300.0 + np.add.outer(np.arange(30.0), np.arange(40.0)) * 0.1
@@ -234,7 +234,7 @@ def test_overwrite_of_an_output_folder_removes_stale_sidecars_of_replaced_files(
     goes with the replaced sheet; a file the run does not plan is left alone."""
     from rasterio.transform import from_origin
 
-    from toolbox.io.raster import write_raster
+    from toolbox.raster.writer import write_raster
 
     raster = tmp_path / "r.tif"
     write_raster(raster, np.ones((10, 10), "float32"), from_origin(E0, N0 + 10, 1, 1),
@@ -322,7 +322,7 @@ def test_epipolar_refuses_an_image_of_another_size_than_the_camera(pair, tmp_pat
     without a word (exit 0); ortho:photo already refused it."""
     from rasterio.transform import from_origin
 
-    from toolbox.io.raster import write_raster
+    from toolbox.raster.writer import write_raster
 
     write_raster(tmp_path / "other.tif", np.full((1200, 1200), 90, "uint8"),
                  from_origin(0, 1200, 1, 1), None)

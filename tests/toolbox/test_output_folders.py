@@ -38,7 +38,7 @@ def hashes(folder: Path) -> dict[str, str]:
 def demo(tmp_path_factory):
     """The demo's ortho project folder (3 photos named by their ids) and the demo DEM."""
     from toolbox.demo.samples import ortho, terrain
-    from toolbox.io.raster import write_raster
+    from toolbox.raster.writer import write_raster
 
     root = tmp_path_factory.mktemp("ortho_demo")
     z, transform = terrain.terrain()
@@ -202,7 +202,7 @@ def test_mosaic_cut_sheet_equal_to_an_input_is_refused(tmp_path):
     import numpy as np
     from rasterio.transform import from_origin
 
-    from toolbox.io.raster import write_raster
+    from toolbox.raster.writer import write_raster
 
     raster = tmp_path / "1688_5998.tif"  # the name of the sheet holding it at 1:2000
     write_raster(raster, np.ones((10, 10), "float32"), from_origin(1688000, 4799010, 1, 1),

@@ -80,7 +80,7 @@ def _rectify_refused(tmp_path, crs: str, image_to_ground: list, message: str) ->
 def test_rectify_refuses_a_transform_in_degrees(tmp_path):
     from rasterio.transform import from_origin
 
-    from toolbox.io.raster import write_raster
+    from toolbox.raster.writer import write_raster
 
     write_raster(tmp_path / "photo.tif", np.ones((20, 20), "uint8"), from_origin(0, 20, 1, 1),
                  None)
@@ -133,7 +133,7 @@ def test_sheets_20_km_from_the_data_are_refused(tmp_path):
     import shapely
     from rasterio.transform import from_origin
 
-    from toolbox.io.raster import write_raster
+    from toolbox.raster.writer import write_raster
 
     write_raster(tmp_path / "dem.tif", np.full((40, 50), 300.0, "float32"),
                  from_origin(E0, N0 + 400, 10, 10), "EPSG:3003", nodata=-9999.0)
@@ -156,7 +156,7 @@ def test_a_dem_far_outside_its_crs_area_is_refused(tmp_path):
     code, so dem:slope refuses local coordinates labelled EPSG:3003 as the DEM methods do."""
     from rasterio.transform import from_origin
 
-    from toolbox.io.raster import write_raster
+    from toolbox.raster.writer import write_raster
 
     z = np.random.default_rng(0).uniform(100, 200, (20, 20)).astype("float32")
     write_raster(tmp_path / "local.tif", z, from_origin(300, 500, 10, 10), "EPSG:3003",
@@ -176,7 +176,7 @@ def test_rectify_refuses_a_photo_without_a_valid_pixel(tmp_path, pixels, nodata)
     """All nodata gave a transparent output, all NaN an opaque one of NaN cells."""
     from rasterio.transform import from_origin
 
-    from toolbox.io.raster import write_raster
+    from toolbox.raster.writer import write_raster
 
     write_raster(tmp_path / "photo.tif", pixels, from_origin(0, 20, 1, 1), None, nodata=nodata)
     _rectify_refused(tmp_path, "EPSG:3003", [[1, 0, E0], [0, -1, N0 + 20], [0, 0, 1]],

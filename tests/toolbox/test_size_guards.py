@@ -14,7 +14,7 @@ from shapely.geometry import LineString
 
 import toolbox
 from toolbox.errors import ParameterError
-from toolbox.io.raster import write_raster
+from toolbox.raster.writer import write_raster
 
 E0, N0 = 1688000.0, 4799000.0
 CRS = "EPSG:3003"

@@ -65,7 +65,8 @@ def clip_raster(path: Path, sheet, output: Path, block: int = 2048) -> bool:
     from rasterio.features import geometry_mask
     from rasterio.windows import Window, from_bounds
 
-    from toolbox.io.raster import build_overviews, geotiff_profile
+    from toolbox.io.grid import GridSpec
+    from toolbox.raster.writer import RasterWriter
 
     with rasterio.open(path) as src:
         t = src.transform
@@ -75,33 +76,41 @@ def clip_raster(path: Path, sheet, output: Path, block: int = 2048) -> bool:
         rows = max(1, math.ceil(win.row_off + win.height - 1e-6) - row0)
         if col0 >= src.width or row0 >= src.height or col0 + cols <= 0 or row0 + rows <= 0:
             return False
-        out_t = t @ rasterio.Affine.translation(col0, row0)
-        alpha = any(ci.name == "alpha" for ci in src.colorinterp)
+        grid = GridSpec(t @ rasterio.Affine.translation(col0, row0), cols, rows, src.crs)
+        bands = [i for i, ci in enumerate(src.colorinterp) if ci.name == "alpha"]
+        alpha = bool(bands)
         nodata = src.nodata if src.nodata is not None or alpha else 0
-        profile = geotiff_profile(cols, rows, src.count, src.dtypes[0], src.crs, out_t,
-                                  None if alpha else nodata)
-        any_valid = False
-        with rasterio.open(output, "w", **profile) as dst:
-            dst.colorinterp = src.colorinterp
-            for r in range(0, rows, block):
-                for c in range(0, cols, block):
-                    w = Window(col0 + c, row0 + r, min(block, cols - c), min(block, rows - r))
-                    data = src.read(window=w, boundless=True, fill_value=nodata or 0)
-                    valid = src.read_masks(1, window=w, boundless=True) > 0
-                    wt = rasterio.windows.transform(w, t)
-                    valid &= ~geometry_mask([sheet], out_shape=valid.shape, transform=wt)
-                    any_valid |= bool(valid.any())
-                    if alpha:
-                        band = [i for i, ci in enumerate(src.colorinterp) if ci.name == "alpha"][0]
-                        data[band][~valid] = 0
-                    else:
-                        data[:, ~valid] = nodata
-                    dst.write(data, window=Window(c, r, w.width, w.height))
-            if any_valid:
-                build_overviews(dst)
-    if not any_valid:
-        Path(output).unlink()
-    return any_valid
+        # the writer's alpha band is the last one; a source's alpha elsewhere stays a band
+        # whose colour interpretation is copied below
+        last_alpha = alpha and bands[0] == src.count - 1 and src.count > 1
+        try:
+            with RasterWriter(output, grid, src.count, src.dtypes[0],
+                              None if alpha else nodata, alpha=last_alpha) as dst:
+                dst.dataset.colorinterp = src.colorinterp
+                any_valid = False
+                for r in range(0, rows, block):
+                    for c in range(0, cols, block):
+                        w = Window(col0 + c, row0 + r, min(block, cols - c),
+                                   min(block, rows - r))
+                        data = src.read(window=w, boundless=True, fill_value=nodata or 0)
+                        valid = src.read_masks(1, window=w, boundless=True) > 0
+                        wt = rasterio.windows.transform(w, t)
+                        valid &= ~geometry_mask([sheet], out_shape=valid.shape, transform=wt)
+                        any_valid |= bool(valid.any())
+                        if alpha:
+                            data[bands[0]][~valid] = 0
+                        else:
+                            data[:, ~valid] = nodata
+                        dst.write(Window(c, r, w.width, w.height), data)
+                if not any_valid:  # the writer removes the file
+                    raise _NoData
+        except _NoData:
+            return False
+    return True
+
+
+class _NoData(Exception):
+    """A sheet without valid data: its file is not kept."""
 
 
 def clip_vector(frame, sheet, output: Path, layer: str) -> int:

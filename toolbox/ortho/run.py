@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 import warnings
+from contextlib import ExitStack
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -77,13 +78,11 @@ def orthorectify(photo: Any, image: Any, dem: Any, grid: Any, output: Any,
     """
     from pathlib import Path
 
-    import rasterio
-
     from toolbox.feedback import Feedback
     from toolbox.io.crs import crs_label
-    from toolbox.io.raster import geotiff_profile
     from toolbox.raster.resample import single_threaded_opencv
     from toolbox.raster.warp import warp_to_geotiff
+    from toolbox.raster.writer import RasterWriter
 
     options = options or OrthoOptions()
     feedback = feedback or Feedback()
@@ -122,21 +121,21 @@ def orthorectify(photo: Any, image: Any, dem: Any, grid: Any, output: Any,
         if not math.isfinite(reference_height):
             raise InputDataError(f"DEM {dem} has no height under the output grid of photo "
                                  f"{photo.id!r}")
-    aux = []
-    profile_args = (grid.width, grid.height, 1)
+    if mask_output is not None and not options.occlusion:
+        raise InputDataError("an occlusion mask needs the visibility test (OCCLUSION)")
     output = Path(output)
-    try:
+    # the mask and the angles: tiled, compressed GeoTIFFs with the ortho's overviews (the mask's
+    # classes by nearest); a failed run removes them (the writers' exit with the error)
+    with ExitStack() as aux:
         mask_writer = incidence_writer = None
         if mask_output is not None:
-            if not options.occlusion:
-                raise InputDataError("an occlusion mask needs the visibility test (OCCLUSION)")
-            mask_writer = rasterio.open(mask_output, "w", **geotiff_profile(
-                *profile_args, "uint8", grid.crs, grid.transform, 255))
-            aux.append(mask_writer)
+            mask_writer = aux.enter_context(RasterWriter(
+                mask_output, grid, 1, "uint8", 255, overviews=options.overviews,
+                overview_resampling="nearest"))
         if incidence_output is not None:
-            incidence_writer = rasterio.open(incidence_output, "w", **geotiff_profile(
-                *profile_args, "float32", grid.crs, grid.transform, float("nan")))
-            aux.append(incidence_writer)
+            incidence_writer = aux.enter_context(RasterWriter(
+                incidence_output, grid, 1, "float32", float("nan"),
+                overviews=options.overviews))
         windows = OrthoWindows(photo, grid, sampler, cmap, reference_height,
                                surface if options.occlusion else None, mask_writer,
                                incidence_writer, to_orientation, options.resampling,
@@ -151,9 +150,6 @@ def orthorectify(photo: Any, image: Any, dem: Any, grid: Any, output: Any,
                                    options.outside, options.nodata, chunk=options.chunk,
                                    overviews=options.overviews, cog=options.cog,
                                    feedback=feedback, tags=tags)
-    finally:
-        for dst in aux:
-            dst.close()
     windows.release()
     totals = windows.totals()
     photo_gsd = ground_sample_distance(photo, reference_height)

@@ -228,22 +228,25 @@ def _convert(info: Any, band: int, transformer: Any, path: Path, crs: Any
     import rasterio
     from rasterio.windows import Window
 
-    from toolbox.io.raster import geotiff_profile
+    from toolbox.io.grid import GridSpec
     from toolbox.ortho.dem import lattice_transform
+    from toolbox.raster.writer import RasterWriter
 
     t = info.transform
     if t.b != 0 or t.d != 0:
         raise InputDataError(f"DEM {info} must be north-up (no rotation) to convert its heights")
     xs = t.c + (np.arange(info.width) + 0.5) * t.a
     low, high = np.inf, -np.inf
-    profile = geotiff_profile(info.width, info.height, 1, "float32", crs, t, float("nan"))
-    with rasterio.open(info.path) as src, rasterio.open(path, "w", **profile) as dst:
+    grid = GridSpec(t, info.width, info.height, crs)
+    # a scratch file read by the ortho's DEM sampler: no overviews
+    with rasterio.open(info.path) as src, \
+            RasterWriter(path, grid, 1, "float32", float("nan"), overviews=False) as dst:
         for r0 in range(0, info.height, ROWS_PER_BLOCK):
             rows = min(ROWS_PER_BLOCK, info.height - r0)
             window = Window(0, r0, info.width, rows)
             z = src.read(band, window=window, masked=True).astype("float64").filled(np.nan)
             if not np.isfinite(z).any():
-                dst.write(z.astype("float32")[None], window=window)
+                dst.write(window, z)
                 continue
             ys = t.f + (np.arange(r0, r0 + rows) + 0.5) * t.e
             shift, _ = lattice_transform(_Shift(transformer, float(np.nanmean(z))), xs, ys,
@@ -255,7 +258,7 @@ def _convert(info: Any, band: int, transformer: Any, path: Path, crs: Any
                                      "the DEM (outside its grid's area)")
             finite = np.isfinite(z)
             low, high = min(low, float(shift[finite].min())), max(high, float(shift[finite].max()))
-            dst.write((z + shift).astype("float32")[None], window=window)
+            dst.write(window, z + shift)
     return low, high
 
 

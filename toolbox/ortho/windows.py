@@ -239,7 +239,7 @@ class OrthoWindows:
         z_halo = self.sampler.heights(xh, yh)
         angles = incidence_angle(xs, ys, z_halo, self.centre)[None]
         with self._write_lock:
-            self.incidence_writer.write(angles, window=window)
+            self.incidence_writer.write(window, angles)
         return np.ascontiguousarray(z_halo[1:-1, 1:-1])
 
     def _finish(self, window: Any, xs: np.ndarray, ys: np.ndarray, gx: np.ndarray,
@@ -259,8 +259,7 @@ class OrthoWindows:
             hidden = visibility_mask(xs, ys, z, self.centre, self.surface, self._maxima)
             if self.mask_writer is not None:
                 with self._write_lock:
-                    self.mask_writer.write(np.where(nan_z, 255, hidden).astype(np.uint8)[None],
-                                           window=window)
+                    self.mask_writer.write(window, np.where(nan_z, 255, hidden).astype(np.uint8))
             mask = hidden.astype(bool)
             stats.hidden = int(np.count_nonzero(mask))
             if stats.hidden:

@@ -33,7 +33,7 @@ from typing import Any
 
 import numpy as np
 
-from toolbox.io.raster import gdal_cache_max, overview_levels  # noqa: F401 - re-exported
+from toolbox.io.raster import deflate_level, gdal_cache_max, overview_levels, predictor_for
 from toolbox.io.write_failures import writing
 
 DEFAULT_TILE = 512
@@ -44,17 +44,6 @@ MEM_KEYS = ("driver", "width", "height", "count", "dtype", "crs", "transform", "
 # a small cache costs no CPU (20000 x 20000 float32: 18.9 against 18.3 CPU s) and keeps the peak
 # down (overviews alone 177 MB instead of 417 MB; the whole dem:nearest run: see bench/results)
 OVERVIEW_CACHE_MB = 32
-
-
-def deflate_level(dtype: Any) -> int:
-    """DEFLATE level: 1 for 8-bit rasters (photos, orthos: level 6 saved 3 % of an NGI ortho's
-    size for twice the CPU time of writing it), 6 (GDAL's default) for the others."""
-    return 1 if np.dtype(dtype).itemsize == 1 else 6
-
-
-def predictor_for(dtype: Any) -> int:
-    """TIFF predictor: 3 (floating point) for floats, 2 (horizontal) for integers."""
-    return 3 if np.dtype(dtype).kind == "f" else 2
 
 
 class RasterWriter:
@@ -95,6 +84,9 @@ class RasterWriter:
     memory_mb : float
         Outputs up to this size (all bands, uncompressed) with overviews are gathered in memory
         and copied once into the GeoTIFF (see the module notes); 0: always streamed.
+    gcps : sequence of rasterio.control.GroundControlPoint, optional
+        Georeference the raster by these ground control points (in ``grid.crs``) instead of
+        the grid's transform (a photo with its GCPs; the grid gives only the size).
 
     Example
     -------
@@ -109,7 +101,7 @@ class RasterWriter:
                  band_descriptions: Any = None, photometric: str | None = None,
                  tags: dict | None = None, overview_resampling: str = "average",
                  creation_options: dict | None = None, cache_mb: int = DEFAULT_CACHE_MB,
-                 memory_mb: float = 0):
+                 memory_mb: float = 0, gcps: Any = None):
         if tile % 16:
             raise ValueError(f"tile must be a multiple of 16, got {tile}")
         if alpha and nodata is not None:
@@ -133,6 +125,7 @@ class RasterWriter:
         self.overview_resampling = overview_resampling
         self.creation_options = dict(creation_options or {})
         self.cache_mb = int(cache_mb)
+        self.gcps = list(gcps) if gcps else None
         self._stack: ExitStack | None = None
         self.dataset = None
         # a COG is copied from a plain tiled file written beside it
@@ -164,22 +157,12 @@ class RasterWriter:
         return out
 
     def profile(self) -> dict:
-        from toolbox.io.raster import _rio_crs
+        from toolbox.io.raster import geotiff_profile
 
         g = self.grid
-        profile = {
-            "driver": "GTiff", "width": int(g.width), "height": int(g.height),
-            "count": self.count, "dtype": self.dtype.name,
-            "crs": None if g.crs is None else _rio_crs(g.crs), "transform": g.transform,
-            "nodata": self.nodata, "tiled": True, "blockxsize": self.tile,
-            "blockysize": self.tile, "compress": self.compress.lower(),
-            "bigtiff": "if_safer", "num_threads": "all_cpus",
-            "interleave": "pixel" if self.count > 1 else "band",
-        }
-        if self.compress in ("DEFLATE", "LZW", "ZSTD", "LZMA"):
-            profile["predictor"] = self.predictor
-        if self.compress == "DEFLATE":
-            profile["zlevel"] = deflate_level(self.dtype)
+        profile = geotiff_profile(g.width, g.height, self.count, self.dtype, g.crs, g.transform,
+                                  self.nodata, self.tile, self.compress,
+                                  num_threads="all_cpus")
         photometric = self.photometric
         if photometric is None and self.data_count == 3 and self.dtype.kind in "iu":
             photometric = "RGB"
@@ -189,6 +172,8 @@ class RasterWriter:
             profile["photometric"] = photometric
         if self.alpha and photometric == "RGB":
             profile["alpha"] = "YES"  # the first extra sample: band 4 of RGB only
+        if self.gcps:  # georeferenced by the points (given at open), not by a transform
+            del profile["transform"]
         profile.update(self.creation_options)
         return profile
 
@@ -211,7 +196,10 @@ class RasterWriter:
                 profile = self.profile()
                 if self.in_memory:  # the GeoTIFF's options are given to the copy at close
                     options = profile
-                    profile = {k: profile[k] for k in MEM_KEYS} | {"driver": "MEM"}
+                    profile = {k: profile[k] for k in MEM_KEYS if k in profile} | \
+                        {"driver": "MEM"}
+                if self.gcps:
+                    profile["gcps"] = self.gcps
                 self.dataset = self._stack.enter_context(rasterio.open(
                     "MEM" if self.in_memory else self._tiled_path, "w", **profile))
                 if self.in_memory:  # the bands' colours as the GeoTIFF's photometry gives them
@@ -339,6 +327,24 @@ class RasterWriter:
         self.dataset = None
         for p in {self._tiled_path, self.path}:
             p.unlink(missing_ok=True)
+
+
+def write_raster(path: Any, array: np.ndarray, transform: Any, crs: Any,
+                 nodata: float | None = None, overviews: bool = False,
+                 overview_resampling: str = "average", **options: Any) -> Path:
+    """Write a whole array ((bands, rows, cols), or (rows, cols) for one band) as a GeoTIFF
+    with :class:`RasterWriter` (``options``: its keyword arguments, e.g. ``cog``, ``alpha``,
+    ``tile``, ``creation_options``)."""
+    from rasterio.windows import Window
+
+    from toolbox.io.grid import GridSpec
+
+    data = array[np.newaxis] if array.ndim == 2 else array
+    grid = GridSpec(transform, data.shape[2], data.shape[1], crs)
+    with RasterWriter(path, grid, data.shape[0], data.dtype, nodata, overviews=overviews,
+                      overview_resampling=overview_resampling, **options) as dst:
+        dst.write(Window(0, 0, grid.width, grid.height), data)
+    return Path(path)
 
 
 # -- COG layout check --------------------------------------------------------------------------

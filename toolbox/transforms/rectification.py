@@ -412,7 +412,9 @@ def write_gcp_geotiff(source: Any, output: Any, gcps: list[tuple[str, float, flo
                                                                float, float]],
                       crs: Any, feedback: Feedback, tags: dict[str, str] | None = None,
                       chunk: int = 2048) -> None:
-    """Copy ``source`` into a tiled GeoTIFF with embedded GCPs, window by window.
+    """Copy ``source`` into a tiled GeoTIFF with embedded GCPs, window by window
+    (:class:`~toolbox.raster.writer.RasterWriter`, no overviews: a photo georeferenced by its
+    points, warped by the reader).
 
     ``gcps``: (id, col, row, X, Y, Z) with col/row in the source pixel convention (pixel centres
     at +0.5, as GDAL's GCP pixel/line).
@@ -422,8 +424,9 @@ def write_gcp_geotiff(source: Any, output: Any, gcps: list[tuple[str, float, flo
     from rasterio.enums import ColorInterp
 
     from toolbox.io.grid import GridSpec
-    from toolbox.io.raster import gdal_cache_max, geotiff_profile
+    from toolbox.io.raster import gdal_cache_max
     from toolbox.raster.tile import iter_tiles
+    from toolbox.raster.writer import RasterWriter
 
     with rasterio.Env(GDAL_CACHEMAX=gdal_cache_max(256)), warnings.catch_warnings():
         warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
@@ -431,22 +434,12 @@ def write_gcp_geotiff(source: Any, output: Any, gcps: list[tuple[str, float, flo
             dtypes = set(src.dtypes)
             if len(dtypes) != 1:
                 raise InputDataError(f"INPUT has bands of different types ({', '.join(dtypes)})")
-            options: dict[str, str] = {"num_threads": "ALL_CPUS"}
-            interp = list(src.colorinterp)
-            has_alpha = src.count > 1 and interp[-1] == ColorInterp.alpha
-            if src.count - has_alpha == 3 and np.dtype(src.dtypes[0]).kind in "iu":
-                options["photometric"] = "RGB"
-            if has_alpha:
-                options["alpha"] = "YES"
-            profile = geotiff_profile(src.width, src.height, src.count, src.dtypes[0], crs,
-                                      None, src.nodata, **options)
-            profile.pop("transform")
+            has_alpha = src.count > 1 and src.colorinterp[-1] == ColorInterp.alpha
             points = [GroundControlPoint(row=r, col=c, x=x, y=y, z=z, id=str(i), info=str(i))
                       for i, c, r, x, y, z in gcps]
-            with rasterio.open(output, "w", gcps=points, **profile) as dst:
-                if tags:
-                    dst.update_tags(**tags)
-                grid = GridSpec(src.transform, src.width, src.height)
+            grid = GridSpec(src.transform, src.width, src.height, crs)
+            with RasterWriter(output, grid, src.count, src.dtypes[0], src.nodata,
+                              alpha=has_alpha, overviews=False, tags=tags, gcps=points) as dst:
                 windows = [t.window for t in iter_tiles(grid, chunk)]
                 for window in feedback.iterate(windows):
-                    dst.write(src.read(window=window), window=window)
+                    dst.write(window, src.read(window=window))

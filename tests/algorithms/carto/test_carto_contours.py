@@ -22,7 +22,7 @@ from scipy.spatial import Delaunay
 import toolbox
 from toolbox.cartography.contours import dem_contours, smooth_contours, tin_contours
 from toolbox.demo.samples.terrain import CRS, terrain
-from toolbox.io.raster import write_raster
+from toolbox.raster.writer import write_raster
 
 X0, Y0, CELL = 1_688_000.0, 4_800_000.0, 2.0
 

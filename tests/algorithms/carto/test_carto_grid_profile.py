@@ -12,7 +12,7 @@ from scipy.interpolate import RegularGridInterpolator
 
 import toolbox
 from toolbox.demo.samples.terrain import CRS, terrain
-from toolbox.io.raster import write_raster
+from toolbox.raster.writer import write_raster
 
 EXTENT = "1687520,4798980,1689110,4800340 [EPSG:3003]"
 

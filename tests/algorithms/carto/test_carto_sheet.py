@@ -11,7 +11,7 @@ import shapely
 
 import toolbox
 from toolbox.demo.samples.terrain import CRS, terrain
-from toolbox.io.raster import write_raster
+from toolbox.raster.writer import write_raster
 
 pypdf = pytest.importorskip("pypdf", reason="pypdf (dev extra) reads the sheet PDFs back")
 PT_PER_MM = 72 / 25.4

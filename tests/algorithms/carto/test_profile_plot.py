@@ -12,7 +12,7 @@ from affine import Affine
 
 import toolbox
 from toolbox.cartography.profile_io import layer_title
-from toolbox.io.raster import write_raster
+from toolbox.raster.writer import write_raster
 
 CRS = "EPSG:3003"
 

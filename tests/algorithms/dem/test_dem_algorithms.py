@@ -17,7 +17,7 @@ from affine import Affine
 import toolbox
 from toolbox.errors import InputDataError, ParameterError
 from toolbox.feedback import Feedback
-from toolbox.io.raster import write_raster
+from toolbox.raster.writer import write_raster
 
 CRS = "EPSG:3003"
 X0, Y0 = 1_688_000.0, 4_799_500.0  # Siena block: large projected coordinates

@@ -13,7 +13,7 @@ import rasterio
 
 import toolbox
 from toolbox.demo.samples.terrain import CRS, terrain
-from toolbox.io.raster import write_raster
+from toolbox.raster.writer import write_raster
 from toolbox.registry import get
 
 GDALDEM = shutil.which("gdaldem")

@@ -10,8 +10,7 @@ import rasterio
 from affine import Affine
 
 import toolbox
-from toolbox.io.raster import write_raster
-from toolbox.raster.writer import cog_problems
+from toolbox.raster.writer import cog_problems, write_raster
 
 
 @pytest.fixture(scope="module")

@@ -36,12 +36,16 @@ def test_sheet_grid_from_scale_and_size(mosaic, tmp_path):
     with rasterio.open(mosaic) as src:
         whole = src.read()
         t = src.transform
+        colours, nodata = src.colorinterp, src.nodata
     covered = np.zeros(whole.shape[1:], int)
     for path in folder.glob("*.tif"):
         i, j = map(int, path.stem.split("_"))
         with rasterio.open(path) as s:
             assert s.bounds == (i * 250, j * 200, (i + 1) * 250, (j + 1) * 200)
             assert s.transform.a == t.a and s.crs == "EPSG:3003"
+            # the RasterWriter's GeoTIFF: tiled, compressed, the mosaic's bands and alpha
+            assert s.profile["tiled"] and s.compression.name == "deflate"
+            assert s.colorinterp == colours and s.nodata == nodata
             c0, r0 = round((s.transform.c - t.c) / t.a), round((s.transform.f - t.f) / t.e)
             part = s.read()
             assert np.array_equal(part, whole[:, r0:r0 + s.height, c0:c0 + s.width])

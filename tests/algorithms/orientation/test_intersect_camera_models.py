@@ -201,7 +201,7 @@ def test_monoplot_of_camera_model_photos_on_a_dem(block):
     past 90 degrees at its corners: it has no footprint to window a DEM with, refused.)"""
     import geopandas
 
-    from toolbox.io.raster import write_raster
+    from toolbox.raster.writer import write_raster
 
     folder, _ = block
     rng = np.random.default_rng(5)

@@ -12,8 +12,8 @@ from affine import Affine
 
 import toolbox
 from toolbox.errors import InputDataError, ParameterError
-from toolbox.io.raster import write_raster
 from toolbox.photogrammetry.normal_case import normal_case_precision
+from toolbox.raster.writer import write_raster
 
 X0, Y0 = 1688000.0, 4799000.0
 SIDE = 230.0 * (1000.0 - 100.0) / 150.0  # ground side of a nadir 23 cm frame: 1380 m

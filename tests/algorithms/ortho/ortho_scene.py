@@ -52,7 +52,7 @@ def project_yaml(path: Path, photo_name: str, centre=CENTRE, angles=ANGLES, dist
 
 
 def write_dem(path: Path, z: np.ndarray, transform, crs=CRS) -> Path:
-    from toolbox.io.raster import write_raster
+    from toolbox.raster.writer import write_raster
 
     write_raster(path, z.astype("float32"), transform, crs, nodata=-9999.0)
     return path

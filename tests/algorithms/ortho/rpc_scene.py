@@ -12,8 +12,8 @@ import pytest
 import rasterio
 from rasterio.rpc import RPC
 
-from toolbox.io.raster import write_raster
 from toolbox.photogrammetry.synthetic import hills_dem
+from toolbox.raster.writer import write_raster
 
 GDALWARP = shutil.which("gdalwarp")
 needs_gdalwarp = pytest.mark.skipif(GDALWARP is None, reason="gdalwarp (GDAL's CLI) not found")

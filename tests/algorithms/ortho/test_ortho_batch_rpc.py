@@ -14,7 +14,7 @@ import rasterio
 import toolbox
 from tests.helpers_cli import assert_refused
 from toolbox.cameras import read_rpc
-from toolbox.io.raster import write_raster
+from toolbox.raster.writer import write_raster
 
 sys.path.insert(0, str(Path(__file__).parent))
 import rpc_scene as rs  # noqa: E402

@@ -13,7 +13,7 @@ def test_siena_photo_ortho_recovers_the_texture(tmp_path):
     from skimage.registration import phase_cross_correlation
 
     from toolbox.demo.samples import ortho, terrain
-    from toolbox.io.raster import write_raster
+    from toolbox.raster.writer import write_raster
 
     z, transform = terrain.terrain()
     write_raster(tmp_path / "dem.tif", z, transform, terrain.CRS, nodata=-9999.0)

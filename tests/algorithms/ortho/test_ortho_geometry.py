@@ -250,7 +250,8 @@ def hidden_truth(xs, ys):
 LOCAL_CRS = "+proj=tmerc +lat_0=0 +lon_0=9 +k=1 +x_0=0 +y_0=0 +ellps=GRS80 +units=m +no_defs"
 
 
-def test_occlusion_mask_is_the_hidden_ground_of_a_building(tmp_path):
+def building_scene(tmp_path, cell_size=1.0):
+    """ortho:photo's parameters for the photo of the building (OUTPUT excluded)."""
     dsm, transform = box_dsm((900.0, 1900.0, 1160.0, 2150.0), 1.0, GROUND, [BUILDING])
     photo = frame_photo(CAMERA, (0.0, 0.0, 0.0), width=480, height=480, crs=LOCAL_CRS,
                         principal_distance_mm=60.0, pixel_size_mm=0.1)
@@ -260,9 +261,13 @@ def test_occlusion_mask_is_the_hidden_ground_of_a_building(tmp_path):
     dem = scene.write_dem(tmp_path / "dsm.tif", dsm, transform, crs=LOCAL_CRS)
     camera = tmp_path / "cam.yaml"
     camera.write_text("name: c\nprincipal_distance_mm: 60.0\npixel_size_mm: 0.1\n")
-    common = {"INPUT": image, "CAMERA": camera, "CRS": LOCAL_CRS, "DEM": dem, "CELL_SIZE": 1.0,
-              "EXTENT": "960,1960,1100,2100",
-              "EXTERIOR": ",".join(map(str, [*CAMERA, 0.0, 0.0, 0.0]))}
+    return {"INPUT": image, "CAMERA": camera, "CRS": LOCAL_CRS, "DEM": dem,
+            "CELL_SIZE": cell_size, "EXTENT": "960,1960,1100,2100",
+            "EXTERIOR": ",".join(map(str, [*CAMERA, 0.0, 0.0, 0.0]))}
+
+
+def test_occlusion_mask_is_the_hidden_ground_of_a_building(tmp_path):
+    common = building_scene(tmp_path)
     stats = toolbox.run("ortho:photo", {**common, "OCCLUSION": True,
                                         "OCCLUSION_MASK": tmp_path / "mask.tif",
                                         "INCIDENCE": tmp_path / "inc.tif",
@@ -271,6 +276,10 @@ def test_occlusion_mask_is_the_hidden_ground_of_a_building(tmp_path):
     with rasterio.open(tmp_path / "mask.tif") as src:
         mask = src.read(1)
         t = src.transform
+        # written by the RasterWriter: tiled, compressed, on the ortho's grid
+        assert src.profile["tiled"] and src.block_shapes == [(512, 512)]
+        assert src.compression.name == "deflate" and src.nodata == 255
+        assert src.dtypes == ("uint8",) and src.crs is not None
     xs = t.c + (np.arange(mask.shape[1]) + 0.5) * t.a
     ys = t.f + (np.arange(mask.shape[0]) + 0.5) * t.e
     truth = hidden_truth(xs, ys)
@@ -289,11 +298,39 @@ def test_occlusion_mask_is_the_hidden_ground_of_a_building(tmp_path):
     assert (alpha_plain[core] == 255).all()  # ... double-mapped (the roof again) without it
     with rasterio.open(tmp_path / "inc.tif") as src:
         incidence = src.read(1)
+        assert src.profile["tiled"] and src.compression.name == "deflate"
+        assert src.dtypes == ("float32",) and np.isnan(src.nodata)
+        assert src.tags(ns="IMAGE_STRUCTURE").get("PREDICTOR") == "3"
+        assert src.transform == t
     # flat ground far from the building: the angle between the ray and the vertical
     j, i = 5, mask.shape[0] - 5
     ray = np.asarray(CAMERA) - np.array([xs[j], ys[i], GROUND])
     expected = np.degrees(np.arccos(ray[2] / np.linalg.norm(ray)))
     assert incidence[i, j] == pytest.approx(expected, abs=0.01)
+
+
+def test_occlusion_mask_and_angles_have_overviews_of_their_kind(tmp_path):
+    """A 560 x 560 mask and angle raster get the ortho's overviews (one level): the mask's by
+    nearest (its classes only, each overview cell one of the full-resolution cells it covers),
+    the angles' by average (within the range of the four cells)."""
+    common = building_scene(tmp_path, cell_size=0.25)
+    toolbox.run("ortho:photo", {**common, "OCCLUSION": True, "OCCLUSION_MASK": tmp_path / "m.tif",
+                                "INCIDENCE": tmp_path / "i.tif", "OUTPUT": tmp_path / "o.tif"})
+    with rasterio.open(tmp_path / "m.tif") as src:
+        assert (src.width, src.height) == (560, 560) and src.overviews(1) == [2]
+        assert src.tags(ns="rio_overview")["resampling"] == "nearest"
+        mask = src.read(1)
+        small = src.read(1, out_shape=(280, 280))  # the overview
+    assert set(np.unique(mask)) == {0, 1} and (mask == 1).sum() > 1000
+    quads = mask.reshape(280, 2, 280, 2).transpose(0, 2, 1, 3).reshape(280, 280, 4)
+    assert (quads == small[..., None]).any(axis=-1).all()
+    with rasterio.open(tmp_path / "i.tif") as src:
+        assert src.overviews(1) == [2]
+        angles = src.read(1)
+        small = src.read(1, out_shape=(280, 280))
+    quads = angles.reshape(280, 2, 280, 2).transpose(0, 2, 1, 3).reshape(280, 280, 4)
+    assert (small >= quads.min(-1) - 1e-4).all() and (small <= quads.max(-1) + 1e-4).all()
+    np.testing.assert_allclose(small, quads.mean(-1), atol=1e-3)
 
 
 def test_dem_in_another_crs_lattice_transform_matches_pyproj(tmp_path):

@@ -171,7 +171,7 @@ def test_photo_size_must_match_the_camera(block, tmp_path):
 def test_degrees_dem_without_crs_is_refused(block, tmp_path):
     from affine import Affine
 
-    from toolbox.io.raster import write_raster
+    from toolbox.raster.writer import write_raster
 
     dem = tmp_path / "deg.tif"
     write_raster(dem, block.dem, Affine(0.0001, 0, 11.3, 0, -0.0001, 43.33), None,

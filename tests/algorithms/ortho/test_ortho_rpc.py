@@ -21,7 +21,7 @@ import rasterio
 
 import toolbox
 from toolbox.cameras import read_rpc, refine_bias
-from toolbox.io.raster import write_raster
+from toolbox.raster.writer import write_raster
 
 sys.path.insert(0, str(Path(__file__).parent))
 from rpc_scene import (  # noqa: E402

@@ -22,7 +22,7 @@ from pyproj.transformer import TransformerGroup
 
 import toolbox
 from toolbox.errors import InputDataError
-from toolbox.io.raster import open_raster_info, write_raster
+from toolbox.io.raster import open_raster_info
 from toolbox.ortho.vertical import ELLIPSOIDAL, dem_for_photos, parse_heights, use_system_grids
 from toolbox.photogrammetry.synthetic import (
     frame_photo,
@@ -31,6 +31,7 @@ from toolbox.photogrammetry.synthetic import (
     wave_texture,
     write_photo,
 )
+from toolbox.raster.writer import write_raster
 
 UTM = "EPSG:32632"  # WGS 84 / UTM 32N, near Siena
 EGM96 = "EPSG:32632+5773"

@@ -44,8 +44,8 @@ def make(folder: Path, made: dict) -> dict:
     import geopandas as gpd
     import shapely
 
-    from toolbox.io.raster import write_raster
     from toolbox.io.vector_write import write_layers
+    from toolbox.raster.writer import write_raster
 
     z, transform = terrain()
     dem = folder / "siena_dem.tif"
