@@ -146,11 +146,10 @@ def read_window(source: OrthoSource, grid_transform: Any, grid_crs: Any, window:
 
     Returns ``(data, valid)``: float32 ``(bands, rows, cols)`` and a bool mask ``(rows, cols)``
     (False outside the ortho or where its mask says no data). Aligned sources are read cell for
-    cell; others are resampled through a GDAL warped VRT (``resampling`` for data, nearest for
-    the mask).
+    cell; others are resampled by :func:`toolbox.raster.reproject.read_onto` (``resampling``
+    for data, nearest for the mask: :func:`~toolbox.raster.reproject.mask_onto`).
     """
     import rasterio
-    from rasterio.enums import Resampling
     from rasterio.windows import transform as window_transform
 
     rows, cols = int(window.height), int(window.width)
@@ -164,14 +163,13 @@ def read_window(source: OrthoSource, grid_transform: Any, grid_crs: Any, window:
                 data[(slice(None), *sl)] = src.read(source.data_bands, window=inner)
                 valid[sl] = src.dataset_mask(window=inner) > 0
             return data, valid
-        from rasterio.vrt import WarpedVRT
+        from toolbox.raster.reproject import mask_onto, read_onto
 
         t = window_transform(window, grid_transform)
-        method = Resampling[resampling]
-        with WarpedVRT(src, crs=grid_crs or src.crs, transform=t, width=cols, height=rows,
-                       resampling=method, src_nodata=source.nodata, nodata=source.nodata) as vrt:
-            data = vrt.read(source.data_bands).astype("float32")
-        return data, _warped_valid(src, grid_crs, t, rows, cols)
+        data = read_onto(src, t, cols, rows, grid_crs, indexes=source.data_bands,
+                         resampling=resampling,
+                         fill=0 if source.nodata is None else source.nodata).astype("float32")
+        return data, mask_onto(src, t, cols, rows, grid_crs)
 
 
 def read_valid(source: OrthoSource, grid_transform: Any, grid_crs: Any, window: Any
@@ -189,17 +187,9 @@ def read_valid(source: OrthoSource, grid_transform: Any, grid_crs: Any, window: 
             if part is not None:
                 valid[part[1]] = src.dataset_mask(window=part[0]) > 0
             return valid
-        return _warped_valid(src, grid_crs, window_transform(window, grid_transform), rows, cols)
+        from toolbox.raster.reproject import mask_onto
 
-
-def _warped_valid(src: Any, grid_crs: Any, transform: Any, rows: int, cols: int) -> np.ndarray:
-    """The dataset mask of an open source warped onto a grid window (nearest), as bools."""
-    from rasterio.enums import Resampling
-    from rasterio.vrt import WarpedVRT
-
-    with WarpedVRT(src, crs=grid_crs or src.crs, transform=transform, width=cols, height=rows,
-                   resampling=Resampling.nearest) as vrt:
-        return vrt.dataset_mask() > 0
+        return mask_onto(src, window_transform(window, grid_transform), cols, rows, grid_crs)
 
 
 def _inside(source: OrthoSource, grid_transform: Any, window: Any) -> tuple | None:

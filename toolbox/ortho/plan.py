@@ -104,27 +104,22 @@ def photo_surface(info: Any, photo: Any, crs: Any, band: int = 1) -> Any:
     if info.crs is None or crs is None or same_horizontal_crs(info.crs, crs):
         return surface_for_photo(info, photo, band, dem_range(info, band))
     import rasterio
-    from rasterio.enums import Resampling
-    from rasterio.vrt import WarpedVRT
 
-    from toolbox.io.raster import RasterInfo
+    from toolbox.raster.reproject import default_grid, read_onto
 
-    with rasterio.open(info.path) as src, WarpedVRT(src, crs=crs.to_wkt(),
-                                                    resampling=Resampling.bilinear) as vrt:
-        data = vrt.read(band, masked=True).astype("float64").filled(np.nan)
-        view = RasterInfo(info.path, vrt.width, vrt.height, 1, ("float64",), crs, vrt.transform,
-                          None, True)
+    with rasterio.open(info.path) as src:
+        t, width, height = default_grid(src, crs)
+        data = read_onto(src, t, width, height, crs, indexes=band)[0].astype("float64")
     from toolbox.photogrammetry.surface import DemSurface, photo_ground_bounds
 
-    whole = DemSurface.from_transform(data, view.transform, crs)
+    whole = DemSurface.from_transform(data, t, crs)
     low, high = whole.z_range
     pad = 0.1 * (high - low) + 1.0
     b = photo_ground_bounds(photo, low - pad, high + pad)
-    t = view.transform
     c0 = max(int((b[0] - t.c) / t.a) - 2, 0)
-    c1 = min(int((b[2] - t.c) / t.a) + 3, view.width)
+    c1 = min(int((b[2] - t.c) / t.a) + 3, width)
     r0 = max(int((b[3] - t.f) / t.e) - 2, 0)
-    r1 = min(int((b[1] - t.f) / t.e) + 3, view.height)
+    r1 = min(int((b[1] - t.f) / t.e) + 3, height)
     if c1 - c0 < 2 or r1 - r0 < 2:
         raise InputDataError(f"DEM {info} does not cover the photo {photo.id!r}")
     from affine import Affine

@@ -193,7 +193,11 @@ def read_window(source: Any, grid: GridSpec, window: Any, *, bands: Any = None,
         if offset is not None:
             data = _read_aligned(src, indexes, region, offset, out_dtype, fill)
         else:
-            data = _read_warped(src, indexes, grid, region, out_dtype, fill, resampling)
+            from toolbox.raster.reproject import read_onto
+
+            data = read_onto(src, _window_transform(grid.transform, region), region.width,
+                             region.height, grid.crs, indexes=indexes, resampling=resampling,
+                             dtype=out_dtype, fill=fill)
     finally:
         if own:
             src.close()
@@ -259,31 +263,6 @@ def _read_aligned(src, indexes, region, offset, dtype, fill) -> np.ndarray:
         out[:, r0 - row0:r1 - row0, c0 - col0:c1 - col0] = data
     if missing is not None:
         out[:, r0 - row0:r1 - row0, c0 - col0:c1 - col0][missing] = fill
-    return out
-
-
-def _read_warped(src, indexes, grid, region, dtype, fill, resampling) -> np.ndarray:
-    """GDAL warp of the source onto ``region`` of the grid (bounded reads of the source)."""
-    from rasterio.enums import Resampling
-    from rasterio.warp import reproject
-
-    from toolbox.io.raster import _rio_crs
-
-    dst_transform = _window_transform(grid.transform, region)
-    src_crs = src.crs if src.crs else (_rio_crs(grid.crs) if grid.crs is not None else None)
-    dst_crs = _rio_crs(grid.crs) if grid.crs is not None else src_crs
-    if src_crs is None:  # both local: only the transforms matter; any CRS serves both
-        src_crs = dst_crs = _rio_crs("EPSG:3857")
-    out = np.full((len(indexes), int(region.height), int(region.width)), fill, dtype=dtype)
-    try:
-        method = Resampling[resampling]
-    except KeyError:
-        raise ValueError(f"unknown resampling {resampling!r}") from None
-    import rasterio
-
-    reproject(rasterio.band(src, indexes), out, src_transform=src.transform, src_crs=src_crs,
-              src_nodata=src.nodata, dst_transform=dst_transform, dst_crs=dst_crs,
-              dst_nodata=fill, resampling=method, init_dest_nodata=True, tolerance=0.01)
     return out
 
 
