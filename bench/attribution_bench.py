@@ -382,8 +382,11 @@ def run_size(cells: int, model_cells: int, work: Path, cases: list[str],
         load = os.getloadavg()[0]
         result = timed_run(cmd, prof, timeout)
         result["load"] = load
-        if result["rc"] != 0:
-            result["problems"] = [f"exit {result['rc']}: {result['stderr'][-600:]}"]
+        if result["rc"] != 0 or not out.exists():  # (cProfile exits 0 whatever the run did)
+            result["problems"] = [f"exit {result['rc']}, no output: {result['stderr'][-600:]}"
+                                  if not out.exists() else
+                                  f"exit {result['rc']}: {result['stderr'][-600:]}"]
+            result["rc"] = result["rc"] or 1
         elif case == "merge":
             result["problems"] = check_merge(block, out)
         else:
