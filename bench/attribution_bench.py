@@ -404,13 +404,15 @@ def run_size(cells: int, model_cells: int, work: Path, cases: list[str],
 
 
 def top_of_profile(path: Path, n: int = 12) -> list[tuple[str, float, float]]:
-    """(function, cumulative s, own s) of the ``n`` toolbox functions with most cumulative time."""
+    """(function, cumulative s, own s) of the ``n`` toolbox functions with most cumulative time
+    (the command line's and the runner's wrappers left out)."""
     import pstats
 
     stats = pstats.Stats(str(path))
     rows = []
     for (file, _line, func), (_, _, own, cum, _) in stats.stats.items():
-        if "/toolbox/" in file or "/algorithms/" in file:
+        if ("/toolbox/" in file or "/algorithms/" in file) and "/cli/" not in file \
+                and "/runner/" not in file and not file.endswith(("__main__.py", "algorithm.py")):
             rows.append((f"{Path(file).parent.name}/{Path(file).name}:{func}", cum, own))
     rows.sort(key=lambda r: -r[1])
     return rows[:n]
