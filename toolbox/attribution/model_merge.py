@@ -36,13 +36,6 @@ def _ends(geom) -> np.ndarray:
     return c[[0, -1]]
 
 
-def _is_open_line(geom) -> bool:
-    if geom is None or shapely.get_type_id(geom) != 1:
-        return False
-    c = shapely.get_coordinates(geom)
-    return len(c) >= 2 and not np.allclose(c[0], c[-1])
-
-
 def _dz(a: np.ndarray, b: np.ndarray) -> float:
     d = a[:, 2] - b[:, 2]
     d = d[np.isfinite(d)]
@@ -92,58 +85,111 @@ def merge_models(models: list[Any], xy_tolerance: float, z_tolerance: float) -> 
                        if shapely.get_type_id(gj) != 0 else gj, "code": codes[j],
                        "detail": f"{ref(j)} duplicates {ref(i)}"})
     # 2. joins across the model edge
-    joins = height_refused = 0
-    while True:
-        lines = [i for i in np.flatnonzero(alive) if _is_open_line(geoms[i])]
-        if len(lines) < 2:
-            break
-        ends = np.array([_ends(geoms[i]) for i in lines])  # (L, 2, 3)
-        pts = shapely.points(ends[:, :, :2].reshape(-1, 2))
-        p, q = shapely.STRtree(pts).query(pts, predicate="dwithin", distance=xy_tolerance)
-        best = None
-        for u, v in zip(p, q, strict=True):
-            i, j = lines[u // 2], lines[v // 2]
-            if u >= v or i == j or model[i] == model[j] or codes[i] != codes[j]:
-                continue
-            eu, ev = ends[u // 2, u % 2], ends[v // 2, v % 2]
-            gap = float(np.hypot(*(eu[:2] - ev[:2])))
-            dz = abs(eu[2] - ev[2]) if np.isfinite(eu[2]) and np.isfinite(ev[2]) else 0.0
-            if dz > z_tolerance:
-                key = ("refused", i, j)
-                if not any(e.get("key") == key for e in events):
-                    height_refused += 1
-                    events.append({"kind": "join_refused", "key": key, "code": codes[i],
-                                   "geometry": shapely.Point(*eu), "detail":
-                                   f"{ref(i)} and {ref(j)} meet in plan ({gap:.3f}) but differ "
-                                   f"by {dz:.3f} in height (tolerance {z_tolerance:g})"})
-                continue
-            if best is None or gap < best[0]:
-                best = (gap, u, v)
-        if best is None:
-            break
-        gap, u, v = best
-        i, j = lines[u // 2], lines[v // 2]
-        ci = shapely.get_coordinates(geoms[i], include_z=True)
-        cj = shapely.get_coordinates(geoms[j], include_z=True)
-        if u % 2 == 0:
-            ci = ci[::-1]  # i now ends at the meeting end
-        if v % 2 == 1:
-            cj = cj[::-1]  # j now starts at it
-        meet = (ci[-1] + cj[0]) / 2
-        joined = np.vstack([ci[:-1], meet, cj[1:]])
-        geoms[i] = shapely.LineString(joined)
-        alive[j] = False
-        joins += 1
-        events.append({"kind": "joined", "code": codes[i], "geometry": shapely.Point(*meet),
-                       "detail": f"{ref(j)} joined to {ref(i)} (gap {gap:.3f})"})
-    for e in events:
-        e.pop("key", None)
+    joins, height_refused = _join_lines(geoms, alive, codes, model, xy_tolerance, z_tolerance,
+                                        ref, events)
     out = merged.copy()
     out = out.set_geometry(gpd.GeoSeries(list(geoms), crs=merged.crs))
     out = out[alive].reset_index(drop=True)
     stats = {"models": len(models), "entities_in": len(merged), "duplicates_removed": removed,
              "joins": joins, "joins_refused_height": height_refused, "entities_out": len(out)}
     return MergeResult(out, events, stats)
+
+
+def _is_closed(coords: np.ndarray) -> bool:
+    """First and last vertex the same point in plan (to 1e-9 CRS units: map coordinates are
+    millions of metres, so no relative tolerance)."""
+    return bool(np.all(np.abs(coords[0, :2] - coords[-1, :2]) <= 1e-9))
+
+
+def _join_lines(geoms: np.ndarray, alive: np.ndarray, codes: np.ndarray, model: np.ndarray,
+                xy_tolerance: float, z_tolerance: float, ref, events: list[dict[str, Any]]
+                ) -> tuple[int, int]:
+    """Join open lines of the same code from different models whose ends meet (in place on
+    ``geoms`` and ``alive``); returns (joins, refused in height).
+
+    Greedy, closest ends first, repeated until no ends meet: a joined line keeps the first
+    line's number and model, and its ends are the far ends of the two (their coordinates do not
+    change), so the candidate end pairs are found once (one STRtree query) and taken from a heap
+    by gap; a pair whose lines were in the same model is set aside and looked at again when one
+    of its ends passes to a line of another model by a join. Ends meeting in plan but not in
+    height are reported once per pair of ends.
+    """
+    import heapq
+
+    lines = np.array([i for i in np.flatnonzero(alive) if geoms[i] is not None
+                      and shapely.get_type_id(geoms[i]) == 1
+                      and len(c := shapely.get_coordinates(geoms[i])) >= 2
+                      and not _is_closed(c)], dtype=np.int64)
+    if len(lines) < 2:
+        return 0, 0
+    ends = np.array([_ends(geoms[i]) for i in lines])  # (L, 2, 3): end 2k first, 2k+1 last
+    xyz = ends.reshape(-1, 3)
+    pts = shapely.points(xyz[:, :2])
+    p, q = shapely.STRtree(pts).query(pts, predicate="dwithin", distance=xy_tolerance)
+    keep = (p < q) & (p // 2 != q // 2)
+    p, q = p[keep], q[keep]
+    keep = codes[lines[p // 2]] == codes[lines[q // 2]]
+    p, q = p[keep], q[keep]
+    gap = np.hypot(xyz[p, 0] - xyz[q, 0], xyz[p, 1] - xyz[q, 1])
+    zp, zq = xyz[p, 2], xyz[q, 2]
+    dz = np.where(np.isfinite(zp) & np.isfinite(zq), np.abs(zp - zq), 0.0)
+    high = dz > z_tolerance
+    refused: set[tuple[int, int]] = set()
+    for u, v, g, d in zip(p[high], q[high], gap[high], dz[high], strict=True):
+        i, j = lines[u // 2], lines[v // 2]
+        if model[i] == model[j] or (i, j) in refused:
+            continue
+        refused.add((i, j))
+        events.append({"kind": "join_refused", "code": codes[i],
+                       "geometry": shapely.Point(*xyz[u]), "detail":
+                       f"{ref(i)} and {ref(j)} meet in plan ({g:.3f}) but differ by {d:.3f} "
+                       f"in height (tolerance {z_tolerance:g})"})
+    p, q, gap = p[~high], q[~high], gap[~high]
+    owner = np.repeat(lines, 2)  # the line each end belongs to now
+    free = np.ones(len(owner), dtype=bool)  # still an end (not a joined vertex)
+    first = {int(i): 2 * k for k, i in enumerate(lines)}  # line -> its first and last end
+    last = {int(i): 2 * k + 1 for k, i in enumerate(lines)}
+    heap = [(float(g), int(u), int(v)) for g, u, v in zip(gap, p, q, strict=True)]
+    heapq.heapify(heap)
+    parked: dict[int, list[tuple[float, int, int]]] = {}
+    joins = 0
+    while heap:
+        g, u, v = heapq.heappop(heap)
+        if not (free[u] and free[v]):
+            continue  # an end already joined: never an end again
+        i, j = int(owner[u]), int(owner[v])
+        if i == j:
+            continue  # both ends of one line: they stay on one line
+        if model[i] == model[j]:
+            for e in (u, v):  # looked at again if an end passes to another model's line
+                parked.setdefault(e, []).append((g, u, v))
+            continue
+        if i > j:  # the joined line keeps the first line's number (the earlier model)
+            i, j, u, v = j, i, v, u
+        ci = shapely.get_coordinates(geoms[i], include_z=True)
+        cj = shapely.get_coordinates(geoms[j], include_z=True)
+        if first[i] == u:
+            ci = ci[::-1]  # i now ends at the meeting end
+        if last[j] == v:
+            cj = cj[::-1]  # j now starts at it
+        far_i = last[i] if first[i] == u else first[i]
+        far_j = last[j] if first[j] == v else first[j]
+        meet = (ci[-1] + cj[0]) / 2
+        joined = np.vstack([ci[:-1], meet, cj[1:]])
+        geoms[i] = shapely.LineString(joined)
+        alive[j] = False
+        free[u] = free[v] = False
+        owner[far_j] = i
+        first[i], last[i] = far_i, far_j
+        joins += 1
+        events.append({"kind": "joined", "code": codes[i], "geometry": shapely.Point(*meet),
+                       "detail": f"{ref(j)} joined to {ref(i)} (gap {g:.3f})"})
+        if _is_closed(joined):  # a closed line is no longer open: its ends join nothing
+            free[far_i] = free[far_j] = False
+        else:  # far_j now belongs to a line of another model
+            for item in parked.pop(far_j, []):
+                heapq.heappush(heap, item)
+    return joins, len(refused)
 
 
 def events_frame(events: list[dict[str, Any]], crs: Any):

@@ -66,6 +66,38 @@ def test_merge_kernel():
     assert len(merged[merged["code"] == "STR02001"]) == 5 and len(merged) == 9
 
 
+
+def test_merge_joins_short_lines_in_map_coordinates():
+    # a 10 m road edge at map coordinates (E 1.69e6): its ends are distinct points, so it is an
+    # open line and joins its continuation (a relative tolerance would have called it closed)
+    west = [("STR02001", [(E0, N0, 320.0), (E0 + 10, N0, 320.0)])]
+    east = [("STR02001", [(E0 + 10.05, N0, 320.02), (E0 + 20, N0, 320.0)])]
+    result = merge_models([_model(west), _model(east)], 0.2, 0.1)
+    assert result.statistics["joins"] == 1 and len(result.entities) == 1
+    np.testing.assert_allclose(
+        shapely.get_coordinates(result.entities.geometry.iloc[0], include_z=True),
+        [[E0, N0, 320.0], [E0 + 10.025, N0, 320.01], [E0 + 20, N0, 320.0]], atol=1e-6)
+
+
+def test_merge_chains_through_a_line_of_the_same_model():
+    # 1 (model 1) meets 2 (model 2); 2 meets 3 (also model 2): 2 and 3 are not joined alone, but
+    # once 2 is part of model 1's line its far end joins 3; 4 (model 3) then joins the end of 3
+    # plotted the other way round; the closest ends are joined first
+    m1 = [("STR02001", [(0, 0, 320.0), (10, 0, 320.0)])]
+    m2 = [("STR02001", [(10.1, 0, 320.0), (20, 0, 320.0)]),
+          ("STR02001", [(20.04, 0, 320.0), (30, 0, 320.0)])]
+    m3 = [("STR02001", [(40, 0, 320.0), (30.02, 0, 320.0)])]
+    result = merge_models([_model(m1), _model(m2), _model(m3)], 0.2, 0.1)
+    assert result.statistics["joins"] == 3 and len(result.entities) == 1
+    np.testing.assert_allclose(
+        shapely.get_coordinates(result.entities.geometry.iloc[0]),
+        [[0, 0], [10.05, 0], [20.02, 0], [30.01, 0], [40, 0]], atol=1e-9)
+    assert [e["detail"] for e in result.events] == [
+        "model 3 entity 1 joined to model 2 entity 2 (gap 0.020)",
+        "model 2 entity 1 joined to model 1 entity 1 (gap 0.100)",
+        "model 2 entity 2 joined to model 1 entity 1 (gap 0.040)"]
+
+
 def test_apply_merges_models(files, tmp_path):
     def export(entities, name):
         lines = []
