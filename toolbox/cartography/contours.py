@@ -2,9 +2,11 @@
 
 Conventions: a DEM grid is ``z[row, col]`` with cell values at cell centres; ``x0, y0`` is the
 centre of cell (0, 0) and ``dx, dy`` the steps between centres (``dy < 0`` for north-up rasters).
-Between centres the surface is bilinear, as for ``gdal_contour``; contours are traced for all
-levels in one pass by :mod:`toolbox.cartography.contour_kernel` (contourpy's lines). A TIN is
-nodes ``xyz (N, 3)`` and triangles ``(T, 3)``; each triangle is a plane.
+Between centres the surface is bilinear, as for ``gdal_contour``; contours are traced either
+by contourpy (one pass per level) or for all levels in one pass by the compiled kernel of
+:mod:`toolbox.cartography.contour_kernel` (contourpy's lines, its test oracle), whichever
+:func:`choose_tracer` expects to cost less in the whole process. A TIN is nodes ``xyz (N, 3)``
+and triangles ``(T, 3)``; each triangle is a plane.
 
 Every contour is an ``(n, 2)`` array of x, y (DEM kernels work in grid coordinates, x = column
 and y = row of the cell centres, and :func:`to_map` converts), oriented with higher ground on its right (as
@@ -51,27 +53,114 @@ def index_flags(levels: np.ndarray, interval: float, base: float = 0.0,
 
 
 # -- DEM grids ------------------------------------------------------------------------------------
+#: the tracers of a DEM grid: contourpy (one pass per level) and the compiled one-pass kernel
+TRACERS = ("contourpy", "kernel")
+
+#: the cost model of the two tracers in CPU seconds of the whole process, measured on the house
+#: bench's 2200 x 2200 DEM at 10 m (21 levels) and round3's 2000 x 2000 DEM at 1 m (57 levels),
+#: blocks of 513 x 513 (bench/results/house.md, "Round four (contours)"): contourpy costs about
+#: 8 ns per cell and level that a block spans (its heights reach above and below the level); the
+#: kernel about 60 ns per cell whatever the levels, plus numba's import and the load of its
+#: cached kernels, about 0.65 s in any process that traces with it
+CONTOURPY_S_PER_CELL_LEVEL = 8e-9
+KERNEL_S_PER_CELL = 60e-9
+KERNEL_FIXED_S = 0.65
+
+
+def choose_tracer(cells: int, spanned: int) -> str:
+    """The cheaper tracer (:data:`TRACERS`) of a grid of ``cells`` whose blocks span
+    ``spanned`` cells x levels in all (at most cells x levels) by the cost model above:
+    ``"contourpy"`` for few levels or small grids (numba is then never imported), else
+    ``"kernel"``."""
+    kernel = KERNEL_FIXED_S + KERNEL_S_PER_CELL * cells
+    return "kernel" if CONTOURPY_S_PER_CELL_LEVEL * spanned > kernel else "contourpy"
+
+
+def spanned_cells_levels(z: np.ndarray, levels: np.ndarray,
+                         windows: Iterable[tuple[int, int, int, int]]) -> int:
+    """Sum over the blocks ``windows`` (row, col, height, width) of ``z`` (NaN = no data) of
+    their cells times the ``levels`` (ascending) their heights span."""
+    total = 0
+    for r, c, h, w in windows:
+        block = z[r:r + h, c:c + w]
+        if np.isnan(block).all():
+            continue
+        lo, hi = np.searchsorted(levels, [np.nanmin(block), np.nanmax(block)])
+        total += block.size * int(hi - lo)
+    return total
+
+
+def contourpy_lines(z: np.ndarray, levels: np.ndarray, x0: float = 0.0, y0: float = 0.0,
+                    dx: float = 1.0, dy: float = 1.0
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`toolbox.cartography.contour_kernel.grid_lines` traced by contourpy (serial,
+    corner mask: the same surface and lines), one pass per level the grid spans.
+
+    Returns ``points (n, 2)`` (x = ``x0 + column·dx``, y = ``y0 + row·dy``: contourpy
+    interpolates between the nodes' own coordinates, so a block traced with its place in the
+    grid gives the whole grid's vertices, bit for bit), ``offsets`` and each line's index into
+    ``levels`` (ascending), higher ground on the right in the (column, row) frame.
+    """
+    import contourpy
+
+    rows, cols = z.shape
+    valid = ~np.isnan(z)
+    empty = np.empty((0, 2)), np.zeros(1, dtype=np.int64), np.empty(0, dtype=np.int32)
+    if not valid.any():
+        return empty
+    lo, hi = np.searchsorted(levels, [np.nanmin(z), np.nanmax(z)])  # the levels spanned
+    if lo >= hi:
+        return empty
+    data = z if valid.all() else np.ma.array(z, mask=~valid)
+    gen = contourpy.contour_generator(x0 + np.arange(cols) * dx, y0 + np.arange(rows) * dy,
+                                      data, name="serial",
+                                      corner_mask=True,
+                                      line_type=contourpy.LineType.ChunkCombinedOffset)
+    parts, offsets, level_of, n = [], [np.zeros(1, dtype=np.int64)], [], 0
+    for k in range(lo, hi):
+        (points,), (line_offsets,) = gen.lines(float(levels[k]))
+        if points is None:
+            continue
+        # contourpy keeps higher ground on the left: the level's points reversed reverse every
+        # line (and their order)
+        parts.append(points[::-1])
+        offsets.append(n + (len(points) - line_offsets[-2::-1]).astype(np.int64))
+        level_of.append(np.full(len(line_offsets) - 1, k, dtype=np.int32))
+        n += len(points)
+    if not parts:
+        return empty
+    return np.concatenate(parts), np.concatenate(offsets), np.concatenate(level_of)
+
+
 def grid_contour_pieces(z: np.ndarray, levels: Iterable[float], x0: float, y0: float,
-                        dx: float, dy: float) -> list[Contour]:
-    """Contours of one grid (NaN = no data), oriented higher-on-the-right, traced for every
-    level in one pass (:func:`toolbox.cartography.contour_kernel.grid_lines`: contourpy's
-    surface and lines).
+                        dx: float, dy: float, tracer: str | None = None) -> list[Contour]:
+    """Contours of one grid (NaN = no data), oriented higher-on-the-right, traced by
+    ``tracer`` (:data:`TRACERS`; default :func:`choose_tracer` for this grid): contourpy
+    (:func:`contourpy_lines`) or the one-pass kernel
+    (:func:`toolbox.cartography.contour_kernel.grid_lines`), the same lines.
 
     Lines end where the grid or the data end; :func:`stitch` joins pieces of adjacent tiles.
     """
-    from toolbox.cartography.contour_kernel import grid_lines
-
     z = np.asarray(z, dtype="float64")
     levels = np.sort(np.asarray(list(levels), dtype="float64"))
     if z.shape[0] < 2 or z.shape[1] < 2 or not len(levels):
         return []
+    tracer = tracer or choose_tracer(z.size, z.size * len(levels))
     # trace just below the level so a node exactly at it counts as above (as gdal_contour and
     # tin_contours do); the offset (1024 ulps) moves lines by far less than a micron
-    points, offsets, level_of = grid_lines(z, levels - 1024 * np.spacing(np.abs(levels)))
-    # the kernel keeps higher ground on the right in the (column, row) frame: mirrored when
-    # the map frame turns the other way (dx·dy < 0)
+    below = levels - 1024 * np.spacing(np.abs(levels))
+    if tracer == "kernel":
+        from toolbox.cartography.contour_kernel import grid_lines
+
+        points, offsets, level_of = grid_lines(z, below)
+        xy = np.column_stack([x0 + points[:, 0] * dx, y0 + points[:, 1] * dy])
+    elif tracer == "contourpy":
+        xy, offsets, level_of = contourpy_lines(z, below, x0, y0, dx, dy)
+    else:
+        raise ValueError(f"tracer must be one of {TRACERS}, got {tracer!r}")
+    # both keep higher ground on the right in the (column, row) frame: mirrored when the map
+    # frame turns the other way (dx·dy < 0)
     flip = (dx * dy) < 0
-    xy = np.column_stack([x0 + points[:, 0] * dx, y0 + points[:, 1] * dy])
     values = levels[level_of].tolist()
     return [Contour(values[i], line[::-1] if flip else line)
             for i, line in _split_lines(xy, offsets)]
@@ -108,31 +197,35 @@ def block_windows(rows: int, cols: int, tile: int) -> list[tuple[int, int, int, 
             for r in range(0, max(rows - 1, 1), tile) for c in range(0, max(cols - 1, 1), tile)]
 
 
-def block_pieces(block: np.ndarray, levels: Iterable[float], row: int, col: int) -> list[Piece]:
+def block_pieces(block: np.ndarray, levels: Iterable[float], row: int, col: int,
+                 tracer: str | None = None) -> list[Piece]:
     """The contour pieces of one block whose top-left cell is (``row``, ``col``), in grid
-    coordinates (x = column, y = row of the cell centres)."""
+    coordinates (x = column, y = row of the cell centres), traced by ``tracer``
+    (:func:`grid_contour_pieces`)."""
     return [Piece(p.level, p.xy, (row, col))
-            for p in grid_contour_pieces(block, levels, float(col), float(row), 1.0, 1.0)]
+            for p in grid_contour_pieces(block, levels, float(col), float(row), 1.0, 1.0, tracer)]
 
 
 def trace_tiles(read_block: Callable[[int, int, int, int], np.ndarray], rows: int, cols: int,
-                tile: int, levels: Iterable[float], feedback=None) -> tuple[list[Contour], int]:
+                tile: int, levels: Iterable[float], feedback=None,
+                tracer: str | None = None) -> tuple[list[Contour], int]:
     """Contours of a ``rows`` x ``cols`` grid traced in ``tile``-sized blocks
-    (:func:`block_windows`) and stitched by :func:`stitch_pieces`, in grid coordinates
-    (:func:`to_map` converts). Grid coordinates keep full precision near nodes and make tile
-    edges exact integers.
+    (:func:`block_windows`) by ``tracer`` (default: :func:`choose_tracer` for the whole grid)
+    and stitched by :func:`stitch_pieces`, in grid coordinates (:func:`to_map` converts). Grid
+    coordinates keep full precision near nodes and make tile edges exact integers.
 
     ``read_block(row, col, height, width)`` returns a block of the grid (NaN = no data).
     Returns the contours and the number of pieces traced.
     """
     levels = list(levels)
     windows = block_windows(rows, cols, tile)
+    tracer = tracer or choose_tracer(rows * cols, rows * cols * len(levels))
     pieces: list[Piece] = []
     for i, (r, c, h, w) in enumerate(windows):
         if feedback is not None:
             feedback.check_canceled()
             feedback.set_progress(80.0 * i / len(windows))
-        pieces += block_pieces(read_block(r, c, h, w), levels, r, c)
+        pieces += block_pieces(read_block(r, c, h, w), levels, r, c, tracer)
     return stitch_pieces(pieces, tile), len(pieces)
 
 
@@ -234,13 +327,15 @@ def _chain(pieces: list[Piece], link: dict[tuple[int, int], tuple[int, int]]) ->
 
 
 def dem_contours(z: np.ndarray, levels: Iterable[float], x0: float, y0: float, dx: float,
-                 dy: float, tile: int | None = None, smoothing: int = 0) -> list[Contour]:
+                 dy: float, tile: int | None = None, smoothing: int = 0,
+                 tracer: str | None = None) -> list[Contour]:
     """Contours of a whole grid in map coordinates, optionally traced in ``tile`` x ``tile``
     blocks and stitched, and smoothed (files go through
-    :func:`toolbox.cartography.contour_io.raster_contours`)."""
+    :func:`toolbox.cartography.contour_io.raster_contours`); ``tracer`` as
+    :func:`trace_tiles`."""
     rows, cols = z.shape
     contours, _ = trace_tiles(lambda r, c, h, w: z[r:r + h, c:c + w], rows, cols,
-                              tile or max(rows, cols), levels)
+                              tile or max(rows, cols), levels, tracer=tracer)
     contours, _ = smooth_contours(contours, smoothing)
     return to_map(contours, x0, y0, dx, dy)
 
@@ -357,10 +452,10 @@ def smooth_contours(contours: list[Contour], iterations: int) -> tuple[list[Cont
     """Smooth DEM contours (grid coordinates) within their cell bands, then undo the smoothing
     of any two lines that touch or cross each other, until none do. Returns the lines and how
     many were reverted."""
-    import shapely
-
     if iterations <= 0 or not contours:
         return contours, 0
+    import shapely
+
     smooth = [Contour(c.level, smooth_in_band(c, iterations)) for c in contours]
     reverted: set[int] = set()
     while True:

@@ -20,7 +20,7 @@ from scipy.interpolate import LinearNDInterpolator, RegularGridInterpolator
 from scipy.spatial import Delaunay
 
 import toolbox
-from toolbox.cartography.contours import dem_contours, smooth_contours, tin_contours
+from toolbox.cartography.contours import TRACERS, dem_contours, smooth_contours, tin_contours
 from toolbox.demo.samples.terrain import CRS, terrain
 from toolbox.raster.writer import write_raster
 
@@ -125,19 +125,21 @@ def test_contours_from_a_tin_geopackage(tmp_path):
                                    atol=1e-6)
 
 
-def test_tiles_stitch_into_the_untiled_lines():
+@pytest.mark.parametrize("tracer", TRACERS)
+def test_tiles_stitch_into_the_untiled_lines(tracer):
     z, t = terrain()
     z = z.astype("float64")
     args = (np.arange(290.0, 345.0, 5.0), t.c + 2, t.f - 2, 4.0, -4.0)
-    whole = dem_contours(z, *args)
-    tiled = dem_contours(z, *args, tile=37)
+    whole = dem_contours(z, *args, tracer=tracer)
+    tiled = dem_contours(z, *args, tile=37, tracer=tracer)
     assert len(tiled) == len(whole) > 100
     geoms = {(c.level, shapely.normalize(shapely.linestrings(c.xy)).wkb) for c in whole}
     for c in tiled:  # the same lines: nothing broken at tile edges, nothing doubled
         assert (c.level, shapely.normalize(shapely.linestrings(c.xy)).wkb) in geoms
 
 
-def test_blocks_trace_only_their_levels_even_at_node_heights():
+@pytest.mark.parametrize("tracer", TRACERS)
+def test_blocks_trace_only_their_levels_even_at_node_heights(tracer):
     """Each block traces only the levels its heights span; levels exactly at node heights (a
     block's lowest or highest node) must still give every line contourpy gives on the whole
     grid (traced just below the level, as the kernel does)."""
@@ -146,7 +148,7 @@ def test_blocks_trace_only_their_levels_even_at_node_heights():
     rng = np.random.default_rng(7)
     z = rng.integers(0, 6, size=(23, 31)).astype("float64")  # heights on the levels themselves
     levels = np.arange(0.0, 6.0)
-    tiled = dem_contours(z, levels, 0.0, 0.0, 1.0, 1.0, tile=4)
+    tiled = dem_contours(z, levels, 0.0, 0.0, 1.0, 1.0, tile=4, tracer=tracer)
     gen = contourpy.contour_generator(np.arange(31.0), np.arange(23.0), z)
     for level in levels:
         expected = sum(shapely.length(shapely.linestrings(line)) for line in
@@ -155,18 +157,73 @@ def test_blocks_trace_only_their_levels_even_at_node_heights():
         assert got == pytest.approx(expected, rel=1e-9, abs=1e-9), level
 
 
-def test_tiles_stitch_around_nodata_holes():
+@pytest.mark.parametrize("tracer", TRACERS)
+def test_tiles_stitch_around_nodata_holes(tracer):
     z, t = terrain()
     z = z.astype("float64")
     z[100:160, 70:75] = np.nan  # a hole across the tile edge at column 74
     z[221:223, 30:200] = np.nan  # a strip on the tile edge at row 222
     args = (np.arange(290.0, 345.0, 5.0), t.c + 2, t.f - 2, 4.0, -4.0)
-    whole = dem_contours(z, *args)
-    tiled = dem_contours(z, *args, tile=37)
+    whole = dem_contours(z, *args, tracer=tracer)
+    tiled = dem_contours(z, *args, tile=37, tracer=tracer)
     assert len(tiled) == len(whole)
     geoms = {(c.level, shapely.normalize(shapely.linestrings(c.xy)).wkb) for c in whole}
     assert all((c.level, shapely.normalize(shapely.linestrings(c.xy)).wkb) in geoms
                for c in tiled)
+
+
+def test_both_tracers_give_the_same_stitched_lines():
+    """contourpy (small grids) and the one-pass kernel (large ones): the same lines after
+    stitching and mapping, holes and a strip of nodata on a tile edge included (vertices to
+    1e-6 m: the two interpolate in a different arithmetic order)."""
+    z, t = terrain()
+    z = z.astype("float64")
+    z[100:160, 70:75] = np.nan
+    z[221:223, 30:200] = np.nan
+    args = (np.arange(290.0, 345.0, 2.5), t.c + 2, t.f - 2, 4.0, -4.0)
+
+    def lines(tracer):
+        out = set()
+        for c in dem_contours(z, *args, tile=37, tracer=tracer):
+            g = shapely.normalize(shapely.linestrings(c.xy))  # rings from one vertex
+            out.add((c.level, tuple(map(tuple, np.round(shapely.get_coordinates(g), 6)))))
+        return out
+
+    kernel = lines("kernel")
+    assert len(kernel) > 200
+    assert lines("contourpy") == kernel
+
+
+def test_few_levels_trace_without_numba_many_with_the_kernel(tmp_path):
+    """The 5 % rule (issue 26): a DEM with few levels is traced by contourpy and its process
+    never imports numba (about 0.65 CPU s); many levels on a large grid take the kernel. Both
+    runs in fresh processes; the lines compared on the same DEM."""
+    import sys
+
+    rng = np.random.default_rng(5)
+    from scipy.ndimage import gaussian_filter
+
+    z = 300.0 + gaussian_filter(rng.normal(size=(700, 700)), 25) * 4000.0
+    dem = write_dem(tmp_path / "d.tif", z)
+    code = ("import sys, toolbox; s = toolbox.run('carto:contours', {{'INPUT': {dem!r}, "
+            "'INTERVAL': {interval}, 'OUTPUT': {out!r}}})['STATISTICS']; "
+            "print(s['tracer'], s['levels'], 'numba' in sys.modules)")
+    runs = {}
+    for interval in (20.0, 1.0):
+        out = str(tmp_path / f"c{interval}.gpkg")
+        proc = subprocess.run([sys.executable, "-c", code.format(dem=str(dem), interval=interval,
+                                                                  out=out)],
+                              capture_output=True, text=True, check=True)
+        runs[interval] = proc.stdout.split()
+    few, many = runs[20.0], runs[1.0]
+    assert few[0] == "contourpy" and few[2] == "False" and int(few[1]) >= 3, few
+    assert many[0] == "kernel" and many[2] == "True" and int(many[1]) > 100, many
+    ours = read_contours(tmp_path / "c20.0.gpkg")
+    levels = sorted(set(ours["elev"]))
+    kernel = dem_contours(z, levels, X0 + 1, Y0 - 1, CELL, -CELL, tile=512, tracer="kernel")
+    assert len(ours) == len(kernel)
+    assert float(ours.geometry.length.sum()) == pytest.approx(
+        sum(float(shapely.length(shapely.linestrings(c.xy))) for c in kernel), rel=1e-12)
 
 
 def test_a_dem_read_once_gives_the_lines_of_one_read_by_blocks(tmp_path, monkeypatch):
