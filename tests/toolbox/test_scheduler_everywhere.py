@@ -320,6 +320,12 @@ def test_seams_and_vector_sheets_on_a_cluster_are_the_local_ones(tmp_path, monke
     local = toolbox.run("mosaic:seamlines", seams | {"SCHEDULER": "local",
                                                      "OUTPUT": tmp_path / "seams_local.gpkg"})
     cut_local, folder_local = cut("local", "local")
+    import toolbox.mosaic.sheets as sheets
+
+    def not_here(*args, **kwargs):
+        raise AssertionError("a sheet was clipped in the client, not on a worker")
+
+    monkeypatch.setattr(sheets, "clip_vector", not_here)  # the workers' modules are theirs
     with LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
                       dashboard_address=":0") as cluster:
         address = cluster.scheduler_address
@@ -335,3 +341,53 @@ def test_seams_and_vector_sheets_on_a_cluster_are_the_local_ones(tmp_path, monke
     for name in cut_local["files"]:
         _same_geopackage(folder_local / name, folder_dask / name)
 
+
+@pytest.mark.distributed
+@pytest.mark.slow
+def test_map_sheets_drawn_on_a_cluster_are_the_local_ones(tmp_path, monkeypatch):
+    """carto:sheet draws each sheet of SHEETS on a worker (which writes its FOLDER files) and
+    gathers the pages of OUTPUT from the workers' figures: with a fixed SOURCE_DATE_EPOCH (the
+    PDFs' creation date) every file is the local run's, byte for byte."""
+    import geopandas as gpd
+    import shapely
+    from distributed import LocalCluster
+
+    pypdf = pytest.importorskip("pypdf", reason="pypdf (dev extra) reads the PDFs back")
+    monkeypatch.delenv("DASK_SCHEDULER_ADDRESS", raising=False)
+    monkeypatch.setenv("SOURCE_DATE_EPOCH", "1700000000")  # inherited by the worker processes
+    dem = tmp_path / "dem.tif"
+    _bumpy_dem(dem)
+    contours = tmp_path / "contours.gpkg"
+    toolbox.run("carto:contours", {"INPUT": dem, "INTERVAL": 5, "OUTPUT": contours})
+    gpd.GeoDataFrame({"name": ["W", "E"]}, geometry=[
+        shapely.box(X0, Y0 - 450, X0 + 175, Y0), shapely.box(X0 + 175, Y0 - 450, X0 + 350, Y0)],
+        crs="EPSG:3003").to_file(tmp_path / "sheets.gpkg")
+
+    def run(where, tag):
+        folder = tmp_path / f"folder_{tag}"
+        result = toolbox.run("carto:sheet", {
+            "SHEETS": tmp_path / "sheets.gpkg", "SHEET_ID": "name", "SCALE": 2000, "BASE": dem,
+            "CONTOURS": contours, "DATE": "2026-12-03", "SCHEDULER": where,
+            "OUTPUT": tmp_path / f"atlas_{tag}.pdf", "PNG": tmp_path / f"first_{tag}.png",
+            "FOLDER": folder})
+        files = {p.name: p.read_bytes() for p in sorted(folder.iterdir())}
+        files |= {name: (tmp_path / f"{name}_{tag}.{ext}").read_bytes()
+                  for name, ext in (("atlas", "pdf"), ("first", "png"))}
+        return result["SHEETS_WRITTEN"], files
+
+    local_sheets, local = run("local", "local")
+    import toolbox.cartography.sheet_job as sheet_job
+
+    def not_here(*args, **kwargs):
+        raise AssertionError("a sheet was drawn in the client, not on a worker")
+
+    monkeypatch.setattr(sheet_job, "render_sheet", not_here)  # the workers' modules are theirs
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                      dashboard_address=":0") as cluster:
+        sheets, files = run(cluster.scheduler_address, "dask")
+    assert sorted(files) == ["E.pdf", "E.png", "W.pdf", "W.png", "atlas", "first"]
+    assert [s["sheet"] for s in sheets] == ["W", "E"]
+    assert [{k: v for k, v in s.items() if k != "files"} for s in sheets] == \
+        [{k: v for k, v in s.items() if k != "files"} for s in local_sheets]
+    assert len(pypdf.PdfReader(tmp_path / "atlas_dask.pdf").pages) == 2
+    assert {name for name in files if files[name] != local[name]} == set()
