@@ -46,10 +46,10 @@ class MosaicSeamlines(Algorithm):
     overview first, then refined at full resolution in a corridor, chunk by chunk. Where two
     cut polygons share several separate boundary pieces only the longest is re-routed; a seam
     whose ends are not connected inside the overlap stays Voronoi (both with a warning or note
-    in STATISTICS). Seams that share no cut polygon are routed at the same time, on local
-    threads or on a Dask cluster (SCHEDULER or DASK_SCHEDULER_ADDRESS; each worker reads the two
-    orthos of its seam, so they must be on storage the workers share), in waves that give the
-    one-by-one result exactly: the file is the same either way.
+    in STATISTICS). On a Dask cluster (SCHEDULER or DASK_SCHEDULER_ADDRESS) seams that share
+    no cut polygon are routed at the same time (each worker reads the two orthos of its seam, so
+    they must be on storage the workers share), in waves that give the one-by-one result
+    exactly: the file is the local run's. Locally the seams are routed one after the other.
 
     OUTPUT (GeoPackage): layer cut_polygons (source_id, source = ortho file name, path relative
     to the output's folder, area) forms an exact partition of the area (no gaps, no overlaps);

@@ -17,12 +17,13 @@ from toolbox.registry import spec_index
 
 X0, Y0 = 1_688_000.0, 4_799_500.0
 
-# the algorithms whose work splits into independent tasks (tiles, blocks, photos, pairs)
-SPLIT_WORK = ["carto:contours", "dem:aspect", "dem:cubic", "dem:ground", "dem:hillshade", "dem:idw",
-              "dem:match", "dem:nearest", "dem:plane", "dem:quadratic", "dem:slope",
-              "dem:tin_linear", "mosaic:build", "mosaic:cut", "mosaic:seamlines",
-              "orientation:tiepoints",
-              "ortho:batch", "rectify:image", "tin:to_raster"]
+# the algorithms whose work splits into independent tasks (tiles, blocks, photos, pairs,
+# seams, sheets)
+SPLIT_WORK = ["carto:contours", "carto:sheet", "dem:aspect", "dem:cubic", "dem:ground",
+              "dem:hillshade", "dem:idw", "dem:match", "dem:nearest", "dem:plane",
+              "dem:quadratic", "dem:slope", "dem:tin_linear", "mosaic:build", "mosaic:cut",
+              "mosaic:seamlines", "orientation:tiepoints", "ortho:batch", "rectify:image",
+              "tin:to_raster"]
 
 
 def _sha(path) -> str:
@@ -267,8 +268,9 @@ def test_seam_waves_keep_the_order_of_seams_sharing_a_polygon():
 
 
 def test_seams_routed_in_waves_are_the_seams_routed_one_by_one(tmp_path):
-    """least_cost_cells on two threads (waves of independent seams) gives the cut polygons of
-    routing every seam in turn on the polygons the previous ones left."""
+    """least_cost_cells (waves of independent seams, each wave's tasks made from the polygons
+    the earlier waves left) gives the cut polygons of routing every seam in turn on the
+    polygons the previous ones left."""
     from toolbox.executor import Executor
     from toolbox.mosaic.block import centres_of, open_block
     from toolbox.mosaic.partition import seamlines, voronoi_cells
