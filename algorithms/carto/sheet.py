@@ -19,6 +19,7 @@ from toolbox.parameters import (
 from toolbox.parameters.outputs import Output, OutputFile, OutputFolder
 from toolbox.registry import register
 from toolbox.ui.cartography import sheet_parameters, sheet_source
+from toolbox.ui.execution import executor_of, scheduler_parameter
 
 
 @register
@@ -60,7 +61,10 @@ class Sheet(Algorithm):
     ``SHEETS`` (``SHEET_ID number``) for one sheet per element of the index.
 
     With ``SHEETS``, ``OUTPUT`` holds one page per sheet, and ``FOLDER`` (if given) receives one
-    ``<sheet id>.pdf`` and ``.png`` per sheet.
+    ``<sheet id>.pdf`` and ``.png`` per sheet. On a Dask cluster (SCHEDULER or
+    DASK_SCHEDULER_ADDRESS) each sheet is drawn on a worker, which writes its FOLDER files and
+    PNG (on storage the workers share) and sends its page back for OUTPUT; locally the sheets
+    are drawn one after the other in this process.
     """
 
     id = "carto:sheet"
@@ -93,6 +97,7 @@ class Sheet(Algorithm):
                     geometry_types=["polygon"], optional=True),
         Field("INDEX_ID", "sheet number field of INDEX (default: number)", parent="INDEX",
               optional=True),
+        scheduler_parameter("the sheets"),
         OutputFile("OUTPUT", "sheet PDF (one page per sheet)", extensions=[".pdf"],
                    optional=True),
         OutputFile("PNG", "PNG of the (first) sheet", extensions=[".png"], optional=True),
@@ -141,4 +146,4 @@ def sheet_job(params: dict):
         colours=params.get("COLOURS"), sources=params.get("SOURCES"), date=params.get("DATE"),
         grid_crs=params.get("GRID_CRS"), index=params.get("INDEX"),
         index_field=params.get("INDEX_ID"), output=params.get("OUTPUT"), png=params.get("PNG"),
-        folder=params.get("FOLDER"))
+        folder=params.get("FOLDER"), executor=executor_of(params))

@@ -24,9 +24,10 @@ class MosaicCut(Algorithm):
     <id>.gpkg. Sheets holding no data are skipped. OUTPUT is a folder; it also receives
     sheets.gpkg, the sheet index (id, file, written). The sheet files are written all or none
     (staged, moved into OUTPUT on success); an existing one is replaced only with --overwrite,
-    other files of OUTPUT are left alone. Raster sheets are cut in parallel on local threads or
-    on a Dask cluster (SCHEDULER; the workers write the sheet files, so OUTPUT must be on storage
-    they share).
+    other files of OUTPUT are left alone. Sheets are cut in parallel on local threads or on a
+    Dask cluster (SCHEDULER or DASK_SCHEDULER_ADDRESS; the workers write the sheet files, so
+    OUTPUT must be on storage they share; a raster INPUT is read by the workers too, a vector
+    layer is read once and each sheet's task carries its own features).
     """
 
     id = "mosaic:cut"
@@ -47,7 +48,7 @@ class MosaicCut(Algorithm):
                min_exclusive=True),
         Number("ORIGIN_X", "sheet grid origin, easting", default=0.0),
         Number("ORIGIN_Y", "sheet grid origin, northing", default=0.0),
-        scheduler_parameter("the raster sheets"),
+        scheduler_parameter("the sheets"),
         OutputFolder("OUTPUT", "folder for the sheet files"),
     ]
     outputs = [Output("STATISTICS", "sheets written and skipped", "dict")]
@@ -71,7 +72,13 @@ class MosaicCut(Algorithm):
 
         from toolbox.executor import map_tiles
         from toolbox.io.vector_write import write_layers
-        from toolbox.mosaic.sheets import RasterSheet, clip_raster_sheet, clip_vector, sheet_ids_unique
+        from toolbox.mosaic.sheets import (
+            RasterSheet,
+            clip_raster_sheet,
+            clip_vector_sheet,
+            sheet_ids_unique,
+            vector_sheets,
+        )
 
         source, kind, crs, sheets = _sheets(params)
         folder = params["OUTPUT"]
@@ -80,14 +87,13 @@ class MosaicCut(Algorithm):
                 for (sid, geom), name in zip(sheets, names, strict=True)
                 if geom is not None and not geom.is_empty]
         if kind == "raster":
-            tasks = (RasterSheet(str(source), geom, str(target)) for _, geom, target in todo)
-            written = list(map_tiles(clip_raster_sheet, tasks, executor=executor_of(params),
-                                     feedback=feedback, total=len(todo)))
-        else:
-            written = []
-            for _, geom, target in feedback.iterate(todo):
-                feedback.check_canceled()
-                written.append(clip_vector(source, geom, target, "clipped") > 0)
+            func, tasks = clip_raster_sheet, (RasterSheet(str(source), geom, str(target))
+                                              for _, geom, target in todo)
+        else:  # each task carries only its sheet's features
+            func, tasks = clip_vector_sheet, vector_sheets(source, [(geom, target)
+                                                                    for _, geom, target in todo])
+        written = list(map_tiles(func, tasks, executor=executor_of(params), feedback=feedback,
+                                 total=len(todo)))
         rows = [{"sheet_id": sid, "file": target.name if done else "", "written": bool(done),
                  "geometry": geom} for (sid, geom, target), done in zip(todo, written, strict=True)]
         write_layers(folder / "sheets.gpkg",

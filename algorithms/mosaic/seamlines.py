@@ -7,6 +7,7 @@ from toolbox.feedback import Feedback
 from toolbox.parameters import Enum, Field, Integer, Number, RasterLayer, VectorLayer
 from toolbox.parameters.outputs import Layer, Output, OutputVector
 from toolbox.registry import register
+from toolbox.ui.execution import executor_of, scheduler_parameter
 from toolbox.ui.mosaic import orthos_parameter
 
 METHODS = ("voronoi", "least_cost")
@@ -45,7 +46,10 @@ class MosaicSeamlines(Algorithm):
     overview first, then refined at full resolution in a corridor, chunk by chunk. Where two
     cut polygons share several separate boundary pieces only the longest is re-routed; a seam
     whose ends are not connected inside the overlap stays Voronoi (both with a warning or note
-    in STATISTICS).
+    in STATISTICS). On a Dask cluster (SCHEDULER or DASK_SCHEDULER_ADDRESS) seams that share
+    no cut polygon are routed at the same time (each worker reads the two orthos of its seam, so
+    they must be on storage the workers share), in waves that give the one-by-one result
+    exactly: the file is the local run's. Locally the seams are routed one after the other.
 
     OUTPUT (GeoPackage): layer cut_polygons (source_id, source = ortho file name, path relative
     to the output's folder, area) forms an exact partition of the area (no gaps, no overlaps);
@@ -97,6 +101,7 @@ class MosaicSeamlines(Algorithm):
                     optional=True),
         Integer("MAX_CELLS", "largest least-cost grid before overview + corridor",
                 default=4_000_000, min_value=10_000),
+        scheduler_parameter("the seams"),
         OutputVector("OUTPUT", "GeoPackage: cut_polygons, seamlines, footprints, centres", layers=[
             Layer("cut_polygons", "MultiPolygon", [("source_id", "integer"), ("source", "string"),
                                                    ("path", "string"), ("area", "real")],
@@ -156,6 +161,7 @@ class MosaicSeamlines(Algorithm):
             cells = voronoi_cells(footprints, centres)
         feedback.set_progress(20)
         seam_report = []
+        executor = executor_of(params)
         if params["METHOD"] == "least_cost" and len(sources) > 1:
             weights = CostWeights(difference=params["DIFFERENCE_WEIGHT"],
                                   gradient=params["GRADIENT_WEIGHT"],
@@ -176,7 +182,7 @@ class MosaicSeamlines(Algorithm):
             with feedback.timed("least_cost"):
                 cells, seam_report = least_cost_cells(cells, footprints, cost_for, cell,
                                                       params["MAX_CELLS"],
-                                                      feedback.step(20, 95))
+                                                      feedback.step(20, 95), executor)
             for entry in seam_report:
                 if entry["method"] != "least_cost":
                     feedback.push_warning(f"seam {sources[entry['a']].name} / "
@@ -203,7 +209,7 @@ class MosaicSeamlines(Algorithm):
             geometry_types={"cut_polygons": "MultiPolygon", "seamlines": "MultiLineString",
                             "footprints": "MultiPolygon", "centres": "Point"})
         return {"OUTPUT": params["OUTPUT"], "STATISTICS": {
-            "method": params["METHOD"], "orthos": len(sources),
+            "method": params["METHOD"], "orthos": len(sources), "executor": executor.describe(),
             "area": float(area.area), "partition_gap_area": gap, "max_overlap_area": overlap,
             "cut_areas": {s.name: float(c.area) for s, c in zip(sources, cells, strict=True)},
             "seam_grid_cell": grid.cell_size[0],

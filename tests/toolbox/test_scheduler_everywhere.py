@@ -17,11 +17,13 @@ from toolbox.registry import spec_index
 
 X0, Y0 = 1_688_000.0, 4_799_500.0
 
-# the algorithms whose work splits into independent tasks (tiles, blocks, photos, pairs)
-SPLIT_WORK = ["carto:contours", "dem:aspect", "dem:cubic", "dem:hillshade", "dem:idw",
-              "dem:match", "dem:nearest", "dem:plane", "dem:quadratic", "dem:slope",
-              "dem:tin_linear", "mosaic:build", "mosaic:cut", "orientation:tiepoints",
-              "ortho:batch", "rectify:image", "tin:to_raster"]
+# the algorithms whose work splits into independent tasks (tiles, blocks, photos, pairs,
+# seams, sheets)
+SPLIT_WORK = ["carto:contours", "carto:sheet", "dem:aspect", "dem:cubic", "dem:ground",
+              "dem:hillshade", "dem:idw", "dem:match", "dem:nearest", "dem:plane",
+              "dem:quadratic", "dem:slope", "dem:tin_linear", "mosaic:build", "mosaic:cut",
+              "mosaic:seamlines", "orientation:tiepoints", "ortho:batch", "rectify:image",
+              "tin:to_raster"]
 
 
 def _sha(path) -> str:
@@ -229,3 +231,165 @@ def test_dense_matching_pairs_on_a_cluster_write_the_local_dsm(tmp_path, monkeyp
     a, b = (laspy.read(outs["POINTS"]), laspy.read(local["POINTS"]))
     assert len(a.points) == len(b.points) == stats["points_written"] > 10000
     assert np.array_equal(a.xyz, b.xyz) and np.array_equal(a.red, b.red)
+
+
+def _grid_block(folder):
+    """Four 260 x 260 m orthos on a 2 x 2 grid with 60 m overlaps: two seams in each direction,
+    so seams sharing no cut polygon (0/1 and 2/3, then 0/2 and 1/3) are routed side by side."""
+    from toolbox.demo.samples.mosaic import make_block
+
+    specs = [{"name": f"g{r}{c}", "bounds": (200 * c, 200 * r, 200 * c + 260, 200 * r + 260),
+              "nadir": (200 * c + 130, 200 * r + 130), "gain": 1.0 + 0.04 * (2 * r + c)}
+             for r in range(2) for c in range(2)]
+    orthos, _ = make_block(folder, specs, building=(230.0, 230.0, 15.0))
+    return [str(o.path) for o in orthos]
+
+
+def _same_geopackage(a, b):
+    """The two GeoPackages hold the same layers with the same rows and geometries, exactly (a
+    GeoPackage stores its creation time: the bytes differ)."""
+    import geopandas as gpd
+    import pyogrio
+    from geopandas.testing import assert_geodataframe_equal
+
+    names = [name for name, _ in pyogrio.list_layers(a)]
+    assert names == [name for name, _ in pyogrio.list_layers(b)]
+    for name in names:
+        assert_geodataframe_equal(gpd.read_file(a, layer=name), gpd.read_file(b, layer=name))
+    return names
+
+
+def test_seam_waves_keep_the_order_of_seams_sharing_a_polygon():
+    from toolbox.mosaic.seams import seam_waves
+
+    pairs = [(0, 1), (2, 3), (0, 2), (1, 3), (0, 3), (4, 5), (1, 2)]
+    assert seam_waves(pairs) == [[0, 1, 5], [2, 3], [4, 6]]
+    assert seam_waves([]) == []
+
+
+def test_seams_routed_in_waves_are_the_seams_routed_one_by_one(tmp_path):
+    """least_cost_cells (waves of independent seams, each wave's tasks made from the polygons
+    the earlier waves left) gives the cut polygons of routing every seam in turn on the
+    polygons the previous ones left."""
+    from toolbox.executor import Executor
+    from toolbox.mosaic.block import centres_of, open_block
+    from toolbox.mosaic.partition import seamlines, voronoi_cells
+    from toolbox.mosaic.seams import CostWeights, PairCost, SeamTask, least_cost_cells, route_seam
+
+    sources, crs = open_block(_grid_block(tmp_path), "INPUT", None)
+    centres = centres_of(sources, "nadir", None, None)
+    footprints = [s.footprint for s in sources]
+    start = voronoi_cells(footprints, centres)
+
+    def cost_for(i, j):
+        return PairCost(sources[i], sources[j], crs, CostWeights(), centres=(centres[i],
+                                                                            centres[j]))
+
+    waved, report = least_cost_cells(start, footprints, cost_for, 2.0,
+                                     executor=Executor("local", 2))
+    cells = list(start)
+    pairs = [(i, j) for i, j, _ in sorted(seamlines(cells), key=lambda s: -s[2].length)]
+    for i, j in pairs:
+        entry, new = route_seam(SeamTask(i, j, cells[i], cells[j], footprints[i], footprints[j],
+                                         cost_for(i, j), 2.0, 4_000_000))
+        if new is not None:
+            cells[i], cells[j] = new
+    assert sum(e["method"] == "least_cost" for e in report) >= 4
+    assert [(e["a"], e["b"]) for e in report] == pairs
+    assert all(a.equals_exact(b, 0) for a, b in zip(waved, cells, strict=True))
+    assert not all(a.equals_exact(b, 0) for a, b in zip(waved, start, strict=True))
+
+
+@pytest.mark.distributed
+@pytest.mark.slow
+def test_seams_and_vector_sheets_on_a_cluster_are_the_local_ones(tmp_path, monkeypatch):
+    """mosaic:seamlines routes independent seams on the workers and mosaic:cut clips a vector
+    layer's sheets there: the GeoPackages hold what the local runs write."""
+    from distributed import LocalCluster
+
+    monkeypatch.delenv("DASK_SCHEDULER_ADDRESS", raising=False)
+    orthos = _grid_block(tmp_path / "block")
+    seams = {"INPUT": orthos, "METHOD": "least_cost", "SEAM_CELL_SIZE": 2.0}
+
+    def cut(where, tag):
+        folder = tmp_path / f"sheets_{tag}"
+        stats = toolbox.run("mosaic:cut", {"INPUT": tmp_path / "seams_local.gpkg", "SCALE": 1000,
+                                           "SHEET_WIDTH": 15, "SHEET_HEIGHT": 15,
+                                           "SCHEDULER": where,
+                                           "OUTPUT": folder})["STATISTICS"]
+        return stats, folder
+
+    local = toolbox.run("mosaic:seamlines", seams | {"SCHEDULER": "local",
+                                                     "OUTPUT": tmp_path / "seams_local.gpkg"})
+    cut_local, folder_local = cut("local", "local")
+    import toolbox.mosaic.sheets as sheets
+
+    def not_here(*args, **kwargs):
+        raise AssertionError("a sheet was clipped in the client, not on a worker")
+
+    monkeypatch.setattr(sheets, "clip_vector", not_here)  # the workers' modules are theirs
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                      dashboard_address=":0") as cluster:
+        address = cluster.scheduler_address
+        dask = toolbox.run("mosaic:seamlines", seams | {"SCHEDULER": address,
+                                                        "OUTPUT": tmp_path / "seams_dask.gpkg"})
+        cut_dask, folder_dask = cut(address, "dask")
+    assert dask["STATISTICS"]["executor"] == f"dask scheduler {address}"
+    assert sum(s["method"] == "least_cost" for s in dask["STATISTICS"]["seams"]) >= 4
+    assert dask["STATISTICS"]["seams"] == local["STATISTICS"]["seams"]
+    assert "seamlines" in _same_geopackage(tmp_path / "seams_local.gpkg",
+                                           tmp_path / "seams_dask.gpkg")
+    assert cut_dask["files"] == cut_local["files"] and cut_dask["written"] >= 4
+    for name in cut_local["files"]:
+        _same_geopackage(folder_local / name, folder_dask / name)
+
+
+@pytest.mark.distributed
+@pytest.mark.slow
+def test_map_sheets_drawn_on_a_cluster_are_the_local_ones(tmp_path, monkeypatch):
+    """carto:sheet draws each sheet of SHEETS on a worker (which writes its FOLDER files) and
+    gathers the pages of OUTPUT from the workers' figures: with a fixed SOURCE_DATE_EPOCH (the
+    PDFs' creation date) every file is the local run's, byte for byte."""
+    import geopandas as gpd
+    import shapely
+    from distributed import LocalCluster
+
+    pypdf = pytest.importorskip("pypdf", reason="pypdf (dev extra) reads the PDFs back")
+    monkeypatch.delenv("DASK_SCHEDULER_ADDRESS", raising=False)
+    monkeypatch.setenv("SOURCE_DATE_EPOCH", "1700000000")  # inherited by the worker processes
+    dem = tmp_path / "dem.tif"
+    _bumpy_dem(dem)
+    contours = tmp_path / "contours.gpkg"
+    toolbox.run("carto:contours", {"INPUT": dem, "INTERVAL": 5, "OUTPUT": contours})
+    gpd.GeoDataFrame({"name": ["W", "E"]}, geometry=[
+        shapely.box(X0, Y0 - 450, X0 + 175, Y0), shapely.box(X0 + 175, Y0 - 450, X0 + 350, Y0)],
+        crs="EPSG:3003").to_file(tmp_path / "sheets.gpkg")
+
+    def run(where, tag):
+        folder = tmp_path / f"folder_{tag}"
+        result = toolbox.run("carto:sheet", {
+            "SHEETS": tmp_path / "sheets.gpkg", "SHEET_ID": "name", "SCALE": 2000, "BASE": dem,
+            "CONTOURS": contours, "DATE": "2026-12-03", "SCHEDULER": where,
+            "OUTPUT": tmp_path / f"atlas_{tag}.pdf", "PNG": tmp_path / f"first_{tag}.png",
+            "FOLDER": folder})
+        files = {p.name: p.read_bytes() for p in sorted(folder.iterdir())}
+        files |= {name: (tmp_path / f"{name}_{tag}.{ext}").read_bytes()
+                  for name, ext in (("atlas", "pdf"), ("first", "png"))}
+        return result["SHEETS_WRITTEN"], files
+
+    local_sheets, local = run("local", "local")
+    import toolbox.cartography.sheet_job as sheet_job
+
+    def not_here(*args, **kwargs):
+        raise AssertionError("a sheet was drawn in the client, not on a worker")
+
+    monkeypatch.setattr(sheet_job, "render_sheet", not_here)  # the workers' modules are theirs
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                      dashboard_address=":0") as cluster:
+        sheets, files = run(cluster.scheduler_address, "dask")
+    assert sorted(files) == ["E.pdf", "E.png", "W.pdf", "W.png", "atlas", "first"]
+    assert [s["sheet"] for s in sheets] == ["W", "E"]
+    assert [{k: v for k, v in s.items() if k != "files"} for s in sheets] == \
+        [{k: v for k, v in s.items() if k != "files"} for s in local_sheets]
+    assert len(pypdf.PdfReader(tmp_path / "atlas_dask.pdf").pages) == 2
+    assert {name for name in files if files[name] != local[name]} == set()

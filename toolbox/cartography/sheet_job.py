@@ -76,6 +76,7 @@ class SheetJob:
     output: Path | None = None
     png: Path | None = None
     folder: Path | None = None
+    executor: Any = None  # toolbox.executor.Executor; None or local: drawn in this process
 
 
 def layer_styles(job: SheetJob) -> tuple[list[tuple[str, object]], list]:
@@ -223,6 +224,9 @@ def run_sheets(job: SheetJob, feedback) -> dict:
                         f"sheets={','.join(s for s, _ in sheets)}",
             "Creator": "photogrammetry-toolbox carto:sheet"}
     pages = PdfPages(job.output, metadata=meta) if job.output else None
+    if job.executor is not None and job.executor.kind == "dask":
+        return _run_sheets_on_cluster(job, sheets, crs, styles, contours, index, sources, date,
+                                      names, pages, feedback)
     try:
         for i, (sheet_id, polygon) in enumerate(feedback.iterate(sheets, start=0, end=100)):
             feedback.check_canceled()
@@ -258,3 +262,104 @@ def run_sheets(job: SheetJob, feedback) -> dict:
                 pages.close()
     return {"OUTPUT": job.output, "PNG": job.png,
             "SHEETS_WRITTEN": written}
+
+
+@dataclass(frozen=True)
+class SheetTask:
+    """One sheet drawn on a Dask worker: what :func:`render_sheet` takes (layers and contours
+    cut to the sheet's bounds, as it cuts them), and whether to send back the figure for the
+    client's multi-page PDF."""
+
+    spec: SheetSpec
+    common: dict
+    pdfs: list
+    pngs: list
+    page: bool
+
+
+class _PickledPage:
+    """Stands for ``PdfPages`` on a worker: keeps the figure, pickled, for the client's page."""
+
+    def __init__(self):
+        self.blob: bytes | None = None
+
+    def savefig(self, fig) -> None:
+        import pickle
+
+        self.blob = pickle.dumps(fig)
+
+
+_PYPLOT = __import__("threading").Lock()  # pyplot is not thread-safe: one sheet per process
+
+
+def render_sheet_task(task: SheetTask) -> tuple[dict, bytes | None]:
+    """``(render_sheet's page geometry, the pickled figure or None)`` of one sheet."""
+    page = _PickledPage() if task.page else None
+    with _PYPLOT:
+        info = render_sheet(task.spec, pdfs=task.pdfs, pngs=task.pngs, pdf_pages=page,
+                            **task.common)
+    return info, None if page is None else page.blob
+
+
+def _run_sheets_on_cluster(job: SheetJob, sheets, crs, styles, contours, index, sources, date,
+                           names, pages, feedback) -> dict:
+    """Each sheet drawn on a worker (the FOLDER and PNG files written there); the multi-page
+    OUTPUT PDF gathered here from the workers' figures, in sheet order."""
+    import pickle
+    from dataclasses import replace
+
+    import matplotlib
+    import matplotlib.pyplot as plt
+
+    from toolbox.executor import map_tiles
+    from toolbox.io.crs import crs_label
+    from toolbox.io.staging import final_path
+
+    folder = Path(job.folder) if job.folder else None
+    second = _second_grid(crs, job.grid_crs)
+
+    def tasks():
+        for i, (sheet_id, polygon) in enumerate(sheets):
+            spec = SheetSpec(polygon.bounds, job.scale, job.title, sheet_id, crs_label(crs),
+                             date, [sources], job.paper, datum=_datum(crs),
+                             producer=f"photogrammetry-toolbox {__version__}")
+            x0, y0, x1, y1 = polygon.bounds
+            common = dict(base=job.base, base_name=_name(job.base) if job.base is not None
+                          else "", grid_style=job.grid_style, map_step_mm=job.map_step,
+                          png_dpi=job.png_dpi, second_grid=second,
+                          styles=[replace(st, frame=st.frame.cx[x0:x1, y0:y1])
+                                  for st in styles],
+                          contours=None if contours is None else contours.cx[x0:x1, y0:y1])
+            if index is not None:
+                common["index"] = (index, job.index_field or "number", polygon)
+            if second is not None:
+                spec.second_crs = second[1]
+            files = [folder / f"{names[i]}.pdf", folder / f"{names[i]}.png"] if folder else []
+            pngs = ([job.png] if job.png and i == 0 else []) + files[1:]
+            yield SheetTask(spec, common, [str(f) for f in files[:1]], [str(f) for f in pngs],
+                            pages is not None)
+
+    written = []
+    try:
+        for (sheet_id, _), (info, blob) in zip(sheets, map_tiles(
+                render_sheet_task, tasks(), executor=job.executor, feedback=feedback,
+                total=len(sheets)), strict=True):
+            if blob is not None:
+                fig = pickle.loads(blob)
+                try:
+                    with matplotlib.rc_context({"pdf.fonttype": 42}):
+                        pages.savefig(fig)
+                finally:
+                    plt.close(fig)
+            if info["labels_left_out"]:
+                feedback.push_warning(f"sheet {sheet_id}: {info['labels_left_out']} spot-height "
+                                      "label(s) left out: no free place beside the point at "
+                                      f"1:{job.scale:g}")
+            files = [folder / f"{n}" for n in (f"{names[len(written)]}.pdf",
+                                                f"{names[len(written)]}.png")] if folder else []
+            written.append(info | {"files": [str(final_path(f)) for f in files]})
+    finally:
+        if pages is not None:
+            with matplotlib.rc_context({"pdf.fonttype": 42}):
+                pages.close()
+    return {"OUTPUT": job.output, "PNG": job.png, "SHEETS_WRITTEN": written}

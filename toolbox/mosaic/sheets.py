@@ -113,6 +113,32 @@ class _NoData(Exception):
     """A sheet without valid data: its file is not kept."""
 
 
+@dataclass(frozen=True)
+class VectorSheet:
+    """One sheet to cut from a vector layer (picklable: it runs on a Dask worker as well):
+    ``frame`` holds only the features whose bounding box meets the sheet, in layer order."""
+
+    frame: Any  # GeoDataFrame
+    sheet: Any  # shapely polygon
+    output: str
+    layer: str = "clipped"
+
+
+def vector_sheets(frame, sheets: list, layer: str = "clipped"):
+    """One :class:`VectorSheet` per ``(polygon, output path)`` of ``sheets``, lazily: each
+    carries the features of ``frame`` whose bounding box meets its polygon (spatial index), in
+    the layer's order, so that the clipped file is the one of the whole layer."""
+    index = frame.sindex
+    for polygon, output in sheets:
+        rows = np.sort(index.query(polygon))
+        yield VectorSheet(frame.iloc[rows], polygon, str(output), layer)
+
+
+def clip_vector_sheet(task: VectorSheet) -> bool:
+    """:func:`clip_vector` of one :class:`VectorSheet`; True when the sheet file was written."""
+    return clip_vector(task.frame, task.sheet, Path(task.output), task.layer) > 0
+
+
 def clip_vector(frame, sheet, output: Path, layer: str) -> int:
     """Write the features of ``frame`` clipped to polygon ``sheet`` into GeoPackage ``output``
     (layer ``layer``). Returns the feature count (0: nothing written)."""
