@@ -60,6 +60,13 @@ def default_workers() -> int:
         return max(1, os.cpu_count() or 1)
 
 
+def local_executor() -> Executor:
+    """Local threads, one per CPU of the process that calls it, whatever
+    ``DASK_SCHEDULER_ADDRESS`` says: the windows of one task that the scheduler already placed
+    (a photo of ortho:batch, on the client's threads or on a Dask worker)."""
+    return Executor("local", default_workers())
+
+
 def scheduler_address(value: str | None = None) -> str | None:
     """The Dask scheduler to use: ``value`` when given, else Dask's configured
     ``scheduler-address`` (environment variable ``DASK_SCHEDULER_ADDRESS``), else ``None``

@@ -30,6 +30,7 @@ def run_task(task: OrthoTask) -> dict[str, Any]:
     from pathlib import Path
 
     from toolbox.errors import ToolboxError
+    from toolbox.executor import local_executor
     from toolbox.feedback import CollectingFeedback
     from toolbox.io.staging import atomic_path
 
@@ -39,7 +40,8 @@ def run_task(task: OrthoTask) -> dict[str, Any]:
         with atomic_path(final, "FOLDER") as staged:
             report = orthorectify(task.photo, task.image, task.dem, task.grid, staged,
                                   task.options, None, task.reference_height,
-                                  map_scale=task.map_scale, feedback=feedback)
+                                  map_scale=task.map_scale, feedback=feedback,
+                                  executor=local_executor())
     except ToolboxError as exc:
         return {"photo": task.photo.id, "error": str(exc)}
     report["output"] = str(final)

@@ -104,7 +104,8 @@ def rpc_plan(camera: Any, dem: Any, band: int = 1, cell: float | None = None,
 
 
 def rpc_orthorectify(camera: Any, image: Any, dem: Any, grid: Any, output: Any,
-                     options: Any = None, feedback: Any = None) -> dict[str, Any]:
+                     options: Any = None, feedback: Any = None,
+                     executor: Any = None) -> dict[str, Any]:
     """Orthorectify the RPC image ``image`` (RasterInfo) on ``dem`` onto ``grid`` (the camera's
     CRS) into the GeoTIFF ``output``; ``options`` an :class:`~toolbox.ortho.run.OrthoOptions`
     (resampling, outside, nodata, band, dem_factor, chunk, overviews, cog). Returns the
@@ -130,7 +131,8 @@ def rpc_orthorectify(camera: Any, image: Any, dem: Any, grid: Any, output: Any,
                                overviews=options.overviews, cog=options.cog,
                                feedback=feedback.step(0, 100),
                                tags={"ORTHO_CAMERA": "rpc",
-                                     "ORTHO_RESAMPLING": options.resampling})
+                                     "ORTHO_RESAMPLING": options.resampling},
+                               executor=executor)
     totals = cmap.totals()
     cells = max(totals.cells, 1)
     report = {"image": str(image.path), "camera": "rpc", "crs": crs_label(grid.crs),

@@ -136,6 +136,7 @@ def run_rpc_task(task: RpcTask) -> dict[str, Any]:
     from toolbox.errors import ToolboxError
     from toolbox.feedback import CollectingFeedback
     from toolbox.io.staging import atomic_path
+    from toolbox.executor import local_executor
     from toolbox.ortho.rpc import rpc_orthorectify
 
     final = Path(task.output)
@@ -143,7 +144,7 @@ def run_rpc_task(task: RpcTask) -> dict[str, Any]:
     try:
         with atomic_path(final, "FOLDER") as staged:
             report = rpc_orthorectify(task.camera, task.image, task.dem, task.grid, staged,
-                                      task.options, feedback)
+                                      task.options, feedback, executor=local_executor())
     except ToolboxError as exc:
         return {"photo": task.id, "error": str(exc)}
     report.update(photo=task.id, output=str(final), warnings=feedback.warnings)

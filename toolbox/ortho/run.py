@@ -51,7 +51,7 @@ def orthorectify(photo: Any, image: Any, dem: Any, grid: Any, output: Any,
                  options: OrthoOptions | None = None, surface: Any = None,
                  reference_height: float | None = None, mask_output: Any = None,
                  incidence_output: Any = None, map_scale: float | None = None,
-                 feedback: Any = None) -> dict[str, Any]:
+                 feedback: Any = None, executor: Any = None) -> dict[str, Any]:
     """Orthorectify one photo onto ``grid`` and write ``output`` (GeoTIFF, or COG).
 
     Parameters
@@ -71,6 +71,9 @@ def orthorectify(photo: Any, image: Any, dem: Any, grid: Any, output: Any,
     mask_output, incidence_output : path, optional
         Occlusion mask (uint8: 1 hidden, 0 seen, 255 no height) and incidence angle (float32,
         degrees) on the same grid.
+    executor : toolbox.executor.Executor, optional
+        Where the output windows run (default: the raster engine's, which honours
+        ``DASK_SCHEDULER_ADDRESS``); a block's task passes local threads.
 
     Returns
     -------
@@ -149,7 +152,7 @@ def orthorectify(photo: Any, image: Any, dem: Any, grid: Any, output: Any,
             warp = warp_to_geotiff(image.path, windows, grid, output, options.resampling,
                                    options.outside, options.nodata, chunk=options.chunk,
                                    overviews=options.overviews, cog=options.cog,
-                                   feedback=feedback, tags=tags)
+                                   feedback=feedback, tags=tags, executor=executor)
     windows.release()
     totals = windows.totals()
     photo_gsd = ground_sample_distance(photo, reference_height)

@@ -118,6 +118,26 @@ def test_block_on_a_dask_cluster_equals_the_local_run(tmp_path, monkeypatch):
         assert (a.read() == b.read()).all()
 
 
+def test_scheduler_local_is_not_overridden_by_the_environment(tmp_path, monkeypatch):
+    """SCHEDULER local decides every photo's windows too: a DASK_SCHEDULER_ADDRESS naming no
+    cluster (nothing listens on port 9) must not be contacted, and the orthos equal a run
+    without the variable."""
+    sc = scene.make_scene(tmp_path)
+    common = {"PROJECT": sc.project_path, "DEM": sc.dem_path, "CELL_SIZE": 10.0,
+              "OVERVIEWS": False, "SCHEDULER": "local"}
+    monkeypatch.delenv("DASK_SCHEDULER_ADDRESS", raising=False)
+    toolbox.run("ortho:batch", common | {"FOLDER": str(tmp_path / "plain"),
+                                         "OUTPUT": tmp_path / "plain.json"})
+    monkeypatch.setenv("DASK_SCHEDULER_ADDRESS", "tcp://127.0.0.1:9")
+    out = toolbox.run("ortho:batch", common | {"FOLDER": str(tmp_path / "env"),
+                                               "OUTPUT": tmp_path / "env.json"})
+    assert out["STATISTICS"]["executor"].startswith("local threads")
+    assert out["STATISTICS"]["done"] == 1
+    with rasterio.open(tmp_path / "plain" / "p1.tif") as a, \
+            rasterio.open(tmp_path / "env" / "p1.tif") as b:
+        assert (a.read() == b.read()).all()
+
+
 def test_a_photo_task_reports_its_warnings_to_its_caller_once(tmp_path, caplog):
     """A block task runs on a thread or a worker: its warnings travel in its report for
     ortho:batch to push once; the task itself logs nothing (they were printed twice)."""
