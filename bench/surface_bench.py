@@ -397,11 +397,14 @@ def compare_quality(streamed: Path, memory: Path) -> str:
     keys = ("points", "predicted", "not_predicted", "max_abs_error", "worst_point_index",
             "worst_point", "hull_vertices_not_predicted")
     same = [k for k in keys if a.get(k) == b.get(k)]
-    rel = {k: abs(b[k] - a[k]) / abs(a[k]) for k in ("rmse", "mean_error", "mean_abs_error",
-                                                     "std_error") if a.get(k)}
+    sums = ("rmse", "mean_error", "mean_abs_error", "std_error")
+    rel = {k: abs(b[k] - a[k]) / abs(a[k]) for k in sums if a.get(k)}
+    diff = {k: abs(b[k] - a[k]) for k in sums if a.get(k) is not None}
     return (f"QUALITY streamed against in memory: equal {', '.join(same)} (of {len(keys)}); "
             f"RMSE {b['rmse']:.6f} m on {b['predicted']:,} points; relative differences "
-            + ", ".join(f"{k} {v:.1e}" for k, v in rel.items())
+            + ", ".join(f"{k} {v:.1e}" for k, v in rel.items()) + " (absolute: "
+            + ", ".join(f"{k} {v:.1e} m" for k, v in diff.items()) + f"; mean error "
+            f"{a['mean_error']:.3e} m in memory)"
             + f"; streamed QUALITY tiles {info.get('tiles')}, largest bucket "
             f"{info.get('bucket_points_max', 0):,}, {info.get('points_spilled', 0):,} points "
             "spilled")
