@@ -164,7 +164,9 @@ def stream_quality(method: Any, scan: Any, cloud: tuple, origin: np.ndarray, opt
         bins = PointBins.build(local[:, :2])
         predicted, used = method.loo_targets(bins, local[:, 2], targets, options, None, workers)
         if hull:
-            at_hull = np.array([(x, y) in hull for x, y in xyz[targets, :2]], dtype=bool)
+            xy = xyz[targets, :2]
+            at_hull = np.isin(xy[:, 0], [x for x, _ in hull])  # then the exact pairs
+            at_hull[at_hull] = [(x, y) in hull for x, y in xy[at_hull]]
             predicted[at_hull] = np.nan
             sums["hull"] += int(at_hull.sum())
         if used is not None:
