@@ -180,7 +180,7 @@ def case(name: str, work: Path, pair: int) -> dict:
 
         xyz, report = read_xyz(open_point_cloud(work / "cloud.laz"), PointFilter((2,)))
         extra = {"points_kept": report.kept}
-    elif name in ("grid", "grid_memory", "tin", "tin_memory"):
+    elif name in ("grid", "grid_memory", "tin", "tin_memory", "quality", "quality_memory"):
         import os
 
         import toolbox
@@ -188,15 +188,20 @@ def case(name: str, work: Path, pair: int) -> dict:
         # grid: streamed (two chunked passes, per-tile buckets on disk: any cloud above
         # 10 M points); grid_memory: the same run with every point held (the oracle); tin,
         # tin_memory: the same for dem:tin_linear
-        streamed = name in ("grid", "tin")
+        # quality, quality_memory: dem:nearest with QUALITY (leave-one-out), streamed / held
+        streamed = name in ("grid", "tin", "quality")
         os.environ["TOOLBOX_STREAM_POINTS"] = "0" if streamed else str(10 ** 12)
         out = {"grid": "toolbox.tif", "grid_memory": "memory.tif"}.get(name, f"{name}.tif")
         method = "tin_linear" if name.startswith("tin") else "nearest"
-        stats = toolbox.run(f"dem:{method}", {"INPUT": str(work / "cloud.laz"), "CLASSES": "2",
-                                            "CELL_SIZE": 1.0, "OUTPUT": str(work / out),
-                                            "OVERVIEWS": False})["STATISTICS"]
+        params = {"INPUT": str(work / "cloud.laz"), "CLASSES": "2", "CELL_SIZE": 1.0,
+                  "OUTPUT": str(work / out), "OVERVIEWS": False}
+        if name.startswith("quality"):
+            params["QUALITY"] = str(work / f"{name}_report.json")
+        stats = toolbox.run(f"dem:{method}", params)["STATISTICS"]
         extra = {"streamed": stats.get("streamed"), "points_used": stats["points_used"],
-                 "cells": stats["cells"]["cells_with_value"]}
+                 "cells": stats["cells"]["cells_with_value"],
+                 "cross_validation": stats.get("cross_validation"),
+                 "timings": stats.get("timings")}
     elif name == "numpy_bin":
         grid = bin_mean(work / "cloud.laz")
         np.save(work / "bin.npy", grid.astype(np.float32))
@@ -316,7 +321,7 @@ def measured_row(name: str, work: Path, pair: int) -> tuple[str, dict | None]:
     inner = json.loads((work / f"{name}.json").read_text())
     note = f"{inner['seconds']:.2f} s inside the process, {inner['cpu_seconds']:.0f} CPU s " \
            f"(all threads), load average {inner['load']:.1f} at the end"
-    if name in ("grid", "grid_memory", "tin", "tin_memory"):
+    if name in ("grid", "grid_memory", "tin", "tin_memory", "quality", "quality_memory"):
         note += f"; {inner['points_used']:,} points gridded, {inner['cells']:,} cells"
         info = inner.get("streamed")
         if info:
@@ -384,6 +389,27 @@ def compare_memory(streamed: Path, memory: Path) -> str:
             "differ).")
 
 
+def compare_quality(streamed: Path, memory: Path) -> str:
+    """The streamed QUALITY report against the in-memory one (the oracle)."""
+    a = json.loads(memory.read_text())["methods"]["nearest"]
+    b = json.loads(streamed.read_text())["methods"]["nearest"]
+    info = b.pop("streamed", {})
+    keys = ("points", "predicted", "not_predicted", "max_abs_error", "worst_point_index",
+            "worst_point", "hull_vertices_not_predicted")
+    same = [k for k in keys if a.get(k) == b.get(k)]
+    sums = ("rmse", "mean_error", "mean_abs_error", "std_error")
+    rel = {k: abs(b[k] - a[k]) / abs(a[k]) for k in sums if a.get(k)}
+    diff = {k: abs(b[k] - a[k]) for k in sums if a.get(k) is not None}
+    return (f"QUALITY streamed against in memory: equal {', '.join(same)} (of {len(keys)}); "
+            f"RMSE {b['rmse']:.6f} m on {b['predicted']:,} points; relative differences "
+            + ", ".join(f"{k} {v:.1e}" for k, v in rel.items()) + " (absolute: "
+            + ", ".join(f"{k} {v:.1e} m" for k, v in diff.items()) + f"; mean error "
+            f"{a['mean_error']:.3e} m in memory)"
+            + f"; streamed QUALITY tiles {info.get('tiles')}, largest bucket "
+            f"{info.get('bucket_points_max', 0):,}, {info.get('points_spilled', 0):,} points "
+            "spilled")
+
+
 def compare_tin(streamed: Path, memory: Path) -> str:
     """The streamed TIN grid against the in-memory one: same nodata, cells within 1e-9."""
     import rasterio
@@ -449,7 +475,8 @@ def main() -> None:
                 f"Stereo floor: a {args.pair} px noise pair"
             out += [title, "", "| case | seconds | peak MB | note |",
                     "|---|---|---|---|"]
-            for name in ("read", "grid", "grid_memory", "tin", "tin_memory", "numpy_bin", "pdal",
+            for name in ("read", "grid", "grid_memory", "tin", "tin_memory", "quality",
+                         "quality_memory", "numpy_bin", "pdal",
                          "sgbm",
                          "match_pair", "epipolar"):
                 stereo_case = name in ("sgbm", "match_pair", "epipolar")
@@ -458,7 +485,8 @@ def main() -> None:
                     continue
                 if args.cases and name not in args.cases.split(","):
                     continue
-                if name in ("grid_memory", "tin_memory") and args.points > args.grid_max:
+                if name in ("grid_memory", "tin_memory", "quality_memory") \
+                        and args.points > args.grid_max:
                     out.append(f"| {name} | - | - | not run: {args.points:,} points is "
                                f"over --grid-max {args.grid_max:,} (see the notes) |")
                     continue
@@ -470,6 +498,10 @@ def main() -> None:
                                           work / "cloud.laz")]
             if (work / "toolbox.tif").exists() and (work / "memory.tif").exists():
                 out += ["", compare_memory(work / "toolbox.tif", work / "memory.tif")]
+            if (work / "quality_report.json").exists() and \
+                    (work / "quality_memory_report.json").exists():
+                out += ["", compare_quality(work / "quality_report.json",
+                                            work / "quality_memory_report.json")]
             if (work / "tin.tif").exists() and (work / "tin_memory.tif").exists():
                 out += ["", compare_tin(work / "tin.tif", work / "tin_memory.tif")]
     print("\n".join(out))

@@ -247,14 +247,18 @@ class GriddingAlgorithm(Algorithm):
             raise self.fail("MIN_NEIGHBOURS", f"must be <= NEIGHBOURS ({k}), got {min_k}")
 
     def process(self, params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
+        from functools import partial
+
         from toolbox.terrain.gridding.methods import METHODS
         from toolbox.terrain.gridding.run import grid_dem
         from toolbox.terrain.gridding.stream import grid_dem_streamed, wants_stream
+        from toolbox.terrain.gridding.stream_quality import stream_quality
         from toolbox.terrain.gridding.stream_tin import grid_tin_streamed
 
         request = gridding_request(params)
         # a point cloud over TOOLBOX_STREAM_POINTS points is read by chunks, never held
-        streamed = grid_tin_streamed if self.method == "tin_linear" else grid_dem_streamed
+        streamed = grid_tin_streamed if self.method == "tin_linear" \
+            else partial(grid_dem_streamed, cross_validate=stream_quality)
         grid = streamed if wants_stream(request) else grid_dem
         stats = grid(METHODS[self.method], request, feedback)
         result: dict[str, Any] = {"OUTPUT": request.output}

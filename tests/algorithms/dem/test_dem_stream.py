@@ -177,13 +177,107 @@ def test_runs_that_cannot_stream_are_refused(cloud, tmp_path, monkeypatch, metho
 
 
 def test_cli_refusal_is_one_line(cloud, tmp_path, monkeypatch):
+    """QUALITY streams for every method but tin_linear (leave-one-out on the TIN of all the
+    other points): refused with its reason, one line, nothing written."""
     monkeypatch.setenv("TOOLBOX_STREAM_POINTS", "1000")
     out = tmp_path / "q.tif"
-    res = run_cli("run", "dem:nearest", "--INPUT", cloud, "--CELL_SIZE", 2, "--OUTPUT", out,
+    res = run_cli("run", "dem:tin_linear", "--INPUT", cloud, "--CELL_SIZE", 2, "--OUTPUT", out,
                   "--QUALITY", tmp_path / "q.json")
     assert res.returncode == 2, res.stderr
     lines = res.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].count("QUALITY") and "Traceback" not in res.stderr
-    assert "GB in memory" in lines[0]
+    assert "GB in memory" in lines[0] and "TIN of all the other points" in lines[0]
     assert not out.exists() and not (tmp_path / "q.json").exists()
     json.dumps(lines)
+
+
+def _quality(method, cloud, tmp_path, monkeypatch, extra):
+    """(in-memory report, streamed report, streamed STATISTICS) of QUALITY, the streamed run
+    on tiles of 8 x 8 buckets (several tiles) and chunks of 1,000 points."""
+    import toolbox.terrain.gridding.stream_quality as stream_quality
+
+    _run(method, cloud, tmp_path / "m.tif", {**extra, "QUALITY": str(tmp_path / "m.json")})
+    monkeypatch.setenv("TOOLBOX_STREAM_POINTS", "1000")
+    monkeypatch.setattr(pointcloud, "CHUNK_POINTS", 1000)
+    monkeypatch.setattr(stream_quality, "FIRST_BLOCK", 8)
+    stats = _run(method, cloud, tmp_path / "s.tif", {**extra, "QUALITY": str(tmp_path / "s.json")})
+    memory = json.loads((tmp_path / "m.json").read_text())
+    streamed = json.loads((tmp_path / "s.json").read_text())
+    return memory, streamed, stats
+
+
+@pytest.mark.parametrize("method, extra", [
+    ("nearest", {}), ("idw", {"NEIGHBOURS": 8}), ("plane", {}), ("cubic", {}),
+    ("idw", {"NEIGHBOURS": 6, "SECTORS": 4, "RADIUS": 6.0}),
+    ("idw", {"NEIGHBOURS": 8, "RADIUS": 3.0, "MIN_NEIGHBOURS": 3}),
+    ("nearest", {"MAX_DISTANCE": 1.0, "DUPLICATES": "first"}),
+    ("idw", {"EXTRAPOLATE": True, "POWER": 1.0})])
+def test_streamed_quality_equals_in_memory(cloud, tmp_path, monkeypatch, method, extra):
+    """The in-memory QUALITY is the oracle: the same counts, the same worst point (its index,
+    its prediction), the same maximum error; the sums (RMSE, mean, ...) to the rounding of
+    their order of summation."""
+    memory, streamed, stats = _quality(method, cloud, tmp_path, monkeypatch, extra)
+    a, b = memory["methods"][method], streamed["methods"][method]
+    info = b.pop("streamed")
+    assert info["tiles"] >= 9 and info["bucket_points_max"] < N / 3
+    assert stats["cross_validation"]["rmse"] == b["rmse"]
+    assert a["predicted"] > 0.5 * a["points"]
+    assert streamed["points"] == memory["points"] and streamed["crs"] == memory["crs"]
+    assert streamed["duplicates"] == memory["duplicates"]
+    assert streamed["duplicates"]["duplicate_groups"] >= 100
+    sums = ("rmse", "mean_error", "mean_abs_error", "std_error")
+    assert {k: v for k, v in b.items() if k not in sums} == \
+        {k: v for k, v in a.items() if k not in sums}
+    for key in sums:
+        assert b[key] == pytest.approx(a[key], rel=1e-12, abs=1e-15), key
+
+
+def test_streamed_quality_nearest_against_a_kd_tree(cloud, tmp_path, monkeypatch):
+    """Independent reference: scipy's cKDTree over the distinct class-2 positions (duplicates
+    merged by their mean): each point predicted by its nearest other point, the convex hull's
+    vertices (scipy's ConvexHull) left out."""
+    import laspy
+    from scipy.spatial import ConvexHull
+
+    _, streamed, _ = _quality("nearest", cloud, tmp_path, monkeypatch, {})
+    cv = streamed["methods"]["nearest"]
+    las = laspy.read(cloud)
+    keep = np.asarray(las.classification) == 2
+    xyz = np.column_stack([np.asarray(las.x), np.asarray(las.y), np.asarray(las.z)])[keep]
+    xy, inverse = np.unique(xyz[:, :2], axis=0, return_inverse=True)
+    z = np.bincount(inverse.ravel(), xyz[:, 2]) / np.bincount(inverse.ravel())
+    _, idx = cKDTree(xy - (X0, Y0)).query(xy - (X0, Y0), k=2)
+    err = z[idx[:, 1]] - z
+    hull = ConvexHull(xy - (X0, Y0)).vertices
+    err[hull] = np.nan
+    err = err[np.isfinite(err)]
+    assert cv["points"] == len(xy) and cv["hull_vertices_not_predicted"] == len(hull)
+    assert cv["predicted"] == len(err)
+    assert cv["rmse"] == pytest.approx(np.sqrt(np.mean(err ** 2)), rel=1e-12)
+    assert cv["mean_error"] == pytest.approx(err.mean(), rel=1e-9)
+    assert cv["max_abs_error"] == np.abs(err).max()
+
+
+def test_streamed_quality_of_a_plane_is_exact(tmp_path, monkeypatch):
+    """Analytic: points of a plane (heights exact on the LAZ's 1 mm lattice): dem:plane's
+    leave-one-out predicts every inner point exactly, the 4 corners of the square (its hull
+    vertices) are not predicted."""
+    rng = np.random.default_rng(5)
+    x, y = rng.integers(1, 300, 6000).astype(float), rng.integers(1, 300, 6000).astype(float)
+    xy = np.unique(np.column_stack([x, y]), axis=0)
+    xy = np.vstack([xy, [[0, 0], [300, 0], [0, 300], [300, 300]]])
+    z = 120.0 + 0.25 * xy[:, 0] - 0.5 * xy[:, 1]
+    path = tmp_path / "plane.laz"
+    write_point_cloud(path, np.column_stack([X0 + xy[:, 0], Y0 + xy[:, 1], z]), "EPSG:3003")
+    import toolbox.terrain.gridding.stream_quality as stream_quality
+
+    monkeypatch.setenv("TOOLBOX_STREAM_POINTS", "1000")
+    monkeypatch.setattr(pointcloud, "CHUNK_POINTS", 1000)
+    monkeypatch.setattr(stream_quality, "FIRST_BLOCK", 4)
+    toolbox.run("dem:plane", {"INPUT": str(path), "CELL_SIZE": 10.0, "TILE_SIZE": 16,
+                              "OUTPUT": str(tmp_path / "p.tif"),
+                              "QUALITY": str(tmp_path / "p.json")})
+    cv = json.loads((tmp_path / "p.json").read_text())["methods"]["plane"]
+    assert cv["streamed"]["tiles"] >= 9
+    assert cv["points"] == len(xy) and cv["hull_vertices_not_predicted"] == 4
+    assert cv["predicted"] == len(xy) - 4 and cv["max_abs_error"] < 1e-9

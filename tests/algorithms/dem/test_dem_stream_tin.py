@@ -149,3 +149,45 @@ def test_circumcircle_test_against_analytic_discs():
                          box(6.0, 1.0, 10.0, 3.0)).all()
     # a bucket that holds the whole hull: every triangle counts
     assert empty_outside(centres, radius, rect, bounds, box(*rect).difference(box(*rect))).all()
+
+
+@pytest.fixture(scope="module")
+def pathological(tmp_path_factory):
+    """A dense cluster (8,000 points within 10 m) in a ring of 400 sparse points 400 m around
+    it: the triangles between the ring and the cluster have circumcircles some 400 m across,
+    so the ring's tiles need buckets grown over the cluster."""
+    rng = np.random.default_rng(11)
+    cluster = rng.uniform(395, 405, (8000, 2))
+    angle = np.linspace(0, 2 * np.pi, 400, endpoint=False) + 0.001
+    ring = 400 + 400 * np.column_stack([np.cos(angle), np.sin(angle)])
+    xy = np.vstack([cluster, ring])
+    z = 50 + 0.01 * xy[:, 0] + rng.normal(0, 0.05, len(xy))
+    return _write(tmp_path_factory.mktemp("tin") / "pathological.laz", xy[:, 0], xy[:, 1], z)
+
+
+def test_pathological_cloud_bucket_growth_is_capped(pathological, tmp_path, monkeypatch):
+    """With buckets capped at 2,000 points (TILE_POINTS), a ring tile whose bucket would have
+    to grow over the 8,000-point cluster stops with one clear error naming
+    TOOLBOX_STREAM_POINTS; nothing is written."""
+    from toolbox.errors import InputDataError
+    from toolbox.terrain.gridding import stream
+
+    monkeypatch.setenv("TOOLBOX_STREAM_POINTS", "1000")
+    monkeypatch.setattr(pointcloud, "CHUNK_POINTS", 1000)
+    monkeypatch.setattr(stream, "TILE_POINTS", 2000)
+    with pytest.raises(InputDataError, match=r"tin_linear: tile \d+.* over the [\d,]+ a tile's "
+                                             r"bucket may hold.*TOOLBOX_STREAM_POINTS above 8,400"):
+        _run(pathological, tmp_path / "x.tif", {"CELL_SIZE": 8.0, "TILE_SIZE": 16})
+    assert not (tmp_path / "x.tif").exists()
+
+
+def test_pathological_cloud_streams_under_the_default_cap(pathological, tmp_path, monkeypatch):
+    """The same cloud under the default cap: the buckets grow (more passes) and the cells equal
+    the in-memory TIN's and scipy's."""
+    stats, grid, transform = _streamed(pathological, tmp_path, monkeypatch,
+                                       {"CELL_SIZE": 8.0, "TILE_SIZE": 16})
+    assert stats["streamed"]["tiles_retried"] > 0
+    expected = _scipy(pathological, transform, grid.shape)
+    inside = np.isfinite(expected) & np.isfinite(grid)
+    assert inside.sum() > 0.95 * np.isfinite(expected).sum()
+    np.testing.assert_allclose(grid[inside], expected[inside].astype(np.float32), rtol=1e-6)

@@ -16,8 +16,9 @@ Exact: a cell's k nearest points all lie within ``h`` of it, so its bucket holds
 kernel computes the cell from the same points in the same local origin. Streams: nearest,
 idw (with SECTORS: every point within RADIUS), plane, quadratic, cubic; tin_linear by its own
 tiles (:mod:`toolbox.terrain.gridding.stream_tin`: each bucket's Delaunay triangles whose
-circumcircle the bucket holds). Not: QUALITY (leave-one-out on every point), LINES /
-BREAKLINES, DUPLICATE_TOLERANCE > 0.
+circumcircle the bucket holds). QUALITY (leave-one-out) by one more pass, tile by tile
+(:mod:`toolbox.terrain.gridding.stream_quality`), for every method but tin_linear. Not: LINES /
+BREAKLINES, DUPLICATE_TOLERANCE > 0, QUALITY with tin_linear.
 
 Memory: one chunk (CHUNK_POINTS records, about 100 MB at 1 M), the count raster (8 bytes a
 bucket, at most about 1 M buckets) and the hull, then per tile in flight its bucket and the
@@ -89,9 +90,11 @@ def check_streamable(method: Any, request: GriddingRequest) -> None:
         raise ParameterError("DUPLICATE_TOLERANCE", f"must be 0 for a point cloud INPUT {limit}"
                              f" (streamed gridding merges identical XY only), got "
                              f"{sources.duplicate_tolerance}")
-    if request.quality is not None:
-        raise ParameterError("QUALITY", f"leave-one-out needs every point at once: the {held}; "
-                             f"not available for a point cloud INPUT {limit}")
+    if request.quality is not None and not hasattr(method, "loo_targets"):
+        raise ParameterError("QUALITY", f"dem:{method.name}'s leave-one-out takes the TIN of all "
+                             f"the other points (not streamed): the {held}; not available for "
+                             f"a point cloud INPUT {limit} (raise TOOLBOX_STREAM_POINTS if the "
+                             "memory is there, or cross-validate dem:nearest / idw / plane)")
 
 
 # -- pass 1 ---------------------------------------------------------------------------------------
@@ -202,9 +205,7 @@ def tile_boxes(grid: Any, tile: int, scan: CloudScan, reach: np.ndarray,
     every point within ``radius``)."""
     from toolbox.raster.tile import iter_tiles
 
-    ny, nx = scan.counts.shape
-    table = np.zeros((ny + 1, nx + 1), dtype=np.int64)
-    table[1:, 1:] = scan.counts.cumsum(axis=0).cumsum(axis=1)
+    table = count_table(scan.counts)
     tiles = list(iter_tiles(grid, tile))
     boxes, reaches, estimate = [], [], []
     for t in tiles:
@@ -213,15 +214,29 @@ def tile_boxes(grid: Any, tile: int, scan: CloudScan, reach: np.ndarray,
         h = max(radius if reach is None else box_reach(box, scan, reach, radius), floor)
         boxes.append(box)
         reaches.append(h)
-        if math.isfinite(h):
-            a0 = _index(box[0] - h, scan.x0, scan.size, nx)
-            a1 = _index(box[2] + h, scan.x0, scan.size, nx) + 1
-            b0 = _index(box[1] - h, scan.y0, scan.size, ny)
-            b1 = _index(box[3] + h, scan.y0, scan.size, ny) + 1
-            estimate.append(int(table[b1, a1] - table[b0, a1] - table[b1, a0] + table[b0, a0]))
-        else:
-            estimate.append(scan.kept)
+        estimate.append(count_within(scan, table, box, h))
     return TileBoxes(tile, np.array(boxes), np.array(reaches), np.array(estimate), tiles)
+
+
+def count_table(counts: np.ndarray) -> np.ndarray:
+    """The summed-area table of a count raster (one row and column of zeros first)."""
+    ny, nx = counts.shape
+    table = np.zeros((ny + 1, nx + 1), dtype=np.int64)
+    table[1:, 1:] = counts.cumsum(axis=0).cumsum(axis=1)
+    return table
+
+
+def count_within(scan: CloudScan, table: np.ndarray, box: Any, h: float) -> int:
+    """Kept points counted in the buckets that meet ``box`` grown by ``h`` (an upper bound of
+    the points in the grown box); every kept point when ``h`` is infinite."""
+    if not math.isfinite(h):
+        return scan.kept
+    ny, nx = scan.counts.shape
+    a0 = _index(box[0] - h, scan.x0, scan.size, nx)
+    a1 = _index(box[2] + h, scan.x0, scan.size, nx) + 1
+    b0 = _index(box[1] - h, scan.y0, scan.size, ny)
+    b1 = _index(box[3] + h, scan.y0, scan.size, ny) + 1
+    return int(table[b1, a1] - table[b0, a1] - table[b1, a0] + table[b0, a0])
 
 
 def box_reach(box: Any, scan: CloudScan, reach: np.ndarray, radius: float,
@@ -263,9 +278,12 @@ def plan_boxes(grid: Any, tile: int, scan: CloudScan, k: int, radius: float,
 
 # -- pass 2 ---------------------------------------------------------------------------------------
 def spill(ref: Any, flt: Any, z_field: str | None, chunk_points: int, boxes: TileBoxes,
-          folder: Path, name: str = "INPUT") -> np.ndarray:
+          folder: Path, name: str = "INPUT", step: tuple[float, float] | None = None,
+          index: bool = False) -> np.ndarray:
     """Pass 2: append each kept point (x, y, z float64, file order) to the bucket file
-    ``folder/<tile>.xyz`` of every tile whose grown box holds it. Returns points per bucket."""
+    ``folder/<tile>.xyz`` of every tile whose grown box holds it. Returns points per bucket.
+    ``step``: the tiles' width and height (default: the grid tiles'); ``index``: a fourth
+    column, the point's rank among the kept points (file order, from 0)."""
     from toolbox.io.pointcloud import iter_xyz
 
     rects = boxes.rects
@@ -275,14 +293,21 @@ def spill(ref: Any, flt: Any, z_field: str | None, chunk_points: int, boxes: Til
     col0 = np.unique(boxes.boxes[:, 0])
     row0 = np.unique(boxes.boxes[:, 3])[::-1]
     ncols, nrows = len(col0), len(row0)
-    step = boxes.tiles[0].grid_transform
-    width, height = boxes.tile * abs(step.a), boxes.tile * abs(step.e)
+    if step is None:
+        t = boxes.tiles[0].grid_transform
+        width, height = boxes.tile * abs(t.a), boxes.tile * abs(t.e)
+    else:
+        width, height = step
     reach = boxes.reach.max()
     # home tile i (first cell centres col0[i] <= x < col0[i + 1]) and a tile j whose box grown
-    # by h holds x: |i - j| <= ceil(h / tile width)
-    reach_x = ncols if not math.isfinite(reach) else max(1, int(math.ceil(reach / width)))
-    reach_y = nrows if not math.isfinite(reach) else max(1, int(math.ceil(reach / height)))
+    # by h holds x: |i - j| <= floor(h / tile width) + 1
+    reach_x = ncols if not math.isfinite(reach) else int(math.floor(reach / width)) + 1
+    reach_y = nrows if not math.isfinite(reach) else int(math.floor(reach / height)) + 1
+    seen = 0
     for xyz in iter_xyz(ref, flt, z_field, name, chunk_points):
+        if index:
+            xyz = np.column_stack([xyz, np.arange(seen, seen + len(xyz), dtype=np.float64)])
+            seen += len(xyz)
         home_c = np.clip(np.searchsorted(col0, xyz[:, 0], side="right") - 1, 0, ncols - 1)
         home_r = np.clip(np.searchsorted(-row0, -xyz[:, 1], side="right") - 1, 0, nrows - 1)
         ids, idx = [], []
@@ -339,11 +364,14 @@ class StreamData:
 
 
 def grid_dem_streamed(method: Any, request: GriddingRequest, feedback: Feedback,
-                      chunk_points: int | None = None, planner: Any = None) -> dict[str, Any]:
+                      chunk_points: int | None = None, planner: Any = None,
+                      cross_validate: Any = None) -> dict[str, Any]:
     """Grid ``request`` (a point cloud INPUT) with ``method`` by streaming (see the module);
     writes ``request.output`` and returns the STATISTICS, as
     :func:`~toolbox.terrain.gridding.run.grid_dem`. ``planner``: computes the tiles itself
-    (:func:`toolbox.terrain.gridding.stream_tin.plan_tin`; tin_linear needs it)."""
+    (:func:`toolbox.terrain.gridding.stream_tin.plan_tin`; tin_linear needs it).
+    ``cross_validate``: the QUALITY report of the run (QUALITY needs it:
+    :func:`toolbox.terrain.gridding.stream_quality.stream_quality`)."""
     from toolbox.io.crs import common_crs
     from toolbox.io.pointcloud import CHUNK_POINTS, cloud_filter
     from toolbox.terrain.gridding.grid import prepare_grid
@@ -355,6 +383,10 @@ def grid_dem_streamed(method: Any, request: GriddingRequest, feedback: Feedback,
     if planner is None and not hasattr(method, "halo_neighbours"):
         raise TypeError(f"dem:{method.name} streams through its own planner: "
                         "toolbox.terrain.gridding.stream_tin.grid_tin_streamed")
+    if request.quality is not None and cross_validate is None:
+        raise TypeError("a streamed QUALITY is computed by "
+                        "toolbox.terrain.gridding.stream_quality.stream_quality: pass it as "
+                        "cross_validate")
     sources = request.sources
     ref, chunk = sources.points, int(chunk_points or CHUNK_POINTS)
     flt = cloud_filter(ref, sources.classes, sources.returns, sources.crs)
@@ -396,7 +428,16 @@ def grid_dem_streamed(method: Any, request: GriddingRequest, feedback: Feedback,
             feedback.set_progress(start)
             plan = partial_plan(run, boxes, folder, scan, k, radius, merged)
             tiles = TilePlan(plan, _kernel(method, run.origin, options))
-        result = write_dem(run, tiles, request, feedback, start=start, end=98)
+        quality = request.quality is not None
+        result = write_dem(run, tiles, request, feedback, start=start, end=90 if quality else 98)
+        if quality:
+            from toolbox.terrain.gridding.run import write_quality
+
+            with feedback.timed("cross_validation"):
+                report = cross_validate(method, scan, (ref, flt, sources.z_field, chunk),
+                                        run.origin, options, request.cells.extrapolate,
+                                        merged.report.rule, crs, folder, feedback.step(90, 99),
+                                        request.execution.workers)
     data.duplicates = merged.report
     stats = grid_statistics(run, request)
     stats["points_used"] = scan.kept - merged.report.removed
@@ -404,6 +445,9 @@ def grid_dem_streamed(method: Any, request: GriddingRequest, feedback: Feedback,
                        **method.summarise(result.pop("counts"))}
     stats["cells"] = result
     stats["streamed"] = {"chunk_points": chunk, **streamed}
+    if quality:
+        write_quality(request.quality, report)
+        stats["cross_validation"] = report["methods"][method.name]
     return stats
 
 

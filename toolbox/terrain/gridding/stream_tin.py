@@ -15,7 +15,10 @@ rounding of the plane through the same three nodes in another vertex order, abou
 relative). When a computed cell lies in a triangle that fails, or inside the cloud's hull but
 in no triangle of the bucket, the whole tile is done again from a new bucket with ``h``
 doubled (one more pass over the cloud for all such tiles at once), until every cell passes;
-once R holds the whole hull every triangle passes, so it ends.
+once R holds the whole hull every triangle passes, so it ends. Capped: a redone tile's grown
+box may hold at most TILE_POINTS points (or its first bucket's count when larger); a cloud
+that needs more (a dense cluster among far sparse points, points on a circle or a line) stops
+with an :class:`InputDataError` naming TOOLBOX_STREAM_POINTS (:func:`check_growth`).
 
 Ties: with four or more points on one empty circle (cocircular) the Delaunay TIN is not unique,
 and the triangulator breaks the tie by its insertion order, which is not the same in a bucket
@@ -150,8 +153,9 @@ def plan_tin(run: Any, scan: Any, cloud: tuple, options: dict[str, Any], folder:
     import shapely
     from shapely.geometry import Polygon, box
 
+    from toolbox.terrain.gridding import stream
     from toolbox.terrain.gridding.methods.base import TilePlan
-    from toolbox.terrain.gridding.stream import Merged, _merge, plan_boxes, spill
+    from toolbox.terrain.gridding.stream import Merged, _merge, count_table, plan_boxes, spill
     from toolbox.terrain.points import merge_duplicate_xy
 
     ref, flt, z_field, chunk = cloud
@@ -164,6 +168,8 @@ def plan_tin(run: Any, scan: Any, cloud: tuple, options: dict[str, Any], folder:
     done = np.zeros(len(boxes.tiles), dtype=bool)
     passes, spilled, bucket_max, retried = 0, 0, 0, 0
     reach = boxes.reach.copy()
+    table = count_table(scan.counts)
+    cap = stream.TILE_POINTS
     while todo:
         feedback.check_canceled()
         live = np.full(len(reach), -np.inf)  # empty rectangles for the tiles already done
@@ -207,6 +213,8 @@ def plan_tin(run: Any, scan: Any, cloud: tuple, options: dict[str, Any], folder:
             feedback.set_progress(5 + 60 * done.mean())
         retried += len(again)
         reach[again] *= 2.0
+        for i in again:
+            check_growth(scan, table, boxes, i, reach[i], cap)
         todo = again
         bucket.rmdir()
 
@@ -223,6 +231,28 @@ def plan_tin(run: Any, scan: Any, cloud: tuple, options: dict[str, Any], folder:
             "points_spilled": spilled, "reach_max": float(reach.max()),
             "count_raster": list(scan.counts.shape), "bucket_size": scan.size}
     return TilePlan(plan, stored_tile), boxes, info
+
+
+def check_growth(scan: Any, table: np.ndarray, boxes: Any, i: int, h: float, cap: int) -> None:
+    """:class:`InputDataError` when tile ``i``'s box grown by the doubled reach ``h`` would
+    hold more than ``cap`` (TILE_POINTS) points, or more than its first bucket when that was
+    already larger (the smallest tiles of a dense cloud): the buckets of a streamed run stay
+    bounded whatever the cloud (points on a circle or a line, a dense cluster among far sparse
+    points: Delaunay triangles with circumcircles over most of the cloud)."""
+    from toolbox.terrain.gridding.stream import count_within
+
+    estimate = count_within(scan, table, boxes.boxes[i], h)
+    limit = max(cap, int(boxes.estimate[i]))
+    if estimate > limit:
+        from toolbox.terrain.gridding.stream import TIN_MEMORY_BYTES
+
+        raise InputDataError(
+            f"streamed dem:tin_linear: tile {i}'s Delaunay triangles have circumcircles wider "
+            f"than its bucket; grown by {h:.3f} it would hold about {estimate:,} points, over "
+            f"the {limit:,} a tile's bucket may hold (the cloud is far from even: points on a "
+            "line or a circle, or dense clusters among far sparse points); grid it in memory "
+            f"by raising TOOLBOX_STREAM_POINTS above {scan.kept:,} (about "
+            f"{scan.kept * TIN_MEMORY_BYTES / 1e9:.1f} GB), or thin or split the cloud")
 
 
 def stored_tile(tile: Any, arrays: dict) -> np.ndarray:

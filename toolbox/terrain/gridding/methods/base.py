@@ -100,17 +100,26 @@ class NeighbourMethod(Method):
         raise NotImplementedError
 
     def loo(self, local_xyz, options, segments, feedback, workers):
-        from toolbox.executor import Executor, default_workers, map_tiles
         from toolbox.terrain.gridding.neighbours import PointBins
 
         n = len(local_xyz)
         bins = PointBins.build(local_xyz[:, :2])
-        z = local_xyz[:, 2]
+        return self.loo_targets(bins, local_xyz[:, 2], np.arange(n), options, feedback, workers)
+
+    def loo_targets(self, bins: Any, z: np.ndarray, targets: np.ndarray,
+                    options: dict[str, Any], feedback: Any, workers: int | None
+                    ) -> tuple[np.ndarray, np.ndarray | None]:
+        """:meth:`loo` at the points ``targets`` (indices into the points of ``bins``, heights
+        ``z``) only, every point of ``bins`` a neighbour (the streamed QUALITY: a tile's own
+        points in its bucket). Returns (predicted (t,), orders used (t,) or None)."""
+        from toolbox.executor import Executor, default_workers, map_tiles
+
+        n = len(targets)
         chunk = max(1000, math.ceil(n / 64))
         starts = list(range(0, n, chunk))
 
         def run(start: int):
-            return self.loo_chunk(bins, z, np.arange(start, min(start + chunk, n)), options)
+            return self.loo_chunk(bins, z, targets[start:start + chunk], options)
 
         predicted = np.full(n, np.nan)
         used = None
