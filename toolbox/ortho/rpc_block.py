@@ -134,9 +134,9 @@ def run_rpc_task(task: RpcTask) -> dict[str, Any]:
     """Orthorectify one image into a staged file moved to ``task.output`` on success; a user
     error is returned as ``{"photo", "error"}`` (the block goes on)."""
     from toolbox.errors import ToolboxError
+    from toolbox.executor import local_executor
     from toolbox.feedback import CollectingFeedback
     from toolbox.io.staging import atomic_path
-    from toolbox.executor import local_executor
     from toolbox.ortho.rpc import rpc_orthorectify
 
     final = Path(task.output)
