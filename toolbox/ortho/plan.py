@@ -132,16 +132,31 @@ def photo_surface(info: Any, photo: Any, crs: Any, band: int = 1) -> Any:
     return DemSurface.from_transform(data[r0:r1, c0:c1], t @ Affine.translation(c0, r0), crs)
 
 
-def mean_height_inside(surface: Any, polygon: Any) -> float:
-    """Mean DEM height of the cell centres inside a footprint polygon (the photo's mean terrain
-    height); the mean of the whole window when no centre falls inside."""
-    import shapely
+def inside_polygon(x: np.ndarray, y: np.ndarray, vertices: np.ndarray) -> np.ndarray:
+    """Whether the points ``(x, y)`` lie inside the simple polygon ``vertices`` ((K, 2+), the
+    ring open or closed): the even-odd rule, a ray towards +x crossing the edges (a point on
+    an edge may fall either side). NumPy's, so planning a photo does not import shapely (0.03 s
+    CPU of every ``ortho:batch`` run)."""
+    px, py = vertices[:, 0], vertices[:, 1]
+    inside = np.zeros(np.broadcast(x, y).shape, dtype=bool)
+    for k in range(len(px)):
+        x0, y0, x1, y1 = px[k - 1], py[k - 1], px[k], py[k]
+        if y0 == y1:
+            continue  # a horizontal edge: no crossing
+        crosses = (y0 > y) != (y1 > y)
+        at = x0 + (y - y0) * (x1 - x0) / (y1 - y0)
+        inside ^= crosses & (x < at)
+    return inside
 
+
+def mean_height_inside(surface: Any, vertices: np.ndarray) -> float:
+    """Mean DEM height of the cell centres inside a footprint polygon (``vertices`` (K, 2+):
+    the photo's mean terrain height); the mean of the whole window when no centre falls
+    inside."""
     rows, cols = surface.shape
     xx, yy = np.meshgrid(surface.x0 + np.arange(cols) * surface.cell_x,
                          surface.y0 - np.arange(rows) * surface.cell_y)
-    shapely.prepare(polygon)  # (an index of its edges: 10-50x faster on many points)
-    inside = shapely.contains_xy(polygon, xx, yy) & np.isfinite(surface.z)
+    inside = inside_polygon(xx, yy, vertices) & np.isfinite(surface.z)
     return float(surface.z[inside].mean() if inside.any() else np.nanmean(surface.z))
 
 
@@ -170,11 +185,18 @@ class OrthoPlan:
 
     photo: Any
     surface: Any
-    footprint: Any  # shapely Polygon
+    footprint_xy: np.ndarray  # (K, 2+) the footprint's vertices in the ortho's CRS
     mean_height: float
     gsd: float
     grid: Any
     extent: tuple[float, float, float, float] | None = None
+
+    @property
+    def footprint(self) -> Any:
+        """The footprint as a shapely Polygon."""
+        import shapely
+
+        return shapely.Polygon(self.footprint_xy)
 
 
 FOOTPRINT_STEP_PX = 16  # photo pixels between the monoplotted points of the footprint's outline
@@ -216,8 +238,8 @@ def plan_photo(photo: Any, dem: Any, crs: Any, band: int = 1, cell: float | None
     under = float(surface.height(np.array([eo.x0]), np.array([eo.y0]))[0])
     check_geometry(photo, under if math.isfinite(under) else None)
     plane = float(np.nanmean(surface.z))
-    polygon = photo_footprint(photo, surface, plane, 8).polygon  # mean height, reports
-    outline = photo_footprint(photo, surface, plane, footprint_points_per_side(photo)).polygon
+    polygon = photo_footprint(photo, surface, plane, 8).vertices  # mean height, reports
+    outline = photo_footprint(photo, surface, plane, footprint_points_per_side(photo)).vertices
     mean_height = mean_height_inside(surface, polygon)
     gsd = ground_sample_distance(photo, mean_height)
     cell = nice_cell_size(gsd) if cell is None else float(cell)
@@ -229,10 +251,14 @@ def plan_photo(photo: Any, dem: Any, crs: Any, band: int = 1, cell: float | None
             x, y = to_orientation.transform(xy[:, 0], xy[:, 1], direction="INVERSE")
             return np.column_stack([x, y])
 
-        dense = shapely.segmentize(shapely.force_2d(polygon), max(polygon.length / 400.0, cell))
-        polygon = shapely.transform(dense, to_output)
-        outline = shapely.transform(shapely.segmentize(shapely.force_2d(outline), max(
-            outline.length / 400.0, cell)), to_output)
-    extent = tuple(float(v) for v in outline.union(polygon).bounds)
+        def transformed(vertices: np.ndarray) -> np.ndarray:
+            ring = shapely.force_2d(shapely.Polygon(vertices))
+            dense = shapely.segmentize(ring, max(ring.length / 400.0, cell))
+            return shapely.get_coordinates(shapely.transform(dense, to_output))
+
+        polygon, outline = transformed(polygon), transformed(outline)
+    both = np.concatenate([polygon[:, :2], outline[:, :2]])
+    extent = (float(both[:, 0].min()), float(both[:, 1].min()), float(both[:, 0].max()),
+              float(both[:, 1].max()))
     grid = lattice_grid(extent if bounds is None else bounds, cell, output_crs, origin)
     return OrthoPlan(photo, surface, polygon, mean_height, gsd, grid, extent)
