@@ -27,13 +27,14 @@ def star(seed: int, n: int) -> np.ndarray:
 def test_inside_polygon_equals_shapely(seed, n):
     vertices = star(seed, n)
     # cell centres off the vertices' coordinates: no point on an edge
-    xx, yy = np.meshgrid(np.arange(380.13, 620, 0.7), np.arange(-420.37, -180, 0.9))
-    ours = inside_polygon(xx, yy, vertices)
+    xs, ys = np.arange(380.13, 620, 0.7), np.arange(-180.37, -420, -0.9)
+    xx, yy = np.meshgrid(xs, ys)
+    ours = inside_polygon(xs, ys, vertices)
     truth = shapely.contains_xy(shapely.Polygon(vertices), xx, yy)
     assert truth.any() and not truth.all()
     np.testing.assert_array_equal(ours, truth)
     # a closed ring (last vertex = first) gives the same
-    np.testing.assert_array_equal(inside_polygon(xx, yy, np.vstack([vertices, vertices[:1]])),
+    np.testing.assert_array_equal(inside_polygon(xs, ys, np.vstack([vertices, vertices[:1]])),
                                   truth)
 
 
