@@ -81,13 +81,13 @@ class DemSampler:
 
     def _load(self, i0: int, i1: int, j0: int, j1: int) -> np.ndarray:
         """Coarse cells [i0:i1, j0:j1] (means of k x k DEM cells), float64, NaN for nodata."""
-        import rasterio
         from rasterio.windows import Window
+
+        from toolbox.photogrammetry.surface import read_dem_cells
 
         k = self.factor
         window = Window(j0 * k, i0 * k, (j1 - j0) * k, (i1 - i0) * k)
-        with rasterio.open(self.path) as src:
-            data = src.read(self.band, window=window, masked=True).astype("float64").filled(np.nan)
+        data = read_dem_cells(self.path, self.band, window, self.shape)
         if k > 1:
             data = data.reshape(i1 - i0, k, j1 - j0, k)
             with warnings.catch_warnings():  # all-nodata blocks give NaN, as they should

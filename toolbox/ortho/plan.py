@@ -127,16 +127,38 @@ def photo_surface(info: Any, photo: Any, crs: Any, band: int = 1) -> Any:
     return DemSurface.from_transform(data[r0:r1, c0:c1], t @ Affine.translation(c0, r0), crs)
 
 
-def mean_height_inside(surface: Any, polygon: Any) -> float:
-    """Mean DEM height of the cell centres inside a footprint polygon (the photo's mean terrain
-    height); the mean of the whole window when no centre falls inside."""
-    import shapely
+def inside_polygon(xs: np.ndarray, ys: np.ndarray, vertices: np.ndarray) -> np.ndarray:
+    """Which points of the grid ``xs`` x ``ys`` (1-D, ``xs`` increasing) lie inside the simple
+    polygon ``vertices`` ((K, 2+), the ring open or closed): (len(ys), len(xs)) booleans by the
+    even-odd rule, a ray from each point towards +x crossing the edges (a point on an edge may
+    fall either side). Row by row: the edges crossing a row's y and where, each crossing
+    counted for the cells west of it. NumPy's, so planning a photo does not import shapely
+    (0.03 s CPU of every ``ortho:batch`` run)."""
+    xs, ys = np.asarray(xs, dtype="float64"), np.asarray(ys, dtype="float64")
+    px, py = vertices[:, 0], vertices[:, 1]
+    x0, y0 = np.roll(px, 1), np.roll(py, 1)  # edge k runs from vertex k - 1 to vertex k
+    keep = y0 != py  # a horizontal edge: no crossing
+    x0, y0, x1, y1 = x0[keep], y0[keep], px[keep], py[keep]
+    y = ys[:, None]
+    crosses = (y0 > y) != (y1 > y)  # (rows, edges)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        at = x0 + (y - y0) * (x1 - x0) / (y1 - y0)
+    rows, edges = np.nonzero(crosses)
+    first_east = np.searchsorted(xs, at[rows, edges], side="left")  # cells x < at: [0, this)
+    counts = np.zeros((len(ys), len(xs) + 1), dtype=np.int32)
+    np.add.at(counts, (rows, first_east), 1)
+    west_of = np.cumsum(counts[:, ::-1], axis=1)[:, ::-1][:, 1:]  # crossings east of each cell
+    return (west_of % 2).astype(bool)
 
+
+def mean_height_inside(surface: Any, vertices: np.ndarray) -> float:
+    """Mean DEM height of the cell centres inside a footprint polygon (``vertices`` (K, 2+):
+    the photo's mean terrain height); the mean of the whole window when no centre falls
+    inside."""
     rows, cols = surface.shape
-    xx, yy = np.meshgrid(surface.x0 + np.arange(cols) * surface.cell_x,
-                         surface.y0 - np.arange(rows) * surface.cell_y)
-    shapely.prepare(polygon)  # (an index of its edges: 10-50x faster on many points)
-    inside = shapely.contains_xy(polygon, xx, yy) & np.isfinite(surface.z)
+    xs = surface.x0 + np.arange(cols) * surface.cell_x
+    ys = surface.y0 - np.arange(rows) * surface.cell_y
+    inside = inside_polygon(xs, ys, vertices) & np.isfinite(surface.z)
     return float(surface.z[inside].mean() if inside.any() else np.nanmean(surface.z))
 
 
@@ -165,11 +187,18 @@ class OrthoPlan:
 
     photo: Any
     surface: Any
-    footprint: Any  # shapely Polygon
+    footprint_xy: np.ndarray  # (K, 2+) the footprint's vertices in the ortho's CRS
     mean_height: float
     gsd: float
     grid: Any
     extent: tuple[float, float, float, float] | None = None
+
+    @property
+    def footprint(self) -> Any:
+        """The footprint as a shapely Polygon."""
+        import shapely
+
+        return shapely.Polygon(self.footprint_xy)
 
 
 FOOTPRINT_STEP_PX = 16  # photo pixels between the monoplotted points of the footprint's outline
@@ -211,8 +240,8 @@ def plan_photo(photo: Any, dem: Any, crs: Any, band: int = 1, cell: float | None
     under = float(surface.height(np.array([eo.x0]), np.array([eo.y0]))[0])
     check_geometry(photo, under if math.isfinite(under) else None)
     plane = float(np.nanmean(surface.z))
-    polygon = photo_footprint(photo, surface, plane, 8).polygon  # mean height, reports
-    outline = photo_footprint(photo, surface, plane, footprint_points_per_side(photo)).polygon
+    polygon = photo_footprint(photo, surface, plane, 8).vertices  # mean height, reports
+    outline = photo_footprint(photo, surface, plane, footprint_points_per_side(photo)).vertices
     mean_height = mean_height_inside(surface, polygon)
     gsd = ground_sample_distance(photo, mean_height)
     cell = nice_cell_size(gsd) if cell is None else float(cell)
@@ -224,10 +253,14 @@ def plan_photo(photo: Any, dem: Any, crs: Any, band: int = 1, cell: float | None
             x, y = to_orientation.transform(xy[:, 0], xy[:, 1], direction="INVERSE")
             return np.column_stack([x, y])
 
-        dense = shapely.segmentize(shapely.force_2d(polygon), max(polygon.length / 400.0, cell))
-        polygon = shapely.transform(dense, to_output)
-        outline = shapely.transform(shapely.segmentize(shapely.force_2d(outline), max(
-            outline.length / 400.0, cell)), to_output)
-    extent = tuple(float(v) for v in outline.union(polygon).bounds)
+        def transformed(vertices: np.ndarray) -> np.ndarray:
+            ring = shapely.force_2d(shapely.Polygon(vertices))
+            dense = shapely.segmentize(ring, max(ring.length / 400.0, cell))
+            return shapely.get_coordinates(shapely.transform(dense, to_output))
+
+        polygon, outline = transformed(polygon), transformed(outline)
+    both = np.concatenate([polygon[:, :2], outline[:, :2]])
+    extent = (float(both[:, 0].min()), float(both[:, 1].min()), float(both[:, 0].max()),
+              float(both[:, 1].max()))
     grid = lattice_grid(extent if bounds is None else bounds, cell, output_crs, origin)
     return OrthoPlan(photo, surface, polygon, mean_height, gsd, grid, extent)

@@ -7,6 +7,8 @@ photo's rays can reach (:func:`read_dem_window`).
 
 from __future__ import annotations
 
+import os
+import threading
 from dataclasses import dataclass
 from typing import Any
 
@@ -96,28 +98,68 @@ def read_dem_window(info: Any, bounds: tuple[float, float, float, float] | None 
 
     Raises :class:`InputDataError` when the bounds miss the raster or the window is all nodata.
     """
-    import rasterio
     from affine import Affine
     from rasterio.windows import Window
 
-    with rasterio.open(info.path) as src:
-        if bounds is None:
-            window = Window(0, 0, src.width, src.height)
-        else:
-            inverse = ~src.transform
-            corners = [inverse @ (x, y) for x in bounds[0::2] for y in bounds[1::2]]
-            cols, rows = zip(*corners, strict=True)
-            col0 = max(int(np.floor(min(cols))) - margin_cells, 0)
-            row0 = max(int(np.floor(min(rows))) - margin_cells, 0)
-            col1 = min(int(np.ceil(max(cols))) + margin_cells, src.width)
-            row1 = min(int(np.ceil(max(rows))) + margin_cells, src.height)
-            if col1 - col0 < 2 or row1 - row0 < 2:
-                raise InputDataError(f"DEM {info} does not cover the area needed "
-                                     f"({', '.join(f'{v:.1f}' for v in bounds)})")
-            window = Window(col0, row0, col1 - col0, row1 - row0)
-        data = src.read(band, window=window, masked=True).astype("float64").filled(np.nan)
-        transform = src.transform @ Affine.translation(window.col_off, window.row_off)
+    if bounds is None:
+        window = Window(0, 0, info.width, info.height)
+    else:
+        inverse = ~info.transform
+        corners = [inverse @ (x, y) for x in bounds[0::2] for y in bounds[1::2]]
+        cols, rows = zip(*corners, strict=True)
+        col0 = max(int(np.floor(min(cols))) - margin_cells, 0)
+        row0 = max(int(np.floor(min(rows))) - margin_cells, 0)
+        col1 = min(int(np.ceil(max(cols))) + margin_cells, info.width)
+        row1 = min(int(np.ceil(max(rows))) + margin_cells, info.height)
+        if col1 - col0 < 2 or row1 - row0 < 2:
+            raise InputDataError(f"DEM {info} does not cover the area needed "
+                                 f"({', '.join(f'{v:.1f}' for v in bounds)})")
+        window = Window(col0, row0, col1 - col0, row1 - row0)
+    data = read_dem_cells(info.path, band, window, (info.height, info.width))
+    transform = info.transform @ Affine.translation(window.col_off, window.row_off)
     return DemSurface.from_transform(data, transform, info.crs)
+
+
+#: a DEM band of at most this many cells (8 MB as float64) is read whole once per process and
+#: its windows sliced from memory (:func:`read_dem_cells`): an ortho run read the same small
+#: DEM 2-3 times a photo, each open of a GeoTIFF with a compound CRS 5-8 ms CPU (GDAL builds
+#: the CRS from PROJ's database at every open)
+SMALL_DEM_CELLS = 1 << 20
+_WHOLE_DEM: dict[tuple, np.ndarray] = {}  # the last small DEM band read, by (path, mtime, size)
+_WHOLE_DEM_LOCK = threading.Lock()
+
+
+def read_dem_cells(path: Any, band: int, window: Any, shape: tuple[int, int]) -> np.ndarray:
+    """Cells ``window`` (a rasterio Window inside the raster) of band ``band`` of the DEM at
+    ``path`` (``shape`` its rows and columns), float64, NaN where the DEM's mask says no data:
+    a new array. A DEM of at most :data:`SMALL_DEM_CELLS` cells is read whole once (the last
+    one kept, while its file is unchanged) and the windows sliced from it: the same values as
+    GDAL's windowed reads."""
+    import rasterio
+
+    rows, cols = shape
+    r0, c0 = int(window.row_off), int(window.col_off)
+    r1, c1 = r0 + int(window.height), c0 + int(window.width)
+    inside = 0 <= r0 < r1 <= rows and 0 <= c0 < c1 <= cols
+    if inside and rows * cols <= SMALL_DEM_CELLS:
+        try:
+            st = os.stat(path)
+        except OSError:
+            st = None
+        if st is not None:
+            key = (str(path), st.st_mtime_ns, st.st_size, int(band), rows, cols)
+            with _WHOLE_DEM_LOCK:
+                whole = _WHOLE_DEM.get(key)
+                if whole is None:
+                    with rasterio.open(path) as src:
+                        whole = src.read(band, masked=True).astype("float64").filled(np.nan)
+                    if whole.shape == (rows, cols):
+                        _WHOLE_DEM.clear()
+                        _WHOLE_DEM[key] = whole
+            if whole.shape == (rows, cols):
+                return whole[r0:r1, c0:c1].copy()
+    with rasterio.open(path) as src:
+        return src.read(band, window=window, masked=True).astype("float64").filled(np.nan)
 
 
 def dem_height_range(info: Any, band: int = 1) -> tuple[float, float]:
