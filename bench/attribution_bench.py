@@ -333,24 +333,25 @@ def check_apply(block: Block, gpkg: Path, merged: bool) -> list[str]:
     if reasons != dict(block.unresolved):
         problems.append(f"unresolved {reasons}, generated {dict(block.unresolved)}")
     if merged:
-        kinds = kind_counts(gpkg)
-        want = {"duplicate_removed": sum(block.duplicates.values()),
-                "joined": sum(block.joins.values()), "join_refused": block.refused}
-        if {k: kinds.get(k, 0) for k in want} != want:
-            problems.append(f"merge events {kinds}, generated {want}")
+        problems += merge_event_problems(block, gpkg)
     return problems
+
+
+def merge_event_problems(block: Block, gpkg: Path) -> list[str]:
+    """The merge's events (duplicates removed, joins, refused joins) against the generated ones."""
+    kinds = kind_counts(gpkg)
+    want = {"duplicate_removed": sum(block.duplicates.values()),
+            "joined": sum(block.joins.values()), "join_refused": block.refused}
+    if {k: kinds.get(k, 0) for k in want} != want:
+        return [f"merge events {kinds}, generated {want}"]
+    return []
 
 
 def check_merge(block: Block, gpkg: Path) -> list[str]:
     got = layer_counts(gpkg)
     problems = [f"layer {k}: {got.get(k)} features, generated {n}"
                 for k, n in block.expected_merge_layers().items() if got.get(k) != n]
-    kinds = kind_counts(gpkg)
-    want = {"duplicate_removed": sum(block.duplicates.values()),
-            "joined": sum(block.joins.values()), "join_refused": block.refused}
-    if {k: kinds.get(k, 0) for k in want} != want:
-        problems.append(f"merge events {kinds}, generated {want}")
-    return problems
+    return problems + merge_event_problems(block, gpkg)
 
 
 def run_size(cells: int, model_cells: int, work: Path, cases: list[str],

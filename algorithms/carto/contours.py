@@ -78,6 +78,8 @@ class Contours(Algorithm):
             raise self.fail("SMOOTHING", f"applies to DEM contours only, got "
                             f"{params['SMOOTHING']} with a TIN")
 
+    # duplicate-ok: process() imports its libraries lazily (toolbox list/help stay light); the
+    # lists of lazy imports after a check() look alike across algorithms
     def process(self, params, feedback: Feedback):
         from toolbox.cartography.contour_io import (
             raster_contours,

@@ -26,6 +26,15 @@ SPLIT_WORK = ["carto:contours", "carto:sheet", "dem:aspect", "dem:cubic", "dem:g
               "tin:to_raster"]
 
 
+def _only_on_workers(monkeypatch, module, name: str) -> None:
+    """``module.name`` fails in this (the client's) process: the worker processes import their
+    own modules, so a run that still succeeds did that work on the workers."""
+    def not_here(*args, **kwargs):
+        raise AssertionError(f"{module.__name__}.{name} ran in the client, not on a worker")
+
+    monkeypatch.setattr(module, name, not_here)
+
+
 def _sha(path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
@@ -324,10 +333,7 @@ def test_seams_and_vector_sheets_on_a_cluster_are_the_local_ones(tmp_path, monke
     cut_local, folder_local = cut("local", "local")
     import toolbox.mosaic.sheets as sheets
 
-    def not_here(*args, **kwargs):
-        raise AssertionError("a sheet was clipped in the client, not on a worker")
-
-    monkeypatch.setattr(sheets, "clip_vector", not_here)  # the workers' modules are theirs
+    _only_on_workers(monkeypatch, sheets, "clip_vector")
     with LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
                       dashboard_address=":0") as cluster:
         address = cluster.scheduler_address
@@ -380,10 +386,7 @@ def test_map_sheets_drawn_on_a_cluster_are_the_local_ones(tmp_path, monkeypatch)
     local_sheets, local = run("local", "local")
     import toolbox.cartography.sheet_job as sheet_job
 
-    def not_here(*args, **kwargs):
-        raise AssertionError("a sheet was drawn in the client, not on a worker")
-
-    monkeypatch.setattr(sheet_job, "render_sheet", not_here)  # the workers' modules are theirs
+    _only_on_workers(monkeypatch, sheet_job, "render_sheet")
     with LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
                       dashboard_address=":0") as cluster:
         sheets, files = run(cluster.scheduler_address, "dask")
