@@ -257,8 +257,8 @@ class GriddingAlgorithm(Algorithm):
 
         request = gridding_request(params)
         # a point cloud over TOOLBOX_STREAM_POINTS points is read by chunks, never held
-        streamed = grid_tin_streamed if self.method == "tin_linear" \
-            else partial(grid_dem_streamed, cross_validate=stream_quality)
+        streamed = partial(grid_tin_streamed if self.method == "tin_linear"
+                           else grid_dem_streamed, cross_validate=stream_quality)
         grid = streamed if wants_stream(request) else grid_dem
         stats = grid(METHODS[self.method], request, feedback)
         result: dict[str, Any] = {"OUTPUT": request.output}

@@ -177,16 +177,16 @@ def test_runs_that_cannot_stream_are_refused(cloud, tmp_path, monkeypatch, metho
 
 
 def test_cli_refusal_is_one_line(cloud, tmp_path, monkeypatch):
-    """QUALITY streams for every method but tin_linear (leave-one-out on the TIN of all the
-    other points): refused with its reason, one line, nothing written."""
+    """A run that cannot stream (DUPLICATE_TOLERANCE > 0 with a cloud over the limit) is
+    refused with its reason, one line, nothing written."""
     monkeypatch.setenv("TOOLBOX_STREAM_POINTS", "1000")
     out = tmp_path / "q.tif"
     res = run_cli("run", "dem:tin_linear", "--INPUT", cloud, "--CELL_SIZE", 2, "--OUTPUT", out,
-                  "--QUALITY", tmp_path / "q.json")
+                  "--DUPLICATE_TOLERANCE", 0.5, "--QUALITY", tmp_path / "q.json")
     assert res.returncode == 2, res.stderr
     lines = res.stderr.strip().splitlines()
-    assert len(lines) == 1 and lines[0].count("QUALITY") and "Traceback" not in res.stderr
-    assert "GB in memory" in lines[0] and "TIN of all the other points" in lines[0]
+    assert len(lines) == 1 and "Traceback" not in res.stderr
+    assert lines[0].count("DUPLICATE_TOLERANCE") and "got 0.5" in lines[0]
     assert not out.exists() and not (tmp_path / "q.json").exists()
     json.dumps(lines)
 
@@ -211,7 +211,9 @@ def _quality(method, cloud, tmp_path, monkeypatch, extra):
     ("idw", {"NEIGHBOURS": 6, "SECTORS": 4, "RADIUS": 6.0}),
     ("idw", {"NEIGHBOURS": 8, "RADIUS": 3.0, "MIN_NEIGHBOURS": 3}),
     ("nearest", {"MAX_DISTANCE": 1.0, "DUPLICATES": "first"}),
-    ("idw", {"EXTRAPOLATE": True, "POWER": 1.0})])
+    ("idw", {"EXTRAPOLATE": True, "POWER": 1.0}),
+    ("tin_linear", {}), ("tin_linear", {"MAX_DISTANCE": 1.5, "DUPLICATES": "first"}),
+    ("tin_linear", {"EXTRAPOLATE": True})])
 def test_streamed_quality_equals_in_memory(cloud, tmp_path, monkeypatch, method, extra):
     """The in-memory QUALITY is the oracle: the same counts, the same worst point (its index,
     its prediction), the same maximum error; the sums (RMSE, mean, ...) to the rounding of
@@ -281,3 +283,33 @@ def test_streamed_quality_of_a_plane_is_exact(tmp_path, monkeypatch):
     assert cv["streamed"]["tiles"] >= 9
     assert cv["points"] == len(xy) and cv["hull_vertices_not_predicted"] == 4
     assert cv["predicted"] == len(xy) - 4 and cv["max_abs_error"] < 1e-9
+
+
+@pytest.mark.parametrize("rim", [2, 10_000])
+def test_streamed_tin_quality_grows_its_tiles(cloud, tmp_path, monkeypatch, rim):
+    """tin_linear with first reaches a tenth of the planned ones: tiles whose stars reach past
+    their bucket are spilled again with the reach doubled, with the rim along the hull held
+    (2 buckets) or not (10,000: the hull shrunk by it is empty); the report is still the
+    in-memory one."""
+    from dataclasses import replace
+
+    import toolbox.terrain.gridding.stream_quality as stream_quality
+
+    plan = stream_quality.plan_quality
+
+    def short(*args):
+        tiles, boxes = plan(*args)
+        return tiles, replace(boxes, reach=boxes.reach / 10)
+
+    monkeypatch.setattr(stream_quality, "plan_quality", short)
+    monkeypatch.setattr(stream_quality, "RIM_BUCKETS", rim)
+    memory, streamed, _ = _quality("tin_linear", cloud, tmp_path, monkeypatch, {})
+    a, b = memory["methods"]["tin_linear"], streamed["methods"]["tin_linear"]
+    info = b.pop("streamed")
+    assert info["passes"] >= 2 and info["tiles_retried"] > 0
+    assert (info["rim_points"] is None) == (rim > 2)
+    sums = ("rmse", "mean_error", "mean_abs_error", "std_error")
+    assert {k: v for k, v in b.items() if k not in sums} == \
+        {k: v for k, v in a.items() if k not in sums}
+    for key in sums:
+        assert b[key] == pytest.approx(a[key], rel=1e-12, abs=1e-15), key

@@ -17,8 +17,8 @@ kernel computes the cell from the same points in the same local origin. Streams:
 idw (with SECTORS: every point within RADIUS), plane, quadratic, cubic; tin_linear by its own
 tiles (:mod:`toolbox.terrain.gridding.stream_tin`: each bucket's Delaunay triangles whose
 circumcircle the bucket holds). QUALITY (leave-one-out) by one more pass, tile by tile
-(:mod:`toolbox.terrain.gridding.stream_quality`), for every method but tin_linear. Not: LINES /
-BREAKLINES, DUPLICATE_TOLERANCE > 0, QUALITY with tin_linear.
+(:mod:`toolbox.terrain.gridding.stream_quality`), for every method. Not: LINES / BREAKLINES,
+DUPLICATE_TOLERANCE > 0.
 
 Memory: one chunk (CHUNK_POINTS records, about 100 MB at 1 M), the count raster (8 bytes a
 bucket, at most about 1 M buckets) and the hull, then per tile in flight its bucket and the
@@ -90,11 +90,6 @@ def check_streamable(method: Any, request: GriddingRequest) -> None:
         raise ParameterError("DUPLICATE_TOLERANCE", f"must be 0 for a point cloud INPUT {limit}"
                              f" (streamed gridding merges identical XY only), got "
                              f"{sources.duplicate_tolerance}")
-    if request.quality is not None and not hasattr(method, "loo_targets"):
-        raise ParameterError("QUALITY", f"dem:{method.name}'s leave-one-out takes the TIN of all "
-                             f"the other points (not streamed): the {held}; not available for "
-                             f"a point cloud INPUT {limit} (raise TOOLBOX_STREAM_POINTS if the "
-                             "memory is there, or cross-validate dem:nearest / idw / plane)")
 
 
 # -- pass 1 ---------------------------------------------------------------------------------------

@@ -23,17 +23,29 @@
 EXTRAPOLATE off: the vertices of the cloud's convex hull (pass 1's ring, the same Qhull hull of
 the same points in the same local coordinates) are not predicted, as in memory.
 
-Not streamed: tin_linear (its leave-one-out takes the TIN of all the other points, colour class
-by colour class; refused by :func:`~toolbox.terrain.gridding.stream.check_streamable`).
+tin_linear (its leave-one-out: the plane of p's triangle in the TIN of all the other points):
+removing p changes only p's star, refilled from its ring, so a bucket whose TIN has p's star of
+the whole cloud gives p the same triangle. A tile's bucket gets the rim (every point within
+RIM_BUCKETS buckets of the hull's edge, one more pass, at most TILE_POINTS, else none) and a
+target is settled when its star closes around it and each of its triangles' circumcircles
+misses the points the bucket lacks (those of the hull, shrunk by the rim when held, outside the
+bucket's rectangle: :func:`~toolbox.terrain.gridding.stream_tin.empty_outside`), or it is a
+vertex of the cloud's hull (never predicted). A tile with an unsettled target is spilled again
+with its reach doubled (capped as in :func:`~toolbox.terrain.gridding.stream_tin.
+check_growth`). The plane is computed from the triangle's lowest vertex in the run's local
+coordinates, in memory as here (:func:`~toolbox.terrain.gridding.tin_constrained.tin_loo`): the
+same bits. Four or more cocircular points: either diagonal is Delaunay (as in the grid).
 
-Memory: a tile's bucket (at most about TILE_POINTS points, 32 bytes each on disk) and the
-method's bins; the summary keeps a few numbers and the ranks of the duplicates merged away
-(8 bytes each). Disk: 32 bytes a kept point (times the halo overlap) and 8 bytes an error.
+Memory: a tile's bucket (at most about TILE_POINTS points, 32 bytes each on disk; tin_linear
+also the rim, at most TILE_POINTS points) and the method's bins; the summary keeps a few
+numbers and the ranks of the duplicates merged away (8 bytes each). Disk: 32 bytes a kept
+point (times the halo overlap) and 8 bytes an error.
 """
 
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -43,6 +55,8 @@ from toolbox.errors import InputDataError
 
 #: the first tile side, in buckets of the count raster (about 16 points each): ~1 M points
 FIRST_BLOCK = 256
+#: tin_linear: the width of the band along the hull's edge whose points are held, in buckets
+RIM_BUCKETS = 2
 
 
 class QualityTiles:
@@ -107,16 +121,21 @@ def stream_quality(method: Any, scan: Any, cloud: tuple, origin: np.ndarray, opt
     from toolbox.terrain.points import merge_duplicate_xy
 
     ref, flt, z_field, chunk = cloud
-    k, radius = method.halo_neighbours(options)
-    radius = math.inf if radius is None else float(radius)
+    tin = method.name == "tin_linear"
+    if tin:
+        from toolbox.terrain.gridding.stream_tin import TIN_NEIGHBOURS
+
+        k, radius = TIN_NEIGHBOURS, math.inf
+    else:
+        k, radius = method.halo_neighbours(options)
+        radius = math.inf if radius is None else float(radius)
     tiles, boxes = plan_quality(scan, k, radius, stream.TILE_POINTS)
     width = tiles.block * scan.size
     folder = folder / "quality"
     folder.mkdir()
-    with feedback.timed("quality_spill"):
-        written = stream.spill(ref, flt, z_field, chunk, boxes, folder, step=(width, width),
-                               index=True)
-    hull = _hull_vertices(scan.ring, origin) if not extrapolate else set()
+    ring = _hull_vertices(scan.ring, origin)
+    hull = ring if not extrapolate else set()
+    settle = _TinSettle(scan, ring, cloud, rule) if tin else None
     merged = stream.Merged(rule)
     errors_path = folder / "errors.f8"
     sums = {"n": 0, "points": 0, "hull": 0, "err": [], "err2": [], "abs": []}
@@ -125,75 +144,113 @@ def stream_quality(method: Any, scan: Any, cloud: tuple, origin: np.ndarray, opt
     orders = np.zeros(4, dtype=np.int64)
     any_orders = False
     n_tiles = len(tiles.boxes)
-    for t in range(n_tiles):
-        feedback.check_canceled()
-        path = folder / f"{t}.xyz"
-        if not path.exists():
-            continue
-        bucket = np.fromfile(path, dtype=np.float64).reshape(-1, 4)
-        path.unlink()
-        own = tiles.owner(bucket[:, :2]) == t
-        if not own.any():
-            continue
-        xyz, rank = bucket[:, :3], bucket[:, 3]
-        if PointBins.build(xyz[:, :2] - xyz[0, :2]).has_duplicates():
-            try:
-                xyz, _, keep = merge_duplicate_xy(xyz, 0.0, rule)
-                _, report, first = merge_duplicate_xy(bucket[own, :3], 0.0, rule)
-            except ValueError as exc:
-                raise InputDataError(f"DUPLICATES is 'error' and {exc}") from None
-            merged.add(report)
-            mine = rank[own]
-            gone = np.ones(len(mine), dtype=bool)
-            gone[first] = False
-            removed.append(mine[gone].astype(np.int64))
-            rank = rank[keep]
-            if k > 0:
-                rect = boxes.rects[t]
-                need = stream.tile_reach(boxes.boxes[t], rect, scan, xyz, k + 1, radius)
-                if need > boxes.reach[t] * (1 + 1e-12):
-                    raise InputDataError(
-                        f"streamed QUALITY: after merging duplicate XY, the points of tile {t} "
-                        f"may need neighbours {need:.3f} away, its bucket holds those within "
-                        f"{boxes.reach[t]:.3f}: over a quarter of the points share their XY; "
-                        "raise TOOLBOX_STREAM_POINTS to grid in memory")
-            own = tiles.owner(xyz[:, :2]) == t
-        targets = np.flatnonzero(own)
-        local = np.array(xyz, dtype=np.float64)
-        local[:, :2] -= origin
-        bins = PointBins.build(local[:, :2])
-        predicted, used = method.loo_targets(bins, local[:, 2], targets, options, None, workers)
-        if hull:
-            xy = xyz[targets, :2]
-            at_hull = np.isin(xy[:, 0], [x for x, _ in hull])  # then the exact pairs
-            at_hull[at_hull] = [(x, y) in hull for x, y in xy[at_hull]]
-            predicted[at_hull] = np.nan
-            sums["hull"] += int(at_hull.sum())
-        if used is not None:
-            any_orders = True
-            used[np.isnan(predicted)] = -1
-            orders += np.bincount(used[used >= 0], minlength=4)[:4]
-        sums["points"] += len(targets)
-        ok = np.isfinite(predicted)
-        err = predicted[ok] - local[targets[ok], 2]
-        sums["n"] += len(err)
-        if len(err):
-            with open(errors_path, "ab") as fh:
-                fh.write(err.tobytes())
-            sums["err"].append(float(err.sum()))
-            sums["err2"].append(float((err ** 2).sum()))
-            sums["abs"].append(float(np.abs(err).sum()))
-            a = np.abs(err)
-            top = a.max()
-            tied = np.flatnonzero(a == top)
-            picks = targets[ok][tied]
-            j = int(picks[np.argmin(rank[picks])])
-            candidate = (float(top), float(rank[j]),
-                         {"x": float(xyz[j, 0]), "y": float(xyz[j, 1]), "z": float(xyz[j, 2]),
-                          "predicted": float(predicted[np.flatnonzero(targets == j)[0]])})
-            if candidate[0] > worst[0] or (candidate[0] == worst[0] and candidate[1] < worst[1]):
-                worst = candidate
-        feedback.set_progress(100.0 * (t + 1) / n_tiles)
+    reach = boxes.reach.copy()
+    todo, passes, spilled, bucket_max, retried, done = list(range(n_tiles)), 0, 0, 0, 0, 0
+    while todo:  # one pass, or for tin_linear until every tile's stars are settled
+        live = np.full(n_tiles, -np.inf)  # empty rectangles for the tiles already done
+        live[todo] = reach[todo]
+        current = replace(boxes, reach=live)
+        bucket_dir = folder / f"pass{passes}"
+        bucket_dir.mkdir()
+        with feedback.timed("quality_spill"):
+            written = stream.spill(ref, flt, z_field, chunk, current, bucket_dir,
+                                   step=(width, width), index=True)
+        passes += 1
+        spilled += int(written.sum())
+        bucket_max = max(bucket_max, int(written.max()))
+        again = []
+        for t in todo:
+            feedback.check_canceled()
+            path = bucket_dir / f"{t}.xyz"
+            if not path.exists():
+                done += 1
+                continue
+            bucket = np.fromfile(path, dtype=np.float64).reshape(-1, 4)
+            path.unlink()
+            own = tiles.owner(bucket[:, :2]) == t
+            if not own.any():
+                done += 1
+                continue
+            xyz, rank = bucket[:, :3], bucket[:, 3]
+            report, gone_here = None, None
+            if PointBins.build(xyz[:, :2] - xyz[0, :2]).has_duplicates():
+                try:
+                    xyz, _, keep = merge_duplicate_xy(xyz, 0.0, rule)
+                    _, report, first = merge_duplicate_xy(bucket[own, :3], 0.0, rule)
+                except ValueError as exc:
+                    raise InputDataError(f"DUPLICATES is 'error' and {exc}") from None
+                mine = rank[own]
+                gone = np.ones(len(mine), dtype=bool)
+                gone[first] = False
+                gone_here = mine[gone].astype(np.int64)
+                rank = rank[keep]
+                if k > 0 and not tin:
+                    rect = current.rects[t]
+                    need = stream.tile_reach(boxes.boxes[t], rect, scan, xyz, k + 1, radius)
+                    if need > reach[t] * (1 + 1e-12):
+                        raise InputDataError(
+                            f"streamed QUALITY: after merging duplicate XY, the points of tile "
+                            f"{t} may need neighbours {need:.3f} away, its bucket holds those "
+                            f"within {reach[t]:.3f}: over a quarter of the points share their "
+                            "XY; raise TOOLBOX_STREAM_POINTS to grid in memory")
+                own = tiles.owner(xyz[:, :2]) == t
+            targets = np.flatnonzero(own)
+            if tin:
+                xyz, rank = settle.add_rim(xyz, rank, current.rects[t])
+            local = np.array(xyz, dtype=np.float64)
+            local[:, :2] -= origin
+            if tin:
+                if not settle.settled(xyz, targets, current.rects[t]):
+                    again.append(t)
+                    continue
+                predicted, used = _tin_loo(local, targets, options), None
+            else:
+                bins = PointBins.build(local[:, :2])
+                predicted, used = method.loo_targets(bins, local[:, 2], targets, options, None,
+                                                     workers)
+            if report is not None:
+                merged.add(report)
+                removed.append(gone_here)
+            if hull:
+                xy = xyz[targets, :2]
+                at_hull = np.isin(xy[:, 0], [x for x, _ in hull])  # then the exact pairs
+                at_hull[at_hull] = [(x, y) in hull for x, y in xy[at_hull]]
+                predicted[at_hull] = np.nan
+                sums["hull"] += int(at_hull.sum())
+            if used is not None:
+                any_orders = True
+                used[np.isnan(predicted)] = -1
+                orders += np.bincount(used[used >= 0], minlength=4)[:4]
+            sums["points"] += len(targets)
+            ok = np.isfinite(predicted)
+            err = predicted[ok] - local[targets[ok], 2]
+            sums["n"] += len(err)
+            if len(err):
+                with open(errors_path, "ab") as fh:
+                    fh.write(err.tobytes())
+                sums["err"].append(float(err.sum()))
+                sums["err2"].append(float((err ** 2).sum()))
+                sums["abs"].append(float(np.abs(err).sum()))
+                a = np.abs(err)
+                top = a.max()
+                tied = np.flatnonzero(a == top)
+                picks = targets[ok][tied]
+                j = int(picks[np.argmin(rank[picks])])
+                candidate = (float(top), float(rank[j]),
+                             {"x": float(xyz[j, 0]), "y": float(xyz[j, 1]),
+                              "z": float(xyz[j, 2]),
+                              "predicted": float(predicted[np.flatnonzero(targets == j)[0]])})
+                if candidate[0] > worst[0] or (candidate[0] == worst[0]
+                                               and candidate[1] < worst[1]):
+                    worst = candidate
+            done += 1
+            feedback.set_progress(100.0 * done / n_tiles)
+        bucket_dir.rmdir()
+        retried += len(again)
+        reach[again] *= 2.0
+        for t in again:
+            settle.check_growth(boxes, t, reach[t])
+        todo = again
     gone = np.sort(np.concatenate(removed)) if removed else np.zeros(0, dtype=np.int64)
     summary = _summary(sums, errors_path, worst, gone)
     if not extrapolate and sums["points"] >= 3:
@@ -202,12 +259,122 @@ def stream_quality(method: Any, scan: Any, cloud: tuple, origin: np.ndarray, opt
         summary["orders_used"] = {ORDER_NAMES[o]: int(orders[o]) for o in range(4)}
     summary["options"] = jsonable_options(options)
     summary["streamed"] = {"tiles": n_tiles, "block_buckets": tiles.block,
-                           "bucket_points_max": int(written.max()),
-                           "points_spilled": int(written.sum()),
-                           "reach_max": float(boxes.reach.max())}
+                           "bucket_points_max": bucket_max, "points_spilled": spilled,
+                           "reach_max": float(reach.max())}
+    if tin:
+        summary["streamed"] |= {"passes": passes, "tiles_retried": retried,
+                                "rim_points": None if settle.rim is None else len(settle.rim)}
     return {"what": "leave-one-out cross-validation: error = predicted - observed height",
             "crs": crs_label(crs), "points": sums["points"],
             "duplicates": merged.report.as_dict(), "methods": {method.name: summary}}
+
+
+class _TinSettle:
+    """The circumcircle test of :mod:`~toolbox.terrain.gridding.stream_tin` on a QUALITY tile's
+    bucket (see the module)."""
+
+    def __init__(self, scan: Any, ring: set, cloud: tuple, rule: str):
+        from shapely.geometry import Polygon
+
+        from toolbox.terrain.gridding.stream import count_table
+
+        self.scan, self.ring, self.table = scan, ring, count_table(scan.counts)
+        self.hull = Polygon(scan.ring) if len(scan.ring) >= 3 else None
+        self.inner, self.rim = None, None
+        if self.hull is not None:
+            self._rim(cloud, rule)
+
+    def _rim(self, cloud: tuple, rule: str) -> None:
+        """The kept points within RIM_BUCKETS buckets of the hull's edge (one more pass; their
+        duplicate XY merged by ``rule``), at most TILE_POINTS of them (else none)."""
+        import shapely
+
+        from toolbox.io.pointcloud import iter_xyz
+        from toolbox.terrain.gridding import stream
+        from toolbox.terrain.gridding.neighbours import PointBins
+        from toolbox.terrain.points import merge_duplicate_xy
+
+        inner = self.hull.buffer(-RIM_BUCKETS * self.scan.size)
+        if inner.is_empty:
+            return
+        shapely.prepare(inner)
+        ref, flt, z_field, chunk = cloud
+        parts, held = [], 0
+        for xyz in iter_xyz(ref, flt, z_field, "INPUT", chunk):
+            part = xyz[~shapely.contains_xy(inner, xyz[:, 0], xyz[:, 1])]
+            held += len(part)
+            if held > stream.TILE_POINTS:
+                return
+            parts.append(part)
+        rim = np.concatenate(parts) if parts else np.zeros((0, 3))
+        if len(rim) and PointBins.build(rim[:, :2] - rim[0, :2]).has_duplicates():
+            try:
+                rim = merge_duplicate_xy(rim, 0.0, rule)[0]
+            except ValueError as exc:
+                raise InputDataError(f"DUPLICATES is 'error' and {exc}") from None
+        self.inner, self.rim = inner, rim
+
+    def add_rim(self, xyz: np.ndarray, rank: np.ndarray, rect: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray]:
+        """The bucket with the rim points outside the closed ``rect`` appended (rank -1)."""
+        if self.rim is None or not len(self.rim):
+            return xyz, rank
+        rim = self.rim
+        out = ~((rim[:, 0] >= rect[0]) & (rim[:, 0] <= rect[2]) & (rim[:, 1] >= rect[1])
+                & (rim[:, 1] <= rect[3]))
+        return np.vstack([xyz, rim[out]]), np.r_[rank, np.full(int(out.sum()), -1.0)]
+
+    def settled(self, xyz: np.ndarray, targets: np.ndarray, rect: np.ndarray) -> bool:
+        """True when every target's star in the bucket's Delaunay TIN is its star in the TIN
+        of the whole cloud (closed around it, each triangle's circumcircle empty of the points
+        outside ``rect``), or the target is a vertex of the cloud's hull (never predicted)."""
+        from shapely.geometry import box
+
+        from toolbox.terrain.gridding.stream_tin import circumcircles, empty_outside
+        from toolbox.terrain.tin.kernels import triangulate
+
+        # the points not in the bucket: those of the hull (or, with the rim added, of the hull
+        # shrunk by the rim) outside the rectangle
+        outer = None if self.hull is None else \
+            (self.hull if self.inner is None else self.inner).difference(box(*rect))
+        if outer is None or outer.is_empty:  # the bucket holds every point
+            return True
+        try:
+            tri = triangulate(xyz[:, :2]) if len(xyz) >= 3 else np.zeros((0, 3), np.int32)
+        except ValueError:  # collinear bucket
+            tri = np.zeros((0, 3), dtype=np.int32)
+        unsettled = np.ones(len(xyz), dtype=bool)
+        if len(tri):
+            centres, radius = circumcircles(xyz[:, :2], tri)
+            good = empty_outside(centres, radius, rect, self.scan.bounds, outer)
+            unsettled[:] = False
+            unsettled[tri[~good].ravel()] = True
+            edges = np.sort(np.vstack([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]]), axis=1)
+            edges, count = np.unique(edges, axis=0, return_counts=True)
+            unsettled[edges[count == 1].ravel()] = True  # on the bucket's hull: star open
+        fails = targets[unsettled[targets]]
+        return all((float(x), float(y)) in self.ring for x, y in xyz[fails, :2])
+
+    def check_growth(self, boxes: Any, t: int, h: float) -> None:
+        from toolbox.terrain.gridding import stream
+        from toolbox.terrain.gridding.stream_tin import check_growth
+
+        check_growth(self.scan, self.table, boxes, t, h, stream.TILE_POINTS)
+
+
+def _tin_loo(local: np.ndarray, targets: np.ndarray, options: dict) -> np.ndarray:
+    """tin_linear's leave-one-out (:meth:`~toolbox.terrain.gridding.methods.tin_linear.
+    TinLinearMethod.loo`) at ``targets`` of a settled bucket (local coordinates)."""
+    from toolbox.terrain.gridding.neighbours import PointBins
+    from toolbox.terrain.gridding.tin_constrained import tin_loo
+
+    predicted = tin_loo(local, None, targets=targets)[targets]
+    max_distance = options.get("max_distance", math.inf)
+    if math.isfinite(max_distance) and len(local) > 1:
+        bins = PointBins.build(local[:, :2])
+        d2, _ = bins.query(local[targets, 0], local[targets, 1], 1, skip=targets)
+        predicted[d2[:, 0] > max_distance ** 2] = np.nan
+    return predicted
 
 
 def _hull_vertices(ring: np.ndarray, origin: np.ndarray) -> set:

@@ -138,11 +138,15 @@ def tile_values(xyz: np.ndarray, origin: tuple[float, float], tile: Any, mask: n
 
 
 def grid_tin_streamed(method: Any, request: Any, feedback: Any,
-                      chunk_points: int | None = None) -> dict[str, Any]:
-    """:func:`~toolbox.terrain.gridding.stream.grid_dem_streamed` for tin_linear."""
+                      chunk_points: int | None = None,
+                      cross_validate: Any = None) -> dict[str, Any]:
+    """:func:`~toolbox.terrain.gridding.stream.grid_dem_streamed` for tin_linear
+    (``cross_validate``: :func:`toolbox.terrain.gridding.stream_quality.stream_quality` for
+    QUALITY)."""
     from toolbox.terrain.gridding.stream import grid_dem_streamed
 
-    return grid_dem_streamed(method, request, feedback, chunk_points, planner=plan_tin)
+    return grid_dem_streamed(method, request, feedback, chunk_points, planner=plan_tin,
+                             cross_validate=cross_validate)
 
 
 def plan_tin(run: Any, scan: Any, cloud: tuple, options: dict[str, Any], folder: Path,

@@ -4,7 +4,10 @@ predictions (each point predicted from the TIN of the others).
 Leave-one-out: the points are split into independent sets (no two joined by a TIN edge, by
 greedy colouring), each set is removed at once and the others re-triangulated, which gives
 every point exactly the TIN of the others (removing a vertex changes only its own star).
-Breakline vertices stay in (they are constraints) and are not predicted.
+Breakline vertices stay in (they are constraints) and are not predicted. A prediction is the
+plane of its triangle computed from the triangle's lowest vertex (smallest x, then y) in the
+caller's coordinates: the same bits whatever the triangulation's vertex numbering (the streamed
+QUALITY of :mod:`toolbox.terrain.gridding.stream_quality` finds the same triangle in a bucket).
 """
 
 from __future__ import annotations
@@ -78,9 +81,22 @@ def _greedy_colours(n, indptr, indices, protected):
     return colour
 
 
+def lowest_first(xy: np.ndarray, triangles: np.ndarray) -> np.ndarray:
+    """``triangles`` rotated (orientation kept) to start at their vertex of smallest x, then
+    smallest y."""
+    tri = np.asarray(triangles)
+    if not len(tri):
+        return tri
+    xs, ys = xy[tri, 0], xy[tri, 1]
+    ys = np.where(xs == xs.min(axis=1)[:, None], ys, np.inf)
+    first = np.argmin(ys, axis=1)
+    return tri[np.arange(len(tri))[:, None], (first[:, None] + np.arange(3)) % 3]
+
+
 def tin_loo(local_xyz: np.ndarray, segments: np.ndarray | None,
-            feedback: Feedback | None = None) -> np.ndarray:
-    """Leave-one-out TIN-linear predictions (see the module notes). NaN: not predicted."""
+            feedback: Feedback | None = None, targets: np.ndarray | None = None) -> np.ndarray:
+    """Leave-one-out TIN-linear predictions (see the module notes). NaN: not predicted.
+    ``targets``: the indices of the points to predict (default all; the others NaN)."""
     from scipy.sparse import coo_matrix
 
     from toolbox.terrain.tin.kernels import interpolate_tin
@@ -99,12 +115,18 @@ def tin_loo(local_xyz: np.ndarray, segments: np.ndarray | None,
     colour = _greedy_colours(n, adjacency.indptr.astype(np.int64),
                              adjacency.indices.astype(np.int64), protected)
     predicted = np.full(n, np.nan)
+    wanted = np.ones(n, dtype=bool)
+    if targets is not None:
+        wanted[:] = False
+        wanted[targets] = True
     colours = int(colour.max()) + 1 if (colour >= 0).any() else 0
     for c in range(colours):
         if feedback is not None:
             feedback.check_canceled()
             feedback.set_progress(100.0 * c / max(colours, 1))
-        out = np.flatnonzero(colour == c)
+        out = np.flatnonzero((colour == c) & wanted)
+        if not len(out):
+            continue
         keep = np.flatnonzero(colour != c)
         if len(keep) < 3:
             continue
@@ -115,5 +137,6 @@ def tin_loo(local_xyz: np.ndarray, segments: np.ndarray | None,
             nodes, tri, _ = constrained_tin(local_xyz[keep], sub_seg)
         except ValueError:  # the others are collinear: nothing to predict from
             continue
-        predicted[out] = interpolate_tin(nodes, tri, local_xyz[out, 0], local_xyz[out, 1])
+        predicted[out] = interpolate_tin(nodes, lowest_first(nodes, tri), local_xyz[out, 0],
+                                         local_xyz[out, 1], origin=(0.0, 0.0))
     return predicted

@@ -447,7 +447,8 @@ def rasterize_tin(xyz: np.ndarray, triangles: np.ndarray, x0: float, y0: float, 
 
 
 def interpolate_tin(xyz: np.ndarray, triangles: np.ndarray, qx: np.ndarray, qy: np.ndarray,
-                    tolerance: float = 0.0) -> np.ndarray:
+                    tolerance: float = 0.0, origin: tuple[float, float] | None = None
+                    ) -> np.ndarray:
     """Height of the TIN surface at query points: the plane of the containing triangle.
 
     Parameters
@@ -462,6 +463,8 @@ def interpolate_tin(xyz: np.ndarray, triangles: np.ndarray, qx: np.ndarray, qy: 
         Points outside every triangle but within this planimetric distance of the TIN's outer
         edge take the value at the nearest point of that edge (for points that should lie on
         the border but miss it by rounding). 0 (default): outside is NaN.
+    origin : (x, y), optional
+        The origin the planes are computed from (default: a round point of the nodes' box).
 
     Returns
     -------
@@ -483,7 +486,7 @@ def interpolate_tin(xyz: np.ndarray, triangles: np.ndarray, qx: np.ndarray, qy: 
         return out
     used = np.zeros(len(xyz), dtype=bool)
     used[tri.ravel()] = True
-    origin = _origin_of(xyz[used, :2])
+    origin = _origin_of(xyz[used, :2]) if origin is None else origin
     ox, oy = float(origin[0]), float(origin[1])
     lx, ly = qx - ox, qy - oy
     vx, vy = xyz[used, 0] - ox, xyz[used, 1] - oy
