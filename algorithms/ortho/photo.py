@@ -22,6 +22,7 @@ from toolbox.parameters import (
     String,
 )
 from toolbox.registry import register
+from toolbox.ui.execution import executor_of, scheduler_parameter
 from toolbox.ui.photogrammetry import (  # duplicate-ok: the same groups as ortho:batch
     dem_parameters,
     ortho_method_parameters,
@@ -47,11 +48,11 @@ class OrthoPhoto(Algorithm):
     provably within MAP_TOLERANCE photo pixels (default 0.05 px; bound = Lipschitz constant of
     the distortion x condition of the pixel transform x diagonal of the block's pixel box,
     checked per block; other blocks are computed exactly; MAP_BLOCK 64 as the thesis'
-    "tasselli", the fastest measured). The work is streamed by output windows: memory stays
-    bounded for a 16644 x 16644 scan. The ortho is in the orientation's CRS, or in CRS when
-    given with PROJECT: the cell centres then go to the orientation's CRS through a pyproj
-    lattice checked to 1/1000 of a cell and are projected point by point (not with OCCLUSION or
-    INCIDENCE). The DEM may be in any CRS.
+    "tasselli", the fastest measured). The work is streamed by output windows (local threads,
+    or a Dask cluster with SCHEDULER): memory stays bounded for a 16644 x 16644 scan. The
+    ortho is in the orientation's CRS, or in CRS when given with PROJECT: the cell centres then
+    go to the orientation's CRS through a pyproj lattice checked to 1/1000 of a cell and are
+    projected point by point (not with OCCLUSION or INCIDENCE). The DEM may be in any CRS.
 
     The orientation comes from PROJECT (an orientation project; PHOTO names the photo, default
     the one whose image file or id matches INPUT) or from CAMERA (a camera YAML as in a
@@ -127,6 +128,7 @@ class OrthoPhoto(Algorithm):
                 default=False),
         Boolean("COG", "write a Cloud Optimized GeoTIFF", default=False),
         Boolean("OVERVIEWS", "build internal overviews", default=True),
+        scheduler_parameter("the windows"),
         Number("MAP_SCALE", "map scale denominator for the expected accuracy (e.g. 5000)",
                optional=True, min_value=1),
         *rpc_gcp_parameters(),
@@ -168,8 +170,9 @@ class OrthoPhoto(Algorithm):
         from toolbox.ortho.run import OrthoOptions, orthorectify
         from toolbox.photogrammetry.tables import write_json
 
+        executor = executor_of(params)  # a bad address is refused before any work
         if params["PROJECT"] is None and params["CAMERA"] is None:
-            report = rpc_ortho(params, feedback)
+            report = rpc_ortho(params, feedback, executor)
             if params["REPORT"] is not None:
                 write_json(params["REPORT"], {"algorithm": self.id, "photos": [report]})
             return {"OUTPUT": params["OUTPUT"], "OCCLUSION_MASK": None, "INCIDENCE": None,
@@ -207,7 +210,7 @@ class OrthoPhoto(Algorithm):
             report = orthorectify(photo, params["INPUT"], dem, plan.grid, params["OUTPUT"],
                                   options, plan.surface, plan.mean_height,
                                   params["OCCLUSION_MASK"], params["INCIDENCE"],
-                                  params["MAP_SCALE"], feedback)
+                                  params["MAP_SCALE"], feedback, executor=executor)
         report["footprint"] = [list(p) for p in plan.footprint.exterior.coords]
         report["heights"] = heights.as_dict()
         if params["REPORT"] is not None:
@@ -217,7 +220,8 @@ class OrthoPhoto(Algorithm):
                 "STATISTICS": report}
 
 
-def rpc_ortho(params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
+def rpc_ortho(params: dict[str, Any], feedback: Feedback,
+              executor: Any = None) -> dict[str, Any]:
     """The ortho of an INPUT with RPCs (GDAL's: tags, .RPB, _RPC.TXT): the grid in CRS (default
     the DEM's), the optional GCP bias refinement, the DEM in the RPCs' ellipsoidal heights
     (or HEIGHTS)."""
@@ -245,7 +249,8 @@ def rpc_ortho(params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
             resampling=params["RESAMPLING"], outside=params["OUTSIDE"], nodata=params["NODATA"],
             dem_factor=params["DEM_FACTOR"], band=band, overviews=params["OVERVIEWS"],
             cog=params["COG"])
-        report = rpc_orthorectify(camera, image, dem, grid, params["OUTPUT"], options, feedback)
+        report = rpc_orthorectify(camera, image, dem, grid, params["OUTPUT"], options, feedback,
+                                  executor=executor)
     report.update(photo=Path(image.path).stem, photo_gsd_m=gsd, heights=heights.as_dict(),
                   bias=bias)
     return report

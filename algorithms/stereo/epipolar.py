@@ -9,6 +9,7 @@ from toolbox.feedback import Feedback
 from toolbox.parameters import Enum, Number, RasterLayer, String
 from toolbox.parameters.outputs import Output, OutputFile, OutputRaster
 from toolbox.registry import register
+from toolbox.ui.execution import executor_of, scheduler_parameter
 from toolbox.ui.photogrammetry import project_parameter
 
 
@@ -25,7 +26,8 @@ class EpipolarPair(Algorithm):
     (P = C_left + |B| / px · Rn (xn, yn, -c), px = d·pixel + x_min_left - x_min_right; the normal
     case Z = c·B / p). Radial distortion and the interior orientation are removed on the way
     (each output pixel's ray goes through the collinearity equations into the original image;
-    cv2.remap by windows of 2048 pixels on the raster engine, bounded memory).
+    cv2.remap by windows of 2048 pixels on the raster engine, bounded memory; local threads, or
+    a Dask cluster with SCHEDULER).
 
     Outputs: the two images (GeoTIFF with an alpha band; their transform maps pixels to the
     normalised image coordinates in mm, no CRS) and TRANSFORM, a JSON with Rn, the normalised
@@ -63,6 +65,7 @@ class EpipolarPair(Algorithm):
                optional=True, min_value=0, min_exclusive=True),
         Enum("RESAMPLING", "resampling of the photos", options=["nearest", "bilinear", "cubic",
              "lanczos"], default="bilinear"),
+        scheduler_parameter("the windows"),
         OutputRaster("OUTPUT_LEFT", "normalised left image (GeoTIFF + alpha)"),
         OutputRaster("OUTPUT_RIGHT", "normalised right image (GeoTIFF + alpha)"),
         OutputFile("TRANSFORM", "the pair's normalised geometry (JSON)", extensions=[".json"]),
@@ -83,6 +86,7 @@ class EpipolarPair(Algorithm):
             resample_image,
         )
 
+        executor = executor_of(params)  # a bad address is refused before any work
         project = load_project_parameter(params["PROJECT"])
         from toolbox.stereo.frames import as_frame_photo
 
@@ -102,7 +106,7 @@ class EpipolarPair(Algorithm):
             feedback.check_canceled()
             resample_image(geometry, photos[side], side, images[side], params[name],
                            params["RESAMPLING"], feedback.step(50 * side, 50 * side + 50),
-                           pixel_photo=originals[side])
+                           pixel_photo=originals[side], executor=executor)
         geometry.write(params["TRANSFORM"])
         stats = {"left": photos[0].id, "right": photos[1].id,
                  "widths": list(geometry.widths), "height": geometry.height,

@@ -15,6 +15,7 @@ from toolbox.parameters import Integer, Number, RasterLayer, VectorLayer
 from toolbox.parameters.outputs import Output, OutputFile
 from toolbox.registry import register
 from toolbox.terrain.tin.cutfill import CutFill, grid_cut_fill, plane_cut_fill
+from toolbox.ui.execution import executor_of, scheduler_parameter
 from toolbox.ui.tin import tin_parameter
 
 
@@ -35,7 +36,7 @@ def read_mask(ref):
 
 
 def dem_cut_fill(xyz: np.ndarray, triangles: np.ndarray, info, band: int, mask,
-                 feedback: Feedback) -> tuple[CutFill, dict]:
+                 feedback: Feedback, executor=None) -> tuple[CutFill, dict]:
     """Cut/fill of the TIN against a DEM on the DEM's own grid, tile by tile on the raster
     engine (tiles without triangles are not read)."""
     from functools import partial
@@ -67,7 +68,7 @@ def dem_cut_fill(xyz: np.ndarray, triangles: np.ndarray, info, band: int, mask,
     process_raster(grid, {"dem": RasterInput(info.path, bands=(band,), dtype="float64")},
                    partial(_cut_fill_tile, xyz, mask, cell_x * cell_y),
                    lambda tile, array: None, tile_size=tile_size, plan=plan, collect=collect,
-                   feedback=feedback, start=10, end=100)
+                   executor=executor, feedback=feedback, start=10, end=100)
     return total, {"cell_size": [cell_x, cell_y], "cells_without_dem": no_dem}
 
 
@@ -101,7 +102,8 @@ class Volume(Algorithm):
     - DEM: the TIN is sampled at the DEM's cell centres (tin:to_raster's kernel) and each cell
       counts cell area x (TIN - DEM), the midpoint rule at the DEM's resolution; cells count
       when their centre is inside MASK and both surfaces have a value (cells of the TIN without
-      DEM are reported).
+      DEM are reported). The DEM's tiles run on local threads or, with SCHEDULER, on a Dask
+      cluster.
 
     Result: STATISTICS and, with REPORT, a small JSON or CSV report (volumes, areas, reference,
     method).
@@ -120,6 +122,7 @@ class Volume(Algorithm):
                     optional=True),
         OutputFile("REPORT", "report file (.json or .csv)", extensions=[".json", ".csv"],
                    optional=True),
+        scheduler_parameter("the DEM's tiles (REFERENCE_DEM)"),
     ]
     outputs = [Output("STATISTICS", "cut, fill and net volumes; cut, fill and total areas",
                       "json")]
@@ -145,6 +148,7 @@ class Volume(Algorithm):
         if params["REFERENCE_DEM"] is not None:
             named["REFERENCE_DEM"] = params["REFERENCE_DEM"].crs
         crs = common_crs(named)
+        executor = executor_of(params)  # a bad address is refused before any work
         with feedback.timed("read"):
             xyz, triangles, _ = read_tin(params["TIN"])
             mask = None if params["MASK"] is None else read_mask(params["MASK"])
@@ -155,7 +159,7 @@ class Volume(Algorithm):
                 extra = {"method": "exact (plane)", "reference": {"z": params["REFERENCE_Z"]}}
             else:
                 result, extra = dem_cut_fill(xyz, triangles, params["REFERENCE_DEM"],
-                                             params["BAND"], mask, feedback)
+                                             params["BAND"], mask, feedback, executor)
                 extra.update(method="grid (DEM cell centres)",
                              reference={"dem": params["REFERENCE_DEM"].as_text(),
                                         "band": params["BAND"]})

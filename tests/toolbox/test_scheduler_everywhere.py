@@ -22,8 +22,8 @@ X0, Y0 = 1_688_000.0, 4_799_500.0
 SPLIT_WORK = ["carto:contours", "carto:sheet", "dem:aspect", "dem:cubic", "dem:ground",
               "dem:hillshade", "dem:idw", "dem:match", "dem:nearest", "dem:plane",
               "dem:quadratic", "dem:slope", "dem:tin_linear", "mosaic:build", "mosaic:cut",
-              "mosaic:seamlines", "orientation:tiepoints", "ortho:batch", "rectify:image",
-              "tin:to_raster"]
+              "mosaic:seamlines", "orientation:tiepoints", "ortho:batch", "ortho:photo",
+              "rectify:image", "stereo:epipolar", "tin:to_raster", "tin:volume"]
 
 
 def _only_on_workers(monkeypatch, module, name: str) -> None:

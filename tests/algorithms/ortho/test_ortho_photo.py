@@ -85,6 +85,19 @@ def test_texture_recovered_on_every_patch(block, tmp_path):
     assert report["photo_gsd_m"] == pytest.approx(2.5, abs=0.1)
 
 
+def test_scheduler_local_is_not_overridden_by_the_environment(block, tmp_path, monkeypatch):
+    """SCHEDULER local runs the ortho's windows on local threads: a DASK_SCHEDULER_ADDRESS
+    naming no cluster (nothing listens on port 9) is not contacted, and the ortho equals a run
+    without the variable (issue 31)."""
+    monkeypatch.delenv("DASK_SCHEDULER_ADDRESS", raising=False)
+    run_ortho(block, tmp_path / "plain.tif", CELL_SIZE=10.0, OVERVIEWS=False)
+    monkeypatch.setenv("DASK_SCHEDULER_ADDRESS", "tcp://127.0.0.1:9")
+    run_ortho(block, tmp_path / "env.tif", CELL_SIZE=10.0, OVERVIEWS=False, SCHEDULER="local")
+    with rasterio.open(tmp_path / "plain.tif") as a, rasterio.open(tmp_path / "env.tif") as b:
+        first, second = a.read(), b.read()
+    assert first[-1].max() == 255 and (first == second).all()  # alpha: the photo is there
+
+
 def test_flat_plane_instead_of_dem_is_wrong(block, tmp_path):
     """Rectifying on a plane at the mean height (what a homography does) leaves the relief
     displacement: most patches are off by more than a pixel."""

@@ -91,6 +91,20 @@ def test_synthetic_rpc_ortho_equals_gdalwarp(synthetic, tmp_path):
     assert compared > 150_000 and worst < 0.05 and only_one < 0.001 * compared
 
 
+def test_rpc_scheduler_local_is_not_overridden_by_the_environment(synthetic, tmp_path,
+                                                                 monkeypatch):
+    """The RPC path hands SCHEDULER's executor to the warp too: with SCHEDULER local a
+    DASK_SCHEDULER_ADDRESS naming no cluster (nothing listens on port 9) is not contacted, and
+    the ortho equals a run without the variable (issue 31)."""
+    ramp = write_ramp(tmp_path / "ramp.tif", synthetic_rpc(), 1200, 1000)
+    monkeypatch.delenv("DASK_SCHEDULER_ADDRESS", raising=False)
+    a, _ = ours(ramp, synthetic / "dem.tif", tmp_path / "plain.tif", CELL_SIZE=16.0)
+    monkeypatch.setenv("DASK_SCHEDULER_ADDRESS", "tcp://127.0.0.1:9")
+    b, _ = ours(ramp, synthetic / "dem.tif", tmp_path / "env.tif", CELL_SIZE=16.0,
+                SCHEDULER="local")
+    assert (a != NODATA).sum() > 1000 and np.array_equal(a, b)
+
+
 @needs_gdalwarp
 @pytest.mark.parametrize("bias, truth", [("shift", dict(dx=3.7, dy=-2.2)),
                                          ("affine", dict(dx=-1.5, dy=2.5, scale=1.002))])

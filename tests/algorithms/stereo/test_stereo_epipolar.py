@@ -94,6 +94,23 @@ def test_homologous_points_on_one_row_and_back_to_ground(pair, tmp_path):
     assert res["STATISTICS"]["overlap"] > 0.5
 
 
+def test_scheduler_local_is_not_overridden_by_the_environment(pair, tmp_path, monkeypatch):
+    """SCHEDULER local runs both images' windows on local threads: a DASK_SCHEDULER_ADDRESS
+    naming no cluster (nothing listens on port 9) is not contacted, and the images equal a run
+    without the variable (issue 31)."""
+    monkeypatch.delenv("DASK_SCHEDULER_ADDRESS", raising=False)
+    (tmp_path / "plain").mkdir()
+    (tmp_path / "env").mkdir()
+    run_epipolar(pair, tmp_path / "plain")
+    monkeypatch.setenv("DASK_SCHEDULER_ADDRESS", "tcp://127.0.0.1:9")
+    run_epipolar(pair, tmp_path / "env", SCHEDULER="local")
+    for name in ("left.tif", "right.tif"):
+        with rasterio.open(tmp_path / "plain" / name) as a, \
+                rasterio.open(tmp_path / "env" / name) as b:
+            first, second = a.read(), b.read()
+        assert first[-1].max() == 255 and (first == second).all(), name  # alpha: not empty
+
+
 def test_refused_pairs(pair, tmp_path):
     base = ["run", "stereo:epipolar", "--PROJECT", str(pair.project), "--TERRAIN_HEIGHT", "320",
             "--OUTPUT_LEFT", str(tmp_path / "l.tif"), "--OUTPUT_RIGHT", str(tmp_path / "r.tif"),

@@ -201,11 +201,12 @@ def test_volume_against_a_plane_is_exact(data, tmp_path):
     assert json.loads(report.read_text())["cut_volume"] == pytest.approx(expected, rel=1e-10)
 
 
-def test_volume_against_a_dem_inside_a_mask(data, tmp_path):
+def _dem_below_the_plane(data, tmp_path):
+    """A DEM 1 m below the plane on a 2 m grid and a mask: (DEM, mask file, the true cut
+    volume = 1 m x the 4 m2 cells whose centre is inside the mask and the TIN)."""
     import rasterio
     from affine import Affine
 
-    # a DEM 1 m below the plane, on a 2 m grid: cut volume = 1 x cells inside the mask x 4
     cell = 2.0
     t = Affine(cell, 0, X0, 0, -cell, Y0 + 200)
     cx = X0 + (np.arange(100) + 0.5) * cell
@@ -217,14 +218,31 @@ def test_volume_against_a_dem_inside_a_mask(data, tmp_path):
         dst.write(plane(gx, gy) - 1.0, 1)
     mask = shapely.box(X0 + 40, Y0 + 40, X0 + 120, Y0 + 100)
     gpd.GeoDataFrame({"n": [1]}, geometry=[mask], crs=CRS).to_file(tmp_path / "mask.gpkg")
+    inside = shapely.contains_xy(mask, gx, gy) & shapely.contains_xy(data["boundary"], gx, gy)
+    return dem, tmp_path / "mask.gpkg", inside.sum() * cell * cell
+
+
+def test_volume_against_a_dem_inside_a_mask(data, tmp_path):
+    dem, mask, cut = _dem_below_the_plane(data, tmp_path)
     report = tmp_path / "volume.csv"
     result = toolbox.run("tin:volume", {"TIN": data["tin"], "REFERENCE_DEM": dem,
-                                        "MASK": tmp_path / "mask.gpkg", "REPORT": report})
+                                        "MASK": mask, "REPORT": report})
     stats = result["STATISTICS"]
-    inside = shapely.contains_xy(mask, gx, gy) & shapely.contains_xy(data["boundary"], gx, gy)
-    assert stats["cut_volume"] == pytest.approx(inside.sum() * cell * cell, rel=1e-9)
+    assert stats["cut_volume"] == pytest.approx(cut, rel=1e-9)
     assert stats["fill_volume"] == 0.0
     assert "cut_volume," in report.read_text()
+
+
+def test_volume_scheduler_local_is_not_overridden_by_the_environment(data, tmp_path,
+                                                                     monkeypatch):
+    """SCHEDULER local runs the DEM's tiles on local threads: a DASK_SCHEDULER_ADDRESS naming
+    no cluster (nothing listens on port 9) is not contacted (issue 31)."""
+    dem, mask, cut = _dem_below_the_plane(data, tmp_path)
+    monkeypatch.setenv("DASK_SCHEDULER_ADDRESS", "tcp://127.0.0.1:9")
+    stats = toolbox.run("tin:volume", {"TIN": data["tin"], "REFERENCE_DEM": dem,
+                                       "MASK": mask, "SCHEDULER": "local"})["STATISTICS"]
+    assert stats["cut_volume"] == pytest.approx(cut, rel=1e-9)
+    assert stats["fill_volume"] == 0.0
 
 
 def test_bad_inputs_give_clear_errors(data, tmp_path):
