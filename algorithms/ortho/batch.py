@@ -20,7 +20,7 @@ from toolbox.parameters import (
     String,
 )
 from toolbox.registry import register
-from toolbox.ui.execution import scheduler_parameter
+from toolbox.ui.execution import executor_of, scheduler_parameter
 from toolbox.ui.photogrammetry import (  # duplicate-ok: the same groups as ortho:photo
     dem_parameters,
     ortho_method_parameters,
@@ -150,7 +150,7 @@ class OrthoBatch(Algorithm):
     def _orthos(self, params: dict[str, Any], feedback: Feedback, project: Any, crs: Any,
                 dem: Any, band: int, heights: Any) -> dict[str, Any]:
         """The orthos of :meth:`process` on ``dem`` (in the photos' height datum)."""
-        from toolbox.executor import map_tiles, resolve_executor
+        from toolbox.executor import map_tiles
         from toolbox.io.crs import crs_label
         from toolbox.io.raster import open_raster_info
         from toolbox.ortho.block import OrthoTask, run_task
@@ -159,7 +159,7 @@ class OrthoBatch(Algorithm):
         from toolbox.ortho.run import OrthoOptions
         from toolbox.raster.grid_request import template_lattice
 
-        executor = resolve_executor(params["SCHEDULER"], params["WORKERS"])
+        executor = executor_of(params)
         photos = select_photos(project, params["PHOTOS"])
         failed: list[dict[str, Any]] = []
         origin = (0.0, 0.0)
@@ -257,7 +257,7 @@ def rpc_batch(algorithm_id: str, params: dict[str, Any], feedback: Feedback) -> 
     """ortho:batch of satellite images with RPCs (IMAGES without PROJECT; the class docstring):
     each image planned (camera in CRS, GCP bias, GSD), the cell the largest GSD (or CELL_SIZE,
     TEMPLATE), every ortho on the shared lattice."""
-    from toolbox.executor import map_tiles, resolve_executor
+    from toolbox.executor import map_tiles
     from toolbox.io.crs import crs_label
     from toolbox.ortho.metrics import nice_cell_size
     from toolbox.ortho.rpc import rpc_crs, rpc_plan
@@ -277,7 +277,7 @@ def rpc_batch(algorithm_id: str, params: dict[str, Any], feedback: Feedback) -> 
     for name in skipped:
         feedback.push_warning(f"IMAGES: {name} has no RPCs and is skipped")
     images = select_rpc_images(everything, params["PHOTOS"])
-    executor = resolve_executor(params["SCHEDULER"], params["WORKERS"])
+    executor = executor_of(params)
     crs = rpc_crs(params["CRS"], params["DEM"])
     gcps = None if params["CONTROL"] is None else rpc_gcps(params)
     cell, origin = params["CELL_SIZE"], (0.0, 0.0)
