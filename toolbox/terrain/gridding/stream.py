@@ -469,8 +469,6 @@ def partial_plan(run: Any, boxes: TileBoxes, folder: Path, scan: CloudScan, k: i
                  radius: float, merged: Merged) -> Any:
     """``plan(tile)`` of the streamed run: the tile's bucket, duplicate XY merged (then the
     reach is checked again on the distinct points), shifted to the run's local origin."""
-    from toolbox.terrain.points import merge_duplicate_xy
-
     ox, oy = run.origin
 
     def plan(tile) -> dict | None:
@@ -483,7 +481,7 @@ def partial_plan(run: Any, boxes: TileBoxes, folder: Path, scan: CloudScan, k: i
         mask = run.cell_mask(tile, xs, ys)
         if not mask.any() or len(xyz) == 0:
             return None
-        merged_xyz = _merge(xyz, boxes, tile.index, merged, merge_duplicate_xy)
+        merged_xyz = _merge(xyz, boxes, tile.index, merged)
         if len(merged_xyz) < len(xyz) and k > 0:
             need = tile_reach(boxes.boxes[tile.index], boxes.rects[tile.index], scan,
                               merged_xyz, k, radius)
@@ -516,23 +514,33 @@ def tile_reach(box: np.ndarray, rect: np.ndarray, scan: CloudScan, xyz: np.ndarr
     return box_reach(box, scan, knn_reach(window, k, scan.size), radius, (j0, i0))
 
 
-def _merge(xyz: np.ndarray, boxes: TileBoxes, index: int, merged: Merged,
-           merge_duplicate_xy: Any) -> np.ndarray:
-    """The bucket with duplicate XY merged by ``rule``; the positions whose XY falls in this
-    tile's core are counted in ``merged``."""
+def merge_exact_xy(xyz: np.ndarray, rule: str) -> tuple[np.ndarray, Any, Any]:
+    """``(merged, report, kept)`` of :func:`toolbox.terrain.points.merge_duplicate_xy` for the
+    points of a bucket with exactly the same XY, merged by ``rule`` (DUPLICATES); ``(xyz, None,
+    None)`` when every XY is distinct (a binned check, O(n)). DUPLICATES 'error' with duplicates:
+    :class:`InputDataError`."""
     from toolbox.terrain.gridding.neighbours import PointBins
+    from toolbox.terrain.points import merge_duplicate_xy
 
     if not PointBins.build(xyz[:, :2] - xyz[0, :2]).has_duplicates():
-        return xyz
+        return xyz, None, None
     try:
-        rule = merged.report.rule
-        out, _, _ = merge_duplicate_xy(xyz, 0.0, rule)
-        home = _home(xyz, boxes, index)
-        if home.any():
-            _, report, _ = merge_duplicate_xy(xyz[home], 0.0, rule)
-            merged.add(report)
+        return merge_duplicate_xy(xyz, 0.0, rule)
     except ValueError as exc:
         raise InputDataError(f"DUPLICATES is 'error' and {exc}") from None
+
+
+def _merge(xyz: np.ndarray, boxes: TileBoxes, index: int, merged: Merged) -> np.ndarray:
+    """The bucket with duplicate XY merged by ``rule``; the positions whose XY falls in this
+    tile's core are counted in ``merged``."""
+    out, report, _ = merge_exact_xy(xyz, merged.report.rule)
+    if report is None:
+        return xyz
+    home = _home(xyz, boxes, index)
+    if home.any():
+        _, report, _ = merge_exact_xy(xyz[home], merged.report.rule)
+        if report is not None:
+            merged.add(report)
     return out
 
 

@@ -173,12 +173,10 @@ def stream_quality(method: Any, scan: Any, cloud: tuple, origin: np.ndarray, opt
                 continue
             xyz, rank = bucket[:, :3], bucket[:, 3]
             report, gone_here = None, None
-            if PointBins.build(xyz[:, :2] - xyz[0, :2]).has_duplicates():
-                try:
-                    xyz, _, keep = merge_duplicate_xy(xyz, 0.0, rule)
-                    _, report, first = merge_duplicate_xy(bucket[own, :3], 0.0, rule)
-                except ValueError as exc:
-                    raise InputDataError(f"DUPLICATES is 'error' and {exc}") from None
+            merged_xyz, _, keep = stream.merge_exact_xy(xyz, rule)
+            if keep is not None:  # (DUPLICATES 'error' raised there: the tile's own points merge)
+                xyz = merged_xyz
+                _, report, first = merge_duplicate_xy(bucket[own, :3], 0.0, rule)
                 mine = rank[own]
                 gone = np.ones(len(mine), dtype=bool)
                 gone[first] = False
@@ -291,8 +289,6 @@ class _TinSettle:
 
         from toolbox.io.pointcloud import iter_xyz
         from toolbox.terrain.gridding import stream
-        from toolbox.terrain.gridding.neighbours import PointBins
-        from toolbox.terrain.points import merge_duplicate_xy
 
         inner = self.hull.buffer(-RIM_BUCKETS * self.scan.size)
         if inner.is_empty:
@@ -307,11 +303,8 @@ class _TinSettle:
                 return
             parts.append(part)
         rim = np.concatenate(parts) if parts else np.zeros((0, 3))
-        if len(rim) and PointBins.build(rim[:, :2] - rim[0, :2]).has_duplicates():
-            try:
-                rim = merge_duplicate_xy(rim, 0.0, rule)[0]
-            except ValueError as exc:
-                raise InputDataError(f"DUPLICATES is 'error' and {exc}") from None
+        if len(rim):
+            rim = stream.merge_exact_xy(rim, rule)[0]
         self.inner, self.rim = inner, rim
 
     def add_rim(self, xyz: np.ndarray, rank: np.ndarray, rect: np.ndarray

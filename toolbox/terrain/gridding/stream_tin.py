@@ -160,7 +160,6 @@ def plan_tin(run: Any, scan: Any, cloud: tuple, options: dict[str, Any], folder:
     from toolbox.terrain.gridding import stream
     from toolbox.terrain.gridding.methods.base import TilePlan
     from toolbox.terrain.gridding.stream import Merged, _merge, count_table, plan_boxes, spill
-    from toolbox.terrain.points import merge_duplicate_xy
 
     ref, flt, z_field, chunk = cloud
     max_distance = float(options["max_distance"])
@@ -200,7 +199,7 @@ def plan_tin(run: Any, scan: Any, cloud: tuple, options: dict[str, Any], folder:
                 continue
             mine = Merged(merged.report.rule)
             if len(xyz):
-                xyz = _merge(xyz, boxes, i, mine, merge_duplicate_xy)
+                xyz = _merge(xyz, boxes, i, mine)
             rect = current.rects[i]
             outer = None if hull is None else hull.difference(box(*rect))
             values = tile_values(xyz, run.origin, tile, mask, rect, scan.bounds, scan.ring,
