@@ -309,6 +309,45 @@ def test_seams_routed_in_waves_are_the_seams_routed_one_by_one(tmp_path):
     assert not all(a.equals_exact(b, 0) for a, b in zip(waved, start, strict=True))
 
 
+def test_local_seams_report_progress_per_seam_and_stop_when_canceled(tmp_path, monkeypatch):
+    """Run locally, least_cost_cells moves the progress at every seam (not once per wave) and a
+    cancellation asked while a seam is routed stops the run inside that route."""
+    import toolbox.mosaic.seams as seams
+    from toolbox.errors import CanceledError
+    from toolbox.executor import Executor
+    from toolbox.mosaic.block import centres_of, open_block
+    from toolbox.mosaic.partition import voronoi_cells
+
+    sources, crs = open_block(_grid_block(tmp_path), "INPUT", None)
+    centres = centres_of(sources, "nadir", None, None)
+    footprints = [s.footprint for s in sources]
+    start = voronoi_cells(footprints, centres)
+
+    def cost_for(i, j):
+        return seams.PairCost(sources[i], sources[j], crs, seams.CostWeights(),
+                              centres=(centres[i], centres[j]))
+
+    feedback = toolbox.Feedback()
+    progress = []
+    feedback.set_progress = progress.append
+    _, report = seams.least_cost_cells(start, footprints, cost_for, 2.0, feedback=feedback,
+                                       executor=Executor("local", 1))
+    assert progress == [100.0 * k / len(report) for k in range(len(report))]
+    assert len(report) > len(seams.seam_waves([(e["a"], e["b"]) for e in report]))
+
+    canceled = toolbox.Feedback()
+    route = seams.seam_path
+
+    def cancel_then_route(*args):
+        canceled.cancel()  # asked while the first seam is being routed
+        return route(*args)
+
+    monkeypatch.setattr(seams, "seam_path", cancel_then_route)
+    with pytest.raises(CanceledError):
+        seams.least_cost_cells(start, footprints, cost_for, 2.0, feedback=canceled,
+                               executor=Executor("local", 1))
+
+
 @pytest.mark.distributed
 @pytest.mark.slow
 def test_seams_and_vector_sheets_on_a_cluster_are_the_local_ones(tmp_path, monkeypatch):

@@ -382,16 +382,12 @@ def least_cost_cells(cells: list, footprints: list, cost_for: Callable[[int, int
     for wave in seam_waves(pairs):
         tasks = [SeamTask(i, j, cells[i], cells[j], footprints[i], footprints[j], cost_for(i, j),
                           cell, max_cells) for i, j in (pairs[k] for k in wave)]
-        step = (0.0, 100.0) if feedback is None else \
-            (100.0 * done / len(pairs), 100.0 * (done + len(wave)) / len(pairs))
         if executor.kind == "local":  # one after the other: threads cost CPU here, gain little
-            results = map(route_seam, tasks)
-            if feedback is not None:
-                feedback.check_canceled()
-                feedback.set_progress(step[0])
+            results = _one_by_one(tasks, feedback, done, len(pairs))
         else:
             results = map_tiles(route_seam, tasks, executor=executor, feedback=feedback,
-                                total=len(wave), start=step[0], end=step[1])
+                                total=len(wave), start=100.0 * done / len(pairs),
+                                end=100.0 * (done + len(wave)) / len(pairs))
         for k, (entry, new) in zip(wave, results, strict=True):
             report[k] = entry
             if new is not None:
@@ -399,6 +395,16 @@ def least_cost_cells(cells: list, footprints: list, cost_for: Callable[[int, int
                 cells[i], cells[j] = new
         done += len(wave)
     return cells, report
+
+
+def _one_by_one(tasks: list, feedback: Any, done: int, total: int):
+    """The seams of ``tasks`` routed in this thread, lazily, with the progress of each and the
+    cancellation checked inside each route (:func:`seam_path`)."""
+    for n, task in enumerate(tasks):
+        if feedback is not None:
+            feedback.check_canceled()
+            feedback.set_progress(100.0 * (done + n) / max(1, total))
+        yield route_seam(task, feedback)
 
 
 def seam_waves(pairs: list[tuple[int, int]]) -> list[list[int]]:
@@ -431,9 +437,10 @@ class SeamTask:
     max_cells: int
 
 
-def route_seam(task: SeamTask) -> tuple[dict, tuple | None]:
+def route_seam(task: SeamTask, feedback: Any = None) -> tuple[dict, tuple | None]:
     """``(report entry, (new cell_i, new cell_j) or None)`` of one seam (a task of
-    :func:`least_cost_cells`, run on a thread or a Dask worker)."""
+    :func:`least_cost_cells`, run in this thread or on a Dask worker); ``feedback`` (local
+    runs) is checked for cancellation between the chunks of the route."""
     from shapely import Point
 
     i, j, cell = task.i, task.j, task.cell
@@ -451,7 +458,7 @@ def route_seam(task: SeamTask) -> tuple[dict, tuple | None]:
     if region.geom_type == "MultiPolygon":
         region = min(region.geoms, key=lambda g: g.distance(Point(start)) +
                      g.distance(Point(end)))
-    path = seam_path(task.cost, region, start, end, cell, task.max_cells)
+    path = seam_path(task.cost, region, start, end, cell, task.max_cells, feedback)
     if path is None:
         entry["note"] = "seam ends not connected inside the overlap"
         return entry, None
