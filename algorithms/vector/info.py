@@ -47,10 +47,12 @@ def geometry_summary(geoms) -> dict:
 
 def layer_crs_label(layer) -> str:
     """``EPSG:3003`` (the code OGR read, without loading pyproj: about a fifth of a small run),
-    else :func:`~toolbox.io.crs.crs_label` of the layer's CRS."""
+    ``none`` for a file layer without a CRS, else :func:`~toolbox.io.crs.crs_label` of the layer's CRS."""
     crs = layer.info.get("crs")
     if isinstance(crs, str) and EPSG_CODE.fullmatch(crs):
         return crs
+    if crs is None:  # a table, or a layer without a CRS
+        return "none"
     from toolbox.io.crs import crs_label
 
     return crs_label(layer.crs)

@@ -454,8 +454,9 @@ def read_geometries(source: Any, name: str = "INPUT") -> tuple[VectorLayerRef, n
 
 def _wkb_geometries(ref: VectorLayerRef, name: str) -> np.ndarray | None:
     """The shapely geometries of a file layer from ``pyogrio._io.ogr_read`` (the call behind
-    ``pyogrio.raw.read``, whose module imports pandas and geopandas); None for a layer without a
-    geometry column or another pyogrio (the general path then reads it)."""
+    ``pyogrio.raw.read``, whose module imports pandas and geopandas); a layer without a
+    geometry column (a table: ``layer_styles``) gives one None per feature, as the general
+    path does; None for another pyogrio (the general path then reads it)."""
     import shapely
 
     _ogr()
@@ -468,7 +469,13 @@ def _wkb_geometries(ref: VectorLayerRef, name: str) -> np.ndarray | None:
                        max_features=0, where=ref.where or None, bbox=None, mask=None, fids=None,
                        sql=None, sql_dialect=None, return_fids=False, dataset_kwargs={},
                        datetime_as_string=False)[2]
-        return None if wkb is None else shapely.from_wkb(wkb)
+        if wkb is None:  # a table: its features have no geometry (a filtered one: general path)
+            if ref.where:
+                return None
+            count = _ogr().read_info(str(ref.path), layer=ref.layer,
+                                     force_feature_count=True)["features"]
+            return np.full(int(count), None, dtype=object)
+        return shapely.from_wkb(wkb)
     except TypeError:  # another pyogrio
         return None
     except Exception as exc:
