@@ -83,34 +83,26 @@ def clip_raster(path: Path, sheet, output: Path, block: int = 2048) -> bool:
         # the writer's alpha band is the last one; a source's alpha elsewhere stays a band
         # whose colour interpretation is copied below
         last_alpha = alpha and bands[0] == src.count - 1 and src.count > 1
-        try:
-            with RasterWriter(output, grid, src.count, src.dtypes[0],
-                              None if alpha else nodata, alpha=last_alpha) as dst:
-                dst.dataset.colorinterp = src.colorinterp
-                any_valid = False
-                for r in range(0, rows, block):
-                    for c in range(0, cols, block):
-                        w = Window(col0 + c, row0 + r, min(block, cols - c),
-                                   min(block, rows - r))
-                        data = src.read(window=w, boundless=True, fill_value=nodata or 0)
-                        valid = src.read_masks(1, window=w, boundless=True) > 0
-                        wt = rasterio.windows.transform(w, t)
-                        valid &= ~geometry_mask([sheet], out_shape=valid.shape, transform=wt)
-                        any_valid |= bool(valid.any())
-                        if alpha:
-                            data[bands[0]][~valid] = 0
-                        else:
-                            data[:, ~valid] = nodata
-                        dst.write(Window(c, r, w.width, w.height), data)
-                if not any_valid:  # the writer removes the file
-                    raise _NoData
-        except _NoData:
-            return False
-    return True
-
-
-class _NoData(Exception):
-    """A sheet without valid data: its file is not kept."""
+        with RasterWriter(output, grid, src.count, src.dtypes[0],
+                          None if alpha else nodata, alpha=last_alpha) as dst:
+            dst.dataset.colorinterp = src.colorinterp
+            any_valid = False
+            for r in range(0, rows, block):
+                for c in range(0, cols, block):
+                    w = Window(col0 + c, row0 + r, min(block, cols - c), min(block, rows - r))
+                    data = src.read(window=w, boundless=True, fill_value=nodata or 0)
+                    valid = src.read_masks(1, window=w, boundless=True) > 0
+                    wt = rasterio.windows.transform(w, t)
+                    valid &= ~geometry_mask([sheet], out_shape=valid.shape, transform=wt)
+                    any_valid |= bool(valid.any())
+                    if alpha:
+                        data[bands[0]][~valid] = 0
+                    else:
+                        data[:, ~valid] = nodata
+                    dst.write(Window(c, r, w.width, w.height), data)
+            if not any_valid:  # a sheet without valid data: its file is not kept
+                dst.discard()
+    return any_valid
 
 
 @dataclass(frozen=True)

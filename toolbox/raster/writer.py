@@ -127,6 +127,7 @@ class RasterWriter:
         self.cache_mb = int(cache_mb)
         self.gcps = list(gcps) if gcps else None
         self._stack: ExitStack | None = None
+        self._discarded = False
         self.dataset = None
         # a COG is copied from a plain tiled file written beside it
         self._tiled_path = self.path.with_name(f".{self.path.name}.tiled.tif") if cog else \
@@ -240,8 +241,13 @@ class RasterWriter:
     def update_tags(self, **tags: Any) -> None:
         self.dataset.update_tags(**tags)
 
+    def discard(self) -> None:
+        """Keep no file: at the end of the ``with`` block the output is removed, as after an
+        error, without an error (e.g. a map sheet that holds no valid cell)."""
+        self._discarded = True
+
     def __exit__(self, exc_type, exc, tb) -> None:
-        if exc_type is not None:
+        if exc_type is not None or self._discarded:
             self._abort()
             return
         try:

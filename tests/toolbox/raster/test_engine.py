@@ -226,6 +226,20 @@ def test_writer_is_tiled_deflate_with_predictor_and_overviews(tmp_path, shape, d
     assert overview_levels(4000, 1000) == [2, 4, 8]
 
 
+@pytest.mark.parametrize("cog,memory_mb", [(False, 0), (False, 64), (True, 0)])
+def test_a_discarded_output_leaves_no_file(tmp_path, cog, memory_mb):
+    """discard(): the written file (tiled, in memory, or the COG's tiled twin) is removed at the
+    end of the block, without an error; the other files of the folder are kept."""
+    grid = GridSpec(Affine(1, 0, X0, 0, -1, Y0), 700, 600, CRS)
+    (tmp_path / "keep.txt").write_text("x")
+    with RasterWriter(tmp_path / "d.tif", grid, 1, "uint8", nodata=0, cog=cog,
+                      memory_mb=memory_mb) as w:
+        for tile in iter_tiles(grid, 512):
+            w.write(tile, np.ones(tile.shape, "uint8"))
+        w.discard()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["keep.txt"]
+
+
 def test_cog_passes_the_layout_checks_and_a_plain_tiff_does_not(tmp_path):
     grid = GridSpec(Affine(0.5, 0, X0, 0, -0.5, Y0), 1300, 900, CRS)
     rng = np.random.default_rng(1)
