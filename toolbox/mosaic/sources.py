@@ -193,17 +193,11 @@ def read_valid(source: OrthoSource, grid_transform: Any, grid_crs: Any, window: 
 
 
 def _inside(source: OrthoSource, grid_transform: Any, window: Any) -> tuple | None:
-    """For a source aligned with the grid: the part of ``window`` (grid cells) inside the source,
-    as ``(source Window, (row slice, col slice) of the window's array)``, or None (read without a
-    boundless VRT)."""
-    from rasterio.windows import Window
+    """For a source aligned with the grid: :func:`~toolbox.raster.engine.part_inside` of
+    ``window`` (grid cells) in the source."""
+    from toolbox.raster.engine import part_inside
 
     off_c = round((grid_transform.c - source.transform.c) / grid_transform.a)
     off_r = round((grid_transform.f - source.transform.f) / grid_transform.e)
-    col, row = int(window.col_off) + off_c, int(window.row_off) + off_r
-    c0, r0 = max(0, col), max(0, row)
-    c1 = min(source.width, col + int(window.width))
-    r1 = min(source.height, row + int(window.height))
-    if c1 <= c0 or r1 <= r0:
-        return None
-    return Window(c0, r0, c1 - c0, r1 - r0), (slice(r0 - row, r1 - row), slice(c0 - col, c1 - col))
+    return part_inside(int(window.col_off) + off_c, int(window.row_off) + off_r,
+                       int(window.width), int(window.height), source.width, source.height)

@@ -238,17 +238,30 @@ def _pyproj(crs: Any) -> Any:
     return CRS.from_wkt(crs.to_wkt()) if hasattr(crs, "to_wkt") else CRS.from_user_input(crs)
 
 
-def _read_aligned(src, indexes, region, offset, dtype, fill) -> np.ndarray:
-    """Windowed read of an aligned source; cells outside it or at its nodata get ``fill``."""
+def part_inside(col: int, row: int, width: int, height: int, source_width: int,
+                source_height: int) -> tuple[Any, tuple[slice, slice]] | None:
+    """The part of a ``width`` x ``height`` window whose top-left cell is (``col``, ``row``) in
+    a source's cells that lies inside the source: ``(source Window, (row slice, col slice) of
+    the window's array)``, or None when they do not meet (an aligned read, no boundless VRT)."""
     from rasterio.windows import Window
 
-    col0, row0 = int(region.col_off) + offset[0], int(region.row_off) + offset[1]
-    width, height = int(region.width), int(region.height)
-    c0, r0 = max(col0, 0), max(row0, 0)
-    c1, r1 = min(col0 + width, src.width), min(row0 + height, src.height)
+    c0, r0 = max(col, 0), max(row, 0)
+    c1, r1 = min(col + width, source_width), min(row + height, source_height)
     if c1 <= c0 or r1 <= r0:
+        return None
+    return (Window(c0, r0, c1 - c0, r1 - r0),
+            (slice(r0 - row, r1 - row), slice(c0 - col, c1 - col)))
+
+
+def _read_aligned(src, indexes, region, offset, dtype, fill) -> np.ndarray:
+    """Windowed read of an aligned source; cells outside it or at its nodata get ``fill``."""
+    width, height = int(region.width), int(region.height)
+    part = part_inside(int(region.col_off) + offset[0], int(region.row_off) + offset[1],
+                       width, height, src.width, src.height)
+    if part is None:
         return np.full((len(indexes), height, width), fill, dtype=dtype)
-    data = src.read(indexes, window=Window(c0, r0, c1 - c0, r1 - r0))
+    inner, inside = part
+    data = src.read(indexes, window=inner)
     nodata = src.nodata
     missing = None
     if nodata is not None:  # compared in the source's type, as GDAL stores it
@@ -256,13 +269,13 @@ def _read_aligned(src, indexes, region, offset, dtype, fill) -> np.ndarray:
         if not missing.any() or (math.isnan(nodata) and dtype.kind == "f"
                                  and math.isnan(fill)):
             missing = None
-    if (c0, r0, c1, r1) == (col0, row0, col0 + width, row0 + height) and data.dtype == dtype:
+    if data.shape[1:] == (height, width) and data.dtype == dtype:
         out = data  # the whole window inside the source, no conversion: no copy
     else:
         out = np.full((len(indexes), height, width), fill, dtype=dtype)
-        out[:, r0 - row0:r1 - row0, c0 - col0:c1 - col0] = data
+        out[(slice(None), *inside)] = data
     if missing is not None:
-        out[:, r0 - row0:r1 - row0, c0 - col0:c1 - col0][missing] = fill
+        out[(slice(None), *inside)][missing] = fill
     return out
 
 
