@@ -151,6 +151,21 @@ def test_circumcircle_test_against_analytic_discs():
     assert empty_outside(centres, radius, rect, bounds, box(*rect).difference(box(*rect))).all()
 
 
+def test_supports_hull_exact_signs():
+    """Segments on the hull's boundary (two vertices, or points on a straight edge between
+    them, at map-sized coordinates), a diagonal, and a point one ulp inside the edge."""
+    from toolbox.terrain.gridding.stream_tin import supports_hull
+
+    o = 1_000_000.0
+    ring = np.array([[o, o], [o + 3, o + 1], [o + 3, o + 5], [o, o + 5]])
+    mid = [o + 1.5, o + 0.5]  # exactly on the edge (o, o) - (o + 3, o + 1)
+    nudged = [o + 1.5, np.nextafter(o + 0.5, np.inf)]  # one ulp inside it
+    a = np.array([ring[0], mid, ring[1], ring[0], nudged, [o, o + 2]])
+    b = np.array([ring[1], ring[1], mid, ring[2], ring[1], [o, o + 4]])
+    assert supports_hull(a, b, ring).tolist() == [True, True, True, False, False, True]
+    assert supports_hull(a[:0], b[:0], ring).tolist() == []
+
+
 @pytest.fixture(scope="module")
 def pathological(tmp_path_factory):
     """A dense cluster (8,000 points within 10 m) in a ring of 400 sparse points 400 m around

@@ -91,6 +91,32 @@ def empty_outside(centres: np.ndarray, radius: np.ndarray, rect: np.ndarray,
     return ok
 
 
+#: Shewchuk's error bound of a 2D orientation determinant evaluated in floating point
+_ORIENT_BOUND = (3.0 + 16.0 * 2.0 ** -53) * 2.0 ** -53
+
+
+def supports_hull(a: np.ndarray, b: np.ndarray, ring: np.ndarray) -> np.ndarray:
+    """(E,) bool: the line through ``a[e]`` and ``b[e]`` ((E, 2), distinct points of the cloud)
+    leaves every vertex of the convex ``ring`` ((R, 2)) on one closed side, so the segment
+    lies on the hull's boundary. Exact signs: the floating-point orientation where its error
+    bound decides it, rational arithmetic where not (points on the line)."""
+    from fractions import Fraction
+
+    if not len(a) or not len(ring):
+        return np.zeros(len(a), dtype=bool)
+    left = (a[:, None, 0] - ring[None, :, 0]) * (b[:, None, 1] - ring[None, :, 1])
+    right = (a[:, None, 1] - ring[None, :, 1]) * (b[:, None, 0] - ring[None, :, 0])
+    det = left - right
+    sign = np.sign(det)
+    unsure = np.abs(det) <= _ORIENT_BOUND * (np.abs(left) + np.abs(right))
+    for e, v in zip(*np.nonzero(unsure), strict=True):
+        ax, ay, bx, by = (Fraction(float(c)) for c in (*a[e], *b[e]))
+        vx, vy = Fraction(float(ring[v, 0])), Fraction(float(ring[v, 1]))
+        exact = (ax - vx) * (by - vy) - (ay - vy) * (bx - vx)
+        sign[e, v] = (exact > 0) - (exact < 0)
+    return ~((sign > 0).any(axis=1) & (sign < 0).any(axis=1))
+
+
 def tile_values(xyz: np.ndarray, origin: tuple[float, float], tile: Any, mask: np.ndarray,
                 rect: np.ndarray, bounds: tuple, hull_ring: np.ndarray, outer: Any,
                 max_distance: float) -> np.ndarray | None:
