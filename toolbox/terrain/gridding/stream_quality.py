@@ -287,29 +287,13 @@ class _TinSettle:
             self._rim(cloud, rule)
 
     def _rim(self, cloud: tuple, rule: str) -> None:
-        """The kept points within RIM_BUCKETS buckets of the hull's edge (one more pass; their
-        duplicate XY merged by ``rule``), at most TILE_POINTS of them (else none)."""
-        import shapely
-
-        from toolbox.io.pointcloud import iter_xyz
+        """The kept points within RIM_BUCKETS buckets of the hull's edge (:func:`~toolbox.
+        terrain.gridding.stream_tin.hull_rim`)."""
         from toolbox.terrain.gridding import stream
+        from toolbox.terrain.gridding.stream_tin import hull_rim
 
-        inner = self.hull.buffer(-RIM_BUCKETS * self.scan.size)
-        if inner.is_empty:
-            return
-        shapely.prepare(inner)
-        ref, flt, z_field, chunk = cloud
-        parts, held = [], 0
-        for xyz in iter_xyz(ref, flt, z_field, "INPUT", chunk):
-            part = xyz[~shapely.contains_xy(inner, xyz[:, 0], xyz[:, 1])]
-            held += len(part)
-            if held > stream.TILE_POINTS:
-                return
-            parts.append(part)
-        rim = np.concatenate(parts) if parts else np.zeros((0, 3))
-        if len(rim):
-            rim = stream.merge_exact_xy(rim, rule)[0]
-        self.inner, self.rim = inner, rim
+        self.inner, self.rim = hull_rim(self.scan, self.hull, cloud, rule, RIM_BUCKETS,
+                                        stream.TILE_POINTS)
 
     def add_rim(self, xyz: np.ndarray, rank: np.ndarray, rect: np.ndarray
                 ) -> tuple[np.ndarray, np.ndarray]:
