@@ -186,6 +186,13 @@ def test_rim_bucket_adds_the_band_near_the_rectangle():
     for x, y, missing in [(30, 5, False), (30, 30, True), (50, 15, False), (85, 5, True),
                           (5, 50, True), (79, 9, False), (81, 9, True)]:
         assert outer.intersects(Point(x, y)) == missing, (x, y)
+    # the rim is read for redone tiles only when one of them reaches its band (2 buckets of 5 m)
+    from toolbox.terrain.gridding.stream_tin import RIM_REACH, _near_rim
+
+    tiles = np.array([[45.0, 45.0, 55.0, 55.0]])
+    gap = 45.0 - 10.0  # from the tile's box to the band
+    assert not _near_rim(hull, 5.0, tiles, np.array([0.99 * gap / (1 + RIM_REACH)]))
+    assert _near_rim(hull, 5.0, tiles, np.array([1.01 * gap / (1 + RIM_REACH)]))
 
 
 @pytest.fixture(scope="module")

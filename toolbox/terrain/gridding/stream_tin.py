@@ -301,7 +301,8 @@ def plan_tin(run: Any, scan: Any, cloud: tuple, options: dict[str, Any], folder:
         reach[again] *= 2.0
         for i in again:
             check_growth(scan, table, boxes, i, reach[i], cap)
-        if again and hull is not None and rim is None:  # the redone tiles get the rim
+        if again and hull is not None and rim is None and _near_rim(
+                hull, scan.size, boxes.boxes[again], reach[again]):  # they get the rim
             inner, rim = hull_rim(scan, hull, cloud, merged.report.rule, RIM_BUCKETS, cap)
             rim = np.zeros((0, 3)) if rim is None else rim
         todo = again
@@ -321,6 +322,16 @@ def plan_tin(run: Any, scan: Any, cloud: tuple, options: dict[str, Any], folder:
             "points_spilled": spilled, "reach_max": float(reach.max()),
             "count_raster": list(scan.counts.shape), "bucket_size": scan.size}
     return TilePlan(plan, stored_tile), boxes, info
+
+
+def _near_rim(hull: Any, size: float, tile_boxes: np.ndarray, reach: np.ndarray) -> bool:
+    """Whether a redone tile's box grown by (1 + RIM_REACH) reaches meets the hull's rim."""
+    import shapely
+
+    band = hull.difference(hull.buffer(-RIM_BUCKETS * size))
+    grow = (1.0 + RIM_REACH) * reach[:, None]
+    wide = shapely.box(*(tile_boxes + np.hstack([-grow, -grow, grow, grow])).T)
+    return bool(shapely.intersects(wide, band).any())
 
 
 def check_growth(scan: Any, table: np.ndarray, boxes: Any, i: int, h: float, cap: int) -> None:
