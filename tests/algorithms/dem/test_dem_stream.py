@@ -313,3 +313,64 @@ def test_streamed_tin_quality_grows_its_tiles(cloud, tmp_path, monkeypatch, rim)
         {k: v for k, v in a.items() if k not in sums}
     for key in sums:
         assert b[key] == pytest.approx(a[key], rel=1e-12, abs=1e-15), key
+
+
+@pytest.mark.parametrize("jitter", [False, True])
+def test_streamed_tin_quality_settles_points_on_straight_hull_edges(tmp_path, monkeypatch, jitter):
+    """A 90 x 60 grid of points 1 m apart (a survey grid): the points along its four straight
+    edges are on the convex hull's boundary but not its vertices, their stars open in the TIN
+    of the whole cloud. Streamed with buckets capped at 2,000 points they settle (they never
+    did: the run ended with an error) and the report is the in-memory one. Plain grid on a
+    plane: every point but the 4 corners predicted exactly (analytic). Inner points moved
+    (general position) with a 3 m spike on the edge at (45, 0): the spike is the worst point,
+    its prediction the plane of its triangle in scipy's Delaunay TIN of the other points."""
+    from scipy.spatial import Delaunay
+
+    import toolbox.terrain.gridding.stream as stream
+    import toolbox.terrain.gridding.stream_quality as stream_quality
+
+    gx, gy = np.meshgrid(np.arange(90.0), np.arange(60.0))
+    xy = np.column_stack([gx.ravel(), gy.ravel()])
+    if jitter:
+        rng = np.random.default_rng(3)
+        inner = (xy[:, 0] > 0) & (xy[:, 0] < 89) & (xy[:, 1] > 0) & (xy[:, 1] < 59)
+        xy[inner] += np.round(rng.uniform(-0.3, 0.3, (int(inner.sum()), 2)), 3)
+        z = np.round(300 + 10 * np.sin(xy[:, 0] / 20) * np.cos(xy[:, 1] / 15)
+                     + rng.normal(0, 0.2, len(xy)), 3)
+        spike = int(np.flatnonzero((xy[:, 0] == 45) & (xy[:, 1] == 0))[0])
+        z[spike] += 3.0
+    else:
+        z = 120.0 + 0.25 * xy[:, 0] - 0.5 * xy[:, 1]
+    path = tmp_path / "grid.laz"
+    write_point_cloud(path, np.column_stack([X0 + xy[:, 0], Y0 + xy[:, 1], z]), "EPSG:3003")
+    params = {"INPUT": str(path), "CELL_SIZE": 2.0, "TILE_SIZE": 16, "OVERVIEWS": False}
+    toolbox.run("dem:tin_linear", {**params, "OUTPUT": str(tmp_path / "m.tif"),
+                                   "QUALITY": str(tmp_path / "m.json")})
+    monkeypatch.setenv("TOOLBOX_STREAM_POINTS", "1000")
+    monkeypatch.setattr(pointcloud, "CHUNK_POINTS", 1000)
+    monkeypatch.setattr(stream_quality, "FIRST_BLOCK", 4)
+    monkeypatch.setattr(stream, "TILE_POINTS", 2000)
+    toolbox.run("dem:tin_linear", {**params, "OUTPUT": str(tmp_path / "s.tif"),
+                                   "QUALITY": str(tmp_path / "s.json")})
+    a = json.loads((tmp_path / "m.json").read_text())["methods"]["tin_linear"]
+    b = json.loads((tmp_path / "s.json").read_text())["methods"]["tin_linear"]
+    info = b.pop("streamed")
+    assert info["tiles"] >= 9 and info["bucket_points_max"] <= 2000
+    assert b["hull_vertices_not_predicted"] == 4 and b["predicted"] == len(xy) - 4
+    sums = ("rmse", "mean_error", "mean_abs_error", "std_error")
+    assert {k: v for k, v in b.items() if k not in sums} == \
+        {k: v for k, v in a.items() if k not in sums}
+    for key in sums:
+        assert b[key] == pytest.approx(a[key], rel=1e-12, abs=1e-15), key
+    if not jitter:
+        assert b["max_abs_error"] < 1e-9
+        return
+    others = np.delete(np.column_stack([xy, z]), spike, axis=0)
+    tin = Delaunay(others[:, :2])
+    s = int(tin.find_simplex(xy[spike]))
+    assert s >= 0
+    weights = tin.transform[s, :2] @ (xy[spike] - tin.transform[s, 2])
+    expected = others[tin.simplices[s], 2] @ np.r_[weights, 1 - weights.sum()]
+    worst = b["worst_point"]
+    assert (worst["x"], worst["y"]) == (X0 + 45, Y0)
+    assert worst["predicted"] == pytest.approx(expected, rel=1e-12)

@@ -102,6 +102,7 @@ def test_clustered_cloud_grows_the_buckets(clustered, tmp_path, monkeypatch):
     stats, grid, transform = _streamed(clustered, tmp_path, monkeypatch)
     info = stats["streamed"]
     assert info["tiles_retried"] > 0 and info["passes"] >= 2
+    assert info["rim_points"] > 0  # the redone tiles' buckets got the hull's rim
     expected = _scipy(clustered, transform, grid.shape)
     inside = np.isfinite(expected) & np.isfinite(grid)
     assert inside.sum() > 0.95 * np.isfinite(expected).sum()
@@ -149,6 +150,49 @@ def test_circumcircle_test_against_analytic_discs():
                          box(6.0, 1.0, 10.0, 3.0)).all()
     # a bucket that holds the whole hull: every triangle counts
     assert empty_outside(centres, radius, rect, bounds, box(*rect).difference(box(*rect))).all()
+
+
+def test_supports_hull_exact_signs():
+    """Segments on the hull's boundary (two vertices, or points on a straight edge between
+    them, at map-sized coordinates), a diagonal, and a point one ulp inside the edge."""
+    from toolbox.terrain.gridding.stream_tin import supports_hull
+
+    o = 1_000_000.0
+    ring = np.array([[o, o], [o + 3, o + 1], [o + 3, o + 5], [o, o + 5]])
+    mid = [o + 1.5, o + 0.5]  # exactly on the edge (o, o) - (o + 3, o + 1)
+    nudged = [o + 1.5, np.nextafter(o + 0.5, np.inf)]  # one ulp inside it
+    a = np.array([ring[0], mid, ring[1], ring[0], nudged, [o, o + 2]])
+    b = np.array([ring[1], ring[1], mid, ring[2], ring[1], [o, o + 4]])
+    assert supports_hull(a, b, ring).tolist() == [True, True, True, False, False, True]
+    assert supports_hull(a[:0], b[:0], ring).tolist() == []
+
+
+def test_rim_bucket_adds_the_band_near_the_rectangle():
+    """Hull [0, 100]^2, its rim the band 10 m wide along the edge, a tile's rectangle
+    [40, 60] x [0, 20] grown by 20: the bucket gets the rim points in [20, 80] x [0, 40]
+    outside the rectangle; the cloud's other points lie in the hull's inner square outside
+    the rectangle or outside the grown rectangle."""
+    from shapely.geometry import Point, box
+
+    from toolbox.terrain.gridding.stream_tin import rim_bucket
+
+    hull, inner = box(0, 0, 100, 100), box(10, 10, 90, 90)
+    rim = np.array([[50.0, 5.0, 1.0], [30.0, 2.0, 2.0], [85.0, 5.0, 3.0], [5.0, 50.0, 4.0],
+                    [25.0, 38.0, 5.0]])  # the last one not in the band: never given here
+    xyz = np.array([[45.0, 15.0, 0.0]])
+    rect = np.array([40.0, 0.0, 60.0, 20.0])
+    bucket, outer = rim_bucket(xyz, rect, hull, inner, rim[:4], 20.0)
+    assert bucket[:, 2].tolist() == [0.0, 2.0]  # (50, 5) is in the rectangle already
+    for x, y, missing in [(30, 5, False), (30, 30, True), (50, 15, False), (85, 5, True),
+                          (5, 50, True), (79, 9, False), (81, 9, True)]:
+        assert outer.intersects(Point(x, y)) == missing, (x, y)
+    # the rim is read for redone tiles only when one of them reaches its band (2 buckets of 5 m)
+    from toolbox.terrain.gridding.stream_tin import RIM_REACH, _near_rim
+
+    tiles = np.array([[45.0, 45.0, 55.0, 55.0]])
+    gap = 45.0 - 10.0  # from the tile's box to the band
+    assert not _near_rim(hull, 5.0, tiles, np.array([0.99 * gap / (1 + RIM_REACH)]))
+    assert _near_rim(hull, 5.0, tiles, np.array([1.01 * gap / (1 + RIM_REACH)]))
 
 
 @pytest.fixture(scope="module")

@@ -30,7 +30,11 @@ RIM_BUCKETS buckets of the hull's edge, one more pass, at most TILE_POINTS, else
 target is settled when its star closes around it and each of its triangles' circumcircles
 misses the points the bucket lacks (those of the hull, shrunk by the rim when held, outside the
 bucket's rectangle: :func:`~toolbox.terrain.gridding.stream_tin.empty_outside`), or it is a
-vertex of the cloud's hull (never predicted). A tile with an unsettled target is spilled again
+vertex of the cloud's hull (never predicted). A point on a straight edge of the hull (a survey
+grid's or a LiDAR tile's border) has a star open in the whole cloud too: its star may stay open
+along edges that lie on the hull's boundary (:func:`~toolbox.terrain.gridding.stream_tin.
+supports_hull`); its triangles passing the circle test then cover the hull's straight angle at
+it, so they are its whole star. A tile with an unsettled target is spilled again
 with its reach doubled (capped as in :func:`~toolbox.terrain.gridding.stream_tin.
 check_growth`). The plane is computed from the triangle's lowest vertex in the run's local
 coordinates, in memory as here (:func:`~toolbox.terrain.gridding.tin_constrained.tin_loo`): the
@@ -283,29 +287,13 @@ class _TinSettle:
             self._rim(cloud, rule)
 
     def _rim(self, cloud: tuple, rule: str) -> None:
-        """The kept points within RIM_BUCKETS buckets of the hull's edge (one more pass; their
-        duplicate XY merged by ``rule``), at most TILE_POINTS of them (else none)."""
-        import shapely
-
-        from toolbox.io.pointcloud import iter_xyz
+        """The kept points within RIM_BUCKETS buckets of the hull's edge (:func:`~toolbox.
+        terrain.gridding.stream_tin.hull_rim`)."""
         from toolbox.terrain.gridding import stream
+        from toolbox.terrain.gridding.stream_tin import hull_rim
 
-        inner = self.hull.buffer(-RIM_BUCKETS * self.scan.size)
-        if inner.is_empty:
-            return
-        shapely.prepare(inner)
-        ref, flt, z_field, chunk = cloud
-        parts, held = [], 0
-        for xyz in iter_xyz(ref, flt, z_field, "INPUT", chunk):
-            part = xyz[~shapely.contains_xy(inner, xyz[:, 0], xyz[:, 1])]
-            held += len(part)
-            if held > stream.TILE_POINTS:
-                return
-            parts.append(part)
-        rim = np.concatenate(parts) if parts else np.zeros((0, 3))
-        if len(rim):
-            rim = stream.merge_exact_xy(rim, rule)[0]
-        self.inner, self.rim = inner, rim
+        self.inner, self.rim = hull_rim(self.scan, self.hull, cloud, rule, RIM_BUCKETS,
+                                        stream.TILE_POINTS)
 
     def add_rim(self, xyz: np.ndarray, rank: np.ndarray, rect: np.ndarray
                 ) -> tuple[np.ndarray, np.ndarray]:
@@ -319,11 +307,12 @@ class _TinSettle:
 
     def settled(self, xyz: np.ndarray, targets: np.ndarray, rect: np.ndarray) -> bool:
         """True when every target's star in the bucket's Delaunay TIN is its star in the TIN
-        of the whole cloud (closed around it, each triangle's circumcircle empty of the points
-        outside ``rect``), or the target is a vertex of the cloud's hull (never predicted)."""
+        of the whole cloud (closed around it, or open only along the cloud's hull; each
+        triangle's circumcircle empty of the points outside ``rect``), or the target is a
+        vertex of the cloud's hull (never predicted)."""
         from shapely.geometry import box
 
-        from toolbox.terrain.gridding.stream_tin import circumcircles, empty_outside
+        from toolbox.terrain.gridding.stream_tin import circumcircles, empty_outside, supports_hull
         from toolbox.terrain.tin.kernels import triangulate
 
         # the points not in the bucket: those of the hull (or, with the rim added, of the hull
@@ -344,7 +333,13 @@ class _TinSettle:
             unsettled[tri[~good].ravel()] = True
             edges = np.sort(np.vstack([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]]), axis=1)
             edges, count = np.unique(edges, axis=0, return_counts=True)
-            unsettled[edges[count == 1].ravel()] = True  # on the bucket's hull: star open
+            open_ = edges[count == 1]  # on the bucket's hull: the star is open there
+            # unless the edge lies on the cloud's hull (its star in the whole cloud is open
+            # there too: a point on a straight edge of the hull, not a vertex of it)
+            near = np.isin(open_, targets).any(axis=1)
+            xy = xyz[:, :2]
+            near[near] = ~supports_hull(xy[open_[near, 0]], xy[open_[near, 1]], self.scan.ring)
+            unsettled[open_[near].ravel()] = True
         fails = targets[unsettled[targets]]
         return all((float(x), float(y)) in self.ring for x, y in xyz[fails, :2])
 

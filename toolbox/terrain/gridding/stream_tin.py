@@ -15,7 +15,12 @@ rounding of the plane through the same three nodes in another vertex order, abou
 relative). When a computed cell lies in a triangle that fails, or inside the cloud's hull but
 in no triangle of the bucket, the whole tile is done again from a new bucket with ``h``
 doubled (one more pass over the cloud for all such tiles at once), until every cell passes;
-once R holds the whole hull every triangle passes, so it ends. Capped: a redone tile's grown
+once R holds the whole hull every triangle passes, so it ends. Once a tile is redone, one more
+pass reads the hull's rim (the points within RIM_BUCKETS buckets of its edge, at most
+TILE_POINTS, else none) and a redone tile's bucket also gets the rim's points within RIM_REACH
+reaches of R, so that the test's "outside R" shrinks by that band: the long thin triangles along
+a straight hull, whose circles cut a long shallow cap off the hull, pass without growing the
+tile along the whole edge. Capped: a redone tile's grown
 box may hold at most TILE_POINTS points (or its first bucket's count when larger); a cloud
 that needs more (a dense cluster among far sparse points, points on a circle or a line) stops
 with an :class:`InputDataError` naming TOOLBOX_STREAM_POINTS (:func:`check_growth`).
@@ -89,6 +94,81 @@ def empty_outside(centres: np.ndarray, radius: np.ndarray, rect: np.ndarray,
         far = shapely.distance(shapely.points(centres[retry]), outer) >= r[retry]
         ok[retry[far]] = True
     return ok
+
+
+#: the band along the hull's edge whose points a redone tile's bucket gets (in buckets of the
+#: count raster), within RIM_REACH times the tile's reach of its rectangle
+RIM_BUCKETS = 2
+RIM_REACH = 4.0
+
+
+def hull_rim(scan: Any, hull: Any, cloud: tuple, rule: str, width: int, cap: int
+             ) -> tuple[Any, np.ndarray | None]:
+    """(the hull shrunk by ``width`` buckets, the kept points not inside it: its rim, duplicate
+    XY merged by ``rule``), one pass over the cloud; (None, None) when the shrunk hull is empty
+    or the rim would hold more than ``cap`` points."""
+    import shapely
+
+    from toolbox.io.pointcloud import iter_xyz
+    from toolbox.terrain.gridding.stream import merge_exact_xy
+
+    inner = hull.buffer(-width * scan.size)
+    if inner.is_empty:
+        return None, None
+    shapely.prepare(inner)
+    ref, flt, z_field, chunk = cloud
+    parts, held = [], 0
+    for xyz in iter_xyz(ref, flt, z_field, "INPUT", chunk):
+        part = xyz[~shapely.contains_xy(inner, xyz[:, 0], xyz[:, 1])]
+        held += len(part)
+        if held > cap:
+            return None, None
+        parts.append(part)
+    rim = np.concatenate(parts) if parts else np.zeros((0, 3))
+    if len(rim):
+        rim = merge_exact_xy(rim, rule)[0]
+    return inner, rim
+
+
+def rim_bucket(xyz: np.ndarray, rect: np.ndarray, hull: Any, inner: Any, rim: np.ndarray,
+               grow: float) -> tuple[np.ndarray, Any]:
+    """(the bucket ``xyz`` of the closed ``rect`` with the ``rim`` points outside it and
+    within ``rect`` grown by ``grow``, the polygon where the cloud's other points may lie:
+    the hull shrunk to ``inner`` outside ``rect``, and the hull outside the grown rect)."""
+    from shapely.geometry import box
+
+    wide = np.asarray(rect, dtype=np.float64) + (-grow, -grow, grow, grow)
+    x, y = rim[:, 0], rim[:, 1]
+    inside = (x >= rect[0]) & (x <= rect[2]) & (y >= rect[1]) & (y <= rect[3])
+    near = (x >= wide[0]) & (x <= wide[2]) & (y >= wide[1]) & (y <= wide[3])
+    outer = inner.difference(box(*rect)).union(hull.difference(box(*wide)))
+    return np.vstack([xyz, rim[near & ~inside]]), outer
+
+
+#: Shewchuk's error bound of a 2D orientation determinant evaluated in floating point
+_ORIENT_BOUND = (3.0 + 16.0 * 2.0 ** -53) * 2.0 ** -53
+
+
+def supports_hull(a: np.ndarray, b: np.ndarray, ring: np.ndarray) -> np.ndarray:
+    """(E,) bool: the line through ``a[e]`` and ``b[e]`` ((E, 2), distinct points of the cloud)
+    leaves every vertex of the convex ``ring`` ((R, 2)) on one closed side, so the segment
+    lies on the hull's boundary. Exact signs: the floating-point orientation where its error
+    bound decides it, rational arithmetic where not (points on the line)."""
+    from fractions import Fraction
+
+    if not len(a) or not len(ring):
+        return np.zeros(len(a), dtype=bool)
+    left = (a[:, None, 0] - ring[None, :, 0]) * (b[:, None, 1] - ring[None, :, 1])
+    right = (a[:, None, 1] - ring[None, :, 1]) * (b[:, None, 0] - ring[None, :, 0])
+    det = left - right
+    sign = np.sign(det)
+    unsure = np.abs(det) <= _ORIENT_BOUND * (np.abs(left) + np.abs(right))
+    for e, v in zip(*np.nonzero(unsure), strict=True):
+        ax, ay, bx, by = (Fraction(float(c)) for c in (*a[e], *b[e]))
+        vx, vy = Fraction(float(ring[v, 0])), Fraction(float(ring[v, 1]))
+        exact = (ax - vx) * (by - vy) - (ay - vy) * (bx - vx)
+        sign[e, v] = (exact > 0) - (exact < 0)
+    return ~((sign > 0).any(axis=1) & (sign < 0).any(axis=1))
 
 
 def tile_values(xyz: np.ndarray, origin: tuple[float, float], tile: Any, mask: np.ndarray,
@@ -170,6 +250,7 @@ def plan_tin(run: Any, scan: Any, cloud: tuple, options: dict[str, Any], folder:
     todo = list(range(len(boxes.tiles)))
     done = np.zeros(len(boxes.tiles), dtype=bool)
     passes, spilled, bucket_max, retried = 0, 0, 0, 0
+    inner, rim = None, None  # the hull's rim (hull_rim), read once a tile is redone
     reach = boxes.reach.copy()
     table = count_table(scan.counts)
     cap = stream.TILE_POINTS
@@ -202,6 +283,8 @@ def plan_tin(run: Any, scan: Any, cloud: tuple, options: dict[str, Any], folder:
                 xyz = _merge(xyz, boxes, i, mine)
             rect = current.rects[i]
             outer = None if hull is None else hull.difference(box(*rect))
+            if rim is not None and len(rim) and not shapely.is_empty(outer):
+                xyz, outer = rim_bucket(xyz, rect, hull, inner, rim, RIM_REACH * reach[i])
             values = tile_values(xyz, run.origin, tile, mask, rect, scan.bounds, scan.ring,
                                  outer, max_distance)
             if values is None:
@@ -218,6 +301,10 @@ def plan_tin(run: Any, scan: Any, cloud: tuple, options: dict[str, Any], folder:
         reach[again] *= 2.0
         for i in again:
             check_growth(scan, table, boxes, i, reach[i], cap)
+        if again and hull is not None and rim is None and _near_rim(
+                hull, scan.size, boxes.boxes[again], reach[again]):  # they get the rim
+            inner, rim = hull_rim(scan, hull, cloud, merged.report.rule, RIM_BUCKETS, cap)
+            rim = np.zeros((0, 3)) if rim is None else rim
         todo = again
         bucket.rmdir()
 
@@ -231,9 +318,20 @@ def plan_tin(run: Any, scan: Any, cloud: tuple, options: dict[str, Any], folder:
 
     info = {"tile_size": boxes.tile, "tiles": len(boxes.tiles), "passes": passes,
             "tiles_retried": retried, "bucket_points_max": bucket_max,
+            "rim_points": None if rim is None else len(rim),
             "points_spilled": spilled, "reach_max": float(reach.max()),
             "count_raster": list(scan.counts.shape), "bucket_size": scan.size}
     return TilePlan(plan, stored_tile), boxes, info
+
+
+def _near_rim(hull: Any, size: float, tile_boxes: np.ndarray, reach: np.ndarray) -> bool:
+    """Whether a redone tile's box grown by (1 + RIM_REACH) reaches meets the hull's rim."""
+    import shapely
+
+    band = hull.difference(hull.buffer(-RIM_BUCKETS * size))
+    grow = (1.0 + RIM_REACH) * reach[:, None]
+    wide = shapely.box(*(tile_boxes + np.hstack([-grow, -grow, grow, grow])).T)
+    return bool(shapely.intersects(wide, band).any())
 
 
 def check_growth(scan: Any, table: np.ndarray, boxes: Any, i: int, h: float, cap: int) -> None:
