@@ -133,3 +133,19 @@ def test_distinct_xy_as_np_unique():
         rows = xy[index == g]
         assert distinct[g] == _distinct(rows)
         assert last_unique[g] == (len(rows) > 0 and _distinct(rows[:-1]) == distinct[g] - 1)
+
+
+@pytest.mark.parametrize("chunk", [1, 2, 3, 1 << 16])
+def test_coordinates_table_read_in_chunks(tmp_path, chunk):
+    """The coordinates table parsed a chunk of records at a time gives every record, in order
+    (np.loadtxt as the oracle), whatever the chunk size."""
+    from toolbox.attribution.restitution import _coordinates
+
+    rng = np.random.default_rng(4)
+    xyz = np.round(rng.normal(1000.0, 300.0, (7, 3)), 3)
+    path = tmp_path / "coordinate.txt"
+    path.write_text("colour;E;N;Z\n" + "".join(f";{e:.3f};{n:.3f};{z:.3f}\n" for e, n, z in xyz))
+    got = _coordinates(path, "COORDINATES", chunk)
+    np.testing.assert_array_equal(got, np.loadtxt(path, delimiter=";", skiprows=1,
+                                                  usecols=(1, 2, 3)))
+    assert got.shape == (7, 3)
