@@ -33,6 +33,7 @@ REASONS: dict[str, str] = {
 LAYOUTS = ("code", "type")
 TYPE_LAYERS = {"point": "points", "line": "lines", "polygon": "polygons"}
 GPKG_TYPES = {"point": "Point", "line": "LineString", "polygon": "Polygon"}
+BLOCK = 1 << 16  # entities whose geometries are checked together
 
 
 def layer_name(code: str) -> str:
@@ -97,7 +98,9 @@ def attribute(entities, table: CodeTable, colours: dict[str, tuple[int, int, int
     known = np.array([c is not None and c in table for c in names], dtype=bool) & ~is_label
     rows = np.flatnonzero(known)
     declared = np.array([table[names[i]].kind for i in rows], dtype=object)
-    kind, shape, why, note = resolve_geometries(geoms[rows], declared, closure)
+    parts = [resolve_geometries(geoms[rows[a:a + BLOCK]], declared[a:a + BLOCK], closure)
+             for a in range(0, max(len(rows), 1), BLOCK)]  # (bounded temporary arrays)
+    kind, shape, why, note = (np.concatenate([p[j] for p in parts]) for j in range(4))
     resolved: dict[int, int] = {int(i): k for k, i in enumerate(rows)}  # entity -> its row
     per_code: dict[str, Counter] = {}
     groups: dict[tuple[str, str], list[tuple[int, Any, str]]] = {}

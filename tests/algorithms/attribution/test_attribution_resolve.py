@@ -1,7 +1,9 @@
 """The coding step's geometry checks for all entities at once against a straightforward
 per-entity computation (np.unique per entity, Polygon built per entity, np.nanmin/nanmax/nanmean),
 on random entities: points, lines, polygons with holes, multi-lines, 2D and 3D, NaN Z, one-vertex
-and empty entities, duplicate vertices, outlines open by less and more than the tolerance."""
+and empty entities, duplicate vertices, outlines open by less and more than the tolerance.
+Also: attribute() in blocks of entities as all at once; the two-table reader's coordinates
+parsed in chunks."""
 
 from __future__ import annotations
 
@@ -149,3 +151,26 @@ def test_coordinates_table_read_in_chunks(tmp_path, chunk):
     np.testing.assert_array_equal(got, np.loadtxt(path, delimiter=";", skiprows=1,
                                                   usecols=(1, 2, 3)))
     assert got.shape == (7, 3)
+
+
+def test_attribute_in_blocks_as_in_one(tmp_path, monkeypatch):
+    """Entities checked a few at a time (blocks of 3) give the same layers and unresolved
+    entities as all at once (the realistic export of restitution_files: every reason)."""
+    import pandas as pd
+    from restitution_files import make_files
+
+    import toolbox.attribution.coding as coding
+    from toolbox.attribution.restitution import read_ascii
+    from toolbox.io.code_file import read_code_file, read_colour_file
+
+    files = make_files(tmp_path)
+    entities = read_ascii(files["export"], crs="EPSG:3003")
+    table, colours = read_code_file(files["codes"]), read_colour_file(files["colours"])
+    whole = coding.attribute(entities, table, colours)
+    monkeypatch.setattr(coding, "BLOCK", 3)
+    blocks = coding.attribute(entities, table, colours)
+    assert blocks.statistics == whole.statistics and list(blocks.layers) == list(whole.layers)
+    assert len(whole.unresolved) == 8  # entities 3, 5, 7, 8, 9, 10, 11, 13
+    for name in whole.layers:
+        pd.testing.assert_frame_equal(blocks.layers[name], whole.layers[name], check_exact=True)
+    pd.testing.assert_frame_equal(blocks.unresolved, whole.unresolved, check_exact=True)
