@@ -101,7 +101,8 @@ def attribute(entities, table: CodeTable, colours: dict[str, tuple[int, int, int
     parts = [resolve_geometries(geoms[rows[a:a + BLOCK]], declared[a:a + BLOCK], closure)
              for a in range(0, max(len(rows), 1), BLOCK)]  # (bounded temporary arrays)
     kind, shape, why, note = (np.concatenate([p[j] for p in parts]) for j in range(4))
-    resolved: dict[int, int] = {int(i): k for k, i in enumerate(rows)}  # entity -> its row
+    resolved = np.full(n, -1, dtype=np.intp)  # entity -> its row in kind, shape, why, note
+    resolved[rows] = np.arange(len(rows))
     per_code: dict[str, Counter] = {}
     groups: dict[tuple[str, str], list[tuple[int, Any, str]]] = {}
     unresolved: list[tuple[int, Any, str, str]] = []
