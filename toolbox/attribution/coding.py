@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 import shapely
 
+from toolbox.attribution.resolve import resolve_geometries, z_statistics
 from toolbox.io.code_file import CodeTable, code_colour, hex_colour
 
 #: reason -> meaning (the ``reason`` column of ``unresolved``)
@@ -32,6 +33,7 @@ REASONS: dict[str, str] = {
 LAYOUTS = ("code", "type")
 TYPE_LAYERS = {"point": "points", "line": "lines", "polygon": "polygons"}
 GPKG_TYPES = {"point": "Point", "line": "LineString", "polygon": "Polygon"}
+BLOCK = 1 << 16  # entities whose geometries are checked together
 
 
 def layer_name(code: str) -> str:
@@ -50,77 +52,6 @@ class Attribution:
     unresolved: Any
     labels: Any
     statistics: dict[str, Any]
-
-
-def _distinct(coords: np.ndarray) -> int:
-    return len(np.unique(np.round(coords[:, :2], 9), axis=0)) if len(coords) else 0
-
-
-def resolve_geometry(geom: Any, declared: str | None, read_kind: str | None,
-                     closure: float) -> tuple[str | None, Any, str | None, str]:
-    """(kind, geometry, reason, detail) for one entity: reason None when usable.
-
-    A line of a polygon code is closed when its ends miss by at most ``closure`` (planimetric
-    distance), and becomes a Polygon.
-    """
-    if geom is None or shapely.is_empty(geom):
-        return None, None, "no_vertices", "no coordinates"
-    gtype = shapely.get_type_id(geom)
-    coords = shapely.get_coordinates(geom, include_z=shapely.has_z(geom))
-    is_point, is_polygon = gtype == 0, gtype == 3
-    n = len(coords)
-    want = declared or ("point" if is_point else "polygon" if is_polygon else "line")
-    if want == "point":
-        if not is_point:
-            what = "polygon" if is_polygon else f"line with {n} vertices"
-            return None, None, "type_mismatch", f"the code is a point type, the entity a {what}"
-        return "point", geom, None, ""
-    if want == "line":
-        if is_polygon:
-            return None, None, "type_mismatch", "the code is a line type, the entity a polygon"
-        if is_point or _distinct(coords) < 2:
-            what = "one vertex" if n == 1 else "zero length"
-            return None, None, "degenerate", f"line with {what}"
-        return "line", geom, None, ""
-    # polygon
-    if is_polygon:
-        ring = np.asarray(geom.exterior.coords)
-    else:
-        ring = coords
-    if is_point or _distinct(ring) < 3:
-        return None, None, "degenerate", f"polygon with {_distinct(ring)} distinct vertices"
-    detail = ""
-    if not is_polygon:
-        gap = float(np.hypot(*(ring[-1, :2] - ring[0, :2])))
-        if gap > closure:
-            return None, None, "unclosed_polygon", (f"ends {gap:.3f} apart (closure tolerance "
-                                                    f"{closure:g})")
-        if gap > 0:
-            # the last vertex was meant to be the first: snapped onto it (or the first appended
-            # when dropping the last would leave too few vertices)
-            ring = (np.vstack([ring[:-1], ring[:1]]) if _distinct(ring[:-1]) >= 3
-                    else np.vstack([ring, ring[:1]]))
-            detail = f"closed: ends {gap:.3f} apart"
-        geom = shapely.Polygon(ring)
-    if shapely.area(shapely.convex_hull(geom)) <= 0:  # all vertices on one line
-        return None, None, "degenerate", "polygon of zero area"
-    if not shapely.is_valid(geom):
-        return None, None, "invalid_polygon", shapely.is_valid_reason(geom)
-    return "polygon", geom, None, detail
-
-
-def z_statistics(geoms: list[Any]) -> dict[str, np.ndarray]:
-    """z_min, z_max, z_mean of each geometry's vertices (NaN for 2D)."""
-    out = {k: np.full(len(geoms), np.nan) for k in ("z_min", "z_max", "z_mean")}
-    for i, g in enumerate(geoms):
-        if g is not None and shapely.has_z(g):
-            z = shapely.get_coordinates(g, include_z=True)[:, 2]
-            if np.isfinite(z).any():
-                out["z_min"][i], out["z_max"][i] = np.nanmin(z), np.nanmax(z)
-                out["z_mean"][i] = np.nanmean(z)
-    return out
-
-
 
 
 def attribute(entities, table: CodeTable, colours: dict[str, tuple[int, int, int]] | None = None,
@@ -157,33 +88,44 @@ def attribute(entities, table: CodeTable, colours: dict[str, tuple[int, int, int
         present = np.array([g is not None for g in geoms])
         geoms[present] = shapely.set_precision(geoms[present], 10.0 ** -decimals,
                                                mode="pointwise")
+    n = len(entities)
+    names: list[str | None] = []
+    for code in codes:
+        blank = code is None or (isinstance(code, float) and np.isnan(code)) or not str(
+            code).strip()
+        names.append(None if blank else str(code).strip())
+    is_label = kinds_read == "label"
+    known = np.array([c is not None and c in table for c in names], dtype=bool) & ~is_label
+    rows = np.flatnonzero(known)
+    declared = np.array([table[names[i]].kind for i in rows], dtype=object)
+    parts = [resolve_geometries(geoms[rows[a:a + BLOCK]], declared[a:a + BLOCK], closure)
+             for a in range(0, max(len(rows), 1), BLOCK)]  # (bounded temporary arrays)
+    kind, shape, why, note = (np.concatenate([p[j] for p in parts]) for j in range(4))
+    resolved = np.full(n, -1, dtype=np.intp)  # entity -> its row in kind, shape, why, note
+    resolved[rows] = np.arange(len(rows))
     per_code: dict[str, Counter] = {}
     groups: dict[tuple[str, str], list[tuple[int, Any, str]]] = {}
     unresolved: list[tuple[int, Any, str, str]] = []
     label_rows: list[int] = []
     closed = 0
-    for i in range(len(entities)):
-        code = codes[i]
-        blank = code is None or (isinstance(code, float) and np.isnan(code)) or not str(
-            code).strip()
-        code = None if blank else str(code).strip()
+    for i in range(n):
+        code = names[i]
         counter = per_code.setdefault(code or "", Counter())
         counter["entities"] += 1
-        if kinds_read[i] == "label":
+        if is_label[i]:
             label_rows.append(i)
             counter["labels"] += 1
             continue
         if code is None:
             reason, detail = "no_code", "no code"
-        elif code not in table:
+        elif not known[i]:
             reason, detail = "unknown_code", f"code {code!r} is not in the code file"
         else:
-            entry = table[code]
-            kind, geom, reason, detail = resolve_geometry(geoms[i], entry.kind, kinds_read[i],
-                                                          closure)
+            k = resolved[i]
+            reason, detail = why[k], note[k]
             if reason is None:
-                key = (code, kind) if layout == "code" else ("", kind)
-                groups.setdefault(key, []).append((i, geom, detail))
+                key = (code, kind[k]) if layout == "code" else ("", kind[k])
+                groups.setdefault(key, []).append((i, shape[k], detail))
                 closed += detail.startswith("closed")
                 counter["resolved"] += 1
                 continue

@@ -45,6 +45,7 @@ Errors (:class:`InputDataError`) name the file, the line and the problem.
 from __future__ import annotations
 
 import re
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -145,21 +146,41 @@ def read_ascii(path: str | Path, name: str = "INPUT", crs: Any = None):
     return entity_frame(rows, geoms, crs)
 
 
-def _table_rows(path: Path, name: str, width: int, what: str) -> list[tuple[int, list[str]]]:
-    rows = []
+def _table_rows(path: Path, name: str, width: int, what: str
+                ) -> Iterator[tuple[int, list[str]]]:
+    """(line number, fields) of each record of a delimited table, one at a time (a header line
+    skipped; a record of another width is an error)."""
+    header = True
     for number, raw in enumerate(read_text(path, name).splitlines(), start=1):
         line = raw.strip()
         if not line or line.startswith("#"):
             continue
         sep = ";" if ";" in line else "\t" if "\t" in line else "," if "," in line else None
         fields = [f.strip() for f in (line.split(sep) if sep else line.split())]
-        if not rows and not is_number(fields[-1]):
+        if header and not is_number(fields[-1]):
             continue  # header line
+        header = False
         if len(fields) != width:
             raise _fail(path, number, f"expected {width} fields ({what}), got {len(fields)}",
                         name)
-        rows.append((number, fields))
-    return rows
+        yield number, fields
+
+
+def _coordinates(path: Path, name: str, chunk: int = 1 << 16) -> np.ndarray:
+    """E N Z of every record of the coordinates table, (N, 3): parsed as read, ``chunk`` records
+    at a time (the records' fields are not all kept as strings first)."""
+    chunks, buf, k = [], np.empty((chunk, 3)), 0
+    for number, fields in _table_rows(path, name, 4, "colour; E; N; Z"):
+        try:
+            buf[k] = _floats(fields[1:])
+        except ValueError:
+            raise _fail(path, number, f"E N Z must be numbers, got {fields[1:]}", name) from None
+        k += 1
+        if k == chunk:
+            chunks.append(buf)
+            buf, k = np.empty((chunk, 3)), 0
+    chunks.append(buf[:k])
+    return np.concatenate(chunks)
 
 
 DESCRIPTION_FIELDS = "record; code; vertices; colour; source; xmin; ymin; xmax; ymax; first"
@@ -170,14 +191,7 @@ def read_two_tables(descriptions: str | Path, coordinates: str | Path, name: str
                     tolerance: float = 1e-6):
     """Read the two-table form (descriptions + coordinates files). Returns (entities, report)."""
     descriptions, coordinates = Path(descriptions), Path(coordinates)
-    coords_rows = _table_rows(coordinates, coordinates_name, 4, "colour; E; N; Z")
-    xyz = np.empty((len(coords_rows), 3))
-    for k, (number, fields) in enumerate(coords_rows):
-        try:
-            xyz[k] = _floats(fields[1:])
-        except ValueError:
-            raise _fail(coordinates, number, f"E N Z must be numbers, got {fields[1:]}",
-                        coordinates_name) from None
+    xyz = _coordinates(coordinates, coordinates_name)
     rows, geoms, mismatches = [], [], []
     for number, fields in _table_rows(descriptions, name, 10, DESCRIPTION_FIELDS):
         try:
