@@ -59,3 +59,27 @@ def test_arrow_write_gives_the_feature_by_feature_table(tmp_path):
     arrow = write_layers(tmp_path / "arrow.gpkg", layers, geometry_types=types, arrow=True)
     for name in layers:
         assert _read_all(arrow, name) == _read_all(plain, name), name
+
+
+def test_ring_starts_known_rings():
+    import shapely
+
+    from toolbox.topology.arcs import _ring_starts
+
+    rings = np.array([
+        # free, clockwise, starting at (2, 0): from (0, 0), counter-clockwise
+        shapely.LineString([(2, 0), (0, 0), (0, 2), (2, 2), (2, 0)]),
+        # attached at (2, 2), counter-clockwise: unchanged
+        shapely.LineString([(2, 2), (0, 2), (0, 0), (2, 0), (2, 2)]),
+        # attached at (2, 2), clockwise: the same start, counter-clockwise
+        shapely.LineString([(2, 2), (2, 0), (0, 0), (0, 2), (2, 2)]),
+        # free triangle, counter-clockwise from (1, 1): from its lowest (x, y) vertex (0, 3)
+        shapely.LineString([(1, 1), (2, 2), (0, 3), (1, 1)]),
+    ], dtype=object)
+    out = _ring_starts(rings, 0.001, np.array([True, False, False, True]))
+    assert [shapely.get_coordinates(g).tolist() for g in out] == [
+        [[0, 0], [2, 0], [2, 2], [0, 2], [0, 0]],
+        [[2, 2], [0, 2], [0, 0], [2, 0], [2, 2]],
+        [[2, 2], [0, 2], [0, 0], [2, 0], [2, 2]],
+        [[0, 3], [1, 1], [2, 2], [0, 3]],
+    ]
