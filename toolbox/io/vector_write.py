@@ -64,7 +64,7 @@ def layer_paths(path: str | Path, names: list[str]) -> dict[str, Path]:
 
 
 def write_layers(path: str | Path, layers: dict[str, Any], crs: Any = None,
-                 geometry_types: dict[str, str] | None = None) -> Path:
+                 geometry_types: dict[str, str] | None = None, arrow: bool = False) -> Path:
     """Write GeoDataFrames as named layers, in the format of ``path``'s extension.
 
     A GeoPackage (version 1.2) receives every layer (created or extended); a one-layer format
@@ -74,7 +74,9 @@ def write_layers(path: str | Path, layers: dict[str, Any], crs: Any = None,
     (when its frame has none), empty ones too. A layer must hold one kind of geometry (points,
     lines or polygons: QGIS draws only one kind per layer); single and multi parts of a kind are
     written as multi. Inside an algorithm, ``path`` is the staged output path the runner handed
-    over.
+    over. ``arrow`` writes a GeoPackage through GDAL's Arrow interface (OGR_L_WriteArrowBatch:
+    the same table, about a quarter less CPU on a big layer than feature by feature); it is for
+    frames of plain numbers, text and shapely geometries.
     """
     import pyogrio
 
@@ -105,8 +107,24 @@ def write_layers(path: str | Path, layers: dict[str, Any], crs: Any = None,
         with staged_gpkg_writes(), writing(target), warnings.catch_warnings():
             if frame.crs is None:  # a layer without CRS as read (stored coordinates): meant
                 warnings.filterwarnings("ignore", "'crs' was not provided", UserWarning)
+            if arrow and driver == "GPKG" and _write_arrow(frame, target, layer_name, kwargs):
+                continue
             pyogrio.write_dataframe(frame, target, layer=layer_name, driver=driver, **kwargs)
     return path
+
+
+def _write_arrow(frame, target: Path, layer: str, kwargs: dict[str, Any]) -> bool:
+    """Write ``frame`` to a GeoPackage through Arrow; False (nothing written) when a column
+    does not convert to an Arrow type (an object column mixing numbers and text)."""
+    import pyarrow as pa
+    import pyogrio
+
+    try:
+        pa.Table.from_pandas(frame.drop(columns=frame.geometry.name), preserve_index=False)
+    except pa.ArrowException:
+        return False
+    pyogrio.write_dataframe(frame, target, layer=layer, driver="GPKG", use_arrow=True, **kwargs)
+    return True
 
 
 def write_wkb_layer(path: str | Path, layer: str, wkb: np.ndarray, fields: dict[str, np.ndarray],

@@ -57,17 +57,32 @@ def code_keys(indptr: np.ndarray, sources: np.ndarray, line_codes: np.ndarray) -
     return out
 
 
-def _ring_start(line: shapely.Geometry, precision: float, free_ring: bool) -> shapely.Geometry:
-    """A closed line counter-clockwise, from its lowest (x, y) vertex when it touches nothing
-    else (``free_ring``), else from the node where it is attached."""
-    coords = shapely.get_coordinates(line)
-    ring = coords[:-1]
-    if free_ring:
-        k = grid_keys(ring, precision)
-        ring = np.roll(ring, -np.lexsort((k[:, 1], k[:, 0]))[0], axis=0)
-    if not shapely.is_ccw(shapely.linearrings(ring)):
-        ring = np.concatenate([ring[:1], ring[1:][::-1]])
-    return shapely.linestrings(np.concatenate([ring, ring[:1]]))
+def _ring_starts(lines: np.ndarray, precision: float, free_ring: np.ndarray) -> np.ndarray:
+    """Closed lines counter-clockwise, each from its lowest (x, y) vertex when it touches nothing
+    else (``free_ring``), else from the node where it is attached (all rings at once)."""
+    coords, owner = shapely.get_coordinates(lines, return_index=True)
+    counts = np.bincount(owner, minlength=len(lines))
+    keep = np.ones(len(coords), dtype=bool)
+    keep[np.cumsum(counts) - 1] = False  # the closing vertex
+    coords, owner = coords[keep], owner[keep]
+    n = counts - 1
+    start = np.cumsum(n) - n
+    local = np.arange(len(coords)) - start[owner]
+    # lowest (x, y) on the grid, the first of equals (lexsort is stable), for free rings
+    k = grid_keys(coords, precision)
+    lowest = np.lexsort((k[:, 1], k[:, 0], owner))[start] - start
+    lowest[~np.asarray(free_ring, dtype=bool)] = 0
+    ring = np.empty_like(coords)
+    ring[start[owner] + (local - lowest[owner]) % n[owner]] = coords
+    # clockwise rings: the same start, the other vertices in reverse
+    cw = ~shapely.is_ccw(shapely.linearrings(ring, indices=owner))
+    flip = cw[owner] & (local > 0)
+    at = np.where(flip, n[owner] - local, local)
+    out = np.empty_like(ring)
+    out[start[owner] + at] = ring
+    # close again with the start vertex
+    closed = np.insert(out, np.cumsum(n), out[start], axis=0)
+    return shapely.linestrings(closed, indices=np.repeat(np.arange(len(lines)), n + 1))
 
 
 def build_arcs(edges: np.ndarray, graph: EdgeGraph, indptr: np.ndarray, sources: np.ndarray,
@@ -121,8 +136,7 @@ def build_arcs(edges: np.ndarray, graph: EdgeGraph, indptr: np.ndarray, sources:
         node_keys = pack_keys(grid_keys(graph.xy, precision))
         sorter = np.argsort(node_keys)
         at = sorter[np.searchsorted(node_keys, pack_keys(k0[closed]), sorter=sorter)]
-        for i, node in zip(np.flatnonzero(closed), at, strict=True):
-            geoms[i] = _ring_start(geoms[i], precision, degree[node] == 2)
+        geoms[closed] = _ring_starts(geoms[closed], precision, degree[at] == 2)
     # input lines of each arc
     entry_arc = members[np.repeat(np.arange(m), np.diff(indptr))]
     n_lines = int(sources.max()) + 1 if len(sources) else 1

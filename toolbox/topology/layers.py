@@ -118,4 +118,4 @@ def write_topology(path: str | Path, output: TopologyOutput, crs: Any,
             frames[name] = to_frame(getattr(output, name), crs, label_dtypes if name == "areas"
                                     else None)
     return write_layers(path, frames, crs=crs,
-                        geometry_types={k: GEOMETRY_TYPES[k] for k in frames})
+                        geometry_types={k: GEOMETRY_TYPES[k] for k in frames}, arrow=True)

@@ -46,7 +46,8 @@ def subset_csr(indptr: np.ndarray, values: np.ndarray, rows: np.ndarray
     new_ptr = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
     if len(rows) == 0:
         return new_ptr, values[:0]
-    take = np.concatenate([np.arange(indptr[r], indptr[r + 1]) for r in rows])
+    # entry k of the new CSR is entry (start of its old row) + (k - start of its new row)
+    take = np.repeat(np.asarray(indptr)[rows] - new_ptr[:-1], counts) + np.arange(new_ptr[-1])
     return new_ptr, values[take]
 
 
