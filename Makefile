@@ -20,8 +20,8 @@ $(STAMP): pyproject.toml
 demo: $(STAMP)  ## run the main job on bundled sample data into $(OUT)/
 	$(BIN)/toolbox demo --out $(OUT)
 
-test: $(STAMP)  ## run the test suite
-	$(BIN)/python -m pytest -q
+test: $(STAMP)  ## run the test suite (one pytest-xdist worker per CPU)
+	$(BIN)/python -m pytest -q -n auto --dist worksteal
 
 lint: $(STAMP)  ## ruff, and the import contract of pyproject.toml [tool.importlinter]
 	$(BIN)/ruff check toolbox algorithms tests bench qgis_plugin
