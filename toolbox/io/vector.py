@@ -472,8 +472,10 @@ def _wkb_geometries(ref: VectorLayerRef, name: str) -> np.ndarray | None:
         if wkb is None:  # a table: its features have no geometry (a filtered one: general path)
             if ref.where:
                 return None
-            count = _ogr().read_info(str(ref.path), layer=ref.layer,
-                                     force_feature_count=True)["features"]
+            count = ref.count  # as opening the layer read it; -1: the driver must count
+            if count < 0:
+                count = _ogr().read_info(str(ref.path), layer=ref.layer,
+                                         force_feature_count=True)["features"]
             return np.full(int(count), None, dtype=object)
         return shapely.from_wkb(wkb)
     except TypeError:  # another pyogrio

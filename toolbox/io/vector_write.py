@@ -115,15 +115,16 @@ def write_layers(path: str | Path, layers: dict[str, Any], crs: Any = None,
 
 def _write_arrow(frame, target: Path, layer: str, kwargs: dict[str, Any]) -> bool:
     """Write ``frame`` to a GeoPackage through Arrow; False (nothing written) when a column
-    does not convert to an Arrow type (an object column mixing numbers and text)."""
+    does not convert to an Arrow type (an object column mixing numbers and text): pyogrio
+    converts the whole frame before it opens the file."""
     import pyarrow as pa
     import pyogrio
 
     try:
-        pa.Table.from_pandas(frame.drop(columns=frame.geometry.name), preserve_index=False)
+        pyogrio.write_dataframe(frame, target, layer=layer, driver="GPKG", use_arrow=True,
+                                **kwargs)
     except pa.ArrowException:
         return False
-    pyogrio.write_dataframe(frame, target, layer=layer, driver="GPKG", use_arrow=True, **kwargs)
     return True
 
 
