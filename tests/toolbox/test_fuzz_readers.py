@@ -18,6 +18,7 @@ EXIF/XMP of a drone JPEG).
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import os
 import random
@@ -327,12 +328,6 @@ def _fuzz(seeds, reader: str, tmp_path: Path, mutations: int, budget_s: float) -
     started = time.monotonic()
     previous = signal.signal(signal.SIGALRM, _alarm)
     n = 0
-    # the libraries' log records and warnings quote the mutated bytes (ezdxf: lone surrogates,
-    # which pytest-xdist cannot send back from a worker): only exceptions matter here
-    logging.disable(logging.WARNING)
-    quiet = warnings.catch_warnings()
-    quiet.__enter__()  # (a with block would indent the whole loop once more)
-    warnings.simplefilter("ignore")
     try:
         for n in range(mutations):
             if time.monotonic() - started > budget_s:
@@ -356,20 +351,34 @@ def _fuzz(seeds, reader: str, tmp_path: Path, mutations: int, budget_s: float) -
                 path.unlink()
     finally:
         signal.signal(signal.SIGALRM, previous)
-        quiet.__exit__(None, None, None)
-        logging.disable(logging.NOTSET)
     assert not crashes, f"{reader}: {len(crashes)} crashes (inputs kept in {tmp_path}):\n" + \
         "\n".join(crashes[:10])
     return n + 1
 
 
+@contextlib.contextmanager
+def _libraries_quiet():
+    """No log records or warnings from the readers' libraries: they quote the mutated bytes
+    (ezdxf: lone surrogates, which a pytest-xdist worker cannot send back); the fuzz test is
+    about exceptions only."""
+    logging.disable(logging.WARNING)
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            yield
+    finally:
+        logging.disable(logging.NOTSET)
+
+
 @pytest.mark.parametrize("reader", READERS)
 def test_only_toolbox_errors_escape(seeds, reader, tmp_path):
-    _fuzz(seeds, reader, tmp_path, MUTATIONS_PER_READER, BUDGET_S)
+    with _libraries_quiet():
+        _fuzz(seeds, reader, tmp_path, MUTATIONS_PER_READER, BUDGET_S)
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("reader", READERS)
 def test_only_toolbox_errors_escape_slow(seeds, reader, tmp_path):
     """A few thousand mutations over all readers (TOOLBOX_FUZZ_MUTATIONS per reader)."""
-    _fuzz(seeds, reader, tmp_path, SLOW_MUTATIONS_PER_READER, SLOW_BUDGET_S)
+    with _libraries_quiet():
+        _fuzz(seeds, reader, tmp_path, SLOW_MUTATIONS_PER_READER, SLOW_BUDGET_S)

@@ -92,7 +92,8 @@ sys.exit(console())
 
 def test_points_described_without_pandas_or_pyproj(tmp_path):
     """Also with a table beside them (every GeoPackage the toolbox writes has ``layer_styles``):
-    a table read through GeoDataFrames cost pandas and geopandas (1.1 s instead of 0.4 s)."""
+    a table read through GeoDataFrames cost pandas and geopandas (0.98 s instead of 0.50 s wall:
+    bench/results/startup.md)."""
     import geopandas as gpd
     import pandas as pd
     import pyogrio
