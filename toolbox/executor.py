@@ -24,8 +24,10 @@ Example
 from __future__ import annotations
 
 import os
+import threading
 from collections import deque
 from collections.abc import Callable, Iterable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Any, TypeVar
 
@@ -218,15 +220,54 @@ def _map_local(func, tasks, workers, prefetch, feedback, total, start, end) -> I
             _progress(feedback, done, total, start, end)
             yield result
         return
-    from concurrent.futures import ThreadPoolExecutor
+    with thread_pool(workers) as submit, one_blas_thread():
+        yield from _in_order(lambda task: submit(func, task), tasks,
+                             prefetch or max(4, 2 * workers), feedback, total, start, end)
 
-    pool = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="tile")
+
+_IDLE_POOLS: dict[int, list[Any]] = {}  # workers -> thread pools no call is using
+_POOLS_LOCK = threading.Lock()
+
+
+@contextmanager
+def thread_pool(workers: int) -> Iterator[Callable[..., Any]]:
+    """``submit(func, *args) -> Future`` on a pool of ``workers`` threads that later calls reuse:
+    a thread's first GDAL open pays for its PROJ context and GDAL's thread state (about 10 ms
+    with the GIL held), which new threads for every photo and block paid again. A nested call
+    (a photo's windows inside a block of photos) takes another pool, so no pool waits on its
+    own threads. On exit every task submitted has finished (as ``shutdown(wait=True)``): none
+    is left running after its caller returns."""
+    from concurrent.futures import ThreadPoolExecutor, wait
+
+    with _POOLS_LOCK:
+        idle = _IDLE_POOLS.setdefault(workers, [])
+        pool = idle.pop() if idle else None
+    if pool is None:
+        pool = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="tile")
+    running: set = set()
+    lock = threading.Lock()
+
+    def finished(future: Any) -> None:
+        with lock:
+            running.discard(future)
+
+    def submit(func: Callable[..., Any], *args: Any) -> Any:
+        future = pool.submit(func, *args)
+        with lock:
+            running.add(future)
+        future.add_done_callback(finished)
+        return future
+
     try:
-        with one_blas_thread():
-            yield from _in_order(lambda task: pool.submit(func, task), tasks,
-                                 prefetch or max(4, 2 * workers), feedback, total, start, end)
+        yield submit
     finally:
-        pool.shutdown(wait=True, cancel_futures=True)
+        with lock:
+            left = list(running)
+        for future in left:
+            future.cancel()
+        wait(left)
+        with _POOLS_LOCK:
+            idle.append(pool)
 
 
 def one_blas_thread():

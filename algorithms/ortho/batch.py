@@ -212,23 +212,18 @@ def plan_each(items: list[Any], plan: Any, failed: list[dict[str, Any]], feedbac
         except (InputDataError, ParameterError) as exc:
             return None, exc
 
-    pool = None
-    if workers > 1 and len(items) > 1:
-        from concurrent.futures import ThreadPoolExecutor
+    from toolbox.executor import Executor, map_tiles
 
-        pool = ThreadPoolExecutor(min(workers, len(items)), thread_name_prefix="plan")
+    threads = Executor("local", workers if len(items) > 1 else 1)  # the photos' pool after
     plans = []
-    try:
-        results = map(attempt, items) if pool is None else pool.map(attempt, items)
-        for item, (planned, exc) in zip(feedback.iterate(items, start=0, end=10), results):
-            if exc is None:
-                plans.append(planned)
-            else:
-                failed.append({"photo": item.id, "error": str(exc)})
-                feedback.push_warning(f"photo {item.id} failed: {exc}")
-    finally:
-        if pool is not None:
-            pool.shutdown(cancel_futures=True)
+    results = map_tiles(attempt, items, executor=threads, feedback=feedback, total=len(items),
+                        start=0, end=10)
+    for (planned, exc), item in zip(results, items):  # the results first: the pool's exit runs
+        if exc is None:
+            plans.append(planned)
+        else:
+            failed.append({"photo": item.id, "error": str(exc)})
+            feedback.push_warning(f"photo {item.id} failed: {exc}")
     if not plans:
         raise InputDataError("no photo could be orthorectified: " +
                              "; ".join(f"{f['photo']}: {f['error']}" for f in failed))
