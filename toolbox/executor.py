@@ -270,18 +270,27 @@ def thread_pool(workers: int) -> Iterator[Callable[..., Any]]:
             idle.append(pool)
 
 
+_BLAS_CONTROLLER: list[Any] = [None, -1]  # threadpoolctl's controller, len(sys.modules) then
+
+
 def one_blas_thread():
     """Context limiting BLAS/OpenMP libraries to one thread while our own threads run tiles
     (each tile's small solves would otherwise spin a BLAS thread pool per core and oversubscribe
     the machine: 10-100x slower on a busy 2-core host). The previous limits are restored on
-    exit; no environment variable is changed."""
+    exit; no environment variable is changed. The libraries are looked up again only after new
+    imports (a lookup walks every loaded shared library: 1.4 ms, with the GIL held)."""
+    import sys
     from contextlib import nullcontext
 
     try:
-        from threadpoolctl import threadpool_limits
+        from threadpoolctl import ThreadpoolController
     except ImportError:  # pragma: no cover - a dependency
         return nullcontext()
-    return threadpool_limits(limits=1, user_api="blas")
+    with _POOLS_LOCK:
+        if _BLAS_CONTROLLER[0] is None or _BLAS_CONTROLLER[1] != len(sys.modules):
+            _BLAS_CONTROLLER[:] = [ThreadpoolController(), len(sys.modules)]
+        controller = _BLAS_CONTROLLER[0]
+    return controller.limit(limits=1, user_api="blas")
 
 
 def _map_dask(func, tasks, executor, prefetch, feedback, total, start, end) -> Iterator:
