@@ -154,8 +154,12 @@ def test_tin_triangles_graduated_on_slope(tin_gpkg):
 
 
 def test_other_formats_and_contours_unchanged(tmp_path, plane_dem):
-    """FlatGeobuf has no style table (the run succeeds); contours keep their one style row
-    (written by carto:contours, not a second time by the runner)."""
+    """FlatGeobuf has no style table (the run succeeds: carto:contours to .fgb failed with
+    'cannot read an input ... file is not a database', writing its style with sqlite); contours
+    keep their one style row (written by carto:contours, not a second time by the runner)."""
+    fgb = toolbox.run("carto:contours", {"INPUT": plane_dem[0], "INTERVAL": 2.0,
+                                         "OUTPUT": tmp_path / "c.fgb"})
+    assert len(gpd.read_file(fgb["OUTPUT"])) > 0
     points = tmp_path / "p.gpkg"
     xy = np.random.default_rng(1).uniform(0, 50, (30, 2)) + (1_688_000.0, 4_799_500.0)
     gpd.GeoDataFrame(geometry=shapely.points(xy[:, 0], xy[:, 1], xy[:, 1] * 0.1),
