@@ -86,7 +86,7 @@ class Contours(Algorithm):
             tin_layer_contours,
             write_contours,
         )
-        from toolbox.cartography.qml import write_contour_style
+        from toolbox.cartography.qml import contour_qml, write_contour_style
 
         interval, base = params["INTERVAL"], params["BASE"]
         if params.get("INPUT") is not None:
@@ -103,7 +103,9 @@ class Contours(Algorithm):
         feedback.set_progress(90)
         fields = write_contours(params["OUTPUT"], result.contours, interval, base,
                                 params["INDEX_EVERY"], crs)
-        qml = write_contour_style(params["OUTPUT"], "contours")
+        # a GeoPackage embeds the style; the other formats have no style table
+        qml = write_contour_style(params["OUTPUT"], "contours") \
+            if str(params["OUTPUT"]).lower().endswith(".gpkg") else contour_qml()
         if params.get("STYLE"):
             params["STYLE"].write_text(qml, encoding="utf-8")
         lines = len(fields["elev"])

@@ -23,7 +23,14 @@ from toolbox.algorithm import Algorithm
 from toolbox.errors import OutputWriteError, ParameterError, ToolboxError
 from toolbox.feedback import Feedback
 from toolbox.io.staging import OutputStaging, write_error
-from toolbox.parameters import Boolean, Number, OutputFolder, RasterLayer, ValidationContext
+from toolbox.parameters import (
+    Boolean,
+    Number,
+    OutputFolder,
+    OutputVector,
+    RasterLayer,
+    ValidationContext,
+)
 from toolbox.registry import get
 from toolbox.runner.failures import (
     as_read_error,
@@ -192,6 +199,7 @@ def run(algorithm_id: str, parameters: dict[str, Any] | None = None,
         feedback.check_canceled()
         check_gdal_errors(gdal_errors, staging)
         check_raster_outputs(alg_cls, values, staging)
+        write_declared_styles(alg_cls, values, staged)
         written = {final for _, final, staged_file in staging.items() if staged_file.exists()}
         outputs = _final_outputs(alg_cls, values, result, written)
         feedback.set_progress(100)
@@ -208,6 +216,29 @@ def run(algorithm_id: str, parameters: dict[str, Any] | None = None,
     finally:
         staging.rollback()
     return outputs
+
+
+def write_declared_styles(alg_cls: type[Algorithm], values: dict[str, Any],
+                          staged: dict[str, Any]) -> None:
+    """Embed the default style of every layer an :class:`OutputVector` declares styled
+    (``Layer(style=...)``, :mod:`toolbox.styles.layers`) in its staged GeoPackage; other formats
+    have no style table. Imports nothing unless a layer declares a style."""
+    for dest in alg_cls.destinations():
+        if not isinstance(dest, OutputVector):
+            continue
+        pairs = [(layer.name, layer.style) for layer in dest.layers if layer.style]
+        path = staged.get(dest.name)
+        if not pairs or path is None or Path(path).suffix.lower() != ".gpkg" \
+                or not Path(path).is_file():
+            continue
+        import sqlite3
+
+        from toolbox.styles.layers import write_declared_styles as write_styles
+
+        try:
+            write_styles(path, pairs)
+        except (OSError, sqlite3.Error) as exc:  # a full disk, a read-only folder
+            raise write_error(exc, dest.name, values[dest.name]) from None
 
 
 # -- write-error detection (by type and by the disk, never by message text) ---------------------

@@ -37,17 +37,3 @@ def _write(folder: Path, name: str, style) -> list[Path]:
     sld.write_text(sld_document(style), encoding="utf-8")
     return [qml, sld]
 
-
-if __name__ == "__main__":  # python -m toolbox.styles.files: regenerate styles/siena/
-    import sys
-    import tempfile
-
-    from toolbox.demo.samples import restitution
-    from toolbox.io.code_file import read_code_file, read_colour_file
-
-    with tempfile.TemporaryDirectory() as tmp:
-        made = restitution.make(Path(tmp), {})
-        files = write_code_styles(sys.argv[1] if len(sys.argv) > 1 else "styles/siena",
-                                  read_code_file(made["restitution_codes"]),
-                                  read_colour_file(made["restitution_colours"]))
-    print(f"{len(files)} style files written")

@@ -27,7 +27,8 @@ class CodeStyle:
     code, label : the code and its description (the legend text and the label).
     kind : "point", "line" or "polygon".
     rgb : (R, G, B) 0-255, the stroke (and marker) colour.
-    line_width : stroke width, mm (outline width for polygons, marker outline for points).
+    line_width : stroke width, mm (outline width for polygons, 0: none; marker outline for
+        points).
     fill : (R, G, B, A) 0-255 of polygon fills and point markers, None for lines.
     size : marker size, mm (points only).
     symbol : the code file's symbology (a :class:`~toolbox.styles.symbology.Symbol`: line
@@ -53,7 +54,9 @@ class CodeStyle:
 @dataclass
 class LayerStyle:
     """The style of one output layer: its kind, its codes' styles (one = single symbol, several
-    = categorised by ``field``), and the field labelled (None: no labels)."""
+    = categorised by ``field``; with ``ranges``, ``styles[k]`` draws the features whose
+    ``field`` is in ``ranges[k]`` = (lower, upper), upper included: graduated), and the field
+    labelled (None: no labels)."""
 
     name: str
     kind: str
@@ -61,10 +64,15 @@ class LayerStyle:
     field: str = "code"
     label_field: str | None = None
     label_expression: str | None = None  # a QGIS expression labelling instead (QML only)
+    ranges: list[tuple[float, float]] | None = None
 
     @property
     def categorised(self) -> bool:
-        return len(self.styles) > 1
+        return len(self.styles) > 1 and self.ranges is None
+
+    @property
+    def graduated(self) -> bool:
+        return self.ranges is not None
 
 
 def code_style(code: str, kind: str, table: CodeTable | None,

@@ -1,10 +1,11 @@
 """QGIS 3 layer style (QML) of a :class:`~toolbox.styles.model.LayerStyle`.
 
-The document has what QGIS reads: ``<renderer-v2 type="singleSymbol">`` or
-``type="categorizedSymbol" attr="code"`` with ``<categories>`` (value, symbol, label) and
-``<symbols>``; each ``<symbol type="marker|line|fill">`` holds one symbol layer (SimpleMarker,
-SimpleLine, SimpleFill) whose properties are written both as ``<Option type="Map">`` (QGIS >=
-3.18) and as ``<prop k v>`` (older readers); ``<labeling type="simple">`` when labelled.
+The document has what QGIS reads: ``<renderer-v2 type="singleSymbol">``,
+``type="categorizedSymbol" attr="code"`` with ``<categories>`` (value, symbol, label) or
+``type="graduatedSymbol"`` with ``<ranges>`` (lower, upper, symbol, label), and ``<symbols>``;
+each ``<symbol type="marker|line|fill">`` holds one symbol layer (SimpleMarker, SimpleLine,
+SimpleFill) whose properties are written both as ``<Option type="Map">`` (QGIS >= 3.18) and as
+``<prop k v>`` (older readers); ``<labeling type="simple">`` when labelled.
 """
 
 from __future__ import annotations
@@ -31,7 +32,8 @@ def _properties(style: CodeStyle) -> tuple[str, dict[str, str]]:
     if style.kind == "polygon":
         return "SimpleFill", {
             "color": _rgba(style.fill or style.rgb), "style": "solid",
-            "outline_color": _rgba(style.rgb), "outline_style": "solid",
+            "outline_color": _rgba(style.rgb),
+            "outline_style": "solid" if style.line_width > 0 else "no",
             "outline_width": f"{style.line_width:g}", "outline_width_unit": "MM",
             "joinstyle": "miter"}
     return "SimpleMarker", {
@@ -170,6 +172,19 @@ def qml_document(layer: LayerStyle) -> str:
             _symbol(symbols, "symbol", str(k), style)
         source = ET.SubElement(renderer, "source-symbol")
         _symbol(source, "symbol", "0", layer.styles[0])
+    elif layer.graduated:  # QGIS draws a value in the first range holding it, ends included
+        renderer = ET.SubElement(root, "renderer-v2", {
+            "type": "graduatedSymbol", "attr": layer.field, "graduatedMethod": "GraduatedColor",
+            "symbollevels": "0", "enableorderby": "0", "forceraster": "0",
+            "referencescale": "-1"})
+        ranges = ET.SubElement(renderer, "ranges")
+        for k, ((lower, upper), style) in enumerate(zip(layer.ranges, layer.styles)):
+            ET.SubElement(ranges, "range", {"lower": f"{lower:g}", "upper": f"{upper:g}",
+                                            "symbol": str(k), "label": style.label,
+                                            "render": "true"})
+        symbols = ET.SubElement(renderer, "symbols")
+        for k, style in enumerate(layer.styles):
+            _symbol(symbols, "symbol", str(k), style)
     else:
         renderer = ET.SubElement(root, "renderer-v2", {
             "type": "singleSymbol", "symbollevels": "0", "enableorderby": "0",

@@ -1,5 +1,6 @@
 """OGC Styled Layer Descriptor 1.0 (SLD) of a :class:`~toolbox.styles.model.LayerStyle`: one
-rule per code (filtered on the code field when the layer holds several), Point/Line/Polygon
+rule per code (filtered on the code field when the layer holds several, on the value ranges
+of a graduated style), Point/Line/Polygon
 symbolizers, a TextSymbolizer for labels. Millimetres become pixels at 0.28 mm per pixel (the
 OGC standard rendering pixel).
 
@@ -101,21 +102,31 @@ def _fill(parent: ET.Element, rgba: tuple[int, int, int, int]) -> None:
     _param(fill, "CssParameter", "fill-opacity", f"{rgba[3] / 255:.2f}")
 
 
-def _rule(parent: ET.Element, layer: LayerStyle, style: CodeStyle) -> None:
+def _compare(parent: ET.Element, operator: str, field: str, value: str) -> None:
+    test = _e(parent, operator, ns=OGC)
+    _e(test, "PropertyName", field, ns=OGC)
+    _e(test, "Literal", value, ns=OGC)
+
+
+def _rule(parent: ET.Element, layer: LayerStyle, style: CodeStyle, k: int) -> None:
     rule = _e(parent, "Rule")
     _e(rule, "Name", style.code)
     _e(rule, "Title", style.label)
     if layer.categorised:
-        flt = _e(rule, "Filter", ns=OGC)
-        eq = _e(flt, "PropertyIsEqualTo", ns=OGC)
-        _e(eq, "PropertyName", layer.field, ns=OGC)
-        _e(eq, "Literal", style.code, ns=OGC)
+        _compare(_e(rule, "Filter", ns=OGC), "PropertyIsEqualTo", layer.field, style.code)
+    elif layer.graduated:  # lower < value <= upper, the first range's lower end included (QGIS)
+        lower, upper = layer.ranges[k]
+        both = _e(_e(rule, "Filter", ns=OGC), "And", ns=OGC)
+        _compare(both, "PropertyIsGreaterThanOrEqualTo" if k == 0 else "PropertyIsGreaterThan",
+                 layer.field, f"{lower:g}")
+        _compare(both, "PropertyIsLessThanOrEqualTo", layer.field, f"{upper:g}")
     if style.symbol is not None:
         _symbology(rule, style)
     elif style.kind == "polygon":
         sym = _e(rule, "PolygonSymbolizer")
         _fill(sym, style.fill or (*style.rgb, 255))
-        _stroke(sym, style)
+        if style.line_width > 0:
+            _stroke(sym, style)
     elif style.kind == "line":
         _stroke(_e(rule, "LineSymbolizer"), style)
     else:
@@ -150,8 +161,8 @@ def sld_document(layer: LayerStyle) -> str:
     _e(user, "Name", layer.name)
     _e(user, "Title", layer.name)
     fts = _e(user, "FeatureTypeStyle")
-    for style in layer.styles:
-        _rule(fts, layer, style)
+    for k, style in enumerate(layer.styles):
+        _rule(fts, layer, style, k)
     ET.indent(root)
     return '<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="unicode") \
         + "\n"

@@ -27,7 +27,7 @@ NODES = Layer("nodes", "Point", [
     ("kind", "string", "node kind")], "arc end points")
 ERROR_FIELDS = (
     ("id", "integer", "error id"), ("type", "string", "check that failed"),
-    ("severity", "string", "error or warning"), ("detail", "string", "what was found"),
+    ("severity", "string", "error, fixed or fixable"), ("detail", "string", "what was found"),
     ("lines", "string", "input line numbers (1-based, ';'-separated)"),
     ("area_id", "integer", "area concerned (0: none)"),
     ("label_id", "integer", "label point concerned (0: none)"))

@@ -64,7 +64,8 @@ def read(path, layer):
 
 def test_delaunay_writes_triangles_nodes_edges_with_topology(data):
     tin = data["tin"]
-    assert [row[0] for row in pyogrio.list_layers(tin)] == ["triangles", "nodes", "edges"]
+    assert [row[0] for row in pyogrio.list_layers(tin)] == ["triangles", "nodes", "edges",
+                                                            "layer_styles"]
     tri, nodes, edges = read(tin, "triangles"), read(tin, "nodes"), read(tin, "edges")
     assert tri.crs.to_epsg() == nodes.crs.to_epsg() == edges.crs.to_epsg() == 3003
     assert set(tri.geom_type) == {"Polygon"} and tri.geometry.has_z.all()

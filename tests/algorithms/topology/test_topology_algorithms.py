@@ -53,7 +53,8 @@ def test_build_areas_writes_four_layers(built):
     assert result["OUTPUT"] == str(out)
     layers = {str(name): str(kind) for name, kind in pyogrio.list_layers(out)}
     assert layers == {"areas": "Polygon", "arcs": "LineString", "nodes": "Point",
-                      "errors_points": "Point", "errors_lines": "LineString"}
+                      "errors_points": "Point", "errors_lines": "LineString",
+                      "layer_styles": "None"}  # the default styles of areas and errors
     areas = gpd.read_file(out, layer="areas")
     assert areas.crs.to_epsg() == 3003
     assert list(areas.columns) == ["id", "code", "quota", "labels", "area", "perimeter",
@@ -106,7 +107,8 @@ def sample_labels_path(built):
 def test_check_writes_only_errors(data, tmp_path):
     out = tmp_path / "check.gpkg"
     result = toolbox.run("topology:check", {"INPUT": data["linework"], "OUTPUT": out})
-    assert [str(n) for n, _ in pyogrio.list_layers(out)] == ["errors_points", "errors_lines"]
+    assert [str(n) for n, _ in pyogrio.list_layers(out)] == ["errors_points", "errors_lines",
+                                                             "layer_styles"]
     errors = read_errors(out)
     assert set(errors["severity"]) == {"fixable", "error"}
     assert not errors["type"].isin(["unlabelled_area", "label_outside"]).any()  # no LABELS
@@ -274,7 +276,8 @@ def test_all_invalid_input_writes_empty_layers(tmp_path):
     assert result["STATISTICS"]["output"]["areas"] == 0
     layers = {str(name): str(kind) for name, kind in pyogrio.list_layers(out)}
     assert layers == {"areas": "Polygon", "arcs": "LineString", "nodes": "Point",
-                      "errors_points": "Point", "errors_lines": "LineString"}
+                      "errors_points": "Point", "errors_lines": "LineString",
+                      "layer_styles": "None"}  # the default styles of areas and errors
     errors = read_errors(out)
     assert list(errors["type"]) == ["invalid_geometry"] * 2
     assert sorted(errors["lines"]) == ["1", "2"]

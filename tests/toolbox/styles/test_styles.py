@@ -61,7 +61,7 @@ def test_shipped_style_files_are_not_stale(demo_tables, tmp_path):
     for path in written:
         shipped = ROOT / "styles" / "siena" / path.name
         assert shipped.read_text(encoding="utf-8") == path.read_text(encoding="utf-8"), (
-            f"{shipped} is stale: run python -m toolbox.styles.files styles/siena")
+            f"{shipped} is stale: run python -m toolbox.demo.styles styles/siena")
     polygons = ET.fromstring((tmp_path / "styles" / "polygons.qml").read_text().split("\n", 1)[1])
     assert polygons.find("renderer-v2").get("type") == "categorizedSymbol"
     assert [c.get("value") for c in polygons.find("renderer-v2/categories")] == [
