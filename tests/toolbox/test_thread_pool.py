@@ -57,3 +57,25 @@ def test_every_task_has_finished_when_the_consumer_stops_early():
     done = len(finished)
     time.sleep(0.2)
     assert len(finished) == done < 20  # nothing ran after the call returned
+
+
+def test_a_thread_reused_after_close_opens_its_raster_again(tmp_path):
+    """ThreadDatasets keeps a dataset per thread; a pool thread reused by a later call after
+    ``close()`` must not be handed the closed dataset."""
+    import numpy as np
+    from affine import Affine
+
+    from toolbox.raster.datasets import ThreadDatasets
+    from toolbox.raster.writer import write_raster
+
+    path = write_raster(tmp_path / "a.tif", np.arange(16, dtype="float32").reshape(4, 4),
+                        Affine(1, 0, 0, 0, -1, 4), None)
+    datasets = ThreadDatasets()
+
+    def read(_: int) -> float:
+        time.sleep(0.01)
+        return float(datasets.get(path).read(1).sum())
+
+    assert list(map_tiles(read, range(4), executor=TWO)) == [120.0] * 4
+    datasets.close()
+    assert list(map_tiles(read, range(4), executor=TWO)) == [120.0] * 4

@@ -25,7 +25,7 @@ class ThreadDatasets:
         if opened is None:
             opened = self._local.datasets = {}
         dataset = opened.get(path)
-        if dataset is None:
+        if dataset is None or dataset.closed:  # a reused thread after close(): open again
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
                 dataset = opened[path] = rasterio.open(path)
