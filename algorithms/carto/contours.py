@@ -87,6 +87,7 @@ class Contours(Algorithm):
             write_contours,
         )
         from toolbox.cartography.qml import contour_qml, write_contour_style
+        from toolbox.io.vector import vector_driver
 
         interval, base = params["INTERVAL"], params["BASE"]
         if params.get("INPUT") is not None:
@@ -105,7 +106,7 @@ class Contours(Algorithm):
                                 params["INDEX_EVERY"], crs)
         # a GeoPackage embeds the style; the other formats have no style table
         qml = write_contour_style(params["OUTPUT"], "contours") \
-            if str(params["OUTPUT"]).lower().endswith(".gpkg") else contour_qml()
+            if vector_driver(params["OUTPUT"]) == "GPKG" else contour_qml()
         if params.get("STYLE"):
             params["STYLE"].write_text(qml, encoding="utf-8")
         lines = len(fields["elev"])

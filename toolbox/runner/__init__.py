@@ -228,8 +228,11 @@ def write_declared_styles(alg_cls: type[Algorithm], values: dict[str, Any],
             continue
         pairs = [(layer.name, layer.style) for layer in dest.layers if layer.style]
         path = staged.get(dest.name)
-        if not pairs or path is None or Path(path).suffix.lower() != ".gpkg" \
-                or not Path(path).is_file():
+        if not pairs or path is None or not Path(path).is_file():
+            continue
+        from toolbox.io.vector import vector_driver
+
+        if vector_driver(path) != "GPKG":
             continue
         import sqlite3
 
