@@ -223,9 +223,9 @@ def overview_levels(width: int, height: int, tile: int = DEFAULT_BLOCK) -> list[
     return factors
 
 
-def verify_written_raster(path: str | Path, empty: bool = True) -> str | None:
+def verify_written_raster(path: str | Path, check_empty: bool = True) -> str | None:
     """Check a raster just written: ``None`` when sound, ``"empty"`` when no cell is valid (all
-    nodata or masked; only looked for with ``empty``), else a description of the damage (a
+    nodata or masked; only looked for with ``check_empty``), else a description of the damage (a
     GeoTIFF block beyond the end of the file, as a full disk leaves it; an unreadable block).
 
     Cheap: block offsets are read from the TIFF directory, and pixels only until the first valid
@@ -253,7 +253,7 @@ def verify_written_raster(path: str | Path, empty: bool = True) -> str | None:
                                                                    and int(count) > 0):
                                 return (f"block {bx},{by} of band {band} lies beyond the end of "
                                         "the file (truncated write)")
-            if not empty:
+            if not check_empty:
                 return None
             for _, window in src.block_windows(1):
                 if src.dataset_mask(window=window).any():

@@ -205,7 +205,7 @@ def check_raster_outputs(alg_cls: type[Algorithm], values: dict[str, Any],
             continue
         from toolbox.io.raster import verify_written_raster
 
-        problem = verify_written_raster(staged, empty=False)  # a folder may hold an empty one
+        problem = verify_written_raster(staged, check_empty=False)  # a folder may hold an empty one
         if problem:
             state = _disk_state(staging)
             raise write_error(OSError(state[0] if state else errno.EIO, problem), name, final)
