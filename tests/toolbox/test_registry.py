@@ -129,6 +129,57 @@ def test_foreign_algorithms_package_is_refused_before_it_runs(tmp_path):
     assert not marker.exists()
 
 
+def test_package_check_is_remembered_until_the_key_changes(tmp_path, monkeypatch):
+    """`toolbox run` without a spec index (never a `toolbox list`) read the package metadata in
+    every process; a passed check is now recorded under the quick key and trusted until it
+    changes (a source edited here; an install, the test above)."""
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    calls = []
+
+    def belongs(name, init_file):
+        calls.append(name)
+        return True
+
+    monkeypatch.setattr(registry, "_belongs_to_distribution", belongs)
+    check = registry.check_own_package.__wrapped__  # without the per-process cache
+    assert check("algorithms") == ROOT / "algorithms"
+    assert calls == ["algorithms"]
+    assert check("algorithms") == ROOT / "algorithms" and calls == ["algorithms"]
+    check("toolbox")  # recorded beside the first
+    assert calls == ["algorithms", "toolbox"]
+    assert spec_cache.packages_checked("algorithms") and spec_cache.packages_checked("toolbox")
+    source = ROOT / "algorithms" / "vector" / "info.py"
+    st = source.stat()
+    try:
+        os.utime(source, ns=(st.st_atime_ns, st.st_mtime_ns + 1_000_000_000))
+        assert not spec_cache.packages_checked("algorithms")
+        check("algorithms")
+    finally:
+        os.utime(source, ns=(st.st_atime_ns, st.st_mtime_ns))
+    assert calls == ["algorithms", "toolbox", "algorithms"]
+
+
+def test_remembered_check_does_not_cover_a_foreign_package(tmp_path):
+    """A check passed in the clean environment is not trusted once another 'algorithms'
+    package comes first on the path (its origin is in the key)."""
+    foreign = tmp_path / "foreign" / "algorithms"
+    foreign.mkdir(parents=True)
+    marker = tmp_path / "foreign_code_ran"
+    (foreign / "__init__.py").write_text(f"open({str(marker)!r}, 'w').close()\n")
+    cache = {"XDG_CACHE_HOME": str(tmp_path / "cache")}
+    clean = subprocess.run([sys.executable, "-m", "toolbox.cli", "run", "vector:info"],
+                           capture_output=True, text=True, cwd=tmp_path, timeout=300,
+                           env=os.environ | cache)
+    assert clean.returncode == 2 and "INPUT" in clean.stderr  # past the package check
+    assert list((tmp_path / "cache" / "photogrammetry-toolbox").glob("checked-*.marshal"))
+    proc = subprocess.run([sys.executable, "-m", "toolbox.cli", "run", "vector:info"],
+                          capture_output=True, text=True, cwd=tmp_path, timeout=300,
+                          env=os.environ | cache | {"PYTHONPATH": str(tmp_path / "foreign")})
+    assert proc.returncode == 2
+    assert "is not part of photogrammetry-toolbox" in proc.stderr and str(foreign) in proc.stderr
+    assert not marker.exists()
+
+
 class FakeDist:
     """A non-editable install: RECORD lists algorithms/__init__.py with its hash."""
 

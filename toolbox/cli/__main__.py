@@ -1,5 +1,3 @@
-import sys
+from toolbox.cli import script
 
-from toolbox.cli import console
-
-sys.exit(console())
+script()
