@@ -527,7 +527,9 @@ def warp_to_geotiff(source: Any, coordinate_map: Any, grid: Any, output: Any,
         Let maps that offer it use ``cv2.warpPerspective`` (see :func:`warp_window`); False
         forces the generic coordinate-array + ``cv2.remap`` path.
     executor : toolbox.executor.Executor, optional
-        Where tiles run (default: local threads).
+        Where tiles run (default: local threads); local threads also set GDAL's compression
+        threads of an output gathered in memory (the writer's ``threads``: one when the tiles
+        run on the caller's thread).
     aux : dict name -> RasterInput, optional
         Auxiliary rasters for the coordinate map.
     memory_mb : float
@@ -542,10 +544,11 @@ def warp_to_geotiff(source: Any, coordinate_map: Any, grid: Any, output: Any,
                          f"{', '.join(RESAMPLING_METHODS + EXTRA_RESAMPLING)}, "
                          f"got {resampling!r}")
     layout = warp_layout(source, outside, nodata)
+    threads = executor.workers if executor is not None and executor.kind == "local" else None
     writer = RasterWriter(output, grid, layout.count, layout.dtype, layout.nodata,
                           alpha=layout.alpha, cog=cog, overviews=overviews, tags=tags,
                           creation_options=creation_options, cache_mb=cache_mb,
-                          memory_mb=memory_mb)
+                          memory_mb=memory_mb, threads=threads)
     with writer:
         return warp_raster(source, grid, coordinate_map, writer, layout=layout,
                            resampling=resampling, aux=aux, tile_size=chunk, executor=executor,

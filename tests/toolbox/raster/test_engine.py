@@ -5,6 +5,7 @@ a predictor, overviews, COG), and the warp mode with auxiliary arrays."""
 from __future__ import annotations
 
 from functools import partial
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -502,6 +503,53 @@ def test_small_output_written_from_memory_equals_the_streamed_one(tmp_path):
     assert cog_problems(files["memory"]) == []  # copied with the overviews first: a COG layout
     assert sorted(p.name for p in tmp_path.iterdir()) == ["memory.tif", "streamed.tif",
                                                           "too_large.tif"]
+
+
+@pytest.mark.parametrize("memory_mb", [0, 32])
+def test_one_gdal_thread_writes_the_same_file(tmp_path, memory_mb):
+    """``threads=1`` (ortho:batch's photos, each on its own pool thread) changes who
+    compresses, not what is written: the same bytes as GDAL's all-CPU default, streamed or
+    gathered in memory."""
+    grid = GridSpec(Affine(0.5, 0, X0, 0, -0.5, Y0), 1100, 700, CRS)
+    data = np.random.default_rng(5).integers(0, 255, (4, 700, 1100), dtype="uint8")
+    files = []
+    for threads in (None, 1):
+        path = tmp_path / f"{threads}.tif"
+        writer = RasterWriter(path, grid, 4, "uint8", alpha=True, memory_mb=memory_mb,
+                              threads=threads)
+        one = threads == 1 and memory_mb > 0  # a streamed output keeps all CPUs
+        assert writer.profile()["num_threads"] == ("1" if one else "all_cpus")
+        with writer as w:
+            for tile in iter_tiles(grid, 512):
+                w.write(tile.window, data[(slice(None), *tile.window.toslices())])
+        files.append(path.read_bytes())
+    assert files[0] == files[1]
+
+
+def test_warp_writer_threads_follow_the_executor(tmp_path, monkeypatch):
+    """warp_to_geotiff's writer compresses on the local executor's threads (one: the tiles
+    run on the caller's thread, whose neighbours keep the other cores busy); on Dask, GDAL's
+    default."""
+    import toolbox.raster.warp as warp
+
+    seen = []
+
+    class Stop(Exception):
+        pass
+
+    def writer(*args, **kwargs):
+        seen.append(kwargs["threads"])
+        raise Stop
+
+    monkeypatch.setattr("toolbox.raster.writer.RasterWriter", writer)
+    monkeypatch.setattr(warp, "warp_layout", lambda *a: SimpleNamespace(
+        count=1, dtype="uint8", nodata=None, alpha=False))
+    grid = GridSpec(Affine(1, 0, 0, 0, -1, 10), 10, 10, None)
+    for executor in (Executor("local", 1), Executor("local", 3), Executor("dask", 2, "x:1"),
+                     None):
+        with pytest.raises(Stop):
+            warp.warp_to_geotiff("in.tif", None, grid, tmp_path / "o.tif", executor=executor)
+    assert seen == [1, 3, None, None]
 
 
 def test_small_float_output_from_memory_keeps_nodata_out_of_the_overviews(tmp_path):
