@@ -206,8 +206,9 @@ def window_workers(index: int, count: int, executor: Any) -> int | None:
     (or all of a block smaller than the pool), which may run alone: those split their windows
     on a pool of their own, the others run their windows on the photo's thread (a nested pool
     for every photo doubled the threads on the cores and their GIL hand-offs: ODM's 4 drone
-    photos 0.97 -> 0.87 s, NGI 5 m 0.97 -> 0.90 s wall, 15-20 MB less peak, measured). A Dask
-    worker's photo keeps one thread per CPU of its worker (``None``)."""
+    photos 1.43 -> 1.32 s, NGI 5 m 1.29 -> 1.17 s wall in one interleaved sitting, 15-20 MB less
+    peak: bench/results/orthority.md). A Dask worker's photo keeps one thread per CPU of its
+    worker (``None``)."""
     if executor.kind != "local":
         return None
     workers = executor.workers

@@ -188,3 +188,18 @@ def test_plans_on_threads_keep_the_photos_order_and_their_failures():
                                  "photo 4 failed: photo 4 cannot be planned"]
     with pytest.raises(InputDataError, match="no photo could be orthorectified"):
         plan_each(items[2:5:2], plan, [], Feedback(), workers=2)
+
+
+def test_photo_windows_split_only_where_a_photo_may_run_alone():
+    """Photos that fill the local pool run their windows on their own thread (1); the last
+    ``count % workers`` photos, or a block smaller than the pool, split theirs; a Dask worker's
+    photo keeps its worker's threads (None)."""
+    from algorithms.ortho.batch import window_workers
+    from toolbox.executor import Executor
+
+    two = Executor("local", 2)
+    assert [window_workers(k, 4, two) for k in range(4)] == [1, 1, 1, 1]
+    assert [window_workers(k, 3, two) for k in range(3)] == [1, 1, 2]
+    assert window_workers(0, 1, two) == 2
+    assert [window_workers(k, 5, Executor("local", 1)) for k in range(5)] == [1] * 5
+    assert window_workers(0, 4, Executor("dask", 2, "tcp://x:8786")) is None
