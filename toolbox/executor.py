@@ -62,11 +62,11 @@ def default_workers() -> int:
         return max(1, os.cpu_count() or 1)
 
 
-def local_executor() -> Executor:
-    """Local threads, one per CPU of the process that calls it, whatever
+def local_executor(workers: int | None = None) -> Executor:
+    """Local threads, ``workers`` or one per CPU of the process that calls it, whatever
     ``DASK_SCHEDULER_ADDRESS`` says: the windows of one task that the scheduler already placed
     (a photo of ortho:batch, on the client's threads or on a Dask worker)."""
-    return Executor("local", default_workers())
+    return Executor("local", default_workers() if workers is None else workers)
 
 
 def scheduler_address(value: str | None = None) -> str | None:

@@ -136,10 +136,10 @@ def _belongs_to_distribution(name: str, init_file: Path) -> bool:
     return False
 
 
-def _checked_now(name: str, init_file: Path) -> bool:
+def _checked_now(name: str, init_file: Path, key: object) -> bool:
     if not _belongs_to_distribution(name, init_file):
         return False
-    remember_checked(name)
+    remember_checked(name, key)
     return True
 
 
@@ -159,7 +159,7 @@ def check_own_package(name: str) -> Path:
     key = quick_key()
     if init_file is None or not (read_index(index_path(), key, field="quick") is not None
                                  or packages_checked(name, key)
-                                 or _checked_now(name, init_file)):
+                                 or _checked_now(name, init_file, key)):
         where = init_file.parent if init_file is not None else "nowhere (a namespace package)"
         raise ForeignPackageError(
             f"the '{name}' package found at {where} is not part of {DISTRIBUTION} (another "

@@ -86,14 +86,19 @@ def quick_key() -> tuple:
 def read_index(path: str | os.PathLike, key: object, field: str = "key") -> dict[str, object] | None:
     """The cached ``{"specs": {id: spec}, "aliases": {old: new}}`` if the file's ``field``
     (``"key"`` or ``"quick"``) equals ``key``, else None (missing, stale or unreadable)."""
-    try:
-        with open(path, "rb") as file:
-            data = marshal.loads(file.read())  # marshal.load(file) reads object by object
-    except (OSError, ValueError, EOFError, TypeError):
-        return None
+    data = _load(path)
     if not isinstance(data, dict) or data.get(field) != key or "specs" not in data:
         return None
     return data
+
+
+def _load(path: str | os.PathLike) -> object:
+    """The object marshalled in the cache file ``path``; None if missing or unreadable."""
+    try:
+        with open(path, "rb") as file:
+            return marshal.loads(file.read())  # marshal.load(file) reads object by object
+    except (OSError, ValueError, EOFError, TypeError):
+        return None
 
 
 def fresh_index() -> dict[str, object] | None:
@@ -111,29 +116,23 @@ def packages_checked(package: str, key: object = None) -> bool:
     """``package`` passed the metadata check under the current :func:`quick_key` (``key``,
     computed if not given: nothing installed, removed or edited since, the packages' origins
     the same)."""
-    try:
-        with open(checked_path(), "rb") as file:
-            data = marshal.loads(file.read())
-    except (OSError, ValueError, EOFError, TypeError):
-        return False
+    data = _load(checked_path())
     return isinstance(data, dict) and data.get("key") == (quick_key() if key is None else key) \
         and package in data.get("packages", ())
 
 
-def remember_checked(package: str) -> None:
-    """Record that ``package`` passed the check (with those recorded under the same key);
-    a cache folder that cannot be written only costs the check again."""
+def remember_checked(package: str, key: object = None) -> None:
+    """Record that ``package`` passed the check under :func:`quick_key` (``key``, computed if
+    not given), with those recorded under the same key; a cache folder that cannot be written
+    only costs the check again."""
     from toolbox.errors import OutputWriteError
     from toolbox.io.staging import atomic_path
 
-    key, path, packages = quick_key(), checked_path(), {package}
-    try:
-        with open(path, "rb") as file:
-            data = marshal.loads(file.read())
-        if isinstance(data, dict) and data.get("key") == key:
-            packages |= set(data.get("packages", ()))
-    except (OSError, ValueError, EOFError, TypeError):
-        pass
+    key = quick_key() if key is None else key
+    path, packages = checked_path(), {package}
+    data = _load(path)
+    if isinstance(data, dict) and data.get("key") == key:
+        packages |= set(data.get("packages", ()))
     try:
         os.makedirs(os.path.dirname(path), exist_ok=True)
         with atomic_path(path, "package check") as staged:

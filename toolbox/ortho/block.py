@@ -32,7 +32,7 @@ def run_task(task: OrthoTask) -> dict[str, Any]:
     from pathlib import Path
 
     from toolbox.errors import ToolboxError
-    from toolbox.executor import Executor, local_executor
+    from toolbox.executor import local_executor
     from toolbox.feedback import CollectingFeedback
     from toolbox.io.staging import atomic_path
 
@@ -43,8 +43,7 @@ def run_task(task: OrthoTask) -> dict[str, Any]:
             report = orthorectify(task.photo, task.image, task.dem, task.grid, staged,
                                   task.options, None, task.reference_height,
                                   map_scale=task.map_scale, feedback=feedback,
-                                  executor=local_executor() if task.window_workers is None
-                                  else Executor("local", task.window_workers))
+                                  executor=local_executor(task.window_workers))
     except ToolboxError as exc:
         return {"photo": task.photo.id, "error": str(exc)}
     report["output"] = str(final)

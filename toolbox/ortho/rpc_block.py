@@ -135,7 +135,7 @@ def run_rpc_task(task: RpcTask) -> dict[str, Any]:
     """Orthorectify one image into a staged file moved to ``task.output`` on success; a user
     error is returned as ``{"photo", "error"}`` (the block goes on)."""
     from toolbox.errors import ToolboxError
-    from toolbox.executor import Executor, local_executor
+    from toolbox.executor import local_executor
     from toolbox.feedback import CollectingFeedback
     from toolbox.io.staging import atomic_path
     from toolbox.ortho.rpc import rpc_orthorectify
@@ -146,8 +146,7 @@ def run_rpc_task(task: RpcTask) -> dict[str, Any]:
         with atomic_path(final, "FOLDER") as staged:
             report = rpc_orthorectify(task.camera, task.image, task.dem, task.grid, staged,
                                       task.options, feedback,
-                                      executor=local_executor() if task.window_workers is None
-                                      else Executor("local", task.window_workers))
+                                      executor=local_executor(task.window_workers))
     except ToolboxError as exc:
         return {"photo": task.id, "error": str(exc)}
     report.update(photo=task.id, output=str(final), warnings=feedback.warnings)
