@@ -180,10 +180,11 @@ def write_mosaic(plan: MosaicPlan, output: Path, index_path: Path | None, *, alp
     with ExitStack() as stack:
         dst = stack.enter_context(RasterWriter(
             output, grid, plan.bands + (1 if alpha else 0), plan.dtype,
-            None if alpha else nodata, alpha=alpha, cog=cog, overviews=overviews))
+            None if alpha else nodata, alpha=alpha, cog=cog, overviews=overviews,
+            executor=executor))
         idx = None if index_path is None else stack.enter_context(RasterWriter(
             index_path, grid, 1, index_dtype, 0, cog=cog, overviews=overviews,
-            overview_resampling="nearest"))
+            overview_resampling="nearest", executor=executor))
 
         def collect(tile, data, labels):
             missing = labels < 0

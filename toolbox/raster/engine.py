@@ -377,6 +377,8 @@ def process_raster(grid: GridSpec, inputs: Mapping[str, RasterInput] | None, ker
             yield _TileJob(tile, grid, inputs, None if planned is None else kernel, planned)
 
     write = writer_or_output.write if hasattr(writer_or_output, "write") else None
+    if executor.kind == "dask" and getattr(writer_or_output, "executor", False) is None:
+        writer_or_output.executor = executor  # its overviews / COG copy on the same cluster
     tiles = iter_tiles(grid, tile_size, halo)
     results = map_tiles(_run_job, jobs(), executor=executor, feedback=feedback,
                         total=tile_count(grid, tile_size), start=start, end=end)
