@@ -202,15 +202,19 @@ class OrthoPlan:
 
 
 FOOTPRINT_STEP_PX = 16  # photo pixels between the monoplotted points of the footprint's outline
+REPORT_POINTS_PER_SIDE = 8  # the footprint kept in the plan (mean height, reports)
 
 
 def footprint_points_per_side(photo: Any) -> int:
     """Points per side of the footprint outline: one every :data:`FOOTPRINT_STEP_PX` pixels of
-    the longer side (at least 8, at most 1024; 256 when the image size is unknown)."""
+    the longer side or a little more, a multiple of :data:`REPORT_POINTS_PER_SIDE` (so the
+    report footprint's points are among the outline's), at least 8, at most 1024; 256 when the
+    image size is unknown."""
     size = photo.camera.image_size_px
     if size is None:
         return 256
-    return int(min(1024, max(8, math.ceil(max(size) / FOOTPRINT_STEP_PX))))
+    step = REPORT_POINTS_PER_SIDE
+    return int(min(1024, max(step, step * math.ceil(max(size) / FOOTPRINT_STEP_PX / step))))
 
 
 def plan_photo(photo: Any, dem: Any, crs: Any, band: int = 1, cell: float | None = None,
@@ -240,8 +244,11 @@ def plan_photo(photo: Any, dem: Any, crs: Any, band: int = 1, cell: float | None
     under = float(surface.height(np.array([eo.x0]), np.array([eo.y0]))[0])
     check_geometry(photo, under if math.isfinite(under) else None)
     plane = float(np.nanmean(surface.z))
-    polygon = photo_footprint(photo, surface, plane, 8).vertices  # mean height, reports
-    outline = photo_footprint(photo, surface, plane, footprint_points_per_side(photo)).vertices
+    dense = footprint_points_per_side(photo)
+    outline = photo_footprint(photo, surface, plane, dense).vertices
+    # the report footprint: every (dense / 8)-th point of the outline, the points a footprint
+    # of 8 a side would monoplot (each ray on its own), without monoplotting them again
+    polygon = outline[::dense // REPORT_POINTS_PER_SIDE]
     mean_height = mean_height_inside(surface, polygon)
     gsd = ground_sample_distance(photo, mean_height)
     cell = nice_cell_size(gsd) if cell is None else float(cell)

@@ -220,3 +220,29 @@ def test_small_ortho_never_imports_numba(tmp_path):
     assert done.returncode == 0, done.stderr[-2000:]
     assert json.loads(done.stdout.strip().splitlines()[-1]) == []
     assert (tmp_path / "o.tif").exists()
+
+
+def test_plan_footprint_is_the_8_a_side_footprint_and_the_outline_bounds_the_grid(tmp_path):
+    """The plan monoplots the dense outline once and keeps every (n / 8)-th point as the report
+    footprint: exactly the footprint of 8 points a side monoplotted on its own; the grid's
+    extent holds the dense outline (a rendered Brown photo on hills)."""
+    from toolbox.io.raster import open_raster_info
+    from toolbox.ortho.plan import footprint_points_per_side, photo_surface, plan_photo
+    from toolbox.photogrammetry.coverage import photo_footprint
+    from toolbox.photogrammetry.project import load_project
+
+    dem_path, _, project_path = model_scene(tmp_path)
+    project = load_project(project_path)
+    photo = project.photos["p1"]
+    dem = open_raster_info(dem_path)
+    plan = plan_photo(photo, dem, project.crs)
+    surface = photo_surface(dem, photo, project.crs, 1)
+    plane = float(np.nanmean(surface.z))
+    alone = photo_footprint(photo, surface, plane, 8).vertices
+    np.testing.assert_array_equal(plan.footprint_xy, alone)
+    dense = footprint_points_per_side(photo)
+    assert dense % 8 == 0 and dense >= max(photo.camera.image_size_px) / 16
+    outline = photo_footprint(photo, surface, plane, dense).vertices
+    x0, y0, x1, y1 = plan.extent
+    assert (outline[:, 0].min(), outline[:, 1].min(), outline[:, 0].max(),
+            outline[:, 1].max()) == (x0, y0, x1, y1)
