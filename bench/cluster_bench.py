@@ -169,10 +169,10 @@ def main() -> None:
              "What runs where on the cluster: the tiles on the workers; the client validates, "
              "plans, gathers the tiles in order and writes them (a GeoTIFF has one writer), then "
              "a worker makes the overviews, or the COG copy, of the closed file (it sees the "
-             "file: shared storage). The workers' CPU is the cluster's whole cost (per-task "
-             "transfer and pickling, each task opening its inputs): more than the local run's, "
-             "on the same 2 cores; a cluster pays off with more machines, and the client's "
-             "share is what limits it.", "",
+             "file: shared storage). The workers' CPU is the cluster's whole cost (the tiles, "
+             "their transfer and pickling): more than the local run's on the same 2 cores; a "
+             "cluster pays off with more machines, and the client's share is what limits it.",
+             "",
              "| run | local threads: wall / client CPU s | cluster: wall / client CPU / "
              "workers' CPU s | client CPU local / cluster | same bytes |",
              "|---|---:|---:|---:|:-:|", *rows, ""]

@@ -102,13 +102,16 @@ class BlockTask:
 
 
 def trace_block(task: BlockTask) -> list[Piece]:
-    """Read one block of the DEM (nodata -> NaN) and trace its pieces."""
-    import rasterio
+    """Read one block of the DEM (nodata -> NaN) and trace its pieces. The DEM stays open in
+    this thread for the next blocks (:class:`~toolbox.raster.datasets.WorkerDatasets`: blocks
+    share a row and column, so GDAL's cache serves their common tiles)."""
     from rasterio.windows import Window
 
+    from toolbox.raster.datasets import worker_datasets
+
     row, col, height, width = task.window
-    with rasterio.open(task.path) as src:
-        z = src.read(task.band, window=Window(col, row, width, height), masked=True)
+    src = worker_datasets().get(task.path)
+    z = src.read(task.band, window=Window(col, row, width, height), masked=True)
     return block_pieces(z.astype("float64").filled(np.nan), task.levels, row, col, task.tracer)
 
 

@@ -11,7 +11,8 @@ from typing import Any
 
 class ThreadDatasets:
     """``get(path)``: this thread's open dataset of ``path``; :meth:`close` closes every one.
-    Pickles empty (a Dask worker opens its own)."""
+    Pickles as the receiving process's :class:`WorkerDatasets` (a Dask worker opens its own
+    and keeps them across its tasks)."""
 
     def __init__(self) -> None:
         self._local = threading.local()
@@ -39,8 +40,54 @@ class ThreadDatasets:
                 dataset.close()
             self._all.clear()
 
-    def __getstate__(self) -> dict:
-        return {}
+    def __reduce__(self):
+        return worker_datasets, ()
 
-    def __setstate__(self, state: dict) -> None:
-        self.__init__()
+
+class WorkerDatasets:
+    """The rasters a Dask worker process keeps open across its tasks, per thread: the last
+    :data:`LIMIT` files each thread read, keyed by path, size and modification time (a file
+    written again is opened again). Tiles of one input run one after another on a worker; a
+    dataset opened per task loses GDAL's block cache, so every tile decompressed again the
+    blocks its halo shares with its neighbours (a 6000 x 6000 hillshade: 7.2 s of workers' CPU
+    against 2.6 s for the whole local run). Pickles as the process's one instance
+    (:func:`worker_datasets`)."""
+
+    LIMIT = 8
+
+    def __init__(self) -> None:
+        self._local = threading.local()
+
+    def get(self, path: Any) -> Any:
+        import os
+        from collections import OrderedDict
+
+        import rasterio
+
+        stat = os.stat(path)
+        key = (str(path), stat.st_size, stat.st_mtime_ns)
+        opened = getattr(self._local, "datasets", None)
+        if opened is None:
+            opened = self._local.datasets = OrderedDict()
+        dataset = opened.get(key)
+        if dataset is None or dataset.closed:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
+                dataset = opened[key] = rasterio.open(path)
+            while len(opened) > self.LIMIT:
+                opened.popitem(last=False)[1].close()
+        opened.move_to_end(key)
+        return dataset
+
+    def __reduce__(self):
+        return worker_datasets, ()
+
+
+_WORKER_DATASETS: list[WorkerDatasets] = []
+
+
+def worker_datasets() -> WorkerDatasets:
+    """This process's :class:`WorkerDatasets` (made on first use)."""
+    if not _WORKER_DATASETS:
+        _WORKER_DATASETS.append(WorkerDatasets())
+    return _WORKER_DATASETS[0]

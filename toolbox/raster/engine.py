@@ -53,7 +53,7 @@ from typing import Any
 import numpy as np
 
 from toolbox.io.grid import GridSpec
-from toolbox.raster.datasets import ThreadDatasets
+from toolbox.raster.datasets import ThreadDatasets, WorkerDatasets
 
 __all__ = [
     "BOUNDARY_RULES", "GridSpec", "RasterInput", "Tile", "iter_tiles", "process_raster",
@@ -95,7 +95,8 @@ def _source_path(source: Any) -> Any:
 class _OpenSources(ThreadDatasets):
     """Input rasters kept open per thread for the length of one local :func:`process_raster`
     call (:class:`~toolbox.raster.datasets.ThreadDatasets`), with their alignment on the grid;
-    closed at the end. Not used on Dask, where inputs travel as paths."""
+    closed at the end. On Dask it travels as the worker's
+    :class:`~toolbox.raster.datasets.WorkerDatasets`."""
 
     def __init__(self) -> None:
         super().__init__()
@@ -112,10 +113,11 @@ class _OpenSources(ThreadDatasets):
 
 @dataclass(frozen=True)
 class _HeldInput:
-    """A :class:`RasterInput` read through :class:`_OpenSources` (local threads only)."""
+    """A :class:`RasterInput` read through :class:`_OpenSources` (local threads) or a Dask
+    worker's :class:`~toolbox.raster.datasets.WorkerDatasets`."""
 
     input: RasterInput
-    sources: _OpenSources
+    sources: _OpenSources | WorkerDatasets
 
     def read(self, grid: GridSpec, tile: Tile) -> np.ndarray:
         inp = self.input
@@ -124,7 +126,8 @@ class _HeldInput:
         if isinstance(source, (str, Path)):
             path = str(source)
             source = self.sources.get(path)
-            offset = self.sources.aligned_offset(path, source, grid)
+            offset = self.sources.aligned_offset(path, source, grid) \
+                if isinstance(self.sources, _OpenSources) else _UNKNOWN
         return read_window(source, grid, tile.window, bands=inp.bands,
                            resampling=inp.resampling, halo=tile.halo, boundary=inp.boundary,
                            dtype=inp.dtype, fill=inp.fill, _offset=offset)
@@ -365,10 +368,11 @@ def process_raster(grid: GridSpec, inputs: Mapping[str, RasterInput] | None, ker
 
     executor = executor or resolve_executor(None)
     inputs = dict(inputs or {})
-    held = _OpenSources() if executor.kind == "local" else None
-    if held is not None:
-        inputs = {name: _HeldInput(inp, held) if isinstance(inp, RasterInput) else inp
-                  for name, inp in inputs.items()}
+    # inputs kept open by this call's threads (closed at its end); sent to a Dask worker, the
+    # holder arrives as the worker's WorkerDatasets, kept across its tasks
+    held = _OpenSources()
+    inputs = {name: _HeldInput(inp, held) if isinstance(inp, RasterInput) else inp
+              for name, inp in inputs.items()}
     counters = {"tiles": 0, "blank_tiles": 0}
 
     def jobs() -> Iterator[_TileJob]:
@@ -396,7 +400,6 @@ def process_raster(grid: GridSpec, inputs: Mapping[str, RasterInput] | None, ker
                 writer_or_output(tile, array)
     finally:
         getattr(results, "close", lambda: None)()  # stop and join the tile threads first
-        if held is not None:
-            held.close()
+        held.close()
     counters["executor"] = executor.describe()
     return counters

@@ -62,7 +62,7 @@ def test_overviews_and_cog_made_on_a_worker_are_the_local_bytes(tmp_path):
     local = {cog: _write(tmp_path / f"local_{cog}.tif", cog=cog) for cog in (False, True)}
     assert all(w.finished_on is None for w in local.values())
     with LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
-                      dashboard_address=None) as cluster:
+                      dashboard_address=":0") as cluster:
         dask = Executor("dask", 0, cluster.scheduler_address, "SCHEDULER")
         for cog in (False, True):
             out = tmp_path / f"dask_{cog}.tif"
