@@ -46,3 +46,15 @@ def test_kept_open_per_thread_reopened_when_rewritten_and_bounded(tmp_path):
 def test_pickles_as_the_process_instance():
     assert pickle.loads(pickle.dumps(WorkerDatasets())) is worker_datasets()
     assert worker_datasets() is worker_datasets()
+
+
+def test_a_gdal_virtual_path_is_kept_by_its_name(tmp_path):
+    _raster(tmp_path / "r.tif", 5.0)
+    cache = WorkerDatasets()
+    from rasterio.io import MemoryFile  # no network here: /vsimem/ is a virtual path too
+
+    with MemoryFile((tmp_path / "r.tif").read_bytes(), filename="r.tif") as memory:
+        first = cache.get(memory.name)
+        assert memory.name.startswith("/vsimem/") and first.read(1)[0, 0] == 5.0
+        assert cache.get(memory.name) is first
+        first.close()
