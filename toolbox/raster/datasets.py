@@ -47,11 +47,11 @@ class ThreadDatasets:
 class WorkerDatasets:
     """The rasters a Dask worker process keeps open across its tasks, per thread: the last
     :data:`LIMIT` files each thread read, keyed by path, size and modification time (a file
-    written again is opened again; a GDAL virtual path by its name only). Tiles of one input run one after another on a worker; a
-    dataset opened per task loses GDAL's block cache, so every tile decompressed again the
-    blocks its halo shares with its neighbours (a 6000 x 6000 hillshade: 7.2 s of workers' CPU
-    against 2.6 s for the whole local run). Pickles as the process's one instance
-    (:func:`worker_datasets`)."""
+    written again is opened again; a GDAL virtual path by its name only). Tiles of one input
+    run one after another on a worker; a dataset opened per task loses GDAL's block cache, so
+    every tile decompressed again the blocks its halo shares with its neighbours (a 6000 x
+    6000 hillshade: 7.2 s of workers' CPU against 2.6 s for the whole local run). Pickles as
+    the process's one instance (:func:`worker_datasets`)."""
 
     LIMIT = 8
 
