@@ -4,7 +4,7 @@ client where the storage allows").
 
 Usage::
 
-    .venv/bin/python bench/cluster_bench.py --work /tmp/cluster_bench [--runs 3] [--size 6000]
+    .venv/bin/python bench/cluster_bench.py [--work /tmp/cluster_bench] [--runs 3] [--size 6000]
 
 Cases: ``dem:hillshade`` of a SIZE x SIZE DEM and ``dem:idw`` of 400,000 points onto a grid of
 the same size, each as a GeoTIFF with overviews and as a COG. The cluster is
@@ -22,6 +22,7 @@ import resource
 import statistics
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -125,7 +126,8 @@ def sha(path: Path) -> str:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--work", type=Path, required=True)
+    parser.add_argument("--work", type=Path,
+                        default=Path(tempfile.gettempdir()) / "cluster_bench")
     parser.add_argument("--runs", type=int, default=3)
     parser.add_argument("--size", type=int, default=6000)
     args = parser.parse_args()
