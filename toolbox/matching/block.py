@@ -19,7 +19,7 @@ Coordinates are full-resolution pixels (col, row; top-left pixel centre at (0.5,
 from __future__ import annotations
 
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Any
@@ -57,7 +57,8 @@ class TiePointOptions:
     pair_selection: str = "auto"  # auto | footprints | neighbours | thumbnails
     neighbours: int = 8  # neighbours mode: nearest photos per photo (plus Delaunay edges)
     positions: np.ndarray | None = None  # (N, 2) planar photo positions (a GNSS log), or None
-    executor: Any = None  # where pairs are matched (toolbox.executor.Executor); None: threads
+    executor: Any = None  # where photos are detected and pairs matched (toolbox.executor.
+    # Executor); None: threads
 
 
 @dataclass
@@ -159,6 +160,43 @@ def _features(bp: BlockPhoto, opts: TiePointOptions, max_size: int,
     per_tile = max(1, min(opts.per_tile, opts.max_features // tiles))
     feats = detect(image, mask, opts.detector, opts.tile, per_tile)
     return feats.scaled(sx, sy), float(np.sqrt(sx * sy))
+
+
+@dataclass(frozen=True)
+class DetectTask:
+    """One photo whose features to detect at ``max_size`` (picklable for a Dask worker, which
+    reads the image by its path)."""
+
+    photo: BlockPhoto
+    opts: TiePointOptions
+    max_size: int
+
+
+def detect_photo(task: DetectTask) -> tuple[Features, float, tuple[float, float] | None]:
+    """:func:`_features` of one photo, with the grey stretch its reading set (a worker's
+    copy of the image sends it back, so the client reads later windows the same way)."""
+    features, scale = _features(task.photo, task.opts, task.max_size)
+    return features, scale, task.photo.source.stretch
+
+
+def detect_photos(photos: list[BlockPhoto], used: list[int], opts: TiePointOptions
+                  ) -> Iterator[tuple[int, Features, float]]:
+    """``(k, features, level scale)`` of every photo ``k`` in ``used``, in that order,
+    detected through :func:`toolbox.executor.map_tiles`: local threads (OpenCV releases the
+    GIL; a photo's level kept from the thumbnail pass is used) or the Dask cluster of
+    ``opts.executor`` (the workers read the photos)."""
+    from toolbox.executor import map_tiles, resolve_executor
+
+    executor = opts.executor or resolve_executor("local", opts.workers or None)
+    remote = executor.kind == "dask"
+    bare = TiePointOptions(**{**opts.__dict__, "executor": None})
+    tasks = [DetectTask(BlockPhoto(photos[k].id, photos[k].source) if remote else photos[k],
+                        bare, opts.max_size) for k in used]
+    for k, (features, scale, stretch) in zip(used, map_tiles(detect_photo, tasks,
+                                                             executor=executor), strict=True):
+        if remote and photos[k].source.stretch is None:
+            photos[k].source.stretch = stretch
+        yield k, features, scale
 
 
 def _match(fa: Features, fb: Features, opts: TiePointOptions, level_scale: float,
@@ -282,12 +320,9 @@ def tie_points(photos: list[BlockPhoto], opts: TiePointOptions,
     used = sorted({k for i, j, _ in candidates for k in (i, j)})
     feats: dict[int, Features] = {}
     scales: dict[int, float] = {}
-    # OpenCV releases the GIL: photos are detected on parallel threads
-    with ThreadPoolExecutor(opts.workers or os.cpu_count() or 1) as pool:
-        for n, (k, (f, s)) in enumerate(zip(used, pool.map(
-                lambda k: _features(photos[k], opts, opts.max_size), used), strict=True)):
-            feats[k], scales[k] = f, s
-            say(10 + 40 * (n + 1) / max(1, len(used)), f"features of {photos[k].id}: {len(f)}")
+    for n, (k, f, s) in enumerate(detect_photos(photos, used, opts)):
+        feats[k], scales[k] = f, s
+        say(10 + 40 * (n + 1) / max(1, len(used)), f"features of {photos[k].id}: {len(f)}")
     # pairs are matched through the executor: local threads or a Dask cluster
     matched = match_pairs([PairTask(feats[i], feats[j], opts, max(scales[i], scales[j]),
                                     photos[i].photo, photos[j].photo)

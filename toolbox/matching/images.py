@@ -98,6 +98,18 @@ class ImageSource:
                             resampling=Resampling.average if scale > 1 else Resampling.nearest)
         return self._grey(data), (self.width / w, self.height / h)
 
+    def __getstate__(self) -> dict:
+        """Pickled for a Dask worker: the path, size and stretch; no open dataset, lock or
+        whole-photo copy (the worker reads its own)."""
+        state = dict(self.__dict__)
+        state.update(_handle=None, _grey_full=None)
+        del state["_lock"]
+        return state
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+        self._lock = threading.Lock()
+
     def close(self) -> None:
         """Release the dataset of window reads and the whole-photo copy (reopened on demand)."""
         with self._lock:

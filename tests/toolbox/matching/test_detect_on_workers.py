@@ -1,0 +1,69 @@
+"""Tie-point detection through the executor: on a Dask worker the photo travels as its path
+(no open dataset, lock or pixel copy), is read there, and the grey stretch the worker computed
+comes back to the client, so the client's later reads (refinement windows) stretch a 16-bit photo
+exactly as a local run does. The worker is simulated by a pickle round trip of each task."""
+
+from __future__ import annotations
+
+import pickle
+import threading
+
+import numpy as np
+import rasterio
+
+from toolbox.matching.block import BlockPhoto, TiePointOptions, detect_photos
+from toolbox.matching.images import ImageSource
+
+
+def _photo16(path) -> None:
+    rng = np.random.default_rng(3)
+    y, x = np.mgrid[0:300, 0:400]
+    z = 20000 + 9000 * np.sin(x / 13.0) * np.cos(y / 17.0) + rng.normal(0, 800, (300, 400))
+    with rasterio.open(path, "w", driver="GTiff", width=400, height=300, count=1,
+                       dtype="uint16") as dst:
+        dst.write(np.clip(z, 0, 65535).astype("uint16"), 1)
+
+
+def test_image_source_pickles_without_its_handle_lock_or_pixels(tmp_path):
+    _photo16(tmp_path / "a.tif")
+    src = ImageSource.open(tmp_path / "a.tif")
+    src.window(0, 0, 50, 50)  # holds the whole grey photo and sets the stretch
+    assert src._grey_full is not None and src.stretch is not None
+    copy = pickle.loads(pickle.dumps(src))
+    assert copy._grey_full is None and copy._handle is None
+    assert isinstance(copy._lock, type(threading.Lock())) and copy._lock is not src._lock
+    assert (copy.path, copy.width, copy.height, copy.stretch) == \
+        (src.path, src.width, src.height, src.stretch)
+    np.testing.assert_array_equal(copy.window(10, 20, 30, 40), src.window(10, 20, 30, 40))
+
+
+def test_detection_on_workers_is_the_local_one_and_hands_the_stretch_back(tmp_path,
+                                                                          monkeypatch):
+    paths = [tmp_path / "a.tif", tmp_path / "b.tif"]
+    for p in paths:
+        _photo16(p)
+    opts = TiePointOptions(max_size=300, tile=300)
+    local_photos = [BlockPhoto(p.stem, ImageSource.open(p)) for p in paths]
+    local = list(detect_photos(local_photos, [0, 1], opts))
+
+    seen = []
+
+    def on_a_worker(func, tasks, executor):  # each task pickled as Dask does
+        for task in tasks:
+            seen.append(task)
+            yield func(pickle.loads(pickle.dumps(task)))
+
+    monkeypatch.setattr("toolbox.executor.map_tiles", on_a_worker)
+    cluster = type("Dask", (), {"kind": "dask"})()
+    remote_photos = [BlockPhoto(p.stem, ImageSource.open(p)) for p in paths]
+    remote = list(detect_photos(remote_photos, [0, 1], TiePointOptions(
+        max_size=300, tile=300, executor=cluster)))
+    assert all(t.photo.photo is None and t.opts.executor is None for t in seen)
+    for (k, f, s), (k2, f2, s2) in zip(local, remote, strict=True):
+        assert (k, s, len(f)) == (k2, s2, len(f2)) and len(f) > 50
+        np.testing.assert_array_equal(f.xy, f2.xy)
+        np.testing.assert_array_equal(f.descriptors, f2.descriptors)
+    for lp, rp in zip(local_photos, remote_photos, strict=True):
+        assert rp.source.stretch == lp.source.stretch is not None  # the worker's, handed back
+        np.testing.assert_array_equal(rp.source.window(5, 5, 64, 64),
+                                      lp.source.window(5, 5, 64, 64))
