@@ -99,19 +99,26 @@ class BlockTask:
     window: tuple[int, int, int, int]  # row, col, height, width
     levels: tuple[float, ...]
     tracer: str  # toolbox.cartography.contours.TRACERS
+    on_worker: bool = False  # a Dask worker's task: the DEM stays open for its next blocks
 
 
 def trace_block(task: BlockTask) -> list[Piece]:
-    """Read one block of the DEM (nodata -> NaN) and trace its pieces. The DEM stays open in
-    this thread for the next blocks (:class:`~toolbox.raster.datasets.WorkerDatasets`: blocks
-    share a row and column, so GDAL's cache serves their common tiles)."""
+    """Read one block of the DEM (nodata -> NaN) and trace its pieces. On a Dask worker the
+    DEM stays open in the thread for its next blocks
+    (:class:`~toolbox.raster.datasets.WorkerDatasets`: blocks share a row and column, so
+    GDAL's cache serves their common tiles); in this process it is closed after the block."""
+    import rasterio
     from rasterio.windows import Window
 
     from toolbox.raster.datasets import worker_datasets
 
     row, col, height, width = task.window
-    src = worker_datasets().get(task.path)
-    z = src.read(task.band, window=Window(col, row, width, height), masked=True)
+    window = Window(col, row, width, height)
+    if task.on_worker:
+        z = worker_datasets().get(task.path).read(task.band, window=window, masked=True)
+    else:
+        with rasterio.open(task.path) as src:
+            z = src.read(task.band, window=window, masked=True)
     return block_pieces(z.astype("float64").filled(np.nan), task.levels, row, col, task.tracer)
 
 
@@ -141,8 +148,9 @@ def trace_raster(path: str | Path, band: int, rows: int, cols: int, tile: int,
     for the whole grid) and stitched; grid coordinates. With ``grid`` (the band already read,
     NaN = no data; local threads) the blocks are its views, else each task reads its block.
     Returns the contours and the pieces' count."""
-    from toolbox.executor import map_tiles
+    from toolbox.executor import map_tiles, resolve_executor
 
+    executor = executor or resolve_executor(None)
     windows = block_windows(rows, cols, tile)
     levels_tuple = tuple(float(v) for v in levels)
     if tracer is None:
@@ -155,7 +163,9 @@ def trace_raster(path: str | Path, band: int, rows: int, cols: int, tile: int,
                       for r, c, h, w in windows)
     else:
         func = trace_block
-        tasks = (BlockTask(str(path), band, window, levels_tuple, tracer) for window in windows)
+        on_worker = executor.kind == "dask"
+        tasks = (BlockTask(str(path), band, window, levels_tuple, tracer, on_worker)
+                 for window in windows)
     pieces: list[Piece] = []
     for found in map_tiles(func, tasks, executor=executor, feedback=feedback,
                            total=len(windows), end=80):

@@ -312,7 +312,7 @@ class RasterWriter:
         from toolbox.executor import map_tiles
 
         task.stamp = file_stamp(task.tiled_path)
-        done = next(iter(map_tiles(finish_geotiff, [task], executor=self.executor)))
+        done = list(map_tiles(finish_geotiff, [task], executor=self.executor))[0]
         self.finished_on = done or finish_geotiff(task, check_stamp=False)
 
     def _build_overviews(self) -> None:
