@@ -82,6 +82,10 @@ class WorkerDatasets:
         opened.move_to_end(key)
         return dataset
 
+    def close(self) -> None:
+        """Nothing: a holder closed after its task (a :class:`ThreadDatasets` that travelled
+        here) leaves the worker's rasters open for its next tasks."""
+
     def __reduce__(self):
         return worker_datasets, ()
 

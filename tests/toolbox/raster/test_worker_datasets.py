@@ -43,9 +43,17 @@ def test_kept_open_per_thread_reopened_when_rewritten_and_bounded(tmp_path):
     assert not cache.get(paths[-1]).closed
 
 
-def test_pickles_as_the_process_instance():
+def test_pickles_as_the_process_instance(tmp_path):
+    from toolbox.raster.datasets import ThreadDatasets
+
     assert pickle.loads(pickle.dumps(WorkerDatasets())) is worker_datasets()
     assert worker_datasets() is worker_datasets()
+    travelled = pickle.loads(pickle.dumps(ThreadDatasets()))  # a holder sent to a worker
+    assert travelled is worker_datasets()
+    _raster(tmp_path / "r.tif", 1.0)
+    kept = travelled.get(tmp_path / "r.tif")
+    travelled.close()  # its task's end: the worker keeps the raster for the next task
+    assert not kept.closed and worker_datasets().get(tmp_path / "r.tif") is kept
 
 
 def test_a_gdal_virtual_path_is_kept_by_its_name(tmp_path):
