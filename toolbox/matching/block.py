@@ -164,34 +164,41 @@ def _features(bp: BlockPhoto, opts: TiePointOptions, max_size: int,
 
 @dataclass(frozen=True)
 class DetectTask:
-    """One photo whose features to detect at ``max_size`` (picklable for a Dask worker, which
-    reads the image by its path)."""
+    """One photo whose features to detect (picklable for a Dask worker, which reads the image
+    by its path): at ``opts.max_size``, or on its thumbnail (:func:`_thumbnail`, from the
+    detection level when ``keep``)."""
 
     photo: BlockPhoto
     opts: TiePointOptions
-    max_size: int
+    thumbnail: bool = False
+    keep: bool = False
 
 
 def detect_photo(task: DetectTask) -> tuple[Features, float, tuple[float, float] | None]:
     """:func:`_features` of one photo, with the grey stretch its reading set (a worker's
     copy of the image sends it back, so the client reads later windows the same way)."""
-    features, scale = _features(task.photo, task.opts, task.max_size)
+    if task.thumbnail:
+        level = _thumbnail(task.photo, task.opts, task.keep)
+        features, scale = _features(task.photo, task.opts, task.opts.thumbnail_size, level)
+    else:
+        features, scale = _features(task.photo, task.opts, task.opts.max_size)
     return features, scale, task.photo.source.stretch
 
 
-def detect_photos(photos: list[BlockPhoto], used: list[int], opts: TiePointOptions
+def detect_photos(photos: list[BlockPhoto], used: list[int], opts: TiePointOptions,
+                  thumbnail: bool = False, keep: bool = False
                   ) -> Iterator[tuple[int, Features, float]]:
-    """``(k, features, level scale)`` of every photo ``k`` in ``used``, in that order,
-    detected through :func:`toolbox.executor.map_tiles`: local threads (OpenCV releases the
-    GIL; a photo's level kept from the thumbnail pass is used) or the Dask cluster of
-    ``opts.executor`` (the workers read the photos)."""
+    """``(k, features, level scale)`` of every photo ``k`` in ``used``, in that order
+    (:class:`DetectTask`), detected through :func:`toolbox.executor.map_tiles`: local threads
+    (OpenCV releases the GIL; a photo's level kept from the thumbnail pass is used) or the
+    Dask cluster of ``opts.executor`` (the workers read the photos)."""
     from toolbox.executor import map_tiles, resolve_executor
 
     executor = opts.executor or resolve_executor("local", opts.workers or None)
     remote = executor.kind == "dask"
     bare = TiePointOptions(**{**opts.__dict__, "executor": None})
     tasks = [DetectTask(BlockPhoto(photos[k].id, photos[k].source) if remote else photos[k],
-                        bare, opts.max_size) for k in used]
+                        bare, thumbnail, keep) for k in used]
     for k, (features, scale, stretch) in zip(used, map_tiles(detect_photo, tasks,
                                                              executor=executor), strict=True):
         if remote and photos[k].source.stretch is None:
@@ -300,9 +307,8 @@ def _thumbnail_pairs(photos: list[BlockPhoto], opts: TiePointOptions
     sizes = [bp.source.width * bp.source.height / bp.source.scale_for(opts.max_size) ** 2
              for bp in photos]
     keep = sum(sizes) <= LEVEL_CACHE_BYTES
-    with ThreadPoolExecutor(opts.workers or os.cpu_count() or 1) as pool:
-        thumbs = list(pool.map(lambda bp: _features(bp, small, opts.thumbnail_size,
-                                                    _thumbnail(bp, opts, keep)), photos))
+    thumbs = [(f, s) for _, f, s in detect_photos(photos, list(range(len(photos))), small,
+                                                  thumbnail=True, keep=keep)]
     found = [len(m) for m in match_pairs(
         [PairTask(thumbs[i][0], thumbs[j][0], opts, max(thumbs[i][1], thumbs[j][1]),
                   photos[i].photo, photos[j].photo) for i, j, _ in every], opts)]

@@ -67,3 +67,31 @@ def test_detection_on_workers_is_the_local_one_and_hands_the_stretch_back(tmp_pa
         assert rp.source.stretch == lp.source.stretch is not None  # the worker's, handed back
         np.testing.assert_array_equal(rp.source.window(5, 5, 64, 64),
                                       lp.source.window(5, 5, 64, 64))
+
+
+def test_thumbnails_detected_on_workers_are_the_local_ones(tmp_path, monkeypatch):
+    """The thumbnail pass (pairs without orientations or positions) on workers: the same
+    thumbnails (from the detection level when the client would keep it, else a decimated read)
+    and features as locally, and the stretch handed back."""
+    paths = [tmp_path / "a.tif", tmp_path / "b.tif"]
+    for p in paths:
+        _photo16(p)
+    opts = TiePointOptions(max_size=300, tile=300, thumbnail_size=120)
+    for keep in (False, True):
+        local_photos = [BlockPhoto(p.stem, ImageSource.open(p)) for p in paths]
+        local = list(detect_photos(local_photos, [0, 1], opts, thumbnail=True, keep=keep))
+        with monkeypatch.context() as m:
+            m.setattr("toolbox.executor.map_tiles", lambda func, tasks, executor: (
+                func(pickle.loads(pickle.dumps(t))) for t in tasks))
+            remote_photos = [BlockPhoto(p.stem, ImageSource.open(p)) for p in paths]
+            cluster = type("Dask", (), {"kind": "dask"})()
+            remote = list(detect_photos(remote_photos, [0, 1], TiePointOptions(
+                max_size=300, tile=300, thumbnail_size=120, executor=cluster),
+                thumbnail=True, keep=keep))
+        for (_, f, s), (_, f2, s2) in zip(local, remote, strict=True):
+            assert s == s2 and len(f) == len(f2) > 10
+            np.testing.assert_array_equal(f.descriptors, f2.descriptors)
+        assert [p.source.stretch for p in remote_photos] == \
+            [p.source.stretch for p in local_photos]
+        assert all(p.level is None for p in remote_photos)  # nothing kept on the client
+        assert all((p.level is not None) == keep for p in local_photos)
