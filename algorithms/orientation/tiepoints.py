@@ -38,9 +38,9 @@ class TiePoints(Algorithm):
     principal point, distortion), else on the fundamental matrix; inlier THRESHOLD in pixels of
     the detection level. With orientations the distance of each match from the epipolar plane
     of the orientations is reported per pair, and matches farther than EPIPOLAR_TOLERANCE px
-    are dropped when it is given. Photos are detected and pairs matched on local threads or,
-    with SCHEDULER, on a Dask cluster (each worker reads its photo by its path; only features
-    travel between them; results in photo and pair order: the same output). Tracks by
+    are dropped when it is given. Photos are detected, pairs matched and tracks refined on
+    local threads or, with SCHEDULER, on a Dask cluster (each worker reads its photos by their
+    paths; only features and tracks travel; results in order: the same output). Tracks by
     union-find; a track with two points on one photo, or that disagrees with the epipolar
     geometry of any pair of its photos, is dropped. Thinning: about TARGET Gruber-like cells
     per model (photo pair), each keeping its best track (most photos first, then smallest
@@ -101,7 +101,7 @@ class TiePoints(Algorithm):
                min_value=0.0, max_value=100.0),
         Number("EPIPOLAR_TOLERANCE", "with orientations: drop matches farther from the epipolar "
                "plane, px", optional=True, min_value=0.0, min_exclusive=True),
-        scheduler_parameter("the photos' detection and the pairs' matching"),
+        scheduler_parameter("the photos' detection, the pairs' matching and the refinement"),
         OutputFile("OUTPUT", "image measurements (CSV: point_id, photo, col_px, row_px, "
                    "sigma_px)", extensions=[".csv"]),
         # an OutputFile, not an OutputVector: test_specs requires every OutputVector to be

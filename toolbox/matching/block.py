@@ -19,6 +19,7 @@ Coordinates are full-resolution pixels (col, row; top-left pixel centre at (0.5,
 from __future__ import annotations
 
 import os
+import threading
 from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
@@ -401,9 +402,11 @@ def tie_points(photos: list[BlockPhoto], opts: TiePointOptions,
         return _refine_track(k, found, xy, sources, opts, scales, common, epipolar)
 
     # tracks refine independently: threads (OpenCV's remap and LAPACK release the GIL; reads
-    # of one photo are serialised by its source's lock)
+    # of one photo are serialised by its source's lock), or batches on a Dask cluster
     with ThreadPoolExecutor(opts.workers or os.cpu_count() or 1) as pool:
-        done = pool.map(refined_track, kept_idx) if opts.refine else iter(())
+        on_cluster = opts.refine and getattr(opts.executor, "kind", "local") == "dask"
+        done = refine_on_cluster(kept_idx, found, xy, photos, opts, scales, common, epipolar) \
+            if on_cluster else pool.map(refined_track, kept_idx) if opts.refine else iter(())
         for n, k in enumerate(kept_idx):
             photo_idx = [p for p, _ in found[k]]
             pos = xy[k].copy()
@@ -443,6 +446,95 @@ def _track_residuals(found: list, xy: list, models: dict) -> np.ndarray:
         xb = np.array([xy[k][b] for k, _, b in rows])
         np.maximum.at(worst, ks, models[key].residual(xa, xb))
     return worst
+
+
+#: tracks refined per task on a Dask cluster
+REFINE_BATCH = 256
+
+
+@dataclass(frozen=True)
+class RefineTask:
+    """Tracks to refine on a Dask worker: their observations, and only what they need: the
+    photos' images (read there by their paths), level scales and cameras, and their pairs'
+    local-affine support and epipolar models (without normalisers: functions, not picklable;
+    the worker rebuilds them from the cameras)."""
+
+    tracks: tuple[int, ...]
+    found: dict
+    xy: dict
+    sources: dict
+    cameras: dict
+    opts: TiePointOptions
+    scales: dict
+    common: dict
+    epipolar: dict
+
+
+def refine_batch(task: RefineTask) -> list[tuple[np.ndarray, np.ndarray]]:
+    """:func:`_refine_track` of every track of a :class:`RefineTask` (on a worker: its
+    photos' images are the worker's, kept across tasks by :func:`worker_image`)."""
+    import dataclasses
+
+    sources = {p: worker_image(s) for p, s in task.sources.items()}
+    epipolar = {}
+    for (a, b), model in task.epipolar.items():
+        if model.kind == "E":
+            model = dataclasses.replace(model, to_a=matching.normaliser(task.cameras[a]),
+                                        to_b=matching.normaliser(task.cameras[b]))
+        epipolar[(a, b)] = model
+    return [_refine_track(k, task.found, task.xy, sources, task.opts, task.scales,
+                          task.common, epipolar) for k in task.tracks]
+
+
+_WORKER_IMAGES: dict = {}
+_WORKER_IMAGES_LOCK = threading.Lock()
+WORKER_IMAGES = 8  # images a worker keeps (each up to ImageSource.WHOLE_LIMIT bytes of grey)
+
+
+def worker_image(source: ImageSource) -> ImageSource:
+    """The worker's own copy of ``source`` (same path, file, size and stretch), kept for its
+    next tasks: a photo read whole for refinement is read once per worker, not per task."""
+    try:
+        stat = os.stat(source.path)
+        stamp = (stat.st_size, stat.st_mtime_ns)
+    except OSError:
+        return source
+    key = (str(source.path), stamp, source.stretch)
+    with _WORKER_IMAGES_LOCK:
+        kept = _WORKER_IMAGES.pop(key, None) or source
+        _WORKER_IMAGES[key] = kept  # the most recent last
+        while len(_WORKER_IMAGES) > WORKER_IMAGES:
+            _WORKER_IMAGES.pop(next(iter(_WORKER_IMAGES))).close()
+    return kept
+
+
+def refine_on_cluster(kept_idx: np.ndarray, found: list, xy: list, photos: list[BlockPhoto],
+                      opts: TiePointOptions, scales: dict, common: dict, epipolar: dict
+                      ) -> Iterator[tuple[np.ndarray, np.ndarray]]:
+    """``(positions, ok)`` of every kept track, in order, refined in batches of
+    :data:`REFINE_BATCH` tracks on the Dask cluster of ``opts.executor``
+    (:func:`refine_batch`): the same results as threads (tests)."""
+    import dataclasses
+
+    from toolbox.executor import map_tiles
+
+    bare = TiePointOptions(**{**opts.__dict__, "executor": None})
+
+    def tasks() -> Iterator[RefineTask]:
+        for start in range(0, len(kept_idx), REFINE_BATCH):
+            batch = [int(k) for k in kept_idx[start:start + REFINE_BATCH]]
+            used = {p for k in batch for p, _ in found[k]}
+            pairs_of = {(found[k][0][0], p) for k in batch for p, _ in found[k][1:]}
+            models = {key: dataclasses.replace(m, to_a=None, to_b=None)
+                      for key, m in epipolar.items() if key in pairs_of or key[::-1] in pairs_of}
+            yield RefineTask(tuple(batch), {k: found[k] for k in batch},
+                             {k: xy[k] for k in batch}, {p: photos[p].source for p in used},
+                             {p: photos[p].photo for p in used}, bare,
+                             {p: scales[p] for p in used},
+                             {key: common[key] for key in pairs_of if key in common}, models)
+
+    for results in map_tiles(refine_batch, tasks(), executor=opts.executor):
+        yield from results
 
 
 def _refine_track(k: int, found: list, xy: list, sources: dict[int, ImageSource],

@@ -95,3 +95,27 @@ def test_thumbnails_detected_on_workers_are_the_local_ones(tmp_path, monkeypatch
             [p.source.stretch for p in local_photos]
         assert all(p.level is None for p in remote_photos)  # nothing kept on the client
         assert all((p.level is not None) == keep for p in local_photos)
+
+
+def test_a_worker_keeps_each_photo_once_across_refinement_tasks(tmp_path, monkeypatch):
+    """Refinement batches on a worker share one copy of each photo (read whole once), keyed
+    by its file and stretch; a photo written again, or another stretch, is another copy; at
+    most WORKER_IMAGES are kept."""
+    from toolbox.matching import block
+
+    monkeypatch.setattr(block, "_WORKER_IMAGES", {})
+    _photo16(tmp_path / "a.tif")
+    src = ImageSource.open(tmp_path / "a.tif")
+    src.window(0, 0, 8, 8)  # the stretch
+    first = block.worker_image(pickle.loads(pickle.dumps(src)))
+    first.window(0, 0, 8, 8)
+    assert first._grey_full is not None  # read whole once
+    assert block.worker_image(pickle.loads(pickle.dumps(src))) is first  # the next task
+    other = pickle.loads(pickle.dumps(src))
+    other.stretch = (0.0, 1000.0)
+    assert block.worker_image(other) is other
+    for i in range(block.WORKER_IMAGES):
+        _photo16(tmp_path / f"b{i}.tif")
+        block.worker_image(ImageSource.open(tmp_path / f"b{i}.tif"))
+    assert len(block._WORKER_IMAGES) == block.WORKER_IMAGES
+    assert first._grey_full is None  # the oldest, released
