@@ -162,9 +162,10 @@ def test_scheduler_addresses_are_checked_before_any_connection(address, valid):
 @pytest.mark.distributed
 @pytest.mark.slow
 def test_tie_points_matched_on_a_cluster_are_the_local_ones(tmp_path, monkeypatch):
-    """orientation:tiepoints matches its photo pairs on the workers (features travel, not
-    images): the measurements and the pair table are the local run's, byte for byte, both with
-    cameras (essential matrices, footprint pairs) and without (fundamental matrices,
+    """orientation:tiepoints detects its photos (and their thumbnails), matches its pairs and
+    refines its tracks on the workers (each reads the photos by their paths; features and tracks
+    travel): the measurements and the pair table are the local run's, byte for byte, both with
+    cameras (essential matrices, footprint pairs, refined) and without (fundamental matrices,
     thumbnail pairs)."""
     from pathlib import Path
 
