@@ -493,7 +493,9 @@ WORKER_IMAGES = 8  # images a worker keeps (each up to ImageSource.WHOLE_LIMIT b
 
 def worker_image(source: ImageSource) -> ImageSource:
     """The worker's own copy of ``source`` (same path, file, size and stretch), kept for its
-    next tasks: a photo read whole for refinement is read once per worker, not per task."""
+    next tasks: a photo read whole for refinement is read once per worker, not per task. The
+    oldest beyond :data:`WORKER_IMAGES` is dropped, not closed (a task of another thread may
+    still read it; it is freed with its last task)."""
     try:
         stat = os.stat(source.path)
         stamp = (stat.st_size, stat.st_mtime_ns)
@@ -504,7 +506,7 @@ def worker_image(source: ImageSource) -> ImageSource:
         kept = _WORKER_IMAGES.pop(key, None) or source
         _WORKER_IMAGES[key] = kept  # the most recent last
         while len(_WORKER_IMAGES) > WORKER_IMAGES:
-            _WORKER_IMAGES.pop(next(iter(_WORKER_IMAGES))).close()
+            del _WORKER_IMAGES[next(iter(_WORKER_IMAGES))]
     return kept
 
 

@@ -118,4 +118,5 @@ def test_a_worker_keeps_each_photo_once_across_refinement_tasks(tmp_path, monkey
         _photo16(tmp_path / f"b{i}.tif")
         block.worker_image(ImageSource.open(tmp_path / f"b{i}.tif"))
     assert len(block._WORKER_IMAGES) == block.WORKER_IMAGES
-    assert first._grey_full is None  # the oldest, released
+    assert all(kept is not first for kept in block._WORKER_IMAGES.values())  # the oldest
+    assert first._grey_full is not None  # dropped, not closed: a running task may still read it
