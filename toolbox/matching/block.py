@@ -22,7 +22,7 @@ import os
 import threading
 from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -163,6 +163,15 @@ def _features(bp: BlockPhoto, opts: TiePointOptions, max_size: int,
     return feats.scaled(sx, sy), float(np.sqrt(sx * sy))
 
 
+def _where(opts: TiePointOptions) -> tuple[Any, TiePointOptions]:
+    """Where the tasks of ``opts`` run (its executor, else local threads) and the options the
+    tasks carry: without the executor (workers need none)."""
+    from toolbox.executor import resolve_executor
+
+    executor = opts.executor or resolve_executor("local", opts.workers or None)
+    return executor, replace(opts, executor=None)
+
+
 @dataclass(frozen=True)
 class DetectTask:
     """One photo whose features to detect (picklable for a Dask worker, which reads the image
@@ -193,11 +202,10 @@ def detect_photos(photos: list[BlockPhoto], used: list[int], opts: TiePointOptio
     (:class:`DetectTask`), detected through :func:`toolbox.executor.map_tiles`: local threads
     (OpenCV releases the GIL; a photo's level kept from the thumbnail pass is used) or the
     Dask cluster of ``opts.executor`` (the workers read the photos)."""
-    from toolbox.executor import map_tiles, resolve_executor
+    from toolbox.executor import map_tiles
 
-    executor = opts.executor or resolve_executor("local", opts.workers or None)
+    executor, bare = _where(opts)
     remote = executor.kind == "dask"
-    bare = TiePointOptions(**{**opts.__dict__, "executor": None})
     tasks = [DetectTask(BlockPhoto(photos[k].id, photos[k].source) if remote else photos[k],
                         bare, thumbnail, keep) for k in used]
     for k, (features, scale, stretch) in zip(used, map_tiles(detect_photo, tasks,
@@ -246,11 +254,9 @@ def match_pair(task: PairTask) -> matching.PairMatches:
 def match_pairs(tasks: list[PairTask], opts: TiePointOptions) -> list[matching.PairMatches]:
     """:func:`match_pair` on every task through :func:`toolbox.executor.map_tiles` (local
     threads, or the Dask cluster of ``opts.executor``), results in task order."""
-    from toolbox.executor import map_tiles, resolve_executor
+    from toolbox.executor import map_tiles
 
-    executor = opts.executor or resolve_executor("local", opts.workers or None)
-    # the executor is not part of a task: workers need none
-    bare = TiePointOptions(**{**opts.__dict__, "executor": None})
+    executor, bare = _where(opts)
     found = list(map_tiles(match_pair, [PairTask(t.fa, t.fb, bare, t.level_scale, t.pa, t.pb)
                                         for t in tasks], executor=executor))
     for t, m in zip(tasks, found, strict=True):
@@ -473,14 +479,12 @@ class RefineTask:
 def refine_batch(task: RefineTask) -> list[tuple[np.ndarray, np.ndarray]]:
     """:func:`_refine_track` of every track of a :class:`RefineTask` (on a worker: its
     photos' images are the worker's, kept across tasks by :func:`worker_image`)."""
-    import dataclasses
-
     sources = {p: worker_image(s) for p, s in task.sources.items()}
     epipolar = {}
     for (a, b), model in task.epipolar.items():
         if model.kind == "E":
-            model = dataclasses.replace(model, to_a=matching.normaliser(task.cameras[a]),
-                                        to_b=matching.normaliser(task.cameras[b]))
+            model = replace(model, to_a=matching.normaliser(task.cameras[a]),
+                            to_b=matching.normaliser(task.cameras[b]))
         epipolar[(a, b)] = model
     return [_refine_track(k, task.found, task.xy, sources, task.opts, task.scales,
                           task.common, epipolar) for k in task.tracks]
@@ -496,12 +500,12 @@ def worker_image(source: ImageSource) -> ImageSource:
     next tasks: a photo read whole for refinement is read once per worker, not per task. The
     oldest beyond :data:`WORKER_IMAGES` is dropped, not closed (a task of another thread may
     still read it; it is freed with its last task)."""
+    from toolbox.raster.datasets import file_stamp
+
     try:
-        stat = os.stat(source.path)
-        stamp = (stat.st_size, stat.st_mtime_ns)
+        key = (str(source.path), file_stamp(source.path), source.stretch)
     except OSError:
         return source
-    key = (str(source.path), stamp, source.stretch)
     with _WORKER_IMAGES_LOCK:
         kept = _WORKER_IMAGES.pop(key, None) or source
         _WORKER_IMAGES[key] = kept  # the most recent last
@@ -516,18 +520,16 @@ def refine_on_cluster(kept_idx: np.ndarray, found: list, xy: list, photos: list[
     """``(positions, ok)`` of every kept track, in order, refined in batches of
     :data:`REFINE_BATCH` tracks on the Dask cluster of ``opts.executor``
     (:func:`refine_batch`): the same results as threads (tests)."""
-    import dataclasses
-
     from toolbox.executor import map_tiles
 
-    bare = TiePointOptions(**{**opts.__dict__, "executor": None})
+    executor, bare = _where(opts)
 
     def tasks() -> Iterator[RefineTask]:
         for start in range(0, len(kept_idx), REFINE_BATCH):
             batch = [int(k) for k in kept_idx[start:start + REFINE_BATCH]]
             used = {p for k in batch for p, _ in found[k]}
             pairs_of = {(found[k][0][0], p) for k in batch for p, _ in found[k][1:]}
-            models = {key: dataclasses.replace(m, to_a=None, to_b=None)
+            models = {key: replace(m, to_a=None, to_b=None)
                       for key, m in epipolar.items() if key in pairs_of or key[::-1] in pairs_of}
             yield RefineTask(tuple(batch), {k: found[k] for k in batch},
                              {k: xy[k] for k in batch}, {p: photos[p].source for p in used},
@@ -535,7 +537,7 @@ def refine_on_cluster(kept_idx: np.ndarray, found: list, xy: list, photos: list[
                              {p: scales[p] for p in used},
                              {key: common[key] for key in pairs_of if key in common}, models)
 
-    for results in map_tiles(refine_batch, tasks(), executor=opts.executor):
+    for results in map_tiles(refine_batch, tasks(), executor=executor):
         yield from results
 
 

@@ -4,9 +4,27 @@ dataset cache of the raster engine and the warp."""
 
 from __future__ import annotations
 
+import os
 import threading
 import warnings
 from typing import Any
+
+
+def file_stamp(path: Any) -> tuple[int, int]:
+    """(size in bytes, modification time in ns) of a file: how a process tells that it sees the
+    very file another closed, or that a file it keeps open was written again."""
+    stat = os.stat(path)
+    return stat.st_size, stat.st_mtime_ns
+
+
+def open_quietly(path: Any) -> Any:
+    """``rasterio.open(path)`` without the warning about a raster with no georeferencing (a
+    photo is fine as it is)."""
+    import rasterio
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
+        return rasterio.open(path)
 
 
 class ThreadDatasets:
@@ -20,16 +38,12 @@ class ThreadDatasets:
         self._lock = threading.Lock()
 
     def get(self, path: Any) -> Any:
-        import rasterio
-
         opened = getattr(self._local, "datasets", None)
         if opened is None:
             opened = self._local.datasets = {}
         dataset = opened.get(path)
         if dataset is None or dataset.closed:  # a reused thread after close(): open again
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
-                dataset = opened[path] = rasterio.open(path)
+            dataset = opened[path] = open_quietly(path)
             with self._lock:
                 self._all.append(dataset)
         return dataset
@@ -59,24 +73,18 @@ class WorkerDatasets:
         self._local = threading.local()
 
     def get(self, path: Any) -> Any:
-        import os
         from collections import OrderedDict
 
-        import rasterio
-
         try:
-            stat = os.stat(path)
-            key = (str(path), stat.st_size, stat.st_mtime_ns)
+            key = (str(path), file_stamp(path))
         except (OSError, TypeError, ValueError):  # a GDAL virtual path (/vsicurl/...)
-            key = (str(path), None, None)
+            key = (str(path), None)
         opened = getattr(self._local, "datasets", None)
         if opened is None:
             opened = self._local.datasets = OrderedDict()
         dataset = opened.get(key)
         if dataset is None or dataset.closed:
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
-                dataset = opened[key] = rasterio.open(path)
+            dataset = opened[key] = open_quietly(path)
             while len(opened) > self.LIMIT:
                 opened.popitem(last=False)[1].close()
         opened.move_to_end(key)

@@ -43,6 +43,7 @@ import numpy as np
 
 from toolbox.io.raster import deflate_level, gdal_cache_max, overview_levels, predictor_for
 from toolbox.io.write_failures import writing
+from toolbox.raster.datasets import file_stamp
 
 DEFAULT_TILE = 512
 DEFAULT_CACHE_MB = 256  # GDAL block cache while writing (bounded, whatever the output size)
@@ -316,15 +317,10 @@ class RasterWriter:
         self.finished_on = done or finish_geotiff(task, check_stamp=False)
 
     def _build_overviews(self) -> None:
-        import rasterio
-        from rasterio.enums import Resampling
-
-        factors = overview_levels(self.grid.width, self.grid.height, self.tile)
+        factors = self._overview_factors()
         if factors:
-            with rasterio.Env(GDAL_CACHEMAX=gdal_cache_max(min(self.cache_mb,
-                                                               OVERVIEW_CACHE_MB))):
-                self.dataset.build_overviews(factors, Resampling[self.overview_resampling])
-            self.dataset.update_tags(ns="rio_overview", resampling=self.overview_resampling)
+            build_overviews(self.dataset, factors, self.overview_resampling,
+                            min(self.cache_mb, OVERVIEW_CACHE_MB))
 
     def _colours(self, photometric: str | None) -> list:
         """The colour interpretation GDAL gives the bands of the GeoTIFF of :meth:`profile`
@@ -372,6 +368,17 @@ class RasterWriter:
             p.unlink(missing_ok=True)
 
 
+def build_overviews(dataset: Any, factors: list[int], resampling: str, cache_mb: int) -> None:
+    """GDAL's overviews of an open, writable ``dataset`` at ``factors``, with a block cache of
+    ``cache_mb`` (each level is read once), and the resampling noted in its tags."""
+    import rasterio
+    from rasterio.enums import Resampling
+
+    with rasterio.Env(GDAL_CACHEMAX=gdal_cache_max(cache_mb)):
+        dataset.build_overviews(list(factors), Resampling[resampling])
+    dataset.update_tags(ns="rio_overview", resampling=resampling)
+
+
 def copy_to_cog(tiled_path: Path, path: Path, options: dict, cache_mb: int) -> None:
     """GDAL's COG driver makes ``path`` from the tiled GeoTIFF ``tiled_path``, then removes it."""
     import rasterio
@@ -391,13 +398,6 @@ def copy_to_cog(tiled_path: Path, path: Path, options: dict, cache_mb: int) -> N
         raise OSError(errno.EIO, f"the tiled GeoTIFF could not be made a COG ({first})",
                       str(path)) from exc
     Path(tiled_path).unlink(missing_ok=True)
-
-
-def file_stamp(path: str | Path) -> tuple[int, int]:
-    """(size in bytes, modification time in ns) of a file: how a worker tells that it sees the
-    very file the client closed."""
-    st = os.stat(path)
-    return st.st_size, st.st_mtime_ns
 
 
 @dataclass
@@ -423,7 +423,6 @@ def finish_geotiff(task: FinishTask, check_stamp: bool = True) -> str | None:
     this process does not see the file the client closed (another machine without shared
     storage)."""
     import rasterio
-    from rasterio.enums import Resampling
 
     if check_stamp:
         try:
@@ -434,11 +433,8 @@ def finish_geotiff(task: FinishTask, check_stamp: bool = True) -> str | None:
     if task.cog:  # as the writer does it: after closing, outside its GDAL settings
         copy_to_cog(Path(task.tiled_path), Path(task.path), task.cog_options, task.cache_mb)
     elif task.factors:
-        with rasterio.Env(**task.env), \
-                rasterio.Env(GDAL_CACHEMAX=gdal_cache_max(task.overview_cache_mb)), \
-                rasterio.open(task.path, "r+") as dataset:
-            dataset.build_overviews(list(task.factors), Resampling[task.resampling])
-            dataset.update_tags(ns="rio_overview", resampling=task.resampling)
+        with rasterio.Env(**task.env), rasterio.open(task.path, "r+") as dataset:
+            build_overviews(dataset, task.factors, task.resampling, task.overview_cache_mb)
     return f"{socket.gethostname()}:{os.getpid()}"
 
 

@@ -14,7 +14,8 @@ from rasterio.transform import from_origin
 from rasterio.windows import Window
 
 from toolbox.io.grid import GridSpec
-from toolbox.raster.writer import FinishTask, RasterWriter, file_stamp, finish_geotiff
+from toolbox.raster.datasets import file_stamp
+from toolbox.raster.writer import FinishTask, RasterWriter, finish_geotiff
 
 ROWS, COLS = 700, 1100  # streamed (memory_mb 0), overviews at 2 and 4 (down to one 512 tile)
 
