@@ -16,6 +16,7 @@ from toolbox.cartography.profile import (
     sample_stations,
     section_axes,
 )
+from toolbox.io.raster import read_filled
 from toolbox.raster.bilinear import bilinear
 
 
@@ -63,8 +64,7 @@ class Surface:
             r0 = int(np.clip(np.floor(np.nanmin(rows)) - 1, 0, src.height - 1))
             c1 = int(np.clip(np.ceil(np.nanmax(cols)) + 2, c0 + 1, src.width))
             r1 = int(np.clip(np.ceil(np.nanmax(rows)) + 2, r0 + 1, src.height))
-            z = src.read(self.band, window=Window(c0, r0, c1 - c0, r1 - r0), masked=True)
-            z = z.astype("float64").filled(np.nan)
+            z = read_filled(src, self.band, Window(c0, r0, c1 - c0, r1 - r0))
         out = bilinear(z, f.x0 + c0 * f.dx, f.y0 + r0 * f.dy, f.dx, f.dy, xy)
         # points off the raster: NaN (the window was clipped to it)
         off = (cols < 0) | (cols > src.width - 1) | (rows < 0) | (rows > src.height - 1)

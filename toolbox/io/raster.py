@@ -92,6 +92,30 @@ def open_raster_info(value: Any, name: str = "INPUT") -> RasterInfo:
                              f"{str(exc).splitlines()[0]}") from None
 
 
+def read_filled(src: Any, band: int, window: Any = None, dtype: str = "float64") -> np.ndarray:
+    """Band ``band`` of open dataset ``src`` (``window``: all of it by default) as ``dtype``
+    with NaN where rasterio's ``masked=True`` read masks it, the same array.
+
+    A band whose only mask is its nodata value (or none) is read once and compared with it:
+    the masked read would read the band again for its mask (a 2000 x 2000 DEM: 0.17 against
+    0.09 s with its decompression). Any other mask (mask band, alpha) is read as rasterio does.
+    """
+    from rasterio.enums import MaskFlags
+
+    flags = src.mask_flag_enums[band - 1]
+    if flags not in ([MaskFlags.all_valid], [MaskFlags.nodata]):
+        return src.read(band, window=window, masked=True).astype(dtype).filled(np.nan)
+    raw = src.read(band, window=window)
+    z = raw.astype(dtype)
+    if flags == [MaskFlags.nodata]:  # GDAL's test: the value equal to nodata in the band's type
+        nodata = float(src.nodatavals[band - 1])
+        if raw.dtype.kind == "f":
+            z[np.isnan(raw) if math.isnan(nodata) else raw == raw.dtype.type(nodata)] = np.nan
+        elif nodata.is_integer() and np.iinfo(raw.dtype).min <= nodata <= np.iinfo(raw.dtype).max:
+            z[raw == int(nodata)] = np.nan
+    return z
+
+
 def has_valid_pixel(path: str | Path) -> bool:
     """True when some pixel of the raster is valid (not nodata or masked, finite for floats).
     Read block by block until one is found: cheap for a normal raster."""

@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 
 from toolbox.errors import InputDataError, ParameterError
+from toolbox.io.raster import read_filled
 
 ELLIPSOIDAL = "ellipsoidal"
 #: folders holding PROJ grids besides pyproj's own (a system PROJ's data: egm96_15.gtx...)
@@ -244,7 +245,7 @@ def _convert(info: Any, band: int, transformer: Any, path: Path, crs: Any
         for r0 in range(0, info.height, ROWS_PER_BLOCK):
             rows = min(ROWS_PER_BLOCK, info.height - r0)
             window = Window(0, r0, info.width, rows)
-            z = src.read(band, window=window, masked=True).astype("float64").filled(np.nan)
+            z = read_filled(src, band, window)
             if not np.isfinite(z).any():
                 dst.write(window, z)
                 continue

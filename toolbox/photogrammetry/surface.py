@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from toolbox.errors import InputDataError
+from toolbox.io.raster import read_filled
 
 
 @dataclass(frozen=True, eq=False)
@@ -152,14 +153,14 @@ def read_dem_cells(path: Any, band: int, window: Any, shape: tuple[int, int]) ->
                 whole = _WHOLE_DEM.get(key)
                 if whole is None:
                     with rasterio.open(path) as src:
-                        whole = src.read(band, masked=True).astype("float64").filled(np.nan)
+                        whole = read_filled(src, band)
                     if whole.shape == (rows, cols):
                         _WHOLE_DEM.clear()
                         _WHOLE_DEM[key] = whole
             if whole.shape == (rows, cols):
                 return whole[r0:r1, c0:c1].copy()
     with rasterio.open(path) as src:
-        return src.read(band, window=window, masked=True).astype("float64").filled(np.nan)
+        return read_filled(src, band, window)
 
 
 def dem_height_range(info: Any, band: int = 1) -> tuple[float, float]:
