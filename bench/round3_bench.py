@@ -342,6 +342,10 @@ def section_contours(args) -> str:
             str(Path(python).with_name("toolbox")), "run", "carto:contours", "--INPUT", str(dem),
             "--OUTPUT", str(args.work / f"contours_{label}.gpkg"), "--INTERVAL", "1",
             "--overwrite", "-q"]
+    # the same run with numba's JIT instead of the kernel compiled ahead of time (toolbox.aot)
+    cases["carto:contours now, numba's JIT (TOOLBOX_AOT=0)"] = [
+        "env", "TOOLBOX_AOT=0", *cases["carto:contours now"][:6],
+        str(args.work / "contours_now_jit.gpkg"), *cases["carto:contours now"][7:]]
     times = interleaved(cases, args.runs)
     for values in times.values():
         for v in values:
@@ -360,7 +364,13 @@ def section_contours(args) -> str:
         "one-pass kernel (now)":
             [sys.executable, "-c", TRACE_BLOCKS.format(path=str(dem), kernel=True)]},
         args.runs)
-    return (f"2000 x 2000 DEM of 1 m (the demo relief resampled), 1 m interval: "
+    from toolbox.aot import compiled_available
+
+    aot_note = ("*now* traces with the kernel compiled ahead of time (`toolbox warmup`, "
+                "toolbox.aot: no numba import)" if compiled_available("contour_lines") else
+                "no kernel compiled ahead of time on this machine (`toolbox warmup` did not "
+                "build it): *now* is numba's JIT too")
+    return (f"{aot_note}.\n\n2000 x 2000 DEM of 1 m (the demo relief resampled), 1 m interval: "
             f"{len(set(ours['elev']))} levels (gdal_contour's the same: {same}); total length "
             f"{our_len:.0f} m against gdal_contour's {ref_len:.0f} m inside the cell-centre box "
             f"({100 * (our_len / ref_len - 1):+.3f} %). Whole process, wall and CPU\n\n"

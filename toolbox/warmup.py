@@ -5,8 +5,9 @@ A numba kernel compiles on its first call: a first ``dem:nearest`` on 4,500 poin
 this once, so that a newcomer's first run loads compiled kernels. It runs the demo pipeline's
 steps of the algorithms that have kernels (and the steps they read from) on the demo's sample
 data in a temporary folder, plus the options the demo does not use: the real calls, so that the
-cached specialisations are the ones a run asks for. About a minute; the cache folder
-(:func:`toolbox.cache.user_cache_dir`) can be deleted at any time.
+cached specialisations are the ones a run asks for. It then builds the kernels that
+:mod:`toolbox.aot` compiles ahead of time (a run loads them without importing numba). About a
+minute; the cache folder (:func:`toolbox.cache.user_cache_dir`) can be deleted at any time.
 """
 
 from __future__ import annotations
@@ -71,7 +72,26 @@ def warmup(feedback: Feedback | None = None) -> int:
         run_pipeline(load_pipeline(pipeline_file), feedback=feedback.step(10, 100),
                      overwrite=True)
     compile_large_input_kernels()
+    with feedback.timed("ahead-of-time kernels"):
+        build_ahead_of_time()
     return len(steps)
+
+
+def build_ahead_of_time() -> list[str]:
+    """The kernels of :mod:`toolbox.aot` compiled into the per-user cache; on failure (no C
+    compiler or Python headers, no ``numba.pycc``) a warning, and runs keep numba's JIT.
+    Returns the module files built."""
+    import logging
+
+    from toolbox.aot import build_compiled
+
+    try:
+        return build_compiled()
+    except Exception as exc:  # noqa: BLE001 - the C toolchain fails in many ways; none is fatal
+        logging.getLogger("toolbox").warning(
+            "the ahead-of-time kernels were not built (%s: %s): runs use numba's JIT",
+            type(exc).__name__, str(exc).splitlines()[0] if str(exc) else "")
+        return []
 
 
 def compile_large_input_kernels() -> None:

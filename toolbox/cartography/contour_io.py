@@ -24,6 +24,7 @@ from toolbox.cartography.contours import (
     tin_contours,
     to_map,
 )
+from toolbox.io.raster import read_filled
 
 
 @dataclass
@@ -63,7 +64,7 @@ def raster_range(src, band: int, tile_size: int) -> tuple[float, float]:
 
     lo, hi = np.inf, -np.inf
     for t in iter_tiles(GridSpec(src.transform, src.width, src.height), tile_size):
-        z = src.read(band, window=t.window, masked=True).astype("float64").filled(np.nan)
+        z = read_filled(src, band, t.window)
         if np.isfinite(z).any():
             lo, hi = min(lo, np.nanmin(z)), max(hi, np.nanmax(z))
     return float(lo), float(hi)
@@ -115,11 +116,11 @@ def trace_block(task: BlockTask) -> list[Piece]:
     row, col, height, width = task.window
     window = Window(col, row, width, height)
     if task.on_worker:
-        z = worker_datasets().get(task.path).read(task.band, window=window, masked=True)
+        z = read_filled(worker_datasets().get(task.path), task.band, window)
     else:
         with rasterio.open(task.path) as src:
-            z = src.read(task.band, window=window, masked=True)
-    return block_pieces(z.astype("float64").filled(np.nan), task.levels, row, col, task.tracer)
+            z = read_filled(src, task.band, window)
+    return block_pieces(z, task.levels, row, col, task.tracer)
 
 
 @dataclass(frozen=True)
@@ -186,10 +187,11 @@ def raster_contours(path: str | Path, band: int, interval: float, base: float,
 
     executor = executor or resolve_executor(None)
     grid = None
-    with rasterio.open(path) as src:
+    threads = executor.workers if executor.kind == "local" else 1  # GDAL decodes tiles at once
+    with rasterio.Env(GDAL_NUM_THREADS=str(threads)), rasterio.open(path) as src:
         frame = GridFrame.of(src.transform)
         if executor.kind == "local" and src.width * src.height <= IN_MEMORY_CELLS:
-            grid = src.read(band, masked=True).astype("float64").filled(np.nan)
+            grid = read_filled(src, band)
             zmin, zmax = grid_range(grid)
         else:
             zmin, zmax = raster_range(src, band, tile_size)
@@ -249,7 +251,7 @@ def contour_columns(contours: list[Contour], interval: float, base: float,
         xyz = np.empty((len(xy), 3), dtype="<f8")
         xyz[:, :2] = xy
         xyz[:, 2] = np.repeat(levels, counts)
-        body = xyz.tobytes()
+        body = memoryview(xyz).cast("B")  # sliced per line without copying it whole
         header = np.zeros(len(contours), dtype=[("order", "u1"), ("type", "<u4"), ("n", "<u4")])
         header["order"], header["type"], header["n"] = 1, 1002, counts  # 1002: LineString Z
         heads = header.tobytes()

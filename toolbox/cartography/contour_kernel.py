@@ -235,6 +235,16 @@ def _walk(succ: np.ndarray, x: np.ndarray, y: np.ndarray, level: np.ndarray):
     return points[:n_pts], offsets[:n_lines + 1], line_level[:n_lines]
 
 
+@njit(cache=True, nogil=True)
+def lines_core(z: np.ndarray, levels: np.ndarray):
+    """:func:`grid_lines` of a C-contiguous float64 grid of at least 2 x 2 nodes and at least
+    one level (the kernel :mod:`toolbox.aot` also compiles ahead of time)."""
+    band = _bands(z, levels)
+    first, diag, x, y, level = _crossings(z, band, levels)
+    succ = _link(z, band, levels, first, diag, len(x))
+    return _walk(succ, x, y, level)
+
+
 def grid_lines(z: np.ndarray, levels: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Contour lines of grid ``z`` (NaN = no data) at ``levels`` (ascending), grid coordinates.
 
@@ -245,7 +255,4 @@ def grid_lines(z: np.ndarray, levels: np.ndarray) -> tuple[np.ndarray, np.ndarra
     levels = np.ascontiguousarray(levels, dtype=np.float64)
     if z.shape[0] < 2 or z.shape[1] < 2 or not len(levels):
         return np.empty((0, 2)), np.zeros(1, dtype=np.int64), np.empty(0, dtype=np.int32)
-    band = _bands(z, levels)
-    first, diag, x, y, level = _crossings(z, band, levels)
-    succ = _link(z, band, levels, first, diag, len(x))
-    return _walk(succ, x, y, level)
+    return lines_core(z, levels)

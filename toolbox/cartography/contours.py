@@ -15,7 +15,6 @@ ArcGIS and QGIS label placement assume); closed contours repeat their first vert
 
 from __future__ import annotations
 
-from collections import defaultdict
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 
@@ -61,10 +60,12 @@ TRACERS = ("contourpy", "kernel")
 #: blocks of 513 x 513 (bench/results/house.md, "Round four (contours)"): contourpy costs about
 #: 8 ns per cell and level that a block spans (its heights reach above and below the level); the
 #: kernel about 60 ns per cell whatever the levels, plus numba's import and the load of its
-#: cached kernels, about 0.65 s in any process that traces with it
+#: cached kernels, about 0.65 s in any process that traces with it; or, when the kernel was
+#: compiled ahead of time (:mod:`toolbox.aot`), the load of its module, about 0.02 s
 CONTOURPY_S_PER_CELL_LEVEL = 8e-9
 KERNEL_S_PER_CELL = 60e-9
 KERNEL_FIXED_S = 0.65
+KERNEL_COMPILED_FIXED_S = 0.02
 
 
 def choose_tracer(cells: int, spanned: int) -> str:
@@ -72,7 +73,10 @@ def choose_tracer(cells: int, spanned: int) -> str:
     ``spanned`` cells x levels in all (at most cells x levels) by the cost model above:
     ``"contourpy"`` for few levels or small grids (numba is then never imported), else
     ``"kernel"``."""
-    kernel = KERNEL_FIXED_S + KERNEL_S_PER_CELL * cells
+    from toolbox.aot import compiled_available
+
+    fixed = KERNEL_COMPILED_FIXED_S if compiled_available("contour_lines") else KERNEL_FIXED_S
+    kernel = fixed + KERNEL_S_PER_CELL * cells
     return "kernel" if CONTOURPY_S_PER_CELL_LEVEL * spanned > kernel else "contourpy"
 
 
@@ -150,9 +154,7 @@ def grid_contour_pieces(z: np.ndarray, levels: Iterable[float], x0: float, y0: f
     # tin_contours do); the offset (1024 ulps) moves lines by far less than a micron
     below = levels - 1024 * np.spacing(np.abs(levels))
     if tracer == "kernel":
-        from toolbox.cartography.contour_kernel import grid_lines
-
-        points, offsets, level_of = grid_lines(z, below)
+        points, offsets, level_of = kernel_lines(z, below)
         xy = np.column_stack([x0 + points[:, 0] * dx, y0 + points[:, 1] * dy])
     elif tracer == "contourpy":
         xy, offsets, level_of = contourpy_lines(z, below, x0, y0, dx, dy)
@@ -164,6 +166,21 @@ def grid_contour_pieces(z: np.ndarray, levels: Iterable[float], x0: float, y0: f
     values = levels[level_of].tolist()
     return [Contour(values[i], line[::-1] if flip else line)
             for i, line in _split_lines(xy, offsets)]
+
+
+def kernel_lines(z: np.ndarray, levels: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`toolbox.cartography.contour_kernel.grid_lines` of a grid of at least 2 x 2 nodes
+    and one level, by the kernel's ahead-of-time build when this machine has one
+    (:mod:`toolbox.aot`: numba is not imported), else by numba's JIT: the same arrays."""
+    from toolbox.aot import load_compiled
+
+    compiled = load_compiled("contour_lines")
+    if compiled is None:
+        from toolbox.cartography.contour_kernel import grid_lines
+
+        return grid_lines(z, levels)
+    return compiled.lines_core(np.ascontiguousarray(z, dtype=np.float64),
+                               np.ascontiguousarray(levels, dtype=np.float64))
 
 
 def _split_lines(points: np.ndarray, offsets: np.ndarray) -> list[tuple[int, np.ndarray]]:
@@ -232,10 +249,11 @@ def trace_tiles(read_block: Callable[[int, int, int, int], np.ndarray], rows: in
 def to_map(contours: list[Contour], x0: float, y0: float, dx: float, dy: float) -> list[Contour]:
     """Grid-coordinate contours (higher ground on the right) in map coordinates, still with
     higher ground on the right."""
+    scale, origin, flip = np.array([dx, dy]), np.array([x0, y0]), dx * dy < 0
     out = []
     for c in contours:
-        xy = np.column_stack([x0 + c.xy[:, 0] * dx, y0 + c.xy[:, 1] * dy])
-        out.append(Contour(c.level, xy[::-1] if dx * dy < 0 else xy))
+        xy = c.xy * scale + origin  # x0 + x·dx, y0 + y·dy: the same values as column by column
+        out.append(Contour(c.level, xy[::-1] if flip else xy))
     return out
 
 
@@ -249,34 +267,42 @@ def stitch_pieces(pieces: list[Piece], tile: int) -> list[Contour]:
     duplicated vertex, and near-coincident points elsewhere are never merged.
     """
     tol = 1e-9  # grid units: ends on a tile edge have an exactly integer coordinate
-    # ends on tile edges: key (level, axis, grid line, tile along the line) -> [(pos, side, end)]
-    ends: dict[tuple, list[tuple[float, int, tuple[int, int]]]] = defaultdict(list)
-    for i, p in enumerate(pieces):
-        if np.array_equal(p.xy[0], p.xy[-1]):
-            continue
-        r0, c0 = p.tile
-        for which, (col, row) in ((0, p.xy[0]), (1, p.xy[-1])):
-            # an end lies on a grid edge: its coordinate across that edge is an exact integer
-            # (a crossing next to a node is off by ~1e-10 along the edge, never across it)
-            axis, pos_line, along, start = min(
-                (("v", col, row, c0), ("h", row, col, r0)),
-                key=lambda a: abs(a[1] - round(a[1])))
-            line = round(pos_line)
-            if abs(pos_line - line) > tol or line % tile or line == 0:
-                continue
-            side = 0 if line == start + tile else 1  # 0: the tile before the line
-            if side == 1 and line != start:
-                continue
-            other = r0 if axis == "v" else c0
-            ends[(p.level, axis, line, other)].append((along, side, (i, which)))
+    n = len(pieces)
+    if not n:
+        return []
+    # every piece's two ends, end e = 2 * piece + (0 first vertex, 1 last)
+    ends = np.array([(p.xy[0], p.xy[-1]) for p in pieces], dtype="float64").reshape(-1, 2)
+    tile_r0, tile_c0 = np.repeat(np.array([p.tile for p in pieces], dtype=np.int64), 2, axis=0).T
+    level = np.repeat(np.array([p.level for p in pieces], dtype="float64"), 2)
+    ring = np.repeat((ends[0::2] == ends[1::2]).all(axis=1), 2)
+    col, row = ends[:, 0], ends[:, 1]
+    # an end lies on a grid edge: its coordinate across that edge is an exact integer (a
+    # crossing next to a node is off by ~1e-10 along the edge, never across it); "v": a
+    # vertical grid line (x = column), taken on a tie
+    vertical = np.abs(col - np.round(col)) <= np.abs(row - np.round(row))
+    pos_line = np.where(vertical, col, row)
+    along = np.where(vertical, row, col)
+    start = np.where(vertical, tile_c0, tile_r0)
+    other = np.where(vertical, tile_r0, tile_c0)  # the tile along the line
+    line = np.round(pos_line)
+    side = np.where(line == start + tile, 0, 1)  # 0: the tile before the line
+    on_edge = ~ring & (np.abs(pos_line - line) <= tol) & (line % tile == 0) & (line != 0) & \
+        ((side == 0) | (line == start))
+    # ends on one tile edge and level, those of the tile before it then after it, each along the
+    # edge (stable: ties keep the pieces' order)
+    e = np.nonzero(on_edge)[0]
+    e = e[np.lexsort((along[e], side[e], other[e], line[e], vertical[e], level[e]))]
+    group = np.column_stack([level[e], vertical[e], line[e], other[e]])
+    starts = np.flatnonzero(np.r_[True, (group[1:] != group[:-1]).any(axis=1), True])
+    e_list, side_list, along_list = e.tolist(), side[e].tolist(), along[e].tolist()
     link: dict[tuple[int, int], tuple[int, int]] = {}
-    for group in ends.values():
-        before = sorted((e for e in group if e[1] == 0), key=lambda e: e[0])
-        after = sorted((e for e in group if e[1] == 1), key=lambda e: e[0])
-        i = j = 0  # merge the two sorted lists; an end with no partner (no data across the
-        while i < len(before) and j < len(after):  # tile edge) stays an end
-            (pa, _, a), (pb, _, b) = before[i], after[j]
+    for g0, g1 in zip(starts[:-1].tolist(), starts[1:].tolist(), strict=True):
+        split = g0 + side_list[g0:g1].count(0)
+        i, j = g0, split  # merge the two sorted runs; an end with no partner (no data across
+        while i < split and j < g1:  # the tile edge) stays an end
+            pa, pb = along_list[i], along_list[j]
             if abs(pa - pb) <= 1e-7:
+                a, b = divmod(e_list[i], 2), divmod(e_list[j], 2)
                 link[a], link[b] = b, a
                 i, j = i + 1, j + 1
             elif pa < pb:
@@ -316,11 +342,12 @@ def _chain(pieces: list[Piece], link: dict[tuple[int, int], tuple[int, int]]) ->
         for i, p in enumerate(pieces):
             if not seen[i] and (i, entry) not in link:
                 parts, _ = walk(i, entry)
-                out.append(Contour(p.level, np.vstack(parts)))
+                xy = parts[0] if len(parts) == 1 else np.concatenate(parts)  # a lone piece
+                out.append(Contour(p.level, xy))
     for i, p in enumerate(pieces):
         if not seen[i]:
             parts, _ = walk(i, 0)
-            xy = np.vstack(parts)
+            xy = np.concatenate(parts)
             xy[-1] = xy[0]  # the last piece ends where the first began
             out.append(Contour(p.level, xy))
     return out

@@ -529,8 +529,9 @@ def demo_cmd(ctx: click.Context, out_dir: str) -> None:
 @click.pass_context
 @_handle_errors
 def warmup_cmd(ctx: click.Context) -> None:
-    """Compile every numba kernel into the per-user cache, so that no first run waits for it
-    (``make venv`` runs it once; about a minute)."""
+    """Compile every numba kernel into the per-user cache, so that no first run waits for it,
+    and build the kernels compiled ahead of time (runs load them without numba; needs a C
+    compiler) (``make venv`` runs it once; about a minute)."""
     import numba
 
     from toolbox.warmup import warmup
@@ -546,7 +547,14 @@ def warmup_cmd(ctx: click.Context) -> None:
         steps = warmup()
     finally:
         toolbox_log.setLevel(level)
-    click.echo(f"Warm-up finished: {steps} runs; compiled kernels in {numba.config.CACHE_DIR}")
+    from toolbox.aot import EXPORTS, aot_folder, compiled_available
+
+    built = sum(compiled_available(name) for name in EXPORTS)
+    click.echo(f"Warm-up finished: {steps} runs; compiled kernels in {numba.config.CACHE_DIR}; "
+               f"{built} of {len(EXPORTS)} ahead-of-time kernels in {aot_folder()}")
+    if built < len(EXPORTS):
+        click.echo("warning: the ahead-of-time kernels were not built (a C compiler and "
+                   "Python's headers are needed): runs use numba's JIT", err=True)
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -197,7 +197,9 @@ def test_both_tracers_give_the_same_stitched_lines():
 def test_few_levels_trace_without_numba_many_with_the_kernel(tmp_path):
     """The 5 % rule (issue 26): a DEM with few levels is traced by contourpy and its process
     never imports numba (about 0.65 CPU s); many levels on a large grid take the kernel. Both
-    runs in fresh processes; the lines compared on the same DEM."""
+    runs in fresh processes, with numba's JIT (``TOOLBOX_AOT=0``; the kernel compiled ahead of
+    time is tests/toolbox/test_aot.py's); the lines compared on the same DEM."""
+    import os
     import sys
 
     rng = np.random.default_rng(5)
@@ -213,7 +215,8 @@ def test_few_levels_trace_without_numba_many_with_the_kernel(tmp_path):
         out = str(tmp_path / f"c{interval}.gpkg")
         proc = subprocess.run([sys.executable, "-c", code.format(dem=str(dem), interval=interval,
                                                                   out=out)],
-                              capture_output=True, text=True, check=True)
+                              capture_output=True, text=True, check=True,
+                              env=os.environ | {"TOOLBOX_AOT": "0"})
         runs[interval] = proc.stdout.split()
     few, many = runs[20.0], runs[1.0]
     assert few[0] == "contourpy" and few[2] == "False" and int(few[1]) >= 3, few

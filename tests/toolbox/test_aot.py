@@ -1,0 +1,171 @@
+"""Kernels compiled ahead of time (toolbox.aot): built with numba's pycc into a fresh cache
+folder, the contour kernel gives numba's JIT arrays bit for bit (the JIT is checked against
+contourpy in tests/toolbox/cartography/test_contour_kernel.py), a run loads it without
+importing numba and writes the JIT run's contours; a missing or broken build falls back to the
+JIT, and a failed build in the warm-up is a warning."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+import sysconfig
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.ndimage import gaussian_filter
+
+from toolbox import aot
+from toolbox.cartography.contour_kernel import grid_lines
+
+pytestmark = pytest.mark.skipif(
+    shutil.which(os.environ.get("CC", "cc")) is None
+    or not Path(sysconfig.get_paths()["include"], "Python.h").exists(),
+    reason="no C compiler or Python headers: the ahead-of-time build is skipped by design")
+
+
+@pytest.fixture(scope="module")
+def cache_home(tmp_path_factory) -> dict[str, str]:
+    """A fresh per-user cache with the kernels built in it (a process of its own, as
+    ``toolbox warmup``); numba's JIT cache stays the session's."""
+    home = tmp_path_factory.mktemp("cache")
+    env = os.environ | {"XDG_CACHE_HOME": str(home)}
+    code = ("from toolbox.aot import aot_folder, build_compiled; build_compiled(); "
+            "print(aot_folder())")
+    proc = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,
+                          text=True, check=True)
+    return {"env": env, "folder": proc.stdout.strip().splitlines()[-1]}
+
+
+def surfaces() -> list[tuple[str, np.ndarray, np.ndarray]]:
+    rng = np.random.default_rng(11)
+    smooth = gaussian_filter(rng.normal(size=(160, 210)), 6) * 60.0
+    holes = smooth.copy()
+    holes[40:55, 60:90] = np.nan
+    holes[rng.random(holes.shape) < 0.01] = np.nan
+    plateaus = np.round(smooth / 2.0) * 2.0  # heights exactly at the levels
+    saddles = np.tile(np.array([[0.0, 1.0], [1.0, 0.0]]), (30, 40))
+    return [("smooth", smooth, np.arange(-20.0, 21.0, 1.0)),
+            ("holes", holes, np.arange(-20.0, 21.0, 0.5)),
+            ("plateaus", plateaus, np.arange(-20.0, 21.0, 2.0)),
+            ("saddles", saddles, np.array([0.25, 0.5, 0.75]))]
+
+
+@pytest.mark.parametrize("case", range(4))
+def test_the_compiled_kernel_gives_the_jit_arrays(cache_home, case):
+    name, z, levels = surfaces()[case]
+    compiled = aot.load_compiled("contour_lines", folder=cache_home["folder"])
+    assert compiled is not None, os.listdir(cache_home["folder"])
+    got = compiled.lines_core(np.ascontiguousarray(z, dtype=np.float64), levels)
+    want = grid_lines(z, levels)
+    assert len(want[1]) > 10, name  # lines to compare
+    for a, b in zip(got, want, strict=True):
+        assert a.dtype == b.dtype
+        np.testing.assert_array_equal(a, b)
+
+
+def test_the_compiled_kernel_releases_the_gil(cache_home):
+    """Another thread runs Python while the compiled kernel traces (as ``nogil=True`` JIT
+    kernels allow). With a switch interval of 10 us, a kernel holding the GIL would leave the
+    other thread at most a few microseconds around the call; one releasing it, the whole call."""
+    import threading
+
+    compiled = aot.load_compiled("contour_lines", folder=cache_home["folder"])
+    rng = np.random.default_rng(2)
+    z = np.ascontiguousarray(gaussian_filter(rng.normal(size=(1500, 1500)), 8) * 400.0)
+    levels = np.arange(-40.0, 40.0, 0.5)
+    compiled.lines_core(z[:50, :50].copy(), levels)  # first call off the clock
+    done = threading.Event()
+    spins = [0]
+
+    def spin():
+        while not done.is_set():
+            spins[0] += 1
+
+    interval = sys.getswitchinterval()
+    spinner = threading.Thread(target=spin)
+    sys.setswitchinterval(1e-5)
+    spinner.start()
+    try:
+        before, t0 = spins[0], time.perf_counter()
+        compiled.lines_core(z, levels)
+        during, elapsed = spins[0] - before, time.perf_counter() - t0
+    finally:
+        done.set()
+        spinner.join()
+        sys.setswitchinterval(interval)
+    assert elapsed > 0.02, elapsed  # a call long enough to tell
+    assert during > 10_000, (during, elapsed)
+
+
+def test_a_run_loads_it_without_numba_and_writes_the_jit_lines(cache_home, tmp_path):
+    import pyogrio
+    import rasterio
+    from rasterio.transform import from_origin
+
+    rng = np.random.default_rng(3)
+    z = 300.0 + gaussian_filter(rng.normal(size=(600, 600)), 20) * 2000.0
+    z[100:130, 200:260] = -9999.0
+    dem = tmp_path / "dem.tif"
+    with rasterio.open(dem, "w", driver="GTiff", width=600, height=600, count=1,
+                       dtype="float32", nodata=-9999.0, crs="EPSG:3003",
+                       transform=from_origin(1687000, 4800000, 2, 2)) as dst:
+        dst.write(z.astype("float32"), 1)
+    # the JIT's run takes the kernel too (its fixed cost set aside), to compare the same tracer
+    code = ("import sys, toolbox; from toolbox.cartography import contours; "
+            "contours.KERNEL_FIXED_S = 0.0; "
+            "s = toolbox.run('carto:contours', {{'INPUT': {dem!r}, "
+            "'INTERVAL': 1, 'OUTPUT': {out!r}}})['STATISTICS']; "
+            "print(s['tracer'], 'numba' in sys.modules)")
+    said = {}
+    for mode in ("1", "0"):
+        out = str(tmp_path / f"c{mode}.gpkg")
+        proc = subprocess.run([sys.executable, "-c", code.format(dem=str(dem), out=out)],
+                              env=cache_home["env"] | {"TOOLBOX_AOT": mode},
+                              capture_output=True, text=True, check=True)
+        said[mode] = proc.stdout.split()
+    assert said["1"] == ["kernel", "False"], said  # compiled ahead of time: no numba
+    assert said["0"] == ["kernel", "True"], said  # TOOLBOX_AOT=0: numba's JIT
+    ahead = pyogrio.read_dataframe(tmp_path / "c1.gpkg", layer="contours")
+    jit = pyogrio.read_dataframe(tmp_path / "c0.gpkg", layer="contours")
+    assert len(ahead) > 100
+    assert ahead.drop(columns="geometry").equals(jit.drop(columns="geometry"))
+    assert (ahead.geometry.to_wkb() == jit.geometry.to_wkb()).all()
+
+
+def test_a_broken_or_missing_build_falls_back_to_the_jit(tmp_path, monkeypatch):
+    broken = Path(aot.module_path("contour_lines", str(tmp_path)))
+    broken.write_bytes(b"not a shared object")
+    assert aot.load_compiled("contour_lines", folder=str(tmp_path)) is None
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    assert aot.load_compiled("contour_lines", folder=str(empty)) is None
+    monkeypatch.setenv("TOOLBOX_AOT", "0")
+    assert not aot.compiled_available("contour_lines")
+
+
+def test_the_cost_model_counts_the_compiled_kernel(monkeypatch):
+    """With the kernel compiled ahead of time its fixed cost (numba's import) is gone: a grid
+    with enough levels takes it where the JIT's 0.65 s would not pay."""
+    from toolbox.cartography import contours
+
+    cells, spanned = 1_000_000, 1_000_000 * 12  # contourpy ~0.096 s, kernel 0.06 s + fixed
+    monkeypatch.setattr(aot, "compiled_available", lambda name: False)
+    assert contours.choose_tracer(cells, spanned) == "contourpy"
+    monkeypatch.setattr(aot, "compiled_available", lambda name: True)
+    assert contours.choose_tracer(cells, spanned) == "kernel"
+
+
+def test_a_failed_build_is_a_warning_and_the_warmup_goes_on(monkeypatch, caplog):
+    from toolbox import warmup
+
+    def no_compiler(*args, **kwargs):
+        raise OSError("command 'gcc' failed: No such file or directory")
+
+    monkeypatch.setattr(aot, "build_compiled", no_compiler)
+    with caplog.at_level("WARNING", logger="toolbox"):
+        assert warmup.build_ahead_of_time() == []
+    assert "ahead-of-time kernels were not built (OSError: command 'gcc' failed" in caplog.text

@@ -1,0 +1,161 @@
+"""Kernels compiled ahead of time: loaded by a run without importing numba.
+
+A numba kernel costs its process numba's import and the load of its cached machine code, about
+0.45 s before the first call (``bench/results/round3.md``, contours), while the kernel itself
+may need less: carto:contours traces a 2000 x 2000 DEM in 0.15 s. ``toolbox warmup`` (run by
+``make venv``) therefore also builds the kernels of :data:`EXPORTS` with numba's ahead-of-time
+compiler (``numba.pycc``) into one extension module each, for this machine's CPU, in the
+per-user cache (:func:`aot_folder`); a run loads the module (a plain ``.so``: numpy only; it
+releases the GIL as the JIT kernel does) when it is there and calls numba's JIT otherwise.
+Both compile the same kernel source, so they give the same arrays (tests). A build needs a C
+compiler and Python's headers; without them, or when numba drops its AOT compiler, a warning
+says so and runs keep the JIT.
+
+The folder is keyed by the toolbox's sources (:func:`toolbox.cache.kernel_sources_key`), the
+Python and numpy versions and the CPU (its model and feature flags), so a module is never loaded
+by other sources or on another processor (a home folder shared by a cluster's machines).
+``TOOLBOX_AOT=0`` makes runs use the JIT.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import threading
+
+#: name -> (kernel module, its numba dispatcher, the exported signature)
+EXPORTS = {
+    "contour_lines": ("toolbox.cartography.contour_kernel", "lines_core",
+                      "Tuple((float64[:, :], int64[:], int32[:]))(float64[:, ::1], float64[::1])"),
+}
+
+_loaded: dict[str, object] = {}
+_folder: list[str] = []
+_lock = threading.Lock()
+
+
+def _cpu_tag() -> tuple[str, str]:
+    """``(tag, LLVM target CPU)``: the CPU's model and feature flags when Linux shows them
+    (code built for this ``"host"``), else a generic build for the architecture."""
+    import platform
+
+    try:
+        with open("/proc/cpuinfo", encoding="utf-8", errors="replace") as info:
+            lines = [line for line in info if line.startswith(("model name", "flags"))]
+    except OSError:
+        lines = []
+    model = next((line for line in lines if line.startswith("model name")), "")
+    flags = next((line for line in lines if line.startswith("flags")), "")
+    if not flags:
+        return f"generic-{platform.machine()}", ""
+    return model + flags, "host"
+
+
+def aot_folder() -> str:
+    """This process's folder of compiled modules (see the module docstring); not created."""
+    if not _folder:
+        import hashlib
+        import sys
+
+        import numpy as np
+
+        from toolbox.cache import kernel_sources_key, user_cache_path
+
+        key = (kernel_sources_key(), sys.version, np.__version__, _cpu_tag()[0])
+        digest = hashlib.blake2b(repr(key).encode(), digest_size=8).hexdigest()
+        _folder.append(user_cache_path("aot", digest))
+    return _folder[0]
+
+
+def module_path(name: str, folder: str | None = None) -> str:
+    """The extension module file of kernel ``name`` in ``folder`` (default :func:`aot_folder`)."""
+    from importlib.machinery import EXTENSION_SUFFIXES
+
+    return os.path.join(folder or aot_folder(), f"toolbox_aot_{name}{EXTENSION_SUFFIXES[0]}")
+
+
+def compiled_available(name: str) -> bool:
+    """Whether kernel ``name`` has a compiled module this run would load (nothing imported)."""
+    if os.environ.get("TOOLBOX_AOT", "1") == "0":
+        return False
+    return _loaded.get(name) is not None or os.path.isfile(module_path(name))
+
+
+def load_compiled(name: str, folder: str | None = None):
+    """The compiled module of kernel ``name`` (its function is the kernel's name), or None when
+    there is none (or ``TOOLBOX_AOT=0``): the caller then uses numba's JIT. Thread-safe; loaded
+    once a process."""
+    key = f"{name}@{folder}" if folder else name
+    with _lock:
+        if key not in _loaded:
+            _loaded[key] = None
+            path = module_path(name, folder)
+            if (folder or os.environ.get("TOOLBOX_AOT", "1") != "0") and os.path.isfile(path):
+                import importlib.util
+
+                try:
+                    spec = importlib.util.spec_from_file_location(f"toolbox_aot_{name}", path)
+                    module = importlib.util.module_from_spec(spec)  # type: ignore[arg-type]
+                    spec.loader.exec_module(module)  # type: ignore[union-attr]
+                    _loaded[key] = module
+                except (ImportError, OSError):
+                    pass  # a broken build: the JIT
+        return _loaded[key]
+
+
+def build_compiled(folder: str | None = None, names: tuple[str, ...] | None = None) -> list[str]:
+    """Compile the kernels ``names`` (default all of :data:`EXPORTS`) into ``folder`` (default
+    :func:`aot_folder`), each staged and renamed into place; returns the module files. Raises
+    what numba's compiler raises (no compiler, no Python headers, no ``numba.pycc``)."""
+    import importlib
+    import shutil
+    import tempfile
+    import warnings
+
+    from toolbox.cache import prune_stale_kernel_caches
+
+    folder = folder or aot_folder()
+    os.makedirs(folder, exist_ok=True)
+    prune_stale_kernel_caches(os.path.dirname(folder))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # numba's pending deprecation of pycc
+        from numba.pycc import CC
+        from numba.pycc import compiler as pycc_compiler
+    built = []
+    for name in names or tuple(EXPORTS):
+        module_name, kernel, signature = EXPORTS[name]
+        dispatcher = getattr(importlib.import_module(module_name), kernel)
+        staging = tempfile.mkdtemp(prefix=f".{name}-", dir=folder)
+        try:
+            cc = CC(f"toolbox_aot_{name}")
+            cc.output_dir = staging
+            cc.target_cpu = _cpu_tag()[1]
+            cc.export(kernel, signature)(dispatcher.py_func)
+            with warnings.catch_warnings(), _releasing_the_gil(pycc_compiler):
+                warnings.simplefilter("ignore")
+                cc.compile()
+            target = module_path(name, folder)
+            os.replace(os.path.join(staging, cc.output_file), target)
+            built.append(target)
+        finally:
+            shutil.rmtree(staging, ignore_errors=True)
+    return built
+
+
+@contextlib.contextmanager
+def _releasing_the_gil(pycc_compiler):
+    """pycc's Python wrappers release the GIL around the kernel, as ``@njit(nogil=True)``'s do
+    (pycc has no option for it: its compile flags are made with ``release_gil`` set). The
+    kernels touch no Python object; two threads then trace two blocks at once."""
+    plain = pycc_compiler.Flags
+
+    class NoGilFlags(plain):  # type: ignore[misc, valid-type]
+        def __init__(self, *args, **kwargs):
+            super().__init__(*args, **kwargs)
+            self.release_gil = True
+
+    pycc_compiler.Flags = NoGilFlags
+    try:
+        yield
+    finally:
+        pycc_compiler.Flags = plain
