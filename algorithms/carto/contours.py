@@ -25,7 +25,8 @@ class Contours(Algorithm):
     DEM: cell values sit at cell centres and the surface between four centres is bilinear (as
     ``gdal_contour``); lines are traced by contourpy, or for all levels in one pass by a
     compiled kernel (the same lines) when the levels are many enough to repay its start-up (the
-    statistics' ``tracer``), in ``TILE_SIZE`` blocks sharing one row and column, and stitched
+    statistics' ``tracer``; ``kernel_build``: compiled ahead of time by ``toolbox warmup``, with
+    no numba start-up, or numba's JIT), in ``TILE_SIZE`` blocks sharing one row and column, and stitched
     across block edges, so big DEMs work in bounded memory and a line
     crossing many blocks comes out whole, with no break and no duplicate. TIN: every triangle's
     plane is cut at each level and the segments are chained through shared edges.

@@ -119,7 +119,7 @@ def test_a_run_loads_it_without_numba_and_writes_the_jit_lines(cache_home, tmp_p
             "contours.KERNEL_FIXED_S = 0.0; "
             "s = toolbox.run('carto:contours', {{'INPUT': {dem!r}, "
             "'INTERVAL': 1, 'OUTPUT': {out!r}}})['STATISTICS']; "
-            "print(s['tracer'], 'numba' in sys.modules)")
+            "print(s['tracer'], 'numba' in sys.modules, s['kernel_build'].replace(' ', '_'))")
     said = {}
     for mode in ("1", "0"):
         out = str(tmp_path / f"c{mode}.gpkg")
@@ -127,8 +127,8 @@ def test_a_run_loads_it_without_numba_and_writes_the_jit_lines(cache_home, tmp_p
                               env=cache_home["env"] | {"TOOLBOX_AOT": mode},
                               capture_output=True, text=True, check=True)
         said[mode] = proc.stdout.split()
-    assert said["1"] == ["kernel", "False"], said  # compiled ahead of time: no numba
-    assert said["0"] == ["kernel", "True"], said  # TOOLBOX_AOT=0: numba's JIT
+    assert said["1"] == ["kernel", "False", "ahead_of_time"], said  # no numba
+    assert said["0"] == ["kernel", "True", "numba_JIT"], said  # TOOLBOX_AOT=0
     ahead = pyogrio.read_dataframe(tmp_path / "c1.gpkg", layer="contours")
     jit = pyogrio.read_dataframe(tmp_path / "c0.gpkg", layer="contours")
     assert len(ahead) > 100

@@ -208,8 +208,22 @@ def raster_contours(path: str | Path, band: int, interval: float, base: float,
     contours = to_map(contours, frame.x0, frame.y0, frame.dx, frame.dy)
     stats = {"tiles": len(windows),
              "pieces_before_stitching": n_pieces, "smoothing_reverted": reverted,
-             "z_min": zmin, "z_max": zmax, "tracer": tracer, "executor": executor.describe()}
+             "z_min": zmin, "z_max": zmax, "tracer": tracer,
+             "kernel_build": kernel_build(tracer, executor), "executor": executor.describe()}
     return ContourResult(contours, levels, stats)
+
+
+def kernel_build(tracer: str, executor: Any) -> str | None:
+    """How the one-pass kernel ran, for the run's statistics: ``"ahead of time"``
+    (:mod:`toolbox.aot`, no numba import), ``"numba JIT"``, each Dask worker's own, or None
+    (contourpy traced)."""
+    if tracer != "kernel":
+        return None
+    if executor.kind != "local":
+        return "each worker's own (ahead of time where its warm-up built it, else numba JIT)"
+    from toolbox.aot import load_compiled
+
+    return "ahead of time" if load_compiled("contour_lines") is not None else "numba JIT"
 
 
 def tin_layer_contours(xyz: np.ndarray, triangles: np.ndarray, interval: float,

@@ -16,25 +16,32 @@ from toolbox.cache import njit_on_first_call
 
 def convex_hull(xy: np.ndarray) -> np.ndarray | None:
     """Vertices of the convex hull of ``xy`` ((n, 2) float), counter-clockwise, as an (m, 2)
-    array; ``None`` when the points are collinear or fewer than 3 (the hull has no area)."""
-    from scipy.spatial import ConvexHull, QhullError
+    array; ``None`` when the points are collinear or fewer than 3 (the hull has no area).
+
+    GEOS's hull (shapely, already loaded by every gridding run): the vertices Qhull gives
+    (scipy's ``ConvexHull``, the test oracle; collinear boundary points left out by both), in
+    the same counter-clockwise order, so the cells inside are the same; importing
+    ``scipy.spatial`` cost 0.3 s of a 2 s ``dem:idw`` run.
+    """
+    import shapely
 
     xy = np.asarray(xy, dtype="float64")[:, :2]
     if len(xy) < 3:
         return None
     xy = xy[_hull_candidates(xy)]
-    try:
-        hull = ConvexHull(xy)
-    except QhullError:
+    hull = shapely.convex_hull(shapely.multipoints(xy))
+    if hull.geom_type != "Polygon":  # collinear or coincident points: a line or a point
         return None
-    ring = xy[hull.vertices]
+    ring = shapely.get_coordinates(hull.exterior)[:-1]
     area = 0.5 * np.sum(ring[:, 0] * np.roll(ring[:, 1], -1) - np.roll(ring[:, 0], -1) * ring[:, 1])
+    if area < 0:  # GEOS's rings run clockwise
+        ring, area = ring[::-1].copy(), -area
     if not area > 0:
         return None
     return ring
 
 
-#: below this many points Qhull takes every point (about 15 ms at 50,000): the compiled filter
+#: below this many points GEOS takes every point (about 50 ms at 50,000): the compiled filter
 #: would cost a numba compilation (about a second) on a first run with small data
 HULL_FILTER_MIN_POINTS = 50_000
 
