@@ -169,3 +169,24 @@ def test_a_failed_build_is_a_warning_and_the_warmup_goes_on(monkeypatch, caplog)
     with caplog.at_level("WARNING", logger="toolbox"):
         assert warmup.build_ahead_of_time() == []
     assert "ahead-of-time kernels were not built (OSError: command 'gcc' failed" in caplog.text
+
+
+@pytest.mark.parametrize("present", [True, False])
+def test_the_warmup_command_says_where_the_modules_are(tmp_path, monkeypatch, present):
+    """``toolbox warmup``'s last line names the folder and the count; without a module it warns
+    that runs use the JIT (the warm-up itself stubbed: the real one takes a minute)."""
+    from click.testing import CliRunner
+
+    from toolbox import warmup
+    from toolbox.cli.app import main
+
+    monkeypatch.setattr(warmup, "warmup", lambda: 3)
+    monkeypatch.setattr(aot, "_folder", [str(tmp_path)])
+    if present:
+        Path(aot.module_path("contour_lines")).write_bytes(b"")
+    result = CliRunner().invoke(main, ["warmup"])
+    assert result.exit_code == 0, result.output
+    count = "1 of 1" if present else "0 of 1"
+    assert "Warm-up finished: 3 runs;" in result.output
+    assert f"{count} ahead-of-time kernels in {tmp_path}" in result.output
+    assert ("runs use numba's JIT" in result.output) is not present

@@ -547,9 +547,11 @@ def warmup_cmd(ctx: click.Context) -> None:
         steps = warmup()
     finally:
         toolbox_log.setLevel(level)
-    from toolbox.aot import EXPORTS, aot_folder, compiled_available
+    import os
 
-    built = sum(compiled_available(name) for name in EXPORTS)
+    from toolbox.aot import EXPORTS, aot_folder, module_path
+
+    built = sum(os.path.isfile(module_path(name)) for name in EXPORTS)
     click.echo(f"Warm-up finished: {steps} runs; compiled kernels in {numba.config.CACHE_DIR}; "
                f"{built} of {len(EXPORTS)} ahead-of-time kernels in {aot_folder()}")
     if built < len(EXPORTS):
