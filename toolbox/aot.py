@@ -7,9 +7,10 @@ may need less: carto:contours traces a 2000 x 2000 DEM in 0.15 s. ``toolbox warm
 compiler (``numba.pycc``) into one extension module each, for this machine's CPU, in the
 per-user cache (:func:`aot_folder`); a run loads the module (a plain ``.so``: numpy only; it
 releases the GIL as the JIT kernel does) when it is there and calls numba's JIT otherwise.
-Both compile the same kernel source, so they give the same arrays (tests). A build needs a C
-compiler and Python's headers; without them, or when numba drops its AOT compiler, a warning
-says so and runs keep the JIT.
+Both compile the same kernel source, so they give the same arrays (tests). Callers go through
+:func:`compiled_kernel`, which checks the arguments that pycc's wrapper takes on trust. A build
+needs a C compiler and Python's headers; without them, or when numba drops its AOT compiler, a
+warning says so and runs keep the JIT.
 
 The folder is keyed by the toolbox's sources (:func:`toolbox.cache.kernel_sources_key`), the
 Python and numpy versions and the CPU (its model and feature flags), so a module is never loaded
@@ -23,10 +24,12 @@ import contextlib
 import os
 import threading
 
-#: name -> (kernel module, its numba dispatcher, the exported signature)
+#: name -> (kernel module, its numba dispatcher, the exported signature, (dtype, ndim) of each
+#: argument: C-contiguous arrays, checked before every call, see :func:`compiled_kernel`)
 EXPORTS = {
     "contour_lines": ("toolbox.cartography.contour_kernel", "lines_core",
-                      "Tuple((float64[:, :], int64[:], int32[:]))(float64[:, ::1], float64[::1])"),
+                      "Tuple((float64[:, :], int64[:], int32[:]))(float64[:, ::1], float64[::1])",
+                      (("float64", 2), ("float64", 1))),
 }
 
 _loaded: dict[str, object] = {}
@@ -83,8 +86,8 @@ def compiled_available(name: str) -> bool:
 
 def load_compiled(name: str, folder: str | None = None):
     """The compiled module of kernel ``name`` (its function is the kernel's name), or None when
-    there is none (or ``TOOLBOX_AOT=0``): the caller then uses numba's JIT. Thread-safe; loaded
-    once a process."""
+    there is none (or ``TOOLBOX_AOT=0``). Thread-safe; loaded once a process. Call kernels
+    through :func:`compiled_kernel`, which checks their arguments."""
     key = f"{name}@{folder}" if folder else name
     with _lock:
         if key not in _loaded:
@@ -101,6 +104,38 @@ def load_compiled(name: str, folder: str | None = None):
                 except (ImportError, OSError):
                     pass  # a broken build: the JIT
         return _loaded[key]
+
+
+def compiled_kernel(name: str, folder: str | None = None):
+    """Kernel ``name`` compiled ahead of time, as a function that checks its arguments, or None
+    (no module, or ``TOOLBOX_AOT=0``: the caller uses numba's JIT).
+
+    pycc's wrapper does not check them as the JIT's dispatcher does: a float32 or non-contiguous
+    array would be read as the declared type (a crash, or wrong values in silence). So every
+    argument must be a C-contiguous, aligned array of the exported dtype and dimensions, else
+    :class:`TypeError` before the call."""
+    module = load_compiled(name, folder)
+    if module is None:
+        return None
+    import numpy as np
+
+    _, kernel, _, arrays = EXPORTS[name]
+    function = getattr(module, kernel)
+    wanted = [(np.dtype(dtype), ndim) for dtype, ndim in arrays]
+
+    def call(*args):
+        if len(args) != len(wanted):
+            raise TypeError(f"{name} takes {len(wanted)} arguments, got {len(args)}")
+        for i, ((dtype, ndim), value) in enumerate(zip(wanted, args, strict=True)):
+            if not (isinstance(value, np.ndarray) and value.dtype == dtype and value.ndim == ndim
+                    and value.flags.c_contiguous and value.flags.aligned):
+                got = (f"{value.dtype} {value.ndim}-D, C-contiguous {value.flags.c_contiguous}"
+                       if isinstance(value, np.ndarray) else type(value).__name__)
+                raise TypeError(f"{name}: argument {i} must be a C-contiguous {ndim}-D {dtype} "
+                                f"array, got {got}")
+        return function(*args)
+
+    return call
 
 
 def build_compiled(folder: str | None = None, names: tuple[str, ...] | None = None) -> list[str]:
@@ -123,7 +158,7 @@ def build_compiled(folder: str | None = None, names: tuple[str, ...] | None = No
         from numba.pycc import compiler as pycc_compiler
     built = []
     for name in names or tuple(EXPORTS):
-        module_name, kernel, signature = EXPORTS[name]
+        module_name, kernel, signature, _ = EXPORTS[name]
         dispatcher = getattr(importlib.import_module(module_name), kernel)
         staging = tempfile.mkdtemp(prefix=f".{name}-", dir=folder)
         try:

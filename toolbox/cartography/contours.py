@@ -172,15 +172,15 @@ def kernel_lines(z: np.ndarray, levels: np.ndarray) -> tuple[np.ndarray, np.ndar
     """:func:`toolbox.cartography.contour_kernel.grid_lines` of a grid of at least 2 x 2 nodes
     and one level, by the kernel's ahead-of-time build when this machine has one
     (:mod:`toolbox.aot`: numba is not imported), else by numba's JIT: the same arrays."""
-    from toolbox.aot import load_compiled
+    from toolbox.aot import compiled_kernel
 
-    compiled = load_compiled("contour_lines")
+    compiled = compiled_kernel("contour_lines")
     if compiled is None:
         from toolbox.cartography.contour_kernel import grid_lines
 
         return grid_lines(z, levels)
-    return compiled.lines_core(np.ascontiguousarray(z, dtype=np.float64),
-                               np.ascontiguousarray(levels, dtype=np.float64))
+    return compiled(np.ascontiguousarray(z, dtype=np.float64),
+                    np.ascontiguousarray(levels, dtype=np.float64))
 
 
 def _split_lines(points: np.ndarray, offsets: np.ndarray) -> list[tuple[int, np.ndarray]]:
