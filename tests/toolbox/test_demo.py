@@ -48,3 +48,22 @@ def test_demo_runs_end_to_end(demo_run):
         result = subprocess.run(["/usr/bin/python3", "-c", script, *map(str, gpkgs)],
                                 capture_output=True, text=True, timeout=300)
         assert result.returncode == 0, result.stderr[-2000:]
+
+
+def test_the_demo_reruns_into_its_own_folder(demo_run, tmp_path):
+    """`make demo` twice: the second run replaces the first one's outputs and reports (the
+    quality report reads the reports folder, which holds its own report of the first run)."""
+    import shutil
+
+    from toolbox.demo import run_demo
+
+    first, _ = demo_run
+    again = tmp_path / "demo_out"
+    shutil.copytree(first, again)
+    before = (again / "reports" / "report_quality.json").stat().st_mtime_ns
+    summary = run_demo(again)
+    assert f"outputs in {again}" in summary
+    steps = {s["name"] for s in demo_pipeline_doc()["steps"]}
+    assert {p.stem for p in (again / "reports").glob("*.json")} == steps
+    assert (again / "reports" / "report_quality.json").stat().st_mtime_ns > before
+    assert (again / "carto" / "quality.pdf").exists()

@@ -50,6 +50,11 @@ def run_demo(out_dir: Path, feedback: Feedback | None = None) -> str:
                              "#   toolbox batch demo_out/demo_pipeline.yaml --overwrite)\n"
                              + yaml.safe_dump(doc, sort_keys=False), encoding="utf-8")
     pipeline = load_pipeline(pipeline_file)
+    # a rerun into the same folder: the previous run's reports of these steps go first, since
+    # report:quality reads the reports folder (it would read its own old report, and the runner
+    # refuses to write a report over a file of an input folder)
+    for step in doc["steps"]:
+        (out_dir / "reports" / f"{step['name']}.json").unlink(missing_ok=True)
     results = run_pipeline(pipeline, feedback=feedback.step(5, 100), overwrite=True,
                            report_dir=out_dir / "reports")
     lines = [f"Demo finished: {len(results)} steps, outputs in {out_dir}", ""]
