@@ -161,10 +161,11 @@ def _dem_differences(dem: Path, xyz: np.ndarray) -> np.ndarray:
     """Point Z minus the DEM's height there (bilinear; NaN off the DEM)."""
     import rasterio
 
+    from toolbox.io.raster import read_filled
     from toolbox.photogrammetry.surface import DemSurface
 
     with rasterio.open(dem) as src:
-        z = src.read(1, masked=True).astype("float64").filled(np.nan)
+        z = read_filled(src, 1)
         surface = DemSurface.from_transform(z, src.transform)
     return xyz[:, 2] - surface.height(xyz[:, 0], xyz[:, 1])
 
