@@ -77,9 +77,14 @@ def module_path(name: str, folder: str | None = None) -> str:
     return os.path.join(folder or aot_folder(), f"toolbox_aot_{name}{EXTENSION_SUFFIXES[0]}")
 
 
+def _jit_forced() -> bool:
+    """``TOOLBOX_AOT=0``: runs use numba's JIT."""
+    return os.environ.get("TOOLBOX_AOT", "1") == "0"
+
+
 def compiled_available(name: str) -> bool:
     """Whether kernel ``name`` has a compiled module this run would load (nothing imported)."""
-    if os.environ.get("TOOLBOX_AOT", "1") == "0":
+    if _jit_forced():
         return False
     return _loaded.get(name) is not None or os.path.isfile(module_path(name))
 
@@ -93,7 +98,7 @@ def load_compiled(name: str, folder: str | None = None):
         if key not in _loaded:
             _loaded[key] = None
             path = module_path(name, folder)
-            if (folder or os.environ.get("TOOLBOX_AOT", "1") != "0") and os.path.isfile(path):
+            if (folder or not _jit_forced()) and os.path.isfile(path):
                 import importlib.util
 
                 try:
