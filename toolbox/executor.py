@@ -270,6 +270,30 @@ def thread_pool(workers: int) -> Iterator[Callable[..., Any]]:
             idle.append(pool)
 
 
+#: cells a thread of :func:`in_row_bands` gets at least (a band of fewer is not worth a thread)
+ROW_BAND_MIN_CELLS = 250_000
+
+
+def in_row_bands(task: Callable[[int, int], Any], rows: int, cells_per_row: int = 1,
+                 workers: int | None = None) -> None:
+    """Call ``task(start, stop)`` on consecutive bands of ``range(rows)``, one band per local
+    thread (:func:`thread_pool`), so a compiled ``nogil`` kernel that fills its rows of shared
+    output arrays uses every core; a single call ``task(0, rows)`` when the whole is under
+    ``2 *`` :data:`ROW_BAND_MIN_CELLS` cells or one thread is available. Exceptions
+    propagate."""
+    workers = default_workers() if workers is None else workers
+    cells = rows * max(cells_per_row, 1)
+    parts = max(1, min(workers, cells // max(ROW_BAND_MIN_CELLS, 1), rows))
+    if parts == 1:
+        task(0, rows)
+        return
+    edges = [rows * k // parts for k in range(parts + 1)]
+    with thread_pool(parts) as submit:
+        futures = [submit(task, a, b) for a, b in zip(edges[:-1], edges[1:], strict=True)]
+        for future in futures:
+            future.result()
+
+
 _BLAS_CONTROLLER: list[Any] = [None, -1]  # threadpoolctl's controller, len(sys.modules) then
 
 

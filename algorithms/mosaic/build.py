@@ -94,6 +94,7 @@ class MosaicBuild(Algorithm):
         from toolbox.mosaic.block import (
             cells_from_layer,
             centres_of,
+            close_block,
             mosaic_grid,
             open_block,
             seam_methods,
@@ -105,65 +106,68 @@ class MosaicBuild(Algorithm):
         from toolbox.mosaic.partition import voronoi_cells
 
         sources, crs = open_block([i.path for i in params["INPUT"]], "INPUT", feedback)
-        bands = {len(s.data_bands) for s in sources}
-        dtypes = {s.dtype for s in sources}
-        if len(bands) > 1:
-            raise self.fail("INPUT", f"the orthos have different band counts {sorted(bands)}; "
-                            "mosaic orthos of one kind")
-        if params["CUTLINES"] is not None:
-            cells = cells_from_layer(params["CUTLINES"], params["SOURCE_FIELD"], sources)
-        else:
-            cells = voronoi_cells([s.footprint for s in sources],
-                                  centres_of(sources, "nadir", None, feedback))
-        area = shapely.union_all([c for c in cells if not c.is_empty] or [union_area(sources)])
-        grid = mosaic_grid(sources, crs, params["CELL_SIZE"], area.union(union_area(sources)),
-                           feedback)
-        dtype = np.result_type(*dtypes).name
-        n_bands = bands.pop()
-        gains = offsets = None
-        if params["BALANCE"] and len(sources) > 1:
-            with feedback.timed("balance"):
-                stats = block_statistics(sources, [s.footprint for s in sources], crs)
-                gains, offsets = solve_gain_offset(stats, len(sources), n_bands)
-        feather = params["FEATHER_WIDTH"]
-        feather_cells = 8.0 if feather is None else feather / grid.cell_size[0]
-        plan = MosaicPlan(sources, cells, grid, n_bands, dtype, params["BLEND"], feather_cells,
-                          params["LEVELS"], gains, offsets, params["RESAMPLING"])
-        alpha = any(s.alpha_band is not None for s in sources)
-        nodata = next((s.nodata for s in sources if s.nodata is not None), 0)
-        index = params["SOURCE_INDEX"]
-        scratch = None
-        if index is None and params["SEAMLINES"] is not None:  # the seams come from the index
-            import tempfile
-            from pathlib import Path
-
-            scratch = tempfile.TemporaryDirectory(prefix="mosaic_index_")
-            index = Path(scratch.name) / "source_index.tif"
         try:
-            with feedback.timed("mosaic"):
-                stats = write_mosaic(plan, params["OUTPUT"], index, alpha=alpha,
-                                     nodata=None if alpha else nodata, cog=params["COG"],
-                                     overviews=params["OVERVIEWS"],
-                                     executor=executor_of(params),
-                                     feedback=feedback.step(5, 95))
-            if params["SEAMLINES"] is not None:
-                with feedback.timed("seams"):
-                    seams, _ = index_raster_seams(index)
-                if params["CUTLINES"] is not None:
-                    methods = seam_methods(params["CUTLINES"], sources)
-                    default = "cut polygons"
-                else:
-                    methods, default = {}, "voronoi"
-                write_layers(params["SEAMLINES"], {"seamlines": seams_frame(
-                    sources, seams, crs, methods, default)},
-                    geometry_types={"seamlines": "MultiLineString"})
+            bands = {len(s.data_bands) for s in sources}
+            dtypes = {s.dtype for s in sources}
+            if len(bands) > 1:
+                raise self.fail("INPUT", f"the orthos have different band counts {sorted(bands)}; "
+                                "mosaic orthos of one kind")
+            if params["CUTLINES"] is not None:
+                cells = cells_from_layer(params["CUTLINES"], params["SOURCE_FIELD"], sources)
+            else:
+                cells = voronoi_cells([s.footprint for s in sources],
+                                      centres_of(sources, "nadir", None, feedback))
+            area = shapely.union_all([c for c in cells if not c.is_empty] or [union_area(sources)])
+            grid = mosaic_grid(sources, crs, params["CELL_SIZE"], area.union(union_area(sources)),
+                               feedback)
+            dtype = np.result_type(*dtypes).name
+            n_bands = bands.pop()
+            gains = offsets = None
+            if params["BALANCE"] and len(sources) > 1:
+                with feedback.timed("balance"):
+                    stats = block_statistics(sources, [s.footprint for s in sources], crs)
+                    gains, offsets = solve_gain_offset(stats, len(sources), n_bands)
+            feather = params["FEATHER_WIDTH"]
+            feather_cells = 8.0 if feather is None else feather / grid.cell_size[0]
+            plan = MosaicPlan(sources, cells, grid, n_bands, dtype, params["BLEND"], feather_cells,
+                              params["LEVELS"], gains, offsets, params["RESAMPLING"])
+            alpha = any(s.alpha_band is not None for s in sources)
+            nodata = next((s.nodata for s in sources if s.nodata is not None), 0)
+            index = params["SOURCE_INDEX"]
+            scratch = None
+            if index is None and params["SEAMLINES"] is not None:  # the seams come from the index
+                import tempfile
+                from pathlib import Path
+
+                scratch = tempfile.TemporaryDirectory(prefix="mosaic_index_")
+                index = Path(scratch.name) / "source_index.tif"
+            try:
+                with feedback.timed("mosaic"):
+                    stats = write_mosaic(plan, params["OUTPUT"], index, alpha=alpha,
+                                         nodata=None if alpha else nodata, cog=params["COG"],
+                                         overviews=params["OVERVIEWS"],
+                                         executor=executor_of(params),
+                                         feedback=feedback.step(5, 95))
+                if params["SEAMLINES"] is not None:
+                    with feedback.timed("seams"):
+                        seams, _ = index_raster_seams(index)
+                    if params["CUTLINES"] is not None:
+                        methods = seam_methods(params["CUTLINES"], sources)
+                        default = "cut polygons"
+                    else:
+                        methods, default = {}, "voronoi"
+                    write_layers(params["SEAMLINES"], {"seamlines": seams_frame(
+                        sources, seams, crs, methods, default)},
+                        geometry_types={"seamlines": "MultiLineString"})
+            finally:
+                if scratch is not None:
+                    scratch.cleanup()
+            return {"OUTPUT": params["OUTPUT"], "SOURCE_INDEX": params["SOURCE_INDEX"],
+                    "SEAMLINES": params["SEAMLINES"], "STATISTICS": {
+                        "crs": crs_label(crs), "width": grid.width, "height": grid.height,
+                        "cell_size": grid.cell_size[0], "bounds": list(grid.bounds),
+                        "blend": params["BLEND"], "alpha": alpha, **stats,
+                        "gains": None if gains is None else gains.round(5).tolist(),
+                        "offsets": None if offsets is None else offsets.round(4).tolist()}}
         finally:
-            if scratch is not None:
-                scratch.cleanup()
-        return {"OUTPUT": params["OUTPUT"], "SOURCE_INDEX": params["SOURCE_INDEX"],
-                "SEAMLINES": params["SEAMLINES"], "STATISTICS": {
-                    "crs": crs_label(crs), "width": grid.width, "height": grid.height,
-                    "cell_size": grid.cell_size[0], "bounds": list(grid.bounds),
-                    "blend": params["BLEND"], "alpha": alpha, **stats,
-                    "gains": None if gains is None else gains.round(5).tolist(),
-                    "offsets": None if offsets is None else offsets.round(4).tolist()}}
+            close_block(sources)

@@ -137,6 +137,7 @@ class MosaicSeamlines(Algorithm):
         from toolbox.mosaic.block import (
             cells_frame,
             centres_of,
+            close_block,
             mosaic_grid,
             nadir_points_from_layer,
             open_block,
@@ -151,70 +152,73 @@ class MosaicSeamlines(Algorithm):
 
         with feedback.timed("footprints"):
             sources, crs = open_block([i.path for i in params["INPUT"]], "INPUT", feedback)
-        points = None
-        if params["NADIR_POINTS"] is not None:
-            points = nadir_points_from_layer(params["NADIR_POINTS"], params["NADIR_FIELD"],
-                                             sources)
-        centres = centres_of(sources, params["CENTRES"], points, feedback)
-        footprints = [s.footprint for s in sources]
-        with feedback.timed("voronoi"):
-            cells = voronoi_cells(footprints, centres)
-        feedback.set_progress(20)
-        seam_report = []
-        executor = executor_of(params)
-        if params["METHOD"] == "least_cost" and len(sources) > 1:
-            weights = CostWeights(difference=params["DIFFERENCE_WEIGHT"],
-                                  gradient=params["GRADIENT_WEIGHT"],
-                                  centre=params["CENTRE_WEIGHT"],
-                                  structure=params["STRUCTURE_WEIGHT"],
-                                  structure_radius=params["STRUCTURE_RADIUS"],
-                                  building=params["BUILDING_COST"], height=params["HEIGHT_COST"])
-            buildings = _polygons(params["BUILDINGS"], crs, read_vector)
-            forbidden = _polygons(params["FORBIDDEN"], crs, read_vector)
-            heights = None if params["HEIGHTS"] is None else \
-                open_source(params["HEIGHTS"].path, -1)
-            cell = params["SEAM_CELL_SIZE"] or min(s.res[0] for s in sources)
+        try:
+            points = None
+            if params["NADIR_POINTS"] is not None:
+                points = nadir_points_from_layer(params["NADIR_POINTS"], params["NADIR_FIELD"],
+                                                 sources)
+            centres = centres_of(sources, params["CENTRES"], points, feedback)
+            footprints = [s.footprint for s in sources]
+            with feedback.timed("voronoi"):
+                cells = voronoi_cells(footprints, centres)
+            feedback.set_progress(20)
+            seam_report = []
+            executor = executor_of(params)
+            if params["METHOD"] == "least_cost" and len(sources) > 1:
+                weights = CostWeights(difference=params["DIFFERENCE_WEIGHT"],
+                                      gradient=params["GRADIENT_WEIGHT"],
+                                      centre=params["CENTRE_WEIGHT"],
+                                      structure=params["STRUCTURE_WEIGHT"],
+                                      structure_radius=params["STRUCTURE_RADIUS"],
+                                      building=params["BUILDING_COST"], height=params["HEIGHT_COST"])
+                buildings = _polygons(params["BUILDINGS"], crs, read_vector)
+                forbidden = _polygons(params["FORBIDDEN"], crs, read_vector)
+                heights = None if params["HEIGHTS"] is None else \
+                    open_source(params["HEIGHTS"].path, -1)
+                cell = params["SEAM_CELL_SIZE"] or min(s.res[0] for s in sources)
 
-            def cost_for(i, j):
-                return PairCost(sources[i], sources[j], crs, weights, buildings, forbidden,
-                                heights, (centres[i], centres[j]))
+                def cost_for(i, j):
+                    return PairCost(sources[i], sources[j], crs, weights, buildings, forbidden,
+                                    heights, (centres[i], centres[j]))
 
-            with feedback.timed("least_cost"):
-                cells, seam_report = least_cost_cells(cells, footprints, cost_for, cell,
-                                                      params["MAX_CELLS"],
-                                                      feedback.step(20, 95), executor)
-            for entry in seam_report:
-                if entry["method"] != "least_cost":
-                    feedback.push_warning(f"seam {sources[entry['a']].name} / "
-                                          f"{sources[entry['b']].name} kept on the Voronoi "
-                                          f"line: {entry.get('note', '')}")
-        area = union_area(sources)
-        gap, overlap = partition_errors(cells, area)
-        methods = {(e["a"], e["b"]): e["method"] for e in seam_report}
-        with feedback.timed("seams"):  # the seams of the mosaic mosaic:build makes of the cells
-            grid = mosaic_grid(sources, crs, None, area)
-            plan = MosaicPlan(sources, cells, grid, len(sources[0].data_bands), sources[0].dtype)
-            seams = partition_seams(plan)
-        centre_frame = gpd.GeoDataFrame(
-            {"source_id": [s.index + 1 for s in sources], "source": [s.name for s in sources]},
-            geometry=[shapely.Point(c) for c in centres], crs=crs)
-        foot_frame = gpd.GeoDataFrame(
-            {"source_id": [s.index + 1 for s in sources], "source": [s.name for s in sources]},
-            geometry=[f if f.geom_type == "MultiPolygon" else shapely.MultiPolygon([f])
-                      for f in footprints], crs=crs)
-        write_layers(params["OUTPUT"], {
-            "cut_polygons": cells_frame(sources, cells, crs, params["OUTPUT"]),
-            "seamlines": seams_frame(sources, seams, crs, methods),
-            "footprints": foot_frame, "centres": centre_frame},
-            geometry_types={"cut_polygons": "MultiPolygon", "seamlines": "MultiLineString",
-                            "footprints": "MultiPolygon", "centres": "Point"})
-        return {"OUTPUT": params["OUTPUT"], "STATISTICS": {
-            "method": params["METHOD"], "orthos": len(sources), "executor": executor.describe(),
-            "area": float(area.area), "partition_gap_area": gap, "max_overlap_area": overlap,
-            "cut_areas": {s.name: float(c.area) for s, c in zip(sources, cells, strict=True)},
-            "seam_grid_cell": grid.cell_size[0],
-            "seams": [{**e, "a": sources[e["a"]].name, "b": sources[e["b"]].name}
-                      for e in seam_report]}}
+                with feedback.timed("least_cost"):
+                    cells, seam_report = least_cost_cells(cells, footprints, cost_for, cell,
+                                                          params["MAX_CELLS"],
+                                                          feedback.step(20, 95), executor)
+                for entry in seam_report:
+                    if entry["method"] != "least_cost":
+                        feedback.push_warning(f"seam {sources[entry['a']].name} / "
+                                              f"{sources[entry['b']].name} kept on the Voronoi "
+                                              f"line: {entry.get('note', '')}")
+            area = union_area(sources)
+            gap, overlap = partition_errors(cells, area)
+            methods = {(e["a"], e["b"]): e["method"] for e in seam_report}
+            with feedback.timed("seams"):  # the seams of the mosaic mosaic:build makes of the cells
+                grid = mosaic_grid(sources, crs, None, area)
+                plan = MosaicPlan(sources, cells, grid, len(sources[0].data_bands), sources[0].dtype)
+                seams = partition_seams(plan)
+            centre_frame = gpd.GeoDataFrame(
+                {"source_id": [s.index + 1 for s in sources], "source": [s.name for s in sources]},
+                geometry=[shapely.Point(c) for c in centres], crs=crs)
+            foot_frame = gpd.GeoDataFrame(
+                {"source_id": [s.index + 1 for s in sources], "source": [s.name for s in sources]},
+                geometry=[f if f.geom_type == "MultiPolygon" else shapely.MultiPolygon([f])
+                          for f in footprints], crs=crs)
+            write_layers(params["OUTPUT"], {
+                "cut_polygons": cells_frame(sources, cells, crs, params["OUTPUT"]),
+                "seamlines": seams_frame(sources, seams, crs, methods),
+                "footprints": foot_frame, "centres": centre_frame},
+                geometry_types={"cut_polygons": "MultiPolygon", "seamlines": "MultiLineString",
+                                "footprints": "MultiPolygon", "centres": "Point"})
+            return {"OUTPUT": params["OUTPUT"], "STATISTICS": {
+                "method": params["METHOD"], "orthos": len(sources), "executor": executor.describe(),
+                "area": float(area.area), "partition_gap_area": gap, "max_overlap_area": overlap,
+                "cut_areas": {s.name: float(c.area) for s, c in zip(sources, cells, strict=True)},
+                "seam_grid_cell": grid.cell_size[0],
+                "seams": [{**e, "a": sources[e["a"]].name, "b": sources[e["b"]].name}
+                          for e in seam_report]}}
+        finally:
+            close_block(sources)
 
 
 def _polygons(layer, crs, read_vector) -> list:

@@ -20,10 +20,12 @@ def open_block(paths: list, name: str = "INPUT", feedback: Any = None) -> tuple[
     from pyproj import CRS
 
     from toolbox.io.crs import common_crs
+    from toolbox.raster.datasets import ThreadDatasets
 
     sources = []
+    datasets = ThreadDatasets()
     for k, p in enumerate(paths):
-        src = open_source(Path(p), k)
+        src = open_source(Path(p), k, datasets)
         if src.name in {s.name for s in sources}:
             raise ParameterError(name, f"two inputs are named '{src.name}' (the file name "
                                  "identifies an ortho in the cut polygons): rename one")
@@ -34,6 +36,13 @@ def open_block(paths: list, name: str = "INPUT", feedback: Any = None) -> tuple[
     crs = common_crs({f"{name}[{s.index}] ({s.name})":
                       CRS.from_wkt(s.crs.to_wkt()) if s.crs else None for s in sources})
     return sources, crs
+
+
+def close_block(sources: list[OrthoSource]) -> None:
+    """Close the rasters that :func:`open_block` keeps open for the sources' reads."""
+    for datasets in {id(s.datasets): s.datasets for s in sources
+                     if s.datasets is not None}.values():
+        datasets.close()
 
 
 def centres_of(sources: list[OrthoSource], how: str, points: dict | None = None,

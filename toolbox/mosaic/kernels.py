@@ -28,26 +28,38 @@ def _row_mean(x, r, out):
     out[cols + 1] = out[cols]
 
 
-@njit(cache=True, nogil=True)
-def image_terms(a, b, scale):
+def image_terms(a, b, scale, workers=None):
     """The image terms of two co-registered images ``(bands, rows, cols)`` float32, each scaled
     by ``scale`` (1 / value range): ``diff`` = mean over bands of ``|a − b|``; ``grad`` = the
     larger Sobel gradient magnitude (derivatives / 8) of the two band means; ``gdiff`` = the
     magnitude of the difference of their Sobel gradients. Float64 ``(rows, cols)`` each.
 
-    One pass over the rows, with the band means of three rows at a time (row ``r`` in slot
-    ``(r + 3) % 3``)."""
+    Bands of rows on ``workers`` local threads (default: every core) for large images
+    (:func:`toolbox.executor.in_row_bands`); each band is :func:`image_terms_rows`."""
+    from toolbox.executor import in_row_bands
+
     bands, rows, cols = a.shape
     diff = np.zeros((rows, cols), np.float64)
     grad = np.empty((rows, cols), np.float64)
     gdiff = np.empty((rows, cols), np.float64)
+    in_row_bands(lambda r0, r1: image_terms_rows(a, b, scale, r0, r1, diff, grad, gdiff),
+                 rows, cols, workers=workers)
+    return diff, grad, gdiff
+
+
+@njit(cache=True, nogil=True)
+def image_terms_rows(a, b, scale, r0, r1, diff, grad, gdiff):
+    """Rows ``r0`` to ``r1`` (excluded) of :func:`image_terms` into ``diff`` (zeroed),
+    ``grad``, ``gdiff``. One pass over the rows, with the band means of three rows at a time
+    (row ``r`` in slot ``(r + 3) % 3``)."""
+    bands, rows, cols = a.shape
     ma = np.empty((3, cols + 2), np.float64)
     mb = np.empty((3, cols + 2), np.float64)
-    for r in (-1, 0):
+    for r in (r0 - 1, r0):
         _row_mean(a, r, ma[(r + 3) % 3])
         _row_mean(b, r, mb[(r + 3) % 3])
     inv = scale / bands
-    for r in range(rows):
+    for r in range(r0, r1):
         _row_mean(a, r + 1, ma[(r + 1) % 3])
         _row_mean(b, r + 1, mb[(r + 1) % 3])
         up_a, mid_a, dn_a = ma[(r + 2) % 3], ma[r % 3], ma[(r + 1) % 3]
@@ -70,7 +82,6 @@ def image_terms(a, b, scale):
             gb = by * by + bx * bx
             grad[r, c] = np.sqrt(max(ga, gb)) * scale
             gdiff[r, c] = np.sqrt((ay - by) * (ay - by) + (ax - bx) * (ax - bx)) * scale
-    return diff, grad, gdiff
 
 
 @njit(cache=True, nogil=True)
@@ -112,32 +123,53 @@ def _lower_envelope(f, n, out, v, z):
         out[q] = (q - p) * (q - p) + f[p]
 
 
-@njit(cache=True, nogil=True)
-def within_radius(mask, radius):
+def within_radius(mask, radius, workers=None):
     """True where the Euclidean distance (in cells) to the nearest True cell of ``mask`` is at
-    most ``radius``: the exact squared distance transform, columns then rows."""
+    most ``radius``: the exact squared distance transform, columns then rows, each pass in
+    bands on ``workers`` local threads for large masks (:func:`toolbox.executor.in_row_bands`)."""
+    from toolbox.executor import in_row_bands
+
     rows, cols = mask.shape
-    n = max(rows, cols)
     d = np.empty((rows, cols), np.float64)
-    f = np.empty(n, np.float64)
-    out = np.empty(n, np.float64)
-    v = np.empty(n, np.int64)
-    z = np.empty(n + 1, np.float64)
-    for c in range(cols):
+    result = np.empty((rows, cols), np.bool_)
+    in_row_bands(lambda c0, c1: _column_distances(mask, c0, c1, d), cols, rows, workers=workers)
+    in_row_bands(lambda r0, r1: _row_within(d, radius * radius, r0, r1, result), rows, cols,
+                 workers=workers)
+    return result
+
+
+@njit(cache=True, nogil=True)
+def _column_distances(mask, c0, c1, d):
+    """Squared distances along each column ``c0`` to ``c1`` (excluded) to its nearest True
+    cell of ``mask``, into ``d``."""
+    rows = mask.shape[0]
+    f = np.empty(rows, np.float64)
+    out = np.empty(rows, np.float64)
+    v = np.empty(rows, np.int64)
+    z = np.empty(rows + 1, np.float64)
+    for c in range(c0, c1):
         for r in range(rows):
             f[r] = 0.0 if mask[r, c] else np.inf
         _lower_envelope(f, rows, out, v, z)
         for r in range(rows):
             d[r, c] = out[r]
-    r2 = radius * radius
-    result = np.empty((rows, cols), np.bool_)
-    for r in range(rows):
+
+
+@njit(cache=True, nogil=True)
+def _row_within(d, r2, r0, r1, result):
+    """Rows ``r0`` to ``r1`` (excluded): ``result`` True where the squared distance of the
+    column distances ``d`` completed along the row is at most ``r2``."""
+    cols = d.shape[1]
+    f = np.empty(cols, np.float64)
+    out = np.empty(cols, np.float64)
+    v = np.empty(cols, np.int64)
+    z = np.empty(cols + 1, np.float64)
+    for r in range(r0, r1):
         for c in range(cols):
             f[c] = d[r, c]
         _lower_envelope(f, cols, out, v, z)
         for c in range(cols):
             result[r, c] = out[c] <= r2
-    return result
 
 
 @njit(cache=True, nogil=True)

@@ -9,6 +9,7 @@ tags ``NADIR_X``/``NADIR_Y`` (or the projection centre ``X0``/``Y0``) or given b
 from __future__ import annotations
 
 import math
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -37,6 +38,9 @@ class OrthoSource:
     nodata: float | None
     nadir: tuple[float, float] | None = None
     footprint: Any = field(default=None, repr=False)  # shapely polygon of valid data
+    #: the block's open rasters (:class:`~toolbox.raster.datasets.ThreadDatasets`, shared by the
+    #: sources of :func:`toolbox.mosaic.block.open_block`), or None: each read opens the file
+    datasets: Any = field(default=None, repr=False, compare=False)
 
     @property
     def bounds(self) -> tuple[float, float, float, float]:
@@ -59,13 +63,32 @@ class OrthoSource:
         return ((x0 + x1) / 2, (y0 + y1) / 2)
 
 
-def open_source(path: str | Path, index: int) -> OrthoSource:
-    """Read an ortho's metadata (no pixels). Raises :class:`InputDataError` for rotated grids."""
+def opened(source: OrthoSource):
+    """The source's raster for reading (a context manager): this thread's dataset kept open by
+    ``source.datasets`` (GDAL's block cache then serves the blocks that the footprint, the
+    seams' costs and the mosaic's overlapping tiles read again), else opened and closed here."""
+    return _opened(source.path, source.datasets)
+
+
+@contextmanager
+def _opened(path: Path, datasets: Any):
+    if datasets is not None:
+        yield datasets.get(path)
+        return
     import rasterio
+
+    with rasterio.open(path) as src:
+        yield src
+
+
+def open_source(path: str | Path, index: int, datasets: Any = None) -> OrthoSource:
+    """Read an ortho's metadata (no pixels); with ``datasets`` (a
+    :class:`~toolbox.raster.datasets.ThreadDatasets`) the raster stays open there for the
+    source's reads. Raises :class:`InputDataError` for rotated grids."""
     from rasterio.enums import ColorInterp
 
     path = Path(path)
-    with rasterio.open(path) as src:
+    with _opened(path, datasets) as src:
         t = src.transform
         if t.b != 0 or t.d != 0:
             raise InputDataError(f"'{path}' has a rotated geotransform; mosaic inputs must be "
@@ -85,7 +108,8 @@ def open_source(path: str | Path, index: int) -> OrthoSource:
                 except ValueError:
                     continue
         return OrthoSource(index, path, path.stem, src.width, src.height, t, src.crs,
-                           src.dtypes[bands[0] - 1], bands, alpha, src.nodata, nadir)
+                           src.dtypes[bands[0] - 1], bands, alpha, src.nodata, nadir,
+                           datasets=datasets)
 
 
 def valid_footprint(source: OrthoSource, max_size: int = 1024, simplify: float | None = None):
@@ -95,14 +119,13 @@ def valid_footprint(source: OrthoSource, max_size: int = 1024, simplify: float |
     The outline follows cell edges at the decimated resolution, simplified by ``simplify`` ground
     units (default: one decimated cell); holes smaller than 4 decimated cells are dropped.
     """
-    import rasterio
     import shapely
     from affine import Affine
     from rasterio.features import shapes
 
     factor = max(1, math.ceil(max(source.width, source.height) / max_size))
     w, h = math.ceil(source.width / factor), math.ceil(source.height / factor)
-    with rasterio.open(source.path) as src:
+    with opened(source) as src:
         mask = src.dataset_mask(out_shape=(h, w)) > 0
     if mask.all():  # what tracing gives, without tracing: the raster's outline
         return shapely.box(*source.bounds)
@@ -149,11 +172,10 @@ def read_window(source: OrthoSource, grid_transform: Any, grid_crs: Any, window:
     cell; others are resampled by :func:`toolbox.raster.reproject.read_onto` (``resampling``
     for data, nearest for the mask: :func:`~toolbox.raster.reproject.mask_onto`).
     """
-    import rasterio
     from rasterio.windows import transform as window_transform
 
     rows, cols = int(window.height), int(window.width)
-    with rasterio.open(source.path) as src:
+    with opened(source) as src:
         if aligned(source, grid_transform):
             data = np.zeros((len(source.data_bands), rows, cols), dtype="float32")
             valid = np.zeros((rows, cols), dtype=bool)
@@ -176,11 +198,10 @@ def read_valid(source: OrthoSource, grid_transform: Any, grid_crs: Any, window: 
                ) -> np.ndarray:
     """Only the ``valid`` mask of :func:`read_window` (no data bands read where GDAL's mask
     does not need them: an alpha band or an internal mask)."""
-    import rasterio
     from rasterio.windows import transform as window_transform
 
     rows, cols = int(window.height), int(window.width)
-    with rasterio.open(source.path) as src:
+    with opened(source) as src:
         if aligned(source, grid_transform):
             valid = np.zeros((rows, cols), dtype=bool)
             part = _inside(source, grid_transform, window)

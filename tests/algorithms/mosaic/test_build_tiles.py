@@ -4,9 +4,12 @@ mosaic passes the COG layout check."""
 
 from __future__ import annotations
 
+import os
 from functools import partial
+from pathlib import Path
 
 import numpy as np
+import pyogrio
 import pytest
 import rasterio
 
@@ -47,3 +50,50 @@ def test_cog_mosaic(pair, tmp_path):
     cog, _, _ = _build(pair, tmp_path / "cog", "none", COG=True)
     np.testing.assert_array_equal(cog, plain)
     assert cog_problems(tmp_path / "cog" / "none.tif") == []
+
+
+def _open_files() -> set[str]:
+    """The files this process holds open (Linux /proc)."""
+    out = set()
+    for fd in os.listdir("/proc/self/fd"):
+        try:
+            out.add(os.path.realpath(os.readlink(f"/proc/self/fd/{fd}")))
+        except OSError:
+            continue
+    return out
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc/self/fd"), reason="Linux /proc")
+def test_rasters_kept_open_during_the_run_give_the_same_mosaic_and_are_closed(
+        pair, tmp_path, monkeypatch):
+    """open_block keeps each ortho open for the run (GDAL's block cache serves the tiles' halo
+    reads): the same mosaic, index and seams as with every read opening its file, and no
+    input left open when the runs return."""
+    import toolbox.mosaic.block as block
+
+    orthos, _ = pair
+    inputs = {str(Path(o.path).resolve()) for o in orthos}
+    (tmp_path / "kept").mkdir()
+    (tmp_path / "each").mkdir()
+    kept = _build(pair, tmp_path / "kept", "feather")
+    toolbox.run("mosaic:seamlines", {"INPUT": [str(o.path) for o in orthos],
+                                     "OUTPUT": str(tmp_path / "kept" / "seams.gpkg")})
+    assert not inputs & _open_files()
+    real = block.open_source
+    monkeypatch.setattr(block, "open_source", lambda path, k, datasets=None: real(path, k))
+    each = _build(pair, tmp_path / "each", "feather")
+    toolbox.run("mosaic:seamlines", {"INPUT": [str(o.path) for o in orthos],
+                                     "OUTPUT": str(tmp_path / "each" / "seams.gpkg")})
+    np.testing.assert_array_equal(kept[0], each[0])
+    np.testing.assert_array_equal(kept[1], each[1])
+    for layer in ("cut_polygons", "seamlines"):
+        a = pyogrio.read_dataframe(tmp_path / "kept" / "seams.gpkg", layer=layer)
+        b = pyogrio.read_dataframe(tmp_path / "each" / "seams.gpkg", layer=layer)
+        assert a.geometry.to_wkb().tolist() == b.geometry.to_wkb().tolist()
+
+
+def test_open_files_sees_an_open_raster(pair):
+    """The check above can fail: a raster held open is listed."""
+    orthos, _ = pair
+    with rasterio.open(orthos[0].path):
+        assert str(Path(orthos[0].path).resolve()) in _open_files()

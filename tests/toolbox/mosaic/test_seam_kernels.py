@@ -109,6 +109,34 @@ def test_within_radius_equals_scipy_edt(density, radius):
     assert np.array_equal(within_radius(mask, radius), expected)
 
 
+def test_kernels_in_row_bands_on_threads_equal_one_call(monkeypatch):
+    """Bands of rows on threads (the banded kernels write rows of shared arrays; each band's
+    Sobel reads its neighbours' rows) give the one call's arrays bit for bit, and scipy's."""
+    import toolbox.executor
+
+    rng = np.random.default_rng(11)
+    a = rng.uniform(0, 255, (3, 61, 47)).astype("float32")
+    b = (a + rng.normal(0, 20, a.shape)).astype("float32")
+    mask = rng.random((61, 47)) < 0.01
+    whole = image_terms(a, b, 0.01, workers=1), within_radius(mask, 6.0, workers=1)
+    monkeypatch.setattr(toolbox.executor, "ROW_BAND_MIN_CELLS", 100)
+    calls = []
+    real = toolbox.executor.in_row_bands
+    monkeypatch.setattr(toolbox.executor, "in_row_bands",
+                        lambda task, rows, *args, **kw: real(
+                            lambda r0, r1: (calls.append((r0, r1)), task(r0, r1)), rows,
+                            *args, **kw))
+    for workers in (2, 3, 7):
+        calls.clear()
+        terms = image_terms(a, b, 0.01, workers=workers)
+        near = within_radius(mask, 6.0, workers=workers)
+        assert len(calls) == 3 * workers  # every kernel split: image terms, columns, rows
+        for banded, one in zip(terms, whole[0], strict=True):
+            assert np.array_equal(banded, one)
+        assert np.array_equal(near, whole[1])
+    assert np.array_equal(whole[1], ndimage.distance_transform_edt(~mask) <= 6.0)
+
+
 def test_overview_is_the_block_mean_of_passable_cells():
     from toolbox.mosaic.route import overview
 
