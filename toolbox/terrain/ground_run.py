@@ -48,9 +48,10 @@ def read_dsm_points(info: Any) -> tuple[np.ndarray, float]:
     if t.b != 0 or t.d != 0 or not np.isclose(abs(t.a), abs(t.e)):
         raise InputDataError(f"DSM {info.path.name} must be north-up with square cells, got "
                              f"cell {abs(t.a):g} x {abs(t.e):g}")
-    with rasterio.open(info.path) as ds:
-        band = ds.read(1, masked=True)
-    z = band.filled(np.nan).astype(np.float64)
+    from toolbox.io.raster import read_filled
+
+    with rasterio.open(info.path) as ds:  # any band type: integer DSMs too
+        z = read_filled(ds, 1)
     rows, cols = np.nonzero(np.isfinite(z))
     if len(rows) < 3:
         raise InputDataError(f"DSM {info.path.name} has fewer than 3 valid cells")
@@ -164,8 +165,10 @@ def run_ground(request: GroundRequest, feedback: Feedback) -> dict[str, Any]:
 
         writer.write(Window(0, 0, width, height), mask)
     if request.heights is not None:
+        from toolbox.io.raster import read_filled
+
         with rasterio.open(gridding.output) as ds:
-            dtm = ds.read(1, masked=True).filled(np.nan).astype(np.float64)
+            dtm = read_filled(ds, 1)
         heights = heights_above(xyz, dtm, transform)
         with RasterWriter(request.heights, grid, 1, "float32", HEIGHTS_NODATA,
                           tile=int(gridding.execution.tile_size),

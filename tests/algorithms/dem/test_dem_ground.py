@@ -154,6 +154,30 @@ def test_ground_from_dsm(scene):
     assert np.abs(heights.data - truth)[roofs].max() < 1.0  # 8-15 m roofs stand up
 
 
+def test_ground_from_an_integer_dsm_with_nodata(scene, tmp_path):
+    """An Int16 DSM of whole metres with a nodata hole (integer DSMs are common) gives the DTM,
+    mask and point count of the same heights stored as Float32 with the same nodata, cell for
+    cell (it crashed: "Cannot convert fill_value nan to dtype int16")."""
+    with rasterio.open(scene["dsm"]) as ref:
+        metres = np.rint(ref.read(1)).astype("int16")
+        profile = ref.profile | {"nodata": -32768}
+    metres[40:44, 60:64] = -32768
+    runs = {}
+    for dtype in ("int16", "float32"):
+        dsm = tmp_path / f"dsm_{dtype}.tif"
+        with rasterio.open(dsm, "w", **(profile | {"dtype": dtype})) as ds:
+            ds.write(metres.astype(dtype), 1)
+        res = toolbox.run("dem:ground", {"DSM": str(dsm), "OUTPUT": str(tmp_path / f"{dtype}.tif"),
+                                         "NONGROUND": str(tmp_path / f"ng_{dtype}.tif")})
+        with rasterio.open(tmp_path / f"{dtype}.tif") as a, \
+                rasterio.open(tmp_path / f"ng_{dtype}.tif") as b:
+            runs[dtype] = a.read(1), b.read(1), res["STATISTICS"]["ground_filter"]["points"]
+    assert runs["int16"][2] == metres.size - 16  # the hole is no DSM point
+    np.testing.assert_array_equal(runs["int16"][0], runs["float32"][0])
+    np.testing.assert_array_equal(runs["int16"][1], runs["float32"][1])
+    assert (runs["int16"][0] != -9999.0).mean() > 0.9  # NODATA's default
+
+
 def test_ground_bad_input_exit_2(scene, tmp_path):
     from toolbox.cli import main
 
