@@ -1,8 +1,10 @@
 """Terrain derivatives of a DEM with Horn's 3x3 weights: slope, aspect and shaded relief.
 
 Kernels are arrays in, arrays out: each takes a ``(rows+2, cols+2)`` array (the cells to compute
-plus a one-cell halo) and returns ``(rows, cols)``. Rows go north to south, columns west to east;
-NaN cells give NaN. The formulas are those of ``gdaldem`` (Horn 1981):
+plus a one-cell halo) and returns ``(rows, cols)``. Rows go north to south, columns west to east
+for positive ``cell_x``, ``cell_y``; a raster running the other way passes them negative
+(:func:`signed_cell`: a south-up DEM has ``cell_y < 0``). NaN cells give NaN. The formulas
+are those of ``gdaldem`` (Horn 1981):
 
     dz/dx = ((c + 2f + i) - (a + 2d + g)) / (8 cell_x)      eastward
     dz/dy = ((a + 2b + c) - (g + 2h + i)) / (8 cell_y)      northward
@@ -171,7 +173,7 @@ def shade_raster(info, band: int, output: str | Path,
     exact32 = info.dtypes[band - 1] in ("float32", "uint8", "int8", "uint16", "int16")
     dem = RasterInput(info.path, bands=(band,), dtype="float32" if exact32 else "float64",
                       boundary="nodata")
-    cell = tuple(float(r) for r in info.res)
+    cell = signed_cell(info.transform)
     tile_kernel = partial(shade_tile, kernel, (info.width, info.height), cell)
     floating = np.dtype(dtype).kind == "f"
     valid = [0]
@@ -191,10 +193,24 @@ def shade_raster(info, band: int, output: str | Path,
             "tiles": result["tiles"], "executor": result["executor"]}
 
 
+def signed_cell(transform) -> tuple[float, float]:
+    """``(cell_x, cell_y)`` for the kernels, whose formulas take columns west to east and rows
+    north to south: negative when the raster runs the other way (``cell_y < 0`` for a
+    south-up raster, whose rows go south to north), so the gradient keeps its map direction
+    (a south-up DEM's aspect and shading would otherwise be mirrored north-south, as
+    gdaldem's are)."""
+    return float(transform.a), float(-transform.e)
+
+
 def check_georeferenced(info) -> None:
-    """The DEM ``info`` (a :class:`~toolbox.io.raster.RasterInfo`) is georeferenced: the kernels
-    need its cell size. (BAND within its bands: checked by the runner for every algorithm.)"""
+    """The DEM ``info`` (a :class:`~toolbox.io.raster.RasterInfo`) is georeferenced and not
+    rotated: the kernels need its cell size along map east and north. (BAND within its bands:
+    checked by the runner for every algorithm.)"""
     from toolbox.errors import InputDataError
 
     if not info.georeferenced:
         raise InputDataError(f"INPUT {info} has no georeferencing: cell size unknown")
+    t = info.transform
+    if t.b != 0 or t.d != 0:
+        raise InputDataError(f"INPUT {info} has a rotated geotransform (row/column rotation "
+                             f"{t.b:g}, {t.d:g}); warp it to a north-up grid first (gdalwarp)")

@@ -146,3 +146,45 @@ def test_band_beyond_the_dem_is_refused_before_any_output(plane_dem, tmp_path, a
     with pytest.raises(toolbox.ParameterError, match="BAND.*must be <= 1"):
         toolbox.run(algorithm, {"INPUT": plane_dem[0], "BAND": 2, "OUTPUT": out})
     assert not out.exists()
+
+
+@pytest.mark.parametrize("flip", ["south_up", "east_to_west"])
+@pytest.mark.parametrize("algorithm", ["dem:aspect", "dem:hillshade", "dem:slope"])
+def test_a_dem_stored_the_other_way_gives_the_same_map(real_dem, tmp_path, algorithm, flip):
+    """The same terrain stored south-up (rows south to north, a positive transform.e) or east
+    to west: aspect and shading keep their map directions (gdaldem's would be mirrored), equal
+    to the north-up run (itself equal to gdaldem's above) cell for cell on the same ground."""
+    from affine import Affine
+
+    with rasterio.open(real_dem) as ds:
+        z, t, rows, cols = ds.read(1), ds.transform, ds.height, ds.width
+    if flip == "south_up":
+        flipped, transform = z[::-1], Affine(t.a, 0, t.c, 0, -t.e, t.f + t.e * rows)
+    else:
+        flipped, transform = z[:, ::-1], Affine(-t.a, 0, t.c + t.a * cols, 0, t.e, t.f)
+    path = tmp_path / f"{flip}.tif"
+    write_raster(path, flipped, transform, CRS, nodata=-9999.0)
+    (tmp_path / "a").mkdir()
+    (tmp_path / "b").mkdir()
+    north_up, _ = ours(tmp_path / "a", algorithm, real_dem)
+    other, _ = ours(tmp_path / "b", algorithm, path)
+    back = other[::-1] if flip == "south_up" else other[:, ::-1]
+    if algorithm == "dem:aspect":  # angles: the same within float32 rounding, across 0/360
+        diff = np.abs((back.astype(float) - north_up + 180) % 360 - 180)
+        assert np.nanmax(np.where(north_up == -9999, 0, diff)) < 1e-3
+        assert np.array_equal(back == -9999, north_up == -9999)
+    else:
+        np.testing.assert_allclose(back, north_up, atol=1e-4)
+
+
+@pytest.mark.parametrize("algorithm", ["dem:hillshade", "dem:slope", "dem:aspect"])
+def test_a_rotated_dem_is_refused(tmp_path, algorithm):
+    from affine import Affine
+
+    path = tmp_path / "rotated.tif"
+    write_raster(path, np.ones((20, 20), "float32"),
+                 Affine(1.0, 0.2, 1688000.0, 0.1, -1.0, 4800000.0), CRS, nodata=-9999.0)
+    out = tmp_path / "out.tif"
+    with pytest.raises(toolbox.InputDataError, match="rotated geotransform"):
+        toolbox.run(algorithm, {"INPUT": path, "OUTPUT": out})
+    assert not out.exists()
