@@ -16,7 +16,8 @@ FOOTPRINT_CELLS = 2048  # footprints are traced on masks decimated to this size
 
 def open_block(paths: list, name: str = "INPUT", feedback: Any = None) -> tuple[list, Any]:
     """Open the orthos, check they share one CRS and trace their valid-data footprints.
-    Returns ``(sources, pyproj CRS or None)``."""
+    Returns ``(sources, pyproj CRS or None)``; the rasters stay open for the sources' reads
+    until :func:`close_block` (closed here if this fails)."""
     from pyproj import CRS
 
     from toolbox.io.crs import common_crs
@@ -24,17 +25,21 @@ def open_block(paths: list, name: str = "INPUT", feedback: Any = None) -> tuple[
 
     sources = []
     datasets = ThreadDatasets()
-    for k, p in enumerate(paths):
-        src = open_source(Path(p), k, datasets)
-        if src.name in {s.name for s in sources}:
-            raise ParameterError(name, f"two inputs are named '{src.name}' (the file name "
-                                 "identifies an ortho in the cut polygons): rename one")
-        src.footprint = valid_footprint(src, FOOTPRINT_CELLS)
-        sources.append(src)
-        if feedback is not None:
-            feedback.check_canceled()
-    crs = common_crs({f"{name}[{s.index}] ({s.name})":
-                      CRS.from_wkt(s.crs.to_wkt()) if s.crs else None for s in sources})
+    try:
+        for k, p in enumerate(paths):
+            src = open_source(Path(p), k, datasets)
+            if src.name in {s.name for s in sources}:
+                raise ParameterError(name, f"two inputs are named '{src.name}' (the file name "
+                                     "identifies an ortho in the cut polygons): rename one")
+            src.footprint = valid_footprint(src, FOOTPRINT_CELLS)
+            sources.append(src)
+            if feedback is not None:
+                feedback.check_canceled()
+        crs = common_crs({f"{name}[{s.index}] ({s.name})":
+                          CRS.from_wkt(s.crs.to_wkt()) if s.crs else None for s in sources})
+    except BaseException:
+        datasets.close()
+        raise
     return sources, crs
 
 
