@@ -109,7 +109,9 @@ def photo_surface(info: Any, photo: Any, crs: Any, band: int = 1) -> Any:
 
     with rasterio.open(info.path) as src:
         t, width, height = default_grid(src, crs)
-        data = read_onto(src, t, width, height, crs, indexes=band)[0].astype("float64")
+        # float64 with NaN where the DEM has no data (an integer DEM's nodata value would be
+        # kept as a height)
+        data = read_onto(src, t, width, height, crs, indexes=band, dtype="float64")[0]
     from toolbox.photogrammetry.surface import DemSurface, photo_ground_bounds
 
     whole = DemSurface.from_transform(data, t, crs)

@@ -102,3 +102,36 @@ def test_dem_with_a_vertical_crs_stays_on_the_direct_path(grey, tmp_path):
         with rasterio.open(tmp_path / f"{name}.tif") as src:
             runs[name] = src.read()
     assert np.array_equal(runs["plain"], runs["compound"])
+
+
+def test_integer_dem_with_nodata_in_another_crs_gives_the_float_dems_ortho(grey, tmp_path):
+    """An Int16 DEM with a nodata hole, in UTM while the project is in EPSG:3003, is reprojected
+    with its nodata as no height: the ortho of the same heights stored as Float32 with NaN
+    (it took -32768 as a height: "rays do not meet the height plane", or a wrong ortho)."""
+    from rasterio.enums import Resampling
+    from rasterio.warp import calculate_default_transform, reproject
+
+    with rasterio.open(grey.dem_path) as src:
+        metres = np.rint(src.read(1)).astype("int16")
+        profile = src.profile
+    metres[30:36, 40:46] = -32768  # a hole under the photo's footprint
+    runs = {}
+    for dtype, nodata in (("int16", -32768), ("float32", float("nan"))):
+        local = tmp_path / f"dem_{dtype}_3003.tif"
+        with rasterio.open(local, "w", **(profile | {"dtype": dtype, "nodata": nodata})) as dst:
+            dst.write(np.where(metres == -32768, nodata, metres).astype(dtype), 1)
+        utm = tmp_path / f"dem_{dtype}_utm.tif"
+        with rasterio.open(local) as src:  # gdalwarp -t_srs EPSG:32632 -tr 10 10 -r near
+            t, w, h = calculate_default_transform(src.crs, "EPSG:32632", src.width,
+                                                  src.height, *src.bounds, resolution=10.0)
+            with rasterio.open(utm, "w", **(src.profile | {"crs": "EPSG:32632", "transform": t,
+                                                           "width": w, "height": h})) as dst:
+                reproject(rasterio.band(src, 1), rasterio.band(dst, 1),
+                          resampling=Resampling.nearest)
+        toolbox.run("ortho:photo", {"INPUT": grey.photo_path, "PROJECT": grey.project_path,
+                                    "DEM": utm, "CELL_SIZE": 10.0,
+                                    "OUTPUT": tmp_path / f"{dtype}.tif"})
+        with rasterio.open(tmp_path / f"{dtype}.tif") as src:
+            runs[dtype] = src.read()
+    assert np.array_equal(runs["int16"], runs["float32"])
+    assert (runs["int16"][-1] > 0).mean() > 0.3  # an ortho, not an empty raster
