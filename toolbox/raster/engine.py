@@ -257,7 +257,9 @@ def part_inside(col: int, row: int, width: int, height: int, source_width: int,
 
 
 def _read_aligned(src, indexes, region, offset, dtype, fill) -> np.ndarray:
-    """Windowed read of an aligned source; cells outside it or at its nodata get ``fill``."""
+    """Windowed read of an aligned source; cells outside it, at its nodata or masked out by
+    its mask band or alpha band (GDAL's mask, as the warper of an unaligned read honours it)
+    get ``fill``."""
     width, height = int(region.width), int(region.height)
     part = part_inside(int(region.col_off) + offset[0], int(region.row_off) + offset[1],
                        width, height, src.width, src.height)
@@ -272,6 +274,9 @@ def _read_aligned(src, indexes, region, offset, dtype, fill) -> np.ndarray:
         if not missing.any() or (math.isnan(nodata) and dtype.kind == "f"
                                  and math.isnan(fill)):
             missing = None
+    masked = _masked_out(src, indexes, inner)
+    if masked is not None:
+        missing = masked if missing is None else missing | masked
     if data.shape[1:] == (height, width) and data.dtype == dtype:
         out = data  # the whole window inside the source, no conversion: no copy
     else:
@@ -280,6 +285,18 @@ def _read_aligned(src, indexes, region, offset, dtype, fill) -> np.ndarray:
     if missing is not None:
         out[(slice(None), *inside)][missing] = fill
     return out
+
+
+def _masked_out(src, indexes, window) -> np.ndarray | None:
+    """Where a mask band or an alpha band of ``src`` masks the bands ``indexes`` out (bool
+    (bands, rows, cols)), None when every band's mask is its nodata value or nothing."""
+    from rasterio.enums import MaskFlags
+
+    plain = ([MaskFlags.all_valid], [MaskFlags.nodata])
+    if all(src.mask_flag_enums[i - 1] in plain for i in indexes):
+        return None
+    masked = src.read_masks(indexes, window=window) == 0
+    return masked if masked.any() else None
 
 
 # -- running kernels over the tiles ----------------------------------------------------------------

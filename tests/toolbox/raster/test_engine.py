@@ -178,6 +178,41 @@ def test_aligned_input_is_read_directly_with_nodata_and_outside_fill(tmp_path):
     assert ints.dtype == np.int16 and (ints[0, :, 5:] == -1).all()
 
 
+@pytest.mark.parametrize("mask_kind", ["mask band", "alpha band"])
+def test_aligned_input_honours_a_mask_band_or_alpha_as_the_warper_does(tmp_path, mask_kind):
+    """A DEM whose holes are in an internal mask band (no nodata) or an alpha band: the aligned
+    read fills them as the resampled (GDAL warper) read does (they were read as heights: a
+    0 m hole in a hillshade or a volume)."""
+    from rasterio.windows import Window
+
+    dtype = "float32" if mask_kind == "mask band" else "uint16"  # GDAL: no float alpha
+    z = (100 + np.arange(40 * 50).reshape(40, 50) % 37).astype(dtype)
+    hole = np.zeros(z.shape, bool)
+    hole[10:16, 20:30] = True
+    path = tmp_path / "m.tif"
+    profile = dict(driver="GTiff", width=50, height=40, crs=CRS, dtype=dtype,
+                   transform=Affine(1, 0, X0, 0, -1, Y0))
+    with rasterio.Env(GDAL_TIFF_INTERNAL_MASK=True):
+        extra = {"count": 1} if mask_kind == "mask band" else {"count": 2, "alpha": "YES"}
+        with rasterio.open(path, "w", **profile, **extra) as dst:
+            dst.write(np.where(hole, 0, z), 1)
+            if mask_kind == "mask band":
+                dst.write_mask(np.where(hole, 0, 255).astype("uint8"))
+            else:  # 0 transparent
+                dst.write(np.where(hole, 0, 65535).astype(dtype), 2)
+    with rasterio.open(path) as src:
+        assert src.mask_flag_enums[0] != [rasterio.enums.MaskFlags.all_valid]
+    grid = GridSpec(Affine(1, 0, X0, 0, -1, Y0), 50, 40, CRS)
+    aligned = read_window(path, grid, Window(0, 0, 50, 40), bands=1, dtype="float32")[0]
+    assert np.array_equal(np.isnan(aligned), hole)
+    np.testing.assert_array_equal(aligned[~hole], z[~hole])
+    # the same grid shifted by half a cell is read through GDAL's warper: the same hole
+    shifted = GridSpec(Affine(1, 0, X0 + 0.5, 0, -1, Y0), 49, 40, CRS)
+    warped = read_window(path, shifted, Window(0, 0, 49, 40), bands=1, resampling="nearest",
+                         dtype="float32")[0]
+    assert np.isnan(warped[10:16, 21:29]).all() and np.isfinite(warped[:10]).all()
+
+
 def test_input_on_another_grid_and_crs_is_resampled(tmp_path):
     from pyproj import Transformer
 
