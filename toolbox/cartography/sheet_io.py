@@ -42,29 +42,52 @@ def default_styles(layers: list[tuple[str, Any]]) -> list[LayerStyle]:
 
 def read_base(info, bounds: tuple[float, float, float, float], scale: float,
               dpi: int = BASE_DPI) -> tuple[np.ndarray, tuple[float, float, float, float]] | None:
-    """The base raster over ``bounds`` resampled to ``dpi`` on paper: (grey or RGB uint8 image,
-    extent xmin, xmax, ymin, ymax), or None when it does not overlap. Non-byte grey rasters are
-    stretched between their 2nd and 98th percentiles."""
+    """The base raster over ``bounds`` resampled to ``dpi`` on paper (at most its own cell):
+    (grey or RGB uint8 image, north up, extent xmin, xmax, ymin, ymax), or None when it does
+    not overlap. Non-byte grey rasters are stretched between the 2nd and 98th percentiles of
+    their valid values (NaN is no value, with or without a nodata tag). A north-up raster is
+    read by a decimated window read (GDAL's overviews); one stored south-up, east to west or
+    rotated is warped onto a north-up grid (GDAL's warper)."""
+    import math
+
     import rasterio
+    from affine import Affine
     from rasterio.enums import Resampling
     from rasterio.windows import from_bounds
 
     with rasterio.open(info.path) as src:
-        left, bottom, right, top = src.bounds
-        xmin, ymin = max(bounds[0], left), max(bounds[1], bottom)
-        xmax, ymax = min(bounds[2], right), min(bounds[3], top)
+        t = src.transform
+        corners = [t * (c, r) for c in (0, src.width) for r in (0, src.height)]
+        xs, ys = [x for x, _ in corners], [y for _, y in corners]
+        xmin, ymin = max(bounds[0], min(xs)), max(bounds[1], min(ys))
+        xmax, ymax = min(bounds[2], max(xs)), min(bounds[3], max(ys))
         if xmin >= xmax or ymin >= ymax:
             return None
-        win = from_bounds(xmin, ymin, xmax, ymax, src.transform).round_offsets().round_lengths()
-        win = win.intersection(rasterio.windows.Window(0, 0, src.width, src.height))
-        px_w = max(int((xmax - xmin) / scale * 1000 / MM_PER_INCH * dpi), 1)
-        px_h = max(int((ymax - ymin) / scale * 1000 / MM_PER_INCH * dpi), 1)
-        px_w, px_h = min(px_w, int(win.width)), min(px_h, int(win.height))
+        cell = math.sqrt(abs(t.a * t.e - t.b * t.d))
+        px_w = max(min(int((xmax - xmin) / scale * 1000 / MM_PER_INCH * dpi),
+                       math.ceil((xmax - xmin) / cell)), 1)
+        px_h = max(min(int((ymax - ymin) / scale * 1000 / MM_PER_INCH * dpi),
+                       math.ceil((ymax - ymin) / cell)), 1)
         bands = [1, 2, 3] if src.count >= 3 else [1]
-        data = src.read(bands, window=win, out_shape=(len(bands), px_h, px_w),
-                        resampling=Resampling.bilinear, masked=True)
-        wl, wb, wr, wt = rasterio.windows.bounds(win, src.transform)
-        if data.dtype != np.uint8:
+        byte = src.dtypes[0] == "uint8"
+        if t.b == 0 and t.d == 0 and t.a > 0 and t.e < 0:  # north-up: a decimated read
+            win = from_bounds(xmin, ymin, xmax, ymax, t).round_offsets().round_lengths()
+            win = win.intersection(rasterio.windows.Window(0, 0, src.width, src.height))
+            px_w, px_h = min(px_w, int(win.width)), min(px_h, int(win.height))
+            data = src.read(bands, window=win, out_shape=(len(bands), px_h, px_w),
+                            resampling=Resampling.bilinear, masked=True)
+            wl, wb, wr, wt = rasterio.windows.bounds(win, t)
+        else:
+            from toolbox.raster.reproject import read_onto
+
+            grid = Affine((xmax - xmin) / px_w, 0, xmin, 0, -(ymax - ymin) / px_h, ymax)
+            data = read_onto(src, grid, px_w, px_h, None, indexes=bands,
+                             resampling="bilinear", dtype="float64")
+            wl, wb, wr, wt = xmin, ymin, xmax, ymax
+        data = np.ma.masked_invalid(data)  # NaN without a nodata tag is no value either
+        if byte:
+            data = np.ma.clip(np.ma.round(data), 0, 255)
+        else:
             valid = data.compressed()
             lo, hi = np.percentile(valid, [2, 98]) if valid.size else (0, 1)
             data = np.clip((data.astype("float64") - lo) / max(hi - lo, 1e-12) * 255, 0, 255)
