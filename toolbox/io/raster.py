@@ -83,6 +83,7 @@ def open_raster_info(value: Any, name: str = "INPUT") -> RasterInfo:
             damage = _last_blocks_missing(src, path.stat().st_size)
             if damage:
                 raise ParameterError(name, f"'{value}' is truncated or damaged: {damage}")
+            _refuse_scaled(src, name, value)
             crs = CRS.from_wkt(src.crs.to_wkt()) if src.crs else None
             georef = src.transform != rasterio.Affine.identity() or src.crs is not None
             return RasterInfo(path, src.width, src.height, src.count, tuple(src.dtypes), crs,
@@ -90,6 +91,19 @@ def open_raster_info(value: Any, name: str = "INPUT") -> RasterInfo:
     except rasterio.errors.RasterioIOError as exc:
         raise ParameterError(name, f"cannot read '{value}' as a raster: "
                              f"{str(exc).splitlines()[0]}") from None
+
+
+def _refuse_scaled(src: Any, name: str, value: Any) -> None:
+    """A band with a scale or offset stores codes, not values (heights = code x scale +
+    offset): the toolbox reads stored values, so such a raster is refused with the command
+    that writes the values (contours, slopes and orthos of the codes would be wrong in
+    silence)."""
+    for band, (scale, offset) in enumerate(zip(src.scales, src.offsets, strict=True), start=1):
+        if (scale or 1.0) != 1.0 or (offset or 0.0) != 0.0:
+            raise ParameterError(name, f"'{value}' band {band} has scale {scale:g} and offset "
+                                 f"{offset:g} (its values are codes x scale + offset); write "
+                                 "the values first: gdal_translate -unscale -ot Float32 "
+                                 f"'{value}' unscaled.tif")
 
 
 def read_filled(src: Any, band: int, window: Any = None, dtype: str = "float64") -> np.ndarray:
