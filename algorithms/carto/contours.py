@@ -78,6 +78,11 @@ class Contours(Algorithm):
         if params.get("INPUT") is None and params["SMOOTHING"]:
             raise self.fail("SMOOTHING", f"applies to DEM contours only, got "
                             f"{params['SMOOTHING']} with a TIN")
+        if params.get("INPUT") is not None:  # south-up or east to west: traced as they lie
+            from toolbox.io.raster import require_north_up
+
+            require_north_up(params["INPUT"].transform, "INPUT", params["INPUT"].path,
+                             flips_ok=True)
 
     # duplicate-ok: process() imports its libraries lazily (toolbox list/help stay light); the
     # lists of lazy imports after a check() look alike across algorithms

@@ -75,6 +75,10 @@ class Profile(Algorithm):
         elif (params.get("DEM") is None) == (params.get("TIN") is None):
             raise self.fail("DEM", f"or TIN: give exactly one of them with MODE "
                             f"{params['MODE']}")
+        if params.get("DEM") is not None:  # south-up or east to west: sampled as they lie
+            from toolbox.io.raster import require_north_up
+
+            require_north_up(params["DEM"].transform, "DEM", params["DEM"].path, flips_ok=True)
 
     # duplicate-ok: process() imports its libraries lazily (toolbox list/help stay light); the
     # lists of lazy imports after a check() look alike across algorithms

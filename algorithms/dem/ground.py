@@ -94,6 +94,10 @@ class GroundFilterDtm(Algorithm):
         elif params.get("FILTER_CELL") is not None:
             raise self.fail("FILTER_CELL", "is not used with DSM (the filter runs on the DSM's "
                             "cells)")
+        else:  # its cells are the output grid's template
+            from toolbox.io.raster import require_north_up
+
+            require_north_up(params["DSM"].transform, "DSM", params["DSM"].path)
         grid_request(params).check(cell_required=False)
 
     def process(self, params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:

@@ -99,6 +99,10 @@ class Footprints(Algorithm):
                       "json")]
 
     def check(self, params: dict[str, Any]) -> None:
+        if params["DEM"] is not None:  # the footprints would fall back to the plane, per photo
+            from toolbox.io.raster import require_north_up
+
+            require_north_up(params["DEM"].transform, "DEM", params["DEM"].path)
         if params["DEM"] is None and params["MEAN_HEIGHT"] is None:
             raise self.fail("MEAN_HEIGHT", "is required when no DEM is given (the plane the "
                             "footprints are projected on), got nothing")

@@ -65,6 +65,12 @@ class OrthoCheck(Algorithm):
     ]
     outputs = [Output("STATISTICS", "points, matched, RMSE east/north/planimetric (m)", "json")]
 
+    def check(self, params):
+        from toolbox.io.raster import require_north_up
+
+        # south-up or east to west: matched as they lie (through the inverse transform)
+        require_north_up(params["ORTHO"].transform, "ORTHO", params["ORTHO"].path, flips_ok=True)
+
     def process(self, params, feedback: Feedback):
         from pathlib import Path
 

@@ -93,6 +93,25 @@ def open_raster_info(value: Any, name: str = "INPUT") -> RasterInfo:
                              f"{str(exc).splitlines()[0]}") from None
 
 
+def require_north_up(transform: Any, name: str, path: Any, flips_ok: bool = False) -> None:
+    """:class:`ParameterError` naming ``name`` unless the raster at ``path`` (geotransform
+    ``transform``) is north-up: no rotation, columns west to east, rows north to south. With
+    ``flips_ok`` (an algorithm that reads a south-up or east-to-west raster right) only a
+    rotated one is refused. The message gives the gdalwarp command that writes it north-up."""
+    if transform.b != 0 or transform.d != 0:
+        how = f"rotated (geotransform rotation terms {transform.b:g}, {transform.d:g})"
+    elif flips_ok:
+        return
+    elif transform.e > 0:
+        how = "stored south-up (rows going north)"
+    elif transform.a < 0:
+        how = "stored east to west (columns going west)"
+    else:
+        return
+    raise ParameterError(name, f"'{path}' is {how}; this needs a north-up raster: gdalwarp "
+                         f"'{path}' north_up.tif writes one")
+
+
 def _refuse_scaled(src: Any, name: str, value: Any) -> None:
     """A band with a scale or offset stores codes, not values (heights = code x scale +
     offset): the toolbox reads stored values, so such a raster is refused with the command

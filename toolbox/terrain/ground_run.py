@@ -98,7 +98,7 @@ def run_ground(request: GroundRequest, feedback: Feedback) -> dict[str, Any]:
     from toolbox.raster.writer import RasterWriter
     from toolbox.terrain.gridding.inputs import merge_points
     from toolbox.terrain.gridding.methods import METHODS
-    from toolbox.terrain.gridding.run import grid_dem
+    from toolbox.terrain.gridding.run import grid_dem, other_crs
     from toolbox.terrain.points import local_origin, read_mass_points
 
     gridding, sources = request.gridding, request.gridding.sources
@@ -107,12 +107,12 @@ def run_ground(request: GroundRequest, feedback: Feedback) -> dict[str, Any]:
     with feedback.timed("read"):
         if request.dsm is not None:
             info = request.dsm
-            crs = common_crs({"DSM": info.crs}, sources.crs)
+            crs = common_crs({"DSM": info.crs, **other_crs(gridding)}, sources.crs)
             xyz, cell = read_dsm_points(info)
             if grid.cell_size is None and grid.template is None:
                 grid = replace(grid, template=info)
         else:
-            crs = common_crs({"INPUT": sources.points.crs}, sources.crs)
+            crs = common_crs({"INPUT": sources.points.crs, **other_crs(gridding)}, sources.crs)
             xyz, cloud = read_mass_points(sources.points, sources.z_field, sources.classes,
                                           sources.returns, sources.crs)
             cell = float(request.filter.cell)

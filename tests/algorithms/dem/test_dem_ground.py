@@ -194,3 +194,31 @@ def test_ground_bad_input_exit_2(scene, tmp_path):
         assert text in res.stderr and "Traceback" not in res.output
         assert len(res.stderr.strip().splitlines()) == 1
         assert not out.exists() and not (tmp_path / "m.tif").exists()
+
+
+def test_ground_refuses_a_mask_in_another_crs_and_a_south_up_dsm(scene, tmp_path):
+    """The MASK (like TEMPLATE and EXTENT) must share the DSM's CRS: a mask in UTM was applied
+    with its raw numbers (22,000 cells more kept, in silence); a DSM stored south-up is refused
+    naming DSM (the message named a TEMPLATE the user never gave)."""
+    import geopandas as gpd
+    import shapely
+
+    mask = gpd.GeoDataFrame(geometry=[shapely.box(X0 + 5, Y0 + 5, X0 + 50, Y0 + 50)],
+                            crs="EPSG:3003").to_crs("EPSG:32632")
+    mask.to_file(tmp_path / "mask_utm.gpkg")
+    with pytest.raises(toolbox.InputDataError, match="MASK is in EPSG:32632 but DSM is in "
+                                                     "EPSG:3003"):
+        toolbox.run("dem:ground", {"DSM": str(scene["dsm"]),
+                                   "MASK": str(tmp_path / "mask_utm.gpkg"),
+                                   "OUTPUT": str(tmp_path / "a.tif"),
+                                   "NONGROUND": str(tmp_path / "b.tif")})
+    with rasterio.open(scene["dsm"]) as ref:
+        z, t, profile = ref.read(1), ref.transform, ref.profile
+    flipped = tmp_path / "dsm_south_up.tif"
+    with rasterio.open(flipped, "w", **(profile | {"transform": Affine(
+            t.a, 0, t.c, 0, -t.e, t.f + t.e * z.shape[0])})) as dst:
+        dst.write(z[::-1], 1)
+    with pytest.raises(toolbox.ParameterError, match="DSM .*south-up.*gdalwarp"):
+        toolbox.run("dem:ground", {"DSM": str(flipped), "OUTPUT": str(tmp_path / "c.tif"),
+                                   "NONGROUND": str(tmp_path / "d.tif")})
+    assert not (tmp_path / "a.tif").exists() and not (tmp_path / "c.tif").exists()
