@@ -113,7 +113,8 @@ class MosaicBuild(Algorithm):
                 raise self.fail("INPUT", f"the orthos have different band counts {sorted(bands)}; "
                                 "mosaic orthos of one kind")
             if params["CUTLINES"] is not None:
-                cells = cells_from_layer(params["CUTLINES"], params["SOURCE_FIELD"], sources)
+                cells = cells_from_layer(params["CUTLINES"], params["SOURCE_FIELD"], sources,
+                                         crs=crs)
             else:
                 cells = voronoi_cells([s.footprint for s in sources],
                                       centres_of(sources, "nadir", None, feedback))

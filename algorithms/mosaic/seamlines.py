@@ -132,7 +132,6 @@ class MosaicSeamlines(Algorithm):
         import geopandas as gpd
         import shapely
 
-        from toolbox.io.vector import read_vector
         from toolbox.io.vector_write import write_layers
         from toolbox.mosaic.block import (
             cells_frame,
@@ -156,7 +155,7 @@ class MosaicSeamlines(Algorithm):
             points = None
             if params["NADIR_POINTS"] is not None:
                 points = nadir_points_from_layer(params["NADIR_POINTS"], params["NADIR_FIELD"],
-                                                 sources)
+                                                 sources, crs=crs)
             centres = centres_of(sources, params["CENTRES"], points, feedback)
             footprints = [s.footprint for s in sources]
             with feedback.timed("voronoi"):
@@ -171,8 +170,8 @@ class MosaicSeamlines(Algorithm):
                                       structure=params["STRUCTURE_WEIGHT"],
                                       structure_radius=params["STRUCTURE_RADIUS"],
                                       building=params["BUILDING_COST"], height=params["HEIGHT_COST"])
-                buildings = _polygons(params["BUILDINGS"], crs, read_vector)
-                forbidden = _polygons(params["FORBIDDEN"], crs, read_vector)
+                buildings = _polygons(params["BUILDINGS"], crs, "BUILDINGS")
+                forbidden = _polygons(params["FORBIDDEN"], crs, "FORBIDDEN")
                 heights = None if params["HEIGHTS"] is None else \
                     open_source(params["HEIGHTS"].path, -1)
                 cell = params["SEAM_CELL_SIZE"] or min(s.res[0] for s in sources)
@@ -221,11 +220,11 @@ class MosaicSeamlines(Algorithm):
             close_block(sources)
 
 
-def _polygons(layer, crs, read_vector) -> list:
+def _polygons(layer, crs, name: str) -> list:
     """The polygons of an optional layer, in ``crs``."""
     if layer is None:
         return []
-    frame = read_vector(layer, crs=crs)
-    if crs is not None and frame.crs is not None and not frame.crs.equals(crs):
-        frame = frame.to_crs(crs)
+    from toolbox.mosaic.block import read_in_crs
+
+    frame = read_in_crs(layer, crs, name)
     return [g for g in frame.geometry if g is not None and not g.is_empty]

@@ -65,13 +65,23 @@ def centres_of(sources: list[OrthoSource], how: str, points: dict | None = None,
     return out
 
 
-def nadir_points_from_layer(layer, field: str | None, sources: list[OrthoSource],
-                            name: str = "NADIR_POINTS") -> dict:
-    """``{ortho name: (x, y)}`` from a point layer: matched by ``field`` (ortho file names)
-    or, without it, by feature order."""
+def read_in_crs(layer, crs: Any, name: str):
+    """A vector layer of the block in the orthos' CRS ``crs``: reprojected when it is in
+    another one, taken to be in ``crs`` when it has none."""
+    from toolbox.io.crs import same_crs
     from toolbox.io.vector import read_vector
 
-    frame = read_vector(layer)
+    frame = read_vector(layer, crs=crs, name=name)
+    if crs is not None and frame.crs is not None and not same_crs(frame.crs, crs):
+        frame = frame.to_crs(crs)
+    return frame
+
+
+def nadir_points_from_layer(layer, field: str | None, sources: list[OrthoSource],
+                            name: str = "NADIR_POINTS", crs: Any = None) -> dict:
+    """``{ortho name: (x, y)}`` from a point layer (in the orthos' CRS ``crs``: reprojected
+    from another): matched by ``field`` (ortho file names) or, without it, by feature order."""
+    frame = read_in_crs(layer, crs, name)
     xy = [(float(g.x), float(g.y)) for g in frame.geometry]
     if field is None:
         if len(xy) != len(sources):
@@ -192,15 +202,13 @@ def seam_methods(layer: Any, sources: list[OrthoSource]) -> dict:
 
 
 def cells_from_layer(layer, field: str, sources: list[OrthoSource],
-                     name: str = "CUTLINES") -> list:
-    """Cut polygon per source from a polygon layer whose ``field`` holds the ortho names (or
-    1-based source ids); several features of one source are united; sources without a feature
-    get an empty cell."""
+                     name: str = "CUTLINES", crs: Any = None) -> list:
+    """Cut polygon per source from a polygon layer (in the orthos' CRS ``crs``: reprojected
+    from another) whose ``field`` holds the ortho names (or 1-based source ids); several
+    features of one source are united; sources without a feature get an empty cell."""
     import shapely
 
-    from toolbox.io.vector import read_vector
-
-    frame = read_vector(layer)
+    frame = read_in_crs(layer, crs, name)
     if field not in frame.columns:
         raise ParameterError(name, f"has no field '{field}'; fields are: "
                              f"{', '.join(c for c in frame.columns if c != 'geometry')}")
