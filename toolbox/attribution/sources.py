@@ -36,6 +36,11 @@ def read_sources(inputs: list, crs: Any, feedback: Any, *, coordinates: Any = No
                                   + ", ".join(f"{n} {t}" for t, n in sorted(skipped.items())))
         frames.append(frame)
         reports[f"input_{k}"] = report
+    from toolbox.io.crs import common_crs
+
+    # models of one block share a CRS (merging them in two would join lines kilometres apart)
+    common = common_crs({f"INPUT {k}": f.crs for k, f in enumerate(frames, start=1)}, crs)
+    frames = [f if f.crs is not None or common is None else f.set_crs(common) for f in frames]
     return frames, reports
 
 

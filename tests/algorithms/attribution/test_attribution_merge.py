@@ -153,3 +153,25 @@ def test_merge_algorithm(tmp_path):
     assert not any("tolleranza di chiusura" in w for w in feedback.warnings)
     with pytest.raises(toolbox.ToolboxError, match="at least two models"):
         toolbox.run("attribution:merge", {"INPUT": paths[:1], "OUTPUT": tmp_path / "x.gpkg"})
+
+
+@pytest.mark.parametrize("algorithm", ["attribution:merge", "attribution:apply"])
+def test_models_in_two_crs_are_refused_naming_them(files, tmp_path, algorithm):
+    """Two models' layers in EPSG:3003 and in UTM: one line naming both (it stopped with an
+    internal error, geopandas' 'Cannot determine common CRS for concatenation')."""
+    paths = []
+    for (name, entities), crs in zip((("ovest", WEST), ("est", EAST)),
+                                     ("EPSG:3003", "EPSG:32632"), strict=True):
+        frame = gpd.GeoDataFrame(
+            {"code": [code for code, _ in entities]},
+            geometry=[shapely.LineString([(E0 + x, N0 + y, z) for x, y, z in pts])
+                      if len(pts) > 1 else shapely.Point(E0 + pts[0][0], N0 + pts[0][1])
+                      for _, pts in entities], crs="EPSG:3003").to_crs(crs)
+        paths.append(tmp_path / f"{name}.gpkg")
+        frame[frame.geom_type == "LineString"].to_file(paths[-1])
+    params = {"INPUT": paths, "OUTPUT": tmp_path / "out.gpkg"} | (
+        {"CODES": files["codes"]} if algorithm == "attribution:apply" else {})
+    with pytest.raises(toolbox.InputDataError, match="INPUT 2 is in EPSG:32632 but INPUT 1 is "
+                                                     "in EPSG:3003"):
+        toolbox.run(algorithm, params)
+    assert not (tmp_path / "out.gpkg").exists()
