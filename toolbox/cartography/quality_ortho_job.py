@@ -76,6 +76,18 @@ def _check_points(req: OrthoCheckRequest):
     return list(ids), np.asarray(xyz, float)
 
 
+def _same_crs_as_project(project, named: dict) -> None:
+    """The rasters (``{name: rasterio CRS}``) are in the project's CRS (the check points' and
+    the orientations'): one in another CRS would match nothing, or leave every height
+    difference blank, in silence. One without a CRS is taken to be in it."""
+    from pyproj import CRS
+
+    from toolbox.io.crs import common_crs
+
+    common_crs({"PROJECT": project.crs} | {name: CRS.from_wkt(crs.to_wkt()) if crs else None
+                                           for name, crs in named.items()})
+
+
 def measure_checks(req: OrthoCheckRequest, feedback=None) -> tuple[list[CheckResult], dict]:
     """Every check point measured on the orthophoto; returns the results and the settings
     used (cell, chip and search sizes in ground units)."""
@@ -94,8 +106,12 @@ def measure_checks(req: OrthoCheckRequest, feedback=None) -> tuple[list[CheckRes
         raise InputDataError(f"PHOTO: {req.photo!r} is not in the project (photos: "
                              f"{', '.join(project.photos)})")
     with rasterio.open(req.ortho) as src:
+        _same_crs_as_project(project, {"ORTHO": src.crs})
         ortho = _grey(src.read(masked=True).astype("float32").filled(np.nan))
         transform = src.transform
+    if req.dem is not None:
+        with rasterio.open(req.dem) as src:
+            _same_crs_as_project(project, {"DEM": src.crs})
     cell = abs(transform.a)
     half = max(int(round((req.chip_m or 12 * cell) / cell)), 3)
     reach = max(int(round((req.search_m or 8 * cell) / cell)), 1)

@@ -188,3 +188,28 @@ def test_a_photo_not_in_the_project_is_one_line_exit_2(case, tmp_path):
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1 and "PHOTO" in lines[0] and "'p9'" in lines[0]
     assert "Traceback" not in proc.stderr and not out.exists()
+
+
+@pytest.mark.parametrize("which", ["ORTHO", "DEM"])
+def test_an_ortho_or_dem_in_another_crs_than_the_project_is_refused(case, tmp_path, which):
+    """ORTHO or DEM in UTM while the project (and its check points) is in EPSG:3003: one line
+    naming it (an ortho matched no point, a DEM left every height difference blank, in
+    silence)."""
+    from rasterio.warp import calculate_default_transform, reproject
+
+    source = case[2] if which == "ORTHO" else case[0] / "dem.tif"
+    utm = tmp_path / "utm.tif"
+    with rasterio.open(source) as src:
+        t, w, h = calculate_default_transform(src.crs, "EPSG:32632", src.width, src.height,
+                                              *src.bounds)
+        profile = {k: v for k, v in src.profile.items()
+                   if k not in ("blockxsize", "blockysize", "tiled")}
+        with rasterio.open(utm, "w", **(profile | {"crs": "EPSG:32632", "transform": t,
+                                                   "width": w, "height": h})) as dst:
+            for b in range(1, src.count + 1):
+                reproject(rasterio.band(src, b), rasterio.band(dst, b))
+    params = {"ORTHO": utm} if which == "ORTHO" else {"DEM": utm}
+    with pytest.raises(toolbox.InputDataError, match=f"{which} is in EPSG:32632 but PROJECT is "
+                                                     "in EPSG:3003"):
+        run(case, params.pop("ORTHO", case[2]), tmp_path / "x.csv", **params)
+    assert not (tmp_path / "x.csv").exists()
