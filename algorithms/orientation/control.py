@@ -90,7 +90,7 @@ class ControlTemplate(Algorithm):
         from toolbox.photogrammetry.tables import ground_points, load_project_parameter, write_csv
 
         project = load_project_parameter(params["PROJECT"])
-        ids, xyz, _ = ground_points(params["CONTROL"], params["LAYER"])
+        ids, xyz, _ = ground_points(params["CONTROL"], params["LAYER"], crs=project.crs)
         ortho = None
         if params["ORTHO"] is not None:
             from toolbox.io.crs import same_crs

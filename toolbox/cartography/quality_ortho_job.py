@@ -65,10 +65,10 @@ def _photo_reader(path: Path):
     return read
 
 
-def _check_points(req: OrthoCheckRequest):
+def _check_points(req: OrthoCheckRequest, crs=None):
     from toolbox.photogrammetry.tables import ground_points
 
-    ids, xyz, roles = ground_points(req.check_points, name="CHECK_POINTS")
+    ids, xyz, roles = ground_points(req.check_points, name="CHECK_POINTS", crs=crs)
     roles = list(roles)
     if "check" in roles:  # a control table with roles: its check points only
         keep = [k for k, r in enumerate(roles) if r == "check"]
@@ -96,7 +96,7 @@ def measure_checks(req: OrthoCheckRequest, feedback=None) -> tuple[list[CheckRes
     from toolbox.photogrammetry.tables import image_measurements, load_project_parameter
 
     project = load_project_parameter(req.project)
-    ids, xyz = _check_points(req)
+    ids, xyz = _check_points(req, project.crs)
     m_ids, m_photos, m_xy, kind = image_measurements(req.measurements, None, "auto",
                                                      "MEASUREMENTS")
     if kind == "image":  # x_mm, y_mm in the fiducial system: to pixels by each photo's IO

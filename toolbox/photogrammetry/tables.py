@@ -214,12 +214,38 @@ def known_point_rows(path: Path, layer: str | None = None, name: str = "CONTROL"
     return header, cols, out
 
 
-def ground_points(path: Path, layer: str | None = None, name: str = "CONTROL"):
+def table_crs(path: Path, layer: str | None = None) -> Any:
+    """The CRS (pyproj) of a GeoPackage table's layer, None for a CSV/TXT table or a layer
+    without one."""
+    if Path(path).suffix.lower() not in (".gpkg", ".sqlite"):
+        return None
+    import pyogrio
+    from pyproj import CRS
+
+    try:
+        crs = pyogrio.read_info(path, layer=layer).get("crs")
+    except Exception:  # unreadable: read_table says why
+        return None
+    return CRS.from_user_input(crs) if crs else None
+
+
+def ground_points(path: Path, layer: str | None = None, name: str = "CONTROL",
+                  crs: Any = None):
     """Ground points with known coordinates: ``(ids, xyz (n, 3), roles)`` from a table with
     ``id`` (or point_id/name), ``X``/``Y``/``Z`` (or E/N/H, x/y/z) and an optional ``role``
-    column (``control`` or ``check``; default control). Ids must be unique."""
+    column (``control`` or ``check``; default control). Ids must be unique. With ``crs`` (the
+    project's), a GeoPackage layer in another CRS is refused: its X/Y/Z columns are read as
+    they are, in the project's CRS."""
     import numpy as np
 
+    if crs is not None:
+        from toolbox.io.crs import crs_label, same_crs
+
+        own = table_crs(path, layer)
+        if own is not None and not same_crs(own, crs):
+            raise InputDataError(f"{name}: {path} is a layer in {crs_label(own)} but the "
+                                 f"project is in {crs_label(crs)}; its X/Y/Z columns are read "
+                                 "as they are: give them in the project's CRS")
     _, cols, rows = known_point_rows(path, layer, name)
     ids = [pid for _, _, pid, _ in rows]
     roles = [role for _, _, _, role in rows]

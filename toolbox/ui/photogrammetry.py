@@ -114,7 +114,8 @@ def measured_inputs(params: Mapping[str, Any], control: bool = False) -> tuple:
 
     project = load_project_parameter(params["PROJECT"])
     measurements = image_measurements(params["INPUT"], params["LAYER"], params["COORDINATES"])
-    return project, measurements, ground_points(params["CONTROL"]) if control else None
+    return project, measurements, ground_points(params["CONTROL"], crs=project.crs) \
+        if control else None
 
 
 def measured_photos(project: Any, photo_ids: Sequence[str]) -> None:

@@ -251,3 +251,27 @@ def test_relative_orientation_of_two_brown_photos(block):
     rotation, _ = Rotation.align_vectors(t, scale * m)
     residual = rotation.apply(scale * m) - t
     assert np.abs(residual).max() < 1e-4  # metres, over a 60 m block
+
+
+def test_control_layer_in_another_crs_than_the_project_is_refused(block):
+    """A CONTROL GeoPackage layer labelled in another CRS than the project: its X/Y/Z columns
+    are read as they are, so it is refused naming CONTROL and both CRSs (it gave a misleading
+    'behind the projection centre' refusal, and report:ortho_check 'none found'); the same
+    table labelled in the project's CRS runs."""
+    import geopandas as gpd
+    import shapely
+
+    folder, ground = block  # the project is in EPSG:32632
+    frame = gpd.GeoDataFrame({"id": [f"p{k}" for k in range(len(ground))],
+                              "X": ground[:, 0], "Y": ground[:, 1], "Z": ground[:, 2]},
+                             geometry=shapely.points(ground[:, :2]))
+    for crs in ("EPSG:32632", "EPSG:3003"):
+        frame.set_crs(crs).to_file(folder / f"control_{crs[5:]}.gpkg")
+    params = {"PROJECT": folder / "project.yaml", "INPUT": folder / "pixels.csv",
+              "REPORT": folder / "c.json", "OUTPUT": folder / "c.gpkg"}
+    toolbox.run("orientation:check", params | {"CONTROL": folder / "control_32632.gpkg"},
+                overwrite=True)
+    with pytest.raises(toolbox.InputDataError, match="CONTROL: .* is a layer in EPSG:3003 but "
+                                                     "the project is in EPSG:32632"):
+        toolbox.run("orientation:check", params | {"CONTROL": folder / "control_3003.gpkg"},
+                    overwrite=True)
