@@ -202,6 +202,37 @@ def check_input_crs(algorithm_id: str, name: str, value: Any,
                 warnings.append(f"{name}: {problem}")
 
 
+def warn_unlabelled_elsewhere(inputs: dict[str, Any], warnings: list[str] | None) -> None:
+    """An input without a CRS is taken to be in the other inputs' CRS; when its extent lies
+    away from theirs it is most likely in another CRS (numbers of another projection): append a
+    warning naming it to ``warnings`` (its features would otherwise fall outside in silence)."""
+    spatial = {name: value for name, value in inputs.items()
+               if value is not None and (hasattr(value, "crs") or isinstance(value, list))}
+    if warnings is None or len(spatial) < 2:  # one input: nothing to compare (no pyproj load)
+        return
+    pairs = {name: input_crs_and_bounds(value) for name, value in spatial.items()}
+    labelled = [(crs, b) for found in pairs.values() for crs, b in found
+                if crs is not None and b is not None]
+    if not labelled:
+        return
+    crs = labelled[0][0]
+    boxes = [b for c, b in labelled if same_crs(c, crs)]
+    box = (min(b[0] for b in boxes), min(b[1] for b in boxes), max(b[2] for b in boxes),
+           max(b[3] for b in boxes))
+    margin = 0.1 * max(box[2] - box[0], box[3] - box[1], 1.0)
+    for name, found in pairs.items():
+        for own, b in found:
+            if own is not None or b is None:
+                continue
+            if b[0] > box[2] + margin or b[2] < box[0] - margin or b[1] > box[3] + margin \
+                    or b[3] < box[1] - margin:
+                warnings.append(f"{name} has no CRS and lies away from the other inputs "
+                                f"({b[0]:.0f}..{b[2]:.0f}, {b[1]:.0f}..{b[3]:.0f} against "
+                                f"{box[0]:.0f}..{box[2]:.0f}, {box[1]:.0f}..{box[3]:.0f} in "
+                                f"{crs_label(crs)}): it is taken to be in {crs_label(crs)}; if "
+                                "its coordinates are of another CRS, label it with that CRS")
+
+
 def check_coordinates_in_area(name: str, crs: Any, xy: Any, warn: Any = None) -> None:
     """Coordinates ``xy`` ((n, 2), in ``crs``) read from a table rather than a layer: far
     outside the CRS's area of use is an :class:`InputDataError` naming ``name``, a little

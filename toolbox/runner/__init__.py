@@ -92,6 +92,12 @@ def validate(algorithm: type[Algorithm] | str, parameters: dict[str, Any],
 
             check_input_crs(alg.id, p.name, ctx.values[p.name], warnings)
     values = {p.name: ctx.values[p.name] for p in alg.parameters}
+    inputs = {p.name: values[p.name] for p in alg.parameters
+              if not p.is_output and values[p.name] is not None}
+    if len(inputs) > 1:  # toolbox.io.crs loads pyproj: not for a one-input run
+        from toolbox.io.crs import warn_unlabelled_elsewhere
+
+        warn_unlabelled_elsewhere(inputs, warnings)
     check_magnitudes(alg, values)
     _check_band(alg, values)
     check_outputs_against_inputs(alg, values)
