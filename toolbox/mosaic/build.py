@@ -60,6 +60,11 @@ def _intersects(a, b) -> bool:
     return a[0] < b[2] and b[0] < a[2] and a[1] < b[3] and b[1] < a[3]
 
 
+#: GDAL's block cache while the mosaic is written (MB): the written tiles and the orthos' blocks
+#: that neighbouring tiles read again (the block's rasters stay open,
+#: :func:`toolbox.mosaic.block.open_block`) share it
+WRITE_CACHE_MB = 128
+
 #: up to this many sources with data in a window, :func:`window_labels` takes one pass per source
 FEW_SOURCES = 6
 
@@ -193,10 +198,10 @@ def write_mosaic(plan: MosaicPlan, output: Path, index_path: Path | None, *, alp
         dst = stack.enter_context(RasterWriter(
             output, grid, plan.bands + (1 if alpha else 0), plan.dtype,
             None if alpha else nodata, alpha=alpha, cog=cog, overviews=overviews,
-            executor=executor))
+            executor=executor, cache_mb=WRITE_CACHE_MB))
         idx = None if index_path is None else stack.enter_context(RasterWriter(
             index_path, grid, 1, index_dtype, 0, cog=cog, overviews=overviews,
-            overview_resampling="nearest", executor=executor))
+            overview_resampling="nearest", executor=executor, cache_mb=WRITE_CACHE_MB))
 
         def collect(tile, data, labels):
             missing = labels < 0
