@@ -139,14 +139,18 @@ def within_radius(mask, radius, workers=None):
 
 
 @njit(cache=True, nogil=True)
+def _envelope_scratch(n):
+    """The arrays :func:`_lower_envelope` works in, for lines of ``n`` cells."""
+    return (np.empty(n, np.float64), np.empty(n, np.float64), np.empty(n, np.int64),
+            np.empty(n + 1, np.float64))
+
+
+@njit(cache=True, nogil=True)
 def _column_distances(mask, c0, c1, d):
     """Squared distances along each column ``c0`` to ``c1`` (excluded) to its nearest True
     cell of ``mask``, into ``d``."""
     rows = mask.shape[0]
-    f = np.empty(rows, np.float64)
-    out = np.empty(rows, np.float64)
-    v = np.empty(rows, np.int64)
-    z = np.empty(rows + 1, np.float64)
+    f, out, v, z = _envelope_scratch(rows)
     for c in range(c0, c1):
         for r in range(rows):
             f[r] = 0.0 if mask[r, c] else np.inf
@@ -160,10 +164,7 @@ def _row_within(d, r2, r0, r1, result):
     """Rows ``r0`` to ``r1`` (excluded): ``result`` True where the squared distance of the
     column distances ``d`` completed along the row is at most ``r2``."""
     cols = d.shape[1]
-    f = np.empty(cols, np.float64)
-    out = np.empty(cols, np.float64)
-    v = np.empty(cols, np.int64)
-    z = np.empty(cols + 1, np.float64)
+    f, out, v, z = _envelope_scratch(cols)
     for r in range(r0, r1):
         for c in range(cols):
             f[c] = d[r, c]

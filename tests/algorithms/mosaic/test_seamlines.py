@@ -173,13 +173,20 @@ def test_heights_raster_steers_the_seam(tmp_path):
     assert not seam.intersects(building.buffer(2))
 
 
-def test_nadir_points_layer_sets_the_voronoi_centres(pair, tmp_path):
-    orthos, _ = pair
+def nadir_points(folder):
+    """nadirs.gpkg: the orthos' nadir points at local x = 300 (ortho_a) and 700 (ortho_b)."""
     ox, oy = ORIGIN
     points = gpd.GeoDataFrame({"photo": ["ortho_b", "ortho_a"]},
                               geometry=shapely.points([(ox + 700, oy + 200), (ox + 300, oy + 200)]),
                               crs="EPSG:3003")
-    points.to_file(tmp_path / "nadirs.gpkg")
+    points.to_file(folder / "nadirs.gpkg")
+    return points
+
+
+def test_nadir_points_layer_sets_the_voronoi_centres(pair, tmp_path):
+    orthos, _ = pair
+    ox, oy = ORIGIN
+    nadir_points(tmp_path)
     out = toolbox.run("mosaic:seamlines", {
         "INPUT": [str(o.path) for o in orthos], "METHOD": "voronoi",
         "NADIR_POINTS": str(tmp_path / "nadirs.gpkg"), "NADIR_FIELD": "photo",
@@ -199,12 +206,7 @@ def test_nadir_points_and_cutlines_in_another_crs_are_reprojected(pair, tmp_path
     import rasterio
 
     orthos, _ = pair
-    ox, oy = ORIGIN
-    points = gpd.GeoDataFrame({"photo": ["ortho_b", "ortho_a"]},
-                              geometry=shapely.points([(ox + 700, oy + 200), (ox + 300, oy + 200)]),
-                              crs="EPSG:3003")
-    points.to_file(tmp_path / "nadirs.gpkg")
-    points.to_crs("EPSG:32632").to_file(tmp_path / "nadirs_utm.gpkg")
+    nadir_points(tmp_path).to_crs("EPSG:32632").to_file(tmp_path / "nadirs_utm.gpkg")
     cut = {}
     for name in ("nadirs", "nadirs_utm"):
         out = toolbox.run("mosaic:seamlines", {

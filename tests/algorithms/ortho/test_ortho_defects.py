@@ -82,6 +82,14 @@ def test_default_extent_reaches_into_a_valley_between_outline_samples(tmp_path):
     assert sparse.polygon.bounds[2] < x0 + 1100.0
 
 
+def ortho_on(grey, dem, out):
+    """The scene's photo orthorectified on ``dem`` at 10 m: its bands."""
+    toolbox.run("ortho:photo", {"INPUT": grey.photo_path, "PROJECT": grey.project_path,
+                                "DEM": dem, "CELL_SIZE": 10.0, "OUTPUT": out})
+    with rasterio.open(out) as src:
+        return src.read()
+
+
 def test_dem_with_a_vertical_crs_stays_on_the_direct_path(grey, tmp_path):
     """A DEM in EPSG:3003 + EGM2008 height (compound) is the project's horizontal CRS: read
     directly (no reprojection of the cells), the same ortho as with the plain DEM."""
@@ -96,11 +104,7 @@ def test_dem_with_a_vertical_crs_stays_on_the_direct_path(grey, tmp_path):
     assert DemSampler(info, scene.CRS).transformer is None
     runs = {}
     for name, path in (("plain", grey.dem_path), ("compound", dem)):
-        toolbox.run("ortho:photo", {"INPUT": grey.photo_path, "PROJECT": grey.project_path,
-                                    "DEM": path, "CELL_SIZE": 10.0,
-                                    "OUTPUT": tmp_path / f"{name}.tif"})
-        with rasterio.open(tmp_path / f"{name}.tif") as src:
-            runs[name] = src.read()
+        runs[name] = ortho_on(grey, path, tmp_path / f"{name}.tif")
     assert np.array_equal(runs["plain"], runs["compound"])
 
 
@@ -128,10 +132,6 @@ def test_integer_dem_with_nodata_in_another_crs_gives_the_float_dems_ortho(grey,
                                                            "width": w, "height": h})) as dst:
                 reproject(rasterio.band(src, 1), rasterio.band(dst, 1),
                           resampling=Resampling.nearest)
-        toolbox.run("ortho:photo", {"INPUT": grey.photo_path, "PROJECT": grey.project_path,
-                                    "DEM": utm, "CELL_SIZE": 10.0,
-                                    "OUTPUT": tmp_path / f"{dtype}.tif"})
-        with rasterio.open(tmp_path / f"{dtype}.tif") as src:
-            runs[dtype] = src.read()
+        runs[dtype] = ortho_on(grey, utm, tmp_path / f"{dtype}.tif")
     assert np.array_equal(runs["int16"], runs["float32"])
     assert (runs["int16"][-1] > 0).mean() > 0.3  # an ortho, not an empty raster
