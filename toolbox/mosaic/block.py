@@ -9,6 +9,7 @@ from typing import Any
 
 from toolbox.errors import InputDataError, ParameterError
 from toolbox.mosaic.sources import OrthoSource, aligned, open_source, valid_footprint
+from toolbox.raster.datasets import ThreadDatasets
 
 CENTRES = ("nadir", "footprint")
 FOOTPRINT_CELLS = 2048  # footprints are traced on masks decimated to this size
@@ -22,17 +23,12 @@ def open_block(paths: list, name: str = "INPUT", feedback: Any = None) -> tuple[
     """Open the orthos, check they share one CRS and trace their valid-data footprints.
     Returns ``(sources, pyproj CRS or None)``; the rasters stay open for the sources' reads
     until :func:`close_block` (closed here if this fails)."""
-    import rasterio
     from pyproj import CRS
 
     from toolbox.io.crs import common_crs
-    from toolbox.io.raster import gdal_cache_max
-    from toolbox.raster.datasets import ThreadDatasets
 
     sources = []
-    datasets = ThreadDatasets()
-    datasets.cache = rasterio.Env(GDAL_CACHEMAX=gdal_cache_max(BLOCK_CACHE_MB))
-    datasets.cache.__enter__()  # left in close_block (the writer's own cache nests inside)
+    datasets = BlockDatasets()
     try:
         for k, p in enumerate(paths):
             src = open_source(Path(p), k, datasets)
@@ -46,7 +42,7 @@ def open_block(paths: list, name: str = "INPUT", feedback: Any = None) -> tuple[
         crs = common_crs({f"{name}[{s.index}] ({s.name})":
                           CRS.from_wkt(s.crs.to_wkt()) if s.crs else None for s in sources})
     except BaseException:
-        _close(datasets)
+        datasets.close()
         raise
     return sources, crs
 
@@ -56,15 +52,28 @@ def close_block(sources: list[OrthoSource]) -> None:
     GDAL's block cache size."""
     for datasets in {id(s.datasets): s.datasets for s in sources
                      if s.datasets is not None}.values():
-        _close(datasets)
+        datasets.close()
 
 
-def _close(datasets: Any) -> None:
-    datasets.close()
-    cache = getattr(datasets, "cache", None)
-    if cache is not None:
-        datasets.cache = None
-        cache.__exit__(None, None, None)
+class BlockDatasets(ThreadDatasets):
+    """The block's rasters kept open (:class:`~toolbox.raster.datasets.ThreadDatasets`) with
+    GDAL's block cache capped at :data:`BLOCK_CACHE_MB` from creation to :meth:`close` (the
+    mosaic writer's own cache setting nests inside). Made and closed in one thread."""
+
+    def __init__(self) -> None:
+        import rasterio
+
+        from toolbox.io.raster import gdal_cache_max
+
+        super().__init__()
+        self._cache = rasterio.Env(GDAL_CACHEMAX=gdal_cache_max(BLOCK_CACHE_MB))
+        self._cache.__enter__()
+
+    def close(self) -> None:
+        super().close()
+        cache, self._cache = self._cache, None
+        if cache is not None:
+            cache.__exit__(None, None, None)
 
 
 def centres_of(sources: list[OrthoSource], how: str, points: dict | None = None,
