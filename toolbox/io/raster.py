@@ -125,6 +125,14 @@ def _refuse_scaled(src: Any, name: str, value: Any) -> None:
                                  f"'{value}' unscaled.tif")
 
 
+def masked_by_nodata_only(src: Any, band: int) -> bool:
+    """True when GDAL's mask of ``band`` (1-based) of the open dataset ``src`` is its nodata
+    value or nothing (every cell valid), False for a mask band or an alpha band."""
+    from rasterio.enums import MaskFlags
+
+    return src.mask_flag_enums[band - 1] in ([MaskFlags.all_valid], [MaskFlags.nodata])
+
+
 def read_filled(src: Any, band: int, window: Any = None, dtype: str = "float64") -> np.ndarray:
     """Band ``band`` of open dataset ``src`` (``window``: all of it by default) as ``dtype``
     with NaN where rasterio's ``masked=True`` read masks it, the same array.
@@ -133,14 +141,11 @@ def read_filled(src: Any, band: int, window: Any = None, dtype: str = "float64")
     the masked read would read the band again for its mask (a 2000 x 2000 DEM: 0.17 against
     0.09 s with its decompression). Any other mask (mask band, alpha) is read as rasterio does.
     """
-    from rasterio.enums import MaskFlags
-
-    flags = src.mask_flag_enums[band - 1]
-    if flags not in ([MaskFlags.all_valid], [MaskFlags.nodata]):
+    if not masked_by_nodata_only(src, band):
         return src.read(band, window=window, masked=True).astype(dtype).filled(np.nan)
     raw = src.read(band, window=window)
     z = raw.astype(dtype)
-    if flags == [MaskFlags.nodata]:  # GDAL's test: the value equal to nodata in the band's type
+    if src.nodatavals[band - 1] is not None:  # GDAL's test: equal to nodata in the band's type
         nodata = float(src.nodatavals[band - 1])
         if raw.dtype.kind == "f":
             z[np.isnan(raw) if math.isnan(nodata) else raw == raw.dtype.type(nodata)] = np.nan

@@ -290,10 +290,9 @@ def _read_aligned(src, indexes, region, offset, dtype, fill) -> np.ndarray:
 def _masked_out(src, indexes, window) -> np.ndarray | None:
     """Where a mask band or an alpha band of ``src`` masks the bands ``indexes`` out (bool
     (bands, rows, cols)), None when every band's mask is its nodata value or nothing."""
-    from rasterio.enums import MaskFlags
+    from toolbox.io.raster import masked_by_nodata_only
 
-    plain = ([MaskFlags.all_valid], [MaskFlags.nodata])
-    if all(src.mask_flag_enums[i - 1] in plain for i in indexes):
+    if all(masked_by_nodata_only(src, i) for i in indexes):
         return None
     masked = src.read_masks(indexes, window=window) == 0
     return masked if masked.any() else None
