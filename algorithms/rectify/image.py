@@ -67,7 +67,8 @@ class RectifyImage(Algorithm):
         ExtentParameter("EXTENT", "output extent (default: the photo's footprint)",
                         optional=True),
         Enum("RESAMPLING", "interpolation", options=RESAMPLING_METHODS, default="bilinear"),
-        Enum("OUTSIDE", "marking of cells outside the photo: an alpha band or nodata",
+        Enum("OUTSIDE", "marking of cells outside the photo: an alpha band (Byte and "
+             "UInt16 photos; others get nodata) or nodata",
              options=OUTSIDE, default="alpha"),
         Number("NODATA", "nodata value with OUTSIDE=nodata (default: the photo's, else 0, NaN "
                "for float)", optional=True),

@@ -54,12 +54,13 @@ def test_nan_pixels_become_no_data_and_are_counted(nan_photo, tmp_path, outside)
         assert (ds.width, ds.height) == (W, H)
         assert ds.transform.c == X0 and ds.transform.f == Y0
         bands = ds.read()
-        # the alpha band itself (GDAL's dataset mask of a float GeoTIFF ignores it) or nodata
-        valid = bands[3] > 0 if outside == "alpha" else ds.dataset_mask() > 0
+        # a float photo gets NaN nodata, not an alpha band (GDAL masks only Byte/UInt16 alpha):
+        # its dataset mask is what a reader sees
+        assert ds.count == 3 and np.isnan(ds.nodata)
+        valid = ds.dataset_mask() > 0
     expected = np.ones((H, W), bool)
     expected[ROWS, COLS] = False
     assert (valid == expected).all()  # no data exactly where the photo is NaN
     assert not np.isnan(bands[:3][:, valid]).any()  # no NaN among the valid cells
     np.testing.assert_array_equal(bands[:3][:, valid], data[:, expected])
-    if outside == "alpha":
-        assert (bands[3][~expected] == 0).all() and (bands[3][expected] > 0).all()
+    assert np.isnan(bands[:, ~expected]).all()

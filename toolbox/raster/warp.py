@@ -66,6 +66,7 @@ from toolbox.raster.tile import Tile
 DEFAULT_CHUNK = 2048  # output pixels per side of a processing window (a multiple of the block)
 DEFAULT_MAX_SOURCE_PIXELS = 1 << 24  # larger source windows are split (16 Mpx per band)
 DEFAULT_CACHE_MB = 256  # GDAL block cache while warping (bounded, unlike GDAL's 5 % of RAM)
+ALPHA_MASK_DTYPES = ("uint8", "uint16")  # alpha bands GDAL reads as the mask (others: nodata)
 WARP_MEMORY_MB = 32  # outputs up to this size are written from memory (RasterWriter memory_mb)
 
 
@@ -119,6 +120,9 @@ def output_layout(src: Any, outside: str = "alpha", nodata: float | None = None)
     ``outside = "alpha"`` adds an alpha band (0 outside the photo, the dtype's maximum inside);
     ``"nodata"`` fills outside pixels with ``nodata`` (default: the source nodata, else 0 for
     integers and NaN for floats). A source alpha band is resampled and always kept as alpha.
+    Only Byte and UInt16 rasters get an alpha band (GDAL reads no other alpha as a mask): the
+    others mark the outside (and a source alpha's transparent cells) with nodata, by default the
+    source's, else NaN for floats and the type's extreme for integers (:func:`_outside_value`).
     """
     from rasterio.enums import ColorInterp, MaskFlags
 
@@ -135,7 +139,12 @@ def output_layout(src: Any, outside: str = "alpha", nodata: float | None = None)
     flags = src.mask_flag_enums[data_bands[0] - 1] if src.count else []
     source_masked = source_alpha is None and (
         src.nodata is not None or MaskFlags.per_dataset in flags)
-    alpha = outside == "alpha" or source_alpha is not None
+    if np.dtype(dtype).name not in ALPHA_MASK_DTYPES:  # GDAL takes no other alpha as a mask
+        if outside == "alpha" and nodata is None and src.nodata is None:
+            nodata = _outside_value(np.dtype(dtype))
+        outside = "nodata"
+    alpha = outside == "alpha" or (source_alpha is not None
+                                   and np.dtype(dtype).name in ALPHA_MASK_DTYPES)
     out_nodata = None
     if outside == "nodata":
         if nodata is not None:
@@ -152,6 +161,15 @@ def output_layout(src: Any, outside: str = "alpha", nodata: float | None = None)
         elif np.dtype(dtype).kind in "iu":
             raise ParameterError("NODATA", f"NaN does not fit the integer data type {dtype}")
     return OutputLayout(data_bands, source_alpha, source_masked, alpha, out_nodata, dtype)
+
+
+def _outside_value(dtype: np.dtype) -> float:
+    """No-data value marking the outside of a warp of ``dtype`` without alpha: NaN for floats,
+    the smallest value of a signed integer type, the largest of an unsigned one."""
+    if dtype.kind == "f":
+        return float("nan")
+    info = np.iinfo(dtype)
+    return float(info.min if dtype.kind == "i" else info.max)
 
 
 def photometric_options(layout: OutputLayout) -> dict[str, str]:

@@ -77,7 +77,8 @@ def ortho_method_parameters() -> list[Parameter]:
                 advanced=True, deprecated_names=("TILE_SIZE",)),
         Number("MAP_TOLERANCE", "largest interpolation error of the map, photo pixels",
                default=0.05, min_value=0),
-        Enum("OUTSIDE", "cells outside the photo or the DEM: alpha band or nodata",
+        Enum("OUTSIDE", "cells outside the photo or the DEM: alpha band (Byte and "
+             "UInt16 photos; others get nodata) or nodata",
              options=("alpha", "nodata"), default="alpha"),
         Number("NODATA", "nodata value with OUTSIDE=nodata", optional=True),
     ]

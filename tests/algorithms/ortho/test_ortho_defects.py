@@ -54,6 +54,35 @@ def test_bands_kept_in_order_with_the_last_band_alpha(grey, tmp_path, bands, pho
         assert np.abs(out[k][valid] - expected[valid]).max() <= 1
 
 
+@pytest.mark.parametrize("dtype", ["float32", "int16"])
+def test_photo_types_without_a_gdal_alpha_get_nodata(grey, tmp_path, dtype):
+    """GDAL reads an alpha band as the mask only in Byte and UInt16 rasters: a Float32 or Int16
+    photo's ortho marks the outside with nodata (NaN; the type's minimum), so GDAL's mask (what
+    mosaic:build, gdalwarp and QGIS read) is exactly the valid cells of the Byte photo's ortho,
+    and the values are the Byte ortho's."""
+    with rasterio.open(grey.photo_path) as src:
+        profile, data = src.profile, src.read()
+    profile.update(dtype=dtype, nodata=None)
+    photo = tmp_path / "p1.tif"
+    with rasterio.open(photo, "w", **profile) as dst:
+        dst.write(data.astype(dtype))
+    run = {"PROJECT": grey.project_path, "DEM": grey.dem_path, "CELL_SIZE": 10.0}
+    toolbox.run("ortho:photo", {"INPUT": grey.photo_path, **run, "OUTPUT": tmp_path / "b.tif"})
+    toolbox.run("ortho:photo", {"INPUT": photo, **run, "OUTPUT": tmp_path / "o.tif"})
+    with rasterio.open(tmp_path / "b.tif") as ref, rasterio.open(tmp_path / "o.tif") as out:
+        assert ref.count == 2 and out.count == 1 and out.dtypes[0] == dtype
+        expected_valid = ref.dataset_mask() > 0
+        valid = out.dataset_mask() > 0
+        assert 0.3 < valid.mean() < 0.95
+        assert np.array_equal(valid, expected_valid)
+        values = out.read(1).astype(float)
+        assert np.abs(values[valid] - ref.read(1)[valid]).max() <= 1
+        if dtype == "float32":
+            assert np.isnan(out.nodata) and np.isnan(values[~valid]).all()
+        else:
+            assert out.nodata == -32768 and (values[~valid] == -32768).all()
+
+
 def test_default_extent_reaches_into_a_valley_between_outline_samples(tmp_path):
     """A 300 m deep trench crosses the photo's east edge between two of the 8 outline points a
     side the footprint used to have: the edge's rays reach its floor 226 m further east

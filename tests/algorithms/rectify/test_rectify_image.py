@@ -50,6 +50,12 @@ def scene_files(tmp_path_factory):
     return folder, photo, folder / "t.json"
 
 
+def gdal_valid(path) -> np.ndarray:
+    """The cells GDAL takes as valid (its dataset mask: alpha band or nodata)."""
+    with rasterio.open(path) as ds:
+        return ds.dataset_mask() > 0
+
+
 def cell_centres(path):
     with rasterio.open(path) as ds:
         t, w, h = ds.transform, ds.width, ds.height
@@ -86,9 +92,10 @@ def test_rectified_matches_ideal(scene_files, tmp_path, resampling, min_corr, ma
                                         "CELL_SIZE": 0.25, "RESAMPLING": resampling,
                                         "OUTPUT": tmp_path / "r.tif"})
     data, xx, yy, t = cell_centres(out["OUTPUT"])
-    assert data.shape[0] == 2  # the band and an alpha band
+    assert data.shape[0] == 1  # a float photo: no alpha band (GDAL masks only Byte/UInt16 alpha)
     ideal = scene.texture(xx, yy)
-    inside = data[1] > 0
+    inside = gdal_valid(out["OUTPUT"])
+    assert np.array_equal(inside, np.isfinite(data[0]))  # NaN outside, GDAL's mask agrees
     assert inside.mean() > 0.4
     # compare away from the footprint edge (interpolation needs neighbours there)
     from scipy.ndimage import binary_erosion
@@ -102,12 +109,10 @@ def test_rectified_matches_ideal(scene_files, tmp_path, resampling, min_corr, ma
     gsd = default_cell_size(P2G, scene.WIDTH, scene.HEIGHT)
     offsets = blob_offsets(data[0], xx, yy, t) * 0.25 / gsd
     assert np.abs(offsets).max() < max_shift
-    # outside the footprint: alpha 0 and value 0
-    assert np.all(data[0][~inside] == 0)
     stats = out["STATISTICS"]
     assert stats["cell_size"] == 0.25 and stats["crs"] == "EPSG:3003"
     with rasterio.open(out["OUTPUT"]) as ds:
-        assert ds.crs.to_epsg() == 3003 and ds.colorinterp[-1].name == "alpha"
+        assert ds.crs.to_epsg() == 3003 and np.isnan(ds.nodata)
         assert ds.overviews(1) and ds.block_shapes[0] == (512, 512)
 
 
@@ -130,9 +135,10 @@ def test_nearest_follows_the_pixel_convention_exactly(scene_files, tmp_path):
         image = ds.read(1)
     expected = image[np.floor(row[clear]).astype(int), np.floor(col[clear]).astype(int)]
     np.testing.assert_array_equal(data[0][clear], expected)
-    # the alpha band is exactly the "centre maps into the photo" rule
+    # the valid cells (GDAL's mask of the NaN nodata) are exactly the "centre maps into the
+    # photo" rule
     ambiguous = inside ^ clear
-    assert np.array_equal((data[1] > 0)[~ambiguous], inside[~ambiguous])
+    assert np.array_equal(gdal_valid(out["OUTPUT"])[~ambiguous], inside[~ambiguous])
 
 
 def test_fast_and_generic_paths_agree(tmp_path):
@@ -252,7 +258,7 @@ def test_image_mm_transform_with_interior_orientation(tmp_path, scene_files):
         tmp_path / "px.json"), "CELL_SIZE": 0.5, "OUTPUT": tmp_path / "px.tif"})
     with rasterio.open(a["OUTPUT"]) as ra, rasterio.open(b["OUTPUT"]) as rb:
         assert ra.transform == rb.transform
-        assert np.allclose(ra.read(), rb.read(), atol=1e-2)
+        assert np.allclose(ra.read(), rb.read(), atol=1e-2, equal_nan=True)
     with pytest.raises(ParameterError, match="PIXEL_TO_IMAGE is required"):
         toolbox.run("rectify:image", {"INPUT": photo, "TRANSFORM": mm_json,
                                       "OUTPUT": tmp_path / "x.tif"})
@@ -382,7 +388,7 @@ def test_facade_in_a_local_object_system(tmp_path):
 
 def test_extent_is_honoured_and_cog_is_valid(tmp_path, scene_files):
     """An EXTENT off the cell lattice keeps its origin (xmin/ymax); COG=true writes a valid
-    Cloud Optimized GeoTIFF (data + alpha, with overviews)."""
+    Cloud Optimized GeoTIFF (the float band with NaN nodata, with overviews)."""
     from toolbox.raster.writer import cog_problems
 
     _, photo, transform = scene_files
@@ -394,5 +400,5 @@ def test_extent_is_honoured_and_cog_is_valid(tmp_path, scene_files):
         assert (ds.transform.c, ds.transform.f) == (x0, y0 + 110)
         assert (ds.width, ds.height) == (751, 550)  # 150.1 m -> 751 cells: the east edge rounds up
         assert ds.tags(ns="IMAGE_STRUCTURE")["LAYOUT"] == "COG" and ds.overviews(1) == [2]
-        assert ds.colorinterp[-1].name == "alpha" and (ds.read(ds.count) > 0).any()
+        assert ds.count == 1 and np.isnan(ds.nodata) and ds.dataset_mask().any()
     assert cog_problems(out["OUTPUT"]) == []
