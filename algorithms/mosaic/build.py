@@ -114,7 +114,7 @@ class MosaicBuild(Algorithm):
                                 "mosaic orthos of one kind")
             if params["CUTLINES"] is not None:
                 cells = cells_from_layer(params["CUTLINES"], params["SOURCE_FIELD"], sources,
-                                         crs=crs)
+                                         crs=crs, feedback=feedback)
             else:
                 cells = voronoi_cells([s.footprint for s in sources],
                                       centres_of(sources, "nadir", None, feedback))

@@ -126,7 +126,7 @@ class BlockDesign(Algorithm):
             polys = frame.geometry[frame.geometry.notna()]
             if polys.empty:
                 raise self.fail("AREA", "has no polygon")
-            area = shapely.union_all(polys.values)
+            area = shapely.union_all(shapely.make_valid(polys.values))  # a bow-tie: its lobes
             crs = frame.crs or params["CRS"]
         if crs is not None and crs.is_geographic:
             raise self.fail("CRS" if params["EXTENT"] is not None else "AREA",

@@ -503,3 +503,22 @@ def _check_finite_xy(frame, what: str) -> None:
         rows = np.unique(owner)
         raise InputDataError(f"{what}: {len(rows)} feature(s) have NaN/inf coordinates "
                              f"(first rows: {', '.join(map(str, rows[:5]))})")
+
+
+def single_points(geoms: Any, name: str) -> np.ndarray:
+    """``geoms`` (object array) with one-point MultiPoints (as shapefiles store points) made
+    Points; null and empty geometries are left to the caller. A MultiPoint of several points
+    is refused naming ``name`` and the 1-based feature rows (which point would be meant?)."""
+    import shapely
+
+    geoms = np.asarray(geoms, dtype=object)
+    multi = shapely.get_type_id(geoms) == 4
+    parts = shapely.get_num_geometries(geoms)
+    several = np.flatnonzero(multi & (parts > 1))
+    if len(several):
+        raise ParameterError(name, f"must hold one point per feature: feature row(s) "
+                             f"{', '.join(str(r + 1) for r in several[:5])} hold several points "
+                             "(explode them into single points first)")
+    out = geoms.copy()
+    out[multi] = shapely.get_geometry(geoms[multi], 0)
+    return out

@@ -107,8 +107,18 @@ def nadir_points_from_layer(layer, field: str | None, sources: list[OrthoSource]
                             name: str = "NADIR_POINTS", crs: Any = None) -> dict:
     """``{ortho name: (x, y)}`` from a point layer (in the orthos' CRS ``crs``: reprojected
     from another): matched by ``field`` (ortho file names) or, without it, by feature order."""
+    import shapely
+
+    from toolbox.io.vector import single_points
+
     frame = read_in_crs(layer, crs, name)
-    xy = [(float(g.x), float(g.y)) for g in frame.geometry]
+    points = single_points(frame.geometry.values, name)
+    bad = [row for row, g in enumerate(points, start=1)
+           if g is None or g.is_empty or g.geom_type != "Point"]
+    if bad:
+        raise ParameterError(name, f"must hold one point per feature: feature row(s) "
+                             f"{', '.join(map(str, bad[:5]))} are empty, null or not points")
+    xy = [tuple(p) for p in shapely.get_coordinates(points).tolist()]
     if field is None:
         if len(xy) != len(sources):
             raise ParameterError(name, f"has {len(xy)} points for {len(sources)} orthos; give "
@@ -228,10 +238,11 @@ def seam_methods(layer: Any, sources: list[OrthoSource]) -> dict:
 
 
 def cells_from_layer(layer, field: str, sources: list[OrthoSource],
-                     name: str = "CUTLINES", crs: Any = None) -> list:
+                     name: str = "CUTLINES", crs: Any = None, feedback: Any = None) -> list:
     """Cut polygon per source from a polygon layer (in the orthos' CRS ``crs``: reprojected
     from another) whose ``field`` holds the ortho names (or 1-based source ids); several
-    features of one source are united; sources without a feature get an empty cell."""
+    features of one source are united; sources without a feature get an empty cell. Features
+    without geometry and sources left without a polygon are warned about on ``feedback``."""
     import shapely
 
     frame = read_in_crs(layer, crs, name)
@@ -240,7 +251,8 @@ def cells_from_layer(layer, field: str, sources: list[OrthoSource],
                              f"{', '.join(c for c in frame.columns if c != 'geometry')}")
     by_name = {s.name: s.index for s in sources}
     parts: dict[int, list] = {}
-    for value, geom in zip(frame[field], frame.geometry, strict=True):
+    no_geometry = []
+    for row, (value, geom) in enumerate(zip(frame[field], frame.geometry, strict=True), 1):
         key = str(value)
         if key in by_name:
             k = by_name[key]
@@ -251,6 +263,16 @@ def cells_from_layer(layer, field: str, sources: list[OrthoSource],
                                  f"ortho (names: {', '.join(by_name)})")
         if geom is not None and not geom.is_empty:
             parts.setdefault(k, []).append(shapely.make_valid(geom))
+        else:
+            no_geometry.append(f"row {row} ({sources[k].name})")
+    if feedback is not None:
+        if no_geometry:
+            feedback.push_warning(f"{name}: {len(no_geometry)} feature(s) without geometry, "
+                                  f"ignored: {', '.join(no_geometry[:5])}")
+        left = [s.name for s in sources if s.index not in parts]
+        if left:
+            feedback.push_warning(f"{name}: no cut polygon for {', '.join(left)}: used only "
+                                  "where the cut polygons' orthos have no data")
     return [shapely.union_all(parts[k]) if k in parts else shapely.Polygon()
             for k in range(len(sources))]
 

@@ -9,7 +9,7 @@ from typing import Any
 from toolbox.errors import InputDataError
 from toolbox.feedback import Feedback
 from toolbox.io.crs import common_crs, crs_label
-from toolbox.io.vector import read_vector
+from toolbox.io.vector import read_vector, single_points
 
 
 @dataclass(frozen=True)
@@ -60,6 +60,7 @@ def read_linework(sources: LineworkSources, feedback: Feedback) -> dict[str, Any
         if label_field is None:
             feedback.push_warning("LABELS has no code field (LABEL_CODE_FIELD not given, no field "
                                   "named code/codice): areas get attributes but no code")
+        labels[labels.geometry.name] = single_points(labels.geometry.values, "LABELS")
         geoms, label_codes, attrs, dtypes = label_inputs(labels, label_field)
         out.update(label_geoms=geoms, label_codes=label_codes, label_attributes=attrs,
                    label_dtypes=dtypes, label_code_field=label_field)

@@ -4,10 +4,12 @@ forbidden areas), the cut polygons partition the area exactly; overview + corrid
 
 import geopandas as gpd
 import numpy as np
+import pytest
 import shapely
 
 import toolbox
 from toolbox.demo.samples.mosaic import ORIGIN, make_block, pair_specs
+from toolbox.errors import ParameterError
 from toolbox.feedback import Feedback
 from toolbox.mosaic.partition import seamlines
 
@@ -197,6 +199,42 @@ def test_nadir_points_layer_sets_the_voronoi_centres(pair, tmp_path):
     assert np.allclose(xs, ox + 500.0)  # bisector of x = 300 and x = 700
     centres = gpd.read_file(out["OUTPUT"], layer="centres")
     assert centres.geometry.x.tolist() == [ox + 300, ox + 700]
+
+
+@pytest.mark.parametrize("bad", [None, shapely.Point(), shapely.MultiPoint([(0, 0), (1, 1)])])
+def test_nadir_points_not_single_points_are_refused(pair, tmp_path, bad):
+    """A null, empty or multi-point nadir point is refused naming NADIR_POINTS and the feature
+    row (it crashed: 'NoneType' has no attribute 'x'); no output is written."""
+    orthos, _ = pair
+    points = nadir_points(tmp_path)
+    points.loc[1, "geometry"] = bad
+    points.to_file(tmp_path / "bad.gpkg")
+    with pytest.raises(ParameterError, match=r"NADIR_POINTS must hold one point .* row\(s\) 2 "
+                       r"(are empty|hold several)"):
+        toolbox.run("mosaic:seamlines", {
+            "INPUT": [str(o.path) for o in orthos], "METHOD": "voronoi",
+            "NADIR_POINTS": str(tmp_path / "bad.gpkg"), "NADIR_FIELD": "photo",
+            "OUTPUT": str(tmp_path / "n.gpkg")})
+    assert not (tmp_path / "n.gpkg").exists()
+
+
+def test_a_cut_polygon_without_geometry_is_warned_about(pair, tmp_path):
+    """A CUTLINES feature without geometry leaves its ortho without a cut polygon: the mosaic
+    then takes that ortho only where the other has no data (the seam moves), so the run says
+    so, naming the feature and the ortho (it was silent)."""
+    orthos, _ = pair
+    out = toolbox.run("mosaic:seamlines", {"INPUT": [str(o.path) for o in orthos],
+                                           "METHOD": "voronoi", "OUTPUT": str(tmp_path / "s.gpkg")})
+    cells = layers(out["OUTPUT"])[0]
+    cells.loc[cells["source"] == "ortho_b", "geometry"] = None
+    cells.to_file(tmp_path / "cut.gpkg", layer="cut_polygons")
+    feedback = Feedback()
+    toolbox.run("mosaic:build", {"INPUT": [str(o.path) for o in orthos],
+                                 "CUTLINES": str(tmp_path / "cut.gpkg"), "BLEND": "none",
+                                 "OUTPUT": str(tmp_path / "m.tif")}, feedback=feedback)
+    assert any("CUTLINES: 1 feature(s) without geometry, ignored: row 2 (ortho_b)" in w
+               for w in feedback.warnings)
+    assert any("no cut polygon for ortho_b" in w for w in feedback.warnings)
 
 
 def test_nadir_points_and_cutlines_in_another_crs_are_reprojected(pair, tmp_path):

@@ -58,6 +58,22 @@ def test_design_from_a_polygon_layer(tmp_path):
     assert s["photos"] < 2.2 * s["minimum_photos_eq3"]  # the L is not flown as its bounding box
 
 
+def test_a_self_intersecting_area_is_flown_as_its_lobes(tmp_path):
+    """A bow-tie AREA (self-intersecting: its signed lobes cancel, area 0) was refused as "the
+    project area is empty"; it is repaired as the other algorithms repair polygons (GEOS
+    make_valid: two triangles) and the footprints cover both lobes."""
+    bowtie = shapely.Polygon([(0, 0), (4000, 2500), (4000, 0), (0, 2500)])
+    lobes = shapely.make_valid(bowtie)
+    assert bowtie.area == 0 and lobes.area == pytest.approx(5_000_000)
+    path = tmp_path / "bowtie.gpkg"
+    gpd.GeoDataFrame({"name": ["X"]}, geometry=[bowtie], crs="EPSG:32632").to_file(path)
+    out = toolbox.run("orientation:design", {"AREA": path, "PHOTO_SCALE": 8000,
+                                             "OUTPUT": tmp_path / "plan.gpkg"})
+    prints = gpd.read_file(out["OUTPUT"], layer="footprints")
+    assert lobes.difference(shapely.union_all(prints.geometry.values)).area < 1e-6
+    assert out["STATISTICS"]["minimum_photos_eq3"] > 0
+
+
 @pytest.mark.parametrize("args, expect", [
     ([], "EXTENT"),
     (["--EXTENT", EXTENT, "--MAP_SCALE", "1000", "--PHOTO_SCALE", "6000"], "PHOTO_SCALE"),

@@ -267,6 +267,31 @@ def test_3d_spot_heights_become_label_z(data, tmp_path):
     assert sorted(errors.loc[errors["type"] == "label_outside", "label_id"]) == [7, 8]
 
 
+def test_one_point_multipoint_labels_count_and_several_points_are_refused(data, tmp_path):
+    """Labels stored as MultiPoints (as shapefiles store points): a one-point MultiPoint labels
+    its area as the Point does (it was reported "inside no area", its area "without label",
+    and written as a MULTIPOINT into the Point errors layer); one of several points is refused
+    naming LABELS and the feature, since which area it labels is ambiguous."""
+    labels = sample.sheet_labels()
+    reference = toolbox.run("topology:build_areas", {"INPUT": data["linework"], "LABELS": labels,
+                                                     "OUTPUT": tmp_path / "p.gpkg"})
+    multi = labels.copy()
+    multi["geometry"] = [shapely.MultiPoint([g]) if g is not None else None
+                         for g in labels.geometry]
+    result = toolbox.run("topology:build_areas", {"INPUT": data["linework"], "LABELS": multi,
+                                                  "OUTPUT": tmp_path / "m.gpkg"})
+    assert result["STATISTICS"] == reference["STATISTICS"]
+    ours, theirs = (gpd.read_file(tmp_path / f, layer="areas") for f in ("m.gpkg", "p.gpkg"))
+    assert ours.drop(columns="geometry").equals(theirs.drop(columns="geometry"))
+    read_errors(tmp_path / "m.gpkg")  # one kind per layer: Points only in errors_points
+    multi.loc[2, "geometry"] = shapely.MultiPoint([(E0 + 30, N0 + 30), (E0 + 70, N0 + 30)])
+    with pytest.raises(ParameterError, match=r"LABELS must hold one point per feature: "
+                                             r"feature row\(s\) 3 hold several points"):
+        toolbox.run("topology:build_areas", {"INPUT": data["linework"], "LABELS": multi,
+                                             "OUTPUT": tmp_path / "x.gpkg"})
+    assert not (tmp_path / "x.gpkg").exists()
+
+
 def test_all_invalid_input_writes_empty_layers(tmp_path):
     frame = gpd.GeoDataFrame({"code": ["A", "B"]},
                              geometry=[shapely.LineString([(E0, N0), (E0, N0)]), None],
