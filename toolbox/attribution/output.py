@@ -71,7 +71,8 @@ def write_attribution(path: str | Path, result: Attribution, table: CodeTable,
     style embedded as the default; with ``sidecar`` also ``<path>.<layer>.qml`` / ``.sld``.
     Returns the styles by layer name."""
     path = Path(path)
-    from toolbox.io.vector_write import write_layers
+    from toolbox.io.vector import vector_driver
+    from toolbox.io.vector_write import layer_paths, write_layers
     from toolbox.styles.gpkg import write_layer_styles
 
     frames: dict[str, Any] = dict(result.layers)
@@ -87,11 +88,20 @@ def write_attribution(path: str | Path, result: Attribution, table: CodeTable,
         frames[name], styles[name] = frame, style
         types[name] = "Point Z" if len(frame) and bool(frame.geometry.has_z.any()) else "Point"
     write_layers(path, frames, crs=crs, geometry_types=types)
+    files = layer_paths(path, list(frames))
     for name, style in styles.items():
         qml, sld = qml_document(style), sld_document(style)
+        if vector_driver(path) != "GPKG":  # one file per layer: QGIS loads <file>.qml with it
+            write_style_files(files[name].with_suffix(""), qml, sld)
+            continue
         write_layer_styles(path, name, qml, sld, default=True,
                            description=f"from the code file {table.path.name if table.path else ''}")
         if sidecar:  # named after the GeoPackage, so the runner commits them with it
-            path.with_name(f"{path.name}.{name}.qml").write_text(qml, encoding="utf-8")
-            path.with_name(f"{path.name}.{name}.sld").write_text(sld, encoding="utf-8")
+            write_style_files(path.with_name(f"{path.name}.{name}"), qml, sld)
     return styles
+
+
+def write_style_files(stem: Path, qml: str, sld: str) -> None:
+    """``<stem>.qml`` and ``<stem>.sld`` (UTF-8)."""
+    stem.with_name(f"{stem.name}.qml").write_text(qml, encoding="utf-8")
+    stem.with_name(f"{stem.name}.sld").write_text(sld, encoding="utf-8")

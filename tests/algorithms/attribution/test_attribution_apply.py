@@ -159,6 +159,28 @@ def test_styles_are_qml_qgis_reads_and_sld(applied):
     assert out.with_name("coded.gpkg.unresolved.sld").exists()
 
 
+@pytest.mark.parametrize("suffix", [".shp", ".geojson"])
+def test_one_layer_formats_get_every_layer_and_its_style_file(applied, files, suffix):
+    """OUTPUT in a one-layer format (offered by the help) was refused as a corrupt INPUT
+    ("file is not a database": the styles were written into it with SQLite). Each layer is
+    written beside the first as <stem>_<layer><ext> with the GeoPackage's features, and its
+    style as <file stem>.qml / .sld (the file QGIS loads with the layer)."""
+    gpkg, stats, _ = applied
+    out = files["folder"] / f"coded{suffix}"
+    toolbox.run("attribution:apply", {
+        "INPUT": files["export"], "CODES": files["codes"], "COLOURS": files["colours"],
+        "PARAMETERS": files["params"], "CRS": "EPSG:3003", "OUTPUT": out})
+    styles = {r["f_table_name"]: r["styleQML"] for r in read_layer_styles(gpkg)}
+    names = [str(n) for n, _ in pyogrio.list_layers(gpkg) if str(n) != "layer_styles"]
+    for k, name in enumerate(names):
+        layer_file = out if k == 0 else out.with_name(f"coded_{name}{suffix}")
+        ours = gpd.read_file(layer_file)
+        assert len(ours) == len(gpd.read_file(gpkg, layer=name)) and ours.crs.to_epsg() == 3003
+        if name in styles:
+            assert layer_file.with_suffix(".qml").read_text(encoding="utf-8") == styles[name]
+            assert layer_file.with_suffix(".sld").exists()
+
+
 def test_categorised_style_for_a_layer_of_several_codes(files):
     out = files["folder"] / "by_type.gpkg"
     toolbox.run("attribution:apply", {
