@@ -31,6 +31,7 @@ class Square(Algorithm):
     vertices would move more than TOLERANCE ("tolleranza planimetrica di squadratura"), or
     whose area would change by more than AREA_TOLERANCE percent, is left as it was (with its
     neighbours on the offending vertices) and reported: no vertex ever moves beyond TOLERANCE.
+    A feature without geometry (null or empty) is kept as it is and reported the same way.
 
     OUTPUT has the squared layer (named as the input layer, attributes kept, plus ``squared``,
     ``squaring_note`` and ``orientation`` in degrees) and ``moved_vertices`` (each moved
@@ -69,7 +70,8 @@ class Square(Algorithm):
         v, sources = file_values(params, WANTED, self.id, feedback, parts.frame.crs)
         rings = parts.coords
         result = square_rings(rings, parts.feature, v["tolerance"], v["angle_tolerance"],
-                              v["area_tolerance"] / 100.0, v["precision"])
+                              v["area_tolerance"] / 100.0, v["precision"], parts.exterior,
+                              len(parts.frame))
         n = len(parts.frame)
         squared = np.zeros(n, dtype=bool)
         note = np.full(n, "", dtype=object)

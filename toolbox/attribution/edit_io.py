@@ -16,22 +16,27 @@ from toolbox.errors import InputDataError
 
 @dataclass
 class Parts:
-    """The rings/lines of a layer: ``coords`` (local frame), ``feature`` and ``closed`` per
-    part, and how to rebuild each feature (``kind``: point, line or polygon per feature)."""
+    """The rings/lines of a layer: ``coords`` (local frame; (N, 3) for a feature with Z,
+    (N, 2) without), ``feature``, ``closed`` and ``exterior`` (the ring starts a part: a
+    polygon's shell, or a line) per part, and how to rebuild each feature (``kinds``: point,
+    line, polygon or none per feature; ``multi``: the layer is written as multi-geometries)."""
 
     frame: Any
     coords: list[np.ndarray]
     feature: np.ndarray
     closed: np.ndarray
+    exterior: np.ndarray
     ring_of_feature: list[list[int]]
     kinds: list[str]
     origin: np.ndarray
     has_z: bool
+    multi: bool
 
 
 def read_parts(ref: Any, name: str = "INPUT") -> Parts:
     """Read ``ref`` (a VectorLayerRef); explode multi-geometries; lines and rings as arrays
-    shifted to a local origin (the rounded centre of the layer's bounds)."""
+    shifted to a local origin (the rounded centre of the layer's bounds). Each feature keeps
+    its own dimension (a 2D feature among 3D ones stays 2D); a NaN/inf Z is refused."""
     from toolbox.io.vector import read_vector
 
     frame = read_vector(ref, name=name)
@@ -41,51 +46,65 @@ def read_parts(ref: Any, name: str = "INPUT") -> Parts:
     has = np.array([g is not None and not g.is_empty for g in geoms])
     b = shapely.total_bounds(geoms[has]) if has.any() else np.zeros(4)
     origin = np.round([(b[0] + b[2]) / 2, (b[1] + b[3]) / 2], -2)
-    has_z = bool(shapely.has_z(geoms[has]).any()) if has.any() else False
-    coords, feature, closed, rof, kinds = [], [], [], [], []
+    coords, feature, closed, exterior, rof, kinds = [], [], [], [], [], []
     for f, g in enumerate(geoms):
         rof.append([])
         if g is None or g.is_empty:
             kinds.append("none")
             continue
+        z = bool(shapely.has_z(g))
+        if z and not np.isfinite(shapely.get_coordinates(g, include_z=True)[:, 2]).all():
+            raise InputDataError(f"{name} feature {f + 1} has a NaN/inf Z: give it a Z on "
+                                 "every vertex, or none")
         parts = shapely.get_parts(g)
         first = shapely.get_type_id(parts[0])
         kinds.append("polygon" if first == 3 else "line" if first in (1, 2) else "point")
         for part in parts:
             t = shapely.get_type_id(part)
-            for ring in ([part.exterior, *part.interiors] if t == 3 else [part]):
-                c = shapely.get_coordinates(ring, include_z=has_z).astype(float)
+            rings = [part.exterior, *part.interiors] if t == 3 else [part]
+            for k, ring in enumerate(rings):
+                c = shapely.get_coordinates(ring, include_z=z).astype(float)
                 c[:, :2] -= origin
                 rof[-1].append(len(coords))
                 coords.append(c)
                 feature.append(f)
+                exterior.append(k == 0)
                 closed.append(t in (2, 3) or (t == 1 and len(c) > 2 and
                                               np.array_equal(c[0, :2], c[-1, :2])))
-    return Parts(frame, coords, np.array(feature, dtype=np.int64), np.array(closed, bool), rof,
-                 kinds, origin, has_z)
+    multi = bool(np.isin(shapely.get_type_id(geoms[has]), (4, 5, 6)).any())
+    return Parts(frame, coords, np.array(feature, dtype=np.int64), np.array(closed, bool),
+                 np.array(exterior, bool), rof, kinds, origin,
+                 bool(shapely.has_z(geoms[has]).any()), multi)
 
 
 def rebuild(parts: Parts, coords: list[np.ndarray]) -> list[Any]:
-    """Feature geometries from edited part arrays (same structure as read)."""
+    """Feature geometries from edited part arrays (same structure as read: every part of a
+    multi-geometry a part again, each polygon with its own holes). A feature read without a
+    geometry (null or empty) is returned as read; with ``parts.multi`` every feature is a
+    multi-geometry."""
     geoms = []
     for f, rings in enumerate(parts.ring_of_feature):
         kind = parts.kinds[f]
         if not rings:
-            geoms.append(None)
+            geoms.append(parts.frame.geometry.values[f])
             continue
-        arrays = []
+        groups: list[list[np.ndarray]] = []
         for r in rings:
             c = coords[r].copy()
             c[:, :2] += parts.origin
-            arrays.append(c)
+            if parts.exterior[r]:
+                groups.append([])
+            groups[-1].append(c)
         if kind == "polygon":
-            geoms.append(shapely.Polygon(arrays[0], arrays[1:]))
+            pieces = [shapely.Polygon(g[0], g[1:]) for g in groups]
+            multi = shapely.MultiPolygon
         elif kind == "line":
-            lines = [shapely.LineString(a) for a in arrays]
-            geoms.append(lines[0] if len(lines) == 1 else shapely.MultiLineString(lines))
+            pieces = [shapely.LineString(g[0]) for g in groups]
+            multi = shapely.MultiLineString
         else:
-            pts = [shapely.Point(a[0]) for a in arrays]
-            geoms.append(pts[0] if len(pts) == 1 else shapely.MultiPoint(pts))
+            pieces = [shapely.Point(g[0][0]) for g in groups]
+            multi = shapely.MultiPoint
+        geoms.append(multi(pieces) if parts.multi or len(pieces) > 1 else pieces[0])
     return geoms
 
 
@@ -141,11 +160,8 @@ def write_edited(path: Path, ref: Any, parts: Parts, coords: list[np.ndarray],
     kinds = {k for k in parts.kinds if k != "none"}
     types = {}
     if len(kinds) == 1:
-        kind = kinds.pop()
-        multi = any(g is not None and shapely.get_type_id(g) in (4, 5) for g in geoms)
-        base = {"polygon": "Polygon", "line": "MultiLineString" if multi else "LineString",
-                "point": "MultiPoint" if multi else "Point"}[kind]
-        types[name] = base + (" Z" if parts.has_z else "")
+        base = {"polygon": "Polygon", "line": "LineString", "point": "Point"}[kinds.pop()]
+        types[name] = ("Multi" if parts.multi else "") + base + (" Z" if parts.has_z else "")
     moved = moved_frame(moved_rows, parts.origin, crs)
     types["moved_vertices"] = "Point"
     write_layers(path, {name: edited, "moved_vertices": moved}, crs=crs, geometry_types=types)

@@ -120,7 +120,8 @@ def dominant_direction(phi: np.ndarray, length: np.ndarray, angle_tolerance: flo
 
 
 def square_rings(rings: list[np.ndarray], polygon_of_ring: np.ndarray, tolerance: float,
-                 angle_tolerance: float, area_tolerance: float, precision: float = 1e-3
+                 angle_tolerance: float, area_tolerance: float, precision: float = 1e-3,
+                 exterior: np.ndarray | None = None, n_polygons: int | None = None
                  ) -> SquaringResult:
     """Square buildings: walls within ``angle_tolerance`` (degrees) of the dominant direction
     (or its perpendicular) made exactly parallel/perpendicular to it, by the least-squares
@@ -141,8 +142,13 @@ def square_rings(rings: list[np.ndarray], polygon_of_ring: np.ndarray, tolerance
     rings : closed (N_k, 2 or 3) vertex arrays (last = first), local coordinates.
     polygon_of_ring : (R,) polygon index of each ring (exterior and holes of one building).
     tolerance, angle_tolerance, area_tolerance, precision : see above.
+    exterior : (R,) bool, the ring is an exterior (a multipolygon's building has several);
+        by default the first ring of each polygon.
+    n_polygons : number of polygons (default: the largest index + 1); one with no ring (a null
+        or empty geometry) is left as it is.
     """
-    n_poly = int(polygon_of_ring.max()) + 1 if len(rings) else 0
+    n_poly = n_polygons if n_polygons is not None else \
+        int(polygon_of_ring.max()) + 1 if len(rings) else 0
     open_rings = [r[:-1] for r in rings]
     xy_all = np.vstack([r[:, :2] for r in open_rings]) if rings else np.zeros((0, 2))
     keys = np.round(xy_all / precision).astype(np.int64)
@@ -185,8 +191,13 @@ def square_rings(rings: list[np.ndarray], polygon_of_ring: np.ndarray, tolerance
     along_v = np.abs(rel - 90.0) <= angle_tolerance
     active = np.ones(n_poly, dtype=bool)
     reasons: dict[int, str] = {}
-    is_hole = np.r_[False, polygon_of_ring[1:] == polygon_of_ring[:-1]] if len(rings) else \
-        np.zeros(0, bool)
+    if exterior is None:
+        exterior = np.r_[True, polygon_of_ring[1:] != polygon_of_ring[:-1]] if len(rings) \
+            else np.zeros(0, bool)
+    is_hole = ~np.asarray(exterior, bool)
+    ringless = np.bincount(polygon_of_ring, minlength=n_poly) == 0
+    for p in np.flatnonzero(ringless):
+        reasons[int(p)] = "no geometry (null or empty): left as it is"
 
     def net_areas(ring_list: list[np.ndarray]) -> np.ndarray:
         """Area of each polygon: |exterior| - sum |holes| (whatever the rings' orientation)."""
@@ -219,6 +230,8 @@ def square_rings(rings: list[np.ndarray], polygon_of_ring: np.ndarray, tolerance
         new_areas = net_areas([np.vstack([new_xy[nodes], new_xy[nodes[:1]]])
                                for nodes in node_of_vertex])
         for p in range(n_poly):
+            if ringless[p]:
+                continue
             pnodes = np.unique(np.concatenate([node_of_vertex[r] for r in
                                                np.flatnonzero(polygon_of_ring == p)]))
             worst = float(shift[pnodes].max()) if len(pnodes) else 0.0
@@ -270,6 +283,7 @@ def square_rings(rings: list[np.ndarray], polygon_of_ring: np.ndarray, tolerance
                 corner_error = max(corner_error, abs(((angle + 45) % 90) - 45))
     moved = np.flatnonzero(np.hypot(*(new_xy - nodes_xy).T) > 0)
     orientation = np.array([np.degrees(theta_of_cluster[c]) for c in cluster])
+    orientation[ringless] = np.nan
     return SquaringResult(out_rings, node_of_vertex, moved, nodes_xy[moved], new_xy[moved],
                           squared, reasons, orientation, float(corner_error))
 

@@ -17,6 +17,7 @@ from toolbox.attribution.editing import (
     sample_by_vectors,
     square_rings,
 )
+from toolbox.errors import InputDataError
 
 E0, N0 = 1688400.0, 4799800.0
 
@@ -238,3 +239,88 @@ def test_sample_algorithm_on_a_contour_with_tolerance(tmp_path):
                                                "DISTANCE": 20.0, "TOLERANCE": 0.5,
                                                "OUTPUT": tmp_path / "tight.gpkg"})["STATISTICS"]
     assert tight["left_unchanged"] == ["1"]  # 20 m chords on r = 50 miss by ~1 m: left
+
+
+EDITS = ["attribution:square", "attribution:align", "attribution:sample"]
+
+
+def _edit(tmp_path, algorithm, geoms, **params):
+    """Run ``algorithm`` on a layer ``features`` of ``geoms``; the output layer and the stats."""
+    src, out = tmp_path / "in.gpkg", tmp_path / "out.gpkg"
+    gpd.GeoDataFrame({"name": [f"f{i + 1}" for i in range(len(geoms))]}, geometry=geoms,
+                     crs="EPSG:3003").to_file(src, layer="features", driver="GPKG")
+    stats = toolbox.run(algorithm, {"INPUT": src, "OUTPUT": out, **params})["STATISTICS"]
+    return gpd.read_file(out, layer="features"), stats
+
+
+@pytest.mark.parametrize("algorithm", EDITS)
+def test_editing_keeps_every_part_and_hole_of_a_multipolygon(tmp_path, algorithm):
+    shell, hole, other, single = _distort([
+        _rotate([(0, 0), (30, 0), (30, 20), (0, 20)], 30),
+        _rotate([(10, 5), (20, 5), (20, 11), (10, 11)], 30),
+        _rotate([(0, 0), (12, 0), (12, 8), (0, 8)], 30) + (60, 0),
+        _rotate([(0, 0), (10, 0), (10, 10), (0, 10)], 30) + (0, 60)])
+    multi = shapely.MultiPolygon([shapely.Polygon(shell + (E0, N0), [hole + (E0, N0)]),
+                                  shapely.Polygon(other + (E0, N0))])
+    plain = shapely.Polygon(single + (E0, N0))
+    edited, _ = _edit(tmp_path, algorithm, [multi, plain])
+    g = edited.geometry.iloc[0]
+    assert g.geom_type == "MultiPolygon" and g.is_valid
+    assert [len(p.interiors) for p in g.geoms] == [1, 0]
+    for new, old in zip(g.geoms, multi.geoms, strict=True):  # area kept within 1 % per part
+        assert new.area == pytest.approx(old.area, rel=0.01)
+    assert edited.geometry.iloc[1].is_valid
+    assert edited.geometry.iloc[1].area == pytest.approx(plain.area, rel=0.01)
+
+
+@pytest.mark.parametrize("algorithm", EDITS)
+def test_editing_keeps_each_feature_dimension(tmp_path, algorithm):
+    a, b = _distort([_rotate([(0, 0), (20, 0), (20, 10), (0, 10)], 30),
+                     _rotate([(0, 0), (20, 0), (20, 10), (0, 10)], 30) + (40, 0)])
+    with_z = shapely.Polygon(_closed(a, 5.0) + (E0, N0, 0))
+    without = shapely.Polygon(b + (E0, N0))
+    edited, _ = _edit(tmp_path, algorithm, [with_z, without])
+    assert shapely.has_z(edited.geometry.values).tolist() == [True, False]
+    z = shapely.get_coordinates(edited.geometry.iloc[0], include_z=True)[:, 2]
+    assert (z == 5.0).all()
+    assert edited.geometry.iloc[1].area == pytest.approx(without.area, rel=0.01)
+
+
+@pytest.mark.parametrize("algorithm", ["attribution:align", "attribution:sample"])
+def test_editing_keeps_multilinestring_parts_apart(tmp_path, algorithm):
+    first = [(E0, N0, 200.0), (E0 + 50, N0 + 0.02, 201.0), (E0 + 100, N0, 202.0)]
+    second = [(E0, N0 + 20, 210.0), (E0 + 50, N0 + 20.02, 211.0), (E0 + 100, N0 + 20, 212.0)]
+    flat = shapely.LineString([(E0, N0 + 50), (E0 + 50, N0 + 50.02), (E0 + 100, N0 + 50)])
+    edited, _ = _edit(tmp_path, algorithm, [shapely.MultiLineString([first, second]), flat])
+    g = edited.geometry.iloc[0]
+    assert g.geom_type == "MultiLineString" and len(g.geoms) == 2
+    for part, old in zip(g.geoms, (first, second), strict=True):  # ends and Z where they were
+        c = shapely.get_coordinates(part, include_z=True)
+        np.testing.assert_allclose(c[[0, -1]], np.array(old)[[0, -1]])
+        np.testing.assert_allclose(c[:, 2], np.array(old)[:, 2])
+    assert not shapely.has_z(edited.geometry.iloc[1])
+
+
+def test_square_keeps_null_and_empty_buildings(tmp_path):
+    a, b = (shapely.Polygon(s + (E0, N0)) for s in _distort(
+        [_rotate([(0, 0), (20, 0), (20, 10), (0, 10)], 30),
+         _rotate([(0, 0), (12, 0), (12, 8), (0, 8)], 30) + (40, 0)]))
+    edited, stats = _edit(tmp_path, "attribution:square", [a, None, shapely.Polygon(), b, None])
+    geoms = edited.geometry.values
+    assert geoms[1] is None and geoms[4] is None and geoms[2].is_empty
+    assert edited["squared"].tolist() == [True, False, False, True, False]
+    for g in (geoms[0], geoms[3]):  # squared: right corners
+        np.testing.assert_allclose(corner_angles(shapely.get_coordinates(g.exterior)), 90.0,
+                                   atol=1e-6)
+    assert sorted(stats["not_squared"]) == [2, 3, 5]
+    assert all("no geometry" in edited["squaring_note"].iloc[i] for i in (1, 2, 4))
+    assert edited["orientation"].isna().tolist() == [False, True, True, False, True]
+
+
+def test_editing_refuses_a_nan_z(tmp_path):
+    ring = _closed(_rotate([(0, 0), (20, 0), (20, 10), (0, 10)], 30), 5.0) + (E0, N0, 0)
+    ring[2, 2] = np.nan
+    with pytest.raises(InputDataError, match="INPUT feature 2 has a NaN/inf Z"):
+        _edit(tmp_path, "attribution:square", [shapely.Polygon(ring[:, :2] + (0, 50)),
+                                               shapely.Polygon(ring)])
+    assert not (tmp_path / "out.gpkg").exists()
