@@ -143,7 +143,8 @@ def write_edited(path: Path, ref: Any, parts: Parts, coords: list[np.ndarray],
     import geopandas as gpd
 
     from toolbox.io.vector_write import write_layers
-    from toolbox.styles.gpkg import read_layer_styles, write_layer_styles
+    from toolbox.attribution.output import store_style
+    from toolbox.styles.gpkg import read_layer_styles
     from toolbox.styles.model import CodeStyle, LayerStyle
     from toolbox.styles.qml import qml_document
     from toolbox.styles.sld import sld_document
@@ -164,14 +165,16 @@ def write_edited(path: Path, ref: Any, parts: Parts, coords: list[np.ndarray],
         types[name] = ("Multi" if parts.multi else "") + base + (" Z" if parts.has_z else "")
     moved = moved_frame(moved_rows, parts.origin, crs)
     types["moved_vertices"] = "Point"
-    write_layers(path, {name: edited, "moved_vertices": moved}, crs=crs, geometry_types=types)
+    layers = [name, "moved_vertices"]
+    write_layers(path, dict(zip(layers, (edited, moved), strict=True)), crs=crs,
+                 geometry_types=types)
     source = getattr(ref, "path", None)
     if source is not None and Path(source).suffix.lower() == ".gpkg":
         for row in read_layer_styles(source):
             if row["f_table_name"] == getattr(ref, "layer", None) and row["useAsDefault"]:
-                write_layer_styles(path, name, row["styleQML"], row["styleSLD"], True,
-                                   row["styleName"], row["description"] or "")
+                store_style(path, layers, name, row["styleQML"], row["styleSLD"],
+                            row["styleName"], row["description"] or "")
     style = LayerStyle("moved_vertices", "point", [CodeStyle(
         "moved", "point", (255, 0, 255), 0.2, (255, 0, 255, 255), "moved vertex", 1.5)])
-    write_layer_styles(path, "moved_vertices", qml_document(style), sld_document(style), True)
+    store_style(path, layers, "moved_vertices", qml_document(style), sld_document(style))
     return name

@@ -71,9 +71,7 @@ def write_attribution(path: str | Path, result: Attribution, table: CodeTable,
     style embedded as the default; with ``sidecar`` also ``<path>.<layer>.qml`` / ``.sld``.
     Returns the styles by layer name."""
     path = Path(path)
-    from toolbox.io.vector import vector_driver
-    from toolbox.io.vector_write import layer_paths, write_layers
-    from toolbox.styles.gpkg import write_layer_styles
+    from toolbox.io.vector_write import write_layers
 
     frames: dict[str, Any] = dict(result.layers)
     types = {name: _gpkg_type(result.kinds[name], frame) for name, frame in frames.items()}
@@ -88,20 +86,33 @@ def write_attribution(path: str | Path, result: Attribution, table: CodeTable,
         frames[name], styles[name] = frame, style
         types[name] = "Point Z" if len(frame) and bool(frame.geometry.has_z.any()) else "Point"
     write_layers(path, frames, crs=crs, geometry_types=types)
-    files = layer_paths(path, list(frames))
     for name, style in styles.items():
         qml, sld = qml_document(style), sld_document(style)
-        if vector_driver(path) != "GPKG":  # one file per layer: QGIS loads <file>.qml with it
-            write_style_files(files[name].with_suffix(""), qml, sld)
-            continue
-        write_layer_styles(path, name, qml, sld, default=True,
-                           description=f"from the code file {table.path.name if table.path else ''}")
-        if sidecar:  # named after the GeoPackage, so the runner commits them with it
+        embedded = store_style(path, list(frames), name, qml, sld, description=(
+            f"from the code file {table.path.name if table.path else ''}"))
+        if sidecar and embedded:  # named after the GeoPackage: the runner commits them with it
             write_style_files(path.with_name(f"{path.name}.{name}"), qml, sld)
     return styles
 
 
-def write_style_files(stem: Path, qml: str, sld: str) -> None:
-    """``<stem>.qml`` and ``<stem>.sld`` (UTF-8)."""
+def store_style(path: Path, layers: list[str], layer: str, qml: str, sld: str | None,
+                name: str | None = None, description: str = "") -> bool:
+    """Give ``layer`` of the output ``path`` (written with ``layers``, in order) its default
+    style: in the GeoPackage's ``layer_styles`` (True), or for a one-layer format as
+    ``<layer file stem>.qml`` / ``.sld`` beside the layer's file, which QGIS loads with it."""
+    from toolbox.io.vector import vector_driver
+    from toolbox.io.vector_write import layer_paths
+    from toolbox.styles.gpkg import write_layer_styles
+
+    if vector_driver(path) == "GPKG":
+        write_layer_styles(path, layer, qml, sld, True, name, description)
+        return True
+    write_style_files(layer_paths(path, layers)[layer].with_suffix(""), qml, sld)
+    return False
+
+
+def write_style_files(stem: Path, qml: str, sld: str | None) -> None:
+    """``<stem>.qml`` and, when given, ``<stem>.sld`` (UTF-8)."""
     stem.with_name(f"{stem.name}.qml").write_text(qml, encoding="utf-8")
-    stem.with_name(f"{stem.name}.sld").write_text(sld, encoding="utf-8")
+    if sld:
+        stem.with_name(f"{stem.name}.sld").write_text(sld, encoding="utf-8")

@@ -324,3 +324,21 @@ def test_editing_refuses_a_nan_z(tmp_path):
         _edit(tmp_path, "attribution:square", [shapely.Polygon(ring[:, :2] + (0, 50)),
                                                shapely.Polygon(ring)])
     assert not (tmp_path / "out.gpkg").exists()
+
+
+@pytest.mark.parametrize("algorithm", EDITS)
+def test_editing_writes_a_shapefile_with_style_files(tmp_path, algorithm):
+    """OUTPUT .shp (offered by the help) was refused as a corrupt INPUT (the moved vertices'
+    style went into the file through SQLite). Now the edited layer in out.shp with the input's
+    features, moved_vertices beside it as out_moved_vertices.shp, each with its .qml."""
+    buildings = [shapely.Polygon(_closed(s) + (E0, N0, 0)) for s in _distort(_true_buildings())]
+    src, out = tmp_path / "in.gpkg", tmp_path / "out.shp"
+    gpd.GeoDataFrame({"name": list("ABCDE")}, geometry=buildings,
+                     crs="EPSG:3003").to_file(src, layer="features", driver="GPKG")
+    toolbox.run(algorithm, {"INPUT": src, "OUTPUT": out})
+    edited = gpd.read_file(out)
+    assert edited["name"].tolist() == list("ABCDE") and edited.crs.to_epsg() == 3003
+    assert shapely.is_valid(edited.geometry.values).all()
+    moved = out.with_name("out_moved_vertices.shp")
+    assert gpd.read_file(moved).crs.to_epsg() == 3003
+    assert "<qgis" in moved.with_suffix(".qml").read_text(encoding="utf-8")
