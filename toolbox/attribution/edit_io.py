@@ -142,8 +142,8 @@ def write_edited(path: Path, ref: Any, parts: Parts, coords: list[np.ndarray],
     ``moved_vertices``; copy the input layer's default style. Returns the layer name."""
     import geopandas as gpd
 
-    from toolbox.io.vector_write import write_layers
     from toolbox.attribution.output import store_style
+    from toolbox.io.vector_write import write_layers
     from toolbox.styles.gpkg import read_layer_styles
     from toolbox.styles.model import CodeStyle, LayerStyle
     from toolbox.styles.qml import qml_document
