@@ -20,7 +20,10 @@ class Grid(Algorithm):
     ``STYLE`` ``lines`` draws full grid lines; ``crosses`` draws a cross of ``CROSS_SIZE`` mm at
     each node. Labels (layer ``grid_labels``: ``text``, ``axis`` x/y, ``value``, ``edge``) sit
     where the grid meets the frame. For a sheet grid (``SHEETS``), every sheet gets its own grid
-    clipped to the sheet, with the sheet id in ``sheet``.
+    clipped to the sheet, with the sheet id in ``sheet``; a grid line cut by a hole of the sheet
+    is one MultiLineString (the layer holds MultiLineStrings only). A sheet that crosses itself
+    is repaired (GEOS make_valid, with a warning); a null or empty sheet, or one without area,
+    is refused.
     """
 
     id = "carto:grid"
@@ -55,10 +58,10 @@ class Grid(Algorithm):
 
         sheets = sheet_source(params)
         grid, labels, step, crs = grid_frames(MapGridRequest(
-            sheets, params["SCALE"], params["MAP_STEP"], params["STYLE"], params["CROSS_SIZE"]))
-        kind = "LineString" if params["STYLE"] == "lines" else "MultiLineString"
+            sheets, params["SCALE"], params["MAP_STEP"], params["STYLE"], params["CROSS_SIZE"]),
+            feedback.push_warning)
         write_layers(params["OUTPUT"], {"grid": grid, "grid_labels": labels}, crs=crs,
-                     geometry_types={"grid": kind, "grid_labels": "Point"})
+                     geometry_types={"grid": "MultiLineString", "grid_labels": "Point"})
         return {"OUTPUT": params["OUTPUT"],
                 "STATISTICS": {"ground_step": step, "features": len(grid),
                                "labels": len(labels)}}

@@ -25,9 +25,12 @@ class Profile(Algorithm):
       metres (and at its end), ``2·HALF_WIDTH`` long, sampled every ``STEP`` metres;
       ``distance`` is the offset across the axis, negative on its left.
 
-    Output: layers ``profile_points`` (PointZ: ``profile``, ``line``, ``section``,
+    Output: layers ``profile_points`` (PointZ: ``profile``, ``line``, ``part``, ``section``,
     ``chainage``, ``distance``, ``z``) and ``profile_lines`` (LineString Z per profile or
-    section); ``PLOT`` draws them (PNG or SVG).
+    section); ``PLOT`` draws them (PNG or SVG). ``line`` is the INPUT feature's 1-based row
+    (QGIS' attribute table order) and ``part`` the part of a multi-line (1-based; each part is
+    a profile of its own, its chainage from its start; ``profile`` reads ``3.2`` for part 2 of
+    feature 3); features without geometry get no profile (a warning names them).
     """
 
     id = "carto:profile"
@@ -52,13 +55,15 @@ class Profile(Algorithm):
         Number("HALF_WIDTH", "half width of each section, m (MODE sections)", default=50.0,
                min_value=0, min_exclusive=True),
         OutputVector("OUTPUT", "GeoPackage (layers profile_points, profile_lines)", layers=[
-            Layer("profile_points", "Point Z", [("profile", "string"), ("line", "integer"),
-                                                ("chainage", "real", "distance along the line"),
+            Layer("profile_points", "Point Z", [("profile", "string"),
+                                                ("line", "integer", "INPUT feature, 1-based"),
+                                                ("part", "integer", "part of a multi-line"),
+                                                ("chainage", "real", "distance along the line's part"),
                                                 ("z", "real", "height")],
                   "the sampled stations"),
             Layer("profile_lines", "LineString Z", [("profile", "string"), ("line", "integer"),
-                                                    ("length", "real"), ("z_min", "real"),
-                                                    ("z_max", "real")],
+                                                    ("part", "integer"), ("length", "real"),
+                                                    ("z_min", "real"), ("z_max", "real")],
                   "each profile or section as a 3D line")]),
         OutputFile("PLOT", "plot of the profiles (.png or .svg)", extensions=[".png", ".svg"],
                    optional=True),
@@ -101,9 +106,9 @@ class Profile(Algorithm):
         lines_frame = read_vector(params["INPUT"], name="INPUT")
         crs = common_crs({name: getattr(params.get(name), "crs", None)
                           for name in ("INPUT", "DEM", "TIN", "CONTOURS")})  # mixed: refused
-        lines = line_parts(lines_frame)
-        guard_profile_size(lines, params["MODE"], params["STEP"], params["SPACING"],
-                           params["HALF_WIDTH"])
+        lines = line_parts(lines_frame, feedback.push_warning)
+        guard_profile_size([line.xy for line in lines], params["MODE"], params["STEP"],
+                           params["SPACING"], params["HALF_WIDTH"])
         surface, contours = None, None
         if params["MODE"] == "contours":
             cframe = read_vector(params["CONTOURS"], name="CONTOURS")

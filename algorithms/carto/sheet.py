@@ -61,7 +61,9 @@ class Sheet(Algorithm):
     ``SHEETS`` (``SHEET_ID number``) for one sheet per element of the index.
 
     With ``SHEETS``, ``OUTPUT`` holds one page per sheet, and ``FOLDER`` (if given) receives one
-    ``<sheet id>.pdf`` and ``.png`` per sheet. On a Dask cluster (SCHEDULER or
+    ``<sheet id>.pdf`` and ``.png`` per sheet; a sheet is the bounds of its polygon (a null,
+    empty or flat one is refused, one that crosses itself repaired). Features of ``LAYERS``
+    without geometry are not drawn (a warning names them). On a Dask cluster (SCHEDULER or
     DASK_SCHEDULER_ADDRESS) each sheet is drawn on a worker, which writes its FOLDER files and
     PNG (on storage the workers share) and sends its page back for OUTPUT; locally the sheets
     are drawn one after the other in this process.
@@ -113,6 +115,11 @@ class Sheet(Algorithm):
             raise self.fail("COLOURS", "needs CODES (the colour file gives the RGB of the code "
                             "file's colour indices)")
         sheet_source(params)
+        contours = params.get("CONTOURS")
+        if contours is not None and not ("elev" in contours.fields
+                                         and contours.is_numeric("elev")):
+            raise self.fail("CONTOURS", f"{contours} has no numeric 'elev' field (the contour "
+                            "heights, as carto:contours writes them)")
         if not (params.get("OUTPUT") or params.get("FOLDER")):
             raise self.fail("OUTPUT", "or FOLDER: give at least one")
         from toolbox.cartography.sheet_job import guard_sheets

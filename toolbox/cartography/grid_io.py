@@ -5,6 +5,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
+
 from toolbox.cartography.grid import ground_step, map_grid
 
 
@@ -32,8 +34,8 @@ class MapGridRequest:
     cross_size: float = 4.0
 
 
-def sheet_polygons(source: SheetSource) -> tuple[list[tuple[str, Any]], Any]:
-    """``[(sheet id, polygon)]`` and the CRS of the sheets."""
+def sheet_polygons(source: SheetSource, warn=None) -> tuple[list[tuple[str, Any]], Any]:
+    """``[(sheet id, polygon)]`` and the CRS of the sheets (see :func:`sheet_polygon`)."""
     import shapely
 
     from toolbox.io.vector import read_vector
@@ -42,10 +44,39 @@ def sheet_polygons(source: SheetSource) -> tuple[list[tuple[str, Any]], Any]:
         frame = read_vector(source.sheets, name="SHEETS")
         field = source.sheet_id
         ids = [str(v) for v in frame[field]] if field else [str(i + 1) for i in range(len(frame))]
-        return list(zip(ids, frame.geometry.values)), frame.crs
+        return [(sheet_id, sheet_polygon(geom, row, sheet_id if field else None, warn))
+                for row, (sheet_id, geom) in enumerate(zip(ids, frame.geometry.values), 1)
+                ], frame.crs
     extent = source.extent
     crs = extent.crs if extent.crs is not None else source.crs
     return [("1", shapely.box(*extent.bounds))], crs
+
+
+def sheet_polygon(geom, row: int, sheet_id: str | None = None, warn=None):
+    """The area of SHEETS feature ``row`` (1-based; ``sheet_id`` its SHEET_ID): one that
+    crosses itself is repaired as topology:overlay repairs it (GEOS ``make_valid``, with a
+    warning through ``warn``); a null or empty one, or one without area, is refused."""
+    import shapely
+
+    from toolbox.errors import ParameterError
+    from toolbox.topology.setops import polygonal_parts
+
+    which = f"feature {row}" + (f" (sheet {sheet_id!r})" if sheet_id is not None else "")
+    if geom is None or geom.is_empty:
+        raise ParameterError("SHEETS", f"{which} has {'no' if geom is None else 'an empty'} "
+                             "geometry: every sheet must be a polygon with an area")
+    if not geom.is_valid:
+        reason = shapely.is_valid_reason(geom)
+        repaired = shapely.make_valid(geom, method="structure", keep_collapsed=False)
+        parts, _ = polygonal_parts(np.array([repaired], dtype=object))
+        geom = shapely.multipolygons(parts) if len(parts) else shapely.Polygon()
+        if warn is not None and geom.area > 0:
+            warn(f"SHEETS {which} is not a valid polygon ({reason}): repaired (GEOS make_valid)"
+                 f", {geom.area:,.2f} square units in {len(parts)} part(s)")
+    if not geom.area > 0:
+        raise ParameterError("SHEETS", f"{which} has no area (a polygon collapsed to a line or "
+                             "a point): every sheet must be a polygon with an area")
+    return geom
 
 
 def guard_grid(sheets: list, step: float, style: str, scale: float, map_step: float) -> None:
@@ -55,8 +86,6 @@ def guard_grid(sheets: list, step: float, style: str, scale: float, map_step: fl
 
     total, width, height = 0.0, 0.0, 0.0
     for _, polygon in sheets:
-        if polygon is None or polygon.is_empty:
-            continue
         xmin, ymin, xmax, ymax = polygon.bounds
         nx, ny = (xmax - xmin) / step + 1, (ymax - ymin) / step + 1
         total += nx * ny if style == "crosses" else nx + ny
@@ -68,23 +97,26 @@ def guard_grid(sheets: list, step: float, style: str, scale: float, map_step: fl
                    "crosses" if style == "crosses" else "lines"))
 
 
-def grid_frames(request: MapGridRequest):
-    """(grid GeoDataFrame, labels GeoDataFrame, ground step, CRS) of a map grid."""
+def grid_frames(request: MapGridRequest, warn=None):
+    """(grid GeoDataFrame, labels GeoDataFrame, ground step, CRS) of a map grid; every grid
+    feature is a MultiLineString: its line pieces inside the sheet (a line touching the
+    sheet's outline at a point is no piece)."""
     import geopandas as gpd
     import shapely
 
     step = ground_step(request.scale, request.map_step)
     arm = ground_step(request.scale, request.cross_size) / 2.0
-    sheets, crs = sheet_polygons(request.sheets)
+    sheets, crs = sheet_polygons(request.sheets, warn)
     guard_grid(sheets, step, request.style, request.scale, request.map_step)
     rows, label_rows = [], []
     for sheet_id, polygon in sheets:
         grid = map_grid(polygon.bounds, step, request.style, arm)
         for geom, kind, value in zip(grid.geometries, grid.kinds, grid.values):
-            clipped = shapely.intersection(geom, polygon)
-            if not clipped.is_empty:
+            pieces = shapely.get_parts(shapely.get_parts(shapely.intersection(geom, polygon)))
+            lines = [p for p in pieces if p.geom_type == "LineString" and p.length > 0]
+            if lines:
                 rows.append({"sheet": sheet_id, "kind": kind, "value": value,
-                             "geometry": clipped})
+                             "geometry": shapely.multilinestrings(lines)})
         for label in grid.labels:
             label_rows.append({"sheet": sheet_id, **label,
                                "geometry": shapely.points(label["x"], label["y"])})
@@ -93,7 +125,4 @@ def grid_frames(request: MapGridRequest):
     label_columns = ["sheet", "text", "axis", "value", "edge", "geometry"]
     labels = gpd.GeoDataFrame([{k: r[k] for k in label_columns} for r in label_rows] or None,
                               columns=label_columns, geometry="geometry", crs=crs)
-    if request.style == "crosses" and len(grid_frame):  # one MultiLineString per node
-        grid_frame["geometry"] = [g if g.geom_type == "MultiLineString" else
-                                  shapely.multilinestrings([g]) for g in grid_frame.geometry]
     return grid_frame, labels, step, crs

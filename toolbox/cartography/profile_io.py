@@ -20,14 +20,37 @@ from toolbox.io.raster import read_filled
 from toolbox.raster.bilinear import bilinear
 
 
+@dataclass(frozen=True)
+class InputLine:
+    """Part ``part`` (1-based) of INPUT feature ``line`` (its 1-based row) of ``parts`` parts,
+    with its vertices ``xy``."""
+
+    line: int
+    part: int
+    parts: int
+    xy: np.ndarray
+
+    @property
+    def name(self) -> str:
+        """``3``, or ``3.2`` for part 2 of a multi-part feature."""
+        return f"{self.line}" if self.parts == 1 else f"{self.line}.{self.part}"
+
+    @property
+    def label(self) -> str:
+        """``line 3`` (the feature's row), or ``line 3 part 2``."""
+        return f"line {self.line}" + (f" part {self.part}" if self.parts > 1 else "")
+
+
 @dataclass
 class Profile:
-    """One sampled line: ``name`` (line id, or line/section), stations along it (``distance``,
-    from its start), points ``xy`` and heights ``z``; ``chainage`` is the position along the
-    axis (the distance itself for profiles, the section's station for sections)."""
+    """One sampled line: ``name`` (line id, or line/section), the INPUT feature's 1-based
+    ``line`` and ``part``, stations along it (``distance``, from its start), points ``xy`` and
+    heights ``z``; ``chainage`` is the position along the axis (the distance itself for
+    profiles, the section's station for sections)."""
 
     name: str
     line: int
+    part: int
     section: int | None
     chainage: float
     distance: np.ndarray
@@ -71,12 +94,28 @@ class Surface:
         return np.where(off, np.nan, out)
 
 
-def line_parts(frame) -> list[np.ndarray]:
-    """Vertices (x, y) of each line of a layer (multi-lines split into their parts)."""
+def line_parts(frame, warn=None) -> list[InputLine]:
+    """The lines of a layer, numbered by feature (1-based row) and part (multi-lines split);
+    features without geometry (null or empty) have no profile: ``warn`` names them, and a
+    layer of only those is refused."""
     import shapely
 
-    return [shapely.get_coordinates(p) for g in frame.geometry.values
-            for p in shapely.get_parts(g) if not p.is_empty]
+    from toolbox.cartography.features import no_geometry, rows_text
+    from toolbox.errors import InputDataError
+
+    missing = no_geometry(frame.geometry.values)
+    if missing.all():
+        raise InputDataError(f"INPUT has no line to profile: its {len(frame)} feature(s) have "
+                             "no geometry (null or empty)")
+    if missing.any() and warn is not None:
+        warn(f"INPUT: {int(missing.sum())} feature(s) without geometry (null or empty) have no "
+             f"profile: feature(s) {rows_text(missing)}")
+    out = []
+    for row, geom in enumerate(frame.geometry.values, start=1):
+        parts = [] if missing[row - 1] else shapely.get_parts(geom)
+        out += [InputLine(row, k, len(parts), shapely.get_coordinates(p))
+                for k, p in enumerate(parts, start=1) if not p.is_empty]
+    return out
 
 
 def guard_profile_size(lines: list[np.ndarray], mode: str, step: float, spacing: float,
@@ -100,7 +139,7 @@ def guard_profile_size(lines: list[np.ndarray], mode: str, step: float, spacing:
                "use a larger STEP (or SPACING, or a smaller HALF_WIDTH)")
 
 
-def sample_profiles(lines: list[np.ndarray], mode: str, step: float, surface: Surface | None,
+def sample_profiles(lines: list[InputLine], mode: str, step: float, surface: Surface | None,
                     contours=None, spacing: float = 0.0, half_width: float = 0.0
                     ) -> list[Profile]:
     """Profiles of every line (``mode`` step / contours) or sections along every line as an
@@ -108,31 +147,33 @@ def sample_profiles(lines: list[np.ndarray], mode: str, step: float, surface: Su
     from toolbox.errors import InputDataError
 
     out = []
-    for i, xy in enumerate(lines, start=1):
+    for line in lines:
+        xy, ids = line.xy, (line.line, line.part)
         if not chainage_of_vertices(xy)[-1] > 0:
-            raise InputDataError(f"INPUT line {i} has zero length (every vertex at one point, "
-                                 f"{len(xy)} vertices): no profile along it; remove or fix it")
+            raise InputDataError(f"INPUT {line.label} has zero length (every vertex at one "
+                                 f"point, {len(xy)} vertices): no profile along it; remove or "
+                                 "fix it")
         if mode == "contours":
             geoms, levels = contours
             ch, pts, hs = contour_crossings(xy, geoms, levels)
-            out.append(Profile(f"{i}", i, None, 0.0, ch, pts, hs))
+            out.append(Profile(line.name, *ids, None, 0.0, ch, pts, hs))
         elif mode == "step":
             ch = sample_stations(xy, step)
             pts = points_at(xy, ch)
-            out.append(Profile(f"{i}", i, None, 0.0, ch, pts, surface.heights(pts)))
+            out.append(Profile(line.name, *ids, None, 0.0, ch, pts, surface.heights(pts)))
         else:
             for k, (station, ends) in enumerate(section_axes(xy, spacing, half_width), 1):
                 d = sample_stations(ends, step)
                 pts = points_at(ends, d)
-                out.append(Profile(f"{i}/{k}", i, k, station, d - half_width, pts,
+                out.append(Profile(f"{line.name}/{k}", *ids, k, station, d - half_width, pts,
                                    surface.heights(pts)))
     return out
 
 
 def profile_frames(profiles: list[Profile], crs):
-    """(points, lines) GeoDataFrames: PointZ stations with ``line``, ``section``, ``chainage``,
-    ``distance`` (offset across the axis for sections, negative on the left), ``z``; and one
-    LineString Z per profile with its length and height range."""
+    """(points, lines) GeoDataFrames: PointZ stations with ``line``, ``part``, ``section``,
+    ``chainage``, ``distance`` (offset across the axis for sections, negative on the left),
+    ``z``; and one LineString Z per profile with its length and height range."""
     import geopandas as gpd
     import shapely
 
@@ -140,19 +181,21 @@ def profile_frames(profiles: list[Profile], crs):
     for p in profiles:
         good = np.isfinite(p.z)
         for d, (x, y), z in zip(p.distance, p.xy, p.z):
-            rows.append({"profile": p.name, "line": p.line, "section": p.section,
-                         "chainage": p.chainage if p.section else float(d),
+            rows.append({"profile": p.name, "line": p.line, "part": p.part,
+                         "section": p.section, "chainage": p.chainage if p.section else float(d),
                          "distance": float(d), "z": float(z) if np.isfinite(z) else None,
                          "geometry": shapely.points(x, y, z if np.isfinite(z) else np.nan)})
         if good.sum() >= 2:
             xyz = np.column_stack([p.xy[good], p.z[good]])
-            lines.append({"profile": p.name, "line": p.line, "section": p.section,
-                          "chainage": p.chainage, "length": float(np.ptp(p.distance[good])),
+            lines.append({"profile": p.name, "line": p.line, "part": p.part,
+                          "section": p.section, "chainage": p.chainage,
+                          "length": float(np.ptp(p.distance[good])),
                           "z_min": float(p.z[good].min()), "z_max": float(p.z[good].max()),
                           "geometry": shapely.linestrings(xyz)})
-    cols = ["profile", "line", "section", "chainage", "distance", "z", "geometry"]
+    cols = ["profile", "line", "part", "section", "chainage", "distance", "z", "geometry"]
     points = gpd.GeoDataFrame(rows or None, columns=cols, geometry="geometry", crs=crs)
-    lcols = ["profile", "line", "section", "chainage", "length", "z_min", "z_max", "geometry"]
+    lcols = ["profile", "line", "part", "section", "chainage", "length", "z_min", "z_max",
+             "geometry"]
     line_frame = gpd.GeoDataFrame(lines or None, columns=lcols, geometry="geometry", crs=crs)
     return points, line_frame
 

@@ -79,13 +79,16 @@ class SheetJob:
     executor: Any = None  # toolbox.executor.Executor; None or local: drawn in this process
 
 
-def layer_styles(job: SheetJob) -> tuple[list[tuple[str, object]], list]:
+def layer_styles(job: SheetJob, warn=None) -> tuple[list[tuple[str, object]], list]:
     """The LAYERS as (name, frame) and their sheet styles: from CODES/COLOURS through the
-    shared style model when CODES is given, else default colours by geometry kind."""
+    shared style model when CODES is given, else default colours by geometry kind. Features
+    without geometry (null or empty: nothing to draw) are left out, with a warning through
+    ``warn``."""
     from toolbox.io.vector import read_vector
 
     refs = job.layers or []
-    layers = [(_layer_name(ref), read_vector(ref, name="LAYERS")) for ref in refs]
+    layers = [_drawable(_layer_name(ref), read_vector(ref, name="LAYERS"), warn)
+              for ref in refs]
     if job.codes is None:
         return layers, default_styles(layers)
     from toolbox.io.code_file import read_code_file, read_colour_file
@@ -96,6 +99,19 @@ def layer_styles(job: SheetJob) -> tuple[list[tuple[str, object]], list]:
     return layers, coded_styles(layers, table, colours)
 
 
+def _drawable(name: str, frame, warn) -> tuple[str, object]:
+    """``(name, frame)`` without the features that have no geometry (null or empty)."""
+    from toolbox.cartography.features import no_geometry, rows_text
+
+    missing = no_geometry(frame.geometry.values)
+    if not missing.any():
+        return name, frame
+    if warn is not None:
+        warn(f"LAYERS {name}: {int(missing.sum())} feature(s) without geometry (null or "
+             f"empty) not drawn: feature(s) {rows_text(missing)}")
+    return name, frame[~missing]
+
+
 def guard_sheets(job: SheetJob) -> None:
     """Refuse before drawing: too many sheets, a page too large to render at PNG_DPI (a tiny
     SCALE denominator), or too many map grid crosses."""
@@ -104,8 +120,7 @@ def guard_sheets(job: SheetJob) -> None:
     from toolbox.cartography.sheet_layout import GAP, LABEL_BAND, MARGIN, PANEL
     from toolbox.limits import check_size
 
-    sheets, _ = sheet_polygons(job.sheets)
-    sheets = [(i, g) for i, g in sheets if g is not None and not g.is_empty]
+    sheets, _ = sheet_polygons(job.sheets)  # null, empty or flat sheets refused
     if not sheets:
         return  # the job says so
     if job.sheets.sheets is not None:
@@ -199,8 +214,8 @@ def run_sheets(job: SheetJob, feedback) -> dict:
     from toolbox.io.staging import final_path
     from toolbox.io.vector import read_vector
 
-    sheets, crs = sheet_polygons(job.sheets)
-    layers, styles = layer_styles(job)
+    sheets, crs = sheet_polygons(job.sheets, feedback.push_warning)
+    layers, styles = layer_styles(job, feedback.push_warning)
     contours = read_vector(job.contours, name="CONTOURS") \
         if job.contours is not None else None
     from toolbox.io.crs import common_crs

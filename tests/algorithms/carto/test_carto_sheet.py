@@ -209,3 +209,50 @@ def test_a_small_sheet_is_centred_not_in_a_corner(tmp_path):
     # the map and its panel as one block, centred: equal margins left (beyond the grid labels'
     # 6 mm band) and right
     assert abs((left - 6.0) - (paper_w - panel_left - panel_width)) < 1.0
+
+
+# -- null and empty geometries: SHEETS refused, LAYERS features left out with a warning ------
+SQUARE = shapely.box(1688000, 4799000, 1688100, 4799100)
+
+
+@pytest.mark.parametrize("geom, says", [(None, "has no geometry"),
+                                        (shapely.Polygon(), "has an empty geometry")])
+def test_sheet_refuses_a_null_or_empty_sheet(tmp_path, geom, says):
+    from toolbox.errors import ParameterError
+
+    sheets = tmp_path / "sheets.gpkg"
+    gpd.GeoDataFrame({"no": ["A", "B"]}, geometry=[SQUARE, geom], crs=CRS).to_file(sheets)
+    out = tmp_path / "s.pdf"
+    with pytest.raises(ParameterError, match=rf"^SHEETS feature 2 \(sheet 'B'\) {says}"):
+        toolbox.run("carto:sheet", {"SHEETS": sheets, "SHEET_ID": "no", "SCALE": 1000,
+                                    "OUTPUT": out})
+    assert not out.exists()
+
+
+def test_sheet_leaves_out_layer_features_without_geometry(tmp_path):
+    heights = tmp_path / "heights.gpkg"
+    gpd.GeoDataFrame({"name": ["a", "none", "b"]}, geometry=[
+        shapely.Point(1688030, 4799030, 111.1), None, shapely.Point(1688070, 4799070, 222.2)],
+        crs=CRS).to_file(heights)
+    out, feedback = tmp_path / "s.pdf", toolbox.Feedback()
+    toolbox.run("carto:sheet", {"EXTENT": "1688000,4799000,1688100,4799100 [EPSG:3003]",
+                                "SCALE": 1000, "LAYERS": [heights], "OUTPUT": out},
+                feedback=feedback)
+    assert any("LAYERS heights: 1 feature(s) without geometry" in w and "feature(s) 2" in w
+               for w in feedback.warnings)
+    # the two other spot heights are drawn, labelled with their Z
+    words = {t for t, _, _ in texts(pypdf.PdfReader(out).pages[0])}
+    assert {"111.1", "222.2"} <= words
+
+
+def test_sheet_refuses_contours_without_elev(tmp_path):
+    from toolbox.errors import ParameterError
+
+    contours = tmp_path / "lines.gpkg"
+    gpd.GeoDataFrame({"z": [100.0]}, geometry=[shapely.LineString(
+        [(1688000, 4799050), (1688100, 4799050)])], crs=CRS).to_file(contours)
+    out = tmp_path / "s.pdf"
+    with pytest.raises(ParameterError, match="^CONTOURS .* has no numeric 'elev' field"):
+        toolbox.run("carto:sheet", {"EXTENT": "1688000,4799000,1688100,4799100 [EPSG:3003]",
+                                    "SCALE": 1000, "CONTOURS": contours, "OUTPUT": out})
+    assert not out.exists()
