@@ -404,6 +404,49 @@ def test_geographic_crs_and_area_of_use(points, alg, tmp_path):
     assert list(tmp_path.iterdir()) == []
 
 
+@pytest.mark.parametrize("crs, words", [
+    ("EPSG:2263", "easting unit is the US survey foot"),   # NY Long Island (ftUS)
+    ("EPSG:2222", "easting unit is the foot"),             # Arizona East (international ft)
+    ("EPSG:2053", "westing axis points west"),             # Lo29: westing/southing axes
+    ("EPSG:4978", "geocentric"),                           # Earth-centred X, Y, Z
+    ("EPSG:32632+6360", "gravity-related height unit is the US survey foot")])
+def test_crs_not_in_metres_east_north_is_refused(points, tmp_path, crs, words):
+    """Feet, west/south axes and geocentric CRSs were taken as metres east/north in silence
+    (a 1:5000 grid spaced 500 ft, photo scales 3.3x off, aspect 180 degrees off, a "DEM" of
+    geocentric Z): refused in one line naming the parameter, the CRS and the cause."""
+    import geopandas as gpd
+
+    mass = gpd.read_file(points["mass"]).set_crs(crs, allow_override=True)
+    mass.to_file(tmp_path / "in.gpkg")
+    out = tmp_path / "o.tif"
+    code, _, err = cli("run", "dem:idw", "--INPUT", tmp_path / "in.gpkg", "--CELL_SIZE", "20",
+                       "--OUTPUT", out)
+    line = one_error(err)
+    assert code == 2 and line.startswith("toolbox: error: INPUT is in") and words in line, line
+    assert "works in metres, x east and y north" in line and not out.exists()
+
+
+def test_a_project_in_feet_is_refused(tmp_path):
+    """A project (YAML or another program's file) in a feet CRS: refused naming PROJECT (its
+    photo scales, tolerances and _m fields were feet taken as metres)."""
+    import shutil
+
+    import yaml
+
+    from toolbox.demo.samples.siena import BUNDLED
+
+    shutil.copytree(BUNDLED, tmp_path, dirs_exist_ok=True)  # the files the project names
+    doc = yaml.safe_load((BUNDLED / "siena_project.yaml").read_text())
+    doc["crs"] = "EPSG:2263"
+    (tmp_path / "p.yaml").write_text(yaml.safe_dump(doc))
+    code, _, err = cli("run", "orientation:precision", "--PROJECT", tmp_path / "p.yaml",
+                       "--MEAN_HEIGHT", "300",
+                       "--OUTPUT", tmp_path / "o.json")
+    line = one_error(err)
+    assert code == 2 and "PROJECT" in line and "US survey foot" in line, line
+    assert not (tmp_path / "o.json").exists()
+
+
 @pytest.mark.parametrize("alg", ["dem:idw", "dem:quadratic", "tin:delaunay"])
 def test_degenerate_point_sets(points, alg, tmp_path):
     extra = ["--CELL_SIZE", "20"] if alg.startswith("dem") else []

@@ -183,8 +183,9 @@ def input_crs_and_bounds(value: Any) -> list[tuple[CRS | None, tuple | None]]:
 
 def check_input_crs(algorithm_id: str, name: str, value: Any,
                     warnings: list[str] | None = None) -> None:
-    """Refuse a geographic CRS (the algorithm works in metres) and coordinates far outside the
-    CRS's area of use; append a warning to ``warnings`` when they are a little outside."""
+    """Refuse a geographic CRS or one not in metres with x east, y north (:func:`not_metric`:
+    the algorithm works in metres) and coordinates far outside the CRS's area of use; append a
+    warning to ``warnings`` when they are a little outside."""
     for crs, bounds in input_crs_and_bounds(value):
         if crs is None:
             continue
@@ -193,6 +194,12 @@ def check_input_crs(algorithm_id: str, name: str, value: Any,
                                  f"degrees), but {algorithm_id} works in metres (cell sizes, "
                                  "tolerances, slopes, volumes): reproject it to a projected CRS "
                                  "(e.g. EPSG:3003 or a UTM zone) first")
+        problem = not_metric(crs)
+        if problem:
+            raise ParameterError(name, f"is in {crs_label(crs)} ({crs.name}), {problem}, but "
+                                 f"{algorithm_id} works in metres, x east and y north (cell "
+                                 "sizes, tolerances, scales, heights): reproject it to a metric "
+                                 "CRS (e.g. a UTM zone, heights in metres) first")
         if bounds is not None:
             problem, far = outside_area_of_use(crs, bounds)
             if problem and far:
@@ -200,6 +207,21 @@ def check_input_crs(algorithm_id: str, name: str, value: Any,
                                      "its true CRS, then reproject if needed")
             if problem and warnings is not None:
                 warnings.append(f"{name}: {problem}")
+
+
+def not_metric(crs: CRS) -> str | None:
+    """Why ``crs`` is not a projected (or vertical) CRS in metres with x east and y north, or
+    None: a geocentric CRS, an axis in feet or another unit (a compound CRS's height too), axes
+    pointing west or south. Axes of an unknown unit pass."""
+    if crs.is_geocentric:
+        return "a geocentric CRS (Earth-centred X, Y, Z)"
+    for axis in crs.axis_info:
+        known = axis.unit_name not in ("", "unknown") and axis.unit_conversion_factor > 0
+        if known and abs(axis.unit_conversion_factor - 1.0) > 1e-12:
+            return f"whose {axis.name.lower()} unit is the {axis.unit_name}"
+        if axis.direction in ("west", "south"):
+            return f"whose {axis.name.lower()} axis points {axis.direction}"
+    return None
 
 
 def warn_unlabelled_elsewhere(inputs: dict[str, Any], warnings: list[str] | None) -> None:

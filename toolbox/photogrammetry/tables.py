@@ -11,7 +11,7 @@ from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import Any
 
-from toolbox.errors import InputDataError
+from toolbox.errors import InputDataError, ParameterError
 from toolbox.io.text import read_text
 
 
@@ -173,14 +173,23 @@ def load_project_parameter(path: Path, name: str = "PROJECT"):
     """Load a project file given as an algorithm parameter; errors name the parameter."""
     from toolbox.photogrammetry.project import load_project
 
+    from toolbox.io.crs import crs_label, not_metric
+
     try:
         if Path(path).suffix.lower() not in (".yaml", ".yml"):  # another program's file
             if "exchange" not in PROJECT_READERS:  # a plugin: it imports this module
                 importlib.import_module("toolbox.exchange")
-            return PROJECT_READERS["exchange"](path)
-        return load_project(path)
+            project = PROJECT_READERS["exchange"](path)
+        else:
+            project = load_project(path)
     except InputDataError as exc:
         raise InputDataError(f"{name}: {exc}") from None
+    problem = None if project.crs is None else not_metric(project.crs)
+    if problem:
+        raise ParameterError(name, f"'{path}' is in {crs_label(project.crs)} "
+                             f"({project.crs.name}), {problem}: the toolbox works in metres, x "
+                             "east and y north; convert the project to a metric CRS first")
+    return project
 
 
 ROLES = ("control", "check")
