@@ -171,9 +171,8 @@ PROJECT_READERS: dict[str, Any] = {}
 
 def load_project_parameter(path: Path, name: str = "PROJECT"):
     """Load a project file given as an algorithm parameter; errors name the parameter."""
-    from toolbox.photogrammetry.project import load_project
-
     from toolbox.io.crs import crs_label, not_metric
+    from toolbox.photogrammetry.project import load_project
 
     try:
         if Path(path).suffix.lower() not in (".yaml", ".yml"):  # another program's file
