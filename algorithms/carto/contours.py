@@ -42,6 +42,8 @@ class Contours(Algorithm):
     labels along them), as QML and SLD; ``STYLE`` also writes the QML.
     """
 
+    any_length_unit = True  # lengths in the CRS's unit (metres or feet)
+
     id = "carto:contours"
     display_name = "Contour lines"
     group = "Cartography"

@@ -53,6 +53,8 @@ class CrossValidate(Algorithm):
     the error (``<method>_err``), to map where a method fails.
     """
 
+    any_length_unit = True  # lengths in the CRS's unit (metres or feet)
+
     id = "dem:cross_validate"
     display_name = "DEM cross-validation"
     group = "DEM gridding"

@@ -49,6 +49,8 @@ class GroundFilterDtm(Algorithm):
     The filter grid is held in memory (its cells count against MAX_CELLS).
     """
 
+    any_length_unit = True  # lengths in the CRS's unit (metres or feet)
+
     id = "dem:ground"
     display_name = "DTM by ground filtering (SMRF)"
     group = "DEM gridding"

@@ -97,6 +97,8 @@ class Delaunay(Algorithm):
     its author (docs/algorithms/tin.md, "Licence").
     """
 
+    any_length_unit = True  # lengths in the CRS's unit (metres or feet)
+
     id = "tin:delaunay"
     display_name = "TIN (Delaunay, with breaklines)"
     group = "TIN"

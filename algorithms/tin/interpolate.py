@@ -28,6 +28,8 @@ class Interpolate(Algorithm):
     exploded into single points.
     """
 
+    any_length_unit = True  # lengths in the CRS's unit (metres or feet)
+
     id = "tin:interpolate"
     display_name = "Interpolate heights on a TIN"
     group = "TIN"

@@ -31,6 +31,8 @@ class ToRaster(Algorithm):
     so memory stays bounded for any size.
     """
 
+    any_length_unit = True  # lengths in the CRS's unit (metres or feet)
+
     id = "tin:to_raster"
     display_name = "TIN to raster"
     group = "TIN"

@@ -109,6 +109,8 @@ class Volume(Algorithm):
     method).
     """
 
+    any_length_unit = True  # lengths in the CRS's unit (metres or feet)
+
     id = "tin:volume"
     display_name = "TIN cut/fill volume"
     group = "TIN"

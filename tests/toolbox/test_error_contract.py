@@ -404,33 +404,58 @@ def test_geographic_crs_and_area_of_use(points, alg, tmp_path):
     assert list(tmp_path.iterdir()) == []
 
 
+@pytest.mark.parametrize("extent, words", [
+    ("980000,190000,990000,200000 [EPSG:2263]", "easting unit is the US survey foot"),
+    ("750000,1090000,760000,1100000 [EPSG:2222]", "easting unit is the foot")])
+def test_a_crs_in_feet_is_refused_where_metres_are_meant(tmp_path, extent, words):
+    """carto:grid's 1:5000 grid is 500 m on the ground: in a feet CRS it was drawn 500 ft apart
+    in silence. Refused in one line naming EXTENT, the CRS and its unit."""
+    out = tmp_path / "g.gpkg"
+    code, _, err = cli("run", "carto:grid", "--EXTENT", extent, "--SCALE", "5000",
+                       "--OUTPUT", out)
+    line = one_error(err)
+    assert code == 2 and line.startswith("toolbox: error: EXTENT is in") and words in line, line
+    assert "works in metres, x east and y north" in line and not out.exists()
+
+
 @pytest.mark.parametrize("crs, words", [
-    ("EPSG:2263", "easting unit is the US survey foot"),   # NY Long Island (ftUS)
-    ("EPSG:2222", "easting unit is the foot"),             # Arizona East (international ft)
     ("EPSG:2053", "westing axis points west"),             # Lo29: westing/southing axes
     ("EPSG:4978", "geocentric"),                           # Earth-centred X, Y, Z
-    ("EPSG:32632+6360", "gravity-related height unit is the US survey foot")])
-def test_crs_not_in_metres_east_north_is_refused(points, tmp_path, crs, words):
-    """Feet, west/south axes and geocentric CRSs were taken as metres east/north in silence
-    (a 1:5000 grid spaced 500 ft, photo scales 3.3x off, aspect 180 degrees off, a "DEM" of
-    geocentric Z): refused in one line naming the parameter, the CRS and the cause."""
+    ("EPSG:2263+5703", "gravity-related height unit (metre) is not its easting unit (US "
+                       "survey foot)")])
+def test_crs_not_east_north_in_one_unit_is_refused(points, tmp_path, crs, words):
+    """West/south axes (aspect was 180 degrees off), a geocentric CRS (a "DEM" of geocentric
+    Z) and heights in another unit than x, y (slopes off by 3.28x) are refused even by the
+    algorithms whose lengths are the CRS's unit; a CRS in feet throughout is accepted there and
+    gives the metre-labelled run's DEM, numbers unchanged."""
     import geopandas as gpd
+    import numpy as np
+    import rasterio
 
-    mass = gpd.read_file(points["mass"]).set_crs(crs, allow_override=True)
-    mass.to_file(tmp_path / "in.gpkg")
+    mass = gpd.read_file(points["mass"])
+    mass.set_crs(crs, allow_override=True).to_file(tmp_path / "in.gpkg")
+    in_new_york = mass.translate(1_000_000 - 1_688_000, 200_000 - 4_799_000)  # its area of use
+    for name, label in (("ft", "EPSG:2263+6360"), ("m", None)):
+        gpd.GeoDataFrame(geometry=in_new_york.set_crs(label, allow_override=True)).to_file(
+            tmp_path / f"{name}.gpkg")
     out = tmp_path / "o.tif"
     code, _, err = cli("run", "dem:idw", "--INPUT", tmp_path / "in.gpkg", "--CELL_SIZE", "20",
                        "--OUTPUT", out)
     line = one_error(err)
     assert code == 2 and line.startswith("toolbox: error: INPUT is in") and words in line, line
-    assert "works in metres, x east and y north" in line and not out.exists()
+    assert not out.exists()
+    for name in ("ft", "m"):
+        code, _, err = cli("run", "dem:idw", "--INPUT", tmp_path / f"{name}.gpkg",
+                           "--CELL_SIZE", "20", "--OUTPUT", tmp_path / f"{name}.tif", "-q")
+        assert code == 0, err
+    with rasterio.open(tmp_path / "ft.tif") as ft, rasterio.open(tmp_path / "m.tif") as m:
+        assert ft.crs.linear_units.lower().startswith("us survey foot")
+        assert ft.transform == m.transform and np.array_equal(ft.read(), m.read(), equal_nan=True)
 
 
 def test_a_project_in_feet_is_refused(tmp_path):
     """A project (YAML or another program's file) in a feet CRS: refused naming PROJECT (its
     photo scales, tolerances and _m fields were feet taken as metres)."""
-    import shutil
-
     import yaml
 
     from toolbox.demo.samples.siena import BUNDLED

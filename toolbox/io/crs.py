@@ -182,7 +182,7 @@ def input_crs_and_bounds(value: Any) -> list[tuple[CRS | None, tuple | None]]:
 
 
 def check_input_crs(algorithm_id: str, name: str, value: Any,
-                    warnings: list[str] | None = None) -> None:
+                    warnings: list[str] | None = None, any_unit: bool = False) -> None:
     """Refuse a geographic CRS or one not in metres with x east, y north (:func:`not_metric`:
     the algorithm works in metres) and coordinates far outside the CRS's area of use; append a
     warning to ``warnings`` when they are a little outside."""
@@ -194,10 +194,11 @@ def check_input_crs(algorithm_id: str, name: str, value: Any,
                                  f"degrees), but {algorithm_id} works in metres (cell sizes, "
                                  "tolerances, slopes, volumes): reproject it to a projected CRS "
                                  "(e.g. EPSG:3003 or a UTM zone) first")
-        problem = not_metric(crs)
+        problem = not_metric(crs, any_unit)
         if problem:
+            works = "in one length unit" if any_unit else "in metres"
             raise ParameterError(name, f"is in {crs_label(crs)} ({crs.name}), {problem}, but "
-                                 f"{algorithm_id} works in metres, x east and y north (cell "
+                                 f"{algorithm_id} works {works}, x east and y north (cell "
                                  "sizes, tolerances, scales, heights): reproject it to a metric "
                                  "CRS (e.g. a UTM zone, heights in metres) first")
         if bounds is not None:
@@ -209,18 +210,24 @@ def check_input_crs(algorithm_id: str, name: str, value: Any,
                 warnings.append(f"{name}: {problem}")
 
 
-def not_metric(crs: CRS) -> str | None:
+def not_metric(crs: CRS, any_unit: bool = False) -> str | None:
     """Why ``crs`` is not a projected (or vertical) CRS in metres with x east and y north, or
     None: a geocentric CRS, an axis in feet or another unit (a compound CRS's height too), axes
-    pointing west or south. Axes of an unknown unit pass."""
+    pointing west or south. With ``any_unit``, axes all in one other unit (a CRS in feet,
+    heights in feet) pass. Axes of an unknown unit pass."""
     if crs.is_geocentric:
         return "a geocentric CRS (Earth-centred X, Y, Z)"
-    for axis in crs.axis_info:
-        known = axis.unit_name not in ("", "unknown") and axis.unit_conversion_factor > 0
-        if known and abs(axis.unit_conversion_factor - 1.0) > 1e-12:
-            return f"whose {axis.name.lower()} unit is the {axis.unit_name}"
+    axes = [a for a in crs.axis_info
+            if a.unit_name not in ("", "unknown") and a.unit_conversion_factor > 0]
+    for axis in axes:
         if axis.direction in ("west", "south"):
             return f"whose {axis.name.lower()} axis points {axis.direction}"
+        if any_unit and axes and abs(axis.unit_conversion_factor
+                                     - axes[0].unit_conversion_factor) > 1e-12:
+            return (f"whose {axis.name.lower()} unit ({axis.unit_name}) is not its "
+                    f"{axes[0].name.lower()} unit ({axes[0].unit_name})")
+        if not any_unit and abs(axis.unit_conversion_factor - 1.0) > 1e-12:
+            return f"whose {axis.name.lower()} unit is the {axis.unit_name}"
     return None
 
 

@@ -227,6 +227,8 @@ class GriddingAlgorithm(Algorithm):
     """Base of ``dem:<method>``: subclasses set ``method`` (a name in
     :data:`toolbox.terrain.gridding.methods.METHODS`) and the method's parameters."""
 
+    any_length_unit = True  # lengths in the CRS's unit (metres or feet)
+
     group = "DEM gridding"
     method: ClassVar[str] = ""
     outputs = [STATISTICS]

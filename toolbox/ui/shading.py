@@ -33,6 +33,8 @@ class ShadingAlgorithm(Algorithm):
     """Base of dem:slope/aspect/hillshade: a 3x3 kernel of :mod:`toolbox.terrain.shading` over
     the DEM in tiles with a one-cell halo (BAND within the DEM's bands: the runner checks it)."""
 
+    any_length_unit = True  # lengths in the CRS's unit (metres or feet)
+
     group = "DEM terrain"
     kernel_name: ClassVar[str] = ""  # a function of toolbox.terrain.shading
     dtype: ClassVar[str] = "float32"
