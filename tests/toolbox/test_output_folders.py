@@ -252,6 +252,39 @@ def test_folder_holding_the_images_of_images_is_refused(block, tmp_path):
     assert hashes(images) == before
 
 
+@pytest.mark.parametrize("fmt, name", [("orthority", "ext.geojson"), ("csv", "ext.csv"),
+                                       ("patb", "ext.ori")])
+def test_photos_another_programs_project_finds_by_stem_are_inputs(block, tmp_path, fmt, name):
+    """Found by the I/O sweep: with an Orthority GeoJSON or CSV (or PAT-B) project, whose photos
+    are found by file stem in its folder, ortho:batch FOLDER and ortho:photo OUTPUT replaced
+    the photos with --overwrite (with the YAML project they were refused). Refused in one line
+    naming the parameter, PROJECT and the photo; every file byte-identical, nothing written."""
+    import yaml
+
+    x, dem = block
+    project = x / name
+    toolbox.run("orientation:convert", {"INPUT": str(x / "project.yaml"), "FORMAT_OUT": fmt,
+                                        "OUTPUT": project})
+    if fmt != "orthority":  # the cameras beside it (PAT-B names none: the first for all)
+        toolbox.run("orientation:convert", {"INPUT": str(x / "project.yaml"), "FORMAT_OUT":
+                                            "orthority", "OUTPUT": tmp_path / "c.geojson"})
+        cameras = yaml.safe_load((tmp_path / "c_int_param.yaml").read_text(encoding="utf-8"))
+        if fmt == "patb":
+            cameras = dict([next(iter(cameras.items()))])
+        (x / "cam_int_param.yaml").write_text(yaml.safe_dump(cameras), encoding="utf-8")
+    before = hashes(x)
+    code, err = cli(*batch_args(project, dem, x, tmp_path / "o.json", "--overwrite"))
+    line = one_error(err)
+    assert code == 2 and f"FOLDER would write '{x / '1_7150.tif'}', which is the input " \
+        "PROJECT" in line, line
+    code, err = cli("run", "ortho:photo", "--INPUT", x / "1_7151.tif", "--PROJECT", project,
+                    "--PHOTO", "1_7151", "--DEM", dem, "--CELL_SIZE", 8, "--OUTPUT",
+                    x / "2_7139.tif", "--overwrite")
+    line = one_error(err)
+    assert code == 2 and f"OUTPUT '{x / '2_7139.tif'}' is the input PROJECT" in line, line
+    assert hashes(x) == before and not (tmp_path / "o.json").exists()
+
+
 def test_sigterm_after_the_first_ortho_leaves_the_folder_as_it_was(block, tmp_path):
     """A real SIGTERM once the first ortho is complete in the staged folder: exit 143, the
     message says nothing was written, and it is true (FOLDER holds only what it held)."""

@@ -161,6 +161,47 @@ def test_output_equal_to_input_refused(plane_dem):
                     overwrite=True)
 
 
+OGR_VRT = """<OGRVRTDataSource>
+  <OGRVRTLayer name="pts">
+    <SrcDataSource{attribute}>{source}</SrcDataSource>
+    <SrcLayer>pts</SrcLayer>
+  </OGRVRTLayer>
+</OGRVRTDataSource>
+"""
+
+
+@pytest.mark.parametrize("case", ["raster", "nested", "ogr", "ogr_absolute"])
+def test_output_on_a_file_a_vrt_input_reads_is_refused(plane_dem, points_gpkg, tmp_path, case):
+    """Found by the I/O sweep: OUTPUT on the data a VRT input reads (a raster VRT's source, one
+    behind a VRT of a VRT, an OGR VRT's SrcDataSource) replaced the input data with --overwrite.
+    Refused in one line naming OUTPUT and INPUT; every file byte-identical, nothing written."""
+    import hashlib
+
+    import rasterio.shutil
+
+    from tests.helpers_cli import cli, one_error
+
+    rasterio.shutil.copy(plane_dem[0], tmp_path / "plane.vrt", driver="VRT")
+    text = (tmp_path / "plane.vrt").read_text(encoding="utf-8")
+    assert '<SourceFilename relativeToVRT="1">plane.tif<' in text
+    (tmp_path / "outer.vrt").write_text(text.replace(">plane.tif<", ">plane.vrt<"),
+                                        encoding="utf-8")
+    for name, attribute, source in (("pts.vrt", ' relativeToVRT="1"', "points.gpkg"),
+                                    ("abs.vrt", "", points_gpkg)):
+        (tmp_path / name).write_text(OGR_VRT.format(attribute=attribute, source=source),
+                                     encoding="utf-8")
+    algorithm, vrt, data = {"raster": ("dem:hillshade", "plane.vrt", plane_dem[0]),
+                            "nested": ("dem:hillshade", "outer.vrt", plane_dem[0]),
+                            "ogr": ("tin:delaunay", "pts.vrt", points_gpkg),
+                            "ogr_absolute": ("tin:delaunay", "abs.vrt", points_gpkg)}[case]
+    before = {f.name: hashlib.md5(f.read_bytes()).hexdigest() for f in tmp_path.iterdir()}
+    code, _, err = cli("run", algorithm, "--INPUT", tmp_path / vrt, "--OUTPUT", data,
+                       "--overwrite")
+    line = one_error(err)
+    assert code == 2 and f"OUTPUT '{data}' is the input INPUT" in line, line
+    assert {f.name: hashlib.md5(f.read_bytes()).hexdigest() for f in tmp_path.iterdir()} == before
+
+
 def test_json_report_content(plane_dem, tmp_path):
     report = tmp_path / "run.json"
     toolbox.run("dem:hillshade", {"INPUT": plane_dem[0], "AZIMUTH": 90,

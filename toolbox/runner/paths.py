@@ -1,15 +1,18 @@
-"""What a run reads and writes: every input path (sidecars and the files a project names
-included), the files the outputs plan, and the checks that no output replaces an input."""
+"""What a run reads and writes: every input path (sidecars, a VRT's sources, a project's photos
+and the files it names included), the files the outputs plan, and the checks that no output
+replaces an input."""
 
 from __future__ import annotations
 
+import logging
+from functools import lru_cache
 from pathlib import Path
 from typing import Any
 
 from toolbox.algorithm import Algorithm
 from toolbox.errors import OutputExistsError, ParameterError
 from toolbox.io.staging import protected_paths
-from toolbox.parameters import Folder, OutputFolder, String
+from toolbox.parameters import File, Folder, OutputFolder, String
 
 REPORT = "--run-report"  # the run report, as messages name it
 
@@ -60,7 +63,7 @@ def _add_input(out: dict[Path, str], p: Any, path: str) -> None:
                 for protected in protected_paths(named):
                     out.setdefault(protected, p.name)
         elif candidate.is_file():
-            for named in [candidate, *_referenced_files(candidate)]:
+            for named in [candidate, *_referenced_files(candidate), *_project_files(p, candidate)]:
                 for protected in protected_paths(named):
                     out.setdefault(protected, p.name)
     except (OSError, ValueError):  # a string that is no path (too long, NUL...)
@@ -68,8 +71,10 @@ def _add_input(out: dict[Path, str], p: Any, path: str) -> None:
 
 
 def _referenced_files(path: Path) -> list[Path]:
-    """Existing files a small YAML/JSON input names (a project's photos and orientation
-    files), relative to its folder: they are inputs too."""
+    """Existing files an input reads besides itself: a VRT's sources, or those a small
+    YAML/JSON input names (a project's photos and orientation files) relative to its folder."""
+    if path.suffix.lower() == ".vrt":
+        return _vrt_sources(path)
     if path.suffix.lower() not in (".yaml", ".yml", ".json") or path.stat().st_size > 1 << 20:
         return []
     try:
@@ -99,6 +104,79 @@ def _referenced_files(path: Path) -> list[Path]:
             except (OSError, ValueError):
                 continue
     return found
+
+
+def _vrt_sources(vrt: Path) -> list[Path]:
+    """The files a VRT reads, those of nested VRTs too."""
+    found: list[Path] = []
+    todo, seen = [vrt], {vrt.resolve()}
+    while todo:
+        for name in _vrt_files(todo.pop()):
+            if name.is_file() and name.resolve() not in seen:
+                seen.add(name.resolve())
+                found.append(name)
+                if name.suffix.lower() == ".vrt":
+                    todo.append(name)
+    return found
+
+
+def _vrt_files(vrt: Path) -> list[Path]:
+    """The files one VRT names: GDAL's file list of a raster VRT, the ``SrcDataSource`` of an
+    OGR VRT (``relativeToVRT="1"``: relative to the VRT's folder; GDAL reads both
+    case-insensitively)."""
+    import xml.etree.ElementTree as ET
+
+    try:
+        root = ET.parse(vrt).getroot()
+        if root.tag != "OGRVRTDataSource":
+            import rasterio
+
+            with rasterio.open(vrt) as dataset:
+                return [Path(name) for name in dataset.files]
+    except Exception:  # noqa: BLE001 - unreadable: its reader reports it
+        return []
+    out = []
+    for element in root.iter():
+        text = (element.text or "").strip()
+        if str(element.tag).lower() != "srcdatasource" or not text:
+            continue
+        relative = {k.lower(): v.strip() for k, v in element.attrib.items()}.get("relativetovrt")
+        out.append(vrt.parent / text if relative == "1" else Path(text))
+    return out
+
+
+def _project_files(p: Any, path: Path) -> list[Path]:
+    """For a PROJECT input: the photos its reader resolves (another program's file names them
+    by stem, found in its folder) and the camera files it may read beside it."""
+    from toolbox.photogrammetry.tables import PROJECT_EXTENSIONS
+
+    if not isinstance(p, File) or p.extensions != PROJECT_EXTENSIONS:
+        return []
+    st = path.stat()
+    return list(_project_photos(path.resolve(), st.st_mtime_ns, st.st_size,
+                                path.parent.stat().st_mtime_ns))
+
+
+@lru_cache(maxsize=4)
+def _project_photos(path: Path, *state: int) -> tuple[Path, ...]:
+    """The existing photos (and camera files) of the project ``path``; cached by the ``state``
+    of the file and its folder (a run asks several times)."""
+    from toolbox.exchange import CAMERA_FILES
+    from toolbox.photogrammetry.tables import load_project_parameter
+
+    logger = logging.getLogger("toolbox.exchange")  # its warnings are the run's, not ours
+    level = logger.level
+    logger.setLevel(logging.CRITICAL + 1)
+    try:
+        project = load_project_parameter(path)
+    except Exception:  # noqa: BLE001 - unreadable: its reader reports it
+        return ()
+    finally:
+        logger.setLevel(level)
+    found = [Path(photo.image) for photo in project.photos.values() if photo.image is not None]
+    if path.suffix.lower() not in (".yaml", ".yml"):
+        found += [f for pattern in CAMERA_FILES for f in path.parent.glob(pattern)]
+    return tuple(f for f in found if f.is_file())
 
 
 def check_outputs_against_inputs(alg_cls: type[Algorithm], values: dict[str, Any]) -> None:
