@@ -10,7 +10,7 @@ from toolbox.feedback import Feedback
 from toolbox.io.crs import common_crs, crs_label
 from toolbox.io.pointcloud import cloud_filter
 from toolbox.io.vector import read_vector
-from toolbox.io.vector_points import vertices_xyz
+from toolbox.io.vector_points import feature_rows, input_rows, vertices_xyz
 from toolbox.parameters import Boolean, Crs, Enum, Field, Number, VectorLayer
 from toolbox.parameters.outputs import Layer, Output, OutputVector
 from toolbox.registry import register
@@ -32,15 +32,15 @@ def read_breaklines(ref, z_field: str | None) -> tuple[np.ndarray, np.ndarray]:
     frame = frame[frame.geometry.notna() & ~frame.geometry.is_empty]
     if len(frame) == 0:
         return np.zeros((0, 3)), np.zeros(0, dtype=np.int64)
-    frame = frame.explode(index_parts=False).reset_index(drop=True)
+    frame = frame.explode(index_parts=False)  # the index stays the input row (messages)
     kinds = shapely.get_type_id(frame.geometry.values)
     if not np.isin(kinds, [1, 2]).all():
         raise InputDataError(f"BREAKLINES {ref} must contain lines, found "
                              f"{', '.join(sorted(set(frame.geom_type[~np.isin(kinds, [1, 2])])))}")
     if z_field is not None and frame[z_field].isna().any():
-        bad = np.flatnonzero(frame[z_field].isna().to_numpy())
-        raise InputDataError(f"BREAKLINES field {z_field!r} is empty for {len(bad)} line(s) "
-                             f"(first row {int(bad[0])}): every breakline needs a height")
+        bad = input_rows(frame)[frame[z_field].isna().to_numpy()]
+        raise InputDataError(f"BREAKLINES field {z_field!r} is empty for {len(np.unique(bad))} "
+                             f"line(s) ({feature_rows(bad)}): every breakline needs a height")
     xyz, index = vertices_xyz(frame, z_field, name="BREAKLINES")
     return xyz, index
 

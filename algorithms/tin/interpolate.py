@@ -9,6 +9,7 @@ from toolbox.errors import InputDataError
 from toolbox.feedback import Feedback
 from toolbox.io.crs import common_crs
 from toolbox.io.vector import read_vector
+from toolbox.io.vector_points import feature_rows
 from toolbox.io.vector_write import write_layers
 from toolbox.parameters import Boolean, Number, String, VectorLayer
 from toolbox.parameters.outputs import Layer, Output, OutputVector
@@ -25,7 +26,8 @@ class Interpolate(Algorithm):
     Z is that height. Points outside the TIN get NODATA in both and are counted in STATISTICS
     (and a warning). When the input points already have a Z, a field ``dz`` = input Z - TIN Z is
     added and its RMSE reported: a check of the TIN against control points. Multipoints are
-    exploded into single points.
+    exploded into single points; features without a geometry (null or empty) are kept, without
+    geometry and with NODATA, and named in a warning.
     """
 
     any_length_unit = True  # lengths in the CRS's unit (metres or feet)
@@ -66,6 +68,7 @@ class Interpolate(Algorithm):
                             "written here); rename it or pass --REPLACE_FIELD to replace it")
 
     def process(self, params, feedback: Feedback):
+        import pandas as pd
         import shapely
 
         from toolbox.terrain.tin.kernels import interpolate_tin
@@ -75,41 +78,58 @@ class Interpolate(Algorithm):
         with feedback.timed("read"):
             xyz, triangles, _ = read_tin(params["TIN"])
             frame = read_vector(params["INPUT"], name="INPUT")
-        frame = frame[frame.geometry.notna() & ~frame.geometry.is_empty]
-        if len(frame) == 0:
+        frame = frame.reset_index(drop=True)  # the index: the input row, kept through explode
+        geoms = frame.geometry.values
+        missing = shapely.is_missing(geoms) | shapely.is_empty(geoms)
+        if missing.all():
             raise InputDataError(f"INPUT {params['INPUT']} has no points")
-        parts = shapely.get_num_geometries(frame.geometry.values)
+        parts = shapely.get_num_geometries(geoms)
         if np.any(parts > 1):
             feedback.push_info(f"{int((parts > 1).sum())} multipoint(s) exploded")
-        frame = frame.explode(index_parts=False).reset_index(drop=True)
+        points = frame[~missing].explode(index_parts=False)
+        if missing.any():  # kept in place, without geometry (explode drops them)
+            feedback.push_warning(f"{int(missing.sum())} of {len(frame)} feature(s) "
+                                  f"({feature_rows(np.flatnonzero(missing))}) have no geometry "
+                                  "(null or empty): kept without geometry, height set to NODATA")
+            frame = frame.set_geometry(np.where(missing, None, geoms), crs=frame.crs)
+            points = pd.concat([points, frame[missing]]).sort_index(kind="stable")
+        frame = points.reset_index(drop=True)
         geoms = frame.geometry.values
-        has_z = bool(shapely.has_z(geoms).all())
-        coords = shapely.get_coordinates(geoms, include_z=has_z)
+        present = ~shapely.is_missing(geoms)
+        has_z = bool(shapely.has_z(geoms[present]).all())
+        coords = np.full((len(frame), 3 if has_z else 2), np.nan)
+        coords[present] = shapely.get_coordinates(geoms[present], include_z=has_z)
         feedback.set_progress(30, "interpolating")
         with feedback.timed("interpolate"):
-            z = interpolate_tin(xyz, triangles, coords[:, 0], coords[:, 1])
-        outside = np.isnan(z)
+            z = np.full(len(frame), np.nan)
+            z[present] = interpolate_tin(xyz, triangles, coords[present, 0], coords[present, 1])
+        no_z = np.isnan(z)  # outside the TIN or without geometry
+        outside = no_z & present
         nodata = params["NODATA"]
         field = params["FIELD"].strip()
         frame = frame.drop(columns=[c for c in frame.columns  # REPLACE_FIELD: GPKG names ignore case
                                     if str(c).lower() in (field.lower(), "dz") and
                                     c != frame.geometry.name and (has_z or str(c).lower() != "dz")])
-        frame[field] = np.where(outside, nodata, z)
-        stats = {"points": len(frame), "inside": int((~outside).sum()),
-                 "outside": int(outside.sum()), "nodata": nodata}
-        if (~outside).any():
+        frame[field] = np.where(no_z, nodata, z)
+        stats = {"points": int(present.sum()), "inside": int((~no_z).sum()),
+                 "outside": int(outside.sum()), "no_geometry": int((~present).sum()),
+                 "nodata": nodata}
+        if (~no_z).any():
             stats.update(z_min=float(np.nanmin(z)), z_max=float(np.nanmax(z)))
         if has_z:
             dz = coords[:, 2] - z
-            frame["dz"] = np.where(outside, nodata, dz)
-            if (~outside).any():
-                good = dz[~outside]
+            frame["dz"] = np.where(no_z, nodata, dz)
+            if (~no_z).any():
+                good = dz[~no_z]
                 stats.update(dz_mean=float(good.mean()), dz_rmse=float(np.sqrt(np.mean(good**2))),
                              dz_max_abs=float(np.abs(good).max()))
         if outside.any():
-            feedback.push_warning(f"{int(outside.sum())} of {len(frame)} point(s) lie outside the "
-                                  f"TIN: height set to NODATA ({nodata:g})")
-        frame = frame.set_geometry(shapely.points(coords[:, 0], coords[:, 1], frame[field]))
+            feedback.push_warning(f"{int(outside.sum())} of {int(present.sum())} point(s) lie "
+                                  f"outside the TIN: height set to NODATA ({nodata:g})")
+        geoms = np.full(len(frame), None, dtype=object)
+        geoms[present] = shapely.points(coords[present, 0], coords[present, 1],
+                                        frame[field].to_numpy()[present])
+        frame = frame.set_geometry(geoms)
         if crs is not None:
             frame = frame.set_crs(crs, allow_override=True)
         layer = params["INPUT"].layer or params["INPUT"].info.get("layer_name") or "points"

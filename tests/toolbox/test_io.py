@@ -55,6 +55,30 @@ def test_points_without_z_or_with_nan_refused():
         points_xyz(lines)
 
 
+def test_points_without_z_or_with_nan_are_named_by_input_row():
+    """Rows count the input's features from 1, nulls and multipoint parts included."""
+    p = shapely.Point
+    some_2d = gpd.GeoDataFrame(geometry=[p(0, 0, 1), p(1, 0), None, p(2, 0, 1), p(3, 0)])
+    with pytest.raises(InputDataError, match=r"^INPUT: 2 of 4 features \(rows 2, 5, counting "
+                                             r"from 1\) have no Z: give a Z field \(Z_FIELD\) "
+                                             r"or use 3D points$"):
+        points_xyz(some_2d)
+    nan = gpd.GeoDataFrame(geometry=[None, shapely.MultiPoint([(0, 0, 1), (1, 0, 2)]),
+                                     p(2, 0, np.nan)])
+    with pytest.raises(InputDataError, match=r"^INPUT: 1 feature\(s\) \(row 3, counting from "
+                                             r"1\) have NaN/inf coordinates or Z$"):
+        points_xyz(nan)
+
+
+def test_line_vertices_with_nan_z_are_named_by_feature_row():
+    """The NaN Z is vertex 4 of the layer, on feature 2: the message names feature 2."""
+    lines = gpd.GeoDataFrame(geometry=[shapely.LineString([(0, 0, 1), (1, 0, 1), (2, 0, 1)]),
+                                       shapely.LineString([(0, 1, 1), (1, 1, np.nan)])])
+    with pytest.raises(InputDataError, match=r"^BREAKLINES: 1 feature\(s\) \(row 2, counting "
+                                             r"from 1\) have NaN/inf coordinates or Z$"):
+        vertices_xyz(lines, name="BREAKLINES")
+
+
 def test_line_vertices_with_contour_field():
     lines = gpd.GeoDataFrame({"elev": [100.0, 105.0]},
                              geometry=[shapely.LineString([(0, 0), (1, 0)]),

@@ -18,20 +18,43 @@ from toolbox.io.vector import (
 )
 
 
-def _check_finite(values: np.ndarray, what: str) -> None:
+def feature_rows(positions) -> str:
+    """``"rows 2, 5, counting from 1"``: the first five features at 0-based ``positions``
+    (repeats removed), for messages."""
+    rows = np.unique(np.asarray(positions, dtype=np.int64)) + 1
+    more = ", ..." if len(rows) > 5 else ""
+    return (f"row{'s' if len(rows) > 1 else ''} {', '.join(map(str, rows[:5]))}{more}, "
+            "counting from 1")
+
+
+def _check_finite(values: np.ndarray, what: str, rows: np.ndarray | None = None) -> None:
+    """InputDataError naming the features with a NaN/inf value; ``rows``: the 0-based feature
+    of each row of ``values`` (default: one feature per row)."""
     bad = ~np.isfinite(values)
     if bad.any():
-        rows = np.flatnonzero(bad.any(axis=1) if values.ndim > 1 else bad)
-        raise InputDataError(f"{what}: {len(rows)} feature(s) have NaN/inf coordinates or Z "
-                             f"(first rows: {', '.join(map(str, rows[:5]))})")
+        bad = np.flatnonzero(bad.any(axis=1) if values.ndim > 1 else bad)
+        owners = np.unique(bad if rows is None else rows[bad])
+        raise InputDataError(f"{what}: {len(owners)} feature(s) ({feature_rows(owners)}) have "
+                             "NaN/inf coordinates or Z")
+
+
+def _check_z(has_z: np.ndarray, what: str, rows: np.ndarray, hint: str) -> None:
+    """InputDataError when features lack Z: all of them (the layer has none) or some, named
+    by their 0-based ``rows``; ``hint`` says what to do."""
+    if has_z.all():
+        return
+    if not has_z.any():
+        raise InputDataError(f"{what} has no Z in its geometry: {hint}")
+    raise InputDataError(f"{what}: {int((~has_z).sum())} of {len(has_z)} features "
+                         f"({feature_rows(rows[~has_z])}) have no Z: {hint}")
 
 
 def points_xyz(frame, z_field: str | None = None, name: str = "INPUT") -> np.ndarray:
     """(N, 3) float64 X, Y, Z of every point (multipoints exploded).
 
     Z comes from ``z_field`` when given, else from the geometry; a layer without Z and without a
-    field is an :class:`InputDataError`. NaN/inf coordinates are refused. Features without a
-    geometry or with an empty one are skipped.
+    field is an :class:`InputDataError`, as are NaN/inf coordinates: refusals name the features by
+    :func:`input_rows`. Features without a geometry or with an empty one are skipped.
     """
     import shapely
 
@@ -43,17 +66,16 @@ def points_xyz(frame, z_field: str | None = None, name: str = "INPUT") -> np.nda
     kinds = set(shapely.get_type_id(geoms).tolist())
     if not kinds <= {0, 4}:  # Point, MultiPoint
         raise InputDataError(f"{name} must contain points, found other geometry types")
+    rows = input_rows(frame)[present]
+    if z_field is None:
+        _check_z(shapely.has_z(geoms), name, rows,
+                 "give a Z field (Z_FIELD) or use 3D points")
+    coords, owner = shapely.get_coordinates(geoms, include_z=z_field is None, return_index=True)
     if z_field is not None:
         z_values = np.asarray(frame[z_field], dtype="float64")[present]
-        xy, owner = shapely.get_coordinates(geoms, return_index=True)
-        xyz = np.column_stack([xy, z_values[owner]])
-    else:
-        if not frame.geometry[present].has_z.all():
-            raise InputDataError(f"{name} has no Z in its geometry: give a Z field (Z_FIELD) or "
-                                 "use 3D points")
-        xyz = shapely.get_coordinates(geoms, include_z=True)
-    _check_finite(xyz, name)
-    return xyz
+        coords = np.column_stack([coords, z_values[owner]])
+    _check_finite(coords, name, rows[owner])
+    return coords
 
 
 def read_points_xyz(source: Any, z_field: str | None = None, name: str = "INPUT") -> np.ndarray:
@@ -179,16 +201,24 @@ def vertices_xyz(frame, z_field: str | None = None, name: str = "INPUT"):
     """Vertices of every feature: ``(xyz (N, 3), feature_index (N,))``.
 
     Z from ``z_field`` (same value for every vertex of a feature, e.g. a contour's elevation) or
-    from the geometry.
+    from the geometry. Refusals name the features by :func:`input_rows`.
     """
     import shapely
 
     geoms = frame.geometry.values
-    if z_field is None and len(geoms) and not frame.geometry.has_z.all():
-        raise InputDataError(f"{name} has features without Z: give a Z field or use 3D geometries")
+    rows = input_rows(frame)
+    if z_field is None and len(geoms):
+        _check_z(shapely.has_z(geoms), name, rows, "give a Z field or use 3D geometries")
     coords, index = shapely.get_coordinates(geoms, include_z=z_field is None, return_index=True)
     if z_field is not None:
         z_values = np.asarray(frame[z_field], dtype="float64")
         coords = np.column_stack([coords, z_values[index]])
-    _check_finite(coords, name)
+    _check_finite(coords, name, rows[index])
     return coords, index
+
+
+def input_rows(frame) -> np.ndarray:
+    """The 0-based input feature of each row of ``frame``: its index when it is an integer one
+    (read_vector's, kept by a caller that drops or explodes features), else the positions."""
+    index = np.asarray(frame.index)
+    return index if index.dtype.kind in "iu" else np.arange(len(frame))

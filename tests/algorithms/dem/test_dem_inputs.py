@@ -140,3 +140,23 @@ def test_duplicate_check_stays_linear_on_clustered_points(monkeypatch):
         assert found is expected
         assert found == (len(np.unique(xy, axis=0)) < len(xy))  # independent: numpy's unique
         assert comparisons <= bound, comparisons
+
+
+def test_line_rows_in_messages_are_input_features(tmp_path):
+    """LINES with a NaN Z on the 2nd vertex of feature 3, after a null feature and a 2-part
+    line: the message names feature 3 (it named a vertex of the exploded layer)."""
+    xy = np.array([[0, 0], [100, 0], [0, 100], [100, 100], [50, 50]], dtype=float) + [X0, Y0]
+    gpd.GeoDataFrame(geometry=shapely.points(xy[:, 0], xy[:, 1], np.full(5, 300.0)),
+                     crs="EPSG:3003").to_file(tmp_path / "pts.gpkg")
+    two = shapely.MultiLineString([[(X0 + 10, Y0 + 10, 300), (X0 + 20, Y0 + 10, 300)],
+                                   [(X0 + 30, Y0 + 10, 300), (X0 + 40, Y0 + 10, 300)]])
+    bad = shapely.LineString([(X0 + 10, Y0 + 80, 300), (X0 + 20, Y0 + 80, np.nan)])
+    gpd.GeoDataFrame({"n": [1, 2, 3]}, geometry=[None, two, bad], crs="EPSG:3003").to_file(
+        tmp_path / "lines.gpkg")
+    out = tmp_path / "dem.tif"
+    with pytest.raises(InputDataError, match=r"^LINES: 1 feature\(s\) \(row 3, counting from 1\) "
+                                             r"have NaN/inf coordinates or Z$"):
+        toolbox.run("dem:tin_linear", {"INPUT": tmp_path / "pts.gpkg",
+                                       "LINES": tmp_path / "lines.gpkg", "CELL_SIZE": 5,
+                                       "OUTPUT": out})
+    assert not out.exists()

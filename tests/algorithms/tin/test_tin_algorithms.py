@@ -150,6 +150,30 @@ def test_interpolate_reports_dz_of_3d_check_points(data, tmp_path):
     np.testing.assert_allclose(got.dz, [0.3, -0.4], atol=1e-9)
 
 
+def test_interpolate_keeps_features_without_geometry_with_nodata(data, tmp_path):
+    """Null and empty points stay in the output, in place, with NODATA and a warning naming
+    them; the others get the plane's height (a multipoint is exploded in place)."""
+    from toolbox.feedback import Feedback
+
+    a, b, c = (X0 + 30, Y0 + 40), (X0 + 120, Y0 + 90), (X0 + 150.5, Y0 + 120.25)
+    geoms = [shapely.Point(a), None, shapely.MultiPoint([b, c]), shapely.from_wkt("POINT EMPTY"),
+             shapely.Point(c)]
+    gpd.GeoDataFrame({"name": list("vwxyz")}, geometry=geoms, crs=CRS).to_file(
+        tmp_path / "q.gpkg", layer="queries")
+    out, feedback = tmp_path / "q_z.gpkg", Feedback()
+    stats = toolbox.run("tin:interpolate", {"INPUT": tmp_path / "q.gpkg", "TIN": data["tin"],
+                                            "OUTPUT": out}, feedback=feedback)["STATISTICS"]
+    got = read(out, "queries")
+    assert list(got.name) == list("vwxxyz")
+    xy = np.array([a, b, c, c])
+    np.testing.assert_allclose(got.z_tin[[0, 2, 3, 5]], plane(xy[:, 0], xy[:, 1]), atol=1e-9)
+    assert list(got.z_tin[[1, 4]]) == [-9999.0, -9999.0]
+    assert list(got.geometry.isna()) == [False, True, False, False, True, False]
+    assert (stats["points"], stats["inside"], stats["no_geometry"]) == (4, 4, 2)
+    assert ("2 of 5 feature(s) (rows 2, 4, counting from 1) have no geometry (null or empty): "
+            "kept without geometry, height set to NODATA") in feedback.warnings
+
+
 def test_to_raster_is_the_plane_at_cell_centres(data, tmp_path):
     import rasterio
 
@@ -200,6 +224,82 @@ def test_volume_against_a_plane_is_exact(data, tmp_path):
     assert stats["cut_volume"] == pytest.approx(expected, rel=1e-10)
     assert stats["fill_volume"] == 0.0 and stats["area"] == pytest.approx(area, rel=1e-12)
     assert json.loads(report.read_text())["cut_volume"] == pytest.approx(expected, rel=1e-10)
+
+
+def _triangles(path, triangles) -> str:
+    """A layer of plain triangle polygons (no node fields) in ``path``: a TIN as other
+    programs export it; a triangle is a list of (dx, dy, z) or a geometry (None, empty)."""
+    geoms = [t if t is None or isinstance(t, shapely.Geometry) else
+             shapely.Polygon([(X0 + dx, Y0 + dy, z) for dx, dy, z in t]) for t in triangles]
+    gpd.GeoDataFrame({"n": range(len(geoms))}, geometry=geoms, crs=CRS).to_file(path)
+    return path
+
+
+def _square(z_a=None, z_b=None):
+    """The 10 x 10 m square at (X0, Y0) on the plane, as triangles A (0,0)(10,0)(10,10) and B
+    (0,0)(10,10)(0,10); ``z_a``/``z_b`` replace the Z of (10, 10) in A/B."""
+    top = float(plane(X0 + 10, Y0 + 10))
+    a = [(0, 0, float(plane(X0, Y0))), (10, 0, float(plane(X0 + 10, Y0))),
+         (10, 10, top if z_a is None else z_a)]
+    b = [(0, 0, float(plane(X0, Y0))), (10, 10, top if z_b is None else z_b),
+         (0, 10, float(plane(X0, Y0 + 10)))]
+    return a, b
+
+
+def test_triangle_polygons_at_one_xy_take_the_mean_height_whatever_their_order(tmp_path):
+    """Corners 0.4 mm above and below the plane at one XY: the node is their mean (the plane),
+    so the volume is the plane's exact one, 100 m2 x (plane at the centre - 290), in both
+    feature orders (the first corner's Z made it depend on the order)."""
+    top = float(plane(X0 + 10, Y0 + 10))
+    a, b = _square(top + 0.0004, top - 0.0004)
+    exact = 100.0 * (float(plane(X0 + 5, Y0 + 5)) - 290.0)
+    for name, order in (("ab", [a, b]), ("ba", [b, a])):
+        tin = _triangles(tmp_path / f"{name}.gpkg", order)
+        stats = toolbox.run("tin:volume", {"TIN": tin, "REFERENCE_Z": 290.0})["STATISTICS"]
+        assert stats["net_volume"] == pytest.approx(exact, abs=1e-7), name
+
+
+REFUSED_TINS = {  # name: (the triangles of _square with one defect, the message)
+    "nan_z": (lambda a, b: [a[:2] + [(10, 10, np.nan)], b],
+              r"TIN: 1 of 2 feature\(s\) \(row 1, counting from 1\) have NaN/inf coordinates "
+              r"or Z"),
+    "step": (lambda a, b: [a[:2] + [(10, 10, a[2][2] + 5)], b],
+             r"TIN is not a single-valued surface: 1 vertex position\(s\) have different "
+             r"heights in different triangles \(more than 0\.001\), the largest at "
+             r"X 1688010\.000 Y 4799510\.000: Z 300\.300 in row 2 and 305\.300 in row 1, "
+             r"counting from 1"),
+    "no_geometry": (lambda a, b: [a, None, shapely.from_wkt("POLYGON Z EMPTY"), b],
+                    r"TIN: 2 of 4 feature\(s\) \(rows 2, 3, counting from 1\) have no geometry "
+                    r"\(null or empty\)"),
+}
+
+
+@pytest.mark.parametrize("name", REFUSED_TINS)
+def test_triangle_polygons_that_are_not_a_surface_are_refused_by_row(tmp_path, name):
+    """A NaN Z, one XY with two heights (a step of 5 m), a null and an empty feature: refused
+    naming the rows (counting from 1), no output written."""
+    make, message = REFUSED_TINS[name]
+    tin = _triangles(tmp_path / "tin.gpkg", make(*_square()))
+    out = tmp_path / "tin.tif"
+    with pytest.raises(InputDataError, match=message):
+        toolbox.run("tin:to_raster", {"TIN": tin, "CELL_SIZE": 1, "OUTPUT": out})
+    assert not out.exists()
+
+
+def test_breakline_rows_in_messages_are_input_features(data, tmp_path):
+    """A NaN Z on the 2nd vertex of the 3rd feature, after a null one and a 2-part line: the
+    message names feature 3, not a vertex or a part."""
+    line = [(X0 + 20, Y0 + 20, 301.0), (X0 + 40, Y0 + 30, np.nan), (X0 + 60, Y0 + 20, 302.0)]
+    two = shapely.MultiLineString([[(X0 + 20, Y0 + 150, 300.0), (X0 + 40, Y0 + 150, 300.0)],
+                                   [(X0 + 60, Y0 + 150, 300.0), (X0 + 80, Y0 + 150, 300.0)]])
+    gpd.GeoDataFrame({"n": [1, 2, 3]}, geometry=[None, two, shapely.LineString(line)],
+                     crs=CRS).to_file(tmp_path / "lines.gpkg")
+    out = tmp_path / "x.gpkg"
+    with pytest.raises(InputDataError, match=r"BREAKLINES: 1 feature\(s\) \(row 3, counting "
+                                             r"from 1\) have NaN/inf coordinates or Z"):
+        toolbox.run("tin:delaunay", {"INPUT": data["folder"] / "points.gpkg",
+                                     "BREAKLINES": tmp_path / "lines.gpkg", "OUTPUT": out})
+    assert not out.exists()
 
 
 def _dem_below_the_plane(data, tmp_path):
@@ -258,7 +358,7 @@ def test_bad_inputs_give_clear_errors(data, tmp_path):
                                       "OUTPUT": tmp_path / "ok.gpkg"})
     assert ok["STATISTICS"]["nodes"] == 604
     # duplicate-ok: each refusal written out (algorithm, inputs, message) on purpose
-    with pytest.raises(InputDataError, match="BREAKLINES has features without Z"):
+    with pytest.raises(InputDataError, match="BREAKLINES has no Z in its geometry"):
         toolbox.run("tin:delaunay", {"INPUT": folder / "points.gpkg",
                                      "BREAKLINES": folder / "lines_2d.gpkg",
                                      "OUTPUT": tmp_path / "x.gpkg"})

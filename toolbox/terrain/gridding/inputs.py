@@ -115,7 +115,7 @@ def read_sources(sources: PointSources, feedback: Feedback,
             frame = frame[~(frame.geometry.isna() | frame.geometry.is_empty)]
             if len(frame) == 0:
                 raise InputDataError(f"{name} has no features with a geometry")
-            frame = frame.explode(index_parts=False).reset_index(drop=True)
+            frame = frame.explode(index_parts=False)  # index: the input row, for messages
             if not set(shapely.get_type_id(frame.geometry.values).tolist()) <= {1, 2}:
                 raise InputDataError(f"{name} must contain lines, found other geometry types")
             xyz, part = vertices_xyz(frame, getattr(sources, f"{role}_z_field"), name)

@@ -428,29 +428,62 @@ def _read_tin_tables(ref, nodes_path: Path, nodes_layer: str | None
     return xyz, _counter_clockwise(xyz, triangles), ref.crs
 
 
+Z_TOLERANCE = 1e-3
+"""Largest height difference (Z units: metres) between the corners of adjacent triangles at one XY that are
+taken as one node (their mean): above float32 rounding of any terrain height (under 1 mm up to
+16 km), below any real step."""
+
+
 def tin_from_triangle_geometries(geoms, name: str = "TIN") -> tuple[np.ndarray, np.ndarray]:
-    """Nodes and triangles from triangle polygons (PolygonZ with 3 distinct vertices each)."""
+    """Nodes and triangles from triangle polygons (PolygonZ with 3 distinct vertices each).
+
+    The corners at one XY become one node, at the mean of their Z; an InputDataError names the
+    features (rows counted from 1) that are null, empty, not triangles or without finite Z, and
+    the XY where corners differ by more than :data:`Z_TOLERANCE` (not a single-valued surface).
+    """
     import shapely
+
+    from toolbox.io.vector_points import feature_rows
 
     geoms = np.asarray(geoms)
     if len(geoms) == 0:
         raise InputDataError(f"{name} has no triangles")
-    if not np.all(shapely.get_type_id(geoms) == 3):
-        raise InputDataError(f"{name} must contain single triangles (Polygon Z), found other "
-                             "geometry types")
-    if not np.all(shapely.has_z(geoms)):
-        raise InputDataError(f"{name} triangles have no Z")
+
+    def refuse(bad: np.ndarray, what: str) -> None:
+        if bad.any():
+            raise InputDataError(f"{name}: {int(bad.sum())} of {len(geoms)} feature(s) "
+                                 f"({feature_rows(np.flatnonzero(bad))}) {what}")
+
+    refuse(shapely.is_missing(geoms) | shapely.is_empty(geoms),
+           "have no geometry (null or empty): every feature must be a triangle")
+    refuse(shapely.get_type_id(geoms) != 3, "are not single triangles (Polygon Z)")
+    refuse(~shapely.has_z(geoms), "have no Z: triangles need 3D vertices")
     coords, index = shapely.get_coordinates(shapely.get_exterior_ring(geoms), include_z=True,
                                             return_index=True)
     counts = np.bincount(index, minlength=len(geoms))
-    if not np.all(counts == 4):
-        bad = int(np.flatnonzero(counts != 4)[0])
-        raise InputDataError(f"{name} feature {bad} is not a triangle ({counts[bad] - 1} "
-                             "vertices)")
+    refuse(counts != 4, "are not triangles (not 3 vertices)")
+    refuse(np.bincount(index, ~np.isfinite(coords).all(axis=1), len(geoms)) > 0,
+           "have NaN/inf coordinates or Z")
     corners = coords.reshape(-1, 4, 3)[:, :3].reshape(-1, 3)
     key = corners[:, 0] + 1j * corners[:, 1]
-    unique_key, first, inverse = np.unique(key, return_index=True, return_inverse=True)
+    _, first, inverse = np.unique(key, return_index=True, return_inverse=True)
     xyz = corners[first]
+    z = corners[:, 2]
+    low, high = np.full(len(xyz), np.inf), np.full(len(xyz), -np.inf)
+    np.minimum.at(low, inverse, z)
+    np.maximum.at(high, inverse, z)
+    spread = high - low
+    if (spread > Z_TOLERANCE).any():
+        node = int(np.argmax(spread))
+        at = np.flatnonzero(inverse == node)
+        a, b = at[np.argmin(z[at])], at[np.argmax(z[at])]
+        raise InputDataError(
+            f"{name} is not a single-valued surface: {int((spread > Z_TOLERANCE).sum())} "
+            f"vertex position(s) have different heights in different triangles (more than "
+            f"{Z_TOLERANCE:g}), the largest at X {xyz[node, 0]:.3f} Y {xyz[node, 1]:.3f}: "
+            f"Z {z[a]:.3f} in row {a // 3 + 1} and {z[b]:.3f} in row {b // 3 + 1}, counting "
+            "from 1")
+    xyz[:, 2] = np.bincount(inverse, z) / np.bincount(inverse)  # the mean: not the first's
     triangles = inverse.reshape(-1, 3)
     return xyz, _counter_clockwise(xyz, triangles)
 
