@@ -295,22 +295,24 @@ def validate_pipeline(pipeline: Pipeline, overwrite: bool = False,
             if final is None:
                 continue
             path = _abs(final)
-            if path in step_inputs:
-                raise fail(f"{dest.name} '{final}' is also this step's input "
-                           f"{step_inputs[path]}")
-            if path in read:
-                raise fail(f"{dest.name} '{final}' is the input {read[path]} of an earlier step;"
-                           " an input is never overwritten")
-            if path in written:
-                raise fail(f"{dest.name} '{final}' is also written by {written[path]}")
-            if isinstance(dest, OutputFolder):
-                pass  # an existing folder is fine: its planned files are checked below
-            elif path.exists() and not overwrite and existing is not None:
-                existing.append(path)
-            elif path.exists() and not overwrite:
-                raise fail(str(OutputExistsError(dest.name, f"'{final}' exists; pass --overwrite "
-                                                 "to replace it")))
-            written[path] = f"{step.name}.{dest.name}"
+            for file in _files_written(dest, path):
+                what = f"{dest.name} '{final}'" + ("" if file == path else
+                                                   f" (its layer file '{file}')")
+                if file in step_inputs:
+                    raise fail(f"{what} is also this step's input {step_inputs[file]}")
+                if file in read:
+                    raise fail(f"{what} is the input {read[file]} of an earlier step; an input "
+                               "is never overwritten")
+                if file in written:
+                    raise fail(f"{what} is also written by {written[file]}")
+                if isinstance(dest, OutputFolder):
+                    pass  # an existing folder is fine: its planned files are checked below
+                elif file.exists() and not overwrite and existing is not None:
+                    existing.append(file)
+                elif file.exists() and not overwrite:
+                    raise fail(str(OutputExistsError(dest.name, f"'{file}' exists; pass "
+                                                     "--overwrite to replace it")))
+                written[file] = f"{step.name}.{dest.name}"
             outputs_of[step.name][dest.name] = path
         if resolved_all:  # every value known now: every check the run makes before it writes
             values = {k: _absolutise(_substitute(v, pipeline.variables), pipeline.base_dir)
@@ -337,6 +339,20 @@ def validate_pipeline(pipeline: Pipeline, overwrite: bool = False,
 def _abs(value: Any) -> Path:
     text = str(getattr(value, "path", value)).split("|", 1)[0]
     return Path(text).expanduser().resolve()
+
+
+def _files_written(dest: Any, path: Path) -> list[Path]:
+    """The files output ``dest`` writes at ``path``: the path and, for a vector output in a
+    one-layer format (Shapefile...), the files of its other declared layers
+    (``<stem>_<layer><ext>``; layers named after the data or a parameter left out)."""
+    from toolbox.io.vector_write import layer_paths
+    from toolbox.parameters import OutputVector
+
+    if not isinstance(dest, OutputVector) or not dest.layers:
+        return [path]
+    files = layer_paths(path, [layer.name for layer in dest.layers])
+    return list(dict.fromkeys([path] + [file for name, file in files.items()
+                                        if not set(name) & set("*{")]))
 
 
 def _later_file(value: Any, written: dict[Path, str]) -> bool:

@@ -104,3 +104,24 @@ def test_variables_expand_recursively(folder):
                         + hillshade("INPUT: dem.tif, OUTPUT: '${a}/a.tif'"))
         code, err = batch(pipe, "--validate")
         assert code == 2 and words in one_error(err)
+
+
+@pytest.mark.parametrize("first, second, words", [
+    ("tin", "cv", "RESIDUALS '{out}/t_edges.shp' is also written by tin.OUTPUT"),
+    ("cv", "tin", "OUTPUT '{out}/t.shp' (its layer file '{out}/t_edges.shp') is also written "
+                  "by cv.RESIDUALS"),
+])
+def test_validate_refuses_two_steps_writing_one_layer_file(folder, first, second, words):
+    """A Shapefile output writes its other layers beside it (t.shp's edges in t_edges.shp):
+    another step writing that file is two steps writing one file, refused before any run."""
+    steps = {
+        "tin": "  - name: tin\n    algorithm: tin:delaunay\n    params: {INPUT: pts.gpkg, "
+               "Z_FIELD: z, OUTPUT: out/t.shp}\n",
+        "cv": "  - name: cv\n    algorithm: dem:cross_validate\n    params: {INPUT: pts.gpkg, "
+              "Z_FIELD: z, METHODS: idw, OUTPUT: out/cv.json, RESIDUALS: out/t_edges.shp}\n"}
+    pipe = folder / "p.yaml"
+    pipe.write_text("steps:\n" + steps[first] + steps[second])
+    for extra in (["--validate"], ["--overwrite"]):
+        code, err = batch(pipe, *extra)
+        assert code == 2 and words.format(out=folder / "out") in one_error(err), err
+    assert not (folder / "out").exists()

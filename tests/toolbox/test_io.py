@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import geopandas as gpd
 import numpy as np
 import pyogrio
@@ -10,6 +12,7 @@ import rasterio
 import shapely
 from affine import Affine
 
+from tests.toolbox.test_output_folders import hashes
 from toolbox.errors import InputDataError, ParameterError
 from toolbox.io.crs import common_crs, parse_crs
 from toolbox.io.grid import GridSpec
@@ -136,6 +139,124 @@ def test_staging_commit_and_rollback(tmp_path):
     assert not (tmp_path / "b.txt").exists()
     assert sorted(p.name for p in tmp_path.iterdir()) == ["sub"]
 
+
+def _points(n, x0=0.0, crs=3003):
+    return gpd.GeoDataFrame({"id": np.arange(n)}, geometry=shapely.points(
+        np.column_stack([x0 + np.arange(n) * 10.0, np.zeros(n)])), crs=crs)
+
+
+@pytest.mark.filterwarnings("ignore:.crs. was not provided")
+def test_a_new_shapefile_drops_the_index_of_the_file_it_replaces(tmp_path):
+    """--overwrite of a Shapefile, or a new one where only the old one's .qix and .sbn lie: the
+    old .qix, .sbn and .prj, which the new file does not rewrite, go; GDAL's bbox query (which
+    reads the .qix) then finds the new points."""
+    out = tmp_path / "w.shp"
+    for overwrite in (True, False):
+        pyogrio.write_dataframe(_points(500, x0=5000.0), out,
+                                layer_options={"SPATIAL_INDEX": "YES"})
+        (tmp_path / "w.sbn").write_text("old index")
+        if not overwrite:  # the old file deleted, its indexes left
+            for suffix in (".shp", ".shx", ".dbf", ".prj", ".cpg"):
+                out.with_suffix(suffix).unlink()
+        assert (tmp_path / "w.qix").exists()
+        staging = OutputStaging()
+        pyogrio.write_dataframe(_points(30, crs=None), staging.stage(out))  # no .prj, no .qix
+        staging.commit(overwrite=overwrite)
+        names = {p.name for p in tmp_path.iterdir()}
+        assert {"w.shp", "w.shx", "w.dbf"} <= names and not names & {"w.qix", "w.sbn", "w.prj"}
+        assert len(pyogrio.read_dataframe(out, bbox=(-1, -1, 95, 1))) == 10
+        assert pyogrio.read_info(out)["crs"] is None
+
+
+def test_a_new_raster_drops_a_stale_aux_xml(tmp_path):
+    """A leftover a.tif.aux.xml (of a deleted a.tif) is removed when a new a.tif comes in,
+    with or without --overwrite: GDAL reads the new file's own CRS, transform and nodata."""
+    for overwrite in (False, True):
+        out = tmp_path / f"a{overwrite}.tif"
+        Path(f"{out}.aux.xml").write_text(
+            "<PAMDataset><SRS>EPSG:32632</SRS><GeoTransform>5e5, 10, 0, 4.8e6, 0, -10"
+            "</GeoTransform><PAMRasterBand band='1'><NoDataValue>0</NoDataValue><Offset>100"
+            "</Offset><Scale>2</Scale></PAMRasterBand></PAMDataset>")
+        staging = OutputStaging()
+        write_raster(staging.stage(out), np.ones((3, 4), "float32"),
+                     Affine(2.0, 0, 1688000.0, 0, -2.0, 4799000.0), "EPSG:3003", nodata=-9999.0)
+        staging.commit(overwrite=overwrite)
+        assert not Path(f"{out}.aux.xml").exists()
+        with rasterio.open(out) as src:
+            assert src.crs.to_epsg() == 3003 and src.nodata == -9999.0
+            assert src.transform == Affine(2.0, 0, 1688000.0, 0, -2.0, 4799000.0)
+            assert src.scales == (1.0,) and src.offsets == (0.0,)
+
+
+def _stale_wal(tmp_path, gpkg):
+    """The -wal an earlier GeoPackage left when its writer had it open (QGIS) or crashed."""
+    import shutil
+    import sqlite3
+
+    old = tmp_path / "old.gpkg"
+    pyogrio.write_dataframe(_points(50), old, driver="GPKG")
+    con = sqlite3.connect(old)
+    con.execute("pragma journal_mode=wal")
+    con.execute("pragma wal_autocheckpoint=0")
+    con.execute("create table junk(a)")
+    con.executemany("insert into junk values (?)", [(i,) for i in range(1000)])
+    con.commit()
+    shutil.copy(f"{old}-wal", f"{gpkg}-wal")
+    con.close()
+    old.unlink()
+
+
+def _geopackage_ok(path):
+    import sqlite3
+
+    con = sqlite3.connect(path)
+    try:
+        return con.execute("pragma integrity_check").fetchall() == [("ok",)]
+    finally:
+        con.close()
+
+
+def test_a_new_geopackage_drops_a_stale_wal(tmp_path):
+    """A -wal left beside the output's name (no GeoPackage there, or one replaced with
+    --overwrite) goes before the new file comes in: SQLite would replay it into the new file
+    ("malformed database schema")."""
+    out = tmp_path / "x.gpkg"
+    for overwrite in (False, True):
+        _stale_wal(tmp_path, out)
+        staging = OutputStaging()
+        pyogrio.write_dataframe(_points(7), staging.stage(out), driver="GPKG")
+        staging.commit(overwrite=overwrite)
+        assert sorted(p.name for p in tmp_path.iterdir()) == ["x.gpkg"]
+        assert _geopackage_ok(out) and len(pyogrio.read_dataframe(out)) == 7
+
+
+@pytest.mark.skipif(not Path("/proc/locks").exists(), reason="seen through Linux's /proc/locks")
+def test_a_geopackage_open_in_another_program_is_not_replaced(tmp_path):
+    """--overwrite of a GeoPackage another process has open in WAL mode (QGIS showing it):
+    refused, naming it; the file and its -wal are left as they are."""
+    import subprocess
+    import sys
+
+    out = tmp_path / "y.gpkg"
+    pyogrio.write_dataframe(_points(5), out, driver="GPKG")
+    holder = subprocess.Popen([sys.executable, "-c", (
+        "import sqlite3, sys; c = sqlite3.connect(sys.argv[1]); "
+        "c.execute('pragma journal_mode=wal'); c.execute('create table t(a)'); c.commit(); "
+        "print('open', flush=True); sys.stdin.read()"), str(out)],
+        stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline().strip() == "open"
+        before = hashes(tmp_path)
+        assert "y.gpkg-wal" in before
+        staging = OutputStaging()
+        pyogrio.write_dataframe(_points(7), staging.stage(out), driver="GPKG")
+        with pytest.raises(ParameterError, match=r"OUTPUT '.*y.gpkg' is open in another program"):
+            staging.commit(overwrite=True)
+        staging.rollback()
+        assert hashes(tmp_path) == before
+    finally:
+        holder.stdin.close()
+        holder.wait()
 
 def test_mixed_crs_refused():
     a, b = parse_crs("EPSG:3003"), parse_crs("EPSG:32632")

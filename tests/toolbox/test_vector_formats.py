@@ -14,7 +14,8 @@ import pytest
 import shapely
 
 import toolbox
-from toolbox.errors import ParameterError
+from tests.toolbox.test_output_folders import hashes
+from toolbox.errors import OutputExistsError, ParameterError
 from toolbox.io.vector import VECTOR_DRIVERS, open_layer, read_vector
 from toolbox.io.vector_points import read_points_xyz
 from toolbox.io.vector_write import write_layers
@@ -157,15 +158,25 @@ def test_output_vector_extensions(tmp_path):
         param.validate(tmp_path / "a.kml", ValidationContext())
     with pytest.raises(ParameterError, match="no extension"):
         param.validate(tmp_path / "a", ValidationContext())
+    for name in ("a.SHP", "a.Shp"):  # GDAL would write a.shp: refused before any work
+        with pytest.raises(ParameterError, match=r"OUTPUT must end with '.shp' in lower case"):
+            param.validate(tmp_path / name, ValidationContext())
+    with pytest.raises(ParameterError, match=r"OUTPUT must end with '.shp' in lower case"):
+        toolbox.run("topology:build_areas", {"INPUT": square_lines(), "OUTPUT": tmp_path / "t.SHP"})
+    assert list(tmp_path.iterdir()) == []
+
+
+def square_lines() -> gpd.GeoDataFrame:
+    """The four sides of a 20 m square: one area for topology:build_areas."""
+    corners = [(X0, Y0), (X0 + 20, Y0), (X0 + 20, Y0 + 20), (X0, Y0 + 20), (X0, Y0)]
+    return gpd.GeoDataFrame({"code": ["Q"] * 4}, geometry=[
+        shapely.LineString(corners[i:i + 2]) for i in range(4)], crs=CRS)
 
 
 def test_algorithm_writes_shapefiles_with_sidecars(tmp_path):
     """A staged Shapefile output comes into place with its .shx/.dbf/.prj and its other layers."""
-    corners = [(X0, Y0), (X0 + 20, Y0), (X0 + 20, Y0 + 20), (X0, Y0 + 20), (X0, Y0)]
-    square = gpd.GeoDataFrame({"code": ["Q"] * 4}, geometry=[
-        shapely.LineString(corners[i:i + 2]) for i in range(4)], crs=CRS)
     out = tmp_path / "topo.shp"
-    toolbox.run("topology:build_areas", {"INPUT": square, "OUTPUT": out})
+    toolbox.run("topology:build_areas", {"INPUT": square_lines(), "OUTPUT": out})
     names = {p.name for p in tmp_path.iterdir()}
     for stem in ("topo", "topo_arcs", "topo_nodes", "topo_errors_points", "topo_errors_lines"):
         assert {f"{stem}.shp", f"{stem}.shx", f"{stem}.dbf", f"{stem}.prj"} <= names, stem
@@ -174,6 +185,54 @@ def test_algorithm_writes_shapefiles_with_sidecars(tmp_path):
     assert len(areas) == 1 and areas.area.iloc[0] == pytest.approx(400.0)
     assert len(read_vector(f"{out}|layername=arcs")) == 1
     assert areas.crs.to_epsg() == 3003
+
+
+def test_a_layer_file_beside_a_shapefile_output_needs_overwrite(tmp_path):
+    """A one-layer format puts each further layer in <stem>_<layer>.shp: an existing file there
+    (a user's points) is replaced only with --overwrite, as the output itself."""
+    out = tmp_path / "topo.shp"
+    pyogrio.write_dataframe(sample_layers()["points"], tmp_path / "topo_arcs.shp")
+    before = hashes(tmp_path)
+    with pytest.raises(OutputExistsError, match=r"OUTPUT '.*topo_arcs.shp' exists"):
+        toolbox.run("topology:build_areas", {"INPUT": square_lines(), "OUTPUT": out})
+    assert hashes(tmp_path) == before  # nothing replaced, nothing new
+    toolbox.run("topology:build_areas", {"INPUT": square_lines(), "OUTPUT": out}, overwrite=True)
+    assert pyogrio.read_info(tmp_path / "topo_arcs.shp")["geometry_type"] == "LineString"
+
+
+def test_a_shapefile_output_never_rewrites_a_prj_gdal_reads(tmp_path):
+    """dem.shp beside the input dem.asc would write the grid's CRS file dem.prj: refused, even
+    with --overwrite; the .prj of no input (other.prj) is replaced only with --overwrite."""
+    from rasterio.shutil import copy as gdal_copy
+    from rasterio.transform import from_origin
+
+    from toolbox.raster.writer import write_raster
+
+    z = 300.0 + np.add.outer(np.arange(30.0), np.arange(40.0))
+    (tmp_path / "src").mkdir()
+    write_raster(tmp_path / "src" / "dem.tif", z.astype("float32"),
+                 from_origin(X0, Y0 + 300, 10, 10), CRS, nodata=-9999.0)
+    asc = tmp_path / "dem.asc"
+    gdal_copy(tmp_path / "src" / "dem.tif", asc, driver="AAIGrid")
+    assert (tmp_path / "dem.prj").exists()
+    before = hashes(tmp_path)
+    for overwrite in (False, True):
+        with pytest.raises(ParameterError, match=r"OUTPUT '.*dem.prj' is an input"):
+            toolbox.run("carto:contours", {"INPUT": asc, "INTERVAL": 10,
+                                           "OUTPUT": tmp_path / "dem.shp"}, overwrite=overwrite)
+        assert hashes(tmp_path) == before
+    (tmp_path / "other.prj").write_text("a user's CRS file")
+    before = hashes(tmp_path)
+    params = {"INPUT": asc, "INTERVAL": 10, "OUTPUT": tmp_path / "other.shp"}
+    with pytest.raises(OutputExistsError, match=r"other.prj' exists and GDAL would read it"):
+        toolbox.run("carto:contours", params)
+    assert hashes(tmp_path) == before
+    toolbox.run("carto:contours", params, overwrite=True)
+    assert pyogrio.read_dataframe(tmp_path / "other.shp").crs.to_epsg() == 3003
+    # beside a GeoTIFF without a .prj (GDAL reads none with it), dem.shp is fine
+    toolbox.run("carto:contours", {"INPUT": tmp_path / "src" / "dem.tif", "INTERVAL": 10,
+                                   "OUTPUT": tmp_path / "src" / "dem.shp"})
+    assert pyogrio.read_dataframe(tmp_path / "src" / "dem.shp").crs.to_epsg() == 3003
 
 
 # -- QGIS layer-source syntax -----------------------------------------------------------------------

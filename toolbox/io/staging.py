@@ -14,6 +14,13 @@ holds is moved into the final folder one by one, with the same checks as a file 
 onto an input, an existing file only with ``overwrite``); other files of the final folder are left
 alone. A commit that fails midway undoes the moves done so far (replaced files are restored), so
 a run writes all of its files or none.
+
+Every file moved is a dataset (a GeoTIFF, a ``.shp``, a per-layer ``<stem>_<layer>.shp``) or a
+file GDAL reads with one (:func:`dataset_files`: ``.aux.xml``, ``-wal``, a Shapefile's
+``.dbf``/``.prj``/``.qix``): each replaces an existing file only with ``overwrite``, except a
+leftover of a dataset that does not exist (its ``.aux.xml``, ``-wal``, ``.qix``: no one's). The
+files GDAL would read with a new dataset that the run does not write are removed first, so a new
+file never meets an old index, PAM file or write-ahead log.
 """
 
 from __future__ import annotations
@@ -28,9 +35,12 @@ from pathlib import Path
 
 from toolbox.errors import OutputExistsError, OutputWriteError, ParameterError
 
-# files GDAL/OGR keep beside a dataset: an output must never land on an input's sidecar
+# files GDAL/OGR keep beside a dataset, named after its whole name (a.tif.aux.xml, x.gpkg-wal)
 SIDECAR_SUFFIXES = (".aux.xml", ".ovr", ".msk", "-wal", "-shm", "-journal")
+SQLITE_JOURNALS = ("-wal", "-shm", "-journal")
+# a Shapefile's files, named after its stem; GDAL reads all but .qmd (QGIS's metadata)
 SHAPEFILE_PARTS = (".shp", ".shx", ".dbf", ".prj", ".cpg", ".qix", ".sbn", ".sbx", ".qmd")
+SHAPEFILE_ONLY = (".shx", ".qix", ".sbn", ".sbx")  # meaningless without their .shp
 WORLD_FILES = (".tfw", ".tifw", ".jgw", ".pgw", ".wld")
 
 
@@ -85,14 +95,50 @@ def final_folder(path: str | Path) -> Path:
 
 
 def protected_paths(path: Path) -> set[Path]:
-    """``path`` (resolved) and the sidecars GDAL/OGR read with it."""
+    """``path`` (resolved) and the sidecars GDAL/OGR read with it: a Shapefile's parts, world
+    files and an existing ``.prj`` of any input (ASCII grids, CSVs... take their CRS from it)."""
     path = Path(path).expanduser().resolve()
     out = {path} | {path.with_name(path.name + s) for s in SIDECAR_SUFFIXES}
-    if path.suffix.lower() == ".shp":
-        out |= {path.with_suffix(s) for s in SHAPEFILE_PARTS}
-        out |= {path.with_suffix(s.upper()) for s in SHAPEFILE_PARTS}
-    out |= {path.with_suffix(s) for s in WORLD_FILES}
+    parts = SHAPEFILE_PARTS if path.suffix.lower() == ".shp" else ()
+    out |= _stem_files(path, parts + WORLD_FILES)
+    return out | {prj for prj in _stem_files(path, (".prj",)) if prj.exists()}
+
+
+def _stem_files(path: Path, suffixes: tuple[str, ...]) -> set[Path]:
+    """``path`` with each of ``suffixes`` instead of its own, in lower and upper case."""
+    return {path.with_suffix(c(s)) for s in suffixes for c in (str.lower, str.upper)}
+
+
+def dataset_files(main: Path, own_only: bool = False) -> set[Path]:
+    """The files GDAL reads with ``main`` (its sidecars; a Shapefile's other parts, .qmd
+    aside); with ``own_only``, those that mean nothing without ``main`` (named after its whole
+    name; a Shapefile's indexes): a leftover of a deleted file, safe to remove."""
+    out = {main.with_name(main.name + s) for s in SIDECAR_SUFFIXES}
+    if main.suffix.lower() == ".shp":
+        out |= _stem_files(main, SHAPEFILE_ONLY if own_only else SHAPEFILE_PARTS[1:-1])
     return out
+
+
+def open_elsewhere(paths: list[Path]) -> bool:
+    """Whether another process holds a lock on one of ``paths`` (SQLite does while it has the
+    database open, e.g. QGIS showing a GeoPackage), from Linux's /proc/locks (False elsewhere):
+    nothing is opened, so no lock of this process is lost."""
+    ids = set()
+    for path in paths:
+        try:
+            st = os.stat(path)
+        except OSError:
+            continue
+        ids.add(f"{os.major(st.st_dev):02x}:{os.minor(st.st_dev):02x}:{st.st_ino}")
+    try:
+        lines = Path("/proc/locks").read_text().splitlines() if ids else []
+    except OSError:
+        return False
+    for fields in map(str.split, lines):  # "1: POSIX ADVISORY READ <pid> fe:00:<inode> 128 128"
+        found = [i for i, field in enumerate(fields) if field in ids]
+        if found and found[0] > 0 and fields[found[0] - 1] != str(os.getpid()):
+            return True
+    return False
 
 
 def write_error(exc: BaseException, name: str, path: Path | str) -> OutputWriteError:
@@ -110,10 +156,6 @@ def write_error(exc: BaseException, name: str, path: Path | str) -> OutputWriteE
     else:
         message = f"cannot write {name} '{path}': {text}; nothing was written"
     return OutputWriteError(message, code, str(path))
-
-
-# sidecars GDAL keeps of a raster: stale ones of a replaced file go with it
-REPLACED_SIDECARS = (".aux.xml", ".ovr", ".msk")
 
 
 class OutputStaging:
@@ -194,19 +236,18 @@ class OutputStaging:
                         for f in sorted(staged.rglob("*")) if not f.is_dir()]
         return out
 
-    def _moves(self) -> list[tuple[str, Path, Path, Path | None]]:
-        """``(name, source, target, main file)`` of every file to move; ``main`` is None for a
-        sidecar (.aux.xml, a Shapefile's .dbf...) of a file output."""
+    def _moves(self) -> list[tuple[str, Path, Path]]:
+        """``(name, source, target)`` of every file to move: each staged file first, then the
+        files beside it in its private folder (sidecars, a Shapefile's parts, per-layer
+        files), then the files of the output folders."""
         moves = []
         for final, staged in self._staged.items():
             if not staged.exists() or final in self._is_folder:
                 continue
-            # the private folder holds this output's files only: the file first, then its
-            # sidecars (.aux.xml, a Shapefile's .shx/.dbf/.prj, per-layer files)
-            items = sorted(staged.parent.iterdir(), key=lambda i: (i != staged, i.name))
-            moves += [(self._names[final], item, final.parent / item.name,
-                       final if item == staged else None) for item in items]
-        moves += [(name, source, target, target) for name, target, source in self.folder_files()]
+            items = sorted(staged.parent.iterdir(), key=lambda i: (
+                i != staged, i.suffix != staged.suffix, i.name))  # datasets before their parts
+            moves += [(self._names[final], item, final.parent / item.name) for item in items]
+        moves += [(name, source, target) for name, target, source in self.folder_files()]
         return moves
 
     def commit(self, overwrite: bool = True, protected: set[Path] | None = None) -> list[Path]:
@@ -214,29 +255,38 @@ class OutputStaging:
         staging folder (sidecars) and every file of a staged output folder into place; return
         the final paths written.
 
-        Nothing is moved when a target is in ``protected`` (resolved input paths, compared by
-        path and by inode: refused whatever ``overwrite`` says) or, without ``overwrite``, when
-        a target exists (other than a stale GDAL sidecar of a new file):
-        :class:`OutputExistsError`. A failure midway undoes the moves done (a replaced file is
+        Nothing is moved when a target, or an old file to remove, is in ``protected``
+        (resolved input paths, compared by path and by inode: refused whatever ``overwrite``
+        says), when it exists without ``overwrite`` (:class:`OutputExistsError`; leftovers of a
+        dataset that does not exist aside: see the module) or when a GeoPackage to replace is
+        open in another program. A failure midway undoes the moves done (a replaced file is
         restored), so the run writes all of its files or none.
         """
         protected = protected or set()
         moves = self._moves()
         written = [final for final, staged in self._staged.items() if staged.exists()
                    or final in self._is_folder]
-        for name, _, target, main in moves:
-            if _is_protected(target, protected):
-                raise ParameterError(name, f"'{target}' is an input (or an input's sidecar); an "
-                                     "input is never overwritten: choose another output path")
-            if target.is_dir() and not target.is_symlink():
-                raise ParameterError(name, f"'{target}' is a folder; it cannot be replaced by a "
-                                     "file")
-            if not overwrite and os.path.lexists(target) and (main is not None or not any(
-                    target.name.endswith(s) for s in SIDECAR_SUFFIXES + WORLD_FILES
-                    + SHAPEFILE_PARTS)):
-                raise OutputExistsError(name, f"'{target}' exists (or appeared during the run:"
-                                        " another run wrote it?); pass --overwrite to replace "
-                                        "it")
+        targets = {target for _, _, target in moves}
+        owner = {part: target for target in targets for part in dataset_files(target) & targets}
+        replace = set()  # existing targets a commit without overwrite may replace (leftovers)
+        stale: dict[Path, str] = {}  # old files GDAL would read with a new one -> output name
+        for name, _, target in moves:
+            _check_target(name, target, protected)
+            main = owner.get(target, target)
+            if os.path.lexists(target):
+                _check_free(name, target, main, overwrite)
+                replace.add(target)
+            if main != target:
+                continue
+            for old in dataset_files(target) - targets:
+                if os.path.isfile(old) or os.path.islink(old):
+                    _check_target(name, old, protected)
+                    _check_free(name, old, target, overwrite)
+                    stale[old] = name
+            journals = [target.with_name(target.name + s) for s in SQLITE_JOURNALS]
+            if any(map(os.path.lexists, journals)) and open_elsewhere([target, *journals]):
+                raise ParameterError(name, f"'{target}' is open in another program (QGIS?): "
+                                     "close it there and run again")
         try:  # hard links to the files a commit replaces, to restore them if it fails
             first = next(iter(self._staged))  # named like a staging folder: cleaned if killed
             backups = Path(tempfile.mkdtemp(prefix=f".{first.name}.{os.getpid()}.",
@@ -246,23 +296,24 @@ class OutputStaging:
             backups = None
         done: list[tuple[Path, Path | None, bool]] = []  # target, its backup, existed before
         try:
-            for k, (name, item, target, main) in enumerate(moves):
+            # stale files first: an old -wal must never meet the new GeoPackage
+            for k, (old, name) in enumerate(stale.items()):
+                try:
+                    done.append((old, _backup(old, backups, f"stale{k}"), True))
+                    old.unlink()
+                except FileNotFoundError:
+                    pass
+                except OSError as exc:
+                    raise write_error(exc, name, old) from None
+            for k, (name, item, target) in enumerate(moves):
                 try:
                     self._make_target_parent(target, name)
-                    existed = os.path.lexists(target)
-                    if existed and (overwrite or main is None):
-                        backup = _backup(target, backups, k)
-                        done.append((target, backup, True))
+                    if os.path.lexists(target) and (overwrite or target in replace):
+                        done.append((target, _backup(target, backups, k), True))
                         os.replace(item, target)
                     else:
                         _move_no_replace(item, target)
                         done.append((target, None, False))
-                    if existed and main is not None:  # GDAL's sidecars of the old file
-                        for suffix in REPLACED_SIDECARS:
-                            old = target.with_name(target.name + suffix)
-                            if os.path.lexists(old) and not any(t == old for _, _, t, _ in moves):
-                                done.append((old, _backup(old, backups, f"{k}{suffix}"), True))
-                                _remove(old)
                 except FileExistsError:
                     raise OutputExistsError(name, f"'{target}' appeared during the run (another"
                                             " run wrote it?); pass --overwrite to replace "
@@ -329,6 +380,28 @@ def _is_protected(target: Path, protected: set[Path]) -> bool:
             if (ps.st_dev, ps.st_ino) == (st.st_dev, st.st_ino):
                 return True
     return False
+
+
+def _check_target(name: str, target: Path, protected: set[Path]) -> None:
+    """Refuse a commit writing or removing ``target`` when it is an input or a folder."""
+    if _is_protected(target, protected):
+        raise ParameterError(name, f"'{target}' is an input (or an input's sidecar); an input "
+                             "is never overwritten: choose another output path")
+    if target.is_dir() and not target.is_symlink():
+        raise ParameterError(name, f"'{target}' is a folder; it cannot be replaced by a file")
+
+
+def _check_free(name: str, path: Path, main: Path, overwrite: bool) -> None:
+    """Refuse replacing or removing the existing ``path`` (``main``, or a file GDAL reads with
+    ``main``) without ``overwrite``, unless it is a leftover of ``main``, which does not exist
+    (its .aux.xml, -wal, .qix: no one else's)."""
+    if overwrite or (path in dataset_files(main, own_only=True) and not os.path.lexists(main)):
+        return
+    if path == main:
+        raise OutputExistsError(name, f"'{path}' exists (or appeared during the run: another "
+                                "run wrote it?); pass --overwrite to replace it")
+    raise OutputExistsError(name, f"'{path}' exists and GDAL would read it with '{main}'; pass "
+                            "--overwrite to replace it")
 
 
 def _move_no_replace(source: Path, target: Path) -> None:

@@ -126,6 +126,10 @@ class OutputVector(Destination):
             raise self.error(f"must be a vector file ending with {', '.join(self.extensions)} "
                              f"({self.formats}), got {_show(str(value))} with extension "
                              f"{_show(suffix)}")
+        suffix = Path(value).suffix if isinstance(value, (str, Path)) else ""
+        if suffix.lower() == ".shp" and suffix != ".shp":  # GDAL would write t.shp for t.SHP
+            raise self.error(f"must end with '.shp' in lower case (GDAL names a Shapefile's "
+                             f"files .shp, .shx, .dbf), got {_show(str(value))}")
         return super().validate(value, ctx)
 
     def expected(self) -> str:
