@@ -32,7 +32,7 @@ from typing import Any
 import numpy as np
 
 from toolbox.counters import Counters
-from toolbox.errors import ParameterError
+from toolbox.errors import InputDataError, ParameterError
 from toolbox.io.grid import GridSpec
 from toolbox.raster.datasets import ThreadDatasets
 from toolbox.raster.engine import RasterInput, process_raster
@@ -119,6 +119,9 @@ def photo_path(source: Any) -> str:
         except ValueError:  # no colour table
             return path
     expand = "rgba" if any(entry[3] < 255 for entry in table.values()) else "rgb"
+    if "?" in path:  # vrt:// takes what follows a '?' as its options
+        raise InputDataError(f"'{path}' is a paletted photo whose path holds a '?': expand it "
+                             f"first: gdal_translate -expand {expand} '{path}' photo_{expand}.tif")
     return f"vrt://{path}?expand={expand}"
 
 

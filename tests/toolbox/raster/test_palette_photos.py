@@ -97,3 +97,13 @@ def test_ortho_warps_a_paletted_photo_as_its_colours(tmp_path):
                                     "PHOTO": "p1", "DEM": scene.dem_path, "CELL_SIZE": 5.0,
                                     "OUTPUT": tmp_path / out})
     assert_same_raster(tmp_path / "o_pal.tif", tmp_path / "o_ref.tif", RGBA)
+
+
+def test_a_paletted_photo_whose_path_holds_a_question_mark_is_refused(tmp_path, rectify_files):
+    grey, transform = rectify_files  # GDAL's vrt:// expansion cannot name it
+    photo = paletted(grey, tmp_path / "p?1.tif")
+    with pytest.raises(toolbox.ToolboxError, match=r"paletted photo whose path holds a '\?': "
+                                                   r"expand it first: gdal_translate -expand rgb"):
+        toolbox.run("rectify:image", {"INPUT": photo, "TRANSFORM": transform, "CELL_SIZE": 1.0,
+                                      "OUTPUT": tmp_path / "o.tif"})
+    assert not (tmp_path / "o.tif").exists()
