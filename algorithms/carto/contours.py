@@ -49,7 +49,7 @@ class Contours(Algorithm):
     group = "Cartography"
     short_help = "Contours of a DEM (tiled, stitched) or a TIN, index contours, styled GeoPackage."
     parameters = [
-        RasterLayer("INPUT", "DEM raster", optional=True),
+        RasterLayer("INPUT", "DEM raster", optional=True, role="heights"),
         VectorLayer("TIN", "TIN: the triangles layer of a tin:delaunay GeoPackage, or "
                     "triangle polygons with Z (instead of INPUT)", geometry_types=["polygon"],
                     optional=True),

@@ -40,7 +40,7 @@ class Profile(Algorithm):
     parameters = [
         VectorLayer("INPUT", "polylines (profile lines or section axes)",
                     geometry_types=["line"]),
-        RasterLayer("DEM", "DEM raster", optional=True),
+        RasterLayer("DEM", "DEM raster", optional=True, role="heights"),
         tin_parameter("TIN triangles (instead of DEM)", optional=True),
         Integer("BAND", "band of the DEM", default=1, min_value=1),
         Enum("MODE", "sampling", options=["step", "contours", "sections"], default="step"),

@@ -59,7 +59,8 @@ class GroundFilterDtm(Algorithm):
     parameters = [
         *point_input_parameters("points: a LAS/LAZ/COPC point cloud, or PointZ / points with "
                                 "a height field"),
-        RasterLayer("DSM", "DSM raster (band 1) instead of INPUT", optional=True),
+        RasterLayer("DSM", "DSM raster (band 1) instead of INPUT", optional=True,
+                    role="heights"),
         Crs("CRS", "CRS of inputs without one (a point cloud without a CRS needs it)",
             optional=True),
         Number("FILTER_CELL", "cell of the filter grid, CRS units (points only; default 1)",

@@ -85,7 +85,6 @@ class MosaicBuild(Algorithm):
     # duplicate-ok: process() imports its libraries lazily (toolbox list/help stay light); the
     # lists of lazy imports after a check() look alike across algorithms
     def process(self, params, feedback: Feedback):
-        import numpy as np
         import shapely
 
         from toolbox.io.crs import crs_label
@@ -107,11 +106,6 @@ class MosaicBuild(Algorithm):
 
         sources, crs = open_block([i.path for i in params["INPUT"]], "INPUT", feedback)
         try:
-            bands = {len(s.data_bands) for s in sources}
-            dtypes = {s.dtype for s in sources}
-            if len(bands) > 1:
-                raise self.fail("INPUT", f"the orthos have different band counts {sorted(bands)}; "
-                                "mosaic orthos of one kind")
             if params["CUTLINES"] is not None:
                 cells = cells_from_layer(params["CUTLINES"], params["SOURCE_FIELD"], sources,
                                          crs=crs, feedback=feedback)
@@ -121,8 +115,7 @@ class MosaicBuild(Algorithm):
             area = shapely.union_all([c for c in cells if not c.is_empty] or [union_area(sources)])
             grid = mosaic_grid(sources, crs, params["CELL_SIZE"], area.union(union_area(sources)),
                                feedback)
-            dtype = np.result_type(*dtypes).name
-            n_bands = bands.pop()
+            dtype, n_bands = sources[0].dtype, len(sources[0].data_bands)  # one kind: open_block
             gains = offsets = None
             if params["BALANCE"] and len(sources) > 1:
                 with feedback.timed("balance"):

@@ -176,8 +176,9 @@ def _open_input(path):
             warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
             with rasterio.open(path) as src:
                 if src.count > 0:  # sheets are cut on the input's cells, north-up
-                    from toolbox.io.raster import require_north_up
+                    from toolbox.io.raster import require_georeferenced, require_north_up
 
+                    require_georeferenced(src, "INPUT", path)
                     require_north_up(src.transform, "INPUT", path)
                     return path, "raster", src.crs, tuple(src.bounds)
     except rasterio.errors.RasterioIOError:

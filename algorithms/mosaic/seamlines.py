@@ -94,7 +94,7 @@ class MosaicSeamlines(Algorithm):
                     geometry_types=["polygon"], optional=True),
         Number("BUILDING_COST", "extra cost inside BUILDINGS", default=10.0, min_value=0),
         RasterLayer("HEIGHTS", "DSM minus DEM heights, metres (seams avoid what stands up)",
-                    optional=True),
+                    optional=True, role="heights"),
         Number("HEIGHT_COST", "extra cost per metre of HEIGHTS above 0.5 m", default=1.0,
                min_value=0),
         VectorLayer("FORBIDDEN", "areas no seam may cross", geometry_types=["polygon"],

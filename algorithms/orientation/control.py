@@ -61,7 +61,7 @@ class ControlTemplate(Algorithm):
                     "automatically", optional=True),
         RasterLayer("DEM", "with ORTHO: terrain heights (project CRS) to cast the ortho chip "
                     "into the photo; without it the plane of the point's Z (relief biases the "
-                    "match)", optional=True),
+                    "match)", optional=True, role="heights"),
         Integer("MATCH_SIZE", "with ORTHO: correlation chip half size, px", default=15,
                 min_value=4, max_value=200),
         Integer("SEARCH", "with ORTHO: search radius around the prediction, px", default=20,

@@ -100,7 +100,8 @@ class OrthoPhoto(Algorithm):
     group = "Orthophoto"
     short_help = "Orthorectify a frame photo on a DEM (collinearity, optional true-ortho mask)."
     parameters = [
-        RasterLayer("INPUT", "the photo (any GDAL raster, 1-4 bands, 8/16 bit)"),
+        RasterLayer("INPUT", "the photo (any GDAL raster, 1-4 bands, 8/16 bit)",
+                    role="photo"),
         project_parameter(optional=True),
         String("PHOTO", "photo id in PROJECT (default: the photo whose image or id matches "
                "INPUT)", optional=True),

@@ -56,7 +56,7 @@ class RectifyImage(Algorithm):
     group = "Rectification"
     short_help = "Warp a photo to a GeoTIFF with a rectify:estimate transform (or embed GCPs)."
     parameters = [
-        RasterLayer("INPUT", "the photo (any GDAL raster: TIFF, JPEG, PNG...)"),
+        RasterLayer("INPUT", "the photo (any GDAL raster: TIFF, JPEG, PNG...)", role="photo"),
         File("TRANSFORM", "transform written by rectify:estimate", extensions=[".json"]),
         String("PIXEL_TO_IMAGE", "pixel -> image mm matrix, 6 or 8 numbers row by row (only for "
                "a transform in image mm)", optional=True),

@@ -60,7 +60,7 @@ class OrthoCheck(Algorithm):
         Number("MIN_SCORE", "smallest correlation accepted (-1..1)", default=0.6,
                min_value=-1.0, max_value=1.0),
         RasterLayer("DEM", "the orthophoto's DEM: points off it in height are flagged",
-                    optional=True),
+                    optional=True, role="heights"),
         OutputFile("OUTPUT", "per-point offsets (CSV)", extensions=[".csv"]),
     ]
     outputs = [Output("STATISTICS", "points, matched, RMSE east/north/planimetric (m)", "json")]

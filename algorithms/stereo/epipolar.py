@@ -50,9 +50,9 @@ class EpipolarPair(Algorithm):
         String("LEFT", "photo id of the left photo (the base runs from it to RIGHT)"),
         String("RIGHT", "photo id of the right photo"),
         RasterLayer("LEFT_IMAGE", "image of LEFT (default: the project's image path)",
-                    optional=True),
+                    optional=True, role="photo"),
         RasterLayer("RIGHT_IMAGE", "image of RIGHT (default: the project's image path)",
-                    optional=True),
+                    optional=True, role="photo"),
         Number("TERRAIN_HEIGHT", "mean terrain height (CRS height units) for the overlap and "
                "base/height checks"),
         Number("MIN_OVERLAP", "least overlap of the footprints at TERRAIN_HEIGHT, as a "

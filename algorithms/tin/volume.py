@@ -118,7 +118,8 @@ class Volume(Algorithm):
     parameters = [
         tin_parameter(),
         Number("REFERENCE_Z", "reference plane elevation (height units)", optional=True),
-        RasterLayer("REFERENCE_DEM", "reference surface: a DEM raster", optional=True),
+        RasterLayer("REFERENCE_DEM", "reference surface: a DEM raster", optional=True,
+                    role="heights"),
         Integer("BAND", "band of REFERENCE_DEM", default=1, min_value=1),
         VectorLayer("MASK", "polygon(s): compute inside them only", geometry_types=["polygon"],
                     optional=True),

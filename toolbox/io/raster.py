@@ -44,6 +44,9 @@ class RasterInfo:
     transform: Any  # affine.Affine
     nodata: float | None
     georeferenced: bool
+    #: per band, GDAL's colour interpretation in lower case ("gray", "red", "palette"...);
+    #: "palette" for any band with a colour table
+    colours: tuple[str, ...] = ()
 
     def __str__(self) -> str:
         return f"'{self.path}'"
@@ -63,8 +66,11 @@ class RasterInfo:
         return (abs(self.transform.a), abs(self.transform.e))
 
 
-def open_raster_info(value: Any, name: str = "INPUT") -> RasterInfo:
-    """Open a raster's metadata; :class:`ParameterError` naming ``name`` when it is unreadable."""
+def open_raster_info(value: Any, name: str = "INPUT", role: str = "photo") -> RasterInfo:
+    """Open a raster's metadata; :class:`ParameterError` naming ``name`` when it is unreadable,
+    when a band stores scaled codes, or when it has no georeferencing and ``role`` (one of
+    :data:`toolbox.parameters.sources.RASTER_ROLES`) is not "photo"
+    (:func:`require_georeferenced`)."""
     import rasterio
     from pyproj import CRS
 
@@ -84,13 +90,64 @@ def open_raster_info(value: Any, name: str = "INPUT") -> RasterInfo:
             if damage:
                 raise ParameterError(name, f"'{value}' is truncated or damaged: {damage}")
             _refuse_scaled(src, name, value)
+            if role != "photo":
+                require_georeferenced(src, name, value)
             crs = CRS.from_wkt(src.crs.to_wkt()) if src.crs else None
-            georef = src.transform != rasterio.Affine.identity() or src.crs is not None
             return RasterInfo(path, src.width, src.height, src.count, tuple(src.dtypes), crs,
-                              src.transform, src.nodata, georef)
+                              src.transform, src.nodata, not src.transform.is_identity,
+                              _band_colours(src))
     except rasterio.errors.RasterioIOError as exc:
         raise ParameterError(name, f"cannot read '{value}' as a raster: "
                              f"{str(exc).splitlines()[0]}") from None
+
+
+def require_georeferenced(src: Any, name: str, path: Any) -> None:
+    """:class:`ParameterError` naming ``name`` when the open dataset ``src`` has no geotransform
+    (GDAL then gives the identity: its cells would be taken as map coordinates 0, 1, 2...):
+    with ground control points or RPCs, the gdalwarp command that writes a georeferenced
+    raster from them. Checked before any north-up test (the identity looks south-up)."""
+    if not src.transform.is_identity:
+        return
+    gcps = src.gcps[0]
+    if gcps:
+        how = (f" (only {len(gcps)} ground control points): warp it first: gdalwarp "
+               f"'{path}' warped.tif")
+    elif src.rpcs:
+        how = (" (only RPCs): warp it first: gdalwarp -rpc -to RPC_DEM=dem.tif "
+               f"'{path}' warped.tif")
+    else:
+        how = ": its cells have no map position; give a georeferenced raster"
+    raise ParameterError(name, f"'{path}' has no georeferencing{how}")
+
+
+def _band_colours(src: Any) -> tuple[str, ...]:
+    """Each band's colour interpretation (lower case), "palette" for a band with a colour
+    table whatever its interpretation."""
+    colours = []
+    for band, interp in enumerate(src.colorinterp, start=1):
+        try:
+            src.colormap(band)
+            colours.append("palette")
+        except ValueError:  # no colour table
+            colours.append(interp.name.lower())
+    return tuple(colours)
+
+
+def require_height_band(info: RasterInfo, name: str, band: int = 1,
+                        band_name: str | None = None) -> None:
+    """:class:`ParameterError` naming ``name`` when band ``band`` of ``info`` (read as heights)
+    holds colours: a paletted band (colour codes) or a photo's red, green or blue channel.
+    ``band_name`` is the parameter that chose the band (BAND), if any."""
+    colour = info.colours[band - 1] if band <= len(info.colours) else "gray"
+    if colour == "palette":
+        what = "has a colour table (palette): its values are colour codes, not heights"
+    elif colour in ("red", "green", "blue"):
+        what = (f"has colour interpretation {colour.capitalize()}: a photo's colour channel, "
+                "not heights")
+    else:
+        return
+    chosen = f" (chosen by {band_name})" if band_name else ""
+    raise ParameterError(name, f"{info} band {band}{chosen} {what}; give a DEM of heights")
 
 
 def require_north_up(transform: Any, name: str, path: Any, flips_ok: bool = False) -> None:

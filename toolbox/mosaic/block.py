@@ -20,9 +20,9 @@ BLOCK_CACHE_MB = 64
 
 
 def open_block(paths: list, name: str = "INPUT", feedback: Any = None) -> tuple[list, Any]:
-    """Open the orthos, check they share one CRS and trace their valid-data footprints.
-    Returns ``(sources, pyproj CRS or None)``; the rasters stay open for the sources' reads
-    until :func:`close_block` (closed here if this fails)."""
+    """Open the orthos, check they are of one kind (:func:`check_same_kind`) and share one CRS,
+    and trace their valid-data footprints. Returns ``(sources, pyproj CRS or None)``; the
+    rasters stay open for the sources' reads until :func:`close_block` (closed here if this fails)."""
     from pyproj import CRS
 
     from toolbox.io.crs import common_crs
@@ -35,6 +35,8 @@ def open_block(paths: list, name: str = "INPUT", feedback: Any = None) -> tuple[
             if src.name in {s.name for s in sources}:
                 raise ParameterError(name, f"two inputs are named '{src.name}' (the file name "
                                      "identifies an ortho in the cut polygons): rename one")
+            if sources:
+                check_same_kind(sources[0], src, name)
             src.footprint = valid_footprint(src, FOOTPRINT_CELLS)
             sources.append(src)
             if feedback is not None:
@@ -45,6 +47,29 @@ def open_block(paths: list, name: str = "INPUT", feedback: Any = None) -> tuple[
         datasets.close()
         raise
     return sources, crs
+
+
+def check_same_kind(first: OrthoSource, other: OrthoSource, name: str = "INPUT") -> None:
+    """:class:`ParameterError` naming ``name`` unless ``other`` has the band count and the data
+    type of ``first``: a mosaic (and a seam's cost, which compares their values) takes their
+    values as they are, so a Byte and a UInt16 ortho would be mixed raw (one half black)."""
+    bands, other_bands = len(first.data_bands), len(other.data_bands)
+    if bands != other_bands:
+        raise ParameterError(name, f"'{first.path}' has {bands} bands but '{other.path}' has "
+                             f"{other_bands}: mosaic orthos of one kind")
+    if first.dtype != other.dtype:
+        types = _gdal_type(first.dtype), _gdal_type(other.dtype)
+        raise ParameterError(name, f"'{first.path}' is {types[0]} but '{other.path}' is "
+                             f"{types[1]}: the orthos must share a data type; convert one "
+                             f"with gdal_translate -ot {types[0]} -scale <its range> <the "
+                             f"{types[0]} range> '{other.path}' converted.tif")
+
+
+def _gdal_type(dtype: str) -> str:
+    """GDAL's name of a numpy data type: Byte, UInt16, Int16, Float32..."""
+    if dtype == "uint8":
+        return "Byte"
+    return "U" + dtype[1:].capitalize() if dtype.startswith("u") else dtype.capitalize()
 
 
 def close_block(sources: list[OrthoSource]) -> None:

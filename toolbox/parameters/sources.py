@@ -111,20 +111,45 @@ class VectorLayer(Parameter):
             ({"point_clouds": True} if self.point_clouds else {})
 
 
+#: what a raster input is (:class:`RasterLayer`'s ``role``): a photo (read in pixels: no
+#: geotransform, GCPs or RPCs are fine), a map raster (an ortho, a base map, a template grid:
+#: georeferenced) or heights (a DEM: georeferenced, and the band read holds heights)
+RASTER_ROLES = ("photo", "map", "heights")
+
+
 class RasterLayer(Parameter):
-    """A raster GDAL can read (GeoTIFF, JPEG, PNG, ...)."""
+    """A raster GDAL can read (GeoTIFF, JPEG, PNG, ...), validated to a
+    :class:`toolbox.io.raster.RasterInfo`.
+
+    ``role`` (one of :data:`RASTER_ROLES`) says what the algorithm reads in
+    it: ``"map"`` (the default: an ortho, a base map, a template grid) and ``"heights"`` (a
+    DEM) must be georeferenced; a ``"heights"`` band must hold heights, not colours (the
+    runner checks the band read, :func:`toolbox.io.raster.require_height_band`); a
+    ``"photo"`` is read in pixel coordinates (no geotransform, GCPs or RPCs are fine).
+    """
 
     type_name = "raster"
+
+    def __init__(self, name: str, description: str = "", default: Any = None,
+                 optional: bool = False, role: str = "map", **flags):
+        super().__init__(name, description, default, optional, **flags)
+        if role not in RASTER_ROLES:
+            raise ValueError(f"role must be one of {RASTER_ROLES}, got {role!r}")
+        self.role = role
 
     def validate(self, value: Any, ctx: ValidationContext):
         from toolbox.io.raster import open_raster_info
 
-        info = open_raster_info(value, self.name)
+        info = open_raster_info(value, self.name, self.role)
         ctx.input_paths[info.path.resolve()] = self.name
         return info
 
     def expected(self) -> str:
-        return "raster file GDAL can read"
+        return {"photo": "raster file GDAL can read", "map": "georeferenced raster file",
+                "heights": "georeferenced raster of heights (DEM)"}[self.role]
+
+    def describe(self) -> dict[str, Any]:
+        return super().describe() | {"role": self.role}
 
 
 class MultipleLayers(Parameter):
@@ -133,12 +158,13 @@ class MultipleLayers(Parameter):
     type_name = "multiple"
 
     def __init__(self, name: str, description: str = "", layer_type: str = "vector",
-                 min_count: int = 1, default: Any = None, optional: bool = False, **flags):
+                 min_count: int = 1, default: Any = None, optional: bool = False,
+                 role: str = "map", **flags):
         super().__init__(name, description, default, optional, **flags)
         if layer_type not in ("vector", "raster"):
             raise ValueError("layer_type must be 'vector' or 'raster'")
         self.layer_type, self.min_count = layer_type, min_count
-        self._item = (VectorLayer if layer_type == "vector" else RasterLayer)(name)
+        self._item = VectorLayer(name) if layer_type == "vector" else RasterLayer(name, role=role)
 
     def validate(self, value: Any, ctx: ValidationContext) -> list:
         items = [value] if isinstance(value, (str, Path)) else list(value)
@@ -151,7 +177,8 @@ class MultipleLayers(Parameter):
         return f"{self.min_count}+ {self.layer_type} layers (repeat the option)"
 
     def describe(self) -> dict[str, Any]:
-        return super().describe() | {"layer_type": self.layer_type, "min_count": self.min_count}
+        return super().describe() | {"layer_type": self.layer_type, "min_count": self.min_count} \
+            | ({"role": self._item.role} if self.layer_type == "raster" else {})
 
 
 class Field(Parameter):

@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import itertools
 import math
-import warnings
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
 from typing import Any
@@ -33,7 +32,7 @@ from typing import Any
 import numpy as np
 
 from toolbox.counters import Counters
-from toolbox.errors import ParameterError
+from toolbox.errors import InputDataError, ParameterError
 from toolbox.io.grid import GridSpec
 from toolbox.raster.datasets import ThreadDatasets
 from toolbox.raster.engine import RasterInput, process_raster
@@ -104,14 +103,35 @@ class OutputLayout:
         return float(np.iinfo(dt).max) if dt.kind in "iu" else 1.0
 
 
-def warp_layout(source: Any, outside: str = "alpha", nodata: float | None = None) -> OutputLayout:
-    """:func:`output_layout` of a raster path (or RasterInfo)."""
-    import rasterio
+def photo_path(source: Any) -> str:
+    """The path a warp reads the photo ``source`` (a path or RasterInfo) by: a paletted photo
+    (one band with a colour table: its values are colour codes, which no resampling may
+    interpolate) as its colours, RGB or RGBA when the table has transparency, as
+    ``gdal_translate -expand rgb|rgba`` writes them (GDAL's ``vrt://`` expansion)."""
+    from toolbox.raster.datasets import open_quietly
 
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
-        with rasterio.open(getattr(source, "path", source)) as src:
-            return output_layout(src, outside, nodata)
+    path = str(getattr(source, "path", source))
+    with open_quietly(path) as src:
+        if src.count != 1:
+            return path
+        try:
+            table = src.colormap(1)
+        except ValueError:  # no colour table
+            return path
+    expand = "rgba" if any(entry[3] < 255 for entry in table.values()) else "rgb"
+    if "?" in path:  # vrt:// takes what follows a '?' as its options
+        raise InputDataError(f"'{path}' is a paletted photo whose path holds a '?': expand it "
+                             f"first: gdal_translate -expand {expand} '{path}' photo_{expand}.tif")
+    return f"vrt://{path}?expand={expand}"
+
+
+def warp_layout(source: Any, outside: str = "alpha", nodata: float | None = None) -> OutputLayout:
+    """:func:`output_layout` of a raster path (or RasterInfo), a paletted one expanded
+    (:func:`photo_path`)."""
+    from toolbox.raster.datasets import open_quietly
+
+    with open_quietly(photo_path(source)) as src:
+        return output_layout(src, outside, nodata)
 
 
 def output_layout(src: Any, outside: str = "alpha", nodata: float | None = None) -> OutputLayout:
@@ -449,7 +469,8 @@ def warp_raster(source: Any, grid: GridSpec, coordinate_map: Any, writer_or_outp
     Parameters
     ----------
     source : path or RasterInfo
-        Any raster GDAL reads, any band count and data type (its georeferencing is ignored).
+        Any raster GDAL reads, any band count and data type (its georeferencing is ignored);
+        a paletted one is read as its colours (:func:`photo_path`).
     coordinate_map : callable
         ``coordinate_map(tile, aux_arrays) -> (src_col, src_row)``: float32 (h, w) arrays over
         the tile without halo, source pixel convention (:mod:`toolbox.raster.maps`), NaN
@@ -471,17 +492,14 @@ def warp_raster(source: Any, grid: GridSpec, coordinate_map: Any, writer_or_outp
     """
     from functools import partial
 
-    import rasterio
-
+    from toolbox.raster.datasets import open_quietly
 
     methods = RESAMPLING_METHODS + EXTRA_RESAMPLING
     if resampling not in methods:
         raise ValueError(f"resampling must be one of {', '.join(methods)}, got {resampling!r}")
-    path = getattr(source, "path", source)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
-        with rasterio.open(path) as src:
-            size = (src.width, src.height)
+    path = photo_path(source)
+    with open_quietly(path) as src:
+        size = (src.width, src.height)
     job = _WarpJob(path, ThreadDatasets(), size, coordinate_map, layout, resampling,
                    max_source_pixels or DEFAULT_MAX_SOURCE_PIXELS, fast)
     total = WarpStatistics()

@@ -125,14 +125,21 @@ def check_magnitudes(alg_cls: type[Algorithm], values: dict[str, Any]) -> None:
 
 
 def _check_band(alg_cls: type[Algorithm], values: dict[str, Any]) -> None:
-    """The one BAND check: BAND exists in the DEM when given, else in the one raster input."""
+    """The one BAND check: BAND exists in the DEM when given, else in the one raster input;
+    the band read of each heights raster (BAND's, else band 1) holds heights, not colours."""
     band = values.get("BAND")
     given = {p.name: values[p.name] for p in alg_cls.parameters
              if isinstance(p, RasterLayer) and values.get(p.name) is not None}
     rasters = [given["DEM"]] if "DEM" in given else list(given.values())
-    if isinstance(band, int) and len(rasters) == 1 and band > rasters[0].count:
-        raise ParameterError("BAND", f"must be <= {rasters[0].count} (bands of {rasters[0]}), "
-                             f"got {band}")
+    banded = rasters[0] if isinstance(band, int) and len(rasters) == 1 else None
+    if banded is not None and band > banded.count:
+        raise ParameterError("BAND", f"must be <= {banded.count} (bands of {banded}), got {band}")
+    for p in alg_cls.parameters:
+        if isinstance(p, RasterLayer) and p.role == "heights" and p.name in given:
+            from toolbox.io.raster import require_height_band
+
+            info = given[p.name]
+            require_height_band(info, p.name, *((band, "BAND") if info is banded else (1,)))
 
 
 # -- what the run reads and writes ----------------------------------------------------------------

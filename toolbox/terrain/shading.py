@@ -203,13 +203,11 @@ def signed_cell(transform) -> tuple[float, float]:
 
 
 def check_georeferenced(info) -> None:
-    """The DEM ``info`` (a :class:`~toolbox.io.raster.RasterInfo`) is georeferenced and not
-    rotated: the kernels need its cell size along map east and north. (BAND within its bands:
-    checked by the runner for every algorithm.)"""
+    """The DEM ``info`` (a :class:`~toolbox.io.raster.RasterInfo`) is not rotated: the kernels
+    need its cell size along map east and north. (Georeferenced: checked when INPUT, a
+    heights raster, is validated; BAND within its bands: by the runner for every algorithm.)"""
     from toolbox.errors import InputDataError
 
-    if not info.georeferenced:
-        raise InputDataError(f"INPUT {info} has no georeferencing: cell size unknown")
     t = info.transform
     if t.b != 0 or t.d != 0:
         raise InputDataError(f"INPUT {info} has a rotated geotransform (row/column rotation "

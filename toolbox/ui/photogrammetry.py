@@ -40,7 +40,7 @@ def ground_residuals_layer(description: str) -> Layer:
 def dem_parameters(description: str = "terrain heights (same CRS as the project)",
                    optional: bool = False) -> list[Parameter]:
     """DEM and its BAND."""
-    return [RasterLayer("DEM", description, optional=optional),
+    return [RasterLayer("DEM", description, optional=optional, role="heights"),
             Integer("BAND", "DEM band", default=1, min_value=1)]
 
 

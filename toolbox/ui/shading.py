@@ -18,7 +18,7 @@ def shading_parameters(input_help: str, output_help: str, own: list[Parameter]) 
     """INPUT, BAND, the algorithm's ``own`` parameters, TILE_SIZE, SCHEDULER, OVERVIEWS, COG,
     OUTPUT."""
     return [
-        RasterLayer("INPUT", input_help),
+        RasterLayer("INPUT", input_help, role="heights"),
         Integer("BAND", "band of the DEM", default=1, min_value=1),
         *own,
         Integer("TILE_SIZE", "tile side in cells", default=512, min_value=16),
