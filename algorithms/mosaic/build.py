@@ -113,6 +113,9 @@ class MosaicBuild(Algorithm):
                 raise self.fail("INPUT", f"the orthos have different band counts {sorted(bands)}; "
                                 "mosaic orthos of one kind")
             if params["CUTLINES"] is not None:
+                # mosaic:seamlines' GeoPackage as it is: its first layer, cut_polygons, is the
+                # one meant (its seamlines are read by name): no "first layer taken" warning
+                params["CUTLINES"].default_of = ()
                 cells = cells_from_layer(params["CUTLINES"], params["SOURCE_FIELD"], sources,
                                          crs=crs, feedback=feedback)
             else:

@@ -80,6 +80,17 @@ def test_multi_layer_file_without_layername_warns_naming_the_layers(tmp_path, to
     assert toolbox_warnings == []
 
 
+def test_seamlines_geopackage_as_cutlines_does_not_warn(pair, seams, tmp_path, toolbox_warnings):
+    """mosaic:build's CUTLINES is mosaic:seamlines' GeoPackage as written: its first layer,
+    cut_polygons, is the one meant (the seamlines layer is read by name)."""
+    orthos, _ = pair
+    cutlines = seams["least_cost"]["OUTPUT"]
+    assert [str(n) for n, _ in pyogrio.list_layers(cutlines)][:2] == ["cut_polygons", "seamlines"]
+    toolbox.run("mosaic:build", {"INPUT": [str(o.path) for o in orthos], "CUTLINES": cutlines,
+                                 "OUTPUT": tmp_path / "m.tif"})
+    assert not [w for w in toolbox_warnings if "none was named" in w]
+
+
 def test_csv_subset_on_the_coordinate_columns(tmp_path):
     """``|subset=`` may name the X/Y/Z columns (as ogrinfo -where does); they are not fields of
     the layer, and the points are the same as without a subset."""
