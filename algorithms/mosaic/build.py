@@ -107,6 +107,9 @@ class MosaicBuild(Algorithm):
         sources, crs = open_block([i.path for i in params["INPUT"]], "INPUT", feedback)
         try:
             if params["CUTLINES"] is not None:
+                # mosaic:seamlines' GeoPackage as it is: its first layer, cut_polygons, is the
+                # one meant (its seamlines are read by name): no "first layer taken" warning
+                params["CUTLINES"].default_of = ()
                 cells = cells_from_layer(params["CUTLINES"], params["SOURCE_FIELD"], sources,
                                          crs=crs, feedback=feedback)
             else:

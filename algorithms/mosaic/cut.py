@@ -10,6 +10,16 @@ from toolbox.registry import register
 from toolbox.ui.execution import executor_of, scheduler_parameter
 
 
+class RasterOrVector(File):
+    """A raster or vector file, or one layer of a vector file in QGIS's layer-source syntax
+    (``path|layername=NAME``, validated as a :class:`VectorLayer`)."""
+
+    def validate(self, value, ctx):
+        if isinstance(value, str) and "|" in value:
+            return VectorLayer(self.name).validate(value, ctx)
+        return super().validate(value, ctx)
+
+
 @register
 class MosaicCut(Algorithm):
     """Clip a raster or a vector layer to map sheets, one file per sheet named by its id (the
@@ -21,7 +31,9 @@ class MosaicCut(Algorithm):
     sheet (i, j) spans ORIGIN_X + i·W .. ORIGIN_X + (i+1)·W (and likewise north) and is named
     "i_j". Rasters are clipped on their own grid over the sheet's bounds (outside the sheet
     polygon: nodata or alpha 0) as tiled GeoTIFFs <id>.tif; vectors are clipped (GEOS) into
-    <id>.gpkg. Sheets holding no data are skipped. OUTPUT is a folder; it also receives
+    <id>.gpkg, every layer of the file (or the one of "path|layername=NAME") under its own
+    name, each feature keeping the pieces of its own kind (a polygon along a sheet edge gives
+    no line). Sheets holding no data are skipped. OUTPUT is a folder; it also receives
     sheets.gpkg, the sheet index (id, file, written). The sheet files are written all or none
     (staged, moved into OUTPUT on success); an existing one is replaced only with --overwrite,
     other files of OUTPUT are left alone. Sheets are cut in parallel on local threads or on a
@@ -35,7 +47,8 @@ class MosaicCut(Algorithm):
     group = "Mosaic"
     short_help = "Clip a raster or vector to map sheets (grid or polygons), one file per sheet."
     parameters = [
-        File("INPUT", "raster (GeoTIFF...) or vector layer (GeoPackage, Shapefile...) to clip"),
+        RasterOrVector("INPUT", "raster (GeoTIFF...) or vector file (GeoPackage, Shapefile...: "
+                       "all its layers, or one as 'path|layername=NAME') to clip"),
         VectorLayer("SHEETS", "sheet polygons (default: a grid from SCALE and the sheet size)",
                     geometry_types=["polygon"], optional=True),
         Field("ID_FIELD", "field of SHEETS with the sheet ids (default: feature number)",
@@ -162,30 +175,48 @@ def _sheets(params):
     return source, kind, crs, sheets
 
 
-def _open_input(path):
-    """``(source, "raster"|"vector", crs, bounds)``: a raster path or a GeoDataFrame."""
+def _open_input(value):
+    """``(source, "raster"|"vector", crs, bounds)``: a raster path, or the vector layers to cut
+    (``{name: GeoDataFrame}``, in the first one's CRS): the layer a layer source names, else
+    every layer of the file."""
     import warnings
 
+    import numpy as np
     import rasterio
 
-    from toolbox.errors import ParameterError
-    from toolbox.io.vector import read_vector
+    from toolbox.errors import InputDataError, ParameterError
+    from toolbox.io.vector import VectorLayerRef, open_layer, read_vector
+    from toolbox.mosaic.sheets import bounds_union
 
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
-            with rasterio.open(path) as src:
-                if src.count > 0:  # sheets are cut on the input's cells, north-up
-                    from toolbox.io.raster import require_georeferenced, require_north_up
+    refs = [value] if isinstance(value, VectorLayerRef) else None
+    if refs is None:
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
+                with rasterio.open(value) as src:
+                    if src.count > 0:  # sheets are cut on the input's cells, north-up
+                        from toolbox.io.raster import require_georeferenced, require_north_up
 
-                    require_georeferenced(src, "INPUT", path)
-                    require_north_up(src.transform, "INPUT", path)
-                    return path, "raster", src.crs, tuple(src.bounds)
-    except rasterio.errors.RasterioIOError:
-        pass
-    try:
-        frame = read_vector(str(path), name="INPUT")
-    except Exception as exc:  # neither GDAL nor OGR reads it
-        raise ParameterError("INPUT", f"'{path}' is neither a raster nor a vector layer: "
-                             f"{str(exc).splitlines()[0]}") from None
-    return frame, "vector", frame.crs, tuple(frame.total_bounds)
+                        require_georeferenced(src, "INPUT", value)
+                        require_north_up(src.transform, "INPUT", value)
+                        return value, "raster", src.crs, tuple(src.bounds)
+        except rasterio.errors.RasterioIOError:
+            pass
+        try:
+            first = open_layer(str(value), "INPUT")
+        except Exception as exc:  # neither GDAL nor OGR reads it
+            raise ParameterError("INPUT", f"'{value}' is neither a raster nor a vector layer: "
+                                 f"{str(exc).splitlines()[0]}") from None
+        others, first.default_of = first.default_of, ()  # all are cut: none taken by default
+        refs = [first, *(open_layer(f"{value}|layername={name}", "INPUT") for name in others)]
+    layers, crs = {}, None
+    for ref in refs:
+        frame = read_vector(ref, name="INPUT")
+        crs = frame.crs if crs is None else crs
+        if frame.crs is not None and not frame.crs.equals(crs):
+            frame = frame.to_crs(crs)
+        layers[ref.layer or ref.info["layer_name"]] = frame
+    bounds = [b for b in (f.total_bounds for f in layers.values()) if np.isfinite(b).all()]
+    if not bounds:
+        raise InputDataError(f"INPUT '{value}' has no features with a geometry: nothing to cut")
+    return layers, "vector", crs, bounds_union(bounds)

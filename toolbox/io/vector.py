@@ -132,6 +132,9 @@ class VectorLayerRef:
     frame: Any = None  # GeoDataFrame given directly in Python
     where: str | None = None
     geometry_filter: str | None = None
+    #: the file's other layers when none was named and its first one was taken (the reader
+    #: warns once, see :func:`open_layer`)
+    default_of: tuple[str, ...] = ()
 
     def __str__(self) -> str:
         if self.path is None:
@@ -267,8 +270,16 @@ def open_layer(value: Any, name: str = "INPUT") -> VectorLayerRef:
     ``value`` is a path, a QGIS layer source (see the module docstring), a
     :class:`VectorLayerRef` or a GeoDataFrame. Raises :class:`ParameterError` naming ``name``
     for a missing file, an unknown layer or a file OGR cannot read.
+
+    A file of several layers given without ``|layername=``/``|layerid=`` is read from its first
+    layer (OGR's default). The readers (:func:`read_vector`, :func:`read_geometries`,
+    :func:`toolbox.io.vector_points.read_points_xyz`) open the validated reference again before
+    reading its features: then a warning names the layer taken and the others, once. Code that
+    reads such a file by its layer names (a TIN's ``nodes``, ``vector:info``) does not read the
+    default layer through them, so it is not warned about.
     """
     if isinstance(value, VectorLayerRef):
+        _warn_default_layer(value, name)
         return value
     if hasattr(value, "geometry") and hasattr(value, "crs"):  # GeoDataFrame
         return VectorLayerRef(None, None, _frame_info(value), frame=value)
@@ -285,14 +296,16 @@ def open_layer(value: Any, name: str = "INPUT") -> VectorLayerRef:
     ogr = _ogr()
     try:
         options = _csv_open_options(path) if path.suffix.lower() == ".csv" else {}
-        layers = [str(row[0]) for row in ogr.list_layers(path)]
+        rows = ogr.list_layers(path)
+        layers = [str(row[0]) for row in rows]
     except Exception as exc:  # pyogrio raises DataSourceError and friends
         raise ParameterError(name, f"cannot read '{text}' as a vector layer: "
                              f"{str(exc).splitlines()[0]}") from None
     sibling = _resolve_layer_file(path, layer, layers)
     if sibling is not None:
         path, layer = sibling, None
-        layers = [str(row[0]) for row in ogr.list_layers(path)]
+        rows = ogr.list_layers(path)
+        layers = [str(row[0]) for row in rows]
     if source.layerid is not None:
         if source.layerid >= len(layers):
             raise ParameterError(name, f"layerid={source.layerid} but '{text}' has "
@@ -301,17 +314,19 @@ def open_layer(value: Any, name: str = "INPUT") -> VectorLayerRef:
     if layer is not None and layer not in layers:
         raise ParameterError(name, f"layer '{layer}' is not in '{text}'; layers are: "
                              f"{', '.join(layers)}")
+    default_of = ()
     if layer is None and len(layers) > 1:
         layer = layers[0]  # OGR's default layer, named so that pyogrio does not warn
+        # the other layers of features (not tables such as layer_styles): warned about
+        default_of = tuple(str(n) for n, kind in rows[1:] if kind is not None)
     try:
         info = ogr.read_info(path, layer=layer, **options)
     except Exception as exc:
         raise ParameterError(name, f"cannot read '{text}' as a vector layer: "
                              f"{str(exc).splitlines()[0]}") from None
-    if layer is None and len(layers) > 1:
-        layer = info.get("layer_name")
+    info = _without_csv_coordinates(info, options)
     ref = VectorLayerRef(path, layer, info, options, where=source.subset,
-                         geometry_filter=source.geometry_filter)
+                         geometry_filter=source.geometry_filter, default_of=default_of)
     if ref.where:  # an SQL error is the user's: report it now, naming the parameter
         import pyogrio
 
@@ -322,6 +337,21 @@ def open_layer(value: Any, name: str = "INPUT") -> VectorLayerRef:
             raise ParameterError(name, f"subset {ref.where!r} is not a valid filter of "
                                  f"'{text}': {str(exc).splitlines()[0]}") from None
     return ref
+
+
+def _warn_default_layer(ref: VectorLayerRef, name: str) -> None:
+    """Warn (once per reference) that the features of ``ref`` come from the first layer of a
+    file of several, taken because none was named."""
+    if not ref.default_of:
+        return
+    import logging
+
+    others = ", ".join(f"'{n}'" for n in ref.default_of)
+    logging.getLogger("toolbox").warning(
+        f"{name} '{ref.path}' has {len(ref.default_of) + 1} layers and none was named: read its "
+        f"first layer '{ref.layer}' (others: {others}); choose one with "
+        f"'{ref.path}|layername=NAME'")
+    ref.default_of = ()
 
 
 def _open_parquet(path: Path, source: LayerSource, name: str) -> VectorLayerRef:
@@ -375,7 +405,10 @@ def _csv_open_options(path: Path) -> dict[str, str]:
     """GDAL CSV open options naming exactly one X, Y and (if present) Z column.
 
     One name per axis: GDAL (3.10) with several candidate columns and KEEP_GEOM_COLUMNS=NO
-    crashes, so the header is inspected here and the first preferred name is chosen.
+    crashes, so the header is inspected here and the first preferred name is chosen. The
+    coordinate columns are kept as fields (KEEP_GEOM_COLUMNS=YES) so that a ``|subset=`` WHERE
+    can name them (``Z > 300``); :func:`csv_coordinate_columns` lists them, and the layer's fields
+    (:func:`open_layer`) and features (:func:`read_vector`) leave them out.
     """
     fields = [str(f) for f in _ogr().read_info(path)["fields"]]
     lower = {f.lower(): f for f in fields}
@@ -385,10 +418,24 @@ def _csv_open_options(path: Path) -> dict[str, str]:
         if found is not None:
             options[key] = found
     if "X_POSSIBLE_NAMES" in options and "Y_POSSIBLE_NAMES" in options:
-        options["KEEP_GEOM_COLUMNS"] = "NO"
+        options["KEEP_GEOM_COLUMNS"] = "YES"
     else:  # no coordinates: a plain table
         options = {"AUTODETECT_TYPE": "YES"}
     return options
+
+
+def csv_coordinate_columns(options: dict[str, str]) -> list[str]:
+    """The X, Y (and Z) columns the CSV open ``options`` read as the point geometry."""
+    return [options[key] for key in CSV_COORDINATE_NAMES if key in options]
+
+
+def _without_csv_coordinates(info: dict[str, Any], options: dict[str, str]) -> dict[str, Any]:
+    """``info`` (``pyogrio.read_info``) without the CSV's coordinate columns among its fields."""
+    drop = set(csv_coordinate_columns(options))
+    if not drop:
+        return info
+    keep = [i for i, f in enumerate(info["fields"]) if f not in drop]
+    return info | {"fields": info["fields"][keep], "dtypes": info["dtypes"][keep]}
 
 
 def read_vector(source: Any, crs: Any = None, columns: list[str] | None = None,
@@ -416,6 +463,7 @@ def read_vector(source: Any, crs: Any = None, columns: list[str] | None = None,
                                            where=ref.where or None, **ref.open_options)
         except Exception as exc:
             raise InputDataError(f"{name}: cannot read {ref}: {str(exc).splitlines()[0]}") from None
+        frame = frame.drop(columns=csv_coordinate_columns(ref.open_options), errors="ignore")
     _check_finite_xy(frame, f"{name} {ref}")
     if not hasattr(frame, "geometry"):  # a table without geometry (CSV without X/Y columns)
         import geopandas as gpd

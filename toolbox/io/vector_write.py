@@ -107,10 +107,27 @@ def write_layers(path: str | Path, layers: dict[str, Any], crs: Any = None,
         with staged_gpkg_writes(), writing(target), warnings.catch_warnings():
             if frame.crs is None:  # a layer without CRS as read (stored coordinates): meant
                 warnings.filterwarnings("ignore", "'crs' was not provided", UserWarning)
+            warnings.filterwarnings("ignore", "Normalized/laundered field name")  # see below
             if arrow and driver == "GPKG" and _write_arrow(frame, target, layer_name, kwargs):
                 continue
             pyogrio.write_dataframe(frame, target, layer=layer_name, driver=driver, **kwargs)
+        if driver == "ESRI Shapefile":
+            warn_renamed_fields(target, [c for c in frame.columns if c != frame.geometry.name])
     return path
+
+
+def warn_renamed_fields(path: Path, names: list[str]) -> None:
+    """One warning listing the fields (``names``, in order) the Shapefile ``path`` holds under
+    another name: a DBF field name has at most 10 characters, so GDAL cuts longer ones and makes
+    them unique (``quadratic_z`` -> ``quadratic_``, ``quadratic_err`` -> ``quadrati_1``)."""
+    written = [str(name) for name in _ogr().read_info(path)["fields"]]
+    renamed = [f"{old} -> {new}" for old, new in zip(names, written, strict=False) if old != new]
+    if renamed:
+        import logging
+
+        logging.getLogger("toolbox").warning(
+            f"{path.name}: a Shapefile's field names have at most 10 characters; renamed "
+            f"{', '.join(renamed)} (a .gpkg output keeps the names)")
 
 
 def _write_arrow(frame, target: Path, layer: str, kwargs: dict[str, Any]) -> bool:
@@ -155,11 +172,14 @@ def write_wkb_layer(path: str | Path, layer: str, wkb: np.ndarray, fields: dict[
     dataset_kwargs = dict(GPKG_DATASET_OPTIONS) if driver == "GPKG" and not path.exists() \
         else {}
     names = list(fields)
-    with staged_gpkg_writes(), writing(path):
+    with staged_gpkg_writes(), writing(path), warnings.catch_warnings():
+        warnings.filterwarnings("ignore", "Normalized/laundered field name")  # warned below
         ogr_write(str(path), layer=layer, driver=driver, geometry=np.asarray(wkb, dtype=object),
                   fields=names, field_data=[fields[k] for k in names], field_mask=None,
                   crs=None if crs is None else crs.to_wkt(), geometry_type=geometry_type,
                   encoding=None, dataset_kwargs=dataset_kwargs, layer_kwargs={},
                   promote_to_multi=geometry_type.startswith("Multi") and driver in (
                       "GPKG", "FlatGeobuf"))
+    if driver == "ESRI Shapefile":
+        warn_renamed_fields(path, names)
     return path

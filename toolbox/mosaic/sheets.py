@@ -107,46 +107,57 @@ def clip_raster(path: Path, sheet, output: Path, block: int = 2048) -> bool:
 
 @dataclass(frozen=True)
 class VectorSheet:
-    """One sheet to cut from a vector layer (picklable: it runs on a Dask worker as well):
-    ``frame`` holds only the features whose bounding box meets the sheet, in layer order."""
+    """One sheet to cut from vector layers (picklable: it runs on a Dask worker as well):
+    ``layers`` maps each layer's name to its features whose bounding box meets the sheet, in
+    layer order."""
 
-    frame: Any  # GeoDataFrame
+    layers: dict[str, Any]  # name -> GeoDataFrame
     sheet: Any  # shapely polygon
     output: str
-    layer: str = "clipped"
 
 
-def vector_sheets(frame, sheets: list, layer: str = "clipped"):
+def vector_sheets(layers: dict[str, Any], sheets: list):
     """One :class:`VectorSheet` per ``(polygon, output path)`` of ``sheets``, lazily: each
-    carries the features of ``frame`` whose bounding box meets its polygon (spatial index), in
-    the layer's order, so that the clipped file is the one of the whole layer."""
-    index = frame.sindex
+    carries the features of every frame of ``layers`` whose bounding box meets its polygon
+    (spatial index), in the layer's order, so that the clipped file is the one of the whole
+    layer."""
+    indexes = {name: frame.sindex for name, frame in layers.items()}
     for polygon, output in sheets:
-        rows = np.sort(index.query(polygon))
-        yield VectorSheet(frame.iloc[rows], polygon, str(output), layer)
+        yield VectorSheet({name: frame.iloc[np.sort(indexes[name].query(polygon))]
+                           for name, frame in layers.items()}, polygon, str(output))
 
 
 def clip_vector_sheet(task: VectorSheet) -> bool:
     """:func:`clip_vector` of one :class:`VectorSheet`; True when the sheet file was written."""
-    return clip_vector(task.frame, task.sheet, Path(task.output), task.layer) > 0
+    return clip_vector(task.layers, task.sheet, Path(task.output)) > 0
 
 
-def clip_vector(frame, sheet, output: Path, layer: str) -> int:
-    """Write the features of ``frame`` clipped to polygon ``sheet`` into GeoPackage ``output``
-    (layer ``layer``). Returns the feature count (0: nothing written)."""
+def clip_vector(layers: dict[str, Any], sheet, output: Path) -> int:
+    """Write the features of each frame of ``layers`` clipped to polygon ``sheet`` into
+    GeoPackage ``output``, as layers of the same names (those with features in the sheet).
+    A clipped feature keeps only the pieces of its own kind: a polygon along the sheet's edge
+    also meets it in lines and points, which are dropped. Returns the feature count (0:
+    nothing written)."""
     import geopandas as gpd
 
-    from toolbox.io.vector_write import write_layers
+    from toolbox.io.vector import _GEOMETRY_FAMILIES
+    from toolbox.io.vector_write import geometry_kinds, write_layers
 
-    inside = frame[frame.intersects(sheet)]
-    if inside.empty:
-        return 0
-    clipped = gpd.clip(inside, sheet)
-    clipped = clipped[~clipped.geometry.is_empty]
-    if clipped.empty:
-        return 0
-    write_layers(output, {layer: clipped})
-    return len(clipped)
+    clipped = {}
+    for name, frame in layers.items():
+        inside = frame[frame.intersects(sheet)]
+        if inside.empty:
+            continue
+        part = gpd.clip(inside, sheet, keep_geom_type=True)
+        kinds = geometry_kinds(inside)
+        if len(kinds) == 1:  # geopandas keeps other kinds when a sheet has nothing else
+            part = part[part.geom_type.isin(_GEOMETRY_FAMILIES[kinds.pop()])]
+        part = part[~part.geometry.is_empty]
+        if not part.empty:
+            clipped[name] = part
+    if clipped:
+        write_layers(output, clipped)
+    return sum(len(frame) for frame in clipped.values())
 
 
 def sheet_ids_unique(ids: list[str]) -> list[str]:

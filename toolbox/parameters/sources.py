@@ -9,9 +9,18 @@ from typing import Any
 from toolbox.parameters.base import Parameter, ValidationContext, _show
 
 
+def _refuse_virtual(param: Parameter, value: Any) -> None:
+    """Refuse a GDAL virtual path (``/vsizip/...``, ``/vsicurl/...``): inputs are files on disk
+    (so that outputs are checked against them and never replace them)."""
+    if isinstance(value, (str, Path)) and str(value).startswith("/vsi"):
+        raise param.error(f"{_show(str(value))}: GDAL virtual file systems (/vsi...) are not "
+                          "supported: unzip (or download) the file first")
+
+
 def _existing_path(param: Parameter, value: Any) -> Path:
     if not isinstance(value, (str, Path)):
         raise param.error(f"must be a file path, got {_show(value)}")
+    _refuse_virtual(param, value)
     path = Path(value).expanduser()
     if not path.exists():
         raise param.error(f"file {_show(str(value))} does not exist")
@@ -83,6 +92,7 @@ class VectorLayer(Parameter):
     def validate(self, value: Any, ctx: ValidationContext):
         from toolbox.io.vector import open_layer
 
+        _refuse_virtual(self, value)
         if self.point_clouds:
             from toolbox.io.pointcloud import PointCloudRef, is_point_cloud_path, open_point_cloud
 
@@ -140,6 +150,7 @@ class RasterLayer(Parameter):
     def validate(self, value: Any, ctx: ValidationContext):
         from toolbox.io.raster import open_raster_info
 
+        _refuse_virtual(self, value)
         info = open_raster_info(value, self.name, self.role)
         ctx.input_paths[info.path.resolve()] = self.name
         return info

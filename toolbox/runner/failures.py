@@ -63,7 +63,10 @@ def named_write_error(exc: OutputWriteError, staging: OutputStaging) -> OutputWr
     where = _output_of(exc.filename, staging)
     if where is None:
         return exc  # not about a staged output (already named by whoever raised it)
-    return write_error(OSError(exc.errno or errno.EIO, exc.strerror or str(exc)), *where)
+    text = exc.strerror or str(exc)
+    for _, final, staged in staging.items():  # the library's words name the staged file
+        text = text.replace(str(staged), str(final))
+    return write_error(OSError(exc.errno or errno.EIO, text), *where)
 
 
 def as_write_error(exc: Exception, staging: OutputStaging) -> ToolboxError | None:

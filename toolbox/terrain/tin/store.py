@@ -38,6 +38,7 @@ from toolbox.io.vector import (
     vector_driver,
 )
 from toolbox.io.vector_write import layer_paths, staged_gpkg_writes
+from toolbox.io.write_failures import writing
 from toolbox.terrain.tin.build import SOURCES, TinModel
 from toolbox.terrain.tin.help import TIN_HELP  # noqa: F401  (re-exported: its old home)
 from toolbox.terrain.tin.topology import EdgeTable, edge_table, triangle_measures
@@ -183,7 +184,7 @@ def _write_layer(path: Path, layer: _Layer, crs: Any, spatial_index: bool) -> No
     if pyarrow is not None:
         with warnings.catch_warnings():  # a TIN without CRS is the caller's (reported) choice
             warnings.filterwarnings("ignore", message="'crs' was not provided")
-            with staged_gpkg_writes():
+            with staged_gpkg_writes(), writing(path):  # a full disk: OUTPUT's error
                 pyogrio.write_arrow(layer.reader(), path, layer=layer.name, driver=driver,
                                     geometry_name="geometry",
                                     geometry_type=layer.geometry_type, crs=crs_text,
@@ -198,7 +199,7 @@ def _write_layer(path: Path, layer: _Layer, crs: Any, spatial_index: bool) -> No
     geometry = np.empty(n, dtype=object)
     geometry[:] = [flat[i * size:(i + 1) * size] for i in range(n)]
     names = list(columns)
-    with staged_gpkg_writes():
+    with staged_gpkg_writes(), writing(path):
         write(path, geometry, [columns[k][0] for k in names], names,
               field_mask=[columns[k][1] for k in names], layer=layer.name, driver=driver,
               geometry_type=layer.geometry_type, crs=crs_text, layer_options=options,
