@@ -128,6 +128,10 @@ def _sheets(params):
     from toolbox.mosaic.sheets import sheet_grid
 
     source, kind, crs, bounds = _open_input(params["INPUT"])
+    if crs is not None:  # a File parameter: the runner's CRS check does not see into it
+        from toolbox.io.crs import check_input_crs, parse_crs
+
+        check_input_crs("mosaic:cut", "INPUT", parse_crs(crs, "INPUT"))
     if params["SHEETS"] is not None:
         frame = read_vector(params["SHEETS"], crs=crs, name="SHEETS")
         if crs is not None and frame.crs is not None and not frame.crs.equals(crs):

@@ -169,3 +169,21 @@ def test_every_layer_is_cut_or_the_one_named(tmp_path):
         assert [str(n) for n, _ in pyogrio.list_layers(Path(one["OUTPUT"]) / name)] == ["lines"]
         part = gpd.read_file(Path(one["OUTPUT"]) / name, layer="lines")
         assert abs(part.length.sum() - lines.intersection(box).length.sum()) < 1e-6
+
+
+@pytest.mark.parametrize("crs, words", [("EPSG:4326", "the geographic CRS EPSG:4326"),
+                                        ("EPSG:2263", "EPSG:2263.*US survey foot")])
+def test_an_input_not_in_metres_is_refused(tmp_path, crs, words):
+    """mosaic:cut's sheets are SCALE x cm of paper in metres: a lon/lat layer was cut into one
+    sheet of -250..0 degrees, a feet one into sheets 3.28 times too small, exit 0. Refused in
+    one line naming INPUT, as the runner refuses such CRSs for layer parameters."""
+    points = gpd.GeoDataFrame({"n": [1, 2]}, geometry=shapely.points([(11.3, 43.3), (11.31, 43.31)]),
+                              crs="EPSG:4326")
+    if crs != "EPSG:4326":
+        points = gpd.GeoDataFrame({"n": [1, 2]}, geometry=shapely.points(
+            [(980000, 190000), (981000, 191000)]), crs=crs)
+    points.to_file(tmp_path / "p.gpkg")
+    with pytest.raises(ParameterError, match=f"INPUT is in {words}"):
+        toolbox.run("mosaic:cut", {"INPUT": str(tmp_path / "p.gpkg"), "SCALE": 500,
+                                   "OUTPUT": str(tmp_path / "sheets")})
+    assert not (tmp_path / "sheets").exists()
