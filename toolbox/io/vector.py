@@ -532,6 +532,15 @@ def _wkb_geometries(ref: VectorLayerRef, name: str) -> np.ndarray | None:
         raise InputDataError(f"{name}: cannot read {ref}: {str(exc).splitlines()[0]}") from None
 
 
+def feature_rows(positions) -> str:
+    """``"rows 2, 5, counting from 1"``: the first five features at 0-based ``positions``
+    (repeats removed), for messages."""
+    rows = np.unique(np.asarray(positions, dtype=np.int64)) + 1
+    more = ", ..." if len(rows) > 5 else ""
+    return (f"row{'s' if len(rows) > 1 else ''} {', '.join(map(str, rows[:5]))}{more}, "
+            "counting from 1")
+
+
 def _check_finite_xy(frame, what: str) -> None:
     """InputDataError when a geometry has a NaN/inf X or Y (GEOS and every kernel fail on them;
     a NaN Z is left to the Z readers). ``frame``: a GeoDataFrame or an array of geometries."""
@@ -550,7 +559,7 @@ def _check_finite_xy(frame, what: str) -> None:
         owner = np.repeat(np.arange(len(geoms)), counts)[bad]
         rows = np.unique(owner)
         raise InputDataError(f"{what}: {len(rows)} feature(s) have NaN/inf coordinates "
-                             f"(first rows: {', '.join(map(str, rows[:5]))})")
+                             f"({feature_rows(rows)})")
 
 
 def single_points(geoms: Any, name: str) -> np.ndarray:

@@ -12,19 +12,11 @@ from toolbox.errors import InputDataError
 from toolbox.io.vector import (
     VectorLayerRef,
     _ogr,
+    feature_rows,
     is_parquet,
     open_layer,
     read_vector,
 )
-
-
-def feature_rows(positions) -> str:
-    """``"rows 2, 5, counting from 1"``: the first five features at 0-based ``positions``
-    (repeats removed), for messages."""
-    rows = np.unique(np.asarray(positions, dtype=np.int64)) + 1
-    more = ", ..." if len(rows) > 5 else ""
-    return (f"row{'s' if len(rows) > 1 else ''} {', '.join(map(str, rows[:5]))}{more}, "
-            "counting from 1")
 
 
 def _check_finite(values: np.ndarray, what: str, rows: np.ndarray | None = None) -> None:

@@ -104,6 +104,8 @@ def write_layers(path: str | Path, layers: dict[str, Any], crs: Any = None,
             continue
         if driver == "GPKG" and not target.exists():
             kwargs["dataset_options"] = GPKG_DATASET_OPTIONS
+        if driver == "FlatGeobuf" and len(frame) and frame.geometry.isna().any():
+            kwargs["layer_options"] = {"SPATIAL_INDEX": "NO"}  # its index takes no null geometry
         with staged_gpkg_writes(), writing(target), warnings.catch_warnings():
             if frame.crs is None:  # a layer without CRS as read (stored coordinates): meant
                 warnings.filterwarnings("ignore", "'crs' was not provided", UserWarning)

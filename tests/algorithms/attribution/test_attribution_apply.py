@@ -159,7 +159,7 @@ def test_styles_are_qml_qgis_reads_and_sld(applied):
     assert out.with_name("coded.gpkg.unresolved.sld").exists()
 
 
-@pytest.mark.parametrize("suffix", [".shp", ".geojson"])
+@pytest.mark.parametrize("suffix", [".shp", ".geojson", ".fgb"])
 def test_one_layer_formats_get_every_layer_and_its_style_file(applied, files, suffix):
     """OUTPUT in a one-layer format (offered by the help) was refused as a corrupt INPUT
     ("file is not a database": the styles were written into it with SQLite). Each layer is

@@ -125,5 +125,5 @@ def test_nan_coordinates_refused(tmp_path):
     gpd.GeoDataFrame(geometry=[Point(1, 2), Point(np.nan, 4)], crs="EPSG:3003").to_file(
         tmp_path / "nan.gpkg")
     with pytest.raises(toolbox.InputDataError, match=r"INPUT .*1 feature\(s\) have NaN/inf "
-                                                     r"coordinates \(first rows: 1\)"):
+                                                     r"coordinates \(row 2, counting from 1\)"):
         toolbox.run("vector:info", {"INPUT": tmp_path / "nan.gpkg"})
