@@ -60,9 +60,10 @@ class Algorithm:
     # the algorithm works in metres (cell sizes, tolerances, slopes, volumes): the runner refuses
     # inputs in a geographic CRS and coordinates far outside their CRS's area of use
     projected_crs_only: ClassVar[bool] = True
-    # its lengths are the CRS's units (gridding, TIN, slope: no metre constant): a projected CRS
-    # in feet is accepted when every axis, heights included, is in that one unit
-    any_length_unit: ClassVar[bool] = False
+    # the units its lengths may be in (:func:`toolbox.io.crs.not_metric`): "metre" (scales,
+    # tolerances, photogrammetry), "one" (any one unit for x, y and heights: slopes, volumes),
+    # "horizontal" (any one unit for x, y; heights in theirs: gridding, TINs, contours)
+    length_units: ClassVar[str] = "metre"
 
     # -- spec --------------------------------------------------------------------------------------
     @classmethod

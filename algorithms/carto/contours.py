@@ -42,7 +42,7 @@ class Contours(Algorithm):
     labels along them), as QML and SLD; ``STYLE`` also writes the QML.
     """
 
-    any_length_unit = True  # lengths in the CRS's unit (metres or feet)
+    length_units = "horizontal"  # x, y in one unit (metres or feet); heights in their own
 
     id = "carto:contours"
     display_name = "Contour lines"

@@ -53,7 +53,7 @@ class CrossValidate(Algorithm):
     the error (``<method>_err``), to map where a method fails.
     """
 
-    any_length_unit = True  # lengths in the CRS's unit (metres or feet)
+    length_units = "horizontal"  # x, y in one unit (metres or feet); heights in their own
 
     id = "dem:cross_validate"
     display_name = "DEM cross-validation"

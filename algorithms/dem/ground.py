@@ -49,7 +49,7 @@ class GroundFilterDtm(Algorithm):
     The filter grid is held in memory (its cells count against MAX_CELLS).
     """
 
-    any_length_unit = True  # lengths in the CRS's unit (metres or feet)
+    length_units = "one"  # x, y and heights in one unit (metres or feet): slopes mix them
 
     id = "dem:ground"
     display_name = "DTM by ground filtering (SMRF)"

@@ -97,7 +97,7 @@ class Delaunay(Algorithm):
     its author (docs/algorithms/tin.md, "Licence").
     """
 
-    any_length_unit = True  # lengths in the CRS's unit (metres or feet)
+    length_units = "horizontal"  # x, y in one unit (metres or feet); heights in their own
 
     id = "tin:delaunay"
     display_name = "TIN (Delaunay, with breaklines)"

@@ -30,7 +30,7 @@ class Interpolate(Algorithm):
     geometry and with NODATA, and named in a warning.
     """
 
-    any_length_unit = True  # lengths in the CRS's unit (metres or feet)
+    length_units = "horizontal"  # x, y in one unit (metres or feet); heights in their own
 
     id = "tin:interpolate"
     display_name = "Interpolate heights on a TIN"

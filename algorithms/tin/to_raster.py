@@ -31,7 +31,7 @@ class ToRaster(Algorithm):
     so memory stays bounded for any size.
     """
 
-    any_length_unit = True  # lengths in the CRS's unit (metres or feet)
+    length_units = "horizontal"  # x, y in one unit (metres or feet); heights in their own
 
     id = "tin:to_raster"
     display_name = "TIN to raster"

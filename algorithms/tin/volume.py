@@ -109,7 +109,7 @@ class Volume(Algorithm):
     method).
     """
 
-    any_length_unit = True  # lengths in the CRS's unit (metres or feet)
+    length_units = "one"  # x, y and heights in one unit (metres or feet): slopes mix them
 
     id = "tin:volume"
     display_name = "TIN cut/fill volume"

@@ -420,14 +420,11 @@ def test_a_crs_in_feet_is_refused_where_metres_are_meant(tmp_path, extent, words
 
 @pytest.mark.parametrize("crs, words", [
     ("EPSG:2053", "westing axis points west"),             # Lo29: westing/southing axes
-    ("EPSG:4978", "geocentric"),                           # Earth-centred X, Y, Z
-    ("EPSG:2263+5703", "gravity-related height unit (metre) is not its easting unit (US "
-                       "survey foot)")])
+    ("EPSG:4978", "geocentric")])                          # Earth-centred X, Y, Z
 def test_crs_not_east_north_in_one_unit_is_refused(points, tmp_path, crs, words):
-    """West/south axes (aspect was 180 degrees off), a geocentric CRS (a "DEM" of geocentric
-    Z) and heights in another unit than x, y (slopes off by 3.28x) are refused even by the
-    algorithms whose lengths are the CRS's unit; a CRS in feet throughout is accepted there and
-    gives the metre-labelled run's DEM, numbers unchanged."""
+    """West/south axes (aspect was 180 degrees off) and a geocentric CRS (a "DEM" of
+    geocentric Z) are refused even by the algorithms whose lengths are the CRS's unit; a CRS in
+    feet is accepted by the gridding and gives the unlabelled run's DEM, numbers unchanged."""
     import geopandas as gpd
     import numpy as np
     import rasterio
@@ -451,6 +448,27 @@ def test_crs_not_east_north_in_one_unit_is_refused(points, tmp_path, crs, words)
     with rasterio.open(tmp_path / "ft.tif") as ft, rasterio.open(tmp_path / "m.tif") as m:
         assert ft.crs.linear_units.lower().startswith("us survey foot")
         assert ft.transform == m.transform and np.array_equal(ft.read(), m.read(), equal_nan=True)
+
+
+def test_slopes_need_heights_in_the_unit_of_x_and_y(tmp_path):
+    """A compound CRS with x, y in US feet and heights in metres: dem:slope mixed them (a 5.71
+    degree plane came out 1.75 degrees); refused in one line. The gridding, where heights never
+    meet x and y, accepts such a CRS (the public COPC sample: Oregon LCC metres + NAVD88 feet)."""
+    import numpy as np
+    import rasterio
+    from affine import Affine
+
+    dem = tmp_path / "dem.tif"
+    z = np.add.outer(np.zeros(20), np.arange(20) * 10.0).astype("float32")  # 0.1 per foot
+    with rasterio.open(dem, "w", driver="GTiff", width=20, height=20, count=1, dtype="float32",
+                       crs="EPSG:2263+5703",
+                       transform=Affine(100, 0, 1_000_000, 0, -100, 200_000)) as dst:
+        dst.write(z, 1)
+    code, _, err = cli("run", "dem:slope", "--INPUT", dem, "--OUTPUT", tmp_path / "s.tif")
+    line = one_error(err)
+    assert code == 2 and "gravity-related height unit (metre) is not its easting unit (US " \
+        "survey foot)" in line and "works in one length unit" in line, line
+    assert not (tmp_path / "s.tif").exists()
 
 
 def test_a_project_in_feet_is_refused(tmp_path):

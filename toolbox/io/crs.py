@@ -182,7 +182,7 @@ def input_crs_and_bounds(value: Any) -> list[tuple[CRS | None, tuple | None]]:
 
 
 def check_input_crs(algorithm_id: str, name: str, value: Any,
-                    warnings: list[str] | None = None, any_unit: bool = False) -> None:
+                    warnings: list[str] | None = None, units: str = "metre") -> None:
     """Refuse a geographic CRS or one not in metres with x east, y north (:func:`not_metric`:
     the algorithm works in metres) and coordinates far outside the CRS's area of use; append a
     warning to ``warnings`` when they are a little outside."""
@@ -194,9 +194,9 @@ def check_input_crs(algorithm_id: str, name: str, value: Any,
                                  f"degrees), but {algorithm_id} works in metres (cell sizes, "
                                  "tolerances, slopes, volumes): reproject it to a projected CRS "
                                  "(e.g. EPSG:3003 or a UTM zone) first")
-        problem = not_metric(crs, any_unit)
+        problem = not_metric(crs, units)
         if problem:
-            works = "in one length unit" if any_unit else "in metres"
+            works = "in metres" if units == "metre" else "in one length unit"
             raise ParameterError(name, f"is in {crs_label(crs)} ({crs.name}), {problem}, but "
                                  f"{algorithm_id} works {works}, x east and y north (cell "
                                  "sizes, tolerances, scales, heights): reproject it to a metric "
@@ -210,11 +210,11 @@ def check_input_crs(algorithm_id: str, name: str, value: Any,
                 warnings.append(f"{name}: {problem}")
 
 
-def not_metric(crs: CRS, any_unit: bool = False) -> str | None:
-    """Why ``crs`` is not a projected (or vertical) CRS in metres with x east and y north, or
-    None: a geocentric CRS, an axis in feet or another unit (a compound CRS's height too), axes
-    pointing west or south. With ``any_unit``, axes all in one other unit (a CRS in feet,
-    heights in feet) pass. Axes of an unknown unit pass."""
+def not_metric(crs: CRS, units: str = "metre") -> str | None:
+    """Why ``crs`` does not suit an algorithm whose lengths are in ``units``, or None. Always
+    refused: a geocentric CRS, axes pointing west or south. ``units``: "metre" (every axis in
+    metres, a compound CRS's height too), "one" (every axis in one unit, e.g. feet),
+    "horizontal" (x and y in one unit; heights in any). Axes of an unknown unit pass."""
     if crs.is_geocentric:
         return "a geocentric CRS (Earth-centred X, Y, Z)"
     axes = [a for a in crs.axis_info
@@ -222,12 +222,13 @@ def not_metric(crs: CRS, any_unit: bool = False) -> str | None:
     for axis in axes:
         if axis.direction in ("west", "south"):
             return f"whose {axis.name.lower()} axis points {axis.direction}"
-        if any_unit and axes and abs(axis.unit_conversion_factor
-                                     - axes[0].unit_conversion_factor) > 1e-12:
+        if units == "metre":
+            if abs(axis.unit_conversion_factor - 1.0) > 1e-12:
+                return f"whose {axis.name.lower()} unit is the {axis.unit_name}"
+        elif (units == "one" or axis.direction in ("east", "north")) and abs(
+                axis.unit_conversion_factor - axes[0].unit_conversion_factor) > 1e-12:
             return (f"whose {axis.name.lower()} unit ({axis.unit_name}) is not its "
                     f"{axes[0].name.lower()} unit ({axes[0].unit_name})")
-        if not any_unit and abs(axis.unit_conversion_factor - 1.0) > 1e-12:
-            return f"whose {axis.name.lower()} unit is the {axis.unit_name}"
     return None
 
 

@@ -90,7 +90,7 @@ def validate(algorithm: type[Algorithm] | str, parameters: dict[str, Any],
         if not p.is_output and alg.projected_crs_only:
             from toolbox.io.crs import check_input_crs
 
-            check_input_crs(alg.id, p.name, ctx.values[p.name], warnings, alg.any_length_unit)
+            check_input_crs(alg.id, p.name, ctx.values[p.name], warnings, alg.length_units)
     values = {p.name: ctx.values[p.name] for p in alg.parameters}
     inputs = {p.name: values[p.name] for p in alg.parameters
               if not p.is_output and values[p.name] is not None}

@@ -227,7 +227,7 @@ class GriddingAlgorithm(Algorithm):
     """Base of ``dem:<method>``: subclasses set ``method`` (a name in
     :data:`toolbox.terrain.gridding.methods.METHODS`) and the method's parameters."""
 
-    any_length_unit = True  # lengths in the CRS's unit (metres or feet)
+    length_units = "horizontal"  # x, y in one unit (metres or feet); heights in their own
 
     group = "DEM gridding"
     method: ClassVar[str] = ""

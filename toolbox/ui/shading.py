@@ -33,7 +33,7 @@ class ShadingAlgorithm(Algorithm):
     """Base of dem:slope/aspect/hillshade: a 3x3 kernel of :mod:`toolbox.terrain.shading` over
     the DEM in tiles with a one-cell halo (BAND within the DEM's bands: the runner checks it)."""
 
-    any_length_unit = True  # lengths in the CRS's unit (metres or feet)
+    length_units = "one"  # x, y and heights in one unit (metres or feet): slopes mix them
 
     group = "DEM terrain"
     kernel_name: ClassVar[str] = ""  # a function of toolbox.terrain.shading

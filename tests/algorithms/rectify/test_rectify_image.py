@@ -42,12 +42,7 @@ def transform_json(path, matrix=P2G, units="pixels", crs="EPSG:3003", points=())
 def scene_files(tmp_path_factory):
     """Float photo, its exact transform estimated from noise-free GCPs (through the algorithm)."""
     folder = tmp_path_factory.mktemp("rectify_scene")
-    photo = scene.write_photo(folder / "photo.tif", scene.photo(1, "float32"))
-    ids, image, ground, roles = scene.gcp_table(12)
-    gcps = scene.write_gcp_csv(folder / "gcps.csv", ids, image, ground, roles)
-    toolbox.run("rectify:estimate", {"INPUT": gcps, "CRS": "EPSG:3003", "ROBUST": "none",
-                                     "OUTPUT": folder / "t.json"})
-    return folder, photo, folder / "t.json"
+    return folder, *scene.photo_and_transform(folder, "float32")
 
 
 def gdal_valid(path) -> np.ndarray:

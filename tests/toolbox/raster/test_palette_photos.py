@@ -64,13 +64,8 @@ def assert_same_raster(one, other, bands):
 
 @pytest.fixture(scope="module")
 def rectify_files(tmp_path_factory):
-    folder = tmp_path_factory.mktemp("palette_rectify")
-    photo = rectify_scene.write_photo(folder / "grey.tif", rectify_scene.photo(1, "uint8"))
-    ids, image, ground, roles = rectify_scene.gcp_table(12)
-    gcps = rectify_scene.write_gcp_csv(folder / "gcps.csv", ids, image, ground, roles)
-    toolbox.run("rectify:estimate", {"INPUT": gcps, "CRS": "EPSG:3003", "ROBUST": "none",
-                                     "OUTPUT": folder / "t.json"})
-    return photo, folder / "t.json"
+    return rectify_scene.photo_and_transform(tmp_path_factory.mktemp("palette_rectify"), "uint8",
+                                             "grey.tif")
 
 
 RGBA = (ColorInterp.red, ColorInterp.green, ColorInterp.blue, ColorInterp.alpha)
