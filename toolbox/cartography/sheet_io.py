@@ -44,7 +44,7 @@ def read_base(info, bounds: tuple[float, float, float, float], scale: float,
               dpi: int = BASE_DPI) -> tuple[np.ndarray, tuple[float, float, float, float]] | None:
     """The base raster over ``bounds`` resampled to ``dpi`` on paper (at most its own cell):
     (grey or RGB uint8 image, north up, extent xmin, xmax, ymin, ymax), or None when it does
-    not overlap. Non-byte grey rasters are stretched between the 2nd and 98th percentiles of
+    not overlap. A paletted raster is read as its colours (RGB). Non-byte grey rasters are stretched between the 2nd and 98th percentiles of
     their valid values (NaN is no value, with or without a nodata tag). A north-up raster is
     read by a decimated window read (GDAL's overviews); one stored south-up, east to west or
     rotated is warped onto a north-up grid (GDAL's warper)."""
@@ -55,7 +55,9 @@ def read_base(info, bounds: tuple[float, float, float, float], scale: float,
     from rasterio.enums import Resampling
     from rasterio.windows import from_bounds
 
-    with rasterio.open(info.path) as src:
+    from toolbox.raster.warp import photo_path
+
+    with rasterio.open(photo_path(info.path)) as src:  # a paletted base: its colours
         t = src.transform
         corners = [t * (c, r) for c in (0, src.width) for r in (0, src.height)]
         xs, ys = [x for x, _ in corners], [y for _, y in corners]

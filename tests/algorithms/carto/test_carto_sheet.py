@@ -256,3 +256,27 @@ def test_sheet_refuses_contours_without_elev(tmp_path):
         toolbox.run("carto:sheet", {"EXTENT": "1688000,4799000,1688100,4799100 [EPSG:3003]",
                                     "SCALE": 1000, "CONTOURS": contours, "OUTPUT": out})
     assert not out.exists()
+
+
+def test_a_paletted_base_is_drawn_in_its_colours(tmp_path):
+    """A paletted BASE (one band of colour codes and a colour table) was drawn as grey shading
+    of the codes; it is read as its colours: at one paper pixel per cell, each pixel is the
+    table's colour of its cell's code."""
+    import rasterio
+    from affine import Affine
+
+    from toolbox.cartography.sheet_io import read_base
+    from toolbox.io.raster import open_raster_info
+
+    codes = (np.arange(40 * 30).reshape(30, 40) % 7).astype("uint8")
+    table = {k: (30 * k, 255 - 30 * k, (70 * k) % 256, 255) for k in range(7)}
+    path = tmp_path / "pal.tif"
+    with rasterio.open(path, "w", driver="GTiff", width=40, height=30, count=1, dtype="uint8",
+                       crs="EPSG:3003", transform=Affine(1, 0, 1688000, 0, -1, 4799030)) as dst:
+        dst.write(codes, 1)
+        dst.write_colormap(1, table)
+    image, extent = read_base(open_raster_info(path, "BASE"), (1688000, 4799000, 1688040, 4799030),
+                              scale=100, dpi=300)
+    expected = np.array([table[k][:3] for k in range(7)], dtype="uint8")[codes]
+    assert image.shape == (30, 40, 3) and extent == (1688000, 1688040, 4799000, 4799030)
+    np.testing.assert_array_equal(image, expected)
