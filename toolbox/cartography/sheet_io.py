@@ -44,8 +44,9 @@ def read_base(info, bounds: tuple[float, float, float, float], scale: float,
               dpi: int = BASE_DPI) -> tuple[np.ndarray, tuple[float, float, float, float]] | None:
     """The base raster over ``bounds`` resampled to ``dpi`` on paper (at most its own cell):
     (grey or RGB uint8 image, north up, extent xmin, xmax, ymin, ymax), or None when it does
-    not overlap. A paletted raster is read as its colours (RGB). Non-byte grey rasters are stretched between the 2nd and 98th percentiles of
-    their valid values (NaN is no value, with or without a nodata tag). A north-up raster is
+    not overlap. A paletted raster is read as its colours (RGB). Non-byte grey rasters are
+    stretched between the 2nd and 98th percentiles of their valid values (NaN is no value,
+    with or without a nodata tag). A north-up raster is
     read by a decimated window read (GDAL's overviews); one stored south-up, east to west or
     rotated is warped onto a north-up grid (GDAL's warper)."""
     import math
