@@ -236,6 +236,7 @@ def validate_pipeline(pipeline: Pipeline, overwrite: bool = False,
     from toolbox.registry import get
     from toolbox.runner import check_magnitudes, planned_paths
     from toolbox.runner import validate as runner_validate
+    from toolbox.runner.paths import input_paths
 
     written: dict[Path, str] = {}  # output path -> "step.NAME"
     read: dict[Path, str] = {}  # input path -> "step.NAME"
@@ -278,7 +279,8 @@ def validate_pipeline(pipeline: Pipeline, overwrite: bool = False,
                 else:
                     ctx.values[p.name] = p.resolve(value, ctx)
                     if not p.is_output and alg.projected_crs_only:
-                        check_input_crs(alg.id, p.name, ctx.values[p.name])
+                        check_input_crs(alg.id, p.name, ctx.values[p.name],
+                                        units=alg.length_units)
             except ToolboxError as exc:
                 raise fail(str(exc)) from None
         try:
@@ -287,6 +289,8 @@ def validate_pipeline(pipeline: Pipeline, overwrite: bool = False,
             raise fail(str(exc)) from None
         for path, name in ctx.input_paths.items():
             step_inputs[path] = name
+        for path, name in input_paths(alg, ctx.values).items():  # a VRT's sources, a project's
+            step_inputs.setdefault(path, name)                   # photos: what the run protects
         for path, name in step_inputs.items():
             read.setdefault(path, f"{step.name}.{name}")
         outputs_of[step.name] = {o.name: True for o in alg.outputs}

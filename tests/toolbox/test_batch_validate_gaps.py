@@ -4,6 +4,7 @@ size guards of the algorithms' check(); and pipeline variables expand recursivel
 
 from __future__ import annotations
 
+import shutil
 import sys
 from pathlib import Path
 
@@ -125,3 +126,32 @@ def test_validate_refuses_two_steps_writing_one_layer_file(folder, first, second
         code, err = batch(pipe, *extra)
         assert code == 2 and words.format(out=folder / "out") in one_error(err), err
     assert not (folder / "out").exists()
+
+
+def test_validate_sees_what_a_vrt_reads_and_takes_feet_where_the_run_does(folder):
+    """A later step writing the file an earlier step's VRT input reads (the DEM under dem.vrt)
+    passed --validate (the run itself refuses it); and --validate refused a CRS in feet for the
+    gridding, which the run accepts."""
+    import subprocess
+
+    if shutil.which("gdal_translate") is None:
+        pytest.skip("gdal_translate not installed")
+    subprocess.run(["gdal_translate", "-q", "-of", "VRT", str(folder / "dem.tif"),
+                    str(folder / "dem.vrt")], check=True)
+    pipe = folder / "p.yaml"
+    pipe.write_text("steps:\n" + hillshade("INPUT: dem.vrt, OUTPUT: shade.tif")
+                    + "  - algorithm: dem:idw\n    params: {INPUT: pts.gpkg, Z_FIELD: z, "
+                      "CELL_SIZE: 20, OUTPUT: dem.tif}\n")
+    before = {p.name: p.read_bytes() for p in folder.iterdir() if p.is_file()}
+    code, err = batch(pipe, "--validate", "--overwrite")
+    line = one_error(err)
+    assert code == 2 and "dem.tif" in line and "an input is never overwritten" in line, line
+    assert {p.name: p.read_bytes() for p in folder.iterdir() if p.is_file()} == before
+    feet = gpd.read_file(folder / "pts.gpkg").translate(1_000_000 - E0, 200_000 - N0)
+    gpd.GeoDataFrame({"z": gpd.read_file(folder / "pts.gpkg")["z"]}, geometry=feet.values,
+                     crs=None).set_crs("EPSG:2263", allow_override=True).to_file(
+        folder / "ft.gpkg")
+    pipe.write_text("steps:\n  - algorithm: dem:idw\n    params: {INPUT: ft.gpkg, Z_FIELD: z, "
+                    "CELL_SIZE: 20, OUTPUT: ft.tif}\n")
+    code, err = batch(pipe, "--validate")
+    assert code == 0, err
