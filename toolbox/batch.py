@@ -231,10 +231,9 @@ def validate_pipeline(pipeline: Pipeline, overwrite: bool = False,
     ``overwrite`` (collected in ``existing`` instead when a list is given). Raises
     :class:`PipelineError` naming the step."""
     from toolbox.errors import OutputExistsError
-    from toolbox.io.crs import check_input_crs
     from toolbox.parameters import Field, OutputFolder, ValidationContext
     from toolbox.registry import get
-    from toolbox.runner import check_magnitudes, planned_paths
+    from toolbox.runner import check_magnitudes, check_parameter_crs, planned_paths
     from toolbox.runner import validate as runner_validate
     from toolbox.runner.paths import input_paths
 
@@ -278,9 +277,7 @@ def validate_pipeline(pipeline: Pipeline, overwrite: bool = False,
                         step_inputs[_abs(item)] = p.name
                 else:
                     ctx.values[p.name] = p.resolve(value, ctx)
-                    if not p.is_output and alg.projected_crs_only:
-                        check_input_crs(alg.id, p.name, ctx.values[p.name],
-                                        units=alg.length_units)
+                    check_parameter_crs(alg, p, ctx.values[p.name])
             except ToolboxError as exc:
                 raise fail(str(exc)) from None
         try:

@@ -9,8 +9,8 @@ from toolbox.errors import InputDataError
 from toolbox.feedback import Feedback
 from toolbox.io.crs import common_crs, crs_label
 from toolbox.io.pointcloud import cloud_filter
-from toolbox.io.vector import read_vector
-from toolbox.io.vector_points import feature_rows, input_rows, vertices_xyz
+from toolbox.io.vector import feature_rows, read_vector
+from toolbox.io.vector_points import input_rows, vertices_xyz
 from toolbox.parameters import Boolean, Crs, Enum, Field, Number, VectorLayer
 from toolbox.parameters.outputs import Layer, Output, OutputVector
 from toolbox.registry import register

@@ -8,8 +8,7 @@ from toolbox.algorithm import Algorithm
 from toolbox.errors import InputDataError
 from toolbox.feedback import Feedback
 from toolbox.io.crs import common_crs
-from toolbox.io.vector import read_vector
-from toolbox.io.vector_points import feature_rows
+from toolbox.io.vector import feature_rows, no_geometry, read_vector
 from toolbox.io.vector_write import write_layers
 from toolbox.parameters import Boolean, Number, String, VectorLayer
 from toolbox.parameters.outputs import Layer, Output, OutputVector
@@ -80,7 +79,7 @@ class Interpolate(Algorithm):
             frame = read_vector(params["INPUT"], name="INPUT")
         frame = frame.reset_index(drop=True)  # the index: the input row, kept through explode
         geoms = frame.geometry.values
-        missing = shapely.is_missing(geoms) | shapely.is_empty(geoms)
+        missing = no_geometry(geoms)
         if missing.all():
             raise InputDataError(f"INPUT {params['INPUT']} has no points")
         parts = shapely.get_num_geometries(geoms)

@@ -5,14 +5,6 @@ from __future__ import annotations
 import numpy as np
 
 
-def no_geometry(geoms) -> np.ndarray:
-    """Mask of the null and empty geometries of ``geoms``."""
-    import shapely
-
-    geoms = np.asarray(geoms, dtype=object)
-    return shapely.is_missing(geoms) | shapely.is_empty(geoms)
-
-
 def rows_text(mask, limit: int = 10) -> str:
     """The 1-based rows where ``mask`` is true, ``2, 5, 9``: the first ``limit``, then how
     many more."""

@@ -5,8 +5,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-import numpy as np
-
 from toolbox.cartography.grid import ground_step, map_grid
 
 
@@ -59,7 +57,7 @@ def sheet_polygon(geom, row: int, sheet_id: str | None = None, warn=None):
     import shapely
 
     from toolbox.errors import ParameterError
-    from toolbox.topology.setops import polygonal_parts
+    from toolbox.topology.setops import repaired_parts
 
     which = f"feature {row}" + (f" (sheet {sheet_id!r})" if sheet_id is not None else "")
     if geom is None or geom.is_empty:
@@ -67,8 +65,7 @@ def sheet_polygon(geom, row: int, sheet_id: str | None = None, warn=None):
                              "geometry: every sheet must be a polygon with an area")
     if not geom.is_valid:
         reason = shapely.is_valid_reason(geom)
-        repaired = shapely.make_valid(geom, method="structure", keep_collapsed=False)
-        parts, _ = polygonal_parts(np.array([repaired], dtype=object))
+        parts = repaired_parts(geom)
         geom = shapely.multipolygons(parts) if len(parts) else shapely.Polygon()
         if warn is not None and geom.area > 0:
             warn(f"SHEETS {which} is not a valid polygon ({reason}): repaired (GEOS make_valid)"

@@ -100,8 +100,9 @@ def line_parts(frame, warn=None) -> list[InputLine]:
     layer of only those is refused."""
     import shapely
 
-    from toolbox.cartography.features import no_geometry, rows_text
+    from toolbox.cartography.features import rows_text
     from toolbox.errors import InputDataError
+    from toolbox.io.vector import no_geometry
 
     missing = no_geometry(frame.geometry.values)
     if missing.all():

@@ -101,7 +101,8 @@ def layer_styles(job: SheetJob, warn=None) -> tuple[list[tuple[str, object]], li
 
 def _drawable(name: str, frame, warn) -> tuple[str, object]:
     """``(name, frame)`` without the features that have no geometry (null or empty)."""
-    from toolbox.cartography.features import no_geometry, rows_text
+    from toolbox.cartography.features import rows_text
+    from toolbox.io.vector import no_geometry
 
     missing = no_geometry(frame.geometry.values)
     if not missing.any():

@@ -35,9 +35,9 @@ from pathlib import Path
 
 from toolbox.errors import OutputExistsError, OutputWriteError, ParameterError
 
+SQLITE_JOURNALS = ("-wal", "-shm", "-journal")  # a GeoPackage's, while SQLite has it open
 # files GDAL/OGR keep beside a dataset, named after its whole name (a.tif.aux.xml, x.gpkg-wal)
-SIDECAR_SUFFIXES = (".aux.xml", ".ovr", ".msk", "-wal", "-shm", "-journal")
-SQLITE_JOURNALS = ("-wal", "-shm", "-journal")
+SIDECAR_SUFFIXES = (".aux.xml", ".ovr", ".msk", *SQLITE_JOURNALS)
 # a Shapefile's files, named after its stem; GDAL reads all but .qmd (QGIS's metadata)
 SHAPEFILE_PARTS = (".shp", ".shx", ".dbf", ".prj", ".cpg", ".qix", ".sbn", ".sbx", ".qmd")
 SHAPEFILE_ONLY = (".shx", ".qix", ".sbn", ".sbx")  # meaningless without their .shp

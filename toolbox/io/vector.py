@@ -532,6 +532,14 @@ def _wkb_geometries(ref: VectorLayerRef, name: str) -> np.ndarray | None:
         raise InputDataError(f"{name}: cannot read {ref}: {str(exc).splitlines()[0]}") from None
 
 
+def no_geometry(geoms) -> np.ndarray:
+    """Mask of the null and empty geometries of ``geoms`` (an array of shapely geometries)."""
+    import shapely
+
+    geoms = np.asarray(geoms, dtype=object)
+    return shapely.is_missing(geoms) | shapely.is_empty(geoms)
+
+
 def feature_rows(positions) -> str:
     """``"rows 2, 5, counting from 1"``: the first five features at 0-based ``positions``
     (repeats removed), for messages."""

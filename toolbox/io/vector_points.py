@@ -14,6 +14,7 @@ from toolbox.io.vector import (
     _ogr,
     feature_rows,
     is_parquet,
+    no_geometry,
     open_layer,
     read_vector,
 )
@@ -53,7 +54,7 @@ def points_xyz(frame, z_field: str | None = None, name: str = "INPUT") -> np.nda
     geoms = frame.geometry.values
     if len(geoms) == 0:
         raise InputDataError(f"{name} has no features")
-    present = ~(shapely.is_missing(geoms) | shapely.is_empty(geoms))
+    present = ~no_geometry(geoms)
     geoms = geoms[present]
     kinds = set(shapely.get_type_id(geoms).tolist())
     if not kinds <= {0, 4}:  # Point, MultiPoint

@@ -159,12 +159,12 @@ def output_layout(src: Any, outside: str = "alpha", nodata: float | None = None)
     flags = src.mask_flag_enums[data_bands[0] - 1] if src.count else []
     source_masked = source_alpha is None and (
         src.nodata is not None or MaskFlags.per_dataset in flags)
-    if np.dtype(dtype).name not in ALPHA_MASK_DTYPES:  # GDAL takes no other alpha as a mask
+    alpha_masks = np.dtype(dtype).name in ALPHA_MASK_DTYPES  # GDAL reads no other alpha as mask
+    if not alpha_masks:
         if outside == "alpha" and nodata is None and src.nodata is None:
             nodata = _outside_value(np.dtype(dtype))
         outside = "nodata"
-    alpha = outside == "alpha" or (source_alpha is not None
-                                   and np.dtype(dtype).name in ALPHA_MASK_DTYPES)
+    alpha = outside == "alpha" or (source_alpha is not None and alpha_masks)
     out_nodata = None
     if outside == "nodata":
         if nodata is not None:

@@ -87,10 +87,7 @@ def validate(algorithm: type[Algorithm] | str, parameters: dict[str, Any],
         except OSError as exc:  # a path the system refuses (name too long, a file as folder...)
             raise ParameterError(p.name, f"cannot use {params.get(p.name)!r}: "
                                  f"{exc.strerror or exc}") from None
-        if not p.is_output and alg.projected_crs_only:
-            from toolbox.io.crs import check_input_crs
-
-            check_input_crs(alg.id, p.name, ctx.values[p.name], warnings, alg.length_units)
+        check_parameter_crs(alg, p, ctx.values[p.name], warnings)
     values = {p.name: ctx.values[p.name] for p in alg.parameters}
     inputs = {p.name: values[p.name] for p in alg.parameters
               if not p.is_output and values[p.name] is not None}
@@ -107,6 +104,17 @@ def validate(algorithm: type[Algorithm] | str, parameters: dict[str, Any],
 
 
 TINY, HUGE = 1e-300, 1e150  # below (but not 0) / above: no computation with it is sound
+
+
+def check_parameter_crs(alg: type[Algorithm], p: Any, value: Any,
+                        warnings: list[str] | None = None) -> None:
+    """The CRS rules of ``alg`` for the value of its input ``p``
+    (:func:`toolbox.io.crs.check_input_crs` with the algorithm's length units); outputs and the
+    algorithms that take any CRS pass."""
+    if not p.is_output and alg.projected_crs_only:
+        from toolbox.io.crs import check_input_crs
+
+        check_input_crs(alg.id, p.name, value, warnings, alg.length_units)
 
 
 def check_magnitudes(alg_cls: type[Algorithm], values: dict[str, Any]) -> None:

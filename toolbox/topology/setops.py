@@ -49,6 +49,13 @@ def polygonal_parts(geoms: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return geoms[order], index[order]
 
 
+def repaired_parts(geom) -> np.ndarray:
+    """The polygonal parts of an invalid area ``geom`` repaired with GEOS ``make_valid``
+    (structure method; collapsed pieces dropped)."""
+    fixed = shapely.make_valid(geom, method="structure", keep_collapsed=False)
+    return polygonal_parts(np.array([fixed], dtype=object))[0]
+
+
 def clean_polygons(geoms: np.ndarray, layer: str) -> tuple[np.ndarray, list[Issue], dict]:
     """Repair input areas for overlay.
 
@@ -79,8 +86,7 @@ def clean_polygons(geoms: np.ndarray, layer: str) -> tuple[np.ndarray, list[Issu
             match = _POINT_RE.search(reason)
             where = (shapely.Point(float(match.group(1)), float(match.group(2))) if match
                      else shapely.Point(shapely.get_coordinates(g)[0]))
-            fixed = shapely.make_valid(g, method="structure", keep_collapsed=False)
-            parts, _ = polygonal_parts(np.array([fixed], dtype=object))
+            parts = repaired_parts(g)
             if len(parts) == 0:
                 issues.append(Issue("self_intersection", ERROR, where, f"{layer}: {reason}; "
                                     "could not be repaired, feature skipped", (i,)))

@@ -444,7 +444,7 @@ def tin_from_triangle_geometries(geoms, name: str = "TIN") -> tuple[np.ndarray, 
     """
     import shapely
 
-    from toolbox.io.vector_points import feature_rows
+    from toolbox.io.vector import feature_rows, no_geometry
 
     geoms = np.asarray(geoms)
     if len(geoms) == 0:
@@ -455,7 +455,7 @@ def tin_from_triangle_geometries(geoms, name: str = "TIN") -> tuple[np.ndarray, 
             raise InputDataError(f"{name}: {int(bad.sum())} of {len(geoms)} feature(s) "
                                  f"({feature_rows(np.flatnonzero(bad))}) {what}")
 
-    refuse(shapely.is_missing(geoms) | shapely.is_empty(geoms),
+    refuse(no_geometry(geoms),
            "have no geometry (null or empty): every feature must be a triangle")
     refuse(shapely.get_type_id(geoms) != 3, "are not single triangles (Polygon Z)")
     refuse(~shapely.has_z(geoms), "have no Z: triangles need 3D vertices")
