@@ -50,7 +50,8 @@ class MosaicBuild(Algorithm):
     parameters = [
         orthos_parameter(),
         VectorLayer("CUTLINES", "cut polygons (mosaic:seamlines' cut_polygons layer; default: "
-                    "Voronoi cells)", geometry_types=["polygon"], optional=True),
+                    "Voronoi cells)", geometry_types=["polygon"], optional=True,
+                    known_layer="cut_polygons"),
         String("SOURCE_FIELD", "field of CUTLINES holding the ortho file names (or 1-based "
                "input numbers)", default="source"),
         Enum("BLEND", "blending across seams", options=BLEND_METHODS, default="feather"),
@@ -107,9 +108,6 @@ class MosaicBuild(Algorithm):
         sources, crs = open_block([i.path for i in params["INPUT"]], "INPUT", feedback)
         try:
             if params["CUTLINES"] is not None:
-                # mosaic:seamlines' GeoPackage as it is: its first layer, cut_polygons, is the
-                # one meant (its seamlines are read by name): no "first layer taken" warning
-                params["CUTLINES"].default_of = ()
                 cells = cells_from_layer(params["CUTLINES"], params["SOURCE_FIELD"], sources,
                                          crs=crs, feedback=feedback)
             else:

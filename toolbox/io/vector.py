@@ -264,7 +264,7 @@ def _resolve_layer_file(path: Path, layer: str | None, layers: list[str]) -> Pat
     return sibling if sibling.exists() else None
 
 
-def open_layer(value: Any, name: str = "INPUT") -> VectorLayerRef:
+def open_layer(value: Any, name: str = "INPUT", known_layer: str | None = None) -> VectorLayerRef:
     """Validate a vector layer reference and read its metadata (not its features).
 
     ``value`` is a path, a QGIS layer source (see the module docstring), a
@@ -276,7 +276,9 @@ def open_layer(value: Any, name: str = "INPUT") -> VectorLayerRef:
     :func:`toolbox.io.vector_points.read_points_xyz`) open the validated reference again before
     reading its features: then a warning names the layer taken and the others, once. Code that
     reads such a file by its layer names (a TIN's ``nodes``, ``vector:info``) does not read the
-    default layer through them, so it is not warned about.
+    default layer through them, so it is not warned about. ``known_layer``: the layer read,
+    without a warning, from a file of several that has it and was given without a layer (the
+    toolbox's own outputs: mosaic:seamlines' ``cut_polygons``).
     """
     if isinstance(value, VectorLayerRef):
         _warn_default_layer(value, name)
@@ -315,7 +317,9 @@ def open_layer(value: Any, name: str = "INPUT") -> VectorLayerRef:
         raise ParameterError(name, f"layer '{layer}' is not in '{text}'; layers are: "
                              f"{', '.join(layers)}")
     default_of = ()
-    if layer is None and len(layers) > 1:
+    if layer is None and len(layers) > 1 and known_layer in layers:
+        layer = known_layer
+    elif layer is None and len(layers) > 1:
         layer = layers[0]  # OGR's default layer, named so that pyogrio does not warn
         # the other layers of features (not tables such as layer_styles): warned about
         default_of = tuple(str(n) for n, kind in rows[1:] if kind is not None)
@@ -538,6 +542,22 @@ def no_geometry(geoms) -> np.ndarray:
 
     geoms = np.asarray(geoms, dtype=object)
     return shapely.is_missing(geoms) | shapely.is_empty(geoms)
+
+
+def read_area(ref: Any, name: str):
+    """The union of a layer's polygons (2D, made valid; null, empty and non-polygonal parts
+    dropped): a BOUNDARY, a MASK. :class:`InputDataError` naming ``name`` when none has an
+    area."""
+    import shapely
+
+    geoms = read_vector(ref, name=name).geometry.values
+    geoms = geoms[~no_geometry(geoms)]
+    region = shapely.union_all(shapely.make_valid(shapely.force_2d(geoms))) if len(geoms) \
+        else shapely.Polygon()
+    parts = [g for g in shapely.get_parts(region) if shapely.get_type_id(g) == 3]
+    if not parts:
+        raise InputDataError(f"{name} {ref} has no polygon with an area")
+    return shapely.union_all(parts)
 
 
 def feature_rows(positions) -> str:

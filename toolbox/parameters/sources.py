@@ -78,16 +78,20 @@ class VectorLayer(Parameter):
     CSV files are read as points from X/Y(/Z) columns (see :mod:`toolbox.io.vector`).
     ``point_clouds=True`` also accepts a LAS/LAZ/COPC file (validated to a
     :class:`toolbox.io.pointcloud.PointCloudRef`; the algorithm must read both kinds).
+    ``known_layer``: the layer taken from a file of several given without one, when it has it
+    (a toolbox output's layer: see :func:`toolbox.io.vector.open_layer`).
     """
 
     type_name = "vector"
 
     def __init__(self, name: str, description: str = "",
                  geometry_types: Sequence[str] | None = None, default: Any = None,
-                 optional: bool = False, point_clouds: bool = False, **flags):
+                 optional: bool = False, point_clouds: bool = False,
+                 known_layer: str | None = None, **flags):
         super().__init__(name, description, default, optional, **flags)
         self.geometry_types = list(geometry_types) if geometry_types else None
         self.point_clouds = point_clouds
+        self.known_layer = known_layer
 
     def validate(self, value: Any, ctx: ValidationContext):
         from toolbox.io.vector import open_layer
@@ -100,7 +104,7 @@ class VectorLayer(Parameter):
                 cloud = open_point_cloud(value, self.name)
                 ctx.input_paths[cloud.path.resolve()] = self.name
                 return cloud
-        layer = open_layer(value, self.name)
+        layer = open_layer(value, self.name, self.known_layer)
         if layer.path is not None:
             ctx.input_paths[layer.path.resolve()] = self.name
         if self.geometry_types and layer.geometry_kind is not None \

@@ -267,3 +267,30 @@ def test_nadir_points_and_cutlines_in_another_crs_are_reprojected(pair, tmp_path
         ours, theirs = a.read(1), b.read(1, window=window.round_offsets().round_lengths())
     assert ours.shape == theirs.shape and (ours > 0).mean() > 0.9
     assert (ours != theirs).mean() < 0.005  # cells along the cut line
+
+
+def test_cutlines_file_read_from_its_cut_polygons_layer_whatever_the_layer_order(pair, tmp_path):
+    """mosaic:seamlines' GeoPackage given as CUTLINES without a layer name is read from its
+    ``cut_polygons`` layer even where that is not the file's first layer (a copy whose layers
+    were reordered): its ``footprints`` layer, first in that copy, also has polygons and a
+    ``source`` field, and was taken as the cut polygons in silence (two overlapping "cut
+    polygons": the mosaic built from them, not from the seam)."""
+    orthos, _ = pair
+    inputs = [str(o.path) for o in orthos]
+    out = toolbox.run("mosaic:seamlines", {"INPUT": inputs, "METHOD": "voronoi",
+                                           "OUTPUT": str(tmp_path / "s.gpkg")})
+    reordered = tmp_path / "reordered.gpkg"
+    for name in ("footprints", "cut_polygons"):
+        gpd.read_file(out["OUTPUT"], layer=name).to_file(reordered, layer=name)
+    feedback = Feedback()
+    built = toolbox.run("mosaic:build", {"INPUT": inputs, "CUTLINES": str(reordered),
+                                         "BLEND": "none", "OUTPUT": str(tmp_path / "r.tif")},
+                        feedback=feedback)
+    direct = toolbox.run("mosaic:build", {"INPUT": inputs,
+                                          "CUTLINES": f"{out['OUTPUT']}|layername=cut_polygons",
+                                          "BLEND": "none", "OUTPUT": str(tmp_path / "d.tif")})
+    import rasterio
+
+    with rasterio.open(built["OUTPUT"]) as a, rasterio.open(direct["OUTPUT"]) as b:
+        assert np.array_equal(a.read(), b.read())
+    assert not any("none was named" in w for w in feedback.warnings)
