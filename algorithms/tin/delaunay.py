@@ -9,7 +9,7 @@ from toolbox.errors import InputDataError
 from toolbox.feedback import Feedback
 from toolbox.io.crs import common_crs, crs_label
 from toolbox.io.pointcloud import cloud_filter
-from toolbox.io.vector import feature_rows, read_vector
+from toolbox.io.vector import feature_rows, read_area, read_vector
 from toolbox.io.vector_points import input_rows, vertices_xyz
 from toolbox.parameters import Boolean, Crs, Enum, Field, Number, VectorLayer
 from toolbox.parameters.outputs import Layer, Output, OutputVector
@@ -44,21 +44,6 @@ def read_breaklines(ref, z_field: str | None) -> tuple[np.ndarray, np.ndarray]:
     xyz, index = vertices_xyz(frame, z_field, name="BREAKLINES")
     return xyz, index
 
-
-def read_boundary(ref):
-    """Union of the polygons of a layer (made valid), or None if it has none."""
-    import shapely
-
-    frame = read_vector(ref, name="BOUNDARY")
-    geoms = frame.geometry.values
-    geoms = geoms[~shapely.is_missing(geoms) & ~shapely.is_empty(geoms)]
-    if len(geoms) == 0:
-        raise InputDataError(f"BOUNDARY {ref} has no polygon")
-    region = shapely.union_all(shapely.make_valid(shapely.force_2d(geoms)))
-    parts = [g for g in shapely.get_parts(region) if shapely.get_type_id(g) == 3]
-    if not parts:
-        raise InputDataError(f"BOUNDARY {ref} has no polygon with an area")
-    return shapely.union_all(parts)
 
 
 @register
@@ -187,7 +172,7 @@ class Delaunay(Algorithm):
             if params["BREAKLINES"] is not None:
                 line_xyz, line_index = read_breaklines(params["BREAKLINES"],
                                                        params["BREAKLINES_Z_FIELD"])
-            boundary = None if params["BOUNDARY"] is None else read_boundary(params["BOUNDARY"])
+            boundary = None if params["BOUNDARY"] is None else read_area(params["BOUNDARY"], "BOUNDARY")
         feedback.set_progress(10, "triangulating")
         feedback.check_canceled()
         with feedback.timed("triangulate"):

@@ -7,32 +7,16 @@ import json
 import numpy as np
 
 from toolbox.algorithm import Algorithm
-from toolbox.errors import InputDataError
 from toolbox.feedback import Feedback
 from toolbox.io.crs import common_crs, crs_label
 from toolbox.io.raster import DEFAULT_BLOCK
+from toolbox.io.vector import read_area
 from toolbox.parameters import Integer, Number, RasterLayer, VectorLayer
 from toolbox.parameters.outputs import Output, OutputFile
 from toolbox.registry import register
 from toolbox.terrain.tin.cutfill import CutFill, grid_cut_fill, plane_cut_fill
 from toolbox.ui.execution import executor_of, scheduler_parameter
 from toolbox.ui.tin import tin_parameter
-
-
-def read_mask(ref):
-    """Union of a layer's polygons, made valid (None-safe)."""
-    import shapely
-
-    from toolbox.io.vector import read_vector
-
-    geoms = read_vector(ref, name="MASK").geometry.values
-    geoms = geoms[~shapely.is_missing(geoms) & ~shapely.is_empty(geoms)]
-    region = shapely.union_all(shapely.make_valid(shapely.force_2d(geoms))) if len(geoms) \
-        else shapely.Polygon()
-    parts = [g for g in shapely.get_parts(region) if shapely.get_type_id(g) == 3]
-    if not parts:
-        raise InputDataError(f"MASK {ref} has no polygon with an area")
-    return shapely.union_all(parts)
 
 
 def dem_cut_fill(xyz: np.ndarray, triangles: np.ndarray, info, band: int, mask,
@@ -154,7 +138,7 @@ class Volume(Algorithm):
         executor = executor_of(params)  # a bad address is refused before any work
         with feedback.timed("read"):
             xyz, triangles, _ = read_tin(params["TIN"])
-            mask = None if params["MASK"] is None else read_mask(params["MASK"])
+            mask = None if params["MASK"] is None else read_area(params["MASK"], "MASK")
         feedback.set_progress(10, "computing volumes")
         with feedback.timed("volume"):
             if params["REFERENCE_Z"] is not None:

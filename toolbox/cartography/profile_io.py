@@ -100,9 +100,8 @@ def line_parts(frame, warn=None) -> list[InputLine]:
     layer of only those is refused."""
     import shapely
 
-    from toolbox.cartography.features import rows_text
     from toolbox.errors import InputDataError
-    from toolbox.io.vector import no_geometry
+    from toolbox.io.vector import feature_rows, no_geometry
 
     missing = no_geometry(frame.geometry.values)
     if missing.all():
@@ -110,7 +109,7 @@ def line_parts(frame, warn=None) -> list[InputLine]:
                              "no geometry (null or empty)")
     if missing.any() and warn is not None:
         warn(f"INPUT: {int(missing.sum())} feature(s) without geometry (null or empty) have no "
-             f"profile: feature(s) {rows_text(missing)}")
+             f"profile: {feature_rows(np.flatnonzero(missing))}")
     out = []
     for row, geom in enumerate(frame.geometry.values, start=1):
         parts = [] if missing[row - 1] else shapely.get_parts(geom)

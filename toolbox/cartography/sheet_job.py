@@ -101,15 +101,16 @@ def layer_styles(job: SheetJob, warn=None) -> tuple[list[tuple[str, object]], li
 
 def _drawable(name: str, frame, warn) -> tuple[str, object]:
     """``(name, frame)`` without the features that have no geometry (null or empty)."""
-    from toolbox.cartography.features import rows_text
-    from toolbox.io.vector import no_geometry
+    import numpy as np
+
+    from toolbox.io.vector import feature_rows, no_geometry
 
     missing = no_geometry(frame.geometry.values)
     if not missing.any():
         return name, frame
     if warn is not None:
         warn(f"LAYERS {name}: {int(missing.sum())} feature(s) without geometry (null or "
-             f"empty) not drawn: feature(s) {rows_text(missing)}")
+             f"empty) not drawn: {feature_rows(np.flatnonzero(missing))}")
     return name, frame[~missing]
 
 
