@@ -116,8 +116,9 @@ def hillshade_bytes(z: np.ndarray, cell_x: float, cell_y: float, azimuth: float 
 def extrapolate_edges(z: np.ndarray, tile, width: int, height: int) -> np.ndarray:
     """Replace the halo cells of ``z`` (read over ``tile.haloed_window``, one-cell halo) that
     lie beyond a ``width`` x ``height`` raster by the surface extrapolated linearly
-    (``2·edge - inner``, in float64), exact on planes; a one-cell-wide raster repeats its
-    edge."""
+    (``2·edge - inner``, in float64), exact on planes; along an axis where the raster is one
+    cell wide the edge is repeated (no slope that way), each axis on its own: a 1 x N profile
+    of a plane keeps its gradient along the row up to the ends."""
     w, h = tile.window, tile.halo
     top = max(0, h - int(w.row_off))
     left = max(0, h - int(w.col_off))
@@ -126,10 +127,14 @@ def extrapolate_edges(z: np.ndarray, tile, width: int, height: int) -> np.ndarra
     if not (top or bottom or left or right):
         return z
     inside = z[top:z.shape[0] - bottom, left:z.shape[1] - right].astype(np.float64)
-    pads = ((top, bottom), (left, right))
-    if min(inside.shape) < 2:
-        return np.pad(inside, pads, mode="edge")
-    return np.pad(inside, pads, mode="reflect", reflect_type="odd")
+    for axis, pad in enumerate(((top, bottom), (left, right))):
+        if pad == (0, 0):
+            continue
+        pads = [(0, 0), (0, 0)]
+        pads[axis] = pad
+        inside = np.pad(inside, pads, mode="reflect", reflect_type="odd") \
+            if inside.shape[axis] >= 2 else np.pad(inside, pads, mode="edge")
+    return inside
 
 
 def shade_tile(kernel: Callable[..., np.ndarray], raster_size: tuple[int, int],
