@@ -4,6 +4,8 @@ empty outputs of algorithms without EXTENT/MASK, a one-row DSM, empty sheet laye
 from __future__ import annotations
 
 import math
+import shutil
+import subprocess
 
 import numpy as np
 import pytest
@@ -40,3 +42,21 @@ def test_slope_of_a_one_cell_wide_plane_is_exact_to_its_ends(tmp_path, shape):
                                rtol=1e-6)
     toolbox.run("dem:hillshade", {"INPUT": path, "OUTPUT": tmp_path / "h.tif"})
     assert np.unique(band(tmp_path / "h.tif")).size == 1  # a plane: one grey everywhere
+
+
+@pytest.mark.skipif(shutil.which("gdaldem") is None, reason="gdaldem not found")
+@pytest.mark.parametrize("mode", ["slope", "aspect", "hillshade"])
+def test_a_nodata_cell_has_no_slope_as_in_gdaldem(tmp_path, mode):
+    """A void (one nodata cell) inside a plane: gdaldem writes nodata at the void and around
+    it; the toolbox wrote nodata around it but a slope, aspect and shade at the void itself
+    (Horn's weights skip the centre cell)."""
+    z = np.add.outer(2.0 * np.arange(7), 3.0 * np.arange(7)) + 100.0
+    z[3, 3] = -9999.0
+    path = dem(tmp_path / "void.tif", z)
+    toolbox.run(f"dem:{mode}", {"INPUT": path, "OUTPUT": tmp_path / "t.tif"})
+    subprocess.run(["gdaldem", mode, str(path), str(tmp_path / "g.tif"), "-q"], check=True)
+    ours, gdal = band(tmp_path / "t.tif")[1:-1, 1:-1], band(tmp_path / "g.tif")[1:-1, 1:-1]
+    nodata = 0 if mode == "hillshade" else -9999.0  # gdaldem leaves its border out
+    np.testing.assert_array_equal(ours == nodata, gdal == nodata)
+    assert (ours == nodata).sum() == 9
+    np.testing.assert_allclose(ours[ours != nodata], gdal[gdal != nodata], atol=1)

@@ -30,8 +30,9 @@ def horn_gradient(z: np.ndarray, cell_x: float, cell_y: float,
 
     Horn's 3x3 weights are separable: a [1 2 1] smoothing across the difference direction,
     then a central difference, ``(c + 2f + i) - (a + 2d + g)`` = ``v[j+1] - v[j-1]`` with
-    ``v = 2·row + above + below`` (the same sums in the same order as written out; the centre
-    cell ``e`` is not used, so a NaN centre alone does not make its cell NaN).
+    ``v = 2·row + above + below`` (the same sums in the same order as written out). The
+    centre cell ``e`` has no weight, but a NaN centre makes its cell NaN (a nodata cell has no
+    slope, as in gdaldem).
     """
     v = np.multiply(z[1:-1], 2.0, dtype=np.float64)  # (rows, cols + 2): 2d + a + g, ...
     v += z[:-2]
@@ -43,6 +44,10 @@ def horn_gradient(z: np.ndarray, cell_x: float, cell_y: float,
     u += z[:, 2:]
     dz_dy = u[:-2] - u[2:]
     dz_dy *= z_factor / (8.0 * cell_y)
+    hole = np.isnan(z[1:-1, 1:-1])
+    if hole.any():
+        dz_dx[hole] = np.nan
+        dz_dy[hole] = np.nan
     return dz_dx, dz_dy
 
 
