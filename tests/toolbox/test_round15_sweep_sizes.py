@@ -60,3 +60,26 @@ def test_a_nodata_cell_has_no_slope_as_in_gdaldem(tmp_path, mode):
     np.testing.assert_array_equal(ours == nodata, gdal == nodata)
     assert (ours == nodata).sum() == 9
     np.testing.assert_allclose(ours[ours != nodata], gdal[gdal != nodata], atol=1)
+
+
+def test_an_empty_output_names_what_the_algorithm_has(tmp_path):
+    """dem:slope of an all-nodata DEM, dem:aspect of a flat one: the refusal said 'check that
+    EXTENT, TEMPLATE, MASK and CELL_SIZE cover the data', none of which these algorithms take
+    (gdaldem aspect writes an all-nodata raster for a flat DEM: there is no aspect)."""
+    from toolbox.errors import InputDataError
+
+    nodata = dem(tmp_path / "nodata.tif", np.full((6, 6), -9999.0))
+    with pytest.raises(InputDataError, match="^INPUT 'nodata.tif' has no valid cell"):
+        toolbox.run("dem:slope", {"INPUT": nodata, "OUTPUT": tmp_path / "s.tif"})
+    flat = dem(tmp_path / "flat.tif", np.full((6, 6), 250.0))
+    with pytest.raises(InputDataError, match="OUTPUT would have no valid cell .*: flat cells have "
+                                             "no aspect") as err:
+        toolbox.run("dem:aspect", {"INPUT": flat, "OUTPUT": tmp_path / "a.tif"})
+    assert "EXTENT" not in str(err.value)
+    holes = np.full((6, 6), 250.0)
+    holes[::2, ::2] = -9999.0  # every cell next to a nodata cell
+    holes = dem(tmp_path / "holes.tif", holes)
+    with pytest.raises(InputDataError, match="OUTPUT would have no valid cell .*: cells next to "
+                                             "nodata are nodata"):
+        toolbox.run("dem:hillshade", {"INPUT": holes, "OUTPUT": tmp_path / "h.tif"})
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["flat.tif", "holes.tif", "nodata.tif"]
