@@ -83,3 +83,11 @@ def test_an_empty_output_names_what_the_algorithm_has(tmp_path):
                                              "nodata are nodata"):
         toolbox.run("dem:hillshade", {"INPUT": holes, "OUTPUT": tmp_path / "h.tif"})
     assert sorted(p.name for p in tmp_path.iterdir()) == ["flat.tif", "holes.tif", "nodata.tif"]
+    # a TEMPLATE lends its grid only: an all-nodata one is not blamed
+    points = tmp_path / "p.csv"
+    points.write_text("x,y,z\n" + "".join(f"{X0 + 600 + x},{Y0 + 600 + y},1\n"
+                                          for x, y in ((0, 0), (9, 0), (0, 9))))
+    with pytest.raises(InputDataError, match="^OUTPUT would have no valid cell .*: check that "
+                                             "EXTENT, TEMPLATE, MASK and CELL_SIZE"):
+        toolbox.run("dem:nearest", {"INPUT": points, "CRS": CRS, "TEMPLATE": nodata,
+                                    "OUTPUT": tmp_path / "n.tif"})

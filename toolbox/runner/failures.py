@@ -189,9 +189,10 @@ def empty_output_message(alg_cls: type[Algorithm], values: dict[str, Any], name:
     CELL_SIZE), else its own hint (``Algorithm.empty_output_hint``)."""
     from toolbox.io.raster import has_valid_pixel
 
-    for p in alg_cls.parameters:
+    for p in alg_cls.parameters:  # a TEMPLATE gives only its grid: it may be all nodata
         info = values.get(p.name)
-        if isinstance(p, RasterLayer) and info is not None and not has_valid_pixel(info.path):
+        if isinstance(p, RasterLayer) and p.name != "TEMPLATE" and info is not None \
+                and not has_valid_pixel(info.path):
             return (f"{p.name} '{info.path.name}' has no valid cell (every cell is nodata): "
                     f"{name} would have none either")
     text = f"{name} would have no valid cell (every cell is nodata)"
