@@ -91,3 +91,26 @@ def test_an_empty_output_names_what_the_algorithm_has(tmp_path):
                                              "EXTENT, TEMPLATE, MASK and CELL_SIZE"):
         toolbox.run("dem:nearest", {"INPUT": points, "CRS": CRS, "TEMPLATE": nodata,
                                     "OUTPUT": tmp_path / "n.tif"})
+
+
+def test_ground_filter_of_a_strip_one_filter_cell_wide(tmp_path):
+    """Points in a strip narrower than FILTER_CELL (a one-row filter grid, as a one-row DSM):
+    np.gradient refused the grid ('ground filter: Shape of array too small to calculate a
+    numerical gradient', exit 2, no parameter named). Points on a plane are all ground and the
+    DTM is that plane (analytic)."""
+    rng = np.random.default_rng(0)
+    x, y = rng.uniform(0, 100, 200), rng.uniform(0.1, 0.9, 200)
+    points = tmp_path / "strip.csv"
+    points.write_text("x,y,z\n" + "".join(f"{X0 + a},{Y0 + b},{100 + 0.05 * a}\n"
+                                          for a, b in zip(x, y, strict=True)))
+    stats = toolbox.run("dem:ground", {"INPUT": points, "CRS": CRS, "FILTER_CELL": 1,
+                                       "MAX_WINDOW": 5, "CELL_SIZE": 0.5,
+                                       "OUTPUT": tmp_path / "dtm.tif",
+                                       "NONGROUND": tmp_path / "ng.tif"})
+    with rasterio.open(tmp_path / "dtm.tif") as ds:
+        z, t = ds.read(1, masked=True), ds.transform
+    cols = np.nonzero(~np.ma.getmaskarray(z))[1]
+    assert z.count() > 300
+    np.testing.assert_allclose(z.compressed(), 100 + 0.05 * (t.c + (cols + 0.5) * t.a - X0),
+                               atol=1e-4)
+    assert not (band(tmp_path / "ng.tif") == 1).any(), stats  # no point is an object
