@@ -114,3 +114,25 @@ def test_ground_filter_of_a_strip_one_filter_cell_wide(tmp_path):
     np.testing.assert_allclose(z.compressed(), 100 + 0.05 * (t.c + (cols + 0.5) * t.a - X0),
                                atol=1e-4)
     assert not (band(tmp_path / "ng.tif") == 1).any(), stats  # no point is an object
+
+
+def test_profile_in_the_outer_half_cell_of_the_dem(tmp_path):
+    """A profile along a DEM's top row, 1 m inside its edge (between the edge and the row's
+    cell centres): every station had 'no height' ('stations fall outside the surface', exit
+    0), as did the first and last half cell of any line. gdalwarp -r bilinear holds the edge
+    value level across that half cell (checked: 100 at x = 0.5..4.5, 119 at 195.5..199.5);
+    beyond the raster's cells there is still no height."""
+    import geopandas as gpd
+    from shapely.geometry import LineString
+
+    path = dem(tmp_path / "dem.tif", np.tile(100.0 + np.arange(20.0), (20, 1)))
+    lines = tmp_path / "line.gpkg"
+    gpd.GeoDataFrame(geometry=[LineString([(X0 + 1, Y0 - 1), (X0 + 209, Y0 - 1)])],
+                     crs=CRS).to_file(lines)
+    stats = toolbox.run("carto:profile", {"INPUT": lines, "DEM": path, "STEP": 2,
+                                          "OUTPUT": tmp_path / "p.gpkg"})["STATISTICS"]
+    pts = gpd.read_file(tmp_path / "p.gpkg", layer="profile_points")
+    x = pts.geometry.x.to_numpy() - X0
+    on = x <= 200
+    np.testing.assert_allclose(pts.z[on], 100.0 + np.clip((x[on] - 5) / 10, 0, 19), atol=1e-9)
+    assert pts.z[~on].isna().all() and stats["no_height"] == (~on).sum() == 5
