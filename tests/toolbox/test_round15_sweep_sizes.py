@@ -136,3 +136,20 @@ def test_profile_in_the_outer_half_cell_of_the_dem(tmp_path):
     on = x <= 200
     np.testing.assert_allclose(pts.z[on], 100.0 + np.clip((x[on] - 5) / 10, 0, 19), atol=1e-9)
     assert pts.z[~on].isna().all() and stats["no_height"] == (~on).sum() == 5
+
+
+@pytest.mark.parametrize("z, words", [
+    ([[1.0, 2.0, 3.0, 4.0]], r"has 4 column\(s\) x 1 row\(s\): contours run between cell "
+                             "centres, at least 2 x 2"),
+    (np.full((4, 4), -9999.0), "has no valid cell")])
+def test_contours_of_a_dem_without_a_square_of_centres_are_refused(tmp_path, z, words):
+    """A one-row DEM rising 1 to 4 and an all-nodata DEM: exit 0, an empty layer and the
+    warning 'no contour at interval 0.5 ... crosses the surface' (false for the first: the
+    levels 1.5 to 3.5 do cross it, gdal_contour draws them in its extra half cell)."""
+    from toolbox.errors import ParameterError
+
+    path = dem(tmp_path / "dem.tif", z)
+    with pytest.raises(ParameterError, match=f"^INPUT '[^']*dem.tif' {words}"):
+        toolbox.run("carto:contours", {"INPUT": path, "INTERVAL": 0.5,
+                                       "OUTPUT": tmp_path / "c.gpkg"})
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["dem.tif"]
