@@ -153,3 +153,34 @@ def test_contours_of_a_dem_without_a_square_of_centres_are_refused(tmp_path, z, 
         toolbox.run("carto:contours", {"INPUT": path, "INTERVAL": 0.5,
                                        "OUTPUT": tmp_path / "c.gpkg"})
     assert sorted(p.name for p in tmp_path.iterdir()) == ["dem.tif"]
+
+
+def test_empty_sheet_layers_are_refused_and_an_empty_grid_is_said(tmp_path):
+    """A SHEETS layer without features: carto:grid and carto:sheet exited 0 with nothing drawn
+    and no word; mosaic:cut said 'no sheet of SHEETS (nan..nan, nan..nan) meets INPUT'. An
+    EXTENT smaller than the grid step (500 m at 1:5000; no multiple of 500 between 10 and 60):
+    an empty grid without a warning."""
+    import geopandas as gpd
+    from shapely.geometry import box
+
+    from toolbox.errors import InputDataError, ParameterError
+
+    sheets = tmp_path / "sheets.gpkg"
+    gpd.GeoDataFrame({"id": [1]}, geometry=[box(X0, Y0, X0 + 1, Y0 + 1)], crs=CRS).iloc[:0] \
+        .to_file(sheets, geometry_type="Polygon")
+    for alg, out in (("carto:grid", {"OUTPUT": tmp_path / "g.gpkg"}),
+                     ("carto:sheet", {"FOLDER": tmp_path / "s"})):
+        with pytest.raises(ParameterError, match="^SHEETS '[^']*sheets.gpkg' has no features"):
+            toolbox.run(alg, {"SHEETS": sheets, **out})
+    with pytest.raises(InputDataError, match="^SHEETS has no sheet to cut by: its 0 feature"):
+        toolbox.run("mosaic:cut", {"INPUT": dem(tmp_path / "d.tif", np.ones((3, 3))),
+                                   "SHEETS": sheets, "OUTPUT": tmp_path / "cut"})
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["d.tif", "sheets.gpkg"]
+    feedback = toolbox.Feedback()
+    stats = toolbox.run("carto:grid", {"EXTENT": f"{X0 + 10},{Y0 + 10},{X0 + 60},{Y0 + 60}",
+                                       "CRS": CRS, "STYLE": "lines",
+                                       "OUTPUT": tmp_path / "g.gpkg"},
+                        feedback=feedback)["STATISTICS"]
+    assert stats["features"] == 0
+    assert any("no grid line (every 500 m, 100 mm at 1:5000) falls inside the EXTENT" in w
+               for w in feedback.warnings)
