@@ -184,3 +184,39 @@ def test_empty_sheet_layers_are_refused_and_an_empty_grid_is_said(tmp_path):
     assert stats["features"] == 0
     assert any("no grid line (every 500 m, 100 mm at 1:5000) falls inside the EXTENT" in w
                for w in feedback.warnings)
+
+
+def test_volume_against_a_dem_coarser_than_the_tin_is_flagged(tmp_path):
+    """A TIN triangle of 5,000 m² (z = 10 + 0.1 x + 0.2 y: 100,000 m³ above z = 0, by hand)
+    against a DEM of one 1000 m cell at 0 whose centre is a TIN node: the midpoint rule counted
+    the whole cell, area 1,000,000 m² and volume 10,000,000 m³, exit 0 without a word. The
+    numbers are the documented method's; now a warning says the cells are coarse. A DEM of
+    2 m cells over the same TIN gives no warning (and a volume within 5 %)."""
+    import geopandas as gpd
+    from shapely.geometry import Point
+
+    points = tmp_path / "p.gpkg"
+    gpd.GeoDataFrame(geometry=[Point(X0, Y0, 10), Point(X0 + 100, Y0, 20),
+                               Point(X0, Y0 + 100, 30)], crs=CRS).to_file(points)
+    tin = tmp_path / "tin.gpkg"
+    toolbox.run("tin:delaunay", {"INPUT": points, "OUTPUT": tin})
+    exact = toolbox.run("tin:volume", {"TIN": tin, "REFERENCE_Z": 0})["STATISTICS"]
+    assert exact["cut_volume"] == pytest.approx(100_000) and exact["area"] == pytest.approx(5000)
+    coarse = tmp_path / "coarse.tif"
+    write_raster(coarse, np.zeros((1, 1), "float32"), Affine(1000, 0, X0 - 500, 0, -1000,
+                                                             Y0 + 500), CRS, nodata=-9999.0)
+    feedback = toolbox.Feedback()
+    stats = toolbox.run("tin:volume", {"TIN": tin, "REFERENCE_DEM": coarse},
+                        feedback=feedback)["STATISTICS"]
+    assert stats["area"] == pytest.approx(1e6)
+    assert any("the DEM's cells (1000 x 1000) are coarse for this TIN: the cells whose centre "
+               "lies on it cover 1,000,000.00 square units where the TIN covers 5,000.00" in w
+               for w in feedback.warnings), feedback.warnings
+    fine = tmp_path / "fine.tif"
+    write_raster(fine, np.zeros((54, 54), "float32"), Affine(2, 0, X0 - 4, 0, -2, Y0 + 104),
+                 CRS, nodata=-9999.0)
+    feedback = toolbox.Feedback()
+    stats = toolbox.run("tin:volume", {"TIN": tin, "REFERENCE_DEM": fine},
+                        feedback=feedback)["STATISTICS"]
+    assert not any("coarse" in w for w in feedback.warnings), feedback.warnings
+    assert stats["cut_volume"] == pytest.approx(100_000, rel=0.05)
