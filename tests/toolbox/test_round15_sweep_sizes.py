@@ -220,3 +220,30 @@ def test_volume_against_a_dem_coarser_than_the_tin_is_flagged(tmp_path):
                         feedback=feedback)["STATISTICS"]
     assert not any("coarse" in w for w in feedback.warnings), feedback.warnings
     assert stats["cut_volume"] == pytest.approx(100_000, rel=0.05)
+
+
+def test_cross_validation_of_all_methods_leaves_out_those_short_of_points(tmp_path):
+    """Ten points on a plane with the default METHODS=all: the run was refused ('cross-validation
+    of cubic needs at least 11 distinct data points, got 10', exit 2, METHODS not named) though
+    five of the six methods could run. Now those run (a plane's points: the plane and TIN
+    methods predict them exactly), cubic is left out with a warning; asked for by name it is
+    still refused, naming METHODS."""
+    from toolbox.errors import InputDataError
+
+    rng = np.random.default_rng(5)
+    xy = rng.uniform(0, 100, (10, 2))
+    points = tmp_path / "p.csv"
+    points.write_text("x,y,z\n" + "".join(f"{X0 + x},{Y0 + y},{50 + 0.1 * x - 0.2 * y}\n"
+                                          for x, y in xy))
+    feedback = toolbox.Feedback()
+    report = toolbox.run("dem:cross_validate", {"INPUT": points, "CRS": CRS, "EXTRAPOLATE": True,
+                                                "OUTPUT": tmp_path / "cv.json"},
+                         feedback=feedback)["STATISTICS"]
+    assert sorted(report["methods"]) == ["idw", "nearest", "plane", "quadratic", "tin_linear"]
+    assert report["methods"]["plane"]["rmse"] == pytest.approx(0, abs=1e-9)
+    assert any("METHODS all: cubic left out, too few points for their cross-validation (11 "
+               "needed, got 10)" in w for w in feedback.warnings)
+    with pytest.raises(InputDataError, match="cubic needs at least 11 .*: leave cubic out of "
+                                             "METHODS"):
+        toolbox.run("dem:cross_validate", {"INPUT": points, "CRS": CRS, "METHODS": "idw,cubic",
+                                           "OUTPUT": tmp_path / "cv2.json"})
