@@ -48,7 +48,9 @@ class CrossValidate(Algorithm):
     predicted (they lie outside the hull of the others); MAX_DISTANCE and MIN_NEIGHBOURS apply.
     NEIGHBOURS, when given, is used by every k-nearest method (else each method's default:
     idw 12, plane 8, quadratic 12, cubic 20). For tin_linear each point is predicted from the
-    TIN of the other points (breakline vertices stay and are not predicted).
+    TIN of the other points (breakline vertices stay and are not predicted). A method needs one
+    point more than for gridding (cubic 11, quadratic 7, plane and tin_linear 4): with
+    METHODS all, those the points are too few for are left out (a warning names them).
 
     RESIDUALS writes the points with, per method, the predicted height (``<method>_z``) and
     the error (``<method>_err``), to map where a method fails.
