@@ -83,8 +83,16 @@ class Contours(Algorithm):
         if params.get("INPUT") is not None:  # south-up or east to west: traced as they lie
             from toolbox.io.raster import require_north_up
 
-            require_north_up(params["INPUT"].transform, "INPUT", params["INPUT"].path,
-                             flips_ok=True)
+            info = params["INPUT"]
+            require_north_up(info.transform, "INPUT", info.path, flips_ok=True)
+            if min(info.width, info.height) < 2:  # no square of four centres to trace in
+                raise self.fail("INPUT", f"{info} has {info.width} column(s) x {info.height} "
+                                "row(s): contours run between cell centres, at least 2 x 2 are "
+                                "needed")
+            from toolbox.io.raster import has_valid_pixel
+
+            if not has_valid_pixel(info.path):
+                raise self.fail("INPUT", f"{info} has no valid cell (every cell is nodata)")
 
     # duplicate-ok: process() imports its libraries lazily (toolbox list/help stay light); the
     # lists of lazy imports after a check() look alike across algorithms

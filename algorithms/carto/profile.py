@@ -17,7 +17,8 @@ class Profile(Algorithm):
     Every line of ``INPUT`` is a polyline P1...Pn. ``MODE``:
 
     - ``step``: heights every ``STEP`` metres of chainage (and at the end), from the ``DEM``
-      (bilinear between cell centres) or the ``TIN`` (plane of the triangle);
+      (bilinear between cell centres; the outer half cell holds the edge's value, as
+      ``gdalwarp -r bilinear``) or the ``TIN`` (plane of the triangle);
     - ``contours``: heights where the polyline crosses the ``CONTOURS`` lines, sorted by
       chainage; the ends P1, Pn have no height and are dropped (the thesis' sections from
       contour lines, with no stereo model);

@@ -23,4 +23,6 @@ class Aspect(ShadingAlgorithm):
     parameters = shading_parameters("DEM (band 1)", "aspect GeoTIFF", [])
     outputs = [Output("STATISTICS", "cell counts", "dict")]
 
+    empty_output_hint = ("flat cells have no aspect, nor cells next to nodata: the DEM is flat "
+                         "or no cell has its 8 neighbours valid")
     kernel_name = "aspect"

@@ -7,6 +7,7 @@ from typing import Any
 import numpy as np
 
 from toolbox.algorithm import Algorithm
+from toolbox.errors import InputDataError
 from toolbox.feedback import Feedback
 from toolbox.parameters import Boolean, Integer, Number, String
 from toolbox.parameters.outputs import Layer, Output, OutputFile, OutputVector
@@ -47,7 +48,9 @@ class CrossValidate(Algorithm):
     predicted (they lie outside the hull of the others); MAX_DISTANCE and MIN_NEIGHBOURS apply.
     NEIGHBOURS, when given, is used by every k-nearest method (else each method's default:
     idw 12, plane 8, quadratic 12, cubic 20). For tin_linear each point is predicted from the
-    TIN of the other points (breakline vertices stay and are not predicted).
+    TIN of the other points (breakline vertices stay and are not predicted). A method needs one
+    point more than for gridding (cubic 11, quadratic 7, plane and tin_linear 4): with
+    METHODS all, those the points are too few for are left out (a warning names them).
 
     RESIDUALS writes the points with, per method, the predicted height (``<method>_z``) and
     the error (``<method>_err``), to map where a method fails.
@@ -116,8 +119,20 @@ class CrossValidate(Algorithm):
         names = parse_methods(params["METHODS"])
         data = read_sources(point_sources(params), feedback)
         requested = method_options(params)
+        n = len(data.xyz)
+        short = [m for m in names if n < METHODS[m].min_points + 1]
+        if short and len(short) < len(names) and \
+                str(params["METHODS"]).strip().lower() == "all":  # the default: those that can
+            feedback.push_warning(
+                f"METHODS all: {', '.join(short)} left out, too few points for their "
+                f"cross-validation ({', '.join(str(METHODS[m].min_points + 1) for m in short)} "
+                f"needed, got {n})")
+            names = [m for m in names if m not in short]
         for name in names:
-            require_points(data, METHODS[name].min_points + 1, f"cross-validation of {name}")
+            try:
+                require_points(data, METHODS[name].min_points + 1, f"cross-validation of {name}")
+            except InputDataError as exc:
+                raise InputDataError(f"{exc}: leave {name} out of METHODS") from None
         local = data.local
         results: dict[str, Any] = {}
         predictions: dict[str, np.ndarray] = {}

@@ -144,6 +144,11 @@ def _sheets(params):
         sheets = list(zip(raw, frame.geometry, strict=True))
         import shapely
 
+        from toolbox.io.vector import no_geometry
+
+        if no_geometry(frame.geometry.values).all():
+            raise InputDataError(f"SHEETS has no sheet to cut by: its {len(frame)} feature(s) "
+                                 "have no geometry (null or empty)")
         box = shapely.box(*bounds)
         if not any(g is not None and g.intersects(box) for _, g in sheets):
             sb = frame.total_bounds

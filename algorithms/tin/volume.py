@@ -56,6 +56,35 @@ def dem_cut_fill(xyz: np.ndarray, triangles: np.ndarray, info, band: int, mask,
     return total, {"cell_size": [cell_x, cell_y], "cells_without_dem": no_dem}
 
 
+def coarse_dem_warning(xyz: np.ndarray, triangles: np.ndarray, info, mask, counted: float,
+                       extra: dict) -> str | None:
+    """A warning when the DEM's cells counted (centre inside the TIN) cover an area more than
+    10 % away from the TIN's own inside the DEM (and MASK): cells coarse for the TIN, whose
+    midpoint rule then misstates areas and volumes in proportion."""
+    import shapely
+
+    from toolbox.terrain.tin.cutfill import plane_cut_fill
+
+    cell_x, cell_y = extra["cell_size"]
+    counted += extra["cells_without_dem"] * cell_x * cell_y
+    frame = shapely.box(*info.bounds)
+    lo, hi = xyz[:, :2].min(axis=0), xyz[:, :2].max(axis=0)
+    if mask is None and shapely.contains(frame, shapely.box(*lo, *hi)):
+        p = xyz[triangles, :2]  # every triangle inside the DEM: their areas, by hand
+        exact = float(0.5 * np.abs((p[:, 1, 0] - p[:, 0, 0]) * (p[:, 2, 1] - p[:, 0, 1])
+                                   - (p[:, 2, 0] - p[:, 0, 0]) * (p[:, 1, 1] - p[:, 0, 1])).sum())
+    else:
+        region = frame if mask is None else shapely.intersection(frame, mask)
+        exact = plane_cut_fill(xyz, triangles, float(xyz[:, 2].min()) - 1.0, region).area
+    if abs(counted - exact) <= 0.1 * exact:
+        return None
+    return (f"the DEM's cells ({cell_x:g} x {cell_y:g}) are coarse for this TIN: the cells "
+            f"whose centre lies on it cover {counted:,.2f} square units where the TIN covers "
+            f"{exact:,.2f} (inside the DEM{' and MASK' if mask is not None else ''}), and the "
+            "volumes are off in proportion; resample REFERENCE_DEM to cells much smaller than "
+            "the TIN")
+
+
 def _cut_fill_tile(xyz, mask, cell_area, tile, arrays) -> tuple[None, tuple[CutFill, int]]:
     """Engine kernel: (no raster, (cut/fill of the tile, TIN cells without DEM))."""
     from rasterio.features import geometry_mask
@@ -153,6 +182,10 @@ class Volume(Algorithm):
                 if extra["cells_without_dem"]:
                     feedback.push_warning(f"{extra['cells_without_dem']} cell(s) of the TIN have "
                                           "no DEM value and were left out")
+                coarse = coarse_dem_warning(xyz, triangles, params["REFERENCE_DEM"], mask,
+                                            result.area, extra)
+                if coarse:
+                    feedback.push_warning(coarse)
         if result.area == 0:
             feedback.push_warning("the TIN and the reference do not overlap (inside MASK): "
                                   "all volumes are 0")

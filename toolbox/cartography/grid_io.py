@@ -40,6 +40,10 @@ def sheet_polygons(source: SheetSource, warn=None) -> tuple[list[tuple[str, Any]
 
     if source.sheets is not None:
         frame = read_vector(source.sheets, name="SHEETS")
+        if not len(frame):
+            from toolbox.errors import ParameterError
+
+            raise ParameterError("SHEETS", f"{source.sheets} has no features: no sheet to draw")
         field = source.sheet_id
         ids = [str(v) for v in frame[field]] if field else [str(i + 1) for i in range(len(frame))]
         return [(sheet_id, sheet_polygon(geom, row, sheet_id if field else None, warn))
@@ -117,6 +121,10 @@ def grid_frames(request: MapGridRequest, warn=None):
         for label in grid.labels:
             label_rows.append({"sheet": sheet_id, **label,
                                "geometry": shapely.points(label["x"], label["y"])})
+    if not rows and warn is not None:
+        warn(f"no grid {'line' if request.style == 'lines' else 'cross'} (every {step:g} m, "
+             f"{request.map_step:g} mm at 1:{request.scale:g}) falls inside the "
+             f"{'sheets' if request.sheets.sheets is not None else 'EXTENT'}: the grid is empty")
     columns = ["sheet", "kind", "value", "geometry"]
     grid_frame = gpd.GeoDataFrame(rows or None, columns=columns, geometry="geometry", crs=crs)
     label_columns = ["sheet", "text", "axis", "value", "edge", "geometry"]

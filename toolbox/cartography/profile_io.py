@@ -88,9 +88,10 @@ class Surface:
             c1 = int(np.clip(np.ceil(np.nanmax(cols)) + 2, c0 + 1, src.width))
             r1 = int(np.clip(np.ceil(np.nanmax(rows)) + 2, r0 + 1, src.height))
             z = read_filled(src, self.band, Window(c0, r0, c1 - c0, r1 - r0))
-        out = bilinear(z, f.x0 + c0 * f.dx, f.y0 + r0 * f.dy, f.dx, f.dy, xy)
-        # points off the raster: NaN (the window was clipped to it)
-        off = (cols < 0) | (cols > src.width - 1) | (rows < 0) | (rows > src.height - 1)
+        out = bilinear(z, f.x0 + c0 * f.dx, f.y0 + r0 * f.dy, f.dx, f.dy, xy, half_cell=True)
+        # points off the raster's cells: NaN (the window was clipped to the raster; its outer
+        # half cell, beyond the last centres, takes the edge's values as in GDAL)
+        off = (cols < -0.5) | (cols > src.width - 0.5) | (rows < -0.5) | (rows > src.height - 0.5)
         return np.where(off, np.nan, out)
 
 

@@ -183,6 +183,28 @@ def check_gdal_errors(messages: list[str], staging: OutputStaging) -> None:
                                   if about else detail), name, final)
 
 
+def empty_output_message(alg_cls: type[Algorithm], values: dict[str, Any], name: str) -> str:
+    """Why raster output ``name`` has no valid cell, naming only what the algorithm has: a
+    raster input with no valid cell, else the grid parameters it takes (EXTENT, TEMPLATE, MASK,
+    CELL_SIZE), else its own hint (``Algorithm.empty_output_hint``)."""
+    from toolbox.io.raster import has_valid_pixel
+
+    for p in alg_cls.parameters:  # a TEMPLATE gives only its grid: it may be all nodata
+        info = values.get(p.name)
+        if isinstance(p, RasterLayer) and p.name != "TEMPLATE" and info is not None \
+                and not has_valid_pixel(info.path):
+            return (f"{p.name} '{info.path.name}' has no valid cell (every cell is nodata): "
+                    f"{name} would have none either")
+    text = f"{name} would have no valid cell (every cell is nodata)"
+    grid = [n for n in ("EXTENT", "TEMPLATE", "MASK", "CELL_SIZE")
+            if any(p.name == n for p in alg_cls.parameters)]
+    if grid:
+        return f"{text}: check that {', '.join(grid[:-1])}{' and ' if grid[1:] else ''}" \
+               f"{grid[-1]} cover the data"
+    hint = getattr(alg_cls, "empty_output_hint", None)
+    return f"{text}: {hint}" if hint else text
+
+
 def check_raster_outputs(alg_cls: type[Algorithm], values: dict[str, Any],
                           staging: OutputStaging) -> None:
     """Every raster output is complete (its TIFF blocks lie inside the file) and has at least
@@ -197,8 +219,7 @@ def check_raster_outputs(alg_cls: type[Algorithm], values: dict[str, Any],
 
         problem = verify_written_raster(staged)
         if problem == "empty":
-            raise InputDataError(f"{dest.name} would have no valid cell (every cell is nodata): "
-                                 "check that EXTENT, TEMPLATE, MASK and CELL_SIZE cover the data")
+            raise InputDataError(empty_output_message(alg_cls, values, dest.name))
         if problem:
             state = _disk_state(staging)  # a truncated file on a full disk: say so
             raise write_error(OSError(state[0] if state else errno.EIO, problem), dest.name,

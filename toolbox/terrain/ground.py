@@ -169,7 +169,9 @@ def classify_points(xyz: np.ndarray, surface: MinimumSurface, dtm: np.ndarray,
     rows, cols = surface.rowcol(xyz[:, 0], xyz[:, 1])
     coords = np.vstack([rows, cols])
     height = ndimage.map_coordinates(dtm, coords, order=1, mode="nearest")
-    gy, gx = np.gradient(dtm, flt.cell)
+    # a grid one cell wide (a strip of points, a one-row DSM) has no slope across it
+    gy, gx = (np.gradient(dtm, flt.cell, axis=axis) if dtm.shape[axis] > 1
+              else np.zeros_like(dtm) for axis in (0, 1))
     slope = ndimage.map_coordinates(np.hypot(gx, gy), coords, order=1, mode="nearest")
     return np.abs(xyz[:, 2] - height) <= flt.elevation_threshold + flt.elevation_scalar * slope
 

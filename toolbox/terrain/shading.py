@@ -30,8 +30,9 @@ def horn_gradient(z: np.ndarray, cell_x: float, cell_y: float,
 
     Horn's 3x3 weights are separable: a [1 2 1] smoothing across the difference direction,
     then a central difference, ``(c + 2f + i) - (a + 2d + g)`` = ``v[j+1] - v[j-1]`` with
-    ``v = 2·row + above + below`` (the same sums in the same order as written out; the centre
-    cell ``e`` is not used, so a NaN centre alone does not make its cell NaN).
+    ``v = 2·row + above + below`` (the same sums in the same order as written out). The
+    centre cell ``e`` has no weight, but a NaN centre makes its cell NaN (a nodata cell has no
+    slope, as in gdaldem).
     """
     v = np.multiply(z[1:-1], 2.0, dtype=np.float64)  # (rows, cols + 2): 2d + a + g, ...
     v += z[:-2]
@@ -43,6 +44,10 @@ def horn_gradient(z: np.ndarray, cell_x: float, cell_y: float,
     u += z[:, 2:]
     dz_dy = u[:-2] - u[2:]
     dz_dy *= z_factor / (8.0 * cell_y)
+    hole = np.isnan(z[1:-1, 1:-1])
+    if hole.any():
+        dz_dx[hole] = np.nan
+        dz_dy[hole] = np.nan
     return dz_dx, dz_dy
 
 
@@ -116,8 +121,9 @@ def hillshade_bytes(z: np.ndarray, cell_x: float, cell_y: float, azimuth: float 
 def extrapolate_edges(z: np.ndarray, tile, width: int, height: int) -> np.ndarray:
     """Replace the halo cells of ``z`` (read over ``tile.haloed_window``, one-cell halo) that
     lie beyond a ``width`` x ``height`` raster by the surface extrapolated linearly
-    (``2·edge - inner``, in float64), exact on planes; a one-cell-wide raster repeats its
-    edge."""
+    (``2·edge - inner``, in float64), exact on planes; along an axis where the raster is one
+    cell wide the edge is repeated (no slope that way), each axis on its own: a 1 x N profile
+    of a plane keeps its gradient along the row up to the ends."""
     w, h = tile.window, tile.halo
     top = max(0, h - int(w.row_off))
     left = max(0, h - int(w.col_off))
@@ -126,10 +132,14 @@ def extrapolate_edges(z: np.ndarray, tile, width: int, height: int) -> np.ndarra
     if not (top or bottom or left or right):
         return z
     inside = z[top:z.shape[0] - bottom, left:z.shape[1] - right].astype(np.float64)
-    pads = ((top, bottom), (left, right))
-    if min(inside.shape) < 2:
-        return np.pad(inside, pads, mode="edge")
-    return np.pad(inside, pads, mode="reflect", reflect_type="odd")
+    for axis, pad in enumerate(((top, bottom), (left, right))):
+        if pad == (0, 0):
+            continue
+        pads = [(0, 0), (0, 0)]
+        pads[axis] = pad
+        inside = np.pad(inside, pads, mode="reflect", reflect_type="odd") \
+            if inside.shape[axis] >= 2 else np.pad(inside, pads, mode="edge")
+    return inside
 
 
 def shade_tile(kernel: Callable[..., np.ndarray], raster_size: tuple[int, int],

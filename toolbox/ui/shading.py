@@ -34,6 +34,8 @@ class ShadingAlgorithm(Algorithm):
     the DEM in tiles with a one-cell halo (BAND within the DEM's bands: the runner checks it)."""
 
     length_units = "one"  # x, y and heights in one unit (metres or feet): slopes mix them
+    empty_output_hint = "cells next to nodata are nodata: no cell of the DEM has its 8 " \
+                        "neighbours valid"
 
     group = "DEM terrain"
     kernel_name: ClassVar[str] = ""  # a function of toolbox.terrain.shading
