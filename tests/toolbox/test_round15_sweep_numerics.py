@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from types import SimpleNamespace
 
+import numpy as np
 import pytest
 
 from toolbox.raster.grid_request import GridRequest
@@ -39,3 +40,51 @@ def test_extent_on_a_template_lattice_at_any_origin(x0, y0):
     grid = GridRequest(extent=ext, template=template).grid(None, None)
     assert (grid.width, grid.height) == (28, 28)
     assert grid.transform.c == pytest.approx(x0, abs=1e-9)
+
+
+def _plane_models(ground_offset, model_offset):
+    """Four overlapping models (4 x 3 points at 500 m spacing, 6 common with the next), each
+    the ground rotated by 0.3·m rad about its centre and shifted to ``model_offset``; 6 XY
+    control points, 2 mm noise on the model coordinates."""
+    from toolbox.triangulation.models import ModelsRequest
+
+    rng = np.random.default_rng(3)
+    ground = {f"p{i}_{j}": np.array([i * 500.0, j * 500.0]) for i in range(9) for j in range(3)}
+    mids, pids, xyz = [], [], []
+    for m, i0 in enumerate([0, 2, 4, 5]):
+        ids = [f"p{i}_{j}" for i in range(i0, i0 + 4) for j in range(3)]
+        c, s = np.cos(0.3 * m), np.sin(0.3 * m)
+        centre = np.mean([ground[p] for p in ids], axis=0)
+        for p in ids:
+            d = ground[p] - centre
+            xy = np.array([c * d[0] + s * d[1], -s * d[0] + c * d[1]]) + model_offset
+            mids.append(f"m{m}")
+            pids.append(p)
+            xyz.append([*(xy + rng.normal(0, 0.002, 2)), 300.0])
+    control = ["p0_0", "p0_2", "p8_0", "p8_2", "p4_0", "p4_2"]
+    cxyz = np.array([[*(ground[p] + ground_offset), 300.0] for p in control])
+    truth = {p: g + ground_offset for p, g in ground.items()}
+    return ModelsRequest(mids, pids, np.array(xyz), control, cxyz, "planimetric"), truth
+
+
+def test_planimetric_models_do_not_depend_on_where_the_coordinates_lie():
+    """The same block with model coordinates near 0 and ground near 0, then model coordinates
+    near Siena's (EPSG:3003) and ground at EPSG:3857 magnitudes: the same sigma0 and the same
+    adjusted points after shifting back (the raw normal equations gave sigma0 7.0 mm instead
+    of 2.2 mm and points 1.5 cm off)."""
+    from toolbox.triangulation.models import planimetric
+
+    base_req, base_truth = _plane_models(np.zeros(2), np.zeros(2))
+    base = planimetric(base_req)
+    far = np.array([20_000_000.0, 10_000_000.0])
+    req, truth = _plane_models(far, np.array([1_688_000.0, 4_799_500.0]))
+    res = planimetric(req)
+    assert res.sigma0_m == pytest.approx(base.sigma0_m, rel=1e-6)
+    assert np.allclose(res.ground - far, base.ground, atol=1e-6)
+    err = np.array([res.ground[k] - truth[p] for k, p in enumerate(res.points)])
+    assert np.abs(err).max() < 0.01  # 2 mm noise
+    # the parameters are the model -> ground transform of the raw model coordinates
+    xu, yu, a, b = res.parameters[0]
+    x, y = req.xyz[0, :2]
+    p0 = res.points.index(req.point_ids[0])
+    assert np.allclose([xu + a * x - b * y, yu + a * y + b * x], res.ground[p0], atol=0.01)
