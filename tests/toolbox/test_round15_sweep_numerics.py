@@ -88,3 +88,62 @@ def test_planimetric_models_do_not_depend_on_where_the_coordinates_lie():
     x, y = req.xyz[0, :2]
     p0 = res.points.index(req.point_ids[0])
     assert np.allclose([xu + a * x - b * y, yu + a * y + b * x], res.ground[p0], atol=0.01)
+
+
+def test_tin_clipped_to_a_boundary_keeps_no_sliver_with_a_vertex_outside():
+    """tin:delaunay with BOUNDARY, a boundary corner outside the data's hull: the boundary edge
+    meets the hull edge next to a hull vertex outside the boundary; that vertex, the crossing
+    and a boundary node made a zero-area triangle (4.7e-20 m², slope 90°) whose centroid fell
+    inside by rounding. No node of a clipped TIN lies outside the boundary (shapely)."""
+    import shapely
+
+    from toolbox.terrain.tin.build import build_tin
+
+    rng = np.random.default_rng(19)
+    xy = rng.uniform(0, 0.2, (120, 2))
+    lines = np.array([[0.01, 0.1, 3000.5], [0.19, 0.1000001, 3000.6],
+                      [0.01, 0.1000002, 3000.2], [0.19, 0.0999999, 3000.1]])
+    boundary = shapely.Polygon([[0.02, 0.02], [0.18, 0.03], [0.17, 0.17], [0.03, 0.18]])
+    tin = build_tin(np.c_[xy, 3000 + 0.1 * xy[:, 0]], lines, np.array([0, 0, 1, 1]),
+                    boundary=boundary)
+    outside = shapely.distance(boundary, shapely.points(tin.xyz[:, :2])) > 1e-9
+    assert not outside.any(), tin.xyz[outside]
+    p = tin.xyz[tin.triangles]
+    area = 0.5 * np.abs((p[:, 1, 0] - p[:, 0, 0]) * (p[:, 2, 1] - p[:, 0, 1])
+                        - (p[:, 2, 0] - p[:, 0, 0]) * (p[:, 1, 1] - p[:, 0, 1]))
+    assert area.min() > 1e-12  # the thinnest real triangles: the breaklines 1e-7 apart
+
+
+def _tin_data(tmp_path, x0, y0, boundary):
+    import geopandas as gpd
+    import shapely
+
+    rng = np.random.default_rng(19)
+    xy = rng.uniform(0, 0.2, (120, 2)) + [x0, y0]
+    gpd.GeoDataFrame(geometry=shapely.points(np.c_[xy, 3000 + 0.1 * (xy[:, 0] - x0)]),
+                     crs="EPSG:32632").to_file(tmp_path / "p.gpkg")
+    gpd.GeoDataFrame(geometry=[shapely.Polygon(np.array(boundary) + [x0, y0])],
+                     crs="EPSG:32632").to_file(tmp_path / "b.gpkg")
+
+
+def test_tin_boundary_inside_the_hull_is_not_warned_about_at_utm_coordinates(tmp_path):
+    """A BOUNDARY inside the points' hull at a northing of 5,000,000 was reported 3.5e-18
+    square units outside it, warned as 'BOUNDARY extends 0.0 square units beyond the points'
+    convex hull'; a real 4.7e-5 m² outside (cm data) was also printed as 0.0."""
+    import toolbox
+    from toolbox.feedback import Feedback
+
+    _tin_data(tmp_path, 500_000.0, 5_000_000.0,
+              [[0.03, 0.03], [0.17, 0.035], [0.16, 0.16], [0.04, 0.17]])
+    feedback = Feedback()
+    stats = toolbox.run("tin:delaunay", {"INPUT": tmp_path / "p.gpkg", "BOUNDARY":
+                                         tmp_path / "b.gpkg", "OUTPUT": tmp_path / "t.gpkg"},
+                        feedback=feedback)["STATISTICS"]
+    assert stats["boundary"]["boundary_area_outside_data_hull"] == 0.0
+    assert not any("BOUNDARY extends" in w for w in feedback.warnings)
+    _tin_data(tmp_path, 0.0, 0.0, [[0.02, 0.02], [0.18, 0.03], [0.17, 0.17], [0.03, 0.18]])
+    feedback = Feedback()
+    toolbox.run("tin:delaunay", {"INPUT": tmp_path / "p.gpkg", "BOUNDARY": tmp_path / "b.gpkg",
+                                 "OUTPUT": tmp_path / "t.gpkg", "OVERWRITE": True},
+                feedback=feedback)
+    assert any("BOUNDARY extends 4.715" in w for w in feedback.warnings), feedback.warnings
