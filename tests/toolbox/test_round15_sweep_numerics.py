@@ -147,3 +147,26 @@ def test_tin_boundary_inside_the_hull_is_not_warned_about_at_utm_coordinates(tmp
                                  "OUTPUT": tmp_path / "t.gpkg", "OVERWRITE": True},
                 feedback=feedback)
     assert any("BOUNDARY extends 4.715" in w for w in feedback.warnings), feedback.warnings
+
+
+@pytest.mark.parametrize("x0, y0, cell, n", [(3_661_007.95, 3_179_740.4, 0.05, 1091),
+                                             (4_260_589.9, 3_202_960.35, 0.05, 1027),
+                                             (2_843_595.4, 4_681_854.8, 0.1, 561)])
+def test_ortho_and_mosaic_grids_on_the_lattice_get_no_extra_cell(x0, y0, cell, n):
+    """Bounds on the cell lattice (an ortho EXTENT, a mosaic sheet) n cells wide: n x n cells.
+    With the fixed 1e-9-cell slack about 1 grid in 4 at such coordinates got an extra
+    column or row."""
+    import shapely
+    from affine import Affine
+
+    from toolbox.mosaic.block import mosaic_grid
+    from toolbox.ortho.plan import lattice_grid
+
+    x1, y1 = round(x0 + n * cell, 6), round(y0 + n * cell, 6)
+    grid = lattice_grid((x0, y0, x1, y1), cell, None)
+    assert (grid.width, grid.height) == (n, n)
+    src = SimpleNamespace(res=(cell, cell), name="a",
+                          transform=Affine(cell, 0, x0 - 10 * cell, 0, -cell, y1 + 10 * cell))
+    grid = mosaic_grid([src], None, None, shapely.box(x0, y0, x1, y1))
+    assert (grid.width, grid.height) == (n, n)
+    assert grid.transform.c == pytest.approx(x0, abs=1e-6)
