@@ -170,3 +170,46 @@ def test_ortho_and_mosaic_grids_on_the_lattice_get_no_extra_cell(x0, y0, cell, n
     grid = mosaic_grid([src], None, None, shapely.box(x0, y0, x1, y1))
     assert (grid.width, grid.height) == (n, n)
     assert grid.transform.c == pytest.approx(x0, abs=1e-6)
+
+
+@pytest.mark.parametrize("x0, y0, crs", [(0.0, 0.0, "EPSG:32632"),
+                                         (20_000_000.0, 10_000_000.0, "EPSG:3857")])
+@pytest.mark.parametrize("method", ["tin_linear", "nearest"])
+def test_points_on_the_grid_lattice_fill_every_cell(tmp_path, x0, y0, crs, method):
+    """20 x 20 points at the 1 cm cell centres gridded at 1 cm: every cell is a data point, so
+    every cell has its height (z = 3000 + x). dem:tin_linear lost the north row at any origin
+    (a 4e-16-cell rounding put the hull edge outside the centres) and at EPSG:3857 magnitudes
+    every method lost the south row (the hull test's 1e-9-cell slack)."""
+    import geopandas as gpd
+    import rasterio
+    import shapely
+
+    import toolbox
+
+    n, cell = 20, 0.01
+    gx, gy = np.meshgrid((np.arange(n) + 0.5) * cell, (np.arange(n) + 0.5) * cell)
+    xy = np.c_[gx.ravel(), gy.ravel()]
+    gpd.GeoDataFrame(geometry=shapely.points(np.c_[xy + [x0, y0], 3000 + xy[:, 0]]),
+                     crs=crs).to_file(tmp_path / "p.gpkg")
+    out = tmp_path / "d.tif"
+    toolbox.run(f"dem:{method}", {"INPUT": tmp_path / "p.gpkg", "CELL_SIZE": cell, "OUTPUT": out,
+                                  "EXTENT": f"{x0},{y0},{x0 + n * cell},{y0 + n * cell}"})
+    with rasterio.open(out) as src:
+        z = src.read(1, masked=True)
+    assert z.count() == n * n
+    expected = 3000 + (np.arange(n) + 0.5) * cell
+    np.testing.assert_allclose(z.filled(np.nan), np.broadcast_to(expected, (n, n)), atol=1e-3)
+
+
+def test_tin_raster_of_a_lattice_tin_covers_its_border_cells():
+    """rasterize_tin of the TIN of the cell centres themselves: no NaN (the north row was)."""
+    from toolbox.terrain.tin.kernels import rasterize_tin, triangulate
+
+    n, cell = 20, 0.01
+    gx, gy = np.meshgrid((np.arange(n) + 0.5) * cell, (np.arange(n) + 0.5) * cell)
+    xy = np.c_[gx.ravel(), gy.ravel()]
+    tri = triangulate(xy)
+    for compiled in (True, False):
+        z = rasterize_tin(np.c_[xy, xy[:, 0]], tri, 0.0, n * cell, cell, cell, n, n,
+                          compiled=compiled)
+        assert not np.isnan(z).any(), (compiled, np.flatnonzero(np.isnan(z).all(axis=1)))
