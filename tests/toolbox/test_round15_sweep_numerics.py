@@ -213,3 +213,16 @@ def test_tin_raster_of_a_lattice_tin_covers_its_border_cells():
         z = rasterize_tin(np.c_[xy, xy[:, 0]], tri, 0.0, n * cell, cell, cell, n, n,
                           compiled=compiled)
         assert not np.isnan(z).any(), (compiled, np.flatnonzero(np.isnan(z).all(axis=1)))
+
+
+@pytest.mark.parametrize("lo, hi, n", [(5_735_344.0, 5_735_345.6, 16), (19_561_212.9, 19_561_213.7, 8),
+                                       (9_686_271.0, 9_686_274.2, 32)])
+def test_map_grid_keeps_the_lines_on_the_frame_edges(lo, hi, n):
+    """carto:grid every 0.1 m over a frame whose edges are multiples of it: n + 1 lines, inside
+    the frame (the 1e-9 slack dropped an edge line at these coordinates, and k x 0.1 an ulp
+    beyond the edge was clipped away by the sheet)."""
+    from toolbox.cartography.grid import grid_values
+
+    values = grid_values(lo, hi, 0.1)
+    assert len(values) == n + 1
+    assert lo <= values[0] <= lo + 1e-6 and hi - 1e-6 <= values[-1] <= hi  # inside the frame
