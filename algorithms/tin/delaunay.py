@@ -219,7 +219,7 @@ def _report_quality(report: dict, feedback: Feedback) -> None:
     if dup["duplicates_removed"]:
         feedback.push_warning(
             f"{dup['duplicates_removed']} duplicate point(s) merged into {dup['duplicate_groups']}"
-            f" node(s) (rule: {dup['rule']}; largest Z spread {dup['max_z_spread']:.3f})")
+            f" node(s) (rule: {dup['rule']}; largest Z spread {dup['max_z_spread']:.6g})")
     cross = report["crossings"]
     if cross["count"]:
         feedback.push_warning(

@@ -226,3 +226,29 @@ def test_map_grid_keeps_the_lines_on_the_frame_edges(lo, hi, n):
     values = grid_values(lo, hi, 0.1)
     assert len(values) == n + 1
     assert lo <= values[0] <= lo + 1e-6 and hi - 1e-6 <= values[-1] <= hi  # inside the frame
+
+
+def test_tin_warnings_print_millimetre_z_spreads(tmp_path):
+    """Duplicates 0.4 mm apart in Z and breaklines crossing 0.3 mm apart: the warnings said
+    'largest Z spread 0.000' and 'disagreement 0.000'."""
+    import geopandas as gpd
+    import shapely
+
+    import toolbox
+    from toolbox.feedback import Feedback
+
+    xyz = np.array([[0, 0, 10], [1, 0, 10], [0, 1, 10], [1, 1, 10], [1, 1, 10.0004]])
+    gpd.GeoDataFrame(geometry=shapely.points(xyz), crs="EPSG:32632").to_file(tmp_path / "p.gpkg")
+    lines = [[(0.1, 0.5, 10.0), (0.9, 0.5, 10.0)], [(0.5, 0.1, 10.0003), (0.5, 0.9, 10.0003)]]
+    gpd.GeoDataFrame(geometry=[shapely.LineString(v) for v in lines],
+                     crs="EPSG:32632").to_file(tmp_path / "b.gpkg")
+    feedback = Feedback()
+    toolbox.run("tin:delaunay", {"INPUT": tmp_path / "p.gpkg", "BREAKLINES": tmp_path / "b.gpkg",
+                                 "OUTPUT": tmp_path / "t.gpkg"}, feedback=feedback)
+    assert any("largest Z spread 0.0004" in w for w in feedback.warnings), feedback.warnings
+    assert any("largest disagreement 0.0003" in w for w in feedback.warnings), feedback.warnings
+    feedback = Feedback()
+    toolbox.run("dem:tin_linear", {"INPUT": tmp_path / "p.gpkg", "BREAKLINES": tmp_path / "b.gpkg",
+                                   "CELL_SIZE": 0.1, "OUTPUT": tmp_path / "d.tif"},
+                feedback=feedback)
+    assert any("in Z by up to 0.0003" in w for w in feedback.warnings), feedback.warnings
