@@ -39,8 +39,10 @@ class BundleAdjustment(Algorithm):
     antenna positions ``photo``, ``X``, ``Y``, ``Z`` (optional sigmas, ``strip``, ``time``), at
     the projection centre or offset by LEVER_ARM (camera frame, rotated with the photo);
     GNSS_SHIFT / GNSS_DRIFT add an unknown offset ``s`` / drift ``d·t`` per strip (the ``strip``
-    column, else the project's strips; ``time``, else the photo's place in its strip, centred):
-    the datum then needs a full and a second height control point. IMU (optional): attitudes
+    column, else the project's strips; ``time``, else the photo's place in its strip, centred;
+    with both, the shift is at the strip's mean time, reported as ``at_time``, so that GPS or
+    POSIX seconds do not weaken the adjustment): the datum then needs a full and a second
+    height control point. IMU (optional): attitudes
     ``photo``, ``omega``, ``phi``, ``kappa`` (photogrammetric convention, IMU_ANGLE_UNIT,
     optional ``sigma``) observing the angles of ``R·R(b)``; BORESIGHT estimates the 3 boresight
     angles ``b`` (else zero). IMU angles are data-snooped like the other observations.

@@ -204,17 +204,17 @@ def _report_quality(report: dict, feedback: Feedback) -> None:
     if dup["duplicates_removed"]:
         feedback.push_warning(
             f"{dup['duplicates_removed']} duplicate point(s) merged into {dup['duplicate_groups']}"
-            f" node(s) (rule: {dup['rule']}; largest Z spread {dup['max_z_spread']:.3f})")
+            f" node(s) (rule: {dup['rule']}; largest Z spread {dup['max_z_spread']:.6g})")
     cross = report["crossings"]
     if cross["count"]:
         feedback.push_warning(
             f"{cross['count']} breakline crossing(s) without a shared vertex: split there, Z "
             f"interpolated along the breaklines (largest disagreement "
-            f"{cross['max_z_disagreement']:.3f})")
+            f"{cross['max_z_disagreement']:.6g})")
     clip = report.get("boundary")
     if clip and clip["boundary_area_outside_data_hull"] > 0:
         feedback.push_warning(
-            f"BOUNDARY extends {clip['boundary_area_outside_data_hull']:.1f} square units beyond "
+            f"BOUNDARY extends {clip['boundary_area_outside_data_hull']:.6g} square units beyond "
             "the points' convex hull; the TIN stops at the hull there")
     if clip and clip["nodes_dropped_outside"]:
         feedback.push_info(f"{clip['nodes_dropped_outside']} point(s) outside BOUNDARY dropped")

@@ -17,9 +17,14 @@ def ground_step(scale: float, map_step_mm: float = 100.0) -> float:
 
 
 def grid_values(lo: float, hi: float, step: float) -> np.ndarray:
-    """Multiples of ``step`` in ``[lo, hi]`` (a grid tied to the CRS origin, not the frame)."""
-    k0, k1 = np.ceil(lo / step - 1e-9), np.floor(hi / step + 1e-9)
-    return np.arange(k0, k1 + 1) * step
+    """Multiples of ``step`` in ``[lo, hi]`` (a grid tied to the CRS origin, not the frame); an
+    edge on a multiple up to the coordinates' rounding is one (:func:`cell_slack`)."""
+    from toolbox.io.grid import cell_slack
+
+    eps = cell_slack(step, lo, hi)
+    k0, k1 = np.ceil(lo / step - eps), np.floor(hi / step + eps)
+    # k·step may land an ulp beyond the edge it is on: the sheet would clip that line away
+    return np.clip(np.arange(k0, k1 + 1) * step, lo, hi)
 
 
 def format_coordinate(value: float) -> str:

@@ -26,14 +26,21 @@ def max_cells_default() -> int:
     return size_limit("cells")
 
 
+def cell_slack(cell_size: float, *coordinates: float) -> float:
+    """How far (in cells) a count of cells computed from ``coordinates`` may be from a whole
+    number by rounding alone: 1e-9 cell, more for coordinates so large that their last bit is
+    more (a northing of 5,000,000 has 1e-9 m bits: 2e-7 of a 5 mm cell)."""
+    far = max((abs(float(c)) for c in coordinates), default=0.0) / cell_size
+    return max(1e-9, 64 * far * sys.float_info.epsilon)
+
+
 def snap_outwards(bounds: tuple[float, float, float, float],
                   cell_size: float) -> tuple[float, float, float, float]:
     """``bounds`` moved outwards to multiples of ``cell_size``; an edge within rounding of a
-    multiple stays on it (1e-9 cell, more for coordinates so large that their last bit is more):
-    a corner computed 1 ulp beyond a multiple, 1688120.0000000002, must not add a whole cell."""
+    multiple stays on it (:func:`cell_slack`): a corner computed 1 ulp beyond a multiple,
+    1688120.0000000002, must not add a whole cell."""
     xmin, ymin, xmax, ymax = map(float, bounds)
-    far = max(abs(xmin), abs(xmax), abs(ymin), abs(ymax)) / cell_size
-    slack = max(1e-9, 64 * far * sys.float_info.epsilon)  # cells
+    slack = cell_slack(cell_size, xmin, ymin, xmax, ymax)  # cells
     return (math.floor(xmin / cell_size + slack) * cell_size,
             math.floor(ymin / cell_size + slack) * cell_size,
             math.ceil(xmax / cell_size - slack) * cell_size,

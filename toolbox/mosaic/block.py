@@ -163,7 +163,7 @@ def mosaic_grid(sources: list[OrthoSource], crs: Any, cell: float | None, area,
     aligned with the first input of that cell size. Warns when inputs must be resampled."""
     from affine import Affine
 
-    from toolbox.io.grid import GridSpec
+    from toolbox.io.grid import GridSpec, cell_slack
 
     finest = min(sources, key=lambda s: s.res[0])
     cell = cell or finest.res[0]
@@ -171,10 +171,11 @@ def mosaic_grid(sources: list[OrthoSource], crs: Any, cell: float | None, area,
                 math.isclose(s.res[1], cell)), None)
     ox, oy = (ref.transform.c, ref.transform.f) if ref is not None else (0.0, 0.0)
     x0, y0, x1, y1 = area.bounds
-    x0 = ox + math.floor((x0 - ox) / cell + 1e-9) * cell
-    y1 = oy + math.ceil((y1 - oy) / cell - 1e-9) * cell
-    cols = max(1, math.ceil((x1 - x0) / cell - 1e-9))
-    rows = max(1, math.ceil((y1 - y0) / cell - 1e-9))
+    eps = cell_slack(cell, x0, y0, x1, y1, ox, oy)  # an edge on the lattice up to rounding
+    x0 = ox + math.floor((x0 - ox) / cell + eps) * cell
+    y1 = oy + math.ceil((y1 - oy) / cell - eps) * cell
+    cols = max(1, math.ceil((x1 - x0) / cell - eps))
+    rows = max(1, math.ceil((y1 - y0) / cell - eps))
     from toolbox.io.grid import max_cells_default
 
     if cols * rows > max_cells_default():

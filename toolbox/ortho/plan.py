@@ -50,13 +50,14 @@ def lattice_grid(bounds: tuple[float, float, float, float], cell: float, crs: An
     without resampling."""
     from affine import Affine
 
-    from toolbox.io.grid import GridSpec
+    from toolbox.io.grid import GridSpec, cell_slack
 
     ox, oy = origin
-    xmin = ox + math.floor((bounds[0] - ox) / cell + 1e-9) * cell
-    ymin = oy + math.floor((bounds[1] - oy) / cell + 1e-9) * cell
-    xmax = ox + math.ceil((bounds[2] - ox) / cell - 1e-9) * cell
-    ymax = oy + math.ceil((bounds[3] - oy) / cell - 1e-9) * cell
+    eps = cell_slack(cell, *bounds, ox, oy)  # an edge on the lattice up to rounding stays on it
+    xmin = ox + math.floor((bounds[0] - ox) / cell + eps) * cell
+    ymin = oy + math.floor((bounds[1] - oy) / cell + eps) * cell
+    xmax = ox + math.ceil((bounds[2] - ox) / cell - eps) * cell
+    ymax = oy + math.ceil((bounds[3] - oy) / cell - eps) * cell
     probe = GridSpec.from_bounds((xmin, ymin, xmax, ymax), cell, crs, snap=False, name=name)
     return GridSpec(Affine(cell, 0.0, xmin, 0.0, -cell, ymin + probe.height * cell),
                     probe.width, probe.height, crs)

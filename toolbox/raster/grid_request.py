@@ -15,9 +15,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from toolbox.errors import ParameterError
-from toolbox.io.grid import GridSpec, max_cells_default, snap_outwards
-
-_EPS = 1e-9  # relative tolerance of "a whole number of cells"
+from toolbox.io.grid import GridSpec, cell_slack, max_cells_default, snap_outwards
 
 
 @dataclass(frozen=True)
@@ -78,10 +76,11 @@ class GridRequest:
                                 "TEMPLATE")
             cx, cy = t.a, -t.e
             xmin, ymin, xmax, ymax = map(float, extent.bounds)
-            col0 = math.floor((xmin - t.c) / cx + _EPS)
-            col1 = math.ceil((xmax - t.c) / cx - _EPS)
-            row0 = math.floor((t.f - ymax) / cy + _EPS)
-            row1 = math.ceil((t.f - ymin) / cy - _EPS)
+            eps = cell_slack(min(cx, cy), xmin, ymin, xmax, ymax, t.c, t.f)
+            col0 = math.floor((xmin - t.c) / cx + eps)
+            col1 = math.ceil((xmax - t.c) / cx - eps)
+            row0 = math.floor((t.f - ymax) / cy + eps)
+            row1 = math.ceil((t.f - ymin) / cy - eps)
             grid = GridSpec(Affine(cx, 0.0, t.c + col0 * cx, 0.0, -cy, t.f - row0 * cy),
                             max(1, col1 - col0), max(1, row1 - row0), crs)
             return _guarded(grid, limit, "TEMPLATE")
@@ -104,15 +103,17 @@ class GridRequest:
                 xmin, ymin, xmax, ymax = snap_outwards((xmin, ymin, xmax, ymax), cell)
         else:
             raise ParameterError("EXTENT", "is needed to size the grid before reading the data")
-        width = _cells(xmax - xmin, cell)
-        height = _cells(ymax - ymin, cell)
+        eps = cell_slack(cell, xmin, ymin, xmax, ymax)  # the edges' own rounding
+        width = _cells(xmax - xmin, cell, eps)
+        height = _cells(ymax - ymin, cell, eps)
         return _guarded(GridSpec(Affine(cell, 0.0, xmin, 0.0, -cell, ymax), width, height, crs),
                         limit, "CELL_SIZE")
 
 
-def _cells(length: float, cell: float) -> int:
-    """Whole cells covering ``length`` (a length within 1e-9 cell of a multiple is that one)."""
-    return max(1, int(math.ceil(length / cell - _EPS)))
+def _cells(length: float, cell: float, eps: float) -> int:
+    """Whole cells covering ``length`` (a length within ``eps`` cell of a multiple is that one:
+    :func:`toolbox.io.grid.cell_slack` of the edges, whose rounding the length carries)."""
+    return max(1, int(math.ceil(length / cell - eps)))
 
 
 def _guarded(grid: GridSpec, limit: int, name: str) -> GridSpec:

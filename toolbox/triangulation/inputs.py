@@ -395,6 +395,15 @@ def build_block(request: BlockRequest) -> tuple[Block, dict]:
             h_sig.append(_sigma_or(cen.sigma[k], request.centre_sigma_xy, request.centre_sigma_z))
     groups, times = _strips_and_times(h_photo, h_strip, np.array(h_time, dtype=float),
                                       photo_ids)
+    time_origin = np.zeros(int(groups.max()) + 1 if len(groups) else 0)
+    if request.gnss_shift and request.gnss_drift:
+        # s + d·t = (s + d·t0) + d·(t - t0): with a shift the time origin is free, and times
+        # given as GPS seconds of week or POSIX seconds (1.7e9) make the shift and drift
+        # columns parallel (a false "singular"): each strip is solved about its mean time, the
+        # shift reported at that time
+        for g in range(len(time_origin)):
+            time_origin[g] = float(np.round(times[groups == g].mean()))
+        times = times - time_origin[groups]
     a_photo, a_obs, a_sig = [], [], []
     if request.attitudes is not None:
         att = request.attitudes
@@ -421,7 +430,8 @@ def build_block(request: BlockRequest) -> tuple[Block, dict]:
     info_strips = sorted(set(h_strip), key=lambda v: (len(v), v))
     return block, {"checks": checks, "kind": ms.kind, "pixel_mm": pixel_mm,
                    "model_photos": {p for p in photo_ids if project.photos[p].is_model},
-                   "gnss_strips": info_strips, "free": [f"{block.calibration_label(k, i)}" for k, i in
+                   "gnss_strips": info_strips, "gnss_time_origin": time_origin.tolist(),
+                   "free": [f"{block.calibration_label(k, i)}" for k, i in
                             np.argwhere(modes != FIXED)]}
 
 

@@ -90,7 +90,13 @@ def planimetric(request: ModelsRequest) -> ModelsResult:
     free = np.isnan(known).any(axis=1)
     col = np.full(len(points), -1)
     col[free] = 4 * n + 2 * np.arange(int(free.sum()))
-    x, y = xyz[:, 0], xyz[:, 1]
+    # solved centred (each model at its centroid, the control at theirs): with raw projected
+    # coordinates the columns of Xu and a are nearly parallel and the normal equations lose
+    # the millimetres (or look singular); the parameters are moved back below
+    centre = np.array([xyz[mi == j, :2].mean(axis=0) for j in range(n)])
+    ground0 = np.nanmean(known, axis=0) if (~free).any() else np.zeros(2)
+    known = known - ground0
+    x, y = xyz[:, 0] - centre[mi, 0], xyz[:, 1] - centre[mi, 1]
     rows, cols, vals = [], [], []
     rhs = np.zeros(2 * m)
     for k in range(m):
@@ -117,7 +123,11 @@ def planimetric(request: ModelsRequest) -> ModelsResult:
     ground = known.copy()
     ground[free] = sol[4 * n:].reshape(-1, 2)
     sigma0 = math.sqrt(float((v ** 2).sum()) / redundancy) if redundancy > 0 else math.nan
-    return ModelsResult(models, sol[:4 * n].reshape(n, 4), points, ground, unknowns, 2 * m,
+    params = sol[:4 * n].reshape(n, 4).copy()
+    a_, b_ = params[:, 2], params[:, 3]  # X = Xu' + a·(x - cx) - b·(y - cy) + X0
+    params[:, 0] += ground0[0] - a_ * centre[:, 0] + b_ * centre[:, 1]
+    params[:, 1] += ground0[1] - a_ * centre[:, 1] - b_ * centre[:, 0]
+    return ModelsResult(models, params, points, ground + ground0, unknowns, 2 * m,
                         redundancy, sigma0, v)
 
 

@@ -194,6 +194,7 @@ def report(block: Block, solution: Solution, info: dict, ground: list[dict[str, 
              "rejected": not bool(active[i])} for i in range(len(block.obs_photo))]
     gnss_imu = {}
     strips = info.get("gnss_strips") or [str(g + 1) for g in range(block.n_groups)]
+    t0 = info.get("gnss_time_origin") or [0.0] * block.n_groups
     for key, on, est, std, unit in (
             ("gnss_shift", block.gnss_shift, solution.gnss_shift, solution.gnss_shift_std, "m"),
             ("gnss_drift", block.gnss_drift, solution.gnss_drift, solution.gnss_drift_std,
@@ -201,7 +202,9 @@ def report(block: Block, solution: Solution, info: dict, ground: list[dict[str, 
         if on:
             gnss_imu[key] = {"unit": unit, "strips": [
                 {"strip": strips[g], **{a: float(est[g, k]) for k, a in enumerate("XYZ")},
-                 **{f"std_{a}": _num(std[g, k]) for k, a in enumerate("XYZ")}}
+                 **{f"std_{a}": _num(std[g, k]) for k, a in enumerate("XYZ")},
+                 **({"at_time": float(t0[g])} if key == "gnss_shift" and block.gnss_drift
+                    else {})}
                 for g in range(len(est))]}
     if len(block.attitude_photo):
         gnss_imu["imu"] = {

@@ -77,3 +77,44 @@ def test_imu_angles_in_another_unit_than_declared_are_refused(sample, tmp_path, 
     _, imu = _files(tmp_path)
     _bad(sample, tmp_path, f"IMU_ANGLE_UNIT.*is {unit}.*give IMU_ANGLE_UNIT deg", IMU=imu,
          IMU_ANGLE_UNIT=unit)
+
+
+# round 15 (sweep_numerics): GNSS times far from 0
+DRIFT = {"1": np.array([0.01, 0.02, -0.01]), "2": np.array([-0.02, 0.01, 0.015])}
+
+
+def _gnss_with_drift(path, t0):
+    """GNSS centres of the sample block's truth with a shift and a drift per strip, 4 s between
+    photos from ``t0`` (0, or POSIX seconds)."""
+    import csv
+
+    truth = make_block(SyntheticBlockSpec(digital=True, seed=7)).project
+    rng = np.random.default_rng(11)
+    rows = [["photo", "X", "Y", "Z", "strip", "time"]]
+    for k, (pid, p) in enumerate(truth.photos.items()):
+        strip, t = pid.split("_")[0], 4.0 * k
+        xyz = np.asarray(p.exterior.centre) + SHIFT[strip] + DRIFT[strip] * t
+        xyz += rng.normal(0, 0.02, 3)
+        rows.append([pid, *(f"{v:.4f}" for v in xyz), strip, repr(t0 + t)])
+    with open(path, "w", newline="") as f:
+        csv.writer(f).writerows(rows)
+    return path
+
+
+def test_gnss_shift_and_drift_with_posix_times(sample, tmp_path):
+    """GNSS times as POSIX seconds (1.7e9) made the shift and drift columns parallel: refused as
+    'near-singular ... weak geometry' (exit 2). Now each strip is solved about its mean time and
+    the shift reported at that time: it equals the true shift + drift x (at_time - t0)."""
+    t0 = 1.7e9
+    out = toolbox.run("orientation:bundle", _params(
+        sample, tmp_path, GNSS=_gnss_with_drift(tmp_path / "gnss.csv", t0), GNSS_SIGMA_XY=0.02,
+        GNSS_SIGMA_Z=0.02, GNSS_SHIFT=True, GNSS_DRIFT=True))
+    assert 0.8 < out["STATISTICS"]["sigma0"] < 1.25
+    gi = json.loads((tmp_path / "bundle.json").read_text())["summary"]["gnss_imu"]
+    for row in gi["gnss_shift"]["strips"]:
+        dt = row["at_time"] - t0
+        assert 0 <= dt <= 28
+        expected = SHIFT[row["strip"]] + DRIFT[row["strip"]] * dt
+        for k, a in enumerate("XYZ"):
+            assert abs(row[a] - expected[k]) < 4 * row[f"std_{a}"]
+            assert row[f"std_{a}"] < 0.25

@@ -48,8 +48,12 @@ class GridRun:
         """Cells of ``tile`` (local centres ``xs``, ``ys``) to compute: inside the hull and
         the MASK."""
         mask = np.ones((len(ys), len(xs)), dtype=bool)
-        if self.hull is not None:
-            tol = 1e-9 * max(self.grid.cell_size)
+        if self.hull is not None:  # a centre on the hull is in, up to the map coordinates'
+            # rounding (at a northing of 10,000,000 a whole border row fell out)
+            from toolbox.io.grid import cell_slack
+
+            cell = max(self.grid.cell_size)
+            tol = cell_slack(cell, *self.grid.bounds) * cell
             mask &= hull_mask(self.hull, xs, ys, tol)
         if self.mask_geometry is not None and mask.any():
             mask &= polygon_mask(self.mask_geometry, tile.core_transform, mask.shape)

@@ -2,7 +2,8 @@
 
 A cell belongs to a region when its *centre* does (thesis par. 2.5.2: the value belongs to the
 cell's centre), the rule GDAL's rasteriser follows without ``ALL_TOUCHED``. Centres exactly on
-the hull's boundary are inside (the hull is closed), with a tolerance of 1e-9 cell for rounding.
+the hull's boundary are inside (the hull is closed), with a tolerance for rounding (1e-9 cell,
+more at large map coordinates: :func:`toolbox.io.grid.cell_slack`).
 """
 
 from __future__ import annotations

@@ -198,10 +198,12 @@ def tile_values(xyz: np.ndarray, origin: tuple[float, float], tile: Any, mask: n
     local[:, 0] -= origin[0]
     local[:, 1] -= origin[1]
     args = (x0 - origin[0], y0 - origin[1], cx, cy, w, h)
-    values = rasterize_tin(local, triangles[good], *args)
+    far = max(abs(x0), abs(y0))
+    values = rasterize_tin(local, triangles[good], *args, magnitude=far)
     hole = mask & np.isnan(values)
     if hole.any():
-        bad = ~np.isnan(rasterize_tin(local, triangles[~good], *args)) if (~good).any() \
+        bad = ~np.isnan(rasterize_tin(local, triangles[~good], *args, magnitude=far)) \
+            if (~good).any() \
             else np.zeros_like(hole)
         xs, ys = tile.cell_centres(halo=False)
         if (hole & (bad | hull_mask(hull_ring, xs, ys))).any():

@@ -73,7 +73,8 @@ def tin_tile(origin: tuple[float, float], tile: Any, arrays: dict,
     t = tile.core_transform
     h, w = tile.shape
     return rasterize_tin(arrays["nodes"], arrays["triangles"], t.c - origin[0], t.f - origin[1],
-                         t.a, -t.e, w, h, compiled=compiled)
+                         t.a, -t.e, w, h, compiled=compiled,
+                         magnitude=max(abs(t.c), abs(t.f)))
 
 
 def group_by_tile(nodes: np.ndarray, triangles: np.ndarray, x0: float, y0: float,

@@ -308,6 +308,22 @@ def _steiner_sources(tri: Triangulation, n_break: int) -> np.ndarray:
     return codes
 
 
+def _vertices_in(region, xy: np.ndarray, triangles: np.ndarray, span: float) -> np.ndarray:
+    """Which ``triangles`` have all three vertices in ``region`` (or on its edge, up to
+    rounding): a sliver along the data's hull, where a boundary edge meets it, can have its
+    centroid inside by rounding and a vertex well outside (a zero-area triangle, slope 90°)."""
+    import shapely
+
+    pts = xy[triangles.ravel()]
+    ok = shapely.contains_xy(region, pts[:, 0], pts[:, 1])
+    if not ok.all():  # boundary vertices, mostly: on the edge
+        far = float(np.abs(xy).max())
+        tol = max(1e-6 * span, 64 * far * np.finfo(float).eps)
+        check = np.flatnonzero(~ok)
+        ok[check] = shapely.distance(region, shapely.points(pts[check])) <= tol
+    return ok.reshape(-1, 3).all(axis=1)
+
+
 def _clip_to_boundary(first_xyz: np.ndarray, first_triangles: np.ndarray, nodes: np.ndarray,
                       segments: np.ndarray, boundary):
     """Re-triangulate ``nodes`` with the boundary (inside the data's convex hull) as nodes and
@@ -328,6 +344,11 @@ def _clip_to_boundary(first_xyz: np.ndarray, first_triangles: np.ndarray, nodes:
     if region.is_empty or region.area == 0:
         raise TinBuildError("BOUNDARY does not overlap the convex hull of the points")
     outside_area = max(0.0, float(shapely.area(boundary) - region.area))
+    # below the rounding of the coordinates along the boundary it is no area (at a northing of
+    # 5,000,000 a boundary inside the hull came out 3e-18 "outside", and was warned about)
+    far = float(np.abs(first_xyz[:, :2]).max())
+    if outside_area <= 64 * far * np.finfo(float).eps * float(shapely.length(boundary)):
+        outside_area = 0.0
     span = max(float(np.ptp(first_xyz[:, :2], axis=0).max()), 1.0)
     ring_xy = [np.asarray(ring.coords)[:-1, :2] for poly in shapely.get_parts(region)
                for ring in [poly.exterior, *poly.interiors]]
@@ -361,6 +382,7 @@ def _clip_to_boundary(first_xyz: np.ndarray, first_triangles: np.ndarray, nodes:
     centroid = (xy[tri.triangles[:, 0]] + xy[tri.triangles[:, 1]] + xy[tri.triangles[:, 2]]) / 3
     shapely.prepare(region)
     keep = shapely.contains_xy(region, centroid[:, 0], centroid[:, 1])
+    keep[np.flatnonzero(keep)] = _vertices_in(region, xy, tri.triangles[keep], span)
     if not keep.any():
         raise TinBuildError("BOUNDARY contains no triangle of the TIN")
     used = np.zeros(len(xy), dtype=bool)

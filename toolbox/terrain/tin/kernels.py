@@ -400,7 +400,8 @@ def triangulate(xy: np.ndarray, segments: np.ndarray | None = None,
 
 # -- plane values at cell centres and at points ---------------------------------------------------
 def rasterize_tin(xyz: np.ndarray, triangles: np.ndarray, x0: float, y0: float, cell_x: float,
-                  cell_y: float, width: int, height: int, compiled: bool = True) -> np.ndarray:
+                  cell_y: float, width: int, height: int, compiled: bool = True,
+                  magnitude: float = 0.0) -> np.ndarray:
     """Plane value of the containing triangle at every cell centre of a north-up grid.
 
     Parameters
@@ -420,6 +421,11 @@ def rasterize_tin(xyz: np.ndarray, triangles: np.ndarray, x0: float, y0: float, 
     compiled : bool
         The numba kernel (default), or its numpy twin (:mod:`toolbox.terrain.tin.planes_numpy`:
         the same values, no numba import; for small rasters).
+    magnitude : float
+        Size of the map coordinates ``xyz`` and ``x0, y0`` were taken from when they are local
+        (e.g. 5,000,000): a node within their rounding of a cell centre is on it
+        (:func:`toolbox.io.grid.cell_slack`), so a TIN of points on the grid's lattice covers
+        its border cells (a centre on the hull was lost to a 4e-16-cell rounding).
 
     Returns
     -------
@@ -428,6 +434,8 @@ def rasterize_tin(xyz: np.ndarray, triangles: np.ndarray, x0: float, y0: float, 
         no smoothing; NaN where the centre lies in no triangle. A centre on an edge or a node gets
         the (equal) value of either triangle.
     """
+    from toolbox.io.grid import cell_slack
+
     if not (cell_x > 0 and cell_y > 0):
         raise ValueError(f"cell_x and cell_y must be > 0, got {cell_x}, {cell_y}")
     width, height = int(width), int(height)
@@ -440,9 +448,11 @@ def rasterize_tin(xyz: np.ndarray, triangles: np.ndarray, x0: float, y0: float, 
             from toolbox.terrain.tin.planes import rasterize
         else:
             from toolbox.terrain.tin.planes_numpy import rasterize
-        rasterize(np.ascontiguousarray(xyz, dtype="float64"),
-                  np.ascontiguousarray(tri, dtype=np.int64), float(x0), float(y0),
-                  float(cell_x), float(cell_y), width, height, out)
+        xyz = np.ascontiguousarray(xyz, dtype="float64")
+        far = float(np.abs(xyz[:, :2]).max()) if len(xyz) else 0.0
+        snap = cell_slack(min(cell_x, cell_y), magnitude, x0, y0, far)
+        rasterize(xyz, np.ascontiguousarray(tri, dtype=np.int64), float(x0), float(y0),
+                  float(cell_x), float(cell_y), width, height, out, snap)
     return out
 
 

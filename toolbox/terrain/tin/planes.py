@@ -27,20 +27,28 @@ def _edge_fn(ia, ib, ua, va, ub, vb, u, v):
 # edge functions); numba kernels on the hot path of dem:tin_linear, kept written out (a shared
 # inlined helper measured within noise but not clearly faster or equal)
 @numba.njit(cache=True, nogil=True)
-def rasterize(xyz, triangles, x0, y0, cell_x, cell_y, width, height, out):
+def _on_centre(u, snap):
+    """``u`` (cell units), moved onto the cell centre (a whole number) within ``snap``."""
+    k = np.floor(u + 0.5)
+    return k if abs(u - k) <= snap else u
+
+
+@numba.njit(cache=True, nogil=True)
+def rasterize(xyz, triangles, x0, y0, cell_x, cell_y, width, height, out, snap=0.0):
     """Write into ``out`` (height, width) the plane value of each triangle at the cell centres
-    it contains (see :func:`toolbox.terrain.tin.kernels.rasterize_tin`)."""
+    it contains (see :func:`toolbox.terrain.tin.kernels.rasterize_tin`); a node within
+    ``snap`` cells of a cell centre is taken on it."""
     for t in range(triangles.shape[0]):
         i0 = triangles[t, 0]
         i1 = triangles[t, 1]
         i2 = triangles[t, 2]
         # vertices in cell units: cell (r, c) centre is at (u, v) = (c, r)
-        u0 = (xyz[i0, 0] - x0) / cell_x - 0.5
-        v0 = (y0 - xyz[i0, 1]) / cell_y - 0.5
-        u1 = (xyz[i1, 0] - x0) / cell_x - 0.5
-        v1 = (y0 - xyz[i1, 1]) / cell_y - 0.5
-        u2 = (xyz[i2, 0] - x0) / cell_x - 0.5
-        v2 = (y0 - xyz[i2, 1]) / cell_y - 0.5
+        u0 = _on_centre((xyz[i0, 0] - x0) / cell_x - 0.5, snap)
+        v0 = _on_centre((y0 - xyz[i0, 1]) / cell_y - 0.5, snap)
+        u1 = _on_centre((xyz[i1, 0] - x0) / cell_x - 0.5, snap)
+        v1 = _on_centre((y0 - xyz[i1, 1]) / cell_y - 0.5, snap)
+        u2 = _on_centre((xyz[i2, 0] - x0) / cell_x - 0.5, snap)
+        v2 = _on_centre((y0 - xyz[i2, 1]) / cell_y - 0.5, snap)
         vmin = min(v0, v1, v2)
         vmax = max(v0, v1, v2)
         rmin = max(int(np.ceil(vmin)), 0)

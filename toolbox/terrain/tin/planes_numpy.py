@@ -27,12 +27,15 @@ BATCH_ROWS = 1 << 16
 
 
 def rasterize(xyz: np.ndarray, triangles: np.ndarray, x0: float, y0: float, cell_x: float,
-              cell_y: float, width: int, height: int, out: np.ndarray) -> None:
+              cell_y: float, width: int, height: int, out: np.ndarray, snap: float = 0.0) -> None:
     """Write into ``out`` (height, width) the plane value of each triangle at the cell centres
     it contains (arguments as :func:`toolbox.terrain.tin.planes.rasterize`)."""
-    # vertices in cell units: cell (r, c) centre is at (u, v) = (c, r)
+    # vertices in cell units: cell (r, c) centre is at (u, v) = (c, r); on one within ``snap``
     u_node = (xyz[:, 0] - x0) / cell_x - 0.5
     v_node = (y0 - xyz[:, 1]) / cell_y - 0.5
+    for a in (u_node, v_node):
+        k = np.floor(a + 0.5)
+        np.copyto(a, k, where=np.abs(a - k) <= snap)
     z_node = np.ascontiguousarray(xyz[:, 2])
     target = out if out.flags.c_contiguous else np.ascontiguousarray(out)
     flat_out = target.reshape(-1)  # a view: cells are written by flat index

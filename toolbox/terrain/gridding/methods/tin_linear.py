@@ -76,7 +76,7 @@ class TinLinearMethod(Method):
         if info.get("crossing_z_disagreement", 0) > 0:
             feedback.push_warning(f"{info['crossings']} breakline crossings without a shared "
                                   "vertex; the crossing breaklines disagree in Z by up to "
-                                  f"{info['crossing_z_disagreement']:.3f} (mean used)")
+                                  f"{info['crossing_z_disagreement']:.6g} (mean used)")
         origin = run.origin
         compiled = use_compiled(len(run.data.local), run.grid.width * run.grid.height)
         with feedback.timed("tiles_index"):
