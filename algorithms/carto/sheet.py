@@ -120,8 +120,8 @@ class Sheet(Algorithm):
                                          and contours.is_numeric("elev")):
             raise self.fail("CONTOURS", f"{contours} has no numeric 'elev' field (the contour "
                             "heights, as carto:contours writes them)")
-        if not (params.get("OUTPUT") or params.get("FOLDER")):
-            raise self.fail("OUTPUT", "or FOLDER: give at least one")
+        if not (params.get("OUTPUT") or params.get("PNG") or params.get("FOLDER")):
+            raise self.fail("OUTPUT", "or PNG or FOLDER: give at least one")
         from toolbox.cartography.sheet_job import guard_sheets
 
         guard_sheets(sheet_job(params))

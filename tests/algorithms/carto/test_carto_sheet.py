@@ -80,6 +80,21 @@ def test_sheet_page_size_and_scale_from_the_pdf(inputs, tmp_path):
     assert content.count(b" l\n") + content.count(b" l ") > 1000
 
 
+def test_a_png_alone_is_a_sheet_output(inputs, tmp_path):
+    """PNG is an output of its own: a sheet asked only as a PNG is drawn (it was refused with
+    'OUTPUT or FOLDER: give at least one'), the same picture as beside a PDF."""
+    params = {"EXTENT": "1687600,4799000,1688600,4799800 [EPSG:3003]", "SCALE": 5000,
+              "BASE": inputs["base"], "DATE": "2026-12-01"}
+    alone = toolbox.run("carto:sheet", params | {"PNG": tmp_path / "alone.png"})
+    toolbox.run("carto:sheet", params | {"PNG": tmp_path / "with.png",
+                                         "OUTPUT": tmp_path / "with.pdf"})
+    assert alone["SHEETS_WRITTEN"][0]["paper"] == "A3"
+    import rasterio
+
+    with rasterio.open(tmp_path / "alone.png") as a, rasterio.open(tmp_path / "with.png") as b:
+        assert a.shape == b.shape and np.array_equal(a.read(), b.read())
+
+
 def test_one_pdf_per_sheet_named_by_id(inputs, tmp_path):
     sheets = gpd.GeoDataFrame({"name": ["NW", "NE"]}, geometry=[
         shapely.box(1687600, 4799600, 1688100, 4800000),
