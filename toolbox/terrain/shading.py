@@ -73,7 +73,9 @@ def aspect(z: np.ndarray, cell_x: float, cell_y: float) -> np.ndarray:
     dz_dx, dz_dy = horn_gradient(z, cell_x, cell_y)
     flat = dz_dx == 0
     flat &= dz_dy == 0
-    angle = np.arctan2(np.negative(dz_dx, out=dz_dx), np.negative(dz_dy, out=dz_dy), out=dz_dx)
+    # 0 - x, not -x: a north-facing cell (dz/dx = 0) gets 0 degrees, not -0 (arctan2(-0.0, y))
+    angle = np.arctan2(np.subtract(0.0, dz_dx, out=dz_dx), np.negative(dz_dy, out=dz_dy),
+                       out=dz_dx)
     out = np.degrees(angle, out=np.empty(angle.shape, np.float32))  # (-180, 180]
     np.add(out, np.float32(360.0), out=out, where=out < 0)  # [0, 360) (np.mod is ~10x slower)
     out[flat] = ASPECT_FLAT

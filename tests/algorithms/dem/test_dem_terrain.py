@@ -108,6 +108,22 @@ def test_slope_and_aspect_of_a_plane_are_exact(plane_dem, tmp_path):
         np.testing.assert_allclose(c.read(1), np.degrees(np.arctan2(-sx, -sy)) % 360, atol=5e-3)
 
 
+def test_aspect_of_a_north_facing_slope_is_zero_not_minus_zero(tmp_path):
+    """A slope facing due north has aspect 0 as gdaldem writes it; it was -0.0 (the sign of
+    arctan2(-0.0, y)), a value that prints as "-0" in a GeoTIFF's statistics and identify."""
+    from affine import Affine
+
+    z = 100.0 + 0.5 * np.arange(20)[:, None] + np.zeros((20, 20))  # rising to the south
+    path = tmp_path / "north.tif"
+    write_raster(path, z.astype("float32"), Affine(1.0, 0, 1688000.0, 0, -1.0, 4800000.0), CRS,
+                 nodata=-9999)
+    out = tmp_path / "aspect.tif"
+    toolbox.run("dem:aspect", {"INPUT": path, "OUTPUT": out})
+    with rasterio.open(out) as src:
+        values = src.read(1, masked=True).compressed()
+    assert len(values) and np.all(values == 0) and not np.signbit(values).any()
+
+
 @pytest.mark.parametrize("dtype", ["float64", "int16"])
 def test_dems_of_other_types_are_read_without_loss(tmp_path, dtype):
     # float32 DEMs (and 8/16-bit ones, which float32 holds exactly) are read as float32; a
