@@ -1,0 +1,111 @@
+"""Round fifteen, camera models and orientation conventions (sweep_cameras): a photo's raster
+against its camera's size and interior orientation."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import rasterio
+import yaml
+
+import toolbox
+from toolbox.errors import InputDataError
+
+sys.path.insert(0, str(Path(__file__).parents[1] / "algorithms" / "ortho"))
+import ortho_scene  # noqa: E402
+
+BROWN = {"type": "brown", "im_size": [64, 48], "focal_len": 0.75, "k1": -0.1}
+MARKS = {"1": [-110.0, 110.0], "2": [110.0, 110.0], "3": [110.0, -110.0], "4": [-110.0, -110.0]}
+
+
+def _grey(path: Path, width: int, height: int) -> Path:
+    data = (np.random.default_rng(1).random((1, height, width)) * 255).astype("uint8")
+    with rasterio.open(path, "w", driver="GTiff", width=width, height=height, count=1,
+                       dtype="uint8") as dst:
+        dst.write(data)
+    return path
+
+
+def _brown_block(folder: Path, width: int, height: int) -> Path:
+    for k in (1, 2):
+        _grey(folder / f"p{k}.tif", width, height)
+    doc = {"crs": "EPSG:3003", "angle_unit": "rad",
+           "cameras": [{"name": "lens", "model": BROWN}],
+           "photos": [{"id": f"p{k}", "camera": "lens", "image": f"p{k}.tif",
+                       "exterior": {"X0": 1688000.0 + 300 * k, "Y0": 4799000.0, "Z0": 1000.0,
+                                    "omega": 0.0, "phi": 0.0, "kappa": 0.0}}
+                      for k in (1, 2)]}
+    (folder / "block.yaml").write_text(yaml.safe_dump(doc, sort_keys=False))
+    return folder / "block.yaml"
+
+
+@pytest.mark.parametrize("size, hint", [((32, 24), "scaled by 0.5"),
+                                        ((48, 64), "turned 90 degrees"),
+                                        ((60, 40), "a crop")])
+def test_tiepoints_refuse_a_raster_of_another_size_than_the_camera(tmp_path, size, hint):
+    """The tie points are written in the raster's pixels and read back (orientation:bundle) in
+    the camera's: a preview (half size) gave 470 observations at half their coordinates, exit 0
+    (median reprojection 173 px on the 640 x 480 Brown block)."""
+    project = _brown_block(tmp_path, *size)
+    with pytest.raises(InputDataError, match=f"{size[0]} x {size[1]} px but the camera 'lens' "
+                                             f"says 64 x 48.*{hint}"):
+        toolbox.run("orientation:tiepoints", {"PROJECT": project, "TERRAIN_HEIGHT": 0.0,
+                                              "OUTPUT": tmp_path / "tie.csv"})
+    assert not (tmp_path / "tie.csv").exists()
+
+
+@pytest.fixture(scope="module")
+def film(tmp_path_factory):
+    """The ortho scene's photo described as a scan with a fiducial fit and no image_size_px."""
+    scene = ortho_scene.make_scene(tmp_path_factory.mktemp("film_scene"))
+    doc = yaml.safe_load(scene.project_path.read_text())
+    cam = doc["cameras"][0]
+    pixel = cam.pop("pixel_size_mm")
+    half = cam.pop("image_size_px")[0] / 2
+    cam["fiducials_mm"] = MARKS
+    doc["photos"][0]["interior"] = {
+        "transformation": "affine",
+        "fiducials_px": {k: [half + x / pixel, half - y / pixel] for k, (x, y) in MARKS.items()}}
+    (scene.folder / "fiducials.yaml").write_text(yaml.safe_dump(doc, sort_keys=False))
+    return scene
+
+
+@pytest.mark.parametrize("algorithm", ["ortho:photo", "ortho:batch"])
+def test_film_camera_without_image_size_takes_the_rasters(film, tmp_path, algorithm):
+    """image_size_px is optional for a film camera (scans differ in size): ortho:photo and
+    ortho:batch stopped with exit 3 (TypeError in the ground sample distance). The ortho is the
+    one of the same scan described by its pixel size and image size."""
+    fid = film.folder / "fiducials.yaml"
+    out = tmp_path / "fid.tif"
+    if algorithm == "ortho:photo":
+        toolbox.run(algorithm, {"PROJECT": fid, "INPUT": film.photo_path, "DEM": film.dem_path,
+                                "CELL_SIZE": 10.0, "OUTPUT": out})
+    else:
+        toolbox.run(algorithm, {"PROJECT": fid, "DEM": film.dem_path, "CELL_SIZE": 10.0,
+                                "FOLDER": tmp_path / "orthos", "OUTPUT": tmp_path / "b.json"})
+        out = tmp_path / "orthos" / "p1.tif"
+    toolbox.run("ortho:photo", {"PROJECT": film.project_path, "INPUT": film.photo_path,
+                                "DEM": film.dem_path, "CELL_SIZE": 10.0,
+                                "OUTPUT": tmp_path / "ref.tif"})
+    with rasterio.open(out) as a, rasterio.open(tmp_path / "ref.tif") as b:
+        assert a.bounds == b.bounds
+        assert np.abs(a.read().astype(int) - b.read().astype(int)).max() <= 1
+
+
+def test_fiducials_measured_on_another_scan_are_refused(film, tmp_path):
+    """A half-size copy of the scan with the full scan's fiducial fit: fiducial '2' lands at
+    (782.6, 17.4) px of a 400 x 400 raster."""
+    with rasterio.open(film.photo_path) as src:
+        data = src.read(out_shape=(src.count, src.height // 2, src.width // 2))
+        profile = src.profile | {"width": src.width // 2, "height": src.height // 2}
+    half = tmp_path / "p1.tif"
+    with rasterio.open(half, "w", **profile) as dst:
+        dst.write(data)
+    with pytest.raises(InputDataError, match=r"fiducial '2' at \(782\.6, 17\.4\) px, off the "
+                                             r"raster .*\(400 x 400 px\)"):
+        toolbox.run("ortho:photo", {"PROJECT": film.folder / "fiducials.yaml", "INPUT": half,
+                                    "DEM": film.dem_path, "CELL_SIZE": 10.0,
+                                    "OUTPUT": tmp_path / "o.tif"})
