@@ -109,3 +109,21 @@ def test_fiducials_measured_on_another_scan_are_refused(film, tmp_path):
         toolbox.run("ortho:photo", {"PROJECT": film.folder / "fiducials.yaml", "INPUT": half,
                                     "DEM": film.dem_path, "CELL_SIZE": 10.0,
                                     "OUTPUT": tmp_path / "o.tif"})
+
+
+@pytest.mark.parametrize("col, row", [(30.0, 60.0), (-5.0, 20.0), (70.0, 47.0)])
+def test_pixels_off_the_image_are_refused(tmp_path, col, row):
+    """A measured pixel off the camera's 64 x 48 image (row 60, col -5, col 70) cannot have been
+    measured on the photo (a turned or scaled copy was): orientation:monoplot gave 'ok' ground
+    points for them, exit 0. The edge itself is on the image."""
+    project = _brown_block(tmp_path, 64, 48)
+    table = tmp_path / "m.csv"
+    table.write_text(f"point_id,photo,col_px,row_px\nedge,p1,64,0\nbad,p1,{col},{row}\n")
+    with pytest.raises(InputDataError, match=f"INPUT: point 'bad' of photo 'p1' is measured at "
+                                             rf"\({col:g}, {row:g}\) px, off the 64 x 48 px"):
+        toolbox.run("orientation:monoplot", {"PROJECT": project, "INPUT": table,
+                                             "HEIGHT": 0.0, "OUTPUT": tmp_path / "m.gpkg"})
+    table.write_text("point_id,photo,col_px,row_px\nedge,p1,64,0\ncorner,p1,0,48\n")
+    out = toolbox.run("orientation:monoplot", {"PROJECT": project, "INPUT": table,
+                                               "HEIGHT": 0.0, "OUTPUT": tmp_path / "ok.gpkg"})
+    assert out["STATISTICS"]["status"] == {"ok": 2}

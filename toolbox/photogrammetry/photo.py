@@ -253,3 +253,26 @@ def fit_image_size(photo: Photo, width: int, height: int, image: Any) -> Photo:
                 f"{actual[1]} px): the fiducials were measured on another scan (another size, "
                 "a crop or turned); measure them on this one, or give the camera image_size_px")
     return replace(photo, camera=replace(photo.camera, image_size_px=actual))
+
+
+def check_measured_pixels(photos: Any, point_ids: Any, photo_ids: Any, xy: Any,
+                          name: str = "INPUT") -> None:
+    """Pixel measurements (``xy`` (M, 2), ``(col, row)``) must lie on their photo's image
+    (``photos``: ``{id: Photo}``; photos not in it, or whose camera states no image size, are not
+    checked): a point off the image was measured on another raster (a scaled, cropped or turned
+    copy, or another photo's) and its ray would be used in silence. InputDataError naming
+    ``name``, the point, its pixel and the camera's size."""
+    xy = np.asarray(xy, dtype="float64").reshape(-1, 2)
+    for k, pid in enumerate(photo_ids):
+        photo = photos.get(pid) if hasattr(photos, "get") else None
+        size = None if photo is None else getattr(photo.camera, "image_size_px", None)
+        if size is None:
+            continue
+        (w, h), (col, row) = size, xy[k]
+        if not (-0.5 <= col <= w + 0.5 and -0.5 <= row <= h + 0.5):
+            turned = 0 <= col <= h and 0 <= row <= w
+            raise InputDataError(
+                f"{name}: point {point_ids[k]!r} of photo {pid!r} is measured at ({col:g}, "
+                f"{row:g}) px, off the {w} x {h} px image of camera {photo.camera.name!r}: it was "
+                "measured on another raster (" + ("turned 90 degrees? " if turned else "")
+                + "a scaled or cropped copy, or another photo's)")
