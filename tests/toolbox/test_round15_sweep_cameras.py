@@ -127,3 +127,22 @@ def test_pixels_off_the_image_are_refused(tmp_path, col, row):
     out = toolbox.run("orientation:monoplot", {"PROJECT": project, "INPUT": table,
                                                "HEIGHT": 0.0, "OUTPUT": tmp_path / "ok.gpkg"})
     assert out["STATISTICS"]["status"] == {"ok": 2}
+
+
+def test_metashape_p3_p4_are_not_dropped(tmp_path):
+    """Metashape's tangential terms carry a radial factor (P1(r² + 2x²) + 2P2xy)(1 + P3r² +
+    P4r⁴) (manual, appendix C): P3 = 8 with P1 = 0.004, P2 = -0.003 moves the corner of the
+    1000 x 800 px, f = 900 px sensor by 11 px (the formula below), and was dropped in silence.
+    Without tangential terms P3 changes nothing and the sensor is read."""
+    from tests.toolbox.exchange.test_exchange_formats import TM, F, H, W, metashape_xml
+    from toolbox.exchange import metashape
+
+    p1, p2, p3 = 0.004, -0.003, 8.0
+    x, y = W / 2 / F, H / 2 / F
+    r2 = x * x + y * y
+    assert abs((p1 * (r2 + 2 * x * x) + 2 * p2 * x * y) * p3 * r2 * F) > 10
+    metashape_xml(tmp_path / "a.xml", f"<p1>{p1}</p1><p2>{p2}</p2><p3>{p3}</p3>")
+    with pytest.raises(InputDataError, match="p3 = 8.0"):
+        metashape.read_xml(tmp_path / "a.xml", crs=TM)
+    metashape_xml(tmp_path / "b.xml", f"<k1>-0.08</k1><p3>{p3}</p3><p4>1.0</p4>")
+    assert metashape.read_xml(tmp_path / "b.xml", crs=TM).cameras["test sensor"]["k1"] == -0.08
