@@ -112,21 +112,27 @@ def test_fiducials_measured_on_another_scan_are_refused(film, tmp_path):
 
 
 @pytest.mark.parametrize("col, row", [(30.0, 60.0), (-5.0, 20.0), (70.0, 47.0)])
-def test_pixels_off_the_image_are_refused(tmp_path, col, row):
+def test_pixels_off_the_image_are_refused_or_flagged(tmp_path, col, row):
     """A measured pixel off the camera's 64 x 48 image (row 60, col -5, col 70) cannot have been
-    measured on the photo (a turned or scaled copy was): orientation:monoplot gave 'ok' ground
-    points for them, exit 0. The edge itself is on the image."""
+    measured on the photo (a turned or scaled copy was): orientation:monoplot gave an 'ok' ground
+    point for it, exit 0, and intersect used its ray. Monoplot now flags it (outside_image, no
+    geometry); intersect refuses it naming INPUT. The image's edge is on the image."""
+    import geopandas as gpd
+
     project = _brown_block(tmp_path, 64, 48)
     table = tmp_path / "m.csv"
-    table.write_text(f"point_id,photo,col_px,row_px\nedge,p1,64,0\nbad,p1,{col},{row}\n")
+    table.write_text(f"point_id,photo,col_px,row_px\nedge,p1,64,0\nbad,p1,{col},{row}\n"
+                     f"bad,p2,30,20\nedge,p2,0,48\n")
     with pytest.raises(InputDataError, match=f"INPUT: point 'bad' of photo 'p1' is measured at "
                                              rf"\({col:g}, {row:g}\) px, off the 64 x 48 px"):
-        toolbox.run("orientation:monoplot", {"PROJECT": project, "INPUT": table,
-                                             "HEIGHT": 0.0, "OUTPUT": tmp_path / "m.gpkg"})
-    table.write_text("point_id,photo,col_px,row_px\nedge,p1,64,0\ncorner,p1,0,48\n")
+        toolbox.run("orientation:intersect", {"PROJECT": project, "INPUT": table,
+                                              "OUTPUT": tmp_path / "i.gpkg"})
     out = toolbox.run("orientation:monoplot", {"PROJECT": project, "INPUT": table,
-                                               "HEIGHT": 0.0, "OUTPUT": tmp_path / "ok.gpkg"})
-    assert out["STATISTICS"]["status"] == {"ok": 2}
+                                               "HEIGHT": 0.0, "OUTPUT": tmp_path / "m.gpkg"})
+    assert out["STATISTICS"]["status"] == {"ok": 3, "outside_image": 1}
+    points = gpd.read_file(tmp_path / "m.gpkg", layer="points")
+    assert points["status"].tolist() == ["ok", "outside_image", "ok", "ok"]
+    assert points.geometry[1] is None and points.geometry[0] is not None
 
 
 def test_metashape_p3_p4_are_not_dropped(tmp_path):

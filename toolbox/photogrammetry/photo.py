@@ -255,24 +255,38 @@ def fit_image_size(photo: Photo, width: int, height: int, image: Any) -> Photo:
     return replace(photo, camera=replace(photo.camera, image_size_px=actual))
 
 
-def check_measured_pixels(photos: Any, point_ids: Any, photo_ids: Any, xy: Any,
-                          name: str = "INPUT") -> None:
-    """Pixel measurements (``xy`` (M, 2), ``(col, row)``) must lie on their photo's image
-    (``photos``: ``{id: Photo}``; photos not in it, or whose camera states no image size, are not
-    checked): a point off the image was measured on another raster (a scaled, cropped or turned
-    copy, or another photo's) and its ray would be used in silence. InputDataError naming
-    ``name``, the point, its pixel and the camera's size."""
+
+def off_image(photos: Any, photo_ids: Any, xy: Any) -> np.ndarray:
+    """Which pixel measurements (``xy`` (M, 2), ``(col, row)``) lie off their photo's image, more
+    than half a pixel past its edge (``photos``: ``{id: Photo}``; photos not in it, or whose
+    camera states no image size, are never off)."""
     xy = np.asarray(xy, dtype="float64").reshape(-1, 2)
+    size = np.full((len(xy), 2), np.inf)
     for k, pid in enumerate(photo_ids):
         photo = photos.get(pid) if hasattr(photos, "get") else None
-        size = None if photo is None else getattr(photo.camera, "image_size_px", None)
-        if size is None:
-            continue
-        (w, h), (col, row) = size, xy[k]
-        if not (-0.5 <= col <= w + 0.5 and -0.5 <= row <= h + 0.5):
-            turned = 0 <= col <= h and 0 <= row <= w
-            raise InputDataError(
-                f"{name}: point {point_ids[k]!r} of photo {pid!r} is measured at ({col:g}, "
-                f"{row:g}) px, off the {w} x {h} px image of camera {photo.camera.name!r}: it was "
-                "measured on another raster (" + ("turned 90 degrees? " if turned else "")
-                + "a scaled or cropped copy, or another photo's)")
+        wh = None if photo is None else getattr(photo.camera, "image_size_px", None)
+        if wh is not None:
+            size[k] = wh
+    with np.errstate(invalid="ignore"):
+        return ~((xy >= -0.5) & (xy <= size + 0.5)).all(axis=1)
+
+
+def check_measured_pixels(photos: Any, point_ids: Any, photo_ids: Any, xy: Any,
+                          name: str = "INPUT") -> None:
+    """Pixel measurements must lie on their photo's image (:func:`off_image`): a point off the
+    image was measured on another raster (a scaled, cropped or turned copy, or another photo's)
+    and its ray would be used in silence. InputDataError naming ``name``, the point, its pixel
+    and the camera's size."""
+    off = np.flatnonzero(off_image(photos, photo_ids, xy))
+    if len(off):
+        k = int(off[0])
+        pid, (col, row) = photo_ids[k], np.asarray(xy, dtype="float64").reshape(-1, 2)[k]
+        photo = photos[pid]
+        w, h = photo.camera.image_size_px
+        turned = 0 <= col <= h and 0 <= row <= w
+        raise InputDataError(
+            f"{name}: point {point_ids[k]!r} of photo {pid!r} is measured at ({col:g}, {row:g}) "
+            f"px, off the {w} x {h} px image of camera {photo.camera.name!r}"
+            + (f" ({len(off)} points in all)" if len(off) > 1 else "") + ": it was measured on "
+            "another raster (" + ("turned 90 degrees? " if turned else "")
+            + "a scaled or cropped copy, or another photo's)")
