@@ -152,3 +152,31 @@ def test_metashape_p3_p4_are_not_dropped(tmp_path):
         metashape.read_xml(tmp_path / "a.xml", crs=TM)
     metashape_xml(tmp_path / "b.xml", f"<k1>-0.08</k1><p3>{p3}</p3><p4>1.0</p4>")
     assert metashape.read_xml(tmp_path / "b.xml", crs=TM).cameras["test sensor"]["k1"] == -0.08
+
+
+def test_bundle_reference_of_a_film_block_without_image_size(tmp_path):
+    """orientation:bundle REFERENCE compared the orientations on the points each reference photo
+    images, from its camera's image_size_px: a film camera without one (optional; here the demo
+    block's 19167 px frame of 0.012 mm pixels given as a pixel -> fiducial matrix per photo)
+    stopped with exit 3 (TypeError). Its frame outline (frame_size_mm) now bounds the image:
+    the same points per photo as the camera with image_size_px."""
+    from toolbox.demo.samples import bundle_block
+
+    paths = bundle_block.make(tmp_path, {})
+    doc = yaml.safe_load(paths["bundle_project"].read_text())
+    cam = doc["cameras"][0]
+    (w, h), s = cam.pop("image_size_px"), cam.pop("pixel_size_mm")
+    matrix = [[s, 0.0, -w / 2 * s], [0.0, -s, h / 2 * s], [0.0, 0.0, 1.0]]
+    for photo in doc["photos"]:
+        photo["interior"] = {"transformation": "affine", "pixel_to_fiducial": matrix}
+    (tmp_path / "fid.yaml").write_text(yaml.safe_dump(doc, sort_keys=False))
+    common = {"INPUT": paths["bundle_measurements"], "CONTROL": paths["bundle_control"],
+              "PROJECT": tmp_path / "fid.yaml"}
+    toolbox.run("orientation:bundle", {**common, "OUTPUT": tmp_path / "adjusted.yaml"})
+    out = toolbox.run("orientation:bundle", {
+        **common, "OUTPUT": tmp_path / "again.yaml", "REFERENCE": tmp_path / "adjusted.yaml",
+        "REPORT": tmp_path / "again.json"})
+    assert out["STATISTICS"]["reference"]["points"] == 6
+    report = yaml.safe_load((tmp_path / "again.json").read_text())
+    # the points per photo of the same block with image_size_px [19167, 19167] (as measured)
+    assert [p["points"] for p in report["reference"]["photos"]] == [1, 3, 3, 1, 1, 2, 2, 1]
