@@ -180,3 +180,28 @@ def test_bundle_reference_of_a_film_block_without_image_size(tmp_path):
     report = yaml.safe_load((tmp_path / "again.json").read_text())
     # the points per photo of the same block with image_size_px [19167, 19167] (as measured)
     assert [p["points"] for p in report["reference"]["photos"]] == [1, 3, 3, 1, 1, 2, 2, 1]
+
+
+def test_rectify_refuses_a_raster_other_than_the_one_measured(tmp_path):
+    """rectify:image of a half-size copy of the photo whose 12 GCPs rectify:estimate fitted:
+    the full-size pixel transform warped the preview onto a quarter of the photo's ground, exit
+    0. The control points lie off the 200 x 150 px copy (G01 at (246.3, 83.8) px): refused
+    naming INPUT and TRANSFORM. The photo itself is still rectified."""
+    sys.path.insert(0, str(Path(__file__).parents[1] / "algorithms" / "rectify"))
+    import rectify_scene
+
+    photo, transform = rectify_scene.photo_and_transform(tmp_path, "uint8")
+    with rasterio.open(photo) as src:
+        data = src.read(out_shape=(1, src.height // 2, src.width // 2))
+        profile = src.profile | {"width": src.width // 2, "height": src.height // 2}
+    with rasterio.open(tmp_path / "half.tif", "w", **profile) as dst:
+        dst.write(data)
+    from toolbox.errors import ParameterError
+
+    for mode in ("warp", "gcps"):
+        with pytest.raises(ParameterError, match=r"INPUT .* is 200 x 150 px but control point "
+                                                 r"'G01' of TRANSFORM .* \(246\.\d+, 83\.\d+\) px"):
+            toolbox.run("rectify:image", {"INPUT": tmp_path / "half.tif", "TRANSFORM": transform,
+                                          "MODE": mode, "OUTPUT": tmp_path / f"h_{mode}.tif"})
+    toolbox.run("rectify:image", {"INPUT": photo, "TRANSFORM": transform,
+                                  "OUTPUT": tmp_path / "full.tif"})
