@@ -205,3 +205,25 @@ def test_rectify_refuses_a_raster_other_than_the_one_measured(tmp_path):
                                           "MODE": mode, "OUTPUT": tmp_path / f"h_{mode}.tif"})
     toolbox.run("rectify:image", {"INPUT": photo, "TRANSFORM": transform,
                                   "OUTPUT": tmp_path / "full.tif"})
+
+
+def test_dji_calibration_of_a_resized_copy_with_rewritten_exif_is_refused(tmp_path, orthority_data):
+    """Orthority's ODM frames are 1368 x 912 copies of 5472 x 3648 DJI photos; their XMP
+    calibration is in the original's pixels (CalibratedFocalLength 3666.67, optical centre
+    2736, 1824) and EXIF PixelXDimension still says 5472: focal_len 0.670 (OpenSfM's 0.666 for
+    these photos). A copy whose EXIF gives its own size (1368) was read unscaled, exit 0: focal
+    2.68 and the optical centre 1.5 image widths off the centre. Refused naming the tags."""
+    import subprocess
+
+    from toolbox.exchange import exif
+
+    source = orthority_data / "odm" / "images" / "100_0005_0018.tif"
+    spec = next(iter(exif.read_images([source]).cameras.values()))
+    assert spec["focal_len"] == pytest.approx(3666.666504 / 5472) and spec["cx"] == 0.0
+    copy = tmp_path / "100_0005_0018.tif"
+    subprocess.run(["gdal_translate", "-q", "-mo", "EXIF_PixelXDimension=1368", "-mo",
+                    "EXIF_PixelYDimension=912", str(source), str(copy)], check=True)
+    with pytest.raises(InputDataError, match=r"CalibratedOpticalCenterX/Y \(2736\.000000, "
+                                             r"1824\.000000\) px, read against EXIF "
+                                             r"PixelXDimension 1368"):
+        exif.read_images([copy])
