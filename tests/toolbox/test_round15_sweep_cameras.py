@@ -227,3 +227,20 @@ def test_dji_calibration_of_a_resized_copy_with_rewritten_exif_is_refused(tmp_pa
                                              r"1824\.000000\) px, read against EXIF "
                                              r"PixelXDimension 1368"):
         exif.read_images([copy])
+
+
+def test_control_predictions_refuse_a_preview(tmp_path):
+    """orientation:control predicted the control points in the camera's pixels and cut the
+    chips from the raster at those pixels: on half-size previews the chips showed other ground
+    (exit 0). Refused naming both sizes; the full-size photos are predicted at the camera's
+    pixel (the nadir point of p1 at the image centre (32, 24))."""
+    (tmp_path / "c.csv").write_text("id,X,Y,Z\nA,1688300,4799000,0\n")
+    project = _brown_block(tmp_path, 32, 24)
+    with pytest.raises(InputDataError, match="32 x 24 px but the camera 'lens' says 64 x 48"):
+        toolbox.run("orientation:control", {"PROJECT": project, "CONTROL": tmp_path / "c.csv",
+                                            "OUTPUT": tmp_path / "p.csv"})
+    project = _brown_block(tmp_path, 64, 48)
+    toolbox.run("orientation:control", {"PROJECT": project, "CONTROL": tmp_path / "c.csv",
+                                        "OUTPUT": tmp_path / "q.csv"})
+    rows = (tmp_path / "q.csv").read_text().splitlines()
+    assert rows[1].startswith("A,p1,32.0,24.0,predicted")
