@@ -244,3 +244,20 @@ def test_control_predictions_refuse_a_preview(tmp_path):
                                         "OUTPUT": tmp_path / "q.csv"})
     rows = (tmp_path / "q.csv").read_text().splitlines()
     assert rows[1].startswith("A,p1,32.0,24.0,predicted")
+
+
+@pytest.mark.parametrize("cx, cy", [(7.68, -3.84), (0.0, 0.6), (-0.51, 0.0)])
+def test_principal_point_off_the_image_is_refused(cx, cy):
+    """cx, cy are offsets from the image centre normalised by max(w, h): written in pixels
+    (7.68 for a 7.68 px offset) the principal point lay 4900 px off a 640 x 480 image and
+    orientation:footprints drew the photos' footprints far away, exit 0. The image's own
+    range (|cx| <= 0.5, |cy| <= 0.375 here) is accepted, its edge included."""
+    from toolbox.cameras import create_intrinsics
+
+    with pytest.raises(InputDataError, match=rf"principal point .* lies off the 640 x 480 px "
+                                             rf"image \(cx = {cx!r}, cy = {cy!r}\)"):
+        create_intrinsics({"type": "pinhole", "im_size": [640, 480], "focal_len": 0.75,
+                           "cx": cx, "cy": cy})
+    model = create_intrinsics({"type": "pinhole", "im_size": [640, 480], "focal_len": 0.75,
+                               "cx": 0.5, "cy": -0.375})
+    assert model.principal_point_px == (640.0, 0.0)
