@@ -255,7 +255,6 @@ def fit_image_size(photo: Photo, width: int, height: int, image: Any) -> Photo:
     return replace(photo, camera=replace(photo.camera, image_size_px=actual))
 
 
-
 def off_image(photos: Any, photo_ids: Any, xy: Any) -> np.ndarray:
     """Which pixel measurements (``xy`` (M, 2), ``(col, row)``) lie off their photo's image, more
     than half a pixel past its edge (``photos``: ``{id: Photo}``; photos not in it, or whose
