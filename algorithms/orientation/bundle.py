@@ -193,6 +193,7 @@ class BundleAdjustment(Algorithm):
         import numpy as np
 
         from toolbox.io.vector_write import write_layers
+        from toolbox.photogrammetry.photo import check_measured_pixels
         from toolbox.photogrammetry.project import save_project
         from toolbox.photogrammetry.rotation import to_radians
         from toolbox.photogrammetry.tables import load_project_parameter, write_json
@@ -212,8 +213,14 @@ class BundleAdjustment(Algorithm):
         project = load_project_parameter(params["PROJECT"])
         measurements = read_measurements(params["INPUT"], params["LAYER"],
                                          params["COORDINATES"])
+        if measurements.kind == "pixel":
+            check_measured_pixels(project.photos, measurements.point_ids, measurements.photo_ids,
+                                  measurements.xy)
         if params["CONTROL_INPUT"] is not None:
             extra = read_measurements(params["CONTROL_INPUT"], None, params["COORDINATES"],
+                                      "CONTROL_INPUT")
+            if extra.kind == "pixel":
+                check_measured_pixels(project.photos, extra.point_ids, extra.photo_ids, extra.xy,
                                       "CONTROL_INPUT")
             if extra.kind != measurements.kind:
                 raise self.fail("CONTROL_INPUT", f"has {extra.kind} coordinates but INPUT has "

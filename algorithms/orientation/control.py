@@ -86,6 +86,7 @@ class ControlTemplate(Algorithm):
         from toolbox.matching.chips import predict, write_chip
         from toolbox.matching.images import ImageSource
         from toolbox.matching.ortho_match import match_point
+        from toolbox.photogrammetry.photo import fit_image_size
         from toolbox.photogrammetry.surface import surface_for_photo
         from toolbox.photogrammetry.tables import ground_points, load_project_parameter, write_csv
 
@@ -116,6 +117,8 @@ class ControlTemplate(Algorithm):
                 raise InputDataError(f"PROJECT: the image {photo.image} of photo {photo.id!r} "
                                      "does not exist")
             source = ImageSource.open(photo.image, f"photo {photo.id!r}")
+            # predictions and chips are in the raster's pixels: they must be the camera's
+            photo = fit_image_size(photo, source.width, source.height, photo.image)
             surface = None
             if ortho is not None and params["DEM"] is not None:
                 surface = surface_for_photo(params["DEM"], photo)

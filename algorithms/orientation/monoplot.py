@@ -12,7 +12,9 @@ from toolbox.feedback import Feedback
 from toolbox.io.crs import common_crs
 from toolbox.parameters import Boolean, Enum, Integer, Number
 from toolbox.parameters.outputs import Layer, Output, OutputVector
-from toolbox.photogrammetry.collinearity import NO_INTERSECTION, OK, STATUS_NAMES
+from toolbox.photogrammetry.collinearity import NO_INTERSECTION, OK
+from toolbox.photogrammetry.collinearity import STATUS_NAMES as RAY_STATUS
+from toolbox.photogrammetry.photo import off_image
 from toolbox.photogrammetry.surface import dem_height_range, surface_for_photo
 from toolbox.photogrammetry.tables import write_json
 from toolbox.registry import register
@@ -24,6 +26,9 @@ from toolbox.ui.photogrammetry import (
     report_output,
     table_parameters,
 )
+
+OUTSIDE_IMAGE = max(RAY_STATUS) + 1  # a pixel off the photo's image: not a ray of the photo
+STATUS_NAMES = {**RAY_STATUS, OUTSIDE_IMAGE: "outside_image"}
 
 
 @register
@@ -40,8 +45,9 @@ class Monoplot(Algorithm):
     ray (reported as not_converged). Without a DEM the rays meet the plane Z = HEIGHT.
 
     OUTPUT layer ``points`` (PointZ): point_id, photo, status (ok, outside_dem, dem_nodata,
-    not_converged, ray_not_descending, no_intersection), iterations. Rays that do not meet the DEM
-    are flagged rows without geometry, never silent NaNs; FAIL_ON_MISS=true makes them an error.
+    not_converged, ray_not_descending, no_intersection; outside_image for a pixel off the photo's
+    image, measured on another raster), iterations. Rays that do not meet the DEM are flagged
+    rows without geometry, never silent NaNs; FAIL_ON_MISS=true makes them an error.
     """
 
     id = "orientation:monoplot"
@@ -82,18 +88,23 @@ class Monoplot(Algorithm):
 
         from toolbox.io.vector_write import write_layers
 
-        project, (ids, photo_ids, xy, kind), _ = measured_inputs(params)
+        project, (ids, photo_ids, xy, kind), _ = measured_inputs(params, on_image=False)
         dem = params["DEM"]
         crs = common_crs({"PROJECT": project.crs, "DEM": None if dem is None else dem.crs})
         measured_photos(project, photo_ids)
         xyz = np.full((len(ids), 3), np.nan)
         status = np.full(len(ids), OK, dtype=np.int8)
         iterations = np.zeros(len(ids), dtype=np.int32)
+        if kind == "pixel":  # measured on another raster: no ray through this photo
+            status[off_image(project.photos, photo_ids, xy)] = OUTSIDE_IMAGE
         z_range = None if dem is None else dem_height_range(dem, params["BAND"])
         groups = list(dict.fromkeys(photo_ids))
         for pid in feedback.iterate(groups, start=0, end=90):
             photo = project.photos[pid]
-            rows = np.array([k for k, p in enumerate(photo_ids) if p == pid])
+            rows = np.array([k for k, p in enumerate(photo_ids)
+                             if p == pid and status[k] != OUTSIDE_IMAGE], dtype=int)
+            if not len(rows):
+                continue
             pts = xy[rows]
             if dem is None:
                 xyz[rows] = photo.pixel_to_ground(pts, params["HEIGHT"], invalid="nan") \

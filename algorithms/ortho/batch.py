@@ -157,6 +157,7 @@ class OrthoBatch(Algorithm):
         from toolbox.ortho.metrics import nice_cell_size
         from toolbox.ortho.plan import check_geometry, lattice_grid, plan_photo, tilt_warning
         from toolbox.ortho.run import OrthoOptions
+        from toolbox.photogrammetry.photo import fit_image_size
         from toolbox.raster.grid_request import template_lattice
 
         executor = executor_of(params)
@@ -170,6 +171,7 @@ class OrthoBatch(Algorithm):
 
         def plan(photo: Any) -> tuple[Any, Any, str | None]:
             image = open_raster_info(image_path(photo, params["IMAGES"]), "IMAGES")
+            photo = fit_image_size(photo, image.width, image.height, image.path)
             check_geometry(photo)
             warning = tilt_warning(photo)
             return plan_photo(photo, dem, crs, band), image, warning

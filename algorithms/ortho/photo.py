@@ -169,6 +169,7 @@ class OrthoPhoto(Algorithm):
     def process(self, params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
         from toolbox.ortho.plan import check_geometry, plan_photo, tilt_warning
         from toolbox.ortho.run import OrthoOptions, orthorectify
+        from toolbox.photogrammetry.photo import fit_image_size
         from toolbox.photogrammetry.tables import write_json
 
         executor = executor_of(params)  # a bad address is refused before any work
@@ -179,6 +180,8 @@ class OrthoPhoto(Algorithm):
             return {"OUTPUT": params["OUTPUT"], "OCCLUSION_MASK": None, "INCIDENCE": None,
                     "REPORT": params["REPORT"], "STATISTICS": report}
         photo, crs, output_crs = oriented_photo(params)
+        info = params["INPUT"]
+        photo = fit_image_size(photo, info.width, info.height, info.path)
         if crs is None and output_crs is None and params["DEM"].crs is not None:
             from toolbox.io.crs import crs_label
 

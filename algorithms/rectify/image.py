@@ -125,6 +125,7 @@ class RectifyImage(Algorithm):
             raise ParameterError("PIXEL_TO_IMAGE", "does not apply: the transform maps pixels "
                                  "(image_units = pixels), not image mm")
         matrix = pixel_to_ground_matrix(model, p2i)
+        self._points_on_photo(model, p2i, info)
         tags = {"RECTIFY_MODEL": model.model,
                 "RECTIFY_PIXEL_TO_GROUND": json.dumps(matrix.tolist()),
                 "RECTIFY_PIXEL_CONVENTION": "col,row from the top-left corner; centres at +0.5"}
@@ -178,6 +179,30 @@ class RectifyImage(Algorithm):
             "resampling": params["RESAMPLING"], "outside": params["OUTSIDE"],
             "pixel_to_ground": matrix.tolist(), "nan_cells": nan_cells.count,
             **stats.as_dict()}}
+
+    @staticmethod
+    def _points_on_photo(model: RectificationModel, p2i, info) -> None:
+        """The transform's control and check points were measured on the photo: one off
+        INPUT's pixels (more than a pixel past its edge) says INPUT is another raster than the
+        one measured (a preview, a crop, a turned copy) and the transform would warp it in
+        silence onto the wrong ground."""
+        from toolbox.transforms.plane import apply_homography
+
+        points = [p for p in model.control_points() if p.get("image") is not None]
+        if not points or (model.image_units == "mm" and p2i is None):
+            return
+        image = np.array([p["image"] for p in points], dtype="float64").reshape(-1, 2)
+        if model.image_units == "mm":
+            image = apply_homography(np.linalg.inv(p2i), image)
+        off = ~((image >= -1.0) & (image <= np.array([info.width, info.height]) + 1.0)).all(axis=1)
+        if off.any():
+            k = int(np.flatnonzero(off)[0])
+            raise ParameterError(
+                "INPUT", f"{info} is {info.width} x {info.height} px but control point "
+                f"{points[k].get('id')!r} of TRANSFORM '{model.path}' was measured at "
+                f"({image[k, 0]:g}, {image[k, 1]:g}) px ({int(off.sum())} of {len(points)} "
+                "points off the photo): the transform was estimated on another raster (a "
+                "scaled, cropped or turned copy?)")
 
     @staticmethod
     def _gcps(params, model: RectificationModel, p2i, tags, feedback: Feedback):

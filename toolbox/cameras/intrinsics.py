@@ -102,6 +102,14 @@ class Intrinsics:
         if not (math.isfinite(fx) and math.isfinite(fy) and fx > 0 and fy > 0):
             raise InputDataError(f"camera {self.name!r}: the focal length must be > 0, got "
                                  f"{self.focal_px!r} px")
+        px, py = self.principal_point_px
+        if not (0.0 <= px <= w and 0.0 <= py <= h):  # cx, cy in pixels or mm, not normalised
+            given = ", ".join(f"{k} = {self.spec[k]!r}" for k in ("cx", "cy") if k in self.spec)
+            raise InputDataError(
+                f"camera {self.name!r}: the principal point ({px:.6g}, {py:.6g}) px lies off the "
+                f"{w} x {h} px image" + (f" ({given})" if given else "") + ": cx, cy are "
+                "offsets from the image centre normalised by max(width, height) (Orthority's "
+                "and OpenSfM's convention), not pixels or mm")
         extra = set(self.coefficients) - set(terms)
         if extra:
             raise InputDataError(f"camera {self.name!r}: a {self.kind} camera has no "

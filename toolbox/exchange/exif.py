@@ -27,6 +27,9 @@ from toolbox.errors import InputDataError
 from toolbox.exchange import geodesy
 from toolbox.exchange.model import OrientationSet, PhotoOrientation, check_camera, opk_from_matrix
 
+#: largest offset of a calibrated optical centre from the image centre (fraction of the size)
+MAX_CENTRE_OFFSET = 0.25
+
 
 def _rational(text: str | None) -> list[float]:
     return [float(v) for v in re.findall(r"[-+]?\d+(?:\.\d*)?(?:[eE][-+]?\d+)?", text or "")]
@@ -90,6 +93,18 @@ def read_images(paths: Sequence[str | Path], crs: Any = None) -> OrientationSet:
                            - w / 2) / m,
                     "cy": (float(xmp.get("CalibratedOpticalCenterY", 0)) * scale - h / 2) / m
                     if "CalibratedOpticalCenterY" in xmp else 0.0}
+            # the calibration is in pixels of the sensor's full size (PixelXDimension): a
+            # resized copy whose EXIF was rewritten to its own size scales it wrongly, which
+            # puts the optical centre far off the image's centre
+            off = max(abs(spec["cx"]) * m / w, abs(spec["cy"]) * m / h)
+            if off > MAX_CENTRE_OFFSET:
+                raise InputDataError(
+                    f"{path.name}: XMP CalibratedOpticalCenterX/Y "
+                    f"({xmp.get('CalibratedOpticalCenterX')}, {xmp.get('CalibratedOpticalCenterY')}"
+                    f") px, read against EXIF PixelXDimension {full_w}, put the optical centre "
+                    f"{off:.0%} of the image size off the centre of the {w} x {h} px image: the "
+                    "calibration is in pixels of a larger original (a resized copy whose EXIF "
+                    "gives its own size?); use the original image or give its camera")
         elif tags.get("FocalLengthIn35mmFilm"):
             spec = {"type": "pinhole", "im_size": [w, h],
                     "focal_len": _rational(tags["FocalLengthIn35mmFilm"])[0] / 36.0}

@@ -5,11 +5,12 @@ XML (Metashape manual, appendix C "Camera models"; the export's layout):
 
 - ``<sensor>``: ``<resolution width height>`` and a ``<calibration>`` (the ``adjusted`` one when
   several) with ``f`` (px), ``cx, cy`` (px, offsets from the image centre, y down), ``b1, b2``
-  (affinity, skew), ``k1..k4``, ``p1, p2``. Frame sensors become ``brown``/``opencv`` specs with
+  (affinity, skew), ``k1..k4``, ``p1..p4``. Frame sensors become ``brown``/``opencv`` specs with
   ``focal_len = [f + b1, f] / max(w, h)`` and OpenCV ``p1 = P2``, ``p2 = P1`` (Metashape names the
   tangential terms the other way round); fisheye sensors become ``fisheye`` (Metashape's
-  equidistant model with k1..k4 is OpenCV's). A skew ``b2`` or radial ``k4`` on a frame sensor has
-  no place in the schema: refused when it moves a corner pixel by more than 0.01 px.
+  equidistant model with k1..k4 is OpenCV's). A skew ``b2``, radial ``k4`` or the tangential
+  terms' radial factor ``(1 + P3·r² + P4·r⁴)`` on a frame sensor have no place in the schema:
+  refused when they move a corner pixel by more than 0.01 px.
 - ``<camera label transform>``: the 4x4 camera -> chunk matrix, OpenCV camera axes (x right,
   y down, z forward); cameras without a transform (not aligned) are listed without orientation.
 - a camera's ``component_id`` (Metashape 1.6 and later) puts its component's ``<transform>``
@@ -59,22 +60,30 @@ def _sensor_spec(sensor, where: str) -> tuple[str, dict[str, Any]]:
     kind = (cal.get("type") or sensor.get("type") or "frame").lower()
     k = [_float(cal, f"k{i}") for i in (1, 2, 3, 4)]
     p1, p2 = _float(cal, "p1"), _float(cal, "p2")
+    p3, p4 = _float(cal, "p3"), _float(cal, "p4")
     corner = (w / 2) ** 2 + (h / 2) ** 2
     spec: dict[str, Any] = {"im_size": [w, h], "focal_len": [(f + b1) / m, f / m]
                             if b1 else f / m, "cx": _float(cal, "cx") / m,
                             "cy": _float(cal, "cy") / m}
     if kind == "fisheye":
-        if p1 or p2 or b2:
-            raise InputDataError(f"{where}: fisheye sensor {name!r} has p1/p2/b2 terms, which "
+        if p1 or p2 or p3 or p4 or b2:
+            raise InputDataError(f"{where}: fisheye sensor {name!r} has p1-p4/b2 terms, which "
                                  "the fisheye model lacks")
         spec |= {"type": "fisheye", "k1": k[0], "k2": k[1], "k3": k[2], "k4": k[3]}
     elif kind == "frame":
         skew_px = abs(b2) * np.sqrt(corner) / f
         k4_px = abs(k[3]) * (corner / f ** 2) ** 4 * np.sqrt(corner)
-        if skew_px > NEGLIGIBLE_PX or k4_px > NEGLIGIBLE_PX:
-            raise InputDataError(f"{where}: sensor {name!r} has skew b2 = {b2} or k4 = {k[3]} "
-                                 f"(up to {max(skew_px, k4_px):.3g} px at the corners), which the "
-                                 "Brown/OpenCV camera schema cannot hold")
+        # Metashape: tangential (P1(r² + 2x²) + 2P2xy)(1 + P3r² + P4r⁴), likewise y
+        x, y = np.array([w / 2, h / 2]) / f  # a corner, normalised (the others by symmetry)
+        r2 = x * x + y * y
+        tangential = max(abs(p1) * (r2 + 2 * x * x) + 2 * abs(p2 * x * y),
+                         abs(p2) * (r2 + 2 * y * y) + 2 * abs(p1 * x * y))
+        p34_px = tangential * (abs(p3) * r2 + abs(p4) * r2 * r2) * f
+        if max(skew_px, k4_px, p34_px) > NEGLIGIBLE_PX:
+            raise InputDataError(f"{where}: sensor {name!r} has skew b2 = {b2}, k4 = {k[3]} or "
+                                 f"p3 = {p3}, p4 = {p4} (up to "
+                                 f"{max(skew_px, k4_px, p34_px):.3g} px at the corners), which "
+                                 "the Brown/OpenCV camera schema cannot hold")
         spec |= {"type": "brown", "k1": k[0], "k2": k[1], "k3": k[2], "p1": p2, "p2": p1}
     else:
         raise InputDataError(f"{where}: sensor {name!r} has type {kind!r}; supported: frame, "

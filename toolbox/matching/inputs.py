@@ -8,6 +8,7 @@ from pathlib import Path
 from toolbox.errors import InputDataError
 from toolbox.matching.block import BlockPhoto
 from toolbox.matching.images import ImageSource
+from toolbox.photogrammetry.photo import fit_image_size
 
 IMAGE_SUFFIXES = (".tif", ".tiff", ".jpg", ".jpeg", ".png", ".jp2", ".vrt")
 
@@ -22,8 +23,10 @@ def photos_from_project(project, name: str = "PROJECT") -> tuple[list[BlockPhoto
         if not Path(photo.image).exists():
             raise InputDataError(f"{name}: the image {photo.image} of photo {photo.id!r} does not "
                                  "exist")
-        photos.append(BlockPhoto(photo.id, ImageSource.open(photo.image, f"{name} photo "
-                                                            f"{photo.id!r}"), photo))
+        source = ImageSource.open(photo.image, f"{name} photo {photo.id!r}")
+        # tie points are measured in the raster's pixels: they must be the camera's
+        photo = fit_image_size(photo, source.width, source.height, photo.image)
+        photos.append(BlockPhoto(photo.id, source, photo))
     return photos, skipped
 
 

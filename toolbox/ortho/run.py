@@ -83,17 +83,14 @@ def orthorectify(photo: Any, image: Any, dem: Any, grid: Any, output: Any,
 
     from toolbox.feedback import Feedback
     from toolbox.io.crs import crs_label
+    from toolbox.photogrammetry.photo import fit_image_size
     from toolbox.raster.resample import single_threaded_opencv
     from toolbox.raster.warp import warp_to_geotiff
     from toolbox.raster.writer import RasterWriter
 
     options = options or OrthoOptions()
     feedback = feedback or Feedback()
-    size = photo.camera.image_size_px
-    if size is not None and tuple(size) != (image.width, image.height):
-        raise InputDataError(f"photo {photo.id!r}: the raster {image} is {image.width} x "
-                             f"{image.height} px but the camera {photo.camera.name!r} says "
-                             f"{size[0]} x {size[1]}: wrong image or camera")
+    photo = fit_image_size(photo, image.width, image.height, getattr(image, "path", image))
     compiled = use_compiled() if options.compiled is None else options.compiled
     sampler = DemSampler(dem, grid.crs, options.band, options.dem_factor)
     sampler.compiled = compiled

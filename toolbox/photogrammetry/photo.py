@@ -17,7 +17,7 @@ distortion, and the pixel methods go through the model (:meth:`Photo.sensor`).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -195,3 +195,97 @@ class Photo:
         raise InputDataError(f"photo {self.id!r}: the image format is unknown (give the camera "
                              f"{self.camera.name!r} a frame_size_mm, or image_size_px with an "
                              "interior orientation or pixel size)")
+
+
+#: how far (fraction of the raster's longer side) a fiducial mark may lie outside the raster
+FIDUCIAL_MARGIN = 0.05
+
+
+def size_hint(actual: tuple[int, int], declared: tuple[int, int]) -> str:
+    """What a raster of size ``actual`` is likely to be for a camera of size ``declared``: turned
+    90 degrees, a scaled copy (a preview), a crop; '' when nothing fits."""
+    (w, h), (cw, ch) = actual, declared
+    if (w, h) == (ch, cw):
+        return " (the raster is turned 90 degrees: give it in the camera's orientation)"
+    if abs(w * ch - h * cw) <= max(cw, ch) and w != cw:  # same shape, other size
+        return (f" (a copy scaled by {w / cw:.4g}, e.g. a preview: give the full-size photo the "
+                "camera was calibrated on)")
+    if w <= cw and h <= ch:
+        return " (a crop: give the whole photo)"
+    return ""
+
+
+def fit_image_size(photo: Photo, width: int, height: int, image: Any) -> Photo:
+    """The photo checked against the raster ``image`` (``width`` x ``height`` px) it is read from.
+
+    A camera that states its size (every camera model; a film camera's ``image_size_px``) must
+    have the raster's: another size (a preview, a crop, a photo turned 90 degrees) is an
+    InputDataError naming both sizes, as its pixels would be read in another pixel frame. A film
+    camera without ``image_size_px`` takes the raster's size (the photo returned has it), after
+    a check that its fiducial marks, through the interior orientation, lie on the raster (a
+    fiducial fit measured on another scan is refused)."""
+    size = getattr(photo.camera, "image_size_px", None)
+    actual = (int(width), int(height))
+    if size is not None:
+        if tuple(size) != actual:
+            raise InputDataError(
+                f"photo {photo.id!r}: the raster '{image}' is {actual[0]} x {actual[1]} px but the "
+                f"camera {photo.camera.name!r} says {size[0]} x {size[1]}"
+                f"{size_hint(actual, tuple(size))}: wrong image or camera")
+        return photo
+    if photo.is_model:  # pragma: no cover - models always have im_size
+        return photo
+    transform = photo.interior
+    marks = photo.camera.fiducials_mm
+    if transform is not None and marks:
+        ids = list(marks)
+        xy = np.array([marks[k] for k in ids], dtype="float64").reshape(-1, 2)
+        px = np.column_stack([xy, np.ones(len(xy))]) @ transform.fiducial_to_pixel.T
+        px = px[:, :2] / px[:, 2:]
+        margin = FIDUCIAL_MARGIN * max(actual)
+        out = ~((px[:, 0] >= -margin) & (px[:, 0] <= actual[0] + margin)
+                & (px[:, 1] >= -margin) & (px[:, 1] <= actual[1] + margin))
+        if out.any():
+            k = int(np.flatnonzero(out)[0])
+            raise InputDataError(
+                f"photo {photo.id!r}: its interior orientation puts fiducial {ids[k]!r} at "
+                f"({px[k, 0]:.1f}, {px[k, 1]:.1f}) px, off the raster '{image}' ({actual[0]} x "
+                f"{actual[1]} px): the fiducials were measured on another scan (another size, "
+                "a crop or turned); measure them on this one, or give the camera image_size_px")
+    return replace(photo, camera=replace(photo.camera, image_size_px=actual))
+
+
+def off_image(photos: Any, photo_ids: Any, xy: Any) -> np.ndarray:
+    """Which pixel measurements (``xy`` (M, 2), ``(col, row)``) lie off their photo's image, more
+    than half a pixel past its edge (``photos``: ``{id: Photo}``; photos not in it, or whose
+    camera states no image size, are never off)."""
+    xy = np.asarray(xy, dtype="float64").reshape(-1, 2)
+    size = np.full((len(xy), 2), np.inf)
+    for k, pid in enumerate(photo_ids):
+        photo = photos.get(pid) if hasattr(photos, "get") else None
+        wh = None if photo is None else getattr(photo.camera, "image_size_px", None)
+        if wh is not None:
+            size[k] = wh
+    with np.errstate(invalid="ignore"):
+        return ~((xy >= -0.5) & (xy <= size + 0.5)).all(axis=1)
+
+
+def check_measured_pixels(photos: Any, point_ids: Any, photo_ids: Any, xy: Any,
+                          name: str = "INPUT") -> None:
+    """Pixel measurements must lie on their photo's image (:func:`off_image`): a point off the
+    image was measured on another raster (a scaled, cropped or turned copy, or another photo's)
+    and its ray would be used in silence. InputDataError naming ``name``, the point, its pixel
+    and the camera's size."""
+    off = np.flatnonzero(off_image(photos, photo_ids, xy))
+    if len(off):
+        k = int(off[0])
+        pid, (col, row) = photo_ids[k], np.asarray(xy, dtype="float64").reshape(-1, 2)[k]
+        photo = photos[pid]
+        w, h = photo.camera.image_size_px
+        turned = 0 <= col <= h and 0 <= row <= w
+        raise InputDataError(
+            f"{name}: point {point_ids[k]!r} of photo {pid!r} is measured at ({col:g}, {row:g}) "
+            f"px, off the {w} x {h} px image of camera {photo.camera.name!r}"
+            + (f" ({len(off)} points in all)" if len(off) > 1 else "") + ": it was measured on "
+            "another raster (" + ("turned 90 degrees? " if turned else "")
+            + "a scaled or cropped copy, or another photo's)")

@@ -365,18 +365,15 @@ def resample_image(geometry: EpipolarGeometry, photo: Any, side: int, image: Pat
 
     import rasterio
 
+    from toolbox.photogrammetry.photo import fit_image_size
     from toolbox.raster.warp import warp_to_geotiff
 
-    size = photo.camera.image_size_px
-    if size is not None:  # another photo's image would be warped without a word
-        with warnings.catch_warnings():
+    if photo.camera.image_size_px is not None:  # another photo's image would be warped
+        with warnings.catch_warnings():            # without a word
             warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
             with rasterio.open(image) as src:
                 actual = (src.width, src.height)
-        if tuple(size) != actual:
-            raise InputDataError(f"photo {photo.id!r}: the raster '{image}' is {actual[0]} x "
-                                 f"{actual[1]} px but the camera {photo.camera.name!r} says "
-                                 f"{size[0]} x {size[1]}: wrong image or camera")
+        fit_image_size(photo, *actual, image)
     tags = {"EPIPOLAR_PHOTO": photo.id, "EPIPOLAR_SIDE": ("left", "right")[side]}
     return warp_to_geotiff(image, EpipolarMap(geometry, pixel_photo or photo, side),
                            geometry.grid(side),

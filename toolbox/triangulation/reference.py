@@ -44,7 +44,16 @@ def parse_tolerance(text: str | None, name: str = "REFERENCE_TOLERANCE"
 
 
 def _inside(photo: Any, pixels: np.ndarray) -> np.ndarray:
-    width, height = photo.camera.image_size_px
+    """Which pixels lie on the photo: its image size, or, for a film camera without one (a
+    scan of any size), its frame outline (frame_size_mm, else the fiducials' box) in pixels."""
+    size = photo.camera.image_size_px
+    if size is None:
+        import shapely
+
+        outline = photo.require_pixel_transform().image_to_pixel(photo.frame_outline_mm())
+        with np.errstate(invalid="ignore"):
+            return shapely.contains_xy(shapely.Polygon(outline), pixels[:, 0], pixels[:, 1])
+    width, height = size
     return ((pixels[:, 0] > 0) & (pixels[:, 0] < width) & (pixels[:, 1] > 0)
             & (pixels[:, 1] < height))
 

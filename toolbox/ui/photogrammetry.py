@@ -108,13 +108,18 @@ def rpc_gcps(params: Mapping[str, Any]) -> tuple[tuple, tuple]:
             ground_points(params["CONTROL"]))
 
 
-def measured_inputs(params: Mapping[str, Any], control: bool = False) -> tuple:
+def measured_inputs(params: Mapping[str, Any], control: bool = False,
+                    on_image: bool = True) -> tuple:
     """``(project, measurements, control points)`` read from PROJECT, INPUT (LAYER,
-    COORDINATES) and, with ``control``, CONTROL (else None)."""
+    COORDINATES) and, with ``control``, CONTROL (else None). With ``on_image``, a pixel
+    measured off its photo's image is an InputDataError naming INPUT."""
+    from toolbox.photogrammetry.photo import check_measured_pixels
     from toolbox.photogrammetry.tables import ground_points, image_measurements, load_project_parameter
 
     project = load_project_parameter(params["PROJECT"])
     measurements = image_measurements(params["INPUT"], params["LAYER"], params["COORDINATES"])
+    if on_image and measurements[3] == "pixel":
+        check_measured_pixels(project.photos, *measurements[:3])
     return project, measurements, ground_points(params["CONTROL"], crs=project.crs) \
         if control else None
 

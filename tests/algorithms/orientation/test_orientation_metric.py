@@ -178,9 +178,12 @@ def test_resection_recovers_the_printed_orientation(tmp_path):
     for pid in STRIP1:
         photo = project.photos[pid]
         eo = photo.exterior
-        xyz = np.column_stack([eo.x0 + rng.uniform(-800, 800, 12), eo.y0 + rng.uniform(-800, 800, 12),
-                               rng.uniform(250, 420, 12)])
-        px = independent_pixels(xyz, eo, photo.camera.c, f2p[pid]) + rng.normal(0, NOISE_PX, (12, 2))
+        xyz = np.column_stack([eo.x0 + rng.uniform(-800, 800, 120), eo.y0 + rng.uniform(-800, 800, 120),
+                               rng.uniform(250, 420, 120)])
+        px = independent_pixels(xyz, eo, photo.camera.c, f2p[pid])
+        on = ((px >= 0) & (px <= photo.camera.image_size_px)).all(axis=1)  # measurable points
+        xyz = xyz[on][:12]
+        px = px[on][:12] + rng.normal(0, NOISE_PX, (12, 2))
         for k, (p, g) in enumerate(zip(px, xyz, strict=True)):
             rows.append(f"{pid}_g{k},{pid},{p[0]},{p[1]}\n")
             ground_rows.append(f"{pid}_g{k},{g[0]},{g[1]},{g[2]}\n")
