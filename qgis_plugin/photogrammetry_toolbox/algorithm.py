@@ -264,8 +264,13 @@ class ToolboxAlgorithm(QgsProcessingAlgorithm):
                 elif kind == "result":
                     state["result"] = item
 
+        def read_stdout():  # read as it comes: a result over the pipe's 64 KB would block
+            state["stdout"].append(process.stdout.read())  # the toolbox (and QGIS) for ever
+
         reader = threading.Thread(target=read_stderr, daemon=True)
         reader.start()
+        out_reader = threading.Thread(target=read_stdout, daemon=True)
+        out_reader.start()
         while True:
             try:
                 process.wait(timeout=0.2)
@@ -279,8 +284,10 @@ class ToolboxAlgorithm(QgsProcessingAlgorithm):
                         process.kill()
                     break
         reader.join(timeout=5)
-        stdout = process.stdout.read() if process.stdout else ""
-        for line in stdout.splitlines():
+        out_reader.join(timeout=5)
+        for stream in (process.stdout, process.stderr):
+            stream.close()
+        for line in "".join(state["stdout"]).splitlines():
             item = parse_progress(line)
             if item and item.get("type") == "result":
                 state["result"] = item
