@@ -9,6 +9,7 @@ behind). Multi-layer GeoPackage outputs have every layer loaded into the project
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import threading
 
@@ -34,6 +35,7 @@ from qgis.core import (
     QgsProcessingParameterRasterDestination,
     QgsProcessingParameterRasterLayer,
     QgsProcessingParameterString,
+    QgsProviderRegistry,
 )
 
 from .toolbox_cli import EXTENT_HELP, clean_help, command_line, parse_progress, qgis_id, short_label
@@ -124,6 +126,16 @@ def make_parameter(p: dict):
     return param
 
 
+def layer_file(layer) -> tuple[str, dict]:
+    """The local file a map layer reads ("" when none: memory, database, web, /vsi...) and the
+    parts of its source URI (QGIS's decodeUri: path, layerName, layerId, geometryType...)."""
+    if layer is None:
+        return "", {}
+    parts = dict(QgsProviderRegistry.instance().decodeUri(layer.providerType(), layer.source()))
+    path = str(parts.get("path") or "")
+    return (path if path and not path.startswith("/vsi") and os.path.exists(path) else ""), parts
+
+
 class ToolboxAlgorithm(QgsProcessingAlgorithm):
     """A toolbox algorithm seen from QGIS."""
 
@@ -201,7 +213,20 @@ class ToolboxAlgorithm(QgsProcessingAlgorithm):
                 parameters, name, context, VECTOR_FORMATS, "gpkg", feedback)
             if not path:
                 return None
-            return f"{path}|layername={layer}" if layer and "|" not in path else path
+            if "|" in path:
+                return path
+            # QGIS hands over the layer's own file when it needs no copy: keep which layer of it
+            # (layerid= when the URI has no name) and which geometry type (a GeoJSON/DXF
+            # sublayer), or the toolbox reads the file's first layer, all geometries
+            file, parts = layer_file(self.parameterAsVectorLayer(parameters, name, context))
+            own = bool(file) and os.path.abspath(file) == os.path.abspath(path)
+            if layer:
+                path += f"|layername={layer}"
+            elif own and parts.get("layerId") not in (None, ""):
+                path += f"|layerid={parts['layerId']}"
+            if own and parts.get("geometryType"):
+                path += f"|geometrytype={parts['geometryType']}"
+            return path
         if kind == "raster":
             layer = self.parameterAsRasterLayer(parameters, name, context)
             return None if layer is None else layer.source()

@@ -56,3 +56,71 @@ def test_a_result_larger_than_the_pipe_does_not_hang_the_run(tmp_path):
     except subprocess.TimeoutExpired:
         pytest.fail("the run hung on a 300 KB stdout")
     assert got == {"outputs": {"INFO": 1}, "errors": []}
+
+
+VALUE_SCRIPT = """
+spec = {{"id": "dem:nearest", "parameters": {params!r}}}
+alg = ToolboxAlgorithm(spec, "tb")
+alg.initAlgorithm()
+context = QgsProcessingContext(); context.setProject(QgsProject.instance())
+feedback = QgsProcessingFeedback()
+out = {{}}
+for label, params in {cases!r}.items():
+    resolved = {{}}
+    for key, value in params.items():
+        if isinstance(value, dict) and "layer" in value:  # a project layer, maybe with selection
+            layer = QgsVectorLayer(value["layer"], label, "ogr")
+            QgsProject.instance().addMapLayer(layer)
+            if value.get("select"):
+                layer.selectByExpression(value["select"])
+                value = QgsProcessingFeatureSourceDefinition(layer.id(), True)
+            else:
+                value = layer
+        resolved[key] = value
+    try:
+        out[label] = {{p["name"]: alg._value(p, resolved, context, feedback)
+                      for p in spec["parameters"]}}
+    except QgsProcessingException as exc:
+        out[label] = {{"error": str(exc)}}
+done(out)
+"""
+
+
+def plugin_values(tmp_path: Path, params: list[dict], cases: dict) -> dict:
+    """The toolbox values the plugin makes of each case's QGIS parameters."""
+    return pyqgis(tmp_path, VALUE_SCRIPT.format(params=params, cases=cases))
+
+
+def _points(path: Path, layer: str, heights: list[float]) -> None:
+    import geopandas as gpd
+    from shapely.geometry import Point
+
+    gpd.GeoDataFrame({"h": heights}, geometry=[Point(10 * i, 0, h) for i, h in
+                                               enumerate(heights)], crs="EPSG:3003").to_file(
+        path, layer=layer, driver="GPKG")
+
+
+@needs_qgis
+def test_the_layer_and_geometry_type_of_a_qgis_layer_reach_the_toolbox(tmp_path):
+    """A GeoPackage layer opened as ``file.gpkg|layerid=1`` (layer b) was read as the file's
+    first layer (a): a DEM of the wrong heights, exit 0; a GeoJSON's point sublayer
+    (``|geometrytype=Point``) was refused as 'must contain points' (its line went along)."""
+    from toolbox.io.vector_points import read_points_xyz
+
+    gpkg = tmp_path / "two layers.gpkg"
+    _points(gpkg, "a", [0.0, 1.0, 2.0])
+    _points(gpkg, "b", [100.0, 101.0, 102.0])
+    mixed = tmp_path / "mixed.geojson"
+    features = [{"type": "Feature", "properties": {},
+                 "geometry": {"type": "Point", "coordinates": [10.0 * i, 0.0, 5.0 + i]}}
+                for i in range(3)]
+    features.append({"type": "Feature", "properties": {}, "geometry": {
+        "type": "LineString", "coordinates": [[0.0, 5.0, 500.0], [20.0, 5.0, 500.0]]}})
+    mixed.write_text(json.dumps({"type": "FeatureCollection", "features": features}))
+    got = plugin_values(tmp_path, [{"name": "INPUT", "type": "vector"}], {
+        "by_id": {"INPUT": {"layer": f"{gpkg}|layerid=1"}},
+        "by_name": {"INPUT": {"layer": f"{gpkg}|layername=b"}},
+        "points_of_mixed": {"INPUT": {"layer": f"{mixed}|geometrytype=Point"}}})
+    for label in ("by_id", "by_name"):
+        assert sorted(read_points_xyz(got[label]["INPUT"])[:, 2]) == [100.0, 101.0, 102.0], label
+    assert sorted(read_points_xyz(got["points_of_mixed"]["INPUT"])[:, 2]) == [5.0, 6.0, 7.0]
