@@ -18,6 +18,7 @@ from qgis.core import (
     QgsProcessingAlgorithm,
     QgsProcessingContext,
     QgsProcessingException,
+    QgsProcessingFeatureSourceDefinition,
     QgsProcessingOutputNumber,
     QgsProcessingOutputString,
     QgsProcessingParameterBoolean,
@@ -35,6 +36,8 @@ from qgis.core import (
     QgsProcessingParameterRasterDestination,
     QgsProcessingParameterRasterLayer,
     QgsProcessingParameterString,
+    QgsProcessingUtils,
+    QgsProperty,
     QgsProviderRegistry,
 )
 
@@ -218,7 +221,7 @@ class ToolboxAlgorithm(QgsProcessingAlgorithm):
             # QGIS hands over the layer's own file when it needs no copy: keep which layer of it
             # (layerid= when the URI has no name) and which geometry type (a GeoJSON/DXF
             # sublayer), or the toolbox reads the file's first layer, all geometries
-            file, parts = layer_file(self.parameterAsVectorLayer(parameters, name, context))
+            file, parts = layer_file(self._vector_layer(parameters, name, context))
             own = bool(file) and os.path.abspath(file) == os.path.abspath(path)
             if layer:
                 path += f"|layername={layer}"
@@ -247,6 +250,7 @@ class ToolboxAlgorithm(QgsProcessingAlgorithm):
     def processAlgorithm(self, parameters, context, feedback):
         values = {p["name"]: self._value(p, parameters, context, feedback)
                   for p in self.spec.get("parameters", [])}
+        self._check_outputs_are_not_inputs(parameters, context, values)
         args = command_line(self.executable, self.spec["id"], values)
         feedback.pushCommandInfo(" ".join(args))
         result, errors = self._run(args, feedback)
@@ -260,6 +264,51 @@ class ToolboxAlgorithm(QgsProcessingAlgorithm):
             if isinstance(value, (dict, list)):
                 outputs[key] = json.dumps(value)
         return outputs
+
+    def _vector_layer(self, parameters, name, context):
+        """The map layer of a vector parameter, also when given with 'Selected features only'
+        (a source definition, for which parameterAsVectorLayer answers None)."""
+        value = parameters.get(name)
+        if isinstance(value, QgsProcessingFeatureSourceDefinition):
+            source = value.source
+            source = source.staticValue() if isinstance(source, QgsProperty) else source
+            return QgsProcessingUtils.mapLayerFromString(str(source), context)
+        return self.parameterAsVectorLayer(parameters, name, context)
+
+    def _input_files(self, parameters, context):
+        """(parameter name, file) of every input layer read from a local file."""
+        for p in self.spec.get("parameters", []):
+            name, kind = p["name"], p["type"]
+            if parameters.get(name) in (None, ""):
+                continue
+            if kind == "vector":
+                layers = [self._vector_layer(parameters, name, context)]
+            elif kind == "raster":
+                layers = [self.parameterAsRasterLayer(parameters, name, context)]
+            elif kind == "multiple" and p.get("layer_type") == "raster":
+                layers = self.parameterAsLayerList(parameters, name, context)
+            else:
+                continue  # files and folders go to the toolbox as given: it checks them itself
+            for layer in layers:
+                path = layer_file(layer)[0]
+                if path:
+                    yield name, path
+
+    def _check_outputs_are_not_inputs(self, parameters, context, values) -> None:
+        """An output on an input layer's file is refused before anything runs: QGIS hands the
+        toolbox a temporary copy of a layer with a selection or a filter, so the toolbox's own
+        check cannot see that the output would replace the user's file."""
+        outputs = [(p["name"], values.get(p["name"])) for p in self.spec.get("parameters", [])
+                   if p["type"] in ("output_raster", "output_vector", "output_file")]
+        outputs = [(name, str(path)) for name, path in outputs if path]
+        if not outputs:
+            return
+        for in_name, in_path in self._input_files(parameters, context):
+            for out_name, out_path in outputs:
+                if os.path.realpath(out_path) == os.path.realpath(in_path):
+                    raise QgsProcessingException(
+                        f"{out_name} '{out_path}' is also the input {in_name}; an input is never "
+                        "overwritten: choose another output path")
 
     def _run(self, args, feedback):
         process = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE,

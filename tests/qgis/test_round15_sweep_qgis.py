@@ -124,3 +124,39 @@ def test_the_layer_and_geometry_type_of_a_qgis_layer_reach_the_toolbox(tmp_path)
     for label in ("by_id", "by_name"):
         assert sorted(read_points_xyz(got[label]["INPUT"])[:, 2]) == [100.0, 101.0, 102.0], label
     assert sorted(read_points_xyz(got["points_of_mixed"]["INPUT"])[:, 2]) == [5.0, 6.0, 7.0]
+
+
+@needs_qgis
+def test_an_output_on_the_file_of_a_selected_input_layer_is_refused(tmp_path):
+    """'Selected features only' on layer a of data.gpkg, OUTPUT data.gpkg: QGIS handed the
+    toolbox a temporary copy, so its 'an input is never overwritten' check could not see it, and
+    the user's GeoPackage (layers a and b) was replaced (exit 0). Refused now, nothing run."""
+    import pyogrio
+
+    gpkg = tmp_path / "data.gpkg"
+    _points(gpkg, "a", [0.0, 1.0, 2.0])
+    _points(gpkg, "b", [100.0, 101.0, 102.0])
+    fake = tmp_path / "toolbox"  # replaces its OUTPUT, as the toolbox does with --overwrite
+    fake.write_text('#!/bin/sh\nwhile [ $# -gt 0 ]; do [ "$1" = --OUTPUT ] && echo x > "$2"; '
+                    "shift; done\n")
+    fake.chmod(0o755)
+    got = pyqgis(tmp_path, f"""
+        spec = {{"id": "tin:interpolate", "parameters": [{{"name": "INPUT", "type": "vector"}},
+                {{"name": "OUTPUT", "type": "output_vector"}}]}}
+        alg = ToolboxAlgorithm(spec, {str(fake)!r})
+        alg.initAlgorithm()
+        context = QgsProcessingContext(); context.setProject(QgsProject.instance())
+        layer = QgsVectorLayer({str(gpkg) + "|layername=a"!r}, "a", "ogr")
+        QgsProject.instance().addMapLayer(layer)
+        layer.selectByExpression('"h" < 2')
+        params = {{"INPUT": QgsProcessingFeatureSourceDefinition(layer.id(), True),
+                   "OUTPUT": {str(gpkg)!r}}}
+        try:
+            alg.processAlgorithm(params, context, QgsProcessingFeedback())
+            done("ran")
+        except QgsProcessingException as exc:
+            done(str(exc))
+        """)
+    assert [name for name, _ in pyogrio.list_layers(gpkg)] == ["a", "b"]
+    assert got == (f"OUTPUT '{gpkg}' is also the input INPUT; an input is never overwritten: "
+                   "choose another output path")
