@@ -190,6 +190,10 @@ class ToolboxAlgorithm(QgsProcessingAlgorithm):
         name, kind = p["name"], p["type"]
         if parameters.get(name) is None:
             return None
+        if kind in ("number", "integer") and isinstance(parameters[name], str):
+            # text (qgis_process, scripts) goes as typed, for the toolbox to check: QGIS reads
+            # what it cannot parse ('250,5', '4.5' for an integer) as the default, else 0
+            return parameters[name].strip() or None
         if kind == "number":
             return repr(self.parameterAsDouble(parameters, name, context))
         if kind == "integer":

@@ -160,3 +160,21 @@ def test_an_output_on_the_file_of_a_selected_input_layer_is_refused(tmp_path):
     assert [name for name, _ in pyogrio.list_layers(gpkg)] == ["a", "b"]
     assert got == (f"OUTPUT '{gpkg}' is also the input INPUT; an input is never overwritten: "
                    "choose another output path")
+
+
+@needs_qgis
+def test_numbers_given_as_text_reach_the_toolbox_as_typed(tmp_path):
+    """qgis_process REFERENCE_Z=250,5 (a decimal comma): QGIS reads text it cannot parse as the
+    default, else 0, and tin:volume measured against the plane z = 0 (exit 0). The text now
+    goes to the toolbox as typed (the CLI refuses '250,5' with exit 2); numbers stay numbers."""
+    params = [{"name": "REFERENCE_Z", "type": "number", "optional": True},
+              {"name": "NEIGHBOURS", "type": "integer", "optional": True, "default": 12}]
+    got = plugin_values(tmp_path, params, {
+        "comma": {"REFERENCE_Z": "250,5", "NEIGHBOURS": "4,5"},
+        "text": {"REFERENCE_Z": " 250.5 ", "NEIGHBOURS": "8"},
+        "numbers": {"REFERENCE_Z": 250.5, "NEIGHBOURS": 8},
+        "empty": {"REFERENCE_Z": "", "NEIGHBOURS": None}})
+    assert got["comma"] == {"REFERENCE_Z": "250,5", "NEIGHBOURS": "4,5"}
+    assert got["text"] == {"REFERENCE_Z": "250.5", "NEIGHBOURS": "8"}
+    assert got["numbers"] == {"REFERENCE_Z": "250.5", "NEIGHBOURS": "8"}
+    assert got["empty"] == {"REFERENCE_Z": None, "NEIGHBOURS": None}
