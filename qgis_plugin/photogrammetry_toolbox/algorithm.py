@@ -210,6 +210,12 @@ class ToolboxAlgorithm(QgsProcessingAlgorithm):
             if rect.isNull():
                 return None
             crs = self.parameterAsExtentCrs(parameters, name, context)
+            target = self._data_crs(parameters, context)
+            if crs.isValid() and target is not None and crs != target:
+                # drawn on a canvas in another CRS (a basemap's): into the data's, as QGIS's own
+                # algorithms do (the toolbox refuses an extent in another CRS than its inputs)
+                rect = self.parameterAsExtent(parameters, name, context, target)
+                crs = target
             tail = f" [{crs.authid()}]" if crs.isValid() and crs.authid() else ""
             return f"{rect.xMinimum()!r},{rect.yMinimum()!r},{rect.xMaximum()!r}," \
                    f"{rect.yMaximum()!r}{tail}"
@@ -268,6 +274,27 @@ class ToolboxAlgorithm(QgsProcessingAlgorithm):
             if isinstance(value, (dict, list)):
                 outputs[key] = json.dumps(value)
         return outputs
+
+    def _data_crs(self, parameters, context):
+        """The CRS the toolbox works in: the CRS parameter's, else the first input layer's with
+        one (None when unknown)."""
+        given = [p for p in self.spec.get("parameters", [])
+                 if parameters.get(p["name"]) not in (None, "")]
+        for p in given:
+            if p["type"] == "crs":
+                crs = self.parameterAsCrs(parameters, p["name"], context)
+                if crs.isValid():
+                    return crs
+        for p in given:
+            if p["type"] == "vector":
+                layer = self._vector_layer(parameters, p["name"], context)
+            elif p["type"] == "raster":
+                layer = self.parameterAsRasterLayer(parameters, p["name"], context)
+            else:
+                continue
+            if layer is not None and layer.crs().isValid():
+                return layer.crs()
+        return None
 
     def _vector_layer(self, parameters, name, context):
         """The map layer of a vector parameter, also when given with 'Selected features only'

@@ -91,11 +91,12 @@ def plugin_values(tmp_path: Path, params: list[dict], cases: dict) -> dict:
     return pyqgis(tmp_path, VALUE_SCRIPT.format(params=params, cases=cases))
 
 
-def _points(path: Path, layer: str, heights: list[float]) -> None:
+def _points(path: Path, layer: str, heights: list[float], x0: float = 0.0,
+            y0: float = 0.0) -> None:
     import geopandas as gpd
     from shapely.geometry import Point
 
-    gpd.GeoDataFrame({"h": heights}, geometry=[Point(10 * i, 0, h) for i, h in
+    gpd.GeoDataFrame({"h": heights}, geometry=[Point(x0 + 10 * i, y0, h) for i, h in
                                                enumerate(heights)], crs="EPSG:3003").to_file(
         path, layer=layer, driver="GPKG")
 
@@ -178,3 +179,30 @@ def test_numbers_given_as_text_reach_the_toolbox_as_typed(tmp_path):
     assert got["text"] == {"REFERENCE_Z": "250.5", "NEIGHBOURS": "8"}
     assert got["numbers"] == {"REFERENCE_Z": "250.5", "NEIGHBOURS": "8"}
     assert got["empty"] == {"REFERENCE_Z": None, "NEIGHBOURS": None}
+
+
+@needs_qgis
+def test_an_extent_drawn_in_another_crs_reaches_the_toolbox_in_the_data_crs(tmp_path):
+    """'Use map canvas extent' on a canvas in EPSG:3857 (a basemap) for points in EPSG:3003 was
+    refused ('reproject the inputs to one CRS first', exit 2: the inputs are in one CRS). It is
+    transformed into the layer's CRS (or the CRS parameter's), as QGIS's own algorithms do."""
+    from pyproj import Transformer
+
+    gpkg = tmp_path / "points.gpkg"
+    _points(gpkg, "points", [1.0, 2.0, 3.0], 1_500_000.0, 5_000_000.0)
+    to_web = Transformer.from_crs(3003, 3857, always_xy=True)
+    xmin, ymin, xmax, ymax = to_web.transform_bounds(1_500_000, 5_000_000, 1_501_000, 5_001_000)
+    drawn = f"{xmin!r},{xmax!r},{ymin!r},{ymax!r} [EPSG:3857]"  # QGIS's order
+    params = [{"name": "INPUT", "type": "vector"}, {"name": "CRS", "type": "crs"},
+              {"name": "EXTENT", "type": "extent"}]
+    got = plugin_values(tmp_path, params, {
+        "layer": {"INPUT": {"layer": str(gpkg)}, "EXTENT": drawn},
+        "crs": {"INPUT": {"layer": str(gpkg)}, "EXTENT": drawn, "CRS": "EPSG:32632"},
+        "same": {"INPUT": {"layer": str(gpkg)}, "EXTENT": "1,3,2,4 [EPSG:3003]"}})
+    for label, epsg in (("layer", 3003), ("crs", 32632)):
+        numbers, crs = got[label]["EXTENT"].split(" ")
+        assert crs == f"[EPSG:{epsg}]"
+        truth = Transformer.from_crs(3857, epsg, always_xy=True).transform_bounds(
+            xmin, ymin, xmax, ymax, densify_pts=21)
+        assert [float(v) for v in numbers.split(",")] == pytest.approx(truth, abs=0.01)
+    assert got["same"]["EXTENT"] == "1.0,2.0,3.0,4.0 [EPSG:3003]"
