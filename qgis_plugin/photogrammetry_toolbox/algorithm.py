@@ -222,8 +222,14 @@ class ToolboxAlgorithm(QgsProcessingAlgorithm):
         if kind in ("file", "folder"):
             return self.parameterAsFile(parameters, name, context) or None
         if kind == "vector":
+            # a CRS set on the layer in QGIS (a Shapefile without or with a wrong .prj) is not
+            # in its file: then the toolbox reads a copy QGIS writes with the layer's CRS
+            vector = self._vector_layer(parameters, name, context)
+            provider = vector.dataProvider() if vector is not None else None
+            relabelled = provider is not None and vector.crs().isValid() and \
+                vector.crs() != provider.crs()
             path, layer = self.parameterAsCompatibleSourceLayerPathAndLayerName(
-                parameters, name, context, VECTOR_FORMATS, "gpkg", feedback)
+                parameters, name, context, [] if relabelled else VECTOR_FORMATS, "gpkg", feedback)
             if not path:
                 return None
             if "|" in path:
@@ -231,7 +237,7 @@ class ToolboxAlgorithm(QgsProcessingAlgorithm):
             # QGIS hands over the layer's own file when it needs no copy: keep which layer of it
             # (layerid= when the URI has no name) and which geometry type (a GeoJSON/DXF
             # sublayer), or the toolbox reads the file's first layer, all geometries
-            file, parts = layer_file(self._vector_layer(parameters, name, context))
+            file, parts = layer_file(vector)
             own = bool(file) and os.path.abspath(file) == os.path.abspath(path)
             if layer:
                 path += f"|layername={layer}"

@@ -71,6 +71,8 @@ for label, params in {cases!r}.items():
         if isinstance(value, dict) and "layer" in value:  # a project layer, maybe with selection
             layer = QgsVectorLayer(value["layer"], label, "ogr")
             QgsProject.instance().addMapLayer(layer)
+            if value.get("crs"):  # set in Layer Properties > Source
+                layer.setCrs(QgsCoordinateReferenceSystem(value["crs"]))
             if value.get("select"):
                 layer.selectByExpression(value["select"])
                 value = QgsProcessingFeatureSourceDefinition(layer.id(), True)
@@ -206,3 +208,30 @@ def test_an_extent_drawn_in_another_crs_reaches_the_toolbox_in_the_data_crs(tmp_
             xmin, ymin, xmax, ymax, densify_pts=21)
         assert [float(v) for v in numbers.split(",")] == pytest.approx(truth, abs=0.01)
     assert got["same"]["EXTENT"] == "1.0,2.0,3.0,4.0 [EPSG:3003]"
+
+
+@needs_qgis
+def test_a_crs_set_on_the_layer_in_qgis_reaches_the_toolbox(tmp_path):
+    """A Shapefile without .prj (or with a wrong one), its CRS set in QGIS's layer properties:
+    the toolbox read the file, so the DEM had no CRS (exit 0) or the data were refused as lying
+    outside the .prj's area of use ('label the data with its true CRS': they were). The toolbox
+    now reads a copy with the layer's CRS; a layer whose CRS is its file's is not copied."""
+    import pyogrio
+
+    gpkg = tmp_path / "points.gpkg"
+    _points(gpkg, "points", [1.0, 2.0, 3.0], 1_500_000.0, 5_000_000.0)
+    shp = tmp_path / "points.shp"
+    pyogrio.write_dataframe(pyogrio.read_dataframe(gpkg), shp)
+    (tmp_path / "points.prj").unlink()
+    wrong = tmp_path / "wrong.shp"
+    pyogrio.write_dataframe(pyogrio.read_dataframe(gpkg).set_crs(3004, allow_override=True),
+                            wrong)
+    got = plugin_values(tmp_path, [{"name": "INPUT", "type": "vector"}], {
+        "no_prj": {"INPUT": {"layer": str(shp), "crs": "EPSG:3003"}},
+        "wrong_prj": {"INPUT": {"layer": str(wrong), "crs": "EPSG:3003"}},
+        "as_filed": {"INPUT": {"layer": str(gpkg)}}})
+    for label in ("no_prj", "wrong_prj"):
+        value = got[label]["INPUT"]
+        assert pyogrio.read_info(value.split("|")[0])["crs"] == "EPSG:3003", label
+        assert sorted(pyogrio.read_dataframe(value.split("|")[0]).geometry.z) == [1, 2, 3]
+    assert got["as_filed"]["INPUT"].split("|")[0] == str(gpkg)
