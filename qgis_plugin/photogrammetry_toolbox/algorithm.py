@@ -19,6 +19,7 @@ from qgis.core import (
     QgsProcessingContext,
     QgsProcessingException,
     QgsProcessingFeatureSourceDefinition,
+    QgsProcessingLayerPostProcessorInterface,
     QgsProcessingOutputNumber,
     QgsProcessingOutputString,
     QgsProcessingParameterBoolean,
@@ -137,6 +138,25 @@ def layer_file(layer) -> tuple[str, dict]:
     parts = dict(QgsProviderRegistry.instance().decodeUri(layer.providerType(), layer.source()))
     path = str(parts.get("path") or "")
     return (path if path and not path.startswith("/vsi") and os.path.exists(path) else ""), parts
+
+
+class DefaultStyle(QgsProcessingLayerPostProcessorInterface):
+    """Loads an output layer's own style (the GeoPackage's layer_styles default, or a .qml beside
+    the file): Processing loads result layers without it (and then applies its own)."""
+
+    kept: list = []  # QGIS holds no reference to a Python post-processor: keep it alive
+
+    @classmethod
+    def create(cls):
+        if len(cls.kept) > 256:
+            del cls.kept[:128]
+        cls.kept.append(cls())
+        return cls.kept[-1]
+
+    def postProcessLayer(self, layer, context, feedback):  # noqa: N802 - QGIS's name
+        message, loaded = layer.loadDefaultStyle()
+        if loaded:
+            layer.triggerRepaint()
 
 
 class ToolboxAlgorithm(QgsProcessingAlgorithm):
@@ -423,4 +443,5 @@ class ToolboxAlgorithm(QgsProcessingAlgorithm):
                 continue
             details = QgsProcessingContext.LayerDetails(layer_name, context.project(),
                                                         param["name"])
+            details.setPostProcessor(DefaultStyle.create())
             context.addLayerToLoadOnCompletion(f"{path}|layername={layer_name}", details)

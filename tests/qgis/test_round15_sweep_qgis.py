@@ -235,3 +235,39 @@ def test_a_crs_set_on_the_layer_in_qgis_reaches_the_toolbox(tmp_path):
         assert pyogrio.read_info(value.split("|")[0])["crs"] == "EPSG:3003", label
         assert sorted(pyogrio.read_dataframe(value.split("|")[0]).geometry.z) == [1, 2, 3]
     assert got["as_filed"]["INPUT"].split("|")[0] == str(gpkg)
+
+
+@needs_qgis
+def test_output_layers_are_loaded_with_their_own_style(tmp_path):
+    """carto:contours and attribution:apply embed their style as the layer's default in the
+    GeoPackage; Processing loads result layers without it (as Postprocessing.py does below), so
+    the index contours and the coded layers came in as one plain symbol. The provider's
+    post-processor now loads the layer's own style."""
+    import geopandas as gpd
+    from shapely.geometry import LineString
+
+    gpkg = tmp_path / "out.gpkg"
+    gpd.GeoDataFrame({"index": [0, 1]}, geometry=[LineString([(0, 0), (1, 1)]),
+                                                  LineString([(0, 1), (1, 2)])],
+                     crs="EPSG:3003").to_file(gpkg, layer="contours", driver="GPKG")
+    got = pyqgis(tmp_path, f"""
+        styled = QgsVectorLayer({str(gpkg) + "|layername=contours"!r}, "c", "ogr")
+        root = QgsRuleBasedRenderer.Rule(None)
+        for expression in ('"index" = 1', '"index" = 0'):
+            root.appendChild(QgsRuleBasedRenderer.Rule(
+                QgsSymbol.defaultSymbol(styled.geometryType()), 0, 0, expression))
+        styled.setRenderer(QgsRuleBasedRenderer(root))
+        styled.saveStyleToDatabase("contours", "", True, "")
+        del styled
+        alg = ToolboxAlgorithm({{"id": "carto:contours", "parameters": []}}, "tb")
+        context = QgsProcessingContext(); context.setProject(QgsProject.instance())
+        alg._load_layers({{"name": "OUTPUT"}}, {str(gpkg)!r}, context)
+        renderers = {{}}
+        for uri, details in context.layersToLoadOnCompletion().items():
+            layer = QgsProcessingUtils.mapLayerFromString(uri, context)  # as Postprocessing.py
+            if details.postProcessor():
+                details.postProcessor().postProcessLayer(layer, context, QgsProcessingFeedback())
+            renderers[uri.rsplit("=", 1)[1]] = layer.renderer().type()
+        done(renderers)
+        """)
+    assert got == {"contours": "RuleRenderer"}
