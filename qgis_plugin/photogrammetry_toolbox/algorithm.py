@@ -140,6 +140,26 @@ def layer_file(layer) -> tuple[str, dict]:
     return (path if path and not path.startswith("/vsi") and os.path.exists(path) else ""), parts
 
 
+def raster_source(layer, name: str) -> str:
+    """What the toolbox reads for a raster layer: its source, or, when its CRS was set in QGIS
+    (a grid without .prj) and is not its file's, a VRT of it carrying that CRS."""
+    provider = layer.dataProvider()
+    crs = layer.crs()
+    if layer.providerType() != "gdal" or provider is None or not crs.isValid() or \
+            crs == provider.crs():
+        return layer.source()
+    from osgeo import gdal
+
+    vrt = QgsProcessingUtils.generateTempFilename(f"{name}.vrt")
+    done = gdal.Translate(vrt, layer.source(), format="VRT",
+                          outputSRS=crs.authid() or crs.toWkt())
+    if done is None:
+        raise QgsProcessingException(f"{name}: cannot give the layer's CRS {crs.authid()} to "
+                                     f"'{layer.source()}' (GDAL: {gdal.GetLastErrorMsg()})")
+    done = None
+    return vrt
+
+
 class DefaultStyle(QgsProcessingLayerPostProcessorInterface):
     """Loads an output layer's own style (the GeoPackage's layer_styles default, or a .qml beside
     the file): Processing loads result layers without it (and then applies its own)."""
@@ -268,12 +288,12 @@ class ToolboxAlgorithm(QgsProcessingAlgorithm):
             return path
         if kind == "raster":
             layer = self.parameterAsRasterLayer(parameters, name, context)
-            return None if layer is None else layer.source()
+            return None if layer is None else raster_source(layer, name)
         if kind == "multiple":
             if p.get("layer_type") != "raster":
                 return list(self.parameterAsFileList(parameters, name, context))
-            return [layer.source() for layer in self.parameterAsLayerList(parameters, name,
-                                                                           context)]
+            return [raster_source(layer, name) for layer in
+                    self.parameterAsLayerList(parameters, name, context)]
         if kind == "field":
             return self.parameterAsString(parameters, name, context) or None
         if kind == "output_raster":

@@ -69,7 +69,8 @@ for label, params in {cases!r}.items():
     resolved = {{}}
     for key, value in params.items():
         if isinstance(value, dict) and "layer" in value:  # a project layer, maybe with selection
-            layer = QgsVectorLayer(value["layer"], label, "ogr")
+            layer = QgsRasterLayer(value["layer"], label) if value.get("raster") else \
+                QgsVectorLayer(value["layer"], label, "ogr")
             QgsProject.instance().addMapLayer(layer)
             if value.get("crs"):  # set in Layer Properties > Source
                 layer.setCrs(QgsCoordinateReferenceSystem(value["crs"]))
@@ -271,3 +272,33 @@ def test_output_layers_are_loaded_with_their_own_style(tmp_path):
         done(renderers)
         """)
     assert got == {"contours": "RuleRenderer"}
+
+
+@needs_qgis
+def test_a_crs_set_on_a_raster_layer_in_qgis_reaches_the_toolbox(tmp_path):
+    """An ASCII-grid DEM without .prj, its CRS set in QGIS: dem:slope read the file and wrote a
+    slope raster without CRS (exit 0; with a geographic CRS set it would have taken degrees for
+    metres). The toolbox now reads a VRT of the same cells carrying the layer's CRS."""
+    import numpy as np
+    import rasterio
+    from rasterio.transform import from_origin
+
+    heights = np.arange(12, dtype="float32").reshape(3, 4) * 2.5
+    grid = tmp_path / "dem.asc"
+    with rasterio.open(grid, "w", driver="AAIGrid", width=4, height=3, count=1,
+                       dtype="float32", transform=from_origin(1_500_000, 5_000_030, 10, 10)) as dst:
+        dst.write(heights, 1)
+    for sidecar in tmp_path.glob("dem.prj"):
+        sidecar.unlink()
+    tif = tmp_path / "dem.tif"
+    with rasterio.open(tif, "w", driver="GTiff", width=4, height=3, count=1, dtype="float32",
+                       crs="EPSG:3003", transform=from_origin(1_500_000, 5_000_030, 10, 10)) as dst:
+        dst.write(heights, 1)
+    got = plugin_values(tmp_path, [{"name": "INPUT", "type": "raster"}], {
+        "set_in_qgis": {"INPUT": {"layer": str(grid), "raster": True, "crs": "EPSG:3003"}},
+        "its_own": {"INPUT": {"layer": str(tif), "raster": True}}})
+    with rasterio.open(got["set_in_qgis"]["INPUT"]) as src:
+        assert src.crs.to_epsg() == 3003
+        assert src.transform == from_origin(1_500_000, 5_000_030, 10, 10)
+        assert np.array_equal(src.read(1), heights)
+    assert got["its_own"]["INPUT"] == str(tif)
