@@ -141,21 +141,27 @@ def layer_file(layer) -> tuple[str, dict]:
 
 
 def raster_source(layer, name: str) -> str:
-    """What the toolbox reads for a raster layer: its source, or, when its CRS was set in QGIS
-    (a grid without .prj) and is not its file's, a VRT of it carrying that CRS."""
+    """What the toolbox reads for a raster layer: its source, or a VRT of it when that source
+    is not a whole file the toolbox can open (one raster table of a GeoPackage,
+    ``GPKG:file:table``; any GDAL subdataset), or when the layer's CRS was set in QGIS (a grid
+    without .prj) and is not its file's: the VRT then carries the layer's CRS."""
     provider = layer.dataProvider()
+    if layer.providerType() != "gdal" or provider is None:
+        return layer.source()
     crs = layer.crs()
-    if layer.providerType() != "gdal" or provider is None or not crs.isValid() or \
-            crs == provider.crs():
+    relabelled = crs.isValid() and crs != provider.crs()
+    file = layer_file(layer)[0]
+    part_of_file = bool(file) and os.path.abspath(file) != os.path.abspath(layer.source())
+    if not (relabelled or part_of_file):
         return layer.source()
     from osgeo import gdal
 
     vrt = QgsProcessingUtils.generateTempFilename(f"{name}.vrt")
-    done = gdal.Translate(vrt, layer.source(), format="VRT",
-                          outputSRS=crs.authid() or crs.toWkt())
+    options = {"outputSRS": crs.authid() or crs.toWkt()} if relabelled else {}
+    done = gdal.Translate(vrt, layer.source(), format="VRT", **options)
     if done is None:
-        raise QgsProcessingException(f"{name}: cannot give the layer's CRS {crs.authid()} to "
-                                     f"'{layer.source()}' (GDAL: {gdal.GetLastErrorMsg()})")
+        raise QgsProcessingException(f"{name}: cannot read the raster layer '{layer.source()}' "
+                                     f"(GDAL: {gdal.GetLastErrorMsg()})")
     done = None
     return vrt
 

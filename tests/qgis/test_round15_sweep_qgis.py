@@ -302,3 +302,29 @@ def test_a_crs_set_on_a_raster_layer_in_qgis_reaches_the_toolbox(tmp_path):
         assert src.transform == from_origin(1_500_000, 5_000_030, 10, 10)
         assert np.array_equal(src.read(1), heights)
     assert got["its_own"]["INPUT"] == str(tif)
+
+
+@needs_qgis
+def test_one_raster_table_of_a_geopackage_reaches_the_toolbox(tmp_path):
+    """A raster table of a GeoPackage holding two (QGIS's source 'GPKG:file.gpkg:table') was
+    refused as 'file ... does not exist' (exit 2). The toolbox now reads a VRT of that table."""
+    import numpy as np
+    import rasterio
+    from rasterio.transform import from_origin
+
+    gpkg = tmp_path / "rasters.gpkg"
+    tables = {"first": np.full((3, 4), 1.0, "float32"), "second": np.full((3, 4), 2.0, "float32")}
+    for i, (table, cells) in enumerate(tables.items()):
+        options = {"RASTER_TABLE": table} | ({"APPEND_SUBDATASET": "YES"} if i else {})
+        with rasterio.open(gpkg, "w", driver="GPKG", width=4, height=3, count=1,
+                           dtype="float32", crs="EPSG:3003", **options,
+                           transform=from_origin(1_500_000, 5_000_030, 10, 10)) as dst:
+            dst.write(cells, 1)
+    got = plugin_values(tmp_path, [{"name": "INPUT", "type": "raster"}], {
+        "second": {"INPUT": {"layer": f"GPKG:{gpkg}:second", "raster": True}}})
+    from toolbox.io.raster import open_raster_info
+
+    open_raster_info(got["second"]["INPUT"], "INPUT", "DEM")  # the toolbox takes it
+    with rasterio.open(got["second"]["INPUT"]) as src:
+        assert src.crs.to_epsg() == 3003
+        assert np.array_equal(src.read(1), tables["second"])
