@@ -14,6 +14,7 @@ import subprocess
 import threading
 
 from qgis.core import (
+    NULL,
     QgsProcessing,
     QgsProcessingAlgorithm,
     QgsProcessingContext,
@@ -40,7 +41,9 @@ from qgis.core import (
     QgsProcessingUtils,
     QgsProperty,
     QgsProviderRegistry,
+    QgsVectorFileWriter,
 )
+from qgis.PyQt.QtCore import QVariant
 
 from .toolbox_cli import EXTENT_HELP, clean_help, command_line, parse_progress, qgis_id, short_label
 
@@ -137,7 +140,43 @@ def layer_file(layer) -> tuple[str, dict]:
         return "", {}
     parts = dict(QgsProviderRegistry.instance().decodeUri(layer.providerType(), layer.source()))
     path = str(parts.get("path") or "")
-    return (path if path and not path.startswith("/vsi") and os.path.exists(path) else ""), parts
+    if parts.get("vsiPrefix") or path.startswith("/vsi"):  # inside a .zip...: not a plain file
+        return "", parts
+    return (path if path and os.path.exists(path) else ""), parts
+
+
+FID_COLUMN = "toolbox_copy_fid"
+
+
+def fid_would_clash(layer) -> bool:
+    """True when the layer has a 'fid' field that is not a unique integer key: QGIS's temporary
+    GeoPackage copy would take it as its primary key and drop every feature whose value repeats
+    (or is not an integer), with no error (a CSV with a FID column of codes)."""
+    index = layer.fields().lookupField("fid")
+    if index < 0 or index in layer.primaryKeyAttributes():
+        return False  # none, or a GeoPackage's own key
+    if layer.fields().at(index).type() not in (QVariant.Int, QVariant.LongLong, QVariant.UInt,
+                                               QVariant.ULongLong):
+        return True
+    values = layer.uniqueValues(index)
+    return NULL in values or len(values) < layer.featureCount()
+
+
+def copy_for_toolbox(layer, name: str, selected_only: bool, context) -> str:
+    """A temporary GeoPackage of the layer (its selection only, if asked), in its QGIS CRS, whose
+    primary key is a column of its own: a 'fid' field stays an attribute, every feature kept."""
+    path = QgsProcessingUtils.generateTempFilename(f"{name}.gpkg")
+    options = QgsVectorFileWriter.SaveVectorOptions()
+    options.driverName = "GPKG"
+    options.layerName = name
+    options.fileEncoding = "UTF-8"
+    options.layerOptions = [f"FID={FID_COLUMN}"]
+    options.onlySelectedFeatures = selected_only
+    error, message, *_ = QgsVectorFileWriter.writeAsVectorFormatV3(
+        layer, path, context.transformContext(), options)
+    if error != QgsVectorFileWriter.NoError:
+        raise QgsProcessingException(f"{name}: cannot copy the layer for the toolbox: {message}")
+    return f"{path}|layername={name}"
 
 
 def raster_source(layer, name: str) -> str:
@@ -274,6 +313,11 @@ class ToolboxAlgorithm(QgsProcessingAlgorithm):
             provider = vector.dataProvider() if vector is not None else None
             relabelled = provider is not None and vector.crs().isValid() and \
                 vector.crs() != provider.crs()
+            if vector is not None and fid_would_clash(vector):
+                value = parameters.get(name)
+                selected = isinstance(value, QgsProcessingFeatureSourceDefinition) and \
+                    value.selectedFeaturesOnly
+                return copy_for_toolbox(vector, name, selected, context)
             path, layer = self.parameterAsCompatibleSourceLayerPathAndLayerName(
                 parameters, name, context, [] if relabelled else VECTOR_FORMATS, "gpkg", feedback)
             if not path:

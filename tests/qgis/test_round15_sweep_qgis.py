@@ -70,7 +70,7 @@ for label, params in {cases!r}.items():
     for key, value in params.items():
         if isinstance(value, dict) and "layer" in value:  # a project layer, maybe with selection
             layer = QgsRasterLayer(value["layer"], label) if value.get("raster") else \
-                QgsVectorLayer(value["layer"], label, "ogr")
+                QgsVectorLayer(value["layer"], label, value.get("provider", "ogr"))
             QgsProject.instance().addMapLayer(layer)
             if value.get("crs"):  # set in Layer Properties > Source
                 layer.setCrs(QgsCoordinateReferenceSystem(value["crs"]))
@@ -328,3 +328,28 @@ def test_one_raster_table_of_a_geopackage_reaches_the_toolbox(tmp_path):
     with rasterio.open(got["second"]["INPUT"]) as src:
         assert src.crs.to_epsg() == 3003
         assert np.array_equal(src.read(1), tables["second"])
+
+
+@needs_qgis
+def test_a_fid_column_of_codes_keeps_every_feature(tmp_path):
+    """A delimited-text CSV with a FID column of repeating codes: QGIS's temporary GeoPackage
+    copy took FID as its primary key and dropped every feature whose FID repeated (dem:nearest
+    made its DEM of 7 of 25 points, exit 0). Every feature now reaches the toolbox, FID kept as
+    an attribute; with 'Selected features only' the selection is what it gets."""
+    import pyogrio
+
+    rows = [(k % 7, 1_500_000 + 10 * (k // 5), 5_000_000 + 10 * (k % 5), float(k))
+            for k in range(25)]
+    csv = tmp_path / "points.csv"
+    csv.write_text("FID,X,Y,Z\n" + "".join(f"{f},{x},{y},{z}\n" for f, x, y, z in rows))
+    uri = (f"file://{csv}?type=csv&xField=X&yField=Y&zField=Z&crs=EPSG:3003&detectTypes=yes"
+           "&geomType=point")
+    got = plugin_values(tmp_path, [{"name": "INPUT", "type": "vector"}], {
+        "all": {"INPUT": {"layer": uri, "provider": "delimitedtext"}},
+        "selected": {"INPUT": {"layer": uri, "provider": "delimitedtext", "select": '"Z" < 10'}}})
+    frame = pyogrio.read_dataframe(got["all"]["INPUT"].split("|")[0])
+    assert sorted(frame.geometry.z) == [r[3] for r in rows]
+    assert sorted(frame["FID"]) == sorted(r[0] for r in rows)
+    assert frame.crs.to_epsg() == 3003
+    selected = pyogrio.read_dataframe(got["selected"]["INPUT"].split("|")[0])
+    assert sorted(selected.geometry.z) == [float(k) for k in range(10)]
