@@ -500,18 +500,28 @@ class ToolboxAlgorithm(QgsProcessingAlgorithm):
         return state["result"], state["errors"]
 
     def _load_layers(self, param: dict, path: str, context) -> None:
-        """Every layer of a GeoPackage output loads into the project on completion."""
+        """Every layer of an output loads into the project on completion: all the layers of a
+        GeoPackage; with a one-layer format (.shp...) the file and the toolbox's sibling files of
+        the other layers (``<stem>_<layer>.shp``, as the spec names them)."""
         from osgeo import ogr
 
-        ds = ogr.Open(path)
-        if ds is None:
-            return
-        names = [ds.GetLayer(i).GetName() for i in range(ds.GetLayerCount())]
-        ds = None
-        for layer_name in names:
-            if layer_name == "layer_styles":  # the styles table QGIS reads, not a layer
+        files = [path]
+        stem, suffix = os.path.splitext(path)
+        if suffix.lower() not in (".gpkg", ".sqlite"):
+            spec = next((o for o in self.spec.get("outputs", []) if o.get("name") == param["name"]),
+                        {})
+            files += [f"{stem}_{layer['name']}{suffix}" for layer in (spec.get("layers") or [])[1:]
+                      if os.path.exists(f"{stem}_{layer['name']}{suffix}")]
+        for file in files:
+            ds = ogr.Open(file)
+            if ds is None:
                 continue
-            details = QgsProcessingContext.LayerDetails(layer_name, context.project(),
-                                                        param["name"])
-            details.setPostProcessor(DefaultStyle.create())
-            context.addLayerToLoadOnCompletion(f"{path}|layername={layer_name}", details)
+            names = [ds.GetLayer(i).GetName() for i in range(ds.GetLayerCount())]
+            ds = None
+            for layer_name in names:
+                if layer_name == "layer_styles":  # the styles table QGIS reads, not a layer
+                    continue
+                details = QgsProcessingContext.LayerDetails(layer_name, context.project(),
+                                                            param["name"])
+                details.setPostProcessor(DefaultStyle.create())
+                context.addLayerToLoadOnCompletion(f"{file}|layername={layer_name}", details)

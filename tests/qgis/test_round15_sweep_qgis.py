@@ -353,3 +353,27 @@ def test_a_fid_column_of_codes_keeps_every_feature(tmp_path):
     assert frame.crs.to_epsg() == 3003
     selected = pyogrio.read_dataframe(got["selected"]["INPUT"].split("|")[0])
     assert sorted(selected.geometry.z) == [float(k) for k in range(10)]
+
+
+@needs_qgis
+def test_every_layer_of_a_shapefile_output_is_loaded(tmp_path):
+    """topology:build_areas with OUTPUT areas.shp writes its arcs, nodes and errors beside it
+    (areas_arcs.shp...): only areas.shp was loaded into the project. Every layer the spec names
+    and the toolbox wrote is now loaded; a file of no spec layer is not."""
+    import geopandas as gpd
+    from shapely.geometry import Point
+
+    for stem in ("areas", "areas_arcs", "areas_nodes", "areas_mine"):
+        gpd.GeoDataFrame({"id": [1]}, geometry=[Point(0, 0)], crs="EPSG:3003").to_file(
+            tmp_path / f"{stem}.shp")
+    layers = [{"name": name} for name in ("areas", "arcs", "nodes", "errors_points")]
+    got = pyqgis(tmp_path, f"""
+        spec = {{"id": "topology:build_areas", "parameters": [],
+                 "outputs": [{{"name": "OUTPUT", "type": "output_vector", "layers": {layers!r}}}]}}
+        alg = ToolboxAlgorithm(spec, "tb")
+        context = QgsProcessingContext(); context.setProject(QgsProject.instance())
+        alg._load_layers({{"name": "OUTPUT"}}, {str(tmp_path / "areas.shp")!r}, context)
+        done(sorted(uri.split("|")[0] for uri in context.layersToLoadOnCompletion()))
+        """)
+    assert got == [str(tmp_path / f"{stem}.shp") for stem in ("areas", "areas_arcs",
+                                                                 "areas_nodes")]
