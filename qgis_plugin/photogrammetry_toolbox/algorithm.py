@@ -148,6 +148,16 @@ def layer_file(layer) -> tuple[str, dict]:
 FID_COLUMN = "toolbox_copy_fid"
 
 
+def qgis_would_copy(layer, selected_only: bool) -> bool:
+    """True when QGIS hands the toolbox a temporary copy of the layer rather than its file (as
+    parameterAsCompatibleSourceLayerPath decides): a selection, a filter, another provider than
+    OGR, a file inside a .zip, or a format the toolbox does not read."""
+    if selected_only or layer.providerType() != "ogr" or layer.subsetString():
+        return True
+    file = layer_file(layer)[0]
+    return not file or os.path.splitext(file)[1].lstrip(".").lower() not in VECTOR_FORMATS
+
+
 def fid_would_clash(layer) -> bool:
     """True when the layer has a 'fid' field that is not a unique integer key: QGIS's temporary
     GeoPackage copy would take it as its primary key and drop every feature whose value repeats
@@ -313,10 +323,11 @@ class ToolboxAlgorithm(QgsProcessingAlgorithm):
             provider = vector.dataProvider() if vector is not None else None
             relabelled = provider is not None and vector.crs().isValid() and \
                 vector.crs() != provider.crs()
-            if vector is not None and fid_would_clash(vector):
-                value = parameters.get(name)
-                selected = isinstance(value, QgsProcessingFeatureSourceDefinition) and \
-                    value.selectedFeaturesOnly
+            value = parameters.get(name)
+            selected = isinstance(value, QgsProcessingFeatureSourceDefinition) and \
+                value.selectedFeaturesOnly
+            if vector is not None and (relabelled or qgis_would_copy(vector, selected)) and \
+                    fid_would_clash(vector):
                 return copy_for_toolbox(vector, name, selected, context)
             path, layer = self.parameterAsCompatibleSourceLayerPathAndLayerName(
                 parameters, name, context, [] if relabelled else VECTOR_FORMATS, "gpkg", feedback)

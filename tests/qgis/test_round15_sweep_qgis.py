@@ -335,7 +335,8 @@ def test_a_fid_column_of_codes_keeps_every_feature(tmp_path):
     """A delimited-text CSV with a FID column of repeating codes: QGIS's temporary GeoPackage
     copy took FID as its primary key and dropped every feature whose FID repeated (dem:nearest
     made its DEM of 7 of 25 points, exit 0). Every feature now reaches the toolbox, FID kept as
-    an attribute; with 'Selected features only' the selection is what it gets."""
+    an attribute; with 'Selected features only' the selection is what it gets. The CSV given as
+    a file path (OGR reads it as a table) still goes to the toolbox as the file."""
     import pyogrio
 
     rows = [(k % 7, 1_500_000 + 10 * (k // 5), 5_000_000 + 10 * (k % 5), float(k))
@@ -346,7 +347,9 @@ def test_a_fid_column_of_codes_keeps_every_feature(tmp_path):
            "&geomType=point")
     got = plugin_values(tmp_path, [{"name": "INPUT", "type": "vector"}], {
         "all": {"INPUT": {"layer": uri, "provider": "delimitedtext"}},
-        "selected": {"INPUT": {"layer": uri, "provider": "delimitedtext", "select": '"Z" < 10'}}})
+        "selected": {"INPUT": {"layer": uri, "provider": "delimitedtext", "select": '"Z" < 10'}},
+        "file": {"INPUT": str(csv)}})
+    assert got["file"]["INPUT"] == str(csv)  # not copied: the toolbox reads X, Y, Z itself
     frame = pyogrio.read_dataframe(got["all"]["INPUT"].split("|")[0])
     assert sorted(frame.geometry.z) == [r[3] for r in rows]
     assert sorted(frame["FID"]) == sorted(r[0] for r in rows)
