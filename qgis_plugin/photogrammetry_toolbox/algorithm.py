@@ -133,6 +133,18 @@ def make_parameter(p: dict):
     return param
 
 
+def crs_set_in_qgis(layer) -> bool:
+    """True when the layer's CRS in QGIS is not its file's: set in Layer Properties (a file
+    without or with a wrong .prj). A file without CRS that QGIS shows in a geographic CRS is left
+    alone: that is how QGIS labels such files with its default CRS (EPSG:4326), and the toolbox
+    works in metres."""
+    provider = layer.dataProvider()
+    crs = layer.crs()
+    if provider is None or not crs.isValid() or crs == provider.crs():
+        return False
+    return provider.crs().isValid() or not crs.isGeographic()
+
+
 def layer_file(layer) -> tuple[str, dict]:
     """The local file a map layer reads ("" when none: memory, database, web, /vsi...) and the
     parts of its source URI (QGIS's decodeUri: path, layerName, layerId, geometryType...)."""
@@ -189,7 +201,7 @@ def copy_for_toolbox(layer, name: str, selected_only: bool, context) -> str:
     return f"{path}|layername={name}"
 
 
-def raster_source(layer, name: str) -> str:
+def raster_source(layer, name: str, role: str | None = None) -> str:
     """What the toolbox reads for a raster layer: its source, or a VRT of it when that source
     is not a whole file the toolbox can open (one raster table of a GeoPackage,
     ``GPKG:file:table``; any GDAL subdataset), or when the layer's CRS was set in QGIS (a grid
@@ -198,7 +210,7 @@ def raster_source(layer, name: str) -> str:
     if layer.providerType() != "gdal" or provider is None:
         return layer.source()
     crs = layer.crs()
-    relabelled = crs.isValid() and crs != provider.crs()
+    relabelled = role != "photo" and crs_set_in_qgis(layer)  # a photo's pixels have no CRS
     file = layer_file(layer)[0]
     part_of_file = bool(file) and os.path.abspath(file) != os.path.abspath(layer.source())
     if not (relabelled or part_of_file):
@@ -320,9 +332,7 @@ class ToolboxAlgorithm(QgsProcessingAlgorithm):
             # a CRS set on the layer in QGIS (a Shapefile without or with a wrong .prj) is not
             # in its file: then the toolbox reads a copy QGIS writes with the layer's CRS
             vector = self._vector_layer(parameters, name, context)
-            provider = vector.dataProvider() if vector is not None else None
-            relabelled = provider is not None and vector.crs().isValid() and \
-                vector.crs() != provider.crs()
+            relabelled = vector is not None and crs_set_in_qgis(vector)
             value = parameters.get(name)
             selected = isinstance(value, QgsProcessingFeatureSourceDefinition) and \
                 value.selectedFeaturesOnly
@@ -349,11 +359,11 @@ class ToolboxAlgorithm(QgsProcessingAlgorithm):
             return path
         if kind == "raster":
             layer = self.parameterAsRasterLayer(parameters, name, context)
-            return None if layer is None else raster_source(layer, name)
+            return None if layer is None else raster_source(layer, name, p.get("role"))
         if kind == "multiple":
             if p.get("layer_type") != "raster":
                 return list(self.parameterAsFileList(parameters, name, context))
-            return [raster_source(layer, name) for layer in
+            return [raster_source(layer, name, p.get("role")) for layer in
                     self.parameterAsLayerList(parameters, name, context)]
         if kind == "field":
             return self.parameterAsString(parameters, name, context) or None

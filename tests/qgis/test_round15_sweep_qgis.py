@@ -230,7 +230,9 @@ def test_a_crs_set_on_the_layer_in_qgis_reaches_the_toolbox(tmp_path):
     got = plugin_values(tmp_path, [{"name": "INPUT", "type": "vector"}], {
         "no_prj": {"INPUT": {"layer": str(shp), "crs": "EPSG:3003"}},
         "wrong_prj": {"INPUT": {"layer": str(wrong), "crs": "EPSG:3003"}},
-        "as_filed": {"INPUT": {"layer": str(gpkg)}}})
+        "as_filed": {"INPUT": {"layer": str(gpkg)}},
+        "qgis_default": {"INPUT": {"layer": str(shp), "crs": "EPSG:4326"}}})
+    assert got["qgis_default"]["INPUT"].split("|")[0] == str(shp)
     for label in ("no_prj", "wrong_prj"):
         value = got[label]["INPUT"]
         assert pyogrio.read_info(value.split("|")[0])["crs"] == "EPSG:3003", label
@@ -296,12 +298,19 @@ def test_a_crs_set_on_a_raster_layer_in_qgis_reaches_the_toolbox(tmp_path):
         dst.write(heights, 1)
     got = plugin_values(tmp_path, [{"name": "INPUT", "type": "raster"}], {
         "set_in_qgis": {"INPUT": {"layer": str(grid), "raster": True, "crs": "EPSG:3003"}},
-        "its_own": {"INPUT": {"layer": str(tif), "raster": True}}})
+        "its_own": {"INPUT": {"layer": str(tif), "raster": True}},
+        "qgis_default": {"INPUT": {"layer": str(grid), "raster": True, "crs": "EPSG:4326"}}})
     with rasterio.open(got["set_in_qgis"]["INPUT"]) as src:
         assert src.crs.to_epsg() == 3003
         assert src.transform == from_origin(1_500_000, 5_000_030, 10, 10)
         assert np.array_equal(src.read(1), heights)
     assert got["its_own"]["INPUT"] == str(tif)
+    # QGIS's own label of a file without CRS ('use a default CRS': EPSG:4326) is not passed on
+    assert got["qgis_default"]["INPUT"] == str(grid)
+    # nor any CRS on a photo (pixels): ortho:photo, rectify:image read it as it is
+    photo = plugin_values(tmp_path, [{"name": "INPUT", "type": "raster", "role": "photo"}], {
+        "photo": {"INPUT": {"layer": str(grid), "raster": True, "crs": "EPSG:3003"}}})
+    assert photo["photo"]["INPUT"] == str(grid)
 
 
 @needs_qgis
