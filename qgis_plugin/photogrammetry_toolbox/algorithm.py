@@ -405,12 +405,14 @@ class ToolboxAlgorithm(QgsProcessingAlgorithm):
         for p in given:
             if p["type"] == "vector":
                 layer = self._vector_layer(parameters, p["name"], context)
-            elif p["type"] == "raster":
+            elif p["type"] == "raster" and p.get("role") != "photo":  # pixels, no map CRS
                 layer = self.parameterAsRasterLayer(parameters, p["name"], context)
             else:
                 continue
-            if layer is not None and layer.crs().isValid():
-                return layer.crs()
+            provider = layer.dataProvider() if layer is not None else None
+            if provider is not None and layer.crs().isValid() and (
+                    provider.crs().isValid() or crs_set_in_qgis(layer)):
+                return layer.crs()  # not QGIS's own label of a file without CRS
         return None
 
     def _vector_layer(self, parameters, name, context):

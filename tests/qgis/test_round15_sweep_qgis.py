@@ -209,6 +209,24 @@ def test_an_extent_drawn_in_another_crs_reaches_the_toolbox_in_the_data_crs(tmp_
             xmin, ymin, xmax, ymax, densify_pts=21)
         assert [float(v) for v in numbers.split(",")] == pytest.approx(truth, abs=0.01)
     assert got["same"]["EXTENT"] == "1.0,2.0,3.0,4.0 [EPSG:3003]"
+    # ortho:photo: a photo's CRS (here QGIS's EPSG:4326 label of a jpg) is not the data's: the DEM's
+    import numpy as np
+    import rasterio
+    from rasterio.transform import from_origin
+
+    with rasterio.open(tmp_path / "photo.png", "w", driver="PNG", width=4, height=3, count=1,
+                       dtype="uint8") as dst:
+        dst.write(np.zeros((3, 4), "uint8"), 1)
+    with rasterio.open(tmp_path / "dem.tif", "w", driver="GTiff", width=4, height=3, count=1,
+                       dtype="float32", crs="EPSG:3003",
+                       transform=from_origin(1_500_000, 5_000_030, 10, 10)) as dst:
+        dst.write(np.zeros((3, 4), "float32"), 1)
+    photo = plugin_values(tmp_path, [{"name": "INPUT", "type": "raster", "role": "photo"},
+                                     {"name": "DEM", "type": "raster", "role": "heights"},
+                                     {"name": "EXTENT", "type": "extent"}], {"ortho": {
+        "INPUT": {"layer": str(tmp_path / "photo.png"), "raster": True, "crs": "EPSG:4326"},
+        "DEM": {"layer": str(tmp_path / "dem.tif"), "raster": True}, "EXTENT": drawn}})
+    assert photo["ortho"]["EXTENT"].endswith(" [EPSG:3003]")
 
 
 @needs_qgis
