@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import os
+import shlex
 import subprocess
 import threading
 
@@ -379,7 +380,7 @@ class ToolboxAlgorithm(QgsProcessingAlgorithm):
                   for p in self.spec.get("parameters", [])}
         self._check_outputs_are_not_inputs(parameters, context, values)
         args = command_line(self.executable, self.spec["id"], values)
-        feedback.pushCommandInfo(" ".join(args))
+        feedback.pushCommandInfo(shlex.join(args))  # pasted in a shell: runs as shown
         result, errors = self._run(args, feedback)
         outputs = dict(result.get("outputs") or {})
         for p in self.spec.get("parameters", []):

@@ -407,3 +407,30 @@ def test_every_layer_of_a_shapefile_output_is_loaded(tmp_path):
         """)
     assert got == [str(tmp_path / f"{stem}.shp") for stem in ("areas", "areas_arcs",
                                                                  "areas_nodes")]
+
+
+@needs_qgis
+def test_the_logged_command_runs_as_shown_when_pasted_in_a_shell(tmp_path):
+    """The log showed the command joined by spaces: pasted in a terminal, a path with a space
+    split in two and '|layername=b' piped into a command 'layername=b'. It is quoted now."""
+    import shlex
+
+    fake = tmp_path / "toolbox"
+    fake.write_text("#!/bin/sh\nexit 0\n")
+    fake.chmod(0o755)
+    gpkg = tmp_path / "my data.gpkg"
+    _points(gpkg, "b", [1.0, 2.0, 3.0])
+    got = pyqgis(tmp_path, f"""
+        class Log(QgsProcessingFeedback):
+            commands = []
+            def pushCommandInfo(self, text):
+                self.commands.append(text)
+        spec = {{"id": "vector:info", "parameters": [{{"name": "INPUT", "type": "vector"}}]}}
+        alg = ToolboxAlgorithm(spec, {str(fake)!r})
+        alg.initAlgorithm()
+        context = QgsProcessingContext(); context.setProject(QgsProject.instance())
+        alg.processAlgorithm({{"INPUT": {str(gpkg) + "|layername=b"!r}}}, context, Log())
+        done(Log.commands)
+        """)
+    assert shlex.split(got[0]) == [str(fake), "run", "vector:info", "--progress", "json",
+                                   "--overwrite", "--INPUT", f"{gpkg}|layername=b"]
