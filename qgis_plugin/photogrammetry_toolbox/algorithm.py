@@ -9,14 +9,19 @@ behind). Multi-layer GeoPackage outputs have every layer loaded into the project
 from __future__ import annotations
 
 import json
+import os
+import shlex
 import subprocess
 import threading
 
 from qgis.core import (
+    NULL,
     QgsProcessing,
     QgsProcessingAlgorithm,
     QgsProcessingContext,
     QgsProcessingException,
+    QgsProcessingFeatureSourceDefinition,
+    QgsProcessingLayerPostProcessorInterface,
     QgsProcessingOutputNumber,
     QgsProcessingOutputString,
     QgsProcessingParameterBoolean,
@@ -34,7 +39,12 @@ from qgis.core import (
     QgsProcessingParameterRasterDestination,
     QgsProcessingParameterRasterLayer,
     QgsProcessingParameterString,
+    QgsProcessingUtils,
+    QgsProperty,
+    QgsProviderRegistry,
+    QgsVectorFileWriter,
 )
+from qgis.PyQt.QtCore import QVariant
 
 from .toolbox_cli import EXTENT_HELP, clean_help, command_line, parse_progress, qgis_id, short_label
 
@@ -124,6 +134,119 @@ def make_parameter(p: dict):
     return param
 
 
+def crs_set_in_qgis(layer) -> bool:
+    """True when the layer's CRS in QGIS is not its file's: set in Layer Properties (a file
+    without or with a wrong .prj). A file without CRS that QGIS shows in a geographic CRS is left
+    alone: that is how QGIS labels such files with its default CRS (EPSG:4326), and the toolbox
+    works in metres."""
+    provider = layer.dataProvider()
+    crs = layer.crs()
+    if provider is None or not crs.isValid() or crs == provider.crs():
+        return False
+    return provider.crs().isValid() or not crs.isGeographic()
+
+
+def layer_file(layer) -> tuple[str, dict]:
+    """The local file a map layer reads ("" when none: memory, database, web, /vsi...) and the
+    parts of its source URI (QGIS's decodeUri: path, layerName, layerId, geometryType...)."""
+    if layer is None:
+        return "", {}
+    parts = dict(QgsProviderRegistry.instance().decodeUri(layer.providerType(), layer.source()))
+    path = str(parts.get("path") or "")
+    if parts.get("vsiPrefix") or path.startswith("/vsi"):  # inside a .zip...: not a plain file
+        return "", parts
+    return (path if path and os.path.exists(path) else ""), parts
+
+
+FID_COLUMN = "toolbox_copy_fid"
+
+
+def qgis_would_copy(layer, selected_only: bool) -> bool:
+    """True when QGIS hands the toolbox a temporary copy of the layer rather than its file (as
+    parameterAsCompatibleSourceLayerPath decides): a selection, a filter, another provider than
+    OGR, a file inside a .zip, or a format the toolbox does not read."""
+    if selected_only or layer.providerType() != "ogr" or layer.subsetString():
+        return True
+    file = layer_file(layer)[0]
+    return not file or os.path.splitext(file)[1].lstrip(".").lower() not in VECTOR_FORMATS
+
+
+def fid_would_clash(layer) -> bool:
+    """True when the layer has a 'fid' field that is not a unique integer key: QGIS's temporary
+    GeoPackage copy would take it as its primary key and drop every feature whose value repeats
+    (or is not an integer), with no error (a CSV with a FID column of codes)."""
+    index = layer.fields().lookupField("fid")
+    if index < 0 or index in layer.primaryKeyAttributes():
+        return False  # none, or a GeoPackage's own key
+    if layer.fields().at(index).type() not in (QVariant.Int, QVariant.LongLong, QVariant.UInt,
+                                               QVariant.ULongLong):
+        return True
+    values = layer.uniqueValues(index)
+    return NULL in values or len(values) < layer.featureCount()
+
+
+def copy_for_toolbox(layer, name: str, selected_only: bool, context) -> str:
+    """A temporary GeoPackage of the layer (its selection only, if asked), in its QGIS CRS, whose
+    primary key is a column of its own: a 'fid' field stays an attribute, every feature kept."""
+    path = QgsProcessingUtils.generateTempFilename(f"{name}.gpkg")
+    options = QgsVectorFileWriter.SaveVectorOptions()
+    options.driverName = "GPKG"
+    options.layerName = name
+    options.fileEncoding = "UTF-8"
+    options.layerOptions = [f"FID={FID_COLUMN}"]
+    options.onlySelectedFeatures = selected_only
+    error, message, *_ = QgsVectorFileWriter.writeAsVectorFormatV3(
+        layer, path, context.transformContext(), options)
+    if error != QgsVectorFileWriter.NoError:
+        raise QgsProcessingException(f"{name}: cannot copy the layer for the toolbox: {message}")
+    return f"{path}|layername={name}"
+
+
+def raster_source(layer, name: str, role: str | None = None) -> str:
+    """What the toolbox reads for a raster layer: its source, or a VRT of it when that source
+    is not a whole file the toolbox can open (one raster table of a GeoPackage,
+    ``GPKG:file:table``; any GDAL subdataset), or when the layer's CRS was set in QGIS (a grid
+    without .prj) and is not its file's: the VRT then carries the layer's CRS."""
+    provider = layer.dataProvider()
+    if layer.providerType() != "gdal" or provider is None:
+        return layer.source()
+    crs = layer.crs()
+    relabelled = role != "photo" and crs_set_in_qgis(layer)  # a photo's pixels have no CRS
+    file = layer_file(layer)[0]
+    part_of_file = bool(file) and os.path.abspath(file) != os.path.abspath(layer.source())
+    if not (relabelled or part_of_file):
+        return layer.source()
+    from osgeo import gdal
+
+    vrt = QgsProcessingUtils.generateTempFilename(f"{name}.vrt")
+    options = {"outputSRS": crs.authid() or crs.toWkt()} if relabelled else {}
+    done = gdal.Translate(vrt, layer.source(), format="VRT", **options)
+    if done is None:
+        raise QgsProcessingException(f"{name}: cannot read the raster layer '{layer.source()}' "
+                                     f"(GDAL: {gdal.GetLastErrorMsg()})")
+    done = None
+    return vrt
+
+
+class DefaultStyle(QgsProcessingLayerPostProcessorInterface):
+    """Loads an output layer's own style (the GeoPackage's layer_styles default, or a .qml beside
+    the file): Processing loads result layers without it (and then applies its own)."""
+
+    kept: list = []  # QGIS holds no reference to a Python post-processor: keep it alive
+
+    @classmethod
+    def create(cls):
+        if len(cls.kept) > 256:
+            del cls.kept[:128]
+        cls.kept.append(cls())
+        return cls.kept[-1]
+
+    def postProcessLayer(self, layer, context, feedback):  # noqa: N802 - QGIS's name
+        message, loaded = layer.loadDefaultStyle()
+        if loaded:
+            layer.triggerRepaint()
+
+
 class ToolboxAlgorithm(QgsProcessingAlgorithm):
     """A toolbox algorithm seen from QGIS."""
 
@@ -175,6 +298,10 @@ class ToolboxAlgorithm(QgsProcessingAlgorithm):
         name, kind = p["name"], p["type"]
         if parameters.get(name) is None:
             return None
+        if kind in ("number", "integer") and isinstance(parameters[name], str):
+            # text (qgis_process, scripts) goes as typed, for the toolbox to check: QGIS reads
+            # what it cannot parse ('250,5', '4.5' for an integer) as the default, else 0
+            return parameters[name].strip() or None
         if kind == "number":
             return repr(self.parameterAsDouble(parameters, name, context))
         if kind == "integer":
@@ -191,25 +318,54 @@ class ToolboxAlgorithm(QgsProcessingAlgorithm):
             if rect.isNull():
                 return None
             crs = self.parameterAsExtentCrs(parameters, name, context)
+            target = self._data_crs(parameters, context)
+            if crs.isValid() and target is not None and crs != target:
+                # drawn on a canvas in another CRS (a basemap's): into the data's, as QGIS's own
+                # algorithms do (the toolbox refuses an extent in another CRS than its inputs)
+                rect = self.parameterAsExtent(parameters, name, context, target)
+                crs = target
             tail = f" [{crs.authid()}]" if crs.isValid() and crs.authid() else ""
             return f"{rect.xMinimum()!r},{rect.yMinimum()!r},{rect.xMaximum()!r}," \
                    f"{rect.yMaximum()!r}{tail}"
         if kind in ("file", "folder"):
             return self.parameterAsFile(parameters, name, context) or None
         if kind == "vector":
+            # a CRS set on the layer in QGIS (a Shapefile without or with a wrong .prj) is not
+            # in its file: then the toolbox reads a copy QGIS writes with the layer's CRS
+            vector = self._vector_layer(parameters, name, context)
+            relabelled = vector is not None and crs_set_in_qgis(vector)
+            value = parameters.get(name)
+            selected = isinstance(value, QgsProcessingFeatureSourceDefinition) and \
+                value.selectedFeaturesOnly
+            if vector is not None and (relabelled or qgis_would_copy(vector, selected)) and \
+                    fid_would_clash(vector):
+                return copy_for_toolbox(vector, name, selected, context)
             path, layer = self.parameterAsCompatibleSourceLayerPathAndLayerName(
-                parameters, name, context, VECTOR_FORMATS, "gpkg", feedback)
+                parameters, name, context, [] if relabelled else VECTOR_FORMATS, "gpkg", feedback)
             if not path:
                 return None
-            return f"{path}|layername={layer}" if layer and "|" not in path else path
+            if "|" in path:
+                return path
+            # QGIS hands over the layer's own file when it needs no copy: keep which layer of it
+            # (layerid= when the URI has no name) and which geometry type (a GeoJSON/DXF
+            # sublayer), or the toolbox reads the file's first layer, all geometries
+            file, parts = layer_file(vector)
+            own = bool(file) and os.path.abspath(file) == os.path.abspath(path)
+            if layer:
+                path += f"|layername={layer}"
+            elif own and parts.get("layerId") not in (None, ""):
+                path += f"|layerid={parts['layerId']}"
+            if own and parts.get("geometryType"):
+                path += f"|geometrytype={parts['geometryType']}"
+            return path
         if kind == "raster":
             layer = self.parameterAsRasterLayer(parameters, name, context)
-            return None if layer is None else layer.source()
+            return None if layer is None else raster_source(layer, name, p.get("role"))
         if kind == "multiple":
             if p.get("layer_type") != "raster":
                 return list(self.parameterAsFileList(parameters, name, context))
-            return [layer.source() for layer in self.parameterAsLayerList(parameters, name,
-                                                                           context)]
+            return [raster_source(layer, name, p.get("role")) for layer in
+                    self.parameterAsLayerList(parameters, name, context)]
         if kind == "field":
             return self.parameterAsString(parameters, name, context) or None
         if kind == "output_raster":
@@ -222,8 +378,9 @@ class ToolboxAlgorithm(QgsProcessingAlgorithm):
     def processAlgorithm(self, parameters, context, feedback):
         values = {p["name"]: self._value(p, parameters, context, feedback)
                   for p in self.spec.get("parameters", [])}
+        self._check_outputs_are_not_inputs(parameters, context, values)
         args = command_line(self.executable, self.spec["id"], values)
-        feedback.pushCommandInfo(" ".join(args))
+        feedback.pushCommandInfo(shlex.join(args))  # pasted in a shell: runs as shown
         result, errors = self._run(args, feedback)
         outputs = dict(result.get("outputs") or {})
         for p in self.spec.get("parameters", []):
@@ -235,6 +392,74 @@ class ToolboxAlgorithm(QgsProcessingAlgorithm):
             if isinstance(value, (dict, list)):
                 outputs[key] = json.dumps(value)
         return outputs
+
+    def _data_crs(self, parameters, context):
+        """The CRS the toolbox works in: the CRS parameter's, else the first input layer's with
+        one (None when unknown)."""
+        given = [p for p in self.spec.get("parameters", [])
+                 if parameters.get(p["name"]) not in (None, "")]
+        for p in given:
+            if p["type"] == "crs":
+                crs = self.parameterAsCrs(parameters, p["name"], context)
+                if crs.isValid():
+                    return crs
+        for p in given:
+            if p["type"] == "vector":
+                layer = self._vector_layer(parameters, p["name"], context)
+            elif p["type"] == "raster" and p.get("role") != "photo":  # pixels, no map CRS
+                layer = self.parameterAsRasterLayer(parameters, p["name"], context)
+            else:
+                continue
+            provider = layer.dataProvider() if layer is not None else None
+            if provider is not None and layer.crs().isValid() and (
+                    provider.crs().isValid() or crs_set_in_qgis(layer)):
+                return layer.crs()  # not QGIS's own label of a file without CRS
+        return None
+
+    def _vector_layer(self, parameters, name, context):
+        """The map layer of a vector parameter, also when given with 'Selected features only'
+        (a source definition, for which parameterAsVectorLayer answers None)."""
+        value = parameters.get(name)
+        if isinstance(value, QgsProcessingFeatureSourceDefinition):
+            source = value.source
+            source = source.staticValue() if isinstance(source, QgsProperty) else source
+            return QgsProcessingUtils.mapLayerFromString(str(source), context)
+        return self.parameterAsVectorLayer(parameters, name, context)
+
+    def _input_files(self, parameters, context):
+        """(parameter name, file) of every input layer read from a local file."""
+        for p in self.spec.get("parameters", []):
+            name, kind = p["name"], p["type"]
+            if parameters.get(name) in (None, ""):
+                continue
+            if kind == "vector":
+                layers = [self._vector_layer(parameters, name, context)]
+            elif kind == "raster":
+                layers = [self.parameterAsRasterLayer(parameters, name, context)]
+            elif kind == "multiple" and p.get("layer_type") == "raster":
+                layers = self.parameterAsLayerList(parameters, name, context)
+            else:
+                continue  # files and folders go to the toolbox as given: it checks them itself
+            for layer in layers:
+                path = layer_file(layer)[0]
+                if path:
+                    yield name, path
+
+    def _check_outputs_are_not_inputs(self, parameters, context, values) -> None:
+        """An output on an input layer's file is refused before anything runs: QGIS hands the
+        toolbox a temporary copy of a layer with a selection or a filter, so the toolbox's own
+        check cannot see that the output would replace the user's file."""
+        outputs = [(p["name"], values.get(p["name"])) for p in self.spec.get("parameters", [])
+                   if p["type"] in ("output_raster", "output_vector", "output_file")]
+        outputs = [(name, str(path)) for name, path in outputs if path]
+        if not outputs:
+            return
+        for in_name, in_path in self._input_files(parameters, context):
+            for out_name, out_path in outputs:
+                if os.path.realpath(out_path) == os.path.realpath(in_path):
+                    raise QgsProcessingException(
+                        f"{out_name} '{out_path}' is also the input {in_name}; an input is never "
+                        "overwritten: choose another output path")
 
     def _run(self, args, feedback):
         process = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
@@ -264,8 +489,13 @@ class ToolboxAlgorithm(QgsProcessingAlgorithm):
                 elif kind == "result":
                     state["result"] = item
 
+        def read_stdout():  # read as it comes: a result over the pipe's 64 KB would block
+            state["stdout"].append(process.stdout.read())  # the toolbox (and QGIS) for ever
+
         reader = threading.Thread(target=read_stderr, daemon=True)
         reader.start()
+        out_reader = threading.Thread(target=read_stdout, daemon=True)
+        out_reader.start()
         while True:
             try:
                 process.wait(timeout=0.2)
@@ -279,8 +509,10 @@ class ToolboxAlgorithm(QgsProcessingAlgorithm):
                         process.kill()
                     break
         reader.join(timeout=5)
-        stdout = process.stdout.read() if process.stdout else ""
-        for line in stdout.splitlines():
+        out_reader.join(timeout=5)
+        for stream in (process.stdout, process.stderr):
+            stream.close()
+        for line in "".join(state["stdout"]).splitlines():
             item = parse_progress(line)
             if item and item.get("type") == "result":
                 state["result"] = item
@@ -292,17 +524,28 @@ class ToolboxAlgorithm(QgsProcessingAlgorithm):
         return state["result"], state["errors"]
 
     def _load_layers(self, param: dict, path: str, context) -> None:
-        """Every layer of a GeoPackage output loads into the project on completion."""
+        """Every layer of an output loads into the project on completion: all the layers of a
+        GeoPackage; with a one-layer format (.shp...) the file and the toolbox's sibling files of
+        the other layers (``<stem>_<layer>.shp``, as the spec names them)."""
         from osgeo import ogr
 
-        ds = ogr.Open(path)
-        if ds is None:
-            return
-        names = [ds.GetLayer(i).GetName() for i in range(ds.GetLayerCount())]
-        ds = None
-        for layer_name in names:
-            if layer_name == "layer_styles":  # the styles table QGIS reads, not a layer
+        files = [path]
+        stem, suffix = os.path.splitext(path)
+        if suffix.lower() not in (".gpkg", ".sqlite"):
+            spec = next((o for o in self.spec.get("outputs", []) if o.get("name") == param["name"]),
+                        {})
+            files += [f"{stem}_{layer['name']}{suffix}" for layer in (spec.get("layers") or [])[1:]
+                      if os.path.exists(f"{stem}_{layer['name']}{suffix}")]
+        for file in files:
+            ds = ogr.Open(file)
+            if ds is None:
                 continue
-            details = QgsProcessingContext.LayerDetails(layer_name, context.project(),
-                                                        param["name"])
-            context.addLayerToLoadOnCompletion(f"{path}|layername={layer_name}", details)
+            names = [ds.GetLayer(i).GetName() for i in range(ds.GetLayerCount())]
+            ds = None
+            for layer_name in names:
+                if layer_name == "layer_styles":  # the styles table QGIS reads, not a layer
+                    continue
+                details = QgsProcessingContext.LayerDetails(layer_name, context.project(),
+                                                            param["name"])
+                details.setPostProcessor(DefaultStyle.create())
+                context.addLayerToLoadOnCompletion(f"{file}|layername={layer_name}", details)
