@@ -262,18 +262,15 @@ def rpc_ortho(params: dict[str, Any], feedback: Feedback,
 
 def grid_choice(params: dict[str, Any], crs: Any) -> tuple[Any, Any, tuple[float, float]]:
     """(cell, bounds, lattice origin) from CELL_SIZE, EXTENT and TEMPLATE."""
-    from toolbox.io.crs import crs_label, same_crs
+    from toolbox.io.crs import extent_bounds_in
     from toolbox.raster.grid_request import template_lattice
 
     cell = params["CELL_SIZE"]
     extent = params["EXTENT"]
     origin = (0.0, 0.0)
-    if extent is not None and extent.crs is not None and not same_crs(extent.crs, crs):
-        raise ParameterError("EXTENT", f"is in {crs_label(extent.crs)}, the ortho in "
-                             f"{crs_label(crs)}")
     if params["TEMPLATE"] is not None:
         cell, origin = template_lattice(params["TEMPLATE"], cell, crs, "the ortho")
-    return cell, None if extent is None else extent.bounds, origin
+    return cell, None if extent is None else extent_bounds_in(extent, crs), origin
 
 
 def oriented_photo(params: dict[str, Any]) -> tuple[Any, Any, Any]:

@@ -103,7 +103,7 @@ class RectifyImage(Algorithm):
             check_input_crs(self.id, "TRANSFORM", model.crs)
 
     def process(self, params, feedback: Feedback):
-        from toolbox.io.crs import crs_label, same_crs
+        from toolbox.io.crs import crs_label
         from toolbox.raster.homography import HomographyMap
         from toolbox.raster.nan_cells import NanCells
         from toolbox.raster.warp import warp_layout, warp_raster
@@ -131,15 +131,11 @@ class RectifyImage(Algorithm):
                 "RECTIFY_PIXEL_CONVENTION": "col,row from the top-left corner; centres at +0.5"}
         if params["MODE"] == "gcps":
             return self._gcps(params, model, p2i, tags, feedback)
-        extent = params["EXTENT"]
-        if extent is not None and extent.crs is not None and not same_crs(extent.crs, model.crs):
-            raise ParameterError("EXTENT", f"is in {crs_label(extent.crs)} but the transform is "
-                                 f"in {crs_label(model.crs)}")
         corners = None
         try:
             corners = footprint(matrix, info.width, info.height)
         except InputDataError:
-            if extent is None:
+            if params["EXTENT"] is None:
                 raise
             feedback.push_warning("the ground plane's vanishing line crosses the photo; only "
                                   "the part in front of the camera is rectified")

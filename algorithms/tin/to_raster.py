@@ -65,7 +65,7 @@ class ToRaster(Algorithm):
     def process(self, params, feedback: Feedback):
         from functools import partial
 
-        from toolbox.io.crs import common_crs, crs_label, same_crs
+        from toolbox.io.crs import crs_label, same_crs
         from toolbox.raster.engine import process_raster
         from toolbox.raster.writer import RasterWriter
         from toolbox.terrain.gridding.tin_raster import TinTiles, tin_tile
@@ -78,9 +78,6 @@ class ToRaster(Algorithm):
                 and not same_crs(params["CRS"], template.crs):
             raise InputDataError(f"CRS is {crs_label(params['CRS'])} but TEMPLATE is in "
                                  f"{crs_label(template.crs)}")
-        extent = params["EXTENT"]
-        if extent is not None and extent.crs is not None:
-            common_crs({"EXTENT": extent.crs}, out_crs)
         with feedback.timed("read"):
             xyz, triangles, _ = read_tin(params["TIN"])
         if tin_crs is not None and out_crs is not None and not same_crs(tin_crs, out_crs):

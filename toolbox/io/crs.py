@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import functools
+import math
 import threading
 from typing import Any
 
@@ -149,6 +150,31 @@ def common_crs(named: dict[str, CRS | None], override: CRS | None = None) -> CRS
             raise InputDataError(f"{key} is in {crs_label(crs)} but {ref_name} is in "
                                  f"{crs_label(reference)}; reproject the inputs to one CRS first")
     return reference
+
+
+def extent_bounds_in(extent: Any, crs: Any, name: str = "EXTENT") -> tuple[float, ...]:
+    """The bounds of ``extent`` (an object with ``.bounds`` and ``.crs``, e.g. a parameter's
+    :class:`toolbox.parameters.Extent`) in ``crs``: as given when it names no CRS or the same
+    one; else the bounding box of the rectangle transformed into ``crs`` (its edges densified,
+    as QGIS converts an extent drawn on a canvas in another CRS and ``gdalwarp -te_srs`` does),
+    logged as a warning naming ``name`` and the bounds taken."""
+    bounds = tuple(float(v) for v in extent.bounds)
+    own = getattr(extent, "crs", None)
+    if own is None or crs is None or same_crs(own, crs):
+        return bounds
+    import logging
+
+    from pyproj import Transformer
+
+    box = Transformer.from_crs(own, crs, always_xy=True).transform_bounds(*bounds,
+                                                                        densify_pts=21)
+    if not all(math.isfinite(v) for v in box) or not (box[2] > box[0] and box[3] > box[1]):
+        raise InputDataError(f"{name} {bounds} in {crs_label(own)} does not convert to "
+                             f"{crs_label(crs)}: give it in {crs_label(crs)}")
+    logging.getLogger("toolbox").warning(
+        f"{name} is in {crs_label(own)}: taken as its bounding box in {crs_label(crs)}, "
+        f"{box[0]:.3f},{box[1]:.3f},{box[2]:.3f},{box[3]:.3f}")
+    return tuple(float(v) for v in box)
 
 
 # -- CRS sanity of the inputs (called by the runner for every CRS-bearing input) ---------------

@@ -24,7 +24,8 @@ class GridRequest:
 
     ``cell_size``: CRS units (None: the template's, or the caller's default); ``extent``: an
     object with ``.bounds`` (xmin, ymin, xmax, ymax) and ``.crs`` (e.g.
-    :class:`toolbox.parameters.Extent`), or None for the data's bounds; ``template``: a
+    :class:`toolbox.parameters.Extent`; in another CRS than the grid's, its bounding box there:
+    :func:`toolbox.io.crs.extent_bounds_in`), or None for the data's bounds; ``template``: a
     :class:`toolbox.io.raster.RasterInfo` whose lattice the grid takes; ``max_cells``: the size
     guard (None: ``TOOLBOX_MAX_CELLS`` or 1e9).
     """
@@ -62,6 +63,11 @@ class GridRequest:
 
         limit = self.max_cells or max_cells or max_cells_default()
         extent, template = self.extent, self.template
+        if extent is not None:  # in the grid's CRS (converted when it names another)
+            from toolbox.io.crs import extent_bounds_in
+
+            crs_of_grid = crs if crs is not None or template is None else template.crs
+            extent_box = extent_bounds_in(extent, crs_of_grid)
         if template is not None:
             t = template.transform
             if t.b != 0 or t.d != 0 or t.a <= 0 or t.e >= 0:
@@ -75,7 +81,7 @@ class GridRequest:
                 return _guarded(GridSpec(t, template.width, template.height, crs), limit,
                                 "TEMPLATE")
             cx, cy = t.a, -t.e
-            xmin, ymin, xmax, ymax = map(float, extent.bounds)
+            xmin, ymin, xmax, ymax = extent_box
             eps = cell_slack(min(cx, cy), xmin, ymin, xmax, ymax, t.c, t.f)
             col0 = math.floor((xmin - t.c) / cx + eps)
             col1 = math.ceil((xmax - t.c) / cx - eps)
@@ -93,7 +99,7 @@ class GridRequest:
         if not cell > 0 or not math.isfinite(cell):
             raise ParameterError("CELL_SIZE", f"must be > 0, got {cell:g}")
         if extent is not None:
-            xmin, ymin, xmax, ymax = map(float, extent.bounds)
+            xmin, ymin, xmax, ymax = extent_box
             if not (xmax > xmin and ymax > ymin):
                 raise ParameterError("EXTENT", f"must have xmax > xmin and ymax > ymin, got "
                                      f"{xmin:g},{ymin:g},{xmax:g},{ymax:g}")

@@ -3,6 +3,7 @@
 and generic paths agree, bands/types/masks, bounded windows, oblique photos, GCP output."""
 
 import json
+import math
 
 import numpy as np
 import pytest
@@ -334,13 +335,31 @@ def test_cancel_leaves_no_output(tmp_path, scene_files):
     assert not (tmp_path / "c.tif").exists()
 
 
-def test_extent_in_another_crs_refused(tmp_path, scene_files):
+def test_extent_in_another_crs_is_converted(tmp_path, scene_files, caplog):
+    """An EXTENT in another CRS than the transform's is taken as its bounding box in the
+    transform's CRS (pyproj's transform_bounds, the conversion of QGIS and gdalwarp -te_srs),
+    with a warning naming it; it was refused."""
+    from pyproj import Transformer
+
     _, photo, transform = scene_files
-    with pytest.raises(ParameterError, match="EXTENT is in EPSG:32632 but the transform is in "
-                       "EPSG:3003"):
-        toolbox.run("rectify:image", {"INPUT": photo, "TRANSFORM": transform,
-                                      "EXTENT": "0,0,10,10 [EPSG:32632]",
-                                      "OUTPUT": tmp_path / "x.tif"})
+    first = toolbox.run("rectify:image", {"INPUT": photo, "TRANSFORM": transform,
+                                          "CELL_SIZE": 0.5, "OUTPUT": tmp_path / "a.tif"})
+    with rasterio.open(first["OUTPUT"]) as src:
+        b = src.bounds
+    inner = (b.left + 2, b.bottom + 2, b.right - 2, b.top - 2)
+    utm = Transformer.from_crs("EPSG:3003", "EPSG:32632", always_xy=True).transform_bounds(*inner)
+    truth = Transformer.from_crs("EPSG:32632", "EPSG:3003", always_xy=True).transform_bounds(
+        *utm, densify_pts=21)
+    toolbox.run("rectify:image", {"INPUT": photo, "TRANSFORM": transform, "CELL_SIZE": 0.5,
+                                  "EXTENT": ",".join(f"{v:.3f}" for v in utm) + " [EPSG:32632]",
+                                  "OUTPUT": tmp_path / "x.tif"})
+    with rasterio.open(tmp_path / "x.tif") as src:
+        assert src.crs.to_epsg() == 3003
+        assert src.transform.c == pytest.approx(truth[0], abs=1e-2)
+        assert src.transform.f == pytest.approx(truth[3], abs=1e-2)
+        assert src.width == math.ceil((truth[2] - truth[0]) / 0.5)  # whole cells, outwards
+    assert any("EXTENT is in EPSG:32632: taken as its bounding box in EPSG:3003" in r.message
+               for r in caplog.records)
 
 
 def test_cli_run(tmp_path, scene_files):

@@ -58,3 +58,41 @@ def test_no_cell_no_template_no_default_names_cell_size():
     # the data's bounds snapped outwards to whole cells (independent arithmetic)
     grid = GridRequest(cell_size=4.0).grid((X0 + 3, Y0 + 7, X0 + 96, Y0 + 61), None)
     assert grid.bounds == (X0, Y0 + 4, X0 + 96, Y0 + 64) and (grid.width, grid.height) == (24, 15)
+
+
+def test_an_extent_in_another_crs_is_its_bounding_box_in_the_grids_crs(tmp_path):
+    """EXTENT "... [EPSG:32632]" for data in EPSG:3003: the grid covers the extent's bounding
+    box in EPSG:3003 (pyproj's densified transform_bounds, as QGIS and gdalwarp -te_srs convert
+    it); dem:* refused it with "reproject the inputs to one CRS first" (the inputs were in one
+    CRS). The CLI runs and says what it took."""
+    import geopandas as gpd
+    import shapely
+    from pyproj import Transformer
+
+    from tests.helpers_cli import cli
+    from toolbox.parameters.values import Extent
+
+    utm = Transformer.from_crs("EPSG:3003", "EPSG:32632", always_xy=True).transform_bounds(
+        X0, Y0, X0 + 200, Y0 + 150)
+    truth = Transformer.from_crs("EPSG:32632", "EPSG:3003", always_xy=True).transform_bounds(
+        *utm, densify_pts=21)
+    grid = GridRequest(cell_size=1.0, extent=Extent(*utm, CRS.from_epsg(32632))).grid(
+        None, CRS.from_epsg(3003))
+    t = grid.transform
+    assert (t.c, t.f) == pytest.approx((truth[0], truth[3]), abs=1e-6)
+    assert (grid.width, grid.height) == (int(np.ceil(truth[2] - truth[0])),
+                                         int(np.ceil(truth[3] - truth[1])))
+    rng = np.random.default_rng(3)
+    points = gpd.GeoDataFrame(geometry=shapely.points(
+        X0 - 50 + 300 * rng.random(200), Y0 - 50 + 250 * rng.random(200), rng.random(200)),
+        crs="EPSG:3003")
+    points.to_file(tmp_path / "p.gpkg")
+    extent = ",".join(f"{v:.3f}" for v in utm) + " [EPSG:32632]"
+    code, _, err = cli("run", "dem:nearest", "--INPUT", tmp_path / "p.gpkg", "--CELL_SIZE", "1",
+                       "--EXTENT", extent, "--OUTPUT", tmp_path / "d.tif")
+    assert code == 0, err
+    assert "EXTENT is in EPSG:32632: taken as its bounding box in EPSG:3003" in err
+    with rasterio.open(tmp_path / "d.tif") as src:
+        assert src.crs.to_epsg() == 3003
+        assert (src.transform.c, src.transform.f) == pytest.approx((truth[0], truth[3]),
+                                                                   abs=1e-3)

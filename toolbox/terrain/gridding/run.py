@@ -55,9 +55,9 @@ def grid_dem(method: Any, request: GriddingRequest, feedback: Feedback,
 
 
 def other_crs(request: GriddingRequest) -> dict[str, Any]:
-    """The CRS of the run's inputs besides the data (MASK, TEMPLATE, EXTENT), by name."""
-    named = {"MASK": request.cells.mask, "TEMPLATE": request.grid.template,
-             "EXTENT": request.grid.extent}
+    """The CRS of the run's inputs besides the data (MASK, TEMPLATE), by name: they must be
+    the data's; an EXTENT in another CRS is converted to it (:meth:`GridRequest.grid`)."""
+    named = {"MASK": request.cells.mask, "TEMPLATE": request.grid.template}
     return {name: getattr(value, "crs", None) for name, value in named.items()
             if value is not None}
 
