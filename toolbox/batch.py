@@ -217,6 +217,9 @@ def run_pipeline(pipeline: Pipeline, feedback: Feedback | None = None, overwrite
                           overwrite=overwrite, report=report)
         except ToolboxError as exc:
             raise PipelineError(f"step {step.name!r} ({alg.id}): {exc}") from exc
+        except KeyboardInterrupt as exc:  # the CLI names the step; the steps done stay
+            exc.step = f"{step.name!r} ({i + 1}/{n})"
+            raise
         scope[step.name] = outputs
         results[step.name] = outputs
     return results

@@ -191,7 +191,7 @@ def run(algorithm_id: str, parameters: dict[str, Any] | None = None,
         feedback.push_warning(text)
     protected = set(input_paths(alg_cls, values))
     report_path = None if report is None else check_report(report, alg_cls, values, overwrite)
-    staging = OutputStaging()
+    staging = OutputStaging(record=True)
     try:
         staged = dict(values)
         for dest in alg_cls.destinations():
