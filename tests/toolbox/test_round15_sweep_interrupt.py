@@ -143,3 +143,55 @@ def test_an_interruption_a_library_turns_into_its_own_error_is_an_interruption(c
         command()
     assert exit_info.value.code == 128 + signal.SIGTERM  # not 3, "internal error"
     assert capsys.readouterr().err.strip() == "toolbox: terminated by SIGTERM; no output was written"
+
+
+def test_a_laz_output_on_a_full_disk_is_a_write_error(tmp_path):
+    """lazrs reports a failed write as its own "IoError: Failed to call write" (no cause kept):
+    it was exit 3, "internal error"; the disk tells why, as for the other libraries."""
+    laspy = pytest.importorskip("laspy")
+    pytest.importorskip("lazrs")
+    import numpy as np
+
+    from tests.helpers_cli import run_on_full_disk
+
+    rng = np.random.default_rng(1)
+    header = laspy.LasHeader(point_format=6, version="1.4")
+    header.scales, header.offsets = [0.01] * 3, [500000, 4800000, 0]
+    points = laspy.LasData(header)
+    points.x = 500000 + rng.uniform(0, 200, 40000)
+    points.y = 4800000 + rng.uniform(0, 200, 40000)
+    points.z = 100 + rng.normal(0, 0.05, 40000)
+    points.write(tmp_path / "points.laz")  # 177 kB; the rasters of a 2 m grid: a few kB
+    out = tmp_path / "out"
+    proc = run_on_full_disk(["dem:ground", "--INPUT", str(tmp_path / "points.laz"), "--CRS",
+                             "EPSG:32632", "--FILTER_CELL", "2", "--OUTPUT", str(out / "dtm.tif"),
+                             "--NONGROUND", str(out / "ng.tif"), "--GROUND_POINTS",
+                             str(out / "ground.laz"), "--quiet"], limit=120_000)
+    errors = [line for line in proc.stderr.splitlines() if not line.startswith("WARNING")]
+    assert proc.returncode == 2, proc.stderr
+    assert len(errors) == 1 and errors[0].startswith(
+        f"toolbox: error: cannot write GROUND_POINTS '{out / 'ground.laz'}'"), proc.stderr
+    assert not out.exists()
+
+
+def test_a_signal_a_library_swallows_still_stops_the_run(tmp_path):
+    """pyogrio's reading loop swallows the exception a signal handler raises in it (a batch
+    step SIGTERMed while reading its points ran on and exited 0, about 1 in 4): the signal also
+    cancels the run, whose check before the commit stops it."""
+    from tests.helpers_cli import cli, register_testing
+    from toolbox.parameters import OutputFile
+
+    def process(self, params, feedback):
+        params["OUTPUT"].write_text("complete")
+        try:  # a library's loop that swallows the exception
+            signal.raise_signal(signal.SIGTERM)
+        except KeyboardInterrupt:
+            pass
+        return {}
+
+    register_testing("swallower", OutputFile("OUTPUT", extensions=[".txt"]), process,
+                     "Reads with a library that swallows a signal's exception.")
+    code, out, err = cli("run", "testing:swallower", "--OUTPUT", tmp_path / "new" / "a.txt")
+    assert code == 128 + signal.SIGTERM, (code, out, err)
+    assert err.strip() == "toolbox: terminated by SIGTERM; no output was written"
+    assert list(tmp_path.iterdir()) == []

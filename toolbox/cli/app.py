@@ -84,7 +84,10 @@ def _handle_errors(func: Callable) -> Callable:
         try:
             with _signals_as_interrupts(received), _native_stderr_filtered(), \
                     _python_warnings_as_messages():
-                return func(*args, **kwargs)
+                result = func(*args, **kwargs)
+            if received:  # a library swallowed the interruption; the run ended all the same
+                _exit_interrupted(received[0], None, committed)
+            return result
         except KeyboardInterrupt as exc:
             _exit_interrupted(getattr(exc, "signum", signal.SIGINT), exc, committed)
         except (click.exceptions.ClickException, click.exceptions.Exit, click.exceptions.Abort):
@@ -147,15 +150,20 @@ class Interrupted(KeyboardInterrupt):
 def _signals_as_interrupts(received: list[int] | None = None):
     """Handle SIGINT, SIGTERM and SIGHUP (Ctrl-C, timeout, kill, systemd, Docker, Slurm, a
     closed terminal) alike while a command runs: staged outputs are removed, the exit code is
-    128 + signal. Each signal is appended to ``received`` (a library may turn the exception into
-    its own error); one that comes while outputs are moved into place or a staging folder is
-    removed waits until that is done (:func:`toolbox.io.staging.hold_signal`)."""
+    128 + signal. A library may swallow the exception (pyogrio's reading loop) or turn it into
+    its own error (lazrs): so each signal is also appended to ``received`` and cancels the
+    running command's feedback, whose next check (the runner's, before any output is moved into
+    place) stops the run. One that comes while outputs are moved into place or a staging folder
+    is removed waits until that is done (:func:`toolbox.io.staging.hold_signal`)."""
     def interrupt(signum, frame):
         staging = sys.modules.get("toolbox.io.staging")
         if staging is not None and staging.hold_signal(signum):
             return
         if received is not None:
             received.append(signum)
+        terminal = sys.modules.get("toolbox.cli.terminal")
+        if terminal is not None and terminal.ACTIVE[0] is not None:
+            terminal.ACTIVE[0].cancel()
         raise Interrupted(signum)
 
     previous = {}

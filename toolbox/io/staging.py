@@ -31,6 +31,7 @@ import re
 import shutil
 import signal
 import tempfile
+import threading
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -49,30 +50,38 @@ _FINAL_OF: dict[Path, Path] = {}  # staged path -> final path, while a run is st
 #: the final paths every commit of a run (``OutputStaging(record=True)``) of this process moved
 #: into place, in order: what a command interrupted after a commit (a batch's steps done) names
 COMMITTED: list[Path] = []
-_HELD: list[int | None] = [0, None]  # depth of the sections signals wait for, the signal held
+_HELD: list[int | None] = [0, None]  # sections signals wait for (all threads), the signal held
+_HELD_LOCK = threading.Lock()  # threads commit too (ortho:batch's photos)
 
 
 def hold_signal(signum: int) -> bool:
     """For a signal handler: True while files are moved into place, a failed commit undone or a
     staging folder removed (the signal is then raised once that is done, so an interruption
     never leaves half a commit, half an undo or half a staging folder), else False."""
-    if not _HELD[0]:
+    if not _HELD[0]:  # read without the lock: a handler must not wait for one
         return False
     if _HELD[1] is None:
         _HELD[1] = signum
-    return True
+    if _HELD[0]:
+        return True
+    _HELD[1] = None  # the last section (another thread's) ended meanwhile: raise it now
+    return False
 
 
 @contextmanager
 def _signals_held():
     """Signals that :func:`hold_signal` kept wait for the end of the block, then are raised."""
-    _HELD[0] += 1
+    with _HELD_LOCK:
+        _HELD[0] += 1
     try:
         yield
     finally:
-        _HELD[0] -= 1
-        if not _HELD[0] and _HELD[1] is not None:
-            signum, _HELD[1] = _HELD[1], None
+        with _HELD_LOCK:
+            _HELD[0] -= 1
+            signum = _HELD[1] if not _HELD[0] else None
+            if signum is not None:
+                _HELD[1] = None
+        if signum is not None:
             signal.raise_signal(signum)
 
 
@@ -201,6 +210,10 @@ class OutputStaging:
         self.removed_stale: list[Path] = []
 
     def stage(self, final: str | Path, name: str = "OUTPUT") -> Path:
+        with _signals_held():  # a folder made is a folder remembered (and removed on rollback)
+            return self._stage(final, name)
+
+    def _stage(self, final: str | Path, name: str) -> Path:
         final = Path(final).expanduser().absolute()
         self._make_parent(final.parent, name)
         for folder in stale_staging_folders(final):

@@ -233,6 +233,7 @@ def run(algorithm_id: str, parameters: dict[str, Any] | None = None,
                 staged_report.write_text(json.dumps(doc, indent=2) + "\n")
             except OSError as exc:
                 raise write_error(exc, REPORT, report_path) from None
+        feedback.check_canceled()  # again: a signal a library swallowed meanwhile stops it too
         staging.commit(overwrite=overwrite, protected=protected)
     finally:
         staging.rollback()
