@@ -216,7 +216,12 @@ def run_pipeline(pipeline: Pipeline, feedback: Feedback | None = None, overwrite
             outputs = run(alg.id, params, feedback=feedback.step(100 * i / n, 100 * (i + 1) / n),
                           overwrite=overwrite, report=report)
         except ToolboxError as exc:
-            raise PipelineError(f"step {step.name!r} ({alg.id}): {exc}") from exc
+            error = PipelineError(f"step {step.name!r} ({alg.id}): {exc}")
+            error.step = f"{step.name!r} ({i + 1}/{n})"  # as below, if a signal caused it
+            raise error from exc
+        except KeyboardInterrupt as exc:  # the CLI names the step; the steps done stay
+            exc.step = f"{step.name!r} ({i + 1}/{n})"
+            raise
         scope[step.name] = outputs
         results[step.name] = outputs
     return results

@@ -79,24 +79,26 @@ def _handle_errors(func: Callable) -> Callable:
     @functools.wraps(func)
     def wrapper(*args, **kwargs):
         where = kwargs.get("algorithm_id") or func.__name__.removesuffix("_cmd")
+        committed = len(_committed())
+        received: list[int] = []
         try:
-            with _signals_as_interrupts(), _native_stderr_filtered(), _python_warnings_as_messages():
-                return func(*args, **kwargs)
+            with _signals_as_interrupts(received), _native_stderr_filtered(), \
+                    _python_warnings_as_messages():
+                result = func(*args, **kwargs)
+            if received:  # a library swallowed the interruption; the run ended all the same
+                _exit_interrupted(received[0], None, committed)
+            return result
         except KeyboardInterrupt as exc:
-            if _terminal().ACTIVE[0] is not None:
-                _terminal().ACTIVE[0].clear_line()
-            signum = getattr(exc, "signum", signal.SIGINT)
-            what = "canceled" if signum == signal.SIGINT else \
-                f"terminated by {signal.Signals(signum).name}"
-            click.echo(f"toolbox: {what}; no output was written", err=True)
-            sys.exit(128 + signum)
+            _exit_interrupted(getattr(exc, "signum", signal.SIGINT), exc, committed)
         except (click.exceptions.ClickException, click.exceptions.Exit, click.exceptions.Abort):
             raise
-        except BrokenPipeError:  # `toolbox list | head`: the reader left; nothing to report
-            devnull = os.open(os.devnull, os.O_WRONLY)
-            os.dup2(devnull, sys.stdout.fileno())  # no second error while flushing at exit
-            sys.exit(1)
         except Exception as exc:
+            if received:  # a library turned the interruption into its own error (lazrs...)
+                _exit_interrupted(received[0], exc, committed)
+            if isinstance(exc, BrokenPipeError):  # `toolbox list | head`: the reader left
+                devnull = os.open(os.devnull, os.O_WRONLY)
+                os.dup2(devnull, sys.stdout.fileno())  # no second error while flushing at exit
+                sys.exit(1)
             if os.environ.get("TOOLBOX_DEBUG") and not isinstance(exc, ToolboxError):
                 raise
             sys.exit(_report_error(exc, where))
@@ -104,8 +106,40 @@ def _handle_errors(func: Callable) -> Callable:
     return wrapper
 
 
+def _committed() -> list:
+    """The outputs this process moved into place so far (:data:`toolbox.io.staging.COMMITTED`;
+    none before the staging module is loaded)."""
+    staging = sys.modules.get("toolbox.io.staging")
+    return staging.COMMITTED if staging is not None else []
+
+
+def interrupted_message(signum: int, exc: BaseException | None = None,
+                        committed: int = 0) -> str:
+    """What an interrupted command says: canceled or terminated, and what stays written (the
+    outputs moved into place before the signal: a run it reached after its commit, a batch's
+    steps done) or that nothing was written."""
+    what = "canceled" if signum == signal.SIGINT else \
+        f"terminated by {signal.Signals(signum).name}"
+    step = getattr(exc, "step", None)
+    if step:
+        what += f" during step {step}"
+    written = [str(p) for p in _committed()[committed:]]
+    if not written:
+        return f"{what}; no output was written"
+    shown = ", ".join(written[:3]) + (f" and {len(written) - 3} more" if len(written) > 3 else "")
+    now = "of that step " if step else "else "
+    return (f"{what}; written before it and kept: {shown}; nothing {now}was written")
+
+
+def _exit_interrupted(signum: int, exc: BaseException | None, committed: int) -> None:
+    if _terminal().ACTIVE[0] is not None:
+        _terminal().ACTIVE[0].clear_line()
+    click.echo(f"toolbox: {interrupted_message(signum, exc, committed)}", err=True)
+    sys.exit(128 + signum)
+
+
 class Interrupted(KeyboardInterrupt):
-    """SIGTERM or SIGHUP, raised like Ctrl-C so that every cleanup runs."""
+    """SIGINT, SIGTERM or SIGHUP, raised like Ctrl-C so that every cleanup runs."""
 
     def __init__(self, signum: int):
         super().__init__(signal.Signals(signum).name)
@@ -113,14 +147,27 @@ class Interrupted(KeyboardInterrupt):
 
 
 @contextmanager
-def _signals_as_interrupts():
-    """Handle SIGTERM and SIGHUP (timeout, kill, systemd, Docker, Slurm, a closed terminal) as
-    Ctrl-C while a command runs: staged outputs are removed, the exit code is 128 + signal."""
+def _signals_as_interrupts(received: list[int] | None = None):
+    """Handle SIGINT, SIGTERM and SIGHUP (Ctrl-C, timeout, kill, systemd, Docker, Slurm, a
+    closed terminal) alike while a command runs: staged outputs are removed, the exit code is
+    128 + signal. A library may swallow the exception (pyogrio's reading loop) or turn it into
+    its own error (lazrs): so each signal is also appended to ``received`` and cancels the
+    running command's feedback, whose next check (the runner's, before any output is moved into
+    place) stops the run. One that comes while outputs are moved into place or a staging folder
+    is removed waits until that is done (:func:`toolbox.io.staging.hold_signal`)."""
     def interrupt(signum, frame):
+        staging = sys.modules.get("toolbox.io.staging")
+        if staging is not None and staging.hold_signal(signum):
+            return
+        if received is not None:
+            received.append(signum)
+        terminal = sys.modules.get("toolbox.cli.terminal")
+        if terminal is not None and terminal.ACTIVE[0] is not None:
+            terminal.ACTIVE[0].cancel()
         raise Interrupted(signum)
 
     previous = {}
-    for sig in (signal.SIGTERM, signal.SIGHUP):
+    for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
         try:
             previous[sig] = signal.signal(sig, interrupt)
         except (ValueError, OSError):  # not the main thread
@@ -439,6 +486,7 @@ def _run_with_json_progress(ctx: click.Context, algorithm_id: str, overwrite: bo
     setup_json_logging(ctx.obj["verbose"])
     feedback = JsonFeedback()
     _terminal().ACTIVE[0] = feedback
+    committed = len(_committed())
     try:
         alg = get(algorithm_id)
         outputs = to_jsonable(run(alg.id, parse_parameter_args(list(args)), feedback=feedback,
@@ -446,8 +494,8 @@ def _run_with_json_progress(ctx: click.Context, algorithm_id: str, overwrite: bo
     except ToolboxError as exc:
         feedback.error(str(exc))
         raise
-    except KeyboardInterrupt:
-        feedback.error("canceled; no output was written")
+    except KeyboardInterrupt as exc:
+        feedback.error(interrupted_message(getattr(exc, "signum", signal.SIGINT), exc, committed))
         raise
     except Exception as exc:  # a bug: still one JSON line for the reader, then the usual report
         feedback.error(f"internal error: {type(exc).__name__}: {exc}")

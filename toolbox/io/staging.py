@@ -29,7 +29,9 @@ import errno
 import os
 import re
 import shutil
+import signal
 import tempfile
+import threading
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -45,6 +47,42 @@ WORLD_FILES = (".tfw", ".tifw", ".jgw", ".pgw", ".wld")
 
 
 _FINAL_OF: dict[Path, Path] = {}  # staged path -> final path, while a run is staged
+#: the final paths every commit of a run (``OutputStaging(record=True)``) of this process moved
+#: into place, in order: what a command interrupted after a commit (a batch's steps done) names
+COMMITTED: list[Path] = []
+_HELD: list[int | None] = [0, None]  # sections signals wait for (all threads), the signal held
+_HELD_LOCK = threading.Lock()  # threads commit too (ortho:batch's photos)
+
+
+def hold_signal(signum: int) -> bool:
+    """For a signal handler: True while files are moved into place, a failed commit undone or a
+    staging folder removed (the signal is then raised once that is done, so an interruption
+    never leaves half a commit, half an undo or half a staging folder), else False."""
+    if not _HELD[0]:  # read without the lock: a handler must not wait for one
+        return False
+    if _HELD[1] is None:
+        _HELD[1] = signum
+    if _HELD[0]:
+        return True
+    _HELD[1] = None  # the last section (another thread's) ended meanwhile: raise it now
+    return False
+
+
+@contextmanager
+def _signals_held():
+    """Signals that :func:`hold_signal` kept wait for the end of the block, then are raised."""
+    with _HELD_LOCK:
+        _HELD[0] += 1
+    try:
+        yield
+    finally:
+        with _HELD_LOCK:
+            _HELD[0] -= 1
+            signum = _HELD[1] if not _HELD[0] else None
+            if signum is not None:
+                _HELD[1] = None
+        if signum is not None:
+            signal.raise_signal(signum)
 
 
 def final_path(path: str | Path) -> Path:
@@ -162,7 +200,8 @@ class OutputStaging:
     """Hands out staged paths for final outputs; :meth:`commit` moves them, :meth:`rollback`
     deletes them (and the folders created for them)."""
 
-    def __init__(self) -> None:
+    def __init__(self, record: bool = False) -> None:
+        self._record = record  # list the commit's outputs in COMMITTED
         self._staged: dict[Path, Path] = {}  # final -> staged
         self._names: dict[Path, str] = {}  # final -> parameter name
         self._is_folder: set[Path] = set()  # finals that are output folders
@@ -171,6 +210,10 @@ class OutputStaging:
         self.removed_stale: list[Path] = []
 
     def stage(self, final: str | Path, name: str = "OUTPUT") -> Path:
+        with _signals_held():  # a folder made is a folder remembered (and removed on rollback)
+            return self._stage(final, name)
+
+    def _stage(self, final: str | Path, name: str) -> Path:
         final = Path(final).expanduser().absolute()
         self._make_parent(final.parent, name)
         for folder in stale_staging_folders(final):
@@ -262,7 +305,13 @@ class OutputStaging:
         open in another program. A failure midway undoes the moves done (a replaced file is
         restored), so the run writes all of its files or none.
         """
-        protected = protected or set()
+        with _signals_held():  # a signal meanwhile is raised once the files are in place
+            written = self._commit(overwrite, protected or set())
+            if self._record:
+                COMMITTED.extend(written)
+        return written
+
+    def _commit(self, overwrite: bool, protected: set[Path]) -> list[Path]:
         moves = self._moves()
         written = [final for final, staged in self._staged.items() if staged.exists()
                    or final in self._is_folder]
@@ -339,6 +388,10 @@ class OutputStaging:
             self._make_parent(target.parent, name)
 
     def rollback(self) -> None:
+        with _signals_held():
+            self._rollback()
+
+    def _rollback(self) -> None:
         for staged in list(self._staged.values()):
             _FINAL_OF.pop(staged, None)
         for folder in self._folders:

@@ -75,6 +75,8 @@ def is_io_error(exc: BaseException) -> bool:
 
         return isinstance(exc, (DataSourceError, DataLayerError)) and not isinstance(
             exc, (CRSError, FieldError, GeometryError))
+    if module == "lazrs":  # LAZ (de)compression: "IoError: Failed to call write", no cause kept
+        return type(exc).__name__ == "LazrsError"
     return False
 
 

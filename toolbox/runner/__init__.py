@@ -191,7 +191,7 @@ def run(algorithm_id: str, parameters: dict[str, Any] | None = None,
         feedback.push_warning(text)
     protected = set(input_paths(alg_cls, values))
     report_path = None if report is None else check_report(report, alg_cls, values, overwrite)
-    staging = OutputStaging()
+    staging = OutputStaging(record=True)
     try:
         staged = dict(values)
         for dest in alg_cls.destinations():
@@ -233,6 +233,7 @@ def run(algorithm_id: str, parameters: dict[str, Any] | None = None,
                 staged_report.write_text(json.dumps(doc, indent=2) + "\n")
             except OSError as exc:
                 raise write_error(exc, REPORT, report_path) from None
+        feedback.check_canceled()  # again: a signal a library swallowed meanwhile stops it too
         staging.commit(overwrite=overwrite, protected=protected)
     finally:
         staging.rollback()

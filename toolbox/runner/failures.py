@@ -49,12 +49,15 @@ def _which_output(staging: OutputStaging) -> tuple[str, Path] | None:
 
 def _disk_state(staging: OutputStaging) -> tuple[int, str, Path] | None:
     """``(errno, parameter name, final path)`` of a staged output whose disk shows why writes
-    fail (full, read-only, at the file-size limit), or None."""
+    fail (full, read-only, at the file-size limit), or None; of those, the one written last
+    (outputs on one full disk: the one being written when it filled)."""
+    found = []
     for name, final, staged in staging.items():
         code = disk_errno(staged if staged.exists() else staged.parent)
         if code is not None:
-            return code, name, final
-    return None
+            written = staged.stat().st_mtime_ns if staged.exists() else -1
+            found.append((-written, len(found), code, name, final))
+    return min(found)[2:] if found else None
 
 
 def named_write_error(exc: OutputWriteError, staging: OutputStaging) -> OutputWriteError:
