@@ -205,13 +205,23 @@ class OutputStaging:
         self._staged: dict[Path, Path] = {}  # final -> staged
         self._names: dict[Path, str] = {}  # final -> parameter name
         self._is_folder: set[Path] = set()  # finals that are output folders
+        self._siblings: dict[Path, list[Path]] = {}  # final -> its declared layer files
         self._folders: list[Path] = []
         self._created_dirs: list[Path] = []  # output folders this run created, deepest last
         self.removed_stale: list[Path] = []
 
-    def stage(self, final: str | Path, name: str = "OUTPUT") -> Path:
+    def stage(self, final: str | Path, name: str = "OUTPUT", siblings: list | None = None
+              ) -> Path:
+        """A staged path for output ``final``. ``siblings``: the files its declared layers go
+        to beside it in a one-layer-per-file format (``<stem>_<layer>.shp``): one the run does
+        not write (a layer left out this time) is an earlier run's, removed at the commit as a
+        stale sidecar is (it would sit beside the new layers as if it were theirs)."""
         with _signals_held():  # a folder made is a folder remembered (and removed on rollback)
-            return self._stage(final, name)
+            staged = self._stage(final, name)
+        if siblings:
+            self._siblings[Path(final).expanduser().absolute()] = [
+                Path(p).expanduser().absolute() for p in siblings]
+        return staged
 
     def _stage(self, final: str | Path, name: str) -> Path:
         final = Path(final).expanduser().absolute()
@@ -332,6 +342,18 @@ class OutputStaging:
                     _check_target(name, old, protected)
                     _check_free(name, old, target, overwrite)
                     stale[old] = name
+            for sibling in self._siblings.get(target, []):
+                if sibling in targets:
+                    continue
+                for old in {sibling} | dataset_files(sibling):
+                    if old not in targets and (os.path.isfile(old) or os.path.islink(old)) \
+                            and not _is_protected(old, protected):  # an input: left alone
+                        if not overwrite:
+                            raise OutputExistsError(name, f"'{old}' exists: a layer file of "
+                                                    f"'{target}' that this run does not write "
+                                                    "(an earlier run's); pass --overwrite to "
+                                                    "remove it")
+                        stale[old] = name
             journals = [target.with_name(target.name + s) for s in SQLITE_JOURNALS]
             if any(map(os.path.lexists, journals)) and open_elsewhere([target, *journals]):
                 raise ParameterError(name, f"'{target}' is open in another program (QGIS?): "

@@ -45,6 +45,7 @@ from toolbox.runner.paths import (  # noqa: F401 - input_paths, planned_paths: p
     check_outputs_against_inputs,
     check_planned_files,
     check_report,
+    declared_layer_files,
     input_paths,
     planned_paths,
 )
@@ -195,10 +196,13 @@ def run(algorithm_id: str, parameters: dict[str, Any] | None = None,
     try:
         staged = dict(values)
         for dest in alg_cls.destinations():
-            if values[dest.name] is not None:
-                stage = staging.stage_folder if isinstance(dest, OutputFolder) \
-                    else staging.stage
-                staged[dest.name] = stage(values[dest.name], dest.name)
+            if values[dest.name] is None:
+                continue
+            if isinstance(dest, OutputFolder):
+                staged[dest.name] = staging.stage_folder(values[dest.name], dest.name)
+            else:
+                staged[dest.name] = staging.stage(values[dest.name], dest.name,
+                                                  declared_layer_files(dest, values[dest.name]))
         staged_report = None if report_path is None else staging.stage(report_path, REPORT)
         for folder in staging.removed_stale:
             feedback.push_warning(f"removed {folder}: the staging folder of an earlier run that "

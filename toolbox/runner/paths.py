@@ -225,6 +225,21 @@ def planned_paths(alg_cls: type[Algorithm], values: dict[str, Any]) -> dict[str,
     return out
 
 
+def declared_layer_files(dest: Any, final: Any) -> list[Path]:
+    """The files beside ``final`` that ``dest``'s declared layers go to in a one-layer-per-file
+    vector format (``<stem>_<layer><ext>``: :func:`toolbox.io.vector_write.layer_paths`); none
+    for a GeoPackage, a raster or a folder."""
+    layers = [layer.name for layer in getattr(dest, "layers", [])]
+    if len(layers) < 2 or dest.type_name != "output_vector":
+        return []
+    from toolbox.io.vector import is_multi_layer, sibling_layer_path
+
+    final = Path(final)
+    if is_multi_layer(final):
+        return []
+    return [sibling_layer_path(final, name) for name in layers[1:]]  # the first: ``final``
+
+
 def check_planned_files(alg_cls: type[Algorithm], values: dict[str, Any],
                         overwrite: bool) -> None:
     """Each planned file is checked as an output path: not an input (by path, sidecars and the
