@@ -7,7 +7,7 @@ import re
 import warnings
 
 from toolbox.algorithm import Algorithm
-from toolbox.io.vector import is_parquet, layer_names, open_layer, read_geometries
+from toolbox.io.vector import every_layer, is_parquet, read_geometries
 from toolbox.parameters import Output, OutputFile, VectorLayer
 from toolbox.registry import register
 
@@ -81,10 +81,10 @@ class VectorInfo(Algorithm):
     def process(self, params, feedback):
         ref = params["INPUT"]
         single = ref.path is None or is_parquet(ref.path)  # a frame, or one GeoParquet layer
-        names = [ref.layer or ref.info.get("layer_name")] if single else layer_names(ref.path)
+        refs = [ref] if single else every_layer(ref)
         layers = []
-        for name in feedback.iterate(names):
-            layer = ref if single else open_layer(f"{ref.path}|layername={name}")
+        for layer in feedback.iterate(refs):
+            name = ref.layer or ref.info.get("layer_name") if single else layer.layer
             layer, geoms = read_geometries(layer)
             layers.append({"name": name, "crs": layer_crs_label(layer),
                            "fields": layer.field_types, **geometry_summary(geoms)})

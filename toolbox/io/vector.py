@@ -487,6 +487,23 @@ def layer_names(path: str | Path) -> list[str]:
     return [str(row[0]) for row in _ogr().list_layers(path)]
 
 
+def every_layer(ref: VectorLayerRef, name: str = "INPUT") -> list[VectorLayerRef]:
+    """A reference to each layer of ``ref``'s file, in OGR's order: the file listed once (a
+    reference made by :func:`open_layer` per layer listed the whole file again for each, a
+    file of 200 layers 200 times)."""
+    ogr = _ogr()
+    out = []
+    for layer in layer_names(ref.path):
+        try:
+            info = ogr.read_info(ref.path, layer=layer, **ref.open_options)
+        except Exception as exc:  # pyogrio raises DataSourceError and friends
+            raise ParameterError(name, f"cannot read layer '{layer}' of '{ref.path}': "
+                                 f"{str(exc).splitlines()[0]}") from None
+        info = _without_csv_coordinates(info, ref.open_options)
+        out.append(VectorLayerRef(ref.path, layer, info, dict(ref.open_options)))
+    return out
+
+
 def read_geometries(source: Any, name: str = "INPUT") -> tuple[VectorLayerRef, np.ndarray]:
     """``(reference, geometries)``: the layer's geometries as an object array of shapely
     geometries (None for a feature without one), the values of ``read_vector(source).geometry``
