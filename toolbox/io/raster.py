@@ -12,6 +12,7 @@ Conventions: arrays are ``(bands, rows, cols)`` or ``(rows, cols)``; windows are
 from __future__ import annotations
 
 import math
+import re
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
@@ -80,12 +81,21 @@ def open_raster_info(value: Any, name: str = "INPUT", role: str = "photo") -> Ra
         raise ParameterError(name, f"must be a raster path, got {value!r}")
     path = Path(value).expanduser()
     if not path.exists():
+        if re.match(r"^[A-Za-z0-9_]{2,}:", str(value)):  # GPKG:file.gpkg:table, NETCDF:...
+            raise ParameterError(name, f"'{value}' is a GDAL subdataset name, not a file: "
+                                 f"extract it first: gdal_translate '{value}' extracted.tif")
         raise ParameterError(name, f"file '{value}' does not exist")
     try:
         with warnings.catch_warnings():  # a plain photo is fine: ``georeferenced`` says so
             warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
             src = rasterio.open(path)
         with src:
+            if src.count == 0 and src.subdatasets:  # a GeoPackage of several raster tables
+                listed = ", ".join(f"'{sub}'" for sub in src.subdatasets[:3])
+                raise ParameterError(name, f"'{value}' holds {len(src.subdatasets)} rasters "
+                                     f"({listed}{', ...' if len(src.subdatasets) > 3 else ''})"
+                                     f": extract one first: gdal_translate "
+                                     f"'{src.subdatasets[0]}' extracted.tif")
             damage = _last_blocks_missing(src, path.stat().st_size)
             if damage:
                 raise ParameterError(name, f"'{value}' is truncated or damaged: {damage}")

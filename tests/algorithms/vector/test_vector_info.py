@@ -146,3 +146,4 @@ def test_nan_coordinates_refused(tmp_path):
     with pytest.raises(toolbox.InputDataError, match=r"INPUT .*1 feature\(s\) have NaN/inf "
                                                      r"coordinates \(row 2, counting from 1\)"):
         toolbox.run("vector:info", {"INPUT": tmp_path / "nan.gpkg"})
+
