@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 from toolbox.algorithm import Algorithm
 from toolbox.feedback import Feedback
 from toolbox.parameters import (
@@ -94,6 +96,17 @@ class Contours(Algorithm):
             if not has_valid_pixel(info.path):
                 raise self.fail("INPUT", f"{info} has no valid cell (every cell is nodata)")
 
+    def planned_files(self, params):
+        """A one-layer format (Shapefile, FlatGeobuf, GeoJSON, GeoParquet) has no style table:
+        the style goes beside it as ``<stem>.qml``/``.sld``, which QGIS loads with the file."""
+        from toolbox.io.vector import is_multi_layer
+
+        out = params.get("OUTPUT")
+        if out is None or is_multi_layer(out):
+            return {}
+        stem = Path(out).stem
+        return {"OUTPUT": [f"{stem}.qml", f"{stem}.sld"]}
+
     # duplicate-ok: process() imports its libraries lazily (toolbox list/help stay light); the
     # lists of lazy imports after a check() look alike across algorithms
     def process(self, params, feedback: Feedback):
@@ -120,9 +133,17 @@ class Contours(Algorithm):
         feedback.set_progress(90)
         fields = write_contours(params["OUTPUT"], result.contours, interval, base,
                                 params["INDEX_EVERY"], crs)
-        # a GeoPackage embeds the style; the other formats have no style table
-        qml = write_contour_style(params["OUTPUT"], "contours") \
-            if vector_driver(params["OUTPUT"]) == "GPKG" else contour_qml()
+        # a GeoPackage embeds the style; beside a one-layer file, <stem>.qml/.sld (QGIS's
+        # default style of that file)
+        if vector_driver(params["OUTPUT"]) == "GPKG":
+            qml = write_contour_style(params["OUTPUT"], "contours")
+        else:
+            from toolbox.cartography.qml import contour_sld
+            from toolbox.styles.files import write_style_files
+
+            qml = contour_qml()
+            write_style_files(Path(params["OUTPUT"]).with_suffix(""), qml,
+                              contour_sld(name="contours"))
         if params.get("STYLE"):
             params["STYLE"].write_text(qml, encoding="utf-8")
         lines = len(fields["elev"])

@@ -11,6 +11,7 @@ import shapely
 
 from toolbox.attribution.coding import GPKG_TYPES, Attribution
 from toolbox.io.code_file import CodeTable
+from toolbox.styles.files import write_style_files
 from toolbox.styles.model import CodeStyle, LayerStyle, layer_style
 from toolbox.styles.qml import qml_document
 from toolbox.styles.sld import sld_document
@@ -109,10 +110,3 @@ def store_style(path: Path, layers: list[str], layer: str, qml: str, sld: str | 
         return True
     write_style_files(layer_paths(path, layers)[layer].with_suffix(""), qml, sld)
     return False
-
-
-def write_style_files(stem: Path, qml: str, sld: str | None) -> None:
-    """``<stem>.qml`` and, when given, ``<stem>.sld`` (UTF-8)."""
-    stem.with_name(f"{stem.name}.qml").write_text(qml, encoding="utf-8")
-    if sld:
-        stem.with_name(f"{stem.name}.sld").write_text(sld, encoding="utf-8")

@@ -37,3 +37,10 @@ def _write(folder: Path, name: str, style) -> list[Path]:
     sld.write_text(sld_document(style), encoding="utf-8")
     return [qml, sld]
 
+
+def write_style_files(stem: Path, qml: str, sld: str | None) -> None:
+    """``<stem>.qml`` and, when given, ``<stem>.sld`` (UTF-8): the default style QGIS loads with
+    a one-layer file ``<stem>.shp`` (or ``.fgb``, ``.geojson``...)."""
+    stem.with_name(f"{stem.name}.qml").write_text(qml, encoding="utf-8")
+    if sld:
+        stem.with_name(f"{stem.name}.sld").write_text(sld, encoding="utf-8")

@@ -380,3 +380,27 @@ def test_agrees_with_gdal_contour(demo_dem, tmp_path):
     our_length = {level: shapely.length(ours.geometry.values[np.asarray(ours["elev"] == level)]
                                         ).sum() for level in ref_length}
     assert sum(our_length.values()) == pytest.approx(sum(ref_length.values()), rel=0.002)
+
+
+@pytest.mark.parametrize("ext", [".shp", ".fgb"])
+def test_a_one_layer_output_gets_its_style_beside_it(tmp_path, ext):
+    """A Shapefile or FlatGeobuf has no style table: the contours' style is written beside it
+    as <stem>.qml / <stem>.sld (QGIS loads <stem>.qml with the file), the QML the GeoPackage
+    embeds; it was not written at all (the layer opened in one plain symbol). An existing
+    <stem>.qml needs --overwrite, as the output does."""
+    from toolbox.errors import OutputExistsError
+
+    x, y = centres(30, 30)
+    dem = write_dem(tmp_path / "p.tif", 300.0 + 0.3 * (x - X0))
+    toolbox.run("carto:contours", {"INPUT": dem, "INTERVAL": 2.0, "OUTPUT": tmp_path / "g.gpkg"})
+    with sqlite3.connect(tmp_path / "g.gpkg") as db:
+        embedded = db.execute("SELECT styleQML FROM layer_styles").fetchone()[0]
+    out = tmp_path / f"c{ext}"
+    toolbox.run("carto:contours", {"INPUT": dem, "INTERVAL": 2.0, "OUTPUT": out})
+    assert (tmp_path / "c.qml").read_text(encoding="utf-8") == embedded
+    ET.fromstring((tmp_path / "c.sld").read_text(encoding="utf-8"))
+    for part in tmp_path.glob("c.*"):  # the output gone, its style left
+        if part.suffix not in (".qml", ".sld"):
+            part.unlink()
+    with pytest.raises(OutputExistsError):
+        toolbox.run("carto:contours", {"INPUT": dem, "INTERVAL": 2.0, "OUTPUT": out})
