@@ -30,6 +30,7 @@ class Feedback:
     def __init__(self, progress_callback: Callable[[float, str], None] | None = None):
         self._callback = progress_callback
         self._canceled = threading.Event()
+        self._cancel_reason: str | None = None
         self.progress = 0.0
         self.messages: list[tuple[str, str]] = []  # (level, text)
         self.timings: dict[str, float] = {}
@@ -81,17 +82,24 @@ class Feedback:
             self.timings[name] = self.timings.get(name, 0.0) + time.perf_counter() - t0
 
     # -- cancellation ---------------------------------------------------------------------------
-    def cancel(self) -> None:
-        """Ask the running algorithm to stop (thread-safe)."""
+    def cancel(self, reason: str | None = None) -> None:
+        """Ask the running algorithm to stop (thread-safe); ``reason`` (e.g. "terminated by
+        SIGTERM") replaces "canceled by the user" in the error."""
+        if reason is not None and self._cancel_reason is None:
+            self._cancel_reason = reason
         self._canceled.set()
 
     def is_canceled(self) -> bool:
         return self._canceled.is_set()
 
+    def cancel_reason(self) -> str | None:
+        return self._cancel_reason
+
     def check_canceled(self) -> None:
         """Raise :class:`CanceledError` if cancellation was requested."""
         if self.is_canceled():
-            raise CanceledError("run canceled by the user; no output was written")
+            raise CanceledError(f"run {self.cancel_reason() or 'canceled by the user'}; no "
+                                "output was written")
 
 
 class SubFeedback(Feedback):
@@ -132,11 +140,14 @@ class SubFeedback(Feedback):
         finally:
             self.timings[name] = self.timings.get(name, 0.0) + time.perf_counter() - t0
 
-    def cancel(self) -> None:
-        self._parent.cancel()
+    def cancel(self, reason: str | None = None) -> None:
+        self._parent.cancel(reason)
 
     def is_canceled(self) -> bool:
         return self._parent.is_canceled()
+
+    def cancel_reason(self) -> str | None:
+        return self._parent.cancel_reason()
 
 
 class CollectingFeedback(Feedback):

@@ -195,3 +195,32 @@ def test_a_signal_a_library_swallows_still_stops_the_run(tmp_path):
     assert code == 128 + signal.SIGTERM, (code, out, err)
     assert err.strip() == "toolbox: terminated by SIGTERM; no output was written"
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_swallowed_signal_is_named_in_the_json_progress_error(tmp_path):
+    """With --progress json, the error record of a run a swallowed signal stopped said "run
+    canceled by the user" (the exit code and the stderr line were right): it names the
+    signal as the stderr line does."""
+    import json
+
+    from tests.helpers_cli import cli, register_testing
+    from toolbox.parameters import OutputFile
+
+    def process(self, params, feedback):
+        params["OUTPUT"].write_text("complete")
+        try:
+            signal.raise_signal(signal.SIGTERM)
+        except KeyboardInterrupt:
+            pass
+        feedback.check_canceled()  # the algorithm's own next check
+        return {}
+
+    register_testing("swallower2", OutputFile("OUTPUT", extensions=[".txt"]), process,
+                     "Reads with a library that swallows a signal's exception.")
+    code, out, err = cli("run", "testing:swallower2", "--progress", "json",
+                         "--OUTPUT", tmp_path / "a.txt")
+    assert code == 128 + signal.SIGTERM, (code, out, err)
+    records = [json.loads(line) for line in err.splitlines() if line.startswith("{")]
+    texts = " ".join(json.dumps(r) for r in records)
+    assert "terminated by SIGTERM" in texts and "canceled by the user" not in texts, texts
+    assert not (tmp_path / "a.txt").exists()

@@ -163,7 +163,7 @@ def _signals_as_interrupts(received: list[int] | None = None):
             received.append(signum)
         terminal = sys.modules.get("toolbox.cli.terminal")
         if terminal is not None and terminal.ACTIVE[0] is not None:
-            terminal.ACTIVE[0].cancel()
+            terminal.ACTIVE[0].cancel(f"terminated by {signal.Signals(signum).name}")
         raise Interrupted(signum)
 
     previous = {}
