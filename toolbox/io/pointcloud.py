@@ -9,7 +9,9 @@ their points in file order (no spatial query of the octree).
 
 Return filter (``RETURNS``): ``all``; ``first`` = return number <= 1; ``last`` = return number
 >= number of returns. Points with return number 0 (photogrammetric clouds often leave 0/0)
-count as both first and last. Class filter (``CLASSES``): ASPRS classification codes, e.g.
+count as both first and last. Points flagged *withheld* (the LAS specification: "should not
+be included in processing", synonymous with deleted) are never read. Class filter
+(``CLASSES``): ASPRS classification codes, e.g.
 ``2`` ground, ``9`` water; a requested class absent from the file is an error.
 
 CRS: from the file's OGC WKT VLR or GeoTIFF keys (``laspy.LasHeader.parse_crs``).
@@ -162,9 +164,11 @@ class ReadReport:
     kept: int
     classes: dict[int, int]
     filter: str
+    withheld: int = 0  # points flagged withheld (deleted), never kept
 
     def as_dict(self) -> dict:
         return {"points_in_file": self.read, "points_kept": self.kept,
+                "points_withheld": self.withheld,
                 "classes_in_file": {str(k): v for k, v in self.classes.items()},
                 "filter": self.filter}
 
@@ -176,10 +180,12 @@ def _require_backend(ref: PointCloudRef, name: str) -> None:
 
 
 def _keep(points, flt: PointFilter) -> np.ndarray | None:
-    """Boolean mask of the chunk's points that pass ``flt`` (None = all)."""
-    keep = None
+    """Boolean mask of the chunk's points that pass ``flt`` and are not withheld (None = all)."""
+    withheld = np.asarray(points.withheld).astype(bool)
+    keep = ~withheld if withheld.any() else None
     if flt.classes is not None:
-        keep = np.isin(np.asarray(points.classification), flt.classes)
+        cls = np.isin(np.asarray(points.classification), flt.classes)
+        keep = cls if keep is None else keep & cls
     if flt.returns != "all":
         rn = np.asarray(points.return_number).astype(np.int16)
         if flt.returns == "first":
@@ -216,6 +222,7 @@ def iter_xyz(ref: PointCloudRef, flt: PointFilter = PointFilter(), z_field: str 
                 hist += np.bincount(np.asarray(points.classification, dtype=np.int64),
                                     minlength=256)[:256]
                 keep = _keep(points, flt)
+                report.withheld += int(np.count_nonzero(np.asarray(points.withheld)))
                 z = points.z if z_field in (None, "z", "Z") else points[z_field]
                 cols = [np.asarray(col, dtype=np.float64) for col in (points.x, points.y, z)]
                 xyz = np.column_stack(cols if keep is None else [c[keep] for c in cols])
