@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import ctypes
+
 import numpy as np
 import pytest
 
@@ -47,3 +49,74 @@ def test_withheld_points_are_not_read(tmp_path):
         np.testing.assert_allclose(xyz[:, 0], x[~withheld])
         assert report.as_dict()["points_withheld"] == 2
         assert report.read == 25 and report.kept == 23
+
+
+def _geokeys_cloud(path, keys, doubles=None, ascii_=None):
+    """A small LAS 1.2 cloud whose CRS is only GeoTIFF keys (no WKT VLR)."""
+    from laspy.vlrs.known import GeoAsciiParamsVlr, GeoDoubleParamsVlr, GeoKeyDirectoryVlr, GeoKeyEntryStruct
+
+    header = laspy.LasHeader(point_format=1, version="1.2")
+    header.scales = np.array([0.01, 0.01, 0.01])
+    header.offsets = np.array([636000.0, 848000.0, 0.0])
+    directory = GeoKeyDirectoryVlr()
+    directory.geo_keys = [GeoKeyEntryStruct(*k) for k in keys] + [GeoKeyEntryStruct(0, 0, 0, 0)]
+    directory.geo_keys_header.number_of_keys = len(directory.geo_keys)  # a padded directory
+    header.vlrs.append(directory)
+    if doubles is not None:
+        record = GeoDoubleParamsVlr()
+        record.doubles = [ctypes.c_double(v) for v in doubles]
+        header.vlrs.append(record)
+    if ascii_ is not None:
+        record = GeoAsciiParamsVlr()
+        record.strings = [ascii_]
+        header.vlrs.append(record)
+    las = laspy.LasData(header)
+    las.x = 636500.0 + np.array([0.0, 100.0, 0.0, 100.0])
+    las.y = 849000.0 + np.array([0.0, 0.0, 100.0, 100.0])
+    las.z = np.array([400.0, 401.0, 402.0, 403.0])
+    las.write(path)
+
+
+def test_user_defined_geotiff_projection_is_read(tmp_path):
+    """GeoTIFF keys of a user-defined Lambert projection in international feet on the EPSG
+    datum NAD83(HARN) (autzen_trim.laz's keys, the geographic key an EPSG code): laspy took
+    the file as geographic EPSG:4152 (refused as 'geographic, reproject it', even with --CRS).
+    Truth: the vendor's own WKT for those keys (autzen_trim.laz's WKT VLR)."""
+    from pyproj import CRS, Transformer
+
+    from toolbox.io.pointcloud import open_point_cloud
+
+    keys = [(1024, 0, 1, 1), (1025, 0, 1, 1), (2048, 0, 1, 4152), (3072, 0, 1, 32767),
+            (3074, 0, 1, 32767), (3075, 0, 1, 8), (3076, 0, 1, 9002), (3078, 34736, 1, 2),
+            (3079, 34736, 1, 3), (3084, 34736, 1, 1), (3085, 34736, 1, 0),
+            (3086, 34736, 1, 4), (3087, 34736, 1, 5)]
+    doubles = [41.75, -120.5, 43.0, 45.5, 1312335.958005249, 0.0]
+    _geokeys_cloud(tmp_path / "u.las", keys, doubles, "NAD_1983_HARN_Lambert_Conformal_Conic|")
+    crs = open_point_cloud(tmp_path / "u.las").crs
+    assert crs is not None and crs.is_projected
+    assert crs.axis_info[0].unit_conversion_factor == pytest.approx(0.3048)
+    truth = CRS.from_proj4("+proj=lcc +lat_0=41.75 +lon_0=-120.5 +lat_1=43 +lat_2=45.5 "
+                           "+x_0=400000 +y_0=0 +ellps=GRS80 +units=ft +no_defs")
+    got = Transformer.from_crs(crs, crs.geodetic_crs, always_xy=True).transform(636500, 849000)
+    want = Transformer.from_crs(truth, truth.geodetic_crs, always_xy=True).transform(636500,
+                                                                                     849000)
+    assert crs.datum.name.startswith("NAD83")
+    assert got == pytest.approx(want, abs=1e-7)
+
+
+def test_vertical_geotiff_key_is_kept(tmp_path):
+    """ProjectedCSTypeGeoKey 32633 + VerticalCSTypeGeoKey 5703: the vertical CRS was dropped."""
+    from toolbox.io.pointcloud import open_point_cloud
+
+    _geokeys_cloud(tmp_path / "v.las", [(1024, 0, 1, 1), (3072, 0, 1, 32633),
+                                        (4096, 0, 1, 5703)])
+    crs = open_point_cloud(tmp_path / "v.las").crs
+    assert crs.is_compound
+    assert [c.to_epsg() for c in crs.sub_crs_list] == [32633, 5703]
+
+
+def test_epsg_geotiff_key_unchanged(tmp_path):
+    from toolbox.io.pointcloud import open_point_cloud
+
+    _geokeys_cloud(tmp_path / "e.las", [(1024, 0, 1, 1), (3072, 0, 1, 32633)])
+    assert open_point_cloud(tmp_path / "e.las").crs.to_epsg() == 32633

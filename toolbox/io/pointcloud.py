@@ -14,11 +14,13 @@ be included in processing", synonymous with deleted) are never read. Class filte
 (``CLASSES``): ASPRS classification codes, e.g.
 ``2`` ground, ``9`` water; a requested class absent from the file is an error.
 
-CRS: from the file's OGC WKT VLR or GeoTIFF keys (``laspy.LasHeader.parse_crs``).
+CRS: from the file's OGC WKT VLR, else its GeoTIFF keys read by GDAL (:func:`geotiff_keys_crs`:
+user-defined projections, their units and a vertical CRS included).
 """
 
 from __future__ import annotations
 
+import struct
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -97,7 +99,7 @@ def open_point_cloud(value: Any, name: str = "INPUT") -> PointCloudRef:
             header = reader.header
             compressed = bool(header.are_points_compressed)
             try:
-                crs = header.parse_crs()
+                crs = header.parse_crs() if _has_wkt(header) else geotiff_keys_crs(header)
             except Exception as exc:  # a malformed VLR: say so, do not guess
                 raise ParameterError(name, f"'{value}': its CRS VLR cannot be parsed: "
                                      f"{str(exc).splitlines()[0]}") from None
@@ -121,6 +123,74 @@ def open_point_cloud(value: Any, name: str = "INPUT") -> PointCloudRef:
                 "compressed": compressed, "version": ref.version,
                 "point_format": ref.point_format, "copc": copc}
     return ref
+
+
+def _has_wkt(header) -> bool:
+    """True when the header carries a non-empty OGC WKT CRS VLR (or EVLR)."""
+    from laspy.vlrs.known import WktCoordinateSystemVlr
+
+    records = list(header.vlrs) + list(header.evlrs or [])
+    return any(isinstance(v, WktCoordinateSystemVlr) and (v.string or "").strip("\0 ")
+               for v in records)
+
+
+def geotiff_keys_crs(header):
+    """The pyproj CRS of a LAS header's GeoTIFF keys as GDAL (libgeotiff) reads them, or None.
+
+    laspy reads only an EPSG ProjectedCSTypeGeoKey / GeographicTypeGeoKey: a user-defined
+    projection (ProjectedCSTypeGeoKey 32767, its parameters in the keys, common in LAS 1.0-1.3
+    files) came back as its geographic base CRS (or none), the vertical CRS was dropped. The keys
+    are put in a 1x1 GeoTIFF in memory and GDAL reads its CRS, as it would for a raster.
+    """
+    from pyproj import CRS
+
+    directories = header.vlrs.get("GeoKeyDirectoryVlr")
+    if not directories:
+        return None
+    keys = [k for k in directories[0].geo_keys if k.id != 0]  # writers pad with a zero key
+    directory = struct.pack("<4H", 1, 1, 0, len(keys)) + b"".join(
+        struct.pack("<4H", k.id, k.tiff_tag_location, k.count, k.value_offset) for k in keys)
+
+    def record(name: str) -> bytes:
+        found = header.vlrs.get(name)
+        return found[0].record_data_bytes() if found else b""
+
+    tiff = _geokeys_tiff(directory, record("GeoDoubleParamsVlr"), record("GeoAsciiParamsVlr"))
+    import rasterio
+    from rasterio.io import MemoryFile
+
+    with rasterio.Env(GTIFF_REPORT_COMPD_CS=True, CPL_LOG="/dev/null"), \
+            MemoryFile(tiff) as memory, memory.open() as dataset:
+        return None if dataset.crs is None else CRS.from_wkt(dataset.crs.to_wkt())
+
+
+def _geokeys_tiff(directory: bytes, doubles: bytes, ascii_: bytes) -> bytes:
+    """A 1x1 uint8 little-endian GeoTIFF whose GeoKeyDirectory, GeoDoubleParams and
+    GeoAsciiParams tags are the given LAS GeoTIFF VLR records."""
+    short, long_, double, ascii_type = 3, 4, 12, 2
+    plain = [(256, short, 1), (257, short, 1), (258, short, 8), (259, short, 1),
+             (262, short, 1), (273, long_, None), (277, short, 1), (278, short, 1),
+             (279, long_, 1)]
+    blobs = [(33550, double, struct.pack("<3d", 1.0, 1.0, 0.0)),
+             (33922, double, bytes(48)), (34735, short, directory)]
+    if len(doubles) >= 8:
+        blobs.append((34736, double, doubles[:len(doubles) // 8 * 8]))
+    if ascii_.strip(b"\0"):
+        blobs.append((34737, ascii_type, ascii_.rstrip(b"\0") + b"\0"))
+    width = {short: 2, long_: 4, double: 8, ascii_type: 1}
+    count = len(plain) + len(blobs)
+    data_at = 8 + 2 + 12 * count + 4
+    entries, data = [], b""
+    for tag, kind, blob in blobs:
+        entries.append(struct.pack("<HHII", tag, kind, len(blob) // width[kind],
+                                   data_at + len(data)))
+        data += blob + b"\0" * (len(blob) % 2)
+    pixel_at = data_at + len(data)
+    head = [struct.pack("<HHIHH", tag, kind, 1, value, 0) if kind == short
+            else struct.pack("<HHII", tag, kind, 1, pixel_at if value is None else value)
+            for tag, kind, value in plain]
+    return (b"II*\0" + struct.pack("<IH", 8, count) + b"".join(head + entries)
+            + struct.pack("<I", 0) + data + b"\0")
 
 
 @dataclass(frozen=True)
@@ -277,8 +347,8 @@ def read_xyz(ref: PointCloudRef, flt: PointFilter = PointFilter(), z_field: str 
 def check_cloud_crs(ref: Any, crs: Any, name: str = "INPUT") -> None:
     """:class:`ParameterError` when a point cloud has no CRS and the CRS parameter is not given."""
     if isinstance(ref, PointCloudRef) and ref.crs_wkt is None and crs is None:
-        raise ParameterError(name, f"point cloud {ref} has no CRS (no WKT or GeoTIFF VLR): "
-                             "give its CRS in the CRS parameter (e.g. --CRS EPSG:3003)")
+        raise ParameterError(name, f"point cloud {ref} has no CRS (no WKT VLR, no GeoTIFF "
+                             "keys GDAL can read): give its CRS in the CRS parameter (e.g. --CRS EPSG:3003)")
 
 
 # -- writing -----------------------------------------------------------------------------------
