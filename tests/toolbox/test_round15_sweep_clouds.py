@@ -120,3 +120,45 @@ def test_epsg_geotiff_key_unchanged(tmp_path):
 
     _geokeys_cloud(tmp_path / "e.las", [(1024, 0, 1, 1), (3072, 0, 1, 32633)])
     assert open_point_cloud(tmp_path / "e.las").crs.to_epsg() == 32633
+
+
+def test_ground_points_keep_the_input_records(tmp_path):
+    """dem:ground GROUND_POINTS ('the input points classified'): every dimension was dropped
+    (intensity, returns, GPS time, colour, extra bytes; format 6, returns 1/1), and with Z_FIELD
+    the field was written as Z. Truth: laspy reading the input; only classification differs."""
+    import toolbox
+
+    xs, ys = np.meshgrid(np.arange(0.0, 40.0, 1.0), np.arange(0.0, 40.0, 1.0))
+    x, y = 500000.0 + xs.ravel(), 4500000.0 + ys.ravel()
+    roof = (xs.ravel() >= 15) & (xs.ravel() < 25) & (ys.ravel() >= 15) & (ys.ravel() < 25)
+    z = 100.0 + 8.0 * roof
+    header = laspy.LasHeader(point_format=3, version="1.2")
+    header.scales = np.array([0.01, 0.01, 0.01])
+    header.offsets = np.array([500000.0, 4500000.0, 0.0])
+    header.add_extra_dim(laspy.ExtraBytesParams(name="zalt", type=np.float64))
+    from pyproj import CRS
+
+    header.add_crs(CRS.from_epsg(32633))
+    las = laspy.LasData(header)
+    las.x, las.y, las.z = x, y, z
+    las.zalt = z + 0.5
+    las.intensity = np.arange(len(x)) % 60000
+    las.gps_time = np.arange(len(x)) * 0.5
+    las.red = np.arange(len(x)) % 65535
+    las.return_number = np.ones(len(x), np.uint8)
+    las.number_of_returns = np.ones(len(x), np.uint8)
+    las.classification = np.where(roof, 6, 1).astype(np.uint8)
+    las.write(tmp_path / "in.las")
+    toolbox.run("dem:ground", {"INPUT": str(tmp_path / "in.las"), "Z_FIELD": "zalt",
+                               "FILTER_CELL": 1.0, "MAX_WINDOW": 16.0, "METHOD": "nearest",
+                               "OUTPUT": str(tmp_path / "dtm.tif"),
+                               "NONGROUND": str(tmp_path / "ng.tif"),
+                               "GROUND_POINTS": str(tmp_path / "out.las")})
+    out = laspy.read(tmp_path / "out.las")
+    assert out.header.point_format.id == 3 and len(out.points) == len(x)
+    for name in ("X", "Y", "Z", "intensity", "gps_time", "red", "zalt"):
+        np.testing.assert_array_equal(np.asarray(out[name]), np.asarray(las[name]), name)
+    np.testing.assert_array_equal(np.asarray(out.classification), np.where(roof, 1, 2))
+    assert out.header.parse_crs().to_epsg() == 32633
+    np.testing.assert_allclose(out.header.mins, [x.min(), y.min(), 100.0])
+    np.testing.assert_allclose(out.header.maxs, [x.max(), y.max(), 108.0])

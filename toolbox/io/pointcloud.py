@@ -428,6 +428,55 @@ def write_point_cloud(path: str | Path, xyz: np.ndarray, crs: Any = None,
     return len(xyz)
 
 
+def write_classified_copy(ref: PointCloudRef, flt: PointFilter, path: str | Path,
+                          classification: np.ndarray, crs: Any = None,
+                          chunk_points: int = CHUNK_POINTS) -> int:
+    """Write the points of ``ref`` that pass ``flt`` (the order :func:`iter_xyz` reads them),
+    every dimension as read (X, Y, Z, intensity, returns, GPS time, colour, extra bytes), with
+    ``classification`` (one code per kept point) set. Point format, version, scales, offsets
+    and the CRS VLRs are the input's (the CRS ``crs`` is added when the input has none); the
+    COPC VLRs are dropped (the copy is not ordered as an octree). Returns the points written.
+    """
+    import copy
+
+    import laspy
+
+    _require_backend(ref, "INPUT")
+    path = Path(path)
+    compress = path.suffix.lower() == ".laz"
+    if compress and not lazrs_available():
+        raise InputDataError(f"cannot write '{path}' as LAZ: no LAZ backend is installed "
+                             "(pip install lazrs), or write .las")
+    classification = np.asarray(classification)
+    written = 0
+    with laspy.open(ref.path) as reader:
+        header = copy.deepcopy(reader.header)
+        header.vlrs = type(header.vlrs)([v for v in header.vlrs
+                                         if getattr(v, "user_id", "") != "copc"])
+        if header.evlrs is not None:
+            header.evlrs = [v for v in header.evlrs if getattr(v, "user_id", "") != "copc"]
+        if ref.crs_wkt is None and crs is not None:
+            from pyproj import CRS
+
+            header.add_crs(CRS.from_user_input(crs))
+        with laspy.open(path, mode="w", header=header, do_compress=compress) as writer:
+            for points in reader.chunk_iterator(chunk_points):
+                if len(points) == 0:
+                    continue
+                keep = _keep(points, flt)
+                if keep is not None:
+                    points = points[keep]
+                n = len(points)
+                if n == 0:
+                    continue
+                if written + n > len(classification):
+                    raise InputDataError(f"INPUT {ref} changed while it was read")
+                points.classification = classification[written:written + n].astype(np.uint8)
+                writer.write_points(points)
+                written += n
+    return written
+
+
 def cloud_filter(source: Any, classes: Any = None, returns: str | None = "all",
                  crs: Any = None, name: str = "INPUT") -> PointFilter | None:
     """The :class:`PointFilter` of a point-layer parameter, checked before any work.
