@@ -162,3 +162,28 @@ def test_ground_points_keep_the_input_records(tmp_path):
     assert out.header.parse_crs().to_epsg() == 32633
     np.testing.assert_allclose(out.header.mins, [x.min(), y.min(), 100.0])
     np.testing.assert_allclose(out.header.maxs, [x.max(), y.max(), 108.0])
+
+
+def test_las14_count_only_in_the_legacy_field(tmp_path):
+    """A LAS 1.4 file whose 64-bit point count is 0 and legacy count N (some writers): laspy
+    read no point, INPUT was refused as 'has no points' (exit 2). LASlib reads the legacy
+    count when it is set; the points are those of the file."""
+    import struct
+
+    from toolbox.io.pointcloud import open_point_cloud, read_xyz
+
+    header = laspy.LasHeader(point_format=1, version="1.4")
+    header.scales = np.array([0.01, 0.01, 0.01])
+    las = laspy.LasData(header)
+    las.x = np.array([0.0, 10.0, 0.0, 10.0])
+    las.y = np.array([0.0, 0.0, 10.0, 10.0])
+    las.z = np.array([1.0, 2.0, 3.0, 4.0])
+    las.write(tmp_path / "a.las")
+    raw = bytearray((tmp_path / "a.las").read_bytes())
+    struct.pack_into("<I", raw, 107, 4)  # legacy count
+    struct.pack_into("<Q", raw, 247, 0)  # LAS 1.4 count
+    (tmp_path / "b.las").write_bytes(bytes(raw))
+    ref = open_point_cloud(tmp_path / "b.las")
+    assert ref.point_count == 4
+    xyz, _ = read_xyz(ref)
+    np.testing.assert_allclose(xyz[:, 2], [1.0, 2.0, 3.0, 4.0])

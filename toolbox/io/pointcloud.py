@@ -85,17 +85,33 @@ def lazrs_available() -> bool:
     return bool(laspy.LazBackend.detect_available())
 
 
+def _open_reader(path: Path):
+    """``laspy.open`` for reading, with the point count a LAS 1.4 file states only in the legacy
+    field (the 64-bit count left 0 by some writers) taken from there, as LASlib does; laspy read
+    such a file as empty."""
+    import laspy
+
+    reader = laspy.open(path)
+    header = reader.header
+    if header.version.minor >= 4 and header.point_count == 0:
+        with open(path, "rb") as stream:
+            stream.seek(107)
+            legacy = int.from_bytes(stream.read(4), "little")
+        if legacy:
+            header.point_count = legacy
+    return reader
+
+
 def open_point_cloud(value: Any, name: str = "INPUT") -> PointCloudRef:
     """Read the header of a LAS/LAZ file; :class:`ParameterError` naming ``name`` if unreadable."""
     if isinstance(value, PointCloudRef):
         return value
-    import laspy
 
     path = Path(str(value)).expanduser()
     if not path.exists():
         raise ParameterError(name, f"file '{value}' does not exist")
     try:
-        with laspy.open(path) as reader:
+        with _open_reader(path) as reader:
             header = reader.header
             compressed = bool(header.are_points_compressed)
             try:
@@ -277,14 +293,13 @@ def iter_xyz(ref: PointCloudRef, flt: PointFilter = PointFilter(), z_field: str 
     class is not in the file or no point passed the filter; a NaN or infinite height is
     refused at its chunk; LAZ without a backend is refused before the first.
     """
-    import laspy
 
     _require_backend(ref, name)
     report = report if report is not None else ReadReport(0, 0, {}, flt.describe())
     report.filter = flt.describe()
     hist = np.zeros(256, dtype=np.int64)
     try:
-        with laspy.open(ref.path) as reader:
+        with _open_reader(ref.path) as reader:
             for points in reader.chunk_iterator(chunk_points):
                 n = len(points)
                 if n == 0:
@@ -449,7 +464,7 @@ def write_classified_copy(ref: PointCloudRef, flt: PointFilter, path: str | Path
                              "(pip install lazrs), or write .las")
     classification = np.asarray(classification)
     written = 0
-    with laspy.open(ref.path) as reader:
+    with _open_reader(ref.path) as reader:
         header = copy.deepcopy(reader.header)
         header.vlrs = type(header.vlrs)([v for v in header.vlrs
                                          if getattr(v, "user_id", "") != "copc"])
