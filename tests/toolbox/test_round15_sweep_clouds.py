@@ -187,3 +187,43 @@ def test_las14_count_only_in_the_legacy_field(tmp_path):
     assert ref.point_count == 4
     xyz, _ = read_xyz(ref)
     np.testing.assert_allclose(xyz[:, 2], [1.0, 2.0, 3.0, 4.0])
+
+
+def test_streamed_gridding_of_a_cloud_whose_header_bounds_are_stale(tmp_path, monkeypatch):
+    """Header bounds smaller than the points (a header not updated after an edit): the
+    streamed path refused the file (exit 2, 'a broken file'), the in-memory path gridded it.
+    Truth: scipy's nearest point at each cell centre."""
+    import struct
+
+    import rasterio
+    from scipy.spatial import cKDTree
+
+    import toolbox
+
+    rng = np.random.default_rng(3)
+    x = 500000.0 + rng.uniform(0, 100, 300)
+    y = 4500000.0 + rng.uniform(0, 100, 300)
+    z = 100.0 + 0.1 * (x - 500000.0) + rng.uniform(0, 1, 300)
+    _grid_cloud(tmp_path / "a.las")  # the header layout of a 1.2 file with a CRS
+    header = laspy.read(tmp_path / "a.las").header
+    las = laspy.LasData(header)
+    las.x, las.y, las.z = x, y, z
+    las.classification = np.full(300, 2, np.uint8)
+    las.write(tmp_path / "b.las")
+    raw = bytearray((tmp_path / "b.las").read_bytes())
+    struct.pack_into("<6d", raw, 179, 500050.0, 500000.0, 4500050.0, 4500000.0, 110.0, 100.0)
+    (tmp_path / "b.las").write_bytes(bytes(raw))
+    stored = laspy.read(tmp_path / "b.las")  # the coordinates as stored (0.01 m)
+    x, y, z = np.asarray(stored.x), np.asarray(stored.y), np.asarray(stored.z)
+    monkeypatch.setenv("TOOLBOX_STREAM_POINTS", "10")
+    toolbox.run("dem:nearest", {"INPUT": str(tmp_path / "b.las"), "CELL_SIZE": 10.0,
+                                "EXTENT": "500000,4500000,500100,4500100",
+                                "OUTPUT": str(tmp_path / "n.tif")})
+    with rasterio.open(tmp_path / "n.tif") as ds:
+        grid, nodata = ds.read(1), ds.nodata
+    cx, cy = np.meshgrid(500005.0 + 10 * np.arange(10), 4500095.0 - 10 * np.arange(10))
+    _, index = cKDTree(np.column_stack([x, y])).query(np.column_stack([cx.ravel(), cy.ravel()]))
+    truth = z[index].reshape(10, 10)
+    inside = grid != nodata
+    assert inside.sum() > 60
+    np.testing.assert_allclose(grid[inside], truth[inside], atol=1e-4)
