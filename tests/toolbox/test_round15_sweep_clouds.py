@@ -49,6 +49,11 @@ def test_withheld_points_are_not_read(tmp_path):
         np.testing.assert_allclose(xyz[:, 0], x[~withheld])
         assert report.as_dict()["points_withheld"] == 2
         assert report.read == 25 and report.kept == 23
+    _grid_cloud(tmp_path / "all.las", np.ones(25, bool))
+    from toolbox.errors import InputDataError
+
+    with pytest.raises(InputDataError, match="25 flagged withheld"):
+        read_xyz(open_point_cloud(tmp_path / "all.las"))
 
 
 def _geokeys_cloud(path, keys, doubles=None, ascii_=None):

@@ -332,8 +332,10 @@ def iter_xyz(ref: PointCloudRef, flt: PointFilter = PointFilter(), z_field: str 
             raise InputDataError(f"CLASSES {','.join(map(str, missing))} not in {name} {ref}; "
                                  f"the classes present are: {present}")
     if report.kept == 0:
+        withheld = f" ({report.withheld} flagged withheld, never read)" if report.withheld \
+            else ""
         raise InputDataError(f"no point of {name} {ref} passes the filter ({flt.describe()}) "
-                             f"of its {report.read} points")
+                             f"of its {report.read} points{withheld}")
 
 
 def read_xyz(ref: PointCloudRef, flt: PointFilter = PointFilter(), z_field: str | None = None,
