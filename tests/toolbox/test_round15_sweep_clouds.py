@@ -232,3 +232,26 @@ def test_streamed_gridding_of_a_cloud_whose_header_bounds_are_stale(tmp_path, mo
     inside = grid != nodata
     assert inside.sum() > 60
     np.testing.assert_allclose(grid[inside], truth[inside], atol=1e-4)
+
+
+@pytest.mark.parametrize("suffix", [".las", ".laz"])
+def test_classified_copy_of_las14_format_1_fills_the_legacy_counts(tmp_path, suffix):
+    """LAS 1.4 specification: with point format 0-5 the legacy point count 'must' hold the
+    count (readers of LAS 1.0-1.3 read only it); laspy writes 0 there."""
+    import struct
+
+    from toolbox.io.pointcloud import PointFilter, open_point_cloud, write_classified_copy
+
+    header = laspy.LasHeader(point_format=1, version="1.4")
+    las = laspy.LasData(header)
+    las.x, las.y, las.z = np.arange(10.0), np.arange(10.0) % 3, np.ones(10)
+    las.return_number = np.array([1, 2] * 5, np.uint8)
+    las.number_of_returns = np.full(10, 2, np.uint8)
+    las.write(tmp_path / "in.las")
+    out = tmp_path / f"out{suffix}"
+    ref = open_point_cloud(tmp_path / "in.las")
+    assert write_classified_copy(ref, PointFilter(), out, np.full(10, 2)) == 10
+    raw = out.read_bytes()
+    assert struct.unpack_from("<6I", raw, 107) == (10, 5, 5, 0, 0, 0)
+    assert struct.unpack_from("<Q", raw, 247) == (10,)
+    np.testing.assert_array_equal(np.asarray(laspy.read(out).classification), 2)

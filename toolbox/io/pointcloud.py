@@ -491,7 +491,21 @@ def write_classified_copy(ref: PointCloudRef, flt: PointFilter, path: str | Path
                 points.classification = classification[written:written + n].astype(np.uint8)
                 writer.write_points(points)
                 written += n
+    if header.version.minor >= 4 and header.point_format.id <= 5 and written < 2 ** 32:
+        _write_legacy_counts(path)
     return written
+
+
+def _write_legacy_counts(path: Path) -> None:
+    """Fill the legacy point counts of a LAS 1.4 file of point format 0-5 (the specification:
+    they 'must' hold the count when it fits 32 bits, for readers of LAS 1.0-1.3); laspy writes
+    0 there."""
+    with open(path, "r+b") as stream:
+        stream.seek(247)
+        total = int.from_bytes(stream.read(8), "little")
+        by_return = [int.from_bytes(stream.read(8), "little") for _ in range(15)]
+        stream.seek(107)
+        stream.write(struct.pack("<6I", total, *(min(c, 2 ** 32 - 1) for c in by_return[:5])))
 
 
 def cloud_filter(source: Any, classes: Any = None, returns: str | None = "all",
