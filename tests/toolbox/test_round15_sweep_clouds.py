@@ -255,3 +255,18 @@ def test_classified_copy_of_las14_format_1_fills_the_legacy_counts(tmp_path, suf
     assert struct.unpack_from("<6I", raw, 107) == (10, 5, 5, 0, 0, 0)
     assert struct.unpack_from("<Q", raw, 247) == (10,)
     np.testing.assert_array_equal(np.asarray(laspy.read(out).classification), 2)
+
+
+def test_geotiff_keys_naming_no_crs_stay_no_crs(tmp_path):
+    """Keys with a unit only, or a user-defined projection without its parameters: GDAL makes
+    an 'unnamed' local CRS of them; the cloud stays without CRS (CRS must be given)."""
+    from toolbox.errors import ParameterError
+    from toolbox.io.pointcloud import check_cloud_crs, open_point_cloud
+
+    for name, keys in (("u.las", [(1024, 0, 1, 1), (3076, 0, 1, 9002)]),
+                       ("p.las", [(1024, 0, 1, 1), (3072, 0, 1, 32767), (3074, 0, 1, 32767)])):
+        _geokeys_cloud(tmp_path / name, keys)
+        ref = open_point_cloud(tmp_path / name)
+        assert ref.crs is None
+        with pytest.raises(ParameterError, match="has no CRS"):
+            check_cloud_crs(ref, None)

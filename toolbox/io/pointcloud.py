@@ -177,7 +177,10 @@ def geotiff_keys_crs(header):
 
     with rasterio.Env(GTIFF_REPORT_COMPD_CS=True, CPL_LOG="/dev/null"), \
             MemoryFile(tiff) as memory, memory.open() as dataset:
-        return None if dataset.crs is None else CRS.from_wkt(dataset.crs.to_wkt())
+        crs = None if dataset.crs is None else CRS.from_wkt(dataset.crs.to_wkt())
+    # keys naming no projection or datum (a unit alone, an incomplete user-defined projection)
+    # come back as GDAL's LOCAL_CS "unnamed": no CRS, as laspy said (the CRS parameter gives it)
+    return None if crs is None or crs.type_name.startswith("Engineering") else crs
 
 
 def _geokeys_tiff(directory: bytes, doubles: bytes, ascii_: bytes) -> bytes:
