@@ -9,14 +9,18 @@ their points in file order (no spatial query of the octree).
 
 Return filter (``RETURNS``): ``all``; ``first`` = return number <= 1; ``last`` = return number
 >= number of returns. Points with return number 0 (photogrammetric clouds often leave 0/0)
-count as both first and last. Class filter (``CLASSES``): ASPRS classification codes, e.g.
+count as both first and last. Points flagged *withheld* (the LAS specification: "should not
+be included in processing", synonymous with deleted) are never read. Class filter
+(``CLASSES``): ASPRS classification codes, e.g.
 ``2`` ground, ``9`` water; a requested class absent from the file is an error.
 
-CRS: from the file's OGC WKT VLR or GeoTIFF keys (``laspy.LasHeader.parse_crs``).
+CRS: from the file's OGC WKT VLR, else its GeoTIFF keys read by GDAL (:func:`geotiff_keys_crs`:
+user-defined projections, their units and a vertical CRS included).
 """
 
 from __future__ import annotations
 
+import struct
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -81,21 +85,37 @@ def lazrs_available() -> bool:
     return bool(laspy.LazBackend.detect_available())
 
 
+def _open_reader(path: Path):
+    """``laspy.open`` for reading, with the point count a LAS 1.4 file states only in the legacy
+    field (the 64-bit count left 0 by some writers) taken from there, as LASlib does; laspy read
+    such a file as empty."""
+    import laspy
+
+    reader = laspy.open(path)
+    header = reader.header
+    if header.version.minor >= 4 and header.point_count == 0:
+        with open(path, "rb") as stream:
+            stream.seek(107)
+            legacy = int.from_bytes(stream.read(4), "little")
+        if legacy:
+            header.point_count = legacy
+    return reader
+
+
 def open_point_cloud(value: Any, name: str = "INPUT") -> PointCloudRef:
     """Read the header of a LAS/LAZ file; :class:`ParameterError` naming ``name`` if unreadable."""
     if isinstance(value, PointCloudRef):
         return value
-    import laspy
 
     path = Path(str(value)).expanduser()
     if not path.exists():
         raise ParameterError(name, f"file '{value}' does not exist")
     try:
-        with laspy.open(path) as reader:
+        with _open_reader(path) as reader:
             header = reader.header
             compressed = bool(header.are_points_compressed)
             try:
-                crs = header.parse_crs()
+                crs = header.parse_crs() if _has_wkt(header) else geotiff_keys_crs(header)
             except Exception as exc:  # a malformed VLR: say so, do not guess
                 raise ParameterError(name, f"'{value}': its CRS VLR cannot be parsed: "
                                      f"{str(exc).splitlines()[0]}") from None
@@ -119,6 +139,77 @@ def open_point_cloud(value: Any, name: str = "INPUT") -> PointCloudRef:
                 "compressed": compressed, "version": ref.version,
                 "point_format": ref.point_format, "copc": copc}
     return ref
+
+
+def _has_wkt(header) -> bool:
+    """True when the header carries a non-empty OGC WKT CRS VLR (or EVLR)."""
+    from laspy.vlrs.known import WktCoordinateSystemVlr
+
+    records = list(header.vlrs) + list(header.evlrs or [])
+    return any(isinstance(v, WktCoordinateSystemVlr) and (v.string or "").strip("\0 ")
+               for v in records)
+
+
+def geotiff_keys_crs(header):
+    """The pyproj CRS of a LAS header's GeoTIFF keys as GDAL (libgeotiff) reads them, or None.
+
+    laspy reads only an EPSG ProjectedCSTypeGeoKey / GeographicTypeGeoKey: a user-defined
+    projection (ProjectedCSTypeGeoKey 32767, its parameters in the keys, common in LAS 1.0-1.3
+    files) came back as its geographic base CRS (or none), the vertical CRS was dropped. The keys
+    are put in a 1x1 GeoTIFF in memory and GDAL reads its CRS, as it would for a raster.
+    """
+    from pyproj import CRS
+
+    directories = header.vlrs.get("GeoKeyDirectoryVlr")
+    if not directories:
+        return None
+    keys = [k for k in directories[0].geo_keys if k.id != 0]  # writers pad with a zero key
+    directory = struct.pack("<4H", 1, 1, 0, len(keys)) + b"".join(
+        struct.pack("<4H", k.id, k.tiff_tag_location, k.count, k.value_offset) for k in keys)
+
+    def record(name: str) -> bytes:
+        found = header.vlrs.get(name)
+        return found[0].record_data_bytes() if found else b""
+
+    tiff = _geokeys_tiff(directory, record("GeoDoubleParamsVlr"), record("GeoAsciiParamsVlr"))
+    import rasterio
+    from rasterio.io import MemoryFile
+
+    with rasterio.Env(GTIFF_REPORT_COMPD_CS=True, CPL_LOG="/dev/null"), \
+            MemoryFile(tiff) as memory, memory.open() as dataset:
+        crs = None if dataset.crs is None else CRS.from_wkt(dataset.crs.to_wkt())
+    # keys naming no projection or datum (a unit alone, an incomplete user-defined projection)
+    # come back as GDAL's LOCAL_CS "unnamed": no CRS, as laspy said (the CRS parameter gives it)
+    return None if crs is None or crs.type_name.startswith("Engineering") else crs
+
+
+def _geokeys_tiff(directory: bytes, doubles: bytes, ascii_: bytes) -> bytes:
+    """A 1x1 uint8 little-endian GeoTIFF whose GeoKeyDirectory, GeoDoubleParams and
+    GeoAsciiParams tags are the given LAS GeoTIFF VLR records."""
+    short, long_, double, ascii_type = 3, 4, 12, 2
+    plain = [(256, short, 1), (257, short, 1), (258, short, 8), (259, short, 1),
+             (262, short, 1), (273, long_, None), (277, short, 1), (278, short, 1),
+             (279, long_, 1)]
+    blobs = [(33550, double, struct.pack("<3d", 1.0, 1.0, 0.0)),
+             (33922, double, bytes(48)), (34735, short, directory)]
+    if len(doubles) >= 8:
+        blobs.append((34736, double, doubles[:len(doubles) // 8 * 8]))
+    if ascii_.strip(b"\0"):
+        blobs.append((34737, ascii_type, ascii_.rstrip(b"\0") + b"\0"))
+    width = {short: 2, long_: 4, double: 8, ascii_type: 1}
+    count = len(plain) + len(blobs)
+    data_at = 8 + 2 + 12 * count + 4
+    entries, data = [], b""
+    for tag, kind, blob in blobs:
+        entries.append(struct.pack("<HHII", tag, kind, len(blob) // width[kind],
+                                   data_at + len(data)))
+        data += blob + b"\0" * (len(blob) % 2)
+    pixel_at = data_at + len(data)
+    head = [struct.pack("<HHIHH", tag, kind, 1, value, 0) if kind == short
+            else struct.pack("<HHII", tag, kind, 1, pixel_at if value is None else value)
+            for tag, kind, value in plain]
+    return (b"II*\0" + struct.pack("<IH", 8, count) + b"".join(head + entries)
+            + struct.pack("<I", 0) + data + b"\0")
 
 
 @dataclass(frozen=True)
@@ -162,9 +253,11 @@ class ReadReport:
     kept: int
     classes: dict[int, int]
     filter: str
+    withheld: int = 0  # points flagged withheld (deleted), never kept
 
     def as_dict(self) -> dict:
         return {"points_in_file": self.read, "points_kept": self.kept,
+                "points_withheld": self.withheld,
                 "classes_in_file": {str(k): v for k, v in self.classes.items()},
                 "filter": self.filter}
 
@@ -176,10 +269,12 @@ def _require_backend(ref: PointCloudRef, name: str) -> None:
 
 
 def _keep(points, flt: PointFilter) -> np.ndarray | None:
-    """Boolean mask of the chunk's points that pass ``flt`` (None = all)."""
-    keep = None
+    """Boolean mask of the chunk's points that pass ``flt`` and are not withheld (None = all)."""
+    withheld = np.asarray(points.withheld).astype(bool)
+    keep = ~withheld if withheld.any() else None
     if flt.classes is not None:
-        keep = np.isin(np.asarray(points.classification), flt.classes)
+        cls = np.isin(np.asarray(points.classification), flt.classes)
+        keep = cls if keep is None else keep & cls
     if flt.returns != "all":
         rn = np.asarray(points.return_number).astype(np.int16)
         if flt.returns == "first":
@@ -201,14 +296,13 @@ def iter_xyz(ref: PointCloudRef, flt: PointFilter = PointFilter(), z_field: str 
     class is not in the file or no point passed the filter; a NaN or infinite height is
     refused at its chunk; LAZ without a backend is refused before the first.
     """
-    import laspy
 
     _require_backend(ref, name)
     report = report if report is not None else ReadReport(0, 0, {}, flt.describe())
     report.filter = flt.describe()
     hist = np.zeros(256, dtype=np.int64)
     try:
-        with laspy.open(ref.path) as reader:
+        with _open_reader(ref.path) as reader:
             for points in reader.chunk_iterator(chunk_points):
                 n = len(points)
                 if n == 0:
@@ -216,6 +310,7 @@ def iter_xyz(ref: PointCloudRef, flt: PointFilter = PointFilter(), z_field: str 
                 hist += np.bincount(np.asarray(points.classification, dtype=np.int64),
                                     minlength=256)[:256]
                 keep = _keep(points, flt)
+                report.withheld += int(np.count_nonzero(np.asarray(points.withheld)))
                 z = points.z if z_field in (None, "z", "Z") else points[z_field]
                 cols = [np.asarray(col, dtype=np.float64) for col in (points.x, points.y, z)]
                 xyz = np.column_stack(cols if keep is None else [c[keep] for c in cols])
@@ -240,8 +335,10 @@ def iter_xyz(ref: PointCloudRef, flt: PointFilter = PointFilter(), z_field: str 
             raise InputDataError(f"CLASSES {','.join(map(str, missing))} not in {name} {ref}; "
                                  f"the classes present are: {present}")
     if report.kept == 0:
+        withheld = f" ({report.withheld} flagged withheld, never read)" if report.withheld \
+            else ""
         raise InputDataError(f"no point of {name} {ref} passes the filter ({flt.describe()}) "
-                             f"of its {report.read} points")
+                             f"of its {report.read} points{withheld}")
 
 
 def read_xyz(ref: PointCloudRef, flt: PointFilter = PointFilter(), z_field: str | None = None,
@@ -270,8 +367,8 @@ def read_xyz(ref: PointCloudRef, flt: PointFilter = PointFilter(), z_field: str 
 def check_cloud_crs(ref: Any, crs: Any, name: str = "INPUT") -> None:
     """:class:`ParameterError` when a point cloud has no CRS and the CRS parameter is not given."""
     if isinstance(ref, PointCloudRef) and ref.crs_wkt is None and crs is None:
-        raise ParameterError(name, f"point cloud {ref} has no CRS (no WKT or GeoTIFF VLR): "
-                             "give its CRS in the CRS parameter (e.g. --CRS EPSG:3003)")
+        raise ParameterError(name, f"point cloud {ref} has no CRS (no WKT VLR, no GeoTIFF "
+                             "keys GDAL can read): give its CRS in the CRS parameter (e.g. --CRS EPSG:3003)")
 
 
 # -- writing -----------------------------------------------------------------------------------
@@ -349,6 +446,69 @@ def write_point_cloud(path: str | Path, xyz: np.ndarray, crs: Any = None,
             writer.write(xyz[part], None if classification is None else classification[part],
                          None if rgb is None else rgb[part])
     return len(xyz)
+
+
+def write_classified_copy(ref: PointCloudRef, flt: PointFilter, path: str | Path,
+                          classification: np.ndarray, crs: Any = None,
+                          chunk_points: int = CHUNK_POINTS) -> int:
+    """Write the points of ``ref`` that pass ``flt`` (the order :func:`iter_xyz` reads them),
+    every dimension as read (X, Y, Z, intensity, returns, GPS time, colour, extra bytes), with
+    ``classification`` (one code per kept point) set. Point format, version, scales, offsets
+    and the CRS VLRs are the input's (the CRS ``crs`` is added when the input has none); the
+    COPC VLRs are dropped (the copy is not ordered as an octree). Returns the points written.
+    """
+    import copy
+
+    import laspy
+
+    _require_backend(ref, "INPUT")
+    path = Path(path)
+    compress = path.suffix.lower() == ".laz"
+    if compress and not lazrs_available():
+        raise InputDataError(f"cannot write '{path}' as LAZ: no LAZ backend is installed "
+                             "(pip install lazrs), or write .las")
+    classification = np.asarray(classification)
+    written = 0
+    with _open_reader(ref.path) as reader:
+        header = copy.deepcopy(reader.header)
+        header.vlrs = type(header.vlrs)([v for v in header.vlrs
+                                         if getattr(v, "user_id", "") != "copc"])
+        if header.evlrs is not None:
+            header.evlrs = [v for v in header.evlrs if getattr(v, "user_id", "") != "copc"]
+        if ref.crs_wkt is None and crs is not None:
+            from pyproj import CRS
+
+            header.add_crs(CRS.from_user_input(crs))
+        with laspy.open(path, mode="w", header=header, do_compress=compress) as writer:
+            for points in reader.chunk_iterator(chunk_points):
+                if len(points) == 0:
+                    continue
+                keep = _keep(points, flt)
+                if keep is not None:
+                    points = points[keep]
+                n = len(points)
+                if n == 0:
+                    continue
+                if written + n > len(classification):
+                    raise InputDataError(f"INPUT {ref} changed while it was read")
+                points.classification = classification[written:written + n].astype(np.uint8)
+                writer.write_points(points)
+                written += n
+    if header.version.minor >= 4 and header.point_format.id <= 5 and written < 2 ** 32:
+        _write_legacy_counts(path)
+    return written
+
+
+def _write_legacy_counts(path: Path) -> None:
+    """Fill the legacy point counts of a LAS 1.4 file of point format 0-5 (the specification:
+    they 'must' hold the count when it fits 32 bits, for readers of LAS 1.0-1.3); laspy writes
+    0 there."""
+    with open(path, "r+b") as stream:
+        stream.seek(247)
+        total = int.from_bytes(stream.read(8), "little")
+        by_return = [int.from_bytes(stream.read(8), "little") for _ in range(15)]
+        stream.seek(107)
+        stream.write(struct.pack("<6I", total, *(min(c, 2 ** 32 - 1) for c in by_return[:5])))
 
 
 def cloud_filter(source: Any, classes: Any = None, returns: str | None = "all",

@@ -178,10 +178,19 @@ def run_ground(request: GroundRequest, feedback: Feedback) -> dict[str, Any]:
             writer.write(Window(0, 0, width, height),
                          np.where(np.isfinite(heights), heights, HEIGHTS_NODATA))
     if request.ground_points is not None:
-        from toolbox.io.pointcloud import write_point_cloud
+        from toolbox.io.pointcloud import (
+            PointCloudRef,
+            cloud_filter,
+            write_classified_copy,
+            write_point_cloud,
+        )
 
-        write_point_cloud(request.ground_points, xyz, crs,
-                          classification=np.where(ground, 2, 1))
+        codes = np.where(ground, 2, 1)
+        if isinstance(sources.points, PointCloudRef):  # every dimension kept, and the true Z
+            kept = cloud_filter(sources.points, sources.classes, sources.returns, sources.crs)
+            write_classified_copy(sources.points, kept, request.ground_points, codes, crs)
+        else:
+            write_point_cloud(request.ground_points, xyz, crs, classification=codes)
     stats["ground_filter"] = {
         "method": "SMRF (Pingel et al. 2013), square windows", "filter_cell": cell,
         "slope": flt.slope, "max_window": flt.max_window, "radii_cells": len(flt.radii),

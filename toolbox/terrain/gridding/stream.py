@@ -125,11 +125,33 @@ def bucket_raster(bounds: tuple[float, float, float, float], points: int
 
 def scan_cloud(ref: Any, flt: Any, z_field: str | None, chunk_points: int,
                name: str = "INPUT") -> CloudScan:
-    """Pass 1 over the cloud (never more than one chunk held)."""
+    """Pass 1 over the cloud (never more than one chunk held). The buckets cover the header's
+    bounds; when points lie outside them (a header not updated after an edit) the kept points'
+    own bounds are read in one more pass and the scan is redone over them."""
+    from toolbox.io.pointcloud import iter_xyz
+
+    try:
+        return _scan(ref, flt, z_field, chunk_points, name, ref.bounds)
+    except _OutsideHeader:
+        pass
+    lo, hi = np.full(2, np.inf), np.full(2, -np.inf)
+    for xyz in iter_xyz(ref, flt, z_field, name, chunk_points):
+        lo = np.minimum(lo, xyz[:, :2].min(axis=0))
+        hi = np.maximum(hi, xyz[:, :2].max(axis=0))
+    bounds = (float(lo[0]), float(lo[1]), float(hi[0]), float(hi[1]))
+    return _scan(ref, flt, z_field, chunk_points, name, bounds)
+
+
+class _OutsideHeader(Exception):
+    """A point of the cloud lies outside the bounds its header states."""
+
+
+def _scan(ref: Any, flt: Any, z_field: str | None, chunk_points: int, name: str,
+          bounds: tuple[float, float, float, float]) -> CloudScan:
     from toolbox.io.pointcloud import ReadReport, iter_xyz
     from toolbox.terrain.gridding.masks import convex_hull
 
-    x0, y0, size, nx, ny = bucket_raster(ref.bounds, ref.point_count)
+    x0, y0, size, nx, ny = bucket_raster(bounds, ref.point_count)
     counts = np.zeros(ny * nx, dtype=np.int64)
     lo, hi = np.full(2, np.inf), np.full(2, -np.inf)
     ring = np.zeros((0, 2))
@@ -138,9 +160,7 @@ def scan_cloud(ref: Any, flt: Any, z_field: str | None, chunk_points: int,
         ix = np.floor((xyz[:, 0] - x0) / size).astype(np.int64)
         iy = np.floor((xyz[:, 1] - y0) / size).astype(np.int64)
         if ix.min() < 0 or iy.min() < 0 or ix.max() >= nx or iy.max() >= ny:
-            raise InputDataError(f"{name} {ref}: points lie outside the bounds its header "
-                                 f"states ({', '.join(f'{v:.3f}' for v in ref.bounds)}): a "
-                                 "broken file (rewrite its header, e.g. with lasinfo -repair)")
+            raise _OutsideHeader
         counts += np.bincount(iy * nx + ix, minlength=ny * nx)
         lo = np.minimum(lo, xyz[:, :2].min(axis=0))
         hi = np.maximum(hi, xyz[:, :2].max(axis=0))
