@@ -1,0 +1,55 @@
+"""Round 15, sweep_text: text as Italian offices' files carry it (Windows-1252, BOM, CRLF,
+';' separator, decimal comma, thousands dots)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from toolbox.errors import ParameterError
+from toolbox.io.vector import open_layer, read_vector
+
+
+def _csv(tmp_path, name: str, data: bytes):
+    path = tmp_path / name
+    path.write_bytes(data)
+    return path
+
+
+def test_csv_decimal_comma_semicolon_read_as_written(tmp_path):
+    path = _csv(tmp_path, "pts.csv", b"\xef\xbb\xbfX;Y;Z\r\n1234,5;5000,25;300,75\r\n"
+                b"1240;5010,5;310\r\n")
+    xyz = np.array([(g.x, g.y, g.z) for g in read_vector(path).geometry])
+    np.testing.assert_allclose(xyz, [[1234.5, 5000.25, 300.75], [1240, 5010.5, 310]])
+
+
+def test_csv_windows_1252_accents_read(tmp_path):
+    # 'Località' / 'città' / 'perché' in Windows-1252: pyogrio failed ('utf-8' codec, exit 2)
+    path = _csv(tmp_path, "pts.csv", b"X;Y;Z;Localit\xe0\r\n1000;5000;100;citt\xe0\r\n"
+                b"1010;5000;110;perch\xe9\r\n")
+    frame = read_vector(path)
+    assert list(frame["Località"]) == ["città", "perché"]
+    assert [g.x for g in frame.geometry] == [1000, 1010]
+
+
+@pytest.mark.parametrize("cell", [b"1.000,5", b"1.681.000"])
+def test_csv_thousands_separator_refused(tmp_path, cell):
+    # GDAL reads '1.000,5' as no X: the row's point was dropped in silence (exit 0)
+    path = _csv(tmp_path, "pts.csv", b"X;Y;Z\r\n" + cell + b";5000;100\r\n1010;5000;110\r\n"
+                b"1000;5010;120\r\n")
+    with pytest.raises(ParameterError, match=r"line 2: column X holds '" + cell.decode()):
+        open_layer(str(path))
+
+
+def test_csv_thousands_dot_beside_decimal_comma_refused(tmp_path):
+    # '1.010' in a file of decimal commas was read as 1.01 (a thousands dot: 1010)
+    path = _csv(tmp_path, "pts.csv", b"X;Y;Z\n1000,5;5000;100\n1.010;5000;110\n1000;5010;120\n")
+    with pytest.raises(ParameterError, match=r"line 3: column X holds '1.010'.*line 2"):
+        open_layer(str(path))
+
+
+def test_csv_empty_x_refused(tmp_path):
+    # a row with an empty X had no point and was dropped in silence
+    path = _csv(tmp_path, "pts.csv", b"X,Y,Z\n1000,5000,100\n,5000,110\n1000,5010,120\n")
+    with pytest.raises(ParameterError, match=r"line 3: column X is empty"):
+        open_layer(str(path))
