@@ -53,3 +53,26 @@ def test_csv_empty_x_refused(tmp_path):
     path = _csv(tmp_path, "pts.csv", b"X,Y,Z\n1000,5000,100\n,5000,110\n1000,5010,120\n")
     with pytest.raises(ParameterError, match=r"line 3: column X is empty"):
         open_layer(str(path))
+
+
+def test_orthority_csv_semicolon_decimal_comma_windows_1252(tmp_path):
+    # orientation:convert refused both: 'utf-8' codec can't decode / 'expected numbers' (exit 2)
+    from toolbox.exchange.csvtable import read_csv
+
+    path = _csv(tmp_path, "opk.csv", b"filename;x;y;z;omega;phi;kappa\r\n"
+                b"foto_citt\xe0_001.tif;1681000,5;4812000,25;1500,0;0,5;-0,25;90,0\r\n")
+    oset = read_csv(path, crs="EPSG:3003")
+    (photo,) = oset.photos.values()
+    assert photo.id == "foto_città_001"
+    np.testing.assert_allclose(photo.xyz, [1681000.5, 4812000.25, 1500.0])
+    np.testing.assert_allclose(np.degrees(photo.opk), [0.5, -0.25, 90.0])
+
+
+def test_orthority_csv_thousands_dot_refused(tmp_path):
+    from toolbox.errors import InputDataError
+    from toolbox.exchange.csvtable import read_csv
+
+    path = _csv(tmp_path, "opk.csv", b"filename;x;y;z;omega;phi;kappa\n"
+                b"f1.tif;1.681.000,5;4812000;1500;0;0;90\n")
+    with pytest.raises(InputDataError, match="expected numbers"):
+        read_csv(path, crs="EPSG:3003")

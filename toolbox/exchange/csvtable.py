@@ -30,6 +30,7 @@ import numpy as np
 from toolbox.errors import InputDataError, ParameterError
 from toolbox.exchange import geodesy
 from toolbox.exchange.model import OrientationSet, PhotoOrientation, opk_from_matrix
+from toolbox.io.text import read_text
 from toolbox.photogrammetry.rotation import angle_unit as canonical_unit
 from toolbox.photogrammetry.rotation import from_radians, to_radians
 
@@ -56,6 +57,15 @@ def _dialect(text: str) -> tuple[str, str]:
         if delimiter in bare:
             return delimiter, quote
     return " ", quote
+
+
+def _number(cell: str, delimiter: str) -> float:
+    """A cell's number; in a ``;``-separated file a decimal comma (``1681000,5``, as a
+    spreadsheet in an Italian locale saves it) too. A thousands dot (``1.681.000,5``) is not a
+    number (ValueError)."""
+    if delimiter == ";" and cell.count(",") == 1 and "." not in cell:
+        cell = cell.replace(",", ".")
+    return float(cell)
 
 
 def _fields(header: list[str], path: Path) -> tuple[dict[str, int], str | None]:
@@ -94,7 +104,7 @@ def looks_like(text: str) -> bool:
                                  {"latitude", "longitude", "altitude"} <= set(fields)):
         return True
     try:
-        [float(v) for v in first[1:7]]
+        [_number(v, delimiter) for v in first[1:7]]
     except ValueError:
         return False
     return len(first) >= 7
@@ -107,10 +117,7 @@ def read_csv(path: str | Path, crs: Any = None, angle_unit: str | None = None) -
     from toolbox.photogrammetry.tables import listed
 
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8-sig")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputDataError(f"cannot read {path}: {exc}") from None
+    text = read_text(path)  # UTF-8 (BOM or not), else Windows/Latin-1 (foto_città_001.tif)
     delimiter, quote = _dialect(text)
     rows = [r for r in csv.reader(io.StringIO(text), delimiter=delimiter, quotechar=quote,
                                   skipinitialspace=delimiter == " ")
@@ -147,7 +154,7 @@ def read_csv(path: str | Path, crs: Any = None, angle_unit: str | None = None) -
     ids, cams, values = [], [], []
     for lineno, row in enumerate(body, start=2 if body is not rows else 1):
         try:
-            values.append([float(row[fields[k]]) for k in names + angles])
+            values.append([_number(row[fields[k]], delimiter) for k in names + angles])
         except (IndexError, ValueError):
             raise InputDataError(f"{path}, row {lineno}: expected numbers in "
                                  f"{', '.join(names + angles)}, got {row!r}") from None
