@@ -93,8 +93,11 @@ def looks_like(text: str) -> bool:
     """A header naming a file and a position and attitude, or a legacy row of
     ``name`` + 6 numbers."""
     delimiter, quote = _dialect(text)
-    first = next(csv.reader(io.StringIO(text), delimiter=delimiter, quotechar=quote,
-                            skipinitialspace=delimiter == " "), [])
+    try:
+        first = next(csv.reader(io.StringIO(text), delimiter=delimiter, quotechar=quote,
+                                skipinitialspace=delimiter == " "), [])
+    except csv.Error:
+        return False
     first = [c.strip() for c in first if c.strip()]
     try:
         fields, _ = _fields(first, Path("<text>"))
@@ -119,9 +122,12 @@ def read_csv(path: str | Path, crs: Any = None, angle_unit: str | None = None) -
     path = Path(path)
     text = read_text(path)  # UTF-8 (BOM or not), else Windows/Latin-1 (foto_città_001.tif)
     delimiter, quote = _dialect(text)
-    rows = [r for r in csv.reader(io.StringIO(text), delimiter=delimiter, quotechar=quote,
-                                  skipinitialspace=delimiter == " ")
-            if r and any(c.strip() for c in r) and not r[0].lstrip().startswith("#")]
+    try:
+        rows = [r for r in csv.reader(io.StringIO(text), delimiter=delimiter, quotechar=quote,
+                                      skipinitialspace=delimiter == " ")
+                if r and any(c.strip() for c in r) and not r[0].lstrip().startswith("#")]
+    except csv.Error as exc:  # a lone carriage return inside a field, ...
+        raise InputDataError(f"{path} is not a readable table: {exc}") from None
     rows = [[c.strip() for c in r if not (delimiter == " " and c == "")] for r in rows]
     if not rows:
         raise InputDataError(f"{path} holds no rows")
