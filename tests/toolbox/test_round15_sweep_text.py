@@ -76,3 +76,30 @@ def test_orthority_csv_thousands_dot_refused(tmp_path):
                 b"f1.tif;1.681.000,5;4812000;1500;0;0;90\n")
     with pytest.raises(InputDataError, match="expected numbers"):
         read_csv(path, crs="EPSG:3003")
+
+
+def test_restitution_ascii_decimal_comma(tmp_path):
+    # '1688230,5 4799620' was read as E 1688230, N 5, Z 4799620 (exit 0); a ';'/space-separated
+    # line's comma is its decimal comma
+    from toolbox.attribution.restitution import read_ascii
+
+    path = _csv(tmp_path, "r.txt", b"CODE FAB01002 12\r\n1688230,5 4799620 331,2\r\n"
+                b"1688250;4799620,25;331\r\nEND\r\n")
+    (geom,) = read_ascii(path).geometry
+    assert list(geom.coords) == [(1688230.5, 4799620.0, 331.2), (1688250.0, 4799620.25, 331.0)]
+    bad = _csv(tmp_path, "r3.txt", b"CODE P1\r\n1688230,5 4799620\r\nEND\r\n")
+    with pytest.raises(Exception, match="line 2: expected 'E N Z'"):
+        read_ascii(bad)
+
+
+def test_restitution_two_tables_decimal_comma(tmp_path):
+    # the first record's Z '300,5' made it a header line, dropped: every vertex shifted by one
+    from toolbox.attribution.restitution import read_two_tables
+
+    coords = _csv(tmp_path, "co.txt", b"1;1688230,5;4799620,25;300,5\n1;1688240;4799620;301\n"
+                  b"1;1688250;4799630;302\n")
+    desc = _csv(tmp_path, "de.txt", b"1;FAB01002;3;12;S;1688230;4799620;1688250;4799630;1\n")
+    frame, _ = read_two_tables(desc, coords)
+    (geom,) = frame.geometry
+    assert list(geom.coords) == [(1688230.5, 4799620.25, 300.5), (1688240, 4799620, 301),
+                                 (1688250, 4799630, 302)]
