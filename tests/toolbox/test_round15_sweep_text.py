@@ -103,3 +103,14 @@ def test_restitution_two_tables_decimal_comma(tmp_path):
     (geom,) = frame.geometry
     assert list(geom.coords) == [(1688230.5, 4799620.25, 300.5), (1688240, 4799620, 301),
                                  (1688250, 4799630, 302)]
+
+
+def test_read_text_windows_1252_apostrophe(tmp_path):
+    # 'dell’edificio' saved by Word/Excel in Windows-1252 was decoded as Latin-1: U+0092 (a
+    # control character) in the code descriptions, layer names and labels written from it
+    from toolbox.io.text import read_text
+
+    path = _csv(tmp_path, "codes.txt", b"FAB01002;muro dell\x92edificio \x96 citt\xe0 \x80\n")
+    assert read_text(path) == "FAB01002;muro dell’edificio – città €\n"
+    odd = _csv(tmp_path, "odd.txt", b"citt\xe0 \x81\n")  # undefined in cp1252: Latin-1 still
+    assert read_text(odd) == "città \x81\n"
