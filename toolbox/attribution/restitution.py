@@ -20,7 +20,7 @@ Formats
     END
 
   ``#`` starts a comment (to the end of the line), blank lines are ignored, keywords in any case;
-  ``E N Z`` separated by white space, ``;`` or ``,`` (a decimal comma is not accepted here).
+  ``E N Z`` separated by white space or ``;`` (a decimal comma accepted: ``331,20``), or by ``,``.
 
 *Two tables* (§2.2.4, as delimited text, separator ``;``, tab, ``,`` or white space, optional
 header line): a *descriptions* file, one record per entity::
@@ -57,6 +57,24 @@ from toolbox.io.text import is_number, read_text
 ENTITY_COLUMNS = ("entity", "code", "colour", "source", "file", "line", "kind", "block",
                   "rotation", "scale_x", "scale_y", "text", "text_height")
 _NUMBER_SPLIT = re.compile(r"[;,\s]+")
+_FIELD_SPLIT = re.compile(r"[;\s]+")
+_DECIMAL_COMMA = re.compile(r"^[+-]?(\d+,\d*|,\d+)$")
+
+
+def _decimal_commas(fields: list[str]) -> list[str]:
+    """``fields`` with a decimal comma (``300,5``, as an Italian export writes it) as a point;
+    for fields split on ``;``, tab or white space only (where a comma cannot be the separator)."""
+    return [f.replace(",", ".") if _DECIMAL_COMMA.match(f) else f for f in fields]
+
+
+def _ascii_fields(line: str) -> list[str]:
+    """The numbers of a coordinate line: split on ``;`` or white space (a comma in a number is
+    then its decimal comma), else on ``,``. A comma was always a separator, so that
+    ``1688230,5 4799620`` was read as E 1688230, N 5, Z 4799620."""
+    fields = [f for f in _FIELD_SPLIT.split(line) if f]
+    if len(fields) > 1:
+        return _decimal_commas(fields)
+    return [f for f in _NUMBER_SPLIT.split(line) if f]
 
 
 def entity_frame(rows: list[dict[str, Any]], geoms: list[Any], crs: Any = None):
@@ -132,7 +150,7 @@ def read_ascii(path: str | Path, name: str = "INPUT", crs: Any = None):
             if current is None:
                 raise _fail(path, number, f"coordinates outside an entity (expected CODE), got "
                             f"{line!r}", name)
-            fields = [f for f in _NUMBER_SPLIT.split(line) if f]
+            fields = _ascii_fields(line)
             try:
                 if len(fields) != 3:
                     raise ValueError(fields)
@@ -157,6 +175,8 @@ def _table_rows(path: Path, name: str, width: int, what: str
             continue
         sep = ";" if ";" in line else "\t" if "\t" in line else "," if "," in line else None
         fields = [f.strip() for f in (line.split(sep) if sep else line.split())]
+        if sep != ",":
+            fields = _decimal_commas(fields)
         if header and not is_number(fields[-1]):
             continue  # header line
         header = False

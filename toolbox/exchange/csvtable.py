@@ -30,6 +30,7 @@ import numpy as np
 from toolbox.errors import InputDataError, ParameterError
 from toolbox.exchange import geodesy
 from toolbox.exchange.model import OrientationSet, PhotoOrientation, opk_from_matrix
+from toolbox.io.text import read_text
 from toolbox.photogrammetry.rotation import angle_unit as canonical_unit
 from toolbox.photogrammetry.rotation import from_radians, to_radians
 
@@ -58,6 +59,15 @@ def _dialect(text: str) -> tuple[str, str]:
     return " ", quote
 
 
+def _number(cell: str, delimiter: str) -> float:
+    """A cell's number; in a ``;``-separated file a decimal comma (``1681000,5``, as a
+    spreadsheet in an Italian locale saves it) too. A thousands dot (``1.681.000,5``) is not a
+    number (ValueError)."""
+    if delimiter == ";" and cell.count(",") == 1 and "." not in cell:
+        cell = cell.replace(",", ".")
+    return float(cell)
+
+
 def _fields(header: list[str], path: Path) -> tuple[dict[str, int], str | None]:
     """Field -> column index, and the angle unit the header states (or None)."""
     found: dict[str, int] = {}
@@ -83,8 +93,11 @@ def looks_like(text: str) -> bool:
     """A header naming a file and a position and attitude, or a legacy row of
     ``name`` + 6 numbers."""
     delimiter, quote = _dialect(text)
-    first = next(csv.reader(io.StringIO(text), delimiter=delimiter, quotechar=quote,
-                            skipinitialspace=delimiter == " "), [])
+    try:
+        first = next(csv.reader(io.StringIO(text), delimiter=delimiter, quotechar=quote,
+                                skipinitialspace=delimiter == " "), [])
+    except csv.Error:
+        return False
     first = [c.strip() for c in first if c.strip()]
     try:
         fields, _ = _fields(first, Path("<text>"))
@@ -94,7 +107,7 @@ def looks_like(text: str) -> bool:
                                  {"latitude", "longitude", "altitude"} <= set(fields)):
         return True
     try:
-        [float(v) for v in first[1:7]]
+        [_number(v, delimiter) for v in first[1:7]]
     except ValueError:
         return False
     return len(first) >= 7
@@ -107,14 +120,14 @@ def read_csv(path: str | Path, crs: Any = None, angle_unit: str | None = None) -
     from toolbox.photogrammetry.tables import listed
 
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8-sig")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputDataError(f"cannot read {path}: {exc}") from None
+    text = read_text(path)  # UTF-8 (BOM or not), else Windows/Latin-1 (foto_città_001.tif)
     delimiter, quote = _dialect(text)
-    rows = [r for r in csv.reader(io.StringIO(text), delimiter=delimiter, quotechar=quote,
-                                  skipinitialspace=delimiter == " ")
-            if r and any(c.strip() for c in r) and not r[0].lstrip().startswith("#")]
+    try:
+        rows = [r for r in csv.reader(io.StringIO(text), delimiter=delimiter, quotechar=quote,
+                                      skipinitialspace=delimiter == " ")
+                if r and any(c.strip() for c in r) and not r[0].lstrip().startswith("#")]
+    except csv.Error as exc:  # a lone carriage return inside a field, ...
+        raise InputDataError(f"{path} is not a readable table: {exc}") from None
     rows = [[c.strip() for c in r if not (delimiter == " " and c == "")] for r in rows]
     if not rows:
         raise InputDataError(f"{path} holds no rows")
@@ -147,7 +160,7 @@ def read_csv(path: str | Path, crs: Any = None, angle_unit: str | None = None) -
     ids, cams, values = [], [], []
     for lineno, row in enumerate(body, start=2 if body is not rows else 1):
         try:
-            values.append([float(row[fields[k]]) for k in names + angles])
+            values.append([_number(row[fields[k]], delimiter) for k in names + angles])
         except (IndexError, ValueError):
             raise InputDataError(f"{path}, row {lineno}: expected numbers in "
                                  f"{', '.join(names + angles)}, got {row!r}") from None

@@ -1,4 +1,5 @@
-"""Text files written by other software: UTF-8 (with or without BOM), else Latin-1 (Windows)."""
+"""Text files written by other software: UTF-8 (with or without BOM), else Windows-1252 (Latin-1
+with ’ “ ” – € in 0x80-0x9f, as Word and Excel save Italian text), else Latin-1."""
 
 from __future__ import annotations
 
@@ -19,6 +20,10 @@ def read_text(path: str | Path, name: str | None = None) -> str:
     try:
         return raw.decode("utf-8-sig")
     except UnicodeDecodeError:
+        pass
+    try:  # Windows-1252: Latin-1 plus the typographic apostrophe, quotes, dashes and euro sign
+        return raw.decode("cp1252")
+    except UnicodeDecodeError:  # one of the five bytes cp1252 leaves undefined
         return raw.decode("latin-1")
 
 
