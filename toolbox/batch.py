@@ -17,7 +17,7 @@ Format (YAML)::
           INPUT: ${dem.OUTPUT}  # an earlier step's output
           OUTPUT: out/hillshade.tif
 
-Relative paths of file and layer parameters are relative to the pipeline file's folder.
+Relative paths of file, folder and layer parameters are relative to the pipeline file's folder.
 ``${name}`` is a variable, ``${step.OUTPUT}`` an earlier step's output; a value that is only a
 reference keeps the referenced value's type (number, list, path).
 """
@@ -32,10 +32,17 @@ from typing import Any
 from toolbox.errors import PipelineError, ToolboxError
 from toolbox.feedback import Feedback
 from toolbox.io.text import yaml_error_line
-from toolbox.parameters import Destination, File, MultipleLayers, RasterLayer, VectorLayer
+from toolbox.parameters import (
+    Destination,
+    File,
+    Folder,
+    MultipleLayers,
+    RasterLayer,
+    VectorLayer,
+)
 
 REF_RE = re.compile(r"\$\{([A-Za-z_][A-Za-z0-9_]*)(?:\.([A-Z][A-Z0-9_]*))?\}")
-PATH_TYPES = (Destination, File, MultipleLayers, RasterLayer, VectorLayer)
+PATH_TYPES = (Destination, File, Folder, MultipleLayers, RasterLayer, VectorLayer)
 
 
 @dataclass

@@ -1,0 +1,29 @@
+"""Round fifteen, sweep of pipelines and run reports (toolbox batch, --run-report)."""
+
+from __future__ import annotations
+
+import json
+
+from toolbox.batch import load_pipeline, run_pipeline
+
+
+def _report(path, name):
+    path.write_text(json.dumps({"algorithm": "vector:info", "display_name": name,
+                                "elapsed_s": 0.1, "outputs": {}, "warnings": []}))
+
+
+def test_pipeline_folder_parameter_is_relative_to_the_pipeline_file(tmp_path, monkeypatch):
+    """report:quality REPORTS: reports (a Folder parameter) was read from the current
+    directory, not the pipeline's folder: another project's runs reported in silence."""
+    proj, elsewhere = tmp_path / "proj", tmp_path / "elsewhere"
+    (proj / "reports").mkdir(parents=True)
+    (elsewhere / "reports").mkdir(parents=True)
+    _report(proj / "reports" / "project_run.json", "Project run")
+    _report(elsewhere / "reports" / "other_run.json", "Other run")
+    (proj / "pipe.yaml").write_text("steps:\n  - name: q\n    algorithm: report:quality\n"
+                                    "    params: {REPORTS: reports, OUTPUT: quality.html}\n")
+    monkeypatch.chdir(elsewhere)
+    run_pipeline(load_pipeline(proj / "pipe.yaml"))
+    html = (proj / "quality.html").read_text(encoding="utf-8")
+    assert "project_run" in html
+    assert "other_run" not in html
