@@ -27,3 +27,23 @@ def test_pipeline_folder_parameter_is_relative_to_the_pipeline_file(tmp_path, mo
     html = (proj / "quality.html").read_text(encoding="utf-8")
     assert "project_run" in html
     assert "other_run" not in html
+
+
+def test_run_report_records_absolute_paths_and_input_crs(tmp_path, monkeypatch):
+    """--run-report recorded the paths as typed ("INPUT": "pts.gpkg"): the report named no file
+    once read elsewhere, and not the CRS the inputs were read in."""
+    import geopandas as gpd
+    from shapely.geometry import Point
+
+    import toolbox
+
+    monkeypatch.chdir(tmp_path)
+    gpd.GeoDataFrame({"z": [1.0, 2.0, 3.0, 4.0]},
+                     geometry=[Point(0, 0), Point(10, 0), Point(0, 10), Point(10, 10)],
+                     crs="EPSG:32632").to_file("pts.gpkg", layer="heights")
+    toolbox.run("dem:idw", {"INPUT": "pts.gpkg|layername=heights", "Z_FIELD": "z",
+                            "CELL_SIZE": 5, "OUTPUT": "dem.tif"}, report="run.json")
+    doc = json.loads((tmp_path / "run.json").read_text())
+    assert doc["parameters"]["INPUT"] == f"{tmp_path / 'pts.gpkg'}|layername=heights"
+    assert doc["parameters"]["OUTPUT"] == str(tmp_path / "dem.tif")
+    assert doc["input_crs"] == {"INPUT": "EPSG:32632"}
