@@ -47,3 +47,28 @@ def test_run_report_records_absolute_paths_and_input_crs(tmp_path, monkeypatch):
     assert doc["parameters"]["INPUT"] == f"{tmp_path / 'pts.gpkg'}|layername=heights"
     assert doc["parameters"]["OUTPUT"] == str(tmp_path / "dem.tif")
     assert doc["input_crs"] == {"INPUT": "EPSG:32632"}
+
+
+def test_run_report_lists_warnings_logged_outside_feedback(tmp_path):
+    """A warning the console showed through the toolbox logger (a deprecated parameter name)
+    was missing from the run report's warnings."""
+    import warnings
+
+    import geopandas as gpd
+    from shapely.geometry import LineString, Point
+
+    import toolbox
+
+    pts = [Point(x, y, 10.0 + x / 10) for x in (0, 50, 100) for y in (0, 50, 100)]
+    gpd.GeoDataFrame(geometry=pts, crs="EPSG:32632").to_file(tmp_path / "pts.gpkg")
+    gpd.GeoDataFrame({"h": [12.0]}, geometry=[LineString([(10, 20), (90, 80)])],
+                     crs="EPSG:32632").to_file(tmp_path / "bl.gpkg")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)
+        toolbox.run("tin:delaunay", {"INPUT": tmp_path / "pts.gpkg",
+                                     "BREAKLINES": tmp_path / "bl.gpkg", "BREAKLINE_Z_FIELD": "h",
+                                     "OUTPUT": tmp_path / "tin.gpkg"},
+                    report=tmp_path / "tin.json")
+    found = json.loads((tmp_path / "tin.json").read_text())["warnings"]
+    assert any("BREAKLINE_Z_FIELD is now called BREAKLINES_Z_FIELD" in w for w in found)
+    assert len(found) == len(set(found))  # a pushed warning is not listed twice
