@@ -72,3 +72,30 @@ def test_run_report_lists_warnings_logged_outside_feedback(tmp_path):
     found = json.loads((tmp_path / "tin.json").read_text())["warnings"]
     assert any("BREAKLINE_Z_FIELD is now called BREAKLINES_Z_FIELD" in w for w in found)
     assert len(found) == len(set(found))  # a pushed warning is not listed twice
+
+
+def _cv_report(folder, crs, rmse):
+    folder.mkdir(parents=True, exist_ok=True)
+    stats = {"crs": crs, "best": "idw", "methods": {"idw": {
+        "rmse": rmse, "mean_error": 0.0, "max_abs_error": 2 * rmse, "predicted": 100}}}
+    (folder / "cv.json").write_text(json.dumps({
+        "algorithm": "dem:cross_validate", "display_name": "Cross-validation",
+        "elapsed_s": 1.0, "outputs": {"STATISTICS": stats}, "warnings": []}))
+
+
+def test_quality_dem_rmse_in_feet_is_not_judged_as_metres(tmp_path):
+    """dem:cross_validate takes a US-feet CRS; report:quality showed its RMSE (in feet) as
+    metres and judged it against the metre tolerance."""
+    from toolbox.cartography.quality import Specification, write_report
+
+    spec = Specification(contour_interval_m=5.0)  # tolerance 1.52 m
+    _cv_report(tmp_path / "compound", "EPSG:2227+6360", 4.0)  # heights in US feet: 1.219 m
+    verdict = write_report(tmp_path / "compound", tmp_path / "a.html", "t", spec)["verdicts"][0]
+    assert verdict["measured"] == f"{4.0 * 1200 / 3937:.3f} m"
+    assert verdict["status"] == "pass"
+    _cv_report(tmp_path / "plain", "EPSG:2227", 4.0)  # x, y in feet: heights' unit unknown
+    verdict = write_report(tmp_path / "plain", tmp_path / "b.html", "t", spec)["verdicts"][0]
+    assert verdict["status"] == "not checked"
+    _cv_report(tmp_path / "metric", "EPSG:32632", 1.0)  # metres: as before
+    verdict = write_report(tmp_path / "metric", tmp_path / "c.html", "t", spec)["verdicts"][0]
+    assert (verdict["measured"], verdict["status"]) == ("1.000 m", "pass")
