@@ -32,17 +32,9 @@ from typing import Any
 from toolbox.errors import PipelineError, ToolboxError
 from toolbox.feedback import Feedback
 from toolbox.io.text import yaml_error_line
-from toolbox.parameters import (
-    Destination,
-    File,
-    Folder,
-    MultipleLayers,
-    RasterLayer,
-    VectorLayer,
-)
+from toolbox.parameters import takes_paths
 
 REF_RE = re.compile(r"\$\{([A-Za-z_][A-Za-z0-9_]*)(?:\.([A-Z][A-Z0-9_]*))?\}")
-PATH_TYPES = (Destination, File, Folder, MultipleLayers, RasterLayer, VectorLayer)
 
 
 @dataclass
@@ -131,6 +123,10 @@ def parse_pipeline(doc: Any, base_dir: Path, variables: dict[str, Any] | None = 
                                         f"{ref_step}.{ref_out}, but that step's outputs are: "
                                         f"{', '.join(sorted(available[ref_step]))}")
         available[name] = {p.name for p in alg.destinations()} | {o.name for o in alg.outputs}
+        try:  # an old parameter name: its current one from here on (with the run's warning)
+            params = alg.rename_deprecated(params)
+        except ToolboxError as exc:
+            raise PipelineError(f"{source}: step {name!r}: {exc}") from None
         steps.append(Step(name, alg.id, dict(params)))
     return Pipeline(steps, base_dir, values)
 
@@ -189,9 +185,11 @@ def _substitute(value: Any, scope: dict[str, Any]) -> Any:
     return REF_RE.sub(lambda m: str(lookup(m)), value)
 
 
-def _absolutise(value: Any, base_dir: Path) -> Any:
+def _absolutise(value: Any, base_dir: Path, param: Any = None) -> Any:
     if isinstance(value, list):
         return [_absolutise(v, base_dir) for v in value]
+    if getattr(param, "paths", False) and isinstance(value, str) and "," in value:
+        return ",".join(_absolutise(v.strip(), base_dir) for v in value.split(",") if v.strip())
     if isinstance(value, (str, Path)) and str(value) and not Path(str(value)).expanduser().is_absolute():
         return str(base_dir / str(value))
     return value
@@ -214,8 +212,8 @@ def run_pipeline(pipeline: Pipeline, feedback: Feedback | None = None, overwrite
         params = {}
         for key, value in step.params.items():
             value = _substitute(value, scope)
-            if key != "OVERWRITE" and isinstance(alg.parameter(key), PATH_TYPES):
-                value = _absolutise(value, pipeline.base_dir)
+            if key != "OVERWRITE" and takes_paths(alg.parameter(key)):
+                value = _absolutise(value, pipeline.base_dir, alg.parameter(key))
             params[key] = value
         feedback.push_info(f"step {i + 1}/{n} {step.name}: {alg.id}")
         report = None if report_dir is None else Path(report_dir) / f"{step.name}.json"
@@ -275,8 +273,8 @@ def validate_pipeline(pipeline: Pipeline, overwrite: bool = False,
                 resolved_all = False
                 continue
             value = _substitute(raw, pipeline.variables) if raw is not None else None
-            if isinstance(p, PATH_TYPES) and value is not None:
-                value = _absolutise(value, pipeline.base_dir)
+            if takes_paths(p) and value is not None:
+                value = _absolutise(value, pipeline.base_dir, p)
             try:
                 if p.is_output:
                     ctx.values[p.name] = p.resolve(value, ctx)
@@ -328,8 +326,9 @@ def validate_pipeline(pipeline: Pipeline, overwrite: bool = False,
                 written[file] = f"{step.name}.{dest.name}"
             outputs_of[step.name][dest.name] = path
         if resolved_all:  # every value known now: every check the run makes before it writes
-            values = {k: _absolutise(_substitute(v, pipeline.variables), pipeline.base_dir)
-                      if k != "OVERWRITE" and isinstance(alg.parameter(k), PATH_TYPES)
+            values = {k: _absolutise(_substitute(v, pipeline.variables), pipeline.base_dir,
+                                     alg.parameter(k))
+                      if k != "OVERWRITE" and takes_paths(alg.parameter(k))
                       else _substitute(v, pipeline.variables) for k, v in step.params.items()}
             try:
                 checked = runner_validate(alg, values, overwrite=True)

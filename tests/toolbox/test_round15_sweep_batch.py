@@ -99,3 +99,35 @@ def test_quality_dem_rmse_in_feet_is_not_judged_as_metres(tmp_path):
     _cv_report(tmp_path / "metric", "EPSG:32632", 1.0)  # metres: as before
     verdict = write_report(tmp_path / "metric", tmp_path / "c.html", "t", spec)["verdicts"][0]
     assert (verdict["measured"], verdict["status"]) == ("1.000 m", "pass")
+
+
+def test_pipeline_path_list_text_is_relative_to_the_pipeline_file(tmp_path, monkeypatch):
+    """orientation:convert INPUT (text holding comma-separated paths) relative in a pipeline
+    was looked for in the current directory: refused as 'does not exist' (exit 2), or another
+    folder's file read in silence."""
+    from toolbox.batch import validate_pipeline
+
+    proj, elsewhere = tmp_path / "proj", tmp_path / "elsewhere"
+    proj.mkdir()
+    elsewhere.mkdir()
+    (proj / "a.yaml").write_text("x")
+    (proj / "b.yaml").write_text("x")
+    (proj / "pipe.yaml").write_text("steps:\n  - name: c\n    algorithm: orientation:convert\n"
+                                    "    params: {INPUT: 'a.yaml, b.yaml', OUTPUT: out.yaml}\n")
+    monkeypatch.chdir(elsewhere)
+    validate_pipeline(load_pipeline(proj / "pipe.yaml"))  # the inputs are found
+
+
+def test_pipeline_deprecated_parameter_name_is_renamed(tmp_path):
+    """A step using a deprecated parameter name (accepted by the loader and by toolbox run)
+    failed with an internal error, KeyError (exit 3), in --validate and in the run."""
+    import warnings
+
+    (tmp_path / "pipe.yaml").write_text(
+        "steps:\n  - name: t\n    algorithm: tin:delaunay\n"
+        "    params: {INPUT: p.gpkg, BREAKLINES: b.gpkg, BREAKLINE_Z_FIELD: h, OUTPUT: t.gpkg}\n")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DeprecationWarning)
+        pipeline = load_pipeline(tmp_path / "pipe.yaml")
+    assert pipeline.steps[0].params["BREAKLINES_Z_FIELD"] == "h"
+    assert "BREAKLINE_Z_FIELD" not in pipeline.steps[0].params
