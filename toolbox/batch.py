@@ -206,6 +206,10 @@ def run_pipeline(pipeline: Pipeline, feedback: Feedback | None = None, overwrite
     scope: dict[str, Any] = dict(pipeline.variables)
     results: dict[str, dict[str, Any]] = {}
     n = len(pipeline.steps)
+    names = [step.name for step in pipeline.steps]
+    if report_dir is not None and overwrite:  # an earlier run's reports of these steps describe
+        for name in names:                    # that run: gone first, as a step that reads the
+            (Path(report_dir) / f"{name}.json").unlink(missing_ok=True)  # folder would use them
     for i, step in enumerate(pipeline.steps):
         feedback.check_canceled()
         alg = get(step.algorithm)
@@ -216,6 +220,7 @@ def run_pipeline(pipeline: Pipeline, feedback: Feedback | None = None, overwrite
                 value = _absolutise(value, pipeline.base_dir, alg.parameter(key))
             params[key] = value
         feedback.push_info(f"step {i + 1}/{n} {step.name}: {alg.id}")
+        _warn_stale_reports(alg, params, names, report_dir, step.name, feedback)
         report = None if report_dir is None else Path(report_dir) / f"{step.name}.json"
         try:
             outputs = run(alg.id, params, feedback=feedback.step(100 * i / n, 100 * (i + 1) / n),
@@ -230,6 +235,29 @@ def run_pipeline(pipeline: Pipeline, feedback: Feedback | None = None, overwrite
         scope[step.name] = outputs
         results[step.name] = outputs
     return results
+
+
+def _warn_stale_reports(alg: Any, params: dict[str, Any], names: list[str],
+                        report_dir: str | Path | None, step: str, feedback: Feedback) -> None:
+    """A folder input (report:quality's REPORTS) holding reports named after this pipeline's
+    steps that this run does not write there: they are an earlier run's, read as this one's."""
+    from toolbox.parameters import Folder
+
+    here = None if report_dir is None else Path(report_dir).expanduser().resolve()
+    for p in alg.parameters:
+        value = params.get(p.name)
+        if not isinstance(p, Folder) or not isinstance(value, (str, Path)):
+            continue
+        folder = Path(value).expanduser()
+        if here is not None and folder.resolve() == here:
+            continue
+        stale = [name for name in names if (folder / f"{name}.json").is_file()]
+        if stale:
+            feedback.push_warning(
+                f"step {step!r}: {p.name} '{value}' holds run reports named after steps of this "
+                f"pipeline ({', '.join(stale[:5])}{', ...' if len(stale) > 5 else ''}) that this "
+                f"run does not write there: they are of an earlier run; rerun with "
+                f"--report-dir '{value}' --overwrite to report this run")
 
 
 # -- value validation (``toolbox batch --validate`` and before a CLI batch run) -----------------

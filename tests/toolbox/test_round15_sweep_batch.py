@@ -131,3 +131,33 @@ def test_pipeline_deprecated_parameter_name_is_renamed(tmp_path):
         pipeline = load_pipeline(tmp_path / "pipe.yaml")
     assert pipeline.steps[0].params["BREAKLINES_Z_FIELD"] == "h"
     assert "BREAKLINE_Z_FIELD" not in pipeline.steps[0].params
+
+
+def test_pipeline_rerun_reports_this_run_to_its_quality_step(tmp_path):
+    """Rerunning a pipeline whose report:quality step reads the report folder: with
+    --report-dir and --overwrite it failed at that step (its earlier report is a file of its
+    input folder, exit 2); without --report-dir the quality report showed the earlier run's
+    reports in silence. Now the earlier reports of these steps go first, and a folder holding
+    them that this run does not rewrite is warned about."""
+    import geopandas as gpd
+    from shapely.geometry import Point
+
+    from toolbox.feedback import Feedback
+
+    gpd.GeoDataFrame(geometry=[Point(0, 0)], crs="EPSG:32632").to_file(tmp_path / "p.gpkg")
+    (tmp_path / "pipe.yaml").write_text(
+        "steps:\n  - name: info\n    algorithm: vector:info\n"
+        "    params: {INPUT: p.gpkg, OUTPUT: info.json}\n"
+        "  - name: quality\n    algorithm: report:quality\n"
+        "    params: {REPORTS: reports, OUTPUT: q.html}\n")
+    reports = tmp_path / "reports"
+    reports.mkdir()
+    for name in ("info", "quality"):  # an earlier run's
+        _report(reports / f"{name}.json", "EARLIER RUN")
+    pipeline = load_pipeline(tmp_path / "pipe.yaml")
+    feedback = Feedback()
+    run_pipeline(pipeline, feedback, overwrite=True)  # no --report-dir: warned
+    assert any("of an earlier run" in w and "info, quality" in w for w in feedback.warnings)
+    run_pipeline(pipeline, Feedback(), overwrite=True, report_dir=reports)
+    assert "EARLIER RUN" not in (reports / "info.json").read_text()
+    assert "EARLIER RUN" not in (tmp_path / "q.html").read_text(encoding="utf-8")
