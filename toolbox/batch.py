@@ -80,6 +80,14 @@ def parse_pipeline(doc: Any, base_dir: Path, variables: dict[str, Any] | None = 
         raise PipelineError(f"{source}: 'variables' must be a mapping of NAME: value, got "
                             f"{type(raw_variables).__name__}")
     values = {str(k): v for k, v in raw_variables.items()}
+    used = {ref for v in [*values.values(), *(s.get("params") for s in doc["steps"]
+                                                if isinstance(s, dict))]
+            for ref, out in _references_deep(v) if out is None}
+    for name in variables or {}:  # a misspelt --set would be ignored: the run goes elsewhere
+        if name not in values and name not in used:
+            known = ", ".join(sorted(set(values) | used)) or "none"
+            raise PipelineError(f"{source}: --set {name}: the pipeline has no variable {name!r}"
+                                f" (its variables: {known})")
     values.update(variables or {})
     values = _expand_variables(values, source)
     steps: list[Step] = []
@@ -167,6 +175,15 @@ def _references(value: Any):
     elif isinstance(value, list):
         for item in value:
             yield from _references(item)
+
+
+def _references_deep(value: Any):
+    """:func:`_references` of a value and of the values of a mapping (a step's params)."""
+    if isinstance(value, dict):
+        for item in value.values():
+            yield from _references(item)
+    else:
+        yield from _references(value)
 
 
 def _substitute(value: Any, scope: dict[str, Any]) -> Any:

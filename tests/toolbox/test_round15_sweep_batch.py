@@ -161,3 +161,25 @@ def test_pipeline_rerun_reports_this_run_to_its_quality_step(tmp_path):
     run_pipeline(pipeline, Feedback(), overwrite=True, report_dir=reports)
     assert "EARLIER RUN" not in (reports / "info.json").read_text()
     assert "EARLIER RUN" not in (tmp_path / "q.html").read_text(encoding="utf-8")
+
+
+def test_batch_set_of_an_unknown_variable_or_without_value_is_refused(tmp_path):
+    """--set ou=second (misspelt) and --set out (no value) were ignored in silence (exit 0):
+    the run wrote where the file's variable said, over the earlier outputs with --overwrite."""
+    import pytest
+    from click.testing import CliRunner
+
+    from toolbox.cli import main
+    from toolbox.errors import PipelineError
+
+    (tmp_path / "pipe.yaml").write_text(
+        "variables: {out: first}\nsteps:\n  - name: info\n    algorithm: vector:info\n"
+        "    params: {INPUT: '${data}/p.gpkg', OUTPUT: '${out}/info.json'}\n")
+    with pytest.raises(PipelineError, match="no variable 'ou'"):
+        load_pipeline(tmp_path / "pipe.yaml", {"ou": "second", "data": "d"})
+    pipeline = load_pipeline(tmp_path / "pipe.yaml", {"out": "second", "data": "d"})
+    assert pipeline.variables["out"] == "second"  # declared, or used only: accepted
+    result = CliRunner().invoke(main, ["batch", str(tmp_path / "pipe.yaml"), "--validate",
+                                       "--set", "out"])
+    assert result.exit_code == 2
+    assert "--set 'out': expected NAME=VALUE" in result.output
