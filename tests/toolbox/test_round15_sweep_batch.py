@@ -183,3 +183,25 @@ def test_batch_set_of_an_unknown_variable_or_without_value_is_refused(tmp_path):
                                        "--set", "out"])
     assert result.exit_code == 2
     assert "--set 'out': expected NAME=VALUE" in result.output
+
+
+def test_quality_with_no_criterion_is_not_accepted(tmp_path):
+    """report:quality over runs that measure no criterion said 'Overall: ACCEPTED (0 criteria
+    ...)' with accepted true; over a folder of JSON outputs that are no run reports too."""
+    import pytest
+
+    import toolbox
+    from toolbox.errors import ParameterError
+
+    (tmp_path / "reports").mkdir()
+    _report(tmp_path / "reports" / "info.json", "Vector info")  # a run without criteria
+    out = toolbox.run("report:quality", {"REPORTS": tmp_path / "reports",
+                                         "OUTPUT": tmp_path / "q.html"})
+    assert out["CONTENTS"]["accepted"] is False
+    html = (tmp_path / "q.html").read_text(encoding="utf-8")
+    assert "ACCEPTED" not in html.replace("NOT ACCEPTED", "")
+    (tmp_path / "outputs").mkdir()
+    (tmp_path / "outputs" / "info.json").write_text(json.dumps({"layers": []}))
+    with pytest.raises(ParameterError, match="REPORTS.*no run report"):
+        toolbox.run("report:quality", {"REPORTS": tmp_path / "outputs",
+                                       "OUTPUT": tmp_path / "q2.html"})
