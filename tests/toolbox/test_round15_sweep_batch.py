@@ -205,3 +205,13 @@ def test_quality_with_no_criterion_is_not_accepted(tmp_path):
     with pytest.raises(ParameterError, match="REPORTS.*no run report"):
         toolbox.run("report:quality", {"REPORTS": tmp_path / "outputs",
                                        "OUTPUT": tmp_path / "q2.html"})
+
+
+def test_quality_skips_a_json_whose_outputs_are_not_a_mapping(tmp_path):
+    """A JSON with 'algorithm' and 'outputs': null was taken for a run report: internal error
+    (AttributeError, exit 3)."""
+    from toolbox.cartography.quality import load_reports
+
+    (tmp_path / "a.json").write_text('{"algorithm": "rectify:estimate", "outputs": null}')
+    _report(tmp_path / "b.json", "Vector info")
+    assert [name for runs in load_reports(tmp_path).values() for name, _ in runs] == ["b"]
