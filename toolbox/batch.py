@@ -279,14 +279,15 @@ def _warn_stale_reports(alg: Any, params: dict[str, Any], names: list[str],
 
 # -- value validation (``toolbox batch --validate`` and before a CLI batch run) -----------------
 def validate_pipeline(pipeline: Pipeline, overwrite: bool = False,
-                      existing: list[Path] | None = None) -> None:
+                      existing: list[Path] | None = None,
+                      report_dir: str | Path | None = None) -> None:
     """Check every step's values before anything runs: ranges, enums and types, inputs that
     exist (or that an earlier step writes), references to optional outputs left unset, two steps
     writing one file, a step writing its own or an earlier step's input, existing outputs without
     ``overwrite`` (collected in ``existing`` instead when a list is given). Raises
     :class:`PipelineError` naming the step."""
     from toolbox.errors import OutputExistsError
-    from toolbox.parameters import Field, OutputFolder, ValidationContext
+    from toolbox.parameters import Field, Folder, OutputFolder, ValidationContext
     from toolbox.registry import get
     from toolbox.runner import check_magnitudes, check_parameter_crs, planned_paths
     from toolbox.runner import validate as runner_validate
@@ -326,6 +327,9 @@ def validate_pipeline(pipeline: Pipeline, overwrite: bool = False,
                 elif isinstance(p, Field) and ctx.values.get(p.parent) is None \
                         and value is not None:
                     resolved_all = False
+                elif isinstance(p, Folder) and report_dir is not None and value is not None \
+                        and _abs(value) == _abs(report_dir):
+                    resolved_all = False  # the run's --report-dir: made as the steps run
                 elif value is not None and _later_file(value, written):
                     resolved_all = False  # an earlier step writes it: checked when it runs
                     for item in value if isinstance(value, list) else [value]:

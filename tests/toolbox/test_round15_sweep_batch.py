@@ -215,3 +215,22 @@ def test_quality_skips_a_json_whose_outputs_are_not_a_mapping(tmp_path):
     (tmp_path / "a.json").write_text('{"algorithm": "rectify:estimate", "outputs": null}')
     _report(tmp_path / "b.json", "Vector info")
     assert [name for runs in load_reports(tmp_path).values() for name, _ in runs] == ["b"]
+
+
+def test_validate_accepts_a_folder_input_that_is_the_report_dir(tmp_path, monkeypatch):
+    """A pipeline whose report:quality step reads the folder --report-dir writes was refused
+    on its first run, before anything ran: 'REPORTS folder does not exist' (exit 2)."""
+    import pytest
+
+    from toolbox.batch import validate_pipeline
+    from toolbox.errors import PipelineError
+
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "p.gpkg").write_text("")
+    (tmp_path / "pipe.yaml").write_text(
+        "steps:\n  - name: quality\n    algorithm: report:quality\n"
+        "    params: {REPORTS: reports, OUTPUT: q.html}\n")
+    pipeline = load_pipeline(tmp_path / "pipe.yaml")
+    validate_pipeline(pipeline, report_dir="reports")  # written as the steps run
+    with pytest.raises(PipelineError, match="does not exist"):
+        validate_pipeline(pipeline)  # no --report-dir: nothing makes it

@@ -541,7 +541,7 @@ def batch_cmd(ctx: click.Context, pipeline: str, overwrite: bool, validate_only:
     pipe = load_pipeline(pipeline, extra)
     existing: list[Path] = []
     # values too, before anything runs: nothing is written if a later step is wrong
-    validate_pipeline(pipe, overwrite, existing if validate_only else None)
+    validate_pipeline(pipe, overwrite, existing if validate_only else None, report_dir)
     if validate_only:
         note = f" ({len(existing)} outputs exist: pass --overwrite to replace them)" \
             if existing else ""
