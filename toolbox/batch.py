@@ -17,7 +17,7 @@ Format (YAML)::
           INPUT: ${dem.OUTPUT}  # an earlier step's output
           OUTPUT: out/hillshade.tif
 
-Relative paths of file and layer parameters are relative to the pipeline file's folder.
+Relative paths of file, folder and layer parameters are relative to the pipeline file's folder.
 ``${name}`` is a variable, ``${step.OUTPUT}`` an earlier step's output; a value that is only a
 reference keeps the referenced value's type (number, list, path).
 """
@@ -32,10 +32,9 @@ from typing import Any
 from toolbox.errors import PipelineError, ToolboxError
 from toolbox.feedback import Feedback
 from toolbox.io.text import yaml_error_line
-from toolbox.parameters import Destination, File, MultipleLayers, RasterLayer, VectorLayer
+from toolbox.parameters import takes_paths
 
 REF_RE = re.compile(r"\$\{([A-Za-z_][A-Za-z0-9_]*)(?:\.([A-Z][A-Z0-9_]*))?\}")
-PATH_TYPES = (Destination, File, MultipleLayers, RasterLayer, VectorLayer)
 
 
 @dataclass
@@ -81,6 +80,14 @@ def parse_pipeline(doc: Any, base_dir: Path, variables: dict[str, Any] | None = 
         raise PipelineError(f"{source}: 'variables' must be a mapping of NAME: value, got "
                             f"{type(raw_variables).__name__}")
     values = {str(k): v for k, v in raw_variables.items()}
+    used = {ref for v in [*values.values(), *(s.get("params") for s in doc["steps"]
+                                                if isinstance(s, dict))]
+            for ref, out in _references_deep(v) if out is None}
+    for name in variables or {}:  # a misspelt --set would be ignored: the run goes elsewhere
+        if name not in values and name not in used:
+            known = ", ".join(sorted(set(values) | used)) or "none"
+            raise PipelineError(f"{source}: --set {name}: the pipeline has no variable {name!r}"
+                                f" (its variables: {known})")
     values.update(variables or {})
     values = _expand_variables(values, source)
     steps: list[Step] = []
@@ -124,6 +131,10 @@ def parse_pipeline(doc: Any, base_dir: Path, variables: dict[str, Any] | None = 
                                         f"{ref_step}.{ref_out}, but that step's outputs are: "
                                         f"{', '.join(sorted(available[ref_step]))}")
         available[name] = {p.name for p in alg.destinations()} | {o.name for o in alg.outputs}
+        try:  # an old parameter name: its current one from here on (with the run's warning)
+            params = alg.rename_deprecated(params)
+        except ToolboxError as exc:
+            raise PipelineError(f"{source}: step {name!r}: {exc}") from None
         steps.append(Step(name, alg.id, dict(params)))
     return Pipeline(steps, base_dir, values)
 
@@ -166,6 +177,15 @@ def _references(value: Any):
             yield from _references(item)
 
 
+def _references_deep(value: Any):
+    """:func:`_references` of a value and of the values of a mapping (a step's params)."""
+    if isinstance(value, dict):
+        for item in value.values():
+            yield from _references(item)
+    else:
+        yield from _references(value)
+
+
 def _substitute(value: Any, scope: dict[str, Any]) -> Any:
     if isinstance(value, list):
         return [_substitute(v, scope) for v in value]
@@ -182,9 +202,11 @@ def _substitute(value: Any, scope: dict[str, Any]) -> Any:
     return REF_RE.sub(lambda m: str(lookup(m)), value)
 
 
-def _absolutise(value: Any, base_dir: Path) -> Any:
+def _absolutise(value: Any, base_dir: Path, param: Any = None) -> Any:
     if isinstance(value, list):
         return [_absolutise(v, base_dir) for v in value]
+    if getattr(param, "paths", False) and isinstance(value, str) and "," in value:
+        return ",".join(_absolutise(v.strip(), base_dir) for v in value.split(",") if v.strip())
     if isinstance(value, (str, Path)) and str(value) and not Path(str(value)).expanduser().is_absolute():
         return str(base_dir / str(value))
     return value
@@ -201,16 +223,21 @@ def run_pipeline(pipeline: Pipeline, feedback: Feedback | None = None, overwrite
     scope: dict[str, Any] = dict(pipeline.variables)
     results: dict[str, dict[str, Any]] = {}
     n = len(pipeline.steps)
+    names = [step.name for step in pipeline.steps]
+    if report_dir is not None and overwrite:  # an earlier run's reports of these steps describe
+        for name in names:                    # that run: gone first, as a step that reads the
+            (Path(report_dir) / f"{name}.json").unlink(missing_ok=True)  # folder would use them
     for i, step in enumerate(pipeline.steps):
         feedback.check_canceled()
         alg = get(step.algorithm)
         params = {}
         for key, value in step.params.items():
             value = _substitute(value, scope)
-            if key != "OVERWRITE" and isinstance(alg.parameter(key), PATH_TYPES):
-                value = _absolutise(value, pipeline.base_dir)
+            if key != "OVERWRITE" and takes_paths(alg.parameter(key)):
+                value = _absolutise(value, pipeline.base_dir, alg.parameter(key))
             params[key] = value
         feedback.push_info(f"step {i + 1}/{n} {step.name}: {alg.id}")
+        _warn_stale_reports(alg, params, names, report_dir, step.name, feedback)
         report = None if report_dir is None else Path(report_dir) / f"{step.name}.json"
         try:
             outputs = run(alg.id, params, feedback=feedback.step(100 * i / n, 100 * (i + 1) / n),
@@ -227,16 +254,40 @@ def run_pipeline(pipeline: Pipeline, feedback: Feedback | None = None, overwrite
     return results
 
 
+def _warn_stale_reports(alg: Any, params: dict[str, Any], names: list[str],
+                        report_dir: str | Path | None, step: str, feedback: Feedback) -> None:
+    """A folder input (report:quality's REPORTS) holding reports named after this pipeline's
+    steps that this run does not write there: they are an earlier run's, read as this one's."""
+    from toolbox.parameters import Folder
+
+    here = None if report_dir is None else Path(report_dir).expanduser().resolve()
+    for p in alg.parameters:
+        value = params.get(p.name)
+        if not isinstance(p, Folder) or not isinstance(value, (str, Path)):
+            continue
+        folder = Path(value).expanduser()
+        if here is not None and folder.resolve() == here:
+            continue
+        stale = [name for name in names if (folder / f"{name}.json").is_file()]
+        if stale:
+            feedback.push_warning(
+                f"step {step!r}: {p.name} '{value}' holds run reports named after steps of this "
+                f"pipeline ({', '.join(stale[:5])}{', ...' if len(stale) > 5 else ''}) that this "
+                f"run does not write there: they are of an earlier run; rerun with "
+                f"--report-dir '{value}' --overwrite to report this run")
+
+
 # -- value validation (``toolbox batch --validate`` and before a CLI batch run) -----------------
 def validate_pipeline(pipeline: Pipeline, overwrite: bool = False,
-                      existing: list[Path] | None = None) -> None:
+                      existing: list[Path] | None = None,
+                      report_dir: str | Path | None = None) -> None:
     """Check every step's values before anything runs: ranges, enums and types, inputs that
     exist (or that an earlier step writes), references to optional outputs left unset, two steps
     writing one file, a step writing its own or an earlier step's input, existing outputs without
     ``overwrite`` (collected in ``existing`` instead when a list is given). Raises
     :class:`PipelineError` naming the step."""
     from toolbox.errors import OutputExistsError
-    from toolbox.parameters import Field, OutputFolder, ValidationContext
+    from toolbox.parameters import Field, Folder, OutputFolder, ValidationContext
     from toolbox.registry import get
     from toolbox.runner import check_magnitudes, check_parameter_crs, planned_paths
     from toolbox.runner import validate as runner_validate
@@ -268,14 +319,17 @@ def validate_pipeline(pipeline: Pipeline, overwrite: bool = False,
                 resolved_all = False
                 continue
             value = _substitute(raw, pipeline.variables) if raw is not None else None
-            if isinstance(p, PATH_TYPES) and value is not None:
-                value = _absolutise(value, pipeline.base_dir)
+            if takes_paths(p) and value is not None:
+                value = _absolutise(value, pipeline.base_dir, p)
             try:
                 if p.is_output:
                     ctx.values[p.name] = p.resolve(value, ctx)
                 elif isinstance(p, Field) and ctx.values.get(p.parent) is None \
                         and value is not None:
                     resolved_all = False
+                elif isinstance(p, Folder) and report_dir is not None and value is not None \
+                        and _abs(value) == _abs(report_dir):
+                    resolved_all = False  # the run's --report-dir: made as the steps run
                 elif value is not None and _later_file(value, written):
                     resolved_all = False  # an earlier step writes it: checked when it runs
                     for item in value if isinstance(value, list) else [value]:
@@ -321,8 +375,9 @@ def validate_pipeline(pipeline: Pipeline, overwrite: bool = False,
                 written[file] = f"{step.name}.{dest.name}"
             outputs_of[step.name][dest.name] = path
         if resolved_all:  # every value known now: every check the run makes before it writes
-            values = {k: _absolutise(_substitute(v, pipeline.variables), pipeline.base_dir)
-                      if k != "OVERWRITE" and isinstance(alg.parameter(k), PATH_TYPES)
+            values = {k: _absolutise(_substitute(v, pipeline.variables), pipeline.base_dir,
+                                     alg.parameter(k))
+                      if k != "OVERWRITE" and takes_paths(alg.parameter(k))
                       else _substitute(v, pipeline.variables) for k, v in step.params.items()}
             try:
                 checked = runner_validate(alg, values, overwrite=True)

@@ -159,3 +159,36 @@ class CollectingFeedback(Feedback):
 
     def push_warning(self, text: str) -> None:
         self.messages.append(("warning", text))
+
+
+class _LoggedWarnings(logging.Handler):
+    """Keeps the warnings logged on the ``toolbox`` logger by the running thread (a library's
+    Python warning the CLI logs, a deprecated parameter name, a reader's note) that did not come
+    through ``feedback.push_warning``, in ``feedback``'s messages: the run report lists every
+    warning the console showed."""
+
+    def __init__(self, feedback: Feedback):
+        super().__init__(logging.WARNING)
+        self.feedback = feedback
+        self.thread = threading.get_ident()
+
+    def emit(self, record: logging.LogRecord) -> None:
+        if record.thread != self.thread or record.levelno > logging.WARNING:
+            return
+        try:
+            text = record.getMessage()
+        except Exception:  # noqa: BLE001 - a bad format string: not ours to fail on
+            return
+        if text not in self.feedback.warnings:
+            self.feedback.messages.append(("warning", text))
+
+
+@contextmanager
+def logged_warnings(feedback: Feedback):
+    """While the block runs, warnings logged outside ``feedback`` are kept in its messages."""
+    handler = _LoggedWarnings(feedback)
+    log.addHandler(handler)
+    try:
+        yield
+    finally:
+        log.removeHandler(handler)

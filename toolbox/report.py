@@ -66,6 +66,54 @@ def to_jsonable(value: Any) -> Any:
     return str(value)
 
 
+def _absolute(value: Any) -> Any:
+    """A path parameter's JSON value with its relative file paths made absolute (the part before
+    a layer reference's ``|``; GDAL's ``/vsi...`` and ``DRIVER:...`` names are left as given)."""
+    import os
+
+    if isinstance(value, list):
+        return [_absolute(v) for v in value]
+    if not isinstance(value, str) or not value or value.startswith(("<", "/vsi")):
+        return value
+    head, sep, tail = value.partition("|")
+    if Path(head).expanduser().is_absolute() or (":" in head and not Path(head).exists()):
+        return value
+    return os.path.abspath(head) + sep + tail
+
+
+def parameters_record(alg_cls, params: dict[str, Any]) -> dict[str, Any]:
+    """The run's parameter values as JSON, file and folder paths absolute (a relative path
+    names nothing once the report leaves the folder it was run from)."""
+    from toolbox.parameters import takes_paths
+
+    record = to_jsonable(params)
+    for p in alg_cls.parameters:
+        value = record.get(p.name)
+        if takes_paths(p) and value is not None:
+            record[p.name] = ",".join(_absolute(v.strip()) for v in value.split(",")) \
+                if getattr(p, "paths", False) and isinstance(value, str) else _absolute(value)
+    return record
+
+
+def input_crs(alg_cls, params: dict[str, Any]) -> dict[str, Any]:
+    """The CRS of every raster and vector input as it was read (``{PARAMETER: label}``, None
+    for an input without one): a parameter value does not say it."""
+    out: dict[str, Any] = {}
+    for p in alg_cls.parameters:
+        value = params.get(p.name)
+        if p.is_output or value is None:
+            continue
+        items = value if isinstance(value, list) else [value]
+        if not items or not all(hasattr(v, "crs") and hasattr(v, "as_text") for v in items):
+            continue
+        try:
+            labels = [to_jsonable(v.crs) for v in items]
+        except Exception:  # noqa: BLE001 - the record never fails a run that worked
+            continue
+        out[p.name] = labels if isinstance(value, list) else labels[0]
+    return out
+
+
 def build_report(alg_cls, params: dict[str, Any], outputs: dict[str, Any], feedback,
                  started: float, elapsed: float) -> dict[str, Any]:
     return {
@@ -73,7 +121,8 @@ def build_report(alg_cls, params: dict[str, Any], outputs: dict[str, Any], feedb
         "display_name": alg_cls.display_name,
         "started": dt.datetime.fromtimestamp(started, dt.UTC).isoformat(),
         "elapsed_s": round(elapsed, 4),
-        "parameters": to_jsonable(params),
+        "parameters": parameters_record(alg_cls, params),
+        "input_crs": input_crs(alg_cls, params),
         "outputs": to_jsonable(outputs),
         "timings_s": {k: round(v, 4) for k, v in feedback.timings.items()},
         "warnings": feedback.warnings,

@@ -59,7 +59,7 @@ class ConvertOrientations(Algorithm):
     group = "Orientation"
     short_help = "Orientation files from/to OpenSfM, ODM, Orthority, Metashape, CSV, PAT-B, EXIF."
     parameters = [
-        String("INPUT", "orientation file(s), comma separated, or a folder"),
+        String("INPUT", "orientation file(s), comma separated, or a folder", paths=True),
         Enum("FORMAT", "input format", options=READ, default="auto"),
         Crs("CRS", "target CRS (and CRS of inputs that carry none)", optional=True),
         Enum("ANGLE_UNIT", "unit of input angles the files do not state",

@@ -68,7 +68,7 @@ class TiePoints(Algorithm):
         project_parameter("orientation project (YAML): photos with images, cameras, orientations",
                           optional=True),
         String("IMAGES", "or a folder of images (no cameras: pairs by thumbnails)",
-               optional=True),
+               optional=True, paths=True),
         File("POSITIONS", "approximate photo positions (CSV: photo and x, y planar or lon, "
              "lat degrees; a GNSS log) for choosing pairs", extensions=[".csv", ".txt"],
              optional=True),

@@ -77,7 +77,7 @@ class OrthoBatch(Algorithm):
                optional=True),
         String("IMAGES", "folder of the image files (default: the project's paths); without "
                "PROJECT: satellite images with RPCs, a folder or a comma-separated list",
-               optional=True),
+               optional=True, paths=True),
         Crs("CRS", "RPC images: the orthos' CRS (default: the DEM's)", optional=True),
         *dem_parameters("terrain heights, any CRS"),
         String("HEIGHTS", "height datum of the orientations: 'ellipsoidal' or a vertical CRS "

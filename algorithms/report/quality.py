@@ -57,9 +57,15 @@ class Quality(Algorithm):
     def check(self, params):
         from pathlib import Path
 
+        from toolbox.cartography.quality import load_reports
+
         folder = Path(params["REPORTS"])
         if not any(folder.glob("*.json")):
             raise self.fail("REPORTS", f"folder '{params['REPORTS']}' holds no .json report")
+        if not load_reports(folder):  # JSON outputs (vector:info's...), not run reports
+            raise self.fail("REPORTS", f"folder '{params['REPORTS']}' holds no run report (the "
+                            "JSON --run-report or --report-dir writes, with 'algorithm' and "
+                            "'outputs'); its .json files are something else")
 
     def process(self, params, feedback: Feedback):
         from toolbox.cartography.quality import Specification, write_report

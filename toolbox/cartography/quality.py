@@ -70,7 +70,9 @@ def verdict_section(verdicts: list[Verdict], spec: Specification, runs: int) -> 
     failed = [v for v in verdicts if v.status == FAIL]
     unchecked = [v for v in verdicts if v.status == NOT_CHECKED]
     overall = ("NOT ACCEPTED: " + f"{len(failed)} criterion(s) failed" if failed else
-               "ACCEPTED" + (f", {len(unchecked)} criterion(s) not checked" if unchecked else ""))
+               "NOT CHECKED: no run measured a criterion of the specification" if not verdicts
+               else "ACCEPTED" + (f", {len(unchecked)} criterion(s) not checked" if unchecked
+                                  else ""))
     sec = Section("verdict", "Verdict")
     sec.text(f"Overall: {overall} ({len(verdicts)} criteria from {runs} runs).")
     sec.text("Specification: " + spec.describe() + ".")
@@ -105,4 +107,4 @@ def write_report(folder: str | Path, output: str | Path, title: str,
     return {"runs": runs, "sections": [s.key for s in sections],
             "figures": {s.key: len(s.figures) for s in sections},
             "verdicts": [v.__dict__ for v in verdicts],
-            "accepted": not any(v.status == FAIL for v in verdicts)}
+            "accepted": bool(verdicts) and not any(v.status == FAIL for v in verdicts)}

@@ -87,7 +87,9 @@ def load_reports(folder: str | Path) -> dict[str, list[tuple[str, dict]]]:
             data = json.loads(path.read_text(encoding="utf-8"))
         except (OSError, ValueError):
             continue
-        if isinstance(data, dict) and "algorithm" in data and "outputs" in data:
+        if isinstance(data, dict) and isinstance(data.get("algorithm"), str) \
+                and isinstance(data.get("outputs"), dict) \
+                and isinstance(data["outputs"].get("STATISTICS") or {}, dict):
             out.setdefault(data["algorithm"], []).append((path.stem, data))
     return out
 

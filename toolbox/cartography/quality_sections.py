@@ -334,6 +334,29 @@ def _offsets_figure(offsets: list[dict], ortho: str, tolerance: float):
     return fig
 
 
+def height_unit(crs_text: str | None) -> tuple[float | None, str]:
+    """Metres per height unit of a run's CRS (its label as the run report gives it) and how it
+    is known: the vertical axis's unit; without one, metres when x and y are in metres (the
+    toolbox's convention), unknown (None) when they are not (feet x, y say nothing of heights)."""
+    if not crs_text or crs_text == "none":
+        return 1.0, "metres assumed (no CRS)"
+    try:
+        from pyproj import CRS
+
+        axes = CRS.from_user_input(crs_text).axis_info
+    except Exception:  # noqa: BLE001 - a CRS named only: no unit to read
+        return 1.0, "metres assumed"
+    up = [a for a in axes if a.direction == "up"]
+    if up:
+        return up[0].unit_conversion_factor, f"heights in {up[0].unit_name} ({crs_text})"
+    horizontal = [a for a in axes if a.direction in ("east", "north")]
+    if all(abs(a.unit_conversion_factor - 1.0) < 1e-12 for a in horizontal):
+        return 1.0, "metres assumed"
+    unit = horizontal[0].unit_name if horizontal else "unknown"
+    return None, (f"{crs_text} has x, y in {unit} and no vertical axis: the heights' unit is "
+                  "unknown")
+
+
 # duplicate-ok: every section opens alike (plots, title, what the method measures)
 def dem_section(runs, spec: Specification, verdicts: list[Verdict]) -> Section:
     plt = _plt()
@@ -345,23 +368,39 @@ def dem_section(runs, spec: Specification, verdicts: list[Verdict]) -> Section:
         if not methods:
             continue
         best = _stats(report).get("best") or min(methods, key=lambda k: methods[k]["rmse"])
+        factor, how = height_unit(_stats(report).get("crs"))  # the errors are in CRS heights
+
+        def m(value, factor=factor):
+            return None if value is None or factor is None else float(value) * factor
+
+        unit = "m" if factor is not None else "height units"
+        if factor != 1.0:
+            sec.text(f"Errors converted to metres: {how}." if factor is not None else
+                     f"Errors in the run's height units, not converted: {how}.")
+        shown = (lambda v: v) if factor is None else m
         sec.table(["Method", "RMSE", "Mean error", "Largest |error|", "Points predicted"],
-                  [[m + (" (best)" if m == best else ""), _fmt(v.get("rmse"), "m"),
-                    _fmt(v.get("mean_error"), "m"), _fmt(v.get("max_abs_error"), "m"),
-                    str(v.get("predicted"))] for m, v in methods.items()])
-        rmse = methods[best].get("rmse")
+                  [[k + (" (best)" if k == best else ""), _fmt(shown(v.get("rmse")), unit),
+                    _fmt(shown(v.get("mean_error")), unit),
+                    _fmt(shown(v.get("max_abs_error")), unit),
+                    str(v.get("predicted"))] for k, v in methods.items()])
+        rmse = m(methods[best].get("rmse"))
         verdicts.append(Verdict("DEM", f"height RMSE of the best method ({best})",
-                                _fmt(rmse, "m"), f"<= {spec.height_rmse_m:.2f} m",
+                                _fmt(rmse, "m") if factor is not None else
+                                f"{_fmt(methods[best].get('rmse'))} ({how})",
+                                f"<= {spec.height_rmse_m:.2f} m",
                                 _judge(rmse, spec.height_rmse_m), "NMAS, contour interval"))
+        scale = 1.0 if factor is None else factor
         fig, ax = plt.subplots(figsize=(6, 2.4))
         names = list(methods)
-        ax.bar(names, [methods[k]["rmse"] for k in names],
+        ax.bar(names, [methods[k]["rmse"] * scale for k in names],
                color=["#1e8449" if k == best else "#7f8c8d" for k in names])
-        ax.axhline(spec.height_rmse_m, color="#c0392b", ls="--", lw=1,
-                   label=f"tolerance {spec.height_rmse_m:.2f} m")
-        ax.set_ylabel("RMSE (m)", fontsize=7)
+        if factor is not None:
+            ax.axhline(spec.height_rmse_m, color="#c0392b", ls="--", lw=1,
+                       label=f"tolerance {spec.height_rmse_m:.2f} m")
+        ax.set_ylabel(f"RMSE ({unit})", fontsize=7)
         ax.set_title("RMSE by method", fontsize=8)
-        ax.legend(fontsize=6)
+        if factor is not None:
+            ax.legend(fontsize=6)
         ax.tick_params(labelsize=7)
         fig.tight_layout()
         sec.figure(fig)
@@ -374,22 +413,22 @@ def dem_section(runs, spec: Specification, verdicts: list[Verdict]) -> Section:
         pts = gpd.read_file(path)
         cols = [f"{k}_err" for k in methods if f"{k}_err" in pts.columns]
         fig, axes = plt.subplots(1, 2, figsize=(9, 3.6))
-        errors = [pts[c].dropna().to_numpy() for c in cols]
+        errors = [pts[c].dropna().to_numpy() * scale for c in cols]
         lim = max((np.percentile(np.abs(e), 99.5) for e in errors if e.size), default=1.0)
         bins = np.linspace(-lim, lim, 41)
         for c, e in zip(cols, errors):
             axes[0].hist(e, bins=bins, histtype="step", lw=1.2 if c == f"{best}_err" else 0.7,
                          label=c[:-4])
-        axes[0].set_xlabel("error (m)", fontsize=7)
+        axes[0].set_xlabel(f"error ({unit})", fontsize=7)
         axes[0].set_ylabel("points", fontsize=7)
         axes[0].legend(fontsize=6)
         axes[0].set_title("Error histograms by method", fontsize=8)
-        e = pts[f"{best}_err"]
+        e = pts[f"{best}_err"] * scale
         ok = e.notna().to_numpy()
         x, y = pts.geometry.x.to_numpy()[ok], pts.geometry.y.to_numpy()[ok]
         scatter = axes[1].scatter(x - x.min(), y - y.min(), c=e[ok], s=3, cmap="RdBu_r",
                                   vmin=-lim, vmax=lim)
-        fig.colorbar(scatter, ax=axes[1], label="error (m)")
+        fig.colorbar(scatter, ax=axes[1], label=f"error ({unit})")
         axes[1].set_aspect("equal")
         axes[1].set_title(f"{best}: errors on the ground (from E {x.min():.0f}, "
                           f"N {y.min():.0f})", fontsize=8)

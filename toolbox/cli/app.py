@@ -531,13 +531,17 @@ def batch_cmd(ctx: click.Context, pipeline: str, overwrite: bool, validate_only:
     """Run several algorithms in order from a YAML pipeline; a step uses an earlier step's
     output as ${step.OUTPUT}. Prints every step's outputs as JSON."""
     from toolbox.batch import load_pipeline, run_pipeline, validate_pipeline
+    from toolbox.errors import PipelineError
     from toolbox.report import to_jsonable
 
-    extra = dict(v.split("=", 1) for v in variables if "=" in v)
+    bad = next((v for v in variables if "=" not in v or not v.split("=", 1)[0].strip()), None)
+    if bad is not None:
+        raise PipelineError(f"--set {bad!r}: expected NAME=VALUE (e.g. --set out=results)")
+    extra = dict(v.split("=", 1) for v in variables)
     pipe = load_pipeline(pipeline, extra)
     existing: list[Path] = []
     # values too, before anything runs: nothing is written if a later step is wrong
-    validate_pipeline(pipe, overwrite, existing if validate_only else None)
+    validate_pipeline(pipe, overwrite, existing if validate_only else None, report_dir)
     if validate_only:
         note = f" ({len(existing)} outputs exist: pass --overwrite to replace them)" \
             if existing else ""

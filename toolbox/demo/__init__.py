@@ -5,7 +5,8 @@ deterministically or derived from data shipped with a dependency); the pipeline 
 concatenation of ``pipeline/*.yaml`` fragments in name order, each a list of batch steps that may
 use the sample variables (``${dem}``, ``${out}``...) and earlier steps' outputs. The demo writes
 it as one pipeline file, ``OUT/demo_pipeline.yaml`` (variables included), and runs that file as
-``toolbox batch`` does: ``toolbox batch demo_out/demo_pipeline.yaml --overwrite`` reruns it.
+``toolbox batch`` does: ``toolbox batch demo_out/demo_pipeline.yaml --overwrite --report-dir
+demo_out/reports`` reruns it.
 """
 
 from __future__ import annotations
@@ -47,7 +48,8 @@ def run_demo(out_dir: Path, feedback: Feedback | None = None) -> str:
     pipeline_file = out_dir / "demo_pipeline.yaml"
     doc = {"variables": variables} | demo_pipeline_doc()
     pipeline_file.write_text("# The demo pipeline (toolbox demo wrote it; rerun with\n"
-                             "#   toolbox batch demo_out/demo_pipeline.yaml --overwrite)\n"
+                             f"#   toolbox batch {pipeline_file} --overwrite --report-dir "
+                             f"{out_dir / 'reports'})\n"
                              + yaml.safe_dump(doc, sort_keys=False), encoding="utf-8")
     pipeline = load_pipeline(pipeline_file)
     # a rerun into the same folder: the previous run's reports of these steps go first, since

@@ -99,7 +99,15 @@ class Boolean(Parameter):
 
 
 class String(Parameter):
+    """Text. ``paths=True``: a file or folder path, or several separated by commas (a pipeline
+    resolves relative ones against its folder, a run report records them absolute)."""
+
     type_name = "string"
+
+    def __init__(self, name: str, description: str = "", default: Any = None,
+                 optional: bool = False, *, paths: bool = False, **flags):
+        super().__init__(name, description, default, optional, **flags)
+        self.paths = paths
 
     def validate(self, value: Any, ctx: ValidationContext) -> str:
         if not isinstance(value, (str, int, float)):

@@ -21,7 +21,7 @@ from typing import Any
 
 from toolbox.algorithm import Algorithm
 from toolbox.errors import OutputWriteError, ParameterError, ToolboxError
-from toolbox.feedback import Feedback
+from toolbox.feedback import Feedback, logged_warnings
 from toolbox.io.staging import OutputStaging, write_error
 from toolbox.parameters import (
     Boolean,
@@ -182,6 +182,12 @@ def run(algorithm_id: str, parameters: dict[str, Any] | None = None,
         No output is left behind when a run fails or is canceled.
     """
     feedback = (feedback or Feedback()).step(0, 100)  # run-local messages and timings
+    with logged_warnings(feedback):  # the report's warnings are the console's
+        return _run(algorithm_id, parameters, feedback, overwrite, report)
+
+
+def _run(algorithm_id: str, parameters: dict[str, Any] | None, feedback: Feedback,
+         overwrite: bool, report: str | Path | None) -> dict[str, Any]:
     alg_cls = get(algorithm_id)
     started = time.time()
     t0 = time.perf_counter()
