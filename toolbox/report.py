@@ -84,12 +84,10 @@ def _absolute(value: Any) -> Any:
 def parameters_record(alg_cls, params: dict[str, Any]) -> dict[str, Any]:
     """The run's parameter values as JSON, file and folder paths absolute (a relative path
     names nothing once the report leaves the folder it was run from)."""
-    from toolbox.parameters import takes_paths
-
     record = to_jsonable(params)
     for p in alg_cls.parameters:
         value = record.get(p.name)
-        if takes_paths(p) and value is not None:
+        if p.holds_paths and value is not None:  # (toolbox.parameters.takes_paths)
             record[p.name] = ",".join(_absolute(v.strip()) for v in value.split(",")) \
                 if getattr(p, "paths", False) and isinstance(value, str) else _absolute(value)
     return record

@@ -38,5 +38,4 @@ __all__ = ["ADVANCED_NAMES", "FIELD_TYPES", "GEOMETRY_TYPES", "VALUE_TYPES", "Bo
 def takes_paths(p: Parameter) -> bool:
     """Whether ``p``'s value is a path (or paths): files, folders, layers, outputs, and text
     declared ``String(paths=True)`` (comma-separated paths)."""
-    return isinstance(p, (Destination, File, Folder, MultipleLayers, RasterLayer, VectorLayer)) \
-        or getattr(p, "paths", False)
+    return bool(p.holds_paths)

@@ -47,6 +47,7 @@ class Parameter:
 
     type_name = "any"
     is_output = False
+    holds_paths = False  # the value is a path or paths (files, folders, layers, outputs)
 
     def __init__(self, name: str, description: str = "", default: Any = None,
                  optional: bool = False, *, help: str = "", advanced: bool | None = None,

@@ -71,6 +71,7 @@ class Destination(Parameter):
     """
 
     is_output = True
+    holds_paths = True
     extensions: Sequence[str] = ()
 
     def __init__(self, name: str, description: str = "", default: Any = None,

@@ -31,6 +31,7 @@ class File(Parameter):
     """An existing input file, optionally restricted to some extensions (lowercase, with dot)."""
 
     type_name = "file"
+    holds_paths = True
 
     def __init__(self, name: str, description: str = "", extensions: Sequence[str] = (),
                  default: Any = None, optional: bool = False, **flags):
@@ -57,6 +58,7 @@ class Folder(Parameter):
     """An existing input folder (QGIS shows a folder picker)."""
 
     type_name = "folder"
+    holds_paths = True
 
     def validate(self, value: Any, ctx: ValidationContext) -> Path:
         if not isinstance(value, (str, Path)):
@@ -83,6 +85,7 @@ class VectorLayer(Parameter):
     """
 
     type_name = "vector"
+    holds_paths = True
 
     def __init__(self, name: str, description: str = "",
                  geometry_types: Sequence[str] | None = None, default: Any = None,
@@ -143,6 +146,7 @@ class RasterLayer(Parameter):
     """
 
     type_name = "raster"
+    holds_paths = True
 
     def __init__(self, name: str, description: str = "", default: Any = None,
                  optional: bool = False, role: str = "map", **flags):
@@ -171,6 +175,7 @@ class MultipleLayers(Parameter):
     """Several layers of one kind: a list in Python/YAML, the option repeated on the command line."""
 
     type_name = "multiple"
+    holds_paths = True
 
     def __init__(self, name: str, description: str = "", layer_type: str = "vector",
                  min_count: int = 1, default: Any = None, optional: bool = False,

@@ -108,6 +108,7 @@ class String(Parameter):
                  optional: bool = False, *, paths: bool = False, **flags):
         super().__init__(name, description, default, optional, **flags)
         self.paths = paths
+        self.holds_paths = paths
 
     def validate(self, value: Any, ctx: ValidationContext) -> str:
         if not isinstance(value, (str, int, float)):
