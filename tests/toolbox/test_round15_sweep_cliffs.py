@@ -51,3 +51,43 @@ def test_densify_counts_the_moved_vertices_features(lines, tmp_path, monkeypatch
     toolbox.run("attribution:sample", {"INPUT": lines, "METHOD": "densify", "DISTANCE": 1.0,
                                        "OUTPUT": tmp_path / "k.gpkg"})
     assert len(gpd.read_file(tmp_path / "k.gpkg", layer="moved_vertices")) == 299
+
+
+def test_idw_sectors_tile_stops_when_its_run_is_canceled(monkeypatch):
+    """A SECTORS search near the data's edge scans every point within RADIUS: with a large
+    RADIUS a 512-cell tile ran for tens of seconds in one compiled call, and Ctrl-C waited for
+    it (28 s measured, exit 130 at last). The tile now runs row by row and stops when the
+    thread pool's caller has left (toolbox.executor.abandoned)."""
+    import threading
+    import time
+
+    import numpy as np
+
+    from toolbox.errors import CanceledError
+    from toolbox.executor import thread_pool
+    from toolbox.terrain.gridding import idw_kernel
+
+    started = threading.Event()
+
+    def slow(*args):  # stands for the compiled kernel: 20 ms per row given
+        started.set()
+        time.sleep(0.02 * len(args[10]))  # args[10]: the row centres ys
+
+    monkeypatch.setattr(idw_kernel, "_grid_sectors", slow)
+    xyz = np.array([[0.0, 0.0, 1.0], [10.0, 0.0, 2.0], [0.0, 10.0, 3.0]])
+    xs, ys = np.arange(0.5, 10.0), np.arange(0.5, 150.0)  # 150 rows: 3 s in one call
+    mask = np.ones((len(ys), len(xs)), bool)
+    future = None
+    began = time.perf_counter()
+    with pytest.raises(KeyboardInterrupt):
+        with thread_pool(2) as submit:
+            future = submit(idw_kernel.idw_grid, xyz, xs, ys, mask, 8, 2.0, 100.0, 4)
+            assert started.wait(5)
+            raise KeyboardInterrupt  # Ctrl-C in the main thread: the pool waits for its tasks
+    assert time.perf_counter() - began < 1.0
+    assert isinstance(future.exception(), CanceledError)
+    # not canceled: every row computed by the real kernel (a grid of 1 x 3 rows, exact at data)
+    monkeypatch.undo()
+    out = idw_kernel.idw_grid(xyz, np.array([0.0]), np.array([0.0, 10.0, 5.0]),
+                              np.ones((3, 1), bool), neighbours=8, radius=100.0, sectors=4)
+    assert out[0, 0] == 1.0 and out[1, 0] == 3.0 and 1.0 < out[2, 0] < 3.0
