@@ -91,3 +91,46 @@ def test_idw_sectors_tile_stops_when_its_run_is_canceled(monkeypatch):
     out = idw_kernel.idw_grid(xyz, np.array([0.0]), np.array([0.0, 10.0, 5.0]),
                               np.ones((3, 1), bool), neighbours=8, radius=100.0, sectors=4)
     assert out[0, 0] == 1.0 and out[1, 0] == 3.0 and 1.0 < out[2, 0] < 3.0
+
+
+def _noisy_dem(tmp_path, rows, cols):
+    import numpy as np
+    from rasterio.transform import from_origin
+
+    from toolbox.raster.writer import write_raster
+
+    slope = np.add.outer(np.zeros(rows), np.linspace(0.0, 50.0, cols))  # 0 .. 50 m
+    z = slope + np.random.default_rng(0).normal(0.0, 3.0, (rows, cols))  # a DSM's noise
+    path = tmp_path / "noisy.tif"
+    write_raster(path, z.astype("float32"), from_origin(E0, N0 + rows, 1, 1), CRS,
+                 nodata=-9999.0)
+    return path, z
+
+
+@pytest.mark.parametrize("in_memory", [True, False])
+def test_contours_of_a_noisy_dem_count_its_level_crossings(tmp_path, monkeypatch, in_memory):
+    """carto:contours' vertex guard counted (width + height) cells per level: a noisy DSM's
+    levels wind around every cell (2000 x 2000 cells, 3 m of noise, INTERVAL 1: 27 million
+    vertices, not the 2 million estimated) and the run died with MemoryError (exit 3) under
+    3 GB. The guard now counts the edges each level crosses: the vertices traced."""
+    import numpy as np
+
+    from toolbox.cartography import contour_io
+
+    path, z = _noisy_dem(tmp_path, 60, 80)
+    k = np.floor(z.astype("float32").astype("float64") / 1.0)
+    truth = np.abs(np.diff(k, axis=0)).sum() + np.abs(np.diff(k, axis=1)).sum()
+    assert truth > 3 * 62 * (60 + 80)  # more than levels x (width + height): 8,680
+    if not in_memory:  # read by 32-cell tiles: a few crossings between tiles are not counted
+        monkeypatch.setattr(contour_io, "IN_MEMORY_CELLS", 100)
+    monkeypatch.setattr(contour_io, "trace_raster", never)
+    limit = int(0.8 * truth)  # over the old estimate (about 9,000), under the vertices
+    monkeypatch.setenv("TOOLBOX_MAX_VERTICES", str(limit))
+    with pytest.raises(ParameterError) as info:
+        toolbox.run("carto:contours", {"INPUT": path, "INTERVAL": 1.0, "TILE_SIZE": 32,
+                                       "OUTPUT": tmp_path / "c.gpkg"})
+    text = str(info.value)
+    assert info.value.name == "INTERVAL" and "vertices, over the limit of" in text, text
+    shown = float(text.split("gives about ")[1].split(" ")[0].replace(",", ""))
+    assert 0.9 * truth <= shown <= truth, (shown, truth)
+    assert contour_io.level_crossings(z.astype("float32"), 1.0, 0.0, band=7) == truth
