@@ -134,3 +134,46 @@ def test_contours_of_a_noisy_dem_count_its_level_crossings(tmp_path, monkeypatch
     shown = float(text.split("gives about ")[1].split(" ")[0].replace(",", ""))
     assert 0.9 * truth <= shown <= truth, (shown, truth)
     assert contour_io.level_crossings(z.astype("float32"), 1.0, 0.0, band=7) == truth
+
+
+@pytest.fixture
+def orthos(tmp_path):
+    import numpy as np
+    from rasterio.transform import from_origin
+
+    from toolbox.raster.writer import write_raster
+
+    paths = []
+    for i, x0 in enumerate((E0, E0 + 300)):  # 600 x 300 cells of 1 m each, 300 m overlap
+        path = tmp_path / f"o{i}.tif"
+        write_raster(path, np.full((1, 300, 600), 100 + 50 * i, "uint8"),
+                     from_origin(x0, N0 + 300, 1, 1), CRS)
+        paths.append(path)
+    return paths
+
+
+@pytest.mark.parametrize("blend, name, value", [("feather", "FEATHER_WIDTH", 400.0),
+                                                ("multiband", "LEVELS", 7)])
+def test_mosaic_halo_is_guarded(orthos, tmp_path, monkeypatch, blend, name, value):
+    """mosaic:build reads each 512-cell tile with a halo of half the feather width (or the
+    pyramid's reach): FEATHER_WIDTH 2000 (m, for 2) at 0.25 m cells made 8,516 x 8,516-cell
+    windows and died with MemoryError (exit 3) under 3 GB, as did LEVELS 10. The haloed window
+    is now checked against the "window cells" limit before any tile is read."""
+    from toolbox.mosaic import build
+
+    monkeypatch.setenv("TOOLBOX_MAX_WINDOW_CELLS", "200000")
+    monkeypatch.setattr(build, "write_mosaic", never)
+    with pytest.raises(ParameterError) as info:  # 900 x 300 grid: min(512 + 2 x 202, 900) x 300
+        toolbox.run("mosaic:build", {"INPUT": orthos, "BLEND": blend, name: value,
+                                     "OUTPUT": tmp_path / "m.tif"})
+    text = str(info.value)
+    assert info.value.name == name and text.startswith(f"{name} {value:g}"), text
+    assert "over the limit of 200,000 window cells" in text and "cells per tile" in text, text
+    assert "TOOLBOX_MAX_WINDOW_CELLS" in text
+    if blend == "feather":
+        assert "a halo of 202 cells" in text and "270,000 cells per tile" in text  # 900 x 300, clipped, text
+    monkeypatch.undo()
+    monkeypatch.setenv("TOOLBOX_MAX_WINDOW_CELLS", "200000")
+    small = {"FEATHER_WIDTH": 2.0, "LEVELS": 2}[name]  # halo 3 / 16 cells: within the limit
+    toolbox.run("mosaic:build", {"INPUT": orthos, "BLEND": blend, name: small,
+                                 "OUTPUT": tmp_path / "m.tif"})
