@@ -177,3 +177,30 @@ def test_mosaic_halo_is_guarded(orthos, tmp_path, monkeypatch, blend, name, valu
     small = {"FEATHER_WIDTH": 2.0, "LEVELS": 2}[name]  # halo 3 / 16 cells: within the limit
     toolbox.run("mosaic:build", {"INPUT": orthos, "BLEND": blend, name: small,
                                  "OUTPUT": tmp_path / "m.tif"})
+
+
+def test_tin_contours_of_a_noisy_tin_count_its_level_crossings(monkeypatch):
+    """The TIN path of carto:contours estimated 2·sqrt(triangles) vertices per level: a noisy
+    TIN's levels cross most of its edges. The guard counts the crossings of the edges."""
+    import numpy as np
+    from scipy.spatial import Delaunay
+
+    from toolbox.cartography import contour_io
+
+    rng = np.random.default_rng(1)
+    xy = rng.uniform(0.0, 100.0, (2000, 2))
+    xyz = np.column_stack([xy, xy[:, 0] * 0.5 + rng.normal(0.0, 3.0, len(xy))])  # 0 .. 50 m
+    triangles = Delaunay(xy).simplices
+    edges = {tuple(sorted(e)) for t in triangles for e in ((t[0], t[1]), (t[1], t[2]),
+                                                           (t[2], t[0]))}
+    k = np.floor(xyz[:, 2])
+    truth = sum(abs(k[a] - k[b]) for a, b in edges)  # vertices of the contours at INTERVAL 1
+    levels = np.ptp(k) + 1
+    assert truth > 2 * levels * 2 * np.sqrt(len(triangles))  # the old estimate: 7,572
+    monkeypatch.setattr(contour_io, "tin_contours", never)
+    monkeypatch.setenv("TOOLBOX_MAX_VERTICES", str(int(0.8 * truth)))
+    with pytest.raises(ParameterError) as info:
+        contour_io.tin_layer_contours(xyz, triangles, 1.0, 0.0)
+    text = str(info.value)
+    shown = float(text.split("gives about ")[1].split(" ")[0].replace(",", ""))
+    assert info.value.name == "INTERVAL" and 0.9 * truth <= shown <= truth, (text, truth)

@@ -254,8 +254,11 @@ def tin_layer_contours(xyz: np.ndarray, triangles: np.ndarray, interval: float,
     """Contours of a TIN (nodes, triangles) at ``base + k·interval``."""
     z = xyz[:, 2]
     if len(z):
+        k = np.floor((z.astype("float64") - base) / interval)[np.asarray(triangles)]
+        # level crossings of the triangles' edges, each inner edge seen by its two triangles
+        crossings = float(np.abs(k - np.roll(k, 1, axis=1)).sum()) / 2 if len(k) else 0.0
         guard_levels(float(z.min()), float(z.max()), interval, base,
-                     2.0 * math.sqrt(len(triangles)))
+                     2.0 * math.sqrt(len(triangles)), crossings)
     levels = contour_levels(float(z.min()), float(z.max()), interval, base) if len(z) else \
         np.empty(0)
     return ContourResult(tin_contours(xyz, triangles, levels), levels,
