@@ -31,7 +31,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Any, TypeVar
 
-from toolbox.errors import ParameterError, ServiceError
+from toolbox.errors import CanceledError, ParameterError, ServiceError
 
 T = TypeVar("T")
 R = TypeVar("R")
@@ -227,6 +227,30 @@ def _map_local(func, tasks, workers, prefetch, feedback, total, start, end) -> I
 
 _IDLE_POOLS: dict[int, list[Any]] = {}  # workers -> thread pools no call is using
 _POOLS_LOCK = threading.Lock()
+_TASK = threading.local()  # .stop: the Event of the thread_pool call running this thread's task
+
+
+def abandoned() -> bool:
+    """True in a task of a :func:`thread_pool` whose caller has left it (Ctrl-C, SIGTERM, an
+    error): its result is no longer wanted. A compiled kernel that can run for many seconds is
+    called in pieces that check this between them (and raise :class:`CanceledError`), so the
+    caller's exit, which waits for its running tasks, waits for one piece, not a whole tile."""
+    stop = getattr(_TASK, "stop", None)
+    return stop is not None and stop.is_set()
+
+
+def check_abandoned() -> None:
+    """Raise :class:`toolbox.errors.CanceledError` when :func:`abandoned`."""
+    if abandoned():
+        raise CanceledError("run canceled; this task's result is no longer wanted")
+
+
+def _task(stop: threading.Event, func: Callable[..., Any], *args: Any) -> Any:
+    _TASK.stop = stop
+    try:
+        return func(*args)
+    finally:
+        _TASK.stop = None
 
 
 @contextmanager
@@ -246,13 +270,14 @@ def thread_pool(workers: int) -> Iterator[Callable[..., Any]]:
         pool = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="tile")
     running: set = set()
     lock = threading.Lock()
+    stop = threading.Event()  # set when the caller leaves: its running tasks may stop early
 
     def finished(future: Any) -> None:
         with lock:
             running.discard(future)
 
     def submit(func: Callable[..., Any], *args: Any) -> Any:
-        future = pool.submit(func, *args)
+        future = pool.submit(_task, stop, func, *args)
         with lock:
             running.add(future)
         future.add_done_callback(finished)
@@ -261,6 +286,7 @@ def thread_pool(workers: int) -> Iterator[Callable[..., Any]]:
     try:
         yield submit
     finally:
+        stop.set()
         with lock:
             left = list(running)
         for future in left:

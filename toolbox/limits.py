@@ -19,6 +19,8 @@ LIMITS = {
     "vertices": ("TOOLBOX_MAX_VERTICES", 100_000_000),
     "features": ("TOOLBOX_MAX_FEATURES", 10_000_000),
     "sheets": ("TOOLBOX_MAX_SHEETS", 10_000),
+    # a tile and its halo held in memory by one worker (a tile of 512 + 2 x 1,744 cells)
+    "window cells": ("TOOLBOX_MAX_WINDOW_CELLS", 16_000_000),
 }
 
 

@@ -73,6 +73,10 @@ class Sample(Algorithm):
                                for c in parts.coords))
             check_size("vertices", length / step + len(parts.coords), "DISTANCE",
                        f"{step:g} along {length:,.0f} units of lines", "use a larger DISTANCE")
+            if method == "densify":  # each added vertex is also a moved_vertices feature
+                check_size("features", length / step, "DISTANCE",
+                           f"{step:g} along {length:,.0f} units of lines", "use a larger DISTANCE",
+                           "added vertices (a moved_vertices point each)")
         out, rows, left, collapsed = [], [], set(), set()
         largest = 0.0
         for r, c in enumerate(parts.coords):

@@ -101,7 +101,7 @@ class MosaicBuild(Algorithm):
             seams_frame,
             union_area,
         )
-        from toolbox.mosaic.build import MosaicPlan, write_mosaic
+        from toolbox.mosaic.build import TILE_SIZE, MosaicPlan, write_mosaic
         from toolbox.mosaic.index_seams import index_raster_seams
         from toolbox.mosaic.partition import voronoi_cells
 
@@ -126,6 +126,18 @@ class MosaicBuild(Algorithm):
             feather_cells = 8.0 if feather is None else feather / grid.cell_size[0]
             plan = MosaicPlan(sources, cells, grid, n_bands, dtype, params["BLEND"], feather_cells,
                               params["LEVELS"], gains, offsets, params["RESAMPLING"])
+            if plan.blend in ("feather", "multiband"):  # refused before any tile is read
+                from toolbox.limits import check_size
+
+                if plan.blend == "feather":
+                    cell = grid.cell_size[0]
+                    name = "FEATHER_WIDTH"
+                    value = f"{feather_cells * cell:g} ({feather_cells:,.0f} cells of {cell:g})"
+                else:
+                    name, value = "LEVELS", f"{params['LEVELS']}"
+                check_size("window cells", plan.window_cells(TILE_SIZE), name,
+                           f"{value}: a halo of {plan.halo():,} cells around each "
+                           f"{TILE_SIZE}-cell tile", f"use a smaller {name}", "cells per tile")
             alpha = any(s.alpha_band is not None for s in sources)
             nodata = next((s.nodata for s in sources if s.nodata is not None), 0)
             index = params["SOURCE_INDEX"]

@@ -42,6 +42,32 @@ def _grey(data: np.ndarray) -> np.ndarray:
     return data[:3].mean(axis=0) if data.shape[0] >= 3 else data[0]
 
 
+def _ortho_patch(path: Path, x: float, y: float, cell: float, half: int
+                 ) -> tuple[np.ndarray, object]:
+    """The orthophoto's grey cells (NaN = no data) that :func:`ortho_window` samples around
+    (x, y) for ``half`` cells of ``cell`` (3 cells to spare, clipped to the raster), and their
+    transform: one window per check point, not the whole orthophoto in memory (a 40,000 x
+    40,000-cell RGB orthophoto is 19 GB as float32)."""
+    import math
+
+    import rasterio
+    from rasterio.windows import Window
+
+    with rasterio.open(path) as src:
+        t = src.transform
+        col, row = ~t * (x, y)
+        pc = int(math.ceil(half * cell / abs(t.a))) + 3
+        pr = int(math.ceil(half * cell / abs(t.e))) + 3
+        c0, r0 = max(int(math.floor(col)) - pc, 0), max(int(math.floor(row)) - pr, 0)
+        c1 = min(int(math.floor(col)) + pc + 1, src.width)
+        r1 = min(int(math.floor(row)) + pr + 1, src.height)
+        if c1 <= c0 or r1 <= r0:  # wholly outside: every sample NaN
+            return np.full((1, 1), np.nan, "float32"), t
+        window = Window(c0, r0, c1 - c0, r1 - r0)
+        data = src.read(window=window, masked=True).astype("float32").filled(np.nan)
+        return _grey(data), src.window_transform(window)
+
+
 def _photo_reader(path: Path):
     """``read_window(c0, r0, c1, r1)`` of a photo file: grey float window clipped to the image
     and its origin (col, row)."""
@@ -107,8 +133,7 @@ def measure_checks(req: OrthoCheckRequest, feedback=None) -> tuple[list[CheckRes
                              f"{', '.join(project.photos)})")
     with rasterio.open(req.ortho) as src:
         _same_crs_as_project(project, {"ORTHO": src.crs})
-        ortho = _grey(src.read(masked=True).astype("float32").filled(np.nan))
-        transform = src.transform
+        transform, shape = src.transform, (src.height, src.width)
     if req.dem is not None:
         with rasterio.open(req.dem) as src:
             _same_crs_as_project(project, {"DEM": src.crs})
@@ -116,10 +141,10 @@ def measure_checks(req: OrthoCheckRequest, feedback=None) -> tuple[list[CheckRes
     half = max(int(round((req.chip_m or 12 * cell) / cell)), 3)
     reach = max(int(round((req.search_m or 8 * cell) / cell)), 1)
     for name, cells in (("CHIP", half), ("SEARCH", reach)):  # a chip beyond the ortho: no sense
-        if cells > max(ortho.shape):
+        if cells > max(shape):
             raise ParameterError(name, f"{cells * cell:g} m is {cells:,} cells of {cell:g} m, "
-                                 f"more than the whole orthophoto ({ortho.shape[1]} x "
-                                 f"{ortho.shape[0]} cells)")
+                                 f"more than the whole orthophoto ({shape[1]} x "
+                                 f"{shape[0]} cells)")
     results = []
     dz = _dem_differences(req.dem, xyz) if req.dem is not None else np.full(len(ids), np.nan)
     for pid, p in zip(ids, xyz, strict=True):
@@ -141,7 +166,8 @@ def measure_checks(req: OrthoCheckRequest, feedback=None) -> tuple[list[CheckRes
             result.status = OUTSIDE + " the photo"
             results.append(result)
             continue
-        search = ortho_window(ortho, transform, p[0], p[1], cell, half + reach)
+        search = ortho_window(*_ortho_patch(req.ortho, p[0], p[1], cell, half + reach),
+                              p[0], p[1], cell, half + reach)
         result.dx, result.dy, result.score, result.status = match_offset(
             chip, search, cell, req.min_score)
         if result.status == OUTSIDE:

@@ -42,6 +42,12 @@ class MosaicPlan:
     resampling: str = "bilinear"
     _boxes: list = field(default_factory=list, repr=False)
 
+    def window_cells(self, tile_size: int) -> int:
+        """Cells of the largest haloed window a tile blends in memory (:func:`clipped_window`):
+        a wide feather or a deep pyramid makes every 512-cell tile read far more around it."""
+        side = tile_size + 2 * self.halo()
+        return min(side, self.grid.width) * min(side, self.grid.height)
+
     def halo(self) -> int:
         if self.blend == "feather":
             return int(math.ceil(self.feather_cells / 2)) + 2
@@ -64,6 +70,9 @@ def _intersects(a, b) -> bool:
 #: that neighbouring tiles read again (the block's rasters stay open,
 #: :func:`toolbox.mosaic.block.open_block`) share it
 WRITE_CACHE_MB = 128
+
+#: the mosaic's tiles (and GeoTIFF blocks), cells: each is blended with its halo in memory
+TILE_SIZE = 512
 
 #: up to this many sources with data in a window, :func:`window_labels` takes one pass per source
 FEW_SOURCES = 6
@@ -173,7 +182,7 @@ def mosaic_tile(plan: MosaicPlan, alpha: bool, nodata: float | None, tile: Any,
 
 def write_mosaic(plan: MosaicPlan, output: Path, index_path: Path | None, *, alpha: bool,
                  nodata: float | None, cog: bool = False, overviews: bool = True,
-                 tile_size: int = 512, workers: int | None = None, executor: Any = None,
+                 tile_size: int = TILE_SIZE, workers: int | None = None, executor: Any = None,
                  feedback: Any = None) -> dict:
     """Stream the mosaic into ``output`` (and the source-index raster into ``index_path``).
 

@@ -213,3 +213,26 @@ def test_an_ortho_or_dem_in_another_crs_than_the_project_is_refused(case, tmp_pa
                                                      "in EPSG:3003"):
         run(case, params.pop("ORTHO", case[2]), tmp_path / "x.csv", **params)
     assert not (tmp_path / "x.csv").exists()
+
+
+def test_the_orthophoto_is_read_by_windows(case, tmp_path, monkeypatch):
+    """The whole orthophoto was read into memory as float32 (a 40,000 x 40,000-cell RGB
+    orthophoto: 19 GB; MemoryError or the OOM killer): only a window around each check point
+    is read now, and the measurement is the same as before (about zero)."""
+    from rasterio.io import DatasetReader
+
+    read = DatasetReader.read
+    cells = []
+
+    def recording(self, *args, **kwargs):
+        data = read(self, *args, **kwargs)
+        if Path(self.name).name == "ortho.tif":
+            cells.append(data.shape[-1] * data.shape[-2])
+        return data
+
+    monkeypatch.setattr(DatasetReader, "read", recording)
+    stats = run(case, case[2], tmp_path / "windows.csv")["STATISTICS"]
+    with rasterio.open(case[2]) as src:
+        whole = src.width * src.height
+    assert len(cells) == len(PIXELS) and max(cells) < whole / 10, (cells, whole)
+    assert stats["matched"] == len(PIXELS) and stats["rmse_planimetric_m"] < 0.15 * CELL

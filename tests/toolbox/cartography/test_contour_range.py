@@ -23,5 +23,5 @@ def test_tiled_range_is_the_whole_bands(tmp_path):
     valid = np.where(z == -9999.0, np.nan, z)
     expected = (np.nanmin(valid), np.nanmax(valid))
     with rasterio.open(path) as src:
-        assert raster_range(src, 1, 64) == expected
+        assert raster_range(src, 1, 64)[:2] == expected
     assert grid_range(valid) == expected

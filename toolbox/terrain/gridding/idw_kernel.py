@@ -180,10 +180,19 @@ def idw_grid(xyz: np.ndarray, xs: np.ndarray, ys: np.ndarray, mask: np.ndarray,
     ys = np.asarray(ys, "float64")
     mask = np.ascontiguousarray(mask, dtype=np.bool_)
     if sectors > 1:
+        from toolbox.executor import check_abandoned
+
         per_sector = _per_sector(neighbours, sectors)
-        _grid_sectors(*bins.args(), bins.binned(xyz[:, 2]), xs, ys, mask, _sq(radius),
-                      float(power), int(sectors), per_sector, int(min_neighbours),
-                      _sq(max_distance), *_sector_scratch(int(sectors), per_sector), out)
+        args, pz, scratch = bins.args(), bins.binned(xyz[:, 2]), _sector_scratch(int(sectors),
+                                                                                 per_sector)
+        # row by row: a cell near the data's edge, where a sector stays short of points, scans
+        # every point within RADIUS (a large RADIUS: seconds per row), and a canceled run waits
+        # for its running tiles (toolbox.executor.abandoned)
+        for r in range(len(ys)):
+            check_abandoned()
+            _grid_sectors(*args, pz, xs, ys[r:r + 1], mask[r:r + 1], _sq(radius), float(power),
+                          int(sectors), per_sector, int(min_neighbours), _sq(max_distance),
+                          *scratch, out[r:r + 1])
         return out
     block = block_size(bins, neighbours, _cell(xs, ys))
     _grid(*bins.args(), bins.binned(xyz[:, 2]), xs, ys, mask, int(neighbours), _sq(radius),
