@@ -5,26 +5,13 @@ from __future__ import annotations
 
 import geopandas as gpd
 import pytest
-from shapely.geometry import LineString
 
 import toolbox
+from tests.toolbox import test_size_guards as size_guards
+from tests.toolbox.test_size_guards import CRS, E0, N0, never
 from toolbox.errors import ParameterError
 
-E0, N0 = 1688000.0, 4799000.0
-CRS = "EPSG:3003"
-
-
-def never(*args, **kwargs):
-    raise AssertionError("the heavy step ran before the size guard")
-
-
-@pytest.fixture
-def lines(tmp_path):
-    path = tmp_path / "l.gpkg"
-    gpd.GeoDataFrame({"id": [1]}, geometry=[LineString([(E0 + 20, N0 + 20),
-                                                        (E0 + 320, N0 + 20)])],
-                     crs=CRS).to_file(path)
-    return path
+lines = size_guards.lines  # the fixture: a 300 m line
 
 
 def test_densify_counts_the_moved_vertices_features(lines, tmp_path, monkeypatch):
