@@ -45,23 +45,46 @@ from toolbox.cartography.quality_sections import (
     topology_section,
     warnings_section,
 )
+from toolbox.errors import InputDataError
+
+#: the run reports each multi-step section reads (to name them when one is incomplete)
+ORIENTATION_IDS = ("orientation:resection", "orientation:absolute", "orientation:bundle",
+                   "orientation:check")
+ORTHO_IDS = ("ortho:photo", "ortho:batch", "report:ortho_check")
+MOSAIC_IDS = ("mosaic:seamlines", "mosaic:build")
 
 
 def build_sections(reports, spec: Specification) -> tuple[list[Verdict], list[Section]]:
-    """The verdicts and the sections for the runs found (a section only where it has content)."""
+    """The verdicts and the sections for the runs found (a section only where it has content).
+    A run report without what its section reads (an older toolbox's, or edited by hand) is an
+    :class:`InputDataError` naming the reports and the missing entry."""
     verdicts: list[Verdict] = []
     sections: list[Section | None] = []
+
+    def add(ids: tuple[str, ...], build, *args) -> None:
+        try:
+            sections.append(build(*args))
+        except KeyError as exc:  # an entry the section reads is missing (not a type error)
+            names = [name for i in ids for name, _ in reports.get(i, [])]
+            what = f"no {exc.args[0]!r}" if exc.args else "an entry missing"
+            raise InputDataError(
+                f"REPORTS: the {'/'.join(i for i in ids if reports.get(i))} run report(s) "
+                f"{', '.join(names[:5])} are incomplete ({what}): an older toolbox's or edited "
+                "report? Run the step again or move its report out of REPORTS") from None
+
     if reports.get("orientation:interior"):
-        sections.append(interior_section(reports["orientation:interior"], spec, verdicts))
-    sections.append(orientation_section(reports, spec, verdicts))
+        add(("orientation:interior",), interior_section, reports["orientation:interior"], spec,
+            verdicts)
+    add(ORIENTATION_IDS, orientation_section, reports, spec, verdicts)
     if reports.get("rectify:estimate"):
-        sections.append(rectification_section(reports["rectify:estimate"], spec, verdicts))
-    sections.append(ortho_section(reports, spec, verdicts))
+        add(("rectify:estimate",), rectification_section, reports["rectify:estimate"], spec,
+            verdicts)
+    add(ORTHO_IDS, ortho_section, reports, spec, verdicts)
     if reports.get("dem:cross_validate"):
-        sections.append(dem_section(reports["dem:cross_validate"], spec, verdicts))
-    sections.append(mosaic_section(reports, verdicts))
+        add(("dem:cross_validate",), dem_section, reports["dem:cross_validate"], spec, verdicts)
+    add(MOSAIC_IDS, mosaic_section, reports, verdicts)
     if reports.get("topology:check"):
-        sections.append(topology_section(reports["topology:check"], verdicts))
+        add(("topology:check",), topology_section, reports["topology:check"], verdicts)
     kept = [s for s in sections if s is not None and any(b[0] != "text" for b in s.blocks)]
     return verdicts, kept
 

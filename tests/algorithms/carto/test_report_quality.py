@@ -155,3 +155,24 @@ def test_machine_paths_in_warnings_are_shown_by_name(reports, tmp_path):
     text = " ".join(" ".join(pdf_pages(out)).split())
     assert "photo p1.tif could not be read; see 'run.txt'" in text
     assert str(tmp_path) not in text.replace(" ", "") and "/images/" not in text
+
+
+def test_an_incomplete_run_report_is_named_not_an_internal_error(tmp_path):
+    """A rectify:estimate report without its points' residual_ground_norm (an older toolbox's
+    or an edited one) stopped report:quality with an internal error (KeyError, exit 3): a
+    one-line refusal naming REPORTS, the report and the missing entry."""
+    import json
+
+    from tests.helpers_cli import cli, one_error
+
+    folder = tmp_path / "reports"
+    folder.mkdir()
+    (folder / "rect.json").write_text(json.dumps({
+        "algorithm": "rectify:estimate",
+        "outputs": {"STATISTICS": {"points": [{"role": "control"}]}}}))
+    code, _, err = cli("run", "report:quality", "--REPORTS", folder,
+                       "--OUTPUT", tmp_path / "q.html")
+    line = one_error(err)
+    assert code == 2 and "REPORTS" in line and "rect" in line \
+        and "residual_ground_norm" in line, line
+    assert not (tmp_path / "q.html").exists()
