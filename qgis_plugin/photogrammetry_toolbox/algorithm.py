@@ -51,6 +51,16 @@ from .toolbox_cli import EXTENT_HELP, clean_help, command_line, parse_progress, 
 VECTOR_FORMATS = ["gpkg", "shp", "fgb", "geojson", "parquet", "csv", "dxf", "sqlite"]
 
 
+ERROR_PREFIX = "toolbox: error: "  # the CLI's one-line error on stderr
+
+
+def _add_error(errors: list, text: str) -> None:
+    """Append an error once: the toolbox says it on stderr and, with --progress json, as a
+    message record too (QGIS showed it twice, besides the exception)."""
+    if text and text not in errors:
+        errors.append(text)
+
+
 def _filter(extensions) -> str:
     exts = [e.lstrip(".") for e in (extensions or [])]
     if not exts:
@@ -470,8 +480,11 @@ class ToolboxAlgorithm(QgsProcessingAlgorithm):
             for line in process.stderr:
                 item = parse_progress(line)
                 if item is None:
-                    if line.strip():
-                        state["errors"].append(line.strip())
+                    text = line.strip()
+                    if text.startswith(ERROR_PREFIX):  # the error: raised once, at the end
+                        _add_error(state["errors"], text[len(ERROR_PREFIX):])
+                    elif text:
+                        state["errors"].append(text)
                         feedback.pushConsoleInfo(line.rstrip())
                     continue
                 kind = item.get("type")
@@ -479,9 +492,8 @@ class ToolboxAlgorithm(QgsProcessingAlgorithm):
                     feedback.setProgress(float(item["percent"]))
                 elif kind == "message":
                     text, level = str(item.get("text", "")), item.get("level", "info")
-                    if level == "error":
-                        state["errors"].append(text)
-                        feedback.reportError(text)
+                    if level == "error":  # raised at the end (shown once, not also here)
+                        _add_error(state["errors"], text)
                     elif level == "warning":
                         feedback.pushWarning(text)
                     else:
@@ -519,6 +531,8 @@ class ToolboxAlgorithm(QgsProcessingAlgorithm):
         if feedback.isCanceled():
             raise QgsProcessingException(f"{self.spec['id']}: canceled")
         if process.returncode != 0:
+            for earlier in state["errors"][:-1]:  # the last is the exception's message
+                feedback.reportError(earlier)
             message = state["errors"][-1] if state["errors"] else f"exit {process.returncode}"
             raise QgsProcessingException(f"{self.spec['id']}: {message}")
         return state["result"], state["errors"]

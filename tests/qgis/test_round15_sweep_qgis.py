@@ -434,3 +434,35 @@ def test_the_logged_command_runs_as_shown_when_pasted_in_a_shell(tmp_path):
         """)
     assert shlex.split(got[0]) == [str(fake), "run", "vector:info", "--progress", "json",
                                    "--overwrite", "--INPUT", f"{gpkg}|layername=b"]
+
+
+@needs_qgis
+def test_an_error_is_shown_once_without_the_cli_prefix(tmp_path):
+    """The toolbox says its error on stderr ("toolbox: error: ...") and, with --progress json,
+    as a message record: QGIS's log showed it twice (an error line and console text) besides
+    the exception, which carried the "toolbox: error:" prefix. Now the exception says it once."""
+    fake = tmp_path / "toolbox"
+    fake.write_text("#!/bin/sh\n"
+                    "echo '{\"type\": \"message\", \"level\": \"error\", \"text\": "
+                    "\"CELL_SIZE must be > 0, got -1\"}' >&2\n"
+                    "echo 'toolbox: error: CELL_SIZE must be > 0, got -1' >&2\n"
+                    "exit 2\n")
+    fake.chmod(0o755)
+    got = pyqgis(tmp_path, f"""
+        class Log(QgsProcessingFeedback):
+            def __init__(self):
+                super().__init__(); self.lines = []
+            def reportError(self, text, fatal=False):
+                self.lines.append(("error", text))
+            def pushConsoleInfo(self, text):
+                self.lines.append(("console", text))
+        alg = ToolboxAlgorithm({{"id": "dem:idw", "parameters": []}}, "tb")
+        log = Log()
+        try:
+            alg._run([{str(fake)!r}], log)
+            done({{"raised": None}})
+        except QgsProcessingException as exc:
+            done({{"raised": str(exc), "log": log.lines}})
+        """, timeout=20)
+    assert got["raised"] == "dem:idw: CELL_SIZE must be > 0, got -1", got
+    assert got["log"] == [], got
