@@ -369,37 +369,36 @@ def dem_section(runs, spec: Specification, verdicts: list[Verdict]) -> Section:
             continue
         best = _stats(report).get("best") or min(methods, key=lambda k: methods[k]["rmse"])
         factor, how = height_unit(_stats(report).get("crs"))  # the errors are in CRS heights
+        known = factor is not None  # in metres and judged; else as stored, not judged
+        scale, unit = (factor, "m") if known else (1.0, "height units")
 
-        def m(value, factor=factor):
-            return None if value is None or factor is None else float(value) * factor
+        def shown(value, scale=scale):
+            return None if value is None else float(value) * scale
 
-        unit = "m" if factor is not None else "height units"
         if factor != 1.0:
-            sec.text(f"Errors converted to metres: {how}." if factor is not None else
+            sec.text(f"Errors converted to metres: {how}." if known else
                      f"Errors in the run's height units, not converted: {how}.")
-        shown = (lambda v: v) if factor is None else m
         sec.table(["Method", "RMSE", "Mean error", "Largest |error|", "Points predicted"],
                   [[k + (" (best)" if k == best else ""), _fmt(shown(v.get("rmse")), unit),
                     _fmt(shown(v.get("mean_error")), unit),
                     _fmt(shown(v.get("max_abs_error")), unit),
                     str(v.get("predicted"))] for k, v in methods.items()])
-        rmse = m(methods[best].get("rmse"))
+        best_rmse = shown(methods[best].get("rmse"))
+        rmse = best_rmse if known else None
         verdicts.append(Verdict("DEM", f"height RMSE of the best method ({best})",
-                                _fmt(rmse, "m") if factor is not None else
-                                f"{_fmt(methods[best].get('rmse'))} ({how})",
+                                _fmt(rmse, "m") if known else f"{_fmt(best_rmse)} ({how})",
                                 f"<= {spec.height_rmse_m:.2f} m",
                                 _judge(rmse, spec.height_rmse_m), "NMAS, contour interval"))
-        scale = 1.0 if factor is None else factor
         fig, ax = plt.subplots(figsize=(6, 2.4))
         names = list(methods)
         ax.bar(names, [methods[k]["rmse"] * scale for k in names],
                color=["#1e8449" if k == best else "#7f8c8d" for k in names])
-        if factor is not None:
+        if known:
             ax.axhline(spec.height_rmse_m, color="#c0392b", ls="--", lw=1,
                        label=f"tolerance {spec.height_rmse_m:.2f} m")
         ax.set_ylabel(f"RMSE ({unit})", fontsize=7)
         ax.set_title("RMSE by method", fontsize=8)
-        if factor is not None:
+        if known:
             ax.legend(fontsize=6)
         ax.tick_params(labelsize=7)
         fig.tight_layout()
