@@ -42,30 +42,28 @@ def _grey(data: np.ndarray) -> np.ndarray:
     return data[:3].mean(axis=0) if data.shape[0] >= 3 else data[0]
 
 
-def _ortho_patch(path: Path, x: float, y: float, cell: float, half: int
+def _ortho_patch(src, x: float, y: float, cell: float, half: int
                  ) -> tuple[np.ndarray, object]:
-    """The orthophoto's grey cells (NaN = no data) that :func:`ortho_window` samples around
-    (x, y) for ``half`` cells of ``cell`` (3 cells to spare, clipped to the raster), and their
-    transform: one window per check point, not the whole orthophoto in memory (a 40,000 x
-    40,000-cell RGB orthophoto is 19 GB as float32)."""
+    """The grey cells (NaN = no data) of the open orthophoto ``src`` that :func:`ortho_window`
+    samples around (x, y) for ``half`` cells of ``cell`` (3 cells to spare, clipped to the
+    raster), and their transform: one window per check point, not the whole orthophoto in
+    memory (a 40,000 x 40,000-cell RGB orthophoto is 19 GB as float32)."""
     import math
 
-    import rasterio
     from rasterio.windows import Window
 
-    with rasterio.open(path) as src:
-        t = src.transform
-        col, row = ~t * (x, y)
-        pc = int(math.ceil(half * cell / abs(t.a))) + 3
-        pr = int(math.ceil(half * cell / abs(t.e))) + 3
-        c0, r0 = max(int(math.floor(col)) - pc, 0), max(int(math.floor(row)) - pr, 0)
-        c1 = min(int(math.floor(col)) + pc + 1, src.width)
-        r1 = min(int(math.floor(row)) + pr + 1, src.height)
-        if c1 <= c0 or r1 <= r0:  # wholly outside: every sample NaN
-            return np.full((1, 1), np.nan, "float32"), t
-        window = Window(c0, r0, c1 - c0, r1 - r0)
-        data = src.read(window=window, masked=True).astype("float32").filled(np.nan)
-        return _grey(data), src.window_transform(window)
+    t = src.transform
+    col, row = ~t * (x, y)
+    pc = int(math.ceil(half * cell / abs(t.a))) + 3
+    pr = int(math.ceil(half * cell / abs(t.e))) + 3
+    c0, r0 = max(int(math.floor(col)) - pc, 0), max(int(math.floor(row)) - pr, 0)
+    c1 = min(int(math.floor(col)) + pc + 1, src.width)
+    r1 = min(int(math.floor(row)) + pr + 1, src.height)
+    if c1 <= c0 or r1 <= r0:  # wholly outside: every sample NaN
+        return np.full((1, 1), np.nan, "float32"), t
+    window = Window(c0, r0, c1 - c0, r1 - r0)
+    data = src.read(window=window, masked=True).astype("float32").filled(np.nan)
+    return _grey(data), src.window_transform(window)
 
 
 def _photo_reader(path: Path):
@@ -147,32 +145,10 @@ def measure_checks(req: OrthoCheckRequest, feedback=None) -> tuple[list[CheckRes
                                  f"{shape[0]} cells)")
     results = []
     dz = _dem_differences(req.dem, xyz) if req.dem is not None else np.full(len(ids), np.nan)
-    for pid, p in zip(ids, xyz, strict=True):
-        seen = [(ph, m_xy[k]) for k, (i, ph) in enumerate(zip(m_ids, m_photos, strict=True))
-                if i == pid and ph in project.photos and (req.photo is None or ph == req.photo)]
-        result = CheckResult(pid, "", *map(float, p))
-        if not seen:
-            result.status = "not measured on a photo"
-            results.append(result)
-            continue
-        photo_id, measured = min(seen, key=lambda s: _off_centre(project.photo(s[0]), s[1]))
-        photo = project.photo(photo_id)
-        result.photo = photo_id
-        if photo.image is None or not Path(photo.image).exists():
-            raise InputDataError(f"PROJECT: photo {photo_id!r} has no image file to take the "
-                                 f"chip of check point {pid!r} from")
-        chip = photo_chip(photo, _photo_reader(Path(photo.image)), p, measured, cell, half)
-        if chip is None:
-            result.status = OUTSIDE + " the photo"
-            results.append(result)
-            continue
-        search = ortho_window(*_ortho_patch(req.ortho, p[0], p[1], cell, half + reach),
-                              p[0], p[1], cell, half + reach)
-        result.dx, result.dy, result.score, result.status = match_offset(
-            chip, search, cell, req.min_score)
-        if result.status == OUTSIDE:
-            result.status = OUTSIDE + " the orthophoto"
-        results.append(result)
+    with rasterio.open(req.ortho) as ortho:  # read by a window per check point
+        for pid, p in zip(ids, xyz, strict=True):
+            results.append(_measure_one(req, project, ortho, pid, p, m_ids, m_photos, m_xy,
+                                        cell, half, reach))
     for r, d in zip(results, dz, strict=True):
         r.dz_dem = float(d)
     off = [f"{r.point_id} ({r.dz_dem:+.1f} m)" for r in results if abs(r.dz_dem) > 2 * cell]
@@ -185,6 +161,35 @@ def measure_checks(req: OrthoCheckRequest, feedback=None) -> tuple[list[CheckRes
                               f"orthophoto ({', '.join(sorted({r.status for r in results}))})")
     return results, {"cell_m": cell, "chip_half_m": half * cell, "search_m": reach * cell,
                      "min_score": req.min_score}
+
+
+def _measure_one(req: OrthoCheckRequest, project, ortho, pid, p, m_ids, m_photos, m_xy,
+                 cell: float, half: int, reach: int) -> CheckResult:
+    """Check point ``pid`` at ground ``p``: its chip from the photo it was measured on nearest
+    the centre, matched in the open orthophoto ``ortho`` within ``reach`` cells."""
+    seen = [(ph, m_xy[k]) for k, (i, ph) in enumerate(zip(m_ids, m_photos, strict=True))
+            if i == pid and ph in project.photos and (req.photo is None or ph == req.photo)]
+    result = CheckResult(pid, "", *map(float, p))
+    if not seen:
+        result.status = "not measured on a photo"
+        return result
+    photo_id, measured = min(seen, key=lambda s: _off_centre(project.photo(s[0]), s[1]))
+    photo = project.photo(photo_id)
+    result.photo = photo_id
+    if photo.image is None or not Path(photo.image).exists():
+        raise InputDataError(f"PROJECT: photo {photo_id!r} has no image file to take the "
+                             f"chip of check point {pid!r} from")
+    chip = photo_chip(photo, _photo_reader(Path(photo.image)), p, measured, cell, half)
+    if chip is None:
+        result.status = OUTSIDE + " the photo"
+        return result
+    search = ortho_window(*_ortho_patch(ortho, p[0], p[1], cell, half + reach),
+                          p[0], p[1], cell, half + reach)
+    result.dx, result.dy, result.score, result.status = match_offset(
+        chip, search, cell, req.min_score)
+    if result.status == OUTSIDE:
+        result.status = OUTSIDE + " the orthophoto"
+    return result
 
 
 def _mm_to_pixel(project, photo_id: str, xy_mm) -> np.ndarray:
