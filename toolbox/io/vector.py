@@ -323,12 +323,7 @@ def open_layer(value: Any, name: str = "INPUT", known_layer: str | None = None) 
         layer = layers[0]  # OGR's default layer, named so that pyogrio does not warn
         # the other layers of features (not tables such as layer_styles): warned about
         default_of = tuple(str(n) for n, kind in rows[1:] if kind is not None)
-    try:
-        info = ogr.read_info(path, layer=layer, **options)
-    except Exception as exc:
-        raise ParameterError(name, f"cannot read '{text}' as a vector layer: "
-                             f"{str(exc).splitlines()[0]}") from None
-    info = _without_csv_coordinates(info, options)
+    info = _layer_info(path, layer, options, name, f"'{text}'")
     ref = VectorLayerRef(path, layer, info, options, where=source.subset,
                          geometry_filter=source.geometry_filter, default_of=default_of)
     if ref.where:  # an SQL error is the user's: report it now, naming the parameter
@@ -596,17 +591,21 @@ def every_layer(ref: VectorLayerRef, name: str = "INPUT") -> list[VectorLayerRef
     """A reference to each layer of ``ref``'s file, in OGR's order: the file listed once (a
     reference made by :func:`open_layer` per layer listed the whole file again for each, a
     file of 200 layers 200 times)."""
-    ogr = _ogr()
-    out = []
-    for layer in layer_names(ref.path):
-        try:
-            info = ogr.read_info(ref.path, layer=layer, **ref.open_options)
-        except Exception as exc:  # pyogrio raises DataSourceError and friends
-            raise ParameterError(name, f"cannot read layer '{layer}' of '{ref.path}': "
-                                 f"{str(exc).splitlines()[0]}") from None
-        info = _without_csv_coordinates(info, ref.open_options)
-        out.append(VectorLayerRef(ref.path, layer, info, dict(ref.open_options)))
-    return out
+    return [VectorLayerRef(ref.path, layer, _layer_info(ref.path, layer, ref.open_options, name,
+                                                        f"layer '{layer}' of '{ref.path}'"),
+                           dict(ref.open_options)) for layer in layer_names(ref.path)]
+
+
+def _layer_info(path: Path, layer: str | None, options: dict[str, str], name: str,
+                what: str) -> dict[str, Any]:
+    """OGR's information of a layer (CSV coordinate columns left out of its fields);
+    :class:`ParameterError` naming ``name`` and ``what`` when OGR cannot read it."""
+    try:
+        info = _ogr().read_info(path, layer=layer, **options)
+    except Exception as exc:  # pyogrio raises DataSourceError and friends
+        raise ParameterError(name, f"cannot read {what} as a vector layer: "
+                             f"{str(exc).splitlines()[0]}") from None
+    return _without_csv_coordinates(info, options)
 
 
 def read_geometries(source: Any, name: str = "INPUT") -> tuple[VectorLayerRef, np.ndarray]:
