@@ -31,8 +31,8 @@ from typing import Any
 
 from toolbox.errors import PipelineError, ToolboxError
 from toolbox.feedback import Feedback
+from toolbox.io.paths import absolute_paths
 from toolbox.io.text import yaml_error_line
-from toolbox.parameters import takes_paths
 
 REF_RE = re.compile(r"\$\{([A-Za-z_][A-Za-z0-9_]*)(?:\.([A-Z][A-Z0-9_]*))?\}")
 
@@ -202,14 +202,9 @@ def _substitute(value: Any, scope: dict[str, Any]) -> Any:
     return REF_RE.sub(lambda m: str(lookup(m)), value)
 
 
-def _absolutise(value: Any, base_dir: Path, param: Any = None) -> Any:
-    if isinstance(value, list):
-        return [_absolutise(v, base_dir) for v in value]
-    if getattr(param, "paths", False) and isinstance(value, str) and "," in value:
-        return ",".join(_absolutise(v.strip(), base_dir) for v in value.split(",") if v.strip())
-    if isinstance(value, (str, Path)) and str(value) and not Path(str(value)).expanduser().is_absolute():
-        return str(base_dir / str(value))
-    return value
+def _absolutise(value: Any, base_dir: Path, param: Any) -> Any:
+    """A path parameter's value relative to the pipeline file's folder."""
+    return absolute_paths(value, base_dir, comma_separated=getattr(param, "paths", False))
 
 
 def run_pipeline(pipeline: Pipeline, feedback: Feedback | None = None, overwrite: bool = False,
@@ -233,7 +228,7 @@ def run_pipeline(pipeline: Pipeline, feedback: Feedback | None = None, overwrite
         params = {}
         for key, value in step.params.items():
             value = _substitute(value, scope)
-            if key != "OVERWRITE" and takes_paths(alg.parameter(key)):
+            if key != "OVERWRITE" and alg.parameter(key).holds_paths:
                 value = _absolutise(value, pipeline.base_dir, alg.parameter(key))
             params[key] = value
         feedback.push_info(f"step {i + 1}/{n} {step.name}: {alg.id}")
@@ -319,7 +314,7 @@ def validate_pipeline(pipeline: Pipeline, overwrite: bool = False,
                 resolved_all = False
                 continue
             value = _substitute(raw, pipeline.variables) if raw is not None else None
-            if takes_paths(p) and value is not None:
+            if p.holds_paths and value is not None:
                 value = _absolutise(value, pipeline.base_dir, p)
             try:
                 if p.is_output:
@@ -377,7 +372,7 @@ def validate_pipeline(pipeline: Pipeline, overwrite: bool = False,
         if resolved_all:  # every value known now: every check the run makes before it writes
             values = {k: _absolutise(_substitute(v, pipeline.variables), pipeline.base_dir,
                                      alg.parameter(k))
-                      if k != "OVERWRITE" and takes_paths(alg.parameter(k))
+                      if k != "OVERWRITE" and alg.parameter(k).holds_paths
                       else _substitute(v, pipeline.variables) for k, v in step.params.items()}
             try:
                 checked = runner_validate(alg, values, overwrite=True)

@@ -66,30 +66,16 @@ def to_jsonable(value: Any) -> Any:
     return str(value)
 
 
-def _absolute(value: Any) -> Any:
-    """A path parameter's JSON value with its relative file paths made absolute (the part before
-    a layer reference's ``|``; GDAL's ``/vsi...`` and ``DRIVER:...`` names are left as given)."""
-    import os
-
-    if isinstance(value, list):
-        return [_absolute(v) for v in value]
-    if not isinstance(value, str) or not value or value.startswith(("<", "/vsi")):
-        return value
-    head, sep, tail = value.partition("|")
-    if Path(head).expanduser().is_absolute() or (":" in head and not Path(head).exists()):
-        return value
-    return os.path.abspath(head) + sep + tail
-
-
 def parameters_record(alg_cls, params: dict[str, Any]) -> dict[str, Any]:
     """The run's parameter values as JSON, file and folder paths absolute (a relative path
     names nothing once the report leaves the folder it was run from)."""
+    from toolbox.io.paths import absolute_paths
+
     record = to_jsonable(params)
     for p in alg_cls.parameters:
-        value = record.get(p.name)
-        if p.holds_paths and value is not None:  # (toolbox.parameters.takes_paths)
-            record[p.name] = ",".join(_absolute(v.strip()) for v in value.split(",")) \
-                if getattr(p, "paths", False) and isinstance(value, str) else _absolute(value)
+        if p.holds_paths and record.get(p.name) is not None:
+            record[p.name] = absolute_paths(record[p.name],
+                                            comma_separated=getattr(p, "paths", False))
     return record
 
 

@@ -32,10 +32,5 @@ __all__ = ["ADVANCED_NAMES", "FIELD_TYPES", "GEOMETRY_TYPES", "VALUE_TYPES", "Bo
            "Destination", "Enum", "Extent", "ExtentParameter", "Field", "File", "Folder",
            "Integer", "Layer", "LayerField", "MultipleLayers", "Number", "Output", "OutputFile",
            "OutputFolder", "OutputRaster", "OutputVector", "Parameter", "RasterLayer", "String",
-           "ValidationContext", "VectorLayer", "takes_paths"]
+           "ValidationContext", "VectorLayer"]
 
-
-def takes_paths(p: Parameter) -> bool:
-    """Whether ``p``'s value is a path (or paths): files, folders, layers, outputs, and text
-    declared ``String(paths=True)`` (comma-separated paths)."""
-    return bool(p.holds_paths)
