@@ -26,12 +26,17 @@ def max_cells_default() -> int:
     return size_limit("cells")
 
 
+def coordinate_rounding(*coordinates: float) -> float:
+    """The rounding a computation on ``coordinates`` carries (their units): 64 ulps of the
+    largest (a northing of 5,000,000 has 1e-9 m bits)."""
+    return 64 * max((abs(float(c)) for c in coordinates), default=0.0) * sys.float_info.epsilon
+
+
 def cell_slack(cell_size: float, *coordinates: float) -> float:
     """How far (in cells) a count of cells computed from ``coordinates`` may be from a whole
     number by rounding alone: 1e-9 cell, more for coordinates so large that their last bit is
-    more (a northing of 5,000,000 has 1e-9 m bits: 2e-7 of a 5 mm cell)."""
-    far = max((abs(float(c)) for c in coordinates), default=0.0) / cell_size
-    return max(1e-9, 64 * far * sys.float_info.epsilon)
+    more (:func:`coordinate_rounding`: 2e-7 of a 5 mm cell at a northing of 5,000,000)."""
+    return max(1e-9, coordinate_rounding(*coordinates) / cell_size)
 
 
 def snap_outwards(bounds: tuple[float, float, float, float],

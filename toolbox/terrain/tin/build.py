@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from toolbox.io.grid import coordinate_rounding
 from toolbox.terrain.points import check_not_collinear, merge_duplicate_xy
 from toolbox.terrain.tin.kernels import (
     Triangulation,
@@ -317,8 +318,7 @@ def _vertices_in(region, xy: np.ndarray, triangles: np.ndarray, span: float) -> 
     pts = xy[triangles.ravel()]
     ok = shapely.contains_xy(region, pts[:, 0], pts[:, 1])
     if not ok.all():  # boundary vertices, mostly: on the edge
-        far = float(np.abs(xy).max())
-        tol = max(1e-6 * span, 64 * far * np.finfo(float).eps)
+        tol = max(1e-6 * span, coordinate_rounding(float(np.abs(xy).max())))
         check = np.flatnonzero(~ok)
         ok[check] = shapely.distance(region, shapely.points(pts[check])) <= tol
     return ok.reshape(-1, 3).all(axis=1)
@@ -347,7 +347,7 @@ def _clip_to_boundary(first_xyz: np.ndarray, first_triangles: np.ndarray, nodes:
     # below the rounding of the coordinates along the boundary it is no area (at a northing of
     # 5,000,000 a boundary inside the hull came out 3e-18 "outside", and was warned about)
     far = float(np.abs(first_xyz[:, :2]).max())
-    if outside_area <= 64 * far * np.finfo(float).eps * float(shapely.length(boundary)):
+    if outside_area <= coordinate_rounding(far) * float(shapely.length(boundary)):
         outside_area = 0.0
     span = max(float(np.ptp(first_xyz[:, :2], axis=0).max()), 1.0)
     ring_xy = [np.asarray(ring.coords)[:-1, :2] for poly in shapely.get_parts(region)
