@@ -70,12 +70,11 @@ def coarse_dem_warning(xyz: np.ndarray, triangles: np.ndarray, info, mask, count
     frame = shapely.box(*info.bounds)
     lo, hi = xyz[:, :2].min(axis=0), xyz[:, :2].max(axis=0)
     if mask is None and shapely.contains(frame, shapely.box(*lo, *hi)):
-        p = xyz[triangles, :2]  # every triangle inside the DEM: their areas, by hand
-        exact = float(0.5 * np.abs((p[:, 1, 0] - p[:, 0, 0]) * (p[:, 2, 1] - p[:, 0, 1])
-                                   - (p[:, 2, 0] - p[:, 0, 0]) * (p[:, 1, 1] - p[:, 0, 1])).sum())
+        region = None  # every triangle inside the DEM: nothing to clip
     else:
         region = frame if mask is None else shapely.intersection(frame, mask)
-        exact = plane_cut_fill(xyz, triangles, float(xyz[:, 2].min()) - 1.0, region).area
+    # the TIN's area in the region: all of it fill below a plane under its lowest node
+    exact = plane_cut_fill(xyz, triangles, float(xyz[:, 2].min()) - 1.0, region).area
     if abs(counted - exact) <= 0.1 * exact:
         return None
     return (f"the DEM's cells ({cell_x:g} x {cell_y:g}) are coarse for this TIN: the cells "
