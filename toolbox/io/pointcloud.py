@@ -20,6 +20,7 @@ user-defined projections, their units and a vertical CRS included).
 
 from __future__ import annotations
 
+import logging
 import struct
 from collections.abc import Iterator
 from dataclasses import dataclass, field
@@ -361,7 +362,25 @@ def read_xyz(ref: PointCloudRef, flt: PointFilter = PointFilter(), z_field: str 
             out = np.resize(out, (end + chunk_points, 3))
         out[n_kept:end] = xyz
         n_kept = end
+    warn_noise_classes(report, flt, ref, name)
     return out[:n_kept], report
+
+
+NOISE_CLASSES = {7: "low noise", 18: "high noise"}  # ASPRS LAS 1.4, table 17
+
+
+def warn_noise_classes(report: ReadReport, flt: PointFilter, ref: Any, name: str) -> None:
+    """Log a warning when points of the noise classes (7, 18) were kept because no class
+    filter was given: a noise point in a surface is a spike or a pit (PDAL and LAStools keep
+    them too unless told; the user may not know the file has them)."""
+    if flt.classes is not None:
+        return
+    kept = [f"{report.classes[c]} of class {c} ({label})" for c, label in NOISE_CLASSES.items()
+            if report.classes.get(c)]
+    if kept:
+        logging.getLogger("toolbox").warning(
+            f"{name} {ref}: {' and '.join(kept)} points are used, CLASSES not being given; "
+            "give CLASSES to leave them out (e.g. 2 for the ground)")
 
 
 def check_cloud_crs(ref: Any, crs: Any, name: str = "INPUT") -> None:

@@ -148,7 +148,7 @@ class _OutsideHeader(Exception):
 
 def _scan(ref: Any, flt: Any, z_field: str | None, chunk_points: int, name: str,
           bounds: tuple[float, float, float, float]) -> CloudScan:
-    from toolbox.io.pointcloud import ReadReport, iter_xyz
+    from toolbox.io.pointcloud import ReadReport, iter_xyz, warn_noise_classes
     from toolbox.terrain.gridding.masks import convex_hull
 
     x0, y0, size, nx, ny = bucket_raster(bounds, ref.point_count)
@@ -171,6 +171,7 @@ def _scan(ref: Any, flt: Any, z_field: str | None, chunk_points: int, name: str,
                     candidates[:, 1].argmin(), candidates[:, 1].argmax()]
             hull = candidates[np.unique(ends)]
         ring = hull
+    warn_noise_classes(report, flt, ref, name)
     return CloudScan(report.kept, (float(lo[0]), float(lo[1]), float(hi[0]), float(hi[1])),
                      ring, counts.reshape(ny, nx), x0, y0, size, report)
 
