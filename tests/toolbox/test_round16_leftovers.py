@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import tracemalloc
 
 import geopandas as gpd
 import numpy as np
@@ -51,3 +52,48 @@ def test_large_snap_warning_reaches_the_run_report(tmp_path):
                                          "OUTPUT": str(tmp_path / "o.gpkg")}, report=report)
     doc = json.loads(report.read_text())
     assert any("SNAP_TOLERANCE 200" in w for w in doc["warnings"])
+
+
+# -- 2. attribution:sample keeps its moved_vertices rows in arrays, written block by block ------
+def _lines(tmp_path, lengths):
+    src = tmp_path / "lines.gpkg"
+    g = [shapely.LineString([(1_500_000, 5_000_000 + 10 * i), (1_500_000 + n, 5_000_000 + 10 * i)])
+         for i, n in enumerate(lengths)]
+    gpd.GeoDataFrame({"code": ["A"] * len(g)}, geometry=g, crs="EPSG:3003").to_file(src)
+    return src
+
+
+def test_densify_moved_vertices_memory_per_row_is_tens_of_bytes(tmp_path, monkeypatch):
+    import toolbox.attribution.edit_io as edit_io
+
+    monkeypatch.setattr(edit_io, "MOVED_BLOCK", 1000, raising=False)
+    src = _lines(tmp_path, [2000] * 10)  # 10 x 1999 added vertices with DISTANCE 1
+    params = {"INPUT": str(src), "METHOD": "densify", "DISTANCE": 1,
+              "OUTPUT": str(tmp_path / "o.gpkg")}
+    toolbox.run("attribution:sample", params)  # imports and caches out of the measure
+    tracemalloc.start()
+    try:
+        toolbox.run("attribution:sample", params, overwrite=True)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    rows = 10 * 1999
+    assert peak / rows < 200  # a dict a row took about 600 B (1 kB in RSS); arrays about 60
+
+
+def test_densify_moved_vertices_rows_across_blocks(tmp_path, monkeypatch):
+    import toolbox.attribution.edit_io as edit_io
+
+    monkeypatch.setattr(edit_io, "MOVED_BLOCK", 4, raising=False)
+    src = _lines(tmp_path, [10, 3, 5])  # DISTANCE 1: 9, 2 and 4 vertices added
+    out = tmp_path / "o.gpkg"
+    toolbox.run("attribution:sample", {"INPUT": str(src), "METHOD": "densify", "DISTANCE": 1,
+                                       "OUTPUT": str(out)})
+    m = gpd.read_file(out, layer="moved_vertices")
+    want = [(f, k + 1, 1_500_000 + k, 5_000_000 + 10 * (f - 1))
+            for f, n in ((1, 10), (2, 3), (3, 5)) for k in range(1, n)]
+    got = list(zip(m["feature"].astype(int), m["vertex"], m.geometry.x, m.geometry.y,
+                   strict=True))
+    assert got == want
+    assert set(m["change"]) == {"added"} and not m[["dx", "dy", "displacement"]].any().any()
+    assert m.crs.to_epsg() == 3003
