@@ -97,3 +97,67 @@ def test_densify_moved_vertices_rows_across_blocks(tmp_path, monkeypatch):
     assert got == want
     assert set(m["change"]) == {"added"} and not m[["dx", "dy", "displacement"]].any().any()
     assert m.crs.to_epsg() == 3003
+
+
+# -- 3. toolbox.run from Python: a Ctrl-C during the commit waits for its end -------------------
+def _square_layer(tmp_path):
+    src = tmp_path / "in.gpkg"
+    ring = np.array([(0, 0), (10, 0), (10, 10), (0, 10), (0, 0)]) + (1_500_000, 5_000_000)
+    gpd.GeoDataFrame({"code": ["A"]}, geometry=[shapely.LineString(ring)],
+                     crs="EPSG:3003").to_file(src)
+    return src
+
+
+def test_api_commit_holds_sigint_until_every_file_is_in_place(tmp_path, monkeypatch):
+    import signal
+
+    import pytest
+
+    import toolbox.io.staging as staging
+
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # as in a script
+    original, moves = staging._move_no_replace, []
+
+    def move(item, target):  # Ctrl-C right after the first file was moved into place
+        original(item, target)
+        moves.append(target)
+        if len(moves) == 1:
+            signal.raise_signal(signal.SIGINT)
+
+    monkeypatch.setattr(staging, "_move_no_replace", move)
+    out = tmp_path / "out.shp"  # five layers, five files each: 25 moves
+    with pytest.raises(KeyboardInterrupt):
+        toolbox.run("topology:build_areas", {"INPUT": str(_square_layer(tmp_path)),
+                                             "OUTPUT": str(out)})
+    written = sorted(p.name for p in tmp_path.glob("out*"))
+    assert len(moves) == 25 and written == sorted(p.name for p in moves)  # all, not out.shp only
+    for layer in ("", "_arcs", "_nodes", "_errors_points", "_errors_lines"):
+        for ext in (".shp", ".shx", ".dbf"):
+            assert (tmp_path / f"out{layer}{ext}").exists()
+    assert not list(tmp_path.glob(".*.part"))
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # put back
+
+
+def test_commit_section_in_another_thread_installs_no_handler():
+    import signal
+    import threading
+
+    import toolbox.io.staging as staging
+
+    before = {s: signal.getsignal(s) for s in staging.HELD_SIGNALS}
+    seen, errors = [], []
+
+    def work():
+        try:
+            with staging._signals_held():
+                seen.append({s: signal.getsignal(s) for s in staging.HELD_SIGNALS})
+        except BaseException as exc:  # noqa: BLE001 - reported below
+            errors.append(exc)
+
+    t = threading.Thread(target=work)
+    t.start()
+    t.join()
+    assert not errors and seen == [before]
+    with staging._signals_held():  # the main thread's section holds, then puts them back
+        assert signal.getsignal(signal.SIGINT) is not before[signal.SIGINT]
+    assert {s: signal.getsignal(s) for s in staging.HELD_SIGNALS} == before
