@@ -161,3 +161,76 @@ def test_commit_section_in_another_thread_installs_no_handler():
     with staging._signals_held():  # the main thread's section holds, then puts them back
         assert signal.getsignal(signal.SIGINT) is not before[signal.SIGINT]
     assert {s: signal.getsignal(s) for s in staging.HELD_SIGNALS} == before
+
+
+# -- 4. a failing pipeline step is numbered and named; GDAL's warnings reach the run report -----
+def _pipeline(tmp_path):
+    ok = _square_layer(tmp_path)
+    zero = tmp_path / "zero.gpkg"  # a zero-length line: attribution:sample refuses it at run time
+    gpd.GeoDataFrame({"code": ["A"]}, geometry=[shapely.LineString([(1_500_000, 5_000_000)] * 2)],
+                     crs="EPSG:3003").to_file(zero)
+    pipe = tmp_path / "p.yaml"
+    pipe.write_text(
+        "steps:\n"
+        f"  - {{name: areas, algorithm: topology:build_areas, params: {{INPUT: {ok}, "
+        "OUTPUT: a.gpkg}}\n"
+        f"  - {{name: resample, algorithm: attribution:sample, params: {{INPUT: {zero}, "
+        "METHOD: densify, DISTANCE: 1, OUTPUT: s.gpkg}}\n"
+        f"  - {{name: last, algorithm: attribution:sample, params: {{INPUT: {ok}, "
+        "METHOD: densify, DISTANCE: 1, OUTPUT: s2.gpkg}}\n")
+    return pipe
+
+
+def test_failing_pipeline_step_is_numbered_and_named(tmp_path):
+    import pytest
+
+    from toolbox.batch import load_pipeline, run_pipeline
+    from toolbox.errors import PipelineError
+
+    with pytest.raises(PipelineError) as info:
+        run_pipeline(load_pipeline(_pipeline(tmp_path)))
+    assert str(info.value).startswith("step 2 of 3 (attribution:sample 'resample'): INPUT "
+                                      "feature 1 has zero length")
+    assert (tmp_path / "a.gpkg").exists() and not (tmp_path / "s.gpkg").exists()
+
+
+def test_interrupted_or_broken_pipeline_step_is_numbered_and_named(tmp_path, monkeypatch):
+    import pytest
+
+    from toolbox.batch import load_pipeline, run_pipeline
+    from toolbox.cli.app import interrupted_message
+    from toolbox.registry import get
+
+    def broken(self, params, feedback):
+        raise ValueError("a bug")
+
+    monkeypatch.setattr(get("attribution:sample"), "process", broken)
+    with pytest.raises(ValueError) as info:  # an internal error: the CLI names the step too
+        run_pipeline(load_pipeline(_pipeline(tmp_path)))
+    assert info.value.step == "step 2 of 3 (attribution:sample 'resample')"
+    assert interrupted_message(2, info.value).startswith(
+        "canceled during step 2 of 3 (attribution:sample 'resample');")
+
+
+def test_gdal_warning_logged_through_rasterio_is_in_the_run_report(tmp_path, monkeypatch):
+    import rasterio
+    from rasterio.transform import from_origin
+
+    from toolbox.registry import get
+
+    alg = get("topology:build_areas")
+    process = alg.process
+
+    def noisy(self, params, feedback):  # GDAL: "driver GTiff does not support creation option"
+        with rasterio.open(tmp_path / "side.tif", "w", driver="GTiff", width=2, height=2,
+                           count=1, dtype="uint8", crs="EPSG:3003",
+                           transform=from_origin(1_500_000, 5_000_002, 1, 1), foo="yes") as d:
+            d.write(np.zeros((1, 2, 2), "uint8"))
+        return process(self, params, feedback)
+
+    monkeypatch.setattr(alg, "process", noisy)
+    report = tmp_path / "r.json"
+    toolbox.run("topology:build_areas", {"INPUT": str(_square_layer(tmp_path)),
+                                         "OUTPUT": str(tmp_path / "o.gpkg")}, report=report)
+    warnings = json.loads(report.read_text())["warnings"]
+    assert [w for w in warnings if "creation option FOO" in w and w.startswith("GDAL")]
