@@ -207,6 +207,12 @@ def _absolutise(value: Any, base_dir: Path, param: Any) -> Any:
     return absolute_paths(value, base_dir, comma_separated=getattr(param, "paths", False))
 
 
+def step_label(index: int, count: int, algorithm: str, name: str) -> str:
+    """How messages name a pipeline step: its number, the algorithm and its name, e.g.
+    ``step 3 of 7 (dem:idw 'grid')`` (``index`` 0-based)."""
+    return f"step {index + 1} of {count} ({algorithm} {name!r})"
+
+
 def run_pipeline(pipeline: Pipeline, feedback: Feedback | None = None, overwrite: bool = False,
                  report_dir: str | Path | None = None) -> dict[str, dict[str, Any]]:
     """Run every step in order; return ``{step name: outputs}``. A failing step stops the run
@@ -238,11 +244,15 @@ def run_pipeline(pipeline: Pipeline, feedback: Feedback | None = None, overwrite
             outputs = run(alg.id, params, feedback=feedback.step(100 * i / n, 100 * (i + 1) / n),
                           overwrite=overwrite, report=report)
         except ToolboxError as exc:
-            error = PipelineError(f"step {step.name!r} ({alg.id}): {exc}")
-            error.step = f"{step.name!r} ({i + 1}/{n})"  # as below, if a signal caused it
+            label = step_label(i, n, alg.id, step.name)
+            error = PipelineError(f"{label}: {exc}")
+            error.step = label  # as below, if a signal caused it
             raise error from exc
-        except KeyboardInterrupt as exc:  # the CLI names the step; the steps done stay
-            exc.step = f"{step.name!r} ({i + 1}/{n})"
+        except (KeyboardInterrupt, Exception) as exc:  # the CLI names the step (an
+            try:                                       # interruption: the steps done stay)
+                exc.step = step_label(i, n, alg.id, step.name)
+            except AttributeError:  # an exception type without a __dict__
+                pass
             raise
         scope[step.name] = outputs
         results[step.name] = outputs
@@ -291,11 +301,12 @@ def validate_pipeline(pipeline: Pipeline, overwrite: bool = False,
     written: dict[Path, str] = {}  # output path -> "step.NAME"
     read: dict[Path, str] = {}  # input path -> "step.NAME"
     outputs_of: dict[str, dict[str, Any]] = {}  # step -> {NAME: final path or True}
-    for step in pipeline.steps:
+    for index, step in enumerate(pipeline.steps):
         alg = get(step.algorithm)
 
-        def fail(message: str, step=step, alg=alg) -> PipelineError:
-            return PipelineError(f"step {step.name!r} ({alg.id}): {message}")
+        def fail(message: str, step=step, alg=alg, index=index) -> PipelineError:
+            return PipelineError(f"{step_label(index, len(pipeline.steps), alg.id, step.name)}: "
+                                 f"{message}")
 
         ctx = ValidationContext(overwrite=True)
         resolved_all = True

@@ -183,12 +183,34 @@ class _LoggedWarnings(logging.Handler):
             self.feedback.messages.append(("warning", text))
 
 
+class _GdalWarnings(_LoggedWarnings):
+    """The warnings GDAL reports through rasterio's logger (``rasterio._env``: an ignored
+    creation option, a clamped nodata value, a libtiff note) by the running thread: pushed to
+    ``feedback`` (the console shows them, the run report lists them), each text once. The
+    runner's own handler on that logger (:func:`toolbox.runner.failures.collect_gdal_errors`)
+    keeps only errors, so they were shown nowhere."""
+
+    def emit(self, record: logging.LogRecord) -> None:
+        if record.thread != self.thread or record.levelno != logging.WARNING:
+            return
+        try:
+            text = f"GDAL: {record.getMessage()}"
+        except Exception:  # noqa: BLE001 - a bad format string: not ours to fail on
+            return
+        if text not in self.feedback.warnings:
+            self.feedback.push_warning(text)
+
+
 @contextmanager
 def logged_warnings(feedback: Feedback):
-    """While the block runs, warnings logged outside ``feedback`` are kept in its messages."""
-    handler = _LoggedWarnings(feedback)
+    """While the block runs, warnings logged outside ``feedback`` (on the ``toolbox`` logger,
+    and GDAL's through ``rasterio``'s) are kept in its messages."""
+    handler, gdal = _LoggedWarnings(feedback), _GdalWarnings(feedback)
+    rasterio_log = logging.getLogger("rasterio")
     log.addHandler(handler)
+    rasterio_log.addHandler(gdal)
     try:
         yield
     finally:
         log.removeHandler(handler)
+        rasterio_log.removeHandler(gdal)

@@ -58,7 +58,7 @@ class Sample(Algorithm):
     def process(self, params, feedback: Feedback):
         import numpy as np
 
-        from toolbox.attribution.edit_io import read_parts, write_edited
+        from toolbox.attribution.edit_io import MovedVertices, read_parts, write_edited
         from toolbox.attribution.editing import densify, deviation, sample_by_distance, sample_by_vectors
         from toolbox.errors import InputDataError
         from toolbox.ui.attribution import file_values
@@ -77,7 +77,7 @@ class Sample(Algorithm):
                 check_size("features", length / step, "DISTANCE",
                            f"{step:g} along {length:,.0f} units of lines", "use a larger DISTANCE",
                            "added vertices (a moved_vertices point each)")
-        out, rows, left, collapsed = [], [], set(), set()
+        out, rows, left, collapsed = [], MovedVertices(), set(), set()
         largest = 0.0
         for r, c in enumerate(parts.coords):
             feedback.check_canceled()
@@ -91,10 +91,8 @@ class Sample(Algorithm):
                                      "remove or fix it")
             if method == "densify":
                 new, added = densify(c, step)
-                for i in np.flatnonzero(added):
-                    rows.append({"feature": feature, "vertex": int(i) + 1, "change": "added",
-                                 "dx": 0.0, "dy": 0.0, "displacement": 0.0, "x": new[i, 0],
-                                 "y": new[i, 1]})
+                where = np.flatnonzero(added)
+                rows.add(feature, where + 1, "added", new[where, 0], new[where, 1])
                 out.append(new)
                 continue
             if method == "vectors":
@@ -115,10 +113,8 @@ class Sample(Algorithm):
                 out.append(c)
                 continue
             largest = max(largest, float(dist.max()))
-            for i in removed:
-                rows.append({"feature": feature, "vertex": int(i) + 1, "change": "removed",
-                             "dx": 0.0, "dy": 0.0, "displacement": float(dist[i]),
-                             "x": c[i, 0], "y": c[i, 1]})
+            rows.add(feature, removed + 1, "removed", c[removed, 0], c[removed, 1],
+                     displacement=dist[removed])
             out.append(new)
         layer = write_edited(params["OUTPUT"], params["INPUT"], parts, out, rows)
         stats = {"features": len(parts.frame), "method": method,

@@ -72,6 +72,6 @@ steps:
     algorithm: dem:hillshade
     params: {{INPUT: {plane_dem[0]}, Z_FACTOR: 0, OUTPUT: b.tif}}
 """)
-    with pytest.raises(PipelineError, match="step 'broken' \\(dem:hillshade\\): Z_FACTOR"):
+    with pytest.raises(PipelineError, match="step 2 of 2 \\(dem:hillshade 'broken'\\): Z_FACTOR"):
         run_pipeline(load_pipeline(pipe))
     assert (tmp_path / "a.tif").exists() and not (tmp_path / "b.tif").exists()

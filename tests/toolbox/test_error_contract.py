@@ -607,7 +607,7 @@ def test_batch_validate_checks_values(demo, tmp_path):
         "bad range": (shade.format(name="a", params="{INPUT: '${dem}', OUTPUT: a.tif}")
                       + shade.format(name="b", params="{INPUT: '${dem}', Z_FACTOR: -1, "
                                                       "OUTPUT: b.tif}"),
-                      "step 'b' (dem:hillshade): Z_FACTOR must be > 0"),
+                      "step 2 of 2 (dem:hillshade 'b'): Z_FACTOR must be > 0"),
         "bad type": (shade.format(name="a", params="{INPUT: '${dem}', AZIMUTH: east, "
                                                    "OUTPUT: a.tif}"), "AZIMUTH must be a number"),
         "two steps, one file": (shade.format(name="a", params="{INPUT: '${dem}', OUTPUT: a.tif}")

@@ -225,7 +225,7 @@ def test_validate_refuses_a_step_without_its_required_input(tmp_path):
     for extra in (["--validate"], []):
         result = CliRunner().invoke(main, ["batch", str(pipe), *extra])
         line = one_error(result.stderr)
-        assert result.exit_code == 2 and "step 'shade' (dem:hillshade): INPUT is required" in line
+        assert result.exit_code == 2 and "step 1 of 1 (dem:hillshade 'shade'): INPUT is required" in line
     assert sorted(p.name for p in tmp_path.iterdir()) == ["p.yaml"]
 
 

@@ -56,7 +56,7 @@ def test_batch_interrupted_at_step_2_names_the_step_and_the_outputs_kept(tmp_pat
     assert proc.returncode == 128 + signal.SIGTERM, stderr
     lines = stderr.strip().splitlines()
     assert len(lines) == 1 and "Traceback" not in stderr, stderr
-    assert "during step 'grid' (2/2)" in lines[0], lines[0]
+    assert "during step 2 of 2 (dem:idw 'grid')" in lines[0], lines[0]
     assert str(out / "coarse.tif") in lines[0] and "kept" in lines[0], lines[0]
     assert "no output was written" not in lines[0], lines[0]
     assert _files(out) == ["coarse.tif"]  # step 1 stays (as documented), nothing of step 2

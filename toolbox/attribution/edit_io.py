@@ -108,15 +108,91 @@ def rebuild(parts: Parts, coords: list[np.ndarray]) -> list[Any]:
     return geoms
 
 
-def moved_frame(rows: list[dict[str, Any]], origin: np.ndarray, crs: Any):
-    """The ``moved_vertices`` layer: one point per changed vertex, at its new position (removed
-    vertices at their old one), with feature, vertex, change, dx, dy, displacement."""
-    import geopandas as gpd
+#: the ``moved_vertices`` fields, in order
+MOVED_FIELDS = ("feature", "vertex", "change", "dx", "dy", "displacement")
+#: rows written at a time into a GeoPackage's ``moved_vertices`` layer
+MOVED_BLOCK = 65536
 
-    geoms = [shapely.Point(r["x"] + origin[0], r["y"] + origin[1]) for r in rows]
-    data = {k: [r[k] for r in rows] for k in ("feature", "vertex", "change", "dx", "dy",
-                                             "displacement")}
-    return gpd.GeoDataFrame(data, geometry=gpd.GeoSeries(geoms, crs=crs), crs=crs)
+
+class MovedVertices:
+    """The ``moved_vertices`` rows as numeric columns, added a feature at a time: about 50
+    bytes a row (a densification of 10 million vertices is 10 million rows; one dict each took
+    about 1 kB). ``feature`` and ``change`` are one text per :meth:`add` (or one per row); the
+    numbers broadcast (``dx=0.0`` for every added vertex). Coordinates are in the local frame."""
+
+    def __init__(self) -> None:
+        self._chunks: list[tuple[Any, ...]] = []
+        self.count = 0
+
+    def add(self, feature: Any, vertex: Any, change: Any, x: Any, y: Any, dx: Any = 0.0,
+            dy: Any = 0.0, displacement: Any = 0.0) -> None:
+        """Rows for the 1-based ``vertex`` numbers (an array) of one feature."""
+        vertex = np.asarray(vertex, dtype=np.int64).ravel()
+        if not len(vertex):
+            return
+        numbers = [np.asarray(v, dtype=np.float64) for v in (x, y, dx, dy, displacement)]
+        self._chunks.append((feature, vertex, change, *numbers))
+        self.count += len(vertex)
+
+    @classmethod
+    def from_rows(cls, rows: list[dict[str, Any]]) -> MovedVertices:
+        """From dicts with the keys of :data:`MOVED_FIELDS` and ``x``, ``y``."""
+        moved = cls()
+        if rows:
+            def column(key: str, dtype: Any) -> np.ndarray:
+                return np.array([r[key] for r in rows], dtype=dtype)
+
+            moved.add(column("feature", object), column("vertex", np.int64),
+                      column("change", object), column("x", float), column("y", float),
+                      column("dx", float), column("dy", float), column("displacement", float))
+        return moved
+
+    def blocks(self, size: int):
+        """Yield ``(x, y, {field: array})`` of at most ``size`` rows each, in order (one empty
+        block when there is no row)."""
+        pending: list[tuple[np.ndarray, ...]] = []
+        held = 0
+        for feature, vertex, change, *numbers in self._chunks:
+            n = len(vertex)
+            start = 0
+            while start < n:
+                stop = min(n, start + size - held)
+                part = slice(start, stop)
+                m = stop - start
+                pending.append((np.broadcast_to(np.asarray(feature, dtype=object), (n,))[part],
+                                vertex[part],
+                                np.broadcast_to(np.asarray(change, dtype=object), (n,))[part],
+                                *(np.broadcast_to(v, (n,))[part] for v in numbers)))
+                held += m
+                start = stop
+                if held == size:
+                    yield self._joined(pending)
+                    pending, held = [], 0
+        if pending or not self.count:
+            yield self._joined(pending)
+
+    @staticmethod
+    def _joined(pending: list[tuple[np.ndarray, ...]]):
+        kinds = (object, np.int64, object, *(np.float64,) * 5)
+        cols = [np.concatenate([p[k] for p in pending]).astype(kind, copy=False) if pending
+                else np.zeros(0, dtype=kind) for k, kind in enumerate(kinds)]
+        feature, vertex, change, x, y, dx, dy, displacement = cols
+        return x, y, dict(zip(MOVED_FIELDS, (feature, vertex, change, dx, dy, displacement),
+                              strict=True))
+
+
+def write_moved(path: Path, moved: MovedVertices, origin: np.ndarray, crs: Any) -> None:
+    """The ``moved_vertices`` layer in ``path`` (a GeoPackage: beside the others): one point
+    per changed vertex, at its new position (removed vertices at their old one), with feature,
+    vertex, change, dx, dy, displacement. A GeoPackage is written :data:`MOVED_BLOCK` rows at a
+    time (only that many points and WKB texts exist at once)."""
+    from toolbox.io.vector import vector_driver
+    from toolbox.io.vector_write import write_wkb_layer
+
+    size = MOVED_BLOCK if vector_driver(path) == "GPKG" else max(moved.count, 1)
+    for k, (x, y, fields) in enumerate(moved.blocks(size)):
+        wkb = shapely.to_wkb(shapely.points(x + origin[0], y + origin[1]))
+        write_wkb_layer(path, "moved_vertices", wkb, fields, "Point", crs, append=k > 0)
 
 
 def layer_name_of(ref: Any) -> str:
@@ -136,14 +212,16 @@ def layer_name_of(ref: Any) -> str:
 
 
 def write_edited(path: Path, ref: Any, parts: Parts, coords: list[np.ndarray],
-                 moved_rows: list[dict[str, Any]], extra_columns: dict[str, Any] | None = None
-                 ) -> str:
+                 moved_rows: list[dict[str, Any]] | MovedVertices,
+                 extra_columns: dict[str, Any] | None = None) -> str:
     """Write the edited layer (input attributes kept, named as the input layer) and
-    ``moved_vertices``; copy the input layer's default style. Returns the layer name."""
+    ``moved_vertices`` (rows as :class:`MovedVertices` or dicts, see
+    :meth:`MovedVertices.from_rows`); copy the input layer's default style. Returns the layer
+    name."""
     import geopandas as gpd
 
     from toolbox.attribution.output import store_style
-    from toolbox.io.vector_write import write_layers
+    from toolbox.io.vector_write import layer_paths, write_layers
     from toolbox.styles.gpkg import read_layer_styles
     from toolbox.styles.model import CodeStyle, LayerStyle
     from toolbox.styles.qml import qml_document
@@ -163,11 +241,11 @@ def write_edited(path: Path, ref: Any, parts: Parts, coords: list[np.ndarray],
     if len(kinds) == 1:
         base = {"polygon": "Polygon", "line": "LineString", "point": "Point"}[kinds.pop()]
         types[name] = ("Multi" if parts.multi else "") + base + (" Z" if parts.has_z else "")
-    moved = moved_frame(moved_rows, parts.origin, crs)
-    types["moved_vertices"] = "Point"
     layers = [name, "moved_vertices"]
-    write_layers(path, dict(zip(layers, (edited, moved), strict=True)), crs=crs,
-                 geometry_types=types)
+    write_layers(path, {name: edited}, crs=crs, geometry_types=types)
+    moved = moved_rows if isinstance(moved_rows, MovedVertices) else \
+        MovedVertices.from_rows(moved_rows)
+    write_moved(layer_paths(path, layers)["moved_vertices"], moved, parts.origin, crs)
     source = getattr(ref, "path", None)
     if source is not None and Path(source).suffix.lower() == ".gpkg":
         for row in read_layer_styles(source):

@@ -65,6 +65,8 @@ def _report_error(exc: BaseException, where: str) -> int:
         click.echo(f"toolbox: error: {_one_line(exc)}", err=True)
         return getattr(exc, "exit_code", EXIT_USER_ERROR)
     detail = _one_line(f"{type(exc).__name__}: {exc}")
+    step = getattr(exc, "step", None)  # a pipeline's step (toolbox.batch.step_label)
+    where = f"{where}, {step}" if step else where
     click.echo(f"toolbox: internal error in {where}: {detail}; please report it (rerun with "
                "TOOLBOX_DEBUG=1 for the traceback)", err=True)
     return EXIT_INTERNAL_ERROR
@@ -122,7 +124,7 @@ def interrupted_message(signum: int, exc: BaseException | None = None,
         f"terminated by {signal.Signals(signum).name}"
     step = getattr(exc, "step", None)
     if step:
-        what += f" during step {step}"
+        what += f" during {step}"
     written = [str(p) for p in _committed()[committed:]]
     if not written:
         return f"{what}; no output was written"

@@ -68,11 +68,65 @@ def hold_signal(signum: int) -> bool:
     return False
 
 
+#: the signals a section holds in the main thread whatever handler is installed (Python's
+#: default one raises KeyboardInterrupt at once: toolbox.run from a script or a notebook)
+HELD_SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP")
+                     if hasattr(signal, name))
+_MAIN_DEPTH = [0]  # sections open in the main thread (handlers installed by the outermost)
+
+
+def _hold_in_main_thread() -> dict[int, object]:
+    """In the main thread, outside any other section: a handler that holds each of
+    :data:`HELD_SIGNALS` (:func:`hold_signal`) instead of the installed one, which is returned
+    to be put back; elsewhere nothing (a handler can only be set from the main thread)."""
+    if threading.current_thread() is not threading.main_thread():
+        return {}
+    _MAIN_DEPTH[0] += 1
+    if _MAIN_DEPTH[0] > 1:
+        return {}
+    saved: dict[int, object] = {}
+
+    def hold(signum, frame):
+        if hold_signal(signum):
+            return
+        previous = saved.get(signum)  # the section just ended: what the signal did before
+        if callable(previous):
+            previous(signum, frame)
+        elif previous != signal.SIG_IGN:
+            signal.signal(signum, signal.SIG_DFL)
+            signal.raise_signal(signum)
+
+    for signum in HELD_SIGNALS:
+        try:
+            previous = signal.getsignal(signum)
+            if previous is None:  # a handler set from C: not ours to replace
+                continue
+            saved[signum] = previous
+            signal.signal(signum, hold)
+        except (ValueError, OSError):  # not the main interpreter
+            saved.pop(signum, None)
+    return saved
+
+
+def _release_in_main_thread(saved: dict[int, object]) -> None:
+    if threading.current_thread() is not threading.main_thread():
+        return
+    _MAIN_DEPTH[0] -= 1
+    for signum, previous in saved.items():
+        signal.signal(signum, previous)
+
+
 @contextmanager
 def _signals_held():
-    """Signals that :func:`hold_signal` kept wait for the end of the block, then are raised."""
+    """Signals that :func:`hold_signal` kept wait for the end of the block, then are raised.
+
+    The command line's handler asks :func:`hold_signal` itself; in the main thread the block
+    also installs a holding handler for SIGINT, SIGTERM and SIGHUP, so a Ctrl-C during a commit
+    of :func:`toolbox.run` called from Python (default handler: KeyboardInterrupt at once) waits
+    too, then reaches the handler that was installed before."""
     with _HELD_LOCK:
         _HELD[0] += 1
+    saved = _hold_in_main_thread()
     try:
         yield
     finally:
@@ -81,6 +135,7 @@ def _signals_held():
             signum = _HELD[1] if not _HELD[0] else None
             if signum is not None:
                 _HELD[1] = None
+        _release_in_main_thread(saved)
         if signum is not None:
             signal.raise_signal(signum)
 

@@ -148,12 +148,14 @@ def _write_arrow(frame, target: Path, layer: str, kwargs: dict[str, Any]) -> boo
 
 
 def write_wkb_layer(path: str | Path, layer: str, wkb: np.ndarray, fields: dict[str, np.ndarray],
-                    geometry_type: str, crs: Any = None) -> Path:
+                    geometry_type: str, crs: Any = None, append: bool = False) -> Path:
     """Write one layer from arrays: ``wkb`` (object array of WKB geometries, e.g.
     ``shapely.to_wkb``) and one numpy array per field, without building a GeoDataFrame.
 
     A GeoPackage (version 1.2) receives the layer beside its others; GeoParquet goes through
     :func:`write_layers`. ``crs`` is anything with ``to_wkt()`` (pyproj or rasterio).
+    ``append`` adds the rows to the layer an earlier call made (a GeoPackage only: a big layer
+    written block by block).
     """
     from toolbox.io.write_failures import writing
 
@@ -171,6 +173,8 @@ def write_wkb_layer(path: str | Path, layer: str, wkb: np.ndarray, fields: dict[
     # of a contour run; tests/toolbox/test_io.py checks the layer against OGR's reading
     from pyogrio._io import ogr_write
 
+    if append and driver != "GPKG":
+        raise ValueError(f"internal: appending to a {driver} layer")
     dataset_kwargs = dict(GPKG_DATASET_OPTIONS) if driver == "GPKG" and not path.exists() \
         else {}
     names = list(fields)
@@ -179,7 +183,7 @@ def write_wkb_layer(path: str | Path, layer: str, wkb: np.ndarray, fields: dict[
         ogr_write(str(path), layer=layer, driver=driver, geometry=np.asarray(wkb, dtype=object),
                   fields=names, field_data=[fields[k] for k in names], field_mask=None,
                   crs=None if crs is None else crs.to_wkt(), geometry_type=geometry_type,
-                  encoding=None, dataset_kwargs=dataset_kwargs, layer_kwargs={},
+                  encoding=None, dataset_kwargs=dataset_kwargs, layer_kwargs={}, append=append,
                   promote_to_multi=geometry_type.startswith("Multi") and driver in (
                       "GPKG", "FlatGeobuf"))
     if driver == "ESRI Shapefile":

@@ -55,7 +55,7 @@ from toolbox.topology.output import (
 )
 from toolbox.topology.prepare import prepare_lines
 from toolbox.topology.snap import snap_endpoints
-from toolbox.topology.tolerances import Tolerances
+from toolbox.topology.tolerances import Tolerances, large_snap_warning
 
 MAX_ROUNDS = 20
 
@@ -149,6 +149,9 @@ def build_topology(line_geoms: np.ndarray, line_codes: np.ndarray | None = None,
         issues.append(Issue("invalid_geometry", ERROR, shapely.get_point(lines[i], 0),
                             f"shorter than the coordinate precision ({prec:g})", (int(src[i]),)))
     lines, src = gridded[~tiny], src[~tiny]
+    warning = large_snap_warning(tol.snap, lines)
+    if warning:
+        progress.feedback.push_warning(warning)
     stats["input"]["invalid"] += int(tiny.sum())
     stats["input"]["lines"] -= int(tiny.sum())
     codes_of_src = line_codes  # indexed by input row

@@ -5,6 +5,9 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass
 from typing import Any
 
+import numpy as np
+import shapely
+
 from toolbox.errors import ParameterError
 from toolbox.io.parameter_file import DEFAULTS, ParameterFile, resolve
 
@@ -90,3 +93,30 @@ def resolve_tolerances(explicit: dict[str, float | None],
         raise ParameterError("PRECISION", f"({tol.precision:g}) must not be coarser than the snap "
                              f"tolerance ({tol.snap:g}); lower PRECISION or raise SNAP_TOLERANCE")
     return tol, sources
+
+
+#: a snap tolerance above this fraction of the median input line's extent draws a warning
+LARGE_SNAP_FRACTION = 0.25
+
+
+def large_snap_warning(snap: float, lines: np.ndarray) -> str | None:
+    """A warning when SNAP_TOLERANCE is large for the features it cleans, else None.
+
+    Snapping is meant for near misses: a gap that is a small part of the features. The size
+    compared is the median extent of the input lines (the diagonal of each line's bounding
+    box: a building's outline, a kerb, a contour piece), robust to a few long or tiny lines and,
+    unlike a segment length, independent of how densely a curve was digitised. Above a quarter of
+    it a line end can be moved onto a neighbouring feature, or across a typical feature, by a
+    distance comparable to the feature itself: the result is no longer a cleaning of the
+    linework (10 m buildings with a 200 m tolerance give thousands of mangled areas).
+    """
+    if not snap > 0 or not len(lines):
+        return None
+    b = shapely.bounds(lines)
+    extent = float(np.median(np.hypot(b[:, 2] - b[:, 0], b[:, 3] - b[:, 1])))
+    if snap <= LARGE_SNAP_FRACTION * extent:
+        return None
+    return (f"SNAP_TOLERANCE {snap:g} is large for the features: the median input line "
+            f"extent (bounding-box diagonal) is {extent:.3g}, and a tolerance above a quarter of "
+            f"it ({LARGE_SNAP_FRACTION * extent:.3g}) can move line ends across features and "
+            "change their shape; check the areas, or use a near-miss distance")
