@@ -107,6 +107,20 @@ def test_orthos_of_two_dem_tiles_meet_without_a_gap(tiles):
         assert np.abs(value - photo_value(col_u, row_u))[edge].max() > 3.0
 
 
+def test_batch_extent_reaches_the_dem_cell_edges():
+    """ortho:batch cuts each ortho's extent to the DEM's cells holding a height
+    (``on_heights``): to their outer edges, no longer to their centres."""
+    from algorithms.ortho.batch import on_heights
+    from toolbox.photogrammetry.surface import DemSurface
+
+    z, t = dem_tile(X0, X1)
+    z[:, :3] = np.nan  # nodata columns on the west: the cut follows the valid cells
+    surface = DemSurface.from_transform(z, t)
+    cut = on_heights((X0 - 500.0, Y0 - 500.0, X1 + 500.0, Y1 + 500.0), surface)
+    assert cut == pytest.approx((X0 + 3 * CELL, Y0, X1, Y1), abs=1e-9)
+    assert surface.bounds == pytest.approx((X0, Y0, X1, Y1), abs=1e-9)
+
+
 def edge_points():
     """Points of the tile A: in its outer half cell on each side and at the corners, just
     inside its outer edges, inside, and beyond the edges (no height)."""
