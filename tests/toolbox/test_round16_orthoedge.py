@@ -216,3 +216,24 @@ def test_occlusion_sees_the_dsm_edge_held_across_the_outer_half_cell():
     assert hidden.tolist() == [[1, 1]]
     free = visibility_mask(xs, ys[1:], np.zeros((1, 2)), centre, surface)
     assert free.tolist() == [[0, 0]]
+
+
+def test_heights_equal_gdal_bilinear_warp_over_the_whole_dem_extent():
+    """The ortho's height kernels (compiled and NumPy) on a grid of 1 m cells covering a
+    random 7 x 9 DEM of 4 m cells exactly: GDAL's bilinear warp (rasterio.warp.reproject) of
+    the DEM onto that grid, every cell (the old kernels left the outer 2 m NaN: 240 cells)."""
+    from rasterio.warp import Resampling, reproject
+
+    from toolbox.ortho.grid_numpy import heights_on_grid as numpy_heights
+    from toolbox.ortho.heights import heights_on_grid
+
+    z = 100.0 + 20.0 * np.random.default_rng(1).random((7, 9))
+    t = Affine(4.0, 0.0, 1000.0, 0.0, -4.0, 2000.0)
+    gdal = np.full((28, 36), np.nan)
+    reproject(z, gdal, src_transform=t, dst_transform=Affine(1.0, 0.0, 1000.0, 0.0, -1.0, 2000.0),
+              src_crs="EPSG:3003", dst_crs="EPSG:3003", resampling=Resampling.bilinear)
+    xs, ys = 1000.0 + np.arange(36) + 0.5, 2000.0 - np.arange(28) - 0.5
+    for kernel in (heights_on_grid, numpy_heights):
+        out = np.empty((28, 36))
+        kernel(z, 1002.0, 1998.0, 4.0, 4.0, xs, ys, out)
+        np.testing.assert_allclose(out, gdal, rtol=0, atol=1e-9)
