@@ -38,9 +38,10 @@ class Monoplot(Algorithm):
     INPUT lists image points (``photo``, optional ``point_id``, ``col_px``/``row_px`` or
     ``x_mm``/``y_mm``; see orientation:intersect). Each ray (collinearity, domain brief section 4,
     after the interior orientation, the principal point and radial distortion) is intersected with
-    the DEM, bilinear between cell centres: METHOD ``march`` walks down the ray from the DEM's top
-    in half-cell steps and refines the first crossing (Illinois regula falsi) to TOLERANCE; it
-    finds the first visible surface point and converges on steep terrain. ``fixed_point`` is the
+    the DEM, bilinear between cell centres (the edge value held across the outer half cell):
+    METHOD ``march`` walks down the ray from the DEM's top in half-cell steps and refines the
+    first crossing (Illinois regula falsi) to TOLERANCE; it finds the first visible surface
+    point and converges on steep terrain. ``fixed_point`` is the
     classical iteration Z <- DEM(X(Z), Y(Z)), which fails where the terrain is steeper than the
     ray (reported as not_converged). Without a DEM the rays meet the plane Z = HEIGHT.
 

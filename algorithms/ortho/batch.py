@@ -338,15 +338,17 @@ def write_listing(algorithm_id: str, output: Any, reports: list[dict[str, Any]],
 
 def on_heights(extent: tuple[float, float, float, float], surface: Any
                ) -> tuple[float, float, float, float]:
-    """``extent`` cut to the box of the DEM cell centres that hold a height (``surface``, in the
-    orthos' CRS): a cell outside it has no height, so it would only be written empty (ODM's DSM
+    """``extent`` cut to the box of the DEM cells that hold a height (``surface``, in the
+    orthos' CRS; to their outer edges: the heights hold the edge value across the DEM's outer
+    half cell): a cell outside it has no height, so it would only be written empty (ODM's DSM
     leaves 20-30 % of its drone photos' footprints without heights)."""
     import numpy as np
 
     ok = np.isfinite(surface.z)
     rows, cols = np.flatnonzero(ok.any(axis=1)), np.flatnonzero(ok.any(axis=0))
-    xmin, xmax = surface.x0 + cols[0] * surface.cell_x, surface.x0 + cols[-1] * surface.cell_x
-    ymin, ymax = surface.y0 - rows[-1] * surface.cell_y, surface.y0 - rows[0] * surface.cell_y
+    cx, cy = surface.cell_x, surface.cell_y
+    xmin, xmax = surface.x0 + (cols[0] - 0.5) * cx, surface.x0 + (cols[-1] + 0.5) * cx
+    ymin, ymax = surface.y0 - (rows[-1] + 0.5) * cy, surface.y0 - (rows[0] - 0.5) * cy
     cut = (max(extent[0], xmin), max(extent[1], ymin), min(extent[2], xmax),
            min(extent[3], ymax))
     return cut if cut[0] < cut[2] and cut[1] < cut[3] else extent

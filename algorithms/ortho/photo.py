@@ -37,11 +37,13 @@ class OrthoPhoto(Algorithm):
     domain brief section 15; thesis par. 2.6.5 and 3.8).
 
     For every output cell centre the height comes from the DEM (bilinear between DEM cell
-    centres; a DEM in another CRS is reprojected on the fly with pyproj), the collinearity
-    equations (brief section 4) project the point into the photo, radial distortion, the
-    principal point and the pixel -> fiducial transform of the interior orientation are
-    applied, and the photo is resampled there (nearest, bilinear, cubic, lanczos by OpenCV;
-    quadratic, the thesis' Z-Map choice, by Dodgson's interpolating quadratic kernel).
+    centres, the edge value held across the DEM's outer half cell as gdalwarp does, so orthos
+    of adjacent DEM tiles meet without a gap; a DEM in another CRS is reprojected on the fly
+    with pyproj), the collinearity equations (brief section 4) project the point into the
+    photo, radial distortion, the principal point and the pixel -> fiducial transform of the
+    interior orientation are applied, and the photo is resampled there (nearest, bilinear,
+    cubic, lanczos by OpenCV; quadratic, the thesis' Z-Map choice, by Dodgson's interpolating
+    quadratic kernel).
     Without distortion the projection is exact at every cell (the collinearity equations are a
     3 x 4 projective matrix on (X, Y, Z, 1)); with distortion it is evaluated exactly at the
     corners of MAP_BLOCK x MAP_BLOCK cell blocks and blended inside only where the blend is

@@ -79,9 +79,12 @@ def block_modes_on_dem(dem, dgx0, dgy0, dcx, dcy, xs, ys, a, m, block, lipschitz
             j1 = min(j0 + block, w) - 1
             modes[bi, bj] = BLOCK_EXACT
             fx0, fx1 = (xs[j0] - dgx0) / dcx, (xs[j1] - dgx0) / dcx
-            if not (min(fx0, fx1) >= 0.0 and max(fx0, fx1) <= ncol - 1
-                    and min(fy0, fy1) >= 0.0 and max(fy0, fy1) <= nrow - 1):
-                continue  # leaves the DEM: no height somewhere
+            if not (min(fx0, fx1) >= -0.5 and max(fx0, fx1) <= ncol - 0.5
+                    and min(fy0, fy1) >= -0.5 and max(fy0, fy1) <= nrow - 0.5):
+                continue  # leaves the DEM's cells: no height somewhere
+            # the outer half cell holds the edge nodes' heights (as ortho_window_projective)
+            fx0, fx1 = min(max(fx0, 0.0), ncol - 1.0), min(max(fx1, 0.0), ncol - 1.0)
+            fy0, fy1 = min(max(fy0, 0.0), nrow - 1.0), min(max(fy1, 0.0), nrow - 1.0)
             r_lo, r_hi = int(min(fy0, fy1)), min(int(max(fy0, fy1)) + 1, nrow - 1)
             c_lo, c_hi = int(min(fx0, fx1)), min(int(max(fx0, fx1)) + 1, ncol - 1)
             z_lo, z_hi, nan_node = np.inf, -np.inf, False

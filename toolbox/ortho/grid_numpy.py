@@ -23,10 +23,12 @@ CHUNK_CELLS = 1 << 14  # cells per chunk of rows (float64 temporaries of 128 kB;
 def _axis(coords: np.ndarray, origin: float, step: float, n: int
           ) -> tuple[np.ndarray, np.ndarray]:
     """DEM index and weight along one axis of the grid points (``(coords - origin) / step``):
-    index ``min(int(f), n - 2)``, weight ``f - index``; outside ``[0, n - 1]`` index 0 and
-    weight NaN (so that the height is NaN)."""
+    index ``min(int(f), n - 2)``, weight ``f - index``, ``f`` clamped to ``[0, n - 1]`` in the
+    outer half cell (the edge value held); outside ``[-0.5, n - 0.5]`` index 0 and weight NaN
+    (so that the height is NaN)."""
     f = (coords - origin) / step
-    inside = (f >= 0.0) & (f <= n - 1)
+    inside = (f >= -0.5) & (f <= n - 0.5)
+    f = np.clip(f, 0.0, n - 1.0)
     index = np.minimum(np.where(inside, f, 0.0).astype(np.int64), n - 2)
     return index, np.where(inside, f - index, np.nan)
 

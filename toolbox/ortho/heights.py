@@ -1,5 +1,7 @@
-"""Bilinear DEM heights (between DEM cell centres, NaN outside or on nodata) on a grid of cell
-centres or at scattered points: the kernels of :class:`toolbox.ortho.dem.DemSampler`."""
+"""Bilinear DEM heights (between DEM cell centres, the edge value held across the DEM's outer
+half cell as GDAL's bilinear resampling does; NaN beyond the DEM's outer cell edges or on nodata)
+on a grid of cell centres or at scattered points: the kernels of
+:class:`toolbox.ortho.dem.DemSampler`."""
 
 from __future__ import annotations
 
@@ -14,7 +16,8 @@ from toolbox.photogrammetry.kernels import _dem_height
 
 @njit(**FAST)
 def heights_on_grid(dem, gx0, gy0, cx, cy, xs, ys, out):
-    """Bilinear heights (between DEM cell centres, NaN outside or on nodata) at the grid points
+    """Bilinear heights (between DEM cell centres, held across the outer half cell; NaN beyond
+    the DEM's cells or on nodata) at the grid points
     ``(xs[j], ys[i])``; ``dem`` cell [0, 0] centred at ``(gx0, gy0)``, cells ``cx`` x ``cy``.
     Separable: the column and row of every point are found once per column and once per row
     (the same arithmetic as the per-point ``_dem_height`` of the monoplot kernel)."""
@@ -28,10 +31,12 @@ def heights_on_grid(dem, gx0, gy0, cx, cy, xs, ys, out):
 @njit(**FAST)
 def _dem_columns(cols, gx0, cx, xs, jj, tx):
     """DEM column ``jj`` (unsigned: no negative-index check) and weight ``tx`` of every grid
-    column; outside the DEM column 0 and weight NaN, so that the height is NaN."""
+    column; in the outer half cell the edge column (clamped, as ``_dem_height``); beyond the
+    DEM's cells column 0 and weight NaN, so that the height is NaN."""
     for j in range(xs.shape[0]):
         fx = (xs[j] - gx0) / cx
-        if fx >= 0.0 and fx <= cols - 1:
+        if fx >= -0.5 and fx <= cols - 0.5:
+            fx = min(max(fx, 0.0), cols - 1.0)
             jj[j] = min(int(fx), cols - 2)
             tx[j] = fx - jj[j]
         else:
@@ -54,10 +59,11 @@ def _heights_rows(dem, gy0, cy, ys, jj, tx, i0, i1, zoff, out):
     for i in range(i0, i1):
         o = out[i - zoff]
         fy = (gy0 - ys[i]) / cy
-        if not (fy >= 0.0 and fy <= rows - 1):
+        if not (fy >= -0.5 and fy <= rows - 0.5):
             o[:] = np.nan
             missing += w
             continue
+        fy = min(max(fy, 0.0), rows - 1.0)  # the outer half cell: the edge row's heights
         r = min(int(fy), rows - 2)
         ty = fy - r
         if r == held + 1:  # the grid rows go south: the old bottom row is the new top

@@ -126,9 +126,10 @@ def ortho_window_projective(dem, dgx0, dgy0, dcx, dcy, xs, ys, a, m, centre, ref
     jj = np.empty(w, dtype=np.uint64)  # as _dem_columns; unsigned: the loops vectorise
     tx = np.empty(w)
     spans = slack >= 0.0  # the rows' spans (below) need every column on the DEM
-    for j in range(w):
+    for j in range(w):  # (the outer half cell of the DEM clamped to its edge, as _dem_columns)
         fx = (xs[j] - dgx0) / dcx
-        inside_dem = fx >= 0.0 and fx <= ncol - 1
+        inside_dem = fx >= -0.5 and fx <= ncol - 0.5
+        fx = min(max(fx, 0.0), ncol - 1.0)
         jj[j] = min(int(fx), ncol - 2) if inside_dem else 0
         tx[j] = fx - jj[j] if inside_dem else np.nan
         spans = spans and inside_dem
@@ -161,6 +162,8 @@ def ortho_window_projective(dem, dgx0, dgy0, dcx, dcy, xs, ys, a, m, centre, ref
     for i in range(h):
         zr = z[i] if z.shape[0] == h else line
         fy = (dgy0 - ys[i]) / dcy
+        row_on_dem = fy >= -0.5 and fy <= nrow - 0.5
+        fy = min(max(fy, 0.0), nrow - 1.0)  # the outer half cell: the edge row's heights
         ud = m[0, 1] * i + m[0, 3]
         vd = m[1, 1] * i + m[1, 3]
         wd = m[2, 1] * i + m[2, 3]
@@ -168,7 +171,7 @@ def ortho_window_projective(dem, dgx0, dgy0, dcx, dcy, xs, ys, a, m, centre, ref
         # the row's spans: cells [0, p0) and [p1, w) surely outside the photo, [q0, q1) surely
         # inside, the rest tested cell by cell (all of it: p0 = 0, q0 = q1 = p1 = w)
         p0, q0, q1, p1 = 0, w, w, w
-        if not (fy >= 0.0 and fy <= nrow - 1):
+        if not row_on_dem:
             zr[:] = np.nan
         else:  # heights: the DEM rows around the grid row along x (kept), blended
             r = min(int(fy), nrow - 2)

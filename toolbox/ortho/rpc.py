@@ -1,7 +1,8 @@
 """Ortho of a satellite image through its RPC camera (:func:`rpc_orthorectify`).
 
 Per output window: the DEM's heights at the cell centres (:class:`~toolbox.ortho.dem.DemSampler`:
-bilinear between DEM cell centres, a DEM in another CRS through a checked pyproj lattice), the
+bilinear between DEM cell centres, the edge value held across the outer half cell, a DEM in
+another CRS through a checked pyproj lattice), the
 cells (grid CRS -> WGS84 lon/lat with pyproj) projected by the RPCs (exact at every cell:
 :meth:`toolbox.cameras.rpc.RpcCamera.project`), the image resampled there by the warp engine
 (:func:`toolbox.raster.warp.warp_to_geotiff`). The default grid covers the image's outline

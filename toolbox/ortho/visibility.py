@@ -32,10 +32,11 @@ def hidden_cells(xs, ys, z, centre, dsm, gx0, gy0, cx, cy, zmax, tolerance, bmax
     """Occlusion test of ground cells ``(xs[j], ys[i], z[i, j])`` against a DSM.
 
     The ray from each cell towards the projection centre is walked over the DSM (bilinear
-    between cell centres) in half-cell steps until it rises above the DSM's highest point
-    ``zmax``; the cell is hidden (``out = 1``) where the surface stands more than ``tolerance``
-    above the ray, i.e. the camera sees something else along that line of sight (the object-space
-    form of a Z-buffer: no depth tolerance between image and ground samples, no holes). Where
+    between cell centres, the edge value held across the outer half cell) in half-cell steps
+    until it rises above the DSM's highest point ``zmax``; the cell is hidden (``out = 1``)
+    where the surface stands more than ``tolerance`` above the ray, i.e. the camera sees
+    something else along that line of sight (the object-space form of a Z-buffer: no depth
+    tolerance between image and ground samples, no holes). Where
     the ray enters a block of ``block`` x ``block`` DSM cells above that block's highest value
     (``bmax``, :func:`block_maxima`) it jumps to the block's exit: the ray only rises, so nothing
     in that block can hide the cell. Cells without height get 0; beyond the DSM the ray is free.
@@ -68,20 +69,20 @@ def hidden_cells(xs, ys, z, centre, dsm, gx0, gy0, cx, cy, zmax, tolerance, bmax
                 fx = (px - gx0) / cx
                 fy = (gy0 - py) / cy
                 ray = zc + s * slope
-                if fx >= 0.0 and fy >= 0.0 and fx <= cols - 1 and fy <= rows - 1:
-                    bi = int(fy) // block
-                    bj = int(fx) // block
+                if fx >= -0.5 and fy >= -0.5 and fx <= cols - 0.5 and fy <= rows - 0.5:
+                    bi = int(min(max(fy, 0.0), rows - 1.0)) // block  # (the outer half cell:
+                    bj = int(min(max(fx, 0.0), cols - 1.0)) // block  # the edge's block)
                     if ray > bmax[bi, bj] + tolerance:  # free above this block: to its exit
-                        tx = 1e300
+                        tx = 1e300  # (the first blocks reach over the outer half cell: -0.5)
                         ty = 1e300
                         if dfx > 0.0:
                             tx = ((bj + 1) * block - fx) / dfx
                         elif dfx < 0.0:
-                            tx = (bj * block - fx) / dfx
+                            tx = (bj * block - (0.5 if bj == 0 else 0.0) - fx) / dfx
                         if dfy > 0.0:
                             ty = ((bi + 1) * block - fy) / dfy
                         elif dfy < 0.0:
-                            ty = (bi * block - fy) / dfy
+                            ty = (bi * block - (0.5 if bi == 0 else 0.0) - fy) / dfy
                         s += max(min(tx, ty), 0.0) + 1e-6 * step
                         continue
                 hgt, code = _dem_height(px, py, dsm, gx0, gy0, cx, cy)

@@ -213,12 +213,18 @@ def image_to_ground_at_z(u, v, z, centre, rot, c, pp, dmode, dr, dd, dk, di, m, 
 
 @njit(cache=True)
 def _dem_height(x, y, dem, gx0, gy0, cx, cy):
-    """Bilinear height between cell centres; NaN with a code: 0 ok, OUTSIDE, NODATA."""
+    """Bilinear height between cell centres, the edge value held across the outer half cell
+    (a point inside the DEM's cells but beyond its outer centres takes the height of the
+    nearest point of the centres' hull, as GDAL's bilinear resampling:
+    :func:`toolbox.raster.bilinear.bilinear` with ``half_cell``); NaN with a code: 0 ok,
+    OUTSIDE (beyond the DEM's outer cell edges), NODATA."""
     rows, cols = dem.shape
     fx = (x - gx0) / cx
     fy = (gy0 - y) / cy
-    if not (fx >= 0.0 and fy >= 0.0 and fx <= cols - 1 and fy <= rows - 1):
+    if not (fx >= -0.5 and fy >= -0.5 and fx <= cols - 0.5 and fy <= rows - 0.5):
         return np.nan, OUTSIDE
+    fx = min(max(fx, 0.0), cols - 1.0)
+    fy = min(max(fy, 0.0), rows - 1.0)
     j = min(int(fx), cols - 2)
     i = min(int(fy), rows - 2)
     tx = fx - j

@@ -48,11 +48,13 @@ def image_to_ground_at_z(u, v, z, centre, rot, c, pp, dmode, dr, dd, dk, di, m, 
 
 
 def _dem_height(x, y, dem, gx0, gy0, cx, cy):
-    """Bilinear heights between cell centres and their codes (OK, OUTSIDE, NODATA)."""
+    """Bilinear heights between cell centres, the edge value held across the outer half cell
+    (as the compiled ``_dem_height``), and their codes (OK, OUTSIDE, NODATA)."""
     rows, cols = dem.shape
     fx = (x - gx0) / cx
     fy = (gy0 - y) / cy
-    inside = (fx >= 0.0) & (fy >= 0.0) & (fx <= cols - 1) & (fy <= rows - 1)
+    inside = (fx >= -0.5) & (fy >= -0.5) & (fx <= cols - 0.5) & (fy <= rows - 0.5)
+    fx, fy = np.clip(fx, 0.0, cols - 1.0), np.clip(fy, 0.0, rows - 1.0)
     j = np.minimum(np.where(inside, fx, 0.0).astype(np.int64), cols - 2)
     i = np.minimum(np.where(inside, fy, 0.0).astype(np.int64), rows - 2)
     tx, ty = fx - j, fy - i

@@ -1,4 +1,5 @@
-"""Terrain surfaces for image -> ground: a DEM grid (bilinear between cell centres) read in a window.
+"""Terrain surfaces for image -> ground: a DEM grid (bilinear between cell centres, the edge value
+held across the outer half cell) read in a window.
 
 A :class:`DemSurface` holds a north-up height grid as float64 with NaN for nodata, and the centre
 of its first cell, so monoplotting and footprints never need the whole raster: only the window a
@@ -68,22 +69,26 @@ class DemSurface:
 
     @property
     def bounds(self) -> tuple[float, float, float, float]:
-        """Extent of the cell centres (where heights are defined): xmin, ymin, xmax, ymax."""
+        """Extent of the cells (where heights are defined: bilinear between the centres, the
+        edge value held across the outer half cell): xmin, ymin, xmax, ymax."""
         rows, cols = self.z.shape
-        return (self.x0, self.y0 - (rows - 1) * self.cell_y, self.x0 + (cols - 1) * self.cell_x,
-                self.y0)
+        hx, hy = 0.5 * self.cell_x, 0.5 * self.cell_y
+        return (self.x0 - hx, self.y0 - (rows - 0.5) * self.cell_y,
+                self.x0 + (cols - 0.5) * self.cell_x, self.y0 + hy)
 
     @property
     def z_range(self) -> tuple[float, float]:
         return float(np.nanmin(self.z)), float(np.nanmax(self.z))
 
     def height(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
-        """Bilinear heights at ground points; NaN outside the cell-centre extent or on nodata."""
+        """Bilinear heights at ground points, the edge value held across the outer half cell
+        (as the monoplot kernel's ``_dem_height``); NaN beyond the cells or on nodata."""
         from toolbox.raster.bilinear import bilinear
 
         x, y = np.broadcast_arrays(np.asarray(x, dtype="float64"), np.asarray(y, dtype="float64"))
         xy = np.column_stack([x.ravel(), y.ravel()])
-        return bilinear(self.z, self.x0, self.y0, self.cell_x, -self.cell_y, xy).reshape(x.shape)
+        return bilinear(self.z, self.x0, self.y0, self.cell_x, -self.cell_y, xy,
+                        half_cell=True).reshape(x.shape)
 
     def kernel_arguments(self) -> tuple:
         """``(z, x0, y0, cell_x, cell_y, zmin, zmax)`` as the monoplot kernel takes them."""

@@ -153,8 +153,10 @@ def test_dem_not_covering_leaves_cells_empty_and_counted(block, tmp_path):
     assert any("no DEM height" in w for w in feedback.warnings)
     data, truth, t = read_with_truth(tmp_path / "half_ortho.tif", block.texture)
     xs = t.c + (np.arange(data.shape[2]) + 0.5) * t.a
-    east = xs > block.transform.c + (half.shape[1] - 0.5) * block.transform.a
+    # beyond the DEM's outer cell edge (its outer half cell holds the edge heights, as gdalwarp)
+    east = xs > block.transform.c + half.shape[1] * block.transform.a
     assert (data[1][:, east] == 0).all()  # never invented
+    assert (data[1][:, ~east] == 255).any(axis=0).all()  # up to that edge
 
 
 @pytest.mark.parametrize("change, message", [
