@@ -10,6 +10,8 @@ import subprocess
 from pathlib import Path
 
 import geopandas as gpd
+import numpy as np
+import pytest
 import shapely
 
 import toolbox
@@ -117,3 +119,79 @@ def test_vector_info_bounds_leave_out_null_geometries(tmp_path):
     toolbox.run("vector:info", {"INPUT": path, "OUTPUT": out})
     (layer,) = _strict_json(out)["layers"]
     assert layer["bounds"] == [X, Y, X + 10, Y + 5]
+
+
+# -- an alpha band GDAL does not read as the mask ---------------------------------------------
+def _alpha_raster(count: int, size: int = 600) -> np.ndarray:
+    """``count`` bands (the last alpha) of Byte: the first 100 rows outside (alpha 0, data 0)."""
+    data = np.full((count, size, size), 120, dtype="uint8")
+    data[-1] = 255
+    data[:, :100, :] = 0
+    return data
+
+
+@pytest.mark.parametrize("mode", ["streamed", "memory", "cog"])
+@pytest.mark.parametrize("count", [3, 5])
+def test_alpha_band_gdal_would_not_read_is_also_the_files_mask(tmp_path, mode, count):
+    # GDAL reads an alpha band as the mask only as band 2 of 2 or 4 of 4: an RGBN photo's
+    # 4 bands + alpha (or grey + NIR + alpha) had every pixel valid to GDAL, gdalwarp, QGIS'
+    # GDAL tools and rasterio's dataset_mask: the outside of the photo was black data (exit 0)
+    import rasterio
+    from affine import Affine
+
+    from toolbox.raster.writer import write_raster
+
+    data = _alpha_raster(count)
+    options = {"streamed": {}, "memory": {"memory_mb": 64}, "cog": {"cog": True}}[mode]
+    path = write_raster(tmp_path / "a.tif", data, Affine(1, 0, X, 0, -1, Y), "EPSG:3003",
+                        alpha=True, overviews=True, **options)
+    with rasterio.open(path) as src:
+        assert src.count == count and src.colorinterp[-1].name == "alpha"
+        np.testing.assert_array_equal(src.dataset_mask() > 0, data[-1] > 0)
+        assert src.overviews(1) == [2]
+        np.testing.assert_array_equal(src.dataset_mask(out_shape=(300, 300)) > 0,
+                                      data[-1, ::2, ::2] > 0)
+
+
+@pytest.mark.parametrize("count", [2, 4])
+def test_alpha_band_gdal_reads_gets_no_extra_mask(tmp_path, count):
+    import rasterio
+    from affine import Affine
+
+    from toolbox.raster.writer import write_raster
+
+    data = _alpha_raster(count)
+    path = write_raster(tmp_path / "a.tif", data, Affine(1, 0, X, 0, -1, Y), "EPSG:3003",
+                        alpha=True)
+    with rasterio.open(path) as src:
+        assert "alpha" in [f.name for f in src.mask_flag_enums[0]]  # GDAL's own alpha rule
+        np.testing.assert_array_equal(src.dataset_mask() > 0, data[-1] > 0)
+
+
+def test_rectified_four_band_photo_outside_is_masked_for_gdal(tmp_path):
+    import rasterio
+
+    size = 200
+    photo = tmp_path / "rgbn.tif"
+    bands = np.stack([np.full((size, size), 60 + 30 * k, dtype="uint8") for k in range(4)])
+    with rasterio.open(photo, "w", driver="GTiff", width=size, height=size, count=4,
+                       dtype="uint8", photometric="RGB") as dst:  # red, green, blue, NIR
+        dst.write(bands)
+    # a pixel -> ground similarity turned 30 degrees: the rectified grid has corners outside
+    angle = np.radians(30.0)
+    ca, sa = np.cos(angle), np.sin(angle)
+    rows = ["id,col,row,X,Y"]
+    for k, (c, r) in enumerate([(0, 0), (size, 0), (0, size), (size, size), (100, 50),
+                                (50, 150)]):
+        rows.append(f"P{k},{c},{r},{X + ca * c + sa * r},{Y + sa * c - ca * r}")
+    gcps = tmp_path / "gcps.csv"
+    gcps.write_text("\n".join(rows) + "\n")
+    toolbox.run("rectify:estimate", {"INPUT": gcps, "CRS": "EPSG:3003", "MODEL": "affine",
+                                     "ROBUST": "none", "OUTPUT": tmp_path / "t.json"})
+    out = toolbox.run("rectify:image", {"INPUT": photo, "TRANSFORM": tmp_path / "t.json",
+                                        "CELL_SIZE": 1, "OUTPUT": tmp_path / "r.tif"})
+    with rasterio.open(out["OUTPUT"]) as src:
+        assert src.count == 5
+        alpha = src.read(5) > 0
+        assert 0.2 < 1 - alpha.mean() < 0.6  # the rotated photo leaves corners outside
+        np.testing.assert_array_equal(src.dataset_mask() > 0, alpha)
