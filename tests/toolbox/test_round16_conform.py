@@ -195,3 +195,30 @@ def test_rectified_four_band_photo_outside_is_masked_for_gdal(tmp_path):
         alpha = src.read(5) > 0
         assert 0.2 < 1 - alpha.mean() < 0.6  # the rotated photo leaves corners outside
         np.testing.assert_array_equal(src.dataset_mask() > 0, alpha)
+
+
+# -- CSV reports ---------------------------------------------------------------------------------
+def test_tin_volume_csv_report_quotes_a_dem_path_with_a_comma(tmp_path):
+    # the reference row was written as 'reference,<path> band 1,': a folder 'Siena, 2024' split
+    # it into 4 fields (RFC 4180 quoting; Excel, pandas and csv readers shifted the columns)
+    import csv
+
+    from affine import Affine
+
+    from toolbox.raster.writer import write_raster
+
+    xs, ys = np.meshgrid(np.arange(5) * 10.0, np.arange(5) * 10.0)
+    points = gpd.GeoDataFrame(geometry=shapely.points(X + xs.ravel(), Y + ys.ravel(),
+                                                      300.0 + xs.ravel() / 10), crs="EPSG:3003")
+    write_layers(tmp_path / "pts.gpkg", {"pts": points})
+    toolbox.run("tin:delaunay", {"INPUT": tmp_path / "pts.gpkg", "OUTPUT": tmp_path / "tin.gpkg"})
+    folder = tmp_path / "Siena, 2024"
+    folder.mkdir()
+    dem = write_raster(folder / 'dem "v2".tif', np.full((6, 6), 299.0, dtype="float32"),
+                       Affine(10, 0, X - 5, 0, -10, Y + 45), "EPSG:3003")
+    report = tmp_path / "volume.csv"
+    toolbox.run("tin:volume", {"TIN": f"{tmp_path / 'tin.gpkg'}|layername=triangles",
+                               "REFERENCE_DEM": dem, "REPORT": report})
+    rows = list(csv.reader(report.open(newline="")))
+    assert {len(row) for row in rows} == {3}
+    assert rows[-1][0] == "reference" and rows[-1][1] == f"{dem} band 1"
