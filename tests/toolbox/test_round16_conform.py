@@ -222,3 +222,23 @@ def test_tin_volume_csv_report_quotes_a_dem_path_with_a_comma(tmp_path):
     rows = list(csv.reader(report.open(newline="")))
     assert {len(row) for row in rows} == {3}
     assert rows[-1][0] == "reference" and rows[-1][1] == f"{dem} band 1"
+
+
+def test_shapefile_of_2d_and_3d_features_warns_of_the_made_up_z(tmp_path, caplog):
+    # a Shapefile is 3D or 2D throughout: GDAL wrote the 2D line with Z = 0, a height nobody
+    # measured, without a word (exit 0)
+    import logging
+
+    import pyogrio
+
+    path = tmp_path / "lines.shp"
+    with caplog.at_level(logging.WARNING, logger="toolbox"):
+        write_layers(path, {"lines": _mixed_lines()})
+    frame = pyogrio.read_dataframe(path)
+    assert list(shapely.get_coordinates(frame.geometry[1], include_z=True)[:, 2]) == [0, 0, 0]
+    assert any("1 of 2 features have no Z" in r.getMessage() and "Z = 0" in r.getMessage()
+               for r in caplog.records)
+    caplog.clear()
+    with caplog.at_level(logging.WARNING, logger="toolbox"):
+        write_layers(tmp_path / "z.shp", {"z": _mixed_lines().iloc[[0, 2]]})
+    assert not [r for r in caplog.records if "no Z" in r.getMessage()]

@@ -118,7 +118,26 @@ def write_layers(path: str | Path, layers: dict[str, Any], crs: Any = None,
             declare_optional_z(target, layer_name, frame.geometry.values)
         if driver == "ESRI Shapefile":
             warn_renamed_fields(target, [c for c in frame.columns if c != frame.geometry.name])
+            warn_made_up_z(target, frame.geometry.values)
     return path
+
+
+def warn_made_up_z(path: Path, geoms) -> None:
+    """One warning when a Shapefile layer got 2D and 3D features: a Shapefile is 3D (PolyLineZ,
+    PointZ...) or 2D throughout, so GDAL writes the 2D features with Z = 0, a height nobody
+    measured (a 2D contour at 0 m)."""
+    import shapely
+
+    geoms = np.asarray(geoms, dtype=object)
+    present = geoms[~(shapely.is_missing(geoms) | shapely.is_empty(geoms))]
+    flat = int((~shapely.has_z(present)).sum()) if len(present) else 0
+    if 0 < flat < len(present):
+        import logging
+
+        logging.getLogger("toolbox").warning(
+            f"{path.name}: {flat} of {len(present)} features have no Z; a Shapefile layer is "
+            "all 3D or all 2D, so they were written with Z = 0, a height they do not have "
+            "(a .gpkg or .geojson output keeps them 2D)")
 
 
 def declare_optional_z(path: Path, layer: str, geoms) -> None:
