@@ -242,3 +242,68 @@ def test_shapefile_of_2d_and_3d_features_warns_of_the_made_up_z(tmp_path, caplog
     with caplog.at_level(logging.WARNING, logger="toolbox"):
         write_layers(tmp_path / "z.shp", {"z": _mixed_lines().iloc[[0, 2]]})
     assert not [r for r in caplog.records if "no Z" in r.getMessage()]
+
+
+# -- LAS/LAZ -------------------------------------------------------------------------------------
+def _las_wkt(path: Path) -> tuple[bool, str]:
+    """(WKT global-encoding bit, text of the OGC WKT VLR) read from the LAS 1.4 bytes
+    (specification tables 3 and 4; not through laspy)."""
+    import struct
+
+    data = path.read_bytes()
+    encoding = struct.unpack_from("<H", data, 6)[0]
+    header_size, = struct.unpack_from("<H", data, 94)
+    n_vlrs, = struct.unpack_from("<I", data, 100)
+    offset, wkt = header_size, None
+    for _ in range(n_vlrs):
+        user = data[offset + 2:offset + 18].rstrip(b"\0")
+        record, length = struct.unpack_from("<HH", data, offset + 18)
+        if user == b"LASF_Projection" and record == 2112:
+            wkt = data[offset + 54:offset + 54 + length].rstrip(b"\0").decode()
+        offset += 54 + length
+    return bool(encoding & 16), wkt
+
+
+@pytest.mark.parametrize("crs", ["EPSG:3003", "EPSG:3003+5214"])
+def test_las_crs_vlr_is_wkt1_as_las_1_4_says(tmp_path, crs):
+    # LAS 1.4 R15 2.5: the WKT of the OGC 01-009 specification (WKT1); laspy wrote pyproj's
+    # default WKT2 'PROJCRS[...', which readers of the specification's WKT do not parse
+    from pyproj import CRS
+
+    from toolbox.io.pointcloud import write_point_cloud
+
+    path = tmp_path / "points.las"
+    write_point_cloud(path, np.array([[X, Y, 300.0], [X + 10, Y + 10, 310.0]]), crs=crs)
+    wkt_bit, wkt = _las_wkt(path)
+    assert wkt_bit
+    assert wkt.startswith(("PROJCS[", "COMPD_CS["))
+    assert CRS.from_wkt(wkt) == CRS(crs)
+
+
+def test_las_north_first_crs_keeps_a_wkt_that_reads_back_the_same(tmp_path):
+    from pyproj import CRS
+
+    from toolbox.io.pointcloud import write_point_cloud
+
+    path = tmp_path / "points.las"
+    write_point_cloud(path, np.array([[4799000.0, 688000.0, 300.0]]), crs="EPSG:6707")
+    assert CRS.from_wkt(_las_wkt(path)[1]) == CRS("EPSG:6707")
+
+
+def test_classified_copy_of_a_cloud_without_crs_gets_a_wkt1_vlr(tmp_path):
+    import laspy
+    from pyproj import CRS
+
+    from toolbox.io.pointcloud import PointFilter, open_point_cloud, write_classified_copy
+
+    source = tmp_path / "in.las"
+    header = laspy.LasHeader(point_format=6, version="1.4")
+    header.scales, header.offsets = [0.01] * 3, [X, Y, 0.0]
+    las = laspy.LasData(header)
+    las.x, las.y, las.z = np.array([X, X + 5]), np.array([Y, Y + 5]), np.array([300.0, 301.0])
+    las.write(source)
+    out = tmp_path / "out.las"
+    write_classified_copy(open_point_cloud(source), PointFilter(), out, np.array([2, 1]),
+                          crs="EPSG:3003")
+    wkt_bit, wkt = _las_wkt(out)
+    assert wkt_bit and wkt.startswith("PROJCS[") and CRS.from_wkt(wkt) == CRS("EPSG:3003")
