@@ -307,3 +307,52 @@ def test_classified_copy_of_a_cloud_without_crs_gets_a_wkt1_vlr(tmp_path):
                           crs="EPSG:3003")
     wkt_bit, wkt = _las_wkt(out)
     assert wkt_bit and wkt.startswith("PROJCS[") and CRS.from_wkt(wkt) == CRS("EPSG:3003")
+
+
+# -- nodata consistent with the data -----------------------------------------------------------
+def _ramp_points(path: Path) -> Path:
+    """11 x 11 points 10 m apart, Z = (x - 50) / 10 exactly: the column x = 50 is at 0 m."""
+    xs, ys = np.meshgrid(np.arange(11) * 10.0, np.arange(11) * 10.0)
+    frame = gpd.GeoDataFrame(geometry=shapely.points(X + xs.ravel(), Y + ys.ravel(),
+                                                     (xs.ravel() - 50) / 10), crs="EPSG:3003")
+    write_layers(path, {"pts": frame})
+    return path
+
+
+def _invalid_cells(path: Path) -> int:
+    import rasterio
+
+    with rasterio.open(path) as src:
+        return int((src.read_masks(1) == 0).sum())
+
+
+def test_dem_cells_computed_as_the_nodata_value_are_warned_and_not_counted(tmp_path):
+    # a sea-level DEM gridded with NODATA 0: every cell at 0 m read as no data in GDAL/QGIS,
+    # STATISTICS said all 100 cells had a value (exit 0, no word)
+    from toolbox.feedback import Feedback
+
+    out, feedback = tmp_path / "dem.tif", Feedback()
+    result = toolbox.run("dem:nearest", {"INPUT": _ramp_points(tmp_path / "p.gpkg"),
+                                         "CELL_SIZE": 10, "NODATA": 0, "OUTPUT": out},
+                         feedback=feedback)
+    lost = _invalid_cells(out)
+    assert lost == 10  # the column of cells whose nearest point is at x = 50
+    cells = result["STATISTICS"]["cells"]
+    assert cells["cells_with_value"] == 100 - lost and cells["cells_nodata"] == lost
+    assert any("10 cell(s) were computed as exactly 0, the NODATA value" in w
+               for w in feedback.warnings)
+
+
+def test_tin_raster_cells_computed_as_the_nodata_value_are_warned(tmp_path):
+    toolbox.run("tin:delaunay", {"INPUT": _ramp_points(tmp_path / "p.gpkg"),
+                                 "OUTPUT": tmp_path / "tin.gpkg"})
+    from toolbox.feedback import Feedback
+
+    out, feedback = tmp_path / "tin.tif", Feedback()
+    result = toolbox.run("tin:to_raster", {"TIN": f"{tmp_path / 'tin.gpkg'}|layername=triangles",
+                                           "CELL_SIZE": 5, "EXTENT": f"{X},{Y},{X + 100},{Y + 100}",
+                                           "NODATA": 0.25, "OUTPUT": out}, feedback=feedback)
+    lost = _invalid_cells(out)
+    assert lost == 20  # the cells centred at x = 52.5 (Z 0.25)
+    assert result["STATISTICS"]["cells_with_data"] == 400 - lost
+    assert any(f"{lost} cell(s) were computed as exactly 0.25" in w for w in feedback.warnings)
