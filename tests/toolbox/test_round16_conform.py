@@ -356,3 +356,29 @@ def test_tin_raster_cells_computed_as_the_nodata_value_are_warned(tmp_path):
     assert lost == 20  # the cells centred at x = 52.5 (Z 0.25)
     assert result["STATISTICS"]["cells_with_data"] == 400 - lost
     assert any(f"{lost} cell(s) were computed as exactly 0.25" in w for w in feedback.warnings)
+
+
+# -- one layer per code, every code kept ---------------------------------------------------------
+def test_attribution_codes_making_the_same_layer_name_keep_every_feature(tmp_path):
+    # codes 'A-1' and 'A 1' were both written to the layer 'A_1', the second replacing the first;
+    # a code 'unresolved' replaced the unresolved layer (features gone, exit 0, no word)
+    codes = tmp_path / "codici.txt"
+    codes.write_text("codice;descrizione;tipologia;colore\nA-1;strada;polilinea;1\n"
+                     "A 1;fiume;polilinea;2\nunresolved;muro;polilinea;3\n")
+    lines = gpd.GeoDataFrame(
+        {"code": ["A-1", "A 1", "A 1", "unresolved", "XX"]},
+        geometry=[shapely.LineString([(X + 10 * k, Y, 300), (X + 10 * k + 5, Y + 5, 301)])
+                  for k in range(5)], crs="EPSG:3003")
+    source = tmp_path / "lines.gpkg"
+    lines.to_file(source, layer="lines")
+    out = tmp_path / "coded.gpkg"
+    toolbox.run("attribution:apply", {"INPUT": [source], "CODES": codes, "CRS": "EPSG:3003",
+                                      "OUTPUT": out})
+    with sqlite3.connect(out) as db:
+        tables = [t for (t,) in db.execute("SELECT table_name FROM gpkg_contents WHERE "
+                                           "data_type = 'features'")]
+        stored = {t: sorted(c for (c,) in db.execute(f'SELECT code FROM "{t}"')) for t in tables}
+    written = sorted(c for t, cs in stored.items() if t != "unresolved" for c in cs)
+    assert written == ["A 1", "A 1", "A-1", "unresolved"]
+    assert stored["unresolved"] == ["XX"]  # the unknown code, still in its own layer
+    assert gpkg_problems(out) == []
