@@ -66,6 +66,7 @@ class ToRaster(Algorithm):
         from functools import partial
 
         from toolbox.io.crs import crs_label, same_crs
+        from toolbox.io.raster import nodata_clash_warning, nodata_clashes
         from toolbox.raster.engine import process_raster
         from toolbox.raster.writer import RasterWriter
         from toolbox.terrain.gridding.tin_raster import TinTiles, tin_tile
@@ -95,11 +96,15 @@ class ToRaster(Algorithm):
         local = np.column_stack([xyz[:, 0] - origin[0], xyz[:, 1] - origin[1], xyz[:, 2]])
         with feedback.timed("index"):
             tiles = TinTiles(local, triangles, grid, tile_size, origin)
-        summary = {"filled": 0, "zmin": np.inf, "zmax": -np.inf}
+        summary = {"filled": 0, "zmin": np.inf, "zmax": -np.inf, "clashes": 0}
 
         def collect(tile, z, info):
             if z is None:
                 return
+            clashes = nodata_clashes(z, params["NODATA"], params["DATA_TYPE"])
+            if clashes:  # stored as NODATA: no value in the file
+                summary["clashes"] += clashes
+                z = np.where(z.astype(params["DATA_TYPE"]) == params["NODATA"], np.nan, z)
             valid = ~np.isnan(z)
             if valid.any():
                 summary["filled"] += int(valid.sum())
@@ -112,6 +117,8 @@ class ToRaster(Algorithm):
             process_raster(grid, None, partial(tin_tile, origin), writer, tile_size=tile_size,
                            plan=tiles.plan, collect=collect, feedback=feedback, end=90,
                            executor=executor_of(params))
+        if summary["clashes"]:
+            feedback.push_warning(nodata_clash_warning(summary["clashes"], params["NODATA"]))
         filled = summary["filled"]
         cell_x, cell_y = grid.cell_size
         if filled == 0:

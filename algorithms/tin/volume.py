@@ -198,12 +198,17 @@ def _write_report(path, stats: dict) -> None:
     if path.suffix.lower() == ".json":
         path.write_text(json.dumps(stats, indent=2) + "\n")
         return
-    rows = ["quantity,value,unit"]
+    import csv
+    import io
+
+    rows = [("quantity", "value", "unit")]
     units = {"volume": "cubic units", "area": "square units"}
     for key in ("cut_volume", "fill_volume", "net_volume", "cut_area", "fill_area", "area"):
-        rows.append(f"{key},{stats[key]:.6f},{units[key.rsplit('_', 1)[-1]]}")
-    rows.append(f"method,{stats['method']},")
+        rows.append((key, f"{stats[key]:.6f}", units[key.rsplit("_", 1)[-1]]))
+    rows.append(("method", stats["method"], ""))
     reference = stats["reference"]
-    rows.append("reference," + (f"z={reference['z']:g}" if "z" in reference else
-                                f"{reference['dem']} band {reference['band']}") + ",")
-    path.write_text("\n".join(rows) + "\n")
+    rows.append(("reference", f"z={reference['z']:g}" if "z" in reference else
+                 f"{reference['dem']} band {reference['band']}", ""))
+    text = io.StringIO()  # RFC 4180: a DEM path holding a comma or a quote is quoted
+    csv.writer(text, lineterminator="\n").writerows(rows)
+    path.write_text(text.getvalue())

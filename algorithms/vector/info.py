@@ -34,10 +34,11 @@ def geometry_summary(geoms) -> dict:
                "has_z": bool(shapely.has_z(geoms).any())}
     if len(geoms):
         box = shapely.bounds(geoms)
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN: no geometry at all
-            summary["bounds"] = [float(np.nanmin(box[:, 0])), float(np.nanmin(box[:, 1])),
-                                 float(np.nanmax(box[:, 2])), float(np.nanmax(box[:, 3]))]
+        if np.isfinite(box).all(axis=1).any():  # else no geometry at all: no bounds, as empty
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", RuntimeWarning)
+                summary["bounds"] = [float(np.nanmin(box[:, 0])), float(np.nanmin(box[:, 1])),
+                                     float(np.nanmax(box[:, 2])), float(np.nanmax(box[:, 3]))]
     if summary["has_z"]:
         z = shapely.get_coordinates(geoms, include_z=True)[:, 2]
         z = z[np.isfinite(z)]
@@ -90,5 +91,9 @@ class VectorInfo(Algorithm):
                            "fields": layer.field_types, **geometry_summary(geoms)})
         info = {"path": None if ref.path is None else str(ref.path), "layers": layers}
         if params["OUTPUT"] is not None:
-            params["OUTPUT"].write_text(json.dumps(info, indent=2) + "\n")
+            from toolbox.report import to_jsonable
+
+            # standard JSON (RFC 8259 has no NaN or Infinity: jq and JSON.parse reject them)
+            params["OUTPUT"].write_text(json.dumps(to_jsonable(info), indent=2,
+                                                   allow_nan=False) + "\n")
         return {"INFO": info, "OUTPUT": params["OUTPUT"]}

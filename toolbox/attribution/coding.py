@@ -42,6 +42,28 @@ def layer_name(code: str) -> str:
     return name if not name[0].isdigit() else f"c_{name}"
 
 
+#: the output's own layers and tables (compared case-insensitively, as SQLite names are)
+RESERVED_LAYERS = ("unresolved", "labels", "merge", "layer_styles")
+RESERVED_PREFIXES = ("gpkg_", "rtree_", "sqlite_")
+
+
+def unique_layer_name(name: str, taken: set[str]) -> str:
+    """``name``, or ``name_2``, ``name_3``... when another layer already has it (codes 'A-1' and
+    'A 1' both make 'A_1'; 'ab01' and 'AB01' are one SQLite table) or when it is one of the
+    output's own layers or tables; the lower-cased name chosen is added to ``taken``."""
+    def free(candidate: str) -> bool:
+        low = candidate.lower()
+        return low not in taken and low not in RESERVED_LAYERS \
+            and not low.startswith(RESERVED_PREFIXES)
+
+    chosen, k = name, 1
+    while not free(chosen):
+        k += 1
+        chosen = f"{name}_{k}"
+    taken.add(chosen.lower())
+    return chosen
+
+
 @dataclass
 class Attribution:
     """Result of :func:`attribute`: frames by layer name, the kind and codes of each layer."""
@@ -135,10 +157,11 @@ def attribute(entities, table: CodeTable, colours: dict[str, tuple[int, int, int
     kinds_of_code: dict[str, set[str]] = {}
     for code, kind in groups:
         kinds_of_code.setdefault(code, set()).add(kind)
-    layers, layer_kinds, layer_codes = {}, {}, {}
+    layers, layer_kinds, layer_codes, taken = {}, {}, {}, set()
     for (code, kind), members in sorted(groups.items()):
         if layout == "code":
-            name = layer_name(code) + (f"_{kind}" if len(kinds_of_code[code]) > 1 else "")
+            name = unique_layer_name(layer_name(code) + (
+                f"_{kind}" if len(kinds_of_code[code]) > 1 else ""), taken)
         else:
             name = TYPE_LAYERS[kind]
         rows = [m[0] for m in members]

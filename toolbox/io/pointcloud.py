@@ -391,6 +391,27 @@ def check_cloud_crs(ref: Any, crs: Any, name: str = "INPUT") -> None:
 
 
 # -- writing -----------------------------------------------------------------------------------
+def add_crs_vlr(header, crs: Any) -> None:
+    """Put ``crs`` in the LAS ``header`` as the LAS 1.4 specification wants it: an OGC WKT VLR
+    in the WKT of OGC 01-009 (WKT1, not ESRI's) with the WKT global-encoding bit, for point
+    formats 6-10 (and what laspy chooses for the others: GeoTIFF keys for formats 0-5).
+
+    laspy's ``add_crs`` writes pyproj's default WKT2 (``PROJCRS[...``), another language than
+    the one the specification names, which readers that parse the WKT of LAS files as WKT1 do
+    not read. A CRS whose WKT1 reads back as another CRS (WKT1 drops the north-first axes of
+    EPSG:6707) keeps its WKT2."""
+    from laspy.vlrs.known import WktCoordinateSystemVlr
+    from pyproj import CRS
+
+    crs = CRS.from_user_input(crs)
+    header.add_crs(crs)
+    if header.global_encoding.wkt:
+        wkt1 = crs.to_wkt("WKT1_GDAL")
+        if wkt1 and CRS.from_wkt(wkt1) == crs:
+            header.vlrs.extract("WktCoordinateSystemVlr")
+            header.vlrs.append(WktCoordinateSystemVlr(wkt1))
+
+
 class PointCloudWriter:
     """Write points to LAS 1.4 (``.las``) or LAZ (``.laz``, needs lazrs) in appended chunks.
 
@@ -414,9 +435,7 @@ class PointCloudWriter:
         header.offsets = np.floor(np.asarray(origin, dtype=np.float64) / 1000.0) * 1000.0
         header.scales = np.array([scale, scale, scale])
         if crs is not None:
-            from pyproj import CRS
-
-            header.add_crs(CRS.from_user_input(crs))
+            add_crs_vlr(header, crs)
         self.header, self.rgb, self.count = header, rgb, 0
         self._writer = None
 
@@ -495,9 +514,7 @@ def write_classified_copy(ref: PointCloudRef, flt: PointFilter, path: str | Path
         if header.evlrs is not None:
             header.evlrs = [v for v in header.evlrs if getattr(v, "user_id", "") != "copc"]
         if ref.crs_wkt is None and crs is not None:
-            from pyproj import CRS
-
-            header.add_crs(CRS.from_user_input(crs))
+            add_crs_vlr(header, crs)
         with laspy.open(path, mode="w", header=header, do_compress=compress) as writer:
             for points in reader.chunk_iterator(chunk_points):
                 if len(points) == 0:

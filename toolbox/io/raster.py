@@ -328,6 +328,23 @@ def check_nodata_fits(nodata: float | None, dtype: Any, name: str = "NODATA") ->
                              f"(expected {expected})")
 
 
+def nodata_clashes(values: Any, nodata: float | None, dtype: Any) -> int:
+    """Cells of ``values`` (a float array, NaN where a kernel has no value) that hold a value
+    but are stored as exactly ``nodata`` in ``dtype``: they read back as no data (a sea-level
+    DEM with NODATA 0)."""
+    if values is None or nodata is None or math.isnan(float(nodata)):
+        return 0
+    stored = np.asarray(values).astype(dtype, copy=False)
+    return int(np.count_nonzero(stored == np.asarray(nodata).astype(dtype)))
+
+
+def nodata_clash_warning(count: int, nodata: float, name: str = "NODATA") -> str:
+    """The warning of :func:`nodata_clashes`: ``count`` computed cells lost to ``nodata``."""
+    return (f"{count} cell(s) were computed as exactly {_exact(float(nodata))}, the {name} "
+            "value, so they read as no data (GDAL, QGIS): give a value outside the results "
+            f"as {name} (e.g. -9999)")
+
+
 def _exact(value: float) -> str:
     """``value`` short (``-9999``, ``1e+39``) unless that loses digits (``3.4028235677973366e+38``)."""
     short = f"{value:g}"

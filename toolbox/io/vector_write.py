@@ -110,12 +110,60 @@ def write_layers(path: str | Path, layers: dict[str, Any], crs: Any = None,
             if frame.crs is None:  # a layer without CRS as read (stored coordinates): meant
                 warnings.filterwarnings("ignore", "'crs' was not provided", UserWarning)
             warnings.filterwarnings("ignore", "Normalized/laundered field name")  # see below
-            if arrow and driver == "GPKG" and _write_arrow(frame, target, layer_name, kwargs):
-                continue
-            pyogrio.write_dataframe(frame, target, layer=layer_name, driver=driver, **kwargs)
+            if not (arrow and driver == "GPKG"
+                    and _write_arrow(frame, target, layer_name, kwargs)):
+                pyogrio.write_dataframe(frame, target, layer=layer_name, driver=driver,
+                                        **kwargs)
+        if driver == "GPKG":
+            declare_optional_z(target, layer_name, frame.geometry.values)
         if driver == "ESRI Shapefile":
             warn_renamed_fields(target, [c for c in frame.columns if c != frame.geometry.name])
+            warn_made_up_z(target, frame.geometry.values)
     return path
+
+
+def warn_made_up_z(path: Path, geoms) -> None:
+    """One warning when a Shapefile layer got 2D and 3D features: a Shapefile is 3D (PolyLineZ,
+    PointZ...) or 2D throughout, so GDAL writes the 2D features with Z = 0, a height nobody
+    measured (a 2D contour at 0 m)."""
+    import shapely
+
+    geoms = np.asarray(geoms, dtype=object)
+    present = geoms[~(shapely.is_missing(geoms) | shapely.is_empty(geoms))]
+    flat = int((~shapely.has_z(present)).sum()) if len(present) else 0
+    if 0 < flat < len(present):
+        import logging
+
+        logging.getLogger("toolbox").warning(
+            f"{path.name}: {flat} of {len(present)} features have no Z; a Shapefile layer is "
+            "all 3D or all 2D, so they were written with Z = 0, a height they do not have "
+            "(a .gpkg or .geojson output keeps them 2D)")
+
+
+def declare_optional_z(path: Path, layer: str, geoms) -> None:
+    """Declare Z *optional* (``z = 2`` in ``gpkg_geometry_columns``) for a GeoPackage layer whose
+    geometries do not all agree with its declared Z flag: GDAL declares a layer with any 3D
+    geometry ``z = 1`` (Z mandatory; ``geometry_types`` may declare it too) and writes its 2D
+    geometries as they are, which the GeoPackage specification forbids (requirement 19: GDAL's
+    ``validate_gpkg.py`` rejects the file, 'geometry without Z found'). 2D and 3D features both
+    stay as they are (no height is made up); GDAL and QGIS read a ``z = 2`` layer as 3D."""
+    import shapely
+
+    geoms = np.asarray(geoms, dtype=object)
+    present = geoms[~(shapely.is_missing(geoms) | shapely.is_empty(geoms))]
+    if not len(present):
+        return
+    has_z = shapely.has_z(present)
+    import sqlite3
+
+    with sqlite3.connect(path) as db:
+        row = db.execute("SELECT z FROM gpkg_geometry_columns WHERE lower(table_name) = "
+                         "lower(?)", (layer,)).fetchone()
+        if row is not None and ((row[0] == 1 and not has_z.all())
+                                or (row[0] == 0 and has_z.any())):
+            db.execute("UPDATE gpkg_geometry_columns SET z = 2 WHERE lower(table_name) = "
+                       "lower(?)", (layer,))
+    db.close()
 
 
 def warn_renamed_fields(path: Path, names: list[str]) -> None:

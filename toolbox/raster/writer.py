@@ -8,8 +8,10 @@ Cloud Optimized GeoTIFF.
   3 (floating point) for floats; DEFLATE level 1 for 8-bit rasters, 6 otherwise,
 - internal overviews built at close (``average`` by default), halving until the smallest level
   fits in one tile (GDAL's COG rule), compressed like the data,
-- an alpha band (the last band, ``alpha=True``) or a nodata value (NaN in a float array, the
-  kernels' "no value", is written as nodata); RGB photometry for three integer data bands,
+- an alpha band (the last band, ``alpha=True``; also written as GDAL's internal mask where
+  GDAL would not read it as one: :attr:`RasterWriter.mask_alpha`) or a nodata value (NaN in a
+  float array, the kernels' "no value", is written as nodata); RGB photometry for three
+  integer data bands,
 - ``memory_mb``: an output of at most that many megabytes is gathered in a GDAL MEM dataset,
   its overviews built there and the whole copied once into the GeoTIFF (GDAL's
   ``COPY_SRC_OVERVIEWS``): same pixels, tiles, codec and overviews as the streamed file, a
@@ -166,6 +168,14 @@ class RasterWriter:
         return predictor_for(self.dtype)
 
     @property
+    def mask_alpha(self) -> bool:
+        """The alpha band is also written as GDAL's internal mask: GDAL (and so QGIS's
+        gdalwarp, gdalbuildvrt and rasterio's ``dataset_mask``) reads an alpha band as the mask
+        only as band 2 of 2 or band 4 of 4; with other counts (an RGBN photo's 4 bands + alpha)
+        the pixels outside the photo were valid black data to them."""
+        return self.alpha and self.count not in (1, 2, 4)
+
+    @property
     def data_count(self) -> int:
         return self.count - (1 if self.alpha else 0)
 
@@ -206,6 +216,7 @@ class RasterWriter:
         return {"GDAL_CACHEMAX": gdal_cache_max(self.cache_mb), "COMPRESS_OVERVIEW": self.compress,
                 "PREDICTOR_OVERVIEW": self.predictor, "GDAL_TIFF_OVR_BLOCKSIZE": self.tile,
                 "INTERLEAVE_OVERVIEW": "PIXEL" if self.count > 1 else "BAND",
+                "GDAL_TIFF_INTERNAL_MASK": "YES",  # the mask of mask_alpha, in the file
                 "ZLEVEL_OVERVIEW": deflate_level(self.dtype),
                 "GDAL_NUM_THREADS": self.threads}
 
@@ -261,6 +272,8 @@ class RasterWriter:
             data = data.astype(self.dtype)
         with writing(self.path):
             self.dataset.write(data, window=window)
+            if self.mask_alpha:
+                self.dataset.write_mask(data[-1] > 0, window=window)
 
     def update_tags(self, **tags: Any) -> None:
         self.dataset.update_tags(**tags)

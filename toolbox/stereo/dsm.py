@@ -191,6 +191,7 @@ def run_match(request: MatchRequest, feedback: Feedback) -> dict[str, Any]:
     statistics."""
     from toolbox.executor import map_tiles, resolve_executor
     from toolbox.io.crs import crs_label
+    from toolbox.io.raster import nodata_clash_warning, nodata_clashes
     from toolbox.photogrammetry.tables import load_project_parameter
     from toolbox.stereo.epipolar import photo_image
     from toolbox.stereo.fusion import fuse
@@ -278,11 +279,14 @@ def run_match(request: MatchRequest, feedback: Feedback) -> dict[str, Any]:
             writer.__exit__(None, None, None)
     dsm, count, spread = fuse(cells, grid.width, grid.height)
     nodata = float(request.nodata)
+    clashes = nodata_clashes(dsm, nodata, "float32")
+    if clashes:  # heights stored as NODATA: no value in the file
+        feedback.push_warning(nodata_clash_warning(clashes, nodata))
     _write(request.output, grid, dsm, "float32", nodata)
     _write(request.count, grid, count, "uint16", 0)
     _write(request.spread, grid, spread, "float32", nodata)
     feedback.set_progress(100)
-    valid = int(np.isfinite(dsm).sum())
+    valid = int(np.isfinite(dsm).sum()) - clashes
     stats = {"pairs": pair_stats, "skipped": skipped, "crs": crs_label(crs),
              "grid": {"width": grid.width, "height": grid.height,
                       "cell_size": abs(grid.transform.a), "bounds": list(grid.bounds)},

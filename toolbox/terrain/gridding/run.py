@@ -69,6 +69,7 @@ def write_dem(run: GridRun, tiles: Any, request: GriddingRequest, feedback: Feed
     Returns statistics: cells with a value, nodata cells, summed method counters, executor.
     """
     from toolbox.executor import resolve_executor
+    from toolbox.io.raster import nodata_clash_warning, nodata_clashes
     from toolbox.raster.engine import process_raster, tile_count
     from toolbox.raster.writer import RasterWriter
 
@@ -76,10 +77,13 @@ def write_dem(run: GridRun, tiles: Any, request: GriddingRequest, feedback: Feed
     executor = resolve_executor(execution.scheduler, execution.workers)
     grid = run.grid
     n_tiles = tile_count(grid, run.tile)
-    totals: dict[str, Any] = {"valid": 0, "empty_tiles": 0, "counts": None}
+    totals: dict[str, Any] = {"valid": 0, "empty_tiles": 0, "counts": None, "clashes": 0}
 
     def collect(tile, values, counts):
         n_ok = 0 if values is None else int(np.count_nonzero(~np.isnan(values)))
+        clashes = nodata_clashes(values, run.nodata, "float32")
+        totals["clashes"] += clashes
+        n_ok -= clashes  # stored as NODATA: no value in the file
         totals["valid"] += n_ok
         totals["empty_tiles"] += n_ok == 0
         if counts is not None:
@@ -93,6 +97,8 @@ def write_dem(run: GridRun, tiles: Any, request: GriddingRequest, feedback: Feed
     with feedback.timed("tiles"), writer:
         process_raster(grid, None, tiles.kernel, writer, tile_size=run.tile, executor=executor,
                        feedback=feedback, plan=tiles.plan, collect=collect, start=start, end=end)
+    if totals["clashes"]:
+        feedback.push_warning(nodata_clash_warning(totals["clashes"], run.nodata))
     total = grid.width * grid.height
     return {"cells": total, "cells_with_value": totals["valid"],
             "cells_nodata": total - totals["valid"], "tiles": n_tiles,
