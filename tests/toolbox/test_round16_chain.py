@@ -1,0 +1,53 @@
+"""Round 16, algorithms chained on real data (Orthority's NGI frames): what one algorithm writes,
+the next reads as written.
+
+- the PointZ GeoPackages the toolbox writes (tie points, intersected points) serve as CONTROL:
+  their coordinates are in the geometry, which the table reader did not look at;
+- dem:match's per-pair sigma_z_m is the normal case's for half a pixel of the epipolar images
+  it matched (it took a film-measurement 5 um whatever the pixel: 0.22 m on 153 um pixels);
+- orientation:convert finds the images in any input's folder (only the first was searched: a
+  camera file listed first left every photo without its image) or in IMAGES.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+NGI_CRS = "+proj=tmerc +lon_0=25 +datum=WGS84 +units=m"
+
+
+def point_layer(path: Path, rows, z: bool = True, extra: dict | None = None) -> Path:
+    import geopandas as gpd
+    import shapely
+
+    geometry = [shapely.Point(x, y, h) if z else shapely.Point(x, y) for _, x, y, h in rows]
+    frame = gpd.GeoDataFrame({"point_id": [r[0] for r in rows], **(extra or {})},
+                             geometry=geometry, crs="EPSG:32633")
+    frame.to_file(path, driver="GPKG", layer="tie_points")
+    return path
+
+
+ROWS = [("A", 500010.25, 4000020.5, 101.75), ("B", 500110.0, 4000030.125, 99.5),
+        ("C", 500060.5, 4000120.0, 120.25)]
+
+
+def test_control_from_a_pointz_geopackage_takes_the_geometry(tmp_path):
+    from toolbox.triangulation.inputs import read_control
+
+    control = read_control(point_layer(tmp_path / "p.gpkg", ROWS))
+    assert control.ids == ["A", "B", "C"]
+    np.testing.assert_array_equal(control.xyz, [r[1:] for r in ROWS])
+
+
+def test_control_from_2d_points_is_planimetric_and_attributes_win(tmp_path):
+    from toolbox.triangulation.inputs import read_control
+
+    flat = read_control(point_layer(tmp_path / "p2.gpkg", ROWS, z=False))
+    np.testing.assert_array_equal(flat.xyz[:, :2], [r[1:3] for r in ROWS])
+    assert np.isnan(flat.xyz[:, 2]).all()  # no Z: planimetric points, as a blank Z column
+    # a height attribute is the point's Z, not the geometry's (here 2D)
+    height = read_control(point_layer(tmp_path / "p3.gpkg", ROWS, z=False,
+                                      extra={"height": [1.0, 2.0, 3.0]}))
+    np.testing.assert_array_equal(height.xyz[:, 2], [1.0, 2.0, 3.0])
