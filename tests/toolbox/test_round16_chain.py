@@ -14,6 +14,9 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+import pytest
+
+import toolbox
 
 NGI_CRS = "+proj=tmerc +lon_0=25 +datum=WGS84 +units=m"
 
@@ -51,3 +54,36 @@ def test_control_from_2d_points_is_planimetric_and_attributes_win(tmp_path):
     height = read_control(point_layer(tmp_path / "p3.gpkg", ROWS, z=False,
                                       extra={"height": [1.0, 2.0, 3.0]}))
     np.testing.assert_array_equal(height.xyz[:, 2], [1.0, 2.0, 3.0])
+
+
+def ngi_orientations(data: Path) -> dict[str, np.ndarray]:
+    out = {}
+    for line in (data / "ngi" / "camera_pos_ori.txt").read_text().splitlines():
+        if line.strip():
+            name, *values = line.split()
+            out[name] = np.array([float(v) for v in values])
+    return out
+
+
+def test_match_sigma_z_is_for_half_an_epipolar_pixel(orthority_data, tmp_path):
+    data = orthority_data
+    project = tmp_path / "ngi.yaml"
+    toolbox.run("orientation:convert", {
+        "INPUT": f"{data / 'ngi' / 'camera_pos_ori.txt'},{data / 'io' / 'ngi_int_param.yaml'}",
+        "CRS": NGI_CRS, "ANGLE_UNIT": "deg", "OUTPUT": project})
+    low, high = 100.0, 1000.0
+    out = toolbox.run("dem:match", {
+        "PROJECT": project, "MIN_HEIGHT": low, "MAX_HEIGHT": high, "CELL_SIZE": 24.0,
+        "OUTPUT": tmp_path / "dsm.tif", "COUNT": tmp_path / "n.tif",
+        "SPREAD": tmp_path / "s.tif"})
+    eo = ngi_orientations(data)
+    pairs = out["STATISTICS"]["pairs"]
+    assert pairs
+    for pair in pairs:
+        left, right = (eo[name] for name in pair["pair"].split("-"))
+        base = float(np.linalg.norm(left[:3] - right[:3]))
+        distance = (left[2] + right[2]) / 2 - (low + high) / 2
+        # normal case: sigma_Z = (Z/B)·(Z/c)·sigma_p, sigma_p half the matched pixel, c 120 mm
+        truth = distance / base * distance / 120.0 * 0.5 * pair["pixel_mm"]
+        assert pair["sigma_z_m"] == pytest.approx(truth, rel=1e-9)
+        assert pair["sigma_z_m"] > 2.0  # a 6 m pixel on the ground: metres, not 0.22 m
