@@ -11,10 +11,12 @@ the next reads as written.
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 
 import toolbox
 
@@ -87,3 +89,37 @@ def test_match_sigma_z_is_for_half_an_epipolar_pixel(orthority_data, tmp_path):
         truth = distance / base * distance / 120.0 * 0.5 * pair["pixel_mm"]
         assert pair["sigma_z_m"] == pytest.approx(truth, rel=1e-9)
         assert pair["sigma_z_m"] > 2.0  # a 6 m pixel on the ground: metres, not 0.22 m
+
+
+def test_convert_finds_images_in_any_input_folder_or_images(orthority_data, tmp_path):
+    data = orthority_data
+    names = sorted(p.stem for p in (data / "ngi").glob("3324c_*.tif"))
+    first = tmp_path / "camera_first.yaml"
+    out = toolbox.run("orientation:convert", {
+        "INPUT": f"{data / 'io' / 'ngi_int_param.yaml'},{data / 'ngi' / 'camera_pos_ori.txt'}",
+        "CRS": NGI_CRS, "ANGLE_UNIT": "deg", "OUTPUT": first})
+    doc = yaml.safe_load(first.read_text())
+    assert {p["id"]: Path(p["image"]).name for p in doc["photos"]} == \
+        {n: f"{n}.tif" for n in names}
+    assert json.dumps(out["SUMMARY"]).count("image paths") == 1
+    # the Orthority io/ files: images in another folder, given as IMAGES
+    given = tmp_path / "images_given.yaml"
+    toolbox.run("orientation:convert", {
+        "INPUT": f"{data / 'io' / 'ngi_int_param.yaml'},{data / 'io' / 'ngi_xyz_opk.csv'}",
+        "IMAGES": str(data / "ngi"), "OUTPUT": given})
+    doc = yaml.safe_load(given.read_text())
+    assert [Path(p["image"]).resolve() for p in doc["photos"]] == \
+        [(data / "ngi" / f"{p['id']}.tif").resolve() for p in doc["photos"]]
+
+
+def test_convert_images_refusals(orthority_data, tmp_path):
+    from tests.helpers_cli import assert_refused
+
+    data = orthority_data
+    inputs = f"{data / 'io' / 'ngi_int_param.yaml'},{data / 'io' / 'ngi_xyz_opk.csv'}"
+    base = ["run", "orientation:convert", "--INPUT", inputs]
+    line = assert_refused([*base, "--IMAGES", str(data / "io"), "--OUTPUT",
+                           str(tmp_path / "a.yaml")], "IMAGES", (tmp_path / "a.yaml",))
+    assert "no image file" in line
+    assert_refused([*base, "--IMAGES", str(data / "ngi"), "--FORMAT_OUT", "csv", "--OUTPUT",
+                    str(tmp_path / "a.csv")], "FORMAT_OUT project only", (tmp_path / "a.csv",))
