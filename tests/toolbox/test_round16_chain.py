@@ -123,3 +123,65 @@ def test_convert_images_refusals(orthority_data, tmp_path):
     assert "no image file" in line
     assert_refused([*base, "--IMAGES", str(data / "ngi"), "--FORMAT_OUT", "csv", "--OUTPUT",
                     str(tmp_path / "a.csv")], "FORMAT_OUT project only", (tmp_path / "a.csv",))
+
+
+X0, Y0 = 1688000.0, 4799000.0
+
+
+def nadir_project(tmp_path: Path, crs: str = "EPSG:3003") -> Path:
+    """One nadir photo, c = 150 mm, 900 m above the plane Z = 100."""
+    path = tmp_path / "nadir.yaml"
+    path.write_text("\n".join([
+        "version: 1", f"crs: '{crs}'", "angle_unit: rad", "cameras:",
+        "  - {name: cam, principal_distance_mm: 150.0, frame_size_mm: [230.0, 230.0],",
+        "     image_size_px: [11500, 11500], pixel_size_mm: 0.02}", "photos:",
+        f"  - {{id: n1, camera: cam, exterior: {{X0: {X0}, Y0: {Y0}, Z0: 1000.0, omega: 0.0, "
+        "phi: 0.0, kappa: 0.0}}"]) + "\n")
+    return path
+
+
+def flat_dem(tmp_path: Path, crs: str) -> Path:
+    from affine import Affine
+    from pyproj import CRS
+    from rasterio.crs import CRS as RasterioCRS
+
+    from toolbox.raster.writer import write_raster
+
+    path = tmp_path / f"dem_{crs.replace(':', '_').replace('+', '_')}.tif"
+    write_raster(path, np.full((300, 400), 100.0, dtype="float32"),
+                 Affine(10.0, 0, X0 - 1500.0, 0, -10.0, Y0 + 1500.0),
+                 RasterioCRS.from_wkt(CRS(crs).to_wkt()), nodata=-9999.0)
+    return path
+
+
+def test_dem_published_with_its_vertical_datum_is_in_the_project_crs(tmp_path):
+    """A DEM tagged 'projected + EGM2008 height' (as NGI's) is in the converted project's
+    projected CRS: monoplot, footprints and precision refused it ('reproject the inputs to one
+    CRS first'), ortho:batch took it. Truth: a ray at (20, -20) mm from 900 m meets Z = 100 at
+    120 m east and south of the nadir point."""
+    import geopandas as gpd
+
+    from tests.helpers_cli import assert_refused
+
+    project = nadir_project(tmp_path)
+    table = tmp_path / "pts.csv"
+    table.write_text("point_id,photo,x_mm,y_mm\ne,n1,20,-20\n")
+    dem = flat_dem(tmp_path, "EPSG:3003+3855")
+    out = toolbox.run("orientation:monoplot", {"PROJECT": project, "INPUT": table, "DEM": dem,
+                                               "OUTPUT": tmp_path / "m.gpkg"})
+    point = gpd.read_file(out["OUTPUT"], layer="points").geometry[0]
+    assert (point.x, point.y, point.z) == pytest.approx((X0 + 120.0, Y0 - 120.0, 100.0))
+    out = toolbox.run("orientation:footprints", {"PROJECT": project, "DEM": dem,
+                                                 "OUTPUT": tmp_path / "f.gpkg"})
+    area = gpd.read_file(out["OUTPUT"], layer="footprints")["area_m2"][0]
+    assert area == pytest.approx((230.0 * 6.0) ** 2, rel=1e-9)  # photo scale 900/0.15
+    # both state a height datum and they differ: refused, naming the DEM and both datums
+    other = nadir_project(tmp_path, "EPSG:3003+5773")
+    line = assert_refused(["run", "orientation:monoplot", "--PROJECT", str(other), "--INPUT",
+                           str(table), "--DEM", str(dem), "--OUTPUT", str(tmp_path / "x.gpkg")],
+                          "DEM heights are EGM2008", (tmp_path / "x.gpkg",))
+    assert "EGM96" in line
+    # another horizontal CRS is still refused
+    assert_refused(["run", "orientation:monoplot", "--PROJECT", str(project), "--INPUT",
+                    str(table), "--DEM", str(flat_dem(tmp_path, "EPSG:32632+3855")),
+                    "--OUTPUT", str(tmp_path / "y.gpkg")], "reproject", (tmp_path / "y.gpkg",))
