@@ -185,3 +185,42 @@ def test_dem_published_with_its_vertical_datum_is_in_the_project_crs(tmp_path):
     assert_refused(["run", "orientation:monoplot", "--PROJECT", str(project), "--INPUT",
                     str(table), "--DEM", str(flat_dem(tmp_path, "EPSG:32632+3855")),
                     "--OUTPUT", str(tmp_path / "y.gpkg")], "reproject", (tmp_path / "y.gpkg",))
+
+
+def test_ortho_check_takes_the_published_ngi_dem(orthority_data, tmp_path):
+    """report:ortho_check on an NGI ortho with NGI's own DEM (compound CRS) and the project
+    converted from Orthority's files (projected CRS only): refused before; now the check
+    points, monoplotted on that DEM from pixels of the photo, are found where they are."""
+    import csv
+
+    import geopandas as gpd
+
+    data = orthority_data
+    project = tmp_path / "ngi.yaml"
+    toolbox.run("orientation:convert", {
+        "INPUT": f"{data / 'ngi' / 'camera_pos_ori.txt'},{data / 'io' / 'ngi_int_param.yaml'}",
+        "CRS": NGI_CRS, "ANGLE_UNIT": "deg", "OUTPUT": project})
+    dem = data / "ngi" / "dem.tif"
+    photo = "3324c_2015_1004_05_0182_RGB"
+    ortho = toolbox.run("ortho:photo", {"INPUT": data / "ngi" / f"{photo}.tif",
+                                        "PROJECT": project, "PHOTO": photo, "DEM": dem,
+                                        "CELL_SIZE": 10.0, "OUTPUT": tmp_path / "o.tif"})
+    pixels = [(160.5, 300.5), (480.5, 300.5), (320.5, 576.5), (160.5, 850.5), (480.5, 850.5)]
+    measurements = tmp_path / "m.csv"
+    with open(measurements, "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["point_id", "photo", "col_px", "row_px"])
+        w.writerows([f"P{k}", photo, c, r] for k, (c, r) in enumerate(pixels))
+    mono = toolbox.run("orientation:monoplot", {"PROJECT": project, "INPUT": measurements,
+                                                "DEM": dem, "OUTPUT": tmp_path / "p.gpkg"})
+    points = gpd.read_file(mono["OUTPUT"], layer="points")
+    check = tmp_path / "check.csv"
+    check.write_text("id,X,Y,Z\n" + "".join(f"{i},{g.x!r},{g.y!r},{g.z!r}\n" for i, g in
+                                             zip(points["point_id"], points.geometry,
+                                                 strict=True)))
+    out = toolbox.run("report:ortho_check", {"ORTHO": ortho["OUTPUT"], "PROJECT": project,
+                                             "CHECK_POINTS": check, "MEASUREMENTS": measurements,
+                                             "DEM": dem, "OUTPUT": tmp_path / "c.csv"})
+    stats = out["STATISTICS"]
+    assert stats["matched"] == len(pixels)
+    assert stats["largest_m"] < 1.0  # truth 0 (same DEM and orientation); was 12.4 m
