@@ -224,3 +224,31 @@ def test_ortho_check_takes_the_published_ngi_dem(orthority_data, tmp_path):
     stats = out["STATISTICS"]
     assert stats["matched"] == len(pixels)
     assert stats["largest_m"] < 1.0  # truth 0 (same DEM and orientation); was 12.4 m
+
+
+def test_gnss_and_imu_from_an_orientation_csv(tmp_path):
+    """The orientation CSV orientation:convert writes (and Orthority's: ``filename,x,y,z,
+    omega,phi,kappa``) as the bundle's GNSS and IMU: refused before ('no photo column'); now
+    read, a file name ``id.tif`` standing for photo ``id``."""
+    import types
+
+    from toolbox.triangulation.inputs import _require_photos, read_attitudes, read_centres
+
+    project = nadir_project(tmp_path)
+    out = tmp_path / "eo.csv"
+    toolbox.run("orientation:convert", {"INPUT": str(project), "FORMAT_OUT": "csv",
+                                        "ANGLE_UNIT_OUT": "deg", "OUTPUT": out})
+    assert out.read_text().splitlines()[0].startswith("filename,x,y,z,omega,phi,kappa")
+    centres = read_centres(out)
+    assert centres.photos == ["n1"]
+    np.testing.assert_allclose(centres.xyz, [[X0, Y0, 1000.0]])
+    attitudes = read_attitudes(out, "deg")
+    np.testing.assert_allclose(attitudes.angles, [[0.0, 0.0, 0.0]], atol=1e-12)
+    orthority = tmp_path / "orthority.csv"
+    orthority.write_text(f"filename,x,y,z,omega,phi,kappa\nn1.tif,{X0},{Y0},1000,1.5,-2,90\n")
+    np.testing.assert_allclose(read_attitudes(orthority, "deg").angles,
+                               [np.radians([1.5, -2.0, 90.0])])
+    fake = types.SimpleNamespace(photos={"n1": None, "n2.tif": None})
+    assert _require_photos(["n1.tif", "n1", "n2.tif"], fake, "GNSS") == ["n1", "n1", "n2.tif"]
+    with pytest.raises(Exception, match="GNSS names photo.*'n3.tif'"):
+        _require_photos(["n3.tif"], fake, "GNSS")
