@@ -252,3 +252,17 @@ def test_gnss_and_imu_from_an_orientation_csv(tmp_path):
     assert _require_photos(["n1.tif", "n1", "n2.tif"], fake, "GNSS") == ["n1", "n1", "n2.tif"]
     with pytest.raises(Exception, match="GNSS names photo.*'n3.tif'"):
         _require_photos(["n3.tif"], fake, "GNSS")
+
+
+def test_file_parameter_given_a_layer_reference_says_so(tmp_path):
+    """CONTROL given 'bundle.gpkg|layername=points' (the bundle's own POINTS layer) was refused
+    as 'file ... does not exist' though the file exists: the refusal names the real cause."""
+    from tests.helpers_cli import assert_refused
+
+    gpkg = point_layer(tmp_path / "p.gpkg", ROWS)
+    (tmp_path / "m.csv").write_text("point_id,photo,x_mm,y_mm\nA,n1,0,0\n")
+    line = assert_refused(["run", "orientation:check", "--PROJECT",
+                           str(nadir_project(tmp_path)), "--INPUT", str(tmp_path / "m.csv"),
+                           "--CONTROL", f"{gpkg}|layername=tie_points", "--REPORT",
+                           str(tmp_path / "r.json")], "CONTROL takes a file, not a layer")
+    assert "ogr2ogr out.gpkg p.gpkg tie_points" in line

@@ -23,6 +23,12 @@ def _existing_path(param: Parameter, value: Any) -> Path:
     _refuse_virtual(param, value)
     path = Path(value).expanduser()
     if not path.exists():
+        base, bar, rest = str(value).partition("|")
+        if bar and Path(base).expanduser().is_file():  # 'file.gpkg|layername=points'
+            raise param.error(f"takes a file, not a layer reference: {_show(str(value))} (the "
+                              f"file exists; a GeoPackage is read from its first layer: copy "
+                              f"the layer into a file of its own first, e.g. ogr2ogr "
+                              f"out.gpkg {Path(base).name} {rest.partition('=')[2] or 'LAYER'})")
         raise param.error(f"file {_show(str(value))} does not exist")
     return path
 
