@@ -266,3 +266,19 @@ def test_file_parameter_given_a_layer_reference_says_so(tmp_path):
                            "--CONTROL", f"{gpkg}|layername=tie_points", "--REPORT",
                            str(tmp_path / "r.json")], "CONTROL takes a file, not a layer")
     assert "ogr2ogr out.gpkg p.gpkg tie_points" in line
+
+
+def test_match_without_a_pair_names_the_rule_to_relax(orthority_data, tmp_path):
+    """ODM's four 30-degree oblique views: no pair within MAX_ANGLE 30; the refusal said only
+    'optical axes 43.2 deg apart', not which parameter allows it."""
+    from tests.helpers_cli import assert_refused
+
+    project = tmp_path / "odm.yaml"
+    toolbox.run("orientation:convert", {
+        "INPUT": str(orthority_data / "odm" / "opensfm" / "reconstruction.json"),
+        "OUTPUT": project})
+    line = assert_refused(["run", "dem:match", "--PROJECT", str(project), "--MIN_HEIGHT", "50",
+                           "--MAX_HEIGHT", "140", "--CELL_SIZE", "0.5", "--OUTPUT",
+                           str(tmp_path / "d.tif"), "--COUNT", str(tmp_path / "c.tif"),
+                           "--SPREAD", str(tmp_path / "s.tif")], "no suitable stereo pair")
+    assert "deg apart (MAX_ANGLE 30)" in line
