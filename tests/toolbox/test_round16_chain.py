@@ -282,3 +282,36 @@ def test_match_without_a_pair_names_the_rule_to_relax(orthority_data, tmp_path):
                            str(tmp_path / "d.tif"), "--COUNT", str(tmp_path / "c.tif"),
                            "--SPREAD", str(tmp_path / "s.tif")], "no suitable stereo pair")
     assert "deg apart (MAX_ANGLE 30)" in line
+
+
+def test_mosaic_takes_the_folder_of_ortho_batch(tmp_path):
+    """ortho:batch writes its orthos into FOLDER; mosaic:seamlines / mosaic:build took only
+    the files one by one (a folder was 'not recognized as a raster'). Now the folder stands for
+    its GeoTIFFs, by name, hidden files and other files left: same cut polygons as the list."""
+    import geopandas as gpd
+    from affine import Affine
+
+    from toolbox.raster.writer import write_raster
+
+    folder = tmp_path / "orthos"
+    folder.mkdir()
+    rng = np.random.default_rng(1)
+    for k, x0 in enumerate((500000.0, 500060.0)):
+        write_raster(folder / f"p{k}.tif", rng.integers(1, 255, (1, 50, 100), dtype=np.uint8),
+                     Affine(1.0, 0, x0, 0, -1.0, 4000050.0), "EPSG:32633")
+    (folder / "orthos.json").write_text("[]")
+    write_raster(folder / ".staged.tif", np.zeros((1, 5, 5), np.uint8),
+                 Affine(1.0, 0, 0, 0, -1.0, 0), "EPSG:32633")
+    runs = {}
+    for name, value in (("folder", str(folder)),
+                        ("list", [str(folder / "p0.tif"), str(folder / "p1.tif")])):
+        out = toolbox.run("mosaic:seamlines", {"INPUT": value, "METHOD": "voronoi",
+                                               "CENTRES": "footprint",
+                                               "OUTPUT": tmp_path / f"{name}.gpkg"})
+        runs[name] = gpd.read_file(out["OUTPUT"], layer="cut_polygons")
+    assert runs["folder"]["source"].tolist() == ["p0", "p1"]
+    assert runs["folder"].geometry.geom_equals(runs["list"].geometry).all()
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(Exception, match="holds no GeoTIFF"):
+        toolbox.run("mosaic:seamlines", {"INPUT": str(tmp_path / "empty"),
+                                         "OUTPUT": tmp_path / "x.gpkg"})

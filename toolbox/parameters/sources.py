@@ -194,13 +194,28 @@ class MultipleLayers(Parameter):
 
     def validate(self, value: Any, ctx: ValidationContext) -> list:
         items = [value] if isinstance(value, (str, Path)) else list(value)
+        if self.layer_type == "raster":  # a folder (ortho:batch's FOLDER): its GeoTIFFs
+            items = [f for item in items for f in self._folder_rasters(item)]
         if len(items) < self.min_count:
             raise self.error(f"needs at least {self.min_count} {self.layer_type} layers, "
                              f"got {len(items)}")
         return [self._item.validate(item, ctx) for item in items]
 
+    def _folder_rasters(self, item: Any) -> list:
+        """``item``, or the GeoTIFFs of the folder ``item`` names (sorted by name; hidden
+        files left), as ortho:batch writes its orthos into FOLDER."""
+        if not isinstance(item, (str, Path)) or not Path(item).expanduser().is_dir():
+            return [item]
+        folder = Path(item).expanduser()
+        files = sorted(f for f in folder.iterdir() if f.is_file() and not
+                       f.name.startswith(".") and f.suffix.lower() in (".tif", ".tiff"))
+        if not files:
+            raise self.error(f"the folder {_show(str(item))} holds no GeoTIFF (.tif)")
+        return [str(f) for f in files]
+
     def expected(self) -> str:
-        return f"{self.min_count}+ {self.layer_type} layers (repeat the option)"
+        return f"{self.min_count}+ {self.layer_type} layers (repeat the option)" + (
+            ", or a folder of GeoTIFFs" if self.layer_type == "raster" else "")
 
     def describe(self) -> dict[str, Any]:
         return super().describe() | {"layer_type": self.layer_type, "min_count": self.min_count} \
