@@ -96,14 +96,16 @@ class ControlTemplate(Algorithm):
         if params["ORTHO"] is not None:
             from toolbox.io.crs import same_crs
             from toolbox.matching.ortho_match import OrthoReference
+            from toolbox.ortho.vertical import horizontal_part, project_raster_crs
 
             ortho = OrthoReference.open(params["ORTHO"].path)
-            if not same_crs(params["ORTHO"].crs, project.crs):
+            ortho_crs, crs = (None if c is None else horizontal_part(c)
+                              for c in (params["ORTHO"].crs, project.crs))
+            if not same_crs(ortho_crs, crs):
                 raise self.fail("ORTHO", f"is in {params['ORTHO'].crs}, not in the project's CRS "
                                 f"({project.crs}): reproject it first")
-            if params["DEM"] is not None and not same_crs(params["DEM"].crs, project.crs):
-                raise self.fail("DEM", f"is in {params['DEM'].crs}, not in the project's CRS "
-                                f"({project.crs}): reproject it first")
+            if params["DEM"] is not None:  # horizontal parts, and height datums stated by both
+                project_raster_crs(project.crs, params["DEM"].crs)
         elif params["MEASURED"] is not None:
             raise self.fail("MEASURED", "needs ORTHO (the matched points are written there)")
         photos = [p for p in project.photos.values()

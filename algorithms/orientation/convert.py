@@ -35,7 +35,8 @@ class ConvertOrientations(Algorithm):
     rotation-matrix elements in two records), ``exif`` (drone JPEG/TIFF: GNSS position, gimbal
     angles, focal length: approximate), ``gcp`` (ODM gcp_list.txt). Several inputs are merged
     (e.g. a camera YAML and an exterior GeoJSON); a camera or photo defined twice differently,
-    or two CRSs, is an error.
+    or two CRSs, is an error. A project's photos get the images named after them (file stem)
+    in IMAGES, else in the first input folder (or ODM's ``images/``) that holds some.
 
     Every orientation is converted to the product's omega-phi-kappa (R = Rx·Ry·Rz, camera x
     right, y up, z backward; OpenCV/OpenSfM/Metashape axes and angle-axis rotations converted,
@@ -66,6 +67,9 @@ class ConvertOrientations(Algorithm):
              options=("rad", "deg", "gon"), optional=True),
         Enum("FRAME", "frame of a reconstruction.json", options=("auto", "topocentric",
                                                                   "utm_offset"), default="auto"),
+        String("IMAGES", "folder of the photos' images, matched by file stem (FORMAT_OUT "
+               "project; default: the input files' folders or ODM's images/)", optional=True,
+               paths=True),
         Enum("FORMAT_OUT", "output format", options=WRITE, default="project"),
         Enum("ANGLE_UNIT_OUT", "unit of the angles written (default: the format's)",
              options=("rad", "deg", "gon"), optional=True),
@@ -97,6 +101,13 @@ class ConvertOrientations(Algorithm):
                 raise self.fail("OUTPUT", f"would write {hit.name} beside it, which is an input; "
                                 "an input is never overwritten: choose another name or folder")
         fmt = "gcp" if params["FORMAT"] == "gcp" else params["FORMAT_OUT"]
+        if params["IMAGES"] is not None:
+            if fmt != "project":
+                raise self.fail("IMAGES", "applies to FORMAT_OUT project only (the other "
+                                f"formats hold no image paths), got FORMAT_OUT {fmt}")
+            if not Path(params["IMAGES"]).is_dir():
+                raise self.fail("IMAGES", f"must be a folder of images, got "
+                                f"{params['IMAGES']!r}")
         if params["FORMAT"] != "gcp" and out.suffix.lower() not in EXTENSIONS[fmt]:
             raise self.fail("OUTPUT", f"must end in {'/'.join(EXTENSIONS[fmt])} for FORMAT_OUT "
                             f"{fmt}, got {out.name!r}")
@@ -128,7 +139,8 @@ class ConvertOrientations(Algorithm):
             oset = formats.read_orientations(files, params["FORMAT"], params["CRS"],
                                              params["ANGLE_UNIT"], params["FRAME"])
             unit = params["ANGLE_UNIT_OUT"]
-            written = formats.write_orientations(oset, params["FORMAT_OUT"], output, unit)
+            written = formats.write_orientations(oset, params["FORMAT_OUT"], output, unit,
+                                                 params["IMAGES"])
             oset.notes += left_out
             for note in oset.notes:  # what the output cannot hold: said loudly
                 if "not carried over" in note:

@@ -9,7 +9,7 @@ import numpy as np
 from toolbox.algorithm import Algorithm
 from toolbox.errors import InputDataError
 from toolbox.feedback import Feedback
-from toolbox.io.crs import common_crs
+from toolbox.ortho.vertical import project_raster_crs
 from toolbox.parameters import Integer, Number
 from toolbox.parameters.outputs import Layer, Output, OutputVector
 from toolbox.photogrammetry.coverage import Footprint, overlaps, photo_footprint
@@ -110,7 +110,7 @@ class Footprints(Algorithm):
     def process(self, params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
         project = load_project_parameter(params["PROJECT"])
         dem = params["DEM"]
-        crs = common_crs({"PROJECT": project.crs, "DEM": None if dem is None else dem.crs})
+        crs = project_raster_crs(project.crs, None if dem is None else dem.crs)
         photos = project.oriented()
         for pid in (p for p in project.photos if project.photos[p].exterior is None):
             feedback.push_warning(f"photo {pid} has no exterior orientation: skipped")

@@ -9,7 +9,7 @@ import numpy as np
 from toolbox.algorithm import Algorithm
 from toolbox.errors import InputDataError
 from toolbox.feedback import Feedback
-from toolbox.io.crs import common_crs
+from toolbox.ortho.vertical import project_raster_crs
 from toolbox.parameters import Boolean, Enum, Integer, Number
 from toolbox.parameters.outputs import Layer, Output, OutputVector
 from toolbox.photogrammetry.collinearity import NO_INTERSECTION, OK
@@ -91,7 +91,7 @@ class Monoplot(Algorithm):
 
         project, (ids, photo_ids, xy, kind), _ = measured_inputs(params, on_image=False)
         dem = params["DEM"]
-        crs = common_crs({"PROJECT": project.crs, "DEM": None if dem is None else dem.crs})
+        crs = project_raster_crs(project.crs, None if dem is None else dem.crs)
         measured_photos(project, photo_ids)
         xyz = np.full((len(ids), 3), np.nan)
         status = np.full(len(ids), OK, dtype=np.int8)

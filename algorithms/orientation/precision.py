@@ -10,7 +10,7 @@ import numpy as np
 from toolbox.algorithm import Algorithm
 from toolbox.errors import InputDataError, ParameterError
 from toolbox.feedback import Feedback
-from toolbox.io.crs import common_crs
+from toolbox.ortho.vertical import project_raster_crs
 from toolbox.parameters import File, Number, Output, OutputFile
 from toolbox.photogrammetry.normal_case import normal_case_precision, rules_table_sigma_xy
 from toolbox.photogrammetry.tables import (
@@ -147,7 +147,7 @@ class NormalCasePrecision(Algorithm):
     def _project_rows(params: dict[str, Any], feedback: Feedback) -> list[dict[str, Any]]:
         project = load_project_parameter(params["PROJECT"])
         dem = params["DEM"]
-        common_crs({"PROJECT": project.crs, "DEM": None if dem is None else dem.crs})
+        project_raster_crs(project.crs, None if dem is None else dem.crs)
         pairs = project.consecutive_pairs()
         if not pairs:
             raise InputDataError(f"PROJECT {params['PROJECT']} has no stereo pair (two oriented "

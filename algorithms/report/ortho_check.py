@@ -29,10 +29,11 @@ class OrthoCheck(Algorithm):
     the orthophoto shows the target minus where it was surveyed. Chips come from ``PHOTO``, or
     per point from the measuring photo where it lies nearest the image centre. A match scoring
     under ``MIN_SCORE``, or at the edge of the search area, is reported and not counted. The
-    chip takes the ground around a point at the point's height; with ``DEM`` (the orthophoto's)
-    each point's Z is compared with it and points more than 2 cells off are warned about: the
-    orthophoto shows the DEM's ground, so their offsets include that height difference's
-    relief displacement.
+    chip takes the ground around a point on ``DEM`` (the orthophoto's: its relief, through the
+    point's height), else on the plane of the point's height (relief around the point then
+    biases the match); with ``DEM`` each point's Z is compared with it and points more than 2
+    cells off are warned about: the orthophoto shows the DEM's ground, so their offsets include
+    that height difference's relief displacement.
 
     ``OUTPUT``: one CSV row per point (offsets dx, dy and their length in m, score, status);
     ``STATISTICS``: counts, RMSE east, north and planimetric of the matched points (read by
@@ -59,7 +60,8 @@ class OrthoCheck(Algorithm):
                min_value=0.0),
         Number("MIN_SCORE", "smallest correlation accepted (-1..1)", default=0.6,
                min_value=-1.0, max_value=1.0),
-        RasterLayer("DEM", "the orthophoto's DEM: points off it in height are flagged",
+        RasterLayer("DEM", "the orthophoto's DEM: the chips follow it; points off it in "
+                    "height are flagged",
                     optional=True, role="heights"),
         OutputFile("OUTPUT", "per-point offsets (CSV)", extensions=[".csv"]),
     ]

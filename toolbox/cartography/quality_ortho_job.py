@@ -103,13 +103,16 @@ def _check_points(req: OrthoCheckRequest, crs=None):
 def _same_crs_as_project(project, named: dict) -> None:
     """The rasters (``{name: rasterio CRS}``) are in the project's CRS (the check points' and
     the orientations'): one in another CRS would match nothing, or leave every height
-    difference blank, in silence. One without a CRS is taken to be in it."""
+    difference blank, in silence. One without a CRS is taken to be in it. Horizontal parts
+    are compared (a DEM published with its vertical datum is in its projected CRS), and the
+    DEM's height datum, where both state one, against the project's."""
     from pyproj import CRS
 
-    from toolbox.io.crs import common_crs
+    from toolbox.ortho.vertical import project_raster_crs
 
-    common_crs({"PROJECT": project.crs} | {name: CRS.from_wkt(crs.to_wkt()) if crs else None
-                                           for name, crs in named.items()})
+    for name, crs in named.items():
+        project_raster_crs(project.crs, CRS.from_wkt(crs.to_wkt()) if crs else None, name,
+                           heights=name == "DEM")
 
 
 def measure_checks(req: OrthoCheckRequest, feedback=None) -> tuple[list[CheckResult], dict]:
@@ -144,11 +147,13 @@ def measure_checks(req: OrthoCheckRequest, feedback=None) -> tuple[list[CheckRes
                                  f"more than the whole orthophoto ({shape[1]} x "
                                  f"{shape[0]} cells)")
     results = []
-    dz = _dem_differences(req.dem, xyz) if req.dem is not None else np.full(len(ids), np.nan)
+    surface = _dem_surface(req.dem) if req.dem is not None else None
+    dz = xyz[:, 2] - surface.height(xyz[:, 0], xyz[:, 1]) if surface is not None else \
+        np.full(len(ids), np.nan)
     with rasterio.open(req.ortho) as ortho:  # read by a window per check point
         for pid, p in zip(ids, xyz, strict=True):
             results.append(_measure_one(req, project, ortho, pid, p, m_ids, m_photos, m_xy,
-                                        cell, half, reach))
+                                        cell, half, reach, surface))
     for r, d in zip(results, dz, strict=True):
         r.dz_dem = float(d)
     off = [f"{r.point_id} ({r.dz_dem:+.1f} m)" for r in results if abs(r.dz_dem) > 2 * cell]
@@ -164,7 +169,7 @@ def measure_checks(req: OrthoCheckRequest, feedback=None) -> tuple[list[CheckRes
 
 
 def _measure_one(req: OrthoCheckRequest, project, ortho, pid, p, m_ids, m_photos, m_xy,
-                 cell: float, half: int, reach: int) -> CheckResult:
+                 cell: float, half: int, reach: int, surface=None) -> CheckResult:
     """Check point ``pid`` at ground ``p``: its chip from the photo it was measured on nearest
     the centre, matched in the open orthophoto ``ortho`` within ``reach`` cells."""
     seen = [(ph, m_xy[k]) for k, (i, ph) in enumerate(zip(m_ids, m_photos, strict=True))
@@ -179,7 +184,8 @@ def _measure_one(req: OrthoCheckRequest, project, ortho, pid, p, m_ids, m_photos
     if photo.image is None or not Path(photo.image).exists():
         raise InputDataError(f"PROJECT: photo {photo_id!r} has no image file to take the "
                              f"chip of check point {pid!r} from")
-    chip = photo_chip(photo, _photo_reader(Path(photo.image)), p, measured, cell, half)
+    chip = photo_chip(photo, _photo_reader(Path(photo.image)), p, measured, cell, half,
+                      surface)
     if chip is None:
         result.status = OUTSIDE + " the photo"
         return result
@@ -204,17 +210,15 @@ def _mm_to_pixel(project, photo_id: str, xy_mm) -> np.ndarray:
     return np.asarray(photo.pixel_transform.image_to_pixel(np.asarray(xy_mm, float)[None]))[0]
 
 
-def _dem_differences(dem: Path, xyz: np.ndarray) -> np.ndarray:
-    """Point Z minus the DEM's height there (bilinear; NaN off the DEM)."""
+def _dem_surface(dem: Path):
+    """The orthophoto's DEM as a surface (bilinear heights, NaN off it)."""
     import rasterio
 
     from toolbox.io.raster import read_filled
     from toolbox.photogrammetry.surface import DemSurface
 
     with rasterio.open(dem) as src:
-        z = read_filled(src, 1)
-        surface = DemSurface.from_transform(z, src.transform)
-    return xyz[:, 2] - surface.height(xyz[:, 0], xyz[:, 1])
+        return DemSurface.from_transform(read_filled(src, 1), src.transform)
 
 
 def _off_centre(photo, px) -> float:

@@ -195,14 +195,16 @@ def read_orientations(paths: Sequence[str | Path], fmt: str = "auto", crs: Any =
 
 
 def write_orientations(oset: OrientationSet, fmt: str, path: str | Path,
-                       angle_unit: str | None = None) -> list[Path]:
-    """Write ``oset`` as ``fmt``; the files written (sidecars included)."""
+                       angle_unit: str | None = None,
+                       images: str | Path | None = None) -> list[Path]:
+    """Write ``oset`` as ``fmt``; the files written (sidecars included). ``images``: the
+    folder of the photos' images (a project's ``image`` paths)."""
     from toolbox.exchange import csvtable, orthority, patb
     from toolbox.exchange.project import write_project
 
     path = Path(path)
     if fmt == "project":
-        return [write_project(oset, path, angle_unit or "deg")]
+        return [write_project(oset, path, angle_unit or "deg", images)]
     if fmt == "orthority":
         if angle_unit not in (None, "rad", "radians"):
             raise ParameterError("ANGLE_UNIT", "must be rad for Orthority (its GeoJSON holds "

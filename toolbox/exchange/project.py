@@ -121,12 +121,18 @@ def project_document(oset: OrientationSet, base_dir: Path | None, angle_unit: st
             "angle_unit": unit, "cameras": cameras, "photos": photos}
 
 
-def write_project(oset: OrientationSet, path: str | Path, angle_unit: str = "deg") -> Path:
+def write_project(oset: OrientationSet, path: str | Path, angle_unit: str = "deg",
+                  images: str | Path | None = None) -> Path:
+    """The project YAML of ``oset``, its photos' images matched by file stem in ``images``
+    (default: :func:`source_image_folder`)."""
     path = Path(path)
-    source = Path(oset.source.split(", ")[0]) if oset.source else None
-    folder = default_image_folder(source) if source is not None and source.exists() else None
-    images = {k: v.absolute() for k, v in (find_images(folder) if folder else {}).items()
-              if k in oset.photos}
+    folder = Path(images) if images is not None else source_image_folder(oset)
+    found = {k: v.absolute() for k, v in (find_images(folder) if folder else {}).items()
+             if k in oset.photos}
+    if images is not None and not found:
+        raise InputDataError(f"IMAGES: no image file (.tif, .jpg, ...) named after a photo id "
+                             f"in {folder}")
+    images = found
     if images:
         oset.notes.append(f"image paths (absolute) from {folder}")
     doc = project_document(oset, None, angle_unit, images)
@@ -190,6 +196,21 @@ def default_image_folder(path: Path) -> Path | None:
     return None
 
 
+def source_image_folder(oset: OrientationSet) -> Path | None:
+    """The first :func:`default_image_folder` of ``oset``'s source files (a merged set names
+    them all, in the order given) holding an image of one of its photos. Only the first file's
+    was looked in: a camera file listed before the orientations, in a folder of its own, left
+    every photo without its image."""
+    first = None
+    for name in (oset.source.split(", ") if oset.source else []):
+        source = Path(name)
+        folder = default_image_folder(source) if source.exists() else None
+        if folder is not None and set(find_images(folder)) & set(oset.photos):
+            return folder
+        first = first or folder
+    return first
+
+
 def project_from_orientations(oset: OrientationSet, images: str | Path | None = None,
                               base_dir: Path | None = None):
     """The product's project object for ``oset``, images matched by file stem in ``images``
@@ -199,8 +220,7 @@ def project_from_orientations(oset: OrientationSet, images: str | Path | None = 
     from toolbox.photogrammetry.project import project_from_dict
 
     source = Path(oset.source.split(", ")[0]) if oset.source else None  # merged: the first
-    folder = Path(images) if images is not None else \
-        (default_image_folder(source) if source is not None else None)
+    folder = Path(images) if images is not None else source_image_folder(oset)
     found = find_images(folder) if folder is not None else {}
     if images is not None and not found:
         raise InputDataError(f"IMAGES: no image file (.tif, .jpg, ...) in {folder}")

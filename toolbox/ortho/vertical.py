@@ -68,6 +68,27 @@ def horizontal_part(crs: Any) -> Any:
     return crs
 
 
+def project_raster_crs(project_crs: Any, raster_crs: Any, name: str = "DEM",
+                       heights: bool = True) -> Any:
+    """The CRS of an orientation project used with a raster ``name`` of its area (a DEM, an
+    orthophoto): their horizontal parts must be the same CRS (a vertical datum adds heights, it
+    does not move the cells: a DEM published as 'projected + EGM2008 height' is in the project's
+    'projected' CRS); with ``heights``, datums stated by both must agree (the DEM's heights are
+    taken as the orientation's; ortho:photo and ortho:batch convert them). A CRS missing on
+    either side is the other's, as :func:`toolbox.io.crs.common_crs` has it."""
+    from toolbox.io.crs import common_crs
+
+    if project_crs is None or raster_crs is None:
+        return common_crs({"PROJECT": project_crs, name: raster_crs})
+    common_crs({"PROJECT": horizontal_part(project_crs), name: horizontal_part(raster_crs)})
+    ours, theirs = vertical_part(project_crs), vertical_part(raster_crs)
+    if heights and ours is not None and theirs is not None and not same_datum(ours, theirs):
+        raise InputDataError(f"{name} heights are {datum_label(theirs)} but PROJECT's are "
+                             f"{datum_label(ours)}: convert the {name}'s heights to the "
+                             "project's first (ortho:photo and ortho:batch convert them)")
+    return project_crs
+
+
 def parse_heights(value: Any, name: str = "HEIGHTS") -> Any:
     """``ellipsoidal`` or a vertical CRS (``EPSG:3855``; a compound CRS gives its vertical
     part) -> what :func:`vertical_part` returns; ParameterError naming ``name``."""

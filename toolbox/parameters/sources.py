@@ -23,6 +23,12 @@ def _existing_path(param: Parameter, value: Any) -> Path:
     _refuse_virtual(param, value)
     path = Path(value).expanduser()
     if not path.exists():
+        base, bar, rest = str(value).partition("|")
+        if bar and Path(base).expanduser().is_file():  # 'file.gpkg|layername=points'
+            raise param.error(f"takes a file, not a layer reference: {_show(str(value))} (the "
+                              f"file exists; a GeoPackage is read from its first layer: copy "
+                              f"the layer into a file of its own first, e.g. ogr2ogr "
+                              f"out.gpkg {Path(base).name} {rest.partition('=')[2] or 'LAYER'})")
         raise param.error(f"file {_show(str(value))} does not exist")
     return path
 
@@ -188,13 +194,28 @@ class MultipleLayers(Parameter):
 
     def validate(self, value: Any, ctx: ValidationContext) -> list:
         items = [value] if isinstance(value, (str, Path)) else list(value)
+        if self.layer_type == "raster":  # a folder (ortho:batch's FOLDER): its GeoTIFFs
+            items = [f for item in items for f in self._folder_rasters(item)]
         if len(items) < self.min_count:
             raise self.error(f"needs at least {self.min_count} {self.layer_type} layers, "
                              f"got {len(items)}")
         return [self._item.validate(item, ctx) for item in items]
 
+    def _folder_rasters(self, item: Any) -> list:
+        """``item``, or the GeoTIFFs of the folder ``item`` names (sorted by name; hidden
+        files left), as ortho:batch writes its orthos into FOLDER."""
+        if not isinstance(item, (str, Path)) or not Path(item).expanduser().is_dir():
+            return [item]
+        folder = Path(item).expanduser()
+        files = sorted(f for f in folder.iterdir() if f.is_file() and not
+                       f.name.startswith(".") and f.suffix.lower() in (".tif", ".tiff"))
+        if not files:
+            raise self.error(f"the folder {_show(str(item))} holds no GeoTIFF (.tif)")
+        return [str(f) for f in files]
+
     def expected(self) -> str:
-        return f"{self.min_count}+ {self.layer_type} layers (repeat the option)"
+        return f"{self.min_count}+ {self.layer_type} layers (repeat the option)" + (
+            ", or a folder of GeoTIFFs" if self.layer_type == "raster" else "")
 
     def describe(self) -> dict[str, Any]:
         return super().describe() | {"layer_type": self.layer_type, "min_count": self.min_count} \

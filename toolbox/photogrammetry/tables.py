@@ -131,7 +131,45 @@ def read_table(path: Path, layer: str | None = None, name: str = "INPUT"
             for values in frame.itertuples(index=False, name=None)]
     if not rows:
         raise InputDataError(f"{name}: {path} holds no rows")
+    _point_coordinates(path, layer, header, rows)
     return header, rows
+
+
+def _point_coordinates(path: Path, layer: str | None, header: list[str],
+                       rows: list[dict[str, str]]) -> None:
+    """A point layer's geometry as ``X``, ``Y``, ``Z`` (blank for a 2D point) columns
+    where no attribute gives that coordinate (:data:`XYZ_COLUMNS`), so that the PointZ layers
+    the toolbox writes (tie points, intersected, monoplotted points) serve as CONTROL or GNSS
+    as they are: without this their coordinates, held only by the geometry, were not seen."""
+    import pyogrio
+
+    try:
+        info = pyogrio.read_info(path, layer=layer)
+    except Exception:  # the attributes were read: nothing more to add
+        return
+    geometry_type = str(info.get("geometry_type") or "")
+    if not geometry_type.startswith("Point"):
+        return
+    lower = {h.lower() for h in header}
+    missing = [k for k, aliases in enumerate(XYZ_COLUMNS)
+               if not any(a.lower() in lower for a in aliases)]
+    if not missing:
+        return
+    import shapely
+
+    _, _, wkb, _ = pyogrio.raw.read(path, layer=layer, columns=[])
+    points = shapely.from_wkb(wkb)
+    coords = shapely.get_coordinates(points, include_z=True)
+    if len(coords) != len(rows) or shapely.is_empty(points).any():
+        raise InputDataError(f"{path}{'|layername=' + layer if layer else ''}: a feature has "
+                             f"an empty point geometry (give X, Y, Z columns or a point)")
+    has_z = shapely.has_z(points)  # a 2D point's Z is blank: planimetric where allowed
+    for k in missing:
+        label = XYZ_COLUMNS[k][0]
+        header.append(label)
+        for row, value, z in zip(rows, coords[:, k], has_z, strict=True):
+            row[label] = "" if (k == 2 and not z) or not math.isfinite(value) else repr(
+                float(value))
 
 
 def image_measurements(path: Path, layer: str | None, coordinates: str, name: str = "INPUT"):

@@ -40,7 +40,8 @@ def select_pairs(photos: list[Any], rules: PairRules
             name = f"{left.id}-{right.id}"
             angle = axis_angle_deg(left, right)
             if angle > rules.max_angle_deg:
-                skipped.append(f"{name}: optical axes {angle:.1f} deg apart")
+                skipped.append(f"{name}: optical axes {angle:.1f} deg apart (MAX_ANGLE "
+                               f"{rules.max_angle_deg:g})")
                 continue
             try:
                 report = pair_report(left, right, rules.terrain_height, rules.sigma_parallax_um)
@@ -48,9 +49,12 @@ def select_pairs(photos: list[Any], rules: PairRules
                 skipped.append(f"{name}: {exc}")
                 continue
             if report.overlap < rules.min_overlap:
-                skipped.append(f"{name}: overlap {100 * report.overlap:.0f} %")
+                skipped.append(f"{name}: overlap {100 * report.overlap:.0f} % (MIN_OVERLAP "
+                               f"{rules.min_overlap:g})")
             elif not rules.min_base_ratio <= report.base_ratio <= rules.max_base_ratio:
-                skipped.append(f"{name}: base/height {report.base_ratio:.2f}")
+                skipped.append(f"{name}: base/height {report.base_ratio:.2f} (MIN_BASE_RATIO "
+                               f"{rules.min_base_ratio:g}, MAX_BASE_RATIO "
+                               f"{rules.max_base_ratio:g})")
             else:
                 pairs.append((left, right, report))
     return pairs, skipped

@@ -161,7 +161,7 @@ def read_centres(path: Path, layer: str | None = None, name: str = "GNSS") -> Ce
     from toolbox.photogrammetry.tables import column, number, read_table
 
     header, rows = read_table(path, layer, name)
-    c_photo = column(header, "photo", "photo_id", "image", name=name, path=path)
+    c_photo = column(header, "photo", "photo_id", "image", "filename", name=name, path=path)
     cols = [column(header, *a, name=name, path=path) for a in
             (("X0", "X", "E"), ("Y0", "Y", "N"), ("Z0", "Z", "H"))]
     c_sxy = column(header, "sigma_xy", required=False)
@@ -194,7 +194,7 @@ def read_attitudes(path: Path, unit: str, layer: str | None = None, name: str = 
     from toolbox.photogrammetry.tables import column, number, read_table
 
     header, rows = read_table(path, layer, name)
-    c_photo = column(header, "photo", "photo_id", "image", name=name, path=path)
+    c_photo = column(header, "photo", "photo_id", "image", "filename", name=name, path=path)
     cols = [column(header, *a, name=name, path=path) for a in
             (("omega", "roll"), ("phi", "pitch"), ("kappa", "yaw", "heading"))]
     c_sig = column(header, "sigma", required=False)
@@ -383,8 +383,7 @@ def build_block(request: BlockRequest) -> tuple[Block, dict]:
     h_photo, h_xyz, h_sig, h_strip, h_time = [], [], [], [], []
     if request.centres is not None:
         cen = request.centres
-        _require_photos(cen.photos, project, "GNSS")
-        for k, p in enumerate(cen.photos):
+        for k, p in enumerate(_require_photos(cen.photos, project, "GNSS")):
             if p not in photo_index:
                 continue
             h_photo.append(photo_index[p])
@@ -407,8 +406,7 @@ def build_block(request: BlockRequest) -> tuple[Block, dict]:
     a_photo, a_obs, a_sig = [], [], []
     if request.attitudes is not None:
         att = request.attitudes
-        _require_photos(att.photos, project, "IMU")
-        for k, p in enumerate(att.photos):
+        for k, p in enumerate(_require_photos(att.photos, project, "IMU")):
             if p in photo_index:
                 a_photo.append(photo_index[p])
                 a_obs.append(att.angles[k])
@@ -476,8 +474,16 @@ def _sigma_or(sigma: np.ndarray, sigma_xy: float, sigma_z: float) -> np.ndarray:
     return s
 
 
-def _require_photos(photos: list[str], project: object, name: str) -> None:
-    bad = [p for p in photos if p not in project.photos]
+def _require_photos(photos: list[str], project: object, name: str) -> list[str]:
+    """``photos`` as PROJECT's photo ids: an image file name (``id.tif``, as the ``filename``
+    column of Orthority's CSV, or of orientation:convert's, may give it) stands for the photo
+    its stem names. Names of no photo are an error."""
+    from toolbox.exchange.project import IMAGE_SUFFIXES
+
+    out = [p if p in project.photos or Path(p).suffix.lower() not in IMAGE_SUFFIXES
+           else Path(p).stem for p in photos]
+    bad = [p for p, q in zip(photos, out, strict=True) if q not in project.photos]
     if bad:
         raise InputDataError(f"{name} names photo(s) {', '.join(map(repr, bad[:5]))} that "
                              "PROJECT does not have")
+    return out

@@ -7,5 +7,6 @@ from toolbox.parameters import MultipleLayers
 
 def orthos_parameter() -> MultipleLayers:
     """INPUT: the orthophotos of the block, at least one."""
-    return MultipleLayers("INPUT", "the orthophoto GeoTIFFs (north-up, one CRS)",
+    return MultipleLayers("INPUT", "the orthophoto GeoTIFFs (north-up, one CRS), or their "
+                          "folder (e.g. ortho:batch's FOLDER)",
                           layer_type="raster", min_count=1)
