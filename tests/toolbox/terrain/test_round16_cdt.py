@@ -10,7 +10,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from toolbox.terrain.tin.kernels import triangulate_pslg
+from toolbox.terrain.tin import kernels
+from toolbox.terrain.tin.kernels import (
+    MEMORY_ORDER_MIN_POINTS,
+    _memory_order,
+    triangulate_pslg,
+)
 
 
 def _crossing_points(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -27,6 +32,12 @@ def _crossing_points(a: np.ndarray, b: np.ndarray) -> np.ndarray:
             if 0 < t < 1 and 0 < u < 1:
                 points.append(p + t * r)
     return np.array(points).reshape(-1, 2)
+
+
+def _triangle_codes(triangles: np.ndarray, n: int) -> np.ndarray:
+    """Sorted codes of the triangles as vertex sets (order of rows and corners ignored)."""
+    t = np.sort(np.asarray(triangles, dtype=np.int64), axis=1)
+    return np.sort((t[:, 0] * n + t[:, 1]) * n + t[:, 2])
 
 
 def _edges(triangles: np.ndarray) -> set[tuple[int, int]]:
@@ -92,8 +103,50 @@ def test_pieces_of_overlapping_and_touching_segments_keep_every_parent():
 def test_random_points_same_triangles_as_triangle():
     triangle = pytest.importorskip("triangle")
     rng = np.random.default_rng(1616)
-    xy = rng.uniform(0.0, 1000.0, (20_000, 2)) + [1_685_000.0, 4_795_000.0]
+    xy = rng.uniform(0.0, 1000.0, (MEMORY_ORDER_MIN_POINTS + 10, 2)) + [1_685_000.0, 4_795_000.0]
+    assert _memory_order(xy) is not None  # the points go to CDT in Z-order
     ours = triangulate_pslg(xy, neighbors=False, parents=False, triangulator="cdt").triangles
     ref = triangle.triangulate({"vertices": xy - xy.min(axis=0)}, "")["triangles"]
-    assert set(map(tuple, np.sort(ours, axis=1).tolist())) == \
-        set(map(tuple, np.sort(ref, axis=1).tolist()))
+    assert np.array_equal(_triangle_codes(ours, len(xy)), _triangle_codes(ref, len(xy)))
+
+
+def test_memory_order_gives_the_same_arrays_even_on_cocircular_points(monkeypatch):
+    # 3000 copies of six points exactly on one circle (integer points of x^2 + y^2 = 5^6,
+    # scaled and shifted by powers of two: exact), all x distinct and all y distinct, among
+    # random points: where such a circle is empty, the Delaunay triangulation is not unique
+    # and depends on the insertion order (checked below), yet the Z-ordered array must give
+    # CDT's very triangles, in the same order, with the same neighbours
+    import pythoncdt as cdt
+
+    rng = np.random.default_rng(5)
+    ring = np.array([[35, 120], [44, 117], [75, 100], [100, 75], [117, 44], [120, 35]]) / 64.0
+    assert ((ring * 64) ** 2).sum(axis=1).tolist() == [5 ** 6] * 6
+    offsets = np.round(rng.uniform(0, 1e5, (3000, 2)) * 1024) / 1024
+    xy = np.vstack([(ring[None] + offsets[:, None]).reshape(-1, 2),
+                    rng.uniform(0, 1e5, (MEMORY_ORDER_MIN_POINTS - 17_000, 2))])
+    assert len(np.unique(xy[:, 0])) == len(xy) and len(np.unique(xy[:, 1])) == len(xy)
+    fast = triangulate_pslg(xy, triangulator="cdt")
+    monkeypatch.setattr(kernels, "MEMORY_ORDER_MIN_POINTS", 10 ** 12)
+    plain = triangulate_pslg(xy, triangulator="cdt")
+    assert np.array_equal(fast.triangles, plain.triangles)
+    assert np.array_equal(fast.neighbors, plain.neighbors)
+    # another insertion order breaks the cocircular ties otherwise: the check above has teeth
+    t = cdt.Triangulation(cdt.VertexInsertionOrder.AS_PROVIDED,
+                          cdt.IntersectingConstraintEdges.TRY_RESOLVE, 0.0)
+    flip = np.ascontiguousarray(xy[::-1] - xy.min(axis=0))
+    t.insert_vertices(flip)
+    other = t.triangles_array()["vertices"].astype(np.int64)
+    other = len(xy) - 1 - (other[(other >= 3).all(axis=1)] - 3)
+    assert not np.array_equal(_triangle_codes(other, len(xy)),
+                              _triangle_codes(plain.triangles, len(xy)))
+
+
+def test_memory_order_not_taken_on_shared_coordinates():
+    grid = np.stack(np.meshgrid(np.arange(600.0), np.arange(600.0)), -1).reshape(-1, 2)
+    assert _memory_order(grid) is None
+    rng = np.random.default_rng(2)
+    xy = rng.uniform(0, 100, (MEMORY_ORDER_MIN_POINTS, 2))
+    assert _memory_order(xy) is not None
+    xy[7, 1] = xy[99, 1]  # one shared y
+    assert _memory_order(xy) is None
+    assert _memory_order(xy[:1000]) is None  # small: as given

@@ -227,8 +227,9 @@ def _cdt(local: np.ndarray, seg: np.ndarray, neighbors: bool, parents: bool):
 
     t = cdt.Triangulation(cdt.VertexInsertionOrder.AUTO,
                           cdt.IntersectingConstraintEdges.TRY_RESOLVE, 0.0)
+    order = _memory_order(local) if len(seg) == 0 else None
     try:
-        t.insert_vertices(local)
+        t.insert_vertices(local if order is None else local[order])
         if len(seg):
             t.insert_edges(np.ascontiguousarray(seg, dtype=np.uintc))
     except RuntimeError as exc:  # CDT reports duplicates as "#i is a duplicate of #j"
@@ -242,6 +243,8 @@ def _cdt(local: np.ndarray, seg: np.ndarray, neighbors: bool, parents: bool):
     added = np.column_stack([vertices["x"][SUPER + n:], vertices["y"][SUPER + n:]])
     tris = t.triangles_array(copy=False)
     triangles, kept = _drop_super_triangle(tris["vertices"])
+    if order is not None:
+        triangles = order[triangles]
     if neighbors:  # CDT: neighbour i is across edge (i, i+1); ours: across the edge facing i
         nb = _kept_neighbours(tris["neighbors"][:, [1, 2, 0]], kept, cdt.NO_NEIGHBOR)
     else:
@@ -249,6 +252,44 @@ def _cdt(local: np.ndarray, seg: np.ndarray, neighbors: bool, parents: bool):
     if not (parents and len(seg)):
         return added, triangles, nb, *_NO_SEGMENTS
     return (added, triangles, nb, *_cdt_pieces(t, seg))
+
+
+#: from this many points on, :func:`_memory_order` pays for itself (at 200 k points it about
+#: breaks even: the triangulation's arrays fit the CPU caches)
+MEMORY_ORDER_MIN_POINTS = 250_000
+
+
+def _morton16(q: np.ndarray) -> np.ndarray:
+    """Spread the 8 bits of ``q`` (uint16 < 256) to the even bits of a 16-bit Morton code."""
+    q = (q | (q << 4)) & 0x0F0F
+    q = (q | (q << 2)) & 0x3333
+    return (q | (q << 1)) & 0x5555
+
+
+def _memory_order(local: np.ndarray) -> np.ndarray | None:
+    """Points in Z-order of a 256 x 256 grid (int32 permutation), to pass to CDT in that order,
+    or None to pass them as given.
+
+    CDT inserts the points in the order of its k-d tree (a breadth-first walk of median splits
+    in x and y), whatever their order in the array; the array's order only decides where each
+    point and its triangles sit in memory. In Z-order, neighbours sit together: 1 M random
+    points insert in 0.7 s instead of 1.2 s CPU. The insertion sequence (hence every triangle,
+    even where four points lie on one circle) is the same only if each median split picks the
+    same point, which is certain when no two points share an x or a y (a tie would let the
+    split pick another of the tied points): with a shared coordinate (grids, rounded
+    coordinates) or fewer than :data:`MEMORY_ORDER_MIN_POINTS` points, None.
+    """
+    if len(local) < MEMORY_ORDER_MIN_POINTS:
+        return None
+    for axis in (0, 1):
+        values = np.sort(local[:, axis])
+        if (values[1:] == values[:-1]).any():
+            return None
+    low = local.min(axis=0)
+    span = np.maximum(local.max(axis=0) - low, np.finfo(float).tiny)
+    cell = ((local - low) * (255.999 / span)).astype(np.uint16)
+    key = _morton16(cell[:, 0]) | (_morton16(cell[:, 1]) << 1)
+    return np.argsort(key, kind="stable").astype(np.int32)
 
 
 def _edge_array(edges, count: int) -> np.ndarray:
