@@ -147,6 +147,48 @@ def test_memory_order_not_taken_on_shared_coordinates():
     rng = np.random.default_rng(2)
     xy = rng.uniform(0, 100, (MEMORY_ORDER_MIN_POINTS, 2))
     assert _memory_order(xy) is not None
-    xy[7, 1] = xy[99, 1]  # one shared y
+    xy[5000, 1] = xy[200_000, 1]  # one shared y, far apart: meets no median split
+    assert _memory_order(xy) is not None
+    xy[:20, 0] = xy[20, 0]  # 21 points on one x: not worth following
     assert _memory_order(xy) is None
     assert _memory_order(xy[:1000]) is None  # small: as given
+
+
+def _cdt_triangles(xy: np.ndarray, perm: np.ndarray | None = None) -> np.ndarray:
+    """CDT's triangles of ``xy`` given to it in the order ``perm``, numbered as in ``xy``."""
+    import pythoncdt as cdt
+
+    t = cdt.Triangulation(cdt.VertexInsertionOrder.AUTO,
+                          cdt.IntersectingConstraintEdges.TRY_RESOLVE, 0.0)
+    t.insert_vertices(np.ascontiguousarray(xy if perm is None else xy[perm]))
+    v = t.triangles_array()["vertices"].astype(np.int64)
+    v = v[(v >= 3).all(axis=1)] - 3
+    return v if perm is None else perm[v]
+
+
+def _tied_neighbour(seed: int) -> np.ndarray:
+    """Random points where point 0's nearest neighbour gets point 0's x."""
+    b = np.random.default_rng(seed).uniform(0, 1000, (MEMORY_ORDER_MIN_POINTS, 2))
+    d = np.hypot(*(b - b[0]).T)
+    d[0] = np.inf
+    b[int(np.argmin(d)), 0] = b[0, 0]
+    return b
+
+
+def test_memory_order_refused_where_a_shared_x_makes_a_split_ambiguous():
+    xy = _tied_neighbour(0)
+    assert _memory_order(xy) is None
+    # and rightly: another array order gives CDT other triangle arrays there
+    perm = np.argsort(np.random.default_rng(99).random(len(xy)))
+    assert not np.array_equal(_cdt_triangles(xy), _cdt_triangles(xy, perm))
+
+
+def test_memory_order_taken_with_a_harmless_shared_x_gives_the_same_arrays(monkeypatch):
+    xy = _tied_neighbour(1)
+    assert len(np.unique(xy[:, 0])) == len(xy) - 1
+    assert _memory_order(xy) is not None
+    fast = triangulate_pslg(xy, triangulator="cdt")
+    monkeypatch.setattr(kernels, "MEMORY_ORDER_MIN_POINTS", 10 ** 12)
+    plain = triangulate_pslg(xy, triangulator="cdt")
+    assert np.array_equal(fast.triangles, plain.triangles)
+    assert np.array_equal(fast.neighbors, plain.neighbors)

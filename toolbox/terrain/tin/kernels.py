@@ -275,22 +275,70 @@ def _memory_order(local: np.ndarray) -> np.ndarray | None:
     in x and y), whatever their order in the array; the array's order only decides where each
     point and its triangles sit in memory. In Z-order, neighbours sit together: 1 M random
     points insert in 0.7 s instead of 1.2 s CPU. The insertion sequence (hence every triangle,
-    even where four points lie on one circle) is the same only if each median split picks the
-    same point, which is certain when no two points share an x or a y (a tie would let the
-    split pick another of the tied points): with a shared coordinate (grids, rounded
-    coordinates) or fewer than :data:`MEMORY_ORDER_MIN_POINTS` points, None.
+    its order and its neighbours, even where four points lie on one circle) is the same if
+    each median split picks the same point, which is certain unless the median's coordinate
+    is shared by another point of the range split (then which of them lands at the median
+    depends on the array's order): see :func:`_splits_unambiguous`. With many shared
+    coordinates (grids, rounded coordinates), an ambiguous split, or fewer than
+    :data:`MEMORY_ORDER_MIN_POINTS` points, None.
     """
-    if len(local) < MEMORY_ORDER_MIN_POINTS:
+    n = len(local)
+    if n < MEMORY_ORDER_MIN_POINTS:
         return None
+    groups = []
     for axis in (0, 1):
-        values = np.sort(local[:, axis])
-        if (values[1:] == values[:-1]).any():
+        head = np.sort(local[:4096, axis])  # rounded coordinates show ties at once
+        if (head[1:] == head[:-1]).any():
             return None
+        values = np.sort(local[:, axis])
+        tied = values[1:][values[1:] == values[:-1]]
+        if len(tied) > _MAX_TIED_VALUES:
+            return None
+        groups += [np.flatnonzero(local[:, axis] == v) for v in np.unique(tied)]
+    if groups and not _splits_unambiguous(local, groups):
+        return None
     low = local.min(axis=0)
     span = np.maximum(local.max(axis=0) - low, np.finfo(float).tiny)
     cell = ((local - low) * (255.999 / span)).astype(np.uint16)
     key = _morton16(cell[:, 0]) | (_morton16(cell[:, 1]) << 1)
     return np.argsort(key, kind="stable").astype(np.int32)
+
+
+#: more shared coordinate values than this: points passed as given (checking costs more)
+_MAX_TIED_VALUES = 16
+
+
+def _splits_unambiguous(local: np.ndarray, groups: list[np.ndarray]) -> bool:
+    """True when no median split of CDT's k-d tree insertion order meets a shared coordinate.
+
+    ``groups``: indices of points sharing one x (or one y). A split of a range is ambiguous
+    only if two points of the range share the median's coordinate, so only ranges holding two
+    or more points of a group need checking: this follows them down the tree as CDT builds it
+    (``insertVertices_KDTreeBFS``: the points' bounding box; the range's point of rank
+    ``len // 2`` along the box's longer side, x on a tie; the lower and upper points go to the
+    two halves, the box cut at the median), each split computed from the range's points.
+    """
+    xy = local
+    box0 = (xy[:, 0].min(), xy[:, 1].min(), xy[:, 0].max(), xy[:, 1].max())
+    for group in groups:
+        if len(group) > 8:
+            return False
+        stack = [(np.arange(len(xy)), box0)]
+        while stack:
+            members, box = stack.pop()
+            if np.count_nonzero(np.isin(members, group)) < 2:
+                continue
+            axis = 0 if box[2] - box[0] >= box[3] - box[1] else 1
+            values = xy[members, axis]
+            median = np.partition(values, len(values) // 2)[len(values) // 2]
+            if np.count_nonzero(values == median) > 1:
+                return False
+            low_box, high_box = list(box), list(box)
+            low_box[2 + axis] = median
+            high_box[axis] = median
+            stack.append((members[values < median], tuple(low_box)))
+            stack.append((members[values > median], tuple(high_box)))
+    return True
 
 
 def _edge_array(edges, count: int) -> np.ndarray:
