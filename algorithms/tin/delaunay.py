@@ -51,7 +51,8 @@ class Delaunay(Algorithm):
     """Triangulated irregular network (TIN) of mass points and breaklines.
 
     Method (thesis S002 par. 2.5.1): Delaunay triangulation, whose
-    triangles' circumcircles contain no other point, made with Shewchuk's Triangle. With
+    triangles' circumcircles contain no other point, made with CDT (pythoncdt, MPL-2.0; or
+    Shewchuk's Triangle with ``TOOLBOX_TRIANGULATOR=triangle``, docs/algorithms/tin.md). With
     breaklines (ridges, road edges, contour lines: LineStringZ, or lines with a height field)
     the triangulation is a *constrained* Delaunay triangulation: every breakline vertex becomes
     a node and every breakline segment a triangle edge, so the surface never cuts across a
@@ -78,8 +79,9 @@ class Delaunay(Algorithm):
     node_to, left_tri, right_tri, breakline flag, lengths; EDGES=false skips this layer).
     Geometries are encoded with numpy and written through Arrow when pyarrow is installed.
 
-    Licence: Triangle is free for non-commercial use only; commercial use needs a licence from
-    its author (docs/algorithms/tin.md, "Licence").
+    Licence: the optional Triangle is free for non-commercial use only; commercial use needs a
+    licence from its author (docs/algorithms/tin.md, "Licence"); the default CDT has no such
+    limit.
     """
 
     length_units = "horizontal"  # x, y in one unit (metres or feet); heights in their own

@@ -5,8 +5,9 @@ Arrays and shapely geometries in, a :class:`TinModel` out; no files. Steps:
 1. breakline vertices and mass points are pooled (breakline vertices first) and points with the
    same XY (within a tolerance) are merged by a stated rule
    (:func:`toolbox.terrain.points.merge_duplicate_xy`);
-2. the constrained Delaunay triangulation (Triangle ``-pc``) makes every breakline segment a
-   triangle edge; where breaklines cross without a shared vertex, Triangle splits them at the
+2. the constrained Delaunay triangulation (CDT, or Triangle ``-pc``:
+   :mod:`toolbox.triangulation`) makes every breakline segment a
+   triangle edge; where breaklines cross without a shared vertex, it splits them at the
    crossing, and the new node gets the Z interpolated linearly along each crossing segment (the
    mean when the breaklines disagree there; the largest disagreement is reported);
 3. a boundary polygon clips hard: its vertices become nodes (Z from the unclipped TIN), its edges
