@@ -6,7 +6,7 @@ Arrays and shapely geometries in, a :class:`TinModel` out; no files. Steps:
    same XY (within a tolerance) are merged by a stated rule
    (:func:`toolbox.terrain.points.merge_duplicate_xy`);
 2. the constrained Delaunay triangulation (CDT, or Triangle ``-pc``:
-   :mod:`toolbox.triangulation`) makes every breakline segment a
+   :mod:`toolbox.terrain.tin.kernels`) makes every breakline segment a
    triangle edge; where breaklines cross without a shared vertex, it splits them at the
    crossing, and the new node gets the Z interpolated linearly along each crossing segment (the
    mean when the breaklines disagree there; the largest disagreement is reported);
