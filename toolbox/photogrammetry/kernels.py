@@ -237,6 +237,36 @@ def _dem_height(x, y, dem, gx0, gy0, cx, cy):
     return h, OK
 
 
+@njit(cache=True, inline="always")
+def _entry(xc0, yc0, ex, ey, s_lo, s_hi, gx0, gy0, cx, cy, rows, cols):
+    """The first ray parameter in ``[s_lo, s_hi]`` where the ray's track ``(xc0 + s·ex, yc0 +
+    s·ey)`` is inside the DEM's cell-centre extent (by 1e-7 cells), or -1 if it never is: a
+    camera beside the DEM (an oblique photo of it from outside) starts its march there."""
+    lo = s_lo
+    hi = s_hi
+    margin = 1e-7
+    for axis in range(2):
+        if axis == 0:
+            f0 = (xc0 - gx0) / cx
+            df = ex / cx
+            top = cols - 1.0
+        else:
+            f0 = (gy0 - yc0) / cy
+            df = -ey / cy
+            top = rows - 1.0
+        if df == 0.0:
+            if f0 < margin or f0 > top - margin:
+                return -1.0
+            continue
+        t1 = (margin - f0) / df
+        t2 = (top - margin - f0) / df
+        lo = max(lo, min(t1, t2))
+        hi = min(hi, max(t1, t2))
+    if not lo <= hi:
+        return -1.0
+    return lo
+
+
 @njit(parallel=True, cache=True)
 def monoplot(u, v, centre, rot, c, pp, dmode, dr, dd, dk, di, m, dem, gx0, gy0, cx, cy, zmin,
              zmax, method, z_start, tolerance, max_iterations, out, status, iterations):
@@ -298,16 +328,25 @@ def monoplot(u, v, centre, rot, c, pp, dmode, dr, dd, dk, di, m, dem, gx0, gy0, 
         if s_hi < s_lo:  # the camera is below the lowest terrain
             status[i] = NO_INTERSECTION
             continue
-        speed = math.sqrt(ex * ex + ey * ey)
-        step = s_hi - s_lo if speed * (s_hi - s_lo) <= hcell else hcell / speed
         a = s_lo
         h, code = _dem_height(xc0 + a * ex, yc0 + a * ey, dem, gx0, gy0, cx, cy)
+        entered = False
+        if code == OUTSIDE:  # beside the DEM: start where the ray comes over it
+            a = _entry(xc0, yc0, ex, ey, s_lo, s_hi, gx0, gy0, cx, cy, dem.shape[0],
+                       dem.shape[1])
+            if a < 0.0:
+                status[i] = OUTSIDE
+                continue
+            entered = True
+            h, code = _dem_height(xc0 + a * ex, yc0 + a * ey, dem, gx0, gy0, cx, cy)
         if code != OK:
             status[i] = code
             continue
+        speed = math.sqrt(ex * ex + ey * ey)
+        step = s_hi - a if speed * (s_hi - a) <= hcell else hcell / speed
         fa = (zc0 - a) - h
-        if fa < -tolerance:  # camera below the terrain surface
-            status[i] = NO_INTERSECTION
+        if fa < -tolerance:  # camera below the terrain surface, or (entered) the ray comes
+            status[i] = OUTSIDE if entered else NO_INTERSECTION  # over the DEM's edge below it
             continue
         if fa <= tolerance:  # on the surface at the top of the range (e.g. a flat DEM)
             fa = 0.0

@@ -64,6 +64,24 @@ def _dem_height(x, y, dem, gx0, gy0, cx, cy):
     return np.where(code == OK, h, np.nan), code
 
 
+def _entry(xc0, yc0, ex, ey, s_lo, s_hi, gx0, gy0, cx, cy, rows, cols):
+    """The compiled kernel's ``_entry`` for arrays of rays: the first ray parameter in ``[s_lo,
+    s_hi]`` over the DEM's cell-centre extent (by 1e-7 cells), -1 where there is none."""
+    lo = np.full(ex.shape, float(s_lo))
+    hi = np.full(ex.shape, float(s_hi))
+    margin = 1e-7
+    for f0, df, top in (((xc0 - gx0) / cx, ex / cx, cols - 1.0),
+                        ((gy0 - yc0) / cy, -ey / cy, rows - 1.0)):
+        flat = df == 0.0
+        lo[flat & ((f0 < margin) | (f0 > top - margin))] = np.inf
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t1 = (margin - f0) / np.where(flat, 1.0, df)
+            t2 = (top - margin - f0) / np.where(flat, 1.0, df)
+        lo = np.where(flat, lo, np.maximum(lo, np.minimum(t1, t2)))
+        hi = np.where(flat, hi, np.minimum(hi, np.maximum(t1, t2)))
+    return np.where(lo <= hi, lo, -1.0)
+
+
 def monoplot(u, v, centre, rot, c, pp, dmode, dr, dd, dk, di, m, dem, gx0, gy0, cx, cy, zmin,
              zmax, method, z_start, tolerance, max_iterations, out, status, iterations):
     """The compiled kernel's ``march`` (``method`` 0, ``dmode`` 0): walk down every ray from
@@ -89,16 +107,26 @@ def monoplot(u, v, centre, rot, c, pp, dmode, dr, dd, dk, di, m, dem, gx0, gy0, 
         h, code = _dem_height(xc0 + s * ex[idx], yc0 + s * ey[idx], dem, gx0, gy0, cx, cy)
         return (zc0 - s) - h, code
 
-    with np.errstate(divide="ignore", invalid="ignore"):
-        speed = np.sqrt(ex * ex + ey * ey)
-        step = np.where(speed * (s_hi - s_lo) <= hcell, s_hi - s_lo, hcell / speed)
     live = np.flatnonzero(down)
     a = np.full(u.shape, s_lo)
     fa = np.zeros(u.shape)
     fa[live], code = f(live, a[live])
+    beside = live[code == OUTSIDE]  # beside the DEM: start where the ray comes over it
+    entered = np.zeros(u.shape, dtype=bool)
+    if beside.size:
+        a[beside] = _entry(xc0, yc0, ex[beside], ey[beside], s_lo, s_hi, gx0, gy0, cx, cy,
+                           *dem.shape)
+        came = beside[a[beside] >= 0.0]
+        entered[came] = True
+        fa[came], code_in = f(came, a[came])
+        code[np.isin(live, came)] = code_in
     status[live[code != OK]] = code[code != OK]
     live = live[code == OK]
-    below = fa[live] < -tolerance  # camera below the terrain surface
+    with np.errstate(divide="ignore", invalid="ignore"):
+        speed = np.sqrt(ex * ex + ey * ey)
+        step = np.where(speed * (s_hi - a) <= hcell, s_hi - a, hcell / speed)
+    below = fa[live] < -tolerance  # camera below the terrain surface, or (entered) the ray
+    status[live[below & entered[live]]] = OUTSIDE  # comes over the DEM's edge below it
     live = live[~below]
     fa[live] = np.where(fa[live] <= tolerance, 0.0, fa[live])  # on the surface at the top
     b, fb = a.copy(), fa.copy()

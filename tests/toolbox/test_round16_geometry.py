@@ -1,0 +1,95 @@
+"""Round 16, extreme imaging geometry: a drone flying below the DEM's highest hills, an oblique
+photo whose frame holds the horizon, a camera beside the DEM looking over it. Truth: the
+collinearity equations by hand (numpy) and the analytic texture the photos were rendered from."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import rasterio
+from affine import Affine
+
+from toolbox.photogrammetry import kernels, kernels_numpy
+from toolbox.photogrammetry.surface import DemSurface
+from toolbox.photogrammetry.synthetic import frame_photo, hills_dem, render_photo, wave_texture, write_photo
+
+CRS = "EPSG:3003"
+BOUNDS = (1686600.0, 4797600.0, 1688200.0, 4799200.0)
+
+
+def _project(path, centre, angles, size):
+    import yaml
+
+    camera = {"name": "c", "principal_distance_mm": 153.0, "image_size_px": [size, size],
+              "pixel_size_mm": 230.0 / size, "frame_size_mm": [230.0, 230.0]}
+    doc = {"format": "orientation-project", "version": 1, "crs": CRS, "angle_unit": "rad",
+           "cameras": [camera],
+           "photos": [{"id": "p1", "camera": "c", "image": "p1.tif",
+                       "exterior": dict(zip(("X0", "Y0", "Z0", "omega", "phi", "kappa"),
+                                            [*centre, *angles], strict=True))}]}
+    path.write_text(yaml.safe_dump(doc, sort_keys=False))
+    return path
+
+
+def _scene(folder, centre, angles, size=120):
+    from toolbox.raster.writer import write_raster
+
+    z, t = hills_dem(BOUNDS, cell=20.0, relief=200.0, base=250.0, seed=3)
+    texture = wave_texture(seed=7, wavelength=(40.0, 120.0))
+    photo = frame_photo(centre, angles, width=size, height=size, crs=CRS)
+    write_photo(folder / "p1.tif", render_photo(photo, z, t, texture, dtype="uint8"))
+    write_raster(folder / "dem.tif", z, t, CRS, nodata=-9999.0)
+    return z, t, texture, _project(folder / "project.yaml", centre, angles, size)
+
+
+def _errors(path, texture):
+    with rasterio.open(path) as src:
+        data, t = src.read(), src.transform
+    xs = t.c + (np.arange(data.shape[2]) + 0.5) * t.a
+    ys = t.f + (np.arange(data.shape[1]) + 0.5) * t.e
+    truth = texture(*np.meshgrid(xs, ys))
+    seen = data[-1] > 0
+    return np.abs(data[0].astype(float) - truth)[seen], seen
+
+
+def _march(module, photo, surface, pixels):
+    from toolbox.photogrammetry.collinearity import _distortion_args
+
+    args = photo._args()
+    p2f = photo.require_pixel_transform().pixel_to_fiducial
+    dem, gx0, gy0, cx, cy, zmin, zmax = surface.kernel_arguments()
+    n = len(pixels)
+    out, status, its = np.empty((n, 3)), np.empty(n, np.int8), np.empty(n, np.int32)
+    module.monoplot(np.ascontiguousarray(pixels[:, 0]), np.ascontiguousarray(pixels[:, 1]),
+                    np.asarray(args["centre"], float), np.asarray(args["rotation"], float),
+                    float(args["principal_distance"]), np.asarray(args["principal_point"], float),
+                    *_distortion_args(None), np.ascontiguousarray(p2f), dem, gx0, gy0, cx, cy,
+                    zmin, zmax, 0, 0.0, 1e-9, 100, out, status, its)
+    return out, status
+
+
+@pytest.mark.parametrize("module", [kernels, kernels_numpy])
+def test_monoplot_from_a_camera_beside_the_dem(module):
+    """A camera south of the DEM looking north over it: its rays were 'outside_dem' (the march
+    started above the camera's own position, off the DEM) though they meet the DEM."""
+    z = np.full((50, 50), 100.0)
+    z[:3, :] = 130.0  # the north edge a little higher: the DEM's top is above the camera's rays
+    surface = DemSurface.from_transform(z, Affine(10.0, 0, 0, 0, -10.0, 500.0))
+    photo = frame_photo((250.0, -300.0, 400.0), (0.8, 0.0, 0.0), width=100, height=100)
+    pixels = np.array([[50.0, 50.0], [20.0, 45.0], [70.0, 30.0]])
+    out, status = _march(module, photo, surface, pixels)
+    # truth: the collinearity equations by hand, cut at Z = 100
+    args = photo._args()
+    rot, c = np.asarray(args["rotation"]), float(args["principal_distance"])
+    mm = np.column_stack([pixels, np.ones(3)]) @ photo.require_pixel_transform().pixel_to_fiducial.T
+    rays = np.column_stack([mm[:, :2] / mm[:, 2:], np.full(3, -c)]) @ rot.T
+    truth = np.array([250.0, -300.0, 400.0]) + ((100.0 - 400.0) / rays[:, 2])[:, None] * rays
+    assert (truth[:, 1] > 5.0).all() and (truth[:, 1] < 470.0).all()  # on the flat part
+    assert status.tolist() == [0, 0, 0]
+    np.testing.assert_allclose(out, truth, atol=1e-6)
+    # a ray coming over the DEM's south edge below its surface met the terrain before the DEM:
+    # outside it
+    z[-3:, :] = 390.0
+    wall = DemSurface.from_transform(z, Affine(10.0, 0, 0, 0, -10.0, 500.0))
+    out, status = _march(module, photo, wall, pixels[:1])
+    assert status.tolist() == [1] and np.isnan(out).all()
