@@ -9,8 +9,10 @@ import pytest
 import rasterio
 from affine import Affine
 
+import toolbox
+from toolbox.errors import InputDataError
 from toolbox.photogrammetry import kernels, kernels_numpy
-from toolbox.photogrammetry.surface import DemSurface
+from toolbox.photogrammetry.surface import DemSurface, photo_ground_bounds
 from toolbox.photogrammetry.synthetic import frame_photo, hills_dem, render_photo, wave_texture, write_photo
 
 CRS = "EPSG:3003"
@@ -50,6 +52,69 @@ def _errors(path, texture):
     truth = texture(*np.meshgrid(xs, ys))
     seen = data[-1] > 0
     return np.abs(data[0].astype(float) - truth)[seen], seen
+
+
+def test_drone_below_the_highest_hills_gets_its_ortho(tmp_path):
+    """A camera 60 m above the valley floor, under hills 100 m higher elsewhere on the DEM:
+    the DEM window was cut at the DEM's top height, a plane above the camera, and the run
+    refused ("image ray(s) do not meet the height plane", exit 2)."""
+    z, t, texture, project = _scene(tmp_path, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
+    surface = DemSurface.from_transform(z, t)
+    row, col = np.unravel_index(np.argmin(z[10:-10, 10:-10]), z[10:-10, 10:-10].shape)
+    x = t.c + (col + 10.5) * t.a
+    y = t.f + (row + 10.5) * t.e
+    z0 = float(surface.height(np.array([x]), np.array([y]))[0]) + 60.0
+    assert z0 < z.max() - 50.0
+    z, t, texture, project = _scene(tmp_path, (float(x), float(y), z0), (0.02, -0.01, 0.3))
+    stats = toolbox.run("ortho:photo", {"INPUT": tmp_path / "p1.tif", "PROJECT": project,
+                                        "DEM": tmp_path / "dem.tif",
+                                        "OUTPUT": tmp_path / "o.tif"})["STATISTICS"]
+    errors, seen = _errors(tmp_path / "o.tif", texture)
+    assert seen.sum() > 1000 and np.median(errors) < 2.0
+    # the footprint of a camera 60 m up with a 74 degree field: about 90 m across
+    b = stats["bounds"]
+    assert 60.0 < b[2] - b[0] < 200.0 and abs(0.5 * (b[0] + b[2]) - x) < 40.0
+
+
+def test_oblique_photo_with_the_horizon_in_its_frame(tmp_path):
+    """Tilted 69 degrees (the frame's top above the horizon): refused ("image ray(s) do not
+    meet the height plane in front of the camera", exit 2) even with EXTENT; now orthorectified
+    on the part of the DEM it sees, the grid cut to the DEM."""
+    centre, angles = (1687400.0, 4797000.0, 1000.0), (1.2, 0.0, 0.0)
+    _, _, texture, project = _scene(tmp_path, centre, angles, size=200)
+    stats = toolbox.run("ortho:photo", {"INPUT": tmp_path / "p1.tif", "PROJECT": project,
+                                        "DEM": tmp_path / "dem.tif",
+                                        "OUTPUT": tmp_path / "o.tif"})["STATISTICS"]
+    b = stats["bounds"]
+    assert b[0] >= BOUNDS[0] - 20 and b[1] >= BOUNDS[1] - 20
+    assert b[2] <= BOUNDS[2] + 20 and b[3] <= BOUNDS[3] + 20
+    errors, seen = _errors(tmp_path / "o.tif", texture)
+    assert seen.sum() > 500 and np.median(errors) < 6.0
+
+
+def test_photo_ground_bounds_below_the_top_and_over_the_horizon():
+    within = (0.0, 0.0, 1000.0, 1000.0)
+    nadir = frame_photo((500.0, 500.0, 300.0), (0.0, 0.0, 0.0), width=100, height=100)
+    # terrain 200-400 m, camera at 300 m: the slice between 200 m and the camera; half side of
+    # the frame's view at 100 m below it = 100 * 115 / 153
+    half = 100.0 * 115.0 / 153.0
+    assert photo_ground_bounds(nadir, 200.0, 400.0) == pytest.approx(
+        (500 - half, 500 - half, 500 + half, 500 + half))
+    with pytest.raises(InputDataError, match="never reach"):
+        photo_ground_bounds(nadir, 350.0, 400.0)
+    oblique = frame_photo((1500.0, -200.0, 300.0), (1.2, 0.0, 0.0), width=100, height=100)
+    with pytest.raises(InputDataError, match="horizon"):
+        photo_ground_bounds(oblique, 0.0, 100.0)
+    b = photo_ground_bounds(oblique, 0.0, 100.0, within)
+    # truth: the points of the box (at 0 and 100 m) that project into the frame lie inside b,
+    # which leaves out the box's south-west (the photo looks north from south-east of it)
+    g = np.meshgrid(np.linspace(0, 1000, 101), np.linspace(0, 1000, 101), [0.0, 100.0])
+    ground = np.column_stack([v.ravel() for v in g])
+    mm = oblique.ground_to_image(ground, behind="nan")
+    seen = ground[(np.abs(mm) <= 115.0).all(axis=1)]
+    assert len(seen) > 100
+    assert (seen[:, 0] >= b[0] - 1e-6).all() and (seen[:, 1] >= b[1] - 1e-6).all()
+    assert b[2] == 1000.0 and b[3] == 1000.0 and b[0] > 100.0 and b[1] > 100.0
 
 
 def _march(module, photo, surface, pixels):

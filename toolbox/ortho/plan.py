@@ -118,7 +118,8 @@ def photo_surface(info: Any, photo: Any, crs: Any, band: int = 1) -> Any:
     whole = DemSurface.from_transform(data, t, crs)
     low, high = whole.z_range
     pad = 0.1 * (high - low) + 1.0
-    b = photo_ground_bounds(photo, low - pad, high + pad)
+    b = photo_ground_bounds(photo, low - pad, high + pad,
+                            (t.c, t.f + t.e * height, t.c + t.a * width, t.f))
     c0 = max(int((b[0] - t.c) / t.a) - 2, 0)
     c1 = min(int((b[2] - t.c) / t.a) + 3, width)
     r0 = max(int((b[3] - t.f) / t.e) - 2, 0)
@@ -272,5 +273,17 @@ def plan_photo(photo: Any, dem: Any, crs: Any, band: int = 1, cell: float | None
     both = np.concatenate([polygon[:, :2], outline[:, :2]])
     extent = (float(both[:, 0].min()), float(both[:, 1].min()), float(both[:, 0].max()),
               float(both[:, 1].max()))
+    # no cell beyond the DEM window the photo sees has a height: an oblique photo's footprint
+    # runs to the fallback plane far away (or to the horizon), the grid stops at the DEM
+    xmin, ymin, xmax, ymax = surface.bounds
+    half_x, half_y = 0.5 * surface.cell_x, 0.5 * surface.cell_y
+    dem_box = np.array([[xmin - half_x, ymin - half_y], [xmax + half_x, ymin - half_y],
+                        [xmax + half_x, ymax + half_y], [xmin - half_x, ymax + half_y]])
+    if to_orientation is not None:
+        dem_box = transformed(dem_box)
+    cut = (max(extent[0], float(dem_box[:, 0].min())), max(extent[1], float(dem_box[:, 1].min())),
+           min(extent[2], float(dem_box[:, 0].max())), min(extent[3], float(dem_box[:, 1].max())))
+    if cut[0] < cut[2] and cut[1] < cut[3]:
+        extent = cut
     grid = lattice_grid(extent if bounds is None else bounds, cell, output_crs, origin)
     return OrthoPlan(photo, surface, polygon, mean_height, gsd, grid, extent)
