@@ -158,3 +158,32 @@ def test_monoplot_from_a_camera_beside_the_dem(module):
     wall = DemSurface.from_transform(z, Affine(10.0, 0, 0, 0, -10.0, 500.0))
     out, status = _march(module, photo, wall, pixels[:1])
     assert status.tolist() == [1] and np.isnan(out).all()
+
+
+def test_cells_above_the_camera_are_checked_for_occlusion():
+    """A camera in a valley (Z0 = 100) looking up a slope (its cells up to 205 m): the cells
+    above the camera were never tested (always 'seen'), so a ridge between them and the camera
+    hid nothing in the true ortho. Truth: the line of sight sampled every 0.5 m against the
+    DSM (scipy's bilinear interpolation)."""
+    from scipy.interpolate import RegularGridInterpolator
+
+    from toolbox.ortho.visibility import visibility_mask
+
+    xs = np.arange(-95.0, 600.0, 10.0)
+    ys = np.arange(95.0, -100.0, -10.0)
+    gx, gy = np.meshgrid(xs, ys)
+    dsm = 50.0 + np.maximum(0.0, gx - 250.0)
+    dsm[(gx > 195) & (gx < 225) & (gy > 0)] = 180.0  # a ridge on the north half only
+    surface = DemSurface(dsm, xs[0], ys[0], 10.0, 10.0)
+    centre = np.array([0.0, 0.0, 100.0])
+    cells_x, cells_y = np.array([405.0]), np.array([55.0, -55.0])
+    z = 50.0 + (cells_x - 250.0) * np.ones((2, 1))
+    hidden = visibility_mask(cells_x, cells_y, z, centre, surface)
+    interp = RegularGridInterpolator((ys[::-1], xs), dsm[::-1])
+    truth = []
+    for y in cells_y:
+        t = np.linspace(0.0, 1.0, 2000)[1:-1]
+        line = np.array([405.0, y, 205.0]) + t[:, None] * (centre - (405.0, y, 205.0))
+        truth.append(int((interp(line[:, 1::-1]) > line[:, 2] + 0.1).any()))
+    assert truth == [1, 0]
+    assert hidden[:, 0].tolist() == truth
