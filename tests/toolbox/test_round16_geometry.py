@@ -187,3 +187,35 @@ def test_cells_above_the_camera_are_checked_for_occlusion():
         truth.append(int((interp(line[:, 1::-1]) > line[:, 2] + 0.1).any()))
     assert truth == [1, 0]
     assert hidden[:, 0].tolist() == truth
+
+
+@pytest.mark.parametrize("module", [kernels, kernels_numpy])
+def test_monoplot_rising_rays_meet_the_slope_above_the_camera(module):
+    """A camera 30 m above a valley floor looking level and up the slope across it (the plane
+    Z = 20 + 0.5·Y): its rising rays were 'ray_not_descending' (no point), though they meet the
+    slope; the synthetic photos left those pixels empty. Truth: each ray cut with the plane by
+    hand."""
+    xs = np.arange(-300.0, 300.0, 10.0)
+    ys = np.arange(1000.0, -200.0, -10.0)
+    z = np.broadcast_to(20.0 + 0.5 * np.maximum(ys, 0.0)[:, None], (len(ys), len(xs)))
+    surface = DemSurface(np.array(z), xs[0], ys[0], 10.0, 10.0)
+    # looking north, tilted 70 degrees from the nadir: the upper rows of the frame rise
+    photo = frame_photo((0.0, -100.0, 50.0), (np.radians(70.0), 0.0, 0.0), width=100,
+                        height=100)
+    pixels = np.array([[50.0, 20.0], [50.0, 5.0], [20.0, 10.0], [90.0, 2.0]])
+    out, status = _march(module, photo, surface, pixels)
+    args = photo._args()
+    rot, c = np.asarray(args["rotation"]), float(args["principal_distance"])
+    mm = np.column_stack([pixels, np.ones(4)]) @ photo.require_pixel_transform().pixel_to_fiducial.T
+    rays = np.column_stack([mm[:, :2] / mm[:, 2:], np.full(4, -c)]) @ rot.T
+    assert (rays[:, 2] > 0).all()  # rising
+    # (0, -100, 50) + t·ray on Z = 20 + 0.5·Y (Y > 0 there)
+    t = (20.0 + 0.5 * -100.0 - 50.0) / (rays[:, 2] - 0.5 * rays[:, 1])
+    truth = np.array([0.0, -100.0, 50.0]) + t[:, None] * rays
+    assert (t > 0).all() and (truth[:, 1] > 0).all() and (np.abs(truth[:, 0]) < 290).all()
+    assert status.tolist() == [0, 0, 0, 0]
+    np.testing.assert_allclose(out, truth, atol=1e-6)
+    # a ray rising over the highest terrain: the sky
+    sky, status = _march(module, frame_photo((0.0, -100.0, 600.0), (np.radians(100.0), 0.0, 0.0),
+                                             width=100, height=100), surface, pixels[:1])
+    assert status.tolist() == [4] and np.isnan(sky).all()
