@@ -219,3 +219,44 @@ def test_monoplot_rising_rays_meet_the_slope_above_the_camera(module):
     sky, status = _march(module, frame_photo((0.0, -100.0, 600.0), (np.radians(100.0), 0.0, 0.0),
                                              width=100, height=100), surface, pixels[:1])
     assert status.tolist() == [4] and np.isnan(sky).all()
+
+
+def test_oblique_photo_up_a_slope_from_a_low_camera(tmp_path):
+    """A camera 3 m above a valley floor, its axis 83 degrees off the nadir towards the highest
+    hill: the footprint's mean height lies above the camera, and the GSD on that plane was
+    refused ('4 image ray(s) do not meet the height plane in front of the camera', exit 2).
+    The GSD and reference height of an oblique photo are now taken where its principal ray
+    meets the DEM. Truth: the principal ray marched by hand every 0.05 m over scipy's bilinear
+    DEM."""
+    import math
+
+    from scipy.interpolate import RegularGridInterpolator
+
+    from toolbox.photogrammetry.rotation import angles_from_matrix, rotation_matrix
+
+    z, t = hills_dem(BOUNDS, cell=20.0, relief=200.0, base=250.0, seed=3)
+    inner = z[10:-10, 10:-10]
+    i, j = np.unravel_index(np.argmin(inner), inner.shape)
+    top_i, top_j = np.unravel_index(np.argmax(z), z.shape)
+    x, y = t.c + (j + 10.5) * t.a, t.f + (i + 10.5) * t.e
+    azimuth = math.atan2(t.c + (top_j + 0.5) * t.a - x, t.f + (top_i + 0.5) * t.e - y)
+    angles = angles_from_matrix(rotation_matrix(0.0, 0.0, -azimuth)
+                                @ rotation_matrix(math.radians(83.0), 0.0, 0.0))
+    centre = (float(x), float(y), float(z[i + 10, j + 10]) + 3.0)
+    _, _, texture, project = _scene(tmp_path, centre, angles, size=60)
+    stats = toolbox.run("ortho:photo", {"INPUT": tmp_path / "p1.tif", "PROJECT": project,
+                                        "DEM": tmp_path / "dem.tif",
+                                        "OUTPUT": tmp_path / "o.tif"})["STATISTICS"]
+    axis = rotation_matrix(*angles) @ np.array([0.0, 0.0, -1.0])
+    xs = t.c + (np.arange(z.shape[1]) + 0.5) * t.a
+    ys = t.f + (np.arange(z.shape[0]) + 0.5) * t.e
+    dem = RegularGridInterpolator((ys[::-1], xs), z[::-1].astype(float))
+    steps = np.arange(1.0, 3000.0, 0.05)
+    ray = np.array(centre) + steps[:, None] * axis
+    inside = (ray[:, 0] > xs[0]) & (ray[:, 0] < xs[-1]) & (ray[:, 1] > ys[-1]) & \
+        (ray[:, 1] < ys[0])
+    under = np.flatnonzero(inside & (ray[:, 2] <= dem(np.clip(ray[:, 1::-1], [ys[-1], xs[0]],
+                                                              [ys[0], xs[-1]]))))
+    assert under.size and stats["reference_height"] == pytest.approx(ray[under[0], 2], abs=0.1)
+    assert stats["reference_height"] < centre[2]
+

@@ -182,6 +182,26 @@ def orientation_transformer(photo: Any, crs: Any) -> Any:
     return Transformer.from_crs(crs, eo_crs, always_xy=True)
 
 
+def reference_height(photo: Any, mean_height: float, principal: Any,
+                     limit_deg: float = 10.0) -> float:
+    """The height of the GSD (the default cell) and of the relief displacements: the mean
+    terrain height of the footprint for a near-vertical photo; for an optical axis more than
+    ``limit_deg`` off the nadir (an oblique photo, whose mean height may lie a few metres under
+    a low camera, or above it) the height where the principal ray meets the DEM, when it
+    does. :class:`InputDataError` when neither lies below the camera."""
+    eo = photo.require_exterior()
+    axis = eo.rotation @ np.array([0.0, 0.0, -1.0])
+    tilted = math.degrees(math.acos(max(-1.0, min(1.0, -float(axis[2]))))) > limit_deg
+    if (tilted or not mean_height < eo.z0) and principal.on_dem:
+        return float(principal.xyz[2])
+    if not mean_height < eo.z0:
+        raise InputDataError(f"photo {photo.id!r}: the terrain of its footprint lies above the "
+                             f"camera on average ({mean_height:.2f} >= Z0 = {eo.z0:.2f}) and "
+                             "its principal ray misses the DEM: no ground sample distance (the "
+                             "default cell); extend the DEM over the principal ray")
+    return mean_height
+
+
 @dataclass
 class OrthoPlan:
     """What an ortho of one photo needs before warping: the DEM window the photo sees, its
@@ -249,11 +269,13 @@ def plan_photo(photo: Any, dem: Any, crs: Any, band: int = 1, cell: float | None
     check_geometry(photo, under if math.isfinite(under) else None)
     plane = float(np.nanmean(surface.z))
     dense = footprint_points_per_side(photo)
-    outline = photo_footprint(photo, surface, plane, dense).vertices
+    footprint = photo_footprint(photo, surface, plane, dense)
+    outline = footprint.vertices
     # the report footprint: every (dense / 8)-th point of the outline, the points a footprint
     # of 8 a side would monoplot (each ray on its own), without monoplotting them again
     polygon = outline[::dense // REPORT_POINTS_PER_SIDE]
-    mean_height = mean_height_inside(surface, polygon)
+    mean_height = reference_height(photo, mean_height_inside(surface, polygon),
+                                   footprint.principal_point)
     gsd = ground_sample_distance(photo, mean_height)
     cell = nice_cell_size(gsd) if cell is None else float(cell)
     to_orientation = orientation_transformer(photo, output_crs)
