@@ -260,3 +260,21 @@ def test_oblique_photo_up_a_slope_from_a_low_camera(tmp_path):
     assert under.size and stats["reference_height"] == pytest.approx(ray[under[0], 2], abs=0.1)
     assert stats["reference_height"] < centre[2]
 
+
+def test_angles_near_gimbal_lock_give_the_matrix_back():
+    """phi within 1e-12..1e-8 rad of ±90 degrees (a camera looking level along X, its matrix
+    from OpenCV's Rodrigues): omega and kappa were each divided out of elements ~cos(phi)
+    small, and the angles rebuilt a matrix up to 7e-4 off (2 cm at 30 m). Truth: the matrix."""
+    import cv2
+
+    from toolbox.photogrammetry.rotation import angles_from_matrix, rotation_matrix
+
+    rng = np.random.default_rng(0)
+    worst = 0.0
+    for eps in (0.0, 1e-12, 1e-11, 1e-10, 1e-8, 1e-6, 1e-2):
+        for sign in (1.0, -1.0):
+            for omega, kappa in rng.uniform(-3.0, 3.0, (40, 2)):
+                r = rotation_matrix(omega, sign * (np.pi / 2 - eps), kappa)
+                r = cv2.Rodrigues(cv2.Rodrigues(r)[0])[0]
+                worst = max(worst, np.abs(rotation_matrix(*angles_from_matrix(r)) - r).max())
+    assert worst < 1e-10
