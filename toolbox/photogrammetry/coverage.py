@@ -3,8 +3,10 @@
 A footprint is the image format's outline (densified: ``points_per_side`` points per side)
 projected onto the terrain by monoplotting (:func:`toolbox.photogrammetry.collinearity.monoplot`),
 or onto the plane ``Z = mean height`` when no DEM is given. Vertices whose rays miss the DEM
-(outside it, on nodata) fall back to the plane at the DEM's mean height and are counted in
-``vertices_off_dem`` (the footprint is then ``partial``), never silently dropped.
+(outside it, on nodata) fall back to the plane at the DEM's mean height (a ray that meets
+neither, over the horizon or with the plane above the camera: where its track leaves the DEM)
+and are counted in ``vertices_off_dem`` (the footprint is then ``partial``), never silently
+dropped.
 
 The nadir point is the ground point vertically below the projection centre; the principal
 point is where the ray through the principal point (image ``(ξ0, η0)``) meets the terrain.
