@@ -278,3 +278,38 @@ def test_angles_near_gimbal_lock_give_the_matrix_back():
                 r = cv2.Rodrigues(cv2.Rodrigues(r)[0])[0]
                 worst = max(worst, np.abs(rotation_matrix(*angles_from_matrix(r)) - r).max())
     assert worst < 1e-10
+
+
+def test_check_flags_a_known_point_behind_the_photo(tmp_path):
+    """orientation:check of an oblique photo with a control point 3 km behind it (a wrong id):
+    the whole check was refused, exit 2, '1 ground point(s) lie on or behind the plane of the
+    projection centre and have no image (first: index 0)', naming neither point nor photo. The
+    point is now flagged without residual, named in a warning; the others are checked. Truth:
+    the collinearity equations by hand."""
+    from toolbox.photogrammetry.rotation import rotation_matrix
+
+    centre, angles = np.array([1687400.0, 4797000.0, 1000.0]), (0.7, 0.0, 0.0)
+    project = _project(tmp_path / "project.yaml", tuple(map(float, centre)), angles, 120)
+    rot = rotation_matrix(*angles)
+    ground = np.array([[1687400.0, 4798000.0, 300.0], [1687300.0, 4798200.0, 310.0],
+                       [1687400.0, 4794000.0, 300.0]])
+    d = (ground - centre) @ rot  # camera coordinates Rᵀ·(P - C)
+    assert (d[:2, 2] < 0).all() and d[2, 2] > 0  # A, B in front; D behind
+    pixel = 230.0 / 120
+    cols = -153.0 * d[:, 0] / d[:, 2] / pixel + 60.0
+    rows = 60.0 + 153.0 * d[:, 1] / d[:, 2] / pixel
+    (tmp_path / "control.csv").write_text("id,X,Y,Z\n" + "".join(
+        f"{n},{x},{y},{z}\n" for n, (x, y, z) in zip("ABD", ground, strict=True)))
+    (tmp_path / "meas.csv").write_text("point_id,photo,col_px,row_px\n" + "".join(
+        f"{n},p1,{c},{r}\n" for n, c, r in zip("AB", cols[:2], rows[:2], strict=True)) + "D,p1,30,40\n")
+    feedback = toolbox.Feedback()
+    toolbox.run("orientation:check", {"PROJECT": project, "INPUT": tmp_path / "meas.csv",
+                                      "CONTROL": tmp_path / "control.csv",
+                                      "REPORT": tmp_path / "r.json"}, feedback=feedback)
+    import json
+
+    obs = {o["point_id"]: o for o in json.loads((tmp_path / "r.json").read_text())["observations"]}
+    assert obs["A"]["res_px"] < 1e-6 and obs["B"]["res_px"] < 1e-6
+    assert not obs["A"]["flagged"] and obs["D"]["flagged"]
+    assert obs["D"]["res_um"] is None and obs["D"]["res_px"] is None
+    assert any("D on p1" in w for w in feedback.warnings)
