@@ -313,3 +313,25 @@ def test_check_flags_a_known_point_behind_the_photo(tmp_path):
     assert not obs["A"]["flagged"] and obs["D"]["flagged"]
     assert obs["D"]["res_um"] is None and obs["D"]["res_px"] is None
     assert any("D on p1" in w for w in feedback.warnings)
+
+
+def test_ortho_check_chip_of_a_point_behind_the_photo_is_none():
+    """report:ortho_check's reference chip of a check point behind the photo (a wrong id on an
+    oblique photo) raised '... lie on or behind the plane of the projection centre ... (first:
+    index 0)' and stopped the whole check; it is now no chip ('outside the photo'), as a chip
+    leaving the photo. Truth: the point's camera z by hand (> 0: behind)."""
+    from toolbox.cartography.quality_ortho import photo_chip
+    from toolbox.photogrammetry.rotation import rotation_matrix
+
+    centre, angles = (1687400.0, 4797000.0, 1000.0), (0.7, 0.0, 0.0)
+    photo = frame_photo(centre, angles, width=120, height=120)
+    behind = np.array([1687400.0, 4794000.0, 300.0])
+    assert ((behind - centre) @ rotation_matrix(*angles))[2] > 0
+
+    def read_window(c0, r0, c1, r1):
+        return np.full((max(r1 - r0, 0), max(c1 - c0, 0)), 100.0), (c0, r0)
+
+    assert photo_chip(photo, read_window, behind, np.array([30.0, 40.0]), 1.0, 4) is None
+    front = np.array([1687400.0, 4798000.0, 300.0])
+    measured = photo.ground_to_pixel(front[None])[0]
+    assert photo_chip(photo, read_window, front, measured, 1.0, 4) is not None
