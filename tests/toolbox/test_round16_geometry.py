@@ -44,14 +44,20 @@ def _scene(folder, centre, angles, size=120):
     return z, t, texture, _project(folder / "project.yaml", centre, angles, size)
 
 
-def _errors(path, texture):
+def _errors(path, texture, centre=None, within=None):
+    """|ortho - texture| on the cells the ortho fills, the filled cells, and (given a centre
+    and a distance) the cells within that distance of it."""
     with rasterio.open(path) as src:
         data, t = src.read(), src.transform
     xs = t.c + (np.arange(data.shape[2]) + 0.5) * t.a
     ys = t.f + (np.arange(data.shape[1]) + 0.5) * t.e
-    truth = texture(*np.meshgrid(xs, ys))
+    gx, gy = np.meshgrid(xs, ys)
+    truth = texture(gx, gy)
     seen = data[-1] > 0
-    return np.abs(data[0].astype(float) - truth)[seen], seen
+    errors = np.abs(data[0].astype(float) - truth)[seen]
+    if centre is None:
+        return errors, seen
+    return errors, seen, seen & (np.hypot(gx - centre[0], gy - centre[1]) < within)
 
 
 def test_drone_below_the_highest_hills_gets_its_ortho(tmp_path):
@@ -88,8 +94,10 @@ def test_oblique_photo_with_the_horizon_in_its_frame(tmp_path):
     b = stats["bounds"]
     assert b[0] >= BOUNDS[0] - 20 and b[1] >= BOUNDS[1] - 20
     assert b[2] <= BOUNDS[2] + 20 and b[3] <= BOUNDS[3] + 20
-    errors, seen = _errors(tmp_path / "o.tif", texture)
-    assert seen.sum() > 500 and np.median(errors) < 6.0
+    # the texture back where the photo resolves it (within 1 km: its pixel a few metres on the
+    # ground; farther, at grazing angles, a pixel spans more than the texture's wavelengths)
+    errors, seen, near = _errors(tmp_path / "o.tif", texture, centre, 1000.0)
+    assert seen.sum() > 2000 and near.sum() > 500 and np.median(errors[near[seen]]) < 2.5
 
 
 def test_photo_ground_bounds_below_the_top_and_over_the_horizon():

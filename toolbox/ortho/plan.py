@@ -297,10 +297,8 @@ def plan_photo(photo: Any, dem: Any, crs: Any, band: int = 1, cell: float | None
               float(both[:, 1].max()))
     # no cell beyond the DEM window the photo sees has a height: an oblique photo's footprint
     # runs to the fallback plane far away (or to the horizon), the grid stops at the DEM
-    xmin, ymin, xmax, ymax = surface.bounds
-    half_x, half_y = 0.5 * surface.cell_x, 0.5 * surface.cell_y
-    dem_box = np.array([[xmin - half_x, ymin - half_y], [xmax + half_x, ymin - half_y],
-                        [xmax + half_x, ymax + half_y], [xmin - half_x, ymax + half_y]])
+    xmin, ymin, xmax, ymax = surface.bounds  # the cells' outer edges
+    dem_box = np.array([[xmin, ymin], [xmax, ymin], [xmax, ymax], [xmin, ymax]])
     if to_orientation is not None:
         dem_box = transformed(dem_box)
     cut = (max(extent[0], float(dem_box[:, 0].min())), max(extent[1], float(dem_box[:, 1].min())),

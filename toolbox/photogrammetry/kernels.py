@@ -240,8 +240,8 @@ def _dem_height(x, y, dem, gx0, gy0, cx, cy):
 @njit(cache=True, inline="always")
 def _entry(xc0, yc0, ex, ey, s_lo, s_hi, gx0, gy0, cx, cy, rows, cols):
     """The first ray parameter in ``[s_lo, s_hi]`` where the ray's track ``(xc0 + s·ex, yc0 +
-    s·ey)`` is inside the DEM's cell-centre extent (by 1e-7 cells), or -1 if it never is: a
-    camera beside the DEM (an oblique photo of it from outside) starts its march there."""
+    s·ey)`` is inside the DEM's cells (their outer edges, by 1e-7 cells), or -1 if it never is:
+    a camera beside the DEM (an oblique photo of it from outside) starts its march there."""
     lo = s_lo
     hi = s_hi
     margin = 1e-7
@@ -255,11 +255,11 @@ def _entry(xc0, yc0, ex, ey, s_lo, s_hi, gx0, gy0, cx, cy, rows, cols):
             df = -ey / cy
             top = rows - 1.0
         if df == 0.0:
-            if f0 < margin or f0 > top - margin:
+            if f0 < margin - 0.5 or f0 > top + 0.5 - margin:
                 return -1.0
             continue
-        t1 = (margin - f0) / df
-        t2 = (top - margin - f0) / df
+        t1 = (margin - 0.5 - f0) / df
+        t2 = (top + 0.5 - margin - f0) / df
         lo = max(lo, min(t1, t2))
         hi = min(hi, max(t1, t2))
     if not lo <= hi:

@@ -66,17 +66,17 @@ def _dem_height(x, y, dem, gx0, gy0, cx, cy):
 
 def _entry(xc0, yc0, ex, ey, s_lo, s_hi, gx0, gy0, cx, cy, rows, cols):
     """The compiled kernel's ``_entry`` for arrays of rays: the first ray parameter in ``[s_lo,
-    s_hi]`` over the DEM's cell-centre extent (by 1e-7 cells), -1 where there is none."""
+    s_hi]`` over the DEM's cells (their outer edges, by 1e-7 cells), -1 where there is none."""
     lo = np.array(np.broadcast_to(np.asarray(s_lo, dtype=float), ex.shape))
     hi = np.array(np.broadcast_to(np.asarray(s_hi, dtype=float), ex.shape))
     margin = 1e-7
     for f0, df, top in (((xc0 - gx0) / cx, ex / cx, cols - 1.0),
                         ((gy0 - yc0) / cy, -ey / cy, rows - 1.0)):
         flat = df == 0.0
-        lo[flat & ((f0 < margin) | (f0 > top - margin))] = np.inf
+        lo[flat & ((f0 < margin - 0.5) | (f0 > top + 0.5 - margin))] = np.inf
         with np.errstate(divide="ignore", invalid="ignore"):
-            t1 = (margin - f0) / np.where(flat, 1.0, df)
-            t2 = (top - margin - f0) / np.where(flat, 1.0, df)
+            t1 = (margin - 0.5 - f0) / np.where(flat, 1.0, df)
+            t2 = (top + 0.5 - margin - f0) / np.where(flat, 1.0, df)
         lo = np.where(flat, lo, np.maximum(lo, np.minimum(t1, t2)))
         hi = np.where(flat, hi, np.minimum(hi, np.maximum(t1, t2)))
     return np.where(lo <= hi, lo, -1.0)
