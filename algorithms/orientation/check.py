@@ -92,8 +92,15 @@ class CheckOrientation(Algorithm):
                     feedback.push_warning(
                         f"the block fails the 1:{params['MAP_SCALE']:g} rule: {role} RMSE XY "
                         f"{rms:.3f} m > {result['judgement']['tolerance_m']:.3f} m")
-        if block["flagged"]:
-            feedback.push_warning(f"{block['flagged']} measurement(s) over "
+        behind = [o for o in result["observations"]
+                  if o["flagged"] and o["res_um"] is None and o["res_px"] is None]
+        if behind:
+            feedback.push_warning(
+                f"{len(behind)} known point(s) lie behind the photo they are measured on (no "
+                "image, no residual; flagged: check their ids): " + ", ".join(
+                    f"{o['point_id']} on {o['photo']}" for o in behind[:10]))
+        if block["flagged"] > len(behind):
+            feedback.push_warning(f"{block['flagged'] - len(behind)} measurement(s) over "
                                   f"{params['THRESHOLD_PX']:g} px")
         result["residual_sign"] = "computed minus observed"
         write_json(params["REPORT"], {"algorithm": self.id, **result})

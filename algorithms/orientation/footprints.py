@@ -150,7 +150,8 @@ class Footprints(Algorithm):
             if fp.vertices_off_dem:
                 feedback.push_warning(f"photo {fp.photo.id}: {fp.vertices_off_dem} footprint "
                                       f"vertices miss the DEM; placed on the plane Z = "
-                                      f"{fp.plane_height:.2f}")
+                                      f"{fp.plane_height:.2f} (at the DEM's edge where the ray "
+                                      "runs over the horizon or the plane is above the camera)")
         return {"OUTPUT": params["OUTPUT"], "STATISTICS": stats}
 
     @staticmethod

@@ -41,7 +41,8 @@ class Monoplot(Algorithm):
     the DEM, bilinear between cell centres (the edge value held across the outer half cell):
     METHOD ``march`` walks down the ray from the DEM's top in half-cell steps and refines the
     first crossing (Illinois regula falsi) to TOLERANCE; it finds the first visible surface
-    point and converges on steep terrain. ``fixed_point`` is the
+    point and converges on steep terrain (a ray rising from a camera below the DEM's top, up a
+    slope, is walked up from the camera). ``fixed_point`` is the
     classical iteration Z <- DEM(X(Z), Y(Z)), which fails where the terrain is steeper than the
     ray (reported as not_converged). Without a DEM the rays meet the plane Z = HEIGHT.
 

@@ -80,8 +80,9 @@ class OrthoPhoto(Algorithm):
 
     Defaults as the thesis' software proposes: CELL_SIZE = the photo's ground sample distance
     at the mean terrain height of its footprint (2 significant digits); EXTENT = the footprint
-    on the DEM; grid edges on multiples of the cell (or on the lattice of TEMPLATE), so orthos
-    of one block share a grid. DEM_FACTOR > 1 projects on a coarser DEM (the mean of
+    on the DEM (cut to the DEM where an oblique photo's rays run off it or over the horizon);
+    grid edges on multiples of the cell (or on the lattice of TEMPLATE), so orthos of one block
+    share a grid. DEM_FACTOR > 1 projects on a coarser DEM (the mean of
     factor x factor cells), as Z-Map's resampling factor.
 
     OCCLUSION=true is the true-ortho step: each cell's line of sight to the projection centre

@@ -71,7 +71,8 @@ def photo_chip(photo, read_window, xyz: np.ndarray, measured_px: np.ndarray, cel
                half: int, dem=None) -> np.ndarray | None:
     """The reference chip of one check point (see the module docstring): ``read_window(c0,
     r0, c1, r1)`` returns the photo's grey values of columns c0..c1-1, rows r0..r1-1 (clipped
-    to the photo, with the origin actually read). None when the chip leaves the photo.
+    to the photo, with the origin actually read). None when the chip leaves the photo (or lies
+    behind it: a wrong point id on an oblique photo).
 
     ``dem`` (the orthophoto's surface, with ``height(x, y)``): the chip's ground follows its
     relief, raised or lowered to pass through the point (``Z + dem(x, y) - dem(X, Y)``), as the
@@ -84,8 +85,10 @@ def photo_chip(photo, read_window, xyz: np.ndarray, measured_px: np.ndarray, cel
             dem.height(np.array([xyz[0]]), np.array([xyz[1]]))[0]
         gz = np.where(np.isfinite(relief), gz + relief, gz)  # off the DEM: the point's plane
     pts = np.stack([gx, gy, gz], axis=-1).reshape(-1, 3)
-    predicted = photo.ground_to_pixel(np.asarray(xyz, float)[None, :])[0]
-    px = photo.ground_to_pixel(pts) + (np.asarray(measured_px, float) - predicted)
+    predicted = photo.ground_to_pixel(np.asarray(xyz, float)[None, :], behind="nan")[0]
+    px = photo.ground_to_pixel(pts, behind="nan") + (np.asarray(measured_px, float) - predicted)
+    if not np.isfinite(px).all():  # the point (or its chip) behind the photo: no chip
+        return None
     c0, r0 = np.floor(px.min(axis=0)).astype(int) - 2
     c1, r1 = np.ceil(px.max(axis=0)).astype(int) + 2
     window, (oc, orow) = read_window(c0, r0, c1, r1)

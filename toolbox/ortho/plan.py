@@ -118,7 +118,8 @@ def photo_surface(info: Any, photo: Any, crs: Any, band: int = 1) -> Any:
     whole = DemSurface.from_transform(data, t, crs)
     low, high = whole.z_range
     pad = 0.1 * (high - low) + 1.0
-    b = photo_ground_bounds(photo, low - pad, high + pad)
+    b = photo_ground_bounds(photo, low - pad, high + pad,
+                            (t.c, t.f + t.e * height, t.c + t.a * width, t.f))
     c0 = max(int((b[0] - t.c) / t.a) - 2, 0)
     c1 = min(int((b[2] - t.c) / t.a) + 3, width)
     r0 = max(int((b[3] - t.f) / t.e) - 2, 0)
@@ -179,6 +180,26 @@ def orientation_transformer(photo: Any, crs: Any) -> Any:
     from pyproj import Transformer
 
     return Transformer.from_crs(crs, eo_crs, always_xy=True)
+
+
+def reference_height(photo: Any, mean_height: float, principal: Any,
+                     limit_deg: float = 10.0) -> float:
+    """The height of the GSD (the default cell) and of the relief displacements: the mean
+    terrain height of the footprint for a near-vertical photo; for an optical axis more than
+    ``limit_deg`` off the nadir (an oblique photo, whose mean height may lie a few metres under
+    a low camera, or above it) the height where the principal ray meets the DEM, when it
+    does. :class:`InputDataError` when neither lies below the camera."""
+    eo = photo.require_exterior()
+    axis = eo.rotation @ np.array([0.0, 0.0, -1.0])
+    tilted = math.degrees(math.acos(max(-1.0, min(1.0, -float(axis[2]))))) > limit_deg
+    if (tilted or not mean_height < eo.z0) and principal.on_dem:
+        return float(principal.xyz[2])
+    if not mean_height < eo.z0:
+        raise InputDataError(f"photo {photo.id!r}: the terrain of its footprint lies above the "
+                             f"camera on average ({mean_height:.2f} >= Z0 = {eo.z0:.2f}) and "
+                             "its principal ray misses the DEM: no ground sample distance (the "
+                             "default cell); extend the DEM over the principal ray")
+    return mean_height
 
 
 @dataclass
@@ -248,11 +269,13 @@ def plan_photo(photo: Any, dem: Any, crs: Any, band: int = 1, cell: float | None
     check_geometry(photo, under if math.isfinite(under) else None)
     plane = float(np.nanmean(surface.z))
     dense = footprint_points_per_side(photo)
-    outline = photo_footprint(photo, surface, plane, dense).vertices
+    footprint = photo_footprint(photo, surface, plane, dense)
+    outline = footprint.vertices
     # the report footprint: every (dense / 8)-th point of the outline, the points a footprint
     # of 8 a side would monoplot (each ray on its own), without monoplotting them again
     polygon = outline[::dense // REPORT_POINTS_PER_SIDE]
-    mean_height = mean_height_inside(surface, polygon)
+    mean_height = reference_height(photo, mean_height_inside(surface, polygon),
+                                   footprint.principal_point)
     gsd = ground_sample_distance(photo, mean_height)
     cell = nice_cell_size(gsd) if cell is None else float(cell)
     to_orientation = orientation_transformer(photo, output_crs)
@@ -272,5 +295,15 @@ def plan_photo(photo: Any, dem: Any, crs: Any, band: int = 1, cell: float | None
     both = np.concatenate([polygon[:, :2], outline[:, :2]])
     extent = (float(both[:, 0].min()), float(both[:, 1].min()), float(both[:, 0].max()),
               float(both[:, 1].max()))
+    # no cell beyond the DEM window the photo sees has a height: an oblique photo's footprint
+    # runs to the fallback plane far away (or to the horizon), the grid stops at the DEM
+    xmin, ymin, xmax, ymax = surface.bounds  # the cells' outer edges
+    dem_box = np.array([[xmin, ymin], [xmax, ymin], [xmax, ymax], [xmin, ymax]])
+    if to_orientation is not None:
+        dem_box = transformed(dem_box)
+    cut = (max(extent[0], float(dem_box[:, 0].min())), max(extent[1], float(dem_box[:, 1].min())),
+           min(extent[2], float(dem_box[:, 0].max())), min(extent[3], float(dem_box[:, 1].max())))
+    if cut[0] < cut[2] and cut[1] < cut[3]:
+        extent = cut
     grid = lattice_grid(extent if bounds is None else bounds, cell, output_crs, origin)
     return OrthoPlan(photo, surface, polygon, mean_height, gsd, grid, extent)

@@ -39,7 +39,8 @@ def hidden_cells(xs, ys, z, centre, dsm, gx0, gy0, cx, cy, zmax, tolerance, bmax
     tolerance between image and ground samples, no holes). Where
     the ray enters a block of ``block`` x ``block`` DSM cells above that block's highest value
     (``bmax``, :func:`block_maxima`) it jumps to the block's exit: the ray only rises, so nothing
-    in that block can hide the cell. Cells without height get 0; beyond the DSM the ray is free.
+    in that block can hide the cell. Cells without height get 0; beyond the DSM the ray is free. A
+    cell above the camera is walked the whole way to it, without jumps.
     """
     x0, y0, z0 = centre[0], centre[1], centre[2]
     step = 0.5 * min(cx, cy)
@@ -54,12 +55,15 @@ def hidden_cells(xs, ys, z, centre, dsm, gx0, gy0, cx, cy, zmax, tolerance, bmax
             dyh = y0 - ys[i]
             rho = math.sqrt(dxh * dxh + dyh * dyh)
             rise = z0 - zc
-            if rho < 1e-9 or rise <= 0.0:
+            if rho < 1e-9:
                 continue
             ux = dxh / rho
             uy = dyh / rho
             slope = rise / rho
-            s_max = min(rho, (zmax - zc) / slope)
+            # a cell above the camera (a valley flight looking up a slope): its line of sight
+            # descends to the camera, the whole way, and no block can be skipped
+            descends = not rise > 0.0
+            s_max = rho if descends else min(rho, (zmax - zc) / slope)
             dfx = ux / cx  # DSM column index per metre along the ray
             dfy = -uy / cy  # DSM row index per metre
             s = step
@@ -69,7 +73,8 @@ def hidden_cells(xs, ys, z, centre, dsm, gx0, gy0, cx, cy, zmax, tolerance, bmax
                 fx = (px - gx0) / cx
                 fy = (gy0 - py) / cy
                 ray = zc + s * slope
-                if fx >= -0.5 and fy >= -0.5 and fx <= cols - 0.5 and fy <= rows - 0.5:
+                if not descends and fx >= -0.5 and fy >= -0.5 and fx <= cols - 0.5 and \
+                        fy <= rows - 0.5:
                     bi = int(min(max(fy, 0.0), rows - 1.0)) // block  # (the outer half cell:
                     bj = int(min(max(fx, 0.0), cols - 1.0)) // block  # the edge's block)
                     if ray > bmax[bi, bj] + tolerance:  # free above this block: to its exit

@@ -215,9 +215,12 @@ def monoplot(points, surface, centre, rotation, principal_distance: float,
     method : {"march", "fixed_point"}
         ``march`` (default) walks down each ray from the DEM's top in half-cell steps and refines
         the first crossing (Illinois regula falsi): it returns the first visible surface point and
-        converges on steep terrain. ``fixed_point`` is the classical ``Z <- DEM(X(Z), Y(Z))``
-        iteration from ``z_start`` (default: mean DEM height); it fails (``not_converged``) where
-        the terrain is steeper than the ray.
+        converges on steep terrain. A ray rising from a camera below the DEM's top (a valley
+        flight, an oblique view up a slope) is walked up from the camera; ``ray_not_descending``
+        is then a ray that rises over every height of the DEM (the sky). A camera beside the
+        DEM starts where the ray comes over its extent. ``fixed_point`` is the classical
+        ``Z <- DEM(X(Z), Y(Z))`` iteration from ``z_start`` (default: mean DEM height); it fails
+        (``not_converged``) where the terrain is steeper than the ray.
     tolerance : float
         Height misclosure ``|Z_ray - Z_dem|`` accepted (CRS units).
 

@@ -3,8 +3,10 @@
 A footprint is the image format's outline (densified: ``points_per_side`` points per side)
 projected onto the terrain by monoplotting (:func:`toolbox.photogrammetry.collinearity.monoplot`),
 or onto the plane ``Z = mean height`` when no DEM is given. Vertices whose rays miss the DEM
-(outside it, on nodata) fall back to the plane at the DEM's mean height and are counted in
-``vertices_off_dem`` (the footprint is then ``partial``), never silently dropped.
+(outside it, on nodata) fall back to the plane at the DEM's mean height (a ray that meets
+neither, over the horizon or with the plane above the camera: where its track leaves the DEM)
+and are counted in ``vertices_off_dem`` (the footprint is then ``partial``), never silently
+dropped.
 
 The nadir point is the ground point vertically below the projection centre; the principal
 point is where the ray through the principal point (image ``(ξ0, η0)``) meets the terrain.
@@ -69,10 +71,40 @@ def _project_points(photo: Photo, xy_mm: np.ndarray, surface: DemSurface | None,
         return xyz, np.full(len(xy_mm), -1, dtype=np.int8)  # -1: no DEM given
     result = photo.monoplot_image(xy_mm, surface)
     xyz = result.xyz.copy()
-    failed = result.status != OK
-    if failed.any():
-        xyz[failed] = photo.image_to_ground(xy_mm[failed], plane_height)
+    failed = np.flatnonzero(result.status != OK)
+    if failed.size:
+        xyz[failed] = photo.image_to_ground(xy_mm[failed], plane_height, invalid="nan")
+        beyond = failed[np.isnan(xyz[failed, 0])]
+        if beyond.size:  # above the horizon, or a plane above the camera: to the DEM's edge
+            xyz[beyond] = _dem_edge(photo, xy_mm[beyond], surface, plane_height)
     return xyz, result.status
+
+
+def _dem_edge(photo: Photo, xy_mm: np.ndarray, surface: DemSurface, height: float
+              ) -> np.ndarray:
+    """Where the horizontal tracks of the rays through ``xy_mm`` leave the DEM's extent (beyond
+    its farthest corner for a track that misses it), at ``height``: the footprint vertex of a
+    ray that meets neither the DEM nor the fallback plane (it runs to the horizon, or the plane
+    lies above the camera)."""
+    eo = photo.require_exterior()
+    x0, y0, z0 = eo.x0, eo.y0, eo.z0
+    down = photo.image_to_ground(xy_mm, z0 - 1.0, invalid="nan")
+    up = photo.image_to_ground(xy_mm, z0 + 1.0, invalid="nan")
+    ends = np.where(np.isfinite(down[:, :1]), down, up)[:, :2] - (x0, y0)
+    ends = np.where(np.isfinite(ends), ends, 0.0)
+    xmin, ymin, xmax, ymax = surface.bounds
+    reach = float(np.hypot(np.array([xmin, xmax]) - x0, np.array([[ymin], [ymax]]) - y0).max())
+    length = np.hypot(ends[:, 0], ends[:, 1])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        d = ends / length[:, None]
+        t1 = (np.array([xmin, ymin]) - (x0, y0)) / d
+        t2 = (np.array([xmax, ymax]) - (x0, y0)) / d
+    t_in = np.nanmax(np.minimum(t1, t2), axis=1)
+    t_out = np.nanmin(np.maximum(t1, t2), axis=1)
+    t = np.where((t_out >= np.maximum(t_in, 0.0)) & np.isfinite(t_out), t_out, reach)
+    t = np.where(length > 0, t, 0.0)
+    d = np.where(np.isfinite(d), d, 0.0)
+    return np.column_stack([x0 + t * d[:, 0], y0 + t * d[:, 1], np.full(len(t), height)])
 
 
 def photo_footprint(photo: Photo, surface: DemSurface | None, plane_height: float,

@@ -237,6 +237,36 @@ def _dem_height(x, y, dem, gx0, gy0, cx, cy):
     return h, OK
 
 
+@njit(cache=True, inline="always")
+def _entry(xc0, yc0, ex, ey, s_lo, s_hi, gx0, gy0, cx, cy, rows, cols):
+    """The first ray parameter in ``[s_lo, s_hi]`` where the ray's track ``(xc0 + s·ex, yc0 +
+    s·ey)`` is inside the DEM's cells (their outer edges, by 1e-7 cells), or -1 if it never is:
+    a camera beside the DEM (an oblique photo of it from outside) starts its march there."""
+    lo = s_lo
+    hi = s_hi
+    margin = 1e-7
+    for axis in range(2):
+        if axis == 0:
+            f0 = (xc0 - gx0) / cx
+            df = ex / cx
+            top = cols - 1.0
+        else:
+            f0 = (gy0 - yc0) / cy
+            df = -ey / cy
+            top = rows - 1.0
+        if df == 0.0:
+            if f0 < margin - 0.5 or f0 > top + 0.5 - margin:
+                return -1.0
+            continue
+        t1 = (margin - 0.5 - f0) / df
+        t2 = (top + 0.5 - margin - f0) / df
+        lo = max(lo, min(t1, t2))
+        hi = min(hi, max(t1, t2))
+    if not lo <= hi:
+        return -1.0
+    return lo
+
+
 @njit(parallel=True, cache=True)
 def monoplot(u, v, centre, rot, c, pp, dmode, dr, dd, dk, di, m, dem, gx0, gy0, cx, cy, zmin,
              zmax, method, z_start, tolerance, max_iterations, out, status, iterations):
@@ -247,7 +277,9 @@ def monoplot(u, v, centre, rot, c, pp, dmode, dr, dd, dk, di, m, dem, gx0, gy0, 
 
     ``method`` 0 (march): walk down the ray from ``zmax`` in steps of half a cell and refine the
     first sign change of ``Z_ray - Z_dem`` by Illinois regula falsi until ``|Z_ray - Z_dem| <=
-    tolerance``; it finds the first visible intersection and converges on any slope.
+    tolerance``; it finds the first visible intersection and converges on any slope. A rising
+    ray (a camera below ``zmax``) is walked up from the camera to ``zmax`` (RAY_UPWARD if it
+    meets nothing); a ray whose start is off the DEM starts where it comes over the DEM.
     ``method`` 1 (fixed point): the classical iteration ``Z_{k+1} = DEM(X(Z_k), Y(Z_k))`` from
     ``z_start``; it diverges where ``slope·tan(off-nadir angle) > 1`` and then reports
     NOT_CONVERGED.
@@ -267,7 +299,7 @@ def monoplot(u, v, centre, rot, c, pp, dmode, dr, dd, dk, di, m, dem, gx0, gy0, 
         out[i, 2] = np.nan
         iterations[i] = 0
         dx, dy, dz = _ray(u[i], v[i], r, c, px, py, dmode, dr, dd, dk, di, mt)
-        if not dz < 0.0:
+        if not (dz < 0.0 or dz > 0.0 and method == 0):
             status[i] = RAY_UPWARD
             continue
         ex = dx / -dz  # ground displacement per metre of descent
@@ -292,22 +324,40 @@ def monoplot(u, v, centre, rot, c, pp, dmode, dr, dd, dk, di, m, dem, gx0, gy0, 
                 zk = h
             status[i] = st
             continue
-        # march down the ray from the top of the DEM
-        s_lo = max(0.0, zc0 - zmax)
-        s_hi = zc0 - zmin
-        if s_hi < s_lo:  # the camera is below the lowest terrain
-            status[i] = NO_INTERSECTION
+        # march along the ray from where it comes down to (or, rising from a camera in a
+        # valley, up to) the DEM's height range: the parameter q is the height the ray has
+        # descended (risen), the ground point (xc0, yc0) + q·(gx, gy), the ray's height
+        # zc0 + gz·q
+        if dz < 0.0:
+            gx, gy, gz = ex, ey, -1.0
+            s_lo = max(0.0, zc0 - zmax)
+            s_hi = zc0 - zmin
+        else:
+            gx, gy, gz = -ex, -ey, 1.0
+            s_lo = max(0.0, zmin - zc0)
+            s_hi = zmax - zc0
+        if s_hi < s_lo:  # the camera is below the lowest terrain (above the highest, rising)
+            status[i] = NO_INTERSECTION if dz < 0.0 else RAY_UPWARD
             continue
-        speed = math.sqrt(ex * ex + ey * ey)
-        step = s_hi - s_lo if speed * (s_hi - s_lo) <= hcell else hcell / speed
         a = s_lo
-        h, code = _dem_height(xc0 + a * ex, yc0 + a * ey, dem, gx0, gy0, cx, cy)
+        h, code = _dem_height(xc0 + a * gx, yc0 + a * gy, dem, gx0, gy0, cx, cy)
+        entered = False
+        if code == OUTSIDE:  # beside the DEM: start where the ray comes over it
+            a = _entry(xc0, yc0, gx, gy, s_lo, s_hi, gx0, gy0, cx, cy, dem.shape[0],
+                       dem.shape[1])
+            if a < 0.0:
+                status[i] = OUTSIDE
+                continue
+            entered = True
+            h, code = _dem_height(xc0 + a * gx, yc0 + a * gy, dem, gx0, gy0, cx, cy)
         if code != OK:
             status[i] = code
             continue
-        fa = (zc0 - a) - h
-        if fa < -tolerance:  # camera below the terrain surface
-            status[i] = NO_INTERSECTION
+        speed = math.sqrt(gx * gx + gy * gy)
+        step = s_hi - a if speed * (s_hi - a) <= hcell else hcell / speed
+        fa = (zc0 + gz * a) - h
+        if fa < -tolerance:  # camera below the terrain surface, or (entered) the ray comes
+            status[i] = OUTSIDE if entered else NO_INTERSECTION  # over the DEM's edge below it
             continue
         if fa <= tolerance:  # on the surface at the top of the range (e.g. a flat DEM)
             fa = 0.0
@@ -317,11 +367,11 @@ def monoplot(u, v, centre, rot, c, pp, dmode, dr, dd, dk, di, m, dem, gx0, gy0, 
         fb = fa
         while not found and step > 0.0:
             b = min(a + step, s_hi)
-            h, code = _dem_height(xc0 + b * ex, yc0 + b * ey, dem, gx0, gy0, cx, cy)
+            h, code = _dem_height(xc0 + b * gx, yc0 + b * gy, dem, gx0, gy0, cx, cy)
             if code != OK:
                 st = code
                 break
-            fb = (zc0 - b) - h
+            fb = (zc0 + gz * b) - h
             if fb <= 0.0:
                 found = True
                 break
@@ -330,7 +380,7 @@ def monoplot(u, v, centre, rot, c, pp, dmode, dr, dd, dk, di, m, dem, gx0, gy0, 
             a = b
             fa = fb
         if not found:
-            status[i] = st
+            status[i] = st if dz < 0.0 or st != NO_INTERSECTION else RAY_UPWARD
             continue
         # Illinois regula falsi on [a, b], fa > 0 >= fb
         root = b
@@ -339,10 +389,10 @@ def monoplot(u, v, centre, rot, c, pp, dmode, dr, dd, dk, di, m, dem, gx0, gy0, 
         while abs(froot) > tolerance and k < max_iterations:
             k += 1
             s = (a * fb - b * fa) / (fb - fa)
-            h, code = _dem_height(xc0 + s * ex, yc0 + s * ey, dem, gx0, gy0, cx, cy)
+            h, code = _dem_height(xc0 + s * gx, yc0 + s * gy, dem, gx0, gy0, cx, cy)
             if code != OK:  # cannot happen inside a bracket of valid samples, unless NaN cells
                 break
-            fs = (zc0 - s) - h
+            fs = (zc0 + gz * s) - h
             root = s
             froot = fs
             if fs * fb < 0.0:
@@ -358,7 +408,7 @@ def monoplot(u, v, centre, rot, c, pp, dmode, dr, dd, dk, di, m, dem, gx0, gy0, 
         if abs(froot) > tolerance and abs(b - a) > 1e-15 * (1.0 + abs(b)):
             status[i] = NOT_CONVERGED
             continue
-        out[i, 0] = xc0 + root * ex
-        out[i, 1] = yc0 + root * ey
-        out[i, 2] = zc0 - root
+        out[i, 0] = xc0 + root * gx
+        out[i, 1] = yc0 + root * gy
+        out[i, 2] = zc0 + gz * root
         status[i] = OK

@@ -64,11 +64,30 @@ def _dem_height(x, y, dem, gx0, gy0, cx, cy):
     return np.where(code == OK, h, np.nan), code
 
 
+def _entry(xc0, yc0, ex, ey, s_lo, s_hi, gx0, gy0, cx, cy, rows, cols):
+    """The compiled kernel's ``_entry`` for arrays of rays: the first ray parameter in ``[s_lo,
+    s_hi]`` over the DEM's cells (their outer edges, by 1e-7 cells), -1 where there is none."""
+    lo = np.array(np.broadcast_to(np.asarray(s_lo, dtype=float), ex.shape))
+    hi = np.array(np.broadcast_to(np.asarray(s_hi, dtype=float), ex.shape))
+    margin = 1e-7
+    for f0, df, top in (((xc0 - gx0) / cx, ex / cx, cols - 1.0),
+                        ((gy0 - yc0) / cy, -ey / cy, rows - 1.0)):
+        flat = df == 0.0
+        lo[flat & ((f0 < margin - 0.5) | (f0 > top + 0.5 - margin))] = np.inf
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t1 = (margin - 0.5 - f0) / np.where(flat, 1.0, df)
+            t2 = (top + 0.5 - margin - f0) / np.where(flat, 1.0, df)
+        lo = np.where(flat, lo, np.maximum(lo, np.minimum(t1, t2)))
+        hi = np.where(flat, hi, np.minimum(hi, np.maximum(t1, t2)))
+    return np.where(lo <= hi, lo, -1.0)
+
+
 def monoplot(u, v, centre, rot, c, pp, dmode, dr, dd, dk, di, m, dem, gx0, gy0, cx, cy, zmin,
              zmax, method, z_start, tolerance, max_iterations, out, status, iterations):
     """The compiled kernel's ``march`` (``method`` 0, ``dmode`` 0): walk down every ray from
-    ``zmax`` in steps of half a cell, then refine the first sign change of ``Z_ray - Z_dem``
-    by Illinois regula falsi; writes ``out``, ``status``, ``iterations`` as it does."""
+    ``zmax`` (a rising ray up from the camera) in steps of half a cell, then refine the first
+    sign change of ``Z_ray - Z_dem`` by Illinois regula falsi; writes ``out``, ``status``,
+    ``iterations`` as it does."""
     if not supports(dmode, method):
         raise ValueError("the NumPy monoplot marches (method 0) rays without distortion")
     xc0, yc0, zc0 = centre[0], centre[1], centre[2]
@@ -76,29 +95,41 @@ def monoplot(u, v, centre, rot, c, pp, dmode, dr, dd, dk, di, m, dem, gx0, gy0, 
     iterations[:] = 0
     status[:] = NO_INTERSECTION
     dx, dy, dz = _ray(u, v, rot, c, pp, m)
-    down = dz < 0.0
-    status[~down] = RAY_UPWARD
+    down, rise = dz < 0.0, dz > 0.0
     with np.errstate(divide="ignore", invalid="ignore"):
         ex, ey = dx / -dz, dy / -dz
-    s_lo, s_hi = max(0.0, zc0 - zmax), zc0 - zmin
-    if s_hi < s_lo:  # the camera is below the lowest terrain
-        return
+    # the parameter q: height descended (risen, for a ray rising from a camera in a valley);
+    # ground point (xc0, yc0) + q·(gx, gy), the ray's height zc0 + gz·q
+    gx, gy, gz = np.where(rise, -ex, ex), np.where(rise, -ey, ey), np.where(rise, 1.0, -1.0)
+    lo = np.where(rise, max(0.0, zmin - zc0), max(0.0, zc0 - zmax))
+    hi = np.where(rise, zmax - zc0, zc0 - zmin)
+    status[~(down | rise) | rise & (hi < lo)] = RAY_UPWARD  # (rising above the highest)
     hcell = 0.5 * min(cx, cy)
 
     def f(idx, s):  # Z_ray - Z_dem at the ray parameters s of the rays idx, and the codes
-        h, code = _dem_height(xc0 + s * ex[idx], yc0 + s * ey[idx], dem, gx0, gy0, cx, cy)
-        return (zc0 - s) - h, code
+        h, code = _dem_height(xc0 + s * gx[idx], yc0 + s * gy[idx], dem, gx0, gy0, cx, cy)
+        return (zc0 + gz[idx] * s) - h, code
 
-    with np.errstate(divide="ignore", invalid="ignore"):
-        speed = np.sqrt(ex * ex + ey * ey)
-        step = np.where(speed * (s_hi - s_lo) <= hcell, s_hi - s_lo, hcell / speed)
-    live = np.flatnonzero(down)
-    a = np.full(u.shape, s_lo)
+    live = np.flatnonzero((down | rise) & (hi >= lo))  # else below the lowest terrain
+    a = lo.copy()
     fa = np.zeros(u.shape)
     fa[live], code = f(live, a[live])
+    beside = live[code == OUTSIDE]  # beside the DEM: start where the ray comes over it
+    entered = np.zeros(u.shape, dtype=bool)
+    if beside.size:
+        a[beside] = _entry(xc0, yc0, gx[beside], gy[beside], lo[beside], hi[beside], gx0, gy0,
+                           cx, cy, *dem.shape)
+        came = beside[a[beside] >= 0.0]
+        entered[came] = True
+        fa[came], code_in = f(came, a[came])
+        code[np.isin(live, came)] = code_in
     status[live[code != OK]] = code[code != OK]
     live = live[code == OK]
-    below = fa[live] < -tolerance  # camera below the terrain surface
+    with np.errstate(divide="ignore", invalid="ignore"):
+        speed = np.sqrt(gx * gx + gy * gy)
+        step = np.where(speed * (hi - a) <= hcell, hi - a, hcell / speed)
+    below = fa[live] < -tolerance  # camera below the terrain surface, or (entered) the ray
+    status[live[below & entered[live]]] = OUTSIDE  # comes over the DEM's edge below it
     live = live[~below]
     fa[live] = np.where(fa[live] <= tolerance, 0.0, fa[live])  # on the surface at the top
     b, fb = a.copy(), fa.copy()
@@ -107,15 +138,15 @@ def monoplot(u, v, centre, rot, c, pp, dmode, dr, dd, dk, di, m, dem, gx0, gy0, 
     walk = live[(fa[live] != 0.0) & (step[live] > 0.0)]
     while walk.size:  # MARCH_BLOCK steps of every ray at a time
         # the samples b = a + step, (a + step) + step, ... as the kernel adds them (a cumulative
-        # sum adds in order), then min(., s_hi)
+        # sum adds in order), then min(., hi)
         sums = np.empty((walk.size, MARCH_BLOCK + 1))
         sums[:, 0] = a[walk]
         sums[:, 1:] = step[walk, None]
-        bb = np.minimum(np.cumsum(sums, axis=1)[:, 1:], s_hi)
+        bb = np.minimum(np.cumsum(sums, axis=1)[:, 1:], hi[walk, None])
         fbb, code = f(walk[:, None], bb)
         failed = code != OK
         hit = ~failed & (fbb <= 0.0)
-        event = failed | hit | (bb >= s_hi)  # the kernel's loop stops at the first of these
+        event = failed | hit | (bb >= hi[walk, None])  # the kernel's loop stops at the first of these
         first = np.argmax(event, axis=1)
         rows = np.arange(walk.size)
         stops = event[rows, first]
@@ -129,6 +160,8 @@ def monoplot(u, v, centre, rot, c, pp, dmode, dr, dd, dk, di, m, dem, gx0, gy0, 
         go = walk[~stops]
         a[go], fa[go] = bb[~stops, -1], fbb[~stops, -1]
         walk = go
+    # a rising ray that found no terrain up to the highest: the sky, as the kernel says
+    status[live[rise[live] & ~found[live] & (status[live] == NO_INTERSECTION)]] = RAY_UPWARD
     # Illinois regula falsi on [a, b], fa > 0 >= fb
     idx = np.flatnonzero(found)
     root, froot = b.copy(), fb.copy()
@@ -154,7 +187,7 @@ def monoplot(u, v, centre, rot, c, pp, dmode, dr, dd, dk, di, m, dem, gx0, gy0, 
     failed = (np.abs(froot[idx]) > tolerance) & gap
     status[idx[failed]] = NOT_CONVERGED
     ok = idx[~failed]
-    out[ok, 0] = xc0 + root[ok] * ex[ok]
-    out[ok, 1] = yc0 + root[ok] * ey[ok]
-    out[ok, 2] = zc0 - root[ok]
+    out[ok, 0] = xc0 + root[ok] * gx[ok]
+    out[ok, 1] = yc0 + root[ok] * gy[ok]
+    out[ok, 2] = zc0 + gz[ok] * root[ok]
     status[ok] = OK

@@ -148,19 +148,25 @@ def check_block(project, measurements, control, threshold_px: float = 1.0) -> di
                 raise InputDataError(f"photo {photo.id!r}: its camera is a {photo.camera.kind} "
                                      "model: measure it in pixels (col_px, row_px), not image mm")
             v = photo.ground_to_pixel(ground[n:n + 1], behind="nan")[0] - xy[k]
-            res_px = float(math.hypot(*v))
+            res_px = float(math.hypot(*v)) if np.isfinite(v).all() else None
             entry |= {"res_x_um": None, "res_y_um": None, "res_um": None}
         else:
-            computed = photo.ground_to_image(ground[n:n + 1])[0]
+            computed = photo.ground_to_image(ground[n:n + 1], behind="nan")[0]
             observed = photo.require_pixel_transform().pixel_to_image(xy[k:k + 1])[0] \
                 if kind == "pixel" else xy[k]
             v_um = (computed - observed) * 1e3
             px = _pixel_scale_um(photo)
-            res_px = None if px is None else float(math.hypot(*v_um) / px)
+            res_px = None if px is None or not np.isfinite(v_um).all() else \
+                float(math.hypot(*v_um) / px)
             entry |= {"res_x_um": float(v_um[0]), "res_y_um": float(v_um[1]),
-                      "res_um": float(math.hypot(*v_um))}
+                      "res_um": float(math.hypot(*v_um))} if np.isfinite(v_um).all() else \
+                {"res_x_um": None, "res_y_um": None, "res_um": None}
+        # a known point behind the photo (a wrong id, a measurement on the wrong photo) has no
+        # image and no residual: flagged
+        behind = entry["res_um"] is None and res_px is None
         observations.append(entry | {
-            "res_px": res_px, "flagged": bool(res_px is not None and res_px > threshold_px),
+            "res_px": res_px,
+            "flagged": bool(behind or res_px is not None and res_px > threshold_px),
             "xyz": ground[n].tolist()})
     # ground residuals by multi-ray intersection
     order = list(dict.fromkeys(ids[k] for k in rows))

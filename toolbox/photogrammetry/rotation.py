@@ -109,6 +109,9 @@ def check_rotation(matrix, tolerance: float = ORTHONORMAL_TOLERANCE, what: str =
     return r
 
 
+NEAR_GIMBAL_LOCK = 1e-3  # cos(phi) under which angles_from_matrix solves omega after kappa
+
+
 def angles_from_matrix(matrix, tolerance: float = ORTHONORMAL_TOLERANCE
                        ) -> tuple[float, float, float]:
     """``(omega, phi, kappa)`` in radians from a rotation matrix (the ``cos(phi) >= 0`` branch).
@@ -123,9 +126,19 @@ def angles_from_matrix(matrix, tolerance: float = ORTHONORMAL_TOLERANCE
     [0.014, -0.001, 3.122]
     """
     r = check_rotation(matrix, tolerance)
+    cos_phi = math.hypot(r[0, 0], r[0, 1])
+    if cos_phi < NEAR_GIMBAL_LOCK:
+        # near phi = ±pi/2 (a camera looking level along X: a facade, a terrestrial photo)
+        # omega and kappa each come from elements ~cos(phi) small, their rounding divided by
+        # cos(phi) (7e-4 rad at 1e-12 rad from the lock): omega is solved from R·Rz(kappa)ᵀ·
+        # Ry(phi)ᵀ = Rx(omega) instead, so the angles give R back to rounding
+        phi = math.atan2(r[0, 2], cos_phi)
+        if cos_phi < 1e-12:  # cos(phi) = 0: R = Ry(±pi/2)·Rz(kappa), omega = 0
+            return 0.0, phi, math.atan2(r[1, 0], r[1, 1])
+        kappa = math.atan2(-r[0, 1], r[0, 0])
+        m = r @ rotation_matrix(0.0, 0.0, kappa).T @ rotation_matrix(0.0, phi, 0.0).T
+        return math.atan2(m[2, 1], m[1, 1]), phi, kappa
     phi = math.asin(max(-1.0, min(1.0, r[0, 2])))
-    if math.hypot(r[0, 0], r[0, 1]) < 1e-12:  # cos(phi) = 0: R = Ry(±pi/2)·Rz(kappa), omega = 0
-        return 0.0, phi, math.atan2(r[1, 0], r[1, 1])
     omega = math.atan2(-r[1, 2], r[2, 2])
     kappa = math.atan2(-r[0, 1], r[0, 0])
     return omega, phi, kappa

@@ -182,15 +182,65 @@ def dem_height_range(info: Any, band: int = 1) -> tuple[float, float]:
     return float(stats.min), float(stats.max)
 
 
-def photo_ground_bounds(photo: Any, z_low: float, z_high: float
+def photo_ground_bounds(photo: Any, z_low: float, z_high: float,
+                        within: tuple[float, float, float, float] | None = None
                         ) -> tuple[float, float, float, float]:
     """Bounding box (xmin, ymin, xmax, ymax) of the ground a photo's frame can see between the
-    heights ``z_low`` and ``z_high``: the frame corners' rays cut at both heights (the region
-    is a convex frustum slice, so its corners bound it)."""
+    heights ``z_low`` and ``z_high``, cut to ``within`` (the DEM's extent) when given.
+
+    When every corner ray descends, the region is the convex frustum slice between ``z_low``
+    and ``min(z_high, Z0)`` (the projection centre itself when it flies below ``z_high``: a
+    drone in a valley), bounded by its corners. When the frame holds the horizon (corner rays
+    level or rising) the region is unbounded: the wedge the rays' horizontal directions span,
+    cut to ``within``. :class:`InputDataError` when the rays never reach those heights, or the
+    region is unbounded and ``within`` is not given.
+    """
+    eo = photo.require_exterior()
+    x0, y0, z0 = eo.x0, eo.y0, eo.z0
     corners = photo.frame_outline_mm(1)
-    pts = np.vstack([photo.image_to_ground(corners, z_low), photo.image_to_ground(corners, z_high)])
-    return (float(pts[:, 0].min()), float(pts[:, 1].min()), float(pts[:, 0].max()),
-            float(pts[:, 1].max()))
+    down = photo.image_to_ground(corners, z0 - 1.0, invalid="nan")
+    descending = np.isfinite(down[:, 0])
+    if descending.all():
+        heights = [z for z in (z_low, min(z_high, z0)) if z < z0]
+        if not heights:
+            raise InputDataError(f"photo {photo.id!r}: its rays all descend from Z0 = {z0:.2f} "
+                                 f"and never reach the terrain's heights ({z_low:.2f} to "
+                                 f"{z_high:.2f}); check Z0 and the DEM's height datum")
+        pts = np.vstack([photo.image_to_ground(corners, z) for z in heights] +
+                        ([np.array([[x0, y0, z0]])] if z_high >= z0 else []))
+        box = (float(pts[:, 0].min()), float(pts[:, 1].min()), float(pts[:, 0].max()),
+               float(pts[:, 1].max()))
+        if within is None:
+            return box
+        return (max(box[0], within[0]), max(box[1], within[1]), min(box[2], within[2]),
+                min(box[3], within[3]))
+    what = f"photo {photo.id!r}: its frame holds the horizon (rays level or rising)"
+    if within is None:
+        raise InputDataError(f"{what}: the ground it sees is unbounded")
+    up = photo.image_to_ground(corners, z0 + 1.0, invalid="nan")
+    ends = np.where(descending[:, None], down, up)[:, :2] - (x0, y0)
+    if not np.isfinite(ends).all() or z0 > z_high and not descending.any():
+        return within  # a corner ray exactly level, or every ray above the terrain's heights
+    import shapely
+
+    # the wedge of horizontal directions, cut at a distance beyond every corner of `within`
+    angles = np.arctan2(ends[:, 1], ends[:, 0])
+    order = np.argsort(angles)
+    gaps = np.diff(np.concatenate([angles[order], angles[order][:1] + 2 * np.pi]))
+    if gaps.max() <= np.pi:  # the directions surround the nadir: every direction
+        return within
+    start = (int(np.argmax(gaps)) + 1) % len(order)
+    spread = 2 * np.pi - gaps.max()
+    reach = np.hypot(np.array(within[0::2]) - x0, np.array(within[1::2])[:, None] - y0).max()
+    turns = np.linspace(0.0, spread, max(3, int(np.ceil(spread / 0.2)) + 1))
+    far = reach / np.cos(0.5 * (turns[1] - turns[0])) + 1.0
+    arc = angles[order][start] + turns
+    wedge = shapely.Polygon([(x0, y0)] + list(zip(x0 + far * np.cos(arc), y0 + far * np.sin(arc),
+                                                  strict=True)))
+    cut = wedge.intersection(shapely.box(*within))
+    if cut.is_empty:
+        raise InputDataError(f"{what} and looks away from the DEM")
+    return tuple(float(v) for v in cut.bounds)
 
 
 def surface_for_photo(info: Any, photo: Any, band: int = 1,
@@ -199,4 +249,5 @@ def surface_for_photo(info: Any, photo: Any, band: int = 1,
     widened by 10% and 1 m)."""
     z_low, z_high = dem_height_range(info, band) if z_range is None else z_range
     pad = 0.1 * (z_high - z_low) + 1.0
-    return read_dem_window(info, photo_ground_bounds(photo, z_low - pad, z_high + pad), band)
+    return read_dem_window(info, photo_ground_bounds(photo, z_low - pad, z_high + pad,
+                                                     info.bounds), band)

@@ -219,12 +219,17 @@ def test_camera_and_exterior_with_tens_of_degrees_warn(block, tmp_path):
         assert np.abs(a.read().astype(int) - b.read().astype(int)).max() <= 1
     tilted = ",".join(map(repr, [*scene.CENTRE, 20.0, 1.0, 20.0]))
     feedback = toolbox.Feedback()
-    with pytest.raises(InputDataError):  # so tilted the footprint leaves the DEM's corner
-        toolbox.run("ortho:photo", {"INPUT": block.photo_path, "CAMERA": camera,
-                                    "EXTERIOR": tilted, "ANGLE_UNIT": "rad", "CRS": "EPSG:3003",
-                                    "DEM": block.dem_path, "OUTPUT": tmp_path / "t.tif"},
-                    feedback=feedback)
+    # so tilted the frame sees the horizon: an oblique ortho, its grid cut to the DEM, and the
+    # warning that the angles look read in the wrong unit
+    stats = toolbox.run("ortho:photo", {"INPUT": block.photo_path, "CAMERA": camera,
+                                        "EXTERIOR": tilted, "ANGLE_UNIT": "rad",
+                                        "CRS": "EPSG:3003", "DEM": block.dem_path,
+                                        "OUTPUT": tmp_path / "t.tif"},
+                        feedback=feedback)["STATISTICS"]
     assert any("wrong unit" in w for w in feedback.warnings)
+    bounds, dem = stats["bounds"], scene.BOUNDS
+    assert bounds[0] >= dem[0] - 50 and bounds[2] <= dem[2] + 50
+    assert bounds[1] >= dem[1] - 50 and bounds[3] <= dem[3] + 50
 
 
 def test_parameter_errors_name_the_parameter(block, tmp_path):
