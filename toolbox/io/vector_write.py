@@ -115,7 +115,8 @@ def write_layers(path: str | Path, layers: dict[str, Any], crs: Any = None,
                 pyogrio.write_dataframe(frame, target, layer=layer_name, driver=driver,
                                         **kwargs)
         if driver == "GPKG":
-            declare_optional_z(target, layer_name, frame.geometry.values)
+            declare_optional_z(target, layer_name, frame.geometry.values,
+                               kwargs.get("geometry_type"))
         if driver == "ESRI Shapefile":
             warn_renamed_fields(target, [c for c in frame.columns if c != frame.geometry.name])
             warn_made_up_z(target, frame.geometry.values)
@@ -140,13 +141,15 @@ def warn_made_up_z(path: Path, geoms) -> None:
             "(a .gpkg or .geojson output keeps them 2D)")
 
 
-def declare_optional_z(path: Path, layer: str, geoms) -> None:
+def declare_optional_z(path: Path, layer: str, geoms, geometry_type: str | None = None) -> None:
     """Declare Z *optional* (``z = 2`` in ``gpkg_geometry_columns``) for a GeoPackage layer whose
     geometries do not all agree with its declared Z flag: GDAL declares a layer with any 3D
     geometry ``z = 1`` (Z mandatory; ``geometry_types`` may declare it too) and writes its 2D
     geometries as they are, which the GeoPackage specification forbids (requirement 19: GDAL's
     ``validate_gpkg.py`` rejects the file, 'geometry without Z found'). 2D and 3D features both
-    stay as they are (no height is made up); GDAL and QGIS read a ``z = 2`` layer as 3D."""
+    stay as they are (no height is made up); GDAL and QGIS read a ``z = 2`` layer as 3D.
+    ``geometry_type``: the OGR type the layer was declared with, if any (``"Polygon Z"``); the
+    file is opened only when the geometries disagree with each other or with it."""
     import shapely
 
     geoms = np.asarray(geoms, dtype=object)
@@ -154,6 +157,11 @@ def declare_optional_z(path: Path, layer: str, geoms) -> None:
     if not len(present):
         return
     has_z = shapely.has_z(present)
+    all_z = bool(has_z.all())
+    declared_z = None if geometry_type is None else \
+        geometry_type.upper().rstrip().endswith("Z") or geometry_type.upper().startswith("3D")
+    if (all_z or not has_z.any()) and declared_z in (None, all_z):
+        return  # one kind, as GDAL declares it (a sqlite open per layer saved)
     import sqlite3
 
     with sqlite3.connect(path) as db:
