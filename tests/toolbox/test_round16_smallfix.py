@@ -46,3 +46,57 @@ def test_rectify_gcps_mode_writes_overviews_and_cog(tmp_path, cog):
                                         "OUTPUT": tmp_path / "n.tif"})
     with rasterio.open(out["OUTPUT"]) as ds:
         assert ds.overviews(1) == []
+
+
+# -- 2. report:quality's overall verdict says how many criteria were checked --------------------
+def _verdicts(statuses):
+    from toolbox.cartography.quality import Verdict
+
+    names = ["check points RMSE", "largest fiducial residual", "height RMSE", "errors left"]
+    return [Verdict("Product", name, "1 m", "<= 2 m", status)
+            for name, status in zip(names, statuses, strict=False)]
+
+
+def _overall_text(verdicts):
+    from toolbox.cartography.quality import Specification, verdict_section
+
+    section = verdict_section(verdicts, Specification(), 4)
+    return next(b[1] for b in section.blocks if b[0] == "text" and b[1].startswith("Overall"))
+
+
+def test_quality_verdict_counts_the_criteria_checked():
+    from toolbox.cartography.quality import FAIL, NOT_CHECKED, PASS
+
+    # 1 of 4 measured: was "Overall: ACCEPTED, 3 criterion(s) not checked (4 criteria ...)"
+    text = _overall_text(_verdicts([PASS, NOT_CHECKED, NOT_CHECKED, NOT_CHECKED]))
+    assert text.startswith("Overall: ACCEPTED (1 of 4 criteria checked; not checked: "
+                           "Product: largest fiducial residual; Product: height RMSE; "
+                           "Product: errors left)")
+    assert _overall_text(_verdicts([PASS, PASS])).startswith(
+        "Overall: ACCEPTED (2 of 2 criteria checked)")
+    # none measured: NOT CHECKED, not ACCEPTED (was "ACCEPTED, 2 criterion(s) not checked")
+    text = _overall_text(_verdicts([NOT_CHECKED, NOT_CHECKED]))
+    assert text.startswith("Overall: NOT CHECKED") and " ACCEPTED" not in text
+    assert _overall_text(_verdicts([])).startswith("Overall: NOT CHECKED")
+    assert _overall_text(_verdicts([FAIL, PASS, NOT_CHECKED])).startswith(
+        "Overall: NOT ACCEPTED: 1 of 3 criteria failed")
+
+
+def test_quality_contents_carry_the_verdict_and_refuse_acceptance_without_a_measure(tmp_path):
+    from toolbox.cartography import quality
+    from toolbox.cartography.quality import NOT_CHECKED, PASS
+
+    real = quality.build_sections
+    for statuses, overall, accepted in (
+            ([PASS, NOT_CHECKED, NOT_CHECKED, NOT_CHECKED],
+             "ACCEPTED (1 of 4 criteria checked; not checked: ", True),
+            ([NOT_CHECKED], "NOT CHECKED", False)):  # accepted was true with nothing measured
+        quality.build_sections = lambda reports, spec, s=statuses: (_verdicts(s), [])
+        try:
+            (tmp_path / "r").mkdir(exist_ok=True)
+            contents = quality.write_report(tmp_path / "r", tmp_path / "q.html", "T")
+        finally:
+            quality.build_sections = real
+        assert contents["accepted"] is accepted
+        assert contents.get("overall", "").startswith(overall)
+        assert f"Overall: {overall}" in (tmp_path / "q.html").read_text(encoding="utf-8")
