@@ -100,3 +100,19 @@ def test_quality_contents_carry_the_verdict_and_refuse_acceptance_without_a_meas
         assert contents["accepted"] is accepted
         assert contents.get("overall", "").startswith(overall)
         assert f"Overall: {overall}" in (tmp_path / "q.html").read_text(encoding="utf-8")
+
+
+# -- 4. the Python API takes pathlib.Path for text parameters holding paths ---------------------
+def test_path_text_parameter_accepts_a_pathlib_path(tmp_path):
+    from toolbox.errors import ParameterError
+
+    missing = tmp_path / "none.json"
+    # was "INPUT must be text, got ...": the Path itself refused, not what it names
+    with pytest.raises(ParameterError, match=r"INPUT.*none\.json' does not exist"):
+        toolbox.run("orientation:convert", {"INPUT": missing, "OUTPUT": tmp_path / "o.yaml"})
+    # a text parameter that holds no path still wants text
+    from toolbox.parameters.values import String
+
+    with pytest.raises(ParameterError, match="must be text, got"):
+        String("TITLE").validate(tmp_path, None)
+    assert String("INPUT", paths=True).validate(missing, None) == str(missing)
