@@ -116,3 +116,20 @@ def test_path_text_parameter_accepts_a_pathlib_path(tmp_path):
     with pytest.raises(ParameterError, match="must be text, got"):
         String("TITLE").validate(tmp_path, None)
     assert String("INPUT", paths=True).validate(missing, None) == str(missing)
+
+
+# -- 6. vector:info's path is absolute, as the run report's -------------------------------------
+def test_vector_info_path_is_absolute(tmp_path, monkeypatch):
+    import json
+    import os
+
+    import geopandas as gpd
+    import shapely
+
+    gpd.GeoDataFrame(geometry=[shapely.Point(1, 2)], crs="EPSG:3003").to_file(
+        tmp_path / "pts.gpkg", layer="pts")
+    monkeypatch.chdir(tmp_path)
+    out = toolbox.run("vector:info", {"INPUT": "pts.gpkg", "OUTPUT": "info.json"})
+    written = json.loads((tmp_path / "info.json").read_text())
+    # was "pts.gpkg": it named nothing once the JSON left this folder
+    assert written["path"] == out["INFO"]["path"] == os.path.join(str(tmp_path), "pts.gpkg")
