@@ -133,3 +133,25 @@ def test_vector_info_path_is_absolute(tmp_path, monkeypatch):
     written = json.loads((tmp_path / "info.json").read_text())
     # was "pts.gpkg": it named nothing once the JSON left this folder
     assert written["path"] == out["INFO"]["path"] == os.path.join(str(tmp_path), "pts.gpkg")
+
+
+# -- 8. carto:grid's "empty grid" warning says what was written --------------------------------
+@pytest.mark.parametrize("extent, labels", [
+    ("1688050,4799010,1688150,4799090 [EPSG:3003]", 2),  # the line x = 1688100 crosses it
+    ("1688010,4799010,1688090,4799090 [EPSG:3003]", 0),  # no grid line at all
+])
+def test_grid_without_cross_says_how_many_labels_were_written(tmp_path, extent, labels):
+    import geopandas as gpd
+
+    # 1:1000, 100 mm: crosses every 100 m, none inside either extent
+    feedback = toolbox.Feedback()
+    toolbox.run("carto:grid", {"EXTENT": extent, "SCALE": 1000, "OUTPUT": tmp_path / "g.gpkg"},
+                feedback=feedback)
+    assert len(gpd.read_file(tmp_path / "g.gpkg", layer="grid")) == 0
+    assert len(gpd.read_file(tmp_path / "g.gpkg", layer="grid_labels")) == labels
+    (warning,) = [w for w in feedback.warnings if w.startswith("no grid cross")]
+    # was "...: the grid is empty" while grid_labels held 2 labels
+    if labels:
+        assert f"{labels} label(s) of the grid lines crossing it written" in warning
+    else:
+        assert warning.endswith("the grid layer is empty, and so are its labels")
