@@ -155,3 +155,38 @@ def test_grid_without_cross_says_how_many_labels_were_written(tmp_path, extent, 
         assert f"{labels} label(s) of the grid lines crossing it written" in warning
     else:
         assert warning.endswith("the grid layer is empty, and so are its labels")
+
+
+# -- 9. measured (M) inputs: one warning per input naming the layer ----------------------------
+def _write_measured(tmp_path, wkt, layer, nlt):
+    """A GeoPackage layer with M values, written by GDAL's ogr2ogr (pyogrio drops M)."""
+    import shutil
+    import subprocess
+
+    ogr2ogr = shutil.which("ogr2ogr")
+    if ogr2ogr is None:
+        pytest.skip("ogr2ogr (GDAL) writes the measured layer")
+    csv = tmp_path / f"{layer}.csv"
+    csv.write_text(f'id,WKT\n1,"{wkt}"\n')
+    out = tmp_path / f"{layer}.gpkg"
+    subprocess.run([ogr2ogr, "-f", "GPKG", str(out), str(csv), "-nln", layer, "-a_srs",
+                    "EPSG:3003", "-nlt", nlt], check=True, capture_output=True)
+    return out
+
+
+@pytest.mark.parametrize("wkt, nlt, original", [
+    ("LINESTRING M (0 0 5, 10 0 6)", "LINESTRINGM", "Measured LineString"),
+    ("POINT ZM (0 0 1 5)", "POINTZM", "Measured 3D Point"),
+])
+def test_measured_input_warns_once_naming_the_layer(tmp_path, wkt, nlt, original, recwarn):
+    import json
+
+    layer = "survey_m"
+    path = _write_measured(tmp_path, wkt, layer, nlt)
+    report = tmp_path / "run.json"
+    toolbox.run("vector:info", {"INPUT": path}, report=report)
+    warnings = json.loads(report.read_text())["warnings"]
+    # was: no warning of the toolbox (pyogrio's own, repeated, naming no layer, outside it)
+    assert warnings == [f"INPUT '{path}' layer '{layer}' has measured geometries ({original}): "
+                        "their M values are dropped, only X, Y (and Z) are read"]
+    assert not [w for w in recwarn if "Measured (M)" in str(w.message)]
