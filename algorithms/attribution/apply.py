@@ -113,7 +113,7 @@ class ApplyCodes(Algorithm):
 
     def process(self, params, feedback: Feedback):
         from toolbox.attribution.coding import attribute
-        from toolbox.attribution.model_merge import events_frame, merge_models
+        from toolbox.attribution.model_merge import events_frame, merge_models, merge_snap_warning
         from toolbox.attribution.output import MERGE_STYLE, write_attribution
         from toolbox.attribution.sources import check_coordinates, read_sources, translated
         from toolbox.io.code_file import read_code_file, read_colour_file
@@ -141,6 +141,9 @@ class ApplyCodes(Algorithm):
         check_coordinates(frames, self.id, file is not None and file.offset != (0.0, 0.0))
         merge = None
         if len(frames) > 1:
+            warning = merge_snap_warning(frames, snap)
+            if warning:
+                feedback.push_warning(warning)
             merge = merge_models(frames, snap, zsnap)
             entities = merge.entities
             feedback.push_info("merge: {models} models, {duplicates_removed} duplicates "

@@ -65,7 +65,7 @@ class MergeModels(Algorithm):
         import geopandas as gpd
         import shapely
 
-        from toolbox.attribution.model_merge import events_frame, merge_models
+        from toolbox.attribution.model_merge import events_frame, merge_models, merge_snap_warning
         from toolbox.attribution.sources import read_sources, translated
         from toolbox.io.parameter_file import optional_parameter_file, resolve
         from toolbox.io.vector_write import write_layers
@@ -81,6 +81,9 @@ class MergeModels(Algorithm):
             file.warn_unused(USED_ENTRIES, feedback, self.id)
             file.check_unit(frames[0].crs, feedback)
             frames = [translated(f, file) for f in frames]
+        warning = merge_snap_warning(frames, snap)
+        if warning:
+            feedback.push_warning(warning)
         result = merge_models(frames, snap, zsnap)
         merged = result.entities
         crs = merged.crs

@@ -25,7 +25,8 @@ class DenseMatchingDsm(Algorithm):
     2. Each pair is resampled to epipolar images as stereo:epipolar does (distortion removed),
        in a scratch folder, converted to 8 bits.
     3. OpenCV StereoSGBM (semi-global matching, 3-way) over the disparities of heights
-       MIN_HEIGHT..MAX_HEIGHT (refused when that exceeds MAX_DISPARITIES, or when a first
+       MIN_HEIGHT..MAX_HEIGHT (a pair needing more than MAX_DISPARITIES is skipped with a
+       warning, refused when no pair is left; refused too when a first
        match at 1/4 resolution over up to three times those disparities finds less than half
        of the terrain inside the range: the error names the heights found; under 90 %: a
        warning), with left-right consistency (LR_MAX_DIFF pixels), a uniqueness (cost)
@@ -39,6 +40,7 @@ class DenseMatchingDsm(Algorithm):
        the highest upper quartile minus the lowest lower quartile (one pair: its
        interquartile range; several: also their disagreement). Cells without matched points
        stay nodata: no interpolation, so no cell outside the stereo coverage gets a value.
+       SPREAD's nodata is NODATA when negative, else -1 (a spread of 0 is a value).
 
     The epipolar pixel (PIXEL_SIZE_MM) is by default the left image's, or coarser so that a
     DSM cell spans four pixels on the ground: much finer matching would only add points to

@@ -57,7 +57,8 @@ class OrthoPhoto(Algorithm):
     projected point by point (not with OCCLUSION or INCIDENCE). The DEM may be in any CRS.
 
     The orientation comes from PROJECT (an orientation project; PHOTO names the photo, default
-    the one whose image file or id matches INPUT) or from CAMERA (a camera YAML as in a
+    the one whose image file or id matches INPUT; without INPUT, PHOTO's image in PROJECT is
+    orthorectified) or from CAMERA (a camera YAML as in a
     project's ``cameras`` list; the pixel transform from its pixel and image size) with
     EXTERIOR = "X0,Y0,Z0,omega,phi,kappa" in ANGLE_UNIT and CRS. A camera may be a model
     (``model:`` pinhole, Brown, OpenCV or fisheye; README "Camera models"): its cells are
@@ -103,8 +104,9 @@ class OrthoPhoto(Algorithm):
     group = "Orthophoto"
     short_help = "Orthorectify a frame photo on a DEM (collinearity, optional true-ortho mask)."
     parameters = [
-        RasterLayer("INPUT", "the photo (any GDAL raster, 1-4 bands, 8/16 bit)",
-                    role="photo"),
+        RasterLayer("INPUT", "the photo (any GDAL raster, 1-4 bands, 8/16 bit; default with "
+                    "PROJECT and PHOTO: the photo's image in the project)", role="photo",
+                    optional=True),
         project_parameter(optional=True),
         String("PHOTO", "photo id in PROJECT (default: the photo whose image or id matches "
                "INPUT)", optional=True),
@@ -146,6 +148,8 @@ class OrthoPhoto(Algorithm):
     def check(self, params: dict[str, Any]) -> None:
         from toolbox.ortho.rpc import has_rpc
 
+        if params["INPUT"] is None:
+            params["INPUT"] = project_image(params)
         if (params["CONTROL"] is None) != (params["MEASUREMENTS"] is None):
             raise self.fail("CONTROL", "and MEASUREMENTS go together (the GCPs of an RPC image)")
         if params["PROJECT"] is None and params["CAMERA"] is None:
@@ -225,6 +229,25 @@ class OrthoPhoto(Algorithm):
         return {"OUTPUT": params["OUTPUT"], "OCCLUSION_MASK": params["OCCLUSION_MASK"],
                 "INCIDENCE": params["INCIDENCE"], "REPORT": params["REPORT"],
                 "STATISTICS": report}
+
+
+def project_image(params: dict[str, Any]) -> Any:
+    """INPUT when not given: the image PROJECT records for PHOTO (refused without them, or
+    when the project has no image for it, or when an output would replace it)."""
+    from toolbox.io.raster import open_raster_info
+    from toolbox.photogrammetry.tables import load_project_parameter
+    from toolbox.stereo.epipolar import photo_image
+
+    if params["PROJECT"] is None or params["PHOTO"] is None:
+        raise ParameterError("INPUT", "is required (the photo's image) unless PROJECT and PHOTO "
+                             "name a photo whose image the project records")
+    photo = load_project_parameter(params["PROJECT"]).photo(params["PHOTO"])
+    info = open_raster_info(photo_image(photo, None, "INPUT"), "INPUT", "photo")
+    for name in ("OUTPUT", "OCCLUSION_MASK", "INCIDENCE"):
+        if params[name] is not None and Path(params[name]).resolve() == info.path.resolve():
+            raise ParameterError(name, f"'{params[name]}' is the image of photo "
+                                 f"{params['PHOTO']!r} (INPUT): it would be replaced")
+    return info
 
 
 def rpc_ortho(params: dict[str, Any], feedback: Feedback,

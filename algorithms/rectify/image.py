@@ -48,7 +48,8 @@ class RectifyImage(Algorithm):
     photo's interior orientation as PIXEL_TO_IMAGE (the Pixel->Fiducial matrix).
 
     MODE=gcps writes no resampled image: the photo is copied into a GeoTIFF with the control
-    points embedded as GCPs, for warping later with GDAL (e.g. gdalwarp -order 1 or -tps).
+    points embedded as GCPs, for warping later with GDAL (e.g. gdalwarp -order 1 or -tps),
+    with the overviews and the COG layout OVERVIEWS and COG ask for, as MODE=warp.
     """
 
     id = "rectify:image"
@@ -73,7 +74,7 @@ class RectifyImage(Algorithm):
         Number("NODATA", "nodata value with OUTSIDE=nodata (default: the photo's, else 0, NaN "
                "for float)", optional=True),
         Boolean("OVERVIEWS", "build internal overviews", default=True),
-        Boolean("COG", "write a Cloud Optimized GeoTIFF (MODE=warp; false: a tiled GeoTIFF "
+        Boolean("COG", "write a Cloud Optimized GeoTIFF (false: a tiled GeoTIFF "
                 "with internal overviews)", default=True),
         scheduler_parameter(),
         OutputRaster("OUTPUT", "rectified GeoTIFF (or GCP GeoTIFF with MODE=gcps)"),
@@ -217,7 +218,8 @@ class RectifyImage(Algorithm):
             image = apply_homography(np.linalg.inv(p2i), image)
         gcps = [(p["id"], float(c), float(r), float(p["ground"][0]), float(p["ground"][1]),
                  float(p.get("z") or 0.0)) for p, (c, r) in zip(used, image, strict=True)]
-        write_gcp_geotiff(params["INPUT"].path, params["OUTPUT"], gcps, model.crs, feedback, tags)
+        write_gcp_geotiff(params["INPUT"].path, params["OUTPUT"], gcps, model.crs, feedback, tags,
+                          overviews=params["OVERVIEWS"], cog=params["COG"])
         return {"OUTPUT": params["OUTPUT"], "STATISTICS": {
             "model": model.model, "crs": crs_label(model.crs), "gcps": len(gcps),
             "gcp_ids": [g[0] for g in gcps]}}

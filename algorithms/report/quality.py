@@ -17,7 +17,9 @@ class Quality(Algorithm):
 
     The first page is the verdict: every product against the specification's tolerances at the
     map scale, each criterion with what was measured, the tolerance, pass / FAIL / not checked
-    and its source, and an overall ACCEPTED or NOT ACCEPTED. Tolerances: planimetric RMS <=
+    and its source, and an overall ACCEPTED (saying how many criteria were checked and naming
+    those not checked), NOT ACCEPTED or NOT CHECKED (no criterion measured; also in the
+    console and in CONTENTS' ``overall``). Tolerances: planimetric RMS <=
     ``RULE_MM`` mm x ``ORTHO_SCALE`` (S002 §2.6.6: 0.3 mm for small scales, 0.5 mm for large
     ones) for orthophotos, rectification and orientation check points; height RMSE <=
     ``CONTOUR_INTERVAL`` / 3.29 (90 % of the points within half the contour interval, the
@@ -76,4 +78,5 @@ class Quality(Algorithm):
         if not contents["sections"]:
             feedback.push_warning("no run report with residuals or counts was found: the "
                                   "report lists the runs only")
+        feedback.push_info(f"Overall: {contents['overall']}")
         return {"OUTPUT": params["OUTPUT"], "CONTENTS": contents}

@@ -89,7 +89,11 @@ class VectorInfo(Algorithm):
             layer, geoms = read_geometries(layer)
             layers.append({"name": name, "crs": layer_crs_label(layer),
                            "fields": layer.field_types, **geometry_summary(geoms)})
-        info = {"path": None if ref.path is None else str(ref.path), "layers": layers}
+        from toolbox.io.paths import absolute_paths
+
+        # absolute as in the run report (a relative path names nothing elsewhere)
+        info = {"path": None if ref.path is None else absolute_paths(str(ref.path)),
+                "layers": layers}
         if params["OUTPUT"] is not None:
             from toolbox.report import to_jsonable
 

@@ -42,6 +42,18 @@ def _dz(a: np.ndarray, b: np.ndarray) -> float:
     return float(np.abs(d).max()) if len(d) else 0.0
 
 
+def merge_snap_warning(models: list[Any], xy_tolerance: float) -> str | None:
+    """The topology's warning (:func:`toolbox.topology.tolerances.large_snap_warning`) when
+    SNAP_TOLERANCE exceeds a quarter of the median extent of the models' lines and areas:
+    line ends and duplicates are then matched across features, not near misses."""
+    from toolbox.topology.tolerances import large_snap_warning
+
+    geoms = np.concatenate([np.asarray(m.geometry.values, dtype=object) for m in models])
+    geoms = geoms[~shapely.is_missing(geoms)]
+    lines = geoms[np.isin(shapely.get_type_id(geoms), (1, 2, 3, 5, 6))]
+    return large_snap_warning(xy_tolerance, lines)
+
+
 def merge_models(models: list[Any], xy_tolerance: float, z_tolerance: float) -> MergeResult:
     """Merge entity tables of adjacent models (list order = model order; a ``model`` column
     1..M is added; ``entity`` keeps its number within its model)."""

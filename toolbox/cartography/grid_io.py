@@ -121,10 +121,12 @@ def grid_frames(request: MapGridRequest, warn=None):
         for label in grid.labels:
             label_rows.append({"sheet": sheet_id, **label,
                                "geometry": shapely.points(label["x"], label["y"])})
-    if not rows and warn is not None:
+    if not rows and warn is not None:  # the labels along the edges may still be there
         warn(f"no grid {'line' if request.style == 'lines' else 'cross'} (every {step:g} m, "
              f"{request.map_step:g} mm at 1:{request.scale:g}) falls inside the "
-             f"{'sheets' if request.sheets.sheets is not None else 'EXTENT'}: the grid is empty")
+             f"{'sheets' if request.sheets.sheets is not None else 'EXTENT'}: the grid layer is "
+             f"empty" + (f"; {len(label_rows)} label(s) of the grid lines crossing it written "
+                         "(grid_labels)" if label_rows else ", and so are its labels"))
     columns = ["sheet", "kind", "value", "geometry"]
     grid_frame = gpd.GeoDataFrame(rows or None, columns=columns, geometry="geometry", crs=crs)
     label_columns = ["sheet", "text", "axis", "value", "edge", "geometry"]

@@ -89,15 +89,31 @@ def build_sections(reports, spec: Specification) -> tuple[list[Verdict], list[Se
     return verdicts, kept
 
 
-def verdict_section(verdicts: list[Verdict], spec: Specification, runs: int) -> Section:
+def overall_verdict(verdicts: list[Verdict]) -> tuple[str, bool]:
+    """The overall verdict and whether the delivery is accepted: NOT ACCEPTED when a criterion
+    failed, NOT CHECKED when none was measured, else ACCEPTED saying how many of the criteria
+    were checked and naming those that were not (an "ACCEPTED" over 1 of 4 criteria read as a
+    full acceptance)."""
     failed = [v for v in verdicts if v.status == FAIL]
     unchecked = [v for v in verdicts if v.status == NOT_CHECKED]
-    overall = ("NOT ACCEPTED: " + f"{len(failed)} criterion(s) failed" if failed else
-               "NOT CHECKED: no run measured a criterion of the specification" if not verdicts
-               else "ACCEPTED" + (f", {len(unchecked)} criterion(s) not checked" if unchecked
-                                  else ""))
+    checked = len(verdicts) - len(unchecked)
+    names = "; ".join(f"{v.product}: {v.criterion}" for v in unchecked)
+    if failed:
+        text = f"NOT ACCEPTED: {len(failed)} of {len(verdicts)} criteria failed"
+        return text + (f" (not checked: {names})" if unchecked else ""), False
+    if not checked:
+        return "NOT CHECKED: no run measured a criterion of the specification" + (
+            f" (not checked: {names})" if unchecked else ""), False
+    if unchecked:
+        return (f"ACCEPTED ({checked} of {len(verdicts)} criteria checked; not checked: "
+                f"{names})"), True
+    return f"ACCEPTED ({checked} of {len(verdicts)} criteria checked)", True
+
+
+def verdict_section(verdicts: list[Verdict], spec: Specification, runs: int) -> Section:
+    overall, _ = overall_verdict(verdicts)
     sec = Section("verdict", "Verdict")
-    sec.text(f"Overall: {overall} ({len(verdicts)} criteria from {runs} runs).")
+    sec.text(f"Overall: {overall}; {len(verdicts)} criteria from {runs} runs.")
     sec.text("Specification: " + spec.describe() + ".")
     sec.table(["Product", "Criterion", "Measured", "Tolerance", "Verdict", "Source"],
               [[v.product, v.criterion, v.measured, v.tolerance, v.status, v.source]
@@ -127,7 +143,9 @@ def write_report(folder: str | Path, output: str | Path, title: str,
         for s in everything:
             for f in s.figures:
                 plt.close(f)
+    overall, accepted = overall_verdict(verdicts)
     return {"runs": runs, "sections": [s.key for s in sections],
             "figures": {s.key: len(s.figures) for s in sections},
-            "verdicts": [v.__dict__ for v in verdicts],
-            "accepted": bool(verdicts) and not any(v.status == FAIL for v in verdicts)}
+            "verdicts": [v.__dict__ for v in verdicts], "overall": overall,
+            "criteria_checked": sum(v.status != NOT_CHECKED for v in verdicts),
+            "accepted": accepted}

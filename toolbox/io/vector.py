@@ -19,8 +19,11 @@ pyarrow/geopandas: the GDAL in pyogrio's wheels has no Parquet driver).
 
 from __future__ import annotations
 
+import re
 import sys
 import threading
+import warnings
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -47,6 +50,9 @@ _GEOMETRY_FAMILIES = {"point": ("Point", "MultiPoint"),
 
 
 _OGR_LOCK = threading.RLock()
+#: pyogrio's warning when it reads a measured (M) layer without its M values (repeated at each
+#: read, naming no layer): replaced by one warning per input naming it (:func:`_warn_measured`)
+_MEASURED = "Measured \\(M\\) geometry types are not supported"
 
 
 def _ogr():
@@ -135,6 +141,8 @@ class VectorLayerRef:
     #: the file's other layers when none was named and its first one was taken (the reader
     #: warns once, see :func:`open_layer`)
     default_of: tuple[str, ...] = ()
+    #: the layer's M values were dropped and the reader warned about it (once)
+    m_warned: bool = False
 
     def __str__(self) -> str:
         if self.path is None:
@@ -282,6 +290,7 @@ def open_layer(value: Any, name: str = "INPUT", known_layer: str | None = None) 
     """
     if isinstance(value, VectorLayerRef):
         _warn_default_layer(value, name)
+        _warn_measured(value, name)
         return value
     if hasattr(value, "geometry") and hasattr(value, "crs"):  # GeoDataFrame
         return VectorLayerRef(None, None, _frame_info(value), frame=value)
@@ -298,7 +307,7 @@ def open_layer(value: Any, name: str = "INPUT", known_layer: str | None = None) 
     ogr = _ogr()
     try:
         options = _csv_open_options(path) if path.suffix.lower() == ".csv" else {}
-        rows = ogr.list_layers(path)
+        rows, _ = _without_m_warning(ogr.list_layers, path)
         layers = [str(row[0]) for row in rows]
     except Exception as exc:  # pyogrio raises DataSourceError and friends
         raise ParameterError(name, f"cannot read '{text}' as a vector layer: "
@@ -306,7 +315,7 @@ def open_layer(value: Any, name: str = "INPUT", known_layer: str | None = None) 
     sibling = _resolve_layer_file(path, layer, layers)
     if sibling is not None:
         path, layer = sibling, None
-        rows = ogr.list_layers(path)
+        rows, _ = _without_m_warning(ogr.list_layers, path)
         layers = [str(row[0]) for row in rows]
     if source.layerid is not None:
         if source.layerid >= len(layers):
@@ -351,6 +360,47 @@ def _warn_default_layer(ref: VectorLayerRef, name: str) -> None:
         f"first layer '{ref.layer}' (others: {others}); choose one with "
         f"'{ref.path}|layername=NAME'")
     ref.default_of = ()
+
+
+def _warn_measured(ref: VectorLayerRef, name: str) -> None:
+    """Warn (once per reference) that the layer's geometries carry M values, which are dropped
+    (pyogrio reads X, Y and Z only)."""
+    measured = ref.info.get("measured_type")
+    if not measured or ref.m_warned:
+        return
+    import logging
+
+    layer = ref.layer or ref.info.get("layer_name")
+    layer = f" layer '{layer}'" if layer else ""
+    logging.getLogger("toolbox").warning(
+        f"{name} '{ref.path}'{layer} has measured geometries ({measured}): their M values are "
+        "dropped, only X, Y (and Z) are read")
+    ref.m_warned = True
+
+
+@contextmanager
+def quiet_m_warning():
+    """pyogrio's M warning silenced (for the readers of a reference :func:`open_layer` opened:
+    it says it once)."""
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message=_MEASURED)
+        yield
+
+
+def _without_m_warning(call, *args, **kwargs):
+    """``call(*args, **kwargs)`` with pyogrio's M warning silenced (:func:`_warn_measured`
+    says it once), and the original measured type it names, or None."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        result = call(*args, **kwargs)
+    measured = None
+    for w in caught:
+        match = re.search(_MEASURED + r"\. Original type '([^']*)'", str(w.message))
+        if match:
+            measured = match.group(1)
+        else:  # the other warnings as they came
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    return result, measured
 
 
 def _open_parquet(path: Path, source: LayerSource, name: str) -> VectorLayerRef:
@@ -563,8 +613,9 @@ def read_vector(source: Any, crs: Any = None, columns: list[str] | None = None,
             raise InputDataError(f"{name}: cannot read {ref}: {str(exc).splitlines()[0]}") from None
     else:
         try:
-            frame = pyogrio.read_dataframe(ref.path, layer=ref.layer, columns=columns, bbox=bbox,
-                                           where=ref.where or None, **ref.open_options)
+            frame, _ = _without_m_warning(
+                pyogrio.read_dataframe, ref.path, layer=ref.layer, columns=columns, bbox=bbox,
+                where=ref.where or None, **ref.open_options)
         except Exception as exc:
             raise InputDataError(f"{name}: cannot read {ref}: {str(exc).splitlines()[0]}") from None
         frame = frame.drop(columns=csv_coordinate_columns(ref.open_options), errors="ignore")
@@ -584,7 +635,7 @@ def read_vector(source: Any, crs: Any = None, columns: list[str] | None = None,
 
 def layer_names(path: str | Path) -> list[str]:
     """The names of the layers of a vector file, in OGR's order (without importing pandas)."""
-    return [str(row[0]) for row in _ogr().list_layers(path)]
+    return [str(row[0]) for row in _without_m_warning(_ogr().list_layers, path)[0]]
 
 
 def every_layer(ref: VectorLayerRef, name: str = "INPUT") -> list[VectorLayerRef]:
@@ -601,10 +652,12 @@ def _layer_info(path: Path, layer: str | None, options: dict[str, str], name: st
     """OGR's information of a layer (CSV coordinate columns left out of its fields);
     :class:`ParameterError` naming ``name`` and ``what`` when OGR cannot read it."""
     try:
-        info = _ogr().read_info(path, layer=layer, **options)
+        info, measured = _without_m_warning(_ogr().read_info, path, layer=layer, **options)
     except Exception as exc:  # pyogrio raises DataSourceError and friends
         raise ParameterError(name, f"cannot read {what} as a vector layer: "
                              f"{str(exc).splitlines()[0]}") from None
+    if measured:
+        info["measured_type"] = measured
     return _without_csv_coordinates(info, options)
 
 
@@ -637,11 +690,12 @@ def _wkb_geometries(ref: VectorLayerRef, name: str) -> np.ndarray | None:
     from pyogrio.util import get_vsi_path_or_buffer
 
     try:
-        wkb = ogr_read(get_vsi_path_or_buffer(str(ref.path)), layer=ref.layer, encoding=None,
-                       columns=[], read_geometry=True, force_2d=False, skip_features=0,
-                       max_features=0, where=ref.where or None, bbox=None, mask=None, fids=None,
-                       sql=None, sql_dialect=None, return_fids=False, dataset_kwargs={},
-                       datetime_as_string=False)[2]
+        wkb = _without_m_warning(
+            ogr_read, get_vsi_path_or_buffer(str(ref.path)), layer=ref.layer, encoding=None,
+            columns=[], read_geometry=True, force_2d=False, skip_features=0, max_features=0,
+            where=ref.where or None, bbox=None, mask=None, fids=None, sql=None,
+            sql_dialect=None, return_fids=False, dataset_kwargs={},
+            datetime_as_string=False)[0][2]
         if wkb is None:  # a table: its features have no geometry (a filtered one: general path)
             if ref.where:
                 return None

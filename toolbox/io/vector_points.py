@@ -16,6 +16,7 @@ from toolbox.io.vector import (
     is_parquet,
     no_geometry,
     open_layer,
+    quiet_m_warning,
     read_vector,
 )
 
@@ -160,6 +161,11 @@ def _read_arrow(ref: VectorLayerRef, columns: list[str]):
     from pyogrio._io import ogr_open_arrow
     from pyogrio.util import get_vsi_path_or_buffer
 
+    with quiet_m_warning():
+        return _open_arrow(ref, columns, ogr_open_arrow, get_vsi_path_or_buffer)
+
+
+def _open_arrow(ref: VectorLayerRef, columns: list[str], ogr_open_arrow, get_vsi_path_or_buffer):
     try:
         source = ogr_open_arrow(
             get_vsi_path_or_buffer(str(ref.path)), layer=ref.layer, encoding=None,

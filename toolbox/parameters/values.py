@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import os
 import re
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -100,7 +101,8 @@ class Boolean(Parameter):
 
 class String(Parameter):
     """Text. ``paths=True``: a file or folder path, or several separated by commas (a pipeline
-    resolves relative ones against its folder, a run report records them absolute)."""
+    resolves relative ones against its folder, a run report records them absolute); an
+    ``os.PathLike`` (``pathlib.Path``) is taken as its path."""
 
     type_name = "string"
 
@@ -111,8 +113,11 @@ class String(Parameter):
         self.holds_paths = paths
 
     def validate(self, value: Any, ctx: ValidationContext) -> str:
+        if self.paths and isinstance(value, os.PathLike):  # a pathlib.Path from the Python API
+            return os.fspath(value)
         if not isinstance(value, (str, int, float)):
-            raise self.error(f"must be text, got {_show(value)}")
+            raise self.error(f"must be text{' or a path' if self.paths else ''}, got "
+                             f"{_show(value)}")
         return str(value)
 
 

@@ -4,6 +4,7 @@ the DSM, COUNT and SPREAD rasters (:mod:`toolbox.stereo.fusion`) and the optiona
 
 from __future__ import annotations
 
+import math
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -70,6 +71,35 @@ def matching_pixel(left: Any, cell_size: float, distance_m: float) -> float:
     points to one median."""
     native = float(left.require_pixel_transform().pixel_size_mm)
     return max(native, 0.25 * cell_size * left.camera.c / distance_m)
+
+
+def spread_nodata(nodata: float) -> float:
+    """SPREAD's nodata: NODATA when it cannot be a spread (negative, or NaN), else -1 (a
+    spread is never negative; NODATA 0 made every cell of spread 0, one pair's points all at
+    one height, read as no value)."""
+    return nodata if nodata < 0 or math.isnan(nodata) else -1.0
+
+
+def disparity_fits(pairs: list, pixels: list[float], low: float, high: float,
+                   max_disparities: int) -> tuple[list, list[str]]:
+    """The pairs whose heights ``low``..``high`` span at most ``max_disparities`` disparities
+    at their epipolar pixel, and a line for each of the others (pair, disparities needed,
+    MAX_DISPARITIES)."""
+    from toolbox.stereo.epipolar import epipolar_geometry
+    from toolbox.stereo.matching import disparity_range
+
+    kept, wide = [], []
+    for pair, pixel in zip(pairs, pixels, strict=True):
+        left, right = pair[0], pair[1]
+        _, count = disparity_range(epipolar_geometry(left, right, pixel_mm=pixel), left, low,
+                                   high)
+        if count > max_disparities:
+            wide.append(f"{left.id}-{right.id}: MIN_HEIGHT {low:g} .. MAX_HEIGHT {high:g} spans "
+                        f"{count} disparities, more than MAX_DISPARITIES {max_disparities} "
+                        "(narrow the height range to the terrain's, or coarsen PIXEL_SIZE_MM)")
+        else:
+            kept.append(pair)
+    return kept, wide
 
 
 def match_one_pair(left: Any, right: Any, images: tuple[Path, Path], low: float, high: float,
@@ -226,11 +256,31 @@ def run_match(request: MatchRequest, feedback: Feedback) -> dict[str, Any]:
         raise InputDataError(f"no suitable stereo pair among {len(photos)} photos: "
                              f"{'; '.join(skipped[:3])}")
     crs = project.crs
-    bounds = np.array([overlap_bounds(a, b, rules.terrain_height) for a, b, _ in pairs])
-    data_bounds = (bounds[:, 0].min(), bounds[:, 1].min(), bounds[:, 2].max(),
-                   bounds[:, 3].max())
-    grid = request.grid.grid(data_bounds, crs)
     options = request.options
+
+    def grid_and_pixels(pairs):
+        bounds = np.array([overlap_bounds(a, b, rules.terrain_height) for a, b, _ in pairs])
+        data_bounds = (bounds[:, 0].min(), bounds[:, 1].min(), bounds[:, 2].max(),
+                       bounds[:, 3].max())
+        grid = request.grid.grid(data_bounds, crs)
+        return data_bounds, grid, [
+            request.pixel_size_mm or matching_pixel(left, abs(grid.transform.a),
+                                                    report.distance_m)
+            for left, right, report in pairs]
+
+    data_bounds, grid, pixels = grid_and_pixels(pairs)
+    # a pair whose height range needs more disparities than MAX_DISPARITIES is skipped as the
+    # other unusable pairs are (it stopped the whole run); refused when no pair is left
+    kept, wide = disparity_fits(pairs, pixels, low, high, options.max_disparities)
+    for line in wide:
+        feedback.push_warning(f"pair skipped: {line}")
+    skipped = skipped + wide
+    if not kept:
+        raise InputDataError(f"no stereo pair fits MAX_DISPARITIES {options.max_disparities}: "
+                             f"{'; '.join(wide[:3])}")
+    if len(kept) < len(pairs):
+        pairs = kept
+        data_bounds, grid, pixels = grid_and_pixels(pairs)
     cells, pair_stats = [], []
     writer = None
     if request.points is not None:
@@ -239,9 +289,6 @@ def run_match(request: MatchRequest, feedback: Feedback) -> dict[str, Any]:
         centre = np.array([(data_bounds[0] + data_bounds[2]) / 2,
                            (data_bounds[1] + data_bounds[3]) / 2, low])
         writer = PointCloudWriter(request.points, centre, crs, rgb=True).__enter__()
-    pixels = [request.pixel_size_mm or matching_pixel(left, abs(grid.transform.a),
-                                                      report.distance_m)
-              for left, right, report in pairs]
     executor = request.executor or resolve_executor("local")
     local = executor.kind == "local"
     if local:  # in this thread, one pair at a time: its epipolar images are the run's memory
@@ -292,7 +339,7 @@ def run_match(request: MatchRequest, feedback: Feedback) -> dict[str, Any]:
         feedback.push_warning(nodata_clash_warning(clashes, nodata))
     _write(request.output, grid, dsm, "float32", nodata)
     _write(request.count, grid, count, "uint16", 0)
-    _write(request.spread, grid, spread, "float32", nodata)
+    _write(request.spread, grid, spread, "float32", spread_nodata(nodata))
     feedback.set_progress(100)
     valid = int(np.isfinite(dsm).sum()) - clashes
     stats = {"pairs": pair_stats, "skipped": skipped, "crs": crs_label(crs),

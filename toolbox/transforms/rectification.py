@@ -411,10 +411,11 @@ def default_cell_size(pixel_to_ground: np.ndarray, width: int, height: int) -> f
 def write_gcp_geotiff(source: Any, output: Any, gcps: list[tuple[str, float, float, float,
                                                                float, float]],
                       crs: Any, feedback: Feedback, tags: dict[str, str] | None = None,
-                      chunk: int = 2048) -> None:
+                      chunk: int = 2048, overviews: bool = False, cog: bool = False) -> None:
     """Copy ``source`` into a tiled GeoTIFF with embedded GCPs, window by window
-    (:class:`~toolbox.raster.writer.RasterWriter`, no overviews: a photo georeferenced by its
-    points, warped by the reader).
+    (:class:`~toolbox.raster.writer.RasterWriter`: a photo georeferenced by its points, warped
+    by the reader), with internal overviews (``overviews``) and as a Cloud Optimized GeoTIFF
+    (``cog``, GDAL's COG driver keeps the GCPs) as the writer's other outputs.
 
     ``gcps``: (id, col, row, X, Y, Z) with col/row in the source pixel convention (pixel centres
     at +0.5, as GDAL's GCP pixel/line).
@@ -439,7 +440,8 @@ def write_gcp_geotiff(source: Any, output: Any, gcps: list[tuple[str, float, flo
                       for i, c, r, x, y, z in gcps]
             grid = GridSpec(src.transform, src.width, src.height, crs)
             with RasterWriter(output, grid, src.count, src.dtypes[0], src.nodata,
-                              alpha=has_alpha, overviews=False, tags=tags, gcps=points) as dst:
+                              alpha=has_alpha, overviews=overviews, cog=cog, tags=tags,
+                              gcps=points) as dst:
                 windows = [t.window for t in iter_tiles(grid, chunk)]
                 for window in feedback.iterate(windows):
                     dst.write(window, src.read(window=window))

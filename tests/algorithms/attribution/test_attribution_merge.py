@@ -175,3 +175,29 @@ def test_models_in_two_crs_are_refused_naming_them(files, tmp_path, algorithm):
                                                      "in EPSG:3003"):
         toolbox.run(algorithm, params)
     assert not (tmp_path / "out.gpkg").exists()
+
+
+@pytest.mark.parametrize("algorithm", ["attribution:merge", "attribution:apply"])
+def test_a_snap_tolerance_larger_than_the_features_warns(files, tmp_path, algorithm):
+    """SNAP_TOLERANCE had no size check in the model merge (topology warns above a quarter of
+    the median line extent): the models' bounding-box diagonals, by hand, are 9.95, 10, 14.14,
+    14.2, 49.95, 49.95, 49.95, 49.98, 50, 50 (points left out): median 49.95, a quarter 12.49,
+    so 20 m warns and 12 m does not."""
+    paths = []
+    for name, entities in (("ovest", WEST), ("est", EAST)):
+        lines = []
+        for code, pts in entities:
+            lines.append(f"CODE {code}")
+            lines += [f"{E0 + x:.3f} {N0 + y:.3f} {z:.3f}" for x, y, z in pts]
+            lines.append("END")
+        paths.append(tmp_path / f"{name}.txt")
+        paths[-1].write_text("\n".join(lines) + "\n")
+    extra = {"CODES": files["codes"]} if algorithm == "attribution:apply" else {}
+    for snap, warns in ((20.0, True), (12.0, False)):
+        feedback = toolbox.Feedback()
+        toolbox.run(algorithm, {"INPUT": paths, "SNAP_TOLERANCE": snap, "CRS": "EPSG:3003",
+                                "OUTPUT": tmp_path / f"{snap}.gpkg", **extra}, feedback=feedback)
+        hits = [w for w in feedback.warnings if w.startswith(f"SNAP_TOLERANCE {snap:g} is large")]
+        assert bool(hits) is warns, feedback.warnings
+        if warns:
+            assert "median input line extent (bounding-box diagonal) is 49.9" in hits[0]

@@ -166,3 +166,40 @@ def test_three_photos_three_pairs_fused(scene, tmp_path):
     three = open_ground & (count == 3)
     assert np.median(np.abs(dsm.data - truth)[three]) <= 0.5 * GSD * H_OVER_B
     assert np.median(spread.data[three]) < 2.0  # the pairs agree within their noise
+
+
+def test_a_pair_beyond_max_disparities_is_skipped_not_the_run(scene, tmp_path):
+    """One pair needing more than MAX_DISPARITIES stopped the whole run (exit 2) while other
+    unusable pairs are skipped: L-R spans 64 disparities (base 420 m), L-M and R-M 32 (half the
+    base), so MAX_DISPARITIES 48 skips L-R with a warning and fuses the two others. With NODATA
+    0 the SPREAD keeps its own nodata (-1): a spread of 0 is a value, not a hole."""
+    import json
+
+    from tests.helpers_cli import cli
+
+    out = tmp_path / "stats.json"
+    code, stdout, err = cli(
+        "run", "dem:match", "--PROJECT", str(scene.project), "--PHOTOS", "L,R,M",
+        "--MIN_HEIGHT", "280", "--MAX_HEIGHT", "370", "--CELL_SIZE", "4",
+        "--MAX_DISPARITIES", "48", "--NODATA", "0", "--OUTPUT", str(tmp_path / "d.tif"),
+        "--COUNT", str(tmp_path / "c.tif"), "--SPREAD", str(tmp_path / "s.tif"),
+        "--run-report", str(out))
+    assert code == 0, err
+    assert ("pair skipped: L-R: MIN_HEIGHT 280 .. MAX_HEIGHT 370 spans 64 disparities, more "
+            "than MAX_DISPARITIES 48") in err
+    stats = json.loads(out.read_text())["outputs"]["STATISTICS"]
+    assert sorted(p["pair"] for p in stats["pairs"]) == ["L-M", "R-M"]
+    assert all(p["num_disparities"] <= 48 for p in stats["pairs"])
+    assert any(line.startswith("L-R: ") for line in stats["skipped"])
+    with rasterio.open(tmp_path / "d.tif") as ds:
+        dsm = ds.read(1, masked=True)
+    with rasterio.open(tmp_path / "s.tif") as ds:
+        assert ds.nodata == -1.0
+        spread = ds.read(1, masked=True)
+    assert np.array_equal(spread.mask, dsm.mask) and (spread.data[~spread.mask] >= 0).all()
+    # every pair beyond it: refused, naming MAX_DISPARITIES
+    assert_refused(["run", "dem:match", "--PROJECT", str(scene.project), "--PHOTOS", "L,R,M",
+                    "--MIN_HEIGHT", "280", "--MAX_HEIGHT", "370", "--CELL_SIZE", "4",
+                    "--MAX_DISPARITIES", "16", "--OUTPUT", str(tmp_path / "e.tif"),
+                    "--COUNT", str(tmp_path / "f.tif"), "--SPREAD", str(tmp_path / "g.tif")],
+                   "no stereo pair fits MAX_DISPARITIES 16", (tmp_path / "e.tif",))

@@ -394,3 +394,19 @@ def test_incidence_angles_do_not_change_the_ortho(block, tmp_path):
         assert ra[key] == pytest.approx(rb[key], rel=1e-4, abs=1e-6), key
     assert np.isfinite(angles).mean() == pytest.approx(1 - ra["outside_dem_fraction"], abs=1e-9)
     assert 0 <= np.nanmin(angles) and np.nanmax(angles) < 90
+
+
+def test_project_and_photo_name_the_image_without_input(block, tmp_path):
+    """INPUT was required even when PROJECT and PHOTO name the photo, whose image the project
+    records: without INPUT the project's image is taken (the same ortho as with it); refused
+    in one line naming INPUT when neither gives an image."""
+    with_input = run_ortho(block, tmp_path / "a.tif")
+    params = {"PROJECT": block.project_path, "PHOTO": "p1", "DEM": block.dem_path,
+              "CELL_SIZE": CELL, "OUTPUT": tmp_path / "b.tif"}
+    toolbox.run("ortho:photo", params)
+    with rasterio.open(with_input["OUTPUT"]) as a, rasterio.open(tmp_path / "b.tif") as b:
+        assert a.transform == b.transform and np.array_equal(a.read(), b.read())
+    for missing in ("PHOTO", "PROJECT"):
+        with pytest.raises(ParameterError, match="INPUT is required .*PROJECT and PHOTO"):
+            toolbox.run("ortho:photo", {**{k: v for k, v in params.items() if k != missing},
+                                        "OUTPUT": tmp_path / "c.tif"})
