@@ -179,8 +179,11 @@ class _LoggedWarnings(logging.Handler):
             text = record.getMessage()
         except Exception:  # noqa: BLE001 - a bad format string: not ours to fail on
             return
-        if text not in self.feedback.warnings:
-            self.feedback.messages.append(("warning", text))
+        feedback = self.feedback  # the run's step feedback, then the caller's above it
+        while feedback is not None:
+            if text not in feedback.warnings:
+                feedback.messages.append(("warning", text))
+            feedback = getattr(feedback, "_parent", None)
 
 
 class _GdalWarnings(_LoggedWarnings):

@@ -73,3 +73,16 @@ def test_streamed_cloud_warns_noise_once(tmp_path, monkeypatch):
     assert done.returncode == 0, done.stderr
     assert done.stderr.count("class 18 (high noise)") == 1
     assert sum("noise" in w for w in json.loads(report.read_text())["warnings"]) == 1
+
+
+def test_caller_feedback_gets_the_warnings_logged_outside_feedback(tmp_path):
+    """A warning a reader logs on the toolbox logger (here the noise classes) reached the run
+    report and the console but not the Feedback a Python caller passed to toolbox.run."""
+    import toolbox
+    from toolbox.feedback import Feedback
+
+    _noisy_cloud(tmp_path / "c.las")
+    feedback = Feedback()
+    toolbox.run("dem:nearest", {"INPUT": str(tmp_path / "c.las"), "CELL_SIZE": 5,
+                                "OUTPUT": str(tmp_path / "d.tif")}, feedback=feedback)
+    assert sum("class 18 (high noise)" in w for w in feedback.warnings) == 1
