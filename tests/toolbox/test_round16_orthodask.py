@@ -198,13 +198,13 @@ def test_window_results_pickle_empty_and_come_back_by_tile(ortho_block, tmp_path
     sampler = DemSampler(open_raster_info(ortho_block["DEM"]), grid.crs)
     here = OrthoWindows(photo, grid, sampler, CollinearityMap(photo, block=32), 300.0)
     there = pickle.loads(pickle.dumps(here))
-    assert there.per_window == {}
+    assert there.window_results() == {}
     tile, parts = Window(0, 0, 200, 100), [Window(0, 0, 100, 100), Window(100, 0, 100, 100)]
     other = Window(0, 100, 200, 100)
     for window in [tile, *parts, other]:
         there.measured(window)
     assert there.take_window_results(Window(0, 0, 50, 50)) is None
     here.merge_window_results(there.take_window_results(tile))
-    assert sorted(here.per_window) == [(0, 0, 100, 100), (0, 0, 200, 100), (100, 0, 100, 100)]
-    assert list(there.per_window) == [(0, 100, 200, 100)]
+    assert sorted(here.window_results()) == [(0, 0, 100, 100), (0, 0, 200, 100), (100, 0, 100, 100)]
+    assert list(there.window_results()) == [(0, 100, 200, 100)]
     assert here.totals().cells == 200 * 100  # the parts, not their parent too

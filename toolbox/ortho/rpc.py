@@ -84,7 +84,7 @@ class RpcOrthoMap(WindowResults):
 
     def totals(self) -> TileStatistics:
         """Sums over the windows, without the parents of windows the warp split in four."""
-        return leaf_window_totals(self.per_window)
+        return leaf_window_totals(self.window_results())
 
 
 def rpc_plan(camera: Any, dem: Any, band: int = 1, cell: float | None = None,

@@ -142,7 +142,7 @@ class OrthoWindows(WindowResults):
 
     def statistics(self, window: Any) -> TileStatistics:
         """The counts of a window the warp has mapped (planned or measured)."""
-        return self.per_window[window_parts(window)]
+        return self.window_results()[window_parts(window)]
 
     def plan(self, tile: Any, aux: Any = None) -> Any:
         """The :class:`~toolbox.raster.maps.SourcePlan` of a planned window (see the class
@@ -343,7 +343,7 @@ class OrthoWindows(WindowResults):
 
     def totals(self) -> TileStatistics:
         """Sums over the windows, without the parents of windows the warp split in four."""
-        return leaf_window_totals(self.per_window)
+        return leaf_window_totals(self.window_results())
 
 
 def project_cells(camera: CameraModel, gx: np.ndarray, gy: np.ndarray, z: np.ndarray,

@@ -112,19 +112,20 @@ class ReportingMap(CoordinateMap, Protocol):
 
 class WindowResults:
     """Per-window results of a coordinate map (a :class:`ReportingMap`): statistics
-    (:meth:`record`, kept in ``per_window``) and arrays for the caller to write
-    (:meth:`defer`; the caller's map writes them in :meth:`merge_window_results` with
+    (:meth:`record`; every window's: :meth:`window_results`) and arrays for the caller to
+    write (:meth:`defer`; the caller's map writes them in :meth:`merge_window_results` with
     :meth:`write_deferred`). Pickled (for a Dask worker) without its lock and without any
     result: a worker's copy starts empty, its results come back with each tile's result."""
 
     #: attributes not pickled; :meth:`_fresh_state` recreates them on the worker
-    _NOT_PICKLED: tuple[str, ...] = ("per_window", "_deferred", "_results_lock")
+    _NOT_PICKLED: tuple[str, ...] = ("per_window", "_recorded", "_deferred", "_results_lock")
 
     def __init__(self) -> None:
         self._fresh_state()
 
     def _fresh_state(self) -> None:
-        self.per_window: dict[tuple[int, int, int, int], Any] = {}
+        self.per_window: dict[tuple[int, int, int, int], Any] = {}  # merged from the tiles
+        self._recorded: dict[tuple[int, int, int, int], Any] = {}  # here, not taken yet
         self._deferred: dict[tuple[int, int, int, int], list[tuple[str, np.ndarray]]] = {}
         self._results_lock = threading.Lock()
 
@@ -139,7 +140,13 @@ class WindowResults:
         """Keep ``result`` (e.g. the window's statistics) for ``window``."""
         key = window_parts(window)
         with self._results_lock:
-            self.per_window[key] = result
+            self._recorded[key] = result
+
+    def window_results(self) -> dict[tuple[int, int, int, int], Any]:
+        """Every window's result known here, ``(col, row, width, height) -> result``: the
+        tiles' merged ones and those recorded here and not taken."""
+        with self._results_lock:
+            return {**self.per_window, **self._recorded}
 
     def defer(self, window: Any, name: str, array: np.ndarray) -> None:
         """An array for the caller's map to write on ``window`` (:meth:`write_deferred`)."""
@@ -157,7 +164,7 @@ class WindowResults:
             return c0 <= c and r0 <= r and c + w <= c0 + w0 and r + h <= r0 + h0
 
         with self._results_lock:
-            results = {k: self.per_window.pop(k) for k in list(self.per_window) if inside(k)}
+            results = {k: self._recorded.pop(k) for k in list(self._recorded) if inside(k)}
             deferred = {k: self._deferred.pop(k) for k in list(self._deferred) if inside(k)}
         return (results, deferred) if results or deferred else None
 
