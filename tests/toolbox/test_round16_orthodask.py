@@ -208,3 +208,27 @@ def test_window_results_pickle_empty_and_come_back_by_tile(ortho_block, tmp_path
     assert sorted(here.window_results()) == [(0, 0, 100, 100), (0, 0, 200, 100), (100, 0, 100, 100)]
     assert list(there.window_results()) == [(0, 100, 200, 100)]
     assert here.totals().cells == 200 * 100  # the parts, not their parent too
+
+
+@pytest.mark.distributed
+def test_relative_paths_reach_workers_running_in_another_directory(ortho_block, cluster,
+                                                                   monkeypatch, tmp_path):
+    """The workers started in the test's first directory; the runs give the rasters relative
+    to another one (the caller's): a worker read 'p1.tif' in its own directory and the run
+    stopped with exit 3 ("p1.tif: No such file or directory"). The engine's inputs, the
+    warp's photo and the DEM sampler now name them absolutely."""
+    from toolbox.io.raster import open_raster_info
+    from toolbox.ortho.dem import DemSampler
+
+    monkeypatch.chdir(ortho_block["DEM"].parent)
+    params = {"INPUT": "p1.tif", "PROJECT": "project.yaml", "DEM": "dem.tif", "CELL_SIZE": 5.0,
+              "EXTENT": ORTHO_EXTENT, "OVERVIEWS": False}
+    for alg, run in (("ortho:photo", params), ("dem:slope", {"INPUT": "dem.tif",
+                                                             "TILE_SIZE": 128})):
+        files = {}
+        for where in ("local", cluster):
+            files[where] = tmp_path / f"{alg[-5:]}_{len(files)}.tif"
+            toolbox.run(alg, run | {"SCHEDULER": where, "OUTPUT": files[where]})
+        assert np.array_equal(*(_read(f) for f in files.values())), alg
+    sampler = DemSampler(open_raster_info("dem.tif"), None)
+    assert Path(sampler.path) == ortho_block["DEM"]

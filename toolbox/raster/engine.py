@@ -46,14 +46,14 @@ from __future__ import annotations
 import math
 import warnings
 from collections.abc import Callable, Iterator, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from toolbox.io.grid import GridSpec
-from toolbox.raster.datasets import ThreadDatasets, WorkerDatasets
+from toolbox.raster.datasets import ThreadDatasets, WorkerDatasets, worker_path
 
 __all__ = [
     "BOUNDARY_RULES", "GridSpec", "RasterInput", "Tile", "iter_tiles", "process_raster",
@@ -387,8 +387,8 @@ def process_raster(grid: GridSpec, inputs: Mapping[str, RasterInput] | None, ker
     # inputs kept open by this call's threads (closed at its end); sent to a Dask worker, the
     # holder arrives as the worker's WorkerDatasets, kept across its tasks
     held = _OpenSources()
-    inputs = {name: _HeldInput(inp, held) if isinstance(inp, RasterInput) else inp
-              for name, inp in inputs.items()}
+    inputs = {name: _HeldInput(replace(inp, source=worker_path(_source_path(inp.source))), held)
+              if isinstance(inp, RasterInput) else inp for name, inp in inputs.items()}
     counters = {"tiles": 0, "blank_tiles": 0}
 
     def jobs() -> Iterator[_TileJob]:
