@@ -232,3 +232,33 @@ def test_relative_paths_reach_workers_running_in_another_directory(ortho_block, 
         assert np.array_equal(*(_read(f) for f in files.values())), alg
     sampler = DemSampler(open_raster_info("dem.tif"), None)
     assert Path(sampler.path) == ortho_block["DEM"]
+
+
+def test_relative_paths_of_every_cluster_algorithm(ortho_block, cluster, monkeypatch):
+    """ortho:batch (its DEM), mosaic:cut (its raster, and its FOLDER written by the workers)
+    and carto:contours read their relative inputs on the workers themselves: each stopped with
+    exit 3 ("dem.tif: No such file or directory"). A worker now runs the run's tasks in the
+    client's working folder: the same outputs as a local run."""
+    import pyogrio
+
+    folder = ortho_block["DEM"].parent
+    monkeypatch.chdir(folder)
+    outputs = {}
+    for where in ("local", cluster):
+        tag = "local" if where == "local" else "dask"
+        toolbox.run("ortho:batch", {"PROJECT": "project.yaml", "DEM": "dem.tif",
+                                    "CELL_SIZE": 5.0, "FOLDER": f"batch_{tag}",
+                                    "OUTPUT": f"batch_{tag}.json",
+                                    "SCHEDULER": where}, overwrite=True)
+        toolbox.run("mosaic:cut", {"INPUT": f"batch_{tag}/p1.tif", "SCALE": 500,
+                                   "SHEET_WIDTH": 150, "SHEET_HEIGHT": 150,
+                                   "OUTPUT": f"cut_{tag}", "SCHEDULER": where}, overwrite=True)
+        toolbox.run("carto:contours", {"INPUT": "dem.tif", "INTERVAL": 5,
+                                       "OUTPUT": f"contours_{tag}.gpkg", "SCHEDULER": where},
+                    overwrite=True)
+        outputs[tag] = {"ortho": _read(folder / f"batch_{tag}" / "p1.tif"),
+                        "sheets": sorted(p.name for p in (folder / f"cut_{tag}").glob("*.tif")),
+                        "lines": len(pyogrio.read_dataframe(folder / f"contours_{tag}.gpkg"))}
+    assert np.array_equal(outputs["local"]["ortho"], outputs["dask"]["ortho"])
+    assert outputs["local"]["sheets"] == outputs["dask"]["sheets"] and outputs["local"]["sheets"]
+    assert outputs["local"]["lines"] == outputs["dask"]["lines"] > 0
