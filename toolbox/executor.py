@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import os
 import threading
+import types
 import uuid
 from collections import deque
 from collections.abc import Callable, Iterable, Iterator
@@ -361,10 +362,14 @@ def _map_dask(func, tasks, executor, prefetch, feedback, total, start, end) -> I
                                  f"({_first_line(exc)})") from None
         try:
             cores = sum(client.nthreads().values()) or 1
-            folder, name = os.getcwd(), getattr(func, "__name__", "task")
+            folder, name = os.getcwd(), _task_name(func)
+            # a partial or a callable object (a kernel holding a DEM, a map of windows) is
+            # sent to the cluster once and each worker fetches it once, not once per task
+            target = func if isinstance(func, types.FunctionType) else \
+                client.scatter([func], hash=False)[0]
 
             def submit(task):
-                return client.submit(_in_client_folder, folder, func, task, pure=False,
+                return client.submit(_in_client_folder, folder, target, task, pure=False,
                                      key=f"{name}-{uuid.uuid4().hex}")
 
             yield from _in_order(submit, tasks, prefetch or max(4, 2 * cores), feedback, total,
@@ -377,6 +382,12 @@ def _map_dask(func, tasks, executor, prefetch, feedback, total, start, end) -> I
                                "cluster is back, or with SCHEDULER=local") from None
         finally:
             client.close()
+
+
+def _task_name(func: Any) -> str:
+    """The name Dask's dashboard shows for ``func``'s tasks (a partial's function's)."""
+    return getattr(func, "__name__", None) or getattr(getattr(func, "func", None), "__name__",
+                                                      None) or type(func).__name__
 
 
 def _in_client_folder(folder: str, func: Callable, task: Any) -> Any:

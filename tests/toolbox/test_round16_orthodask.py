@@ -262,3 +262,45 @@ def test_relative_paths_of_every_cluster_algorithm(ortho_block, cluster, monkeyp
     assert np.array_equal(outputs["local"]["ortho"], outputs["dask"]["ortho"])
     assert outputs["local"]["sheets"] == outputs["dask"]["sheets"] and outputs["local"]["sheets"]
     assert outputs["local"]["lines"] == outputs["dask"]["lines"] > 0
+
+
+class _CountedCall:
+    """A callable whose unpickling is counted per process (on ``sys``: the counter must
+    outlive the class, which Dask may send by value)."""
+
+    def __init__(self):
+        self.payload = np.zeros(100_000)  # what a kernel holding a DEM carries
+
+    def __setstate__(self, state):
+        import sys
+
+        self.__dict__.update(state)
+        sys._toolbox_test_unpickled = getattr(sys, "_toolbox_test_unpickled", 0) + 1
+
+    def __call__(self, task):
+        import os
+        import sys
+
+        return task, os.getpid(), getattr(sys, "_toolbox_test_unpickled", 0)
+
+
+def test_a_shared_kernel_travels_to_each_worker_once(cluster):
+    """map_tiles sent a callable object (the engine's kernel with its inputs: a DEM of up to
+    128 MB for an ortho) with every task; it is now sent once, each worker fetching it once."""
+    import sys
+
+    import cloudpickle
+
+    from toolbox.executor import Executor, map_tiles
+
+    cloudpickle.register_pickle_by_value(sys.modules[__name__])
+    try:
+        results = list(map_tiles(_CountedCall(), range(12), executor=Executor("dask", 0, cluster,
+                                                                               "SCHEDULER")))
+    finally:
+        cloudpickle.unregister_pickle_by_value(sys.modules[__name__])
+    assert [r[0] for r in results] == list(range(12))
+    per_process: dict[int, int] = {}
+    for _, pid, count in results:
+        per_process[pid] = max(per_process.get(pid, 0), count)
+    assert len(per_process) >= 1 and max(per_process.values()) == 1, per_process
