@@ -25,6 +25,8 @@ from __future__ import annotations
 
 import os
 import threading
+import types
+import uuid
 from collections import deque
 from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
@@ -360,8 +362,18 @@ def _map_dask(func, tasks, executor, prefetch, feedback, total, start, end) -> I
                                  f"({_first_line(exc)})") from None
         try:
             cores = sum(client.nthreads().values()) or 1
-            yield from _in_order(lambda task: client.submit(func, task, pure=False), tasks,
-                                 prefetch or max(4, 2 * cores), feedback, total, start, end)
+            folder, name = os.getcwd(), _task_name(func)
+            # a partial or a callable object (a kernel holding a DEM, a map of windows) is
+            # sent to the cluster once and each worker fetches it once, not once per task
+            target = func if isinstance(func, types.FunctionType) else \
+                client.scatter([func], hash=False)[0]
+
+            def submit(task):
+                return client.submit(_in_client_folder, folder, target, task, pure=False,
+                                     key=f"{name}-{uuid.uuid4().hex}")
+
+            yield from _in_order(submit, tasks, prefetch or max(4, 2 * cores), feedback, total,
+                                 start, end)
         except Exception as exc:
             if not _connection_lost(client, exc):
                 raise  # the task's own error, re-raised by Dask with its type
@@ -370,6 +382,26 @@ def _map_dask(func, tasks, executor, prefetch, feedback, total, start, end) -> I
                                "cluster is back, or with SCHEDULER=local") from None
         finally:
             client.close()
+
+
+def _task_name(func: Any) -> str:
+    """The name Dask's dashboard shows for ``func``'s tasks (a partial's function's)."""
+    return getattr(func, "__name__", None) or getattr(getattr(func, "func", None), "__name__",
+                                                      None) or type(func).__name__
+
+
+def _in_client_folder(folder: str, func: Callable, task: Any) -> Any:
+    """``func(task)`` on a Dask worker, in the client's working ``folder``: the user's relative
+    paths (``--INPUT dem.tif``, a staged output folder beside it) name the files they meant, not
+    files in the worker's own folder. A worker that does not see the folder (another machine
+    without the same mount) stays where it is: relative paths then fail there as before, and
+    absolute ones work. Tasks of one run share the folder, so a worker's threads agree."""
+    try:
+        if os.getcwd() != folder and os.path.isdir(folder):
+            os.chdir(folder)
+    except OSError:  # the worker's own folder was removed, or the client's is not readable
+        pass
+    return func(task)
 
 
 def _first_line(exc: BaseException) -> str:

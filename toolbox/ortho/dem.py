@@ -24,7 +24,9 @@ class DemSampler:
     """
 
     def __init__(self, info: Any, crs: Any = None, band: int = 1, factor: int = 1):
-        self.path = info.path
+        from toolbox.raster.datasets import worker_path
+
+        self.path = worker_path(info.path)  # (read on a Dask worker when not preloaded)
         self.band = int(band)
         self.factor = max(1, int(factor))
         t = info.transform

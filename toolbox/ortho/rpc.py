@@ -13,7 +13,6 @@ sample distance at its centre (2 significant digits).
 from __future__ import annotations
 
 import math
-import threading
 from typing import Any
 
 import numpy as np
@@ -21,6 +20,7 @@ import numpy as np
 from toolbox.errors import InputDataError
 from toolbox.ortho.metrics import TileStatistics, nice_cell_size
 from toolbox.ortho.windows import leaf_window_totals
+from toolbox.raster.maps import WindowResults
 
 OUTLINE_STEP_PX = 16  # image pixels between the projected points of the outline
 
@@ -55,18 +55,18 @@ def rpc_gsd(camera: Any, height: float) -> float:
     return float(gsd)
 
 
-class RpcOrthoMap:
+class RpcOrthoMap(WindowResults):
     """The warp's coordinate map: output window -> image pixels through the RPC camera, with the
-    counts of cells without a DEM height or outside the image."""
+    counts of cells without a DEM height or outside the image (a
+    :class:`~toolbox.raster.maps.WindowResults`: they come back from a Dask worker with each
+    tile)."""
 
     def __init__(self, camera: Any, grid: Any, sampler: Any):
         self.camera, self.grid, self.sampler = camera, grid, sampler
-        self.per_window: dict[tuple, TileStatistics] = {}
-        self._lock = threading.Lock()
+        WindowResults.__init__(self)
 
     def __call__(self, tile: Any, aux: Any = None) -> tuple[np.ndarray, np.ndarray]:
         from toolbox.ortho.windows import project_cells
-        from toolbox.raster.maps import window_parts
 
         window = getattr(tile, "window", tile)
         xs, ys = self.grid.cell_centers(window)
@@ -79,13 +79,12 @@ class RpcOrthoMap:
         nan_z = np.isnan(z)
         stats = TileStatistics(cells=z.size, outside_dem=int(nan_z.sum()),
                                outside_photo=int((~inside & ~nan_z).sum()))
-        with self._lock:
-            self.per_window[window_parts(window)] = stats
+        self.record(window, stats)
         return cols, rows
 
     def totals(self) -> TileStatistics:
         """Sums over the windows, without the parents of windows the warp split in four."""
-        return leaf_window_totals(self.per_window)
+        return leaf_window_totals(self.window_results())
 
 
 def rpc_plan(camera: Any, dem: Any, band: int = 1, cell: float | None = None,

@@ -4,6 +4,7 @@ the camera's map, the visibility test and the report's counts of every output wi
 from __future__ import annotations
 
 import math
+import threading
 from dataclasses import replace
 from typing import TYPE_CHECKING, Any
 
@@ -26,7 +27,7 @@ from toolbox.ortho.codes import (  # duplicate-ok: the statistics codes, as kern
 )
 from toolbox.ortho.dem import DemSampler, lattice_transform
 from toolbox.ortho.metrics import TileStatistics, incidence_angle, relief_displacement
-from toolbox.raster.maps import window_parts
+from toolbox.raster.maps import WindowResults, window_parts
 
 if TYPE_CHECKING:
     from toolbox.ortho.sensor import CollinearityMap
@@ -40,8 +41,6 @@ class MapBufferPool:
     1024 windows)."""
 
     def __init__(self, keep: int = 4):
-        import threading
-
         self.keep = keep
         self._free: list[np.ndarray] = []
         self._lock = threading.Lock()
@@ -62,7 +61,7 @@ class MapBufferPool:
 MAP_BUFFERS = MapBufferPool()
 
 
-class OrthoWindows:
+class OrthoWindows(WindowResults):
     """The coordinate map of a whole ortho for :func:`toolbox.raster.warp.warp_to_geotiff`:
     per output window it reads the DEM heights onto the window (:class:`DemSampler`), projects
     them (:class:`CollinearityMap`, or the camera's own ``project``), blanks the hidden cells
@@ -76,7 +75,15 @@ class OrthoWindows:
     image (:meth:`CollinearityMap.source_box` on the DEM heights' range), and the kernel writes
     the OpenCV maps relative to it, with the cells outside the photo blanked, in its one pass
     (:meth:`planned_maps`). Every other window is :meth:`measured`: its map and, when every
-    cell has an image point, their exact bounds. Same maps either way (tested)."""
+    cell has an image point, their exact bounds. Same maps either way (tested).
+
+    A :class:`~toolbox.raster.maps.ReportingMap` (:class:`~toolbox.raster.maps.WindowResults`):
+    the windows' statistics and auxiliary arrays (mask, angles) travel back with each tile's
+    result to the caller's object, which writes the auxiliary rasters; pickled for a Dask
+    worker without its writers, lock and thread-local buffers (made again there)."""
+
+    _NOT_PICKLED = WindowResults._NOT_PICKLED + ("mask_writer", "incidence_writer", "_maxima",
+                                                 "_buffers_lock", "_local", "_buffers")
 
     def __init__(self, photo: Any, grid: Any, sampler: DemSampler, cmap: CollinearityMap | None,
                  reference_height: float, surface: Any = None, mask_writer: Any = None,
@@ -99,21 +106,33 @@ class OrthoWindows:
                          and sampler.transformer is None)
         self.reference_height = reference_height
         self.surface = surface
-        self.mask_writer = mask_writer
+        self.mask_writer = mask_writer  # in the caller's process (write_deferred)
         self.incidence_writer = incidence_writer
+        self.writes_mask = mask_writer is not None
+        self.writes_incidence = incidence_writer is not None
         self.centre = photo.require_exterior().centre
-        self.per_window: dict[tuple[int, int, int, int], TileStatistics] = {}
-        self._maxima: np.ndarray | None = None
-        import threading
+        WindowResults.__init__(self)
 
-        self._write_lock = threading.Lock()  # aux writers, if a split window runs alongside
+    def _fresh_state(self) -> None:
+        """No results, no map buffers (here, or on a worker: :meth:`__setstate__`)."""
+        super()._fresh_state()
+        self._maxima: np.ndarray | None = None
+        self._buffers_lock = threading.Lock()
         self._local = threading.local()  # per thread: its map buffers (_map_buffers)
         self._buffers: list[np.ndarray] = []  # the map buffers taken (_map_buffers)
+
+    def write_deferred(self, name: str, window: tuple[int, int, int, int],
+                       array: np.ndarray) -> None:
+        """Write a window's occlusion mask or incidence angles (in the caller's process)."""
+        from rasterio.windows import Window
+
+        writer = self.mask_writer if name == "mask" else self.incidence_writer
+        writer.write(Window(*window), array)
 
     def release(self) -> None:
         """Give the map buffers back to :data:`MAP_BUFFERS` (when the ortho is written: no map
         of this job may be used afterwards); also on garbage collection."""
-        with self._write_lock:
+        with self._buffers_lock:
             buffers, self._buffers = self._buffers, []
         MAP_BUFFERS.give(buffers)
 
@@ -123,7 +142,7 @@ class OrthoWindows:
 
     def statistics(self, window: Any) -> TileStatistics:
         """The counts of a window the warp has mapped (planned or measured)."""
-        return self.per_window[window_parts(window)]
+        return self.window_results()[window_parts(window)]
 
     def plan(self, tile: Any, aux: Any = None) -> Any:
         """The :class:`~toolbox.raster.maps.SourcePlan` of a planned window (see the class
@@ -151,7 +170,7 @@ class OrthoWindows:
     def _prepare(self, window: Any) -> Any:
         """The plan of a window that can be planned (:meth:`_plan`), its ``inputs``
         ``(window, transform, xs, ys, DEM part)``; else None."""
-        if not self.one_pass or self.incidence_writer is not None:  # (angles: measured)
+        if not self.one_pass or self.writes_incidence:  # (angles: measured)
             return None
         xs, ys = self.grid.cell_centers(window)
         part = self.sampler.part(xs, ys)
@@ -184,7 +203,7 @@ class OrthoWindows:
         flat = getattr(self._local, "maps", None)
         if flat is None or flat.shape[1] < h * w:
             self._local.maps = flat = MAP_BUFFERS.take(h * w)
-            with self._write_lock:
+            with self._buffers_lock:
                 self._buffers.append(flat)
         return flat[0, :h * w].reshape(h, w), flat[1, :h * w].reshape(h, w)
 
@@ -198,7 +217,7 @@ class OrthoWindows:
         else:
             counts = np.bincount(modes.ravel(), minlength=3)
             stats.blocks = {k: int(counts[k]) for k in range(3)}
-        self.per_window[window_parts(window)] = stats
+        self.record(window, stats)
 
     def _compute(self, window: Any):
         """The map of an unplanned window with its statistics: the one-pass kernel where it
@@ -208,10 +227,10 @@ class OrthoWindows:
         if self.one_pass:
             part = self.sampler.part(xs, ys)
             if part is not None:
-                if self.incidence_writer is not None:
+                if self.writes_incidence:
                     self._write_incidence(window, xs, ys)
                 return self._compute_fused(window, xs, ys, part)
-        if self.incidence_writer is not None:
+        if self.writes_incidence:
             z = self._write_incidence(window, xs, ys)
         else:
             z = self.sampler.heights(xs, ys)
@@ -238,8 +257,7 @@ class OrthoWindows:
         yh = np.concatenate([[ys[0] + cell_y], ys, [ys[-1] - cell_y]])
         z_halo = self.sampler.heights(xh, yh)
         angles = incidence_angle(xs, ys, z_halo, self.centre)[None]
-        with self._write_lock:
-            self.incidence_writer.write(window, angles)
+        self.defer(window, "incidence", angles)
         return np.ascontiguousarray(z_halo[1:-1, 1:-1])
 
     def _finish(self, window: Any, xs: np.ndarray, ys: np.ndarray, gx: np.ndarray,
@@ -257,9 +275,8 @@ class OrthoWindows:
             if self._maxima is None:
                 self._maxima = block_maxima(self.surface.z)
             hidden = visibility_mask(xs, ys, z, self.centre, self.surface, self._maxima)
-            if self.mask_writer is not None:
-                with self._write_lock:
-                    self.mask_writer.write(window, np.where(nan_z, 255, hidden).astype(np.uint8))
+            if self.writes_mask:
+                self.defer(window, "mask", np.where(nan_z, 255, hidden).astype(np.uint8))
             mask = hidden.astype(bool)
             stats.hidden = int(np.count_nonzero(mask))
             if stats.hidden:
@@ -283,7 +300,7 @@ class OrthoWindows:
         stats.max_relief_m = float(disp.max()) if disp.size else 0.0
         counts = np.bincount(modes.ravel(), minlength=3)
         stats.blocks = {k: int(counts[k]) for k in range(3)}
-        self.per_window[window_parts(window)] = stats
+        self.record(window, stats)
         return cols, rows, box if every_cell else None
 
     def _plan(self, window: Any, transform: Any, part: tuple) -> Any:
@@ -326,7 +343,7 @@ class OrthoWindows:
 
     def totals(self) -> TileStatistics:
         """Sums over the windows, without the parents of windows the warp split in four."""
-        return leaf_window_totals(self.per_window)
+        return leaf_window_totals(self.window_results())
 
 
 def project_cells(camera: CameraModel, gx: np.ndarray, gy: np.ndarray, z: np.ndarray,

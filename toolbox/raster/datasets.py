@@ -17,6 +17,16 @@ def file_stamp(path: Any) -> tuple[int, int]:
     return stat.st_size, stat.st_mtime_ns
 
 
+def worker_path(path: Any) -> Any:
+    """``path`` as a task sent to a Dask worker must name it: absolute when it is a relative
+    path to an existing file (a worker runs in its own directory, not the caller's); anything
+    else (absolute, a GDAL virtual name) as it is."""
+    if isinstance(path, (str, os.PathLike)) and not os.path.isabs(path) and \
+            os.path.exists(path):
+        return os.path.abspath(path)
+    return path
+
+
 def open_quietly(path: Any) -> Any:
     """``rasterio.open(path)`` without the warning about a raster with no georeferencing (a
     photo is fine as it is)."""

@@ -46,14 +46,15 @@ from __future__ import annotations
 import math
 import warnings
 from collections.abc import Callable, Iterator, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from functools import partial
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from toolbox.io.grid import GridSpec
-from toolbox.raster.datasets import ThreadDatasets, WorkerDatasets
+from toolbox.raster.datasets import ThreadDatasets, WorkerDatasets, worker_path
 
 __all__ = [
     "BOUNDARY_RULES", "GridSpec", "RasterInput", "Tile", "iter_tiles", "process_raster",
@@ -304,23 +305,23 @@ Kernel = Callable[[Tile, dict], Any]
 
 @dataclass
 class _TileJob:
-    """One tile's work (picklable when the kernel and inputs are)."""
+    """One tile's work: the tile and its planned arrays (the kernel and the inputs, shared by
+    every tile, travel to a Dask worker once: :func:`toolbox.executor.map_tiles`)."""
 
     tile: Tile
     grid: GridSpec
-    inputs: dict
-    kernel: Kernel | None
+    run: bool
     planned: dict | None = None
 
 
-def _run_job(job: _TileJob) -> tuple[np.ndarray | None, Any]:
+def _run_job(kernel: Kernel, inputs: dict, job: _TileJob) -> tuple[np.ndarray | None, Any]:
     """Read the inputs onto the tile, run the kernel, crop the halo (on a worker)."""
-    if job.kernel is None:
+    if not job.run:
         return None, None
-    arrays = {name: inp.read(job.grid, job.tile) for name, inp in job.inputs.items()}
+    arrays = {name: inp.read(job.grid, job.tile) for name, inp in inputs.items()}
     if job.planned:
         arrays.update(job.planned)
-    result = job.kernel(job.tile, arrays)
+    result = kernel(job.tile, arrays)
     info = None
     if isinstance(result, tuple):
         result, info = result
@@ -387,20 +388,21 @@ def process_raster(grid: GridSpec, inputs: Mapping[str, RasterInput] | None, ker
     # inputs kept open by this call's threads (closed at its end); sent to a Dask worker, the
     # holder arrives as the worker's WorkerDatasets, kept across its tasks
     held = _OpenSources()
-    inputs = {name: _HeldInput(inp, held) if isinstance(inp, RasterInput) else inp
-              for name, inp in inputs.items()}
+    inputs = {name: _HeldInput(replace(inp, source=worker_path(_source_path(inp.source))), held)
+              if isinstance(inp, RasterInput) else inp for name, inp in inputs.items()}
     counters = {"tiles": 0, "blank_tiles": 0}
 
     def jobs() -> Iterator[_TileJob]:
         for tile in iter_tiles(grid, tile_size, halo):
             planned = plan(tile) if plan is not None else {}
-            yield _TileJob(tile, grid, inputs, None if planned is None else kernel, planned)
+            yield _TileJob(tile, grid, planned is not None, planned)
 
     write = writer_or_output.write if hasattr(writer_or_output, "write") else None
     if executor.kind == "dask" and getattr(writer_or_output, "executor", False) is None:
         writer_or_output.executor = executor  # its overviews / COG copy on the same cluster
     tiles = iter_tiles(grid, tile_size, halo)
-    results = map_tiles(_run_job, jobs(), executor=executor, feedback=feedback,
+    results = map_tiles(partial(_run_job, kernel, inputs), jobs(), executor=executor,
+                        feedback=feedback,
                         total=tile_count(grid, tile_size), start=start, end=end)
     try:
         for tile, (array, info) in zip(tiles, results, strict=True):

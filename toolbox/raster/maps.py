@@ -15,12 +15,16 @@ per protocol, no attribute probing):
 - :class:`PerspectiveMap`: a homography OpenCV evaluates itself (``cv2.warpPerspective``);
 - :class:`MeasuredMap`: computes its points and their bounding box in one pass;
 - :class:`PlannedMap`: decides the source window first (:class:`SourcePlan`, from a bound of
-  the points) and then writes maps ready for OpenCV, :data:`OUTSIDE` on empty cells.
+  the points) and then writes maps ready for OpenCV, :data:`OUTSIDE` on empty cells;
+- :class:`ReportingMap`: keeps results per window (statistics, auxiliary rasters) that travel
+  back with each tile's result to the caller's map (:class:`WindowResults` implements it), so
+  a run on Dask worker processes reports what a local run does.
 """
 
 from __future__ import annotations
 
 import math
+import threading
 from dataclasses import dataclass, field
 from typing import Any, Protocol, runtime_checkable
 
@@ -91,6 +95,96 @@ class PlannedMap(CoordinateMap, Protocol):
     def plan(self, tile: Any, aux: dict) -> SourcePlan | None: ...
 
     def planned_maps(self, plan: SourcePlan) -> tuple[np.ndarray, np.ndarray]: ...
+
+
+@runtime_checkable
+class ReportingMap(CoordinateMap, Protocol):
+    """A map that keeps results per window for its caller. The warp takes a tile's results
+    from the map where the tile ran, ``take_window_results(window)`` (a picklable value, or
+    None; on a local thread or on a Dask worker, whose map is an unpickled copy), and hands
+    them to the caller's map, ``merge_window_results(results)``, in the caller's process and
+    in tile order."""
+
+    def take_window_results(self, window: Any) -> Any: ...
+
+    def merge_window_results(self, results: Any) -> None: ...
+
+
+class WindowResults:
+    """Per-window results of a coordinate map (a :class:`ReportingMap`): statistics
+    (:meth:`record`; every window's: :meth:`window_results`) and arrays for the caller to
+    write (:meth:`defer`; the caller's map writes them in :meth:`merge_window_results` with
+    :meth:`write_deferred`). Pickled (for a Dask worker) without its lock and without any
+    result: a worker's copy starts empty, its results come back with each tile's result."""
+
+    #: attributes not pickled; :meth:`_fresh_state` recreates them on the worker
+    _NOT_PICKLED: tuple[str, ...] = ("per_window", "_recorded", "_deferred", "_results_lock")
+
+    def __init__(self) -> None:
+        self._fresh_state()
+
+    def _fresh_state(self) -> None:
+        self.per_window: dict[tuple[int, int, int, int], Any] = {}  # merged from the tiles
+        self._recorded: dict[tuple[int, int, int, int], Any] = {}  # here, not taken yet
+        self._deferred: dict[tuple[int, int, int, int], list[tuple[str, np.ndarray]]] = {}
+        self._results_lock = threading.Lock()
+
+    def __getstate__(self) -> dict:
+        return {k: v for k, v in self.__dict__.items() if k not in self._NOT_PICKLED}
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+        self._fresh_state()
+
+    def record(self, window: Any, result: Any) -> None:
+        """Keep ``result`` (e.g. the window's statistics) for ``window``."""
+        key = window_parts(window)
+        with self._results_lock:
+            self._recorded[key] = result
+
+    def window_results(self) -> dict[tuple[int, int, int, int], Any]:
+        """Every window's result known here, ``(col, row, width, height) -> result``: the
+        tiles' merged ones and those recorded here and not taken."""
+        with self._results_lock:
+            return {**self.per_window, **self._recorded}
+
+    def defer(self, window: Any, name: str, array: np.ndarray) -> None:
+        """An array for the caller's map to write on ``window`` (:meth:`write_deferred`)."""
+        key = window_parts(window)
+        with self._results_lock:
+            self._deferred.setdefault(key, []).append((name, array))
+
+    def take_window_results(self, window: Any) -> Any:
+        """Remove and return the results of the windows inside ``window`` (a tile's, with
+        the parts the warp split it into): ``(per_window, deferred)``, None when none."""
+        c0, r0, w0, h0 = window_parts(window)
+
+        def inside(key: tuple[int, int, int, int]) -> bool:
+            c, r, w, h = key
+            return c0 <= c and r0 <= r and c + w <= c0 + w0 and r + h <= r0 + h0
+
+        with self._results_lock:
+            results = {k: self._recorded.pop(k) for k in list(self._recorded) if inside(k)}
+            deferred = {k: self._deferred.pop(k) for k in list(self._deferred) if inside(k)}
+        return (results, deferred) if results or deferred else None
+
+    def merge_window_results(self, results: Any) -> None:
+        """Keep the results :meth:`take_window_results` took (here or on a worker) and write
+        their deferred arrays."""
+        if results is None:
+            return
+        per_window, deferred = results
+        with self._results_lock:
+            self.per_window.update(per_window)
+        for key, arrays in deferred.items():
+            for name, array in arrays:
+                self.write_deferred(name, key, array)
+
+    def write_deferred(self, name: str, window: tuple[int, int, int, int],
+                       array: np.ndarray) -> None:
+        """Write a deferred array (``window``: col, row, width, height), in the caller's
+        process; the subclass that defers arrays says where."""
+        raise NotImplementedError(f"{type(self).__name__} cannot write {name!r}")
 
 
 def window_parts(window: Any) -> tuple[int, int, int, int]:

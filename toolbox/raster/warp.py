@@ -34,7 +34,7 @@ import numpy as np
 from toolbox.counters import Counters
 from toolbox.errors import InputDataError, ParameterError
 from toolbox.io.grid import GridSpec
-from toolbox.raster.datasets import ThreadDatasets
+from toolbox.raster.datasets import ThreadDatasets, worker_path
 from toolbox.raster.engine import RasterInput, process_raster
 from toolbox.raster.maps import (
     OUTSIDE,
@@ -43,6 +43,7 @@ from toolbox.raster.maps import (
     MeasuredMap,
     PerspectiveMap,
     PlannedMap,
+    ReportingMap,
     fill_outside_intervals,
     mask_from_intervals,
     plan_source,
@@ -434,7 +435,10 @@ class _WarpJob:
 
 
 def _warp_kernel(job: _WarpJob, tile: Tile, arrays: dict) -> tuple[np.ndarray, Any]:
-    """Warp one tile: aux arrays -> coordinate map -> source window -> OpenCV resampling."""
+    """Warp one tile: aux arrays -> coordinate map -> source window -> OpenCV resampling.
+    Returns the tile and ``(WarpStatistics, the map's results of the tile or None)`` (a
+    :class:`~toolbox.raster.maps.ReportingMap`'s, taken where the tile ran: on a Dask worker
+    the map is a copy, its results travel back with the tile)."""
     src = job.datasets.get(job.path)
     stats = WarpStatistics()
 
@@ -450,12 +454,15 @@ def _warp_kernel(job: _WarpJob, tile: Tile, arrays: dict) -> tuple[np.ndarray, A
                         aux=arrays)
     first = next(parts)
     if first[0] == tile.window:  # one part: the tile itself (no copy)
-        return first[1], stats
-    out = np.empty((job.layout.count, *tile.shape), dtype=job.layout.dtype)
-    for part, array in itertools.chain([first], parts):
-        pc, pr = int(part.col_off) - c0, int(part.row_off) - r0
-        out[:, pr:pr + int(part.height), pc:pc + int(part.width)] = array
-    return out, stats
+        out = first[1]
+    else:
+        out = np.empty((job.layout.count, *tile.shape), dtype=job.layout.dtype)
+        for part, array in itertools.chain([first], parts):
+            pc, pr = int(part.col_off) - c0, int(part.row_off) - r0
+            out[:, pr:pr + int(part.height), pc:pc + int(part.width)] = array
+    cmap = job.coordinate_map
+    results = cmap.take_window_results(tile.window) if isinstance(cmap, ReportingMap) else None
+    return out, (stats, results)
 
 
 def warp_raster(source: Any, grid: GridSpec, coordinate_map: Any, writer_or_output: Any, *,
@@ -477,6 +484,8 @@ def warp_raster(source: Any, grid: GridSpec, coordinate_map: Any, writer_or_outp
         where there is no source point. ``aux_arrays`` holds the ``aux`` rasters read onto the
         tile (with ``aux_halo``). The capabilities it declares (:mod:`toolbox.raster.maps`:
         bounded, perspective, measured, planned) choose the path of :func:`warp_window`.
+        It is pickled for a Dask worker (no lock or open file in its state); a
+        :class:`~toolbox.raster.maps.ReportingMap` gets each tile's results back here.
     writer_or_output : RasterWriter or callable
         As in :func:`process_raster`; create the writer with ``layout`` (count, dtype, nodata,
         alpha: see :func:`toolbox.raster.warp.warp_layout`).
@@ -497,16 +506,21 @@ def warp_raster(source: Any, grid: GridSpec, coordinate_map: Any, writer_or_outp
     methods = RESAMPLING_METHODS + EXTRA_RESAMPLING
     if resampling not in methods:
         raise ValueError(f"resampling must be one of {', '.join(methods)}, got {resampling!r}")
-    path = photo_path(source)
+    path = photo_path(worker_path(getattr(source, "path", source)))
     with open_quietly(path) as src:
         size = (src.width, src.height)
     job = _WarpJob(path, ThreadDatasets(), size, coordinate_map, layout, resampling,
                    max_source_pixels or DEFAULT_MAX_SOURCE_PIXELS, fast)
     total = WarpStatistics()
 
-    def collect(tile, array, stats):
-        if stats is not None:
+    reporting = isinstance(coordinate_map, ReportingMap)
+
+    def collect(tile, array, info):
+        if info is not None:
+            stats, results = info
             total.add(stats)
+            if reporting:  # the tile's results, back in the caller's map (from a worker too)
+                coordinate_map.merge_window_results(results)
 
     try:
         process_raster(grid, aux, partial(_warp_kernel, job), writer_or_output,
