@@ -249,11 +249,13 @@ def ransac(cls: type[Transform2D], src: np.ndarray, dst: np.ndarray, threshold: 
                                        ransacReprojThreshold=float(threshold),
                                        maxIters=max_trials, confidence=confidence,
                                        refineIters=0)
-    elif cls.name == "similarity":
-        _, mask = cv2.estimateAffinePartial2D(s32, d32, method=cv2.RANSAC,
-                                              ransacReprojThreshold=float(threshold),
-                                              maxIters=max_trials, confidence=confidence,
-                                              refineIters=0)
+    elif cls.name == "similarity":  # direct or mirrored (see SimilarityTransform): both tried
+        masks = [cv2.estimateAffinePartial2D(s32 * np.float32([1, sign]), d32, method=cv2.RANSAC,
+                                             ransacReprojThreshold=float(threshold),
+                                             maxIters=max_trials, confidence=confidence,
+                                             refineIters=0)[1] for sign in (1, -1)]
+        masks = [m for m in masks if m is not None]
+        mask = max(masks, key=lambda m: int(m.sum())) if masks else None
     else:  # pragma: no cover - every Transform2D in TRANSFORMS is handled above
         raise ValueError(f"no RANSAC for model {cls.name!r}")
     if mask is None or int(mask.sum()) < need:
