@@ -96,3 +96,17 @@ def test_interior_similarity_of_a_scan(mirrored):
     assert io.sigma0_mm < 1e-9
     got = io.pixel_to_image(np.array([[8000 + sx * 100, 7900]]))[0]
     assert got == pytest.approx([1.4, 1.4])
+
+
+def test_snooping_rejects_nothing_on_exact_control(tmp_path):
+    """rectify.md: data snooping names the gross errors. Exact control points (an affine photo)
+    had two points rejected with a test value of inf (0/0 of rounding noise); none now."""
+    path = tmp_path / "exact.csv"
+    path.write_text("id,col,row,X,Y\n" + "".join(
+        f"P{k},{c},{r},{1688000.0 + 2 * c},{4799100.0 - 2 * r}\n"
+        for k, (c, r) in enumerate([(0, 0), (60, 0), (60, 40), (0, 40), (30, 20), (10, 33)])))
+    for model in ("affine", "homography", "similarity"):
+        out = toolbox.run("rectify:estimate", {"INPUT": path, "CRS": "EPSG:3003", "MODEL": model,
+                                               "OUTPUT": tmp_path / f"{model}.json"})
+        assert out["STATISTICS"]["rejected_points"] == [], model
+        assert out["STATISTICS"]["used_points"] == 6

@@ -115,6 +115,14 @@ def point_statistics(transform: Transform2D, src: np.ndarray,
         return t / float(sigma) ** 2, float("inf")
     r = fit.redundancy
     omega = float(np.sum(w[:, None] * v ** 2))
+    fitted = transform(src)
+    extent = float(np.ptp(fitted, axis=0).max()) if len(fitted) else 0.0
+    if omega <= float(np.sum(w)) * (1e-10 * max(extent, 1e-300)) ** 2:
+        # an exact fit (residuals at rounding level): no point can be told from the others;
+        # the ratio below would be rounding noise over rounding noise (or 0/0 -> inf)
+        f = np.zeros(len(v))
+        f[~ok] = np.nan
+        return f, float(r - 2)
     with np.errstate(divide="ignore", invalid="ignore"):
         sigma2_without = np.maximum(omega - t, 0.0) / (r - 2)
         f = (t / 2.0) / sigma2_without
