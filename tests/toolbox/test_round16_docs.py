@@ -110,3 +110,36 @@ def test_snooping_rejects_nothing_on_exact_control(tmp_path):
                                                "OUTPUT": tmp_path / f"{model}.json"})
         assert out["STATISTICS"]["rejected_points"] == [], model
         assert out["STATISTICS"]["used_points"] == 6
+
+
+def test_footprints_diagonal_neighbours_are_not_side_pairs(tmp_path):
+    """orientation.md: SIDE_OVERLAP (20 %) is checked for side pairs, flagged in meets_rule. A
+    perfect 2 x 2 block at 60/20 % (c 150 mm, 900 m above ground, 23 cm frame: 1380 m sides,
+    base 552 m, strips 1104 m apart) had its diagonal pairs (828 x 276 m: 12 %) called side
+    pairs failing the rule, and STATISTICS gave 12 % as the least side overlap; they are
+    'other' now, and the side range is 20-20 %."""
+    import geopandas as gpd
+
+    x0, y0 = 1688000.0, 4799000.0
+    photos = [("n1", "1", x0, y0), ("n2", "1", x0 + 552.0, y0), ("s1", "2", x0, y0 + 1104.0),
+              ("s2", "2", x0 + 552.0, y0 + 1104.0)]
+    lines = ["version: 1", "crs: EPSG:3003", "angle_unit: rad", "cameras:",
+             "  - {name: cam, principal_distance_mm: 150.0, frame_size_mm: [230.0, 230.0],",
+             "     image_size_px: [11500, 11500], pixel_size_mm: 0.02}", "photos:"]
+    for pid, strip, x, y in photos:
+        lines.append(f"  - {{id: {pid}, camera: cam, strip: '{strip}', exterior: {{X0: {x}, "
+                     f"Y0: {y}, Z0: 1000.0, omega: 0.0, phi: 0.0, kappa: 0.0}}}}")
+    project = tmp_path / "block.yaml"
+    project.write_text("\n".join(lines) + "\n")
+    out = toolbox.run("orientation:footprints", {"PROJECT": project, "MEAN_HEIGHT": 100,
+                                                 "OUTPUT": tmp_path / "f.gpkg"})
+    assert out["STATISTICS"]["side_overlap_pct"] == pytest.approx([20.0, 20.0])
+    ov = gpd.read_file(tmp_path / "f.gpkg", layer="overlaps")
+    kinds = {frozenset((a, b)): k for a, b, k in zip(ov.photo_a, ov.photo_b, ov.kind,
+                                                     strict=True)}
+    assert kinds == {frozenset(("n1", "n2")): "forward", frozenset(("s1", "s2")): "forward",
+                     frozenset(("n1", "s1")): "side", frozenset(("n2", "s2")): "side",
+                     frozenset(("n1", "s2")): "other", frozenset(("n2", "s1")): "other"}
+    ruled = ov[ov.kind != "other"]
+    assert ruled.meets_rule.astype(bool).all()
+    assert ov[ov.kind == "other"].meets_rule.isna().all()
