@@ -37,7 +37,9 @@ class Footprints(Algorithm):
     ``nadir_points`` and ``principal_points`` (PointZ, with on_dem), ``projection_centres``
     (PointZ, X0/Y0/Z0 and the angles in radians) and ``overlaps`` (Polygon: photo_a, photo_b,
     kind forward/side/other, pct_of_a, pct_of_b = intersection area / footprint area). Forward
-    pairs are consecutive photos of a strip in project order.
+    pairs are consecutive photos of a strip in project order; side pairs are photos of two
+    strips where one is the photo of its strip that overlaps the other most (a block's diagonal
+    neighbours are other, not held to SIDE_OVERLAP).
 
     Design rules (thesis S002 par. 1.3.5 and Table 3): every forward pair must overlap by at
     least FORWARD_OVERLAP % (default 60) and every photo must overlap a photo of a neighbouring
@@ -89,7 +91,7 @@ class Footprints(Algorithm):
                 ("omega_rad", "real"), ("phi_rad", "real"), ("kappa_rad", "real")]),
             Layer("overlaps", "Polygon", [
                 ("photo_a", "string"), ("photo_b", "string"),
-                ("kind", "string", "forward (same strip) or side"),
+                ("kind", "string", "forward (same strip), side (side neighbours) or other"),
                 ("pct_of_a", "real", "share of A's footprint, %"),
                 ("pct_of_b", "real", "share of B's footprint, %"),
                 ("meets_rule", "boolean", "forward/side overlap meets its minimum")],

@@ -28,6 +28,8 @@ COLUMNS = ["photo_a", "photo_b", "method", "terrain_height_m", "principal_distan
            "sigma_y_centre_m", "sigma_x_edge_m", "sigma_y_edge_m", "sigma_z_m", "sigma_z_edge_m",
            "edge_corners", "sigma_xy_table_m", "xi_edge_mm", "eta_edge_mm"]
 NORMAL_CASE = "normal case"
+#: half the standard 23 x 23 cm aerial film format: the edge estimate without PROJECT (no frame known)
+STANDARD_HALF_FORMAT_MM = 115.0
 MODELS = "intersection through the camera models"
 
 
@@ -57,7 +59,8 @@ class NormalCasePrecision(Algorithm):
     terrain, σp the x-parallax precision and σξ the image-coordinate precision (S000 l.605-649,
     S002 eq. [35]-[40]). The defaults, SIGMA_PARALLAX = 5 µm and SIGMA_IMAGE = σp/√2, reproduce
     the σZ column of S000's rules table. σX and σY are given at the image centre and at the edge
-    of the format (ξ, η = half the format, or XI/ETA); these are per-axis figures.
+    of the format (ξ, η = half the format, 115 mm of a 23 x 23 cm frame without PROJECT, or
+    XI/ETA); these are per-axis figures.
 
     ``sigma_xy_table_m`` is the quantity S000's rules table prints as σXY: the two-axis figure
     ``sqrt(σX² + σY²)`` with σξ = ση = σp = SIGMA_PARALLAX at a point c/3 from the principal
@@ -105,10 +108,11 @@ class NormalCasePrecision(Algorithm):
                optional=True, min_value=0),
         Number("SIGMA_PIXEL", "camera models: precision σ of each measured image coordinate, "
                "pixels", default=0.5, min_value=0, min_exclusive=True),
-        Number("XI", "film: image x (mm) for the edge estimate (default: half the format width)",
+        Number("XI", "film: image x (mm) for the edge estimate (default: half the format width; "
+               "115, of a 23 x 23 cm frame, without PROJECT)",
                optional=True),
         Number("ETA", "film: image y (mm) for the edge estimate (default: half the format "
-               "height)", optional=True),
+               "height; 115 without PROJECT)", optional=True),
         OutputFile("OUTPUT", "JSON report", extensions=[".json"]),
         OutputFile("TABLE", "CSV table, one row per pair", extensions=[".csv"], optional=True),
     ]
@@ -128,8 +132,8 @@ class NormalCasePrecision(Algorithm):
         sp, si = params["SIGMA_PARALLAX"], params["SIGMA_IMAGE"]
         rows: list[dict[str, Any]] = []
         if params["PROJECT"] is None:
-            xi = params["XI"] if params["XI"] is not None else 0.0
-            eta = params["ETA"] if params["ETA"] is not None else 0.0
+            xi = params["XI"] if params["XI"] is not None else STANDARD_HALF_FORMAT_MM
+            eta = params["ETA"] if params["ETA"] is not None else STANDARD_HALF_FORMAT_MM
             rows.append({"photo_a": None, "photo_b": None} | pair_precision(
                 params["PRINCIPAL_DISTANCE"], params["BASE"], params["DISTANCE"], sp, si, xi, eta))
         else:

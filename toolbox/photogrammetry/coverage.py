@@ -137,7 +137,7 @@ class Overlap:
 
     a: str
     b: str
-    kind: str  # forward (consecutive in a strip), side (different strips), other
+    kind: str  # forward (consecutive in a strip), side (side neighbours in two strips), other
     geometry: Any
     percent_of_a: float
     percent_of_b: float
@@ -145,7 +145,10 @@ class Overlap:
 
 def overlaps(footprints: list[Footprint], consecutive: set[tuple[str, str]]) -> list[Overlap]:
     """Every pair of footprints that overlap (found with a shapely STRtree), classified as
-    ``forward`` for the consecutive pairs given, ``side`` between strips, else ``other``."""
+    ``forward`` for the consecutive pairs given, ``side`` between side neighbours (photos of
+    two strips, one of them the photo of its strip that overlaps the other most), else
+    ``other`` (e.g. the diagonal neighbours of a block: 12 % in a 60/20 % block, which the
+    side-overlap rule is not about)."""
     import shapely
 
     polygons = [fp.polygon for fp in footprints]
@@ -168,4 +171,15 @@ def overlaps(footprints: list[Footprint], consecutive: set[tuple[str, str]]) -> 
         result.append(Overlap(a.photo.id, b.photo.id, kind, inter,
                               100.0 * inter.area / polygons[i].area,
                               100.0 * inter.area / polygons[j].area))
+    strip = {fp.photo.id: fp.photo.strip or "" for fp in footprints}
+    best: dict[tuple[str, str], float] = {}  # (photo, other strip) -> its largest overlap there
+    for ov in result:
+        if ov.kind == "side":
+            for me, other, pct in ((ov.a, ov.b, ov.percent_of_a), (ov.b, ov.a, ov.percent_of_b)):
+                key = (me, strip[other])
+                best[key] = max(best.get(key, 0.0), pct)
+    for ov in result:
+        if ov.kind == "side" and not (ov.percent_of_a >= best[(ov.a, strip[ov.b])] or
+                                      ov.percent_of_b >= best[(ov.b, strip[ov.a])]):
+            ov.kind = "other"
     return result

@@ -103,13 +103,16 @@ class InteriorOrientation:
         if len(marks) < needed:
             raise InputDataError(f"{label}a {kind} interior orientation needs at least {needed} "
                                  f"fiducial marks, got {len(marks)}")
+        # rows grow down, fiducial y up: a similarity is fitted on (col, -row) (it mirrors back
+        # by itself for a mirrored scan; with two marks the unmirrored scan is assumed)
+        flip = np.diag([1.0, -1.0, 1.0]) if kind == "similarity" else np.eye(3)
         try:
-            fitted: Transform2D = transform_cls.estimate(px, mm)
+            fitted: Transform2D = transform_cls.estimate(px * np.diag(flip)[:2], mm)
         except InputDataError as exc:
             raise InputDataError(f"{label}fiducial marks: {exc}") from None
         fit = fitted.fit
         sigma = None if fit.redundancy == 0 or not np.isfinite(fit.sigma0) else float(fit.sigma0)
-        return cls(fitted.params, kind, marks, fit.residuals, sigma, int(fit.redundancy))
+        return cls(fitted.params @ flip, kind, marks, fit.residuals, sigma, int(fit.redundancy))
 
     @classmethod
     def from_pixel_size(cls, width: int, height: int, pixel_size_mm: float,

@@ -109,6 +109,7 @@ class Transform2D:
 
     name = ""
     n_params = 0
+    needs_two_directions = True  # points on one line do not determine it
 
     def __init__(self, params: np.ndarray | None = None):
         self.params = np.eye(3) if params is None else np.asarray(params, dtype="float64")
@@ -150,8 +151,14 @@ class Transform2D:
         if len(src) < cls.min_points_for(cls.n_params):
             raise InputDataError(f"a {cls.name} needs at least {cls.min_points_for(cls.n_params)} "
                                  f"points, got {len(src)}")
-        check_not_collinear(src, "source")
-        check_not_collinear(dst, "target")
+        if cls.needs_two_directions:
+            check_not_collinear(src, "source")
+            check_not_collinear(dst, "target")
+        else:  # two distinct points determine a similarity, on a line or not
+            for pts, which in ((src, "source"), (dst, "target")):
+                if not np.ptp(pts, axis=0).max() > 0:
+                    raise InputDataError(f"the {which} points all coincide: a {cls.name} needs "
+                                         "two distinct points")
         w = np.ones(len(src)) if weights is None else np.asarray(weights, dtype="float64")
         if w.shape != (len(src),) or not np.all(w > 0):
             raise InputDataError("weights must be one positive number per point")
@@ -186,30 +193,44 @@ class Transform2D:
 
 
 class SimilarityTransform(Transform2D):
-    """4 parameters: ``x' = a·x - b·y + tx``, ``y' = b·x + a·y + ty`` (scale, rotation, shift)."""
+    """4 parameters: ``x' = a·x - b·y + tx``, ``y' = b·x + a·y + ty`` (scale, rotation, shift), or
+    its mirror image ``x' = a·x + b·y + tx``, ``y' = b·x - a·y + ty`` (``det < 0``) when that fits
+    better: between a system whose y axis points down (pixel rows) and one whose y points up
+    (ground, fiducial mm) a shape-preserving map includes a reflection. With exactly two points
+    both fit; the direct form is kept (callers with rows-down coordinates negate them first)."""
 
     name = "similarity"
     n_params = 4
+    needs_two_directions = False
+
+    @staticmethod
+    def _design(x, y, n):
+        a = np.zeros((2 * n, 4))
+        a[0::2] = np.column_stack([x, -y, np.ones(n), np.zeros(n)])
+        a[1::2] = np.column_stack([y, x, np.zeros(n), np.ones(n)])
+        return a
 
     @classmethod
     def _estimate_normalised(cls, src, dst, w, max_iterations, tolerance):
         x, y = src.T
         n = len(src)
-        a = np.zeros((2 * n, 4))
-        a[0::2] = np.column_stack([x, -y, np.ones(n), np.zeros(n)])
-        a[1::2] = np.column_stack([y, x, np.zeros(n), np.ones(n)])
         sw = np.sqrt(np.repeat(w, 2))
-        sol = np.linalg.lstsq(a * sw[:, None], dst.ravel() * sw, rcond=None)[0]
-        ca, cb, tx, ty = sol
-        return np.array([[ca, -cb, tx], [cb, ca, ty], [0, 0, 1.0]]), 0
+        best = None
+        for sign in (1.0, -1.0):  # direct, then mirrored (y -> -y before the direct form)
+            a = cls._design(x, sign * y, n)
+            sol = np.linalg.lstsq(a * sw[:, None], dst.ravel() * sw, rcond=None)[0]
+            ssr = float(np.sum((sw * (a @ sol - dst.ravel())) ** 2))
+            ca, cb, tx, ty = sol
+            matrix = np.array([[ca, -cb * sign, tx], [cb, ca * sign, ty], [0, 0, 1.0]])
+            scale = float(np.sum((sw * dst.ravel()) ** 2))
+            if best is None or ssr < best[0] - 1e-9 * max(scale, 1e-300):
+                best = (ssr, matrix)
+        return best[1], 0
 
     def _jacobian(self, src):
         x, y = src.T
-        n = len(src)
-        a = np.zeros((2 * n, 4))
-        a[0::2] = np.column_stack([x, -y, np.ones(n), np.zeros(n)])
-        a[1::2] = np.column_stack([y, x, np.zeros(n), np.ones(n)])
-        return a
+        sign = -1.0 if np.linalg.det(self.params[:2, :2]) < 0 else 1.0
+        return self._design(x, sign * y, len(src))
 
     @property
     def scale(self) -> float:

@@ -195,7 +195,11 @@ def fit_rectification(points: ControlPoints, model: str = "homography", robust: 
                              f"({int(points.check.sum())} check points are not used in the fit)")
     index = np.flatnonzero(control)
     origin = local_origin(points.ground[control])
-    src = points.image[control]
+    # pixel rows grow down, ground Y up: a similarity between them is a mirrored one, so it is
+    # fitted on (col, -row) (with two points, where both forms fit, that is the one kept)
+    flip = np.diag([1.0, -1.0, 1.0]) if model == "similarity" and points.units == "pixels" \
+        else np.eye(3)
+    src = apply_homography(flip, points.image[control])
     dst = points.ground[control] - origin
     try:
         if robust == "none":
@@ -212,7 +216,8 @@ def fit_rectification(points: ControlPoints, model: str = "homography", robust: 
             .replace("the target points", "the control points' ground positions")
         raise InputDataError(f"cannot fit a {model} to the {n_control} control points: "
                              f"{text}") from None
-    local = result.transform
+    local = cls(result.transform.params @ flip)
+    local.fit = result.transform.fit
     warnings: list[str] = []
     used = np.zeros(len(points), dtype=bool)
     used[index[result.inliers]] = True
@@ -242,6 +247,8 @@ def _check_geometry(local: Transform2D, image: np.ndarray, model: str,
             raise InputDataError("the fitted homography's vanishing line passes between the "
                                  "control points (some would be behind the camera): the points "
                                  "are inconsistent or badly placed")
+    if model == "similarity":  # determined by any two distinct points, on a line or not
+        return
     centred = image - image.mean(axis=0)
     s = np.linalg.svd(centred, compute_uv=False)
     if s[0] > 0 and s[-1] / s[0] < ELONGATION_WARNING:

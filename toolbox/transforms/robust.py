@@ -115,6 +115,14 @@ def point_statistics(transform: Transform2D, src: np.ndarray,
         return t / float(sigma) ** 2, float("inf")
     r = fit.redundancy
     omega = float(np.sum(w[:, None] * v ** 2))
+    fitted = transform(src)
+    extent = float(np.ptp(fitted, axis=0).max()) if len(fitted) else 0.0
+    if omega <= float(np.sum(w)) * (1e-10 * max(extent, 1e-300)) ** 2:
+        # an exact fit (residuals at rounding level): no point can be told from the others;
+        # the ratio below would be rounding noise over rounding noise (or 0/0 -> inf)
+        f = np.zeros(len(v))
+        f[~ok] = np.nan
+        return f, float(r - 2)
     with np.errstate(divide="ignore", invalid="ignore"):
         sigma2_without = np.maximum(omega - t, 0.0) / (r - 2)
         f = (t / 2.0) / sigma2_without
@@ -249,11 +257,13 @@ def ransac(cls: type[Transform2D], src: np.ndarray, dst: np.ndarray, threshold: 
                                        ransacReprojThreshold=float(threshold),
                                        maxIters=max_trials, confidence=confidence,
                                        refineIters=0)
-    elif cls.name == "similarity":
-        _, mask = cv2.estimateAffinePartial2D(s32, d32, method=cv2.RANSAC,
-                                              ransacReprojThreshold=float(threshold),
-                                              maxIters=max_trials, confidence=confidence,
-                                              refineIters=0)
+    elif cls.name == "similarity":  # direct or mirrored (see SimilarityTransform): both tried
+        masks = [cv2.estimateAffinePartial2D(s32 * np.float32([1, sign]), d32, method=cv2.RANSAC,
+                                             ransacReprojThreshold=float(threshold),
+                                             maxIters=max_trials, confidence=confidence,
+                                             refineIters=0)[1] for sign in (1, -1)]
+        masks = [m for m in masks if m is not None]
+        mask = max(masks, key=lambda m: int(m.sum())) if masks else None
     else:  # pragma: no cover - every Transform2D in TRANSFORMS is handled above
         raise ValueError(f"no RANSAC for model {cls.name!r}")
     if mask is None or int(mask.sum()) < need:
