@@ -196,7 +196,7 @@ def sheet_file_names(job: SheetJob) -> list[str]:
 def _index_layer(ref, crs, feedback):
     """The INDEX layer in the sheets' CRS (one without a CRS is taken to be in it; one in
     another CRS is reprojected, with a warning naming both)."""
-    from toolbox.io.crs import crs_label, same_crs
+    from toolbox.io.crs import crs_label, note_transformation, same_crs
     from toolbox.io.vector import read_vector
 
     frame = read_vector(ref, name="INDEX")
@@ -205,6 +205,7 @@ def _index_layer(ref, crs, feedback):
     if not same_crs(frame.crs, crs):
         feedback.push_warning(f"INDEX is in {crs_label(frame.crs)}: reprojected to the sheets' "
                               f"{crs_label(crs)}")
+        note_transformation(feedback, frame.crs, crs, frame.total_bounds, what="INDEX")
     return frame.to_crs(crs)
 
 

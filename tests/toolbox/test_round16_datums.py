@@ -1,0 +1,127 @@
+"""Round 16, datums: the datum transformation of a reprojection is named, with its accuracy,
+and warned about when it is of unknown accuracy (a ballpark, ignoring the datum shift), coarser
+than the output's cell, or when a better one needs a PROJ grid not installed here.
+
+Monte Mario (EPSG:3003, Gauss-Boaga) -> RDN2008 / UTM 32N (EPSG:6707): without the IGM grid
+``35160622_47161840_R40_F00.gsb`` PROJ applies a 7-parameter Helmert through ETRS89 (4 m)
+instead of "Monte Mario to RDN2008 (5)" (0.1 m); an ortho of 2.5 m cells or a 1 m DEM was
+written in silence with positions up to 4 m off. Truth: pyproj's TransformerGroup (its
+operations, accuracies and missing grids), independent of the toolbox."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+from pyproj.transformer import TransformerGroup
+
+import toolbox
+from toolbox.feedback import Feedback
+from toolbox.io.crs import transformation_check
+
+
+def group(source, target):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)
+        return TransformerGroup(source, target, always_xy=True)
+
+
+def missing_grids(source, target):
+    return {g.short_name for op in group(source, target).unavailable_operations
+            for g in op.grids if not g.available}
+
+
+needs_missing_grid = pytest.mark.skipif(
+    not missing_grids("EPSG:3003", "EPSG:6707"),
+    reason="the IGM Monte Mario -> RDN2008 grid is installed here: PROJ uses it")
+
+
+@needs_missing_grid
+def test_monte_mario_to_rdn2008_without_grid_is_warned():
+    """The accuracy reported is the best *available* one PROJ lists (4 m, a Helmert), the
+    warning names the missing grid and the 0.1 m operation that needs it."""
+    available = [t.accuracy for t in group("EPSG:3003", "EPSG:6707").transformers
+                 if t.accuracy is not None and t.accuracy >= 0]
+    bounds = (1500000.0, 5000000.0, 1500200.0, 5000200.0)
+    record, text = transformation_check("EPSG:3003", "EPSG:6707", bounds, 0.2, "DEM")
+    assert record["accuracy_m"] >= min(available, default=4.0)
+    assert record["accuracy_m"] == pytest.approx(4.0)
+    assert record["better_operation"]["accuracy_m"] == pytest.approx(0.1)
+    grids = missing_grids("EPSG:3003", "EPSG:6707")
+    assert set(record["better_operation"]["missing_grids"]) <= grids
+    assert text is not None and "coarser than the output cell (0.2 m)" in text
+    assert all(g in text for g in record["better_operation"]["missing_grids"])
+
+
+def test_no_warning_without_datum_change_or_when_accurate_enough():
+    assert transformation_check("EPSG:3003", "EPSG:3003") == (None, None)
+    assert transformation_check(None, "EPSG:3003") == (None, None)
+    record, text = transformation_check("EPSG:3003", "EPSG:3004",
+                                        (1500000.0, 5000000.0, 1500100.0, 5000100.0), 0.1)
+    assert text is None and record["accuracy_m"] == 0.0  # Gauss-Boaga zones: same datum
+    # ETRS89 -> WGS 84 (1 m): fine for a 5 m cell (no better operation needs a grid)
+    record, text = transformation_check("EPSG:25832", "EPSG:32632",
+                                        (500000.0, 5000000.0, 500100.0, 5000100.0), 5.0)
+    assert text is None and record["accuracy_m"] == pytest.approx(1.0)
+
+
+def test_ballpark_transformation_is_warned():
+    """A CRS on a datum PROJ knows no shift for (a Bessel Transverse Mercator without
+    towgs84): PROJ's only operation is a ballpark one, which ignores the datum shift."""
+    bessel = "+proj=tmerc +lat_0=0 +lon_0=9 +k=0.9996 +x_0=1500000 +ellps=bessel +units=m"
+    descriptions = [t.description for t in group(bessel, "EPSG:25832").transformers]
+    assert descriptions and all("allpark" in d for d in descriptions)
+    record, text = transformation_check(bessel, "EPSG:25832",
+                                        (1500000.0, 5000000.0, 1500100.0, 5000100.0), 10.0)
+    assert record["accuracy_m"] is None
+    assert text is not None and "accuracy is unknown" in text
+
+
+@needs_missing_grid
+def test_ortho_in_another_crs_reports_its_transformation():
+    """An ortho of a photo oriented in EPSG:3003 written in EPSG:6707 at 2.5 m cells on a DEM
+    of 10 m cells in EPSG:3003 (what ortho:photo/ortho:batch do per photo,
+    :func:`toolbox.ortho.run.transformations`): warned (the Helmert's 4 m is coarser than the
+    cell; the grid is missing) and the report records which operation moved the cells."""
+    from types import SimpleNamespace as NS
+
+    from affine import Affine
+
+    from toolbox.ortho.run import transformations
+
+    photo = NS(id="p1", require_exterior=lambda: NS(crs="EPSG:3003"))
+    dem = NS(crs="EPSG:3003", transform=Affine(10.0, 0, 1686600.0, 0, -10.0, 4800800.0))
+    grid = NS(crs="EPSG:6707", cell_size=(2.5, 2.5),
+              bounds=(688000.0, 4798000.0, 688500.0, 4798500.0))
+    feedback = Feedback()
+    found = transformations(photo, dem, grid, NS(transformer=object()), feedback)
+    assert [(f["from"], f["to"]) for f in found] == [("EPSG:6707", "EPSG:3003")] * 2
+    assert found[0]["accuracy_m"] == pytest.approx(4.0)
+    cells = [w for w in feedback.warnings if w.startswith("photo p1: the ortho's cells")]
+    assert len(cells) == 1 and "coarser than the output cell (2.5 m)" in cells[0]
+    assert "35160622_47161840_R40_F00.gsb" in cells[0]
+    dem_warning = [w for w in feedback.warnings if w.startswith("the DEM's positions")]
+    assert len(dem_warning) == 1 and "coarser" not in dem_warning[0]  # 4 m < the DEM's 10 m
+    # same CRSs: nothing made, nothing said
+    grid.crs, feedback = "EPSG:3003", Feedback()
+    assert transformations(photo, dem, grid, NS(transformer=None), feedback) == []
+    assert not feedback.warnings
+
+
+@needs_missing_grid
+def test_tin_to_raster_in_another_crs_names_its_transformation(tmp_path):
+    import geopandas as gpd
+    import shapely
+
+    rng = np.random.default_rng(1)
+    x, y = 1500000 + rng.uniform(0, 100, 30), 5000000 + rng.uniform(0, 100, 30)
+    gpd.GeoDataFrame(geometry=[shapely.Point(a, b, 100.0) for a, b in zip(x, y, strict=True)],
+                     crs=3003).to_file(tmp_path / "pts.gpkg")
+    toolbox.run("tin:delaunay", {"INPUT": tmp_path / "pts.gpkg", "OUTPUT": tmp_path / "t.gpkg"})
+    feedback = Feedback()
+    toolbox.run("tin:to_raster", {"TIN": tmp_path / "t.gpkg", "CRS": "EPSG:6707",
+                                  "CELL_SIZE": 1.0, "OUTPUT": tmp_path / "d.tif"},
+                feedback=feedback)
+    assert any("accuracy (4 m) is coarser than the output cell (1 m)" in w
+               for w in feedback.warnings)
