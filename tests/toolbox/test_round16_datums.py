@@ -125,3 +125,38 @@ def test_tin_to_raster_in_another_crs_names_its_transformation(tmp_path):
                 feedback=feedback)
     assert any("accuracy (4 m) is coarser than the output cell (1 m)" in w
                for w in feedback.warnings)
+
+
+# -- angle units: an angle beyond a full turn is not in the unit it is read in -----------------
+def test_gon_csv_read_as_degrees_is_refused(tmp_path):
+    """An Orthority CSV of gon angles without a unit (kappa 385 gon): read as degrees (the
+    CSV's default) kappa became 25 deg instead of 346.5 deg (385 x 0.9), exit 0. Now refused
+    naming ANGLE_UNIT and gon; with ANGLE_UNIT gon the hand conversion comes out."""
+    import math
+
+    from toolbox.errors import ParameterError
+    from toolbox.exchange.csvtable import read_csv
+
+    path = tmp_path / "eo.csv"
+    path.write_text("filename,x,y,z,omega,phi,kappa\n"
+                    "p1.tif,1500000,5000000,1500,0.12,-0.34,385.0\n")
+    with pytest.raises(ParameterError, match=r"^ANGLE_UNIT is deg.*385.*in gon\?"):
+        read_csv(path, crs="EPSG:3003")
+    with pytest.raises(ParameterError, match=r"^ANGLE_UNIT is rad.*in gon\?"):
+        read_csv(path, crs="EPSG:3003", angle_unit="rad")
+    photo = next(iter(read_csv(path, crs="EPSG:3003", angle_unit="gon").photos.values()))
+    assert [math.degrees(a) for a in photo.opk] == pytest.approx([0.108, -0.306, 346.5])
+
+
+def test_degrees_read_as_radians_are_refused_by_every_reader():
+    """ExteriorOrientation.from_angles (the project, native CSV, OPK text and Z-Map readers):
+    kappa 178 deg given as rad was taken as 178 rad (= 358.5 deg after wrapping)."""
+    from toolbox.errors import ParameterError
+    from toolbox.photogrammetry.exterior import ExteriorOrientation
+
+    with pytest.raises(ParameterError, match=r"^ANGLE_UNIT is rad.*photo p1.*178.*in deg\?"):
+        ExteriorOrientation.from_angles("p1", 0, 0, 1000, 0.5, -1.2, 178.0, unit="rad")
+    eo = ExteriorOrientation.from_angles("p1", 0, 0, 1000, 0.5, -1.2, 178.0, unit="deg")
+    assert eo.kappa == pytest.approx(178.0 * np.pi / 180.0)
+    eo = ExteriorOrientation.from_angles("p1", 0, 0, 1000, 0.0, 0.0, -399.9, unit="gon")
+    assert eo.kappa == pytest.approx(-399.9 * np.pi / 200.0)
