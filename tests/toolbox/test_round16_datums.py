@@ -160,3 +160,60 @@ def test_degrees_read_as_radians_are_refused_by_every_reader():
     assert eo.kappa == pytest.approx(178.0 * np.pi / 180.0)
     eo = ExteriorOrientation.from_angles("p1", 0, 0, 1000, 0.0, 0.0, -399.9, unit="gon")
     assert eo.kappa == pytest.approx(-399.9 * np.pi / 200.0)
+
+
+# -- heights: one side states its datum, the other none ------------------------------------------
+def _tiny_dem(path, crs):
+    import rasterio
+    from affine import Affine
+
+    with rasterio.open(path, "w", driver="GTiff", width=4, height=4, count=1, dtype="float32",
+                       crs=crs, transform=Affine(10.0, 0, 1688000.0, 0, -10.0, 4799200.0)) as d:
+        d.write(np.full((1, 4, 4), 300.0, dtype="float32"))
+    return path
+
+
+def _egm96_n(lon, lat):
+    """Independent: pyproj with the EGM96 grid, N = h - H; None when the grid is missing."""
+    from pyproj import Transformer
+
+    from toolbox.ortho.vertical import use_system_grids
+
+    use_system_grids()
+    t = Transformer.from_crs("EPSG:4979", "EPSG:4326+5773", always_xy=True)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        try:
+            h = t.transform(lon, lat, 0.0, errcheck=True)[2]
+        except Exception:  # noqa: BLE001
+            return None
+    return None if "allpark" in t.get_last_used_operation().description else -h
+
+
+def test_ellipsoidal_photos_on_a_dem_without_datum_are_warned(tmp_path):
+    """Photos' heights stated ellipsoidal (GNSS, HEIGHTS ellipsoidal, an RPC camera), the DEM
+    (EPSG:3003, an Italian DTM: orthometric) states none: its heights were taken as ellipsoidal
+    with an *info* line only; an error of the geoid undulation (~48 m here). Now a warning,
+    with N from EGM96 when its grid is installed."""
+    from pyproj import Transformer
+
+    from toolbox.io.raster import open_raster_info
+    from toolbox.ortho.vertical import dem_in_photo_datum
+
+    info = open_raster_info(_tiny_dem(tmp_path / "dem.tif", "EPSG:3003"), "DEM")
+    feedback = Feedback()
+    with dem_in_photo_datum(info, 1, "ellipsoidal", None, feedback) as (dem, band, note):
+        assert dem is info and not note.converted
+    assert any(w.startswith("heights used as they are: the photos' are ellipsoidal")
+               for w in feedback.warnings)
+    lon, lat = Transformer.from_crs("EPSG:3003", "EPSG:4326", always_xy=True).transform(
+        1688020.0, 4799180.0)
+    n = _egm96_n(lon, lat)
+    if n is not None:
+        assert note.as_dict()["geoid_separation_m"] == pytest.approx(n, abs=0.01)
+        assert f"{n:.1f} m here (EGM96)" in feedback.warnings[-1]
+    # neither side states a datum: nothing to compare, information only
+    feedback = Feedback()
+    with dem_in_photo_datum(info, 1, None, "EPSG:3003", feedback) as (_, _, note):
+        pass
+    assert not feedback.warnings and "no height datum stated" in note.text
