@@ -217,3 +217,20 @@ def test_ellipsoidal_photos_on_a_dem_without_datum_are_warned(tmp_path):
     with dem_in_photo_datum(info, 1, None, "EPSG:3003", feedback) as (_, _, note):
         pass
     assert not feedback.warnings and "no height datum stated" in note.text
+
+
+@needs_missing_grid
+def test_gcp_list_in_another_crs_warns_a_transformation_coarser_than_control(tmp_path):
+    """An ODM gcp_list in EPSG:3003 converted to EPSG:6707: the control points were moved by
+    the 4 m Helmert with a note naming only the two CRSs. Now warned (4 m against a control
+    point's 0.1 m; the grid named) and the summary's notes name the operation."""
+    (tmp_path / "gcp_list.txt").write_text("EPSG:3003\n1500000.0 5000000.0 100.0 512 384 p1.jpg A\n"
+                                           "1500100.0 5000050.0 101.0 900 300 p1.jpg B\n")
+    feedback = Feedback()
+    out = toolbox.run("orientation:convert", {
+        "INPUT": str(tmp_path / "gcp_list.txt"), "FORMAT": "gcp", "CRS": "EPSG:6707",
+        "OUTPUT": tmp_path / "m.csv"}, feedback=feedback)
+    assert any("coarser than a control point's tolerance (0.1 m)" in w
+               and "35160622_47161840_R40_F00.gsb" in w for w in feedback.warnings)
+    assert any(n.startswith("transformation: ") and "accuracy 4.0 m" in n
+               for n in out["SUMMARY"]["notes"])

@@ -404,14 +404,16 @@ def _transformation(source_wkt: str, target_wkt: str, x: float, y: float
 
 
 def transformation_check(source: Any, target: Any, bounds: Any = None,
-                         cell_size: float | None = None, what: str = "data"
+                         cell_size: float | None = None, what: str = "data",
+                         tolerance_of: str = "the output cell"
                          ) -> tuple[dict[str, Any] | None, str | None]:
     """The datum transformation used to bring ``what`` from ``source`` to ``target`` (CRSs),
     judged: ``(record for the report, warning text or None)``; ``(None, None)`` when the CRSs
     are the same or either is unknown. ``bounds`` (in ``source``): where it is applied (PROJ
     chooses by area). Warned: a transformation of unknown accuracy (a "ballpark" one that
     ignores the datum shift: tens to hundreds of metres off), one whose accuracy is coarser
-    than ``cell_size`` (metres, the output's cell), and a better one that needs a PROJ grid
+    than ``cell_size`` (metres, the output's cell, or the tolerance ``tolerance_of`` names),
+    and a better one that needs a PROJ grid
     not installed here (e.g. Monte Mario -> RDN2008 by the IGM grid: 0.1 m instead of 4 m)."""
     if source is None or target is None:
         return None, None
@@ -431,7 +433,7 @@ def transformation_check(source: Any, target: Any, bounds: Any = None,
         problems.append("its accuracy is unknown (a ballpark transformation ignores the datum "
                         "shift: positions may be off by tens to hundreds of metres)")
     elif cell_size is not None and accuracy > float(cell_size):
-        problems.append(f"its accuracy ({accuracy:g} m) is coarser than the output cell "
+        problems.append(f"its accuracy ({accuracy:g} m) is coarser than {tolerance_of} "
                         f"({float(cell_size):g} m)")
     if better:
         name, best, grids = better[0]
@@ -447,12 +449,12 @@ def transformation_check(source: Any, target: Any, bounds: Any = None,
 
 
 def note_transformation(feedback: Any, source: Any, target: Any, bounds: Any = None,
-                        cell_size: float | None = None, what: str = "data"
-                        ) -> dict[str, Any] | None:
+                        cell_size: float | None = None, what: str = "data",
+                        tolerance_of: str = "the output cell") -> dict[str, Any] | None:
     """:func:`transformation_check`, its warning pushed to ``feedback`` (once per text; no
     feedback: the "toolbox" logger's, which the runner reports); the record (for the run
     report) returned, None when no transformation is made."""
-    record, text = transformation_check(source, target, bounds, cell_size, what)
+    record, text = transformation_check(source, target, bounds, cell_size, what, tolerance_of)
     if text is None:
         return record
     if feedback is None:
