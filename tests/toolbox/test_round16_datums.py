@@ -234,3 +234,23 @@ def test_gcp_list_in_another_crs_warns_a_transformation_coarser_than_control(tmp
                and "35160622_47161840_R40_F00.gsb" in w for w in feedback.warnings)
     assert any(n.startswith("transformation: ") and "accuracy 4.0 m" in n
                for n in out["SUMMARY"]["notes"])
+
+
+def test_rpc_ortho_in_monte_mario_warns_the_helmert_to_wgs84():
+    """An RPC (satellite) ortho in EPSG:3003 at 0.5 m cells: every cell goes to the RPCs' WGS 84
+    longitude/latitude by a Monte Mario -> WGS 84 Helmert (PROJ lists none better than 4 m
+    available: TransformerGroup's truth); said nowhere before, now warned and recorded."""
+    from types import SimpleNamespace as NS
+
+    from toolbox.ortho.rpc import _transformations
+
+    best = min(t.accuracy for t in group("EPSG:3003", "EPSG:4326").transformers
+               if t.accuracy is not None and t.accuracy >= 0)
+    grid = NS(crs="EPSG:3003", cell_size=(0.5, 0.5),
+              bounds=(1688000.0, 4799000.0, 1688500.0, 4799500.0))
+    feedback = Feedback()
+    found = _transformations(None, grid, NS(transformer=None), feedback)
+    assert len(found) == 1 and found[0]["to"] == "EPSG:4326"
+    assert found[0]["accuracy_m"] >= best > 0.5
+    assert any(w.startswith("the RPC ortho's cells") and "coarser than the output cell (0.5 m)"
+               in w for w in feedback.warnings)
