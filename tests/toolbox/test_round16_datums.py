@@ -98,7 +98,7 @@ def test_ortho_in_another_crs_reports_its_transformation():
     found = transformations(photo, dem, grid, NS(transformer=object()), feedback)
     assert [(f["from"], f["to"]) for f in found] == [("EPSG:6707", "EPSG:3003")] * 2
     assert found[0]["accuracy_m"] == pytest.approx(4.0)
-    cells = [w for w in feedback.warnings if w.startswith("photo p1: the ortho's cells")]
+    cells = [w for w in feedback.warnings if w.startswith("the ortho's cells")]
     assert len(cells) == 1 and "coarser than the output cell (2.5 m)" in cells[0]
     assert "35160622_47161840_R40_F00.gsb" in cells[0]
     dem_warning = [w for w in feedback.warnings if w.startswith("the DEM's positions")]

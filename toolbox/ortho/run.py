@@ -192,8 +192,7 @@ def transformations(photo: Any, dem: Any, grid: Any, sampler: Any, feedback: Any
 
     cell = float(min(abs(grid.cell_size[0]), abs(grid.cell_size[1])))
     found = [note_transformation(feedback, grid.crs, photo.require_exterior().crs, grid.bounds,
-                                 cell, f"photo {photo.id}: the ortho's cells (to the "
-                                       "orientation's CRS)")]
+                                 cell, "the ortho's cells (to the orientation's CRS)")]
     if sampler.transformer is not None:
         dem_cell = float(min(abs(dem.transform.a), abs(dem.transform.e)))
         found.append(note_transformation(feedback, grid.crs, dem.crs, grid.bounds, dem_cell,
