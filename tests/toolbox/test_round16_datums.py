@@ -254,3 +254,33 @@ def test_rpc_ortho_in_monte_mario_warns_the_helmert_to_wgs84():
     assert found[0]["accuracy_m"] >= best > 0.5
     assert any(w.startswith("the RPC ortho's cells") and "coarser than the output cell (0.5 m)"
                in w for w in feedback.warnings)
+
+
+@needs_missing_grid
+def test_sheet_second_grid_coarser_than_the_map_tolerance_is_warned():
+    """carto:sheet of a Gauss-Boaga (EPSG:3003) sheet at 1:5000 with RDN2008 ticks (GRID_CRS
+    EPSG:6707, as Italian CTR sheets carry): the ticks are placed by the 4 m Helmert, coarser
+    than the map's 0.5 mm x 5000 = 2.5 m tolerance; at 1:25000 (0.3 mm: 7.5 m) only the missing grid is
+    said."""
+    from types import SimpleNamespace as NS
+
+    import shapely
+    from pyproj import CRS
+
+    from toolbox.cartography.sheet_job import _second_grid_accuracy
+    from toolbox.photogrammetry.accuracy import planimetric_tolerance_m
+
+    assert planimetric_tolerance_m(5000) == pytest.approx(2.5)
+    sheets = [("1", shapely.box(1688000.0, 4799000.0, 1689000.0, 4799800.0))]
+    feedback = Feedback()
+    _second_grid_accuracy(CRS("EPSG:3003"), NS(grid_crs=CRS("EPSG:6707"), scale=5000.0),
+                          sheets, feedback)
+    assert len(feedback.warnings) == 1 and feedback.warnings[0].startswith(
+        "the second grid (GRID_CRS)")
+    assert "coarser than the map's planimetric tolerance at 1:5000 (2.5 m)" in \
+        feedback.warnings[0]
+    feedback = Feedback()
+    _second_grid_accuracy(CRS("EPSG:3003"), NS(grid_crs=CRS("EPSG:6707"), scale=25000.0),
+                          sheets, feedback)
+    assert len(feedback.warnings) == 1 and "coarser" not in feedback.warnings[0]
+    assert "35160622_47161840_R40_F00.gsb" in feedback.warnings[0]
