@@ -284,3 +284,29 @@ def test_sheet_second_grid_coarser_than_the_map_tolerance_is_warned():
                           sheets, feedback)
     assert len(feedback.warnings) == 1 and "coarser" not in feedback.warnings[0]
     assert "35160622_47161840_R40_F00.gsb" in feedback.warnings[0]
+
+
+def test_ctr_sheet_index_in_gauss_boaga_warns_its_ed50_transformation(tmp_path):
+    """carto:sheet_index in EPSG:3003: the element edges (ED50 meridians and parallels) were
+    placed by PROJ's Monte Mario <-> ED50 operation, a chain of Helmerts through WGS 84 (10 m:
+    pyproj's own choice, get_last_used_operation), said nowhere. Now warned against the 1:5000
+    tolerance (2.5 m), naming the missing IGM grid, and recorded in STATISTICS."""
+    from pyproj import Transformer
+
+    origin = (11 + 10 / 60, 43 + 24 / 60)
+    truth = Transformer.from_crs("EPSG:4230", "EPSG:3003", always_xy=True)
+    truth.transform(origin[0] + 1 / 6, origin[1] - 0.1)
+    used = truth.get_last_used_operation()
+    feedback = Feedback()
+    out = toolbox.run("carto:sheet_index", {
+        "EXTENT": "1663000,4802000,1663040,4802040 [EPSG:3003]", "SHEET_50K": 296,
+        "ORIGIN": f"{origin[0]!r},{origin[1]!r}", "NEIGHBOURS": False,
+        "OUTPUT": tmp_path / "index.gpkg"}, feedback=feedback)
+    record = out["STATISTICS"]["transformation"]
+    assert (record["from"], record["to"]) == ("EPSG:4230", "EPSG:3003")
+    assert (record["operation"], record["accuracy_m"]) == (used.description, used.accuracy)
+    if used.accuracy > 2.5:
+        assert any(w.startswith("the sheet edges (ED50)") and "1:5000 (2.5 m)" in w
+                   for w in feedback.warnings)
+    assert set(record.get("better_operation", {}).get("missing_grids", [])) <= \
+        missing_grids("EPSG:4230", "EPSG:3003")
