@@ -310,3 +310,26 @@ def test_ctr_sheet_index_in_gauss_boaga_warns_its_ed50_transformation(tmp_path):
                    for w in feedback.warnings)
     assert set(record.get("better_operation", {}).get("missing_grids", [])) <= \
         missing_grids("EPSG:4230", "EPSG:3003")
+
+
+def test_lla_csv_ellipsoidal_altitudes_into_a_2d_crs_are_warned(tmp_path):
+    """An Orthority CSV of latitude/longitude/altitude (WGS84 ellipsoidal metres, its documented
+    meaning) converted into EPSG:6707 (no height datum): the altitudes went through unchanged,
+    written into a project that states no datum, in silence (exit 0); an ortho on an
+    orthometric DEM would then take them as orthometric. Now a warning naming HEIGHTS."""
+    from pyproj import Transformer
+
+    path = tmp_path / "lla.csv"
+    path.write_text("filename,latitude,longitude,altitude,omega,phi,kappa\n"
+                    "p1.jpg,43.32,11.33,420.5,0.5,-0.3,12.0\n")
+    feedback = Feedback()
+    out = toolbox.run("orientation:convert", {"INPUT": str(path), "CRS": "EPSG:6707",
+                                              "FORMAT_OUT": "csv",
+                                              "OUTPUT": tmp_path / "o.csv"}, feedback=feedback)
+    assert any("WGS84 ellipsoidal" in w and "HEIGHTS ellipsoidal" in w for w in feedback.warnings)
+    assert out["SUMMARY"]
+    # the altitude itself is kept (ellipsoidal, as pyproj's WGS 84 3D -> 2D grid gives it)
+    z = Transformer.from_crs("EPSG:4979", "EPSG:6707", always_xy=True).transform(11.33, 43.32,
+                                                                                  420.5)[2]
+    row = (tmp_path / "o.csv").read_text().splitlines()[1].split(",")
+    assert float(row[3]) == pytest.approx(z, abs=1e-3)

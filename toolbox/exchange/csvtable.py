@@ -192,6 +192,14 @@ def read_csv(path: str | Path, crs: Any = None, angle_unit: str | None = None) -
             geodesy.utm_crs(float(lon.mean()), float(lat.mean()))
         out.notes.append("latitude/longitude/altitude on WGS84 -> " + out.crs.name)
         xyz = geodesy.geographic_to_grid(lon, lat, values[:, 2], out.crs)
+        from toolbox.ortho.vertical import vertical_part
+
+        if vertical_part(out.crs) is None:  # the heights stay ellipsoidal, the CRS says nothing
+            out.notes.append(f"{path.name}: the altitudes' datum (WGS84 ellipsoidal) is not "
+                             f"carried over by {out.crs.name}, which states no height datum: "
+                             "give HEIGHTS ellipsoidal to ortho:photo/ortho:batch (a DEM of "
+                             "orthometric heights is otherwise taken as the same datum, ~50 m "
+                             "off in Italy), or a compound CRS to have them converted")
     check_within_turn(values[:, 3:], unit, "ANGLE_UNIT" if angle_unit is not None or
                       header_unit is None else f"{path}'s header unit", str(path))
     rad = to_radians(values[:, 3:], unit)
