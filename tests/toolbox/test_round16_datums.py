@@ -333,3 +333,45 @@ def test_lla_csv_ellipsoidal_altitudes_into_a_2d_crs_are_warned(tmp_path):
                                                                                   420.5)[2]
     row = (tmp_path / "o.csv").read_text().splitlines()[1].split(",")
     assert float(row[3]) == pytest.approx(z, abs=1e-3)
+
+
+@pytest.fixture(scope="module")
+def bundle_sample(tmp_path_factory):
+    from toolbox.demo.samples.bundle_block import make
+
+    return make(tmp_path_factory.mktemp("datums_bundle"), {})
+
+
+@pytest.mark.parametrize(("code", "refused"), [("+5214", None), ("", "reproject it")])
+def test_bundle_control_with_a_height_datum_is_not_told_to_reproject(bundle_sample, tmp_path,
+                                                                      code, refused):
+    """CONTROL labelled PROJECT's CRS + Genova 1942 heights (EPSG:3003+5214, a .prj as an
+    Italian survey states it) was refused 'reproject it to PROJECT's CRS first' although its
+    horizontal CRS is PROJECT's (pyproj: the compound's first part equals EPSG:3003). Now taken
+    with a warning that only one side states a height datum; another horizontal CRS
+    (EPSG:3004) is still refused."""
+    import shutil
+
+    from pyproj import CRS
+
+    from toolbox.errors import ToolboxError
+    from toolbox.photogrammetry.project import load_project
+
+    epsg = CRS.from_user_input(load_project(bundle_sample["bundle_project"]).crs).to_epsg()
+    control = tmp_path / "control.csv"
+    shutil.copy(bundle_sample["bundle_control"], control)
+    label = CRS.from_user_input(f"EPSG:{epsg}{code}" if code else f"EPSG:{epsg + 1}")
+    assert code == "" or label.sub_crs_list[0].equals(CRS.from_epsg(epsg))
+    control.with_suffix(".prj").write_text(label.to_wkt())
+    params = {"PROJECT": bundle_sample["bundle_project"],
+              "INPUT": bundle_sample["bundle_measurements"], "CONTROL": control,
+              "SIGMA_PX": 0.3, "OUTPUT": tmp_path / "a.yaml"}
+    feedback = Feedback()
+    if refused:
+        with pytest.raises(ToolboxError, match=refused):
+            toolbox.run("orientation:bundle", params, feedback=feedback)
+        return
+    out = toolbox.run("orientation:bundle", params, feedback=feedback)
+    assert 0.8 < out["STATISTICS"]["sigma0"] < 1.2
+    assert any(w.startswith("CONTROL heights are Genoa 1942 height") and "taken as the same"
+               in w for w in feedback.warnings)
