@@ -375,3 +375,28 @@ def test_bundle_control_with_a_height_datum_is_not_told_to_reproject(bundle_samp
     assert 0.8 < out["STATISTICS"]["sigma0"] < 1.2
     assert any(w.startswith("CONTROL heights are Genoa 1942 height") and "taken as the same"
                in w for w in feedback.warnings)
+
+
+def test_opensfm_reconstruction_to_monte_mario_names_its_helmert(tmp_path):
+    """An ODM reconstruction (reference_lla in Tuscany) converted to EPSG:3003: its WGS 84
+    positions went to Monte Mario by a 4 m Helmert, the notes saying only 'through pyproj'.
+    Now the notes name the operation and its accuracy (pyproj's own choice as truth)."""
+    import json
+
+    from pyproj import Transformer
+
+    from toolbox.exchange.opensfm import read_reconstruction
+
+    lat, lon = 43.32, 11.33
+    doc = {"cameras": {"c": {"projection_type": "perspective", "width": 400, "height": 300,
+                             "focal": 0.8, "k1": 0.0, "k2": 0.0}},
+           "shots": {"IMG_0.JPG": {"rotation": [3.14159, 0.0, 0.0],
+                                   "translation": [0.0, 0.0, 100.0], "camera": "c"}},
+           "reference_lla": {"latitude": lat, "longitude": lon, "altitude": 300.0}}
+    (tmp_path / "reconstruction.json").write_text(json.dumps([doc]))
+    oset = read_reconstruction(tmp_path / "reconstruction.json", "EPSG:3003")
+    truth = Transformer.from_crs("EPSG:4326", "EPSG:3003", always_xy=True)
+    truth.transform(lon, lat)
+    used = truth.get_last_used_operation()
+    assert any(n == f"WGS 84 -> EPSG:3003: {used.description}, accuracy {used.accuracy} m"
+               for n in oset.notes), oset.notes
