@@ -400,3 +400,11 @@ def test_opensfm_reconstruction_to_monte_mario_names_its_helmert(tmp_path):
     used = truth.get_last_used_operation()
     assert any(n == f"WGS 84 -> EPSG:3003: {used.description}, accuracy {used.accuracy} m"
                for n in oset.notes), oset.notes
+
+
+def test_transformation_check_of_infinite_bounds_is_no_crash():
+    """A gcp_list with an 'inf' coordinate (the readers' fuzz test): OverflowError while
+    rounding the centre; now the operation is judged without a place."""
+    record, _ = transformation_check("EPSG:3003", "EPSG:6707",
+                                     (float("inf"), 5000000.0, float("inf"), 5000100.0), 0.2)
+    assert record["from"] == "EPSG:3003"

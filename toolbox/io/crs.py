@@ -421,7 +421,8 @@ def transformation_check(source: Any, target: Any, bounds: Any = None,
     if same_crs(source, target):
         return None, None
     x = y = math.nan
-    if bounds is not None:  # the centre, to 10 km (0.1 degree): one look-up per area
+    if bounds is not None and all(math.isfinite(float(b)) for b in bounds):
+        # the centre, to 10 km (0.1 degree): one look-up per area
         x, y = (float(bounds[0]) + float(bounds[2])) / 2, (float(bounds[1]) + float(bounds[3])) / 2
         step = 0.1 if source.is_geographic else 1e4
         x, y = round(x / step) * step, round(y / step) * step
