@@ -408,3 +408,37 @@ def test_transformation_check_of_infinite_bounds_is_no_crash():
     record, _ = transformation_check("EPSG:3003", "EPSG:6707",
                                      (float("inf"), 5000000.0, float("inf"), 5000100.0), 0.2)
     assert record["from"] == "EPSG:3003"
+
+
+def test_inputs_differing_only_by_a_stated_height_datum_are_one_crs(tmp_path):
+    """tin:delaunay of points labelled EPSG:3003+5214 (Genova 1942 heights) with breaklines
+    labelled EPSG:3003: refused 'reproject the inputs to one CRS first' (exit 2, misleading:
+    pyproj says the horizontal CRSs are equal). Now one CRS, with a warning; two different
+    height datums and two horizontal CRSs are still refused, saying which."""
+    from pyproj import CRS
+
+    from toolbox.errors import InputDataError
+    from toolbox.io.crs import common_crs
+
+    compound = CRS("EPSG:3003+5214")
+    assert compound.sub_crs_list[0].equals(CRS("EPSG:3003"))
+    assert common_crs({"INPUT": compound, "BREAKLINES": CRS("EPSG:3003")}) is compound
+    with pytest.raises(InputDataError, match="BREAKLINES's heights are .*Genoa 1942.* but "
+                                             "INPUT's are .*EGM2008"):
+        common_crs({"INPUT": CRS("EPSG:3003+3855"), "BREAKLINES": compound})
+    with pytest.raises(InputDataError, match="reproject the inputs"):
+        common_crs({"INPUT": compound, "BREAKLINES": CRS("EPSG:3004")})
+    import geopandas as gpd
+    import shapely
+
+    rng = np.random.default_rng(2)
+    x, y = 1688000 + rng.uniform(0, 100, 30), 4799000 + rng.uniform(0, 100, 30)
+    gpd.GeoDataFrame(geometry=[shapely.Point(a, b, 100.0) for a, b in zip(x, y, strict=True)],
+                     crs=compound).to_file(tmp_path / "pts.gpkg")
+    gpd.GeoDataFrame(geometry=[shapely.LineString([(1688010, 4799010, 101.0),
+                                                   (1688090, 4799090, 102.0)])],
+                     crs="EPSG:3003").to_file(tmp_path / "bl.gpkg")
+    feedback = Feedback()
+    toolbox.run("tin:delaunay", {"INPUT": tmp_path / "pts.gpkg", "BREAKLINES": tmp_path / "bl.gpkg",
+                                 "OUTPUT": tmp_path / "tin.gpkg"}, feedback=feedback)
+    assert (tmp_path / "tin.gpkg").exists()

@@ -147,9 +147,29 @@ def common_crs(named: dict[str, CRS | None], override: CRS | None = None) -> CRS
         if reference is None:
             reference, ref_name = crs, key
         elif not same_crs(reference, crs):
-            raise InputDataError(f"{key} is in {crs_label(crs)} but {ref_name} is in "
-                                 f"{crs_label(reference)}; reproject the inputs to one CRS first")
+            _heights_only(key, crs, ref_name, reference)
     return reference
+
+
+def _heights_only(key: str, crs: CRS, ref_name: str, reference: CRS) -> None:
+    """Two CRSs that differ: another horizontal CRS, or two different height datums, is an
+    :class:`InputDataError` saying which; the same horizontal CRS with a height datum stated
+    on one side only (``EPSG:3003+5214`` and ``EPSG:3003``) is taken as one, with a warning
+    (the "toolbox" logger's: the console and the run report show it)."""
+    from toolbox.ortho.vertical import datum_label, horizontal_part, same_datum, vertical_part
+
+    if not same_crs(horizontal_part(crs), horizontal_part(reference)):
+        raise InputDataError(f"{key} is in {crs_label(crs)} but {ref_name} is in "
+                             f"{crs_label(reference)}; reproject the inputs to one CRS first")
+    ours, theirs = vertical_part(reference), vertical_part(crs)
+    if ours is not None and theirs is not None and not same_datum(ours, theirs):
+        raise InputDataError(f"{key}'s heights are {datum_label(theirs)} but {ref_name}'s are "
+                             f"{datum_label(ours)}: convert them to one height datum first")
+    import logging
+
+    logging.getLogger("toolbox").warning(
+        f"{key}'s heights are {datum_label(theirs)}, {ref_name}'s {datum_label(ours)} (the same "
+        f"horizontal CRS): taken as the same height datum, in {crs_label(reference)}")
 
 
 def extent_bounds_in(extent: Any, crs: Any, name: str = "EXTENT") -> tuple[float, ...]:
