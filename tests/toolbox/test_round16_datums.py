@@ -442,3 +442,26 @@ def test_inputs_differing_only_by_a_stated_height_datum_are_one_crs(tmp_path):
     toolbox.run("tin:delaunay", {"INPUT": tmp_path / "pts.gpkg", "BREAKLINES": tmp_path / "bl.gpkg",
                                  "OUTPUT": tmp_path / "tin.gpkg"}, feedback=feedback)
     assert (tmp_path / "tin.gpkg").exists()
+
+
+@needs_missing_grid
+def test_mosaic_layers_in_another_crs_name_their_transformation(tmp_path, caplog):
+    """mosaic:build's CUTLINES / NADIR_POINTS in EPSG:3003 for orthos in EPSG:6707 were moved
+    by the 4 m Helmert in silence; now the "toolbox" logger warns (the console and the run
+    report show it), naming the missing IGM grid."""
+    import logging
+
+    import geopandas as gpd
+    import shapely
+    from pyproj import CRS
+
+    from toolbox.mosaic.block import read_in_crs
+
+    gpd.GeoDataFrame({"name": ["a"]}, geometry=[shapely.box(1688000, 4799000, 1688100,
+                                                            4799100)],
+                     crs="EPSG:3003").to_file(tmp_path / "cut.gpkg")
+    with caplog.at_level(logging.WARNING, logger="toolbox"):
+        frame = read_in_crs(str(tmp_path / "cut.gpkg"), CRS("EPSG:6707"), "CUTLINES")
+    assert CRS(frame.crs).equals(CRS("EPSG:6707"))
+    assert any(r.getMessage().startswith("CUTLINES transformed from EPSG:3003 to EPSG:6707")
+               and "35160622_47161840_R40_F00.gsb" in r.getMessage() for r in caplog.records)
