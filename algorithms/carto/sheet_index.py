@@ -70,13 +70,19 @@ class SheetIndex(Algorithm):
     def process(self, params, feedback: Feedback):
         import geopandas as gpd
 
-        from toolbox.cartography.ctr_index import IndexRequest, index_sheets
+        from toolbox.cartography.ctr_index import ED50, IndexRequest, index_sheets
+        from toolbox.io.crs import note_transformation
         from toolbox.io.vector_write import write_layers
+        from toolbox.photogrammetry.accuracy import planimetric_tolerance_m
 
         extent = params["EXTENT"]
         crs = extent.crs if extent.crs is not None else params["CRS"]
         scale = int(params["SCALE"])
         origin = self._origin(params["ORIGIN"])
+        # the sheet edges are ED50 meridians and parallels: placed in CRS by PROJ's operation
+        datum = note_transformation(feedback, ED50, crs, _lonlat_box(origin),
+                                    planimetric_tolerance_m(scale), "the sheet edges (ED50)",
+                                    f"the map's planimetric tolerance at 1:{scale}")
         sheets = index_sheets(IndexRequest(tuple(extent.bounds), crs, params["SHEET_50K"],
                                            scale, origin, params["NEIGHBOURS"]))
         import shapely
@@ -98,4 +104,9 @@ class SheetIndex(Algorithm):
                      geometry_types={"sheets": "Polygon"})
         return {"OUTPUT": params["OUTPUT"],
                 "STATISTICS": {"sheets": len(frame), "covering": int(frame["in_extent"].sum()),
-                               "numbered": len(frame) - outside}}
+                               "numbered": len(frame) - outside, "transformation": datum}}
+
+
+def _lonlat_box(origin: tuple[float, float]) -> tuple[float, float, float, float]:
+    """The 1:50000 sheet (20' x 12' south-east of its north-west corner ``origin``)."""
+    return origin[0], origin[1] - 0.2, origin[0] + 1.0 / 3.0, origin[1]

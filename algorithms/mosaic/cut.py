@@ -135,6 +135,9 @@ def _sheets(params):
     if params["SHEETS"] is not None:
         frame = read_vector(params["SHEETS"], crs=crs, name="SHEETS")
         if crs is not None and frame.crs is not None and not frame.crs.equals(crs):
+            from toolbox.io.crs import note_transformation
+
+            note_transformation(None, frame.crs, crs, frame.total_bounds, what="SHEETS")
             frame = frame.to_crs(crs)
         field = params["ID_FIELD"]
         raw = [str(v) for v in frame[field]] if field else \
@@ -223,6 +226,10 @@ def _open_input(value):
         frame = read_vector(ref, name="INPUT")
         crs = frame.crs if crs is None else crs
         if frame.crs is not None and not frame.crs.equals(crs):
+            from toolbox.io.crs import note_transformation
+
+            note_transformation(None, frame.crs, crs, frame.total_bounds,
+                                what=f"INPUT layer {ref.layer or ref.info['layer_name']}")
             frame = frame.to_crs(crs)
         layers[ref.layer or ref.info["layer_name"]] = frame
     bounds = [b for b in (f.total_bounds for f in layers.values()) if np.isfinite(b).all()]

@@ -339,7 +339,7 @@ class BundleAdjustment(Algorithm):
         numbers): a one-line error naming ``name``."""
         from pathlib import Path
 
-        from toolbox.io.crs import check_coordinates_in_area, crs_label, parse_crs, same_crs
+        from toolbox.io.crs import check_coordinates_in_area, parse_crs, same_crs
 
         path = Path(path)
         own = None
@@ -356,6 +356,24 @@ class BundleAdjustment(Algorithm):
         if own:
             own_crs = parse_crs(own, name)
             if not same_crs(own_crs, target):
-                raise self.fail(name, f"is in {crs_label(own_crs)} but PROJECT is in "
-                                f"{crs_label(target)}: reproject it to PROJECT's CRS first")
+                self._check_heights(name, own_crs, target, feedback)
         check_coordinates_in_area(name, target, xy, feedback.push_warning)
+
+    def _check_heights(self, name: str, own, target, feedback: Feedback) -> None:
+        """``own`` (the table's CRS) is not PROJECT's ``target``: the same horizontal CRS with
+        a height datum stated on one side only (``EPSG:3003+5214`` against ``EPSG:3003``) is
+        taken as it is, with a warning; two different height datums, or another horizontal
+        CRS, a one-line error saying which."""
+        from toolbox.io.crs import crs_label, same_crs
+        from toolbox.ortho.vertical import datum_label, horizontal_part, same_datum, vertical_part
+
+        if not same_crs(horizontal_part(own), horizontal_part(target)):
+            raise self.fail(name, f"is in {crs_label(own)} but PROJECT is in "
+                            f"{crs_label(target)}: reproject it to PROJECT's CRS first")
+        ours, theirs = vertical_part(target), vertical_part(own)
+        if ours is not None and theirs is not None and not same_datum(ours, theirs):
+            raise self.fail(name, f"heights are {datum_label(theirs)} but PROJECT's are "
+                            f"{datum_label(ours)}: convert its heights to PROJECT's datum first")
+        if (ours is None) != (theirs is None):
+            feedback.push_warning(f"{name} heights are {datum_label(theirs)}, PROJECT's "
+                                  f"{datum_label(ours)}: taken as the same datum")

@@ -130,6 +130,8 @@ class ConvertOrientations(Algorithm):
                 raise self.fail("OUTPUT", "must be a .csv (image measurements) for a gcp_list "
                                 f"input, got {output.name!r}")
             control = odm_gcp.read_gcp_list(files[0], params["CRS"])
+            for warning in control.warnings:  # a datum transformation coarser than control
+                feedback.push_warning(warning)
             written = odm_gcp.write_control(control, output,
                                             output.with_name(f"{output.stem}_points.csv"))
             summary = {"format": "gcp", "source": str(files[0]),

@@ -262,7 +262,8 @@ def collect(results: Any, failed: list[dict[str, Any]], feedback: Feedback
             result["output"] = str(final_path(result["output"]))
             reports.append(result)
             for text in result.pop("warnings", []):
-                feedback.push_warning(text)
+                if text not in feedback.warnings:  # one datum transformation for all photos
+                    feedback.push_warning(text)
     return reports
 
 

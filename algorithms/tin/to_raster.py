@@ -84,6 +84,12 @@ class ToRaster(Algorithm):
         if tin_crs is not None and out_crs is not None and not same_crs(tin_crs, out_crs):
             from pyproj import Transformer
 
+            from toolbox.io.crs import note_transformation
+
+            cell = params.get("CELL_SIZE")
+            note_transformation(feedback, tin_crs, out_crs,
+                                (*xyz[:, :2].min(axis=0), *xyz[:, :2].max(axis=0)),
+                                float(cell) if cell else None, "TIN nodes")
             tr = Transformer.from_crs(tin_crs, out_crs, always_xy=True)
             x, y = tr.transform(xyz[:, 0], xyz[:, 1])
             xyz = np.column_stack([x, y, xyz[:, 2]])

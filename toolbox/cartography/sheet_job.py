@@ -167,6 +167,24 @@ def _refuse_empty_sheets(job: SheetJob, sheets: list) -> None:
                              "the same area and CRS?")
 
 
+def _second_grid_accuracy(crs, job: SheetJob, sheets, feedback) -> None:
+    """Warn when the datum transformation that places the second grid (GRID_CRS: Gauss-Boaga
+    ticks on an RDN2008 sheet) is coarser than the map's planimetric tolerance at its scale
+    (0.5 mm at 1:5000 = 2.5 m; the 4 m Monte Mario Helmert is not), of unknown accuracy, or
+    when a better one needs a missing PROJ grid."""
+    if job.grid_crs is None or crs is None or not sheets:
+        return
+    from toolbox.io.crs import note_transformation
+    from toolbox.photogrammetry.accuracy import planimetric_tolerance_m
+
+    boxes = [polygon.bounds for _, polygon in sheets]
+    bounds = (min(b[0] for b in boxes), min(b[1] for b in boxes), max(b[2] for b in boxes),
+              max(b[3] for b in boxes))
+    note_transformation(feedback, crs, job.grid_crs, bounds,
+                        planimetric_tolerance_m(job.scale), "the second grid (GRID_CRS)",
+                        f"the map's planimetric tolerance at 1:{job.scale:g}")
+
+
 def _second_grid(crs, second):
     """(transformer sheet CRS -> ``second``, label) for the frame's second grid, or None."""
     if second is None:
@@ -196,7 +214,7 @@ def sheet_file_names(job: SheetJob) -> list[str]:
 def _index_layer(ref, crs, feedback):
     """The INDEX layer in the sheets' CRS (one without a CRS is taken to be in it; one in
     another CRS is reprojected, with a warning naming both)."""
-    from toolbox.io.crs import crs_label, same_crs
+    from toolbox.io.crs import crs_label, note_transformation, same_crs
     from toolbox.io.vector import read_vector
 
     frame = read_vector(ref, name="INDEX")
@@ -205,6 +223,7 @@ def _index_layer(ref, crs, feedback):
     if not same_crs(frame.crs, crs):
         feedback.push_warning(f"INDEX is in {crs_label(frame.crs)}: reprojected to the sheets' "
                               f"{crs_label(crs)}")
+        note_transformation(feedback, frame.crs, crs, frame.total_bounds, what="INDEX")
     return frame.to_crs(crs)
 
 
@@ -232,6 +251,7 @@ def run_sheets(job: SheetJob, feedback) -> dict:
         + [_dated(job.contours)] * (job.contours is not None)))
     date = job.date or _dt.date.today().isoformat()
     index = _index_layer(job.index, crs, feedback) if job.index is not None else None
+    _second_grid_accuracy(crs, job, sheets, feedback)
     folder = Path(job.folder) if job.folder else None  # staged by the runner
     names = sheet_file_names(job)
     written = []

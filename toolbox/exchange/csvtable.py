@@ -32,7 +32,7 @@ from toolbox.exchange import geodesy
 from toolbox.exchange.model import OrientationSet, PhotoOrientation, opk_from_matrix
 from toolbox.io.text import read_text
 from toolbox.photogrammetry.rotation import angle_unit as canonical_unit
-from toolbox.photogrammetry.rotation import from_radians, to_radians
+from toolbox.photogrammetry.rotation import check_within_turn, from_radians, to_radians
 
 ALIASES = {
     "filename": ("filename", "photo", "photo_id", "image", "image_name", "imagename", "id",
@@ -192,6 +192,16 @@ def read_csv(path: str | Path, crs: Any = None, angle_unit: str | None = None) -
             geodesy.utm_crs(float(lon.mean()), float(lat.mean()))
         out.notes.append("latitude/longitude/altitude on WGS84 -> " + out.crs.name)
         xyz = geodesy.geographic_to_grid(lon, lat, values[:, 2], out.crs)
+        from toolbox.ortho.vertical import vertical_part
+
+        if vertical_part(out.crs) is None:  # the heights stay ellipsoidal, the CRS says nothing
+            out.notes.append(f"{path.name}: the altitudes' datum (WGS84 ellipsoidal) is not "
+                             f"carried over by {out.crs.name}, which states no height datum: "
+                             "give HEIGHTS ellipsoidal to ortho:photo/ortho:batch (a DEM of "
+                             "orthometric heights is otherwise taken as the same datum, ~50 m "
+                             "off in Italy), or a compound CRS to have them converted")
+    check_within_turn(values[:, 3:], unit, "ANGLE_UNIT" if angle_unit is not None or
+                      header_unit is None else f"{path}'s header unit", str(path))
     rad = to_radians(values[:, 3:], unit)
     for k, name in enumerate(ids):
         if attitude == "opk":

@@ -30,6 +30,7 @@ class ControlSet:
     points: dict[str, tuple[float, float, float]] = field(default_factory=dict)
     measurements: list[tuple[str, str, float, float]] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)  # for the caller to push
 
 
 def _crs_line(text: str):
@@ -56,6 +57,11 @@ def looks_like(lines: list[str]) -> bool:
     except ValueError:
         return False
     return len(parts) >= 6
+
+
+#: a control point's position must hold to this (metres): a datum transformation coarser than
+#: it is warned about (a 4 m Helmert moves a block adjusted on the points by 4 m)
+CONTROL_TOLERANCE_M = 0.1
 
 
 def read_gcp_list(path: str | Path, crs: Any = None) -> ControlSet:
@@ -95,6 +101,17 @@ def read_gcp_list(path: str | Path, crs: Any = None) -> ControlSet:
         geodesy.utm_crs(float(geo[:, 0].mean()), float(geo[:, 1].mean()))
     out = ControlSet(target)
     if not target.equals(source_crs):
+        from toolbox.io.crs import transformation_check
+
+        record, warning = transformation_check(
+            source_crs, target, (*geo[:, :2].min(axis=0), *geo[:, :2].max(axis=0)),
+            CONTROL_TOLERANCE_M, f"{path.name}'s ground coordinates", "a control point's "
+            "tolerance")
+        if warning is not None:
+            out.warnings.append(warning)
+        if record is not None:
+            out.notes.append(f"transformation: {record['operation']}, accuracy "
+                             f"{record['accuracy_m']} m")
         x, y, z = Transformer.from_crs(source_crs, target, always_xy=True).transform(
             geo[:, 0], geo[:, 1], geo[:, 2])
         geo = np.column_stack([x, y, z])

@@ -226,6 +226,14 @@ def read_reconstruction(path: str | Path, crs: Any = None, frame: str = "auto"
         function = _frame_function(chosen, *ref, out.crs)
         out.notes.append("positions and rotations to the grid through pyproj (rotations with "
                          "the meridian convergence between the frame and the grid)")
+        from toolbox.io.crs import note_transformation
+
+        lat, lon = ref[0], ref[1]
+        record = note_transformation(None, "EPSG:4326", out.crs, (lon, lat, lon, lat),
+                                     what=f"{path.name}'s positions (WGS 84)")
+        if record is not None:  # the datum change to the grid, e.g. WGS 84 -> Monte Mario: 4 m
+            out.notes.append(f"WGS 84 -> {record['to']}: {record['operation']}, accuracy "
+                             f"{record['accuracy_m']} m")
     if function is not None:
         to_grid = geodesy.frame_to_grid(function, centres)
         centres = function(centres)

@@ -147,9 +147,29 @@ def common_crs(named: dict[str, CRS | None], override: CRS | None = None) -> CRS
         if reference is None:
             reference, ref_name = crs, key
         elif not same_crs(reference, crs):
-            raise InputDataError(f"{key} is in {crs_label(crs)} but {ref_name} is in "
-                                 f"{crs_label(reference)}; reproject the inputs to one CRS first")
+            _heights_only(key, crs, ref_name, reference)
     return reference
+
+
+def _heights_only(key: str, crs: CRS, ref_name: str, reference: CRS) -> None:
+    """Two CRSs that differ: another horizontal CRS, or two different height datums, is an
+    :class:`InputDataError` saying which; the same horizontal CRS with a height datum stated
+    on one side only (``EPSG:3003+5214`` and ``EPSG:3003``) is taken as one, with a warning
+    (the "toolbox" logger's: the console and the run report show it)."""
+    from toolbox.ortho.vertical import datum_label, horizontal_part, same_datum, vertical_part
+
+    if not same_crs(horizontal_part(crs), horizontal_part(reference)):
+        raise InputDataError(f"{key} is in {crs_label(crs)} but {ref_name} is in "
+                             f"{crs_label(reference)}; reproject the inputs to one CRS first")
+    ours, theirs = vertical_part(reference), vertical_part(crs)
+    if ours is not None and theirs is not None and not same_datum(ours, theirs):
+        raise InputDataError(f"{key}'s heights are {datum_label(theirs)} but {ref_name}'s are "
+                             f"{datum_label(ours)}: convert them to one height datum first")
+    import logging
+
+    logging.getLogger("toolbox").warning(
+        f"{key}'s heights are {datum_label(theirs)}, {ref_name}'s {datum_label(ours)} (the same "
+        f"horizontal CRS): taken as the same height datum, in {crs_label(reference)}")
 
 
 def extent_bounds_in(extent: Any, crs: Any, name: str = "EXTENT") -> tuple[float, ...]:
@@ -359,3 +379,109 @@ def outside_area_of_use(crs: CRS, bounds: tuple) -> tuple[str | None, bool]:
         return None, False
     off = max(dx, dy)
     return (f"{shown} lie {off:.3g} degrees outside {where}", off > AREA_ERROR_DEG)
+
+
+# -- the datum transformation PROJ applies between two CRSs -------------------------------------
+@functools.lru_cache(maxsize=32)
+def _transformation(source_wkt: str, target_wkt: str, x: float, y: float
+                    ) -> tuple[str, float | None, tuple[tuple[str, float, tuple[str, ...]], ...]]:
+    """(description, accuracy in metres or None when PROJ knows none, better operations that
+    need missing grids ``(name, accuracy, grids)``) of the operation PROJ uses at (x, y) of the
+    source CRS: the one every reprojection here (pyproj, GDAL's warper, GeoPandas) applies."""
+    import warnings
+
+    from pyproj import Transformer
+    from pyproj.transformer import TransformerGroup
+
+    from toolbox.ortho.vertical import use_system_grids
+
+    use_system_grids()  # a system PROJ's grids (e.g. /usr/share/proj) count as installed
+    source, target = CRS.from_wkt(source_wkt), CRS.from_wkt(target_wkt)
+    transformer = Transformer.from_crs(source, target, always_xy=True)
+    description, accuracy = transformer.description, transformer.accuracy
+    if math.isfinite(x) and math.isfinite(y):
+        try:
+            transformer.transform(x, y, errcheck=True)
+            used = transformer.get_last_used_operation()
+            description, accuracy = used.description, used.accuracy
+        except Exception:  # noqa: BLE001 - a single operation (no choice), or out of its area
+            pass
+    known = None if accuracy is None or accuracy < 0 or "ballpark" in description.lower() \
+        else float(accuracy)
+    better = []
+    try:
+        with warnings.catch_warnings():  # "best transformation is not available": said below
+            warnings.simplefilter("ignore", UserWarning)
+            group = TransformerGroup(source, target, always_xy=True)
+        for op in group.unavailable_operations:
+            grids = tuple(sorted({g.short_name for g in op.grids if not g.available}))
+            if grids and op.accuracy is not None and op.accuracy >= 0 and (
+                    known is None or op.accuracy < known):
+                better.append((op.name, float(op.accuracy), grids))
+    except Exception:  # noqa: BLE001 - no list of operations: nothing better to name
+        pass
+    return description, known, tuple(sorted(better, key=lambda b: b[1]))
+
+
+def transformation_check(source: Any, target: Any, bounds: Any = None,
+                         cell_size: float | None = None, what: str = "data",
+                         tolerance_of: str = "the output cell"
+                         ) -> tuple[dict[str, Any] | None, str | None]:
+    """The datum transformation used to bring ``what`` from ``source`` to ``target`` (CRSs),
+    judged: ``(record for the report, warning text or None)``; ``(None, None)`` when the CRSs
+    are the same or either is unknown. ``bounds`` (in ``source``): where it is applied (PROJ
+    chooses by area). Warned: a transformation of unknown accuracy (a "ballpark" one that
+    ignores the datum shift: tens to hundreds of metres off), one whose accuracy is coarser
+    than ``cell_size`` (metres, the output's cell, or the tolerance ``tolerance_of`` names),
+    and a better one that needs a PROJ grid
+    not installed here (e.g. Monte Mario -> RDN2008 by the IGM grid: 0.1 m instead of 4 m)."""
+    if source is None or target is None:
+        return None, None
+    source, target = parse_crs(source), parse_crs(target)
+    if same_crs(source, target):
+        return None, None
+    x = y = math.nan
+    if bounds is not None and all(math.isfinite(float(b)) for b in bounds):
+        # the centre, to 10 km (0.1 degree): one look-up per area
+        x, y = (float(bounds[0]) + float(bounds[2])) / 2, (float(bounds[1]) + float(bounds[3])) / 2
+        step = 0.1 if source.is_geographic else 1e4
+        x, y = round(x / step) * step, round(y / step) * step
+    description, accuracy, better = _transformation(source.to_wkt(), target.to_wkt(), x, y)
+    record: dict[str, Any] = {"from": crs_label(source), "to": crs_label(target),
+                              "operation": description, "accuracy_m": accuracy}
+    problems = []
+    if accuracy is None:
+        problems.append("its accuracy is unknown (a ballpark transformation ignores the datum "
+                        "shift: positions may be off by tens to hundreds of metres)")
+    elif cell_size is not None and accuracy > float(cell_size):
+        problems.append(f"its accuracy ({accuracy:g} m) is coarser than {tolerance_of} "
+                        f"({float(cell_size):g} m)")
+    if better:
+        name, best, grids = better[0]
+        record["better_operation"] = {"operation": name, "accuracy_m": best,
+                                      "missing_grids": list(grids)}
+        problems.append(f"'{name}' ({best:g} m) needs the PROJ grid {', '.join(grids)}, not "
+                        f"installed here (projsync --file {grids[0]}, or copy it into PROJ_DATA "
+                        "or /usr/share/proj)")
+    if not problems:
+        return record, None
+    return record, (f"{what} transformed from {record['from']} to {record['to']} by "
+                    f"'{description}': " + "; ".join(problems))
+
+
+def note_transformation(feedback: Any, source: Any, target: Any, bounds: Any = None,
+                        cell_size: float | None = None, what: str = "data",
+                        tolerance_of: str = "the output cell") -> dict[str, Any] | None:
+    """:func:`transformation_check`, its warning pushed to ``feedback`` (once per text; no
+    feedback: the "toolbox" logger's, which the runner reports); the record (for the run
+    report) returned, None when no transformation is made."""
+    record, text = transformation_check(source, target, bounds, cell_size, what, tolerance_of)
+    if text is None:
+        return record
+    if feedback is None:
+        import logging
+
+        logging.getLogger("toolbox").warning(text)
+    elif ("warning", text) not in getattr(feedback, "messages", []):
+        feedback.push_warning(text)
+    return record

@@ -119,11 +119,12 @@ def centres_of(sources: list[OrthoSource], how: str, points: dict | None = None,
 def read_in_crs(layer, crs: Any, name: str):
     """A vector layer of the block in the orthos' CRS ``crs``: reprojected when it is in
     another one, taken to be in ``crs`` when it has none."""
-    from toolbox.io.crs import same_crs
+    from toolbox.io.crs import note_transformation, same_crs
     from toolbox.io.vector import read_vector
 
     frame = read_vector(layer, crs=crs, name=name)
     if crs is not None and frame.crs is not None and not same_crs(frame.crs, crs):
+        note_transformation(None, frame.crs, crs, frame.total_bounds, what=name)
         frame = frame.to_crs(crs)
     return frame
 

@@ -124,6 +124,7 @@ def rpc_orthorectify(camera: Any, image: Any, dem: Any, grid: Any, output: Any,
                              f"{image.width} x {image.height}")
     sampler = DemSampler(dem, grid.crs, options.band, options.dem_factor)
     sampler.preload(grid.bounds)
+    datums = _transformations(dem, grid, sampler, feedback)
     cmap = RpcOrthoMap(camera, grid, sampler)
     with feedback.timed("orthorectify"):
         warp = warp_to_geotiff(image.path, cmap, grid, output, options.resampling,
@@ -142,6 +143,8 @@ def rpc_orthorectify(camera: Any, image: Any, dem: Any, grid: Any, output: Any,
               "outside_photo_fraction": totals.outside_photo / cells,
               "resampling": options.resampling, "dem_factor": options.dem_factor,
               "warp": warp.as_dict()}
+    if datums:
+        report["transformations"] = datums
     if totals.outside_dem:
         feedback.push_warning(f"{totals.outside_dem} of {totals.cells} cells "
                               f"({100 * totals.outside_dem / cells:.1f} %) have no DEM height "
@@ -202,3 +205,19 @@ def gcp_pairs(image_id: str, measurements: tuple, control: tuple, single: bool =
                              f"'{image_id}'")
     return ([p[0] for p in pairs], np.array([p[1] for p in pairs]),
             np.array([p[2] for p in pairs]))
+
+
+def _transformations(dem: Any, grid: Any, sampler: Any, feedback: Any) -> list:
+    """The datum transformations of an RPC ortho: its cells to the RPCs' WGS 84 longitude and
+    latitude, the DEM's to the grid's CRS (:func:`toolbox.io.crs.note_transformation`; warned
+    when coarser than the cell, of unknown accuracy or when a better one lacks its grid)."""
+    from toolbox.io.crs import note_transformation
+
+    cell = float(min(abs(grid.cell_size[0]), abs(grid.cell_size[1])))
+    found = [note_transformation(feedback, grid.crs, "EPSG:4326", grid.bounds, cell,
+                                 "the RPC ortho's cells (to the RPCs' WGS 84)")]
+    if sampler.transformer is not None:
+        dem_cell = float(min(abs(dem.transform.a), abs(dem.transform.e)))
+        found.append(note_transformation(feedback, grid.crs, dem.crs, grid.bounds, dem_cell,
+                                         "the DEM's positions (to the ortho's CRS)"))
+    return [f for f in found if f is not None]

@@ -100,6 +100,7 @@ def orthorectify(photo: Any, image: Any, dem: Any, grid: Any, output: Any,
         options = replace(options, chunk=512 if photo.is_model and not compiled else 1024)
     sampler.preload(grid.bounds)
     to_orientation = orientation_transformer(photo, grid.crs)
+    datums = transformations(photo, dem, grid, sampler, feedback)
     if to_orientation is not None and (options.occlusion or incidence_output is not None):
         raise InputDataError("the visibility test and the incidence angles need the ortho in "
                              "the orientation's CRS")
@@ -173,8 +174,27 @@ def orthorectify(photo: Any, image: Any, dem: Any, grid: Any, output: Any,
         "expected_accuracy": expected_accuracy(map_scale),
         "warp": warp.as_dict(),
     }
+    if datums:
+        report["transformations"] = datums
     if totals.outside_dem:
         feedback.push_warning(f"photo {photo.id}: {totals.outside_dem} of {totals.cells} cells "
                               f"({100 * totals.outside_dem / cells:.1f} %) have no DEM height "
                               "and are left empty")
     return report
+
+
+def transformations(photo: Any, dem: Any, grid: Any, sampler: Any, feedback: Any) -> list:
+    """The datum transformations an ortho in another CRS than its orientation or DEM makes
+    (:func:`toolbox.io.crs.note_transformation`: which, its accuracy; warned when it is coarser
+    than the ortho's cell (the DEM's cell for the DEM), of unknown accuracy, or a better one
+    lacks its grid)."""
+    from toolbox.io.crs import note_transformation
+
+    cell = float(min(abs(grid.cell_size[0]), abs(grid.cell_size[1])))
+    found = [note_transformation(feedback, grid.crs, photo.require_exterior().crs, grid.bounds,
+                                 cell, "the ortho's cells (to the orientation's CRS)")]
+    if sampler.transformer is not None:
+        dem_cell = float(min(abs(dem.transform.a), abs(dem.transform.e)))
+        found.append(note_transformation(feedback, grid.crs, dem.crs, grid.bounds, dem_cell,
+                                         "the DEM's positions (to the ortho's CRS)"))
+    return [f for f in found if f is not None]

@@ -143,6 +143,8 @@ class HeightsNote:
                "note": self.text}
         if self.operation is not None:
             out.update(operation=self.operation, shift_m=self.shift_m)
+        if "geoid_separation_m" in self.extra:
+            out["geoid_separation_m"] = self.extra["geoid_separation_m"]
         return out
 
 
@@ -216,7 +218,17 @@ def dem_for_photos(info: Any, photos_vertical: Any, folder: Path, band: int = 1
                 f"none (give HEIGHTS to have them converted)" if photos_vertical is None else
                 f"heights used as they are: the photos' are {photos_label}, the DEM states no "
                 "datum (tag its CRS with its vertical datum to have them converted)")
-        return info, HeightsNote(dem_label, photos_label, False, text)
+        note = HeightsNote(dem_label, photos_label, False, text)
+        if (dem_vertical is None) != (photos_vertical is None):  # one side silent: warned
+            note.extra["warning"] = True
+            if is_ellipsoidal(dem_vertical) or is_ellipsoidal(photos_vertical):
+                n = geoid_separation(info.crs, *_centre(info))
+                if n is not None:
+                    note.extra["geoid_separation_m"] = round(n, 3)
+                    note.text += (f"; if the other side's heights are orthometric they differ "
+                                  f"from ellipsoidal ones by the geoid undulation, {n:.1f} m "
+                                  "here (EGM96): the ortho would be displaced accordingly")
+        return info, note
     if same_datum(dem_vertical, photos_vertical):
         return info, HeightsNote(dem_label, photos_label, False,
                                  f"DEM and photos both in {dem_label}: no conversion")
@@ -242,6 +254,39 @@ def dem_for_photos(info: Any, photos_vertical: Any, folder: Path, band: int = 1
                        f"{photos_label} ({transformer.description}; shift {low:+.3f} .. "
                        f"{high:+.3f} m)", transformer.description, [low, high])
     return open_raster_info(path, "DEM"), note
+
+
+def _centre(info: Any) -> tuple[float, float]:
+    t = info.transform
+    return t.c + t.a * info.width / 2 + t.b * info.height / 2, \
+        t.f + t.d * info.width / 2 + t.e * info.height / 2
+
+
+def geoid_separation(crs: Any, x: float, y: float) -> float | None:
+    """The EGM96 geoid undulation N (ellipsoidal minus orthometric height, metres) at (x, y) of
+    ``crs``, None when the EGM96 grid (egm96_15.gtx) is not installed or the point is not
+    placed (no CRS)."""
+    import warnings
+
+    from pyproj import Transformer
+
+    from toolbox.io.crs import parse_crs
+
+    if crs is None:
+        return None
+    try:
+        use_system_grids()
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            lon, lat = Transformer.from_crs(horizontal_part(parse_crs(crs)), "EPSG:4326",
+                                            always_xy=True).transform(x, y)
+            geoid = Transformer.from_crs("EPSG:4979", "EPSG:4326+5773", always_xy=True)
+            height = geoid.transform(lon, lat, 0.0, errcheck=True)[2]
+            if "ballpark" in geoid.get_last_used_operation().description.lower():
+                return None
+    except Exception:  # noqa: BLE001 - no grid, no place: the warning says no number
+        return None
+    return -float(height) if np.isfinite(height) and height != 0.0 else None
 
 
 def _convert(info: Any, band: int, transformer: Any, path: Path, crs: Any
@@ -290,11 +335,15 @@ def dem_in_photo_datum(dem: Any, band: int, heights: str | None, crs: Any, feedb
     """(DEM, band, note) for the ortho algorithms: the DEM in the orientation's height datum
     (``heights``, the HEIGHTS parameter, else the vertical part of the orientation's ``crs``),
     converted once into a temporary file removed on exit when the datums differ
-    (:func:`dem_for_photos`); the note is pushed as information."""
+    (:func:`dem_for_photos`); the note is pushed as information, as a warning when one side
+    states a datum and the other none (taken as the same)."""
     import tempfile
 
     photos = parse_heights(heights) or vertical_part(crs)
     with tempfile.TemporaryDirectory(prefix="toolbox-heights-") as folder:
         out, note = dem_for_photos(dem, photos, Path(folder), band)
-        feedback.push_info(note.text)
+        if note.extra.get("warning"):  # one datum stated, the other silent: taken as equal
+            feedback.push_warning(note.text)
+        else:
+            feedback.push_info(note.text)
         yield out, 1 if note.converted else band, note

@@ -18,6 +18,7 @@ from toolbox.errors import InputDataError
 from toolbox.photogrammetry.rotation import (
     angle_unit,
     angles_from_matrix,
+    check_within_turn,
     from_radians,
     rotation_matrix,
     to_radians,
@@ -70,6 +71,8 @@ class ExteriorOrientation:
         """Build from angles in ``unit`` (rad, deg, gon; aliases accepted). An unknown unit raises
         :class:`~toolbox.errors.ParameterError` naming ``name``."""
         unit = angle_unit(unit, name)
+        check_within_turn([omega, phi, kappa], unit, name,
+                          "" if f"photo {photo}" in name else f"photo {photo}")
         o, p, k = (to_radians(float(a), unit) for a in (omega, phi, kappa))
         return cls(str(photo), float(x0), float(y0), float(z0), o, p, k, crs, unit)
 

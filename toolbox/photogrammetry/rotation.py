@@ -48,6 +48,29 @@ def angle_unit(value: str, name: str = "ANGLE_UNIT") -> str:
     return ANGLE_UNITS[key]
 
 
+#: one full turn in each unit
+TURN = {"rad": 2.0 * math.pi, "deg": 360.0, "gon": 400.0}
+
+
+def check_within_turn(values, unit: str, name: str = "ANGLE_UNIT", where: str = "") -> None:
+    """:class:`ParameterError` naming ``name`` (what set the unit) when an angle read in
+    ``unit`` lies beyond a full turn: no orientation software writes one, so the numbers are in
+    another unit (gon read as degrees: 385 gon would become 25 deg instead of 346.5 deg, in
+    silence; degrees read as radians). ``where``: the file or row, for the message."""
+    unit = angle_unit(unit, name)
+    values = np.abs(np.asarray(values, dtype="float64"))
+    values = values[np.isfinite(values)]
+    if not values.size or values.max() <= TURN[unit] * (1 + 1e-9):
+        return
+    worst = float(values.max())
+    likely = next((u for u in ("deg", "gon") if TURN[u] > TURN[unit] and worst <= TURN[u]),
+                  None)
+    raise ParameterError(name, f"is {unit}, but {where + ' has ' if where else ''}an angle of "
+                         f"{worst:g}, beyond a full turn ({TURN[unit]:g} {unit}): the angles are "
+                         f"not in {unit}" + (f" (in {likely}?)" if likely else "") +
+                         "; state their unit")
+
+
 def to_radians(values, unit: str, name: str = "ANGLE_UNIT"):
     """Angles in ``unit`` converted to radians (a float for a scalar, else an array)."""
     converted = np.asarray(values, dtype="float64") * _TO_RADIANS[angle_unit(unit, name)]

@@ -217,7 +217,10 @@ def test_camera_and_exterior_with_tens_of_degrees_warn(block, tmp_path):
                                 "OUTPUT": tmp_path / "c2.tif"})
     with rasterio.open(tmp_path / "c.tif") as a, rasterio.open(tmp_path / "c2.tif") as b:
         assert np.abs(a.read().astype(int) - b.read().astype(int)).max() <= 1
-    tilted = ",".join(map(repr, [*scene.CENTRE, 20.0, 1.0, 20.0]))
+    # 20 rad (degrees' numbers) as the same rotation within a turn: beyond a full turn an
+    # angle is refused (round 16, datums), 20 - 6 pi = 1.150 rad is not
+    turn = 20.0 - 6 * np.pi
+    tilted = ",".join(map(repr, [*scene.CENTRE, turn, 1.0, turn]))
     feedback = toolbox.Feedback()
     # so tilted the frame sees the horizon: an oblique ortho, its grid cut to the DEM, and the
     # warning that the angles look read in the wrong unit
