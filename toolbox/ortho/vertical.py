@@ -14,7 +14,6 @@ geoid) is never used.
 
 from __future__ import annotations
 
-import os
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
@@ -24,48 +23,20 @@ from typing import Any
 import numpy as np
 
 from toolbox.errors import InputDataError, ParameterError
+from toolbox.io.crs import (  # noqa: F401 - the height datums' CRS helpers, also here
+    ELLIPSOIDAL,
+    SYSTEM_GRID_DIRS,
+    datum_label,
+    horizontal_part,
+    is_ellipsoidal,
+    same_datum,
+    use_system_grids,
+    vertical_part,
+)
 from toolbox.io.raster import read_filled
 
-ELLIPSOIDAL = "ellipsoidal"
-#: folders holding PROJ grids besides pyproj's own (a system PROJ's data: egm96_15.gtx...)
-SYSTEM_GRID_DIRS = ("/usr/share/proj", "/usr/local/share/proj")
 SHIFT_TOLERANCE_M = 1e-3
 ROWS_PER_BLOCK = 512
-
-
-def vertical_part(crs: Any) -> Any:
-    """The vertical part of a CRS: a vertical pyproj CRS (compound CRS), :data:`ELLIPSOIDAL`
-    (a 3D geographic or projected CRS) or None (a 2D CRS names no height datum)."""
-    if crs is None:
-        return None
-    from toolbox.io.crs import parse_crs
-
-    crs = parse_crs(crs)
-    if crs.is_compound:
-        vertical = [c for c in crs.sub_crs_list if c.is_vertical]
-        return vertical[0] if vertical else None
-    if crs.is_vertical:
-        return crs
-    if len(crs.axis_info) == 3 and "ellipsoidal" in crs.axis_info[2].name.lower():
-        return ELLIPSOIDAL
-    return None
-
-
-def is_ellipsoidal(vertical: Any) -> bool:
-    """Whether :func:`vertical_part`'s answer is :data:`ELLIPSOIDAL` (a pyproj CRS compared
-    with a string parses it as a CRS: a PROJ database search of 0.2-0.4 s CPU, for False)."""
-    return isinstance(vertical, str) and vertical == ELLIPSOIDAL
-
-
-def horizontal_part(crs: Any) -> Any:
-    from toolbox.io.crs import parse_crs
-
-    crs = parse_crs(crs)
-    if crs.is_compound:
-        return crs.sub_crs_list[0]
-    if len(crs.axis_info) == 3:
-        return crs.to_2d()
-    return crs
 
 
 def project_raster_crs(project_crs: Any, raster_crs: Any, name: str = "DEM",
@@ -106,26 +77,6 @@ def parse_heights(value: Any, name: str = "HEIGHTS") -> Any:
     return vertical
 
 
-def datum_label(vertical: Any) -> str:
-    if vertical is None:
-        return "not stated"
-    if is_ellipsoidal(vertical):
-        return "ellipsoidal heights"
-    from toolbox.io.crs import crs_label
-
-    label = crs_label(vertical)
-    return vertical.name if label == vertical.name else f"{vertical.name} ({label})"
-
-
-def same_datum(a: Any, b: Any) -> bool:
-    if isinstance(a, str) or isinstance(b, str):
-        return a == b
-    from toolbox.io.crs import same_crs
-
-    return same_crs(a, b) or (a.datum is not None and b.datum is not None
-                              and a.datum.name == b.datum.name)
-
-
 @dataclass
 class HeightsNote:
     """What was done with the DEM's heights (the run report's ``heights``)."""
@@ -146,16 +97,6 @@ class HeightsNote:
         if "geoid_separation_m" in self.extra:
             out["geoid_separation_m"] = self.extra["geoid_separation_m"]
         return out
-
-
-def use_system_grids() -> None:
-    """Let pyproj find the PROJ grids of a system PROJ (its wheel ships none)."""
-    import pyproj.datadir
-
-    known = os.pathsep.join([pyproj.datadir.get_data_dir(), os.environ.get("PROJ_DATA", "")])
-    for folder in SYSTEM_GRID_DIRS:
-        if Path(folder).is_dir() and folder not in known:
-            pyproj.datadir.append_data_dir(folder)
 
 
 def height_transformer(source: Any, target: Any, dem_label: str, photos_label: str) -> Any:
