@@ -1,0 +1,82 @@
+"""Round 16, files: open files, concurrent runs and file names at the staging/commit layer.
+
+Each test failed before its fix: an input rewritten during a run gave an output mixing both
+versions (exit 0); two runs committing the same Shapefile at once left the ``.shp`` of one with
+the ``.shx``/``.dbf`` of the other (exit 0, a corrupt file); a valid 233-255-byte output name
+was refused as "file name too long" (the staging folder's name was longer than the file's).
+"""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+import pytest
+import rasterio
+from rasterio.transform import from_origin
+
+import toolbox
+from toolbox.errors import ParameterError
+from toolbox.feedback import Feedback
+
+
+def _dem(path, slope=1.0, n=64):
+    x, y = np.meshgrid(np.arange(n), np.arange(n))
+    z = (100 + slope * (0.5 * x + 0.2 * y) + 10 * np.sin(x / 7.0)).astype("float32")
+    with rasterio.open(path, "w", driver="GTiff", width=n, height=n, count=1, dtype="float32",
+                       crs="EPSG:32632", transform=from_origin(500000, 5000640, 10, 10),
+                       nodata=-9999) as dst:
+        dst.write(z, 1)
+    return z
+
+
+# -- 1. an input written by another program during the run: refused, nothing written -----------
+def _run_changing_input(tmp_path, change):
+    dem = tmp_path / "dem.tif"
+    _dem(dem)
+    done = []
+
+    def progress(percent, message):
+        if percent > 40 and not done:
+            done.append(True)
+            change(dem)
+
+    params = {"INPUT": str(dem), "OUTPUT": str(tmp_path / "hs.tif"), "TILE_SIZE": 16,
+              "OVERVIEWS": False}
+    try:
+        return toolbox.run("dem:hillshade", params, feedback=Feedback(progress))
+    finally:
+        assert done  # the change did happen during the run
+
+
+def _edit_in_place(dem):
+    new = dem.with_name("new.tif")
+    values = _dem(new, slope=5.0)
+    with rasterio.open(dem, "r+") as dst:  # QGIS' raster editing, gdal_fillnodata in place...
+        dst.write(values, 1)
+
+
+def test_input_written_in_place_during_the_run_is_refused(tmp_path):
+    with pytest.raises(ParameterError, match=r"^INPUT .*dem\.tif' was written by another "
+                       "program while the run read it"):
+        _run_changing_input(tmp_path, _edit_in_place)
+    assert not (tmp_path / "hs.tif").exists()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["dem.tif", "new.tif"]  # no staging
+
+
+def test_input_replaced_during_the_run_is_refused(tmp_path):
+    def replace(dem):
+        _dem(dem.with_name("new.tif"), slope=5.0)
+        os.replace(dem.with_name("new.tif"), dem)
+
+    with pytest.raises(ParameterError, match="^INPUT .* while the run read it"):
+        _run_changing_input(tmp_path, replace)
+    assert not (tmp_path / "hs.tif").exists()
+
+
+def test_a_pam_file_gdal_writes_beside_an_input_is_no_change(tmp_path):
+    def statistics(dem):  # GDAL writes dem.tif.aux.xml itself (statistics, QGIS' histogram)
+        dem.with_name("dem.tif.aux.xml").write_text("<PAMDataset/>\n")
+
+    out = _run_changing_input(tmp_path, statistics)
+    assert os.path.isfile(out["OUTPUT"])
