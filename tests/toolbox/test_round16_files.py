@@ -18,6 +18,7 @@ from rasterio.transform import from_origin
 import toolbox
 from toolbox.errors import ParameterError
 from toolbox.feedback import Feedback
+from toolbox.io.staging import OutputStaging, final_folder, stale_staging_folders
 
 
 def _dem(path, slope=1.0, n=64):
@@ -80,3 +81,26 @@ def test_a_pam_file_gdal_writes_beside_an_input_is_no_change(tmp_path):
 
     out = _run_changing_input(tmp_path, statistics)
     assert os.path.isfile(out["OUTPUT"])
+
+
+# -- 3. a long but valid output name (its staging folder's name would be longer) ----------------
+@pytest.mark.parametrize("stem", ["b" * 246, "é" * 123])  # 250-byte names
+def test_output_name_of_250_bytes_is_written(tmp_path, stem):
+    _dem(tmp_path / "dem.tif")
+    out = tmp_path / f"{stem}.tif"
+    result = toolbox.run("dem:hillshade", {"INPUT": str(tmp_path / "dem.tif"),
+                                           "OUTPUT": str(out)})
+    assert result["OUTPUT"] == str(out) and out.is_file()
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(["dem.tif", out.name])
+
+
+def test_long_name_staging_folders_are_found_again(tmp_path):
+    final = tmp_path / ("é" * 123 + ".tif")
+    staging = OutputStaging()
+    staged = staging.stage(final)
+    assert len(os.fsencode(staged.parent.name)) <= 255
+    assert final_folder(staged) == tmp_path
+    dead = staged.parent.name.replace(f".{os.getpid()}.", ".4194305.")  # above pid_max
+    os.rename(staged.parent, tmp_path / dead)
+    assert [p.name for p in stale_staging_folders(final)] == [dead]
+    staging.rollback()

@@ -164,9 +164,43 @@ def _pid_alive(pid: int) -> bool:
     return True
 
 
+#: bytes of a staging folder's name besides the final name: ".", ".PID" (7 digits at most),
+#: "." + mkdtemp's 8 random characters, ".part"
+_STAGING_EXTRA = 1 + 8 + 9 + 5
+_NAME_MAX = 255  # bytes of one path component on every common filesystem
+
+
+def staging_name(name: str) -> str:
+    """The part of a staging folder's name naming the final file ``name``: ``name`` itself, or
+    its head when the folder's name would pass the 255-byte limit of a file name (a final name
+    of 233 to 255 bytes is a valid name, so its staging folder must be one too)."""
+    raw = os.fsencode(name)
+    limit = _NAME_MAX - _STAGING_EXTRA
+    if len(raw) <= limit:
+        return name
+    head = raw[:limit]
+    while head:  # cut at a character boundary
+        try:
+            head.decode("utf-8")
+            break
+        except UnicodeDecodeError:
+            head = head[:-1]
+    return os.fsdecode(head)
+
+
+def _staging_pattern(name: str) -> re.Pattern:
+    return re.compile(r"^\." + re.escape(staging_name(name)) + r"\.(\d+)\.[^.]+\.part$")
+
+
+def _mkdtemp(final: Path, folder: Path) -> Path:
+    """A new staging folder for ``final`` in ``folder`` (:func:`staging_name`)."""
+    return Path(tempfile.mkdtemp(prefix=f".{staging_name(final.name)}.{os.getpid()}.",
+                                 suffix=".part", dir=folder))
+
+
 def stale_staging_folders(final: Path) -> list[Path]:
     """Staging folders beside ``final`` left by runs whose process is gone."""
-    pattern = re.compile(r"^\." + re.escape(final.name) + r"\.(\d+)\.[^.]+\.part$")
+    pattern = _staging_pattern(final.name)
     try:
         entries = list(final.parent.iterdir())
     except OSError:
@@ -183,7 +217,7 @@ def final_folder(path: str | Path) -> Path:
     """The folder an output lands in: the parent of a staged file's staging folder, else the
     file's own folder (for names written relative to the output)."""
     path = Path(path).absolute()
-    staging = re.compile(r"^\." + re.escape(path.name) + r"\.\d+\.[^.]+\.part$")
+    staging = _staging_pattern(path.name)
     return path.parent.parent if staging.match(path.parent.name) else path.parent
 
 
@@ -285,8 +319,7 @@ class OutputStaging:
             shutil.rmtree(folder, ignore_errors=True)
             self.removed_stale.append(folder)
         try:
-            folder = Path(tempfile.mkdtemp(prefix=f".{final.name}.{os.getpid()}.",
-                                           suffix=".part", dir=final.parent))
+            folder = _mkdtemp(final, final.parent)
         except OSError as exc:
             raise write_error(exc, name, final) from None
         self._folders.append(folder)
@@ -415,8 +448,7 @@ class OutputStaging:
                                      "close it there and run again")
         try:  # hard links to the files a commit replaces, to restore them if it fails
             first = next(iter(self._staged))  # named like a staging folder: cleaned if killed
-            backups = Path(tempfile.mkdtemp(prefix=f".{first.name}.{os.getpid()}.",
-                                            suffix=".part", dir=self._folders[0].parent))
+            backups = _mkdtemp(first, self._folders[0].parent)
             self._folders.append(backups)
         except (OSError, IndexError, StopIteration):
             backups = None
