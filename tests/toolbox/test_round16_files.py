@@ -8,7 +8,10 @@ was refused as "file name too long" (the staging folder's name was longer than t
 
 from __future__ import annotations
 
+import fcntl
 import os
+import threading
+import time
 
 import numpy as np
 import pytest
@@ -16,6 +19,7 @@ import rasterio
 from rasterio.transform import from_origin
 
 import toolbox
+import toolbox.io.staging as staging_mod
 from toolbox.errors import ParameterError
 from toolbox.feedback import Feedback
 from toolbox.io.staging import OutputStaging, final_folder, stale_staging_folders
@@ -81,6 +85,53 @@ def test_a_pam_file_gdal_writes_beside_an_input_is_no_change(tmp_path):
 
     out = _run_changing_input(tmp_path, statistics)
     assert os.path.isfile(out["OUTPUT"])
+
+
+# -- 2. two runs committing the same files at once: one's files, never a mix --------------------
+def _stage(folder, letter):
+    staging = OutputStaging()
+    shp = staging.stage(folder / "c.shp")
+    for suffix in (".shp", ".shx", ".dbf"):
+        shp.with_suffix(suffix).write_text(letter)
+    return staging
+
+
+def test_concurrent_commits_of_the_same_shapefile_do_not_interleave(tmp_path, monkeypatch):
+    for suffix in (".shp", ".shx", ".dbf"):
+        (tmp_path / f"c{suffix}").write_text("old")
+    a, b = _stage(tmp_path, "A"), _stage(tmp_path, "B")
+    a_moving = threading.Event()
+    backup = staging_mod._backup
+
+    def slow_backup(target, folder, key):  # a slow share: A's commit takes a while
+        if threading.current_thread().name == "A" and key == 1:
+            a_moving.set()
+            time.sleep(0.5)
+        return backup(target, folder, key)
+
+    monkeypatch.setattr(staging_mod, "_backup", slow_backup)
+    thread = threading.Thread(target=a.commit, name="A")
+    thread.start()
+    assert a_moving.wait(5)
+    b.commit()  # B waits for A's commit to end, then replaces all of A's files
+    thread.join()
+    contents = {p.suffix: p.read_text() for p in tmp_path.iterdir() if p.is_file()}
+    assert contents == {".shp": "B", ".shx": "B", ".dbf": "B"}
+    assert not [p for p in tmp_path.iterdir() if p.is_dir()]
+
+
+def test_a_commit_held_up_too_long_is_refused_naming_the_folder(tmp_path, monkeypatch):
+    monkeypatch.setattr(staging_mod, "COMMIT_WAIT", 0.2)
+    staging = _stage(tmp_path, "A")
+    fd = os.open(tmp_path, os.O_RDONLY)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX)  # another run's commit into the folder
+        with pytest.raises(ParameterError, match="^OUTPUT another run .* into '.*' for 0 s"):
+            staging.commit()
+    finally:
+        os.close(fd)
+        staging.rollback()
+    assert [p.name for p in tmp_path.iterdir()] == []
 
 
 # -- 3. a long but valid output name (its staging folder's name would be longer) ----------------

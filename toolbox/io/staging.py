@@ -13,7 +13,8 @@ An output *folder* is staged whole (``.FOLDER.PID.RANDOM.part/FOLDER``): on succ
 holds is moved into the final folder one by one, with the same checks as a file output (never
 onto an input, an existing file only with ``overwrite``); other files of the final folder are left
 alone. A commit that fails midway undoes the moves done so far (replaced files are restored), so
-a run writes all of its files or none.
+a run writes all of its files or none. Commits into one folder take turns (an ``flock`` on the
+folder), so two runs writing the same files leave one run's files, never a mix of both.
 
 Every file moved is a dataset (a GeoTIFF, a ``.shp``, a per-layer ``<stem>_<layer>.shp``) or a
 file GDAL reads with one (:func:`dataset_files`: ``.aux.xml``, ``-wal``, a Shapefile's
@@ -32,10 +33,16 @@ import shutil
 import signal
 import tempfile
 import threading
+import time
 from contextlib import contextmanager
 from pathlib import Path
 
 from toolbox.errors import OutputExistsError, OutputWriteError, ParameterError
+
+try:
+    import fcntl
+except ImportError:  # Windows: no flock (commits into one folder are then not serialised)
+    fcntl = None
 
 SQLITE_JOURNALS = ("-wal", "-shm", "-journal")  # a GeoPackage's, while SQLite has it open
 # files GDAL/OGR keep beside a dataset, named after its whole name (a.tif.aux.xml, x.gpkg-wal)
@@ -268,6 +275,44 @@ def open_elsewhere(paths: list[Path]) -> bool:
     return False
 
 
+COMMIT_WAIT = 120.0  # seconds a commit waits for another run's commit into the same folder
+
+
+@contextmanager
+def _folders_locked(folders: list[Path], name: str):
+    """An exclusive ``flock`` on each of ``folders`` for the block: the commit of another run
+    (another process, or another thread: each lock is its own open file) into one of them
+    waits, so two runs writing the same files never interleave their moves (the ``.shp`` of
+    one with the ``.dbf`` and ``.shx`` of the other). The folders are locked in sorted order
+    (no deadlock); one that cannot be locked (no flock there) is skipped; one held longer than
+    :data:`COMMIT_WAIT` is refused. Nothing is created in the folders."""
+    fds: list[int] = []
+    try:
+        for folder in sorted(set(folders)) if fcntl is not None else []:
+            try:
+                fd = os.open(folder, os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))
+            except OSError:
+                continue
+            fds.append(fd)
+            deadline = time.monotonic() + COMMIT_WAIT
+            while True:
+                try:
+                    fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                    break
+                except BlockingIOError:
+                    if time.monotonic() > deadline:
+                        raise ParameterError(name, f"another run has been moving its files into "
+                                             f"'{folder}' for {COMMIT_WAIT:.0f} s: run again "
+                                             "when it is done") from None
+                    time.sleep(0.02)
+                except OSError:  # a filesystem without flock
+                    break
+        yield
+    finally:
+        for fd in fds:
+            os.close(fd)  # releases its lock
+
+
 def write_error(exc: BaseException, name: str, path: Path | str) -> OutputWriteError:
     """A one-line error for a failed write of output ``name`` at ``path``."""
     code = getattr(exc, "errno", None)
@@ -403,8 +448,11 @@ class OutputStaging:
         open in another program. A failure midway undoes the moves done (a replaced file is
         restored), so the run writes all of its files or none.
         """
-        with _signals_held():  # a signal meanwhile is raised once the files are in place
-            written = self._commit(overwrite, protected or set())
+        folders = [final.parent for final in self._staged] + [
+            final for final in self._is_folder if final.is_dir()]
+        name = next(iter(self._names.values()), "OUTPUT")
+        with _folders_locked(folders, name), _signals_held():  # a signal meanwhile is raised
+            written = self._commit(overwrite, protected or set())  # once the files are in place
             if self._record:
                 COMMITTED.extend(written)
         return written
