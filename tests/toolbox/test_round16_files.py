@@ -8,10 +8,13 @@ was refused as "file name too long" (the staging folder's name was longer than t
 
 from __future__ import annotations
 
+import errno
 import fcntl
 import os
+import tempfile
 import threading
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -155,3 +158,25 @@ def test_long_name_staging_folders_are_found_again(tmp_path):
     os.rename(staged.parent, tmp_path / dead)
     assert [p.name for p in stale_staging_folders(final)] == [dead]
     staging.rollback()
+
+
+# -- 4. an existing, writable output folder in a read-only folder (a share) ---------------------
+def test_folder_output_whose_parent_is_read_only_is_staged_inside_it(tmp_path, monkeypatch):
+    _dem(tmp_path / "dem.tif")
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "notes.txt").write_text("mine")
+    mkdtemp = tempfile.mkdtemp
+
+    def read_only_parent(*args, dir=None, **kwargs):  # EROFS there, as on a read-only share
+        if dir is not None and Path(dir) == tmp_path:
+            raise OSError(errno.EROFS, "Read-only file system", str(dir))
+        return mkdtemp(*args, dir=dir, **kwargs)
+
+    monkeypatch.setattr(tempfile, "mkdtemp", read_only_parent)
+    toolbox.run("mosaic:cut", {"INPUT": str(tmp_path / "dem.tif"), "SCALE": 1000,
+                               "SHEET_WIDTH": 30, "SHEET_HEIGHT": 30, "OUTPUT": str(out)})
+    names = sorted(p.name for p in out.iterdir())
+    assert "notes.txt" in names and "sheets.gpkg" in names
+    assert len([n for n in names if n.endswith(".tif")]) >= 4  # 640 m square, 300 m sheets
+    assert not [n for n in names if n.startswith(".")]  # no staging folder left in it

@@ -12,9 +12,11 @@ program can catch), the next run to the same path removes the folders of process
 An output *folder* is staged whole (``.FOLDER.PID.RANDOM.part/FOLDER``): on success each file it
 holds is moved into the final folder one by one, with the same checks as a file output (never
 onto an input, an existing file only with ``overwrite``); other files of the final folder are left
-alone. A commit that fails midway undoes the moves done so far (replaced files are restored), so
-a run writes all of its files or none. Commits into one folder take turns (an ``flock`` on the
-folder), so two runs writing the same files leave one run's files, never a mix of both.
+alone (an existing output folder in a folder the run may not write to is staged inside itself:
+``FOLDER/.FOLDER.PID.RANDOM.part/FOLDER``). A commit that fails midway undoes the moves done so
+far (replaced files are restored), so a run writes all of its files or none. Commits into one
+folder take turns (an ``flock`` on the folder), so two runs writing the same files leave one
+run's files, never a mix of both.
 
 Every file moved is a dataset (a GeoTIFF, a ``.shp``, a per-layer ``<stem>_<layer>.shp``) or a
 file GDAL reads with one (:func:`dataset_files`: ``.aux.xml``, ``-wal``, a Shapefile's
@@ -206,12 +208,15 @@ def _mkdtemp(final: Path, folder: Path) -> Path:
 
 
 def stale_staging_folders(final: Path) -> list[Path]:
-    """Staging folders beside ``final`` left by runs whose process is gone."""
+    """Staging folders beside ``final`` (or in it: an output folder whose parent is read-only)
+    left by runs whose process is gone."""
     pattern = _staging_pattern(final.name)
-    try:
-        entries = list(final.parent.iterdir())
-    except OSError:
-        return []
+    entries = []
+    for folder in (final.parent, final):
+        try:
+            entries += list(folder.iterdir()) if folder.is_dir() else []
+        except OSError:
+            continue
     stale = []
     for entry in entries:
         match = pattern.match(entry.name)
@@ -357,7 +362,7 @@ class OutputStaging:
                 Path(p).expanduser().absolute() for p in siblings]
         return staged
 
-    def _stage(self, final: str | Path, name: str) -> Path:
+    def _stage(self, final: str | Path, name: str, folder_output: bool = False) -> Path:
         final = Path(final).expanduser().absolute()
         self._make_parent(final.parent, name)
         for folder in stale_staging_folders(final):
@@ -366,7 +371,13 @@ class OutputStaging:
         try:
             folder = _mkdtemp(final, final.parent)
         except OSError as exc:
-            raise write_error(exc, name, final) from None
+            if not (folder_output and exc.errno in (errno.EACCES, errno.EPERM, errno.EROFS)
+                    and final.is_dir() and not final.is_symlink()):
+                raise write_error(exc, name, final) from None
+            try:  # an existing output folder one may write to, in a folder one may not
+                folder = _mkdtemp(final, final)
+            except OSError as inner:
+                raise write_error(inner, name, final) from None
         self._folders.append(folder)
         staged = folder / final.name
         self._staged[final] = staged
@@ -376,7 +387,8 @@ class OutputStaging:
 
     def stage_folder(self, final: str | Path, name: str = "OUTPUT") -> Path:
         """A staged, empty folder standing for output folder ``final``."""
-        staged = self.stage(final, name)
+        with _signals_held():
+            staged = self._stage(final, name, folder_output=True)
         try:
             staged.mkdir()
         except OSError as exc:
