@@ -192,9 +192,10 @@ def check_outputs_against_inputs(alg_cls: type[Algorithm], values: dict[str, Any
                                  "output path")
 
 
-#: input files GDAL or SQLite may write themselves while a run reads (statistics into a PAM
-#: file, overviews QGIS builds, a reader's journals): not watched by :func:`input_stamps`
-_SELF_WRITTEN = tuple(s for s in SIDECAR_SUFFIXES if s != ".msk")
+#: input files GDAL, QGIS or SQLite may write themselves while a run reads, the data staying the
+#: same (statistics into a PAM file, overviews or a spatial index QGIS builds, its metadata, a
+#: reader's journals): not watched by :func:`input_stamps`
+_SELF_WRITTEN = (*(s for s in SIDECAR_SUFFIXES if s != ".msk"), ".qix", ".sbn", ".sbx", ".qmd")
 
 
 def input_stamps(inputs: dict[Path, str]) -> dict[Path, tuple[int, int, int]]:
