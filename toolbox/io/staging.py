@@ -12,8 +12,11 @@ program can catch), the next run to the same path removes the folders of process
 An output *folder* is staged whole (``.FOLDER.PID.RANDOM.part/FOLDER``): on success each file it
 holds is moved into the final folder one by one, with the same checks as a file output (never
 onto an input, an existing file only with ``overwrite``); other files of the final folder are left
-alone. A commit that fails midway undoes the moves done so far (replaced files are restored), so
-a run writes all of its files or none.
+alone (an existing output folder in a folder the run may not write to is staged inside itself:
+``FOLDER/.FOLDER.PID.RANDOM.part/FOLDER``). A commit that fails midway undoes the moves done so
+far (replaced files are restored), so a run writes all of its files or none. Commits into one
+folder take turns (an ``flock`` on the folder), so two runs writing the same files leave one
+run's files, never a mix of both.
 
 Every file moved is a dataset (a GeoTIFF, a ``.shp``, a per-layer ``<stem>_<layer>.shp``) or a
 file GDAL reads with one (:func:`dataset_files`: ``.aux.xml``, ``-wal``, a Shapefile's
@@ -32,10 +35,16 @@ import shutil
 import signal
 import tempfile
 import threading
+import time
 from contextlib import contextmanager
 from pathlib import Path
 
 from toolbox.errors import OutputExistsError, OutputWriteError, ParameterError
+
+try:
+    import fcntl
+except ImportError:  # Windows: no flock (commits into one folder are then not serialised)
+    fcntl = None
 
 SQLITE_JOURNALS = ("-wal", "-shm", "-journal")  # a GeoPackage's, while SQLite has it open
 # files GDAL/OGR keep beside a dataset, named after its whole name (a.tif.aux.xml, x.gpkg-wal)
@@ -164,13 +173,50 @@ def _pid_alive(pid: int) -> bool:
     return True
 
 
+#: bytes of a staging folder's name besides the final name: ".", ".PID" (7 digits at most),
+#: "." + mkdtemp's 8 random characters, ".part"
+_STAGING_EXTRA = 1 + 8 + 9 + 5
+_NAME_MAX = 255  # bytes of one path component on every common filesystem
+
+
+def staging_name(name: str) -> str:
+    """The part of a staging folder's name naming the final file ``name``: ``name`` itself, or
+    its head when the folder's name would pass the 255-byte limit of a file name (a final name
+    of 233 to 255 bytes is a valid name, so its staging folder must be one too)."""
+    raw = os.fsencode(name)
+    limit = _NAME_MAX - _STAGING_EXTRA
+    if len(raw) <= limit:
+        return name
+    head = raw[:limit]
+    while head:  # cut at a character boundary
+        try:
+            head.decode("utf-8")
+            break
+        except UnicodeDecodeError:
+            head = head[:-1]
+    return os.fsdecode(head)
+
+
+def _staging_pattern(name: str) -> re.Pattern:
+    return re.compile(r"^\." + re.escape(staging_name(name)) + r"\.(\d+)\.[^.]+\.part$")
+
+
+def _mkdtemp(final: Path, folder: Path) -> Path:
+    """A new staging folder for ``final`` in ``folder`` (:func:`staging_name`)."""
+    return Path(tempfile.mkdtemp(prefix=f".{staging_name(final.name)}.{os.getpid()}.",
+                                 suffix=".part", dir=folder))
+
+
 def stale_staging_folders(final: Path) -> list[Path]:
-    """Staging folders beside ``final`` left by runs whose process is gone."""
-    pattern = re.compile(r"^\." + re.escape(final.name) + r"\.(\d+)\.[^.]+\.part$")
-    try:
-        entries = list(final.parent.iterdir())
-    except OSError:
-        return []
+    """Staging folders beside ``final`` (or in it: an output folder whose parent is read-only)
+    left by runs whose process is gone."""
+    pattern = _staging_pattern(final.name)
+    entries = []
+    for folder in (final.parent, final):
+        try:
+            entries += list(folder.iterdir()) if folder.is_dir() else []
+        except OSError:
+            continue
     stale = []
     for entry in entries:
         match = pattern.match(entry.name)
@@ -183,7 +229,7 @@ def final_folder(path: str | Path) -> Path:
     """The folder an output lands in: the parent of a staged file's staging folder, else the
     file's own folder (for names written relative to the output)."""
     path = Path(path).absolute()
-    staging = re.compile(r"^\." + re.escape(path.name) + r"\.\d+\.[^.]+\.part$")
+    staging = _staging_pattern(path.name)
     return path.parent.parent if staging.match(path.parent.name) else path.parent
 
 
@@ -234,6 +280,44 @@ def open_elsewhere(paths: list[Path]) -> bool:
     return False
 
 
+COMMIT_WAIT = 120.0  # seconds a commit waits for another run's commit into the same folder
+
+
+@contextmanager
+def _folders_locked(folders: list[Path], name: str):
+    """An exclusive ``flock`` on each of ``folders`` for the block: the commit of another run
+    (another process, or another thread: each lock is its own open file) into one of them
+    waits, so two runs writing the same files never interleave their moves (the ``.shp`` of
+    one with the ``.dbf`` and ``.shx`` of the other). The folders are locked in sorted order
+    (no deadlock); one that cannot be locked (no flock there) is skipped; one held longer than
+    :data:`COMMIT_WAIT` is refused. Nothing is created in the folders."""
+    fds: list[int] = []
+    try:
+        for folder in sorted(set(folders)) if fcntl is not None else []:
+            try:
+                fd = os.open(folder, os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))
+            except OSError:
+                continue
+            fds.append(fd)
+            deadline = time.monotonic() + COMMIT_WAIT
+            while True:
+                try:
+                    fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                    break
+                except BlockingIOError:
+                    if time.monotonic() > deadline:
+                        raise ParameterError(name, f"another run has been moving its files into "
+                                             f"'{folder}' for {COMMIT_WAIT:.0f} s: run again "
+                                             "when it is done") from None
+                    time.sleep(0.02)
+                except OSError:  # a filesystem without flock
+                    break
+        yield
+    finally:
+        for fd in fds:
+            os.close(fd)  # releases its lock
+
+
 def write_error(exc: BaseException, name: str, path: Path | str) -> OutputWriteError:
     """A one-line error for a failed write of output ``name`` at ``path``."""
     code = getattr(exc, "errno", None)
@@ -278,17 +362,22 @@ class OutputStaging:
                 Path(p).expanduser().absolute() for p in siblings]
         return staged
 
-    def _stage(self, final: str | Path, name: str) -> Path:
+    def _stage(self, final: str | Path, name: str, folder_output: bool = False) -> Path:
         final = Path(final).expanduser().absolute()
         self._make_parent(final.parent, name)
         for folder in stale_staging_folders(final):
             shutil.rmtree(folder, ignore_errors=True)
             self.removed_stale.append(folder)
         try:
-            folder = Path(tempfile.mkdtemp(prefix=f".{final.name}.{os.getpid()}.",
-                                           suffix=".part", dir=final.parent))
+            folder = _mkdtemp(final, final.parent)
         except OSError as exc:
-            raise write_error(exc, name, final) from None
+            if not (folder_output and exc.errno in (errno.EACCES, errno.EPERM, errno.EROFS)
+                    and final.is_dir() and not final.is_symlink()):
+                raise write_error(exc, name, final) from None
+            try:  # an existing output folder one may write to, in a folder one may not
+                folder = _mkdtemp(final, final)
+            except OSError as inner:
+                raise write_error(inner, name, final) from None
         self._folders.append(folder)
         staged = folder / final.name
         self._staged[final] = staged
@@ -298,7 +387,8 @@ class OutputStaging:
 
     def stage_folder(self, final: str | Path, name: str = "OUTPUT") -> Path:
         """A staged, empty folder standing for output folder ``final``."""
-        staged = self.stage(final, name)
+        with _signals_held():
+            staged = self._stage(final, name, folder_output=True)
         try:
             staged.mkdir()
         except OSError as exc:
@@ -370,8 +460,11 @@ class OutputStaging:
         open in another program. A failure midway undoes the moves done (a replaced file is
         restored), so the run writes all of its files or none.
         """
-        with _signals_held():  # a signal meanwhile is raised once the files are in place
-            written = self._commit(overwrite, protected or set())
+        folders = [final.parent for final in self._staged] + [
+            final for final in self._is_folder if final.is_dir()]
+        name = next(iter(self._names.values()), "OUTPUT")
+        with _folders_locked(folders, name), _signals_held():  # a signal meanwhile is raised
+            written = self._commit(overwrite, protected or set())  # once the files are in place
             if self._record:
                 COMMITTED.extend(written)
         return written
@@ -415,8 +508,7 @@ class OutputStaging:
                                      "close it there and run again")
         try:  # hard links to the files a commit replaces, to restore them if it fails
             first = next(iter(self._staged))  # named like a staging folder: cleaned if killed
-            backups = Path(tempfile.mkdtemp(prefix=f".{first.name}.{os.getpid()}.",
-                                            suffix=".part", dir=self._folders[0].parent))
+            backups = _mkdtemp(first, self._folders[0].parent)
             self._folders.append(backups)
         except (OSError, IndexError, StopIteration):
             backups = None

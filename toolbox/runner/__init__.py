@@ -42,11 +42,13 @@ from toolbox.runner.failures import (
 )
 from toolbox.runner.paths import (  # noqa: F401 - input_paths, planned_paths: public here too
     REPORT,
+    check_inputs_unchanged,
     check_outputs_against_inputs,
     check_planned_files,
     check_report,
     declared_layer_files,
     input_paths,
+    input_stamps,
     planned_paths,
 )
 
@@ -196,7 +198,9 @@ def _run(algorithm_id: str, parameters: dict[str, Any] | None, feedback: Feedbac
     values = validate(alg_cls, params, overwrite, crs_warnings)
     for text in crs_warnings:
         feedback.push_warning(text)
-    protected = set(input_paths(alg_cls, values))
+    inputs = input_paths(alg_cls, values)
+    protected = set(inputs)
+    stamps = input_stamps(inputs)  # an input written meanwhile: refused before the commit
     report_path = None if report is None else check_report(report, alg_cls, values, overwrite)
     staging = OutputStaging(record=True)
     try:
@@ -244,6 +248,7 @@ def _run(algorithm_id: str, parameters: dict[str, Any] | None, feedback: Feedbac
             except OSError as exc:
                 raise write_error(exc, REPORT, report_path) from None
         feedback.check_canceled()  # again: a signal a library swallowed meanwhile stops it too
+        check_inputs_unchanged(inputs, stamps)
         staging.commit(overwrite=overwrite, protected=protected)
     finally:
         staging.rollback()

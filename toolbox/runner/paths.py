@@ -11,7 +11,7 @@ from typing import Any
 
 from toolbox.algorithm import Algorithm
 from toolbox.errors import OutputExistsError, ParameterError
-from toolbox.io.staging import protected_paths
+from toolbox.io.staging import SIDECAR_SUFFIXES, protected_paths
 from toolbox.parameters import File, Folder, OutputFolder, String
 
 REPORT = "--run-report"  # the run report, as messages name it
@@ -190,6 +190,58 @@ def check_outputs_against_inputs(alg_cls: type[Algorithm], values: dict[str, Any
             raise ParameterError(dest.name, f"'{final}' is the input {inputs[resolved]} (or one "
                                  "of its files); an input is never overwritten: choose another "
                                  "output path")
+
+
+#: input files GDAL, QGIS or SQLite may write themselves while a run reads, the data staying the
+#: same (statistics into a PAM file, overviews or a spatial index QGIS builds, its metadata, a
+#: reader's journals): not watched by :func:`input_stamps`
+_SELF_WRITTEN = (*(s for s in SIDECAR_SUFFIXES if s != ".msk"), ".qix", ".sbn", ".sbx", ".qmd")
+
+
+def input_stamps(inputs: dict[Path, str]) -> dict[Path, tuple[int, int, int]]:
+    """(inode, size, modification time in ns) of every existing input file (``input_paths``),
+    the sidecars GDAL or SQLite may write themselves aside: what tells, at the end of a run,
+    that another program wrote an input meanwhile."""
+    stamps = {}
+    for path in inputs:
+        if path.name.lower().endswith(_SELF_WRITTEN):
+            continue
+        try:
+            st = path.stat()
+        except OSError:
+            continue
+        if path.is_file() and not _is_sqlite(path):
+            stamps[path] = (st.st_ino, st.st_size, st.st_mtime_ns)
+    return stamps
+
+
+def _is_sqlite(path: Path) -> bool:
+    """Whether ``path`` is an SQLite database (a GeoPackage...): its readers see one consistent
+    state per query, and the last to close one in WAL mode writes the log into it (a new
+    modification time, the same content), so it is not watched."""
+    try:
+        with open(path, "rb") as f:
+            return f.read(16) == b"SQLite format 3\x00"
+    except OSError:
+        return False
+
+
+def check_inputs_unchanged(inputs: dict[Path, str], stamps: dict[Path, tuple[int, int, int]]
+                           ) -> None:
+    """Refuse to commit when an input file was written, replaced or removed during the run
+    (QGIS saving an edit, another job writing it): what the run read may mix its old and new
+    content, so its outputs would be neither's."""
+    for path, stamp in stamps.items():
+        try:
+            st = path.stat()
+            now = (st.st_ino, st.st_size, st.st_mtime_ns)
+        except OSError:
+            now = None
+        if now != stamp:
+            what = "was removed" if now is None else "was written by another program"
+            raise ParameterError(inputs[path], f"'{path}' {what} while the run read it: the "
+                                 "outputs could mix its old and new content, so nothing was "
+                                 "written; run again once it is no longer being changed")
 
 
 _GLOB = set("*?[")
