@@ -338,9 +338,43 @@ def table(r: dict, gdal: dict | None, n_points: int, width: int, max_diff: float
     return "\n".join(lines)
 
 
+CORE_CASES = ("triangle", "ours", "triangle_breaklines", "ours_breaklines")
+
+
+def core(rounds: int, n_points: int) -> str:
+    """The triangulation core alone against Triangle called directly (issue 31's row): the
+    four short cases interleaved for ``rounds`` rounds, each in its own process; medians,
+    ranges and the ratio Triangle / ours (above 1: ours is faster)."""
+    import statistics
+
+    load = load_note()
+    work = Path(tempfile.mkdtemp(prefix="tin_core_"))
+    try:
+        make_data(work, n_points)
+        runs = {name: [] for name in CORE_CASES}
+        for _ in range(rounds):
+            for name in CORE_CASES:
+                runs[name].append(measure(name, work, n_points)["seconds"])
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+    med = {name: statistics.median(v) for name, v in runs.items()}
+    lines = [f"Triangulation core, {n_points:,} points, medians of {rounds} interleaved runs "
+             f"(each its own process; {load}):", "",
+             "| case | ours (CDT) | Triangle direct | Triangle / ours |", "|---|---|---|---|"]
+    for label, ours, peer in (("points", "ours", "triangle"),
+                              ("points + breaklines", "ours_breaklines", "triangle_breaklines")):
+        lines.append(f"| {label} | {med[ours]:.3f} s ({min(runs[ours]):.3f}-"
+                     f"{max(runs[ours]):.3f}) | {med[peer]:.3f} s ({min(runs[peer]):.3f}-"
+                     f"{max(runs[peer]):.3f}) | {med[peer] / med[ours]:.2f}x |")
+    return "\n".join(lines)
+
+
 if __name__ == "__main__":
-    args = case_arguments(__doc__.splitlines()[0])
+    args = case_arguments(__doc__.splitlines()[0],
+                          lambda parser: parser.add_argument("--core", type=int, metavar="ROUNDS"))
     if args.case:
         print(json.dumps(run_case(args.case, args.work, args.points)))
+    elif args.core:
+        print(core(args.core, args.points))
     else:
         main(small=args.small)

@@ -15,8 +15,8 @@ The triangulation is constrained Delaunay with exact predicates, by one of two l
   dependency: redistributable in commercial products);
 - ``triangle``: Shewchuk's Triangle (the ``triangle`` package; its licence forbids commercial
   redistribution, so it is the optional extra ``pip install photogrammetry-toolbox[triangle]``),
-  slightly faster on a million random points (CPU 1.06 s against CDT's 1.11 s, round 16; CDT
-  1.4 s before its points went in Z-order) and about 1.3 times faster with breaklines.
+  about 1.15 times faster on a million random points, with or without breaklines
+  (bench/results/tin_core.md; 1.4 times before CDT's points went in Z-order).
 
 The environment variable ``TOOLBOX_TRIANGULATOR`` chooses: ``cdt`` (default), ``triangle``, or
 ``auto`` (Triangle when installed, else CDT); the ``triangulator`` argument of
