@@ -120,17 +120,9 @@ def test_footprints_diagonal_neighbours_are_not_side_pairs(tmp_path):
     'other' now, and the side range is 20-20 %."""
     import geopandas as gpd
 
-    x0, y0 = 1688000.0, 4799000.0
-    photos = [("n1", "1", x0, y0), ("n2", "1", x0 + 552.0, y0), ("s1", "2", x0, y0 + 1104.0),
-              ("s2", "2", x0 + 552.0, y0 + 1104.0)]
-    lines = ["version: 1", "crs: EPSG:3003", "angle_unit: rad", "cameras:",
-             "  - {name: cam, principal_distance_mm: 150.0, frame_size_mm: [230.0, 230.0],",
-             "     image_size_px: [11500, 11500], pixel_size_mm: 0.02}", "photos:"]
-    for pid, strip, x, y in photos:
-        lines.append(f"  - {{id: {pid}, camera: cam, strip: '{strip}', exterior: {{X0: {x}, "
-                     f"Y0: {y}, Z0: 1000.0, omega: 0.0, phi: 0.0, kappa: 0.0}}}}")
-    project = tmp_path / "block.yaml"
-    project.write_text("\n".join(lines) + "\n")
+    from tests.algorithms.orientation.test_orientation_algorithms import nadir_block
+
+    project = nadir_block(tmp_path, second_strip=2)
     out = toolbox.run("orientation:footprints", {"PROJECT": project, "MEAN_HEIGHT": 100,
                                                  "OUTPUT": tmp_path / "f.gpkg"})
     assert out["STATISTICS"]["side_overlap_pct"] == pytest.approx([20.0, 20.0])

@@ -19,11 +19,13 @@ X0, Y0 = 1688000.0, 4799000.0
 SIDE = 230.0 * (1000.0 - 100.0) / 150.0  # ground side of a nadir 23 cm frame: 1380 m
 
 
-def nadir_block(tmp_path, kappa=0.0):
+def nadir_block(tmp_path, kappa=0.0, second_strip=1):
     """Two nadir photos, c = 150 mm, 900 m above the plane Z = 100, base 552 m = 40% of the side
-    (forward overlap 60%), and a third photo in a second strip 1104 m north (side overlap 20%)."""
+    (forward overlap 60%), and ``second_strip`` photos (1 or 2) in a second strip 1104 m north
+    (side overlap 20%)."""
     path = tmp_path / "nadir.yaml"
-    photos = [("n1", "1", X0, Y0), ("n2", "1", X0 + 552.0, Y0), ("s1", "2", X0, Y0 + 1104.0)]
+    photos = [("n1", "1", X0, Y0), ("n2", "1", X0 + 552.0, Y0), ("s1", "2", X0, Y0 + 1104.0),
+              ("s2", "2", X0 + 552.0, Y0 + 1104.0)][:2 + second_strip]
     lines = ["version: 1", "crs: EPSG:3003", "angle_unit: rad", "cameras:",
              "  - {name: cam, principal_distance_mm: 150.0, frame_size_mm: [230.0, 230.0],",
              "     image_size_px: [11500, 11500], pixel_size_mm: 0.02}", "photos:"]
