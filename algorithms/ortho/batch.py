@@ -144,7 +144,8 @@ class OrthoBatch(Algorithm):
         from toolbox.ortho.vertical import dem_in_photo_datum
 
         with dem_in_photo_datum(params["DEM"], params["BAND"], params["HEIGHTS"], crs,
-                                feedback) as (dem, band, heights):
+                                feedback, executor_of(params), params["FOLDER"]
+                                ) as (dem, band, heights):
             return self._orthos(params, feedback, project, crs, dem, band, heights)
 
     def _orthos(self, params: dict[str, Any], feedback: Feedback, project: Any, crs: Any,
@@ -299,7 +300,7 @@ def rpc_batch(algorithm_id: str, params: dict[str, Any], feedback: Feedback) -> 
         cell, origin = template_lattice(params["TEMPLATE"], cell, crs, "the orthos")
     failed: list[dict[str, Any]] = []
     with dem_in_photo_datum(params["DEM"], params["BAND"], params["HEIGHTS"] or "ellipsoidal",
-                            None, feedback) as (dem, band, heights):
+                            None, feedback, executor, params["FOLDER"]) as (dem, band, heights):
         plans = plan_each(images, lambda image: plan_rpc_image(
             image, crs, dem, band, gcps, params["BIAS"], single=len(everything) == 1), failed,
             feedback)

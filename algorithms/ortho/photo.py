@@ -210,7 +210,7 @@ class OrthoPhoto(Algorithm):
         from toolbox.ortho.vertical import dem_in_photo_datum
 
         with dem_in_photo_datum(params["DEM"], params["BAND"], params["HEIGHTS"], crs,
-                                feedback) as (dem, band, heights):
+                                feedback, executor, params["OUTPUT"]) as (dem, band, heights):
             plan = plan_photo(photo, dem, crs, band, *grid_choice(params, out_crs),
                               output_crs=out_crs)
             options = OrthoOptions(
@@ -273,7 +273,7 @@ def rpc_ortho(params: dict[str, Any], feedback: Feedback,
         feedback.push_info(f"RPC {bias['model']} bias from {bias['gcps']} GCPs: RMS "
                            f"{bias['rms_before_px']:.3f} -> {bias['rms_after_px']:.3f} px")
     with dem_in_photo_datum(params["DEM"], params["BAND"], params["HEIGHTS"] or "ellipsoidal",
-                            None, feedback) as (dem, band, heights):
+                            None, feedback, executor, params["OUTPUT"]) as (dem, band, heights):
         grid, gsd = rpc_plan(camera, dem, band, *grid_choice(params, crs))
         options = OrthoOptions(
             resampling=params["RESAMPLING"], outside=params["OUTSIDE"], nodata=params["NODATA"],

@@ -271,17 +271,24 @@ def _convert(info: Any, band: int, transformer: Any, path: Path, crs: Any
 
 
 @contextmanager
-def dem_in_photo_datum(dem: Any, band: int, heights: str | None, crs: Any, feedback: Any
+def dem_in_photo_datum(dem: Any, band: int, heights: str | None, crs: Any, feedback: Any,
+                       executor: Any = None, output: Any = None
                        ) -> Iterator[tuple[Any, int, HeightsNote]]:
     """(DEM, band, note) for the ortho algorithms: the DEM in the orientation's height datum
     (``heights``, the HEIGHTS parameter, else the vertical part of the orientation's ``crs``),
     converted once into a temporary file removed on exit when the datums differ
     (:func:`dem_for_photos`); the note is pushed as information, as a warning when one side
-    states a datum and the other none (taken as the same)."""
+    states a datum and the other none (taken as the same). On a Dask cluster (``executor``)
+    the temporary file goes beside ``output`` (its staging folder, on the storage the workers
+    share: they read a DEM too large to preload themselves), else in the system's temp."""
     import tempfile
 
     photos = parse_heights(heights) or vertical_part(crs)
-    with tempfile.TemporaryDirectory(prefix="toolbox-heights-") as folder:
+    scratch = None
+    if executor is not None and executor.kind == "dask" and output is not None:
+        scratch = Path(output).expanduser().absolute().parent
+    with tempfile.TemporaryDirectory(prefix=".toolbox-heights-" if scratch else
+                                     "toolbox-heights-", dir=scratch) as folder:
         out, note = dem_for_photos(dem, photos, Path(folder), band)
         if note.extra.get("warning"):  # one datum stated, the other silent: taken as equal
             feedback.push_warning(note.text)
