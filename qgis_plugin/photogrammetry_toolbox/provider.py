@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import os
 import sys
 
 from qgis.core import Qgis, QgsApplication, QgsMessageLog, QgsProcessingProvider, QgsSettings
@@ -15,6 +14,7 @@ from .toolbox_cli import (
     load_specs,
     start_warmup,
     toolbox_version,
+    warmup_disabled,
 )
 
 SETTING = "photogrammetry_toolbox/executable"
@@ -103,7 +103,7 @@ class ToolboxProvider(QgsProcessingProvider):
         self.problem = None
         for spec in specs:
             self.addAlgorithm(ToolboxAlgorithm(spec, self.executable))
-        if os.environ.get("PHOTOGRAMMETRY_TOOLBOX_NO_WARMUP") is None:
+        if not warmup_disabled():
             try:
                 version = VERSIONS.get(self.executable) or toolbox_version(self.executable)
                 start_warmup(self.executable, version)

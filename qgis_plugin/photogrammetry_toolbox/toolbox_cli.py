@@ -34,6 +34,12 @@ class ToolboxNotFound(RuntimeError):
     """The toolbox executable cannot be found or does not run."""
 
 
+def warmup_disabled() -> bool:
+    """``PHOTOGRAMMETRY_TOOLBOX_NO_WARMUP`` is set to 1, true or yes (not merely set: =0 keeps it)."""
+    value = os.environ.get("PHOTOGRAMMETRY_TOOLBOX_NO_WARMUP", "")
+    return value.strip().lower() in {"1", "true", "yes"}
+
+
 def qgis_id(algorithm_id: str) -> str:
     """``dem:idw`` -> ``dem_idw`` (QGIS ids cannot contain ':')."""
     return algorithm_id.replace(":", "_")

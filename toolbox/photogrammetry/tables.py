@@ -16,7 +16,8 @@ from toolbox.io.text import read_text
 
 
 def read_csv_table(path: Path, name: str = "INPUT") -> tuple[list[str], list[dict[str, str]]]:
-    """Header and rows of a delimited text file (delimiter sniffed among , ; tab).
+    """Header and rows of a delimited text file (delimiter sniffed among , ; tab, else
+    spaces, with ``"`` or ``'`` quotes as Orthority/ODM write them).
 
     Lines starting with ``#`` are comments. Header names are kept as written; use
     :func:`column` to find one case-insensitively.
@@ -27,12 +28,19 @@ def read_csv_table(path: Path, name: str = "INPUT") -> tuple[list[str], list[dic
     lines = [ln for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
     if not lines:
         raise InputDataError(f"{name}: {path} holds no rows")
+    from toolbox.exchange.csvtable import _dialect
+
+    delimiter, quote = _dialect(lines[0])
+    if delimiter == " ":  # Orthority/ODM: space-separated, names quoted ('100_0005_0142')
+        lines = [ln.strip() for ln in lines]
+        dialect: Any = {"delimiter": " ", "quotechar": quote, "skipinitialspace": True}
+    else:
+        try:
+            dialect = {"dialect": csv.Sniffer().sniff(lines[0], delimiters=",;\t")}
+        except csv.Error:
+            dialect = {"dialect": csv.excel}
     try:
-        dialect = csv.Sniffer().sniff(lines[0], delimiters=",;\t")
-    except csv.Error:
-        dialect = csv.excel
-    try:
-        records = list(csv.reader(io.StringIO("\n".join(lines)), dialect=dialect))
+        records = list(csv.reader(io.StringIO("\n".join(lines)), **dialect))
     except csv.Error as exc:
         raise InputDataError(f"{name}: {path} is not a readable table: {exc}") from None
     header = [h.strip() for h in records[0]]

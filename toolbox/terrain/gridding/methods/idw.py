@@ -27,9 +27,9 @@ class IdwMethod(NeighbourMethod):
     tile_kernel = staticmethod(idw_tile)
 
     def options(self, request: MethodOptions) -> dict[str, Any]:
-        sectors = int(request.sectors or 1)
+        # 1 = no sectors, as SECTORS documents it (the kernels search by sector only above 1)
         return super().options(request) | {"power": float(request.power or 2.0),
-                                          "sectors": sectors if sectors > 1 else 0}
+                                          "sectors": max(1, int(request.sectors or 1))}
 
     def halo_neighbours(self, options):
         if options.get("sectors", 0) > 1:  # a sector search may use any point within the radius
