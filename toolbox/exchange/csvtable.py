@@ -30,7 +30,7 @@ import numpy as np
 from toolbox.errors import InputDataError, ParameterError
 from toolbox.exchange import geodesy
 from toolbox.exchange.model import OrientationSet, PhotoOrientation, opk_from_matrix
-from toolbox.io.text import read_text
+from toolbox.io.text import csv_dialect, read_text
 from toolbox.photogrammetry.rotation import angle_unit as canonical_unit
 from toolbox.photogrammetry.rotation import check_within_turn, from_radians, to_radians
 
@@ -46,17 +46,6 @@ ALIASES = {
 LEGACY = ("filename", "x", "y", "z", "omega", "phi", "kappa")
 _UNIT = re.compile(r"^(?P<name>[a-z0-9_]+?)[\s_]*(?:[\[(](?P<u1>[a-z°]+)[\])]|_(?P<u2>deg|degrees|"
                    r"rad|radians|gon|grad))?$")
-
-
-def _dialect(text: str) -> tuple[str, str]:
-    first = next((ln for ln in text.splitlines() if ln.strip()), "")
-    quote = "'" if re.search(r"(^|[\s,;\t])'", first) and not re.search(r'(^|[\s,;\t])"', first) \
-        else '"'
-    bare = re.sub(r"(['\"]).*?\1", "", first)
-    for delimiter in ("\t", ",", ";"):
-        if delimiter in bare:
-            return delimiter, quote
-    return " ", quote
 
 
 def _number(cell: str, delimiter: str) -> float:
@@ -92,7 +81,7 @@ def _fields(header: list[str], path: Path) -> tuple[dict[str, int], str | None]:
 def looks_like(text: str) -> bool:
     """A header naming a file and a position and attitude, or a legacy row of
     ``name`` + 6 numbers."""
-    delimiter, quote = _dialect(text)
+    delimiter, quote = csv_dialect(text)
     try:
         first = next(csv.reader(io.StringIO(text), delimiter=delimiter, quotechar=quote,
                                 skipinitialspace=delimiter == " "), [])
@@ -121,7 +110,7 @@ def read_csv(path: str | Path, crs: Any = None, angle_unit: str | None = None) -
 
     path = Path(path)
     text = read_text(path)  # UTF-8 (BOM or not), else Windows/Latin-1 (foto_città_001.tif)
-    delimiter, quote = _dialect(text)
+    delimiter, quote = csv_dialect(text)
     try:
         rows = [r for r in csv.reader(io.StringIO(text), delimiter=delimiter, quotechar=quote,
                                       skipinitialspace=delimiter == " ")

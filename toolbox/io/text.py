@@ -3,6 +3,7 @@ with ’ “ ” – € in 0x80-0x9f, as Word and Excel save Italian text), els
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 from toolbox.errors import InputDataError
@@ -49,3 +50,17 @@ def is_number(text: str) -> bool:
     except ValueError:
         return False
     return True
+
+
+def csv_dialect(text: str) -> tuple[str, str]:
+    """``(delimiter, quote)`` of a CSV-like table from its first non-blank line: a tab, comma
+    or semicolon outside quotes, else spaces (Orthority's and ODM's space-separated files);
+    single quotes when the line quotes with them only, else double."""
+    first = next((ln for ln in text.splitlines() if ln.strip()), "")
+    quote = "'" if re.search(r"(^|[\s,;\t])'", first) and not re.search(r'(^|[\s,;\t])"', first) \
+        else '"'
+    bare = re.sub(r"(['\"]).*?\1", "", first)
+    for delimiter in ("\t", ",", ";"):
+        if delimiter in bare:
+            return delimiter, quote
+    return " ", quote

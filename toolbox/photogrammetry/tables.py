@@ -28,9 +28,9 @@ def read_csv_table(path: Path, name: str = "INPUT") -> tuple[list[str], list[dic
     lines = [ln for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
     if not lines:
         raise InputDataError(f"{name}: {path} holds no rows")
-    from toolbox.exchange.csvtable import _dialect
+    from toolbox.io.text import csv_dialect
 
-    delimiter, quote = _dialect(lines[0])
+    delimiter, quote = csv_dialect(lines[0])
     if delimiter == " ":  # Orthority/ODM: space-separated, names quoted ('100_0005_0142')
         lines = [ln.strip() for ln in lines]
         dialect: Any = {"delimiter": " ", "quotechar": quote, "skipinitialspace": True}
