@@ -16,15 +16,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 import rasterio
-import yaml
-from pyproj import CRS, Transformer
+from pyproj import CRS
 from pyproj.transformer import TransformerGroup
 
 import toolbox
 from toolbox.ortho.dem import DemSampler
 from toolbox.ortho.vertical import use_system_grids
-from toolbox.photogrammetry.synthetic import frame_photo, hills_dem, render_photo, wave_texture, write_photo
-from toolbox.raster.writer import write_raster
 
 UTM, EGM96 = "EPSG:32632", "EPSG:32632+5773"
 BOUNDS = (686000.0, 4795000.0, 687600.0, 4796600.0)
@@ -46,23 +43,10 @@ def cluster():
 
 
 def _scene(folder: Path) -> dict:
-    z_ell, transform = hills_dem(BOUNDS, cell=10.0, relief=150.0, base=250.0, seed=3)
-    to_egm = Transformer.from_crs(CRS(UTM).to_3d(), CRS(EGM96), always_xy=True)
-    rows, cols = np.indices(z_ell.shape)
-    x, y = transform * (cols + 0.5, rows + 0.5)
-    _, _, z_egm = to_egm.transform(x.ravel(), y.ravel(), z_ell.astype("float64").ravel())
-    write_raster(folder / "dem.tif", np.asarray(z_egm, dtype="float32").reshape(z_ell.shape),
-                 transform, CRS(EGM96), nodata=-9999.0)
-    photo = frame_photo(CENTRE, ANGLES, width=300, height=300, crs=UTM)
-    texture = wave_texture(seed=7, wavelength=(40.0, 120.0))
-    write_photo(folder / "p1.tif", render_photo(photo, z_ell, transform, texture, dtype="uint8"))
-    camera = {"name": "synthetic", "principal_distance_mm": 153.0, "image_size_px": [300, 300],
-              "pixel_size_mm": 230.0 / 300, "frame_size_mm": [230.0, 230.0]}
-    doc = {"crs": UTM, "angle_unit": "rad", "cameras": [camera],
-           "photos": [{"id": "p1", "camera": "synthetic", "image": "p1.tif",
-                       "exterior": dict(zip(("X0", "Y0", "Z0", "omega", "phi", "kappa"),
-                                            [*CENTRE, *ANGLES], strict=True))}]}
-    (folder / "project.yaml").write_text(yaml.safe_dump(doc))
+    from tests.algorithms.ortho.test_ortho_vertical_datum import vertical_scene
+
+    vertical_scene(folder, size=300, relief=150.0, dem_name="dem.tif", bounds=BOUNDS,
+                   centre=CENTRE)
     return {"INPUT": folder / "p1.tif", "PROJECT": folder / "project.yaml",
             "DEM": folder / "dem.tif", "HEIGHTS": "ellipsoidal", "CELL_SIZE": 5.0,
             "OVERVIEWS": False}

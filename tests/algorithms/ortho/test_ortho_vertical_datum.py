@@ -58,30 +58,38 @@ def oracle_ellipsoidal(z: np.ndarray, transform) -> np.ndarray:
     return np.asarray(h).reshape(z.shape)
 
 
-@pytest.fixture(scope="module")
-def scene(tmp_path_factory):
-    """A photo rendered with ellipsoidal heights; its DEM stored in EGM96 heights (tagged
-    EPSG:32632+5773, values = ellipsoidal - N from pyproj) and the oracle's ellipsoidal DEM."""
-    folder = tmp_path_factory.mktemp("vertical")
-    z_ell, transform = hills_dem(BOUNDS, cell=10.0, relief=200.0, base=250.0, seed=3)
+def vertical_scene(folder, size: int = 600, relief: float = 200.0,
+                   dem_name: str = "dem_egm96.tif", bounds=BOUNDS, centre=CENTRE):
+    """A ``size`` px photo ``p1.tif`` rendered with ellipsoidal heights and its
+    ``project.yaml``; its DEM ``dem_name`` stored in EGM96 heights (tagged EPSG:32632+5773,
+    values = ellipsoidal - N from pyproj). Returns the EGM96 heights and the DEM's transform."""
+    z_ell, transform = hills_dem(bounds, cell=10.0, relief=relief, base=250.0, seed=3)
     to_egm = Transformer.from_crs(CRS(UTM).to_3d(), CRS(EGM96), always_xy=True)
     rows, cols = np.indices(z_ell.shape)
     x, y = transform * (cols + 0.5, rows + 0.5)
     _, _, z_egm = to_egm.transform(x.ravel(), y.ravel(), z_ell.astype("float64").ravel())
     z_egm = np.asarray(z_egm, dtype="float32").reshape(z_ell.shape)
-    write_raster(folder / "dem_egm96.tif", z_egm, transform, CRS(EGM96), nodata=-9999.0)
-    write_raster(folder / "dem_ellipsoidal.tif", oracle_ellipsoidal(z_egm, transform)
-                 .astype("float32"), transform, CRS(UTM), nodata=-9999.0)
-    photo = frame_photo(CENTRE, ANGLES, width=600, height=600, crs=UTM)
+    write_raster(folder / dem_name, z_egm, transform, CRS(EGM96), nodata=-9999.0)
+    photo = frame_photo(centre, ANGLES, width=size, height=size, crs=UTM)
     texture = wave_texture(seed=7, wavelength=(40.0, 120.0))
     write_photo(folder / "p1.tif", render_photo(photo, z_ell, transform, texture, dtype="uint8"))
-    camera = {"name": "synthetic", "principal_distance_mm": 153.0, "image_size_px": [600, 600],
-              "pixel_size_mm": 230.0 / 600, "frame_size_mm": [230.0, 230.0]}
+    camera = {"name": "synthetic", "principal_distance_mm": 153.0, "image_size_px": [size, size],
+              "pixel_size_mm": 230.0 / size, "frame_size_mm": [230.0, 230.0]}
     doc = {"crs": UTM, "angle_unit": "rad", "cameras": [camera],
            "photos": [{"id": "p1", "camera": "synthetic", "image": "p1.tif",
                        "exterior": dict(zip(("X0", "Y0", "Z0", "omega", "phi", "kappa"),
-                                            [*CENTRE, *ANGLES], strict=True))}]}
+                                            [*centre, *ANGLES], strict=True))}]}
     (folder / "project.yaml").write_text(yaml.safe_dump(doc))
+    return z_egm, transform
+
+
+@pytest.fixture(scope="module")
+def scene(tmp_path_factory):
+    """:func:`vertical_scene`, and the oracle's ellipsoidal DEM."""
+    folder = tmp_path_factory.mktemp("vertical")
+    z_egm, transform = vertical_scene(folder)
+    write_raster(folder / "dem_ellipsoidal.tif", oracle_ellipsoidal(z_egm, transform)
+                 .astype("float32"), transform, CRS(UTM), nodata=-9999.0)
     return folder, z_egm, transform
 
 
