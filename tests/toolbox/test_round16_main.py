@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -86,3 +87,24 @@ def test_caller_feedback_gets_the_warnings_logged_outside_feedback(tmp_path):
     toolbox.run("dem:nearest", {"INPUT": str(tmp_path / "c.las"), "CELL_SIZE": 5,
                                 "OUTPUT": str(tmp_path / "d.tif")}, feedback=feedback)
     assert sum("class 18 (high noise)" in w for w in feedback.warnings) == 1
+
+
+def test_seam_split_where_the_path_ends_on_a_spike_of_the_overlap():
+    """The Siena demo's seam 1_7151 / 1_7152 (since its orthos reach the DEM's outer half cell)
+    ended on a vertex of the overlap's boundary pointing into the overlap: prolonged straight on,
+    the path's end stayed inside and shapely's split gave one piece, so the least-cost seam was
+    dropped for the Voronoi line ("the path did not split the overlap"). The end now turns off
+    the boundary when straight on does not cross it: two pieces, covering the overlap."""
+    from shapely import box, wkt
+
+    from toolbox.mosaic.seams import split_between
+
+    doc = json.loads((Path(__file__).parents[1] / "data" / "seam_split_spike.json").read_text())
+    region, path, tol = wkt.loads(doc["region"]), doc["path"], doc["tol"]
+    x0, y0, x1, y1 = region.bounds
+    cells = {0: region.union(box(x0 - 100, y0, x0, y1)), 1: region.union(box(x1, y0, x1 + 100, y1))}
+    new = split_between(cells, 0, 1, path, region, tol)
+    assert new is not None
+    a, b = (g.intersection(region) for g in new)
+    assert abs(a.area + b.area - region.area) < 1e-6 * region.area
+    assert a.intersection(b).area < 1e-6 * region.area

@@ -296,8 +296,13 @@ def split_between(cells: list | dict, i: int, j: int, path: list, region, tol: f
 
     rest_i = cells[i].difference(region)
     rest_j = cells[j].difference(region)
-    line = _extended(LineString(path).simplify(tol * 0.5), 4 * tol)
-    pieces = [g for g in getattr(split(region, line), "geoms", []) if g.area > 0]
+    line = LineString(path).simplify(tol * 0.5)
+    pieces: list = []
+    for turns in END_TURNS:  # straight on first; then an end that runs along the boundary
+        pieces = [g for g in getattr(split(region, _extended(line, 4 * tol, turns)), "geoms", [])
+                  if g.area > 0]
+        if len(pieces) >= 2:
+            break
     if len(pieces) < 2:
         return None
     grow_i, grow_j = rest_i.buffer(tol), rest_j.buffer(tol)
@@ -315,20 +320,33 @@ def split_between(cells: list | dict, i: int, j: int, path: list, region, tol: f
     return _clean(shapely.union_all(mine)), _clean(shapely.union_all(yours))
 
 
-def _extended(line, length: float):
+#: how :func:`_extended` leaves the line's (start, end): 0 straight on, +1 / -1 turned left /
+#: right (an end on the region's boundary whose last segment runs along it crosses it sideways)
+END_TURNS = ((0, 0), (0, 1), (0, -1), (1, 0), (-1, 0), (1, 1), (1, -1), (-1, 1), (-1, -1))
+
+
+def _extended(line, length: float, turns: tuple[int, int] = (0, 0)):
     """``line`` with both end segments prolonged by ``length``: ends that lie on the region's
-    boundary only to rounding still cross it, so that the split cuts."""
+    boundary only to rounding still cross it, so that the split cuts. ``turns`` (start, end):
+    0 prolongs the end segment; +1 / -1 adds a segment of ``length`` at right angles to it."""
     from shapely import LineString
 
     xy = np.asarray(line.coords, dtype="float64")
     if len(xy) < 2:
         return line
-    for end, inner in ((0, 1), (-1, -2)):
+    head, tail = [], []
+    for (end, inner), turn in zip(((0, 1), (-1, -2)), turns, strict=True):
         step = xy[end] - xy[inner]
         norm = float(np.hypot(*step))
-        if norm > 0:
-            xy[end] = xy[end] + step / norm * length
-    return LineString(xy)
+        if norm == 0:
+            continue
+        step = step / norm * length
+        if turn == 0:
+            xy[end] = xy[end] + step
+        else:
+            side = xy[end] + turn * np.array([-step[1], step[0]])
+            (head if end == 0 else tail).append(side)
+    return LineString(np.vstack([*head, xy, *tail]))
 
 
 def _clean(geom):
