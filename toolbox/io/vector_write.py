@@ -23,6 +23,7 @@ from toolbox.io.vector import (
     GPKG_DATASET_OPTIONS,
     _ogr,
     is_multi_layer,
+    no_geometry,
     sibling_layer_path,
     vector_driver,
 )
@@ -130,7 +131,7 @@ def warn_made_up_z(path: Path, geoms) -> None:
     import shapely
 
     geoms = np.asarray(geoms, dtype=object)
-    present = geoms[~(shapely.is_missing(geoms) | shapely.is_empty(geoms))]
+    present = geoms[~no_geometry(geoms)]
     flat = int((~shapely.has_z(present)).sum()) if len(present) else 0
     if 0 < flat < len(present):
         import logging
@@ -153,7 +154,7 @@ def declare_optional_z(path: Path, layer: str, geoms, geometry_type: str | None 
     import shapely
 
     geoms = np.asarray(geoms, dtype=object)
-    present = geoms[~(shapely.is_missing(geoms) | shapely.is_empty(geoms))]
+    present = geoms[~no_geometry(geoms)]
     if not len(present):
         return
     has_z = shapely.has_z(present)
