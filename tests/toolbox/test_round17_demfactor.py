@@ -239,3 +239,24 @@ def test_rpc_ortho_with_dem_factor_reaches_the_dem_edge(tmp_path, k):
             valid[factor] = src.read(1) != NODATA
     assert valid[1].all() and valid[k].shape == (194, 206)
     assert valid[k].all(), (np.where(~valid[k].all(axis=0))[0], np.where(~valid[k].all(axis=1))[0])
+
+
+def test_dem_factor_leaving_less_than_two_coarse_cells_is_refused(tmp_path, photo_folder):
+    """DEM_FACTOR at least the DEM's smaller side (60 x 50 cells, k = 50): one coarse cell
+    across, no bilinear height anywhere. The old code failed on OUTPUT ("would have no valid
+    cell ... check that EXTENT, TEMPLATE and CELL_SIZE cover the data") although the DEM covers
+    the extent (ortho:batch wrote an empty ortho); now DEM_FACTOR is named with its largest
+    value, and k = 49 (two coarse cells, one of them partial) gives an ortho without a gap."""
+    import toolbox
+    from toolbox.errors import ParameterError
+
+    dem = plane_dem(tmp_path, 60, 50)
+    params = {"INPUT": photo_folder / "p1.tif", "PROJECT": photo_folder / "project.yaml",
+              "DEM": dem.path, "CELL_SIZE": 2.0, "OUTSIDE": "nodata", "NODATA": 0,
+              "EXTENT": f"{X0},{Y0},{X0 + 60 * CELL},{Y0 + 50 * CELL}",
+              "OUTPUT": tmp_path / "o.tif"}
+    with pytest.raises(ParameterError, match=r"^DEM_FACTOR is 50, .*expected at most 49$"):
+        toolbox.run("ortho:photo", {**params, "DEM_FACTOR": 50}, overwrite=True)
+    toolbox.run("ortho:photo", {**params, "DEM_FACTOR": 49}, overwrite=True)
+    with rasterio.open(tmp_path / "o.tif") as src:
+        assert (src.read(1) > 0).all()

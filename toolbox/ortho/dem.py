@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from toolbox.errors import InputDataError
+from toolbox.errors import InputDataError, ParameterError
 
 
 class DemSampler:
@@ -44,6 +44,11 @@ class DemSampler:
         self.shape = (info.height, info.width)
         k = self.factor
         self.coarse_shape = (-(-info.height // k), -(-info.width // k))  # with partial blocks
+        if k > 1 and min(self.coarse_shape) < 2:  # bilinear heights need 2 x 2 coarse cells
+            raise ParameterError("DEM_FACTOR", f"is {k}, which leaves the DEM {info} "
+                                 f"({info.width} x {info.height} cells) less than 2 coarse "
+                                 f"cells across; expected at most "
+                                 f"{max(1, min(info.width, info.height) - 1)}")
         self.nodata = info.nodata
         self.transformer = None
         if info.crs is not None and crs is not None and not same_horizontal_crs(info.crs, crs):
