@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from toolbox.errors import InputDataError
+from toolbox.errors import InputDataError, ParameterError
 
 
 class DemSampler:
@@ -21,6 +21,14 @@ class DemSampler:
     height) is read directly: its heights are taken as they are (:func:`same_horizontal_crs`).
     ``factor`` > 1 projects on a coarser DEM (the thesis' "fattore di ricampionamento"): the mean
     of ``factor`` x ``factor`` DEM cells, on a lattice fixed to the DEM's origin (no tile seams).
+    Where ``factor`` does not divide the DEM's width (height), the last coarse column (row) is a
+    partial block: the mean of the DEM cells it holds (nodata cells left out, as in every
+    block), centred at the centre of those cells and ending at the DEM's edge, so that
+    the coarse DEM covers the DEM's whole extent with the edge value held across its outer half
+    block as everywhere else. Its centre is off the regular lattice, which the kernels take:
+    the coordinates between the last full block's centre and the DEM's edge are mapped onto the
+    regular lattice (:meth:`_lattice`: piecewise linear, exact at the nodes) before the
+    kernels, and :meth:`part` leaves such windows to :meth:`heights`.
     """
 
     def __init__(self, info: Any, crs: Any = None, band: int = 1, factor: int = 1):
@@ -34,6 +42,13 @@ class DemSampler:
             raise InputDataError(f"DEM {info} must be north-up (no rotation, rows going south)")
         self.transform = t
         self.shape = (info.height, info.width)
+        k = self.factor
+        self.coarse_shape = (-(-info.height // k), -(-info.width // k))  # with partial blocks
+        if k > 1 and min(self.coarse_shape) < 2:  # bilinear heights need 2 x 2 coarse cells
+            raise ParameterError("DEM_FACTOR", f"is {k}, which leaves the DEM {info} "
+                                 f"({info.width} x {info.height} cells) less than 2 coarse "
+                                 f"cells across; expected at most "
+                                 f"{max(1, min(info.width, info.height) - 1)}")
         self.nodata = info.nodata
         self.transformer = None
         if info.crs is not None and crs is not None and not same_horizontal_crs(info.crs, crs):
@@ -75,22 +90,29 @@ class DemSampler:
             return None
         j0 = max(int(math.floor(c0 / k)) - 1, 0)
         i0 = max(int(math.floor(r0 / k)) - 1, 0)
-        j1 = min(int(math.ceil(c1 / k)) + 1, cols // k)
-        i1 = min(int(math.ceil(r1 / k)) + 1, rows // k)
+        j1 = min(int(math.ceil(c1 / k)) + 1, self.coarse_shape[1])
+        i1 = min(int(math.ceil(r1 / k)) + 1, self.coarse_shape[0])
         if j1 - j0 < 2 or i1 - i0 < 2:
             return None
         return i0, i1, j0, j1
 
     def _load(self, i0: int, i1: int, j0: int, j1: int) -> np.ndarray:
-        """Coarse cells [i0:i1, j0:j1] (means of k x k DEM cells), float64, NaN for nodata."""
+        """Coarse cells [i0:i1, j0:j1] (means of the k x k DEM cells of a block, of those it
+        holds for a partial last block), float64, NaN for nodata."""
         from rasterio.windows import Window
 
         from toolbox.photogrammetry.surface import read_dem_cells
 
         k = self.factor
-        window = Window(j0 * k, i0 * k, (j1 - j0) * k, (i1 - i0) * k)
+        rows, cols = self.shape
+        c1, r1 = min(j1 * k, cols), min(i1 * k, rows)
+        window = Window(j0 * k, i0 * k, c1 - j0 * k, r1 - i0 * k)
         data = read_dem_cells(self.path, self.band, window, self.shape)
         if k > 1:
+            if data.shape != ((i1 - i0) * k, (j1 - j0) * k):  # partial blocks: NaN-padded
+                full = np.full(((i1 - i0) * k, (j1 - j0) * k), np.nan)
+                full[:data.shape[0], :data.shape[1]] = data
+                data = full
             data = data.reshape(i1 - i0, k, j1 - j0, k)
             with warnings.catch_warnings():  # all-nodata blocks give NaN, as they should
                 warnings.simplefilter("ignore", RuntimeWarning)
@@ -120,11 +142,41 @@ class DemSampler:
         within 1/1000 of a DEM cell)."""
         return lattice_transform(self.transformer, xs, ys, 1e-3 * abs(self.transform.a))
 
+    def _lattice(self, values: np.ndarray, axis: int) -> np.ndarray:
+        """Coordinates ``values`` (DEM CRS) along ``axis`` (0: y, 1: x) mapped onto the regular
+        coarse lattice the kernels take: ``values`` itself (the same object) unless the axis
+        ends in a partial block (:class:`DemSampler`). Then, in lattice units (node j at j),
+        the points between the last full node ``n - 2`` and the partial block's true centre
+        ``c`` are stretched linearly onto ``[n - 2, n - 1]``, those between ``c`` and the DEM's
+        edge ``e`` go to node ``n - 1`` (the edge value held), those beyond ``e`` to ``n + 1``
+        (outside every part: no height); the others are left as they are (bit for bit)."""
+        k, cells = self.factor, self.shape[axis]
+        if cells % k == 0:
+            return values
+        t = self.transform
+        origin, step = (t.f, t.e * k) if axis == 0 else (t.c, t.a * k)
+        n = self.coarse_shape[axis]
+        f = (np.asarray(values, dtype="float64") - origin) / step - 0.5
+        last = n - 2.0
+        beyond = f > last
+        if n < 2 or not beyond.any():
+            return values
+        edge = cells / k - 0.5
+        centre = 0.5 * (last + cells / k)  # of the partial block's cells, (n - 1.5 + e) / 2
+        g = np.minimum(last + (f - last) / (centre - last), n - 1.0)
+        g = np.where(f > edge, n + 1.0, g)
+        return np.where(beyond, origin + (g + 0.5) * step, values)
+
     def part(self, xs: np.ndarray, ys: np.ndarray) -> tuple | None:
         """The DEM cells under the grid ``xs`` x ``ys`` (output CRS = the DEM's) as
         :func:`~toolbox.ortho.heights.heights_on_grid` takes them: (contiguous float64
         array, x and y of the centre of its cell [0, 0], cell width and height); None outside
-        the DEM. ``xs`` and ``ys`` are monotonic (cell centres): their ends bound them."""
+        the DEM, or where the grid reaches a partial last coarse block (off the regular
+        lattice: :meth:`heights` maps those). ``xs`` and ``ys`` are monotonic (cell centres):
+        their ends bound them."""
+        if self.transformer is None and (self._lattice(xs, 1) is not xs
+                                         or self._lattice(ys, 0) is not ys):
+            return None
         x0, x1, y0, y1 = float(xs[0]), float(xs[-1]), float(ys[0]), float(ys[-1])
         part = self._read((min(x0, x1), min(y0, y1), max(x0, x1), max(y0, y1)))
         if part is None:
@@ -142,9 +194,12 @@ class DemSampler:
         ys = np.ascontiguousarray(ys, dtype="float64")
         out = np.full((len(ys), len(xs)), np.nan)
         if self.transformer is None:
-            part = self.part(xs, ys)
+            part = self._read((min(xs[0], xs[-1]), min(ys[0], ys[-1]), max(xs[0], xs[-1]),
+                               max(ys[0], ys[-1])))
             if part is not None:
-                heights_on_grid(*part, xs, ys, out)
+                heights_on_grid(np.ascontiguousarray(part[0]), *part[1:],
+                                np.ascontiguousarray(self._lattice(xs, 1)),
+                                np.ascontiguousarray(self._lattice(ys, 0)), out)
             return out
         dx, dy = self._to_dem(xs, ys)
         finite = np.isfinite(dx) & np.isfinite(dy)
@@ -154,6 +209,8 @@ class DemSampler:
                            dy[finite].max()))
         if part is not None:
             flat = out.ravel()
+            dx = np.ascontiguousarray(self._lattice(dx, 1), dtype="float64")
+            dy = np.ascontiguousarray(self._lattice(dy, 0), dtype="float64")
             heights_at_points(np.ascontiguousarray(part[0]), *part[1:], dx, dy, flat)
             out = flat.reshape(out.shape)
         return out
