@@ -115,3 +115,25 @@ def test_least_cost_cut_polygons_do_not_depend_on_the_input_order(tmp_path):
     for other in others:
         for name in ("sA", "sB", "sC"):
             assert first[name].symmetric_difference(other[name]).area < 1e-6
+
+
+# -- orientation:models: heights of a planimetric block ---------------------------------------
+def test_planimetric_models_write_no_made_up_height(tmp_path):
+    """MODE planimetric adjusts X, Y only: the points were written with Z = 0 (a height nobody
+    measured, and one that does not follow the control: shifting every control Z by 100 m left
+    it at 0); now they are 2D points, as OGR reads them back. Spatial mode keeps its Z."""
+    import shapely
+
+    from toolbox.demo.samples.bundle_block import make
+
+    sample = make(tmp_path / "data", {})
+    for mode, with_z in (("planimetric", False), ("spatial", True)):
+        out = toolbox.run("orientation:models", {
+            "INPUT": sample["bundle_models"], "CONTROL": sample["bundle_control"],
+            "CRS": "EPSG:3003", "MODE": mode, "OUTPUT": tmp_path / f"{mode}.gpkg"})
+        points = gpd.read_file(out["OUTPUT"], layer="points")
+        assert len(points) > 200
+        assert (shapely.has_z(points.geometry.values) == with_z).all()
+        if with_z:  # terrain 200-450 m high (not a plane at 0), projection centres above
+            ground = points[~points["point_id"].str.startswith("O_")]
+            assert 150 < ground.geometry.z.min() < ground.geometry.z.max() < 600
