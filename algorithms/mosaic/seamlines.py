@@ -50,6 +50,8 @@ class MosaicSeamlines(Algorithm):
     no cut polygon are routed at the same time (each worker reads the two orthos of its seam, so
     they must be on storage the workers share), in waves that give the one-by-one result
     exactly: the file is the local run's. Locally the seams are routed one after the other.
+    The orthos are partitioned in file-name order, so the cut polygons do not depend on the
+    order they are given in.
 
     OUTPUT (GeoPackage): layer cut_polygons (source_id, source = ortho file name, path relative
     to the output's folder, area) forms an exact partition of the area (no gaps, no overlaps);
@@ -158,8 +160,12 @@ class MosaicSeamlines(Algorithm):
                                                  sources, crs=crs)
             centres = centres_of(sources, params["CENTRES"], points, feedback)
             footprints = [s.footprint for s in sources]
+            # the partition is made with the orthos in name order (unique names), then put back
+            # in input order: the seams' routes (and the rounding of the polygons they start
+            # from) would otherwise depend on the order the orthos are given in
+            order = sorted(range(len(sources)), key=lambda k: sources[k].name)
             with feedback.timed("voronoi"):
-                cells = voronoi_cells(footprints, centres)
+                cells = voronoi_cells([footprints[k] for k in order], [centres[k] for k in order])
             feedback.set_progress(20)
             seam_report = []
             executor = executor_of(params)
@@ -177,18 +183,22 @@ class MosaicSeamlines(Algorithm):
                 cell = params["SEAM_CELL_SIZE"] or min(s.res[0] for s in sources)
 
                 def cost_for(i, j):
+                    i, j = order[i], order[j]
                     return PairCost(sources[i], sources[j], crs, weights, buildings, forbidden,
                                     heights, (centres[i], centres[j]))
 
                 with feedback.timed("least_cost"):
-                    cells, seam_report = least_cost_cells(cells, footprints, cost_for, cell,
-                                                          params["MAX_CELLS"],
+                    cells, seam_report = least_cost_cells(cells, [footprints[k] for k in order],
+                                                          cost_for, cell, params["MAX_CELLS"],
                                                           feedback.step(20, 95), executor)
+                for entry in seam_report:  # input numbers, the lower first
+                    entry["a"], entry["b"] = sorted((order[entry["a"]], order[entry["b"]]))
                 for entry in seam_report:
                     if entry["method"] != "least_cost":
                         feedback.push_warning(f"seam {sources[entry['a']].name} / "
                                               f"{sources[entry['b']].name} kept on the Voronoi "
                                               f"line: {entry.get('note', '')}")
+            cells = [cells[order.index(k)] for k in range(len(sources))]  # input order
             area = union_area(sources)
             gap, overlap = partition_errors(cells, area)
             methods = {(e["a"], e["b"]): e["method"] for e in seam_report}

@@ -37,7 +37,8 @@ class Footprints(Algorithm):
     ``nadir_points`` and ``principal_points`` (PointZ, with on_dem), ``projection_centres``
     (PointZ, X0/Y0/Z0 and the angles in radians) and ``overlaps`` (Polygon: photo_a, photo_b,
     kind forward/side/other, pct_of_a, pct_of_b = intersection area / footprint area). Forward
-    pairs are consecutive photos of a strip in project order; side pairs are photos of two
+    pairs are neighbouring photos along a strip (whatever order the project lists them in;
+    photos without a strip: consecutive in project order); side pairs are photos of two
     strips where one is the photo of its strip that overlaps the other most (a block's diagonal
     neighbours are other, not held to SIDE_OVERLAP).
 

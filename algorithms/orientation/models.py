@@ -53,7 +53,7 @@ class IndependentModels(Algorithm):
             Layer("points", "Point Z", [("point_id", "string"), ("role", "string"),
                                         ("n_models", "integer"),
                                         ("max_residual_m", "real")],
-                  "adjusted ground points")]),
+                  "adjusted ground points (MODE planimetric: X, Y without Z)")]),
         report_output(),
     ]
     outputs = [Output("STATISTICS", "unknowns, equations, redundancy, sigma0 (m)", "dict")]
@@ -98,7 +98,7 @@ class IndependentModels(Algorithm):
         features = []
         for k, pid in enumerate(result.points):
             g = result.ground[k]
-            pt = [g[0], g[1], g[2] if len(g) > 2 else 0.0]
+            pt = g[:3]  # planimetric: X, Y only (no height was adjusted: none made up)
             role = "control" if pid in known else "check" if pid in checks else \
                 ("tie" if n_models[k] > 1 else "isolated")
             features.append({"point_id": pid, "role": role, "n_models": int(n_models[k]),

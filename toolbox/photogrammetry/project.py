@@ -57,6 +57,8 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from toolbox.cameras import Intrinsics, create_intrinsics
 from toolbox.errors import InputDataError, ToolboxError
 from toolbox.photogrammetry.camera import Camera, RadialDistortion
@@ -67,6 +69,24 @@ from toolbox.photogrammetry.readers import read_exterior_orientations
 from toolbox.photogrammetry.rotation import angle_unit as canonical_unit
 
 FORMAT_MARKER = "orientation-project"
+
+
+def along_strip(photos: list[Photo]) -> list[Photo]:
+    """The photos of one strip in their order along it: by the position of their projection
+    centres on the line fitted through them (least squares), in the direction the list mostly
+    runs; a list already in flight order (either way) comes back unchanged. A project whose
+    photos are listed by name (``IMG_10`` before ``IMG_2``) or by another tool's order would
+    otherwise pair photos that are not neighbours (a base of 2 or 3 photo spacings, even
+    photos that do not overlap)."""
+    if len(photos) < 3:
+        return list(photos)
+    xy = np.array([p.require_exterior().centre[:2] for p in photos], dtype="float64")
+    xy -= xy.mean(axis=0)
+    t = xy @ np.linalg.svd(xy, full_matrices=False)[2][0]
+    runs = float(np.dot(np.arange(len(t)) - (len(t) - 1) / 2.0, t))
+    if runs < 0 or (runs == 0 and t[-1] < t[0]):
+        t = -t  # the direction the list runs in (on a tie, from its first photo to its last)
+    return [photos[k] for k in np.argsort(t, kind="stable")]
 
 
 @dataclass
@@ -97,8 +117,15 @@ class Project:
         return groups
 
     def consecutive_pairs(self) -> list[tuple[Photo, Photo]]:
-        """Consecutive oriented photos of each strip: the stereo pairs of the flight."""
-        return [(s[i], s[i + 1]) for s in self.strips().values() for i in range(len(s) - 1)]
+        """Consecutive oriented photos of each strip: the stereo pairs of the flight. A named
+        strip's photos follow one another along the strip (:func:`along_strip`), whatever
+        order the project lists them in; photos without a strip go in project order."""
+        pairs: list[tuple[Photo, Photo]] = []
+        for name, photos in self.strips().items():
+            if name:
+                photos = along_strip(photos)
+            pairs.extend(zip(photos[:-1], photos[1:], strict=True))
+        return pairs
 
     def with_exteriors(self, orientations: Mapping[str, ExteriorOrientation]) -> Project:
         """A copy with exterior orientations replaced for the photos named (which must exist)."""
