@@ -1,0 +1,104 @@
+"""Round 17, vector geometry semantics: curves and object coordinate systems of DXF restitution
+(attribution:apply's reader), curves of OGR layers (GeoPackage CircularString...)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import shapely
+
+from toolbox.attribution.restitution import DXF_ARC_TOLERANCE, read_dxf
+
+ezdxf = pytest.importorskip("ezdxf")
+
+
+def _on_circle(geom, centre, radius):
+    """(largest distance of a vertex from the circle, largest sagitta of a chord)."""
+    v = shapely.get_coordinates(geom)
+    d = np.hypot(v[:, 0] - centre[0], v[:, 1] - centre[1])
+    mid = (v[1:] + v[:-1]) / 2
+    return abs(d - radius).max(), (radius - np.hypot(mid[:, 0] - centre[0],
+                                                     mid[:, 1] - centre[1])).max()
+
+
+def test_dxf_bulges_arcs_and_circles_are_linearised_within_the_tolerance(tmp_path):
+    doc = ezdxf.new()
+    msp = doc.modelspace()
+    # bulge 1: a half circle of radius 100 from (0, 0) to (200, 0), counter-clockwise (below)
+    msp.add_lwpolyline([(0, 0, 0, 0, 1), (200, 0)], format="xyseb",
+                       dxfattribs={"layer": "ROAD", "elevation": 5.0})
+    # a closed outline of two half circles: the circle of radius 50 about (50, 0)
+    msp.add_lwpolyline([(0, 0, 0, 0, 1), (100, 0, 0, 0, 1)], format="xyseb", close=True,
+                       dxfattribs={"layer": "POOL"})
+    msp.add_arc((0, 0), 100, 0, 90, dxfattribs={"layer": "ARC"})
+    msp.add_circle((0, 0), 10, dxfattribs={"layer": "WELL"})
+    path = tmp_path / "curves.dxf"
+    doc.saveas(path)
+    frame, report = read_dxf(path)
+    assert report["skipped_dxf_entities"] == {}
+    geoms = dict(zip(frame["code"], frame.geometry))
+    road = geoms["ROAD"]  # was the straight chord, 200 long
+    assert road.length == pytest.approx(100 * math.pi, abs=0.05)
+    assert shapely.get_coordinates(road).tolist()[0] == [0, 0]
+    assert shapely.get_coordinates(road).tolist()[-1] == [200, 0]
+    assert shapely.get_coordinates(road, include_z=True)[:, 2].tolist() == \
+        [5.0] * shapely.get_num_coordinates(road)
+    assert road.distance(shapely.Point(100, -100)) < 1e-9  # bulge > 0: counter-clockwise
+    for code, centre, radius, length in (("ROAD", (100, 0), 100, math.pi * 100),
+                                         ("POOL", (50, 0), 50, math.pi * 100),
+                                         ("ARC", (0, 0), 100, math.pi * 50),
+                                         ("WELL", (0, 0), 10, math.pi * 20)):
+        off, sagitta = _on_circle(geoms[code], centre, radius)
+        assert off < 1e-9 and 0 < sagitta <= DXF_ARC_TOLERANCE, code
+        # chords of sagitta s are shorter than their arcs by about s / 3r of the length
+        short = length - geoms[code].length
+        assert 0 < short <= length * DXF_ARC_TOLERANCE / (2 * radius), code
+    assert geoms["POOL"].is_closed and geoms["WELL"].is_closed  # the pool was degenerate
+    lost = math.pi * 2500 - shapely.Polygon(geoms["POOL"]).area  # chord segments: < s per metre
+    assert 0 < lost <= math.pi * 100 * DXF_ARC_TOLERANCE
+
+
+def test_dxf_mirrored_entities_are_put_in_world_coordinates(tmp_path):
+    doc = ezdxf.new()
+    msp = doc.modelspace()
+    doc.blocks.new("TREE").add_circle((0, 0), 1)
+    mirror = {"extrusion": (0, 0, -1)}  # OCS x = -WCS x (a mirrored copy in CAD)
+    msp.add_lwpolyline([(10, 0), (20, 0), (20, 10)], dxfattribs={"layer": "WALL", **mirror})
+    msp.add_blockref("TREE", (500, 500, 3), dxfattribs={"layer": "TREE", "rotation": 30,
+                                                        **mirror})
+    msp.add_text("A", height=2, rotation=0, dxfattribs={"layer": "NAME", "insert": (7, 8),
+                                                        **mirror})
+    msp.add_circle((40, 0), 5, dxfattribs={"layer": "WELL", **mirror})
+    path = tmp_path / "mirrored.dxf"
+    doc.saveas(path)
+    frame, _ = read_dxf(path)
+    rows = {row.code: row for row in frame.itertuples()}
+    assert shapely.get_coordinates(rows["WALL"].geometry).tolist() == \
+        [[-10, 0], [-20, 0], [-20, 10]]  # as ezdxf's vertices_in_wcs and GDAL's DXF driver
+    tree = rows["TREE"]
+    # the OCS's z axis is -z: the insertion point's OCS z 3 is the world's -3
+    assert shapely.get_coordinates(tree.geometry, include_z=True).tolist() == [[-500, 500, -3]]
+    assert tree.rotation == pytest.approx(150.0) and tree.scale_y == -1.0
+    assert shapely.get_coordinates(rows["NAME"].geometry).tolist() == [[-7, 8]]
+    assert rows["NAME"].rotation == pytest.approx(180.0)
+    assert shapely.centroid(shapely.Polygon(rows["WELL"].geometry)).x == pytest.approx(-40)
+
+
+def test_dxf_2d_polyline_bulge_and_splines(tmp_path):
+    doc = ezdxf.new()
+    msp = doc.modelspace()
+    msp.add_polyline2d([(0, 0, 0, 0, -1), (20, 0)], format="xyseb",
+                       dxfattribs={"layer": "P2D"})  # clockwise half circle: above
+    spline = msp.add_spline([(0, 0), (10, 10), (20, 0), (30, 10)],
+                            dxfattribs={"layer": "SPL"})
+    path = tmp_path / "poly2d.dxf"
+    doc.saveas(path)
+    frame, report = read_dxf(path)
+    assert report["skipped_dxf_entities"] == {}
+    geoms = dict(zip(frame["code"], frame.geometry))
+    assert geoms["P2D"].length == pytest.approx(10 * math.pi, abs=0.01)
+    assert geoms["P2D"].distance(shapely.Point(10, 10)) < 1e-9
+    fine = shapely.LineString([tuple(v)[:2] for v in spline.flattening(1e-5)])
+    assert shapely.hausdorff_distance(geoms["SPL"], fine) <= DXF_ARC_TOLERANCE
