@@ -102,3 +102,32 @@ def test_dxf_2d_polyline_bulge_and_splines(tmp_path):
     assert geoms["P2D"].distance(shapely.Point(10, 10)) < 1e-9
     fine = shapely.LineString([tuple(v)[:2] for v in spline.flattening(1e-5)])
     assert shapely.hausdorff_distance(geoms["SPL"], fine) <= DXF_ARC_TOLERANCE
+
+
+def _curve_gpkg(path, radius=1000.0):
+    """A GeoPackage holding one CircularString: the half circle of ``radius`` about
+    (radius, 0) through (radius, radius) (ISO WKB written by hand: shapely has no curves)."""
+    import struct
+
+    from pyogrio.raw import write
+
+    wkb = struct.pack("<BII6d", 1, 8, 3, 0.0, 0.0, radius, radius, 2 * radius, 0.0)
+    write(str(path), geometry=np.array([wkb], dtype=object), field_data=[np.array([1])],
+          fields=["code"], geometry_type="Unknown", crs="EPSG:32632", driver="GPKG",
+          layer="arcs")
+
+
+def test_ogr_curves_are_linearised_within_1e5_of_the_radius(tmp_path):
+    from toolbox.io.vector import read_geometries, read_vector
+
+    path = tmp_path / "curves.gpkg"
+    _curve_gpkg(path)
+    for geom in (read_vector(path).geometry.iloc[0], read_geometries(path)[1][0]):
+        assert geom.geom_type == "LineString"
+        v = shapely.get_coordinates(geom)
+        assert abs(np.hypot(v[:, 0] - 1000, v[:, 1]) - 1000).max() < 1e-6  # on the arc
+        mid = (v[1:] + v[:-1]) / 2
+        # GDAL's default step (4 degrees) left chords 0.61 m inside a 1 km radius
+        assert (1000 - np.hypot(mid[:, 0] - 1000, mid[:, 1])).max() <= 0.01
+        assert geom.length == pytest.approx(1000 * math.pi, abs=0.02)
+        assert geom.bounds[3] == pytest.approx(1000, abs=0.01)

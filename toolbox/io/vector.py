@@ -15,10 +15,17 @@ Writing: :mod:`toolbox.io.vector_write` (the extension picks the OGR driver,
 :data:`VECTOR_DRIVERS`); the layers written beside a one-layer format's file are found again by
 ``path|layername=NAME``. A ``|subset=`` SQL filter is not available on GeoParquet (read through
 pyarrow/geopandas: the GDAL in pyogrio's wheels has no Parquet driver).
+
+Curves (CircularString, CompoundCurve, CurvePolygon, MultiCurve, MultiSurface of a GeoPackage,
+GML...; the ARCs, CIRCLEs and bulges of a DXF read through OGR) are linearised by GDAL with
+chords of :data:`ARC_STEP_DEGREES` of arc (``OGR_ARC_STEPSIZE``; GDAL's default, 4 degrees, is
+0.6 m off a curve of radius 1 km): at most ``radius * (1 - cos(step / 2))``, 1e-5 of the radius,
+from the curve. An ``OGR_ARC_STEPSIZE`` of the environment is kept.
 """
 
 from __future__ import annotations
 
+import os
 import re
 import sys
 import threading
@@ -48,6 +55,10 @@ _GEOMETRY_FAMILIES = {"point": ("Point", "MultiPoint"),
                       "line": ("LineString", "MultiLineString", "LinearRing"),
                       "polygon": ("Polygon", "MultiPolygon")}
 
+
+#: the angle (degrees) of the chords that replace the curves read through OGR
+ARC_STEP_DEGREES = 0.5
+os.environ.setdefault("OGR_ARC_STEPSIZE", str(ARC_STEP_DEGREES))  # GDAL reads it at each use
 
 _OGR_LOCK = threading.RLock()
 #: pyogrio's warning when it reads a measured (M) layer without its M values (repeated at each
