@@ -733,13 +733,26 @@ def no_geometry(geoms) -> np.ndarray:
 def read_area(ref: Any, name: str):
     """The union of a layer's polygons (2D, made valid; null, empty and non-polygonal parts
     dropped): a BOUNDARY, a MASK. :class:`InputDataError` naming ``name`` when none has an
-    area."""
+    area. An invalid polygon is repaired as topology:overlay repairs it (GEOS ``make_valid``,
+    structure method: overlapping parts of a multi-polygon united, as separate features are,
+    not cut out as the default method cuts them), with a warning naming its rows."""
     import shapely
 
     geoms = read_vector(ref, name=name).geometry.values
-    geoms = geoms[~no_geometry(geoms)]
-    region = shapely.union_all(shapely.make_valid(shapely.force_2d(geoms))) if len(geoms) \
-        else shapely.Polygon()
+    rows = np.flatnonzero(~no_geometry(geoms))
+    geoms = shapely.force_2d(geoms[rows])
+    invalid = np.flatnonzero(~shapely.is_valid(geoms))
+    if len(invalid):
+        import logging
+
+        logging.getLogger("toolbox").warning(
+            f"{name} {ref}: {len(invalid)} invalid polygon(s) ({feature_rows(rows[invalid])}; "
+            f"{shapely.is_valid_reason(geoms[invalid[0]])}): repaired (GEOS make_valid, "
+            "overlapping parts united)")
+        geoms = geoms.copy()
+        geoms[invalid] = shapely.make_valid(geoms[invalid], method="structure",
+                                            keep_collapsed=False)
+    region = shapely.union_all(geoms) if len(geoms) else shapely.Polygon()
     parts = [g for g in shapely.get_parts(region) if shapely.get_type_id(g) == 3]
     if not parts:
         raise InputDataError(f"{name} {ref} has no polygon with an area")
