@@ -169,3 +169,22 @@ def test_mosaic_cut_polygon_of_overlapping_parts_is_their_union():
     sources = [SimpleNamespace(name="a", index=0)]
     cells = cells_from_layer(layer, "source", sources, crs=layer.crs)
     assert shapely.area(cells[0]) == pytest.approx(2800.0)  # was 2400: the overlap cut out
+
+
+@pytest.mark.parametrize("column, values", [("fid", [7, 7, -3]), ("FID", ["a", "b", "c"]),
+                                            ("Fid", [5, 6, 7]), ("fid", [1, None, 2])])
+def test_a_field_named_fid_is_written_as_a_field(tmp_path, column, values):
+    """A GeoPackage took a field named fid as its key: repeated numbers -> UNIQUE constraint
+    failed (exit 2 blaming OUTPUT), text -> 'Wrong field type for fid' (blamed on INPUT as
+    corrupt), unique numbers -> the field left the attribute table."""
+    import geopandas as gpd
+    import pyogrio
+
+    from toolbox.io.vector_write import write_layers
+
+    frame = gpd.GeoDataFrame({column: values, "code": ["A", "B", "C"]},
+                             geometry=shapely.points([0, 1, 2], [0, 0, 0]), crs="EPSG:32632")
+    out = write_layers(tmp_path / "out.gpkg", {"layer": frame})
+    back = pyogrio.read_dataframe(out, layer="layer")
+    assert list(back.columns) == [column, "code", "geometry"]
+    assert [None if v != v else v for v in back[column].tolist()] == values
