@@ -188,3 +188,17 @@ def test_a_field_named_fid_is_written_as_a_field(tmp_path, column, values):
     back = pyogrio.read_dataframe(out, layer="layer")
     assert list(back.columns) == [column, "code", "geometry"]
     assert [None if v != v else v for v in back[column].tolist()] == values
+
+
+def test_overlay_of_a_geometry_collection_keeps_its_areas():
+    """A GeometryCollection of areas and a line (GeoJSON carries them) reached GEOS whole:
+    'Overlay input is mixed-dimension', exit 3; its areas may overlap (a valid collection)."""
+    from toolbox.topology.setops import clean_polygons, overlay_polygons
+
+    collection = shapely.GeometryCollection([shapely.box(0, 0, 40, 40), shapely.box(20, 20, 60, 60),
+                                             shapely.LineString([(0, 0), (-5, -5)])])
+    b, issues, _ = clean_polygons(np.array([collection], dtype=object), "OVERLAY")
+    assert [i.type for i in issues] == ["invalid_geometry"]
+    a = np.array([shapely.box(-100, -100, 100, 100)], dtype=object)
+    result = overlay_polygons(a, b, "intersection", 0.001)
+    assert shapely.area(result.geoms).sum() == pytest.approx(2800.0)  # the two squares' union
