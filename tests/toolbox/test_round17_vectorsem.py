@@ -202,3 +202,21 @@ def test_overlay_of_a_geometry_collection_keeps_its_areas():
     a = np.array([shapely.box(-100, -100, 100, 100)], dtype=object)
     result = overlay_polygons(a, b, "intersection", 0.001)
     assert shapely.area(result.geoms).sum() == pytest.approx(2800.0)  # the two squares' union
+
+
+def test_restitution_geometry_collection_is_split_into_its_parts(tmp_path):
+    """A GeometryCollection (polygon + line) was one entity of no kind: a closed polygon code
+    reported it 'unclosed_polygon, ends 69.6 apart'."""
+    import geopandas as gpd
+
+    from toolbox.attribution.restitution import read_ogr
+
+    collection = shapely.GeometryCollection([
+        shapely.MultiPolygon([shapely.box(30, 30, 70, 70)]), shapely.LineString([(0, 0), (5, 5)])])
+    path = tmp_path / "collection.geojson"
+    gpd.GeoDataFrame({"code": ["POOL"]}, geometry=[collection], crs="EPSG:32632").to_file(
+        path, driver="GeoJSON")
+    frame, report = read_ogr(str(path))
+    assert frame["kind"].tolist() == ["polygon", "line"]
+    assert frame["entity"].tolist() == [1, 1] and report["multipart_split"] == 1
+    assert frame.geometry.iloc[0].equals(shapely.box(30, 30, 70, 70))

@@ -42,7 +42,7 @@ rotation and, for an INSERT, a negative ``scale_y``. The ACI colour is the entit
 (BYLAYER resolved). Other entity types are counted and named in a warning.
 
 *Any OGR layer* with a code field (``code``/``codice``/``cod`` or given): multi-part features
-are split into one entity per part.
+and geometry collections are split into one entity per part.
 
 Errors (:class:`InputDataError`) name the file, the line and the problem.
 """
@@ -473,8 +473,7 @@ def read_ogr(source: Any, code_field: str | None = None, name: str = "INPUT"):
     label = Path(str(getattr(source, "path", source) or "<GeoDataFrame>")).name
     rows, geoms, split = [], [], 0
     for i, (geom, code) in enumerate(zip(frame.geometry.values, frame[code_field], strict=True)):
-        parts = [None] if geom is None or geom.is_empty else list(
-            shapely.get_parts(geom)) if shapely.get_type_id(geom) in (4, 5, 6) else [geom]
+        parts = [None] if geom is None or geom.is_empty else _single_parts(geom)
         split += len(parts) - 1
         for part in parts:
             kind = None if part is None else {0: "point", 1: "line", 2: "line",
@@ -488,6 +487,18 @@ def read_ogr(source: Any, code_field: str | None = None, name: str = "INPUT"):
             geoms.append(part)
     return entity_frame(rows, geoms, frame.crs), {"code_field": code_field,
                                                    "multipart_split": split}
+
+
+def _single_parts(geom) -> list:
+    """The single geometries of ``geom``: multi-parts and geometry collections (nested ones
+    too) opened, empty parts dropped."""
+    import shapely
+
+    parts = [geom]
+    while any(shapely.get_type_id(g) in (4, 5, 6, 7) for g in parts):
+        parts = [q for g in parts for q in (shapely.get_parts(g) if shapely.get_type_id(g) in
+                                            (4, 5, 6, 7) else [g])]
+    return [g for g in parts if not g.is_empty] or [None]
 
 
 def looks_like_ascii_export(path: Path) -> bool:
