@@ -220,3 +220,24 @@ def test_restitution_geometry_collection_is_split_into_its_parts(tmp_path):
     assert frame["kind"].tolist() == ["polygon", "line"]
     assert frame["entity"].tolist() == [1, 1] and report["multipart_split"] == 1
     assert frame.geometry.iloc[0].equals(shapely.box(30, 30, 70, 70))
+
+
+def test_dxf_read_through_ogr_leaves_paper_space_out(tmp_path, caplog):
+    """GDAL's DXF driver reads the layouts' paper space into the same layer: a point at
+    (10, 10, 0) in sheet millimetres became a TIN node beside world coordinates (exit 0)."""
+    from toolbox.io.vector import read_geometries, read_vector
+    from toolbox.io.vector_points import read_points_xyz
+
+    doc = ezdxf.new()
+    world = [(500000, 4800000, 100), (500100, 4800000, 110), (500000, 4800100, 120)]
+    for xyz in world:
+        doc.modelspace().add_point(xyz, dxfattribs={"layer": "PUNTI"})
+    doc.layout("Layout1").add_point((10, 10, 0), dxfattribs={"layer": "PUNTI"})
+    path = tmp_path / "paper.dxf"
+    doc.saveas(path)
+    with caplog.at_level("WARNING", logger="toolbox"):
+        xyz = read_points_xyz(str(path))
+    assert sorted(map(tuple, xyz.tolist())) == sorted(world)
+    assert any("paper space" in r.getMessage() for r in caplog.records)
+    assert len(read_vector(str(path))) == 3
+    assert len(read_geometries(f"{path}|subset=\"Layer\" = 'PUNTI'")[1]) == 3

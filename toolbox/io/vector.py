@@ -60,6 +60,9 @@ _GEOMETRY_FAMILIES = {"point": ("Point", "MultiPoint"),
 ARC_STEP_DEGREES = 0.5
 os.environ.setdefault("OGR_ARC_STEPSIZE", str(ARC_STEP_DEGREES))  # GDAL reads it at each use
 
+#: the OGR filter of a DXF's model-space entities (GDAL's DXF driver flags the others)
+_MODEL_SPACE = '"PaperSpace" IS NULL'
+
 _OGR_LOCK = threading.RLock()
 #: pyogrio's warning when it reads a measured (M) layer without its M values (repeated at each
 #: read, naming no layer): replaced by one warning per input naming it (:func:`_warn_measured`)
@@ -154,6 +157,8 @@ class VectorLayerRef:
     default_of: tuple[str, ...] = ()
     #: the layer's M values were dropped and the reader warned about it (once)
     m_warned: bool = False
+    #: a DXF layer (GDAL's DXF driver reads paper space too): its model space only is read
+    model_space: bool = False
 
     def __str__(self) -> str:
         if self.path is None:
@@ -164,6 +169,15 @@ class VectorLayerRef:
     def filtered(self) -> bool:
         """True when only some features of the layer are read (subset or geometry type)."""
         return bool(self.where) or self.geometry_filter is not None
+
+    @property
+    def read_where(self) -> str | None:
+        """The OGR filter the readers apply: the ``|subset=`` and, for a DXF, model space only
+        (GDAL reads the entities of the layouts' paper space into the same layer, in sheet
+        units: a title block at (10, 10) beside world coordinates)."""
+        if not self.model_space:
+            return self.where or None
+        return f"({self.where}) AND {_MODEL_SPACE}" if self.where else _MODEL_SPACE
 
     @property
     def crs(self):
@@ -345,7 +359,8 @@ def open_layer(value: Any, name: str = "INPUT", known_layer: str | None = None) 
         default_of = tuple(str(n) for n, kind in rows[1:] if kind is not None)
     info = _layer_info(path, layer, options, name, f"'{text}'")
     ref = VectorLayerRef(path, layer, info, options, where=source.subset,
-                         geometry_filter=source.geometry_filter, default_of=default_of)
+                         geometry_filter=source.geometry_filter, default_of=default_of,
+                         model_space=_warn_paper_space(path, layer, info, name))
     if ref.where:  # an SQL error is the user's: report it now, naming the parameter
         import pyogrio
 
@@ -356,6 +371,28 @@ def open_layer(value: Any, name: str = "INPUT", known_layer: str | None = None) 
             raise ParameterError(name, f"subset {ref.where!r} is not a valid filter of "
                                  f"'{text}': {str(exc).splitlines()[0]}") from None
     return ref
+
+
+def _warn_paper_space(path: Path, layer: str | None, info: dict[str, Any], name: str) -> bool:
+    """True for a layer of GDAL's DXF driver (its readers then leave paper space out), with a
+    warning when the drawing has entities in paper space."""
+    if info.get("driver") != "DXF" or "PaperSpace" not in list(info.get("fields", [])):
+        return False
+    import pyogrio
+
+    try:
+        paper = len(pyogrio.read_dataframe(path, layer=layer, columns=["PaperSpace"],
+                                           where='"PaperSpace" IS NOT NULL',
+                                           read_geometry=False))
+    except Exception:  # noqa: BLE001 - the readers report an unreadable file
+        return True
+    if paper:
+        import logging
+
+        logging.getLogger("toolbox").warning(
+            f"{name} '{path}': {paper} entities of the drawing's paper space (layouts, in sheet "
+            "units) left out: only model space is read")
+    return True
 
 
 def _warn_default_layer(ref: VectorLayerRef, name: str) -> None:
@@ -626,7 +663,7 @@ def read_vector(source: Any, crs: Any = None, columns: list[str] | None = None,
         try:
             frame, _ = _without_m_warning(
                 pyogrio.read_dataframe, ref.path, layer=ref.layer, columns=columns, bbox=bbox,
-                where=ref.where or None, **ref.open_options)
+                where=ref.read_where, **ref.open_options)
         except Exception as exc:
             raise InputDataError(f"{name}: cannot read {ref}: {str(exc).splitlines()[0]}") from None
         frame = frame.drop(columns=csv_coordinate_columns(ref.open_options), errors="ignore")
@@ -655,7 +692,8 @@ def every_layer(ref: VectorLayerRef, name: str = "INPUT") -> list[VectorLayerRef
     file of 200 layers 200 times)."""
     return [VectorLayerRef(ref.path, layer, _layer_info(ref.path, layer, ref.open_options, name,
                                                         f"layer '{layer}' of '{ref.path}'"),
-                           dict(ref.open_options)) for layer in layer_names(ref.path)]
+                           dict(ref.open_options), model_space=ref.model_space)
+            for layer in layer_names(ref.path)]
 
 
 def _layer_info(path: Path, layer: str | None, options: dict[str, str], name: str,
@@ -704,11 +742,11 @@ def _wkb_geometries(ref: VectorLayerRef, name: str) -> np.ndarray | None:
         wkb = _without_m_warning(
             ogr_read, get_vsi_path_or_buffer(str(ref.path)), layer=ref.layer, encoding=None,
             columns=[], read_geometry=True, force_2d=False, skip_features=0, max_features=0,
-            where=ref.where or None, bbox=None, mask=None, fids=None, sql=None,
+            where=ref.read_where, bbox=None, mask=None, fids=None, sql=None,
             sql_dialect=None, return_fids=False, dataset_kwargs={},
             datetime_as_string=False)[0][2]
         if wkb is None:  # a table: its features have no geometry (a filtered one: general path)
-            if ref.where:
+            if ref.read_where:
                 return None
             count = ref.count  # as opening the layer read it; -1: the driver must count
             if count < 0:

@@ -170,13 +170,13 @@ def _open_arrow(ref: VectorLayerRef, columns: list[str], ogr_open_arrow, get_vsi
         source = ogr_open_arrow(
             get_vsi_path_or_buffer(str(ref.path)), layer=ref.layer, encoding=None,
             columns=columns, read_geometry=True, force_2d=False, skip_features=0,
-            max_features=0, where=ref.where or None, bbox=None, mask=None, fids=None, sql=None,
+            max_features=0, where=ref.read_where, bbox=None, mask=None, fids=None, sql=None,
             sql_dialect=None, return_fids=False, dataset_kwargs={}, batch_size=65_536,
             use_pyarrow=True, datetime_as_string=False)
     except TypeError:  # another pyogrio
         import pyogrio
 
-        return pyogrio.read_arrow(ref.path, layer=ref.layer, where=ref.where or None,
+        return pyogrio.read_arrow(ref.path, layer=ref.layer, where=ref.read_where,
                                   columns=columns)
     with source as (meta, reader):
         return meta, reader.read_all()
