@@ -241,3 +241,26 @@ def test_dxf_read_through_ogr_leaves_paper_space_out(tmp_path, caplog):
     assert any("paper space" in r.getMessage() for r in caplog.records)
     assert len(read_vector(str(path))) == 3
     assert len(read_geometries(f"{path}|subset=\"Layer\" = 'PUNTI'")[1]) == 3
+
+
+def test_dxf_texts_read_as_points_are_warned_about(tmp_path, caplog):
+    """GDAL gives a DXF TEXT as a point at its insertion (Z 0 for a height label): it became a
+    mass point at 0 m without a word."""
+    from toolbox.io.vector_points import read_points_xyz
+
+    doc = ezdxf.new()
+    msp = doc.modelspace()
+    for x, z in ((0, 100), (10, 110), (0, 120)):
+        msp.add_point((x, x + z, z), dxfattribs={"layer": "PUNTI"})
+    msp.add_text("110", height=2, dxfattribs={"layer": "QUOTE", "insert": (11, 121, 0)})
+    path = tmp_path / "heights.dxf"
+    doc.saveas(path)
+    with caplog.at_level("WARNING", logger="toolbox"):
+        assert len(read_points_xyz(str(path))) == 4  # read, as a point
+    assert any("1 of its points are DXF texts (layers QUOTE)" in r.getMessage()
+               for r in caplog.records)
+    caplog.clear()
+    with caplog.at_level("WARNING", logger="toolbox"):
+        xyz = read_points_xyz(f'{path}|subset="Text" IS NULL')
+    assert sorted(xyz[:, 2].tolist()) == [100, 110, 120]
+    assert not any("DXF texts" in r.getMessage() for r in caplog.records)

@@ -375,24 +375,47 @@ def open_layer(value: Any, name: str = "INPUT", known_layer: str | None = None) 
 
 def _warn_paper_space(path: Path, layer: str | None, info: dict[str, Any], name: str) -> bool:
     """True for a layer of GDAL's DXF driver (its readers then leave paper space out), with a
-    warning when the drawing has entities in paper space."""
-    if info.get("driver") != "DXF" or "PaperSpace" not in list(info.get("fields", [])):
+    warning when the drawing has entities in paper space. The model space's texts (TEXT,
+    MTEXT: OGR points with a ``Text``) are counted in ``info["dxf_texts"]`` for the point
+    readers' warning."""
+    fields = list(info.get("fields", []))
+    if info.get("driver") != "DXF" or "PaperSpace" not in fields:
         return False
     import pyogrio
 
     try:
-        paper = len(pyogrio.read_dataframe(path, layer=layer, columns=["PaperSpace"],
-                                           where='"PaperSpace" IS NOT NULL',
-                                           read_geometry=False))
+        table = pyogrio.read_dataframe(path, layer=layer, read_geometry=False,
+                                       columns=[c for c in ("PaperSpace", "Text", "Layer")
+                                                if c in fields])
     except Exception:  # noqa: BLE001 - the readers report an unreadable file
         return True
-    if paper:
+    paper = table["PaperSpace"].notna().to_numpy()
+    if "Text" in table:
+        texts = table[~paper & table["Text"].notna().to_numpy()]
+        layers = sorted(map(str, texts["Layer"].unique())) if "Layer" in texts else []
+        info["dxf_texts"] = (len(texts), layers)
+    if paper.any():
         import logging
 
         logging.getLogger("toolbox").warning(
-            f"{name} '{path}': {paper} entities of the drawing's paper space (layouts, in sheet "
-            "units) left out: only model space is read")
+            f"{name} '{path}': {int(paper.sum())} entities of the drawing's paper space "
+            "(layouts, in sheet units) left out: only model space is read")
     return True
+
+
+def warn_dxf_texts(ref: VectorLayerRef, name: str) -> None:
+    """Warn when a DXF layer read as points holds texts (GDAL gives TEXT/MTEXT as points at
+    their insertion, Z often 0): they are read as points unless a ``|subset=`` leaves them
+    out."""
+    count, layers = ref.info.get("dxf_texts", (0, []))
+    if not count or ref.where:
+        return
+    import logging
+
+    logging.getLogger("toolbox").warning(
+        f"{name} {ref}: {count} of its points are DXF texts (layers {', '.join(layers[:5])}), "
+        "read as points at their insertion point; if they are labels, leave them out with "
+        f"'{ref.path}|subset=\"Text\" IS NULL'")
 
 
 def _warn_default_layer(ref: VectorLayerRef, name: str) -> None:

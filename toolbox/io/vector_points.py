@@ -18,6 +18,7 @@ from toolbox.io.vector import (
     open_layer,
     quiet_m_warning,
     read_vector,
+    warn_dxf_texts,
 )
 
 
@@ -82,6 +83,7 @@ def read_points_xyz(source: Any, z_field: str | None = None, name: str = "INPUT"
     no pyarrow) take the general path.
     """
     ref = open_layer(source, name)
+    warn_dxf_texts(ref, name)
     if ref.frame is None and not ref.open_options and ref.geometry_filter is None:
         xyz = _points_from_parquet(ref, z_field) if is_parquet(ref.path) else \
             _points_from_arrow(ref, z_field)
