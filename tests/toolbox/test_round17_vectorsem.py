@@ -264,3 +264,24 @@ def test_dxf_texts_read_as_points_are_warned_about(tmp_path, caplog):
         xyz = read_points_xyz(f'{path}|subset="Text" IS NULL')
     assert sorted(xyz[:, 2].tolist()) == [100, 110, 120]
     assert not any("DXF texts" in r.getMessage() for r in caplog.records)
+
+
+def test_a_vertex_without_z_among_3d_vertices_is_warned_about(tmp_path, caplog):
+    """A GeoJSON breakline [[x, y, 101.2], [x, y], [x, y, 108.8]]: OGR reads the middle vertex
+    at Z 0 and the TIN took a breakline vertex at 0 m without a word."""
+    import geopandas as gpd
+
+    from toolbox.io.vector_points import vertices_xyz
+
+    path = tmp_path / "breaklines.geojson"
+    path.write_text('{"type": "FeatureCollection", "features": ['
+                    '{"type": "Feature", "properties": {}, "geometry": {"type": "LineString", '
+                    '"coordinates": [[12, 12, 101.2], [52, 52], [88, 88, 108.8]]}}, '
+                    '{"type": "Feature", "properties": {}, "geometry": {"type": "LineString", '
+                    '"coordinates": [[0, 0, 0], [10, 0, 0]]}}]}')
+    frame = gpd.read_file(path)
+    with caplog.at_level("WARNING", logger="toolbox"):
+        xyz, _ = vertices_xyz(frame, name="BREAKLINES")
+    assert xyz[1].tolist() == [52, 52, 0]  # as OGR reads it
+    warned = [r.getMessage() for r in caplog.records if "Z = 0" in r.getMessage()]
+    assert len(warned) == 1 and "1 feature(s) (row 1," in warned[0]  # not the line all at 0

@@ -214,8 +214,29 @@ def vertices_xyz(frame, z_field: str | None = None, name: str = "INPUT"):
     if z_field is not None:
         z_values = np.asarray(frame[z_field], dtype="float64")
         coords = np.column_stack([coords, z_values[index]])
+    else:
+        _warn_zero_z(coords[:, 2], index, name, rows)
     _check_finite(coords, name, rows[index])
     return coords, index
+
+
+def _warn_zero_z(z: np.ndarray, index: np.ndarray, name: str, rows: np.ndarray) -> None:
+    """Warn about features whose Z is exactly 0 at some vertices and another value at others:
+    OGR reads a vertex without Z in a 3D feature (GeoJSON ``[x, y]`` among ``[x, y, z]``, a
+    Shapefile vertex whose Z was never set) as Z = 0, a height nobody measured."""
+    if not len(z):
+        return
+    count = np.bincount(index, minlength=int(index.max()) + 1)
+    zeros = np.bincount(index, weights=(z == 0).astype(float), minlength=len(count))
+    mixed = np.flatnonzero((zeros > 0) & (zeros < count))
+    if len(mixed):
+        import logging
+
+        logging.getLogger("toolbox").warning(
+            f"{name}: {len(mixed)} feature(s) ({feature_rows(rows[mixed])}) have Z = 0 at "
+            f"{int(zeros[mixed].sum())} vertices and other heights at the rest: a vertex "
+            "without Z is read as 0 (GeoJSON [x, y] among [x, y, z], an unset Shapefile Z); "
+            "their Z is used as 0")
 
 
 def input_rows(frame) -> np.ndarray:
