@@ -25,6 +25,7 @@ from the curve. An ``OGR_ARC_STEPSIZE`` of the environment is kept.
 
 from __future__ import annotations
 
+import functools
 import os
 import re
 import sys
@@ -381,26 +382,41 @@ def _warn_paper_space(path: Path, layer: str | None, info: dict[str, Any], name:
     fields = list(info.get("fields", []))
     if info.get("driver") != "DXF" or "PaperSpace" not in fields:
         return False
+    stat = path.stat()
+    counts = _dxf_counts(str(path), layer, stat.st_mtime_ns, stat.st_size,
+                         tuple(c for c in ("PaperSpace", "Text", "Layer") if c in fields))
+    if counts is None:  # the readers report an unreadable file
+        return True
+    paper, texts = counts
+    if texts is not None:
+        info["dxf_texts"] = texts
+    if paper:
+        import logging
+
+        logging.getLogger("toolbox").warning(
+            f"{name} '{path}': {paper} entities of the drawing's paper space (layouts, in "
+            "sheet units) left out: only model space is read")
+    return True
+
+
+@functools.lru_cache(maxsize=8)
+def _dxf_counts(path: str, layer: str | None, mtime: int, size: int, columns: tuple[str, ...]):
+    """``(paper-space entities, (model-space texts, their layers) or None)`` of a DXF layer
+    (one parse of the file per version of it, however often it is opened); None when OGR
+    cannot read it."""
     import pyogrio
 
     try:
         table = pyogrio.read_dataframe(path, layer=layer, read_geometry=False,
-                                       columns=[c for c in ("PaperSpace", "Text", "Layer")
-                                                if c in fields])
+                                       columns=list(columns))
     except Exception:  # noqa: BLE001 - the readers report an unreadable file
-        return True
+        return None
     paper = table["PaperSpace"].notna().to_numpy()
+    texts = None
     if "Text" in table:
-        texts = table[~paper & table["Text"].notna().to_numpy()]
-        layers = sorted(map(str, texts["Layer"].unique())) if "Layer" in texts else []
-        info["dxf_texts"] = (len(texts), layers)
-    if paper.any():
-        import logging
-
-        logging.getLogger("toolbox").warning(
-            f"{name} '{path}': {int(paper.sum())} entities of the drawing's paper space "
-            "(layouts, in sheet units) left out: only model space is read")
-    return True
+        rows = table[~paper & table["Text"].notna().to_numpy()]
+        texts = (len(rows), sorted(map(str, rows["Layer"].unique())) if "Layer" in rows else [])
+    return int(paper.sum()), texts
 
 
 def warn_dxf_texts(ref: VectorLayerRef, name: str) -> None:
