@@ -24,7 +24,9 @@ class ApplyCodes(Algorithm):
 
     INPUT is the restitution: the ASCII export (``CODE <code> [colour] [source]`` / ``E N Z``
     lines / ``END``), a DXF (layers are codes; 3D polylines, lines, points, blocks as symbols with
-    insertion, rotation and scale, texts as label points), or any vector layer with a code field
+    insertion, rotation and scale, texts as label points; arcs, circles, bulged polylines,
+    ellipses and splines as chords within 0.01 drawing units; mirrored (OCS) entities in world
+    coordinates), or any vector layer with a code field
     (CODE_FIELD). With COORDINATES, INPUT is the descriptions table of the two-table form.
     Several INPUT files are adjacent stereo models, merged first ("fusione": lines meeting across
     the model edge within the reattach tolerances joined, duplicates removed, both reported in

@@ -126,7 +126,9 @@ class BlockDesign(Algorithm):
             polys = frame.geometry[frame.geometry.notna()]
             if polys.empty:
                 raise self.fail("AREA", "has no polygon")
-            area = shapely.union_all(shapely.make_valid(polys.values))  # a bow-tie: its lobes
+            # a bow-tie: its lobes; overlapping parts of a multi-polygon united (not cut out)
+            area = shapely.union_all(shapely.make_valid(polys.values, method="structure",
+                                                        keep_collapsed=False))
             crs = frame.crs or params["CRS"]
         if crs is not None and crs.is_geographic:
             raise self.fail("CRS" if params["EXTENT"] is not None else "AREA",

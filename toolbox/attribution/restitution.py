@@ -32,12 +32,17 @@ header line): a *descriptions* file, one record per entity::
   the vertices is reported (``bbox_mismatches``), not refused.
 
 *DXF* (ezdxf): the layer is the code; POINT -> point, LINE / LWPOLYLINE / POLYLINE (2D and 3D)
--> line (closed polylines closed), INSERT -> symbol at its insertion point (block name, rotation,
-scale kept), TEXT / MTEXT -> label point (text, height, rotation). The ACI colour is the entity's
-colour (BYLAYER resolved). Other entity types are counted and named in a warning.
+/ ARC / CIRCLE / ELLIPSE / SPLINE -> line (closed polylines and circles closed), INSERT -> symbol
+at its insertion point (block name, rotation, scale kept), TEXT / MTEXT -> label point (text,
+height, rotation). Curves (ARC, CIRCLE, ELLIPSE, SPLINE, the bulged segments of 2D polylines)
+are replaced by chords at most :data:`DXF_ARC_TOLERANCE` drawing units from the curve. Entities
+drawn in an object coordinate system (extrusion other than 0,0,1, as a mirrored copy is) are put
+in world coordinates; a mirrored INSERT or TEXT gets the world direction of its x axis as
+rotation and, for an INSERT, a negative ``scale_y``. The ACI colour is the entity's colour
+(BYLAYER resolved). Other entity types are counted and named in a warning.
 
 *Any OGR layer* with a code field (``code``/``codice``/``cod`` or given): multi-part features
-are split into one entity per part.
+and geometry collections are split into one entity per part.
 
 Errors (:class:`InputDataError`) name the file, the line and the problem.
 """
@@ -59,6 +64,9 @@ ENTITY_COLUMNS = ("entity", "code", "colour", "source", "file", "line", "kind", 
 _NUMBER_SPLIT = re.compile(r"[;,\s]+")
 _FIELD_SPLIT = re.compile(r"[;\s]+")
 _DECIMAL_COMMA = re.compile(r"^[+-]?(\d+,\d*|,\d+)$")
+#: largest distance, in drawing units, between a DXF arc (ARC, CIRCLE, bulged polyline segment)
+#: and the chords that replace it
+DXF_ARC_TOLERANCE = 0.01
 
 
 def _decimal_commas(fields: list[str]) -> list[str]:
@@ -296,7 +304,87 @@ def _entity_label(entity) -> str:
         return "unreadable"
 
 
+def _arc_steps(radius: float, sweep: float, tolerance: float = DXF_ARC_TOLERANCE) -> int:
+    """Chords replacing an arc of ``radius`` and ``sweep`` (radians) within ``tolerance`` of it
+    (sagitta ``r (1 - cos(a / 2))`` of each chord's angle ``a``), at least one per 45 degrees."""
+    import math
+
+    sweep = abs(sweep)
+    steps = math.ceil(sweep / (math.pi / 4))
+    if radius > tolerance:
+        steps = max(steps, math.ceil(sweep / (2.0 * math.acos(1.0 - tolerance / radius))))
+    return max(1, min(steps, 100_000))
+
+
+def _arc_points(center, radius: float, start: float, sweep: float) -> np.ndarray:
+    """The vertices (x, y) of an arc from angle ``start`` turning by ``sweep`` (radians,
+    counter-clockwise when positive), both ends included."""
+    angles = start + np.linspace(0.0, sweep, _arc_steps(radius, sweep) + 1)
+    return np.column_stack([center[0] + radius * np.cos(angles),
+                            center[1] + radius * np.sin(angles)])
+
+
+def _bulged_vertices(points: list[tuple[float, float, float, float]],
+                     closed: bool) -> np.ndarray:
+    """The (x, y, z) vertices of a 2D polyline given as ``(x, y, z, bulge)`` (OCS), each bulged
+    segment replaced by its arc's chords (bulge = tan(included angle / 4), positive
+    counter-clockwise; z varies linearly along the arc); a closed polyline ends on its first
+    vertex (once: a last vertex already on the first is not repeated)."""
+    import math
+
+    if not points:
+        return np.zeros((0, 3))
+    xyz = np.array([p[:3] for p in points], float)
+    out = [xyz[:1]]
+    count = len(points) if closed else len(points) - 1
+    for i in range(count):
+        p0, p1, bulge = xyz[i], xyz[(i + 1) % len(points)], float(points[i][3] or 0.0)
+        chord = float(np.hypot(*(p1[:2] - p0[:2])))
+        if i == len(points) - 1 and chord == 0.0:  # closing segment of a closed-on-itself line
+            break
+        if bulge == 0.0 or chord == 0.0:
+            out.append(p1[None])
+            continue
+        sweep = 4.0 * math.atan(bulge)
+        radius = chord / (2.0 * abs(math.sin(sweep / 2.0)))
+        offset = chord * (1.0 - bulge * bulge) / (4.0 * bulge)  # midpoint -> centre, leftwards
+        left = np.array([p0[1] - p1[1], p1[0] - p0[0]]) / chord
+        center = (p0[:2] + p1[:2]) / 2.0 + offset * left
+        start = math.atan2(p0[1] - center[1], p0[0] - center[0])
+        arc = _arc_points(center, radius, start, sweep)
+        z = np.linspace(p0[2], p1[2], len(arc))
+        arc = np.column_stack([arc, z])
+        arc[-1] = p1  # the next vertex exactly
+        out.append(arc[1:])
+    return np.concatenate(out)
+
+
+def _to_wcs(entity, xyz: np.ndarray) -> np.ndarray:
+    """(n, 3) world coordinates of the OCS vertices ``xyz`` of a 2D entity."""
+    ocs = entity.ocs()
+    if not ocs.transform:
+        return xyz
+    return np.array([tuple(v) for v in ocs.points_to_wcs(xyz.tolist())], float).reshape(-1, 3)
+
+
+def _wcs_direction(entity, rotation: float) -> tuple[float, float]:
+    """``(rotation, handedness)`` in world coordinates of an OCS entity turned by ``rotation``
+    degrees: the world direction of its x axis (degrees) and -1 when its OCS is mirrored."""
+    import math
+
+    ocs = entity.ocs()
+    if not ocs.transform:
+        return rotation, 1.0
+    a = math.radians(rotation)
+    ux = ocs.to_wcs((math.cos(a), math.sin(a), 0.0))
+    uy = ocs.to_wcs((-math.sin(a), math.cos(a), 0.0))
+    hand = 1.0 if ux.x * uy.y - ux.y * uy.x >= 0 else -1.0
+    return math.degrees(math.atan2(ux.y, ux.x)) % 360.0, hand
+
+
 def _add_dxf_entity(entity, add, skipped: dict[str, int]) -> None:
+    import math
+
     import shapely
 
     kind = entity.dxftype()
@@ -307,24 +395,53 @@ def _add_dxf_entity(entity, add, skipped: dict[str, int]) -> None:
                                                 tuple(entity.dxf.end)]))
     elif kind == "LWPOLYLINE":
         z = float(entity.dxf.get("elevation", 0.0) or 0.0)
-        pts = [(x, y, z) for x, y in entity.get_points("xy")]
-        if entity.closed and pts and pts[0] != pts[-1]:
-            pts.append(pts[0])
-        add(entity, "line", vertex_geometry(np.array(pts, float).reshape(-1, 3)))
+        xyz = _bulged_vertices([(x, y, z, b) for x, y, b in entity.get_points("xyb")],
+                               bool(entity.closed))
+        add(entity, "line", vertex_geometry(_to_wcs(entity, xyz)))
+    elif kind == "POLYLINE" and entity.is_2d_polyline:
+        elevation = float(entity.dxf.get("elevation", (0.0, 0.0, 0.0))[2])
+        xyz = _bulged_vertices([(x, y, elevation or z, v.dxf.get("bulge", 0.0))
+                                for v in entity.vertices
+                                for x, y, z in [tuple(v.dxf.location)]],
+                               bool(entity.is_closed))
+        add(entity, "line", vertex_geometry(_to_wcs(entity, xyz)))
     elif kind == "POLYLINE" and not (entity.is_polygon_mesh or entity.is_poly_face_mesh):
         pts = [tuple(v) for v in entity.points()]
         if entity.is_closed and pts and pts[0] != pts[-1]:
             pts.append(pts[0])
         add(entity, "line", vertex_geometry(np.array(pts, float).reshape(-1, 3)))
+    elif kind in ("ARC", "CIRCLE"):
+        center = tuple(entity.dxf.center)  # OCS, its z the elevation
+        radius = abs(float(entity.dxf.radius))
+        if kind == "CIRCLE":
+            start, sweep = 0.0, 2.0 * math.pi
+        else:
+            start = math.radians(entity.dxf.start_angle)
+            sweep = math.radians((entity.dxf.end_angle - entity.dxf.start_angle) % 360.0)
+            sweep = sweep or 2.0 * math.pi  # start = end: the whole circle
+        xy = _arc_points(center, radius, start, sweep)
+        if sweep == 2.0 * math.pi:
+            xy[-1] = xy[0]
+        xyz = np.column_stack([xy, np.full(len(xy), center[2])])
+        add(entity, "line", vertex_geometry(_to_wcs(entity, xyz)))
+    elif kind in ("ELLIPSE", "SPLINE"):  # world coordinates, within the tolerance of the curve
+        add(entity, "line", vertex_geometry(np.array(
+            [tuple(v) for v in entity.flattening(DXF_ARC_TOLERANCE)], float).reshape(-1, 3)))
     elif kind == "INSERT":
-        add(entity, "symbol", shapely.Point(tuple(entity.dxf.insert)),
-            block=entity.dxf.name, rotation=entity.dxf.get("rotation", 0.0),
-            scale_x=entity.dxf.get("xscale", 1.0), scale_y=entity.dxf.get("yscale", 1.0))
-    elif kind in ("TEXT", "MTEXT"):
-        text = entity.dxf.text if kind == "TEXT" else entity.plain_text()
-        height = entity.dxf.get("height" if kind == "TEXT" else "char_height", None)
-        add(entity, "label", shapely.Point(tuple(entity.dxf.insert)), text=text,
-            text_height=height, rotation=entity.dxf.get("rotation", 0.0))
+        rotation, hand = _wcs_direction(entity, entity.dxf.get("rotation", 0.0))
+        insert = _to_wcs(entity, np.array([tuple(entity.dxf.insert)], float))[0]
+        add(entity, "symbol", shapely.Point(tuple(insert)),
+            block=entity.dxf.name, rotation=rotation,
+            scale_x=entity.dxf.get("xscale", 1.0), scale_y=hand * entity.dxf.get("yscale", 1.0))
+    elif kind == "TEXT":
+        rotation, _ = _wcs_direction(entity, entity.dxf.get("rotation", 0.0))
+        insert = _to_wcs(entity, np.array([tuple(entity.dxf.insert)], float))[0]
+        add(entity, "label", shapely.Point(tuple(insert)), text=entity.dxf.text,
+            text_height=entity.dxf.get("height", None), rotation=rotation)
+    elif kind == "MTEXT":  # insertion point in world coordinates
+        add(entity, "label", shapely.Point(tuple(entity.dxf.insert)), text=entity.plain_text(),
+            text_height=entity.dxf.get("char_height", None),
+            rotation=entity.dxf.get("rotation", 0.0))
     else:
         skipped[kind] = skipped.get(kind, 0) + 1
 
@@ -356,8 +473,7 @@ def read_ogr(source: Any, code_field: str | None = None, name: str = "INPUT"):
     label = Path(str(getattr(source, "path", source) or "<GeoDataFrame>")).name
     rows, geoms, split = [], [], 0
     for i, (geom, code) in enumerate(zip(frame.geometry.values, frame[code_field], strict=True)):
-        parts = [None] if geom is None or geom.is_empty else list(
-            shapely.get_parts(geom)) if shapely.get_type_id(geom) in (4, 5, 6) else [geom]
+        parts = [None] if geom is None or geom.is_empty else _single_parts(geom)
         split += len(parts) - 1
         for part in parts:
             kind = None if part is None else {0: "point", 1: "line", 2: "line",
@@ -371,6 +487,18 @@ def read_ogr(source: Any, code_field: str | None = None, name: str = "INPUT"):
             geoms.append(part)
     return entity_frame(rows, geoms, frame.crs), {"code_field": code_field,
                                                    "multipart_split": split}
+
+
+def _single_parts(geom) -> list:
+    """The single geometries of ``geom``: multi-parts and geometry collections (nested ones
+    too) opened, empty parts dropped."""
+    import shapely
+
+    parts = [geom]
+    while any(shapely.get_type_id(g) in (4, 5, 6, 7) for g in parts):
+        parts = [q for g in parts for q in (shapely.get_parts(g) if shapely.get_type_id(g) in
+                                            (4, 5, 6, 7) else [g])]
+    return [g for g in parts if not g.is_empty] or [None]
 
 
 def looks_like_ascii_export(path: Path) -> bool:

@@ -15,10 +15,18 @@ Writing: :mod:`toolbox.io.vector_write` (the extension picks the OGR driver,
 :data:`VECTOR_DRIVERS`); the layers written beside a one-layer format's file are found again by
 ``path|layername=NAME``. A ``|subset=`` SQL filter is not available on GeoParquet (read through
 pyarrow/geopandas: the GDAL in pyogrio's wheels has no Parquet driver).
+
+Curves (CircularString, CompoundCurve, CurvePolygon, MultiCurve, MultiSurface of a GeoPackage,
+GML...; the ARCs, CIRCLEs and bulges of a DXF read through OGR) are linearised by GDAL with
+chords of :data:`ARC_STEP_DEGREES` of arc (``OGR_ARC_STEPSIZE``; GDAL's default, 4 degrees, is
+0.6 m off a curve of radius 1 km): at most ``radius * (1 - cos(step / 2))``, 1e-5 of the radius,
+from the curve. An ``OGR_ARC_STEPSIZE`` of the environment is kept.
 """
 
 from __future__ import annotations
 
+import functools
+import os
 import re
 import sys
 import threading
@@ -48,6 +56,13 @@ _GEOMETRY_FAMILIES = {"point": ("Point", "MultiPoint"),
                       "line": ("LineString", "MultiLineString", "LinearRing"),
                       "polygon": ("Polygon", "MultiPolygon")}
 
+
+#: the angle (degrees) of the chords that replace the curves read through OGR
+ARC_STEP_DEGREES = 0.5
+os.environ.setdefault("OGR_ARC_STEPSIZE", str(ARC_STEP_DEGREES))  # GDAL reads it at each use
+
+#: the OGR filter of a DXF's model-space entities (GDAL's DXF driver flags the others)
+_MODEL_SPACE = '"PaperSpace" IS NULL'
 
 _OGR_LOCK = threading.RLock()
 #: pyogrio's warning when it reads a measured (M) layer without its M values (repeated at each
@@ -143,6 +158,8 @@ class VectorLayerRef:
     default_of: tuple[str, ...] = ()
     #: the layer's M values were dropped and the reader warned about it (once)
     m_warned: bool = False
+    #: a DXF layer (GDAL's DXF driver reads paper space too): its model space only is read
+    model_space: bool = False
 
     def __str__(self) -> str:
         if self.path is None:
@@ -153,6 +170,15 @@ class VectorLayerRef:
     def filtered(self) -> bool:
         """True when only some features of the layer are read (subset or geometry type)."""
         return bool(self.where) or self.geometry_filter is not None
+
+    @property
+    def read_where(self) -> str | None:
+        """The OGR filter the readers apply: the ``|subset=`` and, for a DXF, model space only
+        (GDAL reads the entities of the layouts' paper space into the same layer, in sheet
+        units: a title block at (10, 10) beside world coordinates)."""
+        if not self.model_space:
+            return self.where or None
+        return f"({self.where}) AND {_MODEL_SPACE}" if self.where else _MODEL_SPACE
 
     @property
     def crs(self):
@@ -334,7 +360,8 @@ def open_layer(value: Any, name: str = "INPUT", known_layer: str | None = None) 
         default_of = tuple(str(n) for n, kind in rows[1:] if kind is not None)
     info = _layer_info(path, layer, options, name, f"'{text}'")
     ref = VectorLayerRef(path, layer, info, options, where=source.subset,
-                         geometry_filter=source.geometry_filter, default_of=default_of)
+                         geometry_filter=source.geometry_filter, default_of=default_of,
+                         model_space=_warn_paper_space(path, layer, info, name))
     if ref.where:  # an SQL error is the user's: report it now, naming the parameter
         import pyogrio
 
@@ -345,6 +372,66 @@ def open_layer(value: Any, name: str = "INPUT", known_layer: str | None = None) 
             raise ParameterError(name, f"subset {ref.where!r} is not a valid filter of "
                                  f"'{text}': {str(exc).splitlines()[0]}") from None
     return ref
+
+
+def _warn_paper_space(path: Path, layer: str | None, info: dict[str, Any], name: str) -> bool:
+    """True for a layer of GDAL's DXF driver (its readers then leave paper space out), with a
+    warning when the drawing has entities in paper space. The model space's texts (TEXT,
+    MTEXT: OGR points with a ``Text``) are counted in ``info["dxf_texts"]`` for the point
+    readers' warning."""
+    fields = list(info.get("fields", []))
+    if info.get("driver") != "DXF" or "PaperSpace" not in fields:
+        return False
+    stat = path.stat()
+    counts = _dxf_counts(str(path), layer, stat.st_mtime_ns, stat.st_size,
+                         tuple(c for c in ("PaperSpace", "Text", "Layer") if c in fields))
+    if counts is None:  # the readers report an unreadable file
+        return True
+    paper, texts = counts
+    if texts is not None:
+        info["dxf_texts"] = texts
+    if paper:
+        import logging
+
+        logging.getLogger("toolbox").warning(
+            f"{name} '{path}': {paper} entities of the drawing's paper space (layouts, in "
+            "sheet units) left out: only model space is read")
+    return True
+
+
+@functools.lru_cache(maxsize=8)
+def _dxf_counts(path: str, layer: str | None, mtime: int, size: int, columns: tuple[str, ...]):
+    """``(paper-space entities, (model-space texts, their layers) or None)`` of a DXF layer
+    (one parse of the file per version of it, however often it is opened); None when OGR
+    cannot read it."""
+    import pyogrio
+
+    try:
+        table = pyogrio.read_dataframe(path, layer=layer, read_geometry=False,
+                                       columns=list(columns))
+    except Exception:  # noqa: BLE001 - the readers report an unreadable file
+        return None
+    paper = table["PaperSpace"].notna().to_numpy()
+    texts = None
+    if "Text" in table:
+        rows = table[~paper & table["Text"].notna().to_numpy()]
+        texts = (len(rows), sorted(map(str, rows["Layer"].unique())) if "Layer" in rows else [])
+    return int(paper.sum()), texts
+
+
+def warn_dxf_texts(ref: VectorLayerRef, name: str) -> None:
+    """Warn when a DXF layer read as points holds texts (GDAL gives TEXT/MTEXT as points at
+    their insertion, Z often 0): they are read as points unless a ``|subset=`` leaves them
+    out."""
+    count, layers = ref.info.get("dxf_texts", (0, []))
+    if not count or ref.where:
+        return
+    import logging
+
+    logging.getLogger("toolbox").warning(
+        f"{name} {ref}: {count} of its points are DXF texts (layers {', '.join(layers[:5])}), "
+        "read as points at their insertion point; if they are labels, leave them out with "
+        f"'{ref.path}|subset=\"Text\" IS NULL'")
 
 
 def _warn_default_layer(ref: VectorLayerRef, name: str) -> None:
@@ -615,7 +702,7 @@ def read_vector(source: Any, crs: Any = None, columns: list[str] | None = None,
         try:
             frame, _ = _without_m_warning(
                 pyogrio.read_dataframe, ref.path, layer=ref.layer, columns=columns, bbox=bbox,
-                where=ref.where or None, **ref.open_options)
+                where=ref.read_where, **ref.open_options)
         except Exception as exc:
             raise InputDataError(f"{name}: cannot read {ref}: {str(exc).splitlines()[0]}") from None
         frame = frame.drop(columns=csv_coordinate_columns(ref.open_options), errors="ignore")
@@ -644,7 +731,8 @@ def every_layer(ref: VectorLayerRef, name: str = "INPUT") -> list[VectorLayerRef
     file of 200 layers 200 times)."""
     return [VectorLayerRef(ref.path, layer, _layer_info(ref.path, layer, ref.open_options, name,
                                                         f"layer '{layer}' of '{ref.path}'"),
-                           dict(ref.open_options)) for layer in layer_names(ref.path)]
+                           dict(ref.open_options), model_space=ref.model_space)
+            for layer in layer_names(ref.path)]
 
 
 def _layer_info(path: Path, layer: str | None, options: dict[str, str], name: str,
@@ -693,11 +781,11 @@ def _wkb_geometries(ref: VectorLayerRef, name: str) -> np.ndarray | None:
         wkb = _without_m_warning(
             ogr_read, get_vsi_path_or_buffer(str(ref.path)), layer=ref.layer, encoding=None,
             columns=[], read_geometry=True, force_2d=False, skip_features=0, max_features=0,
-            where=ref.where or None, bbox=None, mask=None, fids=None, sql=None,
+            where=ref.read_where, bbox=None, mask=None, fids=None, sql=None,
             sql_dialect=None, return_fids=False, dataset_kwargs={},
             datetime_as_string=False)[0][2]
         if wkb is None:  # a table: its features have no geometry (a filtered one: general path)
-            if ref.where:
+            if ref.read_where:
                 return None
             count = ref.count  # as opening the layer read it; -1: the driver must count
             if count < 0:
@@ -722,13 +810,26 @@ def no_geometry(geoms) -> np.ndarray:
 def read_area(ref: Any, name: str):
     """The union of a layer's polygons (2D, made valid; null, empty and non-polygonal parts
     dropped): a BOUNDARY, a MASK. :class:`InputDataError` naming ``name`` when none has an
-    area."""
+    area. An invalid polygon is repaired as topology:overlay repairs it (GEOS ``make_valid``,
+    structure method: overlapping parts of a multi-polygon united, as separate features are,
+    not cut out as the default method cuts them), with a warning naming its rows."""
     import shapely
 
     geoms = read_vector(ref, name=name).geometry.values
-    geoms = geoms[~no_geometry(geoms)]
-    region = shapely.union_all(shapely.make_valid(shapely.force_2d(geoms))) if len(geoms) \
-        else shapely.Polygon()
+    rows = np.flatnonzero(~no_geometry(geoms))
+    geoms = shapely.force_2d(geoms[rows])
+    invalid = np.flatnonzero(~shapely.is_valid(geoms))
+    if len(invalid):
+        import logging
+
+        logging.getLogger("toolbox").warning(
+            f"{name} {ref}: {len(invalid)} invalid polygon(s) ({feature_rows(rows[invalid])}; "
+            f"{shapely.is_valid_reason(geoms[invalid[0]])}): repaired (GEOS make_valid, "
+            "overlapping parts united)")
+        geoms = geoms.copy()
+        geoms[invalid] = shapely.make_valid(geoms[invalid], method="structure",
+                                            keep_collapsed=False)
+    region = shapely.union_all(geoms) if len(geoms) else shapely.Polygon()
     parts = [g for g in shapely.get_parts(region) if shapely.get_type_id(g) == 3]
     if not parts:
         raise InputDataError(f"{name} {ref} has no polygon with an area")

@@ -18,6 +18,7 @@ from toolbox.io.vector import (
     open_layer,
     quiet_m_warning,
     read_vector,
+    warn_dxf_texts,
 )
 
 
@@ -82,6 +83,7 @@ def read_points_xyz(source: Any, z_field: str | None = None, name: str = "INPUT"
     no pyarrow) take the general path.
     """
     ref = open_layer(source, name)
+    warn_dxf_texts(ref, name)
     if ref.frame is None and not ref.open_options and ref.geometry_filter is None:
         xyz = _points_from_parquet(ref, z_field) if is_parquet(ref.path) else \
             _points_from_arrow(ref, z_field)
@@ -170,13 +172,13 @@ def _open_arrow(ref: VectorLayerRef, columns: list[str], ogr_open_arrow, get_vsi
         source = ogr_open_arrow(
             get_vsi_path_or_buffer(str(ref.path)), layer=ref.layer, encoding=None,
             columns=columns, read_geometry=True, force_2d=False, skip_features=0,
-            max_features=0, where=ref.where or None, bbox=None, mask=None, fids=None, sql=None,
+            max_features=0, where=ref.read_where, bbox=None, mask=None, fids=None, sql=None,
             sql_dialect=None, return_fids=False, dataset_kwargs={}, batch_size=65_536,
             use_pyarrow=True, datetime_as_string=False)
     except TypeError:  # another pyogrio
         import pyogrio
 
-        return pyogrio.read_arrow(ref.path, layer=ref.layer, where=ref.where or None,
+        return pyogrio.read_arrow(ref.path, layer=ref.layer, where=ref.read_where,
                                   columns=columns)
     with source as (meta, reader):
         return meta, reader.read_all()
@@ -212,8 +214,29 @@ def vertices_xyz(frame, z_field: str | None = None, name: str = "INPUT"):
     if z_field is not None:
         z_values = np.asarray(frame[z_field], dtype="float64")
         coords = np.column_stack([coords, z_values[index]])
+    else:
+        _warn_zero_z(coords[:, 2], index, name, rows)
     _check_finite(coords, name, rows[index])
     return coords, index
+
+
+def _warn_zero_z(z: np.ndarray, index: np.ndarray, name: str, rows: np.ndarray) -> None:
+    """Warn about features whose Z is exactly 0 at some vertices and another value at others:
+    OGR reads a vertex without Z in a 3D feature (GeoJSON ``[x, y]`` among ``[x, y, z]``, a
+    Shapefile vertex whose Z was never set) as Z = 0, a height nobody measured."""
+    if not len(z):
+        return
+    count = np.bincount(index, minlength=int(index.max()) + 1)
+    zeros = np.bincount(index, weights=(z == 0).astype(float), minlength=len(count))
+    mixed = np.flatnonzero((zeros > 0) & (zeros < count))
+    if len(mixed):
+        import logging
+
+        logging.getLogger("toolbox").warning(
+            f"{name}: {len(mixed)} feature(s) ({feature_rows(rows[mixed])}) have Z = 0 at "
+            f"{int(zeros[mixed].sum())} vertices and other heights at the rest: a vertex "
+            "without Z is read as 0 (GeoJSON [x, y] among [x, y, z], an unset Shapefile Z); "
+            "their Z is used as 0")
 
 
 def input_rows(frame) -> np.ndarray:

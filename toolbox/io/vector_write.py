@@ -105,6 +105,8 @@ def write_layers(path: str | Path, layers: dict[str, Any], crs: Any = None,
             continue
         if driver == "GPKG" and not target.exists():
             kwargs["dataset_options"] = GPKG_DATASET_OPTIONS
+        if driver == "GPKG":
+            kwargs["layer_options"] = _fid_column(frame)
         if driver == "FlatGeobuf" and len(frame) and frame.geometry.isna().any():
             kwargs["layer_options"] = {"SPATIAL_INDEX": "NO"}  # its index takes no null geometry
         with staged_gpkg_writes(), writing(target), warnings.catch_warnings():
@@ -122,6 +124,21 @@ def write_layers(path: str | Path, layers: dict[str, Any], crs: Any = None,
             warn_renamed_fields(target, [c for c in frame.columns if c != frame.geometry.name])
             warn_made_up_z(target, frame.geometry.values)
     return path
+
+
+def _fid_column(frame) -> dict[str, str]:
+    """The GeoPackage layer option naming its primary key (FID) column, away from the frame's
+    fields: GDAL takes a field named ``fid`` (any case: an input's field, as a Shapefile or
+    GeoJSON exported from a GeoPackage carries it) as the key, so text values, nulls or repeated
+    numbers failed the write (the error blamed OUTPUT, or INPUT as corrupt) and unique numbers
+    left the attribute table; with another key column the field is written as it is."""
+    names = {str(c).casefold() for c in frame.columns}
+    if "fid" not in names:
+        return {}
+    k = 1
+    while f"fid_{k}" in names:
+        k += 1
+    return {"FID": f"fid_{k}"}
 
 
 def warn_made_up_z(path: Path, geoms) -> None:

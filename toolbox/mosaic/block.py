@@ -289,7 +289,8 @@ def cells_from_layer(layer, field: str, sources: list[OrthoSource],
             raise InputDataError(f"{name}: feature with {field} = {key!r} matches no input "
                                  f"ortho (names: {', '.join(by_name)})")
         if geom is not None and not geom.is_empty:
-            parts.setdefault(k, []).append(shapely.make_valid(geom))
+            parts.setdefault(k, []).append(  # overlapping parts united, not cut out
+                shapely.make_valid(geom, method="structure", keep_collapsed=False))
         else:
             no_geometry.append(f"row {row} ({sources[k].name})")
     if feedback is not None:

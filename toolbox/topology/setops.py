@@ -102,6 +102,13 @@ def clean_polygons(geoms: np.ndarray, layer: str) -> tuple[np.ndarray, list[Issu
                                 f"{layer}: no area in this geometry", (i,)))
             geoms[i] = None
             continue
+        if shapely.get_type_id(g) == 7:  # a collection: its areas (united: they may overlap)
+            others = [p for p in shapely.get_parts(g) if shapely.get_type_id(p) not in (3, 6)]
+            if others:
+                issues.append(Issue("invalid_geometry", FIXED, shapely.point_on_surface(others[0]),
+                                    f"{layer}: {len(others)} point or line part(s) of a "
+                                    "GeometryCollection dropped, its areas kept", (i,)))
+            g = shapely.union_all(parts)
         geoms[i] = g
     counts["skipped"] = int(sum(1 for g in geoms if g is None))
     return geoms, issues, counts

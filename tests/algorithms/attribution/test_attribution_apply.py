@@ -314,7 +314,7 @@ def _dxf(path):
                                                           "xscale": 1.5, "yscale": 2.0})
     msp.add_text("Località Il Poggio", height=2.5, rotation=15,
                  dxfattribs={"layer": "TOP01001", "insert": (4, 2, 330)})
-    msp.add_circle((50, 50), 3, dxfattribs={"layer": "VEG01001"})
+    msp.add_solid([(50, 50), (53, 50), (50, 53)], dxfattribs={"layer": "VEG01001"})
     doc.saveas(path)
 
 
@@ -325,7 +325,7 @@ def test_dxf_reader(tmp_path):
     assert frame["code"].tolist() == ["FAB01002", "STR02001", "STR02001", "QUO01001",
                                       "ALB01001", "TOP01001"]
     assert frame["kind"].tolist() == ["line", "line", "line", "point", "symbol", "label"]
-    assert report["skipped_dxf_entities"] == {"CIRCLE": 1}
+    assert report["skipped_dxf_entities"] == {"SOLID": 1}
     building = shapely.get_coordinates(frame.geometry.iloc[0], include_z=True)
     assert building.tolist() == [[0, 0, 330], [10, 0, 330], [10, 5, 330], [0, 5, 330],
                                  [0, 0, 330]]
@@ -350,7 +350,7 @@ def test_dxf_through_apply(tmp_path, files):
         "OUTPUT": out}, feedback=feedback)["STATISTICS"]
     assert stats["layers"] == {"ALB01001": 1, "FAB01002": 1, "QUO01001": 1, "STR02001": 2}
     assert stats["labels"] == 1 and stats["unresolved"] == 0
-    assert any("DXF entities not read: 1 CIRCLE" in w for w in feedback.warnings)
+    assert any("DXF entities not read: 1 SOLID" in w for w in feedback.warnings)
     trees = gpd.read_file(out, layer="ALB01001")
     assert trees[["block", "rotation", "scale_x", "scale_y"]].iloc[0].tolist() == \
         ["ALBERO", 30.0, 1.5, 2.0]
