@@ -69,18 +69,72 @@ def image_terms_rows(a, b, scale, r0, r1, diff, grad, gdiff):
                 diff[r, c] += abs(np.float64(a[k, r, c]) - np.float64(b[k, r, c]))
         for c in range(cols):
             diff[r, c] *= inv
-            # padded column c + 1 is image column c
-            ay = (dn_a[c] + 2.0 * dn_a[c + 1] + dn_a[c + 2]
-                  - up_a[c] - 2.0 * up_a[c + 1] - up_a[c + 2]) * 0.125
-            ax = (up_a[c + 2] + 2.0 * mid_a[c + 2] + dn_a[c + 2]
-                  - up_a[c] - 2.0 * mid_a[c] - dn_a[c]) * 0.125
-            by = (dn_b[c] + 2.0 * dn_b[c + 1] + dn_b[c + 2]
-                  - up_b[c] - 2.0 * up_b[c + 1] - up_b[c + 2]) * 0.125
-            bx = (up_b[c + 2] + 2.0 * mid_b[c + 2] + dn_b[c + 2]
-                  - up_b[c] - 2.0 * mid_b[c] - dn_b[c]) * 0.125
+            ay, ax = _sobel(up_a, mid_a, dn_a, c)
+            by, bx = _sobel(up_b, mid_b, dn_b, c)
             ga = ay * ay + ax * ax
             gb = by * by + bx * bx
             grad[r, c] = np.sqrt(max(ga, gb)) * scale
+            gdiff[r, c] = np.sqrt((ay - by) * (ay - by) + (ax - bx) * (ax - bx)) * scale
+
+
+@njit(cache=True, nogil=True)
+def _sobel(up, mid, dn, c):
+    """Sobel derivatives / 8 ``(d/dy, d/dx)`` at image column ``c`` (padded column ``c + 1``)
+    of the band means of three rows."""
+    dy = (dn[c] + 2.0 * dn[c + 1] + dn[c + 2] - up[c] - 2.0 * up[c + 1] - up[c + 2]) * 0.125
+    dx = (up[c + 2] + 2.0 * mid[c + 2] + dn[c + 2] - up[c] - 2.0 * mid[c] - dn[c]) * 0.125
+    return dy, dx
+
+
+def image_cost(a, b, scale, difference, base, gradient, workers=None):
+    """``(base + difference x diff + gradient x grad, gdiff)`` of :func:`image_terms` in one
+    pass (float64 ``(rows, cols)`` each): the same values, each cell's terms added in that
+    order, without the ``diff`` and ``grad`` arrays and four passes over them."""
+    from toolbox.executor import in_row_bands
+
+    bands, rows, cols = a.shape
+    cost = np.empty((rows, cols), np.float64)
+    gdiff = np.empty((rows, cols), np.float64)
+    weights = (float(difference), float(base), float(gradient))
+    in_row_bands(lambda r0, r1: image_cost_rows(a, b, scale, weights, r0, r1, cost, gdiff),
+                 rows, cols, workers=workers)
+    return cost, gdiff
+
+
+@njit(cache=True, nogil=True)
+def image_cost_rows(a, b, scale, weights, r0, r1, cost, gdiff):
+    """Rows ``r0`` to ``r1`` (excluded) of :func:`image_cost`: :func:`image_terms_rows` with
+    ``diff`` and ``grad`` weighted and summed per cell instead of stored."""
+    w_diff, base, w_grad = weights
+    bands, rows, cols = a.shape
+    ma = np.empty((3, cols + 2), np.float64)
+    mb = np.empty((3, cols + 2), np.float64)
+    for r in (r0 - 1, r0):
+        _row_mean(a, r, ma[(r + 3) % 3])
+        _row_mean(b, r, mb[(r + 3) % 3])
+    diffs = np.empty(cols, np.float64)  # the row's band differences, summed band by band
+    inv = scale / bands
+    for r in range(r0, r1):
+        _row_mean(a, r + 1, ma[(r + 1) % 3])
+        _row_mean(b, r + 1, mb[(r + 1) % 3])
+        up_a, mid_a, dn_a = ma[(r + 2) % 3], ma[r % 3], ma[(r + 1) % 3]
+        up_b, mid_b, dn_b = mb[(r + 2) % 3], mb[r % 3], mb[(r + 1) % 3]
+        diffs[:] = 0.0
+        for k in range(bands):
+            for c in range(cols):
+                diffs[c] += abs(np.float64(a[k, r, c]) - np.float64(b[k, r, c]))
+        for c in range(cols):
+            diff = diffs[c] * inv
+            ay, ax = _sobel(up_a, mid_a, dn_a, c)
+            by, bx = _sobel(up_b, mid_b, dn_b, c)
+            ga = ay * ay + ax * ax
+            gb = by * by + bx * bx
+            grad = np.sqrt(max(ga, gb)) * scale
+            grad *= w_grad
+            value = diff * w_diff
+            value += base
+            value += grad
+            cost[r, c] = value
             gdiff[r, c] = np.sqrt((ay - by) * (ay - by) + (ax - bx) * (ax - bx)) * scale
 
 

@@ -59,7 +59,7 @@ def cost_surface(a: np.ndarray, b: np.ndarray, weights: CostWeights,
     even where both show the same roof. ``value_range`` defaults to the 1-99 % percentile
     spread of both images.
     """
-    from toolbox.mosaic.kernels import image_terms
+    from toolbox.mosaic.kernels import image_cost
 
     a = np.ascontiguousarray(a, dtype="float32")
     b = np.ascontiguousarray(b, dtype="float32")
@@ -71,12 +71,8 @@ def cost_surface(a: np.ndarray, b: np.ndarray, weights: CostWeights,
         lo, hi = np.percentile(sample, [1, 99])
         value_range = float(hi - lo)
     scale = 1.0 / max(value_range, 1e-6)
-    diff, grad, gdiff = image_terms(a, b, scale)
-    cost = diff  # in place: base + w_d·diff + w_g·grad
-    cost *= weights.difference
-    cost += weights.base
-    grad *= weights.gradient
-    cost += grad
+    # base + w_d·diff + w_g·grad of toolbox.mosaic.kernels.image_terms, in one pass
+    cost, gdiff = image_cost(a, b, scale, weights.difference, weights.base, weights.gradient)
     if weights.structure > 0 and weights.structure_radius > 0:
         near = structured_near(gdiff, weights.structure_threshold,
                                weights.structure_radius / cell_size)
