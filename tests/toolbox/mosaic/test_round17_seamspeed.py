@@ -1,13 +1,18 @@
 """Round 17 (seamspeed): the shortcuts of mosaic:seamlines give what the long way gives.
 
-The fused cost kernel against the image terms weighted and summed in numpy (bit for bit)."""
+The fused cost kernel against the image terms weighted and summed in numpy (bit for bit), and
+the reads of an ortho known to be all valid against GDAL's mask read of the same window."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
+import rasterio
+from affine import Affine
+from rasterio.windows import Window
 
 from toolbox.mosaic.kernels import image_cost, image_terms
+from toolbox.mosaic.sources import open_source, read_valid, read_window, valid_footprint
 
 
 @pytest.mark.parametrize("shape", [(3, 40, 50), (1, 7, 9), (4, 1, 5), (2, 33, 3)])
@@ -23,3 +28,34 @@ def test_image_cost_is_the_weighted_image_terms_bit_for_bit(shape, workers):
         cost, gdiff2 = image_cost(a, b, scale, w_diff, base, w_grad, workers=workers)
         assert cost.tobytes() == expected.tobytes()
         assert gdiff2.tobytes() == gdiff.tobytes()
+
+
+def _ortho(path, nodata_corner: bool):
+    data = np.arange(3 * 30 * 40, dtype="uint8").reshape(3, 30, 40) | 1  # no 0: all valid
+    if nodata_corner:
+        data[:, :5, :7] = 0
+    with rasterio.open(path, "w", driver="GTiff", width=40, height=30, count=3, dtype="uint8",
+                       nodata=0, crs="EPSG:3003", transform=Affine(1, 0, 1000, 0, -1, 2000)) as d:
+        d.write(data)
+
+
+@pytest.mark.parametrize("nodata_corner", [False, True])
+def test_reads_of_an_all_valid_ortho_equal_the_mask_reads(tmp_path, nodata_corner):
+    path = tmp_path / "o.tif"
+    _ortho(path, nodata_corner)
+    src = open_source(path, 0)
+    valid_footprint(src)
+    assert src.all_valid is not nodata_corner
+    plain = open_source(path, 0)  # never traced: reads GDAL's mask
+    assert not plain.all_valid
+    grid = Affine(1, 0, 990, 0, -1, 2005)  # aligned, 10 cells west, 5 north of the ortho
+    for window in (Window(10, 5, 40, 30), Window(12, 7, 20, 10), Window(0, 0, 60, 45),
+                   Window(40, 30, 20, 10), Window(100, 100, 5, 5)):
+        data, valid = read_window(src, grid, None, window)
+        data0, valid0 = read_window(plain, grid, None, window)
+        assert data.dtype == data0.dtype == np.float32
+        assert np.array_equal(data, data0) and np.array_equal(valid, valid0)
+        assert np.array_equal(read_valid(src, grid, None, window), valid0)
+    with rasterio.open(path) as ds:  # the truth: GDAL's mask of the ortho
+        assert np.array_equal(read_window(src, grid, None, Window(10, 5, 40, 30))[1],
+                              ds.dataset_mask() > 0)
