@@ -72,3 +72,22 @@ def test_nonzero_2d_is_numpy_nonzero():
         got, expected = _nonzero_2d(mask), np.nonzero(mask)
         assert all(g.dtype == e.dtype and np.array_equal(g, e)
                    for g, e in zip(got, expected, strict=True))
+
+
+@pytest.mark.parametrize("radius", [0.5, 1.0, 2.5, 7.0, 30.0])
+@pytest.mark.parametrize("workers", [1, 2])
+def test_within_radius_of_a_few_columns_equals_scipy_edt(radius, workers):
+    """Only the columns holding a True cell are transformed (a seam's structured differences
+    are a few facades): the rest of the grid is still measured, against scipy's exact EDT."""
+    from scipy import ndimage
+
+    from toolbox.mosaic.kernels import within_radius
+
+    rng = np.random.default_rng(int(radius * 10))
+    mask = np.zeros((120, 150), bool)
+    for c in (0, 3, 4, 77, 149):  # both edges, neighbours, one alone
+        mask[:, c] = rng.random(120) < 0.1
+    mask[5, 60] = True
+    expected = ndimage.distance_transform_edt(~mask) <= radius
+    assert np.array_equal(within_radius(mask, radius, workers=workers), expected)
+    assert not within_radius(np.zeros((30, 40), bool), radius, workers=workers).any()
