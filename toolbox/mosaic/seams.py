@@ -119,7 +119,8 @@ def structured_near(gradient_difference: np.ndarray, threshold: float,
     keep[0] = False
     if not keep.any():
         return np.zeros(strong.shape, bool)
-    return within_radius(keep[groups], float(radius_cells))
+    kept = strong if keep[1:].all() else keep[groups]  # every group large enough: no gather
+    return within_radius(kept, float(radius_cells))
 
 
 @dataclass
@@ -215,9 +216,9 @@ def _nearest_passable(cost: np.ndarray, rc: tuple[int, int]) -> tuple[int, int] 
 
     r = min(max(rc[0], 0), cost.shape[0] - 1)
     c = min(max(rc[1], 0), cost.shape[1] - 1)
-    passable = cost >= 0
-    if passable[r, c]:
+    if cost[r, c] >= 0:  # the usual case: no pass over the whole grid
         return (r, c)
+    passable = cost >= 0
     if not passable.any():
         return None
     _, (ri, ci) = ndimage.distance_transform_edt(~passable, return_indices=True)

@@ -91,3 +91,33 @@ def test_within_radius_of_a_few_columns_equals_scipy_edt(radius, workers):
     expected = ndimage.distance_transform_edt(~mask) <= radius
     assert np.array_equal(within_radius(mask, radius, workers=workers), expected)
     assert not within_radius(np.zeros((30, 40), bool), radius, workers=workers).any()
+
+
+@pytest.mark.parametrize("small_groups", [False, True])
+def test_structured_near_equals_scipy(small_groups):
+    """Every group large enough (the mask is the strong cells themselves) or not: cells within
+    the radius of a large group of strong cells, measured by scipy."""
+    from scipy import ndimage
+
+    from toolbox.mosaic.seams import structured_near
+
+    g = np.zeros((60, 80))
+    g[10:14, 20:30] = 1.0  # 40 cells
+    g[40:42, 50:60] = 1.0  # 20 cells
+    if small_groups:
+        g[55, 5] = g[30, 75] = 1.0  # single cells: noise, not structure
+    big = np.zeros(g.shape, bool)
+    big[10:14, 20:30] = big[40:42, 50:60] = True
+    expected = ndimage.distance_transform_edt(~big) <= 6.0
+    assert np.array_equal(structured_near(g, 0.5, 6.0), expected)
+
+
+def test_nearest_passable():
+    from toolbox.mosaic.seams import _nearest_passable
+
+    cost = np.ones((20, 30))
+    cost[:, :10] = -1.0
+    assert _nearest_passable(cost, (5, 15)) == (5, 15)
+    assert _nearest_passable(cost, (5, 3)) == (5, 10)
+    assert _nearest_passable(cost, (-4, 99)) == (0, 29)
+    assert _nearest_passable(np.full((4, 4), -1.0), (1, 1)) is None
