@@ -121,3 +121,25 @@ def test_nearest_passable():
     assert _nearest_passable(cost, (5, 3)) == (5, 10)
     assert _nearest_passable(cost, (-4, 99)) == (0, 29)
     assert _nearest_passable(np.full((4, 4), -1.0), (1, 1)) is None
+
+
+def test_open_block_threads_decode_the_same_footprints(tmp_path):
+    """GDAL's decoding threads while the block is open (mosaic:seamlines' footprints): the same
+    sources and footprints; the setting ends with the block."""
+    from rasterio.env import getenv, hasenv
+
+    from toolbox.mosaic.block import close_block, open_block
+
+    paths = [tmp_path / "a.tif", tmp_path / "b.tif"]
+    _ortho(paths[0], False)
+    _ortho(paths[1], True)
+    plain, _ = open_block(paths)
+    close_block(plain)
+    threaded, _ = open_block(paths, threads=2)
+    try:
+        assert getenv()["GDAL_NUM_THREADS"] == "2"
+        assert [s.footprint.wkb for s in threaded] == [s.footprint.wkb for s in plain]
+        assert [s.all_valid for s in threaded] == [True, False]
+    finally:
+        close_block(threaded)
+    assert not hasenv() or "GDAL_NUM_THREADS" not in getenv()
