@@ -68,7 +68,7 @@ def cost_surface(a: np.ndarray, b: np.ndarray, weights: CostWeights,
         # ~240,000 values of an RGB pair are within a grey level of the whole images' ones
         step = max(1, int(np.sqrt(a[0].size / 40_000)))
         sample = np.concatenate([a[:, ::step, ::step].ravel(), b[:, ::step, ::step].ravel()])
-        lo, hi = np.percentile(sample, [1, 99])
+        lo, hi = np.percentile(_in_order(sample), [1, 99])
         value_range = float(hi - lo)
     scale = 1.0 / max(value_range, 1e-6)
     # base + w_d·diff + w_g·grad of toolbox.mosaic.kernels.image_terms, in one pass
@@ -78,6 +78,18 @@ def cost_surface(a: np.ndarray, b: np.ndarray, weights: CostWeights,
                                weights.structure_radius / cell_size)
         np.add(cost, weights.structure, out=cost, where=near)
     return cost
+
+
+def _in_order(sample: np.ndarray) -> np.ndarray:
+    """``sample`` sorted by counting when its values are whole numbers 0-65535 (orthos of 8 or
+    16 bits, as float32), else as it is: the same values for np.percentile, which partitions a
+    sorted array about twice as fast (3.1 -> 1.7 ms for the 240,000 values of an RGB pair)."""
+    if sample.size and sample.min() >= 0 and sample.max() <= 65535:  # NaN fails both
+        levels = sample.astype(np.uint16)
+        if np.array_equal(levels, sample):
+            counts = np.bincount(levels)
+            return np.repeat(np.arange(len(counts), dtype=sample.dtype), counts)
+    return sample
 
 
 def add_centre(cost: np.ndarray, transform: Any, a, b, weight: float) -> None:
@@ -114,7 +126,7 @@ def structured_near(gradient_difference: np.ndarray, threshold: float,
     if not strong.any():
         return strong
     groups, n = ndimage.label(strong, structure=np.ones((3, 3), bool))
-    sizes = np.bincount(groups.ravel(), minlength=n + 1)
+    sizes = np.bincount(groups[strong], minlength=n + 1)  # sizes[0] (no group) is not used
     keep = sizes >= max(3.0, radius_cells / 2.0)
     keep[0] = False
     if not keep.any():

@@ -143,3 +143,22 @@ def test_open_block_threads_decode_the_same_footprints(tmp_path):
     finally:
         close_block(threaded)
     assert not hasenv() or "GDAL_NUM_THREADS" not in getenv()
+
+
+def test_in_order_gives_numpys_percentiles():
+    from toolbox.mosaic.seams import _in_order
+
+    rng = np.random.default_rng(5)
+    samples = [rng.integers(0, 256, n).astype("float32") for n in (1, 2, 7, 1000, 240_001)]
+    samples += [rng.integers(0, 65536, 5000).astype("float32"),
+                rng.uniform(0, 255, 999).astype("float32"),  # fractions: left as they are
+                np.array([-1.0, 3.0, 7.0], "float32"), np.array([1.0, np.nan], "float32"),
+                np.array([], "float32")]
+    for sample in samples:
+        ordered = _in_order(sample)
+        if not sample.size:
+            continue
+        expected = np.percentile(sample, [1, 99])
+        got = np.percentile(ordered, [1, 99])
+        assert got.dtype == expected.dtype
+        assert got.tobytes() == expected.tobytes() or np.isnan(expected).any()
