@@ -162,3 +162,21 @@ def test_in_order_gives_numpys_percentiles():
         got = np.percentile(ordered, [1, 99])
         assert got.dtype == expected.dtype
         assert got.tobytes() == expected.tobytes() or np.isnan(expected).any()
+
+
+@pytest.mark.parametrize("factor", [1, 3, 4])
+def test_overview_is_the_block_mean_of_the_passable_cells(factor):
+    from toolbox.mosaic.route import overview
+
+    rng = np.random.default_rng(factor)
+    cost = rng.uniform(0.1, 3.0, (23, 17))
+    cost[rng.random(cost.shape) < 0.3] = -1.0
+    cost[:factor, :factor] = -1.0  # one block wholly impassable
+    got = overview(cost, factor)
+    rows, cols = -(-23 // factor), -(-17 // factor)
+    assert got.shape == (rows, cols)
+    for r in range(rows):
+        for c in range(cols):
+            block = cost[r * factor:(r + 1) * factor, c * factor:(c + 1) * factor]
+            passable = block[block >= 0]
+            assert got[r, c] == (pytest.approx(passable.mean()) if passable.size else -1.0)
