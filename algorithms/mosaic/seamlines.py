@@ -151,8 +151,10 @@ class MosaicSeamlines(Algorithm):
         from toolbox.mosaic.seams import CostWeights, PairCost, least_cost_cells
         from toolbox.mosaic.sources import open_source
 
-        with feedback.timed("footprints"):
-            sources, crs = open_block([i.path for i in params["INPUT"]], "INPUT", feedback)
+        executor = executor_of(params)
+        with feedback.timed("footprints"):  # GDAL decodes a footprint's blocks on the threads
+            sources, crs = open_block([i.path for i in params["INPUT"]], "INPUT", feedback,
+                                      executor.workers if executor.kind == "local" else 1)
         try:
             points = None
             if params["NADIR_POINTS"] is not None:
@@ -168,7 +170,6 @@ class MosaicSeamlines(Algorithm):
                 cells = voronoi_cells([footprints[k] for k in order], [centres[k] for k in order])
             feedback.set_progress(20)
             seam_report = []
-            executor = executor_of(params)
             if params["METHOD"] == "least_cost" and len(sources) > 1:
                 weights = CostWeights(difference=params["DIFFERENCE_WEIGHT"],
                                       gradient=params["GRADIENT_WEIGHT"],

@@ -19,16 +19,20 @@ FOOTPRINT_CELLS = 2048  # footprints are traced on masks decimated to this size
 BLOCK_CACHE_MB = 64
 
 
-def open_block(paths: list, name: str = "INPUT", feedback: Any = None) -> tuple[list, Any]:
+def open_block(paths: list, name: str = "INPUT", feedback: Any = None,
+               threads: int | None = None) -> tuple[list, Any]:
     """Open the orthos, check they are of one kind (:func:`check_same_kind`) and share one CRS,
     and trace their valid-data footprints. Returns ``(sources, pyproj CRS or None)``; the
-    rasters stay open for the sources' reads until :func:`close_block` (closed here if this fails)."""
+    rasters stay open for the sources' reads until :func:`close_block` (closed here if this fails).
+    ``threads``: GDAL's threads decoding the blocks of one read (GDAL_NUM_THREADS, while the
+    block is open): for a caller whose reads span many blocks one at a time (the footprints'
+    whole masks), not for one reading tiles on its own threads."""
     from pyproj import CRS
 
     from toolbox.io.crs import common_crs
 
     sources = []
-    datasets = BlockDatasets()
+    datasets = BlockDatasets(threads)
     try:
         for k, p in enumerate(paths):
             src = open_source(Path(p), k, datasets)
@@ -85,13 +89,16 @@ class BlockDatasets(ThreadDatasets):
     GDAL's block cache capped at :data:`BLOCK_CACHE_MB` from creation to :meth:`close` (the
     mosaic writer's own cache setting nests inside). Made and closed in one thread."""
 
-    def __init__(self) -> None:
+    def __init__(self, threads: int | None = None) -> None:
         import rasterio
 
         from toolbox.io.raster import gdal_cache_max
 
         super().__init__()
-        self._cache = rasterio.Env(GDAL_CACHEMAX=gdal_cache_max(BLOCK_CACHE_MB))
+        options = {"GDAL_CACHEMAX": gdal_cache_max(BLOCK_CACHE_MB)}
+        if threads is not None and threads > 1:
+            options["GDAL_NUM_THREADS"] = str(threads)
+        self._cache = rasterio.Env(**options)
         self._cache.__enter__()
 
     def close(self) -> None:

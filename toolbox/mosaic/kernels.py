@@ -69,18 +69,72 @@ def image_terms_rows(a, b, scale, r0, r1, diff, grad, gdiff):
                 diff[r, c] += abs(np.float64(a[k, r, c]) - np.float64(b[k, r, c]))
         for c in range(cols):
             diff[r, c] *= inv
-            # padded column c + 1 is image column c
-            ay = (dn_a[c] + 2.0 * dn_a[c + 1] + dn_a[c + 2]
-                  - up_a[c] - 2.0 * up_a[c + 1] - up_a[c + 2]) * 0.125
-            ax = (up_a[c + 2] + 2.0 * mid_a[c + 2] + dn_a[c + 2]
-                  - up_a[c] - 2.0 * mid_a[c] - dn_a[c]) * 0.125
-            by = (dn_b[c] + 2.0 * dn_b[c + 1] + dn_b[c + 2]
-                  - up_b[c] - 2.0 * up_b[c + 1] - up_b[c + 2]) * 0.125
-            bx = (up_b[c + 2] + 2.0 * mid_b[c + 2] + dn_b[c + 2]
-                  - up_b[c] - 2.0 * mid_b[c] - dn_b[c]) * 0.125
+            ay, ax = _sobel(up_a, mid_a, dn_a, c)
+            by, bx = _sobel(up_b, mid_b, dn_b, c)
             ga = ay * ay + ax * ax
             gb = by * by + bx * bx
             grad[r, c] = np.sqrt(max(ga, gb)) * scale
+            gdiff[r, c] = np.sqrt((ay - by) * (ay - by) + (ax - bx) * (ax - bx)) * scale
+
+
+@njit(cache=True, nogil=True)
+def _sobel(up, mid, dn, c):
+    """Sobel derivatives / 8 ``(d/dy, d/dx)`` at image column ``c`` (padded column ``c + 1``)
+    of the band means of three rows."""
+    dy = (dn[c] + 2.0 * dn[c + 1] + dn[c + 2] - up[c] - 2.0 * up[c + 1] - up[c + 2]) * 0.125
+    dx = (up[c + 2] + 2.0 * mid[c + 2] + dn[c + 2] - up[c] - 2.0 * mid[c] - dn[c]) * 0.125
+    return dy, dx
+
+
+def image_cost(a, b, scale, difference, base, gradient, workers=None):
+    """``(base + difference x diff + gradient x grad, gdiff)`` of :func:`image_terms` in one
+    pass (float64 ``(rows, cols)`` each): the same values, each cell's terms added in that
+    order, without the ``diff`` and ``grad`` arrays and four passes over them."""
+    from toolbox.executor import in_row_bands
+
+    bands, rows, cols = a.shape
+    cost = np.empty((rows, cols), np.float64)
+    gdiff = np.empty((rows, cols), np.float64)
+    weights = (float(difference), float(base), float(gradient))
+    in_row_bands(lambda r0, r1: image_cost_rows(a, b, scale, weights, r0, r1, cost, gdiff),
+                 rows, cols, workers=workers)
+    return cost, gdiff
+
+
+@njit(cache=True, nogil=True)
+def image_cost_rows(a, b, scale, weights, r0, r1, cost, gdiff):
+    """Rows ``r0`` to ``r1`` (excluded) of :func:`image_cost`: :func:`image_terms_rows` with
+    ``diff`` and ``grad`` weighted and summed per cell instead of stored."""
+    w_diff, base, w_grad = weights
+    bands, rows, cols = a.shape
+    ma = np.empty((3, cols + 2), np.float64)
+    mb = np.empty((3, cols + 2), np.float64)
+    for r in (r0 - 1, r0):
+        _row_mean(a, r, ma[(r + 3) % 3])
+        _row_mean(b, r, mb[(r + 3) % 3])
+    diffs = np.empty(cols, np.float64)  # the row's band differences, summed band by band
+    inv = scale / bands
+    for r in range(r0, r1):
+        _row_mean(a, r + 1, ma[(r + 1) % 3])
+        _row_mean(b, r + 1, mb[(r + 1) % 3])
+        up_a, mid_a, dn_a = ma[(r + 2) % 3], ma[r % 3], ma[(r + 1) % 3]
+        up_b, mid_b, dn_b = mb[(r + 2) % 3], mb[r % 3], mb[(r + 1) % 3]
+        diffs[:] = 0.0
+        for k in range(bands):
+            for c in range(cols):
+                diffs[c] += abs(np.float64(a[k, r, c]) - np.float64(b[k, r, c]))
+        for c in range(cols):
+            diff = diffs[c] * inv
+            ay, ax = _sobel(up_a, mid_a, dn_a, c)
+            by, bx = _sobel(up_b, mid_b, dn_b, c)
+            ga = ay * ay + ax * ax
+            gb = by * by + bx * bx
+            grad = np.sqrt(max(ga, gb)) * scale
+            grad *= w_grad
+            value = diff * w_diff
+            value += base
+            value += grad
+            cost[r, c] = value
             gdiff[r, c] = np.sqrt((ay - by) * (ay - by) + (ax - bx) * (ax - bx)) * scale
 
 
@@ -126,15 +180,23 @@ def _lower_envelope(f, n, out, v, z):
 def within_radius(mask, radius, workers=None):
     """True where the Euclidean distance (in cells) to the nearest True cell of ``mask`` is at
     most ``radius``: the exact squared distance transform, columns then rows, each pass in
-    bands on ``workers`` local threads for large masks (:func:`toolbox.executor.in_row_bands`)."""
+    bands on ``workers`` local threads for large masks (:func:`toolbox.executor.in_row_bands`).
+
+    Only the columns holding a True cell are transformed (the others are at an infinite column
+    distance, which the row pass skips): a sparse mask (a seam's structured differences: 16 of
+    1000 columns) costs a fraction of the whole grid, for the same distances."""
     from toolbox.executor import in_row_bands
 
     rows, cols = mask.shape
-    d = np.empty((rows, cols), np.float64)
-    result = np.empty((rows, cols), np.bool_)
-    in_row_bands(lambda c0, c1: _column_distances(mask, c0, c1, d), cols, rows, workers=workers)
-    in_row_bands(lambda r0, r1: _row_within(d, radius * radius, r0, r1, result), rows, cols,
+    result = np.zeros((rows, cols), np.bool_)
+    held = np.flatnonzero(mask.any(axis=0))  # the columns with a True cell
+    if not len(held):
+        return result
+    d = np.empty((rows, len(held)), np.float64)
+    in_row_bands(lambda j0, j1: _column_distances(mask, held, j0, j1, d), len(held), rows,
                  workers=workers)
+    in_row_bands(lambda r0, r1: _row_within(d, held, radius * radius, r0, r1, result), rows,
+                 cols, workers=workers)
     return result
 
 
@@ -146,31 +208,65 @@ def _envelope_scratch(n):
 
 
 @njit(cache=True, nogil=True)
-def _column_distances(mask, c0, c1, d):
-    """Squared distances along each column ``c0`` to ``c1`` (excluded) to its nearest True
-    cell of ``mask``, into ``d``."""
+def _column_distances(mask, held, j0, j1, d):
+    """Squared distances along the columns ``held[j0:j1]`` to the nearest True cell of
+    ``mask`` in each, into ``d[:, j0:j1]``."""
     rows = mask.shape[0]
     f, out, v, z = _envelope_scratch(rows)
-    for c in range(c0, c1):
+    for j in range(j0, j1):
+        c = held[j]
         for r in range(rows):
             f[r] = 0.0 if mask[r, c] else np.inf
         _lower_envelope(f, rows, out, v, z)
         for r in range(rows):
-            d[r, c] = out[r]
+            d[r, j] = out[r]
 
 
 @njit(cache=True, nogil=True)
-def _row_within(d, r2, r0, r1, result):
+def _row_within(d, held, r2, r0, r1, result):
     """Rows ``r0`` to ``r1`` (excluded): ``result`` True where the squared distance of the
-    column distances ``d`` completed along the row is at most ``r2``."""
-    cols = d.shape[1]
-    f, out, v, z = _envelope_scratch(cols)
+    column distances ``d`` (of the columns ``held``, every other column at infinity) completed
+    along the row is at most ``r2``: :func:`_lower_envelope` of the whole row, its infinite
+    cells skipped, the same operations."""
+    cols = result.shape[1]
+    k = len(held)
+    vp = np.empty(k, np.int64)  # the envelope's parabolas: column, value
+    vf = np.empty(k, np.float64)
+    z = np.empty(k + 1, np.float64)
     for r in range(r0, r1):
+        m = -1
+        for j in range(k):
+            q = held[j]
+            fq = d[r, j]
+            if fq == np.inf:
+                continue
+            if m < 0:
+                m = 0
+                vp[0] = q
+                vf[0] = fq
+                z[0] = -np.inf
+                z[1] = np.inf
+                continue
+            while True:
+                p = vp[m]
+                s = ((fq + q * q) - (vf[m] + p * p)) / (2.0 * q - 2.0 * p)
+                if s <= z[m]:
+                    m -= 1
+                    continue
+                break
+            m += 1
+            vp[m] = q
+            vf[m] = fq
+            z[m] = s
+            z[m + 1] = np.inf
+        if m < 0:  # no finite cell in the row: nothing within reach
+            continue
+        m = 0
         for c in range(cols):
-            f[c] = d[r, c]
-        _lower_envelope(f, cols, out, v, z)
-        for c in range(cols):
-            result[r, c] = out[c] <= r2
+            while z[m + 1] < c:
+                m += 1
+            p = vp[m]
+            result[r, c] = (c - p) * (c - p) + vf[m] <= r2
 
 
 @njit(cache=True, nogil=True)

@@ -182,13 +182,16 @@ def overview(cost, factor):
     orows, ocols = -(-rows // factor), -(-cols // factor)
     total = np.zeros((orows, ocols), np.float64)
     count = np.zeros((orows, ocols), np.int64)
+    block = np.empty(cols, np.int64)  # each column's block: no division per cell
+    for c in range(cols):
+        block[c] = c // factor
     for r in range(rows):
         rr = r // factor
         for c in range(cols):
             v = cost[r, c]
             if v >= 0.0 and v < np.inf:
-                total[rr, c // factor] += v
-                count[rr, c // factor] += 1
+                total[rr, block[c]] += v
+                count[rr, block[c]] += 1
     for r in range(orows):
         for c in range(ocols):
             total[r, c] = total[r, c] / count[r, c] if count[r, c] > 0 else -1.0

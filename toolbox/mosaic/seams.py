@@ -59,7 +59,7 @@ def cost_surface(a: np.ndarray, b: np.ndarray, weights: CostWeights,
     even where both show the same roof. ``value_range`` defaults to the 1-99 % percentile
     spread of both images.
     """
-    from toolbox.mosaic.kernels import image_terms
+    from toolbox.mosaic.kernels import image_cost
 
     a = np.ascontiguousarray(a, dtype="float32")
     b = np.ascontiguousarray(b, dtype="float32")
@@ -68,20 +68,28 @@ def cost_surface(a: np.ndarray, b: np.ndarray, weights: CostWeights,
         # ~240,000 values of an RGB pair are within a grey level of the whole images' ones
         step = max(1, int(np.sqrt(a[0].size / 40_000)))
         sample = np.concatenate([a[:, ::step, ::step].ravel(), b[:, ::step, ::step].ravel()])
-        lo, hi = np.percentile(sample, [1, 99])
+        lo, hi = np.percentile(_in_order(sample), [1, 99])
         value_range = float(hi - lo)
     scale = 1.0 / max(value_range, 1e-6)
-    diff, grad, gdiff = image_terms(a, b, scale)
-    cost = diff  # in place: base + w_d·diff + w_g·grad
-    cost *= weights.difference
-    cost += weights.base
-    grad *= weights.gradient
-    cost += grad
+    # base + w_d·diff + w_g·grad of toolbox.mosaic.kernels.image_terms, in one pass
+    cost, gdiff = image_cost(a, b, scale, weights.difference, weights.base, weights.gradient)
     if weights.structure > 0 and weights.structure_radius > 0:
         near = structured_near(gdiff, weights.structure_threshold,
                                weights.structure_radius / cell_size)
         np.add(cost, weights.structure, out=cost, where=near)
     return cost
+
+
+def _in_order(sample: np.ndarray) -> np.ndarray:
+    """``sample`` sorted by counting when its values are whole numbers 0-65535 (orthos of 8 or
+    16 bits, as float32), else as it is: the same values for np.percentile, which partitions a
+    sorted array about twice as fast (3.1 -> 1.7 ms for the 240,000 values of an RGB pair)."""
+    if sample.size and sample.min() >= 0 and sample.max() <= 65535:  # NaN fails both
+        levels = sample.astype(np.uint16)
+        if np.array_equal(levels, sample):
+            counts = np.bincount(levels)
+            return np.repeat(np.arange(len(counts), dtype=sample.dtype), counts)
+    return sample
 
 
 def add_centre(cost: np.ndarray, transform: Any, a, b, weight: float) -> None:
@@ -118,12 +126,13 @@ def structured_near(gradient_difference: np.ndarray, threshold: float,
     if not strong.any():
         return strong
     groups, n = ndimage.label(strong, structure=np.ones((3, 3), bool))
-    sizes = np.bincount(groups.ravel(), minlength=n + 1)
+    sizes = np.bincount(groups[strong], minlength=n + 1)  # sizes[0] (no group) is not used
     keep = sizes >= max(3.0, radius_cells / 2.0)
     keep[0] = False
     if not keep.any():
         return np.zeros(strong.shape, bool)
-    return within_radius(keep[groups], float(radius_cells))
+    kept = strong if keep[1:].all() else keep[groups]  # every group large enough: no gather
+    return within_radius(kept, float(radius_cells))
 
 
 @dataclass
@@ -219,9 +228,9 @@ def _nearest_passable(cost: np.ndarray, rc: tuple[int, int]) -> tuple[int, int] 
 
     r = min(max(rc[0], 0), cost.shape[0] - 1)
     c = min(max(rc[1], 0), cost.shape[1] - 1)
-    passable = cost >= 0
-    if passable[r, c]:
+    if cost[r, c] >= 0:  # the usual case: no pass over the whole grid
         return (r, c)
+    passable = cost >= 0
     if not passable.any():
         return None
     _, (ri, ci) = ndimage.distance_transform_edt(~passable, return_indices=True)

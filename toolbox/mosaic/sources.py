@@ -41,6 +41,9 @@ class OrthoSource:
     #: the block's open rasters (:class:`~toolbox.raster.datasets.ThreadDatasets`, shared by the
     #: sources of :func:`toolbox.mosaic.block.open_block`), or None: each read opens the file
     datasets: Any = field(default=None, repr=False, compare=False)
+    #: every cell is valid data (set by :func:`valid_footprint` when it read the whole mask at
+    #: full resolution): the grid-aligned reads then skip the mask (GDAL would compute it again)
+    all_valid: bool = field(default=False, repr=False, compare=False)
 
     @property
     def bounds(self) -> tuple[float, float, float, float]:
@@ -117,7 +120,8 @@ def valid_footprint(source: OrthoSource, max_size: int = 1024, simplify: float |
     cells a side (the mask of a decimated read is valid where the nearest full-res cell is).
 
     The outline follows cell edges at the decimated resolution, simplified by ``simplify`` ground
-    units (default: one decimated cell); holes smaller than 4 decimated cells are dropped.
+    units (default: one decimated cell); holes smaller than 4 decimated cells are dropped. A
+    whole mask read at full resolution without a no-data cell sets ``source.all_valid``.
     """
     import shapely
     from affine import Affine
@@ -128,6 +132,7 @@ def valid_footprint(source: OrthoSource, max_size: int = 1024, simplify: float |
     with opened(source) as src:
         mask = src.dataset_mask(out_shape=(h, w)) > 0
     if mask.all():  # what tracing gives, without tracing: the raster's outline
+        source.all_valid = factor == 1
         return shapely.box(*source.bounds)
     t = source.transform @ Affine.scale(source.width / w, source.height / h)
     polys = [shapely.geometry.shape(g) for g, v in shapes(mask.astype("uint8"), mask=mask,
@@ -163,6 +168,10 @@ def aligned(source: OrthoSource, grid_transform: Any, tol: float = 1e-6) -> bool
     return abs(dx - round(dx)) < 1e-6 and abs(dy - round(dy)) < 1e-6
 
 
+#: data types whose every value float32 holds exactly: read as float32 by GDAL, no copy
+EXACT_IN_FLOAT32 = frozenset({"uint8", "int8", "uint16", "int16", "float32"})
+
+
 def read_window(source: OrthoSource, grid_transform: Any, grid_crs: Any, window: Any,
                 resampling: str = "bilinear") -> tuple[np.ndarray, np.ndarray]:
     """Read ``source`` onto a window of the mosaic grid.
@@ -177,13 +186,19 @@ def read_window(source: OrthoSource, grid_transform: Any, grid_crs: Any, window:
     rows, cols = int(window.height), int(window.width)
     with opened(source) as src:
         if aligned(source, grid_transform):
+            part = _inside(source, grid_transform, window)
+            if part is not None and _whole(part[1], rows, cols) and \
+                    source.dtype in EXACT_IN_FLOAT32:  # the window inside the ortho
+                data = src.read(source.data_bands, window=part[0], out_dtype="float32")
+                valid = np.ones((rows, cols), dtype=bool) if source.all_valid else \
+                    src.dataset_mask(window=part[0]) > 0
+                return data, valid
             data = np.zeros((len(source.data_bands), rows, cols), dtype="float32")
             valid = np.zeros((rows, cols), dtype=bool)
-            part = _inside(source, grid_transform, window)
             if part is not None:
                 inner, sl = part
                 data[(slice(None), *sl)] = src.read(source.data_bands, window=inner)
-                valid[sl] = src.dataset_mask(window=inner) > 0
+                valid[sl] = True if source.all_valid else src.dataset_mask(window=inner) > 0
             return data, valid
         from toolbox.raster.reproject import mask_onto, read_onto
 
@@ -201,16 +216,25 @@ def read_valid(source: OrthoSource, grid_transform: Any, grid_crs: Any, window: 
     from rasterio.windows import transform as window_transform
 
     rows, cols = int(window.height), int(window.width)
+    if aligned(source, grid_transform):
+        valid = np.zeros((rows, cols), dtype=bool)
+        part = _inside(source, grid_transform, window)
+        if part is not None:
+            if source.all_valid:
+                valid[part[1]] = True
+            else:
+                with opened(source) as src:
+                    valid[part[1]] = src.dataset_mask(window=part[0]) > 0
+        return valid
     with opened(source) as src:
-        if aligned(source, grid_transform):
-            valid = np.zeros((rows, cols), dtype=bool)
-            part = _inside(source, grid_transform, window)
-            if part is not None:
-                valid[part[1]] = src.dataset_mask(window=part[0]) > 0
-            return valid
         from toolbox.raster.reproject import mask_onto
 
         return mask_onto(src, window_transform(window, grid_transform), cols, rows, grid_crs)
+
+
+def _whole(slices: tuple[slice, slice], rows: int, cols: int) -> bool:
+    """True when the slices of :func:`_inside` cover the whole ``rows`` x ``cols`` window."""
+    return (slices[0].start, slices[0].stop, slices[1].start, slices[1].stop) == (0, rows, 0, cols)
 
 
 def _inside(source: OrthoSource, grid_transform: Any, window: Any) -> tuple | None:
