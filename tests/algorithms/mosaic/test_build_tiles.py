@@ -80,10 +80,21 @@ def test_rasters_kept_open_during_the_run_give_the_same_mosaic_and_are_closed(
                                      "OUTPUT": str(tmp_path / "kept" / "seams.gpkg")})
     assert not inputs & _open_files()
     real = block.open_source
-    monkeypatch.setattr(block, "open_source", lambda path, k, datasets=None: real(path, k))
-    each = _build(pair, tmp_path / "each", "feather")
-    toolbox.run("mosaic:seamlines", {"INPUT": [str(o.path) for o in orthos],
-                                     "OUTPUT": str(tmp_path / "each" / "seams.gpkg")})
+    unused = []  # the block's settings (GDAL's cache, threads) are restored by closing these
+
+    def each_read_opens(path, k, datasets=None):
+        unused.append(datasets)
+        return real(path, k)
+
+    monkeypatch.setattr(block, "open_source", each_read_opens)
+    try:
+        each = _build(pair, tmp_path / "each", "feather")
+        toolbox.run("mosaic:seamlines", {"INPUT": [str(o.path) for o in orthos],
+                                         "OUTPUT": str(tmp_path / "each" / "seams.gpkg")})
+    finally:
+        for datasets in reversed({id(d): d for d in unused if d is not None}.values()):
+            datasets.close()  # the last opened first: rasterio's settings nest
+    assert not rasterio.env.hasenv() or "GDAL_CACHEMAX" not in rasterio.env.getenv()
     np.testing.assert_array_equal(kept[0], each[0])
     np.testing.assert_array_equal(kept[1], each[1])
     for layer in ("cut_polygons", "seamlines"):
