@@ -1,0 +1,103 @@
+"""Round 17, leftovers: staging folders of killed runs, judged by host, boot and start time."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+
+import numpy as np
+import rasterio
+from rasterio.transform import from_origin
+
+import toolbox
+from toolbox.feedback import Feedback
+from toolbox.io.staging import (
+    OutputStaging,
+    machine_tag,
+    process_start,
+    staging_leftovers,
+    stale_staging_folders,
+)
+
+GONE_PID = 2**22 + 41  # above Linux's largest pid: no such process
+
+
+def _dem(path, n=16):
+    with rasterio.open(path, "w", driver="GTiff", width=n, height=n, count=1, dtype="float32",
+                       crs="EPSG:32632", transform=from_origin(500000, 5000160, 10, 10)) as dst:
+        dst.write(np.arange(n * n, dtype="float32").reshape(n, n), 1)
+
+
+# -- 1. a kill -9 leaves a staging folder: the next run of any algorithm into the folder removes it
+def test_a_killed_runs_staging_folder_goes_with_the_next_run_into_that_folder(tmp_path):
+    """A process staging ortho.tif (3 MB written) is killed by SIGKILL; a hillshade of another
+    name into the same folder removes its staging folder and says so in one info line with the
+    space freed (before: it stayed until a run wrote ortho.tif again)."""
+    child = textwrap.dedent(f"""
+        import os, signal
+        from toolbox.io.staging import OutputStaging
+        staged = OutputStaging().stage({str(tmp_path / "ortho.tif")!r})
+        staged.write_bytes(os.urandom(3_000_000))
+        os.kill(os.getpid(), signal.SIGKILL)
+    """)
+    proc = subprocess.run([sys.executable, "-c", child], capture_output=True, text=True,
+                          timeout=60)
+    assert proc.returncode == -signal.SIGKILL, proc.stderr
+    left = [p for p in tmp_path.iterdir() if p.name.startswith(".ortho.tif.")]
+    assert len(left) == 1 and (left[0] / "ortho.tif").stat().st_size == 3_000_000
+    _dem(tmp_path / "dem.tif")
+    feedback = Feedback()
+    toolbox.run("dem:hillshade", {"INPUT": str(tmp_path / "dem.tif"),
+                                  "OUTPUT": str(tmp_path / "hs.tif")}, feedback=feedback)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["dem.tif", "hs.tif"]
+    infos = [text for level, text in feedback.messages if level == "info" and "staging" in text]
+    assert len(infos) == 1 and str(left[0]) in infos[0] and "3.0 MB freed" in infos[0], infos
+
+
+# -- 2. judged by host, boot and the process's start time, not the PID alone -------------------
+def test_a_reused_pid_does_not_keep_a_dead_runs_folder(tmp_path):
+    """The PID of a live process (our parent) recorded with another start time: the run that
+    made the folder is gone (the PID was given again). With the right start time: running."""
+    pid = os.getppid()
+    start = process_start(pid)
+    assert start
+    reused = tmp_path / f".a.tif.{pid}-{start + 1}-{machine_tag()}.abcd1234.part"
+    running = tmp_path / f".b.tif.{pid}-{start}-{machine_tag()}.abcd1234.part"
+    reused.mkdir()
+    running.mkdir()
+    assert stale_staging_folders(tmp_path / "c.tif") == [reused]
+
+
+def test_another_hosts_staging_folder_is_left_alone(tmp_path):
+    """A folder made on another host (its PID means nothing here) is never removed; one not
+    changed for more than a day gets a warning naming it and its age."""
+    other = "f" * 12 if machine_tag() != "f" * 12 else "e" * 12
+    fresh = tmp_path / f".a.tif.{GONE_PID}-123-{other}.abcd1234.part"
+    old = tmp_path / f".b.tif.{GONE_PID}-456-{other}.abcd1234.part"
+    mine = tmp_path / f".c.tif.{GONE_PID}-789-{machine_tag()}.abcd1234.part"  # this host: gone
+    for folder in (fresh, old, mine):
+        folder.mkdir()
+    three_days = time.time() - 3 * 86400
+    os.utime(old, (three_days, three_days))
+    assert staging_leftovers([tmp_path])[0] == [mine]
+    _dem(tmp_path / "dem.tif")
+    feedback = Feedback()
+    toolbox.run("dem:hillshade", {"INPUT": str(tmp_path / "dem.tif"),
+                                  "OUTPUT": str(tmp_path / "hs.tif")}, feedback=feedback)
+    assert fresh.exists() and old.exists() and not mine.exists()
+    warned = [w for w in feedback.warnings if "staging folder" in w]
+    assert len(warned) == 1 and str(old) in warned[0] and "3 days old" in warned[0], warned
+
+
+def test_own_staging_folders_are_named_with_host_boot_and_start_time(tmp_path):
+    staging = OutputStaging()
+    staged = staging.stage(tmp_path / "x.tif")
+    pid = os.getpid()
+    assert staged.parent.name.startswith(f".x.tif.{pid}-{process_start(pid)}-{machine_tag()}.")
+    assert stale_staging_folders(tmp_path / "x.tif") == []  # this run's own: running
+    staging.rollback()
+    assert list(tmp_path.iterdir()) == []
