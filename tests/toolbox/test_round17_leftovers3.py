@@ -10,10 +10,12 @@ import textwrap
 import time
 
 import numpy as np
+import pytest
 import rasterio
 from rasterio.transform import from_origin
 
 import toolbox
+from toolbox.errors import ParameterError
 from toolbox.feedback import Feedback
 from toolbox.io.staging import (
     OutputStaging,
@@ -23,6 +25,7 @@ from toolbox.io.staging import (
     stale_staging_folders,
 )
 
+ALG_WITH_LAYERS = "carto:sheet"  # LAYERS: a MultipleLayers of vector layers
 GONE_PID = 2**22 + 41  # above Linux's largest pid: no such process
 
 
@@ -101,3 +104,33 @@ def test_own_staging_folders_are_named_with_host_boot_and_start_time(tmp_path):
     assert stale_staging_folders(tmp_path / "x.tif") == []  # this run's own: running
     staging.rollback()
     assert list(tmp_path.iterdir()) == []
+
+
+# -- 3. a named pipe (socket, device) as an input: refused before GDAL's open blocks on it -----
+def _cli(*args, timeout=60):
+    return subprocess.run([sys.executable, "-m", "toolbox.cli", "run", *args],
+                          capture_output=True, text=True, timeout=timeout)
+
+
+def test_a_named_pipe_as_an_input_is_refused_before_it_is_opened(tmp_path):
+    """GDAL's open of a FIFO waits for a writer forever (the run hung until killed); it is
+    refused with exit 2, naming the parameter, the path and what it is."""
+    fifo = tmp_path / "dem.tif"
+    os.mkfifo(fifo)
+    proc = _cli("dem:hillshade", "--INPUT", str(fifo), "--OUTPUT", str(tmp_path / "hs.tif"),
+                timeout=30)
+    lines = proc.stderr.strip().splitlines()
+    assert proc.returncode == 2 and len(lines) == 1, proc.stderr
+    assert "INPUT" in lines[0] and str(fifo) in lines[0], lines
+    assert "a named pipe; give a regular file" in lines[0], lines
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["dem.tif"]
+
+
+def test_a_named_pipe_given_as_a_layer_reference_or_in_a_list_is_refused(tmp_path):
+    fifo = tmp_path / "points.gpkg"
+    os.mkfifo(fifo)
+    with_layer = _cli("vector:info", "--INPUT", f"{fifo}|layername=a", timeout=30)
+    assert with_layer.returncode == 2 and "a named pipe" in with_layer.stderr, with_layer.stderr
+    with pytest.raises(ParameterError, match="a named pipe; give a regular file") as caught:
+        toolbox.validate(ALG_WITH_LAYERS, {"LAYERS": [str(fifo)]})
+    assert caught.value.name == "LAYERS" and str(fifo) in str(caught.value)
