@@ -134,3 +134,48 @@ def test_a_named_pipe_given_as_a_layer_reference_or_in_a_list_is_refused(tmp_pat
     with pytest.raises(ParameterError, match="a named pipe; give a regular file") as caught:
         toolbox.validate(ALG_WITH_LAYERS, {"LAYERS": [str(fifo)]})
     assert caught.value.name == "LAYERS" and str(fifo) in str(caught.value)
+
+
+# -- 4. tasks of runs from two folders on one Dask worker: each reads its own folder's files ----
+def test_tasks_of_two_client_folders_on_one_worker_read_their_own_files(tmp_path, monkeypatch):
+    """A worker's threads share one working folder: with two runs from two folders on one
+    cluster, a task of one changed it under a task of the other, which read the other folder's
+    'dem.txt' (a wrong result, exit 0). Tasks of another folder now wait their turn."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from toolbox.executor import _in_client_folder
+
+    monkeypatch.chdir(tmp_path)
+    for name in "AB":
+        (tmp_path / name).mkdir()
+        (tmp_path / name / "dem.txt").write_text(name)
+
+    def task(_):
+        time.sleep(0.005)  # another thread's task starts meanwhile
+        with open("dem.txt") as f:
+            return f.read()
+
+    folders = [name for _ in range(20) for name in "AB"]
+    with ThreadPoolExecutor(6) as pool:
+        read = list(pool.map(lambda name: _in_client_folder(str(tmp_path / name), task, None),
+                             folders))
+    assert read == folders
+
+
+def test_a_worker_keeps_two_folders_rasters_apart_however_alike(tmp_path, monkeypatch):
+    """'dem.tif' of two folders, same size and modification time, different heights: the
+    worker's open datasets are keyed by absolute path, so the second run reads its own."""
+    from toolbox.raster.datasets import WorkerDatasets
+
+    for k, name in enumerate("AB"):
+        (tmp_path / name).mkdir()
+        with rasterio.open(tmp_path / name / "dem.tif", "w", driver="GTiff", width=4, height=4,
+                           count=1, dtype="float32") as dst:
+            dst.write(np.full((4, 4), k, "float32"), 1)
+        os.utime(tmp_path / name / "dem.tif", ns=(10**18, 10**18))
+    datasets = WorkerDatasets()
+    read = []
+    for name in "AB":
+        monkeypatch.chdir(tmp_path / name)
+        read.append(float(datasets.get("dem.tif").read(1)[0, 0]))
+    assert read == [0.0, 1.0]
