@@ -8,6 +8,7 @@ import subprocess
 import sys
 import textwrap
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -179,3 +180,34 @@ def test_a_worker_keeps_two_folders_rasters_apart_however_alike(tmp_path, monkey
         monkeypatch.chdir(tmp_path / name)
         read.append(float(datasets.get("dem.tif").read(1)[0, 0]))
     assert read == [0.0, 1.0]
+
+
+# -- 5. mosaic:build's scratch source index: in the output's staging folder, no overviews -------
+def test_mosaic_scratch_index_lives_in_the_staging_folder_without_overviews(tmp_path,
+                                                                            monkeypatch):
+    """Without SOURCE_INDEX, the index the seams come from was written in the client's /tmp with
+    overviews, which on a Dask cluster a worker built (reading the client's /tmp: a worker on
+    another machine cannot). It now goes in the output's staging folder, without overviews
+    (read once, at full resolution), and is gone after the run."""
+    import toolbox.mosaic.index_seams as index_seams
+    from toolbox.demo.samples.mosaic import make_block
+
+    specs = [{"name": f"g{c}", "bounds": (200 * c, 0, 200 * c + 260, 260),
+              "nadir": (200 * c + 130, 130), "gain": 1.0} for c in range(2)]
+    orthos, _ = make_block(tmp_path / "block", specs)
+    seen = []
+    read = index_seams.index_raster_seams
+
+    def spy(path):
+        with rasterio.open(path) as src:
+            seen.append((Path(path), src.overviews(1)))
+        return read(path)
+
+    monkeypatch.setattr(index_seams, "index_raster_seams", spy)
+    out = tmp_path / "out"
+    toolbox.run("mosaic:build", {"INPUT": [str(o.path) for o in orthos],
+                                 "SEAMLINES": out / "seams.gpkg", "OUTPUT": out / "mosaic.tif"})
+    (path, overviews), = seen
+    assert path.parent.parent.parent == out and path.parent.parent.name.startswith(".mosaic.tif.")
+    assert overviews == [] and not path.exists()
+    assert sorted(p.name for p in out.iterdir()) == ["mosaic.tif", "seams.gpkg"]
