@@ -282,12 +282,16 @@ def _run_gone(match: re.Match) -> bool | None:
     return bool(recorded and now is not None and now != recorded)
 
 
-def staging_leftovers(folders: list[Path]) -> tuple[list[Path], list[tuple[Path, float]]]:
+def staging_leftovers(folders: list[Path], names: tuple[str, ...] = ()
+                      ) -> tuple[list[Path], list[tuple[Path, float]]]:
     """The staging folders of any output in ``folders`` (:data:`_ANY_STAGING`): those of runs
     that ended without removing them (killed by SIGKILL, a crash: :func:`_run_gone`), and,
     with their age in seconds, those of another machine not changed for :data:`FOREIGN_AGE`
-    (left alone: a run there may still write them; the user may know it does not)."""
+    (left alone: a run there may still write them; the user may know it does not). A folder
+    named by an older version (the PID alone: no machine to tell) is judged only when it
+    stages one of the final names ``names``, as that version did."""
     gone, foreign = [], []
+    own = {staging_name(name) for name in names}
     for folder in folders:
         try:
             entries = list(folder.iterdir()) if folder.is_dir() else []
@@ -295,7 +299,8 @@ def staging_leftovers(folders: list[Path]) -> tuple[list[Path], list[tuple[Path,
             continue
         for entry in entries:
             match = _ANY_STAGING.match(entry.name)
-            if not match or entry.is_symlink() or not entry.is_dir():
+            if not match or entry.is_symlink() or not entry.is_dir() or (
+                    match.group("tag") is None and match.group("name") not in own):
                 continue
             verdict = _run_gone(match)
             if verdict:
@@ -314,7 +319,7 @@ def stale_staging_folders(final: Path) -> list[Path]:
     """Staging folders beside ``final`` (or in it: an output folder whose parent is read-only),
     of any output, left by runs that are gone (:func:`staging_leftovers`)."""
     final = Path(final)
-    return staging_leftovers([final.parent, final])[0]
+    return staging_leftovers([final.parent, final], (final.name,))[0]
 
 
 def disk_usage(folder: Path) -> int:
@@ -458,7 +463,6 @@ class OutputStaging:
         self.removed_stale: list[Path] = []  # staging folders of ended runs removed
         self.freed = 0  # bytes their removal freed
         self.foreign_staging: list[tuple[Path, float]] = []  # another machine's, old: (path, age)
-        self._swept: set[Path] = set()  # folders already cleaned of ended runs' staging folders
 
     def stage(self, final: str | Path, name: str = "OUTPUT", siblings: list | None = None
               ) -> Path:
@@ -476,7 +480,7 @@ class OutputStaging:
     def _stage(self, final: str | Path, name: str, folder_output: bool = False) -> Path:
         final = Path(final).expanduser().absolute()
         self._make_parent(final.parent, name)
-        self._sweep([final.parent, final])
+        self._sweep([final.parent, final], final.name)
         try:
             folder = _mkdtemp(final, final.parent)
         except OSError as exc:
@@ -494,19 +498,18 @@ class OutputStaging:
         _FINAL_OF[staged] = final
         return staged
 
-    def _sweep(self, folders: list[Path]) -> None:
+    def _sweep(self, folders: list[Path], name: str) -> None:
         """Remove the staging folders of ended runs in ``folders`` (any output's: a killed
-        ortho's GBs go with the next run writing there), once per folder and run."""
-        folders = [f for f in folders if f not in self._swept]
-        self._swept.update(folders)
-        gone, foreign = staging_leftovers(folders)
+        ortho's GBs go with the next run writing there; an older version's, of ``name``)."""
+        gone, foreign = staging_leftovers(folders, (name,))
         for folder in gone:
             size = disk_usage(folder)
             shutil.rmtree(folder, ignore_errors=True)
             if not os.path.lexists(folder):
                 self.removed_stale.append(folder)
                 self.freed += size
-        self.foreign_staging += [item for item in foreign if item not in self.foreign_staging]
+        known = {path for path, _ in self.foreign_staging}
+        self.foreign_staging += [item for item in foreign if item[0] not in known]
 
     def stage_folder(self, final: str | Path, name: str = "OUTPUT") -> Path:
         """A staged, empty folder standing for output folder ``final``."""
