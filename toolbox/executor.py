@@ -390,18 +390,46 @@ def _task_name(func: Any) -> str:
                                                       None) or type(func).__name__
 
 
+#: the working folder the running tasks of a Dask worker process share (the folder of their
+#: client: :func:`_in_client_folder`), how many run there, and the tasks waiting per folder
+_FOLDER: dict[str, Any] = {"path": None, "running": 0, "waiting": {}}
+_FOLDER_TURN = threading.Condition()
+
+
 def _in_client_folder(folder: str, func: Callable, task: Any) -> Any:
     """``func(task)`` on a Dask worker, in the client's working ``folder``: the user's relative
     paths (``--INPUT dem.tif``, a staged output folder beside it) name the files they meant, not
     files in the worker's own folder. A worker that does not see the folder (another machine
     without the same mount) stays where it is: relative paths then fail there as before, and
-    absolute ones work. Tasks of one run share the folder, so a worker's threads agree."""
+    absolute ones work.
+
+    The working folder is the process's, not the thread's: tasks of two runs from two folders
+    on one worker (two users of one cluster) each read 'dem.tif' of the other's folder when
+    one changed it under the other (a wrong result, exit 0). The tasks of one folder run
+    together; a task of another folder waits until they are done (and, while it waits, new
+    tasks of the running folder wait too: no run waits forever)."""
+    with _FOLDER_TURN:
+        waiting = _FOLDER["waiting"]
+        waiting[folder] = waiting.get(folder, 0) + 1
+        while _FOLDER["running"] and (_FOLDER["path"] != folder or any(
+                n for other, n in waiting.items() if other != folder)):
+            _FOLDER_TURN.wait()
+        waiting[folder] -= 1
+        if not waiting[folder]:
+            del waiting[folder]
+        _FOLDER["path"] = folder
+        _FOLDER["running"] += 1
+        try:
+            if os.getcwd() != folder and os.path.isdir(folder):
+                os.chdir(folder)
+        except OSError:  # the worker's own folder was removed, or the client's is not readable
+            pass
     try:
-        if os.getcwd() != folder and os.path.isdir(folder):
-            os.chdir(folder)
-    except OSError:  # the worker's own folder was removed, or the client's is not readable
-        pass
-    return func(task)
+        return func(task)
+    finally:
+        with _FOLDER_TURN:
+            _FOLDER["running"] -= 1
+            _FOLDER_TURN.notify_all()
 
 
 def _first_line(exc: BaseException) -> str:

@@ -146,13 +146,17 @@ class MosaicBuild(Algorithm):
                 import tempfile
                 from pathlib import Path
 
-                scratch = tempfile.TemporaryDirectory(prefix="mosaic_index_")
+                # in the output's staging folder (the run's storage, not the client's /tmp;
+                # removed with the folder if the run is killed), read here only: no overviews
+                scratch = tempfile.TemporaryDirectory(prefix=".toolbox-index-", dir=Path(
+                    params["OUTPUT"]).expanduser().absolute().parent)
                 index = Path(scratch.name) / "source_index.tif"
             try:
                 with feedback.timed("mosaic"):
                     stats = write_mosaic(plan, params["OUTPUT"], index, alpha=alpha,
                                          nodata=None if alpha else nodata, cog=params["COG"],
                                          overviews=params["OVERVIEWS"],
+                                         index_finished=scratch is None,
                                          executor=executor_of(params),
                                          feedback=feedback.step(5, 95))
                 if params["SEAMLINES"] is not None:

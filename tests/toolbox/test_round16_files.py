@@ -155,7 +155,7 @@ def test_long_name_staging_folders_are_found_again(tmp_path):
     staged = staging.stage(final)
     assert len(os.fsencode(staged.parent.name)) <= 255
     assert final_folder(staged) == tmp_path
-    dead = staged.parent.name.replace(f".{os.getpid()}.", ".4194305.")  # above pid_max
+    dead = staged.parent.name.replace(f".{os.getpid()}-", ".4194305-")  # above pid_max
     os.rename(staged.parent, tmp_path / dead)
     assert [p.name for p in stale_staging_folders(final)] == [dead]
     staging.rollback()

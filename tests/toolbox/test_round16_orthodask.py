@@ -216,7 +216,8 @@ def test_relative_paths_reach_workers_running_in_another_directory(ortho_block, 
     """The workers started in the test's first directory; the runs give the rasters relative
     to another one (the caller's): a worker read 'p1.tif' in its own directory and the run
     stopped with exit 3 ("p1.tif: No such file or directory"). The engine's inputs, the
-    warp's photo and the DEM sampler now name them absolutely."""
+    warp's photo and the DEM sampler now read them in the client's folder (the executor runs
+    a run's tasks there), as the sampler's heights taken on a worker show."""
     from toolbox.io.raster import open_raster_info
     from toolbox.ortho.dem import DemSampler
 
@@ -230,8 +231,18 @@ def test_relative_paths_reach_workers_running_in_another_directory(ortho_block, 
             files[where] = tmp_path / f"{alg[-5:]}_{len(files)}.tif"
             toolbox.run(alg, run | {"SCHEDULER": where, "OUTPUT": files[where]})
         assert np.array_equal(*(_read(f) for f in files.values())), alg
-    sampler = DemSampler(open_raster_info("dem.tif"), None)
-    assert Path(sampler.path) == ortho_block["DEM"]
+    from functools import partial
+
+    from toolbox.executor import map_tiles
+
+    info = open_raster_info("dem.tif")  # relative: the workers started in another folder
+    sampler = DemSampler(info, None)
+    left, bottom, right, top = info.bounds
+    xs = np.linspace(left, right, 7)[1:-1]
+    ys = np.linspace(bottom, top, 7)[1:-1]
+    local = sampler.heights(xs, ys)
+    there = next(map_tiles(partial(sampler.heights, xs), [ys], scheduler=cluster))
+    assert np.isfinite(local).all() and np.array_equal(there, local)
 
 
 def test_relative_paths_of_every_cluster_algorithm(ortho_block, cluster, monkeypatch):

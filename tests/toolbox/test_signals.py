@@ -75,9 +75,9 @@ def test_signals_during_a_write_leave_nothing(mass_points, tmp_path):
     output = runs[signal.SIGKILL][0]
     left = list(output.parent.glob(f".{output.name}.*.part"))
     assert len(left) == 1 and left[0].is_dir()
-    # ... and the next run to the same path removes it, with a warning
+    # ... and the next run to the same path removes it, with an info line
     proc = subprocess.run(
-        [sys.executable, "-m", "toolbox.cli", "run", "dem:idw", "--INPUT", str(mass_points),
+        [sys.executable, "-m", "toolbox.cli", "-v", "run", "dem:idw", "--INPUT", str(mass_points),
          "--CELL_SIZE", "25", "--OUTPUT", str(output)], capture_output=True, text=True,
         timeout=120)
     assert proc.returncode == 0, proc.stderr

@@ -6,8 +6,12 @@ fails when the target appeared meanwhile (another run wrote it), so a run never 
 it did not mean to. The staged file keeps the final file name, so drivers and layer names that
 derive from it are unaffected.
 
-Staging folders are named ``.NAME.PID.RANDOM.part``: after a run killed by SIGKILL (which no
-program can catch), the next run to the same path removes the folders of processes that are gone.
+Staging folders are named ``.NAME.PID-START-MACHINE.RANDOM.part`` (:func:`_mkdtemp`: the
+process's id and start time, a tag of the host and of its boot): after a run killed by SIGKILL
+(which no program can catch), the next run writing into the same folder removes the staging
+folders there of runs of this host and boot whose process is gone (or whose id now names a
+process started at another time); another host's (a container, a cluster node on shared
+storage) are left alone: its processes cannot be seen from here (:func:`staging_leftovers`).
 
 An output *folder* is staged whole (``.FOLDER.PID.RANDOM.part/FOLDER``): on success each file it
 holds is moved into the final folder one by one, with the same checks as a file output (never
@@ -29,10 +33,13 @@ file never meets an old index, PAM file or write-ahead log.
 from __future__ import annotations
 
 import errno
+import functools
+import hashlib
 import os
 import re
 import shutil
 import signal
+import socket
 import tempfile
 import threading
 import time
@@ -174,9 +181,15 @@ def _pid_alive(pid: int) -> bool:
 
 
 #: bytes of a staging folder's name besides the final name: ".", ".PID" (7 digits at most),
-#: "." + mkdtemp's 8 random characters, ".part"
-_STAGING_EXTRA = 1 + 8 + 9 + 5
+#: "-START" (20 digits at most), "-MACHINE" (12), "." + mkdtemp's 8 random characters, ".part"
+_STAGING_EXTRA = 1 + 8 + 21 + 13 + 9 + 5
 _NAME_MAX = 255  # bytes of one path component on every common filesystem
+#: a staging folder of any output: the final name, the PID, then (since round 17) the start
+#: time of the process and the tag of its machine (:func:`machine_tag`); without them, an older
+#: version's (judged by the PID alone)
+_ANY_STAGING = re.compile(r"^\.(?P<name>.+)\.(?P<pid>\d+)(?:-(?P<start>\d+)-(?P<tag>[0-9a-f]{12}))?"
+                          r"\.[^.-]+\.part$", re.DOTALL)
+FOREIGN_AGE = 86400.0  # seconds after which another machine's staging folder is warned about
 
 
 def staging_name(name: str) -> str:
@@ -198,31 +211,131 @@ def staging_name(name: str) -> str:
 
 
 def _staging_pattern(name: str) -> re.Pattern:
-    return re.compile(r"^\." + re.escape(staging_name(name)) + r"\.(\d+)\.[^.]+\.part$")
+    return re.compile(r"^\." + re.escape(staging_name(name))
+                      + r"\.(\d+)(?:-\d+-[0-9a-f]{12})?\.[^.-]+\.part$")
+
+
+def _read(path: str) -> str:
+    try:
+        with open(path) as f:
+            return f.read().strip()
+    except OSError:
+        return ""
+
+
+@functools.lru_cache(maxsize=1)
+def machine_tag() -> str:
+    """12 hex digits naming where this process's id means something: 6 for the host
+    (``socket.gethostname()``), 6 for its boot (Linux's boot id) and PID namespace (two
+    containers of one host, each with its own process ids, get two tags)."""
+    host = hashlib.sha1(socket.gethostname().encode("utf-8", "replace")).hexdigest()[:6]
+    try:
+        pid_ns = os.readlink("/proc/self/ns/pid")
+    except OSError:
+        pid_ns = ""
+    boot = f"{_read('/proc/sys/kernel/random/boot_id')}\0{pid_ns}"
+    return host + hashlib.sha1(boot.encode()).hexdigest()[:6]
+
+
+def process_start(pid: int) -> int | None:
+    """When process ``pid`` started, as a number that differs for another process given the same
+    id later: clock ticks since boot (Linux's /proc/PID/stat, field 22: exact), else psutil's
+    create time in hundredths of a second; None when unknown (no such process, no way to tell).
+    /proc comes first: psutil derives its time there from a boot time that the kernel shifts
+    with clock corrections, so two processes may see the same start a second apart."""
+    try:
+        with open(f"/proc/{pid}/stat", "rb") as f:
+            stat = f.read()
+        return int(stat[stat.rindex(b")") + 2:].split()[19])  # fields after "pid (comm)"
+    except (OSError, ValueError, IndexError):
+        pass
+    try:
+        import psutil
+
+        return int(psutil.Process(pid).create_time() * 100)
+    except Exception:  # not installed, no such process, access denied
+        return None
 
 
 def _mkdtemp(final: Path, folder: Path) -> Path:
-    """A new staging folder for ``final`` in ``folder`` (:func:`staging_name`)."""
-    return Path(tempfile.mkdtemp(prefix=f".{staging_name(final.name)}.{os.getpid()}.",
+    """A new staging folder for ``final`` in ``folder`` (:func:`staging_name`), its name
+    recording this process: id, start time (0: unknown), machine (:func:`machine_tag`)."""
+    pid = os.getpid()
+    owner = f"{pid}-{process_start(pid) or 0}-{machine_tag()}"
+    return Path(tempfile.mkdtemp(prefix=f".{staging_name(final.name)}.{owner}.",
                                  suffix=".part", dir=folder))
 
 
-def stale_staging_folders(final: Path) -> list[Path]:
-    """Staging folders beside ``final`` (or in it: an output folder whose parent is read-only)
-    left by runs whose process is gone."""
-    pattern = _staging_pattern(final.name)
-    entries = []
-    for folder in (final.parent, final):
+def _run_gone(match: re.Match) -> bool | None:
+    """Whether the run that made the staging folder ``match`` names has ended: True (its
+    process is gone, or its id now names a process started at another time), False (running),
+    None (another machine's, or this one's before a restart: nothing here can tell)."""
+    pid = int(match.group("pid"))
+    if match.group("tag") is None:  # an older version's name: the process id alone
+        return not _pid_alive(pid)
+    if match.group("tag") != machine_tag():
+        return None
+    if not _pid_alive(pid):
+        return True
+    recorded = int(match.group("start"))
+    now = process_start(pid)
+    return bool(recorded and now is not None and now != recorded)
+
+
+def staging_leftovers(folders: list[Path], names: tuple[str, ...] = ()
+                      ) -> tuple[list[Path], list[tuple[Path, float]]]:
+    """The staging folders of any output in ``folders`` (:data:`_ANY_STAGING`): those of runs
+    that ended without removing them (killed by SIGKILL, a crash: :func:`_run_gone`), and,
+    with their age in seconds, those of another machine not changed for :data:`FOREIGN_AGE`
+    (left alone: a run there may still write them; the user may know it does not). A folder
+    named by an older version (the PID alone: no machine to tell) is judged only when it
+    stages one of the final names ``names``, as that version did."""
+    gone, foreign = [], []
+    own = {staging_name(name) for name in names}
+    for folder in folders:
         try:
-            entries += list(folder.iterdir()) if folder.is_dir() else []
+            entries = list(folder.iterdir()) if folder.is_dir() else []
         except OSError:
             continue
-    stale = []
-    for entry in entries:
-        match = pattern.match(entry.name)
-        if match and entry.is_dir() and not _pid_alive(int(match.group(1))):
-            stale.append(entry)
-    return stale
+        for entry in entries:
+            match = _ANY_STAGING.match(entry.name)
+            if not match or entry.is_symlink() or not entry.is_dir() or (
+                    match.group("tag") is None and match.group("name") not in own):
+                continue
+            verdict = _run_gone(match)
+            if verdict:
+                gone.append(entry)
+            elif verdict is None:
+                try:
+                    age = time.time() - entry.stat().st_mtime
+                except OSError:
+                    continue
+                if age > FOREIGN_AGE:
+                    foreign.append((entry, age))
+    return gone, foreign
+
+
+def stale_staging_folders(final: Path) -> list[Path]:
+    """Staging folders beside ``final`` (or in it: an output folder whose parent is read-only),
+    of any output, left by runs that are gone (:func:`staging_leftovers`)."""
+    final = Path(final)
+    return staging_leftovers([final.parent, final], (final.name,))[0]
+
+
+def disk_usage(folder: Path) -> int:
+    """Bytes the files under ``folder`` take on disk that removing it frees (a file with other
+    hard links frees nothing; a sparse file only its blocks); no link is followed."""
+    total = 0
+    for root, _, files in os.walk(folder):
+        for name in files:
+            try:
+                st = os.lstat(os.path.join(root, name))
+            except OSError:
+                continue
+            if st.st_nlink == 1:
+                blocks = getattr(st, "st_blocks", None)
+                total += blocks * 512 if blocks is not None else st.st_size
+    return total
 
 
 def final_folder(path: str | Path) -> Path:
@@ -347,7 +460,9 @@ class OutputStaging:
         self._siblings: dict[Path, list[Path]] = {}  # final -> its declared layer files
         self._folders: list[Path] = []
         self._created_dirs: list[Path] = []  # output folders this run created, deepest last
-        self.removed_stale: list[Path] = []
+        self.removed_stale: list[Path] = []  # staging folders of ended runs removed
+        self.freed = 0  # bytes their removal freed
+        self.foreign_staging: list[tuple[Path, float]] = []  # another machine's, old: (path, age)
 
     def stage(self, final: str | Path, name: str = "OUTPUT", siblings: list | None = None
               ) -> Path:
@@ -365,9 +480,7 @@ class OutputStaging:
     def _stage(self, final: str | Path, name: str, folder_output: bool = False) -> Path:
         final = Path(final).expanduser().absolute()
         self._make_parent(final.parent, name)
-        for folder in stale_staging_folders(final):
-            shutil.rmtree(folder, ignore_errors=True)
-            self.removed_stale.append(folder)
+        self._sweep([final.parent, final], final.name)
         try:
             folder = _mkdtemp(final, final.parent)
         except OSError as exc:
@@ -384,6 +497,19 @@ class OutputStaging:
         self._names[final] = name
         _FINAL_OF[staged] = final
         return staged
+
+    def _sweep(self, folders: list[Path], name: str) -> None:
+        """Remove the staging folders of ended runs in ``folders`` (any output's: a killed
+        ortho's GBs go with the next run writing there; an older version's, of ``name``)."""
+        gone, foreign = staging_leftovers(folders, (name,))
+        for folder in gone:
+            size = disk_usage(folder)
+            shutil.rmtree(folder, ignore_errors=True)
+            if not os.path.lexists(folder):
+                self.removed_stale.append(folder)
+                self.freed += size
+        known = {path for path, _ in self.foreign_staging}
+        self.foreign_staging += [item for item in foreign if item[0] not in known]
 
     def stage_folder(self, final: str | Path, name: str = "OUTPUT") -> Path:
         """A staged, empty folder standing for output folder ``final``."""

@@ -183,13 +183,14 @@ def mosaic_tile(plan: MosaicPlan, alpha: bool, nodata: float | None, tile: Any,
 def write_mosaic(plan: MosaicPlan, output: Path, index_path: Path | None, *, alpha: bool,
                  nodata: float | None, cog: bool = False, overviews: bool = True,
                  tile_size: int = TILE_SIZE, workers: int | None = None, executor: Any = None,
-                 feedback: Any = None) -> dict:
+                 feedback: Any = None, index_finished: bool = True) -> dict:
     """Stream the mosaic into ``output`` (and the source-index raster into ``index_path``).
 
     The output has ``plan.bands`` data bands plus an alpha band (``alpha``) or ``nodata`` where
     no source has data; tiled DEFLATE GeoTIFF with overviews, or a COG (``cog``, the source
-    index too). Tiles run on ``executor`` (default: the cluster of ``DASK_SCHEDULER_ADDRESS``,
-    else ``workers`` local threads).
+    index too unless ``index_finished`` is False: a scratch index read once for the seams gets
+    neither, and no worker of a cluster touches it). Tiles run on ``executor`` (default: the
+    cluster of ``DASK_SCHEDULER_ADDRESS``, else ``workers`` local threads).
     """
     from contextlib import ExitStack
     from functools import partial
@@ -209,7 +210,8 @@ def write_mosaic(plan: MosaicPlan, output: Path, index_path: Path | None, *, alp
             None if alpha else nodata, alpha=alpha, cog=cog, overviews=overviews,
             executor=executor, cache_mb=WRITE_CACHE_MB))
         idx = None if index_path is None else stack.enter_context(RasterWriter(
-            index_path, grid, 1, index_dtype, 0, cog=cog, overviews=overviews,
+            index_path, grid, 1, index_dtype, 0, cog=cog and index_finished,
+            overviews=overviews and index_finished,
             overview_resampling="nearest", executor=executor, cache_mb=WRITE_CACHE_MB))
 
         def collect(tile, data, labels):

@@ -32,9 +32,7 @@ class DemSampler:
     """
 
     def __init__(self, info: Any, crs: Any = None, band: int = 1, factor: int = 1):
-        from toolbox.raster.datasets import worker_path
-
-        self.path = worker_path(info.path)  # (read on a Dask worker when not preloaded)
+        self.path = info.path  # read on a Dask worker in the client's folder when not preloaded
         self.band = int(band)
         self.factor = max(1, int(factor))
         t = info.transform

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import os
 import re
+import stat
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -19,6 +21,31 @@ def _show(value: Any) -> str:
     """Short representation of a user value for error messages."""
     text = repr(value) if isinstance(value, str) else str(value)
     return text if len(text) <= 120 else text[:117] + "..."
+
+
+_SPECIAL_FILES = ((stat.S_ISFIFO, "a named pipe"), (stat.S_ISSOCK, "a socket"),
+                  (stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"))
+
+
+def special_file(value: Any) -> tuple[str, str] | None:
+    """``(path, what)`` when ``value`` (a path, ``path|layername=...``, comma-separated paths, or
+    a list of them) names a named pipe, a socket or a device: opening one blocks until another
+    program writes to it (GDAL's open of a FIFO never returns) or reads endless bytes."""
+    for item in value if isinstance(value, (list, tuple)) else [value]:
+        if not isinstance(item, (str, os.PathLike)):
+            continue
+        text = os.fspath(item)
+        if not isinstance(text, str):
+            continue
+        for candidate in dict.fromkeys([text, text.partition("|")[0], *text.split(",")]):
+            try:
+                mode = os.stat(os.path.expanduser(candidate.strip())).st_mode
+            except (OSError, ValueError):
+                continue
+            for test, what in _SPECIAL_FILES:
+                if test(mode):
+                    return candidate.strip(), what
+    return None
 
 
 @dataclass
@@ -80,6 +107,11 @@ class Parameter:
                 return None
             else:
                 raise self.error(f"is required ({self.expected()})")
+        if self.holds_paths and not self.is_output:  # before anything opens it
+            special = special_file(value)
+            if special is not None:
+                kind = "folder" if self.type_name == "folder" else "regular file"
+                raise self.error(f"{_show(special[0])} is {special[1]}; give a {kind}")
         return self.validate(value, ctx)
 
     def validate(self, value: Any, ctx: ValidationContext) -> Any:

@@ -17,16 +17,6 @@ def file_stamp(path: Any) -> tuple[int, int]:
     return stat.st_size, stat.st_mtime_ns
 
 
-def worker_path(path: Any) -> Any:
-    """``path`` as a task sent to a Dask worker must name it: absolute when it is a relative
-    path to an existing file (a worker runs in its own directory, not the caller's); anything
-    else (absolute, a GDAL virtual name) as it is."""
-    if isinstance(path, (str, os.PathLike)) and not os.path.isabs(path) and \
-            os.path.exists(path):
-        return os.path.abspath(path)
-    return path
-
-
 def open_quietly(path: Any) -> Any:
     """``rasterio.open(path)`` without the warning about a raster with no georeferencing (a
     photo is fine as it is)."""
@@ -70,8 +60,9 @@ class ThreadDatasets:
 
 class WorkerDatasets:
     """The rasters a Dask worker process keeps open across its tasks, per thread: the last
-    :data:`LIMIT` files each thread read, keyed by path, size and modification time (a file
-    written again is opened again; a GDAL virtual path by its name only). Tiles of one input
+    :data:`LIMIT` files each thread read, keyed by absolute path, size and modification time (a
+    file written again is opened again; 'dem.tif' of another run's folder is another file,
+    however alike its size and time; a GDAL virtual path by its name only). Tiles of one input
     run one after another on a worker; a dataset opened per task loses GDAL's block cache, so
     every tile decompressed again the blocks its halo shares with its neighbours (a 6000 x
     6000 hillshade: 7.2 s of workers' CPU against 2.6 s for the whole local run). Pickles as
@@ -86,7 +77,7 @@ class WorkerDatasets:
         from collections import OrderedDict
 
         try:
-            key = (str(path), file_stamp(path))
+            key = (os.path.abspath(path), file_stamp(path))
         except (OSError, TypeError, ValueError):  # a GDAL virtual path (/vsicurl/...)
             key = (str(path), None)
         opened = getattr(self._local, "datasets", None)

@@ -54,7 +54,7 @@ from typing import Any
 import numpy as np
 
 from toolbox.io.grid import GridSpec
-from toolbox.raster.datasets import ThreadDatasets, WorkerDatasets, worker_path
+from toolbox.raster.datasets import ThreadDatasets, WorkerDatasets
 
 __all__ = [
     "BOUNDARY_RULES", "GridSpec", "RasterInput", "Tile", "iter_tiles", "process_raster",
@@ -388,7 +388,7 @@ def process_raster(grid: GridSpec, inputs: Mapping[str, RasterInput] | None, ker
     # inputs kept open by this call's threads (closed at its end); sent to a Dask worker, the
     # holder arrives as the worker's WorkerDatasets, kept across its tasks
     held = _OpenSources()
-    inputs = {name: _HeldInput(replace(inp, source=worker_path(_source_path(inp.source))), held)
+    inputs = {name: _HeldInput(replace(inp, source=_source_path(inp.source)), held)
               if isinstance(inp, RasterInput) else inp for name, inp in inputs.items()}
     counters = {"tiles": 0, "blank_tiles": 0}
 

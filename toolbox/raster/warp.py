@@ -34,7 +34,7 @@ import numpy as np
 from toolbox.counters import Counters
 from toolbox.errors import InputDataError, ParameterError
 from toolbox.io.grid import GridSpec
-from toolbox.raster.datasets import ThreadDatasets, worker_path
+from toolbox.raster.datasets import ThreadDatasets
 from toolbox.raster.engine import RasterInput, process_raster
 from toolbox.raster.maps import (
     OUTSIDE,
@@ -506,7 +506,7 @@ def warp_raster(source: Any, grid: GridSpec, coordinate_map: Any, writer_or_outp
     methods = RESAMPLING_METHODS + EXTRA_RESAMPLING
     if resampling not in methods:
         raise ValueError(f"resampling must be one of {', '.join(methods)}, got {resampling!r}")
-    path = photo_path(worker_path(getattr(source, "path", source)))
+    path = photo_path(getattr(source, "path", source))
     with open_quietly(path) as src:
         size = (src.width, src.height)
     job = _WarpJob(path, ThreadDatasets(), size, coordinate_map, layout, resampling,

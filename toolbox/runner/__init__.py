@@ -214,9 +214,7 @@ def _run(algorithm_id: str, parameters: dict[str, Any] | None, feedback: Feedbac
                 staged[dest.name] = staging.stage(values[dest.name], dest.name,
                                                   declared_layer_files(dest, values[dest.name]))
         staged_report = None if report_path is None else staging.stage(report_path, REPORT)
-        for folder in staging.removed_stale:
-            feedback.push_warning(f"removed {folder}: the staging folder of an earlier run that "
-                                  "was killed")
+        report_leftovers(staging, feedback)
         feedback.set_progress(0)
         with collect_gdal_errors() as gdal_errors:
             try:
@@ -253,6 +251,26 @@ def _run(algorithm_id: str, parameters: dict[str, Any] | None, feedback: Feedbac
     finally:
         staging.rollback()
     return outputs
+
+
+def report_leftovers(staging: OutputStaging, feedback: Feedback) -> None:
+    """One info line for the staging folders of killed runs the staging removed (with the space
+    freed), a warning for each old one of another machine it left alone."""
+    removed = staging.removed_stale
+    if removed:
+        names = ", ".join(str(p) for p in removed[:3]) + (", ..." if len(removed) > 3 else "")
+        feedback.push_info(f"removed {len(removed)} staging folder{'s' * (len(removed) > 1)} of "
+                           f"earlier runs that were killed ({_size(staging.freed)} freed):"
+                           f" {names}")
+    for folder, age in staging.foreign_staging:
+        feedback.push_warning(f"left {folder} alone: the staging folder of a run on another "
+                              f"machine or container (or of this one before a restart), "
+                              f"{age / 86400:.0f} days old; remove it if no run writes there")
+
+
+def _size(n: int) -> str:
+    return next(f"{n / f:.1f} {unit}" for f, unit in ((1e9, "GB"), (1e6, "MB"), (1e3, "kB"),
+                                                      (1, "bytes")) if n >= f or f == 1)
 
 
 def write_declared_styles(alg_cls: type[Algorithm], values: dict[str, Any],
