@@ -244,14 +244,20 @@ def plan_each(items: list[Any], plan: Any, failed: list[dict[str, Any]], feedbac
             failed.append({"photo": item.id, "error": str(exc)})
             feedback.push_warning(f"photo {item.id} failed: {exc}")
     if not plans:
-        raise InputDataError("no photo could be orthorectified: " +
-                             "; ".join(f"{f['photo']}: {f['error']}" for f in failed))
+        raise none_done(failed)
     return plans
+
+
+def none_done(failed: list[dict[str, Any]]) -> InputDataError:
+    """The error of a batch whose every photo failed (``failed``: their errors)."""
+    return InputDataError("no photo could be orthorectified: " +
+                          "; ".join(f"{f['photo']}: {f['error']}" for f in failed))
 
 
 def collect(results: Any, failed: list[dict[str, Any]], feedback: Feedback
             ) -> list[dict[str, Any]]:
-    """The reports of the photos done (their warnings pushed); failures appended to ``failed``."""
+    """The reports of the photos done (their warnings pushed); failures appended to ``failed``.
+    A batch of which no photo is done but some failed is an error (nothing is kept)."""
     from toolbox.io.staging import final_path
 
     reports = []
@@ -265,6 +271,8 @@ def collect(results: Any, failed: list[dict[str, Any]], feedback: Feedback
             for text in result.pop("warnings", []):
                 if text not in feedback.warnings:  # one datum transformation for all photos
                     feedback.push_warning(text)
+    if failed and not reports:
+        raise none_done(failed)
     return reports
 
 
