@@ -137,7 +137,8 @@ def check_magnitudes(alg_cls: type[Algorithm], values: dict[str, Any]) -> None:
 
 def _check_band(alg_cls: type[Algorithm], values: dict[str, Any]) -> None:
     """The one BAND check: BAND exists in the DEM when given, else in the one raster input;
-    the band read of each heights raster (BAND's, else band 1) holds heights, not colours."""
+    the band read of each heights raster (BAND's, else band 1) holds heights, not colours,
+    in the unit the algorithm reads them in (its band unit, unless Z_FACTOR converts them)."""
     band = values.get("BAND")
     given = {p.name: values[p.name] for p in alg_cls.parameters
              if isinstance(p, RasterLayer) and values.get(p.name) is not None}
@@ -147,10 +148,15 @@ def _check_band(alg_cls: type[Algorithm], values: dict[str, Any]) -> None:
         raise ParameterError("BAND", f"must be <= {banded.count} (bands of {banded}), got {band}")
     for p in alg_cls.parameters:
         if isinstance(p, RasterLayer) and p.role == "heights" and p.name in given:
-            from toolbox.io.raster import require_height_band
+            from toolbox.io.raster import require_height_band, require_height_unit
 
             info = given[p.name]
             require_height_band(info, p.name, *((band, "BAND") if info is banded else (1,)))
+            z_factor = values.get("Z_FACTOR")
+            if z_factor is None or z_factor == 1:  # a Z_FACTOR given converts the heights
+                require_height_unit(info, p.name, band if info is banded else 1, alg_cls.id,
+                                    alg_cls.length_units,
+                                    "Z_FACTOR" if "Z_FACTOR" in values else None)
 
 
 # -- what the run reads and writes ----------------------------------------------------------------

@@ -1,0 +1,84 @@
+"""Round 17, raster metadata semantics: what GDAL's metadata of a raster says, honoured or refused.
+
+- a DEM whose band unit says feet (GDAL's unit type "ft", "US survey foot") was read as metres in
+  silence: dem:slope of a 45 degree plane stored in feet gave 73.05 degrees, ortho:photo and
+  tin:volume took its heights for metres; now refused (exit 2) with the gdal_calc.py command that
+  converts them (or Z_FACTOR where the algorithm has one);
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import toolbox
+from toolbox.errors import ParameterError
+
+
+def plane_dem(path: Path, unit: str | None = None, factor: float = 1.0, crs: str = "EPSG:32632",
+              dtype: str = "float32", nodata: float | None = -9999.0,
+              origin: tuple[float, float] = (500000, 5000200)) -> Path:
+    """A 20 x 20 DEM of 10 m cells (metres) rising 45 degrees to the east, its heights stored
+    divided by ``factor`` (metres per stored unit) with band unit ``unit``."""
+    import rasterio
+    from rasterio.transform import from_origin
+
+    z = np.tile((np.arange(20) + 0.5) * 10.0, (20, 1)) / factor
+    profile = {"driver": "GTiff", "width": 20, "height": 20, "count": 1, "dtype": dtype,
+               "crs": crs, "transform": from_origin(*origin, 10, 10), "nodata": nodata}
+    with rasterio.open(path, "w", **profile) as dst:
+        dst.write(z.astype(dtype), 1)
+        if unit is not None:
+            dst.units = (unit,)
+    return path
+
+
+def centre_value(path: Path) -> float:
+    import rasterio
+
+    with rasterio.open(path) as src:
+        return float(src.read(1)[10, 10])
+
+
+@pytest.mark.parametrize(("unit", "factor"), [("ft", 0.3048), ("US survey foot", 1200 / 3937)])
+def test_slope_of_a_dem_in_feet_is_refused_with_the_conversion(tmp_path, unit, factor):
+    dem = plane_dem(tmp_path / "ft.tif", unit, factor)
+    with pytest.raises(ParameterError, match=rf"^INPUT .*'{unit}'.*metre.*gdal_calc.py .*"
+                                             rf"A\*{factor:.4f}.*Z_FACTOR"):
+        toolbox.run("dem:slope", {"INPUT": dem, "OUTPUT": tmp_path / "s.tif"})
+    out = toolbox.run("dem:slope", {"INPUT": dem, "Z_FACTOR": factor,
+                                    "OUTPUT": tmp_path / "z.tif"})  # the conversion given
+    assert centre_value(out["OUTPUT"]) == pytest.approx(45.0, abs=1e-3)
+
+
+def test_slope_of_a_dem_in_metres_or_unlabelled_runs(tmp_path):
+    for unit in (None, "m", "metre"):
+        dem = plane_dem(tmp_path / f"{unit}.tif", unit)
+        out = toolbox.run("dem:slope", {"INPUT": dem, "OUTPUT": tmp_path / f"s_{unit}.tif"})
+        assert centre_value(out["OUTPUT"]) == pytest.approx(45.0, abs=1e-3)
+
+
+def test_heights_in_metres_on_a_crs_in_feet_are_refused_where_units_must_agree(tmp_path):
+    # EPSG:2229 (NAD83 California zone 5, US feet): a slope mixes x, y in feet with heights in m
+    dem = plane_dem(tmp_path / "m.tif", "m", crs="EPSG:2229", origin=(6500000, 1900000))
+    with pytest.raises(ParameterError, match=r"^INPUT .*'m'.*US survey foot.*A\*3\.28083"):
+        toolbox.run("dem:slope", {"INPUT": dem, "OUTPUT": tmp_path / "s.tif"})
+
+
+def test_contours_keep_heights_in_their_own_unit(tmp_path):
+    dem = plane_dem(tmp_path / "ft.tif", "ft", 0.3048)
+    toolbox.run("carto:contours", {"INPUT": dem, "INTERVAL": 50,
+                                   "OUTPUT": tmp_path / "c.gpkg"})  # levels in feet: fine
+
+
+def test_require_height_unit_for_an_algorithm_in_metres(tmp_path):
+    from toolbox.io.raster import open_raster_info, require_height_unit
+
+    info = open_raster_info(plane_dem(tmp_path / "ft.tif", "ft", 0.3048), "DEM", "heights")
+    assert info.units == ("ft",)
+    with pytest.raises(ParameterError, match=r"^DEM .*'ft'.*ortho:photo reads heights in "
+                                             r"metres.*A\*0\.3048"):
+        require_height_unit(info, "DEM", 1, "ortho:photo", "metre")
+    require_height_unit(info, "DEM", 1, "carto:contours", "horizontal")
