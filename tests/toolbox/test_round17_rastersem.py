@@ -4,6 +4,8 @@
   silence: dem:slope of a 45 degree plane stored in feet gave 73.05 degrees, ortho:photo and
   tin:volume took its heights for metres; now refused (exit 2) with the gdal_calc.py command that
   converts them (or Z_FACTOR where the algorithm has one);
+- a complex DEM (a SAR product) was read as heights with a numpy warning (imaginary parts
+  dropped, exit 0); now refused (exit 2) with the gdal_translate command that writes the real part;
 """
 
 from __future__ import annotations
@@ -82,3 +84,11 @@ def test_require_height_unit_for_an_algorithm_in_metres(tmp_path):
                                              r"metres.*A\*0\.3048"):
         require_height_unit(info, "DEM", 1, "ortho:photo", "metre")
     require_height_unit(info, "DEM", 1, "carto:contours", "horizontal")
+
+
+def test_complex_dem_is_refused(tmp_path):
+    dem = plane_dem(tmp_path / "c.tif", dtype="complex64", nodata=None)
+    with pytest.raises(ParameterError, match=r"^INPUT .*complex numbers \(complex64\).*"
+                                             r"gdal_translate -ot Float32 -b 1"):
+        toolbox.run("dem:slope", {"INPUT": dem, "OUTPUT": tmp_path / "s.tif"})
+    assert not (tmp_path / "s.tif").exists()

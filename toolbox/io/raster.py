@@ -148,9 +148,16 @@ def _band_colours(src: Any) -> tuple[str, ...]:
 def require_height_band(info: RasterInfo, name: str, band: int = 1,
                         band_name: str | None = None) -> None:
     """:class:`ParameterError` naming ``name`` when band ``band`` of ``info`` (read as heights)
-    holds colours: a paletted band (colour codes) or a photo's red, green or blue channel.
-    ``band_name`` is the parameter that chose the band (BAND), if any."""
+    holds colours: a paletted band (colour codes) or a photo's red, green or blue channel, or
+    complex numbers (a SAR product: read as heights, the imaginary parts were dropped with a
+    numpy warning). ``band_name`` is the parameter that chose the band (BAND), if any."""
     colour = info.colours[band - 1] if band <= len(info.colours) else "gray"
+    dtype = info.dtypes[band - 1] if band <= len(info.dtypes) else ""
+    if dtype.startswith("complex"):
+        chosen = f" (chosen by {band_name})" if band_name else ""
+        raise ParameterError(name, f"{info} band {band}{chosen} holds complex numbers ({dtype}), "
+                             "not heights; give a DEM of heights (its real part: gdal_translate "
+                             f"-ot Float32 -b {band} '{info.path}' real.tif)")
     if colour == "palette":
         what = "has a colour table (palette): its values are colour codes, not heights"
     elif colour in ("red", "green", "blue"):
