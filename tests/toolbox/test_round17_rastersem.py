@@ -6,6 +6,10 @@
   converts them (or Z_FACTOR where the algorithm has one);
 - a complex DEM (a SAR product) was read as heights with a numpy warning (imaginary parts
   dropped, exit 0); now refused (exit 2) with the gdal_translate command that writes the real part;
+- a photo (read in pixels) carrying georeferencing of its own (a world file, lon/lat corners) was
+  refused by ortho:photo as "in the geographic CRS EPSG:4326 ...: reproject it" (exit 2: warping
+  the photo would spoil its orientation) or warned about as "taken to be in" the project's CRS;
+  photos are now left out of the CRS checks;
 """
 
 from __future__ import annotations
@@ -92,3 +96,27 @@ def test_complex_dem_is_refused(tmp_path):
                                              r"gdal_translate -ot Float32 -b 1"):
         toolbox.run("dem:slope", {"INPUT": dem, "OUTPUT": tmp_path / "s.tif"})
     assert not (tmp_path / "s.tif").exists()
+
+
+def test_a_photo_is_not_held_to_the_crs_rules(tmp_path):
+    import rasterio
+    from rasterio.transform import from_bounds
+
+    from toolbox.io.raster import open_raster_info
+    from toolbox.registry import get
+    from toolbox.runner import check_parameter_crs
+
+    path = tmp_path / "photo.tif"
+    with rasterio.open(path, "w", driver="GTiff", width=8, height=8, count=1, dtype="uint8",
+                       crs="EPSG:4326", transform=from_bounds(11.3, 43.31, 11.32, 43.33, 8, 8)
+                       ) as dst:
+        dst.write(np.zeros((8, 8), "uint8"), 1)
+    alg = get("ortho:photo")
+    photo = next(p for p in alg.parameters if p.name == "INPUT")
+    dem = next(p for p in alg.parameters if p.name == "DEM")
+    info = open_raster_info(path, "INPUT", "photo")
+    warnings: list[str] = []
+    check_parameter_crs(alg, photo, info, warnings)  # read in pixels: its CRS is not used
+    assert warnings == []
+    with pytest.raises(ParameterError, match=r"^DEM is in the geographic CRS"):
+        check_parameter_crs(alg, dem, open_raster_info(path, "DEM", "heights"), warnings)
