@@ -10,6 +10,9 @@
   refused by ortho:photo as "in the geographic CRS EPSG:4326 ...: reproject it" (exit 2: warping
   the photo would spoil its orientation) or warned about as "taken to be in" the project's CRS;
   photos are now left out of the CRS checks;
+- mosaic:cut of a raster without nodata or alpha band (every value valid) tagged its sheets
+  nodata 0: the valid zeros (sea level in an int16 DEM, black in a photo) became no data in
+  silence (gdal_translate -projwin keeps them); now NaN nodata for floats, else an alpha band;
 """
 
 from __future__ import annotations
@@ -120,3 +123,24 @@ def test_a_photo_is_not_held_to_the_crs_rules(tmp_path):
     assert warnings == []
     with pytest.raises(ParameterError, match=r"^DEM is in the geographic CRS"):
         check_parameter_crs(alg, dem, open_raster_info(path, "DEM", "heights"), warnings)
+
+
+@pytest.mark.parametrize(("dtype", "count"), [("int16", 1), ("uint8", 3), ("float32", 1)])
+def test_cut_keeps_the_valid_zeros_of_a_raster_without_nodata(tmp_path, dtype, count):
+    import rasterio
+    from rasterio.transform import from_origin
+
+    values = np.arange(400).reshape(20, 20) % 200  # zeros at (0, 0) and (10, 0): valid
+    src = tmp_path / "src.tif"
+    with rasterio.open(src, "w", driver="GTiff", width=20, height=20, count=count, dtype=dtype,
+                       crs="EPSG:32632", transform=from_origin(500000, 5000200, 10, 10)) as dst:
+        dst.write(np.stack([values] * count).astype(dtype))
+    out = toolbox.run("mosaic:cut", {"INPUT": src, "SCALE": 1000, "SHEET_WIDTH": 10,
+                                     "SHEET_HEIGHT": 10, "ORIGIN_X": 500000,
+                                     "ORIGIN_Y": 5000000, "OUTPUT": tmp_path / "out"})
+    sheet = Path(out["OUTPUT"]) / "0_1.tif"  # the north-west sheet: cells (0..9, 0..9)
+    with rasterio.open(sheet) as cut:
+        assert cut.transform.c == 500000 and cut.transform.f == 5000200
+        assert (cut.dataset_mask() > 0).all()  # every cell valid, the zero at (0, 0) too
+        np.testing.assert_array_equal(cut.read(list(range(1, count + 1))),
+                                      np.stack([values[:10, :10]] * count).astype(dtype))
