@@ -13,6 +13,7 @@
 - mosaic:cut of a raster without nodata or alpha band (every value valid) tagged its sheets
   nodata 0: the valid zeros (sea level in an int16 DEM, black in a photo) became no data in
   silence (gdal_translate -projwin keeps them); now NaN nodata for floats, else an alpha band;
+  mosaic:build of such orthos likewise wrote nodata 0 (black pixels lost); now the same rule;
 """
 
 from __future__ import annotations
@@ -144,3 +145,27 @@ def test_cut_keeps_the_valid_zeros_of_a_raster_without_nodata(tmp_path, dtype, c
         assert (cut.dataset_mask() > 0).all()  # every cell valid, the zero at (0, 0) too
         np.testing.assert_array_equal(cut.read(list(range(1, count + 1))),
                                       np.stack([values[:10, :10]] * count).astype(dtype))
+
+
+@pytest.mark.parametrize(("dtype", "count"), [("uint8", 3), ("float32", 1)])
+def test_mosaic_keeps_the_valid_zeros_of_orthos_without_nodata(tmp_path, dtype, count):
+    import rasterio
+    from rasterio.transform import from_origin
+
+    inputs = []
+    for k in range(2):  # two adjacent 20 x 20 orthos, every value valid, zeros included
+        values = (np.arange(400).reshape(20, 20) * (k + 1)) % 200
+        path = tmp_path / f"o{k}.tif"
+        with rasterio.open(path, "w", driver="GTiff", width=20, height=20, count=count,
+                           dtype=dtype, crs="EPSG:32632",
+                           transform=from_origin(500000 + 200 * k, 5000200, 10, 10)) as dst:
+            dst.write(np.stack([values] * count).astype(dtype))
+        inputs.append(path)
+    out = toolbox.run("mosaic:build", {"INPUT": inputs, "BLEND": "none", "COG": False,
+                                       "OUTPUT": tmp_path / "m.tif"})
+    with rasterio.open(out["OUTPUT"]) as mosaic:
+        assert (mosaic.width, mosaic.height) == (40, 20)
+        assert (mosaic.dataset_mask() > 0).all()  # the zeros (0, 0), (10, 0)... are valid
+        assert (mosaic.read_masks(1) > 0).all()
+        np.testing.assert_array_equal(mosaic.read(1)[:, :20], np.arange(400).reshape(20, 20)
+                                      % 200)
