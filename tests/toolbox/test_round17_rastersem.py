@@ -14,6 +14,8 @@
   nodata 0: the valid zeros (sea level in an int16 DEM, black in a photo) became no data in
   silence (gdal_translate -projwin keeps them); now NaN nodata for floats, else an alpha band;
   mosaic:build of such orthos likewise wrote nodata 0 (black pixels lost); now the same rule;
+- an alpha band of another type than Byte or UInt16 (an Int16 DEM + alpha) is no mask to GDAL:
+  RasterWriter now also writes it as the internal mask (cells outside were valid data);
 """
 
 from __future__ import annotations
@@ -169,3 +171,40 @@ def test_mosaic_keeps_the_valid_zeros_of_orthos_without_nodata(tmp_path, dtype, 
         assert (mosaic.read_masks(1) > 0).all()
         np.testing.assert_array_equal(mosaic.read(1)[:, :20], np.arange(400).reshape(20, 20)
                                       % 200)
+
+
+def test_int16_alpha_is_also_written_as_the_mask(tmp_path):
+    import rasterio
+    from rasterio.transform import from_origin
+
+    from toolbox.io.grid import GridSpec
+    from toolbox.raster.writer import RasterWriter
+
+    grid = GridSpec(from_origin(500000, 5000200, 10, 10), 8, 8, "EPSG:32632")
+    data = np.zeros((2, 8, 8), "int16")
+    data[1, :, :4] = 32767  # west half opaque (values 0: valid heights), east half outside
+    with RasterWriter(tmp_path / "a.tif", grid, 2, "int16", alpha=True) as dst:
+        dst.write(rasterio.windows.Window(0, 0, 8, 8), data)
+    with rasterio.open(tmp_path / "a.tif") as src:  # GDAL's mask, as QGIS and gdalwarp read it
+        np.testing.assert_array_equal(src.read_masks(1) > 0, data[1] > 0)
+
+
+def test_mosaic_of_int16_orthos_without_nodata_masks_the_gap(tmp_path):
+    import rasterio
+    from rasterio.transform import from_origin
+
+    inputs = []
+    for k in range(2):  # 20 x 20 cells each, apart: the mosaic's 50 x 30 grid has a gap
+        path = tmp_path / f"o{k}.tif"
+        with rasterio.open(path, "w", driver="GTiff", width=20, height=20, count=1,
+                           dtype="int16", crs="EPSG:32632",
+                           transform=from_origin(500000 + 300 * k, 5000200 - 100 * k, 10, 10)
+                           ) as dst:
+            dst.write(((np.arange(400).reshape(20, 20) * (k + 1)) % 200).astype("int16"), 1)
+        inputs.append(path)
+    out = toolbox.run("mosaic:build", {"INPUT": inputs, "BLEND": "none",
+                                       "OUTPUT": tmp_path / "m.tif"})
+    with rasterio.open(out["OUTPUT"]) as mosaic:
+        mask = mosaic.read_masks(1) > 0
+        assert (mosaic.width, mosaic.height) == (50, 30)
+        assert mask.sum() == 800 and mask[0, 0] and mosaic.read(1)[0, 0] == 0
