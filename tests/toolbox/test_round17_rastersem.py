@@ -79,6 +79,13 @@ def test_heights_in_metres_on_a_crs_in_feet_are_refused_where_units_must_agree(t
         toolbox.run("dem:slope", {"INPUT": dem, "OUTPUT": tmp_path / "s.tif"})
 
 
+def test_feet_of_a_crs_in_us_feet_pass(tmp_path):
+    # heights labelled "ft" (international) on a CRS in US survey feet: 2 ppm apart, no refusal
+    dem = plane_dem(tmp_path / "ft.tif", "ft", crs="EPSG:2229", origin=(6500000, 1900000))
+    out = toolbox.run("dem:slope", {"INPUT": dem, "OUTPUT": tmp_path / "s.tif"})
+    assert centre_value(out["OUTPUT"]) == pytest.approx(45.0, abs=1e-3)
+
+
 def test_contours_keep_heights_in_their_own_unit(tmp_path):
     dem = plane_dem(tmp_path / "ft.tif", "ft", 0.3048)
     toolbox.run("carto:contours", {"INPUT": dem, "INTERVAL": 50,
