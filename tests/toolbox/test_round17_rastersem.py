@@ -16,6 +16,9 @@
   mosaic:build of such orthos likewise wrote nodata 0 (black pixels lost); now the same rule;
 - an alpha band of another type than Byte or UInt16 (an Int16 DEM + alpha) is no mask to GDAL:
   RasterWriter now also writes it as the internal mask (cells outside were valid data);
+- the raster engine took band 1's nodata for every band: dem:slope BAND=2 of a VRT whose bands
+  have nodata of their own read band 2's nodata cells (-32768) as heights (slopes of 89.97
+  degrees beside them, exit 0; gdaldem -b 2: 45 everywhere); each band's own nodata now;
 """
 
 from __future__ import annotations
@@ -215,3 +218,60 @@ def test_mosaic_of_int16_orthos_without_nodata_masks_the_gap(tmp_path):
         mask = mosaic.read_masks(1) > 0
         assert (mosaic.width, mosaic.height) == (50, 30)
         assert mask.sum() == 800 and mask[0, 0] and mosaic.read(1)[0, 0] == 0
+
+
+def two_band_vrt(tmp_path: Path) -> Path:
+    """A VRT of two 45 degree planes, band 1 with nodata -9999, band 2 with nodata -32768 (a
+    2 x 2 hole each, in different places)."""
+    import rasterio
+    from rasterio.transform import from_origin
+
+    z = np.tile((np.arange(20) + 0.5) * 10.0, (20, 1)).astype("float32")
+    bands = ""
+    for k, (nodata, hole) in enumerate(((-9999, 2), (-32768, 10)), start=1):
+        values = z.copy()
+        values[hole:hole + 2, hole:hole + 2] = nodata
+        with rasterio.open(tmp_path / f"b{k}.tif", "w", driver="GTiff", width=20, height=20,
+                           count=1, dtype="float32", crs="EPSG:32632", nodata=nodata,
+                           transform=from_origin(500000, 5000200, 10, 10)) as dst:
+            dst.write(values, 1)
+        bands += (f'<VRTRasterBand dataType="Float32" band="{k}"><NoDataValue>{nodata}'
+                  f'</NoDataValue><SimpleSource><SourceFilename relativeToVRT="1">b{k}.tif'
+                  "</SourceFilename><SourceBand>1</SourceBand></SimpleSource>"
+                  "</VRTRasterBand>")
+    with rasterio.open(tmp_path / "b1.tif") as src:
+        srs = src.crs.to_wkt()
+    path = tmp_path / "two.vrt"
+    path.write_text(f'<VRTDataset rasterXSize="20" rasterYSize="20"><SRS>{srs}</SRS>'
+                    "<GeoTransform>500000, 10, 0, 5000200, 0, -10</GeoTransform>"
+                    f"{bands}</VRTDataset>")
+    return path
+
+
+def test_each_band_reads_with_its_own_nodata(tmp_path):
+    import rasterio
+
+    vrt = two_band_vrt(tmp_path)
+    with rasterio.open(vrt) as src:
+        assert src.nodatavals == (-9999.0, -32768.0)
+    out = toolbox.run("dem:slope", {"INPUT": vrt, "BAND": 2, "OUTPUT": tmp_path / "s.tif"})
+    with rasterio.open(out["OUTPUT"]) as slope:
+        values = slope.read(1, masked=True)
+    assert values.count() > 0 and values.min() == pytest.approx(45.0, abs=1e-3)
+    assert values.max() == pytest.approx(45.0, abs=1e-3)  # gdaldem slope -b 2: 45 everywhere
+    assert values.mask[10:12, 10:12].all()  # band 2's hole
+
+
+def test_read_onto_warps_each_band_with_its_own_nodata(tmp_path):
+    import math
+
+    import rasterio
+    from rasterio.transform import from_origin
+
+    from toolbox.raster.reproject import read_onto
+
+    with rasterio.open(two_band_vrt(tmp_path)) as src:  # onto a grid shifted by half a cell
+        out = read_onto(src, from_origin(500005, 5000195, 10, 10), 19, 19, indexes=[1, 2],
+                        resampling="nearest", dtype="float64")
+    assert not (out <= -9999).any()  # no nodata value taken for a height
+    assert math.isnan(out[0, 2, 2]) and math.isnan(out[1, 10, 10])
