@@ -19,6 +19,8 @@
 - the raster engine took band 1's nodata for every band: dem:slope BAND=2 of a VRT whose bands
   have nodata of their own read band 2's nodata cells (-32768) as heights (slopes of 89.97
   degrees beside them, exit 0; gdaldem -b 2: 45 everywhere); each band's own nodata now;
+- a south-up DEM given to ortho:photo, monoplot, precision or control was refused as "the DEM
+  must be north-up" without the file or the command; now as footprints does (DEM, gdalwarp);
 """
 
 from __future__ import annotations
@@ -275,3 +277,22 @@ def test_read_onto_warps_each_band_with_its_own_nodata(tmp_path):
                         resampling="nearest", dtype="float64")
     assert not (out <= -9999).any()  # no nodata value taken for a height
     assert math.isnan(out[0, 2, 2]) and math.isnan(out[1, 10, 10])
+
+
+def test_a_south_up_dem_is_refused_with_the_gdalwarp_command(tmp_path):
+    import rasterio
+    from rasterio import Affine
+
+    from toolbox.io.raster import open_raster_info
+    from toolbox.ortho.dem import DemSampler
+    from toolbox.photogrammetry.surface import read_dem_window
+
+    path = tmp_path / "south_up.tif"
+    with rasterio.open(path, "w", driver="GTiff", width=4, height=4, count=1, dtype="float32",
+                       crs="EPSG:32632", transform=Affine(10, 0, 500000, 0, 10, 5000000)) as dst:
+        dst.write(np.ones((4, 4), "float32"), 1)
+    info = open_raster_info(path, "DEM", "heights")
+    for read in (read_dem_window, DemSampler):
+        with pytest.raises(ParameterError, match=r"^DEM '.*south_up.tif' is stored south-up.*"
+                                                 r"gdalwarp '.*south_up.tif' north_up.tif"):
+            read(info)
