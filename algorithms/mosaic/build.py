@@ -35,12 +35,13 @@ class MosaicBuild(Algorithm):
     The grid has the finest input's cell (or CELL_SIZE) over the cut polygons' area; inputs on
     other grids are resampled (RESAMPLING) with a warning. The mosaic is written tile by tile
     (a Cloud Optimized GeoTIFF by default, COG=false: a tiled DEFLATE GeoTIFF with overviews;
-    SOURCE_INDEX likewise), with an alpha band if any input has one,
-    else nodata. SOURCE_INDEX gets the 1-based input number of each cell (0 = no data), and
-    SEAMLINES the seams: exactly the cell edges between different sources in the source index
-    (steps of one cell where a seam runs diagonally; edges next to no data are not seams).
-    Their ``method`` is the one mosaic:seamlines recorded for the pair when CUTLINES is its
-    GeoPackage, else "cut polygons" (other CUTLINES) or "voronoi" (no CUTLINES).
+    SOURCE_INDEX likewise), with an alpha band if any input has one, else the inputs' nodata
+    (inputs with neither: NaN nodata for floats, else an alpha band). SOURCE_INDEX gets the
+    1-based input number of each cell (0 = no data), and SEAMLINES the seams: exactly the cell
+    edges between different sources in the source index (steps of one cell where a seam runs
+    diagonally; edges next to no data are not seams). Their ``method`` is the one
+    mosaic:seamlines recorded for the pair when CUTLINES is its GeoPackage, else "cut
+    polygons" (other CUTLINES) or "voronoi" (no CUTLINES).
     """
 
     id = "mosaic:build"
@@ -139,7 +140,13 @@ class MosaicBuild(Algorithm):
                            f"{value}: a halo of {plan.halo():,} cells around each "
                            f"{TILE_SIZE}-cell tile", f"use a smaller {name}", "cells per tile")
             alpha = any(s.alpha_band is not None for s in sources)
-            nodata = next((s.nodata for s in sources if s.nodata is not None), 0)
+            nodata = next((s.nodata for s in sources if s.nodata is not None), None)
+            if not alpha and nodata is None:  # every value valid (or a mask band): a nodata
+                # of 0 would turn their valid zeros (black pixels) into no data
+                import numpy as np
+
+                floats = np.dtype(dtype).kind == "f"
+                nodata, alpha = (np.nan, False) if floats else (None, True)
             index = params["SOURCE_INDEX"]
             scratch = None
             if index is None and params["SEAMLINES"] is not None:  # the seams come from the index

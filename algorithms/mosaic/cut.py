@@ -30,7 +30,9 @@ class MosaicCut(Algorithm):
     SHEET_HEIGHT in cm give the ground size of a sheet (e.g. 1:2000, 50 x 40 cm -> 1000 x 800 m);
     sheet (i, j) spans ORIGIN_X + i·W .. ORIGIN_X + (i+1)·W (and likewise north) and is named
     "i_j". Rasters are clipped on their own grid over the sheet's bounds (outside the sheet
-    polygon: nodata or alpha 0) as tiled GeoTIFFs <id>.tif; vectors are clipped (GEOS) into
+    polygon: nodata or alpha 0; a raster without either gets NaN nodata if it holds floats,
+    else an alpha band, so its valid zeros stay valid) as tiled GeoTIFFs <id>.tif; vectors are
+    clipped (GEOS) into
     <id>.gpkg, every layer of the file (or the one of "path|layername=NAME") under its own
     name, each feature keeping the pieces of its own kind (a polygon along a sheet edge gives
     no line). Sheets holding no data are skipped. OUTPUT is a folder; it also receives

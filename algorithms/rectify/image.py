@@ -169,6 +169,14 @@ class RectifyImage(Algorithm):
         if nan_cells.count:
             feedback.push_warning(f"INPUT: {nan_cells.count} output cells fall on NaN pixels of "
                                   f"{info} and are no data ({'alpha 0' if layout.alpha else 'nodata'})")
+        if params["NODATA"] is None and info.nodata is None and layout.nodata is not None:
+            clashes = _samples_equal(info, layout.data_bands, layout.nodata)
+            if clashes:  # the nodata value was a guess: valid pixels read as no data
+                feedback.push_warning(f"INPUT: {clashes} photo sample(s) hold "
+                                      f"{layout.nodata:g}, the nodata value chosen for "
+                                      "OUTSIDE=nodata, so the cells warped from them read as "
+                                      "no data; give NODATA a value the photo does not hold, "
+                                      "or OUTSIDE=alpha")
         return {"OUTPUT": params["OUTPUT"], "STATISTICS": {
             "model": model.model, "crs": crs_label(model.crs), "cell_size": cell,
             "width": grid.width, "height": grid.height, "bounds": list(grid.bounds),
@@ -223,3 +231,24 @@ class RectifyImage(Algorithm):
         return {"OUTPUT": params["OUTPUT"], "STATISTICS": {
             "model": model.model, "crs": crs_label(model.crs), "gcps": len(gcps),
             "gcp_ids": [g[0] for g in gcps]}}
+
+
+def _samples_equal(info, bands: list[int], value: float) -> int:
+    """How many samples of ``bands`` of the photo ``info`` (a paletted one: its colours, as
+    the warp reads it) equal ``value``, read block by block; 0 for NaN."""
+    import math
+    import warnings
+
+    import rasterio
+
+    from toolbox.raster.warp import photo_path
+
+    if math.isnan(value):
+        return 0
+    count = 0
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
+        with rasterio.open(photo_path(info.path)) as src:
+            for _, window in src.block_windows(1):
+                count += int(np.count_nonzero(src.read(bands, window=window) == value))
+    return count

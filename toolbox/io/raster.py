@@ -48,6 +48,8 @@ class RasterInfo:
     #: per band, GDAL's colour interpretation in lower case ("gray", "red", "palette"...);
     #: "palette" for any band with a colour table
     colours: tuple[str, ...] = ()
+    #: per band, GDAL's unit type of its values ("m", "ft", "US survey foot"; "" when unset)
+    units: tuple[str, ...] = ()
 
     def __str__(self) -> str:
         return f"'{self.path}'"
@@ -105,7 +107,7 @@ def open_raster_info(value: Any, name: str = "INPUT", role: str = "photo") -> Ra
             crs = CRS.from_wkt(src.crs.to_wkt()) if src.crs else None
             return RasterInfo(path, src.width, src.height, src.count, tuple(src.dtypes), crs,
                               src.transform, src.nodata, not src.transform.is_identity,
-                              _band_colours(src))
+                              _band_colours(src), tuple(u or "" for u in src.units))
     except rasterio.errors.RasterioIOError as exc:
         raise ParameterError(name, f"cannot read '{value}' as a raster: "
                              f"{str(exc).splitlines()[0]}") from None
@@ -146,9 +148,16 @@ def _band_colours(src: Any) -> tuple[str, ...]:
 def require_height_band(info: RasterInfo, name: str, band: int = 1,
                         band_name: str | None = None) -> None:
     """:class:`ParameterError` naming ``name`` when band ``band`` of ``info`` (read as heights)
-    holds colours: a paletted band (colour codes) or a photo's red, green or blue channel.
-    ``band_name`` is the parameter that chose the band (BAND), if any."""
+    holds colours: a paletted band (colour codes) or a photo's red, green or blue channel, or
+    complex numbers (a SAR product: read as heights, the imaginary parts were dropped with a
+    numpy warning). ``band_name`` is the parameter that chose the band (BAND), if any."""
     colour = info.colours[band - 1] if band <= len(info.colours) else "gray"
+    dtype = info.dtypes[band - 1] if band <= len(info.dtypes) else ""
+    if dtype.startswith("complex"):
+        chosen = f" (chosen by {band_name})" if band_name else ""
+        raise ParameterError(name, f"{info} band {band}{chosen} holds complex numbers ({dtype}), "
+                             "not heights; give a DEM of heights (its real part: gdal_translate "
+                             f"-ot Float32 -b {band} '{info.path}' real.tif)")
     if colour == "palette":
         what = "has a colour table (palette): its values are colour codes, not heights"
     elif colour in ("red", "green", "blue"):
@@ -158,6 +167,52 @@ def require_height_band(info: RasterInfo, name: str, band: int = 1,
         return
     chosen = f" (chosen by {band_name})" if band_name else ""
     raise ParameterError(name, f"{info} band {band}{chosen} {what}; give a DEM of heights")
+
+
+#: GDAL band unit types of heights (lower case) -> metres per unit
+HEIGHT_UNITS = {
+    **dict.fromkeys(("m", "metre", "metres", "meter", "meters"), 1.0),
+    **dict.fromkeys(("ft", "foot", "feet", "international foot", "foot (international)",
+                     "intl foot"), 0.3048),
+    **dict.fromkeys(("us survey foot", "us survey feet", "ftus", "us-ft", "us_ft", "survey foot",
+                     "foot_us", "us foot", "us feet", "foot (us survey)"), 1200 / 3937),
+    **dict.fromkeys(("cm", "centimetre", "centimetres", "centimeter", "centimeters"), 0.01),
+    **dict.fromkeys(("mm", "millimetre", "millimetres", "millimeter", "millimeters"), 0.001),
+    **dict.fromkeys(("dm", "decimetre", "decimetres", "decimeter", "decimeters"), 0.1),
+    **dict.fromkeys(("km", "kilometre", "kilometres", "kilometer", "kilometers"), 1000.0),
+}
+
+
+def require_height_unit(info: RasterInfo, name: str, band: int, algorithm_id: str,
+                        length_units: str = "metre", factor_name: str | None = None) -> None:
+    """:class:`ParameterError` naming ``name`` when band ``band`` of the DEM ``info`` states
+    (GDAL's band unit type) heights in a length unit the algorithm would take for another: an
+    algorithm in metres (``length_units`` "metre") given heights in feet, or one whose x, y and
+    heights share a unit ("one": slopes, volumes) given heights in another unit than the CRS's
+    x, y. Heights read as metres in silence would give orthos, slopes, volumes off by 3.28.
+    A unit that is not a length GDAL names (or none) passes, as do algorithms whose heights
+    keep their own unit ("horizontal": contours, TINs). ``factor_name``: the algorithm's
+    parameter that converts heights (Z_FACTOR), offered in the message."""
+    unit = info.units[band - 1].strip() if band <= len(info.units) else ""
+    factor = HEIGHT_UNITS.get(unit.lower())
+    if factor is None or length_units not in ("metre", "one"):
+        return
+    expected, expected_name = 1.0, "metres"
+    if length_units == "one":
+        axes = [a for a in (info.crs.axis_info if info.crs is not None else [])
+                if a.direction in ("east", "north") and a.unit_conversion_factor > 0]
+        if not axes:
+            return
+        expected = axes[0].unit_conversion_factor
+        expected_name = f"the {axes[0].unit_name} of its CRS's x, y"
+    if abs(factor / expected - 1.0) < 1e-5:  # an international foot for a US one: 2 ppm
+        return
+    ratio = factor / expected
+    raise ParameterError(name, f"{info} band {band} holds heights in '{unit}' (its band unit), "
+                         f"but {algorithm_id} reads heights in {expected_name}: convert them "
+                         f"first: gdal_calc.py -A '{info.path}' --A_band={band} "
+                         f"--calc=\"A*{ratio:.12g}\" --type=Float32 --outfile=heights.tif"
+                         + (f" (or give {factor_name} {ratio:.12g})" if factor_name else ""))
 
 
 def require_north_up(transform: Any, name: str, path: Any, flips_ok: bool = False) -> None:

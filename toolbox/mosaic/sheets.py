@@ -60,7 +60,11 @@ def clip_raster_sheet(task: RasterSheet) -> bool:
 def clip_raster(path: Path, sheet, output: Path, block: int = 2048) -> bool:
     """Write the part of raster ``path`` inside polygon ``sheet`` to ``output`` on the raster's
     own grid, over the sheet's bounds (cells outside the raster or the polygon are nodata, or
-    alpha 0). Returns False (and writes nothing) when the sheet holds no valid data."""
+    alpha 0). Returns False (and writes nothing) when the sheet holds no valid data.
+
+    A raster without nodata or alpha band (every value valid, or a mask band) gets NaN as
+    nodata when it holds floats, else an alpha band: a nodata of 0 would turn its valid zeros
+    (sea level, black pixels) into no data."""
     import rasterio
     from rasterio.features import geometry_mask
     from rasterio.windows import Window, from_bounds
@@ -79,13 +83,22 @@ def clip_raster(path: Path, sheet, output: Path, block: int = 2048) -> bool:
         grid = GridSpec(t @ rasterio.Affine.translation(col0, row0), cols, rows, src.crs)
         bands = [i for i, ci in enumerate(src.colorinterp) if ci.name == "alpha"]
         alpha = bool(bands)
-        nodata = src.nodata if src.nodata is not None or alpha else 0
+        floats = np.dtype(src.dtypes[0]).kind == "f"
+        added = not alpha and src.nodata is None and not floats  # an alpha band of ours
+        nodata = src.nodata if src.nodata is not None or alpha else (np.nan if floats else None)
         # the writer's alpha band is the last one; a source's alpha elsewhere stays a band
         # whose colour interpretation is copied below
-        last_alpha = alpha and bands[0] == src.count - 1 and src.count > 1
-        with RasterWriter(output, grid, src.count, src.dtypes[0],
-                          None if alpha else nodata, alpha=last_alpha) as dst:
-            dst.dataset.colorinterp = src.colorinterp
+        last_alpha = added or (alpha and bands[0] == src.count - 1 and src.count > 1)
+        if added:
+            bands = [src.count]
+        with RasterWriter(output, grid, src.count + added, src.dtypes[0],
+                          None if alpha or added else nodata, alpha=last_alpha) as dst:
+            if added:
+                from rasterio.enums import ColorInterp
+
+                dst.dataset.colorinterp = [*src.colorinterp, ColorInterp.alpha]
+            else:
+                dst.dataset.colorinterp = src.colorinterp
             any_valid = False
             for r in range(0, rows, block):
                 for c in range(0, cols, block):
@@ -95,7 +108,11 @@ def clip_raster(path: Path, sheet, output: Path, block: int = 2048) -> bool:
                     wt = rasterio.windows.transform(w, t)
                     valid &= ~geometry_mask([sheet], out_shape=valid.shape, transform=wt)
                     any_valid |= bool(valid.any())
-                    if alpha:
+                    if added:
+                        opaque = np.iinfo(data.dtype).max
+                        data = np.concatenate([data, np.where(valid, opaque, 0).astype(
+                            data.dtype)[np.newaxis]])
+                    elif alpha:
                         data[bands[0]][~valid] = 0
                     else:
                         data[:, ~valid] = nodata

@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from toolbox.errors import InputDataError, ParameterError
+from toolbox.errors import ParameterError
 
 
 class DemSampler:
@@ -37,7 +37,9 @@ class DemSampler:
         self.factor = max(1, int(factor))
         t = info.transform
         if t.b != 0 or t.d != 0 or t.a <= 0 or t.e >= 0:
-            raise InputDataError(f"DEM {info} must be north-up (no rotation, rows going south)")
+            from toolbox.io.raster import require_north_up
+
+            require_north_up(t, "DEM", info.path)  # with the gdalwarp command
         self.transform = t
         self.shape = (info.height, info.width)
         k = self.factor

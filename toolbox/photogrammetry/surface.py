@@ -107,6 +107,9 @@ def read_dem_window(info: Any, bounds: tuple[float, float, float, float] | None 
     from affine import Affine
     from rasterio.windows import Window
 
+    from toolbox.io.raster import require_north_up
+
+    require_north_up(info.transform, "DEM", info.path)  # with the gdalwarp command
     if bounds is None:
         window = Window(0, 0, info.width, info.height)
     else:

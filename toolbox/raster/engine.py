@@ -191,8 +191,9 @@ def read_window(source: Any, grid: GridSpec, window: Any, *, bands: Any = None,
             [int(bands)] if np.isscalar(bands) else [int(b) for b in bands])
         out_dtype = np.dtype(dtype or src.dtypes[indexes[0] - 1])
         if fill is None:
+            first = src.nodatavals[indexes[0] - 1]
             fill = math.nan if out_dtype.kind == "f" else (
-                src.nodata if src.nodata is not None and not math.isnan(src.nodata) else 0)
+                first if first is not None and not math.isnan(first) else 0)
         offset = _aligned_offset(src, grid) if _offset is _UNKNOWN else _offset
         if offset is not None:
             data = _read_aligned(src, indexes, region, offset, out_dtype, fill)
@@ -268,13 +269,17 @@ def _read_aligned(src, indexes, region, offset, dtype, fill) -> np.ndarray:
         return np.full((len(indexes), height, width), fill, dtype=dtype)
     inner, inside = part
     data = src.read(indexes, window=inner)
-    nodata = src.nodata
     missing = None
-    if nodata is not None:  # compared in the source's type, as GDAL stores it
-        missing = np.isnan(data) if math.isnan(nodata) else data == nodata
-        if not missing.any() or (math.isnan(nodata) and dtype.kind == "f"
-                                 and math.isnan(fill)):
-            missing = None
+    for k, band in enumerate(indexes):  # each band's own nodata (a VRT's bands differ)
+        nodata = src.nodatavals[band - 1]
+        if nodata is None or (math.isnan(nodata) and dtype.kind == "f" and math.isnan(fill)):
+            continue
+        # compared in the source's type, as GDAL stores it
+        hit = np.isnan(data[k]) if math.isnan(nodata) else data[k] == nodata
+        if hit.any():
+            if missing is None:
+                missing = np.zeros(data.shape, bool)
+            missing[k] = hit
     masked = _masked_out(src, indexes, inner)
     if masked is not None:
         missing = masked if missing is None else missing | masked

@@ -45,7 +45,7 @@ def read_onto(src: Any, transform: Any, width: int, height: int, crs: Any = None
         Value of the cells without data (outside the source, at its nodata or transparent);
         default NaN for floats, else the source's nodata (0 without one).
     src_nodata : float or None, optional
-        The source's nodata value (default: the dataset's; None: every value is data).
+        The source's nodata value (default: each band's own; None: every value is data).
 
     Returns
     -------
@@ -66,7 +66,12 @@ def read_onto(src: Any, transform: Any, width: int, height: int, crs: Any = None
     indexes = [int(indexes)] if np.isscalar(indexes) else [int(b) for b in indexes]
     dtype = np.dtype(dtype or src.dtypes[indexes[0] - 1])
     if src_nodata == "source":
-        src_nodata = src.nodata
+        own = {str(src.nodatavals[b - 1]) for b in indexes}  # str: NaN equals NaN
+        if len(own) > 1:  # bands with nodata of their own (a VRT's): one warp per band
+            return np.concatenate([read_onto(src, transform, width, height, crs, indexes=[b],
+                                             resampling=resampling, dtype=dtype, fill=fill)
+                                   for b in indexes])
+        src_nodata = src.nodatavals[indexes[0] - 1]
     if fill is None:
         fill = math.nan if dtype.kind == "f" else (
             src_nodata if src_nodata is not None and not math.isnan(src_nodata) else 0)

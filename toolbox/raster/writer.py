@@ -171,9 +171,11 @@ class RasterWriter:
     def mask_alpha(self) -> bool:
         """The alpha band is also written as GDAL's internal mask: GDAL (and so QGIS's
         gdalwarp, gdalbuildvrt and rasterio's ``dataset_mask``) reads an alpha band as the mask
-        only as band 2 of 2 or band 4 of 4; with other counts (an RGBN photo's 4 bands + alpha)
-        the pixels outside the photo were valid black data to them."""
-        return self.alpha and self.count not in (1, 2, 4)
+        only as band 2 of 2 or band 4 of 4, and only a Byte or UInt16 one; with other counts
+        (an RGBN photo's 4 bands + alpha) or types (an Int16 DEM + alpha) the pixels outside
+        the photo were valid black data to them."""
+        return self.alpha and (self.count not in (1, 2, 4)
+                               or self.dtype.name not in ("uint8", "uint16"))
 
     @property
     def data_count(self) -> int:

@@ -93,7 +93,7 @@ def validate(algorithm: type[Algorithm] | str, parameters: dict[str, Any],
         check_parameter_crs(alg, p, ctx.values[p.name], warnings)
     values = {p.name: ctx.values[p.name] for p in alg.parameters}
     inputs = {p.name: values[p.name] for p in alg.parameters
-              if not p.is_output and values[p.name] is not None}
+              if not p.is_output and values[p.name] is not None and not read_in_pixels(p)}
     if len(inputs) > 1:  # toolbox.io.crs loads pyproj: not for a one-input run
         from toolbox.io.crs import warn_unlabelled_elsewhere
 
@@ -113,11 +113,18 @@ def check_parameter_crs(alg: type[Algorithm], p: Any, value: Any,
                         warnings: list[str] | None = None) -> None:
     """The CRS rules of ``alg`` for the value of its input ``p``
     (:func:`toolbox.io.crs.check_input_crs` with the algorithm's length units); outputs and the
-    algorithms that take any CRS pass."""
-    if not p.is_output and alg.projected_crs_only:
+    algorithms that take any CRS pass, as do photos (read in pixels: their georeferencing, a
+    world file say, is not used)."""
+    if not p.is_output and alg.projected_crs_only and not read_in_pixels(p):
         from toolbox.io.crs import check_input_crs
 
         check_input_crs(alg.id, p.name, value, warnings, alg.length_units)
+
+
+def read_in_pixels(p: Any) -> bool:
+    """Whether the input ``p`` is a photo (a raster read in pixel coordinates)."""
+    return getattr(p, "role", None) == "photo" or getattr(getattr(p, "_item", None), "role",
+                                                         None) == "photo"
 
 
 def check_magnitudes(alg_cls: type[Algorithm], values: dict[str, Any]) -> None:
@@ -137,7 +144,8 @@ def check_magnitudes(alg_cls: type[Algorithm], values: dict[str, Any]) -> None:
 
 def _check_band(alg_cls: type[Algorithm], values: dict[str, Any]) -> None:
     """The one BAND check: BAND exists in the DEM when given, else in the one raster input;
-    the band read of each heights raster (BAND's, else band 1) holds heights, not colours."""
+    the band read of each heights raster (BAND's, else band 1) holds heights, not colours,
+    in the unit the algorithm reads them in (its band unit, unless Z_FACTOR converts them)."""
     band = values.get("BAND")
     given = {p.name: values[p.name] for p in alg_cls.parameters
              if isinstance(p, RasterLayer) and values.get(p.name) is not None}
@@ -147,10 +155,15 @@ def _check_band(alg_cls: type[Algorithm], values: dict[str, Any]) -> None:
         raise ParameterError("BAND", f"must be <= {banded.count} (bands of {banded}), got {band}")
     for p in alg_cls.parameters:
         if isinstance(p, RasterLayer) and p.role == "heights" and p.name in given:
-            from toolbox.io.raster import require_height_band
+            from toolbox.io.raster import require_height_band, require_height_unit
 
             info = given[p.name]
             require_height_band(info, p.name, *((band, "BAND") if info is banded else (1,)))
+            z_factor = values.get("Z_FACTOR")
+            if z_factor is None or z_factor == 1:  # a Z_FACTOR given converts the heights
+                require_height_unit(info, p.name, band if info is banded else 1, alg_cls.id,
+                                    alg_cls.length_units,
+                                    "Z_FACTOR" if "Z_FACTOR" in values else None)
 
 
 # -- what the run reads and writes ----------------------------------------------------------------
