@@ -328,14 +328,15 @@ def _memory_order(local: np.ndarray, probe: np.ndarray | None = None) -> np.ndar
     depends on the array's order): see :func:`_splits_unambiguous`. With many shared
     coordinates (grids, rounded coordinates), an ambiguous split, or fewer than
     :data:`MEMORY_ORDER_MIN_POINTS` points, None. ``probe``: indices of points (the segments'
-    vertices) that give up at once if two of them share an x or a y, before the full check.
+    vertices; the first 4096 are looked at) that give up at once if two of them share an x or
+    a y, before the full check.
     """
     n = len(local)
     if n < MEMORY_ORDER_MIN_POINTS:
         return None
     samples = [local[:4096]]  # rounded coordinates show ties at once
     if probe is not None and len(probe):
-        samples.append(local[np.unique(probe)])
+        samples.append(local[np.unique(probe[:4096])])
     for sample in samples:
         for axis in (0, 1):
             head = np.sort(sample[:, axis])
