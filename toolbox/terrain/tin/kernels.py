@@ -476,10 +476,16 @@ def _drop_super_triangle(vertices: np.ndarray, renumber: np.ndarray | None = Non
     points (int32; CDT's vertex ``v`` is ``renumber[v]`` when given, else ``v - SUPER``), and
     the mask of kept rows. What ``erase_super_triangle`` does (same triangles, same order)
     without its hash sets, which cost a third of the triangulation."""
-    kept = np.minimum(np.minimum(vertices[:, 0], vertices[:, 1]), vertices[:, 2]) >= SUPER
-    triangles = np.compress(kept, vertices, axis=0)  # a copy: CDT's memory goes with its object
-    if renumber is not None:
-        return np.take(renumber, triangles), kept
+    low = np.minimum(vertices[:, 0], vertices[:, 1])
+    kept = np.minimum(low, vertices[:, 2], out=low) >= SUPER
+    del low
+    triangles = vertices[kept]  # a copy: CDT's memory goes with its object
+    if renumber is not None:  # in place, by slices: no second (T, 3) array, no int64 copy
+        triangles = triangles.view(np.int32)
+        flat = triangles.reshape(-1)
+        for start in range(0, len(flat), 1 << 20):
+            flat[start:start + (1 << 20)] = renumber[flat[start:start + (1 << 20)]]
+        return triangles, kept
     triangles -= SUPER
     return triangles.view(np.int32), kept  # indices < 2**31
 
