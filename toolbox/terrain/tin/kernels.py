@@ -101,9 +101,16 @@ def _check_xy(xy: np.ndarray) -> np.ndarray:
     return xy
 
 
+def _box(xy: np.ndarray) -> np.ndarray:
+    """``[[xmin, ymin], [xmax, ymax]]`` of ``(N, 2+)`` points, one reduction per column (a
+    reduction along axis 0 of an ``(N, 2)`` array runs 40 times slower)."""
+    x, y = xy[:, 0], xy[:, 1]
+    return np.array([[x.min(), y.min()], [x.max(), y.max()]])
+
+
 def _origin_of(xy: np.ndarray) -> np.ndarray:
-    """:func:`local_origin` of the points, from their bounding box (two reductions, not four)."""
-    return local_origin(np.vstack([xy.min(axis=0), xy.max(axis=0)]))
+    """:func:`local_origin` of the points, from their bounding box."""
+    return local_origin(_box(xy))
 
 
 def _check_segments(segments, n: int) -> np.ndarray:
@@ -223,14 +230,44 @@ _NO_SEGMENTS = (np.zeros((0, 2), dtype=np.int32), np.zeros(0, dtype=np.int64))
 
 def _cdt(local: np.ndarray, seg: np.ndarray, neighbors: bool, parents: bool):
     """pythoncdt: returns added vertices (local), triangles, neighbours, constrained pieces and
-    the index (into ``seg``) of each piece's input segment."""
+    the index (into ``seg``) of each piece's input segment.
+
+    From :data:`MEMORY_ORDER_MIN_POINTS` points on, the points go to CDT in Z-order
+    (:func:`_memory_order`), the segments' vertices kept at their own index: CDT walks each
+    constraint from its lower-numbered end, so the walks are the same as long as every edge it
+    inserts joins segment vertices or crossings, i.e. no other point lies on a segment; where
+    one does (an end of a constrained edge is a moved point), or CDT fails, the run is redone
+    with the points as given. The triangles are then the very arrays of a run without the
+    ordering (renumbered back)."""
     import pythoncdt as cdt
 
+    order = _memory_order(local, seg.ravel())
+    if order is not None:
+        pinned = None
+        if len(seg):
+            pinned = np.zeros(len(local), dtype=bool)
+            pinned[seg.ravel()] = True
+            moved = order[~pinned[order]]
+            order = np.arange(len(local), dtype=np.int32)
+            order[~pinned] = moved
+        try:
+            result = _cdt_run(cdt, local, seg, neighbors, parents, order, pinned)
+        except (RuntimeError, ValueError, _DuplicatePoint):
+            result = None  # the run as given says what is wrong, in the input's numbering
+        if result is not None:
+            return result
+    return _cdt_run(cdt, local, seg, neighbors, parents)
+
+
+def _cdt_run(cdt, local: np.ndarray, seg: np.ndarray, neighbors: bool, parents: bool,
+             order: np.ndarray | None = None, pinned: np.ndarray | None = None):
+    """One CDT run for :func:`_cdt`, the points given in ``order`` (point ``order[i]`` is CDT's
+    ``i``; the segment vertices, ``pinned``, keep their index); None when a moved point lies
+    on a segment."""
     t = cdt.Triangulation(cdt.VertexInsertionOrder.AUTO,
                           cdt.IntersectingConstraintEdges.TRY_RESOLVE, 0.0)
-    order = _memory_order(local) if len(seg) == 0 else None
     try:
-        t.insert_vertices(local if order is None else local[order])
+        t.insert_vertices(local if order is None else np.take(local, order, axis=0))
         if len(seg):
             t.insert_edges(np.ascontiguousarray(seg, dtype=np.uintc))
     except RuntimeError as exc:  # CDT reports duplicates as "#i is a duplicate of #j"
@@ -240,19 +277,29 @@ def _cdt(local: np.ndarray, seg: np.ndarray, neighbors: bool, parents: bool):
             raise _DuplicatePoint(int(found.group(1))) from None
         raise ValueError(f"triangulation failed: {text}") from None
     n = len(local)
+    fixed = None
+    if len(seg) and (parents or (pinned is not None and t.piece_to_originals_count())):
+        fixed = _edge_array(t.fixed_edges, t.fixed_edges_count())
+        if pinned is not None:
+            ends = fixed.ravel() - SUPER
+            ends = ends[ends < n]
+            if not pinned[ends].all():
+                return None
     vertices = t.vertices_array(copy=False)
     added = np.column_stack([vertices["x"][SUPER + n:], vertices["y"][SUPER + n:]])
     tris = t.triangles_array(copy=False)
-    triangles, kept = _drop_super_triangle(tris["vertices"])
-    if order is not None:
-        triangles = order[triangles]
+    renumber = None
+    if order is not None:  # CDT's vertex SUPER + i is point order[i]; crossings as they come
+        renumber = np.concatenate([np.zeros(SUPER, np.int32), order,
+                                   np.arange(n, n + len(added), dtype=np.int32)])
+    triangles, kept = _drop_super_triangle(tris["vertices"], renumber)
     if neighbors:  # CDT: neighbour i is across edge (i, i+1); ours: across the edge facing i
         nb = _kept_neighbours(tris["neighbors"][:, [1, 2, 0]], kept, cdt.NO_NEIGHBOR)
     else:
         nb = np.zeros((0, 3), dtype=np.int32)
     if not (parents and len(seg)):
         return added, triangles, nb, *_NO_SEGMENTS
-    return (added, triangles, nb, *_cdt_pieces(t, seg))
+    return (added, triangles, nb, *_cdt_pieces(t, seg, fixed))
 
 
 #: from this many points on, :func:`_memory_order` pays for itself (at 200 k points it about
@@ -267,7 +314,7 @@ def _morton16(q: np.ndarray) -> np.ndarray:
     return (q | (q << 1)) & 0x5555
 
 
-def _memory_order(local: np.ndarray) -> np.ndarray | None:
+def _memory_order(local: np.ndarray, probe: np.ndarray | None = None) -> np.ndarray | None:
     """Points in Z-order of a 256 x 256 grid (int32 permutation), to pass to CDT in that order,
     or None to pass them as given.
 
@@ -280,16 +327,23 @@ def _memory_order(local: np.ndarray) -> np.ndarray | None:
     is shared by another point of the range split (then which of them lands at the median
     depends on the array's order): see :func:`_splits_unambiguous`. With many shared
     coordinates (grids, rounded coordinates), an ambiguous split, or fewer than
-    :data:`MEMORY_ORDER_MIN_POINTS` points, None.
+    :data:`MEMORY_ORDER_MIN_POINTS` points, None. ``probe``: indices of points (the segments'
+    vertices; the first 4096 are looked at) that give up at once if two of them share an x or
+    a y, before the full check.
     """
     n = len(local)
     if n < MEMORY_ORDER_MIN_POINTS:
         return None
+    samples = [local[:4096]]  # rounded coordinates show ties at once
+    if probe is not None and len(probe):
+        samples.append(local[np.unique(probe[:4096])])
+    for sample in samples:
+        for axis in (0, 1):
+            head = np.sort(sample[:, axis])
+            if (head[1:] == head[:-1]).any():
+                return None
     groups = []
     for axis in (0, 1):
-        head = np.sort(local[:4096, axis])  # rounded coordinates show ties at once
-        if (head[1:] == head[:-1]).any():
-            return None
         values = np.sort(local[:, axis])
         tied = values[1:][values[1:] == values[:-1]]
         if len(tied) > _MAX_TIED_VALUES:
@@ -297,8 +351,8 @@ def _memory_order(local: np.ndarray) -> np.ndarray | None:
         groups += [np.flatnonzero(local[:, axis] == v) for v in np.unique(tied)]
     if groups and not _splits_unambiguous(local, groups):
         return None
-    low = local.min(axis=0)
-    span = np.maximum(local.max(axis=0) - low, np.finfo(float).tiny)
+    low, high = _box(local)
+    span = np.maximum(high - low, np.finfo(float).tiny)
     cell = ((local - low) * (255.999 / span)).astype(np.uint16)
     key = _morton16(cell[:, 0]) | (_morton16(cell[:, 1]) << 1)
     return np.argsort(key, kind="stable").astype(np.int32)
@@ -356,7 +410,8 @@ def _find(table: np.ndarray, values: np.ndarray) -> np.ndarray:
     return np.where(table[pos] == values, pos, -1)
 
 
-def _cdt_pieces(t, seg: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _cdt_pieces(t, seg: np.ndarray, fixed: np.ndarray | None = None
+                ) -> tuple[np.ndarray, np.ndarray]:
     """Constrained edges of CDT ``t`` (in the order of its fixed-edge set) and, for each, the
     index (into ``seg``) of the input segment it comes from: one row per (piece, parent), the
     piece's own segment (the first input segment joining its two nodes, when it is one) first,
@@ -370,8 +425,8 @@ def _cdt_pieces(t, seg: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         return pairs[:, 0] * count + pairs[:, 1]
 
     seg_codes, first = np.unique(codes(seg.astype(np.int64) + SUPER), return_index=True)
-    fixed_set = t.fixed_edges
-    fixed = _edge_array(fixed_set, len(fixed_set))
+    if fixed is None:  # (count, 2) CDT vertex pairs, in the order of its fixed-edge set
+        fixed = _edge_array(t.fixed_edges, t.fixed_edges_count())
     fixed_codes = codes(fixed)
     at = _find(seg_codes, fixed_codes)
     own = np.where(at >= 0, first[at], -1)
@@ -415,12 +470,22 @@ def _cdt_pieces(t, seg: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 SUPER = 3
 
 
-def _drop_super_triangle(vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _drop_super_triangle(vertices: np.ndarray, renumber: np.ndarray | None = None
+                         ) -> tuple[np.ndarray, np.ndarray]:
     """CDT's triangles without those touching the super-triangle, renumbered to the input
-    points (int32), and the mask of kept rows. What ``erase_super_triangle`` does (same
-    triangles, same order) without its hash sets, which cost a third of the triangulation."""
-    kept = (vertices >= SUPER).all(axis=1)
+    points (int32; CDT's vertex ``v`` is ``renumber[v]`` when given, else ``v - SUPER``), and
+    the mask of kept rows. What ``erase_super_triangle`` does (same triangles, same order)
+    without its hash sets, which cost a third of the triangulation."""
+    low = np.minimum(vertices[:, 0], vertices[:, 1])
+    kept = np.minimum(low, vertices[:, 2], out=low) >= SUPER
+    del low
     triangles = vertices[kept]  # a copy: CDT's memory goes with its object
+    if renumber is not None:  # in place, by slices: no second (T, 3) array, no int64 copy
+        triangles = triangles.view(np.int32)
+        flat = triangles.reshape(-1)
+        for start in range(0, len(flat), 1 << 20):
+            flat[start:start + (1 << 20)] = renumber[flat[start:start + (1 << 20)]]
+        return triangles, kept
     triangles -= SUPER
     return triangles.view(np.int32), kept  # indices < 2**31
 
