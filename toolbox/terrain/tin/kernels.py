@@ -15,8 +15,9 @@ The triangulation is constrained Delaunay with exact predicates, by one of two l
   dependency: redistributable in commercial products);
 - ``triangle``: Shewchuk's Triangle (the ``triangle`` package; its licence forbids commercial
   redistribution, so it is the optional extra ``pip install photogrammetry-toolbox[triangle]``),
-  about 1.15 times faster on a million random points, with or without breaklines
-  (bench/results/tin_core.md; 1.4 times before CDT's points went in Z-order).
+  as fast as CDT on a million random points (CDT 1.06 times faster) and 1.1 times faster with
+  the bench's breaklines (bench/results/tin_core.md; 1.4 times before CDT's points went in
+  Z-order).
 
 The environment variable ``TOOLBOX_TRIANGULATOR`` chooses: ``cdt`` (default), ``triangle``, or
 ``auto`` (Triangle when installed, else CDT); the ``triangulator`` argument of
