@@ -1,7 +1,7 @@
 """Compiled kernels of the seam cost surface (:func:`toolbox.mosaic.seams.cost_surface`): the
 image terms in one pass, and "within a Euclidean radius of a set of cells".
 
-Test oracles: ``scipy.ndimage.sobel`` (mode ``reflect``) for :func:`image_terms` and
+Test oracles: ``scipy.ndimage.sobel`` (mode ``reflect``) for :func:`image_cost` and
 ``scipy.ndimage.distance_transform_edt`` for :func:`within_radius`.
 """
 
@@ -28,55 +28,6 @@ def _row_mean(x, r, out):
     out[cols + 1] = out[cols]
 
 
-def image_terms(a, b, scale, workers=None):
-    """The image terms of two co-registered images ``(bands, rows, cols)`` float32, each scaled
-    by ``scale`` (1 / value range): ``diff`` = mean over bands of ``|a − b|``; ``grad`` = the
-    larger Sobel gradient magnitude (derivatives / 8) of the two band means; ``gdiff`` = the
-    magnitude of the difference of their Sobel gradients. Float64 ``(rows, cols)`` each.
-
-    Bands of rows on ``workers`` local threads (default: every core) for large images
-    (:func:`toolbox.executor.in_row_bands`); each band is :func:`image_terms_rows`."""
-    from toolbox.executor import in_row_bands
-
-    bands, rows, cols = a.shape
-    diff = np.zeros((rows, cols), np.float64)
-    grad = np.empty((rows, cols), np.float64)
-    gdiff = np.empty((rows, cols), np.float64)
-    in_row_bands(lambda r0, r1: image_terms_rows(a, b, scale, r0, r1, diff, grad, gdiff),
-                 rows, cols, workers=workers)
-    return diff, grad, gdiff
-
-
-@njit(cache=True, nogil=True)
-def image_terms_rows(a, b, scale, r0, r1, diff, grad, gdiff):
-    """Rows ``r0`` to ``r1`` (excluded) of :func:`image_terms` into ``diff`` (zeroed),
-    ``grad``, ``gdiff``. One pass over the rows, with the band means of three rows at a time
-    (row ``r`` in slot ``(r + 3) % 3``)."""
-    bands, rows, cols = a.shape
-    ma = np.empty((3, cols + 2), np.float64)
-    mb = np.empty((3, cols + 2), np.float64)
-    for r in (r0 - 1, r0):
-        _row_mean(a, r, ma[(r + 3) % 3])
-        _row_mean(b, r, mb[(r + 3) % 3])
-    inv = scale / bands
-    for r in range(r0, r1):
-        _row_mean(a, r + 1, ma[(r + 1) % 3])
-        _row_mean(b, r + 1, mb[(r + 1) % 3])
-        up_a, mid_a, dn_a = ma[(r + 2) % 3], ma[r % 3], ma[(r + 1) % 3]
-        up_b, mid_b, dn_b = mb[(r + 2) % 3], mb[r % 3], mb[(r + 1) % 3]
-        for k in range(bands):
-            for c in range(cols):
-                diff[r, c] += abs(np.float64(a[k, r, c]) - np.float64(b[k, r, c]))
-        for c in range(cols):
-            diff[r, c] *= inv
-            ay, ax = _sobel(up_a, mid_a, dn_a, c)
-            by, bx = _sobel(up_b, mid_b, dn_b, c)
-            ga = ay * ay + ax * ax
-            gb = by * by + bx * bx
-            grad[r, c] = np.sqrt(max(ga, gb)) * scale
-            gdiff[r, c] = np.sqrt((ay - by) * (ay - by) + (ax - bx) * (ax - bx)) * scale
-
-
 @njit(cache=True, nogil=True)
 def _sobel(up, mid, dn, c):
     """Sobel derivatives / 8 ``(d/dy, d/dx)`` at image column ``c`` (padded column ``c + 1``)
@@ -87,9 +38,12 @@ def _sobel(up, mid, dn, c):
 
 
 def image_cost(a, b, scale, difference, base, gradient, workers=None):
-    """``(base + difference x diff + gradient x grad, gdiff)`` of :func:`image_terms` in one
-    pass (float64 ``(rows, cols)`` each): the same values, each cell's terms added in that
-    order, without the ``diff`` and ``grad`` arrays and four passes over them."""
+    """The image terms of the seam cost of orthos ``a`` and ``b`` (``(bands, rows, cols)``,
+    the same shape) in one pass: ``(base + difference x diff + gradient x grad, gdiff)``,
+    float64 ``(rows, cols)`` each, where, on the band means ``ma`` and ``mb``, ``diff`` is the
+    mean absolute band difference, ``grad`` the larger Sobel gradient magnitude (scipy's
+    ``sobel / 8``, edges ``reflect``) of the two, ``gdiff`` the magnitude of the gradients'
+    difference, each times ``scale``. Rows in bands on threads (``workers``)."""
     from toolbox.executor import in_row_bands
 
     bands, rows, cols = a.shape
@@ -103,8 +57,8 @@ def image_cost(a, b, scale, difference, base, gradient, workers=None):
 
 @njit(cache=True, nogil=True)
 def image_cost_rows(a, b, scale, weights, r0, r1, cost, gdiff):
-    """Rows ``r0`` to ``r1`` (excluded) of :func:`image_cost`: :func:`image_terms_rows` with
-    ``diff`` and ``grad`` weighted and summed per cell instead of stored."""
+    """Rows ``r0`` to ``r1`` (excluded) of :func:`image_cost`. One pass over the rows, with
+    the band means of three rows at a time (row ``r`` in slot ``(r + 3) % 3``)."""
     w_diff, base, w_grad = weights
     bands, rows, cols = a.shape
     ma = np.empty((3, cols + 2), np.float64)

@@ -71,7 +71,7 @@ def cost_surface(a: np.ndarray, b: np.ndarray, weights: CostWeights,
         lo, hi = np.percentile(_in_order(sample), [1, 99])
         value_range = float(hi - lo)
     scale = 1.0 / max(value_range, 1e-6)
-    # base + w_d·diff + w_g·grad of toolbox.mosaic.kernels.image_terms, in one pass
+    # base + w_d·diff + w_g·grad and the gradients' difference, in one pass
     cost, gdiff = image_cost(a, b, scale, weights.difference, weights.base, weights.gradient)
     if weights.structure > 0 and weights.structure_radius > 0:
         near = structured_near(gdiff, weights.structure_threshold,

@@ -9,7 +9,7 @@ import pytest
 from scipy import ndimage
 from skimage.graph import MCP_Geometric
 
-from toolbox.mosaic.kernels import image_terms, within_radius
+from toolbox.mosaic.kernels import image_cost, within_radius
 from toolbox.mosaic.route import coarse_to_fine, least_cost_path, path_cost
 
 
@@ -82,21 +82,29 @@ def test_coarse_to_fine_finds_a_passage_the_overview_misses():
     assert (100, 3) in set(map(tuple, path))
 
 
-@pytest.mark.parametrize("bands", [1, 3])
-def test_image_terms_equal_scipy_sobel(bands):
-    rng = np.random.default_rng(bands)
-    a = rng.uniform(0, 255, (bands, 70, 90)).astype("float32")
-    b = (a + rng.normal(0, 20, a.shape)).astype("float32")
-    scale = 1 / 200.0
-    diff, grad, gdiff = image_terms(a, b, scale)
+def _scipy_terms(a, b, scale):
+    """diff, grad, gdiff of the seam cost from numpy and scipy's Sobel (the oracle)."""
     ma, mb = a.astype("float64").mean(axis=0), b.astype("float64").mean(axis=0)
     sa = [ndimage.sobel(ma, axis=k, mode="reflect") / 8 for k in (0, 1)]
     sb = [ndimage.sobel(mb, axis=k, mode="reflect") / 8 for k in (0, 1)]
-    np.testing.assert_allclose(diff, np.abs(a - b).mean(axis=0) * scale, rtol=1e-6, atol=1e-9)
-    np.testing.assert_allclose(grad, np.maximum(np.hypot(*sa), np.hypot(*sb)) * scale,
-                               rtol=1e-9, atol=1e-12)
-    np.testing.assert_allclose(gdiff, np.hypot(sa[0] - sb[0], sa[1] - sb[1]) * scale,
-                               rtol=1e-9, atol=1e-12)
+    diff = np.abs(a.astype("float64") - b).mean(axis=0) * scale
+    grad = np.maximum(np.hypot(*sa), np.hypot(*sb)) * scale
+    return diff, grad, np.hypot(sa[0] - sb[0], sa[1] - sb[1]) * scale
+
+
+@pytest.mark.parametrize("shape", [(1, 70, 90), (3, 70, 90), (1, 7, 9), (4, 1, 5), (2, 33, 3)])
+@pytest.mark.parametrize("workers", [1, 2])
+def test_image_cost_equals_scipy_sobel_terms(shape, workers):
+    rng = np.random.default_rng(sum(shape))
+    a = rng.uniform(0, 4000, shape).astype("float32")
+    b = (a + rng.normal(0, 300, a.shape)).astype("float32")
+    scale = 1 / 173.3
+    diff, grad, gdiff = _scipy_terms(a, b, scale)
+    for w_diff, base, w_grad in ((1.0, 0.0, 0.0), (0.0, 0.0, 1.0), (0.3, 0.07, 2.5)):
+        cost, gdiff2 = image_cost(a, b, scale, w_diff, base, w_grad, workers=workers)
+        np.testing.assert_allclose(cost, base + w_diff * diff + w_grad * grad, rtol=1e-9,
+                                   atol=1e-12)
+        np.testing.assert_allclose(gdiff2, gdiff, rtol=1e-9, atol=1e-12)
 
 
 @pytest.mark.parametrize(("density", "radius"), [(0.0, 3.0), (0.001, 20.0), (0.02, 4.5),
@@ -118,7 +126,7 @@ def test_kernels_in_row_bands_on_threads_equal_one_call(monkeypatch):
     a = rng.uniform(0, 255, (3, 61, 47)).astype("float32")
     b = (a + rng.normal(0, 20, a.shape)).astype("float32")
     mask = rng.random((61, 47)) < 0.01
-    whole = image_terms(a, b, 0.01, workers=1), within_radius(mask, 6.0, workers=1)
+    whole = image_cost(a, b, 0.01, 1.0, 0.1, 1.0, workers=1), within_radius(mask, 6.0, workers=1)
     monkeypatch.setattr(toolbox.executor, "ROW_BAND_MIN_CELLS", 100)
     calls = []
     real = toolbox.executor.in_row_bands
@@ -128,7 +136,7 @@ def test_kernels_in_row_bands_on_threads_equal_one_call(monkeypatch):
                             *args, **kw))
     for workers in (2, 3, 7):
         calls.clear()
-        terms = image_terms(a, b, 0.01, workers=workers)
+        terms = image_cost(a, b, 0.01, 1.0, 0.1, 1.0, workers=workers)
         near = within_radius(mask, 6.0, workers=workers)
         assert len(calls) == 3 * workers  # every kernel split: image terms, columns, rows
         for banded, one in zip(terms, whole[0], strict=True):
