@@ -64,14 +64,19 @@ def photo_value(col, row):
     return 1000.0 + 40.0 * col + 20.0 * row  # linear: bilinear resampling is exact
 
 
-@pytest.fixture(scope="module")
-def tiles(tmp_path_factory):
-    folder = tmp_path_factory.mktemp("orthoedge")
+def write_linear_photo(folder: Path) -> None:
+    """``folder``/p1.tif (:func:`photo_value` at the pixel centres) and its project.yaml."""
     from toolbox.photogrammetry.synthetic import write_photo
 
     cols, rows = np.meshgrid(np.arange(scene.SIZE) + 0.5, np.arange(scene.SIZE) + 0.5)
     write_photo(folder / "p1.tif", np.rint(photo_value(cols, rows)).astype("uint16"))
     scene.project_yaml(folder / "project.yaml", "p1.tif")
+
+
+@pytest.fixture(scope="module")
+def tiles(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("orthoedge")
+    write_linear_photo(folder)
     for name, (xa, xb) in {"A": (X0, X1), "B": (X1, X2)}.items():
         z, t = dem_tile(xa, xb)
         scene.write_dem(folder / f"dem_{name}.tif", z.astype("float32"), t)

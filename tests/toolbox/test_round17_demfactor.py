@@ -25,7 +25,11 @@ from affine import Affine
 sys.path.insert(0, str(Path(__file__).parent))
 sys.path.insert(0, str(Path(__file__).parents[1] / "algorithms" / "ortho"))
 import ortho_scene as scene  # noqa: E402
-from test_round16_orthoedge import collinearity, photo_value  # noqa: E402
+from test_round16_orthoedge import (  # noqa: E402
+    collinearity,
+    photo_value,
+    write_linear_photo,
+)
 
 CELL = 4.0  # DEM cell, m
 X0, Y0 = 1688000.0, 4799000.0  # the DEM's south-west corner (under the scene's photo)
@@ -56,12 +60,8 @@ def plane_dem(folder: Path, cols: int, rows: int):
 
 @pytest.fixture(scope="module")
 def photo_folder(tmp_path_factory):
-    from toolbox.photogrammetry.synthetic import write_photo
-
     folder = tmp_path_factory.mktemp("demfactor")
-    cols, rows = np.meshgrid(np.arange(scene.SIZE) + 0.5, np.arange(scene.SIZE) + 0.5)
-    write_photo(folder / "p1.tif", np.rint(photo_value(cols, rows)).astype("uint16"))
-    scene.project_yaml(folder / "project.yaml", "p1.tif")
+    write_linear_photo(folder)
     return folder
 
 
