@@ -93,42 +93,50 @@ def image_cost_rows(a, b, scale, weights, r0, r1, cost, gdiff):
 
 
 @njit(cache=True, nogil=True)
-def _lower_envelope(f, n, out, v, z):
-    """1-D squared Euclidean distance transform of ``f[:n]`` into ``out`` (Felzenszwalb and
-    Huttenlocher 2012, "Distance transforms of sampled functions", algorithm DT(f))."""
-    k = 0
-    first = -1
+def _push_parabola(q, fq, vp, vf, z, m):
+    """Add the parabola of cell ``q`` (value ``fq``, finite) to the lower envelope of the
+    ``m + 1`` parabolas ``vp`` (cells), ``vf`` (values), ``z`` (their boundaries; ``m = -1``:
+    none yet), those it hides dropped (Felzenszwalb and Huttenlocher 2012, "Distance transforms
+    of sampled functions", algorithm DT(f)). Returns the index of the envelope's last one."""
+    if m < 0:
+        vp[0] = q
+        vf[0] = fq
+        z[0] = -np.inf
+        z[1] = np.inf
+        return 0
+    while True:
+        p = vp[m]
+        s = ((fq + q * q) - (vf[m] + p * p)) / (2.0 * q - 2.0 * p)
+        if s <= z[m]:
+            m -= 1
+            continue
+        break
+    m += 1
+    vp[m] = q
+    vf[m] = fq
+    z[m] = s
+    z[m + 1] = np.inf
+    return m
+
+
+@njit(cache=True, nogil=True)
+def _lower_envelope(f, n, out, vp, vf, z):
+    """1-D squared Euclidean distance transform of ``f[:n]`` into ``out`` (infinite cells are
+    no sites; all infinite: infinity)."""
+    m = -1
     for q in range(n):
         if f[q] < np.inf:
-            first = q
-            break
-    if first < 0:
+            m = _push_parabola(q, f[q], vp, vf, z, m)
+    if m < 0:
         for q in range(n):
             out[q] = np.inf
         return
-    v[0] = first
-    z[0] = -np.inf
-    z[1] = np.inf
-    for q in range(first + 1, n):
-        if f[q] == np.inf:
-            continue
-        while True:
-            p = v[k]
-            s = ((f[q] + q * q) - (f[p] + p * p)) / (2.0 * q - 2.0 * p)
-            if s <= z[k]:
-                k -= 1
-                continue
-            break
-        k += 1
-        v[k] = q
-        z[k] = s
-        z[k + 1] = np.inf
-    k = 0
+    m = 0
     for q in range(n):
-        while z[k + 1] < q:
-            k += 1
-        p = v[k]
-        out[q] = (q - p) * (q - p) + f[p]
+        while z[m + 1] < q:
+            m += 1
+        p = vp[m]
+        out[q] = (q - p) * (q - p) + vf[m]
 
 
 def within_radius(mask, radius, workers=None):
@@ -158,7 +166,7 @@ def within_radius(mask, radius, workers=None):
 def _envelope_scratch(n):
     """The arrays :func:`_lower_envelope` works in, for lines of ``n`` cells."""
     return (np.empty(n, np.float64), np.empty(n, np.float64), np.empty(n, np.int64),
-            np.empty(n + 1, np.float64))
+            np.empty(n, np.float64), np.empty(n + 1, np.float64))
 
 
 @njit(cache=True, nogil=True)
@@ -166,12 +174,12 @@ def _column_distances(mask, held, j0, j1, d):
     """Squared distances along the columns ``held[j0:j1]`` to the nearest True cell of
     ``mask`` in each, into ``d[:, j0:j1]``."""
     rows = mask.shape[0]
-    f, out, v, z = _envelope_scratch(rows)
+    f, out, vp, vf, z = _envelope_scratch(rows)
     for j in range(j0, j1):
         c = held[j]
         for r in range(rows):
             f[r] = 0.0 if mask[r, c] else np.inf
-        _lower_envelope(f, rows, out, v, z)
+        _lower_envelope(f, rows, out, vp, vf, z)
         for r in range(rows):
             d[r, j] = out[r]
 
@@ -190,29 +198,8 @@ def _row_within(d, held, r2, r0, r1, result):
     for r in range(r0, r1):
         m = -1
         for j in range(k):
-            q = held[j]
-            fq = d[r, j]
-            if fq == np.inf:
-                continue
-            if m < 0:
-                m = 0
-                vp[0] = q
-                vf[0] = fq
-                z[0] = -np.inf
-                z[1] = np.inf
-                continue
-            while True:
-                p = vp[m]
-                s = ((fq + q * q) - (vf[m] + p * p)) / (2.0 * q - 2.0 * p)
-                if s <= z[m]:
-                    m -= 1
-                    continue
-                break
-            m += 1
-            vp[m] = q
-            vf[m] = fq
-            z[m] = s
-            z[m + 1] = np.inf
+            if d[r, j] < np.inf:
+                m = _push_parabola(held[j], d[r, j], vp, vf, z, m)
         if m < 0:  # no finite cell in the row: nothing within reach
             continue
         m = 0
