@@ -209,10 +209,15 @@ def _open_input(value):
                 warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
                 with rasterio.open(value) as src:
                     if src.count > 0:  # sheets are cut on the input's cells, north-up
-                        from toolbox.io.raster import require_georeferenced, require_north_up
+                        from toolbox.io.raster import (
+                            require_georeferenced,
+                            require_north_up,
+                            without_negligible_rotation,
+                        )
 
                         require_georeferenced(src, "INPUT", value)
-                        require_north_up(src.transform, "INPUT", value)
+                        require_north_up(without_negligible_rotation(
+                            src.transform, src.width, src.height), "INPUT", value)
                         return value, "raster", src.crs, tuple(src.bounds)
         except rasterio.errors.RasterioIOError:
             pass

@@ -92,7 +92,9 @@ def open_source(path: str | Path, index: int, datasets: Any = None) -> OrthoSour
 
     path = Path(path)
     with _opened(path, datasets) as src:
-        t = src.transform
+        from toolbox.io.raster import without_negligible_rotation
+
+        t = without_negligible_rotation(src.transform, src.width, src.height)
         if t.b != 0 or t.d != 0:
             raise InputDataError(f"'{path}' has a rotated geotransform; mosaic inputs must be "
                                  "north-up (warp it first)")

@@ -1,0 +1,52 @@
+"""Round 17, defects the other helpers noticed (leftovers4).
+
+- a geotransform with rotation terms like 1e-15 (what reprojections and GIS exports write) is
+  north-up: its far corner moves by far less than a cell; it was refused as "rotated".
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import rasterio
+from affine import Affine
+
+import toolbox
+
+
+def _tilted_plane(path: Path, b: float, d: float) -> Path:
+    """A 50 x 40 plane rising 0.1 m per metre eastwards, 0.5 m cells, rotation terms b, d."""
+    t = Affine(0.5, b, 500000.0, d, -0.5, 4000000.0)
+    xx = np.mgrid[0:40, 0:50][1]
+    with rasterio.open(path, "w", driver="GTiff", width=50, height=40, count=1,
+                       dtype="float32", crs="EPSG:32631", transform=t) as dst:
+        dst.write((0.1 * 0.5 * xx).astype("float32"), 1)
+    return path
+
+
+def test_negligible_rotation_terms_read_as_north_up(tmp_path):
+    from toolbox.io.raster import open_raster_info, require_north_up
+
+    info = open_raster_info(_tilted_plane(tmp_path / "dem.tif", 1e-15, -1e-15), role="dem")
+    assert (info.transform.b, info.transform.d) == (0.0, 0.0)
+    require_north_up(info.transform, "INPUT", info.path)  # no error
+    out = toolbox.run("dem:slope", {"INPUT": str(info.path),
+                                    "OUTPUT": str(tmp_path / "slope.tif")})
+    with rasterio.open(out["OUTPUT"] if isinstance(out, dict) else tmp_path / "slope.tif") as src:
+        slope = src.read(1, masked=True)
+        assert src.transform.b == 0 and src.transform.d == 0
+    assert np.ma.median(slope) == pytest.approx(np.degrees(np.arctan(0.1)), abs=1e-4)
+    toolbox.run("carto:contours", {"INPUT": str(info.path), "INTERVAL": 0.5,
+                                   "OUTPUT": str(tmp_path / "contours.gpkg")})
+
+
+def test_real_rotation_still_refused(tmp_path):
+    from toolbox.errors import ParameterError
+    from toolbox.io.raster import open_raster_info, require_north_up
+
+    info = open_raster_info(_tilted_plane(tmp_path / "dem.tif", 1e-6, 0.0), role="dem")
+    assert info.transform.b == 1e-6  # 40 rows x 1e-6 m: 8e-5 of a cell
+    with pytest.raises(ParameterError, match="rotated"):
+        require_north_up(info.transform, "INPUT", info.path)
