@@ -204,7 +204,9 @@ def _open_input(value):
 
     refs = [value] if isinstance(value, VectorLayerRef) else None
     if refs is None:
-        try:
+        from toolbox.runner.failures import handled_gdal_errors
+
+        with handled_gdal_errors(rasterio.errors.RasterioIOError):
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
                 with rasterio.open(value) as src:
@@ -219,8 +221,6 @@ def _open_input(value):
                         require_north_up(without_negligible_rotation(
                             src.transform, src.width, src.height), "INPUT", value)
                         return value, "raster", src.crs, tuple(src.bounds)
-        except rasterio.errors.RasterioIOError:
-            pass
         try:
             first = open_layer(str(value), "INPUT")
         except Exception as exc:  # neither GDAL nor OGR reads it

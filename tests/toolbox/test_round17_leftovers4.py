@@ -50,3 +50,27 @@ def test_real_rotation_still_refused(tmp_path):
     assert info.transform.b == 1e-6  # 40 rows x 1e-6 m: 8e-5 of a cell
     with pytest.raises(ParameterError, match="rotated"):
         require_north_up(info.transform, "INPUT", info.path)
+
+
+def test_read_error_classifier_ignores_a_handled_probe(tmp_path):
+    """A probe of INPUT as a raster (GDAL: "not recognized", handled: it is a vector layer)
+    and then a failed write: the write's error is not read as "INPUT truncated or corrupt"."""
+    import geopandas as gpd
+    import shapely
+
+    from toolbox import registry
+    from toolbox.ortho.rpc import has_rpc
+    from toolbox.runner.failures import as_read_error, collect_gdal_errors
+
+    points = tmp_path / "points.gpkg"
+    gpd.GeoDataFrame({"z": [1.0]}, geometry=[shapely.Point(0, 0)],
+                     crs="EPSG:32631").to_file(points)
+    alg = registry.get("mosaic:cut")
+    with collect_gdal_errors() as messages:
+        assert has_rpc(points) is False  # the probe, handled
+        with pytest.raises(rasterio.errors.RasterioIOError) as failed:
+            rasterio.open(tmp_path / "missing" / "out.tif", "w", driver="GTiff", width=1,
+                          height=1, count=1, dtype="uint8")
+        error = as_read_error(failed.value, messages, alg, {"INPUT": str(points)})
+    assert "points.gpkg" not in str(error)
+    assert "out.tif" in str(error)  # the write's own words

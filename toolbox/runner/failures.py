@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import errno
 import logging
+import threading
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
@@ -134,6 +135,12 @@ class GdalMessage(str):
     CPLE_FileIO, 5 CPLE_NoWriteAccess...; None when unknown)."""
 
     err_no: int | None = None
+    #: the thread that logged it (GDAL reports an error in the thread of the failing call)
+    thread: int | None = None
+
+
+#: the message lists of the runs collecting GDAL errors (:func:`collect_gdal_errors`)
+_COLLECTORS: list[list[str]] = []
 
 
 class _ErrorLog(logging.Handler):
@@ -147,6 +154,7 @@ class _ErrorLog(logging.Handler):
             message = GdalMessage(text)
             args = record.args if isinstance(record.args, tuple) else ()
             message.err_no = args[0] if args and isinstance(args[0], int) else None
+            message.thread = threading.get_ident()
             self.messages.append(message)
 
 
@@ -160,11 +168,31 @@ def collect_gdal_errors():
     logger.addHandler(handler)
     if logger.getEffectiveLevel() > logging.INFO:
         logger.setLevel(logging.INFO)
+    _COLLECTORS.append(handler.messages)
     try:
         yield handler.messages
     finally:
+        _COLLECTORS.remove(handler.messages)
         logger.removeHandler(handler)
         logger.setLevel(previous)
+
+
+@contextmanager
+def handled_gdal_errors(*handled: type[BaseException]):
+    """Around an operation whose failure the caller handles (a probe: is this file a raster?):
+    the GDAL errors this thread logged within it are not the run's and are dropped from the
+    messages :func:`collect_gdal_errors` gathers, so that a later failure is not read through
+    them (a probe's "'x.gpkg' not recognized" made a later write error read as "INPUT is
+    truncated or corrupt"). An exception of a type in ``handled`` leaving the block is
+    suppressed (as by ``contextlib.suppress``); any other keeps the messages."""
+    me = threading.get_ident()
+    marks = [(messages, len(messages)) for messages in _COLLECTORS]
+    try:
+        yield
+    except handled:
+        pass
+    for messages, start in marks:
+        messages[start:] = [m for m in messages[start:] if getattr(m, "thread", None) != me]
 
 
 def check_gdal_errors(messages: list[str], staging: OutputStaging) -> None:
