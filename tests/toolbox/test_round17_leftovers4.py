@@ -74,3 +74,31 @@ def test_read_error_classifier_ignores_a_handled_probe(tmp_path):
         error = as_read_error(failed.value, messages, alg, {"INPUT": str(points)})
     assert "points.gpkg" not in str(error)
     assert "out.tif" in str(error)  # the write's own words
+
+
+def test_points_and_lines_without_geometry_are_skipped_with_a_warning(tmp_path, caplog):
+    import logging
+
+    import geopandas as gpd
+    import shapely
+
+    from toolbox.io.vector_points import read_points_xyz
+
+    points = [shapely.Point(x, y, x + y) for x, y in [(0, 0), (10, 0), (0, 10), (10, 10)]]
+    gpd.GeoDataFrame({"id": range(6)}, geometry=[points[0], None, *points[1:], shapely.Point()],
+                     crs="EPSG:32631").to_file(tmp_path / "points.gpkg")
+    gpd.GeoDataFrame({"id": [1, 2]}, geometry=[None, shapely.LineString([(1, 1, 2), (9, 9, 18)])],
+                     crs="EPSG:32631").to_file(tmp_path / "lines.gpkg")
+    with caplog.at_level(logging.WARNING, logger="toolbox"):
+        xyz = read_points_xyz(str(tmp_path / "points.gpkg"))
+    assert len(xyz) == 4
+    said = [r.getMessage() for r in caplog.records if "no geometry" in r.getMessage()]
+    assert len(said) == 1 and "2 of 6" in said[0] and "rows 2, 6" in said[0]
+    caplog.clear()
+    with caplog.at_level(logging.WARNING, logger="toolbox"):
+        toolbox.run("tin:delaunay", {"INPUT": str(tmp_path / "points.gpkg"),
+                                     "BREAKLINES": str(tmp_path / "lines.gpkg"),
+                                     "OUTPUT": str(tmp_path / "tin.gpkg")})
+    said = [r.getMessage() for r in caplog.records if "no geometry" in r.getMessage()]
+    assert sorted(m.split(":")[0] for m in said) == ["BREAKLINES", "INPUT"]
+    assert any("1 of 2" in m and "row 1," in m for m in said)
