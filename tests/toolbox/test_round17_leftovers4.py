@@ -102,3 +102,34 @@ def test_points_and_lines_without_geometry_are_skipped_with_a_warning(tmp_path, 
     said = [r.getMessage() for r in caplog.records if "no geometry" in r.getMessage()]
     assert sorted(m.split(":")[0] for m in said) == ["BREAKLINES", "INPUT"]
     assert any("1 of 2" in m and "row 1," in m for m in said)
+
+
+def test_dxf_entities_on_frozen_or_off_layers_left_out_with_a_warning(tmp_path):
+    import ezdxf
+
+    from toolbox.attribution.sources import read_sources
+
+    doc = ezdxf.new("R2010")
+    doc.layers.add("FAB01002", color=8)
+    doc.layers.add("COSTRUZIONE").freeze()
+    doc.layers.add("AUSILIARIE").off()
+    msp = doc.modelspace()
+    msp.add_line((0, 0, 1), (5, 0, 1), dxfattribs={"layer": "FAB01002"})
+    msp.add_line((0, 1, 1), (5, 1, 1), dxfattribs={"layer": "COSTRUZIONE"})
+    msp.add_line((0, 2, 1), (5, 2, 1), dxfattribs={"layer": "COSTRUZIONE"})
+    msp.add_point((3, 3, 2), dxfattribs={"layer": "AUSILIARIE"})
+    doc.saveas(tmp_path / "model.dxf")
+
+    class Said:
+        def __init__(self):
+            self.warnings = []
+
+        def push_warning(self, text):
+            self.warnings.append(text)
+
+    said = Said()
+    frames, _ = read_sources([str(tmp_path / "model.dxf")], "EPSG:32633", said)
+    assert frames[0]["code"].tolist() == ["FAB01002"]
+    assert len(said.warnings) == 1
+    assert "2 on 'COSTRUZIONE' (frozen)" in said.warnings[0]
+    assert "1 on 'AUSILIARIE' (off)" in said.warnings[0]
