@@ -133,3 +133,28 @@ def test_dxf_entities_on_frozen_or_off_layers_left_out_with_a_warning(tmp_path):
     assert len(said.warnings) == 1
     assert "2 on 'COSTRUZIONE' (frozen)" in said.warnings[0]
     assert "1 on 'AUSILIARIE' (off)" in said.warnings[0]
+
+
+def test_mosaic_says_once_which_mask_wins_for_nodata_and_alpha(tmp_path):
+    """rasterio's "nodata attribute is shadowing the alpha band", repeated at every mask read,
+    gives way to one toolbox warning per input saying what the mosaic does."""
+    from tests.conftest import run_cli
+
+    for k, x0 in enumerate((500000.0, 500030.0)):
+        alpha = np.full((40, 50), 255, "uint8")
+        alpha[:, :5] = 0
+        with rasterio.open(tmp_path / f"o{k}.tif", "w", driver="GTiff", width=50, height=40,
+                           count=4, dtype="uint8", crs="EPSG:32633", nodata=0,
+                           transform=Affine(1, 0, x0, 0, -1, 4000040), photometric="RGB") as dst:
+            dst.write(np.full((3, 40, 50), 100 + 50 * k, "uint8"), [1, 2, 3])
+            dst.write(alpha, 4)
+            dst.colorinterp = [rasterio.enums.ColorInterp.red, rasterio.enums.ColorInterp.green,
+                               rasterio.enums.ColorInterp.blue, rasterio.enums.ColorInterp.alpha]
+    done = run_cli("run", "mosaic:build", "--INPUT", tmp_path / "o0.tif", "--INPUT",
+                   tmp_path / "o1.tif", "--OUTPUT", tmp_path / "m.tif")
+    assert done.returncode == 0, done.stderr
+    assert "shadowing" not in done.stderr
+    said = [line for line in done.stderr.splitlines() if "nodata value (0) and an alpha" in line]
+    assert [line.split(":")[1].strip() for line in said] == ["o0", "o1"]
+    with rasterio.open(tmp_path / "m.tif") as src:  # what it says: the nodata value wins
+        assert src.read(1)[20, 0] == 100

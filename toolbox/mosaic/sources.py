@@ -9,6 +9,7 @@ tags ``NADIR_X``/``NADIR_Y`` (or the projection centre ``X0``/``Y0``) or given b
 from __future__ import annotations
 
 import math
+import warnings
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -64,6 +65,22 @@ class OrthoSource:
             return (c.x, c.y)
         x0, y0, x1, y1 = self.bounds
         return ((x0 + x1) / 2, (y0 + y1) / 2)
+
+
+# GDAL's dataset mask of an ortho with a nodata value and an alpha band is the nodata value's:
+# rasterio says so in a warning at every mask read; the mosaic says it once per input instead
+# (:func:`shadowed_alpha_message`, warned by toolbox.mosaic.block.open_block)
+warnings.filterwarnings("ignore", message="The dataset's nodata attribute is shadowing the alpha",
+                        module=r"toolbox\.mosaic\.")
+
+
+def shadowed_alpha_message(source: OrthoSource) -> str:
+    """What the mosaic does with an ortho that has both a nodata value and an alpha band."""
+    return (f"{source.name}: has both a nodata value ({source.nodata:g}) and an alpha band "
+            f"(band {source.alpha_band}): its empty cells are those where every band, the alpha "
+            f"band too, holds {source.nodata:g} (GDAL's mask: the nodata value wins); cells "
+            "the alpha band alone marks transparent are mosaicked. To let the alpha band "
+            f"decide, remove the nodata value: gdal_edit.py -unsetnodata '{source.path}'")
 
 
 def opened(source: OrthoSource):
