@@ -204,7 +204,7 @@ def _open_input(value):
 
     refs = [value] if isinstance(value, VectorLayerRef) else None
     if refs is None:
-        from toolbox.runner.failures import handled_gdal_errors
+        from toolbox.io.gdal_errors import handled_gdal_errors
 
         with handled_gdal_errors(rasterio.errors.RasterioIOError):
             with warnings.catch_warnings():

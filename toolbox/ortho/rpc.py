@@ -158,7 +158,7 @@ def has_rpc(path: Any) -> bool:
 
     import rasterio
 
-    from toolbox.runner.failures import handled_gdal_errors
+    from toolbox.io.gdal_errors import handled_gdal_errors
 
     with handled_gdal_errors(rasterio.errors.RasterioIOError), warnings.catch_warnings():
         warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)

@@ -13,6 +13,7 @@ from typing import Any
 
 from toolbox.algorithm import Algorithm
 from toolbox.errors import InputDataError, OutputWriteError, ToolboxError
+from toolbox.io.gdal_errors import COLLECTORS
 from toolbox.io.staging import OutputStaging, write_error
 from toolbox.io.write_failures import GDAL_WRITE_ERRNOS, disk_errno, first_line, is_io_error, typed_errno
 from toolbox.parameters import OutputRaster, RasterLayer, VectorLayer
@@ -139,10 +140,6 @@ class GdalMessage(str):
     thread: int | None = None
 
 
-#: the message lists of the runs collecting GDAL errors (:func:`collect_gdal_errors`)
-_COLLECTORS: list[list[str]] = []
-
-
 class _ErrorLog(logging.Handler):
     def __init__(self) -> None:
         super().__init__(logging.INFO)
@@ -168,31 +165,13 @@ def collect_gdal_errors():
     logger.addHandler(handler)
     if logger.getEffectiveLevel() > logging.INFO:
         logger.setLevel(logging.INFO)
-    _COLLECTORS.append(handler.messages)
+    COLLECTORS.append(handler.messages)
     try:
         yield handler.messages
     finally:
-        _COLLECTORS.remove(handler.messages)
+        COLLECTORS.remove(handler.messages)
         logger.removeHandler(handler)
         logger.setLevel(previous)
-
-
-@contextmanager
-def handled_gdal_errors(*handled: type[BaseException]):
-    """Around an operation whose failure the caller handles (a probe: is this file a raster?):
-    the GDAL errors this thread logged within it are not the run's and are dropped from the
-    messages :func:`collect_gdal_errors` gathers, so that a later failure is not read through
-    them (a probe's "'x.gpkg' not recognized" made a later write error read as "INPUT is
-    truncated or corrupt"). An exception of a type in ``handled`` leaving the block is
-    suppressed (as by ``contextlib.suppress``); any other keeps the messages."""
-    me = threading.get_ident()
-    marks = [(messages, len(messages)) for messages in _COLLECTORS]
-    try:
-        yield
-    except handled:
-        pass
-    for messages, start in marks:
-        messages[start:] = [m for m in messages[start:] if getattr(m, "thread", None) != me]
 
 
 def check_gdal_errors(messages: list[str], staging: OutputStaging) -> None:
