@@ -158,3 +158,44 @@ def test_mosaic_says_once_which_mask_wins_for_nodata_and_alpha(tmp_path):
     assert [line.split(":")[1].strip() for line in said] == ["o0", "o1"]
     with rasterio.open(tmp_path / "m.tif") as src:  # what it says: the nodata value wins
         assert src.read(1)[20, 0] == 100
+
+
+def test_south_up_template_and_reference_dem_are_read_flipped(tmp_path):
+    """A south-up DEM (rows going north) as REFERENCE_DEM of tin:volume and as TEMPLATE: the
+    same cells as the north-up one (they were refused as not north-up)."""
+    import json
+
+    import geopandas as gpd
+    import shapely
+
+    width, height, x0, y1 = 30, 20, 500000.0, 4000020.0
+    cols, rows = np.meshgrid(np.arange(width), np.arange(height))
+    z = (0.1 * (cols + 0.5) + 0.05 * (height - rows - 0.5)).astype("float32")  # x/10 + y/20
+    profile = dict(driver="GTiff", width=width, height=height, count=1, dtype="float32",
+                   crs="EPSG:32633")
+    with rasterio.open(tmp_path / "north.tif", "w", **profile,
+                       transform=Affine(1, 0, x0, 0, -1, y1)) as dst:
+        dst.write(z, 1)
+    with rasterio.open(tmp_path / "south.tif", "w", **profile,
+                       transform=Affine(1, 0, x0, 0, 1, y1 - height)) as dst:
+        dst.write(z[::-1], 1)
+    corners = [(2, 2), (28, 2), (2, 8), (28, 8)]  # the south part only: not symmetric
+    gpd.GeoDataFrame(geometry=[shapely.Point(x0 + dx, y1 - height + dy, 5.0)
+                               for dx, dy in corners], crs="EPSG:32633").to_file(
+        tmp_path / "pts.gpkg")
+    toolbox.run("tin:delaunay", {"INPUT": str(tmp_path / "pts.gpkg"),
+                                 "OUTPUT": str(tmp_path / "tin.gpkg")})
+    toolbox.run("tin:volume", {"TIN": str(tmp_path / "tin.gpkg"),
+                               "REFERENCE_DEM": str(tmp_path / "south.tif"),
+                               "REPORT": str(tmp_path / "volume.json")})
+    report = json.loads((tmp_path / "volume.json").read_text())
+    # 26 x 6 cell centres inside; mean DEM 0.1 * 15 + 0.05 * 5 = 1.75 under the TIN's 5
+    assert report["cut_volume"] == pytest.approx((5 - 1.75) * 156, rel=1e-6)
+    for name in ("north", "south"):
+        toolbox.run("dem:idw", {"INPUT": str(tmp_path / "pts.gpkg"),
+                                "TEMPLATE": str(tmp_path / f"{name}.tif"),
+                                "OUTPUT": str(tmp_path / f"idw_{name}.tif")})
+    with rasterio.open(tmp_path / "idw_north.tif") as a, \
+            rasterio.open(tmp_path / "idw_south.tif") as b:
+        assert a.transform == b.transform == Affine(1, 0, x0, 0, -1, y1)
+        assert np.array_equal(a.read(1), b.read(1), equal_nan=True)

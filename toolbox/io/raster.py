@@ -236,6 +236,20 @@ def without_negligible_rotation(transform: Any, width: int, height: int) -> Any:
     return Affine(transform.a, 0.0, transform.c, 0.0, transform.e, transform.f)
 
 
+def north_up_transform(transform: Any, width: int, height: int) -> Any:
+    """The north-up geotransform of the same cells as ``transform`` (no rotation) for a raster
+    of ``width`` x ``height`` cells stored south-up or east to west: the same grid with its
+    rows (columns) in the other order; ``transform`` itself when already north-up."""
+    from affine import Affine
+
+    a, c, e, f = transform.a, transform.c, transform.e, transform.f
+    if a < 0:
+        c, a = c + a * width, -a
+    if e > 0:
+        f, e = f + e * height, -e
+    return Affine(a, transform.b, c, transform.d, e, f)
+
+
 def require_north_up(transform: Any, name: str, path: Any, flips_ok: bool = False) -> None:
     """:class:`ParameterError` naming ``name`` unless the raster at ``path`` (geotransform
     ``transform``) is north-up: no rotation, columns west to east, rows north to south. With
