@@ -101,7 +101,9 @@ def infer_strips(photos: list[Photo]) -> list[list[Photo]]:
     where the heading between consecutive projection centres turns by more than
     :data:`STRIP_TURN_DEG` from its strip's, or their spacing exceeds :data:`STRIP_JUMP` times
     the median one (a serpentine list from Metashape or an EXIF converter runs up one strip
-    and down the next: the photos across a turn are not a stereo pair)."""
+    and down the next: the photos across a turn are not a stereo pair). A split leaving a
+    strip of fewer than 3 photos is no flight pattern (a few photos of a drone block listed
+    in any order): the photos then stay one run in project order."""
     if len(photos) < 3:
         return [list(photos)]
     xy = np.array([p.require_exterior().centre[:2] for p in photos], dtype="float64")
@@ -120,7 +122,7 @@ def infer_strips(photos: list[Photo]) -> list[list[Photo]]:
         current.append(photos[k + 1])
         along = heading[k]
     strips.append(current)
-    return strips
+    return strips if min(len(s) for s in strips) >= 3 else [list(photos)]
 
 
 @dataclass
