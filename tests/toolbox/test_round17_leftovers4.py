@@ -160,17 +160,15 @@ def test_mosaic_says_once_which_mask_wins_for_nodata_and_alpha(tmp_path):
         assert src.read(1)[20, 0] == 100
 
 
-def test_south_up_template_and_reference_dem_are_read_flipped(tmp_path):
-    """A south-up DEM (rows going north) as REFERENCE_DEM of tin:volume and as TEMPLATE: the
-    same cells as the north-up one (they were refused as not north-up)."""
-    import json
-
+def _north_and_south_dems(tmp_path):
+    """The same 30 x 20 cells of z = x/10 + y/20 (local metres) stored north-up and south-up,
+    and four 3D points at height 5 over the DEM's south part (not symmetric)."""
     import geopandas as gpd
     import shapely
 
     width, height, x0, y1 = 30, 20, 500000.0, 4000020.0
     cols, rows = np.meshgrid(np.arange(width), np.arange(height))
-    z = (0.1 * (cols + 0.5) + 0.05 * (height - rows - 0.5)).astype("float32")  # x/10 + y/20
+    z = (0.1 * (cols + 0.5) + 0.05 * (height - rows - 0.5)).astype("float32")
     profile = dict(driver="GTiff", width=width, height=height, count=1, dtype="float32",
                    crs="EPSG:32633")
     with rasterio.open(tmp_path / "north.tif", "w", **profile,
@@ -179,10 +177,19 @@ def test_south_up_template_and_reference_dem_are_read_flipped(tmp_path):
     with rasterio.open(tmp_path / "south.tif", "w", **profile,
                        transform=Affine(1, 0, x0, 0, 1, y1 - height)) as dst:
         dst.write(z[::-1], 1)
-    corners = [(2, 2), (28, 2), (2, 8), (28, 8)]  # the south part only: not symmetric
+    corners = [(2, 2), (28, 2), (2, 8), (28, 8)]
     gpd.GeoDataFrame(geometry=[shapely.Point(x0 + dx, y1 - height + dy, 5.0)
                                for dx, dy in corners], crs="EPSG:32633").to_file(
         tmp_path / "pts.gpkg")
+    return Affine(1, 0, x0, 0, -1, y1)
+
+
+def test_south_up_reference_dem_is_read_flipped(tmp_path):
+    """tin:volume against a south-up REFERENCE_DEM (refused as not north-up): the analytic
+    volume."""
+    import json
+
+    _north_and_south_dems(tmp_path)
     toolbox.run("tin:delaunay", {"INPUT": str(tmp_path / "pts.gpkg"),
                                  "OUTPUT": str(tmp_path / "tin.gpkg")})
     toolbox.run("tin:volume", {"TIN": str(tmp_path / "tin.gpkg"),
@@ -191,15 +198,18 @@ def test_south_up_template_and_reference_dem_are_read_flipped(tmp_path):
     report = json.loads((tmp_path / "volume.json").read_text())
     # 26 x 6 cell centres inside; mean DEM 0.1 * 15 + 0.05 * 5 = 1.75 under the TIN's 5
     assert report["cut_volume"] == pytest.approx((5 - 1.75) * 156, rel=1e-6)
+
+
+def test_south_up_template_gives_the_same_cells_north_up(tmp_path):
+    north_up = _north_and_south_dems(tmp_path)
     for name in ("north", "south"):
         toolbox.run("dem:idw", {"INPUT": str(tmp_path / "pts.gpkg"),
                                 "TEMPLATE": str(tmp_path / f"{name}.tif"),
                                 "OUTPUT": str(tmp_path / f"idw_{name}.tif")})
     with rasterio.open(tmp_path / "idw_north.tif") as a, \
             rasterio.open(tmp_path / "idw_south.tif") as b:
-        assert a.transform == b.transform == Affine(1, 0, x0, 0, -1, y1)
+        assert a.transform == b.transform == north_up
         assert np.array_equal(a.read(1), b.read(1), equal_nan=True)
-
 
 def test_photos_without_strip_ids_are_not_paired_across_a_turn(tmp_path, caplog):
     """A serpentine list (east along strip 1, back west along strip 2) without strip ids: the
