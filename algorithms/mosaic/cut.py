@@ -204,18 +204,23 @@ def _open_input(value):
 
     refs = [value] if isinstance(value, VectorLayerRef) else None
     if refs is None:
-        try:
+        from toolbox.io.gdal_errors import handled_gdal_errors
+
+        with handled_gdal_errors(rasterio.errors.RasterioIOError):
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
                 with rasterio.open(value) as src:
                     if src.count > 0:  # sheets are cut on the input's cells, north-up
-                        from toolbox.io.raster import require_georeferenced, require_north_up
+                        from toolbox.io.raster import (
+                            require_georeferenced,
+                            require_north_up,
+                            without_negligible_rotation,
+                        )
 
                         require_georeferenced(src, "INPUT", value)
-                        require_north_up(src.transform, "INPUT", value)
+                        require_north_up(without_negligible_rotation(
+                            src.transform, src.width, src.height), "INPUT", value)
                         return value, "raster", src.crs, tuple(src.bounds)
-        except rasterio.errors.RasterioIOError:
-            pass
         try:
             first = open_layer(str(value), "INPUT")
         except Exception as exc:  # neither GDAL nor OGR reads it

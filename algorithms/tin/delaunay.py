@@ -10,7 +10,7 @@ from toolbox.feedback import Feedback
 from toolbox.io.crs import common_crs, crs_label
 from toolbox.io.pointcloud import cloud_filter
 from toolbox.io.vector import feature_rows, read_area, read_vector
-from toolbox.io.vector_points import input_rows, vertices_xyz
+from toolbox.io.vector_points import input_rows, skip_no_geometry, vertices_xyz
 from toolbox.parameters import Boolean, Crs, Enum, Field, Number, VectorLayer
 from toolbox.parameters.outputs import Layer, Output, OutputVector
 from toolbox.registry import register
@@ -29,7 +29,7 @@ def read_breaklines(ref, z_field: str | None) -> tuple[np.ndarray, np.ndarray]:
     import shapely
 
     frame = read_vector(ref, name="BREAKLINES")
-    frame = frame[frame.geometry.notna() & ~frame.geometry.is_empty]
+    frame = skip_no_geometry(frame, "BREAKLINES")
     if len(frame) == 0:
         return np.zeros((0, 3)), np.zeros(0, dtype=np.int64)
     frame = frame.explode(index_parts=False)  # the index stays the input row (messages)

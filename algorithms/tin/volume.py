@@ -26,10 +26,11 @@ def dem_cut_fill(xyz: np.ndarray, triangles: np.ndarray, info, band: int, mask,
     from functools import partial
 
     from toolbox.io.grid import GridSpec
+    from toolbox.io.raster import north_up_transform
     from toolbox.raster.engine import RasterInput, process_raster
     from toolbox.terrain.tin.kernels import triangles_by_tile
 
-    t = info.transform
+    t = north_up_transform(info.transform, info.width, info.height)  # south-up: read flipped
     cell_x, cell_y = abs(t.a), abs(t.e)
     tile_size = DEFAULT_BLOCK
     order, start, ntx = triangles_by_tile(xyz[:, :2], triangles, t.c, t.f, cell_x, cell_y,
@@ -150,8 +151,9 @@ class Volume(Algorithm):
         dem = params["REFERENCE_DEM"]
         if dem is not None:
             t = dem.transform
-            if t.b != 0 or t.d != 0 or t.a <= 0 or t.e >= 0 or not dem.georeferenced:
-                raise self.fail("REFERENCE_DEM", f"must be a georeferenced north-up raster, got "
+            if t.b != 0 or t.d != 0 or not dem.georeferenced:
+                raise self.fail("REFERENCE_DEM", f"must be a georeferenced raster without "
+                                f"rotation, got "
                                 f"{dem}")
 
     def process(self, params, feedback: Feedback):

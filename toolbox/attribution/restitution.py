@@ -39,7 +39,8 @@ are replaced by chords at most :data:`DXF_ARC_TOLERANCE` drawing units from the 
 drawn in an object coordinate system (extrusion other than 0,0,1, as a mirrored copy is) are put
 in world coordinates; a mirrored INSERT or TEXT gets the world direction of its x axis as
 rotation and, for an INSERT, a negative ``scale_y``. The ACI colour is the entity's colour
-(BYLAYER resolved). Other entity types are counted and named in a warning.
+(BYLAYER resolved). Other entity types are counted and named in a warning; entities on a
+frozen or switched-off layer (not drawn: construction lines) are left out, counted per layer.
 
 *Any OGR layer* with a code field (``code``/``codice``/``cod`` or given): multi-part features
 and geometry collections are split into one entity per part.
@@ -256,12 +257,16 @@ def read_dxf(path: str | Path, name: str = "INPUT", crs: Any = None):
     try:
         doc = ezdxf.readfile(str(path))
         layer_colour = {layer.dxf.name: abs(layer.color) for layer in doc.layers}
+        # a frozen or switched-off layer is not drawn (a restitution's construction lines)
+        hidden_state = {layer.dxf.name: "frozen" if layer.is_frozen() else "off"
+                        for layer in doc.layers if layer.is_frozen() or layer.is_off()}
         entities = list(doc.modelspace())
     except (ezdxf.DXFError, *DXF_DAMAGE) as exc:  # malformed group codes, values, structure
         raise InputDataError(f"{name}: cannot read '{path}' as DXF: {_why(exc)}") from None
     rows: list[dict[str, Any]] = []
     geoms: list[Any] = []
     skipped: dict[str, int] = {}
+    hidden: dict[str, list] = {}  # layer -> [entities left out, "frozen" or "off"]
 
     def add(entity, kind: str, geom, **extra) -> None:
         colour = entity.dxf.get("color", dxf_colors.BYLAYER)
@@ -274,6 +279,10 @@ def read_dxf(path: str | Path, name: str = "INPUT", crs: Any = None):
 
     for number, entity in enumerate(entities, start=1):
         try:
+            layer = entity.dxf.get("layer", "0")
+            if layer in hidden_state:
+                hidden.setdefault(layer, [0, hidden_state[layer]])[0] += 1
+                continue
             _add_dxf_entity(entity, add, skipped)
         except (ezdxf.DXFError, *DXF_DAMAGE) as exc:
             raise InputDataError(f"{name}: '{path}': DXF entity {number} "
@@ -283,7 +292,8 @@ def read_dxf(path: str | Path, name: str = "INPUT", crs: Any = None):
             raise InputDataError(f"{name}: '{path}': DXF entity {number} "
                                  f"({_entity_label(entity)}) has a coordinate that is not a "
                                  "finite number (inf or nan)")
-    return entity_frame(rows, geoms, crs), {"skipped_dxf_entities": skipped}
+    return entity_frame(rows, geoms, crs), {"skipped_dxf_entities": skipped,
+                                            "hidden_dxf_layers": hidden}
 
 
 # what ezdxf raises on damaged files besides its own errors (a value of the wrong type where a

@@ -34,6 +34,12 @@ def read_sources(inputs: list, crs: Any, feedback: Any, *, coordinates: Any = No
         if skipped:
             feedback.push_warning(f"INPUT {k}: DXF entities not read: "
                                   + ", ".join(f"{n} {t}" for t, n in sorted(skipped.items())))
+        hidden = report.get("hidden_dxf_layers")
+        if hidden:
+            feedback.push_warning(
+                f"INPUT {k}: DXF entities on frozen or switched-off layers left out (not "
+                "drawn, not deliverables): " + ", ".join(
+                    f"{n} on {layer!r} ({state})" for layer, (n, state) in sorted(hidden.items())))
         frames.append(frame)
         reports[f"input_{k}"] = report
     from toolbox.io.crs import common_crs

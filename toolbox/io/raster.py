@@ -106,7 +106,8 @@ def open_raster_info(value: Any, name: str = "INPUT", role: str = "photo") -> Ra
                 require_georeferenced(src, name, value)
             crs = CRS.from_wkt(src.crs.to_wkt()) if src.crs else None
             return RasterInfo(path, src.width, src.height, src.count, tuple(src.dtypes), crs,
-                              src.transform, src.nodata, not src.transform.is_identity,
+                              without_negligible_rotation(src.transform, src.width, src.height),
+                              src.nodata, not src.transform.is_identity,
                               _band_colours(src), tuple(u or "" for u in src.units))
     except rasterio.errors.RasterioIOError as exc:
         raise ParameterError(name, f"cannot read '{value}' as a raster: "
@@ -213,6 +214,40 @@ def require_height_unit(info: RasterInfo, name: str, band: int, algorithm_id: st
                          f"first: gdal_calc.py -A '{info.path}' --A_band={band} "
                          f"--calc=\"A*{ratio:.12g}\" --type=Float32 --outfile=heights.tif"
                          + (f" (or give {factor_name} {ratio:.12g})" if factor_name else ""))
+
+
+#: a rotation term moving the raster's far corner by less than this fraction of a cell is zero
+NEGLIGIBLE_ROTATION = 1e-9
+
+
+def without_negligible_rotation(transform: Any, width: int, height: int) -> Any:
+    """``transform`` with its rotation terms set to zero when they are negligible for a raster
+    of ``width`` x ``height`` cells: ``|b| * height`` below :data:`NEGLIGIBLE_ROTATION` of a
+    cell's width and ``|d| * width`` below that of a cell's height (the far corner moves by
+    less than that). Reprojections and GIS exports write terms like 1e-15 for a north-up grid:
+    read as rotated, such a raster would be refused. ``transform`` itself otherwise."""
+    from affine import Affine
+
+    b, d = transform.b, transform.d
+    if (b == 0 and d == 0) or not (
+            abs(b) * max(int(height), 1) < NEGLIGIBLE_ROTATION * abs(transform.a)
+            and abs(d) * max(int(width), 1) < NEGLIGIBLE_ROTATION * abs(transform.e)):
+        return transform
+    return Affine(transform.a, 0.0, transform.c, 0.0, transform.e, transform.f)
+
+
+def north_up_transform(transform: Any, width: int, height: int) -> Any:
+    """The north-up geotransform of the same cells as ``transform`` (no rotation) for a raster
+    of ``width`` x ``height`` cells stored south-up or east to west: the same grid with its
+    rows (columns) in the other order; ``transform`` itself when already north-up."""
+    from affine import Affine
+
+    a, c, e, f = transform.a, transform.c, transform.e, transform.f
+    if a < 0:
+        c, a = c + a * width, -a
+    if e > 0:
+        f, e = f + e * height, -e
+    return Affine(a, transform.b, c, transform.d, e, f)
 
 
 def require_north_up(transform: Any, name: str, path: Any, flips_ok: bool = False) -> None:

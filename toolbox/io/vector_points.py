@@ -44,30 +44,45 @@ def _check_z(has_z: np.ndarray, what: str, rows: np.ndarray, hint: str) -> None:
                          f"({feature_rows(rows[~has_z])}) have no Z: {hint}")
 
 
+def skip_no_geometry(frame, name: str):
+    """``frame`` without its features that have no geometry (null or empty: what a GeoPackage
+    or a shapefile may hold), with one warning naming ``name``, their count and first rows
+    (:func:`input_rows`); ``frame`` itself when every feature has one."""
+    missing = no_geometry(frame.geometry.values)
+    if not missing.any():
+        return frame
+    import logging
+
+    logging.getLogger("toolbox").warning(
+        f"{name}: {int(missing.sum())} of {len(frame)} feature(s) have no geometry (null or "
+        f"empty) and are skipped ({feature_rows(input_rows(frame)[missing])})")
+    return frame[~missing]
+
+
 def points_xyz(frame, z_field: str | None = None, name: str = "INPUT") -> np.ndarray:
     """(N, 3) float64 X, Y, Z of every point (multipoints exploded).
 
     Z comes from ``z_field`` when given, else from the geometry; a layer without Z and without a
     field is an :class:`InputDataError`, as are NaN/inf coordinates: refusals name the features by
-    :func:`input_rows`. Features without a geometry or with an empty one are skipped.
+    :func:`input_rows`. Features without a geometry or with an empty one are skipped with a
+    warning (:func:`skip_no_geometry`).
     """
     import shapely
 
-    geoms = frame.geometry.values
-    if len(geoms) == 0:
+    if len(frame.geometry.values) == 0:
         raise InputDataError(f"{name} has no features")
-    present = ~no_geometry(geoms)
-    geoms = geoms[present]
+    frame = skip_no_geometry(frame, name)
+    geoms = frame.geometry.values
     kinds = set(shapely.get_type_id(geoms).tolist())
     if not kinds <= {0, 4}:  # Point, MultiPoint
         raise InputDataError(f"{name} must contain points, found other geometry types")
-    rows = input_rows(frame)[present]
+    rows = input_rows(frame)
     if z_field is None:
         _check_z(shapely.has_z(geoms), name, rows,
                  "give a Z field (Z_FIELD) or use 3D points")
     coords, owner = shapely.get_coordinates(geoms, include_z=z_field is None, return_index=True)
     if z_field is not None:
-        z_values = np.asarray(frame[z_field], dtype="float64")[present]
+        z_values = np.asarray(frame[z_field], dtype="float64")
         coords = np.column_stack([coords, z_values[owner]])
     _check_finite(coords, name, rows[owner])
     return coords
@@ -202,10 +217,12 @@ def vertices_xyz(frame, z_field: str | None = None, name: str = "INPUT"):
     """Vertices of every feature: ``(xyz (N, 3), feature_index (N,))``.
 
     Z from ``z_field`` (same value for every vertex of a feature, e.g. a contour's elevation) or
-    from the geometry. Refusals name the features by :func:`input_rows`.
+    from the geometry. Refusals name the features by :func:`input_rows`; features without a
+    geometry are skipped with a warning (:func:`skip_no_geometry`).
     """
     import shapely
 
+    frame = skip_no_geometry(frame, name)
     geoms = frame.geometry.values
     rows = input_rows(frame)
     if z_field is None and len(geoms):

@@ -53,7 +53,10 @@ class OrthoReference:
         path = Path(path)
         try:
             with rasterio.open(path) as src:
-                info = cls(path, src.transform, src.crs, src.width, src.height, src.count)
+                from toolbox.io.raster import without_negligible_rotation
+
+                info = cls(path, without_negligible_rotation(src.transform, src.width, src.height),
+                           src.crs, src.width, src.height, src.count)
         except rasterio.errors.RasterioError as exc:
             raise InputDataError(f"{name}: cannot read {path}: "
                                  f"{str(exc).splitlines()[0]}") from None

@@ -8,7 +8,13 @@ from pathlib import Path
 from typing import Any
 
 from toolbox.errors import InputDataError, ParameterError
-from toolbox.mosaic.sources import OrthoSource, aligned, open_source, valid_footprint
+from toolbox.mosaic.sources import (
+    OrthoSource,
+    aligned,
+    open_source,
+    shadowed_alpha_message,
+    valid_footprint,
+)
 from toolbox.raster.datasets import ThreadDatasets
 
 CENTRES = ("nadir", "footprint")
@@ -41,6 +47,8 @@ def open_block(paths: list, name: str = "INPUT", feedback: Any = None,
                                      "identifies an ortho in the cut polygons): rename one")
             if sources:
                 check_same_kind(sources[0], src, name)
+            if feedback is not None and src.alpha_band is not None and src.nodata is not None:
+                feedback.push_warning(shadowed_alpha_message(src))
             src.footprint = valid_footprint(src, FOOTPRINT_CELLS)
             sources.append(src)
             if feedback is not None:

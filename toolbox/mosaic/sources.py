@@ -9,6 +9,7 @@ tags ``NADIR_X``/``NADIR_Y`` (or the projection centre ``X0``/``Y0``) or given b
 from __future__ import annotations
 
 import math
+import warnings
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -66,6 +67,22 @@ class OrthoSource:
         return ((x0 + x1) / 2, (y0 + y1) / 2)
 
 
+# GDAL's dataset mask of an ortho with a nodata value and an alpha band is the nodata value's:
+# rasterio says so in a warning at every mask read; the mosaic says it once per input instead
+# (:func:`shadowed_alpha_message`, warned by toolbox.mosaic.block.open_block)
+warnings.filterwarnings("ignore", message="The dataset's nodata attribute is shadowing the alpha",
+                        module=r"toolbox\.mosaic\.")
+
+
+def shadowed_alpha_message(source: OrthoSource) -> str:
+    """What the mosaic does with an ortho that has both a nodata value and an alpha band."""
+    return (f"{source.name}: has both a nodata value ({source.nodata:g}) and an alpha band "
+            f"(band {source.alpha_band}): its empty cells are those where every band, the alpha "
+            f"band too, holds {source.nodata:g} (GDAL's mask: the nodata value wins); cells "
+            "the alpha band alone marks transparent are mosaicked. To let the alpha band "
+            f"decide, remove the nodata value: gdal_edit.py -unsetnodata '{source.path}'")
+
+
 def opened(source: OrthoSource):
     """The source's raster for reading (a context manager): this thread's dataset kept open by
     ``source.datasets`` (GDAL's block cache then serves the blocks that the footprint, the
@@ -92,7 +109,9 @@ def open_source(path: str | Path, index: int, datasets: Any = None) -> OrthoSour
 
     path = Path(path)
     with _opened(path, datasets) as src:
-        t = src.transform
+        from toolbox.io.raster import without_negligible_rotation
+
+        t = without_negligible_rotation(src.transform, src.width, src.height)
         if t.b != 0 or t.d != 0:
             raise InputDataError(f"'{path}' has a rotated geotransform; mosaic inputs must be "
                                  "north-up (warp it first)")

@@ -158,13 +158,13 @@ def has_rpc(path: Any) -> bool:
 
     import rasterio
 
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
-            with rasterio.open(path) as src:
-                return src.rpcs is not None
-    except rasterio.errors.RasterioIOError:
-        return False
+    from toolbox.io.gdal_errors import handled_gdal_errors
+
+    with handled_gdal_errors(rasterio.errors.RasterioIOError), warnings.catch_warnings():
+        warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
+        with rasterio.open(path) as src:
+            return src.rpcs is not None
+    return False
 
 
 def rpc_crs(crs: Any, dem: Any) -> Any:

@@ -52,6 +52,7 @@ entry gives a ``default_camera``: a photo is never used without a camera.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -89,6 +90,41 @@ def along_strip(photos: list[Photo]) -> list[Photo]:
     return [photos[k] for k in np.argsort(t, kind="stable")]
 
 
+#: a flight line turning by more than this between consecutive photos starts a new strip
+STRIP_TURN_DEG = 60.0
+#: a spacing more than this times the median one between consecutive photos starts one too
+STRIP_JUMP = 2.5
+
+
+def infer_strips(photos: list[Photo]) -> list[list[Photo]]:
+    """Photos without strip ids, in project order, split into strips where the flight turns:
+    where the heading between consecutive projection centres turns by more than
+    :data:`STRIP_TURN_DEG` from its strip's, or their spacing exceeds :data:`STRIP_JUMP` times
+    the median one (a serpentine list from Metashape or an EXIF converter runs up one strip
+    and down the next: the photos across a turn are not a stereo pair). A split leaving a
+    strip of fewer than 3 photos is no flight pattern (a few photos of a drone block listed
+    in any order): the photos then stay one run in project order."""
+    if len(photos) < 3:
+        return [list(photos)]
+    xy = np.array([p.require_exterior().centre[:2] for p in photos], dtype="float64")
+    step = np.diff(xy, axis=0)
+    spacing = np.hypot(step[:, 0], step[:, 1])
+    heading = np.arctan2(step[:, 1], step[:, 0])
+    median = float(np.median(spacing))
+    strips, current, along = [], [photos[0]], None
+    for k in range(len(step)):
+        turn = 0.0 if along is None else abs(math.degrees(
+            (heading[k] - along + math.pi) % (2 * math.pi) - math.pi))
+        if turn > STRIP_TURN_DEG or (median > 0 and spacing[k] > STRIP_JUMP * median):
+            strips.append(current)
+            current, along = [photos[k + 1]], None
+            continue
+        current.append(photos[k + 1])
+        along = heading[k]
+    strips.append(current)
+    return strips if min(len(s) for s in strips) >= 3 else [list(photos)]
+
+
 @dataclass
 class Project:
     """Cameras and photos of one block, with their CRS."""
@@ -119,12 +155,23 @@ class Project:
     def consecutive_pairs(self) -> list[tuple[Photo, Photo]]:
         """Consecutive oriented photos of each strip: the stereo pairs of the flight. A named
         strip's photos follow one another along the strip (:func:`along_strip`), whatever
-        order the project lists them in; photos without a strip go in project order."""
+        order the project lists them in; photos without a strip go in project order, split into
+        strips where the flight turns (:func:`infer_strips`, with a warning)."""
         pairs: list[tuple[Photo, Photo]] = []
         for name, photos in self.strips().items():
-            if name:
-                photos = along_strip(photos)
-            pairs.extend(zip(photos[:-1], photos[1:], strict=True))
+            runs = [along_strip(photos)] if name else infer_strips(photos)
+            if len(runs) > 1:
+                import logging
+
+                logging.getLogger("toolbox").warning(
+                    f"{len(photos)} photos without a strip id: {len(runs)} strips inferred "
+                    f"where the flight turns by more than {STRIP_TURN_DEG:g} degrees or the "
+                    f"spacing jumps over {STRIP_JUMP:g} times the median (strips of "
+                    f"{', '.join(str(len(r)) for r in runs)} photos, first photos "
+                    f"{', '.join(r[0].id for r in runs[:6])}{', ...' if len(runs) > 6 else ''}"
+                    "); no pair across them. Give strip ids in the project to set them")
+            for run in runs:
+                pairs.extend(zip(run[:-1], run[1:], strict=True))
         return pairs
 
     def with_exteriors(self, orientations: Mapping[str, ExteriorOrientation]) -> Project:

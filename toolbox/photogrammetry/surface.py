@@ -55,6 +55,9 @@ class DemSurface:
     def from_transform(cls, z: np.ndarray, transform: Any, crs: Any = None,
                        nodata: float | None = None) -> DemSurface:
         """From an array and its affine transform (north-up, ``b = d = 0``); ``nodata`` -> NaN."""
+        from toolbox.io.raster import without_negligible_rotation
+
+        transform = without_negligible_rotation(transform, np.shape(z)[-1], np.shape(z)[-2])
         if transform.b != 0 or transform.d != 0 or transform.a <= 0 or transform.e >= 0:
             raise InputDataError("the DEM must be north-up (no rotation, rows going south)")
         z = np.asarray(z, dtype="float64")

@@ -69,9 +69,12 @@ class GridRequest:
             crs_of_grid = crs if crs is not None or template is None else template.crs
             extent_box = extent_bounds_in(extent, crs_of_grid)
         if template is not None:
-            t = template.transform
+            from toolbox.io.raster import north_up_transform
+
+            # a south-up or east-to-west template: the same cells, written north-up
+            t = north_up_transform(template.transform, template.width, template.height)
             if t.b != 0 or t.d != 0 or t.a <= 0 or t.e >= 0:
-                raise ParameterError("TEMPLATE", f"must be a north-up raster without rotation, "
+                raise ParameterError("TEMPLATE", f"must be a raster without rotation, "
                                      f"{template} has transform {tuple(t)[:6]}")
             if self.cell_size is not None:
                 raise ParameterError("CELL_SIZE", f"must not be given with TEMPLATE (the "
@@ -147,9 +150,11 @@ def template_lattice(template: Any, cell_size: float | None = None, crs: Any = N
     if crs is not None and template.crs is not None and not same_crs(template.crs, crs):
         raise ParameterError("TEMPLATE", f"is in {crs_label(template.crs)}, {what} in "
                              f"{crs_label(crs)}")
-    t = template.transform
+    from toolbox.io.raster import north_up_transform
+
+    t = north_up_transform(template.transform, template.width, template.height)  # same cells
     if t.b != 0 or t.d != 0 or t.a <= 0 or t.e >= 0 or abs(t.a + t.e) > 1e-9 * t.a:
-        raise ParameterError("TEMPLATE", f"must be a north-up raster with square cells, "
+        raise ParameterError("TEMPLATE", f"must be a raster without rotation with square cells, "
                              f"{template} has transform {tuple(t)[:6]}")
     if cell_size is not None:
         raise ParameterError("CELL_SIZE", f"must not be given with TEMPLATE (the template's "

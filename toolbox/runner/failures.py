@@ -6,12 +6,14 @@ from __future__ import annotations
 
 import errno
 import logging
+import threading
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
 from toolbox.algorithm import Algorithm
 from toolbox.errors import InputDataError, OutputWriteError, ToolboxError
+from toolbox.io.gdal_errors import COLLECTORS
 from toolbox.io.staging import OutputStaging, write_error
 from toolbox.io.write_failures import GDAL_WRITE_ERRNOS, disk_errno, first_line, is_io_error, typed_errno
 from toolbox.parameters import OutputRaster, RasterLayer, VectorLayer
@@ -134,6 +136,8 @@ class GdalMessage(str):
     CPLE_FileIO, 5 CPLE_NoWriteAccess...; None when unknown)."""
 
     err_no: int | None = None
+    #: the thread that logged it (GDAL reports an error in the thread of the failing call)
+    thread: int | None = None
 
 
 class _ErrorLog(logging.Handler):
@@ -147,6 +151,7 @@ class _ErrorLog(logging.Handler):
             message = GdalMessage(text)
             args = record.args if isinstance(record.args, tuple) else ()
             message.err_no = args[0] if args and isinstance(args[0], int) else None
+            message.thread = threading.get_ident()
             self.messages.append(message)
 
 
@@ -160,9 +165,11 @@ def collect_gdal_errors():
     logger.addHandler(handler)
     if logger.getEffectiveLevel() > logging.INFO:
         logger.setLevel(logging.INFO)
+    COLLECTORS.append(handler.messages)
     try:
         yield handler.messages
     finally:
+        COLLECTORS.remove(handler.messages)
         logger.removeHandler(handler)
         logger.setLevel(previous)
 

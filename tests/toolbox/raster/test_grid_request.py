@@ -45,7 +45,7 @@ def test_a_template_in_another_crs_or_rotated_is_refused(tmp_path):
     with pytest.raises(ParameterError, match="TEMPLATE is in EPSG:3003, the ortho in EPSG:6707"):
         template_lattice(info, None, CRS.from_epsg(6707), "the ortho")
     rotated = template(tmp_path, Affine(2.5, 0.1, X0, 0.1, -2.5, Y0))
-    with pytest.raises(ParameterError, match="TEMPLATE must be a north-up raster"):
+    with pytest.raises(ParameterError, match="TEMPLATE must be a raster without rotation"):
         template_lattice(rotated)
     rect = template(tmp_path, Affine(2.5, 0, X0, 0, -2.0, Y0))
     with pytest.raises(ParameterError, match="square cells"):

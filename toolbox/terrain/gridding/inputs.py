@@ -87,7 +87,7 @@ def read_sources(sources: PointSources, feedback: Feedback,
 
     from toolbox.io.crs import common_crs
     from toolbox.io.vector import read_vector
-    from toolbox.io.vector_points import vertices_xyz
+    from toolbox.io.vector_points import skip_no_geometry, vertices_xyz
     from toolbox.terrain.points import read_mass_points
 
     named = {UI_NAMES[role]: layer.crs for role, layer in sources.layers().items()}
@@ -112,7 +112,7 @@ def read_sources(sources: PointSources, feedback: Feedback,
             if layer is None:
                 continue
             frame = read_vector(layer, name=name)
-            frame = frame[~(frame.geometry.isna() | frame.geometry.is_empty)]
+            frame = skip_no_geometry(frame, name)
             if len(frame) == 0:
                 raise InputDataError(f"{name} has no features with a geometry")
             frame = frame.explode(index_parts=False)  # index: the input row, for messages
