@@ -1,0 +1,27 @@
+"""Round 17, sweep "stats": reported statistics recomputed from hand-computable cases."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import shapely
+
+from toolbox.terrain.tin.cutfill import plane_cut_fill
+
+
+def test_cut_fill_flat_triangles_at_the_reference_crossing_the_mask_are_neither():
+    # z = 5 on x <= 10 (flat, at the reference), z = 5 + (x - 10) beyond; mask 5..15 x 0..5:
+    # cut = 5 * 5² / 2 = 62.5 over 25 m², no fill, 50 m² compared. The flat triangles crossing
+    # the mask's edge counted as cut AND fill (cut_area 50, fill_area 25: more than the area).
+    def z(x):
+        return 5.0 if x <= 10 else 5.0 + (x - 10)
+
+    nodes = [(x, y) for x in (0, 10, 20) for y in (0, 10)]
+    xyz = np.array([(x, y, z(x)) for x, y in nodes])
+    k = {p: i for i, p in enumerate(nodes)}
+    tri = np.array([[k[(0, 0)], k[(10, 0)], k[(10, 10)]], [k[(0, 0)], k[(10, 10)], k[(0, 10)]],
+                    [k[(10, 0)], k[(20, 0)], k[(20, 10)]], [k[(10, 0)], k[(20, 10)], k[(10, 10)]]])
+    r = plane_cut_fill(xyz, tri, 5.0, shapely.box(5, 0, 15, 5))
+    assert r.cut_volume == pytest.approx(62.5) and r.fill_volume == pytest.approx(0.0, abs=1e-9)
+    assert r.cut_area == pytest.approx(25.0) and r.fill_area == pytest.approx(0.0, abs=1e-9)
+    assert r.area == pytest.approx(50.0)
