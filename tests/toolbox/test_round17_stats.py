@@ -25,3 +25,30 @@ def test_cut_fill_flat_triangles_at_the_reference_crossing_the_mask_are_neither(
     assert r.cut_volume == pytest.approx(62.5) and r.fill_volume == pytest.approx(0.0, abs=1e-9)
     assert r.cut_area == pytest.approx(25.0) and r.fill_area == pytest.approx(0.0, abs=1e-9)
     assert r.area == pytest.approx(50.0)
+
+
+def test_loo_error_standard_deviation_is_the_sample_one():
+    from toolbox.terrain.gridding.validation import error_summary
+
+    # errors -50 and +50: mean 0, RMSE 50, sample standard deviation 50·sqrt(2) (n - 1);
+    # it was the population one, 50
+    s = error_summary(np.array([50.0, 150.0, np.nan]), np.array([100.0, 100.0, 7.0]))
+    assert s["rmse"] == pytest.approx(50.0) and s["mean_error"] == pytest.approx(0.0)
+    assert s["std_error"] == pytest.approx(50.0 * np.sqrt(2.0))
+    # one error: no spread to estimate (was 0.0)
+    assert error_summary(np.array([3.0]), np.array([1.0]))["std_error"] is None
+
+
+def test_streamed_loo_standard_deviation_is_the_sample_one(tmp_path):
+    from toolbox.terrain.gridding.stream_quality import _summary
+
+    errors = np.array([-50.0, 50.0])
+    path = tmp_path / "errors.bin"
+    path.write_bytes(errors.tobytes())
+    sums = {"n": 2, "points": 2, "err": list(errors), "err2": list(errors ** 2),
+            "abs": list(np.abs(errors))}
+    s = _summary(sums, path, (50.0, 0, None), np.array([], dtype=np.int64))
+    assert s["std_error"] == pytest.approx(50.0 * np.sqrt(2.0))
+    one = _summary({"n": 1, "points": 1, "err": [2.0], "err2": [4.0], "abs": [2.0]},
+                   path, (2.0, 0, None), np.array([], dtype=np.int64))
+    assert one["std_error"] is None
