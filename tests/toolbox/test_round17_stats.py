@@ -52,3 +52,15 @@ def test_streamed_loo_standard_deviation_is_the_sample_one(tmp_path):
     one = _summary({"n": 1, "points": 1, "err": [2.0], "err2": [4.0], "abs": [2.0]},
                    path, (2.0, 0, None), np.array([], dtype=np.int64))
     assert one["std_error"] is None
+
+
+def test_quality_report_interior_sigma0_without_redundancy_is_not_zero():
+    from toolbox.cartography.quality import Specification
+    from toolbox.cartography.quality_sections import interior_section
+
+    # three marks, an affine: no redundancy, sigma0 undefined (None): it was printed "0.0 µm"
+    report = {"outputs": {"STATISTICS": {"photos": 1, "max_residual_mm": 0.0,
+                                         "max_sigma0_mm": None}}}
+    sec = interior_section([("io", report)], Specification(), [])
+    table = next(b for b in sec.blocks if b[0] == "table")
+    assert table[2][0][2] == "n/a"

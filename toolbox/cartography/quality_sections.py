@@ -36,6 +36,8 @@ def interior_section(runs, spec: Specification, verdicts: list[Verdict]) -> Sect
         stats = _stats(report)
         worst_um = None if stats.get("max_residual_mm") is None else \
             1000.0 * stats["max_residual_mm"]
+        sigma_um = None if stats.get("max_sigma0_mm") is None else \
+            1000.0 * stats["max_sigma0_mm"]  # None: no redundancy (not 0.0, a perfect fit)
         verdicts.append(Verdict("Interior orientation", "largest fiducial residual",
                                 _fmt(worst_um, "µm", 1), f"<= {spec.io_tolerance_um:g} µm",
                                 _judge(worst_um, spec.io_tolerance_um),
@@ -44,7 +46,7 @@ def interior_section(runs, spec: Specification, verdicts: list[Verdict]) -> Sect
         if not csv_path or not Path(csv_path).exists():
             sec.table(["Photos", "Largest residual", "Largest sigma0"],
                       [[str(stats.get("photos")), _fmt(worst_um, "µm", 1),
-                        _fmt(1000 * (stats.get("max_sigma0_mm") or 0), "µm", 1)]])
+                        _fmt(sigma_um, "µm", 1)]])
             sec.text("No residual table was written, so no vector plot.")
             continue
         by_photo: dict[str, list[dict]] = {}
