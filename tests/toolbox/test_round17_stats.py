@@ -64,3 +64,22 @@ def test_quality_report_interior_sigma0_without_redundancy_is_not_zero():
     sec = interior_section([("io", report)], Specification(), [])
     table = next(b for b in sec.blocks if b[0] == "table")
     assert table[2][0][2] == "n/a"
+
+
+def test_quality_report_keeps_two_significant_digits_of_small_values():
+    from toolbox.cartography.quality import Specification
+    from toolbox.cartography.quality_sections import ortho_section
+
+    # a 2.5 cm drone orthophoto with a 4 mm check RMSE: it read cell "0.03 m", RMSE "0.00 m"
+    reports = {"ortho:photo": [("o", {"outputs": {"STATISTICS": {
+        "photo": "p1", "cell_size": 0.025, "photo_gsd_m": 0.0125,
+        "max_relief_displacement_m": 0.5, "outside_photo_fraction": 0.0}}})],
+        "report:ortho_check": [("c", {"outputs": {"STATISTICS": {
+            "ortho": "o.tif", "points": 2, "matched": 2, "rmse_x_m": 0.003, "rmse_y_m": 0.002,
+            "rmse_planimetric_m": 0.004, "largest_m": 0.005}}})]}
+    verdicts = []
+    sec = ortho_section(reports, Specification(500.0, 0.5, 0.5, 15.0), verdicts)
+    tables = [b for b in sec.blocks if b[0] == "table"]
+    assert tables[0][2][0][1:3] == ["0.025 m", "0.013 m"]
+    assert tables[1][2][0][2:6] == ["0.0030 m", "0.0020 m", "0.0040 m", "0.0050 m"]
+    assert verdicts[-1].measured.startswith("0.0040 m")

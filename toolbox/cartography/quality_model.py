@@ -5,6 +5,7 @@ run reports read from a folder and the formatting helpers the sections share (se
 from __future__ import annotations
 
 import json
+import math
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -107,9 +108,14 @@ def without_paths(text: str) -> str:
 
 
 def _fmt(value: Any, unit: str = "", digits: int = 3) -> str:
+    """``value`` with ``digits`` decimals, or more to keep two significant digits (a 2.5 cm
+    cell read "0.03 m", an RMSE of 0.4 mm "0.000 m"); "n/a" for None."""
     if value is None:
         return "n/a"
-    return f"{float(value):.{digits}f}{(' ' + unit) if unit else ''}"
+    v = float(value)
+    if math.isfinite(v) and v != 0.0:
+        digits = min(12, max(digits, 1 - math.floor(math.log10(abs(v)))))
+    return f"{v:.{digits}f}{(' ' + unit) if unit else ''}"
 
 
 def _planimetric(rmse: dict) -> float | None:
