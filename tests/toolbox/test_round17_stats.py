@@ -83,3 +83,34 @@ def test_quality_report_keeps_two_significant_digits_of_small_values():
     assert tables[0][2][0][1:3] == ["0.025 m", "0.013 m"]
     assert tables[1][2][0][2:6] == ["0.0030 m", "0.0020 m", "0.0040 m", "0.0050 m"]
     assert verdicts[-1].measured.startswith("0.0040 m")
+
+
+def _ground_filter_stats(tmp_path, xyz):
+    import toolbox
+    from toolbox.io.pointcloud import write_point_cloud
+
+    tmp_path = tmp_path / str(len(xyz))
+    tmp_path.mkdir()
+    write_point_cloud(tmp_path / "pts.las", xyz, "EPSG:32632")
+    res = toolbox.run("dem:ground", {"INPUT": str(tmp_path / "pts.las"), "CELL_SIZE": 1.0,
+                                     "OUTPUT": str(tmp_path / "dtm.tif"),
+                                     "NONGROUND": str(tmp_path / "ng.tif")})
+    return res["STATISTICS"]["ground_filter"]
+
+
+def test_ground_filter_object_fraction_does_not_count_empty_cells(tmp_path):
+    # a flat field surveyed in strips (columns 0-1 of every 4 of 1 m): no object at all; the
+    # empty cells of the filter grid counted as objects (0.47)
+    x0, y0 = 500000.0, 5000000.0
+    flat = np.array([(x0 + x + 0.5, y0 + y + 0.5, 100.0) for x in range(40) for y in range(40)
+                     if x % 4 < 2])
+    g = _ground_filter_stats(tmp_path, flat)
+    assert g["ground"] == len(flat) and g["nonground"] == 0
+    assert g["object_cells_fraction"] == 0.0
+    assert 0.4 < g["empty_cells_fraction"] < 0.55
+    # a 10 x 10 m, 10 m high block on a fully surveyed 40 x 40 m field: about 100 of 1600
+    full = np.array([(x0 + x + 0.5, y0 + y + 0.5, 110.0 if 15 <= x < 25 and 15 <= y < 25
+                      else 100.0) for x in range(40) for y in range(40)])
+    g = _ground_filter_stats(tmp_path, full)
+    assert g["nonground"] == 100
+    assert g["object_cells_fraction"] == pytest.approx(100 / 1600, abs=0.02)
