@@ -114,3 +114,18 @@ def test_ground_filter_object_fraction_does_not_count_empty_cells(tmp_path):
     g = _ground_filter_stats(tmp_path, full)
     assert g["nonground"] == 100
     assert g["object_cells_fraction"] == pytest.approx(100 / 1600, abs=0.02)
+
+
+def test_quality_report_bundle_with_height_only_check_points():
+    from toolbox.cartography.quality import Specification, build_sections
+
+    # check points all Z-only: the bundle reports check_rmse_m x, y None; the report crashed
+    # (exit 3, NoneType has no hypot); now planimetric "not checked", height judged
+    report = {"algorithm": "orientation:bundle", "outputs": {"STATISTICS": {
+        "sigma0": 1.0, "redundancy": 10, "photos": 2, "points": 9, "rejected": 0, "flagged": 0,
+        "control_rmse_m": {"x": 0.05, "y": 0.04, "z": 0.08},
+        "check_rmse_m": {"x": None, "y": None, "z": 0.12}}}}
+    verdicts, _ = build_sections({"orientation:bundle": [("b", report)]}, Specification())
+    got = {v.criterion: (v.measured, v.status) for v in verdicts}
+    assert got["check points, planimetric RMSE"] == ("n/a", "not checked")
+    assert got["check points, height RMSE"] == ("0.120 m", "pass")

@@ -119,8 +119,10 @@ def _fmt(value: Any, unit: str = "", digits: int = 3) -> str:
 
 
 def _planimetric(rmse: dict) -> float | None:
-    """sqrt(RMSE_x² + RMSE_y²) of a ``{"x", "y", ...}`` report entry, None without both."""
-    return float(np.hypot(rmse["x"], rmse["y"])) if "x" in rmse and "y" in rmse else None
+    """sqrt(RMSE_x² + RMSE_y²) of a ``{"x", "y", ...}`` report entry, None without both (a
+    block whose check points are all height points has ``x``, ``y`` None)."""
+    x, y = rmse.get("x"), rmse.get("y")
+    return None if x is None or y is None else float(np.hypot(x, y))
 
 
 def _judge(value: float | None, limit: float) -> str:
