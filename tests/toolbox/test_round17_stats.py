@@ -129,3 +129,16 @@ def test_quality_report_bundle_with_height_only_check_points():
     got = {v.criterion: (v.measured, v.status) for v in verdicts}
     assert got["check points, planimetric RMSE"] == ("n/a", "not checked")
     assert got["check points, height RMSE"] == ("0.120 m", "pass")
+
+
+def test_quality_report_orientation_check_without_check_points_counts_zero():
+    from toolbox.cartography.quality import Specification
+    from toolbox.cartography.quality_sections import orientation_section
+
+    # no check point intersected: the count read "None"
+    report = {"outputs": {"STATISTICS": {"observations": 8, "rmse_um": 4.0, "flagged": 0,
+                                         "threshold_px": 1.0, "control_points": 4,
+                                         "control_rmse_xy_m": 0.1, "control_rmse_z_m": 0.2}}}
+    sec = orientation_section({"orientation:check": [("c", report)]}, Specification(), [])
+    table = next(b for b in sec.blocks if b[0] == "table")
+    assert table[2][0] == ["Points intersected", "4", "0"]

@@ -146,7 +146,8 @@ def orientation_section(reports, spec: Specification, verdicts: list[Verdict]) -
                  "photo that sees them; the image residuals and the ground misclosure of the "
                  "intersected points.")
         sec.table(["Quantity", "Control points", "Check points"], [
-            ["Points", str(stats.get("control_points")), str(stats.get("check_points"))],
+            ["Points intersected", str(stats.get("control_points", 0)),
+             str(stats.get("check_points", 0))],
             ["RMSE, planimetric", _fmt(stats.get("control_rmse_xy_m"), "m"),
              _fmt(stats.get("check_rmse_xy_m"), "m")],
             ["RMSE, height", _fmt(stats.get("control_rmse_z_m"), "m"),
