@@ -142,3 +142,14 @@ def test_quality_report_orientation_check_without_check_points_counts_zero():
     sec = orientation_section({"orientation:check": [("c", report)]}, Specification(), [])
     table = next(b for b in sec.blocks if b[0] == "table")
     assert table[2][0] == ["Points intersected", "4", "0"]
+
+
+def test_quality_report_small_seamline_cut_area_is_not_zero():
+    from toolbox.cartography.quality_sections import mosaic_section
+
+    # a 30 m² sliver an orthophoto supplies read "0.00 ha"
+    report = {"outputs": {"STATISTICS": {"method": "voronoi", "orthos": 2,
+                                         "cut_areas": {"a": 25000.0, "b": 30.0}}}}
+    sec = mosaic_section({"mosaic:seamlines": [("s", report)]}, [])
+    table = next(b for b in sec.blocks if b[0] == "table")
+    assert table[2] == [["a", "2.50 ha"], ["b", "0.0030 ha"]]

@@ -447,7 +447,7 @@ def mosaic_section(reports, verdicts: list[Verdict]) -> Section | None:
         s = _stats(report)
         sec.text(f"Seamlines ({name}): method {s.get('method')}, {s.get('orthos')} orthophotos.")
         sec.table(["Orthophoto", "Area it supplies"],
-                  [[k, f"{v / 1e4:.2f} ha"] for k, v in (s.get("cut_areas") or {}).items()])
+                  [[k, _fmt(v / 1e4, "ha", 2)] for k, v in (s.get("cut_areas") or {}).items()])
         sec.table(["Seam between", "Method", "Vertices", "Pieces"],
                   [[f"{r['a']} / {r['b']}", str(r.get("method")), str(r.get("vertices")),
                     str(r.get("pieces"))] for r in s.get("seams") or []])
