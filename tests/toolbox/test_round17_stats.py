@@ -153,3 +153,16 @@ def test_quality_report_small_seamline_cut_area_is_not_zero():
     sec = mosaic_section({"mosaic:seamlines": [("s", report)]}, [])
     table = next(b for b in sec.blocks if b[0] == "table")
     assert table[2] == [["a", "2.50 ha"], ["b", "0.0030 ha"]]
+
+
+def test_quality_report_resection_of_a_camera_model_photo():
+    from toolbox.cartography.quality import Specification
+    from toolbox.cartography.quality_sections import orientation_section
+
+    # a Brown/OpenCV photo has no film plane: sigma0_um None (its sigma0 in pixels); the
+    # report crashed (exit 3, None.__format__)
+    report = {"outputs": {"STATISTICS": {"photos": 3, "sigma0_um": {
+        "F1": 4.25, "DJI_1": None, "DJI_2": None}, "sigma0_px": {"DJI_1": 0.8}}}}
+    sec = orientation_section({"orientation:resection": [("r", report)]}, Specification(), [])
+    table = next(b for b in sec.blocks if b[0] == "table")
+    assert table[2] == [["DJI_1", "0.80 px"], ["DJI_2", "n/a"], ["F1", "4.2 µm"]]

@@ -105,8 +105,10 @@ def orientation_section(reports, spec: Specification, verdicts: list[Verdict]) -
         sec.text(f"Space resection ({name}): {len(sigma)} photo(s) oriented from control "
                  "points." + (f" Not oriented (fewer than 4 control points): "
                               f"{', '.join(missing)}." if missing else ""))
+        in_px = stats.get("sigma0_px") or {}  # camera models: pixels, no µm
         sec.table(["Photo", "sigma0 a posteriori"],
-                  [[p, f"{s:.1f} µm"] for p, s in sorted(sigma.items())])
+                  [[p, _fmt(s, "µm", 1) if s is not None or p not in in_px else
+                    _fmt(in_px[p], "px", 2)] for p, s in sorted(sigma.items())])
         verdicts.append(Verdict("Orientation", "photos oriented",
                                 f"{len(sigma)} of {len(sigma) + len(missing)}",
                                 "all photos", FAIL if missing else PASS, "completeness"))
