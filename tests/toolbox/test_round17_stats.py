@@ -166,3 +166,28 @@ def test_quality_report_resection_of_a_camera_model_photo():
     sec = orientation_section({"orientation:resection": [("r", report)]}, Specification(), [])
     table = next(b for b in sec.blocks if b[0] == "table")
     assert table[2] == [["DJI_1", "0.80 px"], ["DJI_2", "n/a"], ["F1", "4.2 µm"]]
+
+
+def test_quality_report_cross_validation_without_predicted_points():
+    from toolbox.cartography.quality import Specification
+    from toolbox.cartography.quality_sections import dem_section
+
+    def run(methods, best):
+        return ("cv", {"outputs": {"STATISTICS": {"crs": "EPSG:32632", "methods": methods,
+                                                  "best": best}}})
+
+    none = {"points": 5, "predicted": 0, "rmse": None, "mean_error": None,
+            "max_abs_error": None}
+    # every point a hull vertex: no RMSE anywhere; the report crashed (exit 3, None < None)
+    verdicts = []
+    dem_section([run({"nearest": none, "idw": none}, None)], Specification(), verdicts)
+    assert [(v.measured, v.status) for v in verdicts] == [("no point predicted", "not checked")]
+    # one method without predictions beside one with: its bar crashed (None * scale)
+    verdicts = []
+    some = none | {"predicted": 3, "rmse": 0.5, "mean_error": 0.1, "max_abs_error": 0.9}
+    sec = dem_section([run({"nearest": none, "idw": some}, "idw")], Specification(), verdicts)
+    assert [(v.measured, v.status) for v in verdicts] == [("0.500 m", "pass")]
+    for fig in sec.figures:
+        import matplotlib.pyplot as plt
+
+        plt.close(fig)

@@ -372,7 +372,9 @@ def dem_section(runs, spec: Specification, verdicts: list[Verdict]) -> Section:
         methods = _stats(report).get("methods") or {}
         if not methods:
             continue
-        best = _stats(report).get("best") or min(methods, key=lambda k: methods[k]["rmse"])
+        rated = [k for k in methods if methods[k].get("rmse") is not None]
+        best = _stats(report).get("best") or min(rated, default=None,
+                                                 key=lambda k: methods[k]["rmse"])
         factor, how = height_unit(_stats(report).get("crs"))  # the errors are in CRS heights
         known = factor is not None  # in metres and judged; else as stored, not judged
         scale, unit = (factor, "m") if known else (1.0, "height units")
@@ -388,6 +390,13 @@ def dem_section(runs, spec: Specification, verdicts: list[Verdict]) -> Section:
                     _fmt(shown(v.get("mean_error")), unit),
                     _fmt(shown(v.get("max_abs_error")), unit),
                     str(v.get("predicted"))] for k, v in methods.items()])
+        if best is None:  # every point a hull vertex (or out of reach): nothing predicted
+            verdicts.append(Verdict("DEM", "height RMSE of the best method",
+                                    "no point predicted", f"<= {spec.height_rmse_m:.2f} m",
+                                    NOT_CHECKED, "NMAS, contour interval"))
+            sec.text("No method predicted any point (each was a convex-hull vertex or out of "
+                     "reach): no RMSE.")
+            continue
         best_rmse = shown(methods[best].get("rmse"))
         rmse = best_rmse if known else None
         verdicts.append(Verdict("DEM", f"height RMSE of the best method ({best})",
@@ -395,7 +404,7 @@ def dem_section(runs, spec: Specification, verdicts: list[Verdict]) -> Section:
                                 f"<= {spec.height_rmse_m:.2f} m",
                                 _judge(rmse, spec.height_rmse_m), "NMAS, contour interval"))
         fig, ax = plt.subplots(figsize=(6, 2.4))
-        names = list(methods)
+        names = rated
         ax.bar(names, [methods[k]["rmse"] * scale for k in names],
                color=["#1e8449" if k == best else "#7f8c8d" for k in names])
         if known:
