@@ -191,3 +191,21 @@ def test_quality_report_cross_validation_without_predicted_points():
         import matplotlib.pyplot as plt
 
         plt.close(fig)
+
+
+def test_quality_report_tolerance_is_printed_with_its_digits():
+    from toolbox.cartography.quality import Specification
+    from toolbox.cartography.quality_sections import orientation_section
+
+    # contour interval 0.25 m: height RMSE <= 0.25 / 3.29 = 0.076 m; it read "<= 0.08 m", so a
+    # 0.078 m RMSE failed against a printed tolerance it met
+    spec = Specification(500.0, 0.3, 0.25, 15.0)
+    assert "height RMSE <= 0.076 m" in spec.describe()
+    report = {"outputs": {"STATISTICS": {"observations": 8, "rmse_um": 4.0, "flagged": 0,
+                                         "threshold_px": 1.0, "check_points": 3,
+                                         "check_rmse_xy_m": 0.1, "check_rmse_z_m": 0.078}}}
+    verdicts = []
+    orientation_section({"orientation:check": [("c", report)]}, spec, verdicts)
+    height = next(v for v in verdicts if "height" in v.criterion)
+    assert (height.measured, height.tolerance, height.status) == ("0.078 m", "<= 0.076 m",
+                                                                  "FAIL")

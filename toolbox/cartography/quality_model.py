@@ -38,8 +38,8 @@ class Specification:
 
     def describe(self) -> str:
         return (f"map scale 1:{self.map_scale:g}; planimetric RMS <= {self.ortho_rule_mm:g} mm x "
-                f"{self.map_scale:g} = {self.planimetric_m:.2f} m (S002 §2.6.6); height RMSE <= "
-                f"{self.height_rmse_m:.2f} m (contour interval {self.contour_interval_m:g} m, "
+                f"{self.map_scale:g} = {_fmt(self.planimetric_m, 'm', 2)} (S002 §2.6.6); height RMSE <= "
+                f"{_fmt(self.height_rmse_m, 'm', 2)} (contour interval {self.contour_interval_m:g} m, "
                 f"90 % within half of it); fiducial residuals <= {self.io_tolerance_um:g} µm")
 
 

@@ -122,7 +122,7 @@ def orientation_section(reports, spec: Specification, verdicts: list[Verdict]) -
             rows += [["Check points RMSE, planimetric", _fmt(xy, "m")],
                      ["Check points RMSE, height", _fmt(check[2], "m")]]
             verdicts.append(Verdict("Absolute orientation", "check points, planimetric RMSE",
-                                    _fmt(xy, "m"), f"<= {spec.planimetric_m:.2f} m",
+                                    _fmt(xy, "m"), f"<= {_fmt(spec.planimetric_m, 'm', 2)}",
                                     _judge(xy, spec.planimetric_m), "S002 §2.6.6"))
         sec.text(f"Absolute orientation of the stereo model ({name}).")
         sec.table(["Quantity", "Value"], rows)
@@ -140,7 +140,7 @@ def orientation_section(reports, spec: Specification, verdicts: list[Verdict]) -
         for label, value, limit in (("planimetric", _planimetric(check), spec.planimetric_m),
                                     ("height", check.get("z"), spec.height_rmse_m)):
             verdicts.append(Verdict("Aerial triangulation", f"check points, {label} RMSE",
-                                    _fmt(value, "m"), f"<= {limit:.2f} m", _judge(value, limit),
+                                    _fmt(value, "m"), f"<= {_fmt(limit, 'm', 2)}", _judge(value, limit),
                                     "S002 §2.6.6" if label == "planimetric" else "NMAS"))
     for name, report in reports.get("orientation:check", []):
         stats = _stats(report)
@@ -160,7 +160,7 @@ def orientation_section(reports, spec: Specification, verdicts: list[Verdict]) -
         for label, key, limit in (("planimetric", "check_rmse_xy_m", spec.planimetric_m),
                                   ("height", "check_rmse_z_m", spec.height_rmse_m)):
             verdicts.append(Verdict("Orientation", f"check points, {label} RMSE",
-                                    _fmt(stats.get(key), "m"), f"<= {limit:.2f} m",
+                                    _fmt(stats.get(key), "m"), f"<= {_fmt(limit, 'm', 2)}",
                                     _judge(stats.get(key), limit),
                                     "S002 §2.6.6" if label == "planimetric" else "NMAS"))
     return sec if sec.blocks else None
@@ -183,7 +183,7 @@ def rectification_section(runs, spec: Specification, verdicts: list[Verdict]) ->
                                           f"{_fmt(stats.get('rmse_y'), 'm')}"],
             ["Check points RMSE", _fmt(rmse_check, "m")]])
         verdicts.append(Verdict("Rectified photo", "check points RMSE", _fmt(rmse_check, "m"),
-                                f"<= {tolerance:.2f} m", _judge(rmse_check, tolerance),
+                                f"<= {_fmt(tolerance, 'm', 2)}", _judge(rmse_check, tolerance),
                                 "S002 §2.6.6"))
         points = stats.get("points") or []
         if not points:
@@ -221,7 +221,7 @@ def rectification_section(runs, spec: Specification, verdicts: list[Verdict]) ->
         bx.bar([p["id"] for p in good], [p["residual_ground_norm"] for p in good],
                color=[colours[p["role"]] for p in good])
         bx.axhline(tolerance, color="#c0392b", ls="--", lw=1,
-                   label=f"tolerance {tolerance:.2f} m")
+                   label=f"tolerance {_fmt(tolerance, 'm', 2)}")
         if rmse_check is not None:
             bx.axhline(rmse_check, color="#1e8449", ls=":", lw=1,
                        label=f"check RMSE {rmse_check:.3f} m")
@@ -254,7 +254,7 @@ def ortho_section(reports, spec: Specification, verdicts: list[Verdict]) -> Sect
     if not rows and not checks:
         return None
     sec.text("Orthophotos on the DEM. Their accuracy combines the orientation's and the DEM's: "
-             f"the rule is a planimetric RMS <= {spec.planimetric_m:.2f} m on check points "
+             f"the rule is a planimetric RMS <= {_fmt(spec.planimetric_m, 'm', 2)} on check points "
              "measured on the orthophoto.")
     sec.table(["Photo", "Cell", "Photo GSD", "Largest relief shift", "Outside the photo"], rows)
     if rows:
@@ -263,7 +263,7 @@ def ortho_section(reports, spec: Specification, verdicts: list[Verdict]) -> Sect
                                 FAIL if failed else PASS, "completeness"))
     if not checks:
         verdicts.append(Verdict("Orthophotos", "planimetric RMSE on check points",
-                                "not measured", f"<= {spec.planimetric_m:.2f} m", NOT_CHECKED,
+                                "not measured", f"<= {_fmt(spec.planimetric_m, 'm', 2)}", NOT_CHECKED,
                                 "S002 §2.6.6"))
     ortho_check_rows(sec, checks, spec, verdicts)
     return sec
@@ -293,7 +293,7 @@ def ortho_check_rows(sec: Section, checks, spec: Specification, verdicts: list[V
                                 f"{_fmt(rms, 'm', 2)} ({s.get('matched')} point"
                                 f"{'' if s.get('matched') == 1 else 's'})"
                                 if rms is not None else "no point found",
-                                f"<= {spec.planimetric_m:.2f} m", _judge(rms,
+                                f"<= {_fmt(spec.planimetric_m, 'm', 2)}", _judge(rms,
                                                                          spec.planimetric_m),
                                 "S002 §2.6.6"))
     sec.table(["Orthophoto", "Points found", "RMSE east", "RMSE north", "RMSE planimetric",
@@ -329,7 +329,7 @@ def _offsets_figure(offsets: list[dict], ortho: str, tolerance: float):
     ax.set_ylabel(f"north - {origin[1]:.0f} (m)", fontsize=7)
     ax.tick_params(labelsize=6)
     bx.bar([str(o["id"]) for o in offsets], length, color="#1e8449")
-    bx.axhline(tolerance, color="#c0392b", ls="--", lw=1, label=f"tolerance {tolerance:.2f} m")
+    bx.axhline(tolerance, color="#c0392b", ls="--", lw=1, label=f"tolerance {_fmt(tolerance, 'm', 2)}")
     bx.set_ylabel("offset (m)", fontsize=7)
     bx.tick_params(labelsize=6)
     bx.tick_params(axis="x", rotation=90)
@@ -392,7 +392,7 @@ def dem_section(runs, spec: Specification, verdicts: list[Verdict]) -> Section:
                     str(v.get("predicted"))] for k, v in methods.items()])
         if best is None:  # every point a hull vertex (or out of reach): nothing predicted
             verdicts.append(Verdict("DEM", "height RMSE of the best method",
-                                    "no point predicted", f"<= {spec.height_rmse_m:.2f} m",
+                                    "no point predicted", f"<= {_fmt(spec.height_rmse_m, 'm', 2)}",
                                     NOT_CHECKED, "NMAS, contour interval"))
             sec.text("No method predicted any point (each was a convex-hull vertex or out of "
                      "reach): no RMSE.")
@@ -401,7 +401,7 @@ def dem_section(runs, spec: Specification, verdicts: list[Verdict]) -> Section:
         rmse = best_rmse if known else None
         verdicts.append(Verdict("DEM", f"height RMSE of the best method ({best})",
                                 _fmt(rmse, "m") if known else f"{_fmt(best_rmse)} ({how})",
-                                f"<= {spec.height_rmse_m:.2f} m",
+                                f"<= {_fmt(spec.height_rmse_m, 'm', 2)}",
                                 _judge(rmse, spec.height_rmse_m), "NMAS, contour interval"))
         fig, ax = plt.subplots(figsize=(6, 2.4))
         names = rated
@@ -409,7 +409,7 @@ def dem_section(runs, spec: Specification, verdicts: list[Verdict]) -> Section:
                color=["#1e8449" if k == best else "#7f8c8d" for k in names])
         if known:
             ax.axhline(spec.height_rmse_m, color="#c0392b", ls="--", lw=1,
-                       label=f"tolerance {spec.height_rmse_m:.2f} m")
+                       label=f"tolerance {_fmt(spec.height_rmse_m, 'm', 2)}")
         ax.set_ylabel(f"RMSE ({unit})", fontsize=7)
         ax.set_title("RMSE by method", fontsize=8)
         if known:
