@@ -81,8 +81,8 @@ def test_quality_report_keeps_two_significant_digits_of_small_values():
     sec = ortho_section(reports, Specification(500.0, 0.5, 0.5, 15.0), verdicts)
     tables = [b for b in sec.blocks if b[0] == "table"]
     assert tables[0][2][0][1:3] == ["0.025 m", "0.013 m"]
-    assert tables[1][2][0][2:6] == ["0.0030 m", "0.0020 m", "0.0040 m", "0.0050 m"]
-    assert verdicts[-1].measured.startswith("0.0040 m")
+    assert tables[1][2][0][2:6] == ["0.003 m", "0.002 m", "0.004 m", "0.005 m"]
+    assert verdicts[-1].measured.startswith("0.004 m")
 
 
 def _ground_filter_stats(tmp_path, xyz):
@@ -152,7 +152,7 @@ def test_quality_report_small_seamline_cut_area_is_not_zero():
                                          "cut_areas": {"a": 25000.0, "b": 30.0}}}}
     sec = mosaic_section({"mosaic:seamlines": [("s", report)]}, [])
     table = next(b for b in sec.blocks if b[0] == "table")
-    assert table[2] == [["a", "2.50 ha"], ["b", "0.0030 ha"]]
+    assert table[2] == [["a", "2.50 ha"], ["b", "0.003 ha"]]
 
 
 def test_quality_report_resection_of_a_camera_model_photo():
@@ -209,3 +209,29 @@ def test_quality_report_tolerance_is_printed_with_its_digits():
     height = next(v for v in verdicts if "height" in v.criterion)
     assert (height.measured, height.tolerance, height.status) == ("0.078 m", "<= 0.076 m",
                                                                   "FAIL")
+
+
+def test_tin_interpolate_check_points_that_are_tin_nodes_are_not_checks(tmp_path):
+    import geopandas as gpd
+
+    import toolbox
+
+    # TIN z = x on a 10 m square; check points: a node of the TIN itself (dz 0 by construction)
+    # and one surveyed 0.3 above the surface. dz_rmse over the one independent check: 0.3 (it
+    # was sqrt(0.09 / 2) = 0.21, the node counted as a perfect check)
+    x0, y0 = 500000.0, 5000000.0
+
+    def node(x, y):
+        return (x0 + x, y0 + y, float(x))
+
+    tris = [shapely.Polygon([node(0, 0), node(10, 0), node(10, 10)]),
+            shapely.Polygon([node(0, 0), node(10, 10), node(0, 10)])]
+    gpd.GeoDataFrame(geometry=tris, crs="EPSG:32632").to_file(tmp_path / "tin.gpkg",
+                                                              layer="triangles")
+    gpd.GeoDataFrame(geometry=[shapely.Point(x0, y0, 0.0), shapely.Point(x0 + 5, y0 + 2, 5.3)],
+                     crs="EPSG:32632").to_file(tmp_path / "checks.gpkg")
+    s = toolbox.run("tin:interpolate", {"INPUT": tmp_path / "checks.gpkg",
+                                        "TIN": tmp_path / "tin.gpkg",
+                                        "OUTPUT": tmp_path / "out.gpkg"})["STATISTICS"]
+    assert s["dz_rmse"] == pytest.approx(0.3) and s["dz_mean"] == pytest.approx(0.3)
+    assert (s["dz_points"], s["dz_at_tin_nodes"]) == (1, 1)
