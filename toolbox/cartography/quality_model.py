@@ -109,12 +109,15 @@ def without_paths(text: str) -> str:
 
 def _fmt(value: Any, unit: str = "", digits: int = 3) -> str:
     """``value`` with ``digits`` decimals, or more to keep two significant digits (a 2.5 cm
-    cell read "0.03 m", an RMSE of 0.4 mm "0.000 m"); "n/a" for None."""
+    cell read "0.03 m", an RMSE of 0.4 mm "0.000 m"; 0.03 stays "0.03"); "n/a" for None."""
     if value is None:
         return "n/a"
     v = float(value)
     if math.isfinite(v) and v != 0.0:
-        digits = min(12, max(digits, 1 - math.floor(math.log10(abs(v)))))
+        two = 1 - math.floor(math.log10(abs(v)))  # decimals showing two significant digits
+        if two > digits:  # one fewer when that is exact (0.03, not 0.030)
+            digits = min(12, two - 1 if math.isclose(round(v, two - 1), v, rel_tol=1e-9)
+                         else two)
     return f"{v:.{digits}f}{(' ' + unit) if unit else ''}"
 
 
