@@ -78,7 +78,9 @@ class BundleAdjustment(Algorithm):
     control, check with sigma X/Y/Z), image_residuals (per measurement: µm, px, w-test,
     redundancy number, rejected) and ground_residuals (surveyed -> adjusted, control and check);
     REPORT (JSON): sigma0 a posteriori, redundancy, photos and cameras with standard deviations,
-    control/check residuals and RMSE, rejected observations.
+    control/check residuals and RMSE, rejected observations. Its ``rms_image_residual_um`` /
+    ``_px`` are per coordinate, sqrt(Σ(vx² + vy²) / 2n) over the n active measurements
+    (orientation:check's ``rmse_um`` is of the residual vectors' lengths, √2 times as large).
 
     REFERENCE (optional): another solution's exterior orientations (e.g. the Z-Map log's), with
     this adjustment's cameras, compared in the terms an adjustment log states its residuals in:

@@ -33,7 +33,8 @@ class CheckOrientation(Algorithm):
     measurements (least squares, as orientation:intersect): ground residuals dX, dY, dZ =
     intersected minus surveyed.
 
-    RMSE per photo and for the block (image µm and px; ground XY and Z separately for control and
+    RMSE per photo and for the block (image µm and px, of the residual vectors' lengths,
+    sqrt(Σ(vx² + vy²) / n); ground XY, sqrt(Σ(dX² + dY²) / n), and Z separately for control and
     check points); measurements with a residual over THRESHOLD_PX are flagged. With MAP_SCALE
     (denominator, e.g. 5000) the block is judged against the seeds' planimetric rule (thesis
     S002 par. 2.6.6: RMS <= 0.5 mm at the map scale for large scales, 1:5,000 and larger;

@@ -58,7 +58,8 @@ class SpaceResection(Algorithm):
                    extensions=[".yaml", ".yml"]),
         report_output("JSON report: parameters, standard deviations, residuals"),
     ]
-    outputs = [Output("STATISTICS", "photos resected, sigma0 per photo (µm)", "dict")]
+    outputs = [Output("STATISTICS", "photos resected, sigma0 per photo (µm; camera models: "
+                      "sigma0_px)", "dict")]
 
     def process(self, params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
         from toolbox.photogrammetry.orientation_check import resect_photos
@@ -80,4 +81,7 @@ class SpaceResection(Algorithm):
                                           "computed minus observed", "photos": report})
         stats = {"photos": len(report),
                  "sigma0_um": {pid: r["sigma0_um"] for pid, r in report.items()}}
+        px = {pid: r["sigma0_px"] for pid, r in report.items() if "sigma0_px" in r}
+        if px:  # camera models (no film plane): sigma0 in pixels, sigma0_um None
+            stats["sigma0_px"] = px
         return {"OUTPUT": params["OUTPUT"], "REPORT": params["REPORT"], "STATISTICS": stats}

@@ -24,7 +24,9 @@ class Interpolate(Algorithm):
     The output is the input layer with a height field (FIELD) added and PointZ geometries whose
     Z is that height. Points outside the TIN get NODATA in both and are counted in STATISTICS
     (and a warning). When the input points already have a Z, a field ``dz`` = input Z - TIN Z is
-    added and its RMSE reported: a check of the TIN against control points. Multipoints are
+    added and its RMSE reported: a check of the TIN against control points (points that are
+    nodes of the TIN, same X, Y and Z, are no check of it: left out, counted and named in a
+    warning). Multipoints are
     exploded into single points; features without a geometry (null or empty) are kept, without
     geometry and with NODATA, and named in a warning.
     """
@@ -118,8 +120,18 @@ class Interpolate(Algorithm):
         if has_z:
             dz = coords[:, 2] - z
             frame["dz"] = np.where(no_z, nodata, dz)
-            if (~no_z).any():
-                good = dz[~no_z]
+            # a point that is a node of the TIN (same X, Y and Z) has dz = 0 by construction:
+            # the TIN was built from it, so it is no independent check of the TIN
+            node = _tin_nodes(xyz, coords, ~no_z)
+            if node.any():
+                feedback.push_warning(
+                    f"{int(node.sum())} point(s) of INPUT are nodes of the TIN (same X, Y, Z; "
+                    f"{feature_rows(np.flatnonzero(node))}): dz 0 by construction, not checks "
+                    "of the TIN; left out of dz_mean, dz_rmse and dz_max_abs")
+            stats["dz_points"] = int((~no_z & ~node).sum())
+            stats["dz_at_tin_nodes"] = int(node.sum())
+            if (~no_z & ~node).any():
+                good = dz[~no_z & ~node]
                 stats.update(dz_mean=float(good.mean()), dz_rmse=float(np.sqrt(np.mean(good**2))),
                              dz_max_abs=float(np.abs(good).max()))
         if outside.any():
@@ -135,3 +147,21 @@ class Interpolate(Algorithm):
         with feedback.timed("write"):
             write_layers(params["OUTPUT"], {layer: frame}, geometry_types={layer: "Point Z"})
         return {"OUTPUT": params["OUTPUT"], "STATISTICS": stats}
+
+
+def _tin_nodes(xyz: np.ndarray, coords: np.ndarray, inside: np.ndarray) -> np.ndarray:
+    """(N,) True where a point (inside the TIN) is one of its nodes: X, Y, Z equal to within
+    1e-9 of the coordinates' magnitude."""
+    from scipy.spatial import cKDTree
+
+    out = np.zeros(len(coords), dtype=bool)
+    idx = np.flatnonzero(inside & np.isfinite(coords).all(axis=1))
+    if not len(idx) or not len(xyz):
+        return out
+    tol = 1e-9 * max(1.0, float(np.abs(xyz).max()))
+    dist, k = cKDTree(xyz[:, :2]).query(coords[idx, :2], distance_upper_bound=tol)
+    hit = np.isfinite(dist)
+    same_z = np.zeros(len(idx), dtype=bool)
+    same_z[hit] = np.abs(xyz[k[hit], 2] - coords[idx[hit], 2]) <= tol
+    out[idx[same_z]] = True
+    return out

@@ -5,6 +5,7 @@ run reports read from a folder and the formatting helpers the sections share (se
 from __future__ import annotations
 
 import json
+import math
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -37,8 +38,8 @@ class Specification:
 
     def describe(self) -> str:
         return (f"map scale 1:{self.map_scale:g}; planimetric RMS <= {self.ortho_rule_mm:g} mm x "
-                f"{self.map_scale:g} = {self.planimetric_m:.2f} m (S002 §2.6.6); height RMSE <= "
-                f"{self.height_rmse_m:.2f} m (contour interval {self.contour_interval_m:g} m, "
+                f"{self.map_scale:g} = {_fmt(self.planimetric_m, 'm', 2)} (S002 §2.6.6); height RMSE <= "
+                f"{_fmt(self.height_rmse_m, 'm', 2)} (contour interval {self.contour_interval_m:g} m, "
                 f"90 % within half of it); fiducial residuals <= {self.io_tolerance_um:g} µm")
 
 
@@ -107,14 +108,24 @@ def without_paths(text: str) -> str:
 
 
 def _fmt(value: Any, unit: str = "", digits: int = 3) -> str:
+    """``value`` with ``digits`` decimals, or more to keep two significant digits (a 2.5 cm
+    cell read "0.03 m", an RMSE of 0.4 mm "0.000 m"; 0.03 stays "0.03"); "n/a" for None."""
     if value is None:
         return "n/a"
-    return f"{float(value):.{digits}f}{(' ' + unit) if unit else ''}"
+    v = float(value)
+    if math.isfinite(v) and v != 0.0:
+        two = 1 - math.floor(math.log10(abs(v)))  # decimals showing two significant digits
+        if two > digits:  # one fewer when that is exact (0.03, not 0.030)
+            digits = min(12, two - 1 if math.isclose(round(v, two - 1), v, rel_tol=1e-9)
+                         else two)
+    return f"{v:.{digits}f}{(' ' + unit) if unit else ''}"
 
 
 def _planimetric(rmse: dict) -> float | None:
-    """sqrt(RMSE_x² + RMSE_y²) of a ``{"x", "y", ...}`` report entry, None without both."""
-    return float(np.hypot(rmse["x"], rmse["y"])) if "x" in rmse and "y" in rmse else None
+    """sqrt(RMSE_x² + RMSE_y²) of a ``{"x", "y", ...}`` report entry, None without both (a
+    block whose check points are all height points has ``x``, ``y`` None)."""
+    x, y = rmse.get("x"), rmse.get("y")
+    return None if x is None or y is None else float(np.hypot(x, y))
 
 
 def _judge(value: float | None, limit: float) -> str:

@@ -36,6 +36,8 @@ def interior_section(runs, spec: Specification, verdicts: list[Verdict]) -> Sect
         stats = _stats(report)
         worst_um = None if stats.get("max_residual_mm") is None else \
             1000.0 * stats["max_residual_mm"]
+        sigma_um = None if stats.get("max_sigma0_mm") is None else \
+            1000.0 * stats["max_sigma0_mm"]  # None: no redundancy (not 0.0, a perfect fit)
         verdicts.append(Verdict("Interior orientation", "largest fiducial residual",
                                 _fmt(worst_um, "µm", 1), f"<= {spec.io_tolerance_um:g} µm",
                                 _judge(worst_um, spec.io_tolerance_um),
@@ -44,7 +46,7 @@ def interior_section(runs, spec: Specification, verdicts: list[Verdict]) -> Sect
         if not csv_path or not Path(csv_path).exists():
             sec.table(["Photos", "Largest residual", "Largest sigma0"],
                       [[str(stats.get("photos")), _fmt(worst_um, "µm", 1),
-                        _fmt(1000 * (stats.get("max_sigma0_mm") or 0), "µm", 1)]])
+                        _fmt(sigma_um, "µm", 1)]])
             sec.text("No residual table was written, so no vector plot.")
             continue
         by_photo: dict[str, list[dict]] = {}
@@ -103,8 +105,10 @@ def orientation_section(reports, spec: Specification, verdicts: list[Verdict]) -
         sec.text(f"Space resection ({name}): {len(sigma)} photo(s) oriented from control "
                  "points." + (f" Not oriented (fewer than 4 control points): "
                               f"{', '.join(missing)}." if missing else ""))
+        in_px = stats.get("sigma0_px") or {}  # camera models: pixels, no µm
         sec.table(["Photo", "sigma0 a posteriori"],
-                  [[p, f"{s:.1f} µm"] for p, s in sorted(sigma.items())])
+                  [[p, _fmt(s, "µm", 1) if s is not None or p not in in_px else
+                    _fmt(in_px[p], "px", 2)] for p, s in sorted(sigma.items())])
         verdicts.append(Verdict("Orientation", "photos oriented",
                                 f"{len(sigma)} of {len(sigma) + len(missing)}",
                                 "all photos", FAIL if missing else PASS, "completeness"))
@@ -118,7 +122,7 @@ def orientation_section(reports, spec: Specification, verdicts: list[Verdict]) -
             rows += [["Check points RMSE, planimetric", _fmt(xy, "m")],
                      ["Check points RMSE, height", _fmt(check[2], "m")]]
             verdicts.append(Verdict("Absolute orientation", "check points, planimetric RMSE",
-                                    _fmt(xy, "m"), f"<= {spec.planimetric_m:.2f} m",
+                                    _fmt(xy, "m"), f"<= {_fmt(spec.planimetric_m, 'm', 2)}",
                                     _judge(xy, spec.planimetric_m), "S002 §2.6.6"))
         sec.text(f"Absolute orientation of the stereo model ({name}).")
         sec.table(["Quantity", "Value"], rows)
@@ -136,7 +140,7 @@ def orientation_section(reports, spec: Specification, verdicts: list[Verdict]) -
         for label, value, limit in (("planimetric", _planimetric(check), spec.planimetric_m),
                                     ("height", check.get("z"), spec.height_rmse_m)):
             verdicts.append(Verdict("Aerial triangulation", f"check points, {label} RMSE",
-                                    _fmt(value, "m"), f"<= {limit:.2f} m", _judge(value, limit),
+                                    _fmt(value, "m"), f"<= {_fmt(limit, 'm', 2)}", _judge(value, limit),
                                     "S002 §2.6.6" if label == "planimetric" else "NMAS"))
     for name, report in reports.get("orientation:check", []):
         stats = _stats(report)
@@ -144,7 +148,8 @@ def orientation_section(reports, spec: Specification, verdicts: list[Verdict]) -
                  "photo that sees them; the image residuals and the ground misclosure of the "
                  "intersected points.")
         sec.table(["Quantity", "Control points", "Check points"], [
-            ["Points", str(stats.get("control_points")), str(stats.get("check_points"))],
+            ["Points intersected", str(stats.get("control_points", 0)),
+             str(stats.get("check_points", 0))],
             ["RMSE, planimetric", _fmt(stats.get("control_rmse_xy_m"), "m"),
              _fmt(stats.get("check_rmse_xy_m"), "m")],
             ["RMSE, height", _fmt(stats.get("control_rmse_z_m"), "m"),
@@ -155,7 +160,7 @@ def orientation_section(reports, spec: Specification, verdicts: list[Verdict]) -
         for label, key, limit in (("planimetric", "check_rmse_xy_m", spec.planimetric_m),
                                   ("height", "check_rmse_z_m", spec.height_rmse_m)):
             verdicts.append(Verdict("Orientation", f"check points, {label} RMSE",
-                                    _fmt(stats.get(key), "m"), f"<= {limit:.2f} m",
+                                    _fmt(stats.get(key), "m"), f"<= {_fmt(limit, 'm', 2)}",
                                     _judge(stats.get(key), limit),
                                     "S002 §2.6.6" if label == "planimetric" else "NMAS"))
     return sec if sec.blocks else None
@@ -178,7 +183,7 @@ def rectification_section(runs, spec: Specification, verdicts: list[Verdict]) ->
                                           f"{_fmt(stats.get('rmse_y'), 'm')}"],
             ["Check points RMSE", _fmt(rmse_check, "m")]])
         verdicts.append(Verdict("Rectified photo", "check points RMSE", _fmt(rmse_check, "m"),
-                                f"<= {tolerance:.2f} m", _judge(rmse_check, tolerance),
+                                f"<= {_fmt(tolerance, 'm', 2)}", _judge(rmse_check, tolerance),
                                 "S002 §2.6.6"))
         points = stats.get("points") or []
         if not points:
@@ -216,7 +221,7 @@ def rectification_section(runs, spec: Specification, verdicts: list[Verdict]) ->
         bx.bar([p["id"] for p in good], [p["residual_ground_norm"] for p in good],
                color=[colours[p["role"]] for p in good])
         bx.axhline(tolerance, color="#c0392b", ls="--", lw=1,
-                   label=f"tolerance {tolerance:.2f} m")
+                   label=f"tolerance {_fmt(tolerance, 'm', 2)}")
         if rmse_check is not None:
             bx.axhline(rmse_check, color="#1e8449", ls=":", lw=1,
                        label=f"check RMSE {rmse_check:.3f} m")
@@ -249,7 +254,7 @@ def ortho_section(reports, spec: Specification, verdicts: list[Verdict]) -> Sect
     if not rows and not checks:
         return None
     sec.text("Orthophotos on the DEM. Their accuracy combines the orientation's and the DEM's: "
-             f"the rule is a planimetric RMS <= {spec.planimetric_m:.2f} m on check points "
+             f"the rule is a planimetric RMS <= {_fmt(spec.planimetric_m, 'm', 2)} on check points "
              "measured on the orthophoto.")
     sec.table(["Photo", "Cell", "Photo GSD", "Largest relief shift", "Outside the photo"], rows)
     if rows:
@@ -258,7 +263,7 @@ def ortho_section(reports, spec: Specification, verdicts: list[Verdict]) -> Sect
                                 FAIL if failed else PASS, "completeness"))
     if not checks:
         verdicts.append(Verdict("Orthophotos", "planimetric RMSE on check points",
-                                "not measured", f"<= {spec.planimetric_m:.2f} m", NOT_CHECKED,
+                                "not measured", f"<= {_fmt(spec.planimetric_m, 'm', 2)}", NOT_CHECKED,
                                 "S002 §2.6.6"))
     ortho_check_rows(sec, checks, spec, verdicts)
     return sec
@@ -288,7 +293,7 @@ def ortho_check_rows(sec: Section, checks, spec: Specification, verdicts: list[V
                                 f"{_fmt(rms, 'm', 2)} ({s.get('matched')} point"
                                 f"{'' if s.get('matched') == 1 else 's'})"
                                 if rms is not None else "no point found",
-                                f"<= {spec.planimetric_m:.2f} m", _judge(rms,
+                                f"<= {_fmt(spec.planimetric_m, 'm', 2)}", _judge(rms,
                                                                          spec.planimetric_m),
                                 "S002 §2.6.6"))
     sec.table(["Orthophoto", "Points found", "RMSE east", "RMSE north", "RMSE planimetric",
@@ -324,7 +329,7 @@ def _offsets_figure(offsets: list[dict], ortho: str, tolerance: float):
     ax.set_ylabel(f"north - {origin[1]:.0f} (m)", fontsize=7)
     ax.tick_params(labelsize=6)
     bx.bar([str(o["id"]) for o in offsets], length, color="#1e8449")
-    bx.axhline(tolerance, color="#c0392b", ls="--", lw=1, label=f"tolerance {tolerance:.2f} m")
+    bx.axhline(tolerance, color="#c0392b", ls="--", lw=1, label=f"tolerance {_fmt(tolerance, 'm', 2)}")
     bx.set_ylabel("offset (m)", fontsize=7)
     bx.tick_params(labelsize=6)
     bx.tick_params(axis="x", rotation=90)
@@ -367,7 +372,9 @@ def dem_section(runs, spec: Specification, verdicts: list[Verdict]) -> Section:
         methods = _stats(report).get("methods") or {}
         if not methods:
             continue
-        best = _stats(report).get("best") or min(methods, key=lambda k: methods[k]["rmse"])
+        rated = [k for k in methods if methods[k].get("rmse") is not None]
+        best = _stats(report).get("best") or min(rated, default=None,
+                                                 key=lambda k: methods[k]["rmse"])
         factor, how = height_unit(_stats(report).get("crs"))  # the errors are in CRS heights
         known = factor is not None  # in metres and judged; else as stored, not judged
         scale, unit = (factor, "m") if known else (1.0, "height units")
@@ -383,19 +390,26 @@ def dem_section(runs, spec: Specification, verdicts: list[Verdict]) -> Section:
                     _fmt(shown(v.get("mean_error")), unit),
                     _fmt(shown(v.get("max_abs_error")), unit),
                     str(v.get("predicted"))] for k, v in methods.items()])
+        if best is None:  # every point a hull vertex (or out of reach): nothing predicted
+            verdicts.append(Verdict("DEM", "height RMSE of the best method",
+                                    "no point predicted", f"<= {_fmt(spec.height_rmse_m, 'm', 2)}",
+                                    NOT_CHECKED, "NMAS, contour interval"))
+            sec.text("No method predicted any point (each was a convex-hull vertex or out of "
+                     "reach): no RMSE.")
+            continue
         best_rmse = shown(methods[best].get("rmse"))
         rmse = best_rmse if known else None
         verdicts.append(Verdict("DEM", f"height RMSE of the best method ({best})",
                                 _fmt(rmse, "m") if known else f"{_fmt(best_rmse)} ({how})",
-                                f"<= {spec.height_rmse_m:.2f} m",
+                                f"<= {_fmt(spec.height_rmse_m, 'm', 2)}",
                                 _judge(rmse, spec.height_rmse_m), "NMAS, contour interval"))
         fig, ax = plt.subplots(figsize=(6, 2.4))
-        names = list(methods)
+        names = rated
         ax.bar(names, [methods[k]["rmse"] * scale for k in names],
                color=["#1e8449" if k == best else "#7f8c8d" for k in names])
         if known:
             ax.axhline(spec.height_rmse_m, color="#c0392b", ls="--", lw=1,
-                       label=f"tolerance {spec.height_rmse_m:.2f} m")
+                       label=f"tolerance {_fmt(spec.height_rmse_m, 'm', 2)}")
         ax.set_ylabel(f"RMSE ({unit})", fontsize=7)
         ax.set_title("RMSE by method", fontsize=8)
         if known:
@@ -444,7 +458,7 @@ def mosaic_section(reports, verdicts: list[Verdict]) -> Section | None:
         s = _stats(report)
         sec.text(f"Seamlines ({name}): method {s.get('method')}, {s.get('orthos')} orthophotos.")
         sec.table(["Orthophoto", "Area it supplies"],
-                  [[k, f"{v / 1e4:.2f} ha"] for k, v in (s.get("cut_areas") or {}).items()])
+                  [[k, _fmt(v / 1e4, "ha", 2)] for k, v in (s.get("cut_areas") or {}).items()])
         sec.table(["Seam between", "Method", "Vertices", "Pieces"],
                   [[f"{r['a']} / {r['b']}", str(r.get("method")), str(r.get("vertices")),
                     str(r.get("pieces"))] for r in s.get("seams") or []])

@@ -191,13 +191,18 @@ def run_ground(request: GroundRequest, feedback: Feedback) -> dict[str, Any]:
             write_classified_copy(sources.points, kept, request.ground_points, codes, crs)
         else:
             write_point_cloud(request.ground_points, xyz, crs, classification=codes)
+    occupied = np.isfinite(result.surface.z)
     stats["ground_filter"] = {
         "method": "SMRF (Pingel et al. 2013), square windows", "filter_cell": cell,
         "slope": flt.slope, "max_window": flt.max_window, "radii_cells": len(flt.radii),
         "elevation_threshold": flt.elevation_threshold,
         "elevation_scalar": flt.elevation_scalar, "points": len(xyz), "ground": n_ground,
         "nonground": len(xyz) - n_ground,
-        "object_cells_fraction": float(result.objects.mean()), "crs": crs_label(crs),
+        # of the filter cells holding points (the empty ones, flagged so that the provisional
+        # DTM is filled from ground cells, are no objects: a survey's gaps read as buildings)
+        "object_cells_fraction": float(result.objects[occupied].mean()) if occupied.any()
+        else 0.0, "empty_cells_fraction": float(1.0 - occupied.mean()),
+        "crs": crs_label(crs),
         "mask_cells_nonground": int((mask == 1).sum())}
     return stats
 

@@ -397,5 +397,5 @@ def _summary(sums: dict, errors_path: Path, worst: tuple, gone: np.ndarray) -> d
     index = rank - int(np.searchsorted(gone, rank))  # the in-memory index of its position
     return summary | {"rmse": math.sqrt(math.fsum(sums["err2"]) / n), "mean_error": mean,
                       "max_abs_error": worst[0], "mean_abs_error": math.fsum(sums["abs"]) / n,
-                      "std_error": math.sqrt(math.fsum(spread) / n),
+                      "std_error": math.sqrt(math.fsum(spread) / (n - 1)) if n > 1 else None,
                       "worst_point_index": index, "worst_point": worst[2]}

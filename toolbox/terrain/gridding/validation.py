@@ -34,7 +34,9 @@ def error_summary(predicted: np.ndarray, observed: np.ndarray) -> dict[str, Any]
     return summary | {"rmse": float(np.sqrt(np.mean(err ** 2))), "mean_error": float(err.mean()),
                       "max_abs_error": float(np.abs(err).max()),
                       "mean_abs_error": float(np.abs(err).mean()),
-                      "std_error": float(err.std()),
+                      # the sample standard deviation (n - 1, ASPRS Positional Accuracy
+                      # Standards, Annex D), undefined for a single error
+                      "std_error": float(err.std(ddof=1)) if n > 1 else None,
                       "worst_point_index": int(np.flatnonzero(ok)[worst])}
 
 

@@ -145,7 +145,9 @@ def _clipped(p: np.ndarray, h: np.ndarray, mask) -> CutFill:
     for sign in (1.0, -1.0):
         pieces = []
         for k in range(len(p)):
-            ring = _clip_positive(xy[k], sign * h[k])
+            # a triangle with no vertex strictly on this side has no part of it (a flat
+            # triangle at the reference, h = 0, would else be the whole ring on both sides)
+            ring = _clip_positive(xy[k], sign * h[k]) if (sign * h[k]).max() > 0 else ()
             pieces.append(shapely.Polygon(ring) if len(ring) >= 3 else shapely.Polygon())
         clipped = shapely.intersection(np.array(pieces, dtype=object), mask)
         a = shapely.area(clipped)
