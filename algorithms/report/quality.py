@@ -20,8 +20,9 @@ class Quality(Algorithm):
     and its source, and an overall ACCEPTED (saying how many criteria were checked and naming
     those not checked), NOT ACCEPTED or NOT CHECKED (no criterion measured; also in the
     console and in CONTENTS' ``overall``). Tolerances: planimetric RMS <=
-    ``RULE_MM`` mm x ``ORTHO_SCALE`` (S002 §2.6.6: 0.3 mm for small scales, 0.5 mm for large
-    ones) for orthophotos, rectification and orientation check points; height RMSE <=
+    ``RULE_MM`` mm x ``ORTHO_SCALE`` (by default S002 §2.6.6's rule at that scale, as
+    orientation:check and rectify:estimate judge: 0.5 mm for large scales, up to 1:5000, 0.3 mm
+    for smaller ones) for orthophotos, rectification and orientation check points; height RMSE <=
     ``CONTOUR_INTERVAL`` / 3.29 (90 % of the points within half the contour interval, the
     National Map Accuracy Standard's rule; S002 uses 5 m at 1:5000); fiducial residuals <=
     ``IO_TOLERANCE_UM`` (a producer's threshold: set the tender's).
@@ -46,8 +47,9 @@ class Quality(Algorithm):
         String("TITLE", "report title", default="Quality report"),
         Number("ORTHO_SCALE", "map and orthophoto scale denominator of the specification",
                default=5000.0, min_value=1),
-        Number("RULE_MM", "allowed planimetric RMS on paper, mm (0.3 small, 0.5 large scales)",
-               default=0.3, min_value=0, min_exclusive=True),
+        Number("RULE_MM", "allowed planimetric RMS on paper, mm (default: S002 §2.6.6 at "
+               "ORTHO_SCALE, 0.5 up to 1:5000, 0.3 at smaller scales)", optional=True,
+               min_value=0, min_exclusive=True),
         Number("CONTOUR_INTERVAL", "contour interval of the map, m (height tolerance: "
                "interval / 3.29)", default=5.0, min_value=0, min_exclusive=True),
         Number("IO_TOLERANCE_UM", "largest fiducial residual accepted, µm", default=15.0,
@@ -71,8 +73,12 @@ class Quality(Algorithm):
 
     def process(self, params, feedback: Feedback):
         from toolbox.cartography.quality import Specification, write_report
+        from toolbox.photogrammetry.accuracy import planimetric_tolerance_mm
 
-        spec = Specification(params["ORTHO_SCALE"], params["RULE_MM"],
+        rule_mm = params["RULE_MM"]
+        if rule_mm is None:
+            rule_mm = planimetric_tolerance_mm(params["ORTHO_SCALE"], "ORTHO_SCALE")
+        spec = Specification(params["ORTHO_SCALE"], rule_mm,
                              params["CONTOUR_INTERVAL"], params["IO_TOLERANCE_UM"])
         contents = write_report(params["REPORTS"], params["OUTPUT"], params["TITLE"], spec)
         if not contents["sections"]:

@@ -30,9 +30,9 @@ def check_map_scale(map_scale: float, name: str = "MAP_SCALE") -> float:
     return float(map_scale)
 
 
-def planimetric_tolerance_mm(map_scale: float) -> float:
+def planimetric_tolerance_mm(map_scale: float, name: str = "MAP_SCALE") -> float:
     """Allowed RMS on the map sheet, mm: 0.5 for large scales, 0.3 for small ones."""
-    return 0.5 if check_map_scale(map_scale) <= LARGE_SCALE_LIMIT else 0.3
+    return 0.5 if check_map_scale(map_scale, name) <= LARGE_SCALE_LIMIT else 0.3
 
 
 def planimetric_tolerance_m(map_scale: float) -> float:

@@ -60,12 +60,13 @@ def test_first_page_is_the_verdict(reports, tmp_path):
                                    "topology": 1}
     first = pdf_pages(out)[0]
     assert "Siena quality" in first and "Verdict" in first
-    # the rectification check RMSE against 0.3 mm x 5000 = 1.50 m (S002 §2.6.6)
+    # the rectification check RMSE against 0.5 mm x 5000 = 2.50 m (S002 §2.6.6: 1:5000 is a
+    # large scale, as orientation:check and rectify:estimate judge it)
     rmse = json.loads((reports / "rectify_estimate.json").read_text())[
         "outputs"]["STATISTICS"]["check"]["rmse"]
     verdicts = {v["criterion"]: v for v in contents["verdicts"]}
-    assert verdicts["check points RMSE"]["status"] == ("pass" if rmse <= 1.5 else "FAIL")
-    assert f"{rmse:.3f} m" in first and "<= 1.50 m" in first and "S002 §2.6.6" in first
+    assert verdicts["check points RMSE"]["status"] == ("pass" if rmse <= 2.5 else "FAIL")
+    assert f"{rmse:.3f} m" in first and "<= 2.50 m" in first and "S002 §2.6.6" in first
     # the DEM's best RMSE against the contour interval's height rule: 5 m / 3.29 = 1.52 m
     cv = json.loads((reports / "dem_cross_validate.json").read_text())["outputs"]["STATISTICS"]
     best = min(cv["methods"], key=lambda k: cv["methods"][k]["rmse"])
