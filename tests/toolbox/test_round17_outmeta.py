@@ -1,0 +1,81 @@
+"""Round 17, what outputs say about themselves:
+
+- mosaic:cut of a raster dropped what its values mean: a scaled Int16 DEM (heights = code x 0.01
+  + 100, GDAL's scale/offset) came out as bare codes (1220 read as metres where the source says
+  112.2 m, exit 0), a DEM in feet lost its unit type (so dem:slope then read its sheets as metres
+  in silence, where it refuses the source), a classified raster kept ColorInterp=Palette without
+  its colour table, band descriptions and dataset metadata were gone; now copied
+  (:func:`toolbox.raster.writer.copy_band_metadata`);
+- dem:slope and dem:aspect wrote a band with neither description nor unit type: a slope in
+  percent could not be told from one in degrees; now "slope (degrees)"/"degree",
+  "slope (percent)"/"percent", "aspect (...)"/"degree".
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import rasterio
+import shapely
+from rasterio.transform import from_origin
+
+import toolbox
+from toolbox.mosaic.sheets import clip_raster
+
+
+def _raster(path, data, dtype, nodata, **band):
+    with rasterio.open(path, "w", driver="GTiff", width=data.shape[1], height=data.shape[0],
+                       count=1, dtype=dtype, crs="EPSG:32633", nodata=nodata,
+                       transform=from_origin(600000, 4800000, 5, 5)) as dst:
+        dst.write(data.astype(dtype), 1)
+        if "scale" in band:
+            dst.scales, dst.offsets = (band["scale"],), (band["offset"],)
+        if "unit" in band:
+            dst.set_band_unit(1, band["unit"])
+        if "description" in band:
+            dst.set_band_description(1, band["description"])
+        if "colormap" in band:
+            dst.write_colormap(1, band["colormap"])
+        dst.update_tags(SOURCE="survey 2024")
+    return path
+
+
+SHEET = shapely.box(600050, 4799850, 600150, 4799950)  # cells 10..29 x 10..29
+
+
+def test_cut_keeps_scale_offset_unit_description(tmp_path):
+    codes = np.arange(1600).reshape(40, 40)
+    src = _raster(tmp_path / "scaled.tif", codes, "int16", -32768, scale=0.01, offset=100.0,
+                  unit="ft", description="height above EGM2008")
+    assert clip_raster(src, SHEET, tmp_path / "sheet.tif")
+    with rasterio.open(tmp_path / "sheet.tif") as out:
+        heights = out.read(1) * out.scales[0] + out.offsets[0]
+        assert out.units[0] == "ft"
+        assert out.descriptions[0] == "height above EGM2008"
+        assert out.tags()["SOURCE"] == "survey 2024"
+        assert out.transform.c == 600050 and out.transform.f == 4799950
+    # truth: the source's heights of the same cells (code x scale + offset)
+    assert heights == pytest.approx(codes[10:30, 10:30] * 0.01 + 100.0)
+
+
+def test_cut_keeps_colour_table(tmp_path):
+    table = {0: (255, 0, 0, 255), 1: (0, 255, 0, 255), 2: (0, 0, 255, 255)}
+    src = _raster(tmp_path / "classes.tif", np.arange(1600).reshape(40, 40) % 3, "uint8", 255,
+                  colormap=table)
+    assert clip_raster(src, SHEET, tmp_path / "sheet.tif")
+    with rasterio.open(tmp_path / "sheet.tif") as out:
+        colours = out.colormap(1)  # ValueError before: no colour table
+    assert {k: colours[k] for k in table} == table
+
+
+@pytest.mark.parametrize(("alg", "extra", "unit", "word"), [
+    ("dem:slope", {}, "degree", "degrees"),
+    ("dem:slope", {"UNITS": "percent"}, "percent", "percent"),
+    ("dem:aspect", {}, "degree", "aspect")])
+def test_slope_and_aspect_state_their_unit(tmp_path, alg, extra, unit, word):
+    y, x = np.mgrid[0:20, 0:20]
+    dem = _raster(tmp_path / "dem.tif", 100 + 5.0 * x + 2.0 * y, "float32", -9999)
+    out = toolbox.run(alg, {"INPUT": dem, "OUTPUT": tmp_path / "o.tif", **extra})
+    with rasterio.open(out["OUTPUT"]) as ds:
+        assert ds.units[0] == unit
+        assert word in ds.descriptions[0]
