@@ -79,3 +79,45 @@ def test_slope_and_aspect_state_their_unit(tmp_path, alg, extra, unit, word):
     with rasterio.open(out["OUTPUT"]) as ds:
         assert ds.units[0] == unit
         assert word in ds.descriptions[0]
+
+
+def _rgb(path, x0):
+    rng = np.random.default_rng(int(x0) % 97)
+    with rasterio.open(path, "w", driver="GTiff", width=40, height=40, count=3, dtype="uint8",
+                       crs="EPSG:32633", nodata=0,
+                       transform=from_origin(x0, 4800000, 1, 1)) as dst:
+        dst.write(rng.integers(1, 255, (3, 40, 40), dtype="uint8"))
+    return path
+
+
+def test_mosaic_source_index_names_its_numbers(tmp_path):
+    """The source index held 1, 2... with nothing saying which ortho is which number; now the
+    tags SOURCE_1, SOURCE_2... name the inputs (in the order given) and the band says what it
+    holds."""
+    a, b = _rgb(tmp_path / "west.tif", 600000), _rgb(tmp_path / "east.tif", 600020)
+    out = toolbox.run("mosaic:build", {"INPUT": [str(a), str(b)], "OUTPUT": tmp_path / "m.tif",
+                                       "SOURCE_INDEX": tmp_path / "src.tif"})
+    with rasterio.open(out["SOURCE_INDEX"]) as ds:
+        index, tags = ds.read(1), ds.tags()
+        assert "source" in ds.descriptions[0]
+    assert tags["SOURCE_1"] == str(a) and tags["SOURCE_2"] == str(b)
+    assert (index[:, :10] == 1).all() and (index[:, -10:] == 2).all()  # west only / east only
+
+
+def test_incidence_and_occlusion_rasters_say_what_they_hold(tmp_path):
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).parents[1] / "algorithms" / "ortho"))
+    import ortho_scene as scene
+
+    (tmp_path / "scene").mkdir()
+    sc = scene.make_scene(tmp_path / "scene")
+    toolbox.run("ortho:photo", {"INPUT": sc.photo_path, "PROJECT": sc.project_path,
+                                "DEM": sc.dem_path, "CELL_SIZE": 10.0, "OCCLUSION": True,
+                                "OCCLUSION_MASK": tmp_path / "occ.tif",
+                                "INCIDENCE": tmp_path / "inc.tif", "OUTPUT": tmp_path / "o.tif"})
+    with rasterio.open(tmp_path / "inc.tif") as inc, rasterio.open(tmp_path / "occ.tif") as occ:
+        assert inc.units[0] == "degree" and "incidence" in inc.descriptions[0]
+        assert "1 hidden" in occ.descriptions[0]
+        assert inc.tags()["ORTHO_PHOTO"] == occ.tags()["ORTHO_PHOTO"]

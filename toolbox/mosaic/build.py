@@ -212,6 +212,8 @@ def write_mosaic(plan: MosaicPlan, output: Path, index_path: Path | None, *, alp
         idx = None if index_path is None else stack.enter_context(RasterWriter(
             index_path, grid, 1, index_dtype, 0, cog=cog and index_finished,
             overviews=overviews and index_finished,
+            band_descriptions=["source (1-based input number, 0 = no data; SOURCE_k tags)"],
+            tags={f"SOURCE_{k}": str(s.path) for k, s in enumerate(plan.sources, start=1)},
             overview_resampling="nearest", executor=executor, cache_mb=WRITE_CACHE_MB))
 
         def collect(tile, data, labels):
