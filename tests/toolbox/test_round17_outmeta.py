@@ -8,7 +8,13 @@
   (:func:`toolbox.raster.writer.copy_band_metadata`);
 - dem:slope and dem:aspect wrote a band with neither description nor unit type: a slope in
   percent could not be told from one in degrees; now "slope (degrees)"/"degree",
-  "slope (percent)"/"percent", "aspect (...)"/"degree".
+  "slope (percent)"/"percent", "aspect (...)"/"degree";
+- mosaic:build's SOURCE_INDEX did not say which ortho each number is; ortho:photo's INCIDENCE
+  and OCCLUSION_MASK had no description, unit nor photo id;
+- the ortho of an RGB + near-infrared photo came out as gray, undefined, undefined, undefined
+  (+ alpha) with its band names gone: QGIS showed band 1 as grey, nothing said which band is
+  the NIR; now each band keeps its colour interpretation, description and unit
+  (:func:`toolbox.raster.writer.copy_band_names`, for every warp and MODE=gcps copy).
 """
 
 from __future__ import annotations
@@ -105,14 +111,7 @@ def test_mosaic_source_index_names_its_numbers(tmp_path):
 
 
 def test_incidence_and_occlusion_rasters_say_what_they_hold(tmp_path):
-    import sys
-    from pathlib import Path
-
-    sys.path.insert(0, str(Path(__file__).parents[1] / "algorithms" / "ortho"))
-    import ortho_scene as scene
-
-    (tmp_path / "scene").mkdir()
-    sc = scene.make_scene(tmp_path / "scene")
+    sc = _scene(tmp_path, 1)
     toolbox.run("ortho:photo", {"INPUT": sc.photo_path, "PROJECT": sc.project_path,
                                 "DEM": sc.dem_path, "CELL_SIZE": 10.0, "OCCLUSION": True,
                                 "OCCLUSION_MASK": tmp_path / "occ.tif",
@@ -121,3 +120,31 @@ def test_incidence_and_occlusion_rasters_say_what_they_hold(tmp_path):
         assert inc.units[0] == "degree" and "incidence" in inc.descriptions[0]
         assert "1 hidden" in occ.descriptions[0]
         assert inc.tags()["ORTHO_PHOTO"] == occ.tags()["ORTHO_PHOTO"]
+
+
+def _scene(tmp_path, bands):
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).parents[1] / "algorithms" / "ortho"))
+    import ortho_scene as scene
+
+    (tmp_path / "scene").mkdir()
+    return scene.make_scene(tmp_path / "scene", bands=bands)
+
+
+def test_ortho_of_an_rgbn_photo_keeps_band_names_and_colours(tmp_path):
+    from rasterio.enums import ColorInterp as CI
+
+    sc = _scene(tmp_path, 4)
+    with rasterio.open(sc.photo_path, "r+") as ds:
+        ds.colorinterp = [CI.red, CI.green, CI.blue, CI.undefined]
+        for k, name in enumerate(["red", "green", "blue", "nir"], start=1):
+            ds.set_band_description(k, name)
+    toolbox.run("ortho:photo", {"INPUT": sc.photo_path, "PROJECT": sc.project_path,
+                                "DEM": sc.dem_path, "CELL_SIZE": 10.0,
+                                "OUTPUT": tmp_path / "o.tif"})
+    with rasterio.open(tmp_path / "o.tif") as out:
+        assert [c.name for c in out.colorinterp] == ["red", "green", "blue", "undefined",
+                                                     "alpha"]
+        assert out.descriptions[:4] == ("red", "green", "blue", "nir")

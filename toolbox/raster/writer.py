@@ -391,6 +391,30 @@ class RasterWriter:
             p.unlink(missing_ok=True)
 
 
+def copy_band_names(src: Any, dst: Any, bands: Any) -> None:
+    """Copy each data band's description, unit type and colour interpretation from the open
+    raster ``src`` (band ``bands[k]``, 1-based) to band ``k + 1`` of the open, writable ``dst``
+    (a photo's bands resampled: ortho, rectified photo): an RGB + near-infrared photo's ortho
+    came out as gray, undefined, undefined, undefined (and alpha), its band names ("nir")
+    gone. Gray and undefined source bands leave the writer's interpretation as it is; an
+    alpha band of ``dst`` stays alpha."""
+    from rasterio.enums import ColorInterp
+
+    bands = list(bands)
+    colours = list(dst.colorinterp)
+    for k, b in enumerate(bands):
+        if src.descriptions[b - 1]:
+            dst.set_band_description(k + 1, src.descriptions[b - 1])
+        if src.units[b - 1]:
+            dst.set_band_unit(k + 1, src.units[b - 1])
+        ci = src.colorinterp[b - 1]
+        if ci not in (ColorInterp.gray, ColorInterp.undefined, ColorInterp.alpha) \
+                and colours[k] != ColorInterp.alpha:
+            colours[k] = ci
+    if colours != list(dst.colorinterp):
+        dst.colorinterp = colours
+
+
 def copy_band_metadata(src: Any, dst: Any, bands: Any = None) -> None:
     """Copy what the values of the open raster ``src`` mean onto the open, writable ``dst``
     (a raster passed through: cut, clipped): each band's description, unit type, scale and
