@@ -148,3 +148,29 @@ def test_ortho_of_an_rgbn_photo_keeps_band_names_and_colours(tmp_path):
         assert [c.name for c in out.colorinterp] == ["red", "green", "blue", "undefined",
                                                      "alpha"]
         assert out.descriptions[:4] == ("red", "green", "blue", "nir")
+
+
+def test_mosaic_of_rgbn_orthos_labels_nir_as_data_not_alpha(tmp_path):
+    """Four data bands and a nodata value (RGB + NIR orthos, no alpha): GDAL's default for a
+    4-band Byte GeoTIFF made band 4 of the mosaic ColorInterp=Alpha, so QGIS drew the NIR
+    values as transparency; now red, green, blue, undefined with the orthos' band names."""
+    from rasterio.enums import ColorInterp as CI
+
+    paths = []
+    for name, x0 in (("west", 600000), ("east", 600020)):
+        path = tmp_path / f"{name}.tif"
+        with rasterio.open(path, "w", driver="GTiff", width=40, height=40, count=4,
+                           dtype="uint8", crs="EPSG:32633", nodata=0, photometric="RGB",
+                           alpha="NO", transform=from_origin(x0, 4800000, 1, 1)) as dst:
+            dst.write(np.random.default_rng(x0).integers(1, 255, (4, 40, 40), dtype="uint8"))
+            dst.colorinterp = [CI.red, CI.green, CI.blue, CI.undefined]
+            for k, band in enumerate(["red", "green", "blue", "nir"], start=1):
+                dst.set_band_description(k, band)
+        with rasterio.open(path) as src:
+            assert src.colorinterp[3] == CI.undefined  # the input is what the test says
+        paths.append(str(path))
+    out = toolbox.run("mosaic:build", {"INPUT": paths, "OUTPUT": tmp_path / "m.tif"})
+    with rasterio.open(out["OUTPUT"]) as ds:
+        assert [c.name for c in ds.colorinterp] == ["red", "green", "blue", "undefined"]
+        assert ds.descriptions == ("red", "green", "blue", "nir")
+        assert len(np.unique(ds.read(4))) > 100  # band 4 holds the NIR values

@@ -208,8 +208,10 @@ class RasterWriter:
         photometric = self.photometric
         if photometric is None and self.data_count == 3 and self.dtype.kind in "iu":
             photometric = "RGB"
-        if photometric is None and self.alpha:
-            photometric = "MINISBLACK"  # GDAL would read 3-4 byte bands as RGB(A)
+        if photometric is None and (self.alpha or self.count == 4):
+            # GDAL would read 3-4 byte bands as RGB(A): four data bands (an RGB + NIR mosaic
+            # or ortho with a nodata value) came out as red, green, blue and *alpha*
+            photometric = "MINISBLACK"
         if photometric:
             profile["photometric"] = photometric
         if self.alpha and photometric == "RGB":
