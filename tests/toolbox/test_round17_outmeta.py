@@ -174,3 +174,30 @@ def test_mosaic_of_rgbn_orthos_labels_nir_as_data_not_alpha(tmp_path):
         assert [c.name for c in ds.colorinterp] == ["red", "green", "blue", "undefined"]
         assert ds.descriptions == ("red", "green", "blue", "nir")
         assert len(np.unique(ds.read(4))) > 100  # band 4 holds the NIR values
+
+
+def test_shapefile_text_cut_to_254_bytes_is_named(tmp_path, caplog):
+    """A text value over a DBF field's 254 bytes (attribution:apply's ``geometry_wkt`` of a
+    long unresolved line) was cut with only GDAL's warning quoting the whole value; now one
+    toolbox warning names the field, the count and the GeoPackage remedy."""
+    import logging
+    import warnings
+
+    import geopandas as gpd
+    import pyogrio
+
+    from toolbox.io.vector_write import write_layers
+
+    wkt = "LINESTRING (" + ", ".join(f"{1688300 + k}.125 4799610.375" for k in range(20)) + ")"
+    frame = gpd.GeoDataFrame({"geometry_wkt": [wkt, "POINT (1 2)"], "code": ["A", "B"]},
+                             geometry=[shapely.Point(0, 0), shapely.Point(1, 1)],
+                             crs="EPSG:3003")
+    with caplog.at_level(logging.WARNING, logger="toolbox"), \
+            warnings.catch_warnings(record=True) as raw:
+        warnings.simplefilter("always")
+        write_layers(tmp_path / "u.shp", {"unresolved": frame})
+    assert not [w for w in raw if "truncated" in str(w.message)]
+    messages = [r.getMessage() for r in caplog.records if "254 bytes" in r.getMessage()]
+    assert len(messages) == 1 and "geometry_wkt (1)" in messages[0] and ".gpkg" in messages[0]
+    back = pyogrio.read_dataframe(tmp_path / "u.shp")
+    assert back["geometry_w"][0] == wkt.encode()[:254].decode()  # what the DBF holds
