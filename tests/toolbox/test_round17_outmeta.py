@@ -201,3 +201,30 @@ def test_shapefile_text_cut_to_254_bytes_is_named(tmp_path, caplog):
     assert len(messages) == 1 and "geometry_wkt (1)" in messages[0] and ".gpkg" in messages[0]
     back = pyogrio.read_dataframe(tmp_path / "u.shp")
     assert back["geometry_w"][0] == wkt.encode()[:254].decode()  # what the DBF holds
+
+
+def test_shapefile_style_names_the_fields_as_the_file_holds_them(tmp_path):
+    """attribution:apply to a .shp wrote a QML/SLD beside each layer labelling by
+    ``description``, a field the DBF holds as ``descriptio``: QGIS drew no label. The styles
+    now name the cut fields."""
+    import geopandas as gpd
+    import pyogrio
+
+    from toolbox.attribution.output import store_style
+    from toolbox.io.vector_write import write_layers
+
+    frame = gpd.GeoDataFrame({"code": ["FAB01002"], "description": ["building"],
+                              "colour_index": [3]}, geometry=[shapely.Point(0, 0)],
+                             crs="EPSG:3003")
+    write_layers(tmp_path / "coded.shp", {"FAB01002": frame})
+    qml = '<qgis><text-style fieldName="description" isExpression="0"/>' \
+          '<renderer attr="colour_index"/><rule filter="&quot;code&quot; = 1"/></qgis>'
+    sld = "<sld><ogc:PropertyName>description</ogc:PropertyName></sld>"
+    store_style(tmp_path / "coded.shp", ["FAB01002"], "FAB01002", qml, sld,
+                fields=["code", "description", "colour_index"])
+    held = list(pyogrio.read_info(tmp_path / "coded.shp")["fields"])
+    assert held == ["code", "descriptio", "colour_ind"]
+    text = (tmp_path / "coded.qml").read_text()
+    assert 'fieldName="descriptio"' in text and 'attr="colour_ind"' in text
+    assert "&quot;code&quot;" in text
+    assert "<ogc:PropertyName>descriptio<" in (tmp_path / "coded.sld").read_text()

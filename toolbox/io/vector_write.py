@@ -220,6 +220,28 @@ def warn_cut_texts(path: Path, fields: dict[str, Any]) -> None:
             f"of {', '.join(cut)} were cut to that length (a .gpkg output keeps them whole)")
 
 
+def shapefile_renames(path: Path, names: list[str]) -> dict[str, str]:
+    """``{name: name in the file}`` of the fields ``names`` (in the order written) that the
+    Shapefile ``path`` holds under another (cut) name."""
+    written = [str(name) for name in _ogr().read_info(path)["fields"]]
+    return {old: new for old, new in zip(names, written, strict=False) if old != new}
+
+
+def rename_style_fields(text: str | None, renames: dict[str, str]) -> str | None:
+    """A QML or SLD style ``text`` with its references to the fields of ``renames`` (a
+    label's ``fieldName="..."``, a renderer's ``attr="..."``, an expression's quoted
+    ``&quot;name&quot;``, an SLD ``<ogc:PropertyName>``) given the names a Shapefile holds:
+    with the long names QGIS drew no label and no class from the style beside the file."""
+    import re
+
+    if not text or not renames:
+        return text
+    for old, new in renames.items():
+        text = re.sub(rf'(="|&quot;|>){re.escape(old)}("|&quot;|<)', rf"\g<1>{new}\g<2>",
+                      text)
+    return text
+
+
 def warn_renamed_fields(path: Path, names: list[str]) -> None:
     """One warning listing the fields (``names``, in order) the Shapefile ``path`` holds under
     another name: a DBF field name has at most 10 characters, so GDAL cuts longer ones and makes
