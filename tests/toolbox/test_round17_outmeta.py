@@ -228,3 +228,21 @@ def test_shapefile_style_names_the_fields_as_the_file_holds_them(tmp_path):
     assert 'fieldName="descriptio"' in text and 'attr="colour_ind"' in text
     assert "&quot;code&quot;" in text
     assert "<ogc:PropertyName>descriptio<" in (tmp_path / "coded.sld").read_text()
+
+
+def test_json_reports_write_no_nan_or_infinity(tmp_path):
+    """The shared JSON writer of the orientation and ortho reports wrote a NaN or infinite
+    number as ``NaN``/``Infinity`` (each caller had to remember to replace it): not JSON, a
+    strict reader refuses the whole report. Now ``null``."""
+    import json
+
+    from toolbox.photogrammetry.tables import write_json
+
+    path = write_json(tmp_path / "r.json", {"sigma0": float("nan"), "std": np.array(
+        [1.5, np.inf]), "condition": np.float64(-np.inf), "n": np.int64(3), "ok": [2.0]})
+
+    def strict(token):
+        raise ValueError(f"not JSON: {token}")
+
+    doc = json.loads(path.read_text(), parse_constant=strict)
+    assert doc == {"sigma0": None, "std": [1.5, None], "condition": None, "n": 3, "ok": [2.0]}

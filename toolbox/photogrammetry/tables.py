@@ -98,9 +98,27 @@ def write_csv(path: Path, header: Sequence[str], rows: Iterable[Sequence[Any]]) 
 
 
 def write_json(path: Path, document: Any) -> Path:
-    Path(path).write_text(json.dumps(document, indent=2, default=_json_default) + "\n",
-                          encoding="utf-8")
+    """``document`` as JSON; a NaN or infinite number (no value: a sigma without redundancy,
+    a condition number of a singular system) is written as ``null``: Python's ``NaN`` and
+    ``Infinity`` are not JSON, and strict readers (JavaScript, jq, QGIS) refuse the file."""
+    Path(path).write_text(json.dumps(_finite(document), indent=2, default=_json_default,
+                                     allow_nan=False) + "\n", encoding="utf-8")
     return path
+
+
+def _finite(value: Any) -> Any:
+    """``value`` with every non-finite number replaced by None (dicts, lists, numpy arrays)."""
+    import numpy as np
+
+    if isinstance(value, (float, np.floating)):
+        return float(value) if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {k: _finite(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_finite(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return _finite(value.tolist())
+    return value
 
 
 def _json_default(value: Any) -> Any:
