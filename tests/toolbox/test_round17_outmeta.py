@@ -246,3 +246,15 @@ def test_json_reports_write_no_nan_or_infinity(tmp_path):
 
     doc = json.loads(path.read_text(), parse_constant=strict)
     assert doc == {"sigma0": None, "std": [1.5, None], "condition": None, "n": 3, "ok": [2.0]}
+
+
+def test_ground_filter_rasters_say_what_they_hold(tmp_path):
+    """dem:ground's NONGROUND (classes 0, 1, 255) and HEIGHTS rasters had no description: a
+    client could not tell a class mask from heights."""
+    y, x = np.mgrid[0:30, 0:30]
+    dsm = _raster(tmp_path / "dsm.tif", 100 + 0.1 * x + 0.05 * y, "float32", -9999)
+    toolbox.run("dem:ground", {"DSM": dsm, "OUTPUT": tmp_path / "dtm.tif",
+                               "NONGROUND": tmp_path / "ng.tif", "HEIGHTS": tmp_path / "h.tif"})
+    with rasterio.open(tmp_path / "ng.tif") as ng, rasterio.open(tmp_path / "h.tif") as h:
+        assert "non-ground" in ng.descriptions[0] and "255" in ng.descriptions[0]
+        assert "above the ground" in h.descriptions[0]
