@@ -258,3 +258,19 @@ def test_ground_filter_rasters_say_what_they_hold(tmp_path):
     with rasterio.open(tmp_path / "ng.tif") as ng, rasterio.open(tmp_path / "h.tif") as h:
         assert "non-ground" in ng.descriptions[0] and "255" in ng.descriptions[0]
         assert "above the ground" in h.descriptions[0]
+
+
+def test_csv_tables_write_no_value_empty(tmp_path):
+    """The shared CSV writer wrote a NaN as ``nan`` (and a numpy float32 NaN as ``nan`` too):
+    OGR's type detection (QGIS, ogr2ogr -oo AUTODETECT_TYPE=YES) then read the whole column as
+    text. Now an empty cell, as None; the column stays Real."""
+    import pyogrio
+
+    from toolbox.photogrammetry.tables import write_csv
+
+    path = write_csv(tmp_path / "t.csv", ["id", "v", "w"],
+                     [["a", 1.5, np.float32(2.5)], ["b", float("nan"), np.float32("nan")],
+                      ["c", None, np.inf]])
+    assert path.read_text().splitlines()[1:] == ["a,1.5,2.5", "b,,", "c,,"]
+    info = pyogrio.read_info(path, AUTODETECT_TYPE="YES")
+    assert dict(zip(info["fields"], info["dtypes"], strict=True))["v"] == "float64"

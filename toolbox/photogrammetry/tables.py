@@ -88,13 +88,24 @@ def number(value: str, what: str, name: str = "INPUT") -> float:
 
 
 def write_csv(path: Path, header: Sequence[str], rows: Iterable[Sequence[Any]]) -> Path:
+    """A CSV table; None and non-finite numbers (NaN: no value) are written empty: a ``nan``
+    cell made OGR (QGIS, ogr2ogr with AUTODETECT_TYPE) read the whole column as text."""
     with open(path, "w", newline="", encoding="utf-8") as f:
         writer = csv.writer(f)
         writer.writerow(header)
         for row in rows:
-            writer.writerow(["" if v is None else (repr(float(v)) if isinstance(v, float) else v)
-                             for v in row])
+            writer.writerow([_csv_cell(v) for v in row])
     return path
+
+
+def _csv_cell(value: Any) -> Any:
+    import numpy as np
+
+    if value is None:
+        return ""
+    if isinstance(value, (float, np.floating)) and not math.isfinite(value):
+        return ""
+    return repr(float(value)) if isinstance(value, float) else value
 
 
 def write_json(path: Path, document: Any) -> Path:
