@@ -26,3 +26,6 @@ class Aspect(ShadingAlgorithm):
     empty_output_hint = ("flat cells have no aspect, nor cells next to nodata: the DEM is flat "
                          "or no cell has its 8 neighbours valid")
     kernel_name = "aspect"
+
+    def band_meaning(self, params):
+        return "aspect (degrees clockwise from north)", "degree"

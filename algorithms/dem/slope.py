@@ -33,3 +33,8 @@ class Slope(ShadingAlgorithm):
 
     def kernel_options(self, params):
         return {"z_factor": params["Z_FACTOR"], "units": params["UNITS"]}
+
+    def band_meaning(self, params):
+        if params["UNITS"] == "percent":
+            return "slope (percent)", "percent"
+        return "slope (degrees)", "degree"

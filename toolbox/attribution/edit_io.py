@@ -251,7 +251,8 @@ def write_edited(path: Path, ref: Any, parts: Parts, coords: list[np.ndarray],
         for row in read_layer_styles(source):
             if row["f_table_name"] == getattr(ref, "layer", None) and row["useAsDefault"]:
                 store_style(path, layers, name, row["styleQML"], row["styleSLD"],
-                            row["styleName"], row["description"] or "")
+                            row["styleName"], row["description"] or "",
+                            fields=list(frame.columns))
     style = LayerStyle("moved_vertices", "point", [CodeStyle(
         "moved", "point", (255, 0, 255), 0.2, (255, 0, 255, 255), "moved vertex", 1.5)])
     store_style(path, layers, "moved_vertices", qml_document(style), sld_document(style))

@@ -89,24 +89,35 @@ def write_attribution(path: str | Path, result: Attribution, table: CodeTable,
     write_layers(path, frames, crs=crs, geometry_types=types)
     for name, style in styles.items():
         qml, sld = qml_document(style), sld_document(style)
+        frame = frames.get(name)
+        fields = None if frame is None else [c for c in frame.columns
+                                             if c != frame.geometry.name]
         embedded = store_style(path, list(frames), name, qml, sld, description=(
-            f"from the code file {table.path.name if table.path else ''}"))
+            f"from the code file {table.path.name if table.path else ''}"), fields=fields)
         if sidecar and embedded:  # named after the GeoPackage: the runner commits them with it
             write_style_files(path.with_name(f"{path.name}.{name}"), qml, sld)
     return styles
 
 
 def store_style(path: Path, layers: list[str], layer: str, qml: str, sld: str | None,
-                name: str | None = None, description: str = "") -> bool:
+                name: str | None = None, description: str = "",
+                fields: list[str] | None = None) -> bool:
     """Give ``layer`` of the output ``path`` (written with ``layers``, in order) its default
     style: in the GeoPackage's ``layer_styles`` (True), or for a one-layer format as
-    ``<layer file stem>.qml`` / ``.sld`` beside the layer's file, which QGIS loads with it."""
+    ``<layer file stem>.qml`` / ``.sld`` beside the layer's file, which QGIS loads with it.
+    ``fields``: the layer's fields in the order written; a Shapefile's style then names them
+    as the file holds them (``description`` -> ``descriptio``)."""
     from toolbox.io.vector import vector_driver
-    from toolbox.io.vector_write import layer_paths
+    from toolbox.io.vector_write import layer_paths, rename_style_fields, shapefile_renames
     from toolbox.styles.gpkg import write_layer_styles
 
-    if vector_driver(path) == "GPKG":
+    driver = vector_driver(path)
+    if driver == "GPKG":
         write_layer_styles(path, layer, qml, sld, True, name, description)
         return True
-    write_style_files(layer_paths(path, layers)[layer].with_suffix(""), qml, sld)
+    target = layer_paths(path, layers)[layer]
+    if driver == "ESRI Shapefile" and fields and target.exists():
+        renames = shapefile_renames(target, fields)
+        qml, sld = rename_style_fields(qml, renames), rename_style_fields(sld, renames)
+    write_style_files(target.with_suffix(""), qml, sld)
     return False

@@ -113,6 +113,7 @@ def write_layers(path: str | Path, layers: dict[str, Any], crs: Any = None,
             if frame.crs is None:  # a layer without CRS as read (stored coordinates): meant
                 warnings.filterwarnings("ignore", "'crs' was not provided", UserWarning)
             warnings.filterwarnings("ignore", "Normalized/laundered field name")  # see below
+            warnings.filterwarnings("ignore", "Value '.*' of field .* has been truncated")
             if not (arrow and driver == "GPKG"
                     and _write_arrow(frame, target, layer_name, kwargs)):
                 pyogrio.write_dataframe(frame, target, layer=layer_name, driver=driver,
@@ -121,7 +122,9 @@ def write_layers(path: str | Path, layers: dict[str, Any], crs: Any = None,
             declare_optional_z(target, layer_name, frame.geometry.values,
                                kwargs.get("geometry_type"))
         if driver == "ESRI Shapefile":
-            warn_renamed_fields(target, [c for c in frame.columns if c != frame.geometry.name])
+            fields = [c for c in frame.columns if c != frame.geometry.name]
+            warn_renamed_fields(target, fields)
+            warn_cut_texts(target, {c: frame[c].to_numpy() for c in fields})
             warn_made_up_z(target, frame.geometry.values)
     return path
 
@@ -192,6 +195,53 @@ def declare_optional_z(path: Path, layer: str, geoms, geometry_type: str | None 
     db.close()
 
 
+#: the longest text a DBF field holds, in bytes (UTF-8 in the toolbox's Shapefiles)
+DBF_TEXT_BYTES = 254
+
+
+def warn_cut_texts(path: Path, fields: dict[str, Any]) -> None:
+    """One warning naming the text fields of ``fields`` (name -> values) whose values GDAL cut
+    to :data:`DBF_TEXT_BYTES` bytes in the Shapefile ``path`` (an entity's ``geometry_wkt``,
+    a long ``detail``), and how many: GDAL's own warning quoted the whole value and named
+    no remedy."""
+    cut = []
+    for name, values in fields.items():
+        if getattr(values, "dtype", None) is None or values.dtype.kind not in "OU":
+            continue
+        n = sum(1 for v in values if isinstance(v, str)
+                and len(v) > DBF_TEXT_BYTES // 4 and len(v.encode("utf-8")) > DBF_TEXT_BYTES)
+        if n:
+            cut.append(f"{name} ({n})")
+    if cut:
+        import logging
+
+        logging.getLogger("toolbox").warning(
+            f"{path.name}: a Shapefile's text fields hold at most {DBF_TEXT_BYTES} bytes; values "
+            f"of {', '.join(cut)} were cut to that length (a .gpkg output keeps them whole)")
+
+
+def shapefile_renames(path: Path, names: list[str]) -> dict[str, str]:
+    """``{name: name in the file}`` of the fields ``names`` (in the order written) that the
+    Shapefile ``path`` holds under another (cut) name."""
+    written = [str(name) for name in _ogr().read_info(path)["fields"]]
+    return {old: new for old, new in zip(names, written, strict=False) if old != new}
+
+
+def rename_style_fields(text: str | None, renames: dict[str, str]) -> str | None:
+    """A QML or SLD style ``text`` with its references to the fields of ``renames`` (a
+    label's ``fieldName="..."``, a renderer's ``attr="..."``, an expression's quoted
+    ``&quot;name&quot;``, an SLD ``<ogc:PropertyName>``) given the names a Shapefile holds:
+    with the long names QGIS drew no label and no class from the style beside the file."""
+    import re
+
+    if not text or not renames:
+        return text
+    for old, new in renames.items():
+        text = re.sub(rf'(="|&quot;|>){re.escape(old)}("|&quot;|<)', rf"\g<1>{new}\g<2>",
+                      text)
+    return text
+
+
 def warn_renamed_fields(path: Path, names: list[str]) -> None:
     """One warning listing the fields (``names``, in order) the Shapefile ``path`` holds under
     another name: a DBF field name has at most 10 characters, so GDAL cuts longer ones and makes
@@ -254,6 +304,7 @@ def write_wkb_layer(path: str | Path, layer: str, wkb: np.ndarray, fields: dict[
     names = list(fields)
     with staged_gpkg_writes(), writing(path), warnings.catch_warnings():
         warnings.filterwarnings("ignore", "Normalized/laundered field name")  # warned below
+        warnings.filterwarnings("ignore", "Value '.*' of field .* has been truncated")
         ogr_write(str(path), layer=layer, driver=driver, geometry=np.asarray(wkb, dtype=object),
                   fields=names, field_data=[fields[k] for k in names], field_mask=None,
                   crs=None if crs is None else crs.to_wkt(), geometry_type=geometry_type,
@@ -262,4 +313,5 @@ def write_wkb_layer(path: str | Path, layer: str, wkb: np.ndarray, fields: dict[
                       "GPKG", "FlatGeobuf"))
     if driver == "ESRI Shapefile":
         warn_renamed_fields(path, names)
+        warn_cut_texts(path, fields)
     return path

@@ -195,9 +195,11 @@ def write_mosaic(plan: MosaicPlan, output: Path, index_path: Path | None, *, alp
     from contextlib import ExitStack
     from functools import partial
 
+    import rasterio
+
     from toolbox.executor import resolve_executor
     from toolbox.raster.engine import process_raster
-    from toolbox.raster.writer import RasterWriter
+    from toolbox.raster.writer import RasterWriter, copy_band_names
 
     grid = plan.grid
     index_dtype = "uint8" if len(plan.sources) < 255 else "uint16"
@@ -209,9 +211,14 @@ def write_mosaic(plan: MosaicPlan, output: Path, index_path: Path | None, *, alp
             output, grid, plan.bands + (1 if alpha else 0), plan.dtype,
             None if alpha else nodata, alpha=alpha, cog=cog, overviews=overviews,
             executor=executor, cache_mb=WRITE_CACHE_MB))
+        first = plan.sources[0]
+        with rasterio.open(first.path) as src:  # the bands as the orthos name them
+            copy_band_names(src, dst.dataset, first.data_bands)
         idx = None if index_path is None else stack.enter_context(RasterWriter(
             index_path, grid, 1, index_dtype, 0, cog=cog and index_finished,
             overviews=overviews and index_finished,
+            band_descriptions=["source (1-based input number, 0 = no data; SOURCE_k tags)"],
+            tags={f"SOURCE_{k}": str(s.path) for k, s in enumerate(plan.sources, start=1)},
             overview_resampling="nearest", executor=executor, cache_mb=WRITE_CACHE_MB))
 
         def collect(tile, data, labels):

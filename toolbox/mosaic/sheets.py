@@ -71,7 +71,7 @@ def clip_raster(path: Path, sheet, output: Path, block: int = 2048) -> bool:
 
     from toolbox.io.grid import GridSpec
     from toolbox.io.raster import without_negligible_rotation
-    from toolbox.raster.writer import RasterWriter
+    from toolbox.raster.writer import RasterWriter, copy_band_metadata
 
     with rasterio.open(path) as src:
         t = without_negligible_rotation(src.transform, src.width, src.height)
@@ -100,6 +100,7 @@ def clip_raster(path: Path, sheet, output: Path, block: int = 2048) -> bool:
                 dst.dataset.colorinterp = [*src.colorinterp, ColorInterp.alpha]
             else:
                 dst.dataset.colorinterp = src.colorinterp
+            copy_band_metadata(src, dst.dataset)  # scale/offset, units, palette, descriptions
             any_valid = False
             for r in range(0, rows, block):
                 for c in range(0, cols, block):

@@ -132,11 +132,14 @@ def orthorectify(photo: Any, image: Any, dem: Any, grid: Any, output: Any,
         if mask_output is not None:
             mask_writer = aux.enter_context(RasterWriter(
                 mask_output, grid, 1, "uint8", 255, overviews=options.overviews,
-                overview_resampling="nearest"))
+                overview_resampling="nearest", tags={"ORTHO_PHOTO": photo.id},
+                band_descriptions=["occlusion (1 hidden, 0 seen, 255 no height)"]))
         if incidence_output is not None:
             incidence_writer = aux.enter_context(RasterWriter(
                 incidence_output, grid, 1, "float32", float("nan"),
-                overviews=options.overviews))
+                overviews=options.overviews, tags={"ORTHO_PHOTO": photo.id},
+                band_descriptions=["incidence angle (ray to surface normal, degrees)"],
+                band_units=["degree"]))
         windows = OrthoWindows(photo, grid, sampler, cmap, reference_height,
                                surface if options.occlusion else None, mask_writer,
                                incidence_writer, to_orientation, options.resampling,

@@ -88,19 +88,48 @@ def number(value: str, what: str, name: str = "INPUT") -> float:
 
 
 def write_csv(path: Path, header: Sequence[str], rows: Iterable[Sequence[Any]]) -> Path:
+    """A CSV table; None and non-finite numbers (NaN: no value) are written empty: a ``nan``
+    cell made OGR (QGIS, ogr2ogr with AUTODETECT_TYPE) read the whole column as text."""
     with open(path, "w", newline="", encoding="utf-8") as f:
         writer = csv.writer(f)
         writer.writerow(header)
         for row in rows:
-            writer.writerow(["" if v is None else (repr(float(v)) if isinstance(v, float) else v)
-                             for v in row])
+            writer.writerow([_csv_cell(v) for v in row])
     return path
+
+
+def _csv_cell(value: Any) -> Any:
+    import numpy as np
+
+    if value is None:
+        return ""
+    if isinstance(value, (float, np.floating)) and not math.isfinite(value):
+        return ""
+    return repr(float(value)) if isinstance(value, float) else value
 
 
 def write_json(path: Path, document: Any) -> Path:
-    Path(path).write_text(json.dumps(document, indent=2, default=_json_default) + "\n",
-                          encoding="utf-8")
+    """``document`` as JSON; a NaN or infinite number (no value: a sigma without redundancy,
+    a condition number of a singular system) is written as ``null``: Python's ``NaN`` and
+    ``Infinity`` are not JSON, and strict readers (JavaScript, jq, QGIS) refuse the file."""
+    Path(path).write_text(json.dumps(_finite(document), indent=2, default=_json_default,
+                                     allow_nan=False) + "\n", encoding="utf-8")
     return path
+
+
+def _finite(value: Any) -> Any:
+    """``value`` with every non-finite number replaced by None (dicts, lists, numpy arrays)."""
+    import numpy as np
+
+    if isinstance(value, (float, np.floating)):
+        return float(value) if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {k: _finite(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_finite(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return _finite(value.tolist())
+    return value
 
 
 def _json_default(value: Any) -> Any:

@@ -600,6 +600,11 @@ def warp_to_geotiff(source: Any, coordinate_map: Any, grid: Any, output: Any,
                           creation_options=creation_options, cache_mb=cache_mb,
                           memory_mb=memory_mb, threads=threads)
     with writer:
+        from toolbox.raster.datasets import open_quietly
+        from toolbox.raster.writer import copy_band_names
+
+        with open_quietly(photo_path(source)) as src:
+            copy_band_names(src, writer.dataset, layout.data_bands)
         return warp_raster(source, grid, coordinate_map, writer, layout=layout,
                            resampling=resampling, aux=aux, tile_size=chunk, executor=executor,
                            feedback=feedback, max_source_pixels=max_source_pixels, fast=fast,

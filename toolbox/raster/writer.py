@@ -84,6 +84,10 @@ class RasterWriter:
         Build internal overviews at close.
     band_descriptions : sequence of str, optional
         One description per band.
+    band_units : sequence of str, optional
+        One unit per band (GDAL's unit type: "m", "degree", "percent"; "" for none), so
+        GDAL, QGIS and the toolbox's own readers (:func:`toolbox.io.raster.require_height_unit`)
+        know what the values measure.
     photometric : str, optional
         TIFF photometric interpretation; default RGB for three integer data bands.
     tags : dict, optional
@@ -120,7 +124,7 @@ class RasterWriter:
                  *, alpha: bool = False, cog: bool = False, tile: int = DEFAULT_TILE,
                  compress: str = "DEFLATE", overviews: bool = True,
                  band_descriptions: Any = None, photometric: str | None = None,
-                 tags: dict | None = None, overview_resampling: str = "average",
+                 tags: dict | None = None, band_units: Any = None, overview_resampling: str = "average",
                  creation_options: dict | None = None, cache_mb: int = DEFAULT_CACHE_MB,
                  memory_mb: float = 0, gcps: Any = None, threads: int | None = None,
                  executor: Any = None):
@@ -142,6 +146,7 @@ class RasterWriter:
         self.compress = str(compress).upper()
         self.overviews = bool(overviews)
         self.band_descriptions = list(band_descriptions) if band_descriptions else None
+        self.band_units = list(band_units) if band_units else None
         self.photometric = photometric
         self.tags = dict(tags or {})
         self.overview_resampling = overview_resampling
@@ -203,8 +208,10 @@ class RasterWriter:
         photometric = self.photometric
         if photometric is None and self.data_count == 3 and self.dtype.kind in "iu":
             photometric = "RGB"
-        if photometric is None and self.alpha:
-            photometric = "MINISBLACK"  # GDAL would read 3-4 byte bands as RGB(A)
+        if photometric is None and (self.alpha or self.count == 4):
+            # GDAL would read 3-4 byte bands as RGB(A): four data bands (an RGB + NIR mosaic
+            # or ortho with a nodata value) came out as red, green, blue and *alpha*
+            photometric = "MINISBLACK"
         if photometric:
             profile["photometric"] = photometric
         if self.alpha and photometric == "RGB":
@@ -247,6 +254,9 @@ class RasterWriter:
                 if self.band_descriptions:
                     for k, text in enumerate(self.band_descriptions, start=1):
                         self.dataset.set_band_description(k, str(text))
+                for k, unit in enumerate(self.band_units or (), start=1):
+                    if unit:
+                        self.dataset.set_band_unit(k, str(unit))
                 if self.alpha and self.count > 1:  # the last band alone is alpha
                     interp = list(self.dataset.colorinterp)
                     want = [ColorInterp.undefined if c == ColorInterp.alpha else c
@@ -381,6 +391,61 @@ class RasterWriter:
         self.dataset = None
         for p in {self._tiled_path, self.path}:
             p.unlink(missing_ok=True)
+
+
+def copy_band_names(src: Any, dst: Any, bands: Any) -> None:
+    """Copy each data band's description, unit type and colour interpretation from the open
+    raster ``src`` (band ``bands[k]``, 1-based) to band ``k + 1`` of the open, writable ``dst``
+    (a photo's bands resampled: ortho, rectified photo): an RGB + near-infrared photo's ortho
+    came out as gray, undefined, undefined, undefined (and alpha), its band names ("nir")
+    gone. Gray and undefined source bands leave the writer's interpretation as it is; an
+    alpha band of ``dst`` stays alpha."""
+    from rasterio.enums import ColorInterp
+
+    bands = list(bands)
+    colours = list(dst.colorinterp)
+    for k, b in enumerate(bands):
+        if src.descriptions[b - 1]:
+            dst.set_band_description(k + 1, src.descriptions[b - 1])
+        if src.units[b - 1]:
+            dst.set_band_unit(k + 1, src.units[b - 1])
+        ci = src.colorinterp[b - 1]
+        if ci not in (ColorInterp.gray, ColorInterp.undefined, ColorInterp.alpha) \
+                and colours[k] != ColorInterp.alpha:
+            colours[k] = ci
+    if colours != list(dst.colorinterp):
+        dst.colorinterp = colours
+
+
+def copy_band_metadata(src: Any, dst: Any, bands: Any = None) -> None:
+    """Copy what the values of the open raster ``src`` mean onto the open, writable ``dst``
+    (a raster passed through: cut, clipped): each band's description, unit type, scale and
+    offset, colour table and metadata (GDAL's statistics left out: the copy holds other
+    cells), and the dataset's metadata. ``bands``: the 1-based ``src`` band of each ``dst``
+    band (default ``1..src.count``). Without it a scaled Int16 DEM (heights = code x scale +
+    offset) was read as codes, a DEM in feet as metres, a classified raster lost its colours.
+    """
+    bands = list(range(1, src.count + 1)) if bands is None else list(bands)
+    tags = src.tags()
+    if tags:
+        dst.update_tags(**tags)
+    for k, b in enumerate(bands, start=1):
+        if src.descriptions[b - 1]:
+            dst.set_band_description(k, src.descriptions[b - 1])
+        if src.units[b - 1]:
+            dst.set_band_unit(k, src.units[b - 1])
+        band_tags = {key: v for key, v in src.tags(b).items()
+                     if not key.startswith("STATISTICS_")}
+        if band_tags:
+            dst.update_tags(k, **band_tags)
+        try:
+            dst.write_colormap(k, src.colormap(b))
+        except ValueError:  # no colour table
+            pass
+    scales = [src.scales[b - 1] for b in bands] + [1.0] * (dst.count - len(bands))
+    offsets = [src.offsets[b - 1] for b in bands] + [0.0] * (dst.count - len(bands))
+    if any(s != 1.0 for s in scales) or any(o != 0.0 for o in offsets):
+        dst.scales, dst.offsets = scales, offsets
 
 
 def build_overviews(dataset: Any, factors: list[int], resampling: str, cache_mb: int) -> None:

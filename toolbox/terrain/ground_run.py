@@ -159,6 +159,8 @@ def run_ground(request: GroundRequest, feedback: Feedback) -> dict[str, Any]:
         grid = _grid_spec(transform, width, height, crs)
     mask = nonground_mask(xyz, ground, transform, width, height)
     with RasterWriter(request.nonground, grid, 1, "uint8", MASK_NODATA,
+                      band_descriptions=["non-ground (1 a non-ground point in the cell, "
+                                         "0 only ground points, 255 no point)"],
                       tile=int(gridding.execution.tile_size),
                       overviews=gridding.execution.overviews) as writer:
         from rasterio.windows import Window
@@ -171,6 +173,7 @@ def run_ground(request: GroundRequest, feedback: Feedback) -> dict[str, Any]:
             dtm = read_filled(ds, 1)
         heights = heights_above(xyz, dtm, transform)
         with RasterWriter(request.heights, grid, 1, "float32", HEIGHTS_NODATA,
+                          band_descriptions=["height above the ground (DTM)"],
                           tile=int(gridding.execution.tile_size),
                           overviews=gridding.execution.overviews) as writer:
             from rasterio.windows import Window

@@ -155,7 +155,8 @@ def shade_tile(kernel: Callable[..., np.ndarray], raster_size: tuple[int, int],
 def shade_raster(info, band: int, output: str | Path,
                  kernel: Callable[[np.ndarray, float, float], np.ndarray], dtype: str,
                  nodata: float, feedback, tile_size: int = 512, overviews: bool = True,
-                 cog: bool = False, executor=None) -> dict:
+                 cog: bool = False, executor=None, description: str | None = None,
+                 unit: str | None = None) -> dict:
     """Run a 3x3 ``kernel(z_padded, cell_x, cell_y) -> values`` over a DEM on the raster
     engine (:func:`toolbox.raster.engine.process_raster`, one-cell halo) into a tiled
     GeoTIFF (:class:`toolbox.raster.writer.RasterWriter`, a COG with ``cog``).
@@ -164,7 +165,9 @@ def shade_raster(info, band: int, output: str | Path,
     holds its values exactly, else float64; DEM nodata becomes NaN before the kernel (so
     cells next to nodata are nodata) and NaN results become ``nodata``. The kernel must be
     picklable (a module-level function or a ``functools.partial`` of one) to run on a Dask
-    cluster. Returns counts of valid and nodata cells and the number of tiles.
+    cluster. ``description`` and ``unit`` (GDAL's unit type: "degree", "percent") name the
+    output band's values for GDAL and QGIS. Returns counts of valid and nodata cells and the
+    number of tiles.
 
     ``executor`` defaults to the Dask cluster of ``DASK_SCHEDULER_ADDRESS`` when it is set,
     else one tile thread: a 3x3 kernel costs less than reading and writing
@@ -195,7 +198,8 @@ def shade_raster(info, band: int, output: str | Path,
             valid[0] += int((np.isfinite(values) if floating else values != nodata).sum())
 
     with RasterWriter(output, grid, 1, dtype, nodata=nodata, overviews=overviews,
-                      cog=cog) as writer:
+                      cog=cog, band_descriptions=[description] if description else None,
+                      band_units=[unit] if unit else None) as writer:
         result = process_raster(grid, {"dem": dem}, tile_kernel, writer, tile_size=tile_size,
                                 halo=1, executor=executor or resolve_executor(None, 1),
                                 feedback=feedback, collect=count,

@@ -434,7 +434,7 @@ def write_gcp_geotiff(source: Any, output: Any, gcps: list[tuple[str, float, flo
     from toolbox.io.grid import GridSpec
     from toolbox.io.raster import gdal_cache_max
     from toolbox.raster.tile import iter_tiles
-    from toolbox.raster.writer import RasterWriter
+    from toolbox.raster.writer import RasterWriter, copy_band_names
 
     with rasterio.Env(GDAL_CACHEMAX=gdal_cache_max(256)), warnings.catch_warnings():
         warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
@@ -449,6 +449,7 @@ def write_gcp_geotiff(source: Any, output: Any, gcps: list[tuple[str, float, flo
             with RasterWriter(output, grid, src.count, src.dtypes[0], src.nodata,
                               alpha=has_alpha, overviews=overviews, cog=cog, tags=tags,
                               gcps=points) as dst:
+                copy_band_names(src, dst.dataset, range(1, src.count + 1))
                 windows = [t.window for t in iter_tiles(grid, chunk)]
                 for window in feedback.iterate(windows):
                     dst.write(window, src.read(window=window))

@@ -45,6 +45,10 @@ class ShadingAlgorithm(Algorithm):
     def kernel_options(self, params: dict[str, Any]) -> dict[str, Any]:
         return {}
 
+    def band_meaning(self, params: dict[str, Any]) -> tuple[str | None, str | None]:
+        """``(description, unit)`` of the output band (GDAL's description and unit type)."""
+        return None, None
+
     def check(self, params: dict[str, Any]) -> None:
         from toolbox.terrain.shading import check_georeferenced
 
@@ -60,7 +64,9 @@ class ShadingAlgorithm(Algorithm):
         stats = shading.shade_raster(params["INPUT"], params["BAND"], params["OUTPUT"], kernel,
                                      self.dtype, self.nodata, feedback, params["TILE_SIZE"],
                                      params["OVERVIEWS"], params["COG"],
-                                     executor=executor_of(params, workers=1))
+                                     executor=executor_of(params, workers=1),
+                                     **dict(zip(("description", "unit"),
+                                                self.band_meaning(params), strict=True)))
         declared = {output.name for output in self.outputs}
         return {"OUTPUT": params["OUTPUT"]} | ({"STATISTICS": stats} if "STATISTICS" in declared
                                                else {})

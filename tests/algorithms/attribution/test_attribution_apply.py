@@ -177,7 +177,12 @@ def test_one_layer_formats_get_every_layer_and_its_style_file(applied, files, su
         ours = gpd.read_file(layer_file)
         assert len(ours) == len(gpd.read_file(gpkg, layer=name)) and ours.crs.to_epsg() == 3003
         if name in styles:
-            assert layer_file.with_suffix(".qml").read_text(encoding="utf-8") == styles[name]
+            expected = styles[name]
+            if suffix == ".shp":  # the style names the fields as the DBF holds them
+                expected = expected.replace('="description"', '="descriptio"')
+                assert "descriptio" not in styles[name] or "descriptio" in list(
+                    pyogrio.read_info(layer_file)["fields"])
+            assert layer_file.with_suffix(".qml").read_text(encoding="utf-8") == expected
             assert layer_file.with_suffix(".sld").exists()
 
 
