@@ -248,6 +248,11 @@ def ransac(cls: type[Transform2D], src: np.ndarray, dst: np.ndarray, threshold: 
     need = cls.min_points_for(cls.n_params)
     if len(src) < need:
         raise InputDataError(f"a {cls.name} needs at least {need} points, got {len(src)}")
+    # OpenCV samples by row number: the points go in an order of their own coordinates, so the
+    # inliers do not depend on the order of the rows in the file (a CSV sorted otherwise)
+    canon = np.lexsort((dst[:, 1], dst[:, 0], src[:, 1], src[:, 0]))
+    given_src, given_dst = src, dst
+    src, dst = src[canon], dst[canon]
     s32, d32 = src.astype("float32"), dst.astype("float32")
     if cls.name == "homography":
         _, mask = cv2.findHomography(s32, d32, cv2.RANSAC, float(threshold), maxIters=max_trials,
@@ -277,6 +282,9 @@ def ransac(cls: type[Transform2D], src: np.ndarray, dst: np.ndarray, threshold: 
         if updated.sum() < need or np.array_equal(updated, inliers):
             break
         inliers = updated
+    src, dst, back = given_src, given_dst, inliers
+    inliers = np.empty_like(back)
+    inliers[canon] = back  # the final fit in the caller's order (its residuals are per point)
     transform = cls.estimate(src[inliers], dst[inliers])
     norms = np.hypot(*transform.residuals(src, dst).T)
     order = np.argsort(-norms[~inliers], kind="stable")
