@@ -211,23 +211,29 @@ def test_south_up_template_gives_the_same_cells_north_up(tmp_path):
         assert a.transform == b.transform == north_up
         assert np.array_equal(a.read(1), b.read(1), equal_nan=True)
 
+
+def _project_without_strips(path, prefix, centres):
+    """A project of nadir photos ``prefix``0.. at ``centres`` (x, y), no strip ids, loaded."""
+    from toolbox.photogrammetry.project import load_project
+
+    photos = "\n".join(
+        f"  - {{id: {prefix}{k}, camera: cam, exterior: {{X0: {x}, Y0: {y}, Z0: 3000, "
+        f"omega: 0, phi: 0, kappa: 0}}}}" for k, (x, y) in enumerate(centres))
+    path.write_text(
+        "version: 1\ncrs: EPSG:3003\nangle_unit: deg\ncameras:\n"
+        "  - {name: cam, principal_distance_mm: 150.0, frame_size_mm: [230, 230]}\n"
+        f"photos:\n{photos}\n")
+    return load_project(path)
+
+
 def test_photos_without_strip_ids_are_not_paired_across_a_turn(tmp_path, caplog):
     """A serpentine list (east along strip 1, back west along strip 2) without strip ids: the
     photos across the turn were paired; strips are now inferred, with a warning."""
     import logging
 
-    from toolbox.photogrammetry.project import load_project
-
     centres = [(1000 + 600 * k, 5000) for k in range(4)] + \
         [(1000 + 600 * k, 6000) for k in (3, 2, 1, 0)]
-    photos = "\n".join(
-        f"  - {{id: P{k}, camera: cam, exterior: {{X0: {x}, Y0: {y}, Z0: 3000, omega: 0, "
-        f"phi: 0, kappa: 0}}}}" for k, (x, y) in enumerate(centres))
-    (tmp_path / "p.yaml").write_text(
-        "version: 1\ncrs: EPSG:3003\nangle_unit: deg\ncameras:\n"
-        "  - {name: cam, principal_distance_mm: 150.0, frame_size_mm: [230, 230]}\n"
-        f"photos:\n{photos}\n")
-    project = load_project(tmp_path / "p.yaml")
+    project = _project_without_strips(tmp_path / "p.yaml", "P", centres)
     with caplog.at_level(logging.WARNING, logger="toolbox"):
         pairs = [(a.id, b.id) for a, b in project.consecutive_pairs()]
     assert pairs == [("P0", "P1"), ("P1", "P2"), ("P2", "P3"),
@@ -236,14 +242,8 @@ def test_photos_without_strip_ids_are_not_paired_across_a_turn(tmp_path, caplog)
     assert len(said) == 1 and "2 strips inferred" in said[0]
     # a straight strip: one strip, no warning
     straight = [(1000 + 600 * k, 5000 + 3 * k) for k in range(6)]
-    photos = "\n".join(
-        f"  - {{id: S{k}, camera: cam, exterior: {{X0: {x}, Y0: {y}, Z0: 3000, omega: 0, "
-        f"phi: 0, kappa: 0}}}}" for k, (x, y) in enumerate(straight))
-    (tmp_path / "s.yaml").write_text(
-        "version: 1\ncrs: EPSG:3003\nangle_unit: deg\ncameras:\n"
-        "  - {name: cam, principal_distance_mm: 150.0, frame_size_mm: [230, 230]}\n"
-        f"photos:\n{photos}\n")
     caplog.clear()
     with caplog.at_level(logging.WARNING, logger="toolbox"):
-        assert len(load_project(tmp_path / "s.yaml").consecutive_pairs()) == 5
+        project = _project_without_strips(tmp_path / "s.yaml", "S", straight)
+        assert len(project.consecutive_pairs()) == 5
     assert not [r for r in caplog.records if "strips inferred" in r.getMessage()]
