@@ -58,45 +58,13 @@ def _has_duplicates(x, y, offsets, pairwise_max):
     return False, comparisons
 
 
-#: relative slack of the "no farther point can still enter" bounds: a point at exactly the
-#: k-th distance (a tie, e.g. on a lattice) may still rank before the k-th by its coordinates
-SLACK = 1e-12
-
-
 @njit(nogil=True, cache=True, inline="always")
-def _before(d2a, a, d2b, b, px, py):
-    """Rank of binned positions ``a`` and ``b`` at squared distances ``d2a``, ``d2b`` from a
-    query: nearer first, then lower x, then lower y (a total order of distinct positions, the
-    same whatever the bins, blocks or tiles; the coordinates are read only on a tie)."""
-    if d2a != d2b:
-        return d2a < d2b
-    if px[a] != px[b]:
-        return px[a] < px[b]
-    return py[a] < py[b]
-
-
-@njit(nogil=True, cache=True)
-def _tie(d2s, index, k, d2, p, px, py, last):
-    """A candidate ``p`` at the largest kept squared distance ``d2`` of a full list
-    (``d2s``, ``index``: k unordered slots; ``last``: the slot ranking last by
-    :func:`_before`) takes that slot when it ranks before it; returns the slot ranking last."""
-    if not _before(d2, p, d2, index[last], px, py):
-        return last
-    index[last] = p
-    for u in range(k):
-        if d2s[u] == d2 and _before(d2, index[last], d2, index[u], px, py):
-            last = u
-    return last
-
-
-@njit(nogil=True, cache=True, inline="always")
-def _insert(best_d2, best_i, count, k, d2, index, px, py):
-    """Insert (d2, index) into the list of capacity k sorted by :func:`_before` (``px``,
-    ``py``: the binned coordinates ``index`` points into); return the new count."""
-    if count == k and not _before(d2, index, best_d2[k - 1], best_i[k - 1], px, py):
+def _insert(best_d2, best_i, count, k, d2, index):
+    """Insert (d2, index) into the sorted best list of capacity k; return the new count."""
+    if count == k and d2 >= best_d2[k - 1]:
         return count
     pos = count if count < k else k - 1
-    while pos > 0 and _before(d2, index, best_d2[pos - 1], best_i[pos - 1], px, py):
+    while pos > 0 and best_d2[pos - 1] > d2:
         best_d2[pos] = best_d2[pos - 1]
         best_i[pos] = best_i[pos - 1]
         pos -= 1
@@ -141,7 +109,7 @@ def knn_one(px, py, offsets, x0, y0, size, nbx, nby, qx, qy, k, r2max, skip,
         if r > 0:  # nearest possible point of ring r
             lower = (r - 1) * size + margin
             lower2 = lower * lower
-            if lower2 > r2max or (count == k and best_d2[k - 1] * (1.0 + SLACK) < lower2):
+            if lower2 > r2max or (count == k and best_d2[k - 1] <= lower2):
                 break
         row = iy - r if iy - r > 0 else 0
         row_end = iy + r if iy + r < nby - 1 else nby - 1
@@ -162,7 +130,7 @@ def knn_one(px, py, offsets, x0, y0, size, nbx, nby, qx, qy, k, r2max, skip,
                     dy = py[p] - qy
                     d2 = dx * dx + dy * dy
                     if d2 <= r2max:
-                        count = _insert(best_d2, best_i, count, k, d2, p, px, py)
+                        count = _insert(best_d2, best_i, count, k, d2, p)
                 col += 1
             row += 1
         r += 1
@@ -196,8 +164,7 @@ def sector_one(px, py, offsets, x0, y0, size, nbx, nby, qx, qy, sectors, per_sec
                 break
             done = True
             for s in range(sectors):
-                if sec_count[s] < per_sector or \
-                        sec_d2[s, per_sector - 1] * (1.0 + SLACK) >= lower2:
+                if sec_count[s] < per_sector or sec_d2[s, per_sector - 1] > lower2:
                     done = False
                     break
             if done:
@@ -225,8 +192,7 @@ def sector_one(px, py, offsets, x0, y0, size, nbx, nby, qx, qy, sectors, per_sec
                         s = int(angle * sectors / two_pi)
                         if s >= sectors:
                             s = sectors - 1
-                        sec_count[s] = _insert(sec_d2[s], sec_i[s], sec_count[s], per_sector, d2,
-                                               p, px, py)
+                        sec_count[s] = _insert(sec_d2[s], sec_i[s], sec_count[s], per_sector, d2, p)
                 if step == 0:
                     break
                 col += step
@@ -277,8 +243,8 @@ def block_knn(px, py, offsets, x0, y0, size, nbx, nby, xs, ys, c0, c1, r0, r1, m
     ``out_d2[t, :out_n[t]]``, ``out_i[t, :out_n[t]]`` (binned positions, **in no particular
     order**) and ``out_near[t]`` (the smallest squared distance) for the block's cells in
     row-major order ``t``; unmasked cells get ``out_n[t] = 0``. ``best_*`` and ``cand_*`` are
-    work arrays (see :func:`block_scratch`). Among equal distances the lower x, then the lower
-    y wins (:func:`_before`): the same neighbours whatever the blocks and tiles.
+    work arrays (see :func:`block_scratch`). Among equal distances the candidate nearer the
+    block centre wins.
     """
     bw = c1 - c0
     any_cell = False
@@ -358,7 +324,7 @@ def block_knn(px, py, offsets, x0, y0, size, nbx, nby, xs, ys, c0, c1, r0, r1, m
                 lower = cand_d[j] - e  # |c - p| >= |p - centre| - |c - centre|
                 if lower > radius:
                     break
-                if n == k and lower > 0.0 and lower * lower > worst * (1.0 + SLACK):
+                if n == k and lower > 0.0 and lower * lower >= worst:
                     break
                 dx = cand_x[j] - qx
                 dy = cand_y[j] - qy
@@ -368,8 +334,7 @@ def block_knn(px, py, offsets, x0, y0, size, nbx, nby, xs, ys, c0, c1, r0, r1, m
                 if n < k:
                     out_d2[t, n] = d2
                     out_i[t, n] = cand_p[j]
-                    if d2 > worst or (d2 == worst and _before(d2, out_i[t, wpos], d2,
-                                                              out_i[t, n], px, py)):
+                    if d2 > worst:
                         worst = d2
                         wpos = n
                     n += 1
@@ -379,16 +344,9 @@ def block_knn(px, py, offsets, x0, y0, size, nbx, nby, xs, ys, c0, c1, r0, r1, m
                     worst = out_d2[t, 0]
                     wpos = 0
                     for u in range(1, k):
-                        du = out_d2[t, u]
-                        if du > worst:
-                            worst = du
+                        if out_d2[t, u] > worst:
+                            worst = out_d2[t, u]
                             wpos = u
-                        elif du == worst and _before(du, out_i[t, wpos], du, out_i[t, u], px,
-                                                     py):
-                            wpos = u  # the next to leave: the last one by _before
-                elif d2 == worst:  # a tie at the k-th distance (rare but for lattices)
-                    wpos = _tie(out_d2[t], out_i[t], k, d2, cand_p[j], px, py, wpos)
-                    continue
                 else:
                     continue
                 if d2 < near:

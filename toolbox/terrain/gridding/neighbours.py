@@ -10,9 +10,8 @@ for scattered queries elsewhere.
 
 Conventions: coordinates are float64 in a local origin (see
 :func:`toolbox.terrain.points.local_origin`); distances are returned squared (``d2``);
-a missing neighbour has index ``-1`` and ``d2 = inf``. Among equal distances the point of lower x,
-then of lower y ranks first (``bin_kernels._before``), so a cell's neighbours do not depend on the
-bins, the blocks of cells or the tiles (a lattice of points has many ties).
+a missing neighbour has index ``-1`` and ``d2 = inf``. Among equal distances the point met first
+(lower bin, then lower index) ranks first.
 
 The compiled searches live in :mod:`toolbox.terrain.gridding.bin_kernels`, imported on first use:
 building the bins, the duplicate test and the rectangle search run in numpy below
