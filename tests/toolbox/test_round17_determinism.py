@@ -6,30 +6,6 @@ from __future__ import annotations
 import numpy as np
 
 
-def test_contours_are_the_same_features_in_the_same_order_with_any_tile_size():
-    # carto:contours with TILE_SIZE 8 wrote the same lines as with 512 but in another order
-    # (feature 0 was the 310 m line instead of the 290 m one) and rings starting at another
-    # vertex, so the GeoPackage differed with the execution setting
-    from toolbox.cartography.contours import dem_contours
-
-    yy, xx = np.mgrid[0:60, 0:80].astype("float64")
-    z = 300 + 20 * np.sin(xx / 9) * np.cos(yy / 7) + 0.4 * xx
-    z[25:29, 30:36] = np.nan  # a hole: open lines ending at it
-    levels = np.arange(280.0, 345.0, 5.0)
-    whole = dem_contours(z, levels, 1000.0, 2000.0, 1.0, -1.0)
-    assert [c.level for c in whole] == sorted(c.level for c in whole)
-    for c in whole:
-        if c.closed:  # a ring starts at its least vertex (x, then y)
-            ring = c.xy[:-1]
-            assert tuple(c.xy[0]) == min(map(tuple, ring))
-    for tile in (7, 8, 16, 33):
-        tiled = dem_contours(z, levels, 1000.0, 2000.0, 1.0, -1.0, tile=tile)
-        assert len(tiled) == len(whole)
-        for a, b in zip(whole, tiled, strict=True):
-            assert a.level == b.level
-            np.testing.assert_array_equal(a.xy, b.xy)
-
-
 def test_ransac_inliers_do_not_depend_on_the_order_of_the_points():
     # rectify:estimate --ROBUST ransac rejected P26 with the GCP rows in file order and P31
     # with them reversed (exit 0 both, different homographies): OpenCV samples by row number.

@@ -309,26 +309,7 @@ def stitch_pieces(pieces: list[Piece], tile: int) -> list[Contour]:
                 i += 1
             else:
                 j += 1
-    return canonical_order(_chain(pieces, link))
-
-
-def canonical_order(contours: list[Contour]) -> list[Contour]:
-    """The lines in an order and form that depend only on their shapes, not on the blocks they
-    were traced in (TILE_SIZE, the executor): a ring starts at its lowest vertex (least x, then
-    y; orientation kept), and the lines are sorted by level, first vertex, last vertex."""
-    out = []
-    for c in contours:
-        xy = c.xy
-        if c.closed:
-            ring = xy[:-1]
-            least = np.flatnonzero(ring[:, 0] == ring[:, 0].min())
-            i = int(least[np.argmin(ring[least, 1])])
-            if i:
-                xy = np.concatenate([ring[i:], ring[:i + 1]])
-        out.append(Contour(c.level, xy))
-    out.sort(key=lambda c: (c.level, c.xy[0, 0], c.xy[0, 1], c.xy[-1, 0], c.xy[-1, 1],
-                            len(c.xy)))
-    return out
+    return _chain(pieces, link)
 
 
 def _chain(pieces: list[Piece], link: dict[tuple[int, int], tuple[int, int]]) -> list[Contour]:
