@@ -265,7 +265,9 @@ def _solution(problem: Problem, state: State, lin, cof, iterations: int,
     b = problem.block
     n, p = b.n_photos, b.n_points
     observed = np.bincount(b.obs_point[problem.obs_active], minlength=p) > 0
-    unknowns = problem.nc + 3 * int(observed.sum())
+    estimated = observed.copy()  # a control point whose rays were all rejected: its ground rows
+    estimated[b.ground_point[problem.ground_active.any(axis=1)]] = True  # still hold it
+    unknowns = problem.nc + 3 * int(estimated.sum())
     redundancy = len(lin.r) - unknowns
     sigma0 = math.sqrt(lin.cost / redundancy) if redundancy > 0 else math.nan
     cam, kind, aspect = b.observation_cameras()
