@@ -118,7 +118,8 @@ class ToRaster(Algorithm):
                 summary["zmax"] = max(summary["zmax"], float(z[valid].max()))
 
         writer = RasterWriter(params["OUTPUT"], grid, 1, params["DATA_TYPE"], params["NODATA"],
-                              cog=params["COG"], overviews=params["OVERVIEWS"])
+                              cog=params["COG"], overviews=params["OVERVIEWS"],
+                              band_descriptions=["height (TIN, the plane of each triangle)"])
         with feedback.timed("rasterise"), writer:
             process_raster(grid, None, partial(tin_tile, origin), writer, tile_size=tile_size,
                            plan=tiles.plan, collect=collect, feedback=feedback, end=90,

@@ -93,7 +93,8 @@ def write_dem(run: GridRun, tiles: Any, request: GriddingRequest, feedback: Feed
     feedback.push_info(f"{grid.width} x {grid.height} cells in {n_tiles} tiles on "
                        f"{executor.describe()}")
     writer = RasterWriter(request.output, grid, 1, "float32", run.nodata, tile=run.tile,
-                          cog=bool(execution.cog), overviews=execution.overviews)
+                          cog=bool(execution.cog), overviews=execution.overviews,
+                          band_descriptions=["height (gridded from the points)"])
     with feedback.timed("tiles"), writer:
         process_raster(grid, None, tiles.kernel, writer, tile_size=run.tile, executor=executor,
                        feedback=feedback, plan=tiles.plan, collect=collect, start=start, end=end)
