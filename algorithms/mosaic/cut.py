@@ -212,14 +212,13 @@ def _open_input(value):
                 with rasterio.open(value) as src:
                     if src.count > 0:  # sheets are cut on the input's cells, north-up
                         from toolbox.io.raster import (
+                            dataset_transform,
                             require_georeferenced,
                             require_north_up,
-                            without_negligible_rotation,
                         )
 
                         require_georeferenced(src, "INPUT", value)
-                        require_north_up(without_negligible_rotation(
-                            src.transform, src.width, src.height), "INPUT", value)
+                        require_north_up(dataset_transform(src), "INPUT", value)
                         return value, "raster", src.crs, tuple(src.bounds)
         try:
             first = open_layer(str(value), "INPUT")

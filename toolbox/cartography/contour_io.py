@@ -206,13 +206,13 @@ def raster_contours(path: str | Path, band: int, interval: float, base: float,
     import rasterio
 
     from toolbox.executor import resolve_executor
-    from toolbox.io.raster import without_negligible_rotation
+    from toolbox.io.raster import dataset_transform
 
     executor = executor or resolve_executor(None)
     grid = None
     threads = executor.workers if executor.kind == "local" else 1  # GDAL decodes tiles at once
     with rasterio.Env(GDAL_NUM_THREADS=str(threads)), rasterio.open(path) as src:
-        frame = GridFrame.of(without_negligible_rotation(src.transform, src.width, src.height))
+        frame = GridFrame.of(dataset_transform(src))
         if executor.kind == "local" and src.width * src.height <= IN_MEMORY_CELLS:
             grid = read_filled(src, band)
             zmin, zmax = grid_range(grid)

@@ -78,10 +78,10 @@ class Surface:
         from rasterio.windows import Window
 
         from toolbox.cartography.contour_io import GridFrame
-        from toolbox.io.raster import without_negligible_rotation
+        from toolbox.io.raster import dataset_transform
 
         with rasterio.open(self.dem.path) as src:
-            f = GridFrame.of(without_negligible_rotation(src.transform, src.width, src.height))
+            f = GridFrame.of(dataset_transform(src))
             cols = (xy[:, 0] - f.x0) / f.dx
             rows = (xy[:, 1] - f.y0) / f.dy
             c0 = int(np.clip(np.floor(np.nanmin(cols)) - 1, 0, src.width - 1))

@@ -56,11 +56,11 @@ def read_base(info, bounds: tuple[float, float, float, float], scale: float,
     from rasterio.enums import Resampling
     from rasterio.windows import from_bounds
 
-    from toolbox.io.raster import without_negligible_rotation
+    from toolbox.io.raster import dataset_transform
     from toolbox.raster.warp import photo_path
 
     with rasterio.open(photo_path(info.path)) as src:  # a paletted base: its colours
-        t = without_negligible_rotation(src.transform, src.width, src.height)
+        t = dataset_transform(src)
         corners = [t * (c, r) for c in (0, src.width) for r in (0, src.height)]
         xs, ys = [x for x, _ in corners], [y for _, y in corners]
         xmin, ymin = max(bounds[0], min(xs)), max(bounds[1], min(ys))

@@ -106,7 +106,7 @@ def open_raster_info(value: Any, name: str = "INPUT", role: str = "photo") -> Ra
                 require_georeferenced(src, name, value)
             crs = CRS.from_wkt(src.crs.to_wkt()) if src.crs else None
             return RasterInfo(path, src.width, src.height, src.count, tuple(src.dtypes), crs,
-                              without_negligible_rotation(src.transform, src.width, src.height),
+                              dataset_transform(src),
                               src.nodata, not src.transform.is_identity,
                               _band_colours(src), tuple(u or "" for u in src.units))
     except rasterio.errors.RasterioIOError as exc:
@@ -234,6 +234,12 @@ def without_negligible_rotation(transform: Any, width: int, height: int) -> Any:
             and abs(d) * max(int(width), 1) < NEGLIGIBLE_ROTATION * abs(transform.e)):
         return transform
     return Affine(transform.a, 0.0, transform.c, 0.0, transform.e, transform.f)
+
+
+def dataset_transform(src: Any) -> Any:
+    """The geotransform of the open dataset ``src``, its negligible rotation terms zero
+    (:func:`without_negligible_rotation`)."""
+    return without_negligible_rotation(src.transform, src.width, src.height)
 
 
 def north_up_transform(transform: Any, width: int, height: int) -> Any:

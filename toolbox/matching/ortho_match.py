@@ -53,9 +53,9 @@ class OrthoReference:
         path = Path(path)
         try:
             with rasterio.open(path) as src:
-                from toolbox.io.raster import without_negligible_rotation
+                from toolbox.io.raster import dataset_transform
 
-                info = cls(path, without_negligible_rotation(src.transform, src.width, src.height),
+                info = cls(path, dataset_transform(src),
                            src.crs, src.width, src.height, src.count)
         except rasterio.errors.RasterioError as exc:
             raise InputDataError(f"{name}: cannot read {path}: "

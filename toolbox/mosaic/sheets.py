@@ -70,11 +70,11 @@ def clip_raster(path: Path, sheet, output: Path, block: int = 2048) -> bool:
     from rasterio.windows import Window, from_bounds
 
     from toolbox.io.grid import GridSpec
-    from toolbox.io.raster import without_negligible_rotation
+    from toolbox.io.raster import dataset_transform
     from toolbox.raster.writer import RasterWriter, copy_band_metadata
 
     with rasterio.open(path) as src:
-        t = without_negligible_rotation(src.transform, src.width, src.height)
+        t = dataset_transform(src)
         win = from_bounds(*sheet.bounds, transform=t)
         col0, row0 = math.floor(win.col_off + 1e-6), math.floor(win.row_off + 1e-6)
         cols = max(1, math.ceil(win.col_off + win.width - 1e-6) - col0)

@@ -109,9 +109,9 @@ def open_source(path: str | Path, index: int, datasets: Any = None) -> OrthoSour
 
     path = Path(path)
     with _opened(path, datasets) as src:
-        from toolbox.io.raster import without_negligible_rotation
+        from toolbox.io.raster import dataset_transform
 
-        t = without_negligible_rotation(src.transform, src.width, src.height)
+        t = dataset_transform(src)
         if t.b != 0 or t.d != 0:
             raise InputDataError(f"'{path}' has a rotated geotransform; mosaic inputs must be "
                                  "north-up (warp it first)")

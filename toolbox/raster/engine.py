@@ -218,9 +218,9 @@ def read_window(source: Any, grid: GridSpec, window: Any, *, bands: Any = None,
 def _aligned_offset(src: Any, grid: GridSpec) -> tuple[int, int] | None:
     """(col, row) of the grid's origin in the source's cells when both grids share CRS, cell
     size and orientation up to a whole-cell shift; None otherwise."""
-    from toolbox.io.raster import without_negligible_rotation
+    from toolbox.io.raster import dataset_transform
 
-    s, g = without_negligible_rotation(src.transform, src.width, src.height), grid.transform
+    s, g = dataset_transform(src), grid.transform
     if s.b != 0 or s.d != 0 or g.b != 0 or g.d != 0:
         return None
     if abs(s.a - g.a) > _EPS * abs(g.a) or abs(s.e - g.e) > _EPS * abs(g.e):
