@@ -141,12 +141,10 @@ class MosaicBuild(Algorithm):
                            f"{TILE_SIZE}-cell tile", f"use a smaller {name}", "cells per tile")
             alpha = any(s.alpha_band is not None for s in sources)
             nodata = next((s.nodata for s in sources if s.nodata is not None), None)
-            if not alpha and nodata is None:  # every value valid (or a mask band): a nodata
-                # of 0 would turn their valid zeros (black pixels) into no data
-                import numpy as np
+            if not alpha and nodata is None:  # every value valid (or a mask band)
+                from toolbox.raster.writer import empty_marker
 
-                floats = np.dtype(dtype).kind == "f"
-                nodata, alpha = (np.nan, False) if floats else (None, True)
+                nodata, alpha = empty_marker(dtype)
             index = params["SOURCE_INDEX"]
             scratch = None
             if index is None and params["SEAMLINES"] is not None:  # the seams come from the index

@@ -71,7 +71,7 @@ def clip_raster(path: Path, sheet, output: Path, block: int = 2048) -> bool:
 
     from toolbox.io.grid import GridSpec
     from toolbox.io.raster import dataset_transform
-    from toolbox.raster.writer import RasterWriter, copy_band_metadata
+    from toolbox.raster.writer import RasterWriter, copy_band_metadata, empty_marker
 
     with rasterio.open(path) as src:
         t = dataset_transform(src)
@@ -84,9 +84,9 @@ def clip_raster(path: Path, sheet, output: Path, block: int = 2048) -> bool:
         grid = GridSpec(t @ rasterio.Affine.translation(col0, row0), cols, rows, src.crs)
         bands = [i for i, ci in enumerate(src.colorinterp) if ci.name == "alpha"]
         alpha = bool(bands)
-        floats = np.dtype(src.dtypes[0]).kind == "f"
-        added = not alpha and src.nodata is None and not floats  # an alpha band of ours
-        nodata = src.nodata if src.nodata is not None or alpha else (np.nan if floats else None)
+        nodata, added = src.nodata, False  # added: an alpha band of ours
+        if src.nodata is None and not alpha:
+            nodata, added = empty_marker(src.dtypes[0])
         # the writer's alpha band is the last one; a source's alpha elsewhere stays a band
         # whose colour interpretation is copied below
         last_alpha = added or (alpha and bands[0] == src.count - 1 and src.count > 1)

@@ -393,6 +393,13 @@ class RasterWriter:
             p.unlink(missing_ok=True)
 
 
+def empty_marker(dtype: Any) -> tuple[float | None, bool]:
+    """How an output of a raster whose every value is valid (no nodata, no alpha band) marks
+    its empty cells: ``(nodata, alpha)``, NaN for floats, else an alpha band (a nodata of 0
+    would turn its valid zeros, sea level or black pixels, into no data)."""
+    return (float("nan"), False) if np.dtype(dtype).kind == "f" else (None, True)
+
+
 def copy_band_names(src: Any, dst: Any, bands: Any) -> None:
     """Copy each data band's description, unit type and colour interpretation from the open
     raster ``src`` (band ``bands[k]``, 1-based) to band ``k + 1`` of the open, writable ``dst``
