@@ -96,10 +96,15 @@ def build_ahead_of_time() -> list[str]:
 
 def compile_large_input_kernels() -> None:
     """The bin kernels that only inputs above the numpy crossover use (the demo's are smaller:
-    :data:`toolbox.terrain.gridding.neighbours.NUMPY_MAX_POINTS`), through the same calls."""
+    :data:`toolbox.terrain.gridding.neighbours.NUMPY_MAX_POINTS`), through the same calls; and
+    the JIT of the TIN's uniqueness check (large triangulations with shared coordinates), for a
+    machine where its ahead-of-time build fails."""
     import numpy as np
 
     from toolbox.terrain.gridding import neighbours
+    from toolbox.terrain.tin.unique_kernel import cocircular_edges
+
+    cocircular_edges(np.zeros((3, 2)), np.full((1, 6), 1, dtype=np.uint32))
 
     saved = neighbours.NUMPY_MAX_POINTS
     neighbours.NUMPY_MAX_POINTS = -1

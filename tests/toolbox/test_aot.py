@@ -67,6 +67,31 @@ def test_the_compiled_kernel_gives_the_jit_arrays(cache_home, case):
         np.testing.assert_array_equal(a, b)
 
 
+def test_the_compiled_cocircular_count_gives_the_jit_count(cache_home):
+    """The TIN's uniqueness check (toolbox.terrain.tin.unique_kernel), compiled: the JIT's
+    counts (the JIT is checked against exact arithmetic in test_round18_cdt_unique.py) on a
+    lattice with random points (many), and on its perturbed copy (none)."""
+    import pythoncdt as cdt
+
+    from toolbox.terrain.tin.unique_kernel import cocircular_edges
+
+    compiled = aot.compiled_kernel("cocircular_edges", folder=cache_home["folder"])
+    assert compiled is not None, os.listdir(cache_home["folder"])
+    rng = np.random.default_rng(4)
+    lattice = np.stack(np.meshgrid(np.arange(50.0), np.arange(50.0)), -1).reshape(-1, 2)
+    xy = np.vstack([lattice, rng.uniform(50, 90, (3000, 2))])
+    counts = []
+    for points in (xy, xy + rng.uniform(-1e-4, 1e-4, xy.shape)):
+        t = cdt.Triangulation(cdt.VertexInsertionOrder.AUTO,
+                              cdt.IntersectingConstraintEdges.TRY_RESOLVE, 0.0)
+        t.insert_vertices(points)
+        coords = t.vertices_array().view(np.float64).reshape(-1, 2)
+        rows = t.triangles_array().view(np.uint32).reshape(-1, 6)
+        counts.append(cocircular_edges(coords, rows))
+        assert compiled(coords, rows) == counts[-1]
+    assert counts[0] >= 49 * 49 and counts[1] == 0
+
+
 def test_arguments_of_another_type_are_refused_before_the_call(cache_home):
     """pycc's wrapper reads any array as the declared type (a float32 grid crashed the process
     in a trial): the guarded kernel refuses it with a TypeError naming the argument."""
@@ -200,10 +225,12 @@ def test_the_warmup_command_says_where_the_modules_are(tmp_path, monkeypatch, pr
     monkeypatch.setattr(warmup, "warmup", lambda: 3)
     monkeypatch.setattr(aot, "_folder", [str(tmp_path)])
     if present:
-        Path(aot.module_path("contour_lines")).write_bytes(b"")
+        for name in aot.EXPORTS:
+            Path(aot.module_path(name)).write_bytes(b"")
     result = CliRunner().invoke(main, ["warmup"])
     assert result.exit_code == 0, result.output
-    count = "1 of 1" if present else "0 of 1"
+    total = len(aot.EXPORTS)
+    count = f"{total} of {total}" if present else f"0 of {total}"
     assert "Warm-up finished: 3 runs;" in result.output
     assert f"{count} ahead-of-time kernels in {tmp_path}" in result.output
     assert ("runs use numba's JIT" in result.output) is not present

@@ -104,7 +104,7 @@ def test_random_points_same_triangles_as_triangle():
     triangle = pytest.importorskip("triangle")
     rng = np.random.default_rng(1616)
     xy = rng.uniform(0.0, 1000.0, (MEMORY_ORDER_MIN_POINTS + 10, 2)) + [1_685_000.0, 4_795_000.0]
-    assert _memory_order(xy) is not None  # the points go to CDT in Z-order
+    assert _memory_order(xy)[0] is not None  # the points go to CDT in Z-order
     ours = triangulate_pslg(xy, neighbors=False, parents=False, triangulator="cdt").triangles
     ref = triangle.triangulate({"vertices": xy - xy.min(axis=0)}, "")["triangles"]
     assert np.array_equal(_triangle_codes(ours, len(xy)), _triangle_codes(ref, len(xy)))
@@ -143,15 +143,18 @@ def test_memory_order_gives_the_same_arrays_even_on_cocircular_points(monkeypatc
 
 def test_memory_order_not_taken_on_shared_coordinates():
     grid = np.stack(np.meshgrid(np.arange(600.0), np.arange(600.0)), -1).reshape(-1, 2)
-    assert _memory_order(grid) is None
+    assert _memory_order(grid) == (None, True)
     rng = np.random.default_rng(2)
     xy = rng.uniform(0, 100, (MEMORY_ORDER_MIN_POINTS, 2))
-    assert _memory_order(xy) is not None
+    assert _memory_order(xy)[0] is not None and _memory_order(xy)[1]
     xy[5000, 1] = xy[200_000, 1]  # one shared y, far apart: meets no median split
-    assert _memory_order(xy) is not None
-    xy[:20, 0] = xy[20, 0]  # 21 points on one x: not worth following
-    assert _memory_order(xy) is None
-    assert _memory_order(xy[:1000]) is None  # small: as given
+    assert _memory_order(xy)[0] is not None and _memory_order(xy)[1]
+    xy[4100:4120, 0] = xy[4120, 0]  # 21 points on one x: not worth following
+    order, exact = _memory_order(xy)
+    assert order is not None and not exact  # kept only if the triangulation is unique
+    xy[:20, 0] = xy[20, 0]  # among the first points: likely a grid, as given
+    assert _memory_order(xy) == (None, True)
+    assert _memory_order(xy[:1000]) == (None, True)  # small: as given
 
 
 def _cdt_triangles(xy: np.ndarray, perm: np.ndarray | None = None) -> np.ndarray:
@@ -177,7 +180,8 @@ def _tied_neighbour(seed: int) -> np.ndarray:
 
 def test_memory_order_refused_where_a_shared_x_makes_a_split_ambiguous():
     xy = _tied_neighbour(0)
-    assert _memory_order(xy) is None
+    order, exact = _memory_order(xy)
+    assert order is not None and not exact
     # and rightly: another array order gives CDT other triangle arrays there
     perm = np.argsort(np.random.default_rng(99).random(len(xy)))
     assert not np.array_equal(_cdt_triangles(xy), _cdt_triangles(xy, perm))
@@ -186,7 +190,7 @@ def test_memory_order_refused_where_a_shared_x_makes_a_split_ambiguous():
 def test_memory_order_taken_with_a_harmless_shared_x_gives_the_same_arrays(monkeypatch):
     xy = _tied_neighbour(1)
     assert len(np.unique(xy[:, 0])) == len(xy) - 1
-    assert _memory_order(xy) is not None
+    assert _memory_order(xy)[1]
     fast = triangulate_pslg(xy, triangulator="cdt")
     monkeypatch.setattr(kernels, "MEMORY_ORDER_MIN_POINTS", 10 ** 12)
     plain = triangulate_pslg(xy, triangulator="cdt")

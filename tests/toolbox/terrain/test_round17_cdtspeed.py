@@ -88,9 +88,11 @@ def test_a_point_exactly_on_a_segment_redoes_the_run_as_given(monkeypatch):
             assert {(0, 5000), (1, 5000)} <= pieces
 
 
-def test_segment_vertices_sharing_a_coordinate_keep_the_points_as_given():
+def test_segment_vertices_sharing_a_coordinate_are_not_an_exact_order():
+    # (round 18: the ordered run is then kept only if its triangulation is the unique one)
     rng = np.random.default_rng(4)
     xy = rng.uniform(0, 1e4, (MEMORY_ORDER_MIN_POINTS, 2))
-    assert _memory_order(xy, np.array([10, 20, 30, 40])) is not None
-    xy[30, 0] = xy[10, 0]
-    assert _memory_order(xy, np.array([10, 20, 30, 40])) is None
+    probe = np.array([5010, 5020, 5030, 5040])
+    assert _memory_order(xy, probe)[1]
+    xy[5030, 0] = xy[5010, 0]
+    assert not _memory_order(xy, probe)[1]

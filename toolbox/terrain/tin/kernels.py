@@ -239,10 +239,14 @@ def _cdt(local: np.ndarray, seg: np.ndarray, neighbors: bool, parents: bool):
     inserts joins segment vertices or crossings, i.e. no other point lies on a segment; where
     one does (an end of a constrained edge is a moved point), or CDT fails, the run is redone
     with the points as given. The triangles are then the very arrays of a run without the
-    ordering (renumbered back)."""
+    ordering (renumbered back). Where shared coordinates may change CDT's insertion sequence,
+    the ordered run is kept only if its triangulation is the unique one (no added crossing
+    vertex, no edge whose four points may lie on one circle: :func:`cocircular_edge_count`): the
+    same triangles as the run as given, possibly listed in another order and from another
+    corner."""
     import pythoncdt as cdt
 
-    order = _memory_order(local, seg.ravel())
+    order, exact = _memory_order(local, seg.ravel())
     if order is not None:
         pinned = None
         if len(seg):
@@ -252,7 +256,8 @@ def _cdt(local: np.ndarray, seg: np.ndarray, neighbors: bool, parents: bool):
             order = np.arange(len(local), dtype=np.int32)
             order[~pinned] = moved
         try:
-            result = _cdt_run(cdt, local, seg, neighbors, parents, order, pinned)
+            result = _cdt_run(cdt, local, seg, neighbors, parents, order, pinned,
+                              unique_only=not exact)
         except (RuntimeError, ValueError, _DuplicatePoint):
             result = None  # the run as given says what is wrong, in the input's numbering
         if result is not None:
@@ -261,10 +266,11 @@ def _cdt(local: np.ndarray, seg: np.ndarray, neighbors: bool, parents: bool):
 
 
 def _cdt_run(cdt, local: np.ndarray, seg: np.ndarray, neighbors: bool, parents: bool,
-             order: np.ndarray | None = None, pinned: np.ndarray | None = None):
+             order: np.ndarray | None = None, pinned: np.ndarray | None = None,
+             unique_only: bool = False):
     """One CDT run for :func:`_cdt`, the points given in ``order`` (point ``order[i]`` is CDT's
     ``i``; the segment vertices, ``pinned``, keep their index); None when a moved point lies
-    on a segment."""
+    on a segment, or, with ``unique_only``, when the triangulation may not be the only one."""
     t = cdt.Triangulation(cdt.VertexInsertionOrder.AUTO,
                           cdt.IntersectingConstraintEdges.TRY_RESOLVE, 0.0)
     try:
@@ -287,8 +293,11 @@ def _cdt_run(cdt, local: np.ndarray, seg: np.ndarray, neighbors: bool, parents: 
             if not pinned[ends].all():
                 return None
     vertices = t.vertices_array(copy=False)
-    added = np.column_stack([vertices["x"][SUPER + n:], vertices["y"][SUPER + n:]])
     tris = t.triangles_array(copy=False)
+    if unique_only and (len(vertices) > SUPER + n or cocircular_edge_count(
+            vertices.view(np.float64).reshape(-1, 2), tris.view(np.uint32).reshape(-1, 6))):
+        return None  # a crossing vertex (numbered as it comes), or maybe not the only CDT
+    added = np.column_stack([vertices["x"][SUPER + n:], vertices["y"][SUPER + n:]])
     renumber = None
     if order is not None:  # CDT's vertex SUPER + i is point order[i]; crossings as they come
         renumber = np.concatenate([np.zeros(SUPER, np.int32), order,
@@ -308,6 +317,22 @@ def _cdt_run(cdt, local: np.ndarray, seg: np.ndarray, neighbors: bool, parents: 
 MEMORY_ORDER_MIN_POINTS = 250_000
 
 
+def cocircular_edge_count(xy: np.ndarray, triangles: np.ndarray) -> int:
+    """:func:`toolbox.terrain.tin.unique_kernel.cocircular_edges` (see there: 0 means the
+    triangulation is the only Delaunay one of its points), by its ahead-of-time build when this
+    machine has one (:mod:`toolbox.aot`: numba is not imported), else by numba's JIT."""
+    from toolbox.aot import compiled_kernel
+
+    xy = np.ascontiguousarray(xy, dtype=np.float64)
+    triangles = np.ascontiguousarray(triangles, dtype=np.uint32)
+    compiled = compiled_kernel("cocircular_edges")
+    if compiled is None:
+        from toolbox.terrain.tin.unique_kernel import cocircular_edges
+
+        return int(cocircular_edges(xy, triangles))
+    return int(compiled(xy, triangles))
+
+
 def _morton16(q: np.ndarray) -> np.ndarray:
     """Spread the 8 bits of ``q`` (uint16 < 256) to the even bits of a 16-bit Morton code."""
     q = (q | (q << 4)) & 0x0F0F
@@ -315,9 +340,11 @@ def _morton16(q: np.ndarray) -> np.ndarray:
     return (q | (q << 1)) & 0x5555
 
 
-def _memory_order(local: np.ndarray, probe: np.ndarray | None = None) -> np.ndarray | None:
+def _memory_order(local: np.ndarray, probe: np.ndarray | None = None
+                  ) -> tuple[np.ndarray | None, bool]:
     """Points in Z-order of a 256 x 256 grid (int32 permutation), to pass to CDT in that order,
-    or None to pass them as given.
+    or None to pass them as given; and whether CDT's insertion sequence is then certainly the
+    same (``exact``).
 
     CDT inserts the points in the order of its k-d tree (a breadth-first walk of median splits
     in x and y), whatever their order in the array; the array's order only decides where each
@@ -327,39 +354,45 @@ def _memory_order(local: np.ndarray, probe: np.ndarray | None = None) -> np.ndar
     each median split picks the same point, which is certain unless the median's coordinate
     is shared by another point of the range split (then which of them lands at the median
     depends on the array's order): see :func:`_splits_unambiguous`. With many shared
-    coordinates (grids, rounded coordinates), an ambiguous split, or fewer than
-    :data:`MEMORY_ORDER_MIN_POINTS` points, None. ``probe``: indices of points (the segments'
-    vertices; the first 4096 are looked at) that give up at once if two of them share an x or
-    a y, before the full check.
+    coordinates or an ambiguous split, the order with ``exact`` False: the caller keeps the
+    result only if it is the unique triangulation. Fewer than
+    :data:`MEMORY_ORDER_MIN_POINTS` points, or shared coordinates among the first 4096 points
+    (grids, rounded coordinates: four points on one circle are likely), None. ``probe``:
+    indices of points (the segments' vertices; the first 4096 are looked at) that give
+    ``exact`` False at once if two of them share an x or a y, before the full check.
     """
     n = len(local)
-    if n < MEMORY_ORDER_MIN_POINTS:
-        return None
-    samples = [local[:4096]]  # rounded coordinates show ties at once
-    if probe is not None and len(probe):
-        samples.append(local[np.unique(probe[:4096])])
-    for sample in samples:
-        for axis in (0, 1):
-            head = np.sort(sample[:, axis])
-            if (head[1:] == head[:-1]).any():
-                return None
+    if n < MEMORY_ORDER_MIN_POINTS or _shares_coordinates(local[:4096]):
+        return None, True
+    exact = probe is None or not len(probe) or not _shares_coordinates(
+        local[np.unique(probe[:4096])])
     groups = []
-    for axis in (0, 1):
+    for axis in range(2 if exact else 0):
         values = np.sort(local[:, axis])
         tied = values[1:][values[1:] == values[:-1]]
         if len(tied) > _MAX_TIED_VALUES:
-            return None
+            exact = False
+            break
         groups += [np.flatnonzero(local[:, axis] == v) for v in np.unique(tied)]
-    if groups and not _splits_unambiguous(local, groups):
-        return None
+    if exact and groups:
+        exact = _splits_unambiguous(local, groups)
     low, high = _box(local)
     span = np.maximum(high - low, np.finfo(float).tiny)
     cell = ((local - low) * (255.999 / span)).astype(np.uint16)
     key = _morton16(cell[:, 0]) | (_morton16(cell[:, 1]) << 1)
-    return np.argsort(key, kind="stable").astype(np.int32)
+    return np.argsort(key, kind="stable").astype(np.int32), exact
 
 
-#: more shared coordinate values than this: points passed as given (checking costs more)
+def _shares_coordinates(sample: np.ndarray) -> bool:
+    """True when two of the points share an x or a y."""
+    for axis in (0, 1):
+        values = np.sort(sample[:, axis])
+        if (values[1:] == values[:-1]).any():
+            return True
+    return False
+
+
+#: more shared coordinate values than this: the split check gives up (it costs more)
 _MAX_TIED_VALUES = 16
 
 
