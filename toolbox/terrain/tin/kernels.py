@@ -15,15 +15,18 @@ The triangulation is constrained Delaunay with exact predicates, by one of two l
   dependency: redistributable in commercial products);
 - ``triangle``: Shewchuk's Triangle (the ``triangle`` package; its licence forbids commercial
   redistribution, so it is the optional extra ``pip install photogrammetry-toolbox[triangle]``),
-  as fast as CDT on a million random points (CDT 1.06 times faster) and 1.1 times faster with
-  the bench's breaklines (bench/results/tin_core.md; 1.4 times before CDT's points went in
+  as fast as CDT on a million random points (CDT 1.06 times faster) and with the bench's
+  breaklines (bench/results/tin_core.md; Triangle 1.4 times faster before CDT's points went in
   Z-order).
 
 The environment variable ``TOOLBOX_TRIANGULATOR`` chooses: ``cdt`` (default), ``triangle``, or
 ``auto`` (Triangle when installed, else CDT); the ``triangulator`` argument of
 :func:`triangulate_pslg` overrides it. Both give the same triangles on points in general position
 (the Delaunay triangulation is then unique); with four or more points on one circle each breaks
-the tie its own way. Crossing segments are split at their intersection by both.
+the tie its own way. Crossing segments are split at their intersection by both. CDT's own
+result does not depend on the points' order in memory: the same arrays (points in general
+position, or an insertion sequence provably unchanged), else the same triangles, kept only once
+a check shows no four points of two neighbouring triangles on one circle (:func:`_cdt`).
 The height
 inside a triangle is the plane through its three nodes, thesis eq. [43]-[44]
 (domain notes par. 14), evaluated with coordinates relative to the triangle's first
