@@ -58,16 +58,43 @@ def _has_duplicates(x, y, offsets, pairwise_max):
     return False, comparisons
 
 
+#: relative slack of the "no farther point can still enter" bounds: a point at exactly the
+#: k-th distance (a tie, e.g. on a lattice) may still rank before the k-th (:func:`_xy_before`),
+#: so the bounds must not cut it off by a rounding
+SLACK = 1e-12
+
+
+@njit(nogil=True, cache=True)
+def _xy_before(xa, ya, xb, yb):
+    """Among points at the same distance from a query the lower x, then the lower y ranks
+    first: a total order of distinct points that depends on nothing else (not on the bins,
+    blocks, tiles or the input order). Called only on an exact tie of squared distances."""
+    if xa != xb:
+        return xa < xb
+    return ya < yb
+
+
 @njit(nogil=True, cache=True, inline="always")
-def _insert(best_d2, best_i, count, k, d2, index):
-    """Insert (d2, index) into the sorted best list of capacity k; return the new count."""
-    if count == k and d2 >= best_d2[k - 1]:
-        return count
+def _insert(best_d2, best_i, count, k, d2, index, px, py):
+    """Insert (d2, index) into the best list of capacity k, sorted by squared distance then
+    :func:`_xy_before` (``px``, ``py``: the binned coordinates ``index`` points into); return
+    the new count. The coordinates are compared only on an exact tie."""
+    if count == k:
+        last = best_d2[k - 1]
+        if d2 > last or (d2 == last and not _xy_before(px[index], py[index],
+                                                       px[best_i[k - 1]], py[best_i[k - 1]])):
+            return count
     pos = count if count < k else k - 1
     while pos > 0 and best_d2[pos - 1] > d2:
         best_d2[pos] = best_d2[pos - 1]
         best_i[pos] = best_i[pos - 1]
         pos -= 1
+    if pos > 0 and best_d2[pos - 1] == d2:  # a tie: rank by the coordinates
+        while pos > 0 and best_d2[pos - 1] == d2 and _xy_before(
+                px[index], py[index], px[best_i[pos - 1]], py[best_i[pos - 1]]):
+            best_d2[pos] = best_d2[pos - 1]
+            best_i[pos] = best_i[pos - 1]
+            pos -= 1
     best_d2[pos] = d2
     best_i[pos] = index
     return count + 1 if count < k else count
@@ -76,14 +103,16 @@ def _insert(best_d2, best_i, count, k, d2, index):
 @njit(nogil=True, cache=True, inline="always")
 def _ring_start(x0, y0, size, nbx, nby, qx, qy):
     """Bin (ix, iy) of the query (possibly outside the grid), the distance from the query to
-    that bin's border, and the first and last ring of bins worth searching."""
+    that bin's border (less its rounding error: a lower bound), and the first and last ring of
+    bins worth searching."""
     fx = (qx - x0) / size
     fy = (qy - y0) / size
     ix = math.floor(fx)
     iy = math.floor(fy)
     mx = fx - ix if fx - ix < ix + 1 - fx else ix + 1 - fx
     my = fy - iy if fy - iy < iy + 1 - fy else iy + 1 - fy
-    margin = (mx if mx < my else my) * size
+    margin = (mx if mx < my else my) * size - SLACK * size * (abs(fx) + abs(fy) + 2.0)
+    margin = margin if margin > 0.0 else 0.0
     ox = -ix if ix < 0 else (ix - (nbx - 1) if ix > nbx - 1 else 0)  # rings outside the grid
     oy = -iy if iy < 0 else (iy - (nby - 1) if iy > nby - 1 else 0)
     fx_ = ix if ix > nbx - 1 - ix else nbx - 1 - ix  # ring reaching the farthest bin column
@@ -97,9 +126,9 @@ def knn_one(px, py, offsets, x0, y0, size, nbx, nby, qx, qy, k, r2max, skip,
             best_d2, best_i):
     """The k nearest points of (qx, qy) within sqrt(r2max), skipping index ``skip``.
 
-    Fills ``best_d2[:count]``, ``best_i[:count]`` (nearest first) and returns ``count``.
-    Rings of bins around the query's bin are scanned outwards, each in bin order
-    (:func:`_ring_start` and :func:`_insert` are inlined by numba).
+    Fills ``best_d2[:count]``, ``best_i[:count]`` (nearest first, equal distances by
+    :func:`_xy_before`) and returns ``count``. Rings of bins around the query's bin are scanned
+    outwards, each in bin order (:func:`_ring_start` and :func:`_insert` are inlined by numba).
     """
     count = 0
     if len(px) == 0 or k <= 0:
@@ -109,8 +138,8 @@ def knn_one(px, py, offsets, x0, y0, size, nbx, nby, qx, qy, k, r2max, skip,
         if r > 0:  # nearest possible point of ring r
             lower = (r - 1) * size + margin
             lower2 = lower * lower
-            if lower2 > r2max or (count == k and best_d2[k - 1] <= lower2):
-                break
+            if lower2 > r2max or (count == k and best_d2[k - 1] * (1.0 + SLACK) < lower2):
+                break  # (a point of ring r at exactly the k-th distance may still enter)
         row = iy - r if iy - r > 0 else 0
         row_end = iy + r if iy + r < nby - 1 else nby - 1
         col_start = ix - r if ix - r > 0 else 0
@@ -130,7 +159,7 @@ def knn_one(px, py, offsets, x0, y0, size, nbx, nby, qx, qy, k, r2max, skip,
                     dy = py[p] - qy
                     d2 = dx * dx + dy * dy
                     if d2 <= r2max:
-                        count = _insert(best_d2, best_i, count, k, d2, p)
+                        count = _insert(best_d2, best_i, count, k, d2, p, px, py)
                 col += 1
             row += 1
         r += 1
@@ -142,7 +171,8 @@ def knn_one(px, py, offsets, x0, y0, size, nbx, nby, qx, qy, k, r2max, skip,
 def sector_one(px, py, offsets, x0, y0, size, nbx, nby, qx, qy, sectors, per_sector,
                r2max, skip, sec_d2, sec_i, sec_count, out_d2, out_i):
     """Sector search: the ``per_sector`` nearest points in each of ``sectors`` equal angular
-    sectors (sector 0 starts east, counter-clockwise) within sqrt(r2max) (finite).
+    sectors (sector 0 starts east, counter-clockwise) within sqrt(r2max) (finite); equal
+    distances rank by :func:`_xy_before`.
 
     ``sec_d2``/``sec_i`` are (sectors, per_sector) work arrays, ``sec_count`` (sectors,).
     Fills ``out_d2[:count]``/``out_i[:count]`` (sector by sector, nearest first within a sector)
@@ -164,7 +194,8 @@ def sector_one(px, py, offsets, x0, y0, size, nbx, nby, qx, qy, sectors, per_sec
                 break
             done = True
             for s in range(sectors):
-                if sec_count[s] < per_sector or sec_d2[s, per_sector - 1] > lower2:
+                if sec_count[s] < per_sector or \
+                        sec_d2[s, per_sector - 1] * (1.0 + SLACK) >= lower2:
                     done = False
                     break
             if done:
@@ -192,7 +223,8 @@ def sector_one(px, py, offsets, x0, y0, size, nbx, nby, qx, qy, sectors, per_sec
                         s = int(angle * sectors / two_pi)
                         if s >= sectors:
                             s = sectors - 1
-                        sec_count[s] = _insert(sec_d2[s], sec_i[s], sec_count[s], per_sector, d2, p)
+                        sec_count[s] = _insert(sec_d2[s], sec_i[s], sec_count[s], per_sector, d2,
+                                               p, px, py)
                 if step == 0:
                     break
                 col += step
@@ -231,6 +263,20 @@ def _in_rect(px, py, offsets, nbx, c0, c1, r0, r1, xmin, ymin, xmax, ymax, out):
 
 
 @njit(nogil=True, cache=True)
+def _tie(d2s, index, k, d2, p, px, py):
+    """Binned position ``p`` at the largest squared distance ``d2`` of a full, unordered list
+    (``d2s``, ``index``: k slots) takes the slot of the one that ranks last among the slots
+    at ``d2`` (:func:`_xy_before`) if it ranks before that one; that one leaves the list."""
+    last = -1
+    for u in range(k):
+        if d2s[u] == d2 and (last < 0 or _xy_before(px[index[last]], py[index[last]],
+                                                    px[index[u]], py[index[u]])):
+            last = u
+    if _xy_before(px[p], py[p], px[index[last]], py[index[last]]):
+        index[last] = p
+
+
+@njit(nogil=True, cache=True)
 def block_knn(px, py, offsets, x0, y0, size, nbx, nby, xs, ys, c0, c1, r0, r1, mask, k, r2max,
               best_d2, best_i, cand_x, cand_y, cand_p, cand_d, out_d2, out_i, out_n, out_near):
     """k nearest points of every masked cell centre of the block ``rows r0:r1 x cols c0:c1``.
@@ -243,8 +289,9 @@ def block_knn(px, py, offsets, x0, y0, size, nbx, nby, xs, ys, c0, c1, r0, r1, m
     ``out_d2[t, :out_n[t]]``, ``out_i[t, :out_n[t]]`` (binned positions, **in no particular
     order**) and ``out_near[t]`` (the smallest squared distance) for the block's cells in
     row-major order ``t``; unmasked cells get ``out_n[t] = 0``. ``best_*`` and ``cand_*`` are
-    work arrays (see :func:`block_scratch`). Among equal distances the candidate nearer the
-    block centre wins.
+    work arrays (see :func:`block_scratch`). Among equal distances the lower x, then the lower
+    y ranks first (:func:`_xy_before`, compared only on an exact tie: :func:`_tie`): the same
+    neighbours whatever the blocks and tiles.
     """
     bw = c1 - c0
     any_cell = False
@@ -253,7 +300,7 @@ def block_knn(px, py, offsets, x0, y0, size, nbx, nby, xs, ys, c0, c1, r0, r1, m
             out_n[(r - r0) * bw + (c - c0)] = 0
             if mask[r, c]:
                 any_cell = True
-    if not any_cell or len(px) == 0:
+    if not any_cell or len(px) == 0 or k <= 0:
         return
     xa, xb = xs[c0], xs[c1 - 1]
     if xb < xa:
@@ -269,15 +316,17 @@ def block_knn(px, py, offsets, x0, y0, size, nbx, nby, xs, ys, c0, c1, r0, r1, m
                     best_d2, best_i)
     radius = math.sqrt(r2max)
     reach = radius
-    if count == k:  # (slack for the rounding of sqrt and of the squares below)
-        bound = (math.sqrt(best_d2[k - 1]) + half_diag) * (1.0 + 1e-9) + 1e-9 * size
-        if bound < reach:
-            reach = bound
-    # gather the candidates within reach of the block, sorted by distance to its centre
+    if count == k:
+        reach = math.sqrt(best_d2[k - 1]) + half_diag
+        reach = reach if reach < radius else radius
+    # gather the candidates within reach of the block, sorted by distance to its centre (slack
+    # for the rounding of sqrt and of the squares: a point at exactly the k-th distance of a
+    # cell, a tie, must be a candidate)
     m = 0
     bc0, bc1, br0, br1 = 0, nbx - 1, 0, nby - 1
     circle2 = math.inf
     if reach != math.inf:
+        reach = reach * (1.0 + 1e-9) + 1e-9 * size
         circle2 = (reach + half_diag) * (reach + half_diag)
         bc0 = math.floor((xa - reach - x0) / size)
         bc1 = math.floor((xb + reach - x0) / size)
@@ -308,6 +357,9 @@ def block_knn(px, py, offsets, x0, y0, size, nbx, nby, xs, ys, c0, c1, r0, r1, m
                     m += 1
     for j in range(m):
         cand_d[j] = math.sqrt(cand_d[j])
+    # the early stop's lower bound |p - centre| - |c - centre| loses a few ulps of those
+    # lengths to rounding: this much less keeps a candidate at exactly the k-th distance
+    tol = SLACK * (cand_d[m - 1] + 2.0 * half_diag) if m > 0 else 0.0
     for r in range(r0, r1):
         qy = ys[r]
         for c in range(c0, c1):
@@ -315,7 +367,7 @@ def block_knn(px, py, offsets, x0, y0, size, nbx, nby, xs, ys, c0, c1, r0, r1, m
                 continue
             t = (r - r0) * bw + (c - c0)
             qx = xs[c]
-            e = math.sqrt((qx - cx) * (qx - cx) + (qy - cy) * (qy - cy))
+            e = math.sqrt((qx - cx) * (qx - cx) + (qy - cy) * (qy - cy)) + tol
             n = 0
             worst = -1.0
             wpos = 0
@@ -324,7 +376,7 @@ def block_knn(px, py, offsets, x0, y0, size, nbx, nby, xs, ys, c0, c1, r0, r1, m
                 lower = cand_d[j] - e  # |c - p| >= |p - centre| - |c - centre|
                 if lower > radius:
                     break
-                if n == k and lower > 0.0 and lower * lower >= worst:
+                if n == k and lower > 0.0 and lower * lower > worst:
                     break
                 dx = cand_x[j] - qx
                 dy = cand_y[j] - qy
@@ -339,14 +391,21 @@ def block_knn(px, py, offsets, x0, y0, size, nbx, nby, xs, ys, c0, c1, r0, r1, m
                         wpos = n
                     n += 1
                 elif d2 < worst:
+                    gone = out_i[t, wpos]
                     out_d2[t, wpos] = d2
                     out_i[t, wpos] = cand_p[j]
+                    farthest = worst
                     worst = out_d2[t, 0]
                     wpos = 0
                     for u in range(1, k):
                         if out_d2[t, u] > worst:
                             worst = out_d2[t, u]
                             wpos = u
+                    if worst == farthest:  # the one that left tied with others (lattices)
+                        _tie(out_d2[t], out_i[t], k, worst, gone, px, py)
+                elif d2 == worst:  # a tie at the k-th distance (lattices)
+                    _tie(out_d2[t], out_i[t], k, worst, cand_p[j], px, py)
+                    continue
                 else:
                     continue
                 if d2 < near:

@@ -10,8 +10,9 @@ for scattered queries elsewhere.
 
 Conventions: coordinates are float64 in a local origin (see
 :func:`toolbox.terrain.points.local_origin`); distances are returned squared (``d2``);
-a missing neighbour has index ``-1`` and ``d2 = inf``. Among equal distances the point met first
-(lower bin, then lower index) ranks first.
+a missing neighbour has index ``-1`` and ``d2 = inf``. Among equal squared distances (points on a
+lattice) the lower x, then the lower y ranks first: the k nearest kept are the same whatever the
+bins, blocks, tiles or input order (compared only on an exact tie, so free off ties).
 
 The compiled searches live in :mod:`toolbox.terrain.gridding.bin_kernels`, imported on first use:
 building the bins, the duplicate test and the rectangle search run in numpy below
