@@ -266,10 +266,56 @@ def tin_layer_contours(xyz: np.ndarray, triangles: np.ndarray, interval: float,
                          {"triangles": int(len(triangles))})
 
 
+def canonical_order(xy: np.ndarray, counts: np.ndarray, levels: np.ndarray
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """The canonical order and form of lines given as one vertex buffer ``xy (N, 2)`` (line
+    ``i``: ``counts[i]`` vertices after those of lines ``< i``) at ``levels``: the same whatever
+    order the lines came in (TILE_SIZE, the executor, the tracer) and wherever a ring began.
+
+    A closed line (first vertex = last, more than 2 vertices) starts at its least vertex (least
+    x, then least y; orientation kept); the lines are sorted by level, then first vertex, then
+    second vertex (x, then y). Returns ``order`` (line ``k`` of the result is line
+    ``order[k]``) and ``source`` (vertex ``p`` of the result is ``xy[source[p]]``), all
+    vectorised over the lines (a few passes over the buffer, no loop per line).
+    """
+    n = len(counts)
+    ends = np.cumsum(counts)
+    first = ends - counts
+    closed = (counts > 2) & (xy[first] == xy[ends - 1]).all(axis=1)
+    x, y = xy[:, 0], xy[:, 1]
+    # each ring's least vertex: the vertices at its least x (about one a line), then the least
+    # y among them (lexsort of those few), the first such; open lines keep their first vertex
+    least_x = np.minimum.reduceat(x, first) if n else np.empty(0)
+    at = np.flatnonzero(x == np.repeat(least_x, counts))
+    line = np.searchsorted(ends, at, side="right")
+    by = np.lexsort((at, y[at], line))
+    at, line = at[by], line[by]
+    head = np.r_[True, line[1:] != line[:-1]] if len(at) else np.zeros(0, dtype=bool)
+    shift = np.where(closed, at[head] - first, 0)  # every line has a vertex at its least x
+    period = np.where(closed, counts - 1, counts)  # a ring's last vertex repeats its first
+    start = first + shift
+    second = first + (shift + 1) % period
+    order = np.lexsort((y[second], x[second], y[start], x[start], levels))
+    # the source of every output vertex: consecutive within a line from its (rotated) start,
+    # back by its period where a rotated ring wraps; built as steps summed up
+    counts_out = counts[order]
+    first_out = np.cumsum(counts_out) - counts_out
+    step = np.ones(len(xy), dtype=np.int64)
+    start_out = start[order]
+    if n:
+        step[0] = start_out[0]
+        end_out = np.where(shift > 0, start, ends - 1)  # a rotated ring ends at its start
+        step[first_out[1:]] = start_out[1:] - end_out[order][:-1]
+    wraps = shift[order] > 0
+    step[(first_out + period[order] - shift[order])[wraps]] -= period[order][wraps]
+    return order, np.cumsum(step)
+
+
 def contour_columns(contours: list[Contour], interval: float, base: float,
                     index_every: int) -> tuple[np.ndarray, dict[str, np.ndarray]]:
-    """The LineString Z contours as ISO WKB (Z = the level) and their fields: ``elev`` (m),
-    ``index`` (1 for index contours), ``closed`` (1 for rings), ``length`` (map units).
+    """The LineString Z contours as ISO WKB (Z = the level), in :func:`canonical_order`, and
+    their fields: ``elev`` (m), ``index`` (1 for index contours), ``closed`` (1 for rings),
+    ``length`` (map units).
 
     Built with numpy from all the vertices at once (no shapely: its import and its geometries
     were about a fifth of a 2000 x 2000 contour run's CPU after the tracing); every line's WKB
@@ -282,6 +328,12 @@ def contour_columns(contours: list[Contour], interval: float, base: float,
         lengths, closed = np.zeros(0), np.zeros(0, dtype=bool)
     else:
         xy = np.concatenate([c.xy for c in contours]).astype("<f8", copy=False)
+        order, source = canonical_order(xy, counts, levels)
+        levels, counts = levels[order], counts[order]
+        xyz = np.empty((len(xy), 3), dtype="<f8")
+        xyz[:, :2] = xy[source]
+        xyz[:, 2] = np.repeat(levels, counts)
+        xy = xyz[:, :2]
         last = np.cumsum(counts) - 1
         first = last - counts + 1
         seg = np.hypot(*np.diff(xy, axis=0).T)  # the segments, and one across each line break
@@ -289,9 +341,6 @@ def contour_columns(contours: list[Contour], interval: float, base: float,
         seg[last] = 0.0
         lengths = np.add.reduceat(seg, first)
         closed = (counts > 2) & (xy[first] == xy[last]).all(axis=1)
-        xyz = np.empty((len(xy), 3), dtype="<f8")
-        xyz[:, :2] = xy
-        xyz[:, 2] = np.repeat(levels, counts)
         body = memoryview(xyz).cast("B")  # sliced per line without copying it whole
         header = np.zeros(len(contours), dtype=[("order", "u1"), ("type", "<u4"), ("n", "<u4")])
         header["order"], header["type"], header["n"] = 1, 1002, counts  # 1002: LineString Z
