@@ -29,8 +29,9 @@ import threading
 #: argument: C-contiguous arrays, checked before every call, see :func:`compiled_kernel`)
 EXPORTS = {
     "contour_lines": ("toolbox.cartography.contour_kernel", "lines_core",
-                      "Tuple((float64[:, :], int64[:], int32[:]))(float64[:, ::1], float64[::1])",
-                      (("float64", 2), ("float64", 1))),
+                      "Tuple((float64[:, :], int64[:], int32[:]))(float64[:, ::1], float64[::1], "
+                      "float64[::1], float64[::1])",
+                      (("float64", 2), ("float64", 1), ("float64", 1), ("float64", 1))),
 }
 
 _loaded: dict[str, object] = {}

@@ -17,13 +17,13 @@ import toolbox
 from toolbox.cartography.contour_io import canonical_order
 
 
-def _dem(path, n=70, seed=4):
+def _dem(path, n=70, seed=4, west=1500000.0, north=4800000.0, crs="EPSG:3003"):
     """Smooth relief with noise: many small rings, and lines crossing many 8-16 cell blocks."""
     rng = np.random.default_rng(seed)
     yy, xx = np.mgrid[0:n, 0:n] / n
     z = 100 + 12 * np.sin(3 * xx) * np.cos(2 * yy) + rng.normal(0, 0.4, (n, n))
     with rasterio.open(path, "w", driver="GTiff", width=n, height=n, count=1, dtype="float32",
-                       crs="EPSG:3003", transform=from_origin(1500000, 4800000, 1, 1)) as dst:
+                       crs=crs, transform=from_origin(west, north, 1, 1)) as dst:
         dst.write(z.astype("float32"), 1)
     return path
 
@@ -89,3 +89,51 @@ def test_canonical_order_of_few_lines(n):
     xy = np.array([[1.0, 1.0], [0.0, 0.0]])[: 2 * n]
     order, source = canonical_order(xy, np.full(n, 2, dtype=np.int64), np.zeros(n))
     assert order.tolist() == list(range(n)) and source.tolist() == list(range(2 * n))
+
+
+@pytest.mark.parametrize("tracer", ["kernel", "contourpy"])
+def test_either_tracer_gives_the_same_file_whatever_tile_size(tmp_path, monkeypatch, tracer):
+    """The tracer is chosen by a cost model of the blocks (TILE_SIZE) and the executor: the
+    one-pass kernel interpolated in block coordinates and in other arithmetic than contourpy
+    (a vertex in a few thousand 1 ulp off), so TILE_SIZE 256 and 512 wrote other bits. Both
+    now interpolate contourpy's way between the nodes' grid coordinates. (Near the origin:
+    map coordinates of 1.5e6 m round most such differences away.)"""
+    from toolbox.cartography import contour_io
+
+    dem = _dem(tmp_path / "dem.tif", n=90, seed=5, west=0.0, north=90.0, crs="EPSG:3857")
+    ref, _ = _run(dem, tmp_path / "ref.gpkg")  # the cost model's choice: contourpy
+    monkeypatch.setattr(contour_io, "choose_tracer", lambda *args: tracer)
+    for tile in (8, 16, 29, 512):
+        wkb, _ = _run(dem, tmp_path / f"{tracer}{tile}.gpkg", TILE_SIZE=tile)
+        assert wkb == ref, (tracer, tile)
+
+
+def test_kernel_vertices_are_contourpys_bit_for_bit():
+    """A block of a grid with NaN holes and plateaus, at its place in the grid (nodes at 300 +
+    column, 1000 + row): the kernel's lines are contourpy's, vertex for vertex, bit for bit."""
+    from scipy.ndimage import gaussian_filter
+
+    from toolbox.cartography.contour_kernel import grid_lines
+    from toolbox.cartography.contours import contourpy_lines
+
+    rng = np.random.default_rng(7)
+    z = gaussian_filter(rng.normal(size=(60, 75)), 2) * 300 + rng.normal(0, 0.5, (60, 75))
+    z[rng.random(z.shape) < 0.05] = np.nan
+    z[20:30, 30:50] = np.round(np.nanmean(z[20:30, 30:50]))
+    levels = np.arange(np.floor(np.nanmin(z)), np.ceil(np.nanmax(z)), 1.0)
+    levels -= 1024 * np.spacing(np.abs(levels))
+    xs, ys = 300.0 + np.arange(75), 1000.0 + np.arange(60)
+
+    def lines(points, offsets, level_of):  # a ring's start is the tracer's: compared as a set
+        out = set()
+        for i, k in enumerate(level_of.tolist()):
+            xy = points[offsets[i]:offsets[i + 1]]
+            if len(xy) > 2 and (xy[0] == xy[-1]).all():
+                j = min(range(len(xy) - 1), key=lambda v: tuple(xy[v]))
+                xy = np.vstack([xy[j:-1], xy[:j + 1]])
+            out.add((k, xy.tobytes()))
+        return out
+
+    kernel = lines(*grid_lines(z, levels, xs, ys))
+    assert len(kernel) > 500
+    assert kernel == lines(*contourpy_lines(z, levels, 300.0, 1000.0, 1.0, 1.0))
