@@ -29,8 +29,9 @@ import threading
 #: argument: C-contiguous arrays, checked before every call, see :func:`compiled_kernel`)
 EXPORTS = {
     "contour_lines": ("toolbox.cartography.contour_kernel", "lines_core",
-                      "Tuple((float64[:, :], int64[:], int32[:]))(float64[:, ::1], float64[::1])",
-                      (("float64", 2), ("float64", 1))),
+                      "Tuple((float64[:, :], int64[:], int32[:]))(float64[:, ::1], float64[::1], "
+                      "float64[::1], float64[::1])",
+                      (("float64", 2), ("float64", 1), ("float64", 1), ("float64", 1))),
     "cocircular_edges": ("toolbox.terrain.tin.unique_kernel", "cocircular_edges",
                          "int64(float64[:, ::1], uint32[:, ::1])",
                          (("float64", 2), ("uint32", 2))),

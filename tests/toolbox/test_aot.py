@@ -54,12 +54,17 @@ def surfaces() -> list[tuple[str, np.ndarray, np.ndarray]]:
             ("saddles", saddles, np.array([0.25, 0.5, 0.75]))]
 
 
+def nodes(z):
+    """The kernel's node coordinates: x of each column, y of each row (grid_lines' default)."""
+    return np.arange(z.shape[1], dtype=np.float64), np.arange(z.shape[0], dtype=np.float64)
+
+
 @pytest.mark.parametrize("case", range(4))
 def test_the_compiled_kernel_gives_the_jit_arrays(cache_home, case):
     name, z, levels = surfaces()[case]
     compiled = aot.compiled_kernel("contour_lines", folder=cache_home["folder"])
     assert compiled is not None, os.listdir(cache_home["folder"])
-    got = compiled(np.ascontiguousarray(z, dtype=np.float64), levels)
+    got = compiled(np.ascontiguousarray(z, dtype=np.float64), levels, *nodes(z))
     want = grid_lines(z, levels)
     assert len(want[1]) > 10, name  # lines to compare
     for a, b in zip(got, want, strict=True):
@@ -97,15 +102,21 @@ def test_arguments_of_another_type_are_refused_before_the_call(cache_home):
     in a trial): the guarded kernel refuses it with a TypeError naming the argument."""
     compiled = aot.compiled_kernel("contour_lines", folder=cache_home["folder"])
     grid, levels = np.zeros((5, 6)), np.array([0.5])
-    bad = [((grid.astype(np.float32), levels), "argument 0 must be a C-contiguous 2-D float64"),
-           ((np.zeros((5, 12))[:, ::2], levels), "argument 0 must be a C-contiguous 2-D float64"),
-           ((grid, [0.5]), "argument 1 must be a C-contiguous 1-D float64 array, got list"),
-           ((grid, levels.astype(np.float32)), "argument 1 must be a C-contiguous 1-D float64"),
-           ((grid,), "takes 2 arguments, got 1")]
+    xs, ys = nodes(grid)
+    bad = [((grid.astype(np.float32), levels, xs, ys),
+            "argument 0 must be a C-contiguous 2-D float64"),
+           ((np.zeros((5, 12))[:, ::2], levels, xs, ys),
+            "argument 0 must be a C-contiguous 2-D float64"),
+           ((grid, [0.5], xs, ys), "argument 1 must be a C-contiguous 1-D float64 array, got list"),
+           ((grid, levels.astype(np.float32), xs, ys),
+            "argument 1 must be a C-contiguous 1-D float64"),
+           ((grid, levels, xs), "takes 4 arguments, got 3"),
+           ((grid, levels, np.arange(6), ys), "argument 2 must be a C-contiguous 1-D float64"),
+           ((grid,), "takes 4 arguments, got 1")]
     for args, message in bad:
         with pytest.raises(TypeError, match=message):
             compiled(*args)
-    points, offsets, level = compiled(grid, levels)  # the right types: no lines on a flat grid
+    points, offsets, level = compiled(grid, levels, *nodes(grid))  # no lines on a flat grid
     assert len(points) == 0 and list(offsets) == [0] and len(level) == 0
 
 
@@ -119,7 +130,7 @@ def test_the_compiled_kernel_releases_the_gil(cache_home):
     rng = np.random.default_rng(2)
     z = np.ascontiguousarray(gaussian_filter(rng.normal(size=(1500, 1500)), 8) * 400.0)
     levels = np.arange(-40.0, 40.0, 0.5)
-    compiled(z[:50, :50].copy(), levels)  # first call off the clock
+    compiled(z[:50, :50].copy(), levels, *nodes(z[:50, :50]))  # first call off the clock
     done = threading.Event()
     spins = [0]
 
@@ -133,7 +144,7 @@ def test_the_compiled_kernel_releases_the_gil(cache_home):
     spinner.start()
     try:
         before, t0 = spins[0], time.perf_counter()
-        compiled(z, levels)
+        compiled(z, levels, *nodes(z))
         during, elapsed = spins[0] - before, time.perf_counter() - t0
     finally:
         done.set()

@@ -266,10 +266,83 @@ def tin_layer_contours(xyz: np.ndarray, triangles: np.ndarray, interval: float,
                          {"triangles": int(len(triangles))})
 
 
+def canonical_order(xy: np.ndarray, counts: np.ndarray, levels: np.ndarray
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """The canonical order and form of lines given as one vertex buffer ``xy (N, 2)`` (line
+    ``i``: ``counts[i]`` vertices after those of lines ``< i``) at ``levels`` (or any keys in
+    the levels' order, one a line): the same whatever
+    order the lines came in (TILE_SIZE, the executor, the tracer) and wherever a ring began.
+
+    A closed line (first vertex = last, more than 2 vertices) starts at its least vertex (least
+    x, then least y; orientation kept); the lines are sorted by level, then first vertex, then
+    second vertex (x, then y). Returns ``order`` (line ``k`` of the result is line
+    ``order[k]``) and ``source`` (vertex ``p`` of the result is ``xy[source[p]]``), all
+    vectorised over the lines (a few passes over the buffer, no loop per line).
+    """
+    n = len(counts)
+    if not n:
+        return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
+    ends = np.cumsum(counts)
+    first = ends - counts
+    x = xy[:, 0]
+    flat = np.ascontiguousarray(xy).reshape(-1)  # x of vertex i at 2i, y at 2i + 1
+
+    def take_x(i):
+        return np.take(flat, 2 * i)
+
+    def take_y(i):
+        return np.take(flat, 2 * i + 1)
+
+    closed = (counts > 2) & (take_x(first) == take_x(ends - 1)) & \
+        (take_y(first) == take_y(ends - 1))
+    # each ring's least vertex: the vertices at its line's least x (about one a line), then
+    # the first of those at their least y; open lines keep their first vertex
+    at_least_x = x == np.repeat(np.minimum.reduceat(x, first), counts)
+    per_line = np.add.reduceat(at_least_x, first, dtype=np.int64)  # >= 1 each
+    at = np.flatnonzero(at_least_x)
+    y_at = take_y(at)
+    hits = np.flatnonzero(y_at == np.repeat(np.minimum.reduceat(y_at, np.cumsum(per_line) -
+                                                                per_line), per_line))
+    line = np.repeat(np.arange(n), per_line)[hits]
+    least = np.take(at, hits[np.r_[True, line[1:] != line[:-1]]])
+    shift = np.where(closed, least - first, 0)
+    period = np.where(closed, counts - 1, counts)  # a ring's last vertex repeats its first
+    start = first + shift
+    second = first + (shift + 1) % period
+    # sorted by x of the first vertex, then (stable) by level; runs of equal level and x (lines
+    # starting on one grid column) then sorted by the rest of the key
+    x0 = take_x(start)
+    order = np.argsort(x0)
+    order = order[np.argsort(np.take(levels, order), kind="stable")]  # radix on uint16
+    lev, xs = np.take(levels, order), np.take(x0, order)
+    tie = np.flatnonzero((lev[1:] == lev[:-1]) & (xs[1:] == xs[:-1]))
+    if len(tie):
+        tied_next = np.zeros(n, dtype=bool)  # position i ties with i + 1
+        tied_next[tie] = True
+        pos = np.flatnonzero(tied_next | np.r_[False, tied_next[:-1]])
+        run = np.cumsum(~np.r_[False, tied_next][pos])  # a run starts untied to the one before
+        sub = order[pos]
+        order[pos] = sub[np.lexsort((take_y(second[sub]), take_x(second[sub]),
+                                     take_y(start[sub]), run))]
+    # the source of every output vertex: consecutive within a line from its (rotated) start,
+    # back by its period where a rotated ring wraps; built as steps summed up
+    counts_out, shift_out, period_out = counts[order], shift[order], period[order]
+    first_out = np.cumsum(counts_out) - counts_out
+    step = np.ones(len(xy), dtype=np.int32 if len(xy) < 2**31 else np.int64)
+    start_out = start[order]
+    end_out = np.where(shift_out > 0, start_out, ends[order] - 1)  # a rotated ring: its start
+    step[0] = start_out[0]
+    step[first_out[1:]] = start_out[1:] - end_out[:-1]
+    wraps = shift_out > 0
+    step[(first_out + period_out - shift_out)[wraps]] -= period_out[wraps]
+    return order, np.cumsum(step, dtype=step.dtype)
+
+
 def contour_columns(contours: list[Contour], interval: float, base: float,
                     index_every: int) -> tuple[np.ndarray, dict[str, np.ndarray]]:
-    """The LineString Z contours as ISO WKB (Z = the level) and their fields: ``elev`` (m),
-    ``index`` (1 for index contours), ``closed`` (1 for rings), ``length`` (map units).
+    """The LineString Z contours as ISO WKB (Z = the level), in :func:`canonical_order`, and
+    their fields: ``elev`` (m), ``index`` (1 for index contours), ``closed`` (1 for rings),
+    ``length`` (map units).
 
     Built with numpy from all the vertices at once (no shapely: its import and its geometries
     were about a fifth of a 2000 x 2000 contour run's CPU after the tracing); every line's WKB
@@ -282,6 +355,17 @@ def contour_columns(contours: list[Contour], interval: float, base: float,
         lengths, closed = np.zeros(0), np.zeros(0, dtype=bool)
     else:
         xy = np.concatenate([c.xy for c in contours]).astype("<f8", copy=False)
+        # the levels' numbers k (base + k·interval, contour_levels) as the sort's 16-bit keys
+        # (numpy's radix sort) when they give the levels back exactly
+        k = np.rint((levels - base) / interval)
+        keys = (k - k.min()).astype(np.uint16) if np.ptp(k) < 2**16 and \
+            np.array_equal(base + k * interval, levels) else levels
+        order, source = canonical_order(xy, counts, keys)
+        levels, counts = levels[order], counts[order]
+        xyz = np.empty((len(xy), 3), dtype="<f8")
+        xyz[:, :2] = np.take(xy, source, axis=0)
+        xyz[:, 2] = np.repeat(levels, counts)
+        xy = xyz[:, :2]
         last = np.cumsum(counts) - 1
         first = last - counts + 1
         seg = np.hypot(*np.diff(xy, axis=0).T)  # the segments, and one across each line break
@@ -289,9 +373,6 @@ def contour_columns(contours: list[Contour], interval: float, base: float,
         seg[last] = 0.0
         lengths = np.add.reduceat(seg, first)
         closed = (counts > 2) & (xy[first] == xy[last]).all(axis=1)
-        xyz = np.empty((len(xy), 3), dtype="<f8")
-        xyz[:, :2] = xy
-        xyz[:, 2] = np.repeat(levels, counts)
         body = memoryview(xyz).cast("B")  # sliced per line without copying it whole
         header = np.zeros(len(contours), dtype=[("order", "u1"), ("type", "<u4"), ("n", "<u4")])
         header["order"], header["type"], header["n"] = 1, 1002, counts  # 1002: LineString Z

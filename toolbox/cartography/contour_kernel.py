@@ -8,8 +8,12 @@ segment per level it spans, or two at a saddle, split as the mean of its four he
 square with one node missing (NaN) is the triangle of the other three, cut along its diagonal;
 a square with two or more missing holds nothing.
 
-Grid coordinates: x = column, y = row of the node (cell centre). Lines keep the higher ground on
-their right in the (x, y) frame taken as right-handed; closed lines repeat their first vertex.
+Coordinates: node (row, column) is at x = ``xs[column]``, y = ``ys[row]`` (by default its column
+and row), and a crossing is interpolated between its edge's nodes with contourpy's arithmetic
+(``x_above·f + x_below·(1 - f)``, ``f = (z_below - level) / (z_below - z_above)``), so the two
+tracers give the same vertices bit for bit, and a block traced with its nodes' coordinates in the
+whole grid gives the whole grid's vertices (tests). Lines keep the higher ground on their right
+in the (x, y) frame taken as right-handed; closed lines repeat their first vertex.
 
 Each level's crossings on each edge get a dense id (edges in a fixed order, levels ascending on
 each edge), so linking the segments into lines needs no search: every square writes the
@@ -76,40 +80,45 @@ def _missing_corner(band: np.ndarray, r: int, c: int) -> int:
 @njit(cache=True, nogil=True, inline="always")
 def _edge(z: np.ndarray, band: np.ndarray, levels: np.ndarray, e: int, r0: int, c0: int,
           r1: int, c1: int, first: np.ndarray, x: np.ndarray, y: np.ndarray,
-          level: np.ndarray, total: int) -> int:
+          level: np.ndarray, total: int, xs: np.ndarray, ys: np.ndarray) -> int:
     """Edge ``e`` from node (r0, c0) to (r1, c1): without ``x`` (empty), give it its crossing
-    ids and return the new total; with it, fill its crossings (linear along the edge)."""
+    ids and return the new total; with it, fill its crossings (linear along the edge, nodes at
+    ``xs``, ``ys``: see the module's docstring)."""
     if len(x) == 0:
         first[e] = total
         a, b = band[r0, c0], band[r1, c1]
         if a >= 0 and b >= 0:
             total += abs(a - b)
         return total
+    if band[r0, c0] < band[r1, c1]:  # (r0, c0) the node above every level crossing here
+        r0, c0, r1, c1 = r1, c1, r0, c0
     za, zb = z[r0, c0], z[r1, c1]
-    k0 = min(band[r0, c0], band[r1, c1])  # the edge's lowest level
+    xa, ya, xb, yb = xs[c0], ys[r0], xs[c1], ys[r1]
+    k0 = band[r1, c1]  # the edge's lowest level
     for i in range(first[e], first[e + 1]):
         k = k0 + i - first[e]
-        f = (levels[k] - za) / (zb - za)
-        x[i] = c0 + f * (c1 - c0)
-        y[i] = r0 + f * (r1 - r0)
+        f = (zb - levels[k]) / (zb - za)  # contourpy's arithmetic: the same bits
+        x[i] = xa * f + xb * (1.0 - f)
+        y[i] = ya * f + yb * (1.0 - f)
         level[i] = k
     return total
 
 
 @njit(cache=True, nogil=True)
 def _edges(z: np.ndarray, band: np.ndarray, levels: np.ndarray, diag: np.ndarray,
-           first: np.ndarray, x: np.ndarray, y: np.ndarray, level: np.ndarray) -> int:
+           first: np.ndarray, x: np.ndarray, y: np.ndarray, level: np.ndarray,
+           xs: np.ndarray, ys: np.ndarray) -> int:
     """:func:`_edge` on every edge in id order (:func:`_edge_id`); returns the crossings'
     total."""
     rows, cols = z.shape
     total, e = 0, 0
     for r in range(rows):
         for c in range(cols - 1):
-            total = _edge(z, band, levels, e, r, c, r, c + 1, first, x, y, level, total)
+            total = _edge(z, band, levels, e, r, c, r, c + 1, first, x, y, level, total, xs, ys)
             e += 1
     for r in range(rows - 1):
         for c in range(cols):
-            total = _edge(z, band, levels, e, r, c, r + 1, c, first, x, y, level, total)
+            total = _edge(z, band, levels, e, r, c, r + 1, c, first, x, y, level, total, xs, ys)
             e += 1
     for r in range(rows - 1):
         for c in range(cols - 1):
@@ -117,7 +126,7 @@ def _edges(z: np.ndarray, band: np.ndarray, levels: np.ndarray, diag: np.ndarray
             if 0 <= m < 4:  # the diagonal between the corners next to the missing one
                 a, b = (m + 1) % 4, (m + 3) % 4
                 total = _edge(z, band, levels, e, r + _DR[a], c + _DC[a], r + _DR[b],
-                              c + _DC[b], first, x, y, level, total)
+                              c + _DC[b], first, x, y, level, total, xs, ys)
             elif len(x) == 0:
                 first[e] = total
             e += 1
@@ -127,7 +136,8 @@ def _edges(z: np.ndarray, band: np.ndarray, levels: np.ndarray, diag: np.ndarray
 
 
 @njit(cache=True, nogil=True)
-def _crossings(z: np.ndarray, band: np.ndarray, levels: np.ndarray):
+def _crossings(z: np.ndarray, band: np.ndarray, levels: np.ndarray, xs: np.ndarray,
+               ys: np.ndarray):
     """Every crossing of a level with an edge (quad edges, and the diagonals of squares with
     one missing node): ``first[e]`` (crossing ids: ``first[e] + k - k0`` for level ``k``, k0
     the lower band of the edge's two nodes), each square's missing corner
@@ -140,10 +150,11 @@ def _crossings(z: np.ndarray, band: np.ndarray, levels: np.ndarray):
     n_e = rows * (cols - 1) + (rows - 1) * cols + len(diag)
     first = np.empty(n_e + 1, dtype=np.int64)
     none = np.empty(0)
-    total = _edges(z, band, levels, diag, first, none, none, np.empty(0, dtype=np.int32))
+    total = _edges(z, band, levels, diag, first, none, none, np.empty(0, dtype=np.int32), xs,
+                   ys)
     x, y, level = np.empty(total), np.empty(total), np.empty(total, dtype=np.int32)
     if total:
-        _edges(z, band, levels, diag, first, x, y, level)
+        _edges(z, band, levels, diag, first, x, y, level, xs, ys)
     return first, diag, x, y, level
 
 
@@ -236,23 +247,30 @@ def _walk(succ: np.ndarray, x: np.ndarray, y: np.ndarray, level: np.ndarray):
 
 
 @njit(cache=True, nogil=True)
-def lines_core(z: np.ndarray, levels: np.ndarray):
+def lines_core(z: np.ndarray, levels: np.ndarray, xs: np.ndarray, ys: np.ndarray):
     """:func:`grid_lines` of a C-contiguous float64 grid of at least 2 x 2 nodes and at least
-    one level (the kernel :mod:`toolbox.aot` also compiles ahead of time)."""
+    one level, its nodes at ``xs`` (one a column), ``ys`` (one a row) (the kernel
+    :mod:`toolbox.aot` also compiles ahead of time)."""
     band = _bands(z, levels)
-    first, diag, x, y, level = _crossings(z, band, levels)
+    first, diag, x, y, level = _crossings(z, band, levels, xs, ys)
     succ = _link(z, band, levels, first, diag, len(x))
     return _walk(succ, x, y, level)
 
 
-def grid_lines(z: np.ndarray, levels: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Contour lines of grid ``z`` (NaN = no data) at ``levels`` (ascending), grid coordinates.
+def grid_lines(z: np.ndarray, levels: np.ndarray, xs: np.ndarray | None = None,
+               ys: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Contour lines of grid ``z`` (NaN = no data) at ``levels`` (ascending), its nodes at
+    x = ``xs[column]``, y = ``ys[row]`` (default: the column and row).
 
-    Returns ``points (n, 2)`` (x = column, y = row), ``offsets`` (line ``i`` is
+    Returns ``points (n, 2)``, ``offsets`` (line ``i`` is
     ``points[offsets[i]:offsets[i + 1]]``) and each line's index into ``levels``.
     """
     z = np.ascontiguousarray(z, dtype=np.float64)
     levels = np.ascontiguousarray(levels, dtype=np.float64)
     if z.shape[0] < 2 or z.shape[1] < 2 or not len(levels):
         return np.empty((0, 2)), np.zeros(1, dtype=np.int64), np.empty(0, dtype=np.int32)
-    return lines_core(z, levels)
+    xs = np.arange(z.shape[1], dtype=np.float64) if xs is None else \
+        np.ascontiguousarray(xs, dtype=np.float64)
+    ys = np.arange(z.shape[0], dtype=np.float64) if ys is None else \
+        np.ascontiguousarray(ys, dtype=np.float64)
+    return lines_core(z, levels, xs, ys)

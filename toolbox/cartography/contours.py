@@ -153,9 +153,9 @@ def grid_contour_pieces(z: np.ndarray, levels: Iterable[float], x0: float, y0: f
     # trace just below the level so a node exactly at it counts as above (as gdal_contour and
     # tin_contours do); the offset (1024 ulps) moves lines by far less than a micron
     below = levels - 1024 * np.spacing(np.abs(levels))
-    if tracer == "kernel":
-        points, offsets, level_of = kernel_lines(z, below)
-        xy = np.column_stack([x0 + points[:, 0] * dx, y0 + points[:, 1] * dy])
+    if tracer == "kernel":  # the nodes' coordinates as contourpy's: the same vertices
+        xy, offsets, level_of = kernel_lines(z, below, x0 + np.arange(z.shape[1]) * dx,
+                                             y0 + np.arange(z.shape[0]) * dy)
     elif tracer == "contourpy":
         xy, offsets, level_of = contourpy_lines(z, below, x0, y0, dx, dy)
     else:
@@ -168,19 +168,20 @@ def grid_contour_pieces(z: np.ndarray, levels: Iterable[float], x0: float, y0: f
             for i, line in _split_lines(xy, offsets)]
 
 
-def kernel_lines(z: np.ndarray, levels: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def kernel_lines(z: np.ndarray, levels: np.ndarray, xs: np.ndarray, ys: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`toolbox.cartography.contour_kernel.grid_lines` of a grid of at least 2 x 2 nodes
-    and one level, by the kernel's ahead-of-time build when this machine has one
-    (:mod:`toolbox.aot`: numba is not imported), else by numba's JIT: the same arrays."""
+    (at x = ``xs[column]``, y = ``ys[row]``) and one level, by the kernel's ahead-of-time build
+    when this machine has one (:mod:`toolbox.aot`: numba is not imported), else by numba's JIT:
+    the same arrays."""
     from toolbox.aot import compiled_kernel
 
     compiled = compiled_kernel("contour_lines")
     if compiled is None:
         from toolbox.cartography.contour_kernel import grid_lines
 
-        return grid_lines(z, levels)
-    return compiled(np.ascontiguousarray(z, dtype=np.float64),
-                    np.ascontiguousarray(levels, dtype=np.float64))
+        return grid_lines(z, levels, xs, ys)
+    return compiled(*(np.ascontiguousarray(a, dtype=np.float64) for a in (z, levels, xs, ys)))
 
 
 def _split_lines(points: np.ndarray, offsets: np.ndarray) -> list[tuple[int, np.ndarray]]:
