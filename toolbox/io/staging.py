@@ -60,6 +60,7 @@ SIDECAR_SUFFIXES = (".aux.xml", ".ovr", ".msk", *SQLITE_JOURNALS)
 SHAPEFILE_PARTS = (".shp", ".shx", ".dbf", ".prj", ".cpg", ".qix", ".sbn", ".sbx", ".qmd")
 SHAPEFILE_ONLY = (".shx", ".qix", ".sbn", ".sbx")  # meaningless without their .shp
 WORLD_FILES = (".tfw", ".tifw", ".jgw", ".pgw", ".wld")
+STYLE_SIDECARS = (".qml", ".sld")  # a layer's default style in QGIS, named after its stem
 
 
 _FINAL_OF: dict[Path, Path] = {}  # staged path -> final path, while a run is staged
@@ -348,12 +349,14 @@ def final_folder(path: str | Path) -> Path:
 
 def protected_paths(path: Path) -> set[Path]:
     """``path`` (resolved) and the sidecars GDAL/OGR read with it: a Shapefile's parts, world
-    files and an existing ``.prj`` of any input (ASCII grids, CSVs... take their CRS from it)."""
+    files and an existing ``.prj`` of any input (ASCII grids, CSVs... take their CRS from it);
+    and its existing default style, ``<stem>.qml``/``.sld``, which QGIS loads with it (an output
+    of the same stem in another format would write its own there)."""
     path = Path(path).expanduser().resolve()
     out = {path} | {path.with_name(path.name + s) for s in SIDECAR_SUFFIXES}
     parts = SHAPEFILE_PARTS if path.suffix.lower() == ".shp" else ()
     out |= _stem_files(path, parts + WORLD_FILES)
-    return out | {prj for prj in _stem_files(path, (".prj",)) if prj.exists()}
+    return out | {f for f in _stem_files(path, (".prj", *STYLE_SIDECARS)) if f.exists()}
 
 
 def _stem_files(path: Path, suffixes: tuple[str, ...]) -> set[Path]:

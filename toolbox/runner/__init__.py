@@ -289,8 +289,9 @@ def _size(n: int) -> str:
 def write_declared_styles(alg_cls: type[Algorithm], values: dict[str, Any],
                           staged: dict[str, Any]) -> None:
     """Embed the default style of every layer an :class:`OutputVector` declares styled
-    (``Layer(style=...)``, :mod:`toolbox.styles.layers`) in its staged GeoPackage; other formats
-    have no style table. Imports nothing unless a layer declares a style."""
+    (``Layer(style=...)``, :mod:`toolbox.styles.layers`) in its staged GeoPackage; a one-layer
+    format has no style table: the style goes beside each layer file as ``<stem>.qml``/``.sld``
+    (staged with it, committed with it). Imports nothing unless a layer declares a style."""
     for dest in alg_cls.destinations():
         if not isinstance(dest, OutputVector):
             continue
@@ -298,16 +299,18 @@ def write_declared_styles(alg_cls: type[Algorithm], values: dict[str, Any],
         path = staged.get(dest.name)
         if not pairs or path is None or not Path(path).is_file():
             continue
-        from toolbox.io.vector import vector_driver
-
-        if vector_driver(path) != "GPKG":
-            continue
         import sqlite3
 
+        from toolbox.io.vector import vector_driver
+        from toolbox.styles.layers import write_declared_style_files
         from toolbox.styles.layers import write_declared_styles as write_styles
 
         try:
-            write_styles(path, pairs)
+            if vector_driver(path) == "GPKG":
+                write_styles(path, pairs)
+            else:
+                write_declared_style_files(path, [(layer.name, layer.style, layer.geometry_type)
+                                                  for layer in dest.layers])
         except (OSError, sqlite3.Error) as exc:  # a full disk, a read-only folder
             raise write_error(exc, dest.name, values[dest.name]) from None
 

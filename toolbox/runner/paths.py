@@ -11,7 +11,7 @@ from typing import Any
 
 from toolbox.algorithm import Algorithm
 from toolbox.errors import OutputExistsError, ParameterError
-from toolbox.io.staging import SIDECAR_SUFFIXES, protected_paths
+from toolbox.io.staging import SIDECAR_SUFFIXES, STYLE_SIDECARS, protected_paths
 from toolbox.parameters import File, Folder, OutputFolder, String
 
 REPORT = "--run-report"  # the run report, as messages name it
@@ -194,8 +194,10 @@ def check_outputs_against_inputs(alg_cls: type[Algorithm], values: dict[str, Any
 
 #: input files GDAL, QGIS or SQLite may write themselves while a run reads, the data staying the
 #: same (statistics into a PAM file, overviews or a spatial index QGIS builds, its metadata, a
-#: reader's journals): not watched by :func:`input_stamps`
-_SELF_WRITTEN = (*(s for s in SIDECAR_SUFFIXES if s != ".msk"), ".qix", ".sbn", ".sbx", ".qmd")
+#: reader's journals, a style QGIS saves as the layer's default): not watched by
+#: :func:`input_stamps`
+_SELF_WRITTEN = (*(s for s in SIDECAR_SUFFIXES if s != ".msk"), ".qix", ".sbn", ".sbx", ".qmd",
+                 *STYLE_SIDECARS)
 
 
 def input_stamps(inputs: dict[Path, str]) -> dict[Path, tuple[int, int, int]]:
@@ -273,8 +275,27 @@ def planned_paths(alg_cls: type[Algorithm], values: dict[str, Any]) -> dict[str,
                 paths += sorted(folder.glob(str(name)))
             else:
                 paths.append(folder / relative)
-        out[dest.name] = paths
+        out[dest.name] = paths + [p for p in declared_style_files(dest, final)
+                                  if p not in paths]
     return out
+
+
+def declared_style_files(dest: Any, final: Any) -> list[Path]:
+    """The default style files (``<stem>.qml``/``.sld``) the runner writes beside each layer
+    file of a one-layer-per-file vector output whose declared layer has a style of
+    :data:`toolbox.styles.layers.STYLES` (:func:`toolbox.styles.layers.write_declared_style_files`
+    ); none for a GeoPackage (its ``layer_styles`` table), a raster or a folder."""
+    layers = list(getattr(dest, "layers", []))
+    if dest.type_name != "output_vector" or not any(layer.style for layer in layers):
+        return []
+    from toolbox.io.vector import is_multi_layer, sibling_layer_path
+    from toolbox.styles.layers import STYLES, style_file_names
+
+    final = Path(final).expanduser().absolute()
+    if is_multi_layer(final):
+        return []
+    return [p for i, layer in enumerate(layers) if layer.style in STYLES
+            for p in style_file_names(final if i == 0 else sibling_layer_path(final, layer.name))]
 
 
 def declared_layer_files(dest: Any, final: Any) -> list[Path]:

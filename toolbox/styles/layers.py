@@ -1,7 +1,9 @@
 """Default styles of the output layers an algorithm declares styled (``Layer(..., style=NAME)``):
 one QML + SLD pair per style name, embedded in the GeoPackage's ``layer_styles`` table so QGIS
 opens the layer styled. The runner writes them (:func:`write_declared_styles`) on the staged
-GeoPackage of every output that declares one.
+GeoPackage of every output that declares one; beside a one-layer-per-file output (Shapefile,
+GeoJSON, FlatGeobuf, GeoParquet), which has no style table, as ``<layer file stem>.qml`` /
+``.sld`` (:func:`write_declared_style_files`), the default style QGIS loads with the file.
 
 - ``areas``: light fill, thin dark outline;
 - ``errors``: markers (point layers) or lines (line layers) categorised on ``severity``: red
@@ -126,3 +128,55 @@ def write_declared_styles(gpkg: str | Path, layers: Iterable[tuple[str, str]]) -
                            description=f"{style}: the toolbox's default style")
         done.append(layer)
     return done
+
+
+def _kind(geometry_type: str | None) -> str | None:
+    """The style kind of a declared OGR geometry type (``"Polygon Z"`` -> polygon)."""
+    return KINDS.get(str(geometry_type or "").upper().removesuffix(" Z"))
+
+
+def style_file_names(layer_file: Path) -> list[Path]:
+    """The default style files QGIS reads beside a one-layer file: ``<stem>.qml``, ``.sld``."""
+    return [layer_file.with_suffix(".qml"), layer_file.with_suffix(".sld")]
+
+
+def write_declared_style_files(path: str | Path,
+                               layers: Iterable[tuple[str, str | None, str | None]]
+                               ) -> list[Path]:
+    """Write beside each layer file of the one-layer-per-file output ``path`` (the layers it
+    declares, in order, as ``(layer, style name or None, declared geometry type)``: the first
+    in ``path``, the others in their sibling files) whose style is in :data:`STYLES` the style's
+    QML and SLD as ``<layer file stem>.qml`` / ``.sld``; a layer file not written is skipped.
+    A Shapefile's style names the fields it references as the file holds them (cut to 10
+    characters). Returns the files written."""
+    from toolbox.io.vector import vector_driver
+    from toolbox.io.vector_write import layer_paths, rename_style_fields
+    from toolbox.styles.files import write_style_files
+    from toolbox.styles.qml import qml_document
+    from toolbox.styles.sld import sld_document
+
+    layers = list(layers)
+    targets = layer_paths(Path(path), [name for name, _, _ in layers])
+    written: list[Path] = []
+    for name, style, geometry_type in layers:
+        target = targets[name]
+        if style not in STYLES or not target.is_file():
+            continue
+        model = STYLES[style](name, _kind(geometry_type))
+        qml, sld = qml_document(model), sld_document(model)
+        if vector_driver(target) == "ESRI Shapefile":
+            renames = _cut_field_names(target, [model.field, model.label_field])
+            qml, sld = rename_style_fields(qml, renames), rename_style_fields(sld, renames)
+        write_style_files(target.with_suffix(""), qml, sld)
+        written += style_file_names(target)
+    return written
+
+
+def _cut_field_names(shapefile: Path, names: list[str | None]) -> dict[str, str]:
+    """``{name: name in the file}`` of the field ``names`` longer than a DBF field name (10
+    characters) that the Shapefile holds cut."""
+    import pyogrio
+
+    held = {str(f) for f in pyogrio.read_info(shapefile)["fields"]}
+    return {name: name[:10] for name in names
+            if name and name not in held and name[:10] in held}

@@ -1,0 +1,94 @@
+"""Round 18, leftovers5: outputs as a QGIS user opens them.
+
+1. A one-layer output (Shapefile, GeoJSON...) of an algorithm declaring a layer style
+   (``Layer(style=...)``) got no style at all: a GeoPackage gets it in ``layer_styles``, and QGIS
+   loads ``<stem>.qml`` beside a one-layer file. The runner now writes the declared QML/SLD there,
+   staged and committed with the output; an input's own ``<stem>.qml`` is never overwritten by an
+   output of the same stem in another format (it was, with --overwrite).
+"""
+
+from __future__ import annotations
+
+import sqlite3
+import xml.etree.ElementTree as ET
+from contextlib import closing
+
+import numpy as np
+import pyogrio
+import pytest
+
+import toolbox
+from toolbox.errors import ParameterError
+
+
+def _points(path):
+    import geopandas as gpd
+    import shapely
+
+    rng = np.random.default_rng(0)
+    xy = rng.uniform(0, 50, (40, 2))
+    geoms = [shapely.Point(680000 + x, 4800000 + y, 100 + 0.8 * x) for x, y in xy]
+    gpd.GeoDataFrame({"id": range(40)}, geometry=geoms, crs="EPSG:32633").to_file(path)
+    return path
+
+
+def _renderer(qml_text: str) -> ET.Element:
+    return ET.fromstring(qml_text).find("renderer-v2")
+
+
+@pytest.mark.parametrize("ext", [".shp", ".geojson"])
+def test_declared_style_is_written_beside_a_one_layer_output(tmp_path, ext):
+    pts = _points(tmp_path / "pts.gpkg")
+    toolbox.run("tin:delaunay", {"INPUT": str(pts), "OUTPUT": str(tmp_path / "tin.gpkg")})
+    with closing(sqlite3.connect(tmp_path / "tin.gpkg")) as db:
+        embedded = db.execute("SELECT styleQML FROM layer_styles WHERE f_table_name = "
+                              "'triangles'").fetchone()[0]
+    out = tmp_path / f"tin{ext}"
+    toolbox.run("tin:delaunay", {"INPUT": str(pts), "OUTPUT": str(out)})
+    qml = tmp_path / "tin.qml"
+    assert qml.is_file() and (tmp_path / "tin.sld").is_file()
+    ET.parse(tmp_path / "tin.sld")  # well-formed
+    renderer = _renderer(qml.read_text(encoding="utf-8"))
+    truth = _renderer(embedded)
+    assert renderer.get("type") == truth.get("type") == "graduatedSymbol"
+    assert renderer.get("attr") == "slope_deg"
+    assert renderer.get("attr") in pyogrio.read_info(out)["fields"]  # the field as written
+    # the other layers (nodes, edges) declare no style: no style file beside them
+    assert not list(tmp_path.glob("tin_*.qml"))
+    # nothing left of the staging
+    assert not [p for p in tmp_path.iterdir() if p.is_dir()]
+
+
+def test_contours_shapefile_style_names_the_written_fields(tmp_path):
+    import rasterio
+    from rasterio.transform import from_origin
+
+    y, x = np.mgrid[0:30, 0:30]
+    z = (100 + 30 * np.exp(-((x - 15) ** 2 + (y - 15) ** 2) / 60.0)).astype("float32")
+    with rasterio.open(tmp_path / "dem.tif", "w", driver="GTiff", width=30, height=30, count=1,
+                       dtype="float32", crs="EPSG:32633",
+                       transform=from_origin(680000, 4800000, 1, 1)) as dst:
+        dst.write(z, 1)
+    out = tmp_path / "c.shp"
+    toolbox.run("carto:contours", {"INPUT": str(tmp_path / "dem.tif"), "INTERVAL": 5.0,
+                                   "OUTPUT": str(out)})
+    text = (tmp_path / "c.qml").read_text(encoding="utf-8")
+    ET.fromstring(text)
+    fields = set(pyogrio.read_info(out)["fields"])
+    import re
+
+    referenced = set(re.findall(r'"(\w+)"', ET.fromstring(text).find("renderer-v2").find(
+        "rules").find("rule").get("filter")))
+    assert referenced and referenced <= fields
+
+
+def test_an_inputs_style_is_not_overwritten_by_an_output_of_its_stem(tmp_path):
+    pts = _points(tmp_path / "pts.gpkg")
+    toolbox.run("tin:delaunay", {"INPUT": str(pts), "OUTPUT": str(tmp_path / "tin.shp")})
+    mine = "<qgis><!-- the user's own style of tin.shp --></qgis>\n"
+    (tmp_path / "tin.qml").write_text(mine)
+    with pytest.raises(ParameterError, match="tin.qml"):
+        toolbox.run("carto:contours", {"TIN": str(tmp_path / "tin.shp"), "INTERVAL": 5.0,
+                                       "OUTPUT": str(tmp_path / "tin.geojson")}, overwrite=True)
+    assert (tmp_path / "tin.qml").read_text() == mine
+    assert not (tmp_path / "tin.geojson").exists()
