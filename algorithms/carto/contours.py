@@ -69,7 +69,8 @@ class Contours(Algorithm):
         OutputVector("OUTPUT", "contours GeoPackage", layers=[
             Layer("contours", "LineString Z", [("elev", "real", "height of the line"),
                                                ("index", "integer", "1 on index contours"),
-                                               ("closed", "integer"), ("length", "real")],
+                                               ("closed", "boolean", "the line is a ring"),
+                                               ("length", "real")],
                   "contour lines, higher ground on their right; styled", style="contours")]),
         OutputFile("STYLE", "QGIS style of the contours (.qml)", extensions=[".qml"],
                    optional=True),

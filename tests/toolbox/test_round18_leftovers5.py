@@ -92,3 +92,39 @@ def test_an_inputs_style_is_not_overwritten_by_an_output_of_its_stem(tmp_path):
                                        "OUTPUT": str(tmp_path / "tin.geojson")}, overwrite=True)
     assert (tmp_path / "tin.qml").read_text() == mine
     assert not (tmp_path / "tin.geojson").exists()
+
+
+# 2. carto:contours wrote its ``closed`` flag as an Integer 0/1 (QGIS: a number, not a
+#    checkbox): a Boolean field now (GeoPackage column type BOOLEAN, OGR Integer(Boolean)).
+
+def _dem(path):
+    import rasterio
+    from rasterio.transform import from_origin
+
+    y, x = np.mgrid[0:30, 0:30]
+    z = (100 + 30 * np.exp(-((x - 15) ** 2 + (y - 15) ** 2) / 60.0) + 0.5 * x).astype("float32")
+    with rasterio.open(path, "w", driver="GTiff", width=30, height=30, count=1,
+                       dtype="float32", crs="EPSG:32633",
+                       transform=from_origin(680000, 4800000, 1, 1)) as dst:
+        dst.write(z, 1)
+    return path
+
+
+@pytest.mark.parametrize("ext", [".gpkg", ".geojson", ".fgb"])
+def test_contours_closed_is_a_boolean_field(tmp_path, ext):
+    import shapely
+
+    out = tmp_path / f"c{ext}"
+    toolbox.run("carto:contours", {"INPUT": str(_dem(tmp_path / "dem.tif")), "INTERVAL": 5.0,
+                                   "OUTPUT": str(out)})
+    if ext == ".gpkg":  # the GeoPackage's own declaration of the column
+        with closing(sqlite3.connect(out)) as db:
+            types = {row[1]: row[2] for row in db.execute("PRAGMA table_info(contours)")}
+        assert types["closed"] == "BOOLEAN"
+    info = pyogrio.read_info(out, layer="contours")
+    assert dict(zip(info["fields"], info["dtypes"], strict=True))["closed"] == "bool"
+    frame = pyogrio.read_dataframe(out, layer="contours")
+    rings = [shapely.equals_exact(shapely.get_point(g, 0), shapely.get_point(g, -1), 0.0)
+             for g in frame.geometry]
+    assert any(rings) and not all(rings)
+    assert frame["closed"].tolist() == rings
