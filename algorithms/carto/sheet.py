@@ -91,7 +91,8 @@ class Sheet(Algorithm):
              default="auto"),
         String("TITLE", "title in the title block", default="Map sheet"),
         String("SOURCES", "sources line (default: the input files)", optional=True),
-        String("DATE", "date in the title block (default: today, ISO)", optional=True),
+        String("DATE", "date in the title block (default: today, ISO; SOURCE_DATE_EPOCH's day "
+               "when that is set)", optional=True),
         Crs("CRS", "CRS of EXTENT when it names none", optional=True),
         Crs("GRID_CRS", "second CRS ticked along the frame (e.g. EPSG:6707 beside EPSG:3003)",
             optional=True),

@@ -128,3 +128,52 @@ def test_contours_closed_is_a_boolean_field(tmp_path, ext):
              for g in frame.geometry]
     assert any(rings) and not all(rings)
     assert frame["closed"].tolist() == rings
+
+
+# 4. SOURCE_DATE_EPOCH (reproducible builds): a map sheet printed today's date, a GeoPackage
+#    recorded the current time (gpkg_contents.last_change, layer_styles.update_time), so two
+#    runs differed; a malformed value was an internal error (exit 3) in carto:sheet.
+
+EPOCH = 1700000000  # 2023-11-14 22:13:20 UTC (date -u -d @1700000000)
+
+
+def _sheet(tmp_path, name):
+    out = tmp_path / name
+    toolbox.run("carto:sheet", {"EXTENT": "680000,4799960,680040,4800000 [EPSG:32633]",
+                                "SCALE": 1000, "OUTPUT": str(out)})
+    return out
+
+
+def test_sheet_pdf_is_reproducible_and_dated_by_source_date_epoch(tmp_path, monkeypatch):
+    import pypdf
+
+    monkeypatch.setenv("SOURCE_DATE_EPOCH", str(EPOCH))
+    a, b = _sheet(tmp_path, "a.pdf"), _sheet(tmp_path, "b.pdf")
+    assert a.read_bytes() == b.read_bytes()
+    reader = pypdf.PdfReader(a)
+    assert reader.metadata["/CreationDate"] == "D:20231114221320Z"
+    assert "2023-11-14" in reader.pages[0].extract_text()  # the title block's date
+
+
+def test_geopackage_timestamps_follow_source_date_epoch(tmp_path, monkeypatch):
+    monkeypatch.setenv("SOURCE_DATE_EPOCH", str(EPOCH))
+    dem = _dem(tmp_path / "dem.tif")
+    outs = [tmp_path / "a.gpkg", tmp_path / "b.gpkg"]
+    for out in outs:
+        toolbox.run("carto:contours", {"INPUT": str(dem), "INTERVAL": 5.0, "OUTPUT": str(out)})
+    assert outs[0].read_bytes() == outs[1].read_bytes()
+    with closing(sqlite3.connect(outs[0])) as db:
+        stamps = {r[0] for r in db.execute("SELECT last_change FROM gpkg_contents")}
+        stamps |= {r[0] for r in db.execute("SELECT update_time FROM layer_styles")}
+    assert stamps == {"2023-11-14T22:13:20.000Z"}
+    import os
+
+    assert "OGR_CURRENT_DATE" not in os.environ  # set for the run only
+
+
+@pytest.mark.parametrize("value", ["yesterday", "-5", "1.5e9"])
+def test_malformed_source_date_epoch_is_refused(tmp_path, monkeypatch, value):
+    monkeypatch.setenv("SOURCE_DATE_EPOCH", value)
+    with pytest.raises(ParameterError, match="SOURCE_DATE_EPOCH"):
+        _sheet(tmp_path, "bad.pdf")
+    assert not (tmp_path / "bad.pdf").exists()

@@ -11,6 +11,7 @@ from typing import Any
 from toolbox.cartography.grid_io import SheetSource, sheet_polygons
 from toolbox.cartography.sheet_io import coded_styles, default_styles, render_sheet
 from toolbox.cartography.sheet_layout import SheetSpec
+from toolbox.io.source_date import today as source_today
 from toolbox.version import __version__
 
 
@@ -249,7 +250,7 @@ def run_sheets(job: SheetJob, feedback) -> dict:
         [_dated(job.base)] * (job.base is not None)
         + [_dated(ref) for ref in job.layers or []]
         + [_dated(job.contours)] * (job.contours is not None)))
-    date = job.date or _dt.date.today().isoformat()
+    date = job.date or source_today().isoformat()  # SOURCE_DATE_EPOCH's when set
     index = _index_layer(job.index, crs, feedback) if job.index is not None else None
     _second_grid_accuracy(crs, job, sheets, feedback)
     folder = Path(job.folder) if job.folder else None  # staged by the runner

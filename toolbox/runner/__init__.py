@@ -22,6 +22,7 @@ from typing import Any
 from toolbox.algorithm import Algorithm
 from toolbox.errors import OutputWriteError, ParameterError, ToolboxError
 from toolbox.feedback import Feedback, logged_warnings
+from toolbox.io.source_date import source_date, source_date_for_gdal
 from toolbox.io.staging import OutputStaging, write_error
 from toolbox.parameters import (
     Boolean,
@@ -209,6 +210,7 @@ def _run(algorithm_id: str, parameters: dict[str, Any] | None, feedback: Feedbac
     params, overwrite = _pop_overwrite(parameters or {}, overwrite)
     crs_warnings: list[str] = []
     values = validate(alg_cls, params, overwrite, crs_warnings)
+    source_date()  # a malformed SOURCE_DATE_EPOCH: refused before anything is written
     for text in crs_warnings:
         feedback.push_warning(text)
     inputs = input_paths(alg_cls, values)
@@ -229,7 +231,7 @@ def _run(algorithm_id: str, parameters: dict[str, Any] | None, feedback: Feedbac
         staged_report = None if report_path is None else staging.stage(report_path, REPORT)
         report_leftovers(staging, feedback)
         feedback.set_progress(0)
-        with collect_gdal_errors() as gdal_errors:
+        with collect_gdal_errors() as gdal_errors, source_date_for_gdal():
             try:
                 result = alg_cls().process(staged, feedback) or {}
             except OutputWriteError as exc:  # a writer's: name the output, its final path

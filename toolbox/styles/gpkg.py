@@ -13,6 +13,8 @@ import sqlite3
 from contextlib import closing
 from pathlib import Path
 
+from toolbox.io.source_date import gpkg_timestamp
+
 CREATE = """CREATE TABLE layer_styles (
     id INTEGER PRIMARY KEY AUTOINCREMENT NOT NULL,
     f_table_catalog TEXT(256), f_table_schema TEXT(256), f_table_name TEXT(256),
@@ -39,6 +41,7 @@ def write_layer_styles(gpkg_path: str | Path, layer: str, qml: str, sld: str | N
     stop being the default.
     """
     name = name or layer
+    stamp = gpkg_timestamp()  # SOURCE_DATE_EPOCH when set, else now (in SQLite)
     with closing(sqlite3.connect(gpkg_path)) as db, db:
         geometry_column = _geometry_column(db, layer)
         exists = db.execute("SELECT 1 FROM sqlite_master WHERE type = 'table' AND name = "
@@ -47,7 +50,7 @@ def write_layer_styles(gpkg_path: str | Path, layer: str, qml: str, sld: str | N
             db.execute(CREATE)
             db.execute(f"INSERT INTO gpkg_contents (table_name, data_type, identifier, "
                        f"description, last_change) VALUES ('layer_styles', 'attributes', "
-                       f"'layer_styles', '', {NOW})")
+                       f"'layer_styles', '', COALESCE(?, {NOW}))", (stamp,))
         if default:
             db.execute("UPDATE layer_styles SET useAsDefault = 0 WHERE f_table_name = ?",
                        (layer,))
@@ -56,9 +59,9 @@ def write_layer_styles(gpkg_path: str | Path, layer: str, qml: str, sld: str | N
         db.execute("INSERT INTO layer_styles (f_table_catalog, f_table_schema, f_table_name, "
                    "f_geometry_column, styleName, styleQML, styleSLD, useAsDefault, "
                    f"description, owner, ui, update_time) VALUES ('', '', ?, ?, ?, ?, ?, ?, ?, "
-                   f"'', NULL, {NOW})",
+                   f"'', NULL, COALESCE(?, {NOW}))",
                    (layer, geometry_column, name, qml, sld or "", 1 if default else 0,
-                    description))
+                    description, stamp))
 
 
 def read_layer_styles(gpkg_path: str | Path) -> list[dict]:
