@@ -177,3 +177,33 @@ def test_malformed_source_date_epoch_is_refused(tmp_path, monkeypatch, value):
     with pytest.raises(ParameterError, match="SOURCE_DATE_EPOCH"):
         _sheet(tmp_path, "bad.pdf")
     assert not (tmp_path / "bad.pdf").exists()
+
+
+# 3. A GeoJSON output holds +-inf as null (JSON has no infinity: GDAL's default), which told it
+#    from nothing but a RuntimeWarning naming no field: one toolbox warning now names the
+#    fields and counts; NaN (a float field's "no value") is null without a warning.
+
+def test_geojson_infinite_values_are_null_with_a_warning_naming_the_field(tmp_path, caplog):
+    import json
+    import logging
+
+    import geopandas as gpd
+    import shapely
+
+    from toolbox.io.vector_write import write_layers, write_wkb_layer
+
+    frame = gpd.GeoDataFrame({"ratio": [1.5, np.inf, -np.inf, np.nan], "n": [1, 2, 3, 4],
+                              "gap": [np.nan, 0.0, 1.0, 2.0]},
+                             geometry=[shapely.Point(i, 0) for i in range(4)], crs=32633)
+    for writer, out in ((lambda p: write_layers(p, {"x": frame}), tmp_path / "a.geojson"),
+                        (lambda p: write_wkb_layer(p, "x", shapely.to_wkb(frame.geometry.values),
+                                                   {c: frame[c].to_numpy()
+                                                    for c in ("ratio", "n", "gap")},
+                                                   "Point", frame.crs), tmp_path / "b.geojson")):
+        caplog.clear()
+        with caplog.at_level(logging.WARNING, logger="toolbox"):
+            writer(out)
+        doc = json.loads(out.read_text())  # strict JSON: no Infinity/NaN tokens
+        assert [f["properties"].get("ratio") for f in doc["features"]] == [1.5, None, None, None]
+        messages = [r.getMessage() for r in caplog.records if r.name == "toolbox"]
+        assert len(messages) == 1 and "ratio (2)" in messages[0] and "gap" not in messages[0]

@@ -114,6 +114,7 @@ def write_layers(path: str | Path, layers: dict[str, Any], crs: Any = None,
                 warnings.filterwarnings("ignore", "'crs' was not provided", UserWarning)
             warnings.filterwarnings("ignore", "Normalized/laundered field name")  # see below
             warnings.filterwarnings("ignore", "Value '.*' of field .* has been truncated")
+            warnings.filterwarnings("ignore", "NaN of Infinity value found")  # warned below
             if not (arrow and driver == "GPKG"
                     and _write_arrow(frame, target, layer_name, kwargs)):
                 pyogrio.write_dataframe(frame, target, layer=layer_name, driver=driver,
@@ -126,6 +127,9 @@ def write_layers(path: str | Path, layers: dict[str, Any], crs: Any = None,
             warn_renamed_fields(target, fields)
             warn_cut_texts(target, {c: frame[c].to_numpy() for c in fields})
             warn_made_up_z(target, frame.geometry.values)
+        if driver == "GeoJSON":
+            warn_infinite_values(target, {c: frame[c].to_numpy() for c in frame.columns
+                                          if c != frame.geometry.name})
     return path
 
 
@@ -220,6 +224,30 @@ def warn_cut_texts(path: Path, fields: dict[str, Any]) -> None:
             f"of {', '.join(cut)} were cut to that length (a .gpkg output keeps them whole)")
 
 
+def warn_infinite_values(path: Path, fields: dict[str, Any]) -> None:
+    """One warning naming the number fields of ``fields`` (name -> values) holding +-infinity,
+    and how many, which the GeoJSON ``path`` holds as null: JSON has no infinity (GDAL writes
+    null, as for NaN, the "no value" of a float field, which goes without a warning), so an
+    infinite value is no longer told from a missing one there (a .gpkg keeps it)."""
+    found = []
+    for name, values in fields.items():
+        values = np.asarray(values)
+        if values.dtype.kind == "f":
+            n = int(np.isinf(values).sum())
+        elif values.dtype.kind == "O":
+            n = sum(1 for v in values if isinstance(v, float) and np.isinf(v))
+        else:
+            continue
+        if n:
+            found.append(f"{name} ({n})")
+    if found:
+        import logging
+
+        logging.getLogger("toolbox").warning(
+            f"{path.name}: GeoJSON has no infinity; the infinite values of {', '.join(found)} "
+            "were written as null, like missing values (a .gpkg output keeps them)")
+
+
 def shapefile_renames(path: Path, names: list[str]) -> dict[str, str]:
     """``{name: name in the file}`` of the fields ``names`` (in the order written) that the
     Shapefile ``path`` holds under another (cut) name."""
@@ -305,6 +333,7 @@ def write_wkb_layer(path: str | Path, layer: str, wkb: np.ndarray, fields: dict[
     with staged_gpkg_writes(), writing(path), warnings.catch_warnings():
         warnings.filterwarnings("ignore", "Normalized/laundered field name")  # warned below
         warnings.filterwarnings("ignore", "Value '.*' of field .* has been truncated")
+        warnings.filterwarnings("ignore", "NaN of Infinity value found")  # warned below
         ogr_write(str(path), layer=layer, driver=driver, geometry=np.asarray(wkb, dtype=object),
                   fields=names, field_data=[fields[k] for k in names], field_mask=None,
                   crs=None if crs is None else crs.to_wkt(), geometry_type=geometry_type,
@@ -314,4 +343,6 @@ def write_wkb_layer(path: str | Path, layer: str, wkb: np.ndarray, fields: dict[
     if driver == "ESRI Shapefile":
         warn_renamed_fields(path, names)
         warn_cut_texts(path, fields)
+    if driver == "GeoJSON":
+        warn_infinite_values(path, fields)
     return path
