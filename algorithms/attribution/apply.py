@@ -30,7 +30,8 @@ class ApplyCodes(Algorithm):
     (CODE_FIELD). With COORDINATES, INPUT is the descriptions table of the two-table form.
     Several INPUT files are adjacent stereo models, merged first ("fusione": lines meeting across
     the model edge within the reattach tolerances joined, duplicates removed, both reported in
-    the ``merge`` layer).
+    the ``merge`` layer; of two duplicates the one of the model given first in INPUT is kept, and
+    a warning counts those dropped).
 
     CODES gives each code its description, geometry type and colour index; COLOURS the RGB
     percentages of each index. Every entity gets code, description, colour (hex, R, G, B),
@@ -115,7 +116,12 @@ class ApplyCodes(Algorithm):
 
     def process(self, params, feedback: Feedback):
         from toolbox.attribution.coding import attribute
-        from toolbox.attribution.model_merge import events_frame, merge_models, merge_snap_warning
+        from toolbox.attribution.model_merge import (
+            duplicates_warning,
+            events_frame,
+            merge_models,
+            merge_snap_warning,
+        )
         from toolbox.attribution.output import MERGE_STYLE, write_attribution
         from toolbox.attribution.sources import check_coordinates, read_sources, translated
         from toolbox.io.code_file import read_code_file, read_colour_file
@@ -151,6 +157,9 @@ class ApplyCodes(Algorithm):
             feedback.push_info("merge: {models} models, {duplicates_removed} duplicates "
                                "removed, {joins} lines joined across the model edges".format(
                                    **merge.statistics))
+            warning = duplicates_warning(merge.statistics)
+            if warning:
+                feedback.push_warning(warning)
         else:
             entities = frames[0]
         feedback.set_progress(40, "attributing")

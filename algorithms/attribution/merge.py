@@ -22,7 +22,8 @@ class MergeModels(Algorithm):
 
     An entity of a later model with the same code as one of an earlier model, within
     SNAP_TOLERANCE of it everywhere (Hausdorff distance in plan) and HEIGHT_SNAP_TOLERANCE in
-    height at its ends, is a duplicate and is removed. Open lines of the same code from different
+    height at its ends, is a duplicate and is removed: the copy of the model given first in INPUT
+    is kept (a warning counts them). Open lines of the same code from different
     models whose ends meet within both tolerances are joined (the meeting vertex is the mean of
     the two ends), repeatedly; ends meeting in plan but not in height are reported, not joined.
 
@@ -65,7 +66,12 @@ class MergeModels(Algorithm):
         import geopandas as gpd
         import shapely
 
-        from toolbox.attribution.model_merge import events_frame, merge_models, merge_snap_warning
+        from toolbox.attribution.model_merge import (
+            duplicates_warning,
+            events_frame,
+            merge_models,
+            merge_snap_warning,
+        )
         from toolbox.attribution.sources import read_sources, translated
         from toolbox.io.parameter_file import optional_parameter_file, resolve
         from toolbox.io.vector_write import write_layers
@@ -85,6 +91,9 @@ class MergeModels(Algorithm):
         if warning:
             feedback.push_warning(warning)
         result = merge_models(frames, snap, zsnap)
+        warning = duplicates_warning(result.statistics)
+        if warning:
+            feedback.push_warning(warning)
         merged = result.entities
         crs = merged.crs
         types = shapely.get_type_id(merged.geometry.values)

@@ -207,3 +207,42 @@ def test_geojson_infinite_values_are_null_with_a_warning_naming_the_field(tmp_pa
         assert [f["properties"].get("ratio") for f in doc["features"]] == [1.5, None, None, None]
         messages = [r.getMessage() for r in caplog.records if r.name == "toolbox"]
         assert len(messages) == 1 and "ratio (2)" in messages[0] and "gap" not in messages[0]
+
+
+# 5. attribution:merge / apply: of two duplicates across models, the entity of the model given
+#    first is kept (undocumented, and the count was only an info line): a warning counts them
+#    and names the rule.
+
+def _export(path, entities):
+    lines = []
+    for code, pts in entities:
+        lines.append(f"CODE {code}")
+        lines += [f"{1688600 + x:.3f} {4799900 + y:.3f} {z:.3f}" for x, y, z in pts]
+        lines.append("END")
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+@pytest.mark.parametrize("order", [("a", "b"), ("b", "a")])
+def test_merge_duplicates_keep_the_first_model_and_are_warned(tmp_path, order):
+    import geopandas as gpd
+    import shapely
+
+    square = [(0, 0, 330), (10, 0, 330), (10, 10, 330), (0, 10, 330), (0, 0, 330)]
+    moved = [(x + 0.03, y + 0.02, z + 0.02) for x, y, z in square]  # the same building again
+    models = {"a": [("FAB01002", square), ("QUO01001", [(50, 5, 320.5)])],
+              "b": [("FAB01002", moved), ("QUO01001", [(50.02, 5.01, 320.55)])]}
+    paths = [_export(tmp_path / f"{name}.txt", models[name]) for name in order]
+    feedback = toolbox.Feedback()
+    out = tmp_path / "merged.gpkg"
+    stats = toolbox.run("attribution:merge", {"INPUT": paths, "SNAP_TOLERANCE": 0.2,
+                                              "HEIGHT_SNAP_TOLERANCE": 0.1, "CRS": "EPSG:3003",
+                                              "OUTPUT": out}, feedback=feedback)["STATISTICS"]
+    assert stats["duplicates_removed"] == 2
+    warned = [w for w in feedback.warnings if "duplicate" in w]
+    assert len(warned) == 1 and "2 duplicate entities" in warned[0] and "first" in warned[0]
+    kept = gpd.read_file(out, layer="lines")  # the building's outline: the first model's
+    first = models[order[0]][0][1]
+    assert len(kept) == 1 and kept["model"].tolist() == [1]
+    np.testing.assert_allclose(shapely.get_coordinates(kept.geometry.iloc[0], include_z=True),
+                               np.array(first) + [1688600, 4799900, 0], atol=1e-6)

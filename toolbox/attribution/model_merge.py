@@ -4,7 +4,8 @@ one set covering the sheet.
 1. *Duplicates*: an entity of a later model with the same code as an entity of an earlier model
    and within the planimetric reattach tolerance of it everywhere (Hausdorff distance, XY) and
    within the altimetric tolerance in height (largest Z difference of the two ends) is the
-   same object plotted twice in the models' overlap: it is removed and reported.
+   same object plotted twice in the models' overlap: it is removed (the earlier model's copy
+   is kept: the order of the input files decides) and reported (:func:`duplicates_warning`).
 2. *Joins*: an open line ending within the planimetric tolerance (and the altimetric one in Z)
    of the end of an open line of the same code **from another model** is the same line crossing
    the model edge: the two are joined into one (the meeting vertex is the mean of the two ends).
@@ -105,6 +106,19 @@ def merge_models(models: list[Any], xy_tolerance: float, z_tolerance: float) -> 
     stats = {"models": len(models), "entities_in": len(merged), "duplicates_removed": removed,
              "joins": joins, "joins_refused_height": height_refused, "entities_out": len(out)}
     return MergeResult(out, events, stats)
+
+
+def duplicates_warning(statistics: dict[str, Any]) -> str | None:
+    """The warning naming how many duplicates :func:`merge_models` removed and which copy it
+    kept (None when none): of two copies, the entity of the model given first (earlier in
+    INPUT) is kept, whatever their precision."""
+    n = int(statistics.get("duplicates_removed", 0))
+    if not n:
+        return None
+    return (f"merge: {n} duplicate {'entity' if n == 1 else 'entities'} removed (the same code "
+            "within SNAP_TOLERANCE in plan and HEIGHT_SNAP_TOLERANCE in height of an entity of "
+            "another model): each time the copy of the model given first in INPUT was kept, the "
+            "later one dropped; the 'merge' layer marks them (duplicate_removed)")
 
 
 def _is_closed(coords: np.ndarray) -> bool:
