@@ -125,12 +125,13 @@ def test_api_commit_holds_sigint_until_every_file_is_in_place(tmp_path, monkeypa
             signal.raise_signal(signal.SIGINT)
 
     monkeypatch.setattr(staging, "_move_no_replace", move)
-    out = tmp_path / "out.shp"  # five layers, five files each: 25 moves
+    out = tmp_path / "out.shp"  # five layers, five files each, and the .qml/.sld beside the
+    # three styled ones (areas, errors_points, errors_lines): 31 moves
     with pytest.raises(KeyboardInterrupt):
         toolbox.run("topology:build_areas", {"INPUT": str(_square_layer(tmp_path)),
                                              "OUTPUT": str(out)})
     written = sorted(p.name for p in tmp_path.glob("out*"))
-    assert len(moves) == 25 and written == sorted(p.name for p in moves)  # all, not out.shp only
+    assert len(moves) == 31 and written == sorted(p.name for p in moves)  # all, not out.shp only
     for layer in ("", "_arcs", "_nodes", "_errors_points", "_errors_lines"):
         for ext in (".shp", ".shx", ".dbf"):
             assert (tmp_path / f"out{layer}{ext}").exists()
