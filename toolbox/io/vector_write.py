@@ -226,8 +226,8 @@ def warn_cut_texts(path: Path, fields: dict[str, Any]) -> None:
 
 def warn_infinite_values(path: Path, fields: dict[str, Any]) -> None:
     """One warning naming the number fields of ``fields`` (name -> values) holding +-infinity,
-    and how many, which the GeoJSON ``path`` holds as null: JSON has no infinity (GDAL writes
-    null, as for NaN, the "no value" of a float field, which goes without a warning), so an
+    and how many, which the GeoJSON ``path`` holds as null: JSON has no infinity (GDAL leaves
+    the property out, as for NaN, the "no value" of a float field, which goes without a warning), so an
     infinite value is no longer told from a missing one there (a .gpkg keeps it)."""
     found = []
     for name, values in fields.items():
@@ -245,7 +245,7 @@ def warn_infinite_values(path: Path, fields: dict[str, Any]) -> None:
 
         logging.getLogger("toolbox").warning(
             f"{path.name}: GeoJSON has no infinity; the infinite values of {', '.join(found)} "
-            "were written as null, like missing values (a .gpkg output keeps them)")
+            "were left empty (null), as missing values are (a .gpkg output keeps them)")
 
 
 def shapefile_renames(path: Path, names: list[str]) -> dict[str, str]:
