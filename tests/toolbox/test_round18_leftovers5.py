@@ -246,3 +246,20 @@ def test_merge_duplicates_keep_the_first_model_and_are_warned(tmp_path, order):
     assert len(kept) == 1 and kept["model"].tolist() == [1]
     np.testing.assert_allclose(shapely.get_coordinates(kept.geometry.iloc[0], include_z=True),
                                np.array(first) + [1688600, 4799900, 0], atol=1e-6)
+
+
+def test_no_style_file_for_a_layer_file_holding_another_kind(tmp_path):
+    import geopandas as gpd
+    import shapely
+
+    from toolbox.io.vector_write import write_layers
+    from toolbox.styles.layers import write_declared_style_files
+
+    pts = gpd.GeoDataFrame({"severity": ["error"]}, geometry=[shapely.Point(0, 0)], crs=32633)
+    out = tmp_path / "x.shp"
+    write_layers(out, {"errors_points": pts})
+    # declared as an areas (polygon) layer first: the file holds points, so no areas style
+    assert write_declared_style_files(out, [("areas", "areas", "Polygon")]) == []
+    assert write_declared_style_files(out, [("errors_points", "errors", "Point")]) == [
+        tmp_path / "x.qml", tmp_path / "x.sld"]
+    assert 'attr="severity"' in (tmp_path / "x.qml").read_text()

@@ -162,7 +162,10 @@ def write_declared_style_files(path: str | Path,
         target = targets[name]
         if style not in STYLES or not target.is_file():
             continue
-        model = STYLES[style](name, _kind(geometry_type))
+        kind = _kind(geometry_type)
+        if kind is not None and _file_kind(target) not in (kind, None):
+            continue  # the file holds another layer (written in another order): not its style
+        model = STYLES[style](name, kind)
         qml, sld = qml_document(model), sld_document(model)
         if vector_driver(target) == "ESRI Shapefile":
             renames = _cut_field_names(target, [model.field, model.label_field])
@@ -170,6 +173,14 @@ def write_declared_style_files(path: str | Path,
         write_style_files(target.with_suffix(""), qml, sld)
         written += style_file_names(target)
     return written
+
+
+def _file_kind(path: Path) -> str | None:
+    """The style kind of the one layer of ``path`` (None: unknown, generic or no geometry)."""
+    import pyogrio
+
+    gtype = str(pyogrio.read_info(path).get("geometry_type") or "")
+    return KINDS.get(gtype.upper().removesuffix(" Z").removesuffix("Z").strip())
 
 
 def _cut_field_names(shapefile: Path, names: list[str | None]) -> dict[str, str]:
