@@ -14,6 +14,7 @@ import xml.etree.ElementTree as ET
 from contextlib import closing
 
 import numpy as np
+import pyarrow.parquet as pq
 import pyogrio
 import pytest
 
@@ -36,7 +37,7 @@ def _renderer(qml_text: str) -> ET.Element:
     return ET.fromstring(qml_text).find("renderer-v2")
 
 
-@pytest.mark.parametrize("ext", [".shp", ".geojson"])
+@pytest.mark.parametrize("ext", [".shp", ".geojson", ".parquet"])
 def test_declared_style_is_written_beside_a_one_layer_output(tmp_path, ext):
     pts = _points(tmp_path / "pts.gpkg")
     toolbox.run("tin:delaunay", {"INPUT": str(pts), "OUTPUT": str(tmp_path / "tin.gpkg")})
@@ -52,7 +53,8 @@ def test_declared_style_is_written_beside_a_one_layer_output(tmp_path, ext):
     truth = _renderer(embedded)
     assert renderer.get("type") == truth.get("type") == "graduatedSymbol"
     assert renderer.get("attr") == "slope_deg"
-    assert renderer.get("attr") in pyogrio.read_info(out)["fields"]  # the field as written
+    written = pq.read_schema(out).names if ext == ".parquet" else pyogrio.read_info(out)["fields"]
+    assert renderer.get("attr") in written  # the field as written
     # the other layers (nodes, edges) declare no style: no style file beside them
     assert not list(tmp_path.glob("tin_*.qml"))
     # nothing left of the staging

@@ -176,10 +176,12 @@ def write_declared_style_files(path: str | Path,
 
 
 def _file_kind(path: Path) -> str | None:
-    """The style kind of the one layer of ``path`` (None: unknown, generic or no geometry)."""
-    import pyogrio
+    """The style kind of the one layer of ``path`` (None: unknown, generic or no geometry);
+    through the toolbox's reader, which reads GeoParquet's metadata with pyarrow (GDAL's
+    attempt at a .parquet may need its ADBC driver's libduckdb)."""
+    from toolbox.io.vector import open_layer
 
-    gtype = str(pyogrio.read_info(path).get("geometry_type") or "")
+    gtype = str(open_layer(path, "OUTPUT").geometry_type or "")
     return KINDS.get(gtype.upper().removesuffix(" Z").removesuffix("Z").strip())
 
 
