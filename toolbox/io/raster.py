@@ -104,6 +104,8 @@ def open_raster_info(value: Any, name: str = "INPUT", role: str = "photo") -> Ra
             _refuse_scaled(src, name, value)
             if role != "photo":
                 require_georeferenced(src, name, value)
+            else:  # a photo is warped under one mask
+                require_one_nodata(src, name, value)
             crs = CRS.from_wkt(src.crs.to_wkt()) if src.crs else None
             return RasterInfo(path, src.width, src.height, src.count, tuple(src.dtypes), crs,
                               dataset_transform(src),
@@ -286,6 +288,28 @@ def _refuse_scaled(src: Any, name: str, value: Any) -> None:
                                  f"{offset:g} (its values are codes x scale + offset); write "
                                  "the values first: gdal_translate -unscale -ot Float32 "
                                  f"'{value}' unscaled.tif")
+
+
+def require_one_nodata(src: Any, name: str, value: Any) -> None:
+    """:class:`ParameterError` naming ``name`` when the data bands (an alpha band aside) of the
+    open dataset ``src`` have different nodata values, or some one and others none (a VRT's
+    bands may each have their own). A warp or a cut marks the empty cells of all the bands at
+    once (one alpha band; a GeoTIFF holds one nodata value): band 1's mask would be taken for
+    every band in silence, and gdalwarp's per-band result (each band's nodata cells filled
+    with 0 under one alpha) has no mask that says which values are empty."""
+    from rasterio.enums import ColorInterp
+
+    bands = [b for b, interp in enumerate(src.colorinterp, start=1)
+             if not (interp == ColorInterp.alpha and src.count > 1)]
+    values = [src.nodatavals[b - 1] for b in bands]
+    if len({"none" if v is None else f"{v:g}" for v in values}) <= 1:  # NaN equals NaN
+        return
+    listed = ", ".join(f"band {b}: {'none' if v is None else f'{v:g}'}"
+                       for b, v in zip(bands, values, strict=True))
+    raise ParameterError(name, f"'{value}' has a nodata value per band ({listed}); its output "
+                         "marks the empty cells of all bands at once: give every band the same "
+                         f"nodata (gdal_translate -a_nodata VALUE '{value}' one_nodata.tif) or "
+                         "none (-a_nodata none)")
 
 
 def masked_by_nodata_only(src: Any, band: int) -> bool:

@@ -1,0 +1,127 @@
+"""Round 18, masks:
+
+- mosaic:cut took a sheet's valid cells from band 1's mask: a valid dark-blue pixel (0, 0, 255)
+  of an RGB with nodata 0 was blanked, and a sheet holding only such pixels was dropped
+  (gdal_translate of the same window keeps them), exit 0; now GDAL's dataset mask;
+- a raster whose bands have different nodata values (a VRT's) was cut, and a photo of that kind
+  warped (rectify:image, ortho:photo, ortho:batch), under band 1's mask alone, exit 0; now
+  refused naming INPUT (exit 2), since the output holds one mask for all the bands (gdalwarp
+  fills each band's nodata cells with 0 under one alpha: no mask says which values are empty).
+"""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+import warnings
+
+import numpy as np
+import pytest
+import rasterio
+import shapely
+from rasterio.transform import from_origin
+
+import toolbox
+from toolbox.errors import ParameterError
+from toolbox.mosaic.sheets import clip_raster
+
+X0, Y0 = 500000.0, 5000000.0
+
+
+def _rgb(path, data, nodata=0):
+    with rasterio.open(path, "w", driver="GTiff", width=data.shape[2], height=data.shape[1],
+                       count=data.shape[0], dtype="uint8", nodata=nodata, crs="EPSG:32632",
+                       transform=from_origin(X0, Y0 + data.shape[1], 1, 1)) as dst:
+        dst.write(data)
+    return path
+
+
+def _per_band_vrt(tif, vrt, band, nodata):
+    """A VRT of ``tif`` whose band ``band`` alone gets ``nodata`` (the others none)."""
+    subprocess.run(["gdal_translate", "-q", "-of", "VRT", "-a_nodata", "none", str(tif),
+                    str(vrt)], check=True)
+    parts = vrt.read_text().split("<VRTRasterBand")
+    head, tail = parts[band].split(">", 1)
+    parts[band] = f"{head}>\n    <NoDataValue>{nodata}</NoDataValue>{tail}"
+    vrt.write_text("<VRTRasterBand".join(parts))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        with rasterio.open(vrt) as src:
+            assert src.nodatavals[band - 1] == nodata and src.nodatavals[0 if band > 1 else 1] \
+                is None
+    return vrt
+
+
+needs_gdal = pytest.mark.skipif(shutil.which("gdal_translate") is None,
+                                reason="gdal_translate not found")
+
+
+def test_cut_keeps_cells_valid_in_any_band(tmp_path):
+    data = np.zeros((3, 20, 20), np.uint8)
+    data[:, 10:, :] = 100  # grey south half
+    data[2, 2:5, 2:5] = 255  # north half: only dark-blue pixels (band 1 = 0), valid
+    data[:, 12, 3] = (0, 200, 0)  # a valid green pixel in the grey half
+    src = _rgb(tmp_path / "rgb.tif", data)
+    north = shapely.box(X0, Y0 + 10, X0 + 20, Y0 + 20)
+    assert clip_raster(src, north, tmp_path / "north.tif")  # was dropped: no valid cell
+    with rasterio.open(tmp_path / "north.tif") as out:
+        np.testing.assert_array_equal(out.read(), data[:, :10])
+        assert (out.dataset_mask() > 0).sum() == 9
+    assert clip_raster(src, shapely.box(X0, Y0, X0 + 20, Y0 + 10), tmp_path / "south.tif")
+    with rasterio.open(tmp_path / "south.tif") as out:
+        np.testing.assert_array_equal(out.read()[:, 2, 3], (0, 200, 0))  # was (0, 0, 0)
+
+
+@needs_gdal
+def test_cut_matches_gdal_translate_of_the_window(tmp_path):
+    data = np.zeros((3, 20, 20), np.uint8)
+    data[2, 2:5, 2:5] = 255
+    data[1, 6, 8] = 7
+    src = _rgb(tmp_path / "rgb.tif", data)
+    assert clip_raster(src, shapely.box(X0, Y0 + 10, X0 + 10, Y0 + 20), tmp_path / "t.tif")
+    subprocess.run(["gdal_translate", "-q", "-projwin", str(X0), str(Y0 + 20), str(X0 + 10),
+                    str(Y0 + 10), str(src), str(tmp_path / "g.tif")], check=True)
+    with rasterio.open(tmp_path / "t.tif") as t, rasterio.open(tmp_path / "g.tif") as g:
+        np.testing.assert_array_equal(t.read(), g.read())
+        np.testing.assert_array_equal(t.dataset_mask(), g.dataset_mask())
+
+
+@needs_gdal
+def test_cut_refuses_a_nodata_per_band(tmp_path):
+    data = np.full((3, 20, 20), 50, np.uint8)
+    vrt = _per_band_vrt(_rgb(tmp_path / "rgb.tif", data, None), tmp_path / "pb.vrt", 2, 50)
+    with pytest.raises(ParameterError, match=r"INPUT.*band 1: none, band 2: 50, band 3: none"):
+        toolbox.run("mosaic:cut", {"INPUT": vrt, "SCALE": 1000, "SHEET_WIDTH": 1,
+                                   "SHEET_HEIGHT": 1, "OUTPUT": tmp_path / "out"})
+
+
+@needs_gdal
+def test_rectify_refuses_a_photo_with_nodata_on_one_band(tmp_path):
+    photo = np.full((3, 30, 40), 60, np.uint8)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
+        with rasterio.open(tmp_path / "p.tif", "w", driver="GTiff", width=40, height=30,
+                           count=3, dtype="uint8") as dst:
+            dst.write(photo)
+    vrt = _per_band_vrt(tmp_path / "p.tif", tmp_path / "p.vrt", 2, 77)
+    gcps = tmp_path / "g.csv"
+    gcps.write_text("id,col,row,X,Y\n" + "".join(
+        f"P{k},{c},{r},{1000 + c},{2000 - r}\n"
+        for k, (c, r) in enumerate([(0, 0), (40, 0), (0, 30), (40, 30), (20, 15)])))
+    toolbox.run("rectify:estimate", {"INPUT": gcps, "CRS": "EPSG:3003", "MODEL": "affine",
+                                     "ROBUST": "none", "OUTPUT": tmp_path / "t.json"})
+    with pytest.raises(ParameterError, match=r"INPUT.*nodata value per band \(band 1: none, "
+                                             r"band 2: 77, band 3: none\)"):
+        toolbox.run("rectify:image", {"INPUT": vrt, "TRANSFORM": tmp_path / "t.json",
+                                      "CELL_SIZE": 1.0, "OUTPUT": tmp_path / "r.tif"})
+
+
+@needs_gdal
+def test_photo_images_with_a_nodata_per_band_are_refused(tmp_path):
+    from toolbox.io.raster import open_raster_info
+
+    data = np.full((3, 20, 20), 50, np.uint8)
+    vrt = _per_band_vrt(_rgb(tmp_path / "rgb.tif", data, None), tmp_path / "pb.vrt", 3, 0)
+    with pytest.raises(ParameterError, match=r"IMAGES.*band 3: 0"):  # ortho:batch's photos
+        open_raster_info(vrt, "IMAGES")
+    assert open_raster_info(tmp_path / "rgb.tif", "IMAGES").count == 3  # one nodata: fine
