@@ -61,6 +61,14 @@ def open_block(paths: list, name: str = "INPUT", feedback: Any = None,
     return sources, crs
 
 
+def name_order(sources: list[OrthoSource]) -> list[int]:
+    """Positions of ``sources`` in file-name order (the names are unique: :func:`open_block`):
+    the order a block is partitioned and mosaicked in, so that no tie (a cell centre on a
+    shared cut edge, two orthos with one centre, the fallback source of a cell) depends on
+    the order the orthos were given in."""
+    return sorted(range(len(sources)), key=lambda k: sources[k].name)
+
+
 def check_same_kind(first: OrthoSource, other: OrthoSource, name: str = "INPUT") -> None:
     """:class:`ParameterError` naming ``name`` unless ``other`` has the band count and the data
     type of ``first``: a mosaic (and a seam's cost, which compares their values) takes their
