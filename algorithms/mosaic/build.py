@@ -39,8 +39,9 @@ class MosaicBuild(Algorithm):
     other grids are resampled (RESAMPLING) with a warning. The mosaic is written tile by tile
     (a Cloud Optimized GeoTIFF by default, COG=false: a tiled DEFLATE GeoTIFF with overviews;
     SOURCE_INDEX likewise), with an alpha band if any input has one, else the inputs' nodata
-    (inputs with neither: NaN nodata for floats, else an alpha band). SOURCE_INDEX gets the
-    1-based input number of each cell (0 = no data), and SEAMLINES the seams: exactly the cell
+    when they share one (inputs without, or with different ones: NaN nodata for floats, else
+    an alpha band). SOURCE_INDEX gets the 1-based input number of each cell (0 = no data),
+    and SEAMLINES the seams: exactly the cell
     edges between different sources in the source index (steps of one cell where a seam runs
     diagonally; edges next to no data are not seams). Their ``method`` is the one
     mosaic:seamlines recorded for the pair when CUTLINES is its GeoPackage, else "cut
@@ -149,8 +150,12 @@ class MosaicBuild(Algorithm):
                            f"{value}: a halo of {plan.halo():,} cells around each "
                            f"{TILE_SIZE}-cell tile", f"use a smaller {name}", "cells per tile")
             alpha = any(s.alpha_band is not None for s in sources)
-            nodata = next((s.nodata for s in sources if s.nodata is not None), None)
-            if not alpha and nodata is None:  # every value valid (or a mask band)
+            # the orthos' nodata when they share one; an ortho without (or with another) may
+            # hold that value as valid data (its black pixels were turned into no data)
+            kinds = {"nan" if s.nodata is not None and s.nodata != s.nodata else s.nodata
+                     for s in sources}
+            nodata = sources[0].nodata if len(kinds) == 1 else None
+            if not alpha and nodata is None:  # every value valid (or a mask band), or not one
                 from toolbox.raster.writer import empty_marker
 
                 nodata, alpha = empty_marker(dtype)

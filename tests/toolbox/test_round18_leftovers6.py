@@ -125,3 +125,20 @@ def test_photo_images_with_a_nodata_per_band_are_refused(tmp_path):
     with pytest.raises(ParameterError, match=r"IMAGES.*band 3: 0"):  # ortho:batch's photos
         open_raster_info(vrt, "IMAGES")
     assert open_raster_info(tmp_path / "rgb.tif", "IMAGES").count == 3  # one nodata: fine
+
+
+def test_mosaic_of_orthos_with_different_nodata_keeps_their_valid_values(tmp_path):
+    """mosaic:build wrote the first input's nodata (0): the other ortho's valid black pixels
+    (its nodata is 255) became no data, exit 0; now an alpha band."""
+    paths = []
+    for name, x0, nodata, value in (("a", 0, 0, 100), ("b", 30, 255, 0)):
+        paths.append(tmp_path / f"{name}.tif")
+        with rasterio.open(paths[-1], "w", driver="GTiff", width=20, height=20, count=1,
+                           dtype="uint8", nodata=nodata, crs="EPSG:32633",
+                           transform=from_origin(X0 + x0, Y0 + 20, 1, 1)) as dst:
+            dst.write(np.full((1, 20, 20), value, np.uint8))
+    toolbox.run("mosaic:build", {"INPUT": paths, "BLEND": "none", "OUTPUT": tmp_path / "m.tif"})
+    with rasterio.open(tmp_path / "m.tif") as out:
+        valid = out.dataset_mask() > 0
+        assert valid.sum() == 800  # was 400
+        assert (out.read(1)[valid] == 0).sum() == 400  # b's black pixels, valid
