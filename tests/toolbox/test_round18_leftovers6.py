@@ -142,3 +142,47 @@ def test_mosaic_of_orthos_with_different_nodata_keeps_their_valid_values(tmp_pat
         valid = out.dataset_mask() > 0
         assert valid.sum() == 800  # was 400
         assert (out.read(1)[valid] == 0).sum() == 400  # b's black pixels, valid
+
+
+def _blue_square(path):
+    """100 x 100 grey (120) RGB, nodata 0, a valid pure-blue (0, 0, 255) square at rows and
+    columns 40..59 and a true no-data strip (0, 0, 0) on rows 0..9."""
+    data = np.full((3, 100, 100), 120, np.uint8)
+    data[:, 40:60, 40:60] = np.array([0, 0, 255])[:, None, None]
+    data[:, :10] = 0
+    with rasterio.open(path, "w", driver="GTiff", width=100, height=100, count=3, dtype="uint8",
+                       nodata=0, crs="EPSG:32632", transform=from_origin(X0, Y0 + 100, 1, 1)
+                       ) as dst:
+        dst.write(data)
+    return path
+
+
+def test_sheet_base_draws_a_pixel_with_a_zero_band_in_its_colours(tmp_path):
+    """carto:sheet's base masked each band by its own nodata: the blue square was drawn white
+    (255, 255, 255), a (0, 3, 8) shadow (255, 3, 8)."""
+    from toolbox.cartography.sheet_io import read_base
+    from toolbox.io.raster import open_raster_info
+
+    info = open_raster_info(_blue_square(tmp_path / "rgb.tif"), "BASE", "map")
+    image, _ = read_base(info, (X0, Y0, X0 + 100, Y0 + 100), 500, dpi=254)  # 1 m cells
+    assert image.shape == (100, 100, 3)
+    np.testing.assert_array_equal(image[50, 50], (0, 0, 255))  # was (255, 255, 255)
+    np.testing.assert_array_equal(image[80, 5], (120, 120, 120))
+    np.testing.assert_array_equal(image[5, 50], (255, 255, 255))  # no data: paper
+
+
+def test_ortho_samples_of_a_pixel_with_a_zero_band_are_data(tmp_path):
+    """orientation:control's ortho chips and the ortho check's patches called a pixel with one
+    band at the nodata value no data (NaN): the blue square was a hole."""
+    from toolbox.cartography.quality_ortho_job import _ortho_patch
+    from toolbox.matching.ortho_match import OrthoReference
+
+    path = _blue_square(tmp_path / "rgb.tif")
+    ortho = OrthoReference.open(path)
+    values = ortho.sample(np.array([X0 + 50.0, X0 + 20.0, X0 + 50.0]),
+                          np.array([Y0 + 50.0, Y0 + 20.0, Y0 + 95.0]))
+    np.testing.assert_allclose(values[:2], (85.0, 120.0))  # mean of (0, 0, 255): 85, was NaN
+    assert np.isnan(values[2])
+    with rasterio.open(path) as src:
+        grey, _ = _ortho_patch(src, X0 + 50.0, Y0 + 50.0, 1.0, 3)
+    assert np.isfinite(grey).all() and (grey == 85.0).all()

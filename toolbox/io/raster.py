@@ -320,6 +320,27 @@ def masked_by_nodata_only(src: Any, band: int) -> bool:
     return src.mask_flag_enums[band - 1] in ([MaskFlags.all_valid], [MaskFlags.nodata])
 
 
+def read_dataset_masked(src: Any, indexes: Any = None, window: Any = None,
+                        out_shape: tuple[int, int] | None = None,
+                        resampling: Any = None) -> np.ma.MaskedArray:
+    """Bands ``indexes`` (all by default) of the open dataset ``src`` masked where GDAL's
+    dataset mask is 0 (every band at its nodata, alpha 0, or a mask band's 0), one mask for
+    all the bands. ``out_shape`` (rows, cols): a decimated read (``resampling``, nearest by
+    default), the mask likewise.
+
+    Not rasterio's ``masked=True``: it masks each band by its own nodata, so a valid pixel with
+    one band at the nodata value (pure blue (0, 0, 255), a dark shadow (0, 3, 8) of an RGB
+    with nodata 0) lost that band (drawn 255: white, or called no data in a grey mean)."""
+    from rasterio.enums import Resampling
+
+    indexes = list(range(1, src.count + 1)) if indexes is None else indexes
+    extra = {} if out_shape is None else {
+        "out_shape": (len(indexes), *out_shape), "resampling": resampling or Resampling.nearest}
+    data = src.read(indexes, window=window, **extra)
+    mask = src.dataset_mask(window=window, out_shape=out_shape) == 0
+    return np.ma.MaskedArray(data, mask=np.broadcast_to(mask, data.shape).copy())
+
+
 def read_filled(src: Any, band: int, window: Any = None, dtype: str = "float64") -> np.ndarray:
     """Band ``band`` of open dataset ``src`` (``window``: all of it by default) as ``dtype``
     with NaN where rasterio's ``masked=True`` read masks it, the same array.
