@@ -23,8 +23,9 @@ class MosaicBuild(Algorithm):
     where that ortho has no data, the first ortho by file name that has data fills it, so the
     mosaic has no gap where any input has data. Ties go by file name too, never by the order
     of INPUT (the same orthos in any order give the same mosaic): a cell centre exactly on the
-    edge two polygons share (a Voronoi bisector) takes the ortho whose file name sorts first,
-    and so does the overlap of two orthos with one centre.
+    edge two polygons share (a Voronoi bisector) or inside two overlapping CUTLINES polygons
+    takes the ortho whose file name sorts first, and so does the overlap of two orthos with
+    one centre.
 
     BLEND: none (hard cut); feather (each ortho's weight ramps linearly across its polygon's
     edge over FEATHER_WIDTH ground units, weights normalised to sum to 1); multiband (Laplacian
