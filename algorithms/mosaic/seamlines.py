@@ -181,7 +181,7 @@ class MosaicSeamlines(Algorithm):
                 buildings = _polygons(params["BUILDINGS"], crs, "BUILDINGS")
                 forbidden = _polygons(params["FORBIDDEN"], crs, "FORBIDDEN")
                 heights = None if params["HEIGHTS"] is None else \
-                    open_source(params["HEIGHTS"].path, -1, sources[0].datasets)
+                    open_source(params["HEIGHTS"].path, -1, sources[0].datasets, name="HEIGHTS")
                 cell = params["SEAM_CELL_SIZE"] or min(s.res[0] for s in sources)
 
                 def cost_for(i, j):

@@ -186,3 +186,12 @@ def test_ortho_samples_of_a_pixel_with_a_zero_band_are_data(tmp_path):
     with rasterio.open(path) as src:
         grey, _ = _ortho_patch(src, X0 + 50.0, Y0 + 50.0, 1.0, 3)
     assert np.isfinite(grey).all() and (grey == 85.0).all()
+
+
+@needs_gdal
+def test_mosaic_refuses_an_ortho_with_a_nodata_per_band(tmp_path):
+    """Its cells where band 1 is valid were mosaicked with band 2's nodata value as data."""
+    data = np.full((3, 20, 20), 50, np.uint8)
+    vrt = _per_band_vrt(_rgb(tmp_path / "rgb.tif", data, None), tmp_path / "pb.vrt", 2, 50)
+    with pytest.raises(ParameterError, match=r"INPUT.*band 1: none, band 2: 50, band 3: none"):
+        toolbox.run("mosaic:build", {"INPUT": [vrt], "OUTPUT": tmp_path / "m.tif"})

@@ -41,7 +41,7 @@ def open_block(paths: list, name: str = "INPUT", feedback: Any = None,
     datasets = BlockDatasets(threads)
     try:
         for k, p in enumerate(paths):
-            src = open_source(Path(p), k, datasets)
+            src = open_source(Path(p), k, datasets)  # INPUT in its refusals
             if src.name in {s.name for s in sources}:
                 raise ParameterError(name, f"two inputs are named '{src.name}' (the file name "
                                      "identifies an ortho in the cut polygons): rename one")
