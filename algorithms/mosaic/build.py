@@ -20,8 +20,12 @@ class MosaicBuild(Algorithm):
 
     Each mosaic cell takes the ortho whose cut polygon (CUTLINES, e.g. from mosaic:seamlines;
     default: the Voronoi cells of the orthos' nadir points, else footprint centres) holds it;
-    where that ortho has no data, the first input that has data fills it, so the mosaic has no
-    gap where any input has data.
+    where that ortho has no data, the first ortho by file name that has data fills it, so the
+    mosaic has no gap where any input has data. Ties go by file name too, never by the order
+    of INPUT (the same orthos in any order give the same mosaic): a cell centre exactly on the
+    edge two polygons share (a Voronoi bisector) or inside two overlapping CUTLINES polygons
+    takes the ortho whose file name sorts first, and so does the overlap of two orthos with
+    one centre.
 
     BLEND: none (hard cut); feather (each ortho's weight ramps linearly across its polygon's
     edge over FEATHER_WIDTH ground units, weights normalised to sum to 1); multiband (Laplacian
@@ -36,8 +40,9 @@ class MosaicBuild(Algorithm):
     other grids are resampled (RESAMPLING) with a warning. The mosaic is written tile by tile
     (a Cloud Optimized GeoTIFF by default, COG=false: a tiled DEFLATE GeoTIFF with overviews;
     SOURCE_INDEX likewise), with an alpha band if any input has one, else the inputs' nodata
-    (inputs with neither: NaN nodata for floats, else an alpha band). SOURCE_INDEX gets the
-    1-based input number of each cell (0 = no data), and SEAMLINES the seams: exactly the cell
+    when they share one (inputs without, or with different ones: NaN nodata for floats, else
+    an alpha band). SOURCE_INDEX gets the 1-based input number of each cell (0 = no data),
+    and SEAMLINES the seams: exactly the cell
     edges between different sources in the source index (steps of one cell where a seam runs
     diagonally; edges next to no data are not seams). Their ``method`` is the one
     mosaic:seamlines recorded for the pair when CUTLINES is its GeoPackage, else "cut
@@ -97,6 +102,7 @@ class MosaicBuild(Algorithm):
             centres_of,
             close_block,
             mosaic_grid,
+            name_order,
             open_block,
             seam_methods,
             seams_frame,
@@ -106,11 +112,16 @@ class MosaicBuild(Algorithm):
         from toolbox.mosaic.index_seams import index_raster_seams
         from toolbox.mosaic.partition import voronoi_cells
 
-        sources, crs = open_block([i.path for i in params["INPUT"]], "INPUT", feedback)
+        inputs, crs = open_block([i.path for i in params["INPUT"]], "INPUT", feedback)
         try:
+            # the block is mosaicked in file-name order (ties, fallback source, grid, band
+            # names), so the mosaic does not depend on the order of INPUT
+            order = name_order(inputs)
+            sources = [inputs[k] for k in order]
             if params["CUTLINES"] is not None:
-                cells = cells_from_layer(params["CUTLINES"], params["SOURCE_FIELD"], sources,
+                cells = cells_from_layer(params["CUTLINES"], params["SOURCE_FIELD"], inputs,
                                          crs=crs, feedback=feedback)
+                cells = [cells[k] for k in order]
             else:
                 cells = voronoi_cells([s.footprint for s in sources],
                                       centres_of(sources, "nadir", None, feedback))
@@ -140,8 +151,12 @@ class MosaicBuild(Algorithm):
                            f"{value}: a halo of {plan.halo():,} cells around each "
                            f"{TILE_SIZE}-cell tile", f"use a smaller {name}", "cells per tile")
             alpha = any(s.alpha_band is not None for s in sources)
-            nodata = next((s.nodata for s in sources if s.nodata is not None), None)
-            if not alpha and nodata is None:  # every value valid (or a mask band)
+            # the orthos' nodata when they share one; an ortho without (or with another) may
+            # hold that value as valid data (its black pixels were turned into no data)
+            kinds = {"nan" if s.nodata is not None and s.nodata != s.nodata else s.nodata
+                     for s in sources}
+            nodata = sources[0].nodata if len(kinds) == 1 else None
+            if not alpha and nodata is None:  # every value valid (or a mask band), or not one
                 from toolbox.raster.writer import empty_marker
 
                 nodata, alpha = empty_marker(dtype)
@@ -173,17 +188,19 @@ class MosaicBuild(Algorithm):
                     else:
                         methods, default = {}, "voronoi"
                     write_layers(params["SEAMLINES"], {"seamlines": seams_frame(
-                        sources, seams, crs, methods, default)},
+                        inputs, seams, crs, methods, default)},  # input numbers (the index's)
                         geometry_types={"seamlines": "MultiLineString"})
             finally:
                 if scratch is not None:
                     scratch.cleanup()
+            back = sorted(range(len(order)), key=order.__getitem__)  # input k at back[k]
             return {"OUTPUT": params["OUTPUT"], "SOURCE_INDEX": params["SOURCE_INDEX"],
                     "SEAMLINES": params["SEAMLINES"], "STATISTICS": {
                         "crs": crs_label(crs), "width": grid.width, "height": grid.height,
                         "cell_size": grid.cell_size[0], "bounds": list(grid.bounds),
                         "blend": params["BLEND"], "alpha": alpha, **stats,
-                        "gains": None if gains is None else gains.round(5).tolist(),
-                        "offsets": None if offsets is None else offsets.round(4).tolist()}}
+                        "gains": None if gains is None else gains[back].round(5).tolist(),
+                        "offsets": None if offsets is None else
+                        offsets[back].round(4).tolist()}}  # in input order
         finally:
-            close_block(sources)
+            close_block(inputs)

@@ -215,9 +215,11 @@ def _open_input(value):
                             dataset_transform,
                             require_georeferenced,
                             require_north_up,
+                            require_one_nodata,
                         )
 
                         require_georeferenced(src, "INPUT", value)
+                        require_one_nodata(src, "INPUT", value)
                         require_north_up(dataset_transform(src), "INPUT", value)
                         return value, "raster", src.crs, tuple(src.bounds)
         try:

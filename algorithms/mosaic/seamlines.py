@@ -141,6 +141,7 @@ class MosaicSeamlines(Algorithm):
             close_block,
             mosaic_grid,
             nadir_points_from_layer,
+            name_order,
             open_block,
             seams_frame,
             union_area,
@@ -165,7 +166,7 @@ class MosaicSeamlines(Algorithm):
             # the partition is made with the orthos in name order (unique names), then put back
             # in input order: the seams' routes (and the rounding of the polygons they start
             # from) would otherwise depend on the order the orthos are given in
-            order = sorted(range(len(sources)), key=lambda k: sources[k].name)
+            order = name_order(sources)
             with feedback.timed("voronoi"):
                 cells = voronoi_cells([footprints[k] for k in order], [centres[k] for k in order])
             feedback.set_progress(20)
@@ -180,7 +181,7 @@ class MosaicSeamlines(Algorithm):
                 buildings = _polygons(params["BUILDINGS"], crs, "BUILDINGS")
                 forbidden = _polygons(params["FORBIDDEN"], crs, "FORBIDDEN")
                 heights = None if params["HEIGHTS"] is None else \
-                    open_source(params["HEIGHTS"].path, -1, sources[0].datasets)
+                    open_source(params["HEIGHTS"].path, -1, sources[0].datasets, name="HEIGHTS")
                 cell = params["SEAM_CELL_SIZE"] or min(s.res[0] for s in sources)
 
                 def cost_for(i, j):
@@ -204,9 +205,14 @@ class MosaicSeamlines(Algorithm):
             gap, overlap = partition_errors(cells, area)
             methods = {(e["a"], e["b"]): e["method"] for e in seam_report}
             with feedback.timed("seams"):  # the seams of the mosaic mosaic:build makes of the cells
-                grid = mosaic_grid(sources, crs, None, area)
-                plan = MosaicPlan(sources, cells, grid, len(sources[0].data_bands), sources[0].dtype)
-                seams = partition_seams(plan)
+                # in name order as mosaic:build plans them (a cell centre on a shared edge goes
+                # to the first by name), the pairs back in input numbers
+                named = [sources[k] for k in order]
+                grid = mosaic_grid(named, crs, None, area)
+                plan = MosaicPlan(named, [cells[k] for k in order], grid,
+                                  len(sources[0].data_bands), sources[0].dtype)
+                seams = sorted((*sorted((order[i], order[j])), line)
+                               for i, j, line in partition_seams(plan))
             centre_frame = gpd.GeoDataFrame(
                 {"source_id": [s.index + 1 for s in sources], "source": [s.name for s in sources]},
                 geometry=[shapely.Point(c) for c in centres], crs=crs)

@@ -52,6 +52,8 @@ def _ortho_patch(src, x: float, y: float, cell: float, half: int
 
     from rasterio.windows import Window
 
+    from toolbox.io.raster import read_dataset_masked
+
     t = src.transform
     col, row = ~t * (x, y)
     pc = int(math.ceil(half * cell / abs(t.a))) + 3
@@ -62,7 +64,7 @@ def _ortho_patch(src, x: float, y: float, cell: float, half: int
     if c1 <= c0 or r1 <= r0:  # wholly outside: every sample NaN
         return np.full((1, 1), np.nan, "float32"), t
     window = Window(c0, r0, c1 - c0, r1 - r0)
-    data = src.read(window=window, masked=True).astype("float32").filled(np.nan)
+    data = read_dataset_masked(src, window=window).astype("float32").filled(np.nan)
     return _grey(data), src.window_transform(window)
 
 

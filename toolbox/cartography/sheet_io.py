@@ -56,7 +56,7 @@ def read_base(info, bounds: tuple[float, float, float, float], scale: float,
     from rasterio.enums import Resampling
     from rasterio.windows import from_bounds
 
-    from toolbox.io.raster import dataset_transform
+    from toolbox.io.raster import dataset_transform, read_dataset_masked
     from toolbox.raster.warp import photo_path
 
     with rasterio.open(photo_path(info.path)) as src:  # a paletted base: its colours
@@ -78,8 +78,7 @@ def read_base(info, bounds: tuple[float, float, float, float], scale: float,
             win = from_bounds(xmin, ymin, xmax, ymax, t).round_offsets().round_lengths()
             win = win.intersection(rasterio.windows.Window(0, 0, src.width, src.height))
             px_w, px_h = min(px_w, int(win.width)), min(px_h, int(win.height))
-            data = src.read(bands, window=win, out_shape=(len(bands), px_h, px_w),
-                            resampling=Resampling.bilinear, masked=True)
+            data = read_dataset_masked(src, bands, win, (px_h, px_w), Resampling.bilinear)
             wl, wb, wr, wt = rasterio.windows.bounds(win, t)
         else:
             from toolbox.raster.reproject import read_onto

@@ -104,6 +104,8 @@ def open_raster_info(value: Any, name: str = "INPUT", role: str = "photo") -> Ra
             _refuse_scaled(src, name, value)
             if role != "photo":
                 require_georeferenced(src, name, value)
+            else:  # a photo is warped under one mask
+                require_one_nodata(src, name, value)
             crs = CRS.from_wkt(src.crs.to_wkt()) if src.crs else None
             return RasterInfo(path, src.width, src.height, src.count, tuple(src.dtypes), crs,
                               dataset_transform(src),
@@ -288,12 +290,55 @@ def _refuse_scaled(src: Any, name: str, value: Any) -> None:
                                  f"'{value}' unscaled.tif")
 
 
+def require_one_nodata(src: Any, name: str, value: Any) -> None:
+    """:class:`ParameterError` naming ``name`` when the data bands (an alpha band aside) of the
+    open dataset ``src`` have different nodata values, or some one and others none (a VRT's
+    bands may each have their own). A warp or a cut marks the empty cells of all the bands at
+    once (one alpha band; a GeoTIFF holds one nodata value): band 1's mask would be taken for
+    every band in silence, and gdalwarp's per-band result (each band's nodata cells filled
+    with 0 under one alpha) has no mask that says which values are empty."""
+    from rasterio.enums import ColorInterp
+
+    bands = [b for b, interp in enumerate(src.colorinterp, start=1)
+             if not (interp == ColorInterp.alpha and src.count > 1)]
+    values = [src.nodatavals[b - 1] for b in bands]
+    if len({"none" if v is None else f"{v:g}" for v in values}) <= 1:  # NaN equals NaN
+        return
+    listed = ", ".join(f"band {b}: {'none' if v is None else f'{v:g}'}"
+                       for b, v in zip(bands, values, strict=True))
+    raise ParameterError(name, f"'{value}' has a nodata value per band ({listed}); its output "
+                         "marks the empty cells of all bands at once: give every band the same "
+                         f"nodata (gdal_translate -a_nodata VALUE '{value}' one_nodata.tif) or "
+                         "none (-a_nodata none)")
+
+
 def masked_by_nodata_only(src: Any, band: int) -> bool:
     """True when GDAL's mask of ``band`` (1-based) of the open dataset ``src`` is its nodata
     value or nothing (every cell valid), False for a mask band or an alpha band."""
     from rasterio.enums import MaskFlags
 
     return src.mask_flag_enums[band - 1] in ([MaskFlags.all_valid], [MaskFlags.nodata])
+
+
+def read_dataset_masked(src: Any, indexes: Any = None, window: Any = None,
+                        out_shape: tuple[int, int] | None = None,
+                        resampling: Any = None) -> np.ma.MaskedArray:
+    """Bands ``indexes`` (all by default) of the open dataset ``src`` masked where GDAL's
+    dataset mask is 0 (every band at its nodata, alpha 0, or a mask band's 0), one mask for
+    all the bands. ``out_shape`` (rows, cols): a decimated read (``resampling``, nearest by
+    default), the mask likewise.
+
+    Not rasterio's ``masked=True``: it masks each band by its own nodata, so a valid pixel with
+    one band at the nodata value (pure blue (0, 0, 255), a dark shadow (0, 3, 8) of an RGB
+    with nodata 0) lost that band (drawn 255: white, or called no data in a grey mean)."""
+    from rasterio.enums import Resampling
+
+    indexes = list(range(1, src.count + 1)) if indexes is None else indexes
+    extra = {} if out_shape is None else {
+        "out_shape": (len(indexes), *out_shape), "resampling": resampling or Resampling.nearest}
+    data = src.read(indexes, window=window, **extra)
+    mask = src.dataset_mask(window=window, out_shape=out_shape) == 0
+    return np.ma.MaskedArray(data, mask=np.broadcast_to(mask, data.shape).copy())
 
 
 def read_filled(src: Any, band: int, window: Any = None, dtype: str = "float64") -> np.ndarray:

@@ -324,10 +324,17 @@ def _thumbnail_pairs(photos: list[BlockPhoto], opts: TiePointOptions
 
 def tie_points(photos: list[BlockPhoto], opts: TiePointOptions,
                progress: Progress | None = None) -> TiePointResult:
-    """Run the pipeline (module docstring) on ``photos``."""
+    """Run the pipeline (module docstring) on ``photos``, taken in id order: the candidate
+    pairs, the union-find of the tracks and the thinning's ties would otherwise depend on the
+    order the photos are listed in (371 or 387 points of one block); ``result.photos`` is in
+    id order."""
     say = progress or (lambda p, m: None)
     if len(photos) < 2:
         raise InputDataError(f"tie points need at least two photos, got {len(photos)}")
+    order = sorted(range(len(photos)), key=lambda k: (photos[k].id, str(photos[k].source.path)))
+    photos = [photos[k] for k in order]
+    if opts.positions is not None:  # one row per photo, in the photos' order
+        opts = replace(opts, positions=np.asarray(opts.positions)[order])
     candidates, how = select_pairs(photos, opts)
     say(10, f"{len(candidates)} candidate pairs ({how})")
     used = sorted({k for i, j, _ in candidates for k in (i, j)})

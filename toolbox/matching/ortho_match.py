@@ -84,11 +84,13 @@ class OrthoReference:
         c0, r0 = int(np.floor(col[inside].min())), int(np.floor(row[inside].min()))
         c1 = min(self.width, int(np.ceil(col[inside].max())) + 2)
         r1 = min(self.height, int(np.ceil(row[inside].max())) + 2)
-        with rasterio.open(self.path) as src:
-            data = src.read(indexes=list(range(1, min(3, self.bands) + 1)),
-                            window=Window(c0, r0, c1 - c0, r1 - r0), masked=True)
+        from toolbox.io.raster import read_dataset_masked
+
+        with rasterio.open(self.path) as src:  # one mask: a (0, 3, 8) shadow is data
+            data = read_dataset_masked(src, list(range(1, min(3, self.bands) + 1)),
+                                       Window(c0, r0, c1 - c0, r1 - r0))
         grey = np.ascontiguousarray(data.data.astype("float32").mean(axis=0))
-        grey[np.ma.getmaskarray(data).any(axis=0)] = np.nan  # nodata: NaN spreads to the chip
+        grey[np.ma.getmaskarray(data)[0]] = np.nan  # nodata: NaN spreads to the chip
         values = cv2.remap(grey, (col - c0).astype(np.float32).reshape(1, -1),
                            (row - r0).astype(np.float32).reshape(1, -1), cv2.INTER_LINEAR,
                            borderMode=cv2.BORDER_REPLICATE).reshape(out.shape)

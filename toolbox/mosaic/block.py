@@ -41,7 +41,7 @@ def open_block(paths: list, name: str = "INPUT", feedback: Any = None,
     datasets = BlockDatasets(threads)
     try:
         for k, p in enumerate(paths):
-            src = open_source(Path(p), k, datasets)
+            src = open_source(Path(p), k, datasets)  # INPUT in its refusals
             if src.name in {s.name for s in sources}:
                 raise ParameterError(name, f"two inputs are named '{src.name}' (the file name "
                                      "identifies an ortho in the cut polygons): rename one")
@@ -59,6 +59,14 @@ def open_block(paths: list, name: str = "INPUT", feedback: Any = None,
         datasets.close()
         raise
     return sources, crs
+
+
+def name_order(sources: list[OrthoSource]) -> list[int]:
+    """Positions of ``sources`` in file-name order (the names are unique: :func:`open_block`):
+    the order a block is partitioned and mosaicked in, so that no tie (a cell centre on a
+    shared cut edge, two orthos with one centre, the fallback source of a cell) depends on
+    the order the orthos were given in."""
+    return sorted(range(len(sources)), key=lambda k: sources[k].name)
 
 
 def check_same_kind(first: OrthoSource, other: OrthoSource, name: str = "INPUT") -> None:

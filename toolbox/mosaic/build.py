@@ -6,10 +6,12 @@ engine (:func:`toolbox.raster.engine.process_raster`), so memory is bounded by a
 whatever the mosaic size, into :class:`toolbox.raster.writer.RasterWriter` s (the source-index
 raster is written from the engine's ``collect`` hook).
 
-Labels: a cell takes the source whose cut polygon holds it; where that source has no valid data
-(the polygons are traced on decimated masks) or no polygon holds the cell, the first valid source
-in input order does, so the mosaic has no gap where any input has data. The source-index raster
-stores ``label + 1`` (0 = no data).
+Labels: a cell takes the source whose cut polygon holds it (the lower source of the plan when its
+centre lies on the edge two polygons share); where that source has no valid data (the polygons
+are traced on decimated masks) or no polygon holds the cell, the first valid source of the plan
+does, so the mosaic has no gap where any input has data. ``mosaic:build`` plans the orthos in
+file-name order, so that no tie depends on the order they were given in. The source-index raster
+stores the source's 1-based input number (``OrthoSource.index + 1``, 0 = no data).
 """
 
 from __future__ import annotations
@@ -84,7 +86,9 @@ def window_labels(plan: MosaicPlan, window: Any, valid: np.ndarray) -> np.ndarra
     from rasterio.features import rasterize
 
     shape = (int(window.height), int(window.width))
-    shapes = [(cell, k) for k, cell in enumerate(plan.cells)
+    # drawn last to first: a cell centre on the edge two polygons share (GDAL burns it for
+    # both, the last drawn wins) goes to the lower source, as the fallback below does
+    shapes = [(cell, k) for k, cell in reversed(list(enumerate(plan.cells)))
               if cell is not None and not cell.is_empty]
     labels = np.full(shape, -1, dtype="int16")
     if shapes:
@@ -214,11 +218,14 @@ def write_mosaic(plan: MosaicPlan, output: Path, index_path: Path | None, *, alp
         first = plan.sources[0]
         with rasterio.open(first.path) as src:  # the bands as the orthos name them
             copy_band_names(src, dst.dataset, first.data_bands)
+        # label -> input number (the plan may hold the sources in another order)
+        numbers = np.array([0] + [s.index + 1 for s in plan.sources], dtype=index_dtype)
         idx = None if index_path is None else stack.enter_context(RasterWriter(
             index_path, grid, 1, index_dtype, 0, cog=cog and index_finished,
             overviews=overviews and index_finished,
             band_descriptions=["source (1-based input number, 0 = no data; SOURCE_k tags)"],
-            tags={f"SOURCE_{k}": str(s.path) for k, s in enumerate(plan.sources, start=1)},
+            tags={f"SOURCE_{s.index + 1}": str(s.path)
+                  for s in sorted(plan.sources, key=lambda s: s.index)},
             overview_resampling="nearest", executor=executor, cache_mb=WRITE_CACHE_MB))
 
         def collect(tile, data, labels):
@@ -226,13 +233,13 @@ def write_mosaic(plan: MosaicPlan, output: Path, index_path: Path | None, *, alp
             empty[0] += int(missing.sum())
             counts[:] += np.bincount(labels[~missing], minlength=len(counts))
             if idx is not None:
-                idx.write(tile.window, (labels + 1).astype(index_dtype))
+                idx.write(tile.window, numbers[labels + 1])
 
         result = process_raster(grid, None, partial(mosaic_tile, plan, alpha, nodata), dst,
                                 tile_size=tile_size, halo=plan.halo(), executor=executor,
                                 feedback=feedback, collect=collect, end=90)
     if feedback is not None:
         feedback.set_progress(100)
-    return {"cells_per_source": {s.name: int(c) for s, c in zip(plan.sources, counts,
-                                                               strict=True)},
+    by_input = sorted(zip(plan.sources, counts, strict=True), key=lambda sc: sc[0].index)
+    return {"cells_per_source": {s.name: int(c) for s, c in by_input},
             "empty_cells": empty[0], "tiles": result["tiles"]}

@@ -61,6 +61,9 @@ def clip_raster(path: Path, sheet, output: Path, block: int = 2048) -> bool:
     """Write the part of raster ``path`` inside polygon ``sheet`` to ``output`` on the raster's
     own grid, over the sheet's bounds (cells outside the raster or the polygon are nodata, or
     alpha 0). Returns False (and writes nothing) when the sheet holds no valid data.
+    The valid cells are GDAL's dataset mask's (a cell where any band is valid, or the alpha
+    band's); a raster whose bands have different nodata values is refused
+    (:func:`toolbox.io.raster.require_one_nodata`).
 
     A raster without nodata or alpha band (every value valid, or a mask band) gets NaN as
     nodata when it holds floats, else an alpha band: a nodata of 0 would turn its valid zeros
@@ -70,10 +73,11 @@ def clip_raster(path: Path, sheet, output: Path, block: int = 2048) -> bool:
     from rasterio.windows import Window, from_bounds
 
     from toolbox.io.grid import GridSpec
-    from toolbox.io.raster import dataset_transform
+    from toolbox.io.raster import dataset_transform, require_one_nodata
     from toolbox.raster.writer import RasterWriter, copy_band_metadata, empty_marker
 
     with rasterio.open(path) as src:
+        require_one_nodata(src, "INPUT", path)
         t = dataset_transform(src)
         win = from_bounds(*sheet.bounds, transform=t)
         col0, row0 = math.floor(win.col_off + 1e-6), math.floor(win.row_off + 1e-6)
@@ -106,7 +110,9 @@ def clip_raster(path: Path, sheet, output: Path, block: int = 2048) -> bool:
                 for c in range(0, cols, block):
                     w = Window(col0 + c, row0 + r, min(block, cols - c), min(block, rows - r))
                     data = src.read(window=w, boundless=True, fill_value=nodata or 0)
-                    valid = src.read_masks(1, window=w, boundless=True) > 0
+                    # GDAL's dataset mask: a cell is empty only when every band is (or
+                    # alpha 0); band 1's mask dropped the valid dark pixels of an RGB
+                    valid = src.dataset_mask(window=w, boundless=True) > 0
                     wt = rasterio.windows.transform(w, t)
                     valid &= ~geometry_mask([sheet], out_shape=valid.shape, transform=wt)
                     any_valid |= bool(valid.any())

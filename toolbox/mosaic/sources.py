@@ -101,16 +101,20 @@ def _opened(path: Path, datasets: Any):
         yield src
 
 
-def open_source(path: str | Path, index: int, datasets: Any = None) -> OrthoSource:
+def open_source(path: str | Path, index: int, datasets: Any = None,
+                name: str = "INPUT") -> OrthoSource:
     """Read an ortho's metadata (no pixels); with ``datasets`` (a
     :class:`~toolbox.raster.datasets.ThreadDatasets`) the raster stays open there for the
-    source's reads. Raises :class:`InputDataError` for rotated grids."""
+    source's reads. Raises :class:`InputDataError` for rotated grids, and
+    :class:`~toolbox.errors.ParameterError` naming ``name`` for bands with different nodata
+    values (the mosaic has one mask for all bands: :func:`toolbox.io.raster.require_one_nodata`)."""
     from rasterio.enums import ColorInterp
 
     path = Path(path)
     with _opened(path, datasets) as src:
-        from toolbox.io.raster import dataset_transform
+        from toolbox.io.raster import dataset_transform, require_one_nodata
 
+        require_one_nodata(src, name, path)
         t = dataset_transform(src)
         if t.b != 0 or t.d != 0:
             raise InputDataError(f"'{path}' has a rotated geotransform; mosaic inputs must be "
