@@ -15,9 +15,9 @@ The triangulation is constrained Delaunay with exact predicates, by one of two l
   dependency: redistributable in commercial products);
 - ``triangle``: Shewchuk's Triangle (the ``triangle`` package; its licence forbids commercial
   redistribution, so it is the optional extra ``pip install photogrammetry-toolbox[triangle]``),
-  as fast as CDT on a million random points (CDT 1.06 times faster) and with the bench's
-  breaklines (bench/results/tin_core.md; Triangle 1.4 times faster before CDT's points went in
-  Z-order).
+  as fast as CDT on a million random points (CDT 1.08 times faster; 1.13 times with the bench's
+  breaklines: bench/results/tin_core.md; Triangle was 1.4 times faster before CDT's points went
+  in Z-order).
 
 The environment variable ``TOOLBOX_TRIANGULATOR`` chooses: ``cdt`` (default), ``triangle``, or
 ``auto`` (Triangle when installed, else CDT); the ``triangulator`` argument of
