@@ -1,0 +1,57 @@
+"""Round 18 leftovers (7): balanced mosaic values kept off the nodata value."""
+
+import numpy as np
+import rasterio
+from rasterio.transform import from_origin
+
+import toolbox
+
+
+def _ortho(path, arr, x0, nodata=0):
+    with rasterio.open(path, "w", driver="GTiff", width=arr.shape[-1], height=arr.shape[-2],
+                       count=1, dtype=arr.dtype, crs="EPSG:32633", nodata=nodata,
+                       transform=from_origin(500000 + x0, 5000040, 1, 1)) as dst:
+        dst.write(arr, 1)
+
+
+def test_balanced_dark_pixel_is_not_written_as_nodata(tmp_path):
+    # B is A + 20 over the overlap -> offsets +10 / -10; B's valid shadow (5) outside the
+    # overlap is balanced to 5 - 10 -> 0 by numpy (clipped), the nodata value: it was written
+    # as no data (a hole of 20 x 40 cells); it is kept valid at 1 (one step off nodata)
+    rng = np.random.default_rng(0)
+    base = rng.integers(60, 200, (40, 100)).astype("uint8")
+    a = base[:, :60].copy()
+    b = (base[:, 40:100] + 20).astype("uint8")
+    b[:, 40:] = 5
+    _ortho(tmp_path / "a.tif", a, 0.0)
+    _ortho(tmp_path / "b.tif", b, 40.0)
+    res = toolbox.run("mosaic:build", {"INPUT": [str(tmp_path / "a.tif"), str(tmp_path / "b.tif")],
+                                       "BLEND": "none", "BALANCE": True,
+                                       "OUTPUT": str(tmp_path / "m.tif")})
+    g = np.array(res["STATISTICS"]["gains"])[:, 0]
+    o = np.array(res["STATISTICS"]["offsets"])[:, 0]
+    assert np.allclose(g, 1.0, atol=1e-3) and np.allclose(o, [10.0, -10.0], atol=0.05)
+    assert np.clip(np.rint(g[1] * 5 + o[1]), 0, 255) == 0  # numpy: onto the nodata value
+    with rasterio.open(tmp_path / "m.tif") as src:
+        assert src.nodata == 0 and (src.width, src.height) == (100, 40)
+        m = src.read(1, masked=True)
+    assert not np.ma.getmaskarray(m).any()  # every cell has data in an input
+    assert (m.data[:, 80:] == 1).all()  # the shadow: one step off nodata
+    # elsewhere the numpy truth on the same gains: A's own cells (x < 40) are a·g0 + o0
+    assert np.array_equal(m.data[:, :30], np.clip(np.rint(a[:, :30] * g[0] + o[0]), 0, 255))
+
+
+def test_keep_off_nodata_moves_valid_cells_with_every_band_at_nodata_only():
+    from toolbox.raster.writer import keep_off_nodata
+
+    data = np.array([[[0, 255, 7], [255, 0, 0]]], "uint8")
+    valid = np.array([[True, True, True], [True, False, True]])
+    assert keep_off_nodata(data.copy(), valid, 0).tolist() == [[[1, 255, 7], [255, 0, 1]]]
+    assert keep_off_nodata(data.copy(), valid, 255).tolist() == [[[0, 254, 7], [254, 0, 0]]]
+    rgb = np.array([[[0, 0]], [[0, 0]], [[255, 0]]], "uint8")  # pure blue stays, black moves
+    assert keep_off_nodata(rgb, np.ones((1, 2), bool), 0)[:, 0].T.tolist() == [[0, 0, 255],
+                                                                              [1, 1, 1]]
+    f = np.array([[[-9999.0, 3.0]]], "float32")
+    out = keep_off_nodata(f.copy(), np.ones((1, 2), bool), -9999.0)
+    assert out[0, 0, 0] != np.float32(-9999.0) and abs(out[0, 0, 0] + 9999.0) < 1e-3
+    assert keep_off_nodata(f.copy(), np.ones((1, 2), bool), float("nan")).tolist() == f.tolist()
