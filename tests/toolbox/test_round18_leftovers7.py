@@ -55,3 +55,30 @@ def test_keep_off_nodata_moves_valid_cells_with_every_band_at_nodata_only():
     out = keep_off_nodata(f.copy(), np.ones((1, 2), bool), -9999.0)
     assert out[0, 0, 0] != np.float32(-9999.0) and abs(out[0, 0, 0] + 9999.0) < 1e-3
     assert keep_off_nodata(f.copy(), np.ones((1, 2), bool), float("nan")).tolist() == f.tolist()
+
+
+def test_engine_aligned_multiband_read_masks_by_the_dataset_mask(tmp_path):
+    # an RGB with nodata 0: the pure-blue pixel (0, 0, 255) is valid for GDAL's dataset mask,
+    # the black one is not; the aligned read masked band by band (blue -> (NaN, NaN, 255)),
+    # the warped read of the same photo (GDAL's warper) kept it
+    from affine import Affine
+    from rasterio.windows import Window
+
+    from toolbox.io.grid import GridSpec
+    from toolbox.raster.engine import read_window
+
+    d = np.full((3, 8, 8), 100, "uint8")
+    d[:, 3, 3] = [0, 0, 255]
+    d[:, 5, 5] = 0
+    path = tmp_path / "rgb.tif"
+    with rasterio.open(path, "w", driver="GTiff", width=8, height=8, count=3, dtype="uint8",
+                       crs="EPSG:32633", nodata=0, transform=from_origin(0, 8, 1, 1)) as f:
+        f.write(d)
+    with rasterio.open(path) as f:
+        valid = f.dataset_mask() > 0
+    assert valid[3, 3] and not valid[5, 5] and valid.sum() == 63
+    truth = np.where(valid, d.astype("float32"), np.nan)
+    for t in (Affine(1, 0, 0, 0, -1, 8), Affine(1, 0, 0, 0, -1.0000001, 8)):  # aligned, warped
+        out = read_window(str(path), GridSpec(t, 8, 8, "EPSG:32633"), Window(0, 0, 8, 8),
+                          dtype="float32", resampling="nearest")
+        np.testing.assert_array_equal(out, truth)
