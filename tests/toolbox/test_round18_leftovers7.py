@@ -82,3 +82,48 @@ def test_engine_aligned_multiband_read_masks_by_the_dataset_mask(tmp_path):
         out = read_window(str(path), GridSpec(t, 8, 8, "EPSG:32633"), Window(0, 0, 8, 8),
                           dtype="float32", resampling="nearest")
         np.testing.assert_array_equal(out, truth)
+
+
+def test_extent_takes_the_crs_with_or_without_brackets():
+    # the help said 'xmin,ymin,xmax,ymax [CRS]': "... EPSG:32633" (the brackets read as
+    # "optional") was refused with exit 2; QGIS's bracketed text stays accepted
+    from pyproj import CRS
+
+    from toolbox.errors import ParameterError
+    from toolbox.parameters import ExtentParameter
+    from toolbox.parameters.base import ValidationContext
+
+    p = ExtentParameter("EXTENT")
+    utm = CRS.from_epsg(32633)
+    for text in ("500000,5000000,501000,5001000 EPSG:32633",
+                 "500000,5000000,501000,5001000 [EPSG:32633]",
+                 " 500000 5000000 501000 5001000  epsg:32633 ",
+                 "500000,5000000,501000,5001000,EPSG:32633"):
+        e = p.resolve(text, ValidationContext())
+        assert e.bounds == (500000, 5000000, 501000, 5001000) and e.crs == utm, text
+    e = p.resolve("-1.5e3,2,3,4 +proj=utm +zone=33 +datum=WGS84", ValidationContext())
+    assert e.bounds == (-1500, 2, 3, 4) and e.crs.to_epsg() == 32633
+    assert p.resolve("1,2,3,4", ValidationContext()).crs is None
+    for text, fragment in (("1,2,3,4 5", "xmin,ymin,xmax,ymax EPSG:3003"),
+                           ("1,2,3 EPSG:32633", "xmin,ymin,xmax,ymax EPSG:3003"),
+                           ("1,2,3,4 nowhere", "'nowhere' is not a CRS")):
+        try:
+            p.resolve(text, ValidationContext())
+        except ParameterError as exc:
+            assert str(exc).startswith("EXTENT") and fragment in str(exc), str(exc)
+        else:
+            raise AssertionError(f"{text!r} accepted")
+
+
+def test_every_extent_help_shows_what_to_type():
+    from toolbox import registry
+    from toolbox.parameters import ExtentParameter
+
+    seen = 0
+    for alg in registry.algorithms():
+        for p in alg.parameters:
+            if isinstance(p, ExtentParameter):
+                seen += 1
+                text = f"{p.description} {p.expected()}"
+                assert "[CRS]" not in text, (alg.id, text)
+    assert seen >= 8
