@@ -127,3 +127,48 @@ def test_every_extent_help_shows_what_to_type():
                 text = f"{p.description} {p.expected()}"
                 assert "[CRS]" not in text, (alg.id, text)
     assert seen >= 8
+
+
+def test_source_date_epoch_reaches_dask_workers_started_before_the_run(tmp_path, monkeypatch):
+    # mosaic:cut writes each sheet's GeoPackage on a worker: a worker process started before
+    # SOURCE_DATE_EPOCH was set wrote the current time as gpkg_contents.last_change
+    import sqlite3
+
+    import geopandas as gpd
+    import shapely
+    from distributed import LocalCluster
+
+    monkeypatch.delenv("SOURCE_DATE_EPOCH", raising=False)
+    monkeypatch.delenv("OGR_CURRENT_DATE", raising=False)
+    monkeypatch.delenv("DASK_SCHEDULER_ADDRESS", raising=False)
+    gpd.GeoDataFrame({"v": [1, 2]}, geometry=[shapely.Point(10, 10), shapely.Point(60, 10)],
+                     crs="EPSG:32633").to_file(tmp_path / "pts.gpkg", layer="pts")
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
+                      dashboard_address=None) as cluster:
+        monkeypatch.setenv("SOURCE_DATE_EPOCH", "1700000000")  # 2023-11-14T22:13:20Z
+        toolbox.run("mosaic:cut", {"INPUT": str(tmp_path / "pts.gpkg"), "SCALE": 100,
+                                   "SHEET_WIDTH": 50, "SHEET_HEIGHT": 40,
+                                   "OUTPUT": str(tmp_path / "out"),
+                                   "SCHEDULER": cluster.scheduler_address})
+    files = sorted((tmp_path / "out").glob("*.gpkg"))
+    assert [f.name for f in files] == ["0_0.gpkg", "1_0.gpkg", "sheets.gpkg"]
+    for f in files:
+        with sqlite3.connect(f) as db:
+            assert db.execute("select last_change from gpkg_contents").fetchall() == [
+                ("2023-11-14T22:13:20.000Z",)], f.name
+
+
+def test_on_worker_sets_and_restores_the_date(monkeypatch):
+    import os
+
+    from toolbox.io.source_date import on_worker
+
+    monkeypatch.setenv("SOURCE_DATE_EPOCH", "5")
+    monkeypatch.delenv("OGR_CURRENT_DATE", raising=False)
+    with on_worker("1700000000"):
+        with on_worker("1700000000"):
+            assert os.environ["SOURCE_DATE_EPOCH"] == "1700000000"
+        assert os.environ["OGR_CURRENT_DATE"] == "2023-11-14T22:13:20.000Z"
+    assert os.environ["SOURCE_DATE_EPOCH"] == "5" and "OGR_CURRENT_DATE" not in os.environ
+    with on_worker(None):
+        assert os.environ["SOURCE_DATE_EPOCH"] == "5"
