@@ -362,14 +362,16 @@ def _map_dask(func, tasks, executor, prefetch, feedback, total, start, end) -> I
                                  f"({_first_line(exc)})") from None
         try:
             cores = sum(client.nthreads().values()) or 1
-            folder, name = os.getcwd(), _task_name(func)
+            from toolbox.io.source_date import client_date
+
+            folder, name, date = os.getcwd(), _task_name(func), client_date()
             # a partial or a callable object (a kernel holding a DEM, a map of windows) is
             # sent to the cluster once and each worker fetches it once, not once per task
             target = func if isinstance(func, types.FunctionType) else \
                 client.scatter([func], hash=False)[0]
 
             def submit(task):
-                return client.submit(_in_client_folder, folder, target, task, pure=False,
+                return client.submit(_in_client_folder, folder, target, task, date, pure=False,
                                      key=f"{name}-{uuid.uuid4().hex}")
 
             yield from _in_order(submit, tasks, prefetch or max(4, 2 * cores), feedback, total,
@@ -396,8 +398,9 @@ _FOLDER: dict[str, Any] = {"path": None, "running": 0, "waiting": {}}
 _FOLDER_TURN = threading.Condition()
 
 
-def _in_client_folder(folder: str, func: Callable, task: Any) -> Any:
-    """``func(task)`` on a Dask worker, in the client's working ``folder``: the user's relative
+def _in_client_folder(folder: str, func: Callable, task: Any, date: str | None = None) -> Any:
+    """``func(task)`` on a Dask worker, in the client's working ``folder`` and with the client's
+    ``SOURCE_DATE_EPOCH`` (``date``: :func:`toolbox.io.source_date.on_worker`): the user's relative
     paths (``--INPUT dem.tif``, a staged output folder beside it) name the files they meant, not
     files in the worker's own folder. A worker that does not see the folder (another machine
     without the same mount) stays where it is: relative paths then fail there as before, and
@@ -425,7 +428,10 @@ def _in_client_folder(folder: str, func: Callable, task: Any) -> Any:
         except OSError:  # the worker's own folder was removed, or the client's is not readable
             pass
     try:
-        return func(task)
+        from toolbox.io.source_date import on_worker
+
+        with on_worker(date):
+            return func(task)
     finally:
         with _FOLDER_TURN:
             _FOLDER["running"] -= 1

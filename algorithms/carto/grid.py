@@ -31,7 +31,7 @@ class Grid(Algorithm):
     group = "Cartography"
     short_help = "Map grid every 10 cm on paper (500 m at 1:5000) as lines or crosses, labelled."
     parameters = [
-        *sheet_parameters("area: xmin,ymin,xmax,ymax [CRS]",
+        *sheet_parameters("area: 'xmin,ymin,xmax,ymax EPSG:3003' (CRS optional)",
                                "map sheets (polygons) instead of EXTENT"),
         Number("MAP_STEP", "grid step on paper, mm", default=100.0, min_value=0,
                min_exclusive=True),

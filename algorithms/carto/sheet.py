@@ -74,7 +74,7 @@ class Sheet(Algorithm):
     group = "Cartography"
     short_help = "Map sheet PDF/PNG at an exact scale: base, layers, contours, grid, legend."
     parameters = [
-        *sheet_parameters("sheet area: xmin,ymin,xmax,ymax [CRS]",
+        *sheet_parameters("sheet area: 'xmin,ymin,xmax,ymax EPSG:3003' (CRS optional)",
                                "sheet grid polygons instead of EXTENT (one sheet each)"),
         RasterLayer("BASE", "base raster: orthophoto (RGB) or hillshade (grey)", optional=True),
         MultipleLayers("LAYERS", "vector layers to draw", layer_type="vector", min_count=0,

@@ -35,7 +35,7 @@ class SheetIndex(Algorithm):
     group = "Cartography"
     short_help = "CTR sheet index: 1:5000 elements / 1:10000 sections numbered in the IGM sheet."
     parameters = [
-        ExtentParameter("EXTENT", "area to cover: xmin,ymin,xmax,ymax [CRS]"),
+        ExtentParameter("EXTENT", "area to cover: 'xmin,ymin,xmax,ymax EPSG:3003' (CRS optional)"),
         Integer("SHEET_50K", "IGM 1:50000 sheet number (1-652)", min_value=1, max_value=652),
         Enum("SCALE", "sheets of the index", options=["5000", "10000"], default="5000"),
         String("ORIGIN", "north-west corner of the 1:50000 sheet: lon,lat in ED50 degrees"),

@@ -52,7 +52,8 @@ class BlockDesign(Algorithm):
     parameters = [
         VectorLayer("AREA", "project area (polygons)", geometry_types=["polygon"],
                     optional=True),
-        ExtentParameter("EXTENT", "project area as xmin,ymin,xmax,ymax [CRS] instead of AREA",
+        ExtentParameter("EXTENT", "project area 'xmin,ymin,xmax,ymax EPSG:3003' (CRS optional) "
+                        "instead of AREA",
                         optional=True),
         Crs("CRS", "CRS of EXTENT (or of AREA when it has none); projected, metres",
             optional=True),

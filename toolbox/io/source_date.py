@@ -73,3 +73,50 @@ def source_date_for_gdal() -> Iterator[None]:
                     os.environ["OGR_CURRENT_DATE"] = _SET[-1]
                 else:
                     os.environ.pop("OGR_CURRENT_DATE", None)
+
+
+def client_date() -> str | None:
+    """The client's ``SOURCE_DATE_EPOCH`` text (None when unset), sent with each Dask task:
+    :func:`on_worker`."""
+    return os.environ.get(VARIABLE, "").strip() or None
+
+
+_PUSHED: dict[str, dict] = {}  # variable -> {"original": its value before, "values": [...]}
+
+
+@contextmanager
+def _pushed(name: str, value: str) -> Iterator[None]:
+    """``os.environ[name] = value`` within the block; blocks may overlap (tasks in threads):
+    the variable's value from before the first comes back when the last one ends."""
+    with _LOCK:
+        entry = _PUSHED.setdefault(name, {"original": os.environ.get(name), "values": []})
+        entry["values"].append(value)
+        os.environ[name] = value
+    try:
+        yield
+    finally:
+        with _LOCK:
+            entry["values"].remove(value)
+            if entry["values"]:
+                os.environ[name] = entry["values"][-1]
+            else:
+                del _PUSHED[name]
+                if entry["original"] is None:
+                    os.environ.pop(name, None)
+                else:
+                    os.environ[name] = entry["original"]
+
+
+@contextmanager
+def on_worker(value: str | None) -> Iterator[None]:
+    """Within a Dask task: the client's ``SOURCE_DATE_EPOCH`` (``value``, from
+    :func:`client_date`) in the worker's environment, and GDAL's ``OGR_CURRENT_DATE`` from it
+    (:func:`source_date_for_gdal`). A worker process started before the run did not see the
+    variable the user set for it: the GeoPackages written there (``mosaic:cut``'s sheets of a
+    vector layer) got the current time as ``last_change``, a sheet PDF its ``CreationDate``.
+    ``value`` None leaves the worker's environment as it is."""
+    if value is None:
+        yield
+        return
+    with _pushed(VARIABLE, value), source_date_for_gdal():
+        yield

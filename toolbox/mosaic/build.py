@@ -25,6 +25,7 @@ import numpy as np
 
 from toolbox.mosaic.blend import feather_weights, multiband_blend
 from toolbox.mosaic.sources import OrthoSource, read_window
+from toolbox.raster.writer import keep_off_nodata
 
 
 @dataclass
@@ -172,7 +173,9 @@ def to_dtype(values: np.ndarray, dtype: str) -> np.ndarray:
 def mosaic_tile(plan: MosaicPlan, alpha: bool, nodata: float | None, tile: Any,
                 arrays: dict) -> tuple[np.ndarray, np.ndarray]:
     """The engine kernel: :func:`mosaic_window` with the alpha band appended (``alpha``) or
-    ``nodata`` where no source has data; the labels go to ``collect`` as the tile's info."""
+    ``nodata`` where no source has data (a valid cell's value equal to it, e.g. a dark pixel
+    balanced down to 0, is moved one step off it: :func:`keep_off_nodata`); the labels go to
+    ``collect`` as the tile's info."""
     data, labels = mosaic_window(plan, tile)
     missing = labels < 0
     if alpha:
@@ -180,6 +183,7 @@ def mosaic_tile(plan: MosaicPlan, alpha: bool, nodata: float | None, tile: Any,
         opaque = np.iinfo(dt).max if dt.kind in "iu" else 1
         data = np.concatenate([data, np.where(missing, 0, opaque).astype(dt)[None]], axis=0)
     elif nodata is not None:
+        keep_off_nodata(data, ~missing, nodata)
         data[:, missing] = nodata
     return data, labels
 

@@ -186,9 +186,22 @@ class Extent:
         return self.ymax - self.ymin
 
 
+_NUMBER = r"[-+]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][-+]?\d+)?"
+#: four numbers, then (after a space or comma) a CRS that is not a number: "... EPSG:3003"
+_BARE_CRS = re.compile(rf"^\s*({_NUMBER})(?:\s*,\s*|\s+)({_NUMBER})(?:\s*,\s*|\s+)"
+                       rf"({_NUMBER})(?:\s*,\s*|\s+)({_NUMBER})(?:\s*,\s*|\s+)(\S.*?)\s*$")
+EXTENT_FORMS = "'xmin,ymin,xmax,ymax', optionally followed by its CRS: " \
+    "'xmin,ymin,xmax,ymax EPSG:3003' (or '... [EPSG:3003]')"
+
+
 class ExtentParameter(Parameter):
     """An extent as ``"xmin,ymin,xmax,ymax"`` (GDAL ``-te`` and shapely/rasterio bounds order),
-    optionally followed by ``" [EPSG:3003]"``; or a sequence of four numbers, or an :class:`Extent`.
+    optionally followed by its CRS, ``" EPSG:3003"`` or ``" [EPSG:3003]"``; or a sequence of
+    four numbers, or an :class:`Extent`.
+
+    The help of the bracketed form read ``xmin,ymin,xmax,ymax [CRS]``, which reads as "an
+    optional CRS": ``"... EPSG:32633"`` was refused (exit 2), only ``"... [EPSG:32633]"`` (the
+    brackets typed, QGIS's own extent text) was taken. Both are now.
     """
 
     type_name = "extent"
@@ -201,10 +214,16 @@ class ExtentParameter(Parameter):
             if isinstance(value, str):
                 text = value.strip()
                 match = re.match(r"^(.*?)\s*\[(.+)\]\s*$", text)
-                if match:
-                    text, crs_text = match.group(1), match.group(2)
+                bare = None if match else _BARE_CRS.match(text)
+                if bare is not None and _is_number(bare.group(5)):
+                    bare = None  # five numbers: refused below
+                if match or bare:
                     from toolbox.io.crs import parse_crs
 
+                    if match:
+                        text, crs_text = match.group(1), match.group(2)
+                    else:
+                        text, crs_text = ",".join(bare.groups()[:4]), bare.group(5)
                     crs = parse_crs(crs_text, self.name)
                 parts = [p for p in re.split(r"[,\s]+", text) if p]
             elif isinstance(value, Sequence):
@@ -216,7 +235,7 @@ class ExtentParameter(Parameter):
             except (TypeError, ValueError):
                 numbers = []
             if len(numbers) != 4 or not all(math.isfinite(n) for n in numbers):
-                raise self.error(f"must be 'xmin,ymin,xmax,ymax', got {_show(value)}")
+                raise self.error(f"must be {EXTENT_FORMS}, got {_show(value)}")
         xmin, ymin, xmax, ymax = numbers
         if not (xmin < xmax and ymin < ymax):
             raise self.error(
@@ -225,5 +244,13 @@ class ExtentParameter(Parameter):
         return Extent(xmin, ymin, xmax, ymax, crs)
 
     def expected(self) -> str:
-        return "extent 'xmin,ymin,xmax,ymax [CRS]'"
+        return "extent 'xmin,ymin,xmax,ymax' or 'xmin,ymin,xmax,ymax EPSG:nnnn'"
+
+
+def _is_number(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
 

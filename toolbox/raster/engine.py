@@ -272,16 +272,17 @@ def _read_aligned(src, indexes, region, offset, dtype, fill) -> np.ndarray:
     inner, inside = part
     data = src.read(indexes, window=inner)
     missing = None
-    for k, band in enumerate(indexes):  # each band's own nodata (a VRT's bands differ)
-        nodata = src.nodatavals[band - 1]
-        if nodata is None or (math.isnan(nodata) and dtype.kind == "f" and math.isnan(fill)):
-            continue
-        # compared in the source's type, as GDAL stores it
-        hit = np.isnan(data[k]) if math.isnan(nodata) else data[k] == nodata
+    nodatas = [src.nodatavals[band - 1] for band in indexes]  # each band's own (a VRT's differ)
+    if all(v is not None for v in nodatas) and not (
+            all(math.isnan(v) for v in nodatas) and dtype.kind == "f" and math.isnan(fill)):
+        # a cell is no data when every band read is at its nodata (GDAL's dataset mask, as the
+        # warper of an unaligned read decides): a valid pure-blue (0, 0, 255) pixel of an RGB
+        # with nodata 0 lost its bands 1 and 2 (fill), unlike the same photo read unaligned.
+        # Compared in the source's type, as GDAL stores it
+        hit = np.logical_and.reduce([np.isnan(data[k]) if math.isnan(v) else data[k] == v
+                                     for k, v in enumerate(nodatas)])
         if hit.any():
-            if missing is None:
-                missing = np.zeros(data.shape, bool)
-            missing[k] = hit
+            missing = np.broadcast_to(hit, data.shape)
     masked = _masked_out(src, indexes, inner)
     if masked is not None:
         missing = masked if missing is None else missing | masked

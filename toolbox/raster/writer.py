@@ -648,3 +648,28 @@ def cog_problems(path: Any) -> list[str]:
     if any(0 < s < last_ifd for s in data_start):
         problems.append("tile data before the last IFD (IFDs are not all at the start)")
     return problems
+
+
+def keep_off_nodata(data: np.ndarray, valid: np.ndarray, nodata: float | None) -> np.ndarray:
+    """``data`` ``(bands, rows, cols)`` with every ``valid`` ``(rows, cols)`` cell whose bands
+    all equal ``nodata`` moved one step off it (``nodata + 1`` for integers, ``nodata - 1``
+    when it is the type's maximum; the next float for floats), in place.
+
+    A computed value (balanced, blended) may land on the nodata value: a dark shadow of a
+    uint8 ortho with nodata 0 balanced by a negative offset came out 0, written as no data (a
+    hole in the mosaic). Only cells with every band at nodata are moved: GDAL's dataset mask
+    (:func:`toolbox.io.raster.read_dataset_masked`) keeps a pixel with some bands at nodata,
+    pure blue (0, 0, 255), valid, and such a pixel is copied as it is."""
+    if nodata is None or math.isnan(nodata):
+        return data
+    dt = data.dtype
+    if dt.kind in "iu":
+        info = np.iinfo(dt)
+        if not (float(nodata).is_integer() and info.min <= nodata <= info.max):
+            return data
+        step = int(nodata) + 1 if nodata < info.max else int(nodata) - 1
+    else:
+        step = np.nextafter(dt.type(nodata), dt.type(np.inf))
+    hit = (data == dt.type(nodata)).all(axis=0) & valid
+    data[:, hit] = step
+    return data
