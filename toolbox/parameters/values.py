@@ -9,6 +9,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
+from toolbox.io.text import is_number
 from toolbox.parameters.base import _FALSE, _TRUE, Parameter, ValidationContext, _show
 
 
@@ -215,7 +216,7 @@ class ExtentParameter(Parameter):
                 text = value.strip()
                 match = re.match(r"^(.*?)\s*\[(.+)\]\s*$", text)
                 bare = None if match else _BARE_CRS.match(text)
-                if bare is not None and _is_number(bare.group(5)):
+                if bare is not None and is_number(bare.group(5)):
                     bare = None  # five numbers: refused below
                 if match or bare:
                     from toolbox.io.crs import parse_crs
@@ -245,12 +246,4 @@ class ExtentParameter(Parameter):
 
     def expected(self) -> str:
         return "extent 'xmin,ymin,xmax,ymax' or 'xmin,ymin,xmax,ymax EPSG:nnnn'"
-
-
-def _is_number(text: str) -> bool:
-    try:
-        float(text)
-    except ValueError:
-        return False
-    return True
 
