@@ -140,3 +140,37 @@ def test_tin_shapefile_breakline_is_integer(tmp_path):
     assert on_line.any() and (edges["breakline"].to_numpy() == on_line.astype(int)).all()
     if OGRINFO:
         assert _ogrinfo_types(tmp_path / "t_edges.shp")["breakline"] == "Integer"
+
+
+def _export(path, entities):
+    lines = []
+    for code, pts in entities:
+        lines.append(f"CODE {code}")
+        lines += [f"{1688600 + x:.3f} {4799900 + y:.3f} {z:.3f}" for x, y, z in pts]
+        lines.append("END")
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+@pytest.mark.parametrize("ext", ["fgb", "shp", "geojson", "parquet"])
+def test_merge_to_one_layer_formats_writes_the_merge_style_beside_its_file(tmp_path, ext):
+    """attribution:merge to .fgb/.shp/.geojson/.parquet (offered by OUTPUT) stored the merge
+    layer's style with sqlite in the output: exit 2, 'cannot read an input: it is truncated or
+    corrupt (file is not a database)'. Now the style goes beside the merge layer's file, as
+    for attribution:apply, and QGIS loads it with the file."""
+    square = [(0, 0, 330), (10, 0, 330), (10, 10, 330), (0, 10, 330), (0, 0, 330)]
+    moved = [(x + 0.03, y + 0.02, z + 0.02) for x, y, z in square]
+    paths = [_export(tmp_path / "a.txt", [("FAB01002", square)]),
+             _export(tmp_path / "b.txt", [("FAB01002", moved)])]
+    out = tmp_path / f"merged.{ext}"
+    stats = toolbox.run("attribution:merge", {"INPUT": paths, "SNAP_TOLERANCE": 0.2,
+                                              "HEIGHT_SNAP_TOLERANCE": 0.1, "CRS": "EPSG:3003",
+                                              "OUTPUT": out})["STATISTICS"]
+    assert stats["duplicates_removed"] == 1
+    merge = tmp_path / f"merged_merge.{ext}"
+    events = gpd.read_parquet(merge) if ext == "parquet" else pyogrio.read_dataframe(merge)
+    assert events["kind"].tolist() == ["duplicate_removed"]
+    qml = (tmp_path / "merged_merge.qml").read_text()
+    assert "<qgis" in qml and (tmp_path / "merged_merge.sld").is_file()
+    lines = gpd.read_parquet(out) if ext == "parquet" else pyogrio.read_dataframe(out)
+    assert len(lines) == 1
