@@ -174,3 +174,32 @@ def test_merge_to_one_layer_formats_writes_the_merge_style_beside_its_file(tmp_p
     assert "<qgis" in qml and (tmp_path / "merged_merge.sld").is_file()
     lines = gpd.read_parquet(out) if ext == "parquet" else pyogrio.read_dataframe(out)
     assert len(lines) == 1
+
+
+def test_quality_report_reads_shapefile_residuals_with_cut_names(tmp_path):
+    """dem:cross_validate RESIDUALS as a Shapefile holds ``tin_linear_err`` as ``tin_line_1``
+    (``nearest_err`` as ``nearest_er``...): report:quality then failed with exit 2, blaming the
+    run report as 'incomplete (no 'tin_linear_err')', and its histogram left out every method
+    whose name was cut. Now every method's errors are read back under the written names."""
+    rng = np.random.default_rng(3)
+    xy = rng.uniform(0, 100, (60, 2)) + [500000, 5000000]
+    z = 100 + 0.05 * (xy[:, 0] - 500000)  # a plane: tin_linear exact, the best method
+    gpd.GeoDataFrame(geometry=shapely.points(xy[:, 0], xy[:, 1], z), crs=CRS).to_file(
+        tmp_path / "p.gpkg")
+    (tmp_path / "reports").mkdir()
+    for ext in ("shp", "gpkg"):
+        toolbox.run("dem:cross_validate", {
+            "INPUT": tmp_path / "p.gpkg", "METHODS": "nearest,idw,tin_linear",
+            "OUTPUT": tmp_path / f"cv_{ext}.json", "RESIDUALS": tmp_path / f"res.{ext}"},
+            report=tmp_path / "reports" / "cv.json" if ext == "shp" else None)
+    toolbox.run("report:quality", {"REPORTS": tmp_path / "reports",
+                                   "OUTPUT": tmp_path / "q.html"})  # exit 2 before
+    assert (tmp_path / "q.html").stat().st_size > 0
+    from toolbox.cartography.quality_sections import _residual_points
+
+    methods = ["nearest", "idw", "tin_linear"]
+    shp = _residual_points(gpd, tmp_path / "res.shp", methods)
+    ref = gpd.read_file(tmp_path / "res.gpkg")
+    for k in methods:
+        np.testing.assert_allclose(shp[f"{k}_err"], ref[f"{k}_err"], atol=1e-9, equal_nan=True)
+        np.testing.assert_allclose(shp[f"{k}_z"], ref[f"{k}_z"], atol=1e-9, equal_nan=True)
