@@ -75,7 +75,6 @@ class MergeModels(Algorithm):
         from toolbox.attribution.sources import read_sources, translated
         from toolbox.io.parameter_file import optional_parameter_file, resolve
         from toolbox.io.vector_write import write_layers
-        from toolbox.styles.gpkg import write_layer_styles
 
         file = optional_parameter_file(params.get("PARAMETERS"))
         snap, _ = resolve(params.get("SNAP_TOLERANCE"), file, "snap_tolerance")
@@ -108,12 +107,16 @@ class MergeModels(Algorithm):
         layers["merge"] = events_frame(result.events, crs)
         gtypes["merge"] = "Point Z"
         write_layers(params["OUTPUT"], layers, crs=crs, geometry_types=gtypes)
-        from toolbox.attribution.output import MERGE_STYLE
+        from toolbox.attribution.output import MERGE_STYLE, store_style
         from toolbox.styles.qml import qml_document
         from toolbox.styles.sld import sld_document
 
-        write_layer_styles(params["OUTPUT"], "merge", qml_document(MERGE_STYLE),
-                           sld_document(MERGE_STYLE))
+        # GeoPackage: its layer_styles table; a one-layer format (.shp, .fgb, .geojson,
+        # .parquet): <merge layer file stem>.qml/.sld beside that file (sqlite on a FlatGeobuf
+        # failed the run, blaming an input as corrupt)
+        store_style(params["OUTPUT"], list(layers), "merge", qml_document(MERGE_STYLE),
+                    sld_document(MERGE_STYLE), fields=list(layers["merge"].columns.drop(
+                        layers["merge"].geometry.name)))
         stats = dict(result.statistics)
         stats["without_coordinates"] = int(merged.geometry.isna().sum())
         stats["layers"] = {k: len(v) for k, v in layers.items()}

@@ -423,7 +423,7 @@ def dem_section(runs, spec: Specification, verdicts: list[Verdict]) -> Section:
             continue
         import geopandas as gpd
 
-        pts = gpd.read_file(path)
+        pts = _residual_points(gpd, Path(path), list(methods))
         cols = [f"{k}_err" for k in methods if f"{k}_err" in pts.columns]
         fig, axes = plt.subplots(1, 2, figsize=(9, 3.6))
         errors = [pts[c].dropna().to_numpy() * scale for c in cols]
@@ -450,6 +450,22 @@ def dem_section(runs, spec: Specification, verdicts: list[Verdict]) -> Section:
         fig.tight_layout()
         sec.figure(fig)
     return sec
+
+
+def _residual_points(gpd, path: Path, methods: list[str]):
+    """The dem:cross_validate residual points of ``path``, with the names the run wrote
+    (``z``, then ``<method>_z`` and ``<method>_err`` per method, in order): a Shapefile holds
+    them cut to 10 characters (``tin_linear_err`` -> ``tin_line_1``), so the report failed
+    ('run report incomplete (no 'tin_linear_err')') and left the cut methods out of the
+    histogram."""
+    pts = gpd.read_file(path)
+    if path.suffix.lower() == ".shp":
+        from toolbox.io.vector_write import shapefile_renames
+
+        names = ["z"] + [f"{k}{end}" for k in methods for end in ("_z", "_err")]
+        renames = shapefile_renames(path, names)
+        pts = pts.rename(columns={new: old for old, new in renames.items()})
+    return pts
 
 
 def mosaic_section(reports, verdicts: list[Verdict]) -> Section | None:

@@ -99,6 +99,8 @@ def write_layers(path: str | Path, layers: dict[str, Any], crs: Any = None,
         elif len(frame) and len(set(frame.geom_type.dropna())) > 1:
             kwargs["promote_to_multi"] = True
         target = targets[layer_name]
+        if driver == "ESRI Shapefile":
+            frame = _dbf_frame(frame)
         if driver == "Parquet":  # GeoParquet 1.x through pyarrow (no Parquet driver in pyogrio)
             with writing(target):
                 frame.to_parquet(target, index=False)
@@ -132,6 +134,49 @@ def write_layers(path: str | Path, layers: dict[str, Any], crs: Any = None,
                                           if c != frame.geometry.name})
     return path
 
+
+def dbf_booleans(values):
+    """``values`` (a numpy array or pandas Series) as a Shapefile should hold them: a Boolean
+    column (numpy ``bool``, pandas ``boolean``, or object values all True/False/None) as
+    Integer 0/1, nulls kept; any other column unchanged (the same object).
+
+    GDAL before 3.9 (Debian's 3.6 under QGIS 3.22, and the 3.8 of QGIS 3.34) reads a DBF
+    Logical field as String 'T'/'F' (Logical <-> Boolean came with GDAL 3.9, OSGeo/gdal#9515),
+    so a QGIS filter or rule like ``"closed" = 1`` or ``"breakline"`` matched no feature or
+    every one; 0/1 reads as Integer in every GDAL and QGIS. GeoPackage, GeoJSON and
+    FlatGeobuf keep the Boolean subtype (GDAL 3.6 and QGIS 3.22 read it as Boolean)."""
+    import pandas as pd
+
+    if isinstance(values, np.ndarray):
+        return _dbf_array(values)
+    dtype = getattr(values, "dtype", None)
+    if dtype is None:
+        return values
+    if pd.api.types.is_bool_dtype(dtype):  # numpy bool or the nullable "boolean"
+        return values.astype("Int32")
+    if pd.api.types.is_object_dtype(dtype) and len(values):
+        present = values[values.notna()]
+        if len(present) and all(isinstance(v, (bool, np.bool_)) for v in present):
+            return values.astype("boolean").astype("Int32")
+    return values
+
+
+def _dbf_array(values: np.ndarray) -> np.ndarray:
+    """A numpy Boolean array as Integer 0/1 (:func:`dbf_booleans`); other arrays unchanged."""
+    return values.astype(np.int32) if values.dtype == np.bool_ else values
+
+
+def _dbf_frame(frame):
+    """``frame`` with its Boolean columns as Integer 0/1 (:func:`dbf_booleans`); the frame
+    itself when it has none."""
+    changed = {}
+    for column in frame.columns:
+        if column != frame.geometry.name:
+            series = frame[column]
+            values = dbf_booleans(series)
+            if values is not series:
+                changed[column] = values
+    return frame.assign(**changed) if changed else frame
 
 def _fid_column(frame) -> dict[str, str]:
     """The GeoPackage layer option naming its primary key (FID) column, away from the frame's
@@ -330,6 +375,8 @@ def write_wkb_layer(path: str | Path, layer: str, wkb: np.ndarray, fields: dict[
     dataset_kwargs = dict(GPKG_DATASET_OPTIONS) if driver == "GPKG" and not path.exists() \
         else {}
     names = list(fields)
+    if driver == "ESRI Shapefile":
+        fields = {k: _dbf_array(v) for k, v in fields.items()}
     with staged_gpkg_writes(), writing(path), warnings.catch_warnings():
         warnings.filterwarnings("ignore", "Normalized/laundered field name")  # warned below
         warnings.filterwarnings("ignore", "Value '.*' of field .* has been truncated")

@@ -37,7 +37,7 @@ from toolbox.io.vector import (
     sibling_layer_path,
     vector_driver,
 )
-from toolbox.io.vector_write import layer_paths, staged_gpkg_writes
+from toolbox.io.vector_write import dbf_booleans, layer_paths, staged_gpkg_writes
 from toolbox.io.write_failures import writing
 from toolbox.terrain.tin.build import SOURCES, TinModel
 from toolbox.terrain.tin.help import TIN_HELP  # noqa: F401  (re-exported: its old home)
@@ -162,6 +162,16 @@ def _write_geoparquet(path: Path, layer: _Layer, crs: Any) -> None:
             writer.write_batch(batch)
 
 
+def _dbf_columns(make):
+    """``make`` (:class:`_Layer`) with its Boolean columns as Integer 0/1
+    (:func:`toolbox.io.vector_write.dbf_booleans`: the edges' ``breakline`` in a Shapefile)."""
+    def dbf_make(lo: int, hi: int):
+        columns, wkb = make(lo, hi)
+        return {k: (dbf_booleans(v), m) for k, (v, m) in columns.items()}, wkb
+
+    return dbf_make
+
+
 def _write_layer(path: Path, layer: _Layer, crs: Any, spatial_index: bool) -> None:
     """Write one layer in the format of ``path``'s extension (``path`` is this layer's own file
     for one-layer formats). Through Arrow, the batches stream into GDAL one at a time; GDAL
@@ -181,6 +191,8 @@ def _write_layer(path: Path, layer: _Layer, crs: Any, spatial_index: bool) -> No
     if driver == "Parquet":
         _write_geoparquet(path, layer, crs)
         return
+    if driver == "ESRI Shapefile":  # Booleans as 0/1: GDAL < 3.9 reads a DBF Logical as text
+        layer = _Layer(layer.name, layer.n, _dbf_columns(layer.make), layer.geometry_type)
     if pyarrow is not None:
         with warnings.catch_warnings():  # a TIN without CRS is the caller's (reported) choice
             warnings.filterwarnings("ignore", message="'crs' was not provided")
