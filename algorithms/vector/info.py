@@ -7,7 +7,7 @@ import re
 import warnings
 
 from toolbox.algorithm import Algorithm
-from toolbox.io.vector import every_layer, is_parquet, read_geometries
+from toolbox.io.vector import is_parquet, layer_names, layers_geometries, read_geometries
 from toolbox.parameters import Output, OutputFile, VectorLayer
 from toolbox.registry import register
 
@@ -82,11 +82,13 @@ class VectorInfo(Algorithm):
     def process(self, params, feedback):
         ref = params["INPUT"]
         single = ref.path is None or is_parquet(ref.path)  # a frame, or one GeoParquet layer
-        refs = [ref] if single else every_layer(ref)
+        # every layer: a few reads of all (a file of 200 layers took 200 reads, each opening it)
+        names = [] if single else layer_names(ref.path)
+        read = [read_geometries(ref)] if single else layers_geometries(ref, layers=names)
+        total = 1 if single else len(names)
         layers = []
-        for layer in feedback.iterate(refs):
+        for layer, geoms in feedback.iterate(read, total=total):
             name = ref.layer or ref.info.get("layer_name") if single else layer.layer
-            layer, geoms = read_geometries(layer)
             layers.append({"name": name, "crs": layer_crs_label(layer),
                            "fields": layer.field_types, **geometry_summary(geoms)})
         from toolbox.io.paths import absolute_paths

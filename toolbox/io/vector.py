@@ -735,6 +735,167 @@ def every_layer(ref: VectorLayerRef, name: str = "INPUT") -> list[VectorLayerRef
             for layer in layer_names(ref.path)]
 
 
+#: the most tables one SQL statement of :func:`layers_geometries` joins (SQLite allows 64),
+#: unites (SQLite allows 500 SELECTs in a compound one) and features it reads at once
+_SQL_TABLES = 60
+_SQL_PARTS = 200
+_SQL_FEATURES = 500_000
+
+
+def layers_geometries(ref: VectorLayerRef, name: str = "INPUT",
+                      layers: list[str] | None = None):
+    """``(reference, geometries)`` of each layer of ``ref``'s file in OGR's order: the values
+    of :func:`read_geometries` of each reference of :func:`every_layer`, with the same checks.
+
+    Each OGR call opens the file again, and GDAL opens a GeoPackage of 200 layers with their
+    R-trees in 70 ms (its work grows with the tables): two calls per layer took 34 s for it.
+    A GeoPackage's feature tables (without M values) are read here by a few SQL statements
+    over many of them, each through one open, and OGR gives the same field definitions, CRS
+    and WKB (curves linearised alike) as it gives per layer: the fields by joins of up to
+    :data:`_SQL_TABLES` tables without rows, a CRS per spatial reference system, the
+    geometries by ``UNION ALL`` of up to :data:`_SQL_PARTS` tables and :data:`_SQL_FEATURES`
+    features (a larger table alone). The other layers (tables without geometry, measured
+    layers, other formats) and any statement OGR refuses take the per-layer path.
+    ``layers``: :func:`layer_names` of the file, when the caller has them."""
+    layers = layer_names(ref.path) if layers is None else layers
+    plan = _gpkg_plan(ref.path, layers) \
+        if ref.info.get("driver") == "GPKG" and not ref.open_options else None
+    chunk_of = {} if plan is None else \
+        {layer: i for i, chunk in enumerate(plan["chunks"]) for layer in chunk}
+    done, geoms_of = None, {}
+    for layer in layers:
+        if layer in chunk_of and chunk_of[layer] != done:
+            done = chunk_of[layer]
+            geoms_of = _gpkg_geometries(ref.path, plan["chunks"][done], plan["columns"])
+        if layer in geoms_of:
+            sub = VectorLayerRef(ref.path, layer, plan["info"][layer], {},
+                                 model_space=ref.model_space)
+            geoms = geoms_of.pop(layer)
+            _check_finite_xy(geoms, f"{name} {sub}")
+            yield sub, geoms
+        else:
+            info = _layer_info(ref.path, layer, ref.open_options, name,
+                               f"layer '{layer}' of '{ref.path}'")
+            yield read_geometries(VectorLayerRef(ref.path, layer, info, dict(ref.open_options),
+                                                 model_space=ref.model_space), name)
+
+
+def _quote(identifier: str) -> str:
+    """An SQL identifier, quoted."""
+    return '"' + identifier.replace('"', '""') + '"'
+
+
+def _sql_read(path: Path, sql: str, read_geometry: bool = False):
+    """``(meta, WKB or None, field arrays)`` of an SQL statement OGR runs on the file (a
+    GeoPackage: SQLite's SQL), by ``pyogrio._io.ogr_read`` as :func:`_wkb_geometries` reads."""
+    _ogr()
+    from pyogrio._io import ogr_read
+    from pyogrio.util import get_vsi_path_or_buffer
+
+    meta, _, wkb, data = ogr_read(
+        get_vsi_path_or_buffer(str(path)), layer=None, encoding=None, columns=None,
+        read_geometry=read_geometry, force_2d=False, skip_features=0, max_features=0,
+        where=None, bbox=None, mask=None, fids=None, sql=sql, sql_dialect=None,
+        return_fids=False, dataset_kwargs={}, datetime_as_string=False)
+    return meta, wkb, data
+
+
+def _parts(items: list, size: int) -> list[list]:
+    return [items[i:i + size] for i in range(0, len(items), size)]
+
+
+def _gpkg_plan(path: Path, layers: list[str]) -> dict[str, Any] | None:
+    """What :func:`layers_geometries` reads of a GeoPackage by SQL: ``info`` (per layer, the
+    ``fields``, ``dtypes``, ``crs`` and ``features`` of OGR's information), ``columns`` (its
+    geometry column) and ``chunks`` (layers in order, read by one statement); None when
+    there are not two such layers or OGR refuses a statement (the per-layer path reads)."""
+    try:
+        _, _, (tables, columns, srs, measured) = _sql_read(
+            path, "SELECT g.table_name, g.column_name, g.srs_id, g.m FROM gpkg_geometry_columns "
+            "g JOIN gpkg_contents c ON c.table_name = g.table_name "
+            "WHERE c.data_type = 'features'")
+        known = {str(t): (str(c), int(s)) for t, c, s, m in
+                 zip(tables, columns, srs, measured, strict=True) if int(m) == 0}
+        _, _, (tables, names, cids, keys, hidden) = _sql_read(
+            path, "SELECT g.table_name, p.name, p.cid, p.pk, p.hidden FROM "
+            "gpkg_geometry_columns g, pragma_table_xinfo(g.table_name) p "
+            "WHERE p.name <> g.column_name")
+        attributes, key_count, generated = {}, {}, set()
+        for t, n, _, k, h in sorted(zip(map(str, tables), map(str, names), cids, keys, hidden,
+                                        strict=True), key=lambda row: (row[0], int(row[2]))):
+            if int(h):  # a generated column: the per-layer path reads the table
+                generated.add(t)
+            elif int(k):  # the FID column (a GeoPackage's table has one INTEGER PRIMARY KEY)
+                key_count[t] = key_count.get(t, 0) + 1
+            else:
+                attributes.setdefault(t, []).append(n)
+        order = [layer for layer in layers
+                 if layer in known and key_count.get(layer) == 1 and layer not in generated]
+        if len(order) < 2:
+            return None
+        info = {layer: {"fields": np.array(attributes.get(layer, []), dtype=object)}
+                for layer in order}
+        for part in _parts(order, _SQL_TABLES):
+            selected = [f"t{i}.{_quote(n)} AS {_quote(f'{i} {n}')}" for i, t in enumerate(part)
+                        for n in attributes.get(t, [])]
+            if not selected:
+                continue
+            tables_sql = ", ".join(f"{_quote(t)} t{i}" for i, t in enumerate(part))
+            meta, _, _ = _sql_read(path, f"SELECT {', '.join(selected)} FROM {tables_sql} "
+                                   "LIMIT 0")
+            if [str(n) for n in meta["fields"]] != [f"{i} {n}" for i, t in enumerate(part)
+                                                    for n in attributes.get(t, [])]:
+                return None
+            dtypes = iter(meta["dtypes"])
+            for t in part:
+                info[t]["dtypes"] = np.array([next(dtypes) for _ in attributes.get(t, [])],
+                                             dtype=object)
+        crs_of = {}
+        for layer in order:
+            column, srs_id = known[layer]
+            if srs_id not in crs_of:  # OGR's CRS of the layer: one statement per system
+                crs_of[srs_id] = _sql_read(path, f"SELECT {_quote(column)} FROM "
+                                           f"{_quote(layer)} LIMIT 0")[0]["crs"]
+            info[layer]["crs"] = crs_of[srs_id]
+            info[layer].setdefault("dtypes", np.array([], dtype=object))
+        for part in _parts(order, _SQL_PARTS):
+            _, _, (index, count) = _sql_read(path, " UNION ALL ".join(
+                f"SELECT {i} AS i, COUNT(*) AS n FROM {_quote(t)}" for i, t in enumerate(part)))
+            for i, n in zip(index, count, strict=True):
+                info[part[int(i)]]["features"] = int(n)
+        chunks, total = [], 0
+        for layer in order:
+            if not chunks or total + info[layer]["features"] > _SQL_FEATURES \
+                    or len(chunks[-1]) >= _SQL_PARTS:
+                chunks.append([])
+                total = 0
+            chunks[-1].append(layer)
+            total += info[layer]["features"]
+        return {"info": info, "columns": {t: known[t][0] for t in order}, "chunks": chunks}
+    except Exception:  # noqa: BLE001 - the per-layer path reads the file (and reports)
+        return None
+
+
+def _gpkg_geometries(path: Path, layers: list[str], columns: dict[str, str]) -> dict:
+    """``{layer: geometries}`` of GeoPackage tables by one ``UNION ALL`` (their WKB as OGR
+    reads each); empty when OGR refuses it (the per-layer path reads them)."""
+    import shapely
+
+    sql = " UNION ALL ".join(f"SELECT {i} AS i, {_quote(columns[t])} FROM {_quote(t)}"
+                             for i, t in enumerate(layers))
+    try:
+        wkb, (index,) = _without_m_warning(_sql_read, path, sql, True)[0][1:]
+    except Exception:  # noqa: BLE001
+        return {}
+    if wkb is None:
+        return {}
+    index = np.asarray(index)
+    order = np.argsort(index, kind="stable")
+    bounds = np.searchsorted(index[order], np.arange(len(layers) + 1))
+    geoms = shapely.from_wkb(wkb[order])
+    return {t: geoms[bounds[i]:bounds[i + 1]] for i, t in enumerate(layers)}
+
+
 def _layer_info(path: Path, layer: str | None, options: dict[str, str], name: str,
                 what: str) -> dict[str, Any]:
     """OGR's information of a layer (CSV coordinate columns left out of its fields);
