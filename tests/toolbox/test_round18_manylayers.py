@@ -114,9 +114,9 @@ def test_feature_tables_read_by_a_few_sql_statements(mixed, monkeypatch):
     # per layer: the input's first layer (opened as INPUT) and layer_styles (no geometry: its
     # information and rows); the others by SQL statements (layer None)
     assert [c for c in calls if c is not None] == ["empty", "layer_styles", "layer_styles"]
-    # + 2 (tables, columns) + 1 (fields) + 5 (a CRS each) + 1 (counts) + 1 (geometries); one
+    # + 1 (tables and columns) + 1 (fields) + 5 (a CRS each) + 1 (counts) + 1 (geometries); one
     # by one: 17, two per layer
-    assert len(calls) == 13
+    assert len(calls) == 12
 
 
 def test_nan_coordinates_refused_as_layer_by_layer(tmp_path):
@@ -144,3 +144,30 @@ def test_a_generated_column_is_described_as_layer_by_layer(mixed):
     layers = toolbox.run("vector:info", {"INPUT": mixed})["INFO"]["layers"]
     assert layers == _oracle(mixed)
     assert layers[1]["fields"]["twice"] == "int64"
+
+
+def test_statements_split_as_described_as_layer_by_layer(mixed, monkeypatch):
+    """Joins of 2 tables, unions of 3 tables or of 2 features at most: the same description."""
+    from toolbox.io import vector
+
+    monkeypatch.setattr(vector, "_SQL_TABLES", 2)
+    monkeypatch.setattr(vector, "_SQL_PARTS", 3)
+    monkeypatch.setattr(vector, "_SQL_FEATURES", 2)
+    layers = toolbox.run("vector:info", {"INPUT": mixed})["INFO"]["layers"]
+    assert layers == _oracle(mixed)
+    assert [la["features"] for la in layers] == [0, 3, 2, 2, 1, 1, 1, 1]
+
+
+def test_a_measured_layer_takes_the_per_layer_path(mixed):
+    """A layer declared with M values (``gpkg_geometry_columns.m``): read layer by layer,
+    whose reader warns that the M values are dropped."""
+    import sqlite3
+
+    from toolbox.io import vector
+
+    with sqlite3.connect(mixed) as db:
+        db.execute("UPDATE gpkg_geometry_columns SET m = 2 WHERE table_name = 'lines3d'")
+    db.close()
+    plan = vector._gpkg_plan(mixed, vector.layer_names(mixed))
+    assert "lines3d" not in plan["info"] and "pts" in plan["info"]
+    assert toolbox.run("vector:info", {"INPUT": mixed})["INFO"]["layers"] == _oracle(mixed)

@@ -810,19 +810,18 @@ def _gpkg_plan(path: Path, layers: list[str]) -> dict[str, Any] | None:
     geometry column) and ``chunks`` (layers in order, read by one statement); None when
     there are not two such layers or OGR refuses a statement (the per-layer path reads)."""
     try:
-        _, _, (tables, columns, srs, measured) = _sql_read(
-            path, "SELECT g.table_name, g.column_name, g.srs_id, g.m FROM gpkg_geometry_columns "
-            "g JOIN gpkg_contents c ON c.table_name = g.table_name "
-            "WHERE c.data_type = 'features'")
-        known = {str(t): (str(c), int(s)) for t, c, s, m in
-                 zip(tables, columns, srs, measured, strict=True) if int(m) == 0}
-        _, _, (tables, names, cids, keys, hidden) = _sql_read(
-            path, "SELECT g.table_name, p.name, p.cid, p.pk, p.hidden FROM "
-            "gpkg_geometry_columns g, pragma_table_xinfo(g.table_name) p "
-            "WHERE p.name <> g.column_name")
-        attributes, key_count, generated = {}, {}, set()
-        for t, n, _, k, h in sorted(zip(map(str, tables), map(str, names), cids, keys, hidden,
-                                        strict=True), key=lambda row: (row[0], int(row[2]))):
+        _, _, rows = _sql_read(  # each feature table's columns, with its geometry column
+            path, "SELECT g.table_name, g.column_name, g.srs_id, g.m, p.name, p.cid, p.pk, "
+            "p.hidden FROM gpkg_geometry_columns g JOIN gpkg_contents c ON c.table_name = "
+            "g.table_name, pragma_table_xinfo(g.table_name) p WHERE c.data_type = 'features'")
+        known, attributes, key_count, generated = {}, {}, {}, set()
+        for t, column, srs, m, n, _, k, h in sorted(zip(*rows, strict=True),
+                                                     key=lambda row: (str(row[0]), int(row[5]))):
+            t, column, n = str(t), str(column), str(n)
+            if int(m) == 0:  # measured: the per-layer path warns
+                known[t] = (column, int(srs))
+            if n == column:
+                continue
             if int(h):  # a generated column: the per-layer path reads the table
                 generated.add(t)
             elif int(k):  # the FID column (a GeoPackage's table has one INTEGER PRIMARY KEY)
