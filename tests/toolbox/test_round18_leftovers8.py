@@ -69,3 +69,31 @@ def test_layername_of_a_lone_shapefile_is_still_refused(tmp_path):
     gpd.GeoDataFrame({"v": [1]}, geometry=[shapely.Point(X0, Y0)], crs="EPSG:3003").to_file(path)
     with pytest.raises(ParameterError, match="layer 'areas' is not in"):
         open_layer(f"{path}|layername=areas")
+
+
+# -- 3. an empty GeoJSON layer keeps no fields nor geometry type: one warning names it ----------
+def test_empty_geojson_layers_are_named_in_one_warning(tmp_path, caplog):
+    import json
+
+    import numpy as np
+    import pyogrio
+
+    from toolbox.io.vector_write import write_layers, write_wkb_layer
+
+    full = gpd.GeoDataFrame({"code": ["A"]}, geometry=[shapely.Point(X0, Y0)], crs="EPSG:3003")
+    layers = {"pts": full, "none": full.iloc[:0], "nothing": full.iloc[:0]}
+    types = {"none": "Point", "nothing": "Point"}
+    with caplog.at_level(logging.WARNING, logger="toolbox"):
+        write_layers(tmp_path / "a.geojson", layers, geometry_types=types)
+        write_layers(tmp_path / "a.gpkg", layers, geometry_types=types)  # keeps them: silent
+        write_wkb_layer(tmp_path / "w.geojson", "c", np.empty(0, dtype=object),
+                        {"v": np.empty(0)}, "LineString Z", None)
+    # what GDAL wrote: an empty FeatureCollection, no fields, no geometry type
+    assert json.loads((tmp_path / "a_none.geojson").read_text())["features"] == []
+    info = pyogrio.read_info(tmp_path / "a_none.geojson")
+    assert list(info["fields"]) == [] and info["geometry_type"] == "Unknown"
+    assert pyogrio.read_info(tmp_path / "a.gpkg", layer="none")["geometry_type"] == "Point"
+    found = [r.getMessage() for r in caplog.records if "empty GeoJSON" in r.getMessage()]
+    assert len(found) == 2
+    assert found[0].startswith("a_none.geojson, a_nothing.geojson: no features")
+    assert ".gpkg" in found[0] and found[1].startswith("w.geojson: no features")
