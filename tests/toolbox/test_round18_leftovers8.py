@@ -5,6 +5,7 @@ from __future__ import annotations
 import logging
 
 import geopandas as gpd
+import numpy as np
 import pytest
 import shapely
 
@@ -97,3 +98,64 @@ def test_empty_geojson_layers_are_named_in_one_warning(tmp_path, caplog):
     assert len(found) == 2
     assert found[0].startswith("a_none.geojson, a_nothing.geojson: no features")
     assert ".gpkg" in found[0] and found[1].startswith("w.geojson: no features")
+
+
+# -- 4. a DEM's peak exactly at a level: the isoline is a point, no zero-length "ring" ----------
+def _cone(path, n=21, west=1_700_000.3, north=4_800_021.7):
+    """z = 100 - 0.5 r (r in cells from the centre cell): the contour at level L is the circle
+    of radius 2 (100 - L) cells, the one at 100 the peak's single point."""
+    import rasterio
+    from rasterio.transform import from_origin
+
+    yy, xx = np.mgrid[0:n, 0:n]
+    z = 100.0 - 0.5 * np.hypot(xx - n // 2, yy - n // 2)
+    with rasterio.open(path, "w", driver="GTiff", width=n, height=n, count=1, dtype="float32",
+                       crs="EPSG:3003", transform=from_origin(west, north, 1, 1)) as dst:
+        dst.write(z.astype("float32"), 1)
+    return path
+
+
+
+
+
+@pytest.mark.parametrize(("tracer", "interval"), [("contourpy", 1.0), ("kernel", 0.25)])
+def test_peak_exactly_at_a_level_writes_no_degenerate_ring(tmp_path, monkeypatch, tracer,
+                                                           interval):
+    import pyogrio
+
+    import toolbox
+    from toolbox.cartography import contour_io
+
+    monkeypatch.setattr(contour_io, "choose_tracer", lambda *args: tracer)
+
+    out = tmp_path / "c.gpkg"
+    stats = toolbox.run("carto:contours", {"INPUT": str(_cone(tmp_path / "cone.tif")),
+                                           "INTERVAL": interval, "OUTPUT": str(out)})["STATISTICS"]
+    frame = pyogrio.read_dataframe(out, layer="contours")
+    assert frame.geometry.is_valid.all()
+    assert 100.0 not in set(frame["elev"])  # the peak: a point, not a line
+    assert stats["points_dropped"] == 1 and stats["lines"] == len(frame)
+    assert stats["tracer"] == tracer
+    # the other levels: all there; from 2 cells out, rings of about 2 pi (100 - L) * 2 cells
+    # (the bilinear surface of a cone: within 6 %; nearer the peak, diamonds)
+    levels = np.arange(100 - interval, 95, -interval)
+    assert set(levels) <= set(frame["elev"])
+    for level in levels[levels <= 99]:
+        length = frame.loc[frame["elev"] == level, "length"].sum()
+        assert length == pytest.approx(4 * np.pi * (100 - level), rel=0.06), level
+    assert (frame["length"] > 0.01).all()
+
+
+def test_dropping_points_keeps_the_canonical_order():
+    from toolbox.cartography.contour_io import contour_columns
+    from toolbox.cartography.contours import Contour
+
+    ring = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 0.0]])
+    point = np.repeat([[0.5, 0.5]], 5, axis=0)
+    contours = [Contour(2.0, ring + 5), Contour(1.0, point), Contour(1.0, ring),
+                Contour(2.0, point + 1e-10 * np.arange(5)[:, None])]
+    wkb, fields = contour_columns(contours, 1.0, 0.0, 5, min_length=1e-6)
+    assert fields["elev"].tolist() == [1.0, 2.0] and len(wkb) == 2
+    assert fields["length"].tolist() == pytest.approx([2 + 2**0.5] * 2)
+    assert [shapely.get_coordinates(shapely.from_wkb(w))[0].tolist() for w in wkb] == \
+        [[0.0, 0.0], [5.0, 5.0]]
