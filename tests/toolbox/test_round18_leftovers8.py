@@ -159,3 +159,36 @@ def test_dropping_points_keeps_the_canonical_order():
     assert fields["length"].tolist() == pytest.approx([2 + 2**0.5] * 2)
     assert [shapely.get_coordinates(shapely.from_wkb(w))[0].tolist() for w in wkb] == \
         [[0.0, 0.0], [5.0, 5.0]]
+
+
+# -- 2. GDAL's own "Warning 6: Normalized/laundered field name" off pyogrio's importing thread ---
+def test_shapefile_writes_off_the_importing_thread_print_no_raw_gdal_warning(tmp_path, capfd,
+                                                                            caplog):
+    import threading
+
+    from toolbox.io.vector import _ogr
+    from toolbox.io.vector_write import write_layers, write_wkb_layer
+
+    _ogr()  # pyogrio imported on this (the main) thread, as in a batch
+    frame = gpd.GeoDataFrame({"description_long": [1.0]}, geometry=[shapely.Point(X0, Y0)],
+                             crs="EPSG:3003")
+    errors = []
+
+    def work():  # a batch step's thread: pyogrio was imported (its handler pushed) elsewhere
+        try:
+            write_layers(tmp_path / "a.shp", {"a": frame})
+            write_wkb_layer(tmp_path / "b.shp", "b", shapely.to_wkb(frame.geometry.values),
+                            {"displacement_long": np.array([1.0])}, "Point")
+        except BaseException as exc:  # noqa: BLE001 - reported below
+            errors.append(exc)
+
+    capfd.readouterr()
+    with caplog.at_level(logging.WARNING, logger="toolbox"):
+        t = threading.Thread(target=work)
+        t.start()
+        t.join()
+    assert not errors
+    assert "Warning 6" not in capfd.readouterr().err  # GDAL's raw line (fd 2)
+    renamed = [r.getMessage() for r in caplog.records if "10 characters" in r.getMessage()]
+    assert len(renamed) == 2 and "description_long -> descriptio" in renamed[0]
+    assert gpd.read_file(tmp_path / "a.shp").columns[0] == "descriptio"  # what GDAL wrote

@@ -104,7 +104,26 @@ def _ogr():
             sys.modules["pyogrio"] = package
         import pyogrio.core
 
-        return pyogrio.core
+    _pyogrio_errors_here()
+    return pyogrio.core
+
+
+_THREAD = threading.local()
+
+
+def _pyogrio_errors_here() -> None:
+    """Give the calling thread pyogrio's GDAL error handler (once a thread). pyogrio pushes it
+    at import on the importing thread's stack only (GDAL's handler stacks are per thread): on
+    any other thread GDAL printed its warnings raw on stderr ("Warning 6: Normalized/laundered
+    field name ...", after the toolbox's own warning) instead of raising Python warnings, which
+    the writers filter or report once (seen in a batch, whose steps run off the importing
+    thread). Pushed again on the importing thread, it is only the same handler on top."""
+    if getattr(_THREAD, "pyogrio_errors", False):
+        return
+    from pyogrio._err import _register_error_handler
+
+    _register_error_handler()
+    _THREAD.pyogrio_errors = True
 
 
 def vector_driver(path: str | Path) -> str:
@@ -717,6 +736,7 @@ def read_vector(source: Any, crs: Any = None, columns: list[str] | None = None,
     """
     import pyogrio
 
+    _pyogrio_errors_here()  # a reference opened on another thread: GDAL's warnings as Python's
     ref = open_layer(source, name)
     if ref.frame is not None:
         frame = ref.frame.copy()
