@@ -37,7 +37,10 @@ class Contours(Algorithm):
     contours with 25 m index contours at 1:5000). ``SMOOTHING`` rounds of Chaikin corner cutting
     (DEM only) are kept only while a line stays inside its cell band (the grid squares it
     crosses); any two smoothed lines that would touch fall back to their traced shape, so
-    contours never cross. Lines are oriented with higher ground on their right.
+    contours never cross. Lines are oriented with higher ground on their right. A DEM cell
+    exactly at a level with its neighbours all below (a peak) or all above (a pit) makes no
+    line there: the isoline is a point (lines shorter than 1e-6 of a cell are left out, counted
+    as ``points_dropped``; gdal_contour writes a ring about 1e-5 of a cell long).
 
     Output: layer ``contours`` (LineString Z at the level's height) with ``elev``, ``index``,
     ``closed``, ``length``, styled in the GeoPackage's ``layer_styles`` (index contours heavier,
@@ -133,7 +136,7 @@ class Contours(Algorithm):
             result = tin_layer_contours(xyz, triangles, interval, base)
         feedback.set_progress(90)
         fields = write_contours(params["OUTPUT"], result.contours, interval, base,
-                                params["INDEX_EVERY"], crs)
+                                params["INDEX_EVERY"], crs, result.min_length)
         # a GeoPackage embeds the style; beside a one-layer file, <stem>.qml/.sld (QGIS's
         # default style of that file)
         if vector_driver(params["OUTPUT"]) == "GPKG":
@@ -153,5 +156,6 @@ class Contours(Algorithm):
                              "surface")
         stats = {"levels": int(len(result.levels)), "lines": lines,
                  "index_lines": int(fields["index"].sum()),
+                 "points_dropped": len(result.contours) - lines,  # DEGENERATE_CELL_FRACTION
                  "vertices": int(sum(len(c.xy) for c in result.contours))} | result.stats
         return {"OUTPUT": params["OUTPUT"], "STYLE": params.get("STYLE"), "STATISTICS": stats}

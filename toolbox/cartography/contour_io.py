@@ -49,6 +49,17 @@ class ContourResult:
     contours: list[Contour]
     levels: np.ndarray
     stats: dict[str, Any] = field(default_factory=dict)
+    #: lines shorter than this (map units) are points, not lines: left out (contour_columns)
+    min_length: float = 0.0
+
+
+#: a DEM's contour line shorter than this fraction of a cell is left out: a cell exactly at a
+#: level with its neighbours all below (a peak) or above (a pit) makes a "ring" of coinciding
+#: vertices (length 0, or a few ulps of the coordinates after the georeferencing; an invalid
+#: geometry for GEOS), while the isoline there is a point. A real ring that short would need
+#: the cell to pass the level by less than a float32 height's resolution (gdal_contour writes
+#: a ring of about 1e-5 of a cell there, from its offset of values equal to a level)
+DEGENERATE_CELL_FRACTION = 1e-6
 
 
 #: a DEM of at most this many cells traced on local threads is read once, whole (8 bytes a
@@ -234,7 +245,8 @@ def raster_contours(path: str | Path, band: int, interval: float, base: float,
              "pieces_before_stitching": n_pieces, "smoothing_reverted": reverted,
              "z_min": zmin, "z_max": zmax, "tracer": tracer,
              "kernel_build": kernel_build(tracer, executor), "executor": executor.describe()}
-    return ContourResult(contours, levels, stats)
+    return ContourResult(contours, levels, stats,
+                         DEGENERATE_CELL_FRACTION * min(abs(frame.dx), abs(frame.dy)))
 
 
 def kernel_build(tracer: str, executor: Any) -> str | None:
@@ -339,10 +351,12 @@ def canonical_order(xy: np.ndarray, counts: np.ndarray, levels: np.ndarray
 
 
 def contour_columns(contours: list[Contour], interval: float, base: float,
-                    index_every: int) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+                    index_every: int, min_length: float = 0.0
+                    ) -> tuple[np.ndarray, dict[str, np.ndarray]]:
     """The LineString Z contours as ISO WKB (Z = the level), in :func:`canonical_order`, and
     their fields: ``elev`` (m), ``index`` (1 for index contours), ``closed`` (true for rings: a
-    Boolean field), ``length`` (map units).
+    Boolean field), ``length`` (map units). Lines of length 0 or below ``min_length`` (their
+    vertices coincide: :data:`DEGENERATE_CELL_FRACTION`) are left out.
 
     Built with numpy from all the vertices at once (no shapely: its import and its geometries
     were about a fifth of a 2000 x 2000 contour run's CPU after the tracing); every line's WKB
@@ -373,8 +387,16 @@ def contour_columns(contours: list[Contour], interval: float, base: float,
         seg[last] = 0.0
         lengths = np.add.reduceat(seg, first)
         closed = (counts > 2) & (xy[first] == xy[last]).all(axis=1)
+        keep = (lengths > 0) & (lengths >= min_length)
+        if not keep.all():  # points, not lines (the order of the others holds)
+            xyz = xyz[np.repeat(keep, counts)]
+            levels, counts, lengths, closed = levels[keep], counts[keep], lengths[keep], \
+                closed[keep]
+            last = np.cumsum(counts) - 1
+            first = last - counts + 1
+            wkb = np.empty(len(counts), dtype=object)
         body = memoryview(xyz).cast("B")  # sliced per line without copying it whole
-        header = np.zeros(len(contours), dtype=[("order", "u1"), ("type", "<u4"), ("n", "<u4")])
+        header = np.zeros(len(counts), dtype=[("order", "u1"), ("type", "<u4"), ("n", "<u4")])
         header["order"], header["type"], header["n"] = 1, 1002, counts  # 1002: LineString Z
         heads = header.tobytes()
         starts = (24 * first).tolist()
@@ -388,11 +410,12 @@ def contour_columns(contours: list[Contour], interval: float, base: float,
 
 
 def write_contours(path: str | Path, contours: list[Contour], interval: float, base: float,
-                   index_every: int, crs: Any) -> dict[str, np.ndarray]:
+                   index_every: int, crs: Any, min_length: float = 0.0
+                   ) -> dict[str, np.ndarray]:
     """Write the ``contours`` layer (LineString Z, :func:`contour_columns`) to ``path``;
     returns its fields."""
     from toolbox.io.vector_write import write_wkb_layer
 
-    wkb, fields = contour_columns(contours, interval, base, index_every)
+    wkb, fields = contour_columns(contours, interval, base, index_every, min_length)
     write_wkb_layer(path, "contours", wkb, fields, "LineString Z", crs)
     return fields

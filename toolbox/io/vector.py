@@ -26,6 +26,7 @@ from the curve. An ``OGR_ARC_STEPSIZE`` of the environment is kept.
 from __future__ import annotations
 
 import functools
+import glob
 import os
 import re
 import sys
@@ -103,7 +104,26 @@ def _ogr():
             sys.modules["pyogrio"] = package
         import pyogrio.core
 
-        return pyogrio.core
+    _pyogrio_errors_here()
+    return pyogrio.core
+
+
+_THREAD = threading.local()
+
+
+def _pyogrio_errors_here() -> None:
+    """Give the calling thread pyogrio's GDAL error handler (once a thread). pyogrio pushes it
+    at import on the importing thread's stack only (GDAL's handler stacks are per thread): on
+    any other thread GDAL printed its warnings raw on stderr ("Warning 6: Normalized/laundered
+    field name ...", after the toolbox's own warning) instead of raising Python warnings, which
+    the writers filter or report once (seen in a batch, whose steps run off the importing
+    thread). Pushed again on the importing thread, it is only the same handler on top."""
+    if getattr(_THREAD, "pyogrio_errors", False):
+        return
+    from pyogrio._err import _register_error_handler
+
+    _register_error_handler()
+    _THREAD.pyogrio_errors = True
 
 
 def vector_driver(path: str | Path) -> str:
@@ -298,6 +318,31 @@ def _resolve_layer_file(path: Path, layer: str | None, layers: list[str]) -> Pat
     return sibling if sibling.exists() else None
 
 
+#: one-layer formats whose layer is named after the file (no layer name is recorded in it)
+_STEM_NAMED = (".shp", ".parquet")
+
+
+def _first_of_set(path: Path, layer: str | None, name: str) -> bool:
+    """True when ``path|layername=layer`` names the first layer of a set the toolbox wrote in a
+    one-layer format whose file records no layer name (Shapefile, GeoParquet): the first layer
+    is ``path`` itself, the others ``<stem>_<layer><ext>`` beside it (:func:`write_layers`), so
+    a pipeline converted from .gpkg keeps working. GeoJSON and FlatGeobuf record the layer's
+    name, matched as it is. A warning names the file read (a misspelt name reads it too)."""
+    if layer is None or path.suffix.lower() not in _STEM_NAMED:
+        return False
+    others = sorted(p.stem[len(path.stem) + 1:]
+                    for p in path.parent.glob(f"{glob.escape(path.stem)}_*{path.suffix}"))
+    if not others:
+        return False
+    import logging
+
+    logging.getLogger("toolbox").warning(
+        f"{name}: layer '{layer}' read from '{path.name}', the first layer of the set the "
+        f"toolbox wrote ({path.suffix} records no layer name; the others: {', '.join(others)})")
+    return True
+
+
+
 def open_layer(value: Any, name: str = "INPUT", known_layer: str | None = None) -> VectorLayerRef:
     """Validate a vector layer reference and read its metadata (not its features).
 
@@ -343,6 +388,9 @@ def open_layer(value: Any, name: str = "INPUT", known_layer: str | None = None) 
         path, layer = sibling, None
         rows, _ = _without_m_warning(ogr.list_layers, path)
         layers = [str(row[0]) for row in rows]
+    elif layer is not None and layer not in layers and len(layers) == 1 \
+            and _first_of_set(path, layer, name):
+        layer = None
     if source.layerid is not None:
         if source.layerid >= len(layers):
             raise ParameterError(name, f"layerid={source.layerid} but '{text}' has "
@@ -506,10 +554,11 @@ def _open_parquet(path: Path, source: LayerSource, name: str) -> VectorLayerRef:
         raise ParameterError(name, f"layerid={source.layerid} but '{path}' has 1 layer")
     if source.layername and source.layername != path.stem:
         sibling = sibling_layer_path(path, source.layername)
-        if not sibling.exists():
+        if sibling.exists():
+            path = sibling
+        elif not _first_of_set(path, source.layername, name):
             raise ParameterError(name, f"layer '{source.layername}' is neither '{path}' nor a "
                                  f"file '{sibling.name}' beside it")
-        path = sibling
     try:
         schema = pq.read_schema(path)
         geo = json.loads((schema.metadata or {})[b"geo"])
@@ -687,6 +736,7 @@ def read_vector(source: Any, crs: Any = None, columns: list[str] | None = None,
     """
     import pyogrio
 
+    _pyogrio_errors_here()  # a reference opened on another thread: GDAL's warnings as Python's
     ref = open_layer(source, name)
     if ref.frame is not None:
         frame = ref.frame.copy()

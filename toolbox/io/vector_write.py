@@ -86,6 +86,8 @@ def write_layers(path: str | Path, layers: dict[str, Any], crs: Any = None,
     path = Path(path)
     driver = vector_driver(path)
     targets = layer_paths(path, list(layers))
+    if driver == "GeoJSON":
+        warn_empty_geojson([targets[n] for n, frame in layers.items() if not len(frame)])
     for layer_name, frame in layers.items():
         if crs is not None and frame.crs is None:
             frame = frame.set_crs(crs)
@@ -293,6 +295,20 @@ def warn_infinite_values(path: Path, fields: dict[str, Any]) -> None:
             "were left empty (null), as missing values are (a .gpkg output keeps them)")
 
 
+def warn_empty_geojson(paths: list[Path]) -> None:
+    """One warning naming the GeoJSON files ``paths`` of layers without features: GeoJSON has
+    no schema, so GDAL writes an empty layer as ``"features": []`` with neither its fields nor
+    its geometry type (the GeoJSON driver has no option for them) and QGIS opens it as a table
+    without geometry, its style not applied (a .gpkg output keeps both)."""
+    if paths:
+        import logging
+
+        logging.getLogger("toolbox").warning(
+            f"{', '.join(p.name for p in paths)}: no features; an empty GeoJSON layer keeps "
+            "neither its fields nor its geometry type (QGIS opens it as a table without "
+            "geometry, its style not applied); a .gpkg output keeps them")
+
+
 def shapefile_renames(path: Path, names: list[str]) -> dict[str, str]:
     """``{name: name in the file}`` of the fields ``names`` (in the order written) that the
     Shapefile ``path`` holds under another (cut) name."""
@@ -392,4 +408,5 @@ def write_wkb_layer(path: str | Path, layer: str, wkb: np.ndarray, fields: dict[
         warn_cut_texts(path, fields)
     if driver == "GeoJSON":
         warn_infinite_values(path, fields)
+        warn_empty_geojson([path] if len(wkb) == 0 else [])
     return path
