@@ -405,11 +405,12 @@ class ToolboxAlgorithm(QgsProcessingAlgorithm):
 
     def _data_crs(self, parameters, context):
         """The CRS the toolbox works in: the CRS parameter's, else the first input layer's with
-        one (None when unknown)."""
+        one (None when unknown). Only the parameter named CRS says it: another CRS parameter
+        is something else (carto:sheet's GRID_CRS, a second CRS ticked along the frame)."""
         given = [p for p in self.spec.get("parameters", [])
                  if parameters.get(p["name"]) not in (None, "")]
         for p in given:
-            if p["type"] == "crs":
+            if p["type"] == "crs" and p["name"] == "CRS":
                 crs = self.parameterAsCrs(parameters, p["name"], context)
                 if crs.isValid():
                     return crs
