@@ -131,6 +131,11 @@ def make_parameter(p: dict):
     else:  # string and anything new: free text the toolbox validates
         param = QgsProcessingParameterString(name, desc, None if default is None else
                                              str(default), False, optional)
+    if kind.startswith("output_") and optional:
+        # as the CLI: an optional output is written only when asked for (QGIS's dialog would
+        # otherwise create each one as a temporary file: ortho:photo's OCCLUSION_MASK without
+        # OCCLUSION was then refused, extra rasters computed and loaded)
+        param.setCreateByDefault(False)
     flags = param.flags()
     if p.get("advanced"):
         flags |= QgsProcessingParameterDefinition.FlagAdvanced
@@ -294,6 +299,11 @@ class ToolboxAlgorithm(QgsProcessingAlgorithm):
     def initAlgorithm(self, config=None):
         for p in self.spec.get("parameters", []):
             self.addParameter(make_parameter(p))
+        outputs = [self.parameterDefinition(p["name"]) for p in self.spec.get("parameters", [])
+                   if p["type"].startswith("output_")]
+        if outputs and all(o.flags() & QgsProcessingParameterDefinition.FlagOptional
+                           for o in outputs):
+            outputs[0].setCreateByDefault(True)  # one at least (carto:sheet's PDF), as before
         destinations = {p["name"] for p in self.spec.get("parameters", [])}
         for out in self.spec.get("outputs", []):
             if out["name"] in destinations or out["type"].startswith("output_"):

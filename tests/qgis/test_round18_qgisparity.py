@@ -6,7 +6,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from test_qgis_provider import needs_qgis
-from test_round15_sweep_qgis import plugin_values
+from test_round15_sweep_qgis import plugin_values, pyqgis
 
 
 def _lines(path: Path) -> None:
@@ -35,3 +35,43 @@ def test_a_second_grid_crs_is_not_taken_for_the_extent_crs(tmp_path):
                 "CRS": "EPSG:3003"}})
     for label in ("grid", "crs"):
         assert got[label]["EXTENT"] == "1680000.0,4800000.0,1680100.0,4800100.0 [EPSG:3003]"
+
+
+DIALOG_DEFAULTS = """
+from qgis.gui import QgsProcessingLayerOutputDestinationWidget
+out = {}
+for spec in SPECS:
+    alg = ToolboxAlgorithm(spec, "tb")
+    alg.initAlgorithm()
+    for p in spec["parameters"]:
+        widget = QgsProcessingLayerOutputDestinationWidget(alg.parameterDefinition(p["name"]),
+                                                           False)
+        out[spec["id"] + " " + p["name"]] = "skipped" if widget.outputIsSkipped() else \\
+            str(widget.value()).split("'sink':")[-1].split(",")[0]
+done(out)
+"""
+
+
+@needs_qgis
+def test_the_dialog_writes_an_optional_output_only_when_asked(tmp_path):
+    """QGIS's dialog created every optional output as a temporary file (createByDefault), so
+    ortho:photo run with its defaults was refused ('OCCLUSION_MASK: needs OCCLUSION=true',
+    exit 2) and other algorithms computed and loaded rasters nobody asked for (dem:ground's
+    ground points, the incidence raster...). As the CLI: only the outputs asked for; when every
+    output is optional (carto:sheet) the first one is still created."""
+    ortho = {"id": "ortho:photo", "parameters": [
+        {"name": "OUTPUT", "type": "output_raster"},
+        {"name": "OCCLUSION_MASK", "type": "output_raster", "optional": True},
+        {"name": "REPORT", "type": "output_file", "optional": True, "extensions": [".json"]},
+        {"name": "POINTS", "type": "output_vector", "optional": True},
+        {"name": "CHIPS", "type": "output_folder", "optional": True}]}
+    sheet = {"id": "carto:sheet", "parameters": [
+        {"name": "OUTPUT", "type": "output_file", "optional": True, "extensions": [".pdf"]},
+        {"name": "PNG", "type": "output_file", "optional": True, "extensions": [".png"]},
+        {"name": "FOLDER", "type": "output_folder", "optional": True}]}
+    got = pyqgis(tmp_path, f"SPECS = {[ortho, sheet]!r}\n" + DIALOG_DEFAULTS)
+    assert got == {"ortho:photo OUTPUT": "TEMPORARY_OUTPUT",
+                   "ortho:photo OCCLUSION_MASK": "skipped", "ortho:photo REPORT": "skipped",
+                   "ortho:photo POINTS": "skipped", "ortho:photo CHIPS": "skipped",
+                   "carto:sheet OUTPUT": "TEMPORARY_OUTPUT", "carto:sheet PNG": "skipped",
+                   "carto:sheet FOLDER": "skipped"}
