@@ -16,6 +16,7 @@ import threading
 
 from qgis.core import (
     NULL,
+    QgsMapLayer,
     QgsProcessing,
     QgsProcessingAlgorithm,
     QgsProcessingContext,
@@ -43,6 +44,7 @@ from qgis.core import (
     QgsProperty,
     QgsProviderRegistry,
     QgsVectorFileWriter,
+    QgsVectorLayer,
 )
 from qgis.PyQt.QtCore import QVariant
 
@@ -350,40 +352,13 @@ class ToolboxAlgorithm(QgsProcessingAlgorithm):
         if kind in ("file", "folder"):
             return self.parameterAsFile(parameters, name, context) or None
         if kind == "vector":
-            # a CRS set on the layer in QGIS (a Shapefile without or with a wrong .prj) is not
-            # in its file: then the toolbox reads a copy QGIS writes with the layer's CRS
-            vector = self._vector_layer(parameters, name, context)
-            relabelled = vector is not None and crs_set_in_qgis(vector)
-            value = parameters.get(name)
-            selected = isinstance(value, QgsProcessingFeatureSourceDefinition) and \
-                value.selectedFeaturesOnly
-            if vector is not None and (relabelled or qgis_would_copy(vector, selected)) and \
-                    fid_would_clash(vector):
-                return copy_for_toolbox(vector, name, selected, context)
-            path, layer = self.parameterAsCompatibleSourceLayerPathAndLayerName(
-                parameters, name, context, [] if relabelled else VECTOR_FORMATS, "gpkg", feedback)
-            if not path:
-                return None
-            if "|" in path:
-                return path
-            # QGIS hands over the layer's own file when it needs no copy: keep which layer of it
-            # (layerid= when the URI has no name) and which geometry type (a GeoJSON/DXF
-            # sublayer), or the toolbox reads the file's first layer, all geometries
-            file, parts = layer_file(vector)
-            own = bool(file) and os.path.abspath(file) == os.path.abspath(path)
-            if layer:
-                path += f"|layername={layer}"
-            elif own and parts.get("layerId") not in (None, ""):
-                path += f"|layerid={parts['layerId']}"
-            if own and parts.get("geometryType"):
-                path += f"|geometrytype={parts['geometryType']}"
-            return path
+            return self._vector_source(parameters, name, context, feedback)
         if kind == "raster":
             layer = self.parameterAsRasterLayer(parameters, name, context)
             return None if layer is None else raster_source(layer, name, p.get("role"))
         if kind == "multiple":
             if p.get("layer_type") != "raster":
-                return list(self.parameterAsFileList(parameters, name, context))
+                return self._vector_files(parameters, name, context, feedback)
             return [raster_source(layer, name, p.get("role")) for layer in
                     self.parameterAsLayerList(parameters, name, context)]
         if kind == "field":
@@ -393,6 +368,58 @@ class ToolboxAlgorithm(QgsProcessingAlgorithm):
         if kind in ("output_vector", "output_file", "output_folder"):
             return self.parameterAsFileOutput(parameters, name, context)
         return self.parameterAsString(parameters, name, context) or None
+
+    def _vector_source(self, parameters, name, context, feedback):
+        """The toolbox source of one vector layer value (a file, a layer of it, or a copy)."""
+        # a CRS set on the layer in QGIS (a Shapefile without or with a wrong .prj) is not
+        # in its file: then the toolbox reads a copy QGIS writes with the layer's CRS
+        vector = self._vector_layer(parameters, name, context)
+        relabelled = vector is not None and crs_set_in_qgis(vector)
+        value = parameters.get(name)
+        selected = isinstance(value, QgsProcessingFeatureSourceDefinition) and \
+            value.selectedFeaturesOnly
+        if vector is not None and (relabelled or qgis_would_copy(vector, selected)) and \
+                fid_would_clash(vector):
+            return copy_for_toolbox(vector, name, selected, context)
+        path, layer = self.parameterAsCompatibleSourceLayerPathAndLayerName(
+            parameters, name, context, [] if relabelled else VECTOR_FORMATS, "gpkg", feedback)
+        if not path:
+            return None
+        if "|" in path:
+            return path
+        # QGIS hands over the layer's own file when it needs no copy: keep which layer of it
+        # (layerid= when the URI has no name) and which geometry type (a GeoJSON/DXF
+        # sublayer), or the toolbox reads the file's first layer, all geometries
+        file, parts = layer_file(vector)
+        own = bool(file) and os.path.abspath(file) == os.path.abspath(path)
+        if layer:
+            path += f"|layername={layer}"
+        elif own and parts.get("layerId") not in (None, ""):
+            path += f"|layerid={parts['layerId']}"
+        if own and parts.get("geometryType"):
+            path += f"|geometrytype={parts['geometryType']}"
+        return path
+
+    def _vector_files(self, parameters, name, context, feedback) -> list[str]:
+        """A multiple-files input: each file as given, and each project layer (an object, a
+        layer id or name from a model or the console, a memory layer) as the toolbox reads it
+        (a path stays as given):
+        QGIS's file list gave '' for a layer object (the toolbox then drew without it) and the
+        layer id for an id (refused as a missing file)."""
+        files = list(self.parameterAsFileList(parameters, name, context))
+        raw = parameters.get(name)
+        raw = list(raw) if isinstance(raw, (list, tuple)) else [raw]
+        if len(raw) != len(files):
+            return files
+        out = []
+        for item, file in zip(raw, files):
+            by_id = isinstance(item, str) and item and not os.path.exists(item.split("|")[0])
+            layer = item if isinstance(item, QgsMapLayer) else (
+                QgsProcessingUtils.mapLayerFromString(item, context, False) if by_id else None)
+            if isinstance(layer, QgsVectorLayer):
+                file = self._vector_source({name: layer}, name, context, feedback) or file
+            out.append(file)
+        return out
 
     # -- running -------------------------------------------------------------------------------
     def processAlgorithm(self, parameters, context, feedback):

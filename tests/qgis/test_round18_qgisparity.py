@@ -75,3 +75,35 @@ def test_the_dialog_writes_an_optional_output_only_when_asked(tmp_path):
                    "ortho:photo POINTS": "skipped", "ortho:photo CHIPS": "skipped",
                    "carto:sheet OUTPUT": "TEMPORARY_OUTPUT", "carto:sheet PNG": "skipped",
                    "carto:sheet FOLDER": "skipped"}
+
+
+@needs_qgis
+def test_project_layers_given_to_a_multiple_files_input_reach_the_toolbox(tmp_path):
+    """carto:sheet's LAYERS (several vector files) given project layers, as a model or the
+    Python console does: a layer object became '' (the sheet was drawn without it, exit 0) and
+    a layer id was refused as a missing file (exit 2). Each now reaches the toolbox as its file
+    (a memory layer as a copy); a path stays as given."""
+    gpkg = tmp_path / "lines.gpkg"
+    _lines(gpkg)
+    got = pyqgis(tmp_path, f"""
+        alg = ToolboxAlgorithm({{"id": "carto:sheet", "parameters": [
+            {{"name": "LAYERS", "type": "multiple", "optional": True}}]}}, "tb")
+        alg.initAlgorithm()
+        context = QgsProcessingContext(); context.setProject(QgsProject.instance())
+        layer = QgsVectorLayer({str(gpkg)!r}, "lines", "ogr")
+        memory = layer.materialize(QgsFeatureRequest())
+        QgsProject.instance().addMapLayers([layer, memory])
+        spec = alg.spec["parameters"][0]
+        values = {{}}
+        for label, value in (("object", [layer]), ("id", [layer.id()]), ("path", [{str(gpkg)!r}]),
+                             ("both", [memory.id(), {str(tmp_path / "restitution.dxf")!r}])):
+            values[label] = alg._value(spec, {{"LAYERS": value}}, context,
+                                       QgsProcessingFeedback())
+        copy = QgsVectorLayer(values["both"][0], "copy", "ogr")
+        values["copy"] = [copy.isValid(), copy.featureCount(), copy.crs().authid()]
+        done(values)
+        """)
+    for label in ("object", "id", "path"):
+        assert got[label] == [str(gpkg)], label
+    assert got["both"][0] != "" and got["both"][1] == str(tmp_path / "restitution.dxf")
+    assert got["copy"] == [True, 1, "EPSG:3003"]
