@@ -334,7 +334,12 @@ class ToolboxAlgorithm(QgsProcessingAlgorithm):
             return list(p.get("options") or [])[self.parameterAsEnum(parameters, name, context)]
         if kind == "crs":
             crs = self.parameterAsCrs(parameters, name, context)
-            return crs.authid() or crs.toWkt() if crs.isValid() else None
+            if crs.isValid():
+                return crs.authid() or crs.toWkt()
+            # text QGIS cannot read as a CRS ('EPSG:999999', a typo) goes as typed, for the
+            # toolbox to refuse: QGIS gives an invalid CRS, and the run went on without it
+            given = parameters[name]
+            return given.strip() or None if isinstance(given, str) else None
         if kind == "extent":
             rect = self.parameterAsExtent(parameters, name, context)
             if rect.isNull():

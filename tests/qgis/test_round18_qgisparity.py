@@ -107,3 +107,15 @@ def test_project_layers_given_to_a_multiple_files_input_reach_the_toolbox(tmp_pa
         assert got[label] == [str(gpkg)], label
     assert got["both"][0] != "" and got["both"][1] == str(tmp_path / "restitution.dxf")
     assert got["copy"] == [True, 1, "EPSG:3003"]
+
+
+@needs_qgis
+def test_a_crs_qgis_cannot_read_reaches_the_toolbox_as_typed(tmp_path):
+    """CRS='EPSG:999999' (a typo) from processing.run or qgis_process: QGIS reads it as an
+    invalid CRS and the plugin left the parameter out, so the run went on with the inputs' CRS
+    (exit 0) where the CLI refuses it (exit 2, 'CRS ... is not a CRS PROJ knows'). It now goes
+    as typed, for the toolbox to refuse; a CRS QGIS reads goes as its authority id."""
+    got = plugin_values(tmp_path, [{"name": "CRS", "type": "crs", "optional": True}], {
+        "typo": {"CRS": " EPSG:999999 "}, "ok": {"CRS": "EPSG:3003"}, "empty": {"CRS": ""}})
+    assert got == {"typo": {"CRS": "EPSG:999999"}, "ok": {"CRS": "EPSG:3003"},
+                   "empty": {"CRS": None}}
