@@ -119,3 +119,21 @@ def test_a_crs_qgis_cannot_read_reaches_the_toolbox_as_typed(tmp_path):
         "typo": {"CRS": " EPSG:999999 "}, "ok": {"CRS": "EPSG:3003"}, "empty": {"CRS": ""}})
     assert got == {"typo": {"CRS": "EPSG:999999"}, "ok": {"CRS": "EPSG:3003"},
                    "empty": {"CRS": None}}
+
+
+@needs_qgis
+def test_booleans_as_text_and_fractional_integers_reach_the_toolbox_as_given(tmp_path):
+    """qgis_process or processing.run with OVERVIEWS=no: QGIS reads any text but '0'/'false'
+    as true, so the run had the option on (exit 0) where the CLI reads 'no'/'off' as false;
+    NEIGHBOURS=4.5 (a model's number) ran as 5 where the CLI refuses it (exit 2). Both now go
+    as given, for the toolbox to read as the CLI does; real booleans and whole numbers as
+    before."""
+    params = [{"name": "OVERVIEWS", "type": "boolean", "default": True},
+              {"name": "NEIGHBOURS", "type": "integer", "default": 12}]
+    got = plugin_values(tmp_path, params, {
+        "text": {"OVERVIEWS": " no ", "NEIGHBOURS": 4.5},
+        "typed": {"OVERVIEWS": False, "NEIGHBOURS": 4.0},
+        "qgis_process": {"OVERVIEWS": "false", "NEIGHBOURS": "6"}})
+    assert got == {"text": {"OVERVIEWS": "no", "NEIGHBOURS": "4.5"},
+                   "typed": {"OVERVIEWS": "false", "NEIGHBOURS": "4"},
+                   "qgis_process": {"OVERVIEWS": "false", "NEIGHBOURS": "6"}}
