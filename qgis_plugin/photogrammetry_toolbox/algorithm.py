@@ -466,7 +466,11 @@ class ToolboxAlgorithm(QgsProcessingAlgorithm):
         for p in given:
             if p["type"] == "vector":
                 layer = self._vector_layer(parameters, p["name"], context)
-            elif p["type"] == "raster" and p.get("role") != "photo":  # pixels, no map CRS
+            elif p["type"] == "raster" and p.get("role") not in ("photo", "heights"):
+                # a photo's pixels have no map CRS; a DEM read for heights may be in another
+                # CRS than the output (ortho:photo's is the project's): converted into the
+                # DEM's, the extent was converted back by the toolbox, a larger bounding box
+                # (unknown here: the toolbox converts it into the output's CRS itself)
                 layer = self.parameterAsRasterLayer(parameters, p["name"], context)
             else:
                 continue

@@ -137,3 +137,36 @@ def test_booleans_as_text_and_fractional_integers_reach_the_toolbox_as_given(tmp
     assert got == {"text": {"OVERVIEWS": "no", "NEIGHBOURS": "4.5"},
                    "typed": {"OVERVIEWS": "false", "NEIGHBOURS": "4"},
                    "qgis_process": {"OVERVIEWS": "false", "NEIGHBOURS": "6"}}
+
+
+@needs_qgis
+def test_an_extent_for_ortho_photo_is_not_converted_into_the_dem_crs(tmp_path):
+    """ortho:photo writes the ortho in the project's CRS; its DEM may be in another. An extent
+    drawn in the project's CRS (EPSG:3003) was converted into the DEM's (EPSG:6708), then back
+    by the toolbox into the ortho's: the bounding box of a bounding box, metres larger than the
+    one drawn, so another grid than the CLI's with the same extent (exit 0). It now goes in its
+    own CRS, which the toolbox converts once (not at all here)."""
+    import numpy as np
+    import rasterio
+    from pyproj import Transformer
+    from rasterio.transform import from_origin
+
+    with rasterio.open(tmp_path / "dem.tif", "w", driver="GTiff", width=4, height=3, count=1,
+                       dtype="float32", crs="EPSG:6708",
+                       transform=from_origin(300_000, 4_800_030, 10, 10)) as dst:
+        dst.write(np.zeros((3, 4), "float32"), 1)
+    with rasterio.open(tmp_path / "photo.png", "w", driver="PNG", width=4, height=3, count=1,
+                       dtype="uint8") as dst:
+        dst.write(np.zeros((3, 4), "uint8"), 1)
+    drawn = (1_680_000.0, 4_800_000.0, 1_681_000.0, 4_801_000.0)  # in the ortho's EPSG:3003
+    got = plugin_values(tmp_path, [{"name": "INPUT", "type": "raster", "role": "photo"},
+                                   {"name": "DEM", "type": "raster", "role": "heights"},
+                                   {"name": "EXTENT", "type": "extent"}], {"ortho": {
+        "INPUT": {"layer": str(tmp_path / "photo.png"), "raster": True},
+        "DEM": {"layer": str(tmp_path / "dem.tif"), "raster": True},
+        "EXTENT": "1680000,1681000,4800000,4801000 [EPSG:3003]"}})
+    assert got["ortho"]["EXTENT"] == "1680000.0,4800000.0,1681000.0,4801000.0 [EPSG:3003]"
+    # the old round trip through the DEM's CRS, by pyproj: metres wider than drawn
+    there = Transformer.from_crs(3003, 6708, always_xy=True).transform_bounds(*drawn, 21)
+    back = Transformer.from_crs(6708, 3003, always_xy=True).transform_bounds(*there, 21)
+    assert (back[2] - back[0]) - (drawn[2] - drawn[0]) > 10.0
