@@ -10,12 +10,14 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import shlex
 import subprocess
 import threading
 
 from qgis.core import (
     NULL,
+    QgsCoordinateReferenceSystem,
     QgsMapLayer,
     QgsProcessing,
     QgsProcessingAlgorithm,
@@ -43,6 +45,8 @@ from qgis.core import (
     QgsProcessingUtils,
     QgsProperty,
     QgsProviderRegistry,
+    QgsRectangle,
+    QgsReferencedRectangle,
     QgsVectorFileWriter,
     QgsVectorLayer,
 )
@@ -149,6 +153,18 @@ def make_parameter(p: dict):
         details = [t.replace("xmin,ymin,xmax,ymax", "extent") for t in details] + [EXTENT_HELP]
     param.setHelp(clean_help("\n\n".join(details)))
     return param
+
+
+def extent_names_crs(value) -> bool:
+    """False for an extent value without a CRS of its own: numbers as text or a QgsRectangle."""
+    if isinstance(value, QgsReferencedRectangle):
+        return True
+    if isinstance(value, QgsRectangle):
+        return False
+    if isinstance(value, str):
+        text = value.strip()
+        return "[" in text or not re.fullmatch(r"[-+.,\deE\s]*", text)  # or a layer's id
+    return True
 
 
 def crs_set_in_qgis(layer) -> bool:
@@ -351,7 +367,11 @@ class ToolboxAlgorithm(QgsProcessingAlgorithm):
             rect = self.parameterAsExtent(parameters, name, context)
             if rect.isNull():
                 return None
-            crs = self.parameterAsExtentCrs(parameters, name, context)
+            # an extent typed without CRS is in the data's, as for the CLI and QGIS's own
+            # algorithms: not the QGIS project's (parameterAsExtentCrs's fallback), which the
+            # toolbox then converted from (dem:match, ortho:photo in an EPSG:3857 project)
+            crs = self.parameterAsExtentCrs(parameters, name, context) if \
+                extent_names_crs(parameters[name]) else QgsCoordinateReferenceSystem()
             target = self._data_crs(parameters, context)
             if crs.isValid() and target is not None and crs != target:
                 # drawn on a canvas in another CRS (a basemap's): into the data's, as QGIS's own

@@ -170,3 +170,29 @@ def test_an_extent_for_ortho_photo_is_not_converted_into_the_dem_crs(tmp_path):
     there = Transformer.from_crs(3003, 6708, always_xy=True).transform_bounds(*drawn, 21)
     back = Transformer.from_crs(6708, 3003, always_xy=True).transform_bounds(*there, 21)
     assert (back[2] - back[0]) - (drawn[2] - drawn[0]) > 10.0
+
+
+@needs_qgis
+def test_an_extent_typed_without_crs_is_not_given_the_project_crs(tmp_path):
+    """EXTENT typed as numbers (processing.run, qgis_process, a model) in a QGIS project in
+    EPSG:3857 (a basemap's): where the plugin knew no data CRS (dem:match; ortho:photo), it
+    tagged the numbers with the project's CRS, so the toolbox converted them from Web Mercator
+    (another area, or refused; exit 2 or a wrong grid) where the CLI takes them in the data's
+    CRS. Numbers without CRS now go without one; an extent naming its CRS keeps it."""
+    got = pyqgis(tmp_path, """
+        QgsProject.instance().setCrs(QgsCoordinateReferenceSystem("EPSG:3857"))
+        context = QgsProcessingContext(); context.setProject(QgsProject.instance())
+        spec = {"id": "dem:match", "parameters": [{"name": "EXTENT", "type": "extent"}]}
+        alg = ToolboxAlgorithm(spec, "tb")
+        alg.initAlgorithm()
+        out = {}
+        for label, value in (("text", "1680000,1680100,4800000,4800100"),
+                             ("rectangle", QgsRectangle(1680000, 4800000, 1680100, 4800100)),
+                             ("named", "1680000,1680100,4800000,4800100 [EPSG:3003]")):
+            out[label] = alg._value(spec["parameters"][0], {"EXTENT": value}, context,
+                                    QgsProcessingFeedback())
+        done(out)
+        """)
+    assert got == {"text": "1680000.0,4800000.0,1680100.0,4800100.0",
+                   "rectangle": "1680000.0,4800000.0,1680100.0,4800100.0",
+                   "named": "1680000.0,4800000.0,1680100.0,4800100.0 [EPSG:3003]"}
