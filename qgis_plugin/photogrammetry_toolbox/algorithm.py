@@ -340,9 +340,12 @@ class ToolboxAlgorithm(QgsProcessingAlgorithm):
             # text (qgis_process, scripts) goes as typed, for the toolbox to check: QGIS reads
             # what it cannot parse ('250,5', '4.5' for an integer) as the default, else 0
             return parameters[name].strip() or None
-        if kind == "integer" and isinstance(parameters[name], float) and \
-                not parameters[name].is_integer():
-            return repr(parameters[name])  # 4.5 from a model's number: QGIS rounded it to 5
+        if kind == "integer" and isinstance(parameters[name], (int, float)) and \
+                not isinstance(parameters[name], bool):
+            number = parameters[name]
+            if float(number).is_integer():  # QGIS's int is 32-bit: 3e9 (MAX_CELLS) became 0
+                return str(int(number))
+            return repr(number)  # 4.5 from a model's number: QGIS rounded it to 5
         if kind == "boolean" and isinstance(parameters[name], str) and parameters[name].strip():
             # text goes as typed, read by the toolbox as the CLI reads it: QGIS reads any text
             # but '0' and 'false' as true ('no', 'off' ran with the option on)

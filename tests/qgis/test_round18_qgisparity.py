@@ -196,3 +196,15 @@ def test_an_extent_typed_without_crs_is_not_given_the_project_crs(tmp_path):
     assert got == {"text": "1680000.0,4800000.0,1680100.0,4800100.0",
                    "rectangle": "1680000.0,4800000.0,1680100.0,4800100.0",
                    "named": "1680000.0,4800000.0,1680100.0,4800100.0 [EPSG:3003]"}
+
+
+@needs_qgis
+def test_an_integer_beyond_32_bits_reaches_the_toolbox(tmp_path):
+    """MAX_CELLS=3000000000 from processing.run or a model: QGIS's parameterAsInt is 32-bit and
+    gave 0, refused as 'MAX_CELLS must be >= 1, got 0' (exit 2; the CLI takes 3e9). Whole
+    numbers now go as they are."""
+    got = plugin_values(tmp_path, [{"name": "MAX_CELLS", "type": "integer", "optional": True}],
+                        {"int": {"MAX_CELLS": 3_000_000_000}, "float": {"MAX_CELLS": 3e9},
+                         "small": {"MAX_CELLS": 7}})
+    assert got == {"int": {"MAX_CELLS": "3000000000"}, "float": {"MAX_CELLS": "3000000000"},
+                   "small": {"MAX_CELLS": "7"}}
