@@ -167,6 +167,15 @@ def extent_names_crs(value) -> bool:
     return True
 
 
+def point_cloud_file(p: dict, value) -> str | None:
+    """A LAS/LAZ file given to a parameter that reads point clouds (QGIS cannot open it as a
+    vector layer: the toolbox reads it itself), else None."""
+    if not p.get("point_clouds") or not isinstance(value, str):
+        return None
+    path = value.strip()
+    return path if path.lower().endswith((".las", ".laz")) and os.path.isfile(path) else None
+
+
 def crs_set_in_qgis(layer) -> bool:
     """True when the layer's CRS in QGIS is not its file's: set in Layer Properties (a file
     without or with a wrong .prj). A file without CRS that QGIS shows in a geographic CRS is left
@@ -387,7 +396,8 @@ class ToolboxAlgorithm(QgsProcessingAlgorithm):
         if kind in ("file", "folder"):
             return self.parameterAsFile(parameters, name, context) or None
         if kind == "vector":
-            return self._vector_source(parameters, name, context, feedback)
+            cloud = point_cloud_file(p, parameters[name])
+            return cloud or self._vector_source(parameters, name, context, feedback)
         if kind == "raster":
             layer = self.parameterAsRasterLayer(parameters, name, context)
             return None if layer is None else raster_source(layer, name, p.get("role"))
@@ -455,6 +465,16 @@ class ToolboxAlgorithm(QgsProcessingAlgorithm):
                 file = self._vector_source({name: layer}, name, context, feedback) or file
             out.append(file)
         return out
+
+    def checkParameterValues(self, parameters, context):  # noqa: N802 - QGIS's name
+        """QGIS's checks, but a LAS/LAZ file given to a point input that reads point clouds
+        (dem:* INPUT) passes: QGIS cannot open it as a vector layer and refused it as 'not
+        found', while the CLI reads it."""
+        clouds = {p["name"] for p in self.spec.get("parameters", [])
+                  if point_cloud_file(p, parameters.get(p["name"]))}
+        if clouds:
+            parameters = {k: (None if k in clouds else v) for k, v in parameters.items()}
+        return super().checkParameterValues(parameters, context)
 
     # -- running -------------------------------------------------------------------------------
     def processAlgorithm(self, parameters, context, feedback):

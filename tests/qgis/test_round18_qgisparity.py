@@ -208,3 +208,38 @@ def test_an_integer_beyond_32_bits_reaches_the_toolbox(tmp_path):
                          "small": {"MAX_CELLS": 7}})
     assert got == {"int": {"MAX_CELLS": "3000000000"}, "float": {"MAX_CELLS": "3000000000"},
                    "small": {"MAX_CELLS": "7"}}
+
+
+@needs_qgis
+def test_a_las_file_reaches_a_point_input_that_reads_point_clouds(tmp_path):
+    """dem:idw INPUT=points.las from processing.run or qgis_process (the CLI grids it): QGIS
+    cannot open LAS as a vector layer and refused it as 'Could not load source layer for INPUT:
+    ... not found' although the file is there. The file now goes to the toolbox as given; a
+    parameter without point clouds, or a missing file, is checked by QGIS as before."""
+    import laspy
+    import numpy as np
+
+    header = laspy.LasHeader(point_format=3, version="1.2")
+    header.scales = [0.01, 0.01, 0.01]
+    cloud = laspy.LasData(header)
+    cloud.x, cloud.y, cloud.z = np.arange(5.0), np.arange(5.0), np.ones(5)
+    cloud.write(tmp_path / "points.las")
+    got = pyqgis(tmp_path, f"""
+        context = QgsProcessingContext(); context.setProject(QgsProject.instance())
+        out = {{}}
+        for clouds in (True, False):
+            spec = {{"id": "dem:idw", "parameters": [{{"name": "INPUT", "type": "vector",
+                     "optional": True, "point_clouds": clouds}}]}}
+            alg = ToolboxAlgorithm(spec, "tb")
+            alg.initAlgorithm()
+            for label, path in (("las", {str(tmp_path / "points.las")!r}),
+                                ("missing", {str(tmp_path / "missing.las")!r})):
+                ok, message = alg.checkParameterValues({{"INPUT": path}}, context)
+                out[f"{{clouds}} {{label}}"] = [ok, alg._value(spec["parameters"][0],
+                                                {{"INPUT": path}}, context,
+                                                QgsProcessingFeedback()) if ok else message]
+        done(out)
+        """)
+    assert got["True las"] == [True, str(tmp_path / "points.las")]
+    for label in ("True missing", "False las", "False missing"):
+        assert got[label][0] is False and "INPUT" in got[label][1], label
