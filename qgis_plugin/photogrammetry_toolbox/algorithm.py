@@ -412,6 +412,8 @@ class ToolboxAlgorithm(QgsProcessingAlgorithm):
             return self.parameterAsOutputLayer(parameters, name, context)
         if kind in ("output_vector", "output_file", "output_folder"):
             return self.parameterAsFileOutput(parameters, name, context)
+        if isinstance(parameters[name], (list, tuple)):  # CLASSES=[2, 9]: QGIS's text was ''
+            return ",".join(str(v).strip() for v in parameters[name]) or None
         return self.parameterAsString(parameters, name, context) or None
 
     def _vector_source(self, parameters, name, context, feedback):

@@ -243,3 +243,15 @@ def test_a_las_file_reaches_a_point_input_that_reads_point_clouds(tmp_path):
     assert got["True las"] == [True, str(tmp_path / "points.las")]
     for label in ("True missing", "False las", "False missing"):
         assert got[label][0] is False and "INPUT" in got[label][1], label
+
+
+@needs_qgis
+def test_a_list_given_to_a_text_parameter_is_not_dropped(tmp_path):
+    """dem:idw CLASSES=[2] (ground only) from processing.run: QGIS's text of a list is '', so
+    the parameter was left out and every class was gridded (exit 0; buildings at 30 m in a
+    ground DEM at 10 m). A list now goes as the comma-separated text the CLI takes ('2,9')."""
+    got = plugin_values(tmp_path, [{"name": "CLASSES", "type": "string", "optional": True}],
+                        {"list": {"CLASSES": [2, 9]}, "one": {"CLASSES": (2,)},
+                         "text": {"CLASSES": "2,9"}})
+    assert got == {"list": {"CLASSES": "2,9"}, "one": {"CLASSES": "2"},
+                   "text": {"CLASSES": "2,9"}}
