@@ -167,6 +167,15 @@ def extent_names_crs(value) -> bool:
     return True
 
 
+def crs_text(crs) -> str:
+    """A CRS as the toolbox reads it: its authority id, else its WKT (a CRS defined in QGIS's
+    Custom Projections is 'USER:100000', which only this QGIS profile knows)."""
+    authid = crs.authid()
+    if authid and not authid.upper().startswith("USER:"):
+        return authid
+    return crs.toWkt(QgsCoordinateReferenceSystem.WKT_PREFERRED)
+
+
 def point_cloud_file(p: dict, value) -> str | None:
     """A LAS/LAZ file given to a parameter that reads point clouds (QGIS cannot open it as a
     vector layer: the toolbox reads it itself), else None."""
@@ -370,7 +379,7 @@ class ToolboxAlgorithm(QgsProcessingAlgorithm):
         if kind == "crs":
             crs = self.parameterAsCrs(parameters, name, context)
             if crs.isValid():
-                return crs.authid() or crs.toWkt()
+                return crs_text(crs)
             # text QGIS cannot read as a CRS ('EPSG:999999', a typo) goes as typed, for the
             # toolbox to refuse: QGIS gives an invalid CRS, and the run went on without it
             given = parameters[name]
@@ -390,7 +399,7 @@ class ToolboxAlgorithm(QgsProcessingAlgorithm):
                 # algorithms do (the toolbox refuses an extent in another CRS than its inputs)
                 rect = self.parameterAsExtent(parameters, name, context, target)
                 crs = target
-            tail = f" [{crs.authid()}]" if crs.isValid() and crs.authid() else ""
+            tail = f" [{crs_text(crs)}]" if crs.isValid() else ""
             return f"{rect.xMinimum()!r},{rect.yMinimum()!r},{rect.xMaximum()!r}," \
                    f"{rect.yMaximum()!r}{tail}"
         if kind in ("file", "folder"):

@@ -255,3 +255,33 @@ def test_a_list_given_to_a_text_parameter_is_not_dropped(tmp_path):
                          "text": {"CLASSES": "2,9"}})
     assert got == {"list": {"CLASSES": "2,9"}, "one": {"CLASSES": "2"},
                    "text": {"CLASSES": "2,9"}}
+
+
+@needs_qgis
+def test_a_crs_defined_in_qgis_reaches_the_toolbox_as_wkt(tmp_path):
+    """A CRS from QGIS's Custom Projections (a local Transverse Mercator with its own datum
+    shift) is 'USER:100000', which only that QGIS profile knows: the toolbox refused it
+    ('is not a CRS PROJ knows', exit 2), as a CRS parameter and as an extent's CRS. It now goes
+    as its WKT, which PROJ reads as the same CRS."""
+    from pyproj import CRS
+
+    local = ("+proj=tmerc +lat_0=0 +lon_0=11.33 +k=1 +x_0=50000 +y_0=-4700000 +ellps=intl "
+             "+towgs84=-104.1,-49.1,-9.9,0.971,-2.917,0.714,-11.68 +units=m +no_defs")
+    got = pyqgis(tmp_path, f"""
+        registry = QgsApplication.coordinateReferenceSystemRegistry()
+        srsid = registry.addUserCrs(QgsCoordinateReferenceSystem.fromProj({local!r}), "local")
+        user = QgsCoordinateReferenceSystem(f"USER:{{srsid}}")
+        spec = {{"id": "dem:idw", "parameters": [{{"name": "CRS", "type": "crs"}},
+                                                 {{"name": "EXTENT", "type": "extent"}}]}}
+        alg = ToolboxAlgorithm(spec, "tb")
+        alg.initAlgorithm()
+        context = QgsProcessingContext(); context.setProject(QgsProject.instance())
+        rect = QgsReferencedRectangle(QgsRectangle(0, 0, 10, 20), user)
+        done([user.authid()] + [alg._value(p, {{"CRS": user, "EXTENT": rect}}, context,
+                                           QgsProcessingFeedback()) for p in spec["parameters"]])
+        """)
+    authid, crs, extent = got
+    assert authid.startswith("USER:")
+    assert CRS.from_user_input(crs).equals(CRS.from_proj4(local), ignore_axis_order=True)
+    numbers, bracketed = extent.split(" ", 1)
+    assert numbers == "0.0,0.0,10.0,20.0" and bracketed == f"[{crs}]"
