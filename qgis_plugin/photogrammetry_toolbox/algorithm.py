@@ -270,7 +270,7 @@ def raster_source(layer, name: str, role: str | None = None) -> str:
     from osgeo import gdal
 
     vrt = QgsProcessingUtils.generateTempFilename(f"{name}.vrt")
-    options = {"outputSRS": crs.authid() or crs.toWkt()} if relabelled else {}
+    options = {"outputSRS": crs_text(crs)} if relabelled else {}
     done = gdal.Translate(vrt, layer.source(), format="VRT", **options)
     if done is None:
         raise QgsProcessingException(f"{name}: cannot read the raster layer '{layer.source()}' "

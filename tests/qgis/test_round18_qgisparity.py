@@ -285,3 +285,35 @@ def test_a_crs_defined_in_qgis_reaches_the_toolbox_as_wkt(tmp_path):
     assert CRS.from_user_input(crs).equals(CRS.from_proj4(local), ignore_axis_order=True)
     numbers, bracketed = extent.split(" ", 1)
     assert numbers == "0.0,0.0,10.0,20.0" and bracketed == f"[{crs}]"
+
+
+@needs_qgis
+def test_a_custom_crs_set_on_a_raster_layer_reaches_the_toolbox(tmp_path):
+    """A grid without CRS labelled in Layer Properties with a Custom Projections CRS: the VRT
+    the plugin writes with the layer's CRS was asked for 'USER:100000', which GDAL cannot read
+    (the run failed); it is now written with the CRS's WKT."""
+    import numpy as np
+    import rasterio
+    from pyproj import CRS
+    from rasterio.transform import from_origin
+
+    with rasterio.open(tmp_path / "grid.tif", "w", driver="GTiff", width=4, height=3, count=1,
+                       dtype="float32", transform=from_origin(0, 30, 10, 10)) as dst:
+        dst.write(np.zeros((3, 4), "float32"), 1)
+    local = ("+proj=tmerc +lat_0=0 +lon_0=11.33 +k=1 +x_0=50000 +y_0=-4700000 +ellps=intl "
+             "+towgs84=-104.1,-49.1,-9.9,0.971,-2.917,0.714,-11.68 +units=m +no_defs")
+    got = pyqgis(tmp_path, f"""
+        from photogrammetry_toolbox.algorithm import raster_source
+        registry = QgsApplication.coordinateReferenceSystemRegistry()
+        srsid = registry.addUserCrs(QgsCoordinateReferenceSystem.fromProj({local!r}), "local")
+        layer = QgsRasterLayer({str(tmp_path / "grid.tif")!r}, "grid")
+        layer.setCrs(QgsCoordinateReferenceSystem(f"USER:{{srsid}}"))
+        try:
+            done(raster_source(layer, "DEM"))
+        except Exception as exc:
+            done("error: " + str(exc))
+        """)
+    assert got.endswith(".vrt"), got
+    with rasterio.open(got) as src:
+        assert CRS.from_wkt(src.crs.to_wkt()).equals(CRS.from_proj4(local),
+                                                     ignore_axis_order=True)
