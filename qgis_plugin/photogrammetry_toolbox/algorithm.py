@@ -10,12 +10,15 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import shlex
 import subprocess
 import threading
 
 from qgis.core import (
     NULL,
+    QgsCoordinateReferenceSystem,
+    QgsMapLayer,
     QgsProcessing,
     QgsProcessingAlgorithm,
     QgsProcessingContext,
@@ -42,7 +45,10 @@ from qgis.core import (
     QgsProcessingUtils,
     QgsProperty,
     QgsProviderRegistry,
+    QgsRectangle,
+    QgsReferencedRectangle,
     QgsVectorFileWriter,
+    QgsVectorLayer,
 )
 from qgis.PyQt.QtCore import QVariant
 
@@ -131,6 +137,11 @@ def make_parameter(p: dict):
     else:  # string and anything new: free text the toolbox validates
         param = QgsProcessingParameterString(name, desc, None if default is None else
                                              str(default), False, optional)
+    if kind.startswith("output_") and optional:
+        # as the CLI: an optional output is written only when asked for (QGIS's dialog would
+        # otherwise create each one as a temporary file: ortho:photo's OCCLUSION_MASK without
+        # OCCLUSION was then refused, extra rasters computed and loaded)
+        param.setCreateByDefault(False)
     flags = param.flags()
     if p.get("advanced"):
         flags |= QgsProcessingParameterDefinition.FlagAdvanced
@@ -142,6 +153,36 @@ def make_parameter(p: dict):
         details = [t.replace("xmin,ymin,xmax,ymax", "extent") for t in details] + [EXTENT_HELP]
     param.setHelp(clean_help("\n\n".join(details)))
     return param
+
+
+def extent_names_crs(value) -> bool:
+    """False for an extent value without a CRS of its own: numbers as text or a QgsRectangle."""
+    if isinstance(value, QgsReferencedRectangle):
+        return True
+    if isinstance(value, QgsRectangle):
+        return False
+    if isinstance(value, str):
+        text = value.strip()
+        return "[" in text or not re.fullmatch(r"[-+.,\deE\s]*", text)  # or a layer's id
+    return True
+
+
+def crs_text(crs) -> str:
+    """A CRS as the toolbox reads it: its authority id, else its WKT (a CRS defined in QGIS's
+    Custom Projections is 'USER:100000', which only this QGIS profile knows)."""
+    authid = crs.authid()
+    if authid and not authid.upper().startswith("USER:"):
+        return authid
+    return crs.toWkt(QgsCoordinateReferenceSystem.WKT_PREFERRED)
+
+
+def point_cloud_file(p: dict, value) -> str | None:
+    """A LAS/LAZ file given to a parameter that reads point clouds (QGIS cannot open it as a
+    vector layer: the toolbox reads it itself), else None."""
+    if not p.get("point_clouds") or not isinstance(value, str):
+        return None
+    path = value.strip()
+    return path if path.lower().endswith((".las", ".laz")) and os.path.isfile(path) else None
 
 
 def crs_set_in_qgis(layer) -> bool:
@@ -229,7 +270,7 @@ def raster_source(layer, name: str, role: str | None = None) -> str:
     from osgeo import gdal
 
     vrt = QgsProcessingUtils.generateTempFilename(f"{name}.vrt")
-    options = {"outputSRS": crs.authid() or crs.toWkt()} if relabelled else {}
+    options = {"outputSRS": crs_text(crs)} if relabelled else {}
     done = gdal.Translate(vrt, layer.source(), format="VRT", **options)
     if done is None:
         raise QgsProcessingException(f"{name}: cannot read the raster layer '{layer.source()}' "
@@ -294,6 +335,11 @@ class ToolboxAlgorithm(QgsProcessingAlgorithm):
     def initAlgorithm(self, config=None):
         for p in self.spec.get("parameters", []):
             self.addParameter(make_parameter(p))
+        outputs = [self.parameterDefinition(p["name"]) for p in self.spec.get("parameters", [])
+                   if p["type"].startswith("output_")]
+        if outputs and all(o.flags() & QgsProcessingParameterDefinition.FlagOptional
+                           for o in outputs):
+            outputs[0].setCreateByDefault(True)  # one at least (carto:sheet's PDF), as before
         destinations = {p["name"] for p in self.spec.get("parameters", [])}
         for out in self.spec.get("outputs", []):
             if out["name"] in destinations or out["type"].startswith("output_"):
@@ -312,6 +358,16 @@ class ToolboxAlgorithm(QgsProcessingAlgorithm):
             # text (qgis_process, scripts) goes as typed, for the toolbox to check: QGIS reads
             # what it cannot parse ('250,5', '4.5' for an integer) as the default, else 0
             return parameters[name].strip() or None
+        if kind == "integer" and isinstance(parameters[name], (int, float)) and \
+                not isinstance(parameters[name], bool):
+            number = parameters[name]
+            if float(number).is_integer():  # QGIS's int is 32-bit: 3e9 (MAX_CELLS) became 0
+                return str(int(number))
+            return repr(number)  # 4.5 from a model's number: QGIS rounded it to 5
+        if kind == "boolean" and isinstance(parameters[name], str) and parameters[name].strip():
+            # text goes as typed, read by the toolbox as the CLI reads it: QGIS reads any text
+            # but '0' and 'false' as true ('no', 'off' ran with the option on)
+            return parameters[name].strip()
         if kind == "number":
             return repr(self.parameterAsDouble(parameters, name, context))
         if kind == "integer":
@@ -322,58 +378,41 @@ class ToolboxAlgorithm(QgsProcessingAlgorithm):
             return list(p.get("options") or [])[self.parameterAsEnum(parameters, name, context)]
         if kind == "crs":
             crs = self.parameterAsCrs(parameters, name, context)
-            return crs.authid() or crs.toWkt() if crs.isValid() else None
+            if crs.isValid():
+                return crs_text(crs)
+            # text QGIS cannot read as a CRS ('EPSG:999999', a typo) goes as typed, for the
+            # toolbox to refuse: QGIS gives an invalid CRS, and the run went on without it
+            given = parameters[name]
+            return given.strip() or None if isinstance(given, str) else None
         if kind == "extent":
             rect = self.parameterAsExtent(parameters, name, context)
             if rect.isNull():
                 return None
-            crs = self.parameterAsExtentCrs(parameters, name, context)
+            # an extent typed without CRS is in the data's, as for the CLI and QGIS's own
+            # algorithms: not the QGIS project's (parameterAsExtentCrs's fallback), which the
+            # toolbox then converted from (dem:match, ortho:photo in an EPSG:3857 project)
+            crs = self.parameterAsExtentCrs(parameters, name, context) if \
+                extent_names_crs(parameters[name]) else QgsCoordinateReferenceSystem()
             target = self._data_crs(parameters, context)
             if crs.isValid() and target is not None and crs != target:
                 # drawn on a canvas in another CRS (a basemap's): into the data's, as QGIS's own
                 # algorithms do (the toolbox refuses an extent in another CRS than its inputs)
                 rect = self.parameterAsExtent(parameters, name, context, target)
                 crs = target
-            tail = f" [{crs.authid()}]" if crs.isValid() and crs.authid() else ""
+            tail = f" [{crs_text(crs)}]" if crs.isValid() else ""
             return f"{rect.xMinimum()!r},{rect.yMinimum()!r},{rect.xMaximum()!r}," \
                    f"{rect.yMaximum()!r}{tail}"
         if kind in ("file", "folder"):
             return self.parameterAsFile(parameters, name, context) or None
         if kind == "vector":
-            # a CRS set on the layer in QGIS (a Shapefile without or with a wrong .prj) is not
-            # in its file: then the toolbox reads a copy QGIS writes with the layer's CRS
-            vector = self._vector_layer(parameters, name, context)
-            relabelled = vector is not None and crs_set_in_qgis(vector)
-            value = parameters.get(name)
-            selected = isinstance(value, QgsProcessingFeatureSourceDefinition) and \
-                value.selectedFeaturesOnly
-            if vector is not None and (relabelled or qgis_would_copy(vector, selected)) and \
-                    fid_would_clash(vector):
-                return copy_for_toolbox(vector, name, selected, context)
-            path, layer = self.parameterAsCompatibleSourceLayerPathAndLayerName(
-                parameters, name, context, [] if relabelled else VECTOR_FORMATS, "gpkg", feedback)
-            if not path:
-                return None
-            if "|" in path:
-                return path
-            # QGIS hands over the layer's own file when it needs no copy: keep which layer of it
-            # (layerid= when the URI has no name) and which geometry type (a GeoJSON/DXF
-            # sublayer), or the toolbox reads the file's first layer, all geometries
-            file, parts = layer_file(vector)
-            own = bool(file) and os.path.abspath(file) == os.path.abspath(path)
-            if layer:
-                path += f"|layername={layer}"
-            elif own and parts.get("layerId") not in (None, ""):
-                path += f"|layerid={parts['layerId']}"
-            if own and parts.get("geometryType"):
-                path += f"|geometrytype={parts['geometryType']}"
-            return path
+            cloud = point_cloud_file(p, parameters[name])
+            return cloud or self._vector_source(parameters, name, context, feedback)
         if kind == "raster":
             layer = self.parameterAsRasterLayer(parameters, name, context)
             return None if layer is None else raster_source(layer, name, p.get("role"))
         if kind == "multiple":
             if p.get("layer_type") != "raster":
-                return list(self.parameterAsFileList(parameters, name, context))
+                return self._vector_files(parameters, name, context, feedback)
             return [raster_source(layer, name, p.get("role")) for layer in
                     self.parameterAsLayerList(parameters, name, context)]
         if kind == "field":
@@ -382,7 +421,71 @@ class ToolboxAlgorithm(QgsProcessingAlgorithm):
             return self.parameterAsOutputLayer(parameters, name, context)
         if kind in ("output_vector", "output_file", "output_folder"):
             return self.parameterAsFileOutput(parameters, name, context)
+        if isinstance(parameters[name], (list, tuple)):  # CLASSES=[2, 9]: QGIS's text was ''
+            return ",".join(str(v).strip() for v in parameters[name]) or None
         return self.parameterAsString(parameters, name, context) or None
+
+    def _vector_source(self, parameters, name, context, feedback):
+        """The toolbox source of one vector layer value (a file, a layer of it, or a copy)."""
+        # a CRS set on the layer in QGIS (a Shapefile without or with a wrong .prj) is not
+        # in its file: then the toolbox reads a copy QGIS writes with the layer's CRS
+        vector = self._vector_layer(parameters, name, context)
+        relabelled = vector is not None and crs_set_in_qgis(vector)
+        value = parameters.get(name)
+        selected = isinstance(value, QgsProcessingFeatureSourceDefinition) and \
+            value.selectedFeaturesOnly
+        if vector is not None and (relabelled or qgis_would_copy(vector, selected)) and \
+                fid_would_clash(vector):
+            return copy_for_toolbox(vector, name, selected, context)
+        path, layer = self.parameterAsCompatibleSourceLayerPathAndLayerName(
+            parameters, name, context, [] if relabelled else VECTOR_FORMATS, "gpkg", feedback)
+        if not path:
+            return None
+        if "|" in path:
+            return path
+        # QGIS hands over the layer's own file when it needs no copy: keep which layer of it
+        # (layerid= when the URI has no name) and which geometry type (a GeoJSON/DXF
+        # sublayer), or the toolbox reads the file's first layer, all geometries
+        file, parts = layer_file(vector)
+        own = bool(file) and os.path.abspath(file) == os.path.abspath(path)
+        if layer:
+            path += f"|layername={layer}"
+        elif own and parts.get("layerId") not in (None, ""):
+            path += f"|layerid={parts['layerId']}"
+        if own and parts.get("geometryType"):
+            path += f"|geometrytype={parts['geometryType']}"
+        return path
+
+    def _vector_files(self, parameters, name, context, feedback) -> list[str]:
+        """A multiple-files input: each file as given, and each project layer (an object, a
+        layer id or name from a model or the console, a memory layer) as the toolbox reads it
+        (a path stays as given):
+        QGIS's file list gave '' for a layer object (the toolbox then drew without it) and the
+        layer id for an id (refused as a missing file)."""
+        files = list(self.parameterAsFileList(parameters, name, context))
+        raw = parameters.get(name)
+        raw = list(raw) if isinstance(raw, (list, tuple)) else [raw]
+        if len(raw) != len(files):
+            return files
+        out = []
+        for item, file in zip(raw, files):
+            by_id = isinstance(item, str) and item and not os.path.exists(item.split("|")[0])
+            layer = item if isinstance(item, QgsMapLayer) else (
+                QgsProcessingUtils.mapLayerFromString(item, context, False) if by_id else None)
+            if isinstance(layer, QgsVectorLayer):
+                file = self._vector_source({name: layer}, name, context, feedback) or file
+            out.append(file)
+        return out
+
+    def checkParameterValues(self, parameters, context):  # noqa: N802 - QGIS's name
+        """QGIS's checks, but a LAS/LAZ file given to a point input that reads point clouds
+        (dem:* INPUT) passes: QGIS cannot open it as a vector layer and refused it as 'not
+        found', while the CLI reads it."""
+        clouds = {p["name"] for p in self.spec.get("parameters", [])
+                  if point_cloud_file(p, parameters.get(p["name"]))}
+        if clouds:
+            parameters = {k: (None if k in clouds else v) for k, v in parameters.items()}
+        return super().checkParameterValues(parameters, context)
 
     # -- running -------------------------------------------------------------------------------
     def processAlgorithm(self, parameters, context, feedback):
@@ -405,18 +508,23 @@ class ToolboxAlgorithm(QgsProcessingAlgorithm):
 
     def _data_crs(self, parameters, context):
         """The CRS the toolbox works in: the CRS parameter's, else the first input layer's with
-        one (None when unknown)."""
+        one (None when unknown). Only the parameter named CRS says it: another CRS parameter
+        is something else (carto:sheet's GRID_CRS, a second CRS ticked along the frame)."""
         given = [p for p in self.spec.get("parameters", [])
                  if parameters.get(p["name"]) not in (None, "")]
         for p in given:
-            if p["type"] == "crs":
+            if p["type"] == "crs" and p["name"] == "CRS":
                 crs = self.parameterAsCrs(parameters, p["name"], context)
                 if crs.isValid():
                     return crs
         for p in given:
             if p["type"] == "vector":
                 layer = self._vector_layer(parameters, p["name"], context)
-            elif p["type"] == "raster" and p.get("role") != "photo":  # pixels, no map CRS
+            elif p["type"] == "raster" and p.get("role") not in ("photo", "heights"):
+                # a photo's pixels have no map CRS; a DEM read for heights may be in another
+                # CRS than the output (ortho:photo's is the project's): converted into the
+                # DEM's, the extent was converted back by the toolbox, a larger bounding box
+                # (unknown here: the toolbox converts it into the output's CRS itself)
                 layer = self.parameterAsRasterLayer(parameters, p["name"], context)
             else:
                 continue
