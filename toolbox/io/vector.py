@@ -322,25 +322,23 @@ def _resolve_layer_file(path: Path, layer: str | None, layers: list[str]) -> Pat
 _STEM_NAMED = (".shp", ".parquet")
 
 
-def _first_of_set(path: Path, layer: str | None, name: str) -> bool:
-    """True when ``path|layername=layer`` names the first layer of a set the toolbox wrote in a
-    one-layer format whose file records no layer name (Shapefile, GeoParquet): the first layer
-    is ``path`` itself, the others ``<stem>_<layer><ext>`` beside it (:func:`write_layers`), so
-    a pipeline converted from .gpkg keeps working. GeoJSON and FlatGeobuf record the layer's
-    name, matched as it is. A warning names the file read (a misspelt name reads it too)."""
+def _refuse_first_of_set(path: Path, layer: str | None, name: str) -> None:
+    """Refuse ``path|layername=layer`` where ``path`` heads a set of layer files the toolbox
+    wrote in a one-layer format that records no layer name (Shapefile, GeoParquet): its first
+    layer is ``path`` itself, the others ``<stem>_<layer><ext>`` beside it (:func:`write_layers`),
+    so the name cannot be checked (a misspelt one would read the first layer): the message says
+    what to give instead. Nothing when ``path`` has no such siblings."""
     if layer is None or path.suffix.lower() not in _STEM_NAMED:
-        return False
+        return
     others = sorted(p.stem[len(path.stem) + 1:]
                     for p in path.parent.glob(f"{glob.escape(path.stem)}_*{path.suffix}"))
-    if not others:
-        return False
-    import logging
-
-    logging.getLogger("toolbox").warning(
-        f"{name}: layer '{layer}' read from '{path.name}', the first layer of the set the "
-        f"toolbox wrote ({path.suffix} records no layer name; the others: {', '.join(others)})")
-    return True
-
+    if others:
+        raise ParameterError(name, f"layer '{layer}' is not a file beside '{path.name}', and a "
+                             f"{path.suffix} records no layer name to check it against: the "
+                             "toolbox writes the first layer of a multi-layer output to "
+                             f"'{path.name}' itself and the others beside it "
+                             f"({', '.join(f'{path.stem}_{o}{path.suffix}' for o in others)}); "
+                             f"give '{path.name}' without |layername= for the first layer")
 
 
 def open_layer(value: Any, name: str = "INPUT", known_layer: str | None = None) -> VectorLayerRef:
@@ -388,9 +386,8 @@ def open_layer(value: Any, name: str = "INPUT", known_layer: str | None = None) 
         path, layer = sibling, None
         rows, _ = _without_m_warning(ogr.list_layers, path)
         layers = [str(row[0]) for row in rows]
-    elif layer is not None and layer not in layers and len(layers) == 1 \
-            and _first_of_set(path, layer, name):
-        layer = None
+    elif layer is not None and layer not in layers and len(layers) == 1:
+        _refuse_first_of_set(path, layer, name)
     if source.layerid is not None:
         if source.layerid >= len(layers):
             raise ParameterError(name, f"layerid={source.layerid} but '{text}' has "
@@ -554,11 +551,11 @@ def _open_parquet(path: Path, source: LayerSource, name: str) -> VectorLayerRef:
         raise ParameterError(name, f"layerid={source.layerid} but '{path}' has 1 layer")
     if source.layername and source.layername != path.stem:
         sibling = sibling_layer_path(path, source.layername)
-        if sibling.exists():
-            path = sibling
-        elif not _first_of_set(path, source.layername, name):
+        if not sibling.exists():
+            _refuse_first_of_set(path, source.layername, name)
             raise ParameterError(name, f"layer '{source.layername}' is neither '{path}' nor a "
                                  f"file '{sibling.name}' beside it")
+        path = sibling
     try:
         schema = pq.read_schema(path)
         geo = json.loads((schema.metadata or {})[b"geo"])
