@@ -652,8 +652,9 @@ def cog_problems(path: Any) -> list[str]:
 
 def keep_off_nodata(data: np.ndarray, valid: np.ndarray, nodata: float | None) -> np.ndarray:
     """``data`` ``(bands, rows, cols)`` with every ``valid`` ``(rows, cols)`` cell whose bands
-    all equal ``nodata`` moved one step off it (``nodata + 1`` for integers, ``nodata - 1``
-    when it is the type's maximum; the next float for floats), in place.
+    all equal ``nodata`` moved one step off it (``nodata - 1`` for integers, ``nodata + 1``
+    when it is the type's minimum, as GDAL's warp kernel does; the next float for floats), in
+    place.
 
     A computed value (balanced, blended) may land on the nodata value: a dark shadow of a
     uint8 ortho with nodata 0 balanced by a negative offset came out 0, written as no data (a
@@ -667,7 +668,7 @@ def keep_off_nodata(data: np.ndarray, valid: np.ndarray, nodata: float | None) -
         info = np.iinfo(dt)
         if not (float(nodata).is_integer() and info.min <= nodata <= info.max):
             return data
-        step = int(nodata) + 1 if nodata < info.max else int(nodata) - 1
+        step = int(nodata) - 1 if nodata > info.min else int(nodata) + 1
     else:
         step = np.nextafter(dt.type(nodata), dt.type(np.inf))
     hit = (data == dt.type(nodata)).all(axis=0) & valid
