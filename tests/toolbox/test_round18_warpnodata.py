@@ -159,3 +159,48 @@ def test_keep_off_nodata_steps_as_gdal():
     assert keep_off_nodata(np.array([[[255]]], "uint8"), one, 255).item() == 254
     assert keep_off_nodata(np.array([[[-32768]]], "int16"), one, -32768).item() == -32767
     assert keep_off_nodata(np.array([[[5]]], "int16"), one, 5).item() == 4
+
+
+def test_ortho_photo_planned_path(tmp_path):
+    """ortho:photo (the planned-map packed path) on a flat DEM: the nodata output's valid cells
+    are the alpha output's (the footprint; 25 % of them were holes with cubic), none at 0."""
+    import yaml
+    from rasterio.transform import from_origin
+
+    from toolbox.raster.writer import write_raster
+
+    n, pixel = 200, 230.0 / 200
+    img = np.full((3, n, n), 2, "uint8")
+    img[:, :, ::7] = 250
+    img[:, ::9, :] = 250
+    profile = {"driver": "GTiff", "width": n, "height": n, "count": 3, "dtype": "uint8"}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
+        with rasterio.open(tmp_path / "p1.tif", "w", **profile) as dst:
+            dst.write(img)
+    write_raster(tmp_path / "dem.tif", np.full((40, 40), 250.0, "float32"),
+                 from_origin(1686600.0, 4801600.0, 100.0, 100.0), "EPSG:3003", nodata=-9999.0)
+    camera = {"name": "c", "principal_distance_mm": 153.0, "image_size_px": [n, n],
+              "pixel_size_mm": pixel, "frame_size_mm": [230.0, 230.0]}
+    exterior = dict(zip(("X0", "Y0", "Z0", "omega", "phi", "kappa"),
+                        (1688600.0, 4799600.0, 1700.0, 0.0, 0.0, 0.4), strict=True))
+    (tmp_path / "project.yaml").write_text(yaml.safe_dump({
+        "format": "orientation-project", "version": 1, "crs": "EPSG:3003", "angle_unit": "rad",
+        "cameras": [camera], "photos": [{"id": "p1", "camera": "c", "image": "p1.tif",
+                                         "exterior": exterior}]}, sort_keys=False))
+    runs = {}
+    for outside in ("alpha", "nodata"):
+        out = tmp_path / f"o_{outside}.tif"
+        toolbox.run("ortho:photo", {"INPUT": tmp_path / "p1.tif", "DEM": tmp_path / "dem.tif",
+                                    "PROJECT": tmp_path / "project.yaml", "CELL_SIZE": 10.0,
+                                    "RESAMPLING": "cubic", "OUTSIDE": outside, "OUTPUT": out,
+                                    "OVERVIEWS": False})
+        with rasterio.open(out) as ds:
+            runs[outside] = (ds.read(), ds.dataset_mask() > 0, ds.nodata)
+    (ref, ref_valid, _), (data, valid, nodata) = runs["alpha"], runs["nodata"]
+    assert nodata == 0 and ref_valid.sum() > 5000
+    assert (valid == ref_valid).all()
+    assert not (data[:, valid] == 0).all(axis=0).any()
+    dark = (ref[:3] == 0).all(axis=0) & ref_valid
+    assert dark.sum() > 500 and (data[:, dark] == 1).all()
+    np.testing.assert_array_equal(data[:, valid & ~dark], ref[:3, valid & ~dark])
