@@ -408,14 +408,20 @@ def _keep_valid_off_nodata(data: np.ndarray, layout: OutputLayout, valid: np.nda
     from toolbox.raster.writer import keep_off_nodata
 
     nodata = layout.nodata
+    # (a float within a few ulps of nodata reads as nodata too: a superset, keep_off_nodata
+    # decides)
+    near = 8 * float(np.finfo(np.float32).eps) * abs(nodata) if data.dtype.kind == "f" else 0
     pixels = data.transpose(1, 2, 0)
     if pixels.flags.c_contiguous and data.shape[0] <= 4 and data.dtype.name in CV2_DTYPES:
-        bound = (nodata,) * data.shape[0]
-        at = cv2.inRange(pixels, bound, bound)  # 255 where every band is at nodata
+        at = cv2.inRange(pixels, (nodata - near,) * data.shape[0],
+                         (nodata + near,) * data.shape[0])  # 255: every band at nodata
     else:
-        at = np.ascontiguousarray(data[0] == nodata)
+        def at_nodata(band):
+            return np.abs(band - nodata) <= near if near else band == nodata
+
+        at = np.ascontiguousarray(at_nodata(data[0]))
         for band in data[1:]:
-            at &= band == nodata
+            at &= at_nodata(band)
         at = at.view(np.uint8)
     # not the cells outside (all at nodata: the fill)
     if map_x is not None:
