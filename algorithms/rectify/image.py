@@ -171,11 +171,12 @@ class RectifyImage(Algorithm):
                                   f"{info} and are no data ({'alpha 0' if layout.alpha else 'nodata'})")
         if params["NODATA"] is None and info.nodata is None and layout.nodata is not None:
             clashes = _samples_equal(info, layout.data_bands, layout.nodata)
-            if clashes:  # the nodata value was a guess: valid pixels read as no data
+            if clashes:  # the nodata value was a guess: valid pixels moved off it
                 feedback.push_warning(f"INPUT: {clashes} photo sample(s) hold "
                                       f"{layout.nodata:g}, the nodata value chosen for "
-                                      "OUTSIDE=nodata, so the cells warped from them read as "
-                                      "no data; give NODATA a value the photo does not hold, "
+                                      "OUTSIDE=nodata, so the cells warped from them are "
+                                      "moved one step off it to stay valid (as gdalwarp "
+                                      "does); give NODATA a value the photo does not hold, "
                                       "or OUTSIDE=alpha")
         return {"OUTPUT": params["OUTPUT"], "STATISTICS": {
             "model": model.model, "crs": crs_label(model.crs), "cell_size": cell,

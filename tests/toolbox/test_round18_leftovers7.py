@@ -53,7 +53,8 @@ def test_keep_off_nodata_moves_valid_cells_with_every_band_at_nodata_only():
                                                                               [1, 1, 1]]
     f = np.array([[[-9999.0, 3.0]]], "float32")
     out = keep_off_nodata(f.copy(), np.ones((1, 2), bool), -9999.0)
-    assert out[0, 0, 0] != np.float32(-9999.0) and abs(out[0, 0, 0] + 9999.0) < 1e-3
+    # (past the ~4 float ulps GDAL's mask still reads as -9999: test_round18_warpnodata)
+    assert out[0, 0, 0] != np.float32(-9999.0) and abs(out[0, 0, 0] + 9999.0) < 1e-2
     assert keep_off_nodata(f.copy(), np.ones((1, 2), bool), float("nan")).tolist() == f.tolist()
 
 

@@ -652,8 +652,10 @@ def cog_problems(path: Any) -> list[str]:
 
 def keep_off_nodata(data: np.ndarray, valid: np.ndarray, nodata: float | None) -> np.ndarray:
     """``data`` ``(bands, rows, cols)`` with every ``valid`` ``(rows, cols)`` cell whose bands
-    all equal ``nodata`` moved one step off it (``nodata + 1`` for integers, ``nodata - 1``
-    when it is the type's maximum; the next float for floats), in place.
+    all equal ``nodata`` moved one step off it (``nodata - 1`` for integers, ``nodata + 1``
+    when it is the type's minimum, as GDAL's warp kernel does; for floats, every band that GDAL
+    reads as nodata (:func:`reads_as_nodata`) moves to the first float above nodata that GDAL
+    reads as valid), in place.
 
     A computed value (balanced, blended) may land on the nodata value: a dark shadow of a
     uint8 ortho with nodata 0 balanced by a negative offset came out 0, written as no data (a
@@ -667,9 +669,22 @@ def keep_off_nodata(data: np.ndarray, valid: np.ndarray, nodata: float | None) -
         info = np.iinfo(dt)
         if not (float(nodata).is_integer() and info.min <= nodata <= info.max):
             return data
-        step = int(nodata) + 1 if nodata < info.max else int(nodata) - 1
-    else:
-        step = np.nextafter(dt.type(nodata), dt.type(np.inf))
-    hit = (data == dt.type(nodata)).all(axis=0) & valid
+        step = int(nodata) - 1 if nodata > info.min else int(nodata) + 1
+        hit = (data == dt.type(nodata)).all(axis=0) & valid
+    else:  # GDAL reads a float within ~4 float ulps of nodata as no data too: step past them
+        step = dt.type(nodata + abs(nodata) * 5 * float(np.finfo(np.float32).eps))
+        while reads_as_nodata(step, nodata):  # (a few steps at most)
+            step = np.nextafter(step, dt.type(np.inf))
+        hit = reads_as_nodata(data, nodata).all(axis=0) & valid
     data[:, hit] = step
     return data
+
+
+def reads_as_nodata(values: Any, nodata: float) -> Any:
+    """Which float ``values`` GDAL's nodata mask reads as the (finite) ``nodata``: equal, or
+    within ``FLT_EPSILON * |value + nodata| * 2`` (GDAL's ``ARE_REAL_EQUAL``, for Float32 and
+    Float64 bands alike: -9998.999 is no data with nodata -9999)."""
+    values = np.asarray(values)
+    nd = values.dtype.type(nodata)
+    tolerance = np.finfo(np.float32).eps * np.abs(values + nd) * 2
+    return (values == nd) | (np.abs(values - nd) < tolerance)
