@@ -19,6 +19,7 @@ import pytest
 import shapely
 
 import toolbox
+from tests.toolbox.export_files import write_export
 from toolbox.io.vector_write import write_layers, write_wkb_layer
 
 CRS = "EPSG:25832"
@@ -142,16 +143,6 @@ def test_tin_shapefile_breakline_is_integer(tmp_path):
         assert _ogrinfo_types(tmp_path / "t_edges.shp")["breakline"] == "Integer"
 
 
-def _export(path, entities):
-    lines = []
-    for code, pts in entities:
-        lines.append(f"CODE {code}")
-        lines += [f"{1688600 + x:.3f} {4799900 + y:.3f} {z:.3f}" for x, y, z in pts]
-        lines.append("END")
-    path.write_text("\n".join(lines) + "\n")
-    return path
-
-
 @pytest.mark.parametrize("ext", ["fgb", "shp", "geojson", "parquet"])
 def test_merge_to_one_layer_formats_writes_the_merge_style_beside_its_file(tmp_path, ext):
     """attribution:merge to .fgb/.shp/.geojson/.parquet (offered by OUTPUT) stored the merge
@@ -160,8 +151,8 @@ def test_merge_to_one_layer_formats_writes_the_merge_style_beside_its_file(tmp_p
     for attribution:apply, and QGIS loads it with the file."""
     square = [(0, 0, 330), (10, 0, 330), (10, 10, 330), (0, 10, 330), (0, 0, 330)]
     moved = [(x + 0.03, y + 0.02, z + 0.02) for x, y, z in square]
-    paths = [_export(tmp_path / "a.txt", [("FAB01002", square)]),
-             _export(tmp_path / "b.txt", [("FAB01002", moved)])]
+    paths = [write_export(tmp_path / "a.txt", [("FAB01002", square)]),
+             write_export(tmp_path / "b.txt", [("FAB01002", moved)])]
     out = tmp_path / f"merged.{ext}"
     stats = toolbox.run("attribution:merge", {"INPUT": paths, "SNAP_TOLERANCE": 0.2,
                                               "HEIGHT_SNAP_TOLERANCE": 0.1, "CRS": "EPSG:3003",

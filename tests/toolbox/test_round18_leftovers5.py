@@ -19,6 +19,7 @@ import pyogrio
 import pytest
 
 import toolbox
+from tests.toolbox.export_files import write_export
 from toolbox.errors import ParameterError
 
 
@@ -215,16 +216,6 @@ def test_geojson_infinite_values_are_null_with_a_warning_naming_the_field(tmp_pa
 #    first is kept (undocumented, and the count was only an info line): a warning counts them
 #    and names the rule.
 
-def _export(path, entities):
-    lines = []
-    for code, pts in entities:
-        lines.append(f"CODE {code}")
-        lines += [f"{1688600 + x:.3f} {4799900 + y:.3f} {z:.3f}" for x, y, z in pts]
-        lines.append("END")
-    path.write_text("\n".join(lines) + "\n")
-    return path
-
-
 @pytest.mark.parametrize("order", [("a", "b"), ("b", "a")])
 def test_merge_duplicates_keep_the_first_model_and_are_warned(tmp_path, order):
     import geopandas as gpd
@@ -234,7 +225,7 @@ def test_merge_duplicates_keep_the_first_model_and_are_warned(tmp_path, order):
     moved = [(x + 0.03, y + 0.02, z + 0.02) for x, y, z in square]  # the same building again
     models = {"a": [("FAB01002", square), ("QUO01001", [(50, 5, 320.5)])],
               "b": [("FAB01002", moved), ("QUO01001", [(50.02, 5.01, 320.55)])]}
-    paths = [_export(tmp_path / f"{name}.txt", models[name]) for name in order]
+    paths = [write_export(tmp_path / f"{name}.txt", models[name]) for name in order]
     feedback = toolbox.Feedback()
     out = tmp_path / "merged.gpkg"
     stats = toolbox.run("attribution:merge", {"INPUT": paths, "SNAP_TOLERANCE": 0.2,

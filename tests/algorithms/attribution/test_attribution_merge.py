@@ -9,6 +9,7 @@ import shapely
 from restitution_files import make_files  # the test folder's helper module
 
 import toolbox
+from tests.toolbox.export_files import write_export
 from toolbox.attribution.model_merge import merge_models
 from toolbox.attribution.restitution import entity_frame
 
@@ -100,14 +101,7 @@ def test_merge_chains_through_a_line_of_the_same_model():
 
 def test_apply_merges_models(files, tmp_path):
     def export(entities, name):
-        lines = []
-        for code, pts in entities:
-            lines.append(f"CODE {code}")
-            lines += [f"{E0 + x:.3f} {N0 + y:.3f} {z:.3f}" for x, y, z in pts]
-            lines.append("END")
-        path = tmp_path / name
-        path.write_text("\n".join(lines) + "\n")
-        return path
+        return write_export(tmp_path / name, entities)
 
     out = tmp_path / "merged.gpkg"
     stats = toolbox.run("attribution:apply", {
