@@ -67,6 +67,15 @@ def rectify(photo, transform, out, **params):
         return ds.read(), ds.dataset_mask() > 0, ds.nodata, ds.transform
 
 
+def rectify_nodata_and_alpha(photo, transform, tmp_path, resampling, **params):
+    """The photo rectified with OUTSIDE=nodata (``params`` added) and, as the reference, with
+    OUTSIDE=alpha: ``((data, valid, nodata, transform), (data, valid, nodata, transform))``."""
+    return (rectify(photo, transform, tmp_path / "n.tif", OUTSIDE="nodata",
+                    RESAMPLING=resampling, **params),
+            rectify(photo, transform, tmp_path / "a.tif", OUTSIDE="alpha",
+                    RESAMPLING=resampling))
+
+
 def footprint(t: Affine, shape) -> np.ndarray:
     """Cells whose centre maps inside the photo, by the inverse similarity."""
     rows, cols = np.mgrid[0:shape[0], 0:shape[1]] + 0.5
@@ -81,10 +90,8 @@ def footprint(t: Affine, shape) -> np.ndarray:
 @pytest.mark.parametrize("resampling", ["cubic", "lanczos"])
 def test_overshoot_to_nodata_stays_valid(tmp_path, transform, resampling, bands):
     photo = write_photo(tmp_path / "p.tif", stripes(bands))
-    data, valid, nodata, t = rectify(photo, transform, tmp_path / "n.tif", OUTSIDE="nodata",
-                                     RESAMPLING=resampling)
-    ref, ref_valid, _, _ = rectify(photo, transform, tmp_path / "a.tif", OUTSIDE="alpha",
-                                   RESAMPLING=resampling)
+    (data, valid, nodata, t), (ref, ref_valid, _, _) = rectify_nodata_and_alpha(
+        photo, transform, tmp_path, resampling)
     assert nodata == 0
     inside = footprint(t, valid.shape)
     assert (valid == inside).all()  # was 18441 of 24580 with cubic: holes
@@ -102,10 +109,8 @@ def test_masked_source_keeps_its_valid_cells(tmp_path, transform):
     data = stripes(1)
     data[:, 30:50, 40:70] = 0  # the photo's no data
     photo = write_photo(tmp_path / "p.tif", data, nodata=0)
-    out, valid, nodata, _ = rectify(photo, transform, tmp_path / "n.tif", OUTSIDE="nodata",
-                                    RESAMPLING="cubic")
-    ref, ref_valid, _, _ = rectify(photo, transform, tmp_path / "a.tif", OUTSIDE="alpha",
-                                   RESAMPLING="cubic")
+    (out, valid, nodata, _), (ref, ref_valid, _, _) = rectify_nodata_and_alpha(
+        photo, transform, tmp_path, "cubic")
     assert nodata == 0
     assert (valid == ref_valid).all()  # the alpha output's validity: same geometry and mask
     assert ref_valid.sum() > 15000 and not (out[0][valid] == 0).any()
@@ -118,10 +123,8 @@ def test_user_nodata_equal_to_an_interpolated_value(tmp_path, transform):
     """Bilinear between 2 and 250 passes through 126: with NODATA=126 those cells were no data;
     now 125 (GDAL's nodata - 1)."""
     photo = write_photo(tmp_path / "p.tif", stripes(1))
-    out, valid, nodata, t = rectify(photo, transform, tmp_path / "n.tif", OUTSIDE="nodata",
-                                    NODATA=126, RESAMPLING="bilinear")
-    ref, _, _, _ = rectify(photo, transform, tmp_path / "a.tif", OUTSIDE="alpha",
-                           RESAMPLING="bilinear")
+    (out, valid, nodata, t), (ref, _, _, _) = rectify_nodata_and_alpha(
+        photo, transform, tmp_path, "bilinear", NODATA=126)
     inside = footprint(t, valid.shape)
     assert nodata == 126 and (valid == inside).all()
     hit = (ref[0] == 126) & inside
@@ -233,10 +236,8 @@ def test_float_photo_with_nodata_at_its_dark_value(tmp_path, transform):
     """A float32 photo, NODATA=2 (its dark value): cubic gives 2.0 and values a few ulps off
     it, which GDAL's mask reads as no data too (5900 of 24580 cells were holes)."""
     photo = write_photo(tmp_path / "p.tif", stripes(1).astype("float32"))
-    out, valid, nodata, t = rectify(photo, transform, tmp_path / "n.tif", OUTSIDE="nodata",
-                                    NODATA=2, RESAMPLING="cubic")
-    ref, _, _, _ = rectify(photo, transform, tmp_path / "a.tif", OUTSIDE="alpha",
-                           RESAMPLING="cubic")
+    (out, valid, nodata, t), (ref, _, _, _) = rectify_nodata_and_alpha(
+        photo, transform, tmp_path, "cubic", NODATA=2)
     inside = footprint(t, valid.shape)
     assert nodata == 2 and (valid == inside).all()
     same = inside & ~np.isnan(ref[0])  # (the NaN-nodata run loses edge cells: see report)
