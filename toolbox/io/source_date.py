@@ -48,39 +48,6 @@ def gpkg_timestamp() -> str | None:
 
 
 _LOCK = threading.Lock()
-_SET: list[str] = []  # the OGR_CURRENT_DATE values runs of this process set, one per open block
-
-
-@contextmanager
-def source_date_for_gdal() -> Iterator[None]:
-    """Within the block, GDAL writes ``SOURCE_DATE_EPOCH`` as a GeoPackage's ``last_change``
-    (``OGR_CURRENT_DATE``, unless the user set that one); checks the variable (exit 2 when
-    malformed) before anything is written. Blocks may overlap (runs in threads): the variable
-    is removed when the last one ends."""
-    stamp = gpkg_timestamp()
-    with _LOCK:
-        ours = stamp is not None and (not os.environ.get("OGR_CURRENT_DATE") or bool(_SET))
-        if ours:
-            os.environ["OGR_CURRENT_DATE"] = stamp
-            _SET.append(stamp)
-    try:
-        yield
-    finally:
-        if ours:
-            with _LOCK:
-                _SET.remove(stamp)
-                if _SET:
-                    os.environ["OGR_CURRENT_DATE"] = _SET[-1]
-                else:
-                    os.environ.pop("OGR_CURRENT_DATE", None)
-
-
-def client_date() -> str | None:
-    """The client's ``SOURCE_DATE_EPOCH`` text (None when unset), sent with each Dask task:
-    :func:`on_worker`."""
-    return os.environ.get(VARIABLE, "").strip() or None
-
-
 _PUSHED: dict[str, dict] = {}  # variable -> {"original": its value before, "values": [...]}
 
 
@@ -105,6 +72,29 @@ def _pushed(name: str, value: str) -> Iterator[None]:
                     os.environ.pop(name, None)
                 else:
                     os.environ[name] = entry["original"]
+
+
+@contextmanager
+def source_date_for_gdal() -> Iterator[None]:
+    """Within the block, GDAL writes ``SOURCE_DATE_EPOCH`` as a GeoPackage's ``last_change``
+    (``OGR_CURRENT_DATE``, unless the user set that one); checks the variable (exit 2 when
+    malformed) before anything is written. Blocks may overlap (runs in threads): the variable
+    is removed when the last one ends (:func:`_pushed`)."""
+    stamp = gpkg_timestamp()
+    with _LOCK:
+        ours = stamp is not None and (not os.environ.get("OGR_CURRENT_DATE")
+                                      or "OGR_CURRENT_DATE" in _PUSHED)
+    if not ours:
+        yield
+        return
+    with _pushed("OGR_CURRENT_DATE", stamp):
+        yield
+
+
+def client_date() -> str | None:
+    """The client's ``SOURCE_DATE_EPOCH`` text (None when unset), sent with each Dask task:
+    :func:`on_worker`."""
+    return os.environ.get(VARIABLE, "").strip() or None
 
 
 @contextmanager
