@@ -45,7 +45,6 @@ def read_breaklines(ref, z_field: str | None) -> tuple[np.ndarray, np.ndarray]:
     return xyz, index
 
 
-
 @register
 class Delaunay(Algorithm):
     """Triangulated irregular network (TIN) of mass points and breaklines.

@@ -119,9 +119,6 @@ def _cone(path, n=21, west=1_700_000.3, north=4_800_021.7):
     return path
 
 
-
-
-
 @pytest.mark.parametrize(("tracer", "interval"), [("contourpy", 1.0), ("kernel", 0.25)])
 def test_peak_exactly_at_a_level_writes_no_degenerate_ring(tmp_path, monkeypatch, tracer,
                                                            interval):

@@ -494,8 +494,6 @@ class _WarpJob:
     aux: dict = field(default_factory=dict)
 
 
-
-
 def _warp_kernel(job: _WarpJob, tile: Tile, arrays: dict) -> tuple[np.ndarray, Any]:
     """Warp one tile: aux arrays -> coordinate map -> source window -> OpenCV resampling.
     Returns the tile and ``(WarpStatistics, the map's results of the tile or None)`` (a

@@ -67,7 +67,6 @@ def test_merge_kernel():
     assert len(merged[merged["code"] == "STR02001"]) == 5 and len(merged) == 9
 
 
-
 def test_merge_joins_short_lines_in_map_coordinates():
     # a 10 m road edge at map coordinates (E 1.69e6): its ends are distinct points, so it is an
     # open line and joins its continuation (a relative tolerance would have called it closed)
