@@ -776,10 +776,14 @@ def every_layer(ref: VectorLayerRef, name: str = "INPUT") -> list[VectorLayerRef
     """A reference to each layer of ``ref``'s file, in OGR's order: the file listed once (a
     reference made by :func:`open_layer` per layer listed the whole file again for each, a
     file of 200 layers 200 times)."""
-    return [VectorLayerRef(ref.path, layer, _layer_info(ref.path, layer, ref.open_options, name,
-                                                        f"layer '{layer}' of '{ref.path}'"),
-                           dict(ref.open_options), model_space=ref.model_space)
-            for layer in layer_names(ref.path)]
+    return [_layer_ref(ref, layer, name) for layer in layer_names(ref.path)]
+
+
+def _layer_ref(ref: VectorLayerRef, layer: str, name: str) -> VectorLayerRef:
+    """A reference to ``layer`` of ``ref``'s file, its information read by OGR (one open)."""
+    return VectorLayerRef(ref.path, layer, _layer_info(ref.path, layer, ref.open_options, name,
+                                                       f"layer '{layer}' of '{ref.path}'"),
+                          dict(ref.open_options), model_space=ref.model_space)
 
 
 #: the most tables one SQL statement of :func:`layers_geometries` joins (SQLite allows 64),
@@ -821,10 +825,7 @@ def layers_geometries(ref: VectorLayerRef, name: str = "INPUT",
             _check_finite_xy(geoms, f"{name} {sub}")
             yield sub, geoms
         else:
-            info = _layer_info(ref.path, layer, ref.open_options, name,
-                               f"layer '{layer}' of '{ref.path}'")
-            yield read_geometries(VectorLayerRef(ref.path, layer, info, dict(ref.open_options),
-                                                 model_space=ref.model_space), name)
+            yield read_geometries(_layer_ref(ref, layer, name), name)
 
 
 def _quote(identifier: str) -> str:
