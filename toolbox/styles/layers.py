@@ -131,8 +131,9 @@ def write_declared_styles(gpkg: str | Path, layers: Iterable[tuple[str, str]]) -
 
 
 def _kind(geometry_type: str | None) -> str | None:
-    """The style kind of a declared OGR geometry type (``"Polygon Z"`` -> polygon)."""
-    return KINDS.get(str(geometry_type or "").upper().removesuffix(" Z"))
+    """The style kind of an OGR geometry type (``"Polygon Z"``, ``"PolygonZ"`` -> polygon)."""
+    return KINDS.get(str(geometry_type or "").upper().removesuffix(" Z").removesuffix("Z")
+                     .strip())
 
 
 def style_file_names(layer_file: Path) -> list[Path]:
@@ -181,8 +182,7 @@ def _file_kind(path: Path) -> str | None:
     attempt at a .parquet may need its ADBC driver's libduckdb)."""
     from toolbox.io.vector import open_layer
 
-    gtype = str(open_layer(path, "OUTPUT").geometry_type or "")
-    return KINDS.get(gtype.upper().removesuffix(" Z").removesuffix("Z").strip())
+    return _kind(open_layer(path, "OUTPUT").geometry_type)
 
 
 def _cut_field_names(shapefile: Path, names: list[str | None]) -> dict[str, str]:
