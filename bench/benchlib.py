@@ -6,10 +6,19 @@ from __future__ import annotations
 import datetime as dt
 import os
 import platform
+import sys
 import time
 from pathlib import Path
 
 QUIET_CPU_PERCENT = 20.0  # CPU use (all cores) under which the machine counts as quiet
+
+# Measure as a user's Python runs: it writes the bytecode caches of the (editable) toolbox once and
+# reads them afterwards. The engineers' shells set PYTHONDONTWRITEBYTECODE, which made every
+# whole-process run of a fresh checkout compile the toolbox's modules from source (0.1-0.45 CPU s)
+# while the peers' pip installs had their bytecode. Every benchmark imports this module first, so
+# its own imports and every process it starts write and read bytecode.
+os.environ.pop("PYTHONDONTWRITEBYTECODE", None)
+sys.dont_write_bytecode = False
 
 
 def cpu_model() -> str:
