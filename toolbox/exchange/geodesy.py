@@ -55,7 +55,12 @@ def require_projected(crs: Any, where: str):
     return crs
 
 
+@functools.lru_cache(maxsize=16)
 def _geographic_to(crs):
+    """The transformer from WGS84 3D to ``crs`` (a pyproj CRS or a text PROJ reads), one per
+    CRS: making one queries PROJ's database (3-4 ms), and a reconstruction read asked for the
+    same one three times (pyproj's transformers are thread-safe: each thread gets its own PROJ
+    object)."""
     from pyproj import Transformer
 
     return Transformer.from_crs(WGS84_3D, crs, always_xy=True)

@@ -48,6 +48,15 @@ class ThreadDatasets:
                 self._all.append(dataset)
         return dataset
 
+    def adopt(self, path: Any, dataset: Any) -> None:
+        """Make the open ``dataset`` of ``path`` this thread's (closed by :meth:`close`)."""
+        opened = getattr(self._local, "datasets", None)
+        if opened is None:
+            opened = self._local.datasets = {}
+        opened[path] = dataset
+        with self._lock:
+            self._all.append(dataset)
+
     def close(self) -> None:
         with self._lock:
             for dataset in self._all:

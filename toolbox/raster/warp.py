@@ -26,6 +26,7 @@ from __future__ import annotations
 import itertools
 import math
 from collections.abc import Callable, Iterator, Mapping
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -113,12 +114,17 @@ def photo_path(source: Any) -> str:
 
     path = str(getattr(source, "path", source))
     with open_quietly(path) as src:
-        if src.count != 1:
-            return path
-        try:
-            table = src.colormap(1)
-        except ValueError:  # no colour table
-            return path
+        return _read_path(src, path)
+
+
+def _read_path(src: Any, path: str) -> str:
+    """:func:`photo_path` of ``path``, open as ``src``."""
+    if src.count != 1:
+        return path
+    try:
+        table = src.colormap(1)
+    except ValueError:  # no colour table
+        return path
     expand = "rgba" if any(entry[3] < 255 for entry in table.values()) else "rgb"
     if "?" in path:  # vrt:// takes what follows a '?' as its options
         raise InputDataError(f"'{path}' is a paletted photo whose path holds a '?': expand it "
@@ -126,12 +132,38 @@ def photo_path(source: Any) -> str:
     return f"vrt://{path}?expand={expand}"
 
 
+def open_photo(source: Any) -> tuple[str, Any]:
+    """``(path, dataset)``: the photo ``source`` (a path or RasterInfo) open as a warp reads
+    it, by :func:`photo_path`'s path (the caller closes it); one open of the file unless it is
+    paletted (each open parses the file's header and georeferencing again: a warp opened its
+    photo seven times)."""
+    from toolbox.raster.datasets import open_quietly
+
+    path = str(getattr(source, "path", source))
+    src = open_quietly(path)
+    try:
+        read = _read_path(src, path)
+    except BaseException:
+        src.close()
+        raise
+    if read != path:
+        src.close()
+        src = open_quietly(read)
+    return read, src
+
+
+@contextmanager
+def opened_photo(source: Any) -> Iterator[tuple[str, Any]]:
+    """:func:`open_photo` as a context that closes the dataset."""
+    path, src = open_photo(source)
+    with src:
+        yield path, src
+
+
 def warp_layout(source: Any, outside: str = "alpha", nodata: float | None = None) -> OutputLayout:
     """:func:`output_layout` of a raster path (or RasterInfo), a paletted one expanded
     (:func:`photo_path`)."""
-    from toolbox.raster.datasets import open_quietly
-
-    with open_quietly(photo_path(source)) as src:
+    with opened_photo(source) as (_, src):
         return output_layout(src, outside, nodata)
 
 
@@ -559,17 +591,27 @@ def warp_raster(source: Any, grid: GridSpec, coordinate_map: Any, writer_or_outp
 
     Returns the summed :class:`~toolbox.raster.warp.WarpStatistics`.
     """
-    from functools import partial
-
-    from toolbox.raster.datasets import open_quietly
-
     methods = RESAMPLING_METHODS + EXTRA_RESAMPLING
     if resampling not in methods:
         raise ValueError(f"resampling must be one of {', '.join(methods)}, got {resampling!r}")
-    path = photo_path(getattr(source, "path", source))
-    with open_quietly(path) as src:
+    with opened_photo(source) as (path, src):
         size = (src.width, src.height)
-    job = _WarpJob(path, ThreadDatasets(), size, coordinate_map, layout, resampling,
+    return _warp_read_path(path, size, grid, coordinate_map, writer_or_output, layout=layout,
+                           resampling=resampling, aux=aux, aux_halo=aux_halo,
+                           tile_size=tile_size, executor=executor, feedback=feedback,
+                           max_source_pixels=max_source_pixels, fast=fast, start=start, end=end)
+
+
+def _warp_read_path(path: str, size: tuple[int, int], grid: GridSpec, coordinate_map: Any,
+                    writer_or_output: Any, *, layout: Any, resampling: str,
+                    aux: Mapping[str, RasterInput] | None, aux_halo: int, tile_size: int,
+                    executor: Any, feedback: Any, max_source_pixels: int | None, fast: bool,
+                    start: float, end: float, datasets: ThreadDatasets | None = None) -> Any:
+    """:func:`warp_raster` of the photo read by ``path`` (:func:`photo_path`'s), of ``size``
+    (width, height); ``datasets`` the threads' datasets of it (closed here)."""
+    from functools import partial
+
+    job = _WarpJob(path, datasets or ThreadDatasets(), size, coordinate_map, layout, resampling,
                    max_source_pixels or DEFAULT_MAX_SOURCE_PIXELS, fast)
     total = WarpStatistics()
 
@@ -653,19 +695,24 @@ def warp_to_geotiff(source: Any, coordinate_map: Any, grid: Any, output: Any,
         raise ValueError(f"resampling must be one of "
                          f"{', '.join(RESAMPLING_METHODS + EXTRA_RESAMPLING)}, "
                          f"got {resampling!r}")
-    layout = warp_layout(source, outside, nodata)
-    threads = executor.workers if executor is not None and executor.kind == "local" else None
-    writer = RasterWriter(output, grid, layout.count, layout.dtype, layout.nodata,
-                          alpha=layout.alpha, cog=cog, overviews=overviews, tags=tags,
-                          creation_options=creation_options, cache_mb=cache_mb,
-                          memory_mb=memory_mb, threads=threads)
-    with writer:
-        from toolbox.raster.datasets import open_quietly
-        from toolbox.raster.writer import copy_band_names
+    from toolbox.raster.writer import copy_band_names
 
-        with open_quietly(photo_path(source)) as src:
+    threads = executor.workers if executor is not None and executor.kind == "local" else None
+    path, src = open_photo(source)
+    datasets = ThreadDatasets()  # the tiles' reads, on this thread by this very dataset
+    datasets.adopt(path, src)
+    try:
+        layout = output_layout(src, outside, nodata)
+        writer = RasterWriter(output, grid, layout.count, layout.dtype, layout.nodata,
+                              alpha=layout.alpha, cog=cog, overviews=overviews, tags=tags,
+                              creation_options=creation_options, cache_mb=cache_mb,
+                              memory_mb=memory_mb, threads=threads)
+        with writer:
             copy_band_names(src, writer.dataset, layout.data_bands)
-        return warp_raster(source, grid, coordinate_map, writer, layout=layout,
-                           resampling=resampling, aux=aux, tile_size=chunk, executor=executor,
-                           feedback=feedback, max_source_pixels=max_source_pixels, fast=fast,
-                           end=95 if overviews else 100)
+            return _warp_read_path(path, (src.width, src.height), grid, coordinate_map, writer,
+                                   layout=layout, resampling=resampling, aux=aux, aux_halo=0,
+                                   tile_size=chunk, executor=executor, feedback=feedback,
+                                   max_source_pixels=max_source_pixels, fast=fast, start=0.0,
+                                   end=95 if overviews else 100, datasets=datasets)
+    finally:
+        datasets.close()

@@ -582,7 +582,9 @@ def test_warp_writer_threads_follow_the_executor(tmp_path, monkeypatch):
         raise Stop
 
     monkeypatch.setattr("toolbox.raster.writer.RasterWriter", writer)
-    monkeypatch.setattr(warp, "warp_layout", lambda *a: SimpleNamespace(
+    monkeypatch.setattr(warp, "open_photo", lambda source: (str(source), SimpleNamespace(
+        close=lambda: None)))
+    monkeypatch.setattr(warp, "output_layout", lambda *a: SimpleNamespace(
         count=1, dtype="uint8", nodata=None, alpha=False))
     grid = GridSpec(Affine(1, 0, 0, 0, -1, 10), 10, 10, None)
     for executor in (Executor("local", 1), Executor("local", 3), Executor("dask", 2, "x:1"),
