@@ -6,7 +6,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from toolbox.parameters.base import Parameter, ValidationContext, _show
+from toolbox.parameters.base import Parameter, ValidationContext, _show, refuse_empty_items
 
 
 def _refuse_virtual(param: Parameter, value: Any) -> None:
@@ -192,8 +192,16 @@ class MultipleLayers(Parameter):
         self.layer_type, self.min_count = layer_type, min_count
         self._item = VectorLayer(name) if layer_type == "vector" else RasterLayer(name, role=role)
 
+    def resolve(self, value: Any, ctx: ValidationContext) -> Any:
+        """As :meth:`Parameter.resolve`, but an empty text (``--LAYERS ''``) is one empty item,
+        refused, not "no layers" (the sheet was drawn without the layer)."""
+        if isinstance(value, str) and not value.strip():
+            refuse_empty_items(self, [value], value)
+        return super().resolve(value, ctx)
+
     def validate(self, value: Any, ctx: ValidationContext) -> list:
         items = [value] if isinstance(value, (str, Path)) else list(value)
+        refuse_empty_items(self, items, value)
         if self.layer_type == "raster":  # a folder (ortho:batch's FOLDER): its GeoTIFFs
             items = [f for item in items for f in self._folder_rasters(item)]
         if len(items) < self.min_count:
