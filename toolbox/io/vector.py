@@ -222,6 +222,12 @@ class VectorLayerRef:
         return list(self.info.get("fields", []))
 
     @property
+    def coordinate_columns(self) -> list[str]:
+        """A CSV's X, Y (and Z) columns, read as the point geometry and so not among
+        :attr:`fields` (empty for other layers)."""
+        return csv_coordinate_columns(self.open_options)
+
+    @property
     def field_types(self) -> dict[str, str]:
         return dict(zip(self.info.get("fields", []), self.info.get("dtypes", []), strict=True))
 

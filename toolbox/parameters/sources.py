@@ -249,13 +249,27 @@ class Field(Parameter):
         if name not in fields:
             matches = [f for f in fields if f.lower() == name.lower()]
             if len(matches) != 1:
-                raise self.error(f"field {_show(name)} is not in {layer}; fields are: "
-                                 f"{', '.join(fields) or '(none)'}")
+                raise self.error(f"field {_show(name)} is not in {layer}; "
+                                 f"{self._fields_are(layer)}")
             name = matches[0]
         if self.numeric and not layer.is_numeric(name):
             raise self.error(f"field {_show(name)} of {layer} must be numeric, it is "
                              f"{layer.field_types[name]}")
         return name
+
+    def _fields_are(self, layer) -> str:
+        """The layer's fields, as a message lists them; a CSV's X/Y/Z columns included, said
+        to be read as the point geometry (the layer's fields leave them out: "fields are:
+        (none)" on an x,y,z CSV sent the user looking for columns they could see)."""
+        coordinates = list(getattr(layer, "coordinate_columns", []))
+        if not coordinates:
+            return f"fields are: {', '.join(layer.fields) or '(none)'}"
+        axes = "X, Y, Z"[:3 * len(coordinates) - 2]
+        text = (f"columns are: {', '.join(coordinates + layer.fields)} ({', '.join(coordinates)}"
+                f" read as the points' {axes}, not as fields")
+        if len(coordinates) == 3 and self.name.endswith("Z_FIELD"):
+            text += f"; leave {self.name} out for the heights of {coordinates[2]}"
+        return text + ")"
 
     def expected(self) -> str:
         return f"{'numeric ' if self.numeric else ''}field of {self.parent}"
