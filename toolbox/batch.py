@@ -336,7 +336,7 @@ def validate_pipeline(pipeline: Pipeline, overwrite: bool = False,
                 elif isinstance(p, Folder) and report_dir is not None and value is not None \
                         and _abs(value) == _abs(report_dir):
                     resolved_all = False  # the run's --report-dir: made as the steps run
-                elif value is not None and _later_file(value, written):
+                elif value is not None and _later_file(value, written, isinstance(p, Folder)):
                     resolved_all = False  # an earlier step writes it: checked when it runs
                     for item in value if isinstance(value, list) else [value]:
                         step_inputs[_abs(item)] = p.name
@@ -422,12 +422,17 @@ def _files_written(dest: Any, path: Path) -> list[Path]:
                                         if not set(name) & set("*{")]))
 
 
-def _later_file(value: Any, written: dict[Path, str]) -> bool:
+def _later_file(value: Any, written: dict[Path, str], folder: bool = False) -> bool:
     """Whether an earlier step writes ``value`` (a path or a list of paths): the file itself, or
-    a file inside an output folder of an earlier step (the photos of an ortho:batch FOLDER)."""
+    a file inside an output folder of an earlier step (the photos of an ortho:batch FOLDER);
+    with ``folder`` (a :class:`~toolbox.parameters.Folder` input: report:quality's REPORTS)
+    also a file an earlier step writes inside the folder ``value`` (empty, or not yet made,
+    when the pipeline is validated)."""
     for item in value if isinstance(value, list) else [value]:
         if isinstance(item, (str, Path)):
             path = _abs(item)
             if path in written or any(parent in written for parent in path.parents):
+                return True
+            if folder and any(path in file.parents for file in written):
                 return True
     return False

@@ -11,7 +11,7 @@ import shapely
 
 from toolbox.attribution.coding import GPKG_TYPES, Attribution
 from toolbox.io.code_file import CodeTable
-from toolbox.styles.files import write_style_files
+from toolbox.styles.files import write_layer_style_files, write_style_files
 from toolbox.styles.model import CodeStyle, LayerStyle, layer_style
 from toolbox.styles.qml import qml_document
 from toolbox.styles.sld import sld_document
@@ -108,16 +108,11 @@ def store_style(path: Path, layers: list[str], layer: str, qml: str, sld: str | 
     ``fields``: the layer's fields in the order written; a Shapefile's style then names them
     as the file holds them (``description`` -> ``descriptio``)."""
     from toolbox.io.vector import vector_driver
-    from toolbox.io.vector_write import layer_paths, rename_style_fields, shapefile_renames
+    from toolbox.io.vector_write import layer_paths
     from toolbox.styles.gpkg import write_layer_styles
 
-    driver = vector_driver(path)
-    if driver == "GPKG":
+    if vector_driver(path) == "GPKG":
         write_layer_styles(path, layer, qml, sld, True, name, description)
         return True
-    target = layer_paths(path, layers)[layer]
-    if driver == "ESRI Shapefile" and fields and target.exists():
-        renames = shapefile_renames(target, fields)
-        qml, sld = rename_style_fields(qml, renames), rename_style_fields(sld, renames)
-    write_style_files(target.with_suffix(""), qml, sld)
+    write_layer_style_files(layer_paths(path, layers)[layer], qml, sld, fields=fields)
     return False

@@ -222,6 +222,12 @@ class VectorLayerRef:
         return list(self.info.get("fields", []))
 
     @property
+    def coordinate_columns(self) -> list[str]:
+        """A CSV's X, Y (and Z) columns, read as the point geometry and so not among
+        :attr:`fields` (empty for other layers)."""
+        return csv_coordinate_columns(self.open_options)
+
+    @property
     def field_types(self) -> dict[str, str]:
         return dict(zip(self.info.get("fields", []), self.info.get("dtypes", []), strict=True))
 
@@ -897,10 +903,10 @@ def _gpkg_plan(path: Path, layers: list[str]) -> dict[str, Any] | None:
             for t in part:
                 info[t]["dtypes"] = np.array([next(dtypes) for _ in attributes.get(t, [])],
                                              dtype=object)
-        crs_of = {}
+        crs_of = _gpkg_epsg_codes(path, {known[layer][1] for layer in order})
         for layer in order:
             column, srs_id = known[layer]
-            if srs_id not in crs_of:  # OGR's CRS of the layer: one statement per system
+            if srs_id not in crs_of:  # OGR's CRS of the layer: one statement per other system
                 crs_of[srs_id] = _sql_read(path, f"SELECT {_quote(column)} FROM "
                                            f"{_quote(layer)} LIMIT 0")[0]["crs"]
             info[layer]["crs"] = crs_of[srs_id]
@@ -921,6 +927,40 @@ def _gpkg_plan(path: Path, layers: list[str]) -> dict[str, Any] | None:
         return {"info": info, "columns": {t: known[t][0] for t in order}, "chunks": chunks}
     except Exception:  # noqa: BLE001 - the per-layer path reads the file (and reports)
         return None
+
+
+#: the root authority of a WKT 1 or 2 definition, at its end
+_ROOT_EPSG = re.compile(r'(?:AUTHORITY\["EPSG",\s*"(\d+)"\]|ID\["EPSG",\s*(\d+)\])\]\s*$',
+                        re.IGNORECASE)
+
+
+def _gpkg_epsg_codes(path: Path, srs_ids: set[int]) -> dict[int, str]:
+    """``{srs_id: "EPSG:code"}`` of the GeoPackage's spatial reference systems that OGR reads
+    as that EPSG code, from its ``gpkg_spatial_ref_sys`` table (one statement for them all;
+    a statement per system opened the file once per CRS). GDAL takes a system from its EPSG
+    code when ``organization`` is EPSG and ``organization_coordsys_id`` equals ``srs_id``,
+    else from ``definition``: only a system whose definition's root authority is that same
+    EPSG code is here, so that either way OGR (and pyogrio's ``crs``) says ``EPSG:code``. The
+    others (custom definitions, ids 0 and -1) are left to OGR."""
+    wanted = sorted(i for i in srs_ids if i > 0)
+    if not wanted:
+        return {}
+    _, _, (ids, organizations, codes, definitions) = _sql_read(
+        path, "SELECT srs_id, organization, organization_coordsys_id, definition FROM "
+        f"gpkg_spatial_ref_sys WHERE srs_id IN ({', '.join(map(str, wanted))})")
+    out = {}
+    for srs_id, organization, code, definition in zip(ids, organizations, codes, definitions,
+                                                      strict=True):
+        root = _ROOT_EPSG.search(str(definition or ""))
+        if str(organization or "").upper() != "EPSG" or root is None:
+            continue
+        try:
+            same = int(code) == int(srs_id) == int(root.group(1) or root.group(2))
+        except (TypeError, ValueError):  # a null or text code: OGR says
+            continue
+        if same:
+            out[int(srs_id)] = f"EPSG:{int(code)}"
+    return out
 
 
 def _gpkg_geometries(path: Path, layers: list[str], columns: dict[str, str]) -> dict:

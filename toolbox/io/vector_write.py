@@ -12,6 +12,7 @@ in pyogrio's wheels has no Parquet driver).
 from __future__ import annotations
 
 import warnings
+from collections.abc import Iterable
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
@@ -309,11 +310,18 @@ def warn_empty_geojson(paths: list[Path]) -> None:
             "geometry, its style not applied); a .gpkg output keeps them")
 
 
-def shapefile_renames(path: Path, names: list[str]) -> dict[str, str]:
+def shapefile_renames(path: Path, names: list[str] | None,
+                      referenced: Iterable[str | None] = ()) -> dict[str, str]:
     """``{name: name in the file}`` of the fields ``names`` (in the order written) that the
-    Shapefile ``path`` holds under another (cut) name."""
+    Shapefile ``path`` holds under another (cut) name; without ``names``, of the
+    ``referenced`` fields (a style's) the file does not hold but holds cut to 10 characters
+    (GDAL's ``quadrati_1`` for a second cut alike needs the order written)."""
     written = [str(name) for name in _ogr().read_info(path)["fields"]]
-    return {old: new for old, new in zip(names, written, strict=False) if old != new}
+    if names:
+        return {old: new for old, new in zip(names, written, strict=False) if old != new}
+    held = set(written)
+    return {name: name[:10] for name in referenced
+            if name and name not in held and name[:10] in held}
 
 
 def rename_style_fields(text: str | None, renames: dict[str, str]) -> str | None:

@@ -48,6 +48,26 @@ def special_file(value: Any) -> tuple[str, str] | None:
     return None
 
 
+def _blank(item: Any) -> bool:
+    """Whether a list item names nothing: None or text of blanks."""
+    return item is None or (isinstance(item, str) and not item.strip())
+
+
+def refuse_empty_items(param: Parameter, items: Sequence[Any], value: Any,
+                       expected: str | None = None) -> None:
+    """Refuse a list of paths with an empty item (``--LAYERS ''``, ``[a.gpkg, '', b.gpkg]``,
+    ``'a.tif,,b.tif'``): one line naming the parameter, the value and what was expected, where
+    an item left out would silently do without it. The one check of every list-of-files
+    parameter (:class:`~toolbox.parameters.sources.MultipleLayers`, a ``String(paths=True)``'s
+    comma-separated list)."""
+    empty = [i for i, item in enumerate(items, 1) if _blank(item)]
+    if empty:
+        where = f"an empty item {empty[0]}" if len(empty) == 1 else \
+            f"empty items {', '.join(map(str, empty))}"
+        raise param.error(f"has {where} of {len(items)} in {_show(value)}; expected "
+                          f"{expected or param.expected()}, none empty")
+
+
 @dataclass
 class ValidationContext:
     """What validation of one parameter may need to know about the others."""

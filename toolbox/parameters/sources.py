@@ -6,7 +6,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from toolbox.parameters.base import Parameter, ValidationContext, _show
+from toolbox.parameters.base import Parameter, ValidationContext, _show, refuse_empty_items
 
 
 def _refuse_virtual(param: Parameter, value: Any) -> None:
@@ -192,8 +192,16 @@ class MultipleLayers(Parameter):
         self.layer_type, self.min_count = layer_type, min_count
         self._item = VectorLayer(name) if layer_type == "vector" else RasterLayer(name, role=role)
 
+    def resolve(self, value: Any, ctx: ValidationContext) -> Any:
+        """As :meth:`Parameter.resolve`, but an empty text (``--LAYERS ''``) is one empty item,
+        refused, not "no layers" (the sheet was drawn without the layer)."""
+        if isinstance(value, str) and not value.strip():
+            refuse_empty_items(self, [value], value)
+        return super().resolve(value, ctx)
+
     def validate(self, value: Any, ctx: ValidationContext) -> list:
         items = [value] if isinstance(value, (str, Path)) else list(value)
+        refuse_empty_items(self, items, value)
         if self.layer_type == "raster":  # a folder (ortho:batch's FOLDER): its GeoTIFFs
             items = [f for item in items for f in self._folder_rasters(item)]
         if len(items) < self.min_count:
@@ -241,13 +249,27 @@ class Field(Parameter):
         if name not in fields:
             matches = [f for f in fields if f.lower() == name.lower()]
             if len(matches) != 1:
-                raise self.error(f"field {_show(name)} is not in {layer}; fields are: "
-                                 f"{', '.join(fields) or '(none)'}")
+                raise self.error(f"field {_show(name)} is not in {layer}; "
+                                 f"{self._fields_are(layer)}")
             name = matches[0]
         if self.numeric and not layer.is_numeric(name):
             raise self.error(f"field {_show(name)} of {layer} must be numeric, it is "
                              f"{layer.field_types[name]}")
         return name
+
+    def _fields_are(self, layer) -> str:
+        """The layer's fields, as a message lists them; a CSV's X/Y/Z columns included, said
+        to be read as the point geometry (the layer's fields leave them out: "fields are:
+        (none)" on an x,y,z CSV sent the user looking for columns they could see)."""
+        coordinates = list(getattr(layer, "coordinate_columns", []))
+        if not coordinates:
+            return f"fields are: {', '.join(layer.fields) or '(none)'}"
+        axes = "X, Y, Z"[:3 * len(coordinates) - 2]
+        text = (f"columns are: {', '.join(coordinates + layer.fields)} ({', '.join(coordinates)}"
+                f" read as the points' {axes}, not as fields")
+        if len(coordinates) == 3 and self.name.endswith("Z_FIELD"):
+            text += f"; leave {self.name} out for the heights of {coordinates[2]}"
+        return text + ")"
 
     def expected(self) -> str:
         return f"{'numeric ' if self.numeric else ''}field of {self.parent}"

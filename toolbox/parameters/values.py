@@ -10,7 +10,14 @@ from dataclasses import dataclass
 from typing import Any
 
 from toolbox.io.text import is_number
-from toolbox.parameters.base import _FALSE, _TRUE, Parameter, ValidationContext, _show
+from toolbox.parameters.base import (
+    _FALSE,
+    _TRUE,
+    Parameter,
+    ValidationContext,
+    _show,
+    refuse_empty_items,
+)
 
 
 class Number(Parameter):
@@ -119,6 +126,10 @@ class String(Parameter):
         if not isinstance(value, (str, int, float)):
             raise self.error(f"must be text{' or a path' if self.paths else ''}, got "
                              f"{_show(value)}")
+        if self.paths and isinstance(value, str) and "," in value \
+                and not os.path.exists(os.path.expanduser(value)):
+            refuse_empty_items(self, value.split(","), value,
+                               "a path, or several separated by commas")
         return str(value)
 
 

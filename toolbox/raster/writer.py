@@ -400,6 +400,16 @@ def empty_marker(dtype: Any) -> tuple[float | None, bool]:
     return (float("nan"), False) if np.dtype(dtype).kind == "f" else (None, True)
 
 
+def _copy_descriptions_units(src: Any, dst: Any, bands: list[int]) -> None:
+    """Band ``bands[k]``'s (1-based) description and unit type of the open raster ``src`` onto
+    band ``k + 1`` of the open, writable ``dst`` (empty ones leave ``dst``'s as they are)."""
+    for k, b in enumerate(bands, start=1):
+        if src.descriptions[b - 1]:
+            dst.set_band_description(k, src.descriptions[b - 1])
+        if src.units[b - 1]:
+            dst.set_band_unit(k, src.units[b - 1])
+
+
 def copy_band_names(src: Any, dst: Any, bands: Any) -> None:
     """Copy each data band's description, unit type and colour interpretation from the open
     raster ``src`` (band ``bands[k]``, 1-based) to band ``k + 1`` of the open, writable ``dst``
@@ -410,12 +420,9 @@ def copy_band_names(src: Any, dst: Any, bands: Any) -> None:
     from rasterio.enums import ColorInterp
 
     bands = list(bands)
+    _copy_descriptions_units(src, dst, bands)
     colours = list(dst.colorinterp)
     for k, b in enumerate(bands):
-        if src.descriptions[b - 1]:
-            dst.set_band_description(k + 1, src.descriptions[b - 1])
-        if src.units[b - 1]:
-            dst.set_band_unit(k + 1, src.units[b - 1])
         ci = src.colorinterp[b - 1]
         if ci not in (ColorInterp.gray, ColorInterp.undefined, ColorInterp.alpha) \
                 and colours[k] != ColorInterp.alpha:
@@ -436,11 +443,8 @@ def copy_band_metadata(src: Any, dst: Any, bands: Any = None) -> None:
     tags = src.tags()
     if tags:
         dst.update_tags(**tags)
+    _copy_descriptions_units(src, dst, bands)
     for k, b in enumerate(bands, start=1):
-        if src.descriptions[b - 1]:
-            dst.set_band_description(k, src.descriptions[b - 1])
-        if src.units[b - 1]:
-            dst.set_band_unit(k, src.units[b - 1])
         band_tags = {key: v for key, v in src.tags(b).items()
                      if not key.startswith("STATISTICS_")}
         if band_tags:

@@ -3,6 +3,7 @@ geometry kind (for a layer holding every code of that kind)."""
 
 from __future__ import annotations
 
+from collections.abc import Iterable, Sequence
 from pathlib import Path
 
 from toolbox.io.code_file import CodeTable
@@ -44,3 +45,22 @@ def write_style_files(stem: Path, qml: str, sld: str | None) -> None:
     stem.with_name(f"{stem.name}.qml").write_text(qml, encoding="utf-8")
     if sld:
         stem.with_name(f"{stem.name}.sld").write_text(sld, encoding="utf-8")
+
+
+def write_layer_style_files(target: Path, qml: str, sld: str | None,
+                            fields: Sequence[str] | None = None,
+                            referenced: Iterable[str | None] = ()) -> None:
+    """The style ``qml``/``sld`` beside the one-layer file ``target`` (``<stem>.qml``/``.sld``,
+    :func:`write_style_files`). A Shapefile holds its field names cut to 10 characters (and
+    made unique: ``quadrati_1``): its style names them as the file holds them, read from the
+    file (:func:`toolbox.io.vector_write.shapefile_renames`): by the order ``fields`` were
+    written when the writer knows it (exact), else each ``referenced`` field by its cut when
+    the file holds that. The one writer of attribution's styles and the runner's declared
+    ones."""
+    from toolbox.io.vector import vector_driver
+    from toolbox.io.vector_write import rename_style_fields, shapefile_renames
+
+    if target.is_file() and vector_driver(target) == "ESRI Shapefile" and (fields or referenced):
+        renames = shapefile_renames(target, fields, referenced)
+        qml, sld = rename_style_fields(qml, renames), rename_style_fields(sld, renames)
+    write_style_files(target.with_suffix(""), qml, sld)

@@ -150,9 +150,8 @@ def write_declared_style_files(path: str | Path,
     QML and SLD as ``<layer file stem>.qml`` / ``.sld``; a layer file not written is skipped.
     A Shapefile's style names the fields it references as the file holds them (cut to 10
     characters). Returns the files written."""
-    from toolbox.io.vector import vector_driver
-    from toolbox.io.vector_write import layer_paths, rename_style_fields
-    from toolbox.styles.files import write_style_files
+    from toolbox.io.vector_write import layer_paths
+    from toolbox.styles.files import write_layer_style_files
     from toolbox.styles.qml import qml_document
     from toolbox.styles.sld import sld_document
 
@@ -167,11 +166,8 @@ def write_declared_style_files(path: str | Path,
         if kind is not None and _file_kind(target) not in (kind, None):
             continue  # the file holds another layer (written in another order): not its style
         model = STYLES[style](name, kind)
-        qml, sld = qml_document(model), sld_document(model)
-        if vector_driver(target) == "ESRI Shapefile":
-            renames = _cut_field_names(target, [model.field, model.label_field])
-            qml, sld = rename_style_fields(qml, renames), rename_style_fields(sld, renames)
-        write_style_files(target.with_suffix(""), qml, sld)
+        write_layer_style_files(target, qml_document(model), sld_document(model),
+                                referenced=[model.field, model.label_field])
         written += style_file_names(target)
     return written
 
@@ -184,12 +180,3 @@ def _file_kind(path: Path) -> str | None:
 
     return _kind(open_layer(path, "OUTPUT").geometry_type)
 
-
-def _cut_field_names(shapefile: Path, names: list[str | None]) -> dict[str, str]:
-    """``{name: name in the file}`` of the field ``names`` longer than a DBF field name (10
-    characters) that the Shapefile holds cut."""
-    import pyogrio
-
-    held = {str(f) for f in pyogrio.read_info(shapefile)["fields"]}
-    return {name: name[:10] for name in names
-            if name and name not in held and name[:10] in held}
