@@ -53,6 +53,7 @@ from toolbox.raster.maps import (
 from toolbox.raster.resample import (
     CV2_DTYPES,
     EXTRA_RESAMPLING,
+    RESAMPLING_MARGIN,
     RESAMPLING_METHODS,
     deinterleave,
     inside_mask,
@@ -310,8 +311,8 @@ def warp_window(read: Callable[[list[int], Any], np.ndarray], source_size: tuple
         if not all_inside:
             intervals = coordinate_map.inside_intervals(window, width, height)
 
-        def sample(pixels: np.ndarray, method: str, border: float = 0) -> np.ndarray:
-            return warp_perspective(pixels, matrix, (out_w, out_h), method, border)
+        def sample(pixels: np.ndarray, method: str) -> np.ndarray:  # (border 0: see _warp_packed)
+            return warp_perspective(pixels, matrix, (out_w, out_h), method)
     else:
         if planned:  # ready OpenCV maps, OUTSIDE where the centre is outside the photo
             map_x, map_y = coordinate_map.planned_maps(plan)
@@ -323,8 +324,8 @@ def warp_window(read: Callable[[list[int], Any], np.ndarray], source_size: tuple
             map_x = (cols - np.float32(shift_c)).astype("float32", copy=False)
             map_y = (rows - np.float32(shift_r)).astype("float32", copy=False)
 
-        def sample(pixels: np.ndarray, method: str, border: float = 0) -> np.ndarray:
-            return remap(pixels, map_x, map_y, method, border)
+        def sample(pixels: np.ndarray, method: str) -> np.ndarray:  # (border 0: see _warp_packed)
+            return remap(pixels, map_x, map_y, method)
     n_data = len(layout.data_bands)
     packed = (use_fast or planned) and layout.source_alpha is None \
         and not layout.source_masked and layout.count in (1, 3, 4) \
@@ -333,7 +334,8 @@ def warp_window(read: Callable[[list[int], Any], np.ndarray], source_size: tuple
     # levels from its 1-, 3- and 4-channel ones)
     if packed:
         packed_out = _warp_packed(read(layout.data_bands, src_win), pads, layout,
-                                  lambda buf: sample(buf, resampling, layout.fill), intervals)
+                                  lambda buf: sample(buf, resampling), intervals,
+                                  map_x if planned else None)
         if _marks_nodata(layout):  # (an alpha output pays nothing)
             _keep_valid_off_nodata(packed_out, layout, True, intervals,
                                    map_x if planned else None)
@@ -356,9 +358,9 @@ def warp_window(read: Callable[[list[int], Any], np.ndarray], source_size: tuple
         if not layout.alpha:
             source_valid = alpha >= layout.alpha_max / 2
     elif layout.source_masked and read_mask is not None:
-        mask = sample(pad_at_photo_edges(read_mask(src_win), pads),
-                      "nearest" if resampling == "nearest" else "bilinear")
-        source_valid = mask >= 255
+        touched = sample(pad_at_photo_edges(_invalid_weight(read_mask(src_win), resampling),
+                                            pads), "nearest" if resampling == "nearest" else "bilinear")
+        source_valid = touched == 0
     if source_valid is not None and intervals is not None:
         inside = mask_from_intervals(*intervals, out_w)
         intervals = None
@@ -380,6 +382,28 @@ def warp_window(read: Callable[[list[int], Any], np.ndarray], source_size: tuple
         if layout.alpha:
             out[-1][invalid] = 0
     yield window, out
+
+
+def _invalid_weight(mask: np.ndarray, resampling: str) -> np.ndarray:
+    """The source validity ``mask`` (h, w) uint8 0/255 as float32 1 on the pixels a cell may
+    not touch, 0 elsewhere: its bilinear (nearest) sample is 0 exactly where every pixel of
+    ``resampling``'s kernel is valid.
+
+    A cell's bilinear taps are pixels ``i, i + 1`` per axis; cubic's (and quadratic's) reach
+    one pixel further each side, lanczos' three (:data:`RESAMPLING_MARGIN` - 1): the mask is
+    eroded by that radius. The sample is float (bilinear weights are >= 0): any invalid tap
+    with a weight makes it > 0, where a uint8 mask rounds weights under 2/1024 away. Tested
+    with a uint8 bilinear sample of the mask alone (>= 255), a cubic or lanczos sample next
+    to a nodata pixel took its value with the kernel's outer weights (a -9999 nodata put
+    1196 on a photo of 30..250) and was kept valid, and a bilinear one up to 19. (OpenCV's
+    erosion leaves the window's border alone: the window holds the kernel of every cell it
+    serves.)"""
+    import cv2
+
+    radius = RESAMPLING_MARGIN[resampling] - 1
+    if radius > 0:
+        mask = cv2.erode(mask, np.ones((2 * radius + 1, 2 * radius + 1), np.uint8))
+    return (mask == 0).astype(np.float32)
 
 
 def _marks_nodata(layout: OutputLayout) -> bool:
@@ -438,15 +462,24 @@ def _keep_valid_off_nodata(data: np.ndarray, layout: OutputLayout, valid: np.nda
 
 
 def _warp_packed(data: np.ndarray, pads: tuple[int, int, int, int], layout: OutputLayout,
-                 sample: Callable[[np.ndarray], np.ndarray], intervals) -> np.ndarray:
+                 sample: Callable[[np.ndarray], np.ndarray], intervals,
+                 planned_x: np.ndarray | None = None) -> np.ndarray:
     """The packed path of :func:`warp_window` for a source without alpha band or mask: the
     source bands ``data`` (bands, h, w) are merged pixel-interleaved into a buffer that has the
     edge pads of :func:`pad_at_photo_edges` (filled by replicating the edge rows and columns,
     without copying the window again) and, for an alpha output, an opaque alpha channel; one
-    OpenCV call ``sample(buffer)`` resamples every band (alpha stays opaque inside the photo,
-    and is the border value 0 outside it). Cells outside the photo get ``layout.fill`` and
-    alpha 0: from OpenCV's border (a planned map) or row by row from ``intervals`` (a
-    homography). With an alpha band ``fill`` is 0. Returns a (count, h, w) view of the (h, w,
+    OpenCV call ``sample(buffer)`` resamples every band with the border value 0 (alpha stays
+    opaque inside the photo, and is 0 outside it). Cells outside the photo get ``layout.fill``
+    and alpha 0: from the border (fill 0, as with an alpha band) or row by row from
+    ``intervals`` (a homography), or where a planned map's ``planned_x`` is
+    :data:`~toolbox.raster.maps.OUTSIDE`.
+
+    The border is never the fill itself: OpenCV's cubic and lanczos start a sample that has
+    a kernel tap off the buffer from the border value (``border + sum(w * (pixel - border))``),
+    and it decides that for groups of cells, not cell by cell: a NaN fill made NaN of cells
+    whose whole kernel lies on the photo, up to several cells inside its edge (753 of 24580
+    cells of a float photo rectified with cubic), and a large fill (-3.4e38) loses their
+    precision; quadratic takes no border at all. Returns a (count, h, w) view of the (h, w,
     count) result: GDAL writes pixel-interleaved GeoTIFFs from it without a layout conversion."""
     import cv2
 
@@ -477,6 +510,8 @@ def _warp_packed(data: np.ndarray, pads: tuple[int, int, int, int], layout: Outp
     out = sampled.transpose(2, 0, 1)
     if intervals is not None:
         fill_outside_intervals(out, *intervals, layout.fill)
+    elif planned_x is not None and layout.fill != 0:  # (NaN too; an alpha output pays nothing)
+        sampled[planned_x == OUTSIDE] = layout.fill
     return out
 
 
