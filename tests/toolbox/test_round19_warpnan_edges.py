@@ -197,3 +197,23 @@ def test_ortho_bilinear_next_to_nodata_pixels(tmp_path):
     assert (valid == nan_valid).all()
     assert not (valid & ~ref_valid).any()
     np.testing.assert_allclose(out[valid], ref[valid], atol=1e-3)
+
+
+def test_alpha_photo_with_outside_nodata_is_a_parameter_error(tmp_path, transform):
+    """A photo with an alpha band keeps it as the output's alpha; OUTSIDE=nodata asked for a
+    nodata value too, which the writer refused after the work: exit 3, 'internal error'. Now
+    exit 2 naming OUTSIDE, no output."""
+    from toolbox.errors import ParameterError
+
+    gray = np.full((2, H, W), 200, "uint8")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
+        with rasterio.open(tmp_path / "ga.tif", "w", driver="GTiff", width=W, height=H,
+                           count=2, dtype="uint8", alpha="YES") as dst:
+            dst.write(gray)
+    with pytest.raises(ParameterError) as err:  # (the CLI's exit 2)
+        toolbox.run("rectify:image", {"INPUT": tmp_path / "ga.tif", "TRANSFORM": transform,
+                                      "OUTSIDE": "nodata", "OUTPUT": tmp_path / "o.tif"})
+    assert err.value.name == "OUTSIDE"
+    assert "nodata does not apply to a photo with an alpha band (band 2" in str(err.value)
+    assert not (tmp_path / "o.tif").exists()

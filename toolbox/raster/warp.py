@@ -141,7 +141,8 @@ def output_layout(src: Any, outside: str = "alpha", nodata: float | None = None)
 
     ``outside = "alpha"`` adds an alpha band (0 outside the photo, the dtype's maximum inside);
     ``"nodata"`` fills outside pixels with ``nodata`` (default: the source nodata, else 0 for
-    integers and NaN for floats). A source alpha band is resampled and always kept as alpha.
+    integers and NaN for floats). A source alpha band is resampled and always kept as alpha
+    (``"nodata"`` is then refused: :class:`~toolbox.errors.ParameterError` on OUTSIDE).
     Only Byte and UInt16 rasters get an alpha band (GDAL reads no other alpha as a mask): the
     others mark the outside (and a source alpha's transparent cells) with nodata, by default the
     source's, else NaN for floats and the type's extreme for integers (:func:`_outside_value`).
@@ -166,6 +167,14 @@ def output_layout(src: Any, outside: str = "alpha", nodata: float | None = None)
         if outside == "alpha" and nodata is None and src.nodata is None:
             nodata = _outside_value(np.dtype(dtype))
         outside = "nodata"
+    if outside == "nodata" and source_alpha is not None and alpha_masks:
+        # (the output keeps the photo's alpha: it would get an alpha band and a nodata value,
+        # which the writer refuses, an internal error after the work)
+        bands = " ".join(f"-b {b}" for b in data_bands)
+        raise ParameterError("OUTSIDE", f"nodata does not apply to a photo with an alpha band "
+                             f"(band {source_alpha}, kept as the output's alpha): use "
+                             f"OUTSIDE=alpha, or warp its other bands "
+                             f"(gdal_translate {bands} photo.tif bands.tif)")
     alpha = outside == "alpha" or (source_alpha is not None and alpha_masks)
     out_nodata = None
     if outside == "nodata":
