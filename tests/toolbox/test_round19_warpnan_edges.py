@@ -219,14 +219,20 @@ def test_alpha_photo_with_outside_nodata_is_a_parameter_error(tmp_path, transfor
     assert not (tmp_path / "o.tif").exists()
 
 
-@pytest.mark.parametrize("resampling", ["bilinear", "cubic"])
-def test_alpha_photo_colours_next_to_transparent_pixels(tmp_path, transform, resampling):
+@pytest.mark.parametrize(("resampling", "pattern", "cell"), [
+    ("bilinear", "hole", 0.5), ("cubic", "hole", 0.5), ("bilinear", "checker", 0.25)])
+def test_alpha_photo_colours_next_to_transparent_pixels(tmp_path, transform, resampling,
+                                                        pattern, cell):
     """An RGBA photo whose transparent pixels hold black: the cells next to them mixed the
     black in (82 grey levels darker than gdalwarp's with bilinear, 83 with cubic: a dark
-    fringe); GDAL weighs the colours by alpha, as the warp now does."""
+    fringe); GDAL weighs the colours by alpha, as the warp now does. (checker: most of the
+    98000 cells are next to a transparent pixel, more than an OpenCV map's 32767 a side.)"""
     grey = np.clip(texture()[0], 0, 255).astype("uint8")
     hole = np.zeros((H, W), bool)
-    hole[30:45, 50:75] = True
+    if pattern == "hole":
+        hole[30:45, 50:75] = True
+    else:
+        hole[::3, ::3] = True
     bands = np.stack([np.where(hole, 0, grey), np.where(hole, 0, 255 - grey),
                       np.where(hole, 0, grey // 2 + 60), np.where(hole, 0, 255)]).astype("uint8")
     for name, extra in (("p.tif", {}), ("pg.tif", {"transform": GEO, "crs": "EPSG:3003"})):
@@ -236,7 +242,7 @@ def test_alpha_photo_colours_next_to_transparent_pixels(tmp_path, transform, res
                                dtype="uint8", photometric="RGB", alpha="YES", **extra) as dst:
                 dst.write(bands)
     toolbox.run("rectify:image", {"INPUT": tmp_path / "p.tif", "TRANSFORM": transform,
-                                  "CELL_SIZE": 0.5, "RESAMPLING": resampling, "COG": False,
+                                  "CELL_SIZE": cell, "RESAMPLING": resampling, "COG": False,
                                   "OVERVIEWS": False, "OUTPUT": tmp_path / "o.tif"})
     with rasterio.open(tmp_path / "o.tif") as ds:
         out, bounds, shape = ds.read(), ds.bounds, ds.shape
@@ -246,7 +252,7 @@ def test_alpha_photo_colours_next_to_transparent_pixels(tmp_path, transform, res
     with rasterio.open(tmp_path / "g.tif") as ds:
         ref = ds.read()
     both = (out[3] > 0) & (ref[3] > 0)
-    assert both.sum() > 23000
+    assert both.sum() > 20000
     assert (out[3][ref[3] > 0] > 0).all()
     diff = np.abs(out[:3, both].astype(int) - ref[:3, both]).max()
     assert diff <= 2, diff

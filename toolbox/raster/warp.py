@@ -364,7 +364,9 @@ def warp_window(read: Callable[[list[int], Any], np.ndarray], source_size: tuple
     if layout.source_alpha is not None:
         source_alpha = read([layout.source_alpha], src_win)[0]
         alpha = sample(pad_at_photo_edges(source_alpha, pads), resampling)
-        _weigh_by_alpha(out[:n_data], pixels, source_alpha, layout, pads, resampling, sample)
+        _weigh_by_alpha(out[:n_data], pixels, source_alpha, layout, pads, resampling, sample,
+                        (lambda r, c: _perspective_points(matrix, r, c)) if use_fast else
+                        (lambda r, c: (map_x[r, c], map_y[r, c])))
         if not layout.alpha:
             source_valid = alpha >= layout.alpha_max / 2
     elif layout.source_masked and read_mask is not None:
@@ -395,35 +397,79 @@ def warp_window(read: Callable[[list[int], Any], np.ndarray], source_size: tuple
 
 
 def _weigh_by_alpha(out: np.ndarray, pixels: np.ndarray, source_alpha: np.ndarray,
-                    layout: OutputLayout, pads: tuple[int, int, int, int],
-                    resampling: str, sample: Callable[[np.ndarray, str], np.ndarray]) -> None:
+                    layout: OutputLayout, pads: tuple[int, int, int, int], resampling: str,
+                    sample: Callable[[np.ndarray, str], np.ndarray],
+                    points: Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]
+                    ) -> None:
     """The colours ``out`` (data bands, h, w) of the cells whose kernel holds a (partly)
     transparent photo pixel, weighted by the pixels' alpha, in place: ``sum(w a c) / sum(w a)``
     (the colour of the opaque pixels around, as GDAL's warper weighs a source alpha), not
     ``sum(w c)``, which mixed in the colour kept under transparent pixels (often black: a
     dark fringe, 60 to 90 grey levels off next to a transparent area). ``pixels`` and
-    ``source_alpha`` are the source window's bands and alpha; cells whose kernel is opaque
-    keep their value. Byte and UInt16 photos (whose alpha band GDAL reads as a mask)."""
+    ``source_alpha`` are the source window's bands and alpha; ``points(rows, cols)`` the
+    OpenCV coordinates (in the padded window) of output cells. Cells whose kernel is opaque
+    keep their value; the others (found by one sample of the transparent pixels grown by the
+    kernel's reach) are sampled again, alone, from the part of the window around them. Byte
+    and UInt16 photos (whose alpha band GDAL reads as a mask)."""
+    import cv2
+
+    from toolbox.raster.resample import cv2_interpolation
+
     amax = layout.alpha_max
     if resampling == "nearest" or layout.dtype not in ALPHA_MASK_DTYPES:
         return
-    if (source_alpha == amax).all():
+    clear = (source_alpha < amax).view(np.uint8)
+    if not cv2.countNonZero(clear):
         return
-    weight = source_alpha.astype(np.float32) * np.float32(1.0 / amax)
-    total = sample(pad_at_photo_edges(weight, pads), resampling)
+    radius = RESAMPLING_MARGIN[resampling] - 1
+    if radius > 0:
+        clear = cv2.dilate(clear, np.ones((2 * radius + 1, 2 * radius + 1), np.uint8))
+    touched = sample(pad_at_photo_edges(clear * np.float32(1), pads), "bilinear") > 0
+    rows, cols = np.nonzero(touched)
+    if not rows.size:
+        return
+    xs, ys = (np.asarray(v, dtype=np.float64) for v in points(rows, cols))
+    bands = interleave(pixels)
+    padded = pad_at_photo_edges(bands, pads)
+    weight = pad_at_photo_edges(source_alpha, pads)
+    reach = RESAMPLING_MARGIN[resampling] + 1
+    height, width = padded.shape[:2]
+    x0 = int(max(math.floor(xs.min()) - reach, 0))
+    y0 = int(max(math.floor(ys.min()) - reach, 0))
+    x1 = int(min(math.ceil(xs.max()) + reach + 1, width))
+    y1 = int(min(math.ceil(ys.max()) + reach + 1, height))
+    if x1 <= x0 or y1 <= y0:
+        return
+    weight = weight[y0:y1, x0:x1].astype(np.float32) * np.float32(1.0 / amax)
+    part = padded[y0:y1, x0:x1].astype(np.float32)
+    part *= weight if part.ndim == 2 else weight[:, :, None]
+    # the points as rows of a map (OpenCV takes maps under 32767 a side; np.resize fills the
+    # last row by repeating them)
+    n, side = len(xs), 4096
+    shape = (-(-len(xs) // side), min(len(xs), side))
+    map_x = np.resize((xs - x0).astype(np.float32), shape)
+    map_y = np.resize((ys - y0).astype(np.float32), shape)
+    flag = cv2_interpolation(resampling)
+    total = cv2.remap(weight, map_x, map_y, flag, borderMode=cv2.BORDER_CONSTANT).ravel()[:n]
+    colours = remap(part, map_x, map_y, resampling).reshape(shape[0] * shape[1], -1)[:n]
     # (a cubic or lanczos tap on a transparent pixel may be outweighed: alpha saturates at its
     # maximum, the weights' sum over the opaque taps is not 1)
-    partial = (np.abs(total - 1) > 1e-4) & (total > 0)
-    if not partial.any():
+    redo = (np.abs(total - 1) > 1e-4) & (total > 0)
+    if not redo.any():
         return
-    premultiplied = pixels.astype(np.float32) * weight
-    colours = sample(pad_at_photo_edges(interleave(premultiplied), pads), resampling)
-    if colours.ndim == 2:
-        colours = colours[:, :, None]
     info = np.iinfo(np.dtype(layout.dtype))
-    for k in range(out.shape[0]):
-        out[k][partial] = np.clip(np.rint(colours[:, :, k][partial] / total[partial]),
-                                  info.min, info.max)
+    values = np.clip(np.rint(colours[redo] / total[redo, None]), info.min, info.max)
+    out[:, rows[redo], cols[redo]] = values.T.astype(out.dtype)
+
+
+def _perspective_points(matrix: np.ndarray, rows: np.ndarray,
+                        cols: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """OpenCV source coordinates of output cells (``rows``, ``cols`` of the window) by the
+    ``cv2.warpPerspective`` matrix (output index -> source, ``WARP_INVERSE_MAP``)."""
+    c, r = cols.astype(np.float64), rows.astype(np.float64)
+    w = matrix[2, 0] * c + matrix[2, 1] * r + matrix[2, 2]
+    return ((matrix[0, 0] * c + matrix[0, 1] * r + matrix[0, 2]) / w,
+            (matrix[1, 0] * c + matrix[1, 1] * r + matrix[1, 2]) / w)
 
 
 def _invalid_weight(mask: np.ndarray, resampling: str) -> np.ndarray:
