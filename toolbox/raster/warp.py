@@ -562,13 +562,12 @@ def _warp_packed(data: np.ndarray, pads: tuple[int, int, int, int], layout: Outp
     ``intervals`` (a homography), or where a planned map's ``planned_x`` is
     :data:`~toolbox.raster.maps.OUTSIDE`.
 
-    The border is never the fill itself: OpenCV's cubic and lanczos start a sample that has
-    a kernel tap off the buffer from the border value (``border + sum(w * (pixel - border))``),
-    and it decides that for groups of cells, not cell by cell: a NaN fill made NaN of cells
-    whose whole kernel lies on the photo, up to several cells inside its edge (753 of 24580
-    cells of a float photo rectified with cubic), and a large fill (-3.4e38) loses their
-    precision; quadratic takes no border at all. Returns a (count, h, w) view of the (h, w,
-    count) result: GDAL writes pixel-interleaved GeoTIFFs from it without a layout conversion."""
+    The border is never the fill itself: OpenCV starts a sample that has a kernel tap off the
+    buffer from the border value (``border + sum(w * (pixel - border))``), and with cubic it
+    decides that for groups of cells, not cell by cell: a NaN fill made NaN of cells whose
+    whole kernel lies on the photo, several cells inside its edge (753 of 24580 cells of a
+    float photo rectified with cubic). Returns a (count, h, w) view of the (h, w, count)
+    result: GDAL writes pixel-interleaved GeoTIFFs from it without a layout conversion."""
     import cv2
 
     top, bottom, left, right = pads
