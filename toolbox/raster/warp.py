@@ -55,6 +55,7 @@ from toolbox.raster.resample import (
     EXTRA_RESAMPLING,
     RESAMPLING_MARGIN,
     RESAMPLING_METHODS,
+    cv2_interpolation,
     deinterleave,
     inside_mask,
     interleave,
@@ -412,8 +413,6 @@ def _weigh_by_alpha(out: np.ndarray, pixels: np.ndarray, source_alpha: np.ndarra
     kernel's reach) are sampled again, alone, from the part of the window around them. Byte
     and UInt16 photos (whose alpha band GDAL reads as a mask)."""
     import cv2
-
-    from toolbox.raster.resample import cv2_interpolation
 
     amax = layout.alpha_max
     if resampling == "nearest" or layout.dtype not in ALPHA_MASK_DTYPES:
