@@ -55,7 +55,6 @@ from toolbox.raster.resample import (
     EXTRA_RESAMPLING,
     RESAMPLING_MARGIN,
     RESAMPLING_METHODS,
-    cv2_interpolation,
     deinterleave,
     inside_mask,
     interleave,
@@ -448,8 +447,7 @@ def _weigh_by_alpha(out: np.ndarray, pixels: np.ndarray, source_alpha: np.ndarra
     shape = (-(-len(xs) // side), min(len(xs), side))
     map_x = np.resize((xs - x0).astype(np.float32), shape)
     map_y = np.resize((ys - y0).astype(np.float32), shape)
-    flag = cv2_interpolation(resampling)
-    total = cv2.remap(weight, map_x, map_y, flag, borderMode=cv2.BORDER_CONSTANT).ravel()[:n]
+    total = remap(weight, map_x, map_y, resampling).ravel()[:n]
     colours = remap(part, map_x, map_y, resampling).reshape(shape[0] * shape[1], -1)[:n]
     # (a cubic or lanczos tap on a transparent pixel may be outweighed: alpha saturates at its
     # maximum, the weights' sum over the opaque taps is not 1)
