@@ -153,6 +153,8 @@ class RectifyImage(Algorithm):
                                        front=(float(centre[0, 0]), float(centre[0, 1])))
         try:
             layout = warp_layout(info, params["OUTSIDE"], params["NODATA"])
+        except ParameterError:
+            raise
         except ValueError as exc:
             raise ParameterError("NODATA" if params["NODATA"] is not None else "INPUT",
                                  str(exc)) from None
