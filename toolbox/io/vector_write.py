@@ -111,7 +111,8 @@ def write_layers(path: str | Path, layers: dict[str, Any], crs: Any = None,
     for layer_name, frame in layers.items():
         if crs is not None and frame.crs is None:
             frame = frame.set_crs(crs)
-        types = geometry_type_names(frame.geometry.values) if len(frame) else set()
+        geometry = frame.geometry  # a new GeoSeries at each access: taken once
+        types = geometry_type_names(geometry.values) if len(frame) else set()
         kinds = {kind for kind, family in _GEOMETRY_FAMILIES.items() if types & set(family)}
         if len(kinds) > 1:
             raise ValueError(f"internal: layer '{layer_name}' mixes {' and '.join(sorted(kinds))}"
@@ -132,10 +133,10 @@ def write_layers(path: str | Path, layers: dict[str, Any], crs: Any = None,
             kwargs["dataset_options"] = GPKG_DATASET_OPTIONS
         if driver == "GPKG":
             kwargs["layer_options"] = _fid_column(frame)
-        if driver == "FlatGeobuf" and len(frame) and frame.geometry.isna().any():
+        if driver == "FlatGeobuf" and len(frame) and geometry.isna().any():
             kwargs["layer_options"] = {"SPATIAL_INDEX": "NO"}  # its index takes no null geometry
         with staged_gpkg_writes(), writing(target), warnings.catch_warnings():
-            if frame.crs is None:  # a layer without CRS as read (stored coordinates): meant
+            if geometry.crs is None:  # a layer without CRS as read (stored coordinates): meant
                 warnings.filterwarnings("ignore", "'crs' was not provided", UserWarning)
             warnings.filterwarnings("ignore", "Normalized/laundered field name")  # see below
             warnings.filterwarnings("ignore", "Value '.*' of field .* has been truncated")
@@ -143,20 +144,21 @@ def write_layers(path: str | Path, layers: dict[str, Any], crs: Any = None,
             if not (arrow and driver == "GPKG"
                     and _write_arrow(frame, target, layer_name, kwargs)):
                 resolved = _resolved_promotion(kwargs, driver, types, len(frame))
-                if not _write_plain(frame, target, layer_name, driver, resolved, crs_texts):
+                if not _write_plain(frame, geometry, target, layer_name, driver, resolved,
+                                    crs_texts):
                     pyogrio.write_dataframe(frame, target, layer=layer_name, driver=driver,
                                             **resolved)
         if driver == "GPKG":
-            declare_optional_z(target, layer_name, frame.geometry.values,
+            declare_optional_z(target, layer_name, geometry.values,
                                kwargs.get("geometry_type"))
         if driver == "ESRI Shapefile":
-            fields = [c for c in frame.columns if c != frame.geometry.name]
+            fields = [c for c in frame.columns if c != geometry.name]
             warn_renamed_fields(target, fields)
             warn_cut_texts(target, {c: frame[c].to_numpy() for c in fields})
-            warn_made_up_z(target, frame.geometry.values)
+            warn_made_up_z(target, geometry.values)
         if driver == "GeoJSON":
             warn_infinite_values(target, {c: frame[c].to_numpy() for c in frame.columns
-                                          if c != frame.geometry.name})
+                                          if c != geometry.name})
     return path
 
 
@@ -183,8 +185,8 @@ def _resolved_promotion(kwargs: dict[str, Any], driver: str, types: set[str],
     return {**kwargs, "promote_to_multi": promote}
 
 
-def _write_plain(frame, target: Path, layer: str, driver: str, kwargs: dict[str, Any],
-                 crs_texts: dict[int, tuple[Any, str]]) -> bool:
+def _write_plain(frame, geometry, target: Path, layer: str, driver: str,
+                 kwargs: dict[str, Any], crs_texts: dict[int, tuple[Any, str]]) -> bool:
     """What ``pyogrio.write_dataframe(frame, target, layer=layer, driver=driver, **kwargs)``
     does without Arrow once ``geometry_type`` and ``promote_to_multi`` are given
     (:func:`_resolved_promotion`): the same columns, masks, WKB and CRS text handed to
@@ -192,7 +194,8 @@ def _write_plain(frame, target: Path, layer: str, driver: str, kwargs: dict[str,
     ``dtypes`` scan, ``to_epsg`` for each layer of one CRS: about 0.7 ms a layer). False, and
     nothing written, for a frame that needs pyogrio's own conversion (dates with a time zone,
     a second geometry column) or a layer whose promotion it resolves itself.
-    ``crs_texts`` keeps the CRS text of the CRS objects already seen (``id`` -> (CRS, text))."""
+    ``geometry``: ``frame.geometry``; ``crs_texts`` keeps the CRS text of the CRS objects
+    already seen (``id`` -> (CRS, text))."""
     import pandas as pd
     import pyogrio.raw
     from geopandas.array import GeometryDtype, to_wkb
@@ -200,7 +203,6 @@ def _write_plain(frame, target: Path, layer: str, driver: str, kwargs: dict[str,
 
     if "geometry_type" not in kwargs or "promote_to_multi" not in kwargs:
         return False
-    geometry = frame.geometry
     fields, data, masks = [], [], []
     for name in frame.columns:
         if name == geometry.name:
