@@ -103,10 +103,14 @@ def window_labels(plan: MosaicPlan, window: Any, valid: np.ndarray) -> np.ndarra
         return np.where(own_valid, labels, first).astype("int16")
     first = np.full(shape, -1, dtype="int16")  # the first source with data, -1 = none
     own_valid = np.zeros(shape, dtype=bool)  # the polygon's source has data
+    here = np.empty(shape, dtype=bool)
     for k in reversed(present):  # a few passes, faster than the gather (2-4x for 1-3 sources)
-        first[valid[k]] = k
-        own_valid |= valid[k] & (labels == k)
-    return np.where(own_valid, labels, first)
+        np.copyto(first, k, where=valid[k])  # no index arrays, unlike first[valid[k]] = k
+        np.equal(labels, k, out=here)
+        here &= valid[k]
+        own_valid |= here
+    np.copyto(first, labels, where=own_valid)
+    return first
 
 
 def clipped_window(grid: Any, tile: Any) -> tuple[Any, tuple[slice, slice]]:
