@@ -202,6 +202,13 @@ def output_layout(src: Any, outside: str = "alpha", nodata: float | None = None)
     if outside == "nodata" and source_alpha is not None and alpha_masks:
         # (the output keeps the photo's alpha: it would get an alpha band and a nodata value,
         # which the writer refuses, an internal error after the work)
+        name = str(getattr(src, "name", ""))
+        if name.startswith("vrt://") and name.endswith("?expand=rgba"):  # paletted: photo_path
+            raise ParameterError("OUTSIDE", f"nodata does not apply to a paletted photo with "
+                                 f"transparency (read as RGBA, its alpha kept as the output's):"
+                                 f" use OUTSIDE=alpha, or warp its colours without the "
+                                 f"transparency (gdal_translate -expand rgb "
+                                 f"'{name[6:-12]}' photo_rgb.tif)")
         bands = " ".join(f"-b {b}" for b in data_bands)
         raise ParameterError("OUTSIDE", f"nodata does not apply to a photo with an alpha band "
                              f"(band {source_alpha}, kept as the output's alpha): use "
