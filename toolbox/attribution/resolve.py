@@ -63,6 +63,23 @@ def _polygons_from_lines(geoms: np.ndarray, drop_last: np.ndarray, close: np.nda
     return shapely.polygons(rings)
 
 
+FLAT_TOLERANCE = 1e-12
+"""A polygon whose convex hull's area is at most ``FLAT_TOLERANCE x d x (d + m)`` (``d`` its
+bounding box's diagonal, ``m`` its largest absolute coordinate) has all its vertices on one line
+but for rounding: a width below ``1e-12`` of its extent plus its distance from the origin (5 um
+at Siena's Gauss-Boaga coordinates, where a coordinate's rounding step is 1 nm). Exactly zero
+area told such lines apart by where they lay: near the origin some, far from it none."""
+
+
+def _collinear(shapes: np.ndarray) -> np.ndarray:
+    """Whether each polygon's vertices lie on one line (:data:`FLAT_TOLERANCE`)."""
+    area = shapely.area(shapely.convex_hull(shapes))
+    box = shapely.bounds(shapes)
+    diagonal = np.hypot(box[:, 2] - box[:, 0], box[:, 3] - box[:, 1])
+    reach = np.abs(box).max(axis=1) if len(box) else np.zeros(0)
+    return area <= FLAT_TOLERANCE * diagonal * (diagonal + reach)
+
+
 def resolve_geometries(geoms: np.ndarray, declared: np.ndarray, closure: float
                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """(kind, geometry, reason, detail) of each entity: reason None when usable.
@@ -143,7 +160,7 @@ def resolve_geometries(geoms: np.ndarray, declared: np.ndarray, closure: float
             shapes[sel] = _polygons_from_lines(shapes[sel], drop, close[sel], with_z)
     ok = ~open_
     flat = np.zeros(len(pol), bool)
-    flat[ok] = shapely.area(shapely.convex_hull(shapes[ok])) <= 0  # all vertices on one line
+    flat[ok] = _collinear(shapes[ok])  # all vertices on one line
     fail(pol[flat], "degenerate", "polygon of zero area")
     ok &= ~flat
     invalid = np.zeros(len(pol), bool)
