@@ -225,6 +225,7 @@ def run_pipeline(pipeline: Pipeline, feedback: Feedback | None = None, overwrite
     results: dict[str, dict[str, Any]] = {}
     n = len(pipeline.steps)
     names = [step.name for step in pipeline.steps]
+    written: set[Path] = set()  # the files the steps run so far wrote
     if report_dir is not None and overwrite:  # an earlier run's reports of these steps describe
         for name in names:                    # that run: gone first, as a step that reads the
             (Path(report_dir) / f"{name}.json").unlink(missing_ok=True)  # folder would use them
@@ -238,7 +239,7 @@ def run_pipeline(pipeline: Pipeline, feedback: Feedback | None = None, overwrite
                 value = _absolutise(value, pipeline.base_dir, alg.parameter(key))
             params[key] = value
         feedback.push_info(f"step {i + 1}/{n} {step.name}: {alg.id}")
-        _warn_stale_reports(alg, params, names, report_dir, step.name, feedback)
+        _warn_stale_reports(alg, params, names, report_dir, step.name, feedback, written)
         report = None if report_dir is None else Path(report_dir) / f"{step.name}.json"
         try:
             outputs = run(alg.id, params, feedback=feedback.step(100 * i / n, 100 * (i + 1) / n),
@@ -256,13 +257,19 @@ def run_pipeline(pipeline: Pipeline, feedback: Feedback | None = None, overwrite
             raise
         scope[step.name] = outputs
         results[step.name] = outputs
+        for dest in alg.destinations():  # what this run wrote: no earlier run's report
+            if isinstance(outputs.get(dest.name), (str, Path)):
+                written.update(_files_written(dest, _abs(outputs[dest.name])))
     return results
 
 
 def _warn_stale_reports(alg: Any, params: dict[str, Any], names: list[str],
-                        report_dir: str | Path | None, step: str, feedback: Feedback) -> None:
+                        report_dir: str | Path | None, step: str, feedback: Feedback,
+                        written: set[Path] = frozenset()) -> None:
     """A folder input (report:quality's REPORTS) holding reports named after this pipeline's
-    steps that this run does not write there: they are an earlier run's, read as this one's."""
+    steps that this run does not write there: they are an earlier run's, read as this one's.
+    A file an earlier step of this run wrote (``written``: a step's own JSON output named
+    after a step) is this run's, not counted."""
     from toolbox.parameters import Folder
 
     here = None if report_dir is None else Path(report_dir).expanduser().resolve()
@@ -273,7 +280,8 @@ def _warn_stale_reports(alg: Any, params: dict[str, Any], names: list[str],
         folder = Path(value).expanduser()
         if here is not None and folder.resolve() == here:
             continue
-        stale = [name for name in names if (folder / f"{name}.json").is_file()]
+        stale = [name for name in names if (folder / f"{name}.json").is_file()
+                 and (folder / f"{name}.json").resolve() not in written]
         if stale:
             feedback.push_warning(
                 f"step {step!r}: {p.name} '{value}' holds run reports named after steps of this "
