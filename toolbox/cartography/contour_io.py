@@ -278,8 +278,8 @@ def tin_layer_contours(xyz: np.ndarray, triangles: np.ndarray, interval: float,
                          {"triangles": int(len(triangles))})
 
 
-def canonical_order(xy: np.ndarray, counts: np.ndarray, levels: np.ndarray
-                    ) -> tuple[np.ndarray, np.ndarray]:
+def canonical_order(xy: np.ndarray, counts: np.ndarray, levels: np.ndarray,
+                    tolerance: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
     """The canonical order and form of lines given as one vertex buffer ``xy (N, 2)`` (line
     ``i``: ``counts[i]`` vertices after those of lines ``< i``) at ``levels`` (or any keys in
     the levels' order, one a line): the same whatever
@@ -287,26 +287,44 @@ def canonical_order(xy: np.ndarray, counts: np.ndarray, levels: np.ndarray
 
     A closed line (first vertex = last, more than 2 vertices) starts at its least vertex (least
     x, then least y; orientation kept); the lines are sorted by level, then first vertex, then
-    second vertex (x, then y). Returns ``order`` (line ``k`` of the result is line
-    ``order[k]``) and ``source`` (vertex ``p`` of the result is ``xy[source[p]]``), all
-    vectorised over the lines (a few passes over the buffer, no loop per line).
+    second vertex (x, then y), then vertex count. With ``tolerance`` > 0 these comparisons
+    are of the coordinates counted in steps of ``tolerance`` from the least x and y (rounded),
+    so coordinates that differ by rounding only (a few ulps: where the data lie decides
+    which) compare equal and the next key decides: the same order and starts wherever the
+    data lie (the same lines translated by (1,688,000, 4,799,500) swapped two rings, their
+    starts' x equal near the origin, an ulp apart there). Returns ``order`` (line ``k`` of the
+    result is line ``order[k]``) and ``source`` (vertex ``p`` of the result is
+    ``xy[source[p]]``), all vectorised over the lines (a few passes over the buffer, no loop
+    per line).
     """
     n = len(counts)
     if not n:
         return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
     ends = np.cumsum(counts)
     first = ends - counts
-    x = xy[:, 0]
     flat = np.ascontiguousarray(xy).reshape(-1)  # x of vertex i at 2i, y at 2i + 1
+    closed = (counts > 2) & (np.take(flat, 2 * first) == np.take(flat, 2 * ends - 2)) & \
+        (np.take(flat, 2 * first + 1) == np.take(flat, 2 * ends - 1))
+    if tolerance > 0:  # the keys: whole steps of tolerance from the least x, y
+        x = xy[:, 0] - xy[:, 0].min()
+        x *= 1.0 / tolerance
+        np.rint(x, out=x)
+        y_min, y_step = xy[:, 1].min(), 1.0 / tolerance
 
-    def take_x(i):
-        return np.take(flat, 2 * i)
+        def take_x(i):
+            return np.take(x, i)
 
-    def take_y(i):
-        return np.take(flat, 2 * i + 1)
+        def take_y(i):
+            return np.rint((np.take(flat, 2 * i + 1) - y_min) * y_step)
+    else:
+        x = xy[:, 0]
 
-    closed = (counts > 2) & (take_x(first) == take_x(ends - 1)) & \
-        (take_y(first) == take_y(ends - 1))
+        def take_x(i):
+            return np.take(flat, 2 * i)
+
+        def take_y(i):
+            return np.take(flat, 2 * i + 1)
+
     # each ring's least vertex: the vertices at its line's least x (about one a line), then
     # the first of those at their least y; open lines keep their first vertex
     at_least_x = x == np.repeat(np.minimum.reduceat(x, first), counts)
@@ -334,7 +352,7 @@ def canonical_order(xy: np.ndarray, counts: np.ndarray, levels: np.ndarray
         pos = np.flatnonzero(tied_next | np.r_[False, tied_next[:-1]])
         run = np.cumsum(~np.r_[False, tied_next][pos])  # a run starts untied to the one before
         sub = order[pos]
-        order[pos] = sub[np.lexsort((take_y(second[sub]), take_x(second[sub]),
+        order[pos] = sub[np.lexsort((counts[sub], take_y(second[sub]), take_x(second[sub]),
                                      take_y(start[sub]), run))]
     # the source of every output vertex: consecutive within a line from its (rotated) start,
     # back by its period where a rotated ring wraps; built as steps summed up
@@ -374,7 +392,7 @@ def contour_columns(contours: list[Contour], interval: float, base: float,
         k = np.rint((levels - base) / interval)
         keys = (k - k.min()).astype(np.uint16) if np.ptp(k) < 2**16 and \
             np.array_equal(base + k * interval, levels) else levels
-        order, source = canonical_order(xy, counts, keys)
+        order, source = canonical_order(xy, counts, keys, min_length)
         levels, counts = levels[order], counts[order]
         xyz = np.empty((len(xy), 3), dtype="<f8")
         xyz[:, :2] = np.take(xy, source, axis=0)
