@@ -268,7 +268,7 @@ def rpc_ortho(params: dict[str, Any], feedback: Feedback,
     camera = read_rpc(image.path, crs)
     bias = None
     if params["CONTROL"] is not None:
-        camera, bias = refine_from_gcps(camera, Path(image.path).name, *rpc_gcps(params),
+        camera, bias = refine_from_gcps(camera, Path(image.path).name, *rpc_gcps(params, crs),
                                         params["BIAS"])
         feedback.push_info(f"RPC {bias['model']} bias from {bias['gcps']} GCPs: RMS "
                            f"{bias['rms_before_px']:.3f} -> {bias['rms_after_px']:.3f} px")
