@@ -65,6 +65,8 @@ class OrthoBatch(Algorithm):
     photo (as ortho:photo's) and the failures.
     """
 
+    crs_labels_inputs = False  # CRS is the ortho's (the DEM's is its own or the project's)
+
     id = "ortho:batch"
     display_name = "Orthophotos of a block"
     group = "Orthophoto"

@@ -99,6 +99,8 @@ class OrthoPhoto(Algorithm):
     seeds' rule expects (RMS ±0.3 mm to ±0.5 mm at the map scale, par. 2.6.6).
     """
 
+    crs_labels_inputs = False  # CRS is the ortho's (the DEM's is its own or the project's)
+
     id = "ortho:photo"
     display_name = "Orthophoto of one photo"
     group = "Orthophoto"

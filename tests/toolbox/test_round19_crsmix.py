@@ -229,3 +229,30 @@ def test_sheet_layers_in_another_crs_are_named(tmp_path):
                                     "LAYERS": [str(tmp_path / "lines.gpkg")],
                                     "OUTPUT": tmp_path / "sheet.pdf"})
     assert not (tmp_path / "sheet.pdf").exists()
+
+
+def test_an_unlabelled_input_far_outside_the_crs_parameter_is_refused(tmp_path):
+    """Before: points without a CRS holding UTM 32N numbers, given CRS EPSG:3003, were gridded
+    as Monte Mario coordinates 1,000 km west of the zone (exit 0), though the same numbers
+    labelled EPSG:3003 are refused as far outside its area of use; the same points given
+    CRS EPSG:32632 (their own) still run."""
+    pts = tmp_path / "pts.gpkg"
+    x = X0 + np.array([0.0, 500, 500, 0, 250])
+    y = Y0 + np.array([0.0, 0, 500, 500, 250])
+    gpd.GeoDataFrame({"z": [1.0, 2, 3, 4, 5]}, geometry=gpd.points_from_xy(x, y)).to_file(pts)
+    lon, lat = Transformer.from_crs(GB, "EPSG:4326", always_xy=True).transform(X0, Y0)
+    assert lon < CRS(GB).area_of_use.west - 5  # the truth: far west of EPSG:3003's area
+    for algorithm in ("dem:idw", "tin:delaunay"):
+        extra = {"CELL_SIZE": 50} if algorithm == "dem:idw" else {}
+        out = tmp_path / ("dem.tif" if algorithm == "dem:idw" else "tin.gpkg")
+        with pytest.raises(InputDataError, match="^INPUT has no CRS and is taken to be in CRS "
+                                                 "EPSG:3003, but coordinates"):
+            toolbox.run(algorithm, {"INPUT": pts, "Z_FIELD": "z", "CRS": GB, "OUTPUT": out,
+                                    **extra})
+        assert not out.exists()
+        toolbox.run(algorithm, {"INPUT": pts, "Z_FIELD": "z", "CRS": UTM, "OUTPUT": out, **extra})
+        if algorithm == "tin:delaunay":
+            assert _written_crs(out, "triangles").equals(CRS(UTM))
+        else:
+            with rasterio.open(out) as src:
+                assert CRS.from_wkt(src.crs.to_wkt()).equals(CRS(UTM))

@@ -339,6 +339,28 @@ def warn_unlabelled_elsewhere(inputs: dict[str, Any], warnings: list[str] | None
                                 "its coordinates are of another CRS, label it with that CRS")
 
 
+def check_unlabelled_in_area(inputs: dict[str, Any], crs: CRS,
+                             warnings: list[str] | None) -> None:
+    """The inputs without a CRS are taken to be in ``crs`` (the CRS parameter): their extent
+    far outside its area of use is an :class:`InputDataError` naming the input (numbers of
+    another CRS, e.g. UTM eastings labelled Monte Mario), a little outside a warning, as
+    :func:`check_input_crs` judges the inputs that name their CRS."""
+    for name, value in inputs.items():
+        if name == "CRS":
+            continue
+        for own, bounds in input_crs_and_bounds(value):
+            if own is not None or bounds is None:
+                continue
+            problem, far = outside_area_of_use(crs, bounds)
+            if problem and far:
+                raise InputDataError(f"{name} has no CRS and is taken to be in CRS "
+                                     f"{crs_label(crs)}, but {problem}: is CRS right? Give its "
+                                     "coordinates' CRS")
+            if problem and warnings is not None:
+                warnings.append(f"{name} (no CRS, taken to be in CRS {crs_label(crs)}): "
+                                f"{problem}")
+
+
 def check_coordinates_in_area(name: str, crs: Any, xy: Any, warn: Any = None) -> None:
     """Coordinates ``xy`` ((n, 2), in ``crs``) read from a table rather than a layer: far
     outside the CRS's area of use is an :class:`InputDataError` naming ``name``, a little
