@@ -64,6 +64,9 @@ class Algorithm:
     # tolerances, photogrammetry), "one" (any one unit for x, y and heights: slopes, volumes),
     # "horizontal" (any one unit for x, y; heights in theirs: gridding, TINs, contours)
     length_units: ClassVar[str] = "metre"
+    # its CRS parameter is the CRS of the inputs that name none (so the runner checks their
+    # coordinates against its area of use); False where CRS is the output's only
+    crs_labels_inputs: ClassVar[bool] = True
     # why a raster output can have no valid cell when the inputs are fine (the runner's refusal
     # names it when the algorithm has no EXTENT, TEMPLATE, MASK or CELL_SIZE to blame)
     empty_output_hint: ClassVar[str | None] = None

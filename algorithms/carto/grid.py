@@ -38,7 +38,8 @@ class Grid(Algorithm):
         Enum("STYLE", "grid drawing", options=["crosses", "lines"], default="crosses"),
         Number("CROSS_SIZE", "cross size on paper, mm (STYLE crosses)", default=10.0,
                min_value=0, min_exclusive=True),
-        Crs("CRS", "CRS of EXTENT when it names none", optional=True),
+        Crs("CRS", "CRS of EXTENT or SHEETS when they name none (one naming another CRS "
+            "is refused)", optional=True),
         OutputVector("OUTPUT", "grid GeoPackage (layers grid, grid_labels)", layers=[
             Layer("grid", "MultiLineString", [("sheet", "string"), ("kind", "string"),
                                               ("value", "real", "the coordinate drawn")],

@@ -93,7 +93,8 @@ class Sheet(Algorithm):
         String("SOURCES", "sources line (default: the input files)", optional=True),
         String("DATE", "date in the title block (default: today, ISO; SOURCE_DATE_EPOCH's day "
                "when that is set)", optional=True),
-        Crs("CRS", "CRS of EXTENT when it names none", optional=True),
+        Crs("CRS", "CRS of EXTENT or SHEETS when they name none (one naming another CRS "
+            "is refused)", optional=True),
         Crs("GRID_CRS", "second CRS ticked along the frame (e.g. EPSG:6707 beside EPSG:3003)",
             optional=True),
         VectorLayer("INDEX", "sheet index (carto:sheet_index) drawn as a small index map",

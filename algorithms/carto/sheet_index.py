@@ -40,7 +40,8 @@ class SheetIndex(Algorithm):
         Enum("SCALE", "sheets of the index", options=["5000", "10000"], default="5000"),
         String("ORIGIN", "north-west corner of the 1:50000 sheet: lon,lat in ED50 degrees"),
         Boolean("NEIGHBOURS", "add the ring of neighbouring sheets", default=True),
-        Crs("CRS", "CRS of EXTENT when it names none", optional=True),
+        Crs("CRS", "CRS of EXTENT when it names none (an EXTENT naming another CRS is "
+            "refused)", optional=True),
         OutputVector("OUTPUT", "sheet index GeoPackage (layer sheets)", layers=[
             Layer("sheets", "Polygon", [
                 ("name", "string"), ("number", "string", "CTR number, 6 digits"),
@@ -71,12 +72,12 @@ class SheetIndex(Algorithm):
         import geopandas as gpd
 
         from toolbox.cartography.ctr_index import ED50, IndexRequest, index_sheets
-        from toolbox.io.crs import note_transformation
+        from toolbox.io.crs import common_crs, note_transformation
         from toolbox.io.vector_write import write_layers
         from toolbox.photogrammetry.accuracy import planimetric_tolerance_m
 
         extent = params["EXTENT"]
-        crs = extent.crs if extent.crs is not None else params["CRS"]
+        crs = common_crs({"EXTENT": extent.crs}, params["CRS"])
         scale = int(params["SCALE"])
         origin = self._origin(params["ORIGIN"])
         # the sheet edges are ED50 meridians and parallels: placed in CRS by PROJ's operation

@@ -59,15 +59,15 @@ class AbsoluteOrientation(Algorithm):
 
         from toolbox.errors import InputDataError
         from toolbox.photogrammetry.absolute import PARAMETER_NAMES, fit_similarity
-        from toolbox.photogrammetry.tables import ground_points, write_json
+        from toolbox.photogrammetry.tables import control_crs, ground_points, write_json
 
         m_ids, m_xyz, _ = ground_points(params["INPUT"], params["LAYER"], name="INPUT")
         c_ids, c_xyz, roles = ground_points(params["CONTROL"])
-        if params["CRS"] is not None and len(c_xyz):  # one area-of-use check everywhere
+        crs = control_crs(params["CONTROL"], params["CRS"])
+        if crs is not None and len(c_xyz):  # one area-of-use check everywhere
             from toolbox.io.crs import check_coordinates_in_area
 
-            check_coordinates_in_area("CONTROL", params["CRS"], c_xyz[:, :2],
-                                      feedback.push_warning)
+            check_coordinates_in_area("CONTROL", crs, c_xyz[:, :2], feedback.push_warning)
         model_index = {pid: k for k, pid in enumerate(m_ids)}
         common = [k for k, pid in enumerate(c_ids) if pid in model_index]
         control = [k for k in common if roles[k] == "control"]
@@ -99,7 +99,6 @@ class AbsoluteOrientation(Algorithm):
 
             from toolbox.io.vector_write import write_layers
 
-            crs = params["CRS"]  # a pyproj CRS, geographic ones refused by the runner
             by_id = {p["point_id"]: p for p in points}
             rows = [{"point_id": pid, "role": by_id.get(pid, {}).get("role"),
                      "vx": by_id.get(pid, {}).get("vx"), "vy": by_id.get(pid, {}).get("vy"),

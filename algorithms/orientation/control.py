@@ -94,7 +94,7 @@ class ControlTemplate(Algorithm):
         ids, xyz, _ = ground_points(params["CONTROL"], params["LAYER"], crs=project.crs)
         ortho = None
         if params["ORTHO"] is not None:
-            from toolbox.io.crs import same_crs
+            from toolbox.io.crs import crs_label, same_crs
             from toolbox.matching.ortho_match import OrthoReference
             from toolbox.ortho.vertical import horizontal_part, project_raster_crs
 
@@ -102,8 +102,8 @@ class ControlTemplate(Algorithm):
             ortho_crs, crs = (None if c is None else horizontal_part(c)
                               for c in (params["ORTHO"].crs, project.crs))
             if not same_crs(ortho_crs, crs):
-                raise self.fail("ORTHO", f"is in {params['ORTHO'].crs}, not in the project's CRS "
-                                f"({project.crs}): reproject it first")
+                raise self.fail("ORTHO", f"is in {crs_label(params['ORTHO'].crs)}, not in the "
+                                f"project's CRS ({crs_label(project.crs)}): reproject it first")
             if params["DEM"] is not None:  # horizontal parts, and height datums stated by both
                 project_raster_crs(project.crs, params["DEM"].crs)
         elif params["MEASURED"] is not None:

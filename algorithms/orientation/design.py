@@ -55,7 +55,8 @@ class BlockDesign(Algorithm):
         ExtentParameter("EXTENT", "project area 'xmin,ymin,xmax,ymax EPSG:3003' (CRS optional) "
                         "instead of AREA",
                         optional=True),
-        Crs("CRS", "CRS of EXTENT (or of AREA when it has none); projected, metres",
+        Crs("CRS", "CRS of EXTENT or AREA when they name none (one naming another CRS is "
+            "refused); projected, metres",
             optional=True),
         Number("MAP_SCALE", "map scale number (1000 for 1:1000): photo scale by 002 Table 3",
                optional=True, min_value=1),
@@ -110,6 +111,7 @@ class BlockDesign(Algorithm):
         analysis can take is refused naming the scale parameter, before any photo is laid."""
         import shapely
 
+        from toolbox.io.crs import common_crs
         from toolbox.io.vector import read_vector
         from toolbox.triangulation.flightplan import (
             BlockTooLarge,
@@ -121,7 +123,7 @@ class BlockDesign(Algorithm):
 
         if params["EXTENT"] is not None:
             area = shapely.box(*params["EXTENT"].bounds)
-            crs = params["EXTENT"].crs or params["CRS"]
+            crs = common_crs({"EXTENT": params["EXTENT"].crs}, params["CRS"])
         else:
             frame = read_vector(params["AREA"], name="AREA")
             polys = frame.geometry[frame.geometry.notna()]
@@ -130,7 +132,7 @@ class BlockDesign(Algorithm):
             # a bow-tie: its lobes; overlapping parts of a multi-polygon united (not cut out)
             area = shapely.union_all(shapely.make_valid(polys.values, method="structure",
                                                         keep_collapsed=False))
-            crs = frame.crs or params["CRS"]
+            crs = common_crs({"AREA": frame.crs}, params["CRS"])
         if crs is not None and crs.is_geographic:
             raise self.fail("CRS" if params["EXTENT"] is not None else "AREA",
                             f"must be a projected CRS in metres, got {crs.name}")

@@ -65,7 +65,13 @@ class IndependentModels(Algorithm):
 
         from toolbox.io.crs import check_coordinates_in_area
         from toolbox.io.vector_write import write_layers
-        from toolbox.photogrammetry.tables import column, number, read_table, write_json
+        from toolbox.photogrammetry.tables import (
+            column,
+            control_crs,
+            number,
+            read_table,
+            write_json,
+        )
         from toolbox.triangulation.inputs import read_control
         from toolbox.triangulation.models import ModelsRequest, adjust_models
 
@@ -77,9 +83,9 @@ class IndependentModels(Algorithm):
         xyz = np.array([[number(r[c], f"row {k + 1} {c}") for c in cols]
                         for k, r in enumerate(rows)])
         control = read_control(params["CONTROL"])
-        if params["CRS"] is not None:  # a pyproj CRS (geographic ones refused by the runner)
-            check_coordinates_in_area("CONTROL", params["CRS"], control.xyz[:, :2],
-                                      feedback.push_warning)
+        crs = control_crs(params["CONTROL"], params["CRS"])
+        if crs is not None:  # a pyproj CRS (geographic ones refused by the runner)
+            check_coordinates_in_area("CONTROL", crs, control.xyz[:, :2], feedback.push_warning)
         use = [k for k, role in enumerate(control.roles) if role == "control"]
         request = ModelsRequest([r[c_model] for r in rows], [r[c_id] for r in rows], xyz,
                                 [control.ids[k] for k in use], control.xyz[use], params["MODE"])
@@ -103,7 +109,6 @@ class IndependentModels(Algorithm):
                 ("tie" if n_models[k] > 1 else "isolated")
             features.append({"point_id": pid, "role": role, "n_models": int(n_models[k]),
                              "max_residual_m": float(worst[k]), "geometry": shapely.Point(pt)})
-        crs = params["CRS"]
         write_layers(params["OUTPUT"], {"points": gpd.GeoDataFrame(features, geometry="geometry",
                                                                    crs=crs)},
                      crs=crs, geometry_types={"points": "Point Z"})

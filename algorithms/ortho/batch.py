@@ -65,6 +65,8 @@ class OrthoBatch(Algorithm):
     photo (as ortho:photo's) and the failures.
     """
 
+    crs_labels_inputs = False  # CRS is the ortho's (the DEM's is its own or the project's)
+
     id = "ortho:batch"
     display_name = "Orthophotos of a block"
     group = "Orthophoto"
@@ -302,7 +304,7 @@ def rpc_batch(algorithm_id: str, params: dict[str, Any], feedback: Feedback) -> 
     images = select_rpc_images(everything, params["PHOTOS"])
     executor = executor_of(params)
     crs = rpc_crs(params["CRS"], params["DEM"])
-    gcps = None if params["CONTROL"] is None else rpc_gcps(params)
+    gcps = None if params["CONTROL"] is None else rpc_gcps(params, crs)
     cell, origin = params["CELL_SIZE"], (0.0, 0.0)
     if params["TEMPLATE"] is not None:
         cell, origin = template_lattice(params["TEMPLATE"], cell, crs, "the orthos")

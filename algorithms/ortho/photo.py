@@ -99,6 +99,8 @@ class OrthoPhoto(Algorithm):
     seeds' rule expects (RMS ±0.3 mm to ±0.5 mm at the map scale, par. 2.6.6).
     """
 
+    crs_labels_inputs = False  # CRS is the ortho's (the DEM's is its own or the project's)
+
     id = "ortho:photo"
     display_name = "Orthophoto of one photo"
     group = "Orthophoto"
@@ -268,7 +270,7 @@ def rpc_ortho(params: dict[str, Any], feedback: Feedback,
     camera = read_rpc(image.path, crs)
     bias = None
     if params["CONTROL"] is not None:
-        camera, bias = refine_from_gcps(camera, Path(image.path).name, *rpc_gcps(params),
+        camera, bias = refine_from_gcps(camera, Path(image.path).name, *rpc_gcps(params, crs),
                                         params["BIAS"])
         feedback.push_info(f"RPC {bias['model']} bias from {bias['gcps']} GCPs: RMS "
                            f"{bias['rms_before_px']:.3f} -> {bias['rms_after_px']:.3f} px")

@@ -25,7 +25,9 @@ class ToRaster(Algorithm):
     both are given); else CELL_SIZE over EXTENT as given (origin at its xmin/ymax, the east and
     south edges rounded up to whole cells), by default over the TIN's bounds snapped outwards to
     multiples of CELL_SIZE; MAX_CELLS guards the size. CRS (default: the TIN's) reprojects the
-    TIN's nodes before rasterising (the triangles are kept; a warning says so). The raster is
+    TIN's nodes before rasterising (the triangles are kept; a warning says so); their heights
+    are not converted, so a CRS or TEMPLATE stating another height datum than the TIN's is
+    refused (one stated on one side only is taken as the other's). The raster is
     computed tile by tile on local threads (only the triangles touching each tile are drawn)
     and written as a tiled, DEFLATE GeoTIFF with overviews (COG: a Cloud Optimized GeoTIFF),
     so memory stays bounded for any size.
@@ -84,7 +86,11 @@ class ToRaster(Algorithm):
         if tin_crs is not None and out_crs is not None and not same_crs(tin_crs, out_crs):
             from pyproj import Transformer
 
-            from toolbox.io.crs import note_transformation
+            from toolbox.io.crs import check_same_heights, note_transformation
+
+            # the nodes move in x, y only: heights of another datum would be relabelled
+            check_same_heights("TIN", tin_crs, "CRS" if params["CRS"] is not None
+                               else "TEMPLATE", out_crs)
 
             cell = params.get("CELL_SIZE")
             note_transformation(feedback, tin_crs, out_crs,

@@ -11,8 +11,9 @@ from toolbox.cartography.grid import ground_step, map_grid
 @dataclass(frozen=True)
 class SheetSource:
     """The sheets: every polygon of ``sheets`` (a vector layer; ids from its ``sheet_id``
-    field, else 1, 2, ...), or one sheet on ``extent`` (``.bounds``, ``.crs``; without a CRS
-    it takes ``crs``)."""
+    field, else 1, 2, ...), or one sheet on ``extent`` (``.bounds``, ``.crs``). ``crs`` (the
+    CRS parameter) labels sheets or an extent that name none; one that names another CRS is
+    refused (:func:`toolbox.io.crs.common_crs`)."""
 
     extent: Any = None
     sheets: Any = None
@@ -33,9 +34,11 @@ class MapGridRequest:
 
 
 def sheet_polygons(source: SheetSource, warn=None) -> tuple[list[tuple[str, Any]], Any]:
-    """``[(sheet id, polygon)]`` and the CRS of the sheets (see :func:`sheet_polygon`)."""
+    """``[(sheet id, polygon)]`` and the CRS of the sheets (see :func:`sheet_polygon`): their
+    own, else ``source.crs``; both given and different: an InputDataError naming both."""
     import shapely
 
+    from toolbox.io.crs import common_crs
     from toolbox.io.vector import read_vector
 
     if source.sheets is not None:
@@ -48,10 +51,9 @@ def sheet_polygons(source: SheetSource, warn=None) -> tuple[list[tuple[str, Any]
         ids = [str(v) for v in frame[field]] if field else [str(i + 1) for i in range(len(frame))]
         return [(sheet_id, sheet_polygon(geom, row, sheet_id if field else None, warn))
                 for row, (sheet_id, geom) in enumerate(zip(ids, frame.geometry.values), 1)
-                ], frame.crs
+                ], common_crs({"SHEETS": frame.crs}, source.crs)
     extent = source.extent
-    crs = extent.crs if extent.crs is not None else source.crs
-    return [("1", shapely.box(*extent.bounds))], crs
+    return [("1", shapely.box(*extent.bounds))], common_crs({"EXTENT": extent.crs}, source.crs)
 
 
 def sheet_polygon(geom, row: int, sheet_id: str | None = None, warn=None):

@@ -123,7 +123,7 @@ def guard_sheets(job: SheetJob) -> None:
     from toolbox.cartography.sheet_layout import GAP, LABEL_BAND, MARGIN, PANEL
     from toolbox.limits import check_size
 
-    sheets, _ = sheet_polygons(job.sheets)  # null, empty or flat sheets refused
+    sheets, crs = sheet_polygons(job.sheets)  # null, empty or flat sheets refused
     if not sheets:
         return  # the job says so
     if job.sheets.sheets is not None:
@@ -141,16 +141,24 @@ def guard_sheets(job: SheetJob) -> None:
                "1:5000) or use smaller sheets", "pixels")
     guard_grid(sheets, ground_step(scale, job.map_step), job.grid_style, scale,
                job.map_step)
-    _refuse_empty_sheets(job, sheets)
+    _refuse_empty_sheets(job, sheets, crs)
 
 
-def _refuse_empty_sheets(job: SheetJob, sheets: list) -> None:
-    """Refuse sheets that none of BASE, LAYERS, CONTOURS meets (data of another area or CRS:
-    the sheets would be empty frames)."""
+def _refuse_empty_sheets(job: SheetJob, sheets: list, crs=None) -> None:
+    """Refuse BASE, LAYERS, CONTOURS in another CRS than the sheets' ``crs`` (naming both),
+    then sheets that none of them meets (data of another area: the sheets would be empty
+    frames)."""
     import shapely
 
     from toolbox.errors import InputDataError
-    from toolbox.io.crs import input_crs_and_bounds
+    from toolbox.io.crs import common_crs, input_crs_and_bounds
+
+    named = {"BASE": input_crs_and_bounds(job.base), "CONTOURS": input_crs_and_bounds(
+        job.contours)} | {f"LAYERS[{k + 1}]": input_crs_and_bounds(ref)
+                          for k, ref in enumerate(job.layers or [])}
+    sheets_name = "SHEETS" if job.sheets.sheets is not None else "EXTENT"
+    common_crs({sheets_name: crs} | {name: found[0][0] for name, found in named.items()
+                                     if found})
 
     # envelopes, not boxes: one point, or points in a row, have a flat extent (an empty box)
     boxes = [shapely.envelope(shapely.MultiPoint([b[:2], b[2:]]))

@@ -122,11 +122,33 @@ def crs_authority(crs: CRS, min_confidence: int = 90, auth_name: str | None = No
 
 
 def crs_label(crs: CRS | None) -> str:
-    """``EPSG:3003`` when the CRS has an authority code, else its name; ``none`` for None."""
+    """``EPSG:3003`` when the CRS has an authority code, else its name; a CRS without a code
+    nor a name (one made from a PROJ string: its name is "unknown") is shown by its PROJ
+    string, so that a message naming two such CRSs tells them apart; ``none`` for None."""
     if crs is None:
         return "none"
     auth = crs_authority(crs)
-    return f"{auth[0]}:{auth[1]}" if auth else crs.name
+    if auth:
+        return f"{auth[0]}:{auth[1]}"
+    if crs.name and crs.name.lower() not in ("unknown", "unnamed", "undefined"):
+        return crs.name
+    import warnings
+
+    with warnings.catch_warnings():  # "you will likely lose important projection information"
+        warnings.simplefilter("ignore")
+        try:
+            proj = crs.to_proj4()
+        except CRSError:
+            proj = None
+    return f"an unnamed CRS ({proj.replace(' +type=crs', '')})" if proj else "an unnamed CRS"
+
+
+def _named(crs: CRS) -> str:
+    """``crs_label(crs)``, followed by its name when that says more (``EPSG:3003 (Monte Mario
+    / Italy zone 1)``)."""
+    label = crs_label(crs)
+    return label if label.startswith("an unnamed CRS") or label == crs.name \
+        else f"{label} ({crs.name})"
 
 
 def same_crs(a: CRS | None, b: CRS | None) -> bool:
@@ -161,14 +183,23 @@ def _heights_only(key: str, crs: CRS, ref_name: str, reference: CRS) -> None:
         raise InputDataError(f"{key} is in {crs_label(crs)} but {ref_name} is in "
                              f"{crs_label(reference)}; reproject the inputs to one CRS first")
     ours, theirs = vertical_part(reference), vertical_part(crs)
-    if ours is not None and theirs is not None and not same_datum(ours, theirs):
-        raise InputDataError(f"{key}'s heights are {datum_label(theirs)} but {ref_name}'s are "
-                             f"{datum_label(ours)}: convert them to one height datum first")
+    check_same_heights(key, crs, ref_name, reference)
     import logging
 
     logging.getLogger("toolbox").warning(
         f"{key}'s heights are {datum_label(theirs)}, {ref_name}'s {datum_label(ours)} (the same "
         f"horizontal CRS): taken as the same height datum, in {crs_label(reference)}")
+
+
+def check_same_heights(key: str, crs: CRS | None, ref_name: str, reference: CRS | None) -> None:
+    """Heights of ``key`` (in ``crs``) used as ``ref_name``'s (in ``reference``): two height
+    datums stated, one on each side, that differ are an :class:`InputDataError` (the heights
+    would be relabelled, not converted); a datum stated on one side only passes."""
+    ours = None if reference is None else vertical_part(reference)
+    theirs = None if crs is None else vertical_part(crs)
+    if ours is not None and theirs is not None and not same_datum(ours, theirs):
+        raise InputDataError(f"{key}'s heights are {datum_label(theirs)} but {ref_name}'s are "
+                             f"{datum_label(ours)}: convert them to one height datum first")
 
 
 def extent_bounds_in(extent: Any, crs: Any, name: str = "EXTENT") -> tuple[float, ...]:
@@ -242,7 +273,7 @@ def check_input_crs(algorithm_id: str, name: str, value: Any,
         problem = not_metric(crs, units)
         if problem:
             works = "in metres" if units == "metre" else "in one length unit"
-            raise ParameterError(name, f"is in {crs_label(crs)} ({crs.name}), {problem}, but "
+            raise ParameterError(name, f"is in {_named(crs)}, {problem}, but "
                                  f"{algorithm_id} works {works}, x east and y north (cell "
                                  "sizes, tolerances, scales, heights): reproject it to a metric "
                                  "CRS (e.g. a UTM zone, heights in metres) first")
@@ -306,6 +337,28 @@ def warn_unlabelled_elsewhere(inputs: dict[str, Any], warnings: list[str] | None
                                 f"{box[0]:.0f}..{box[2]:.0f}, {box[1]:.0f}..{box[3]:.0f} in "
                                 f"{crs_label(crs)}): it is taken to be in {crs_label(crs)}; if "
                                 "its coordinates are of another CRS, label it with that CRS")
+
+
+def check_unlabelled_in_area(inputs: dict[str, Any], crs: CRS,
+                             warnings: list[str] | None) -> None:
+    """The inputs without a CRS are taken to be in ``crs`` (the CRS parameter): their extent
+    far outside its area of use is an :class:`InputDataError` naming the input (numbers of
+    another CRS, e.g. UTM eastings labelled Monte Mario), a little outside a warning, as
+    :func:`check_input_crs` judges the inputs that name their CRS."""
+    for name, value in inputs.items():
+        if name == "CRS":
+            continue
+        for own, bounds in input_crs_and_bounds(value):
+            if own is not None or bounds is None:
+                continue
+            problem, far = outside_area_of_use(crs, bounds)
+            if problem and far:
+                raise InputDataError(f"{name} has no CRS and is taken to be in CRS "
+                                     f"{crs_label(crs)}, but {problem}: is CRS right? Give its "
+                                     "coordinates' CRS")
+            if problem and warnings is not None:
+                warnings.append(f"{name} (no CRS, taken to be in CRS {crs_label(crs)}): "
+                                f"{problem}")
 
 
 def check_coordinates_in_area(name: str, crs: Any, xy: Any, warn: Any = None) -> None:

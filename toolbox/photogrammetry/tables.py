@@ -312,6 +312,21 @@ def table_crs(path: Path, layer: str | None = None) -> Any:
     return CRS.from_user_input(crs) if crs else None
 
 
+def control_crs(path: Path, crs: Any = None, layer: str | None = None,
+                name: str = "CONTROL", horizontal: bool = False) -> Any:
+    """The CRS of a table of ground coordinates: ``crs`` (the CRS parameter) and the table's
+    own (a GeoPackage layer's), whichever is known; both known and different: an
+    InputDataError naming both (:func:`toolbox.io.crs.common_crs`: the X/Y/Z columns are read
+    as they are, never as if in the other CRS). ``horizontal``: the table's horizontal CRS
+    only is compared (its heights are not used as a datum)."""
+    from toolbox.io.crs import common_crs, horizontal_part
+
+    own = table_crs(path, layer)
+    if horizontal and own is not None:
+        own = horizontal_part(own)
+    return common_crs({name: own}, crs)
+
+
 def ground_points(path: Path, layer: str | None = None, name: str = "CONTROL",
                   crs: Any = None):
     """Ground points with known coordinates: ``(ids, xyz (n, 3), roles)`` from a table with

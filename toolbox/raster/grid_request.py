@@ -79,6 +79,7 @@ class GridRequest:
             if self.cell_size is not None:
                 raise ParameterError("CELL_SIZE", f"must not be given with TEMPLATE (the "
                                      f"template's cells are used), got {self.cell_size:g}")
+            _same_horizontal_crs(template.crs, crs)
             crs = crs if crs is not None else template.crs
             if extent is None:
                 return _guarded(GridSpec(t, template.width, template.height, crs), limit,
@@ -117,6 +118,20 @@ class GridRequest:
         height = _cells(ymax - ymin, cell, eps)
         return _guarded(GridSpec(Affine(cell, 0.0, xmin, 0.0, -cell, ymax), width, height, crs),
                         limit, "CELL_SIZE")
+
+
+def _same_horizontal_crs(template_crs: Any, crs: Any) -> None:
+    """A TEMPLATE whose horizontal CRS is not the output's (``crs``, the data's): its cells
+    would be taken as if in the output's CRS; a ParameterError naming both. A height datum on
+    one side only, or a CRS missing on either side, passes (the callers check heights)."""
+    if template_crs is None or crs is None:
+        return
+    from toolbox.io.crs import crs_label, horizontal_part, same_crs
+
+    if not same_crs(horizontal_part(template_crs), horizontal_part(crs)):
+        raise ParameterError("TEMPLATE", f"is in {crs_label(template_crs)} but the output is "
+                             f"in {crs_label(crs)} (the data's CRS): give a TEMPLATE in "
+                             f"{crs_label(crs)} (gdalwarp -t_srs reprojects it)")
 
 
 def _cells(length: float, cell: float, eps: float) -> int:

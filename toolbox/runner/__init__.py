@@ -96,9 +96,12 @@ def validate(algorithm: type[Algorithm] | str, parameters: dict[str, Any],
     inputs = {p.name: values[p.name] for p in alg.parameters
               if not p.is_output and values[p.name] is not None and not read_in_pixels(p)}
     if len(inputs) > 1:  # toolbox.io.crs loads pyproj: not for a one-input run
-        from toolbox.io.crs import warn_unlabelled_elsewhere
+        from toolbox.io.crs import check_unlabelled_in_area, warn_unlabelled_elsewhere
 
         warn_unlabelled_elsewhere(inputs, warnings)
+        if alg.projected_crs_only and alg.crs_labels_inputs and hasattr(values.get("CRS"),
+                                                                        "area_of_use"):
+            check_unlabelled_in_area(inputs, values["CRS"], warnings)
     check_magnitudes(alg, values)
     _check_band(alg, values)
     check_outputs_against_inputs(alg, values)

@@ -99,11 +99,15 @@ def rpc_gcp_parameters() -> list[Parameter]:
     ]
 
 
-def rpc_gcps(params: Mapping[str, Any]) -> tuple[tuple, tuple]:
+def rpc_gcps(params: Mapping[str, Any], crs: Any = None) -> tuple[tuple, tuple]:
     """MEASUREMENTS (pixels) and CONTROL of :func:`rpc_gcp_parameters`, read for
-    :func:`toolbox.ortho.rpc_block.refine_from_gcps`."""
-    from toolbox.photogrammetry.tables import ground_points, image_measurements
+    :func:`toolbox.ortho.rpc_block.refine_from_gcps`; CONTROL's X, Y are in ``crs`` (the
+    ortho's horizontal CRS): a GeoPackage layer in another one is refused, never read as if
+    in it."""
+    from toolbox.photogrammetry.tables import control_crs, ground_points, image_measurements
 
+    if crs is not None:
+        control_crs(params["CONTROL"], crs, horizontal=True)
     return (image_measurements(params["MEASUREMENTS"], None, "pixel", "MEASUREMENTS"),
             ground_points(params["CONTROL"]))
 
