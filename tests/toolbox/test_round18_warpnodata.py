@@ -20,15 +20,7 @@ import rasterio
 from affine import Affine
 
 import toolbox
-
-X0, Y0 = 1688000.0, 4800000.0
-W, H = 120, 80
-THETA, SCALE = np.radians(20.0), 0.8
-
-
-def pixel_to_ground(col, row):
-    c, s = np.cos(THETA), np.sin(THETA)
-    return X0 + SCALE * (c * col + s * row), Y0 + SCALE * (s * col - c * row)
+from tests.toolbox.warp_scene import SCALE, THETA, X0, Y0, H, W, estimate_homography, write_photo
 
 
 def stripes(bands: int) -> np.ndarray:
@@ -39,25 +31,9 @@ def stripes(bands: int) -> np.ndarray:
     return data
 
 
-def write_photo(path, data, nodata=None):
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
-        with rasterio.open(path, "w", driver="GTiff", width=W, height=H, count=len(data),
-                           dtype=data.dtype.name, nodata=nodata) as dst:
-            dst.write(data)
-    return path
-
-
 @pytest.fixture(scope="module")
 def transform(tmp_path_factory):
-    tmp = tmp_path_factory.mktemp("warpnodata")
-    points = [(0, 0), (W, 0), (W, H), (0, H), (W / 2, H / 3)]
-    rows = "".join(f"P{k},{c},{r},{pixel_to_ground(c, r)[0]},{pixel_to_ground(c, r)[1]},0,"
-                   "control\n" for k, (c, r) in enumerate(points))
-    (tmp / "g.csv").write_text("id,col,row,X,Y,Z,role\n" + rows)
-    toolbox.run("rectify:estimate", {"INPUT": tmp / "g.csv", "CRS": "EPSG:3003",
-                                     "MODEL": "homography", "OUTPUT": tmp / "t.json"})
-    return tmp / "t.json"
+    return estimate_homography(tmp_path_factory.mktemp("warpnodata"))
 
 
 def rectify(photo, transform, out, **params):

@@ -28,14 +28,10 @@ import rasterio
 from affine import Affine
 
 import toolbox
+from tests.toolbox.warp_scene import GEO, H, W, estimate_homography, write_photo
 
 pytestmark = pytest.mark.skipif(shutil.which("gdalwarp") is None, reason="needs gdalwarp")
 
-X0, Y0 = 1688000.0, 4800000.0
-W, H = 120, 80
-THETA, SCALE = np.radians(20.0), 0.8
-C, S = np.cos(THETA), np.sin(THETA)
-GEO = Affine(SCALE * C, SCALE * S, X0, SCALE * S, -SCALE * C, Y0)  # photo pixel -> ground
 
 
 def texture() -> np.ndarray:
@@ -45,26 +41,9 @@ def texture() -> np.ndarray:
         "float32")
 
 
-def write_photo(path, data, nodata=None, georeferenced=False):
-    extra = {"transform": GEO, "crs": "EPSG:3003"} if georeferenced else {}
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
-        with rasterio.open(path, "w", driver="GTiff", width=W, height=H, count=len(data),
-                           dtype=data.dtype.name, nodata=nodata, **extra) as dst:
-            dst.write(data)
-    return path
-
-
 @pytest.fixture(scope="module")
 def transform(tmp_path_factory):
-    tmp = tmp_path_factory.mktemp("warpnan")
-    points = [(0, 0), (W, 0), (W, H), (0, H), (W / 2, H / 3)]
-    rows = "".join(f"P{k},{c},{r},{(GEO * (c, r))[0]},{(GEO * (c, r))[1]},0,control\n"
-                   for k, (c, r) in enumerate(points))
-    (tmp / "g.csv").write_text("id,col,row,X,Y,Z,role\n" + rows)
-    toolbox.run("rectify:estimate", {"INPUT": tmp / "g.csv", "CRS": "EPSG:3003",
-                                     "MODEL": "homography", "OUTPUT": tmp / "t.json"})
-    return tmp / "t.json"
+    return estimate_homography(tmp_path_factory.mktemp("warpnan"))
 
 
 def rectify(photo, transform, out, resampling, **params):
