@@ -87,7 +87,7 @@ def test_its_reader_gives_what_geopandas_reads(mixed_gpkg, source):
                for a, b in zip(geoms, expected, strict=True))
 
 
-def test_a_crs_without_code_is_labelled_by_pyproj(tmp_path):
+def test_a_crs_without_code_nor_name_is_labelled_by_its_definition(tmp_path):
     import geopandas as gpd
     from pyproj import CRS
     from shapely.geometry import Point
@@ -96,7 +96,10 @@ def test_a_crs_without_code_is_labelled_by_pyproj(tmp_path):
                          "+no_defs").to_wkt()
     gpd.GeoDataFrame(geometry=[Point(1, 2)], crs=wkt).to_file(tmp_path / "c.gpkg")
     (layer,) = toolbox.run("vector:info", {"INPUT": tmp_path / "c.gpkg"})["INFO"]["layers"]
-    assert layer["crs"] == CRS.from_wkt(wkt).name
+    # no code and no name (pyproj's name is "unknown"): shown by the definition it was made from
+    assert CRS.from_wkt(wkt).name == "unknown"
+    assert layer["crs"].startswith("an unnamed CRS (+proj=tmerc ")
+    assert all(term in layer["crs"] for term in ("+lon_0=11.5", "+k=0.9", "+x_0=200000"))
 
 
 PROBE = """
