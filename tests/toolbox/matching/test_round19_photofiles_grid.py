@@ -120,3 +120,24 @@ def test_exif_orientation_warns_and_keeps_the_stored_grid(tmp_path):
         warnings.simplefilter("error", UserWarning)  # no orientation tag: no warning
         ImageSource.open(tmp_path / "plain.jpg")
         ScanReader(tmp_path / "plain.jpg")
+
+
+def test_paletted_reference_ortho_is_sampled_as_its_colours(tmp_path):
+    from rasterio.transform import from_origin
+
+    from toolbox.matching.ortho_match import OrthoReference
+
+    grey = texture(6)
+    perm = np.random.default_rng(7).permutation(256)
+    georef = {"crs": "EPSG:3003", "transform": from_origin(1688000.0, 4799000.0, 2.0, 2.0)}
+    path = write(tmp_path / "pal_ortho.tif", perm[grey].astype(np.uint8), **georef)
+    with rasterio.open(path, "r+") as dst:
+        dst.write_colormap(1, {int(perm[g]): (g, g, g, 255) for g in range(256)})
+    subprocess.run(["gdal_translate", "-q", "-expand", "rgb", str(path),
+                    str(tmp_path / "rgb_ortho.tif")], check=True)
+    rows, cols = np.mgrid[2:H - 2:7, 2:W - 2:5]
+    x = 1688000.0 + (cols + 0.5) * 2.0  # cell centres: no interpolation
+    y = 4799000.0 - (rows + 0.5) * 2.0
+    reference = OrthoReference.open(tmp_path / "rgb_ortho.tif").sample(x, y)
+    assert np.array_equal(reference, grey[rows, cols].astype(np.float32))
+    assert np.array_equal(OrthoReference.open(path).sample(x, y), reference)
