@@ -71,16 +71,12 @@ def _ortho_patch(src, x: float, y: float, cell: float, half: int
 def _photo_reader(path: Path):
     """``read_window(c0, r0, c1, r1)`` of a photo file: grey float window clipped to the image
     and its origin (col, row)."""
-    import rasterio
     from rasterio.windows import Window
 
-    def read(c0: int, r0: int, c1: int, r1: int):
-        import warnings
+    from toolbox.raster.photo_grid import open_photo_grid
 
-        with warnings.catch_warnings():  # a photo has no georeference: expected
-            warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
-            src = rasterio.open(path)
-        with src:
+    def read(c0: int, r0: int, c1: int, r1: int):
+        with open_photo_grid(path) as src:  # the grid the ortho was made from: its colours
             c0c, r0c = max(c0, 0), max(r0, 0)
             c1c, r1c = min(c1, src.width), min(r1, src.height)
             if c1c <= c0c or r1c <= r0c:

@@ -27,6 +27,7 @@ import numpy as np
 from toolbox.errors import InputDataError
 from toolbox.matching.ncc import peak, scores
 from toolbox.matching.refine import sample
+from toolbox.raster.photo_grid import open_photo_grid, warn_orientation_tag
 
 #: the eight scan orientations: name -> G (2 x 2, pixel frame: col right, row down)
 ORIENTATIONS: dict[str, np.ndarray] = {}
@@ -174,9 +175,10 @@ class ScanReader:
         try:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
-                with rasterio.open(self.path) as src:
+                with open_photo_grid(self.path) as src:
                     self.width, self.height = src.width, src.height
                     self.bands, self.dtype = src.count, src.dtypes[0]
+                    warn_orientation_tag(src, self.path, name)
         except rasterio.errors.RasterioError as exc:
             raise InputDataError(f"{name}: cannot read scan {path}: "
                                  f"{str(exc).splitlines()[0]}") from None
@@ -194,8 +196,8 @@ class ScanReader:
             return np.zeros((0, 0), np.float32), (c0, r0)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
-            with rasterio.open(self.path) as src:
-                data = src.read(indexes=list(range(1, min(3, self.bands) + 1)),
+            with open_photo_grid(self.path) as src:  # grey, or the mean of R, G, B
+                data = src.read(indexes=[1, 2, 3] if self.bands >= 3 else [1],
                                 window=Window(c0, r0, c1 - c0, r1 - r0))
         self.pixels_read += (c1 - c0) * (r1 - r0)
         grey = data[0].astype(np.float32) if len(data) == 1 else \

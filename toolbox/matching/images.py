@@ -19,6 +19,7 @@ import numpy as np
 
 from toolbox.errors import InputDataError
 from toolbox.matching.positions import exif_lonlat
+from toolbox.raster.photo_grid import open_photo_grid, warn_orientation_tag
 
 
 @contextmanager
@@ -62,14 +63,17 @@ class ImageSource:
         if not path.exists():
             raise InputDataError(f"{name}: image {path} does not exist")
         try:
-            with _quiet(), rasterio.open(path) as src:
+            with _quiet(), open_photo_grid(path) as src:
                 info = cls(path, src.width, src.height, src.count, src.dtypes[0])
                 info.lonlat = exif_lonlat(src.tags())
+                warn_orientation_tag(src, path, name)
+                bits = src.tags(1, "IMAGE_STRUCTURE").get("NBITS")
         except rasterio.errors.RasterioError as exc:
             raise InputDataError(f"{name}: cannot read image {path}: "
                                  f"{str(exc).splitlines()[0]}") from None
-        if info.dtype == "uint8":
-            info.stretch = (0.0, 255.0)
+        if info.dtype == "uint8":  # a 1..7-bit grey one (no colour table): its full range
+            info.stretch = (0.0, float(2 ** int(bits) - 1) if bits and 0 < int(bits) < 8
+                            else 255.0)
         return info
 
     def scale_for(self, max_size: int) -> float:
@@ -88,12 +92,11 @@ class ImageSource:
     def level(self, scale: float) -> tuple[np.ndarray, tuple[float, float]]:
         """The whole photo decimated by about ``scale`` (>= 1; area average), grey uint8, and
         the exact factors ``(sx, sy)`` (full-resolution pixels per level pixel)."""
-        import rasterio
         from rasterio.enums import Resampling
 
         w = max(1, int(round(self.width / scale)))
         h = max(1, int(round(self.height / scale)))
-        with _quiet(), rasterio.open(self.path) as src:
+        with _quiet(), open_photo_grid(self.path) as src:  # never an overview
             data = src.read(out_shape=(self.bands, h, w),
                             resampling=Resampling.average if scale > 1 else Resampling.nearest)
         return self._grey(data), (self.width / w, self.height / h)
@@ -120,7 +123,6 @@ class ImageSource:
 
     def window(self, col0: int, row0: int, width: int, height: int) -> np.ndarray:
         """Full-resolution grey window (pixels outside the image are 0), shape (height, width)."""
-        import rasterio
         from rasterio.windows import Window
 
         if self.width * self.height <= self.WHOLE_LIMIT:
@@ -142,7 +144,7 @@ class ImageSource:
             # the file for every window cost more than the reads of a refinement pass
             with self._lock, _quiet():
                 if self._handle is None:
-                    self._handle = rasterio.open(self.path)
+                    self._handle = open_photo_grid(self.path)
                 data[:, r0 - row0:r1 - row0, c0 - col0:c1 - col0] = self._handle.read(
                     window=Window(c0, r0, c1 - c0, r1 - r0))
         if self.stretch is None:

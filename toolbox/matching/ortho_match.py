@@ -33,6 +33,7 @@ from toolbox.errors import InputDataError
 from toolbox.matching.images import ImageSource
 from toolbox.matching.ncc import peak, scores
 from toolbox.matching.refine import lsm
+from toolbox.raster.photo_grid import open_photo_grid
 
 
 @dataclass
@@ -52,7 +53,7 @@ class OrthoReference:
 
         path = Path(path)
         try:
-            with rasterio.open(path) as src:
+            with open_photo_grid(path) as src:  # a paletted one: its colours
                 from toolbox.io.raster import dataset_transform
 
                 info = cls(path, dataset_transform(src),
@@ -71,7 +72,6 @@ class OrthoReference:
         """Grey values (float32, bilinear) at ground ``x``, ``y`` (same shape); NaN outside and
         next to nodata."""
         import cv2
-        import rasterio
         from rasterio.windows import Window
 
         t = self.transform
@@ -86,8 +86,8 @@ class OrthoReference:
         r1 = min(self.height, int(np.ceil(row[inside].max())) + 2)
         from toolbox.io.raster import read_dataset_masked
 
-        with rasterio.open(self.path) as src:  # one mask: a (0, 3, 8) shadow is data
-            data = read_dataset_masked(src, list(range(1, min(3, self.bands) + 1)),
+        with open_photo_grid(self.path) as src:  # one mask: a (0, 3, 8) shadow is data
+            data = read_dataset_masked(src, [1, 2, 3] if self.bands >= 3 else [1],
                                        Window(c0, r0, c1 - c0, r1 - r0))
         grey = np.ascontiguousarray(data.data.astype("float32").mean(axis=0))
         grey[np.ma.getmaskarray(data)[0]] = np.nan  # nodata: NaN spreads to the chip

@@ -33,7 +33,7 @@ from typing import Any
 import numpy as np
 
 from toolbox.counters import Counters
-from toolbox.errors import InputDataError, ParameterError
+from toolbox.errors import ParameterError
 from toolbox.io.grid import GridSpec
 from toolbox.raster.datasets import ThreadDatasets
 from toolbox.raster.engine import RasterInput, process_raster
@@ -120,17 +120,9 @@ def photo_path(source: Any) -> str:
 
 def _read_path(src: Any, path: str) -> str:
     """:func:`photo_path` of ``path``, open as ``src``."""
-    if src.count != 1:
-        return path
-    try:
-        table = src.colormap(1)
-    except ValueError:  # no colour table
-        return path
-    expand = "rgba" if any(entry[3] < 255 for entry in table.values()) else "rgb"
-    if "?" in path:  # vrt:// takes what follows a '?' as its options
-        raise InputDataError(f"'{path}' is a paletted photo whose path holds a '?': expand it "
-                             f"first: gdal_translate -expand {expand} '{path}' photo_{expand}.tif")
-    return f"vrt://{path}?expand={expand}"
+    from toolbox.raster.photo_grid import expanded_path
+
+    return expanded_path(src, path)
 
 
 def open_photo(source: Any) -> tuple[str, Any]:
@@ -139,10 +131,12 @@ def open_photo(source: Any) -> tuple[str, Any]:
     paletted (each open parses the file's header and georeferencing again: a warp opened its
     photo seven times)."""
     from toolbox.raster.datasets import open_quietly
+    from toolbox.raster.photo_grid import warn_orientation_tag
 
     path = str(getattr(source, "path", source))
     src = open_quietly(path)
     try:
+        warn_orientation_tag(src, path)
         read = _read_path(src, path)
     except BaseException:
         src.close()
