@@ -53,7 +53,7 @@ def open_block(paths: list, name: str = "INPUT", feedback: Any = None,
             sources.append(src)
             if feedback is not None:
                 feedback.check_canceled()
-        crs = common_crs({f"{name}[{s.index}] ({s.name})":
+        crs = common_crs({f"{name}[{s.index + 1}] ({s.name})":
                           CRS.from_wkt(s.crs.to_wkt()) if s.crs else None for s in sources})
     except BaseException:
         datasets.close()
