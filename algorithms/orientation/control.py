@@ -36,7 +36,8 @@ class ControlTemplate(Algorithm):
     (the ortho chip as the photo would show it), then the photo is searched over SEARCH pixels
     by normalised cross-correlation, the peak finished by least-squares matching. With DEM the
     pixels are cast onto the terrain instead of the plane (recommended: relief around the point
-    otherwise biases the match, by up to 2 px on the demo landscape). A point is
+    otherwise biases the match, by up to 2 px on the demo landscape; DEM or MEASURED without
+    ORTHO is refused). A point is
     ``matched`` (its measured position written, with ``score`` = the NCC peak) when the peak
     reaches MIN_SCORE, is not on the search's edge and no second peak comes within 0.05 of it;
     otherwise it keeps its predicted position with the reason as status (``low_correlation``,
@@ -108,6 +109,10 @@ class ControlTemplate(Algorithm):
                 project_raster_crs(project.crs, params["DEM"].crs)
         elif params["MEASURED"] is not None:
             raise self.fail("MEASURED", "needs ORTHO (the matched points are written there)")
+        elif params["DEM"] is not None:  # it only casts the ortho chip: unused without ORTHO
+            raise self.fail("DEM", f"'{params['DEM'].path}' needs ORTHO (the DEM casts the "
+                            "orthophoto's chip into the photo; without ORTHO nothing is matched): "
+                            "give ORTHO or leave DEM out")
         photos = [p for p in project.photos.values()
                   if p.image is not None and p.exterior is not None]
         if not photos:
