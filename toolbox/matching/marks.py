@@ -84,15 +84,19 @@ def draw(family: str, size_mm: float, line_mm: float, pixel_mm: float,
 
 
 def read_template(path: Path, name: str = "TEMPLATE") -> tuple[np.ndarray, str]:
-    """A template image (first band, or the mean of RGB) and its data type name."""
+    """A template image (first band, or the mean of RGB) and its data type name, read as the
+    scans are (:func:`toolbox.raster.photo_grid.open_photo_grid`: a paletted one as its
+    colours, never its colour codes; full resolution)."""
     import warnings
 
     import rasterio
 
+    from toolbox.raster.photo_grid import open_photo_grid
+
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
-            with rasterio.open(path) as src:
+            with open_photo_grid(path) as src:
                 data = src.read()
                 dtype = src.dtypes[0]
     except rasterio.errors.RasterioError as exc:
