@@ -65,10 +65,16 @@ def open_photo_grid(path: Any) -> Any:
 
 def warn_orientation_tag(src: Any, path: Any, name: str = "photo") -> None:
     """A warning when the open photo ``src`` carries an EXIF Orientation other than 1 (normal):
-    the toolbox uses the grid as stored, like GDAL, not the turned view a viewer shows."""
+    the toolbox uses the grid as stored, like GDAL, not the turned view a viewer shows. Logged on
+    the ``toolbox`` logger, as the other input warnings of a reader without a feedback: the run's
+    feedback keeps it (:func:`toolbox.feedback.logged_warnings`), so ``toolbox.run`` callers,
+    the console and the run report see it (a Python ``UserWarning`` reached none of them but the
+    console, labelled by its module)."""
+    import logging
+
     value = src.tags().get("EXIF_Orientation")
     if value is not None and value.strip() not in ("", "1"):
-        warnings.warn(f"{name}: {path} has EXIF Orientation {value.strip()} (the view is turned "
-                      "or mirrored): the pixels are used as stored, not turned; image "
-                      "measurements and camera files must refer to the stored grid",
-                      UserWarning, stacklevel=3)
+        logging.getLogger("toolbox").warning(
+            f"{name}: {path} has EXIF Orientation {value.strip()} (the view is turned or "
+            "mirrored): the pixels are used as stored, not turned; image measurements and "
+            "camera files must refer to the stored grid")

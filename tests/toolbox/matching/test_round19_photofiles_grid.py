@@ -13,7 +13,6 @@ import subprocess
 import warnings
 
 import numpy as np
-import pytest
 import rasterio
 
 from toolbox.matching.fiducial_search import ScanReader
@@ -93,7 +92,7 @@ def test_grey_and_alpha_scan_is_read_by_its_grey_band(tmp_path):
     assert np.array_equal(ImageSource.open(path).window(0, 0, W, H), grey)
 
 
-def test_exif_orientation_warns_and_keeps_the_stored_grid(tmp_path):
+def test_exif_orientation_warns_and_keeps_the_stored_grid(tmp_path, caplog):
     from PIL import Image
 
     from toolbox.raster.warp import open_photo
@@ -106,20 +105,27 @@ def test_exif_orientation_warns_and_keeps_the_stored_grid(tmp_path):
     image.save(tmp_path / "plain.jpg", quality=100)
     stored = read(tmp_path / "turned.jpg")[0]  # GDAL: the grid as stored
     assert stored.shape == (H, W)
-    with pytest.warns(UserWarning, match="EXIF Orientation 6"):
-        source = ImageSource.open(tmp_path / "turned.jpg")
+    def warned(opening):  # on the "toolbox" logger: the run's feedback keeps it
+        caplog.clear()
+        with caplog.at_level("WARNING", logger="toolbox"):
+            result = opening()
+        assert [r.getMessage() for r in caplog.records if "EXIF Orientation 6" in
+                r.getMessage()], caplog.text
+        return result
+
+    source = warned(lambda: ImageSource.open(tmp_path / "turned.jpg"))
     assert (source.width, source.height) == (W, H)
     assert np.array_equal(source.window(0, 0, W, H), stored)
-    with pytest.warns(UserWarning, match="EXIF Orientation 6"):
-        reader = ScanReader(tmp_path / "turned.jpg")
+    reader = warned(lambda: ScanReader(tmp_path / "turned.jpg"))
     assert np.array_equal(reader.window(0, 0, W, H)[0], stored)
-    with pytest.warns(UserWarning, match="EXIF Orientation 6"):
-        _, src = open_photo(tmp_path / "turned.jpg")
+    _, src = warned(lambda: open_photo(tmp_path / "turned.jpg"))
     src.close()
-    with warnings.catch_warnings():
+    caplog.clear()
+    with caplog.at_level("WARNING", logger="toolbox"), warnings.catch_warnings():
         warnings.simplefilter("error", UserWarning)  # no orientation tag: no warning
         ImageSource.open(tmp_path / "plain.jpg")
         ScanReader(tmp_path / "plain.jpg")
+    assert "EXIF" not in caplog.text
 
 
 def test_paletted_reference_ortho_is_sampled_as_its_colours(tmp_path):
