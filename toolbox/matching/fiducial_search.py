@@ -166,39 +166,30 @@ class ScanReader:
     ``pixels_read`` counts the scan pixels read so far."""
 
     def __init__(self, path: Path, name: str = "photo") -> None:
-        import warnings
-
         import rasterio
 
         self.path = Path(path)
         self.pixels_read = 0
         try:
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
-                with open_photo_grid(self.path) as src:
-                    self.width, self.height = src.width, src.height
-                    self.bands, self.dtype = src.count, src.dtypes[0]
-                    warn_orientation_tag(src, self.path, name)
+            with open_photo_grid(self.path) as src:  # (no warning for its missing georeference)
+                self.width, self.height = src.width, src.height
+                self.bands, self.dtype = src.count, src.dtypes[0]
+                warn_orientation_tag(src, self.path, name)
         except rasterio.errors.RasterioError as exc:
             raise InputDataError(f"{name}: cannot read scan {path}: "
                                  f"{str(exc).splitlines()[0]}") from None
 
     def window(self, col0: int, row0: int, col1: int, row1: int
                ) -> tuple[np.ndarray, tuple[int, int]]:
-        import warnings
-
-        import rasterio
         from rasterio.windows import Window
 
         c0, r0 = max(0, col0), max(0, row0)
         c1, r1 = min(self.width, col1), min(self.height, row1)
         if c1 <= c0 or r1 <= r0:
             return np.zeros((0, 0), np.float32), (c0, r0)
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
-            with open_photo_grid(self.path) as src:  # grey, or the mean of R, G, B
-                data = src.read(indexes=[1, 2, 3] if self.bands >= 3 else [1],
-                                window=Window(c0, r0, c1 - c0, r1 - r0))
+        with open_photo_grid(self.path) as src:  # grey, or the mean of R, G, B
+            data = src.read(indexes=[1, 2, 3] if self.bands >= 3 else [1],
+                            window=Window(c0, r0, c1 - c0, r1 - r0))
         self.pixels_read += (c1 - c0) * (r1 - r0)
         grey = data[0].astype(np.float32) if len(data) == 1 else \
             data.astype(np.float32).mean(axis=0)

@@ -87,18 +87,14 @@ def read_template(path: Path, name: str = "TEMPLATE") -> tuple[np.ndarray, str]:
     """A template image (first band, or the mean of RGB) and its data type name, read as the
     scans are (:func:`toolbox.raster.photo_grid.open_photo_grid`: a paletted one as its
     colours, never its colour codes; full resolution)."""
-    import warnings
-
     import rasterio
 
     from toolbox.raster.photo_grid import open_photo_grid
 
     try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
-            with open_photo_grid(path) as src:
-                data = src.read()
-                dtype = src.dtypes[0]
+        with open_photo_grid(path) as src:  # (no warning for its missing georeference)
+            data = src.read()
+            dtype = src.dtypes[0]
     except rasterio.errors.RasterioError as exc:
         raise InputDataError(f"{name}: cannot read {path}: {str(exc).splitlines()[0]}") from None
     grey = data[:3].astype("float32").mean(axis=0) if data.shape[0] >= 3 else \

@@ -43,24 +43,36 @@ def expanded_path(src: Any, path: str) -> str:
     return f"vrt://{path}?expand={expand}"
 
 
-def open_photo_grid(path: Any) -> Any:
-    """The photo at ``path`` open (rasterio dataset; the caller closes it) as photo algorithms
-    read it (module docstring): full resolution only, a paletted one as its colours."""
+def open_expanded(path: Any, full_resolution: bool = False,
+                  warn_orientation: bool = False) -> tuple[str, Any]:
+    """``(read path, dataset)``: the photo at ``path`` open (rasterio; the caller closes it) by
+    :func:`expanded_path`'s path, one open of the file unless it is paletted (reopened as its
+    colours), without the warning about a photo's missing georeferencing. ``full_resolution``:
+    its overviews kept out of every read (:data:`FULL_RESOLUTION`); ``warn_orientation``:
+    :func:`warn_orientation_tag` of the file as first opened."""
     import rasterio
 
     path = str(path)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
-        src = rasterio.open(path, OVERVIEW_LEVEL="NONE")
+        src = rasterio.open(path, **({"OVERVIEW_LEVEL": "NONE"} if full_resolution else {}))
         try:
+            if warn_orientation:
+                warn_orientation_tag(src, path)
             read = expanded_path(src, path)
         except BaseException:
             src.close()
             raise
         if read == path:
-            return src
+            return path, src
         src.close()
-        return rasterio.open(f"{read}&oo={FULL_RESOLUTION}")
+        return read, rasterio.open(f"{read}&oo={FULL_RESOLUTION}" if full_resolution else read)
+
+
+def open_photo_grid(path: Any) -> Any:
+    """The photo at ``path`` open (rasterio dataset; the caller closes it) as photo algorithms
+    read it (module docstring): full resolution only, a paletted one as its colours."""
+    return open_expanded(path, full_resolution=True)[1]
 
 
 def warn_orientation_tag(src: Any, path: Any, name: str = "photo") -> None:

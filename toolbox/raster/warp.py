@@ -112,39 +112,22 @@ def photo_path(source: Any) -> str:
     interpolate) as its colours, RGB or RGBA when the table has transparency, as
     ``gdal_translate -expand rgb|rgba`` writes them (GDAL's ``vrt://`` expansion)."""
     from toolbox.raster.datasets import open_quietly
+    from toolbox.raster.photo_grid import expanded_path
 
     path = str(getattr(source, "path", source))
     with open_quietly(path) as src:
-        return _read_path(src, path)
-
-
-def _read_path(src: Any, path: str) -> str:
-    """:func:`photo_path` of ``path``, open as ``src``."""
-    from toolbox.raster.photo_grid import expanded_path
-
-    return expanded_path(src, path)
+        return expanded_path(src, path)
 
 
 def open_photo(source: Any) -> tuple[str, Any]:
     """``(path, dataset)``: the photo ``source`` (a path or RasterInfo) open as a warp reads
     it, by :func:`photo_path`'s path (the caller closes it); one open of the file unless it is
     paletted (each open parses the file's header and georeferencing again: a warp opened its
-    photo seven times)."""
-    from toolbox.raster.datasets import open_quietly
-    from toolbox.raster.photo_grid import warn_orientation_tag
+    photo seven times); a photo with an EXIF orientation warned about
+    (:func:`~toolbox.raster.photo_grid.warn_orientation_tag`)."""
+    from toolbox.raster.photo_grid import open_expanded
 
-    path = str(getattr(source, "path", source))
-    src = open_quietly(path)
-    try:
-        warn_orientation_tag(src, path)
-        read = _read_path(src, path)
-    except BaseException:
-        src.close()
-        raise
-    if read != path:
-        src.close()
-        src = open_quietly(read)
-    return read, src
+    return open_expanded(getattr(source, "path", source), warn_orientation=True)
 
 
 @contextmanager
