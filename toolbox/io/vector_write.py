@@ -71,7 +71,11 @@ def geometry_kinds(frame) -> set[str]:
     """Kinds (point, line, polygon) of the non-empty geometries of a frame."""
     if not len(frame):
         return set()
-    types = geometry_type_names(frame.geometry.values)
+    return _kinds(geometry_type_names(frame.geometry.values))
+
+
+def _kinds(types: set[str]) -> set[str]:
+    """Kinds (point, line, polygon) of the geometry type names ``types``."""
     return {kind for kind, family in _GEOMETRY_FAMILIES.items() if types & set(family)}
 
 
@@ -115,7 +119,7 @@ def write_layers(path: str | Path, layers: dict[str, Any], crs: Any = None,
             frame = frame.set_crs(crs)
         geometry = frame.geometry  # a new GeoSeries at each access: taken once
         types = geometry_type_names(geometry.values) if len(frame) else set()
-        kinds = {kind for kind, family in _GEOMETRY_FAMILIES.items() if types & set(family)}
+        kinds = _kinds(types)
         if len(kinds) > 1:
             raise ValueError(f"internal: layer '{layer_name}' mixes {' and '.join(sorted(kinds))}"
                              "; write one layer per kind (see toolbox.topology.layers)")
@@ -280,6 +284,7 @@ def _dbf_frame(frame):
             if values is not series:
                 changed[column] = values
     return frame.assign(**changed) if changed else frame
+
 
 def _fid_column(frame) -> dict[str, str]:
     """The GeoPackage layer option naming its primary key (FID) column, away from the frame's
