@@ -212,7 +212,11 @@ def read_window(source: OrthoSource, grid_transform: Any, grid_crs: Any, window:
             part = _inside(source, grid_transform, window)
             if part is not None and _whole(part[1], rows, cols) and \
                     source.dtype in EXACT_IN_FLOAT32:  # the window inside the ortho
-                data = src.read(source.data_bands, window=part[0], out_dtype="float32")
+                # in the file's type (a copy out of GDAL's block cache), then to float32 by
+                # numpy: GDAL's conversion cost 1.7 against 1.1 ms of CPU for a 1000 x 1000
+                # RGB window; the same values (exact types)
+                data = src.read(source.data_bands, window=part[0]).astype("float32",
+                                                                          copy=False)
                 valid = np.ones((rows, cols), dtype=bool) if source.all_valid else \
                     src.dataset_mask(window=part[0]) > 0
                 return data, valid
