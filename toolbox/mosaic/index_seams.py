@@ -150,7 +150,7 @@ def partition_labels(plan: Any) -> Iterator[tuple[int, int, np.ndarray]]:
         valid = np.zeros((len(plan.sources), n + extra, grid.width), dtype=bool)
         for k, src in enumerate(plan.sources):
             if _intersects(src.bounds, bounds):
-                valid[k] = read_valid(src, grid.transform, grid.crs, window)
+                read_valid(src, grid.transform, grid.crs, window, out=valid[k])
         yield r0, n, window_labels(plan, window, valid)
 
 

@@ -43,3 +43,32 @@ def test_window_inside_is_read_in_its_type_as_gdal_reads_float32(tmp_path, dtype
         want = ds.read(window=Window(3, 3, 25, 20), out_dtype="float32")
     assert got.dtype == np.float32 and got.flags.c_contiguous
     assert np.array_equal(got, want) and valid.all()
+
+
+@pytest.mark.parametrize("cell", [1.0, 0.7])  # on the ortho's grid, and resampled onto another
+def test_read_valid_writes_gdals_mask_into_the_given_array(tmp_path, cell):
+    from toolbox.mosaic.sources import read_valid
+
+    data = np.full((3, 30, 40), 9, dtype="uint8")
+    data[:, :6, :11] = 0  # no data in a corner
+    path = tmp_path / "o.tif"
+    with rasterio.open(path, "w", driver="GTiff", width=40, height=30, count=3, dtype="uint8",
+                       nodata=0, crs="EPSG:3003", transform=Affine(1, 0, 1000, 0, -1, 2000)) as d:
+        d.write(data)
+    src = open_source(path, 0)
+    grid = Affine(cell, 0, 990, 0, -cell, 2005)
+    window = Window(0, 0, 60, 45)
+    out = np.zeros((2, 45, 60), dtype=bool)
+    got = read_valid(src, grid, "EPSG:3003", window, out=out[1])
+    assert got is out[1] or np.shares_memory(got, out)
+    assert not out[0].any()
+    with rasterio.open(path) as ds:  # GDAL's mask of the ortho, cell centres sampled
+        mask = ds.dataset_mask() > 0
+    cx = 990 + (np.arange(60) + 0.5) * cell
+    cy = 2005 - (np.arange(45) + 0.5) * cell
+    col, row = np.floor(cx - 1000).astype(int), np.floor(2000 - cy).astype(int)
+    inside = (row[:, None] >= 0) & (row[:, None] < 30) & (col[None, :] >= 0) & (col[None, :] < 40)
+    want = np.zeros((45, 60), dtype=bool)
+    want[inside] = mask[np.clip(row, 0, 29)[:, None].repeat(60, 1)[inside],
+                        np.clip(col, 0, 39)[None, :].repeat(45, 0)[inside]]
+    np.testing.assert_array_equal(out[1], want)
