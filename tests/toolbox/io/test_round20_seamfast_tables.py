@@ -15,6 +15,7 @@ import shapely
 from pyproj import CRS
 
 import toolbox
+from tests.toolbox.gpkg_check import gpkg_problems
 from toolbox.demo.samples.mosaic import make_block, pair_specs
 from toolbox.io.vector_write import write_layers
 
@@ -88,6 +89,7 @@ def test_table_layers_are_the_geodataframe_writers_layers(tmp_path, ext):
     if ext == ".gpkg":
         _assert_same_layers(ours, reference, list(tables))
         assert _metadata(ours) == _metadata(reference)
+        assert gpkg_problems(ours) == []
         with sqlite3.connect(ours) as db:  # GDAL's EPSG definition, not pyproj's WKT
             (definition,) = db.execute("SELECT definition FROM gpkg_spatial_ref_sys WHERE "
                                        "srs_id = 3003").fetchone()
@@ -116,6 +118,7 @@ def test_seamlines_builds_no_geodataframe_and_writes_the_same_file(tmp_path, mon
     _assert_same_layers(out, tmp_path / "ref.gpkg",
                         ["cut_polygons", "seamlines", "footprints", "centres"])
     assert _metadata(out) == _metadata(tmp_path / "ref.gpkg")
+    assert gpkg_problems(out) == []  # GeoPackage 1.2
     cells = pyogrio.read_dataframe(out, layer="cut_polygons")
     assert cells["source"].tolist() == ["ortho_a", "ortho_b"]
     assert cells["path"].tolist() == ["in/ortho_a.tif", "in/ortho_b.tif"]
