@@ -131,19 +131,19 @@ class MosaicSeamlines(Algorithm):
                    "use a larger SEAM_CELL_SIZE (or leave it empty: the orthos' cell)")
 
     def process(self, params, feedback: Feedback):
-        import geopandas as gpd
+        import numpy as np
         import shapely
 
-        from toolbox.io.vector_write import write_layers
+        from toolbox.io.vector_write import write_table_layers
         from toolbox.mosaic.block import (
-            cells_frame,
+            cells_table,
             centres_of,
             close_block,
             mosaic_grid,
             nadir_points_from_layer,
             name_order,
             open_block,
-            seams_frame,
+            seams_table,
             union_area,
         )
         from toolbox.mosaic.build import MosaicPlan
@@ -213,17 +213,14 @@ class MosaicSeamlines(Algorithm):
                                   len(sources[0].data_bands), sources[0].dtype)
                 seams = sorted((*sorted((order[i], order[j])), line)
                                for i, j, line in partition_seams(plan))
-            centre_frame = gpd.GeoDataFrame(
-                {"source_id": [s.index + 1 for s in sources], "source": [s.name for s in sources]},
-                geometry=[shapely.Point(c) for c in centres], crs=crs)
-            foot_frame = gpd.GeoDataFrame(
-                {"source_id": [s.index + 1 for s in sources], "source": [s.name for s in sources]},
-                geometry=[f if f.geom_type == "MultiPolygon" else shapely.MultiPolygon([f])
-                          for f in footprints], crs=crs)
-            write_layers(params["OUTPUT"], {
-                "cut_polygons": cells_frame(sources, cells, crs, params["OUTPUT"]),
-                "seamlines": seams_frame(sources, seams, crs, methods),
-                "footprints": foot_frame, "centres": centre_frame},
+            ids = {"source_id": np.array([s.index + 1 for s in sources], dtype="int64"),
+                   "source": np.array([s.name for s in sources], dtype=object)}
+            write_table_layers(params["OUTPUT"], {
+                "cut_polygons": cells_table(sources, cells, params["OUTPUT"]),
+                "seamlines": seams_table(sources, seams, methods),
+                "footprints": (ids, [f if f.geom_type == "MultiPolygon"
+                                     else shapely.MultiPolygon([f]) for f in footprints]),
+                "centres": (ids, [shapely.Point(c) for c in centres])}, crs,
                 geometry_types={"cut_polygons": "MultiPolygon", "seamlines": "MultiLineString",
                                 "footprints": "MultiPolygon", "centres": "Point"})
             return {"OUTPUT": params["OUTPUT"], "STATISTICS": {

@@ -7,6 +7,8 @@ import math
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from toolbox.errors import InputDataError, ParameterError
 from toolbox.mosaic.sources import (
     OrthoSource,
@@ -213,18 +215,19 @@ def mosaic_grid(sources: list[OrthoSource], crs: Any, cell: float | None, area,
     return grid
 
 
-def cells_frame(sources: list[OrthoSource], cells: list, crs: Any, output: Any = None):
-    """GeoDataFrame of the cut polygons (one row per ortho with a non-empty cell); ``path`` is
-    the ortho's path relative to the folder of ``output`` (the file written), not a machine
-    path."""
-    import geopandas as gpd
+def cells_table(sources: list[OrthoSource], cells: list, output: Any = None) -> tuple:
+    """The cut polygons as ``(fields, geometries)`` (one row per ortho with a non-empty cell;
+    :func:`toolbox.io.vector_write.write_table_layers`): ``source_id``, ``source``, ``path``
+    (the ortho's path relative to the folder of ``output``, the file written, not a machine
+    path) and ``area``; MultiPolygons."""
     from shapely.geometry import MultiPolygon
 
-    rows = [{"source_id": s.index + 1, "source": s.name, "path": relative_path(s.path, output),
-             "area": float(c.area), "geometry": c if c.geom_type == "MultiPolygon"
-             else MultiPolygon([c])} for s, c in zip(sources, cells, strict=True)
-            if not c.is_empty]
-    return gpd.GeoDataFrame(rows, geometry="geometry", crs=crs)
+    rows = [(s, c) for s, c in zip(sources, cells, strict=True) if not c.is_empty]
+    fields = {"source_id": np.array([s.index + 1 for s, _ in rows], dtype="int64"),
+              "source": np.array([s.name for s, _ in rows], dtype=object),
+              "path": np.array([relative_path(s.path, output) for s, _ in rows], dtype=object),
+              "area": np.array([float(c.area) for _, c in rows], dtype="float64")}
+    return fields, [c if c.geom_type == "MultiPolygon" else MultiPolygon([c]) for _, c in rows]
 
 
 def relative_path(path: Any, output: Any) -> str:
@@ -243,23 +246,37 @@ def relative_path(path: Any, output: Any) -> str:
     return Path(rel).as_posix()
 
 
-def seams_frame(sources: list[OrthoSource], seams: list, crs: Any, methods: dict | None = None,
-                default_method: str = "voronoi"):
-    """GeoDataFrame of seamlines ``(i, j, line)`` (see :mod:`toolbox.mosaic.index_seams`);
-    ``method`` per pair from ``methods``, else ``default_method``."""
-    import geopandas as gpd
+def seams_table(sources: list[OrthoSource], seams: list, methods: dict | None = None,
+                default_method: str = "voronoi") -> tuple:
+    """Seamlines ``(i, j, line)`` (see :mod:`toolbox.mosaic.index_seams`) as ``(fields,
+    geometries)`` (:func:`toolbox.io.vector_write.write_table_layers`): ``a_id``, ``b_id``,
+    ``a``, ``b``, ``method`` (per pair from ``methods``, else ``default_method``) and
+    ``length``; MultiLineStrings. Without seams every field is float64, as in an empty
+    GeoDataFrame (:func:`seams_frame`)."""
     from shapely.geometry import MultiLineString
 
-    rows = []
-    for i, j, line in seams:
-        parts = list(getattr(line, "geoms", [line]))
-        rows.append({"a_id": i + 1, "b_id": j + 1, "a": sources[i].name, "b": sources[j].name,
-                     "method": (methods or {}).get((i, j), default_method),
-                     "length": float(line.length), "geometry": MultiLineString(parts)})
-    frame = gpd.GeoDataFrame(rows, geometry="geometry", crs=crs) if rows else \
-        gpd.GeoDataFrame({"a_id": [], "b_id": [], "a": [], "b": [], "method": [], "length": []},
-                         geometry=gpd.GeoSeries([], crs=crs), crs=crs)
-    return frame
+    if not seams:
+        return {name: np.array([], dtype="float64")
+                for name in ("a_id", "b_id", "a", "b", "method", "length")}, []
+    fields = {"a_id": np.array([i + 1 for i, _, _ in seams], dtype="int64"),
+              "b_id": np.array([j + 1 for _, j, _ in seams], dtype="int64"),
+              "a": np.array([sources[i].name for i, _, _ in seams], dtype=object),
+              "b": np.array([sources[j].name for _, j, _ in seams], dtype=object),
+              "method": np.array([(methods or {}).get((i, j), default_method)
+                                  for i, j, _ in seams], dtype=object),
+              "length": np.array([float(line.length) for _, _, line in seams],
+                                 dtype="float64")}
+    return fields, [MultiLineString(list(getattr(line, "geoms", [line])))
+                    for _, _, line in seams]
+
+
+def seams_frame(sources: list[OrthoSource], seams: list, crs: Any, methods: dict | None = None,
+                default_method: str = "voronoi"):
+    """GeoDataFrame of seamlines ``(i, j, line)``: :func:`seams_table`'s columns."""
+    import geopandas as gpd
+
+    fields, geoms = seams_table(sources, seams, methods, default_method)
+    return gpd.GeoDataFrame(fields, geometry=gpd.GeoSeries(geoms, crs=crs), crs=crs)
 
 
 def seam_methods(layer: Any, sources: list[OrthoSource]) -> dict:

@@ -79,6 +79,9 @@ TILE_SIZE = 512
 
 #: up to this many sources with data in a window, :func:`window_labels` takes one pass per source
 FEW_SOURCES = 6
+#: cells of the strips of rows :func:`window_labels` makes its passes over (64 K: a strip's
+#: labels, masks and result stay in a core's cache)
+LABEL_STRIP_CELLS = 65_536
 
 
 def window_labels(plan: MosaicPlan, window: Any, valid: np.ndarray) -> np.ndarray:
@@ -91,10 +94,11 @@ def window_labels(plan: MosaicPlan, window: Any, valid: np.ndarray) -> np.ndarra
     # both, the last drawn wins) goes to the lower source, as the fallback below does
     shapes = [(cell, k) for k, cell in reversed(list(enumerate(plan.cells)))
               if cell is not None and not cell.is_empty]
-    labels = np.full(shape, -1, dtype="int16")
     if shapes:
         labels = rasterize(shapes, out_shape=shape, transform=plan.grid.window_transform(window),
                            fill=-1, dtype="int16")
+    else:
+        labels = np.full(shape, -1, dtype="int16")
     present = [k for k in range(len(valid)) if valid[k].any()]
     if len(present) > FEW_SOURCES:  # many sources here: one gather over all of them
         rows, cols = np.indices(shape, sparse=True)
@@ -102,14 +106,25 @@ def window_labels(plan: MosaicPlan, window: Any, valid: np.ndarray) -> np.ndarra
         first = np.where(valid.any(axis=0), valid.argmax(axis=0), -1).astype("int16")
         return np.where(own_valid, labels, first).astype("int16")
     first = np.full(shape, -1, dtype="int16")  # the first source with data, -1 = none
-    own_valid = np.zeros(shape, dtype=bool)  # the polygon's source has data
-    here = np.empty(shape, dtype=bool)
-    for k in reversed(present):  # a few passes, faster than the gather (2-4x for 1-3 sources)
-        np.copyto(first, k, where=valid[k])  # no index arrays, unlike first[valid[k]] = k
-        np.equal(labels, k, out=here)
-        here &= valid[k]
-        own_valid |= here
-    np.copyto(first, labels, where=own_valid)
+    # a few passes, faster than the gather (2-4x for 1-3 sources), over strips of rows that
+    # stay in the CPU's cache from one pass to the next (1500 x 1000 cells: 12.9 -> 11.4 ms of
+    # mosaic:seamlines' seams, the whole grid at once took each pass through memory)
+    step = max(1, LABEL_STRIP_CELLS // max(shape[1], 1))
+    own_strip = np.empty((min(step, shape[0]), shape[1]), dtype=bool)
+    here_strip = np.empty_like(own_strip)
+    for r0 in range(0, shape[0], step):
+        rows = slice(r0, r0 + step)
+        lab, out = labels[rows], first[rows]
+        own_valid = own_strip[:len(lab)]  # the polygon's source has data
+        here = here_strip[:len(lab)]
+        own_valid.fill(False)
+        for k in reversed(present):
+            on = valid[k, rows]
+            np.copyto(out, k, where=on)  # no index arrays, unlike first[valid[k]] = k
+            np.equal(lab, k, out=here)
+            here &= on
+            own_valid |= here
+        np.copyto(out, lab, where=own_valid)
     return first
 
 

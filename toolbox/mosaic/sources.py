@@ -212,7 +212,11 @@ def read_window(source: OrthoSource, grid_transform: Any, grid_crs: Any, window:
             part = _inside(source, grid_transform, window)
             if part is not None and _whole(part[1], rows, cols) and \
                     source.dtype in EXACT_IN_FLOAT32:  # the window inside the ortho
-                data = src.read(source.data_bands, window=part[0], out_dtype="float32")
+                # in the file's type (a copy out of GDAL's block cache), then to float32 by
+                # numpy: GDAL's conversion cost 1.7 against 1.1 ms of CPU for a 1000 x 1000
+                # RGB window; the same values (exact types)
+                data = src.read(source.data_bands, window=part[0]).astype("float32",
+                                                                          copy=False)
                 valid = np.ones((rows, cols), dtype=bool) if source.all_valid else \
                     src.dataset_mask(window=part[0]) > 0
                 return data, valid
@@ -232,15 +236,16 @@ def read_window(source: OrthoSource, grid_transform: Any, grid_crs: Any, window:
         return data, mask_onto(src, t, cols, rows, grid_crs)
 
 
-def read_valid(source: OrthoSource, grid_transform: Any, grid_crs: Any, window: Any
-               ) -> np.ndarray:
+def read_valid(source: OrthoSource, grid_transform: Any, grid_crs: Any, window: Any,
+               out: np.ndarray | None = None) -> np.ndarray:
     """Only the ``valid`` mask of :func:`read_window` (no data bands read where GDAL's mask
-    does not need them: an alpha band or an internal mask)."""
+    does not need them: an alpha band or an internal mask); written into ``out`` when given
+    (a bool array of the window's shape, all False), returned."""
     from rasterio.windows import transform as window_transform
 
     rows, cols = int(window.height), int(window.width)
     if aligned(source, grid_transform):
-        valid = np.zeros((rows, cols), dtype=bool)
+        valid = np.zeros((rows, cols), dtype=bool) if out is None else out
         part = _inside(source, grid_transform, window)
         if part is not None:
             if source.all_valid:
@@ -252,7 +257,11 @@ def read_valid(source: OrthoSource, grid_transform: Any, grid_crs: Any, window: 
     with opened(source) as src:
         from toolbox.raster.reproject import mask_onto
 
-        return mask_onto(src, window_transform(window, grid_transform), cols, rows, grid_crs)
+        valid = mask_onto(src, window_transform(window, grid_transform), cols, rows, grid_crs)
+    if out is None:
+        return valid
+    out[...] = valid
+    return out
 
 
 def _whole(slices: tuple[slice, slice], rows: int, cols: int) -> bool:
