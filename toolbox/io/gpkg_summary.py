@@ -136,6 +136,7 @@ def _one(con: sqlite3.Connection, sql: str) -> Any:
 
 
 def _summarise(con: sqlite3.Connection) -> list[dict[str, Any]]:
+    con.execute("BEGIN")  # one read transaction: every statement sees the same snapshot
     application_id, user_version = _one(con, "PRAGMA application_id"), \
         _one(con, "PRAGMA user_version")
     if application_id not in _APPLICATION_IDS or (

@@ -357,3 +357,15 @@ def test_generated_point_layers(tmp_path_factory, layers, table):
         pyogrio.write_dataframe(pd.DataFrame({"t": [1, 2], "s": ["x", "y"]}), path,
                                 layer="table")
     check(path, fast=True)
+
+
+def test_odd_names_of_files_and_layers(tmp_path):
+    """A file name with characters a URI escapes and layer names with quotes, spaces and
+    accents."""
+    folder = tmp_path / "a dir?#%"
+    folder.mkdir()
+    path = folder / "punti 100%.gpkg"
+    points_frame(4).to_file(path, layer='quote"d name')
+    points_frame(3, z=False, seed=3).to_file(path, layer="città-1")
+    layers = check(path, fast=True)
+    assert [la["name"] for la in layers] == ['quote"d name', "città-1"]
