@@ -69,7 +69,22 @@ def test_every_documented_command_runs(demo_dir, monkeypatch):
         if result.exit_code != 0:
             failures.append(f"{source}: {command}\n    -> exit {result.exit_code}: "
                             f"{(result.output or repr(result.exception))[-400:]}")
+        elif args[0] == "run":  # and it wrote what it says: every output it names exists
+            missing = [path for path in _output_paths(args) if not (demo_dir / path).exists()]
+            if missing:
+                failures.append(f"{source}: {command}\n    -> exit 0, not written: {missing}")
     assert not failures, "\n".join(failures)
+
+
+def _output_paths(args: list[str]) -> list[str]:
+    """The paths a `run` command line gives its output parameters (files or folders)."""
+    from toolbox.registry import get
+
+    algorithm = next(a for a in args[1:] if re.fullmatch(r"\w+:\w+", a))
+    params = {p.name: p for p in get(algorithm).parameters}
+    return [value for flag, value in zip(args, args[1:]) if flag.startswith("--")
+            and (param := params.get(flag[2:].upper())) is not None
+            and type(param).__name__.startswith("Output")]
 
 
 def test_readme_typed_request_example_runs(tmp_path, monkeypatch):
