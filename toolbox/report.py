@@ -6,14 +6,14 @@ import datetime as dt
 import json
 import math
 import platform
+import sys
 from pathlib import Path
 from typing import Any
-
-import numpy as np
 
 
 def versions() -> dict[str, str]:
     """Versions of the toolbox and of the libraries that decide the numbers (GDAL, PROJ, GEOS)."""
+    import numpy as np
     import pyproj
     import rasterio
     import shapely
@@ -42,14 +42,17 @@ def to_jsonable(value: Any) -> Any:
     """Convert parameter values and statistics into JSON types (paths, CRSs, numpy, extents)."""
     if value is None or isinstance(value, (bool, str)):
         return value
-    if isinstance(value, (int, np.integer)):
+    # numpy only when loaded (no numpy value exists otherwise): vector:info's GeoPackage
+    # summary runs without it
+    np = sys.modules.get("numpy")
+    if isinstance(value, int) or (np is not None and isinstance(value, np.integer)):
         return int(value)
-    if isinstance(value, (float, np.floating)):
+    if isinstance(value, float) or (np is not None and isinstance(value, np.floating)):
         f = float(value)
         return f if math.isfinite(f) else None
     if isinstance(value, Path):
         return str(value)
-    if isinstance(value, np.ndarray):
+    if np is not None and isinstance(value, np.ndarray):
         return to_jsonable(value.tolist())
     if isinstance(value, dict):
         return {str(k): to_jsonable(v) for k, v in value.items()}

@@ -7,7 +7,7 @@ import re
 import warnings
 
 from toolbox.algorithm import Algorithm
-from toolbox.io.vector import is_parquet, layer_names, layers_geometries, read_geometries
+from toolbox.io.gpkg_summary import GpkgSummary
 from toolbox.parameters import Output, OutputFile, VectorLayer
 from toolbox.registry import register
 
@@ -73,7 +73,9 @@ class VectorInfo(Algorithm):
     short_help = "Layers, geometry types, counts, CRS, fields, extent and Z range of a vector file."
     projected_crs_only = False  # describes any layer, lon/lat included
     parameters = [
-        VectorLayer("INPUT", "vector file (all its layers are described)"),
+        # a GeoPackage of points: described at validation by the standard library's sqlite3
+        # (toolbox.io.gpkg_summary), the same description without numpy, pyogrio or shapely
+        VectorLayer("INPUT", "vector file (all its layers are described)", summarise=True),
         OutputFile("OUTPUT", "JSON file to write the description to", extensions=[".json"],
                    optional=True),
     ]
@@ -81,16 +83,10 @@ class VectorInfo(Algorithm):
 
     def process(self, params, feedback):
         ref = params["INPUT"]
-        single = ref.path is None or is_parquet(ref.path)  # a frame, or one GeoParquet layer
-        # every layer: a few reads of all (a file of 200 layers took 200 reads, each opening it)
-        names = [] if single else layer_names(ref.path)
-        read = [read_geometries(ref)] if single else layers_geometries(ref, layers=names)
-        total = 1 if single else len(names)
-        layers = []
-        for layer, geoms in feedback.iterate(read, total=total):
-            name = ref.layer or ref.info.get("layer_name") if single else layer.layer
-            layers.append({"name": name, "crs": layer_crs_label(layer),
-                           "fields": layer.field_types, **geometry_summary(geoms)})
+        if isinstance(ref, GpkgSummary):
+            layers = ref.layers
+        else:
+            layers = self._read_layers(ref, feedback)
         from toolbox.io.paths import absolute_paths
 
         # absolute as in the run report (a relative path names nothing elsewhere)
@@ -103,3 +99,20 @@ class VectorInfo(Algorithm):
             params["OUTPUT"].write_text(json.dumps(to_jsonable(info), indent=2,
                                                    allow_nan=False) + "\n")
         return {"INFO": info, "OUTPUT": params["OUTPUT"]}
+
+    @staticmethod
+    def _read_layers(ref, feedback) -> list[dict]:
+        """Every layer of ``ref``'s file described through OGR and shapely."""
+        from toolbox.io.vector import is_parquet, layer_names, layers_geometries, read_geometries
+
+        single = ref.path is None or is_parquet(ref.path)  # a frame, or one GeoParquet layer
+        # every layer: a few reads of all (a file of 200 layers took 200 reads, each opening it)
+        names = [] if single else layer_names(ref.path)
+        read = [read_geometries(ref)] if single else layers_geometries(ref, layers=names)
+        total = 1 if single else len(names)
+        layers = []
+        for layer, geoms in feedback.iterate(read, total=total):
+            name = ref.layer or ref.info.get("layer_name") if single else layer.layer
+            layers.append({"name": name, "crs": layer_crs_label(layer),
+                           "fields": layer.field_types, **geometry_summary(geoms)})
+        return layers

@@ -929,11 +929,6 @@ def _gpkg_plan(path: Path, layers: list[str]) -> dict[str, Any] | None:
         return None
 
 
-#: the root authority of a WKT 1 or 2 definition, at its end
-_ROOT_EPSG = re.compile(r'(?:AUTHORITY\["EPSG",\s*"(\d+)"\]|ID\["EPSG",\s*(\d+)\])\]\s*$',
-                        re.IGNORECASE)
-
-
 def _gpkg_epsg_codes(path: Path, srs_ids: set[int]) -> dict[int, str]:
     """``{srs_id: "EPSG:code"}`` of the GeoPackage's spatial reference systems that OGR reads
     as that EPSG code, from its ``gpkg_spatial_ref_sys`` table (one statement for them all;
@@ -948,18 +943,13 @@ def _gpkg_epsg_codes(path: Path, srs_ids: set[int]) -> dict[int, str]:
     _, _, (ids, organizations, codes, definitions) = _sql_read(
         path, "SELECT srs_id, organization, organization_coordsys_id, definition FROM "
         f"gpkg_spatial_ref_sys WHERE srs_id IN ({', '.join(map(str, wanted))})")
+    from toolbox.io.gpkg_summary import epsg_label
+
     out = {}
-    for srs_id, organization, code, definition in zip(ids, organizations, codes, definitions,
-                                                      strict=True):
-        root = _ROOT_EPSG.search(str(definition or ""))
-        if str(organization or "").upper() != "EPSG" or root is None:
-            continue
-        try:
-            same = int(code) == int(srs_id) == int(root.group(1) or root.group(2))
-        except (TypeError, ValueError):  # a null or text code: OGR says
-            continue
-        if same:
-            out[int(srs_id)] = f"EPSG:{int(code)}"
+    for row in zip(ids, organizations, codes, definitions, strict=True):
+        label = epsg_label(*row)
+        if label is not None:
+            out[int(row[0])] = label
     return out
 
 

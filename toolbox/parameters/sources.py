@@ -88,6 +88,10 @@ class VectorLayer(Parameter):
     :class:`toolbox.io.pointcloud.PointCloudRef`; the algorithm must read both kinds).
     ``known_layer``: the layer taken from a file of several given without one, when it has it
     (a toolbox output's layer: see :func:`toolbox.io.vector.open_layer`).
+    ``summarise``: a GeoPackage given by its path alone that :func:`toolbox.io.gpkg_summary.
+    summarise` describes for certain (points, in the standard library: no numpy, pyogrio or
+    shapely) is validated to a :class:`~toolbox.io.gpkg_summary.GpkgSummary` holding that
+    description (``vector:info``); any other value as without it.
     """
 
     type_name = "vector"
@@ -96,16 +100,26 @@ class VectorLayer(Parameter):
     def __init__(self, name: str, description: str = "",
                  geometry_types: Sequence[str] | None = None, default: Any = None,
                  optional: bool = False, point_clouds: bool = False,
-                 known_layer: str | None = None, **flags):
+                 known_layer: str | None = None, summarise: bool = False, **flags):
         super().__init__(name, description, default, optional, **flags)
         self.geometry_types = list(geometry_types) if geometry_types else None
         self.point_clouds = point_clouds
         self.known_layer = known_layer
+        self.summarise = summarise
 
     def validate(self, value: Any, ctx: ValidationContext):
+        _refuse_virtual(self, value)
+        if self.summarise and isinstance(value, (str, Path)) and "|" not in str(value) \
+                and str(value).lower().endswith(".gpkg") and Path(value).expanduser().is_file():
+            from toolbox.io.gpkg_summary import GpkgSummary, summarise
+
+            path = Path(value).expanduser()
+            layers = summarise(path)
+            if layers is not None:
+                ctx.input_paths[path.resolve()] = self.name
+                return GpkgSummary(path, layers)
         from toolbox.io.vector import open_layer
 
-        _refuse_virtual(self, value)
         if self.point_clouds:
             from toolbox.io.pointcloud import PointCloudRef, is_point_cloud_path, open_point_cloud
 

@@ -148,9 +148,11 @@ def _vrt_files(vrt: Path) -> list[Path]:
 def _project_files(p: Any, path: Path) -> list[Path]:
     """For a PROJECT input: the photos its reader resolves (another program's file names them
     by stem, found in its folder) and the camera files it may read beside it."""
+    if not isinstance(p, File):  # (a vector or raster layer: the tables module not imported)
+        return []
     from toolbox.photogrammetry.tables import PROJECT_EXTENSIONS
 
-    if not isinstance(p, File) or p.extensions != PROJECT_EXTENSIONS:
+    if p.extensions != PROJECT_EXTENSIONS:
         return []
     st = path.stat()
     return list(_project_photos(path.resolve(), st.st_mtime_ns, st.st_size,
