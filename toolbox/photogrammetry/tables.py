@@ -364,6 +364,34 @@ def _or_nan(value: Any) -> float:
         return math.nan
 
 
+def centroid_shift(source: Any, target: Any, xy: Any) -> tuple[float, tuple[float, float]]:
+    """How far (metres, on ``target``'s ellipsoid) the centroid of the points ``xy`` ((n, 2),
+    NaN rows left out) moves when transformed from ``source``'s horizontal CRS to
+    ``target``'s (pyproj), and the centroid: 0 for two definitions of one CRS (an ESRI WKT and
+    its EPSG code), the datum shift for another datum; infinite where the transformation
+    fails; ``(0.0, (nan, nan))`` without points. The definitions are not compared."""
+    import numpy as np
+    from pyproj import Geod, Transformer
+
+    from toolbox.io.crs import horizontal_part
+
+    xy = np.asarray(xy, dtype="float64").reshape(-1, 2)
+    xy = xy[np.isfinite(xy).all(axis=1)]
+    if not len(xy):
+        return 0.0, (math.nan, math.nan)
+    source, target = horizontal_part(source), horizontal_part(target)
+    x, y = (float(v) for v in xy.mean(axis=0))
+    moved = Transformer.from_crs(source, target, always_xy=True).transform(x, y)
+    geodetic = Transformer.from_crs(target, target.geodetic_crs, always_xy=True)
+    lon, lat = geodetic.transform(np.array([x, moved[0]]), np.array([y, moved[1]]))
+    if not (np.isfinite(lon).all() and np.isfinite(lat).all()):
+        return math.inf, (x, y)
+    ellipsoid = target.ellipsoid
+    geod = Geod(a=ellipsoid.semi_major_metre, rf=ellipsoid.inverse_flattening) \
+        if ellipsoid is not None else Geod(ellps="WGS84")
+    return float(geod.inv(lon[0], lat[0], lon[1], lat[1])[2]), (x, y)
+
+
 def check_prj_crs(path: Path, crs: Any, layer: str | None = None, name: str = "CONTROL",
                   horizontal: bool = False) -> Any:
     """``crs`` (the CRS parameter), checked against the ``.prj`` beside the table ``path``: the
@@ -374,38 +402,24 @@ def check_prj_crs(path: Path, crs: Any, layer: str | None = None, name: str = "C
     no point. Without ``horizontal``, two different height datums stated one on each side are
     refused too (:func:`toolbox.io.crs.check_same_heights`)."""
     import numpy as np
-    from pyproj import Geod, Transformer
 
-    from toolbox.io.crs import check_same_heights, crs_label, horizontal_part, parse_crs
+    from toolbox.io.crs import check_same_heights, crs_label, parse_crs
 
     crs = parse_crs(crs, "CRS")
     own = prj_crs(path, name)
     prj = Path(path).with_suffix(".prj").name
-    source, target = horizontal_part(own), horizontal_part(crs)
     _, cols, rows = known_point_rows(path, layer, name)  # X, Y may be empty (Z-only points)
     xy = np.array([[_or_nan(r[cols[0]]), _or_nan(r[cols[1]])] for _, r, _, _ in rows]
                   ).reshape(-1, 2)
-    xy = xy[np.isfinite(xy).all(axis=1)]
-    if len(xy):
-        x, y = xy.mean(axis=0)
-        moved = Transformer.from_crs(source, target, always_xy=True).transform(x, y)
-        geodetic = Transformer.from_crs(target, target.geodetic_crs, always_xy=True)
-        lon, lat = geodetic.transform(np.array([x, moved[0]]), np.array([y, moved[1]]))
-        if np.isfinite(lon).all() and np.isfinite(lat).all():
-            ellipsoid = target.ellipsoid
-            geod = Geod(a=ellipsoid.semi_major_metre, rf=ellipsoid.inverse_flattening) \
-                if ellipsoid is not None else Geod(ellps="WGS84")
-            shift = float(geod.inv(lon[0], lat[0], lon[1], lat[1])[2])
-        else:
-            shift = float("inf")
-        if not shift <= PRJ_TOLERANCE_M:
-            moved_by = f"{shift:.3f} m" if np.isfinite(shift) else "an undefined distance " \
-                "(the transformation fails there)"
-            raise InputDataError(
-                f"{name}: {path}'s {prj} is {crs_label(own)} but CRS is {crs_label(crs)}: "
-                f"its points (centroid {x:.3f}, {y:.3f}) move by {moved_by} from one to the "
-                f"other; the X/Y/Z columns are read as they are, in one CRS: give CRS as the "
-                f"{prj}'s, or the coordinates in CRS (and a matching {prj})")
+    shift, centre = centroid_shift(own, crs, xy)
+    if not shift <= PRJ_TOLERANCE_M:
+        moved_by = f"{shift:.3f} m" if np.isfinite(shift) else "an undefined distance " \
+            "(the transformation fails there)"
+        raise InputDataError(
+            f"{name}: {path}'s {prj} is {crs_label(own)} but CRS is {crs_label(crs)}: "
+            f"its points (centroid {centre[0]:.3f}, {centre[1]:.3f}) move by {moved_by} from "
+            f"one to the other; the X/Y/Z columns are read as they are, in one CRS: give CRS "
+            f"as the {prj}'s, or the coordinates in CRS (and a matching {prj})")
     if not horizontal:
         check_same_heights(name, own, "CRS", crs)
     return crs

@@ -114,3 +114,24 @@ def test_prj_without_crs_is_the_tables_crs(tmp_path):
                                          "REPORT": tmp_path / "r.json"})
     written = CRS.from_user_input(pyogrio.read_info(tmp_path / "o.gpkg")["crs"])
     assert written.to_epsg() == 3003
+
+
+@pytest.mark.parametrize(("prj_epsg", "refused"), [(6707, False), (23032, True)])
+def test_bundle_judges_a_control_prj_by_the_shift_too(tmp_path, prj_epsg, refused):
+    """orientation:bundle's own check of a CONTROL ``.prj`` against PROJECT compared the
+    definitions: GDAL's ESRI ``.prj`` of EPSG:6707 beside control in a project in EPSG:6707
+    was refused ("CONTROL is in RDN2008 / UTM zone 32N (N-E) but PROJECT is in EPSG:6707");
+    an ED50 one still is."""
+    from toolbox.errors import ParameterError
+    from toolbox.registry import get
+
+    _, control, ground = tables(tmp_path, 6707, prj_epsg)
+    bundle = get("orientation:bundle")()
+    feedback = toolbox.Feedback()
+    if refused:
+        with pytest.raises(ParameterError, match="EPSG:23032 but PROJECT is in EPSG:6707"):
+            bundle._check_crs("CONTROL", control, "EPSG:6707", ground[:, :2], feedback)
+    else:
+        bundle._check_crs("CONTROL", control, "EPSG:6707", ground[:, :2], feedback)
+        assert not CRS.from_wkt((tmp_path / "control.prj").read_text()).equals(
+            CRS.from_epsg(6707))
