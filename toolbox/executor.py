@@ -34,6 +34,7 @@ from dataclasses import dataclass
 from typing import Any, TypeVar
 
 from toolbox.errors import CanceledError, ParameterError, ServiceError
+from toolbox.feedback import current_runs, working_for
 
 T = TypeVar("T")
 R = TypeVar("R")
@@ -247,10 +248,12 @@ def check_abandoned() -> None:
         raise CanceledError("run canceled; this task's result is no longer wanted")
 
 
-def _task(stop: threading.Event, func: Callable[..., Any], *args: Any) -> Any:
+def _task(stop: threading.Event, runs: tuple[object, ...], func: Callable[..., Any],
+          *args: Any) -> Any:
     _TASK.stop = stop
     try:
-        return func(*args)
+        with working_for(runs):  # the warnings it logs are the submitting run's
+            return func(*args)
     finally:
         _TASK.stop = None
 
@@ -279,7 +282,7 @@ def thread_pool(workers: int) -> Iterator[Callable[..., Any]]:
             running.discard(future)
 
     def submit(func: Callable[..., Any], *args: Any) -> Any:
-        future = pool.submit(_task, stop, func, *args)
+        future = pool.submit(_task, stop, current_runs(), func, *args)
         with lock:
             running.add(future)
         future.add_done_callback(finished)

@@ -12,6 +12,7 @@ import threading
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
+from contextvars import ContextVar
 
 from toolbox.errors import CanceledError
 
@@ -161,55 +162,94 @@ class CollectingFeedback(Feedback):
         self.messages.append(("warning", text))
 
 
+#: the runs (their :func:`logged_warnings` handlers) the current thread works for: the run's own
+#: thread, and the worker threads of :func:`toolbox.executor.thread_pool` for the tasks the run
+#: submitted (:func:`working_for`); another run's threads, or a user's, are not the run's
+_RUNS: ContextVar[tuple[object, ...]] = ContextVar("toolbox_runs", default=())
+_KEEP_LOCK = threading.Lock()  # check-and-append of a warning's text: threads log at once
+
+
+def current_runs() -> tuple[object, ...]:
+    """The runs the calling thread works for: hand them to :func:`working_for` in a thread
+    that works for it (what :func:`toolbox.executor.thread_pool` does for its tasks)."""
+    return _RUNS.get()
+
+
+@contextmanager
+def working_for(runs: tuple[object, ...]):
+    """While the block runs, the calling thread works for ``runs`` (:func:`current_runs` of the
+    thread that handed it the work): the warnings it logs are theirs."""
+    token = _RUNS.set(runs)
+    try:
+        yield
+    finally:
+        _RUNS.reset(token)
+
+
+def _keep(feedback: Feedback | None, text: str) -> bool:
+    """Add the warning ``text`` to ``feedback``'s messages and its parents' where it is not yet
+    (the run's step feedback, then the caller's above it); True when ``feedback`` lacked it."""
+    with _KEEP_LOCK:
+        new = feedback is not None and text not in feedback.warnings
+        while feedback is not None:
+            if text not in feedback.warnings:
+                feedback.messages.append(("warning", text))
+            feedback = getattr(feedback, "_parent", None)
+    return new
+
+
 class _LoggedWarnings(logging.Handler):
-    """Keeps the warnings logged on the ``toolbox`` logger by the running thread (a library's
-    Python warning the CLI logs, a deprecated parameter name, a reader's note) that did not come
-    through ``feedback.push_warning``, in ``feedback``'s messages: the run report lists every
-    warning the console showed."""
+    """Keeps the warnings logged on the ``toolbox`` logger by the run's threads (its own and the
+    workers of its tasks: a library's Python warning the CLI logs, a deprecated parameter name,
+    a reader's note such as a photo's EXIF orientation) that did not come through
+    ``feedback.push_warning``, in ``feedback``'s messages, each text once: the run report lists
+    every warning the console showed."""
 
     def __init__(self, feedback: Feedback):
         super().__init__(logging.WARNING)
         self.feedback = feedback
-        self.thread = threading.get_ident()
 
     def emit(self, record: logging.LogRecord) -> None:
-        if record.thread != self.thread or record.levelno > logging.WARNING:
+        if record.levelno > logging.WARNING or self not in _RUNS.get():
             return
         try:
             text = record.getMessage()
         except Exception:  # noqa: BLE001 - a bad format string: not ours to fail on
             return
-        feedback = self.feedback  # the run's step feedback, then the caller's above it
-        while feedback is not None:
-            if text not in feedback.warnings:
-                feedback.messages.append(("warning", text))
-            feedback = getattr(feedback, "_parent", None)
+        _keep(self.feedback, text)
 
 
 class _GdalWarnings(_LoggedWarnings):
     """The warnings GDAL reports through rasterio's logger (``rasterio._env``: an ignored
-    creation option, a clamped nodata value, a libtiff note) by the running thread: pushed to
+    creation option, a clamped nodata value, a libtiff note) by the run's threads: pushed to
     ``feedback`` (the console shows them, the run report lists them), each text once. The
     runner's own handler on that logger (:func:`toolbox.runner.failures.collect_gdal_errors`)
     keeps only errors, so they were shown nowhere."""
 
+    def __init__(self, feedback: Feedback, run: object):
+        super().__init__(feedback)
+        self.run = run
+
     def emit(self, record: logging.LogRecord) -> None:
-        if record.thread != self.thread or record.levelno != logging.WARNING:
+        if record.levelno != logging.WARNING or self.run not in _RUNS.get():
             return
         try:
             text = f"GDAL: {record.getMessage()}"
         except Exception:  # noqa: BLE001 - a bad format string: not ours to fail on
             return
-        if text not in self.feedback.warnings:
-            self.feedback.push_warning(text)
+        if _keep(self.feedback, text):
+            log.warning(text)  # the console's (outside the lock: handlers take their own)
 
 
 @contextmanager
 def logged_warnings(feedback: Feedback):
     """While the block runs, warnings logged outside ``feedback`` (on the ``toolbox`` logger,
-    and GDAL's through ``rasterio``'s) are kept in its messages."""
-    handler, gdal = _LoggedWarnings(feedback), _GdalWarnings(feedback)
+    and GDAL's through ``rasterio``'s) by the calling thread, or by a thread working for it
+    (:func:`working_for`), are kept in its messages."""
+    handler = _LoggedWarnings(feedback)
+    gdal = _GdalWarnings(feedback, handler)
     rasterio_log = logging.getLogger("rasterio")
+    token = _RUNS.set((*_RUNS.get(), handler))
     log.addHandler(handler)
     rasterio_log.addHandler(gdal)
     try:
@@ -217,3 +257,4 @@ def logged_warnings(feedback: Feedback):
     finally:
         log.removeHandler(handler)
         rasterio_log.removeHandler(gdal)
+        _RUNS.reset(token)

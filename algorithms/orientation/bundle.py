@@ -358,18 +358,22 @@ class BundleAdjustment(Algorithm):
         if own:
             own_crs = parse_crs(own, name)
             if not same_crs(own_crs, target):
-                self._check_heights(name, own_crs, target, feedback)
+                self._check_heights(name, own_crs, target, feedback, xy)
         check_coordinates_in_area(name, target, xy, feedback.push_warning)
 
-    def _check_heights(self, name: str, own, target, feedback: Feedback) -> None:
+    def _check_heights(self, name: str, own, target, feedback: Feedback, xy) -> None:
         """``own`` (the table's CRS) is not PROJECT's ``target``: the same horizontal CRS with
         a height datum stated on one side only (``EPSG:3003+5214`` against ``EPSG:3003``) is
         taken as it is, with a warning; two different height datums, or another horizontal
-        CRS, a one-line error saying which."""
+        CRS, a one-line error saying which. Horizontal CRSs whose definitions differ are the
+        same when the table's points ``xy`` move by at most 1 mm from one to the other (an ESRI
+        ``.prj`` of EPSG:6707 does not equal EPSG:6707's definition)."""
         from toolbox.io.crs import crs_label, same_crs
         from toolbox.ortho.vertical import datum_label, horizontal_part, same_datum, vertical_part
+        from toolbox.photogrammetry.tables import PRJ_TOLERANCE_M, centroid_shift
 
-        if not same_crs(horizontal_part(own), horizontal_part(target)):
+        if not same_crs(horizontal_part(own), horizontal_part(target)) and \
+                not centroid_shift(own, target, xy)[0] <= PRJ_TOLERANCE_M:
             raise self.fail(name, f"is in {crs_label(own)} but PROJECT is in "
                             f"{crs_label(target)}: reproject it to PROJECT's CRS first")
         ours, theirs = vertical_part(target), vertical_part(own)

@@ -30,7 +30,8 @@ class ControlTemplate(Algorithm):
     photo, CHIP_SIZE pixels around the prediction (red cross). Points on no photo are reported;
     none on any photo is an error.
 
-    ORTHO (optional, a reference orthophoto in the project's CRS) measures the points
+    ORTHO (optional, a reference orthophoto in the project's CRS; one without a CRS is taken
+    to be in it, with a warning, when its grid holds a CONTROL point) measures the points
     automatically: around each prediction the photo pixels are cast to the ground on the plane
     of the point's Z through the approximate orientation and the orthophoto is sampled there
     (the ortho chip as the photo would show it), then the photo is searched over SEARCH pixels
@@ -102,7 +103,12 @@ class ControlTemplate(Algorithm):
             ortho = OrthoReference.open(params["ORTHO"].path)
             ortho_crs, crs = (None if c is None else horizontal_part(c)
                               for c in (params["ORTHO"].crs, project.crs))
-            if not same_crs(ortho_crs, crs):
+            if ortho_crs is None and crs is not None:  # as report:ortho_check has it
+                from toolbox.io.crs import unlabelled_raster
+
+                unlabelled_raster("ORTHO", params["ORTHO"].bounds, project.crs, "PROJECT",
+                                  xyz[:, :2], "CONTROL", feedback.push_warning)
+            elif crs is not None and not same_crs(ortho_crs, crs):
                 raise self.fail("ORTHO", f"is in {crs_label(params['ORTHO'].crs)}, not in the "
                                 f"project's CRS ({crs_label(project.crs)}): reproject it first")
             if params["DEM"] is not None:  # horizontal parts, and height datums stated by both

@@ -19,7 +19,9 @@ class OrthoCheck(Algorithm):
     the ``check`` rows). ``MEASUREMENTS``: their image measurements (``point_id``, ``photo``,
     ``col_px``, ``row_px``, pixel centres at +0.5, or ``x_mm``, ``y_mm`` in the fiducial
     system, read through the photo's interior orientation), the operator's pointing of each
-    target on the photos of ``PROJECT``.
+    target on the photos of ``PROJECT``. ``ORTHO`` without a CRS is taken to be in PROJECT's,
+    with a warning, when its grid holds a check point (refused when it holds none), as in
+    orientation:control.
 
     Method (an actual measurement on the orthophoto, not a prediction): around each point a
     reference chip is resampled from the photo onto a north-up ground grid at the orthophoto's

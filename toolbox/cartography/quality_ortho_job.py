@@ -4,6 +4,7 @@ itself is :mod:`.quality_ortho`."""
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -131,6 +132,13 @@ def measure_checks(req: OrthoCheckRequest, feedback=None) -> tuple[list[CheckRes
         raise InputDataError(f"PHOTO: {req.photo!r} is not in the project (photos: "
                              f"{', '.join(project.photos)})")
     with rasterio.open(req.ortho) as src:
+        if not src.crs and project.crs is not None:  # as orientation:control has it
+            from toolbox.io.crs import unlabelled_raster
+
+            warn = feedback.push_warning if feedback is not None else \
+                logging.getLogger("toolbox").warning
+            unlabelled_raster("ORTHO", tuple(src.bounds), project.crs, "PROJECT", xyz[:, :2],
+                              "CHECK_POINTS", warn)
         _same_crs_as_project(project, {"ORTHO": src.crs})
         transform, shape = src.transform, (src.height, src.width)
     if req.dem is not None:

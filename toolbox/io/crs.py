@@ -361,6 +361,33 @@ def check_unlabelled_in_area(inputs: dict[str, Any], crs: CRS,
                                 f"{problem}")
 
 
+def unlabelled_raster(name: str, bounds: Any, crs: Any, crs_name: str, xy: Any,
+                      points_name: str, warn: Any = None) -> None:
+    """A raster ``name`` without a CRS, used with points ``xy`` ((n, 2)) in ``crs`` (the
+    project's, called ``crs_name``): taken to be in ``crs``, with a warning (``warn(text)``),
+    when its grid (``bounds``: left, bottom, right, top, in any order) holds at least one of the
+    points; none of them on it (a grid in pixels, another CRS's numbers) is an
+    :class:`InputDataError` naming ``name``: nothing would be measured on it."""
+    xy = np.asarray(xy, dtype="float64").reshape(-1, 2)
+    xy = xy[np.isfinite(xy).all(axis=1)]
+    left, right = sorted((float(bounds[0]), float(bounds[2])))
+    bottom, top = sorted((float(bounds[1]), float(bounds[3])))
+    inside = int(((xy[:, 0] >= left) & (xy[:, 0] <= right) & (xy[:, 1] >= bottom)
+                  & (xy[:, 1] <= top)).sum())
+    grid = f"{left:.0f}..{right:.0f}, {bottom:.0f}..{top:.0f}"
+    if not inside:
+        where = "" if not len(xy) else (
+            f" ({xy[:, 0].min():.0f}..{xy[:, 0].max():.0f}, "
+            f"{xy[:, 1].min():.0f}..{xy[:, 1].max():.0f})")
+        raise InputDataError(f"{name} has no CRS and its grid ({grid}) holds none of the "
+                             f"{len(xy)} {points_name} points{where}: it is not in {crs_name}'s CRS "
+                             f"({crs_label(crs)}); label it with its CRS (or georeference it)")
+    if warn is not None:
+        warn(f"{name} has no CRS: taken to be in {crs_name}'s CRS ({crs_label(crs)}), its grid "
+             f"({grid}) holding {inside} of the {len(xy)} {points_name} points; label it to "
+             "be sure")
+
+
 def check_coordinates_in_area(name: str, crs: Any, xy: Any, warn: Any = None) -> None:
     """Coordinates ``xy`` ((n, 2), in ``crs``) read from a table rather than a layer: far
     outside the CRS's area of use is an :class:`InputDataError` naming ``name``, a little

@@ -903,10 +903,10 @@ def _gpkg_plan(path: Path, layers: list[str]) -> dict[str, Any] | None:
             for t in part:
                 info[t]["dtypes"] = np.array([next(dtypes) for _ in attributes.get(t, [])],
                                              dtype=object)
-        crs_of = _gpkg_epsg_codes(path, {known[layer][1] for layer in order})
+        crs_of = _gpkg_crs_texts(path, {known[layer][1] for layer in order})
         for layer in order:
             column, srs_id = known[layer]
-            if srs_id not in crs_of:  # OGR's CRS of the layer: one statement per other system
+            if srs_id not in crs_of:  # OGR's CRS of the layer: one statement per such system
                 crs_of[srs_id] = _sql_read(path, f"SELECT {_quote(column)} FROM "
                                            f"{_quote(layer)} LIMIT 0")[0]["crs"]
             info[layer]["crs"] = crs_of[srs_id]
@@ -929,27 +929,56 @@ def _gpkg_plan(path: Path, layers: list[str]) -> dict[str, Any] | None:
         return None
 
 
-def _gpkg_epsg_codes(path: Path, srs_ids: set[int]) -> dict[int, str]:
-    """``{srs_id: "EPSG:code"}`` of the GeoPackage's spatial reference systems that OGR reads
-    as that EPSG code, from its ``gpkg_spatial_ref_sys`` table (one statement for them all;
-    a statement per system opened the file once per CRS). GDAL takes a system from its EPSG
-    code when ``organization`` is EPSG and ``organization_coordsys_id`` equals ``srs_id``,
-    else from ``definition``: only a system whose definition's root authority is that same
-    EPSG code is here, so that either way OGR (and pyogrio's ``crs``) says ``EPSG:code``. The
-    others (custom definitions, ids 0 and -1) are left to OGR."""
+def _gpkg_crs_texts(path: Path, srs_ids: set[int]) -> dict[int, str]:
+    """``{srs_id: CRS text}`` of the GeoPackage's spatial reference systems, from one read of
+    its ``gpkg_spatial_ref_sys`` table (a statement per system opened the file once per CRS):
+    ``EPSG:code`` for a system OGR reads as that EPSG code (GDAL takes a system from its EPSG
+    code when ``organization`` is EPSG and ``organization_coordsys_id`` equals ``srs_id``, else
+    from its definition: only a system whose definition's root authority is that same code,
+    so that either way OGR, and pyogrio's ``crs``, says ``EPSG:code``); for a custom one
+    (``organization`` NONE, as GDAL writes them) its definition as GDAL reads it
+    (``definition_12_063``, the WKT 2 extension's, when it has one, else ``definition``),
+    which names the same CRS as OGR's WKT of it (the label :func:`toolbox.io.crs.crs_label`
+    gives is the same; only vector:info reads this). Ids 0 and -1, other organizations (GDAL's
+    99999 "Undefined SRS" of a layer without CRS), a definition ``undefined`` or one PROJ
+    cannot read are left to OGR."""
     wanted = sorted(i for i in srs_ids if i > 0)
     if not wanted:
         return {}
-    _, _, (ids, organizations, codes, definitions) = _sql_read(
-        path, "SELECT srs_id, organization, organization_coordsys_id, definition FROM "
-        f"gpkg_spatial_ref_sys WHERE srs_id IN ({', '.join(map(str, wanted))})")
+    meta, _, columns = _sql_read(path, "SELECT * FROM gpkg_spatial_ref_sys WHERE srs_id IN "
+                                       f"({', '.join(map(str, wanted))})")
+    rows = [dict(zip([str(n) for n in meta["fields"]], values, strict=True))
+            for values in zip(*columns, strict=True)]
     from toolbox.io.gpkg_summary import epsg_label
 
-    out = {}
-    for row in zip(ids, organizations, codes, definitions, strict=True):
-        label = epsg_label(*row)
-        if label is not None:
-            out[int(row[0])] = label
+    out, custom = {}, {}
+    for row in rows:
+        definition = str(row.get("definition") or "")
+        try:
+            srs_id = int(row.get("srs_id"))
+        except (TypeError, ValueError):  # OGR says
+            continue
+        if str(row.get("organization") or "").upper() == "EPSG":  # an EPSG code, or OGR's
+            label = epsg_label(srs_id, "EPSG", row.get("organization_coordsys_id"), definition)
+            if label is not None:
+                out[srs_id] = label
+            continue
+        if str(row.get("organization") or "NONE").upper() != "NONE":  # GDAL's 99999 (none),
+            continue  # another authority's code: OGR reads them
+        wkt2 = str(row.get("definition_12_063") or "").strip()
+        text = wkt2 if wkt2 and wkt2.lower() != "undefined" else definition.strip()
+        if text and text.lower() != "undefined":
+            custom[srs_id] = text
+    if custom:
+        from pyproj import CRS
+        from pyproj.exceptions import CRSError
+
+        for srs_id, text in custom.items():
+            try:
+                CRS.from_user_input(text)
+            except CRSError:  # OGR says what it makes of it
+                continue
+            out[srs_id] = text
     return out
 
 

@@ -11,6 +11,7 @@ in pyogrio's wheels has no Parquet driver).
 
 from __future__ import annotations
 
+import threading
 import warnings
 from collections.abc import Iterable
 from contextlib import contextmanager
@@ -159,7 +160,7 @@ def write_layers(path: str | Path, layers: dict[str, Any], crs: Any = None,
                                kwargs.get("geometry_type"))
         if driver == "ESRI Shapefile":
             fields = [c for c in frame.columns if c != geometry.name]
-            warn_renamed_fields(target, fields)
+            note_shapefile_fields(target, fields)
             warn_cut_texts(target, {c: frame[c].to_numpy() for c in fields})
             warn_made_up_z(target, geometry.values)
         if driver == "GeoJSON":
@@ -421,16 +422,62 @@ def warn_empty_geojson(paths: list[Path]) -> None:
             "geometry, its style not applied); a .gpkg output keeps them")
 
 
+#: the renamed fields of the Shapefiles this process wrote (:func:`note_shapefile_fields`: the
+#: names GDAL wrote, read back after writing), by path: ``(dbf size and mtime, {name: held})``;
+#: the last few only, an entry valid while its .dbf is unchanged
+_HELD_NAMES: dict[str, tuple[tuple[int, int], dict[str, str]]] = {}
+_HELD_NAMES_KEPT = 64
+_HELD_NAMES_LOCK = threading.Lock()
+
+
+def _dbf_state(path: Path) -> tuple[int, int] | None:
+    try:
+        stat = Path(path).with_suffix(".dbf").stat()
+    except OSError:
+        return None
+    return stat.st_size, stat.st_mtime_ns
+
+
+def note_shapefile_fields(path: Path, names: list[str]) -> None:
+    """After writing the fields ``names`` (in order) to the Shapefile ``path``: read the names
+    GDAL gave them (a DBF field name has at most 10 characters: GDAL cuts longer ones and
+    makes them unique, ``quadratic_z`` -> ``quadratic_``, ``quadratic_err`` -> ``quadrati_1``),
+    keep the renamed ones for :func:`shapefile_renames` (a style written beside the file later
+    names them as the file holds them) and warn once listing them."""
+    written = [str(name) for name in _ogr().read_info(path)["fields"]]
+    renamed = {old: new for old, new in zip(names, written, strict=False) if old != new}
+    state = _dbf_state(path)
+    with _HELD_NAMES_LOCK:
+        key = str(Path(path).absolute())
+        _HELD_NAMES.pop(key, None)
+        if renamed and state is not None:
+            _HELD_NAMES[key] = (state, renamed)
+            while len(_HELD_NAMES) > _HELD_NAMES_KEPT:
+                _HELD_NAMES.pop(next(iter(_HELD_NAMES)))
+    if renamed:
+        import logging
+
+        logging.getLogger("toolbox").warning(
+            f"{path.name}: a Shapefile's field names have at most 10 characters; renamed "
+            f"{', '.join(f'{old} -> {new}' for old, new in renamed.items())} (a .gpkg output "
+            "keeps the names)")
+
+
 def shapefile_renames(path: Path, names: list[str] | None,
                       referenced: Iterable[str | None] = ()) -> dict[str, str]:
     """``{name: name in the file}`` of the fields ``names`` (in the order written) that the
     Shapefile ``path`` holds under another (cut) name; without ``names``, of the
-    ``referenced`` fields (a style's) the file does not hold but holds cut to 10 characters
-    (GDAL's ``quadrati_1`` for a second cut alike needs the order written)."""
+    ``referenced`` fields (a style's): as this process wrote them (:func:`note_shapefile_fields`:
+    exact, ``quadrati_1`` for a second cut alike), else (a file written by another program, or
+    changed since) those the file does not hold but holds cut to 10 characters."""
     written = [str(name) for name in _ogr().read_info(path)["fields"]]
     if names:
         return {old: new for old, new in zip(names, written, strict=False) if old != new}
     held = set(written)
+    with _HELD_NAMES_LOCK:
+        state, noted = _HELD_NAMES.get(str(Path(path).absolute()), (None, {}))
+    if noted and state == _dbf_state(path) and set(noted.values()) <= held:
+        return {name: noted[name] for name in referenced if name in noted}
     return {name: name[:10] for name in referenced
             if name and name not in held and name[:10] in held}
 
@@ -448,20 +495,6 @@ def rename_style_fields(text: str | None, renames: dict[str, str]) -> str | None
         text = re.sub(rf'(="|&quot;|>){re.escape(old)}("|&quot;|<)', rf"\g<1>{new}\g<2>",
                       text)
     return text
-
-
-def warn_renamed_fields(path: Path, names: list[str]) -> None:
-    """One warning listing the fields (``names``, in order) the Shapefile ``path`` holds under
-    another name: a DBF field name has at most 10 characters, so GDAL cuts longer ones and makes
-    them unique (``quadratic_z`` -> ``quadratic_``, ``quadratic_err`` -> ``quadrati_1``)."""
-    written = [str(name) for name in _ogr().read_info(path)["fields"]]
-    renamed = [f"{old} -> {new}" for old, new in zip(names, written, strict=False) if old != new]
-    if renamed:
-        import logging
-
-        logging.getLogger("toolbox").warning(
-            f"{path.name}: a Shapefile's field names have at most 10 characters; renamed "
-            f"{', '.join(renamed)} (a .gpkg output keeps the names)")
 
 
 def _write_arrow(frame, target: Path, layer: str, kwargs: dict[str, Any]) -> bool:
@@ -525,7 +558,7 @@ def write_wkb_layer(path: str | Path, layer: str, wkb: np.ndarray, fields: dict[
                   promote_to_multi=geometry_type.startswith("Multi") and driver in (
                       "GPKG", "FlatGeobuf"))
     if driver == "ESRI Shapefile":
-        warn_renamed_fields(path, names)
+        note_shapefile_fields(path, names)
         warn_cut_texts(path, fields)
     if driver == "GeoJSON":
         warn_infinite_values(path, fields)

@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 
 from toolbox.errors import InputDataError
+from toolbox.feedback import current_runs, working_for
 from toolbox.matching import matching, pairs, refine, thinning, tracks
 from toolbox.matching.features import Features, border_mask, detect
 from toolbox.matching.images import ImageSource
@@ -411,8 +412,11 @@ def tie_points(photos: list[BlockPhoto], opts: TiePointOptions,
     result_tracks = []
     kept_idx = np.flatnonzero(keep)
     sources = {k: photos[k].source for k in used}
+    runs = current_runs()
+
     def refined_track(k: int) -> tuple[np.ndarray, np.ndarray]:
-        return _refine_track(k, found, xy, sources, opts, scales, common, epipolar)
+        with working_for(runs):  # the warnings it logs are the run's
+            return _refine_track(k, found, xy, sources, opts, scales, common, epipolar)
 
     # tracks refine independently: threads (OpenCV's remap and LAPACK release the GIL; reads
     # of one photo are serialised by its source's lock), or batches on a Dask cluster

@@ -38,7 +38,8 @@ from toolbox.raster.photo_grid import open_photo_grid
 
 @dataclass
 class OrthoReference:
-    """A georeferenced orthophoto on disk (any band count; grey = mean of the first three)."""
+    """A georeferenced orthophoto on disk (any band count; grey = mean of the first three; its
+    CRS, None when it has none, is for the caller to judge)."""
 
     path: Path
     transform: object  # affine.Affine, pixel corner -> ground
@@ -62,10 +63,9 @@ class OrthoReference:
             raise InputDataError(f"{name}: cannot read {path}: "
                                  f"{str(exc).splitlines()[0]}") from None
         t = info.transform
-        if info.crs is None or t.b != 0 or t.d != 0 or t.a <= 0 or t.e >= 0:
-            raise InputDataError(f"{name}: {path} must be a north-up georeferenced raster (a CRS "
-                                 f"and a transform without rotation), got crs={info.crs}, "
-                                 f"transform={tuple(t)[:6]}")
+        if t.b != 0 or t.d != 0 or t.a <= 0 or t.e >= 0:  # its CRS: the caller's to judge
+            raise InputDataError(f"{name}: {path} must be a north-up georeferenced raster (a "
+                                 f"transform without rotation), got transform={tuple(t)[:6]}")
         return info
 
     def sample(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:

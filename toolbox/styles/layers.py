@@ -179,4 +179,3 @@ def _file_kind(path: Path) -> str | None:
     from toolbox.io.vector import open_layer
 
     return _kind(open_layer(path, "OUTPUT").geometry_type)
-

@@ -5,12 +5,11 @@ photos) made the same one three times a read, each a PROJ database query (3-4 ms
 
 from __future__ import annotations
 
-import threading
-
 import numpy as np
 import pyproj
 from pyproj import CRS, Transformer
 
+from tests.helpers_threads import run_in_threads
 from toolbox.exchange import geodesy
 
 UTM = CRS.from_epsg(32633)
@@ -45,11 +44,7 @@ def test_one_transformer_per_crs_with_pyprojs_values(monkeypatch):
         for _ in range(50):
             results.append(geodesy.geographic_to_grid(LON, LAT, H, UTM))
 
-    threads = [threading.Thread(target=work) for _ in range(4)]
-    for t in threads:
-        t.start()
-    for t in threads:
-        t.join()
+    run_in_threads(*[work] * 4)
     assert len(results) == 200
     for r in results:
         np.testing.assert_array_equal(r, ours)

@@ -14,6 +14,7 @@ import rasterio
 from affine import Affine
 
 import toolbox.photogrammetry.surface as surface
+from tests.helpers_threads import run_in_threads
 from toolbox.ortho import plan
 
 
@@ -41,10 +42,6 @@ def test_two_threads_compute_the_range_once(tmp_path, monkeypatch):
         start.wait()
         got.append(plan.dem_range(info, 1))
 
-    threads = [threading.Thread(target=plan_one) for _ in range(2)]
-    for t in threads:
-        t.start()
-    for t in threads:
-        t.join()
+    run_in_threads(plan_one, plan_one)
     assert len(calls) == 1
     assert got[0] == got[1] == (float(heights.min()), float(heights.max()))
