@@ -314,8 +314,9 @@ def split_between(cells: list | dict, i: int, j: int, path: list, region, tol: f
     line = LineString(np.asarray(path, dtype="float64")).simplify(tol * 0.5)
     pieces: list = []
     for turns in END_TURNS:  # straight on first; then an end that runs along the boundary
+        # slivers of rounding area (a path running along the region's edge) are no pieces
         pieces = [g for g in getattr(split(region, _extended(line, 4 * tol, turns)), "geoms", [])
-                  if g.area > 0]
+                  if g.area > tol * tol]
         if len(pieces) >= 2:
             break
     if len(pieces) < 2:
@@ -462,8 +463,11 @@ def merge_close_vertices(cells: list, tolerance: float) -> list:
         if len(members) > 1:
             target[sorted(members)] = min(members)  # the least point (unique's order)
     moved = points[target[inverse.reshape(-1)]]
-    out = shapely.remove_repeated_points(
-        shapely.transform(geoms[live], lambda _: moved), 0.0)
+    try:
+        out = shapely.remove_repeated_points(
+            shapely.transform(geoms[live], lambda _: moved), 0.0)
+    except shapely.errors.GEOSException:  # a ring collapsed below 3 points: GEOS refuses it
+        return cells
     if not (shapely.is_valid(out).all() and not shapely.is_empty(out).any()):
         return cells
     result = list(cells)
@@ -512,6 +516,36 @@ class SeamTask:
     max_cells: int
 
 
+#: gaps between two cut polygons narrower than this fraction of a seam cell are closed in their
+#: seam's region (:func:`seam_region`)
+GAP_CELLS = 1e-6
+
+
+def seam_region(cell_i, cell_j, footprint_i, footprint_j, cell: float):
+    """The overlap ``(cell_i ∪ cell_j) ∩ F_i ∩ F_j`` a seam is routed in, with the hairline gaps
+    between the two cut polygons closed (narrower than :data:`GAP_CELLS` of a cell).
+
+    The cut polygons meet along edges that coincide only to rounding (they are computed one by
+    one): their plain union can come out as two polygons that touch at points across a crack
+    along the whole Voronoi seam, and the route was then confined to one side of it (the piece
+    nearest the seam's ends), switching sides when a nadir point moved by a millimetre (a seam
+    moved by 40-60 m in a 6-ortho block)."""
+    import shapely
+
+    eps = GAP_CELLS * cell
+    union = shapely.union_all([cell_i, cell_j])
+    closed = union.buffer(eps, join_style="mitre").buffer(-eps, join_style="mitre")
+    return _clean(closed.intersection(footprint_i).intersection(footprint_j))
+
+
+def on_edge(region, point) -> tuple[float, float]:
+    """The point of ``region``'s boundary nearest to ``point``."""
+    from shapely import Point
+    from shapely.ops import nearest_points
+
+    return nearest_points(region.boundary, Point(point))[0].coords[0]
+
+
 def route_seam(task: SeamTask, feedback: Any = None) -> tuple[dict, tuple | None]:
     """``(report entry, (new cell_i, new cell_j) or None)`` of one seam (a task of
     :func:`least_cost_cells`, run in this thread or on a Dask worker); ``feedback`` (local
@@ -525,14 +559,16 @@ def route_seam(task: SeamTask, feedback: Any = None) -> tuple[dict, tuple | None
         entry["note"] = "no open shared boundary"
         return entry, None
     start, end, n_parts = ends
-    region = _clean(task.cell_i.union(task.cell_j).intersection(task.footprint_i)
-                    .intersection(task.footprint_j))
+    region = seam_region(task.cell_i, task.cell_j, task.footprint_i, task.footprint_j, cell)
     if region.is_empty or region.area < cell * cell:
         entry["note"] = "no overlap"
         return entry, None
     if region.geom_type == "MultiPolygon":
         region = min(region.geoms, key=lambda g: g.distance(Point(start)) +
                      g.distance(Point(end)))
+    # the shared line's ends are found to SHARED_TOLERANCE (4.8 mm at 4,800,000): on the
+    # region's edge exactly, so that the path, prolonged by a few thousandths of a cell, cuts it
+    start, end = (on_edge(region, p) for p in (start, end))
     path = seam_path(task.cost, region, start, end, cell, task.max_cells, feedback)
     if path is None:
         entry["note"] = "seam ends not connected inside the overlap"
