@@ -170,3 +170,55 @@ def test_small_nadir_moves_move_the_seams_by_a_few_cells_at_most(case_5, k, dist
     assert before.keys() == after.keys()
     shifts = {key: before[key].hausdorff_distance(after[key]) for key in before}
     assert max(shifts.values()) <= TOLERANCE, shifts
+
+
+def test_a_ring_the_vertex_merge_would_collapse_leaves_the_polygons_as_they_were():
+    """A sliver triangle whose three vertices lie within the tolerance of each other: GEOS
+    refused the merged ring of 2 points (GEOSException, the run's exit 3); now the polygons come
+    back as given (the documented fallback for a result that would be invalid)."""
+    from toolbox.mosaic.seams import merge_close_vertices
+
+    square = shapely.box(X0, Y0, X0 + 10, Y0 + 10)
+    sliver = shapely.Polygon([(X0 + 10, Y0), (X0 + 10 + 4e-7, Y0 + 1e-7), (X0 + 10, Y0 + 3e-7)])
+    out = merge_close_vertices([square, sliver], 1e-6)
+    assert [g.equals_exact(h, 0) for g, h in zip(out, [square, sliver], strict=True)] == [True] * 2
+
+
+def test_a_seam_end_found_millimetres_inside_the_overlap_still_splits_it(monkeypatch):
+    """The shared boundary's ends are matched to 1e-9 of the coordinates (4.8 mm here): an end
+    4.7 mm inside the overlap left a path that, prolonged by 4 mm, did not cut it ("the path did
+    not split the overlap", the seam kept on the Voronoi line); now the ends are put on the
+    overlap's edge and the seam is routed: two 50 x 40 m cells, a flat cost, a straight seam."""
+    import toolbox.mosaic.seams as seams
+    from toolbox.mosaic.partition import partition_errors
+
+    cell_i, cell_j = shapely.box(X0, Y0, X0 + 50, Y0 + 40), shapely.box(X0 + 50, Y0, X0 + 100, Y0 + 40)
+    whole = shapely.box(X0, Y0, X0 + 100, Y0 + 40)
+    ends = ((X0 + 50, Y0 + 0.0047), (X0 + 50, Y0 + 40 - 0.0047), 1)
+    monkeypatch.setattr(seams, "seam_ends", lambda a, b: ends)
+    task = seams.SeamTask(0, 1, cell_i, cell_j, whole, whole,
+                          lambda transform, shape: np.ones(shape), 1.0, 4_000_000)
+    entry, new = seams.route_seam(task)
+    assert entry["method"] == "least_cost" and new is not None, entry
+    assert partition_errors(list(new), whole) == (0.0, 0.0)
+    assert new[0].area == pytest.approx(2000, abs=50) and new[1].area == pytest.approx(2000, abs=50)
+
+
+def test_slivers_of_rounding_area_are_no_pieces_of_the_split():
+    """A corner seam of the block whose path's last cells run along the overlap's edge: the
+    straight split gave the whole overlap and a sliver of 4e-13 m² - two pieces - and the whole
+    overlap went to one cut polygon; now a sliver is no piece, the split goes on to the turned
+    ends and each polygon keeps about its side (2052 and 2972 m²)."""
+    import json
+    from pathlib import Path
+
+    from toolbox.mosaic.seams import split_between
+
+    doc = json.loads((Path(__file__).parents[2] / "data" / "seam_split_sliver.json").read_text())
+    cells = [shapely.from_wkb(doc[k]) for k in ("cell_i", "cell_j")]
+    region = shapely.from_wkb(doc["region"])
+    new = split_between(cells, 0, 1, [tuple(p) for p in doc["path"]], region, doc["tol"])
+    inside = [g.intersection(region).area for g in new]
+    assert inside == pytest.approx([2052.4, 2972.0], abs=1.0)
+    assert abs(sum(g.area for g in new) - sum(g.area for g in cells)) < 1e-6
+    assert new[0].intersection(new[1]).area < 1e-6
