@@ -538,12 +538,22 @@ def seam_region(cell_i, cell_j, footprint_i, footprint_j, cell: float):
     return _clean(closed.intersection(footprint_i).intersection(footprint_j))
 
 
-def on_edge(region, point) -> tuple[float, float]:
-    """The point of ``region``'s boundary nearest to ``point``."""
+def on_edge(region, point, cell: float) -> tuple[float, float]:
+    """The point of ``region``'s outer edge nearest to ``point`` when within the tolerance the
+    seam's ends are found to (twice :data:`~toolbox.mosaic.partition.SHARED_TOLERANCE` of the
+    coordinates, plus a hundredth of a cell), else ``point`` as it is (an end on the edge of a
+    hole stays there: snapped to the outer edge it would move by metres)."""
     from shapely import Point
     from shapely.ops import nearest_points
 
-    return nearest_points(region.boundary, Point(point))[0].coords[0]
+    from toolbox.mosaic.partition import SHARED_TOLERANCE
+
+    here = Point(point)
+    outer = region.exterior if region.geom_type == "Polygon" else region.boundary
+    limit = 2 * SHARED_TOLERANCE * max(1.0, abs(point[0]), abs(point[1])) + 0.01 * cell
+    if outer.distance(here) > limit:
+        return tuple(point)
+    return nearest_points(outer, here)[0].coords[0]
 
 
 def route_seam(task: SeamTask, feedback: Any = None) -> tuple[dict, tuple | None]:
@@ -568,7 +578,7 @@ def route_seam(task: SeamTask, feedback: Any = None) -> tuple[dict, tuple | None
                      g.distance(Point(end)))
     # the shared line's ends are found to SHARED_TOLERANCE (4.8 mm at 4,800,000): on the
     # region's edge exactly, so that the path, prolonged by a few thousandths of a cell, cuts it
-    start, end = (on_edge(region, p) for p in (start, end))
+    start, end = (on_edge(region, p, cell) for p in (start, end))
     path = seam_path(task.cost, region, start, end, cell, task.max_cells, feedback)
     if path is None:
         entry["note"] = "seam ends not connected inside the overlap"
