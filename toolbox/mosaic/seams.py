@@ -371,8 +371,10 @@ def _clean(geom):
     return _polygonal(geom)
 
 
-def seam_ends(cell_i, cell_j):
-    """The two ends of the longest shared boundary line of two cut polygons, or None."""
+def seam_ends(cell_i, cell_j, gap: float = 0.0):
+    """``(start, end, parts)``: the two ends of the longest shared boundary line of two cut
+    polygons, or None; parts of the boundary whose ends are within ``gap`` of each other are one
+    line (:func:`_longest_chain`)."""
     from toolbox.mosaic.partition import merge_lines, shared_lines
 
     lines = shared_lines(cell_i, cell_j)
@@ -383,7 +385,44 @@ def seam_ends(cell_i, cell_j):
     longest = max(parts, key=lambda g: g.length)
     if longest.length == 0 or longest.is_closed:
         return None
-    return longest.coords[0], longest.coords[-1], len(parts)
+    start, end = _longest_chain(parts, parts.index(longest), gap) if gap > 0 and len(parts) > 1 \
+        else (longest.coords[0], longest.coords[-1])
+    return start, end, len(parts)
+
+
+#: parts of a shared boundary whose ends are closer than this fraction of a seam cell are one
+#: line (:func:`seam_ends`): such a gap holds no cell, it is rounding
+END_GAP_CELLS = 0.01
+
+
+def _longest_chain(parts: list, first: int, gap: float) -> tuple:
+    """The ends of the chain of ``parts`` joined end to end (ends within ``gap``) that holds the
+    greatest length, oriented as its longest part; the ends of ``parts[first]`` (the longest
+    part) when its chain is not a simple one (a branch, a ring).
+
+    Cut polygons meet along edges that coincide only to rounding: their shared boundary can come
+    in parts with gaps of 1e-4 m, and the seam then started at the end of the longest part, in
+    the middle of the overlap, or at the real end, as a nadir point moved by a millimetre."""
+    ends = np.array([[g.coords[0], g.coords[-1]] for g in parts], dtype="float64")  # (n, 2, 2)
+    flat = ends.reshape(-1, 2)
+    near = np.hypot(*(flat[:, None, :] - flat[None, :, :]).transpose(2, 0, 1)) <= gap
+    np.fill_diagonal(near, False)
+    for k in range(len(parts)):  # a part's own two ends are not a joint
+        near[2 * k, 2 * k + 1] = near[2 * k + 1, 2 * k] = False
+    if (near.sum(axis=1) > 1).any():
+        return tuple(ends[first, 0]), tuple(ends[first, 1])
+
+    def walk(end: int) -> tuple:
+        seen = {end // 2}
+        while True:
+            joint = np.flatnonzero(near[end])
+            if not len(joint) or joint[0] // 2 in seen:
+                return tuple(flat[end])
+            other = joint[0] ^ 1  # the far end of the next part
+            seen.add(other // 2)
+            end = other
+
+    return walk(2 * first), walk(2 * first + 1)
 
 
 def least_cost_cells(cells: list, footprints: list, cost_for: Callable[[int, int], Callable],
@@ -564,7 +603,7 @@ def route_seam(task: SeamTask, feedback: Any = None) -> tuple[dict, tuple | None
 
     i, j, cell = task.i, task.j, task.cell
     entry: dict = {"a": i, "b": j, "method": "voronoi"}
-    ends = seam_ends(task.cell_i, task.cell_j)
+    ends = seam_ends(task.cell_i, task.cell_j, END_GAP_CELLS * cell)
     if ends is None:
         entry["note"] = "no open shared boundary"
         return entry, None

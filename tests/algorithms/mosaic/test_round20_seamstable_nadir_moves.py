@@ -195,7 +195,7 @@ def test_a_seam_end_found_millimetres_inside_the_overlap_still_splits_it(monkeyp
     cell_i, cell_j = shapely.box(X0, Y0, X0 + 50, Y0 + 40), shapely.box(X0 + 50, Y0, X0 + 100, Y0 + 40)
     whole = shapely.box(X0, Y0, X0 + 100, Y0 + 40)
     ends = ((X0 + 50, Y0 + 0.0047), (X0 + 50, Y0 + 40 - 0.0047), 1)
-    monkeypatch.setattr(seams, "seam_ends", lambda a, b: ends)
+    monkeypatch.setattr(seams, "seam_ends", lambda a, b, gap=0.0: ends)
     task = seams.SeamTask(0, 1, cell_i, cell_j, whole, whole,
                           lambda transform, shape: np.ones(shape), 1.0, 4_000_000)
     entry, new = seams.route_seam(task)
@@ -222,3 +222,20 @@ def test_slivers_of_rounding_area_are_no_pieces_of_the_split():
     assert inside == pytest.approx([2052.4, 2972.0], abs=1.0)
     assert abs(sum(g.area for g in new) - sum(g.area for g in cells)) < 1e-6
     assert new[0].intersection(new[1]).area < 1e-6
+
+
+def test_a_shared_boundary_broken_by_a_rounding_gap_is_one_seam():
+    """Two cut polygons whose shared edge leaves the other's by 1e-6 m over 1e-4 m (rounding):
+    the boundaries coincide exactly in two parts with a gap of 1e-4 m between them, and the
+    seam ran between the ends of the longer part only, one of them in the middle of the edge (a
+    corner seam of the block moved by 64 m for a 1 mm nadir move, as such a gap came and went);
+    now parts within a hundredth of a cell are one line, ends at the edge's two ends."""
+    from toolbox.mosaic.seams import seam_ends
+
+    cell_i = shapely.Polygon([(X0, Y0), (X0 + 10, Y0), (X0 + 10, Y0 + 4),
+                              (X0 + 10 + 1e-6, Y0 + 4.00005), (X0 + 10, Y0 + 4.0001),
+                              (X0 + 10, Y0 + 10), (X0, Y0 + 10)])
+    cell_j = shapely.box(X0 + 10, Y0, X0 + 20, Y0 + 10)
+    start, end, parts = seam_ends(cell_i, cell_j, 0.01)
+    assert parts >= 2
+    assert sorted([start, end]) == [(X0 + 10, Y0), (X0 + 10, Y0 + 10)]
