@@ -314,12 +314,13 @@ def split_between(cells: list | dict, i: int, j: int, path: list, region, tol: f
     line = LineString(np.asarray(path, dtype="float64")).simplify(tol * 0.5)
     pieces: list = []
     for turns in END_TURNS:  # straight on first; then an end that runs along the boundary
-        # slivers of rounding area (a path running along the region's edge) are no pieces
         pieces = [g for g in getattr(split(region, _extended(line, 4 * tol, turns)), "geoms", [])
-                  if g.area > tol * tol]
-        if len(pieces) >= 2:
+                  if g.area > 0]
+        # slivers of rounding area (a path running along the region's edge) do not make a
+        # split (they are given away below all the same: the partition stays exact)
+        if sum(g.area > tol * tol for g in pieces) >= 2:
             break
-    if len(pieces) < 2:
+    if sum(g.area > tol * tol for g in pieces) < 2:
         return None
     grow_i, grow_j = rest_i.buffer(tol), rest_j.buffer(tol)
     mine, yours = [rest_i], [rest_j]
@@ -577,11 +578,21 @@ def seam_region(cell_i, cell_j, footprint_i, footprint_j, cell: float):
     return _clean(closed.intersection(footprint_i).intersection(footprint_j))
 
 
+#: a seam end within this many seam cells of its overlap's outer edge is put on it
+#: (:func:`on_edge`)
+END_SNAP_CELLS = 3.0
+
+
 def on_edge(region, point, cell: float) -> tuple[float, float]:
-    """The point of ``region``'s outer edge nearest to ``point`` when within the tolerance the
-    seam's ends are found to (twice :data:`~toolbox.mosaic.partition.SHARED_TOLERANCE` of the
-    coordinates, plus a hundredth of a cell), else ``point`` as it is (an end on the edge of a
-    hole stays there: snapped to the outer edge it would move by metres)."""
+    """The point of ``region``'s outer edge nearest to ``point`` when within
+    :data:`END_SNAP_CELLS` cells (plus twice :data:`~toolbox.mosaic.partition.SHARED_TOLERANCE`
+    of the coordinates, the tolerance the ends are found to), else ``point`` as it is.
+
+    A path from an end off the outer edge does not split the overlap: an end 4.7 mm inside
+    (the shared boundary matched to the tolerance), or on the edge of an island of a third cut
+    polygon (a sliver of 1.2 m x 5 cm along the Voronoi line cutting the shared boundary in two:
+    the longer part's end 1.2 m inside) left the seam on the Voronoi line or gave one ortho the
+    whole overlap, as a nadir point moved by a millimetre."""
     from shapely import Point
     from shapely.ops import nearest_points
 
@@ -589,7 +600,7 @@ def on_edge(region, point, cell: float) -> tuple[float, float]:
 
     here = Point(point)
     outer = region.exterior if region.geom_type == "Polygon" else region.boundary
-    limit = 2 * SHARED_TOLERANCE * max(1.0, abs(point[0]), abs(point[1])) + 0.01 * cell
+    limit = 2 * SHARED_TOLERANCE * max(1.0, abs(point[0]), abs(point[1])) + END_SNAP_CELLS * cell
     if outer.distance(here) > limit:
         return tuple(point)
     return nearest_points(outer, here)[0].coords[0]

@@ -239,3 +239,25 @@ def test_a_shared_boundary_broken_by_a_rounding_gap_is_one_seam():
     start, end, parts = seam_ends(cell_i, cell_j, 0.01)
     assert parts >= 2
     assert sorted([start, end]) == [(X0 + 10, Y0), (X0 + 10, Y0 + 10)]
+
+
+def test_a_seam_end_on_an_island_of_a_third_polygon_is_put_on_the_overlap_edge():
+    """A sliver of a third cut polygon (5 cm x 1.2 m, as earlier seams leave at a four-ortho
+    corner) lies across the shared edge near the overlap's south edge: the shared boundary comes
+    in two parts and the longer one ends on the island, 1.3 m inside the overlap. A path from
+    there did not split the overlap (in the block one ortho took a corner seam's whole overlap,
+    the seam moved by 62 m for a 1 mm nadir move); now the end is put on the overlap's edge
+    (within 3 cells) and the seam splits the overlap, the island left to its polygon."""
+    import toolbox.mosaic.seams as seams
+
+    island = shapely.box(X0 + 49.975, Y0 + 0.12, X0 + 50.025, Y0 + 1.3)
+    cell_i = shapely.box(X0, Y0, X0 + 50, Y0 + 40).difference(island)
+    cell_j = shapely.box(X0 + 50, Y0, X0 + 100, Y0 + 40).difference(island)
+    whole = shapely.box(X0, Y0, X0 + 100, Y0 + 40)
+    task = seams.SeamTask(0, 1, cell_i, cell_j, whole, whole,
+                          lambda transform, shape: np.ones(shape), 1.0, 4_000_000)
+    entry, new = seams.route_seam(task)
+    assert entry["method"] == "least_cost" and new is not None, entry
+    assert new[0].area == pytest.approx(2000, abs=50) and new[1].area == pytest.approx(2000, abs=50)
+    assert abs(new[0].area + new[1].area + island.area - whole.area) < 1e-6
+    assert max(g.intersection(island).area for g in new) < 1e-9
