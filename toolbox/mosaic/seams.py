@@ -316,11 +316,11 @@ def split_between(cells: list | dict, i: int, j: int, path: list, region, tol: f
     for turns in END_TURNS:  # straight on first; then an end that runs along the boundary
         pieces = [g for g in getattr(split(region, _extended(line, 4 * tol, turns)), "geoms", [])
                   if g.area > 0]
-        # slivers of rounding area (a path running along the region's edge) do not make a
-        # split (they are given away below all the same: the partition stays exact)
-        if sum(g.area > tol * tol for g in pieces) >= 2:
+        # slivers under a hundredth of a cell (a path running along the region's edge) do not
+        # make a split (they are given away below all the same: the partition stays exact)
+        if sum(g.area > SPLIT_PIECE * tol * tol for g in pieces) >= 2:
             break
-    if sum(g.area > tol * tol for g in pieces) < 2:
+    if sum(g.area > SPLIT_PIECE * tol * tol for g in pieces) < 2:
         return None
     grow_i, grow_j = rest_i.buffer(tol), rest_j.buffer(tol)
     mine, yours = [rest_i], [rest_j]
@@ -335,6 +335,11 @@ def split_between(cells: list | dict, i: int, j: int, path: list, region, tol: f
             touch_j = piece.intersection(cells[j]).area
         (mine if touch_i >= touch_j else yours).append(piece)
     return _clean(shapely.union_all(mine)), _clean(shapely.union_all(yours))
+
+
+#: the least area of a piece that makes a split (:func:`split_between`), in ``tol²``: a
+#: hundredth of a seam cell (``tol`` is a thousandth of a cell)
+SPLIT_PIECE = 1e4
 
 
 #: how :func:`_extended` leaves the line's (start, end): 0 straight on, +1 / -1 turned left /
@@ -388,6 +393,8 @@ def seam_ends(cell_i, cell_j, gap: float = 0.0):
         return None
     start, end = _longest_chain(parts, parts.index(longest), gap) if gap > 0 and len(parts) > 1 \
         else (longest.coords[0], longest.coords[-1])
+    if gap > 0 and math.dist(start, end) <= gap:  # a ring to rounding: no seam to route
+        return None
     return start, end, len(parts)
 
 

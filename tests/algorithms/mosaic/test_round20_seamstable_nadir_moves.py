@@ -261,3 +261,25 @@ def test_a_seam_end_on_an_island_of_a_third_polygon_is_put_on_the_overlap_edge()
     assert new[0].area == pytest.approx(2000, abs=50) and new[1].area == pytest.approx(2000, abs=50)
     assert abs(new[0].area + new[1].area + island.area - whole.area) < 1e-6
     assert max(g.intersection(island).area for g in new) < 1e-9
+
+
+def test_a_shared_boundary_that_is_a_ring_to_rounding_is_no_seam_to_route():
+    """A corner seam of the block after the earlier seams: its two cut polygons share a ring of
+    2.9 m whose ends differ by rounding. The seam was routed from a point to itself, the path
+    split off a sliver of 1.3e-5 m² that counted as a piece, and one polygon took the whole
+    overlap (5000 m²; the seams moved by 54 m for a 1 m nadir move); now such a ring is no open
+    boundary (and a piece under a hundredth of a cell makes no split): the polygons stay."""
+    import json
+    from pathlib import Path
+
+    import toolbox.mosaic.seams as seams
+
+    doc = json.loads((Path(__file__).parents[2] / "data" / "seam_ring_corner.json").read_text())
+    cell_i, cell_j, foot_i, foot_j = (shapely.from_wkb(doc[k]) for k in
+                                      ("cell_i", "cell_j", "footprint_i", "footprint_j"))
+    task = seams.SeamTask(0, 1, cell_i, cell_j, foot_i, foot_j,
+                          lambda transform, shape: np.ones(shape), 1.0, 4_000_000)
+    entry, new = seams.route_seam(task)
+    if new is not None:  # routed: neither polygon may take the other's side of the overlap
+        assert abs(new[0].area - cell_i.area) < 1.0 and abs(new[1].area - cell_j.area) < 1.0
+    assert entry["method"] == "voronoi"
