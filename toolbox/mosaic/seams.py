@@ -312,15 +312,24 @@ def split_between(cells: list | dict, i: int, j: int, path: list, region, tol: f
     # as an array: shapely reads a list of tuples point by point in Python (3 ms for the
     # 1000 vertices of the benchmark's seam); the same coordinates
     line = LineString(np.asarray(path, dtype="float64")).simplify(tol * 0.5)
+    # a split cuts along the path: the pieces' perimeters exceed the region's by about twice
+    # the path's length inside it (less where the path runs along the region's edge)
+    along = 2 * SPLIT_ALONG * line.intersection(region).length
     pieces: list = []
+    first = None
     for turns in END_TURNS:  # straight on first; then an end that runs along the boundary
-        pieces = [g for g in getattr(split(region, _extended(line, 4 * tol, turns)), "geoms", [])
-                  if g.area > 0]
+        cut = [g for g in getattr(split(region, _extended(line, 4 * tol, turns)), "geoms", [])
+               if g.area > 0]
         # slivers under a hundredth of a cell (a path running along the region's edge) do not
         # make a split (they are given away below all the same: the partition stays exact)
-        if sum(g.area > SPLIT_PIECE * tol * tol for g in pieces) >= 2:
+        if sum(g.area > SPLIT_PIECE * tol * tol for g in cut) < 2:
+            continue
+        first = cut if first is None else first
+        if sum(g.length for g in cut) - region.length >= along:
+            pieces = cut
             break
-    if sum(g.area > SPLIT_PIECE * tol * tol for g in pieces) < 2:
+    pieces = pieces or first  # no split along the whole path: the first one that cuts
+    if pieces is None:
         return None
     grow_i, grow_j = rest_i.buffer(tol), rest_j.buffer(tol)
     mine, yours = [rest_i], [rest_j]
@@ -340,6 +349,12 @@ def split_between(cells: list | dict, i: int, j: int, path: list, region, tol: f
 #: the least area of a piece that makes a split (:func:`split_between`), in ``tol²``: a
 #: hundredth of a seam cell (``tol`` is a thousandth of a cell)
 SPLIT_PIECE = 1e4
+
+
+#: the share of the path's length a split must cut along to be taken before the other
+#: ends are tried (:func:`split_between`): a straight end that leaves the region where it
+#: meets the edge split off a 0.2 m² corner and gave one ortho a corner seam's whole overlap
+SPLIT_ALONG = 0.9
 
 
 #: how :func:`_extended` leaves the line's (start, end): 0 straight on, +1 / -1 turned left /

@@ -289,3 +289,23 @@ def test_a_shared_boundary_that_is_a_ring_to_rounding_is_no_seam_to_route():
     if new is not None:  # routed: neither polygon may take the other's side of the overlap
         assert abs(new[0].area - cell_i.area) < 1.0 and abs(new[1].area - cell_j.area) < 1.0
     assert entry["method"] == "voronoi"
+
+
+def test_a_split_that_does_not_cut_along_the_path_is_not_taken():
+    """A corner seam of the block: its path prolonged straight on leaves the overlap where it
+    meets the edge, and the split cut off a 0.2 m² corner only; the two pieces (6829 and 0.2 m²)
+    were taken and one polygon got the whole overlap (every nadir move of 1 mm to 1 m moved the
+    seams by 71 m). Now a split must cut along 90 % of the path before the other ends are
+    tried: the turned end cuts the overlap in two (3361 and 3468 m²)."""
+    import json
+    from pathlib import Path
+
+    from toolbox.mosaic.seams import split_between
+
+    doc = json.loads((Path(__file__).parents[2] / "data" / "seam_split_corner.json").read_text())
+    cells = [shapely.from_wkb(doc[k]) for k in ("cell_i", "cell_j")]
+    region = shapely.from_wkb(doc["region"])
+    new = split_between(cells, 0, 1, [tuple(p) for p in doc["path"]], region, doc["tol"])
+    inside = sorted(g.intersection(region).area for g in new)
+    assert inside[0] > 3000 and inside[1] > 3000, inside
+    assert abs(sum(g.area for g in new) - sum(g.area for g in cells)) < 1e-6
