@@ -312,13 +312,24 @@ def split_between(cells: list | dict, i: int, j: int, path: list, region, tol: f
     # as an array: shapely reads a list of tuples point by point in Python (3 ms for the
     # 1000 vertices of the benchmark's seam); the same coordinates
     line = LineString(np.asarray(path, dtype="float64")).simplify(tol * 0.5)
+    # a split cuts along the path: the pieces' perimeters exceed the region's by about twice
+    # the path's length inside it (less where the path runs along the region's edge)
+    along = 2 * SPLIT_ALONG * line.intersection(region).length
     pieces: list = []
+    first = None
     for turns in END_TURNS:  # straight on first; then an end that runs along the boundary
-        pieces = [g for g in getattr(split(region, _extended(line, 4 * tol, turns)), "geoms", [])
-                  if g.area > 0]
-        if len(pieces) >= 2:
+        cut = [g for g in getattr(split(region, _extended(line, 4 * tol, turns)), "geoms", [])
+               if g.area > 0]
+        # slivers under a hundredth of a cell (a path running along the region's edge) do not
+        # make a split (they are given away below all the same: the partition stays exact)
+        if sum(g.area > SPLIT_PIECE * tol * tol for g in cut) < 2:
+            continue
+        first = cut if first is None else first
+        if sum(g.length for g in cut) - region.length >= along:
+            pieces = cut
             break
-    if len(pieces) < 2:
+    pieces = pieces or first  # no split along the whole path: the first one that cuts
+    if pieces is None:
         return None
     grow_i, grow_j = rest_i.buffer(tol), rest_j.buffer(tol)
     mine, yours = [rest_i], [rest_j]
@@ -333,6 +344,17 @@ def split_between(cells: list | dict, i: int, j: int, path: list, region, tol: f
             touch_j = piece.intersection(cells[j]).area
         (mine if touch_i >= touch_j else yours).append(piece)
     return _clean(shapely.union_all(mine)), _clean(shapely.union_all(yours))
+
+
+#: the least area of a piece that makes a split (:func:`split_between`), in ``tol²``: a
+#: hundredth of a seam cell (``tol`` is a thousandth of a cell)
+SPLIT_PIECE = 1e4
+
+
+#: the share of the path's length a split must cut along to be taken before the other
+#: ends are tried (:func:`split_between`): a straight end that leaves the region where it
+#: meets the edge split off a 0.2 m² corner and gave one ortho a corner seam's whole overlap
+SPLIT_ALONG = 0.9
 
 
 #: how :func:`_extended` leaves the line's (start, end): 0 straight on, +1 / -1 turned left /
@@ -370,8 +392,10 @@ def _clean(geom):
     return _polygonal(geom)
 
 
-def seam_ends(cell_i, cell_j):
-    """The two ends of the longest shared boundary line of two cut polygons, or None."""
+def seam_ends(cell_i, cell_j, gap: float = 0.0):
+    """``(start, end, parts)``: the two ends of the longest shared boundary line of two cut
+    polygons, or None; parts of the boundary whose ends are within ``gap`` of each other are one
+    line (:func:`_longest_chain`)."""
     from toolbox.mosaic.partition import merge_lines, shared_lines
 
     lines = shared_lines(cell_i, cell_j)
@@ -382,7 +406,46 @@ def seam_ends(cell_i, cell_j):
     longest = max(parts, key=lambda g: g.length)
     if longest.length == 0 or longest.is_closed:
         return None
-    return longest.coords[0], longest.coords[-1], len(parts)
+    start, end = _longest_chain(parts, parts.index(longest), gap) if gap > 0 and len(parts) > 1 \
+        else (longest.coords[0], longest.coords[-1])
+    if gap > 0 and math.dist(start, end) <= gap:  # a ring to rounding: no seam to route
+        return None
+    return start, end, len(parts)
+
+
+#: parts of a shared boundary whose ends are closer than this fraction of a seam cell are one
+#: line (:func:`seam_ends`): such a gap holds no cell, it is rounding
+END_GAP_CELLS = 0.01
+
+
+def _longest_chain(parts: list, first: int, gap: float) -> tuple:
+    """The ends of the chain of ``parts`` joined end to end (ends within ``gap``) that holds the
+    greatest length, oriented as its longest part; the ends of ``parts[first]`` (the longest
+    part) when its chain is not a simple one (a branch, a ring).
+
+    Cut polygons meet along edges that coincide only to rounding: their shared boundary can come
+    in parts with gaps of 1e-4 m, and the seam then started at the end of the longest part, in
+    the middle of the overlap, or at the real end, as a nadir point moved by a millimetre."""
+    ends = np.array([[g.coords[0], g.coords[-1]] for g in parts], dtype="float64")  # (n, 2, 2)
+    flat = ends.reshape(-1, 2)
+    near = np.hypot(*(flat[:, None, :] - flat[None, :, :]).transpose(2, 0, 1)) <= gap
+    np.fill_diagonal(near, False)
+    for k in range(len(parts)):  # a part's own two ends are not a joint
+        near[2 * k, 2 * k + 1] = near[2 * k + 1, 2 * k] = False
+    if (near.sum(axis=1) > 1).any():
+        return tuple(ends[first, 0]), tuple(ends[first, 1])
+
+    def walk(end: int) -> tuple:
+        seen = {end // 2}
+        while True:
+            joint = np.flatnonzero(near[end])
+            if not len(joint) or joint[0] // 2 in seen:
+                return tuple(flat[end])
+            other = joint[0] ^ 1  # the far end of the next part
+            seen.add(other // 2)
+            end = other
+
+    return walk(2 * first), walk(2 * first + 1)
 
 
 def least_cost_cells(cells: list, footprints: list, cost_for: Callable[[int, int], Callable],
@@ -462,8 +525,11 @@ def merge_close_vertices(cells: list, tolerance: float) -> list:
         if len(members) > 1:
             target[sorted(members)] = min(members)  # the least point (unique's order)
     moved = points[target[inverse.reshape(-1)]]
-    out = shapely.remove_repeated_points(
-        shapely.transform(geoms[live], lambda _: moved), 0.0)
+    try:
+        out = shapely.remove_repeated_points(
+            shapely.transform(geoms[live], lambda _: moved), 0.0)
+    except shapely.errors.GEOSException:  # a ring collapsed below 3 points: GEOS refuses it
+        return cells
     if not (shapely.is_valid(out).all() and not shapely.is_empty(out).any()):
         return cells
     result = list(cells)
@@ -512,6 +578,56 @@ class SeamTask:
     max_cells: int
 
 
+#: gaps between two cut polygons narrower than this fraction of a seam cell are closed in their
+#: seam's region (:func:`seam_region`)
+GAP_CELLS = 1e-6
+
+
+def seam_region(cell_i, cell_j, footprint_i, footprint_j, cell: float):
+    """The overlap ``(cell_i ∪ cell_j) ∩ F_i ∩ F_j`` a seam is routed in, with the hairline gaps
+    between the two cut polygons closed (narrower than :data:`GAP_CELLS` of a cell).
+
+    The cut polygons meet along edges that coincide only to rounding (they are computed one by
+    one): their plain union can come out as two polygons that touch at points across a crack
+    along the whole Voronoi seam, and the route was then confined to one side of it (the piece
+    nearest the seam's ends), switching sides when a nadir point moved by a millimetre (a seam
+    moved by 40-60 m in a 6-ortho block)."""
+    import shapely
+
+    eps = GAP_CELLS * cell
+    union = shapely.union_all([cell_i, cell_j])
+    closed = union.buffer(eps, join_style="mitre").buffer(-eps, join_style="mitre")
+    return _clean(closed.intersection(footprint_i).intersection(footprint_j))
+
+
+#: a seam end within this many seam cells of its overlap's outer edge is put on it
+#: (:func:`on_edge`)
+END_SNAP_CELLS = 3.0
+
+
+def on_edge(region, point, cell: float) -> tuple[float, float]:
+    """The point of ``region``'s outer edge nearest to ``point`` when within
+    :data:`END_SNAP_CELLS` cells (plus twice :data:`~toolbox.mosaic.partition.SHARED_TOLERANCE`
+    of the coordinates, the tolerance the ends are found to), else ``point`` as it is.
+
+    A path from an end off the outer edge does not split the overlap: an end 4.7 mm inside
+    (the shared boundary matched to the tolerance), or on the edge of an island of a third cut
+    polygon (a sliver of 1.2 m x 5 cm along the Voronoi line cutting the shared boundary in two:
+    the longer part's end 1.2 m inside) left the seam on the Voronoi line or gave one ortho the
+    whole overlap, as a nadir point moved by a millimetre."""
+    from shapely import Point
+    from shapely.ops import nearest_points
+
+    from toolbox.mosaic.partition import SHARED_TOLERANCE
+
+    here = Point(point)
+    outer = region.exterior if region.geom_type == "Polygon" else region.boundary
+    limit = 2 * SHARED_TOLERANCE * max(1.0, abs(point[0]), abs(point[1])) + END_SNAP_CELLS * cell
+    if outer.distance(here) > limit:
+        return tuple(point)
+    return nearest_points(outer, here)[0].coords[0]
+
+
 def route_seam(task: SeamTask, feedback: Any = None) -> tuple[dict, tuple | None]:
     """``(report entry, (new cell_i, new cell_j) or None)`` of one seam (a task of
     :func:`least_cost_cells`, run in this thread or on a Dask worker); ``feedback`` (local
@@ -520,19 +636,21 @@ def route_seam(task: SeamTask, feedback: Any = None) -> tuple[dict, tuple | None
 
     i, j, cell = task.i, task.j, task.cell
     entry: dict = {"a": i, "b": j, "method": "voronoi"}
-    ends = seam_ends(task.cell_i, task.cell_j)
+    ends = seam_ends(task.cell_i, task.cell_j, END_GAP_CELLS * cell)
     if ends is None:
         entry["note"] = "no open shared boundary"
         return entry, None
     start, end, n_parts = ends
-    region = _clean(task.cell_i.union(task.cell_j).intersection(task.footprint_i)
-                    .intersection(task.footprint_j))
+    region = seam_region(task.cell_i, task.cell_j, task.footprint_i, task.footprint_j, cell)
     if region.is_empty or region.area < cell * cell:
         entry["note"] = "no overlap"
         return entry, None
     if region.geom_type == "MultiPolygon":
         region = min(region.geoms, key=lambda g: g.distance(Point(start)) +
                      g.distance(Point(end)))
+    # the shared line's ends are found to SHARED_TOLERANCE (4.8 mm at 4,800,000): on the
+    # region's edge exactly, so that the path, prolonged by a few thousandths of a cell, cuts it
+    start, end = (on_edge(region, p, cell) for p in (start, end))
     path = seam_path(task.cost, region, start, end, cell, task.max_cells, feedback)
     if path is None:
         entry["note"] = "seam ends not connected inside the overlap"
