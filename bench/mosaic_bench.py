@@ -28,6 +28,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -440,6 +441,28 @@ def seam_section(cv: dict, n: int) -> list[str]:
 SEAM_HEADING = "### One seam,"
 
 
+def _section_preamble(line: str) -> bool:
+    """A line :func:`main` writes before the one-seam section: the machine facts
+    (:func:`benchlib.machine_facts`: ``date, N cores ...``), the load note
+    (:func:`benchlib.load_note`) or a blank line."""
+    return (not line.strip() or line.startswith("CPU ") and "busy in the second before" in line
+            or re.match(r"\d{4}-\d{2}-\d{2}, \d+ cores ", line) is not None)
+
+
+def replace_seam_section(old: str, section: list[str]) -> str:
+    """``old`` (the results file) with its one-seam section, and the machine facts and load
+    note written just before it, replaced by ``section`` (facts, note, then the section); the
+    rest of the file is kept, without the one-pair rows of older runs. Rewriting twice leaves one
+    copy of each line (the previous run's facts and note are part of what is replaced)."""
+    lines = old.split(SEAM_HEADING)[0].rstrip("\n").splitlines()
+    while lines and _section_preamble(lines[-1]) and SEAM_HEADING in old:
+        lines.pop()
+    head = "\n".join(line for line in lines
+                     if not (line.startswith("|") and ("seam on one pair" in line
+                                                       or "OpenCV" in line)))
+    return head + "\n\n" + "\n".join(section)
+
+
 def main(small: bool, seam_only: bool = False) -> str:
     import cv2
     import rasterio
@@ -470,11 +493,7 @@ def main(small: bool, seam_only: bool = False) -> str:
     section = [facts, "", note, "", *seam_section(cv, n_cv)]
     if seam_only:
         old = target.read_text() if target.exists() else "## Mosaics (`bench/mosaic_bench.py`)\n"
-        # the rest of the file, without this section and the one-pair rows of older runs
-        head = "\n".join(line for line in old.split(SEAM_HEADING)[0].rstrip("\n").splitlines()
-                         if not (line.startswith("|") and ("seam on one pair" in line
-                                                           or "OpenCV" in line)))
-        text = head + "\n\n" + "\n".join(section)
+        text = replace_seam_section(old, section)
         (HERE / "results").mkdir(exist_ok=True)
         target.write_text(text)
         return text

@@ -8,7 +8,7 @@ from toolbox.parameters import Boolean, Enum, Integer, Number, String, VectorLay
 from toolbox.parameters.outputs import Layer, Output, OutputRaster, OutputVector
 from toolbox.registry import register
 from toolbox.ui.execution import executor_of, scheduler_parameter
-from toolbox.ui.mosaic import orthos_parameter
+from toolbox.ui.mosaic import SEAM_FIELDS, orthos_parameter
 
 BLEND_METHODS = ("none", "feather", "multiband")
 RESAMPLING = ("nearest", "bilinear", "cubic", "lanczos")
@@ -44,7 +44,9 @@ class MosaicBuild(Algorithm):
     an alpha band). SOURCE_INDEX gets the 1-based input number of each cell (0 = no data),
     and SEAMLINES the seams: exactly the cell
     edges between different sources in the source index (steps of one cell where a seam runs
-    diagonally; edges next to no data are not seams). Their ``method`` is the one
+    diagonally; edges next to no data are not seams), in the layer seamlines (a_id, b_id = the
+    1-based input numbers of the two orthos, the lower first; a, b = their file names; method;
+    length in CRS units). Their ``method`` is the one
     mosaic:seamlines recorded for the pair when CUTLINES is its GeoPackage, else "cut
     polygons" (other CUTLINES) or "voronoi" (no CUTLINES).
     """
@@ -78,8 +80,7 @@ class MosaicBuild(Algorithm):
         OutputRaster("SOURCE_INDEX", "source index raster (1-based input number, 0 = none)",
                      optional=True),
         OutputVector("SEAMLINES", "seamlines GeoPackage", optional=True, layers=[
-            Layer("seamlines", "MultiLineString", [("a", "string"), ("b", "string"),
-                                                   ("method", "string"), ("length", "real")],
+            Layer("seamlines", "MultiLineString", SEAM_FIELDS,
                   "the boundaries between different sources in the source index")]),
     ]
     outputs = [Output("STATISTICS", "grid, cells per source, gains and offsets", "dict")]

@@ -36,7 +36,8 @@ class MosaicCut(Algorithm):
     <id>.gpkg, every layer of the file (or the one of "path|layername=NAME") under its own
     name, each feature keeping the pieces of its own kind (a polygon along a sheet edge gives
     no line). Sheets holding no data are skipped. OUTPUT is a folder; it also receives
-    sheets.gpkg, the sheet index (id, file, written). The sheet files are written all or none
+    sheets.gpkg, the sheet index (layer sheets: sheet_id, file, written). The sheet files are
+    written all or none
     (staged, moved into OUTPUT on success); an existing one is replaced only with --overwrite,
     other files of OUTPUT are left alone. Sheets are cut in parallel on local threads or on a
     Dask cluster (SCHEDULER or DASK_SCHEDULER_ADDRESS; the workers write the sheet files, so

@@ -8,10 +8,13 @@ from toolbox.parameters import Enum, Field, Integer, Number, RasterLayer, Vector
 from toolbox.parameters.outputs import Layer, Output, OutputVector
 from toolbox.registry import register
 from toolbox.ui.execution import executor_of, scheduler_parameter
-from toolbox.ui.mosaic import orthos_parameter
+from toolbox.ui.mosaic import SEAM_FIELDS, orthos_parameter
 
 METHODS = ("voronoi", "least_cost")
 CENTRES = ("nadir", "footprint")
+#: the fields naming an ortho in cut_polygons, footprints and centres
+SOURCE_FIELDS = (("source_id", "integer", "1-based input number of the ortho"),
+                 ("source", "string", "ortho file name"))
 
 
 @register
@@ -53,9 +56,11 @@ class MosaicSeamlines(Algorithm):
     The orthos are partitioned in file-name order, so the cut polygons do not depend on the
     order they are given in.
 
-    OUTPUT (GeoPackage): layer cut_polygons (source_id, source = ortho file name, path relative
-    to the output's folder, area) forms an exact partition of the area (no gaps, no overlaps);
-    layer seamlines (a, b, method, length); layers footprints and centres.
+    OUTPUT (GeoPackage): layer cut_polygons (source_id = 1-based input number, source = ortho
+    file name, path relative to the output's folder, area in CRS units²) forms an exact
+    partition of the area (no gaps, no overlaps); layer seamlines (a_id, b_id = the 1-based
+    input numbers of the two orthos, the lower first; a, b = their file names; method; length
+    in CRS units); layers footprints and centres (source_id, source).
 
     The seamlines are exactly the boundaries between different sources in the source index of
     the mosaic mosaic:build makes from these cut polygons at its default cell size (each cell
@@ -105,15 +110,15 @@ class MosaicSeamlines(Algorithm):
                 default=4_000_000, min_value=10_000),
         scheduler_parameter("the seams"),
         OutputVector("OUTPUT", "GeoPackage: cut_polygons, seamlines, footprints, centres", layers=[
-            Layer("cut_polygons", "MultiPolygon", [("source_id", "integer"), ("source", "string"),
-                                                   ("path", "string"), ("area", "real")],
+            Layer("cut_polygons", "MultiPolygon", [*SOURCE_FIELDS,
+                                                   ("path", "string", "ortho path relative to "
+                                                    "the output's folder"),
+                                                   ("area", "real", "area, CRS units²")],
                   "one polygon per ortho: an exact partition of the mosaic (editable)"),
-            Layer("seamlines", "MultiLineString", [("a", "string"), ("b", "string"),
-                                                   ("method", "string"), ("length", "real")],
+            Layer("seamlines", "MultiLineString", SEAM_FIELDS,
                   "the seams between neighbouring orthos"),
-            Layer("footprints", "MultiPolygon", [("source_id", "integer"), ("source", "string")],
-                  "valid data of each ortho"),
-            Layer("centres", "Point", [("source_id", "integer"), ("source", "string")],
+            Layer("footprints", "MultiPolygon", SOURCE_FIELDS, "valid data of each ortho"),
+            Layer("centres", "Point", SOURCE_FIELDS,
                   "the nadir points (or footprint centres) of the Voronoi partition")]),
     ]
     outputs = [Output("STATISTICS", "areas, partition check and per-seam notes", "dict")]

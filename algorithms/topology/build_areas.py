@@ -44,14 +44,17 @@ class BuildAreas(LineworkAlgorithm):
     Tolerances come from the explicit parameters, else from the PARAMETERS file (the plotting
     software's "file dei parametri"), else from the defaults (0.2, 0.5, 1.0, 1.0 m², 0.001).
 
-    OUTPUT is one GeoPackage with four layers:
-    ``areas`` (id, code, label attributes, labels = label points inside, area, perimeter);
-    ``arcs`` (each boundary stored ONCE, with left_area/right_area ids, 0 = outside, the original
-    line codes and input line numbers it came from: the building/pavement edge of the thesis
+    OUTPUT is one GeoPackage with five layers:
+    ``areas`` (id, code and the other label attributes, labels = label points inside, area in
+    CRS units², perimeter in CRS units);
+    ``arcs`` (each boundary stored ONCE: id, left_area/right_area ids, 0 = outside, codes = the
+    original line codes and lines = the input line numbers it came from, length in CRS units:
+    the building/pavement edge of the thesis
     exists once and both areas point to it; kept dangles and unclosed lines are arcs with the same
-    area on both sides); ``nodes`` (id, degree, kind); ``errors_points``/``errors_lines`` (type,
-    severity = error for the operator or fixed for what the cleaning changed, detail, input line
-    numbers, area and label ids). Heights are dropped from the lines (areas are planimetric).
+    area on both sides); ``nodes`` (id, degree, kind); ``errors_points``/``errors_lines`` (id,
+    type, severity = error for the operator or fixed for what the cleaning changed, detail,
+    lines = input line numbers, area_id and label_id, 0 = none). Heights are dropped from the
+    lines (areas are planimetric).
     The same input gives the same ids (numbered by position).
     """
 

@@ -606,8 +606,9 @@ class OutputStaging:
         owner = {part: target for target in targets for part in dataset_files(target) & targets}
         replace = set()  # existing targets a commit without overwrite may replace (leftovers)
         stale: dict[Path, str] = {}  # old files GDAL would read with a new one -> output name
+        inodes: set = set()  # the protected files' inodes, stated once (_is_protected)
         for name, _, target in moves:
-            _check_target(name, target, protected)
+            _check_target(name, target, protected, inodes)
             main = owner.get(target, target)
             if os.path.lexists(target):
                 _check_free(name, target, main, overwrite)
@@ -616,7 +617,7 @@ class OutputStaging:
                 continue
             for old in dataset_files(target) - targets:
                 if os.path.isfile(old) or os.path.islink(old):
-                    _check_target(name, old, protected)
+                    _check_target(name, old, protected, inodes)
                     _check_free(name, old, target, overwrite)
                     stale[old] = name
             for sibling in self._siblings.get(target, []):
@@ -624,7 +625,7 @@ class OutputStaging:
                     continue
                 for old in {sibling} | dataset_files(sibling):
                     if old not in targets and (os.path.isfile(old) or os.path.islink(old)) \
-                            and not _is_protected(old, protected):  # an input: left alone
+                            and not _is_protected(old, protected, inodes):  # an input
                         if not overwrite:
                             raise OutputExistsError(name, f"'{old}' exists: a layer file of "
                                                     f"'{target}' that this run does not write "
@@ -716,26 +717,38 @@ def _backup(target: Path, folder: Path | None, key) -> Path | None:
     return backup
 
 
-def _is_protected(target: Path, protected: set[Path]) -> bool:
+def _is_protected(target: Path, protected: set[Path], inodes: set | None = None) -> bool:
+    """Whether ``target`` is one of the ``protected`` paths, by path or by inode (a hard link).
+    ``inodes``: an empty set the first call fills with the protected files' ``(device, inode)``,
+    so that a commit stats them once, not once per target that exists."""
     if not protected:
         return False
     if target.resolve() in protected:
         return True
-    if target.exists():
+    try:
         st = target.stat()
+    except OSError:  # no such file: no inode to share
+        return False
+    if inodes is None or not inodes:
+        found = set()
         for p in protected:
             try:
                 ps = p.stat()
             except OSError:
                 continue
-            if (ps.st_dev, ps.st_ino) == (st.st_dev, st.st_ino):
-                return True
-    return False
+            found.add((ps.st_dev, ps.st_ino))
+        if inodes is None:
+            inodes = found
+        else:
+            inodes |= found or {None}  # {None}: worked out, no protected file exists
+    return (st.st_dev, st.st_ino) in inodes
 
 
-def _check_target(name: str, target: Path, protected: set[Path]) -> None:
-    """Refuse a commit writing or removing ``target`` when it is an input or a folder."""
-    if _is_protected(target, protected):
+def _check_target(name: str, target: Path, protected: set[Path],
+                  inodes: set | None = None) -> None:
+    """Refuse a commit writing or removing ``target`` when it is an input or a folder
+    (``inodes``: see :func:`_is_protected`)."""
+    if _is_protected(target, protected, inodes):
         raise ParameterError(name, f"'{target}' is an input (or an input's sidecar); an input "
                              "is never overwritten: choose another output path")
     if target.is_dir() and not target.is_symlink():

@@ -79,12 +79,6 @@ def _label_changes(first: np.ndarray, second: np.ndarray) -> tuple:
     return r, cc, la, lb
 
 
-def _nonzero_2d(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``np.nonzero`` of a 2-D array, the same (row, col) arrays in the same order, from the
-    flat indexes: about 15x faster on a sparse mask (2.6 -> 0.2 ms on 1500 x 1000 cells)."""
-    return np.divmod(np.flatnonzero(mask), mask.shape[1])
-
-
 def merge_edges(into: dict, more: dict) -> None:
     """Append the segments of ``more`` to ``into`` (both as from :func:`label_edges`)."""
     for key, segs in more.items():

@@ -72,6 +72,15 @@ def validate(algorithm: type[Algorithm] | str, parameters: dict[str, Any],
     Coordinates a little outside their CRS's area of use add a message to ``warnings``.
     Nothing is written.
     """
+    return _validate(algorithm, parameters, overwrite, warnings)[0]
+
+
+def _validate(algorithm: type[Algorithm] | str, parameters: dict[str, Any],
+              overwrite: bool = False, warnings: list[str] | None = None
+              ) -> tuple[dict[str, Any], dict[Path, str]]:
+    """:func:`validate`'s values and the run's :func:`input_paths`, worked out once (a
+    project's or a VRT's files, every sidecar: a few stat calls per input file) for the checks
+    here and the run's protection of its inputs."""
     alg = get(algorithm) if isinstance(algorithm, str) else algorithm
     params, overwrite = _pop_overwrite(parameters, overwrite)
     if not isinstance(params, dict):
@@ -104,10 +113,11 @@ def validate(algorithm: type[Algorithm] | str, parameters: dict[str, Any],
             check_unlabelled_in_area(inputs, values["CRS"], warnings)
     check_magnitudes(alg, values)
     _check_band(alg, values)
-    check_outputs_against_inputs(alg, values)
+    input_files = input_paths(alg, values)
+    check_outputs_against_inputs(alg, values, input_files)
     alg().check(values)
-    check_planned_files(alg, values, overwrite)
-    return values
+    check_planned_files(alg, values, overwrite, input_files)
+    return values, input_files
 
 
 TINY, HUGE = 1e-300, 1e150  # below (but not 0) / above: no computation with it is sound
@@ -212,14 +222,14 @@ def _run(algorithm_id: str, parameters: dict[str, Any] | None, feedback: Feedbac
     t0 = time.perf_counter()
     params, overwrite = _pop_overwrite(parameters or {}, overwrite)
     crs_warnings: list[str] = []
-    values = validate(alg_cls, params, overwrite, crs_warnings)
+    values, inputs = _validate(alg_cls, params, overwrite, crs_warnings)
     source_date()  # a malformed SOURCE_DATE_EPOCH: refused before anything is written
     for text in crs_warnings:
         feedback.push_warning(text)
-    inputs = input_paths(alg_cls, values)
     protected = set(inputs)
     stamps = input_stamps(inputs)  # an input written meanwhile: refused before the commit
-    report_path = None if report is None else check_report(report, alg_cls, values, overwrite)
+    report_path = None if report is None else check_report(report, alg_cls, values, overwrite,
+                                                            inputs)
     staging = OutputStaging(record=True)
     try:
         staged = dict(values)

@@ -5,6 +5,7 @@ replaces an input."""
 from __future__ import annotations
 
 import logging
+import stat
 from functools import lru_cache
 from pathlib import Path
 from typing import Any
@@ -181,8 +182,12 @@ def _project_photos(path: Path, *state: int) -> tuple[Path, ...]:
     return tuple(f for f in found if f.is_file())
 
 
-def check_outputs_against_inputs(alg_cls: type[Algorithm], values: dict[str, Any]) -> None:
-    inputs = input_paths(alg_cls, values)
+def check_outputs_against_inputs(alg_cls: type[Algorithm], values: dict[str, Any],
+                                 inputs: dict[Path, str] | None = None) -> None:
+    """No output path is an input file (``inputs``: :func:`input_paths`, worked out when not
+    given)."""
+    if inputs is None:
+        inputs = input_paths(alg_cls, values)
     for dest in alg_cls.destinations():
         final = values.get(dest.name)
         if final is None:
@@ -214,7 +219,7 @@ def input_stamps(inputs: dict[Path, str]) -> dict[Path, tuple[int, int, int]]:
             st = path.stat()
         except OSError:
             continue
-        if path.is_file() and not _is_sqlite(path):
+        if stat.S_ISREG(st.st_mode) and not _is_sqlite(path):  # (no second stat: is_file())
             stamps[path] = (st.st_ino, st.st_size, st.st_mtime_ns)
     return stamps
 
@@ -316,14 +321,16 @@ def declared_layer_files(dest: Any, final: Any) -> list[Path]:
 
 
 def check_planned_files(alg_cls: type[Algorithm], values: dict[str, Any],
-                        overwrite: bool) -> None:
+                        overwrite: bool, inputs: dict[Path, str] | None = None) -> None:
     """Each planned file is checked as an output path: not an input (by path, sidecars and the
-    files a project names included, or by inode), not another output, not a folder, and not
-    existing without ``overwrite``."""
+    files a project names included, or by inode; ``inputs``: :func:`input_paths`, worked out
+    when not given), not another output, not a folder, and not existing without
+    ``overwrite``."""
     plan = planned_paths(alg_cls, values)
     if not any(plan.values()):
         return
-    inputs = input_paths(alg_cls, values)
+    if inputs is None:
+        inputs = input_paths(alg_cls, values)
     inodes = {}
     for path, name in inputs.items():
         try:
@@ -357,10 +364,11 @@ def check_planned_files(alg_cls: type[Algorithm], values: dict[str, Any],
 
 
 def check_report(report: str | Path, alg_cls: type[Algorithm], values: dict[str, Any],
-                  overwrite: bool) -> Path:
+                  overwrite: bool, inputs: dict[Path, str] | None = None) -> Path:
     path = Path(report).expanduser()
     resolved = path.resolve()
-    inputs = input_paths(alg_cls, values)
+    if inputs is None:
+        inputs = input_paths(alg_cls, values)
     if resolved in inputs:
         raise ParameterError(REPORT, f"'{report}' is the input {inputs[resolved]} (or one of its "
                              "files); an input is never overwritten: choose another report path")

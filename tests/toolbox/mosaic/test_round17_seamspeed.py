@@ -44,19 +44,6 @@ def test_reads_of_an_all_valid_ortho_equal_the_mask_reads(tmp_path, nodata_corne
                               ds.dataset_mask() > 0)
 
 
-def test_nonzero_2d_is_numpy_nonzero():
-    from toolbox.mosaic.index_seams import _nonzero_2d
-
-    rng = np.random.default_rng(7)
-    labels = rng.integers(-1, 3, (40, 57))
-    masks = [rng.random((40, 57)) < p for p in (0.0, 0.01, 0.5, 1.0)]
-    masks += [labels[:, :-1] != labels[:, 1:], np.zeros((5, 0), bool), np.zeros((0, 5), bool)]
-    for mask in masks:
-        got, expected = _nonzero_2d(mask), np.nonzero(mask)
-        assert all(g.dtype == e.dtype and np.array_equal(g, e)
-                   for g, e in zip(got, expected, strict=True))
-
-
 @pytest.mark.parametrize("radius", [0.5, 1.0, 2.5, 7.0, 30.0])
 @pytest.mark.parametrize("workers", [1, 2])
 def test_within_radius_of_a_few_columns_equals_scipy_edt(radius, workers):
