@@ -28,10 +28,14 @@ def rule(labels: np.ndarray, valid: np.ndarray) -> np.ndarray:
     return out
 
 
+# window_labels makes its passes over strips of rows (kept in the CPU's cache): every strip
+# size, a last strip shorter than the others included, gives the rule's labels
+@pytest.mark.parametrize("strip_cells", [1, 31, 5 * 31 + 7, 23 * 31, 10**6])
 @pytest.mark.parametrize("sources", [1, 2, 3, 7, 9])
 @pytest.mark.parametrize("few", [0, 6])
-def test_window_labels_follow_the_rule(monkeypatch, sources, few):
+def test_window_labels_follow_the_rule(monkeypatch, sources, few, strip_cells):
     monkeypatch.setattr(build, "FEW_SOURCES", few)
+    monkeypatch.setattr(build, "LABEL_STRIP_CELLS", strip_cells)
     rng = np.random.default_rng(sources * 10 + few)
     rows, cols = 23, 31
     # vertical strips as cut polygons (the last strip has no polygon: label -1 there)
