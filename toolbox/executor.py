@@ -34,7 +34,7 @@ from dataclasses import dataclass
 from typing import Any, TypeVar
 
 from toolbox.errors import CanceledError, ParameterError, ServiceError
-from toolbox.feedback import current_runs, working_for
+from toolbox.feedback import Feedback, current_runs, logged_warnings, working_for
 
 T = TypeVar("T")
 R = TypeVar("R")
@@ -183,9 +183,11 @@ def _check(feedback: Any) -> None:
         feedback.check_canceled()
 
 
-def _in_order(submit, tasks, limit: int, feedback, total, start, end) -> Iterator:
+def _in_order(submit, tasks, limit: int, feedback, total, start, end,
+              outcome: Callable[[Any], Any] = lambda future: future.result()) -> Iterator:
     """Submit tasks with ``submit(task) -> future`` keeping at most ``limit`` in flight; yield
-    the results in task order. Pending futures are cancelled if the consumer stops early."""
+    the results (``outcome(future)``) in task order. Pending futures are cancelled if the
+    consumer stops early."""
     pending: deque = deque()
     done = 0
     try:
@@ -203,7 +205,7 @@ def _in_order(submit, tasks, limit: int, feedback, total, start, end) -> Iterato
             if not pending:
                 break
             future = pending.popleft()
-            result = future.result()
+            result = outcome(future)
             if hasattr(future, "release"):  # dask: drop the result from the cluster now
                 future.release()
             done += 1
@@ -374,11 +376,22 @@ def _map_dask(func, tasks, executor, prefetch, feedback, total, start, end) -> I
                 client.scatter([func], hash=False)[0]
 
             def submit(task):
-                return client.submit(_in_client_folder, folder, target, task, date, pure=False,
+                return client.submit(_keeping_warnings, folder, target, task, date, pure=False,
                                      key=f"{name}-{uuid.uuid4().hex}")
 
+            shown: set[str] = set()
+
+            def outcome(future):
+                try:
+                    result, warnings = future.result()
+                except Exception as exc:
+                    _show(getattr(exc, "toolbox_warnings", ()), shown)
+                    raise
+                _show(warnings, shown)
+                return result
+
             yield from _in_order(submit, tasks, prefetch or max(4, 2 * cores), feedback, total,
-                                 start, end)
+                                 start, end, outcome)
         except Exception as exc:
             if not _connection_lost(client, exc):
                 raise  # the task's own error, re-raised by Dask with its type
@@ -439,6 +452,35 @@ def _in_client_folder(folder: str, func: Callable, task: Any, date: str | None =
         with _FOLDER_TURN:
             _FOLDER["running"] -= 1
             _FOLDER_TURN.notify_all()
+
+
+def _keeping_warnings(folder: str, func: Callable, task: Any, date: str | None = None):
+    """:func:`_in_client_folder` on a Dask worker, with the warnings the task logged there (on
+    the ``toolbox`` logger, and GDAL's through ``rasterio``'s: :func:`logged_warnings`): the
+    pair ``(result, warnings)``, or the task's error carrying them (``toolbox_warnings``). The
+    worker is another process: the run's own handlers never see them."""
+    kept = Feedback()
+    try:
+        with logged_warnings(kept):
+            return _in_client_folder(folder, func, task, date), kept.warnings
+    except Exception as exc:
+        try:
+            exc.toolbox_warnings = kept.warnings
+        except AttributeError:  # an error without a __dict__: its warnings are lost
+            pass
+        raise
+
+
+def _show(warnings: Iterable[str], shown: set[str]) -> None:
+    """Log on the client, on the ``toolbox`` logger, each warning a Dask task logged on its
+    worker that this map has not shown yet: the run (:func:`logged_warnings`) keeps it, the
+    console shows it."""
+    import logging
+
+    for text in warnings:
+        if text not in shown:
+            shown.add(text)
+            logging.getLogger("toolbox").warning(text)
 
 
 def _first_line(exc: BaseException) -> str:
