@@ -27,7 +27,8 @@ drivers) reopens a file it read, read-write, when a ``-wal`` is beside it, so th
 other connection has it open, writes the ``-wal`` into the file and deletes it (the same rows,
 other bytes); no open or config option avoids it (``NOLOCK`` changes nothing, ``IMMUTABLE``
 leaves the ``-wal``'s rows out). A ``-wal`` OGR can only open with ``IMMUTABLE`` (no ``-shm``
-can be created: a read-only folder) is refused by :func:`open_layer` (:class:`_WalNotRead`).
+can be created: a read-only folder) is refused by :func:`open_layer`, as SQLite refuses it
+(:func:`toolbox.io.gpkg_summary.unread_wal`).
 """
 
 from __future__ import annotations
@@ -76,9 +77,6 @@ _OGR_LOCK = threading.RLock()
 #: pyogrio's warning when it reads a measured (M) layer without its M values (repeated at each
 #: read, naming no layer): replaced by one warning per input naming it (:func:`_warn_measured`)
 _MEASURED = "Measured \\(M\\) geometry types are not supported"
-#: GDAL's warning when it opens an SQLite file in WAL mode whose ``-shm`` it cannot create (a
-#: read-only folder) with ``IMMUTABLE=YES``: the rows of its ``-wal`` are then not read
-_WAL_IMMUTABLE = "Retrying with IMMUTABLE=YES"
 
 
 def _ogr():
@@ -389,13 +387,16 @@ def open_layer(value: Any, name: str = "INPUT", known_layer: str | None = None) 
         raise ParameterError(name, f"file '{text}' does not exist")
     if path.suffix.lower() == ".parquet":
         return _open_parquet(path, source, name)
+    from toolbox.io.gpkg_summary import unread_wal
+
+    refused = unread_wal(path)
+    if refused:
+        raise ParameterError(name, refused)
     ogr = _ogr()
     try:
         options = _csv_open_options(path) if path.suffix.lower() == ".csv" else {}
         rows, _ = _without_m_warning(ogr.list_layers, path)
         layers = [str(row[0]) for row in rows]
-    except _WalNotRead as exc:
-        raise ParameterError(name, str(exc)) from None
     except Exception as exc:  # pyogrio raises DataSourceError and friends
         raise ParameterError(name, f"cannot read '{text}' as a vector layer: "
                              f"{str(exc).splitlines()[0]}") from None
@@ -545,29 +546,12 @@ def _without_m_warning(call, *args, **kwargs):
         result = call(*args, **kwargs)
     measured = None
     for w in caught:
-        if _WAL_IMMUTABLE in str(w.message):
-            raise _WalNotRead(args[0] if args else kwargs.get("path_or_buffer"))
         match = re.search(_MEASURED + r"\. Original type '([^']*)'", str(w.message))
         if match:
             measured = match.group(1)
         else:  # the other warnings as they came
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
     return result, measured
-
-
-class _WalNotRead(InputDataError):
-    """GDAL opened an SQLite file (GeoPackage) without its ``-wal`` (``IMMUTABLE=YES``): the
-    rows committed to the log would be missing. SQLite itself refuses to open such a file
-    ("unable to open database file"): so does :func:`open_layer`, saying why."""
-
-    def __init__(self, path: Any):
-        wal = Path(f"{path}-wal")
-        size = wal.stat().st_size if wal.exists() else 0
-        super().__init__(
-            f"'{path}': its write-ahead log '{wal.name}' ({size} bytes) cannot be read here (SQLite must "
-            f"create '{Path(path).name}-shm' beside it: a read-only folder?), so its last "
-            "committed edits would be missing; copy the file with its -wal to a writable "
-            "folder, or open it once where it is writable")
 
 
 def _open_parquet(path: Path, source: LayerSource, name: str) -> VectorLayerRef:

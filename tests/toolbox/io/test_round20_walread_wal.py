@@ -105,3 +105,36 @@ def test_open_layer_names_the_parameter(wal_left_behind):
         warnings.simplefilter("ignore")
         with pytest.raises(ParameterError, match=r"^POINTS '.*wal\.gpkg': its write-ahead"):
             open_layer(str(wal_left_behind), "POINTS")
+
+
+def test_a_raster_geopackage_too(tmp_path):
+    """A raster GeoPackage (rasterio's GDAL): a tile rewritten in the -wal only."""
+    import rasterio
+    from rasterio.transform import from_origin
+
+    from toolbox.io.raster import open_raster_info
+
+    work = tmp_path / "writer" / "dem.gpkg"
+    work.parent.mkdir()
+    with rasterio.open(work, "w", driver="GPKG", width=512, height=512, count=1, dtype="uint8",
+                       crs="EPSG:3003", transform=from_origin(1_687_000, 4_799_000, 1, 1)) as ds:
+        ds.write(np.arange(512 * 512, dtype=np.uint32).reshape(1, 512, 512).astype(np.uint8))
+    writer = sqlite3.connect(work)
+    try:
+        table = writer.execute("SELECT table_name FROM gpkg_contents").fetchone()[0]
+        writer.execute("PRAGMA journal_mode=WAL")
+        writer.execute("PRAGMA wal_autocheckpoint=0")
+        writer.execute(f'DELETE FROM "{table}" WHERE tile_column = 0 AND tile_row = 0')
+        writer.commit()
+        path = tmp_path / "input" / "dem.gpkg"
+        path.parent.mkdir()
+        shutil.copy(work, path)
+        shutil.copy(f"{work}-wal", f"{path}-wal")
+    finally:
+        writer.close()
+    Path(f"{path}-shm").symlink_to(tmp_path / "no such folder" / "dem.gpkg-shm")
+    before = _digest(path), _digest(Path(f"{path}-wal"))
+    with pytest.raises(ParameterError, match=r"^DEM '.*dem\.gpkg': its write-ahead log "
+                                             r"'dem\.gpkg-wal' \(\d+ bytes\)"):
+        open_raster_info(path, "DEM", "dem")
+    assert (_digest(path), _digest(Path(f"{path}-wal"))) == before
