@@ -109,6 +109,37 @@ def connect_read_only(path: str | Path) -> sqlite3.Connection:
     return sqlite3.connect(uri, uri=True, check_same_thread=False)
 
 
+def unread_wal(path: str | Path) -> str | None:
+    """Why the ``-wal`` beside the SQLite file ``path`` (a GeoPackage) cannot be read, or None
+    (no ``-wal``, an empty one, or one SQLite reads). SQLite cannot open a file in WAL mode when
+    it cannot create its ``-shm`` beside it (a read-only folder): GDAL then reopens it with
+    ``IMMUTABLE=YES`` and reads it without the rows committed to the ``-wal``, with a warning
+    only (OSGeo/gdal#6407); the readers refuse it instead, as SQLite does."""
+    wal = Path(f"{path}-wal")
+    try:
+        size = wal.stat().st_size
+        if not size:
+            return None
+        with open(path, "rb") as f:
+            if f.read(16) != b"SQLite format 3\x00":
+                return None
+        con = connect_read_only(path)
+        try:
+            con.execute("SELECT count(*) FROM sqlite_master").fetchone()
+        finally:
+            con.close()
+    except OSError:
+        return None
+    except sqlite3.Error as exc:
+        if getattr(exc, "sqlite_errorcode", None) != sqlite3.SQLITE_CANTOPEN:
+            return None  # (locked, damaged...: the reader reports it)
+        return (f"'{path}': its write-ahead log '{wal.name}' ({size} bytes) cannot be read here "
+                f"(SQLite must create '{Path(path).name}-shm' beside it: a read-only folder?), "
+                "so its last committed edits would be missing; copy the file with its -wal to a "
+                "writable folder, or open it once where it is writable")
+    return None
+
+
 def summarise(path: str | Path) -> list[dict[str, Any]] | None:
     """The layers of the GeoPackage ``path`` as ``vector:info`` describes them (``name``,
     ``crs``, ``fields``, ``features``, ``geometry_types``, ``empty_or_null``, ``invalid``,

@@ -87,6 +87,11 @@ def open_raster_info(value: Any, name: str = "INPUT", role: str = "photo") -> Ra
             raise ParameterError(name, f"'{value}' is a GDAL subdataset name, not a file: "
                                  f"extract it first: gdal_translate '{value}' extracted.tif")
         raise ParameterError(name, f"file '{value}' does not exist")
+    from toolbox.io.gpkg_summary import unread_wal
+
+    refused = unread_wal(path)  # a GeoPackage's -wal GDAL would leave out
+    if refused:
+        raise ParameterError(name, refused)
     try:
         with warnings.catch_warnings():  # a plain photo is fine: ``georeferenced`` says so
             warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)

@@ -21,6 +21,14 @@ GML...; the ARCs, CIRCLEs and bulges of a DXF read through OGR) are linearised b
 chords of :data:`ARC_STEP_DEGREES` of arc (``OGR_ARC_STEPSIZE``; GDAL's default, 4 degrees, is
 0.6 m off a curve of radius 1 km): at most ``radius * (1 - cos(step / 2))``, 1e-5 of the radius,
 from the curve. An ``OGR_ARC_STEPSIZE`` of the environment is kept.
+
+A GeoPackage in WAL mode: OGR reads the rows of its ``-wal``. GDAL (``CloseDB`` of its SQLite
+drivers) reopens a file it read, read-write, when a ``-wal`` is beside it, so that SQLite, if no
+other connection has it open, writes the ``-wal`` into the file and deletes it (the same rows,
+other bytes); no open or config option avoids it (``NOLOCK`` changes nothing, ``IMMUTABLE``
+leaves the ``-wal``'s rows out). A ``-wal`` OGR can only open with ``IMMUTABLE`` (no ``-shm``
+can be created: a read-only folder) is refused by :func:`open_layer`, as SQLite refuses it
+(:func:`toolbox.io.gpkg_summary.unread_wal`).
 """
 
 from __future__ import annotations
@@ -379,6 +387,11 @@ def open_layer(value: Any, name: str = "INPUT", known_layer: str | None = None) 
         raise ParameterError(name, f"file '{text}' does not exist")
     if path.suffix.lower() == ".parquet":
         return _open_parquet(path, source, name)
+    from toolbox.io.gpkg_summary import unread_wal
+
+    refused = unread_wal(path)
+    if refused:
+        raise ParameterError(name, refused)
     ogr = _ogr()
     try:
         options = _csv_open_options(path) if path.suffix.lower() == ".csv" else {}
