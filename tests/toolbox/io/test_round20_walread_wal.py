@@ -40,6 +40,22 @@ def _digest(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
+def _copied_with_wal(work: Path, path: Path, write) -> None:
+    """``write(connection)`` commits to ``work``'s -wal only (no checkpoint); the database file
+    and its -wal are then copied to ``path`` (a writer's files copied while it had them open)."""
+    writer = sqlite3.connect(work)
+    try:
+        writer.execute("PRAGMA journal_mode=WAL")
+        writer.execute("PRAGMA wal_autocheckpoint=0")
+        write(writer)
+        writer.commit()
+        path.parent.mkdir()
+        shutil.copy(work, path)
+        shutil.copy(f"{work}-wal", f"{path}-wal")
+    finally:
+        writer.close()
+
+
 @pytest.fixture
 def wal_left_behind(tmp_path) -> Path:
     """10 points in the database file, 5 more committed to its -wal only (a writer's files
@@ -50,18 +66,9 @@ def wal_left_behind(tmp_path) -> Path:
     extra = _points(5, 7)
     rows = [(float(z), b"GP\x00\x01" + (3003).to_bytes(4, "little") + g.wkb)
             for z, g in zip(extra["z"], extra.geometry, strict=True)]
-    writer = sqlite3.connect(work)
-    try:
-        writer.execute("PRAGMA journal_mode=WAL")
-        writer.execute("PRAGMA wal_autocheckpoint=0")
-        writer.executemany("INSERT INTO pts (z, geom) VALUES (?, ?)", rows)
-        writer.commit()
-        path = tmp_path / "input" / "wal.gpkg"
-        path.parent.mkdir()
-        shutil.copy(work, path)
-        shutil.copy(f"{work}-wal", f"{path}-wal")
-    finally:
-        writer.close()
+    path = tmp_path / "input" / "wal.gpkg"
+    _copied_with_wal(work, path,
+                     lambda db: db.executemany("INSERT INTO pts (z, geom) VALUES (?, ?)", rows))
     # the reference (SQLite): 10 points in the database file alone (immutable: the -wal left
     # out), 15 with its -wal (read from a copy, to leave the input as it is)
     def count(uri):
@@ -119,19 +126,12 @@ def test_a_raster_geopackage_too(tmp_path):
     with rasterio.open(work, "w", driver="GPKG", width=512, height=512, count=1, dtype="uint8",
                        crs="EPSG:3003", transform=from_origin(1_687_000, 4_799_000, 1, 1)) as ds:
         ds.write(np.arange(512 * 512, dtype=np.uint32).reshape(1, 512, 512).astype(np.uint8))
-    writer = sqlite3.connect(work)
-    try:
-        table = writer.execute("SELECT table_name FROM gpkg_contents").fetchone()[0]
-        writer.execute("PRAGMA journal_mode=WAL")
-        writer.execute("PRAGMA wal_autocheckpoint=0")
-        writer.execute(f'DELETE FROM "{table}" WHERE tile_column = 0 AND tile_row = 0')
-        writer.commit()
-        path = tmp_path / "input" / "dem.gpkg"
-        path.parent.mkdir()
-        shutil.copy(work, path)
-        shutil.copy(f"{work}-wal", f"{path}-wal")
-    finally:
-        writer.close()
+    def delete_a_tile(db):
+        table = db.execute("SELECT table_name FROM gpkg_contents").fetchone()[0]
+        db.execute(f'DELETE FROM "{table}" WHERE tile_column = 0 AND tile_row = 0')
+
+    path = tmp_path / "input" / "dem.gpkg"
+    _copied_with_wal(work, path, delete_a_tile)
     Path(f"{path}-shm").symlink_to(tmp_path / "no such folder" / "dem.gpkg-shm")
     before = _digest(path), _digest(Path(f"{path}-wal"))
     with pytest.raises(ParameterError, match=r"^DEM '.*dem\.gpkg': its write-ahead log "
