@@ -5,6 +5,7 @@ system Python that has QGIS."""
 from __future__ import annotations
 
 import functools
+import os
 import resource
 import shutil
 import signal
@@ -47,14 +48,20 @@ def register_testing(name: str, output: Any, process: Callable[[Any, dict, Any],
 
 
 def run_on_full_disk(args: list[str], limit: int = 20_000) -> subprocess.CompletedProcess:
-    """``toolbox run *args`` in a subprocess that may write at most ``limit`` bytes a file."""
+    """``toolbox run *args`` in a subprocess that may write at most ``limit`` bytes a file.
+
+    It writes no bytecode: Python's importlib ignores a short write of a ``.pyc`` (3.11's
+    ``_write_atomic``), so a module compiled there left a ``.pyc`` cut at ``limit`` bytes in
+    the source tree, and every later import of it failed ("marshal data too short": exit 3,
+    Dask workers that never started), depending on the order the tests ran in."""
 
     def cap():
         signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
         resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
 
+    env = {**os.environ, "PYTHONDONTWRITEBYTECODE": "1"}
     return subprocess.run([sys.executable, "-m", "toolbox.cli", "run", *args], preexec_fn=cap,
-                          capture_output=True, text=True, timeout=300)
+                          env=env, capture_output=True, text=True, timeout=300)
 
 
 def assert_cannot_write(proc: subprocess.CompletedProcess, out: Path) -> None:
