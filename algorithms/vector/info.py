@@ -11,8 +11,6 @@ from toolbox.io.gpkg_summary import GpkgSummary
 from toolbox.parameters import Output, OutputFile, VectorLayer
 from toolbox.registry import register
 
-GEOMETRY_TYPES = ("Point", "LineString", "LinearRing", "Polygon", "MultiPoint",
-                  "MultiLineString", "MultiPolygon", "GeometryCollection")  # shapely's type ids
 EPSG_CODE = re.compile(r"EPSG:\d+")
 
 
@@ -23,11 +21,11 @@ def geometry_summary(geoms) -> dict:
     import numpy as np
     import shapely
 
+    from toolbox.io.vector_write import geometry_type_names
+
     missing = shapely.is_missing(geoms)
-    type_ids = shapely.get_type_id(geoms)
     summary = {"features": len(geoms),
-               "geometry_types": sorted({GEOMETRY_TYPES[i] for i in set(type_ids.tolist())
-                                         if i >= 0}),
+               "geometry_types": sorted(geometry_type_names(geoms)),
                "empty_or_null": int((missing | shapely.is_empty(geoms)).sum()),
                "invalid": int((~shapely.is_valid(geoms) & ~missing).sum()),
                "bounds": None,
