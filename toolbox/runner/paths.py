@@ -183,11 +183,8 @@ def _project_photos(path: Path, *state: int) -> tuple[Path, ...]:
 
 
 def check_outputs_against_inputs(alg_cls: type[Algorithm], values: dict[str, Any],
-                                 inputs: dict[Path, str] | None = None) -> None:
-    """No output path is an input file (``inputs``: :func:`input_paths`, worked out when not
-    given)."""
-    if inputs is None:
-        inputs = input_paths(alg_cls, values)
+                                 inputs: dict[Path, str]) -> None:
+    """No output path is an input file (``inputs``: the run's :func:`input_paths`)."""
     for dest in alg_cls.destinations():
         final = values.get(dest.name)
         if final is None:
@@ -321,16 +318,13 @@ def declared_layer_files(dest: Any, final: Any) -> list[Path]:
 
 
 def check_planned_files(alg_cls: type[Algorithm], values: dict[str, Any],
-                        overwrite: bool, inputs: dict[Path, str] | None = None) -> None:
+                        overwrite: bool, inputs: dict[Path, str]) -> None:
     """Each planned file is checked as an output path: not an input (by path, sidecars and the
-    files a project names included, or by inode; ``inputs``: :func:`input_paths`, worked out
-    when not given), not another output, not a folder, and not existing without
-    ``overwrite``."""
+    files a project names included, or by inode; ``inputs``: the run's :func:`input_paths`),
+    not another output, not a folder, and not existing without ``overwrite``."""
     plan = planned_paths(alg_cls, values)
     if not any(plan.values()):
         return
-    if inputs is None:
-        inputs = input_paths(alg_cls, values)
     inodes = {}
     for path, name in inputs.items():
         try:
@@ -364,11 +358,11 @@ def check_planned_files(alg_cls: type[Algorithm], values: dict[str, Any],
 
 
 def check_report(report: str | Path, alg_cls: type[Algorithm], values: dict[str, Any],
-                  overwrite: bool, inputs: dict[Path, str] | None = None) -> Path:
+                  overwrite: bool, inputs: dict[Path, str]) -> Path:
+    """The run report's path, checked like an output's (``inputs``: the run's
+    :func:`input_paths`)."""
     path = Path(report).expanduser()
     resolved = path.resolve()
-    if inputs is None:
-        inputs = input_paths(alg_cls, values)
     if resolved in inputs:
         raise ParameterError(REPORT, f"'{report}' is the input {inputs[resolved]} (or one of its "
                              "files); an input is never overwritten: choose another report path")
