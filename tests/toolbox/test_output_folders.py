@@ -56,8 +56,8 @@ def block(demo, tmp_path):
     return tmp_path / "x", demo / "dem.tif"
 
 
-def batch_args(project: Path, dem: Path, folder: Path, out: Path, *extra) -> list:
-    return ["run", "ortho:batch", "--PROJECT", project, "--DEM", dem, "--CELL_SIZE", 8,
+def batch_args(project: Path, dem: Path, folder: Path, out: Path, *extra, cell: float = 8) -> list:
+    return ["run", "ortho:batch", "--PROJECT", project, "--DEM", dem, "--CELL_SIZE", cell,
             "--FOLDER", folder, "--OUTPUT", out, *extra]
 
 
@@ -296,9 +296,12 @@ def test_sigterm_after_the_first_ortho_leaves_the_folder_as_it_was(block, tmp_pa
     folder = tmp_path / "orthos"
     folder.mkdir()
     (folder / "notes.txt").write_text("mine")
+    # 0.5 m cells: about 0.2 s an ortho, so that the run is still going when the first one is
+    # seen (at 8 m the two others and the commit took less than the 0.05 s between looks, and
+    # the run had finished: exit 0 before the signal)
     proc = subprocess.Popen(
         [sys.executable, "-m", "toolbox.cli", *map(str, batch_args(
-            x / "project.yaml", dem, folder, tmp_path / "o.json", "--WORKERS", 1))],
+            x / "project.yaml", dem, folder, tmp_path / "o.json", "--WORKERS", 1, cell=0.5))],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
     deadline = time.monotonic() + 120
     while time.monotonic() < deadline and proc.poll() is None:
