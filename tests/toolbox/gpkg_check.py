@@ -15,6 +15,7 @@ from __future__ import annotations
 import re
 import sqlite3
 import struct
+import subprocess
 from pathlib import Path
 
 APPLICATION_ID = int.from_bytes(b"GPKG", "big")
@@ -42,6 +43,19 @@ COLUMN_TYPES = {"BOOLEAN", "TINYINT", "SMALLINT", "MEDIUMINT", "INT", "INTEGER",
 KNOWN_EXTENSIONS = {"gpkg_rtree_index", "gpkg_zoom_other", "gpkg_webp", "gpkg_metadata",
                     "gpkg_schema", "gpkg_crs_wkt", "gpkg_crs_wkt_1_1", "gpkg_related_tables",
                     "gpkg_2d_gridded_coverage"}
+
+
+SYSTEM_VALIDATOR = Path("/usr/lib/python3/dist-packages/osgeo_utils/samples/validate_gpkg.py")
+
+
+def gdal_validator_problems(path: Path) -> str:
+    """GDAL's own validate_gpkg.py (Debian's python3-gdal) on ``path``: '' when it accepts it
+    (or when Debian's GDAL is not installed)."""
+    if not (SYSTEM_VALIDATOR.exists() and Path("/usr/bin/python3").exists()):
+        return ""
+    result = subprocess.run(["/usr/bin/python3", str(SYSTEM_VALIDATOR), str(path)],
+                            capture_output=True, text=True, timeout=60)
+    return "" if result.returncode == 0 else (result.stdout + result.stderr)[-300:]
 
 
 def _columns(c, table: str) -> list[tuple]:

@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import json
 import sqlite3
-import subprocess
 from pathlib import Path
 
 import geopandas as gpd
@@ -15,20 +14,11 @@ import pytest
 import shapely
 
 import toolbox
+from tests.toolbox.gpkg_check import gdal_validator_problems as _gdal_validator_problems
 from tests.toolbox.gpkg_check import gpkg_problems
 from toolbox.io.vector_write import write_layers
 
 X, Y = 1688000.0, 4799000.0
-SYSTEM_VALIDATOR = Path("/usr/lib/python3/dist-packages/osgeo_utils/samples/validate_gpkg.py")
-
-
-def _gdal_validator_problems(path: Path) -> str:
-    """GDAL's own validate_gpkg.py (Debian's python3-gdal) on ``path``: '' when it accepts it."""
-    if not (SYSTEM_VALIDATOR.exists() and Path("/usr/bin/python3").exists()):
-        return ""
-    result = subprocess.run(["/usr/bin/python3", str(SYSTEM_VALIDATOR), str(path)],
-                            capture_output=True, text=True, timeout=60)
-    return "" if result.returncode == 0 else (result.stdout + result.stderr)[-300:]
 
 
 def _mixed_lines() -> gpd.GeoDataFrame:

@@ -172,18 +172,26 @@ def _dbf_columns(make):
     return dbf_make
 
 
-def _write_layer(path: Path, layer: _Layer, crs: Any, spatial_index: bool) -> None:
+def _write_layer(path: Path, layer: _Layer, crs: Any, spatial_index: bool,
+                 bulk: bool = False) -> None:
     """Write one layer in the format of ``path``'s extension (``path`` is this layer's own file
-    for one-layer formats). Through Arrow, the batches stream into GDAL one at a time; GDAL
-    builds a GeoPackage's spatial index once, after the last feature (in bulk, on a thread of
-    its own), not feature by feature."""
+    for one-layer formats). ``bulk``: a GeoPackage's layer through
+    :func:`toolbox.io.gpkg_bulk.write_layer_bulk` (pages written with numpy). Otherwise through
+    Arrow, the batches stream into GDAL one at a time; GDAL builds a GeoPackage's spatial index
+    once, after the last feature (in bulk, on a thread of its own), not feature by feature."""
     import pyogrio
 
     driver = vector_driver(path)
     crs_text = None if crs is None else crs.to_wkt()
+    dataset_options = GPKG_DATASET_OPTIONS if driver == "GPKG" and not path.exists() else None
+    if bulk:
+        from toolbox.io.gpkg_bulk import write_layer_bulk
+
+        with staged_gpkg_writes(), writing(path):
+            write_layer_bulk(path, layer, crs_text, spatial_index, dataset_options)
+        return
     options = {"SPATIAL_INDEX": "YES" if spatial_index else "NO"} \
         if driver in ("GPKG", "FlatGeobuf", "ESRI Shapefile") else {}
-    dataset_options = GPKG_DATASET_OPTIONS if driver == "GPKG" and not path.exists() else None
     try:
         import pyarrow  # noqa: F401
     except ImportError:  # pragma: no cover - exercised when pyarrow is absent
@@ -238,10 +246,28 @@ def write_tin(path: str | Path, model: TinModel, crs: Any = None, spatial_index:
     (``tin.fgb`` holds the triangles, ``tin_nodes.fgb`` and ``tin_edges.fgb`` the others).
 
     Features are encoded and written in batches of :data:`BATCH` (geometries, Arrow arrays):
-    memory holds the model and one batch, not a second copy of every layer.
+    memory holds the model and one batch, not a second copy of every layer. A new GeoPackage
+    is written in bulk (:mod:`toolbox.io.gpkg_bulk`: SQLite pages built with numpy, several
+    times faster than GDAL's inserts); what that writer does not take is written by GDAL.
     Returns the feature count of each layer (edges are counted even when not written).
     """
     path = Path(path)
+    if vector_driver(path) == "GPKG" and not path.exists():
+        from toolbox.io.gpkg_bulk import BulkUnsupported
+
+        try:
+            return _write_tin(path, model, crs, spatial_index, feedback, edges_layer, bulk=True)
+        except BulkUnsupported as exc:
+            import logging
+
+            logging.getLogger(__name__).debug("GeoPackage written by GDAL: %s", exc)
+            for leftover in (path, path.with_name(path.name + "-journal")):
+                leftover.unlink(missing_ok=True)
+    return _write_tin(path, model, crs, spatial_index, feedback, edges_layer)
+
+
+def _write_tin(path: Path, model: TinModel, crs: Any, spatial_index: bool, feedback,
+               edges_layer: bool, bulk: bool = False) -> dict[str, int]:
     targets = layer_paths(path, ["triangles", "nodes", "edges"])
     xyz, tri, nb = model.xyz, model.triangles, model.neighbors
     # only the triangles' edge ids while the triangles layer is written (GDAL builds its R-tree in
@@ -270,14 +296,14 @@ def write_tin(path: str | Path, model: TinModel, crs: Any = None, spatial_index:
 
     with step("write triangles"):
         _write_layer(targets["triangles"], _Layer("triangles", len(tri), triangles, "Polygon Z"),
-                     crs, spatial_index)
+                     crs, spatial_index, bulk)
     triangle_edges = None  # the closure's reference too: freed before the nodes layer
     with step("write nodes"):
         _write_layer(targets["nodes"], _Layer("nodes", len(xyz), nodes, "Point Z"), crs,
-                     spatial_index)
+                     spatial_index, bulk)
     if edges_layer:
         with step("write edges"):
-            _write_edges(targets["edges"], model, edge_table(tri, nb), crs, spatial_index)
+            _write_edges(targets["edges"], model, edge_table(tri, nb), crs, spatial_index, bulk)
     return {"triangles": len(tri), "nodes": len(xyz), "edges": n_edges}
 
 
@@ -291,7 +317,7 @@ def breakline_flags(edges: EdgeTable, breakline_edges: np.ndarray, n_nodes: int)
 
 
 def _write_edges(path: Path, model: TinModel, edges: EdgeTable, crs: Any,
-                 spatial_index: bool) -> None:
+                 spatial_index: bool, bulk: bool = False) -> None:
     xyz = model.xyz
     breakline = breakline_flags(edges, model.breakline_edges, len(xyz))
 
@@ -307,7 +333,7 @@ def _write_edges(path: Path, model: TinModel, edges: EdgeTable, crs: Any,
         return columns, wkb_from_nodes(_WKB_LINESTRING_Z, xyz, ends)
 
     _write_layer(path, _Layer("edges", len(edges.nodes), make, "LineString Z"), crs,
-                 spatial_index)
+                 spatial_index, bulk)
 
 
 class _Steps:

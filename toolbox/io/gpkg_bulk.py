@@ -1,0 +1,308 @@
+"""GeoPackage layers of millions of fixed-size features, written in bulk.
+
+GDAL creates each layer empty (its table, spatial index, triggers and metadata rows: the same
+GeoPackage as GDAL's own writing); the features then go into the file as SQLite B-tree pages
+built with numpy (:mod:`toolbox.io.sqlite_pages`), the spatial index as a packed R-tree
+(:mod:`toolbox.io.sqlite_rtree`), and the metadata GDAL keeps about the rows (the extent in
+``gpkg_contents``, the count in ``gpkg_ogr_contents``, the ``sqlite_sequence`` row) is set with
+SQL. GDAL inserts a feature at a time through SQLite (about 3.5 us a feature with its index);
+this writes pages at memory speed. The oracle is GDAL's writer: the same rows, values and types,
+and R-tree entries (the tests).
+
+Only what is certain is written this way: a new GeoPackage, geometries given as fixed-size
+little-endian ISO WKB records of one type (points, line strings, single-ring polygons), and
+integer, real, Boolean and text fields. :class:`BulkUnsupported` says why anything else is not
+(the caller then writes with GDAL).
+"""
+
+from __future__ import annotations
+
+import sqlite3
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import Any, Protocol
+
+import numpy as np
+
+BATCH = 1 << 16  # features encoded at a time
+
+Columns = dict[str, tuple[np.ndarray, "np.ndarray | None"]]
+
+
+class BulkUnsupported(Exception):
+    """The layer or file is not one the bulk writer is sure to write right (the reason)."""
+
+
+class BulkLayer(Protocol):
+    """A layer of ``n`` features made in slices: ``make(lo, hi)`` returns the fields (name ->
+    (values, null mask or None), in the layer's order) and the ``(hi - lo, size)`` uint8 ISO WKB
+    records of features ``lo:hi``; ``schema()`` the pyarrow schema of the fields and a
+    ``geometry`` binary column."""
+
+    name: str
+    n: int
+    geometry_type: str
+    make: Callable[[int, int], tuple[Columns, np.ndarray]]
+
+    def schema(self) -> Any: ...
+
+
+# -- geometry blobs ----------------------------------------------------------------------------
+_WKB_HEADER = {1: 5, 2: 9, 3: 13}  # base type -> bytes before the coordinates (one ring)
+
+
+def geometry_blobs(wkb: np.ndarray, srs_id: int) -> tuple[np.ndarray, np.ndarray]:
+    """GeoPackage binary geometries of fixed-size little-endian ISO WKB records ``(n, size)``,
+    laid out as GDAL writes them: ``GP``, version 0, flags (little endian; no envelope for a
+    point, else ``[minx, maxx, miny, maxy]`` and, with Z, ``[minz, maxz]``), the ``srs_id``,
+    then the WKB. Returns the ``(n, size')`` blobs and the ``(n, 4)`` boxes
+    ``[minx, maxx, miny, maxy]`` (float64) of the R-tree."""
+    wkb = np.ascontiguousarray(wkb, dtype=np.uint8)
+    n, size = wkb.shape
+    code = int(wkb[0, 1:5].view("<u4")[0]) if n else 0
+    base, dims = code % 1000, 3 if code // 1000 == 1 else 2 if code < 1000 else 0
+    head = _WKB_HEADER.get(base)
+    if n == 0 or head is None or dims == 0 or wkb[0, 0] != 1:
+        raise BulkUnsupported(f"WKB type {code} (byte order {wkb[0, 0] if n else '-'})")
+    if (size - head) % (8 * dims) or not (wkb[:, :head] == wkb[0, :head]).all():
+        raise BulkUnsupported("WKB records of different types or sizes")
+    vertices = wkb[:, head:].view("<f8").reshape(n, -1, dims)  # no copy (unaligned: fine)
+    low, high = vertices[:, 0].copy(), vertices[:, 0].copy()
+    for j in range(1, vertices.shape[1]):
+        np.minimum(low, vertices[:, j], out=low)
+        np.maximum(high, vertices[:, j], out=high)
+    if not (np.isfinite(low).all() and np.isfinite(high).all()):
+        raise BulkUnsupported("NaN or infinite coordinates")
+    boxes = np.empty((n, 4))
+    boxes[:, 0::2], boxes[:, 1::2] = low[:, :2], high[:, :2]
+    envelope = 0 if base == 1 else 2 * dims  # doubles
+    out = np.empty((n, 8 + 8 * envelope + size), dtype=np.uint8)
+    indicator = 0 if base == 1 else dims - 1  # 1: XY, 2: XYZ
+    header = b"GP\x00" + bytes([1 | indicator << 1]) + np.int32(srs_id).astype("<i4").tobytes()
+    out[:, :8].view("<u8")[:, 0] = np.frombuffer(header, dtype="<u8")[0]  # one store a row
+    if envelope:
+        view = out[:, 8:8 + 8 * envelope].view("<f8")
+        view[:, 0::2], view[:, 1::2] = low, high  # minx, maxx, miny, maxy(, minz, maxz)
+    out[:, 8 + 8 * envelope:] = wkb
+    return out, boxes
+
+
+# -- the table's columns ---------------------------------------------------------------------------
+def _kind(declared: str) -> str | None:
+    """The record kind of a GeoPackage column type (None: not one written in bulk)."""
+    declared = declared.upper()
+    if declared in ("INTEGER", "INT", "MEDIUMINT", "SMALLINT", "TINYINT"):
+        return "int"
+    if declared in ("REAL", "DOUBLE", "FLOAT"):
+        return "real"
+    if declared == "BOOLEAN":
+        return "bool"
+    if declared.startswith("TEXT"):
+        return "text"
+    return None
+
+
+class _Table:
+    """A layer's table as the skeleton GDAL made holds it: its columns, root pages, SRS."""
+
+    def __init__(self, db: sqlite3.Connection, layer: str, spatial_index: bool):
+        self.layer = layer
+        info = db.execute(f'PRAGMA table_info("{layer}")').fetchall()
+        geometry = db.execute("SELECT column_name, srs_id FROM gpkg_geometry_columns WHERE "
+                              "lower(table_name) = lower(?)", (layer,)).fetchone()
+        if not info or geometry is None:
+            raise BulkUnsupported(f"layer {layer!r} not found after GDAL created it")
+        self.geometry_column, self.srs_id = geometry
+        self.columns: list[tuple[str, str | None]] = []  # (name, kind); kind None = the fid
+        for _, name, declared, _, _, pk in info:
+            if pk:
+                if declared.upper() != "INTEGER":
+                    raise BulkUnsupported(f"primary key {name!r} of type {declared}")
+                self.columns.append((name, None))
+            elif name == self.geometry_column:
+                self.columns.append((name, "blob"))
+            else:
+                kind = _kind(declared)
+                if kind is None:
+                    raise BulkUnsupported(f"field {name!r} of type {declared}")
+                self.columns.append((name, kind))
+        self.rtree = f"rtree_{layer}_{self.geometry_column}" if spatial_index else None
+
+    def records(self, fields: Columns, blobs: np.ndarray) -> list:
+        """The column specs of :func:`toolbox.io.sqlite_pages.encode_records`, in table order."""
+        names = [name for name, kind in self.columns if kind not in (None, "blob")]
+        if list(fields) != names:
+            raise BulkUnsupported(f"fields {list(fields)} against the table's {names}")
+        specs: list = []
+        for name, kind in self.columns:
+            if kind is None:
+                specs.append(None)
+            elif kind == "blob":
+                specs.append(("blob", blobs, None))
+            else:
+                values, mask = fields[name]
+                if kind == "real":
+                    values = np.asarray(values, dtype=np.float64)
+                    nan = np.isnan(values)  # SQLite stores a NaN as NULL: so does GDAL
+                    if nan.any():
+                        mask = nan if mask is None else (mask | nan)
+                elif kind == "int":
+                    values = np.asarray(values, dtype=np.int64)
+                elif kind == "bool":
+                    values = np.asarray(values, dtype=bool)
+                specs.append((kind, values, mask))
+        return specs
+
+
+# -- writing -------------------------------------------------------------------------------------
+def create_empty_layer(path: Path, layer: BulkLayer, crs_text: str | None,
+                       spatial_index: bool, dataset_options: dict | None) -> None:
+    """GDAL creates the layer, its spatial index and metadata, with no feature."""
+    import warnings
+
+    import pyarrow as pa
+    import pyogrio
+
+    reader = pa.RecordBatchReader.from_batches(layer.schema(), iter([]))
+    with warnings.catch_warnings():  # a layer without CRS is the caller's (reported) choice
+        warnings.filterwarnings("ignore", message="'crs' was not provided")
+        pyogrio.write_arrow(reader, path, layer=layer.name, driver="GPKG",
+                            geometry_name="geometry", geometry_type=layer.geometry_type,
+                            crs=crs_text,
+                            layer_options={"SPATIAL_INDEX": "YES" if spatial_index else "NO"},
+                            dataset_options=dataset_options)
+
+
+def write_layer_bulk(path: Path, layer: BulkLayer, crs_text: str | None, spatial_index: bool,
+                     dataset_options: dict | None = None,
+                     check_canceled: Callable[[], None] | None = None) -> None:
+    """Add ``layer`` to the GeoPackage ``path`` (created when it does not exist): GDAL makes it
+    empty, the features and the R-tree are then written as pages (see the module's docs).
+
+    Raises :class:`BulkUnsupported` (or :class:`toolbox.io.sqlite_pages.UnsupportedDatabase`)
+    for what it does not write; the file may then be left half-written: the caller removes it
+    and writes the whole file with GDAL.
+    """
+    from toolbox.io.sqlite_pages import BtreeAppender, UnsupportedDatabase, encode_records
+    from toolbox.io.sqlite_rtree import packed_rtree
+
+    create_empty_layer(path, layer, crs_text, spatial_index, dataset_options)
+    if layer.n == 0:
+        return
+    db = sqlite3.connect(path, isolation_level=None)
+    try:
+        table = _Table(db, layer.name, spatial_index)
+        page_size = int(db.execute("PRAGMA page_size").fetchone()[0])
+        if table.rtree is not None:  # the empty tree's root row: the packed tree replaces it
+            db.execute(f'DELETE FROM "{table.rtree}_node"')
+    finally:
+        db.close()
+    boxes = np.empty((layer.n, 4))
+
+    def batches() -> Iterator[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+        for lo in range(0, layer.n, BATCH):
+            if check_canceled is not None:
+                check_canceled()
+            hi = min(layer.n, lo + BATCH)
+            fields, wkb = layer.make(lo, hi)
+            blobs, boxes[lo:hi] = geometry_blobs(wkb, table.srs_id)
+            flat, offsets = encode_records(table.records(fields, blobs), hi - lo)
+            yield np.arange(lo + 1, hi + 1, dtype=np.int64), flat, offsets
+
+    try:
+        with BtreeAppender(path) as pages:
+            pages.fill(layer.name, ahead(batches()))
+            if table.rtree is not None:
+                ids = np.arange(1, layer.n + 1, dtype=np.int64)
+                tree = packed_rtree(ids, boxes[:, 0], boxes[:, 1], boxes[:, 2], boxes[:, 3],
+                                    page_size)
+                _fill_rtree(pages, table.rtree, tree, encode_records)
+    except UnsupportedDatabase as exc:
+        raise BulkUnsupported(str(exc)) from exc
+    _set_metadata(path, layer.name, layer.n, boxes)
+
+
+def ahead(items: Iterator, depth: int = 2) -> Iterator:
+    """``items`` made on a thread of their own, up to ``depth`` ahead of the consumer: the
+    second core encodes the next batch (numpy releases the GIL) while this one writes pages.
+    An exception of the producer is raised here; a consumer that stops early stops it."""
+    import queue
+    import threading
+
+    done = object()
+    box: queue.Queue = queue.Queue(depth)
+    stop = threading.Event()
+
+    def produce() -> None:
+        try:
+            for item in items:
+                while not stop.is_set():
+                    try:
+                        box.put((item, None), timeout=0.1)
+                        break
+                    except queue.Full:
+                        continue
+                if stop.is_set():
+                    return
+            box.put((done, None))
+        except BaseException as exc:  # noqa: BLE001 - handed to the consumer
+            box.put((done, exc))
+
+    thread = threading.Thread(target=produce, name="gpkg-bulk-encode", daemon=True)
+    thread.start()
+    try:
+        while True:
+            item, error = box.get()
+            if item is done:
+                if error is not None:
+                    raise error
+                return
+            yield item
+    finally:
+        stop.set()
+        while thread.is_alive():  # let a blocked producer see the stop
+            try:
+                box.get_nowait()
+            except queue.Empty:
+                thread.join(0.05)
+
+
+def _fill_rtree(pages, rtree: str, tree, encode_records) -> None:
+    """The R-tree's three shadow tables from :func:`toolbox.io.sqlite_rtree.packed_rtree`'s
+    rows, each in batches."""
+    order = np.argsort(tree.node_numbers, kind="stable")
+    tables = {"node": (tree.node_numbers[order], ("blob", tree.node_blobs[order], None)),
+              "rowid": (tree.rowids, ("int", tree.rowid_nodes, None)),
+              "parent": (tree.parent_nodes, ("int", tree.parents, None))}
+    for part, (keys, (kind, values, _)) in tables.items():
+        def batches(keys=keys, kind=kind, values=values):
+            for lo in range(0, len(keys), BATCH):
+                hi = min(len(keys), lo + BATCH)
+                flat, offsets = encode_records([None, (kind, values[lo:hi], None)], hi - lo)
+                yield np.asarray(keys[lo:hi], dtype=np.int64), flat, offsets
+
+        if len(keys):
+            pages.fill(f"{rtree}_{part}", batches())
+
+
+def _set_metadata(path: Path, layer: str, n: int, boxes: np.ndarray) -> None:
+    """What GDAL sets after writing features: the layer's extent and last change in
+    ``gpkg_contents``, its count in ``gpkg_ogr_contents``, its AUTOINCREMENT counter."""
+    db = sqlite3.connect(path, isolation_level=None)
+    try:
+        db.execute("BEGIN")
+        db.execute("UPDATE gpkg_contents SET min_x = ?, min_y = ?, max_x = ?, max_y = ?, "
+                   "last_change = strftime('%Y-%m-%dT%H:%M:%fZ', 'now') "
+                   "WHERE lower(table_name) = lower(?)",
+                   (*(float(f"{v:.16g}") for v in (boxes[:, 0].min(), boxes[:, 2].min(),
+                                                     boxes[:, 1].max(), boxes[:, 3].max())),
+                    layer))  # 16 significant digits, as GDAL writes the extent
+        db.execute("UPDATE gpkg_ogr_contents SET feature_count = ? "
+                   "WHERE lower(table_name) = lower(?)", (n, layer))
+        if db.execute("SELECT 1 FROM sqlite_sequence WHERE name = ?", (layer,)).fetchone():
+            db.execute("UPDATE sqlite_sequence SET seq = ? WHERE name = ?", (n, layer))
+        else:
+            db.execute("INSERT INTO sqlite_sequence (name, seq) VALUES (?, ?)", (layer, n))
+        db.execute("COMMIT")
+    finally:
+        db.close()
