@@ -124,6 +124,38 @@ def write_results(path, lines: list[str]) -> str:
     return text
 
 
+def generated_markers(tag: str, name: str) -> tuple[str, str]:
+    """The two lines (HTML comments: a Markdown viewer shows neither) around the part ``name``
+    a benchmark ``tag`` generates in its results file (:func:`rewrite_generated`)."""
+    return (f"<!-- {tag}: {name} (generated: each run rewrites it down to the end marker) -->",
+            f"<!-- /{tag}: {name} (end; notes below are kept) -->")
+
+
+def rewrite_generated(old: str, tag: str, parts: dict[str, list[str]]) -> str:
+    """The results file ``old`` with each generated part (``{name: lines}``) put between its
+    markers (:func:`generated_markers`), replacing what was there; the text outside the markers
+    (notes written after a sitting, under a table) is kept as it is. A part whose markers
+    ``old`` lacks is appended at the end (a file of an older layout keeps all its text: its old
+    tables go by hand); markers out of order are a ValueError, the file left to be mended."""
+    text = old
+    for name, lines in parts.items():
+        start, end = generated_markers(tag, name)
+        while lines and not lines[0].strip():
+            lines = lines[1:]
+        while lines and not lines[-1].strip():
+            lines = lines[:-1]
+        block = "\n".join([start, "", *lines, "", end])
+        i, j = text.find(start), text.find(end)
+        if (i < 0) != (j < 0) or j < i or text.count(start) > 1 or text.count(end) > 1:
+            raise ValueError(f"the results file's markers of {name!r} are broken: expected "
+                             f"one {start!r} then one {end!r}; mend it by hand")
+        if i < 0:
+            text = text.rstrip("\n") + "\n\n" + block + "\n"
+        else:
+            text = text[:i] + block + text[j + len(end):]
+    return text
+
+
 def case_arguments(description: str, extra=None):
     """The arguments of a bench that runs its cases in child processes: --case, --work,
     --points (1,000,000) and --small; ``extra(parser)`` adds its own."""

@@ -20,7 +20,10 @@ footprints, route, split, seamlines, GeoPackage; OpenCV: reading both GeoTIFFs w
 :func:`seam_quality`).
 gdalwarp warps each ortho into one output with its own cut polygon (``-cutline seams.gpkg
 -cwhere source_id=k -cblend W``, alpha compositing), the cut polygons being the toolbox's.
-Writes bench/results/mosaic.md.
+Writes bench/results/mosaic.md (``--small``: mosaic_small.md): its generated parts only,
+between their marker comments (``<!-- mosaic_bench: seam_times (generated: ...) -->`` to
+``<!-- /mosaic_bench: seam_times (end; ...) -->``); the notes written there after a sitting,
+outside the markers (under an end marker), are kept.
 """
 
 from __future__ import annotations
@@ -28,7 +31,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import re
 import shutil
 import subprocess
 import sys
@@ -37,7 +39,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from benchlib import load_note, machine_facts, peak_rss_mb, run_measured
+from benchlib import load_note, machine_facts, peak_rss_mb, rewrite_generated, run_measured
 
 HERE = Path(__file__).resolve().parent
 X0, Y0 = 1_688_000.0, 4_799_000.0
@@ -374,8 +376,10 @@ def gdalwarp_mosaic(work: Path) -> dict | None:
     return {"seconds": total, "peak_mb": peak}
 
 
-def seam_section(cv: dict, n: int) -> list[str]:
-    """The markdown of the one-seam comparison."""
+def seam_section(cv: dict, n: int) -> dict[str, list[str]]:
+    """The markdown of the one-seam comparison, in two parts: ``seam_times`` (heading and
+    table) and ``seam_quality`` (table and path cost); notes written under the timings' table,
+    between the two, are kept by a rerun (:func:`benchlib.rewrite_generated`)."""
     t, q = cv["times"], cv["quality"]
 
     def med(name, kind):
@@ -410,7 +414,9 @@ def seam_section(cv: dict, n: int) -> list[str]:
         f"{ratio('e2e_ours', 'e2e_dp_written', 'wall'):.2f}x, "
         f"{ratio('e2e_ours', 'e2e_dp_written', 'cpu'):.2f}x |",
         f"| once | OpenCV GraphCutSeamFinder COST_COLOR | find on the placed images | "
-        f"{cv['graphcut']['wall']:.2f} | {cv['graphcut']['cpu']:.2f} | |", "",
+        f"{cv['graphcut']['wall']:.2f} | {cv['graphcut']['cpu']:.2f} | |",
+    ]
+    quality = [
         "Seam quality on the overlap (each seam as the cells it gives to ortho a; per seam cell "
         "edge: colour = mean |a - b| of the two cells, grey levels, DpSeamFinder's own "
         "criterion; balanced = the same after a least-squares gain/offset of b onto a, what "
@@ -427,40 +433,28 @@ def seam_section(cv: dict, n: int) -> list[str]:
              "e2e_ours_heights": "ours, end to end, HEIGHTS given"}
     for key, label in names.items():
         r = q[key]
-        lines.append(f"| {label} | {r['edges']} | {r['colour']:.2f} | {r['balanced']:.3f} | "
-                     f"{r['balanced'] * r['edges']:.0f} | {r['cost']:.4f} | "
-                     f"{r['on_buildings']} |")
-    lines += ["", f"Our route's path cost {cv['path_cost']:.4f} against the exact optimum's "
+        quality.append(f"| {label} | {r['edges']} | {r['colour']:.2f} | {r['balanced']:.3f} | "
+                       f"{r['balanced'] * r['edges']:.0f} | {r['cost']:.4f} | "
+                       f"{r['on_buildings']} |")
+    quality += ["", f"Our route's path cost {cv['path_cost']:.4f} against the exact optimum's "
               f"{cv['exact_cost']:.4f} (x {cv['path_cost'] / cv['exact_cost']:.6f}). Our seams "
               "must end where the Voronoi seam meets the footprint edges (here inside a building "
               "square at the overlap's south edge); OpenCV's may end anywhere on the overlap's "
-              "border.", ""]
-    return lines
+              "border."]
+    return {"seam_times": lines, "seam_quality": quality}
 
 
-SEAM_HEADING = "### One seam,"
+#: the marker tag of this bench's generated parts in its results file; the parts, in order:
+#: the full run's ``summary`` (facts, table), ``seam_times`` and ``seam_quality``
+TAG = "mosaic_bench"
+PARTS = ("summary", "seam_times", "seam_quality")
 
 
-def _section_preamble(line: str) -> bool:
-    """A line :func:`main` writes before the one-seam section: the machine facts
-    (:func:`benchlib.machine_facts`: ``date, N cores ...``), the load note
-    (:func:`benchlib.load_note`) or a blank line."""
-    return (not line.strip() or line.startswith("CPU ") and "busy in the second before" in line
-            or re.match(r"\d{4}-\d{2}-\d{2}, \d+ cores ", line) is not None)
-
-
-def replace_seam_section(old: str, section: list[str]) -> str:
-    """``old`` (the results file) with its one-seam section, and the machine facts and load
-    note written just before it, replaced by ``section`` (facts, note, then the section); the
-    rest of the file is kept, without the one-pair rows of older runs. Rewriting twice leaves one
-    copy of each line (the previous run's facts and note are part of what is replaced)."""
-    lines = old.split(SEAM_HEADING)[0].rstrip("\n").splitlines()
-    while lines and _section_preamble(lines[-1]) and SEAM_HEADING in old:
-        lines.pop()
-    head = "\n".join(line for line in lines
-                     if not (line.startswith("|") and ("seam on one pair" in line
-                                                       or "OpenCV" in line)))
-    return head + "\n\n" + "\n".join(section)
+def rewrite_results(old: str, parts: dict[str, list[str]]) -> str:
+    """The results file's text ``old`` with the generated ``parts`` rewritten between their
+    markers and everything else (the notes written after a sitting, under a table or between
+    sections) kept as it is (:func:`benchlib.rewrite_generated`)."""
+    return rewrite_generated(old, TAG, parts)
 
 
 def main(small: bool, seam_only: bool = False) -> str:
@@ -472,6 +466,10 @@ def main(small: bool, seam_only: bool = False) -> str:
     n_cv = min(OPENCV_MAX, n_seam)
     note = load_note()
     target = HERE / "results" / ("mosaic_small.md" if small else "mosaic.md")
+    title = "## Mosaics, small sizes (`bench/mosaic_bench.py --small`)" if small else \
+        "## Mosaics (`bench/mosaic_bench.py`)"
+    old = target.read_text() if target.exists() else title + "\n"
+    rewrite_results(old, dict.fromkeys(PARTS, []))  # broken markers: refused before measuring
     with tempfile.TemporaryDirectory(prefix="mosaic_bench_") as tmp:
         work = Path(tmp)
         big, cvw, blk = work / "big", work / "cv", work / "block"
@@ -490,15 +488,15 @@ def main(small: bool, seam_only: bool = False) -> str:
             gdal = gdalwarp_mosaic(blk)
     facts = machine_facts(f"OpenCV {cv2.__version__}", f"scikit-image {skimage.__version__}",
                           f"GDAL {rasterio.__gdal_version__}")
-    section = [facts, "", note, "", *seam_section(cv, n_cv)]
+    parts = seam_section(cv, n_cv)
+    old = target.read_text() if target.exists() else old  # notes written during the run too
     if seam_only:
-        old = target.read_text() if target.exists() else "## Mosaics (`bench/mosaic_bench.py`)\n"
-        text = replace_seam_section(old, section)
+        parts["seam_times"] = [facts, "", note, "", *parts["seam_times"]]
+        text = rewrite_results(old, parts)
         (HERE / "results").mkdir(exist_ok=True)
         target.write_text(text)
         return text
     lines = [
-        "## Mosaics (`bench/mosaic_bench.py`)", "",
         facts, "",
         note, f"(synthetic data generated in {generate:.1f} s)", "",
         "| task | size | tool | time (s) | peak memory (MB) |",
@@ -515,7 +513,7 @@ def main(small: bool, seam_only: bool = False) -> str:
     else:
         lines.append(f"| | | gdalwarp -cutline -cblend (6 runs) | {gdal['seconds']:.1f} | "
                      f"{gdal['peak_mb']:.0f} |")
-    text = "\n".join(lines + ["", *section[4:]])
+    text = rewrite_results(old, {"summary": lines, **parts})
     (HERE / "results").mkdir(exist_ok=True)
     target.write_text(text)
     return text

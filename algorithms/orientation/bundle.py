@@ -368,9 +368,8 @@ class BundleAdjustment(Algorithm):
         CRS, a one-line error saying which. Horizontal CRSs whose definitions differ are the
         same when the table's points ``xy`` move by at most 1 mm from one to the other (an ESRI
         ``.prj`` of EPSG:6707 does not equal EPSG:6707's definition)."""
-        from toolbox.io.crs import crs_label, same_crs
+        from toolbox.io.crs import PRJ_TOLERANCE_M, centroid_shift, crs_label, same_crs
         from toolbox.ortho.vertical import datum_label, horizontal_part, same_datum, vertical_part
-        from toolbox.photogrammetry.tables import PRJ_TOLERANCE_M, centroid_shift
 
         if not same_crs(horizontal_part(own), horizontal_part(target)) and \
                 not centroid_shift(own, target, xy)[0] <= PRJ_TOLERANCE_M:

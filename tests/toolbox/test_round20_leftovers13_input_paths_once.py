@@ -80,16 +80,16 @@ def test_the_commit_stats_the_protected_files_once(tmp_path, monkeypatch):
 def test_an_input_hard_linked_as_an_output_is_still_found_with_the_inodes_cached(tmp_path):
     """The inode check still holds with the inodes stat'ed once (the output replaced by a hard
     link to the input after validation is what only the commit can see)."""
-    from toolbox.io.staging import _is_protected
+    from toolbox.io.staging import _is_protected, _ProtectedInodes
 
     source = dem(tmp_path / "dem.tif")
     link = tmp_path / "link.tif"
     os.link(source, link)
     other = dem(tmp_path / "other.tif")
     protected = {source.resolve(), tmp_path / "dem.tfw"}
-    inodes: set = set()
+    inodes = _ProtectedInodes(protected)
     assert _is_protected(link, protected, inodes)
-    assert inodes == {(source.stat().st_dev, source.stat().st_ino)}
+    assert inodes.known == {(source.stat().st_dev, source.stat().st_ino)}
     assert not _is_protected(other, protected, inodes)
     assert not _is_protected(tmp_path / "none.tif", protected, inodes)
     assert _is_protected(link, protected)  # without a cache, as before

@@ -12,9 +12,11 @@ three angle columns must agree, and a unit given by the caller must agree with t
 contradicting units are an error). With no unit stated anywhere the angles are **degrees**,
 Orthority's documented default, and the summary says so.
 
-CRS: the ``.prj`` sidecar (same path, ``.prj`` extension: WKT, PROJ or EPSG text) or the
-caller's CRS for ``x, y, z`` (both given and different: an error); ``latitude...`` positions
-go to the caller's CRS or to the UTM zone of their mean (said in the notes).
+CRS: the ``.prj`` sidecar (same path, ``.prj`` extension: WKT, ESRI WKT, PROJ or EPSG text) or
+the caller's CRS for ``x, y, z``; both given, the positions' centroid is transformed from one
+to the other (:func:`toolbox.io.crs.centroid_shift`): moved by over 1 mm, an error naming both
+CRSs and the shift (an ESRI ``.prj`` of the caller's CRS moves nothing); ``latitude...``
+positions go to the caller's CRS or to the UTM zone of their mean (said in the notes).
 """
 
 from __future__ import annotations
@@ -104,7 +106,7 @@ def looks_like(text: str) -> bool:
 
 def read_csv(path: str | Path, crs: Any = None, angle_unit: str | None = None) -> OrientationSet:
     """Exterior orientations of an Orthority-style CSV (see the module docstring)."""
-    from toolbox.io.crs import parse_crs
+    from toolbox.io.crs import PRJ_TOLERANCE_M, crs_label
     from toolbox.photogrammetry.readers.text import photo_id
     from toolbox.photogrammetry.tables import listed
 
@@ -162,18 +164,18 @@ def read_csv(path: str | Path, crs: Any = None, angle_unit: str | None = None) -
     if not np.isfinite(values).all():
         raise InputDataError(f"{path}: a position or angle is NaN or infinite")
     prj = path.with_suffix(".prj")
-    prj_crs = parse_crs(prj.read_text(encoding="utf-8").strip(), f"{prj.name}") \
-        if prj.exists() else None
+    prj_crs = _prj_crs(prj) if prj.is_file() else None
     if position == "xyz":
-        if prj_crs is not None and crs is not None and \
-                not parse_crs(crs, "CRS").equals(prj_crs):
-            raise ParameterError("CRS", f"contradicts {prj.name} ({prj_crs.name}): the x, y, z "
-                                 "positions are in one CRS")
         if prj_crs is None and crs is None:
             raise InputDataError(f"{path}: x, y, z positions need a CRS: give CRS or put a "
                                  f"{prj.name} beside the file")
-        out.crs = geodesy.require_projected(prj_crs or crs, str(path))
-        out.notes.append(f"CRS from {prj.name}" if prj_crs is not None else "CRS as given")
+        if prj_crs is not None and crs is not None:
+            out.crs = _check_prj(prj, prj_crs, crs, values[:, :2])
+            out.notes.append(f"CRS as given; {prj.name}'s ({crs_label(prj_crs)}) is the same "
+                             f"at the positions (within {PRJ_TOLERANCE_M * 1000:g} mm)")
+        else:
+            out.crs = geodesy.require_projected(prj_crs or crs, str(path))
+            out.notes.append(f"CRS from {prj.name}" if prj_crs is not None else "CRS as given")
         xyz = values[:, :3]
     else:
         lon, lat = values[:, 0], values[:, 1]
@@ -205,6 +207,43 @@ def read_csv(path: str | Path, crs: Any = None, angle_unit: str | None = None) -
         out.notes.append("roll/pitch/yaw: body x front, y right, z down; camera x = body y, "
                          "y = body x (nadir camera, top forward); with the meridian convergence")
     return out
+
+
+def _prj_crs(prj: Path) -> Any:
+    """The CRS of the ``.prj`` sidecar ``prj`` (WKT, ESRI WKT, PROJ or EPSG text; UTF-8 or
+    Windows-1252 text, as ESRI software writes it)."""
+    from toolbox.io.crs import parse_crs
+
+    text = read_text(prj).strip()
+    try:
+        return parse_crs(text, str(prj))
+    except ParameterError as exc:  # the file is the input at fault, not a parameter
+        raise InputDataError(str(exc)) from None
+
+
+def _check_prj(prj: Path, prj_crs: Any, crs: Any, xy: np.ndarray) -> Any:
+    """The CRS parameter ``crs`` when the ``.prj``'s CRS is the same CRS at the positions
+    ``xy``: the centroid moves by at most :data:`toolbox.io.crs.PRJ_TOLERANCE_M` from one to
+    the other (an ESRI ``.prj`` rarely equals its EPSG code's definition), and no two
+    different height datums are stated; else an error naming both and the shift."""
+    from toolbox.io.crs import (
+        PRJ_TOLERANCE_M,
+        centroid_shift,
+        check_same_heights,
+        crs_label,
+        parse_crs,
+        shift_phrase,
+    )
+
+    given = geodesy.require_projected(parse_crs(crs, "CRS"), "CRS")
+    shift, centre = centroid_shift(prj_crs, given, xy)
+    if not shift <= PRJ_TOLERANCE_M:
+        raise ParameterError("CRS", f"{crs_label(given)} contradicts {prj.name} "
+                             f"({crs_label(prj_crs)}): {shift_phrase(shift, centre)}; the "
+                             f"x, y, z positions are in one CRS: give CRS as the {prj.name}'s, "
+                             "or none")
+    check_same_heights(prj.name, prj_crs, "CRS", given)
+    return given
 
 
 def write_csv(oset: OrientationSet, path: str | Path, angle_unit: str = "deg") -> Path:

@@ -157,6 +157,45 @@ def same_crs(a: CRS | None, b: CRS | None) -> bool:
     return a == b or a.equals(b, ignore_axis_order=True)
 
 
+#: how far (metres) a table's points may move between the CRS of its ``.prj`` sidecar and the
+#: CRS parameter for the two to be taken as one (an ESRI ``.prj`` rarely equals its EPSG code's
+#: definition: :func:`centroid_shift`)
+PRJ_TOLERANCE_M = 1e-3
+
+
+def centroid_shift(source: Any, target: Any, xy: Any) -> tuple[float, tuple[float, float]]:
+    """How far (metres, on ``target``'s ellipsoid) the centroid of the points ``xy`` ((n, 2),
+    NaN rows left out) moves when transformed from ``source``'s horizontal CRS to
+    ``target``'s (pyproj), and the centroid: 0 for two definitions of one CRS (an ESRI WKT and
+    its EPSG code), the datum shift for another datum; infinite where the transformation
+    fails; ``(0.0, (nan, nan))`` without points. The definitions are not compared."""
+    from pyproj import Geod, Transformer
+
+    xy = np.asarray(xy, dtype="float64").reshape(-1, 2)
+    xy = xy[np.isfinite(xy).all(axis=1)]
+    if not len(xy):
+        return 0.0, (math.nan, math.nan)
+    source, target = horizontal_part(source), horizontal_part(target)
+    x, y = (float(v) for v in xy.mean(axis=0))
+    moved = Transformer.from_crs(source, target, always_xy=True).transform(x, y)
+    geodetic = Transformer.from_crs(target, target.geodetic_crs, always_xy=True)
+    lon, lat = geodetic.transform(np.array([x, moved[0]]), np.array([y, moved[1]]))
+    if not (np.isfinite(lon).all() and np.isfinite(lat).all()):
+        return math.inf, (x, y)
+    ellipsoid = target.ellipsoid
+    geod = Geod(a=ellipsoid.semi_major_metre, rf=ellipsoid.inverse_flattening) \
+        if ellipsoid is not None else Geod(ellps="WGS84")
+    return float(geod.inv(lon[0], lat[0], lon[1], lat[1])[2]), (x, y)
+
+
+def shift_phrase(shift: float, centre: tuple[float, float]) -> str:
+    """:func:`centroid_shift`'s answer in words, for a message refusing a ``.prj``."""
+    moved_by = f"{shift:.3f} m" if math.isfinite(shift) else \
+        "an undefined distance (the transformation fails there)"
+    return f"its points (centroid {centre[0]:.3f}, {centre[1]:.3f}) move by {moved_by} from " \
+        "one to the other"
+
+
 def common_crs(named: dict[str, CRS | None], override: CRS | None = None) -> CRS | None:
     """The one CRS shared by the named inputs (``{"INPUT": crs, ...}``).
 

@@ -606,7 +606,7 @@ class OutputStaging:
         owner = {part: target for target in targets for part in dataset_files(target) & targets}
         replace = set()  # existing targets a commit without overwrite may replace (leftovers)
         stale: dict[Path, str] = {}  # old files GDAL would read with a new one -> output name
-        inodes: set = set()  # the protected files' inodes, stated once (_is_protected)
+        inodes = _ProtectedInodes(protected)  # stated once, at the first target that exists
         for name, _, target in moves:
             _check_target(name, target, protected, inodes)
             main = owner.get(target, target)
@@ -717,10 +717,31 @@ def _backup(target: Path, folder: Path | None, key) -> Path | None:
     return backup
 
 
-def _is_protected(target: Path, protected: set[Path], inodes: set | None = None) -> bool:
+class _ProtectedInodes:
+    """The ``(device, inode)`` of the protected files that exist, for the hard-link check of
+    :func:`_is_protected`: stated at the first question and kept, so that a commit stats them
+    once, not once per target that exists (and not at all when no target exists)."""
+
+    def __init__(self, protected: set[Path]):
+        self.protected = protected
+        self.known: set[tuple[int, int]] | None = None  # None: not stated yet
+
+    def __contains__(self, key: tuple[int, int]) -> bool:
+        if self.known is None:
+            self.known = set()
+            for path in self.protected:
+                try:
+                    st = path.stat()
+                except OSError:  # a sidecar that does not exist: no inode
+                    continue
+                self.known.add((st.st_dev, st.st_ino))
+        return key in self.known
+
+
+def _is_protected(target: Path, protected: set[Path],
+                  inodes: _ProtectedInodes | None = None) -> bool:
     """Whether ``target`` is one of the ``protected`` paths, by path or by inode (a hard link).
-    ``inodes``: an empty set the first call fills with the protected files' ``(device, inode)``,
-    so that a commit stats them once, not once per target that exists."""
+    ``inodes``: the protected files' inodes, kept over a commit's calls (made here without)."""
     if not protected:
         return False
     if target.resolve() in protected:
@@ -729,23 +750,13 @@ def _is_protected(target: Path, protected: set[Path], inodes: set | None = None)
         st = target.stat()
     except OSError:  # no such file: no inode to share
         return False
-    if inodes is None or not inodes:
-        found = set()
-        for p in protected:
-            try:
-                ps = p.stat()
-            except OSError:
-                continue
-            found.add((ps.st_dev, ps.st_ino))
-        if inodes is None:
-            inodes = found
-        else:
-            inodes |= found or {None}  # {None}: worked out, no protected file exists
+    if inodes is None:
+        inodes = _ProtectedInodes(protected)
     return (st.st_dev, st.st_ino) in inodes
 
 
 def _check_target(name: str, target: Path, protected: set[Path],
-                  inodes: set | None = None) -> None:
+                  inodes: _ProtectedInodes | None = None) -> None:
     """Refuse a commit writing or removing ``target`` when it is an input or a folder
     (``inodes``: see :func:`_is_protected`)."""
     if _is_protected(target, protected, inodes):

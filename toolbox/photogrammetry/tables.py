@@ -312,20 +312,16 @@ def table_crs(path: Path, layer: str | None = None) -> Any:
     return CRS.from_user_input(crs) if crs else None
 
 
-#: how far (metres) a table's points may move between its ``.prj``'s CRS and the CRS parameter
-#: for the two to be taken as one (an ESRI ``.prj`` rarely equals its EPSG code's definition)
-PRJ_TOLERANCE_M = 1e-3
-
-
 def control_crs(path: Path, crs: Any = None, layer: str | None = None,
                 name: str = "CONTROL", horizontal: bool = False) -> Any:
     """The CRS of a table of ground coordinates: ``crs`` (the CRS parameter) and the table's
     own (a GeoPackage layer's, a CSV/TXT's ``.prj`` beside it), whichever is known; both
     known and different: an InputDataError naming both (:func:`toolbox.io.crs.common_crs`:
     the X/Y/Z columns are read as they are, never as if in the other CRS). A ``.prj`` and
-    ``crs`` are one CRS when the table's points move by at most :data:`PRJ_TOLERANCE_M`
-    from one to the other (:func:`check_prj_crs`). ``horizontal``: the table's horizontal CRS
-    only is compared (its heights are not used as a datum)."""
+    ``crs`` are one CRS when the table's points move by at most
+    :data:`toolbox.io.crs.PRJ_TOLERANCE_M` from one to the other (:func:`check_prj_crs`).
+    ``horizontal``: the table's horizontal CRS only is compared (its heights are not used as a
+    datum)."""
     from toolbox.io.crs import common_crs, horizontal_part
 
     own = table_crs(path, layer)
@@ -364,46 +360,26 @@ def _or_nan(value: Any) -> float:
         return math.nan
 
 
-def centroid_shift(source: Any, target: Any, xy: Any) -> tuple[float, tuple[float, float]]:
-    """How far (metres, on ``target``'s ellipsoid) the centroid of the points ``xy`` ((n, 2),
-    NaN rows left out) moves when transformed from ``source``'s horizontal CRS to
-    ``target``'s (pyproj), and the centroid: 0 for two definitions of one CRS (an ESRI WKT and
-    its EPSG code), the datum shift for another datum; infinite where the transformation
-    fails; ``(0.0, (nan, nan))`` without points. The definitions are not compared."""
-    import numpy as np
-    from pyproj import Geod, Transformer
-
-    from toolbox.io.crs import horizontal_part
-
-    xy = np.asarray(xy, dtype="float64").reshape(-1, 2)
-    xy = xy[np.isfinite(xy).all(axis=1)]
-    if not len(xy):
-        return 0.0, (math.nan, math.nan)
-    source, target = horizontal_part(source), horizontal_part(target)
-    x, y = (float(v) for v in xy.mean(axis=0))
-    moved = Transformer.from_crs(source, target, always_xy=True).transform(x, y)
-    geodetic = Transformer.from_crs(target, target.geodetic_crs, always_xy=True)
-    lon, lat = geodetic.transform(np.array([x, moved[0]]), np.array([y, moved[1]]))
-    if not (np.isfinite(lon).all() and np.isfinite(lat).all()):
-        return math.inf, (x, y)
-    ellipsoid = target.ellipsoid
-    geod = Geod(a=ellipsoid.semi_major_metre, rf=ellipsoid.inverse_flattening) \
-        if ellipsoid is not None else Geod(ellps="WGS84")
-    return float(geod.inv(lon[0], lat[0], lon[1], lat[1])[2]), (x, y)
-
-
 def check_prj_crs(path: Path, crs: Any, layer: str | None = None, name: str = "CONTROL",
                   horizontal: bool = False) -> Any:
     """``crs`` (the CRS parameter), checked against the ``.prj`` beside the table ``path``: the
     centroid of its X, Y is transformed from the ``.prj``'s horizontal CRS to ``crs``'s
-    (pyproj); a shift over :data:`PRJ_TOLERANCE_M` (measured on the ellipsoid, so in metres
-    whatever the units) is an InputDataError naming both CRSs and the shift. Definitions are
+    (pyproj, :func:`toolbox.io.crs.centroid_shift`); a shift over
+    :data:`toolbox.io.crs.PRJ_TOLERANCE_M` (measured on the ellipsoid, so in metres whatever
+    the units) is an InputDataError naming both CRSs and the shift. Definitions are
     not compared: an ESRI ``.prj`` written for EPSG:6707 does not equal EPSG:6707 but moves
     no point. Without ``horizontal``, two different height datums stated one on each side are
     refused too (:func:`toolbox.io.crs.check_same_heights`)."""
     import numpy as np
 
-    from toolbox.io.crs import check_same_heights, crs_label, parse_crs
+    from toolbox.io.crs import (
+        PRJ_TOLERANCE_M,
+        centroid_shift,
+        check_same_heights,
+        crs_label,
+        parse_crs,
+        shift_phrase,
+    )
 
     crs = parse_crs(crs, "CRS")
     own = prj_crs(path, name)
@@ -413,13 +389,10 @@ def check_prj_crs(path: Path, crs: Any, layer: str | None = None, name: str = "C
                   ).reshape(-1, 2)
     shift, centre = centroid_shift(own, crs, xy)
     if not shift <= PRJ_TOLERANCE_M:
-        moved_by = f"{shift:.3f} m" if np.isfinite(shift) else "an undefined distance " \
-            "(the transformation fails there)"
         raise InputDataError(
             f"{name}: {path}'s {prj} is {crs_label(own)} but CRS is {crs_label(crs)}: "
-            f"its points (centroid {centre[0]:.3f}, {centre[1]:.3f}) move by {moved_by} from "
-            f"one to the other; the X/Y/Z columns are read as they are, in one CRS: give CRS "
-            f"as the {prj}'s, or the coordinates in CRS (and a matching {prj})")
+            f"{shift_phrase(shift, centre)}; the X/Y/Z columns are read as they are, in one "
+            f"CRS: give CRS as the {prj}'s, or the coordinates in CRS (and a matching {prj})")
     if not horizontal:
         check_same_heights(name, own, "CRS", crs)
     return crs
