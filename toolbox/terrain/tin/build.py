@@ -106,8 +106,15 @@ def _dedupe_within_lines(xyz: np.ndarray, line_index: np.ndarray, segments: np.n
 
 
 def _has_duplicate_xy(xyz: np.ndarray) -> bool:
-    """True when two points have exactly the same XY (complex numbers sort by x, then y)."""
-    key = np.sort(xyz[:, 0] + 1j * xyz[:, 1])
+    """True when two points have exactly the same XY: only points sharing an x with another
+    can, so x alone is sorted (half the time of sorting x + iy), then the points of the shared
+    x values, if any (complex numbers sort by x, then y)."""
+    x = np.sort(xyz[:, 0])
+    shared = x[1:][x[1:] == x[:-1]]
+    if len(shared) == 0:
+        return False
+    sub = xyz[np.isin(xyz[:, 0], shared)] if len(shared) < len(x) // 4 else xyz
+    key = np.sort(sub[:, 0] + 1j * sub[:, 1])
     return bool(np.any(key[1:] == key[:-1]))
 
 
@@ -217,7 +224,7 @@ def build_tin(points: np.ndarray, line_xyz: np.ndarray | None = None,
         line_xyz, line_segments, repeated = _dedupe_within_lines(line_xyz, line_index,
                                                                  line_segments)
         report["breakline_repeated_vertices"] = repeated
-    pooled = np.vstack([line_xyz, points])
+    pooled = np.vstack([line_xyz, points]) if len(line_xyz) else points  # never written to
     is_line = np.concatenate([np.ones(len(line_xyz), bool), np.zeros(len(points), bool)])
     if len(pooled) < 3:
         raise TinBuildError(f"a TIN needs at least 3 points, got {len(pooled)}")
@@ -233,9 +240,13 @@ def build_tin(points: np.ndarray, line_xyz: np.ndarray | None = None,
         nodes, group = pooled, np.arange(len(pooled))
         report["duplicates"] = {"duplicate_groups": 0, "duplicates_removed": 0,
                                 "max_z_spread": 0.0, "rule": duplicate_rule}
-    merged = np.bincount(group, minlength=len(nodes)).astype(np.int64)
-    source = np.where(np.bincount(group, weights=is_line, minlength=len(nodes)) > 0,
-                      BREAKLINE, POINT).astype(np.int8)
+    if len(nodes) == len(pooled):  # no merge: group is the identity
+        merged = np.ones(len(nodes), dtype=np.int64)
+        source = np.where(is_line, BREAKLINE, POINT).astype(np.int8)
+    else:
+        merged = np.bincount(group, minlength=len(nodes)).astype(np.int64)
+        source = np.where(np.bincount(group, weights=is_line, minlength=len(nodes)) > 0,
+                          BREAKLINE, POINT).astype(np.int8)
     segments = group[line_segments]
     segments = segments[segments[:, 0] != segments[:, 1]]
     segments = np.unique(np.sort(segments, axis=1), axis=0) if len(segments) else segments
@@ -262,20 +273,20 @@ def build_tin(points: np.ndarray, line_xyz: np.ndarray | None = None,
     xyz = np.column_stack([tri.vertices, z])
     source = np.concatenate([source, _steiner_sources(tri, n_break)])
     merged = np.concatenate([merged, np.zeros(tri.steiner_count, np.int64)])
+    # breakline edges: output subsegments whose parent is a breakline segment
+    sub = tri.segments[(tri.segment_parents >= 0) & (tri.segment_parents < n_break)]
+    sub = sub.astype(np.int64)
     if inside is not None:
         triangles, neighbors, node_old = _renumber(inside, tri.triangles, tri.neighbors,
                                                    len(xyz))
-    else:
+        node_new = np.full(len(xyz), -1, dtype=np.int64)
+        node_new[node_old] = np.arange(len(node_old))
+        xyz, source, merged = xyz[node_old], source[node_old], merged[node_old]
+        spread = spread[node_old]
+        sub = node_new[sub]
+    else:  # every node is kept, in its place
         triangles = tri.triangles.astype(np.int64)
         neighbors = tri.neighbors.astype(np.int64)
-        node_old = np.arange(len(xyz))
-    # breakline edges: output subsegments whose parent is a breakline segment
-    sub = tri.segments[(tri.segment_parents >= 0) & (tri.segment_parents < n_break)]
-    node_new = np.full(len(xyz), -1, dtype=np.int64)
-    node_new[node_old] = np.arange(len(node_old))
-    xyz, source, merged = xyz[node_old], source[node_old], merged[node_old]
-    spread = spread[node_old]
-    sub = node_new[sub.astype(np.int64)]
     sub = sub[(sub >= 0).all(axis=1)] if len(sub) else sub.reshape(0, 2)
     if concave:
         if concave_max_edge is None:

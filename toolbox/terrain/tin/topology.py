@@ -68,35 +68,62 @@ class EdgeTable:
     triangle_edges: np.ndarray
 
 
+#: half-edge ``3 t + j`` (the edge facing corner ``j`` of triangle ``t``) -> the flat index of
+#: corner ``(j + 1) % 3`` (the edge's start) and of corner ``(j + 2) % 3`` (its end)
+_START = np.array([1, 1, -2], dtype=np.intp)
+_END = np.array([2, -1, -1], dtype=np.intp)
+
+
 def edge_table(triangles: np.ndarray, neighbors: np.ndarray) -> EdgeTable:
     """Unique edges with their left and right triangles, from triangles and neighbours.
 
     Each edge is listed once, directed as in the triangle with the lower index (which is then on
     its left, triangles being counter-clockwise). Order: by that triangle, then by corner.
     Indices are int32 when they fit (a 10 M-point TIN's table takes 0.7 GB instead of 1.4 GB),
-    and no ``(T, 3)`` temporaries are built besides ``triangle_edges``.
+    and no ``(T, 3)`` integer temporaries are built besides ``triangle_edges``: the half-edges
+    are flat indices ``3 t + j`` read with :func:`numpy.take` (0.18 s CPU for a million points'
+    3 M edges; 0.39 s with ``(row, column)`` fancy indexing and an ``argmax`` along rows).
     """
     tri = np.asarray(triangles)
     nb = np.asarray(neighbors)
     t_count = len(tri)
     index = np.int32 if 3 * t_count < np.iinfo(np.int32).max \
         and (t_count == 0 or int(tri.max()) < np.iinfo(np.int32).max) else np.int64
-    keep = (nb < 0) | (np.arange(t_count, dtype=index)[:, None] < nb)
-    t_idx, corner = (a.astype(index) for a in np.nonzero(keep))
-    del keep
-    n_edges = len(t_idx)
+    flat_nb = np.ascontiguousarray(nb).reshape(-1)
+    # an edge is listed from its triangle of lower index: the neighbour's is higher, or there is
+    # none (a negative index, which as an unsigned number is higher than any triangle's)
+    unsigned = flat_nb.view(np.dtype(f"u{flat_nb.dtype.itemsize}"))
+    keep = unsigned.reshape(-1, 3) > np.arange(t_count, dtype=unsigned.dtype)[:, None]
+    half = np.flatnonzero(keep)  # the listed half-edges, 3 t + j
+    del keep, unsigned
+    n_edges = len(half)
+    t_idx = (half // 3).astype(index)
+    corner = half - 3 * t_idx
     tri_edges = np.full((t_count, 3), -1, dtype=index)
-    tri_edges[t_idx, corner] = np.arange(n_edges, dtype=index)
-    right = nb[t_idx, corner].astype(index)
-    shared = np.flatnonzero(right >= 0).astype(index)
-    other = right[shared]
-    # corner of the neighbour that faces back to this triangle
-    back = np.argmax(nb[other] == t_idx[shared, None], axis=1)
-    tri_edges[other, back] = shared
-    del other, back, shared
-    nodes = np.empty((n_edges, 2), dtype=index)  # half-edge j runs corner j+1 -> corner j+2
-    nodes[:, 0] = tri[t_idx, (corner + 1) % 3]
-    nodes[:, 1] = tri[t_idx, (corner + 2) % 3]
+    flat_edges = tri_edges.reshape(-1)
+    flat_edges[half] = np.arange(n_edges, dtype=index)
+    right = np.take(flat_nb, half).astype(index, copy=False)
+    shared = np.flatnonzero(right >= 0)
+    other = np.take(right, shared)
+    mine = np.take(t_idx, shared)
+    rows = np.take(nb, other, axis=0)  # the neighbour's row of neighbours, in one gather
+    first = rows[:, 0] == mine
+    second = rows[:, 1] == mine
+    third = rows[:, 2] == mine
+    del rows, mine
+    # the neighbour's half-edge that faces back: its first corner whose neighbour is this
+    # triangle (corner 0 if none, as an argmax along the row said)
+    back = 3 * other.astype(np.intp)
+    del other
+    back += second & ~first
+    back += 2 * (third & ~first & ~second)
+    del first, second, third
+    flat_edges[back] = shared
+    del back, shared
+    flat_tri = np.ascontiguousarray(tri).reshape(-1)
+    nodes = np.empty((n_edges, 2), dtype=index)
+    nodes[:, 0] = np.take(flat_tri, half + np.take(_START, corner))
+    nodes[:, 1] = np.take(flat_tri, half + np.take(_END, corner))
     return EdgeTable(nodes, t_idx, right, tri_edges)
 
 
