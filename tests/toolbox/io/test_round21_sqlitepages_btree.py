@@ -368,3 +368,39 @@ def test_wrong_column_count_is_refused_before_writing(tmp_path):
     with pytest.raises(ValueError, match="2 columns"), BtreeAppender(path) as app:
         app.fill("t", [(np.array([1]), *rec)])
     assert digest(path) == before
+
+
+def test_fixed_width_columns_with_nulls(tmp_path):
+    """The TIN layout: NULL-able integers, reals, a NULL-able 149-byte blob (a 2-byte serial
+    type, so a NULL also shortens the record header) and 0/1 columns (serial types 8/9)."""
+    path = tmp_path / "n.db"
+    cols_sql = ("fid INTEGER PRIMARY KEY, a INTEGER, b INTEGER, c REAL, g BLOB, f INTEGER, "
+                "h INTEGER")
+    make_db(path, 4096, cols=cols_sql)
+    n = 5000
+    rng = np.random.default_rng(11)
+    a = rng.integers(-(2**31), 2**31, n)
+    am = rng.random(n) < 0.1
+    b = rng.integers(0, 2, n)
+    bm = rng.random(n) < 0.3
+    c = rng.normal(size=n)
+    g = rng.integers(0, 256, (n, 149)).astype(np.uint8)
+    gm = rng.random(n) < 0.2
+    f = rng.random(n) < 0.5
+    h = np.full(n, 7)
+    hm = np.ones(n, bool)  # an all-NULL column
+    cols = [None, ("int", a, am), ("int", b, bm), ("real", c, None), ("blob", g, gm),
+            ("bool", f, None), ("int", h, hm)]
+    rowids = np.arange(1, n + 1) * 5
+    with BtreeAppender(path) as app:
+        app.fill("t", batched(rowids, cols, (1700, 3)))
+    con = sqlite3.connect(path)
+    con.executemany("INSERT INTO twin VALUES (?,?,?,?,?,?,?)", [
+        (int(rowids[i]), None if am[i] else int(a[i]), None if bm[i] else int(b[i]),
+         float(c[i]), None if gm[i] else g[i].tobytes(), bool(f[i]), None) for i in range(n)])
+    con.commit()
+    q = ("SELECT fid, a, typeof(a), b, typeof(b), c, g, typeof(g), f, typeof(f), h, typeof(h) "
+         "FROM {} ORDER BY fid")
+    assert con.execute(q.format("t")).fetchall() == con.execute(q.format("twin")).fetchall()
+    con.close()
+    assert integrity(path) == ["ok"]
