@@ -404,3 +404,44 @@ def test_fixed_width_columns_with_nulls(tmp_path):
     assert con.execute(q.format("t")).fetchall() == con.execute(q.format("twin")).fetchall()
     con.close()
     assert integrity(path) == ["ok"]
+
+
+def test_the_lock_byte_page_past_one_gib_stays_unused(tmp_path):
+    """SQLite never uses the page holding byte 2**30 (its lock bytes); a file grown past 1 GiB
+    skips it. The file is made to end just before it without writing a GiB: pages 4..16380 of
+    65536 bytes are a (sparse) freelist written by hand."""
+    import struct
+
+    path = tmp_path / "big.db"
+    make_db(path, 65536, cols="fid INTEGER PRIMARY KEY, a INTEGER, g BLOB")
+    ps = 65536
+    lock = 2**30 // ps + 1  # 16385
+    end = lock - 5
+    with open(path, "r+b") as f:
+        head = bytearray(f.read(100))
+        used = struct.unpack(">I", head[28:32])[0]
+        trunk = used + 1
+        leaves = list(range(trunk + 1, end + 1))
+        f.seek((trunk - 1) * ps)
+        f.write(struct.pack(f">II{len(leaves)}I", 0, len(leaves), *leaves))
+        f.truncate(end * ps)
+        counter = struct.unpack(">I", head[24:28])[0] + 1
+        head[24:28] = head[92:96] = struct.pack(">I", counter)
+        head[28:32] = struct.pack(">I", end)
+        head[32:40] = struct.pack(">II", trunk, end - used)
+        f.seek(0)
+        f.write(head)
+    assert integrity(path) == ["ok"]  # the hand-made freelist is valid
+    n = 400  # 16 rows a page: 25 leaves, pages end + 1 .. end + 26 with the lock page skipped
+    rng = np.random.default_rng(2)
+    g = rng.integers(0, 256, (n, 4000)).astype(np.uint8)
+    cols = [None, ("int", np.arange(n), None), ("blob", g, None)]
+    with BtreeAppender(path) as app:
+        app.fill("t", batched(np.arange(1, n + 1), cols, (150,)))
+    assert integrity(path) == ["ok"]
+    con = sqlite3.connect(path)
+    pages = [r[0] for r in con.execute("SELECT pageno FROM dbstat WHERE name = 't'")]
+    rows = con.execute("SELECT fid, a, g FROM t ORDER BY fid").fetchall()
+    con.close()
+    assert lock not in pages and max(pages) > lock
+    assert rows == [(i + 1, i, g[i].tobytes()) for i in range(n)]
