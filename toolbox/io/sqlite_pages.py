@@ -128,6 +128,15 @@ def _copy_segments(dst, dpos, src, spos, lens) -> None:
     if hi == 0:
         return
     if lo == hi:
+        m = lens.size
+        s0 = int(spos[0])
+        if int(spos[-1]) - s0 == (m - 1) * lo:  # back to back in the source: a plain view
+            block = src[s0 : s0 + m * lo].reshape(m, lo)
+            if lo == 1:
+                dst[dpos] = block[:, 0]
+            else:
+                sliding_window_view(dst, lo, writeable=True)[dpos] = block
+            return
         groups = [(lo, None)]
     else:
         if hi - lo <= 4096:
@@ -456,11 +465,10 @@ def _put_headers(buf, slots, page_size, ptype, counts, content_start, cell_off, 
     head[:, 6] = cs & 0xFF
     if right is not None:
         head[:, 8:12] = np.asarray(right, ">u4").view(np.uint8).reshape(-1, 4)
-    _scatter(buf, base, head)
-    ptr = np.empty((cell_off.size, 2), np.uint8)
-    ptr[:, 0] = cell_off >> 8
-    ptr[:, 1] = cell_off & 0xFF
-    _scatter(buf, ptr_pos, ptr)
+    pages = buf.reshape(-1, page_size)
+    pages[slots, : head.shape[1]] = head
+    # pointers sit at even offsets (even header sizes): one big-endian uint16 each
+    buf.view(">u2")[ptr_pos >> 1] = cell_off
 
 
 class BtreeAppender:
@@ -625,8 +633,15 @@ class BtreeAppender:
         cell_len = l1 + l2 + rl
         cell_pos, cell_off, ptr_pos, counts, cstart = _layout(cell_len, starts, ends, slots, ps, 8)
         _put_headers(buf, slots, ps, _LEAF, counts, cstart, cell_off, ptr_pos)
-        _put_varints(buf, cell_pos, rl, l1)
-        _put_varints(buf, cell_pos + l1, rid, l2)
+        if l1.min() == l1.max() and l2.min() == l2.max():
+            a, b = int(l1[0]), int(l2[0])  # one prefix length: one (m, a + b) block
+            prefix = np.empty((hi, a + b), np.uint8)
+            prefix[:, :a] = _varint_bytes(_as_u64(rl), a)
+            prefix[:, a:] = _varint_bytes(_as_u64(rid), b)
+            _scatter(buf, cell_pos, prefix)
+        else:
+            _put_varints(buf, cell_pos, rl, l1)
+            _put_varints(buf, cell_pos + l1, rid, l2)
         rec_pos = cell_pos + l1 + l2
         for flat, rstart, first_row, nrows in parts:
             a, b = first_row, min(first_row + nrows, hi)
@@ -669,8 +684,10 @@ class BtreeAppender:
                                  f"{offsets.shape}, expected (k,), (m,), (k + 1,)")
             if k == 0:
                 continue
-            if offsets[0] != 0 and offsets[-1] > flat.size:
-                raise ValueError("batches: offsets run past the records")
+            reclen = np.diff(offsets)
+            if offsets[0] < 0 or offsets[-1] > flat.size or int(reclen.min()) < 1:
+                raise ValueError(f"batches: offsets {offsets[0]}..{offsets[-1]} are not "
+                                 f"increasing within the {flat.size} bytes of records")
             if total == 0:
                 self._check_columns(table, flat, int(offsets[0]), ncols)
             if (k > 1 and not (np.diff(rowids) > 0).all()) or (
@@ -678,7 +695,6 @@ class BtreeAppender:
                 raise UnsupportedDatabase(f"batches: rowids of {table!r} are not strictly "
                                           "increasing")
             last = int(rowids[-1])
-            reclen = np.diff(offsets)
             if int(reclen.max()) > max_local:
                 raise UnsupportedDatabase(
                     f"batches: a record of {int(reclen.max())} bytes needs overflow pages (at "
