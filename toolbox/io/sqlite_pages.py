@@ -455,7 +455,6 @@ def _layout(cell_len: np.ndarray, starts: np.ndarray, ends: np.ndarray, slots: n
 
 def _put_headers(buf, slots, page_size, ptype, counts, content_start, cell_off, ptr_pos,
                  right=None):
-    base = slots * page_size
     head = np.zeros((slots.size, 12 if right is not None else 8), np.uint8)
     head[:, 0] = ptype
     head[:, 3] = counts >> 8
