@@ -479,13 +479,17 @@ class BtreeAppender:
     ``fill(table, batches)`` writes the rows of an empty rowid table; ``close()`` (the context
     manager's exit) updates the header. Any exception in ``fill`` or inside the ``with`` block
     restores the file to its bytes before the appender opened it (the appended pages truncated,
-    the overwritten root pages and header put back). Refused databases, tables and rows raise
+    the overwritten root pages and header put back), also the tables filled before; the appender
+    is then closed, and a later ``fill`` or ``close`` raises :class:`UnsupportedDatabase` (so a
+    caller that catches one fill's error cannot miss that the others are gone). An appender
+    dropped without ``close`` is undone the same way. Refused databases, tables and rows raise
     :class:`UnsupportedDatabase` before anything is written or after everything was undone.
     """
 
     def __init__(self, path):
         self.path = Path(path)
         self._fd: int | None = None
+        self._failed = False
         self._check_file()
         self._schema = self._read_schema()
         self._fd = os.open(self.path, os.O_RDWR)
@@ -655,8 +659,7 @@ class BtreeAppender:
         rows' int64 rowids, strictly increasing across all batches). Returns the row count.
 
         On any error the whole file is restored and the appender closed."""
-        if self._fd is None:
-            raise ValueError("fill: the appender is closed")
+        self._check_open("fill")
         try:
             return self._fill(table, batches)
         except BaseException:
@@ -829,8 +832,11 @@ class BtreeAppender:
     # -- closing ------------------------------------------------------------------------------
 
     def close(self) -> None:
-        """Write the header (page count, change counter) and close the file."""
+        """Write the header (page count, change counter) and close the file. Raises if an
+        earlier error restored the file (the rows of every fill are gone)."""
         if self._fd is None:
+            if self._failed:
+                self._check_open("close")
             return
         try:
             head = bytearray(os.pread(self._fd, 100, 0))
@@ -845,10 +851,18 @@ class BtreeAppender:
         os.close(self._fd)
         self._fd = None
 
+    def _check_open(self, what: str) -> None:
+        if self._failed:
+            raise UnsupportedDatabase(f"{what}: an earlier error restored {self.path} as it was "
+                                      "before the appender opened it (no table was filled)")
+        if self._fd is None:
+            raise ValueError(f"{what}: the appender is closed")
+
     def _rollback(self) -> None:
         """Put the file back as it was when the appender opened it, and close it."""
         if self._fd is None:
             return
+        self._failed = True
         try:
             os.ftruncate(self._fd, self._orig_size)
             for pgno, data in self._saved.items():
@@ -869,8 +883,8 @@ class BtreeAppender:
             self._rollback()
 
     def __del__(self):
-        if getattr(self, "_fd", None) is not None:
-            os.close(self._fd)
+        if getattr(self, "_fd", None) is not None:  # never closed: undo rather than corrupt
+            self._rollback()
 
 
 def _read_varint(data: bytes, pos: int) -> tuple[int, int]:

@@ -445,3 +445,32 @@ def test_the_lock_byte_page_past_one_gib_stays_unused(tmp_path):
     con.close()
     assert lock not in pages and max(pages) > lock
     assert rows == [(i + 1, i, g[i].tobytes()) for i in range(n)]
+
+
+def test_a_caught_refusal_still_undoes_every_fill_and_close_says_so(tmp_path):
+    path = tmp_path / "c.db"
+    make_db(path, 1024)
+    before = digest(path)
+    cols, _rows = mixed_rows(300)
+    app = BtreeAppender(path)
+    app.fill("t", batched(np.arange(1, 301), cols, (100,)))
+    with pytest.raises(UnsupportedDatabase, match="not a table"):
+        app.fill("missing", [])
+    assert digest(path) == before
+    with pytest.raises(UnsupportedDatabase, match="restored"):
+        app.fill("twin", [])
+    with pytest.raises(UnsupportedDatabase, match="restored"):
+        app.close()
+    assert digest(path) == before
+
+
+def test_an_appender_never_closed_is_undone(tmp_path):
+    path = tmp_path / "d.db"
+    make_db(path, 1024)
+    before = digest(path)
+    cols, _rows = mixed_rows(300)
+    app = BtreeAppender(path)
+    app.fill("t", batched(np.arange(1, 301), cols, (100,)))
+    assert digest(path) != before
+    del app
+    assert digest(path) == before
