@@ -249,6 +249,11 @@ def _column(spec, n: int, index: int) -> _Col:
         if v.shape != (n,):
             raise ValueError(f"columns: {name} ({kind}) has shape {v.shape}, expected ({n},)")
     if kind == "int":
+        if v.dtype.kind not in "iub":
+            raise ValueError(f"columns: {name} (int) has dtype {v.dtype}, expected integers")
+        if v.dtype == np.uint64 and v.size and int(v.max()) > np.iinfo(np.int64).max:
+            raise ValueError(f"columns: {name} (int) holds {int(v.max())}, more than an SQLite "
+                             "integer (int64) holds")
         v = v.astype(np.int64, copy=False)
         live = v if mask is None else v[~mask]
         if live.size == 0:

@@ -474,3 +474,17 @@ def test_an_appender_never_closed_is_undone(tmp_path):
     assert digest(path) != before
     del app
     assert digest(path) == before
+
+
+@pytest.mark.parametrize("columns, match", [
+    ([("int", np.array([2**64 - 1], np.uint64), None)], "more than an SQLite integer"),
+    ([("int", np.array([1.5]), None)], "expected integers"),
+    ([("int", np.array([1, 2]), None)], r"shape \(2,\), expected \(1,\)"),
+    ([("real", np.array([1.0]), np.array([True, False]))], "mask has shape"),
+    ([("date", np.array([1]), None)], "expected one of int, real, bool, text, blob"),
+    ([(1, 2)], "expected None or"),
+    ([], "at least one column"),
+])
+def test_bad_columns_name_the_column(columns, match):
+    with pytest.raises(ValueError, match=match):
+        encode_records(columns, 1)
