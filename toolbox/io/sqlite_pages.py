@@ -61,6 +61,11 @@ def _as_u64(values: np.ndarray) -> np.ndarray:
 def _varint_len(values: np.ndarray) -> np.ndarray:
     """Bytes of each value's SQLite varint (1..9; negative int64 take 9)."""
     u = _as_u64(values)
+    if u.size:
+        lo, hi = u.min(), u.max()  # one length for all (the common case): no per-bit passes
+        short = sum(int(lo >= t) for t in _U64_7BIT)
+        if short == sum(int(hi >= t) for t in _U64_7BIT):
+            return np.full(u.shape, short + 1, np.int64)
     lens = np.ones(u.shape, np.int64)
     for t in _U64_7BIT:
         lens += u >= t
