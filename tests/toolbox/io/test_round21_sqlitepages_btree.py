@@ -488,3 +488,24 @@ def test_an_appender_never_closed_is_undone(tmp_path):
 def test_bad_columns_name_the_column(columns, match):
     with pytest.raises(ValueError, match=match):
         encode_records(columns, 1)
+
+
+def test_a_wide_table_whose_record_header_needs_two_bytes(tmp_path):
+    path = tmp_path / "w.db"
+    k = 150  # 150 one-byte serial types: a 152-byte header, its size a 2-byte varint
+    make_db(path, 4096, cols="fid INTEGER PRIMARY KEY, " + ", ".join(f"c{i}" for i in range(k)))
+    n = 300
+    rng = np.random.default_rng(4)
+    vals = rng.integers(-100, 100, (k, n))
+    masks = rng.random((k, n)) < 0.1
+    cols = [None] + [("int", vals[i], masks[i]) for i in range(k)]
+    with BtreeAppender(path) as app:
+        app.fill("t", batched(np.arange(1, n + 1), cols, (77,)))
+    con = sqlite3.connect(path)
+    con.executemany(f"INSERT INTO twin VALUES ({', '.join('?' * (k + 1))})", [
+        (j + 1, *[None if masks[i, j] else int(vals[i, j]) for i in range(k)]) for j in range(n)])
+    con.commit()
+    q = "SELECT * FROM {} ORDER BY fid"
+    assert con.execute(q.format("t")).fetchall() == con.execute(q.format("twin")).fetchall()
+    con.close()
+    assert integrity(path) == ["ok"]
