@@ -579,7 +579,13 @@ class BtreeAppender:
             con.close()
         return tables
 
-    def _table_root(self, table: str) -> tuple[int, int]:
+    def _table_root(self, table: str | int) -> tuple[int, int]:
+        if isinstance(table, (int, np.integer)) and not isinstance(table, bool):
+            named = [t["name"] for t in self._schema.values() if t["root"] == int(table)]
+            if not named:
+                raise UnsupportedDatabase(f"table: page {int(table)} is not the root page of a "
+                                          f"table of {self.path}")
+            table = named[0]
         t = self._schema.get(str(table).lower())
         if t is None:
             raise UnsupportedDatabase(f"table: {table!r} is not a table of {self.path}")
@@ -662,9 +668,10 @@ class BtreeAppender:
                 _copy_segments(buf, rec_pos[a:b], flat, rstart[: b - a], rl[a:b])
         return buf
 
-    def fill(self, table: str, batches: Iterable[tuple[np.ndarray, np.ndarray, np.ndarray]]
-             ) -> int:
-        """Write the rows of the empty rowid table ``table`` (its name in the schema) from
+    def fill(self, table: str | int,
+             batches: Iterable[tuple[np.ndarray, np.ndarray, np.ndarray]]) -> int:
+        """Write the rows of the empty rowid table ``table`` (its name in the schema, matched
+        as SQLite matches names, or its root page number: ``sqlite_schema.rootpage``) from
         ``batches`` of ``(rowids, flat, offsets)`` (:func:`encode_records`' output with the
         rows' int64 rowids, strictly increasing across all batches). Returns the row count.
 

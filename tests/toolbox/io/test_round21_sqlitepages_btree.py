@@ -509,3 +509,19 @@ def test_a_wide_table_whose_record_header_needs_two_bytes(tmp_path):
     assert con.execute(q.format("t")).fetchall() == con.execute(q.format("twin")).fetchall()
     con.close()
     assert integrity(path) == ["ok"]
+
+
+def test_the_table_named_by_its_root_page(tmp_path):
+    path = tmp_path / "p.db"
+    make_db(path)
+    con = sqlite3.connect(path)
+    root = con.execute("SELECT rootpage FROM sqlite_schema WHERE name = 'twin'").fetchone()[0]
+    con.close()
+    cols, rows = mixed_rows(40)
+    with BtreeAppender(path) as app:
+        app.fill(root, batched(np.arange(1, 41), cols, (40,)))
+    con = sqlite3.connect(path)
+    assert con.execute("SELECT count(*) FROM twin").fetchone() == (40,)
+    assert con.execute("SELECT count(*) FROM t").fetchone() == (0,)
+    con.close()
+    _refused(path, table=1, match="not the root page of a table")  # sqlite_schema's own page
