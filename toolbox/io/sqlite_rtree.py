@@ -169,13 +169,13 @@ def _radix_argsort(key: np.ndarray, nbits: int) -> np.ndarray:
     for shift in range(0, nbits, 16):
         digit = (key >> key.dtype.type(shift)).astype(np.uint16)
         if perm is not None:
-            digit = digit[perm]
+            digit = digit.take(perm)
         if digit.size and digit.min() == digit.max():
             if perm is None:
                 perm = np.arange(key.size)
             continue
         o = np.argsort(digit, kind="stable")
-        perm = o if perm is None else perm[o]
+        perm = o if perm is None else perm.take(o)
     return np.arange(key.size) if perm is None else perm
 
 
@@ -232,13 +232,15 @@ def _pack_order(cx: np.ndarray, cy: np.ndarray, n_nodes: int, q: int, r: int) ->
     bounds = _node_starts(np.arange(slices + 1) * per_slice, q, r)
     bounds[-1] = k
     by_x = _slice_order(_quantise(cx), bounds)
+    # then by (slice, y): 32-bit keys (48 when the slices need more than 16 bits)
     slice_bits = max(1, int(slices - 1).bit_length())
     total = 32 if slice_bits <= 16 else 48
     y_bits = min(32, total - slice_bits)
-    key = np.repeat(np.arange(slices, dtype=np.uint64), np.diff(bounds))
-    key <<= np.uint64(y_bits)
-    key |= (_quantise(cy)[by_x] >> np.uint32(32 - y_bits)).astype(np.uint64)
-    return by_x[_radix_argsort(key, total)]
+    kind = np.uint32 if total == 32 else np.uint64
+    key = np.repeat(np.arange(slices, dtype=kind), np.diff(bounds))
+    key <<= kind(y_bits)
+    key |= (_quantise(cy).take(by_x) >> np.uint32(32 - y_bits)).astype(kind)
+    return by_x.take(_radix_argsort(key, total))
 
 
 def _fill_nodes(blobs: np.ndarray, cells: np.ndarray, ids: np.ndarray, boxes: np.ndarray, q: int,
@@ -323,70 +325,72 @@ def packed_rtree(ids, minx, maxx, miny, maxy, page_size: int = 4096) -> RtreeRow
             raise ParameterError("ids", f"has {dup.size} duplicate value(s) (first {rowids[dup[0]]}):"
                                  " expected unique rowids")
 
-    f32 = np.empty((n, 4), np.float32)  # minx, maxx, miny, maxy as SQLite stores them
+    boxes32 = np.empty((n, 4), np.float32)  # minx, maxx, miny, maxy as SQLite stores them
     for j, (v, down) in enumerate(zip(boxes, (True, False, True, False))):
-        f32[:, j] = _round(v, down)
-
-    # levels bottom-up: each packs its items (entries, then the nodes below) into nodes
-    levels = []  # (order of the items, number of nodes, q, r, the items' boxes in that order)
+        boxes32[:, j] = _round(v, down)
     cx = boxes[0] * 0.5 + boxes[1] * 0.5
     cy = boxes[2] * 0.5 + boxes[3] * 0.5
-    item_boxes = f32
+    del boxes
+
+    # the nodes of each level, bottom-up (leaves first); the root holds the top level's items
+    counts = []
     k = n
     while k > capacity:
-        n_nodes = -(-k // capacity)
-        q, r = divmod(k, n_nodes)
-        order = _pack_order(cx, cy, n_nodes, q, r)
-        packed = item_boxes.take(order, axis=0)
-        levels.append((order, n_nodes, q, r, packed))
-        # the nodes' boxes (float32 unions of their items') are the items of the level above
-        starts = _node_starts(np.arange(n_nodes), q, r)
-        item_boxes = np.empty((n_nodes, 4), np.float32)
-        for j, reduce in enumerate((np.minimum, np.maximum) * 2):
-            item_boxes[:, j] = reduce.reduceat(packed[:, j], starts)
-        c = item_boxes.astype(np.float64)
-        cx = c[:, 0] * 0.5 + c[:, 1] * 0.5
-        cy = c[:, 2] * 0.5 + c[:, 3] * 0.5
-        k = n_nodes
-    depth = len(levels)
-    # the root holds the top level's k items in their order
-    levels.append((np.arange(k), 1, k, 0, item_boxes))
-
-    # node numbers: the root 1, then level by level downwards, in each level's packing order
-    counts = [lv[1] for lv in levels]  # bottom-up, root last
-    m = int(sum(counts))
-    first = np.empty(depth + 1, np.int64)  # first node number of each level (bottom-up index)
-    nxt = 1
-    for lvl in range(depth, -1, -1):
-        first[lvl] = nxt
-        nxt += counts[lvl]
+        k = -(-k // capacity)
+        counts.append(k)
+    depth = len(counts)
+    counts.append(1)
+    m = sum(counts)
+    # node numbers: the root 1, then level by level downwards (the leaves last)
+    first = [m + 1 - sum(counts[:lvl + 1]) for lvl in range(depth + 1)]
 
     blobs = np.zeros((m, node_size), np.uint8)
     cells = np.ndarray(shape=(m, capacity), dtype=_CELL, buffer=blobs, offset=4,
                        strides=(node_size, CELL_SIZE))
-    parent_nodes = np.arange(2, m + 1, dtype=np.int64)
     parents = np.empty(m - 1, np.int64)
-    rowid_nodes = np.empty(n, np.int64)
-    for lvl, (order, n_nodes, q, r, packed) in enumerate(levels):
-        row0 = int(first[lvl]) - 1
-        if lvl == 0:
-            cell_ids = ids_in.take(order)
+    rowid_nodes = np.empty(0, np.int64)
+    # ids in input order = ids[0] + position (fids 1..n): no gather needed
+    consecutive = by_id is None and n and int(ids_in[-1]) - int(ids_in[0]) == n - 1
+    items = boxes32
+    for lvl in range(depth + 1):
+        k = items.shape[0]
+        n_nodes = counts[lvl]
+        q, r = divmod(k, n_nodes)
+        order = np.arange(k) if lvl == depth else _pack_order(cx, cy, n_nodes, q, r)
+        if lvl:  # the items are the nodes of the level below
+            cell_ids = first[lvl - 1] + order
+        elif consecutive:
+            cell_ids = order + int(ids_in[0]) if n else order
         else:
-            cell_ids = first[lvl - 1] + order.astype(np.int64)
+            cell_ids = ids_in.take(order)
+        packed = items.take(order, axis=0)
+        row0 = first[lvl] - 1
         sizes = _fill_nodes(blobs[row0:row0 + n_nodes], cells[row0:row0 + n_nodes], cell_ids,
                             packed, q, r)
-        node_of_item = np.empty(order.size, np.int64)
+        del cell_ids
+        node_of_item = np.empty(k, np.int64)
         node_of_item[order] = np.repeat(np.arange(first[lvl], first[lvl] + n_nodes), sizes)
         if lvl == 0:
             rowid_nodes = node_of_item if by_id is None else node_of_item.take(by_id)
-        else:  # the items are the nodes of the level below: their parents
-            lo = int(first[lvl - 1]) - 2
-            parents[lo:lo + order.size] = node_of_item
+        else:
+            parents[first[lvl - 1] - 2:first[lvl - 1] - 2 + k] = node_of_item
+        del node_of_item, order
+        if lvl < depth:
+            # the nodes' boxes (float32 unions of their items') are the items of the level above
+            starts = _node_starts(np.arange(n_nodes), q, r)
+            items = np.empty((n_nodes, 4), np.float32)
+            for j, reduce in enumerate((np.minimum, np.maximum) * 2):
+                items[:, j] = reduce.reduceat(packed[:, j], starts)
+            c = items.astype(np.float64)
+            cx = c[:, 0] * 0.5 + c[:, 1] * 0.5
+            cy = c[:, 2] * 0.5 + c[:, 3] * 0.5
+        del packed
     blobs[0, 0] = depth >> 8
     blobs[0, 1] = depth & 0xFF
     return RtreeRows(node_numbers=np.arange(1, m + 1, dtype=np.int64), node_blobs=blobs,
-                     rowids=rowids, rowid_nodes=rowid_nodes, parent_nodes=parent_nodes,
-                     parents=parents, depth=depth, node_size=node_size)
+                     rowids=rowids, rowid_nodes=rowid_nodes,
+                     parent_nodes=np.arange(2, m + 1, dtype=np.int64), parents=parents,
+                     depth=depth, node_size=node_size)
 
 
 def _quote(name: str) -> str:

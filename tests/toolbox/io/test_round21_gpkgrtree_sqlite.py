@@ -193,7 +193,7 @@ def test_100k_boxes_in_siena_coordinates_and_unsorted_ids():
     n = 100_000
     ids = np.random.default_rng(3).permutation(n) + 10
     boxes = _random_boxes(n, 3, SIENA_X, SIENA_Y, extent=10_000.0, size=20.0)
-    _assert_same_as_sqlite(ids, boxes, windows=60)
+    _assert_same_as_sqlite(ids, boxes, windows=30)
 
 
 @pytest.mark.parametrize("case", ["duplicates", "identical", "points", "siena_points", "line"])
@@ -301,7 +301,7 @@ def test_queries_visit_no_more_nodes_than_sqlites_own_tree():
         assert np.mean(ours) <= np.mean(sqlites), (fraction, np.mean(ours), np.mean(sqlites))
 
 
-@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(st.data())
 def test_random_box_sets(data):
     n = data.draw(st.integers(0, 400))
@@ -362,3 +362,17 @@ def test_insert_refuses_a_full_tree_a_wrong_node_size_and_changes_nothing():
     insert_rtree_rows(db, "packed", other, replace=True)
     _check(db, "packed")
     assert len(_stored(db, "packed")) == 10
+
+
+def test_str_order_with_more_slices_than_16_bits():
+    """A very elongated level (70,000 slices of 2 nodes): the (slice, y) keys take 48 bits."""
+    from toolbox.io.sqlite_rtree import _pack_order, _quantise
+
+    rng = np.random.default_rng(3)
+    n_nodes, q = 140_000, 2
+    cx, cy = rng.random(n_nodes * q) * 35_000.0, rng.random(n_nodes * q)
+    order = _pack_order(cx, cy, n_nodes, q, 0)
+    np.testing.assert_array_equal(np.sort(order), np.arange(order.size))
+    qx = _quantise(cx)[order].reshape(70_000, 4)  # slices of 2 nodes of 2 items
+    assert (qx.max(axis=1)[:-1] <= qx.min(axis=1)[1:]).all()  # side by side in x
+    assert (np.diff(cy[order].reshape(70_000, 4), axis=1) >= 0).all()  # each by y
