@@ -22,6 +22,15 @@ follows the extent's aspect ratio, each slice ordered by y; the levels above are
 way on their children's boxes, each parent box being the float32 union of its children's (so
 ``rtreecheck`` finds every child inside its parent). SQLite keeps maintaining the tree afterwards
 (inserts, deletes and updates through SQL).
+
+Writing the rows straight into pages (a bulk writer): an rtree as SQLite (or GDAL) creates it
+holds one row, ``<name>_node`` (1, zeroblob(node size)), and empty ``_rowid`` and ``_parent``; the
+root row must be replaced, not kept beside node 1 of these rows. In all three tables the first
+column is an INTEGER PRIMARY KEY, i.e. the B-tree's rowid (``node_numbers``, ``rowids``,
+``parent_nodes``), stored as NULL in the record; the record's second column is the blob or the
+integer. The blobs must have the length of the tree's root as SQLite created it (it reads the node
+size from ``length(data)`` of node 1 when it connects): build the rows with the database's
+page size.
 """
 
 from __future__ import annotations
