@@ -193,29 +193,26 @@ def _node_starts(nodes: np.ndarray, q: int, r: int) -> np.ndarray:
     return nodes * q + np.minimum(nodes, r)
 
 
-def _slice_order(qx: np.ndarray, bounds: np.ndarray) -> np.ndarray:
-    """A permutation putting the items of x rank ``bounds[t]`` to ``bounds[t + 1] - 1`` at those
-    positions (the slices of STR; the order inside a slice does not matter): one radix pass on
-    the high 16 bits of ``qx``, then a sort on all 32 bits of the runs of equal high bits that a
-    slice boundary cuts (few entries unless the data are clustered, then the second pass)."""
-    high = (qx >> np.uint32(16)).astype(np.uint16)
-    p = np.argsort(high, kind="stable")
-    hs = high[p]
-    inner = bounds[1:-1]
-    cut = np.unique(hs[inner[hs[inner - 1] == hs[inner]]])
-    if not cut.size:
-        return p
-    lo = np.searchsorted(hs, cut, "left")
-    lens = np.searchsorted(hs, cut, "right") - lo
-    total = int(lens.sum())
-    if total > qx.size // 8:
-        return _radix_argsort(qx, 32)
-    # the positions of the cut runs, ascending; their high bits ascend too, so one sort of the
-    # full keys orders each run in place
-    pos = np.arange(total) + np.repeat(lo - np.cumsum(lens) + lens, lens)
-    sub = p[pos]
-    p[pos] = sub[np.argsort(qx[sub], kind="stable")]
-    return p
+def _slice_ids(qx: np.ndarray, bounds: np.ndarray) -> np.ndarray:
+    """The STR slice of every item, in input order: slice ``t`` holds the items of x rank
+    ``bounds[t]`` to ``bounds[t + 1] - 1`` (ties of ``qx`` in input order). Counted, not sorted:
+    a histogram of the high 16 bits of ``qx`` places most items; only the items of the buckets a
+    slice boundary cuts are ranked exactly (by a sort of those alone)."""
+    high = (qx >> np.uint32(16)).astype(np.intp)
+    counts = np.bincount(high, minlength=65536)
+    start = np.zeros(counts.size + 1, np.int64)
+    np.cumsum(counts, out=start[1:])
+    first = np.searchsorted(bounds, start[:-1], "right") - 1
+    last = np.searchsorted(bounds, start[1:] - 1, "right") - 1
+    slice_ids = first.take(high)
+    cut = (first != last) & (counts > 0)
+    if cut.any():
+        members = np.flatnonzero(cut.take(high))
+        members = members.take(_radix_argsort(qx.take(members), 32))  # by x, stable
+        bucket = high.take(members)  # ascending
+        rank = start.take(bucket) + np.arange(members.size) - np.searchsorted(bucket, bucket)
+        slice_ids[members] = np.searchsorted(bounds, rank, "right") - 1
+    return slice_ids
 
 
 def _pack_order(cx: np.ndarray, cy: np.ndarray, n_nodes: int, q: int, r: int) -> np.ndarray:
@@ -240,16 +237,15 @@ def _pack_order(cx: np.ndarray, cy: np.ndarray, n_nodes: int, q: int, r: int) ->
         return _radix_argsort(_quantise(cx), 32)
     bounds = _node_starts(np.arange(slices + 1) * per_slice, q, r)
     bounds[-1] = k
-    by_x = _slice_order(_quantise(cx), bounds)
-    # then by (slice, y): 32-bit keys (48 when the slices need more than 16 bits)
+    # sorted by (slice, y): 32-bit keys (48 when the slices need more than 16 bits)
     slice_bits = max(1, int(slices - 1).bit_length())
     total = 32 if slice_bits <= 16 else 48
     y_bits = min(32, total - slice_bits)
     kind = np.uint32 if total == 32 else np.uint64
-    key = np.repeat(np.arange(slices, dtype=kind), np.diff(bounds))
+    key = _slice_ids(_quantise(cx), bounds).astype(kind)
     key <<= kind(y_bits)
-    key |= (_quantise(cy).take(by_x) >> np.uint32(32 - y_bits)).astype(kind)
-    return by_x.take(_radix_argsort(key, total))
+    key |= (_quantise(cy) >> np.uint32(32 - y_bits)).astype(kind)
+    return _radix_argsort(key, total)
 
 
 def _fill_nodes(blobs: np.ndarray, cells: np.ndarray, ids: np.ndarray, boxes: np.ndarray, q: int,

@@ -376,3 +376,27 @@ def test_str_order_with_more_slices_than_16_bits():
     qx = _quantise(cx)[order].reshape(70_000, 4)  # slices of 2 nodes of 2 items
     assert (qx.max(axis=1)[:-1] <= qx.min(axis=1)[1:]).all()  # side by side in x
     assert (np.diff(cy[order].reshape(70_000, 4), axis=1) >= 0).all()  # each by y
+
+
+@pytest.mark.parametrize("case", ["uniform", "ties", "clusters"])
+def test_slices_are_exact_x_rank_ranges(case):
+    """The counting STR slicing puts exactly the items of x rank bounds[t]..bounds[t+1]-1 in slice
+    t (ties in input order), as a stable argsort ranks them, also when the histogram's buckets
+    are crowded (ties, clusters)."""
+    from toolbox.io.sqlite_rtree import _slice_ids
+
+    rng = np.random.default_rng(len(case))
+    n = 50_000
+    if case == "uniform":
+        qx = rng.integers(0, 2 ** 32, n, dtype=np.uint64).astype(np.uint32)
+    elif case == "ties":
+        qx = (rng.integers(0, 50, n) * 1000 + 2 ** 31).astype(np.uint32)
+    else:
+        qx = np.concatenate([rng.integers(0, 2 ** 16, n // 2),
+                             rng.integers(2 ** 31, 2 ** 31 + 2 ** 17, n - n // 2)]).astype(np.uint32)
+    for slices in (2, 37, 250):
+        bounds = np.linspace(0, n, slices + 1).astype(np.int64)
+        rank = np.empty(n, np.int64)
+        rank[np.argsort(qx, kind="stable")] = np.arange(n)
+        np.testing.assert_array_equal(_slice_ids(qx, bounds),
+                                      np.searchsorted(bounds, rank, "right") - 1)
