@@ -142,9 +142,8 @@ def _as_coordinate(values, name: str, n: int) -> np.ndarray:
     arr = np.asarray(values, dtype=np.float64)
     if arr.shape != (n,):
         raise ParameterError(name, f"has shape {arr.shape}: expected ({n},) like ids")
-    bad = ~np.isfinite(arr)
-    if bad.any():
-        where = np.flatnonzero(bad)
+    if not np.isfinite(arr).all():
+        where = np.flatnonzero(~np.isfinite(arr))
         raise InputDataError(f"{name}: {where.size} value(s) are NaN or infinite (first at index "
                              f"{where[0]}: {arr[where[0]]}); drop empty geometries first")
     return arr
@@ -333,8 +332,8 @@ def packed_rtree(ids, minx, maxx, miny, maxy, page_size: int = 4096) -> RtreeRow
     boxes32 = np.empty((n, 4), np.float32)  # minx, maxx, miny, maxy as SQLite stores them
     for j, (v, down) in enumerate(zip(boxes, (True, False, True, False))):
         boxes32[:, j] = _round(v, down)
-    cx = boxes[0] * 0.5 + boxes[1] * 0.5
-    cy = boxes[2] * 0.5 + boxes[3] * 0.5
+    cx = boxes[0] + boxes[1]  # twice the centres: only their order matters
+    cy = boxes[2] + boxes[3]
     del boxes
 
     # the nodes of each level, bottom-up (leaves first); the root holds the top level's items
