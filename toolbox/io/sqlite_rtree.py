@@ -159,9 +159,11 @@ def _check_order(lo: np.ndarray, hi: np.ndarray, names: str) -> None:
 
 
 def _quantise(c: np.ndarray) -> np.ndarray:
-    """Centres -> uint32 on a linear scale over their range (ties only cost packing quality)."""
+    """Centres -> uint32 on a linear scale over their range (ties only cost packing quality;
+    an infinite or NaN range gives all zeros: any order makes a valid tree)."""
     lo = float(c.min())
-    span = float(c.max()) - lo
+    with np.errstate(over="ignore", invalid="ignore"):
+        span = float(c.max()) - lo
     if not span > 0 or not math.isfinite(span):
         return np.zeros(c.shape, np.uint32)
     t = c - lo
@@ -219,15 +221,16 @@ def _pack_order(cx: np.ndarray, cy: np.ndarray, n_nodes: int, q: int, r: int) ->
     made of whole nodes (their count from the aspect ratio of the centres' extent, for square
     nodes), each slice ordered by y."""
     k = cx.size
-    w = float(cx.max() - cx.min())
-    h = float(cy.max() - cy.min())
+    with np.errstate(over="ignore", invalid="ignore"):  # inf/NaN extents: see below
+        w = float(cx.max()) - float(cx.min())
+        h = float(cy.max()) - float(cy.min())
     if w == 0 and h == 0:
         return np.arange(k)
     if h == 0:
         slices = n_nodes
-    else:
-        slices = int(round(math.sqrt(n_nodes * w / h))) if w > 0 else 1
-        slices = min(max(slices, 1), n_nodes)
+    else:  # an infinite extent (coordinates beyond float32, stored as inf): any valid tiling
+        ratio = math.sqrt(n_nodes * w / h) if w > 0 else 1.0
+        slices = min(max(int(round(ratio)), 1), n_nodes) if math.isfinite(ratio) else n_nodes
     per_slice = -(-n_nodes // slices)
     slices = -(-n_nodes // per_slice)
     if slices == 1:
@@ -332,8 +335,9 @@ def packed_rtree(ids, minx, maxx, miny, maxy, page_size: int = 4096) -> RtreeRow
     boxes32 = np.empty((n, 4), np.float32)  # minx, maxx, miny, maxy as SQLite stores them
     for j, (v, down) in enumerate(zip(boxes, (True, False, True, False))):
         boxes32[:, j] = _round(v, down)
-    cx = boxes[0] + boxes[1]  # twice the centres: only their order matters
-    cy = boxes[2] + boxes[3]
+    with np.errstate(over="ignore"):  # +-inf past 8.9e307: only the order matters
+        cx = boxes[0] + boxes[1]  # twice the centres
+        cy = boxes[2] + boxes[3]
     del boxes
 
     # the nodes of each level, bottom-up (leaves first); the root holds the top level's items
@@ -386,8 +390,9 @@ def packed_rtree(ids, minx, maxx, miny, maxy, page_size: int = 4096) -> RtreeRow
             for j, reduce in enumerate((np.minimum, np.maximum) * 2):
                 items[:, j] = reduce.reduceat(packed[:, j], starts)
             c = items.astype(np.float64)
-            cx = c[:, 0] * 0.5 + c[:, 1] * 0.5
-            cy = c[:, 2] * 0.5 + c[:, 3] * 0.5
+            with np.errstate(invalid="ignore"):  # -inf + inf: a NaN centre, any order is valid
+                cx = c[:, 0] + c[:, 1]
+                cy = c[:, 2] + c[:, 3]
         del packed
     blobs[0, 0] = depth >> 8
     blobs[0, 1] = depth & 0xFF

@@ -91,7 +91,12 @@ def _windows(stored: np.ndarray, rng, count: int):
     b = stored["box"]
     lo = b[:, [0, 2]].min(axis=0)
     hi = b[:, [1, 3]].max(axis=0)
-    span = np.maximum(hi - lo, 1e-3)
+    finite = np.isfinite(b).all(axis=1)
+    if not finite.all():  # boxes beyond float32 (stored as inf): windows over the finite ones
+        lo = b[finite][:, [0, 2]].min(axis=0) if finite.any() else np.zeros(2)
+        hi = b[finite][:, [1, 3]].max(axis=0) if finite.any() else np.ones(2)
+    with np.errstate(over="ignore"):
+        span = np.minimum(np.maximum(hi - lo, 1e-3), 1e300)
     for i in range(count):
         if i % 4 == 0:  # on a box's own corners: the float32 values decide
             r = b[rng.integers(len(b))]
@@ -196,7 +201,8 @@ def test_100k_boxes_in_siena_coordinates_and_unsorted_ids():
     _assert_same_as_sqlite(ids, boxes, windows=30)
 
 
-@pytest.mark.parametrize("case", ["duplicates", "identical", "points", "siena_points", "line"])
+@pytest.mark.parametrize("case", ["duplicates", "identical", "points", "siena_points", "huge",
+                                  "line"])
 def test_degenerate_box_sets(case):
     rng = np.random.default_rng(11)
     n = 3000
@@ -211,6 +217,10 @@ def test_degenerate_box_sets(case):
     elif case == "siena_points":
         x, y = SIENA_X + rng.random(n) * 300, SIENA_Y + rng.random(n) * 300
         boxes = [x, x, y, y]
+    elif case == "huge":  # beyond float32 (SQLite stores +-inf) and near float64's limits
+        x = rng.choice([1e300, -1e300, 3.5e38, 1e308, -1.7e308, 1.0, 0.0], n)
+        y = rng.random(n) * 1e308
+        boxes = [np.minimum(x, 1.0), np.maximum(x, 1.0), y * 0.5, y]
     else:  # all on one horizontal line: no height to tile
         x = rng.random(n) * 100
         boxes = [x, x + 1, np.full(n, 7.0), np.full(n, 7.0)]
