@@ -184,7 +184,7 @@ def write_layer_bulk(path: Path, layer: BulkLayer, crs_text: str | None, spatial
     and writes the whole file with GDAL.
     """
     from toolbox.io.sqlite_pages import BtreeAppender, UnsupportedDatabase, encode_records
-    from toolbox.io.sqlite_rtree import packed_rtree
+    from toolbox.io.sqlite_rtree import packed_rtree_stored, rtree_round_down, rtree_round_up
 
     create_empty_layer(path, layer, crs_text, spatial_index, dataset_options)
     if layer.n == 0:
@@ -197,7 +197,9 @@ def write_layer_bulk(path: Path, layer: BulkLayer, crs_text: str | None, spatial
             db.execute(f'DELETE FROM "{table.rtree}_node"')
     finally:
         db.close()
-    boxes = np.empty((layer.n, 4))
+    # the R-tree's boxes as SQLite stores them (float32 rounded outward: 16 bytes a feature)
+    stored = np.empty((layer.n, 4), np.float32) if table.rtree is not None else None
+    extent = [np.inf, -np.inf, np.inf, -np.inf]  # minx, maxx, miny, maxy
 
     def batches() -> Iterator[tuple[np.ndarray, np.ndarray, np.ndarray]]:
         for lo in range(0, layer.n, BATCH):
@@ -205,21 +207,26 @@ def write_layer_bulk(path: Path, layer: BulkLayer, crs_text: str | None, spatial
                 check_canceled()
             hi = min(layer.n, lo + BATCH)
             fields, wkb = layer.make(lo, hi)
-            blobs, boxes[lo:hi] = geometry_blobs(wkb, table.srs_id)
+            blobs, boxes = geometry_blobs(wkb, table.srs_id)
+            for j, pick in enumerate((np.min, np.max, np.min, np.max)):
+                extent[j] = pick([extent[j], pick(boxes[:, j])])
+                if stored is not None:
+                    rounding = rtree_round_down if j % 2 == 0 else rtree_round_up
+                    stored[lo:hi, j] = rounding(boxes[:, j])
             flat, offsets = encode_records(table.records(fields, blobs), hi - lo)
             yield np.arange(lo + 1, hi + 1, dtype=np.int64), flat, offsets
 
     try:
         with BtreeAppender(path) as pages:
             pages.fill(layer.name, ahead(batches()))
-            if table.rtree is not None:
-                ids = np.arange(1, layer.n + 1, dtype=np.int64)
-                tree = packed_rtree(ids, boxes[:, 0], boxes[:, 1], boxes[:, 2], boxes[:, 3],
-                                    page_size)
+            if stored is not None:
+                tree = packed_rtree_stored(np.arange(1, layer.n + 1, dtype=np.int64), stored,
+                                           page_size)
+                stored = None
                 _fill_rtree(pages, table.rtree, tree, encode_records)
     except UnsupportedDatabase as exc:
         raise BulkUnsupported(str(exc)) from exc
-    _set_metadata(path, layer.name, layer.n, boxes)
+    _set_metadata(path, layer.name, layer.n, extent)
 
 
 def ahead(items: Iterator, depth: int = 2) -> Iterator:
@@ -285,7 +292,7 @@ def _fill_rtree(pages, rtree: str, tree, encode_records) -> None:
             pages.fill(f"{rtree}_{part}", batches())
 
 
-def _set_metadata(path: Path, layer: str, n: int, boxes: np.ndarray) -> None:
+def _set_metadata(path: Path, layer: str, n: int, extent: list[float]) -> None:
     """What GDAL sets after writing features: the layer's extent and last change in
     ``gpkg_contents``, its count in ``gpkg_ogr_contents``, its AUTOINCREMENT counter."""
     db = sqlite3.connect(path, isolation_level=None)
@@ -294,8 +301,7 @@ def _set_metadata(path: Path, layer: str, n: int, boxes: np.ndarray) -> None:
         db.execute("UPDATE gpkg_contents SET min_x = ?, min_y = ?, max_x = ?, max_y = ?, "
                    "last_change = strftime('%Y-%m-%dT%H:%M:%fZ', 'now') "
                    "WHERE lower(table_name) = lower(?)",
-                   (*(float(f"{v:.16g}") for v in (boxes[:, 0].min(), boxes[:, 2].min(),
-                                                     boxes[:, 1].max(), boxes[:, 3].max())),
+                   (*(float(f"{extent[j]:.16g}") for j in (0, 2, 1, 3)),
                     layer))  # 16 significant digits, as GDAL writes the extent
         db.execute("UPDATE gpkg_ogr_contents SET feature_count = ? "
                    "WHERE lower(table_name) = lower(?)", (n, layer))

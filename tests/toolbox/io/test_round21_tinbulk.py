@@ -169,3 +169,25 @@ def test_gdal_writes_what_the_bulk_writer_refuses(tmp_path, monkeypatch):
     assert calls == ["triangles", "nodes"]
     assert {name: pyogrio.read_info(path, layer=name)["features"] for name in LAYERS} == counts
     assert _rows(path, "PRAGMA integrity_check") == [("ok",)]
+
+
+def test_packed_rtree_by_chunks_of_nodes_is_the_same_tree(monkeypatch):
+    """The levels are filled a chunk of nodes at a time (bounded memory for 30 M boxes): chunks
+    of 3 nodes give the arrays of one chunk (whose tree the SQLite-oracle tests check)."""
+    from toolbox.io import sqlite_rtree
+
+    rng = np.random.default_rng(8)
+    x, y = rng.uniform(X0, X0 + 900, 20_000), rng.uniform(Y0, Y0 + 400, 20_000)
+    boxes = np.column_stack([sqlite_rtree.rtree_round_down(x), sqlite_rtree.rtree_round_up(x + 2),
+                             sqlite_rtree.rtree_round_down(y), sqlite_rtree.rtree_round_up(y + 1)])
+    ids = np.arange(5, 20_005, dtype=np.int64)
+    whole = sqlite_rtree.packed_rtree_stored(ids, boxes)
+    monkeypatch.setattr(sqlite_rtree, "_CHUNK_NODES", 3)
+    chunked = sqlite_rtree.packed_rtree_stored(ids, boxes)
+    assert whole.depth == 2
+    for name in ("node_numbers", "node_blobs", "rowids", "rowid_nodes", "parent_nodes",
+                 "parents"):
+        np.testing.assert_array_equal(getattr(chunked, name), getattr(whole, name))
+    # and the float64 entry point rounds to the same stored boxes: the same tree
+    same = sqlite_rtree.packed_rtree(ids, x, x + 2, y, y + 1)
+    np.testing.assert_array_equal(same.node_blobs, whole.node_blobs)

@@ -303,7 +303,9 @@ def _write_tin(path: Path, model: TinModel, crs: Any, spatial_index: bool, feedb
                      spatial_index, bulk)
     if edges_layer:
         with step("write edges"):
-            _write_edges(targets["edges"], model, edge_table(tri, nb), crs, spatial_index, bulk)
+            table = edge_table(tri, nb)  # without its triangle_edges (T x 3) while writing
+            table = EdgeTable(table.nodes, table.left, table.right, np.zeros((0, 3), np.int32))
+            _write_edges(targets["edges"], model, table, crs, spatial_index, bulk)
     return {"triangles": len(tri), "nodes": len(xyz), "edges": n_edges}
 
 
