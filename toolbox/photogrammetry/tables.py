@@ -332,7 +332,7 @@ def control_crs(path: Path, crs: Any = None, layer: str | None = None,
     elif crs is not None:
         own, shift, centre = layer_crs_as(path, layer, name, own, parse_crs(crs, "CRS"))
         if shift is not None:
-            raise InputDataError(f"{name} is a layer in {crs_label(own)} but CRS is in "
+            raise InputDataError(f"{name} is in {crs_label(own)} but CRS is in "
                                  f"{crs_label(parse_crs(crs))}: {shift_phrase(shift, centre)}; "
                                  "reproject the inputs to one CRS first")
     if horizontal and own is not None:

@@ -73,7 +73,7 @@ def test_layer_in_ed50_is_refused_naming_both_and_the_shift(tmp_path):
     with pytest.raises(InputDataError) as info:
         tables.control_crs(control, CRS.from_epsg(6707))
     message = str(info.value)
-    assert message.startswith("CONTROL is a layer in EPSG:23032 but CRS is in EPSG:6707: "), \
+    assert message.startswith("CONTROL is in EPSG:23032 but CRS is in EPSG:6707: its points"), \
         message
     assert float(message.split("move by ")[1].split(" m")[0]) == pytest.approx(expected,
                                                                                abs=0.002)
