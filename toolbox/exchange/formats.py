@@ -145,6 +145,33 @@ def read_one(path: Path, fmt: str, crs: Any = None, angle_unit: str | None = Non
     raise ParameterError("FORMAT", f"must be one of auto, {', '.join(READERS)}; got {fmt!r}")
 
 
+def _positions(oset: OrientationSet) -> Any:
+    import numpy as np
+
+    return np.array([p.xyz[:2] for p in oset.photos.values() if p.xyz is not None],
+                    dtype="float64").reshape(-1, 2)
+
+
+def _check_same_crs(part: OrientationSet, out: OrientationSet) -> None:
+    """``part``'s CRS taken as the earlier inputs' (``out.crs``, kept) when it is the same CRS
+    at ``part``'s positions (or, without any, the earlier ones'): the centroid moves by at most
+    1 mm (:func:`toolbox.io.crs.check_one_crs`; an ESRI ``.prj`` rarely equals its EPSG
+    code's definition), else an error naming both CRSs and the shift."""
+    from toolbox.io.crs import PRJ_TOLERANCE_M, check_one_crs, crs_label, same_crs
+
+    if same_crs(part.crs, out.crs):
+        return
+    name = Path(part.source).name
+    advice = "give the inputs in one CRS"
+    if len(mine := _positions(part)):
+        check_one_crs(name, part.crs, "an earlier input", out.crs, mine, advice)
+    else:
+        check_one_crs("an earlier input", out.crs, name, part.crs, _positions(out), advice)
+    out.notes.append(f"{name}: its CRS ({crs_label(part.crs)}) taken as the earlier inputs' "
+                     f"({crs_label(out.crs)}): the same at the positions (within "
+                     f"{PRJ_TOLERANCE_M * 1000:g} mm)")
+
+
 def merge(parts: list[OrientationSet]) -> OrientationSet:
     """One set from several: cameras and photos united; the same camera or photo defined twice
     differently, or two different CRSs, is an error."""
@@ -152,10 +179,10 @@ def merge(parts: list[OrientationSet]) -> OrientationSet:
                          format="+".join(dict.fromkeys(p.format for p in parts)))
     for part in parts:
         if part.crs is not None:
-            if out.crs is not None and not out.crs.equals(part.crs):
-                raise InputDataError(f"{part.source} is in {part.crs.name}, an earlier "
-                                     f"input in {out.crs.name}: give inputs in one CRS")
-            out.crs = part.crs
+            if out.crs is None:
+                out.crs = part.crs
+            else:
+                _check_same_crs(part, out)
         for name, spec in part.cameras.items():
             if name in out.cameras and out.cameras[name] != spec:
                 raise InputDataError(f"camera {name!r} is defined differently in "

@@ -64,11 +64,6 @@ def read_exterior(path: str | Path, crs: Any = None) -> OrientationSet:
         raise InputDataError(f"{path} has no world_crs and no CRS was given")
     out = OrientationSet(source=str(path), format="orthority_exterior")
     out.crs = require_projected(doc.get("world_crs") or crs, str(path))
-    if crs is not None and doc.get("world_crs"):
-        given = require_projected(crs, "CRS")
-        if not given.equals(out.crs):
-            raise InputDataError(f"{path}: world_crs {out.crs.name!r} contradicts the given CRS "
-                                 f"{given.name!r}")
     for k, feature in enumerate(doc.get("features") or [], start=1):
         props = (feature or {}).get("properties") or {}
         try:
@@ -87,8 +82,27 @@ def read_exterior(path: str | Path, crs: Any = None) -> OrientationSet:
                                        xyz, opk), f"{path} feature {k}")
     if not out.photos:
         raise InputDataError(f"{path} holds no features")
+    if crs is not None and doc.get("world_crs"):
+        _check_world_crs(path, out, require_projected(crs, "CRS"))
     out.notes.append("opk in radians (Orthority GeoJSON)")
     return out
+
+
+def _check_world_crs(path: Path, out: OrientationSet, given: Any) -> None:
+    """The CRS parameter ``given`` used for ``out`` when the file's ``world_crs`` is the same
+    CRS at its positions (:func:`toolbox.io.crs.check_one_crs`: the centroid moves by at most
+    1 mm; an ESRI WKT rarely equals its EPSG code's definition), else an error naming both."""
+    import numpy as np
+
+    from toolbox.io.crs import PRJ_TOLERANCE_M, check_one_crs, crs_label
+
+    xy = np.array([p.xyz[:2] for p in out.photos.values() if p.xyz is not None],
+                  dtype="float64").reshape(-1, 2)
+    check_one_crs(f"{path}: world_crs", out.crs, "CRS", given, xy,
+                  advice="give CRS as the world_crs, or none")
+    out.notes.append(f"CRS as given; world_crs ({crs_label(out.crs)}) is the same at the "
+                     f"positions (within {PRJ_TOLERANCE_M * 1000:g} mm)")
+    out.crs = given
 
 
 def write_exterior(oset: OrientationSet, path: str | Path) -> Path:

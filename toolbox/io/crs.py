@@ -196,6 +196,31 @@ def shift_phrase(shift: float, centre: tuple[float, float]) -> str:
         "one to the other"
 
 
+def check_one_crs(key: str, crs: Any, ref_name: str, reference: Any, xy: Any,
+                  advice: str = "give the inputs in one CRS") -> float:
+    """``key``'s positions ``xy`` (in ``crs``) taken as ``ref_name``'s (in ``reference``): one
+    CRS when their centroid moves by at most :data:`PRJ_TOLERANCE_M` from one to the other
+    (:func:`centroid_shift`: two definitions of one CRS, an ESRI WKT and its EPSG code, are
+    not equal but move no point), else an :class:`InputDataError` naming both and the shift;
+    two different height datums stated one on each side are refused too
+    (:func:`check_same_heights`). Without positions the definitions are compared
+    (:func:`same_crs`, horizontal parts). The shift (0 without positions)."""
+    crs, reference = parse_crs(crs), parse_crs(reference)
+    finite = np.asarray(xy, dtype="float64").reshape(-1, 2)
+    if not np.isfinite(finite).all(axis=1).any():
+        if not same_crs(horizontal_part(crs), horizontal_part(reference)):
+            raise InputDataError(f"{key} is in {crs_label(crs)} but {ref_name} is in "
+                                 f"{crs_label(reference)}: {advice}")
+        check_same_heights(key, crs, ref_name, reference)
+        return 0.0
+    shift, centre = centroid_shift(crs, reference, finite)
+    if not shift <= PRJ_TOLERANCE_M:
+        raise InputDataError(f"{key} is in {crs_label(crs)} but {ref_name} is in "
+                             f"{crs_label(reference)}: {shift_phrase(shift, centre)}; {advice}")
+    check_same_heights(key, crs, ref_name, reference)
+    return shift
+
+
 def common_crs(named: dict[str, CRS | None], override: CRS | None = None) -> CRS | None:
     """The one CRS shared by the named inputs (``{"INPUT": crs, ...}``).
 

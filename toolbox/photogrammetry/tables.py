@@ -322,16 +322,57 @@ def control_crs(path: Path, crs: Any = None, layer: str | None = None,
     :data:`toolbox.io.crs.PRJ_TOLERANCE_M` from one to the other (:func:`check_prj_crs`).
     ``horizontal``: the table's horizontal CRS only is compared (its heights are not used as a
     datum)."""
-    from toolbox.io.crs import common_crs, horizontal_part
+    from toolbox.io.crs import common_crs, crs_label, horizontal_part, parse_crs, shift_phrase
 
     own = table_crs(path, layer)
     if own is None:
         own = prj_crs(path, name)
         if own is not None and crs is not None:
             return check_prj_crs(path, crs, layer, name, horizontal)
+    elif crs is not None:
+        own, shift, centre = layer_crs_as(path, layer, name, own, parse_crs(crs, "CRS"))
+        if shift is not None:
+            raise InputDataError(f"{name} is in {crs_label(own)} but CRS is in "
+                                 f"{crs_label(parse_crs(crs))}: {shift_phrase(shift, centre)}; "
+                                 "reproject the inputs to one CRS first")
     if horizontal and own is not None:
         own = horizontal_part(own)
     return common_crs({name: own}, crs)
+
+
+def layer_crs_as(path: Path, layer: str | None, name: str, own: Any, crs: Any
+                 ) -> tuple[Any, float | None, tuple[float, float]]:
+    """A GeoPackage layer's CRS ``own`` against ``crs`` at the layer's points: two horizontal
+    CRSs whose definitions differ but that move the points' centroid by at most
+    :data:`toolbox.io.crs.PRJ_TOLERANCE_M` (:func:`toolbox.io.crs.centroid_shift`; a layer
+    written from an ESRI ``.prj`` of EPSG:6707 does not equal EPSG:6707's definition) are one:
+    ``(own with crs's horizontal part and its own height datum, None, centre)``; a larger shift
+    gives ``(own, shift, centre)``; equal definitions ``(own, None, (nan, nan))``."""
+    import math
+
+    import numpy as np
+    from pyproj.crs import CompoundCRS
+
+    from toolbox.io.crs import (
+        PRJ_TOLERANCE_M,
+        centroid_shift,
+        horizontal_part,
+        same_crs,
+        vertical_part,
+    )
+
+    ours, theirs = horizontal_part(own), horizontal_part(crs)
+    if same_crs(ours, theirs):
+        return own, None, (math.nan, math.nan)
+    _, cols, rows = known_point_rows(path, layer, name)
+    xy = np.array([[_or_nan(r[cols[0]]), _or_nan(r[cols[1]])] for _, r, _, _ in rows]
+                  ).reshape(-1, 2)
+    shift, centre = centroid_shift(ours, theirs, xy)
+    if not shift <= PRJ_TOLERANCE_M:
+        return own, shift, centre
+    heights = vertical_part(own)
+    return (theirs if heights is None else
+            CompoundCRS(f"{theirs.name} + {heights.name}", [theirs, heights])), None, centre
 
 
 def prj_crs(path: Path, name: str = "CONTROL") -> Any:
@@ -408,13 +449,18 @@ def ground_points(path: Path, layer: str | None = None, name: str = "CONTROL",
     import numpy as np
 
     if crs is not None:
-        from toolbox.io.crs import crs_label, same_crs
+        from toolbox.io.crs import crs_label, parse_crs, same_crs, shift_phrase
 
         own = table_crs(path, layer)
-        if own is not None and not same_crs(own, crs):
-            raise InputDataError(f"{name}: {path} is a layer in {crs_label(own)} but the "
-                                 f"project is in {crs_label(crs)}; its X/Y/Z columns are read "
-                                 "as they are: give them in the project's CRS")
+        if own is not None:
+            crs = parse_crs(crs)
+            own, shift, centre = layer_crs_as(path, layer, name, own, crs)
+            if shift is not None or not same_crs(own, crs):
+                moved = "" if shift is None else f" ({shift_phrase(shift, centre)})"
+                raise InputDataError(f"{name}: {path} is a layer in {crs_label(own)} but the "
+                                     f"project is in {crs_label(crs)}{moved}; its X/Y/Z "
+                                     "columns are read as they are: give them in the "
+                                     "project's CRS")
     _, cols, rows = known_point_rows(path, layer, name)
     ids = [pid for _, _, pid, _ in rows]
     roles = [role for _, _, _, role in rows]
