@@ -276,15 +276,16 @@ def ahead(items: Iterator, depth: int = 2) -> Iterator:
 
 def _fill_rtree(pages, rtree: str, tree, encode_records) -> None:
     """The R-tree's three shadow tables from :func:`toolbox.io.sqlite_rtree.packed_rtree`'s
-    rows, each in batches."""
-    order = np.argsort(tree.node_numbers, kind="stable")
-    tables = {"node": (tree.node_numbers[order], ("blob", tree.node_blobs[order], None)),
-              "rowid": (tree.rowids, ("int", tree.rowid_nodes, None)),
-              "parent": (tree.parent_nodes, ("int", tree.parents, None))}
-    for part, (keys, (kind, values, _)) in tables.items():
-        def batches(keys=keys, kind=kind, values=values):
-            for lo in range(0, len(keys), BATCH):
-                hi = min(len(keys), lo + BATCH)
+    rows (their keys ascending), each in batches of about 16 MB (node blobs are 1228 bytes)."""
+    tables = {"node": (tree.node_numbers, "blob", tree.node_blobs),
+              "rowid": (tree.rowids, "int", tree.rowid_nodes),
+              "parent": (tree.parent_nodes, "int", tree.parents)}
+    for part, (keys, kind, values) in tables.items():
+        step = max(1, min(BATCH, (16 << 20) // max(1, values[:1].nbytes)))
+
+        def batches(keys=keys, kind=kind, values=values, step=step):
+            for lo in range(0, len(keys), step):
+                hi = min(len(keys), lo + step)
                 flat, offsets = encode_records([None, (kind, values[lo:hi], None)], hi - lo)
                 yield np.asarray(keys[lo:hi], dtype=np.int64), flat, offsets
 

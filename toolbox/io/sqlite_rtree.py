@@ -189,6 +189,9 @@ def _radix_argsort(key: np.ndarray, nbits: int) -> np.ndarray:
             continue
         o = np.argsort(digit, kind="stable")
         perm = o if perm is None else perm.take(o)
+        if perm.dtype != np.int32 and key.size < 2**31:
+            perm = perm.astype(np.int32)  # half the memory of the next pass's gathers
+        del o
     return np.arange(key.size) if perm is None else perm
 
 
@@ -202,13 +205,13 @@ def _slice_ids(qx: np.ndarray, bounds: np.ndarray) -> np.ndarray:
     ``bounds[t]`` to ``bounds[t + 1] - 1`` (ties of ``qx`` in input order). Counted, not sorted:
     a histogram of the high 16 bits of ``qx`` places most items; only the items of the buckets a
     slice boundary cuts are ranked exactly (by a sort of those alone)."""
-    high = (qx >> np.uint32(16)).astype(np.intp)
+    high = (qx >> np.uint32(16)).astype(np.uint16)  # 2 bytes an item, not 8
     counts = np.bincount(high, minlength=65536)
     start = np.zeros(counts.size + 1, np.int64)
     np.cumsum(counts, out=start[1:])
     first = np.searchsorted(bounds, start[:-1], "right") - 1
     last = np.searchsorted(bounds, start[1:] - 1, "right") - 1
-    slice_ids = first.take(high)
+    slice_ids = first.astype(np.int32).take(high)
     cut = (first != last) & (counts > 0)
     if cut.any():
         members = np.flatnonzero(cut.take(high))
@@ -406,7 +409,7 @@ def _packed(ids_in: np.ndarray, by_id, rowids: np.ndarray, boxes32: np.ndarray,
         for a in range(0, n_nodes, _CHUNK_NODES):  # a chunk of nodes and their items
             b = min(n_nodes, a + _CHUNK_NODES)
             lo, hi = _node_starts(np.array([a, b]), q, r)
-            part = order[lo:hi]
+            part = order[lo:hi].astype(np.int64)  # (the radix sort's order may be int32)
             if lvl:  # the items are the nodes of the level below
                 cell_ids = first[lvl - 1] + part
             elif consecutive:
