@@ -32,6 +32,8 @@ def probe():
     seen = {"numpy_before": "numpy" in sys.modules,
             "timeout": os.environ.get("OPENBLAS_THREAD_TIMEOUT")}
     import numpy  # noqa: F401
+    from numpy._core import multiarray
+    seen["hugepages"] = multiarray._get_madvise_hugepage()
     time.sleep(0.3)
     seen["ticks"] = ticks_of_other_threads()
     seen["hz"] = os.sysconf("SC_CLK_TCK")
@@ -44,7 +46,8 @@ cli.script()
 
 
 def run_probe(tmp_path, **env):
-    base = {k: v for k, v in os.environ.items() if k != "OPENBLAS_THREAD_TIMEOUT"}
+    base = {k: v for k, v in os.environ.items()
+            if k not in ("OPENBLAS_THREAD_TIMEOUT", "NUMPY_MADVISE_HUGEPAGE")}
     proc = subprocess.run([sys.executable, "-c", PROBE], capture_output=True, text=True,
                           cwd=tmp_path, timeout=120, env=base | env)
     assert proc.returncode == 0, proc.stderr
@@ -71,3 +74,11 @@ def test_idle_blas_threads_stop_polling(tmp_path):
     if not info or info[0]["num_threads"] < 2 or not os.path.isdir("/proc/self/task"):
         pytest.skip("NumPy's BLAS is not a threaded OpenBLAS here")
     assert run_probe(tmp_path)["ticks"] <= 2
+
+
+def test_script_keeps_numpy_arrays_off_huge_pages_unless_asked(tmp_path):
+    """Round 21: numpy's madvise into transparent huge pages cost tin:delaunay 1.31x, contours
+    1.50x in system time here (bench/results/tin.md): the script turns it off before NumPy
+    loads; a user's NUMPY_MADVISE_HUGEPAGE=1 is kept."""
+    assert run_probe(tmp_path)["hugepages"] is False
+    assert run_probe(tmp_path, NUMPY_MADVISE_HUGEPAGE="1")["hugepages"] is True

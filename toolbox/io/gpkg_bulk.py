@@ -160,9 +160,12 @@ def create_empty_layer(path: Path, layer: BulkLayer, crs_text: str | None,
     """GDAL creates the layer, its spatial index and metadata, with no feature."""
     import warnings
 
-    import pyarrow as pa
     import pyogrio
 
+    try:
+        import pyarrow as pa
+    except ImportError:  # pragma: no cover - pyarrow is a dependency; tests remove it
+        raise BulkUnsupported("pyarrow is not installed") from None
     reader = pa.RecordBatchReader.from_batches(layer.schema(), iter([]))
     with warnings.catch_warnings():  # a layer without CRS is the caller's (reported) choice
         warnings.filterwarnings("ignore", message="'crs' was not provided")
