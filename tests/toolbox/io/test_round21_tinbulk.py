@@ -191,3 +191,54 @@ def test_packed_rtree_by_chunks_of_nodes_is_the_same_tree(monkeypatch):
     # and the float64 entry point rounds to the same stored boxes: the same tree
     same = sqlite_rtree.packed_rtree(ids, x, x + 2, y, y + 1)
     np.testing.assert_array_equal(same.node_blobs, whole.node_blobs)
+
+
+def test_a_refusal_on_the_encoding_thread_falls_back_to_gdal(tmp_path, monkeypatch):
+    """The batches are encoded on a thread of their own (gpkg_bulk.ahead): a refusal raised
+    there (here: the edges' geometries) reaches the writer, the appender puts the file back, and
+    GDAL writes the whole TIN."""
+    from toolbox.io import gpkg_bulk
+
+    original = gpkg_bulk.geometry_blobs
+
+    def refuse_lines(wkb, srs_id):
+        if int(wkb[0, 1:5].view("<u4")[0]) == 1002:  # LineString Z: the edges
+            raise gpkg_bulk.BulkUnsupported("a test's refusal")
+        return original(wkb, srs_id)
+
+    monkeypatch.setattr(gpkg_bulk, "geometry_blobs", refuse_lines)
+    model = _model(400, seed=6)
+    path = tmp_path / "t.gpkg"
+    counts = store.write_tin(path, model, parse_crs("EPSG:3003"))
+    assert {name: pyogrio.read_info(path, layer=name)["features"] for name in LAYERS} == counts
+    assert _rows(path, "PRAGMA integrity_check") == [("ok",)]
+    assert _rows(path, "SELECT rtreecheck('rtree_edges_geom')") == [("ok",)]
+
+
+def test_ahead_keeps_order_raises_the_producers_error_and_stops_it():
+    import threading
+
+    from toolbox.io.gpkg_bulk import ahead
+
+    assert list(ahead(iter(range(50)))) == list(range(50))
+
+    def failing():
+        yield 1
+        raise ValueError("boom")
+
+    items = ahead(failing())
+    assert next(items) == 1
+    with pytest.raises(ValueError, match="boom"):
+        next(items)
+    made = []
+
+    def endless():
+        while True:
+            made.append(1)
+            yield len(made)
+
+    items = ahead(endless(), depth=2)
+    assert next(items) == 1
+    items.close()  # the consumer stops early: the producer thread ends too
+    assert not any(t.name == "gpkg-bulk-encode" and t.is_alive() for t in threading.enumerate())
+    assert len(made) <= 5
