@@ -145,13 +145,6 @@ def read_one(path: Path, fmt: str, crs: Any = None, angle_unit: str | None = Non
     raise ParameterError("FORMAT", f"must be one of auto, {', '.join(READERS)}; got {fmt!r}")
 
 
-def _positions(oset: OrientationSet) -> Any:
-    import numpy as np
-
-    return np.array([p.xyz[:2] for p in oset.photos.values() if p.xyz is not None],
-                    dtype="float64").reshape(-1, 2)
-
-
 def _check_same_crs(part: OrientationSet, out: OrientationSet) -> None:
     """``part``'s CRS taken as the earlier inputs' (``out.crs``, kept) when it is the same CRS
     at ``part``'s positions (or, without any, the earlier ones'): the centroid moves by at most
@@ -163,10 +156,10 @@ def _check_same_crs(part: OrientationSet, out: OrientationSet) -> None:
         return
     name = Path(part.source).name
     advice = "give the inputs in one CRS"
-    if len(mine := _positions(part)):
+    if len(mine := part.positions_xy()):
         check_one_crs(name, part.crs, "an earlier input", out.crs, mine, advice)
     else:
-        check_one_crs("an earlier input", out.crs, name, part.crs, _positions(out), advice)
+        check_one_crs("an earlier input", out.crs, name, part.crs, out.positions_xy(), advice)
     out.notes.append(f"{name}: its CRS ({crs_label(part.crs)}) taken as the earlier inputs' "
                      f"({crs_label(out.crs)}): the same at the positions (within "
                      f"{PRJ_TOLERANCE_M * 1000:g} mm)")

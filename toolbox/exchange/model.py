@@ -92,6 +92,11 @@ class OrientationSet:
             raise InputDataError(f"{where or self.source}: photo {photo.id!r} appears twice")
         self.photos[photo.id] = photo
 
+    def positions_xy(self) -> np.ndarray:
+        """``(n, 2)`` X, Y of the photos that have a position, in :attr:`crs`."""
+        return np.array([p.xyz[:2] for p in self.photos.values() if p.xyz is not None],
+                        dtype="float64").reshape(-1, 2)
+
     def summary(self) -> dict[str, Any]:
         """What was understood: counts, CRS, conventions and the reader's notes."""
         from toolbox.io.crs import crs_label

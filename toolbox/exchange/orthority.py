@@ -92,13 +92,9 @@ def _check_world_crs(path: Path, out: OrientationSet, given: Any) -> None:
     """The CRS parameter ``given`` used for ``out`` when the file's ``world_crs`` is the same
     CRS at its positions (:func:`toolbox.io.crs.check_one_crs`: the centroid moves by at most
     1 mm; an ESRI WKT rarely equals its EPSG code's definition), else an error naming both."""
-    import numpy as np
-
     from toolbox.io.crs import PRJ_TOLERANCE_M, check_one_crs, crs_label
 
-    xy = np.array([p.xyz[:2] for p in out.photos.values() if p.xyz is not None],
-                  dtype="float64").reshape(-1, 2)
-    check_one_crs(f"{path}: world_crs", out.crs, "CRS", given, xy,
+    check_one_crs(f"{path}: world_crs", out.crs, "CRS", given, out.positions_xy(),
                   advice="give CRS as the world_crs, or none")
     out.notes.append(f"CRS as given; world_crs ({crs_label(out.crs)}) is the same at the "
                      f"positions (within {PRJ_TOLERANCE_M * 1000:g} mm)")
