@@ -350,7 +350,6 @@ def layer_crs_as(path: Path, layer: str | None, name: str, own: Any, crs: Any
     gives ``(own, shift, centre)``; equal definitions ``(own, None, (nan, nan))``."""
     import math
 
-    import numpy as np
     from pyproj.crs import CompoundCRS
 
     from toolbox.io.crs import (
@@ -364,10 +363,7 @@ def layer_crs_as(path: Path, layer: str | None, name: str, own: Any, crs: Any
     ours, theirs = horizontal_part(own), horizontal_part(crs)
     if same_crs(ours, theirs):
         return own, None, (math.nan, math.nan)
-    _, cols, rows = known_point_rows(path, layer, name)
-    xy = np.array([[_or_nan(r[cols[0]]), _or_nan(r[cols[1]])] for _, r, _, _ in rows]
-                  ).reshape(-1, 2)
-    shift, centre = centroid_shift(ours, theirs, xy)
+    shift, centre = centroid_shift(ours, theirs, _known_xy(path, layer, name))
     if not shift <= PRJ_TOLERANCE_M:
         return own, shift, centre
     heights = vertical_part(own)
@@ -394,6 +390,15 @@ def prj_crs(path: Path, name: str = "CONTROL") -> Any:
         raise InputDataError(f"{name}: {prj} is not a CRS PROJ knows ({exc})") from None
 
 
+def _known_xy(path: Path, layer: str | None, name: str) -> Any:
+    """``(n, 2)`` X, Y of the table's known points, NaN where empty (Z-only points)."""
+    import numpy as np
+
+    _, cols, rows = known_point_rows(path, layer, name)
+    return np.array([[_or_nan(r[cols[0]]), _or_nan(r[cols[1]])] for _, r, _, _ in rows]
+                    ).reshape(-1, 2)
+
+
 def _or_nan(value: Any) -> float:
     try:
         return float(value)
@@ -411,8 +416,6 @@ def check_prj_crs(path: Path, crs: Any, layer: str | None = None, name: str = "C
     not compared: an ESRI ``.prj`` written for EPSG:6707 does not equal EPSG:6707 but moves
     no point. Without ``horizontal``, two different height datums stated one on each side are
     refused too (:func:`toolbox.io.crs.check_same_heights`)."""
-    import numpy as np
-
     from toolbox.io.crs import (
         PRJ_TOLERANCE_M,
         centroid_shift,
@@ -425,10 +428,7 @@ def check_prj_crs(path: Path, crs: Any, layer: str | None = None, name: str = "C
     crs = parse_crs(crs, "CRS")
     own = prj_crs(path, name)
     prj = Path(path).with_suffix(".prj").name
-    _, cols, rows = known_point_rows(path, layer, name)  # X, Y may be empty (Z-only points)
-    xy = np.array([[_or_nan(r[cols[0]]), _or_nan(r[cols[1]])] for _, r, _, _ in rows]
-                  ).reshape(-1, 2)
-    shift, centre = centroid_shift(own, crs, xy)
+    shift, centre = centroid_shift(own, crs, _known_xy(path, layer, name))
     if not shift <= PRJ_TOLERANCE_M:
         raise InputDataError(
             f"{name}: {path}'s {prj} is {crs_label(own)} but CRS is {crs_label(crs)}: "
