@@ -24,6 +24,9 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from toolbox.io.sqlite_pages import BtreeAppender, UnsupportedDatabase, encode_records
+from toolbox.io.sqlite_rtree import packed_rtree_stored, stored_boxes
+
 BATCH = 1 << 16  # features encoded at a time
 
 Columns = dict[str, tuple[np.ndarray, "np.ndarray | None"]]
@@ -103,10 +106,9 @@ def _kind(declared: str) -> str | None:
 
 
 class _Table:
-    """A layer's table as the skeleton GDAL made holds it: its columns, root pages, SRS."""
+    """A layer's table as the skeleton GDAL made holds it: its columns, SRS and R-tree."""
 
     def __init__(self, db: sqlite3.Connection, layer: str, spatial_index: bool):
-        self.layer = layer
         info = db.execute(f'PRAGMA table_info("{layer}")').fetchall()
         geometry = db.execute("SELECT column_name, srs_id FROM gpkg_geometry_columns WHERE "
                               "lower(table_name) = lower(?)", (layer,)).fetchone()
@@ -177,18 +179,14 @@ def create_empty_layer(path: Path, layer: BulkLayer, crs_text: str | None,
 
 
 def write_layer_bulk(path: Path, layer: BulkLayer, crs_text: str | None, spatial_index: bool,
-                     dataset_options: dict | None = None,
-                     check_canceled: Callable[[], None] | None = None) -> None:
+                     dataset_options: dict | None = None) -> None:
     """Add ``layer`` to the GeoPackage ``path`` (created when it does not exist): GDAL makes it
     empty, the features and the R-tree are then written as pages (see the module's docs).
 
-    Raises :class:`BulkUnsupported` (or :class:`toolbox.io.sqlite_pages.UnsupportedDatabase`)
-    for what it does not write; the file may then be left half-written: the caller removes it
-    and writes the whole file with GDAL.
+    Raises :class:`BulkUnsupported` for what it does not write (the page writer's
+    :class:`toolbox.io.sqlite_pages.UnsupportedDatabase` too); the file may then be left
+    half-written: the caller removes it and writes the whole file with GDAL.
     """
-    from toolbox.io.sqlite_pages import BtreeAppender, UnsupportedDatabase, encode_records
-    from toolbox.io.sqlite_rtree import packed_rtree_stored, rtree_round_down, rtree_round_up
-
     create_empty_layer(path, layer, crs_text, spatial_index, dataset_options)
     if layer.n == 0:
         return
@@ -206,16 +204,13 @@ def write_layer_bulk(path: Path, layer: BulkLayer, crs_text: str | None, spatial
 
     def batches() -> Iterator[tuple[np.ndarray, np.ndarray, np.ndarray]]:
         for lo in range(0, layer.n, BATCH):
-            if check_canceled is not None:
-                check_canceled()
             hi = min(layer.n, lo + BATCH)
             fields, wkb = layer.make(lo, hi)
             blobs, boxes = geometry_blobs(wkb, table.srs_id)
             for j, pick in enumerate((np.min, np.max, np.min, np.max)):
                 extent[j] = pick([extent[j], pick(boxes[:, j])])
-                if stored is not None:
-                    rounding = rtree_round_down if j % 2 == 0 else rtree_round_up
-                    stored[lo:hi, j] = rounding(boxes[:, j])
+            if stored is not None:
+                stored_boxes(*boxes.T, out=stored[lo:hi])
             flat, offsets = encode_records(table.records(fields, blobs), hi - lo)
             yield np.arange(lo + 1, hi + 1, dtype=np.int64), flat, offsets
 
@@ -226,7 +221,7 @@ def write_layer_bulk(path: Path, layer: BulkLayer, crs_text: str | None, spatial
                 tree = packed_rtree_stored(np.arange(1, layer.n + 1, dtype=np.int64), stored,
                                            page_size)
                 stored = None
-                _fill_rtree(pages, table.rtree, tree, encode_records)
+                _fill_rtree(pages, table.rtree, tree)
     except UnsupportedDatabase as exc:
         raise BulkUnsupported(str(exc)) from exc
     _set_metadata(path, layer.name, layer.n, extent)
@@ -277,7 +272,7 @@ def ahead(items: Iterator, depth: int = 2) -> Iterator:
                 thread.join(0.05)
 
 
-def _fill_rtree(pages, rtree: str, tree, encode_records) -> None:
+def _fill_rtree(pages: BtreeAppender, rtree: str, tree) -> None:
     """The R-tree's three shadow tables from :func:`toolbox.io.sqlite_rtree.packed_rtree`'s
     rows (their keys ascending), each in batches of about 16 MB (node blobs are 1228 bytes)."""
     tables = {"node": (tree.node_numbers, "blob", tree.node_blobs),

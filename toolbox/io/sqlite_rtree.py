@@ -68,11 +68,11 @@ class RtreeRows:
         ``<name>_node.data`` of each node.
     rowids : int64 (n,)
         ``<name>_rowid.rowid``, ascending.
-    rowid_nodes : int64 (n,)
+    rowid_nodes : int32 (n,) (int64 beyond 2**31 - 1 nodes)
         ``<name>_rowid.nodeno``: the leaf node of each rowid.
     parent_nodes : int64 (m - 1,)
         ``<name>_parent.nodeno``, ascending (every node but the root).
-    parents : int64 (m - 1,)
+    parents : int32 (m - 1,) (as ``rowid_nodes``)
         ``<name>_parent.parentnode`` of each.
     depth : int
         The tree's depth (bytes 0-1 of the root): 0 when the root is a leaf.
@@ -337,11 +337,19 @@ def packed_rtree(ids, minx, maxx, miny, maxy, page_size: int = 4096) -> RtreeRow
             raise ParameterError("ids", f"has {dup.size} duplicate value(s) (first {rowids[dup[0]]}):"
                                  " expected unique rowids")
 
-    boxes32 = np.empty((n, 4), np.float32)  # minx, maxx, miny, maxy as SQLite stores them
-    for j, (v, down) in enumerate(zip(boxes, (True, False, True, False))):
-        boxes32[:, j] = _round(v, down)
+    boxes32 = stored_boxes(*boxes)
     del boxes
     return _packed(ids_in, by_id, rowids, boxes32, node_size)
+
+
+def stored_boxes(minx, maxx, miny, maxy, out: np.ndarray | None = None) -> np.ndarray:
+    """``(n, 4)`` float32 ``[minx, maxx, miny, maxy]`` as SQLite's rtree stores the boxes
+    (:func:`rtree_round_down` of the minima, :func:`rtree_round_up` of the maxima), into
+    ``out`` when given (a slice of a bigger array)."""
+    out = np.empty((len(minx), 4), np.float32) if out is None else out
+    for j, (v, down) in enumerate(((minx, True), (maxx, False), (miny, True), (maxy, False))):
+        out[:, j] = _round(np.asarray(v, dtype=np.float64), down)
+    return out
 
 
 def packed_rtree_stored(ids: np.ndarray, boxes32: np.ndarray, page_size: int = 4096) -> RtreeRows:
