@@ -428,6 +428,14 @@ def _encode_general(cols: list[_Col], n: int):
 # B-tree pages
 
 
+def _fit_ends(sizes: np.ndarray, cap: int) -> list[int]:
+    """For each item ``i``, the end ``j`` of the longest run ``i..j-1`` of items of ``sizes``
+    bytes that fits in ``cap`` bytes."""
+    cum = np.zeros(sizes.size + 1, np.int64)
+    np.cumsum(sizes, out=cum[1:])
+    return (np.searchsorted(cum, cum[:-1] + cap, side="right") - 1).tolist()
+
+
 def _greedy_starts(sizes: np.ndarray, cap: int) -> np.ndarray:
     """First item of each page when items of ``sizes`` bytes fill pages of ``cap`` bytes greedily
     in order (each item fits a page alone)."""
@@ -435,9 +443,7 @@ def _greedy_starts(sizes: np.ndarray, cap: int) -> np.ndarray:
     lo, hi = int(sizes.min()), int(sizes.max())
     if lo == hi:
         return np.arange(0, k, cap // lo, dtype=np.int64)
-    cum = np.zeros(k + 1, np.int64)
-    np.cumsum(sizes, out=cum[1:])
-    nxt = (np.searchsorted(cum, cum[:-1] + cap, side="right") - 1).tolist()
+    nxt = _fit_ends(sizes, cap)
     starts = []
     i = 0
     while i < k:
@@ -818,9 +824,7 @@ class BtreeAppender:
     @staticmethod
     def _interior_starts(size: np.ndarray, cap: int) -> np.ndarray:
         n = size.size
-        cum = np.zeros(n + 1, np.int64)
-        np.cumsum(size, out=cum[1:])
-        nxt = (np.searchsorted(cum, cum[:-1] + cap, side="right") - 1).tolist()
+        nxt = _fit_ends(size, cap)
         starts = []
         i = 0
         while i < n:
