@@ -50,6 +50,16 @@ def depth(path, table):
     return max(p.count("/") for p in paths)
 
 
+def assert_same_as_twin(con, path, select="*"):
+    """Commit the twin's rows, compare ``SELECT select`` of ``t`` (filled by the appender) with
+    the ``twin`` (filled by SQLite), close, and check the file's integrity."""
+    con.commit()
+    q = f"SELECT {select} FROM {{}} ORDER BY fid"
+    assert con.execute(q.format("t")).fetchall() == con.execute(q.format("twin")).fetchall()
+    con.close()
+    assert integrity(path) == ["ok"]
+
+
 def mixed_rows(n, seed=0):
     """Columns for COLS with every kind of value, and the same rows as Python tuples."""
     rng = np.random.default_rng(seed)
@@ -236,11 +246,7 @@ def test_fixed_size_blobs_and_uniform_rows(tmp_path):
     con = sqlite3.connect(path)
     con.executemany("INSERT INTO twin VALUES (?,?,?,?)",
                     [(i + 1, int(a[i]), float(b[i]), g[i].tobytes()) for i in range(n)])
-    con.commit()
-    q = "SELECT fid, a, typeof(a), b, g FROM {} ORDER BY fid"
-    assert con.execute(q.format("t")).fetchall() == con.execute(q.format("twin")).fetchall()
-    con.close()
-    assert integrity(path) == ["ok"]
+    assert_same_as_twin(con, path, "fid, a, typeof(a), b, g")
 
 
 def test_an_exception_in_the_block_restores_the_file(tmp_path):
@@ -398,12 +404,8 @@ def test_fixed_width_columns_with_nulls(tmp_path):
     con.executemany("INSERT INTO twin VALUES (?,?,?,?,?,?,?)", [
         (int(rowids[i]), None if am[i] else int(a[i]), None if bm[i] else int(b[i]),
          float(c[i]), None if gm[i] else g[i].tobytes(), bool(f[i]), None) for i in range(n)])
-    con.commit()
-    q = ("SELECT fid, a, typeof(a), b, typeof(b), c, g, typeof(g), f, typeof(f), h, typeof(h) "
-         "FROM {} ORDER BY fid")
-    assert con.execute(q.format("t")).fetchall() == con.execute(q.format("twin")).fetchall()
-    con.close()
-    assert integrity(path) == ["ok"]
+    assert_same_as_twin(con, path, "fid, a, typeof(a), b, typeof(b), c, g, typeof(g), f, "
+                        "typeof(f), h, typeof(h)")
 
 
 def test_the_lock_byte_page_past_one_gib_stays_unused(tmp_path):
@@ -504,11 +506,7 @@ def test_a_wide_table_whose_record_header_needs_two_bytes(tmp_path):
     con = sqlite3.connect(path)
     con.executemany(f"INSERT INTO twin VALUES ({', '.join('?' * (k + 1))})", [
         (j + 1, *[None if masks[i, j] else int(vals[i, j]) for i in range(k)]) for j in range(n)])
-    con.commit()
-    q = "SELECT * FROM {} ORDER BY fid"
-    assert con.execute(q.format("t")).fetchall() == con.execute(q.format("twin")).fetchall()
-    con.close()
-    assert integrity(path) == ["ok"]
+    assert_same_as_twin(con, path)
 
 
 def test_the_table_named_by_its_root_page(tmp_path):
