@@ -224,12 +224,12 @@ def _report_quality(report: dict, feedback: Feedback) -> None:
 
 
 def _surface_summary(model) -> dict:
-    from toolbox.terrain.tin.topology import triangle_measures
+    from toolbox.terrain.tin.topology import triangle_areas
 
     area_2d = area_3d = 0.0
     for lo in range(0, len(model.triangles), 1 << 20):  # by chunks: bounded memory
-        m = triangle_measures(model.xyz, model.triangles[lo:lo + (1 << 20)])
-        area_2d, area_3d = area_2d + float(m.area_2d.sum()), area_3d + float(m.area_3d.sum())
+        flat, space = triangle_areas(model.xyz, model.triangles[lo:lo + (1 << 20)])
+        area_2d, area_3d = area_2d + float(flat.sum()), area_3d + float(space.sum())
     return {"area_2d": area_2d, "area_3d": area_3d,
             "z_min": float(model.xyz[:, 2].min()), "z_max": float(model.xyz[:, 2].max()),
             "bounds": [float(v) for v in (*model.xyz[:, :2].min(axis=0),

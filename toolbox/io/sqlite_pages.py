@@ -13,6 +13,13 @@ The file format is https://www.sqlite.org/fileformat2.html. Two steps:
   interior levels (type 0x05), the top node written into the table's existing root page (the
   schema does not change), and the header's page count and change counter last.
 
+New pages are written in whole aligned blocks through a second, ``O_DIRECT`` descriptor where the
+operating system and the file system take one (Linux: ext4, XFS, btrfs): a bulk load of a gigabyte
+then costs the disk's bandwidth, not a copy into the page cache and the reclaim of older cached
+pages, which took 0.3-3.4 s of system time for 1.35 GB on the same machine from one run to the
+next. Elsewhere (tmpfs, macOS, Windows), or when a write is refused, the same bytes go through the
+page cache. The page buffer is reused from batch to batch (zeroed), not allocated anew.
+
 What it handles is deliberately narrow, and anything else raises :class:`UnsupportedDatabase` so
 the caller can take SQLite's own path: a rollback-journal database (no WAL, no ``-journal`` or
 ``-wal`` beside it), UTF-8, no auto-vacuum, no reserved bytes, schema format 4, rowid tables
@@ -25,6 +32,7 @@ Nothing here knows about GeoPackage.
 
 from __future__ import annotations
 
+import errno
 import os
 import sqlite3
 import struct
@@ -40,6 +48,8 @@ __all__ = ["BtreeAppender", "UnsupportedDatabase", "encode_records"]
 _MAGIC = b"SQLite format 3\x00"
 _LEAF, _INTERIOR = 0x0D, 0x05
 _PENDING_BYTE = 0x40000000  # the page holding this byte offset (the lock page) is never used
+_DIRECT_ALIGN = 4096  # O_DIRECT: offset, length and memory address multiples of this
+_DIRECT_MIN = 1 << 20  # smaller writes (root pages, the header) go through the page cache
 _U64_7BIT = [np.uint64(1 << (7 * i)) for i in range(1, 9)]
 
 
@@ -509,6 +519,8 @@ class BtreeAppender:
         self._check_file()
         self._schema = self._read_schema()
         self._fd = os.open(self.path, os.O_RDWR)
+        self._direct: int | bool | None = None  # the O_DIRECT descriptor; False: not taken
+        self._buffer = np.empty(0, np.uint8)
         self._saved: dict[int, bytes] = {}
         self._filled: set[int] = set()
 
@@ -622,9 +634,48 @@ class BtreeAppender:
     def _write(self, data, offset: int) -> None:
         view = memoryview(data).cast("B")
         while view.nbytes:
-            done = os.pwrite(self._fd, view, offset)
+            fd = self._direct_fd(view, offset)
+            try:
+                done = os.pwrite(self._fd if fd is None else fd, view, offset)
+            except OSError as exc:
+                if fd is None or exc.errno != errno.EINVAL:
+                    raise
+                self._close_direct()  # refused by the file system: the page cache from here
+                continue
             view = view[done:]
             offset += done
+
+    def _direct_fd(self, view: memoryview, offset: int) -> int | None:
+        """The ``O_DIRECT`` descriptor when ``view`` at ``offset`` is a large write of whole
+        aligned blocks and the system takes one (opened on first use), else None."""
+        if self._direct is False or view.nbytes < _DIRECT_MIN or (
+                offset | view.nbytes | np.frombuffer(view, np.uint8).ctypes.data) % _DIRECT_ALIGN:
+            return None
+        if self._direct is None:
+            try:
+                self._direct = os.open(self.path, os.O_WRONLY | os.O_DIRECT)
+            except (AttributeError, OSError):  # no O_DIRECT here (macOS, Windows, tmpfs)
+                self._direct = False
+                return None
+        return self._direct
+
+    def _close_direct(self) -> None:
+        if self._direct not in (None, False):
+            os.close(self._direct)
+        self._direct = False
+
+    def _zeroed_pages(self, npages: int) -> np.ndarray:
+        """``npages`` zeroed pages in the appender's one buffer (aligned for ``O_DIRECT``, grown
+        when needed): valid until the next call."""
+        nbytes = npages * self.page_size
+        if self._buffer.size < nbytes:
+            self._buffer = np.empty(0, np.uint8)  # free the old one first
+            raw = np.empty(nbytes + _DIRECT_ALIGN, np.uint8)
+            skip = -raw.ctypes.data % _DIRECT_ALIGN
+            self._buffer = raw[skip:skip + nbytes]
+        pages = self._buffer[:nbytes]
+        pages.fill(0)
+        return pages
 
     def _alloc(self, npages: int) -> np.ndarray:
         """Page numbers of ``npages`` new pages at the end of the file (skipping the lock page)."""
@@ -649,7 +700,7 @@ class BtreeAppender:
     def _leaf_pages(self, rowids, reclen, parts, starts, ends, slots, nslots):
         """A buffer of ``nslots`` pages holding the leaves [starts, ends) at ``slots``."""
         ps = self.page_size
-        buf = np.zeros(nslots * ps, np.uint8)
+        buf = self._zeroed_pages(nslots)
         hi = int(ends[-1])  # pages from row 0 on
         rl = reclen[:hi]
         rid = rowids[:hi]
@@ -806,7 +857,7 @@ class BtreeAppender:
             size = 4 + kl + 2
             n = child.size
             if int(size[:-1].sum()) <= cap:  # one node: the root
-                buf = np.zeros(ps, np.uint8)
+                buf = self._zeroed_pages(1)
                 self._interior_pages(buf, child, key, kl, np.array([0]), np.array([n]),
                                      np.array([0]))
                 self._write_root(root, buf)
@@ -816,7 +867,7 @@ class BtreeAppender:
             ends = np.append(starts[1:], n)
             pg = self._alloc(starts.size)
             slots = pg - (self._npages + 1)
-            buf = np.zeros((int(slots[-1]) + 1) * ps, np.uint8)
+            buf = self._zeroed_pages(int(slots[-1]) + 1)
             self._interior_pages(buf, child, key, kl, starts, ends, slots)
             self._write_new(buf, pg)
             child, key = pg, key[ends - 1]
@@ -869,6 +920,7 @@ class BtreeAppender:
         except BaseException:
             self._rollback()
             raise
+        self._close_direct()
         os.close(self._fd)
         self._fd = None
 
@@ -884,6 +936,7 @@ class BtreeAppender:
         if self._fd is None:
             return
         self._failed = True
+        self._close_direct()
         try:
             os.ftruncate(self._fd, self._orig_size)
             for pgno, data in self._saved.items():

@@ -41,15 +41,16 @@ from toolbox.io.vector_write import dbf_booleans, layer_paths, staged_gpkg_write
 from toolbox.io.write_failures import writing
 from toolbox.terrain.tin.build import SOURCES, TinModel
 from toolbox.terrain.tin.help import TIN_HELP  # noqa: F401  (re-exported: its old home)
-from toolbox.terrain.tin.topology import EdgeTable, edge_table, triangle_measures
+from toolbox.terrain.tin.topology import EdgeTable, corner_measures, edge_table, triangle_corners
 
 _WKB_POINT_Z, _WKB_LINESTRING_Z, _WKB_POLYGON_Z = 1001, 1002, 1003
 BATCH = 1 << 16  # features per Arrow batch (GDAL's own Arrow batch size)
 
 
 def _wkb_buffer(type_code: int, n: int, k: int, ring: bool) -> tuple[np.ndarray, np.ndarray]:
-    """The ``(n, size)`` uint8 WKB records with their headers filled, and an ``(n, k', 3)``
-    float64 view of their coordinates to fill (k' = k + 1 for a closed ring)."""
+    """The ``(n, size)`` uint8 WKB records with their headers filled, and an ``(n, k')`` view of
+    their vertices to fill (k' = k + 1 for a closed ring), each a 24-byte void: a vertex is
+    copied whole (unaligned float64 views copy value by value, several times slower)."""
     if ring:
         k += 1
         header = np.array([type_code, 1, k], dtype="<u4")
@@ -61,7 +62,12 @@ def _wkb_buffer(type_code: int, n: int, k: int, ring: bool) -> tuple[np.ndarray,
     out = np.empty((n, head + 24 * k), dtype=np.uint8)
     out[:, 0] = 1  # little endian
     out[:, 1:head] = header.view(np.uint8)
-    return out, out[:, head:].view("<f8").reshape(n, k, 3)  # an unaligned view: fine to fill
+    return out, np.ndarray((n, k), dtype="V24", buffer=out, offset=head, strides=(out.shape[1], 24))
+
+
+def _vertices(xyz: np.ndarray) -> np.ndarray:
+    """``(..., 3)`` little-endian coordinates as ``(...)`` 24-byte voids (WKB's XYZ vertices)."""
+    return np.ascontiguousarray(xyz, dtype="<f8").view("V24")[..., 0]
 
 
 def wkb_records(type_code: int, coords: np.ndarray, ring: bool = False) -> np.ndarray:
@@ -70,12 +76,12 @@ def wkb_records(type_code: int, coords: np.ndarray, ring: bool = False) -> np.nd
     ``coords`` is ``(n, k, 3)``: k XYZ vertices per geometry. ``ring`` writes one closed polygon
     ring (the first vertex repeated at the end) instead of a point or line string.
     """
-    coords = np.asarray(coords, dtype="<f8")
-    n, k = coords.shape[:2]
-    out, view = _wkb_buffer(type_code, n, k, ring)
-    view[:, :k] = coords
+    vertices = _vertices(coords)
+    n, k = vertices.shape
+    out, slots = _wkb_buffer(type_code, n, k, ring)
+    slots[:, :k] = vertices
     if ring:
-        view[:, k] = coords[:, 0]
+        slots[:, k] = vertices[:, 0]
     return out
 
 
@@ -85,11 +91,12 @@ def wkb_from_nodes(type_code: int, xyz: np.ndarray, nodes: np.ndarray,
     ``(n, k)``), filled corner by corner without the ``(n, k, 3)`` temporary."""
     nodes = np.asarray(nodes)
     n, k = nodes.shape
-    out, view = _wkb_buffer(type_code, n, k, ring)
+    out, slots = _wkb_buffer(type_code, n, k, ring)
+    vertices = _vertices(xyz)
     for j in range(k):
-        view[:, j] = xyz[nodes[:, j]]
+        slots[:, j] = np.take(vertices, nodes[:, j])
     if ring:
-        view[:, k] = view[:, 0]
+        slots[:, k] = slots[:, 0]
     return out
 
 
@@ -281,10 +288,11 @@ def _write_tin(path: Path, model: TinModel, crs: Any, spatial_index: bool, feedb
         for prefix, table in (("node", tri), ("nbr", nb), ("edge", triangle_edges)):
             for j in range(3):
                 columns[f"{prefix}{j + 1}"] = _ids(table[lo:hi, j])
-        measures = triangle_measures(xyz, tri[lo:hi])  # per batch: never (T,) x 5 at once
+        vertices = triangle_corners(xyz, tri[lo:hi])
+        measures = corner_measures(vertices)  # per batch: never (T,) x 5 at once
         for name in ("area_2d", "area_3d", "slope_deg", "slope_pct", "aspect_deg"):
             columns[name] = (getattr(measures, name), None)
-        return columns, wkb_from_nodes(_WKB_POLYGON_Z, xyz, tri[lo:hi], ring=True)
+        return columns, wkb_records(_WKB_POLYGON_Z, vertices, ring=True)
 
     sources = np.asarray(SOURCES, dtype=object)
 
@@ -325,7 +333,7 @@ def _write_edges(path: Path, model: TinModel, edges: EdgeTable, crs: Any,
 
     def make(lo: int, hi: int):
         ends = edges.nodes[lo:hi]
-        d = xyz[ends[:, 1]] - xyz[ends[:, 0]]
+        d = np.take(xyz, ends[:, 1], axis=0) - np.take(xyz, ends[:, 0], axis=0)
         length_2d = np.hypot(d[:, 0], d[:, 1])
         columns = {"id": _serial(lo, hi), "node_from": _ids(ends[:, 0]),
                    "node_to": _ids(ends[:, 1]), "left_tri": _ids(edges.left[lo:hi]),

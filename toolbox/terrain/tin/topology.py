@@ -138,6 +138,13 @@ class TriangleMeasures:
     aspect_deg: np.ndarray  # direction the slope faces, clockwise from north; -1 where flat
 
 
+def triangle_corners(xyz: np.ndarray, triangles: np.ndarray) -> np.ndarray:
+    """The triangles' vertices, ``(T, 3, 3)``: ``xyz[triangles]`` (by ``np.take``, a third of
+    the time of fancy indexing on a million triangles)."""
+    return np.take(np.asarray(xyz, dtype="float64"), np.asarray(triangles, dtype=np.int64),
+                   axis=0)
+
+
 def plane_normals(xyz: np.ndarray, triangles: np.ndarray) -> np.ndarray:
     """``(a, b, c)`` of thesis eq. [43] for each triangle, ``(T, 3)``.
 
@@ -146,17 +153,29 @@ def plane_normals(xyz: np.ndarray, triangles: np.ndarray) -> np.ndarray:
     digits); ``c`` is twice the signed planimetric area, > 0 for counter-clockwise triangles.
     The plane is ``z = z1 - (a/c)(x - x1) - (b/c)(y - y1)`` (eq. [44]).
     """
-    xyz = np.asarray(xyz, dtype="float64")
-    tri = np.asarray(triangles, dtype=np.int64)
-    p1 = xyz[tri[:, 0]]
-    u = xyz[tri[:, 1]] - p1
-    w = xyz[tri[:, 2]] - p1
-    return np.cross(u, w)
+    return corner_normals(triangle_corners(xyz, triangles))
+
+
+def corner_normals(corner_xyz: np.ndarray) -> np.ndarray:
+    """:func:`plane_normals` of triangles given by their ``(T, 3, 3)`` :func:`triangle_corners`."""
+    p1 = corner_xyz[:, 0]
+    return np.cross(corner_xyz[:, 1] - p1, corner_xyz[:, 2] - p1)
+
+
+def triangle_areas(xyz: np.ndarray, triangles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Planimetric and 3D area of each triangle (the first two :func:`triangle_measures`)."""
+    n = plane_normals(xyz, triangles)
+    return np.abs(n[:, 2]) / 2.0, np.linalg.norm(n, axis=1) / 2.0
 
 
 def triangle_measures(xyz: np.ndarray, triangles: np.ndarray) -> TriangleMeasures:
     """Planimetric and 3D area, slope (degrees, percent) and aspect of each triangle."""
-    n = plane_normals(xyz, triangles)
+    return corner_measures(triangle_corners(xyz, triangles))
+
+
+def corner_measures(corner_xyz: np.ndarray) -> TriangleMeasures:
+    """:func:`triangle_measures` of triangles given by their ``(T, 3, 3)`` :func:`triangle_corners`."""
+    n = corner_normals(corner_xyz)
     a, b, c = n[:, 0], n[:, 1], n[:, 2]
     horizontal = np.hypot(a, b)
     with np.errstate(divide="ignore", invalid="ignore"):

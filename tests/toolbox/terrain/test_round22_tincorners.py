@@ -1,0 +1,44 @@
+"""Vertices gathered once per batch of triangles (toolbox.terrain.tin.topology.triangle_corners)
+and whole-vertex WKB copies (toolbox.terrain.tin.store): checked against shapely's decoding and
+areas, and numpy's fancy indexing."""
+
+from __future__ import annotations
+
+import numpy as np
+import shapely
+
+from toolbox.terrain.tin.store import wkb_from_nodes
+from toolbox.terrain.tin.topology import triangle_areas, triangle_corners
+
+
+def cloud(n=500, seed=4):
+    rng = np.random.default_rng(seed)
+    xyz = np.c_[rng.uniform(0, 100, (n, 2)) + [1_688_000.0, 4_799_500.0], rng.normal(300, 5, n)]
+    return xyz, rng.integers(0, n, (900, 3))
+
+
+def test_wkb_from_nodes_decodes_to_the_nodes_coordinates():
+    xyz, nodes = cloud()
+    wide = np.zeros((len(xyz), 5))
+    wide[:, 1:4] = xyz
+    strided = wide[:, 1:4]  # not contiguous: copied to whole 24-byte vertices first
+    rings = shapely.from_wkb([r.tobytes() for r in wkb_from_nodes(1003, strided, nodes, True)])
+    got = shapely.get_coordinates(rings, include_z=True).reshape(-1, 4, 3)
+    np.testing.assert_array_equal(got[:, :3], xyz[nodes])
+    np.testing.assert_array_equal(got[:, 3], xyz[nodes[:, 0]])
+    lines = shapely.from_wkb([r.tobytes() for r in wkb_from_nodes(1002, xyz, nodes[:, :2])])
+    np.testing.assert_array_equal(
+        shapely.get_coordinates(lines, include_z=True).reshape(-1, 2, 3), xyz[nodes[:, :2]])
+
+
+def test_triangle_corners_and_areas_match_fancy_indexing_and_shapely():
+    xyz, tri = cloud()
+    np.testing.assert_array_equal(triangle_corners(xyz, tri), xyz[tri])
+    flat, space = triangle_areas(xyz, tri)
+    polygons = shapely.polygons(xyz[tri][:, :, :2] - xyz[:, :2].min(axis=0))
+    np.testing.assert_allclose(flat, shapely.area(polygons), rtol=1e-9, atol=1e-9)
+    p = xyz[tri]  # Heron-free 3D area: half the cross product's length, by hand
+    u, w = p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]
+    cross = np.stack([u[:, 1] * w[:, 2] - u[:, 2] * w[:, 1], u[:, 2] * w[:, 0] - u[:, 0] * w[:, 2],
+                      u[:, 0] * w[:, 1] - u[:, 1] * w[:, 0]], axis=1)
+    np.testing.assert_allclose(space, np.sqrt((cross ** 2).sum(axis=1)) / 2, rtol=1e-12)
