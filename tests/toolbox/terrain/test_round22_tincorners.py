@@ -42,3 +42,30 @@ def test_triangle_corners_and_areas_match_fancy_indexing_and_shapely():
     cross = np.stack([u[:, 1] * w[:, 2] - u[:, 2] * w[:, 1], u[:, 2] * w[:, 0] - u[:, 0] * w[:, 2],
                       u[:, 0] * w[:, 1] - u[:, 1] * w[:, 0]], axis=1)
     np.testing.assert_allclose(space, np.sqrt((cross ** 2).sum(axis=1)) / 2, rtol=1e-12)
+
+
+def test_bulk_edges_layer_lets_its_edge_table_go_before_the_rtree(tmp_path, monkeypatch):
+    """10 M points peaked while the edges' R-tree was packed with the 30 M-edge table alive:
+    in bulk, no edge table of the TIN is referenced any more then (gc's view)."""
+    import gc
+
+    from toolbox.io import gpkg_bulk
+    from toolbox.io.crs import parse_crs
+    from toolbox.terrain.tin import store
+    from toolbox.terrain.tin.build import build_tin
+    from toolbox.terrain.tin.topology import EdgeTable
+
+    xyz, _ = cloud(2000)
+    model = build_tin(xyz)
+    alive = {}
+    packed = gpkg_bulk.packed_rtree_stored
+
+    def spy(ids, boxes32, page_size=4096):
+        gc.collect()
+        alive[len(ids)] = sum(isinstance(o, EdgeTable) for o in gc.get_objects())
+        return packed(ids, boxes32, page_size)
+
+    monkeypatch.setattr(gpkg_bulk, "packed_rtree_stored", spy)
+    counts = store.write_tin(tmp_path / "t.gpkg", model, parse_crs("EPSG:3003"))
+    assert set(alive) == {counts["triangles"], counts["nodes"], counts["edges"]}
+    assert alive[counts["edges"]] == 0
