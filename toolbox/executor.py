@@ -12,7 +12,11 @@ Executors
   release the GIL (numpy, scipy, numba ``nogil=True``) to use every core;
 - a Dask distributed scheduler, when an address is given (``tcp://host:8786``) or set in the
   standard Dask configuration (environment variable ``DASK_SCHEDULER_ADDRESS``). The toolbox must
-  be installed on the workers (they import the task function by name).
+  be installed on the workers (they import the task function by name). The warnings a task
+  gives on its worker (logged, or Python's ``warnings.warn``: numpy's RuntimeWarnings) come
+  back with its result, or its error, and are given again on the client in task order, each
+  once per map, as a local run gives them. A task cancelled (the run canceled, or stopped by
+  an earlier task's error) is never collected: its warnings are lost.
 
 Example
 -------
@@ -455,32 +459,113 @@ def _in_client_folder(folder: str, func: Callable, task: Any, date: str | None =
 
 
 def _keeping_warnings(folder: str, func: Callable, task: Any, date: str | None = None):
-    """:func:`_in_client_folder` on a Dask worker, with the warnings the task logged there (on
-    the ``toolbox`` logger, and GDAL's through ``rasterio``'s: :func:`logged_warnings`): the
-    pair ``(result, warnings)``, or the task's error carrying them (``toolbox_warnings``). The
-    worker is another process: the run's own handlers never see them."""
+    """:func:`_in_client_folder` on a Dask worker, with the warnings the task gave there, in
+    the order it gave them: those it logged (on the ``toolbox`` logger, and GDAL's through
+    ``rasterio``'s: :func:`logged_warnings`) as their text, and the Python warnings it (or a
+    local thread working for it) showed (``warnings.warn``: numpy's RuntimeWarnings, a
+    library's) as ``(category, text, filename, lineno)`` (:func:`_recording_show`): the pair
+    ``(result, warnings)``, or the task's error carrying them (``toolbox_warnings``). The worker
+    is another process: the run's own handlers, and the client's ``warnings.showwarning``,
+    never see them."""
     kept = Feedback()
+    _record_python_warnings()
     try:
-        with logged_warnings(kept):
-            return _in_client_folder(folder, func, task, date), kept.warnings
+        with logged_warnings(kept), working_for((*current_runs(), _TaskWarnings(kept))):
+            return _in_client_folder(folder, func, task, date), _given(kept)
     except Exception as exc:
         try:
-            exc.toolbox_warnings = kept.warnings
+            exc.toolbox_warnings = _given(kept)
         except AttributeError:  # an error without a __dict__: its warnings are lost
             pass
         raise
 
 
-def _show(warnings: Iterable[str], shown: set[str]) -> None:
-    """Log on the client, on the ``toolbox`` logger, each warning a Dask task logged on its
-    worker that this map has not shown yet: the run (:func:`logged_warnings`) keeps it, the
-    console shows it."""
-    import logging
+#: the level of a recorded Python warning in a task's :class:`Feedback` messages
+_PYTHON_WARNING = "python warning"
+_SHOW_BEFORE: list[Any] = [None]  # the process's warnings.showwarning that _recording_show wraps
+_SHOW_LOCK = threading.Lock()
 
-    for text in warnings:
-        if text not in shown:
-            shown.add(text)
-            logging.getLogger("toolbox").warning(text)
+
+class _TaskWarnings:
+    """In :func:`current_runs` of a thread running a Dask task (and of the local threads it
+    starts: :func:`thread_pool` hands them on): the Python warnings it shows go to
+    ``feedback``'s messages (:func:`_recording_show`), not to the worker's stderr."""
+
+    def __init__(self, feedback: Feedback):
+        self.feedback = feedback
+
+
+def _record_python_warnings() -> None:
+    """Have this process's ``warnings.showwarning`` be :func:`_recording_show` (installed once;
+    again if a ``warnings.catch_warnings`` block of another thread restored an older one), and
+    forget the warnings it has shown (the registries of ``warnings``' "default" action): an
+    earlier task or run on this worker showed the same warning from the same line, which a
+    local run, a new process, shows again."""
+    import warnings
+
+    with _SHOW_LOCK:
+        if warnings.showwarning is not _recording_show:
+            _SHOW_BEFORE[0] = warnings.showwarning
+            warnings.showwarning = _recording_show
+    forget = getattr(warnings, "_filters_mutated", None)  # what changing a filter calls
+    if forget is not None:
+        forget()
+
+
+def _recording_show(message: Any, category: type, filename: str, lineno: int, file: Any = None,
+                    line: str | None = None) -> None:
+    """``warnings.showwarning`` of a Dask worker: a warning of a thread working for a task
+    (:class:`_TaskWarnings`) is kept in the task's messages; any other is shown as before."""
+    recorder = next((r for r in current_runs() if isinstance(r, _TaskWarnings)), None)
+    if recorder is None:
+        _SHOW_BEFORE[0](message, category, filename, lineno, file, line)
+        return
+    name = f"{category.__module__}:{category.__qualname__}"
+    recorder.feedback.messages.append((_PYTHON_WARNING, (name, str(message), str(filename),
+                                                         int(lineno))))
+
+
+def _given(kept: Feedback) -> list[Any]:
+    """The warnings of a task's ``kept`` messages, in order: a logged one's text, a Python
+    one's ``(category, text, filename, lineno)``."""
+    return [item for level, item in kept.messages if level in ("warning", _PYTHON_WARNING)]
+
+
+def _category(name: str) -> type[Warning]:
+    """The warning class ``module:qualname`` a worker named, UserWarning when the client
+    cannot import it."""
+    import importlib
+
+    module, _, qualname = name.partition(":")
+    try:
+        found: Any = importlib.import_module(module)
+        for part in qualname.split("."):
+            found = getattr(found, part)
+    except Exception:  # noqa: BLE001 - a class only the worker has: a plain warning
+        return UserWarning
+    return found if isinstance(found, type) and issubclass(found, Warning) else UserWarning
+
+
+def _show(warnings: Iterable[Any], shown: set[Any]) -> None:
+    """Give on the client each warning of a Dask task (:func:`_keeping_warnings`) that this
+    map has not given yet, in the task's order: a logged one on the ``toolbox`` logger (the
+    run, :func:`logged_warnings`, keeps it, the console shows it), a Python one through
+    ``warnings.warn_explicit`` with its category, text, file and line, as the task's own
+    ``warnings.warn`` does in a local run (the client's filters and ``showwarning`` decide:
+    the CLI's makes it a one-line toolbox warning, the run keeps it)."""
+    import logging
+    import warnings as python_warnings
+
+    for item in warnings:
+        key = item if isinstance(item, str) else tuple(item[:2])
+        if key in shown:
+            continue
+        shown.add(key)
+        if isinstance(item, str):
+            logging.getLogger("toolbox").warning(item)
+        else:
+            name, text, filename, lineno = item
+            python_warnings.warn_explicit(text, _category(name), filename, lineno)
 
 
 def _first_line(exc: BaseException) -> str:

@@ -341,19 +341,19 @@ class BundleAdjustment(Algorithm):
         numbers): a one-line error naming ``name``."""
         from pathlib import Path
 
-        from toolbox.io.crs import check_coordinates_in_area, parse_crs, same_crs
+        from toolbox.io.crs import check_coordinates_in_area, parse_crs, read_prj, same_crs
 
         path = Path(path)
         own = None
-        try:
-            if path.suffix.lower() in (".gpkg", ".sqlite"):
+        if path.suffix.lower() in (".gpkg", ".sqlite"):
+            try:
                 import pyogrio
 
                 own = pyogrio.read_info(path).get("crs")
-            elif path.with_suffix(".prj").exists():
-                own = path.with_suffix(".prj").read_text().strip()
-        except Exception:  # noqa: BLE001 - an unreadable CRS is judged by the coordinates
-            own = None
+            except Exception:  # noqa: BLE001 - an unreadable CRS is judged by the coordinates
+                own = None
+        elif path.with_suffix(".prj").is_file():
+            own = read_prj(path.with_suffix(".prj"), name)  # a Windows-1252 one too
         target = parse_crs(crs, "PROJECT")
         if own:
             own_crs = parse_crs(own, name)

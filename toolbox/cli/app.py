@@ -270,21 +270,27 @@ def warning_message(message: Warning | str, category: type, filename: str) -> st
 def _python_warnings_as_messages():
     """Python warnings raised while a command runs (rasterio's, numpy's...) become one-line
     toolbox warnings naming their library, not the raw ``file:line: Category: text`` plus a
-    source line; the deprecation and georeferencing noise of :data:`QUIET_WARNINGS` is dropped.
-    ``TOOLBOX_DEBUG=1`` shows them raw."""
+    source line, each text once per run (Python shows a warning again whenever a filter
+    changed: the same tile warning once per tile); the deprecation and georeferencing noise of
+    :data:`QUIET_WARNINGS` is dropped. ``TOOLBOX_DEBUG=1`` shows them raw."""
     import os
     import warnings
 
     if os.environ.get("TOOLBOX_DEBUG"):
         yield
         return
+    from toolbox.feedback import current_runs
+
     previous = warnings.showwarning
+    shown: set[tuple[str, tuple[object, ...]]] = set()
 
     def show(message, category, filename, lineno, file=None, line=None):
         text = warning_message(message, category, filename)
-        if text is not None:
+        key = (text, current_runs())  # each text once per run (a tile's warning, every tile)
+        if text is not None and key not in shown:
             import logging
 
+            shown.add(key)
             logging.getLogger("toolbox").warning(text)
 
     warnings.showwarning = show

@@ -106,7 +106,7 @@ def looks_like(text: str) -> bool:
 
 def read_csv(path: str | Path, crs: Any = None, angle_unit: str | None = None) -> OrientationSet:
     """Exterior orientations of an Orthority-style CSV (see the module docstring)."""
-    from toolbox.io.crs import PRJ_TOLERANCE_M, crs_label
+    from toolbox.io.crs import PRJ_TOLERANCE_M, crs_label, read_prj
     from toolbox.photogrammetry.readers.text import photo_id
     from toolbox.photogrammetry.tables import listed
 
@@ -164,7 +164,7 @@ def read_csv(path: str | Path, crs: Any = None, angle_unit: str | None = None) -
     if not np.isfinite(values).all():
         raise InputDataError(f"{path}: a position or angle is NaN or infinite")
     prj = path.with_suffix(".prj")
-    prj_crs = _prj_crs(prj) if prj.is_file() else None
+    prj_crs = read_prj(prj) if prj.is_file() else None
     if position == "xyz":
         if prj_crs is None and crs is None:
             raise InputDataError(f"{path}: x, y, z positions need a CRS: give CRS or put a "
@@ -207,18 +207,6 @@ def read_csv(path: str | Path, crs: Any = None, angle_unit: str | None = None) -
         out.notes.append("roll/pitch/yaw: body x front, y right, z down; camera x = body y, "
                          "y = body x (nadir camera, top forward); with the meridian convergence")
     return out
-
-
-def _prj_crs(prj: Path) -> Any:
-    """The CRS of the ``.prj`` sidecar ``prj`` (WKT, ESRI WKT, PROJ or EPSG text; UTF-8 or
-    Windows-1252 text, as ESRI software writes it)."""
-    from toolbox.io.crs import parse_crs
-
-    text = read_text(prj).strip()
-    try:
-        return parse_crs(text, str(prj))
-    except ParameterError as exc:  # the file is the input at fault, not a parameter
-        raise InputDataError(str(exc)) from None
 
 
 def _check_prj(prj: Path, prj_crs: Any, crs: Any, xy: np.ndarray) -> Any:

@@ -6,6 +6,7 @@ import functools
 import math
 import os
 import threading
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -155,6 +156,28 @@ def same_crs(a: CRS | None, b: CRS | None) -> bool:
     if a is None or b is None:
         return a is b
     return a == b or a.equals(b, ignore_axis_order=True)
+
+
+def read_prj(prj: Any, name: str | None = None) -> CRS:
+    """The CRS in the ``.prj`` file ``prj`` beside a table (WKT, ESRI WKT, a PROJ string or
+    an EPSG code), the one reader of every table's sidecar: its text is UTF-8, else
+    Windows-1252 as ESRI software writes an accented name (:func:`toolbox.io.text.read_text`).
+    A file that cannot be read or holds no CRS PROJ knows is an :class:`InputDataError`
+    naming ``name`` (the parameter of the table it sits beside) when given, the file, the
+    start of its text and what was expected."""
+    from toolbox.io.text import read_text
+
+    prj = Path(prj)
+    text = read_text(prj, name).strip()
+    try:
+        return CRS.from_user_input(text)
+    except (CRSError, TypeError, ValueError) as exc:
+        first = str(exc).splitlines()[0] if str(exc) else ""
+        shown = text if len(text) <= 60 else text[:57] + "..."
+        raise InputDataError(
+            f"{name + ': ' if name else ''}{prj}: {shown!r} is not a CRS PROJ knows (expected "
+            f"the table's CRS as WKT, ESRI WKT, a PROJ string or an EPSG code)"
+            f"{': ' + first if first else ''}") from None
 
 
 #: how far (metres) a table's points may move between the CRS of its ``.prj`` sidecar and the

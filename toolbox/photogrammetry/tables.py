@@ -372,22 +372,16 @@ def layer_crs_as(path: Path, layer: str | None, name: str, own: Any, crs: Any
 
 
 def prj_crs(path: Path, name: str = "CONTROL") -> Any:
-    """The CRS (pyproj) of the ``.prj`` beside a CSV/TXT table (WKT, ESRI WKT, PROJ or EPSG
-    text), None without one (or for a GeoPackage: its layer has its own)."""
-    from toolbox.io.crs import parse_crs
+    """The CRS (pyproj) of the ``.prj`` beside a CSV/TXT table
+    (:func:`toolbox.io.crs.read_prj`), None without one (or for a GeoPackage: its layer has
+    its own)."""
+    from toolbox.io.crs import read_prj
 
     path = Path(path)
     prj = path.with_suffix(".prj")
     if path.suffix.lower() in (".gpkg", ".sqlite") or not prj.is_file():
         return None
-    try:
-        text = prj.read_text(encoding="utf-8", errors="replace").strip()
-    except OSError as exc:
-        raise InputDataError(f"{name}: cannot read {prj}: {exc.strerror or exc}") from None
-    try:
-        return parse_crs(text, f"{name}'s {prj.name}")
-    except ParameterError as exc:
-        raise InputDataError(f"{name}: {prj} is not a CRS PROJ knows ({exc})") from None
+    return read_prj(prj, name)
 
 
 def _known_xy(path: Path, layer: str | None, name: str) -> Any:

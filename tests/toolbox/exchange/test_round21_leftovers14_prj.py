@@ -110,7 +110,7 @@ def test_prj_in_windows_1252_is_read_and_a_bad_one_is_an_input_error(tmp_path):
                        "--OUTPUT", tmp_path / "out.csv")
     assert code == 0, err
     (tmp_path / "o.prj").write_text("not a CRS")
-    with pytest.raises(InputDataError, match="o.prj 'not a CRS' is not a CRS PROJ knows"):
+    with pytest.raises(InputDataError, match="o.prj: 'not a CRS' is not a CRS PROJ knows"):
         csvtable.read_csv(path)
 
 
