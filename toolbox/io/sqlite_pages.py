@@ -448,18 +448,40 @@ def _fit_ends(sizes: np.ndarray, cap: int) -> list[int]:
 
 def _greedy_starts(sizes: np.ndarray, cap: int) -> np.ndarray:
     """First item of each page when items of ``sizes`` bytes fill pages of ``cap`` bytes greedily
-    in order (each item fits a page alone)."""
+    in order (each item fits a page alone).
+
+    Items mostly come in runs of one size (a record's length changes with a NULL or a longer
+    rowid varint): inside a run the pages are counted, and only each run's last page (which
+    may take items of the next runs) is found by a search of the cumulative sizes."""
     k = sizes.size
     lo, hi = int(sizes.min()), int(sizes.max())
     if lo == hi:
         return np.arange(0, k, cap // lo, dtype=np.int64)
-    nxt = _fit_ends(sizes, cap)
-    starts = []
-    i = 0
+    run_ends = np.flatnonzero(np.diff(sizes)) + 1
+    if run_ends.size > k // 64:  # sizes all over the place: a search from every item
+        nxt = _fit_ends(sizes, cap)
+        starts = []
+        i = 0
+        while i < k:
+            starts.append(i)
+            i = nxt[i]
+        return np.array(starts, np.int64)
+    cum = np.zeros(k + 1, np.int64)
+    np.cumsum(sizes, out=cum[1:])
+    ends = [*run_ends.tolist(), k]
+    pieces = []
+    i = run = 0
     while i < k:
-        starts.append(i)
-        i = nxt[i]
-    return np.array(starts, np.int64)
+        while ends[run] <= i:
+            run += 1
+        per = cap // int(sizes[i])
+        full = (ends[run] - 1 - i) // per  # pages of the run's items followed by another
+        if full:
+            pieces.append(np.arange(i, i + full * per, per, dtype=np.int64))
+            i += full * per
+        pieces.append(np.array([i], np.int64))  # the run's last page: it may take the next's
+        i = int(np.searchsorted(cum, cum[i] + cap, side="right")) - 1
+    return np.concatenate(pieces)
 
 
 def _layout(cell_len: np.ndarray, starts: np.ndarray, ends: np.ndarray, slots: np.ndarray,
