@@ -287,11 +287,31 @@ def one_crs_of_wkt(a: str, b: str, bounds: tuple | None = None) -> bool:
 
 def one_horizontal_crs(a: Any, b: Any, bounds: Any = None) -> bool:
     """:func:`one_crs` of the horizontal parts of ``a`` and ``b`` (height datums not looked
-    at: a vertical datum moves no cell)."""
+    at: a vertical datum moves no cell). Besides the extent's move, PROJ's operation from one
+    to the other must be conversions only (one datum): a null or ballpark datum transformation
+    (WGS 84 to RDN2008, "1 m"; ETRS89 to RDN2008; an unknown datum to any) moves no point
+    either, but those are two CRSs, not two definitions of one: refused or transformed as
+    before."""
     if a is None or b is None:
         return a is b
     a, b = horizontal_part(a), horizontal_part(b)
-    return same_crs(a, b) or extent_shift(a, b, bounds)[0] <= PRJ_TOLERANCE_M
+    return same_crs(a, b) or (extent_shift(a, b, bounds)[0] <= PRJ_TOLERANCE_M
+                              and _conversions_only(a.to_wkt(), b.to_wkt()))
+
+
+@functools.lru_cache(maxsize=32)
+def _conversions_only(source_wkt: str, target_wkt: str) -> bool:
+    """Whether PROJ goes from ``source`` to ``target`` by conversions only (no datum
+    transformation step; one operation, not a choice among several by area)."""
+    try:
+        operation = _movers(source_wkt, target_wkt)[0].to_json_dict()
+    except Exception:  # noqa: BLE001 - several candidate operations: datums differ
+        return False
+
+    def kinds(step: dict) -> list[str]:
+        return [str(step.get("type"))] + [k for s in step.get("steps", []) for k in kinds(s)]
+
+    return set(kinds(operation)) <= {"Conversion", "ConcatenatedOperation"}
 
 
 def shift_phrase(shift: float, centre: tuple[float, float]) -> str:

@@ -90,7 +90,7 @@ def area(tmp_path_factory):
 
 def test_extent_shift_is_gdaltransforms():
     """The extent's largest move (centre and corners) from one CRS to the other: 0 for the ESRI
-    WKT of EPSG:6707; gdaltransform's 212.82 m for ED50 (at the corner 680000, 4796000; the
+    WKT of EPSG:6707 (one CRS); gdaltransform's 212.82 m for ED50 (at the corner 680000, 4796000; the
     difference of 3 mm from the grid distance is the scale factor there, 1.000016)."""
     from toolbox.io.crs import PRJ_TOLERANCE_M, extent_shift, one_crs
 
@@ -103,6 +103,12 @@ def test_extent_shift_is_gdaltransforms():
     assert not one_crs("EPSG:23032", "EPSG:6707", bounds)
     assert not one_crs("EPSG:3003", "EPSG:6707", bounds)
     assert not one_crs(ESRI_6707, "EPSG:6707+5214", bounds)  # heights stated on one side
+    # WGS 84 / UTM 32N moves by 0.1 mm (gdaltransform -s_srs EPSG:32632 -t_srs EPSG:6707:
+    # 682000 4798000 -> 682000.000001408 4797999.99988202), by PROJ's null transformation
+    # "RDN2008 to WGS 84 (1)" (1 m): two datums, not two definitions of one CRS
+    assert extent_shift("EPSG:32632", "EPSG:6707", bounds)[0] < 2e-4
+    assert not one_crs("EPSG:32632", "EPSG:6707", bounds)
+    assert not one_crs("+proj=utm +zone=32 +ellps=GRS80 +units=m", "EPSG:6707", bounds)
     assert extent_shift("EPSG:23032", "EPSG:6707", bounds)[0] > 1e5 * PRJ_TOLERANCE_M
 
 
