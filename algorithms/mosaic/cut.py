@@ -126,7 +126,6 @@ def _sheets(params):
     import math
 
     from toolbox.errors import InputDataError
-    from toolbox.io.vector import read_vector
     from toolbox.limits import check_size
     from toolbox.mosaic.sheets import sheet_grid
 
@@ -136,12 +135,9 @@ def _sheets(params):
 
         check_input_crs("mosaic:cut", "INPUT", parse_crs(crs, "INPUT"))
     if params["SHEETS"] is not None:
-        frame = read_vector(params["SHEETS"], crs=crs, name="SHEETS")
-        if crs is not None and frame.crs is not None and not frame.crs.equals(crs):
-            from toolbox.io.crs import note_transformation
+        from toolbox.mosaic.block import read_in_crs
 
-            note_transformation(None, frame.crs, crs, frame.total_bounds, what="SHEETS")
-            frame = frame.to_crs(crs)
+        frame = read_in_crs(params["SHEETS"], crs, "SHEETS")  # reprojected from another CRS
         field = params["ID_FIELD"]
         raw = [str(v) for v in frame[field]] if field else \
             [str(k + 1) for k in range(len(frame))]
@@ -234,9 +230,13 @@ def _open_input(value):
     for ref in refs:
         frame = read_vector(ref, name="INPUT")
         crs = frame.crs if crs is None else crs
-        if frame.crs is not None and not frame.crs.equals(crs):
-            from toolbox.io.crs import note_transformation
+        if frame.crs is not None and frame.crs is not crs:
+            from toolbox.io.crs import note_transformation, one_crs
 
+            if one_crs(frame.crs, crs, frame.total_bounds):  # two definitions of one CRS
+                layers[ref.layer or ref.info["layer_name"]] = frame.set_crs(
+                    crs, allow_override=True)
+                continue
             note_transformation(None, frame.crs, crs, frame.total_bounds,
                                 what=f"INPUT layer {ref.layer or ref.info['layer_name']}")
             frame = frame.to_crs(crs)

@@ -96,7 +96,7 @@ class ControlTemplate(Algorithm):
         ids, xyz, _ = ground_points(params["CONTROL"], params["LAYER"], crs=project.crs)
         ortho = None
         if params["ORTHO"] is not None:
-            from toolbox.io.crs import crs_label, same_crs
+            from toolbox.io.crs import crs_label, one_crs
             from toolbox.matching.ortho_match import OrthoReference
             from toolbox.ortho.vertical import horizontal_part, project_raster_crs
 
@@ -108,11 +108,12 @@ class ControlTemplate(Algorithm):
 
                 unlabelled_raster("ORTHO", params["ORTHO"].bounds, project.crs, "PROJECT",
                                   xyz[:, :2], "CONTROL", feedback.push_warning)
-            elif crs is not None and not same_crs(ortho_crs, crs):
+            elif crs is not None and not one_crs(ortho_crs, crs, params["ORTHO"].bounds):
                 raise self.fail("ORTHO", f"is in {crs_label(params['ORTHO'].crs)}, not in the "
                                 f"project's CRS ({crs_label(project.crs)}): reproject it first")
             if params["DEM"] is not None:  # horizontal parts, and height datums stated by both
-                project_raster_crs(project.crs, params["DEM"].crs)
+                project_raster_crs(project.crs, params["DEM"].crs,
+                                   bounds=params["DEM"].bounds)
         elif params["MEASURED"] is not None:
             raise self.fail("MEASURED", "needs ORTHO (the matched points are written there)")
         elif params["DEM"] is not None:  # it only casts the ortho chip: unused without ORTHO

@@ -113,7 +113,8 @@ class Footprints(Algorithm):
     def process(self, params: dict[str, Any], feedback: Feedback) -> dict[str, Any]:
         project = load_project_parameter(params["PROJECT"])
         dem = params["DEM"]
-        crs = project_raster_crs(project.crs, None if dem is None else dem.crs)
+        crs = project_raster_crs(project.crs, None if dem is None else dem.crs,
+                                 bounds=None if dem is None else dem.bounds)
         photos = project.oriented()
         for pid in (p for p in project.photos if project.photos[p].exterior is None):
             feedback.push_warning(f"photo {pid} has no exterior orientation: skipped")

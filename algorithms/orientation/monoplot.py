@@ -92,7 +92,8 @@ class Monoplot(Algorithm):
 
         project, (ids, photo_ids, xy, kind), _ = measured_inputs(params, on_image=False)
         dem = params["DEM"]
-        crs = project_raster_crs(project.crs, None if dem is None else dem.crs)
+        crs = project_raster_crs(project.crs, None if dem is None else dem.crs,
+                                 bounds=None if dem is None else dem.bounds)
         measured_photos(project, photo_ids)
         xyz = np.full((len(ids), 3), np.nan)
         status = np.full(len(ids), OK, dtype=np.int8)

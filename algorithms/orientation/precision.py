@@ -151,7 +151,8 @@ class NormalCasePrecision(Algorithm):
     def _project_rows(params: dict[str, Any], feedback: Feedback) -> list[dict[str, Any]]:
         project = load_project_parameter(params["PROJECT"])
         dem = params["DEM"]
-        project_raster_crs(project.crs, None if dem is None else dem.crs)
+        project_raster_crs(project.crs, None if dem is None else dem.crs,
+                           bounds=None if dem is None else dem.bounds)
         pairs = project.consecutive_pairs()
         if not pairs:
             raise InputDataError(f"PROJECT {params['PROJECT']} has no stereo pair (two oriented "

@@ -204,9 +204,10 @@ class OrthoPhoto(Algorithm):
             feedback.push_warning(warning)
         out_crs = output_crs or crs
         if out_crs is not crs and (params["OCCLUSION"] or params["INCIDENCE"] is not None):
-            from toolbox.io.crs import same_crs
+            from toolbox.io.crs import one_crs
 
-            if not same_crs(out_crs, crs):
+            eo = photo.require_exterior()  # one CRS with two definitions: the same place
+            if not one_crs(crs, out_crs, (eo.x0, eo.y0, eo.x0, eo.y0)):
                 raise ParameterError("CRS", "differs from the orientation's: OCCLUSION and "
                                      "INCIDENCE need the ortho in the orientation's CRS")
         from toolbox.ortho.vertical import dem_in_photo_datum

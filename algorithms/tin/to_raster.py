@@ -67,7 +67,7 @@ class ToRaster(Algorithm):
     def process(self, params, feedback: Feedback):
         from functools import partial
 
-        from toolbox.io.crs import crs_label, same_crs
+        from toolbox.io.crs import crs_label, one_crs, one_horizontal_crs, same_crs
         from toolbox.io.raster import nodata_clash_warning, nodata_clashes
         from toolbox.raster.engine import process_raster
         from toolbox.raster.writer import RasterWriter
@@ -78,23 +78,27 @@ class ToRaster(Algorithm):
         template = params["TEMPLATE"]
         out_crs = params["CRS"] or (template.crs if template is not None else None) or tin_crs
         if template is not None and params["CRS"] is not None and template.crs is not None \
-                and not same_crs(params["CRS"], template.crs):
+                and not one_crs(template.crs, params["CRS"], template.bounds):
             raise InputDataError(f"CRS is {crs_label(params['CRS'])} but TEMPLATE is in "
                                  f"{crs_label(template.crs)}")
         with feedback.timed("read"):
             xyz, triangles, _ = read_tin(params["TIN"])
+        nodes = (*xyz[:, :2].min(axis=0), *xyz[:, :2].max(axis=0))
         if tin_crs is not None and out_crs is not None and not same_crs(tin_crs, out_crs):
-            from pyproj import Transformer
-
-            from toolbox.io.crs import check_same_heights, note_transformation
+            from toolbox.io.crs import check_same_heights
 
             # the nodes move in x, y only: heights of another datum would be relabelled
             check_same_heights("TIN", tin_crs, "CRS" if params["CRS"] is not None
                                else "TEMPLATE", out_crs)
+        # two definitions of one CRS (an ESRI WKT and its EPSG code) move no node
+        if tin_crs is not None and out_crs is not None and \
+                not one_horizontal_crs(tin_crs, out_crs, nodes):
+            from pyproj import Transformer
+
+            from toolbox.io.crs import note_transformation
 
             cell = params.get("CELL_SIZE")
-            note_transformation(feedback, tin_crs, out_crs,
-                                (*xyz[:, :2].min(axis=0), *xyz[:, :2].max(axis=0)),
+            note_transformation(feedback, tin_crs, out_crs, nodes,
                                 float(cell) if cell else None, "TIN nodes")
             tr = Transformer.from_crs(tin_crs, out_crs, always_xy=True)
             x, y = tr.transform(xyz[:, 0], xyz[:, 1])

@@ -51,9 +51,11 @@ def sheet_polygons(source: SheetSource, warn=None) -> tuple[list[tuple[str, Any]
         ids = [str(v) for v in frame[field]] if field else [str(i + 1) for i in range(len(frame))]
         return [(sheet_id, sheet_polygon(geom, row, sheet_id if field else None, warn))
                 for row, (sheet_id, geom) in enumerate(zip(ids, frame.geometry.values), 1)
-                ], common_crs({"SHEETS": frame.crs}, source.crs)
+                ], common_crs({"SHEETS": frame.crs}, source.crs,
+                              {"SHEETS": frame.total_bounds})
     extent = source.extent
-    return [("1", shapely.box(*extent.bounds))], common_crs({"EXTENT": extent.crs}, source.crs)
+    return [("1", shapely.box(*extent.bounds))], common_crs({"EXTENT": extent.crs}, source.crs,
+                                                            {"EXTENT": extent.bounds})
 
 
 def sheet_polygon(geom, row: int, sheet_id: str | None = None, warn=None):

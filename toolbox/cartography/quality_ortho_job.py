@@ -99,19 +99,21 @@ def _check_points(req: OrthoCheckRequest, crs=None):
     return list(ids), np.asarray(xyz, float)
 
 
-def _same_crs_as_project(project, named: dict) -> None:
+def _same_crs_as_project(project, named: dict, bounds: tuple | None = None) -> None:
     """The rasters (``{name: rasterio CRS}``) are in the project's CRS (the check points' and
     the orientations'): one in another CRS would match nothing, or leave every height
     difference blank, in silence. One without a CRS is taken to be in it. Horizontal parts
     are compared (a DEM published with its vertical datum is in its projected CRS), and the
-    DEM's height datum, where both state one, against the project's."""
+    DEM's height datum, where both state one, against the project's. Another definition of
+    the project's CRS (an ESRI WKT) is it when the raster's extent (``bounds``) moves by at most
+    1 mm from one to the other."""
     from pyproj import CRS
 
     from toolbox.ortho.vertical import project_raster_crs
 
     for name, crs in named.items():
         project_raster_crs(project.crs, CRS.from_wkt(crs.to_wkt()) if crs else None, name,
-                           heights=name == "DEM")
+                           heights=name == "DEM", bounds=bounds)
 
 
 def measure_checks(req: OrthoCheckRequest, feedback=None) -> tuple[list[CheckResult], dict]:
@@ -139,11 +141,11 @@ def measure_checks(req: OrthoCheckRequest, feedback=None) -> tuple[list[CheckRes
                 logging.getLogger("toolbox").warning
             unlabelled_raster("ORTHO", tuple(src.bounds), project.crs, "PROJECT", xyz[:, :2],
                               "CHECK_POINTS", warn)
-        _same_crs_as_project(project, {"ORTHO": src.crs})
+        _same_crs_as_project(project, {"ORTHO": src.crs}, tuple(src.bounds))
         transform, shape = src.transform, (src.height, src.width)
     if req.dem is not None:
         with rasterio.open(req.dem) as src:
-            _same_crs_as_project(project, {"DEM": src.crs})
+            _same_crs_as_project(project, {"DEM": src.crs}, tuple(src.bounds))
     cell = abs(transform.a)
     half = max(int(round((req.chip_m or 12 * cell) / cell)), 3)
     reach = max(int(round((req.search_m or 8 * cell) / cell)), 1)

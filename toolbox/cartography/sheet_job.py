@@ -158,7 +158,8 @@ def _refuse_empty_sheets(job: SheetJob, sheets: list, crs=None) -> None:
                           for k, ref in enumerate(job.layers or [])}
     sheets_name = "SHEETS" if job.sheets.sheets is not None else "EXTENT"
     common_crs({sheets_name: crs} | {name: found[0][0] for name, found in named.items()
-                                     if found})
+                                     if found},
+               bounds={name: found[0][1] for name, found in named.items() if found})
 
     # envelopes, not boxes: one point, or points in a row, have a flat extent (an empty box)
     boxes = [shapely.envelope(shapely.MultiPoint([b[:2], b[2:]]))
@@ -223,16 +224,16 @@ def sheet_file_names(job: SheetJob) -> list[str]:
 def _index_layer(ref, crs, feedback):
     """The INDEX layer in the sheets' CRS (one without a CRS is taken to be in it; one in
     another CRS is reprojected, with a warning naming both)."""
-    from toolbox.io.crs import crs_label, note_transformation, same_crs
+    from toolbox.io.crs import crs_label, note_transformation, one_crs
     from toolbox.io.vector import read_vector
 
     frame = read_vector(ref, name="INDEX")
-    if frame.crs is None or crs is None:
+    if frame.crs is None or crs is None or one_crs(frame.crs, crs, frame.total_bounds):
+        # (another definition of the sheets' CRS, an ESRI WKT, is it: nothing moves)
         return frame.set_crs(crs, allow_override=True) if crs is not None else frame
-    if not same_crs(frame.crs, crs):
-        feedback.push_warning(f"INDEX is in {crs_label(frame.crs)}: reprojected to the sheets' "
-                              f"{crs_label(crs)}")
-        note_transformation(feedback, frame.crs, crs, frame.total_bounds, what="INDEX")
+    feedback.push_warning(f"INDEX is in {crs_label(frame.crs)}: reprojected to the sheets' "
+                          f"{crs_label(crs)}")
+    note_transformation(feedback, frame.crs, crs, frame.total_bounds, what="INDEX")
     return frame.to_crs(crs)
 
 
@@ -248,12 +249,16 @@ def run_sheets(job: SheetJob, feedback) -> dict:
     layers, styles = layer_styles(job, feedback.push_warning)
     contours = read_vector(job.contours, name="CONTOURS") \
         if job.contours is not None else None
-    from toolbox.io.crs import common_crs
+    from toolbox.io.crs import common_crs, input_crs_and_bounds
 
     named = {"BASE": job.base.crs if job.base is not None else None,
              "CONTOURS": None if contours is None else contours.crs}
     named |= {f"LAYERS[{k + 1}]": f.crs for k, (_, f) in enumerate(layers)}
-    crs = common_crs(named, crs)  # the sheet's CRS: every layer in it, or refused (mixed CRSs)
+    extents = {"BASE": next((b for _, b in input_crs_and_bounds(job.base)), None),
+               "CONTOURS": None if contours is None else contours.total_bounds}
+    extents |= {f"LAYERS[{k + 1}]": f.total_bounds for k, (_, f) in enumerate(layers)}
+    # the sheet's CRS: every layer in it (or in another definition of it), or refused
+    crs = common_crs(named, crs, extents)
     sources = job.sources or "; ".join(dict.fromkeys(
         [_dated(job.base)] * (job.base is not None)
         + [_dated(ref) for ref in job.layers or []]

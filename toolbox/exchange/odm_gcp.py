@@ -100,7 +100,10 @@ def read_gcp_list(path: str | Path, crs: Any = None) -> ControlSet:
         source_crs if source_crs.is_projected else \
         geodesy.utm_crs(float(geo[:, 0].mean()), float(geo[:, 1].mean()))
     out = ControlSet(target)
-    if not target.equals(source_crs):
+    from toolbox.io.crs import one_crs
+
+    # two definitions of one CRS (an ESRI WKT and its EPSG code) move no point: not transformed
+    if not one_crs(source_crs, target, (*geo[:, :2].min(axis=0), *geo[:, :2].max(axis=0))):
         from toolbox.io.crs import transformation_check
 
         record, warning = transformation_check(

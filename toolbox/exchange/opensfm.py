@@ -123,7 +123,11 @@ def _frame_function(frame: str, lat: float, lon: float, alt: float, crs) -> Any:
 
     utm = geodesy.utm_crs(lon, lat)
     (ox, oy, _), = geodesy.geographic_to_grid(lon, lat, alt, utm)
-    to_target = None if utm.equals(crs) else Transformer.from_crs(utm, crs, always_xy=True)
+    from toolbox.io.crs import one_crs
+
+    # another definition of the UTM zone (an ESRI WKT of it) moves no point: not transformed
+    to_target = None if one_crs(utm, crs, (ox, oy, ox, oy)) else \
+        Transformer.from_crs(utm, crs, always_xy=True)
 
     def f(xyz):
         xyz = np.atleast_2d(np.asarray(xyz, dtype="float64")) + [ox, oy, alt]

@@ -192,23 +192,149 @@ def centroid_shift(source: Any, target: Any, xy: Any) -> tuple[float, tuple[floa
     ``target``'s (pyproj), and the centroid: 0 for two definitions of one CRS (an ESRI WKT and
     its EPSG code), the datum shift for another datum; infinite where the transformation
     fails; ``(0.0, (nan, nan))`` without points. The definitions are not compared."""
-    from pyproj import Geod, Transformer
-
     xy = np.asarray(xy, dtype="float64").reshape(-1, 2)
     xy = xy[np.isfinite(xy).all(axis=1)]
     if not len(xy):
         return 0.0, (math.nan, math.nan)
-    source, target = horizontal_part(source), horizontal_part(target)
     x, y = (float(v) for v in xy.mean(axis=0))
-    moved = Transformer.from_crs(source, target, always_xy=True).transform(x, y)
-    geodetic = Transformer.from_crs(target, target.geodetic_crs, always_xy=True)
-    lon, lat = geodetic.transform(np.array([x, moved[0]]), np.array([y, moved[1]]))
-    if not (np.isfinite(lon).all() and np.isfinite(lat).all()):
-        return math.inf, (x, y)
+    return float(_moves(source, target, np.array([x]), np.array([y]))[0]), (x, y)
+
+
+def _moves(source: Any, target: Any, x: Any, y: Any) -> np.ndarray:
+    """How far (metres, on ``target``'s ellipsoid) each point (``x``, ``y``: arrays in
+    ``source``'s horizontal CRS) moves from ``source`` to ``target``; infinite where the
+    transformation fails."""
+    source, target = horizontal_part(source), horizontal_part(target)
+    forward, geodetic, geod = _movers(source.to_wkt(), target.to_wkt())
+    x, y = np.asarray(x, dtype="float64"), np.asarray(y, dtype="float64")
+    mx, my = forward.transform(x, y)
+    lon, lat = geodetic.transform(np.concatenate([x, mx]), np.concatenate([y, my]))
+    n = len(x)
+    with np.errstate(invalid="ignore"):
+        distance = np.asarray(geod.inv(lon[:n], lat[:n], lon[n:], lat[n:])[2], dtype="float64")
+    ok = np.isfinite(lon[:n]) & np.isfinite(lat[:n]) & np.isfinite(lon[n:]) \
+        & np.isfinite(lat[n:]) & np.isfinite(distance)
+    return np.where(ok, distance, math.inf)
+
+
+@functools.lru_cache(maxsize=32)
+def _movers(source_wkt: str, target_wkt: str) -> tuple[Any, Any, Any]:
+    """(source -> target, target -> its geographic CRS, the target's ellipsoid) for
+    :func:`_moves`, cached (creating a transformer costs ~10-100 ms)."""
+    from pyproj import Geod, Transformer
+
+    source, target = CRS.from_wkt(source_wkt), CRS.from_wkt(target_wkt)
     ellipsoid = target.ellipsoid
     geod = Geod(a=ellipsoid.semi_major_metre, rf=ellipsoid.inverse_flattening) \
         if ellipsoid is not None else Geod(ellps="WGS84")
-    return float(geod.inv(lon[0], lat[0], lon[1], lat[1])[2]), (x, y)
+    return (Transformer.from_crs(source, target, always_xy=True),
+            Transformer.from_crs(target, target.geodetic_crs, always_xy=True), geod)
+
+
+def extent_shift(source: Any, target: Any, bounds: Any = None
+                 ) -> tuple[float, tuple[float, float]]:
+    """How far (metres, on ``target``'s ellipsoid) the data's extent moves from ``source``'s
+    horizontal CRS to ``target``'s: the largest move of its centre and four corners
+    (``bounds``: xmin, ymin, xmax, ymax in ``source``), and the point that moves most. Without
+    bounds (or with bounds that are not finite), the area of use of either CRS stands for the
+    extent (its centre and corners, taken in ``source``'s geographic CRS). 0 for two
+    definitions of one CRS (an ESRI WKT and its EPSG code), the datum shift for another
+    datum; infinite where the transformation fails; NaN where no place is known (a CRS
+    without an area of use, no bounds)."""
+    source, target = horizontal_part(source), horizontal_part(target)
+    points = _extent_points(source, target, bounds)
+    if points is None:
+        return math.nan, (math.nan, math.nan)
+    x, y = points
+    try:
+        moved = _moves(source, target, x, y)
+    except Exception:  # noqa: BLE001 - no operation between them: no common place
+        return math.inf, (float(x[0]), float(y[0]))
+    k = int(np.argmax(moved))
+    return float(moved[k]), (float(x[k]), float(y[k]))
+
+
+def _extent_points(source: CRS, target: CRS, bounds: Any) -> tuple[Any, Any] | None:
+    """(x, y) arrays in ``source``: the centre and corners of ``bounds``, else of the area of
+    use (:func:`extent_shift`), or None."""
+    if bounds is not None:
+        b = [float(v) for v in bounds]
+        if len(b) == 4 and all(math.isfinite(v) for v in b):
+            xs, ys = sorted((b[0], b[2])), sorted((b[1], b[3]))
+            return (np.array([(xs[0] + xs[1]) / 2, xs[0], xs[1], xs[0], xs[1]]),
+                    np.array([(ys[0] + ys[1]) / 2, ys[0], ys[0], ys[1], ys[1]]))
+    area = None
+    for crs in (source, target):
+        area = crs.area_of_use or _area_of_use_by_code(crs)
+        if area is not None:
+            break
+    if area is None or area.east < area.west:  # across the antimeridian: not sampled
+        return None
+    lon = np.array([(area.west + area.east) / 2, area.west, area.east, area.west, area.east])
+    lat = np.array([(area.south + area.north) / 2, area.south, area.south, area.north,
+                    area.north])
+    if source.is_geographic:
+        return lon, lat
+    from pyproj import Transformer
+
+    x, y = Transformer.from_crs(source.geodetic_crs, source, always_xy=True).transform(lon, lat)
+    keep = np.isfinite(x) & np.isfinite(y)
+    return (np.asarray(x)[keep], np.asarray(y)[keep]) if keep.any() else None
+
+
+def one_crs(a: Any, b: Any, bounds: Any = None) -> bool:
+    """Whether data in ``a`` may be taken as in ``b`` as they are (no transformation): the
+    same definition (:func:`same_crs`, the fast path), or two definitions of one CRS (an ESRI
+    WKT, as GDAL labels a raster or layer, and its EPSG code): the data's extent
+    (``bounds``, in ``a``; :func:`extent_shift`) moves by at most :data:`PRJ_TOLERANCE_M` from
+    one to the other, and both state the same height datum or neither does. A CRS missing on
+    one side only is not the other's here (the callers decide)."""
+    if a is None or b is None:
+        return a is b
+    a, b = parse_crs(a), parse_crs(b)
+    if same_crs(a, b):
+        return True
+    ours, theirs = vertical_part(a), vertical_part(b)
+    if (ours is None) != (theirs is None) or (
+            ours is not None and not same_datum(ours, theirs)):
+        return False
+    return one_horizontal_crs(a, b, bounds)
+
+
+@functools.lru_cache(maxsize=128)
+def one_crs_of_wkt(a: str, b: str, bounds: tuple | None = None) -> bool:
+    """:func:`one_crs` of two CRSs given as WKT, once per pair and extent (asked for every
+    tile a raster engine reads)."""
+    return a == b or one_crs(a, b, bounds)
+
+
+def one_horizontal_crs(a: Any, b: Any, bounds: Any = None) -> bool:
+    """:func:`one_crs` of the horizontal parts of ``a`` and ``b`` (height datums not looked
+    at: a vertical datum moves no cell). Besides the extent's move, PROJ's operation from one
+    to the other must be conversions only (one datum): a null or ballpark datum transformation
+    (WGS 84 to RDN2008, "1 m"; ETRS89 to RDN2008; an unknown datum to any) moves no point
+    either, but those are two CRSs, not two definitions of one: refused or transformed as
+    before."""
+    if a is None or b is None:
+        return a is b
+    a, b = horizontal_part(a), horizontal_part(b)
+    return same_crs(a, b) or (extent_shift(a, b, bounds)[0] <= PRJ_TOLERANCE_M
+                              and _conversions_only(a.to_wkt(), b.to_wkt()))
+
+
+@functools.lru_cache(maxsize=32)
+def _conversions_only(source_wkt: str, target_wkt: str) -> bool:
+    """Whether PROJ goes from ``source`` to ``target`` by conversions only (no datum
+    transformation step; one operation, not a choice among several by area)."""
+    try:
+        operation = _movers(source_wkt, target_wkt)[0].to_json_dict()
+    except Exception:  # noqa: BLE001 - several candidate operations: datums differ
+        return False
+
+    def kinds(step: dict) -> list[str]:
+        return [str(step.get("type"))] + [k for s in step.get("steps", []) for k in kinds(s)]
+
+    return set(kinds(operation)) <= {"Conversion", "ConcatenatedOperation"}
 
 
 def shift_phrase(shift: float, centre: tuple[float, float]) -> str:
@@ -226,12 +352,12 @@ def check_one_crs(key: str, crs: Any, ref_name: str, reference: Any, xy: Any,
     (:func:`centroid_shift`: two definitions of one CRS, an ESRI WKT and its EPSG code, are
     not equal but move no point), else an :class:`InputDataError` naming both and the shift;
     two different height datums stated one on each side are refused too
-    (:func:`check_same_heights`). Without positions the definitions are compared
-    (:func:`same_crs`, horizontal parts). The shift (0 without positions)."""
+    (:func:`check_same_heights`). Without positions the CRSs' area of use stands for them
+    (:func:`one_horizontal_crs`). The shift (0 without positions)."""
     crs, reference = parse_crs(crs), parse_crs(reference)
     finite = np.asarray(xy, dtype="float64").reshape(-1, 2)
     if not np.isfinite(finite).all(axis=1).any():
-        if not same_crs(horizontal_part(crs), horizontal_part(reference)):
+        if not one_horizontal_crs(crs, reference):  # the CRSs' area of use stands for them
             raise InputDataError(f"{key} is in {crs_label(crs)} but {ref_name} is in "
                                  f"{crs_label(reference)}: {advice}")
         check_same_heights(key, crs, ref_name, reference)
@@ -244,29 +370,37 @@ def check_one_crs(key: str, crs: Any, ref_name: str, reference: Any, xy: Any,
     return shift
 
 
-def common_crs(named: dict[str, CRS | None], override: CRS | None = None) -> CRS | None:
+def common_crs(named: dict[str, CRS | None], override: CRS | None = None,
+               bounds: dict[str, Any] | None = None) -> CRS | None:
     """The one CRS shared by the named inputs (``{"INPUT": crs, ...}``).
 
     Inputs without a CRS (e.g. CSV) take ``override`` or the others' CRS. With ``override`` given,
     inputs that do have a CRS must match it. Different CRSs raise :class:`InputDataError`.
+    Two definitions of one CRS (an ESRI WKT and its EPSG code) are one (:func:`one_crs`: the
+    input's extent, ``bounds[name]`` in its own CRS, else the CRSs' area of use, moves by at
+    most :data:`PRJ_TOLERANCE_M` from one to the other); the first CRS (or ``override``) is
+    returned.
     """
     known = {k: c for k, c in named.items() if c is not None}
+    bounds = bounds or {}
     reference = override
     ref_name = "CRS"
     for key, crs in known.items():
         if reference is None:
             reference, ref_name = crs, key
-        elif not same_crs(reference, crs):
-            _heights_only(key, crs, ref_name, reference)
+        elif not one_crs(crs, reference, bounds.get(key)):
+            _heights_only(key, crs, ref_name, reference, bounds.get(key))
     return reference
 
 
-def _heights_only(key: str, crs: CRS, ref_name: str, reference: CRS) -> None:
-    """Two CRSs that differ: another horizontal CRS, or two different height datums, is an
+def _heights_only(key: str, crs: CRS, ref_name: str, reference: CRS, bounds: Any = None
+                  ) -> None:
+    """Two CRSs that differ: another horizontal CRS (:func:`one_horizontal_crs` on ``key``'s
+    extent ``bounds``), or two different height datums, is an
     :class:`InputDataError` saying which; the same horizontal CRS with a height datum stated
     on one side only (``EPSG:3003+5214`` and ``EPSG:3003``) is taken as one, with a warning
     (the "toolbox" logger's: the console and the run report show it)."""
-    if not same_crs(horizontal_part(crs), horizontal_part(reference)):
+    if not one_horizontal_crs(crs, reference, bounds):
         raise InputDataError(f"{key} is in {crs_label(crs)} but {ref_name} is in "
                              f"{crs_label(reference)}; reproject the inputs to one CRS first")
     ours, theirs = vertical_part(reference), vertical_part(crs)
@@ -297,7 +431,7 @@ def extent_bounds_in(extent: Any, crs: Any, name: str = "EXTENT") -> tuple[float
     logged as a warning naming ``name`` and the bounds taken."""
     bounds = tuple(float(v) for v in extent.bounds)
     own = getattr(extent, "crs", None)
-    if own is None or crs is None or same_crs(own, crs):
+    if own is None or crs is None or one_crs(own, crs, bounds):
         return bounds
     import logging
 
@@ -409,7 +543,7 @@ def warn_unlabelled_elsewhere(inputs: dict[str, Any], warnings: list[str] | None
     if not labelled:
         return
     crs = labelled[0][0]
-    boxes = [b for c, b in labelled if same_crs(c, crs)]
+    boxes = [b for c, b in labelled if one_crs(c, crs, b)]
     box = (min(b[0] for b in boxes), min(b[1] for b in boxes), max(b[2] for b in boxes),
            max(b[3] for b in boxes))
     margin = 0.1 * max(box[2] - box[0], box[3] - box[1], 1.0)

@@ -56,7 +56,9 @@ def open_block(paths: list, name: str = "INPUT", feedback: Any = None,
             if feedback is not None:
                 feedback.check_canceled()
         crs = common_crs({f"{name}[{s.index + 1}] ({s.name})":
-                          CRS.from_wkt(s.crs.to_wkt()) if s.crs else None for s in sources})
+                          CRS.from_wkt(s.crs.to_wkt()) if s.crs else None for s in sources},
+                         bounds={f"{name}[{s.index + 1}] ({s.name})": s.bounds
+                                 for s in sources})
     except BaseException:
         datasets.close()
         raise
@@ -143,12 +145,15 @@ def centres_of(sources: list[OrthoSource], how: str, points: dict | None = None,
 
 def read_in_crs(layer, crs: Any, name: str):
     """A vector layer of the block in the orthos' CRS ``crs``: reprojected when it is in
-    another one, taken to be in ``crs`` when it has none."""
-    from toolbox.io.crs import note_transformation, same_crs
+    another one, taken to be in ``crs`` when it has none or another definition of it (an ESRI
+    WKT: :func:`toolbox.io.crs.one_crs`, nothing moves)."""
+    from toolbox.io.crs import note_transformation, one_crs
     from toolbox.io.vector import read_vector
 
     frame = read_vector(layer, crs=crs, name=name)
-    if crs is not None and frame.crs is not None and not same_crs(frame.crs, crs):
+    if crs is not None and frame.crs is not None:
+        if one_crs(frame.crs, crs, frame.total_bounds):
+            return frame.set_crs(crs, allow_override=True)
         note_transformation(None, frame.crs, crs, frame.total_bounds, what=name)
         frame = frame.to_crs(crs)
     return frame

@@ -51,7 +51,8 @@ class DemSampler:
                                  f"{max(1, min(info.width, info.height) - 1)}")
         self.nodata = info.nodata
         self.transformer = None
-        if info.crs is not None and crs is not None and not same_horizontal_crs(info.crs, crs):
+        if info.crs is not None and crs is not None and \
+                not same_horizontal_crs(info.crs, crs, info.bounds):
             from pyproj import Transformer
 
             self.transformer = Transformer.from_crs(crs, info.crs, always_xy=True)
@@ -216,15 +217,14 @@ class DemSampler:
         return out
 
 
-def same_horizontal_crs(a: Any, b: Any) -> bool:
+def same_horizontal_crs(a: Any, b: Any, bounds: Any = None) -> bool:
     """The same CRS, or the same horizontal CRS where one or both are compound (a vertical
-    datum adds heights, it does not move the cells: no reprojection)."""
-    from toolbox.io.crs import same_crs
+    datum adds heights, it does not move the cells: no reprojection); two definitions of one
+    CRS (an ESRI WKT and its EPSG code: :func:`toolbox.io.crs.one_horizontal_crs` on the
+    data's extent ``bounds``, in ``a``) are one."""
+    from toolbox.io.crs import one_horizontal_crs
 
-    def horizontal(crs: Any) -> Any:
-        return crs.sub_crs_list[0] if getattr(crs, "is_compound", False) else crs
-
-    return same_crs(a, b) or same_crs(horizontal(a), horizontal(b))
+    return one_horizontal_crs(a, b, bounds)
 
 
 LATTICE = 16  # cells between exactly transformed points when a grid goes to another CRS

@@ -107,7 +107,7 @@ def photo_surface(info: Any, photo: Any, crs: Any, band: int = 1) -> Any:
     DEM's resolution when the DEM is in another CRS)."""
     from toolbox.photogrammetry.surface import surface_for_photo
 
-    if info.crs is None or crs is None or same_horizontal_crs(info.crs, crs):
+    if info.crs is None or crs is None or same_horizontal_crs(info.crs, crs, info.bounds):
         return surface_for_photo(info, photo, band, dem_range(info, band))
     import rasterio
 
@@ -173,14 +173,17 @@ def mean_height_inside(surface: Any, vertices: np.ndarray) -> float:
 
 def orientation_transformer(photo: Any, crs: Any) -> Any:
     """pyproj Transformer from the ortho's CRS to the orientation's (always_xy), or None when
-    they are the same (or either is unknown)."""
-    from toolbox.io.crs import parse_crs, same_crs
+    they are the same (or either is unknown): two definitions of one CRS (an ESRI WKT and its
+    EPSG code) are the same when the projection centre moves by at most 1 mm from one to the
+    other (:func:`toolbox.io.crs.one_crs`)."""
+    from toolbox.io.crs import one_crs, parse_crs
 
-    eo_crs = photo.require_exterior().crs
+    eo = photo.require_exterior()
+    eo_crs = eo.crs
     if eo_crs is None or crs is None:
         return None
     eo_crs, crs = parse_crs(eo_crs), parse_crs(crs)
-    if same_crs(eo_crs, crs):
+    if one_crs(eo_crs, crs, (eo.x0, eo.y0, eo.x0, eo.y0)):
         return None
     from pyproj import Transformer
 

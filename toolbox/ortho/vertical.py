@@ -40,18 +40,21 @@ ROWS_PER_BLOCK = 512
 
 
 def project_raster_crs(project_crs: Any, raster_crs: Any, name: str = "DEM",
-                       heights: bool = True) -> Any:
+                       heights: bool = True, bounds: Any = None) -> Any:
     """The CRS of an orientation project used with a raster ``name`` of its area (a DEM, an
     orthophoto): their horizontal parts must be the same CRS (a vertical datum adds heights, it
     does not move the cells: a DEM published as 'projected + EGM2008 height' is in the project's
     'projected' CRS); with ``heights``, datums stated by both must agree (the DEM's heights are
     taken as the orientation's; ortho:photo and ortho:batch convert them). A CRS missing on
-    either side is the other's, as :func:`toolbox.io.crs.common_crs` has it."""
+    either side is the other's, as :func:`toolbox.io.crs.common_crs` has it; two definitions
+    of one CRS (an ESRI WKT and its EPSG code) are one (the raster's extent, ``bounds``, moves
+    by at most 1 mm from one to the other: :func:`toolbox.io.crs.one_crs`)."""
     from toolbox.io.crs import common_crs
 
     if project_crs is None or raster_crs is None:
         return common_crs({"PROJECT": project_crs, name: raster_crs})
-    common_crs({"PROJECT": horizontal_part(project_crs), name: horizontal_part(raster_crs)})
+    common_crs({"PROJECT": horizontal_part(project_crs), name: horizontal_part(raster_crs)},
+               bounds={name: bounds})
     ours, theirs = vertical_part(project_crs), vertical_part(raster_crs)
     if heights and ours is not None and theirs is not None and not same_datum(ours, theirs):
         raise InputDataError(f"{name} heights are {datum_label(theirs)} but PROJECT's are "

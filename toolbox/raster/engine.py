@@ -226,10 +226,10 @@ def _aligned_offset(src: Any, grid: GridSpec) -> tuple[int, int] | None:
     if abs(s.a - g.a) > _EPS * abs(g.a) or abs(s.e - g.e) > _EPS * abs(g.e):
         return None
     if src.crs is not None and grid.crs is not None:
-        from toolbox.io.crs import same_crs
+        from toolbox.io.crs import one_crs_of_wkt
 
-        from_wkt = _pyproj(src.crs)
-        if not same_crs(from_wkt, _pyproj(grid.crs)):
+        # two definitions of one CRS (an ESRI WKT and its EPSG code) share it
+        if not one_crs_of_wkt(src.crs.to_wkt(), _pyproj(grid.crs).to_wkt(), tuple(src.bounds)):
             return None
     dc, dr = (g.c - s.c) / s.a, (g.f - s.f) / s.e
     if abs(dc - round(dc)) > 1e-6 or abs(dr - round(dr)) > 1e-6:

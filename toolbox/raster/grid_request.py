@@ -79,7 +79,7 @@ class GridRequest:
             if self.cell_size is not None:
                 raise ParameterError("CELL_SIZE", f"must not be given with TEMPLATE (the "
                                      f"template's cells are used), got {self.cell_size:g}")
-            _same_horizontal_crs(template.crs, crs)
+            _same_horizontal_crs(template.crs, crs, getattr(template, "bounds", None))
             crs = crs if crs is not None else template.crs
             if extent is None:
                 return _guarded(GridSpec(t, template.width, template.height, crs), limit,
@@ -120,15 +120,17 @@ class GridRequest:
                         limit, "CELL_SIZE")
 
 
-def _same_horizontal_crs(template_crs: Any, crs: Any) -> None:
+def _same_horizontal_crs(template_crs: Any, crs: Any, bounds: Any = None) -> None:
     """A TEMPLATE whose horizontal CRS is not the output's (``crs``, the data's): its cells
-    would be taken as if in the output's CRS; a ParameterError naming both. A height datum on
-    one side only, or a CRS missing on either side, passes (the callers check heights)."""
+    would be taken as if in the output's CRS; a ParameterError naming both. Another
+    definition of the same CRS (an ESRI WKT: :func:`toolbox.io.crs.one_horizontal_crs` on the
+    template's ``bounds``), a height datum on one side only, or a CRS missing on either side,
+    passes (the callers check heights)."""
     if template_crs is None or crs is None:
         return
-    from toolbox.io.crs import crs_label, horizontal_part, same_crs
+    from toolbox.io.crs import crs_label, one_horizontal_crs
 
-    if not same_crs(horizontal_part(template_crs), horizontal_part(crs)):
+    if not one_horizontal_crs(template_crs, crs, bounds):
         raise ParameterError("TEMPLATE", f"is in {crs_label(template_crs)} but the output is "
                              f"in {crs_label(crs)} (the data's CRS): give a TEMPLATE in "
                              f"{crs_label(crs)} (gdalwarp -t_srs reprojects it)")
@@ -158,11 +160,13 @@ def template_lattice(template: Any, cell_size: float | None = None, crs: Any = N
     """(cell, lattice origin (x, y)) of a north-up template raster with square cells.
 
     ``cell_size`` (CELL_SIZE) must not be given (the template's cell is used: the engine's
-    rule, same message); ``crs``: the output's CRS, which a template with a CRS must share.
+    rule, same message); ``crs``: the output's CRS, which a template with a CRS must share
+    (:func:`toolbox.io.crs.one_crs` on the template's extent: an ESRI WKT of it shares it).
     """
-    from toolbox.io.crs import crs_label, same_crs
+    from toolbox.io.crs import crs_label, one_crs
 
-    if crs is not None and template.crs is not None and not same_crs(template.crs, crs):
+    if crs is not None and template.crs is not None and \
+            not one_crs(template.crs, crs, getattr(template, "bounds", None)):
         raise ParameterError("TEMPLATE", f"is in {crs_label(template.crs)}, {what} in "
                              f"{crs_label(crs)}")
     from toolbox.io.raster import north_up_transform

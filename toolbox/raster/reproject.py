@@ -75,7 +75,7 @@ def read_onto(src: Any, transform: Any, width: int, height: int, crs: Any = None
     if fill is None:
         fill = math.nan if dtype.kind == "f" else (
             src_nodata if src_nodata is not None and not math.isnan(src_nodata) else 0)
-    src_crs, dst_crs = _crs_pair(src.crs, crs)
+    src_crs, dst_crs = _crs_pair(src.crs, crs, src.bounds)
     out = np.full((len(indexes), int(height), int(width)), fill, dtype=dtype)
     reproject(rasterio.band(src, indexes), out, src_transform=src.transform, src_crs=src_crs,
               src_nodata=src_nodata, dst_transform=transform, dst_crs=dst_crs, dst_nodata=fill,
@@ -100,7 +100,7 @@ def default_grid(src: Any, crs: Any) -> tuple[Any, int, int]:
     (about the source's resolution: ``gdalwarp -t_srs`` without a cell size or extent)."""
     from rasterio.warp import calculate_default_transform
 
-    src_crs, dst_crs = _crs_pair(src.crs, crs)
+    src_crs, dst_crs = _crs_pair(src.crs, crs, src.bounds)
     transform, width, height = calculate_default_transform(
         src_crs, dst_crs, src.width, src.height, *src.bounds)
     return transform, int(width), int(height)
@@ -121,13 +121,21 @@ def _first_data_band(src: Any) -> int:
     return next(b for b in src.indexes if b != alpha)
 
 
-def _crs_pair(src_crs: Any, crs: Any) -> tuple[Any, Any]:
+def _crs_pair(src_crs: Any, crs: Any, bounds: Any = None) -> tuple[Any, Any]:
     """(source CRS, grid CRS) as rasterio CRSs: a missing one is the other's; both missing
-    (local systems): any one CRS for both, only the transforms matter."""
+    (local systems): any one CRS for both, only the transforms matter. A source CRS that is
+    another definition of the grid's (an ESRI WKT: :func:`toolbox.io.crs.one_crs` on the
+    source's ``bounds``) is the grid's: resampled, not reprojected."""
     from toolbox.io.raster import _rio_crs
 
     dst = _rio_crs(crs) if crs is not None else None
     source = src_crs if src_crs else dst
     if source is None:
         source = _rio_crs("EPSG:3857")
+    if dst is not None and source is not dst:
+        from toolbox.io.crs import one_crs_of_wkt
+
+        if one_crs_of_wkt(source.to_wkt(), dst.to_wkt(),
+                          None if bounds is None else tuple(bounds)):
+            source = dst
     return source, dst if dst is not None else source
