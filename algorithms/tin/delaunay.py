@@ -190,15 +190,20 @@ class Delaunay(Algorithm):
             points = line_xyz = line_index = None  # the model holds its nodes: free the inputs
         _report_quality(model.report, feedback)
         feedback.set_progress(35, "writing")
-        counts = write_tin(params["OUTPUT"], model, crs, params["SPATIAL_INDEX"],
-                           feedback.step(35, 100), edges_layer=params["EDGES"])
+        from concurrent.futures import ThreadPoolExecutor
+
+        # the summary beside the writing, whose single-threaded steps leave a core idle
+        with ThreadPoolExecutor(1, thread_name_prefix="tin-summary") as pool:
+            summary = pool.submit(_surface_summary, model)
+            counts = write_tin(params["OUTPUT"], model, crs, params["SPATIAL_INDEX"],
+                               feedback.step(35, 100), edges_layer=params["EDGES"])
         stats = dict(model.report)
         if cloud is not None:
             stats["point_cloud"] = cloud
         stats.update(edges=counts["edges"], crs=crs_label(crs),
                      node_sources={name: int((model.source == i).sum())
                                    for i, name in enumerate(SOURCES)},
-                     **_surface_summary(model))
+                     **summary.result())
         return {"OUTPUT": params["OUTPUT"], "STATISTICS": stats}
 
 

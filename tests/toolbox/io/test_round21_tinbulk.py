@@ -194,7 +194,7 @@ def test_packed_rtree_by_chunks_of_nodes_is_the_same_tree(monkeypatch):
 
 
 def test_a_refusal_on_the_encoding_thread_falls_back_to_gdal(tmp_path, monkeypatch):
-    """The batches are encoded on a thread of their own (gpkg_bulk.ahead): a refusal raised
+    """The batches are encoded on threads of their own (gpkg_bulk.ahead_map): a refusal raised
     there (here: the edges' geometries) reaches the writer, the appender puts the file back, and
     GDAL writes the whole TIN."""
     from toolbox.io import gpkg_bulk
@@ -215,19 +215,25 @@ def test_a_refusal_on_the_encoding_thread_falls_back_to_gdal(tmp_path, monkeypat
     assert _rows(path, "SELECT rtreecheck('rtree_edges_geom')") == [("ok",)]
 
 
-def test_ahead_keeps_order_raises_the_producers_error_and_stops_it():
+def test_ahead_map_keeps_order_raises_the_error_and_stops():
     import threading
+    import time
 
-    from toolbox.io.gpkg_bulk import ahead
+    from toolbox.io.gpkg_bulk import ahead_map
 
-    assert list(ahead(iter(range(50)))) == list(range(50))
+    def slow_square(k):  # later calls may finish first: the order is the arguments'
+        time.sleep(0.002 * (k % 3))
+        return k * k
 
-    def failing():
-        yield 1
-        raise ValueError("boom")
+    assert list(ahead_map(slow_square, ((k,) for k in range(50)))) == [k * k for k in range(50)]
 
-    items = ahead(failing())
-    assert next(items) == 1
+    def failing(k):
+        if k == 3:
+            raise ValueError("boom")
+        return k
+
+    items = ahead_map(failing, ((k,) for k in range(10)))
+    assert [next(items) for _ in range(3)] == [0, 1, 2]
     with pytest.raises(ValueError, match="boom"):
         next(items)
     made = []
@@ -235,10 +241,11 @@ def test_ahead_keeps_order_raises_the_producers_error_and_stops_it():
     def endless():
         while True:
             made.append(1)
-            yield len(made)
+            yield (len(made),)
 
-    items = ahead(endless(), depth=2)
+    items = ahead_map(lambda k: k, endless(), workers=2, depth=3)
     assert next(items) == 1
-    items.close()  # the consumer stops early: the producer thread ends too
-    assert not any(t.name == "gpkg-bulk-encode" and t.is_alive() for t in threading.enumerate())
-    assert len(made) <= 5
+    items.close()  # the consumer stops early: the threads end too, nothing more is made
+    assert not any(t.name.startswith("gpkg-bulk-encode") and t.is_alive()
+                   for t in threading.enumerate())
+    assert len(made) <= 4

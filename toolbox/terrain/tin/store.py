@@ -106,10 +106,12 @@ Columns = dict[str, tuple[np.ndarray, "np.ndarray | None"]]
 class _Layer:
     """One layer to write, produced in slices: ``make(lo, hi)`` returns the columns (field name
     -> (values, null mask or None)) and the ``(hi - lo, size)`` WKB records of features
-    ``lo:hi``, so a writer holds one batch of geometries and Arrow arrays at a time."""
+    ``lo:hi``, so a writer holds one batch of geometries and Arrow arrays at a time.
+    ``release``: see :class:`toolbox.io.gpkg_bulk.BulkLayer`."""
 
-    def __init__(self, name: str, n: int, make, geometry_type: str):
+    def __init__(self, name: str, n: int, make, geometry_type: str, release=None):
         self.name, self.n, self.make, self.geometry_type = name, n, make, geometry_type
+        self.release = release
 
     def schema(self):
         import pyarrow as pa
@@ -331,7 +333,7 @@ def _without_triangle_edges(table: EdgeTable) -> EdgeTable:
 
 def _write_edges(path: Path, model: TinModel, edges: EdgeTable, crs: Any,
                  spatial_index: bool, bulk: bool = False) -> None:
-    """The edges layer. In bulk, the edge table is let go once its last batch is made (the
+    """The edges layer. In bulk, the edge table is let go once every batch was made (the
     caller keeps no reference): the R-tree is packed without it (10 M points: 0.5 GB less at
     the run's peak). A bulk refusal rewrites the whole TIN through GDAL from the model."""
     xyz = model.xyz
@@ -342,8 +344,6 @@ def _write_edges(path: Path, model: TinModel, edges: EdgeTable, crs: Any,
 
     def make(lo: int, hi: int):
         edges = held[0]
-        if bulk and hi == n:
-            held.clear()
         ends = edges.nodes[lo:hi]
         d = np.take(xyz, ends[:, 1], axis=0) - np.take(xyz, ends[:, 0], axis=0)
         length_2d = np.hypot(d[:, 0], d[:, 1])
@@ -354,7 +354,8 @@ def _write_edges(path: Path, model: TinModel, edges: EdgeTable, crs: Any,
                    "length_3d": (np.hypot(length_2d, d[:, 2]), None)}
         return columns, wkb_from_nodes(_WKB_LINESTRING_Z, xyz, ends)
 
-    _write_layer(path, _Layer("edges", n, make, "LineString Z"), crs, spatial_index, bulk)
+    _write_layer(path, _Layer("edges", n, make, "LineString Z", held.clear if bulk else None),
+                 crs, spatial_index, bulk)
 
 
 class _Steps:
