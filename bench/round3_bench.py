@@ -34,7 +34,7 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
-from benchlib import load_note, machine_facts  # noqa: E402
+from benchlib import load_note, machine_facts, rewrite_generated  # noqa: E402
 
 
 def run_once(cmd: list[str], env: dict | None = None) -> dict[str, float]:
@@ -452,28 +452,14 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--points", type=int, help="tinwrite: points (default 1,000,000)")
     args = parser.parse_args(argv)
     args.work.mkdir(parents=True, exist_ok=True)
-    chosen = args.sections or list(SECTIONS)
-    parts = ["## Speed round three (`bench/round3_bench.py`)", ""]
-    for name in chosen:
+    path = HERE / "results" / "round3.md"
+    for name in args.sections or list(SECTIONS):
         head = f"{machine_facts()}. {load_note()}; load average {os.getloadavg()[0]:.1f}."
-        body = SECTIONS[name](args)
-        parts += [f"### {name}", "", head, "", body, ""]
-        print("\n".join(parts[-6:]), flush=True)
-    if not args.sections:
-        (HERE / "results" / "round3.md").write_text("\n".join(parts))
-    else:  # the chosen sections replace theirs in results/round3.md; the others are kept
-        replace_sections(HERE / "results" / "round3.md", parts[2:])
-
-
-def replace_sections(path: Path, parts: list[str]) -> None:
-    """Put each ``### name`` block of ``parts`` in place of the same block of ``path``."""
-    text = path.read_text() if path.exists() else "## Speed round three\n"
-    for block in ("\n" + "\n".join(parts)).split("\n### ")[1:]:
-        name = block.split("\n", 1)[0]
-        head, found, rest = text.partition(f"\n### {name}\n")
-        tail = rest[rest.index("\n### "):] if found and "\n### " in rest else ""
-        text = head.rstrip("\n") + f"\n\n### {block.rstrip()}\n" + tail
-    path.write_text(text)
+        lines = [f"### {name}", "", head, "", SECTIONS[name](args)]
+        print("\n".join(lines), flush=True)
+        # each section's table between its markers: the notes written under it are kept
+        old = path.read_text() if path.exists() else "## Speed round three (`bench/round3_bench.py`)\n"
+        path.write_text(rewrite_generated(old, "round3", {name: lines}))
 
 
 if __name__ == "__main__":
