@@ -129,3 +129,14 @@ def _mosaic_scene():
     import mosaic_scene
 
     return mosaic_scene
+
+
+@pytest.fixture(scope="module")
+def cluster():
+    """A Dask LocalCluster of two worker processes (one thread each) for the module's runs: its
+    scheduler address."""
+    from distributed import LocalCluster
+
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                      dashboard_address=None) as c:
+        yield c.scheduler_address

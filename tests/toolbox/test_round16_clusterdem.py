@@ -33,15 +33,6 @@ def egm96_available() -> bool:
     return TransformerGroup(CRS(EGM96), CRS(UTM).to_3d(), always_xy=True).best_available
 
 
-@pytest.fixture(scope="module")
-def cluster():
-    from distributed import LocalCluster
-
-    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                      dashboard_address=":0") as c:
-        yield c.scheduler_address
-
-
 def _scene(folder: Path) -> dict:
     from tests.algorithms.ortho.test_ortho_vertical_datum import vertical_scene
 

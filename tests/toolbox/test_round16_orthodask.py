@@ -30,16 +30,6 @@ import rpc_scene  # noqa: E402
 import stereo_scene  # noqa: E402
 
 
-@pytest.fixture(scope="module")
-def cluster():
-    """One two-process cluster for the module's runs (its scheduler address)."""
-    from distributed import LocalCluster
-
-    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                      dashboard_address=":0") as c:
-        yield c.scheduler_address
-
-
 def _read(path) -> np.ndarray:
     with rasterio.open(path) as src:
         return src.read()

@@ -21,15 +21,6 @@ from tests.helpers_cli import cli
 pytestmark = [pytest.mark.distributed]
 
 
-@pytest.fixture(scope="module")
-def cluster():
-    from distributed import LocalCluster
-
-    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                      dashboard_address=None) as c:
-        yield c.scheduler_address
-
-
 def _warned_lines(stderr: str) -> list[str]:
     return [ln for ln in stderr.splitlines() if ln.startswith("WARNING:") and "GDAL" not in ln]
 

@@ -8,32 +8,16 @@ outputs byte-identical to the EPSG-labelled run's; ED50 / UTM 32N is still refus
 
 from __future__ import annotations
 
-import warnings
-
 import numpy as np
 import pytest
-import rasterio
-import yaml
 from helpers_cli import cli, one_error
 from rasterio.transform import from_origin
 
-ESRI_6707 = (  # gdalsrsinfo --single-line -o wkt_esri EPSG:6707 (GDAL 3.6.2)
-    'PROJCS["RDN2008_TM32",GEOGCS["GCS_RDN2008",DATUM["D_Rete_Dinamica_Nazionale_2008",'
-    'SPHEROID["GRS_1980",6378137.0,298.257222101]],PRIMEM["Greenwich",0.0],'
-    'UNIT["Degree",0.0174532925199433]],PROJECTION["Transverse_Mercator"],'
-    'PARAMETER["False_Easting",500000.0],PARAMETER["False_Northing",0.0],'
-    'PARAMETER["Central_Meridian",9.0],PARAMETER["Scale_Factor",0.9996],'
-    'PARAMETER["Latitude_Of_Origin",0.0],UNIT["Meter",1.0]]')
+from tests.toolbox.crs_cases import ESRI_6707, write_one_photo_project
+from tests.toolbox.crs_cases import write_raster as _raster
+
 LABELS = {"epsg": "EPSG:6707", "esri": ESRI_6707, "ed50": "EPSG:23032"}
 X0, Y0 = 680000.0, 4800000.0
-
-
-def _raster(path, data, crs, transform):
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
-        with rasterio.open(path, "w", driver="GTiff", width=data.shape[1], height=data.shape[0],
-                           count=1, dtype=data.dtype, crs=crs, transform=transform) as dst:
-            dst.write(data[None])
 
 
 @pytest.fixture(scope="module")
@@ -45,14 +29,7 @@ def block(tmp_path_factory):
     n = 200
     _raster(folder / "p1.tif", rng.integers(0, 255, (n, n), dtype="uint8"), None,
             from_origin(0, 0, 1, 1))
-    camera = {"name": "c", "principal_distance_mm": 153.0, "image_size_px": [n, n],
-              "pixel_size_mm": 230.0 / n, "frame_size_mm": [230.0, 230.0]}
-    exterior = dict(zip(("X0", "Y0", "Z0", "omega", "phi", "kappa"),
-                        (X0 + 500, Y0 - 500, 1000.0, 0.0, 0.0, 0.0), strict=True))
-    (folder / "project.yaml").write_text(yaml.safe_dump({
-        "format": "orientation-project", "version": 1, "crs": "EPSG:6707", "angle_unit": "rad",
-        "cameras": [camera], "photos": [{"id": "p1", "camera": "c", "image": "p1.tif",
-                                         "exterior": exterior}]}, sort_keys=False))
+    write_one_photo_project(folder, n, (X0 + 500, Y0 - 500, 1000.0, 0.0, 0.0, 0.0))
     offsets = [(-300, -200), (250, 100), (0, 0), (100, -280)]
     (folder / "control.csv").write_text("id,X,Y,Z\n" + "".join(
         f"g{k},{X0 + 500 + dx},{Y0 - 500 + dy},200\n" for k, (dx, dy) in enumerate(offsets)))

@@ -20,15 +20,6 @@ from test_round20_leftovers12_worker_warnings import EXIF, two_turned_photos  # 
 pytestmark = [pytest.mark.distributed]
 
 
-@pytest.fixture(scope="module")
-def cluster():
-    from distributed import LocalCluster
-
-    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                      dashboard_address=None) as c:
-        yield c.scheduler_address
-
-
 def _exif(warnings) -> list[str]:
     return sorted(w for w in warnings if EXIF in w)
 

@@ -15,16 +15,10 @@ import numpy as np
 import pytest
 from helpers_cli import cli, one_error
 
+from tests.toolbox.crs_cases import ESRI_6707
 from toolbox.errors import InputDataError
 from toolbox.exchange import formats, orthority
 
-ESRI_6707 = (  # gdalsrsinfo --single-line -o wkt_esri EPSG:6707 (GDAL 3.6.2)
-    'PROJCS["RDN2008_TM32",GEOGCS["GCS_RDN2008",DATUM["D_Rete_Dinamica_Nazionale_2008",'
-    'SPHEROID["GRS_1980",6378137.0,298.257222101]],PRIMEM["Greenwich",0.0],'
-    'UNIT["Degree",0.0174532925199433]],PROJECTION["Transverse_Mercator"],'
-    'PARAMETER["False_Easting",500000.0],PARAMETER["False_Northing",0.0],'
-    'PARAMETER["Central_Meridian",9.0],PARAMETER["Scale_Factor",0.9996],'
-    'PARAMETER["Latitude_Of_Origin",0.0],UNIT["Meter",1.0]]')
 # echo "680500 4800050" | gdaltransform -s_srs <ESRI_6707> -t_srs EPSG:23032 -output_xy
 # (GDAL 3.6.2): 680582.651850311 4800246.10910895; the scale factor there is 1.0000
 ED50_SHIFT = math.hypot(680582.651850311 - 680500, 4800246.10910895 - 4800050)  # 212.815 m

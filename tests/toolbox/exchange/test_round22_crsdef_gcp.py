@@ -9,15 +9,9 @@ from __future__ import annotations
 
 import pytest
 
+from tests.toolbox.crs_cases import ESRI_6707
 from toolbox.exchange import odm_gcp
 
-ESRI_6707 = (  # gdalsrsinfo --single-line -o wkt_esri EPSG:6707 (GDAL 3.6.2)
-    'PROJCS["RDN2008_TM32",GEOGCS["GCS_RDN2008",DATUM["D_Rete_Dinamica_Nazionale_2008",'
-    'SPHEROID["GRS_1980",6378137.0,298.257222101]],PRIMEM["Greenwich",0.0],'
-    'UNIT["Degree",0.0174532925199433]],PROJECTION["Transverse_Mercator"],'
-    'PARAMETER["False_Easting",500000.0],PARAMETER["False_Northing",0.0],'
-    'PARAMETER["Central_Meridian",9.0],PARAMETER["Scale_Factor",0.9996],'
-    'PARAMETER["Latitude_Of_Origin",0.0],UNIT["Meter",1.0]]')
 ROWS = ("680123.456 4800456.789 210.5 100 200 IMG1.jpg g1\n"
         "680987.123 4800111.222 215.25 300 400 IMG2.jpg g2\n")
 

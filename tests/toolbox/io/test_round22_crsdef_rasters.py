@@ -11,41 +11,22 @@ difference (ED50 / UTM 32N, 212 m away by gdaltransform) is still refused naming
 from __future__ import annotations
 
 import math
-import warnings
 
 import numpy as np
 import pytest
 import rasterio
-import yaml
 from helpers_cli import cli, one_error
 from rasterio.transform import from_origin
 
 import toolbox
+from tests.toolbox.crs_cases import ESRI_6707, write_one_photo_project
+from tests.toolbox.crs_cases import write_raster as _raster
 
-ESRI_6707 = (  # gdalsrsinfo --single-line -o wkt_esri EPSG:6707 (GDAL 3.6.2)
-    'PROJCS["RDN2008_TM32",GEOGCS["GCS_RDN2008",DATUM["D_Rete_Dinamica_Nazionale_2008",'
-    'SPHEROID["GRS_1980",6378137.0,298.257222101]],PRIMEM["Greenwich",0.0],'
-    'UNIT["Degree",0.0174532925199433]],PROJECTION["Transverse_Mercator"],'
-    'PARAMETER["False_Easting",500000.0],PARAMETER["False_Northing",0.0],'
-    'PARAMETER["Central_Meridian",9.0],PARAMETER["Scale_Factor",0.9996],'
-    'PARAMETER["Latitude_Of_Origin",0.0],UNIT["Meter",1.0]]')
 X0, Y0 = 680000.0, 4800000.0  # the DEMs' top-left corner; 40 x 40 cells of 100 m
 LABELS = {"epsg": "EPSG:6707", "esri": ESRI_6707, "ed50": "EPSG:23032"}
 # echo "680000 4796000" | gdaltransform -s_srs EPSG:23032 -t_srs EPSG:6707 -output_xy
 # (GDAL 3.6.2): 679917.351431935 4795803.92696407 (the ESRI WKT: 680000 4796000, unmoved)
 ED50_SHIFT = math.hypot(679917.351431935 - 680000, 4795803.92696407 - 4796000)  # 212.82 m
-
-
-def _raster(path, data, crs, transform, nodata=None):
-    data = np.asarray(data)
-    data = data[None] if data.ndim == 2 else data
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
-        with rasterio.open(path, "w", driver="GTiff", width=data.shape[2], height=data.shape[1],
-                           count=data.shape[0], dtype=data.dtype, crs=crs, transform=transform,
-                           nodata=nodata) as dst:
-            dst.write(data)
-    return path
 
 
 def _same_raster(a, b) -> bool:
@@ -70,14 +51,7 @@ def area(tmp_path_factory):
     image[:, :, ::7] = 250
     image[:, ::9, :] = 250
     _raster(folder / "p1.tif", image, None, from_origin(0, 0, 1, 1))
-    camera = {"name": "c", "principal_distance_mm": 153.0, "image_size_px": [n, n],
-              "pixel_size_mm": 230.0 / n, "frame_size_mm": [230.0, 230.0]}
-    exterior = dict(zip(("X0", "Y0", "Z0", "omega", "phi", "kappa"),
-                        (X0 + 2000, Y0 - 2000, 1700.0, 0.01, 0.02, 0.4), strict=True))
-    (folder / "project.yaml").write_text(yaml.safe_dump({
-        "format": "orientation-project", "version": 1, "crs": "EPSG:6707", "angle_unit": "rad",
-        "cameras": [camera], "photos": [{"id": "p1", "camera": "c", "image": "p1.tif",
-                                         "exterior": exterior}]}, sort_keys=False))
+    write_one_photo_project(folder, n, (X0 + 2000, Y0 - 2000, 1700.0, 0.01, 0.02, 0.4))
     rng = np.random.default_rng(5)
     x, y = rng.uniform(X0 + 100, X0 + 3900, 200), rng.uniform(Y0 - 3900, Y0 - 100, 200)
     z = 200 + 0.01 * (x - X0) + 5 * np.sin(y / 300)
