@@ -18,7 +18,9 @@ operating system and the file system take one (Linux: ext4, XFS, btrfs): a bulk 
 then costs the disk's bandwidth, not a copy into the page cache and the reclaim of older cached
 pages, which took 0.3-3.4 s of system time for 1.35 GB on the same machine from one run to the
 next. Elsewhere (tmpfs, macOS, Windows), or when a write is refused, the same bytes go through the
-page cache. The page buffer is reused from batch to batch (zeroed), not allocated anew.
+page cache. Two page buffers are reused in turn (zeroed), not allocated anew: a thread writes
+one while the next batch's pages are laid out in the other (1 M-point TIN: 6.15 -> 5.81 s, medians
+of 5 interleaved).
 
 What it handles is deliberately narrow, and anything else raises :class:`UnsupportedDatabase` so
 the caller can take SQLite's own path: a rollback-journal database (no WAL, no ``-journal`` or
@@ -542,7 +544,10 @@ class BtreeAppender:
         self._schema = self._read_schema()
         self._fd = os.open(self.path, os.O_RDWR)
         self._direct: int | bool | None = None  # the O_DIRECT descriptor; False: not taken
-        self._buffer = np.empty(0, np.uint8)
+        self._buffers = [np.empty(0, np.uint8), np.empty(0, np.uint8)]  # filled in turn
+        self._writing: list[Any] = [None, None]  # each buffer's write in flight (a Future)
+        self._turn = 0
+        self._writer: Any = None  # the thread writing new pages (made on first use)
         self._saved: dict[int, bytes] = {}
         self._filled: set[int] = set()
 
@@ -687,17 +692,41 @@ class BtreeAppender:
         self._direct = False
 
     def _zeroed_pages(self, npages: int) -> np.ndarray:
-        """``npages`` zeroed pages in the appender's one buffer (aligned for ``O_DIRECT``, grown
-        when needed): valid until the next call."""
+        """``npages`` zeroed pages in the next of the appender's two buffers (aligned for
+        ``O_DIRECT``, grown when needed), once its last write is done: valid until the next
+        call but one."""
+        turn = self._turn
+        self._wait(turn)
         nbytes = npages * self.page_size
-        if self._buffer.size < nbytes:
-            self._buffer = np.empty(0, np.uint8)  # free the old one first
+        if self._buffers[turn].size < nbytes:
+            self._buffers[turn] = np.empty(0, np.uint8)  # free the old one first
             raw = np.empty(nbytes + _DIRECT_ALIGN, np.uint8)
             skip = -raw.ctypes.data % _DIRECT_ALIGN
-            self._buffer = raw[skip:skip + nbytes]
-        pages = self._buffer[:nbytes]
+            self._buffers[turn] = raw[skip:skip + nbytes]
+        pages = self._buffers[turn][:nbytes]
         pages.fill(0)
         return pages
+
+    def _wait(self, turn: int) -> None:
+        """Wait for the write in flight from buffer ``turn``; its error is raised here."""
+        pending, self._writing[turn] = self._writing[turn], None
+        if pending is not None:
+            pending.result()
+
+    def _drain(self, errors: bool = True) -> None:
+        """Wait for every write in flight (raising the first error unless ``errors`` is
+        False), and end the writing thread."""
+        try:
+            for turn in (0, 1):
+                try:
+                    self._wait(turn)
+                except BaseException:
+                    if errors:
+                        raise
+        finally:
+            if self._writer is not None and not any(self._writing):
+                self._writer.shutdown(wait=True)
+                self._writer = None
 
     def _alloc(self, npages: int) -> np.ndarray:
         """Page numbers of ``npages`` new pages at the end of the file (skipping the lock page)."""
@@ -709,9 +738,17 @@ class BtreeAppender:
         return pg
 
     def _write_new(self, buf: np.ndarray, pgnos: np.ndarray) -> None:
-        """Write a buffer of pages occupying slots first..last (the lock page a zero slot)."""
+        """Write a buffer of pages (from :meth:`_zeroed_pages`) occupying slots first..last
+        (the lock page a zero slot), on the writing thread: the next buffer is filled while
+        the disk takes this one (an ``O_DIRECT`` write returns when the device has it)."""
+        from concurrent.futures import ThreadPoolExecutor
+
         first = self._npages + 1
-        self._write(buf, (first - 1) * self.page_size)
+        if self._writer is None:
+            self._writer = ThreadPoolExecutor(1, thread_name_prefix="sqlite-pages-write")
+        self._writing[self._turn] = self._writer.submit(self._write, buf,
+                                                        (first - 1) * self.page_size)
+        self._turn ^= 1
         self._npages = int(pgnos[-1]) if pgnos.size else self._npages
 
     def _write_root(self, root: int, page: np.ndarray) -> None:
@@ -933,6 +970,7 @@ class BtreeAppender:
                 self._check_open("close")
             return
         try:
+            self._drain()  # every page is in the file before the header counts it
             head = bytearray(os.pread(self._fd, 100, 0))
             counter = (struct.unpack(">I", head[24:28])[0] + 1) & 0xFFFFFFFF
             head[24:28] = struct.pack(">I", counter)
@@ -958,6 +996,7 @@ class BtreeAppender:
         if self._fd is None:
             return
         self._failed = True
+        self._drain(errors=False)  # no write lands after the truncation
         self._close_direct()
         try:
             os.ftruncate(self._fd, self._orig_size)

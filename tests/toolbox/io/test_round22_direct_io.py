@@ -139,3 +139,38 @@ def test_reused_page_buffer_leaves_free_space_zeroed(tmp_path):
         ncells, content = struct.unpack(">HH", page[3:7])
         free = page[8 + 2 * ncells: content or 65536]
         assert free == bytes(len(free)), pgno
+
+
+def test_a_failed_write_in_flight_restores_the_file(tmp_path, monkeypatch):
+    """New pages are written on a thread of their own while the next are laid out: a disk-full
+    error there reaches fill(), and the file is put back byte for byte (no write lands after
+    the truncation), the writing thread ended."""
+    import hashlib
+    import threading
+
+    path = tmp_path / "full.db"
+    make_db(path, cols="fid INTEGER PRIMARY KEY, a INTEGER, b REAL, d BLOB")
+    before = hashlib.sha256(path.read_bytes()).hexdigest()
+    rng = np.random.default_rng(7)
+    d = np.array([bytes(rng.integers(0, 256, 150).astype(np.uint8))] * N_ROWS, object)
+    cols = [None, ("int", np.arange(N_ROWS), None), ("real", rng.normal(size=N_ROWS), None),
+            ("blob", d, None)]
+    rowids = np.arange(1, N_ROWS + 1, dtype=np.int64)
+    real_pwrite, calls = os.pwrite, []
+
+    def pwrite(fd, data, offset):
+        if threading.current_thread().name.startswith("sqlite-pages-write"):
+            calls.append(offset)
+            if len(calls) == 3:
+                raise OSError(errno.ENOSPC, "No space left on device")
+        return real_pwrite(fd, data, offset)
+
+    monkeypatch.setattr(sqlite_pages.os, "pwrite", pwrite)
+    with pytest.raises(OSError, match="No space left"):
+        with BtreeAppender(path) as app:
+            app.fill("t", batched(rowids, cols, (2000,)))
+    assert len(calls) >= 3
+    assert hashlib.sha256(path.read_bytes()).hexdigest() == before
+    assert not any(t.name.startswith("sqlite-pages-write") and t.is_alive()
+                   for t in threading.enumerate())
+    assert integrity(path) == ["ok"]
