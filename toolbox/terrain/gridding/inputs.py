@@ -76,6 +76,20 @@ class GriddingData:
         return (float(lo[0]), float(lo[1]), float(hi[0]), float(hi[1]))
 
 
+#: the largest height a DEM's float32 cell holds
+FLOAT32_MAX = float(np.finfo(np.float32).max)
+
+
+def check_heights_fit(z: np.ndarray, name: str) -> None:
+    """InputDataError when a height of ``name`` is beyond what a float32 DEM cell holds (it
+    would be written as inf)."""
+    if len(z) and float(np.abs(z).max()) > FLOAT32_MAX:
+        worst = float(z[np.abs(z).argmax()])
+        raise InputDataError(f"{name}: a height of {worst:.6g} is beyond what the DEM's float32 "
+                             f"cells hold (|Z| <= {FLOAT32_MAX:.4g}): check Z_FIELD and the "
+                             "heights' unit")
+
+
 def read_sources(sources: PointSources, feedback: Feedback,
                  other_crs: dict[str, Any] | None = None) -> GriddingData:
     """Read the points and line vertices, check CRSs, merge duplicate XY.
@@ -102,6 +116,7 @@ def read_sources(sources: PointSources, feedback: Feedback,
         if sources.points is not None:
             xyz, cloud = read_mass_points(sources.points, sources.z_field, sources.classes,
                                           sources.returns, sources.crs)
+            check_heights_fit(xyz[:, 2], UI_NAMES["points"])
             parts.append(xyz)
             counts["points"] = len(xyz)
             if cloud is not None:
@@ -119,6 +134,7 @@ def read_sources(sources: PointSources, feedback: Feedback,
             if not set(shapely.get_type_id(frame.geometry.values).tolist()) <= {1, 2}:
                 raise InputDataError(f"{name} must contain lines, found other geometry types")
             xyz, part = vertices_xyz(frame, getattr(sources, f"{role}_z_field"), name)
+            check_heights_fit(xyz[:, 2], name)
             parts.append(xyz)
             counts[f"{role}_vertices"] = len(xyz)
             if role == "breaklines" and len(xyz) > 1:

@@ -149,6 +149,7 @@ class _OutsideHeader(Exception):
 def _scan(ref: Any, flt: Any, z_field: str | None, chunk_points: int, name: str,
           bounds: tuple[float, float, float, float]) -> CloudScan:
     from toolbox.io.pointcloud import ReadReport, iter_xyz, warn_noise_classes
+    from toolbox.terrain.gridding.inputs import check_heights_fit
     from toolbox.terrain.gridding.masks import convex_hull
 
     x0, y0, size, nx, ny = bucket_raster(bounds, ref.point_count)
@@ -157,6 +158,7 @@ def _scan(ref: Any, flt: Any, z_field: str | None, chunk_points: int, name: str,
     ring = np.zeros((0, 2))
     report = ReadReport(0, 0, {}, flt.describe())
     for xyz in iter_xyz(ref, flt, z_field, name, chunk_points, report):
+        check_heights_fit(xyz[:, 2], name)
         ix = np.floor((xyz[:, 0] - x0) / size).astype(np.int64)
         iy = np.floor((xyz[:, 1] - y0) / size).astype(np.int64)
         if ix.min() < 0 or iy.min() < 0 or ix.max() >= nx or iy.max() >= ny:
