@@ -57,6 +57,15 @@ MEM_KEYS = ("driver", "width", "height", "count", "dtype", "crs", "transform", "
 OVERVIEW_CACHE_MB = 32
 
 
+def overview_block(tile: int) -> int:
+    """``GDAL_TIFF_OVR_BLOCKSIZE`` for a file of ``tile``-cell blocks. GDAL takes a power of two
+    from 64 to 4096 (any other value: a warning, "Wrong value for GDAL_TIFF_OVR_BLOCKSIZE", and
+    128): the largest not above ``tile``, within those bounds (``tile`` itself for the usual
+    256 or 512)."""
+    size = 1 << (max(int(tile), 1).bit_length() - 1)
+    return min(max(size, 64), 4096)
+
+
 class RasterWriter:
     """Context manager writing an output grid window by window.
 
@@ -223,7 +232,8 @@ class RasterWriter:
 
     def _env(self) -> dict:
         return {"GDAL_CACHEMAX": gdal_cache_max(self.cache_mb), "COMPRESS_OVERVIEW": self.compress,
-                "PREDICTOR_OVERVIEW": self.predictor, "GDAL_TIFF_OVR_BLOCKSIZE": self.tile,
+                "PREDICTOR_OVERVIEW": self.predictor,
+                "GDAL_TIFF_OVR_BLOCKSIZE": overview_block(self.tile),
                 "INTERLEAVE_OVERVIEW": "PIXEL" if self.count > 1 else "BAND",
                 "GDAL_TIFF_INTERNAL_MASK": "YES",  # the mask of mask_alpha, in the file
                 "ZLEVEL_OVERVIEW": deflate_level(self.dtype),
