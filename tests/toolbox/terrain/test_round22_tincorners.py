@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import shapely
 
-from toolbox.terrain.tin.store import wkb_from_nodes
+from toolbox.terrain.tin.store import wkb_records
 from toolbox.terrain.tin.topology import triangle_areas, triangle_corners
 
 
@@ -17,16 +17,19 @@ def cloud(n=500, seed=4):
     return xyz, rng.integers(0, n, (900, 3))
 
 
-def test_wkb_from_nodes_decodes_to_the_nodes_coordinates():
+def test_wkb_of_gathered_corners_decodes_to_the_nodes_coordinates():
+    """The writer's path: corners gathered once (triangle_corners, np.take), then WKB."""
     xyz, nodes = cloud()
     wide = np.zeros((len(xyz), 5))
     wide[:, 1:4] = xyz
-    strided = wide[:, 1:4]  # not contiguous: copied to whole 24-byte vertices first
-    rings = shapely.from_wkb([r.tobytes() for r in wkb_from_nodes(1003, strided, nodes, True)])
+    strided = wide[:, 1:4]  # not contiguous
+    corners = triangle_corners(strided, nodes)
+    rings = shapely.from_wkb([r.tobytes() for r in wkb_records(1003, corners, True)])
     got = shapely.get_coordinates(rings, include_z=True).reshape(-1, 4, 3)
     np.testing.assert_array_equal(got[:, :3], xyz[nodes])
     np.testing.assert_array_equal(got[:, 3], xyz[nodes[:, 0]])
-    lines = shapely.from_wkb([r.tobytes() for r in wkb_from_nodes(1002, xyz, nodes[:, :2])])
+    ends = np.take(xyz, nodes[:, :2], axis=0)
+    lines = shapely.from_wkb([r.tobytes() for r in wkb_records(1002, ends)])
     np.testing.assert_array_equal(
         shapely.get_coordinates(lines, include_z=True).reshape(-1, 2, 3), xyz[nodes[:, :2]])
 

@@ -85,21 +85,6 @@ def wkb_records(type_code: int, coords: np.ndarray, ring: bool = False) -> np.nd
     return out
 
 
-def wkb_from_nodes(type_code: int, xyz: np.ndarray, nodes: np.ndarray,
-                   ring: bool = False) -> np.ndarray:
-    """:func:`wkb_records` of the geometries whose vertices are ``xyz[nodes]`` (``nodes`` is
-    ``(n, k)``), filled corner by corner without the ``(n, k, 3)`` temporary."""
-    nodes = np.asarray(nodes)
-    n, k = nodes.shape
-    out, slots = _wkb_buffer(type_code, n, k, ring)
-    vertices = _vertices(xyz)
-    for j in range(k):
-        slots[:, j] = np.take(vertices, nodes[:, j])
-    if ring:
-        slots[:, k] = slots[:, 0]
-    return out
-
-
 Columns = dict[str, tuple[np.ndarray, "np.ndarray | None"]]
 
 
@@ -345,14 +330,15 @@ def _write_edges(path: Path, model: TinModel, edges: EdgeTable, crs: Any,
     def make(lo: int, hi: int):
         edges = held[0]
         ends = edges.nodes[lo:hi]
-        d = np.take(xyz, ends[:, 1], axis=0) - np.take(xyz, ends[:, 0], axis=0)
+        ends_xyz = np.take(xyz, ends, axis=0)  # (n, 2, 3): for the lengths and the WKB
+        d = ends_xyz[:, 1] - ends_xyz[:, 0]
         length_2d = np.hypot(d[:, 0], d[:, 1])
         columns = {"id": _serial(lo, hi), "node_from": _ids(ends[:, 0]),
                    "node_to": _ids(ends[:, 1]), "left_tri": _ids(edges.left[lo:hi]),
                    "right_tri": _ids(edges.right[lo:hi]), "breakline": (breakline[lo:hi], None),
                    "length_2d": (length_2d, None),
                    "length_3d": (np.hypot(length_2d, d[:, 2]), None)}
-        return columns, wkb_from_nodes(_WKB_LINESTRING_Z, xyz, ends)
+        return columns, wkb_records(_WKB_LINESTRING_Z, ends_xyz)
 
     _write_layer(path, _Layer("edges", n, make, "LineString Z", held.clear if bulk else None),
                  crs, spatial_index, bulk)

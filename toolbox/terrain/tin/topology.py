@@ -164,8 +164,12 @@ def corner_normals(corner_xyz: np.ndarray) -> np.ndarray:
 
 def triangle_areas(xyz: np.ndarray, triangles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Planimetric and 3D area of each triangle (the first two :func:`triangle_measures`)."""
-    n = plane_normals(xyz, triangles)
-    return np.abs(n[:, 2]) / 2.0, np.linalg.norm(n, axis=1) / 2.0
+    return _areas(plane_normals(xyz, triangles))
+
+
+def _areas(normals: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Planimetric and 3D areas from :func:`plane_normals`: half ``|c|``, half the length."""
+    return np.abs(normals[:, 2]) / 2.0, np.linalg.norm(normals, axis=1) / 2.0
 
 
 def triangle_measures(xyz: np.ndarray, triangles: np.ndarray) -> TriangleMeasures:
@@ -185,8 +189,8 @@ def corner_measures(corner_xyz: np.ndarray) -> TriangleMeasures:
     sign = np.where(c < 0, -1.0, 1.0)
     aspect = np.degrees(np.arctan2(a * sign, b * sign)) % 360.0
     aspect = np.where(horizontal == 0, -1.0, aspect)
-    return TriangleMeasures(np.abs(c) / 2.0, np.linalg.norm(n, axis=1) / 2.0, slope,
-                            np.where(np.isfinite(tan), 100.0 * tan, np.inf), aspect)
+    return TriangleMeasures(*_areas(n), slope, np.where(np.isfinite(tan), 100.0 * tan, np.inf),
+                            aspect)
 
 
 def median_edge_length(xyz: np.ndarray, triangles: np.ndarray, neighbors: np.ndarray) -> float:
