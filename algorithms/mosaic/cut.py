@@ -226,21 +226,14 @@ def _open_input(value):
                                  f"{str(exc).splitlines()[0]}") from None
         others, first.default_of = first.default_of, ()  # all are cut: none taken by default
         refs = [first, *(open_layer(f"{value}|layername={name}", "INPUT") for name in others)]
+    from toolbox.mosaic.block import frame_in_crs
+
     layers, crs = {}, None
     for ref in refs:
         frame = read_vector(ref, name="INPUT")
         crs = frame.crs if crs is None else crs
-        if frame.crs is not None and frame.crs is not crs:
-            from toolbox.io.crs import note_transformation, one_crs
-
-            if one_crs(frame.crs, crs, frame.total_bounds):  # two definitions of one CRS
-                layers[ref.layer or ref.info["layer_name"]] = frame.set_crs(
-                    crs, allow_override=True)
-                continue
-            note_transformation(None, frame.crs, crs, frame.total_bounds,
-                                what=f"INPUT layer {ref.layer or ref.info['layer_name']}")
-            frame = frame.to_crs(crs)
-        layers[ref.layer or ref.info["layer_name"]] = frame
+        name = ref.layer or ref.info["layer_name"]
+        layers[name] = frame_in_crs(frame, crs, f"INPUT layer {name}")
     bounds = [b for b in (f.total_bounds for f in layers.values()) if np.isfinite(b).all()]
     if not bounds:
         raise InputDataError(f"INPUT '{value}' has no features with a geometry: nothing to cut")

@@ -147,16 +147,23 @@ def read_in_crs(layer, crs: Any, name: str):
     """A vector layer of the block in the orthos' CRS ``crs``: reprojected when it is in
     another one, taken to be in ``crs`` when it has none or another definition of it (an ESRI
     WKT: :func:`toolbox.io.crs.one_crs`, nothing moves)."""
-    from toolbox.io.crs import note_transformation, one_crs
     from toolbox.io.vector import read_vector
 
-    frame = read_vector(layer, crs=crs, name=name)
-    if crs is not None and frame.crs is not None:
-        if one_crs(frame.crs, crs, frame.total_bounds):
-            return frame.set_crs(crs, allow_override=True)
-        note_transformation(None, frame.crs, crs, frame.total_bounds, what=name)
-        frame = frame.to_crs(crs)
-    return frame
+    return frame_in_crs(read_vector(layer, crs=crs, name=name), crs, name)
+
+
+def frame_in_crs(frame, crs: Any, what: str):
+    """``frame`` in ``crs``: as it is without a CRS on either side, or in ``crs`` itself; taken
+    to be in ``crs`` when it is another definition of it (:func:`toolbox.io.crs.one_crs`,
+    nothing moves); else reprojected, with a note naming ``what``."""
+    if crs is None or frame.crs is None or frame.crs is crs:
+        return frame
+    from toolbox.io.crs import note_transformation, one_crs
+
+    if one_crs(frame.crs, crs, frame.total_bounds):
+        return frame.set_crs(crs, allow_override=True)
+    note_transformation(None, frame.crs, crs, frame.total_bounds, what=what)
+    return frame.to_crs(crs)
 
 
 def nadir_points_from_layer(layer, field: str | None, sources: list[OrthoSource],

@@ -18,7 +18,9 @@ class DemSampler:
     The DEM may be in another CRS than the output (``crs``): the cell centres are then
     transformed with pyproj (always_xy) and the heights taken bilinearly in the DEM's own grid.
     A DEM whose CRS differs only by a vertical part (a compound CRS such as UTM + EGM2008
-    height) is read directly: its heights are taken as they are (:func:`same_horizontal_crs`).
+    height) is read directly: its heights are taken as they are
+    (:func:`toolbox.io.crs.one_horizontal_crs`, which also takes two definitions of one CRS, an
+    ESRI WKT and its EPSG code, as one on the DEM's extent).
     ``factor`` > 1 projects on a coarser DEM (the thesis' "fattore di ricampionamento"): the mean
     of ``factor`` x ``factor`` DEM cells, on a lattice fixed to the DEM's origin (no tile seams).
     Where ``factor`` does not divide the DEM's width (height), the last coarse column (row) is a
@@ -51,8 +53,10 @@ class DemSampler:
                                  f"{max(1, min(info.width, info.height) - 1)}")
         self.nodata = info.nodata
         self.transformer = None
+        from toolbox.io.crs import one_horizontal_crs
+
         if info.crs is not None and crs is not None and \
-                not same_horizontal_crs(info.crs, crs, info.bounds):
+                not one_horizontal_crs(info.crs, crs, info.bounds):
             from pyproj import Transformer
 
             self.transformer = Transformer.from_crs(crs, info.crs, always_xy=True)
@@ -215,16 +219,6 @@ class DemSampler:
             heights_at_points(np.ascontiguousarray(part[0]), *part[1:], dx, dy, flat)
             out = flat.reshape(out.shape)
         return out
-
-
-def same_horizontal_crs(a: Any, b: Any, bounds: Any = None) -> bool:
-    """The same CRS, or the same horizontal CRS where one or both are compound (a vertical
-    datum adds heights, it does not move the cells: no reprojection); two definitions of one
-    CRS (an ESRI WKT and its EPSG code: :func:`toolbox.io.crs.one_horizontal_crs` on the
-    data's extent ``bounds``, in ``a``) are one."""
-    from toolbox.io.crs import one_horizontal_crs
-
-    return one_horizontal_crs(a, b, bounds)
 
 
 LATTICE = 16  # cells between exactly transformed points when a grid goes to another CRS

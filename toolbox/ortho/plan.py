@@ -11,7 +11,6 @@ from typing import Any
 import numpy as np
 
 from toolbox.errors import InputDataError
-from toolbox.ortho.dem import same_horizontal_crs
 from toolbox.ortho.metrics import ground_sample_distance, nice_cell_size
 
 
@@ -105,9 +104,10 @@ def photo_surface(info: Any, photo: Any, crs: Any, band: int = 1) -> Any:
     """The DEM window every ray of the photo can meet, as a
     :class:`~toolbox.photogrammetry.surface.DemSurface` in ``crs`` (reprojected bilinearly at the
     DEM's resolution when the DEM is in another CRS)."""
+    from toolbox.io.crs import one_horizontal_crs
     from toolbox.photogrammetry.surface import surface_for_photo
 
-    if info.crs is None or crs is None or same_horizontal_crs(info.crs, crs, info.bounds):
+    if info.crs is None or crs is None or one_horizontal_crs(info.crs, crs, info.bounds):
         return surface_for_photo(info, photo, band, dem_range(info, band))
     import rasterio
 

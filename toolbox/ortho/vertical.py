@@ -3,7 +3,7 @@
 A DEM's CRS may carry a vertical datum (a compound CRS: UTM + EGM2008 height), and so may the
 orientation's (a compound project ``crs``, a 3D CRS with ellipsoidal heights, or ``HEIGHTS``
 of the ortho algorithms). Same datum, or one side silent: the DEM is used as it is (the fast
-path: a vertical datum moves no cell, :func:`toolbox.ortho.dem.same_horizontal_crs`), and the
+path: a vertical datum moves no cell, :func:`toolbox.io.crs.one_horizontal_crs`), and the
 report says which. Different datums: the DEM's heights are converted ONCE with pyproj into a
 temporary DEM of the photos' datum (the shift ``h' - h`` taken on a lattice of every 16th cell
 and interpolated, checked to 1 mm at the lattice cells' centres, else computed at every cell).
