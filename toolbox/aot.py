@@ -26,7 +26,8 @@ import os
 import threading
 
 #: name -> (kernel module, its numba dispatcher, the exported signature, (dtype, ndim) of each
-#: argument: C-contiguous arrays, checked before every call, see :func:`compiled_kernel`)
+#: argument: C-contiguous arrays, or ndim 0 for an integer, checked before every call, see
+#: :func:`compiled_kernel`)
 EXPORTS = {
     "contour_lines": ("toolbox.cartography.contour_kernel", "lines_core",
                       "Tuple((float64[:, :], int64[:], int32[:]))(float64[:, ::1], float64[::1], "
@@ -35,6 +36,14 @@ EXPORTS = {
     "cocircular_edges": ("toolbox.terrain.tin.unique_kernel", "cocircular_edges",
                          "int64(float64[:, ::1], uint32[:, ::1])",
                          (("float64", 2), ("uint32", 2))),
+    "leaf_cells": ("toolbox.io.page_kernel", "leaf_cells",
+                   "int64[::1](uint8[::1], int64, int64[::1], int64[::1], int64[::1], int64[::1], "
+                   "int64[::1])",
+                   (("uint8", 1), ("int64", 0), ("int64", 1), ("int64", 1), ("int64", 1),
+                    ("int64", 1), ("int64", 1))),
+    "copy_records": ("toolbox.io.page_kernel", "copy_records",
+                     "void(uint8[::1], int64[::1], uint8[::1], int64[::1], int64[::1])",
+                     (("uint8", 1), ("int64", 1), ("uint8", 1), ("int64", 1), ("int64", 1))),
 }
 
 _loaded: dict[str, object] = {}
@@ -122,8 +131,8 @@ def compiled_kernel(name: str, folder: str | None = None):
 
     pycc's wrapper does not check them as the JIT's dispatcher does: a float32 or non-contiguous
     array would be read as the declared type (a crash, or wrong values in silence). So every
-    argument must be a C-contiguous, aligned array of the exported dtype and dimensions, else
-    :class:`TypeError` before the call."""
+    argument must be a C-contiguous, aligned array of the exported dtype and dimensions (or an
+    integer where the export takes one), else :class:`TypeError` before the call."""
     module = load_compiled(name, folder)
     if module is None:
         return None
@@ -137,6 +146,11 @@ def compiled_kernel(name: str, folder: str | None = None):
         if len(args) != len(wanted):
             raise TypeError(f"{name} takes {len(wanted)} arguments, got {len(args)}")
         for i, ((dtype, ndim), value) in enumerate(zip(wanted, args, strict=True)):
+            if ndim == 0:
+                if not isinstance(value, (int, np.integer)) or isinstance(value, bool):
+                    raise TypeError(f"{name}: argument {i} must be an integer, got "
+                                    f"{type(value).__name__}")
+                continue
             if not (isinstance(value, np.ndarray) and value.dtype == dtype and value.ndim == ndim
                     and value.flags.c_contiguous and value.flags.aligned):
                 got = (f"{value.dtype} {value.ndim}-D, C-contiguous {value.flags.c_contiguous}"

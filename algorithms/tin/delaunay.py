@@ -178,7 +178,13 @@ class Delaunay(Algorithm):
             boundary = None if params["BOUNDARY"] is None else read_area(params["BOUNDARY"], "BOUNDARY")
         feedback.set_progress(10, "triangulating")
         feedback.check_canceled()
-        with feedback.timed("triangulate"):
+        from concurrent.futures import ThreadPoolExecutor
+
+        from toolbox.io.gpkg_bulk import import_gdal_writer
+
+        helper = ThreadPoolExecutor(1, thread_name_prefix="tin-helper")
+        helper.submit(import_gdal_writer)  # while the triangulation runs (CDT lets go the GIL)
+        with helper, feedback.timed("triangulate"):
             try:
                 model = build_tin(points, line_xyz, line_index, boundary=boundary,
                                   concave=params["HULL"] == "concave",
@@ -190,8 +196,6 @@ class Delaunay(Algorithm):
             points = line_xyz = line_index = None  # the model holds its nodes: free the inputs
         _report_quality(model.report, feedback)
         feedback.set_progress(35, "writing")
-        from concurrent.futures import ThreadPoolExecutor
-
         # the summary beside the writing, whose single-threaded steps leave a core idle
         with ThreadPoolExecutor(1, thread_name_prefix="tin-summary") as pool:
             summary = pool.submit(_surface_summary, model)

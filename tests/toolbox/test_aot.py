@@ -120,6 +120,40 @@ def test_arguments_of_another_type_are_refused_before_the_call(cache_home):
     assert len(points) == 0 and list(offsets) == [0] and len(level) == 0
 
 
+def test_the_compiled_page_kernels_write_the_jit_pages(cache_home):
+    """The bulk GeoPackage writer's page pass (toolbox.io.page_kernel), compiled: the JIT's
+    bytes on pages of rows of every varint length (the JIT is checked against the numpy writer
+    and SQLite in tests/toolbox/io/test_round23_page_kernel.py); its integer argument is
+    checked too."""
+    from toolbox.io import page_kernel
+
+    rng = np.random.default_rng(5)
+    n, page_size = 3000, 1024
+    rowids = np.cumsum(rng.integers(1, 2**40, n)) - 2**50
+    reclen = rng.integers(1, 300, n)
+    flat = rng.integers(0, 256, int(reclen.sum())).astype(np.uint8)
+    rec_start = np.concatenate([[0], np.cumsum(reclen)[:-1]])
+    cells = reclen + 9 + 3 + 2  # generous: 9-byte rowids, 2-byte lengths, a pointer
+    starts = np.arange(0, n, 3, dtype=np.int64)
+    assert int(cells[:3].sum()) < page_size  # (any three fit a page: checked for this seed)
+    ends = np.minimum(starts + 3, n)
+    slots = np.arange(starts.size, dtype=np.int64)
+    pages = {}
+    for name, (cells_of, copy) in {
+            "jit": (page_kernel.leaf_cells, page_kernel.copy_records),
+            "compiled": (aot.compiled_kernel("leaf_cells", folder=cache_home["folder"]),
+                         aot.compiled_kernel("copy_records", folder=cache_home["folder"]))}.items():
+        buf = np.zeros(starts.size * page_size, np.uint8)
+        positions = cells_of(buf, page_size, rowids, reclen, starts, ends, slots)
+        copy(buf, positions, flat, rec_start, reclen)
+        pages[name] = buf
+    np.testing.assert_array_equal(pages["compiled"], pages["jit"])
+    assert pages["jit"][0] == 0x0D and pages["jit"].any()
+    compiled = aot.compiled_kernel("leaf_cells", folder=cache_home["folder"])
+    with pytest.raises(TypeError, match="argument 1 must be an integer, got float"):
+        compiled(buf, 1024.0, rowids, reclen, starts, ends, slots)
+
+
 def test_the_compiled_kernel_releases_the_gil(cache_home):
     """Another thread runs Python while the compiled kernel traces (as ``nogil=True`` JIT
     kernels allow). With a switch interval of 10 us, a kernel holding the GIL would leave the

@@ -160,6 +160,19 @@ class _Table:
 
 
 # -- writing -------------------------------------------------------------------------------------
+def import_gdal_writer() -> None:
+    """Import what :func:`create_empty_layer` calls: all of pyogrio (its ``__init__`` imports
+    pandas and geopandas: 0.3-0.45 s) and pyarrow. A caller may run this on a thread while it
+    does other work (tin:delaunay: while the triangulation runs)."""
+    import pyogrio
+
+    pyogrio.write_arrow  # noqa: B018  (the package's __init__ runs on the first name)
+    try:
+        import pyarrow  # noqa: F401
+    except ImportError:  # pragma: no cover - pyarrow is a dependency
+        pass
+
+
 def create_empty_layer(path: Path, layer: BulkLayer, crs_text: str | None,
                        spatial_index: bool, dataset_options: dict | None) -> None:
     """GDAL creates the layer, its spatial index and metadata, with no feature."""

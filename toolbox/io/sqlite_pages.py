@@ -520,6 +520,16 @@ def _put_headers(buf, slots, page_size, ptype, counts, content_start, cell_off, 
     buf.view(">u2")[ptr_pos >> 1] = cell_off
 
 
+def compiled_page_kernels():
+    """``(leaf_cells, copy_records)`` of :mod:`toolbox.io.page_kernel` compiled ahead of time
+    (:mod:`toolbox.aot`), or None where they are not built (or ``TOOLBOX_AOT=0``): the pages are
+    then laid out with numpy (the same bytes; numba is not imported for them)."""
+    from toolbox.aot import compiled_kernel
+
+    kernels = compiled_kernel("leaf_cells"), compiled_kernel("copy_records")
+    return None if None in kernels else kernels
+
+
 class BtreeAppender:
     """Append whole table B-trees to a closed SQLite database file.
 
@@ -550,6 +560,7 @@ class BtreeAppender:
         self._writer: Any = None  # the thread writing new pages (made on first use)
         self._saved: dict[int, bytes] = {}
         self._filled: set[int] = set()
+        self._kernels = compiled_page_kernels()
 
     # -- checks -------------------------------------------------------------------------------
 
@@ -763,6 +774,16 @@ class BtreeAppender:
         hi = int(ends[-1])  # pages from row 0 on
         rl = reclen[:hi]
         rid = rowids[:hi]
+        if self._kernels is not None:  # one compiled pass (the numpy steps below: its twin)
+            leaf_cells, copy_records = self._kernels
+            rec_pos = leaf_cells(buf, ps, *map(np.ascontiguousarray, (rid, rl, starts, ends,
+                                                                       slots)))
+            for flat, rstart, first_row, nrows in parts:
+                a, b = first_row, min(first_row + nrows, hi)
+                if a < b:
+                    copy_records(buf, rec_pos[a:b], np.ascontiguousarray(flat),
+                                 np.ascontiguousarray(rstart[: b - a]), rl[a:b])
+            return buf
         l1 = _varint_len(rl)
         l2 = _varint_len(rid)
         cell_len = l1 + l2 + rl
@@ -825,7 +846,7 @@ class BtreeAppender:
                                  f"increasing within the {flat.size} bytes of records")
             if total == 0:
                 self._check_columns(table, flat, int(offsets[0]), ncols)
-            if (k > 1 and not (np.diff(rowids) > 0).all()) or (
+            if (k > 1 and not (rowids[1:] > rowids[:-1]).all()) or (  # no np.diff: it wraps
                     last is not None and rowids[0] <= last):
                 raise UnsupportedDatabase(f"batches: rowids of {table!r} are not strictly "
                                           "increasing")

@@ -24,6 +24,7 @@ through ``pyogrio.raw.write``: no per-feature Python objects.
 from __future__ import annotations
 
 import warnings
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
 
@@ -293,13 +294,18 @@ def _write_tin(path: Path, model: TinModel, crs: Any, spatial_index: bool, feedb
         _write_layer(targets["triangles"], _Layer("triangles", len(tri), triangles, "Polygon Z"),
                      crs, spatial_index, bulk)
     triangle_edges = None  # the closure's reference too: freed before the nodes layer
-    with step("write nodes"):
-        _write_layer(targets["nodes"], _Layer("nodes", len(xyz), nodes, "Point Z"), crs,
-                     spatial_index, bulk)
-    if edges_layer:
-        with step("write edges"):  # without the table's triangle_edges (T x 3) while writing
-            _write_edges(targets["edges"], model, _without_triangle_edges(edge_table(tri, nb)),
-                         crs, spatial_index, bulk)
+    with ThreadPoolExecutor(1, thread_name_prefix="tin-edges") as pool:
+        # the edges' table made again (without triangle_edges, T x 3) beside the nodes layer
+        # (1 M points: 0.3 s); popped when used: _write_edges holds the only reference
+        table = [pool.submit(lambda: _without_triangle_edges(edge_table(tri, nb)))] \
+            if edges_layer else []
+        with step("write nodes"):
+            _write_layer(targets["nodes"], _Layer("nodes", len(xyz), nodes, "Point Z"), crs,
+                         spatial_index, bulk)
+        if table:
+            with step("write edges"):
+                _write_edges(targets["edges"], model, table.pop().result(), crs, spatial_index,
+                             bulk)
     return {"triangles": len(tri), "nodes": len(xyz), "edges": n_edges}
 
 
