@@ -54,12 +54,13 @@ def _put_varint(buf, pos, value):
 
 @numba.njit(cache=True, nogil=True)
 def leaf_cells(buf, page_size, rowids, reclen, starts, ends, slots):
-    """Lay out table leaf pages in ``buf`` (zeroed pages of ``page_size`` bytes): page ``p``
+    """Lay out table leaf pages in ``buf`` (pages of ``page_size`` bytes): page ``p``
     (at page slot ``slots[p]`` of the buffer) holds rows ``starts[p]`` to ``ends[p] - 1`` of
     ``rowids`` and record lengths ``reclen``, its cells back to back at the page's end in row
     order, each a varint of the record's length, one of the rowid, then the record. Writes
-    each page's header (type 0x0D, cell count, content start; 65536 as 0) and cell pointers
-    and every cell's two varints; returns ``(ends[-1],)`` int64: where each row's record goes
+    each page's header (type 0x0D, cell count, content start; 65536 as 0), cell pointers and
+    zeros up to the cells (``buf`` may hold an earlier batch's pages), and every cell's two
+    varints; returns ``(ends[-1],)`` int64: where each row's record goes
     (rows ``0`` to ``starts[0] - 1`` are not on these pages: -1)."""
     rec_pos = np.full(ends[-1], -1, np.int64)
     for p in range(starts.shape[0]):
@@ -69,6 +70,8 @@ def leaf_cells(buf, page_size, rowids, reclen, starts, ends, slots):
             total += _varint_size(reclen[i]) + _varint_size(rowids[i]) + reclen[i]
         content = page_size - total
         count = ends[p] - starts[p]
+        buf[base:base + _LEAF_HEADER] = 0
+        buf[base + _LEAF_HEADER + 2 * count:base + content] = 0  # the free space
         buf[base] = _LEAF_TABLE
         buf[base + 3] = (count >> 8) & 0xFF
         buf[base + 4] = count & 0xFF

@@ -702,10 +702,10 @@ class BtreeAppender:
             os.close(self._direct)
         self._direct = False
 
-    def _zeroed_pages(self, npages: int) -> np.ndarray:
+    def _zeroed_pages(self, npages: int, zero: bool = True) -> np.ndarray:
         """``npages`` zeroed pages in the next of the appender's two buffers (aligned for
         ``O_DIRECT``, grown when needed), once its last write is done: valid until the next
-        call but one."""
+        call but one. ``zero=False``: left as they are (the caller writes every byte)."""
         turn = self._turn
         self._wait(turn)
         nbytes = npages * self.page_size
@@ -715,7 +715,8 @@ class BtreeAppender:
             skip = -raw.ctypes.data % _DIRECT_ALIGN
             self._buffers[turn] = raw[skip:skip + nbytes]
         pages = self._buffers[turn][:nbytes]
-        pages.fill(0)
+        if zero:
+            pages.fill(0)
         return pages
 
     def _wait(self, turn: int) -> None:
@@ -770,12 +771,15 @@ class BtreeAppender:
     def _leaf_pages(self, rowids, reclen, parts, starts, ends, slots, nslots):
         """A buffer of ``nslots`` pages holding the leaves [starts, ends) at ``slots``."""
         ps = self.page_size
-        buf = self._zeroed_pages(nslots)
+        buf = self._zeroed_pages(nslots, zero=self._kernels is None)
         hi = int(ends[-1])  # pages from row 0 on
         rl = reclen[:hi]
         rid = rowids[:hi]
         if self._kernels is not None:  # one compiled pass (the numpy steps below: its twin)
             leaf_cells, copy_records = self._kernels
+            if slots.size < nslots:  # the lock page's slot: zeros (the kernel zeroes the rest)
+                unused = np.setdiff1d(np.arange(nslots), slots)
+                buf.reshape(nslots, ps)[unused] = 0
             rec_pos = leaf_cells(buf, ps, *map(np.ascontiguousarray, (rid, rl, starts, ends,
                                                                        slots)))
             for flat, rstart, first_row, nrows in parts:
