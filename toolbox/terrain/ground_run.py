@@ -96,7 +96,7 @@ def run_ground(request: GroundRequest, feedback: Feedback) -> dict[str, Any]:
 
     from toolbox.io.crs import common_crs, crs_label
     from toolbox.raster.writer import RasterWriter
-    from toolbox.terrain.gridding.inputs import merge_points
+    from toolbox.terrain.gridding.inputs import check_heights_fit, merge_points
     from toolbox.terrain.gridding.methods import METHODS
     from toolbox.terrain.gridding.run import grid_dem, other_crs
     from toolbox.terrain.points import local_origin, read_mass_points
@@ -118,6 +118,7 @@ def run_ground(request: GroundRequest, feedback: Feedback) -> dict[str, Any]:
             cell = float(request.filter.cell)
             if grid.cell_size is None and grid.template is None:
                 grid = replace(grid, cell_size=cell)
+    check_heights_fit(xyz[:, 2], "DSM" if request.dsm is not None else "INPUT")
     gridding = replace(gridding, grid=grid)
     flt = replace(request.filter, cell=cell)
     origin = local_origin(xyz)

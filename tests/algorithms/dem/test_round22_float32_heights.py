@@ -71,3 +71,18 @@ def test_a_streamed_cloud_is_refused_too(tmp_path, monkeypatch):
     line = one_error(err)
     assert "INPUT" in line and "1e+200" in line, line
     assert not out.exists()
+
+
+def test_the_ground_filter_refuses_it_too(tmp_path):
+    """dem:ground read its points with its own call: the point at -1e200 was filtered out as
+    non-ground with numpy's 'overflow encountered in cast' and exit 0 (round twenty-three)."""
+    z = np.full(400, 250.0)
+    z[17] = -1e200
+    src = points(tmp_path / "p.gpkg", z)
+    out = tmp_path / "dtm.tif"
+    code, _, err = cli("run", "dem:ground", "--INPUT", src, "--OUTPUT", out, "--NONGROUND",
+                       tmp_path / "ng.tif", "--CELL_SIZE", 5, "--MAX_WINDOW", 10)
+    assert code == 2
+    line = one_error(err)
+    assert "INPUT" in line and "-1e+200" in line and "float32" in line, line
+    assert not out.exists() and not (tmp_path / "ng.tif").exists()
