@@ -53,6 +53,18 @@ def column(kind, n, rng, null_rate, width):
     return (spec, v, mask), py
 
 
+def twin_tables(path: Path, page_size: int, decl: str) -> Path:
+    """A new database of ``page_size`` with two empty tables ``t`` and ``twin`` of the columns
+    ``decl`` after an INTEGER PRIMARY KEY ``fid``."""
+    con = sqlite3.connect(path)
+    con.execute(f"PRAGMA page_size={page_size}")
+    con.execute(f"CREATE TABLE t(fid INTEGER PRIMARY KEY, {decl})")
+    con.execute(f"CREATE TABLE twin(fid INTEGER PRIMARY KEY, {decl})")
+    con.commit()
+    con.close()
+    return path
+
+
 @settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(seed=st.integers(0, 2**32 - 1),
        kinds=st.lists(st.sampled_from(KINDS), min_size=1, max_size=7),
@@ -73,13 +85,7 @@ def test_random_tables_match_sqlite(seed, kinds, page_size, n, null_rate, width,
     names = [f"c{i}" for i in range(len(kinds))]
     decl = ", ".join(f"{c} {DECL[k]}" for c, k in zip(names, kinds))
     with tempfile.TemporaryDirectory() as tmp:
-        path = Path(tmp) / "h.db"
-        con = sqlite3.connect(path)
-        con.execute(f"PRAGMA page_size={page_size}")
-        con.execute(f"CREATE TABLE t(fid INTEGER PRIMARY KEY, {decl})")
-        con.execute(f"CREATE TABLE twin(fid INTEGER PRIMARY KEY, {decl})")
-        con.commit()
-        con.close()
+        path = twin_tables(Path(tmp) / "h.db", page_size, decl)
         batches = []
         for a in range(0, n, batch):
             sl = slice(a, a + batch)

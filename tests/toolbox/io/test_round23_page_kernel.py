@@ -15,7 +15,7 @@ import numpy as np
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
-from tests.toolbox.io.test_round21_sqlitepages_random import DECL, KINDS, column
+from tests.toolbox.io.test_round21_sqlitepages_random import DECL, KINDS, column, twin_tables
 from toolbox.io import page_kernel, sqlite_pages
 from toolbox.io.sqlite_pages import BtreeAppender, encode_records
 
@@ -25,13 +25,7 @@ JIT = (page_kernel.leaf_cells, page_kernel.copy_records)
 def write(folder: Path, name: str, kernels, page_size: int, decl: str, batches) -> Path:
     """A fresh database with table ``t`` filled from ``batches`` through ``kernels`` (None: the
     numpy steps)."""
-    path = folder / f"{name}.db"
-    con = sqlite3.connect(path)
-    con.execute(f"PRAGMA page_size={page_size}")
-    con.execute(f"CREATE TABLE t(fid INTEGER PRIMARY KEY, {decl})")
-    con.execute(f"CREATE TABLE twin(fid INTEGER PRIMARY KEY, {decl})")
-    con.commit()
-    con.close()
+    path = twin_tables(folder / f"{name}.db", page_size, decl)
     saved = sqlite_pages.compiled_page_kernels
     sqlite_pages.compiled_page_kernels = lambda: kernels
     try:
