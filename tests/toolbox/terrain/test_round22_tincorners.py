@@ -72,3 +72,30 @@ def test_bulk_edges_layer_lets_its_edge_table_go_before_the_rtree(tmp_path, monk
     counts = store.write_tin(tmp_path / "t.gpkg", model, parse_crs("EPSG:3003"))
     assert set(alive) == {counts["triangles"], counts["nodes"], counts["edges"]}
     assert alive[counts["edges"]] == 0
+
+
+def test_the_model_keeps_the_triangulations_int32_arrays_and_writes_the_same_tin(tmp_path):
+    """Round twenty-three: build_tin no longer widens CDT's triangles and neighbours to int64
+    (96 MB of new memory at 1 M points; the 10 M run's peak 3.82 -> 3.23 GB). The GeoPackage
+    written from the int32 model has the rows of the same model in int64."""
+    import dataclasses
+    import sqlite3
+
+    from toolbox.io.crs import parse_crs
+    from toolbox.terrain.tin import store
+    from toolbox.terrain.tin.build import build_tin
+
+    xyz, _ = cloud(3000)
+    model = build_tin(xyz)
+    assert model.triangles.dtype == np.int32 and model.neighbors.dtype == np.int32
+    wide = dataclasses.replace(model, triangles=model.triangles.astype(np.int64),
+                               neighbors=model.neighbors.astype(np.int64))
+    crs = parse_crs("EPSG:3003")
+    store.write_tin(tmp_path / "narrow.gpkg", model, crs)
+    store.write_tin(tmp_path / "wide.gpkg", wide, crs)
+    for layer in ("triangles", "nodes", "edges"):
+        rows = []
+        for name in ("narrow", "wide"):
+            with sqlite3.connect(tmp_path / f"{name}.gpkg") as db:
+                rows.append(db.execute(f'SELECT * FROM "{layer}" ORDER BY fid').fetchall())
+        assert len(rows[0]) > 1000 and rows[0] == rows[1], layer

@@ -50,9 +50,10 @@ class TinModel:
         Index into :data:`SOURCES`: mass point, breakline vertex, breakline crossing, boundary.
     merged : (V,) int64
         Number of input vertices merged into each node (1 = no duplicate; 0 for added nodes).
-    triangles : (T, 3) int64
-        Node indices, counter-clockwise.
-    neighbors : (T, 3) int64
+    triangles : (T, 3) int32 or int64
+        Node indices, counter-clockwise (the triangulation's int32 when no triangle was
+        dropped: a 10 M-point TIN's triangles and neighbours take 0.48 GB less than in int64).
+    neighbors : (T, 3) int32 or int64
         Triangle across the edge facing each corner, -1 on the border.
     breakline_edges : (K, 2) int64
         Node pairs (lower index first) of the breakline pieces between consecutive nodes: the
@@ -284,9 +285,8 @@ def build_tin(points: np.ndarray, line_xyz: np.ndarray | None = None,
         xyz, source, merged = xyz[node_old], source[node_old], merged[node_old]
         spread = spread[node_old]
         sub = node_new[sub]
-    else:  # every node is kept, in its place
-        triangles = tri.triangles.astype(np.int64)
-        neighbors = tri.neighbors.astype(np.int64)
+    else:  # every node is kept, in its place: the triangulation's own (int32) arrays
+        triangles, neighbors = tri.triangles, tri.neighbors
     sub = sub[(sub >= 0).all(axis=1)] if len(sub) else sub.reshape(0, 2)
     if concave:
         if concave_max_edge is None:
