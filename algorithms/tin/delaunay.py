@@ -9,7 +9,7 @@ from toolbox.errors import InputDataError
 from toolbox.feedback import Feedback
 from toolbox.io.crs import common_crs, crs_label
 from toolbox.io.pointcloud import cloud_filter
-from toolbox.io.vector import feature_rows, read_area, read_vector
+from toolbox.io.vector import feature_rows, read_area, read_vector, vector_driver
 from toolbox.io.vector_points import input_rows, skip_no_geometry, vertices_xyz
 from toolbox.parameters import Boolean, Crs, Enum, Field, Number, VectorLayer
 from toolbox.parameters.outputs import Layer, Output, OutputVector
@@ -183,7 +183,8 @@ class Delaunay(Algorithm):
         from toolbox.io.gpkg_bulk import import_gdal_writer
 
         helper = ThreadPoolExecutor(1, thread_name_prefix="tin-helper")
-        helper.submit(import_gdal_writer)  # while the triangulation runs (CDT lets go the GIL)
+        if vector_driver(params["OUTPUT"]) != "Parquet":  # GeoParquet: pyarrow alone writes it
+            helper.submit(import_gdal_writer)  # while the triangulation runs (CDT lets go the GIL)
         with helper, feedback.timed("triangulate"):
             try:
                 model = build_tin(points, line_xyz, line_index, boundary=boundary,

@@ -4,8 +4,9 @@ of time, :mod:`toolbox.aot`): the bulk writer's (:mod:`toolbox.io.sqlite_pages`)
 The numpy twin in :mod:`toolbox.io.sqlite_pages` does the same in whole-array steps: a cell
 layout, the headers, the varint prefixes, then the records copied through window views. That
 is several passes over a gigabyte for a 1 M-point TIN, and numpy's fancy-index copies hold the
-GIL. Here each page is written once, record by record (1 M-point TIN: the page writer's thread
-3.3 -> 0.5 s). The numpy path stays the writer where no compiled module is built, and the
+GIL. Here each page is written once, record by record (1 M-point TIN, whole process: 5.91 ->
+5.54 s, medians of 5 interleaved; ``bench/results/tin.md``, round twenty-three). The numpy path
+stays the writer where no compiled module is built, and the
 oracle: the tests compare both byte for byte, and SQLite reads the pages.
 
 File format: https://www.sqlite.org/fileformat2.html (B-tree pages, varints).
