@@ -46,6 +46,10 @@ EXPORTS = {
     "copy_records": ("toolbox.io.page_kernel", "copy_records",
                      "void(uint8[::1], int64[::1], uint8[::1], int64[::1], int64[::1])",
                      (("uint8", 1), ("int64", 1), ("uint8", 1), ("int64", 1), ("int64", 1))),
+    "edge_arrays": ("toolbox.terrain.tin.edge_kernel", "edge_arrays",
+                    "Tuple((int32[:, ::1], int32[::1], int32[::1], int32[:, ::1]))"
+                    "(int32[:, ::1], int32[:, ::1])",
+                    (("int32", 2), ("int32", 2))),
 }
 
 _loaded: dict[str, object] = {}

