@@ -154,6 +154,24 @@ def test_the_compiled_page_kernels_write_the_jit_pages(cache_home):
         compiled(buf, 1024.0, rowids, reclen, starts, ends, slots)
 
 
+def test_the_compiled_edge_kernel_gives_the_jit_arrays(cache_home):
+    """The TIN's edge table (toolbox.terrain.tin.edge_kernel), compiled: the JIT's four arrays
+    on a triangulation with crossing breaklines (the JIT is checked against numpy in
+    tests/toolbox/terrain/test_round24_edge_kernel.py); int64 arrays are refused."""
+    from toolbox.terrain.tin.edge_kernel import edge_arrays
+    from toolbox.terrain.tin.kernels import triangulate_pslg
+
+    xy = np.random.default_rng(4).uniform(0, 100, (3000, 2)) + [1_688_000.0, 4_799_500.0]
+    result = triangulate_pslg(xy, np.arange(200).reshape(-1, 2))
+    compiled = aot.compiled_kernel("edge_arrays", folder=cache_home["folder"])
+    got = compiled(result.triangles, result.neighbors)
+    for a, b in zip(got, edge_arrays(result.triangles, result.neighbors), strict=True):
+        assert a.dtype == np.int32
+        np.testing.assert_array_equal(a, b)
+    with pytest.raises(TypeError, match="argument 0 must be a C-contiguous 2-D int32"):
+        compiled(result.triangles.astype(np.int64), result.neighbors)
+
+
 def test_the_compiled_kernel_releases_the_gil(cache_home):
     """Another thread runs Python while the compiled kernel traces (as ``nogil=True`` JIT
     kernels allow). With a switch interval of 10 us, a kernel holding the GIL would leave the
