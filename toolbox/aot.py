@@ -46,6 +46,11 @@ EXPORTS = {
     "copy_records": ("toolbox.io.page_kernel", "copy_records",
                      "void(uint8[::1], int64[::1], uint8[::1], int64[::1], int64[::1])",
                      (("uint8", 1), ("int64", 1), ("uint8", 1), ("int64", 1), ("int64", 1))),
+    "gpkg_blobs": ("toolbox.io.blob_kernel", "gpkg_blobs",
+                   "int64(uint8[:, ::1], int64, int64, uint8[::1], int64, uint8[:, ::1], "
+                   "float64[:, ::1], float32[:, ::1])",
+                   (("uint8", 2), ("int64", 0), ("int64", 0), ("uint8", 1), ("int64", 0),
+                    ("uint8", 2), ("float64", 2), ("float32", 2))),
     "edge_arrays": ("toolbox.terrain.tin.edge_kernel", "edge_arrays",
                     "Tuple((int32[:, ::1], int32[::1], int32[::1], int32[:, ::1]))"
                     "(int32[:, ::1], int32[:, ::1])",

@@ -24,6 +24,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from toolbox.aot import compiled_kernel
 from toolbox.io.sqlite_pages import BtreeAppender, UnsupportedDatabase, encode_records
 from toolbox.io.sqlite_rtree import packed_rtree_stored, stored_boxes
 
@@ -54,15 +55,19 @@ class BulkLayer(Protocol):
 
 
 # -- geometry blobs ----------------------------------------------------------------------------
+_NO_BOXES = np.empty((0, 4), np.float32)  # the compiled pass's "no stored boxes"
 _WKB_HEADER = {1: 5, 2: 9, 3: 13}  # base type -> bytes before the coordinates (one ring)
 
 
-def geometry_blobs(wkb: np.ndarray, srs_id: int) -> tuple[np.ndarray, np.ndarray]:
+def geometry_blobs(wkb: np.ndarray, srs_id: int,
+                   stored: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """GeoPackage binary geometries of fixed-size little-endian ISO WKB records ``(n, size)``,
     laid out as GDAL writes them: ``GP``, version 0, flags (little endian; no envelope for a
     point, else ``[minx, maxx, miny, maxy]`` and, with Z, ``[minz, maxz]``), the ``srs_id``,
     then the WKB. Returns the ``(n, size')`` blobs and the ``(n, 4)`` boxes
-    ``[minx, maxx, miny, maxy]`` (float64) of the R-tree."""
+    ``[minx, maxx, miny, maxy]`` (float64) of the R-tree; ``stored``, when given (``(n, 4)``
+    float32), gets the boxes as SQLite stores them (:func:`toolbox.io.sqlite_rtree.stored_boxes`).
+    In one compiled pass where :mod:`toolbox.io.blob_kernel` is built, else in numpy steps."""
     wkb = np.ascontiguousarray(wkb, dtype=np.uint8)
     n, size = wkb.shape
     code = int(wkb[0, 1:5].view("<u4")[0]) if n else 0
@@ -72,6 +77,18 @@ def geometry_blobs(wkb: np.ndarray, srs_id: int) -> tuple[np.ndarray, np.ndarray
         raise BulkUnsupported(f"WKB type {code} (byte order {wkb[0, 0] if n else '-'})")
     if (size - head) % (8 * dims) or not (wkb[:, :head] == wkb[0, :head]).all():
         raise BulkUnsupported("WKB records of different types or sizes")
+    envelope = 0 if base == 1 else 2 * dims  # doubles
+    indicator = 0 if base == 1 else dims - 1  # 1: XY, 2: XYZ
+    header = b"GP\x00" + bytes([1 | indicator << 1]) + np.int32(srs_id).astype("<i4").tobytes()
+    compiled = compiled_kernel("gpkg_blobs")
+    if compiled is not None:
+        out = np.empty((n, 8 + 8 * envelope + size), dtype=np.uint8)
+        boxes = np.empty((n, 4))
+        bad = compiled(wkb, head, dims, np.frombuffer(header, np.uint8), envelope, out, boxes,
+                       _NO_BOXES if stored is None else stored)
+        if bad:
+            raise BulkUnsupported("NaN or infinite coordinates")
+        return out, boxes
     vertices = wkb[:, head:].view("<f8").reshape(n, -1, dims)  # no copy (unaligned: fine)
     low, high = vertices[:, 0].copy(), vertices[:, 0].copy()
     for j in range(1, vertices.shape[1]):
@@ -81,10 +98,9 @@ def geometry_blobs(wkb: np.ndarray, srs_id: int) -> tuple[np.ndarray, np.ndarray
         raise BulkUnsupported("NaN or infinite coordinates")
     boxes = np.empty((n, 4))
     boxes[:, 0::2], boxes[:, 1::2] = low[:, :2], high[:, :2]
-    envelope = 0 if base == 1 else 2 * dims  # doubles
+    if stored is not None:
+        stored_boxes(*boxes.T, out=stored)
     out = np.empty((n, 8 + 8 * envelope + size), dtype=np.uint8)
-    indicator = 0 if base == 1 else dims - 1  # 1: XY, 2: XYZ
-    header = b"GP\x00" + bytes([1 | indicator << 1]) + np.int32(srs_id).astype("<i4").tobytes()
     out[:, :8].view("<u8")[:, 0] = np.frombuffer(header, dtype="<u8")[0]  # one store a row
     if envelope:
         view = out[:, 8:8 + 8 * envelope].view("<f8")
@@ -221,9 +237,7 @@ def write_layer_bulk(path: Path, layer: BulkLayer, crs_text: str | None, spatial
     def encoded(lo: int, hi: int):
         """Rows ``lo:hi`` as records, and their boxes' extent (on an encoding thread)."""
         fields, wkb = layer.make(lo, hi)
-        blobs, boxes = geometry_blobs(wkb, table.srs_id)
-        if stored is not None:
-            stored_boxes(*boxes.T, out=stored[lo:hi])
+        blobs, boxes = geometry_blobs(wkb, table.srs_id, None if stored is None else stored[lo:hi])
         flat, offsets = encode_records(table.records(fields, blobs), hi - lo)
         part = (boxes[:, 0].min(), boxes[:, 1].max(), boxes[:, 2].min(), boxes[:, 3].max())
         return np.arange(lo + 1, hi + 1, dtype=np.int64), flat, offsets, part

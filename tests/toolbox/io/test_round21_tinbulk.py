@@ -201,10 +201,10 @@ def test_a_refusal_on_the_encoding_thread_falls_back_to_gdal(tmp_path, monkeypat
 
     original = gpkg_bulk.geometry_blobs
 
-    def refuse_lines(wkb, srs_id):
+    def refuse_lines(wkb, srs_id, stored=None):
         if int(wkb[0, 1:5].view("<u4")[0]) == 1002:  # LineString Z: the edges
             raise gpkg_bulk.BulkUnsupported("a test's refusal")
-        return original(wkb, srs_id)
+        return original(wkb, srs_id, stored)
 
     monkeypatch.setattr(gpkg_bulk, "geometry_blobs", refuse_lines)
     model = _model(400, seed=6)
