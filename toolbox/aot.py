@@ -38,6 +38,9 @@ EXPORTS = {
     "cocircular_edges": ("toolbox.terrain.tin.unique_kernel", "cocircular_edges",
                          "int64(float64[:, ::1], uint32[:, ::1])",
                          (("float64", 2), ("uint32", 2))),
+    "cdt_tables": ("toolbox.terrain.tin.unique_kernel", "cdt_tables",
+                   "Tuple((int32[:, ::1], int32[:, ::1]))(uint32[:, ::1], int32[::1], int64)",
+                   (("uint32", 2), ("int32", 1), ("int64", 0))),
     "leaf_cells": ("toolbox.io.page_kernel", "leaf_cells",
                    "int64[::1](uint8[::1], int64, int64[::1], int64[::1], int64[::1], int64[::1], "
                    "int64[::1])",

@@ -318,11 +318,18 @@ def _cdt_run(cdt, local: np.ndarray, seg: np.ndarray, neighbors: bool, parents: 
     if order is not None:  # CDT's vertex SUPER + i is point order[i]; crossings as they come
         renumber = np.concatenate([np.zeros(SUPER, np.int32), order,
                                    np.arange(n, n + len(added), dtype=np.int32)])
-    triangles, kept = _drop_super_triangle(tris["vertices"], renumber)
-    if neighbors:  # CDT: neighbour i is across edge (i, i+1); ours: across the edge facing i
-        nb = _kept_neighbours(tris["neighbors"], kept, cdt.NO_NEIGHBOR)
+    from toolbox.aot import compiled_kernel
+
+    compiled = compiled_kernel("cdt_tables") if neighbors and tris.flags.c_contiguous else None
+    if compiled is not None:  # both in one compiled pass (the numpy steps below: its oracle)
+        triangles, nb = compiled(tris.view(np.uint32).reshape(-1, 6),
+                                 _NO_RENUMBER if renumber is None else renumber, SUPER)
     else:
-        nb = np.zeros((0, 3), dtype=np.int32)
+        triangles, kept = _drop_super_triangle(tris["vertices"], renumber)
+        if neighbors:  # CDT: neighbour i is across edge (i, i+1); ours: across the edge facing i
+            nb = _kept_neighbours(tris["neighbors"], kept, cdt.NO_NEIGHBOR)
+        else:
+            nb = np.zeros((0, 3), dtype=np.int32)
     if not (parents and len(seg)):
         return added, triangles, nb, *_NO_SEGMENTS
     return (added, triangles, nb, *_cdt_pieces(t, seg, fixed))
@@ -518,6 +525,7 @@ def _cdt_pieces(t, seg: np.ndarray, fixed: np.ndarray | None = None
 
 #: CDT's first vertices are those of its super-triangle (it encloses the points)
 SUPER = 3
+_NO_RENUMBER = np.zeros(0, np.int32)  # the compiled cdt_tables' "v - SUPER"
 
 
 def _drop_super_triangle(vertices: np.ndarray, renumber: np.ndarray | None = None
