@@ -54,6 +54,9 @@ EXPORTS = {
                    "float64[:, ::1], float32[:, ::1])",
                    (("uint8", 2), ("int64", 0), ("int64", 0), ("uint8", 1), ("int64", 0),
                     ("uint8", 2), ("float64", 2), ("float32", 2))),
+    "triangle_areas": ("toolbox.terrain.tin.edge_kernel", "triangle_areas",
+                       "Tuple((float64[::1], float64[::1]))(float64[:, ::1], int32[:, ::1])",
+                       (("float64", 2), ("int32", 2))),
     "edge_arrays": ("toolbox.terrain.tin.edge_kernel", "edge_arrays",
                     "Tuple((int32[:, ::1], int32[::1], int32[::1], int32[:, ::1]))"
                     "(int32[:, ::1], int32[:, ::1])",

@@ -35,3 +35,26 @@ def test_a_tilted_triangle_has_its_analytic_areas():
     m = triangle_measures(xyz, np.array([[0, 1, 2]]))
     assert m.area_2d[0] == 4.0  # 4 x 2 / 2
     assert m.area_3d[0] == 5.0  # 5 (the slanted side) x 2 / 2
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), n=st.integers(3, 200),
+       scale=st.sampled_from([1e-6, 1.0, 1e3, 1e8]))
+def test_the_compiled_areas_are_the_numpy_bits(seed, n, scale):
+    """edge_kernel.triangle_areas (JIT and, where built, compiled) against the numpy steps."""
+    from toolbox.aot import compiled_kernel
+    from toolbox.terrain.tin import edge_kernel, topology
+
+    rng = np.random.default_rng(seed)
+    xyz = np.c_[rng.uniform(0, 100, (n, 2)) * scale + [1_688_000.0, 4_799_500.0],
+                rng.normal(300, 5, n)]
+    triangles = rng.integers(0, n, (2 * n, 3)).astype(np.int32)
+    want = topology._areas(topology.plane_normals(xyz, triangles))
+    built = compiled_kernel("triangle_areas")
+    kernels = [edge_kernel.triangle_areas] + ([built] if built is not None else [])
+    for kernel in kernels:
+        got = kernel(xyz, triangles)
+        np.testing.assert_array_equal(got[0], want[0])
+        np.testing.assert_array_equal(got[1], want[1])
+    got = topology.triangle_areas(xyz, triangles)  # the dispatch
+    np.testing.assert_array_equal(got[1], want[1])

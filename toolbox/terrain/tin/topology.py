@@ -191,7 +191,18 @@ def corner_normals(corner_xyz: np.ndarray) -> np.ndarray:
 
 
 def triangle_areas(xyz: np.ndarray, triangles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Planimetric and 3D area of each triangle (the first two :func:`triangle_measures`)."""
+    """Planimetric and 3D area of each triangle (the first two :func:`triangle_measures`); in
+    one compiled pass for int32 triangles where :mod:`toolbox.terrain.tin.edge_kernel` is built
+    (the same bits: tests)."""
+    xyz, triangles = np.asarray(xyz), np.asarray(triangles)
+    if xyz.dtype == np.float64 and xyz.ndim == 2 and xyz.shape[1] == 3 \
+            and triangles.dtype == np.int32 and triangles.ndim == 2 and triangles.shape[1] == 3 \
+            and len(triangles) and int(triangles.min()) >= 0 and int(triangles.max()) < len(xyz):
+        from toolbox.aot import compiled_kernel
+
+        compiled = compiled_kernel("triangle_areas")
+        if compiled is not None:
+            return compiled(np.ascontiguousarray(xyz), np.ascontiguousarray(triangles))
     return _areas(plane_normals(xyz, triangles))
 
 
