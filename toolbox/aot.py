@@ -3,9 +3,11 @@
 A numba kernel costs its process numba's import and the load of its cached machine code before
 the first call, while the kernel itself may need less: carto:contours traces a 2000 x 2000 DEM
 in 0.15 s, and the whole run took 0.27-0.34 s longer with the JIT than with the module below
-(``bench/results/round3.md``, contours, three sittings); the bulk GeoPackage writer's page pass
-(:mod:`toolbox.io.page_kernel`) runs without numba too (its fallback is numpy, not the JIT: a
-small GeoPackage is not worth numba's import). ``toolbox warmup`` (run by
+(``bench/results/round3.md``, contours, three sittings); the bulk GeoPackage writer's page and
+blob passes (:mod:`toolbox.io.page_kernel`, :mod:`toolbox.io.blob_kernel`) and the TIN's
+tables and areas (:mod:`toolbox.terrain.tin.edge_kernel`, ``unique_kernel.cdt_tables``) run
+without numba too (their fallback is their numpy steps, not the JIT: a small input is not worth
+numba's import). ``toolbox warmup`` (run by
 ``make venv``) therefore also builds the kernels of :data:`EXPORTS` with numba's ahead-of-time
 compiler (``numba.pycc``) into one extension module each, for this machine's CPU, in the
 per-user cache (:func:`aot_folder`); a run loads the module (a plain ``.so``: numpy only; it

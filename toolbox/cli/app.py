@@ -616,8 +616,8 @@ def warmup_cmd(ctx: click.Context) -> None:
                f"{built} of {len(EXPORTS)} ahead-of-time kernels in {aot_folder()}")
     if built < len(EXPORTS):
         click.echo("warning: the ahead-of-time kernels were not built (a C compiler and "
-                   "Python's headers are needed): runs use numba's JIT (and numpy for the bulk "
-                   "GeoPackage writer's pages)", err=True)
+                   "Python's headers are needed): runs use numba's JIT (and numpy steps for the "
+                   "bulk GeoPackage writer and the TIN's tables)", err=True)
 
 
 if __name__ == "__main__":  # pragma: no cover

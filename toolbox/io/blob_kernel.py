@@ -14,9 +14,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-#: SQLite's rtreeValueDown / rtreeValueUp factors (:func:`toolbox.io.sqlite_rtree.rtree_round_down`)
-_RNDTOWARDS = 1.0 - 1.0 / 8388608.0
-_RNDAWAY = 1.0 + 1.0 / 8388608.0
+# SQLite's rtreeValueDown / rtreeValueUp factors, as the numpy rounding uses them
+from toolbox.io.sqlite_rtree import _RNDAWAY, _RNDTOWARDS
 
 
 @numba.njit(cache=True, nogil=True, inline="always")

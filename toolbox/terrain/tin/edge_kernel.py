@@ -1,6 +1,7 @@
-"""A TIN's edge table in one compiled pass over the triangles (numba; also compiled ahead of
-time, :mod:`toolbox.aot`): :func:`toolbox.terrain.tin.topology.edge_table`'s twin for int32
-triangles and neighbours (a triangulation's own arrays).
+"""A TIN's edge table and its triangles' areas, each in one compiled pass over the triangles
+(numba; also compiled ahead of time, :mod:`toolbox.aot`): the twins of
+:func:`toolbox.terrain.tin.topology.edge_table` and :func:`~toolbox.terrain.tin.topology.triangle_areas`
+for int32 triangles and neighbours (a triangulation's own arrays).
 
 The numpy version makes about ten whole-array temporaries (half-edge indices, masks, the
 neighbours' rows): 0.15 s of CPU for a 1 M-point TIN's 3 M edges once its memory is warm, and
