@@ -158,7 +158,7 @@ class Delaunay(Algorithm):
 
     def process(self, params, feedback: Feedback):
         from toolbox.terrain.tin.build import SOURCES, TinBuildError, build_tin
-        from toolbox.terrain.tin.store import write_tin
+        from toolbox.terrain.tin.store import NodesAhead, write_tin
 
         named = {k: params[k].crs for k in ("INPUT", "BREAKLINES", "BOUNDARY")
                  if params[k] is not None}
@@ -185,13 +185,17 @@ class Delaunay(Algorithm):
         helper = ThreadPoolExecutor(1, thread_name_prefix="tin-helper")
         if vector_driver(params["OUTPUT"]) != "Parquet":  # GeoParquet: pyarrow alone writes it
             helper.submit(import_gdal_writer)  # while the triangulation runs (CDT lets go the GIL)
+        # a new GeoPackage's nodes layer, when the nodes are known first, is written then too
+        ahead = NodesAhead(params["OUTPUT"], crs, params["SPATIAL_INDEX"], params["EDGES"],
+                           helper)
         with helper, feedback.timed("triangulate"):
             try:
                 model = build_tin(points, line_xyz, line_index, boundary=boundary,
                                   concave=params["HULL"] == "concave",
                                   concave_max_edge=params["MAX_EDGE"],
                                   duplicate_rule=params["DUPLICATES"],
-                                  duplicate_tolerance=params["DUPLICATE_TOLERANCE"])
+                                  duplicate_tolerance=params["DUPLICATE_TOLERANCE"],
+                                  nodes_ready=ahead)
             except TinBuildError as exc:
                 raise InputDataError(f"cannot build the TIN: {exc}") from None
             points = line_xyz = line_index = None  # the model holds its nodes: free the inputs
@@ -201,7 +205,7 @@ class Delaunay(Algorithm):
         with ThreadPoolExecutor(1, thread_name_prefix="tin-summary") as pool:
             summary = pool.submit(_surface_summary, model)
             counts = write_tin(params["OUTPUT"], model, crs, params["SPATIAL_INDEX"],
-                               feedback.step(35, 100), edges_layer=params["EDGES"])
+                               feedback.step(35, 100), edges_layer=params["EDGES"], ahead=ahead)
         stats = dict(model.report)
         if cloud is not None:
             stats["point_cloud"] = cloud

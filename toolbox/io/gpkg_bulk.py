@@ -20,7 +20,7 @@ from __future__ import annotations
 import sqlite3
 from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
-from typing import Any, Protocol
+from typing import Any, NamedTuple, Protocol
 
 import numpy as np
 
@@ -210,16 +210,30 @@ def create_empty_layer(path: Path, layer: BulkLayer, crs_text: str | None,
                             dataset_options=dataset_options)
 
 
+class RtreeToWrite(NamedTuple):
+    """A layer's R-tree left for :func:`write_rtrees_bulk`: its table, the features' boxes as
+    SQLite stores them (fids 1..n), the file's page size."""
+
+    rtree: str
+    stored: np.ndarray
+    page_size: int
+
+
 def write_layer_bulk(path: Path, layer: BulkLayer, crs_text: str | None, spatial_index: bool,
-                     dataset_options: dict | None = None) -> None:
+                     dataset_options: dict | None = None, created: bool = False,
+                     rtrees: list[RtreeToWrite] | None = None) -> None:
     """Add ``layer`` to the GeoPackage ``path`` (created when it does not exist): GDAL makes it
     empty, the features and the R-tree are then written as pages (see the module's docs).
+    ``created``: :func:`create_empty_layer` made it already (with ``spatial_index``).
+    ``rtrees``: the R-tree is added to this list instead of written (see
+    :func:`write_rtrees_bulk`).
 
     Raises :class:`BulkUnsupported` for what it does not write (the page writer's
     :class:`toolbox.io.sqlite_pages.UnsupportedDatabase` too); the file may then be left
     half-written: the caller removes it and writes the whole file with GDAL.
     """
-    create_empty_layer(path, layer, crs_text, spatial_index, dataset_options)
+    if not created:
+        create_empty_layer(path, layer, crs_text, spatial_index, dataset_options)
     if layer.n == 0:
         return
     db = sqlite3.connect(path, isolation_level=None)
@@ -254,14 +268,43 @@ def write_layer_bulk(path: Path, layer: BulkLayer, crs_text: str | None, spatial
             pages.fill(layer.name, batches())
             if getattr(layer, "release", None) is not None:
                 layer.release()
-            if stored is not None:
-                tree = packed_rtree_stored(np.arange(1, layer.n + 1, dtype=np.int64), stored,
-                                           page_size)
+            if stored is not None and rtrees is not None:
+                rtrees.append(RtreeToWrite(table.rtree, stored, page_size))
+            elif stored is not None:
+                tree = _packed(RtreeToWrite(table.rtree, stored, page_size))
                 stored = None
                 _fill_rtree(pages, table.rtree, tree)
     except UnsupportedDatabase as exc:
         raise BulkUnsupported(str(exc)) from exc
     _set_metadata(path, layer.name, layer.n, extent)
+
+
+def write_rtrees_bulk(path: Path, rtrees: list[RtreeToWrite]) -> None:
+    """Write the R-trees that :func:`write_layer_bulk` left in ``rtrees`` (emptied), packed on
+    two threads at once, each written as soon as it is packed: the packing is numpy's work and
+    new memory, which a second core halves (a 1 M-point TIN's triangles and edges trees: 0.48
+    -> 0.28 s); holding them all at once is the cost."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    if not rtrees:
+        return
+    names = [r.rtree for r in rtrees]
+    with ThreadPoolExecutor(2, thread_name_prefix="gpkg-bulk-rtree") as pool:
+        trees = pool.map(_packed, list(rtrees))  # all submitted now, yielded in order
+        rtrees.clear()
+        try:
+            with BtreeAppender(path) as pages:
+                for name, tree in zip(names, trees, strict=True):
+                    _fill_rtree(pages, name, tree)
+        except UnsupportedDatabase as exc:
+            raise BulkUnsupported(str(exc)) from exc
+
+
+def _packed(rtree: RtreeToWrite):
+    """The packed tree of a layer's stored boxes (fids 1..n)."""
+    n = len(rtree.stored)
+    return packed_rtree_stored(np.arange(1, n + 1, dtype=np.int64), rtree.stored,
+                               rtree.page_size)
 
 
 def ahead_map(func: Callable, args: Iterable[tuple], workers: int = 2,

@@ -100,7 +100,7 @@ def test_edge_table_takes_the_kernel_only_for_what_it_handles(monkeypatch):
 
 
 def test_a_small_tin_made_once_is_written_as_a_big_one_made_twice(tmp_path, monkeypatch):
-    """KEEP_EDGE_TABLE_TRIANGLES: the edge table kept from the triangles layer for the edges
+    """SMALL_TIN_TRIANGLES: the edge table kept from the triangles layer for the edges
     layer gives the very rows of the table made again (every table of the GeoPackage but the
     styles, whose timestamps differ)."""
     rng = np.random.default_rng(8)
@@ -110,7 +110,7 @@ def test_a_small_tin_made_once_is_written_as_a_big_one_made_twice(tmp_path, monk
                                 [ORIGIN[0] + 290, ORIGIN[1] + 280, 255.0]]), np.array([0, 0]))
     kept = tmp_path / "kept.gpkg"
     store.write_tin(kept, model)
-    monkeypatch.setattr(store, "KEEP_EDGE_TABLE_TRIANGLES", 0)
+    monkeypatch.setattr(store, "SMALL_TIN_TRIANGLES", 0)
     again = tmp_path / "again.gpkg"
     store.write_tin(again, model)
 

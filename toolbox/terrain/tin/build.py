@@ -181,7 +181,7 @@ def _renumber(tri_keep: np.ndarray, triangles: np.ndarray, neighbors: np.ndarray
 def build_tin(points: np.ndarray, line_xyz: np.ndarray | None = None,
               line_index: np.ndarray | None = None, boundary=None, concave: bool = False,
               concave_max_edge: float | None = None, duplicate_rule: str = "mean",
-              duplicate_tolerance: float = 0.0) -> TinModel:
+              duplicate_tolerance: float = 0.0, nodes_ready=None) -> TinModel:
     """Constrained Delaunay TIN of mass points and breaklines, clipped to a boundary.
 
     Parameters
@@ -204,6 +204,11 @@ def build_tin(points: np.ndarray, line_xyz: np.ndarray | None = None,
         Z of points sharing an XY position; breakline vertices come first for "first".
     duplicate_tolerance : float
         Planimetric distance under which points are the same position (0: equal XY).
+    nodes_ready : callable, optional
+        Called as ``nodes_ready(xyz, source, merged)`` with the model's nodes before the
+        triangulation when they are known then (no breaklines, boundary or concave hull: every
+        node is a merged input point, and the triangulation uses every one): the caller may
+        write them while the triangulation runs (:class:`toolbox.terrain.tin.store.NodesAhead`).
 
     Returns
     -------
@@ -260,6 +265,8 @@ def build_tin(points: np.ndarray, line_xyz: np.ndarray | None = None,
     except ValueError as exc:
         raise TinBuildError(str(exc)) from None
     n_break = len(segments)
+    if nodes_ready is not None and n_break == 0 and boundary is None and not concave:
+        nodes_ready(nodes, source, merged)
     tri, z, spread = _triangulate(nodes, segments, np.ones(n_break))
     inside = None
     if boundary is not None:

@@ -46,7 +46,9 @@ from toolbox.terrain.tin.topology import EdgeTable, corner_measures, edge_table,
 
 _WKB_POINT_Z, _WKB_LINESTRING_Z, _WKB_POLYGON_Z = 1001, 1002, 1003
 BATCH = 1 << 16  # features per Arrow batch (GDAL's own Arrow batch size)
-KEEP_EDGE_TABLE_TRIANGLES = 4_000_000  # up to this many triangles the edge table is made once
+# up to this many triangles (a memory budget: the 10 M-point peak), the edge table is made once
+# and the R-trees are packed together at the end
+SMALL_TIN_TRIANGLES = 4_000_000
 
 
 def _wkb_buffer(type_code: int, n: int, k: int, ring: bool) -> tuple[np.ndarray, np.ndarray]:
@@ -169,10 +171,12 @@ def _dbf_columns(make):
 
 
 def _write_layer(path: Path, layer: _Layer, crs: Any, spatial_index: bool,
-                 bulk: bool = False) -> None:
+                 bulk: bool = False, created: bool = False, rtrees: list | None = None) -> None:
     """Write one layer in the format of ``path``'s extension (``path`` is this layer's own file
     for one-layer formats). ``bulk``: a GeoPackage's layer through
-    :func:`toolbox.io.gpkg_bulk.write_layer_bulk` (pages written with numpy). Otherwise through
+    :func:`toolbox.io.gpkg_bulk.write_layer_bulk` (pages written with numpy; ``created``: GDAL
+    made the layer empty already, :class:`NodesAhead`; ``rtrees``: its R-tree is left in the
+    list, see :func:`toolbox.io.gpkg_bulk.write_rtrees_bulk`). Otherwise through
     Arrow, the batches stream into GDAL one at a time; GDAL builds a GeoPackage's spatial index
     once, after the last feature (in bulk, on a thread of its own), not feature by feature."""
     import pyogrio
@@ -184,7 +188,8 @@ def _write_layer(path: Path, layer: _Layer, crs: Any, spatial_index: bool,
         from toolbox.io.gpkg_bulk import write_layer_bulk
 
         with staged_gpkg_writes(), writing(path):
-            write_layer_bulk(path, layer, crs_text, spatial_index, dataset_options)
+            write_layer_bulk(path, layer, crs_text, spatial_index, dataset_options, created,
+                             rtrees)
         return
     options = {"SPATIAL_INDEX": "YES" if spatial_index else "NO"} \
         if driver in ("GPKG", "FlatGeobuf", "ESRI Shapefile") else {}
@@ -235,7 +240,8 @@ def _serial(lo: int, hi: int) -> tuple[np.ndarray, None]:
 
 
 def write_tin(path: str | Path, model: TinModel, crs: Any = None, spatial_index: bool = True,
-              feedback=None, edges_layer: bool = True) -> dict[str, int]:
+              feedback=None, edges_layer: bool = True,
+              ahead: NodesAhead | None = None) -> dict[str, int]:
     """Write the ``triangles``, ``nodes`` and (unless ``edges_layer`` is False) ``edges`` layers
     of ``model`` to a GeoPackage (1.2), or in the format of ``path``'s extension: FlatGeobuf,
     GeoParquet (as fast as a new GeoPackage, a third of its size), Shapefile or GeoJSON, one
@@ -246,14 +252,19 @@ def write_tin(path: str | Path, model: TinModel, crs: Any = None, spatial_index:
     memory holds the model and one batch, not a second copy of every layer. A new GeoPackage
     is written in bulk (:mod:`toolbox.io.gpkg_bulk`: SQLite pages built with numpy, several
     times faster than GDAL's inserts); what that writer does not take is written by GDAL.
+    ``ahead``: the :class:`NodesAhead` that was given the model's nodes while it was built
+    (same ``path``, ``crs``, ``spatial_index`` and ``edges_layer``); its layers are kept.
     Returns the feature count of each layer (edges are counted even when not written).
     """
     path = Path(path)
-    if vector_driver(path) == "GPKG" and not path.exists():
+    started = ahead is not None and ahead.started
+    if vector_driver(path) == "GPKG" and (started or not path.exists()):
         from toolbox.io.gpkg_bulk import BulkUnsupported
 
         try:
-            return _write_tin(path, model, crs, spatial_index, feedback, edges_layer, bulk=True)
+            written = started and ahead.written(model, path, spatial_index, edges_layer)
+            return _write_tin(path, model, crs, spatial_index, feedback, edges_layer, bulk=True,
+                              nodes_written=written)
         except BulkUnsupported as exc:
             import logging
 
@@ -264,7 +275,9 @@ def write_tin(path: str | Path, model: TinModel, crs: Any = None, spatial_index:
 
 
 def _write_tin(path: Path, model: TinModel, crs: Any, spatial_index: bool, feedback,
-               edges_layer: bool, bulk: bool = False) -> dict[str, int]:
+               edges_layer: bool, bulk: bool = False, nodes_written: bool = False
+               ) -> dict[str, int]:
+    """``nodes_written``: the three layers exist (empty) and the nodes layer is written."""
     targets = layer_paths(path, ["triangles", "nodes", "edges"])
     xyz, tri, nb = model.xyz, model.triangles, model.neighbors
     # A big TIN keeps only the triangles' edge ids while the triangles layer is written (GDAL
@@ -273,11 +286,44 @@ def _write_tin(path: Path, model: TinModel, crs: Any, spatial_index: bool, feedb
     # of CPU at 1 M points)
     keep = [edge_table(tri, nb)]
     triangle_edges = keep[0].triangle_edges  # set to None after that layer
-    if not edges_layer or len(tri) > KEEP_EDGE_TABLE_TRIANGLES:
+    if not edges_layer or len(tri) > SMALL_TIN_TRIANGLES:
         keep.clear()
     n_edges = int(triangle_edges.max()) + 1 if triangle_edges.size else 0  # ids 0..n-1
-    step = _Steps(feedback, 3 if edges_layer else 2)
+    # a small TIN's R-trees are packed at the end, two at once (gpkg_bulk.write_rtrees_bulk); a
+    # big one's each after its layer's rows (its layers' boxes are never all held at once)
+    rtrees = [] if bulk and spatial_index and len(tri) <= SMALL_TIN_TRIANGLES else None
+    step = _Steps(feedback, (3 if edges_layer else 2) - nodes_written + (rtrees is not None))
+    with step("write triangles"):
+        _write_layer(targets["triangles"], _triangles_layer(xyz, tri, nb, triangle_edges), crs,
+                     spatial_index, bulk, nodes_written, rtrees)
+    triangle_edges = None  # the layer's reference went with it: freed before the nodes layer
+    with ThreadPoolExecutor(1, thread_name_prefix="tin-edges") as pool:
+        # the edges' table (without triangle_edges, T x 3), made again beside the nodes layer
+        # (1 M points: 0.3 s) unless kept; popped when used: _write_edges holds the only
+        # reference
+        table = [pool.submit(lambda: _without_triangle_edges(keep.pop() if keep
+                                                             else edge_table(tri, nb)))] \
+            if edges_layer else []
+        if not nodes_written:
+            with step("write nodes"):
+                _write_layer(targets["nodes"],
+                             _nodes_layer_of(model.xyz, model.source, model.merged), crs,
+                             spatial_index, bulk, rtrees=rtrees)
+        if table:
+            with step("write edges"):
+                _write_edges(targets["edges"], model, table.pop().result(), crs, spatial_index,
+                             bulk, nodes_written, rtrees)
+    if rtrees is not None:
+        from toolbox.io.gpkg_bulk import write_rtrees_bulk
 
+        with step("write spatial indexes"), writing(path):
+            write_rtrees_bulk(path, rtrees)
+    return {"triangles": len(tri), "nodes": len(xyz), "edges": n_edges}
+
+
+def _triangles_layer(xyz: np.ndarray, tri: np.ndarray, nb: np.ndarray,
+                     triangle_edges: np.ndarray) -> _Layer:
+    """The ``triangles`` layer: ids, nodes, neighbours, edges, measures and PolygonZ rings."""
     def triangles(lo: int, hi: int):
         columns = {"id": _serial(lo, hi)}
         for prefix, table in (("node", tri), ("nbr", nb), ("edge", triangle_edges)):
@@ -289,33 +335,88 @@ def _write_tin(path: Path, model: TinModel, crs: Any, spatial_index: bool, feedb
             columns[name] = (getattr(measures, name), None)
         return columns, wkb_records(_WKB_POLYGON_Z, vertices, ring=True)
 
-    sources = np.asarray(SOURCES)  # numpy str: written without a Python object a node
+    return _Layer("triangles", len(tri), triangles, "Polygon Z")
 
+
+_SOURCE_NAMES = np.asarray(SOURCES)  # numpy str: written without a Python object a node
+
+
+def _nodes_layer_of(xyz: np.ndarray, source: np.ndarray, merged: np.ndarray) -> _Layer:
+    """The ``nodes`` layer: ids, source names, merged counts, Z and PointZ geometries."""
     def nodes(lo: int, hi: int):
-        columns = {"id": _serial(lo, hi), "source": (sources[model.source[lo:hi]], None),
-                   "merged": (model.merged[lo:hi].astype(np.int64), None),
+        columns = {"id": _serial(lo, hi), "source": (_SOURCE_NAMES[source[lo:hi]], None),
+                   "merged": (merged[lo:hi].astype(np.int64), None),
                    "z": (xyz[lo:hi, 2].copy(), None)}
         return columns, wkb_records(_WKB_POINT_Z, xyz[lo:hi, None, :])
 
-    with step("write triangles"):
-        _write_layer(targets["triangles"], _Layer("triangles", len(tri), triangles, "Polygon Z"),
-                     crs, spatial_index, bulk)
-    triangle_edges = None  # the closure's reference too: freed before the nodes layer
-    with ThreadPoolExecutor(1, thread_name_prefix="tin-edges") as pool:
-        # the edges' table (without triangle_edges, T x 3), made again beside the nodes layer
-        # (1 M points: 0.3 s) unless kept; popped when used: _write_edges holds the only
-        # reference
-        table = [pool.submit(lambda: _without_triangle_edges(keep.pop() if keep
-                                                             else edge_table(tri, nb)))] \
-            if edges_layer else []
-        with step("write nodes"):
-            _write_layer(targets["nodes"], _Layer("nodes", len(xyz), nodes, "Point Z"), crs,
-                         spatial_index, bulk)
-        if table:
-            with step("write edges"):
-                _write_edges(targets["edges"], model, table.pop().result(), crs, spatial_index,
-                             bulk)
-    return {"triangles": len(tri), "nodes": len(xyz), "edges": n_edges}
+    return _Layer("nodes", len(xyz), nodes, "Point Z")
+
+
+class NodesAhead:
+    """A new TIN GeoPackage's ``nodes`` layer, written on a thread while the triangulation runs.
+
+    Without breaklines, boundary and concave hull, a TIN's nodes are its (merged) input points,
+    known before the triangulation: :func:`toolbox.terrain.tin.build.build_tin` hands them to
+    its ``nodes_ready`` callback, this object. PythonCDT lets the GIL go while it inserts the
+    points, so the other core creates the empty layers (triangles, nodes, edges: GDAL lists a
+    GeoPackage's layers in the order they were made) and writes the nodes in bulk then (a
+    million points: 0.3 s taken off the writing). :func:`write_tin` given this object waits
+    for that writing and writes the other two layers; any failure of it is raised there.
+    """
+
+    def __init__(self, path: str | Path, crs: Any, spatial_index: bool, edges_layer: bool,
+                 pool) -> None:
+        self.path, self.crs, self.pool = Path(path), crs, pool
+        self.spatial_index, self.edges_layer = spatial_index, edges_layer
+        self._future = None
+        self._xyz: np.ndarray | None = None
+
+    @property
+    def started(self) -> bool:
+        return self._future is not None
+
+    def __call__(self, xyz: np.ndarray, source: np.ndarray, merged: np.ndarray) -> None:
+        """Start writing these nodes (a new GeoPackage only; otherwise nothing is done)."""
+        if self.started or vector_driver(self.path) != "GPKG" or self.path.exists():
+            return
+        self._xyz = xyz
+        self._future = self.pool.submit(self._write, _nodes_layer_of(xyz, source, merged))
+
+    def _write(self, nodes: _Layer) -> None:
+        from toolbox.io.gpkg_bulk import create_empty_layer
+
+        crs_text = None if self.crs is None else self.crs.to_wkt()
+        shape = _one_triangle_model()  # the other layers' fields, from their own code
+        layers = [_triangles_layer(shape.xyz, shape.triangles, shape.neighbors,
+                                   edge_table(shape.triangles, shape.neighbors).triangle_edges),
+                  nodes]
+        if self.edges_layer:
+            layers.append(_edges_layer(shape, [edge_table(shape.triangles, shape.neighbors)]))
+        with staged_gpkg_writes(), writing(self.path):
+            for layer in layers:
+                create_empty_layer(self.path, layer, crs_text, self.spatial_index,
+                                   None if self.path.exists() else GPKG_DATASET_OPTIONS)
+        _write_layer(self.path, nodes, self.crs, self.spatial_index, bulk=True, created=True)
+
+    def written(self, model: TinModel, path: Path, spatial_index: bool,
+                edges_layer: bool) -> bool:
+        """Wait for the writing (raising its error) and check that it wrote ``model``'s nodes
+        (True)."""
+        if (path, spatial_index, edges_layer) != (self.path, self.spatial_index,
+                                                   self.edges_layer):
+            raise ValueError("write_tin: ahead was made for another file or other options")
+        self._future.result()
+        if not np.array_equal(self._xyz, model.xyz):  # build_tin's contract: never expected
+            raise RuntimeError("internal: the TIN's nodes are not those written ahead")
+        return True
+
+
+def _one_triangle_model() -> TinModel:
+    """A TIN of one triangle: the layers' fields and types without a real model."""
+    xyz = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+    return TinModel(xyz, np.zeros(3, np.int8), np.ones(3, np.int64),
+                    np.array([[0, 1, 2]], np.int32), np.full((1, 3), -1, np.int32),
+                    np.zeros((0, 2), np.int64))
 
 
 def breakline_flags(edges: EdgeTable, breakline_edges: np.ndarray, n_nodes: int) -> np.ndarray:
@@ -332,15 +433,22 @@ def _without_triangle_edges(table: EdgeTable) -> EdgeTable:
 
 
 def _write_edges(path: Path, model: TinModel, edges: EdgeTable, crs: Any,
-                 spatial_index: bool, bulk: bool = False) -> None:
+                 spatial_index: bool, bulk: bool = False, created: bool = False,
+                 rtrees: list | None = None) -> None:
     """The edges layer. In bulk, the edge table is let go once every batch was made (the
     caller keeps no reference): the R-tree is packed without it (10 M points: 0.5 GB less at
     the run's peak). A bulk refusal rewrites the whole TIN through GDAL from the model."""
-    xyz = model.xyz
-    breakline = breakline_flags(edges, model.breakline_edges, len(xyz))
-    n = len(edges.nodes)
     held = [edges]
     del edges
+    _write_layer(path, _edges_layer(model, held), crs, spatial_index, bulk, created, rtrees)
+
+
+def _edges_layer(model: TinModel, held: list[EdgeTable]) -> _Layer:
+    """The ``edges`` layer of the edge table ``held[0]``; the layer's ``release`` empties
+    ``held`` (the writer in bulk lets the table go once every batch is made)."""
+    xyz = model.xyz
+    breakline = breakline_flags(held[0], model.breakline_edges, len(xyz))
+    n = len(held[0].nodes)
 
     def make(lo: int, hi: int):
         edges = held[0]
@@ -355,8 +463,7 @@ def _write_edges(path: Path, model: TinModel, edges: EdgeTable, crs: Any,
                    "length_3d": (np.hypot(length_2d, d[:, 2]), None)}
         return columns, wkb_records(_WKB_LINESTRING_Z, ends_xyz)
 
-    _write_layer(path, _Layer("edges", n, make, "LineString Z", held.clear if bulk else None),
-                 crs, spatial_index, bulk)
+    return _Layer("edges", n, make, "LineString Z", held.clear)
 
 
 class _Steps:
