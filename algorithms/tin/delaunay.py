@@ -118,8 +118,8 @@ class Delaunay(Algorithm):
         Boolean("SPATIAL_INDEX", "write GeoPackage spatial indexes (faster display of large "
                 "TINs in QGIS; adds about a third to the writing time)", default=True),
         # duplicate-ok: declared layers and fields (a spec read by the docs and QGIS, not logic)
-        OutputVector("OUTPUT", "TIN GeoPackage (layers triangles, nodes, edges); .parquet or "
-                     ".fgb write big TINs several times faster (one file per layer)", layers=[
+        OutputVector("OUTPUT", "TIN GeoPackage (layers triangles, nodes, edges); .parquet "
+                     "(a third of the size) or .fgb write one file per layer", layers=[
             Layer("triangles", "Polygon Z", [
                 ("id", "integer", "triangle id"), ("node1", "integer", "first node id"),
                 ("node2", "integer", "second node id"), ("node3", "integer", "third node id"),
