@@ -64,8 +64,10 @@ def _wkb_buffer(type_code: int, n: int, k: int, ring: bool) -> tuple[np.ndarray,
         header = np.array([type_code, k], dtype="<u4")
     head = 1 + 4 * len(header)
     out = np.empty((n, head + 24 * k), dtype=np.uint8)
-    out[:, 0] = 1  # little endian
-    out[:, 1:head] = header.view(np.uint8)
+    # 1 (little endian) and the header, one void item a record (a (n, head) slice copies byte
+    # by byte: 10 times slower)
+    start = np.concatenate([[1], header.view(np.uint8)]).astype(np.uint8).view(f"V{head}")[0]
+    np.ndarray(n, dtype=f"V{head}", buffer=out, strides=(out.shape[1],))[:] = start
     return out, np.ndarray((n, k), dtype="V24", buffer=out, offset=head, strides=(out.shape[1], 24))
 
 
