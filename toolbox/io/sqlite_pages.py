@@ -381,7 +381,8 @@ def _encode_fixed(cols: list[_Col], n: int):
             template[p] = 0
             varying.append((p, st))
         if width:
-            bodies.append((q, width, _void_rows(body)))
+            bodies.append((q, width, _void_rows(body if body.strides[1] == 1
+                                                else np.ascontiguousarray(body))))
         if mask is not None:
             masked.append((p, stlen, q, width, mask))
             rowlen -= (stlen - 1 + width) * mask
@@ -436,10 +437,10 @@ def _fill_columns(out: np.ndarray, a: int, b: int, template: np.ndarray, varying
 
 
 def _void_rows(rows: np.ndarray) -> np.ndarray:
-    """The ``(n, width)`` uint8 ``rows`` as ``(n,)`` void items of ``width`` bytes (a view when
-    each row's bytes are contiguous, else a copy)."""
+    """A view of the ``(n, width)`` uint8 ``rows`` as ``(n,)`` void items of ``width`` bytes
+    (each row's bytes contiguous; never a copy: a destination's writes must land)."""
     if rows.strides[1] != 1:
-        rows = np.ascontiguousarray(rows)
+        raise ValueError(f"rows: byte stride {rows.strides[1]}, expected 1")
     return rows.view(np.dtype((np.void, rows.shape[1])))[:, 0]
 
 

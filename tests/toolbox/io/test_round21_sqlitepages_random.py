@@ -14,9 +14,9 @@ from hypothesis import strategies as st
 
 from toolbox.io.sqlite_pages import BtreeAppender, encode_records
 
-KINDS = ("int", "real", "bool", "text", "blob", "fixed_blob", "small_int")
+KINDS = ("int", "real", "bool", "text", "blob", "fixed_blob", "small_int", "strided_blob")
 DECL = {"int": "INTEGER", "small_int": "INTEGER", "real": "REAL", "bool": "INTEGER",
-        "text": "TEXT", "blob": "BLOB", "fixed_blob": "BLOB"}
+        "text": "TEXT", "blob": "BLOB", "fixed_blob": "BLOB", "strided_blob": "BLOB"}
 
 
 def column(kind, n, rng, null_rate, width):
@@ -43,13 +43,16 @@ def column(kind, n, rng, null_rate, width):
         v = np.array([bytes(rng.integers(0, 256, int(k)).astype(np.uint8))
                       for k in rng.integers(0, 60, n)], object)
         py = list(v)
+    elif kind == "strided_blob":  # (n, width) bytes that are not contiguous within a row
+        v = rng.integers(0, 256, (n, 2 * width)).astype(np.uint8)[:, ::2]
+        py = [bytes(r) for r in v]
     else:
         v = rng.integers(0, 256, (n, width)).astype(np.uint8)
         py = [bytes(r) for r in v]
     if mask is not None:
         py = [None if m else x for x, m in zip(py, mask)]
     spec = "bool" if kind == "bool" else "int" if kind == "small_int" else (
-        "blob" if kind == "fixed_blob" else kind)
+        "blob" if kind in ("fixed_blob", "strided_blob") else kind)
     return (spec, v, mask), py
 
 
