@@ -246,7 +246,7 @@ def write_tin(path: str | Path, model: TinModel, crs: Any = None, spatial_index:
               ahead: NodesAhead | None = None) -> dict[str, int]:
     """Write the ``triangles``, ``nodes`` and (unless ``edges_layer`` is False) ``edges`` layers
     of ``model`` to a GeoPackage (1.2), or in the format of ``path``'s extension: FlatGeobuf,
-    GeoParquet (as fast as a new GeoPackage, a third of its size), Shapefile or GeoJSON, one
+    GeoParquet (a third of a new GeoPackage's size, a little slower), Shapefile or GeoJSON, one
     file per layer (``tin.fgb`` holds the triangles, ``tin_nodes.fgb`` and ``tin_edges.fgb`` the
     others).
 
